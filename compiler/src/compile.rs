@@ -1,0 +1,117 @@
+//! The compiler driver: one `.sl` file through every phase.
+
+use crate::diagnostic::{Diagnostic, Diagnostics, Severity};
+use crate::front::parse::ast::{self, ShaderKind};
+use crate::front::{check, parse, preprocess};
+use crate::interface::ShaderInterface;
+use crate::ir::Module;
+use crate::source::{FileId, SourceMap};
+use crate::symbol::Interner;
+use std::path::Path;
+
+/// Settings for a compilation.
+#[derive(Clone, Debug, Default)]
+pub struct Options {
+    pub preprocessor: preprocess::Options,
+}
+
+/// Everything one compilation produced. Always returned, whatever the input.
+#[derive(Debug)]
+pub struct Compilation {
+    pub sources: SourceMap,
+    /// Errors and warnings, sorted by position.
+    pub diagnostics: Vec<Diagnostic>,
+    /// The checked IR, when there was no error.
+    pub module: Option<Module>,
+    /// The shader's interface, when there was no error and the file defines a shader.
+    pub interface: Option<ShaderInterface>,
+    /// The type and name of the shader the file defines, known as soon as it parsed.
+    pub shader: Option<(ShaderKind, String)>,
+    /// The main file and every file it included, main file first.
+    pub files: Vec<FileId>,
+    /// Lines of source read (main file and includes, counting each include once).
+    pub lines: usize,
+}
+
+impl Compilation {
+    pub fn ok(&self) -> bool {
+        !self.diagnostics.iter().any(Diagnostic::is_error)
+    }
+
+    pub fn errors(&self) -> usize {
+        self.diagnostics.iter().filter(|d| d.severity == Severity::Error).count()
+    }
+
+    pub fn warnings(&self) -> usize {
+        self.diagnostics.iter().filter(|d| d.severity == Severity::Warning).count()
+    }
+
+    /// The diagnostics rendered as rustc does (no colour).
+    pub fn render(&self) -> String {
+        crate::diagnostic::render(&self.sources, &self.diagnostics)
+    }
+}
+
+/// Compiles a file from disk. A file that cannot be read gives a compilation with no module and an
+/// `Err` describing the I/O problem.
+pub fn compile_file(path: &Path, options: &Options) -> std::io::Result<Compilation> {
+    let mut sources = SourceMap::new();
+    let file = sources.load(path)?;
+    Ok(compile_loaded(sources, file, options))
+}
+
+/// Compiles source text held in memory; `name` is used in diagnostics and `#include "x"` is looked up
+/// in the include path only.
+pub fn compile_source(name: &str, text: &str, options: &Options) -> Compilation {
+    let mut sources = SourceMap::new();
+    let file = sources.add_virtual(name, text.to_string());
+    compile_loaded(sources, file, options)
+}
+
+/// Compiles source text held in memory as if it were the file at `path` (so `#include "x"` searches
+/// that file's directory first). Used where the caller has already read the file.
+pub fn compile_source_at(path: &Path, text: &str, options: &Options) -> Compilation {
+    let mut sources = SourceMap::new();
+    let file = sources.add(path.display().to_string(), Some(path.to_path_buf()), text.to_string());
+    compile_loaded(sources, file, options)
+}
+
+fn compile_loaded(mut sources: SourceMap, file: FileId, options: &Options) -> Compilation {
+    let mut interner = Interner::new();
+    let mut diags = Diagnostics::default();
+    let pre = preprocess::preprocess(file, &mut sources, &mut interner, &options.preprocessor, &mut diags);
+    let unit = parse::parse(&pre.tokens, &mut interner, &mut diags);
+    let shader = unit.items.iter().find_map(|i| match i {
+        ast::Item::Shader(s) => Some((s.kind, interner.resolve(s.name.sym).to_string())),
+        _ => None,
+    });
+    let checked = check::check(&unit, &interner, &mut diags);
+    drop_syntax_cascades(&mut diags, &sources);
+    diags.finish();
+    let interface = checked.module.as_ref().and_then(|m| ShaderInterface::from_module(m, &sources));
+    let lines = pre.files.iter().map(|f| sources.get(*f).line_count()).sum();
+    Compilation { diagnostics: diags.list, module: checked.module, interface, shader, files: pre.files, lines, sources }
+}
+
+/// A bad character or unterminated string is dropped by the preprocessor, so the parser usually
+/// trips over the gap it leaves. That second error says nothing new: drop syntax errors on a line
+/// that already has a lexical error.
+fn drop_syntax_cascades(diags: &mut Diagnostics, sources: &SourceMap) {
+    use crate::diagnostic::Code;
+    let lexical: Vec<(FileId, usize)> = diags
+        .list
+        .iter()
+        .filter(|d| matches!(d.code, Code::InvalidCharacter | Code::UnterminatedString | Code::UnterminatedComment))
+        .map(|d| (d.span.file, sources.get(d.span.file).line_index(d.span.start)))
+        .collect();
+    if lexical.is_empty() {
+        return;
+    }
+    diags.list.retain(|d| {
+        if !matches!(d.code, Code::Syntax | Code::UnexpectedEof) {
+            return true;
+        }
+        let line = sources.get(d.span.file).line_index(d.span.start);
+        !lexical.iter().any(|&(f, l)| f == d.span.file && (l == line || l + 1 == line))
+    });
+}

@@ -1,0 +1,428 @@
+//! Calls: user functions and built-ins, with overload resolution.
+//!
+//! Overloads are ranked by the cost of converting each argument (exact, then point/vector/normal
+//! interchange, then float promotion); the cheapest wins. When several overloads differ only in their
+//! result (`noise`, `texture`, `random`), the type the context expects picks one, and otherwise the
+//! first in table order (float for the noise family, as RSL specifies).
+
+use super::convert::{array_compatible, conversion, Conversion};
+use super::expr::closest;
+use super::{Binding, Checker, WithLabel};
+use crate::builtins::{self, flags, Builtin, Signature};
+use crate::diagnostic::{Code, Diagnostic};
+use crate::front::parse::ast;
+use crate::ir::{Arg, ArrayLen, BaseType, Constant, ExprId, ExprKind, Place, PlaceBase, Type};
+use crate::source::Span;
+
+/// An argument after lowering: a value or a place, with its type.
+#[derive(Clone, Debug)]
+enum Lowered {
+    Value(ExprId, Type),
+    Place(Place),
+}
+
+impl Lowered {
+    fn ty(&self) -> Type {
+        match self {
+            Lowered::Value(_, t) => *t,
+            Lowered::Place(p) => p.ty,
+        }
+    }
+}
+
+/// One parameter of a candidate, normalised over user functions and built-ins.
+#[derive(Clone, Copy, Debug)]
+struct Param {
+    /// `None` accepts any type.
+    ty: Option<Type>,
+    output: bool,
+}
+
+struct Candidate {
+    params: Vec<Param>,
+    repeat_last: bool,
+    param_list: bool,
+    ret: Type,
+    describe: String,
+}
+
+impl Candidate {
+    fn param(&self, i: usize) -> Option<Param> {
+        match self.params.get(i) {
+            Some(p) => Some(*p),
+            None if self.repeat_last => self.params.last().copied(),
+            None => None,
+        }
+    }
+
+    fn min_args(&self) -> usize {
+        self.params.len() - usize::from(self.repeat_last)
+    }
+
+    /// The cost of calling this candidate with `args`, or `None` if it does not apply.
+    fn cost(&self, args: &[Lowered]) -> Option<u32> {
+        if args.len() < self.min_args() {
+            return None;
+        }
+        let fixed = if self.repeat_last { args.len() } else { self.params.len().min(args.len()) };
+        if args.len() > fixed {
+            // The rest must be a `"name", value` parameter list.
+            if !self.param_list || (args.len() - fixed) % 2 != 0 {
+                return None;
+            }
+            for pair in args[fixed..].chunks(2) {
+                if pair[0].ty() != Type::STRING {
+                    return None;
+                }
+            }
+        }
+        let mut cost = 0;
+        for (i, arg) in args[..fixed].iter().enumerate() {
+            let p = self.param(i)?;
+            let at = arg.ty();
+            if p.output != matches!(arg, Lowered::Place(_)) {
+                return None;
+            }
+            let Some(pt) = p.ty else { continue };
+            if at.is_array() != pt.is_array() || !array_compatible(at, pt) {
+                return None;
+            }
+            if at.is_array() || p.output {
+                if at.base != pt.base && !(at.base.is_pointlike() && pt.base.is_pointlike()) {
+                    return None;
+                }
+                cost += u32::from(at.base != pt.base);
+                continue;
+            }
+            match conversion(at.base, pt.base) {
+                Some(c @ (Conversion::Exact | Conversion::Pointlike | Conversion::Promote)) => cost += c.cost(),
+                _ => return None,
+            }
+        }
+        Some(cost)
+    }
+}
+
+impl Checker<'_> {
+    pub(super) fn call(
+        &mut self,
+        name: &ast::Ident,
+        args: &[ast::Expr],
+        span: Span,
+        expected: Option<BaseType>,
+    ) -> Option<ExprId> {
+        let text = self.name(name.sym).to_string();
+        let user = self.lookup_funcs(name.sym);
+        let builtin = builtins::lookup(&text);
+        if user.is_empty() && builtin.is_none() {
+            if let Some(Binding::Var(v)) = self.lookup_var(name.sym) {
+                self.b().used[v.0 as usize] = true;
+                self.error(Code::NotAFunction, name.span, format!("`{text}` is a variable, not a function"))
+                    .with_label("cannot be called");
+                return None;
+            }
+            let mut d = Diagnostic::new(Code::UndefinedFunction, name.span, format!("unknown function `{text}`"))
+                .with_label("not a built-in or a defined function");
+            let names: Vec<String> = builtins::Builtin::ALL
+                .iter()
+                .map(|b| b.name().to_string())
+                .chain(self.sigs.iter().filter_map(|s| {
+                    self.functions.get(s.id.0 as usize).and_then(|f| f.as_ref()).map(|f| f.name.clone())
+                }))
+                .chain(self.top_funcs.keys().map(|k| self.name(*k).to_string()))
+                .collect();
+            if let Some(best) = closest(&text, names.iter().map(String::as_str)) {
+                d = d.with_note(format!("did you mean `{best}`?"));
+            }
+            self.diags.push(d);
+            // Check the arguments anyway, for their own errors.
+            for a in args {
+                let _ = self.expr(a, None);
+            }
+            return None;
+        }
+        let candidates: Vec<(Option<usize>, Candidate)> = if !user.is_empty() {
+            user.iter().map(|&i| (Some(i), self.user_candidate(i, &text))).collect()
+        } else {
+            let b = builtin.expect("checked above");
+            builtins::signatures(b).iter().map(|s| (None, builtin_candidate(b, s))).collect()
+        };
+        if let Some(b) = builtin.filter(|_| user.is_empty()) {
+            if b.flags() & flags::MESSAGE != 0 {
+                if let Some(first) = args.first() {
+                    if !matches!(first.kind, ast::ExprKind::String(_)) {
+                        let id = self.expr(first, Some(BaseType::String))?;
+                        if self.expr_ty(id) != Type::STRING {
+                            self.error(
+                                Code::MessagePassing,
+                                first.span,
+                                format!("`{text}` needs the name of a parameter as a string"),
+                            )
+                            .with_label("not a string");
+                            return None;
+                        }
+                    }
+                }
+            }
+        }
+        let (lowered, extra) = self.lower_args(builtin.filter(|_| user.is_empty()), &candidates, args)?;
+        let mut lowered = lowered;
+        lowered.extend(extra);
+
+        let mut best: Option<(u32, usize)> = None;
+        let mut tied: Vec<usize> = Vec::new();
+        for (i, (_, c)) in candidates.iter().enumerate() {
+            let Some(cost) = c.cost(&lowered) else { continue };
+            match best {
+                Some((b, _)) if cost > b => {}
+                Some((b, _)) if cost == b => tied.push(i),
+                _ => {
+                    best = Some((cost, i));
+                    tied = vec![i];
+                }
+            }
+        }
+        let Some((_, first)) = best else {
+            self.no_match(&text, name.span, span, &candidates, &lowered, !user.is_empty(), args);
+            return None;
+        };
+        let chosen = match expected {
+            Some(t) => tied.iter().copied().find(|&i| candidates[i].1.ret.base == t).unwrap_or(first),
+            None => first,
+        };
+        let (user_index, cand) = &candidates[chosen];
+        let ret = cand.ret;
+        // Convert arguments to the chosen parameter types.
+        let fixed = if cand.repeat_last { lowered.len() } else { cand.params.len().min(lowered.len()) };
+        let mut out_args = Vec::with_capacity(lowered.len());
+        for (i, arg) in lowered.into_iter().enumerate() {
+            match arg {
+                Lowered::Place(p) => out_args.push(Arg::Ref(p)),
+                Lowered::Value(id, ty) => {
+                    let target = if i < fixed { cand.param(i).and_then(|p| p.ty) } else { None };
+                    let id = match target {
+                        Some(t) if !ty.is_array() && t.base != ty.base => self.convert_node(id, t.base),
+                        _ => id,
+                    };
+                    out_args.push(Arg::Value(id));
+                }
+            }
+        }
+        match user_index {
+            Some(index) => {
+                let index = *index;
+                self.b().calls.push((index, span));
+                let captures = self.sigs[index].captures.clone();
+                let level = self.builders.len() - 1;
+                for (owner, var) in captures {
+                    let local = self.access_outer(level, owner, var);
+                    let ty = self.cur().func.var(local).ty;
+                    out_args.push(Arg::Ref(Place { base: PlaceBase::Var(local), index: None, component: None, ty }));
+                }
+                let func = self.sigs[index].id;
+                Some(self.add_expr(ExprKind::Call { func, args: out_args }, ret, span))
+            }
+            None => {
+                let b = builtin.expect("built-in candidate");
+                if b.flags() & flags::UNSUPPORTED != 0 {
+                    self.diags.push(
+                        Diagnostic::new(
+                            Code::Unsupported,
+                            name.span,
+                            format!("`{text}` is not supported by this renderer"),
+                        )
+                        .with_label("accepted, but does nothing")
+                        .with_note(format!("at run time it reports this once and {}", unsupported_result(b))),
+                    );
+                }
+                // Built-in candidates are the expanded signatures in table order.
+                let overload = chosen as u16;
+                Some(self.add_expr(ExprKind::CallBuiltin { builtin: b, overload, args: out_args }, ret, span))
+            }
+        }
+    }
+
+    fn user_candidate(&self, index: usize, name: &str) -> Candidate {
+        let sig = &self.sigs[index];
+        let params: Vec<Param> = sig.params.iter().map(|(t, o)| Param { ty: Some(*t), output: *o }).collect();
+        let describe = format!(
+            "{} {}({})",
+            sig.ret,
+            name,
+            sig.params
+                .iter()
+                .map(|(t, o)| if *o { format!("output {t}") } else { t.to_string() })
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+        Candidate { params, repeat_last: false, param_list: false, ret: sig.ret, describe }
+    }
+
+    /// Lowers the arguments: as places where every candidate takes an output there, as values
+    /// otherwise (with the parameter type as the expected type when all candidates agree). Also
+    /// returns the parameter-list pair for a texture channel (`texture("file"[1], ...)`).
+    fn lower_args(
+        &mut self,
+        builtin: Option<Builtin>,
+        candidates: &[(Option<usize>, Candidate)],
+        args: &[ast::Expr],
+    ) -> Option<(Vec<Lowered>, Vec<Lowered>)> {
+        let mut lowered = Vec::with_capacity(args.len());
+        let mut extra = Vec::new();
+        let mut ok = true;
+        for (i, a) in args.iter().enumerate() {
+            let params: Vec<Param> = candidates.iter().filter_map(|(_, c)| c.param(i)).collect();
+            let all_output = !params.is_empty() && params.iter().all(|p| p.output);
+            if all_output {
+                match self.place(a, true) {
+                    Some(p) => lowered.push(Lowered::Place(p)),
+                    None => ok = false,
+                }
+                continue;
+            }
+            // `texture("name"[channel], ...)`: the channel becomes a parameter-list entry.
+            if i == 0 && builtin.is_some_and(|b| b.flags() & flags::TEXTURE != 0) {
+                if let ast::ExprKind::Index(base, channel) = &a.kind {
+                    let name = self.expr(base, Some(BaseType::String));
+                    let ch = self.expr(channel, Some(BaseType::Float));
+                    match (name, ch) {
+                        (Some(n), Some(c)) if self.expr_ty(n) == Type::STRING => {
+                            lowered.push(Lowered::Value(n, Type::STRING));
+                            let key = self.add_expr(
+                                ExprKind::Const(Constant::String("channel".into())),
+                                Type::STRING,
+                                channel.span,
+                            );
+                            extra.push(Lowered::Value(key, Type::STRING));
+                            let cty = self.expr_ty(c);
+                            extra.push(Lowered::Value(c, cty));
+                            continue;
+                        }
+                        (Some(_), Some(_)) => {
+                            self.error(Code::BadIndex, base.span, "a channel index needs a texture name")
+                                .with_label("not a string");
+                            ok = false;
+                            continue;
+                        }
+                        _ => {
+                            ok = false;
+                            continue;
+                        }
+                    }
+                }
+            }
+            let first_ty = params.first().and_then(|p| p.ty).map(|t| t.base);
+            let agree = params.iter().all(|p| p.ty.map(|t| t.base) == first_ty);
+            let expected = if agree { first_ty } else { None };
+            match self.expr(a, expected) {
+                Some(id) => {
+                    let ty = self.expr_ty(id);
+                    if ty.base == BaseType::Void {
+                        self.error(Code::VoidValue, a.span, "a `void` function's result used as an argument")
+                            .with_label("no value");
+                        ok = false;
+                    } else {
+                        lowered.push(Lowered::Value(id, ty));
+                    }
+                }
+                None => ok = false,
+            }
+        }
+        ok.then_some((lowered, extra))
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn no_match(
+        &mut self,
+        text: &str,
+        name_span: Span,
+        span: Span,
+        candidates: &[(Option<usize>, Candidate)],
+        lowered: &[Lowered],
+        is_user: bool,
+        args: &[ast::Expr],
+    ) {
+        let given: Vec<String> = lowered
+            .iter()
+            .map(|l| match l {
+                Lowered::Place(p) => format!("output {}", p.ty),
+                Lowered::Value(_, t) => t.to_string(),
+            })
+            .collect();
+        let given = format!("({})", given.join(", "));
+        if is_user && candidates.len() == 1 {
+            let c = &candidates[0].1;
+            let count = c.params.len();
+            if args.len() != count {
+                self.error(
+                    Code::ArgumentCount,
+                    span,
+                    format!(
+                        "`{text}` takes {count} argument{} but {} were given",
+                        if count == 1 { "" } else { "s" },
+                        args.len()
+                    ),
+                )
+                .with_label(&format!("called with {given}"))
+                .notes
+                .push(format!("declared as `{}`", c.describe));
+                if let Some(index) = candidates[0].0 {
+                    let def = self.sigs[index].span;
+                    if let Some(d) = self.diags.list.last_mut() {
+                        d.secondary.push((def, "defined here".into()));
+                    }
+                }
+                return;
+            }
+            self.error(
+                Code::AssignTypeMismatch,
+                span,
+                format!("the arguments of `{text}` do not match its parameters"),
+            )
+            .with_label(&format!("called with {given}"))
+            .notes
+            .push(format!("declared as `{}`", c.describe));
+            return;
+        }
+        let mut d =
+            Diagnostic::new(Code::NoMatchingOverload, name_span, format!("no version of `{text}` takes {given}"))
+                .with_label("no matching signature");
+        let mut shown: Vec<&str> = Vec::new();
+        for (_, c) in candidates {
+            if !shown.contains(&c.describe.as_str()) {
+                shown.push(&c.describe);
+            }
+        }
+        const MAX: usize = 8;
+        let mut list: Vec<String> = shown.iter().take(MAX).map(|s| format!("  {s}")).collect();
+        if shown.len() > MAX {
+            list.push(format!("  ... and {} more", shown.len() - MAX));
+        }
+        d = d.with_note(format!("the signatures are:\n{}", list.join("\n")));
+        self.diags.push(d);
+    }
+}
+
+fn builtin_candidate(b: Builtin, s: &Signature) -> Candidate {
+    Candidate {
+        params: s
+            .params
+            .iter()
+            .map(|p| Param {
+                ty: p.ty.map(|base| Type { base, array: p.array.then_some(ArrayLen::Unsized) }),
+                output: p.output,
+            })
+            .collect(),
+        repeat_last: s.repeat_last,
+        param_list: s.param_list,
+        ret: Type::scalar(s.ret),
+        describe: builtins::describe(b, s),
+    }
+}
+
+fn unsupported_result(b: Builtin) -> &'static str {
+    match b {
+        Builtin::Photonmap => "returns black",
+        _ => "returns 0",
+    }
+}

@@ -1,0 +1,690 @@
+//! The checker: the AST becomes typed, checked IR.
+//!
+//! It resolves names (scopes, nested functions, `extern`), applies RSL's typing rules, resolves calls
+//! against user functions and the built-in table, enforces the context rules of each shader type, and
+//! lowers everything to [`crate::ir`]. Uniform/varying inference runs afterwards on the IR
+//! ([`uniformity`]). Problems become diagnostics; checking goes on past them, and IR is only returned
+//! when there was no error.
+//!
+//! Layout: this file holds the driver, items and scopes; `stmt.rs` statements; `expr.rs` expressions;
+//! `call.rs` calls and overload resolution; `convert.rs` the implicit conversion rules.
+
+mod call;
+mod convert;
+mod expr;
+mod stmt;
+pub mod uniformity;
+
+use crate::diagnostic::{Code, Diagnostic, Diagnostics};
+use crate::front::parse::ast::{self, ShaderKind};
+use crate::globals::Global;
+use crate::ir::{self, Block, FuncId, Function, Module, Type, VarId, VarKind, Variable};
+use crate::source::Span;
+use crate::symbol::{Interner, Symbol};
+use rustc_hash::FxHashMap;
+
+/// What a name in scope refers to.
+#[derive(Clone, Copy, Debug)]
+enum Binding {
+    Var(VarId),
+    /// `extern point P;`: an explicit reference to a shader global.
+    Global(Global),
+}
+
+/// A user function as callers see it.
+#[derive(Clone, Debug)]
+struct FuncSig {
+    id: FuncId,
+    params: Vec<(Type, bool)>,
+    ret: Type,
+    span: Span,
+    /// Variables of enclosing functions this function reaches through `extern`: the builder that
+    /// owns each, and the variable there. Callers pass them after the declared arguments.
+    captures: Vec<(usize, VarId)>,
+}
+
+/// One scope level: variables and nested functions declared in it.
+#[derive(Default)]
+struct Scope {
+    vars: FxHashMap<Symbol, Binding>,
+    funcs: FxHashMap<Symbol, Vec<usize>>,
+}
+
+/// The function being lowered.
+struct FnBuilder {
+    func: Function,
+    scopes: Vec<Scope>,
+    /// For each variable: read at least once.
+    used: Vec<bool>,
+    /// Captured variables: (owning builder, variable there) -> the capture variable here.
+    captures: Vec<((usize, VarId), VarId)>,
+    loop_depth: u32,
+    light_loop_depth: u32,
+    /// This builder lowers the shader body itself (not a function).
+    is_shader: bool,
+    /// Uses `illuminance`/`gather` (checked against the shader kind at the end).
+    uses_light_loop: Option<Span>,
+    /// Calls made, for the recursion check.
+    calls: Vec<(usize, Span)>,
+}
+
+impl FnBuilder {
+    fn new(name: String, return_type: Type, span: Span, is_shader: bool) -> FnBuilder {
+        FnBuilder {
+            func: Function {
+                name,
+                return_type,
+                params: Vec::new(),
+                vars: Vec::new(),
+                exprs: Vec::new(),
+                body: Block::default(),
+                span,
+                reads_varying: false,
+            },
+            scopes: vec![Scope::default()],
+            used: Vec::new(),
+            captures: Vec::new(),
+            loop_depth: 0,
+            light_loop_depth: 0,
+            is_shader,
+            uses_light_loop: None,
+            calls: Vec::new(),
+        }
+    }
+
+    fn add_var(&mut self, var: Variable) -> VarId {
+        let id = VarId(self.func.vars.len() as u32);
+        self.func.vars.push(var);
+        self.used.push(false);
+        id
+    }
+}
+
+/// The result of checking one file.
+#[derive(Debug)]
+pub struct Checked {
+    /// The IR, when there was no error.
+    pub module: Option<Module>,
+}
+
+/// The state of checking one translation unit.
+pub struct Checker<'a> {
+    interner: &'a Interner,
+    diags: &'a mut Diagnostics,
+    /// Every user function; `sigs[i]` describes `functions[i]`.
+    functions: Vec<Option<Function>>,
+    sigs: Vec<FuncSig>,
+    /// Top-level functions by name.
+    top_funcs: FxHashMap<Symbol, Vec<usize>>,
+    builders: Vec<FnBuilder>,
+    /// The shader type of the file's shader, if it has one: the context for every function.
+    kind: Option<ShaderKind>,
+    shader: Option<ir::Shader>,
+    /// Calls between user functions (caller function index, or `None` for the shader; callee; span).
+    call_graph: Vec<(Option<usize>, usize, Span)>,
+    /// Which function index each builder lowers (`None` for the shader body).
+    builder_funcs: Vec<Option<usize>>,
+    /// The parser dropped statements: usage counts are incomplete, so unused warnings are off.
+    incomplete: bool,
+}
+
+/// Checks a parsed file and lowers it to IR.
+pub fn check(unit: &ast::TranslationUnit, interner: &Interner, diags: &mut Diagnostics) -> Checked {
+    let kind = unit.items.iter().find_map(|i| match i {
+        ast::Item::Shader(s) => Some(s.kind),
+        _ => None,
+    });
+    let incomplete = diags.has_errors();
+    let mut c = Checker {
+        interner,
+        diags,
+        functions: Vec::new(),
+        sigs: Vec::new(),
+        top_funcs: FxHashMap::default(),
+        builders: Vec::new(),
+        kind,
+        shader: None,
+        call_graph: Vec::new(),
+        builder_funcs: Vec::new(),
+        incomplete,
+    };
+    let mut shader_seen: Option<Span> = None;
+    for item in &unit.items {
+        match item {
+            ast::Item::Function(f) => c.top_level_function(f),
+            ast::Item::Shader(s) => {
+                if let Some(first) = shader_seen {
+                    c.diags.push(
+                        Diagnostic::new(Code::MultipleShaders, s.name.span, "a file may define only one shader")
+                            .with_label("second shader")
+                            .with_secondary(first, "first shader defined here"),
+                    );
+                    continue;
+                }
+                shader_seen = Some(s.name.span);
+                c.shader_def(s);
+            }
+            ast::Item::Error(_) => {}
+        }
+    }
+    c.check_recursion();
+    let had_errors = c.diags.has_errors();
+    if had_errors {
+        return Checked { module: None };
+    }
+    let mut functions: Vec<Function> = c.functions.into_iter().flatten().collect();
+    let shader = c.shader;
+    uniformity::infer(&mut functions, shader.as_ref(), c.diags);
+    if c.diags.has_errors() {
+        return Checked { module: None };
+    }
+    Checked { module: Some(Module { shader, functions }) }
+}
+
+impl Checker<'_> {
+    fn name(&self, sym: Symbol) -> &str {
+        self.interner.resolve(sym)
+    }
+
+    fn b(&mut self) -> &mut FnBuilder {
+        self.builders.last_mut().expect("a function is being lowered")
+    }
+
+    fn cur(&self) -> &FnBuilder {
+        self.builders.last().expect("a function is being lowered")
+    }
+
+    fn error(&mut self, code: Code, span: Span, message: impl Into<String>) -> &mut Diagnostic {
+        self.diags.push(Diagnostic::new(code, span, message));
+        self.diags.list.last_mut().expect("just pushed")
+    }
+
+    // ---- Items ----------------------------------------------------------------------------------
+
+    fn resolve_type(&mut self, spec: &ast::TypeSpec) -> ir::BaseType {
+        spec.name.into()
+    }
+
+    /// The array length of a declaration, which must be a positive integer constant.
+    fn array_len(&mut self, spec: &Option<ast::ArraySpec>, allow_unsized: bool) -> Option<Option<ir::ArrayLen>> {
+        match spec {
+            None => Some(None),
+            Some(ast::ArraySpec::Unsized(span)) => {
+                if allow_unsized {
+                    Some(Some(ir::ArrayLen::Unsized))
+                } else {
+                    self.error(Code::ArraySize, *span, "an array variable needs a length").label =
+                        Some("length missing".into());
+                    None
+                }
+            }
+            Some(ast::ArraySpec::Sized(e)) => match const_number(e) {
+                Some(v) if v >= 1.0 && v.fract() == 0.0 && v <= 1_000_000.0 => {
+                    Some(Some(ir::ArrayLen::Fixed(v as u32)))
+                }
+                Some(v) => {
+                    self.error(Code::ArraySize, e.span, format!("array length must be a positive integer, not {v}"))
+                        .label = Some("invalid length".into());
+                    None
+                }
+                None => {
+                    self.error(Code::ArraySize, e.span, "array length must be a constant number").label =
+                        Some("not a constant".into());
+                    None
+                }
+            },
+        }
+    }
+
+    fn top_level_function(&mut self, f: &ast::FunctionDef) {
+        let Some(index) = self.declare_function(f) else { return };
+        let sym = f.name.sym;
+        self.top_funcs.entry(sym).or_default().push(index);
+        self.lower_function(f, index);
+    }
+
+    /// Records a function's signature and returns its index, or reports a redefinition.
+    fn declare_function(&mut self, f: &ast::FunctionDef) -> Option<usize> {
+        let ret_base = self.resolve_type(&f.return_type);
+        let mut params = Vec::new();
+        for p in &f.params {
+            let base = self.resolve_type(&p.ty);
+            let array = self.array_len(&p.array, true).unwrap_or(None);
+            params.push((Type { base, array }, p.output));
+        }
+        let ret = Type::scalar(ret_base);
+        // A function with the same name and parameter types in the same scope is a redefinition.
+        let existing: Vec<usize> = match self.builders.last() {
+            Some(b) => b.scopes.last().and_then(|s| s.funcs.get(&f.name.sym)).cloned().unwrap_or_default(),
+            None => self.top_funcs.get(&f.name.sym).cloned().unwrap_or_default(),
+        };
+        for i in existing {
+            let same = self.sigs[i].params.len() == params.len()
+                && self.sigs[i].params.iter().zip(&params).all(|(a, b)| a.0 == b.0);
+            if same {
+                let prev = self.sigs[i].span;
+                let name = self.name(f.name.sym).to_string();
+                self.error(
+                    Code::FunctionRedefinition,
+                    f.name.span,
+                    format!("function `{name}` is defined twice with the same parameter types"),
+                )
+                .with_label("redefined here")
+                .secondary
+                .push((prev, "first defined here".into()));
+                return None;
+            }
+        }
+        let index = self.sigs.len();
+        self.sigs.push(FuncSig { id: FuncId(index as u32), params, ret, span: f.name.span, captures: Vec::new() });
+        self.functions.push(None);
+        Some(index)
+    }
+
+    fn lower_function(&mut self, f: &ast::FunctionDef, index: usize) {
+        let name = self.name(f.name.sym).to_string();
+        let ret = self.sigs[index].ret;
+        let mut builder = FnBuilder::new(name, ret, f.span, false);
+        // The function is visible inside its own body (so recursion is found and reported).
+        builder.scopes[0].funcs.entry(f.name.sym).or_default().push(index);
+        self.builders.push(builder);
+        self.builder_funcs.push(Some(index));
+        for (i, p) in f.params.iter().enumerate() {
+            let ty = self.sigs[index].params[i].0;
+            if let Some(d) = &p.default {
+                self.error(Code::Syntax, d.span, "function parameters cannot have default values").label =
+                    Some("remove this default".into());
+            }
+            let declared = p.ty.storage.map(|s| s == ast::Storage::Varying);
+            if ty.base == ir::BaseType::String && declared == Some(true) {
+                self.error(Code::VaryingString, p.ty.span, "strings are always uniform").label =
+                    Some("`varying` string".into());
+            }
+            if ty.base == ir::BaseType::Void {
+                self.error(Code::AssignTypeMismatch, p.ty.span, "a parameter cannot have type `void`");
+            }
+            let id = self.declare_var(p.name, ty, VarKind::Param { output: p.output }, declared);
+            if let Some(id) = id {
+                self.b().func.params.push(id);
+            }
+        }
+        let body = self.block(&f.body, false);
+        if ret.base != ir::BaseType::Void && !always_returns(&body) {
+            let name = self.name(f.name.sym).to_string();
+            self.error(
+                Code::MissingReturn,
+                f.name.span,
+                format!("function `{name}` can reach its end without returning a `{}`", ret.base),
+            )
+            .with_label("in this function")
+            .notes
+            .push("add a `return` at the end of the function".into());
+        }
+        self.b().func.body = body;
+        self.finish_builder(index);
+    }
+
+    /// Ends the current builder: warns about unused variables and stores the function.
+    fn finish_builder(&mut self, index: usize) {
+        let mut b = self.builders.pop().expect("builder to finish");
+        self.builder_funcs.pop();
+        self.warn_unused(&b);
+        // Captured variables become trailing parameters.
+        let mut captures = Vec::new();
+        for (outer, local) in &b.captures {
+            b.func.params.push(*local);
+            captures.push(*outer);
+        }
+        self.sigs[index].captures = captures;
+        for (callee, span) in &b.calls {
+            self.call_graph.push((Some(index), *callee, *span));
+        }
+        if let Some(span) = b.uses_light_loop {
+            self.check_light_loop_context(span);
+        }
+        self.functions[index] = Some(b.func);
+    }
+
+    fn warn_unused(&mut self, b: &FnBuilder) {
+        if self.incomplete {
+            return;
+        }
+        for (i, var) in b.func.vars.iter().enumerate() {
+            if b.used[i] || var.name.starts_with('_') {
+                continue;
+            }
+            let (code, what) = match var.kind {
+                VarKind::Local => (Code::UnusedVariable, "variable"),
+                VarKind::Param { output: false } => (Code::UnusedParameter, "parameter"),
+                VarKind::ShaderParam { output: false, .. } => (Code::UnusedParameter, "shader parameter"),
+                _ => continue,
+            };
+            self.diags.push(
+                Diagnostic::new(code, var.span, format!("unused {what} `{}`", var.name))
+                    .with_label("never read")
+                    .with_note(format!("if this is intentional, prefix it with an underscore: `_{}`", var.name)),
+            );
+        }
+    }
+
+    fn check_light_loop_context(&mut self, span: Span) {
+        if let Some(kind) = self.kind {
+            if !matches!(kind, ShaderKind::Surface | ShaderKind::Volume | ShaderKind::Lightfield) {
+                self.error(
+                    Code::IlluminanceContext,
+                    span,
+                    format!("`illuminance` and `gather` are not available in {} shaders", kind.name()),
+                )
+                .with_label("light loop here")
+                .notes
+                .push("light loops run in surface, volume and lightfield shaders".into());
+            }
+        }
+    }
+
+    fn shader_def(&mut self, s: &ast::ShaderDef) {
+        let name = self.name(s.name.sym).to_string();
+        let index = self.sigs.len();
+        // The shader body is stored as a function too; it has no callers.
+        self.sigs.push(FuncSig {
+            id: FuncId(index as u32),
+            params: Vec::new(),
+            ret: Type::VOID,
+            span: s.name.span,
+            captures: Vec::new(),
+        });
+        self.functions.push(None);
+        self.builders.push(FnBuilder::new(name.clone(), Type::VOID, s.span, true));
+        self.builder_funcs.push(None);
+        let mut params = Vec::new();
+        for p in &s.params {
+            if let Some(param) = self.shader_param(p, params.len() as u32) {
+                params.push(param);
+            }
+        }
+        // The body is a scope of its own: a local may hide a parameter (with a warning).
+        let body = self.block(&s.body, true);
+        self.b().func.body = body;
+        let b = self.builders.last().expect("shader builder");
+        let calls = b.calls.clone();
+        for (callee, span) in calls {
+            self.call_graph.push((None, callee, span));
+        }
+        if let Some(span) = b.uses_light_loop {
+            self.check_light_loop_context(span);
+        }
+        let b = self.builders.pop().expect("shader builder");
+        self.builder_funcs.pop();
+        self.warn_unused(&b);
+        self.functions[index] = Some(b.func);
+        // Function indices shift when unused slots are dropped; only failed functions leave `None`,
+        // and then there are errors and no IR, so ids stay valid.
+        self.shader = Some(ir::Shader { kind: s.kind, name, body: FuncId(index as u32), params, span: s.span });
+    }
+
+    fn shader_param(&mut self, p: &ast::ParamDecl, index: u32) -> Option<ir::ShaderParam> {
+        let base = self.resolve_type(&p.ty);
+        let array = self.array_len(&p.array, false)?;
+        let ty = Type { base, array };
+        let pname = self.name(p.name.sym).to_string();
+        if base == ir::BaseType::Void {
+            self.error(Code::AssignTypeMismatch, p.ty.span, "a parameter cannot have type `void`");
+            return None;
+        }
+        let declared_varying = p.ty.storage == Some(ast::Storage::Varying);
+        if base == ir::BaseType::String && declared_varying {
+            self.error(Code::VaryingString, p.ty.span, "strings are always uniform").label =
+                Some("`varying` string".into());
+        }
+        if let Some(g) = Global::lookup(&pname) {
+            if self.kind.is_some_and(|k| g.def().access(k) != crate::globals::Access::None) {
+                self.error(
+                    Code::ShaderGlobalRedeclared,
+                    p.name.span,
+                    format!("shader parameter `{pname}` has the name of a shader global"),
+                )
+                .label = Some("rename this parameter".into());
+                return None;
+            }
+        }
+        let Some(default) = &p.default else {
+            self.error(Code::MissingDefault, p.name.span, format!("shader parameter `{pname}` needs a default value"))
+                .with_label("no default")
+                .notes
+                .push(format!("write e.g. `{} {pname} = {}`", base, example_default(base)));
+            // Declare it anyway so that its uses do not cascade.
+            let _ =
+                self.declare_var(p.name, ty, VarKind::ShaderParam { index, output: p.output }, Some(declared_varying));
+            return None;
+        };
+        // The default is checked before the parameter is in scope (earlier parameters are).
+        let value = self.initializer(default, ty)?;
+        let var =
+            self.declare_var(p.name, ty, VarKind::ShaderParam { index, output: p.output }, Some(declared_varying))?;
+        Some(ir::ShaderParam {
+            name: pname,
+            ty,
+            varying: declared_varying,
+            output: p.output,
+            var,
+            default: value,
+            span: p.span,
+        })
+    }
+
+    // ---- Scopes ---------------------------------------------------------------------------------
+
+    fn push_scope(&mut self) {
+        self.b().scopes.push(Scope::default());
+    }
+
+    fn pop_scope(&mut self) {
+        self.b().scopes.pop();
+    }
+
+    /// Declares a variable in the innermost scope, reporting a redefinition.
+    fn declare_var(
+        &mut self,
+        name: ast::Ident,
+        ty: Type,
+        kind: VarKind,
+        declared_varying: Option<bool>,
+    ) -> Option<VarId> {
+        let text = self.name(name.sym).to_string();
+        if let Some(Binding::Var(prev)) = self.cur().scopes.last().and_then(|s| s.vars.get(&name.sym)).copied() {
+            let prev_span = self.cur().func.var(prev).span;
+            let prev_is_param =
+                matches!(self.cur().func.var(prev).kind, VarKind::Param { .. } | VarKind::ShaderParam { .. });
+            let is_param = matches!(kind, VarKind::Param { .. } | VarKind::ShaderParam { .. });
+            let (code, msg) = if is_param && prev_is_param {
+                (Code::DuplicateParameter, format!("two parameters are named `{text}`"))
+            } else {
+                (Code::Redefinition, format!("`{text}` is already declared in this scope"))
+            };
+            self.error(code, name.span, msg)
+                .with_label("declared again here")
+                .secondary
+                .push((prev_span, "first declared here".into()));
+            return None;
+        }
+        if kind == VarKind::Local {
+            self.warn_shadowing(name, &text);
+        }
+        let varying = declared_varying.unwrap_or(false);
+        let id =
+            self.b().add_var(Variable { name: text, ty, kind, varying, declared: declared_varying, span: name.span });
+        self.b().scopes.last_mut().expect("scope").vars.insert(name.sym, Binding::Var(id));
+        Some(id)
+    }
+
+    fn warn_shadowing(&mut self, name: ast::Ident, text: &str) {
+        let shadowed = if let Some(g) = Global::lookup(text) {
+            self.kind
+                .is_some_and(|k| g.def().access(k) != crate::globals::Access::None)
+                .then(|| format!("the shader global `{text}`"))
+        } else {
+            match self.lookup_var(name.sym) {
+                Some(Binding::Var(v)) if matches!(self.cur().func.var(v).kind, VarKind::ShaderParam { .. }) => {
+                    Some(format!("the shader parameter `{text}`"))
+                }
+                _ => None,
+            }
+        };
+        if let Some(what) = shadowed {
+            self.diags.push(
+                Diagnostic::new(Code::ShadowedVariable, name.span, format!("local variable `{text}` hides {what}"))
+                    .with_label("this declaration")
+                    .with_note("rename the local variable to keep the outer one visible"),
+            );
+        }
+    }
+
+    fn lookup_var(&self, sym: Symbol) -> Option<Binding> {
+        let b = self.cur();
+        b.scopes.iter().rev().find_map(|s| s.vars.get(&sym).copied())
+    }
+
+    /// Finds a variable named `sym` visible in builder `level` (its scopes, then those of enclosing
+    /// builders) and returns the owning builder and variable.
+    fn lookup_outer(&self, level: usize, sym: Symbol) -> Option<(usize, Binding)> {
+        for l in (0..=level).rev() {
+            if let Some(binding) = self.builders[l].scopes.iter().rev().find_map(|s| s.vars.get(&sym).copied()) {
+                return Some((l, binding));
+            }
+        }
+        None
+    }
+
+    /// The variable in the current builder that stands for variable `var` of builder `owner`
+    /// (creating capture parameters through every builder in between).
+    fn access_outer(&mut self, level: usize, owner: usize, var: VarId) -> VarId {
+        if level == owner {
+            return var;
+        }
+        let parent_var = self.access_outer(level - 1, owner, var);
+        let key = (level - 1, parent_var);
+        if let Some((_, local)) = self.builders[level].captures.iter().find(|(k, _)| *k == key) {
+            return *local;
+        }
+        let outer = self.builders[level - 1].func.var(parent_var).clone();
+        self.builders[level - 1].used[parent_var.0 as usize] = true;
+        let b = &mut self.builders[level];
+        let local = b.add_var(Variable { kind: VarKind::Capture, ..outer });
+        b.captures.push((key, local));
+        local
+    }
+
+    /// The functions named `sym` visible here, innermost scope first.
+    fn lookup_funcs(&self, sym: Symbol) -> Vec<usize> {
+        let mut found = Vec::new();
+        for b in self.builders.iter().rev() {
+            for s in b.scopes.iter().rev() {
+                if let Some(list) = s.funcs.get(&sym) {
+                    found.extend(list.iter().copied());
+                }
+            }
+        }
+        if let Some(list) = self.top_funcs.get(&sym) {
+            found.extend(list.iter().copied());
+        }
+        let mut unique = Vec::with_capacity(found.len());
+        for f in found {
+            if !unique.contains(&f) {
+                unique.push(f);
+            }
+        }
+        unique
+    }
+
+    fn check_recursion(&mut self) {
+        let n = self.sigs.len();
+        let mut edges: Vec<Vec<(usize, Span)>> = vec![Vec::new(); n];
+        for (caller, callee, span) in &self.call_graph {
+            if let Some(c) = caller {
+                edges[*c].push((*callee, *span));
+            }
+        }
+        // Depth-first search for a cycle from every function; report each function on a cycle once.
+        let mut reported = vec![false; n];
+        for start in 0..n {
+            let mut stack = vec![(start, 0usize)];
+            let mut on_path = vec![false; n];
+            on_path[start] = true;
+            let mut visited = vec![false; n];
+            while let Some((node, edge)) = stack.pop() {
+                if edge < edges[node].len() {
+                    stack.push((node, edge + 1));
+                    let (next, span) = edges[node][edge];
+                    if next == start && !reported[start] {
+                        reported[start] = true;
+                        let name = self.functions[start].as_ref().map(|f| f.name.clone()).unwrap_or_default();
+                        let def = self.sigs[start].span;
+                        self.error(
+                            Code::Recursion,
+                            span,
+                            format!("function `{name}` calls itself; recursion is not allowed"),
+                        )
+                        .with_label("recursive call")
+                        .secondary
+                        .push((def, "function defined here".into()));
+                    } else if !on_path[next] && !visited[next] {
+                        visited[next] = true;
+                        on_path[next] = true;
+                        stack.push((next, 0));
+                    }
+                } else {
+                    on_path[node] = false;
+                }
+            }
+        }
+    }
+}
+
+trait WithLabel {
+    fn with_label(&mut self, label: &str) -> &mut Self;
+}
+
+impl WithLabel for Diagnostic {
+    fn with_label(&mut self, label: &str) -> &mut Self {
+        self.label = Some(label.to_string());
+        self
+    }
+}
+
+fn example_default(base: ir::BaseType) -> &'static str {
+    match base {
+        ir::BaseType::String => "\"\"",
+        ir::BaseType::Point => "point (0, 0, 0)",
+        _ => "1",
+    }
+}
+
+/// The value of a constant number expression (array sizes, `break` levels).
+pub(crate) fn const_number(e: &ast::Expr) -> Option<f64> {
+    use ast::{BinaryOp as B, ExprKind as K};
+    match &e.kind {
+        K::Number(v) => Some(*v),
+        K::Unary(ast::UnaryOp::Neg, a) => const_number(a).map(|v| -v),
+        K::Binary(op, a, b) => {
+            let (a, b) = (const_number(a)?, const_number(b)?);
+            match op {
+                B::Add => Some(a + b),
+                B::Sub => Some(a - b),
+                B::Mul => Some(a * b),
+                B::Div if b != 0.0 => Some(a / b),
+                _ => None,
+            }
+        }
+        K::Cast { ty: ast::TypeName::Float, space: None, expr } => const_number(expr),
+        _ => None,
+    }
+}
+
+/// Whether every path through the block ends in `return`.
+fn always_returns(block: &Block) -> bool {
+    block.stmts.iter().any(|s| match &s.kind {
+        ir::StmtKind::Return(_) => true,
+        ir::StmtKind::If { then, otherwise, .. } => always_returns(then) && always_returns(otherwise),
+        _ => false,
+    })
+}

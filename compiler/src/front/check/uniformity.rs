@@ -1,0 +1,539 @@
+//! Uniform/varying inference over the IR.
+//!
+//! A value is varying if it depends on varying data: varying globals, varying built-ins (`random`,
+//! lighting, texture lookups), varying variables, or an assignment made under varying control flow
+//! (a branch or loop whose condition is varying, code after a divergent `break`/`return`, the body
+//! of a light loop). Variables without a declared storage class become varying when any varying
+//! value reaches them; the analysis iterates to a fixed point.
+//!
+//! Functions are analysed twice. First with their (undeclared) parameters uniform, which tells
+//! whether the function reads varying state by itself ([`ir::Function::reads_varying`]) and is where
+//! errors are reported; then with those parameters varying, which gives the annotations back ends use
+//! (a function is compiled once, for varying arguments).
+
+use crate::builtins::{flags, Builtin};
+use crate::diagnostic::{Code, Diagnostic, Diagnostics};
+use crate::ir::{self, Arg, ExprId, ExprKind, FuncId, Function, PlaceBase, Shader, StmtKind, VarId, VarKind};
+use crate::source::Span;
+
+/// Infers storage for every function and the shader, reporting varying values that reach uniform
+/// variables.
+pub fn infer(functions: &mut [Function], shader: Option<&Shader>, diags: &mut Diagnostics) {
+    let body = shader.map(|s| s.body);
+    let writes = written_params(functions);
+    // Pass A to a fixed point of `reads_varying`.
+    let mut reads: Vec<bool> = vec![false; functions.len()];
+    let mut violations: Vec<Vec<Violation>> = vec![Vec::new(); functions.len()];
+    loop {
+        let mut changed = false;
+        for i in 0..functions.len() {
+            if Some(FuncId(i as u32)) == body {
+                continue;
+            }
+            let mut a = Analysis::new(&functions[i], &reads, &writes, false, true);
+            a.run(&functions[i]);
+            let r = a.reads_varying(&functions[i]);
+            violations[i] = a.violations;
+            if r != reads[i] {
+                reads[i] = r;
+                changed = true;
+            }
+        }
+        if !changed {
+            break;
+        }
+    }
+    for (i, f) in functions.iter_mut().enumerate() {
+        f.reads_varying = reads[i];
+    }
+    // The shader body: one pass, with errors.
+    if let (Some(shader), Some(body)) = (shader, body) {
+        let f = &functions[body.0 as usize];
+        let mut a = Analysis::new(f, &reads, &writes, false, true);
+        a.defaults = shader.params.iter().map(|p| (p.var, p.default, p.varying)).collect();
+        a.run(f);
+        violations[body.0 as usize] = a.violations;
+        let (exprs, vars) = (a.expr_varying, a.var_varying);
+        let f = &mut functions[body.0 as usize];
+        apply(f, &exprs, &vars);
+    }
+    for (i, list) in violations.iter().enumerate() {
+        report(&functions[i], list, diags);
+    }
+    // Pass B: annotations for user functions, parameters varying.
+    for (i, f) in functions.iter_mut().enumerate() {
+        if Some(FuncId(i as u32)) == body {
+            continue;
+        }
+        let mut a = Analysis::new(f, &reads, &writes, true, false);
+        a.run(f);
+        let (exprs, vars) = (a.expr_varying, a.var_varying);
+        apply(f, &exprs, &vars);
+    }
+}
+
+fn apply(f: &mut Function, exprs: &[bool], vars: &[bool]) {
+    for (e, v) in f.exprs.iter_mut().zip(exprs) {
+        e.varying = *v;
+    }
+    for (var, v) in f.vars.iter_mut().zip(vars) {
+        var.varying = *v;
+    }
+}
+
+#[derive(Clone, Debug)]
+struct Violation {
+    var: VarId,
+    span: Span,
+    /// A shader parameter's default value (E0136) rather than an assignment (E0110).
+    default: bool,
+}
+
+fn report(f: &Function, list: &[Violation], diags: &mut Diagnostics) {
+    let mut seen: Vec<VarId> = Vec::new();
+    for v in list {
+        if seen.contains(&v.var) {
+            continue;
+        }
+        seen.push(v.var);
+        let var = f.var(v.var);
+        let d = if v.default {
+            Diagnostic::new(
+                Code::DefaultNotUniform,
+                v.span,
+                format!("the default of uniform parameter `{}` depends on varying data", var.name),
+            )
+            .with_label("varying value")
+            .with_secondary(var.span, "parameter declared here")
+            .with_note("declare the parameter `varying`, or use a constant default")
+        } else {
+            let what = match var.kind {
+                VarKind::ShaderParam { .. } => "shader parameter",
+                VarKind::Param { .. } => "parameter",
+                _ => "variable",
+            };
+            let note = match var.kind {
+                VarKind::ShaderParam { .. } => format!(
+                    "shader parameters are uniform unless declared `varying`: `varying {} {}`",
+                    var.ty, var.name
+                ),
+                _ => format!(
+                    "declare it `varying`, or leave out `uniform` to let the compiler decide: `varying {} {}`",
+                    var.ty, var.name
+                ),
+            };
+            Diagnostic::new(
+                Code::VaryingToUniform,
+                v.span,
+                format!("a varying value is assigned to the uniform {what} `{}`", var.name),
+            )
+            .with_label("varying value assigned here")
+            .with_secondary(var.span, "declared uniform here")
+            .with_note(note)
+        };
+        diags.push(d);
+    }
+}
+
+struct Analysis<'a> {
+    reads: &'a [bool],
+    /// For each function, which of its parameters (by position) it may write.
+    writes: &'a [Vec<bool>],
+    expr_varying: Vec<bool>,
+    var_varying: Vec<bool>,
+    /// Variables whose storage is fixed: declared `uniform` (violations are errors) or `varying`.
+    fixed: Vec<bool>,
+    violations: Vec<Violation>,
+    changed: bool,
+    /// Some `return` gives a varying value, or returns under varying control.
+    ret_varying: bool,
+    /// Shader parameters: variable, default value, declared varying.
+    defaults: Vec<(VarId, ExprId, bool)>,
+}
+
+/// How a statement left control flow: some lanes may have left the loop, or the function.
+#[derive(Clone, Copy, Default)]
+struct Exits {
+    loop_exit: bool,
+    func_exit: bool,
+}
+
+impl<'a> Analysis<'a> {
+    /// `params_varying`: undeclared parameters start varying. `strict`: declared-uniform locals and
+    /// parameters stay uniform and record violations (otherwise they are promoted silently).
+    fn new(
+        f: &Function,
+        reads: &'a [bool],
+        writes: &'a [Vec<bool>],
+        params_varying: bool,
+        strict: bool,
+    ) -> Analysis<'a> {
+        let mut var_varying = Vec::with_capacity(f.vars.len());
+        let mut fixed = Vec::with_capacity(f.vars.len());
+        for v in &f.vars {
+            let (vary, fix) = match (v.kind, v.declared) {
+                (_, Some(true)) => (true, true),
+                (VarKind::ShaderParam { .. }, _) => (false, true),
+                (_, Some(false)) => (false, strict),
+                (VarKind::Param { .. }, None) => (params_varying, false),
+                (VarKind::Capture, None) => (true, false),
+                (VarKind::Local, None) => (false, false),
+            };
+            var_varying.push(vary);
+            fixed.push(fix);
+        }
+        Analysis {
+            reads,
+            writes,
+            expr_varying: vec![false; f.exprs.len()],
+            var_varying,
+            fixed,
+            violations: Vec::new(),
+            changed: false,
+            ret_varying: false,
+            defaults: Vec::new(),
+        }
+    }
+
+    fn run(&mut self, f: &Function) {
+        loop {
+            self.changed = false;
+            self.violations.clear();
+            self.ret_varying = false;
+            for (var, default, varying) in self.defaults.clone() {
+                if self.expr(f, default) && !varying {
+                    self.violations.push(Violation { var, span: f.expr(default).span, default: true });
+                }
+            }
+            self.block(f, &f.body, false);
+            if !self.changed {
+                break;
+            }
+        }
+    }
+
+    /// Whether the function's results depend on varying state (with uniform parameters).
+    fn reads_varying(&self, f: &Function) -> bool {
+        self.ret_varying
+            || f.vars.iter().enumerate().any(|(i, v)| {
+                matches!(v.kind, VarKind::Param { output: true } | VarKind::Capture)
+                    && self.var_varying[i]
+                    && v.declared != Some(true)
+            })
+    }
+
+    fn mark(&mut self, var: VarId, varying: bool, span: Span) {
+        if !varying {
+            return;
+        }
+        let i = var.0 as usize;
+        if self.var_varying[i] {
+            return;
+        }
+        if self.fixed[i] {
+            self.violations.push(Violation { var, span, default: false });
+            return;
+        }
+        self.var_varying[i] = true;
+        self.changed = true;
+    }
+
+    fn block(&mut self, f: &Function, block: &ir::Block, ctl: bool) -> Exits {
+        let mut ctl = ctl;
+        let mut exits = Exits::default();
+        for s in &block.stmts {
+            let e = self.stmt(f, s, ctl);
+            if (e.loop_exit || e.func_exit) && !ctl {
+                // Later statements run only in lanes that did not leave: divergent from here on if
+                // the exit was taken under varying control (`stmt` reports only divergent exits).
+                ctl = true;
+            }
+            exits.loop_exit |= e.loop_exit;
+            exits.func_exit |= e.func_exit;
+        }
+        exits
+    }
+
+    /// Returns the divergent exits the statement may take.
+    fn stmt(&mut self, f: &Function, s: &ir::Stmt, ctl: bool) -> Exits {
+        match &s.kind {
+            StmtKind::Expr(e) => {
+                self.expr_ctl(f, *e, ctl);
+                Exits::default()
+            }
+            StmtKind::If { cond, then, otherwise } => {
+                let c = self.expr_ctl(f, *cond, ctl);
+                let a = self.block(f, then, ctl || c);
+                let b = self.block(f, otherwise, ctl || c);
+                Exits { loop_exit: a.loop_exit || b.loop_exit, func_exit: a.func_exit || b.func_exit }
+            }
+            StmtKind::Loop { cond, body, step } => {
+                let c = cond.is_some_and(|c| self.expr_ctl(f, c, ctl));
+                let inner = ctl || c;
+                let e = self.block(f, body, inner);
+                let inner = inner || e.loop_exit || e.func_exit;
+                // Values of one iteration reach the next: a second walk sees them.
+                let e2 = self.block(f, body, inner);
+                self.block(f, step, inner);
+                if let Some(c) = cond {
+                    self.expr_ctl(f, *c, inner);
+                }
+                Exits { loop_exit: false, func_exit: e.func_exit || e2.func_exit }
+            }
+            StmtKind::Break(_) | StmtKind::Continue(_) => Exits { loop_exit: ctl, func_exit: false },
+            StmtKind::Return(value) => {
+                let v = value.is_some_and(|v| self.expr_ctl(f, v, ctl));
+                self.ret_varying |= v || ctl;
+                Exits { loop_exit: false, func_exit: ctl }
+            }
+            StmtKind::Illuminance { category, position, cone, body } => {
+                if let Some(c) = category {
+                    self.expr_ctl(f, *c, ctl);
+                }
+                self.expr_ctl(f, *position, ctl);
+                if let Some((a, b)) = cone {
+                    self.expr_ctl(f, *a, ctl);
+                    self.expr_ctl(f, *b, ctl);
+                }
+                let e = self.block(f, body, true);
+                Exits { loop_exit: false, func_exit: e.func_exit }
+            }
+            StmtKind::Illuminate { position, cone, body } => {
+                self.expr_ctl(f, *position, ctl);
+                if let Some((a, b)) = cone {
+                    self.expr_ctl(f, *a, ctl);
+                    self.expr_ctl(f, *b, ctl);
+                }
+                self.block(f, body, true)
+            }
+            StmtKind::Solar { cone, body } => {
+                if let Some((a, b)) = cone {
+                    self.expr_ctl(f, *a, ctl);
+                    self.expr_ctl(f, *b, ctl);
+                }
+                self.block(f, body, true)
+            }
+            StmtKind::Gather { category, position, direction, angle, samples, params, body, otherwise } => {
+                for e in [category, position, direction, angle, samples] {
+                    self.expr_ctl(f, *e, ctl);
+                }
+                for (name, arg) in params {
+                    self.expr_ctl(f, *name, ctl);
+                    match arg {
+                        Arg::Value(v) => {
+                            self.expr_ctl(f, *v, ctl);
+                        }
+                        Arg::Ref(p) => {
+                            if let PlaceBase::Var(v) = p.base {
+                                self.mark(v, true, s.span);
+                            }
+                        }
+                    }
+                }
+                let a = self.block(f, body, true);
+                let b = self.block(f, otherwise, true);
+                Exits { loop_exit: false, func_exit: a.func_exit || b.func_exit }
+            }
+        }
+    }
+
+    /// Evaluates an expression under the given control flow and returns whether it is varying.
+    fn expr_ctl(&mut self, f: &Function, id: ExprId, ctl: bool) -> bool {
+        self.walk(f, id, ctl)
+    }
+
+    fn expr(&mut self, f: &Function, id: ExprId) -> bool {
+        self.walk(f, id, false)
+    }
+
+    fn place_written(&mut self, f: &Function, place: &ir::Place, value_varying: bool, ctl: bool, span: Span) {
+        let mut index_varying = false;
+        for i in [place.index, place.component].into_iter().flatten() {
+            index_varying |= self.walk(f, i, ctl);
+        }
+        if let PlaceBase::Var(v) = place.base {
+            self.mark(v, value_varying || ctl || index_varying, span);
+        }
+    }
+
+    fn walk(&mut self, f: &Function, id: ExprId, ctl: bool) -> bool {
+        let e = f.expr(id);
+        let varying = match &e.kind {
+            ExprKind::Const(_) => false,
+            ExprKind::Var(v) => self.var_varying[v.0 as usize],
+            ExprKind::Global(g) => g.def().varying,
+            ExprKind::Index { base, index } => {
+                let a = self.walk(f, *base, ctl);
+                let b = self.walk(f, *index, ctl);
+                a || b
+            }
+            ExprKind::Unary { arg, .. } | ExprKind::Convert { arg } => self.walk(f, *arg, ctl),
+            ExprKind::Binary { lhs, rhs, .. } => {
+                let a = self.walk(f, *lhs, ctl);
+                let b = self.walk(f, *rhs, ctl);
+                a || b
+            }
+            ExprKind::Construct { args } | ExprKind::ArrayLiteral { elements: args } => {
+                let mut v = false;
+                for a in args {
+                    v |= self.walk(f, *a, ctl);
+                }
+                v
+            }
+            ExprKind::SpaceCast { space, arg } => {
+                let a = self.walk(f, *space, ctl);
+                let b = self.walk(f, *arg, ctl);
+                a || b
+            }
+            ExprKind::Select { cond, a, b } => {
+                let c = self.walk(f, *cond, ctl);
+                let x = self.walk(f, *a, ctl || c);
+                let y = self.walk(f, *b, ctl || c);
+                c || x || y
+            }
+            ExprKind::CallBuiltin { builtin, args, .. } => {
+                let fl = builtin.flags();
+                let mut v = fl & flags::VARYING != 0;
+                for a in args {
+                    if let Arg::Value(x) = a {
+                        v |= self.walk(f, *x, ctl);
+                    }
+                }
+                // Parameters of other shaders may vary; options, attributes and renderer facts do not.
+                let from_shader = matches!(
+                    builtin,
+                    Builtin::Surface
+                        | Builtin::Displacement
+                        | Builtin::Lightsource
+                        | Builtin::Atmosphere
+                        | Builtin::Incident
+                        | Builtin::Opposite
+                );
+                let out_varying = v || (fl & flags::MESSAGE != 0 && from_shader);
+                for a in args {
+                    if let Arg::Ref(p) = a {
+                        self.place_written(f, p, out_varying, ctl, e.span);
+                    }
+                }
+                v
+            }
+            ExprKind::Call { func, args } => {
+                let mut v = self.reads.get(func.0 as usize).copied().unwrap_or(true);
+                for a in args {
+                    match a {
+                        Arg::Value(x) => v |= self.walk(f, *x, ctl),
+                        Arg::Ref(p) => {
+                            if let PlaceBase::Var(var) = p.base {
+                                // Captured variables and in-out arguments carry values in.
+                                v |= self.var_varying[var.0 as usize];
+                            }
+                        }
+                    }
+                }
+                let written = self.writes.get(func.0 as usize);
+                for (i, a) in args.iter().enumerate() {
+                    if let Arg::Ref(p) = a {
+                        if written.is_none_or(|w| w.get(i).copied().unwrap_or(true)) {
+                            self.place_written(f, p, v, ctl, e.span);
+                        }
+                    }
+                }
+                v
+            }
+            ExprKind::Assign { place, op, value } => {
+                let mut v = self.walk(f, *value, ctl);
+                if op.is_some() {
+                    if let PlaceBase::Var(var) = place.base {
+                        v |= self.var_varying[var.0 as usize];
+                    } else {
+                        v = true;
+                    }
+                }
+                self.place_written(f, place, v, ctl, e.span);
+                v || ctl
+            }
+        };
+        self.expr_varying[id.0 as usize] = varying;
+        varying
+    }
+}
+
+/// For each function, which parameters (by position) it may write: directly, or by passing them on
+/// to a built-in's output or to a function that writes that parameter.
+fn written_params(functions: &[Function]) -> Vec<Vec<bool>> {
+    let mut writes: Vec<Vec<bool>> = functions.iter().map(|f| vec![false; f.params.len()]).collect();
+    loop {
+        let mut changed = false;
+        for (i, f) in functions.iter().enumerate() {
+            let mut vars = vec![false; f.vars.len()];
+            for e in &f.exprs {
+                match &e.kind {
+                    ExprKind::Assign { place, .. } => {
+                        if let PlaceBase::Var(v) = place.base {
+                            vars[v.0 as usize] = true;
+                        }
+                    }
+                    ExprKind::CallBuiltin { args, .. } => {
+                        for a in args {
+                            if let Arg::Ref(ir::Place { base: PlaceBase::Var(v), .. }) = a {
+                                vars[v.0 as usize] = true;
+                            }
+                        }
+                    }
+                    ExprKind::Call { func, args } => {
+                        for (k, a) in args.iter().enumerate() {
+                            if let Arg::Ref(ir::Place { base: PlaceBase::Var(v), .. }) = a {
+                                if writes.get(func.0 as usize).is_none_or(|w| w.get(k).copied().unwrap_or(true)) {
+                                    vars[v.0 as usize] = true;
+                                }
+                            }
+                        }
+                    }
+                    _ => {}
+                }
+            }
+            for s in all_gather_outputs(&f.body) {
+                vars[s.0 as usize] = true;
+            }
+            for (k, p) in f.params.iter().enumerate() {
+                if vars[p.0 as usize] && !writes[i][k] {
+                    writes[i][k] = true;
+                    changed = true;
+                }
+            }
+        }
+        if !changed {
+            return writes;
+        }
+    }
+}
+
+fn all_gather_outputs(block: &ir::Block) -> Vec<VarId> {
+    let mut out = Vec::new();
+    for s in &block.stmts {
+        match &s.kind {
+            StmtKind::Gather { params, body, otherwise, .. } => {
+                for (_, a) in params {
+                    if let Arg::Ref(ir::Place { base: PlaceBase::Var(v), .. }) = a {
+                        out.push(*v);
+                    }
+                }
+                out.extend(all_gather_outputs(body));
+                out.extend(all_gather_outputs(otherwise));
+            }
+            StmtKind::If { then, otherwise, .. } => {
+                out.extend(all_gather_outputs(then));
+                out.extend(all_gather_outputs(otherwise));
+            }
+            StmtKind::Loop { body, step, .. } => {
+                out.extend(all_gather_outputs(body));
+                out.extend(all_gather_outputs(step));
+            }
+            StmtKind::Illuminance { body, .. } | StmtKind::Illuminate { body, .. } | StmtKind::Solar { body, .. } => {
+                out.extend(all_gather_outputs(body));
+            }
+            _ => {}
+        }
+    }
+    out
+}

@@ -1,0 +1,389 @@
+//! The parser: preprocessed tokens to an [`ast::TranslationUnit`].
+//!
+//! The grammar (`grammar.lalrpop`) is LR(1) and generated at build time by lalrpop. Tokens are fed by
+//! index, so grammar locations are token indices; [`span_of`] turns a range of them into a source span.
+//! Adjacent string literals are joined here, before parsing, as C does.
+//!
+//! Syntax errors are recovered at statement and definition boundaries, so the result is always a
+//! tree (with `Error` nodes where parsing failed) plus every syntax error found.
+
+pub mod ast;
+
+use crate::diagnostic::{Code, Diagnostic, Diagnostics};
+use crate::front::lex::{Token, TokenKind};
+use crate::source::Span;
+use crate::symbol::{Interner, Symbol, KEYWORDS};
+use lalrpop_util::{lalrpop_mod, ParseError};
+
+lalrpop_mod!(
+    #[allow(clippy::all, clippy::pedantic, unused_parens, unused_imports, dead_code)]
+    grammar,
+    "/front/parse/grammar.rs"
+);
+
+/// The parser's terminals.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Tok {
+    Ident(Symbol),
+    Number(f64),
+    Str(Symbol),
+    Float,
+    Color,
+    Point,
+    Vector,
+    Normal,
+    Matrix,
+    StringKw,
+    Void,
+    Uniform,
+    Varying,
+    Output,
+    Extern,
+    If,
+    Else,
+    While,
+    For,
+    Break,
+    Continue,
+    Return,
+    Illuminance,
+    Illuminate,
+    Solar,
+    Gather,
+    Surface,
+    Light,
+    Displacement,
+    Volume,
+    Imager,
+    Pixel,
+    Camera,
+    Lightfield,
+    LParen,
+    RParen,
+    LBrace,
+    RBrace,
+    LBracket,
+    RBracket,
+    Semi,
+    Comma,
+    Dot,
+    Question,
+    Colon,
+    Plus,
+    Minus,
+    Star,
+    Slash,
+    Caret,
+    Bang,
+    Lt,
+    Gt,
+    Le,
+    Ge,
+    EqEq,
+    Ne,
+    AndAnd,
+    OrOr,
+    Assign,
+    PlusAssign,
+    MinusAssign,
+    StarAssign,
+    SlashAssign,
+    PlusPlus,
+    MinusMinus,
+    /// A token that the preprocessor accepts but the language does not (`%`, `&`, `#`, ...).
+    Other,
+}
+
+/// Keyword tokens in the order of [`KEYWORDS`].
+const KEYWORD_TOKENS: [Tok; 31] = [
+    Tok::Float,
+    Tok::Color,
+    Tok::Point,
+    Tok::Vector,
+    Tok::Normal,
+    Tok::Matrix,
+    Tok::StringKw,
+    Tok::Void,
+    Tok::Uniform,
+    Tok::Varying,
+    Tok::Output,
+    Tok::Extern,
+    Tok::If,
+    Tok::Else,
+    Tok::While,
+    Tok::For,
+    Tok::Break,
+    Tok::Continue,
+    Tok::Return,
+    Tok::Illuminance,
+    Tok::Illuminate,
+    Tok::Solar,
+    Tok::Gather,
+    Tok::Surface,
+    Tok::Light,
+    Tok::Displacement,
+    Tok::Volume,
+    Tok::Imager,
+    Tok::Pixel,
+    Tok::Camera,
+    Tok::Lightfield,
+];
+
+/// The symbol of a keyword (keywords are interned first, in order).
+pub fn keyword_symbol(word: &str) -> Symbol {
+    Symbol(KEYWORDS.iter().position(|k| *k == word).unwrap_or(0) as u32)
+}
+
+/// The span covering tokens `l..r` (an empty range points at token `l`).
+pub fn span_of(spans: &[Span], l: usize, r: usize) -> Span {
+    let last = spans.len().saturating_sub(1);
+    let first = spans[l.min(last)];
+    if r > l {
+        first.to(spans[(r - 1).min(last)])
+    } else {
+        Span::new(first.file, first.start, first.start)
+    }
+}
+
+/// The value of a `break n` level (clamped to `u32`).
+pub fn number_value(v: f64) -> u32 {
+    if v.is_finite() && v >= 0.0 {
+        v.min(u32::MAX as f64) as u32
+    } else {
+        0
+    }
+}
+
+/// Parses a number's spelling (`1`, `1.5`, `.5e3`, `2.f`, `0x1F`).
+pub fn parse_number(text: &str) -> f64 {
+    let t = text.trim_end_matches(['f', 'F']);
+    if let Some(hex) = t.strip_prefix("0x").or_else(|| t.strip_prefix("0X")) {
+        return u64::from_str_radix(hex, 16).map(|v| v as f64).unwrap_or(0.0);
+    }
+    t.parse::<f64>().unwrap_or(0.0)
+}
+
+fn convert(t: &Token, interner: &Interner) -> Tok {
+    match t.kind {
+        TokenKind::Ident => match Interner::keyword(t.sym) {
+            Some(k) => KEYWORD_TOKENS[k],
+            None => Tok::Ident(t.sym),
+        },
+        TokenKind::Number => Tok::Number(parse_number(interner.resolve(t.sym))),
+        TokenKind::String => Tok::Str(t.sym),
+        TokenKind::LParen => Tok::LParen,
+        TokenKind::RParen => Tok::RParen,
+        TokenKind::LBrace => Tok::LBrace,
+        TokenKind::RBrace => Tok::RBrace,
+        TokenKind::LBracket => Tok::LBracket,
+        TokenKind::RBracket => Tok::RBracket,
+        TokenKind::Semi => Tok::Semi,
+        TokenKind::Comma => Tok::Comma,
+        TokenKind::Dot => Tok::Dot,
+        TokenKind::Question => Tok::Question,
+        TokenKind::Colon => Tok::Colon,
+        TokenKind::Plus => Tok::Plus,
+        TokenKind::Minus => Tok::Minus,
+        TokenKind::Star => Tok::Star,
+        TokenKind::Slash => Tok::Slash,
+        TokenKind::Caret => Tok::Caret,
+        TokenKind::Bang => Tok::Bang,
+        TokenKind::Lt => Tok::Lt,
+        TokenKind::Gt => Tok::Gt,
+        TokenKind::Le => Tok::Le,
+        TokenKind::Ge => Tok::Ge,
+        TokenKind::EqEq => Tok::EqEq,
+        TokenKind::Ne => Tok::Ne,
+        TokenKind::AndAnd => Tok::AndAnd,
+        TokenKind::OrOr => Tok::OrOr,
+        TokenKind::Assign => Tok::Assign,
+        TokenKind::PlusAssign => Tok::PlusAssign,
+        TokenKind::MinusAssign => Tok::MinusAssign,
+        TokenKind::StarAssign => Tok::StarAssign,
+        TokenKind::SlashAssign => Tok::SlashAssign,
+        TokenKind::PlusPlus => Tok::PlusPlus,
+        TokenKind::MinusMinus => Tok::MinusMinus,
+        TokenKind::Percent
+        | TokenKind::Tilde
+        | TokenKind::Amp
+        | TokenKind::Pipe
+        | TokenKind::Shl
+        | TokenKind::Shr
+        | TokenKind::Hash
+        | TokenKind::HashHash
+        | TokenKind::ErrorChar
+        | TokenKind::ErrorString
+        | TokenKind::ErrorComment
+        | TokenKind::Eof => Tok::Other,
+    }
+}
+
+/// How a terminal is shown in "expected ..." messages.
+fn describe_terminal(name: &str) -> String {
+    match name {
+        "\"ident\"" => "an identifier".into(),
+        "\"number\"" => "a number".into(),
+        "\"string\"" => "a string".into(),
+        "\"string_kw\"" => "`string`".into(),
+        "\"other\"" => "a token".into(),
+        other => format!("`{}`", other.trim_matches('"')),
+    }
+}
+
+fn describe_tok(t: &Tok, interner: &Interner) -> String {
+    match t {
+        Tok::Ident(s) => format!("identifier `{}`", interner.resolve(*s)),
+        Tok::Number(v) => format!("number `{v}`"),
+        Tok::Str(s) => format!("string \"{}\"", crate::front::lex::escape(interner.resolve(*s))),
+        Tok::Other => "this token".into(),
+        other => {
+            let k = KEYWORD_TOKENS.iter().position(|k| k == other);
+            match k {
+                Some(k) => format!("keyword `{}`", KEYWORDS[k]),
+                None => format!("`{}`", punct_spelling(other)),
+            }
+        }
+    }
+}
+
+fn punct_spelling(t: &Tok) -> &'static str {
+    match t {
+        Tok::LParen => "(",
+        Tok::RParen => ")",
+        Tok::LBrace => "{",
+        Tok::RBrace => "}",
+        Tok::LBracket => "[",
+        Tok::RBracket => "]",
+        Tok::Semi => ";",
+        Tok::Comma => ",",
+        Tok::Dot => ".",
+        Tok::Question => "?",
+        Tok::Colon => ":",
+        Tok::Plus => "+",
+        Tok::Minus => "-",
+        Tok::Star => "*",
+        Tok::Slash => "/",
+        Tok::Caret => "^",
+        Tok::Bang => "!",
+        Tok::Lt => "<",
+        Tok::Gt => ">",
+        Tok::Le => "<=",
+        Tok::Ge => ">=",
+        Tok::EqEq => "==",
+        Tok::Ne => "!=",
+        Tok::AndAnd => "&&",
+        Tok::OrOr => "||",
+        Tok::Assign => "=",
+        Tok::PlusAssign => "+=",
+        Tok::MinusAssign => "-=",
+        Tok::StarAssign => "*=",
+        Tok::SlashAssign => "/=",
+        Tok::PlusPlus => "++",
+        Tok::MinusMinus => "--",
+        _ => "token",
+    }
+}
+
+fn expected_list(expected: &[String]) -> String {
+    let mut names: Vec<String> = expected.iter().map(|e| describe_terminal(e)).collect();
+    names.sort();
+    names.dedup();
+    const MAX: usize = 6;
+    if names.len() > MAX {
+        // Long lists say little; show the most useful few.
+        names.retain(|n| matches!(n.as_str(), "`;`" | "`)`" | "`}`" | "`]`" | "`,`" | "an identifier" | "`(`" | "`{`"));
+    }
+    match names.len() {
+        0 => String::new(),
+        1 => names[0].clone(),
+        _ => {
+            let last = names.pop().unwrap_or_default();
+            format!("{} or {}", names.join(", "), last)
+        }
+    }
+}
+
+/// Parses preprocessed tokens (ending in `Eof`). Never fails: syntax errors become diagnostics.
+pub fn parse(tokens: &[Token], interner: &mut Interner, diags: &mut Diagnostics) -> ast::TranslationUnit {
+    // Join adjacent string literals, as C does.
+    let mut toks: Vec<Tok> = Vec::with_capacity(tokens.len());
+    let mut spans: Vec<Span> = Vec::with_capacity(tokens.len());
+    let mut i = 0;
+    let mut eof_span = Span::default();
+    while i < tokens.len() {
+        let t = &tokens[i];
+        if t.kind == TokenKind::Eof {
+            eof_span = t.span;
+            break;
+        }
+        if t.kind == TokenKind::String && tokens.get(i + 1).is_some_and(|n| n.kind == TokenKind::String) {
+            let mut text = String::from(interner.resolve(t.sym));
+            let mut span = t.span;
+            let mut j = i + 1;
+            while let Some(n) = tokens.get(j).filter(|n| n.kind == TokenKind::String) {
+                text.push_str(interner.resolve(n.sym));
+                span = span.to(n.span);
+                j += 1;
+            }
+            toks.push(Tok::Str(interner.intern(&text)));
+            spans.push(span);
+            i = j;
+            continue;
+        }
+        toks.push(convert(t, interner));
+        spans.push(t.span);
+        i += 1;
+    }
+    spans.push(eof_span);
+
+    let mut recovered = Vec::new();
+    let input = toks.iter().enumerate().map(|(i, t)| Ok::<_, ()>((i, *t, i + 1)));
+    let result = grammar::TranslationUnitParser::new().parse(&spans, &mut recovered, input);
+    for r in recovered {
+        report(r.error, &spans, interner, diags);
+    }
+    match result {
+        Ok(unit) => unit,
+        Err(e) => {
+            report(e, &spans, interner, diags);
+            ast::TranslationUnit { items: Vec::new() }
+        }
+    }
+}
+
+fn report(e: ParseError<usize, Tok, ()>, spans: &[Span], interner: &Interner, diags: &mut Diagnostics) {
+    let d = match e {
+        ParseError::UnrecognizedToken { token: (l, tok, _), expected } => {
+            let what = describe_tok(&tok, interner);
+            let list = expected_list(&expected);
+            let mut d = Diagnostic::new(Code::Syntax, spans[l], format!("unexpected {what}"));
+            d = if list.is_empty() {
+                d.with_label("not expected here")
+            } else {
+                d.with_label(format!("expected {list}"))
+            };
+            if l > 0 && list.contains("`;`") && spans[l - 1].file == spans[l].file {
+                let prev = spans[l - 1];
+                d = d
+                    .with_note("a `;` may be missing at the end of the previous statement")
+                    .with_secondary(Span::new(prev.file, prev.end, prev.end), "perhaps `;` here");
+            }
+            d
+        }
+        ParseError::UnrecognizedEof { location, expected } => {
+            let span = spans[location.min(spans.len() - 1)];
+            let list = expected_list(&expected);
+            let mut d = Diagnostic::new(Code::UnexpectedEof, span, "the file ends in the middle of a construct");
+            if !list.is_empty() {
+                d = d.with_label(format!("expected {list}"));
+            }
+            d
+        }
+        ParseError::InvalidToken { location } => Diagnostic::new(Code::Syntax, spans[location], "invalid token"),
+        ParseError::ExtraToken { token: (l, tok, _) } => {
+            Diagnostic::new(Code::Syntax, spans[l], format!("unexpected {}", describe_tok(&tok, interner)))
+        }
+        ParseError::User { .. } => return,
+    };
+    diags.push(d);
+}

@@ -1,0 +1,347 @@
+//! The typed, checked intermediate representation that back ends consume.
+//!
+//! A [`Module`] is what one `.sl` file compiles to: at most one [`Shader`] and the user functions it
+//! calls, all as [`Function`]s. Every function owns its variables and an arena of expressions; handles
+//! ([`VarId`], [`ExprId`], [`FuncId`]) are plain indices into those vectors.
+//!
+//! ## Semantics
+//! - **Expressions form trees.** Each `ExprId` is used by exactly one parent (an expression or a
+//!   statement). Evaluation is left to right, depth first; expressions may have effects (assignments,
+//!   calls with output arguments, `printf`), which happen in that order.
+//! - **Statements form a tree** of [`Block`]s. `Loop` evaluates `cond` before each iteration, runs
+//!   `body`, then `step` (where `continue` lands). `Break(n)`/`Continue(n)` leave `n` enclosing loops;
+//!   light loops (`illuminance`, `gather`) count as loops.
+//! - **Types are explicit.** Every expression has its [`Type`]; implicit conversions of the source
+//!   (float to triple or matrix, among point/vector/normal, relation to float) are `Convert` nodes, so
+//!   operands of a `Binary` have the types its operator expects (see [`BinaryOp`]).
+//! - **Uniform and varying.** `varying` on an expression means its value may differ between the lanes
+//!   of a batch; a uniform value is the same for every lane and back ends keep it as one scalar. The
+//!   checker infers it: a variable is varying if it was declared so, or (when not declared `uniform`)
+//!   if any varying value or any assignment under varying control flow reaches it. A value flowing
+//!   into a variable declared `uniform` is an error, so in valid IR a uniform variable is only ever
+//!   assigned uniform values under uniform control flow.
+//! - **Control flow and masks.** A condition that is varying makes its statement divergent: back ends
+//!   run both branches under lane masks; uniform conditions are ordinary branches. Only lanes active
+//!   at a statement are ever written by it.
+//! - **Functions** are called by [`ExprKind::Call`]; arguments to `output` parameters are
+//!   [`Place`]s (passed by reference). Nested functions that used `extern` variables of enclosing
+//!   functions receive them as extra by-reference parameters (`Variable::kind == Capture`), appended
+//!   after the declared ones; callers pass them. There is no recursion (the checker rejects it), so
+//!   back ends may inline every call.
+
+pub mod print;
+pub mod types;
+
+use crate::builtins::Builtin;
+use crate::front::parse::ast::ShaderKind;
+use crate::globals::Global;
+use crate::source::Span;
+pub use types::{ArrayLen, BaseType, Type};
+
+/// Index of a function in [`Module::functions`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct FuncId(pub u32);
+
+/// Index of a variable in [`Function::vars`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct VarId(pub u32);
+
+/// Index of an expression in [`Function::exprs`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct ExprId(pub u32);
+
+#[derive(Clone, Debug)]
+pub struct Module {
+    pub shader: Option<Shader>,
+    pub functions: Vec<Function>,
+}
+
+impl Module {
+    pub fn function(&self, id: FuncId) -> &Function {
+        &self.functions[id.0 as usize]
+    }
+}
+
+/// The shader a file defines: its interface and the function holding its body.
+#[derive(Clone, Debug)]
+pub struct Shader {
+    pub kind: ShaderKind,
+    pub name: String,
+    /// The body. Its variables include the parameters, as `VarKind::ShaderParam`.
+    pub body: FuncId,
+    pub params: Vec<ShaderParam>,
+    pub span: Span,
+}
+
+#[derive(Clone, Debug)]
+pub struct ShaderParam {
+    pub name: String,
+    pub ty: Type,
+    /// Whether the parameter is varying (declared `varying`); parameters are uniform by default.
+    pub varying: bool,
+    pub output: bool,
+    /// The variable in the body function that holds the parameter.
+    pub var: VarId,
+    /// The default value, an expression in the body function, evaluated when no value is bound
+    /// (defaults are evaluated in order, and may use earlier parameters).
+    pub default: ExprId,
+    pub span: Span,
+}
+
+#[derive(Clone, Debug)]
+pub struct Function {
+    pub name: String,
+    pub return_type: Type,
+    /// The parameters in call order: declared ones, then captured `extern` variables.
+    pub params: Vec<VarId>,
+    pub vars: Vec<Variable>,
+    pub exprs: Vec<Expr>,
+    pub body: Block,
+    pub span: Span,
+    /// Whether the result depends on varying state beyond its arguments (varying globals, varying
+    /// built-ins, captured varying variables). A call's result is varying if this is set or any
+    /// argument is varying.
+    pub reads_varying: bool,
+}
+
+impl Function {
+    pub fn var(&self, id: VarId) -> &Variable {
+        &self.vars[id.0 as usize]
+    }
+
+    pub fn expr(&self, id: ExprId) -> &Expr {
+        &self.exprs[id.0 as usize]
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum VarKind {
+    Local,
+    /// A declared parameter of a user function.
+    Param {
+        output: bool,
+    },
+    /// A shader parameter (index into [`Shader::params`]).
+    ShaderParam {
+        index: u32,
+        output: bool,
+    },
+    /// An `extern` variable of an enclosing function, passed by reference.
+    Capture,
+}
+
+#[derive(Clone, Debug)]
+pub struct Variable {
+    pub name: String,
+    pub ty: Type,
+    pub kind: VarKind,
+    /// Inferred (or declared) storage: see the module docs.
+    pub varying: bool,
+    /// Declared `uniform` (so a varying value reaching it is an error) or `varying`.
+    pub declared: Option<bool>,
+    pub span: Span,
+}
+
+#[derive(Clone, Debug)]
+pub struct Expr {
+    pub kind: ExprKind,
+    pub ty: Type,
+    pub varying: bool,
+    pub span: Span,
+}
+
+/// A compile-time constant.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Constant {
+    Float(f32),
+    String(String),
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum UnaryOp {
+    /// Negation of a float, triple or matrix.
+    Neg,
+    /// Logical not of a bool.
+    Not,
+}
+
+/// Binary operators on checked operand types.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum BinaryOp {
+    /// Component-wise on equal numeric types; on matrices, the element-wise sum.
+    Add,
+    Sub,
+    /// Component-wise on equal numeric types; on matrices, the matrix product.
+    Mul,
+    /// Component-wise on equal numeric types; on matrices, `a * inverse(b)`.
+    Div,
+    /// Cross product of two point-like triples (or colours, component-wise formula).
+    Cross,
+    /// Dot product of two triples, a float.
+    Dot,
+    Lt,
+    Gt,
+    Le,
+    Ge,
+    /// Equality of equal types (floats, triples, matrices, strings), a bool.
+    Eq,
+    Ne,
+    /// Logical, on bools; the right side is evaluated only where needed (lanes where it matters).
+    And,
+    Or,
+}
+
+/// Where a value is stored: an assignment target or an output argument.
+#[derive(Clone, Debug)]
+pub struct Place {
+    pub base: PlaceBase,
+    /// An array element (when the base is an array) or a component of a triple (0-2).
+    pub index: Option<ExprId>,
+    /// For `a[i][j]` where `a` is an array of triples: the component `j` of element `i`.
+    pub component: Option<ExprId>,
+    /// The type of the place (after indexing).
+    pub ty: Type,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PlaceBase {
+    Var(VarId),
+    Global(Global),
+}
+
+#[derive(Clone, Debug)]
+pub enum Arg {
+    Value(ExprId),
+    /// An output argument: the callee writes through it.
+    Ref(Place),
+}
+
+#[derive(Clone, Debug)]
+pub enum ExprKind {
+    Const(Constant),
+    Var(VarId),
+    Global(Global),
+    /// An element of an array, or a component of a triple (index is a float, truncated, checked
+    /// against the bounds at run time: out-of-range indices are clamped).
+    Index {
+        base: ExprId,
+        index: ExprId,
+    },
+    Unary {
+        op: UnaryOp,
+        arg: ExprId,
+    },
+    Binary {
+        op: BinaryOp,
+        lhs: ExprId,
+        rhs: ExprId,
+    },
+    /// An implicit or explicit conversion to `self.ty` from the argument's type: float to triple
+    /// (all components) or matrix (the diagonal), between point/vector/normal (no change), between
+    /// colour and point-like (explicit typecasts only), bool to float, triple to float (the first
+    /// component, with a warning).
+    Convert {
+        arg: ExprId,
+    },
+    /// A triple from three floats, or a matrix from sixteen.
+    Construct {
+        args: Vec<ExprId>,
+    },
+    /// The value `arg` (already of type `self.ty`) was written in `space`: transform it from that
+    /// space to "current" (points, vectors, normals, matrices) or convert it from that colour space to
+    /// RGB (colours).
+    SpaceCast {
+        space: ExprId,
+        arg: ExprId,
+    },
+    /// `cond ? a : b`: only the chosen side is evaluated (per lane, when `cond` is varying).
+    Select {
+        cond: ExprId,
+        a: ExprId,
+        b: ExprId,
+    },
+    /// A built-in; `overload` indexes [`crate::builtins::signatures`].
+    CallBuiltin {
+        builtin: Builtin,
+        overload: u16,
+        args: Vec<Arg>,
+    },
+    Call {
+        func: FuncId,
+        args: Vec<Arg>,
+    },
+    /// Stores `value` (of the place's type) into the place; with `op`, stores `place op value`
+    /// (compound assignment, computed in the place's type). The expression's value is the stored value.
+    Assign {
+        place: Place,
+        op: Option<BinaryOp>,
+        value: ExprId,
+    },
+    /// An array value from its elements (initialisers).
+    ArrayLiteral {
+        elements: Vec<ExprId>,
+    },
+}
+
+#[derive(Clone, Debug, Default)]
+pub struct Block {
+    pub stmts: Vec<Stmt>,
+}
+
+#[derive(Clone, Debug)]
+pub struct Stmt {
+    pub kind: StmtKind,
+    pub span: Span,
+}
+
+#[derive(Clone, Debug)]
+pub enum StmtKind {
+    /// Evaluates an expression for its effects.
+    Expr(ExprId),
+    If {
+        cond: ExprId,
+        then: Block,
+        otherwise: Block,
+    },
+    Loop {
+        cond: Option<ExprId>,
+        body: Block,
+        step: Block,
+    },
+    Break(u32),
+    Continue(u32),
+    Return(Option<ExprId>),
+    /// Runs `body` once per light reaching the point, with `L` (from the point to the light) and `Cl`
+    /// set. `category` filters lights; with `axis`/`angle`, only lights within the cone are used.
+    Illuminance {
+        category: Option<ExprId>,
+        position: ExprId,
+        cone: Option<(ExprId, ExprId)>,
+        body: Block,
+    },
+    /// Light shaders: emits light from `position` (within the cone if given); `L` is set to the
+    /// direction from the light to the surface point before `body` runs.
+    Illuminate {
+        position: ExprId,
+        cone: Option<(ExprId, ExprId)>,
+        body: Block,
+    },
+    /// Light shaders: a distant light, from every direction or along `axis` within `angle`.
+    Solar {
+        cone: Option<(ExprId, ExprId)>,
+        body: Block,
+    },
+    /// Shoots `samples` rays within a cone; `body` runs for hits (with outputs named in the
+    /// parameter list written), `otherwise` for misses.
+    Gather {
+        category: ExprId,
+        position: ExprId,
+        direction: ExprId,
+        angle: ExprId,
+        samples: ExprId,
+        /// `"name", value` pairs: names with a `:` (`"surface:Ci"`) are outputs written on hits.
+        params: Vec<(ExprId, Arg)>,
+        body: Block,
+        otherwise: Block,
+    },
+}

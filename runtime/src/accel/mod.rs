@@ -1,0 +1,41 @@
+//! Acceleration structures and their traversal: a two-level BVH.
+//!
+//! - [`bvh4`]: the 4-wide node layout shared by both levels, built from obvhs's binary BVH.
+//! - [`object`]: an object's own BVH over its triangles (built once per geometry change).
+//! - [`top`]: the top-level BVH over instances (rebuilt every frame from the instance list).
+//! - [`single`]: single-ray traversal (SSE node tests), for incoherent rays.
+//! - [`packet`]: packet traversal for coherent packets of 64 rays (interval-arithmetic culling,
+//!   ranged first/last-active-chunk traversal, per-lane masks), falling back to [`single`].
+//!
+//! Invariants: both traversals and the brute-force reference in [`single`] intersect triangles with
+//! the same formula ([`crate::geometry::triangle::intersect`]) and use conservative box tests
+//! (Ize's robust slab test, with the far distance scaled by `1 + 2 gamma(3)`), so they find the same
+//! closest primitive (up to ties at equal `t`) and the same occlusion answers.
+
+pub mod bvh4;
+pub mod object;
+pub mod packet;
+pub mod single;
+mod stack;
+pub mod top;
+
+/// Scales the far distance of slab tests so that rounding never culls a box the ray touches
+/// (`1 + 2 gamma(3)`, Ize 2013, "Robust BVH Ray Traversal").
+pub(crate) const ROBUST: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
+
+/// The inverse of a direction component, never infinite: components closer to zero than `1e-30`
+/// are replaced by `+-1e-30` (keeping the sign), so slab tests never compute `0 * inf`.
+#[inline(always)]
+pub(crate) fn safe_inv(d: f32) -> f32 {
+    const TINY: f32 = 1e-30;
+    let d = if d.abs() < TINY {
+        if d.is_sign_negative() {
+            -TINY
+        } else {
+            TINY
+        }
+    } else {
+        d
+    };
+    1.0 / d
+}

@@ -1,0 +1,723 @@
+//! Packet traversal of the two-level BVH for coherent packets of 64 rays.
+//!
+//! The algorithm is ranged packet traversal (Wald et al. 2007; Overbeck et al. 2008) over 4-wide
+//! nodes, in chunks of four lanes (one SSE register per quantity):
+//! 1. **Interval culling.** When every lane's direction has the same sign on each axis, the packet
+//!    is bounded by intervals of origins and inverse directions; one interval-arithmetic slab test
+//!    per node rejects the children that no lane can enter (4 children at once).
+//! 2. **First and last active chunk.** For each surviving child, chunks are slab-tested from the
+//!    front of the parent's range `[lo, hi]` until one hits, and from the back likewise; the child
+//!    is visited with the narrowed range. Leaves get the exact mask of chunks that hit their box, and
+//!    only those chunks are tested against the leaf's triangles.
+//! 3. **Ordering.** Children are visited in the order of the entry distance of the first hitting
+//!    lane.
+//! 4. **Fallback to single rays.** Packets whose direction signs differ (incoherent, e.g. after an
+//!    instance's rotation), packets with few active lanes, and occlusion packets whose unfinished
+//!    lanes drop to [`SINGLE_RAY_THRESHOLD`] continue with [`super::single`] traversal per lane.
+//!
+//! Invariants:
+//! - Lanes outside `active` are never reported: they are given the ray of an active lane with an
+//!   empty interval (`tmin = +inf`, `tmax = -inf`), so they fail every test and do not widen the
+//!   packet's bounds.
+//! - The interval test is conservative *including rounding*: its bounds use the same IEEE
+//!   operations as the per-lane test on the extreme values, and rounding is monotonic, so it never
+//!   rejects a box that some lane's own test would enter.
+//! - A lane's `tmax` only decreases; occluded lanes get `tmax = -inf` and take no further part.
+
+use super::bvh4::{leaf_range, Bvh4, Node4, LEAF_BIT};
+use super::object::Object;
+use super::single::{self, HitState, RayPre, STACK};
+use super::stack::Stack;
+use super::top::{InstanceData, TopLevel};
+use super::ROBUST;
+use crate::geometry::triangle::{intersect, intersect_shared, PreTriangle, SharedOrigin};
+use crate::ray::{HitCandidate, HitFilter, HitPacket, RayPacket, INVALID_ID, PACKET_SIZE};
+use glam::{BVec4A, Vec3A, Vec4};
+
+/// Chunks of four lanes per packet.
+pub const CHUNKS: usize = PACKET_SIZE / 4;
+/// Packets with at most this many active (unfinished) lanes are traced one ray at a time.
+pub const SINGLE_RAY_THRESHOLD: u32 = 3;
+
+type Chunks = [Vec4; CHUNKS];
+
+/// The packet's rays in one space (world, or an object's space), with interval bounds.
+struct Geom {
+    o: [Chunks; 3],
+    d: [Chunks; 3],
+    id: [Chunks; 3],
+    neg: [bool; 3],
+    o_lo: [f32; 3],
+    o_hi: [f32; 3],
+    id_lo: [f32; 3],
+    id_hi: [f32; 3],
+    /// Every lane in the range has the same origin (bit for bit).
+    shared_origin: bool,
+}
+
+/// Mutable per-lane state shared by both levels.
+struct State {
+    tmin: Chunks,
+    tmax: Chunks,
+    tmin_lo: f32,
+    tmax_hi: f32,
+    u: Chunks,
+    v: Chunks,
+    instance: [u32; PACKET_SIZE],
+    primitive: [u32; PACKET_SIZE],
+    active: u64,
+    done: u64,
+    /// Occlusion only: set when few lanes remain and the rest should go single-ray.
+    bail: bool,
+}
+
+#[inline(always)]
+fn safe_inv4(d: Vec4) -> Vec4 {
+    const TINY: f32 = 1e-30;
+    let small = d.abs().cmplt(Vec4::splat(TINY));
+    Vec4::ONE / Vec4::select(small, Vec4::splat(TINY).copysign(d), d)
+}
+
+impl Geom {
+    fn zeroed() -> Self {
+        Geom {
+            o: [[Vec4::ZERO; CHUNKS]; 3],
+            d: [[Vec4::ZERO; CHUNKS]; 3],
+            id: [[Vec4::ZERO; CHUNKS]; 3],
+            neg: [false; 3],
+            o_lo: [0.0; 3],
+            o_hi: [0.0; 3],
+            id_lo: [0.0; 3],
+            id_hi: [0.0; 3],
+            shared_origin: false,
+        }
+    }
+
+    /// Computes inverse directions and bounds over chunks `lo..=hi`; `false` if the direction signs
+    /// differ between lanes (the packet is then incoherent and must go single-ray).
+    fn finish(&mut self, lo: usize, hi: usize) -> bool {
+        for a in 0..3 {
+            let mut neg = 0u64;
+            let mut olo = Vec4::splat(f32::INFINITY);
+            let mut ohi = Vec4::splat(f32::NEG_INFINITY);
+            let mut ilo = olo;
+            let mut ihi = ohi;
+            for c in lo..=hi {
+                let id = safe_inv4(self.d[a][c]);
+                self.id[a][c] = id;
+                neg |= (id.cmplt(Vec4::ZERO).bitmask() as u64) << (4 * (c - lo));
+                olo = olo.min(self.o[a][c]);
+                ohi = ohi.max(self.o[a][c]);
+                ilo = ilo.min(id);
+                ihi = ihi.max(id);
+            }
+            let all = if hi - lo + 1 >= 16 { u64::MAX } else { (1u64 << (4 * (hi - lo + 1))) - 1 };
+            if neg != 0 && neg != all {
+                return false;
+            }
+            self.neg[a] = neg != 0;
+            self.o_lo[a] = olo.min_element();
+            self.o_hi[a] = ohi.max_element();
+            self.id_lo[a] = ilo.min_element();
+            self.id_hi[a] = ihi.max_element();
+        }
+        self.shared_origin = (0..3).all(|a| self.o_lo[a].to_bits() == self.o_hi[a].to_bits());
+        true
+    }
+
+    /// The world-space geometry of a packet; lanes outside `active` copy lane `fill`.
+    fn world(p: &RayPacket, fill: usize) -> Self {
+        let mut g = Geom::zeroed();
+        let src = [&p.ox.0, &p.oy.0, &p.oz.0, &p.dx.0, &p.dy.0, &p.dz.0];
+        for (k, arr) in src.iter().enumerate() {
+            let dst = if k < 3 { &mut g.o[k] } else { &mut g.d[k - 3] };
+            for (c, v) in dst.iter_mut().enumerate() {
+                if p.active >> (4 * c) & 0xF == 0xF {
+                    *v = Vec4::from_slice(&arr[4 * c..4 * c + 4]);
+                    continue;
+                }
+                let mut lanes = [0.0f32; 4];
+                for (j, l) in lanes.iter_mut().enumerate() {
+                    let i = 4 * c + j;
+                    *l = if p.active >> i & 1 != 0 { arr[i] } else { arr[fill] };
+                }
+                *v = Vec4::from_array(lanes);
+            }
+        }
+        g
+    }
+
+    /// This geometry moved into object space by `xf`, for chunks `lo..=hi`.
+    fn transformed(&self, xf: &glam::Affine3A, lo: usize, hi: usize) -> Self {
+        let mut g = Geom::zeroed();
+        let m = xf.matrix3;
+        let t = xf.translation;
+        let (ax, ay, az) = (m.x_axis, m.y_axis, m.z_axis);
+        for c in lo..=hi {
+            let (x, y, z) = (self.o[0][c], self.o[1][c], self.o[2][c]);
+            g.o[0][c] = ((Vec4::splat(ax.x) * x + Vec4::splat(ay.x) * y) + Vec4::splat(az.x) * z) + Vec4::splat(t.x);
+            g.o[1][c] = ((Vec4::splat(ax.y) * x + Vec4::splat(ay.y) * y) + Vec4::splat(az.y) * z) + Vec4::splat(t.y);
+            g.o[2][c] = ((Vec4::splat(ax.z) * x + Vec4::splat(ay.z) * y) + Vec4::splat(az.z) * z) + Vec4::splat(t.z);
+            let (x, y, z) = (self.d[0][c], self.d[1][c], self.d[2][c]);
+            g.d[0][c] = (Vec4::splat(ax.x) * x + Vec4::splat(ay.x) * y) + Vec4::splat(az.x) * z;
+            g.d[1][c] = (Vec4::splat(ax.y) * x + Vec4::splat(ay.y) * y) + Vec4::splat(az.y) * z;
+            g.d[2][c] = (Vec4::splat(ax.z) * x + Vec4::splat(ay.z) * y) + Vec4::splat(az.z) * z;
+        }
+        g
+    }
+
+    #[inline(always)]
+    fn lane_ray(&self, i: usize, tmin: f32, tmax: f32) -> RayPre {
+        let (c, j) = (i / 4, i % 4);
+        RayPre::new(
+            Vec3A::new(self.o[0][c][j], self.o[1][c][j], self.o[2][c][j]),
+            Vec3A::new(self.d[0][c][j], self.d[1][c][j], self.d[2][c][j]),
+            tmin,
+            tmax,
+        )
+    }
+}
+
+impl State {
+    fn new(p: &RayPacket) -> Self {
+        let mut tmin = [Vec4::ZERO; CHUNKS];
+        let mut tmax = [Vec4::ZERO; CHUNKS];
+        for c in 0..CHUNKS {
+            let mut lo = [0.0f32; 4];
+            let mut hi = [0.0f32; 4];
+            for j in 0..4 {
+                let i = 4 * c + j;
+                if p.active >> i & 1 != 0 {
+                    lo[j] = p.tmin.0[i];
+                    hi[j] = p.tmax.0[i];
+                } else {
+                    lo[j] = f32::INFINITY;
+                    hi[j] = f32::NEG_INFINITY;
+                }
+            }
+            tmin[c] = Vec4::from_array(lo);
+            tmax[c] = Vec4::from_array(hi);
+        }
+        let mut s = State {
+            tmin,
+            tmax,
+            tmin_lo: 0.0,
+            tmax_hi: 0.0,
+            u: [Vec4::ZERO; CHUNKS],
+            v: [Vec4::ZERO; CHUNKS],
+            instance: [INVALID_ID; PACKET_SIZE],
+            primitive: [INVALID_ID; PACKET_SIZE],
+            active: p.active,
+            done: 0,
+            bail: false,
+        };
+        s.tmin_lo = s.tmin.iter().fold(Vec4::splat(f32::INFINITY), |a, b| a.min(*b)).min_element();
+        s.update_tmax_hi();
+        s
+    }
+
+    #[inline(always)]
+    fn update_tmax_hi(&mut self) {
+        self.tmax_hi = self.tmax.iter().fold(Vec4::splat(f32::NEG_INFINITY), |a, b| a.max(*b)).max_element();
+    }
+
+    #[inline(always)]
+    fn lane_tmin(&self, i: usize) -> f32 {
+        self.tmin[i / 4][i % 4]
+    }
+
+    #[inline(always)]
+    fn lane_tmax(&self, i: usize) -> f32 {
+        self.tmax[i / 4][i % 4]
+    }
+
+    #[inline(always)]
+    fn set_lane_tmax(&mut self, i: usize, t: f32) {
+        self.tmax[i / 4][i % 4] = t;
+    }
+}
+
+/// Bit mask of the children of `n` that the packet's interval bounds may enter.
+#[inline(always)]
+fn interval_mask(n: &Node4, g: &Geom, s: &State) -> u32 {
+    let mut near = Vec4::splat(s.tmin_lo);
+    let mut far = Vec4::splat(s.tmax_hi);
+    let planes = [(&n.min_x, &n.max_x), (&n.min_y, &n.max_y), (&n.min_z, &n.max_z)];
+    for (a, (lo, hi)) in planes.into_iter().enumerate() {
+        let (bn, bf, on, of) = if g.neg[a] { (hi, lo, g.o_lo[a], g.o_hi[a]) } else { (lo, hi, g.o_hi[a], g.o_lo[a]) };
+        let (il, ih) = (Vec4::splat(g.id_lo[a]), Vec4::splat(g.id_hi[a]));
+        let xn = Vec4::from_array(*bn) - Vec4::splat(on);
+        let xf = Vec4::from_array(*bf) - Vec4::splat(of);
+        near = near.max((xn * il).min(xn * ih));
+        far = far.min((xf * il).max(xf * ih));
+    }
+    near.cmple(far * ROBUST).bitmask()
+}
+
+/// One child box, splatted, near and far planes chosen by the packet's direction signs.
+struct BoxSplat {
+    n: [Vec4; 3],
+    f: [Vec4; 3],
+}
+
+impl BoxSplat {
+    #[inline(always)]
+    fn new(node: &Node4, k: usize, neg: [bool; 3]) -> Self {
+        let lo = [node.min_x[k], node.min_y[k], node.min_z[k]];
+        let hi = [node.max_x[k], node.max_y[k], node.max_z[k]];
+        let mut b = BoxSplat { n: [Vec4::ZERO; 3], f: [Vec4::ZERO; 3] };
+        for a in 0..3 {
+            let (n, f) = if neg[a] { (hi[a], lo[a]) } else { (lo[a], hi[a]) };
+            b.n[a] = Vec4::splat(n);
+            b.f[a] = Vec4::splat(f);
+        }
+        b
+    }
+
+    /// Slab test of chunk `c`: hit mask and entry distances. Same operations as the single-ray test.
+    #[inline(always)]
+    fn test(&self, g: &Geom, s: &State, c: usize) -> (u32, Vec4) {
+        let tnx = (self.n[0] - g.o[0][c]) * g.id[0][c];
+        let tny = (self.n[1] - g.o[1][c]) * g.id[1][c];
+        let tnz = (self.n[2] - g.o[2][c]) * g.id[2][c];
+        let tfx = (self.f[0] - g.o[0][c]) * g.id[0][c];
+        let tfy = (self.f[1] - g.o[1][c]) * g.id[1][c];
+        let tfz = (self.f[2] - g.o[2][c]) * g.id[2][c];
+        let tnear = tnx.max(tny).max(tnz.max(s.tmin[c]));
+        let tfar = tfx.min(tfy).min(tfz.min(s.tmax[c]));
+        (tnear.cmple(tfar * ROBUST).bitmask(), tnear)
+    }
+}
+
+#[derive(Clone, Copy, Default)]
+struct Entry {
+    r: u32,
+    lo: u8,
+    hi: u8,
+    mask: u16,
+}
+
+/// Traverses `bvh` with the chunks `lo..=hi` of the packet. `leaf(first, count, chunk_mask, state)`
+/// is called for each leaf entered, with the mask of chunks whose rays hit the leaf's box; it
+/// returns `true` to end the traversal.
+#[inline(always)]
+fn traverse<F: FnMut(u32, u32, u16, &mut State) -> bool>(
+    bvh: &Bvh4,
+    g: &Geom,
+    s: &mut State,
+    lo: usize,
+    hi: usize,
+    mut leaf: F,
+) -> bool {
+    if bvh.nodes.is_empty() {
+        return false;
+    }
+    let mut stack: Stack<Entry, STACK> = Stack::new();
+    stack.push(Entry { r: 0, lo: lo as u8, hi: hi as u8, mask: 0 });
+    while let Some(e) = stack.pop() {
+        if e.r & LEAF_BIT != 0 {
+            let (first, count) = leaf_range(e.r);
+            if leaf(first, count, e.mask, s) {
+                return true;
+            }
+            continue;
+        }
+        let node = &bvh.nodes[e.r as usize];
+        let mut m = interval_mask(node, g, s);
+        let mut kids = [(Entry::default(), 0f32); 4];
+        let mut n = 0;
+        while m != 0 {
+            let k = m.trailing_zeros() as usize;
+            m &= m - 1;
+            let b = BoxSplat::new(node, k, g.neg);
+            let (elo, ehi) = (e.lo as usize, e.hi as usize);
+            let mut first = None;
+            for c in elo..=ehi {
+                let (hm, tn) = b.test(g, s, c);
+                if hm != 0 {
+                    let mut t = f32::INFINITY;
+                    for j in 0..4 {
+                        if hm >> j & 1 != 0 {
+                            t = t.min(tn[j]);
+                        }
+                    }
+                    first = Some((c, t));
+                    break;
+                }
+            }
+            let Some((f, t)) = first else { continue };
+            let child = node.child[k];
+            let mut entry = Entry { r: child, lo: f as u8, hi: f as u8, mask: 1 << f };
+            if child & LEAF_BIT != 0 {
+                for c in f + 1..=ehi {
+                    if b.test(g, s, c).0 != 0 {
+                        entry.mask |= 1 << c;
+                        entry.hi = c as u8;
+                    }
+                }
+            } else {
+                let mut l = ehi;
+                while l > f && b.test(g, s, l).0 == 0 {
+                    l -= 1;
+                }
+                entry.hi = l as u8;
+            }
+            let mut j = n;
+            while j > 0 && kids[j - 1].1 < t {
+                kids[j] = kids[j - 1];
+                j -= 1;
+            }
+            kids[j] = (entry, t);
+            n += 1;
+        }
+        for (entry, _) in &kids[..n] {
+            stack.push(*entry);
+        }
+    }
+    false
+}
+
+#[inline(always)]
+fn lane_mask4(bits: u32) -> BVec4A {
+    BVec4A::new(bits & 1 != 0, bits & 2 != 0, bits & 4 != 0, bits & 8 != 0)
+}
+
+/// Tests the chunks in `mask` against one triangle: the hit mask and `(t, u, v)` per chunk is
+/// handed to `on_hit`.
+#[inline(always)]
+fn leaf_triangle<H: FnMut(usize, u32, Vec4, Vec4, Vec4, &mut State)>(
+    g: &Geom,
+    s: &mut State,
+    tri: &PreTriangle,
+    mask: u16,
+    mut on_hit: H,
+) {
+    let mut m = mask as u32;
+    let shared = g.shared_origin.then(|| SharedOrigin::new(g.o_lo, tri));
+    while m != 0 {
+        let c = m.trailing_zeros() as usize;
+        m &= m - 1;
+        let d = [g.d[0][c], g.d[1][c], g.d[2][c]];
+        let (t, u, v) = match &shared {
+            Some(so) => intersect_shared(so, d, tri),
+            None => intersect([g.o[0][c], g.o[1][c], g.o[2][c]], d, tri),
+        };
+        let hit = u.cmpge(Vec4::ZERO)
+            & v.cmpge(Vec4::ZERO)
+            & (u + v).cmple(Vec4::ONE)
+            & t.cmpgt(s.tmin[c])
+            & t.cmplt(s.tmax[c]);
+        let bits = hit.bitmask();
+        if bits != 0 {
+            on_hit(c, bits, t, u, v, s);
+        }
+    }
+}
+
+/// Closest hit of the packet's chunks `mask` with one object.
+#[allow(clippy::too_many_arguments)]
+fn intersect_object(
+    obj: &Object,
+    inst_id: u32,
+    object_id: u32,
+    g: &Geom,
+    s: &mut State,
+    lo: usize,
+    hi: usize,
+    filter: HitFilter,
+) {
+    let tris = &obj.bvh.tris;
+    let order = &obj.bvh.bvh.prim_order;
+    traverse(&obj.bvh.bvh, g, s, lo, hi, |first, count, mask, s| {
+        let mut any = false;
+        for slot in first as usize..(first + count) as usize {
+            let primitive = order[slot];
+            leaf_triangle(g, s, &tris[slot], mask, |c, mut bits, t, u, v, s| {
+                if let Some(f) = filter {
+                    let mut b = bits;
+                    while b != 0 {
+                        let j = b.trailing_zeros() as usize;
+                        b &= b - 1;
+                        let cand = HitCandidate {
+                            t: t[j],
+                            u: u[j],
+                            v: v[j],
+                            instance: inst_id,
+                            object: object_id,
+                            primitive,
+                            lane: (4 * c + j) as u32,
+                        };
+                        if !f(&cand) {
+                            bits &= !(1 << j);
+                        }
+                    }
+                    if bits == 0 {
+                        return;
+                    }
+                }
+                let hm = lane_mask4(bits);
+                s.tmax[c] = Vec4::select(hm, t, s.tmax[c]);
+                s.u[c] = Vec4::select(hm, u, s.u[c]);
+                s.v[c] = Vec4::select(hm, v, s.v[c]);
+                let mut b = bits;
+                while b != 0 {
+                    let j = b.trailing_zeros() as usize;
+                    b &= b - 1;
+                    s.instance[4 * c + j] = inst_id;
+                    s.primitive[4 * c + j] = primitive;
+                }
+                any = true;
+            });
+        }
+        if any {
+            s.update_tmax_hi();
+        }
+        false
+    });
+}
+
+/// Occlusion of the packet's chunks with one object; returns `true` when traversal should stop
+/// (every lane is done, or few remain and `s.bail` is set).
+#[allow(clippy::too_many_arguments)]
+fn occluded_object(
+    obj: &Object,
+    inst_id: u32,
+    object_id: u32,
+    g: &Geom,
+    s: &mut State,
+    lo: usize,
+    hi: usize,
+    filter: HitFilter,
+) -> bool {
+    let tris = &obj.bvh.tris;
+    let order = &obj.bvh.bvh.prim_order;
+    traverse(&obj.bvh.bvh, g, s, lo, hi, |first, count, mask, s| {
+        let mut any = false;
+        for slot in first as usize..(first + count) as usize {
+            let primitive = order[slot];
+            leaf_triangle(g, s, &tris[slot], mask, |c, mut bits, t, u, v, s| {
+                if let Some(f) = filter {
+                    let mut b = bits;
+                    while b != 0 {
+                        let j = b.trailing_zeros() as usize;
+                        b &= b - 1;
+                        let cand = HitCandidate {
+                            t: t[j],
+                            u: u[j],
+                            v: v[j],
+                            instance: inst_id,
+                            object: object_id,
+                            primitive,
+                            lane: (4 * c + j) as u32,
+                        };
+                        if !f(&cand) {
+                            bits &= !(1 << j);
+                        }
+                    }
+                    if bits == 0 {
+                        return;
+                    }
+                }
+                s.tmax[c] = Vec4::select(lane_mask4(bits), Vec4::NEG_INFINITY, s.tmax[c]);
+                s.done |= (bits as u64) << (4 * c);
+                any = true;
+            });
+        }
+        if any {
+            let left = s.active & !s.done;
+            if left == 0 {
+                return true;
+            }
+            if left.count_ones() <= SINGLE_RAY_THRESHOLD {
+                s.bail = true;
+                return true;
+            }
+            s.update_tmax_hi();
+        }
+        false
+    })
+}
+
+fn chunk_range(mask: u64) -> (usize, usize) {
+    let lo = mask.trailing_zeros() as usize / 4;
+    let hi = (63 - mask.leading_zeros() as usize) / 4;
+    (lo, hi)
+}
+
+fn mask_range(mask: u16) -> (usize, usize) {
+    (mask.trailing_zeros() as usize, 15 - mask.leading_zeros() as usize)
+}
+
+/// Lanes of chunks in `mask` that are active and not done.
+fn lanes_of(mask: u16, s: &State) -> u64 {
+    let mut lanes = 0u64;
+    for c in 0..CHUNKS {
+        if mask >> c & 1 != 0 {
+            lanes |= 0xF << (4 * c);
+        }
+    }
+    lanes & s.active & !s.done
+}
+
+/// Closest hits of a packet (see the module documentation).
+pub(crate) fn intersect_packet(
+    top: &TopLevel,
+    objects: &[Object],
+    p: &RayPacket,
+    out: &mut HitPacket,
+    filter: HitFilter,
+) {
+    let active = p.active;
+    if active == 0 {
+        return;
+    }
+    let single_all = |out: &mut HitPacket| {
+        let mut m = active;
+        while m != 0 {
+            let i = m.trailing_zeros() as usize;
+            m &= m - 1;
+            let h = single::intersect_scene(top, objects, &p.get(i), filter, i as u32);
+            write_lane(out, i, h.t, h.u, h.v, h.instance, h.primitive);
+        }
+    };
+    if active.count_ones() <= SINGLE_RAY_THRESHOLD {
+        return single_all(out);
+    }
+    let fill = active.trailing_zeros() as usize;
+    let mut g = Geom::world(p, fill);
+    let (lo, hi) = chunk_range(active);
+    if !g.finish(lo, hi) {
+        return single_all(out);
+    }
+    let mut s = State::new(p);
+    traverse(&top.bvh, &g, &mut s, lo, hi, |first, count, mask, s| {
+        for slot in first..first + count {
+            let inst_id = top.bvh.prim_order[slot as usize];
+            let inst: &InstanceData = &top.instances[inst_id as usize];
+            let obj = &objects[inst.object as usize];
+            let (clo, chi) = mask_range(mask);
+            if inst.identity {
+                intersect_object(obj, inst_id, inst.object, &g, s, clo, chi, filter);
+                continue;
+            }
+            let mut og = g.transformed(&inst.object_from_world, clo, chi);
+            if og.finish(clo, chi) {
+                intersect_object(obj, inst_id, inst.object, &og, s, clo, chi, filter);
+                continue;
+            }
+            // Incoherent in this object's space: one ray at a time.
+            let mut m = lanes_of(mask, s);
+            while m != 0 {
+                let i = m.trailing_zeros() as usize;
+                m &= m - 1;
+                let mut r = og.lane_ray(i, s.lane_tmin(i), s.lane_tmax(i));
+                let (c, j) = (i / 4, i % 4);
+                let mut h = HitState { u: s.u[c][j], v: s.v[c][j], instance: s.instance[i], primitive: s.primitive[i] };
+                single::intersect_object(obj, inst_id, inst.object, &mut r, &mut h, filter, i as u32);
+                s.set_lane_tmax(i, r.tmax);
+                s.u[c][j] = h.u;
+                s.v[c][j] = h.v;
+                s.instance[i] = h.instance;
+                s.primitive[i] = h.primitive;
+            }
+            s.update_tmax_hi();
+        }
+        false
+    });
+    let mut m = active;
+    while m != 0 {
+        let i = m.trailing_zeros() as usize;
+        m &= m - 1;
+        let (c, j) = (i / 4, i % 4);
+        if s.instance[i] == INVALID_ID {
+            write_lane(out, i, f32::INFINITY, 0.0, 0.0, INVALID_ID, INVALID_ID);
+        } else {
+            write_lane(out, i, s.tmax[c][j], s.u[c][j], s.v[c][j], s.instance[i], s.primitive[i]);
+        }
+    }
+}
+
+#[inline(always)]
+fn write_lane(out: &mut HitPacket, i: usize, t: f32, u: f32, v: f32, inst: u32, prim: u32) {
+    out.t.0[i] = t;
+    out.u.0[i] = u;
+    out.v.0[i] = v;
+    out.instance.0[i] = inst;
+    out.primitive.0[i] = prim;
+}
+
+/// Occlusion of a packet: returns the mask of active lanes that hit something.
+pub(crate) fn occluded_packet(top: &TopLevel, objects: &[Object], p: &RayPacket, filter: HitFilter) -> u64 {
+    let active = p.active;
+    if active == 0 {
+        return 0;
+    }
+    let single_lanes = |lanes: u64| {
+        let mut hit = 0u64;
+        let mut m = lanes;
+        while m != 0 {
+            let i = m.trailing_zeros() as usize;
+            m &= m - 1;
+            if single::occluded_scene(top, objects, &p.get(i), filter, i as u32) {
+                hit |= 1 << i;
+            }
+        }
+        hit
+    };
+    if active.count_ones() <= SINGLE_RAY_THRESHOLD {
+        return single_lanes(active);
+    }
+    let fill = active.trailing_zeros() as usize;
+    let mut g = Geom::world(p, fill);
+    let (lo, hi) = chunk_range(active);
+    if !g.finish(lo, hi) {
+        return single_lanes(active);
+    }
+    let mut s = State::new(p);
+    traverse(&top.bvh, &g, &mut s, lo, hi, |first, count, mask, s| {
+        for slot in first..first + count {
+            let inst_id = top.bvh.prim_order[slot as usize];
+            let inst: &InstanceData = &top.instances[inst_id as usize];
+            let obj = &objects[inst.object as usize];
+            let (clo, chi) = mask_range(mask);
+            if inst.identity {
+                if occluded_object(obj, inst_id, inst.object, &g, s, clo, chi, filter) {
+                    return true;
+                }
+                continue;
+            }
+            let mut og = g.transformed(&inst.object_from_world, clo, chi);
+            if og.finish(clo, chi) {
+                if occluded_object(obj, inst_id, inst.object, &og, s, clo, chi, filter) {
+                    return true;
+                }
+                continue;
+            }
+            let mut m = lanes_of(mask, s);
+            while m != 0 {
+                let i = m.trailing_zeros() as usize;
+                m &= m - 1;
+                let mut r = og.lane_ray(i, s.lane_tmin(i), s.lane_tmax(i));
+                if single::occluded_object(obj, inst_id, inst.object, &mut r, filter, i as u32) {
+                    s.set_lane_tmax(i, f32::NEG_INFINITY);
+                    s.done |= 1 << i;
+                }
+            }
+            let left = s.active & !s.done;
+            if left == 0 {
+                return true;
+            }
+            if left.count_ones() <= SINGLE_RAY_THRESHOLD {
+                s.bail = true;
+                return true;
+            }
+            s.update_tmax_hi();
+        }
+        false
+    });
+    let mut hit = s.done & active;
+    if s.bail {
+        hit |= single_lanes(active & !s.done);
+    }
+    hit
+}

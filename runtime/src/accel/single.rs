@@ -1,0 +1,328 @@
+//! Single-ray traversal of the two-level BVH, and the brute-force reference.
+//!
+//! Each 4-wide node is tested with one SSE slab test (glam's `Vec4`); hit children are visited
+//! nearest first, and popped entries farther than the current closest hit are skipped. This is the
+//! path for incoherent rays and the fallback of packet traversal.
+//!
+//! Invariant: traversal state (`tmax`, the hit record) lives in [`RayPre`] and is shared between
+//! the levels: `t` is the same number in world and object space because origin and direction are
+//! transformed by the same affine map.
+
+use super::bvh4::{leaf_range, Bvh4, Node4, EMPTY_CHILD, LEAF_BIT};
+use super::object::Object;
+use super::stack::Stack;
+use super::top::{InstanceData, TopLevel};
+use super::{safe_inv, ROBUST};
+use crate::geometry::triangle::{accept, intersect};
+use crate::ray::{Hit, HitCandidate, HitFilter, Ray, INVALID_ID};
+use glam::{Vec3A, Vec4};
+
+/// Traversal stack depth that fits on the machine stack; deeper BVHs use a heap stack.
+pub(crate) const STACK: usize = 96;
+
+/// A ray prepared for slab tests.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct RayPre {
+    pub o: [f32; 3],
+    pub d: [f32; 3],
+    ox: Vec4,
+    oy: Vec4,
+    oz: Vec4,
+    idx: Vec4,
+    idy: Vec4,
+    idz: Vec4,
+    neg: [bool; 3],
+    pub tmin: f32,
+    pub tmax: f32,
+}
+
+impl RayPre {
+    #[inline(always)]
+    pub fn new(o: Vec3A, d: Vec3A, tmin: f32, tmax: f32) -> Self {
+        let id = [safe_inv(d.x), safe_inv(d.y), safe_inv(d.z)];
+        RayPre {
+            o: o.to_array(),
+            d: d.to_array(),
+            ox: Vec4::splat(o.x),
+            oy: Vec4::splat(o.y),
+            oz: Vec4::splat(o.z),
+            idx: Vec4::splat(id[0]),
+            idy: Vec4::splat(id[1]),
+            idz: Vec4::splat(id[2]),
+            neg: [id[0] < 0.0, id[1] < 0.0, id[2] < 0.0],
+            tmin,
+            tmax,
+        }
+    }
+
+    /// This ray moved into the object space of `inst`.
+    #[inline(always)]
+    pub fn in_object_space(&self, inst: &InstanceData) -> Self {
+        if inst.identity {
+            return *self;
+        }
+        let xf = &inst.object_from_world;
+        let o = xf.transform_point3a(Vec3A::from(self.o));
+        let d = xf.transform_vector3a(Vec3A::from(self.d));
+        RayPre::new(o, d, self.tmin, self.tmax)
+    }
+}
+
+/// Tests the four child boxes of `n`: returns the hit mask and the entry distances.
+#[inline(always)]
+fn node_hits(n: &Node4, r: &RayPre) -> (u32, Vec4) {
+    let (nx, fx) = if r.neg[0] { (&n.max_x, &n.min_x) } else { (&n.min_x, &n.max_x) };
+    let (ny, fy) = if r.neg[1] { (&n.max_y, &n.min_y) } else { (&n.min_y, &n.max_y) };
+    let (nz, fz) = if r.neg[2] { (&n.max_z, &n.min_z) } else { (&n.min_z, &n.max_z) };
+    let tnx = (Vec4::from_array(*nx) - r.ox) * r.idx;
+    let tny = (Vec4::from_array(*ny) - r.oy) * r.idy;
+    let tnz = (Vec4::from_array(*nz) - r.oz) * r.idz;
+    let tfx = (Vec4::from_array(*fx) - r.ox) * r.idx;
+    let tfy = (Vec4::from_array(*fy) - r.oy) * r.idy;
+    let tfz = (Vec4::from_array(*fz) - r.oz) * r.idz;
+    let tnear = tnx.max(tny).max(tnz.max(Vec4::splat(r.tmin)));
+    let tfar = tfx.min(tfy).min(tfz.min(Vec4::splat(r.tmax)));
+    (tnear.cmple(tfar * ROBUST).bitmask(), tnear)
+}
+
+/// Traverses `bvh` from child reference `start` (0 for the root). `leaf(first, count, ray)` is called
+/// for each leaf the ray reaches, nearest first; it may shorten `ray.tmax`, and returns `true` to
+/// stop traversal (then this function returns `true`).
+#[inline(always)]
+pub(crate) fn traverse<F: FnMut(u32, u32, &mut RayPre) -> bool>(
+    bvh: &Bvh4,
+    start: u32,
+    ray: &mut RayPre,
+    mut leaf: F,
+) -> bool {
+    if bvh.nodes.is_empty() {
+        return false;
+    }
+    let mut stack: Stack<(u32, f32), STACK> = Stack::new();
+    let mut cur = start;
+    loop {
+        // Descend towards the nearest hit child, pushing the others.
+        while cur & LEAF_BIT == 0 {
+            // Child references of inner nodes are valid node indices (bvh4 invariant).
+            let node = &bvh.nodes[cur as usize];
+            let (mask, tnear) = node_hits(node, ray);
+            if mask == 0 {
+                cur = EMPTY_CHILD;
+                break;
+            }
+            let k0 = mask.trailing_zeros() as usize;
+            let rest = mask & (mask - 1);
+            if rest == 0 {
+                cur = node.child[k0];
+                continue;
+            }
+            let t = tnear.to_array();
+            // Sort the (2 to 4) hit children by entry distance, nearest last.
+            let mut kids = [(0u32, 0f32); 4];
+            let mut n = 0;
+            let mut m = mask;
+            while m != 0 {
+                let k = m.trailing_zeros() as usize;
+                m &= m - 1;
+                let mut j = n;
+                while j > 0 && kids[j - 1].1 < t[k] {
+                    kids[j] = kids[j - 1];
+                    j -= 1;
+                }
+                kids[j] = (node.child[k], t[k]);
+                n += 1;
+            }
+            for &kid in &kids[..n - 1] {
+                stack.push(kid);
+            }
+            cur = kids[n - 1].0;
+        }
+        if cur != EMPTY_CHILD {
+            let (first, count) = leaf_range(cur);
+            if leaf(first, count, ray) {
+                return true;
+            }
+        }
+        // Pop the next entry that may still be nearer than the closest hit.
+        loop {
+            let Some((r, tn)) = stack.pop() else {
+                return false;
+            };
+            if tn <= ray.tmax {
+                cur = r;
+                break;
+            }
+        }
+    }
+}
+
+/// Closest-hit state of one ray.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct HitState {
+    pub u: f32,
+    pub v: f32,
+    pub instance: u32,
+    pub primitive: u32,
+}
+
+impl HitState {
+    pub const NONE: HitState = HitState { u: 0.0, v: 0.0, instance: INVALID_ID, primitive: INVALID_ID };
+}
+
+/// Closest hit of `ray` (in object space of `inst_id`) with object `obj`; updates `ray.tmax` and `hit`.
+#[inline(always)]
+pub(crate) fn intersect_object(
+    obj: &Object,
+    inst_id: u32,
+    object_id: u32,
+    ray: &mut RayPre,
+    hit: &mut HitState,
+    filter: HitFilter,
+    lane: u32,
+) {
+    let tris = &obj.bvh.tris;
+    let order = &obj.bvh.bvh.prim_order;
+    traverse(&obj.bvh.bvh, 0, ray, |first, count, ray| {
+        for s in first as usize..(first + count) as usize {
+            let (t, u, v) = intersect(ray.o, ray.d, &tris[s]);
+            if accept(t, u, v, ray.tmin, ray.tmax) {
+                let primitive = order[s];
+                if let Some(f) = filter {
+                    let c = HitCandidate { t, u, v, instance: inst_id, object: object_id, primitive, lane };
+                    if !f(&c) {
+                        continue;
+                    }
+                }
+                ray.tmax = t;
+                *hit = HitState { u, v, instance: inst_id, primitive };
+            }
+        }
+        false
+    });
+}
+
+/// Whether `ray` (in object space) hits object `obj` within its interval.
+#[inline(always)]
+pub(crate) fn occluded_object(
+    obj: &Object,
+    inst_id: u32,
+    object_id: u32,
+    ray: &mut RayPre,
+    filter: HitFilter,
+    lane: u32,
+) -> bool {
+    let tris = &obj.bvh.tris;
+    let order = &obj.bvh.bvh.prim_order;
+    traverse(&obj.bvh.bvh, 0, ray, |first, count, ray| {
+        for s in first as usize..(first + count) as usize {
+            let (t, u, v) = intersect(ray.o, ray.d, &tris[s]);
+            if accept(t, u, v, ray.tmin, ray.tmax) {
+                match filter {
+                    None => return true,
+                    Some(f) => {
+                        let c =
+                            HitCandidate { t, u, v, instance: inst_id, object: object_id, primitive: order[s], lane };
+                        if f(&c) {
+                            return true;
+                        }
+                    }
+                }
+            }
+        }
+        false
+    })
+}
+
+/// Closest hit of a world-space ray with the scene.
+pub(crate) fn intersect_scene(top: &TopLevel, objects: &[Object], ray: &Ray, filter: HitFilter, lane: u32) -> Hit {
+    let mut r = RayPre::new(ray.origin, ray.direction, ray.tmin, ray.tmax);
+    let mut hit = HitState::NONE;
+    traverse(&top.bvh, 0, &mut r, |first, count, r| {
+        for s in first..first + count {
+            let inst_id = top.bvh.prim_order[s as usize];
+            let inst = &top.instances[inst_id as usize];
+            let mut o = r.in_object_space(inst);
+            intersect_object(&objects[inst.object as usize], inst_id, inst.object, &mut o, &mut hit, filter, lane);
+            r.tmax = o.tmax;
+        }
+        false
+    });
+    if hit.instance == INVALID_ID {
+        Hit::MISS
+    } else {
+        Hit { t: r.tmax, u: hit.u, v: hit.v, instance: hit.instance, primitive: hit.primitive }
+    }
+}
+
+/// Whether a world-space ray hits anything within its interval.
+pub(crate) fn occluded_scene(top: &TopLevel, objects: &[Object], ray: &Ray, filter: HitFilter, lane: u32) -> bool {
+    let mut r = RayPre::new(ray.origin, ray.direction, ray.tmin, ray.tmax);
+    traverse(&top.bvh, 0, &mut r, |first, count, r| {
+        for s in first..first + count {
+            let inst_id = top.bvh.prim_order[s as usize];
+            let inst = &top.instances[inst_id as usize];
+            let mut o = r.in_object_space(inst);
+            if occluded_object(&objects[inst.object as usize], inst_id, inst.object, &mut o, filter, lane) {
+                return true;
+            }
+        }
+        false
+    })
+}
+
+/// The brute-force reference: tests every triangle of every instance, no BVH.
+pub(crate) fn intersect_brute_force(top: &TopLevel, objects: &[Object], ray: &Ray, filter: HitFilter) -> Hit {
+    let mut best = Hit::MISS;
+    let mut tmax = ray.tmax;
+    for (i, inst) in top.instances.iter().enumerate() {
+        let Some(obj) = objects.get(inst.object as usize) else {
+            continue;
+        };
+        let r = RayPre::new(ray.origin, ray.direction, ray.tmin, ray.tmax).in_object_space(inst);
+        for (s, tri) in obj.bvh.tris.iter().enumerate() {
+            let (t, u, v) = intersect(r.o, r.d, tri);
+            if accept(t, u, v, ray.tmin, tmax) {
+                let primitive = obj.bvh.bvh.prim_order[s];
+                if let Some(f) = filter {
+                    let c = HitCandidate { t, u, v, instance: i as u32, object: inst.object, primitive, lane: 0 };
+                    if !f(&c) {
+                        continue;
+                    }
+                }
+                tmax = t;
+                best = Hit { t, u, v, instance: i as u32, primitive };
+            }
+        }
+    }
+    best
+}
+
+/// The brute-force occlusion reference.
+pub(crate) fn occluded_brute_force(top: &TopLevel, objects: &[Object], ray: &Ray, filter: HitFilter) -> bool {
+    for (i, inst) in top.instances.iter().enumerate() {
+        let Some(obj) = objects.get(inst.object as usize) else {
+            continue;
+        };
+        let r = RayPre::new(ray.origin, ray.direction, ray.tmin, ray.tmax).in_object_space(inst);
+        for (s, tri) in obj.bvh.tris.iter().enumerate() {
+            let (t, u, v) = intersect(r.o, r.d, tri);
+            if accept(t, u, v, ray.tmin, ray.tmax) {
+                let ok = filter.is_none_or(|f| {
+                    f(&HitCandidate {
+                        t,
+                        u,
+                        v,
+                        instance: i as u32,
+                        object: inst.object,
+                        primitive: obj.bvh.bvh.prim_order[s],
+                        lane: 0,
+                    })
+                });
+                if ok {
+                    return true;
+                }
+            }
+        }
+    }
+    false
+}

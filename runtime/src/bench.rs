@@ -1,0 +1,297 @@
+//! The library side of `rtsl bench trace`: load a mesh, build its BVH, trace one primary ray per
+//! pixel and one shadow ray per hit towards a point light, with packet and with single-ray
+//! traversal, and report timings. Prints nothing; the CLI formats the [`BenchReport`].
+//!
+//! Invariants: every figure except the timings is independent of the thread count (tiles are
+//! summed in tile order). Shadow rays are generated before timing starts, from the packet pass's
+//! hits: origin offset off the surface towards the light ([`offset_ray_origin`]), direction
+//! `light - origin`, interval `(0, 1)`.
+
+use crate::accel::bvh4::BuildQuality;
+use crate::camera::{packet_lane_offset, Camera, PACKET_SIDE};
+use crate::mesh_io::{load_mesh, MeshIoError};
+use crate::ray::{offset_ray_origin, Hit, HitPacket, Ray, RayPacket, PACKET_SIZE};
+use crate::scene::{scene_from_mesh, Scene};
+use crate::tiles::{render_tiles, Tile};
+use glam::Vec3A;
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// Tile side in pixels (a multiple of the packet side).
+const TILE: u32 = 32;
+
+/// What to benchmark.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BenchOptions {
+    /// The OBJ or PLY mesh.
+    pub mesh: PathBuf,
+    /// Camera position.
+    pub eye: Vec3A,
+    /// Point looked at.
+    pub look: Vec3A,
+    /// Up vector.
+    pub up: Vec3A,
+    /// Vertical field of view in degrees.
+    pub fov_deg: f32,
+    /// Point light position.
+    pub light: Vec3A,
+    /// Image width.
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+    /// Worker threads (0: rayon's default).
+    pub threads: usize,
+    /// Timed repetitions of each pass (the median is reported).
+    pub repeats: usize,
+    /// BVH build quality.
+    pub quality: BuildQuality,
+}
+
+impl BenchOptions {
+    /// The benchmark view of `shared/bench/README.md` for `mesh`.
+    pub fn new(mesh: impl Into<PathBuf>) -> Self {
+        BenchOptions {
+            mesh: mesh.into(),
+            eye: Vec3A::new(0.0, 130.0, -170.0),
+            look: Vec3A::new(0.0, 0.0, -53.0),
+            up: Vec3A::Y,
+            fov_deg: 45.0,
+            light: Vec3A::new(60.0, 220.0, 40.0),
+            width: 1024,
+            height: 768,
+            threads: 1,
+            repeats: 5,
+            quality: BuildQuality::High,
+        }
+    }
+}
+
+/// Benchmark results.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BenchReport {
+    /// Triangles in the mesh.
+    pub triangles: usize,
+    /// Time to load the file, ms.
+    pub load_ms: f64,
+    /// BVH build time, ms (median of up to 3 builds).
+    pub build_ms: f64,
+    /// Mesh plus BVH memory, bytes.
+    pub memory_bytes: usize,
+    /// Primary rays traced (pixels).
+    pub primary_rays: usize,
+    /// Primary rays that hit.
+    pub hits: usize,
+    /// Sum of the hit distances.
+    pub hit_distance_sum: f64,
+    /// Shadow rays that found an occluder.
+    pub occluded: usize,
+    /// Pixels where packet and single-ray traversal disagree (primary hit primitive or shadow).
+    pub mismatches: usize,
+    /// Primary rays, packet traversal, million rays per second.
+    pub primary_packet_mrays: f64,
+    /// Primary rays, single-ray traversal.
+    pub primary_single_mrays: f64,
+    /// Shadow rays, packet traversal.
+    pub shadow_packet_mrays: f64,
+    /// Shadow rays, single-ray traversal.
+    pub shadow_single_mrays: f64,
+    /// Threads used.
+    pub threads: usize,
+}
+
+/// A failure of the benchmark.
+#[derive(Debug, thiserror::Error)]
+pub enum BenchError {
+    /// The mesh could not be loaded.
+    #[error(transparent)]
+    Mesh(#[from] MeshIoError),
+    /// The thread pool could not be created.
+    #[error("cannot start {threads} threads: {message}")]
+    Threads {
+        /// Threads asked for.
+        threads: usize,
+        /// The cause.
+        message: String,
+    },
+    /// The image has no pixels.
+    #[error("the image size must be at least 1x1")]
+    EmptyImage,
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// Runs the benchmark.
+pub fn run_bench(opts: &BenchOptions) -> Result<BenchReport, BenchError> {
+    if opts.width == 0 || opts.height == 0 {
+        return Err(BenchError::EmptyImage);
+    }
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(opts.threads)
+        .build()
+        .map_err(|e| BenchError::Threads { threads: opts.threads, message: e.to_string() })?;
+    let t0 = Instant::now();
+    let mesh = load_mesh(&opts.mesh)?;
+    let load_ms = t0.elapsed().as_secs_f64() * 1e3;
+    let triangles = mesh.triangle_count();
+    pool.install(|| {
+        let mut builds = Vec::new();
+        let mut scene = None;
+        for _ in 0..opts.repeats.clamp(1, 3) {
+            let m = mesh.clone();
+            let t = Instant::now();
+            let s = scene_from_mesh(m, opts.quality);
+            builds.push(t.elapsed().as_secs_f64() * 1e3);
+            scene = Some(s);
+        }
+        let Some(scene) = scene else { unreachable!("at least one build runs") };
+        Ok(trace_all(opts, &scene, triangles, load_ms, median(builds)))
+    })
+}
+
+/// The per-pixel results of one tile, row-major within the tile.
+type TileHits = Vec<Hit>;
+
+fn primary_packets(scene: &Scene, cam: &Camera, tile: &Tile) -> TileHits {
+    let mut out = vec![Hit::MISS; (tile.width * tile.height) as usize];
+    let mut hp = HitPacket::default();
+    for by in (0..tile.height).step_by(PACKET_SIDE as usize) {
+        for bx in (0..tile.width).step_by(PACKET_SIDE as usize) {
+            let p = cam.packet(tile.x0 + bx, tile.y0 + by);
+            scene.intersect_packet(&p, &mut hp);
+            for i in 0..PACKET_SIZE {
+                let (dx, dy) = packet_lane_offset(i);
+                let (x, y) = (bx + dx, by + dy);
+                if p.active >> i & 1 != 0 && x < tile.width && y < tile.height {
+                    out[(y * tile.width + x) as usize] = hp.get(i);
+                }
+            }
+        }
+    }
+    out
+}
+
+fn primary_single(scene: &Scene, cam: &Camera, tile: &Tile) -> TileHits {
+    let mut out = Vec::with_capacity((tile.width * tile.height) as usize);
+    for y in 0..tile.height {
+        for x in 0..tile.width {
+            out.push(scene.intersect(&cam.ray(tile.x0 + x, tile.y0 + y)));
+        }
+    }
+    out
+}
+
+/// Shadow rays of one tile, row-major, `None` where the primary ray missed.
+type TileShadows = Vec<Option<Ray>>;
+
+fn shadow_rays(scene: &Scene, light: Vec3A, hits: &TileHits) -> TileShadows {
+    hits.iter()
+        .map(|h| {
+            let s = scene.surface(h)?;
+            let to_light = light - s.p;
+            let n = if s.ng.dot(to_light) < 0.0 { -s.ng } else { s.ng };
+            let o = offset_ray_origin(s.p, n);
+            Some(Ray::segment(o, light - o, 0.0, 1.0))
+        })
+        .collect()
+}
+
+fn shadow_packets(scene: &Scene, tile: &Tile, rays: &TileShadows) -> Vec<bool> {
+    let mut out = vec![false; rays.len()];
+    for by in (0..tile.height).step_by(PACKET_SIDE as usize) {
+        for bx in (0..tile.width).step_by(PACKET_SIDE as usize) {
+            let mut p = RayPacket::new();
+            let mut idx = [usize::MAX; PACKET_SIZE];
+            for (i, slot) in idx.iter_mut().enumerate() {
+                let (dx, dy) = packet_lane_offset(i);
+                let (x, y) = (bx + dx, by + dy);
+                if x < tile.width && y < tile.height {
+                    let k = (y * tile.width + x) as usize;
+                    if let Some(r) = &rays[k] {
+                        p.set(i, r);
+                        *slot = k;
+                    }
+                }
+            }
+            let occ = scene.occluded_packet(&p);
+            for (i, &k) in idx.iter().enumerate() {
+                if k != usize::MAX {
+                    out[k] = occ >> i & 1 != 0;
+                }
+            }
+        }
+    }
+    out
+}
+
+fn shadow_single(scene: &Scene, rays: &TileShadows) -> Vec<bool> {
+    rays.iter().map(|r| r.as_ref().is_some_and(|r| scene.occluded(r))).collect()
+}
+
+fn timed<T>(repeats: usize, mut f: impl FnMut() -> T) -> (T, f64) {
+    let mut times = Vec::new();
+    let mut last = None;
+    for _ in 0..repeats.max(1) {
+        let t = Instant::now();
+        let r = f();
+        times.push(t.elapsed().as_secs_f64());
+        last = Some(r);
+    }
+    let Some(r) = last else { unreachable!("at least one repeat runs") };
+    (r, median(times))
+}
+
+fn trace_all(opts: &BenchOptions, scene: &Scene, triangles: usize, load_ms: f64, build_ms: f64) -> BenchReport {
+    let cam = Camera::look_at(opts.eye, opts.look, opts.up, opts.fov_deg, opts.width, opts.height);
+    let (w, h) = (opts.width, opts.height);
+    let list = crate::tiles::tiles(w, h, TILE);
+    let (packet_hits, t_pp) = timed(opts.repeats, || render_tiles(w, h, TILE, |t| primary_packets(scene, &cam, t)));
+    let (single_hits, t_ps) = timed(opts.repeats, || render_tiles(w, h, TILE, |t| primary_single(scene, &cam, t)));
+    let shadows: Vec<TileShadows> = render_tiles(w, h, TILE, |t| shadow_rays(scene, opts.light, &packet_hits[t.index]));
+    let (packet_occ, t_sp) =
+        timed(opts.repeats, || render_tiles(w, h, TILE, |t| shadow_packets(scene, &list[t.index], &shadows[t.index])));
+    let (single_occ, t_ss) =
+        timed(opts.repeats, || render_tiles(w, h, TILE, |t| shadow_single(scene, &shadows[t.index])));
+
+    let mut hits = 0;
+    let mut sum = 0.0f64;
+    let mut mismatches = 0;
+    for (a, b) in packet_hits.iter().zip(&single_hits) {
+        for (ha, hb) in a.iter().zip(b) {
+            if ha.is_hit() {
+                hits += 1;
+                sum += ha.t as f64;
+            }
+            if (ha.instance, ha.primitive) != (hb.instance, hb.primitive) {
+                mismatches += 1;
+            }
+        }
+    }
+    let mut occluded = 0;
+    for (a, b) in packet_occ.iter().zip(&single_occ) {
+        for (oa, ob) in a.iter().zip(b) {
+            occluded += *oa as usize;
+            mismatches += (oa != ob) as usize;
+        }
+    }
+    let primary = (w * h) as f64;
+    let mr = |n: f64, t: f64| n / t / 1e6;
+    BenchReport {
+        triangles,
+        load_ms,
+        build_ms,
+        memory_bytes: scene.memory_bytes(),
+        primary_rays: (w * h) as usize,
+        hits,
+        hit_distance_sum: sum,
+        occluded,
+        mismatches,
+        primary_packet_mrays: mr(primary, t_pp),
+        primary_single_mrays: mr(primary, t_ps),
+        shadow_packet_mrays: mr(hits as f64, t_sp),
+        shadow_single_mrays: mr(hits as f64, t_ss),
+        threads: rayon::current_num_threads(),
+    }
+}

@@ -1,0 +1,187 @@
+//! Triangle meshes: positions, optional per-vertex normals and texture coordinates, and any number
+//! of named per-vertex attributes. Quads and polygons are triangulated on input (as fans).
+//!
+//! Invariants (checked by [`Mesh::validate`], which every constructor that takes user data runs):
+//! - every triangle index is `< positions.len()`;
+//! - `normals` and `uvs`, when present, have one entry per position;
+//! - each attribute has `components * positions.len()` values;
+//! - positions are finite.
+//!
+//! Triangle `i` of the mesh is primitive `i` in hit records, whatever the BVH's internal order.
+
+use glam::{Vec2, Vec3};
+
+/// A problem with mesh data handed to the tracer.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum MeshError {
+    /// A face refers to a vertex that does not exist.
+    #[error("face {face} refers to vertex {index}, but the mesh has only {count} vertices")]
+    IndexOutOfRange {
+        /// The face (polygon) number.
+        face: usize,
+        /// The bad index.
+        index: u32,
+        /// Number of vertices.
+        count: usize,
+    },
+    /// A polygon has fewer than three vertices.
+    #[error("face {face} has {count} vertices; polygons need at least 3")]
+    DegeneratePolygon {
+        /// The face number.
+        face: usize,
+        /// Its vertex count.
+        count: usize,
+    },
+    /// A per-vertex array has the wrong length.
+    #[error("per-vertex data `{name}` has {got} values, expected {expected}")]
+    LengthMismatch {
+        /// Which array.
+        name: String,
+        /// Its length.
+        got: usize,
+        /// The expected length.
+        expected: usize,
+    },
+    /// A vertex position is NaN or infinite.
+    #[error("vertex {index} has a non-finite position")]
+    NonFinite {
+        /// The vertex.
+        index: usize,
+    },
+}
+
+/// A named per-vertex attribute with `components` floats per vertex (e.g. a colour has 3).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Attribute {
+    /// The attribute's name (e.g. `"Cs"`, `"confidence"`).
+    pub name: String,
+    /// Floats per vertex.
+    pub components: usize,
+    /// `components * vertex_count` values, vertex-major.
+    pub data: Vec<f32>,
+}
+
+/// A triangle mesh.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Mesh {
+    /// Vertex positions (object space).
+    pub positions: Vec<Vec3>,
+    /// Optional per-vertex shading normals.
+    pub normals: Option<Vec<Vec3>>,
+    /// Optional per-vertex texture coordinates.
+    pub uvs: Option<Vec<Vec2>>,
+    /// Further per-vertex attributes.
+    pub attributes: Vec<Attribute>,
+    /// Triangles as vertex index triples.
+    pub triangles: Vec<[u32; 3]>,
+}
+
+impl Mesh {
+    /// A mesh from positions and triangles, validated.
+    pub fn from_triangles(positions: Vec<Vec3>, triangles: Vec<[u32; 3]>) -> Result<Self, MeshError> {
+        let mesh = Mesh { positions, triangles, ..Default::default() };
+        mesh.validate()?;
+        Ok(mesh)
+    }
+
+    /// A mesh from positions and polygons of any size (3 or more vertices each), each triangulated
+    /// as a fan around its first vertex. Quads and convex polygons are triangulated exactly.
+    pub fn from_polygons<P: AsRef<[u32]>>(positions: Vec<Vec3>, polygons: &[P]) -> Result<Self, MeshError> {
+        let mut triangles = Vec::with_capacity(polygons.len());
+        for (face, poly) in polygons.iter().enumerate() {
+            triangulate_into(face, poly.as_ref(), &mut triangles)?;
+        }
+        Self::from_triangles(positions, triangles)
+    }
+
+    /// Checks the invariants in the module documentation.
+    pub fn validate(&self) -> Result<(), MeshError> {
+        let count = self.positions.len();
+        for (index, p) in self.positions.iter().enumerate() {
+            if !p.is_finite() {
+                return Err(MeshError::NonFinite { index });
+            }
+        }
+        for (face, tri) in self.triangles.iter().enumerate() {
+            for &index in tri {
+                if index as usize >= count {
+                    return Err(MeshError::IndexOutOfRange { face, index, count });
+                }
+            }
+        }
+        let check = |name: &str, got: usize, expected: usize| {
+            if got == expected {
+                Ok(())
+            } else {
+                Err(MeshError::LengthMismatch { name: name.to_string(), got, expected })
+            }
+        };
+        if let Some(n) = &self.normals {
+            check("normals", n.len(), count)?;
+        }
+        if let Some(uv) = &self.uvs {
+            check("uvs", uv.len(), count)?;
+        }
+        for a in &self.attributes {
+            check(&a.name, a.data.len(), a.components * count)?;
+        }
+        Ok(())
+    }
+
+    /// Number of triangles.
+    pub fn triangle_count(&self) -> usize {
+        self.triangles.len()
+    }
+
+    /// The three corner positions of triangle `i`.
+    pub fn corners(&self, i: usize) -> [Vec3; 3] {
+        let [a, b, c] = self.triangles[i];
+        [self.positions[a as usize], self.positions[b as usize], self.positions[c as usize]]
+    }
+
+    /// Bytes of heap memory held by the mesh data.
+    pub fn memory_bytes(&self) -> usize {
+        self.positions.len() * size_of::<Vec3>()
+            + self.normals.as_ref().map_or(0, |n| n.len() * size_of::<Vec3>())
+            + self.uvs.as_ref().map_or(0, |n| n.len() * size_of::<Vec2>())
+            + self.attributes.iter().map(|a| a.data.len() * 4).sum::<usize>()
+            + self.triangles.len() * 12
+    }
+}
+
+/// Appends the fan triangulation of polygon `poly` (face number `face`) to `out`.
+pub fn triangulate_into(face: usize, poly: &[u32], out: &mut Vec<[u32; 3]>) -> Result<(), MeshError> {
+    if poly.len() < 3 {
+        return Err(MeshError::DegeneratePolygon { face, count: poly.len() });
+    }
+    for k in 1..poly.len() - 1 {
+        out.push([poly[0], poly[k], poly[k + 1]]);
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn quads_become_two_triangles() {
+        let p = vec![Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y];
+        let m = Mesh::from_polygons(p, &[[0u32, 1, 2, 3]]).unwrap();
+        assert_eq!(m.triangles, vec![[0, 1, 2], [0, 2, 3]]);
+    }
+
+    #[test]
+    fn bad_index_is_an_error() {
+        let p = vec![Vec3::ZERO, Vec3::X, Vec3::Y];
+        let e = Mesh::from_triangles(p, vec![[0, 1, 3]]).unwrap_err();
+        assert!(matches!(e, MeshError::IndexOutOfRange { index: 3, .. }));
+    }
+
+    #[test]
+    fn short_polygon_is_an_error() {
+        let p = vec![Vec3::ZERO, Vec3::X, Vec3::Y];
+        let e = Mesh::from_polygons(p, &[vec![0u32, 1]]).unwrap_err();
+        assert!(matches!(e, MeshError::DegeneratePolygon { count: 2, .. }));
+    }
+}

@@ -1,0 +1,169 @@
+//! The ray-triangle test (Möller-Trumbore) and the precomputed triangle layout the BVH leaves use.
+//!
+//! Invariant: [`intersect`] is generic over the lane type (`f32` for single rays, `glam::Vec4` for
+//! four packet lanes) and performs the same IEEE operations in the same order for both, with no
+//! fused multiply-add, so a triangle gives bit-identical `t`, `u`, `v` on every traversal path.
+//! Acceptance ([`accept`] and its SIMD twin in the packet code) uses only comparisons, never
+//! further arithmetic except the single `u + v`, which is also the same everywhere.
+//!
+//! The test is not watertight: a ray through a shared edge may hit both triangles or, in rare
+//! floating-point cases, neither. Self-intersection is handled by offsetting secondary ray origins
+//! (see [`crate::ray::offset_ray_origin`]).
+
+use glam::{Vec3, Vec3A};
+use std::ops::{Add, Div, Mul, Sub};
+
+/// Arithmetic on one lane or several.
+pub trait Arith: Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> + Div<Output = Self> {
+    /// Broadcast a scalar.
+    fn splat(v: f32) -> Self;
+}
+
+impl Arith for f32 {
+    #[inline(always)]
+    fn splat(v: f32) -> Self {
+        v
+    }
+}
+
+impl Arith for glam::Vec4 {
+    #[inline(always)]
+    fn splat(v: f32) -> Self {
+        glam::Vec4::splat(v)
+    }
+}
+
+/// A triangle prepared for intersection: first vertex and the two edges from it (36 bytes).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[repr(C)]
+pub struct PreTriangle {
+    /// Vertex 0.
+    pub v0: [f32; 3],
+    /// Vertex 1 minus vertex 0.
+    pub e1: [f32; 3],
+    /// Vertex 2 minus vertex 0.
+    pub e2: [f32; 3],
+}
+
+impl PreTriangle {
+    /// Prepares the triangle `(a, b, c)`.
+    pub fn new(a: Vec3, b: Vec3, c: Vec3) -> Self {
+        PreTriangle { v0: a.to_array(), e1: (b - a).to_array(), e2: (c - a).to_array() }
+    }
+
+    /// The unnormalised geometric normal `e1 x e2`.
+    pub fn normal(&self) -> Vec3A {
+        Vec3A::from(self.e1).cross(Vec3A::from(self.e2))
+    }
+}
+
+#[inline(always)]
+fn cross<L: Arith>(a: [L; 3], b: [L; 3]) -> [L; 3] {
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+}
+
+#[inline(always)]
+fn dot<L: Arith>(a: [L; 3], b: [L; 3]) -> L {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// Möller-Trumbore: returns `(t, u, v)`. The hit is valid iff [`accept`] holds; degenerate cases
+/// produce NaN or infinities, which fail the acceptance comparisons.
+#[inline(always)]
+pub fn intersect<L: Arith>(o: [L; 3], d: [L; 3], tri: &PreTriangle) -> (L, L, L) {
+    let v0 = tri.v0.map(L::splat);
+    let e1 = tri.e1.map(L::splat);
+    let e2 = tri.e2.map(L::splat);
+    let pvec = cross(d, e2);
+    let det = dot(e1, pvec);
+    let inv_det = L::splat(1.0) / det;
+    let s = [o[0] - v0[0], o[1] - v0[1], o[2] - v0[2]];
+    let u = dot(s, pvec) * inv_det;
+    let qvec = cross(s, e1);
+    let v = dot(d, qvec) * inv_det;
+    let t = dot(e2, qvec) * inv_det;
+    (t, u, v)
+}
+
+/// The ray-independent part of [`intersect`] for rays that share origin `o`: `s = o - v0`,
+/// `q = s x e1` and `e2 . q`.
+#[derive(Clone, Copy, Debug)]
+pub struct SharedOrigin {
+    s: [f32; 3],
+    q: [f32; 3],
+    tn: f32,
+}
+
+impl SharedOrigin {
+    /// Precomputes the origin terms of `tri` for origin `o` (same operations as [`intersect`]).
+    #[inline(always)]
+    pub fn new(o: [f32; 3], tri: &PreTriangle) -> Self {
+        let s = [o[0] - tri.v0[0], o[1] - tri.v0[1], o[2] - tri.v0[2]];
+        let q = cross(s, tri.e1);
+        SharedOrigin { s, q, tn: dot(tri.e2, q) }
+    }
+}
+
+/// [`intersect`] for a ray whose origin terms were precomputed: bit-identical results, since the
+/// splatted terms are the very values [`intersect`] computes per lane.
+#[inline(always)]
+pub fn intersect_shared<L: Arith>(so: &SharedOrigin, d: [L; 3], tri: &PreTriangle) -> (L, L, L) {
+    let e1 = tri.e1.map(L::splat);
+    let e2 = tri.e2.map(L::splat);
+    let pvec = cross(d, e2);
+    let det = dot(e1, pvec);
+    let inv_det = L::splat(1.0) / det;
+    let u = dot(so.s.map(L::splat), pvec) * inv_det;
+    let v = dot(d, so.q.map(L::splat)) * inv_det;
+    let t = L::splat(so.tn) * inv_det;
+    (t, u, v)
+}
+
+/// Whether `(t, u, v)` from [`intersect`] is a hit inside `(tmin, tmax)`.
+#[inline(always)]
+pub fn accept(t: f32, u: f32, v: f32, tmin: f32, tmax: f32) -> bool {
+    u >= 0.0 && v >= 0.0 && u + v <= 1.0 && t > tmin && t < tmax
+}
+
+/// Scalar convenience wrapper: the hit `(t, u, v)` of a ray with a triangle, if any.
+pub fn intersect_ray(origin: Vec3A, dir: Vec3A, tmin: f32, tmax: f32, tri: &PreTriangle) -> Option<(f32, f32, f32)> {
+    let (t, u, v) = intersect(origin.to_array(), dir.to_array(), tri);
+    accept(t, u, v, tmin, tmax).then_some((t, u, v))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hits_the_middle() {
+        let tri = PreTriangle::new(Vec3::ZERO, Vec3::X, Vec3::Y);
+        let h = intersect_ray(Vec3A::new(0.25, 0.25, 1.0), Vec3A::new(0.0, 0.0, -1.0), 0.0, f32::INFINITY, &tri);
+        let (t, u, v) = h.unwrap();
+        assert!((t - 1.0).abs() < 1e-6 && (u - 0.25).abs() < 1e-6 && (v - 0.25).abs() < 1e-6);
+    }
+
+    #[test]
+    fn parallel_ray_misses() {
+        let tri = PreTriangle::new(Vec3::ZERO, Vec3::X, Vec3::Y);
+        let h = intersect_ray(Vec3A::new(0.25, 0.25, 0.0), Vec3A::X, 0.0, f32::INFINITY, &tri);
+        assert!(h.is_none());
+    }
+
+    #[test]
+    fn lanes_match_scalar_bit_for_bit() {
+        let tri = PreTriangle::new(Vec3::new(0.1, -0.3, 2.0), Vec3::new(1.7, 0.2, 2.5), Vec3::Y);
+        let o = [0.3f32, 0.1, -1.0];
+        let d = [0.01f32, 0.05, 1.0];
+        let s = intersect(o, d, &tri);
+        let l = intersect(o.map(glam::Vec4::splat), d.map(glam::Vec4::splat), &tri);
+        assert_eq!(s.0.to_bits(), l.0.x.to_bits());
+        assert_eq!(s.1.to_bits(), l.1.y.to_bits());
+        assert_eq!(s.2.to_bits(), l.2.z.to_bits());
+        let so = SharedOrigin::new(o, &tri);
+        let sh = intersect_shared(&so, d.map(glam::Vec4::splat), &tri);
+        assert_eq!(s.0.to_bits(), sh.0.w.to_bits());
+        assert_eq!(s.1.to_bits(), sh.1.x.to_bits());
+        assert_eq!(s.2.to_bits(), sh.2.y.to_bits());
+    }
+}

@@ -1,0 +1,29 @@
+//! The rtsl rendering engine: scenes, acceleration structures, the packet ray tracer, shading
+//! dispatch and the application API.
+//!
+//! The tracer (this crate's core so far) intersects rays with a two-level BVH: a top-level BVH
+//! over instances, rebuilt every frame by [`Scene::commit`], whose leaves point at objects' own
+//! BVHs (built with obvhs once per geometry change). Coherent 8x8 packets use packet traversal
+//! ([`Scene::intersect_packet`], [`Scene::occluded_packet`]); incoherent rays use single-ray
+//! traversal ([`Scene::intersect`], [`Scene::occluded`]). Tiles of the image are handed out
+//! demand-driven over rayon ([`tiles::render_tiles`]). `docs/tracer.md` describes the design.
+//!
+//! Invariant: this crate never parses shader source itself: shaders reach it through
+//! `rtsl-compiler`'s public API.
+
+pub mod accel;
+pub mod bench;
+pub mod camera;
+pub mod geometry;
+pub mod mesh_io;
+pub mod ray;
+pub mod scene;
+pub mod tiles;
+
+pub use accel::bvh4::BuildQuality;
+pub use bench::{run_bench, BenchError, BenchOptions, BenchReport};
+pub use camera::Camera;
+pub use geometry::{Attribute, Mesh, MeshError};
+pub use mesh_io::{load_mesh, MeshIoError};
+pub use ray::{offset_ray_origin, Hit, HitCandidate, HitFilter, HitPacket, Ray, RayPacket, INVALID_ID, PACKET_SIZE};
+pub use scene::{scene_from_mesh, InstanceId, ObjectId, Scene, SceneError, SurfaceHit};

@@ -1,0 +1,267 @@
+//! The traceable scene: retained objects (mesh + BVH) and a list of instances, with the queries the
+//! renderer needs (closest hit and occlusion, for single rays and packets) and surface details of a
+//! hit (geometric and shading normals, texture coordinates, attributes).
+//!
+//! Invariants:
+//! - An object's BVH is built when its geometry is set and never otherwise.
+//! - Queries see the instance list as of the last [`Scene::commit`], which rebuilds the top-level
+//!   BVH; objects replaced since are seen at once (instances refer to objects by id).
+//! - Normals are transformed to world space with the inverse transpose of the instance transform.
+
+use crate::accel::bvh4::BuildQuality;
+use crate::accel::object::Object;
+use crate::accel::top::{InstanceData, TopLevel};
+use crate::accel::{packet, single};
+use crate::geometry::Mesh;
+use crate::ray::{Hit, HitFilter, HitPacket, Ray, RayPacket};
+use glam::{Affine3A, Vec2, Vec3, Vec3A};
+use std::sync::Arc;
+
+/// Identifies an object of a [`Scene`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct ObjectId(pub u32);
+
+/// Identifies an instance of a [`Scene`] (its index in the instance list).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct InstanceId(pub u32);
+
+/// Errors of scene editing.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum SceneError {
+    /// An object id that the scene does not have.
+    #[error("no object with id {0}")]
+    NoSuchObject(u32),
+    /// An instance id that the scene does not have.
+    #[error("no instance with id {0}")]
+    NoSuchInstance(u32),
+    /// A transform that cannot be inverted (or is not finite).
+    #[error("instance transform is singular or not finite")]
+    SingularTransform,
+}
+
+/// Surface details of a hit, in world space.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SurfaceHit {
+    /// The hit point, from the barycentrics (more precise than `origin + t * direction`).
+    pub p: Vec3A,
+    /// Unit geometric normal (`e1 x e2` of the triangle, transformed).
+    pub ng: Vec3A,
+    /// Unit shading normal: interpolated vertex normals if the mesh has them, else `ng`.
+    pub n: Vec3A,
+    /// Interpolated texture coordinates, if the mesh has them.
+    pub uv: Option<Vec2>,
+    /// Interpolated per-vertex attributes, in the mesh's attribute order.
+    pub attributes: Vec<Vec<f32>>,
+}
+
+/// Objects, instances and the two-level BVH over them.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    objects: Vec<Object>,
+    instances: Vec<InstanceData>,
+    top: TopLevel,
+    quality: BuildQuality,
+}
+
+impl Default for Scene {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Scene {
+    /// An empty scene; object BVHs are built at [`BuildQuality::High`].
+    pub fn new() -> Self {
+        Self::with_quality(BuildQuality::High)
+    }
+
+    /// An empty scene whose object BVHs are built at `quality`.
+    pub fn with_quality(quality: BuildQuality) -> Self {
+        Scene { objects: Vec::new(), instances: Vec::new(), top: TopLevel::default(), quality }
+    }
+
+    /// Adds an object and builds its BVH.
+    pub fn add_object(&mut self, mesh: impl Into<Arc<Mesh>>) -> ObjectId {
+        let id = self.objects.len() as u32;
+        self.objects.push(Object::new(mesh.into(), self.quality));
+        ObjectId(id)
+    }
+
+    /// Replaces an object's geometry and rebuilds its BVH (only this object's).
+    pub fn set_object_mesh(&mut self, id: ObjectId, mesh: impl Into<Arc<Mesh>>) -> Result<(), SceneError> {
+        let quality = self.quality;
+        let obj = self.objects.get_mut(id.0 as usize).ok_or(SceneError::NoSuchObject(id.0))?;
+        *obj = Object::new(mesh.into(), quality);
+        Ok(())
+    }
+
+    /// The mesh of an object.
+    pub fn mesh(&self, id: ObjectId) -> Option<&Arc<Mesh>> {
+        self.objects.get(id.0 as usize).map(|o| &o.mesh)
+    }
+
+    /// Number of objects.
+    pub fn object_count(&self) -> usize {
+        self.objects.len()
+    }
+
+    /// Adds an instance of `object` placed by `world_from_object`.
+    pub fn add_instance(&mut self, object: ObjectId, world_from_object: Affine3A) -> Result<InstanceId, SceneError> {
+        if object.0 as usize >= self.objects.len() {
+            return Err(SceneError::NoSuchObject(object.0));
+        }
+        check_transform(&world_from_object)?;
+        self.instances.push(InstanceData::new(object.0, world_from_object));
+        Ok(InstanceId(self.instances.len() as u32 - 1))
+    }
+
+    /// Moves an instance (seen by queries after the next [`Scene::commit`]).
+    pub fn set_instance_transform(&mut self, id: InstanceId, world_from_object: Affine3A) -> Result<(), SceneError> {
+        check_transform(&world_from_object)?;
+        let inst = self.instances.get_mut(id.0 as usize).ok_or(SceneError::NoSuchInstance(id.0))?;
+        *inst = InstanceData::new(inst.object, world_from_object);
+        Ok(())
+    }
+
+    /// Removes every instance (objects stay).
+    pub fn clear_instances(&mut self) {
+        self.instances.clear();
+    }
+
+    /// Number of instances in the list being edited.
+    pub fn instance_count(&self) -> usize {
+        self.instances.len()
+    }
+
+    /// Rebuilds the top-level BVH from the instance list; call once per frame before tracing.
+    pub fn commit(&mut self) {
+        self.top = TopLevel::build(self.instances.clone(), &self.objects);
+    }
+
+    /// Bytes of heap memory of meshes and BVHs (objects counted once however often instanced).
+    pub fn memory_bytes(&self) -> usize {
+        self.objects.iter().map(|o| o.mesh.memory_bytes() + o.bvh.memory_bytes()).sum::<usize>()
+            + self.top.bvh.memory_bytes()
+            + self.top.instances.len() * size_of::<InstanceData>()
+    }
+
+    /// Closest hit along `ray`, single-ray traversal.
+    pub fn intersect(&self, ray: &Ray) -> Hit {
+        single::intersect_scene(&self.top, &self.objects, ray, None, 0)
+    }
+
+    /// Closest hit accepted by `filter`, single-ray traversal.
+    pub fn intersect_filtered(&self, ray: &Ray, filter: HitFilter) -> Hit {
+        single::intersect_scene(&self.top, &self.objects, ray, filter, 0)
+    }
+
+    /// Whether anything lies on `ray` within `(tmin, tmax)`, single-ray traversal.
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        single::occluded_scene(&self.top, &self.objects, ray, None, 0)
+    }
+
+    /// Occlusion by hits accepted by `filter`, single-ray traversal.
+    pub fn occluded_filtered(&self, ray: &Ray, filter: HitFilter) -> bool {
+        single::occluded_scene(&self.top, &self.objects, ray, filter, 0)
+    }
+
+    /// Closest hits of the active lanes of `packet` (packet traversal); other lanes of `out` are
+    /// left untouched.
+    pub fn intersect_packet(&self, packet: &RayPacket, out: &mut HitPacket) {
+        packet::intersect_packet(&self.top, &self.objects, packet, out, None)
+    }
+
+    /// Closest hits accepted by `filter`, packet traversal.
+    pub fn intersect_packet_filtered(&self, packet: &RayPacket, out: &mut HitPacket, filter: HitFilter) {
+        packet::intersect_packet(&self.top, &self.objects, packet, out, filter)
+    }
+
+    /// Occlusion of the active lanes of `packet`: the mask of lanes that hit something.
+    pub fn occluded_packet(&self, packet: &RayPacket) -> u64 {
+        packet::occluded_packet(&self.top, &self.objects, packet, None)
+    }
+
+    /// Occlusion by hits accepted by `filter`, packet traversal.
+    pub fn occluded_packet_filtered(&self, packet: &RayPacket, filter: HitFilter) -> u64 {
+        packet::occluded_packet(&self.top, &self.objects, packet, filter)
+    }
+
+    /// The closest hit by testing every triangle (the reference for tests; slow).
+    pub fn intersect_brute_force(&self, ray: &Ray, filter: HitFilter) -> Hit {
+        single::intersect_brute_force(&self.top, &self.objects, ray, filter)
+    }
+
+    /// Occlusion by testing every triangle (the reference for tests; slow).
+    pub fn occluded_brute_force(&self, ray: &Ray, filter: HitFilter) -> bool {
+        single::occluded_brute_force(&self.top, &self.objects, ray, filter)
+    }
+
+    /// World bounds of the committed instances, if any.
+    pub fn bounds(&self) -> Option<(Vec3A, Vec3A)> {
+        self.top.bvh.bounds
+    }
+
+    /// Surface details of a hit from this scene; `None` for a miss or stale ids.
+    pub fn surface(&self, hit: &Hit) -> Option<SurfaceHit> {
+        let inst = self.top.instances.get(hit.instance as usize)?;
+        let mesh = &self.objects.get(inst.object as usize)?.mesh;
+        let tri = *mesh.triangles.get(hit.primitive as usize)?;
+        let [a, b, c] = tri.map(|i| i as usize);
+        let (w0, w1, w2) = (1.0 - hit.u - hit.v, hit.u, hit.v);
+        let pa = Vec3A::from(mesh.positions[a]);
+        let pb = Vec3A::from(mesh.positions[b]);
+        let pc = Vec3A::from(mesh.positions[c]);
+        let p_obj = pa * w0 + pb * w1 + pc * w2;
+        let xf = &inst.world_from_object;
+        let normal_xf = inst.object_from_world.matrix3.transpose();
+        let ng = (normal_xf * (pb - pa).cross(pc - pa)).normalize_or_zero();
+        let n = match &mesh.normals {
+            Some(ns) => {
+                let ni = Vec3A::from(ns[a] * w0 + ns[b] * w1 + ns[c] * w2);
+                let n = (normal_xf * ni).normalize_or_zero();
+                if n == Vec3A::ZERO {
+                    ng
+                } else {
+                    n
+                }
+            }
+            None => ng,
+        };
+        let uv = mesh.uvs.as_ref().map(|t| t[a] * w0 + t[b] * w1 + t[c] * w2);
+        let attributes = mesh
+            .attributes
+            .iter()
+            .map(|at| {
+                let k = at.components;
+                (0..k).map(|j| at.data[a * k + j] * w0 + at.data[b * k + j] * w1 + at.data[c * k + j] * w2).collect()
+            })
+            .collect();
+        Some(SurfaceHit { p: xf.transform_point3a(p_obj), ng, n, uv, attributes })
+    }
+}
+
+fn check_transform(xf: &Affine3A) -> Result<(), SceneError> {
+    let det = xf.matrix3.determinant();
+    if !xf.is_finite() || det == 0.0 || !det.is_finite() || !xf.inverse().is_finite() {
+        return Err(SceneError::SingularTransform);
+    }
+    Ok(())
+}
+
+/// A scene with a single object instanced once at the identity, committed: the common case of
+/// "trace this mesh".
+pub fn scene_from_mesh(mesh: Mesh, quality: BuildQuality) -> Scene {
+    let mut s = Scene::with_quality(quality);
+    let id = s.add_object(mesh);
+    // The identity is always a valid transform and `id` was just added.
+    let _ = s.add_instance(id, Affine3A::IDENTITY);
+    s.commit();
+    s
+}
+
+#[allow(dead_code)]
+fn _assert_send_sync() {
+    fn f<T: Send + Sync>() {}
+    f::<Scene>();
+    let _ = Vec3::ZERO;
+}

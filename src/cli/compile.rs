@@ -1,0 +1,234 @@
+//! `rtsl compile`: check shaders in parallel, one line per failure and a summary; and
+//! `rtsl bench frontend`: the front end's throughput.
+
+use anyhow::Context as _;
+use rayon::prelude::*;
+use rtsl_compiler::{compile_file, Compilation, Options};
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Instant;
+
+/// Preprocessor flags shared by the subcommands that compile.
+#[derive(clap::Args, Debug, Clone, Default)]
+pub struct CompilerFlags {
+    /// Add a directory to the `#include` search path.
+    #[arg(short = 'I', value_name = "DIR")]
+    pub include: Vec<PathBuf>,
+    /// Define a macro: `-D NAME` (as 1) or `-D NAME=VALUE`.
+    #[arg(short = 'D', value_name = "NAME[=VALUE]", value_parser = parse_define)]
+    pub define: Vec<(String, Option<String>)>,
+    /// Remove a predefined macro.
+    #[arg(short = 'U', value_name = "NAME")]
+    pub undefine: Vec<String>,
+}
+
+fn parse_define(s: &str) -> Result<(String, Option<String>), String> {
+    let (name, value) = match s.split_once('=') {
+        Some((n, v)) => (n, Some(v.to_string())),
+        None => (s, None),
+    };
+    let valid = name.chars().next().is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+        && name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
+    if !valid {
+        return Err(format!("`{name}` is not a valid macro name"));
+    }
+    Ok((name.to_string(), value))
+}
+
+impl CompilerFlags {
+    pub fn options(&self) -> Options {
+        let mut o = Options::default();
+        o.preprocessor.include_paths = self.include.clone();
+        o.preprocessor.defines = self.define.clone();
+        o.preprocessor.undefines = self.undefine.clone();
+        o
+    }
+}
+
+#[derive(clap::Args, Debug)]
+pub struct CompileArgs {
+    /// Shader files, or directories to search recursively for `.sl` files.
+    #[arg(required = true, value_name = "PATH")]
+    pub paths: Vec<PathBuf>,
+    #[command(flatten)]
+    pub flags: CompilerFlags,
+    /// Treat warnings as errors.
+    #[arg(long)]
+    pub werror: bool,
+    /// Print one JSON record per shader (one per line) instead of text.
+    #[arg(long)]
+    pub json: bool,
+    /// Show every diagnostic in full, also when compiling many files.
+    #[arg(short, long)]
+    pub verbose: bool,
+}
+
+/// Every `.sl` file named or found under the paths, in a stable order.
+pub fn collect_shaders(paths: &[PathBuf]) -> anyhow::Result<Vec<PathBuf>> {
+    let mut out = Vec::new();
+    for p in paths {
+        let meta = std::fs::metadata(p).with_context(|| format!("cannot read `{}`", p.display()))?;
+        if meta.is_dir() {
+            walk(p, &mut out).with_context(|| format!("cannot list `{}`", p.display()))?;
+        } else {
+            out.push(p.clone());
+        }
+    }
+    Ok(out)
+}
+
+fn walk(dir: &Path, out: &mut Vec<PathBuf>) -> std::io::Result<()> {
+    let mut entries: Vec<PathBuf> = std::fs::read_dir(dir)?.filter_map(|e| e.ok().map(|e| e.path())).collect();
+    entries.sort();
+    for path in entries {
+        if path.is_dir() {
+            walk(&path, out)?;
+        } else if path.extension().is_some_and(|e| e == "sl") {
+            out.push(path);
+        }
+    }
+    Ok(())
+}
+
+/// One file's outcome.
+struct Outcome {
+    path: PathBuf,
+    result: Result<Compilation, std::io::Error>,
+}
+
+impl Outcome {
+    fn failed(&self, werror: bool) -> bool {
+        match &self.result {
+            Ok(c) => !c.ok() || (werror && c.warnings() > 0),
+            Err(_) => true,
+        }
+    }
+}
+
+pub fn run(args: &CompileArgs) -> anyhow::Result<ExitCode> {
+    let files = collect_shaders(&args.paths)?;
+    let options = args.flags.options();
+    let outcomes: Vec<Outcome> =
+        files.par_iter().map(|path| Outcome { path: path.clone(), result: compile_file(path, &options) }).collect();
+    let stdout = std::io::stdout();
+    let mut out = stdout.lock();
+    let full = args.verbose || (files.len() == 1 && !args.json);
+    let (mut ok, mut failed, mut warnings) = (0usize, 0usize, 0usize);
+    for o in &outcomes {
+        let fails = o.failed(args.werror);
+        if fails {
+            failed += 1;
+        } else {
+            ok += 1;
+        }
+        match &o.result {
+            Err(e) => {
+                if args.json {
+                    let record = serde_json::json!({
+                        "path": o.path.display().to_string(),
+                        "ok": false,
+                        "error": format!("cannot read file: {e}"),
+                        "diagnostics": [],
+                    });
+                    writeln!(out, "{record}")?;
+                } else {
+                    writeln!(out, "FAILED {}: cannot read file: {e}", o.path.display())?;
+                }
+            }
+            Ok(c) => {
+                warnings += c.warnings();
+                if args.json {
+                    let record = serde_json::json!({
+                        "path": o.path.display().to_string(),
+                        "shader_type": c.shader.as_ref().map(|s| s.0.name()),
+                        "name": c.shader.as_ref().map(|s| s.1.clone()),
+                        "ok": !fails,
+                        "errors": c.errors(),
+                        "warnings": c.warnings(),
+                        "diagnostics": c.diagnostics.iter().map(|d| d.to_json(&c.sources)).collect::<Vec<_>>(),
+                    });
+                    writeln!(out, "{record}")?;
+                } else if full {
+                    if !c.diagnostics.is_empty() {
+                        write!(out, "{}", c.render())?;
+                    }
+                } else if fails {
+                    let first = c
+                        .diagnostics
+                        .iter()
+                        .find(|d| d.is_error())
+                        .or_else(|| c.diagnostics.first())
+                        .map(|d| d.one_line(&c.sources))
+                        .unwrap_or_default();
+                    let more = c.errors().saturating_sub(1) + if args.werror { c.warnings() } else { 0 };
+                    let more = if more > 0 && c.errors() > 0 { format!(" (and {more} more)") } else { String::new() };
+                    writeln!(out, "FAILED {first}{more}")?;
+                }
+            }
+        }
+    }
+    if !args.json {
+        writeln!(
+            out,
+            "{} shader{}: {ok} ok, {failed} failed, {warnings} warning{}",
+            outcomes.len(),
+            if outcomes.len() == 1 { "" } else { "s" },
+            if warnings == 1 { "" } else { "s" }
+        )?;
+    }
+    Ok(if failed > 0 { ExitCode::from(1) } else { ExitCode::SUCCESS })
+}
+
+#[derive(clap::Args, Debug)]
+pub struct BenchFrontendArgs {
+    /// Shader files or directories (default: the shader library and the test corpus).
+    #[arg(value_name = "PATH")]
+    pub paths: Vec<PathBuf>,
+    #[command(flatten)]
+    pub flags: CompilerFlags,
+    /// How many times to compile everything; the median pass is reported.
+    #[arg(long, default_value_t = 20)]
+    pub repeats: usize,
+}
+
+/// Compiles every file `repeats` times on one thread and prints lines per second.
+pub fn bench_frontend(args: &BenchFrontendArgs) -> anyhow::Result<ExitCode> {
+    let (paths, mut options) = if args.paths.is_empty() {
+        let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+        let mut flags = args.flags.clone();
+        flags.include.push(root.join("tests/corpus/include"));
+        (vec![root.join("stdlib_shaders"), root.join("tests/corpus")], flags.options())
+    } else {
+        (args.paths.clone(), args.flags.options())
+    };
+    options.preprocessor.include_paths.dedup();
+    let files = collect_shaders(&paths)?;
+    // Read once, so that the timing covers the compiler, not the disk.
+    let sources: Vec<(PathBuf, String)> = files
+        .iter()
+        .map(|p| Ok((p.clone(), std::fs::read_to_string(p).with_context(|| format!("cannot read `{}`", p.display()))?)))
+        .collect::<anyhow::Result<_>>()?;
+    let mut lines = 0usize;
+    let mut ok = 0usize;
+    let mut times = Vec::with_capacity(args.repeats.max(1));
+    for _ in 0..args.repeats.max(1) {
+        let start = Instant::now();
+        lines = 0;
+        ok = 0;
+        for (path, text) in &sources {
+            let c = rtsl_compiler::compile_source_at(path, text, &options);
+            lines += c.lines;
+            ok += usize::from(c.ok());
+        }
+        times.push(start.elapsed().as_secs_f64());
+    }
+    times.sort_by(f64::total_cmp);
+    let median = times[times.len() / 2];
+    println!("files: {}", files.len());
+    println!("compiled ok: {ok}");
+    println!("lines (with includes): {lines}");
+    println!("pass time ms (median of {}): {:.3}", times.len(), median * 1e3);
+    println!("lines per second: {:.0}", lines as f64 / median);
+    Ok(ExitCode::SUCCESS)
+}

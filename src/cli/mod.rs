@@ -1,0 +1,45 @@
+//! Subcommands of the `rtsl` binary.
+
+mod bench;
+mod compile;
+mod info;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+#[derive(Parser, Debug)]
+#[command(name = "rtsl", version, about = "A RenderMan-like shading language and interactive ray tracer")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Check shaders: files, or directories searched recursively for `.sl` files.
+    Compile(compile::CompileArgs),
+    /// Show a shader's type, name and parameters.
+    Info(info::InfoArgs),
+    /// Benchmarks.
+    #[command(subcommand)]
+    Bench(BenchCommand),
+}
+
+#[derive(Subcommand, Debug)]
+enum BenchCommand {
+    /// Front-end throughput: lines per second from source to checked IR, on one thread.
+    Frontend(compile::BenchFrontendArgs),
+    /// Ray tracing throughput on a mesh: packet and single-ray traversal, primary and shadow rays.
+    Trace(bench::BenchTraceArgs),
+}
+
+/// Runs the command line; the exit code says whether everything succeeded.
+pub fn run() -> anyhow::Result<ExitCode> {
+    let cli = Cli::parse();
+    match cli.command {
+        Command::Compile(args) => compile::run(&args),
+        Command::Info(args) => info::run(&args),
+        Command::Bench(BenchCommand::Frontend(args)) => compile::bench_frontend(&args),
+        Command::Bench(BenchCommand::Trace(args)) => bench::run_trace(&args).map(|()| ExitCode::SUCCESS),
+    }
+}
