@@ -14,6 +14,15 @@ impl Checker<'_> {
     /// picks the result type of context-typed built-ins (`noise`, `texture`) and of untyped triples.
     /// Returns `None` after reporting an error.
     pub(super) fn expr(&mut self, e: &ast::Expr, expected: Option<BaseType>) -> Option<ExprId> {
+        if !self.enter(e.span) {
+            return None;
+        }
+        let result = self.expr_inner(e, expected);
+        self.depth -= 1;
+        result
+    }
+
+    fn expr_inner(&mut self, e: &ast::Expr, expected: Option<BaseType>) -> Option<ExprId> {
         use ast::ExprKind as K;
         match &e.kind {
             K::Number(v) => Some(self.add_expr(ExprKind::Const(Constant::Float(*v as f32)), Type::FLOAT, e.span)),

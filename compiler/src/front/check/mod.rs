@@ -126,7 +126,13 @@ pub struct Checker<'a> {
     builder_funcs: Vec<Option<usize>>,
     /// The parser dropped statements: usage counts are incomplete, so unused warnings are off.
     incomplete: bool,
+    /// How deeply expressions and statements nest at the point being checked.
+    depth: u32,
+    depth_reported: bool,
 }
+
+/// Nesting deeper than this is refused: checking recurses, and so do the back ends.
+const MAX_NESTING: u32 = 400;
 
 /// Checks a parsed file and lowers it to IR.
 pub fn check(unit: &ast::TranslationUnit, interner: &Interner, diags: &mut Diagnostics) -> Checked {
@@ -147,6 +153,8 @@ pub fn check(unit: &ast::TranslationUnit, interner: &Interner, diags: &mut Diagn
         call_graph: Vec::new(),
         builder_funcs: Vec::new(),
         incomplete,
+        depth: 0,
+        depth_reported: false,
     };
     let mut shader_seen: Option<Span> = None;
     for item in &unit.items {
@@ -184,6 +192,26 @@ pub fn check(unit: &ast::TranslationUnit, interner: &Interner, diags: &mut Diagn
 impl Checker<'_> {
     fn name(&self, sym: Symbol) -> &str {
         self.interner.resolve(sym)
+    }
+
+    /// Enters one level of nesting; false (with one error per file) when too deep.
+    fn enter(&mut self, span: Span) -> bool {
+        if self.depth >= MAX_NESTING {
+            if !self.depth_reported {
+                self.depth_reported = true;
+                self.error(
+                    Code::Syntax,
+                    span,
+                    format!("expressions or statements nest more than {MAX_NESTING} levels deep"),
+                )
+                .with_label("too deeply nested")
+                .notes
+                .push("split the expression with temporary variables".into());
+            }
+            return false;
+        }
+        self.depth += 1;
+        true
     }
 
     fn b(&mut self) -> &mut FnBuilder {

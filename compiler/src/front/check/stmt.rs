@@ -60,6 +60,14 @@ impl Checker<'_> {
     }
 
     fn stmt(&mut self, s: &ast::Stmt, out: &mut Block) {
+        if !self.enter(s.span) {
+            return;
+        }
+        self.stmt_inner(s, out);
+        self.depth -= 1;
+    }
+
+    fn stmt_inner(&mut self, s: &ast::Stmt, out: &mut Block) {
         use ast::StmtKind as S;
         match &s.kind {
             S::Decl(d) => self.var_decl(d, out),

@@ -325,3 +325,80 @@ impl Expr {
         Expr { kind, span }
     }
 }
+
+/// Deeply nested trees (`1+1+1+...` with a hundred thousand terms, or long `if` chains) would overflow
+/// the stack if dropped recursively; children are moved onto a heap stack instead.
+impl Drop for Expr {
+    fn drop(&mut self) {
+        let mut stack: Vec<Expr> = Vec::new();
+        take_children(&mut self.kind, &mut stack);
+        while let Some(mut e) = stack.pop() {
+            take_children(&mut e.kind, &mut stack);
+        }
+    }
+}
+
+fn take_children(kind: &mut ExprKind, stack: &mut Vec<Expr>) {
+    let placeholder = || Box::new(Expr { kind: ExprKind::Error, span: Span::default() });
+    match kind {
+        ExprKind::Index(a, b) | ExprKind::Binary(_, a, b) | ExprKind::Assign(_, a, b) => {
+            stack.push(*std::mem::replace(a, placeholder()));
+            stack.push(*std::mem::replace(b, placeholder()));
+        }
+        ExprKind::Ternary(a, b, c) => {
+            stack.push(*std::mem::replace(a, placeholder()));
+            stack.push(*std::mem::replace(b, placeholder()));
+            stack.push(*std::mem::replace(c, placeholder()));
+        }
+        ExprKind::Cast { expr: a, .. } | ExprKind::Unary(_, a) | ExprKind::IncDec { target: a, .. } => {
+            if !matches!(a.kind, ExprKind::Error | ExprKind::Number(_) | ExprKind::Ident(_) | ExprKind::String(_)) {
+                stack.push(*std::mem::replace(a, placeholder()));
+            }
+        }
+        ExprKind::Call { args, .. } | ExprKind::Tuple(args) | ExprKind::ArrayLiteral(args) => {
+            stack.append(args);
+        }
+        ExprKind::Number(_) | ExprKind::String(_) | ExprKind::Ident(_) | ExprKind::Error => {}
+    }
+}
+
+impl Drop for Stmt {
+    fn drop(&mut self) {
+        let mut stack: Vec<Stmt> = Vec::new();
+        take_stmt_children(&mut self.kind, &mut stack);
+        while let Some(mut s) = stack.pop() {
+            take_stmt_children(&mut s.kind, &mut stack);
+        }
+    }
+}
+
+fn take_stmt_children(kind: &mut StmtKind, stack: &mut Vec<Stmt>) {
+    let placeholder = || Box::new(Stmt { kind: StmtKind::Empty, span: Span::default() });
+    let mut take = |b: &mut Box<Stmt>| stack.push(*std::mem::replace(b, placeholder()));
+    match kind {
+        StmtKind::If { then, otherwise, .. } => {
+            take(then);
+            if let Some(o) = otherwise {
+                take(o);
+            }
+        }
+        StmtKind::While { body, .. }
+        | StmtKind::Illuminance { body, .. }
+        | StmtKind::Illuminate { body, .. }
+        | StmtKind::Solar { body, .. } => take(body),
+        StmtKind::For { init, body, .. } => {
+            if let Some(i) = init {
+                take(i);
+            }
+            take(body);
+        }
+        StmtKind::Gather { body, otherwise, .. } => {
+            take(body);
+            if let Some(o) = otherwise {
+                take(o);
+            }
+        }
+        StmtKind::Block(b) => stack.append(&mut b.stmts),
+        _ => {}
+    }
+}

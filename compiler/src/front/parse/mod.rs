@@ -362,7 +362,10 @@ fn report(e: ParseError<usize, Tok, ()>, spans: &[Span], interner: &Interner, di
             } else {
                 d.with_label(format!("expected {list}"))
             };
-            if l > 0 && list.contains("`;`") && spans[l - 1].file == spans[l].file {
+            // Suggest a missing `;` only where the previous token ends before this one starts (not
+            // inside one macro expansion, whose tokens share the call's span).
+            if l > 0 && list.contains("`;`") && spans[l - 1].file == spans[l].file && spans[l - 1].end < spans[l].start
+            {
                 let prev = spans[l - 1];
                 d = d
                     .with_note("a `;` may be missing at the end of the previous statement")

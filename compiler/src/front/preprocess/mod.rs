@@ -24,7 +24,9 @@ use std::rc::Rc;
 /// How deep `#include` may nest before we assume a file includes itself.
 const MAX_INCLUDE_DEPTH: usize = 64;
 /// How many tokens macro expansion may produce for one file before we call it runaway.
-const MAX_EXPANDED_TOKENS: usize = 20_000_000;
+const MAX_EXPANDED_TOKENS: usize = 2_000_000;
+/// How deeply macro calls may nest inside each other's arguments (each level recurses).
+const MAX_ARGUMENT_NESTING: usize = 200;
 /// How deeply macro expansions may nest.
 const MAX_EXPANSION_DEPTH: usize = 4096;
 
@@ -131,6 +133,7 @@ pub fn preprocess(
         conds: Vec::new(),
         produced: 0,
         aborted: false,
+        isolated_depth: 0,
         read_files: Vec::new(),
         sym_defined: Symbol::default(),
         sym_va_args: Symbol::default(),
@@ -186,6 +189,7 @@ struct Preprocessor<'a> {
     conds: Vec<Conditional>,
     produced: usize,
     aborted: bool,
+    isolated_depth: usize,
     read_files: Vec<FileId>,
     sym_defined: Symbol,
     sym_va_args: Symbol,
@@ -825,6 +829,21 @@ impl Preprocessor<'_> {
 
     /// Fully expands a token list on its own, without reading past it.
     fn expand_isolated(&mut self, tokens: Vec<Token>) -> Vec<Token> {
+        if self.isolated_depth >= MAX_ARGUMENT_NESTING {
+            if !self.aborted {
+                let span = tokens.first().map(|t| t.span).unwrap_or_default();
+                self.error(Code::MacroRecursionLimit, span, "macro calls nest too deeply in arguments", "nested here");
+            }
+            self.aborted = true;
+            return Vec::new();
+        }
+        self.isolated_depth += 1;
+        let out = self.expand_isolated_inner(tokens);
+        self.isolated_depth -= 1;
+        out
+    }
+
+    fn expand_isolated_inner(&mut self, tokens: Vec<Token>) -> Vec<Token> {
         let saved_pending = std::mem::take(&mut self.pending);
         self.contexts.push(Context { tokens, pos: 0, disabled: None, barrier: true });
         let depth = self.contexts.len();

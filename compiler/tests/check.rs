@@ -1,0 +1,92 @@
+//! The broken-shader suite: every file in `tests/check/err/` holds one mistake, names the diagnostic
+//! code it must produce on its first line (`// expect: E0100`), and has the full rendered diagnostics
+//! beside it in `<name>.stderr`. `RTSL_BLESS=1 cargo test` rewrites the `.stderr` files.
+
+use rtsl_compiler::{compile_file, Code, Options, Severity};
+use std::path::{Path, PathBuf};
+
+fn err_dir() -> PathBuf {
+    Path::new("tests").join("check").join("err")
+}
+
+fn shaders(dir: &Path) -> Vec<PathBuf> {
+    let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
+        .expect("the err directory exists")
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|e| e == "sl"))
+        .collect();
+    v.sort();
+    v
+}
+
+#[test]
+fn broken_shaders_report_the_expected_diagnostics() {
+    let bless = std::env::var_os("RTSL_BLESS").is_some();
+    let mut options = Options::default();
+    options.preprocessor.include_paths.push(err_dir().join("include"));
+    let mut failures = Vec::new();
+    let mut error_kinds = std::collections::BTreeSet::new();
+    let files = shaders(&err_dir());
+    assert!(files.len() >= 40, "the suite has {} files", files.len());
+    for path in &files {
+        let text = std::fs::read_to_string(path).expect("readable");
+        let expected = text
+            .lines()
+            .next()
+            .and_then(|l| l.strip_prefix("// expect: "))
+            .unwrap_or_else(|| panic!("{} has no `// expect:` line", path.display()))
+            .trim()
+            .to_string();
+        let c = compile_file(path, &options).expect("readable");
+        let codes: Vec<&str> = c.diagnostics.iter().map(|d| d.code.as_str()).collect();
+        if !codes.contains(&expected.as_str()) {
+            failures.push(format!("{}: expected {expected}, got {codes:?}\n{}", path.display(), c.render()));
+            continue;
+        }
+        let code = Code::ALL.iter().find(|c| c.as_str() == expected).expect("a known code");
+        if code.severity() == Severity::Error {
+            error_kinds.insert(expected.clone());
+            assert!(c.module.is_none(), "{}: an error still produced IR", path.display());
+        } else {
+            assert!(c.ok(), "{}: a warning case has errors:\n{}", path.display(), c.render());
+        }
+        let rendered = c.render();
+        let golden = path.with_extension("stderr");
+        if bless {
+            std::fs::write(&golden, &rendered).expect("writable");
+        } else {
+            match std::fs::read_to_string(&golden) {
+                Ok(want) if want == rendered => {}
+                Ok(want) => failures.push(format!(
+                    "{}: rendered diagnostics differ (RTSL_BLESS=1 to accept)\n--- expected\n{want}\n--- got\n{rendered}",
+                    path.display()
+                )),
+                Err(_) => failures.push(format!("{}: missing {} (RTSL_BLESS=1 to write it)", path.display(), golden.display())),
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n\n"));
+    assert!(error_kinds.len() >= 30, "only {} distinct error kinds are tested: {error_kinds:?}", error_kinds.len());
+}
+
+/// `docs/diagnostics.md` is generated from the code table; `RTSL_BLESS=1` regenerates it.
+#[test]
+fn every_diagnostic_code_is_documented() {
+    let mut text = String::from(
+        "# Diagnostics\n\nEvery diagnostic the compiler emits has a stable code. Errors stop a shader from compiling;\n\
+         warnings do not (unless `rtsl compile --werror`). Each code has at least one example in\n\
+         `compiler/tests/check/err/`, with its rendered output beside it.\n\n\
+         This file is generated from `Code::ALL` in `compiler/src/diagnostic.rs` (`RTSL_BLESS=1 cargo test`).\n\n\
+         | code | severity | meaning |\n|---|---|---|\n",
+    );
+    for code in Code::ALL {
+        let sev = if code.severity() == Severity::Error { "error" } else { "warning" };
+        text.push_str(&format!("| {} | {sev} | {} |\n", code.as_str(), code.description().replace('|', "\\|")));
+    }
+    let path = Path::new("..").join("docs").join("diagnostics.md");
+    if std::env::var_os("RTSL_BLESS").is_some() {
+        std::fs::write(&path, &text).expect("writable");
+    }
+    let docs = std::fs::read_to_string(&path).unwrap_or_default();
+    assert_eq!(docs, text, "docs/diagnostics.md is out of date: run with RTSL_BLESS=1");
+}

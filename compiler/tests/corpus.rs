@@ -1,0 +1,95 @@
+//! The shader library and the conformance corpus compile; the library without a single warning.
+
+use rtsl_compiler::{compile_file, Options};
+use std::path::{Path, PathBuf};
+
+fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
+    let mut entries: Vec<PathBuf> =
+        std::fs::read_dir(dir).expect("directory").filter_map(|e| e.ok().map(|e| e.path())).collect();
+    entries.sort();
+    for p in entries {
+        if p.is_dir() {
+            walk(&p, out);
+        } else if p.extension().is_some_and(|e| e == "sl") {
+            out.push(p);
+        }
+    }
+}
+
+fn compile_all(dir: &Path, include: Option<&Path>) -> Vec<(PathBuf, rtsl_compiler::Compilation)> {
+    let mut files = Vec::new();
+    walk(dir, &mut files);
+    let mut options = Options::default();
+    options.preprocessor.include_paths.extend(include.map(Path::to_path_buf));
+    files
+        .into_iter()
+        .map(|f| {
+            let c = compile_file(&f, &options).expect("readable");
+            (f, c)
+        })
+        .collect()
+}
+
+#[test]
+fn the_shader_library_compiles_without_warnings() {
+    let results = compile_all(Path::new("../stdlib_shaders"), None);
+    assert!(results.len() >= 13);
+    for (path, c) in &results {
+        assert!(c.diagnostics.is_empty(), "{}:\n{}", path.display(), c.render());
+        assert!(c.interface.is_some(), "{} defines no shader", path.display());
+    }
+    let names: Vec<&str> = results.iter().filter_map(|(_, c)| c.shader.as_ref().map(|s| s.1.as_str())).collect();
+    for required in [
+        "constant",
+        "matte",
+        "metal",
+        "shinymetal",
+        "plastic",
+        "paintedplastic",
+        "ambientlight",
+        "distantlight",
+        "pointlight",
+        "spotlight",
+        "depthcue",
+        "fog",
+        "bumpy",
+    ] {
+        assert!(names.contains(&required), "the library lacks `{required}`");
+    }
+}
+
+#[test]
+fn the_conformance_corpus_compiles() {
+    let results = compile_all(Path::new("../tests/corpus"), Some(Path::new("../tests/corpus/include")));
+    assert!(results.len() >= 50);
+    let failed: Vec<String> =
+        results.iter().filter(|(_, c)| !c.ok()).map(|(p, c)| format!("{}:\n{}", p.display(), c.render())).collect();
+    assert!(failed.is_empty(), "{}", failed.join("\n"));
+    // Every shader type appears.
+    let kinds: std::collections::BTreeSet<&str> =
+        results.iter().filter_map(|(_, c)| c.shader.as_ref().map(|s| s.0.name())).collect();
+    for k in ["surface", "light", "displacement", "volume", "imager", "camera", "lightfield"] {
+        assert!(kinds.contains(k), "no {k} shader in the corpus");
+    }
+}
+
+#[test]
+fn interfaces_report_parameters_and_defaults() {
+    let c = compile_file(Path::new("../stdlib_shaders/surface/plastic.sl"), &Options::default()).expect("readable");
+    let iface = c.interface.expect("plastic is a shader");
+    assert_eq!(iface.name, "plastic");
+    let ks = iface.parameters.iter().find(|p| p.name == "Ks").expect("Ks");
+    assert_eq!(ks.default, Some(rtsl_compiler::interface::Value::Float(0.5)));
+    assert_eq!(ks.storage, "uniform");
+    let spec = iface.parameters.iter().find(|p| p.name == "specularcolor").expect("specularcolor");
+    assert_eq!(spec.default.as_ref().map(|v| v.to_string()).as_deref(), Some("[1 1 1]"));
+    let c = compile_file(Path::new("../stdlib_shaders/light/spotlight.sl"), &Options::default()).expect("readable");
+    let iface = c.interface.expect("spotlight");
+    let from = iface.parameters.iter().find(|p| p.name == "from").expect("from");
+    assert_eq!(from.default.as_ref().map(|v| v.to_string()).as_deref(), Some("\"shader\" [0 0 0]"));
+    let cone = iface.parameters.iter().find(|p| p.name == "coneangle").expect("coneangle");
+    match cone.default {
+        Some(rtsl_compiler::interface::Value::Float(v)) => assert!((v - 30f32.to_radians()).abs() < 1e-6),
+        ref other => panic!("coneangle default {other:?}"),
+    }
+}

@@ -1,0 +1,212 @@
+//! The front end never panics: random bytes and randomly mutated real shaders go through the
+//! preprocessor, lexer, parser and checker and come out as diagnostics.
+
+use proptest::prelude::*;
+use rtsl_compiler::{compile_source, compile_source_at, Options};
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+/// Real shaders to mutate: the library and the corpus, with their text.
+fn seeds() -> &'static [(PathBuf, String)] {
+    static SEEDS: OnceLock<Vec<(PathBuf, String)>> = OnceLock::new();
+    SEEDS.get_or_init(|| {
+        let mut out = Vec::new();
+        for dir in ["../stdlib_shaders", "../tests/corpus"] {
+            let mut stack = vec![PathBuf::from(dir)];
+            while let Some(d) = stack.pop() {
+                for e in std::fs::read_dir(&d).expect("directory").flatten() {
+                    let p = e.path();
+                    if p.is_dir() {
+                        stack.push(p);
+                    } else if p.extension().is_some_and(|x| x == "sl" || x == "h") {
+                        let text = std::fs::read_to_string(&p).expect("readable");
+                        out.push((p, text));
+                    }
+                }
+            }
+        }
+        out.sort();
+        out
+    })
+}
+
+fn options() -> Options {
+    let mut o = Options::default();
+    o.preprocessor.include_paths.push(Path::new("../tests/corpus/include").to_path_buf());
+    o
+}
+
+/// Fragments that stress the grammar and the preprocessor when spliced in anywhere.
+const FRAGMENTS: &[&str] = &[
+    "(",
+    ")",
+    "{",
+    "}",
+    "[",
+    "]",
+    ";",
+    ",",
+    ".",
+    "^",
+    "?",
+    ":",
+    "=",
+    "+=",
+    "++",
+    "#",
+    "##",
+    "\n#define X(a) a##a\n",
+    "\n#if 1\n",
+    "\n#endif\n",
+    "\n#else\n",
+    "\n#include \"noises.h\"\n",
+    "\"",
+    "/*",
+    "*/",
+    "//",
+    "\\\n",
+    "float",
+    "color",
+    "point",
+    "uniform",
+    "varying",
+    "output",
+    "extern",
+    "illuminance(P)",
+    "illuminate(P)",
+    "solar()",
+    "gather(\"\", P, N, 1, 1)",
+    "break 3;",
+    "continue;",
+    "return",
+    "surface",
+    "light",
+    "matrix \"world\" 1",
+    "color \"hsv\" (1,0,0)",
+    "noise(",
+    "texture(\"x\"[",
+    "Ci",
+    "L",
+    "Cl",
+    "0x",
+    "1e999",
+    ".",
+    "@",
+    "$",
+    "'",
+    "float f(output float x) { return x; }",
+    "f(1)",
+    "(1,2,3)",
+    "{1,2}",
+    "-",
+    "!",
+    "&&",
+    "||",
+];
+
+#[derive(Debug, Clone)]
+enum Mutation {
+    Delete { at: usize, len: usize },
+    Insert { at: usize, fragment: usize },
+    Duplicate { at: usize, len: usize },
+    Truncate { at: usize },
+    Swap { a: usize, b: usize, len: usize },
+}
+
+fn mutation() -> impl Strategy<Value = Mutation> {
+    prop_oneof![
+        (any::<usize>(), 1usize..40).prop_map(|(at, len)| Mutation::Delete { at, len }),
+        (any::<usize>(), 0..FRAGMENTS.len()).prop_map(|(at, fragment)| Mutation::Insert { at, fragment }),
+        (any::<usize>(), 1usize..80).prop_map(|(at, len)| Mutation::Duplicate { at, len }),
+        any::<usize>().prop_map(|at| Mutation::Truncate { at }),
+        (any::<usize>(), any::<usize>(), 1usize..20).prop_map(|(a, b, len)| Mutation::Swap { a, b, len }),
+    ]
+}
+
+fn floor_char(s: &str, i: usize) -> usize {
+    let mut i = i.min(s.len());
+    while !s.is_char_boundary(i) {
+        i -= 1;
+    }
+    i
+}
+
+fn apply(text: &str, m: &Mutation) -> String {
+    let n = text.len().max(1);
+    match *m {
+        Mutation::Delete { at, len } => {
+            let a = floor_char(text, at % n);
+            let b = floor_char(text, a + len);
+            format!("{}{}", &text[..a], &text[b..])
+        }
+        Mutation::Insert { at, fragment } => {
+            let a = floor_char(text, at % n);
+            format!("{}{}{}", &text[..a], FRAGMENTS[fragment], &text[a..])
+        }
+        Mutation::Duplicate { at, len } => {
+            let a = floor_char(text, at % n);
+            let b = floor_char(text, a + len);
+            format!("{}{}{}", &text[..b], &text[a..b], &text[b..])
+        }
+        Mutation::Truncate { at } => text[..floor_char(text, at % n)].to_string(),
+        Mutation::Swap { a, b, len } => {
+            let a0 = floor_char(text, a % n);
+            let a1 = floor_char(text, a0 + len);
+            let b0 = floor_char(text, b % n);
+            let b1 = floor_char(text, b0 + len);
+            if a1 <= b0 {
+                format!("{}{}{}{}{}", &text[..a0], &text[b0..b1], &text[a1..b0], &text[a0..a1], &text[b1..])
+            } else {
+                text.to_string()
+            }
+        }
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 300, ..ProptestConfig::default() })]
+
+    #[test]
+    fn random_bytes_give_diagnostics_not_panics(bytes in proptest::collection::vec(any::<u8>(), 0..600)) {
+        let text = String::from_utf8_lossy(&bytes);
+        let c = compile_source("random.sl", &text, &options());
+        // Rendering must not panic either, whatever the spans.
+        let _ = c.render();
+    }
+
+    #[test]
+    fn mutated_shaders_give_diagnostics_not_panics(
+        seed in any::<proptest::sample::Index>(),
+        mutations in proptest::collection::vec(mutation(), 1..6),
+    ) {
+        let seeds = seeds();
+        let (path, text) = &seeds[seed.index(seeds.len())];
+        let mut text = text.clone();
+        for m in &mutations {
+            text = apply(&text, m);
+        }
+        let c = compile_source_at(path, &text, &options());
+        let _ = c.render();
+        for d in &c.diagnostics {
+            let _ = d.to_json(&c.sources);
+        }
+    }
+
+    #[test]
+    fn token_soup_gives_diagnostics_not_panics(parts in proptest::collection::vec(0..FRAGMENTS.len(), 0..60)) {
+        let text: String = parts.iter().map(|&i| FRAGMENTS[i]).collect::<Vec<_>>().join(" ");
+        let c = compile_source("soup.sl", &text, &options());
+        let _ = c.render();
+    }
+}
+
+#[test]
+fn every_seed_still_compiles_unmutated() {
+    // A sanity check of the harness: the seeds are valid shaders and headers.
+    for (path, text) in seeds() {
+        if path.extension().is_some_and(|x| x == "sl") {
+            let c = compile_source_at(path, text, &options());
+            assert!(c.ok(), "{}:\n{}", path.display(), c.render());
+        }
+    }
+}

@@ -1,0 +1,139 @@
+//! The `rtsl` binary, run as a user would, in temporary directories.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn rtsl(args: &[&str], dir: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_rtsl")).args(args).current_dir(dir).output().expect("the binary runs")
+}
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn write(dir: &Path, name: &str, text: &str) {
+    let path = dir.join(name);
+    if let Some(parent) = path.parent() {
+        std::fs::create_dir_all(parent).expect("mkdir");
+    }
+    std::fs::write(path, text).expect("write");
+}
+
+const GOOD: &str = "surface good(float Kd = .8; color tint = color \"hsv\" (0, 1, 1); float knots[3] = {0, .5, 1}; output varying float mask = 0;)\n{\n    normal Nf = faceforward(normalize(N), I);\n    mask = spline(s, knots[0], knots[0], knots[1], knots[2], knots[2]);\n    Ci = Cs * tint * Kd * diffuse(Nf);\n    Oi = Os;\n}\n";
+const BAD: &str = "surface bad()\n{\n    Ci = Cs * normalise(N);\n    Oi = undefined_thing;\n}\n";
+const WARN: &str = "surface warn()\n{\n    float unused = 1;\n    Ci = Cs;\n    Oi = Os;\n}\n";
+
+#[test]
+fn compile_a_directory_reports_failures_and_a_summary() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    write(dir.path(), "lib/good.sl", GOOD);
+    write(dir.path(), "lib/sub/bad.sl", BAD);
+    write(dir.path(), "lib/sub/warn.sl", WARN);
+    write(dir.path(), "lib/readme.txt", "not a shader");
+    let o = rtsl(&["compile", "lib"], dir.path());
+    assert_eq!(o.status.code(), Some(1), "{}", stdout(&o));
+    let out = stdout(&o);
+    let lines: Vec<&str> = out.lines().collect();
+    assert_eq!(lines.len(), 2, "one line per failure plus the summary:\n{out}");
+    assert!(lines[0].starts_with("FAILED lib/sub/bad.sl:3:15: error[E0101]: unknown function `normalise`"), "{out}");
+    assert!(lines[0].ends_with("(and 1 more)"), "{out}");
+    assert_eq!(lines[1], "3 shaders: 2 ok, 1 failed, 1 warning");
+}
+
+#[test]
+fn werror_fails_on_warnings() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    write(dir.path(), "warn.sl", WARN);
+    assert_eq!(rtsl(&["compile", "warn.sl"], dir.path()).status.code(), Some(0));
+    let o = rtsl(&["compile", "--werror", "warn.sl"], dir.path());
+    assert_eq!(o.status.code(), Some(1));
+    // A single file shows its diagnostics in full.
+    assert!(stdout(&o).contains("warning[W0001]: unused variable `unused`"), "{}", stdout(&o));
+    assert!(stdout(&o).contains("3 │     float unused = 1;"), "{}", stdout(&o));
+}
+
+#[test]
+fn json_records_one_per_shader() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    write(dir.path(), "a/good.sl", GOOD);
+    write(dir.path(), "a/bad.sl", BAD);
+    let o = rtsl(&["compile", "--json", "a"], dir.path());
+    assert_eq!(o.status.code(), Some(1));
+    let records: Vec<serde_json::Value> =
+        stdout(&o).lines().map(|l| serde_json::from_str(l).expect("each line is JSON")).collect();
+    assert_eq!(records.len(), 2);
+    let bad = &records[0];
+    assert_eq!(bad["path"], "a/bad.sl");
+    assert_eq!(bad["shader_type"], "surface");
+    assert_eq!(bad["name"], "bad");
+    assert_eq!(bad["ok"], false);
+    let d = &bad["diagnostics"][0];
+    assert_eq!(d["code"], "E0101");
+    assert_eq!(d["span"]["line"], 3);
+    assert_eq!(d["span"]["column"], 15);
+    assert_eq!(records[1]["ok"], true);
+}
+
+#[test]
+fn defines_and_include_paths_reach_the_preprocessor() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    write(dir.path(), "inc/tint.h", "#define TINT color (1, 0, 0)\n");
+    write(
+        dir.path(),
+        "s.sl",
+        "#include <tint.h>\n#ifndef STRENGTH\n#error STRENGTH must be defined\n#endif\nsurface s(float k = STRENGTH;) { Ci = TINT * k; Oi = Os; }\n",
+    );
+    let o = rtsl(&["compile", "s.sl"], dir.path());
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stdout(&o).contains("E0001"), "missing include reported: {}", stdout(&o));
+    let o = rtsl(&["compile", "-I", "inc", "s.sl"], dir.path());
+    assert!(stdout(&o).contains("#error STRENGTH must be defined"), "{}", stdout(&o));
+    let o = rtsl(&["compile", "-I", "inc", "-D", "STRENGTH=2", "s.sl"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stdout(&o));
+}
+
+#[test]
+fn info_prints_the_interface() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    write(dir.path(), "good.sl", GOOD);
+    let o = rtsl(&["info", "good.sl"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let out = stdout(&o);
+    assert_eq!(
+        out,
+        "surface \"good\"\n    uniform float Kd = 0.8\n    uniform color tint = \"hsv\" [0 1 1]\n    uniform float knots[3] = {0, 0.5, 1}\n    output varying float mask = 0\n"
+    );
+    let o = rtsl(&["info", "--json", "good.sl"], dir.path());
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).expect("JSON");
+    assert_eq!(v["type"], "surface");
+    assert_eq!(v["parameters"][2]["array_length"], 3);
+    assert_eq!(v["parameters"][3]["output"], true);
+    assert_eq!(v["parameters"][3]["storage"], "varying");
+}
+
+#[test]
+fn bad_input_gives_clear_errors_not_panics() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let o = rtsl(&["compile", "missing.sl"], dir.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("cannot read `missing.sl`"), "{}", stderr(&o));
+    let o = rtsl(&["compile", "-D", "1BAD", "x.sl"], dir.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("`1BAD` is not a valid macro name"), "{}", stderr(&o));
+    write(dir.path(), "binary.sl", "\u{0}\u{1}\u{fffd}surface {{{{");
+    let o = rtsl(&["compile", "binary.sl"], dir.path());
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stdout(&o).contains("error["), "{}", stdout(&o));
+    write(dir.path(), "bad.sl", BAD);
+    let o = rtsl(&["info", "bad.sl"], dir.path());
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("error[E0101]"), "{}", stderr(&o));
+    write(dir.path(), "lib.sl", "float twice(float x) { return 2 * x; }\n");
+    let o = rtsl(&["info", "lib.sl"], dir.path());
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("defines no shader"), "{}", stderr(&o));
+}
