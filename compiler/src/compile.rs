@@ -80,7 +80,11 @@ fn compile_loaded(mut sources: SourceMap, file: FileId, options: &Options) -> Co
     let mut interner = Interner::new();
     let mut diags = Diagnostics::default();
     let pre = preprocess::preprocess(file, &mut sources, &mut interner, &options.preprocessor, &mut diags);
-    let unit = parse::parse(&pre.tokens, &mut interner, &mut diags);
+    let unit = if pre.aborted {
+        ast::TranslationUnit { items: Vec::new() }
+    } else {
+        parse::parse(&pre.tokens, &mut interner, &mut diags)
+    };
     let shader = unit.items.iter().find_map(|i| match i {
         ast::Item::Shader(s) => Some((s.kind, interner.resolve(s.name.sym).to_string())),
         _ => None,

@@ -43,7 +43,36 @@ struct Candidate {
     repeat_last: bool,
     param_list: bool,
     ret: Type,
-    describe: String,
+    describe: Describe,
+}
+
+/// How to show a candidate in messages (made only when a call fails to match).
+enum Describe {
+    Builtin(Builtin, usize),
+    User(String),
+}
+
+impl Describe {
+    fn text(&self) -> String {
+        match self {
+            Describe::Builtin(b, i) => builtins::describe(*b, &builtins::signatures(*b)[*i]),
+            Describe::User(s) => s.clone(),
+        }
+    }
+}
+
+/// The candidates of every built-in, made once.
+fn builtin_candidates(b: Builtin) -> &'static [(Option<usize>, Candidate)] {
+    static TABLE: std::sync::OnceLock<Vec<Vec<(Option<usize>, Candidate)>>> = std::sync::OnceLock::new();
+    let table = TABLE.get_or_init(|| {
+        Builtin::ALL
+            .iter()
+            .map(|b| {
+                builtins::signatures(*b).iter().enumerate().map(|(i, s)| (None, builtin_candidate(*b, i, s))).collect()
+            })
+            .collect()
+    });
+    &table[b as usize]
 }
 
 impl Candidate {
@@ -141,11 +170,12 @@ impl Checker<'_> {
             }
             return None;
         }
-        let candidates: Vec<(Option<usize>, Candidate)> = if !user.is_empty() {
-            user.iter().map(|&i| (Some(i), self.user_candidate(i, &text))).collect()
+        let user_candidates: Vec<(Option<usize>, Candidate)>;
+        let candidates: &[(Option<usize>, Candidate)] = if !user.is_empty() {
+            user_candidates = user.iter().map(|&i| (Some(i), self.user_candidate(i, &text))).collect();
+            &user_candidates
         } else {
-            let b = builtin.expect("checked above");
-            builtins::signatures(b).iter().map(|s| (None, builtin_candidate(b, s))).collect()
+            builtin_candidates(builtin.expect("checked above"))
         };
         if let Some(b) = builtin.filter(|_| user.is_empty()) {
             if b.flags() & flags::MESSAGE != 0 {
@@ -165,7 +195,7 @@ impl Checker<'_> {
                 }
             }
         }
-        let (lowered, extra) = self.lower_args(builtin.filter(|_| user.is_empty()), &candidates, args)?;
+        let (lowered, extra) = self.lower_args(builtin.filter(|_| user.is_empty()), candidates, args)?;
         let mut lowered = lowered;
         lowered.extend(extra);
 
@@ -183,7 +213,7 @@ impl Checker<'_> {
             }
         }
         let Some((_, first)) = best else {
-            self.no_match(&text, name.span, span, &candidates, &lowered, !user.is_empty(), args);
+            self.no_match(&text, name.span, span, candidates, &lowered, !user.is_empty(), args);
             return None;
         };
         let chosen = match expected {
@@ -255,7 +285,7 @@ impl Checker<'_> {
                 .collect::<Vec<_>>()
                 .join(", ")
         );
-        Candidate { params, repeat_last: false, param_list: false, ret: sig.ret, describe }
+        Candidate { params, repeat_last: false, param_list: false, ret: sig.ret, describe: Describe::User(describe) }
     }
 
     /// Lowers the arguments: as places where every candidate takes an output there, as values
@@ -271,8 +301,8 @@ impl Checker<'_> {
         let mut extra = Vec::new();
         let mut ok = true;
         for (i, a) in args.iter().enumerate() {
-            let params: Vec<Param> = candidates.iter().filter_map(|(_, c)| c.param(i)).collect();
-            let all_output = !params.is_empty() && params.iter().all(|p| p.output);
+            let params = || candidates.iter().filter_map(|(_, c)| c.param(i));
+            let all_output = params().next().is_some() && params().all(|p| p.output);
             if all_output {
                 match self.place(a, true) {
                     Some(p) => lowered.push(Lowered::Place(p)),
@@ -311,8 +341,8 @@ impl Checker<'_> {
                     }
                 }
             }
-            let first_ty = params.first().and_then(|p| p.ty).map(|t| t.base);
-            let agree = params.iter().all(|p| p.ty.map(|t| t.base) == first_ty);
+            let first_ty = params().next().and_then(|p| p.ty).map(|t| t.base);
+            let agree = params().all(|p| p.ty.map(|t| t.base) == first_ty);
             let expected = if agree { first_ty } else { None };
             match self.expr(a, expected) {
                 Some(id) => {
@@ -365,7 +395,7 @@ impl Checker<'_> {
                 )
                 .with_label(&format!("called with {given}"))
                 .notes
-                .push(format!("declared as `{}`", c.describe));
+                .push(format!("declared as `{}`", c.describe.text()));
                 if let Some(index) = candidates[0].0 {
                     let def = self.sigs[index].span;
                     if let Some(d) = self.diags.list.last_mut() {
@@ -381,16 +411,17 @@ impl Checker<'_> {
             )
             .with_label(&format!("called with {given}"))
             .notes
-            .push(format!("declared as `{}`", c.describe));
+            .push(format!("declared as `{}`", c.describe.text()));
             return;
         }
         let mut d =
             Diagnostic::new(Code::NoMatchingOverload, name_span, format!("no version of `{text}` takes {given}"))
                 .with_label("no matching signature");
-        let mut shown: Vec<&str> = Vec::new();
+        let mut shown: Vec<String> = Vec::new();
         for (_, c) in candidates {
-            if !shown.contains(&c.describe.as_str()) {
-                shown.push(&c.describe);
+            let text = c.describe.text();
+            if !shown.contains(&text) {
+                shown.push(text);
             }
         }
         const MAX: usize = 8;
@@ -403,7 +434,7 @@ impl Checker<'_> {
     }
 }
 
-fn builtin_candidate(b: Builtin, s: &Signature) -> Candidate {
+fn builtin_candidate(b: Builtin, index: usize, s: &Signature) -> Candidate {
     Candidate {
         params: s
             .params
@@ -416,7 +447,7 @@ fn builtin_candidate(b: Builtin, s: &Signature) -> Candidate {
         repeat_last: s.repeat_last,
         param_list: s.param_list,
         ret: Type::scalar(s.ret),
-        describe: builtins::describe(b, s),
+        describe: Describe::Builtin(b, index),
     }
 }
 

@@ -102,6 +102,10 @@ impl Checker<'_> {
     }
 
     pub(super) fn undefined_name(&mut self, text: &str, span: Span) {
+        if self.incomplete {
+            // The parser dropped statements, perhaps the declaration: do not guess.
+            return;
+        }
         let mut candidates: Vec<String> = Vec::new();
         for b in &self.builders {
             for s in &b.scopes {

@@ -79,8 +79,8 @@ pub struct TranslationUnit {
 
 #[derive(Debug, Clone)]
 pub enum Item {
-    Function(FunctionDef),
-    Shader(ShaderDef),
+    Function(Box<FunctionDef>),
+    Shader(Box<ShaderDef>),
     /// Something that failed to parse at the top level.
     Error(Span),
 }
@@ -173,8 +173,8 @@ pub enum StmtKind {
     },
     For {
         init: Option<Box<Stmt>>,
-        cond: Option<Expr>,
-        step: Option<Expr>,
+        cond: Option<Box<Expr>>,
+        step: Option<Box<Expr>>,
         body: Box<Stmt>,
     },
     /// `break n;` (n defaults to 1), with the span of `n` when written.
@@ -202,7 +202,7 @@ pub enum StmtKind {
         body: Box<Stmt>,
         otherwise: Option<Box<Stmt>>,
     },
-    Function(FunctionDef),
+    Function(Box<FunctionDef>),
     Empty,
     /// A statement that failed to parse.
     Error,
@@ -327,14 +327,42 @@ impl Expr {
 }
 
 /// Deeply nested trees (`1+1+1+...` with a hundred thousand terms, or long `if` chains) would overflow
-/// the stack if dropped recursively; children are moved onto a heap stack instead.
+/// the stack if dropped recursively. Drops recurse normally up to a depth, and past it move children
+/// onto a heap stack that the outermost deep drop empties.
+mod deep_drop {
+    use std::cell::{Cell, RefCell};
+
+    pub const LIMIT: u32 = 200;
+
+    thread_local! {
+        pub static DEPTH: Cell<u32> = const { Cell::new(0) };
+        pub static PENDING_EXPRS: RefCell<Vec<super::Expr>> = const { RefCell::new(Vec::new()) };
+        pub static PENDING_STMTS: RefCell<Vec<super::Stmt>> = const { RefCell::new(Vec::new()) };
+    }
+}
+
 impl Drop for Expr {
     fn drop(&mut self) {
-        let mut stack: Vec<Expr> = Vec::new();
-        take_children(&mut self.kind, &mut stack);
-        while let Some(mut e) = stack.pop() {
-            take_children(&mut e.kind, &mut stack);
+        if matches!(self.kind, ExprKind::Number(_) | ExprKind::String(_) | ExprKind::Ident(_) | ExprKind::Error) {
+            return;
         }
+        let kind = std::mem::replace(&mut self.kind, ExprKind::Error);
+        let depth = deep_drop::DEPTH.with(|d| d.get());
+        if depth >= deep_drop::LIMIT {
+            // Too deep: leave the children for the drop below the limit to take care of.
+            let mut kind = kind;
+            deep_drop::PENDING_EXPRS.with(|p| take_children(&mut kind, &mut p.borrow_mut()));
+            return;
+        }
+        deep_drop::DEPTH.with(|d| d.set(depth + 1));
+        drop(kind);
+        if depth == 0 {
+            // The outermost drop empties what deeper drops left, without recursing deeply.
+            while let Some(e) = deep_drop::PENDING_EXPRS.with(|p| p.borrow_mut().pop()) {
+                drop(e);
+            }
+        }
+        deep_drop::DEPTH.with(|d| d.set(depth));
     }
 }
 
@@ -351,9 +379,7 @@ fn take_children(kind: &mut ExprKind, stack: &mut Vec<Expr>) {
             stack.push(*std::mem::replace(c, placeholder()));
         }
         ExprKind::Cast { expr: a, .. } | ExprKind::Unary(_, a) | ExprKind::IncDec { target: a, .. } => {
-            if !matches!(a.kind, ExprKind::Error | ExprKind::Number(_) | ExprKind::Ident(_) | ExprKind::String(_)) {
-                stack.push(*std::mem::replace(a, placeholder()));
-            }
+            stack.push(*std::mem::replace(a, placeholder()));
         }
         ExprKind::Call { args, .. } | ExprKind::Tuple(args) | ExprKind::ArrayLiteral(args) => {
             stack.append(args);
@@ -364,11 +390,24 @@ fn take_children(kind: &mut ExprKind, stack: &mut Vec<Expr>) {
 
 impl Drop for Stmt {
     fn drop(&mut self) {
-        let mut stack: Vec<Stmt> = Vec::new();
-        take_stmt_children(&mut self.kind, &mut stack);
-        while let Some(mut s) = stack.pop() {
-            take_stmt_children(&mut s.kind, &mut stack);
+        let kind = std::mem::replace(&mut self.kind, StmtKind::Empty);
+        let depth = deep_drop::DEPTH.with(|d| d.get());
+        if depth >= deep_drop::LIMIT {
+            let mut kind = kind;
+            deep_drop::PENDING_STMTS.with(|p| take_stmt_children(&mut kind, &mut p.borrow_mut()));
+            return;
         }
+        deep_drop::DEPTH.with(|d| d.set(depth + 1));
+        drop(kind);
+        if depth == 0 {
+            while let Some(s) = deep_drop::PENDING_STMTS.with(|p| p.borrow_mut().pop()) {
+                drop(s);
+            }
+            while let Some(e) = deep_drop::PENDING_EXPRS.with(|p| p.borrow_mut().pop()) {
+                drop(e);
+            }
+        }
+        deep_drop::DEPTH.with(|d| d.set(depth));
     }
 }
 

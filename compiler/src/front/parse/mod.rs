@@ -145,6 +145,45 @@ pub fn span_of(spans: &[Span], l: usize, r: usize) -> Span {
     }
 }
 
+/// How tightly a binary operator binds: `||` loosest, then `&&`, equality, relations, `+ -`, `^`
+/// (cross), `* /`, and `.` (dot) tightest. All are left-associative.
+pub fn precedence(op: ast::BinaryOp) -> u8 {
+    use ast::BinaryOp::*;
+    match op {
+        Or => 1,
+        And => 2,
+        Eq | Ne => 3,
+        Lt | Gt | Le | Ge => 4,
+        Add | Sub => 5,
+        Cross => 6,
+        Mul | Div => 7,
+        Dot => 8,
+    }
+}
+
+/// Groups a chain `first op1 e1 op2 e2 ...` by precedence (operator-precedence parsing).
+pub fn climb(first: ast::Expr, rest: Vec<(ast::BinaryOp, ast::Expr)>) -> ast::Expr {
+    fn reduce(operands: &mut Vec<ast::Expr>, ops: &mut Vec<ast::BinaryOp>) {
+        let (Some(rhs), Some(lhs), Some(op)) = (operands.pop(), operands.pop(), ops.pop()) else { return };
+        let span = lhs.span.to(rhs.span);
+        operands.push(ast::Expr::new(ast::ExprKind::Binary(op, Box::new(lhs), Box::new(rhs)), span));
+    }
+    let mut operands = Vec::with_capacity(rest.len() + 1);
+    let mut ops: Vec<ast::BinaryOp> = Vec::with_capacity(rest.len());
+    operands.push(first);
+    for (op, e) in rest {
+        while ops.last().is_some_and(|top| precedence(*top) >= precedence(op)) {
+            reduce(&mut operands, &mut ops);
+        }
+        ops.push(op);
+        operands.push(e);
+    }
+    while !ops.is_empty() {
+        reduce(&mut operands, &mut ops);
+    }
+    operands.pop().unwrap_or_else(|| ast::Expr::new(ast::ExprKind::Error, crate::source::Span::default()))
+}
+
 /// The value of a `break n` level (clamped to `u32`).
 pub fn number_value(v: f64) -> u32 {
     if v.is_finite() && v >= 0.0 {
@@ -389,4 +428,23 @@ fn report(e: ParseError<usize, Tok, ()>, spans: &[Span], interner: &Interner, di
         ParseError::User { .. } => return,
     };
     diags.push(d);
+}
+#[cfg(test)]
+mod size_probe {
+    #[test]
+    fn sizes() {
+        use super::ast::*;
+        eprintln!("ErrorRecovery {}", std::mem::size_of::<lalrpop_util::ErrorRecovery<usize, super::Tok, ()>>());
+        eprintln!(
+            "Expr {} Stmt {} Block {} Decl {} VarDecl {} ParamDecl {} Tok {} Item {}",
+            std::mem::size_of::<Expr>(),
+            std::mem::size_of::<Stmt>(),
+            std::mem::size_of::<Block>(),
+            std::mem::size_of::<Declarator>(),
+            std::mem::size_of::<VarDecl>(),
+            std::mem::size_of::<ParamDecl>(),
+            std::mem::size_of::<super::Tok>(),
+            std::mem::size_of::<Item>()
+        );
+    }
 }

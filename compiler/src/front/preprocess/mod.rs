@@ -109,6 +109,8 @@ pub struct Output {
     pub tokens: Vec<Token>,
     /// Every file that was read, main file first (for dependency tracking and content hashes).
     pub files: Vec<FileId>,
+    /// Expansion ran away and was stopped: the tokens are incomplete and not worth parsing.
+    pub aborted: bool,
 }
 
 /// Preprocesses `main` into one token stream ending in `Eof`.
@@ -133,6 +135,7 @@ pub fn preprocess(
         conds: Vec::new(),
         produced: 0,
         aborted: false,
+        end_span: Span::default(),
         isolated_depth: 0,
         read_files: Vec::new(),
         sym_defined: Symbol::default(),
@@ -145,6 +148,8 @@ pub fn preprocess(
     pp.sym_file = pp.interner.intern("__FILE__");
     pp.sym_line = pp.interner.intern("__LINE__");
     pp.predefine();
+    let main_len = pp.sources.get(main).text.len() as u32;
+    pp.end_span = Span::new(main, main_len, main_len);
     let tokens = pp.tokens_of(main);
     pp.read_files.push(main);
     pp.files.push(FileFrame { file: main, tokens, pos: 0, cond_base: 0 });
@@ -171,7 +176,7 @@ pub fn preprocess(
             _ => out.push(t),
         }
     }
-    Output { tokens: out, files: pp.read_files }
+    Output { tokens: out, files: pp.read_files, aborted: pp.aborted }
 }
 
 struct Preprocessor<'a> {
@@ -189,6 +194,8 @@ struct Preprocessor<'a> {
     conds: Vec<Conditional>,
     produced: usize,
     aborted: bool,
+    /// The end of the main file, where a premature end of input is reported.
+    end_span: Span,
     isolated_depth: usize,
     read_files: Vec<FileId>,
     sym_defined: Symbol,
@@ -304,7 +311,7 @@ impl Preprocessor<'_> {
     }
 
     fn eof_token(&self) -> Token {
-        Token { kind: TokenKind::Eof, sym: Symbol::default(), span: Span::default(), flags: LINE_START, expansion: 0 }
+        Token { kind: TokenKind::Eof, sym: Symbol::default(), span: self.end_span, flags: LINE_START, expansion: 0 }
     }
 
     /// The next token before macro expansion: pushed-back tokens, then macro contexts, then files.
@@ -725,7 +732,9 @@ impl Preprocessor<'_> {
             self.diags.push(d);
             return;
         };
-        let key = std::fs::canonicalize(&path).unwrap_or_else(|_| path.clone());
+        // Keyed by the path as resolved (not canonicalised: that costs several system calls, and a
+        // header reached by two spellings is merely lexed twice).
+        let key = path.clone();
         let (file, tokens) = match self.file_cache.get(&key) {
             Some((file, tokens)) => (*file, tokens.clone()),
             None => {
