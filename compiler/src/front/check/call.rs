@@ -61,9 +61,12 @@ impl Describe {
     }
 }
 
+/// A candidate and, for user functions, the function's index.
+type Candidates = Vec<(Option<usize>, Candidate)>;
+
 /// The candidates of every built-in, made once.
 fn builtin_candidates(b: Builtin) -> &'static [(Option<usize>, Candidate)] {
-    static TABLE: std::sync::OnceLock<Vec<Vec<(Option<usize>, Candidate)>>> = std::sync::OnceLock::new();
+    static TABLE: std::sync::OnceLock<Vec<Candidates>> = std::sync::OnceLock::new();
     let table = TABLE.get_or_init(|| {
         Builtin::ALL
             .iter()
@@ -170,7 +173,7 @@ impl Checker<'_> {
             }
             return None;
         }
-        let user_candidates: Vec<(Option<usize>, Candidate)>;
+        let user_candidates: Candidates;
         let candidates: &[(Option<usize>, Candidate)] = if !user.is_empty() {
             user_candidates = user.iter().map(|&i| (Some(i), self.user_candidate(i, &text))).collect();
             &user_candidates
