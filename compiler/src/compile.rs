@@ -89,7 +89,21 @@ fn compile_loaded(mut sources: SourceMap, file: FileId, options: &Options) -> Co
         ast::Item::Shader(s) => Some((s.kind, interner.resolve(s.name.sym).to_string())),
         _ => None,
     });
-    let checked = check::check(&unit, &interner, &mut diags);
+    let mut checked = check::check(&unit, &interner, &mut diags);
+    // Only validated IR leaves the compiler: a violation is a compiler bug, reported as such.
+    if let Some(module) = &checked.module {
+        if let Err(problems) = crate::valid::validate(module) {
+            let span = module.shader.as_ref().map(|s| s.span).unwrap_or(crate::source::Span::new(file, 0, 0));
+            let mut d =
+                Diagnostic::new(crate::diagnostic::Code::InternalError, span, "internal compiler error: invalid IR")
+                    .with_label("while compiling this");
+            for p in problems.iter().take(10) {
+                d = d.with_note(p.clone());
+            }
+            diags.push(d);
+            checked.module = None;
+        }
+    }
     drop_syntax_cascades(&mut diags, &sources);
     diags.finish();
     let interface = checked.module.as_ref().and_then(|m| ShaderInterface::from_module(m, &sources));

@@ -18,6 +18,7 @@ pub mod interface;
 pub mod ir;
 pub mod source;
 pub mod symbol;
+pub mod valid;
 
 pub use compile::{compile_file, compile_source, compile_source_at, Compilation, Options};
 pub use diagnostic::{Code, Diagnostic, Severity};

@@ -62,6 +62,9 @@ pub struct CompileArgs {
     /// Show every diagnostic in full, also when compiling many files.
     #[arg(short, long)]
     pub verbose: bool,
+    /// Print the checked IR of each shader that compiles (its text form).
+    #[arg(long)]
+    pub emit_ir: bool,
 }
 
 /// Every `.sl` file named or found under the paths, in a stable order.
@@ -138,6 +141,9 @@ pub fn run(args: &CompileArgs) -> anyhow::Result<ExitCode> {
             }
             Ok(c) => {
                 warnings += c.warnings();
+                if let (true, Some(m)) = (args.emit_ir, &c.module) {
+                    writeln!(out, "// {}\n{}", o.path.display(), rtsl_compiler::ir::print::module(m))?;
+                }
                 if args.json {
                     let record = serde_json::json!({
                         "path": o.path.display().to_string(),

@@ -180,27 +180,22 @@ impl Checker<'_> {
         } else {
             builtin_candidates(builtin.expect("checked above"))
         };
-        if let Some(b) = builtin.filter(|_| user.is_empty()) {
-            if b.flags() & flags::MESSAGE != 0 {
-                if let Some(first) = args.first() {
-                    if !matches!(first.kind, ast::ExprKind::String(_)) {
-                        let id = self.expr(first, Some(BaseType::String))?;
-                        if self.expr_ty(id) != Type::STRING {
-                            self.error(
-                                Code::MessagePassing,
-                                first.span,
-                                format!("`{text}` needs the name of a parameter as a string"),
-                            )
-                            .with_label("not a string");
-                            return None;
-                        }
-                    }
-                }
-            }
-        }
         let (lowered, extra) = self.lower_args(builtin.filter(|_| user.is_empty()), candidates, args)?;
         let mut lowered = lowered;
         lowered.extend(extra);
+        if let Some(b) = builtin.filter(|_| user.is_empty()) {
+            // Message passing names a parameter: a string is required (checked before overloads, for
+            // a message that says so).
+            if b.flags() & flags::MESSAGE != 0 && lowered.first().is_some_and(|a| a.ty() != Type::STRING) {
+                self.error(
+                    Code::MessagePassing,
+                    args[0].span,
+                    format!("`{text}` needs the name of a parameter as a string"),
+                )
+                .with_label("not a string");
+                return None;
+            }
+        }
 
         let mut best: Option<(u32, usize)> = None;
         let mut tied: Vec<usize> = Vec::new();
