@@ -349,6 +349,7 @@ pub fn parse(tokens: &[Token], interner: &mut Interner, diags: &mut Diagnostics)
     let mut spans: Vec<Span> = Vec::with_capacity(tokens.len());
     let mut i = 0;
     let mut eof_span = Span::default();
+    let mut depth = 0usize;
     while i < tokens.len() {
         let t = &tokens[i];
         if t.kind == TokenKind::Eof {
@@ -369,7 +370,23 @@ pub fn parse(tokens: &[Token], interner: &mut Interner, diags: &mut Diagnostics)
             i = j;
             continue;
         }
-        toks.push(convert(t, interner));
+        let mut tok = convert(t, interner);
+        match tok {
+            Tok::LBrace => depth += 1,
+            Tok::RBrace => depth = depth.saturating_sub(1),
+            // rtsl's own shader types are keywords only where a shader is defined (at the top level,
+            // before a name and `(`): RenderMan shaders may use them as ordinary names.
+            Tok::Camera | Tok::Pixel | Tok::Lightfield => {
+                let defines_shader = depth == 0
+                    && tokens.get(i + 1).is_some_and(|n| n.kind == TokenKind::Ident && Interner::keyword(n.sym).is_none())
+                    && tokens.get(i + 2).is_some_and(|n| n.kind == TokenKind::LParen);
+                if !defines_shader {
+                    tok = Tok::Ident(t.sym);
+                }
+            }
+            _ => {}
+        }
+        toks.push(tok);
         spans.push(t.span);
         i += 1;
     }
