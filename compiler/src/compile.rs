@@ -52,44 +52,87 @@ impl Compilation {
     }
 }
 
-/// Compiles a file from disk. A file that cannot be read gives a compilation with no module and an
-/// `Err` describing the I/O problem.
+/// State shared by the compilations of one command or one thread: the interner, and the headers
+/// already read and lexed. Headers are assumed not to change while a session lives.
+#[derive(Debug, Default)]
+pub struct Session {
+    interner: Interner,
+    headers: preprocess::HeaderCache,
+}
+
+impl Session {
+    pub fn new() -> Session {
+        Session::default()
+    }
+
+    /// Compiles a file from disk. A file that cannot be read is an `Err` with the I/O problem.
+    pub fn compile_file(&mut self, path: &Path, options: &Options) -> std::io::Result<Compilation> {
+        let mut sources = SourceMap::new();
+        let file = sources.load(path)?;
+        Ok(self.compile_loaded(sources, file, options))
+    }
+
+    /// Compiles source text held in memory; `name` is used in diagnostics and `#include "x"` is
+    /// looked up in the include path only.
+    pub fn compile_source(&mut self, name: &str, text: &str, options: &Options) -> Compilation {
+        let mut sources = SourceMap::new();
+        let file = sources.add_virtual(name, text.to_string());
+        self.compile_loaded(sources, file, options)
+    }
+
+    /// Compiles text held in memory as if it were the file at `path` (so `#include "x"` searches that
+    /// file's directory first).
+    pub fn compile_source_at(&mut self, path: &Path, text: &str, options: &Options) -> Compilation {
+        let mut sources = SourceMap::new();
+        let file = sources.add(path.display().to_string(), Some(path.to_path_buf()), text.to_string());
+        self.compile_loaded(sources, file, options)
+    }
+
+    /// Forgets cached headers (after files changed on disk).
+    pub fn forget_headers(&mut self) {
+        self.headers.clear();
+    }
+
+    fn compile_loaded(&mut self, sources: SourceMap, file: FileId, options: &Options) -> Compilation {
+        compile_loaded(sources, file, options, &mut self.interner, &mut self.headers)
+    }
+}
+
+/// Compiles a file from disk in a fresh session. A file that cannot be read is an `Err` with the I/O
+/// problem.
 pub fn compile_file(path: &Path, options: &Options) -> std::io::Result<Compilation> {
-    let mut sources = SourceMap::new();
-    let file = sources.load(path)?;
-    Ok(compile_loaded(sources, file, options))
+    Session::new().compile_file(path, options)
 }
 
-/// Compiles source text held in memory; `name` is used in diagnostics and `#include "x"` is looked up
-/// in the include path only.
+/// Compiles source text held in memory, in a fresh session.
 pub fn compile_source(name: &str, text: &str, options: &Options) -> Compilation {
-    let mut sources = SourceMap::new();
-    let file = sources.add_virtual(name, text.to_string());
-    compile_loaded(sources, file, options)
+    Session::new().compile_source(name, text, options)
 }
 
-/// Compiles source text held in memory as if it were the file at `path` (so `#include "x"` searches
-/// that file's directory first). Used where the caller has already read the file.
+/// Compiles text held in memory as if it were the file at `path`, in a fresh session.
 pub fn compile_source_at(path: &Path, text: &str, options: &Options) -> Compilation {
-    let mut sources = SourceMap::new();
-    let file = sources.add(path.display().to_string(), Some(path.to_path_buf()), text.to_string());
-    compile_loaded(sources, file, options)
+    Session::new().compile_source_at(path, text, options)
 }
 
-fn compile_loaded(mut sources: SourceMap, file: FileId, options: &Options) -> Compilation {
-    let mut interner = Interner::new();
+fn compile_loaded(
+    mut sources: SourceMap,
+    file: FileId,
+    options: &Options,
+    interner: &mut Interner,
+    headers: &mut preprocess::HeaderCache,
+) -> Compilation {
     let mut diags = Diagnostics::default();
-    let pre = preprocess::preprocess(file, &mut sources, &mut interner, &options.preprocessor, &mut diags);
+    let pre = preprocess::preprocess(file, &mut sources, interner, headers, &options.preprocessor, &mut diags);
     let unit = if pre.aborted {
         ast::TranslationUnit { items: Vec::new() }
     } else {
-        parse::parse(&pre.tokens, &mut interner, &mut diags)
+        parse::parse(&pre.tokens, interner, &mut diags)
     };
     let shader = unit.items.iter().find_map(|i| match i {
         ast::Item::Shader(s) => Some((s.kind, interner.resolve(s.name.sym).to_string())),
         _ => None,
     });
-    let mut checked = check::check(&unit, &interner, &mut diags);
+    let mut checked = check::check(&unit, interner, &mut diags);
     // Only validated IR leaves the compiler: a violation is a compiler bug, reported as such.
     if let Some(module) = &checked.module {
         if let Err(problems) = crate::valid::validate(module) {

@@ -20,5 +20,5 @@ pub mod source;
 pub mod symbol;
 pub mod valid;
 
-pub use compile::{compile_file, compile_source, compile_source_at, Compilation, Options};
+pub use compile::{compile_file, compile_source, compile_source_at, Compilation, Options, Session};
 pub use diagnostic::{Code, Diagnostic, Severity};

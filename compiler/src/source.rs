@@ -53,18 +53,28 @@ pub struct SourceFile {
     /// The path used to resolve `#include "..."` relative to this file; `None` for virtual files.
     pub path: Option<PathBuf>,
     pub text: Arc<str>,
-    line_starts: Vec<u32>,
+    line_starts: Arc<[u32]>,
+}
+
+fn line_starts(text: &str) -> Arc<[u32]> {
+    let mut starts = vec![0u32];
+    for (i, b) in text.bytes().enumerate() {
+        if b == b'\n' {
+            starts.push(i as u32 + 1);
+        }
+    }
+    starts.into()
 }
 
 impl SourceFile {
     pub fn new(name: String, path: Option<PathBuf>, text: Arc<str>) -> SourceFile {
-        let mut line_starts = vec![0u32];
-        for (i, b) in text.bytes().enumerate() {
-            if b == b'\n' {
-                line_starts.push(i as u32 + 1);
-            }
-        }
+        let line_starts = line_starts(&text);
         SourceFile { name, path, text, line_starts }
+    }
+
+    /// The byte offset of every line start (shared by files with the same text).
+    pub fn line_starts(&self) -> &Arc<[u32]> {
+        &self.line_starts
     }
 
     /// Zero-based line index containing byte `offset`.
@@ -107,6 +117,13 @@ impl SourceMap {
     pub fn add(&mut self, name: impl Into<String>, path: Option<PathBuf>, text: impl Into<Arc<str>>) -> FileId {
         let id = FileId(self.files.len() as u32);
         self.files.push(SourceFile::new(name.into(), path, text.into()));
+        id
+    }
+
+    /// Registers a file whose text and line starts are already known (a cached header).
+    pub fn add_shared(&mut self, name: String, path: Option<PathBuf>, text: Arc<str>, lines: Arc<[u32]>) -> FileId {
+        let id = FileId(self.files.len() as u32);
+        self.files.push(SourceFile { name, path, text, line_starts: lines });
         id
     }
 

@@ -378,7 +378,9 @@ pub fn parse(tokens: &[Token], interner: &mut Interner, diags: &mut Diagnostics)
             // before a name and `(`): RenderMan shaders may use them as ordinary names.
             Tok::Camera | Tok::Pixel | Tok::Lightfield => {
                 let defines_shader = depth == 0
-                    && tokens.get(i + 1).is_some_and(|n| n.kind == TokenKind::Ident && Interner::keyword(n.sym).is_none())
+                    && tokens
+                        .get(i + 1)
+                        .is_some_and(|n| n.kind == TokenKind::Ident && Interner::keyword(n.sym).is_none())
                     && tokens.get(i + 2).is_some_and(|n| n.kind == TokenKind::LParen);
                 if !defines_shader {
                     tok = Tok::Ident(t.sym);
@@ -445,23 +447,4 @@ fn report(e: ParseError<usize, Tok, ()>, spans: &[Span], interner: &Interner, di
         ParseError::User { .. } => return,
     };
     diags.push(d);
-}
-#[cfg(test)]
-mod size_probe {
-    #[test]
-    fn sizes() {
-        use super::ast::*;
-        eprintln!("ErrorRecovery {}", std::mem::size_of::<lalrpop_util::ErrorRecovery<usize, super::Tok, ()>>());
-        eprintln!(
-            "Expr {} Stmt {} Block {} Decl {} VarDecl {} ParamDecl {} Tok {} Item {}",
-            std::mem::size_of::<Expr>(),
-            std::mem::size_of::<Stmt>(),
-            std::mem::size_of::<Block>(),
-            std::mem::size_of::<Declarator>(),
-            std::mem::size_of::<VarDecl>(),
-            std::mem::size_of::<ParamDecl>(),
-            std::mem::size_of::<super::Tok>(),
-            std::mem::size_of::<Item>()
-        );
-    }
 }

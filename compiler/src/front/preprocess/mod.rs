@@ -41,6 +41,31 @@ pub struct Options {
     pub undefines: Vec<String>,
 }
 
+/// Headers already read and lexed, shared by the compilations of one [`crate::Session`] (with the
+/// session's interner, so symbols in cached tokens stay valid). It assumes files do not change while
+/// it lives: a session is made per command, or cleared when a watcher sees an edit.
+#[derive(Debug, Default)]
+pub struct HeaderCache {
+    headers: FxHashMap<PathBuf, CachedHeader>,
+    /// `#include` names resolved from a directory: (including file's directory, name, angled).
+    resolved: FxHashMap<(Option<PathBuf>, String, bool), Option<PathBuf>>,
+}
+
+#[derive(Debug)]
+struct CachedHeader {
+    text: std::sync::Arc<str>,
+    lines: std::sync::Arc<[u32]>,
+    /// Tokens with spans in file 0; rewritten to the file id of each compilation that uses them.
+    tokens: Vec<Token>,
+}
+
+impl HeaderCache {
+    pub fn clear(&mut self) {
+        self.headers.clear();
+        self.resolved.clear();
+    }
+}
+
 /// The crate's version as one integer: major * 10000 + minor * 100 + patch.
 pub fn version_number() -> u32 {
     let parse = |s: &str| s.parse::<u32>().unwrap_or(0);
@@ -118,12 +143,14 @@ pub fn preprocess(
     main: FileId,
     sources: &mut SourceMap,
     interner: &mut Interner,
+    headers: &mut HeaderCache,
     options: &Options,
     diags: &mut Diagnostics,
 ) -> Output {
     let mut pp = Preprocessor {
         sources,
         interner,
+        headers,
         diags,
         options,
         macros: FxHashMap::default(),
@@ -182,6 +209,7 @@ pub fn preprocess(
 struct Preprocessor<'a> {
     sources: &'a mut SourceMap,
     interner: &'a mut Interner,
+    headers: &'a mut HeaderCache,
     diags: &'a mut Diagnostics,
     options: &'a Options,
     macros: FxHashMap<Symbol, Macro>,
@@ -738,19 +766,7 @@ impl Preprocessor<'_> {
         let (file, tokens) = match self.file_cache.get(&key) {
             Some((file, tokens)) => (*file, tokens.clone()),
             None => {
-                let file = match self.sources.load(&path) {
-                    Ok(f) => f,
-                    Err(e) => {
-                        self.error(
-                            Code::IncludeNotFound,
-                            span,
-                            format!("cannot read include file `{}`: {e}", path.display()),
-                            "included here",
-                        );
-                        return;
-                    }
-                };
-                let tokens = self.tokens_of(file);
+                let Some((file, tokens)) = self.load_header(&path, span) else { return };
                 self.read_files.push(file);
                 self.file_cache.insert(key, (file, tokens.clone()));
                 (file, tokens)
@@ -760,6 +776,39 @@ impl Preprocessor<'_> {
             return;
         }
         self.files.push(FileFrame { file, tokens, pos: 0, cond_base: self.conds.len() });
+    }
+
+    /// Registers a header in this compilation's source map, from the session's cache or from disk.
+    fn load_header(&mut self, path: &Path, span: Span) -> Option<(FileId, Rc<[Token]>)> {
+        if let Some(h) = self.headers.headers.get(path) {
+            let file = self.sources.add_shared(
+                path.display().to_string(),
+                Some(path.to_path_buf()),
+                h.text.clone(),
+                h.lines.clone(),
+            );
+            let tokens: Rc<[Token]> = h.tokens.iter().map(|t| Token { span: Span { file, ..t.span }, ..*t }).collect();
+            return Some((file, tokens));
+        }
+        let file = match self.sources.load(path) {
+            Ok(f) => f,
+            Err(e) => {
+                self.error(
+                    Code::IncludeNotFound,
+                    span,
+                    format!("cannot read include file `{}`: {e}", path.display()),
+                    "included here",
+                );
+                return None;
+            }
+        };
+        let tokens = self.tokens_of(file);
+        let src = self.sources.get(file);
+        self.headers.headers.insert(
+            path.to_path_buf(),
+            CachedHeader { text: src.text.clone(), lines: src.line_starts().clone(), tokens: tokens.to_vec() },
+        );
+        Some((file, tokens))
     }
 
     fn search_dirs(&self, angled: bool) -> Vec<PathBuf> {
@@ -781,12 +830,24 @@ impl Preprocessor<'_> {
         dirs
     }
 
-    fn resolve_include(&self, name: &str, angled: bool) -> Option<PathBuf> {
+    fn resolve_include(&mut self, name: &str, angled: bool) -> Option<PathBuf> {
         let direct = Path::new(name);
         if direct.is_absolute() {
             return direct.is_file().then(|| direct.to_path_buf());
         }
-        self.search_dirs(angled).into_iter().map(|d| d.join(name)).find(|p| p.is_file())
+        let dir = self
+            .files
+            .last()
+            .and_then(|f| self.sources.get(f.file).path.as_ref())
+            .and_then(|p| p.parent())
+            .map(Path::to_path_buf);
+        let key = (dir, name.to_string(), angled);
+        if let Some(found) = self.headers.resolved.get(&key) {
+            return found.clone();
+        }
+        let found = self.search_dirs(angled).into_iter().map(|d| d.join(name)).find(|p| p.is_file());
+        self.headers.resolved.insert(key, found.clone());
+        found
     }
 
     // ---- #if ------------------------------------------------------------------------------------
