@@ -135,7 +135,8 @@ pub fn keyword_symbol(word: &str) -> Symbol {
 }
 
 /// The span covering tokens `l..r` (an empty range points at token `l`).
-pub fn span_of(spans: &[Span], l: usize, r: usize) -> Span {
+pub fn span_of(spans: &[Span], l: u32, r: u32) -> Span {
+    let (l, r) = (l as usize, r as usize);
     let last = spans.len().saturating_sub(1);
     let first = spans[l.min(last)];
     if r > l {
@@ -395,7 +396,7 @@ pub fn parse(tokens: &[Token], interner: &mut Interner, diags: &mut Diagnostics)
     spans.push(eof_span);
 
     let mut recovered = Vec::new();
-    let input = toks.iter().enumerate().map(|(i, t)| Ok::<_, ()>((i, *t, i + 1)));
+    let input = toks.iter().enumerate().map(|(i, t)| Ok::<_, ()>((i as u32, *t, i as u32 + 1)));
     let result = grammar::TranslationUnitParser::new().parse(&spans, &mut recovered, input);
     for r in recovered {
         report(r.error, &spans, interner, diags);
@@ -409,9 +410,10 @@ pub fn parse(tokens: &[Token], interner: &mut Interner, diags: &mut Diagnostics)
     }
 }
 
-fn report(e: ParseError<usize, Tok, ()>, spans: &[Span], interner: &Interner, diags: &mut Diagnostics) {
+fn report(e: ParseError<u32, Tok, ()>, spans: &[Span], interner: &Interner, diags: &mut Diagnostics) {
     let d = match e {
         ParseError::UnrecognizedToken { token: (l, tok, _), expected } => {
+            let l = l as usize;
             let what = describe_tok(&tok, interner);
             let list = expected_list(&expected);
             let mut d = Diagnostic::new(Code::Syntax, spans[l], format!("unexpected {what}"));
@@ -432,7 +434,7 @@ fn report(e: ParseError<usize, Tok, ()>, spans: &[Span], interner: &Interner, di
             d
         }
         ParseError::UnrecognizedEof { location, expected } => {
-            let span = spans[location.min(spans.len() - 1)];
+            let span = spans[(location as usize).min(spans.len() - 1)];
             let list = expected_list(&expected);
             let mut d = Diagnostic::new(Code::UnexpectedEof, span, "the file ends in the middle of a construct");
             if !list.is_empty() {
@@ -440,10 +442,14 @@ fn report(e: ParseError<usize, Tok, ()>, spans: &[Span], interner: &Interner, di
             }
             d
         }
-        ParseError::InvalidToken { location } => Diagnostic::new(Code::Syntax, spans[location], "invalid token"),
-        ParseError::ExtraToken { token: (l, tok, _) } => {
-            Diagnostic::new(Code::Syntax, spans[l], format!("unexpected {}", describe_tok(&tok, interner)))
+        ParseError::InvalidToken { location } => {
+            Diagnostic::new(Code::Syntax, spans[(location as usize).min(spans.len() - 1)], "invalid token")
         }
+        ParseError::ExtraToken { token: (l, tok, _) } => Diagnostic::new(
+            Code::Syntax,
+            spans[(l as usize).min(spans.len() - 1)],
+            format!("unexpected {}", describe_tok(&tok, interner)),
+        ),
         ParseError::User { .. } => return,
     };
     diags.push(d);
