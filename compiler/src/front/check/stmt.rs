@@ -240,7 +240,9 @@ impl Checker<'_> {
     fn extern_decl(&mut self, decl: &ast::Declarator, ty: Type) {
         let text = self.name(decl.name.sym).to_string();
         let level = self.builders.len() - 1;
-        let found = if level > 0 { self.lookup_outer(level - 1, decl.name.sym) } else { None };
+        // An enclosing scope of this function (`extern` in a light loop's block is redundant but
+        // legal), then the enclosing functions.
+        let found = self.lookup_outer(level, decl.name.sym);
         match found {
             Some((owner, Binding::Var(var))) => {
                 let outer_ty = self.builders[owner].func.var(var).ty;
