@@ -21,27 +21,19 @@ use crate::source::Span;
 pub fn infer(functions: &mut [Function], shader: Option<&Shader>, diags: &mut Diagnostics) {
     let body = shader.map(|s| s.body);
     let writes = written_params(functions);
-    // Pass A to a fixed point of `reads_varying`.
+    // Pass A, callees before callers (there is no recursion), so each function is analysed once with
+    // the final `reads_varying` of everything it calls.
     let mut reads: Vec<bool> = vec![false; functions.len()];
     let mut violations: Vec<Vec<Violation>> = vec![Vec::new(); functions.len()];
-    loop {
-        let mut changed = false;
-        for i in 0..functions.len() {
-            if Some(FuncId(i as u32)) == body {
-                continue;
-            }
-            let mut a = Analysis::new(&functions[i], &reads, &writes, false, true);
-            a.run(&functions[i]);
-            let r = a.reads_varying(&functions[i]);
-            violations[i] = a.violations;
-            if r != reads[i] {
-                reads[i] = r;
-                changed = true;
-            }
+    for i in callees_first(functions) {
+        if Some(FuncId(i as u32)) == body {
+            continue;
         }
-        if !changed {
-            break;
-        }
+        let mut a = Analysis::new(&functions[i], &reads, &writes, false, true);
+        a.run(&functions[i]);
+        let r = a.reads_varying(&functions[i]);
+        violations[i] = a.violations;
+        reads[i] = r;
     }
     for (i, f) in functions.iter_mut().enumerate() {
         f.reads_varying = reads[i];
@@ -536,4 +528,43 @@ fn all_gather_outputs(block: &ir::Block) -> Vec<VarId> {
         }
     }
     out
+}
+
+/// Function indices ordered so that every function comes after the functions it calls.
+fn callees_first(functions: &[Function]) -> Vec<usize> {
+    let n = functions.len();
+    let callees: Vec<Vec<usize>> = functions
+        .iter()
+        .map(|f| {
+            f.exprs
+                .iter()
+                .filter_map(|e| match e.kind {
+                    ExprKind::Call { func, .. } if (func.0 as usize) < n => Some(func.0 as usize),
+                    _ => None,
+                })
+                .collect()
+        })
+        .collect();
+    let mut order = Vec::with_capacity(n);
+    let mut state = vec![0u8; n]; // 0 new, 1 in progress, 2 done
+    for start in 0..n {
+        if state[start] != 0 {
+            continue;
+        }
+        let mut stack = vec![(start, 0usize)];
+        state[start] = 1;
+        while let Some((node, next)) = stack.pop() {
+            if let Some(&c) = callees[node].get(next) {
+                stack.push((node, next + 1));
+                if state[c] == 0 {
+                    state[c] = 1;
+                    stack.push((c, 0));
+                }
+            } else {
+                state[node] = 2;
+                order.push(node);
+            }
+        }
+    }
+    order
 }
