@@ -132,9 +132,9 @@ builtins! {
     Normalize "normalize" ["V(V)"] 0, Inline, "unit vector in the same direction (0 stays 0)";
     Distance "distance" ["f(p,p)"] 0, Inline, "distance between two points";
     Ptlined "ptlined" ["f(p,p,p)"] 0, Inline, "distance from a point to a line segment";
-    Rotate "rotate" ["p(p,f,p,p)", "m(m,f,v)"] 0, Lane, "rotate a point about an axis, or a matrix by an angle";
-    Translate "translate" ["m(m,v)"] 0, Inline, "a matrix followed by a translation";
-    Scale "scale" ["m(m,p)"] 0, Inline, "a matrix followed by a scale";
+    Rotate "rotate" ["p(p,f,p,p)", "m(m,f,v)"] 0, Lane, "rotate a point about an axis through two points, or apply a rotation before a matrix";
+    Translate "translate" ["m(m,v)"] 0, Inline, "the matrix with a translation applied to points before it (RiTranslate order)";
+    Scale "scale" ["m(m,p)"] 0, Inline, "the matrix with a scale applied to points before it (RiScale order)";
     Area "area" ["f(V)"] DERIVS, Inline, "differential surface area of a point";
     Faceforward "faceforward" ["V(V,V)", "V(V,V,V)"] 0, Inline, "flip N to face opposite to I";
     Reflect "reflect" ["v(v,v)"] 0, Inline, "reflection direction";

@@ -1,0 +1,583 @@
+//! Built-in functions in the reference interpreter: one exhaustive `match` over [`Builtin`], so a
+//! new built-in does not build until it has reference semantics here.
+
+use super::value::Value;
+use super::{dot, normalize, Frame, InterpError, Machine, R};
+use crate::builtins::{self, Builtin};
+use crate::interp::host::LightSample;
+use crate::ir::{Arg, BaseType, Function, Type};
+use crate::shadeops::{color, format, geom, matrix, noise, spline, V3};
+use std::rc::Rc;
+
+/// Applies a scalar function to a float or each component of a triple.
+fn map1(v: &Value, g: impl Fn(f32) -> f32) -> Value {
+    match v {
+        Value::Triple(t) => Value::Triple(t.map(g)),
+        other => Value::Float(g(other.f())),
+    }
+}
+
+/// Applies a binary scalar function component-wise; the result has the first argument's shape.
+fn map2(a: &Value, b: &Value, g: impl Fn(f32, f32) -> f32) -> Value {
+    match a {
+        Value::Triple(x) => {
+            let y = b.v3();
+            Value::Triple([g(x[0], y[0]), g(x[1], y[1]), g(x[2], y[2])])
+        }
+        other => Value::Float(g(other.f(), b.f())),
+    }
+}
+
+fn map3(a: &Value, b: &Value, c: &Value, g: impl Fn(f32, f32, f32) -> f32) -> Value {
+    match a {
+        Value::Triple(x) => {
+            let (y, z) = (b.v3(), c.v3());
+            Value::Triple([g(x[0], y[0], z[0]), g(x[1], y[1], z[1]), g(x[2], y[2], z[2])])
+        }
+        other => Value::Float(g(other.f(), b.f(), c.f())),
+    }
+}
+
+/// The `"name", value` pairs after `fixed` arguments.
+fn param<'v>(vals: &'v [Value], fixed: usize, name: &str) -> Option<&'v Value> {
+    vals.get(fixed..)?.chunks(2).find(|p| p.len() == 2 && p[0].s() == name).map(|p| &p[1])
+}
+
+/// A value of type `ty` made from a triple or float result.
+fn shaped(ty: Type, v: V3) -> Value {
+    if ty.base == BaseType::Float {
+        Value::Float(v[0])
+    } else {
+        Value::Triple(v)
+    }
+}
+
+impl Machine<'_> {
+    pub(super) fn builtin(
+        &mut self,
+        f: &Function,
+        frame: &mut Frame,
+        b: Builtin,
+        overload: u16,
+        args: &[Arg],
+        ty: Type,
+    ) -> R<Value> {
+        // Evaluate every argument left to right (places too: their current value).
+        let mut vals = Vec::with_capacity(args.len());
+        for a in args {
+            vals.push(match a {
+                Arg::Value(e) => self.expr(f, frame, *e)?,
+                Arg::Ref(p) => self.read_place(f, frame, p)?,
+            });
+        }
+        let sig = &builtins::signatures(b)[overload as usize];
+        let fixed = if sig.repeat_last { vals.len() } else { sig.params.len().min(vals.len()) };
+        let mut writes: Vec<(usize, Value)> = Vec::new();
+        let v = |i: usize| vals.get(i).cloned().unwrap_or(Value::Void);
+        let result = match b {
+            Builtin::Abs => map1(&v(0), f32::abs),
+            Builtin::Sign => map1(&v(0), |x| {
+                if x > 0.0 {
+                    1.0
+                } else if x < 0.0 {
+                    -1.0
+                } else {
+                    0.0
+                }
+            }),
+            Builtin::Floor => map1(&v(0), f32::floor),
+            Builtin::Ceil => map1(&v(0), f32::ceil),
+            Builtin::Round => map1(&v(0), f32::round),
+            Builtin::Sqrt => map1(&v(0), |x| if x > 0.0 { x.sqrt() } else { 0.0 }),
+            Builtin::InverseSqrt => map1(&v(0), |x| if x > 0.0 { 1.0 / x.sqrt() } else { 0.0 }),
+            Builtin::Exp => map1(&v(0), f32::exp),
+            Builtin::Log if vals.len() == 2 => map2(&v(0), &v(1), |x, base| x.ln() / base.ln()),
+            Builtin::Log => map1(&v(0), f32::ln),
+            Builtin::Pow => map2(&v(0), &v(1), f32::powf),
+            Builtin::Sin => map1(&v(0), f32::sin),
+            Builtin::Cos => map1(&v(0), f32::cos),
+            Builtin::Tan => map1(&v(0), f32::tan),
+            Builtin::Asin => map1(&v(0), |x| x.clamp(-1.0, 1.0).asin()),
+            Builtin::Acos => map1(&v(0), |x| x.clamp(-1.0, 1.0).acos()),
+            Builtin::Atan if vals.len() == 2 => map2(&v(0), &v(1), f32::atan2),
+            Builtin::Atan => map1(&v(0), f32::atan),
+            Builtin::Radians => map1(&v(0), f32::to_radians),
+            Builtin::Degrees => map1(&v(0), f32::to_degrees),
+            Builtin::Mod => map2(&v(0), &v(1), geom::mod_),
+            Builtin::Min => vals.iter().skip(1).fold(v(0), |acc, x| map2(&acc, x, f32::min)),
+            Builtin::Max => vals.iter().skip(1).fold(v(0), |acc, x| map2(&acc, x, f32::max)),
+            Builtin::Clamp => map3(&v(0), &v(1), &v(2), |x, lo, hi| x.max(lo).min(hi)),
+            Builtin::Mix => map3(&v(0), &v(1), &v(2), |x, y, a| x * (1.0 - a) + y * a),
+            Builtin::Step => map2(&v(0), &v(1), geom::step),
+            Builtin::Smoothstep => map3(&v(0), &v(1), &v(2), geom::smoothstep),
+            Builtin::Filterstep => {
+                let edge = v(0).f();
+                let x = v(1).f();
+                let width =
+                    if fixed == 3 { Some((v(2).f() - x).abs()) } else { param(&vals, fixed, "width").map(Value::f) };
+                match width {
+                    Some(w) => Value::Float(geom::filterstep(edge, x, w)),
+                    None => return Err(InterpError::Unsupported("filterstep without an explicit width (derivatives)")),
+                }
+            }
+            Builtin::Spline => {
+                let (basis, rest) = match &vals[0] {
+                    Value::String(s) => (s.to_string(), 1),
+                    _ => ("catmull-rom".to_string(), 0),
+                };
+                let x = v(rest).f();
+                let knots: Vec<Value> = match vals.get(rest + 1) {
+                    Some(Value::Array(items)) => items.clone(),
+                    _ => vals[rest + 1..].to_vec(),
+                };
+                if ty.base == BaseType::Float {
+                    let k: Vec<f32> = knots.iter().map(Value::f).collect();
+                    Value::Float(spline::spline(&basis, x, &k))
+                } else {
+                    let k: Vec<V3> = knots.iter().map(Value::v3).collect();
+                    Value::Triple(spline::spline3(&basis, x, &k))
+                }
+            }
+            Builtin::Noise => {
+                let triple = ty.base != BaseType::Float;
+                let r = match (&v(0), vals.len()) {
+                    (Value::Triple(p), 2) => {
+                        if triple {
+                            noise::vnoise4(*p, v(1).f())
+                        } else {
+                            [noise::noise4(*p, v(1).f()); 3]
+                        }
+                    }
+                    (Value::Triple(p), _) => {
+                        if triple {
+                            noise::vnoise3(*p)
+                        } else {
+                            [noise::noise3(*p); 3]
+                        }
+                    }
+                    (x, 2) => {
+                        if triple {
+                            noise::vnoise2(x.f(), v(1).f())
+                        } else {
+                            [noise::noise2(x.f(), v(1).f()); 3]
+                        }
+                    }
+                    (x, _) => {
+                        if triple {
+                            noise::vnoise1(x.f())
+                        } else {
+                            [noise::noise1(x.f()); 3]
+                        }
+                    }
+                };
+                shaped(ty, r)
+            }
+            Builtin::Pnoise => {
+                let triple = ty.base != BaseType::Float;
+                let r = match (&v(0), vals.len()) {
+                    (Value::Triple(p), 4) => {
+                        let (t, pp, pt) = (v(1).f(), v(2).v3(), v(3).f());
+                        if triple {
+                            noise::vpnoise4(*p, t, pp, pt)
+                        } else {
+                            [noise::pnoise4(*p, t, pp, pt); 3]
+                        }
+                    }
+                    (Value::Triple(p), _) => {
+                        let pp = v(1).v3();
+                        if triple {
+                            noise::vpnoise3(*p, pp)
+                        } else {
+                            [noise::pnoise3(*p, pp); 3]
+                        }
+                    }
+                    (x, 4) => {
+                        let (y, px, py) = (v(1).f(), v(2).f(), v(3).f());
+                        if triple {
+                            noise::vpnoise2(x.f(), y, px, py)
+                        } else {
+                            [noise::pnoise2(x.f(), y, px, py); 3]
+                        }
+                    }
+                    (x, _) => {
+                        if triple {
+                            noise::vpnoise1(x.f(), v(1).f())
+                        } else {
+                            [noise::pnoise1(x.f(), v(1).f()); 3]
+                        }
+                    }
+                };
+                shaped(ty, r)
+            }
+            Builtin::Cellnoise => {
+                let triple = ty.base != BaseType::Float;
+                let r = match (&v(0), vals.len()) {
+                    (Value::Triple(p), 2) => {
+                        if triple {
+                            noise::vcellnoise4(*p, v(1).f())
+                        } else {
+                            [noise::cellnoise4(*p, v(1).f()); 3]
+                        }
+                    }
+                    (Value::Triple(p), _) => {
+                        if triple {
+                            noise::vcellnoise3(*p)
+                        } else {
+                            [noise::cellnoise3(*p); 3]
+                        }
+                    }
+                    (x, 2) => {
+                        if triple {
+                            noise::vcellnoise2(x.f(), v(1).f())
+                        } else {
+                            [noise::cellnoise2(x.f(), v(1).f()); 3]
+                        }
+                    }
+                    (x, _) => {
+                        if triple {
+                            noise::vcellnoise1(x.f())
+                        } else {
+                            [noise::cellnoise1(x.f()); 3]
+                        }
+                    }
+                };
+                shaped(ty, r)
+            }
+            Builtin::Random => {
+                let seed = self.point.seed.wrapping_mul(0x9E37_79B9_7F4A_7C15).wrapping_add(self.random_calls);
+                self.random_calls += 1;
+                if ty.base == BaseType::Float {
+                    Value::Float(noise::random(seed))
+                } else {
+                    Value::Triple(noise::vrandom(seed))
+                }
+            }
+            Builtin::Du | Builtin::Dv | Builtin::Deriv | Builtin::Area | Builtin::Calculatenormal => {
+                return Err(InterpError::Unsupported("derivatives"))
+            }
+            Builtin::Xcomp => Value::Float(v(0).v3()[0]),
+            Builtin::Ycomp => Value::Float(v(0).v3()[1]),
+            Builtin::Zcomp => Value::Float(v(0).v3()[2]),
+            Builtin::SetXcomp | Builtin::SetYcomp | Builtin::SetZcomp => {
+                let k = match b {
+                    Builtin::SetXcomp => 0,
+                    Builtin::SetYcomp => 1,
+                    _ => 2,
+                };
+                let mut t = v(0).v3();
+                t[k] = v(1).f();
+                writes.push((0, Value::Triple(t)));
+                Value::Void
+            }
+            Builtin::Length => Value::Float(geom::length(v(0).v3())),
+            Builtin::Normalize => Value::Triple(normalize(v(0).v3())),
+            Builtin::Distance => Value::Float(geom::distance(v(0).v3(), v(1).v3())),
+            Builtin::Ptlined => Value::Float(geom::ptlined(v(0).v3(), v(1).v3(), v(2).v3())),
+            Builtin::Rotate if ty.base == BaseType::Matrix => {
+                Value::Matrix(matrix::rotate(&v(0).m4(), v(1).f(), v(2).v3()))
+            }
+            Builtin::Rotate => Value::Triple(geom::rotate_point(v(0).v3(), v(1).f(), v(2).v3(), v(3).v3())),
+            Builtin::Translate => Value::Matrix(matrix::translate(&v(0).m4(), v(1).v3())),
+            Builtin::Scale => Value::Matrix(matrix::scale(&v(0).m4(), v(1).v3())),
+            Builtin::Faceforward => {
+                let nref = if vals.len() == 3 { v(2).v3() } else { self.global("Ng").v3() };
+                Value::Triple(geom::faceforward(v(0).v3(), v(1).v3(), nref))
+            }
+            Builtin::Reflect => Value::Triple(geom::reflect(v(0).v3(), v(1).v3())),
+            Builtin::Refract => Value::Triple(geom::refract(v(0).v3(), v(1).v3(), v(2).f())),
+            Builtin::Fresnel => {
+                let (kr, kt, r, t) = geom::fresnel(v(0).v3(), v(1).v3(), v(2).f());
+                writes.push((3, Value::Float(kr)));
+                writes.push((4, Value::Float(kt)));
+                if vals.len() == 7 {
+                    writes.push((5, Value::Triple(r)));
+                    writes.push((6, Value::Triple(t)));
+                }
+                Value::Void
+            }
+            Builtin::Depth => Value::Float(self.host.depth(v(0).v3())),
+            Builtin::Transform | Builtin::Vtransform | Builtin::Ntransform => {
+                let p = v(vals.len() - 1).v3();
+                let m = match (&v(0), vals.len()) {
+                    (Value::Matrix(m), 2) => Some(*m),
+                    (Value::String(from), 3) => match &v(1) {
+                        Value::Matrix(m) => {
+                            self.host.matrix(from, "current").map(|to_current| matrix::mul(m, &to_current))
+                        }
+                        to => self.host.matrix(from, to.s()),
+                    },
+                    (Value::String(to), _) => self.host.matrix("current", to),
+                    _ => None,
+                };
+                match m {
+                    Some(m) => Value::Triple(match b {
+                        Builtin::Transform => matrix::transform_point(&m, p),
+                        Builtin::Vtransform => matrix::transform_vector(&m, p),
+                        _ => matrix::transform_normal(&m, p),
+                    }),
+                    None => Value::Triple(p),
+                }
+            }
+            Builtin::Comp if vals.len() == 3 => Value::Float(matrix::comp(&v(0).m4(), v(1).f(), v(2).f())),
+            Builtin::Comp => Value::Float(v(0).v3()[super::index_of(&v(1), 3)]),
+            Builtin::SetComp if vals.len() == 4 => {
+                let mut m = v(0).m4();
+                matrix::set_comp(&mut m, v(1).f(), v(2).f(), v(3).f());
+                writes.push((0, Value::Matrix(m)));
+                Value::Void
+            }
+            Builtin::SetComp => {
+                let mut t = v(0).v3();
+                t[super::index_of(&v(1), 3)] = v(2).f();
+                writes.push((0, Value::Triple(t)));
+                Value::Void
+            }
+            Builtin::Ctransform => {
+                let c = v(vals.len() - 1).v3();
+                let r = if vals.len() == 3 {
+                    color::ctransform(v(0).s(), v(1).s(), c)
+                } else {
+                    color::from_rgb(v(0).s(), c)
+                };
+                Value::Triple(r.unwrap_or(c))
+            }
+            Builtin::Determinant => Value::Float(matrix::determinant(&v(0).m4())),
+            Builtin::Mtransform => {
+                let m = v(vals.len() - 1).m4();
+                let space = if vals.len() == 3 {
+                    self.host.matrix(v(0).s(), v(1).s())
+                } else {
+                    self.host.matrix("current", v(0).s())
+                };
+                Value::Matrix(space.map(|s| matrix::mul(&m, &s)).unwrap_or(m))
+            }
+            Builtin::Concat => Value::String(Rc::from(vals.iter().map(|x| x.s()).collect::<String>())),
+            Builtin::Format | Builtin::Printf => {
+                let fmt_args: Vec<format::FormatArg> = vals[1..]
+                    .iter()
+                    .map(|x| match x {
+                        Value::Float(f) => format::FormatArg::Float(*f),
+                        Value::Triple(t) => format::FormatArg::Triple(*t),
+                        Value::Matrix(m) => format::FormatArg::Matrix(m),
+                        Value::String(s) => format::FormatArg::Str(s),
+                        Value::Bool(b) => format::FormatArg::Float(f32::from(u8::from(*b))),
+                        _ => format::FormatArg::Str(""),
+                    })
+                    .collect();
+                let text = format::format(v(0).s(), &fmt_args);
+                if b == Builtin::Printf {
+                    self.host.print(&text);
+                    Value::Void
+                } else {
+                    Value::String(Rc::from(text))
+                }
+            }
+            Builtin::Match => Value::Float(f32::from(u8::from(regex_match(v(0).s(), v(1).s())))),
+            Builtin::Shadername => {
+                let kind = if vals.is_empty() { None } else { Some(v(0).s().to_string()) };
+                Value::String(Rc::from(self.host.shader_name(kind.as_deref())))
+            }
+            Builtin::Ambient => {
+                let p = self.global("P").v3();
+                let lights = self.host.lights("", p);
+                Value::Triple(lights.iter().filter(|l| l.ambient).fold([0.0; 3], |acc, l| add(acc, l.cl)))
+            }
+            Builtin::Diffuse => {
+                let n = normalize(v(0).v3());
+                let sum = self.sum_lights(n, |l, _| dot(normalize(l.l), n).max(0.0));
+                Value::Triple(sum)
+            }
+            Builtin::Specular => {
+                let (n, view, rough) = (normalize(v(0).v3()), normalize(v(1).v3()), v(2).f());
+                Value::Triple(self.sum_lights(n, |l, _| specular_brdf(normalize(l.l), n, view, rough)))
+            }
+            Builtin::Specularbrdf => Value::Triple(
+                [specular_brdf(normalize(v(0).v3()), normalize(v(1).v3()), normalize(v(2).v3()), v(3).f()); 3],
+            ),
+            Builtin::Phong => {
+                let (n, view, size) = (normalize(v(0).v3()), normalize(v(1).v3()), v(2).f());
+                let r = geom::reflect(view.map(|x| -x), n);
+                Value::Triple(self.sum_lights(n, |l, _| dot(r, normalize(l.l)).max(0.0).powf(size)))
+            }
+            Builtin::Trace => {
+                let (c, dist) = self.host.trace(v(0).v3(), v(1).v3());
+                if ty.base == BaseType::Float {
+                    Value::Float(dist)
+                } else {
+                    Value::Triple(c)
+                }
+            }
+            Builtin::Transmission => Value::Triple(self.host.transmission(v(0).v3(), v(1).v3())),
+            Builtin::Visibility => {
+                let t = self.host.transmission(v(0).v3(), v(1).v3());
+                if ty.base == BaseType::Float {
+                    Value::Float(f32::from(u8::from(t.iter().any(|x| *x > 0.0))))
+                } else {
+                    Value::Triple(t)
+                }
+            }
+            Builtin::Occlusion => {
+                let samples =
+                    if fixed == 3 { v(2).f() } else { param(&vals, fixed, "samples").map(Value::f).unwrap_or(16.0) };
+                Value::Float(self.host.occlusion(v(0).v3(), v(1).v3(), samples))
+            }
+            Builtin::Indirectdiffuse => {
+                let samples =
+                    if fixed == 3 { v(2).f() } else { param(&vals, fixed, "samples").map(Value::f).unwrap_or(16.0) };
+                Value::Triple(self.host.indirect_diffuse(v(0).v3(), v(1).v3(), samples))
+            }
+            Builtin::Raydepth => Value::Float(self.host.ray_depth()),
+            Builtin::Texture => {
+                let (s, t) = match fixed {
+                    1 => (self.global("s").f(), self.global("t").f()),
+                    3 => (v(1).f(), v(2).f()),
+                    // Four corners: the centre of the quadrilateral.
+                    _ => (
+                        (v(1).f() + v(3).f() + v(5).f() + v(7).f()) / 4.0,
+                        (v(2).f() + v(4).f() + v(6).f() + v(8).f()) / 4.0,
+                    ),
+                };
+                let first = param(&vals, fixed, "channel").map(|c| c.f().max(0.0) as usize).unwrap_or(0);
+                let fill = param(&vals, fixed, "fill").map(Value::f).unwrap_or(0.0);
+                let n = if ty.base == BaseType::Float { 1 } else { 3 };
+                let got = self.host.texture(v(0).s(), s, t, first, n).unwrap_or_else(|| vec![fill; n]);
+                if n == 1 {
+                    Value::Float(got.first().copied().unwrap_or(fill))
+                } else {
+                    Value::Triple([got[0], got[1], got[2]])
+                }
+            }
+            Builtin::Environment => {
+                let dir = v(1).v3();
+                let c = self
+                    .host
+                    .environment(v(0).s(), dir)
+                    .unwrap_or([param(&vals, fixed, "fill").map(Value::f).unwrap_or(0.0); 3]);
+                shaped(ty, c)
+            }
+            Builtin::Shadow => {
+                let s = self.host.shadow(v(0).s(), v(1).v3());
+                if ty.base == BaseType::Float {
+                    Value::Float(s)
+                } else {
+                    Value::Triple([s; 3])
+                }
+            }
+            Builtin::Bump => return Err(InterpError::Unsupported("bump")),
+            Builtin::Texture3d | Builtin::Bake3d => {
+                self.host.unsupported(b);
+                Value::Float(0.0)
+            }
+            Builtin::Photonmap => {
+                self.host.unsupported(b);
+                Value::Triple([0.0; 3])
+            }
+            Builtin::Textureinfo => match self.host.message(b, v(1).s()) {
+                Some(x) if Value::zero(Type::scalar(kind_of(&x))) == Value::zero(Type::scalar(kind_of(&v(2)))) => {
+                    writes.push((2, x));
+                    Value::Float(1.0)
+                }
+                _ => Value::Float(0.0),
+            },
+            Builtin::Atmosphere
+            | Builtin::Displacement
+            | Builtin::Lightsource
+            | Builtin::Surface
+            | Builtin::Incident
+            | Builtin::Opposite
+            | Builtin::Attribute
+            | Builtin::Option
+            | Builtin::Rendererinfo
+            | Builtin::Rayinfo => match self.host.message(b, v(0).s()) {
+                // The value is written only when its type fits the variable.
+                Some(x) if same_shape(&x, &v(1)) => {
+                    writes.push((1, x));
+                    Value::Float(1.0)
+                }
+                _ => Value::Float(0.0),
+            },
+        };
+        for (i, value) in writes {
+            if let Some(Arg::Ref(p)) = args.get(i) {
+                self.write_place(f, frame, p, value)?;
+            }
+        }
+        Ok(result)
+    }
+
+    /// The sum over non-ambient lights of `Cl * weight(light)`, for the lights facing `n`'s
+    /// hemisphere (the `illuminance(P, N, PI/2)` of RISpec's `diffuse` and `specular`).
+    fn sum_lights(&mut self, n: V3, weight: impl Fn(&LightSample, V3) -> f32) -> V3 {
+        let p = self.global("P").v3();
+        let mut sum = [0.0; 3];
+        for l in self.host.lights("", p).iter().filter(|l| !l.ambient) {
+            if super::angle_between(l.l, n) > std::f32::consts::FRAC_PI_2 {
+                continue;
+            }
+            let w = weight(l, n);
+            sum = add(sum, l.cl.map(|c| c * w));
+        }
+        sum
+    }
+}
+
+fn add(a: V3, b: V3) -> V3 {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+
+/// RenderMan's specular weight for one light: `pow(max(0, N . H), 1/roughness)` with the half vector
+/// `H = normalize(L + V)`; all inputs normalised.
+fn specular_brdf(l: V3, n: V3, v: V3, roughness: f32) -> f32 {
+    let h = normalize(add(l, v));
+    let r = if roughness > 0.0 { roughness } else { 1e-4 };
+    dot(n, h).max(0.0).powf(1.0 / r)
+}
+
+fn kind_of(v: &Value) -> BaseType {
+    match v {
+        Value::Float(_) => BaseType::Float,
+        Value::Triple(_) => BaseType::Color,
+        Value::Matrix(_) => BaseType::Matrix,
+        Value::String(_) => BaseType::String,
+        Value::Bool(_) => BaseType::Bool,
+        _ => BaseType::Void,
+    }
+}
+
+fn same_shape(a: &Value, b: &Value) -> bool {
+    match (a, b) {
+        (Value::Array(x), Value::Array(y)) => x.len() == y.len() && x.iter().zip(y).all(|(p, q)| same_shape(p, q)),
+        _ => kind_of(a) == kind_of(b),
+    }
+}
+
+/// A small regular-expression matcher (`.`, `*`, `^`, `$`, literals), enough for the patterns
+/// shaders pass to `match`.
+pub fn regex_match(pattern: &str, subject: &str) -> bool {
+    fn here(p: &[char], s: &[char]) -> bool {
+        match p {
+            [] => true,
+            ['$'] => s.is_empty(),
+            [c, '*', rest @ ..] => {
+                let mut i = 0;
+                loop {
+                    if here(rest, &s[i..]) {
+                        return true;
+                    }
+                    if i < s.len() && (*c == '.' || s[i] == *c) {
+                        i += 1;
+                    } else {
+                        return false;
+                    }
+                }
+            }
+            [c, rest @ ..] => !s.is_empty() && (*c == '.' || *c == s[0]) && here(rest, &s[1..]),
+        }
+    }
+    let p: Vec<char> = pattern.chars().collect();
+    let s: Vec<char> = subject.chars().collect();
+    if let Some(rest) = p.strip_prefix(&['^']) {
+        return here(rest, &s);
+    }
+    (0..=s.len()).any(|i| here(&p, &s[i..]))
+}

@@ -1,0 +1,174 @@
+//! What the reference interpreter asks of the renderer, one shading point at a time, and a
+//! deterministic test host.
+//!
+//! The JIT calls the renderer once per batch through the packet ABI (`docs/packet-abi.md`); the
+//! interpreter is the oracle those calls are checked against, so it asks the same questions for one
+//! lane. Everything a shader can learn from outside its inputs goes through [`Services`].
+
+use super::value::Value;
+use crate::builtins::Builtin;
+use crate::shadeops::{matrix, M4, V3};
+
+/// One light reaching a point, as an `illuminance` loop or `diffuse()` sees it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LightSample {
+    /// From the surface point to the light (not normalised: its length is the distance).
+    pub l: V3,
+    /// The light's colour arriving at the point (shadows already applied).
+    pub cl: V3,
+    /// The light's opacity.
+    pub ol: V3,
+    /// An ambient light (no `illuminate`/`solar`): only `ambient()` counts it.
+    pub ambient: bool,
+}
+
+/// The renderer, as one shading point sees it.
+pub trait Services {
+    /// The matrix taking points from space `from` to space `to` ("current" is world space in rtsl),
+    /// or `None` for an unknown space.
+    fn matrix(&mut self, from: &str, to: &str) -> Option<M4>;
+    /// The lights of `category` ("" for all) reaching `p` (the interpreter applies cones itself).
+    fn lights(&mut self, category: &str, p: V3) -> Vec<LightSample>;
+    /// A filtered texture lookup at (s, t), `channels` values from `first_channel` on; `None` when
+    /// the texture cannot be read (the caller uses the fill value).
+    fn texture(&mut self, name: &str, s: f32, t: f32, first_channel: usize, channels: usize) -> Option<Vec<f32>>;
+    /// An environment lookup by direction.
+    fn environment(&mut self, name: &str, dir: V3) -> Option<V3>;
+    /// The fraction of `p` in shadow according to a shadow map.
+    fn shadow(&mut self, name: &str, p: V3) -> f32;
+    /// The colour seen along a ray, and the hit distance (infinite on a miss).
+    fn trace(&mut self, from: V3, dir: V3) -> (V3, f32);
+    /// How much light passes from `from` to `to` (1 where nothing blocks).
+    fn transmission(&mut self, from: V3, to: V3) -> V3;
+    /// The fraction of the hemisphere around `n` that is blocked.
+    fn occlusion(&mut self, p: V3, n: V3, samples: f32) -> f32;
+    /// Diffuse light arriving from other surfaces.
+    fn indirect_diffuse(&mut self, p: V3, n: V3, samples: f32) -> V3;
+    /// Message passing and renderer queries (`surface("Kd", x)`, `option("Format", f)`, ...).
+    fn message(&mut self, which: Builtin, name: &str) -> Option<Value>;
+    /// `printf` output.
+    fn print(&mut self, text: &str);
+    /// Normalised camera depth of a point.
+    fn depth(&mut self, p: V3) -> f32;
+    /// How many bounces led to this ray.
+    fn ray_depth(&mut self) -> f32;
+    /// The name of this shader (`None`) or of the one bound as the given type.
+    fn shader_name(&mut self, kind: Option<&str>) -> String;
+    /// Called once for a built-in the renderer accepts but cannot honour.
+    fn unsupported(&mut self, which: Builtin);
+}
+
+/// A deterministic host for tests, documented value by value:
+/// - spaces: "current", "world" and "camera" are the identity except that "camera" is translated by
+///   (0, 0, 5); "object" and "shader" are translated by (1, 2, 3); other names are unknown;
+/// - lights: an ambient light of 0.1 grey, and a white distant light shining down the -z axis from
+///   +z (L = (0, 0, 1000) from every point); categories are ignored;
+/// - textures: any name but "missing" is a checkerboard of 8x8 cells in s and t, channel c of a
+///   white cell is 1 - 0.1c and of a black cell 0.1c; "missing" cannot be read;
+/// - environment: the direction mapped to a colour, `0.5 + 0.5 * normalize(dir)`;
+/// - shadow: 0 (nothing in shadow); transmission: white; occlusion: 0.25; indirect: 0.05 grey;
+/// - trace: the environment colour of the direction, distance 10;
+/// - messages: `option("Format")` is [640 480 1], `rendererinfo("renderer")` is "rtsl", `attribute`
+///   and other shaders' parameters are unknown (`None`);
+/// - `printf` output is collected in [`TestHost::printed`]; depth is `p.z / 100`; ray depth 0.
+#[derive(Debug, Default)]
+pub struct TestHost {
+    pub printed: Vec<String>,
+    pub unsupported: Vec<Builtin>,
+}
+
+fn space(name: &str) -> Option<M4> {
+    let t = |x: f32, y: f32, z: f32| matrix::translate(&matrix::identity(), [x, y, z]);
+    match name {
+        "current" | "world" => Some(matrix::identity()),
+        "camera" => Some(t(0.0, 0.0, 5.0)),
+        "object" | "shader" => Some(t(1.0, 2.0, 3.0)),
+        _ => None,
+    }
+}
+
+impl Services for TestHost {
+    fn matrix(&mut self, from: &str, to: &str) -> Option<M4> {
+        // A space's matrix takes its points to world space; from -> to is from * inverse(to).
+        let a = space(from)?;
+        let b = space(to)?;
+        Some(matrix::mul(&a, &matrix::inverse(&b)?))
+    }
+
+    fn lights(&mut self, _category: &str, _p: V3) -> Vec<LightSample> {
+        vec![
+            LightSample { l: [0.0; 3], cl: [0.1; 3], ol: [0.0; 3], ambient: true },
+            LightSample { l: [0.0, 0.0, 1000.0], cl: [1.0; 3], ol: [0.0; 3], ambient: false },
+        ]
+    }
+
+    fn texture(&mut self, name: &str, s: f32, t: f32, first_channel: usize, channels: usize) -> Option<Vec<f32>> {
+        if name == "missing" {
+            return None;
+        }
+        let white = ((s * 8.0).floor() as i64 + (t * 8.0).floor() as i64).rem_euclid(2) == 0;
+        Some(
+            (first_channel..first_channel + channels)
+                .map(|c| if white { 1.0 - 0.1 * c as f32 } else { 0.1 * c as f32 })
+                .collect(),
+        )
+    }
+
+    fn environment(&mut self, _name: &str, dir: V3) -> Option<V3> {
+        let len = (dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]).sqrt();
+        if len == 0.0 {
+            return Some([0.5; 3]);
+        }
+        Some(dir.map(|d| 0.5 + 0.5 * d / len))
+    }
+
+    fn shadow(&mut self, _name: &str, _p: V3) -> f32 {
+        0.0
+    }
+
+    fn trace(&mut self, _from: V3, dir: V3) -> (V3, f32) {
+        (self.environment("", dir).unwrap_or([0.0; 3]), 10.0)
+    }
+
+    fn transmission(&mut self, _from: V3, _to: V3) -> V3 {
+        [1.0; 3]
+    }
+
+    fn occlusion(&mut self, _p: V3, _n: V3, _samples: f32) -> f32 {
+        0.25
+    }
+
+    fn indirect_diffuse(&mut self, _p: V3, _n: V3, _samples: f32) -> V3 {
+        [0.05; 3]
+    }
+
+    fn message(&mut self, which: Builtin, name: &str) -> Option<Value> {
+        match (which, name) {
+            (Builtin::Option, "Format") => Some(Value::Triple([640.0, 480.0, 1.0])),
+            (Builtin::Rendererinfo, "renderer") => Some(Value::String("rtsl".into())),
+            _ => None,
+        }
+    }
+
+    fn print(&mut self, text: &str) {
+        self.printed.push(text.to_string());
+    }
+
+    fn depth(&mut self, p: V3) -> f32 {
+        p[2] / 100.0
+    }
+
+    fn ray_depth(&mut self) -> f32 {
+        0.0
+    }
+
+    fn shader_name(&mut self, kind: Option<&str>) -> String {
+        kind.map(|k| format!("<{k}>")).unwrap_or_else(|| "<this>".into())
+    }
+
+    fn unsupported(&mut self, which: Builtin) {
+        if !self.unsupported.contains(&which) {
+            self.unsupported.push(which);
+        }
+    }
+}

@@ -1,0 +1,576 @@
+//! The reference interpreter: runs checked IR for one shading point (one lane) at a time.
+//!
+//! It is the oracle the JIT is tested against, so it favours obviousness over speed: values are
+//! [`Value`]s, variables live in a frame vector, control flow is Rust control flow, and every built-in
+//! is computed by the scalar reference implementations in [`crate::shadeops`] or asked of the
+//! renderer through [`Services`]. It shares no code with the JIT.
+//!
+//! Semantics it fixes (the JIT must agree):
+//! - array and component indices are truncated toward zero and clamped into range;
+//! - a user function call copies arguments in and output (and captured) arguments back out, in
+//!   parameter order, when the call returns;
+//! - `illuminance` visits the non-ambient lights the renderer reports for the category, in order,
+//!   skipping those outside the cone (angle between `L` and the axis greater than the cone angle);
+//! - `illuminate` runs its body only where `Ps` lies within the cone around the axis from the light
+//!   position, with `L = Ps - position`; `solar` with a cone sets `L` to the axis;
+//! - loops and calls are budgeted ([`Limits`]): a shader that runs away stops with an error instead
+//!   of hanging the test.
+//!
+//! Not yet supported (they report [`InterpError::Unsupported`]): derivatives (`Du`, `Dv`, `Deriv`,
+//! `area`, `calculatenormal`, `filterstep`'s automatic width) and `gather`, which need ray
+//! differentials and ray batches from the renderer (issue 3).
+
+mod builtins;
+pub mod host;
+pub mod value;
+
+pub use host::{LightSample, Services, TestHost};
+pub use value::Value;
+
+use crate::front::parse::ast::ShaderKind;
+use crate::globals::{Global, GLOBALS};
+use crate::ir::{self, Arg, BaseType, BinaryOp, Block, ExprId, ExprKind, Function, Module, Place, PlaceBase, StmtKind};
+use crate::shadeops::{color, geom, matrix, V3};
+use std::rc::Rc;
+
+/// Why a run stopped early.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum InterpError {
+    /// The module defines no shader.
+    NoShader,
+    /// A construct the interpreter does not implement yet.
+    Unsupported(&'static str),
+    /// The loop or call budget ran out.
+    Budget,
+}
+
+impl std::fmt::Display for InterpError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            InterpError::NoShader => write!(f, "the module defines no shader"),
+            InterpError::Unsupported(what) => write!(f, "the interpreter does not support {what} yet"),
+            InterpError::Budget => write!(f, "the shader ran past its loop and call budget"),
+        }
+    }
+}
+
+impl std::error::Error for InterpError {}
+
+/// How much work one run may do.
+#[derive(Clone, Copy, Debug)]
+pub struct Limits {
+    /// Loop iterations plus calls.
+    pub steps: u64,
+}
+
+impl Default for Limits {
+    fn default() -> Limits {
+        Limits { steps: 10_000_000 }
+    }
+}
+
+/// The globals of one shading point, indexed by [`Global`].
+#[derive(Clone, Debug)]
+pub struct ShadingPoint {
+    pub globals: Vec<Value>,
+    /// Seeds `random()`: the renderer gives every shading point its own (e.g. from the pixel and
+    /// sample); successive calls in one run give successive values.
+    pub seed: u64,
+}
+
+impl ShadingPoint {
+    /// A point with every global at a neutral default: zero, except `N`/`Ng` = (0,0,1),
+    /// `I` = (0,0,-1), `E` = (0,0,5), `Cs`/`Os` = 1, `Oi` = 1, `ncomps` = 3, `Ci` = 0 (1 for camera
+    /// shaders, whose `Ci` is the ray weight).
+    pub fn new(kind: ShaderKind) -> ShadingPoint {
+        let globals = GLOBALS
+            .iter()
+            .map(|g| match g.name {
+                "N" | "Ng" => Value::Triple([0.0, 0.0, 1.0]),
+                "I" => Value::Triple([0.0, 0.0, -1.0]),
+                "E" => Value::Triple([0.0, 0.0, 5.0]),
+                "Cs" | "Os" | "Oi" => Value::Triple([1.0; 3]),
+                "Ci" if kind == ShaderKind::Camera => Value::Triple([1.0; 3]),
+                "ncomps" => Value::Float(3.0),
+                _ => Value::zero(ir::Type::scalar(g.ty)),
+            })
+            .collect();
+        ShadingPoint { globals, seed: 0 }
+    }
+
+    pub fn get(&self, name: &str) -> Option<&Value> {
+        Global::lookup(name).map(|g| &self.globals[g.0 as usize])
+    }
+
+    pub fn set(&mut self, name: &str, v: Value) {
+        if let Some(g) = Global::lookup(name) {
+            self.globals[g.0 as usize] = v;
+        }
+    }
+}
+
+/// The result of a run: the final values of the shader's parameters (outputs included).
+#[derive(Clone, Debug)]
+pub struct RunResult {
+    pub params: Vec<(String, Value)>,
+}
+
+/// Runs a module's shader on one shading point. `bound` overrides parameter defaults by name.
+pub fn run(
+    module: &Module,
+    bound: &[(&str, Value)],
+    point: &mut ShadingPoint,
+    host: &mut dyn Services,
+    limits: Limits,
+) -> Result<RunResult, InterpError> {
+    let shader = module.shader.as_ref().ok_or(InterpError::NoShader)?;
+    let body = module.function(shader.body);
+    let mut m = Machine { module, point, host, steps: limits.steps, light_depth: 0, random_calls: 0 };
+    let mut frame = Frame::new(body);
+    for p in &shader.params {
+        let value = match bound.iter().find(|(n, _)| *n == p.name) {
+            Some((_, v)) => v.clone(),
+            None => m.expr(body, &mut frame, p.default)?,
+        };
+        frame.vars[p.var.0 as usize] = value;
+    }
+    m.block(body, &mut frame, &body.body)?;
+    Ok(RunResult {
+        params: shader.params.iter().map(|p| (p.name.clone(), frame.vars[p.var.0 as usize].clone())).collect(),
+    })
+}
+
+struct Frame {
+    vars: Vec<Value>,
+}
+
+impl Frame {
+    fn new(f: &Function) -> Frame {
+        Frame { vars: f.vars.iter().map(|v| Value::zero(v.ty)).collect() }
+    }
+}
+
+enum Flow {
+    Next,
+    Break(u32),
+    Continue(u32),
+    Return(Value),
+}
+
+struct Machine<'a> {
+    module: &'a Module,
+    point: &'a mut ShadingPoint,
+    host: &'a mut dyn Services,
+    steps: u64,
+    light_depth: u32,
+    random_calls: u64,
+}
+
+type R<T> = Result<T, InterpError>;
+
+fn index_of(v: &Value, len: usize) -> usize {
+    let i = v.f();
+    if !i.is_finite() || i < 0.0 || len == 0 {
+        0
+    } else {
+        (i as usize).min(len - 1)
+    }
+}
+
+fn normalize(v: V3) -> V3 {
+    geom::normalize(v)
+}
+
+fn dot(a: V3, b: V3) -> f32 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+fn angle_between(a: V3, b: V3) -> f32 {
+    dot(normalize(a), normalize(b)).clamp(-1.0, 1.0).acos()
+}
+
+impl Machine<'_> {
+    fn step(&mut self) -> R<()> {
+        if self.steps == 0 {
+            return Err(InterpError::Budget);
+        }
+        self.steps -= 1;
+        Ok(())
+    }
+
+    fn global(&self, name: &str) -> Value {
+        self.point.get(name).cloned().unwrap_or(Value::Void)
+    }
+
+    fn block(&mut self, f: &Function, frame: &mut Frame, b: &Block) -> R<Flow> {
+        for s in &b.stmts {
+            let flow = self.stmt(f, frame, s)?;
+            if !matches!(flow, Flow::Next) {
+                return Ok(flow);
+            }
+        }
+        Ok(Flow::Next)
+    }
+
+    /// Runs a loop body's flow: `Some(flow)` leaves the loop with that flow.
+    fn loop_flow(flow: Flow) -> Option<Flow> {
+        match flow {
+            Flow::Next | Flow::Continue(1) => None,
+            Flow::Break(1) => Some(Flow::Next),
+            Flow::Break(n) => Some(Flow::Break(n - 1)),
+            Flow::Continue(n) => Some(Flow::Continue(n - 1)),
+            r @ Flow::Return(_) => Some(r),
+        }
+    }
+
+    fn stmt(&mut self, f: &Function, frame: &mut Frame, s: &ir::Stmt) -> R<Flow> {
+        match &s.kind {
+            StmtKind::Expr(e) => {
+                self.expr(f, frame, *e)?;
+                Ok(Flow::Next)
+            }
+            StmtKind::If { cond, then, otherwise } => {
+                if self.expr(f, frame, *cond)?.b() {
+                    self.block(f, frame, then)
+                } else {
+                    self.block(f, frame, otherwise)
+                }
+            }
+            StmtKind::Loop { cond, body, step } => loop {
+                self.step()?;
+                if let Some(c) = cond {
+                    if !self.expr(f, frame, *c)?.b() {
+                        return Ok(Flow::Next);
+                    }
+                }
+                let flow = self.block(f, frame, body)?;
+                if let Some(out) = Self::loop_flow(flow) {
+                    return Ok(out);
+                }
+                self.block(f, frame, step)?;
+            },
+            StmtKind::Break(n) => Ok(Flow::Break(*n)),
+            StmtKind::Continue(n) => Ok(Flow::Continue(*n)),
+            StmtKind::Return(v) => {
+                let value = match v {
+                    Some(e) => self.expr(f, frame, *e)?,
+                    None => Value::Void,
+                };
+                Ok(Flow::Return(value))
+            }
+            StmtKind::Illuminance { category, position, cone, body } => {
+                let category = match category {
+                    Some(c) => self.expr(f, frame, *c)?.s().to_string(),
+                    None => String::new(),
+                };
+                let p = self.expr(f, frame, *position)?.v3();
+                let cone = match cone {
+                    Some((a, b)) => Some((self.expr(f, frame, *a)?.v3(), self.expr(f, frame, *b)?.f())),
+                    None => None,
+                };
+                let saved = (self.global("L"), self.global("Cl"), self.global("Ol"));
+                let lights = self.host.lights(&category, p);
+                let mut result = Flow::Next;
+                for light in lights.iter().filter(|l| !l.ambient) {
+                    self.step()?;
+                    if let Some((axis, angle)) = cone {
+                        if angle_between(light.l, axis) > angle {
+                            continue;
+                        }
+                    }
+                    self.point.set("L", Value::Triple(light.l));
+                    self.point.set("Cl", Value::Triple(light.cl));
+                    self.point.set("Ol", Value::Triple(light.ol));
+                    self.light_depth += 1;
+                    let flow = self.block(f, frame, body);
+                    self.light_depth -= 1;
+                    if let Some(out) = Self::loop_flow(flow?) {
+                        result = out;
+                        break;
+                    }
+                }
+                self.point.set("L", saved.0);
+                self.point.set("Cl", saved.1);
+                self.point.set("Ol", saved.2);
+                Ok(result)
+            }
+            StmtKind::Illuminate { position, cone, body } => {
+                let from = self.expr(f, frame, *position)?.v3();
+                let cone = match cone {
+                    Some((a, b)) => Some((self.expr(f, frame, *a)?.v3(), self.expr(f, frame, *b)?.f())),
+                    None => None,
+                };
+                let ps = self.global("Ps").v3();
+                let l = [ps[0] - from[0], ps[1] - from[1], ps[2] - from[2]];
+                if let Some((axis, angle)) = cone {
+                    if angle_between(l, axis) > angle {
+                        return Ok(Flow::Next);
+                    }
+                }
+                self.point.set("L", Value::Triple(l));
+                self.block(f, frame, body)
+            }
+            StmtKind::Solar { cone, body } => {
+                if let Some((a, b)) = cone {
+                    let axis = self.expr(f, frame, *a)?.v3();
+                    self.expr(f, frame, *b)?;
+                    self.point.set("L", Value::Triple(axis));
+                }
+                self.block(f, frame, body)
+            }
+            StmtKind::Gather { .. } => Err(InterpError::Unsupported("gather")),
+        }
+    }
+
+    fn read_place(&mut self, f: &Function, frame: &mut Frame, p: &Place) -> R<Value> {
+        let mut v = match p.base {
+            PlaceBase::Var(var) => frame.vars[var.0 as usize].clone(),
+            PlaceBase::Global(g) => self.point.globals[g.0 as usize].clone(),
+        };
+        for idx in [p.index, p.component].into_iter().flatten() {
+            let i = self.expr(f, frame, idx)?;
+            v = match v {
+                Value::Array(items) => {
+                    let k = index_of(&i, items.len());
+                    items.get(k).cloned().unwrap_or(Value::Void)
+                }
+                Value::Triple(t) => Value::Float(t[index_of(&i, 3)]),
+                other => other,
+            };
+        }
+        Ok(v)
+    }
+
+    /// Evaluates a place's indices, then stores `value` there.
+    fn write_place(&mut self, f: &Function, frame: &mut Frame, p: &Place, value: Value) -> R<()> {
+        let mut indices = Vec::new();
+        for idx in [p.index, p.component].into_iter().flatten() {
+            indices.push(self.expr(f, frame, idx)?);
+        }
+        let slot = match p.base {
+            PlaceBase::Var(var) => &mut frame.vars[var.0 as usize],
+            PlaceBase::Global(g) => &mut self.point.globals[g.0 as usize],
+        };
+        store(slot, &indices, value);
+        Ok(())
+    }
+
+    fn expr(&mut self, f: &Function, frame: &mut Frame, id: ExprId) -> R<Value> {
+        let e = f.expr(id);
+        Ok(match &e.kind {
+            ExprKind::Const(ir::Constant::Float(v)) => Value::Float(*v),
+            ExprKind::Const(ir::Constant::String(s)) => Value::String(Rc::from(s.as_str())),
+            ExprKind::Var(v) => frame.vars[v.0 as usize].clone(),
+            ExprKind::Global(g) => self.point.globals[g.0 as usize].clone(),
+            ExprKind::Index { base, index } => {
+                let b = self.expr(f, frame, *base)?;
+                let i = self.expr(f, frame, *index)?;
+                match b {
+                    Value::Array(items) => items.get(index_of(&i, items.len())).cloned().unwrap_or(Value::Void),
+                    Value::Triple(t) => Value::Float(t[index_of(&i, 3)]),
+                    other => other,
+                }
+            }
+            ExprKind::Unary { op, arg } => {
+                let a = self.expr(f, frame, *arg)?;
+                match op {
+                    ir::UnaryOp::Not => Value::Bool(!a.b()),
+                    ir::UnaryOp::Neg => match a {
+                        Value::Float(x) => Value::Float(-x),
+                        Value::Triple(t) => Value::Triple(t.map(|x| -x)),
+                        Value::Matrix(m) => Value::Matrix(m.map(|x| -x)),
+                        other => other,
+                    },
+                }
+            }
+            ExprKind::Binary { op: BinaryOp::And, lhs, rhs } => {
+                let a = self.expr(f, frame, *lhs)?.b();
+                Value::Bool(a && self.expr(f, frame, *rhs)?.b())
+            }
+            ExprKind::Binary { op: BinaryOp::Or, lhs, rhs } => {
+                let a = self.expr(f, frame, *lhs)?.b();
+                Value::Bool(a || self.expr(f, frame, *rhs)?.b())
+            }
+            ExprKind::Binary { op, lhs, rhs } => {
+                let a = self.expr(f, frame, *lhs)?;
+                let b = self.expr(f, frame, *rhs)?;
+                binary(*op, &a, &b)
+            }
+            ExprKind::Convert { arg } => {
+                let a = self.expr(f, frame, *arg)?;
+                convert(a, e.ty.base)
+            }
+            ExprKind::Construct { args } => {
+                let mut vals = Vec::with_capacity(args.len());
+                for a in args {
+                    vals.push(self.expr(f, frame, *a)?.f());
+                }
+                if e.ty.base == BaseType::Matrix {
+                    let mut m = [0.0; 16];
+                    for (slot, v) in m.iter_mut().zip(vals) {
+                        *slot = v;
+                    }
+                    Value::Matrix(m)
+                } else {
+                    Value::Triple([vals[0], vals[1], vals[2]])
+                }
+            }
+            ExprKind::SpaceCast { space, arg } => {
+                let space = self.expr(f, frame, *space)?;
+                let v = self.expr(f, frame, *arg)?;
+                self.space_cast(e.ty.base, space.s(), v)
+            }
+            ExprKind::Select { cond, a, b } => {
+                if self.expr(f, frame, *cond)?.b() {
+                    self.expr(f, frame, *a)?
+                } else {
+                    self.expr(f, frame, *b)?
+                }
+            }
+            ExprKind::CallBuiltin { builtin, overload, args } => {
+                self.builtin(f, frame, *builtin, *overload, args, e.ty)?
+            }
+            ExprKind::Call { func, args } => self.call(f, frame, *func, args)?,
+            ExprKind::Assign { place, op, value } => {
+                let v = self.expr(f, frame, *value)?;
+                let stored = match op {
+                    Some(op) => {
+                        let current = self.read_place(f, frame, place)?;
+                        binary(*op, &current, &v)
+                    }
+                    None => v,
+                };
+                self.write_place(f, frame, place, stored.clone())?;
+                stored
+            }
+            ExprKind::ArrayLiteral { elements } => {
+                let mut vals = Vec::with_capacity(elements.len());
+                for el in elements {
+                    vals.push(self.expr(f, frame, *el)?);
+                }
+                Value::Array(vals)
+            }
+        })
+    }
+
+    fn space_cast(&mut self, ty: BaseType, space: &str, v: Value) -> Value {
+        match ty {
+            BaseType::Color => Value::Triple(color::to_rgb(space, v.v3()).unwrap_or(v.v3())),
+            BaseType::Matrix => match self.host.matrix(space, "current") {
+                Some(m) => Value::Matrix(matrix::mul(&v.m4(), &m)),
+                None => v,
+            },
+            _ => match self.host.matrix(space, "current") {
+                Some(m) => Value::Triple(match ty {
+                    BaseType::Point => matrix::transform_point(&m, v.v3()),
+                    BaseType::Vector => matrix::transform_vector(&m, v.v3()),
+                    _ => matrix::transform_normal(&m, v.v3()),
+                }),
+                None => v,
+            },
+        }
+    }
+
+    fn call(&mut self, f: &Function, frame: &mut Frame, func: ir::FuncId, args: &[Arg]) -> R<Value> {
+        self.step()?;
+        let module = self.module;
+        let callee = module.function(func);
+        let mut inner = Frame::new(callee);
+        for (a, p) in args.iter().zip(&callee.params) {
+            let v = match a {
+                Arg::Value(e) => self.expr(f, frame, *e)?,
+                Arg::Ref(place) => self.read_place(f, frame, place)?,
+            };
+            inner.vars[p.0 as usize] = v;
+        }
+        let result = match self.block(callee, &mut inner, &callee.body)? {
+            Flow::Return(v) => v,
+            _ => Value::Void,
+        };
+        for (a, p) in args.iter().zip(&callee.params) {
+            if let Arg::Ref(place) = a {
+                let v = inner.vars[p.0 as usize].clone();
+                self.write_place(f, frame, place, v)?;
+            }
+        }
+        Ok(result)
+    }
+}
+
+/// Stores `value` into `slot` at the given array index and/or triple component.
+fn store(slot: &mut Value, indices: &[Value], value: Value) {
+    match (indices.first(), slot) {
+        (None, slot) => *slot = value,
+        (Some(i), Value::Array(items)) => {
+            let k = index_of(i, items.len());
+            if let Some(item) = items.get_mut(k) {
+                store(item, &indices[1..], value);
+            }
+        }
+        (Some(i), Value::Triple(t)) => t[index_of(i, 3)] = value.f(),
+        (Some(_), _) => {}
+    }
+}
+
+/// Converts a value to a base type as `ExprKind::Convert` specifies.
+fn convert(v: Value, to: BaseType) -> Value {
+    match (v, to) {
+        (Value::Array(items), to) => Value::Array(items.into_iter().map(|i| convert(i, to)).collect()),
+        (Value::Float(x), b) if b.is_triple() => Value::Triple([x; 3]),
+        (Value::Float(x), BaseType::Matrix) => Value::Matrix(Value::Float(x).m4()),
+        (Value::Bool(x), BaseType::Float) => Value::Float(f32::from(u8::from(x))),
+        (Value::Triple(t), BaseType::Float) => Value::Float(t[0]),
+        (v, _) => v,
+    }
+}
+
+fn zip3(a: V3, b: V3, op: fn(f32, f32) -> f32) -> V3 {
+    [op(a[0], b[0]), op(a[1], b[1]), op(a[2], b[2])]
+}
+
+/// A binary operator on operands of the types the IR guarantees.
+fn binary(op: BinaryOp, a: &Value, b: &Value) -> Value {
+    use BinaryOp::*;
+    let arith: Option<fn(f32, f32) -> f32> = match op {
+        Add => Some(|x, y| x + y),
+        Sub => Some(|x, y| x - y),
+        Mul => Some(|x, y| x * y),
+        Div => Some(|x, y| x / y),
+        _ => None,
+    };
+    match (op, a, b) {
+        (Mul, Value::Matrix(x), Value::Matrix(y)) => Value::Matrix(matrix::mul(x, y)),
+        (Div, Value::Matrix(x), Value::Matrix(y)) => Value::Matrix(matrix::div(x, y)),
+        (Add | Sub, Value::Matrix(x), Value::Matrix(y)) => {
+            let g = arith.unwrap_or(|x, _| x);
+            let mut m = [0.0; 16];
+            for i in 0..16 {
+                m[i] = g(x[i], y[i]);
+            }
+            Value::Matrix(m)
+        }
+        (Add | Sub | Mul | Div, Value::Float(x), Value::Float(y)) => {
+            Value::Float(arith.map(|g| g(*x, *y)).unwrap_or(0.0))
+        }
+        (Add | Sub | Mul | Div, Value::Triple(x), Value::Triple(y)) => {
+            Value::Triple(arith.map(|g| zip3(*x, *y, g)).unwrap_or([0.0; 3]))
+        }
+        (Cross, _, _) => {
+            let (x, y) = (a.v3(), b.v3());
+            Value::Triple([x[1] * y[2] - x[2] * y[1], x[2] * y[0] - x[0] * y[2], x[0] * y[1] - x[1] * y[0]])
+        }
+        (Dot, _, _) => Value::Float(dot(a.v3(), b.v3())),
+        (Lt, _, _) => Value::Bool(a.f() < b.f()),
+        (Gt, _, _) => Value::Bool(a.f() > b.f()),
+        (Le, _, _) => Value::Bool(a.f() <= b.f()),
+        (Ge, _, _) => Value::Bool(a.f() >= b.f()),
+        (Eq, _, _) => Value::Bool(a == b),
+        (Ne, _, _) => Value::Bool(a != b),
+        (And, _, _) => Value::Bool(a.b() && b.b()),
+        (Or, _, _) => Value::Bool(a.b() || b.b()),
+        _ => Value::Void,
+    }
+}
+
+#[cfg(test)]
+mod tests;
