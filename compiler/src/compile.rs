@@ -148,6 +148,7 @@ fn compile_loaded(
         }
     }
     drop_syntax_cascades(&mut diags, &sources);
+    note_macro_expansions(&mut diags, &pre.expansions, interner);
     diags.finish();
     let interface = checked.module.as_ref().and_then(|m| ShaderInterface::from_module(m, &sources));
     let lines = pre.files.iter().map(|f| sources.get(*f).line_count()).sum();
@@ -175,4 +176,41 @@ fn drop_syntax_cascades(diags: &mut Diagnostics, sources: &SourceMap) {
         let line = sources.get(d.span.file).line_index(d.span.start);
         !lexical.iter().any(|&(f, l)| f == d.span.file && (l == line || l + 1 == line))
     });
+}
+
+/// A diagnostic inside a macro call points at the call (tokens from a macro body carry the call's
+/// span); say which macro it was and where it is defined, as rustc does.
+fn note_macro_expansions(diags: &mut Diagnostics, expansions: &[preprocess::Expansion], interner: &Interner) {
+    if expansions.is_empty() {
+        return;
+    }
+    for d in &mut diags.list {
+        use crate::diagnostic::Code;
+        // Preprocessor and lexer diagnostics already speak of macros.
+        let early = matches!(
+            d.code,
+            Code::MacroArgCount
+                | Code::UnterminatedMacroCall
+                | Code::MacroRecursionLimit
+                | Code::MalformedDirective
+                | Code::MacroRedefined
+                | Code::InvalidCharacter
+                | Code::UnterminatedString
+                | Code::UnterminatedComment
+        );
+        if early {
+            continue;
+        }
+        let inside = expansions.iter().find(|e| {
+            e.call.file == d.span.file && e.call.start <= d.span.start && d.span.end <= e.call.end && e.call != d.span
+                || e.call == d.span
+        });
+        if let Some(e) = inside {
+            let name = interner.resolve(e.name);
+            d.notes.push(format!("this is inside the expansion of macro `{name}`"));
+            if e.definition.file != d.span.file || e.definition.start != d.span.start {
+                d.secondary.push((e.definition, format!("`{name}` is defined here")));
+            }
+        }
+    }
 }

@@ -255,8 +255,6 @@ pub struct Token {
     /// call is, so that spans of a construct stay inside one file and in order.
     pub span: Span,
     pub flags: u8,
-    /// Index into the preprocessor's expansion table plus one; zero for tokens written directly.
-    pub expansion: u32,
 }
 
 impl Token {
@@ -347,7 +345,7 @@ pub fn lex(file: FileId, text: &str, interner: &mut Interner) -> Vec<Token> {
         };
         comment_between = false;
         at_line_start = false;
-        tokens.push(Token { kind, sym, span, flags, expansion: 0 });
+        tokens.push(Token { kind, sym, span, flags });
     }
     let end = text.len() as u32;
     tokens.push(Token {
@@ -355,7 +353,6 @@ pub fn lex(file: FileId, text: &str, interner: &mut Interner) -> Vec<Token> {
         sym: Symbol::default(),
         span: Span::new(file, end, end),
         flags: LINE_START,
-        expansion: 0,
     });
     tokens
 }

@@ -136,6 +136,18 @@ pub struct Output {
     pub files: Vec<FileId>,
     /// Expansion ran away and was stopped: the tokens are incomplete and not worth parsing.
     pub aborted: bool,
+    /// Every macro call written in a file, in order: diagnostics inside one say which macro.
+    pub expansions: Vec<Expansion>,
+}
+
+/// A macro call written in a source file.
+#[derive(Clone, Copy, Debug)]
+pub struct Expansion {
+    /// The call, from the macro's name to its closing `)`.
+    pub call: Span,
+    pub name: Symbol,
+    /// The macro's name in its `#define`.
+    pub definition: Span,
 }
 
 /// Preprocesses `main` into one token stream ending in `Eof`.
@@ -162,6 +174,7 @@ pub fn preprocess(
         conds: Vec::new(),
         produced: 0,
         aborted: false,
+        expansions: Vec::new(),
         end_span: Span::default(),
         isolated_depth: 0,
         read_files: Vec::new(),
@@ -203,7 +216,7 @@ pub fn preprocess(
             _ => out.push(t),
         }
     }
-    Output { tokens: out, files: pp.read_files, aborted: pp.aborted }
+    Output { tokens: out, files: pp.read_files, aborted: pp.aborted, expansions: pp.expansions }
 }
 
 struct Preprocessor<'a> {
@@ -222,6 +235,7 @@ struct Preprocessor<'a> {
     conds: Vec<Conditional>,
     produced: usize,
     aborted: bool,
+    expansions: Vec<Expansion>,
     /// The end of the main file, where a premature end of input is reported.
     end_span: Span,
     isolated_depth: usize,
@@ -285,7 +299,12 @@ impl Preprocessor<'_> {
                 return t;
             }
             let m = m.clone();
+            // Only expansions written in a file (not produced by another expansion) are recorded.
+            let outermost = self.contexts.is_empty();
             if !m.function_like {
+                if outermost {
+                    self.expansions.push(Expansion { call: t.span, name: t.sym, definition: m.def_span });
+                }
                 let body = self.substitute(&m, &[], t.span, t.flags);
                 self.push_context(body, Some(t.sym));
                 continue;
@@ -298,6 +317,9 @@ impl Preprocessor<'_> {
             match self.collect_args(&m, t) {
                 Some((args, close)) => {
                     let call = t.span.to(close);
+                    if outermost {
+                        self.expansions.push(Expansion { call, name: t.sym, definition: m.def_span });
+                    }
                     let body = self.substitute(&m, &args, call, t.flags);
                     self.push_context(body, Some(t.sym));
                 }
@@ -339,7 +361,7 @@ impl Preprocessor<'_> {
     }
 
     fn eof_token(&self) -> Token {
-        Token { kind: TokenKind::Eof, sym: Symbol::default(), span: self.end_span, flags: LINE_START, expansion: 0 }
+        Token { kind: TokenKind::Eof, sym: Symbol::default(), span: self.end_span, flags: LINE_START }
     }
 
     /// The next token before macro expansion: pushed-back tokens, then macro contexts, then files.
