@@ -225,7 +225,7 @@ struct Preprocessor<'a> {
     headers: &'a mut HeaderCache,
     diags: &'a mut Diagnostics,
     options: &'a Options,
-    macros: FxHashMap<Symbol, Macro>,
+    macros: FxHashMap<Symbol, Rc<Macro>>,
     file_cache: FxHashMap<PathBuf, (FileId, Rc<[Token]>)>,
     pragma_once: FxHashSet<FileId>,
     files: Vec<FileFrame>,
@@ -442,14 +442,37 @@ impl Preprocessor<'_> {
         let Some(first) = line.first() else {
             return; // The null directive.
         };
-        let name = match first.kind {
-            TokenKind::Ident => self.interner.resolve(first.sym).to_string(),
-            TokenKind::Number => String::from("line"),
-            _ => String::new(),
+        // The directive's name as a static string ("" when unknown), without allocating.
+        const DIRECTIVES: &[&str] = &[
+            "if",
+            "ifdef",
+            "ifndef",
+            "elif",
+            "else",
+            "endif",
+            "define",
+            "undef",
+            "include",
+            "include_next",
+            "import",
+            "error",
+            "warning",
+            "pragma",
+            "line",
+            "ident",
+            "sccs",
+        ];
+        let name: &'static str = match first.kind {
+            TokenKind::Ident => {
+                let text = self.interner.resolve(first.sym);
+                DIRECTIVES.iter().find(|d| **d == text).copied().unwrap_or("")
+            }
+            TokenKind::Number => "line",
+            _ => "",
         };
         let rest = &line[1..];
         let span = hash.span.to(first.span);
-        match name.as_str() {
+        match name {
             "if" => {
                 let value = if self.active() { self.eval_if(span, rest) } else { false };
                 self.push_cond(span, value);
@@ -563,7 +586,7 @@ impl Preprocessor<'_> {
             }
             "line" | "ident" | "sccs" => {}
             _ => {
-                let shown = if name.is_empty() { self.describe(first) } else { name.clone() };
+                let shown = if name.is_empty() { self.describe(first) } else { name.to_string() };
                 self.diags.push(
                     Diagnostic::new(
                         Code::UnknownDirective,
@@ -721,7 +744,7 @@ impl Preprocessor<'_> {
                 );
             }
         }
-        self.macros.insert(name.sym, m);
+        self.macros.insert(name.sym, Rc::new(m));
     }
 
     fn include(&mut self, span: Span, rest: &[Token]) {
