@@ -45,6 +45,10 @@ pub struct BenchOptions {
     pub repeats: usize,
     /// BVH build quality.
     pub quality: BuildQuality,
+    /// Which passes to time: primary packet, primary single, shadow packet, shadow single. Passes
+    /// left out report 0 Mrays/s (the primary packet pass still runs once, untimed, for the shadow
+    /// rays), and their results are not compared.
+    pub passes: [bool; 4],
 }
 
 impl BenchOptions {
@@ -62,6 +66,7 @@ impl BenchOptions {
             threads: 1,
             repeats: 5,
             quality: BuildQuality::High,
+            passes: [true; 4],
         }
     }
 }
@@ -247,13 +252,33 @@ fn trace_all(opts: &BenchOptions, scene: &Scene, triangles: usize, load_ms: f64,
     let cam = Camera::look_at(opts.eye, opts.look, opts.up, opts.fov_deg, opts.width, opts.height);
     let (w, h) = (opts.width, opts.height);
     let list = crate::tiles::tiles(w, h, TILE);
-    let (packet_hits, t_pp) = timed(opts.repeats, || render_tiles(w, h, TILE, |t| primary_packets(scene, &cam, t)));
-    let (single_hits, t_ps) = timed(opts.repeats, || render_tiles(w, h, TILE, |t| primary_single(scene, &cam, t)));
+    let [pp, ps, sp, ss] = opts.passes;
+    let reps = |on: bool| if on { opts.repeats } else { 1 };
+    let (packet_hits, t_pp) = timed(reps(pp), || render_tiles(w, h, TILE, |t| primary_packets(scene, &cam, t)));
+    let (single_hits, t_ps) = if ps {
+        timed(opts.repeats, || render_tiles(w, h, TILE, |t| primary_single(scene, &cam, t)))
+    } else {
+        (packet_hits.clone(), f64::INFINITY)
+    };
     let shadows: Vec<TileShadows> = render_tiles(w, h, TILE, |t| shadow_rays(scene, opts.light, &packet_hits[t.index]));
-    let (packet_occ, t_sp) =
-        timed(opts.repeats, || render_tiles(w, h, TILE, |t| shadow_packets(scene, &list[t.index], &shadows[t.index])));
-    let (single_occ, t_ss) =
-        timed(opts.repeats, || render_tiles(w, h, TILE, |t| shadow_single(scene, &shadows[t.index])));
+    let shadow_pass = |on: bool, packets: bool| {
+        if !on {
+            return (None, f64::INFINITY);
+        }
+        let (r, t) = timed(opts.repeats, || {
+            render_tiles(w, h, TILE, |t| {
+                if packets {
+                    shadow_packets(scene, &list[t.index], &shadows[t.index])
+                } else {
+                    shadow_single(scene, &shadows[t.index])
+                }
+            })
+        });
+        (Some(r), t)
+    };
+    let (packet_occ, t_sp) = shadow_pass(sp, true);
+    let (single_occ, t_ss) = shadow_pass(ss, false);
+    let t_pp = if pp { t_pp } else { f64::INFINITY };
 
     let mut hits = 0;
     let mut sum = 0.0f64;
@@ -270,11 +295,17 @@ fn trace_all(opts: &BenchOptions, scene: &Scene, triangles: usize, load_ms: f64,
         }
     }
     let mut occluded = 0;
-    for (a, b) in packet_occ.iter().zip(&single_occ) {
-        for (oa, ob) in a.iter().zip(b) {
-            occluded += *oa as usize;
-            mismatches += (oa != ob) as usize;
+    match (&packet_occ, &single_occ) {
+        (Some(pa), Some(sa)) => {
+            for (a, b) in pa.iter().zip(sa) {
+                for (oa, ob) in a.iter().zip(b) {
+                    occluded += *oa as usize;
+                    mismatches += (oa != ob) as usize;
+                }
+            }
         }
+        (Some(x), None) | (None, Some(x)) => occluded = x.iter().flatten().filter(|&&o| o).count(),
+        (None, None) => {}
     }
     let primary = (w * h) as f64;
     let mr = |n: f64, t: f64| n / t / 1e6;

@@ -36,9 +36,13 @@ pub struct BenchTraceArgs {
     /// Timed repetitions of each pass; the median is printed.
     #[arg(long, default_value_t = 5)]
     pub repeats: usize,
-    /// BVH build quality: fast, medium or high.
+    /// BVH build quality: fast, medium, high or best.
     #[arg(long, value_parser = parse_quality, default_value = "high")]
     pub quality: BuildQuality,
+    /// Passes to time, comma-separated: pp (primary packets), ps (primary single rays), sp (shadow
+    /// packets), ss (shadow single rays). Passes left out print 0.
+    #[arg(long, value_parser = parse_passes, default_value = "pp,ps,sp,ss")]
+    pub passes: [bool; 4],
 }
 
 fn parse_vec3(s: &str) -> Result<[f32; 3], String> {
@@ -68,12 +72,25 @@ fn parse_size(s: &str) -> Result<(u32, u32), String> {
     Ok((w, h))
 }
 
+fn parse_passes(s: &str) -> Result<[bool; 4], String> {
+    let mut on = [false; 4];
+    for p in s.split(',').map(str::trim) {
+        let i = ["pp", "ps", "sp", "ss"]
+            .iter()
+            .position(|&n| n == p)
+            .ok_or_else(|| format!("unknown pass `{p}` (expected pp, ps, sp or ss)"))?;
+        on[i] = true;
+    }
+    Ok(on)
+}
+
 fn parse_quality(s: &str) -> Result<BuildQuality, String> {
     match s {
         "fast" => Ok(BuildQuality::Fast),
         "medium" => Ok(BuildQuality::Medium),
         "high" => Ok(BuildQuality::High),
-        _ => Err(format!("unknown build quality `{s}` (expected fast, medium or high)")),
+        "best" => Ok(BuildQuality::Best),
+        _ => Err(format!("unknown build quality `{s}` (expected fast, medium, high or best)")),
     }
 }
 
@@ -89,6 +106,7 @@ pub fn run_trace(args: &BenchTraceArgs) -> anyhow::Result<()> {
     o.threads = args.threads;
     o.repeats = args.repeats.max(1);
     o.quality = args.quality;
+    o.passes = args.passes;
     let r = run_bench(&o).with_context(|| format!("benchmark of {} failed", args.mesh.display()))?;
     let per_tri = r.memory_bytes as f64 / r.triangles.max(1) as f64;
     println!("mesh: {}", args.mesh.display());
@@ -123,5 +141,7 @@ mod tests {
         assert_eq!(parse_size("640x480"), Ok((640, 480)));
         assert!(parse_size("640").is_err());
         assert!(parse_size("0x480").is_err());
+        assert_eq!(parse_passes("ss,pp"), Ok([true, false, false, true]));
+        assert!(parse_passes("pp,xx").is_err());
     }
 }

@@ -19,11 +19,11 @@
 use glam::Vec3A;
 use obvhs::{
     aabb::Aabb,
-    bvh2::{builder::build_bvh2, Bvh2},
-    ploc::{PlocSearchDistance, SortPrecision},
+    bvh2::{node::Bvh2Node, reinsertion::ReinsertionOptimizer, Bvh2},
+    ploc::{PlocBuilder, PlocSearchDistance, SortPrecision},
     BvhBuildParams,
 };
-use std::time::Duration;
+use std::mem::MaybeUninit;
 
 /// Marks a child reference as a leaf.
 pub const LEAF_BIT: u32 = 1 << 31;
@@ -92,33 +92,65 @@ pub fn leaf_range(r: u32) -> (u32, u32) {
     ((r & !LEAF_BIT) >> 4, r & 15)
 }
 
-/// How much effort to spend on BVH quality.
+/// How much effort to spend on BVH quality. All levels build obvhs's PLOC binary BVH (no spatial
+/// pre-splits: leaves must own their primitives), optionally improve it by reinsertion, and collapse
+/// it in [`Bvh4::from_bvh2`]. Measured on s1500k (1.52M triangles, 2 threads, `docs/tracer.md`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum BuildQuality {
-    /// Fastest build (per-frame top-level BVHs, huge meshes).
+    /// Fastest build (per-frame top-level BVHs): PLOC search radius 1, no reinsertion.
     Fast,
-    /// Balanced build: PLOC with the smallest search radius and a little reinsertion.
+    /// PLOC search radius 1 and reinsertion of 1% of the nodes.
     Medium,
-    /// Slow, best traversal (spatial pre-splits are not used: leaves must own their primitives).
+    /// The default: PLOC search radius 2 and reinsertion of 1% of the nodes, which builds s1500k in
+    /// less time than Embree's default build on this machine kind; inputs of at most
+    /// [`HIGH_AS_BEST_UP_TO`] primitives are built as at `Best`.
     High,
+    /// Slow, best traversal, for static geometry: PLOC search radius 14 and reinsertion of 2%.
+    Best,
 }
 
 impl BuildQuality {
-    fn params(self, max_leaf: u32) -> BvhBuildParams {
-        let mut p = match self {
-            BuildQuality::Fast => BvhBuildParams::fastest_build(),
-            BuildQuality::Medium => BvhBuildParams::very_fast_build(),
-            BuildQuality::High => BvhBuildParams::medium_build(),
+    /// The obvhs parameters of this quality for leaves of at most `max_leaf` primitives.
+    pub fn params(self, max_leaf: u32) -> BvhBuildParams {
+        let (distance, reinsertion) = match self {
+            BuildQuality::Fast => (PlocSearchDistance::Minimum, 0.0),
+            BuildQuality::Medium => (PlocSearchDistance::Minimum, 0.01),
+            BuildQuality::High => (PlocSearchDistance::VeryLow, 0.01),
+            BuildQuality::Best => (PlocSearchDistance::Medium, 0.02),
         };
-        p.pre_split = false;
-        p.max_prims_per_leaf = max_leaf.clamp(1, MAX_LEAF_SIZE);
-        p.collapse_traversal_cost = 3.0;
-        p.sort_precision = SortPrecision::U64;
-        if self == BuildQuality::Fast {
-            p.ploc_search_distance = PlocSearchDistance::Minimum;
+        BvhBuildParams {
+            pre_split: false,
+            ploc_search_distance: distance,
+            // The search radius is used at every depth.
+            search_depth_threshold: 0,
+            reinsertion_batch_ratio: reinsertion,
+            post_collapse_reinsertion_batch_ratio_multiplier: 0.0,
+            sort_precision: SortPrecision::U64,
+            max_prims_per_leaf: max_leaf.clamp(1, MAX_LEAF_SIZE),
+            collapse_traversal_cost: 3.0,
         }
-        p
     }
+}
+
+/// [`BuildQuality::High`] builds inputs of at most this many primitives at [`BuildQuality::Best`].
+pub const HIGH_AS_BEST_UP_TO: usize = 400_000;
+
+/// obvhs's binary BVH of `boxes` with leaves of one primitive: PLOC, then reinsertion. The leaf
+/// collapse (`p.max_prims_per_leaf`, `p.collapse_traversal_cost`) is left to [`Bvh4::from_bvh2`],
+/// which does it in the same pass as the 4-wide conversion; `p.pre_split` and
+/// `p.post_collapse_reinsertion_batch_ratio_multiplier` are not used.
+pub fn build_binary(boxes: &[Aabb], p: &BvhBuildParams) -> Bvh2 {
+    let mut bvh2 = PlocBuilder::with_capacity(boxes.len()).build(
+        p.ploc_search_distance,
+        boxes,
+        (0..boxes.len() as u32).collect::<Vec<_>>(),
+        p.sort_precision,
+        p.search_depth_threshold,
+    );
+    if p.reinsertion_batch_ratio > 0.0 {
+        ReinsertionOptimizer::default().run(&mut bvh2, p.reinsertion_batch_ratio, None);
+    }
+    bvh2
 }
 
 /// A 4-wide BVH over primitives given by their boxes.
@@ -141,12 +173,12 @@ impl Bvh4 {
         if n == 0 {
             return Bvh4::default();
         }
-        let mut total = Aabb::empty();
-        for b in boxes {
-            total = total.union(b);
-        }
-        let bounds = Some((total.min, total.max));
         if n <= 4 {
+            let mut total = Aabb::empty();
+            for b in boxes {
+                total = total.union(b);
+            }
+            let bounds = Some((total.min, total.max));
             let mut node = Node4::default();
             for (k, b) in boxes.iter().enumerate() {
                 node.set_child(k, b, leaf_ref(k as u32, 1));
@@ -154,74 +186,62 @@ impl Bvh4 {
             return Bvh4 { nodes: vec![node], prim_order: (0..n as u32).collect(), bounds, depth: 1 };
         }
         assert!(n < (1 << 27), "too many primitives in one BVH ({n})");
-        let bvh2 = build_bvh2(boxes, quality.params(max_leaf), &mut Duration::default());
-        let mut out = Bvh4 { nodes: Vec::with_capacity(n / 2), prim_order: Vec::with_capacity(n), bounds, depth: 0 };
-        let root = &bvh2.nodes[0];
-        if root.is_leaf() {
+        // `High` builds small inputs like `Best`: their build is cheap, and it pays (s34k: primary
+        // packets +9%, single rays +6%; s1500k at `Best` misses the build-time target).
+        let quality =
+            if quality == BuildQuality::High && n <= HIGH_AS_BEST_UP_TO { BuildQuality::Best } else { quality };
+        let p = quality.params(max_leaf);
+        let mut bvh2 = build_binary(boxes, &p);
+        Bvh4::from_bvh2(&mut bvh2, p.max_prims_per_leaf, p.collapse_traversal_cost)
+    }
+
+    /// Collapses obvhs's binary BVH (not yet leaf-collapsed: leaves of one primitive) into 4-wide
+    /// nodes with leaves of at most `max_leaf` primitives (see the module documentation). Both
+    /// passes run in parallel on the current rayon pool. The binary nodes' `meta1` and `meta2` fields
+    /// are overwritten.
+    pub fn from_bvh2(bvh2: &mut Bvh2, max_leaf: u32, collapse_traversal_cost: f32) -> Bvh4 {
+        let Some(&root) = bvh2.nodes.first() else { return Bvh4::default() };
+        let bounds = Some((root.aabb.min, root.aabb.max));
+        let conv = Converter::new(bvh2, max_leaf, collapse_traversal_cost);
+        conv.analyse(0, 0);
+        let n = conv.prim_count(0) as usize;
+        let mut prim_order = vec![0u32; n];
+        if conv.is_leaf(0) {
+            // Only for tiny inputs: the whole tree is one leaf.
+            conv.gather(0, &mut prim_order);
             let mut node = Node4::default();
-            let r = out.emit_leaf(&bvh2, 0);
-            node.set_child(0, &root.aabb, r);
-            out.nodes.push(node);
-        } else {
-            out.emit_inner(&bvh2, 0);
+            node.set_child(0, &root.aabb, leaf_ref(0, n as u32));
+            return Bvh4 { nodes: vec![node], prim_order, bounds, depth: 1 };
         }
-        out.depth = out.compute_depth(0);
-        out
+        let count = conv.nodes4(0) as usize;
+        let mut nodes: Vec<Node4> = Vec::with_capacity(count);
+        let depth = conv.emit(0, &mut nodes.spare_capacity_mut()[..count], 0, &mut prim_order, 0);
+        // SAFETY: `emit` writes every node of its range: the head, then the kids' subtrees in
+        // ranges of `nodes4(kid)` entries that together with the head fill the range exactly
+        // (`nodes4(i) = 1 + sum of nodes4(kids)`, pass 1).
+        unsafe { nodes.set_len(count) };
+        Bvh4 { nodes, prim_order, bounds, depth }
     }
 
-    fn compute_depth(&self, r: u32) -> usize {
-        if r & LEAF_BIT != 0 {
-            return 0;
-        }
-        let n = &self.nodes[r as usize];
-        1 + n.child.iter().map(|&c| self.compute_depth(c)).max().unwrap_or(0)
-    }
-
-    fn emit_leaf(&mut self, bvh2: &Bvh2, n2: usize) -> u32 {
-        let node = &bvh2.nodes[n2];
-        let first = self.prim_order.len() as u32;
-        let start = node.first_index as usize;
-        let count = node.prim_count as usize;
-        self.prim_order.extend_from_slice(&bvh2.primitive_indices[start..start + count]);
-        // Leaves larger than a reference can describe are split over several references by the
-        // caller; obvhs never produces them with our `max_prims_per_leaf`.
-        leaf_ref(first, count as u32)
-    }
-
-    /// Emits the 4-wide node for binary inner node `n2` and returns its index.
-    fn emit_inner(&mut self, bvh2: &Bvh2, n2: usize) -> u32 {
-        let first = bvh2.nodes[n2].first_index as usize;
-        let mut kids = [first, first + 1, 0, 0];
-        let mut len = 2;
-        while len < 4 {
-            let mut best = None;
-            let mut best_area = -1.0f32;
-            for (k, &c) in kids[..len].iter().enumerate() {
-                let node = &bvh2.nodes[c];
-                if !node.is_leaf() {
-                    let a = node.aabb.half_area();
-                    if a > best_area {
-                        best_area = a;
-                        best = Some(k);
-                    }
+    /// The SAH cost of the tree relative to its root box (inner-node test cost 1, primitive test
+    /// cost 1): a quality figure for comparing builders, lower is better.
+    pub fn sah_cost(&self) -> f64 {
+        let Some((lo, hi)) = self.bounds else { return 0.0 };
+        let half_area = |d: Vec3A| (d.x * d.y + d.y * d.z + d.z * d.x) as f64;
+        let root = half_area(hi - lo).max(f64::MIN_POSITIVE);
+        let mut cost = 1.0;
+        for n in &self.nodes {
+            for k in 0..4 {
+                let r = n.child[k];
+                if r == EMPTY_CHILD {
+                    continue;
                 }
+                let d = Vec3A::new(n.max_x[k] - n.min_x[k], n.max_y[k] - n.min_y[k], n.max_z[k] - n.min_z[k]);
+                let a = half_area(d) / root;
+                cost += a * if r & LEAF_BIT != 0 { leaf_range(r).1 as f64 } else { 1.0 };
             }
-            let Some(k) = best else { break };
-            let f = bvh2.nodes[kids[k]].first_index as usize;
-            kids[k] = f;
-            kids[len] = f + 1;
-            len += 1;
         }
-        let index = self.nodes.len();
-        self.nodes.push(Node4::default());
-        let mut node = Node4::default();
-        for (k, &c) in kids[..len].iter().enumerate() {
-            let child = &bvh2.nodes[c];
-            let r = if child.is_leaf() { self.emit_leaf(bvh2, c) } else { self.emit_inner(bvh2, c) };
-            node.set_child(k, &child.aabb, r);
-        }
-        self.nodes[index] = node;
-        index as u32
+        cost
     }
 
     /// Heap bytes held by the nodes and the slot table.
@@ -235,9 +255,243 @@ impl Bvh4 {
     }
 }
 
+/// Binary subtrees with at least this many primitives are emitted in parallel.
+const PARALLEL_PRIMS: u32 = 4096;
+/// Binary nodes less deep than this are analysed in parallel (sizes are not known yet then).
+const PARALLEL_DEPTH: u32 = 10;
+/// Marks a binary node whose subtree becomes one leaf (in `meta1`, see [`Converter`]).
+const AS_LEAF: u32 = 1 << 31;
+
+/// The binary-to-4-wide conversion. Pass 1 ([`Converter::analyse`], bottom-up) decides the leaf
+/// collapse (obvhs's SAH rule: two sibling leaves merge when `area(parent) * (count - cost)` is at
+/// most the children's `area * count`) and counts, for every binary inner node, the 4-wide nodes of
+/// the subtree it would head; pass 2 ([`Converter::emit`], top-down) writes each subtree into its
+/// own disjoint range of the node and slot arrays, so subtrees are written in parallel and the
+/// layout is the same depth-first pre-order as a sequential conversion.
+///
+/// Pass 1 keeps its results in the binary nodes' spare `meta1` (primitive count, with [`AS_LEAF`]
+/// set when the subtree becomes one leaf) and `meta2` (4-wide node count; 0 for leaves) fields, in
+/// the cache line the traversal reads anyway.
+///
+/// Safety invariant (the nodes are shared between threads through a raw pointer): node `i` is
+/// written only by the analysis of node `i`, after the analysis of its subtree has finished (same
+/// thread, or joined by `rayon::join`), and it is read only by that analysis, by its ancestors'
+/// analyses (after their joins) and by pass 2 (after pass 1). So no node is read while written.
+struct Converter<'a> {
+    nodes: *mut Bvh2Node,
+    len: usize,
+    primitive_indices: &'a [u32],
+    max_leaf: u32,
+    traversal_cost: f32,
+}
+
+// SAFETY: see the safety invariant of `Converter`: concurrent tasks touch disjoint nodes or only
+// read.
+unsafe impl Sync for Converter<'_> {}
+
+/// A subtree to emit: binary node, its node range and first index, its slot range and first slot.
+type Job<'s> = (usize, &'s mut [MaybeUninit<Node4>], u32, &'s mut [u32], u32);
+
+impl<'a> Converter<'a> {
+    fn new(bvh2: &'a mut Bvh2, max_leaf: u32, traversal_cost: f32) -> Self {
+        Converter {
+            nodes: bvh2.nodes.as_mut_ptr(),
+            len: bvh2.nodes.len(),
+            primitive_indices: &bvh2.primitive_indices,
+            max_leaf: max_leaf.clamp(1, MAX_LEAF_SIZE),
+            traversal_cost,
+        }
+    }
+
+    /// A copy of binary node `i`.
+    #[inline(always)]
+    fn node(&self, i: usize) -> Bvh2Node {
+        assert!(i < self.len);
+        // SAFETY: in bounds; no other thread writes node `i` now (type-level safety invariant).
+        unsafe { self.nodes.add(i).read() }
+    }
+
+    /// Records pass 1's result for node `i`.
+    #[inline(always)]
+    fn set_info(&self, i: usize, prims: u32, nodes4: u32) {
+        assert!(i < self.len);
+        // SAFETY: in bounds; only this task accesses node `i` now (type-level safety invariant).
+        unsafe {
+            let p = self.nodes.add(i);
+            std::ptr::addr_of_mut!((*p).meta1).write(prims);
+            std::ptr::addr_of_mut!((*p).meta2).write(nodes4);
+        }
+    }
+
+    /// Starts loading binary nodes `i` and `i + 1` into the cache.
+    #[inline(always)]
+    fn prefetch(&self, i: usize) {
+        #[cfg(target_arch = "x86_64")]
+        if i + 1 < self.len {
+            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+            // SAFETY: prefetching has no side effects; the addresses are in bounds.
+            unsafe {
+                let p = self.nodes.add(i) as *const i8;
+                _mm_prefetch::<_MM_HINT_T0>(p);
+                _mm_prefetch::<_MM_HINT_T0>(p.add(64));
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn is_leaf(&self, i: usize) -> bool {
+        self.node(i).meta1 & AS_LEAF != 0
+    }
+
+    #[inline(always)]
+    fn prim_count(&self, i: usize) -> u32 {
+        self.node(i).meta1 & !AS_LEAF
+    }
+
+    #[inline(always)]
+    fn nodes4(&self, i: usize) -> u32 {
+        self.node(i).meta2
+    }
+
+    /// The binary nodes that become the children of the 4-wide node headed by inner node `i`: its
+    /// two children, then repeatedly the (not-leaf) one of largest surface area is opened.
+    #[inline]
+    fn kids(&self, i: usize) -> ([usize; 4], usize) {
+        let first = self.node(i).first_index as usize;
+        let mut kids = [first, first + 1, 0, 0];
+        let mut len = 2;
+        while len < 4 {
+            let mut best = None;
+            let mut best_area = -1.0f32;
+            for (k, &c) in kids[..len].iter().enumerate() {
+                if !self.is_leaf(c) {
+                    let a = self.node(c).aabb.half_area();
+                    if a > best_area {
+                        best_area = a;
+                        best = Some(k);
+                    }
+                }
+            }
+            let Some(k) = best else { break };
+            let f = self.node(kids[k]).first_index as usize;
+            kids[k] = f;
+            kids[len] = f + 1;
+            len += 1;
+        }
+        (kids, len)
+    }
+
+    /// Pass 1 over the subtree of binary node `i` at binary depth `depth`.
+    fn analyse(&self, i: usize, depth: u32) {
+        let node = self.node(i);
+        if node.is_leaf() {
+            assert!(node.prim_count <= MAX_LEAF_SIZE, "binary leaf of {} primitives", node.prim_count);
+            self.set_info(i, node.prim_count | AS_LEAF, 0);
+            return;
+        }
+        let (l, r) = (node.first_index as usize, node.first_index as usize + 1);
+        if depth < PARALLEL_DEPTH {
+            rayon::join(|| self.analyse(l, depth + 1), || self.analyse(r, depth + 1));
+        } else {
+            self.analyse(l, depth + 1);
+            self.analyse(r, depth + 1);
+        }
+        let (cl, cr) = (self.prim_count(l), self.prim_count(r));
+        let total = cl + cr;
+        if self.is_leaf(l) && self.is_leaf(r) && total <= self.max_leaf {
+            let (nl, nr) = (self.node(l), self.node(r));
+            let collapse_cost = node.aabb.half_area() * (total as f32 - self.traversal_cost);
+            let base_cost = nl.aabb.half_area() * cl as f32 + nr.aabb.half_area() * cr as f32;
+            if collapse_cost <= base_cost {
+                self.set_info(i, total | AS_LEAF, 0);
+                return;
+            }
+        }
+        // `kids` reads the leaf flags of the children and grandchildren only.
+        self.set_info(i, total, 0);
+        let (kids, len) = self.kids(i);
+        let below: u32 = kids[..len].iter().map(|&c| self.nodes4(c)).sum();
+        self.set_info(i, total, 1 + below);
+    }
+
+    /// Writes the primitives of the binary subtree `i` into `out`, left to right.
+    fn gather(&self, i: usize, out: &mut [u32]) {
+        let node = self.node(i);
+        if node.is_leaf() {
+            let start = node.first_index as usize;
+            out.copy_from_slice(&self.primitive_indices[start..start + node.prim_count as usize]);
+            return;
+        }
+        let (l, r) = (node.first_index as usize, node.first_index as usize + 1);
+        let (a, b) = out.split_at_mut(self.prim_count(l) as usize);
+        self.gather(l, a);
+        self.gather(r, b);
+    }
+
+    /// Pass 2: writes the 4-wide node headed by binary inner node `i` to `nodes[0]` (global index
+    /// `base`) and its subtree after it, and the subtree's leaf slots to `prims` (first global slot
+    /// `pbase`). Returns the number of inner-node levels.
+    fn emit(&self, i: usize, nodes: &mut [MaybeUninit<Node4>], base: u32, prims: &mut [u32], pbase: u32) -> usize {
+        let (kids, len) = self.kids(i);
+        // The kids' `kids` (or `gather` for collapsed leaves) will read the children of these kids:
+        // start loading them (pass 2 is bound by cache misses on the binary nodes).
+        for &c in &kids[..len] {
+            let n = self.node(c);
+            if !n.is_leaf() {
+                self.prefetch(n.first_index as usize);
+            }
+        }
+        let Some((head, mut rest_nodes)) = nodes.split_first_mut() else { unreachable!("nodes4 >= 1") };
+        let mut rest_prims = prims;
+        let mut node = Node4::default();
+        let (mut nb, mut pb) = (base + 1, pbase);
+        let mut jobs: [Option<Job>; 4] = [None, None, None, None];
+        for (k, &c) in kids[..len].iter().enumerate() {
+            let count = self.prim_count(c);
+            let (mine, after) = std::mem::take(&mut rest_prims).split_at_mut(count as usize);
+            rest_prims = after;
+            let aabb = &self.node(c).aabb;
+            if self.is_leaf(c) {
+                self.gather(c, mine);
+                node.set_child(k, aabb, leaf_ref(pb, count));
+            } else {
+                let nc = self.nodes4(c);
+                let (sub, after) = std::mem::take(&mut rest_nodes).split_at_mut(nc as usize);
+                rest_nodes = after;
+                node.set_child(k, aabb, nb);
+                jobs[k] = Some((c, sub, nb, mine, pb));
+                nb += nc;
+            }
+            pb += count;
+        }
+        head.write(node);
+        let parallel = self.prim_count(i) >= PARALLEL_PRIMS;
+        1 + self.run(&mut jobs[..len], parallel)
+    }
+
+    /// Emits the subtrees of `jobs`, two halves in parallel when `parallel`; returns the deepest.
+    fn run(&self, jobs: &mut [Option<Job>], parallel: bool) -> usize {
+        match jobs {
+            [] => 0,
+            [job] => job.take().map_or(0, |(c, n, nb, p, pb)| self.emit(c, n, nb, p, pb)),
+            _ => {
+                let (a, b) = jobs.split_at_mut(jobs.len() / 2);
+                let (da, db) = if parallel {
+                    rayon::join(|| self.run(a, true), || self.run(b, true))
+                } else {
+                    (self.run(a, false), self.run(b, false))
+                };
+                da.max(db)
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use obvhs::bvh2::builder::build_bvh2;
+    use std::time::Duration;
 
     fn check_subtree(bvh: &Bvh4, node: u32, lo: Vec3A, hi: Vec3A, boxes: &[Aabb], seen: &mut [u32]) {
         let n = &bvh.nodes[node as usize];
@@ -262,21 +516,135 @@ mod tests {
         }
     }
 
+    /// The straightforward sequential conversion of an obvhs-collapsed binary BVH (the previous
+    /// implementation), as a reference for the parallel one.
+    struct Reference {
+        out: Bvh4,
+    }
+
+    impl Reference {
+        fn convert(bvh2: &Bvh2) -> Bvh4 {
+            let root = &bvh2.nodes[0];
+            let bounds = Some((root.aabb.min, root.aabb.max));
+            let mut r = Reference { out: Bvh4 { nodes: vec![], prim_order: vec![], bounds, depth: 0 } };
+            if root.is_leaf() {
+                let mut node = Node4::default();
+                let l = r.emit_leaf(bvh2, 0);
+                node.set_child(0, &root.aabb, l);
+                r.out.nodes.push(node);
+            } else {
+                r.emit_inner(bvh2, 0);
+            }
+            r.out.depth = r.compute_depth(0);
+            r.out
+        }
+
+        fn compute_depth(&self, r: u32) -> usize {
+            if r & LEAF_BIT != 0 {
+                return 0;
+            }
+            let n = &self.out.nodes[r as usize];
+            1 + n.child.iter().map(|&c| self.compute_depth(c)).max().unwrap_or(0)
+        }
+
+        fn emit_leaf(&mut self, bvh2: &Bvh2, n2: usize) -> u32 {
+            let node = &bvh2.nodes[n2];
+            let first = self.out.prim_order.len() as u32;
+            let start = node.first_index as usize;
+            let count = node.prim_count as usize;
+            self.out.prim_order.extend_from_slice(&bvh2.primitive_indices[start..start + count]);
+            // Leaves larger than a reference can describe are split over several references by the
+            // caller; obvhs never produces them with our `max_prims_per_leaf`.
+            leaf_ref(first, count as u32)
+        }
+
+        /// Emits the 4-wide node for binary inner node `n2` and returns its index.
+        fn emit_inner(&mut self, bvh2: &Bvh2, n2: usize) -> u32 {
+            let first = bvh2.nodes[n2].first_index as usize;
+            let mut kids = [first, first + 1, 0, 0];
+            let mut len = 2;
+            while len < 4 {
+                let mut best = None;
+                let mut best_area = -1.0f32;
+                for (k, &c) in kids[..len].iter().enumerate() {
+                    let node = &bvh2.nodes[c];
+                    if !node.is_leaf() {
+                        let a = node.aabb.half_area();
+                        if a > best_area {
+                            best_area = a;
+                            best = Some(k);
+                        }
+                    }
+                }
+                let Some(k) = best else { break };
+                let f = bvh2.nodes[kids[k]].first_index as usize;
+                kids[k] = f;
+                kids[len] = f + 1;
+                len += 1;
+            }
+            let index = self.out.nodes.len();
+            self.out.nodes.push(Node4::default());
+            let mut node = Node4::default();
+            for (k, &c) in kids[..len].iter().enumerate() {
+                let child = &bvh2.nodes[c];
+                let r = if child.is_leaf() { self.emit_leaf(bvh2, c) } else { self.emit_inner(bvh2, c) };
+                node.set_child(k, &child.aabb, r);
+            }
+            self.out.nodes[index] = node;
+            index as u32
+        }
+    }
+
+    #[test]
+    fn parallel_conversion_matches_obvhs_collapse_and_sequential_conversion() {
+        for n in [5usize, 17, 1000, 20_000] {
+            let boxes = test_boxes(n);
+            for q in [BuildQuality::Fast, BuildQuality::Medium] {
+                let mut p = q.params(2);
+                p.post_collapse_reinsertion_batch_ratio_multiplier = 0.0;
+                let bvh2 = build_bvh2(&boxes, p, &mut Duration::default());
+                let reference = Reference::convert(&bvh2);
+                let ours = Bvh4::build(&boxes, q, 2);
+                assert_eq!(ours.nodes, reference.nodes, "n = {n}, {q:?}");
+                assert_eq!(ours.prim_order, reference.prim_order, "n = {n}, {q:?}");
+                assert_eq!(ours.depth, reference.depth, "n = {n}, {q:?}");
+                assert_eq!(ours.bounds, reference.bounds, "n = {n}, {q:?}");
+            }
+        }
+    }
+
+    fn test_boxes(n: usize) -> Vec<Aabb> {
+        (0..n)
+            .map(|i| {
+                let f = i as f32;
+                let p = Vec3A::new((f * 0.37).sin() * 10.0, (f * 1.3).cos() * 10.0, f * 0.01);
+                Aabb::new(p, p + Vec3A::splat(0.5))
+            })
+            .collect()
+    }
+
     #[test]
     fn every_primitive_in_exactly_one_leaf() {
-        for n in [1usize, 3, 4, 5, 17, 1000] {
-            let boxes: Vec<Aabb> = (0..n)
-                .map(|i| {
-                    let f = i as f32;
-                    let p = Vec3A::new((f * 0.37).sin() * 10.0, (f * 1.3).cos() * 10.0, f * 0.01);
-                    Aabb::new(p, p + Vec3A::splat(0.5))
-                })
-                .collect();
-            let bvh = Bvh4::build(&boxes, BuildQuality::Medium, 4);
-            let mut seen = vec![0u32; n];
-            let inf = Vec3A::splat(f32::INFINITY);
-            check_subtree(&bvh, 0, -inf, inf, &boxes, &mut seen);
-            assert!(seen.iter().all(|&c| c == 1), "n = {n}");
+        let qualities = [BuildQuality::Fast, BuildQuality::Medium, BuildQuality::High, BuildQuality::Best];
+        for n in [1usize, 3, 4, 5, 17, 1000, 30_000] {
+            let boxes = test_boxes(n);
+            for (q, max_leaf) in qualities.into_iter().flat_map(|q| [(q, 1), (q, 2), (q, 4)]) {
+                let bvh = Bvh4::build(&boxes, q, max_leaf);
+                let mut seen = vec![0u32; n];
+                let inf = Vec3A::splat(f32::INFINITY);
+                check_subtree(&bvh, 0, -inf, inf, &boxes, &mut seen);
+                assert!(seen.iter().all(|&c| c == 1), "n = {n}, {q:?}, leaves of {max_leaf}");
+                let mut worst = 0;
+                for node in &bvh.nodes {
+                    for &r in &node.child {
+                        if r & LEAF_BIT != 0 {
+                            worst = worst.max(leaf_range(r).1);
+                        }
+                    }
+                }
+                assert!(worst <= max_leaf, "n = {n}, {q:?}: leaf of {worst} > {max_leaf}");
+                assert!(bvh.depth >= 1 && bvh.sah_cost() >= 1.0);
+            }
         }
     }
 }

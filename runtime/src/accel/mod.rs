@@ -39,3 +39,20 @@ pub(crate) fn safe_inv(d: f32) -> f32 {
     };
     1.0 / d
 }
+
+/// Starts loading the `lines` cache lines at `p` (a hint: no effect on results, none on targets
+/// without a prefetch instruction). Traversal of large scenes is bound by cache misses; children
+/// that a ray will visit later are prefetched when their parent is tested.
+#[inline(always)]
+pub(crate) fn prefetch<T>(p: *const T, lines: usize) {
+    #[cfg(target_arch = "x86_64")]
+    for l in 0..lines {
+        // SAFETY: prefetching never faults and has no architectural effect, even for addresses
+        // outside any allocation; `wrapping_add` keeps the pointer arithmetic defined.
+        unsafe {
+            std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>((p as *const i8).wrapping_add(64 * l))
+        };
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (p, lines);
+}

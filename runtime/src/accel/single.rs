@@ -12,8 +12,8 @@ use super::bvh4::{leaf_range, Bvh4, Node4, EMPTY_CHILD, LEAF_BIT};
 use super::object::Object;
 use super::stack::Stack;
 use super::top::{InstanceData, TopLevel};
-use super::{safe_inv, ROBUST};
-use crate::geometry::triangle::{accept, intersect};
+use super::{prefetch, safe_inv, ROBUST};
+use crate::geometry::triangle::{accept, intersect, intersect_accept};
 use crate::ray::{Hit, HitCandidate, HitFilter, Ray, INVALID_ID};
 use glam::{Vec3A, Vec4};
 
@@ -86,13 +86,18 @@ fn node_hits(n: &Node4, r: &RayPre) -> (u32, Vec4) {
 }
 
 /// Traverses `bvh` from child reference `start` (0 for the root). `leaf(first, count, ray)` is called
-/// for each leaf the ray reaches, nearest first; it may shorten `ray.tmax`, and returns `true` to
-/// stop traversal (then this function returns `true`).
+/// for each leaf the ray reaches; it may shorten `ray.tmax`, and returns `true` to stop traversal
+/// (then this function returns `true`). With `ORDERED`, hit children are visited nearest first
+/// (closest hit); without, in child order, which saves the sort where any hit ends the traversal
+/// (occlusion: measured 5% faster on s1500k shadow rays, same node count). `prefetch_leaf(first)`
+/// is called for hit leaf children (to prefetch their triangles); hit inner children are
+/// prefetched here.
 #[inline(always)]
-pub(crate) fn traverse<F: FnMut(u32, u32, &mut RayPre) -> bool>(
+pub(crate) fn traverse<const ORDERED: bool, F: FnMut(u32, u32, &mut RayPre) -> bool, P: Fn(u32)>(
     bvh: &Bvh4,
     start: u32,
     ray: &mut RayPre,
+    prefetch_leaf: P,
     mut leaf: F,
 ) -> bool {
     if bvh.nodes.is_empty() {
@@ -117,15 +122,22 @@ pub(crate) fn traverse<F: FnMut(u32, u32, &mut RayPre) -> bool>(
                 continue;
             }
             let t = tnear.to_array();
-            // Sort the (2 to 4) hit children by entry distance, nearest last.
+            // Sort the (2 to 4) hit children by entry distance, nearest last, and start loading
+            // them all.
             let mut kids = [(0u32, 0f32); 4];
             let mut n = 0;
             let mut m = mask;
             while m != 0 {
                 let k = m.trailing_zeros() as usize;
                 m &= m - 1;
+                let c = node.child[k];
+                if c & LEAF_BIT == 0 {
+                    prefetch(bvh.nodes.as_ptr().wrapping_add(c as usize), 2);
+                } else {
+                    prefetch_leaf(leaf_range(c).0);
+                }
                 let mut j = n;
-                while j > 0 && kids[j - 1].1 < t[k] {
+                while ORDERED && j > 0 && kids[j - 1].1 < t[k] {
                     kids[j] = kids[j - 1];
                     j -= 1;
                 }
@@ -182,10 +194,10 @@ pub(crate) fn intersect_object(
 ) {
     let tris = &obj.bvh.tris;
     let order = &obj.bvh.bvh.prim_order;
-    traverse(&obj.bvh.bvh, 0, ray, |first, count, ray| {
+    let pf = |first: u32| prefetch(tris.as_ptr().wrapping_add(first as usize), 2);
+    traverse::<true, _, _>(&obj.bvh.bvh, 0, ray, pf, |first, count, ray| {
         for s in first as usize..(first + count) as usize {
-            let (t, u, v) = intersect(ray.o, ray.d, &tris[s]);
-            if accept(t, u, v, ray.tmin, ray.tmax) {
+            if let Some((t, u, v)) = intersect_accept(ray.o, ray.d, &tris[s], ray.tmin, ray.tmax) {
                 let primitive = order[s];
                 if let Some(f) = filter {
                     let c = HitCandidate { t, u, v, instance: inst_id, object: object_id, primitive, lane };
@@ -213,10 +225,10 @@ pub(crate) fn occluded_object(
 ) -> bool {
     let tris = &obj.bvh.tris;
     let order = &obj.bvh.bvh.prim_order;
-    traverse(&obj.bvh.bvh, 0, ray, |first, count, ray| {
+    let pf = |first: u32| prefetch(tris.as_ptr().wrapping_add(first as usize), 2);
+    traverse::<false, _, _>(&obj.bvh.bvh, 0, ray, pf, |first, count, ray| {
         for s in first as usize..(first + count) as usize {
-            let (t, u, v) = intersect(ray.o, ray.d, &tris[s]);
-            if accept(t, u, v, ray.tmin, ray.tmax) {
+            if let Some((t, u, v)) = intersect_accept(ray.o, ray.d, &tris[s], ray.tmin, ray.tmax) {
                 match filter {
                     None => return true,
                     Some(f) => {
@@ -237,16 +249,38 @@ pub(crate) fn occluded_object(
 pub(crate) fn intersect_scene(top: &TopLevel, objects: &[Object], ray: &Ray, filter: HitFilter, lane: u32) -> Hit {
     let mut r = RayPre::new(ray.origin, ray.direction, ray.tmin, ray.tmax);
     let mut hit = HitState::NONE;
-    traverse(&top.bvh, 0, &mut r, |first, count, r| {
-        for s in first..first + count {
-            let inst_id = top.bvh.prim_order[s as usize];
-            let inst = &top.instances[inst_id as usize];
-            let mut o = r.in_object_space(inst);
-            intersect_object(&objects[inst.object as usize], inst_id, inst.object, &mut o, &mut hit, filter, lane);
-            r.tmax = o.tmax;
-        }
-        false
-    });
+    if let Some(inst_id) = top.sole_instance() {
+        // One instance: its object BVH's root test does the top level's culling.
+        let inst = &top.instances[inst_id as usize];
+        let mut o = r.in_object_space(inst);
+        intersect_object(&objects[inst.object as usize], inst_id, inst.object, &mut o, &mut hit, filter, lane);
+        r.tmax = o.tmax;
+    } else {
+        traverse::<true, _, _>(
+            &top.bvh,
+            0,
+            &mut r,
+            |_| {},
+            |first, count, r| {
+                for s in first..first + count {
+                    let inst_id = top.bvh.prim_order[s as usize];
+                    let inst = &top.instances[inst_id as usize];
+                    let mut o = r.in_object_space(inst);
+                    intersect_object(
+                        &objects[inst.object as usize],
+                        inst_id,
+                        inst.object,
+                        &mut o,
+                        &mut hit,
+                        filter,
+                        lane,
+                    );
+                    r.tmax = o.tmax;
+                }
+                false
+            },
+        );
+    }
     if hit.instance == INVALID_ID {
         Hit::MISS
     } else {
@@ -257,17 +291,28 @@ pub(crate) fn intersect_scene(top: &TopLevel, objects: &[Object], ray: &Ray, fil
 /// Whether a world-space ray hits anything within its interval.
 pub(crate) fn occluded_scene(top: &TopLevel, objects: &[Object], ray: &Ray, filter: HitFilter, lane: u32) -> bool {
     let mut r = RayPre::new(ray.origin, ray.direction, ray.tmin, ray.tmax);
-    traverse(&top.bvh, 0, &mut r, |first, count, r| {
-        for s in first..first + count {
-            let inst_id = top.bvh.prim_order[s as usize];
-            let inst = &top.instances[inst_id as usize];
-            let mut o = r.in_object_space(inst);
-            if occluded_object(&objects[inst.object as usize], inst_id, inst.object, &mut o, filter, lane) {
-                return true;
+    if let Some(inst_id) = top.sole_instance() {
+        let inst = &top.instances[inst_id as usize];
+        let mut o = r.in_object_space(inst);
+        return occluded_object(&objects[inst.object as usize], inst_id, inst.object, &mut o, filter, lane);
+    }
+    traverse::<false, _, _>(
+        &top.bvh,
+        0,
+        &mut r,
+        |_| {},
+        |first, count, r| {
+            for s in first..first + count {
+                let inst_id = top.bvh.prim_order[s as usize];
+                let inst = &top.instances[inst_id as usize];
+                let mut o = r.in_object_space(inst);
+                if occluded_object(&objects[inst.object as usize], inst_id, inst.object, &mut o, filter, lane) {
+                    return true;
+                }
             }
-        }
-        false
-    })
+            false
+        },
+    )
 }
 
 /// The brute-force reference: tests every triangle of every instance, no BVH.

@@ -47,6 +47,16 @@ pub struct TopLevel {
 }
 
 impl TopLevel {
+    /// The instance, when the BVH holds exactly one (single rays then skip the top level: the
+    /// object BVH's root test culls the same rays).
+    #[inline(always)]
+    pub fn sole_instance(&self) -> Option<u32> {
+        match self.bvh.prim_order.as_slice() {
+            [only] => Some(*only),
+            _ => None,
+        }
+    }
+
     /// Builds the top level over `instances` of `objects`. Instances of empty objects are kept in
     /// the list but left out of the BVH.
     pub fn build(instances: Vec<InstanceData>, objects: &[Object]) -> Self {

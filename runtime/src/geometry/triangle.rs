@@ -125,6 +125,30 @@ pub fn accept(t: f32, u: f32, v: f32, tmin: f32, tmax: f32) -> bool {
     u >= 0.0 && v >= 0.0 && u + v <= 1.0 && t > tmin && t < tmax
 }
 
+/// [`intersect`] followed by [`accept`] for one ray, leaving out the work that can no longer change
+/// the answer: `v` and `t` are computed only when `u` is in `[0, 1]`, and `t` only when `v` passes
+/// too. The values are computed by the same operations as in [`intersect`], and the early exits are
+/// implied by [`accept`] (`v >= 0` and `u + v <= 1` imply `u <= 1`, since rounding is monotonic), so
+/// the result is `Some((t, u, v))` exactly when `accept(intersect(..))` holds.
+#[inline(always)]
+pub fn intersect_accept(o: [f32; 3], d: [f32; 3], tri: &PreTriangle, tmin: f32, tmax: f32) -> Option<(f32, f32, f32)> {
+    let pvec = cross(d, tri.e2);
+    let det = dot(tri.e1, pvec);
+    let inv_det = 1.0 / det;
+    let s = [o[0] - tri.v0[0], o[1] - tri.v0[1], o[2] - tri.v0[2]];
+    let u = dot(s, pvec) * inv_det;
+    if !(0.0..=1.0).contains(&u) {
+        return None;
+    }
+    let qvec = cross(s, tri.e1);
+    let v = dot(d, qvec) * inv_det;
+    if !(v >= 0.0 && u + v <= 1.0) {
+        return None;
+    }
+    let t = dot(tri.e2, qvec) * inv_det;
+    (t > tmin && t < tmax).then_some((t, u, v))
+}
+
 /// Scalar convenience wrapper: the hit `(t, u, v)` of a ray with a triangle, if any.
 pub fn intersect_ray(origin: Vec3A, dir: Vec3A, tmin: f32, tmax: f32, tri: &PreTriangle) -> Option<(f32, f32, f32)> {
     let (t, u, v) = intersect(origin.to_array(), dir.to_array(), tri);
@@ -148,6 +172,39 @@ mod tests {
         let tri = PreTriangle::new(Vec3::ZERO, Vec3::X, Vec3::Y);
         let h = intersect_ray(Vec3A::new(0.25, 0.25, 0.0), Vec3A::X, 0.0, f32::INFINITY, &tri);
         assert!(h.is_none());
+    }
+
+    #[test]
+    fn early_exits_agree_with_intersect_and_accept() {
+        // A deterministic spread of rays, triangles and intervals, degenerate ones included.
+        let mut x = 0x2545_f491_4f6c_dd1du64;
+        let mut next = || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            let f = (x >> 40) as f32 / (1u64 << 24) as f32 * 4.0 - 2.0;
+            if x & 63 == 0 {
+                0.0
+            } else {
+                f
+            }
+        };
+        let mut hits = 0;
+        for _ in 0..200_000 {
+            let p = |n: &mut dyn FnMut() -> f32| Vec3::new(n(), n(), n());
+            let tri = PreTriangle::new(p(&mut next), p(&mut next), p(&mut next));
+            let (o, d) = ([next(), next(), next()], [next(), next(), next()]);
+            let (tmin, tmax) = (next().min(0.0), next().abs() * 4.0);
+            let (t, u, v) = intersect(o, d, &tri);
+            let want = accept(t, u, v, tmin, tmax).then_some((t, u, v));
+            let got = intersect_accept(o, d, &tri, tmin, tmax);
+            assert_eq!(
+                want.map(|(t, u, v)| [t.to_bits(), u.to_bits(), v.to_bits()]),
+                got.map(|(t, u, v)| [t.to_bits(), u.to_bits(), v.to_bits()])
+            );
+            hits += want.is_some() as u32;
+        }
+        assert!(hits > 1000, "{hits}");
     }
 
     #[test]

@@ -1,0 +1,114 @@
+//! Times the phases of an object BVH build: `build_phases MESH [THREADS] [REPEATS]`.
+//! Prints obvhs's phases (PLOC, reinsertion, collapse) for each build-quality preset, then the
+//! whole `ObjectBvh::build` (which adds boxes, the 4-wide conversion and triangle preparation).
+
+use obvhs::{aabb::Aabb, bvh2::reinsertion::ReinsertionOptimizer, ploc::PlocBuilder};
+use rtsl_runtime::accel::bvh4::{BuildQuality, Bvh4};
+use rtsl_runtime::accel::object::{ObjectBvh, OBJECT_LEAF_SIZE};
+use rtsl_runtime::load_mesh;
+use std::time::Instant;
+
+/// CPU time of all threads of this process so far, ms (from `/proc/self/task/*/schedstat`).
+fn cpu_ms() -> f64 {
+    let mut ns = 0u64;
+    for e in std::fs::read_dir("/proc/self/task").into_iter().flatten().flatten() {
+        if let Ok(s) = std::fs::read_to_string(e.path().join("schedstat")) {
+            ns += s.split_whitespace().next().and_then(|v| v.parse::<u64>().ok()).unwrap_or(0);
+        }
+    }
+    ns as f64 / 1e6
+}
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let mesh = load_mesh(args.get(1).expect("usage: build_phases MESH [THREADS] [REPEATS]")).unwrap();
+    let threads = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(2);
+    let repeats = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(3);
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+    pool.install(|| {
+        let boxes: Vec<Aabb> = (0..mesh.triangle_count())
+            .map(|i| {
+                let [a, b, c] = mesh.corners(i);
+                let (a, b, c) = (a.into(), b.into(), c.into());
+                Aabb::new(glam::Vec3A::min(a, b).min(c), glam::Vec3A::max(a, b).max(c))
+            })
+            .collect();
+        if std::env::var("SWEEP").is_ok() {
+            sweep(&boxes);
+            return;
+        }
+        let qualities = match std::env::var("QUALITY").as_deref() {
+            Ok("fast") => vec![BuildQuality::Fast],
+            Ok("medium") => vec![BuildQuality::Medium],
+            Ok("high") => vec![BuildQuality::High],
+            Ok("best") => vec![BuildQuality::Best],
+            _ => vec![BuildQuality::Fast, BuildQuality::Medium, BuildQuality::High, BuildQuality::Best],
+        };
+        let convert_loops: usize = std::env::var("CONVERT_LOOPS").ok().and_then(|s| s.parse().ok()).unwrap_or(1);
+        for q in qualities {
+            for _ in 0..repeats {
+                let p = q.params(OBJECT_LEAF_SIZE);
+                let t = Instant::now();
+                let mut bvh2 = PlocBuilder::with_capacity(boxes.len()).build(
+                    p.ploc_search_distance,
+                    &boxes,
+                    (0..boxes.len() as u32).collect::<Vec<_>>(),
+                    p.sort_precision,
+                    p.search_depth_threshold,
+                );
+                let t_ploc = ms(t);
+                let t = Instant::now();
+                if p.reinsertion_batch_ratio > 0.0 {
+                    ReinsertionOptimizer::default().run(&mut bvh2, p.reinsertion_batch_ratio, None);
+                }
+                let t_re1 = ms(t);
+                let t = Instant::now();
+                let mut b4 = Bvh4::from_bvh2(&mut bvh2, p.max_prims_per_leaf, p.collapse_traversal_cost);
+                let t_conv = ms(t);
+                for _ in 1..convert_loops {
+                    let t = Instant::now();
+                    b4 = Bvh4::from_bvh2(&mut bvh2, p.max_prims_per_leaf, p.collapse_traversal_cost);
+                    println!("  convert again {:.1} ms", ms(t));
+                }
+                let t = Instant::now();
+                let full = ObjectBvh::build(&mesh, q);
+                let t_full = ms(t);
+                println!(
+                    "{q:?}: ploc {t_ploc:.1} reinsert {t_re1:.1} collapse+to4 {t_conv:.1} | full ObjectBvh::build {t_full:.1} ms ({} nodes, sah {:.2})",
+                    b4.nodes.len(),
+                    full.bvh.sah_cost()
+                );
+            }
+        }
+    });
+}
+
+/// `SWEEP=1`: obvhs parameter combinations, build time and SAH cost of the 4-wide result.
+pub fn sweep(boxes: &[Aabb]) {
+    use obvhs::ploc::PlocSearchDistance as D;
+    for (dist, thr) in [(D::Minimum, 0), (D::VeryLow, 0), (D::Low, 0), (D::Medium, 3), (D::Medium, 0)] {
+        for ratio in [0.0f32, 0.01, 0.02] {
+            let mut p = BuildQuality::Medium.params(OBJECT_LEAF_SIZE);
+            p.ploc_search_distance = dist;
+            p.search_depth_threshold = thr;
+            p.reinsertion_batch_ratio = ratio;
+            let mut best = f64::INFINITY;
+            let mut best_cpu = f64::INFINITY;
+            let mut sah = 0.0;
+            for _ in 0..3 {
+                let c = cpu_ms();
+                let t = Instant::now();
+                let mut bvh2 = rtsl_runtime::accel::bvh4::build_binary(boxes, &p);
+                let b4 = Bvh4::from_bvh2(&mut bvh2, p.max_prims_per_leaf, p.collapse_traversal_cost);
+                best = best.min(ms(t));
+                best_cpu = best_cpu.min(cpu_ms() - c);
+                sah = b4.sah_cost();
+            }
+            println!("{dist:?} thr {thr} reinsert {ratio}: {best:.1} ms (cpu {best_cpu:.1} ms), sah {sah:.2}");
+        }
+    }
+}
