@@ -482,7 +482,7 @@ impl Preprocessor<'_> {
                     match rest.first() {
                         Some(t) if t.kind == TokenKind::Ident => {
                             if rest.len() > 1 {
-                                self.extra_tokens(&name, rest[1].span);
+                                self.extra_tokens(name, rest[1].span);
                             }
                             self.macros.contains_key(&t.sym) == (name == "ifdef")
                         }

@@ -1,0 +1,160 @@
+//! Where a compiled shader's inputs and outputs live in a batch.
+//!
+//! Invariants:
+//! - **Varying slots**: first every varying global the module mentions (in [`GLOBALS`] order, one
+//!   slot per component, so a triple takes three consecutive slots x, y, z), then every varying
+//!   shader parameter in declaration order (`components * array length` slots each, element-major:
+//!   element `k` component `j` is slot `offset + k * components + j`). Slot `s` of lane `l` is
+//!   `varying[s * stride + l]`.
+//! - **Uniform block**: first the uniform globals the module mentions (`ncomps`, `time`, `dtime`),
+//!   then every uniform parameter in declaration order, the same element-major order, one `f32` each.
+//! - Every shader parameter has an entry (in declaration order), and `bound[i]` of the batch says
+//!   whether parameter `i` was given a value (otherwise the shader evaluates its default).
+//! - The layout depends only on the module, never on the batch size.
+
+use crate::globals::{Global, GLOBALS};
+use crate::ir::{Arg, BaseType, ExprKind, Module, PlaceBase, Type};
+
+/// Where one global lives.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct GlobalSlot {
+    pub global: Global,
+    pub name: &'static str,
+    /// Varying (SoA slots) or uniform (the uniform block).
+    pub varying: bool,
+    /// First slot (varying) or index in the uniform block (uniform).
+    pub offset: usize,
+    pub components: usize,
+    /// Assigned somewhere in the module: the shader stores it back.
+    pub written: bool,
+}
+
+/// Where one shader parameter lives.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ParamSlot {
+    pub name: String,
+    pub varying: bool,
+    pub output: bool,
+    pub offset: usize,
+    /// Floats per element: 1 for float, 3 for triples.
+    pub components: usize,
+    /// Array length (1 for a scalar).
+    pub len: usize,
+}
+
+impl ParamSlot {
+    pub fn floats(&self) -> usize {
+        self.components * self.len
+    }
+}
+
+/// The batch layout table of one compiled shader.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Layout {
+    pub globals: Vec<GlobalSlot>,
+    pub params: Vec<ParamSlot>,
+    /// Number of varying slots (each `stride` floats).
+    pub varying_slots: usize,
+    /// Number of floats in the uniform block.
+    pub uniform_len: usize,
+}
+
+impl Layout {
+    pub fn global(&self, name: &str) -> Option<&GlobalSlot> {
+        self.globals.iter().find(|g| g.name == name)
+    }
+
+    pub fn param(&self, name: &str) -> Option<(usize, &ParamSlot)> {
+        self.params.iter().enumerate().find(|(_, p)| p.name == name)
+    }
+}
+
+/// Floats per element of a type the JIT stores (`None` for strings, matrices, void).
+pub(super) fn components(ty: Type) -> Option<usize> {
+    match ty.base {
+        BaseType::Float => Some(1),
+        b if b.is_triple() => Some(3),
+        _ => None,
+    }
+}
+
+/// Computes the layout of a module's shader. Parameters of types the JIT cannot store are reported
+/// as `Err(what)`.
+pub(super) fn layout(m: &Module) -> Result<Layout, &'static str> {
+    let shader = m.shader.as_ref().ok_or("a module without a shader")?;
+    let mut used = vec![false; GLOBALS.len()];
+    let mut written = vec![false; GLOBALS.len()];
+    for f in &m.functions {
+        for e in &f.exprs {
+            match &e.kind {
+                ExprKind::Global(g) => used[g.0 as usize] = true,
+                ExprKind::Assign { place, .. } => {
+                    if let PlaceBase::Global(g) = place.base {
+                        used[g.0 as usize] = true;
+                        written[g.0 as usize] = true;
+                    }
+                }
+                ExprKind::Call { args, .. } | ExprKind::CallBuiltin { args, .. } => {
+                    for a in args {
+                        if let Arg::Ref(p) = a {
+                            if let PlaceBase::Global(g) = p.base {
+                                used[g.0 as usize] = true;
+                                written[g.0 as usize] = true;
+                            }
+                        }
+                    }
+                    // The two-argument faceforward reads Ng.
+                    if let ExprKind::CallBuiltin { builtin: crate::builtins::Builtin::Faceforward, args, .. } = &e.kind
+                    {
+                        if args.len() == 2 {
+                            if let Some(g) = Global::lookup("Ng") {
+                                used[g.0 as usize] = true;
+                            }
+                        }
+                    }
+                }
+                _ => {}
+            }
+        }
+    }
+    let mut l = Layout::default();
+    for pass_varying in [true, false] {
+        for (i, g) in GLOBALS.iter().enumerate() {
+            if !used[i] || g.varying != pass_varying {
+                continue;
+            }
+            let comps = g.ty.components();
+            if !(comps == 1 || comps == 3) {
+                return Err("a matrix or string global");
+            }
+            let offset = if g.varying { &mut l.varying_slots } else { &mut l.uniform_len };
+            l.globals.push(GlobalSlot {
+                global: Global(i as u8),
+                name: g.name,
+                varying: g.varying,
+                offset: *offset,
+                components: comps,
+                written: written[i],
+            });
+            *offset += comps;
+        }
+    }
+    for p in &shader.params {
+        let comps = components(p.ty).ok_or("a string or matrix shader parameter")?;
+        let len = match p.ty.array {
+            None => 1,
+            Some(_) => p.ty.array_len().ok_or("an unsized array parameter")? as usize,
+        };
+        let offset = if p.varying { &mut l.varying_slots } else { &mut l.uniform_len };
+        l.params.push(ParamSlot {
+            name: p.name.clone(),
+            varying: p.varying,
+            output: p.output,
+            offset: *offset,
+            components: comps,
+            len,
+        });
+        *offset += comps * len;
+    }
+    Ok(l)
+}

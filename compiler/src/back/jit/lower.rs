@@ -1,0 +1,1510 @@
+//! IR to Cranelift: the chunk loop, the shader body with every user function inlined, masks.
+//!
+//! Invariants:
+//! - **Shapes**: a value is uniform (scalars: `f32`, bools `i8`) or varying (`f32x4`, masks
+//!   `i32x4`), decided from its operands, so uniform IR stays scalar and is splatted only where it
+//!   meets a varying value. Storage (variables, globals, parameters) has a fixed shape: a variable
+//!   the IR marks varying is `f32x4` per component; a uniform one is `f32`.
+//! - **exec**: the Cranelift variable `exec` (an `i32x4`) holds the lanes running the current
+//!   statement; every store to varying storage is `bitselect(exec [& index], new, old)`.
+//! - **Control flow**: a uniform condition branches. A varying `if` runs each side under
+//!   `exec & cond` / `exec & !cond`, skipping a side no lane takes (`vany_true`). Every loop keeps an
+//!   exit accumulator and a continue accumulator; `break n`/`continue n`/`return` move the running
+//!   lanes into the target's accumulator and clear `exec`. When no varying condition lies between
+//!   the statement and its target (`vdepth` equal), every running lane leaves together and the code
+//!   also jumps. Statements after `break`/`continue`/`return` in a block are dead and not lowered.
+//! - **Uniform storage under divergence**: a uniform variable is written unmasked, so a write is
+//!   allowed only when no divergence (`div`) was entered since the variable was created; otherwise
+//!   the shader is `Unsupported` (valid IR never needs it: the checker makes such variables varying).
+//! - **Calls** are inlined with the interpreter's copy-in/copy-out semantics: arguments to output
+//!   and captured parameters are read when the call starts and written back (under the call's
+//!   `exec`) when it returns; place indices are evaluated once.
+//! - Unsupported here: strings (beyond nothing), matrices, space casts, light loops (`illuminance`,
+//!   `illuminate`, `solar`, `gather`), derivatives, texture, ray tracing, message passing, and the
+//!   built-ins not listed in `builtin`.
+
+use super::layout::{components, Layout};
+use super::mask::{self, and, any, choose, fconst, is_vec, konst, merge, not, or, to_mask, widen};
+use super::math;
+use super::{unsupported, JitError, OFF_BOUND, OFF_MASK, OFF_STRIDE, OFF_UNIFORM, OFF_VARYING};
+use crate::builtins::Builtin;
+use crate::globals::{Global, GLOBALS};
+use crate::ir::{
+    self, Arg, BaseType, BinaryOp, Constant, ExprId, ExprKind, FuncId, Function, Module, Place, PlaceBase, StmtKind,
+    Type, UnaryOp, VarKind,
+};
+use cranelift_codegen::ir::condcodes::{FloatCC, IntCC};
+use cranelift_codegen::ir::{
+    types, AbiParam, Block, FuncRef, InstBuilder, MemFlagsData, StackSlotData, StackSlotKind, Value,
+};
+use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext, Variable};
+use cranelift_jit::JITModule;
+use cranelift_module::{Linkage, Module as _};
+use std::collections::HashMap;
+
+type R<T> = Result<T, JitError>;
+
+/// A value: its components (one for floats and bools, three for triples, `len * comps` for arrays).
+#[derive(Clone, Debug)]
+struct Val {
+    vary: bool,
+    c: Vec<Value>,
+}
+
+/// Storage of a variable, global or parameter: one Cranelift variable per float.
+#[derive(Clone, Debug)]
+struct Store {
+    vary: bool,
+    vars: Vec<Variable>,
+    comps: usize,
+    /// `div` when the storage was created: uniform writes need the same level.
+    div: u32,
+}
+
+#[derive(Clone, Copy)]
+struct LoopCx {
+    exit_acc: Variable,
+    cont_acc: Variable,
+    exit: Block,
+    cont: Block,
+    depth: u32,
+}
+
+struct Frame<'m> {
+    f: &'m Function,
+    vars: Vec<Option<Store>>,
+    ret: Option<Store>,
+    ret_block: Block,
+    depth: u32,
+    loops: Vec<LoopCx>,
+}
+
+/// An array element or triple component, known at compile time or computed per lane.
+#[derive(Clone, Copy)]
+enum Idx {
+    Const(usize),
+    /// A float holding an integer in range (uniform or varying).
+    Dyn(Value),
+}
+
+/// The storage positions a place covers: (flat position, component of the value, condition).
+struct Targets {
+    base: PlaceBase,
+    list: Vec<(usize, usize, Option<Value>)>,
+    comps: usize,
+}
+
+fn mem() -> MemFlagsData {
+    MemFlagsData::trusted()
+}
+
+struct Lower<'m, 'b> {
+    m: &'m Module,
+    layout: &'m Layout,
+    b: FunctionBuilder<'b>,
+    jit: &'m mut JITModule,
+    helpers: HashMap<&'static str, FuncRef>,
+    exec: Variable,
+    vdepth: u32,
+    div: u32,
+    frames: Vec<Frame<'m>>,
+    globals: Vec<Option<Store>>,
+    ptr: types::Type,
+    chunk_base: Option<Value>,
+    stride_bytes: Option<Value>,
+    uniform: Option<Value>,
+    fn_div: HashMap<u32, bool>,
+}
+
+/// Lowers the module's shader into `func` (signature `fn(*mut Batch)`); returns the number of
+/// Cranelift instructions emitted.
+pub(super) fn lower(
+    m: &Module,
+    layout: &Layout,
+    jit: &mut JITModule,
+    func: &mut cranelift_codegen::ir::Function,
+) -> R<usize> {
+    let mut fctx = FunctionBuilderContext::new();
+    let config = jit.target_config();
+    let ptr = config.pointer_type();
+    let mut b = FunctionBuilder::new(func, &mut fctx);
+    let exec = b.declare_var(types::I32X4);
+    let mut l = Lower {
+        m,
+        layout,
+        b,
+        jit,
+        helpers: HashMap::new(),
+        exec,
+        vdepth: 0,
+        div: 0,
+        frames: Vec::new(),
+        globals: vec![None; GLOBALS.len()],
+        ptr,
+        chunk_base: None,
+        stride_bytes: None,
+        uniform: None,
+        fn_div: HashMap::new(),
+    };
+    l.shade()?;
+    l.b.seal_all_blocks();
+    let n = l.b.func.dfg.num_insts();
+    l.b.finalize(config);
+    Ok(n)
+}
+
+/// The interpreter's `index_of` on a constant.
+fn const_index(x: f32, n: usize) -> usize {
+    if !x.is_finite() || x < 0.0 || n == 0 {
+        0
+    } else {
+        (x as usize).min(n - 1)
+    }
+}
+
+impl<'m> Lower<'m, '_> {
+    fn frame(&self) -> &Frame<'m> {
+        self.frames.last().expect("a frame")
+    }
+
+    fn func(&self) -> &'m Function {
+        self.frame().f
+    }
+
+    fn exec(&mut self) -> Value {
+        self.b.use_var(self.exec)
+    }
+
+    fn set_exec(&mut self, v: Value) {
+        self.b.def_var(self.exec, v);
+    }
+
+    fn new_store(&mut self, vary: bool, n: usize, comps: usize) -> Store {
+        let ty = if vary { types::F32X4 } else { types::F32 };
+        let vars = (0..n).map(|_| self.b.declare_var(ty)).collect();
+        Store { vary, vars, comps, div: self.div }
+    }
+
+    fn zero_store(&mut self, vary: bool, n: usize, comps: usize) -> Store {
+        let s = self.new_store(vary, n, comps);
+        let z = fconst(&mut self.b, 0.0, vary);
+        for v in &s.vars {
+            self.b.def_var(*v, z);
+        }
+        s
+    }
+
+    fn read_store(&mut self, s: &Store) -> Val {
+        Val { vary: s.vary, c: s.vars.iter().map(|v| self.b.use_var(*v)).collect() }
+    }
+
+    /// Initialises storage (no mask: the storage is fresh or being loaded).
+    fn init_store(&mut self, s: &Store, v: &Val) -> R<()> {
+        if v.vary && !s.vary {
+            return unsupported("a varying value stored in uniform storage");
+        }
+        if v.c.len() != s.vars.len() {
+            return unsupported("a value of unexpected size");
+        }
+        for (var, x) in s.vars.iter().zip(&v.c) {
+            let x = widen(&mut self.b, *x, s.vary);
+            self.b.def_var(*var, x);
+        }
+        Ok(())
+    }
+
+    fn addr(&mut self, slot: usize) -> Value {
+        let (base, sb) = (self.chunk_base.expect("chunk"), self.stride_bytes.expect("chunk"));
+        if slot == 0 {
+            return base;
+        }
+        let off = self.b.ins().imul_imm_s(sb, slot as i64);
+        self.b.ins().iadd(base, off)
+    }
+
+    fn load_slot(&mut self, vary: bool, offset: usize) -> Value {
+        if vary {
+            let a = self.addr(offset);
+            self.b.ins().load(types::F32X4, mem(), a, 0)
+        } else {
+            let u = self.uniform.expect("chunk");
+            self.b.ins().load(types::F32, mem(), u, (offset * 4) as i32)
+        }
+    }
+
+    fn store_slot(&mut self, vary: bool, offset: usize, v: Value) {
+        if vary {
+            let a = self.addr(offset);
+            self.b.ins().store(mem(), v, a, 0);
+        } else {
+            let u = self.uniform.expect("chunk");
+            self.b.ins().store(mem(), v, u, (offset * 4) as i32);
+        }
+    }
+
+    // ---- The function: chunk loop, prologue, epilogue ----
+
+    fn shade(&mut self) -> R<()> {
+        let shader = self.m.shader.as_ref().ok_or(JitError::NoShader)?;
+        let entry = self.b.create_block();
+        self.b.append_block_params_for_function_params(entry);
+        self.b.switch_to_block(entry);
+        let batch = self.b.block_params(entry)[0];
+        let stride32 = self.b.ins().load(types::I32, mem(), batch, OFF_STRIDE);
+        let stride = self.b.ins().uextend(self.ptr, stride32);
+        let mask_p = self.b.ins().load(self.ptr, mem(), batch, OFF_MASK);
+        let varying_p = self.b.ins().load(self.ptr, mem(), batch, OFF_VARYING);
+        let uniform_p = self.b.ins().load(self.ptr, mem(), batch, OFF_UNIFORM);
+        let bound_p = self.b.ins().load(self.ptr, mem(), batch, OFF_BOUND);
+        let nchunks = self.b.ins().ushr_imm_u(stride, 2);
+        let stride_bytes = self.b.ins().ishl_imm_u(stride, 2);
+        let counter = self.b.declare_var(self.ptr);
+        let zero = self.b.ins().iconst(self.ptr, 0);
+        self.b.def_var(counter, zero);
+        let (header, body, run, next, exit) = (
+            self.b.create_block(),
+            self.b.create_block(),
+            self.b.create_block(),
+            self.b.create_block(),
+            self.b.create_block(),
+        );
+        self.b.ins().jump(header, &[]);
+        self.b.switch_to_block(header);
+        let c = self.b.use_var(counter);
+        let more = self.b.ins().icmp(IntCC::UnsignedLessThan, c, nchunks);
+        self.b.ins().brif(more, body, &[], exit, &[]);
+        self.b.switch_to_block(body);
+        let off = self.b.ins().ishl_imm_u(c, 4);
+        let mp = self.b.ins().iadd(mask_p, off);
+        let chunk_mask = self.b.ins().load(types::I32X4, mem(), mp, 0);
+        let live = any(&mut self.b, chunk_mask);
+        self.b.ins().brif(live, run, &[], next, &[]);
+        self.b.switch_to_block(run);
+        self.chunk_base = Some(self.b.ins().iadd(varying_p, off));
+        self.stride_bytes = Some(stride_bytes);
+        self.uniform = Some(uniform_p);
+        self.set_exec(chunk_mask);
+        self.chunk(shader, bound_p)?;
+        self.b.ins().jump(next, &[]);
+        self.b.switch_to_block(next);
+        let c = self.b.use_var(counter);
+        let c1 = self.b.ins().iadd_imm_u(c, 1);
+        self.b.def_var(counter, c1);
+        self.b.ins().jump(header, &[]);
+        self.b.switch_to_block(exit);
+        self.b.ins().return_(&[]);
+        Ok(())
+    }
+
+    /// One chunk: load globals and parameters, run the body, store results.
+    fn chunk(&mut self, shader: &'m ir::Shader, bound_p: Value) -> R<()> {
+        for gs in self.layout.globals.clone() {
+            let s = self.new_store(gs.varying, gs.components, gs.components);
+            for (k, var) in s.vars.iter().enumerate() {
+                let v = self.load_slot(gs.varying, gs.offset + k);
+                self.b.def_var(*var, v);
+            }
+            self.globals[gs.global.0 as usize] = Some(s);
+        }
+        let body = self.m.function(shader.body);
+        let frame = self.new_frame(body, &[])?;
+        self.frames.push(frame);
+        let saved = self.exec();
+        for (i, p) in shader.params.iter().enumerate() {
+            let slot = self.layout.params[i].clone();
+            let store = self.frame().vars[p.var.0 as usize]
+                .clone()
+                .ok_or_else(|| JitError::Unsupported(format!("parameter {} of type {}", p.name, p.ty)))?;
+            let flag = self.b.ins().load(types::I32, mem(), bound_p, (4 * i) as i32);
+            let (load_b, default_b, join) = (self.b.create_block(), self.b.create_block(), self.b.create_block());
+            self.b.ins().brif(flag, load_b, &[], default_b, &[]);
+            self.b.switch_to_block(load_b);
+            for (k, var) in store.vars.iter().enumerate() {
+                let v = self.load_slot(slot.varying, slot.offset + k);
+                self.b.def_var(*var, v);
+            }
+            self.b.ins().jump(join, &[]);
+            self.b.switch_to_block(default_b);
+            if store.vary {
+                // Inactive lanes keep what the batch holds (an output is stored back).
+                for (k, var) in store.vars.iter().enumerate() {
+                    let v = self.load_slot(true, slot.offset + k);
+                    self.b.def_var(*var, v);
+                }
+            }
+            let v = self.expr(p.default)?;
+            self.write_store(&store, &v)?;
+            self.b.ins().jump(join, &[]);
+            self.b.switch_to_block(join);
+        }
+        let ret_block = self.frame().ret_block;
+        self.block(&body.body)?;
+        self.b.ins().jump(ret_block, &[]);
+        self.b.switch_to_block(ret_block);
+        self.set_exec(saved);
+        let frame = self.frames.pop().expect("frame");
+        for gs in self.layout.globals.clone() {
+            if !(gs.written && gs.varying) {
+                continue;
+            }
+            let s = self.globals[gs.global.0 as usize].clone().expect("loaded");
+            for (k, var) in s.vars.iter().enumerate() {
+                let v = self.b.use_var(*var);
+                self.store_slot(true, gs.offset + k, v);
+            }
+        }
+        for (i, p) in shader.params.iter().enumerate() {
+            if !p.output {
+                continue;
+            }
+            let slot = self.layout.params[i].clone();
+            let s = frame.vars[p.var.0 as usize].clone().expect("parameter storage");
+            for (k, var) in s.vars.iter().enumerate() {
+                let v = self.b.use_var(*var);
+                self.store_slot(slot.varying, slot.offset + k, v);
+            }
+        }
+        Ok(())
+    }
+
+    /// A frame for `f` with zeroed locals and parameters initialised from `args` (copy-in).
+    fn new_frame(&mut self, f: &'m Function, args: &[(Val, Option<bool>)]) -> R<Frame<'m>> {
+        let mut vars = Vec::with_capacity(f.vars.len());
+        for (i, var) in f.vars.iter().enumerate() {
+            let comps = match components(var.ty) {
+                Some(c) => c,
+                None => {
+                    vars.push(None);
+                    continue;
+                }
+            };
+            let param = f.params.iter().position(|p| p.0 as usize == i);
+            let store = match (var.kind, param) {
+                (VarKind::ShaderParam { index, .. }, _) => {
+                    let slot = &self.layout.params[index as usize];
+                    self.zero_store(slot.varying, slot.floats(), comps)
+                }
+                (_, Some(k)) => {
+                    let (v, by_ref) =
+                        args.get(k).cloned().ok_or_else(|| JitError::Codegen("missing argument".into()))?;
+                    // Specialised per call: a parameter the callee never assigns takes the
+                    // argument's shape, so uniform arguments keep uniform code in the callee.
+                    let vary = by_ref.unwrap_or(v.vary || (var.varying && assigned(f, i)));
+                    let s = self.new_store(vary, v.c.len(), comps);
+                    self.init_store(&s, &v)?;
+                    s
+                }
+                _ => {
+                    let n = match var.ty.array {
+                        None => 1,
+                        Some(_) => match var.ty.array_len() {
+                            Some(n) => n as usize,
+                            None => return unsupported("an unsized array local"),
+                        },
+                    };
+                    self.zero_store(var.varying, n * comps, comps)
+                }
+            };
+            vars.push(Some(store));
+        }
+        let ret_block = self.b.create_block();
+        Ok(Frame { f, vars, ret: None, ret_block, depth: self.vdepth, loops: Vec::new() })
+    }
+
+    // ---- Statements ----
+
+    /// Lowers a block; returns early after a statement that leaves it.
+    fn block(&mut self, blk: &'m ir::Block) -> R<()> {
+        for s in &blk.stmts {
+            if self.stmt(s)? {
+                break;
+            }
+        }
+        Ok(())
+    }
+
+    /// After a jump: continue in a fresh, unreachable block.
+    fn jump_away(&mut self, target: Block) {
+        self.b.ins().jump(target, &[]);
+        let dead = self.b.create_block();
+        self.b.switch_to_block(dead);
+    }
+
+    /// Lowers one statement; true when it leaves the block (break, continue, return).
+    fn stmt(&mut self, s: &'m ir::Stmt) -> R<bool> {
+        let f = self.func();
+        match &s.kind {
+            StmtKind::Expr(e) => {
+                self.expr(*e)?;
+            }
+            StmtKind::If { cond, then, otherwise } => {
+                let c = self.expr(*cond)?;
+                if !c.vary {
+                    let (tb, eb, join) = (self.b.create_block(), self.b.create_block(), self.b.create_block());
+                    self.b.ins().brif(c.c[0], tb, &[], eb, &[]);
+                    self.b.switch_to_block(tb);
+                    self.block(then)?;
+                    self.b.ins().jump(join, &[]);
+                    self.b.switch_to_block(eb);
+                    self.block(otherwise)?;
+                    self.b.ins().jump(join, &[]);
+                    self.b.switch_to_block(join);
+                } else {
+                    let cm = to_mask(&mut self.b, c.c[0]);
+                    let save = self.exec();
+                    self.vdepth += 1;
+                    self.div += 1;
+                    let tm = self.b.ins().band(save, cm);
+                    let t = self.masked_block(tm, then)?;
+                    let em = self.b.ins().band_not(save, cm);
+                    let e = if otherwise.stmts.is_empty() { em } else { self.masked_block(em, otherwise)? };
+                    let all = self.b.ins().bor(t, e);
+                    self.set_exec(all);
+                    self.vdepth -= 1;
+                    self.div -= 1;
+                }
+            }
+            StmtKind::Loop { cond, body, step } => {
+                let vary_cond = cond.is_some_and(|c| f.expr(c).varying);
+                let divergent = vary_cond || divergent_exit(f, body, step);
+                if vary_cond {
+                    self.vdepth += 1;
+                }
+                if divergent {
+                    self.div += 1;
+                }
+                let exit_acc = self.b.declare_var(types::I32X4);
+                let cont_acc = self.b.declare_var(types::I32X4);
+                let z = mask::zero_mask(&mut self.b);
+                self.b.def_var(exit_acc, z);
+                self.b.def_var(cont_acc, z);
+                let (header, body_b, cont_b, exit_b) =
+                    (self.b.create_block(), self.b.create_block(), self.b.create_block(), self.b.create_block());
+                self.b.ins().jump(header, &[]);
+                self.b.switch_to_block(header);
+                if let Some(c) = cond {
+                    let cv = self.expr(*c)?;
+                    let cm = to_mask(&mut self.b, cv.c[0]);
+                    let e = self.exec();
+                    let leaving = self.b.ins().band_not(e, cm);
+                    let acc = self.b.use_var(exit_acc);
+                    let acc = self.b.ins().bor(acc, leaving);
+                    self.b.def_var(exit_acc, acc);
+                    let stay = self.b.ins().band(e, cm);
+                    self.set_exec(stay);
+                }
+                let e = self.exec();
+                let live = any(&mut self.b, e);
+                self.b.ins().brif(live, body_b, &[], exit_b, &[]);
+                self.b.switch_to_block(body_b);
+                let z = mask::zero_mask(&mut self.b);
+                self.b.def_var(cont_acc, z);
+                let lp = LoopCx { exit_acc, cont_acc, exit: exit_b, cont: cont_b, depth: self.vdepth };
+                self.frames.last_mut().expect("frame").loops.push(lp);
+                self.block(body)?;
+                self.b.ins().jump(cont_b, &[]);
+                self.b.switch_to_block(cont_b);
+                let e = self.exec();
+                let ca = self.b.use_var(cont_acc);
+                let e = self.b.ins().bor(e, ca);
+                self.set_exec(e);
+                self.block(step)?;
+                self.b.ins().jump(header, &[]);
+                self.frames.last_mut().expect("frame").loops.pop();
+                self.b.switch_to_block(exit_b);
+                let acc = self.b.use_var(exit_acc);
+                self.set_exec(acc);
+                if vary_cond {
+                    self.vdepth -= 1;
+                }
+                if divergent {
+                    self.div -= 1;
+                }
+            }
+            StmtKind::Break(n) | StmtKind::Continue(n) => {
+                let loops = &self.frame().loops;
+                let lp = *loops
+                    .get(loops.len().wrapping_sub(*n as usize))
+                    .ok_or_else(|| JitError::Codegen("break outside a loop".into()))?;
+                let is_break = matches!(s.kind, StmtKind::Break(_));
+                let (acc, target) = if is_break { (lp.exit_acc, lp.exit) } else { (lp.cont_acc, lp.cont) };
+                let e = self.exec();
+                let a = self.b.use_var(acc);
+                let a = self.b.ins().bor(a, e);
+                self.b.def_var(acc, a);
+                let z = mask::zero_mask(&mut self.b);
+                self.set_exec(z);
+                if self.vdepth == lp.depth {
+                    self.jump_away(target);
+                }
+                return Ok(true);
+            }
+            StmtKind::Return(v) => {
+                if let Some(v) = v {
+                    let val = self.expr(*v)?;
+                    let ret = self.frame().ret.clone().ok_or_else(|| JitError::Codegen("return value".into()))?;
+                    self.write_store(&ret, &val)?;
+                }
+                let z = mask::zero_mask(&mut self.b);
+                self.set_exec(z);
+                let (depth, rb) = (self.frame().depth, self.frame().ret_block);
+                if self.vdepth == depth {
+                    self.jump_away(rb);
+                }
+                return Ok(true);
+            }
+            StmtKind::Illuminance { .. } => return unsupported("illuminance"),
+            StmtKind::Illuminate { .. } => return unsupported("illuminate"),
+            StmtKind::Solar { .. } => return unsupported("solar"),
+            StmtKind::Gather { .. } => return unsupported("gather"),
+        }
+        Ok(false)
+    }
+
+    /// Runs `blk` under `m` (skipped when no lane is set); returns `exec` after it.
+    fn masked_block(&mut self, m: Value, blk: &'m ir::Block) -> R<Value> {
+        self.set_exec(m);
+        let (run, after) = (self.b.create_block(), self.b.create_block());
+        let live = any(&mut self.b, m);
+        self.b.ins().brif(live, run, &[], after, &[]);
+        self.b.switch_to_block(run);
+        self.block(blk)?;
+        self.b.ins().jump(after, &[]);
+        self.b.switch_to_block(after);
+        Ok(self.exec())
+    }
+
+    /// Writes a whole value into storage: masked by `exec` when varying.
+    fn write_store(&mut self, s: &Store, v: &Val) -> R<()> {
+        if !s.vary {
+            if v.vary {
+                return unsupported("a varying value stored in uniform storage");
+            }
+            if self.div != s.div {
+                return unsupported("a uniform variable assigned under varying control flow");
+            }
+            return self.init_store(s, v);
+        }
+        let e = self.exec();
+        for (var, x) in s.vars.iter().zip(&v.c) {
+            let old = self.b.use_var(*var);
+            let new = merge(&mut self.b, e, *x, old);
+            self.b.def_var(*var, new);
+        }
+        Ok(())
+    }
+
+    // ---- Places ----
+
+    fn store_of(&self, base: PlaceBase) -> R<Store> {
+        match base {
+            PlaceBase::Var(v) => self.frame().vars[v.0 as usize].clone(),
+            PlaceBase::Global(g) => self.globals[g.0 as usize].clone(),
+        }
+        .ok_or_else(|| JitError::Unsupported("a string or matrix variable".into()))
+    }
+
+    fn index(&mut self, e: ExprId, n: usize) -> R<Idx> {
+        if let ExprKind::Const(Constant::Float(x)) = self.func().expr(e).kind {
+            return Ok(Idx::Const(const_index(x, n)));
+        }
+        let v = self.expr(e)?;
+        Ok(self.dyn_index(v.c[0], n))
+    }
+
+    /// The interpreter's `index_of` per lane: non-finite or negative gives 0, else `min(trunc, n-1)`.
+    fn dyn_index(&mut self, i: Value, n: usize) -> Idx {
+        let b = &mut self.b;
+        let zero = konst(b, 0.0, i);
+        let inf = konst(b, f32::INFINITY, i);
+        let ge = b.ins().fcmp(FloatCC::GreaterThanOrEqual, i, zero);
+        let lt = b.ins().fcmp(FloatCC::LessThan, i, inf);
+        let ok = b.ins().band(ge, lt);
+        let t = b.ins().trunc(i);
+        let hi = konst(b, (n.max(1) - 1) as f32, i);
+        let small = b.ins().fcmp(FloatCC::LessThan, t, hi);
+        let t = choose(b, small, t, hi);
+        Idx::Dyn(choose(b, ok, t, zero))
+    }
+
+    fn idx_cond(&mut self, idx: Idx, k: usize) -> Option<Option<Value>> {
+        match idx {
+            Idx::Const(c) => (c == k).then_some(None),
+            Idx::Dyn(v) => {
+                let kc = konst(&mut self.b, k as f32, v);
+                Some(Some(self.b.ins().fcmp(FloatCC::Equal, v, kc)))
+            }
+        }
+    }
+
+    fn place_targets(&mut self, p: &Place) -> R<Targets> {
+        let store = self.store_of(p.base)?;
+        let base_ty = match p.base {
+            PlaceBase::Var(v) => self.func().var(v).ty,
+            PlaceBase::Global(g) => Type::scalar(g.def().ty),
+        };
+        let total = store.vars.len();
+        let comps = store.comps;
+        let mut list = Vec::new();
+        match (p.index, p.component) {
+            (None, _) => list.extend((0..total).map(|k| (k, k, None))),
+            (Some(i), comp) if base_ty.is_array() => {
+                let n = total / comps;
+                let idx = self.index(i, n)?;
+                let cidx = match comp {
+                    Some(c) => Some(self.index(c, comps)?),
+                    None => None,
+                };
+                for e in 0..n {
+                    let Some(ce) = self.idx_cond(idx, e) else { continue };
+                    for j in 0..comps {
+                        match cidx {
+                            None => list.push((e * comps + j, j, ce)),
+                            Some(ci) => {
+                                let Some(cj) = self.idx_cond(ci, j) else { continue };
+                                let cond = match (ce, cj) {
+                                    (Some(a), Some(b)) => Some(and(&mut self.b, a, b)),
+                                    (a, b) => a.or(b),
+                                };
+                                list.push((e * comps + j, 0, cond));
+                            }
+                        }
+                    }
+                }
+            }
+            (Some(i), _) => {
+                let idx = self.index(i, total)?;
+                for k in 0..total {
+                    if let Some(c) = self.idx_cond(idx, k) {
+                        list.push((k, 0, c));
+                    }
+                }
+            }
+        }
+        let out = components(p.ty).unwrap_or(1) * p.ty.array_len().unwrap_or(1) as usize;
+        Ok(Targets { base: p.base, list, comps: out })
+    }
+
+    fn read_targets(&mut self, t: &Targets) -> R<Val> {
+        let store = self.store_of(t.base)?;
+        let mut c = Vec::with_capacity(t.comps);
+        let mut vary = store.vary;
+        for j in 0..t.comps {
+            let mut acc: Option<Value> = None;
+            for (flat, vj, cond) in &t.list {
+                if *vj != j {
+                    continue;
+                }
+                let x = self.b.use_var(store.vars[*flat]);
+                acc = Some(match (acc, cond) {
+                    (None, _) | (_, None) => x,
+                    (Some(a), Some(cnd)) => {
+                        vary |= is_vec(&self.b, *cnd);
+                        choose(&mut self.b, *cnd, x, a)
+                    }
+                });
+            }
+            c.push(acc.ok_or_else(|| JitError::Codegen("empty place".into()))?);
+        }
+        let c = c.into_iter().map(|x| widen(&mut self.b, x, vary)).collect();
+        Ok(Val { vary, c })
+    }
+
+    fn write_targets(&mut self, t: &Targets, v: &Val) -> R<()> {
+        let store = self.store_of(t.base)?;
+        if !store.vary {
+            if v.vary || t.list.iter().any(|(_, _, c)| c.is_some_and(|c| is_vec(&self.b, c))) {
+                return unsupported("a varying value stored in uniform storage");
+            }
+            if self.div != store.div {
+                return unsupported("a uniform variable assigned under varying control flow");
+            }
+        }
+        let e = if store.vary { Some(self.exec()) } else { None };
+        for (flat, j, cond) in &t.list {
+            let var = store.vars[*flat];
+            let old = self.b.use_var(var);
+            let x = v.c[*j];
+            let new = match (e, cond) {
+                (Some(e), Some(c)) => {
+                    let cm = to_mask(&mut self.b, *c);
+                    let m = self.b.ins().band(e, cm);
+                    merge(&mut self.b, m, x, old)
+                }
+                (Some(e), None) => merge(&mut self.b, e, x, old),
+                (None, Some(c)) => self.b.ins().select(*c, x, old),
+                (None, None) => x,
+            };
+            self.b.def_var(var, new);
+        }
+        Ok(())
+    }
+
+    // ---- Expressions ----
+
+    fn fconst(&mut self, x: f32, vary: bool) -> Value {
+        fconst(&mut self.b, x, vary)
+    }
+
+    fn expr(&mut self, id: ExprId) -> R<Val> {
+        let f = self.func();
+        let e = f.expr(id);
+        match &e.kind {
+            ExprKind::Const(Constant::Float(x)) => Ok(Val { vary: false, c: vec![self.b.ins().f32const(*x)] }),
+            ExprKind::Const(Constant::String(_)) => unsupported("strings"),
+            ExprKind::Var(v) => {
+                let s = self.store_of(PlaceBase::Var(*v))?;
+                Ok(self.read_store(&s))
+            }
+            ExprKind::Global(g) => {
+                let s = self.store_of(PlaceBase::Global(*g))?;
+                Ok(self.read_store(&s))
+            }
+            ExprKind::Index { base, index } => {
+                let bt = f.expr(*base).ty;
+                let bv = self.expr(*base)?;
+                let comps = if bt.is_array() { components(bt.element()).unwrap_or(1) } else { 1 };
+                let n = bv.c.len() / comps;
+                let idx = self.index(*index, n)?;
+                self.select_elem(&bv, comps, idx)
+            }
+            ExprKind::Unary { op: UnaryOp::Neg, arg } => {
+                let a = self.expr(*arg)?;
+                if !e.ty.base.is_numeric() {
+                    return unsupported("matrices");
+                }
+                Ok(Val { vary: a.vary, c: a.c.iter().map(|x| self.b.ins().fneg(*x)).collect() })
+            }
+            ExprKind::Unary { op: UnaryOp::Not, arg } => {
+                let a = self.expr(*arg)?;
+                Ok(Val { vary: a.vary, c: vec![not(&mut self.b, a.c[0])] })
+            }
+            ExprKind::Binary { op: op @ (BinaryOp::And | BinaryOp::Or), lhs, rhs } => {
+                self.logic(*op, *lhs, *rhs, e.varying)
+            }
+            ExprKind::Binary { op, lhs, rhs } => {
+                let lt = f.expr(*lhs).ty;
+                let a = self.expr(*lhs)?;
+                let b = self.expr(*rhs)?;
+                self.binary(*op, lt, &a, &b)
+            }
+            ExprKind::Convert { arg } => {
+                let from = f.expr(*arg).ty;
+                let a = self.expr(*arg)?;
+                self.convert(a, from, e.ty)
+            }
+            ExprKind::Construct { args } => {
+                if e.ty.base == BaseType::Matrix {
+                    return unsupported("matrices");
+                }
+                let mut vals = Vec::new();
+                for a in args {
+                    vals.push(self.expr(*a)?);
+                }
+                Ok(self.concat(&vals))
+            }
+            ExprKind::SpaceCast { .. } => unsupported("space casts"),
+            ExprKind::Select { cond, a, b } => self.select(e, *cond, *a, *b),
+            ExprKind::CallBuiltin { builtin, overload, args } => self.builtin(*builtin, *overload, args, e),
+            ExprKind::Call { func, args } => self.call(*func, args, e),
+            ExprKind::Assign { place, op, value } => {
+                let v = self.expr(*value)?;
+                let t = self.place_targets(place)?;
+                let stored = match op {
+                    Some(op) => {
+                        let cur = self.read_targets(&t)?;
+                        self.binary(*op, place.ty, &cur, &v)?
+                    }
+                    None => v,
+                };
+                self.write_targets(&t, &stored)?;
+                Ok(stored)
+            }
+            ExprKind::ArrayLiteral { elements } => {
+                let mut vals = Vec::new();
+                for el in elements {
+                    vals.push(self.expr(*el)?);
+                }
+                Ok(self.concat(&vals))
+            }
+        }
+    }
+
+    /// Components of several values in order, all varying if any is.
+    fn concat(&mut self, vals: &[Val]) -> Val {
+        let vary = vals.iter().any(|v| v.vary);
+        let c = vals.iter().flat_map(|v| v.c.iter().copied()).collect::<Vec<_>>();
+        Val { vary, c: c.into_iter().map(|x| widen(&mut self.b, x, vary)).collect() }
+    }
+
+    fn select_elem(&mut self, bv: &Val, comps: usize, idx: Idx) -> R<Val> {
+        let n = bv.c.len() / comps.max(1);
+        match idx {
+            Idx::Const(k) => Ok(Val { vary: bv.vary, c: bv.c[k * comps..(k + 1) * comps].to_vec() }),
+            Idx::Dyn(i) => {
+                let vary = bv.vary || is_vec(&self.b, i);
+                let mut c: Vec<Value> = bv.c[..comps].iter().map(|x| widen(&mut self.b, *x, vary)).collect();
+                for k in 1..n {
+                    let kc = konst(&mut self.b, k as f32, i);
+                    let eq = self.b.ins().fcmp(FloatCC::Equal, i, kc);
+                    for (j, cj) in c.iter_mut().enumerate() {
+                        *cj = choose(&mut self.b, eq, bv.c[k * comps + j], *cj);
+                    }
+                }
+                Ok(Val { vary, c })
+            }
+        }
+    }
+
+    fn logic(&mut self, op: BinaryOp, lhs: ExprId, rhs: ExprId, vary_flag: bool) -> R<Val> {
+        let l = self.expr(lhs)?;
+        if l.vary || vary_flag {
+            let lm = to_mask(&mut self.b, l.c[0]);
+            let save = self.exec();
+            let m = if op == BinaryOp::And { self.b.ins().band(save, lm) } else { self.b.ins().band_not(save, lm) };
+            self.set_exec(m);
+            self.div += 1;
+            self.vdepth += 1;
+            let r = self.expr(rhs);
+            self.div -= 1;
+            self.vdepth -= 1;
+            self.set_exec(save);
+            let r = r?;
+            let rm = to_mask(&mut self.b, r.c[0]);
+            let res = if op == BinaryOp::And { self.b.ins().band(lm, rm) } else { self.b.ins().bor(lm, rm) };
+            return Ok(Val { vary: true, c: vec![res] });
+        }
+        let res = self.b.declare_var(types::I8);
+        self.b.def_var(res, l.c[0]);
+        let (rb, join) = (self.b.create_block(), self.b.create_block());
+        if op == BinaryOp::And {
+            self.b.ins().brif(l.c[0], rb, &[], join, &[]);
+        } else {
+            self.b.ins().brif(l.c[0], join, &[], rb, &[]);
+        }
+        self.b.switch_to_block(rb);
+        let r = self.expr(rhs)?;
+        if r.vary {
+            return unsupported("a varying operand of a uniform && or ||");
+        }
+        self.b.def_var(res, r.c[0]);
+        self.b.ins().jump(join, &[]);
+        self.b.switch_to_block(join);
+        Ok(Val { vary: false, c: vec![self.b.use_var(res)] })
+    }
+
+    fn select(&mut self, e: &ir::Expr, cond: ExprId, a: ExprId, b: ExprId) -> R<Val> {
+        let f = self.func();
+        let c = self.expr(cond)?;
+        let n = match e.ty.base {
+            BaseType::Bool => 1,
+            _ => components(e.ty).ok_or_else(|| JitError::Unsupported(format!("a select of {}", e.ty)))?,
+        } * e.ty.array_len().unwrap_or(1) as usize;
+        if c.vary || f.expr(cond).varying {
+            let cm = to_mask(&mut self.b, c.c[0]);
+            let save = self.exec();
+            self.div += 1;
+            self.vdepth += 1;
+            let m = self.b.ins().band(save, cm);
+            self.set_exec(m);
+            let av = self.expr(a);
+            let m = self.b.ins().band_not(save, cm);
+            self.set_exec(m);
+            let bv = av.and_then(|av| Ok((av, self.expr(b)?)));
+            self.div -= 1;
+            self.vdepth -= 1;
+            self.set_exec(save);
+            let (av, bv) = bv?;
+            let c = av.c.iter().zip(&bv.c).map(|(x, y)| choose(&mut self.b, cm, *x, *y)).collect();
+            return Ok(Val { vary: true, c });
+        }
+        let vary = e.varying;
+        let ty = match (e.ty.base, vary) {
+            (BaseType::Bool, false) => types::I8,
+            (BaseType::Bool, true) => types::I32X4,
+            (_, false) => types::F32,
+            (_, true) => types::F32X4,
+        };
+        let vars: Vec<Variable> = (0..n).map(|_| self.b.declare_var(ty)).collect();
+        let (tb, eb, join) = (self.b.create_block(), self.b.create_block(), self.b.create_block());
+        self.b.ins().brif(c.c[0], tb, &[], eb, &[]);
+        for (blk, side) in [(tb, a), (eb, b)] {
+            self.b.switch_to_block(blk);
+            let v = self.expr(side)?;
+            if v.vary && !vary {
+                return unsupported("a varying side of a uniform select");
+            }
+            for (var, x) in vars.iter().zip(&v.c) {
+                let x = widen(&mut self.b, *x, vary);
+                self.b.def_var(*var, x);
+            }
+            self.b.ins().jump(join, &[]);
+        }
+        self.b.switch_to_block(join);
+        Ok(Val { vary, c: vars.iter().map(|v| self.b.use_var(*v)).collect() })
+    }
+
+    fn convert(&mut self, a: Val, from: Type, to: Type) -> R<Val> {
+        if from.is_array() {
+            return if from.base == to.base || (from.base.is_triple() && to.base.is_triple()) {
+                Ok(a)
+            } else {
+                unsupported("an array conversion")
+            };
+        }
+        match (from.base, to.base) {
+            (x, y) if x == y => Ok(a),
+            (x, y) if x.is_triple() && y.is_triple() => Ok(a),
+            (BaseType::Float, y) if y.is_triple() => Ok(Val { vary: a.vary, c: vec![a.c[0]; 3] }),
+            (x, BaseType::Float) if x.is_triple() => Ok(Val { vary: a.vary, c: vec![a.c[0]] }),
+            (BaseType::Bool, BaseType::Float) => {
+                let one = self.fconst(1.0, a.vary);
+                let zero = self.fconst(0.0, a.vary);
+                Ok(Val { vary: a.vary, c: vec![choose(&mut self.b, a.c[0], one, zero)] })
+            }
+            _ => unsupported(format!("a conversion from {from} to {to}")),
+        }
+    }
+
+    /// Component-wise binary operators on operands of one type (`lt`), as `interp::binary`.
+    fn binary(&mut self, op: BinaryOp, lt: Type, a: &Val, b: &Val) -> R<Val> {
+        use BinaryOp::*;
+        if lt.base == BaseType::Matrix {
+            return unsupported("matrices");
+        }
+        if lt.base == BaseType::String {
+            return unsupported("strings");
+        }
+        let vary = a.vary || b.vary;
+        let x: Vec<Value> = a.c.iter().map(|v| widen(&mut self.b, *v, vary)).collect();
+        let y: Vec<Value> = b.c.iter().map(|v| widen(&mut self.b, *v, vary)).collect();
+        let ins = |s: &mut Self, f: fn(&mut FunctionBuilder<'_>, Value, Value) -> Value| -> Vec<Value> {
+            x.iter().zip(&y).map(|(p, q)| f(&mut s.b, *p, *q)).collect()
+        };
+        let c = match op {
+            Add => ins(self, |b, p, q| b.ins().fadd(p, q)),
+            Sub => ins(self, |b, p, q| b.ins().fsub(p, q)),
+            Mul => ins(self, |b, p, q| b.ins().fmul(p, q)),
+            Div => ins(self, |b, p, q| b.ins().fdiv(p, q)),
+            Dot => vec![self.dot(&x, &y)],
+            Cross => {
+                let m = |s: &mut Self, i: usize, j: usize| {
+                    let p = s.b.ins().fmul(x[i], y[j]);
+                    let q = s.b.ins().fmul(x[j], y[i]);
+                    s.b.ins().fsub(p, q)
+                };
+                vec![m(self, 1, 2), m(self, 2, 0), m(self, 0, 1)]
+            }
+            Lt | Gt | Le | Ge => {
+                let cc = match op {
+                    Lt => FloatCC::LessThan,
+                    Gt => FloatCC::GreaterThan,
+                    Le => FloatCC::LessThanOrEqual,
+                    _ => FloatCC::GreaterThanOrEqual,
+                };
+                vec![self.b.ins().fcmp(cc, x[0], y[0])]
+            }
+            Eq | Ne if lt.base == BaseType::Bool => {
+                let d = self.b.ins().bxor(x[0], y[0]);
+                vec![if op == Ne { d } else { not(&mut self.b, d) }]
+            }
+            Eq | Ne => {
+                let cc = if op == Eq { FloatCC::Equal } else { FloatCC::NotEqual };
+                let mut acc = self.b.ins().fcmp(cc, x[0], y[0]);
+                for k in 1..x.len() {
+                    let c = self.b.ins().fcmp(cc, x[k], y[k]);
+                    acc = if op == Eq { and(&mut self.b, acc, c) } else { or(&mut self.b, acc, c) };
+                }
+                vec![acc]
+            }
+            And | Or => return unsupported("logic outside its expression"),
+        };
+        Ok(Val { vary, c })
+    }
+
+    fn dot(&mut self, x: &[Value], y: &[Value]) -> Value {
+        let p0 = self.b.ins().fmul(x[0], y[0]);
+        let p1 = self.b.ins().fmul(x[1], y[1]);
+        let p2 = self.b.ins().fmul(x[2], y[2]);
+        let s = self.b.ins().fadd(p0, p1);
+        self.b.ins().fadd(s, p2)
+    }
+
+    // ---- Calls ----
+
+    fn call(&mut self, fid: FuncId, args: &'m [Arg], e: &ir::Expr) -> R<Val> {
+        let callee = self.m.function(fid);
+        let mut inputs = Vec::with_capacity(args.len());
+        let mut places = Vec::with_capacity(args.len());
+        for a in args {
+            match a {
+                Arg::Value(x) => {
+                    inputs.push((self.expr(*x)?, None));
+                    places.push(None);
+                }
+                Arg::Ref(p) => {
+                    let t = self.place_targets(p)?;
+                    let v = self.read_targets(&t)?;
+                    let vary = self.store_of(p.base)?.vary;
+                    inputs.push((v, Some(vary)));
+                    places.push(Some(t));
+                }
+            }
+        }
+        // After a divergent return the lanes still running may update uniform locals (the lanes
+        // that left never read them again), but not uniform output or captured parameters, which
+        // every calling lane reads back.
+        let fdiv = self.fn_divergent(fid);
+        let mut frame = self.new_frame(callee, &inputs)?;
+        if fdiv {
+            for (k, (_, by_ref)) in inputs.iter().enumerate() {
+                if by_ref.is_some() {
+                    if let Some(s) = frame.vars[callee.params[k].0 as usize].as_mut() {
+                        s.div = u32::MAX;
+                    }
+                }
+            }
+        }
+        if callee.return_type.base != BaseType::Void {
+            let comps = components(callee.return_type)
+                .ok_or_else(|| JitError::Unsupported(format!("a function returning {}", callee.return_type)))?;
+            if callee.return_type.is_array() {
+                return unsupported("a function returning an array");
+            }
+            // A function that may return under a varying condition returns into varying storage.
+            frame.ret = Some(self.zero_store(e.varying || fdiv, comps, comps));
+        }
+        let save = self.exec();
+        let rb = frame.ret_block;
+        self.frames.push(frame);
+        let r = self.block(&callee.body);
+        let frame = self.frames.pop().expect("frame");
+        r?;
+        self.b.ins().jump(rb, &[]);
+        self.b.switch_to_block(rb);
+        self.set_exec(save);
+        for (k, t) in places.iter().enumerate() {
+            let Some(t) = t else { continue };
+            let pv = callee.params[k];
+            let s = frame.vars[pv.0 as usize].clone().ok_or_else(|| JitError::Codegen("parameter".into()))?;
+            let v = self.read_store(&s);
+            self.write_targets(t, &v)?;
+        }
+        Ok(match &frame.ret {
+            Some(s) => self.read_store(s),
+            None => Val { vary: false, c: Vec::new() },
+        })
+    }
+
+    fn fn_divergent(&mut self, fid: FuncId) -> bool {
+        if let Some(d) = self.fn_div.get(&fid.0) {
+            return *d;
+        }
+        let f = self.m.function(fid);
+        let d = divergent_return(f, &f.body, 0);
+        self.fn_div.insert(fid.0, d);
+        d
+    }
+
+    fn helper_ref(&mut self, name: &'static str) -> R<FuncRef> {
+        if let Some(r) = self.helpers.get(name) {
+            return Ok(*r);
+        }
+        let mut sig = self.jit.make_signature();
+        sig.params.push(AbiParam::new(self.ptr));
+        sig.params.push(AbiParam::new(self.ptr));
+        let id =
+            self.jit.declare_function(name, Linkage::Import, &sig).map_err(|e| JitError::Codegen(e.to_string()))?;
+        let r = self.jit.declare_func_in_func(id, self.b.func);
+        self.helpers.insert(name, r);
+        Ok(r)
+    }
+
+    /// Calls a per-chunk helper on `inputs` (scalars are splatted); results are uniform again when
+    /// every input was.
+    fn call_helper(&mut self, name: &'static str, inputs: &[Value], vary: bool) -> R<Vec<Value>> {
+        let h = math::helper(name).ok_or_else(|| JitError::Codegen(format!("no helper {name}")))?;
+        debug_assert_eq!(h.ins, inputs.len());
+        let fr = self.helper_ref(h.name)?;
+        let sin = self.b.create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 16 * h.ins as u32, 4));
+        let sout =
+            self.b.create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 16 * h.outs as u32, 4));
+        for (k, x) in inputs.iter().enumerate() {
+            let x = widen(&mut self.b, *x, true);
+            self.b.ins().stack_store(self.ptr, x, sin, (16 * k) as i32);
+        }
+        let pin = self.b.ins().stack_addr(self.ptr, sin, 0);
+        let pout = self.b.ins().stack_addr(self.ptr, sout, 0);
+        self.b.ins().call(fr, &[pin, pout]);
+        let mut out = Vec::with_capacity(h.outs);
+        for j in 0..h.outs {
+            let v = self.b.ins().stack_load(self.ptr, types::F32X4, sout, (16 * j) as i32);
+            out.push(if vary { v } else { self.b.ins().extractlane(v, 0) });
+        }
+        Ok(out)
+    }
+
+    /// A one-input helper applied to each component.
+    fn map_helper(&mut self, name: &'static str, v: &Val) -> R<Val> {
+        let mut c = Vec::new();
+        for x in &v.c {
+            c.push(self.call_helper(name, &[*x], v.vary)?[0]);
+        }
+        Ok(Val { vary: v.vary, c })
+    }
+
+    fn map2_helper(&mut self, name: &'static str, a: &Val, b: &Val) -> R<Val> {
+        let vary = a.vary || b.vary;
+        let mut c = Vec::new();
+        for (x, y) in a.c.iter().zip(&b.c) {
+            c.push(self.call_helper(name, &[*x, *y], vary)?[0]);
+        }
+        Ok(Val { vary, c })
+    }
+
+    fn map1(&mut self, v: &Val, f: fn(&mut FunctionBuilder<'_>, Value) -> Value) -> Val {
+        Val { vary: v.vary, c: v.c.iter().map(|x| f(&mut self.b, *x)).collect() }
+    }
+
+    /// Component-wise over operands widened to one shape; a one-component operand is broadcast.
+    fn mapn(&mut self, vals: &[&Val], f: impl Fn(&mut FunctionBuilder<'_>, &[Value]) -> Value) -> Val {
+        let vary = vals.iter().any(|v| v.vary);
+        let n = vals.iter().map(|v| v.c.len()).max().unwrap_or(0);
+        let mut c = Vec::with_capacity(n);
+        for k in 0..n {
+            let args: Vec<Value> = vals
+                .iter()
+                .map(|v| {
+                    let x = if v.c.len() == 1 { v.c[0] } else { v.c[k] };
+                    widen(&mut self.b, x, vary)
+                })
+                .collect();
+            c.push(f(&mut self.b, &args));
+        }
+        Val { vary, c }
+    }
+
+    fn builtin(&mut self, bi: Builtin, _overload: u16, args: &'m [Arg], e: &ir::Expr) -> R<Val> {
+        use Builtin as Bi;
+        let f = self.func();
+        let supported = matches!(
+            bi,
+            Bi::Abs
+                | Bi::Sign
+                | Bi::Floor
+                | Bi::Ceil
+                | Bi::Round
+                | Bi::Sqrt
+                | Bi::InverseSqrt
+                | Bi::Exp
+                | Bi::Log
+                | Bi::Pow
+                | Bi::Sin
+                | Bi::Cos
+                | Bi::Tan
+                | Bi::Asin
+                | Bi::Acos
+                | Bi::Atan
+                | Bi::Radians
+                | Bi::Degrees
+                | Bi::Mod
+                | Bi::Min
+                | Bi::Max
+                | Bi::Clamp
+                | Bi::Mix
+                | Bi::Step
+                | Bi::Smoothstep
+                | Bi::Noise
+                | Bi::Cellnoise
+                | Bi::Xcomp
+                | Bi::Ycomp
+                | Bi::Zcomp
+                | Bi::SetXcomp
+                | Bi::SetYcomp
+                | Bi::SetZcomp
+                | Bi::Length
+                | Bi::Normalize
+                | Bi::Distance
+                | Bi::Ptlined
+                | Bi::Faceforward
+                | Bi::Reflect
+                | Bi::Comp
+                | Bi::SetComp
+        );
+        if !supported {
+            return unsupported(format!("the built-in {}", bi.name()));
+        }
+        let mut vals = Vec::with_capacity(args.len());
+        let mut refs = Vec::with_capacity(args.len());
+        for a in args {
+            match a {
+                Arg::Value(x) => {
+                    if components(f.expr(*x).ty).is_none() {
+                        return unsupported(format!("{} with a {} argument", bi.name(), f.expr(*x).ty));
+                    }
+                    vals.push(self.expr(*x)?);
+                    refs.push(None);
+                }
+                Arg::Ref(p) => {
+                    if components(p.ty).is_none() {
+                        return unsupported(format!("{} with a {} argument", bi.name(), p.ty));
+                    }
+                    let t = self.place_targets(p)?;
+                    vals.push(self.read_targets(&t)?);
+                    refs.push(Some(t));
+                }
+            }
+        }
+        let v = |i: usize| vals[i].clone();
+        let void = Val { vary: false, c: Vec::new() };
+        let r = match bi {
+            Bi::Abs => self.map1(&v(0), |b, x| b.ins().fabs(x)),
+            Bi::Sign => self.map1(&v(0), math::sign),
+            Bi::Floor => self.map1(&v(0), |b, x| b.ins().floor(x)),
+            Bi::Ceil => self.map1(&v(0), |b, x| b.ins().ceil(x)),
+            Bi::Round => self.map1(&v(0), math::round),
+            Bi::Sqrt => self.map1(&v(0), math::sqrt),
+            Bi::InverseSqrt => self.map1(&v(0), math::inversesqrt),
+            Bi::Exp => self.map_helper("rtsl_exp", &v(0))?,
+            Bi::Log if vals.len() == 2 => self.map2_helper("rtsl_logb", &v(0), &v(1))?,
+            Bi::Log => self.map_helper("rtsl_log", &v(0))?,
+            Bi::Pow => self.map2_helper("rtsl_pow", &v(0), &v(1))?,
+            Bi::Sin => self.map_helper("rtsl_sin", &v(0))?,
+            Bi::Cos => self.map_helper("rtsl_cos", &v(0))?,
+            Bi::Tan => self.map_helper("rtsl_tan", &v(0))?,
+            Bi::Asin => self.map_helper("rtsl_asin", &v(0))?,
+            Bi::Acos => self.map_helper("rtsl_acos", &v(0))?,
+            Bi::Atan if vals.len() == 2 => self.map2_helper("rtsl_atan2", &v(0), &v(1))?,
+            Bi::Atan => self.map_helper("rtsl_atan", &v(0))?,
+            Bi::Radians | Bi::Degrees => {
+                let k = if bi == Bi::Radians { 1.0f32.to_radians() } else { 1.0f32.to_degrees() };
+                let a = v(0);
+                let kc = self.fconst(k, a.vary);
+                Val { vary: a.vary, c: a.c.iter().map(|x| self.b.ins().fmul(*x, kc)).collect() }
+            }
+            Bi::Mod => self.mapn(&[&v(0), &v(1)], |b, a| math::modulo(b, a[0], a[1])),
+            Bi::Min | Bi::Max => {
+                let mut acc = v(0);
+                for x in &vals[1..] {
+                    acc = if bi == Bi::Min {
+                        self.mapn(&[&acc, x], |b, a| math::min(b, a[0], a[1]))
+                    } else {
+                        self.mapn(&[&acc, x], |b, a| math::max(b, a[0], a[1]))
+                    };
+                }
+                acc
+            }
+            Bi::Clamp => self.mapn(&[&v(0), &v(1), &v(2)], |b, a| math::clamp(b, a[0], a[1], a[2])),
+            Bi::Mix => self.mapn(&[&v(0), &v(1), &v(2)], |b, a| math::mix(b, a[0], a[1], a[2])),
+            Bi::Step => self.mapn(&[&v(0), &v(1)], |b, a| math::step(b, a[0], a[1])),
+            Bi::Smoothstep => self.mapn(&[&v(0), &v(1), &v(2)], |b, a| math::smoothstep(b, a[0], a[1], a[2])),
+            Bi::Noise | Bi::Cellnoise => {
+                let first_triple = args.first().is_some_and(|a| match a {
+                    Arg::Value(x) => f.expr(*x).ty.base.is_triple(),
+                    Arg::Ref(p) => p.ty.base.is_triple(),
+                });
+                let dims = if first_triple { 2 + vals.len() } else { vals.len() };
+                let triple = e.ty.base != BaseType::Float;
+                let name: &'static str = match (bi == Bi::Noise, triple, dims) {
+                    (true, false, 1) => "rtsl_noise1",
+                    (true, false, 2) => "rtsl_noise2",
+                    (true, false, 3) => "rtsl_noise3",
+                    (true, false, _) => "rtsl_noise4",
+                    (true, true, 1) => "rtsl_vnoise1",
+                    (true, true, 2) => "rtsl_vnoise2",
+                    (true, true, 3) => "rtsl_vnoise3",
+                    (true, true, _) => "rtsl_vnoise4",
+                    (false, false, 1) => "rtsl_cellnoise1",
+                    (false, false, 2) => "rtsl_cellnoise2",
+                    (false, false, 3) => "rtsl_cellnoise3",
+                    (false, false, _) => "rtsl_cellnoise4",
+                    (false, true, 1) => "rtsl_vcellnoise1",
+                    (false, true, 2) => "rtsl_vcellnoise2",
+                    (false, true, 3) => "rtsl_vcellnoise3",
+                    (false, true, _) => "rtsl_vcellnoise4",
+                };
+                let all = self.concat(&vals);
+                let c = self.call_helper(name, &all.c, all.vary)?;
+                Val { vary: all.vary, c }
+            }
+            Bi::Xcomp | Bi::Ycomp | Bi::Zcomp => {
+                let k = [Bi::Xcomp, Bi::Ycomp, Bi::Zcomp].iter().position(|x| *x == bi).unwrap_or(0);
+                Val { vary: vals[0].vary, c: vec![vals[0].c[k]] }
+            }
+            Bi::SetXcomp | Bi::SetYcomp | Bi::SetZcomp => {
+                let k = [Bi::SetXcomp, Bi::SetYcomp, Bi::SetZcomp].iter().position(|x| *x == bi).unwrap_or(0);
+                let mut t = v(0);
+                let x = v(1);
+                let vary = t.vary || x.vary;
+                t.c[k] = x.c[0];
+                let t = self.concat(&[Val { vary, c: t.c }]);
+                self.write_ref(&refs, &t)?;
+                void
+            }
+            Bi::Comp | Bi::SetComp if e.ty.base == BaseType::Matrix || vals[0].c.len() != 3 => {
+                return unsupported("matrices");
+            }
+            Bi::Comp => {
+                let idx = self.arg_index(args, 1, &vals[1], 3);
+                self.select_elem(&v(0), 1, idx)?
+            }
+            Bi::SetComp => {
+                let idx = self.arg_index(args, 1, &vals[1], 3);
+                let t = v(0);
+                let x = v(2);
+                let vary = t.vary || x.vary || matches!(idx, Idx::Dyn(i) if is_vec(&self.b, i));
+                let mut c = Vec::new();
+                for j in 0..3 {
+                    c.push(match self.idx_cond(idx, j) {
+                        None => t.c[j],
+                        Some(None) => x.c[0],
+                        Some(Some(cond)) => choose(&mut self.b, cond, x.c[0], t.c[j]),
+                    });
+                }
+                let t = self.concat(&[Val { vary, c }]);
+                self.write_ref(&refs, &t)?;
+                void
+            }
+            Bi::Length => {
+                let a = v(0);
+                let d = self.dot(&a.c, &a.c);
+                Val { vary: a.vary, c: vec![self.b.ins().sqrt(d)] }
+            }
+            Bi::Distance => {
+                let d = self.binary(BinaryOp::Sub, Type::POINT, &v(0), &v(1))?;
+                let s = self.dot(&d.c, &d.c);
+                Val { vary: d.vary, c: vec![self.b.ins().sqrt(s)] }
+            }
+            Bi::Normalize => {
+                let a = v(0);
+                let d = self.dot(&a.c, &a.c);
+                let len = self.b.ins().sqrt(d);
+                let zero = konst(&mut self.b, 0.0, len);
+                let one = konst(&mut self.b, 1.0, len);
+                let is0 = self.b.ins().fcmp(FloatCC::Equal, len, zero);
+                let inv = self.b.ins().fdiv(one, len);
+                let c =
+                    a.c.iter()
+                        .map(|x| {
+                            let s = self.b.ins().fmul(*x, inv);
+                            choose(&mut self.b, is0, *x, s)
+                        })
+                        .collect();
+                Val { vary: a.vary, c }
+            }
+            Bi::Ptlined => {
+                let all = self.concat(&vals);
+                let c = self.call_helper("rtsl_ptlined", &all.c, all.vary)?;
+                Val { vary: all.vary, c }
+            }
+            Bi::Faceforward => {
+                let nref = if vals.len() == 3 {
+                    v(2)
+                } else {
+                    let g = Global::lookup("Ng").ok_or_else(|| JitError::Codegen("Ng".into()))?;
+                    let s = self.store_of(PlaceBase::Global(g))?;
+                    self.read_store(&s)
+                };
+                let (n, i) = (v(0), v(1));
+                let vary = n.vary || i.vary || nref.vary;
+                let iw: Vec<Value> = i.c.iter().map(|x| widen(&mut self.b, *x, vary)).collect();
+                let rw: Vec<Value> = nref.c.iter().map(|x| widen(&mut self.b, *x, vary)).collect();
+                let d = self.dot(&iw, &rw);
+                let zero = konst(&mut self.b, 0.0, d);
+                let flip = self.b.ins().fcmp(FloatCC::GreaterThan, d, zero);
+                let c =
+                    n.c.iter()
+                        .map(|x| {
+                            let neg = self.b.ins().fneg(*x);
+                            choose(&mut self.b, flip, neg, *x)
+                        })
+                        .collect();
+                Val { vary, c }
+            }
+            Bi::Reflect => {
+                let (i, n) = (v(0), v(1));
+                let vary = i.vary || n.vary;
+                let iw: Vec<Value> = i.c.iter().map(|x| widen(&mut self.b, *x, vary)).collect();
+                let nw: Vec<Value> = n.c.iter().map(|x| widen(&mut self.b, *x, vary)).collect();
+                let d = self.dot(&iw, &nw);
+                let two = konst(&mut self.b, 2.0, d);
+                let s = self.b.ins().fmul(two, d);
+                let c = iw
+                    .iter()
+                    .zip(&nw)
+                    .map(|(p, q)| {
+                        let m = self.b.ins().fmul(*q, s);
+                        self.b.ins().fsub(*p, m)
+                    })
+                    .collect();
+                Val { vary, c }
+            }
+            _ => return unsupported(format!("the built-in {}", bi.name())),
+        };
+        Ok(r)
+    }
+
+    fn arg_index(&mut self, args: &[Arg], k: usize, v: &Val, n: usize) -> Idx {
+        if let Some(Arg::Value(x)) = args.get(k) {
+            if let ExprKind::Const(Constant::Float(c)) = self.func().expr(*x).kind {
+                return Idx::Const(const_index(c, n));
+            }
+        }
+        self.dyn_index(v.c[0], n)
+    }
+
+    fn write_ref(&mut self, refs: &[Option<Targets>], v: &Val) -> R<()> {
+        match refs.first() {
+            Some(Some(t)) => self.write_targets(t, v),
+            _ => Err(JitError::Codegen("output argument".into())),
+        }
+    }
+}
+
+/// Whether variable `var` of `f` is assigned anywhere in `f` (directly or as an output argument).
+fn assigned(f: &Function, var: usize) -> bool {
+    let hit = |p: &Place| p.base == PlaceBase::Var(ir::VarId(var as u32));
+    f.exprs.iter().any(|e| match &e.kind {
+        ExprKind::Assign { place, .. } => hit(place),
+        ExprKind::Call { args, .. } | ExprKind::CallBuiltin { args, .. } => {
+            args.iter().any(|a| matches!(a, Arg::Ref(p) if hit(p)))
+        }
+        _ => false,
+    })
+}
+
+/// Whether a `return` in `blk` can run under a varying condition (`vdepth > 0`).
+fn divergent_return(f: &Function, blk: &ir::Block, vdepth: u32) -> bool {
+    blk.stmts.iter().any(|s| match &s.kind {
+        StmtKind::Return(_) => vdepth > 0,
+        StmtKind::If { cond, then, otherwise } => {
+            let d = vdepth + u32::from(f.expr(*cond).varying);
+            divergent_return(f, then, d) || divergent_return(f, otherwise, d)
+        }
+        StmtKind::Loop { cond, body, step } => {
+            let d = vdepth + u32::from(cond.is_some_and(|c| f.expr(c).varying));
+            divergent_return(f, body, d) || divergent_return(f, step, d)
+        }
+        _ => false,
+    })
+}
+
+/// Whether a loop's body or step can leave the loop (or an outer one) or continue it under a
+/// varying condition, so that its lanes part ways.
+fn divergent_exit(f: &Function, body: &ir::Block, step: &ir::Block) -> bool {
+    fn walk(f: &Function, blk: &ir::Block, vdepth: u32, nest: u32) -> bool {
+        blk.stmts.iter().any(|s| match &s.kind {
+            StmtKind::Break(n) | StmtKind::Continue(n) => *n > nest && vdepth > 0,
+            StmtKind::If { cond, then, otherwise } => {
+                let d = vdepth + u32::from(f.expr(*cond).varying);
+                walk(f, then, d, nest) || walk(f, otherwise, d, nest)
+            }
+            StmtKind::Loop { cond, body, step } => {
+                let d = vdepth + u32::from(cond.is_some_and(|c| f.expr(c).varying));
+                walk(f, body, d, nest + 1) || walk(f, step, d, nest + 1)
+            }
+            _ => false,
+        })
+    }
+    walk(f, body, 0, 0) || walk(f, step, 0, 0)
+}

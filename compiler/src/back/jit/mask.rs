@@ -1,0 +1,109 @@
+//! Masks and the uniform/varying value shapes.
+//!
+//! Invariants:
+//! - A **varying** float is an `f32x4` (one chunk of four lanes); a **uniform** float is an `f32`.
+//! - A **varying** bool (a lane mask) is an `i32x4` whose lanes are all ones (-1) or all zeros; a
+//!   **uniform** bool is an `i8` that is exactly 0 or 1 (what scalar `fcmp` produces), so `band`,
+//!   `bor` and `icmp_imm eq 0` (not) keep it canonical. `bnot` is never applied to a uniform bool.
+//! - Masked assignment is `bitselect(mask, new, old)`: lanes outside the mask keep the old bits
+//!   exactly (no arithmetic on them), which is what lets stores write inactive lanes back unchanged.
+
+use cranelift_codegen::ir::{types, InstBuilder, MemFlagsData, Value};
+use cranelift_frontend::FunctionBuilder;
+
+pub(super) fn is_vec(b: &FunctionBuilder<'_>, v: Value) -> bool {
+    b.func.dfg.value_type(v).is_vector()
+}
+
+/// A float constant shaped like `like` (scalar or `f32x4`).
+pub(super) fn konst(b: &mut FunctionBuilder<'_>, x: f32, like: Value) -> Value {
+    let vary = is_vec(b, like);
+    fconst(b, x, vary)
+}
+
+pub(super) fn fconst(b: &mut FunctionBuilder<'_>, x: f32, vary: bool) -> Value {
+    let c = b.ins().f32const(x);
+    if vary {
+        b.ins().splat(types::F32X4, c)
+    } else {
+        c
+    }
+}
+
+/// A float made varying (splatted) when `vary` and it is a scalar.
+pub(super) fn widen(b: &mut FunctionBuilder<'_>, v: Value, vary: bool) -> Value {
+    if vary && !is_vec(b, v) {
+        let ty = b.func.dfg.value_type(v);
+        if ty == types::I8 {
+            return to_mask(b, v);
+        }
+        b.ins().splat(types::F32X4, v)
+    } else {
+        v
+    }
+}
+
+/// A bool as a lane mask: uniform `i8` 0/1 becomes all-zeros/all-ones `i32x4`.
+pub(super) fn to_mask(b: &mut FunctionBuilder<'_>, c: Value) -> Value {
+    if is_vec(b, c) {
+        return c;
+    }
+    let wide = b.ins().bmask(types::I32, c);
+    b.ins().splat(types::I32X4, wide)
+}
+
+pub(super) fn mask_as_f32(b: &mut FunctionBuilder<'_>, m: Value) -> Value {
+    b.ins().bitcast(types::F32X4, MemFlagsData::new().with_endianness(cranelift_codegen::ir::Endianness::Little), m)
+}
+
+/// `cond ? a : x` for matching shapes: a uniform `i8` condition selects scalars or vectors; a mask
+/// selects lanes (`bitselect`).
+pub(super) fn choose(b: &mut FunctionBuilder<'_>, cond: Value, a: Value, x: Value) -> Value {
+    let vary = is_vec(b, cond) || is_vec(b, a) || is_vec(b, x);
+    let a = widen(b, a, vary);
+    let x = widen(b, x, vary);
+    if is_vec(b, cond) {
+        let m = mask_as_f32(b, cond);
+        b.ins().bitselect(m, a, x)
+    } else {
+        b.ins().select(cond, a, x)
+    }
+}
+
+/// Lanes of `new` where `mask` is set, `old` elsewhere (bit-exact).
+pub(super) fn merge(b: &mut FunctionBuilder<'_>, mask: Value, new: Value, old: Value) -> Value {
+    let new = widen(b, new, true);
+    let m = mask_as_f32(b, mask);
+    b.ins().bitselect(m, new, old)
+}
+
+pub(super) fn any(b: &mut FunctionBuilder<'_>, m: Value) -> Value {
+    b.ins().vany_true(m)
+}
+
+pub(super) fn zero_mask(b: &mut FunctionBuilder<'_>) -> Value {
+    let z = b.ins().iconst(types::I32, 0);
+    b.ins().splat(types::I32X4, z)
+}
+
+/// Logical and/or/not of bools of either shape (a uniform operand is widened when the other is a
+/// mask).
+pub(super) fn and(b: &mut FunctionBuilder<'_>, x: Value, y: Value) -> Value {
+    let vary = is_vec(b, x) || is_vec(b, y);
+    let (x, y) = (widen(b, x, vary), widen(b, y, vary));
+    b.ins().band(x, y)
+}
+
+pub(super) fn or(b: &mut FunctionBuilder<'_>, x: Value, y: Value) -> Value {
+    let vary = is_vec(b, x) || is_vec(b, y);
+    let (x, y) = (widen(b, x, vary), widen(b, y, vary));
+    b.ins().bor(x, y)
+}
+
+pub(super) fn not(b: &mut FunctionBuilder<'_>, x: Value) -> Value {
+    if is_vec(b, x) {
+        b.ins().bnot(x)
+    } else {
+        b.ins().icmp_imm_u(cranelift_codegen::ir::condcodes::IntCC::Equal, x, 0)
+    }
+}

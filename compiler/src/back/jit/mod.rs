@@ -1,0 +1,312 @@
+//! The Cranelift packet JIT (first slice of issue 3).
+//!
+//! [`compile`] turns a validated [`ir::Module`] into a [`CompiledShader`]: one `JITModule` holding one
+//! function `extern "C" fn(*mut Batch)` that shades every active lane of a batch (the ABI of
+//! `docs/packet-abi.md`). The function walks the batch in chunks of four lanes (`f32x4`) and runs the
+//! whole shader, with every user function inlined, once per chunk that has an active lane.
+//!
+//! Invariants:
+//! - **Never panics on input IR**: anything outside the supported subset is
+//!   `Err(JitError::Unsupported(what))` (see `lower.rs` for the list).
+//! - **Memory safety**: generated code computes addresses only from the batch record, compile-time
+//!   slot numbers and the chunk counter, never from shader data; [`BatchData`] sizes every buffer from
+//!   the [`Layout`], and [`CompiledShader::shade`] refuses a batch made for another layout.
+//! - **Masks**: a lane whose mask is 0 keeps the bits it had in every buffer (stores are whole
+//!   `f32x4` chunks that write back the loaded bits in inactive lanes; wholly inactive chunks are not
+//!   touched at all).
+//! - **Agreement**: every lane computes what the reference interpreter computes for that lane
+//!   (differential tests in `compiler/tests/jit.rs`); arithmetic is evaluated in the interpreter's
+//!   order, and transcendental and noise functions call the same scalar Rust code per lane (one
+//!   helper call per chunk), so results agree bit for bit except where noted in `math.rs`.
+//! - The Cranelift verifier runs in debug and test builds only.
+
+mod layout;
+mod lower;
+mod mask;
+mod math;
+
+pub use layout::{GlobalSlot, Layout, ParamSlot};
+
+use crate::ir;
+use cranelift_codegen::ir::{AbiParam, UserFuncName};
+use cranelift_codegen::settings::{self, Configurable};
+use cranelift_jit::{JITBuilder, JITModule};
+use cranelift_module::{default_libcall_names, Linkage, Module};
+use std::sync::Arc;
+
+/// Why a module could not be compiled.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum JitError {
+    /// A construct this slice of the JIT does not compile yet.
+    Unsupported(String),
+    /// The module has no shader.
+    NoShader,
+    /// Cranelift rejected the generated code (a JIT bug).
+    Codegen(String),
+}
+
+impl std::fmt::Display for JitError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            JitError::Unsupported(what) => write!(f, "the JIT does not support {what} yet"),
+            JitError::NoShader => write!(f, "the module defines no shader"),
+            JitError::Codegen(e) => write!(f, "code generation failed: {e}"),
+        }
+    }
+}
+
+impl std::error::Error for JitError {}
+
+/// The batch record the compiled function reads (`docs/packet-abi.md`). All pointers must be valid
+/// for the sizes the shader's [`Layout`] implies; [`BatchData`] guarantees it.
+#[repr(C)]
+#[derive(Debug)]
+pub struct Batch {
+    /// Number of lanes `n`.
+    pub lanes: u32,
+    /// `n` rounded up to a multiple of 4: the length of every varying array.
+    pub stride: u32,
+    /// `stride` entries, -1 active, 0 inactive.
+    pub mask: *const i32,
+    /// `varying_slots * stride` floats: slot `s` of lane `l` at `s * stride + l`.
+    pub varying: *mut f32,
+    /// `uniform_len` floats.
+    pub uniform: *mut f32,
+    /// One entry per shader parameter: nonzero when the parameter was given a value.
+    pub bound: *const u32,
+    /// Reserved for uniform strings (null in this slice).
+    pub strings: *const u8,
+    /// Reserved for differentials (null in this slice).
+    pub derivs: *const f32,
+    /// Reserved for the host context (null in this slice).
+    pub ctx: *mut u8,
+}
+
+pub(crate) const OFF_STRIDE: i32 = 4;
+pub(crate) const OFF_MASK: i32 = 8;
+pub(crate) const OFF_VARYING: i32 = 16;
+pub(crate) const OFF_UNIFORM: i32 = 24;
+pub(crate) const OFF_BOUND: i32 = 32;
+
+/// The entry point of a compiled shader.
+pub type ShadeFn = unsafe extern "C" fn(*mut Batch);
+
+/// A shader compiled to machine code, with its batch layout.
+pub struct CompiledShader {
+    module: Option<JITModule>,
+    entry: ShadeFn,
+    layout: Arc<Layout>,
+    /// Cranelift IR instructions emitted (before optimisation), for compile-cost measurements.
+    pub ir_insts: usize,
+}
+
+impl std::fmt::Debug for CompiledShader {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("CompiledShader").field("layout", &self.layout).finish()
+    }
+}
+
+impl Drop for CompiledShader {
+    fn drop(&mut self) {
+        if let Some(m) = self.module.take() {
+            // SAFETY: the code is reachable only through `self.entry`, which dies with `self`
+            // (`shade` borrows `self`), so nothing can run it after this point.
+            unsafe { m.free_memory() };
+        }
+    }
+}
+
+impl CompiledShader {
+    pub fn layout(&self) -> &Layout {
+        &self.layout
+    }
+
+    /// A batch of `lanes` lanes for this shader: every lane active, every value 0, no parameter
+    /// bound (the shader evaluates defaults).
+    pub fn batch(&self, lanes: usize) -> BatchData {
+        BatchData::new(self.layout.clone(), lanes)
+    }
+
+    /// Shades every active lane of `batch`.
+    ///
+    /// # Panics
+    /// If `batch` was made by another compiled shader with a different layout.
+    pub fn shade(&self, batch: &mut BatchData) {
+        assert!(
+            Arc::ptr_eq(&self.layout, &batch.layout) || *self.layout == *batch.layout,
+            "a batch made for another shader layout"
+        );
+        let mut rec = Batch {
+            lanes: batch.lanes as u32,
+            stride: batch.stride as u32,
+            mask: batch.mask.as_ptr(),
+            varying: batch.varying.as_mut_ptr(),
+            uniform: batch.uniform.as_mut_ptr(),
+            bound: batch.bound.as_ptr(),
+            strings: std::ptr::null(),
+            derivs: std::ptr::null(),
+            ctx: std::ptr::null_mut(),
+        };
+        // SAFETY: the buffers have the sizes the layout implies (BatchData::new), the layout is the
+        // one the code was compiled for (checked above), and the code stays alive while `self` is
+        // borrowed.
+        unsafe { (self.entry)(&mut rec) }
+    }
+}
+
+/// The buffers of one batch, owned, with accessors by name.
+#[derive(Clone, Debug)]
+pub struct BatchData {
+    layout: Arc<Layout>,
+    lanes: usize,
+    stride: usize,
+    mask: Vec<i32>,
+    varying: Vec<f32>,
+    uniform: Vec<f32>,
+    bound: Vec<u32>,
+}
+
+impl BatchData {
+    pub fn new(layout: Arc<Layout>, lanes: usize) -> BatchData {
+        let stride = lanes.div_ceil(4) * 4;
+        let mut mask = vec![0; stride];
+        mask[..lanes].fill(-1);
+        BatchData {
+            lanes,
+            stride,
+            mask,
+            varying: vec![0.0; layout.varying_slots * stride],
+            uniform: vec![0.0; layout.uniform_len],
+            bound: vec![0; layout.params.len()],
+            layout,
+        }
+    }
+
+    pub fn lanes(&self) -> usize {
+        self.lanes
+    }
+
+    pub fn stride(&self) -> usize {
+        self.stride
+    }
+
+    pub fn layout(&self) -> &Layout {
+        &self.layout
+    }
+
+    pub fn set_active(&mut self, lane: usize, active: bool) {
+        if lane < self.lanes {
+            self.mask[lane] = if active { -1 } else { 0 };
+        }
+    }
+
+    pub fn is_active(&self, lane: usize) -> bool {
+        self.mask.get(lane).is_some_and(|m| *m != 0)
+    }
+
+    /// Every varying float (all slots, all lanes, padding included) set to `value`.
+    pub fn fill_varying(&mut self, value: f32) {
+        self.varying.fill(value);
+    }
+
+    /// The raw varying array (`slot * stride + lane`).
+    pub fn varying(&self) -> &[f32] {
+        &self.varying
+    }
+
+    fn get_lane(&self, varying: bool, offset: usize, n: usize, lane: usize) -> Vec<f32> {
+        if varying {
+            (0..n).map(|k| self.varying[(offset + k) * self.stride + lane]).collect()
+        } else {
+            self.uniform[offset..offset + n].to_vec()
+        }
+    }
+
+    fn set_lane(&mut self, varying: bool, offset: usize, values: &[f32], lane: usize) {
+        for (k, v) in values.iter().enumerate() {
+            if varying {
+                self.varying[(offset + k) * self.stride + lane] = *v;
+            } else {
+                self.uniform[offset + k] = *v;
+            }
+        }
+    }
+
+    /// Sets a global of one lane (uniform globals ignore `lane`). Returns false when the shader does
+    /// not use the global, the lane is out of range, or the value has the wrong number of floats.
+    pub fn set_global(&mut self, name: &str, lane: usize, value: &[f32]) -> bool {
+        let Some(g) = self.layout.global(name).cloned() else { return false };
+        if value.len() != g.components || lane >= self.lanes {
+            return false;
+        }
+        self.set_lane(g.varying, g.offset, value, lane);
+        true
+    }
+
+    /// A global of one lane (`None` when the shader does not use it).
+    pub fn global(&self, name: &str, lane: usize) -> Option<Vec<f32>> {
+        let g = self.layout.global(name)?;
+        (lane < self.lanes).then(|| self.get_lane(g.varying, g.offset, g.components, lane))
+    }
+
+    /// Binds a parameter for one lane (uniform parameters ignore `lane`): arrays take
+    /// `components * len` floats, element by element. Returns false as `set_global` does.
+    pub fn set_param(&mut self, name: &str, lane: usize, value: &[f32]) -> bool {
+        let Some((i, p)) = self.layout.param(name).map(|(i, p)| (i, p.clone())) else { return false };
+        if value.len() != p.floats() || lane >= self.lanes {
+            return false;
+        }
+        self.set_lane(p.varying, p.offset, value, lane);
+        self.bound[i] = 1;
+        true
+    }
+
+    /// A parameter's value in one lane (after shading: its final value when it is an output).
+    pub fn param(&self, name: &str, lane: usize) -> Option<Vec<f32>> {
+        let (_, p) = self.layout.param(name)?;
+        (lane < self.lanes).then(|| self.get_lane(p.varying, p.offset, p.floats(), lane))
+    }
+}
+
+fn unsupported<T>(what: impl Into<String>) -> Result<T, JitError> {
+    Err(JitError::Unsupported(what.into()))
+}
+
+/// Compiles the shader of a validated module.
+pub fn compile(m: &ir::Module) -> Result<CompiledShader, JitError> {
+    let shader = m.shader.as_ref().ok_or(JitError::NoShader)?;
+    let layout = Arc::new(layout::layout(m).map_err(|w| JitError::Unsupported(w.to_string()))?);
+
+    let mut flags = settings::builder();
+    let set = |f: &mut settings::Builder, k: &str, v: &str| f.set(k, v).map_err(|e| JitError::Codegen(e.to_string()));
+    set(&mut flags, "opt_level", "speed")?;
+    set(&mut flags, "use_colocated_libcalls", "false")?;
+    set(&mut flags, "is_pic", "false")?;
+    set(&mut flags, "enable_verifier", if cfg!(debug_assertions) { "true" } else { "false" })?;
+    let isa = cranelift_native::builder()
+        .map_err(|e| JitError::Codegen(e.to_string()))?
+        .finish(settings::Flags::new(flags))
+        .map_err(|e| JitError::Codegen(e.to_string()))?;
+    let mut builder = JITBuilder::with_isa(isa, default_libcall_names());
+    for h in math::HELPERS {
+        builder.symbol(h.name, h.ptr());
+    }
+    let mut jit = JITModule::new(builder);
+
+    let ptr = jit.target_config().pointer_type();
+    let mut ctx = jit.make_context();
+    ctx.func.signature.params.push(AbiParam::new(ptr));
+    let id = jit
+        .declare_function(&format!("shade_{}", shader.name), Linkage::Export, &ctx.func.signature)
+        .map_err(|e| JitError::Codegen(e.to_string()))?;
+    ctx.func.name = UserFuncName::user(0, id.as_u32());
+    let ir_insts = lower::lower(m, &layout, &mut jit, &mut ctx.func)?;
+    jit.define_function(id, &mut ctx).map_err(|e| JitError::Codegen(format!("{e:?}")))?;
+    jit.clear_context(&mut ctx);
+    jit.finalize_definitions().map_err(|e| JitError::Codegen(e.to_string()))?;
+    let code = jit.get_finalized_function(id);
+    // SAFETY: `code` is the function just defined with the signature `fn(*mut Batch)` (one pointer
+    // argument, no result, the platform's C calling convention).
+    let entry: ShadeFn = unsafe { std::mem::transmute::<*const u8, ShadeFn>(code) };
+    Ok(CompiledShader { module: Some(jit), entry, layout, ir_insts })
+}

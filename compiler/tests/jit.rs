@@ -1,0 +1,554 @@
+//! The packet JIT against the reference interpreter, lane by lane.
+//!
+//! Every test compiles a shader with both back ends, fills a batch with random inputs under a random
+//! mask (inactive and padding lanes hold a NaN sentinel), shades it with the JIT and runs the
+//! interpreter once per active lane with the same inputs. Outputs (written globals and output
+//! parameters) must agree within `TOL` relative (the JIT evaluates the interpreter's operations in
+//! the same order and calls the same scalar code for transcendental and noise functions, so they
+//! agree exactly in practice; the tolerance only absorbs what a future polynomial may change), and
+//! inactive lanes must keep the sentinel's exact bits.
+
+use proptest::prelude::*;
+use rtsl_compiler::back::jit::{self, BatchData, CompiledShader, JitError};
+use rtsl_compiler::interp::{self, Limits, ShadingPoint, TestHost, Value};
+use rtsl_compiler::ir::Module;
+use rtsl_compiler::{compile_file, compile_source, Options};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+const TOL: f32 = 1e-5;
+const SENTINEL: u32 = 0x7fc0_1234;
+
+/// A small deterministic generator (xorshift64*).
+struct Rng(u64);
+
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545_f491_4f6c_dd1d)
+    }
+    /// Uniform in [lo, hi).
+    fn f(&mut self, lo: f32, hi: f32) -> f32 {
+        lo + (hi - lo) * ((self.next() >> 40) as f32 / (1u64 << 24) as f32)
+    }
+}
+
+fn module(src: &str) -> Module {
+    let c = compile_source("jit_test.sl", src, &Options::default());
+    assert!(c.ok(), "does not compile:\n{}", c.render());
+    c.module.expect("module")
+}
+
+fn value_of(floats: &[f32], comps: usize) -> Value {
+    match (comps, floats.len()) {
+        (1, 1) => Value::Float(floats[0]),
+        (3, 3) => Value::Triple([floats[0], floats[1], floats[2]]),
+        (c, _) => Value::Array(floats.chunks(c).map(|e| value_of(e, c)).collect()),
+    }
+}
+
+fn floats_of(v: &Value) -> Vec<f32> {
+    match v {
+        Value::Float(x) => vec![*x],
+        Value::Triple(t) => t.to_vec(),
+        Value::Array(items) => items.iter().flat_map(floats_of).collect(),
+        other => panic!("unexpected value {other:?}"),
+    }
+}
+
+fn close(a: f32, b: f32) -> bool {
+    (a.is_nan() && b.is_nan()) || a == b || (a - b).abs() <= TOL * b.abs().max(1.0)
+}
+
+/// Random inputs for one lane: a global's value.
+fn random_global(rng: &mut Rng, name: &str, comps: usize) -> Vec<f32> {
+    if comps == 1 && !matches!(name, "s" | "t" | "u" | "v" | "du" | "dv") {
+        return vec![rng.f(0.0, 1.0)];
+    }
+    match name {
+        "s" | "t" | "u" | "v" => vec![rng.f(0.0, 1.0)],
+        "du" | "dv" => vec![rng.f(0.001, 0.1)],
+        "N" | "Ng" | "I" => {
+            let v = [rng.f(-1.0, 1.0), rng.f(-1.0, 1.0), rng.f(-1.0, 1.0)];
+            let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt().max(1e-3);
+            v.iter().map(|x| x / l).collect()
+        }
+        "Cs" | "Os" | "Ci" | "Oi" => vec![rng.f(0.0, 1.0), rng.f(0.0, 1.0), rng.f(0.0, 1.0)],
+        _ => vec![rng.f(-2.0, 2.0), rng.f(-2.0, 2.0), rng.f(-2.0, 2.0)],
+    }
+}
+
+/// Shades `lanes` random lanes with both back ends and compares. Returns how many lanes ran.
+fn differential(m: &Module, shader: &CompiledShader, lanes: usize, seed: u64, bind_prob: f32) -> usize {
+    let mut rng = Rng(seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1);
+    let layout = shader.layout().clone();
+    let mut batch: BatchData = shader.batch(lanes);
+    batch.fill_varying(f32::from_bits(SENTINEL));
+    let mut active = vec![false; lanes];
+    // Random masks: sometimes all on, sometimes sparse.
+    let density = match seed % 3 {
+        0 => 1.0,
+        1 => 0.5,
+        _ => 0.15,
+    };
+    for (l, a) in active.iter_mut().enumerate() {
+        *a = rng.f(0.0, 1.0) < density;
+        batch.set_active(l, *a);
+    }
+    // Uniform globals and parameters: the same for every lane.
+    let mut uniform_bound: Vec<(String, Vec<f32>)> = Vec::new();
+    for g in layout.globals.iter().filter(|g| !g.varying) {
+        let v = if g.name == "ncomps" { vec![3.0] } else { vec![rng.f(0.0, 1.0)] };
+        batch.set_global(g.name, 0, &v);
+        uniform_bound.push((g.name.to_string(), v));
+    }
+    let mut bound_params: Vec<(String, Option<Vec<f32>>)> = Vec::new();
+    for p in &layout.params {
+        let bind = rng.f(0.0, 1.0) < bind_prob;
+        if bind && !p.varying {
+            let v: Vec<f32> = (0..p.floats()).map(|_| rng.f(-1.0, 2.0)).collect();
+            batch.set_param(&p.name, 0, &v);
+            bound_params.push((p.name.clone(), Some(v)));
+        } else {
+            bound_params.push((p.name.clone(), if bind { Some(Vec::new()) } else { None }));
+        }
+    }
+    let mut lane_inputs: Vec<Vec<(String, Vec<f32>)>> = vec![Vec::new(); lanes];
+    let mut lane_params: Vec<Vec<(String, Vec<f32>)>> = vec![Vec::new(); lanes];
+    for l in 0..lanes {
+        if !active[l] {
+            continue;
+        }
+        for g in layout.globals.iter().filter(|g| g.varying) {
+            let v = random_global(&mut rng, g.name, g.components);
+            assert!(batch.set_global(g.name, l, &v));
+            lane_inputs[l].push((g.name.to_string(), v));
+        }
+        for (p, (_, b)) in layout.params.iter().zip(&bound_params) {
+            if p.varying && b.is_some() {
+                let v: Vec<f32> = (0..p.floats()).map(|_| rng.f(-1.0, 2.0)).collect();
+                assert!(batch.set_param(&p.name, l, &v));
+                lane_params[l].push((p.name.clone(), v));
+            }
+        }
+    }
+    shader.shade(&mut batch);
+
+    let kind = m.shader.as_ref().expect("shader").kind;
+    let mut ran = 0;
+    for l in 0..lanes {
+        if !active[l] {
+            continue;
+        }
+        ran += 1;
+        let mut point = ShadingPoint::new(kind);
+        for (name, v) in uniform_bound.iter().chain(&lane_inputs[l]) {
+            point.set(name, value_of(v, v.len().min(3)));
+        }
+        let mut bound: Vec<(&str, Value)> = Vec::new();
+        for (p, (name, b)) in layout.params.iter().zip(&bound_params) {
+            let floats = match b {
+                Some(v) if !p.varying => v.clone(),
+                Some(_) => lane_params[l].iter().find(|(n, _)| n == name).expect("bound").1.clone(),
+                None => continue,
+            };
+            bound.push((name.as_str(), value_of(&floats, p.components)));
+        }
+        let mut host = TestHost::default();
+        let r = interp::run(m, &bound, &mut point, &mut host, Limits::default()).expect("the interpreter runs");
+        for g in layout.globals.iter().filter(|g| g.written) {
+            let want = floats_of(point.get(g.name).expect("global"));
+            let got = batch.global(g.name, l).expect("global");
+            for (a, b) in got.iter().zip(&want) {
+                assert!(close(*a, *b), "lane {l}: {} is {got:?}, the interpreter says {want:?}", g.name);
+            }
+        }
+        for (p, (name, value)) in layout.params.iter().zip(&r.params) {
+            if !p.output {
+                continue;
+            }
+            let want = floats_of(value);
+            let got = batch.param(name, l).expect("param");
+            for (a, b) in got.iter().zip(&want) {
+                assert!(close(*a, *b), "lane {l}: output {name} is {got:?}, the interpreter says {want:?}");
+            }
+        }
+    }
+    // Inactive and padding lanes keep the sentinel's bits in every varying slot.
+    let stride = batch.stride();
+    for (i, x) in batch.varying().iter().enumerate() {
+        let lane = i % stride;
+        if lane >= lanes || !active[lane] {
+            assert_eq!(x.to_bits(), SENTINEL, "inactive lane {lane} of slot {} was written", i / stride);
+        }
+    }
+    ran
+}
+
+fn check(src: &str) {
+    let m = module(src);
+    let shader = jit::compile(&m).unwrap_or_else(|e| panic!("JIT: {e}\n{src}"));
+    for (seed, lanes) in [(1, 13), (2, 64), (3, 64), (4, 1), (5, 7), (6, 13)] {
+        for bind in [0.0, 1.0] {
+            differential(&m, &shader, lanes, seed, bind);
+        }
+    }
+}
+
+#[test]
+fn constant_surface() {
+    check("surface constant() { Oi = Os; Ci = Os * Cs; }");
+}
+
+#[test]
+fn float_and_triple_math() {
+    check(
+        r#"
+        surface t(float Kd = 0.7; color tint = color(1, 0.5, 0.25); varying float w = 0.5;
+                  output varying float o = 0; output varying vector ov = 0;)
+        {
+            normal Nf = faceforward(normalize(N), I);
+            vector V = -normalize(I);
+            float d = Nf . V;
+            vector r = reflect(I, Nf);
+            point q = P * 2 - vector(1, 2, 3);
+            color c = Cs * tint * Kd + color(abs(d), sign(d - 0.1), floor(s * 4) / 4);
+            c += color(ceil(t * 3), round(u * 5 - 2.5), sqrt(v)) * 0.1;
+            c *= mix(color(1, 0, 0), color(0, 1, 0), smoothstep(0.2, 0.8, s));
+            o = length(q) + distance(P, Ng) + inversesqrt(1 + v) + mod(s * 7, 1.5) + step(0.5, t);
+            o += min(s, t, u) - max(s, t) + clamp(w * 3, 0.2, 0.9) + radians(degrees(v));
+            o += xcomp(r) + ycomp(r) * zcomp(r) + comp(c, 1) + w;
+            o += sin(s * 6) + cos(t * 6) + tan(u) + asin(v) + acos(u) + atan(s, t) + atan(v);
+            o += exp(u) + log(1 + v) + log(2 + s, 10) + pow(s, 2.5);
+            ov = (P ^ N) + vector noise(P * 3) + vector(cellnoise(s * 10, t * 10));
+            ov += vector(noise(s * 4), noise(s, t), noise(P, u));
+            setxcomp(ov, xcomp(ov) + ptlined(P, point(0, 0, 0), point(1, 1, 1)));
+            setcomp(ov, 2, o * 0.5);
+            Ci = c;
+            Oi = Os * (1 - d * d);
+        }
+        "#,
+    );
+}
+
+#[test]
+fn divergent_if_else_and_ternary() {
+    check(
+        r#"
+        surface t(output varying float o = 0;)
+        {
+            if (s > 0.5) {
+                Ci = Cs;
+                if (t < 0.3) Ci *= 2; else Ci = color(t, 0, 0);
+            } else if (u > 0.2 && v < 0.8 || s < 0.1) {
+                Ci = color(1, 0, 1);
+            } else {
+                Ci = 0;
+            }
+            o = s > t ? s - t : (u < 0.5 ? u : -v);
+            float k = 0;
+            k = (s > 0.5) ? (o += 1) : (o -= 1);
+            Oi = color(k, o, !(s > 0.3) ? 1 : 0);
+        }
+        "#,
+    );
+}
+
+#[test]
+fn loops_with_varying_bounds_break_continue() {
+    check(
+        r#"
+        surface t(float n = 6; output varying float o = 0; output varying float cnt = 0;)
+        {
+            float i, j, acc = 0;
+            for (i = 0; i < s * 10; i += 1) {
+                if (i > t * 8) break;
+                if (mod(i, 2) == 1) continue;
+                acc += i;
+            }
+            for (i = 0; i < n; i += 1) {
+                for (j = 0; j < 5; j += 1) {
+                    if (j > u * 5) continue 2;
+                    if (i * j > v * 12) break 2;
+                    cnt += 1;
+                }
+            }
+            float x = s;
+            while (x < 4) { x = x * 2 + 0.1; }
+            o = acc + x;
+            Ci = color(acc, cnt, i);
+        }
+        "#,
+    );
+}
+
+#[test]
+fn uniform_loops_and_branches() {
+    check(
+        r#"
+        surface t(float n = 4; float gain = 2; output float uo = 0;)
+        {
+            float i, total = 0;
+            for (i = 0; i < n; i += 1) {
+                if (i == 2) continue;
+                total += i * gain;
+                if (total > 100) break;
+            }
+            uo = total;
+            if (gain > 1) Ci = Cs * total; else Ci = Cs;
+            Oi = color(total > 3 ? 1 : 0.5);
+        }
+        "#,
+    );
+}
+
+#[test]
+fn functions_with_outputs_and_returns() {
+    check(
+        r#"
+        float twice(float x; output float y) { y = x + 1; return 2 * x; }
+        float early(float x) {
+            if (x > 0.5) return 1;
+            float k;
+            for (k = 0; k < 10; k += 1) {
+                if (k * 0.1 > x) return k;
+            }
+            return -1;
+        }
+        color shade_it(color c; float a) { return c * a + color(a); }
+        void bump_it(output point p; float amt) { p += amt * N; }
+        surface t(output varying float o = 0; output varying float e = 0;)
+        {
+            float y;
+            o = twice(s, y) + y * 10;
+            e = early(t) + early(0.7);
+            float scale = 10;
+            float scaled(float x) { extern float scale; scale += 1; return x * scale; }
+            o += scaled(u) + scale;
+            point p = P;
+            bump_it(p, 0.1);
+            Ci = shade_it(Cs, v) + color(p);
+            Oi = Os;
+        }
+        "#,
+    );
+}
+
+#[test]
+fn arrays_and_components() {
+    check(
+        r#"
+        surface t(float w[3] = {0.2, 0.3, 0.5}; varying float vw[2] = {1, 2}; output varying float o = 0;)
+        {
+            float a[4] = {s, t, u, v};
+            color cs[2] = {Cs, color(1, 0, 0)};
+            float i = floor(s * 6) - 1;
+            a[i] = a[i] * 10 + w[t * 3];
+            a[2] += vw[u * 2];
+            cs[1][2] = a[3];
+            point p = P;
+            p[1] = p[2] + p[t * 3];
+            o = a[0] + a[1] + a[2] + a[3] + a[-1] + a[9] + cs[s * 2][1] + cs[1][2] + p[1];
+            Ci = cs[1];
+        }
+        "#,
+    );
+}
+
+#[test]
+fn imager_and_volume_shaders() {
+    check(
+        r#"
+        imager background(color background = 1;)
+        {
+            Ci += (1 - alpha) * background;
+            Oi = 1;
+            alpha = 1;
+        }
+        "#,
+    );
+    check(
+        r#"
+        volume fogish(float distance = 1; color background = 0;)
+        {
+            float d = 1 - exp(-length(I) / distance);
+            Ci = mix(Ci, background, d);
+            Oi = mix(Oi, color(1, 1, 1), d);
+        }
+        "#,
+    );
+}
+
+#[test]
+fn unsupported_constructs_are_reported_not_panicked() {
+    for src in [
+        "surface t() { Ci = diffuse(N); }",
+        "surface t(string tex = \"\") { if (tex != \"\") Ci = texture(tex); }",
+        "surface t() { illuminance(P) { Ci += Cl; } }",
+        "surface t() { matrix m = 1; Ci = transform(m, P); }",
+        "surface t() { Ci = color \"hsv\" (s, 1, 1); }",
+    ] {
+        let m = module(src);
+        match jit::compile(&m) {
+            Err(JitError::Unsupported(_)) => {}
+            Err(e) => panic!("{src}: {e}"),
+            Ok(_) => panic!("{src} compiled"),
+        }
+    }
+}
+
+// ---- Random expression trees (cranelift-fuzzgen style, small and fast) ----
+
+fn leaf() -> impl Strategy<Value = String> {
+    prop_oneof![
+        Just("s".to_string()),
+        Just("t".to_string()),
+        Just("u".to_string()),
+        Just("xcomp(P)".to_string()),
+        Just("zcomp(N)".to_string()),
+        Just("a".to_string()),
+        Just("w".to_string()),
+        (-4.0f32..4.0).prop_map(|x| format!("({x:.3})")),
+    ]
+}
+
+fn expr() -> impl Strategy<Value = String> {
+    leaf().prop_recursive(4, 24, 3, |inner| {
+        prop_oneof![
+            (inner.clone(), inner.clone(), prop::sample::select(vec!["+", "-", "*", "/"]))
+                .prop_map(|(a, b, op)| format!("({a} {op} {b})")),
+            inner.clone().prop_map(|a| format!("(-({a}))")),
+            (
+                inner.clone(),
+                prop::sample::select(vec!["abs", "floor", "ceil", "round", "sqrt", "sin", "cos", "exp", "sign"])
+            )
+                .prop_map(|(a, f)| format!("{f}({a})")),
+            (inner.clone(), inner.clone(), prop::sample::select(vec!["min", "max", "mod", "pow", "step"]))
+                .prop_map(|(a, b, f)| format!("{f}({a}, {b})")),
+            (inner.clone(), inner.clone(), inner.clone(), prop::sample::select(vec!["clamp", "mix", "smoothstep"]))
+                .prop_map(|(a, b, c, f)| format!("{f}({a}, {b}, {c})")),
+            (
+                inner.clone(),
+                inner.clone(),
+                inner.clone(),
+                inner.clone(),
+                prop::sample::select(vec!["<", ">", "<=", ">=", "==", "!="])
+            )
+                .prop_map(|(a, b, c, d, op)| format!("(({a} {op} {b}) ? {c} : {d})")),
+        ]
+    })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 48, .. ProptestConfig::default() })]
+    #[test]
+    fn random_expressions_agree(e in expr(), seed in 0u64..1000) {
+        let src = format!(
+            "surface t(float a = 0.5; varying float w = 0.25; output varying float o = 0;) \
+             {{ o = {e}; Ci = color(o, o * 0.5, 1 - o); }}"
+        );
+        let m = module(&src);
+        let shader = jit::compile(&m).unwrap_or_else(|err| panic!("JIT: {err}\n{src}"));
+        differential(&m, &shader, 13, seed, 0.5);
+        differential(&m, &shader, 16, seed + 1, 1.0);
+    }
+}
+
+// ---- The shader library and corpus ----
+
+fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
+    let mut entries: Vec<PathBuf> =
+        std::fs::read_dir(dir).expect("dir").filter_map(|e| e.ok().map(|e| e.path())).collect();
+    entries.sort();
+    for p in entries {
+        if p.is_dir() {
+            walk(&p, out);
+        } else if p.extension().is_some_and(|e| e == "sl") {
+            out.push(p);
+        }
+    }
+}
+
+#[test]
+fn the_library_and_corpus_compile_or_report_unsupported() {
+    let mut files = Vec::new();
+    walk(Path::new("../stdlib_shaders"), &mut files);
+    walk(Path::new("../tests/corpus"), &mut files);
+    let mut options = Options::default();
+    options.preprocessor.include_paths.push(PathBuf::from("../tests/corpus/include"));
+    let (mut compiled, mut ran) = (Vec::new(), 0);
+    let mut reasons: std::collections::BTreeMap<String, usize> = Default::default();
+    for path in &files {
+        let c = compile_file(path, &options).expect("readable");
+        let m = c.module.unwrap_or_else(|| panic!("{} does not compile", path.display()));
+        let start = Instant::now();
+        match jit::compile(&m) {
+            Ok(shader) => {
+                let us = start.elapsed().as_micros();
+                compiled.push((path.display().to_string(), us, shader.ir_insts));
+                // Shaders the interpreter can run are checked against it too.
+                let mut point = ShadingPoint::new(m.shader.as_ref().expect("shader").kind);
+                if interp::run(&m, &[], &mut point, &mut TestHost::default(), Limits::default()).is_ok() {
+                    for seed in 0..3 {
+                        differential(&m, &shader, 13, seed, 0.0);
+                    }
+                    ran += 1;
+                }
+            }
+            Err(JitError::Unsupported(what)) => *reasons.entry(what).or_default() += 1,
+            Err(e) => panic!("{}: {e}", path.display()),
+        }
+    }
+    for (p, us, n) in &compiled {
+        eprintln!("jit: {p}: {us} us, {n} Cranelift instructions");
+    }
+    for (what, n) in &reasons {
+        eprintln!("jit: unsupported: {what} ({n})");
+    }
+    eprintln!("jit: {} of {} shaders compile; {ran} checked against the interpreter", compiled.len(), files.len());
+    assert!(compiled.iter().any(|(p, _, _)| p.ends_with("constant.sl")));
+}
+
+/// A rough speed comparison; run with `cargo test --release -p rtsl-compiler --test jit -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn speed_against_the_interpreter() {
+    let src = r#"
+        surface t(float Kd = 0.8; output varying float o = 0;)
+        {
+            normal Nf = faceforward(normalize(N), I);
+            float d = max(0, Nf . normalize(-I));
+            float i, acc = 0;
+            for (i = 0; i < 8; i += 1) { acc += sin(s * i) * 0.1 + noise(P * i); }
+            o = acc;
+            Ci = Cs * Kd * d * smoothstep(0.2, 0.8, t) + color(acc);
+            Oi = Os;
+        }
+    "#;
+    let m = module(src);
+    let shader = jit::compile(&m).expect("jit");
+    let mut batch = shader.batch(64);
+    let mut rng = Rng(7);
+    for l in 0..64 {
+        for g in shader.layout().globals.clone() {
+            batch.set_global(g.name, l, &random_global(&mut rng, g.name, g.components));
+        }
+    }
+    let n = 2000;
+    let start = Instant::now();
+    for _ in 0..n {
+        shader.shade(&mut batch);
+    }
+    let jit_ns = start.elapsed().as_nanos() as f64 / (n * 64) as f64;
+    let start = Instant::now();
+    for k in 0..n * 64 / 16 {
+        let mut point = ShadingPoint::new(m.shader.as_ref().expect("shader").kind);
+        point.set("P", Value::Triple([k as f32 * 0.001, 0.2, 0.3]));
+        point.set("s", Value::Float(0.3));
+        interp::run(&m, &[], &mut point, &mut TestHost::default(), Limits::default()).expect("runs");
+    }
+    let interp_ns = start.elapsed().as_nanos() as f64 / (n * 64 / 16) as f64;
+    eprintln!("jit {jit_ns:.1} ns/lane, interpreter {interp_ns:.1} ns/lane ({:.1}x)", interp_ns / jit_ns);
+}
