@@ -1,7 +1,8 @@
 //! The typed, checked intermediate representation that back ends consume.
 //!
 //! A [`Module`] is what one `.sl` file compiles to: at most one [`Shader`] and the user functions it
-//! calls, all as [`Function`]s. Every function owns its variables and an arena of expressions; handles
+//! can call, all as [`Function`]s (functions a shader never reaches, such as most of an included
+//! header's, are checked and then left out; a file without a shader keeps every function). Every function owns its variables and an arena of expressions; handles
 //! ([`VarId`], [`ExprId`], [`FuncId`]) are plain indices into those vectors.
 //!
 //! ## Semantics

@@ -181,12 +181,68 @@ pub fn check(unit: &ast::TranslationUnit, interner: &Interner, diags: &mut Diagn
         return Checked { module: None };
     }
     let mut functions: Vec<Function> = c.functions.into_iter().flatten().collect();
-    let shader = c.shader;
-    uniformity::infer(&mut functions, shader.as_ref(), c.diags);
+    let mut shader = c.shader;
+    let needed = reachable(&functions, shader.as_ref());
+    uniformity::infer(&mut functions, shader.as_ref(), &needed, c.diags);
     if c.diags.has_errors() {
         return Checked { module: None };
     }
+    // Functions the shader never calls (most of a header's) have been checked; back ends need only
+    // the rest.
+    let functions = prune(functions, &needed, shader.as_mut());
     Checked { module: Some(Module { shader, functions }) }
+}
+
+/// Which functions a shader can reach through calls (all of them in a file without a shader).
+fn reachable(functions: &[Function], shader: Option<&ir::Shader>) -> Vec<bool> {
+    let Some(shader) = shader else {
+        return vec![true; functions.len()];
+    };
+    let mut seen = vec![false; functions.len()];
+    let mut stack = vec![shader.body.0 as usize];
+    while let Some(i) = stack.pop() {
+        if i >= seen.len() || seen[i] {
+            continue;
+        }
+        seen[i] = true;
+        for e in &functions[i].exprs {
+            if let ir::ExprKind::Call { func, .. } = e.kind {
+                stack.push(func.0 as usize);
+            }
+        }
+    }
+    seen
+}
+
+/// Drops the functions not `needed`, renumbering calls and the shader's body.
+fn prune(functions: Vec<Function>, needed: &[bool], shader: Option<&mut ir::Shader>) -> Vec<Function> {
+    if needed.iter().all(|n| *n) {
+        return functions;
+    }
+    let mut new_id = vec![u32::MAX; functions.len()];
+    let mut next = 0;
+    for (i, keep) in needed.iter().enumerate() {
+        if *keep {
+            new_id[i] = next;
+            next += 1;
+        }
+    }
+    if let Some(s) = shader {
+        s.body = FuncId(new_id[s.body.0 as usize]);
+    }
+    functions
+        .into_iter()
+        .zip(needed)
+        .filter(|(_, keep)| **keep)
+        .map(|(mut f, _)| {
+            for e in &mut f.exprs {
+                if let ir::ExprKind::Call { func, .. } = &mut e.kind {
+                    *func = FuncId(new_id[func.0 as usize]);
+                }
+            }
+            f
+        })
+        .collect()
 }
 
 impl Checker<'_> {

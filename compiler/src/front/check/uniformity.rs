@@ -18,7 +18,9 @@ use crate::source::Span;
 
 /// Infers storage for every function and the shader, reporting varying values that reach uniform
 /// variables.
-pub fn infer(functions: &mut [Function], shader: Option<&Shader>, diags: &mut Diagnostics) {
+/// `needed[i]` says whether function `i` is kept in the module (reachable from the shader): only
+/// those get pass B's annotations; every function gets pass A and its errors.
+pub fn infer(functions: &mut [Function], shader: Option<&Shader>, needed: &[bool], diags: &mut Diagnostics) {
     let body = shader.map(|s| s.body);
     let writes = written_params(functions);
     // Pass A, callees before callers (there is no recursion), so each function is analysed once with
@@ -54,7 +56,7 @@ pub fn infer(functions: &mut [Function], shader: Option<&Shader>, diags: &mut Di
     }
     // Pass B: annotations for user functions, parameters varying.
     for (i, f) in functions.iter_mut().enumerate() {
-        if Some(FuncId(i as u32)) == body {
+        if Some(FuncId(i as u32)) == body || !needed.get(i).copied().unwrap_or(true) {
             continue;
         }
         let mut a = Analysis::new(f, &reads, &writes, true, false);
