@@ -73,6 +73,17 @@ fn the_conformance_corpus_compiles() {
     }
 }
 
+/// The second batch stresses idioms of the classic collections (an uber light, filtered patterns,
+/// fBm with early exits, preprocessor-heavy code, PI without a definition, string arrays as map names).
+#[test]
+fn the_second_corpus_compiles_without_warnings() {
+    let results = compile_all(Path::new("../tests/corpus2"), Some(Path::new("../tests/corpus2/include")));
+    assert!(results.len() >= 25);
+    let bad: Vec<String> =
+        results.iter().filter(|(_, c)| !c.diagnostics.is_empty()).map(|(p, c)| format!("{}:\n{}", p.display(), c.render())).collect();
+    assert!(bad.is_empty(), "{}", bad.join("\n"));
+}
+
 #[test]
 fn interfaces_report_parameters_and_defaults() {
     let c = compile_file(Path::new("../stdlib_shaders/surface/plastic.sl"), &Options::default()).expect("readable");

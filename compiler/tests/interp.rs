@@ -34,8 +34,10 @@ fn the_library_and_corpus_run_in_the_interpreter() {
     let mut files = Vec::new();
     walk(Path::new("../stdlib_shaders"), &mut files);
     walk(Path::new("../tests/corpus"), &mut files);
+    walk(Path::new("../tests/corpus2"), &mut files);
     let mut options = Options::default();
     options.preprocessor.include_paths.push(PathBuf::from("../tests/corpus/include"));
+    options.preprocessor.include_paths.push(PathBuf::from("../tests/corpus2/include"));
     let (mut ran, mut unsupported) = (0, 0);
     for path in &files {
         let c = compile_file(path, &options).expect("readable");

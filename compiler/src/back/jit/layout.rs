@@ -36,8 +36,10 @@ pub struct ParamSlot {
     pub varying: bool,
     pub output: bool,
     pub offset: usize,
-    /// Floats per element: 1 for float, 3 for triples.
+    /// Floats per element: 1 for float (and string handles), 3 for triples, 16 for matrices.
     pub components: usize,
+    /// A string parameter: its uniform slot holds a string handle (see `BatchData::set_string_param`).
+    pub string: bool,
     /// Array length (1 for a scalar).
     pub len: usize,
 }
@@ -57,6 +59,8 @@ pub struct Layout {
     pub varying_slots: usize,
     /// Number of floats in the uniform block.
     pub uniform_len: usize,
+    /// The shader's string constants: handles `0..strings.len()` of every batch's string table.
+    pub strings: Vec<String>,
 }
 
 impl Layout {
@@ -69,11 +73,13 @@ impl Layout {
     }
 }
 
-/// Floats per element of a type the JIT stores (`None` for strings, matrices, void).
+/// Floats per element of a type the JIT stores (`None` for void and bools): a string is one uniform
+/// float whose bits are its handle, a matrix sixteen floats (row-major).
 pub(super) fn components(ty: Type) -> Option<usize> {
     match ty.base {
-        BaseType::Float => Some(1),
+        BaseType::Float | BaseType::String => Some(1),
         b if b.is_triple() => Some(3),
+        BaseType::Matrix => Some(16),
         _ => None,
     }
 }
@@ -103,11 +109,17 @@ pub(super) fn layout(m: &Module) -> Result<Layout, &'static str> {
                             }
                         }
                     }
-                    // The two-argument faceforward reads Ng.
-                    if let ExprKind::CallBuiltin { builtin: crate::builtins::Builtin::Faceforward, args, .. } = &e.kind
-                    {
-                        if args.len() == 2 {
-                            if let Some(g) = Global::lookup("Ng") {
+                    // Built-ins that read globals implicitly.
+                    if let ExprKind::CallBuiltin { builtin, args, .. } = &e.kind {
+                        use crate::builtins::Builtin as Bi;
+                        let implicit: &[&str] = match builtin {
+                            Bi::Faceforward if args.len() == 2 => &["Ng"],
+                            Bi::Ambient | Bi::Diffuse | Bi::Specular | Bi::Phong => &["P"],
+                            Bi::Texture => &["s", "t"],
+                            _ => &[],
+                        };
+                        for name in implicit {
+                            if let Some(g) = Global::lookup(name) {
                                 used[g.0 as usize] = true;
                             }
                         }
@@ -117,6 +129,10 @@ pub(super) fn layout(m: &Module) -> Result<Layout, &'static str> {
             }
         }
     }
+    // Light statements read and write the light globals.
+    for f in &m.functions {
+        light_globals(&f.body, &mut used, &mut written);
+    }
     let mut l = Layout::default();
     for pass_varying in [true, false] {
         for (i, g) in GLOBALS.iter().enumerate() {
@@ -124,7 +140,7 @@ pub(super) fn layout(m: &Module) -> Result<Layout, &'static str> {
                 continue;
             }
             let comps = g.ty.components();
-            if !(comps == 1 || comps == 3) {
+            if !(comps == 1 || comps == 3) || g.ty == BaseType::String {
                 return Err("a matrix or string global");
             }
             let offset = if g.varying { &mut l.varying_slots } else { &mut l.uniform_len };
@@ -140,7 +156,11 @@ pub(super) fn layout(m: &Module) -> Result<Layout, &'static str> {
         }
     }
     for p in &shader.params {
-        let comps = components(p.ty).ok_or("a string or matrix shader parameter")?;
+        let comps = components(p.ty).ok_or("a shader parameter of an unstorable type")?;
+        let string = p.ty.base == BaseType::String;
+        if string && p.varying {
+            return Err("a varying string parameter");
+        }
         let len = match p.ty.array {
             None => 1,
             Some(_) => p.ty.array_len().ok_or("an unsized array parameter")? as usize,
@@ -152,9 +172,56 @@ pub(super) fn layout(m: &Module) -> Result<Layout, &'static str> {
             output: p.output,
             offset: *offset,
             components: comps,
+            string,
             len,
         });
         *offset += comps * len;
     }
     Ok(l)
+}
+
+/// Marks `L`, `Cl`, `Ol` (illuminance: set per light and restored), `L` and `Ps` (illuminate, solar)
+/// as used, and the globals those statements set as written.
+fn light_globals(blk: &crate::ir::Block, used: &mut [bool], written: &mut [bool]) {
+    use crate::ir::StmtKind;
+    fn mark(names: &[&str], write: bool, used: &mut [bool], written: &mut [bool]) {
+        for name in names {
+            if let Some(g) = Global::lookup(name) {
+                used[g.0 as usize] = true;
+                written[g.0 as usize] |= write;
+            }
+        }
+    }
+    for s in &blk.stmts {
+        match &s.kind {
+            StmtKind::If { then, otherwise, .. } => {
+                light_globals(then, used, written);
+                light_globals(otherwise, used, written);
+            }
+            StmtKind::Loop { body, step, .. } => {
+                light_globals(body, used, written);
+                light_globals(step, used, written);
+            }
+            StmtKind::Illuminance { body, .. } => {
+                mark(&["L", "Cl", "Ol"], false, used, written);
+                light_globals(body, used, written);
+            }
+            StmtKind::Illuminate { body, .. } => {
+                mark(&["Ps"], false, used, written);
+                mark(&["L"], true, used, written);
+                light_globals(body, used, written);
+            }
+            StmtKind::Solar { cone, body } => {
+                if cone.is_some() {
+                    mark(&["L"], true, used, written);
+                }
+                light_globals(body, used, written);
+            }
+            StmtKind::Gather { body, otherwise, .. } => {
+                light_globals(body, used, written);
+                light_globals(otherwise, used, written);
+            }
+            _ => {}
+        }
+    }
 }

@@ -19,10 +19,20 @@
 //! - **Calls** are inlined with the interpreter's copy-in/copy-out semantics: arguments to output
 //!   and captured parameters are read when the call starts and written back (under the call's
 //!   `exec`) when it returns; place indices are evaluated once.
-//! - Unsupported here: strings (beyond nothing), matrices, space casts, light loops (`illuminance`,
-//!   `illuminate`, `solar`, `gather`), derivatives, texture, ray tracing, message passing, and the
-//!   built-ins not listed in `builtin`.
+//! - **Uniform mode**: a call whose callee reads no varying state and whose arguments are all
+//!   uniform is lowered with uniform locals and uniform control flow (`Frame::uniform`), whatever the
+//!   checker inferred for the callee's locals in general; its result can then reach uniform storage.
+//! - **Strings** are uniform `f32`s holding a handle's bits (handles are interned per batch: `==` is
+//!   an integer compare); **matrices** 16 components, row-major, identity when uninitialised; matrix
+//!   products, inverses and everything from the renderer go through chunk helpers (`math.rs`,
+//!   `host.rs`), one call per chunk.
+//! - **Light loops**: see `illuminance`; `illuminate` masks by its cone, `solar` sets `L`.
+//! - Unsupported here: `gather`, derivatives (`Du`, `Dv`, `Deriv`, `area`, `calculatenormal`,
+//!   `filterstep`), varying strings, `concat`/`format`/`printf`/`match`, `random`, `spline`,
+//!   `pnoise`, `specularbrdf`, `bump`, point clouds, and built-ins not handled in `builtin` or
+//!   `builtin_ext`.
 
+use super::host;
 use super::layout::{components, Layout};
 use super::mask::{self, and, any, choose, fconst, is_vec, konst, merge, not, or, to_mask, widen};
 use super::math;
@@ -77,6 +87,9 @@ struct Frame<'m> {
     ret_block: Block,
     depth: u32,
     loops: Vec<LoopCx>,
+    /// Lowered in uniform mode (see `call`): every local is uniform storage and the IR's varying
+    /// flags, which describe the general case, are ignored in favour of the actual shapes.
+    uniform: bool,
 }
 
 /// An array element or triple component, known at compile time or computed per lane.
@@ -114,16 +127,20 @@ struct Lower<'m, 'b> {
     stride_bytes: Option<Value>,
     uniform: Option<Value>,
     fn_div: HashMap<u32, bool>,
+    /// The batch record (the entry's argument), passed to host helpers.
+    batch: Option<Value>,
+    /// The string constants, by handle (`""` is handle 0, so zeroed storage is the empty string).
+    strings: Vec<String>,
 }
 
 /// Lowers the module's shader into `func` (signature `fn(*mut Batch)`); returns the number of
-/// Cranelift instructions emitted.
+/// Cranelift instructions emitted and the string constants (handles `0..n`).
 pub(super) fn lower(
     m: &Module,
     layout: &Layout,
     jit: &mut JITModule,
     func: &mut cranelift_codegen::ir::Function,
-) -> R<usize> {
+) -> R<(usize, Vec<String>)> {
     let mut fctx = FunctionBuilderContext::new();
     let config = jit.target_config();
     let ptr = config.pointer_type();
@@ -145,12 +162,15 @@ pub(super) fn lower(
         stride_bytes: None,
         uniform: None,
         fn_div: HashMap::new(),
+        batch: None,
+        strings: vec![String::new()],
     };
     l.shade()?;
     l.b.seal_all_blocks();
     let n = l.b.func.dfg.num_insts();
+    let strings = std::mem::take(&mut l.strings);
     l.b.finalize(config);
-    Ok(n)
+    Ok((n, strings))
 }
 
 /// The interpreter's `index_of` on a constant.
@@ -250,6 +270,7 @@ impl<'m> Lower<'m, '_> {
         self.b.append_block_params_for_function_params(entry);
         self.b.switch_to_block(entry);
         let batch = self.b.block_params(entry)[0];
+        self.batch = Some(batch);
         let stride32 = self.b.ins().load(types::I32, mem(), batch, OFF_STRIDE);
         let stride = self.b.ins().uextend(self.ptr, stride32);
         let mask_p = self.b.ins().load(self.ptr, mem(), batch, OFF_MASK);
@@ -307,7 +328,7 @@ impl<'m> Lower<'m, '_> {
             self.globals[gs.global.0 as usize] = Some(s);
         }
         let body = self.m.function(shader.body);
-        let frame = self.new_frame(body, &[])?;
+        let frame = self.new_frame(body, &[], false)?;
         self.frames.push(frame);
         let saved = self.exec();
         for (i, p) in shader.params.iter().enumerate() {
@@ -368,7 +389,7 @@ impl<'m> Lower<'m, '_> {
     }
 
     /// A frame for `f` with zeroed locals and parameters initialised from `args` (copy-in).
-    fn new_frame(&mut self, f: &'m Function, args: &[(Val, Option<bool>)]) -> R<Frame<'m>> {
+    fn new_frame(&mut self, f: &'m Function, args: &[(Val, Option<bool>)], uniform: bool) -> R<Frame<'m>> {
         let mut vars = Vec::with_capacity(f.vars.len());
         for (i, var) in f.vars.iter().enumerate() {
             let comps = match components(var.ty) {
@@ -389,7 +410,7 @@ impl<'m> Lower<'m, '_> {
                         args.get(k).cloned().ok_or_else(|| JitError::Codegen("missing argument".into()))?;
                     // Specialised per call: a parameter the callee never assigns takes the
                     // argument's shape, so uniform arguments keep uniform code in the callee.
-                    let vary = by_ref.unwrap_or(v.vary || (var.varying && assigned(f, i)));
+                    let vary = by_ref.unwrap_or(v.vary || (var.varying && assigned(f, i) && !uniform));
                     let s = self.new_store(vary, v.c.len(), comps);
                     self.init_store(&s, &v)?;
                     s
@@ -402,13 +423,27 @@ impl<'m> Lower<'m, '_> {
                             None => return unsupported("an unsized array local"),
                         },
                     };
-                    self.zero_store(var.varying, n * comps, comps)
+                    let vary = var.varying && !uniform;
+                    let s = self.zero_store(vary, n * comps, comps);
+                    if var.ty.base == BaseType::Matrix {
+                        // An uninitialised matrix is the identity (the interpreter's zero value).
+                        let one = fconst(&mut self.b, 1.0, vary);
+                        for (k, v) in s.vars.iter().enumerate() {
+                            if (k % 16) % 5 == 0 {
+                                self.b.def_var(*v, one);
+                            }
+                        }
+                    }
+                    s
                 }
             };
+            if var.ty.base == BaseType::String && store.vary {
+                return unsupported("varying strings");
+            }
             vars.push(Some(store));
         }
         let ret_block = self.b.create_block();
-        Ok(Frame { f, vars, ret: None, ret_block, depth: self.vdepth, loops: Vec::new() })
+        Ok(Frame { f, vars, ret: None, ret_block, depth: self.vdepth, loops: Vec::new(), uniform })
     }
 
     // ---- Statements ----
@@ -465,8 +500,9 @@ impl<'m> Lower<'m, '_> {
                 }
             }
             StmtKind::Loop { cond, body, step } => {
-                let vary_cond = cond.is_some_and(|c| f.expr(c).varying);
-                let divergent = vary_cond || divergent_exit(f, body, step);
+                let uniform = self.frame().uniform;
+                let vary_cond = !uniform && cond.is_some_and(|c| f.expr(c).varying);
+                let divergent = !uniform && (vary_cond || divergent_exit(f, body, step));
                 if vary_cond {
                     self.vdepth += 1;
                 }
@@ -553,9 +589,51 @@ impl<'m> Lower<'m, '_> {
                 }
                 return Ok(true);
             }
-            StmtKind::Illuminance { .. } => return unsupported("illuminance"),
-            StmtKind::Illuminate { .. } => return unsupported("illuminate"),
-            StmtKind::Solar { .. } => return unsupported("solar"),
+            StmtKind::Illuminance { category, position, cone, body } => {
+                self.illuminance(*category, *position, *cone, body)?;
+            }
+            StmtKind::Illuminate { position, cone, body } => {
+                let from = self.expr(*position)?;
+                let cone = match cone {
+                    Some((a, b)) => Some((self.expr(*a)?, self.expr(*b)?)),
+                    None => None,
+                };
+                let ps = self.global_val("Ps")?;
+                let l = self.binary(BinaryOp::Sub, Type::POINT, &ps, &from)?;
+                match cone {
+                    None => {
+                        self.set_global("L", &l)?;
+                        self.block(body)?
+                    }
+                    Some((axis, angle)) => {
+                        let all = self.concat(&[l.clone(), axis, angle]);
+                        let ok = self.call_helper("rtsl_cone", &all.c, true)?[0];
+                        let zero = self.fconst(0.0, true);
+                        let ok = self.b.ins().fcmp(FloatCC::NotEqual, ok, zero);
+                        let save = self.exec();
+                        self.vdepth += 1;
+                        self.div += 1;
+                        let run = self.b.ins().band(save, ok);
+                        // L is set only where the body runs.
+                        self.set_exec(run);
+                        self.set_global("L", &l)?;
+                        let after = self.masked_block(run, body)?;
+                        let skipped = self.b.ins().band_not(save, ok);
+                        let e = self.b.ins().bor(after, skipped);
+                        self.set_exec(e);
+                        self.vdepth -= 1;
+                        self.div -= 1;
+                    }
+                }
+            }
+            StmtKind::Solar { cone, body } => {
+                if let Some((a, b)) = cone {
+                    let axis = self.expr(*a)?;
+                    self.expr(*b)?;
+                    self.set_global("L", &axis)?;
+                }
+                self.block(body)?;
+            }
             StmtKind::Gather { .. } => return unsupported("gather"),
         }
         Ok(false)
@@ -751,7 +829,10 @@ impl<'m> Lower<'m, '_> {
         let e = f.expr(id);
         match &e.kind {
             ExprKind::Const(Constant::Float(x)) => Ok(Val { vary: false, c: vec![self.b.ins().f32const(*x)] }),
-            ExprKind::Const(Constant::String(_)) => unsupported("strings"),
+            ExprKind::Const(Constant::String(x)) => {
+                let h = self.string_handle(x);
+                Ok(Val { vary: false, c: vec![self.b.ins().f32const(f32::from_bits(h))] })
+            }
             ExprKind::Var(v) => {
                 let s = self.store_of(PlaceBase::Var(*v))?;
                 Ok(self.read_store(&s))
@@ -770,8 +851,8 @@ impl<'m> Lower<'m, '_> {
             }
             ExprKind::Unary { op: UnaryOp::Neg, arg } => {
                 let a = self.expr(*arg)?;
-                if !e.ty.base.is_numeric() {
-                    return unsupported("matrices");
+                if !(e.ty.base.is_numeric() || e.ty.base == BaseType::Matrix) {
+                    return unsupported(format!("negation of {}", e.ty));
                 }
                 Ok(Val { vary: a.vary, c: a.c.iter().map(|x| self.b.ins().fneg(*x)).collect() })
             }
@@ -794,16 +875,17 @@ impl<'m> Lower<'m, '_> {
                 self.convert(a, from, e.ty)
             }
             ExprKind::Construct { args } => {
-                if e.ty.base == BaseType::Matrix {
-                    return unsupported("matrices");
-                }
                 let mut vals = Vec::new();
                 for a in args {
                     vals.push(self.expr(*a)?);
                 }
                 Ok(self.concat(&vals))
             }
-            ExprKind::SpaceCast { .. } => unsupported("space casts"),
+            ExprKind::SpaceCast { space, arg } => {
+                let sp = self.expr(*space)?;
+                let v = self.expr(*arg)?;
+                self.space_cast(e.ty.base, &sp, v)
+            }
             ExprKind::Select { cond, a, b } => self.select(e, *cond, *a, *b),
             ExprKind::CallBuiltin { builtin, overload, args } => self.builtin(*builtin, *overload, args, e),
             ExprKind::Call { func, args } => self.call(*func, args, e),
@@ -858,7 +940,7 @@ impl<'m> Lower<'m, '_> {
 
     fn logic(&mut self, op: BinaryOp, lhs: ExprId, rhs: ExprId, vary_flag: bool) -> R<Val> {
         let l = self.expr(lhs)?;
-        if l.vary || vary_flag {
+        if l.vary || (vary_flag && !self.frame().uniform) {
             let lm = to_mask(&mut self.b, l.c[0]);
             let save = self.exec();
             let m = if op == BinaryOp::And { self.b.ins().band(save, lm) } else { self.b.ins().band_not(save, lm) };
@@ -900,7 +982,7 @@ impl<'m> Lower<'m, '_> {
             BaseType::Bool => 1,
             _ => components(e.ty).ok_or_else(|| JitError::Unsupported(format!("a select of {}", e.ty)))?,
         } * e.ty.array_len().unwrap_or(1) as usize;
-        if c.vary || f.expr(cond).varying {
+        if c.vary || (f.expr(cond).varying && !self.frame().uniform) {
             let cm = to_mask(&mut self.b, c.c[0]);
             let save = self.exec();
             self.div += 1;
@@ -918,7 +1000,7 @@ impl<'m> Lower<'m, '_> {
             let c = av.c.iter().zip(&bv.c).map(|(x, y)| choose(&mut self.b, cm, *x, *y)).collect();
             return Ok(Val { vary: true, c });
         }
-        let vary = e.varying;
+        let vary = e.varying && !self.frame().uniform;
         let ty = match (e.ty.base, vary) {
             (BaseType::Bool, false) => types::I8,
             (BaseType::Bool, true) => types::I32X4,
@@ -956,6 +1038,11 @@ impl<'m> Lower<'m, '_> {
             (x, y) if x == y => Ok(a),
             (x, y) if x.is_triple() && y.is_triple() => Ok(a),
             (BaseType::Float, y) if y.is_triple() => Ok(Val { vary: a.vary, c: vec![a.c[0]; 3] }),
+            (BaseType::Float, BaseType::Matrix) => {
+                let zero = self.fconst(0.0, a.vary);
+                let c = (0..16).map(|k| if k % 5 == 0 { a.c[0] } else { zero }).collect();
+                Ok(Val { vary: a.vary, c })
+            }
             (x, BaseType::Float) if x.is_triple() => Ok(Val { vary: a.vary, c: vec![a.c[0]] }),
             (BaseType::Bool, BaseType::Float) => {
                 let one = self.fconst(1.0, a.vary);
@@ -969,13 +1056,35 @@ impl<'m> Lower<'m, '_> {
     /// Component-wise binary operators on operands of one type (`lt`), as `interp::binary`.
     fn binary(&mut self, op: BinaryOp, lt: Type, a: &Val, b: &Val) -> R<Val> {
         use BinaryOp::*;
-        if lt.base == BaseType::Matrix {
-            return unsupported("matrices");
-        }
-        if lt.base == BaseType::String {
-            return unsupported("strings");
-        }
         let vary = a.vary || b.vary;
+        if lt.base == BaseType::String {
+            if a.vary || b.vary {
+                return unsupported("varying strings");
+            }
+            // Handles are interned per batch: equal handles are equal strings.
+            let x = self.b.ins().bitcast(
+                types::I32,
+                MemFlagsData::new().with_endianness(cranelift_codegen::ir::Endianness::Little),
+                a.c[0],
+            );
+            let y = self.b.ins().bitcast(
+                types::I32,
+                MemFlagsData::new().with_endianness(cranelift_codegen::ir::Endianness::Little),
+                b.c[0],
+            );
+            let cc = match op {
+                Eq => IntCC::Equal,
+                Ne => IntCC::NotEqual,
+                _ => return unsupported(format!("{op:?} on strings")),
+            };
+            return Ok(Val { vary: false, c: vec![self.b.ins().icmp(cc, x, y)] });
+        }
+        if lt.base == BaseType::Matrix && matches!(op, Mul | Div) {
+            let all = self.concat(&[a.clone(), b.clone()]);
+            let name = if op == Mul { "rtsl_mmul" } else { "rtsl_mdiv" };
+            let c = self.call_helper(name, &all.c, all.vary)?;
+            return Ok(Val { vary: all.vary, c });
+        }
         let x: Vec<Value> = a.c.iter().map(|v| widen(&mut self.b, *v, vary)).collect();
         let y: Vec<Value> = b.c.iter().map(|v| widen(&mut self.b, *v, vary)).collect();
         let ins = |s: &mut Self, f: fn(&mut FunctionBuilder<'_>, Value, Value) -> Value| -> Vec<Value> {
@@ -1054,8 +1163,14 @@ impl<'m> Lower<'m, '_> {
         // After a divergent return the lanes still running may update uniform locals (the lanes
         // that left never read them again), but not uniform output or captured parameters, which
         // every calling lane reads back.
-        let fdiv = self.fn_divergent(fid);
-        let mut frame = self.new_frame(callee, &inputs)?;
+        // Uniform mode: a callee that reads no varying state, called with uniform arguments (values
+        // and output places alike), computes the same value in every lane, whatever the checker
+        // inferred for its locals in general (it infers once per function, for every call site).
+        // Its locals become uniform storage and its control flow uniform, so a uniform result can
+        // flow into uniform storage (e.g. `uniform float n = halvings(1 / cellsize, 1)`).
+        let uniform = !callee.reads_varying && inputs.iter().all(|(v, _)| !v.vary);
+        let fdiv = !uniform && self.fn_divergent(fid);
+        let mut frame = self.new_frame(callee, &inputs, uniform)?;
         if fdiv {
             for (k, (_, by_ref)) in inputs.iter().enumerate() {
                 if by_ref.is_some() {
@@ -1072,7 +1187,7 @@ impl<'m> Lower<'m, '_> {
                 return unsupported("a function returning an array");
             }
             // A function that may return under a varying condition returns into varying storage.
-            frame.ret = Some(self.zero_store(e.varying || fdiv, comps, comps));
+            frame.ret = Some(self.zero_store((e.varying && !uniform) || fdiv, comps, comps));
         }
         let save = self.exec();
         let rb = frame.ret_block;
@@ -1106,13 +1221,14 @@ impl<'m> Lower<'m, '_> {
         d
     }
 
-    fn helper_ref(&mut self, name: &'static str) -> R<FuncRef> {
+    fn helper_ref(&mut self, name: &'static str, params: usize) -> R<FuncRef> {
         if let Some(r) = self.helpers.get(name) {
             return Ok(*r);
         }
         let mut sig = self.jit.make_signature();
-        sig.params.push(AbiParam::new(self.ptr));
-        sig.params.push(AbiParam::new(self.ptr));
+        for _ in 0..params {
+            sig.params.push(AbiParam::new(self.ptr));
+        }
         let id =
             self.jit.declare_function(name, Linkage::Import, &sig).map_err(|e| JitError::Codegen(e.to_string()))?;
         let r = self.jit.declare_func_in_func(id, self.b.func);
@@ -1122,22 +1238,51 @@ impl<'m> Lower<'m, '_> {
 
     /// Calls a per-chunk helper on `inputs` (scalars are splatted); results are uniform again when
     /// every input was.
+    ///
+    /// Host helpers (`host::HOST_HELPERS`) also receive the batch record and a mask: the lanes of
+    /// `exec` when `vary`, else lane 0 alone (the result is uniform).
     fn call_helper(&mut self, name: &'static str, inputs: &[Value], vary: bool) -> R<Vec<Value>> {
-        let h = math::helper(name).ok_or_else(|| JitError::Codegen(format!("no helper {name}")))?;
-        debug_assert_eq!(h.ins, inputs.len());
-        let fr = self.helper_ref(h.name)?;
-        let sin = self.b.create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 16 * h.ins as u32, 4));
-        let sout =
-            self.b.create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, 16 * h.outs as u32, 4));
+        let (hname, ins, outs, is_host) = match (math::helper(name), host::host_helper(name)) {
+            (Some(h), _) => (h.name, h.ins, h.outs, false),
+            (None, Some(h)) => (h.name, h.ins, h.outs, true),
+            _ => return Err(JitError::Codegen(format!("no helper {name}"))),
+        };
+        if ins != inputs.len() {
+            return Err(JitError::Codegen(format!("{name} takes {ins} inputs, not {}", inputs.len())));
+        }
+        let fr = self.helper_ref(hname, if is_host { 4 } else { 2 })?;
+        let slot = |n: usize| StackSlotData::new(StackSlotKind::ExplicitSlot, 16 * n.max(1) as u32, 4);
+        let sin = self.b.create_sized_stack_slot(slot(ins));
+        let sout = self.b.create_sized_stack_slot(slot(outs));
         for (k, x) in inputs.iter().enumerate() {
-            let x = widen(&mut self.b, *x, true);
+            let x = if is_vec(&self.b, *x) && self.b.func.dfg.value_type(*x) == types::I32X4 {
+                mask::mask_as_f32(&mut self.b, *x)
+            } else {
+                widen(&mut self.b, *x, true)
+            };
             self.b.ins().stack_store(self.ptr, x, sin, (16 * k) as i32);
         }
         let pin = self.b.ins().stack_addr(self.ptr, sin, 0);
         let pout = self.b.ins().stack_addr(self.ptr, sout, 0);
-        self.b.ins().call(fr, &[pin, pout]);
-        let mut out = Vec::with_capacity(h.outs);
-        for j in 0..h.outs {
+        if is_host {
+            let smask = self.b.create_sized_stack_slot(slot(1));
+            let m = if vary {
+                self.exec()
+            } else {
+                let z = self.b.ins().iconst(types::I32, 0);
+                let z = self.b.ins().splat(types::I32X4, z);
+                let on = self.b.ins().iconst(types::I32, -1);
+                self.b.ins().insertlane(z, on, 0)
+            };
+            self.b.ins().stack_store(self.ptr, m, smask, 0);
+            let pmask = self.b.ins().stack_addr(self.ptr, smask, 0);
+            let batch = self.batch.expect("batch");
+            self.b.ins().call(fr, &[batch, pmask, pin, pout]);
+        } else {
+            self.b.ins().call(fr, &[pin, pout]);
+        }
+        let mut out = Vec::with_capacity(outs);
+        for j in 0..outs {
             let v = self.b.ins().stack_load(self.ptr, types::F32X4, sout, (16 * j) as i32);
             out.push(if vary { v } else { self.b.ins().extractlane(v, 0) });
         }
@@ -1184,8 +1329,11 @@ impl<'m> Lower<'m, '_> {
         Val { vary, c }
     }
 
-    fn builtin(&mut self, bi: Builtin, _overload: u16, args: &'m [Arg], e: &ir::Expr) -> R<Val> {
+    fn builtin(&mut self, bi: Builtin, overload: u16, args: &'m [Arg], e: &ir::Expr) -> R<Val> {
         use Builtin as Bi;
+        if let Some(r) = self.builtin_ext(bi, overload, args, e)? {
+            return Ok(r);
+        }
         let f = self.func();
         let supported = matches!(
             bi,
@@ -1341,7 +1489,7 @@ impl<'m> Lower<'m, '_> {
                 self.write_ref(&refs, &t)?;
                 void
             }
-            Bi::Comp | Bi::SetComp if e.ty.base == BaseType::Matrix || vals[0].c.len() != 3 => {
+            Bi::Comp | Bi::SetComp if vals[0].c.len() != 3 => {
                 return unsupported("matrices");
             }
             Bi::Comp => {
@@ -1507,4 +1655,577 @@ fn divergent_exit(f: &Function, body: &ir::Block, step: &ir::Block) -> bool {
         })
     }
     walk(f, body, 0, 0) || walk(f, step, 0, 0)
+}
+
+/// The `"name", value` pairs after the fixed arguments: the value of `name` (names must be constants).
+fn param_arg<'m>(f: &'m Function, args: &'m [Arg], fixed: usize, name: &str) -> R<Option<&'m Arg>> {
+    let rest = args.get(fixed..).unwrap_or(&[]);
+    for pair in rest.chunks(2) {
+        let [Arg::Value(n), v] = pair else { continue };
+        match &f.expr(*n).kind {
+            ExprKind::Const(Constant::String(s)) if s == name => return Ok(Some(v)),
+            ExprKind::Const(Constant::String(_)) => {}
+            _ => return unsupported("a parameter list with computed names"),
+        }
+    }
+    Ok(None)
+}
+
+impl<'m> Lower<'m, '_> {
+    fn string_handle(&mut self, s: &str) -> u32 {
+        match self.strings.iter().position(|x| x == s) {
+            Some(h) => h as u32,
+            None => {
+                self.strings.push(s.to_string());
+                (self.strings.len() - 1) as u32
+            }
+        }
+    }
+
+    fn const_string(&mut self, s: &str) -> Val {
+        let h = self.string_handle(s);
+        Val { vary: false, c: vec![self.b.ins().f32const(f32::from_bits(h))] }
+    }
+
+    fn arg_val(&mut self, a: &Arg) -> R<Val> {
+        match a {
+            Arg::Value(x) => self.expr(*x),
+            Arg::Ref(p) => {
+                let t = self.place_targets(p)?;
+                self.read_targets(&t)
+            }
+        }
+    }
+
+    /// The matrix from space `from` to `to` (uniform) and whether the renderer knows it.
+    fn space_matrix(&mut self, from: &Val, to: &Val) -> R<(Val, Value)> {
+        if from.vary || to.vary {
+            return unsupported("varying space names");
+        }
+        let out = self.call_helper("rtsl_h_matrix", &[from.c[0], to.c[0]], false)?;
+        let zero = self.b.ins().f32const(0.0);
+        let ok = self.b.ins().fcmp(FloatCC::NotEqual, out[16], zero);
+        Ok((Val { vary: false, c: out[..16].to_vec() }, ok))
+    }
+
+    /// `helper(a, b)` where `ok`, else `fallback` (of the result's size).
+    fn apply_if(&mut self, helper: &'static str, ok: Value, a: &Val, b: &Val, fallback: &Val) -> R<Val> {
+        let all = self.concat(&[a.clone(), b.clone()]);
+        let r = self.call_helper(helper, &all.c, all.vary)?;
+        let c = r.iter().zip(&fallback.c).map(|(x, y)| choose(&mut self.b, ok, *x, *y)).collect();
+        Ok(Val { vary: all.vary || fallback.vary, c })
+    }
+
+    fn space_cast(&mut self, ty: BaseType, space: &Val, v: Val) -> R<Val> {
+        if ty == BaseType::Color {
+            if space.vary {
+                return unsupported("varying space names");
+            }
+            let all = self.concat(&[space.clone(), v]);
+            let c = self.call_helper("rtsl_h_to_rgb", &all.c, all.vary)?;
+            return Ok(Val { vary: all.vary, c });
+        }
+        let current = self.const_string("current");
+        let (m, ok) = self.space_matrix(space, &current)?;
+        match ty {
+            // mul(v, m): the value first.
+            BaseType::Matrix => self.apply_if("rtsl_mmul", ok, &v, &m, &v),
+            BaseType::Point => self.apply_if("rtsl_xform_point", ok, &m, &v, &v),
+            BaseType::Vector => self.apply_if("rtsl_xform_vector", ok, &m, &v, &v),
+            BaseType::Normal => self.apply_if("rtsl_xform_normal", ok, &m, &v, &v),
+            _ => unsupported(format!("a space cast of {ty}")),
+        }
+    }
+
+    /// Built-ins of the later slices (matrices, the renderer's services); `None` for the others.
+    fn builtin_ext(&mut self, bi: Builtin, overload: u16, args: &'m [Arg], e: &ir::Expr) -> R<Option<Val>> {
+        use Builtin as Bi;
+        let f = self.func();
+        let sig = &crate::builtins::signatures(bi)[overload as usize];
+        let fixed = if sig.repeat_last { args.len() } else { sig.params.len().min(args.len()) };
+        let is_matrix_arg = |k: usize| match args.get(k) {
+            Some(Arg::Value(x)) => f.expr(*x).ty.base == BaseType::Matrix,
+            Some(Arg::Ref(p)) => p.ty.base == BaseType::Matrix,
+            None => false,
+        };
+        let handled = match bi {
+            Bi::Comp | Bi::SetComp => is_matrix_arg(0),
+            Bi::Rotate => e.ty.base == BaseType::Matrix || args.len() == 4,
+            Bi::Determinant
+            | Bi::Translate
+            | Bi::Scale
+            | Bi::Transform
+            | Bi::Vtransform
+            | Bi::Ntransform
+            | Bi::Mtransform
+            | Bi::Ctransform
+            | Bi::Refract
+            | Bi::Fresnel
+            | Bi::Depth
+            | Bi::Raydepth
+            | Bi::Shadername
+            | Bi::Ambient
+            | Bi::Diffuse
+            | Bi::Specular
+            | Bi::Phong
+            | Bi::Texture
+            | Bi::Environment
+            | Bi::Shadow
+            | Bi::Trace
+            | Bi::Transmission
+            | Bi::Visibility
+            | Bi::Occlusion
+            | Bi::Indirectdiffuse
+            | Bi::Atmosphere
+            | Bi::Displacement
+            | Bi::Lightsource
+            | Bi::Surface
+            | Bi::Incident
+            | Bi::Opposite
+            | Bi::Attribute
+            | Bi::Option
+            | Bi::Rendererinfo
+            | Bi::Rayinfo
+            | Bi::Textureinfo => true,
+            _ => false,
+        };
+        if !handled {
+            return Ok(None);
+        }
+        // Message passing evaluates the name, then reads nothing else before the call.
+        if matches!(
+            bi,
+            Bi::Atmosphere
+                | Bi::Displacement
+                | Bi::Lightsource
+                | Bi::Surface
+                | Bi::Incident
+                | Bi::Opposite
+                | Bi::Attribute
+                | Bi::Option
+                | Bi::Rendererinfo
+                | Bi::Rayinfo
+                | Bi::Textureinfo
+        ) {
+            return self.message(bi, args, e).map(Some);
+        }
+        // Fixed arguments, left to right (parameter lists: the whole list, in order).
+        let mut vals = Vec::with_capacity(args.len());
+        let mut refs = Vec::with_capacity(args.len());
+        for a in args {
+            match a {
+                Arg::Value(x) => {
+                    vals.push(self.expr(*x)?);
+                    refs.push(None);
+                }
+                Arg::Ref(p) => {
+                    let t = self.place_targets(p)?;
+                    vals.push(self.read_targets(&t)?);
+                    refs.push(Some(t));
+                }
+            }
+        }
+        let v = |i: usize| vals[i].clone();
+        let void = Val { vary: false, c: Vec::new() };
+        let mut vary = e.varying || vals.iter().any(|x| x.vary);
+        let helper = |s: &mut Self, name: &'static str, parts: &[Val], vary: bool| -> R<Val> {
+            let all = s.concat(parts);
+            let c = s.call_helper(name, &all.c, vary || all.vary)?;
+            Ok(Val { vary: vary || all.vary, c })
+        };
+        let global = |s: &mut Self, name: &str| -> R<Val> {
+            let g = Global::lookup(name).ok_or_else(|| JitError::Codegen(name.into()))?;
+            let st = s.store_of(PlaceBase::Global(g))?;
+            Ok(s.read_store(&st))
+        };
+        let r = match bi {
+            Bi::Comp => {
+                let r = helper(self, "rtsl_mcomp", &[v(0), v(1), v(2)], false)?;
+                Val { vary: r.vary, c: r.c }
+            }
+            Bi::SetComp => {
+                let m = helper(self, "rtsl_msetcomp", &[v(0), v(1), v(2), v(3)], false)?;
+                self.write_ref(&refs, &m)?;
+                void
+            }
+            Bi::Rotate if e.ty.base == BaseType::Matrix => helper(self, "rtsl_rotate", &[v(0), v(1), v(2)], false)?,
+            Bi::Rotate => helper(self, "rtsl_rotate_point", &[v(0), v(1), v(2), v(3)], false)?,
+            Bi::Translate => helper(self, "rtsl_translate", &[v(0), v(1)], false)?,
+            Bi::Scale => helper(self, "rtsl_scale", &[v(0), v(1)], false)?,
+            Bi::Determinant => helper(self, "rtsl_determinant", &[v(0)], false)?,
+            Bi::Refract => helper(self, "rtsl_refract", &[v(0), v(1), v(2)], false)?,
+            Bi::Fresnel => {
+                let r = helper(self, "rtsl_fresnel", &[v(0), v(1), v(2)], false)?;
+                let part = |a: usize, b: usize| Val { vary: r.vary, c: r.c[a..b].to_vec() };
+                for (k, (a, b)) in [(3, (0, 1)), (4, (1, 2)), (5, (2, 5)), (6, (5, 8))] {
+                    if let Some(Some(t)) = refs.get(k) {
+                        self.write_targets(t, &part(a, b))?;
+                    }
+                }
+                void
+            }
+            Bi::Transform | Bi::Vtransform | Bi::Ntransform => {
+                let name = match bi {
+                    Bi::Transform => "rtsl_xform_point",
+                    Bi::Vtransform => "rtsl_xform_vector",
+                    _ => "rtsl_xform_normal",
+                };
+                let p = v(vals.len() - 1);
+                let (m, ok) = match vals.len() {
+                    2 if is_matrix_arg(0) => {
+                        let t = self.b.ins().iconst(types::I8, 1);
+                        (v(0), t)
+                    }
+                    2 => {
+                        let cur = self.const_string("current");
+                        self.space_matrix(&cur, &v(0))?
+                    }
+                    _ if is_matrix_arg(1) => {
+                        let cur = self.const_string("current");
+                        let (to_current, ok) = self.space_matrix(&v(0), &cur)?;
+                        let m = helper(self, "rtsl_mmul", &[v(1), to_current], false)?;
+                        (m, ok)
+                    }
+                    _ => self.space_matrix(&v(0), &v(1))?,
+                };
+                self.apply_if(name, ok, &m, &p, &p)?
+            }
+            Bi::Mtransform => {
+                let m = v(vals.len() - 1);
+                let (space, ok) = if vals.len() == 3 {
+                    self.space_matrix(&v(0), &v(1))?
+                } else {
+                    let cur = self.const_string("current");
+                    self.space_matrix(&cur, &v(0))?
+                };
+                self.apply_if("rtsl_mmul", ok, &m, &space, &m)?
+            }
+            Bi::Ctransform => {
+                let c = v(vals.len() - 1);
+                let three = vals.len() == 3;
+                let b = if three { v(1) } else { v(0) };
+                let flag = self.fconst(if three { 1.0 } else { 0.0 }, false);
+                let flag = Val { vary: false, c: vec![flag] };
+                helper(self, "rtsl_h_ctransform", &[v(0), b, c, flag], false)?
+            }
+            Bi::Depth => helper(self, "rtsl_h_depth", &[v(0)], true)?,
+            Bi::Raydepth => {
+                vary = false;
+                helper(self, "rtsl_h_raydepth", &[], false)?
+            }
+            Bi::Shadername => {
+                let (kind, has) = if vals.is_empty() { (self.const_string(""), 0.0) } else { (v(0), 1.0) };
+                let has = Val { vary: false, c: vec![self.fconst(has, false)] };
+                if kind.vary {
+                    return unsupported("varying strings");
+                }
+                vary = false;
+                helper(self, "rtsl_h_shadername", &[kind, has], false)?
+            }
+            Bi::Ambient => {
+                let p = global(self, "P")?;
+                helper(self, "rtsl_h_ambient", &[p], true)?
+            }
+            Bi::Diffuse => {
+                let p = global(self, "P")?;
+                helper(self, "rtsl_h_diffuse", &[p, v(0)], true)?
+            }
+            Bi::Specular | Bi::Phong => {
+                let p = global(self, "P")?;
+                let name = if bi == Bi::Specular { "rtsl_h_specular" } else { "rtsl_h_phong" };
+                helper(self, name, &[p, v(0), v(1), v(2)], true)?
+            }
+            Bi::Texture | Bi::Environment | Bi::Shadow => {
+                if vals[0].vary {
+                    return unsupported("varying texture names");
+                }
+                let opt = |s: &mut Self, name: &str, default: f32| -> R<Val> {
+                    match param_arg(f, args, fixed, name)? {
+                        Some(a) => {
+                            let i = args.iter().position(|x| std::ptr::eq(x, a)).unwrap_or(0);
+                            Ok(vals[i].clone())
+                        }
+                        None => Ok(Val { vary: false, c: vec![s.fconst(default, false)] }),
+                    }
+                };
+                let n = if e.ty.base == BaseType::Float { 1 } else { 3 };
+                match bi {
+                    Bi::Texture => {
+                        let (s_, t_) = match fixed {
+                            1 => (global(self, "s")?, global(self, "t")?),
+                            3 => (v(1), v(2)),
+                            _ => {
+                                // The centre of the four corners: (a + b + c + d) / 4.
+                                let sum = |s: &mut Self, ks: [usize; 4]| -> R<Val> {
+                                    let mut acc = vals[ks[0]].clone();
+                                    for k in &ks[1..] {
+                                        acc = s.binary(BinaryOp::Add, Type::FLOAT, &acc, &vals[*k])?;
+                                    }
+                                    let four = Val { vary: false, c: vec![s.fconst(4.0, false)] };
+                                    s.binary(BinaryOp::Div, Type::FLOAT, &acc, &four)
+                                };
+                                (sum(self, [1, 3, 5, 7])?, sum(self, [2, 4, 6, 8])?)
+                            }
+                        };
+                        let first = opt(self, "channel", 0.0)?;
+                        let fill = opt(self, "fill", 0.0)?;
+                        let nv = Val { vary: false, c: vec![self.fconst(n as f32, false)] };
+                        let r = helper(self, "rtsl_h_texture", &[v(0), s_, t_, first, fill, nv], true)?;
+                        Val { vary: true, c: r.c[..n].to_vec() }
+                    }
+                    Bi::Environment => {
+                        let fill = opt(self, "fill", 0.0)?;
+                        let r = helper(self, "rtsl_h_environment", &[v(0), v(1), fill], true)?;
+                        Val { vary: true, c: r.c[..n].to_vec() }
+                    }
+                    _ => {
+                        let r = helper(self, "rtsl_h_shadow", &[v(0), v(1)], true)?;
+                        Val { vary: true, c: vec![r.c[0]; n] }
+                    }
+                }
+            }
+            Bi::Trace => {
+                let r = helper(self, "rtsl_h_trace", &[v(0), v(1)], true)?;
+                if e.ty.base == BaseType::Float {
+                    Val { vary: true, c: vec![r.c[3]] }
+                } else {
+                    Val { vary: true, c: r.c[..3].to_vec() }
+                }
+            }
+            Bi::Transmission => helper(self, "rtsl_h_transmission", &[v(0), v(1)], true)?,
+            Bi::Visibility => {
+                let t = helper(self, "rtsl_h_transmission", &[v(0), v(1)], true)?;
+                if e.ty.base == BaseType::Float {
+                    let zero = self.fconst(0.0, true);
+                    let mut any_pos = self.b.ins().fcmp(FloatCC::GreaterThan, t.c[0], zero);
+                    for k in 1..3 {
+                        let c = self.b.ins().fcmp(FloatCC::GreaterThan, t.c[k], zero);
+                        any_pos = self.b.ins().bor(any_pos, c);
+                    }
+                    let one = self.fconst(1.0, true);
+                    Val { vary: true, c: vec![choose(&mut self.b, any_pos, one, zero)] }
+                } else {
+                    t
+                }
+            }
+            Bi::Occlusion | Bi::Indirectdiffuse => {
+                let samples = if fixed == 3 {
+                    v(2)
+                } else {
+                    match param_arg(f, args, fixed, "samples")? {
+                        Some(a) => {
+                            let i = args.iter().position(|x| std::ptr::eq(x, a)).unwrap_or(0);
+                            vals[i].clone()
+                        }
+                        None => Val { vary: false, c: vec![self.fconst(16.0, false)] },
+                    }
+                };
+                let name = if bi == Bi::Occlusion { "rtsl_h_occlusion" } else { "rtsl_h_indirectdiffuse" };
+                helper(self, name, &[v(0), v(1), samples], true)?
+            }
+            _ => return Ok(None),
+        };
+        if vary && !r.vary {
+            return Ok(Some(self.concat(&[Val { vary: true, c: r.c }])));
+        }
+        Ok(Some(r))
+    }
+
+    /// Message passing: `f(name, output dest)` (`textureinfo(tex, name, dest)`): 1 and the value
+    /// written where the renderer knows the name with the destination's shape, else 0.
+    fn message(&mut self, bi: Builtin, args: &'m [Arg], e: &ir::Expr) -> R<Val> {
+        let (name_arg, dest_arg) = if bi == Builtin::Textureinfo { (1, 2) } else { (0, 1) };
+        let mut name = None;
+        for (k, a) in args.iter().enumerate() {
+            let v = self.arg_val(a)?;
+            if k == name_arg {
+                name = Some(v);
+            }
+        }
+        let name = name.ok_or_else(|| JitError::Codegen("message name".into()))?;
+        let Some(Arg::Ref(place)) = args.get(dest_arg) else { return unsupported("a message without a destination") };
+        let class = host::msg_class(place.ty.base)
+            .ok_or_else(|| JitError::Unsupported(format!("a message into {}", place.ty)))?;
+        let len = place.ty.array_len().unwrap_or(0);
+        let floats = components(place.ty).unwrap_or(1) * len.max(1) as usize;
+        if floats > host::MESSAGE_FLOATS || name.vary {
+            return unsupported("a message of this shape");
+        }
+        let vary = e.varying;
+        if vary && class == 4 {
+            return unsupported("varying strings");
+        }
+        let which = self.fconst(bi as u32 as f32, false);
+        let cl = self.fconst(class as f32, false);
+        let ln = self.fconst(len as f32, false);
+        let out = self.call_helper("rtsl_h_message", &[which, name.c[0], cl, ln], vary)?;
+        let found = out[0];
+        let value = Val { vary, c: out[1..1 + floats].to_vec() };
+        let t = self.place_targets(place)?;
+        let zero = self.fconst(0.0, vary);
+        let ok = self.b.ins().fcmp(FloatCC::NotEqual, found, zero);
+        if vary {
+            let save = self.exec();
+            let okm = to_mask(&mut self.b, ok);
+            let m = self.b.ins().band(save, okm);
+            self.set_exec(m);
+            self.div += 1;
+            let r = self.write_targets(&t, &value);
+            self.div -= 1;
+            self.set_exec(save);
+            r?;
+        } else {
+            let (wb, join) = (self.b.create_block(), self.b.create_block());
+            self.b.ins().brif(ok, wb, &[], join, &[]);
+            self.b.switch_to_block(wb);
+            self.write_targets(&t, &value)?;
+            self.b.ins().jump(join, &[]);
+            self.b.switch_to_block(join);
+        }
+        Ok(Val { vary, c: vec![found] })
+    }
+}
+
+impl<'m> Lower<'m, '_> {
+    fn global_val(&mut self, name: &str) -> R<Val> {
+        let g = Global::lookup(name).ok_or_else(|| JitError::Codegen(name.into()))?;
+        let st = self.store_of(PlaceBase::Global(g))?;
+        Ok(self.read_store(&st))
+    }
+
+    /// Writes a global under `exec` (nothing when the shader's layout does not hold it).
+    fn set_global(&mut self, name: &str, v: &Val) -> R<()> {
+        let Some(g) = Global::lookup(name) else { return Ok(()) };
+        match self.globals[g.0 as usize].clone() {
+            Some(st) => self.write_store(&st, v),
+            None => Ok(()),
+        }
+    }
+
+    /// `illuminance`: one `lights` call per chunk, then the body once per light index `k` under the
+    /// lanes whose `k`-th non-ambient light exists and passes the cone. Lanes without it wait in
+    /// `skip`; `break`/`continue` use the loop accumulators (never jumping: other lanes may be
+    /// waiting). `L`, `Cl`, `Ol` are restored afterwards for the lanes that ran the statement.
+    fn illuminance(
+        &mut self,
+        category: Option<ExprId>,
+        position: ExprId,
+        cone: Option<(ExprId, ExprId)>,
+        body: &'m ir::Block,
+    ) -> R<()> {
+        let cat = match category {
+            Some(c) => self.expr(c)?,
+            None => self.const_string(""),
+        };
+        if cat.vary {
+            return unsupported("varying strings");
+        }
+        let p = self.expr(position)?;
+        let (axis, angle, has) = match cone {
+            Some((a, b)) => (self.expr(a)?, self.expr(b)?, 1.0),
+            None => {
+                let z = self.fconst(0.0, false);
+                (Val { vary: false, c: vec![z; 3] }, Val { vary: false, c: vec![z] }, 0.0)
+            }
+        };
+        let has = Val { vary: false, c: vec![self.fconst(has, false)] };
+        let saved: Vec<(&str, Option<Val>)> =
+            ["L", "Cl", "Ol"].into_iter().map(|n| (n, self.global_val(n).ok())).collect();
+        let entry = self.exec();
+        let all = self.concat(&[cat, p]);
+        let out = self.call_helper("rtsl_h_lights", &all.c, true)?;
+        let set = self.b.ins().extractlane(out[0], 0);
+        let count = self.b.ins().extractlane(out[1], 0);
+
+        self.vdepth += 1;
+        self.div += 1;
+        let k = self.b.declare_var(types::F32);
+        let z = self.b.ins().f32const(0.0);
+        self.b.def_var(k, z);
+        let exit_acc = self.b.declare_var(types::I32X4);
+        let cont_acc = self.b.declare_var(types::I32X4);
+        let skip = self.b.declare_var(types::I32X4);
+        let zm = mask::zero_mask(&mut self.b);
+        self.b.def_var(exit_acc, zm);
+        self.b.def_var(cont_acc, zm);
+        self.b.def_var(skip, zm);
+        let (header, body_b, cont_b, leave, exit_b) = (
+            self.b.create_block(),
+            self.b.create_block(),
+            self.b.create_block(),
+            self.b.create_block(),
+            self.b.create_block(),
+        );
+        self.b.ins().jump(header, &[]);
+        self.b.switch_to_block(header);
+        let kv = self.b.use_var(k);
+        let more = self.b.ins().fcmp(FloatCC::LessThan, kv, count);
+        let e = self.exec();
+        let live = any(&mut self.b, e);
+        let go = self.b.ins().band(more, live);
+        self.b.ins().brif(go, body_b, &[], leave, &[]);
+
+        self.b.switch_to_block(body_b);
+        let kv = self.b.use_var(k);
+        let inputs = self.concat(&[Val { vary: false, c: vec![set, kv] }, axis.clone(), angle.clone(), has.clone()]);
+        let r = self.call_helper("rtsl_h_light", &inputs.c, true)?;
+        let lm = self.b.ins().bitcast(
+            types::I32X4,
+            MemFlagsData::new().with_endianness(cranelift_codegen::ir::Endianness::Little),
+            r[0],
+        );
+        let e = self.exec();
+        let run = self.b.ins().band(e, lm);
+        let skipped = self.b.ins().band_not(e, lm);
+        self.b.def_var(skip, skipped);
+        self.b.def_var(cont_acc, zm);
+        self.set_exec(run);
+        for (name, at) in [("L", 1), ("Cl", 4), ("Ol", 7)] {
+            let v = Val { vary: true, c: r[at..at + 3].to_vec() };
+            self.set_global(name, &v)?;
+        }
+        let lp = LoopCx { exit_acc, cont_acc, exit: exit_b, cont: cont_b, depth: u32::MAX };
+        self.frames.last_mut().expect("frame").loops.push(lp);
+        let (run_b, after) = (self.b.create_block(), self.b.create_block());
+        let live = any(&mut self.b, run);
+        self.b.ins().brif(live, run_b, &[], after, &[]);
+        self.b.switch_to_block(run_b);
+        let r = self.block(body);
+        self.frames.last_mut().expect("frame").loops.pop();
+        r?;
+        self.b.ins().jump(after, &[]);
+        self.b.switch_to_block(after);
+        self.b.ins().jump(cont_b, &[]);
+        self.b.switch_to_block(cont_b);
+        let e = self.exec();
+        let ca = self.b.use_var(cont_acc);
+        let sk = self.b.use_var(skip);
+        let e = self.b.ins().bor(e, ca);
+        let e = self.b.ins().bor(e, sk);
+        self.set_exec(e);
+        let kv = self.b.use_var(k);
+        let one = self.b.ins().f32const(1.0);
+        let k1 = self.b.ins().fadd(kv, one);
+        self.b.def_var(k, k1);
+        self.b.ins().jump(header, &[]);
+
+        self.b.switch_to_block(leave);
+        let e = self.exec();
+        let acc = self.b.use_var(exit_acc);
+        let acc = self.b.ins().bor(acc, e);
+        self.b.def_var(exit_acc, acc);
+        self.b.ins().jump(exit_b, &[]);
+        self.b.switch_to_block(exit_b);
+        self.vdepth -= 1;
+        self.div -= 1;
+        let after = self.b.use_var(exit_acc);
+        self.set_exec(entry);
+        for (name, v) in saved {
+            if let Some(v) = v {
+                self.set_global(name, &v)?;
+            }
+        }
+        self.set_exec(after);
+        Ok(())
+    }
 }

@@ -14,7 +14,7 @@
 //!   Inline `f32x4` polynomials (faster, ~1e-6 relative error) are the planned next step.
 
 use super::mask::{choose, konst};
-use crate::shadeops::{geom, noise};
+use crate::shadeops::{geom, matrix, noise, M4};
 use cranelift_codegen::ir::condcodes::FloatCC;
 use cranelift_codegen::ir::{InstBuilder, Value};
 use cranelift_frontend::FunctionBuilder;
@@ -210,7 +210,26 @@ helpers! {
     h_vcell2 "rtsl_vcellnoise2" 2 -> 3 |[x, y]| noise::vcellnoise2(x, y);
     h_vcell3 "rtsl_vcellnoise3" 3 -> 3 |[x, y, z]| noise::vcellnoise3([x, y, z]);
     h_vcell4 "rtsl_vcellnoise4" 4 -> 3 |[x, y, z, t]| noise::vcellnoise4([x, y, z], t);
+    h_mmul "rtsl_mmul" 32 -> 16 |x| matrix::mul(&m4(&x, 0), &m4(&x, 16));
+    h_mdiv "rtsl_mdiv" 32 -> 16 |x| matrix::div(&m4(&x, 0), &m4(&x, 16));
+    h_det "rtsl_determinant" 16 -> 1 |x| [matrix::determinant(&m4(&x, 0))];
+    h_xp "rtsl_xform_point" 19 -> 3 |x| matrix::transform_point(&m4(&x, 0), [x[16], x[17], x[18]]);
+    h_xv "rtsl_xform_vector" 19 -> 3 |x| matrix::transform_vector(&m4(&x, 0), [x[16], x[17], x[18]]);
+    h_xn "rtsl_xform_normal" 19 -> 3 |x| matrix::transform_normal(&m4(&x, 0), [x[16], x[17], x[18]]);
+    h_translate "rtsl_translate" 19 -> 16 |x| matrix::translate(&m4(&x, 0), [x[16], x[17], x[18]]);
+    h_scale "rtsl_scale" 19 -> 16 |x| matrix::scale(&m4(&x, 0), [x[16], x[17], x[18]]);
+    h_rotate "rtsl_rotate" 20 -> 16 |x| matrix::rotate(&m4(&x, 0), x[16], [x[17], x[18], x[19]]);
+    h_mcomp "rtsl_mcomp" 18 -> 1 |x| [matrix::comp(&m4(&x, 0), x[16], x[17])];
+    h_msetcomp "rtsl_msetcomp" 19 -> 16 |x| { let mut m = m4(&x, 0); matrix::set_comp(&mut m, x[16], x[17], x[18]); m };
+    h_cone "rtsl_cone" 7 -> 1 |x| [if super::host::angle_between([x[0], x[1], x[2]], [x[3], x[4], x[5]]) > x[6] { 0.0 } else { 1.0 }];
+    h_rotpt "rtsl_rotate_point" 10 -> 3 |x| geom::rotate_point([x[0], x[1], x[2]], x[3], [x[4], x[5], x[6]], [x[7], x[8], x[9]]);
+    h_refract "rtsl_refract" 7 -> 3 |x| geom::refract([x[0], x[1], x[2]], [x[3], x[4], x[5]], x[6]);
+    h_fresnel "rtsl_fresnel" 7 -> 8 |x| { let (kr, kt, r, t) = geom::fresnel([x[0], x[1], x[2]], [x[3], x[4], x[5]], x[6]); [kr, kt, r[0], r[1], r[2], t[0], t[1], t[2]] };
     h_ptlined "rtsl_ptlined" 9 -> 1 |[px, py, pz, ax, ay, az, bx, by, bz]| [geom::ptlined([px, py, pz], [ax, ay, az], [bx, by, bz])];
+}
+
+fn m4(x: &[f32], at: usize) -> M4 {
+    std::array::from_fn(|i| x[at + i])
 }
 
 pub(super) fn helper(name: &str) -> Option<&'static Helper> {

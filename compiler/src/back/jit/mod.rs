@@ -20,11 +20,13 @@
 //!   helper call per chunk), so results agree bit for bit except where noted in `math.rs`.
 //! - The Cranelift verifier runs in debug and test builds only.
 
+mod host;
 mod layout;
 mod lower;
 mod mask;
 mod math;
 
+pub use host::{HostLight, HostTable, MessageOut, ServicesHost, StrRef, MAX_LIGHTS};
 pub use layout::{GlobalSlot, Layout, ParamSlot};
 
 use crate::ir;
@@ -74,12 +76,49 @@ pub struct Batch {
     pub uniform: *mut f32,
     /// One entry per shader parameter: nonzero when the parameter was given a value.
     pub bound: *const u32,
-    /// Reserved for uniform strings (null in this slice).
-    pub strings: *const u8,
+    /// The batch's string table (opaque to generated code, which only passes the batch record to
+    /// helpers; string values are `u32` handles into it).
+    pub strings: *mut StringTable,
     /// Reserved for differentials (null in this slice).
     pub derivs: *const f32,
-    /// Reserved for the host context (null in this slice).
-    pub ctx: *mut u8,
+    /// The renderer's call table and the helpers' scratch (opaque to generated code; may be null:
+    /// then every renderer query answers "unknown").
+    pub ctx: *mut host::HostCtx,
+}
+
+/// The strings one batch can name, each once (so equal handles are equal strings and the reverse:
+/// generated code compares strings by handle). Handles `0..k` are the shader's constants
+/// ([`Layout::strings`]); parameters and strings returned by the renderer are added after them.
+#[derive(Clone, Debug, Default)]
+pub struct StringTable {
+    strings: Vec<String>,
+    index: std::collections::HashMap<String, u32>,
+}
+
+impl StringTable {
+    pub fn new(constants: &[String]) -> StringTable {
+        let mut t = StringTable::default();
+        for c in constants {
+            t.intern(c);
+        }
+        t
+    }
+
+    /// The handle of `s`, added when new.
+    pub fn intern(&mut self, s: &str) -> u32 {
+        if let Some(h) = self.index.get(s) {
+            return *h;
+        }
+        let h = self.strings.len() as u32;
+        self.strings.push(s.to_string());
+        self.index.insert(s.to_string(), h);
+        h
+    }
+
+    /// The string of a handle; "" for a handle out of range.
+    pub fn get(&self, h: u32) -> &str {
+        self.strings.get(h as usize).map(String::as_str).unwrap_or("")
+    }
 }
 
 pub(crate) const OFF_STRIDE: i32 = 4;
@@ -132,10 +171,35 @@ impl CompiledShader {
     /// # Panics
     /// If `batch` was made by another compiled shader with a different layout.
     pub fn shade(&self, batch: &mut BatchData) {
+        self.run(batch, std::ptr::null());
+    }
+
+    /// Shades every active lane of `batch`, asking `host` what the renderer knows (spaces, lights,
+    /// textures, rays, messages): the JIT's calls go through a [`HostTable`] backed by `host`, so
+    /// tests use one [`crate::interp::TestHost`] for the JIT and the interpreter.
+    ///
+    /// # Panics
+    /// As [`CompiledShader::shade`].
+    pub fn shade_with(&self, batch: &mut BatchData, host: &mut dyn crate::interp::Services) {
+        let mut sh = ServicesHost::new(host);
+        let table = sh.table();
+        self.shade_with_table(batch, &table);
+    }
+
+    /// Shades every active lane of `batch` with the renderer's call table.
+    ///
+    /// # Panics
+    /// As [`CompiledShader::shade`].
+    pub fn shade_with_table(&self, batch: &mut BatchData, table: &HostTable) {
+        self.run(batch, table);
+    }
+
+    fn run(&self, batch: &mut BatchData, table: *const HostTable) {
         assert!(
             Arc::ptr_eq(&self.layout, &batch.layout) || *self.layout == *batch.layout,
             "a batch made for another shader layout"
         );
+        let mut ctx = host::HostCtx::new(table);
         let mut rec = Batch {
             lanes: batch.lanes as u32,
             stride: batch.stride as u32,
@@ -143,9 +207,9 @@ impl CompiledShader {
             varying: batch.varying.as_mut_ptr(),
             uniform: batch.uniform.as_mut_ptr(),
             bound: batch.bound.as_ptr(),
-            strings: std::ptr::null(),
+            strings: &mut batch.strings,
             derivs: std::ptr::null(),
-            ctx: std::ptr::null_mut(),
+            ctx: &mut ctx,
         };
         // SAFETY: the buffers have the sizes the layout implies (BatchData::new), the layout is the
         // one the code was compiled for (checked above), and the code stays alive while `self` is
@@ -164,6 +228,7 @@ pub struct BatchData {
     varying: Vec<f32>,
     uniform: Vec<f32>,
     bound: Vec<u32>,
+    strings: StringTable,
 }
 
 impl BatchData {
@@ -178,6 +243,7 @@ impl BatchData {
             varying: vec![0.0; layout.varying_slots * stride],
             uniform: vec![0.0; layout.uniform_len],
             bound: vec![0; layout.params.len()],
+            strings: StringTable::new(&layout.strings),
             layout,
         }
     }
@@ -261,6 +327,25 @@ impl BatchData {
         true
     }
 
+    /// Binds a string parameter (strings are uniform). Returns false when the shader has no string
+    /// parameter of that name.
+    pub fn set_string_param(&mut self, name: &str, value: &str) -> bool {
+        let Some((i, p)) = self.layout.param(name).map(|(i, p)| (i, p.clone())) else { return false };
+        if !p.string {
+            return false;
+        }
+        let h = self.strings.intern(value);
+        self.uniform[p.offset] = f32::from_bits(h);
+        self.bound[i] = 1;
+        true
+    }
+
+    /// A string parameter's value (after shading: its final value when it is an output).
+    pub fn string_param(&self, name: &str) -> Option<&str> {
+        let (_, p) = self.layout.param(name)?;
+        p.string.then(|| self.strings.get(self.uniform[p.offset].to_bits()))
+    }
+
     /// A parameter's value in one lane (after shading: its final value when it is an output).
     pub fn param(&self, name: &str, lane: usize) -> Option<Vec<f32>> {
         let (_, p) = self.layout.param(name)?;
@@ -275,7 +360,7 @@ fn unsupported<T>(what: impl Into<String>) -> Result<T, JitError> {
 /// Compiles the shader of a validated module.
 pub fn compile(m: &ir::Module) -> Result<CompiledShader, JitError> {
     let shader = m.shader.as_ref().ok_or(JitError::NoShader)?;
-    let layout = Arc::new(layout::layout(m).map_err(|w| JitError::Unsupported(w.to_string()))?);
+    let mut layout = layout::layout(m).map_err(|w| JitError::Unsupported(w.to_string()))?;
 
     let mut flags = settings::builder();
     let set = |f: &mut settings::Builder, k: &str, v: &str| f.set(k, v).map_err(|e| JitError::Codegen(e.to_string()));
@@ -291,6 +376,9 @@ pub fn compile(m: &ir::Module) -> Result<CompiledShader, JitError> {
     for h in math::HELPERS {
         builder.symbol(h.name, h.ptr());
     }
+    for h in host::HOST_HELPERS {
+        builder.symbol(h.name, h.ptr());
+    }
     let mut jit = JITModule::new(builder);
 
     let ptr = jit.target_config().pointer_type();
@@ -300,7 +388,9 @@ pub fn compile(m: &ir::Module) -> Result<CompiledShader, JitError> {
         .declare_function(&format!("shade_{}", shader.name), Linkage::Export, &ctx.func.signature)
         .map_err(|e| JitError::Codegen(e.to_string()))?;
     ctx.func.name = UserFuncName::user(0, id.as_u32());
-    let ir_insts = lower::lower(m, &layout, &mut jit, &mut ctx.func)?;
+    let (ir_insts, strings) = lower::lower(m, &layout, &mut jit, &mut ctx.func)?;
+    layout.strings = strings;
+    let layout = Arc::new(layout);
     jit.define_function(id, &mut ctx).map_err(|e| JitError::Codegen(format!("{e:?}")))?;
     jit.clear_context(&mut ctx);
     jit.finalize_definitions().map_err(|e| JitError::Codegen(e.to_string()))?;

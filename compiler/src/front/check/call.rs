@@ -309,11 +309,24 @@ impl Checker<'_> {
                 continue;
             }
             // `texture("name"[channel], ...)`: the channel becomes a parameter-list entry.
+            // (An element of an array of strings, `names[i]`, is an ordinary index.)
             if i == 0 && builtin.is_some_and(|b| b.flags() & flags::TEXTURE != 0) {
                 if let ast::ExprKind::Index(base, channel) = &a.kind {
                     let name = self.expr(base, Some(BaseType::String));
                     let ch = self.expr(channel, Some(BaseType::Float));
                     match (name, ch) {
+                        (Some(n), Some(c)) if self.expr_ty(n).base == BaseType::String && self.expr_ty(n).is_array() => {
+                            if self.expr_ty(c) != Type::FLOAT {
+                                let t = self.expr_ty(c);
+                                self.error(Code::BadIndex, channel.span, format!("an index must be a float, not a `{t}`"))
+                                    .with_label("not a number");
+                                ok = false;
+                                continue;
+                            }
+                            let element = self.add_expr(ExprKind::Index { base: n, index: c }, Type::STRING, a.span);
+                            lowered.push(Lowered::Value(element, Type::STRING));
+                            continue;
+                        }
                         (Some(n), Some(c)) if self.expr_ty(n) == Type::STRING => {
                             lowered.push(Lowered::Value(n, Type::STRING));
                             let key = self.add_expr(

@@ -62,6 +62,10 @@ impl Checker<'_> {
                 if let Some(g) = Global::lookup(&text) {
                     return self.global_read(g, span);
                 }
+                if text == "PI" {
+                    // RISpec 3.2 predefines `float PI = 3.14159...` (headers that `#define PI` still win).
+                    return Some(self.add_expr(ExprKind::Const(Constant::Float(std::f32::consts::PI)), Type::FLOAT, span));
+                }
                 self.undefined_name(&text, span);
                 None
             }

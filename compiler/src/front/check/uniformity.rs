@@ -216,15 +216,20 @@ impl<'a> Analysis<'a> {
             })
     }
 
-    fn mark(&mut self, var: VarId, varying: bool, span: Span) {
-        if !varying {
+    /// Records that a variable receives a varying value (`varying`), or a uniform value under
+    /// varying control flow (`under_ctl`). A variable declared `uniform` may not receive a varying
+    /// value (E0110), but a uniform value assigned under varying control is accepted: the variable is
+    /// then kept per lane, as RenderMan shaders with `uniform` loop counters and divergent `break`s
+    /// (filtered fBm) expect.
+    fn mark(&mut self, var: VarId, varying: bool, under_ctl: bool, span: Span) {
+        if !varying && !under_ctl {
             return;
         }
         let i = var.0 as usize;
         if self.var_varying[i] {
             return;
         }
-        if self.fixed[i] {
+        if self.fixed[i] && varying {
             self.violations.push(Violation { var, span, default: false });
             return;
         }
@@ -319,7 +324,7 @@ impl<'a> Analysis<'a> {
                         }
                         Arg::Ref(p) => {
                             if let PlaceBase::Var(v) = p.base {
-                                self.mark(v, true, s.span);
+                                self.mark(v, true, false, s.span);
                             }
                         }
                     }
@@ -346,7 +351,7 @@ impl<'a> Analysis<'a> {
             index_varying |= self.walk(f, i, ctl);
         }
         if let PlaceBase::Var(v) = place.base {
-            self.mark(v, value_varying || ctl || index_varying, span);
+            self.mark(v, value_varying || index_varying, ctl, span);
         }
     }
 

@@ -1,0 +1,858 @@
+//! Calls into the renderer: the [`HostTable`] the runtime implements, an implementation backed by any
+//! [`Services`] (so tests ask one [`crate::interp::TestHost`] for the JIT and the interpreter), and
+//! the chunk helpers generated code calls.
+//!
+//! Invariants:
+//! - Generated code never calls the renderer per lane: it calls a **host helper**
+//!   `extern "C" fn(batch: *mut Batch, mask: *const i32, in: *const f32, out: *mut f32)` once per
+//!   chunk of four lanes, with the lanes that need the call in `mask` (4 entries, -1 or 0) and its
+//!   arguments in stack buffers (argument `k` of lane `l` at `in[4k + l]`, result `j` of lane `l` at
+//!   `out[4j + l]`). A helper reads and writes only the lanes of `mask`; for a uniform call generated
+//!   code passes the mask `[-1, 0, 0, 0]` and splats lane 0 of the result.
+//! - Strings are `u32` handles carried in the bits of an `f32` (lane 0: strings are uniform); helpers
+//!   resolve them in the batch's [`StringTable`] (an out-of-range handle reads as ""), and intern the
+//!   strings the renderer returns. Generated code never sees a pointer to string data.
+//! - A helper asks the [`HostTable`] once per chunk (lights, textures, rays, depth) or once per call
+//!   (matrices, messages, ray depth, shader names); a null table answers "unknown" everywhere (no
+//!   space, no light, unreadable textures, black rays, no message).
+//! - What a helper computes from the renderer's answers (cones, the light sums of `diffuse`,
+//!   `specular`, `phong`, `ambient`, texture fill values, message shapes) repeats the interpreter's
+//!   formulas operation for operation, so the two agree bit for bit (they share no code).
+
+use super::{Batch, StringTable};
+use crate::builtins::Builtin;
+use crate::interp::{Services, Value};
+use crate::shadeops::{color, geom, matrix, M4, V3};
+use std::ffi::c_void;
+
+/// A borrowed string across the C ABI (not NUL-terminated).
+#[repr(C)]
+#[derive(Clone, Copy, Debug)]
+pub struct StrRef {
+    pub ptr: *const u8,
+    pub len: usize,
+}
+
+impl StrRef {
+    pub fn new(s: &str) -> StrRef {
+        StrRef { ptr: s.as_ptr(), len: s.len() }
+    }
+
+    /// # Safety
+    /// `ptr` must point to `len` bytes of UTF-8 that outlive `'a`.
+    pub unsafe fn as_str<'a>(self) -> &'a str {
+        if self.ptr.is_null() {
+            return "";
+        }
+        // SAFETY: the caller's contract.
+        unsafe { std::str::from_utf8(std::slice::from_raw_parts(self.ptr, self.len)).unwrap_or("") }
+    }
+}
+
+/// One light reaching one lane.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct HostLight {
+    /// From the surface point to the light.
+    pub l: [f32; 3],
+    pub cl: [f32; 3],
+    pub ol: [f32; 3],
+    /// Nonzero for an ambient light (only `ambient()` counts it).
+    pub ambient: u32,
+}
+
+/// The most lights `HostTable::lights` reports per lane (more are dropped).
+pub const MAX_LIGHTS: usize = 32;
+/// The most floats a message value may hold.
+pub const MESSAGE_FLOATS: usize = 64;
+
+/// A message-passing answer: `kind` 0 none, 1 float, 2 triple, 3 matrix, 4 string, 5 bool; `len` 0
+/// for a single value or the array length; `floats` element-major; `string` valid until the next
+/// call on the table.
+#[repr(C)]
+#[derive(Clone, Copy, Debug)]
+pub struct MessageOut {
+    pub kind: u32,
+    pub len: u32,
+    pub floats: [f32; MESSAGE_FLOATS],
+    pub string: StrRef,
+}
+
+/// The renderer's calls, filled once by the runtime. Every array argument is SoA over one chunk of
+/// four lanes (`x[4k + l]`) with a `mask` of 4 `i32`s (-1 active); implementations answer only the
+/// active lanes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug)]
+pub struct HostTable {
+    pub ctx: *mut c_void,
+    /// The matrix taking points from `from` to `to` (row-major, 16 floats); 0 for an unknown space.
+    pub matrix: unsafe extern "C" fn(ctx: *mut c_void, from: StrRef, to: StrRef, out: *mut f32) -> u32,
+    /// The lights of `category` reaching each active lane at `p` (3 x 4 floats): lane `l`'s light
+    /// `k` at `out[4k + l]` (room for `MAX_LIGHTS` per lane), its count in `counts[l]`.
+    pub lights: unsafe extern "C" fn(
+        ctx: *mut c_void,
+        category: StrRef,
+        mask: *const i32,
+        p: *const f32,
+        out: *mut HostLight,
+        counts: *mut u32,
+    ),
+    /// Texture lookups: `kind` 0 `texture` (`coords` s, t; `first[l]` the first channel; `channels`
+    /// values), 1 `environment` (`coords` a direction; 3 values), 2 `shadow` (`coords` a point; 1
+    /// value). Results in `out[4c + l]`; `ok[l]` 0 where the map cannot be read.
+    pub texture: unsafe extern "C" fn(
+        ctx: *mut c_void,
+        kind: u32,
+        name: StrRef,
+        mask: *const i32,
+        coords: *const f32,
+        first: *const f32,
+        channels: u32,
+        out: *mut f32,
+        ok: *mut u32,
+    ),
+    /// Rays: `kind` 0 `trace` (`a` origin, `b` direction; colour and distance: 4 results),
+    /// 1 `transmission` (`a` from, `b` to; 3), 2 `occlusion` (`a` point, `b` normal, `samples`; 1),
+    /// 3 `indirectdiffuse` (as occlusion; 3).
+    pub rays: unsafe extern "C" fn(
+        ctx: *mut c_void,
+        kind: u32,
+        mask: *const i32,
+        a: *const f32,
+        b: *const f32,
+        samples: *const f32,
+        out: *mut f32,
+    ),
+    /// Normalised camera depth of each active lane's `p`.
+    pub depth: unsafe extern "C" fn(ctx: *mut c_void, mask: *const i32, p: *const f32, out: *mut f32),
+    /// How many bounces led to this batch's rays.
+    pub ray_depth: unsafe extern "C" fn(ctx: *mut c_void) -> f32,
+    /// Message passing and queries: `which` is the built-in's index in `Builtin::ALL`. Returns 0 when
+    /// unknown.
+    pub message: unsafe extern "C" fn(ctx: *mut c_void, which: u32, name: StrRef, out: *mut MessageOut) -> u32,
+    /// The name of this shader (`has_kind` 0) or of the one bound as `kind`; valid until the next call.
+    pub shader_name: unsafe extern "C" fn(ctx: *mut c_void, has_kind: u32, kind: StrRef) -> StrRef,
+    /// `printf` output.
+    pub print: unsafe extern "C" fn(ctx: *mut c_void, text: StrRef),
+}
+
+/// A [`HostTable`] backed by a [`Services`] implementation, asking it lane by lane.
+pub struct ServicesHost<'a> {
+    host: &'a mut dyn Services,
+    text: String,
+}
+
+impl<'a> ServicesHost<'a> {
+    pub fn new(host: &'a mut dyn Services) -> ServicesHost<'a> {
+        ServicesHost { host, text: String::new() }
+    }
+
+    /// The table; valid while `self` is neither moved nor dropped.
+    pub fn table(&mut self) -> HostTable {
+        HostTable {
+            ctx: self as *mut ServicesHost<'a> as *mut c_void,
+            matrix: sv_matrix,
+            lights: sv_lights,
+            texture: sv_texture,
+            rays: sv_rays,
+            depth: sv_depth,
+            ray_depth: sv_ray_depth,
+            message: sv_message,
+            shader_name: sv_shader_name,
+            print: sv_print,
+        }
+    }
+}
+
+/// # Safety
+/// `ctx` is the `ctx` of a table made by [`ServicesHost::table`], still alive.
+unsafe fn sv<'x>(ctx: *mut c_void) -> &'x mut ServicesHost<'x> {
+    // SAFETY: the caller's contract.
+    unsafe { &mut *(ctx as *mut ServicesHost<'x>) }
+}
+
+fn lanes_of(mask: *const i32) -> [bool; 4] {
+    // SAFETY: every caller passes 4 mask entries.
+    let m = unsafe { std::slice::from_raw_parts(mask, 4) };
+    [m[0] != 0, m[1] != 0, m[2] != 0, m[3] != 0]
+}
+
+/// # Safety
+/// `p` points to `4 * k` floats.
+unsafe fn lane3(p: *const f32, k: usize, l: usize) -> V3 {
+    // SAFETY: the caller's contract.
+    unsafe { [*p.add(4 * k + l), *p.add(4 * (k + 1) + l), *p.add(4 * (k + 2) + l)] }
+}
+
+unsafe extern "C" fn sv_matrix(ctx: *mut c_void, from: StrRef, to: StrRef, out: *mut f32) -> u32 {
+    // SAFETY: the table's contract.
+    let (h, from, to) = unsafe { (sv(ctx), from.as_str(), to.as_str()) };
+    match h.host.matrix(from, to) {
+        Some(m) => {
+            // SAFETY: `out` holds 16 floats.
+            unsafe { std::ptr::copy_nonoverlapping(m.as_ptr(), out, 16) };
+            1
+        }
+        None => 0,
+    }
+}
+
+unsafe extern "C" fn sv_lights(
+    ctx: *mut c_void,
+    category: StrRef,
+    mask: *const i32,
+    p: *const f32,
+    out: *mut HostLight,
+    counts: *mut u32,
+) {
+    // SAFETY: the table's contract.
+    let (h, category) = unsafe { (sv(ctx), category.as_str()) };
+    for (l, on) in lanes_of(mask).into_iter().enumerate() {
+        if !on {
+            continue;
+        }
+        // SAFETY: `p` holds 3 x 4 floats; `out` room for MAX_LIGHTS x 4 lights, `counts` 4.
+        unsafe {
+            let lights = h.host.lights(category, lane3(p, 0, l));
+            let n = lights.len().min(MAX_LIGHTS);
+            for (k, s) in lights.iter().take(n).enumerate() {
+                *out.add(4 * k + l) = HostLight { l: s.l, cl: s.cl, ol: s.ol, ambient: u32::from(s.ambient) };
+            }
+            *counts.add(l) = n as u32;
+        }
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+unsafe extern "C" fn sv_texture(
+    ctx: *mut c_void,
+    kind: u32,
+    name: StrRef,
+    mask: *const i32,
+    coords: *const f32,
+    first: *const f32,
+    channels: u32,
+    out: *mut f32,
+    ok: *mut u32,
+) {
+    // SAFETY: the table's contract.
+    let (h, name) = unsafe { (sv(ctx), name.as_str()) };
+    for (l, on) in lanes_of(mask).into_iter().enumerate() {
+        if !on {
+            continue;
+        }
+        // SAFETY: the sizes the table documents.
+        unsafe {
+            let c = lane3(coords, 0, l);
+            let got: Option<Vec<f32>> = match kind {
+                0 => {
+                    let f = *first.add(l);
+                    h.host.texture(name, c[0], c[1], f.max(0.0) as usize, channels as usize)
+                }
+                1 => h.host.environment(name, c).map(|v| v.to_vec()),
+                _ => Some(vec![h.host.shadow(name, c)]),
+            };
+            *ok.add(l) = u32::from(got.is_some());
+            for (j, x) in got.unwrap_or_default().iter().take(channels.max(1) as usize).enumerate() {
+                *out.add(4 * j + l) = *x;
+            }
+        }
+    }
+}
+
+unsafe extern "C" fn sv_rays(
+    ctx: *mut c_void,
+    kind: u32,
+    mask: *const i32,
+    a: *const f32,
+    b: *const f32,
+    samples: *const f32,
+    out: *mut f32,
+) {
+    // SAFETY: the table's contract.
+    let h = unsafe { sv(ctx) };
+    for (l, on) in lanes_of(mask).into_iter().enumerate() {
+        if !on {
+            continue;
+        }
+        // SAFETY: the sizes the table documents.
+        unsafe {
+            let (x, y) = (lane3(a, 0, l), lane3(b, 0, l));
+            let r: Vec<f32> = match kind {
+                0 => {
+                    let (c, d) = h.host.trace(x, y);
+                    vec![c[0], c[1], c[2], d]
+                }
+                1 => h.host.transmission(x, y).to_vec(),
+                2 => vec![h.host.occlusion(x, y, *samples.add(l))],
+                _ => h.host.indirect_diffuse(x, y, *samples.add(l)).to_vec(),
+            };
+            for (j, v) in r.iter().enumerate() {
+                *out.add(4 * j + l) = *v;
+            }
+        }
+    }
+}
+
+unsafe extern "C" fn sv_depth(ctx: *mut c_void, mask: *const i32, p: *const f32, out: *mut f32) {
+    // SAFETY: the table's contract.
+    let h = unsafe { sv(ctx) };
+    for (l, on) in lanes_of(mask).into_iter().enumerate() {
+        if on {
+            // SAFETY: `p` 3 x 4 floats, `out` 4.
+            unsafe { *out.add(l) = h.host.depth(lane3(p, 0, l)) };
+        }
+    }
+}
+
+unsafe extern "C" fn sv_ray_depth(ctx: *mut c_void) -> f32 {
+    // SAFETY: the table's contract.
+    unsafe { sv(ctx) }.host.ray_depth()
+}
+
+unsafe extern "C" fn sv_message(ctx: *mut c_void, which: u32, name: StrRef, out: *mut MessageOut) -> u32 {
+    // SAFETY: the table's contract.
+    let (h, name, out) = unsafe { (sv(ctx), name.as_str(), &mut *out) };
+    let Some(b) = Builtin::ALL.get(which as usize) else { return 0 };
+    let Some(v) = h.host.message(*b, name) else { return 0 };
+    fn kind(v: &Value) -> u32 {
+        match v {
+            Value::Float(_) => 1,
+            Value::Triple(_) => 2,
+            Value::Matrix(_) => 3,
+            Value::String(_) => 4,
+            Value::Bool(_) => 5,
+            _ => 0,
+        }
+    }
+    fn floats(v: &Value, out: &mut Vec<f32>) {
+        match v {
+            Value::Float(x) => out.push(*x),
+            Value::Bool(x) => out.push(f32::from(u8::from(*x))),
+            Value::Triple(t) => out.extend_from_slice(t),
+            Value::Matrix(m) => out.extend_from_slice(m),
+            _ => {}
+        }
+    }
+    let mut fl = Vec::new();
+    match &v {
+        Value::Array(items) => {
+            let k = items.first().map(kind).unwrap_or(0);
+            if items.iter().any(|i| kind(i) != k) || k == 4 {
+                return 0;
+            }
+            out.kind = k;
+            out.len = items.len() as u32;
+            items.iter().for_each(|i| floats(i, &mut fl));
+        }
+        Value::String(s) => {
+            out.kind = 4;
+            out.len = 0;
+            h.text = s.to_string();
+            out.string = StrRef::new(&h.text);
+        }
+        other => {
+            out.kind = kind(other);
+            out.len = 0;
+            floats(other, &mut fl);
+        }
+    }
+    if fl.len() > MESSAGE_FLOATS {
+        return 0;
+    }
+    out.floats[..fl.len()].copy_from_slice(&fl);
+    1
+}
+
+unsafe extern "C" fn sv_shader_name(ctx: *mut c_void, has_kind: u32, kind: StrRef) -> StrRef {
+    // SAFETY: the table's contract.
+    let (h, kind) = unsafe { (sv(ctx), kind.as_str()) };
+    h.text = h.host.shader_name((has_kind != 0).then_some(kind));
+    StrRef::new(&h.text)
+}
+
+unsafe extern "C" fn sv_print(ctx: *mut c_void, text: StrRef) {
+    // SAFETY: the table's contract.
+    let (h, text) = unsafe { (sv(ctx), text.as_str()) };
+    h.host.print(text);
+}
+
+// ---- The helpers' side of a batch ----
+
+/// What `Batch::ctx` points to while a batch is shaded: the table and the lights of the light loops
+/// run so far (a loop asks once per chunk and keeps them here while its body runs).
+pub struct HostCtx {
+    table: *const HostTable,
+    light_sets: Vec<LightSet>,
+}
+
+struct LightSet {
+    lights: Vec<HostLight>,
+    /// Per lane, the indices of its non-ambient lights in order.
+    order: [Vec<usize>; 4],
+}
+
+impl HostCtx {
+    pub(super) fn new(table: *const HostTable) -> HostCtx {
+        HostCtx { table, light_sets: Vec::new() }
+    }
+}
+
+/// The pieces of a batch a helper works with.
+struct Cx<'a> {
+    table: Option<&'a HostTable>,
+    strings: &'a mut StringTable,
+    ctx: &'a mut HostCtx,
+    mask: [bool; 4],
+    input: &'a [f32],
+    out: &'a mut [f32],
+}
+
+impl Cx<'_> {
+    fn f(&self, k: usize, l: usize) -> f32 {
+        self.input[4 * k + l]
+    }
+    fn v3(&self, k: usize, l: usize) -> V3 {
+        [self.f(k, l), self.f(k + 1, l), self.f(k + 2, l)]
+    }
+    /// A string argument (uniform: lane 0).
+    fn s(&self, k: usize) -> String {
+        self.strings.get(self.input[4 * k].to_bits()).to_string()
+    }
+    fn set(&mut self, j: usize, l: usize, x: f32) {
+        self.out[4 * j + l] = x;
+    }
+    fn set3(&mut self, j: usize, l: usize, v: V3) {
+        for (k, x) in v.iter().enumerate() {
+            self.set(j + k, l, *x);
+        }
+    }
+    fn active(&self) -> impl Iterator<Item = usize> {
+        let m = self.mask;
+        (0..4).filter(move |l| m[*l])
+    }
+    fn matrix(&self, from: &str, to: &str) -> Option<M4> {
+        let t = self.table?;
+        let mut m = [0.0f32; 16];
+        // SAFETY: the runtime's table; `m` holds 16 floats.
+        let ok = unsafe { (t.matrix)(t.ctx, StrRef::new(from), StrRef::new(to), m.as_mut_ptr()) };
+        (ok != 0).then_some(m)
+    }
+    /// The lights reaching the chunk's active lanes at `p` (argument `k`).
+    fn lights(&self, category: &str, k: usize) -> ([Vec<HostLight>; 4], [u32; 4]) {
+        let mut per_lane: [Vec<HostLight>; 4] = Default::default();
+        let mut counts = [0u32; 4];
+        let Some(t) = self.table else { return (per_lane, counts) };
+        let mut out = vec![HostLight::default(); MAX_LIGHTS * 4];
+        let mask: [i32; 4] = self.mask.map(|m| if m { -1 } else { 0 });
+        // SAFETY: the table's documented sizes.
+        unsafe {
+            (t.lights)(
+                t.ctx,
+                StrRef::new(category),
+                mask.as_ptr(),
+                self.input[4 * k..].as_ptr(),
+                out.as_mut_ptr(),
+                counts.as_mut_ptr(),
+            )
+        };
+        for l in self.active() {
+            let n = (counts[l] as usize).min(MAX_LIGHTS);
+            per_lane[l] = (0..n).map(|i| out[4 * i + l]).collect();
+        }
+        (per_lane, counts)
+    }
+}
+
+/// A host helper's body: runs `f` with the batch's pieces.
+///
+/// # Safety
+/// `batch` is the record `CompiledShader::run` made; `mask` 4 entries; `input`/`out` the sizes the
+/// helper declares.
+unsafe fn with(
+    batch: *mut Batch,
+    mask: *const i32,
+    input: *const f32,
+    out: *mut f32,
+    ins: usize,
+    outs: usize,
+    f: impl FnOnce(&mut Cx<'_>),
+) {
+    // SAFETY: the caller's contract; `strings` and `ctx` point to live values owned by `run`'s frame
+    // and by the batch, distinct from the buffers generated code passes.
+    unsafe {
+        let b = &mut *batch;
+        let ctx = &mut *b.ctx;
+        let table = ctx.table.as_ref();
+        let mut cx = Cx {
+            table,
+            strings: &mut *b.strings,
+            ctx,
+            mask: lanes_of(mask),
+            input: std::slice::from_raw_parts(input, 4 * ins),
+            out: std::slice::from_raw_parts_mut(out, 4 * outs.max(1)),
+        };
+        f(&mut cx)
+    }
+}
+
+fn dot(a: V3, b: V3) -> f32 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+fn add(a: V3, b: V3) -> V3 {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+
+/// The interpreter's cone test: the angle between `a` and `b`.
+pub(super) fn angle_between(a: V3, b: V3) -> f32 {
+    dot(geom::normalize(a), geom::normalize(b)).clamp(-1.0, 1.0).acos()
+}
+
+fn specular_brdf(l: V3, n: V3, v: V3, roughness: f32) -> f32 {
+    let h = geom::normalize(add(l, v));
+    let r = if roughness > 0.0 { roughness } else { 1e-4 };
+    dot(n, h).max(0.0).powf(1.0 / r)
+}
+
+/// `sum_lights` of the interpreter over one lane's lights.
+fn sum_lights(lights: &[HostLight], n: V3, weight: impl Fn(&HostLight) -> f32) -> V3 {
+    let mut sum = [0.0; 3];
+    for l in lights.iter().filter(|l| l.ambient == 0) {
+        if angle_between(l.l, n) > std::f32::consts::FRAC_PI_2 {
+            continue;
+        }
+        let w = weight(l);
+        sum = add(sum, l.cl.map(|c| c * w));
+    }
+    sum
+}
+
+/// A host helper: its symbol, function and arity (in `f32x4` values).
+pub(super) struct HostHelper {
+    pub name: &'static str,
+    f: unsafe extern "C" fn(*mut Batch, *const i32, *const f32, *mut f32),
+    pub ins: usize,
+    pub outs: usize,
+}
+
+impl HostHelper {
+    pub fn ptr(&self) -> *const u8 {
+        self.f as *const u8
+    }
+}
+
+macro_rules! host_helpers {
+    ($($fname:ident $sym:literal $i:literal -> $o:literal |$cx:ident| $body:block)*) => {
+        $(
+            /// # Safety
+            /// See [`with`].
+            unsafe extern "C" fn $fname(batch: *mut Batch, mask: *const i32, input: *const f32, out: *mut f32) {
+                let body = |$cx: &mut Cx<'_>| $body;
+                // SAFETY: generated code passes the batch record and buffers of the declared sizes.
+                unsafe { with(batch, mask, input, out, $i, $o, body) }
+            }
+        )*
+        pub(super) static HOST_HELPERS: &[HostHelper] = &[
+            $(HostHelper { name: $sym, f: $fname, ins: $i, outs: $o },)*
+        ];
+    };
+}
+
+/// Message destination classes (`msg_class`): 1 float, 2 triple, 3 matrix, 4 string.
+pub(super) fn msg_class(base: crate::ir::BaseType) -> Option<u32> {
+    use crate::ir::BaseType as T;
+    match base {
+        T::Float => Some(1),
+        b if b.is_triple() => Some(2),
+        T::Matrix => Some(3),
+        T::String => Some(4),
+        _ => None,
+    }
+}
+
+host_helpers! {
+    // [from, to] -> [m; 16, found]
+    h_matrix "rtsl_h_matrix" 2 -> 17 |cx| {
+        let (from, to) = (cx.s(0), cx.s(1));
+        let m = cx.matrix(&from, &to);
+        for l in cx.active() {
+            for (j, x) in m.unwrap_or(matrix::IDENTITY).iter().enumerate() {
+                cx.set(j, l, *x);
+            }
+            cx.set(16, l, if m.is_some() { 1.0 } else { 0.0 });
+        }
+    }
+    // [space, c] -> c in RGB (unchanged for an unknown space)
+    h_to_rgb "rtsl_h_to_rgb" 4 -> 3 |cx| {
+        let space = cx.s(0);
+        for l in cx.active() {
+            let c = cx.v3(1, l);
+            cx.set3(0, l, color::to_rgb(&space, c).unwrap_or(c));
+        }
+    }
+    // [a, b, c, three]: ctransform(a, b, c) when three, else ctransform(a, c)
+    h_ctransform "rtsl_h_ctransform" 6 -> 3 |cx| {
+        let (a, b) = (cx.s(0), cx.s(1));
+        for l in cx.active() {
+            let c = cx.v3(2, l);
+            let r = if cx.f(5, l) != 0.0 { color::ctransform(&a, &b, c) } else { color::from_rgb(&a, c) };
+            cx.set3(0, l, r.unwrap_or(c));
+        }
+    }
+    // [category, P] -> [set, count]: the lights of an illuminance loop, kept in the context.
+    h_lights "rtsl_h_lights" 4 -> 2 |cx| {
+        let category = cx.s(0);
+        let (lights, _) = cx.lights(&category, 1);
+        let order: [Vec<usize>; 4] = std::array::from_fn(|l| {
+            lights[l].iter().enumerate().filter(|(_, x)| x.ambient == 0).map(|(i, _)| i).collect()
+        });
+        let count = order.iter().map(Vec::len).max().unwrap_or(0);
+        let flat: Vec<HostLight> = (0..4).flat_map(|l| {
+            let mut v = lights[l].clone();
+            v.resize(MAX_LIGHTS, HostLight::default());
+            v
+        }).collect();
+        let set = cx.ctx.light_sets.len();
+        cx.ctx.light_sets.push(LightSet { lights: flat, order });
+        for l in 0..4 {
+            cx.set(0, l, set as f32);
+            cx.set(1, l, count as f32);
+        }
+    }
+    // [set, k, axis, angle, cone] -> [mask bits, L, Cl, Ol]: each lane's k-th non-ambient light
+    h_light "rtsl_h_light" 7 -> 10 |cx| {
+        for l in 0..4 {
+            cx.set(0, l, f32::from_bits(0));
+        }
+        let set = cx.f(0, 0) as usize;
+        let k = cx.f(1, 0) as usize;
+        let active: Vec<usize> = cx.active().collect();
+        for l in active {
+            let Some(s) = cx.ctx.light_sets.get(set) else { continue };
+            let Some(i) = s.order[l].get(k) else { continue };
+            let light = s.lights[l * MAX_LIGHTS + i];
+            if cx.f(6, l) != 0.0 && angle_between(light.l, cx.v3(2, l)) > cx.f(5, l) {
+                continue;
+            }
+            cx.set(0, l, f32::from_bits(u32::MAX));
+            cx.set3(1, l, light.l);
+            cx.set3(4, l, light.cl);
+            cx.set3(7, l, light.ol);
+        }
+    }
+    // [P] -> the ambient lights' sum
+    h_ambient "rtsl_h_ambient" 3 -> 3 |cx| {
+        let (lights, _) = cx.lights("", 0);
+        for l in cx.active() {
+            let sum = lights[l].iter().filter(|x| x.ambient != 0).fold([0.0; 3], |acc, x| add(acc, x.cl));
+            cx.set3(0, l, sum);
+        }
+    }
+    // [P, N] -> diffuse
+    h_diffuse "rtsl_h_diffuse" 6 -> 3 |cx| {
+        let (lights, _) = cx.lights("", 0);
+        for l in cx.active() {
+            let n = geom::normalize(cx.v3(3, l));
+            let sum = sum_lights(&lights[l], n, |x| dot(geom::normalize(x.l), n).max(0.0));
+            cx.set3(0, l, sum);
+        }
+    }
+    // [P, N, V, roughness] -> specular
+    h_specular "rtsl_h_specular" 10 -> 3 |cx| {
+        let (lights, _) = cx.lights("", 0);
+        for l in cx.active() {
+            let (n, view, rough) = (geom::normalize(cx.v3(3, l)), geom::normalize(cx.v3(6, l)), cx.f(9, l));
+            let sum = sum_lights(&lights[l], n, |x| specular_brdf(geom::normalize(x.l), n, view, rough));
+            cx.set3(0, l, sum);
+        }
+    }
+    // [P, N, V, size] -> phong
+    h_phong "rtsl_h_phong" 10 -> 3 |cx| {
+        let (lights, _) = cx.lights("", 0);
+        for l in cx.active() {
+            let (n, view, size) = (geom::normalize(cx.v3(3, l)), geom::normalize(cx.v3(6, l)), cx.f(9, l));
+            let r = geom::reflect(view.map(|x| -x), n);
+            let sum = sum_lights(&lights[l], n, |x| dot(r, geom::normalize(x.l)).max(0.0).powf(size));
+            cx.set3(0, l, sum);
+        }
+    }
+    // [name, s, t, first channel, fill, channels] -> 3
+    h_texture "rtsl_h_texture" 6 -> 3 |cx| {
+        let name = cx.s(0);
+        let n = cx.f(5, 0) as u32;
+        let (vals, ok) = texture_call(cx, 0, &name, n);
+        for l in cx.active() {
+            let fill = cx.f(4, l);
+            for j in 0..n as usize {
+                cx.set(j, l, if ok[l] != 0 { vals[4 * j + l] } else { fill });
+            }
+        }
+    }
+    // [name, dir, fill] -> 3
+    h_environment "rtsl_h_environment" 5 -> 3 |cx| {
+        let name = cx.s(0);
+        let (vals, ok) = texture_call(cx, 1, &name, 3);
+        for l in cx.active() {
+            let fill = cx.f(4, l);
+            for j in 0..3 {
+                cx.set(j, l, if ok[l] != 0 { vals[4 * j + l] } else { fill });
+            }
+        }
+    }
+    // [name, p] -> 1 (0 without a renderer)
+    h_shadow "rtsl_h_shadow" 4 -> 1 |cx| {
+        let name = cx.s(0);
+        let (vals, ok) = texture_call(cx, 2, &name, 1);
+        for l in cx.active() {
+            cx.set(0, l, if ok[l] != 0 { vals[l] } else { 0.0 });
+        }
+    }
+    // [from, dir] -> [colour, distance]
+    h_trace "rtsl_h_trace" 6 -> 4 |cx| { rays_call(cx, 0, 4) }
+    h_transmission "rtsl_h_transmission" 6 -> 3 |cx| { rays_call(cx, 1, 3) }
+    // [p, n, samples] -> 1 / 3
+    h_occlusion "rtsl_h_occlusion" 7 -> 1 |cx| { rays_call(cx, 2, 1) }
+    h_indirect "rtsl_h_indirectdiffuse" 7 -> 3 |cx| { rays_call(cx, 3, 3) }
+    h_depth "rtsl_h_depth" 3 -> 1 |cx| {
+        let mut out = [0.0f32; 4];
+        let mask: [i32; 4] = cx.mask.map(|m| if m { -1 } else { 0 });
+        if let Some(t) = cx.table {
+            // SAFETY: the table's documented sizes.
+            unsafe { (t.depth)(t.ctx, mask.as_ptr(), cx.input.as_ptr(), out.as_mut_ptr()) };
+        }
+        for l in cx.active() {
+            cx.set(0, l, out[l]);
+        }
+    }
+    h_raydepth "rtsl_h_raydepth" 0 -> 1 |cx| {
+        // SAFETY: the runtime's table.
+        let d = cx.table.map(|t| unsafe { (t.ray_depth)(t.ctx) }).unwrap_or(0.0);
+        for l in 0..4 {
+            cx.set(0, l, d);
+        }
+    }
+    // [which, name, class, len] -> [found, value...]: message passing into a destination of that shape
+    h_message "rtsl_h_message" 4 -> 65 |cx| {
+        let which = cx.f(0, 0) as u32;
+        let name = cx.s(1);
+        let (class, len) = (cx.f(2, 0) as u32, cx.f(3, 0) as u32);
+        let textureinfo = Builtin::ALL.get(which as usize) == Some(&Builtin::Textureinfo);
+        let active: Vec<usize> = cx.active().collect();
+        for l in active {
+            let mut out = MessageOut { kind: 0, len: 0, floats: [0.0; MESSAGE_FLOATS], string: StrRef::new("") };
+            let found = match cx.table {
+                // SAFETY: the runtime's table.
+                Some(t) => unsafe { (t.message)(t.ctx, which, StrRef::new(&name), &mut out) },
+                None => 0,
+            };
+            // The interpreter's `same_shape` (textureinfo: the same scalar kind).
+            let fits = found != 0 && out.kind == class && out.len == len && !(textureinfo && len != 0);
+            cx.set(0, l, if fits { 1.0 } else { 0.0 });
+            if !fits {
+                continue;
+            }
+            if class == 4 {
+                // SAFETY: the table's contract: valid until the next call.
+                let s = unsafe { out.string.as_str() }.to_string();
+                let h = cx.strings.intern(&s);
+                cx.set(1, l, f32::from_bits(h));
+            } else {
+                let per = match class { 1 => 1, 2 => 3, _ => 16 };
+                for j in 0..(per * len.max(1) as usize).min(MESSAGE_FLOATS) {
+                    cx.set(1 + j, l, out.floats[j]);
+                }
+            }
+        }
+    }
+    // [kind, has kind] -> handle
+    h_shadername "rtsl_h_shadername" 2 -> 1 |cx| {
+        let (kind, has) = (cx.s(0), cx.f(1, 0) != 0.0);
+        let name = match cx.table {
+            // SAFETY: the runtime's table; the string is copied before the next call.
+            Some(t) => unsafe { (t.shader_name)(t.ctx, u32::from(has), StrRef::new(&kind)).as_str() }.to_string(),
+            None => String::new(),
+        };
+        let h = cx.strings.intern(&name);
+        for l in 0..4 {
+            cx.set(0, l, f32::from_bits(h));
+        }
+    }
+}
+
+fn texture_call(cx: &mut Cx<'_>, kind: u32, name: &str, channels: u32) -> (Vec<f32>, [u32; 4]) {
+    let mut vals = vec![0.0f32; 4 * channels.max(1) as usize];
+    let mut ok = [0u32; 4];
+    let Some(t) = cx.table else { return (vals, ok) };
+    let mask: [i32; 4] = cx.mask.map(|m| if m { -1 } else { 0 });
+    // Texture: coords s, t (args 1, 2) and the first channel (arg 3); otherwise a triple at arg 1.
+    let mut coords = [0.0f32; 12];
+    let mut first = [0.0f32; 4];
+    for l in 0..4 {
+        if kind == 0 {
+            coords[l] = cx.f(1, l);
+            coords[4 + l] = cx.f(2, l);
+            first[l] = cx.f(3, l);
+        } else {
+            for k in 0..3 {
+                coords[4 * k + l] = cx.f(1 + k, l);
+            }
+        }
+    }
+    // SAFETY: the table's documented sizes.
+    unsafe {
+        (t.texture)(
+            t.ctx,
+            kind,
+            StrRef::new(name),
+            mask.as_ptr(),
+            coords.as_ptr(),
+            first.as_ptr(),
+            channels,
+            vals.as_mut_ptr(),
+            ok.as_mut_ptr(),
+        )
+    };
+    (vals, ok)
+}
+
+/// Rays: arguments `a` (0..3), `b` (3..6), samples (6) when the helper has them.
+fn rays_call(cx: &mut Cx<'_>, kind: u32, outs: usize) {
+    let mut out = [0.0f32; 16];
+    if kind == 0 || kind == 1 {
+        // Without a renderer: black, at infinity (trace); nothing blocks (transmission).
+        for l in 0..4 {
+            out[12 + l] = f32::INFINITY;
+            if kind == 1 {
+                out[l] = 1.0;
+                out[4 + l] = 1.0;
+                out[8 + l] = 1.0;
+            }
+        }
+    }
+    if let Some(t) = cx.table {
+        let mask: [i32; 4] = cx.mask.map(|m| if m { -1 } else { 0 });
+        let samples: Vec<f32> = if kind >= 2 { cx.input[24..28].to_vec() } else { vec![0.0; 4] };
+        // SAFETY: the table's documented sizes.
+        unsafe {
+            (t.rays)(
+                t.ctx,
+                kind,
+                mask.as_ptr(),
+                cx.input.as_ptr(),
+                cx.input[12..].as_ptr(),
+                samples.as_ptr(),
+                out.as_mut_ptr(),
+            )
+        };
+    }
+    for l in cx.active() {
+        for j in 0..outs {
+            cx.set(j, l, out[4 * j + l]);
+        }
+    }
+}
+
+pub(super) fn host_helper(name: &str) -> Option<&'static HostHelper> {
+    HOST_HELPERS.iter().find(|h| h.name == name)
+}
