@@ -79,8 +79,11 @@ fn the_conformance_corpus_compiles() {
 fn the_second_corpus_compiles_without_warnings() {
     let results = compile_all(Path::new("../tests/corpus2"), Some(Path::new("../tests/corpus2/include")));
     assert!(results.len() >= 25);
-    let bad: Vec<String> =
-        results.iter().filter(|(_, c)| !c.diagnostics.is_empty()).map(|(p, c)| format!("{}:\n{}", p.display(), c.render())).collect();
+    let bad: Vec<String> = results
+        .iter()
+        .filter(|(_, c)| !c.diagnostics.is_empty())
+        .map(|(p, c)| format!("{}:\n{}", p.display(), c.render()))
+        .collect();
     assert!(bad.is_empty(), "{}", bad.join("\n"));
 }
 

@@ -315,11 +315,17 @@ impl Checker<'_> {
                     let name = self.expr(base, Some(BaseType::String));
                     let ch = self.expr(channel, Some(BaseType::Float));
                     match (name, ch) {
-                        (Some(n), Some(c)) if self.expr_ty(n).base == BaseType::String && self.expr_ty(n).is_array() => {
+                        (Some(n), Some(c))
+                            if self.expr_ty(n).base == BaseType::String && self.expr_ty(n).is_array() =>
+                        {
                             if self.expr_ty(c) != Type::FLOAT {
                                 let t = self.expr_ty(c);
-                                self.error(Code::BadIndex, channel.span, format!("an index must be a float, not a `{t}`"))
-                                    .with_label("not a number");
+                                self.error(
+                                    Code::BadIndex,
+                                    channel.span,
+                                    format!("an index must be a float, not a `{t}`"),
+                                )
+                                .with_label("not a number");
                                 ok = false;
                                 continue;
                             }

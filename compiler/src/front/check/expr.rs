@@ -64,7 +64,11 @@ impl Checker<'_> {
                 }
                 if text == "PI" {
                     // RISpec 3.2 predefines `float PI = 3.14159...` (headers that `#define PI` still win).
-                    return Some(self.add_expr(ExprKind::Const(Constant::Float(std::f32::consts::PI)), Type::FLOAT, span));
+                    return Some(self.add_expr(
+                        ExprKind::Const(Constant::Float(std::f32::consts::PI)),
+                        Type::FLOAT,
+                        span,
+                    ));
                 }
                 self.undefined_name(&text, span);
                 None
