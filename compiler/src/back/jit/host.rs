@@ -12,8 +12,9 @@
 //! - Strings are `u32` handles carried in the bits of an `f32` (lane 0: strings are uniform); helpers
 //!   resolve them in the batch's [`StringTable`] (an out-of-range handle reads as ""), and intern the
 //!   strings the renderer returns. Generated code never sees a pointer to string data.
-//! - A helper asks the [`HostTable`] once per chunk (lights, textures, rays, depth) or once per call
-//!   (matrices, messages, ray depth, shader names); a null table answers "unknown" everywhere (no
+//! - A helper asks the [`HostTable`] once per chunk (lights, textures, rays, depth), once per batch
+//!   (each pair of spaces' matrix, remembered in [`HostCtx`]) or once per call (messages, ray depth,
+//!   shader names); a null table answers "unknown" everywhere (no
 //!   space, no light, unreadable textures, black rays, no message).
 //! - What a helper computes from the renderer's answers (cones, the light sums of `diffuse`,
 //!   `specular`, `phong`, `ambient`, texture fill values, message shapes) repeats the interpreter's
@@ -22,7 +23,8 @@
 use super::{Batch, StringTable};
 use crate::builtins::Builtin;
 use crate::interp::{Services, Value};
-use crate::shadeops::{color, geom, matrix, M4, V3};
+use crate::shadeops::format::{self, FormatArg};
+use crate::shadeops::{color, geom, matrix, spline, M4, V3};
 use std::ffi::c_void;
 
 /// A borrowed string across the C ABI (not NUL-terminated).
@@ -384,6 +386,9 @@ unsafe extern "C" fn sv_print(ctx: *mut c_void, text: StrRef) {
 pub struct HostCtx {
     table: *const HostTable,
     light_sets: Vec<LightSet>,
+    /// The space matrices asked so far, by (from, to) string handle: each pair is asked of the
+    /// renderer once per batch, however many chunks use it.
+    matrices: Vec<((u32, u32), Option<M4>)>,
 }
 
 struct LightSet {
@@ -394,7 +399,7 @@ struct LightSet {
 
 impl HostCtx {
     pub(super) fn new(table: *const HostTable) -> HostCtx {
-        HostCtx { table, light_sets: Vec::new() }
+        HostCtx { table, light_sets: Vec::new(), matrices: Vec::new() }
     }
 }
 
@@ -431,12 +436,21 @@ impl Cx<'_> {
         let m = self.mask;
         (0..4).filter(move |l| m[*l])
     }
-    fn matrix(&self, from: &str, to: &str) -> Option<M4> {
-        let t = self.table?;
-        let mut m = [0.0f32; 16];
-        // SAFETY: the runtime's table; `m` holds 16 floats.
-        let ok = unsafe { (t.matrix)(t.ctx, StrRef::new(from), StrRef::new(to), m.as_mut_ptr()) };
-        (ok != 0).then_some(m)
+    /// The matrix from space `from` to `to`, asked of the renderer once per batch (the answers are
+    /// kept in the batch's `HostCtx`: spaces do not change while a batch is shaded).
+    fn matrix(&mut self, from: u32, to: u32) -> Option<M4> {
+        if let Some((_, m)) = self.ctx.matrices.iter().find(|(k, _)| *k == (from, to)) {
+            return *m;
+        }
+        let m = self.table.and_then(|t| {
+            let (f, g) = (self.strings.get(from), self.strings.get(to));
+            let mut m = [0.0f32; 16];
+            // SAFETY: the runtime's table; `m` holds 16 floats.
+            let ok = unsafe { (t.matrix)(t.ctx, StrRef::new(f), StrRef::new(g), m.as_mut_ptr()) };
+            (ok != 0).then_some(m)
+        });
+        self.ctx.matrices.push(((from, to), m));
+        m
     }
     /// The lights reaching the chunk's active lanes at `p` (argument `k`).
     fn lights(&self, category: &str, k: usize) -> ([Vec<HostLight>; 4], [u32; 4]) {
@@ -479,8 +493,10 @@ unsafe fn with(
     f: impl FnOnce(&mut Cx<'_>),
 ) {
     // SAFETY: the caller's contract; `strings` and `ctx` point to live values owned by `run`'s frame
-    // and by the batch, distinct from the buffers generated code passes.
+    // and by the batch, distinct from the buffers generated code passes. A variadic helper's input
+    // 1 (lane 0) holds its number of inputs.
     unsafe {
+        let ins = if ins == VARIADIC { (*input.add(4)) as usize } else { ins };
         let b = &mut *batch;
         let ctx = &mut *b.ctx;
         let table = ctx.table.as_ref();
@@ -528,6 +544,10 @@ fn sum_lights(lights: &[HostLight], n: V3, weight: impl Fn(&HostLight) -> f32) -
     sum
 }
 
+/// The input arity of a variadic host helper (`format`, `printf`): its input 1 holds the number of
+/// inputs.
+pub(super) const VARIADIC: usize = usize::MAX;
+
 /// A host helper: its symbol, function and arity (in `f32x4` values).
 pub(super) struct HostHelper {
     pub name: &'static str,
@@ -543,7 +563,7 @@ impl HostHelper {
 }
 
 macro_rules! host_helpers {
-    ($($fname:ident $sym:literal $i:literal -> $o:literal |$cx:ident| $body:block)*) => {
+    ($($fname:ident $sym:literal $i:expr => $o:literal |$cx:ident| $body:block)*) => {
         $(
             /// # Safety
             /// See [`with`].
@@ -573,9 +593,9 @@ pub(super) fn msg_class(base: crate::ir::BaseType) -> Option<u32> {
 
 host_helpers! {
     // [from, to] -> [m; 16, found]
-    h_matrix "rtsl_h_matrix" 2 -> 17 |cx| {
-        let (from, to) = (cx.s(0), cx.s(1));
-        let m = cx.matrix(&from, &to);
+    h_matrix "rtsl_h_matrix" 2 => 17 |cx| {
+        let (from, to) = (cx.input[0].to_bits(), cx.input[4].to_bits());
+        let m = cx.matrix(from, to);
         for l in cx.active() {
             for (j, x) in m.unwrap_or(matrix::IDENTITY).iter().enumerate() {
                 cx.set(j, l, *x);
@@ -584,7 +604,7 @@ host_helpers! {
         }
     }
     // [space, c] -> c in RGB (unchanged for an unknown space)
-    h_to_rgb "rtsl_h_to_rgb" 4 -> 3 |cx| {
+    h_to_rgb "rtsl_h_to_rgb" 4 => 3 |cx| {
         let space = cx.s(0);
         for l in cx.active() {
             let c = cx.v3(1, l);
@@ -592,7 +612,7 @@ host_helpers! {
         }
     }
     // [a, b, c, three]: ctransform(a, b, c) when three, else ctransform(a, c)
-    h_ctransform "rtsl_h_ctransform" 6 -> 3 |cx| {
+    h_ctransform "rtsl_h_ctransform" 6 => 3 |cx| {
         let (a, b) = (cx.s(0), cx.s(1));
         for l in cx.active() {
             let c = cx.v3(2, l);
@@ -601,7 +621,7 @@ host_helpers! {
         }
     }
     // [category, P] -> [set, count]: the lights of an illuminance loop, kept in the context.
-    h_lights "rtsl_h_lights" 4 -> 2 |cx| {
+    h_lights "rtsl_h_lights" 4 => 2 |cx| {
         let category = cx.s(0);
         let (lights, _) = cx.lights(&category, 1);
         let order: [Vec<usize>; 4] = std::array::from_fn(|l| {
@@ -621,7 +641,7 @@ host_helpers! {
         }
     }
     // [set, k, axis, angle, cone] -> [mask bits, L, Cl, Ol]: each lane's k-th non-ambient light
-    h_light "rtsl_h_light" 7 -> 10 |cx| {
+    h_light "rtsl_h_light" 7 => 10 |cx| {
         for l in 0..4 {
             cx.set(0, l, f32::from_bits(0));
         }
@@ -642,7 +662,7 @@ host_helpers! {
         }
     }
     // [P] -> the ambient lights' sum
-    h_ambient "rtsl_h_ambient" 3 -> 3 |cx| {
+    h_ambient "rtsl_h_ambient" 3 => 3 |cx| {
         let (lights, _) = cx.lights("", 0);
         for l in cx.active() {
             let sum = lights[l].iter().filter(|x| x.ambient != 0).fold([0.0; 3], |acc, x| add(acc, x.cl));
@@ -650,7 +670,7 @@ host_helpers! {
         }
     }
     // [P, N] -> diffuse
-    h_diffuse "rtsl_h_diffuse" 6 -> 3 |cx| {
+    h_diffuse "rtsl_h_diffuse" 6 => 3 |cx| {
         let (lights, _) = cx.lights("", 0);
         for l in cx.active() {
             let n = geom::normalize(cx.v3(3, l));
@@ -659,7 +679,7 @@ host_helpers! {
         }
     }
     // [P, N, V, roughness] -> specular
-    h_specular "rtsl_h_specular" 10 -> 3 |cx| {
+    h_specular "rtsl_h_specular" 10 => 3 |cx| {
         let (lights, _) = cx.lights("", 0);
         for l in cx.active() {
             let (n, view, rough) = (geom::normalize(cx.v3(3, l)), geom::normalize(cx.v3(6, l)), cx.f(9, l));
@@ -668,7 +688,7 @@ host_helpers! {
         }
     }
     // [P, N, V, size] -> phong
-    h_phong "rtsl_h_phong" 10 -> 3 |cx| {
+    h_phong "rtsl_h_phong" 10 => 3 |cx| {
         let (lights, _) = cx.lights("", 0);
         for l in cx.active() {
             let (n, view, size) = (geom::normalize(cx.v3(3, l)), geom::normalize(cx.v3(6, l)), cx.f(9, l));
@@ -678,7 +698,7 @@ host_helpers! {
         }
     }
     // [name, s, t, first channel, fill, channels] -> 3
-    h_texture "rtsl_h_texture" 6 -> 3 |cx| {
+    h_texture "rtsl_h_texture" 6 => 3 |cx| {
         let name = cx.s(0);
         let n = cx.f(5, 0) as u32;
         let (vals, ok) = texture_call(cx, 0, &name, n);
@@ -690,7 +710,7 @@ host_helpers! {
         }
     }
     // [name, dir, fill] -> 3
-    h_environment "rtsl_h_environment" 5 -> 3 |cx| {
+    h_environment "rtsl_h_environment" 5 => 3 |cx| {
         let name = cx.s(0);
         let (vals, ok) = texture_call(cx, 1, &name, 3);
         for l in cx.active() {
@@ -701,7 +721,7 @@ host_helpers! {
         }
     }
     // [name, p] -> 1 (0 without a renderer)
-    h_shadow "rtsl_h_shadow" 4 -> 1 |cx| {
+    h_shadow "rtsl_h_shadow" 4 => 1 |cx| {
         let name = cx.s(0);
         let (vals, ok) = texture_call(cx, 2, &name, 1);
         for l in cx.active() {
@@ -709,12 +729,12 @@ host_helpers! {
         }
     }
     // [from, dir] -> [colour, distance]
-    h_trace "rtsl_h_trace" 6 -> 4 |cx| { rays_call(cx, 0, 4) }
-    h_transmission "rtsl_h_transmission" 6 -> 3 |cx| { rays_call(cx, 1, 3) }
+    h_trace "rtsl_h_trace" 6 => 4 |cx| { rays_call(cx, 0, 4) }
+    h_transmission "rtsl_h_transmission" 6 => 3 |cx| { rays_call(cx, 1, 3) }
     // [p, n, samples] -> 1 / 3
-    h_occlusion "rtsl_h_occlusion" 7 -> 1 |cx| { rays_call(cx, 2, 1) }
-    h_indirect "rtsl_h_indirectdiffuse" 7 -> 3 |cx| { rays_call(cx, 3, 3) }
-    h_depth "rtsl_h_depth" 3 -> 1 |cx| {
+    h_occlusion "rtsl_h_occlusion" 7 => 1 |cx| { rays_call(cx, 2, 1) }
+    h_indirect "rtsl_h_indirectdiffuse" 7 => 3 |cx| { rays_call(cx, 3, 3) }
+    h_depth "rtsl_h_depth" 3 => 1 |cx| {
         let mut out = [0.0f32; 4];
         let mask: [i32; 4] = cx.mask.map(|m| if m { -1 } else { 0 });
         if let Some(t) = cx.table {
@@ -725,7 +745,7 @@ host_helpers! {
             cx.set(0, l, out[l]);
         }
     }
-    h_raydepth "rtsl_h_raydepth" 0 -> 1 |cx| {
+    h_raydepth "rtsl_h_raydepth" 0 => 1 |cx| {
         // SAFETY: the runtime's table.
         let d = cx.table.map(|t| unsafe { (t.ray_depth)(t.ctx) }).unwrap_or(0.0);
         for l in 0..4 {
@@ -733,7 +753,7 @@ host_helpers! {
         }
     }
     // [which, name, class, len] -> [found, value...]: message passing into a destination of that shape
-    h_message "rtsl_h_message" 4 -> 65 |cx| {
+    h_message "rtsl_h_message" 4 => 65 |cx| {
         let which = cx.f(0, 0) as u32;
         let name = cx.s(1);
         let (class, len) = (cx.f(2, 0) as u32, cx.f(3, 0) as u32);
@@ -766,7 +786,7 @@ host_helpers! {
         }
     }
     // [kind, has kind] -> handle
-    h_shadername "rtsl_h_shadername" 2 -> 1 |cx| {
+    h_shadername "rtsl_h_shadername" 2 => 1 |cx| {
         let (kind, has) = (cx.s(0), cx.f(1, 0) != 0.0);
         let name = match cx.table {
             // SAFETY: the runtime's table; the string is copied before the next call.
@@ -778,6 +798,126 @@ host_helpers! {
             cx.set(0, l, f32::from_bits(h));
         }
     }
+    // [basis, x, knots] -> [first knot of the segment, four weights]: `spline`'s segment and weights
+    h_spline "rtsl_h_spline" 3 => 5 |cx| {
+        let basis = spline::Basis::parse(&cx.s(0));
+        let n = cx.f(2, 0) as usize;
+        for l in cx.active() {
+            let (first, w) = basis.weights(cx.f(1, l), n).unwrap_or((0, [1.0, 0.0, 0.0, 0.0]));
+            cx.set(0, l, first as f32);
+            for (k, x) in w.iter().enumerate() {
+                cx.set(1 + k, l, *x);
+            }
+        }
+    }
+    // [a, b] -> handle of a + b
+    h_concat "rtsl_h_concat" 2 => 1 |cx| {
+        let s = cx.s(0) + &cx.s(1);
+        let h = cx.strings.intern(&s);
+        for l in 0..4 {
+            cx.set(0, l, f32::from_bits(h));
+        }
+    }
+    // [pattern, subject] -> 1 or 0
+    h_match "rtsl_h_match" 2 => 1 |cx| {
+        let m = regex_match(&cx.s(0), &cx.s(1));
+        for l in 0..4 {
+            cx.set(0, l, if m { 1.0 } else { 0.0 });
+        }
+    }
+    // [fmt, inputs, n, kinds; n, values...] -> handle (uniform: lane 0's text)
+    h_format "rtsl_h_format" VARIADIC => 1 |cx| {
+        let text = format_lane(cx, 0);
+        let h = cx.strings.intern(&text);
+        for l in 0..4 {
+            cx.set(0, l, f32::from_bits(h));
+        }
+    }
+    // As `format`; prints each active lane's text, in lane order.
+    h_printf "rtsl_h_printf" VARIADIC => 1 |cx| {
+        let active: Vec<usize> = cx.active().collect();
+        for l in active {
+            let text = format_lane(cx, l);
+            if let Some(t) = cx.table {
+                // SAFETY: the runtime's table; the text outlives the call.
+                unsafe { (t.print)(t.ctx, StrRef::new(&text)) };
+            }
+        }
+    }
+}
+
+/// Kinds of `format`/`printf` arguments in the helpers' input header.
+pub(super) const FMT_FLOAT: u32 = 1;
+pub(super) const FMT_TRIPLE: u32 = 2;
+pub(super) const FMT_MATRIX: u32 = 3;
+pub(super) const FMT_STRING: u32 = 4;
+pub(super) const FMT_BOOL: u32 = 5;
+
+/// The text of `format(fmt, args...)` in lane `l`: input 0 the format, 2 the argument count `n`,
+/// `3..3+n` their kinds (`FMT_*`), then their values (a bool as a lane mask, a string a handle), as
+/// the interpreter passes them to `shadeops::format` (a bool is the float 0 or 1).
+fn format_lane(cx: &Cx<'_>, l: usize) -> String {
+    enum A {
+        F(f32),
+        T(V3),
+        M(M4),
+        S(String),
+    }
+    let n = cx.f(2, 0) as usize;
+    let mut at = 3 + n;
+    let mut parts = Vec::with_capacity(n);
+    for i in 0..n {
+        let (part, size) = match cx.f(3 + i, 0) as u32 {
+            FMT_FLOAT => (A::F(cx.f(at, l)), 1),
+            FMT_TRIPLE => (A::T(cx.v3(at, l)), 3),
+            FMT_MATRIX => (A::M(std::array::from_fn(|k| cx.f(at + k, l))), 16),
+            FMT_STRING => (A::S(cx.s(at)), 1),
+            _ => (A::F(if cx.f(at, l).to_bits() != 0 { 1.0 } else { 0.0 }), 1),
+        };
+        parts.push(part);
+        at += size;
+    }
+    let args: Vec<FormatArg<'_>> = parts
+        .iter()
+        .map(|p| match p {
+            A::F(x) => FormatArg::Float(*x),
+            A::T(t) => FormatArg::Triple(*t),
+            A::M(m) => FormatArg::Matrix(m),
+            A::S(s) => FormatArg::Str(s),
+        })
+        .collect();
+    format::format(&cx.s(0), &args)
+}
+
+/// The interpreter's `match` (a small regular-expression matcher: `.`, `*`, `^`, `$`, literals),
+/// repeated here because the interpreter shares no code with the JIT.
+fn regex_match(pattern: &str, subject: &str) -> bool {
+    fn here(p: &[char], s: &[char]) -> bool {
+        match p {
+            [] => true,
+            ['$'] => s.is_empty(),
+            [c, '*', rest @ ..] => {
+                let mut i = 0;
+                loop {
+                    if here(rest, &s[i..]) {
+                        return true;
+                    }
+                    if i < s.len() && (*c == '.' || s[i] == *c) {
+                        i += 1;
+                    } else {
+                        return false;
+                    }
+                }
+            }
+            [c, rest @ ..] => !s.is_empty() && (*c == '.' || *c == s[0]) && here(rest, &s[1..]),
+        }
+    }
+    let p: Vec<char> = pattern.chars().collect();
+    let s: Vec<char> = subject.chars().collect();
+    if let Some(rest) = p.strip_prefix(&['^']) {
+        return here(rest, &s);
+    }
+    (0..=s.len()).any(|i| here(&p, &s[i..]))
 }
 
 fn texture_call(cx: &mut Cx<'_>, kind: u32, name: &str, channels: u32) -> (Vec<f32>, [u32; 4]) {

@@ -10,6 +10,9 @@
 //!   then every uniform parameter in declaration order, the same element-major order, one `f32` each.
 //! - Every shader parameter has an entry (in declaration order), and `bound[i]` of the batch says
 //!   whether parameter `i` was given a value (otherwise the shader evaluates its default).
+//! - **Random seeds**: a module that calls `random()` gets two more varying slots after the
+//!   parameters ([`Layout::seed`]): each lane's 64-bit seed (the interpreter's `ShadingPoint::seed`),
+//!   low 32 bits then high 32 bits, carried in the bits of `f32`s (see `BatchData::set_seed`).
 //! - The layout depends only on the module, never on the batch size.
 
 use crate::globals::{Global, GLOBALS};
@@ -61,6 +64,9 @@ pub struct Layout {
     pub uniform_len: usize,
     /// The shader's string constants: handles `0..strings.len()` of every batch's string table.
     pub strings: Vec<String>,
+    /// The first of the two varying slots holding each lane's `random()` seed (low, high 32 bits),
+    /// when the module calls `random()`.
+    pub seed: Option<usize>,
 }
 
 impl Layout {
@@ -89,6 +95,7 @@ pub(super) fn components(ty: Type) -> Option<usize> {
 pub(super) fn layout(m: &Module) -> Result<Layout, &'static str> {
     let shader = m.shader.as_ref().ok_or("a module without a shader")?;
     let mut used = vec![false; GLOBALS.len()];
+    let mut random = false;
     let mut written = vec![false; GLOBALS.len()];
     for f in &m.functions {
         for e in &f.exprs {
@@ -112,6 +119,7 @@ pub(super) fn layout(m: &Module) -> Result<Layout, &'static str> {
                     // Built-ins that read globals implicitly.
                     if let ExprKind::CallBuiltin { builtin, args, .. } = &e.kind {
                         use crate::builtins::Builtin as Bi;
+                        random |= *builtin == Bi::Random;
                         let implicit: &[&str] = match builtin {
                             Bi::Faceforward if args.len() == 2 => &["Ng"],
                             Bi::Ambient | Bi::Diffuse | Bi::Specular | Bi::Phong => &["P"],
@@ -176,6 +184,10 @@ pub(super) fn layout(m: &Module) -> Result<Layout, &'static str> {
             len,
         });
         *offset += comps * len;
+    }
+    if random {
+        l.seed = Some(l.varying_slots);
+        l.varying_slots += 2;
     }
     Ok(l)
 }

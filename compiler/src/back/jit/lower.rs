@@ -27,9 +27,18 @@
 //!   products, inverses and everything from the renderer go through chunk helpers (`math.rs`,
 //!   `host.rs`), one call per chunk.
 //! - **Light loops**: see `illuminance`; `illuminate` masks by its cone, `solar` sets `L`.
+//! - **`random()`** draws from the lane's seed (two varying slots, `Layout::seed`) and the lane's
+//!   call count (`random_calls`, an `i32x4` counting the calls each lane ran in this chunk, bumped
+//!   under `exec`): the interpreter's `seed * 0x9E3779B97F4A7C15 + calls`, so they agree lane for
+//!   lane wherever the call sits.
+//! - **`spline`**: the host helper `rtsl_h_spline` returns each lane's segment and weights; knots
+//!   are selected and summed inline (see `spline`). **String built-ins** (`concat`, `match`,
+//!   `format` on uniform values) are uniform host-helper calls whose string results are interned in
+//!   the batch's table; `printf` calls `rtsl_h_printf` once per chunk, which formats and prints each
+//!   running lane's text (`format`/`printf` pass a header of argument kinds: `host::format_lane`).
 //! - Unsupported here: `gather`, derivatives (`Du`, `Dv`, `Deriv`, `area`, `calculatenormal`,
-//!   `filterstep`), varying strings, `concat`/`format`/`printf`/`match`, `random`, `spline`,
-//!   `pnoise`, `specularbrdf`, `bump`, point clouds, and built-ins not handled in `builtin` or
+//!   `filterstep` without an explicit width), varying strings (`format` of varying values),
+//!   `specularbrdf`, `bump`, point clouds, and built-ins not handled in `builtin` or
 //!   `builtin_ext`.
 
 use super::host;
@@ -131,6 +140,9 @@ struct Lower<'m, 'b> {
     batch: Option<Value>,
     /// The string constants, by handle (`""` is handle 0, so zeroed storage is the empty string).
     strings: Vec<String>,
+    /// Per lane, how many `random()` calls it has run in this chunk (`i32x4`, zero at its start):
+    /// the interpreter's `random_calls`.
+    random_calls: Variable,
 }
 
 /// Lowers the module's shader into `func` (signature `fn(*mut Batch)`); returns the number of
@@ -146,6 +158,7 @@ pub(super) fn lower(
     let ptr = config.pointer_type();
     let mut b = FunctionBuilder::new(func, &mut fctx);
     let exec = b.declare_var(types::I32X4);
+    let random_calls = b.declare_var(types::I32X4);
     let mut l = Lower {
         m,
         layout,
@@ -164,6 +177,7 @@ pub(super) fn lower(
         fn_div: HashMap::new(),
         batch: None,
         strings: vec![String::new()],
+        random_calls,
     };
     l.shade()?;
     l.b.seal_all_blocks();
@@ -305,6 +319,8 @@ impl<'m> Lower<'m, '_> {
         self.stride_bytes = Some(stride_bytes);
         self.uniform = Some(uniform_p);
         self.set_exec(chunk_mask);
+        let z = mask::zero_mask(&mut self.b);
+        self.b.def_var(self.random_calls, z);
         self.chunk(shader, bound_p)?;
         self.b.ins().jump(next, &[]);
         self.b.switch_to_block(next);
@@ -1247,6 +1263,7 @@ impl<'m> Lower<'m, '_> {
             (None, Some(h)) => (h.name, h.ins, h.outs, true),
             _ => return Err(JitError::Codegen(format!("no helper {name}"))),
         };
+        let ins = if ins == host::VARIADIC { inputs.len() } else { ins };
         if ins != inputs.len() {
             return Err(JitError::Codegen(format!("{name} takes {ins} inputs, not {}", inputs.len())));
         }
@@ -1716,6 +1733,60 @@ impl<'m> Lower<'m, '_> {
         Ok(Val { vary: all.vary || fallback.vary, c })
     }
 
+    /// `spline([basis,] x, knots... | knots[])`: the host helper finds each lane's segment and its
+    /// four weights (`shadeops::spline::Basis::weights`, the interpreter's code); the knots are
+    /// selected per lane and summed here in the interpreter's order
+    /// (`w0 k[s] + w1 k[s+1] + w2 k[s+2] + w3 k[s+3]`). Fewer than 4 knots give the first one.
+    fn spline(&mut self, args: &[Arg], vals: &[Val], e: &ir::Expr) -> R<Val> {
+        let f = self.func();
+        let has_basis = match &args[0] {
+            Arg::Value(x) => f.expr(*x).ty.base == BaseType::String,
+            Arg::Ref(p) => p.ty.base == BaseType::String,
+        };
+        let (basis, rest) = if has_basis { (vals[0].clone(), 1) } else { (self.const_string(""), 0) };
+        if basis.vary {
+            return unsupported("varying strings");
+        }
+        let x = vals[rest].clone();
+        let comps = if e.ty.base == BaseType::Float { 1 } else { 3 };
+        let knots = self.concat(&vals[rest + 1..]);
+        let n = knots.c.len() / comps;
+        if n < 4 {
+            return Ok(match n {
+                0 => Val { vary: false, c: vec![self.fconst(0.0, false); comps] },
+                _ => Val { vary: knots.vary, c: knots.c[..comps].to_vec() },
+            });
+        }
+        let nv = self.fconst(n as f32, false);
+        let w = self.call_helper("rtsl_h_spline", &[basis.c[0], x.c[0], nv], x.vary)?;
+        let vary = x.vary || knots.vary;
+        let w: Vec<Value> = w.iter().map(|v| widen(&mut self.b, *v, vary)).collect();
+        let k: Vec<Value> = knots.c.iter().map(|v| widen(&mut self.b, *v, vary)).collect();
+        // Segment starts 1..=n-4 (0 is the default of every select).
+        let mut at = Vec::with_capacity(n - 3);
+        for s in 1..=n - 4 {
+            let sc = konst(&mut self.b, s as f32, w[0]);
+            at.push(self.b.ins().fcmp(FloatCC::Equal, w[0], sc));
+        }
+        let mut c = Vec::with_capacity(comps);
+        for j in 0..comps {
+            let mut sum: Option<Value> = None;
+            for i in 0..4 {
+                let mut pick = k[i * comps + j];
+                for (s, eq) in at.iter().enumerate() {
+                    pick = choose(&mut self.b, *eq, k[(s + 1 + i) * comps + j], pick);
+                }
+                let term = self.b.ins().fmul(w[1 + i], pick);
+                sum = Some(match sum {
+                    None => term,
+                    Some(acc) => self.b.ins().fadd(acc, term),
+                });
+            }
+            c.push(sum.expect("four terms"));
+        }
+        Ok(Val { vary, c })
+    }
+
     fn space_cast(&mut self, ty: BaseType, space: &Val, v: Val) -> R<Val> {
         if ty == BaseType::Color {
             if space.vary {
@@ -1786,7 +1857,15 @@ impl<'m> Lower<'m, '_> {
             | Bi::Option
             | Bi::Rendererinfo
             | Bi::Rayinfo
-            | Bi::Textureinfo => true,
+            | Bi::Textureinfo
+            | Bi::Spline
+            | Bi::Pnoise
+            | Bi::Filterstep
+            | Bi::Random
+            | Bi::Concat
+            | Bi::Format
+            | Bi::Printf
+            | Bi::Match => true,
             _ => false,
         };
         if !handled {
@@ -1839,6 +1918,112 @@ impl<'m> Lower<'m, '_> {
             Ok(s.read_store(&st))
         };
         let r = match bi {
+            Bi::Spline => self.spline(args, &vals, e)?,
+            Bi::Pnoise => {
+                let first_triple = vals[0].c.len() == 3;
+                let name: &'static str = match (e.ty.base != BaseType::Float, first_triple, vals.len()) {
+                    (false, false, 4) => "rtsl_pnoise2",
+                    (false, false, _) => "rtsl_pnoise1",
+                    (false, true, 4) => "rtsl_pnoise4",
+                    (false, true, _) => "rtsl_pnoise3",
+                    (true, false, 4) => "rtsl_vpnoise2",
+                    (true, false, _) => "rtsl_vpnoise1",
+                    (true, true, 4) => "rtsl_vpnoise4",
+                    (true, true, _) => "rtsl_vpnoise3",
+                };
+                helper(self, name, &vals, false)?
+            }
+            Bi::Filterstep => {
+                let (edge, x) = (v(0), v(1));
+                let width = if fixed == 3 {
+                    let d = self.binary(BinaryOp::Sub, Type::FLOAT, &v(2), &x)?;
+                    self.map1(&d, |b, w| b.ins().fabs(w))
+                } else {
+                    match param_arg(f, args, fixed, "width")? {
+                        Some(a) => {
+                            let i = args.iter().position(|x| std::ptr::eq(x, a)).unwrap_or(0);
+                            vals[i].clone()
+                        }
+                        None => return unsupported("filterstep without an explicit width (derivatives)"),
+                    }
+                };
+                helper(self, "rtsl_filterstep", &[edge, x, width], false)?
+            }
+            Bi::Random => {
+                let slot = self.layout.seed.ok_or_else(|| JitError::Codegen("no seed slots".into()))?;
+                let lo = self.load_slot(true, slot);
+                let hi = self.load_slot(true, slot + 1);
+                let calls = self.b.use_var(self.random_calls);
+                let name = if e.ty.base == BaseType::Float { "rtsl_random" } else { "rtsl_vrandom" };
+                let c = self.call_helper(name, &[lo, hi, calls], true)?;
+                // Running lanes count the call (exec is -1 there).
+                let e = self.exec();
+                let next = self.b.ins().isub(calls, e);
+                self.b.def_var(self.random_calls, next);
+                Val { vary: true, c }
+            }
+            Bi::Concat => {
+                if vals.iter().any(|x| x.vary) {
+                    return unsupported("varying strings");
+                }
+                let mut acc = v(0);
+                for x in &vals[1..] {
+                    acc = helper(self, "rtsl_h_concat", &[acc, x.clone()], false)?;
+                }
+                acc
+            }
+            Bi::Match => {
+                if vals.iter().any(|x| x.vary) {
+                    return unsupported("varying strings");
+                }
+                helper(self, "rtsl_h_match", &[v(0), v(1)], false)?
+            }
+            Bi::Format | Bi::Printf => {
+                let printf = bi == Bi::Printf;
+                if !printf && (e.varying || vals.iter().any(|x| x.vary)) {
+                    return unsupported("varying strings (format of varying values)");
+                }
+                if vals[0].vary {
+                    return unsupported("varying strings");
+                }
+                let mut kinds = Vec::new();
+                for a in &args[1..] {
+                    let ty = match a {
+                        Arg::Value(x) => f.expr(*x).ty,
+                        Arg::Ref(p) => p.ty,
+                    };
+                    if ty.is_array() {
+                        return unsupported("an array argument of format or printf");
+                    }
+                    kinds.push(match ty.base {
+                        BaseType::Float => host::FMT_FLOAT,
+                        b if b.is_triple() => host::FMT_TRIPLE,
+                        BaseType::Matrix => host::FMT_MATRIX,
+                        BaseType::String => host::FMT_STRING,
+                        BaseType::Bool => host::FMT_BOOL,
+                        _ => return unsupported(format!("a {ty} argument of format or printf")),
+                    });
+                }
+                let data: usize = vals[1..].iter().map(|x| x.c.len()).sum();
+                let mut header = vec![v(0).c[0]];
+                header.push(self.fconst((3 + kinds.len() + data) as f32, false));
+                header.push(self.fconst(kinds.len() as f32, false));
+                for k in &kinds {
+                    header.push(self.fconst(*k as f32, false));
+                }
+                let mut inputs = header;
+                for x in &vals[1..] {
+                    inputs.extend(x.c.iter().copied());
+                }
+                if printf {
+                    self.call_helper("rtsl_h_printf", &inputs, true)?;
+                    Val { vary: false, c: Vec::new() }
+                } else {
+                    vary = false;
+                    let c = self.call_helper("rtsl_h_format", &inputs, false)?;
+                    Val { vary: false, c }
+                }
+            }
             Bi::Comp => {
                 let r = helper(self, "rtsl_mcomp", &[v(0), v(1), v(2)], false)?;
                 Val { vary: r.vary, c: r.c }

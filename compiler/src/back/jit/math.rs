@@ -210,6 +210,17 @@ helpers! {
     h_vcell2 "rtsl_vcellnoise2" 2 -> 3 |[x, y]| noise::vcellnoise2(x, y);
     h_vcell3 "rtsl_vcellnoise3" 3 -> 3 |[x, y, z]| noise::vcellnoise3([x, y, z]);
     h_vcell4 "rtsl_vcellnoise4" 4 -> 3 |[x, y, z, t]| noise::vcellnoise4([x, y, z], t);
+    h_pnoise1 "rtsl_pnoise1" 2 -> 1 |[x, px]| [noise::pnoise1(x, px)];
+    h_pnoise2 "rtsl_pnoise2" 4 -> 1 |[x, y, px, py]| [noise::pnoise2(x, y, px, py)];
+    h_pnoise3 "rtsl_pnoise3" 6 -> 1 |x| [noise::pnoise3([x[0], x[1], x[2]], [x[3], x[4], x[5]])];
+    h_pnoise4 "rtsl_pnoise4" 8 -> 1 |x| [noise::pnoise4([x[0], x[1], x[2]], x[3], [x[4], x[5], x[6]], x[7])];
+    h_vpnoise1 "rtsl_vpnoise1" 2 -> 3 |[x, px]| noise::vpnoise1(x, px);
+    h_vpnoise2 "rtsl_vpnoise2" 4 -> 3 |[x, y, px, py]| noise::vpnoise2(x, y, px, py);
+    h_vpnoise3 "rtsl_vpnoise3" 6 -> 3 |x| noise::vpnoise3([x[0], x[1], x[2]], [x[3], x[4], x[5]]);
+    h_vpnoise4 "rtsl_vpnoise4" 8 -> 3 |x| noise::vpnoise4([x[0], x[1], x[2]], x[3], [x[4], x[5], x[6]], x[7]);
+    h_filterstep "rtsl_filterstep" 3 -> 1 |[edge, x, w]| [geom::filterstep(edge, x, w)];
+    h_random "rtsl_random" 3 -> 1 |[lo, hi, k]| [noise::random(random_seed(lo, hi, k))];
+    h_vrandom "rtsl_vrandom" 3 -> 3 |[lo, hi, k]| noise::vrandom(random_seed(lo, hi, k));
     h_mmul "rtsl_mmul" 32 -> 16 |x| matrix::mul(&m4(&x, 0), &m4(&x, 16));
     h_mdiv "rtsl_mdiv" 32 -> 16 |x| matrix::div(&m4(&x, 0), &m4(&x, 16));
     h_det "rtsl_determinant" 16 -> 1 |x| [matrix::determinant(&m4(&x, 0))];
@@ -226,6 +237,13 @@ helpers! {
     h_refract "rtsl_refract" 7 -> 3 |x| geom::refract([x[0], x[1], x[2]], [x[3], x[4], x[5]], x[6]);
     h_fresnel "rtsl_fresnel" 7 -> 8 |x| { let (kr, kt, r, t) = geom::fresnel([x[0], x[1], x[2]], [x[3], x[4], x[5]], x[6]); [kr, kt, r[0], r[1], r[2], t[0], t[1], t[2]] };
     h_ptlined "rtsl_ptlined" 9 -> 1 |[px, py, pz, ax, ay, az, bx, by, bz]| [geom::ptlined([px, py, pz], [ax, ay, az], [bx, by, bz])];
+}
+
+/// The interpreter's seed of a lane's `k`-th `random()`: `seed * 0x9E3779B97F4A7C15 + k`, where the
+/// lane's 64-bit seed arrives as two `u32`s and `k` as a `u32`, all in the bits of `f32`s.
+fn random_seed(lo: f32, hi: f32, k: f32) -> u64 {
+    let seed = u64::from(lo.to_bits()) | (u64::from(hi.to_bits()) << 32);
+    seed.wrapping_mul(0x9E37_79B9_7F4A_7C15).wrapping_add(u64::from(k.to_bits()))
 }
 
 fn m4(x: &[f32], at: usize) -> M4 {

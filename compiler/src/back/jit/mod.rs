@@ -340,6 +340,19 @@ impl BatchData {
         true
     }
 
+    /// Sets the `random()` seed of one lane (the interpreter's `ShadingPoint::seed`: the `k`-th
+    /// `random()` of the lane draws from `seed * 0x9E3779B97F4A7C15 + k`). Returns false when the
+    /// shader never calls `random()` or the lane is out of range. Unset seeds are 0 in a fresh batch.
+    pub fn set_seed(&mut self, lane: usize, seed: u64) -> bool {
+        let Some(slot) = self.layout.seed else { return false };
+        if lane >= self.lanes {
+            return false;
+        }
+        self.varying[slot * self.stride + lane] = f32::from_bits(seed as u32);
+        self.varying[(slot + 1) * self.stride + lane] = f32::from_bits((seed >> 32) as u32);
+        true
+    }
+
     /// A string parameter's value (after shading: its final value when it is an output).
     pub fn string_param(&self, name: &str) -> Option<&str> {
         let (_, p) = self.layout.param(name)?;
