@@ -1,24 +1,13 @@
 //! The shader library and the conformance corpus compile; the library without a single warning.
 
+mod common;
+
 use rtsl_compiler::{compile_file, Options};
 use std::path::{Path, PathBuf};
 
-fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
-    let mut entries: Vec<PathBuf> =
-        std::fs::read_dir(dir).expect("directory").filter_map(|e| e.ok().map(|e| e.path())).collect();
-    entries.sort();
-    for p in entries {
-        if p.is_dir() {
-            walk(&p, out);
-        } else if p.extension().is_some_and(|e| e == "sl") {
-            out.push(p);
-        }
-    }
-}
-
 fn compile_all(dir: &Path, include: Option<&Path>) -> Vec<(PathBuf, rtsl_compiler::Compilation)> {
     let mut files = Vec::new();
-    walk(dir, &mut files);
+    files.extend(common::shader_files(dir));
     let mut options = Options::default();
     options.preprocessor.include_paths.extend(include.map(Path::to_path_buf));
     files

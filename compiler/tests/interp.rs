@@ -2,22 +2,11 @@
 //! run finishes with finite outputs, or stops with an explicit "not supported yet" (derivatives,
 //! `gather`), never a panic or a runaway.
 
+mod common;
+
 use rtsl_compiler::interp::{self, InterpError, Limits, ShadingPoint, TestHost, Value};
 use rtsl_compiler::{compile_file, Options};
 use std::path::{Path, PathBuf};
-
-fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
-    let mut entries: Vec<PathBuf> =
-        std::fs::read_dir(dir).expect("dir").filter_map(|e| e.ok().map(|e| e.path())).collect();
-    entries.sort();
-    for p in entries {
-        if p.is_dir() {
-            walk(&p, out);
-        } else if p.extension().is_some_and(|e| e == "sl") {
-            out.push(p);
-        }
-    }
-}
 
 fn finite(v: &Value) -> bool {
     match v {
@@ -32,9 +21,9 @@ fn finite(v: &Value) -> bool {
 #[test]
 fn the_library_and_corpus_run_in_the_interpreter() {
     let mut files = Vec::new();
-    walk(Path::new("../stdlib_shaders"), &mut files);
-    walk(Path::new("../tests/corpus"), &mut files);
-    walk(Path::new("../tests/corpus2"), &mut files);
+    files.extend(common::shader_files(Path::new("../stdlib_shaders")));
+    files.extend(common::shader_files(Path::new("../tests/corpus")));
+    files.extend(common::shader_files(Path::new("../tests/corpus2")));
     let mut options = Options::default();
     options.preprocessor.include_paths.push(PathBuf::from("../tests/corpus/include"));
     options.preprocessor.include_paths.push(PathBuf::from("../tests/corpus2/include"));

@@ -8,6 +8,8 @@
 //! agree exactly in practice; the tolerance only absorbs what a future polynomial may change), and
 //! inactive lanes must keep the sentinel's exact bits.
 
+mod common;
+
 use proptest::prelude::*;
 use rtsl_compiler::back::jit::{self, BatchData, CompiledShader, JitError};
 use rtsl_compiler::interp::{self, Limits, ShadingPoint, TestHost, Value};
@@ -489,24 +491,11 @@ proptest! {
 
 // ---- The shader library and corpus ----
 
-fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
-    let mut entries: Vec<PathBuf> =
-        std::fs::read_dir(dir).expect("dir").filter_map(|e| e.ok().map(|e| e.path())).collect();
-    entries.sort();
-    for p in entries {
-        if p.is_dir() {
-            walk(&p, out);
-        } else if p.extension().is_some_and(|e| e == "sl") {
-            out.push(p);
-        }
-    }
-}
-
 #[test]
 fn the_library_and_corpus_compile_or_report_unsupported() {
     let mut files = Vec::new();
-    walk(Path::new("../stdlib_shaders"), &mut files);
-    walk(Path::new("../tests/corpus"), &mut files);
+    files.extend(common::shader_files(Path::new("../stdlib_shaders")));
+    files.extend(common::shader_files(Path::new("../tests/corpus")));
     let mut options = Options::default();
     options.preprocessor.include_paths.push(PathBuf::from("../tests/corpus/include"));
     let (mut compiled, mut ran) = (Vec::new(), 0);
