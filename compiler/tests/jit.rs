@@ -496,8 +496,10 @@ fn the_library_and_corpus_compile_or_report_unsupported() {
     let mut files = Vec::new();
     files.extend(common::shader_files(Path::new("../stdlib_shaders")));
     files.extend(common::shader_files(Path::new("../tests/corpus")));
+    files.extend(common::shader_files(Path::new("../tests/corpus2")));
     let mut options = Options::default();
     options.preprocessor.include_paths.push(PathBuf::from("../tests/corpus/include"));
+    options.preprocessor.include_paths.push(PathBuf::from("../tests/corpus2/include"));
     let (mut compiled, mut ran) = (Vec::new(), 0);
     let mut reasons: std::collections::BTreeMap<String, usize> = Default::default();
     for path in &files {
