@@ -1,7 +1,8 @@
 //! Runs the tracer benchmark (the library side of `rtsl bench trace`) on a mesh file.
 //!
 //! Usage: `bench_trace MESH [THREADS] [REPEATS] [WxH]`, with the benchmark view of
-//! `shared/bench/README.md`.
+//! `shared/bench/README.md`. `PASSES=ss,ps` (environment) times only some passes, as
+//! `rtsl bench trace --passes` does (`pp`, `ps`, `sp`, `ss`).
 
 use rtsl_runtime::{run_bench, BenchOptions};
 
@@ -23,6 +24,10 @@ fn main() {
             o.width = w;
             o.height = h;
         }
+    }
+    if let Ok(p) = std::env::var("PASSES") {
+        let on: Vec<&str> = p.split(',').collect();
+        o.passes = ["pp", "ps", "sp", "ss"].map(|n| on.contains(&n));
     }
     match run_bench(&o) {
         Ok(r) => println!("{r:#?}"),
