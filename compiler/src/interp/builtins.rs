@@ -525,13 +525,7 @@ fn add(a: V3, b: V3) -> V3 {
     [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
 }
 
-/// RenderMan's specular weight for one light: `pow(max(0, N . H), 1/roughness)` with the half vector
-/// `H = normalize(L + V)`; all inputs normalised.
-fn specular_brdf(l: V3, n: V3, v: V3, roughness: f32) -> f32 {
-    let h = normalize(add(l, v));
-    let r = if roughness > 0.0 { roughness } else { 1e-4 };
-    dot(n, h).max(0.0).powf(1.0 / r)
-}
+use geom::specular_brdf;
 
 fn kind_of(v: &Value) -> BaseType {
     match v {

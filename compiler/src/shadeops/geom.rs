@@ -249,6 +249,16 @@ pub fn sign(x: f32) -> f32 {
     }
 }
 
+/// RenderMan's specular weight of one light (`specularbrdf`, and the per-light term of `specular`):
+/// `pow(max(0, N . H), 1 / roughness)` with the half vector `H = normalize(L + V)`. The inputs are
+/// normalised here; a roughness at or below zero is taken as 1e-4 (a very sharp highlight).
+pub fn specular_brdf(l: V3, n: V3, v: V3, roughness: f32) -> f32 {
+    let (l, n, v) = (normalize(l), normalize(n), normalize(v));
+    let h = normalize([l[0] + v[0], l[1] + v[1], l[2] + v[2]]);
+    let r = if roughness > 0.0 { roughness } else { 1e-4 };
+    dot(n, h).max(0.0).powf(1.0 / r)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -38,7 +38,7 @@
 //!   running lane's text (`format`/`printf` pass a header of argument kinds: `host::format_lane`).
 //! - Unsupported here: `gather`, derivatives (`Du`, `Dv`, `Deriv`, `area`, `calculatenormal`,
 //!   `filterstep` without an explicit width), varying strings (`format` of varying values),
-//!   `specularbrdf`, `bump`, point clouds, and built-ins not handled in `builtin` or
+//!   `bump`, point clouds, and built-ins not handled in `builtin` or
 //!   `builtin_ext`.
 
 use super::host;
@@ -1393,6 +1393,7 @@ impl<'m> Lower<'m, '_> {
                 | Bi::Ptlined
                 | Bi::Faceforward
                 | Bi::Reflect
+                | Bi::Specularbrdf
                 | Bi::Comp
                 | Bi::SetComp
         );
@@ -1561,6 +1562,12 @@ impl<'m> Lower<'m, '_> {
                 let all = self.concat(&vals);
                 let c = self.call_helper("rtsl_ptlined", &all.c, all.vary)?;
                 Val { vary: all.vary, c }
+            }
+            Bi::Specularbrdf => {
+                // A colour whose three components are the one weight.
+                let all = self.concat(&vals);
+                let w = self.call_helper("rtsl_specularbrdf", &all.c, all.vary)?;
+                Val { vary: all.vary, c: vec![w[0], w[0], w[0]] }
             }
             Bi::Faceforward => {
                 let nref = if vals.len() == 3 {

@@ -237,6 +237,7 @@ helpers! {
     h_refract "rtsl_refract" 7 -> 3 |x| geom::refract([x[0], x[1], x[2]], [x[3], x[4], x[5]], x[6]);
     h_fresnel "rtsl_fresnel" 7 -> 8 |x| { let (kr, kt, r, t) = geom::fresnel([x[0], x[1], x[2]], [x[3], x[4], x[5]], x[6]); [kr, kt, r[0], r[1], r[2], t[0], t[1], t[2]] };
     h_ptlined "rtsl_ptlined" 9 -> 1 |[px, py, pz, ax, ay, az, bx, by, bz]| [geom::ptlined([px, py, pz], [ax, ay, az], [bx, by, bz])];
+    h_specularbrdf "rtsl_specularbrdf" 10 -> 1 |x| [geom::specular_brdf([x[0], x[1], x[2]], [x[3], x[4], x[5]], [x[6], x[7], x[8]], x[9])];
 }
 
 /// The interpreter's seed of a lane's `k`-th `random()`: `seed * 0x9E3779B97F4A7C15 + k`, where the
