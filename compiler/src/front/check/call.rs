@@ -143,7 +143,9 @@ impl Checker<'_> {
         span: Span,
         expected: Option<BaseType>,
     ) -> Option<ExprId> {
-        let text = self.name(name.sym).to_string();
+        // The interner outlives the checker's borrow of itself: no copy of the name is needed.
+        let interner = self.interner;
+        let text: &str = interner.resolve(name.sym);
         let user = self.lookup_funcs(name.sym);
         let builtin = builtins::lookup(&text);
         if user.is_empty() && builtin.is_none() {
@@ -163,7 +165,7 @@ impl Checker<'_> {
                 }))
                 .chain(self.top_funcs.keys().map(|k| self.name(*k).to_string()))
                 .collect();
-            if let Some(best) = closest(&text, names.iter().map(String::as_str)) {
+            if let Some(best) = closest(text, names.iter().map(String::as_str)) {
                 d = d.with_note(format!("did you mean `{best}`?"));
             }
             self.diags.push(d);
@@ -175,7 +177,7 @@ impl Checker<'_> {
         }
         let user_candidates: Candidates;
         let candidates: &[(Option<usize>, Candidate)] = if !user.is_empty() {
-            user_candidates = user.iter().map(|&i| (Some(i), self.user_candidate(i, &text))).collect();
+            user_candidates = user.iter().map(|&i| (Some(i), self.user_candidate(i, text))).collect();
             &user_candidates
         } else {
             builtin_candidates(builtin.expect("checked above"))
@@ -211,7 +213,7 @@ impl Checker<'_> {
             }
         }
         let Some((_, first)) = best else {
-            self.no_match(&text, name.span, span, candidates, &lowered, !user.is_empty(), args);
+            self.no_match(text, name.span, span, candidates, &lowered, !user.is_empty(), args);
             return None;
         };
         let chosen = match expected {
