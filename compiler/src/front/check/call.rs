@@ -147,7 +147,7 @@ impl Checker<'_> {
         let interner = self.interner;
         let text: &str = interner.resolve(name.sym);
         let user = self.lookup_funcs(name.sym);
-        let builtin = builtins::lookup(&text);
+        let builtin = builtins::lookup(text);
         if user.is_empty() && builtin.is_none() {
             if let Some(Binding::Var(v)) = self.lookup_var(name.sym) {
                 self.b().used[v.0 as usize] = true;
