@@ -1,6 +1,5 @@
 //! Expressions: names, operators, typecasts, assignments.
 
-use super::convert::conversion;
 use super::{Binding, Checker, WithLabel};
 use crate::diagnostic::{Code, Diagnostic};
 use crate::front::parse::ast::{self, AssignOp, ShaderKind};
@@ -8,6 +7,7 @@ use crate::globals::{Access, Global};
 use crate::ir::types::COLOR_SPACES;
 use crate::ir::{self, BaseType, Constant, ExprId, ExprKind, Place, PlaceBase, Type};
 use crate::source::Span;
+use crate::symbol::Symbol;
 
 impl Checker<'_> {
     /// Checks and lowers an expression. `expected` is the type the context wants, if it knows: it
@@ -49,7 +49,7 @@ impl Checker<'_> {
         }
     }
 
-    fn name_expr(&mut self, sym: ir_sym::Symbol, span: Span) -> Option<ExprId> {
+    fn name_expr(&mut self, sym: Symbol, span: Span) -> Option<ExprId> {
         match self.lookup_var(sym) {
             Some(Binding::Var(v)) => {
                 self.b().used[v.0 as usize] = true;
@@ -207,13 +207,7 @@ impl Checker<'_> {
         }
     }
 
-    fn cast(
-        &mut self,
-        to: BaseType,
-        space: Option<(ir_sym::Symbol, Span)>,
-        operand: &ast::Expr,
-        span: Span,
-    ) -> Option<ExprId> {
+    fn cast(&mut self, to: BaseType, space: Option<(Symbol, Span)>, operand: &ast::Expr, span: Span) -> Option<ExprId> {
         // `color (r, g, b)` and `matrix (16 values)` construct directly.
         let value = match &operand.kind {
             ast::ExprKind::Tuple(items) if to.is_triple() && items.len() == 3 => {
@@ -646,10 +640,7 @@ pub(super) fn arithmetic_type(a: BaseType, b: BaseType) -> Option<BaseType> {
         (Float | Bool, Float | Bool) => Some(Float),
         (Float | Bool, t) | (t, Float | Bool) if t.is_triple() || t == Matrix => Some(t),
         (x, y) if x.is_pointlike() && y.is_pointlike() => Some(if x == Point || y == Point { Point } else { Vector }),
-        _ => {
-            let _ = conversion(a, b);
-            None
-        }
+        _ => None,
     }
 }
 
@@ -683,8 +674,4 @@ fn edit_distance(a: &str, b: &str) -> usize {
         std::mem::swap(&mut prev, &mut cur);
     }
     prev[b.len()]
-}
-
-mod ir_sym {
-    pub use crate::symbol::Symbol;
 }
