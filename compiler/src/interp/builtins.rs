@@ -106,7 +106,7 @@ impl Machine<'_> {
             Builtin::Mod => map2(&v(0), &v(1), geom::mod_),
             Builtin::Min => vals.iter().skip(1).fold(v(0), |acc, x| map2(&acc, x, f32::min)),
             Builtin::Max => vals.iter().skip(1).fold(v(0), |acc, x| map2(&acc, x, f32::max)),
-            Builtin::Clamp => map3(&v(0), &v(1), &v(2), |x, lo, hi| x.max(lo).min(hi)),
+            Builtin::Clamp => map3(&v(0), &v(1), &v(2), geom::clamp),
             Builtin::Mix => map3(&v(0), &v(1), &v(2), |x, y, a| x * (1.0 - a) + y * a),
             Builtin::Step => map2(&v(0), &v(1), geom::step),
             Builtin::Smoothstep => map3(&v(0), &v(1), &v(2), geom::smoothstep),
