@@ -4,9 +4,8 @@
 
 mod common;
 
+use rtsl_compiler::compile_file;
 use rtsl_compiler::interp::{self, InterpError, Limits, ShadingPoint, TestHost, Value};
-use rtsl_compiler::{compile_file, Options};
-use std::path::{Path, PathBuf};
 
 fn finite(v: &Value) -> bool {
     match v {
@@ -20,13 +19,7 @@ fn finite(v: &Value) -> bool {
 
 #[test]
 fn the_library_and_corpus_run_in_the_interpreter() {
-    let mut files = Vec::new();
-    files.extend(common::shader_files(Path::new("../stdlib_shaders")));
-    files.extend(common::shader_files(Path::new("../tests/corpus")));
-    files.extend(common::shader_files(Path::new("../tests/corpus2")));
-    let mut options = Options::default();
-    options.preprocessor.include_paths.push(PathBuf::from("../tests/corpus/include"));
-    options.preprocessor.include_paths.push(PathBuf::from("../tests/corpus2/include"));
+    let (files, options) = common::library_and_corpora();
     let (mut ran, mut unsupported) = (0, 0);
     for path in &files {
         let c = compile_file(path, &options).expect("readable");

@@ -15,7 +15,6 @@ use rtsl_compiler::back::jit::{self, BatchData, CompiledShader, JitError};
 use rtsl_compiler::interp::{self, Limits, ShadingPoint, TestHost, Value};
 use rtsl_compiler::ir::Module;
 use rtsl_compiler::{compile_file, compile_source, Options};
-use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 const TOL: f32 = 1e-5;
@@ -493,13 +492,7 @@ proptest! {
 
 #[test]
 fn the_library_and_corpus_compile_or_report_unsupported() {
-    let mut files = Vec::new();
-    files.extend(common::shader_files(Path::new("../stdlib_shaders")));
-    files.extend(common::shader_files(Path::new("../tests/corpus")));
-    files.extend(common::shader_files(Path::new("../tests/corpus2")));
-    let mut options = Options::default();
-    options.preprocessor.include_paths.push(PathBuf::from("../tests/corpus/include"));
-    options.preprocessor.include_paths.push(PathBuf::from("../tests/corpus2/include"));
+    let (files, options) = common::library_and_corpora();
     let (mut compiled, mut ran) = (Vec::new(), 0);
     let mut reasons: std::collections::BTreeMap<String, usize> = Default::default();
     for path in &files {

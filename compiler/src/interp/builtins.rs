@@ -372,7 +372,7 @@ impl Machine<'_> {
                     Value::String(Rc::from(text))
                 }
             }
-            Builtin::Match => Value::Float(f32::from(u8::from(regex_match(v(0).s(), v(1).s())))),
+            Builtin::Match => Value::Float(f32::from(u8::from(format::regex_match(v(0).s(), v(1).s())))),
             Builtin::Shadername => {
                 let kind = if vals.is_empty() { None } else { Some(v(0).s().to_string()) };
                 Value::String(Rc::from(self.host.shader_name(kind.as_deref())))
@@ -543,35 +543,4 @@ fn same_shape(a: &Value, b: &Value) -> bool {
         (Value::Array(x), Value::Array(y)) => x.len() == y.len() && x.iter().zip(y).all(|(p, q)| same_shape(p, q)),
         _ => kind_of(a) == kind_of(b),
     }
-}
-
-/// A small regular-expression matcher (`.`, `*`, `^`, `$`, literals), enough for the patterns
-/// shaders pass to `match`.
-pub fn regex_match(pattern: &str, subject: &str) -> bool {
-    fn here(p: &[char], s: &[char]) -> bool {
-        match p {
-            [] => true,
-            ['$'] => s.is_empty(),
-            [c, '*', rest @ ..] => {
-                let mut i = 0;
-                loop {
-                    if here(rest, &s[i..]) {
-                        return true;
-                    }
-                    if i < s.len() && (*c == '.' || s[i] == *c) {
-                        i += 1;
-                    } else {
-                        return false;
-                    }
-                }
-            }
-            [c, rest @ ..] => !s.is_empty() && (*c == '.' || *c == s[0]) && here(rest, &s[1..]),
-        }
-    }
-    let p: Vec<char> = pattern.chars().collect();
-    let s: Vec<char> = subject.chars().collect();
-    if let Some(rest) = p.strip_prefix(&['^']) {
-        return here(rest, &s);
-    }
-    (0..=s.len()).any(|i| here(&p, &s[i..]))
 }

@@ -92,7 +92,7 @@ fn runaway_loops_stop_with_an_error() {
 
 #[test]
 fn the_small_regex_matcher() {
-    use super::builtins::regex_match;
+    use crate::shadeops::format::regex_match;
     assert!(regex_match("^foo", "foobar"));
     assert!(!regex_match("^bar", "foobar"));
     assert!(regex_match("o*b", "foobar"));

@@ -287,6 +287,37 @@ fn fmt_g(a: f64, precision: usize, alt: bool, upper: bool) -> String {
     s
 }
 
+/// RSL `match(pattern, subject)`: a small regular-expression matcher (`.`, `*`, `^`, `$`, literals),
+/// enough for the patterns shaders pass. The interpreter and the JIT both call this one.
+pub fn regex_match(pattern: &str, subject: &str) -> bool {
+    fn here(p: &[char], s: &[char]) -> bool {
+        match p {
+            [] => true,
+            ['$'] => s.is_empty(),
+            [c, '*', rest @ ..] => {
+                let mut i = 0;
+                loop {
+                    if here(rest, &s[i..]) {
+                        return true;
+                    }
+                    if i < s.len() && (*c == '.' || s[i] == *c) {
+                        i += 1;
+                    } else {
+                        return false;
+                    }
+                }
+            }
+            [c, rest @ ..] => !s.is_empty() && (*c == '.' || *c == s[0]) && here(rest, &s[1..]),
+        }
+    }
+    let p: Vec<char> = pattern.chars().collect();
+    let s: Vec<char> = subject.chars().collect();
+    if let Some(rest) = p.strip_prefix(&['^']) {
+        return here(rest, &s);
+    }
+    (0..=s.len()).any(|i| here(&p, &s[i..]))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

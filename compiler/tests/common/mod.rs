@@ -1,5 +1,6 @@
 //! Helpers shared by the integration tests.
 
+use rtsl_compiler::Options;
 use std::path::{Path, PathBuf};
 
 /// Every `.sl` file under `dir`, recursively, in a stable order.
@@ -20,4 +21,17 @@ fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
             out.push(p);
         }
     }
+}
+
+/// Every shader of the library and both corpora, with the options (include paths) they need.
+#[allow(dead_code)] // Not every test file uses it.
+pub fn library_and_corpora() -> (Vec<PathBuf>, Options) {
+    let mut files = Vec::new();
+    for dir in ["../stdlib_shaders", "../tests/corpus", "../tests/corpus2"] {
+        files.extend(shader_files(Path::new(dir)));
+    }
+    let mut options = Options::default();
+    options.preprocessor.include_paths.push(PathBuf::from("../tests/corpus/include"));
+    options.preprocessor.include_paths.push(PathBuf::from("../tests/corpus2/include"));
+    (files, options)
 }

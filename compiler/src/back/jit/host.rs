@@ -820,7 +820,7 @@ host_helpers! {
     }
     // [pattern, subject] -> 1 or 0
     h_match "rtsl_h_match" 2 => 1 |cx| {
-        let m = regex_match(&cx.s(0), &cx.s(1));
+        let m = format::regex_match(&cx.s(0), &cx.s(1));
         for l in 0..4 {
             cx.set(0, l, if m { 1.0 } else { 0.0 });
         }
@@ -887,37 +887,6 @@ fn format_lane(cx: &Cx<'_>, l: usize) -> String {
         })
         .collect();
     format::format(&cx.s(0), &args)
-}
-
-/// The interpreter's `match` (a small regular-expression matcher: `.`, `*`, `^`, `$`, literals),
-/// repeated here because the interpreter shares no code with the JIT.
-fn regex_match(pattern: &str, subject: &str) -> bool {
-    fn here(p: &[char], s: &[char]) -> bool {
-        match p {
-            [] => true,
-            ['$'] => s.is_empty(),
-            [c, '*', rest @ ..] => {
-                let mut i = 0;
-                loop {
-                    if here(rest, &s[i..]) {
-                        return true;
-                    }
-                    if i < s.len() && (*c == '.' || s[i] == *c) {
-                        i += 1;
-                    } else {
-                        return false;
-                    }
-                }
-            }
-            [c, rest @ ..] => !s.is_empty() && (*c == '.' || *c == s[0]) && here(rest, &s[1..]),
-        }
-    }
-    let p: Vec<char> = pattern.chars().collect();
-    let s: Vec<char> = subject.chars().collect();
-    if let Some(rest) = p.strip_prefix(&['^']) {
-        return here(rest, &s);
-    }
-    (0..=s.len()).any(|i| here(&p, &s[i..]))
 }
 
 fn texture_call(cx: &mut Cx<'_>, kind: u32, name: &str, channels: u32) -> (Vec<f32>, [u32; 4]) {
