@@ -12,12 +12,15 @@
 //! `rtsl-compiler`'s public API.
 
 pub mod accel;
+pub mod api;
 pub mod bench;
 pub mod camera;
 pub mod geometry;
 pub mod mesh_io;
 pub mod ray;
+pub mod render;
 pub mod scene;
+pub mod shading;
 pub mod tiles;
 
 pub use accel::bvh4::BuildQuality;

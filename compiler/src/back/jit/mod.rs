@@ -155,6 +155,11 @@ impl Drop for CompiledShader {
     }
 }
 
+// SAFETY: through `&self` a `CompiledShader` only reads its layout and calls its entry point; the
+// `JITModule` (which is `Send` but not `Sync`) is touched only by `drop`, which needs ownership. The
+// generated code keeps no state between calls, so many threads may run it at once.
+unsafe impl Sync for CompiledShader {}
+
 impl CompiledShader {
     pub fn layout(&self) -> &Layout {
         &self.layout
@@ -363,6 +368,49 @@ impl BatchData {
     pub fn param(&self, name: &str, lane: usize) -> Option<Vec<f32>> {
         let (_, p) = self.layout.param(name)?;
         (lane < self.lanes).then(|| self.get_lane(p.varying, p.offset, p.floats(), lane))
+    }
+}
+
+/// The buffers of a [`BatchData`] for a renderer that fills batches itself, by the slot numbers
+/// of the [`Layout`] (slot `s` of lane `l` at `varying[s * stride + l]`).
+pub struct RawBatch<'a> {
+    pub lanes: usize,
+    pub stride: usize,
+    pub mask: &'a mut [i32],
+    pub varying: &'a mut [f32],
+    pub uniform: &'a mut [f32],
+    pub bound: &'a mut [u32],
+    pub strings: &'a mut StringTable,
+}
+
+impl BatchData {
+    /// Makes the batch `lanes` lanes long with every lane active, every value 0 and no parameter
+    /// bound, reusing the buffers (a renderer keeps one batch per shader and thread).
+    pub fn reset(&mut self, lanes: usize) {
+        let stride = lanes.div_ceil(4) * 4;
+        self.lanes = lanes;
+        self.stride = stride;
+        self.mask.clear();
+        self.mask.resize(stride, 0);
+        self.mask[..lanes].fill(-1);
+        self.varying.clear();
+        self.varying.resize(self.layout.varying_slots * stride, 0.0);
+        self.uniform.fill(0.0);
+        self.bound.fill(0);
+        self.strings = StringTable::new(&self.layout.strings);
+    }
+
+    /// The raw buffers, to fill inputs and read outputs by slot.
+    pub fn raw_mut(&mut self) -> RawBatch<'_> {
+        RawBatch {
+            lanes: self.lanes,
+            stride: self.stride,
+            mask: &mut self.mask,
+            varying: &mut self.varying,
+            uniform: &mut self.uniform,
+            bound: &mut self.bound,
+            strings: &mut self.strings,
+        }
     }
 }
 

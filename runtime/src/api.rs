@@ -1,0 +1,893 @@
+//! The application API, modelled on OpenRT (OpenGL's names for geometry and matrices) and the
+//! Stanford real-time shading API (`shader_file`, `compile_shader`, `bind_shader`, `parameter`).
+//!
+//! ```no_run
+//! use rtsl_runtime::api::{Context, Primitive};
+//! use rtsl_runtime::shading::ParamValue;
+//! use glam::Vec3A;
+//!
+//! let mut rt = Context::new();
+//! let plastic = rt.find_shader("plastic")?;
+//! let light = rt.find_shader("pointlight")?;
+//! rt.camera_look_at(Vec3A::new(0.0, 1.0, 4.0), Vec3A::ZERO, Vec3A::Y, 40.0);
+//! let quad = rt.begin_object()?;
+//! rt.bind_shader(plastic)?;
+//! rt.parameter("Kd", ParamValue::Float(0.8))?;
+//! rt.begin(Primitive::Quads)?;
+//! for (x, z) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
+//!     rt.vertex(x, 0.0, z)?;
+//! }
+//! rt.end()?;
+//! rt.end_object()?;
+//! rt.instantiate_object(quad)?;
+//! rt.light_source(light, &[("intensity", ParamValue::Float(10.0))])?;
+//! let (image, report) = rt.render_frame()?;
+//! # Ok::<(), rtsl_runtime::api::ApiError>(())
+//! ```
+//!
+//! Semantics:
+//! - **State** is OpenGL's: a current matrix with a stack, a current colour and opacity, a current
+//!   surface shader binding. Geometry inside `begin_object`/`end_object` is stored in the object's own
+//!   space: the current matrix relative to the one at `begin_object`. `instantiate_object` places the
+//!   object with the current matrix.
+//! - **Scopes of `parameter`**: [`Context::parameter`] sets a value of the bound surface shader for
+//!   the object being built (object scope) or, outside objects, for the shader binding that later
+//!   objects get; [`Context::primitive_parameter`] for the primitive between `begin` and `end`;
+//!   [`Context::vertex_parameter`] for the following vertices (sticky, like `glColor`). Primitive
+//!   and vertex values are interpolated at the hit and must name varying parameters.
+//! - **Frames** (OpenRT): shader and object references are resolved when [`Context::render_frame`]
+//!   runs, so a shader recompiled under the same id, or an object whose geometry was replaced, is
+//!   seen by the next frame. Only what changed is rebuilt: an object's BVH when its geometry
+//!   changes, the top-level BVH every frame.
+//! - **Errors**: misuse (unbalanced begin/end, unknown ids, a parameter the bound shader does not
+//!   have or of the wrong type) returns an [`ApiError`]; nothing panics.
+
+use crate::geometry::{Attribute, Mesh, MeshError};
+use crate::render::{
+    render_frame, AreaLight, CameraSetup, FrameReport, Framebuffer, InstanceShading, LightSource, Material,
+    RenderOptions, World,
+};
+use crate::scene::{ObjectId as SceneObject, Scene, SceneError};
+use crate::shading::{LightKind, ParamError, ParamValue, Program, ShaderError, ShaderInstance, ShaderProgram};
+use glam::{Affine3A, Quat, Vec2, Vec3, Vec3A};
+use rtsl_compiler::front::parse::ast::ShaderKind;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// A compiled shader known to a [`Context`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct ShaderId(pub u32);
+
+/// A retained object of a [`Context`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct ObjectId(pub u32);
+
+/// An instance of an object.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct InstanceId(pub u32);
+
+/// A light source.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct LightId(pub u32);
+
+/// What `begin` starts.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Primitive {
+    Triangles,
+    Quads,
+    /// One convex or concave simple polygon.
+    Polygon,
+    TriangleStrip,
+    TriangleFan,
+}
+
+/// Misuse of the API.
+#[derive(Debug, thiserror::Error)]
+pub enum ApiError {
+    #[error("{0} without a matching {1}")]
+    Unbalanced(&'static str, &'static str),
+    #[error("{0} is not allowed inside {1}")]
+    Nested(&'static str, &'static str),
+    #[error("{0} needs an object being built (call begin_object first)")]
+    NoObject(&'static str),
+    #[error("no shader with id {0}")]
+    UnknownShader(u32),
+    #[error("no object with id {0}")]
+    UnknownObject(u32),
+    #[error("no instance with id {0}")]
+    UnknownInstance(u32),
+    #[error("no light with id {0}")]
+    UnknownLight(u32),
+    #[error("shader {name} is a {got} shader, not a {expected} shader")]
+    WrongKind { name: String, expected: &'static str, got: &'static str },
+    #[error("no surface shader is bound, so parameter {0} has nothing to apply to")]
+    NoShaderBound(String),
+    #[error("parameter {name} of shader {shader} is uniform; only varying parameters take primitive or vertex values")]
+    NotVarying { shader: String, name: String },
+    #[error("{0} vertices do not make whole {1}")]
+    IncompletePrimitive(usize, &'static str),
+    #[error(transparent)]
+    Param(#[from] ParamError),
+    #[error(transparent)]
+    Shader(#[from] ShaderError),
+    #[error(transparent)]
+    Mesh(#[from] MeshError),
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    #[error("the matrix stack is empty")]
+    MatrixStackEmpty,
+}
+
+fn kind_name(k: ShaderKind) -> &'static str {
+    match k {
+        ShaderKind::Surface => "surface",
+        ShaderKind::Light => "light",
+        ShaderKind::Displacement => "displacement",
+        ShaderKind::Volume => "volume",
+        ShaderKind::Imager => "pixel",
+        ShaderKind::Camera => "camera",
+        ShaderKind::Lightfield => "lightfield",
+    }
+}
+
+/// A surface shader binding: a shader and its object-scope values (kept as given, resolved at frame
+/// time against whatever program the id names then).
+#[derive(Clone, Debug)]
+struct Binding {
+    shader: ShaderId,
+    params: Vec<(String, ParamValue, Affine3A)>,
+    world_from_shader: Affine3A,
+}
+
+#[derive(Clone, Debug)]
+struct Appearance {
+    color: [f32; 3],
+    opacity: [f32; 3],
+    surface: Option<Binding>,
+    shadow_by_shader: bool,
+}
+
+impl Default for Appearance {
+    fn default() -> Self {
+        Appearance { color: [1.0; 3], opacity: [1.0; 3], surface: None, shadow_by_shader: false }
+    }
+}
+
+struct ObjectRecord {
+    mesh: Option<Arc<Mesh>>,
+    appearance: Appearance,
+    scene_object: Option<SceneObject>,
+    /// The geometry changed since the scene last saw it.
+    dirty: bool,
+    deleted: bool,
+}
+
+struct InstanceRecord {
+    object: ObjectId,
+    transform: Affine3A,
+    deleted: bool,
+}
+
+struct LightRecord {
+    shader: ShaderId,
+    params: Vec<(String, ParamValue, Affine3A)>,
+    world_from_shader: Affine3A,
+    shadows: bool,
+    area: Option<AreaLight>,
+    on: bool,
+}
+
+/// Geometry being built for one object: triangles with their vertex attributes.
+#[derive(Default)]
+struct MeshBuilder {
+    positions: Vec<Vec3>,
+    normals: Vec<Vec3>,
+    uvs: Vec<Vec2>,
+    has_normals: bool,
+    has_uvs: bool,
+    attributes: Vec<Attribute>,
+    triangles: Vec<[u32; 3]>,
+}
+
+struct OpenPrimitive {
+    kind: Primitive,
+    first_vertex: u32,
+}
+
+/// The rendering context: scene state, shaders, and frames.
+pub struct Context {
+    programs: Vec<Option<Program>>,
+    shader_search_path: Vec<PathBuf>,
+    include_paths: Vec<PathBuf>,
+    matrix: Affine3A,
+    stack: Vec<Affine3A>,
+    appearance: Appearance,
+    appearance_stack: Vec<Appearance>,
+    objects: Vec<ObjectRecord>,
+    building: Option<(ObjectId, Affine3A, MeshBuilder)>,
+    primitive: Option<OpenPrimitive>,
+    current_normal: Vec3,
+    current_uv: Vec2,
+    vertex_values: Vec<(String, Vec<f32>)>,
+    primitive_values: Vec<(String, Vec<f32>)>,
+    instances: Vec<InstanceRecord>,
+    lights: Vec<LightRecord>,
+    camera: CameraSetup,
+    pub options: RenderOptions,
+    spaces: std::collections::HashMap<String, Affine3A>,
+    scene: Option<Scene>,
+}
+
+impl Default for Context {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// The directory of the shader library shipped with rtsl (searched last).
+pub fn stdlib_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join("stdlib_shaders")
+}
+
+impl Context {
+    pub fn new() -> Context {
+        Context {
+            programs: Vec::new(),
+            shader_search_path: Vec::new(),
+            include_paths: Vec::new(),
+            matrix: Affine3A::IDENTITY,
+            stack: Vec::new(),
+            appearance: Appearance::default(),
+            appearance_stack: Vec::new(),
+            objects: Vec::new(),
+            building: None,
+            primitive: None,
+            current_normal: Vec3::ZERO,
+            current_uv: Vec2::ZERO,
+            vertex_values: Vec::new(),
+            primitive_values: Vec::new(),
+            instances: Vec::new(),
+            lights: Vec::new(),
+            camera: CameraSetup::default(),
+            options: RenderOptions::default(),
+            spaces: Default::default(),
+            scene: Some(Scene::new()),
+        }
+    }
+
+    // ---- shaders ----
+
+    /// Directories searched (in order, before the standard library) by [`Context::find_shader`].
+    pub fn set_shader_search_path(&mut self, dirs: Vec<PathBuf>) {
+        self.shader_search_path = dirs;
+    }
+
+    /// Directories searched by `#include`.
+    pub fn set_include_paths(&mut self, dirs: Vec<PathBuf>) {
+        self.include_paths = dirs;
+    }
+
+    /// Where shader `name` would be loaded from: `NAME.sl` in the search path, then in the standard
+    /// library's folders.
+    pub fn which_shader(&self, name: &str) -> Option<PathBuf> {
+        let file = format!("{name}.sl");
+        let std = stdlib_dir();
+        let std_dirs = ["surface", "light", "displacement", "volume", "imager", "camera", "pixel"].map(|d| std.join(d));
+        self.shader_search_path.iter().chain(std_dirs.iter()).map(|d| d.join(&file)).find(|p| p.is_file())
+    }
+
+    /// Compiles the shader file at `path`.
+    pub fn shader_file(&mut self, path: &Path) -> Result<ShaderId, ApiError> {
+        let program = ShaderProgram::from_file(path, &self.include_paths)?;
+        Ok(self.add_program(program))
+    }
+
+    /// Compiles shader source given as a string (`name` names it in diagnostics).
+    pub fn compile_shader(&mut self, name: &str, source: &str) -> Result<ShaderId, ApiError> {
+        let program = ShaderProgram::from_source(name, source, &self.include_paths)?;
+        Ok(self.add_program(program))
+    }
+
+    /// Finds shader `name` on the search path (see [`Context::which_shader`]) and compiles it, once:
+    /// later calls with the same name return the same id.
+    pub fn find_shader(&mut self, name: &str) -> Result<ShaderId, ApiError> {
+        if let Some(i) = self.programs.iter().position(|p| p.as_ref().is_some_and(|p| p.name == name)) {
+            return Ok(ShaderId(i as u32));
+        }
+        let path = self.which_shader(name).ok_or_else(|| ShaderError::NotFound { name: name.to_string() })?;
+        self.shader_file(&path)
+    }
+
+    /// Replaces the program behind `id` (hot reload): frames from now on use the new code.
+    pub fn replace_shader(&mut self, id: ShaderId, program: ShaderProgram) -> Result<(), ApiError> {
+        let slot = self.programs.get_mut(id.0 as usize).ok_or(ApiError::UnknownShader(id.0))?;
+        *slot = Some(Arc::new(program));
+        Ok(())
+    }
+
+    pub fn program(&self, id: ShaderId) -> Result<&Program, ApiError> {
+        self.programs.get(id.0 as usize).and_then(Option::as_ref).ok_or(ApiError::UnknownShader(id.0))
+    }
+
+    fn add_program(&mut self, program: ShaderProgram) -> ShaderId {
+        self.programs.push(Some(Arc::new(program)));
+        ShaderId(self.programs.len() as u32 - 1)
+    }
+
+    fn expect_kind(&self, id: ShaderId, expected: ShaderKind) -> Result<Program, ApiError> {
+        let p = self.program(id)?.clone();
+        if p.kind != expected {
+            return Err(ApiError::WrongKind {
+                name: p.name.clone(),
+                expected: kind_name(expected),
+                got: kind_name(p.kind),
+            });
+        }
+        Ok(p)
+    }
+
+    /// Binds a surface shader: the object being built (or, outside objects, the objects built from
+    /// now on) is shaded by it. Its "shader" space is the current matrix.
+    pub fn bind_shader(&mut self, id: ShaderId) -> Result<(), ApiError> {
+        self.expect_kind(id, ShaderKind::Surface)?;
+        self.appearance.surface = Some(Binding { shader: id, params: Vec::new(), world_from_shader: self.matrix });
+        Ok(())
+    }
+
+    /// Sets a parameter of the bound surface shader (object scope). The value is checked against the
+    /// shader's declaration now; point-like values are in the current space.
+    pub fn parameter(&mut self, name: &str, value: ParamValue) -> Result<(), ApiError> {
+        let binding = self.appearance.surface.as_ref().ok_or_else(|| ApiError::NoShaderBound(name.to_string()))?;
+        let program = self.program(binding.shader)?.clone();
+        crate::shading::bind_param(&program, name, &value, &self.matrix)?;
+        let m = self.matrix;
+        if let Some(b) = self.appearance.surface.as_mut() {
+            b.params.retain(|(n, _, _)| n != name);
+            b.params.push((name.to_string(), value, m));
+        }
+        Ok(())
+    }
+
+    fn varying_param_floats(&self, name: &str, value: &ParamValue) -> Result<Vec<f32>, ApiError> {
+        let binding = self.appearance.surface.as_ref().ok_or_else(|| ApiError::NoShaderBound(name.to_string()))?;
+        let program = self.program(binding.shader)?.clone();
+        let bound = crate::shading::bind_param(&program, name, value, &self.matrix)?;
+        if !program.layout().params[bound.index].varying || bound.string.is_some() {
+            return Err(ApiError::NotVarying { shader: program.name.clone(), name: name.to_string() });
+        }
+        Ok(bound.floats)
+    }
+
+    /// Sets a varying parameter of the bound surface shader for the open primitive.
+    pub fn primitive_parameter(&mut self, name: &str, value: ParamValue) -> Result<(), ApiError> {
+        if self.primitive.is_none() {
+            return Err(ApiError::Unbalanced("primitive_parameter", "begin"));
+        }
+        let floats = self.varying_param_floats(name, &value)?;
+        self.primitive_values.retain(|(n, _)| n != name);
+        self.primitive_values.push((name.to_string(), floats));
+        Ok(())
+    }
+
+    /// Sets a varying parameter of the bound surface shader for the vertices that follow.
+    pub fn vertex_parameter(&mut self, name: &str, value: ParamValue) -> Result<(), ApiError> {
+        let floats = self.varying_param_floats(name, &value)?;
+        self.vertex_values.retain(|(n, _)| n != name);
+        self.vertex_values.push((name.to_string(), floats));
+        Ok(())
+    }
+
+    /// Adds a light source at the current matrix, with its parameter values.
+    pub fn light_source(&mut self, shader: ShaderId, params: &[(&str, ParamValue)]) -> Result<LightId, ApiError> {
+        let program = self.expect_kind(shader, ShaderKind::Light)?;
+        for (name, value) in params {
+            crate::shading::bind_param(&program, name, value, &self.matrix)?;
+        }
+        self.lights.push(LightRecord {
+            shader,
+            params: params.iter().map(|(n, v)| (n.to_string(), v.clone(), self.matrix)).collect(),
+            world_from_shader: self.matrix,
+            shadows: true,
+            area: None,
+            on: true,
+        });
+        Ok(LightId(self.lights.len() as u32 - 1))
+    }
+
+    /// Makes a light an area light emitting from `mesh` (in the current space), sampled `samples`
+    /// times per shading point for soft shadows.
+    pub fn area_light_geometry(&mut self, light: LightId, mesh: &Mesh, samples: u32) -> Result<(), ApiError> {
+        let m = self.matrix;
+        let rec = self.lights.get_mut(light.0 as usize).ok_or(ApiError::UnknownLight(light.0))?;
+        let tris =
+            (0..mesh.triangle_count()).map(|i| mesh.corners(i).map(|c| m.transform_point3a(Vec3A::from(c)))).collect();
+        rec.area = Some(AreaLight::new(tris, samples));
+        Ok(())
+    }
+
+    /// Switches a light on or off, and its ray-traced shadows.
+    pub fn set_light(&mut self, light: LightId, on: bool, shadows: bool) -> Result<(), ApiError> {
+        let rec = self.lights.get_mut(light.0 as usize).ok_or(ApiError::UnknownLight(light.0))?;
+        rec.on = on;
+        rec.shadows = shadows;
+        Ok(())
+    }
+
+    // ---- attributes ----
+
+    /// The current colour (`Cs`) for objects built from now on.
+    pub fn color(&mut self, r: f32, g: f32, b: f32) {
+        self.appearance.color = [r, g, b];
+    }
+
+    /// The current opacity (`Os`).
+    pub fn opacity(&mut self, r: f32, g: f32, b: f32) {
+        self.appearance.opacity = [r, g, b];
+    }
+
+    /// Shadow rays run the surface shader to find the opacity of objects built from now on.
+    pub fn shadows_from_shader(&mut self, on: bool) {
+        self.appearance.shadow_by_shader = on;
+    }
+
+    /// Saves the attribute state (colour, opacity, shader binding) and the matrix.
+    pub fn push_attributes(&mut self) {
+        self.appearance_stack.push(self.appearance.clone());
+        self.stack.push(self.matrix);
+    }
+
+    pub fn pop_attributes(&mut self) -> Result<(), ApiError> {
+        self.appearance =
+            self.appearance_stack.pop().ok_or(ApiError::Unbalanced("pop_attributes", "push_attributes"))?;
+        self.matrix = self.stack.pop().ok_or(ApiError::MatrixStackEmpty)?;
+        Ok(())
+    }
+
+    // ---- matrices ----
+
+    pub fn push_matrix(&mut self) {
+        self.stack.push(self.matrix);
+    }
+
+    pub fn pop_matrix(&mut self) -> Result<(), ApiError> {
+        self.matrix = self.stack.pop().ok_or(ApiError::MatrixStackEmpty)?;
+        Ok(())
+    }
+
+    pub fn load_identity(&mut self) {
+        self.matrix = Affine3A::IDENTITY;
+    }
+
+    pub fn current_matrix(&self) -> Affine3A {
+        self.matrix
+    }
+
+    pub fn load_matrix(&mut self, m: Affine3A) {
+        self.matrix = m;
+    }
+
+    /// Post-multiplies the current matrix (OpenGL's order: the last call applies first to points).
+    pub fn mult_matrix(&mut self, m: Affine3A) {
+        self.matrix *= m;
+    }
+
+    pub fn translate(&mut self, x: f32, y: f32, z: f32) {
+        self.mult_matrix(Affine3A::from_translation(Vec3::new(x, y, z)));
+    }
+
+    /// Rotation by `degrees` about the axis.
+    pub fn rotate(&mut self, degrees: f32, x: f32, y: f32, z: f32) {
+        let axis = Vec3::new(x, y, z).normalize_or_zero();
+        if axis != Vec3::ZERO {
+            self.mult_matrix(Affine3A::from_quat(Quat::from_axis_angle(axis, degrees.to_radians())));
+        }
+    }
+
+    pub fn scale(&mut self, x: f32, y: f32, z: f32) {
+        self.mult_matrix(Affine3A::from_mat3(glam::Mat3::from_diagonal(Vec3::new(x, y, z))));
+    }
+
+    /// Names the current space (RenderMan's `CoordinateSystem`), for shaders' space casts.
+    pub fn coordinate_system(&mut self, name: &str) {
+        self.spaces.insert(name.to_string(), self.matrix);
+    }
+
+    // ---- camera and options ----
+
+    /// A pinhole camera at `eye` looking at `target`; `fov_degrees` spans the image's shorter side.
+    pub fn camera_look_at(&mut self, eye: Vec3A, target: Vec3A, up: Vec3A, fov_degrees: f32) {
+        self.camera = CameraSetup::look_at(eye, target, up, fov_degrees);
+    }
+
+    /// Sets the camera directly (RenderMan's convention: camera space x right, y up, z forward).
+    pub fn set_camera(&mut self, camera: CameraSetup) {
+        self.camera = camera;
+    }
+
+    pub fn camera(&self) -> &CameraSetup {
+        &self.camera
+    }
+
+    // ---- objects and geometry ----
+
+    /// Starts a retained object; geometry calls until `end_object` go into it.
+    pub fn begin_object(&mut self) -> Result<ObjectId, ApiError> {
+        if self.building.is_some() {
+            return Err(ApiError::Nested("begin_object", "an object"));
+        }
+        let id = ObjectId(self.objects.len() as u32);
+        self.objects.push(ObjectRecord {
+            mesh: None,
+            appearance: Appearance::default(),
+            scene_object: None,
+            dirty: true,
+            deleted: false,
+        });
+        self.building = Some((id, self.matrix, MeshBuilder::default()));
+        Ok(id)
+    }
+
+    /// Starts replacing the geometry of `id` (its appearance is taken from the state, as when it was
+    /// built).
+    pub fn redefine_object(&mut self, id: ObjectId) -> Result<(), ApiError> {
+        if self.building.is_some() {
+            return Err(ApiError::Nested("redefine_object", "an object"));
+        }
+        match self.objects.get(id.0 as usize) {
+            Some(o) if !o.deleted => {}
+            _ => return Err(ApiError::UnknownObject(id.0)),
+        }
+        self.building = Some((id, self.matrix, MeshBuilder::default()));
+        Ok(())
+    }
+
+    /// Finishes the object: its geometry, and the current appearance (colour, opacity, shader
+    /// binding) as its material.
+    pub fn end_object(&mut self) -> Result<ObjectId, ApiError> {
+        if self.primitive.is_some() {
+            return Err(ApiError::Nested("end_object", "begin/end"));
+        }
+        let (id, _, b) = self.building.take().ok_or(ApiError::Unbalanced("end_object", "begin_object"))?;
+        let mesh = if b.triangles.is_empty() {
+            None
+        } else {
+            let mesh = Mesh {
+                positions: b.positions,
+                normals: b.has_normals.then_some(b.normals),
+                uvs: b.has_uvs.then_some(b.uvs),
+                attributes: b.attributes,
+                triangles: b.triangles,
+            };
+            mesh.validate()?;
+            Some(Arc::new(mesh))
+        };
+        let rec = &mut self.objects[id.0 as usize];
+        rec.mesh = mesh;
+        rec.appearance = self.appearance.clone();
+        rec.dirty = true;
+        Ok(id)
+    }
+
+    /// Deletes an object and its instances.
+    pub fn delete_object(&mut self, id: ObjectId) -> Result<(), ApiError> {
+        let rec = self.objects.get_mut(id.0 as usize).filter(|o| !o.deleted).ok_or(ApiError::UnknownObject(id.0))?;
+        rec.deleted = true;
+        rec.mesh = None;
+        rec.dirty = true;
+        for i in &mut self.instances {
+            if i.object == id {
+                i.deleted = true;
+            }
+        }
+        Ok(())
+    }
+
+    /// Places an instance of `id` with the current matrix.
+    pub fn instantiate_object(&mut self, id: ObjectId) -> Result<InstanceId, ApiError> {
+        if self.building.is_some() {
+            return Err(ApiError::Nested("instantiate_object", "an object"));
+        }
+        match self.objects.get(id.0 as usize) {
+            Some(o) if !o.deleted => {}
+            _ => return Err(ApiError::UnknownObject(id.0)),
+        }
+        self.instances.push(InstanceRecord { object: id, transform: self.matrix, deleted: false });
+        Ok(InstanceId(self.instances.len() as u32 - 1))
+    }
+
+    /// Moves an instance (per frame, for animation).
+    pub fn set_instance_transform(&mut self, id: InstanceId, transform: Affine3A) -> Result<(), ApiError> {
+        let rec =
+            self.instances.get_mut(id.0 as usize).filter(|i| !i.deleted).ok_or(ApiError::UnknownInstance(id.0))?;
+        rec.transform = transform;
+        Ok(())
+    }
+
+    pub fn delete_instance(&mut self, id: InstanceId) -> Result<(), ApiError> {
+        let rec =
+            self.instances.get_mut(id.0 as usize).filter(|i| !i.deleted).ok_or(ApiError::UnknownInstance(id.0))?;
+        rec.deleted = true;
+        Ok(())
+    }
+
+    fn object_from_current(&self) -> Result<Affine3A, ApiError> {
+        let (_, start, _) = self.building.as_ref().ok_or(ApiError::NoObject("geometry"))?;
+        Ok(start.inverse() * self.matrix)
+    }
+
+    /// Starts a primitive; vertices follow.
+    pub fn begin(&mut self, kind: Primitive) -> Result<(), ApiError> {
+        if self.primitive.is_some() {
+            return Err(ApiError::Nested("begin", "begin/end"));
+        }
+        let (_, _, b) = self.building.as_ref().ok_or(ApiError::NoObject("begin"))?;
+        self.primitive = Some(OpenPrimitive { kind, first_vertex: b.positions.len() as u32 });
+        self.primitive_values.clear();
+        Ok(())
+    }
+
+    /// The normal of the following vertices (object space of the current matrix).
+    pub fn normal(&mut self, x: f32, y: f32, z: f32) {
+        self.current_normal = Vec3::new(x, y, z);
+        if let Some((_, _, b)) = self.building.as_mut() {
+            b.has_normals = true;
+        }
+    }
+
+    /// The texture coordinates (s, t) of the following vertices.
+    pub fn tex_coord(&mut self, s: f32, t: f32) {
+        self.current_uv = Vec2::new(s, t);
+        if let Some((_, _, b)) = self.building.as_mut() {
+            b.has_uvs = true;
+        }
+    }
+
+    /// Adds a vertex to the open primitive.
+    pub fn vertex(&mut self, x: f32, y: f32, z: f32) -> Result<(), ApiError> {
+        if self.primitive.is_none() {
+            return Err(ApiError::Unbalanced("vertex", "begin"));
+        }
+        let xf = self.object_from_current()?;
+        let normal_xf = xf.matrix3.inverse().transpose();
+        let p = xf.transform_point3(Vec3::new(x, y, z));
+        let n = Vec3::from(normal_xf * Vec3A::from(self.current_normal));
+        let uv = self.current_uv;
+        let values: Vec<(String, Vec<f32>)> =
+            self.vertex_values.iter().chain(self.primitive_values.iter()).cloned().collect();
+        let (_, _, b) = self.building.as_mut().ok_or(ApiError::NoObject("vertex"))?;
+        let index = b.positions.len();
+        b.positions.push(p);
+        b.normals.push(n);
+        b.uvs.push(uv);
+        for (name, v) in values {
+            let pos = match b.attributes.iter().position(|a| a.name == name) {
+                Some(i) => i,
+                None => {
+                    b.attributes.push(Attribute {
+                        name: name.clone(),
+                        components: v.len(),
+                        data: vec![0.0; index * v.len()],
+                    });
+                    b.attributes.len() - 1
+                }
+            };
+            let a = &mut b.attributes[pos];
+            if a.components == v.len() {
+                a.data.truncate(index * a.components);
+                a.data.resize(index * a.components, 0.0);
+                a.data.extend_from_slice(&v);
+            }
+        }
+        for a in &mut b.attributes {
+            a.data.resize((index + 1) * a.components, 0.0);
+        }
+        Ok(())
+    }
+
+    /// Ends the open primitive, triangulating it.
+    pub fn end(&mut self) -> Result<(), ApiError> {
+        let prim = self.primitive.take().ok_or(ApiError::Unbalanced("end", "begin"))?;
+        let (_, _, b) = self.building.as_mut().ok_or(ApiError::NoObject("end"))?;
+        let first = prim.first_vertex;
+        let n = b.positions.len() as u32 - first;
+        let v = |i: u32| first + i;
+        match prim.kind {
+            Primitive::Triangles => {
+                if n % 3 != 0 {
+                    return Err(ApiError::IncompletePrimitive(n as usize, "triangles"));
+                }
+                for t in 0..n / 3 {
+                    b.triangles.push([v(3 * t), v(3 * t + 1), v(3 * t + 2)]);
+                }
+            }
+            Primitive::Quads => {
+                if n % 4 != 0 {
+                    return Err(ApiError::IncompletePrimitive(n as usize, "quads"));
+                }
+                for q in 0..n / 4 {
+                    b.triangles.push([v(4 * q), v(4 * q + 1), v(4 * q + 2)]);
+                    b.triangles.push([v(4 * q), v(4 * q + 2), v(4 * q + 3)]);
+                }
+            }
+            Primitive::Polygon => {
+                if n < 3 {
+                    return Err(ApiError::IncompletePrimitive(n as usize, "a polygon"));
+                }
+                let poly: Vec<u32> = (0..n).map(v).collect();
+                crate::geometry::mesh::triangulate_into(b.triangles.len(), &poly, &mut b.triangles)?;
+            }
+            Primitive::TriangleStrip => {
+                for i in 2..n {
+                    if i % 2 == 0 {
+                        b.triangles.push([v(i - 2), v(i - 1), v(i)]);
+                    } else {
+                        b.triangles.push([v(i - 1), v(i - 2), v(i)]);
+                    }
+                }
+            }
+            Primitive::TriangleFan => {
+                for i in 2..n {
+                    b.triangles.push([v(0), v(i - 1), v(i)]);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Adds a whole mesh to the object being built (placed by the current matrix relative to the
+    /// object's).
+    pub fn mesh(&mut self, mesh: &Mesh) -> Result<(), ApiError> {
+        let xf = self.object_from_current()?;
+        let normal_xf = xf.matrix3.inverse().transpose();
+        let (_, _, b) = self.building.as_mut().ok_or(ApiError::NoObject("mesh"))?;
+        let base = b.positions.len() as u32;
+        let count = mesh.positions.len();
+        b.positions.extend(mesh.positions.iter().map(|p| xf.transform_point3(*p)));
+        match &mesh.normals {
+            Some(ns) => {
+                b.has_normals = true;
+                b.normals.extend(ns.iter().map(|n| Vec3::from(normal_xf * Vec3A::from(*n))));
+            }
+            None => b.normals.extend(std::iter::repeat_n(Vec3::ZERO, count)),
+        }
+        match &mesh.uvs {
+            Some(uvs) => {
+                b.has_uvs = true;
+                b.uvs.extend_from_slice(uvs);
+            }
+            None => b.uvs.extend(std::iter::repeat_n(Vec2::ZERO, count)),
+        }
+        for a in &mesh.attributes {
+            let pos = match b.attributes.iter().position(|x| x.name == a.name && x.components == a.components) {
+                Some(i) => i,
+                None => {
+                    b.attributes.push(Attribute {
+                        name: a.name.clone(),
+                        components: a.components,
+                        data: vec![0.0; base as usize * a.components],
+                    });
+                    b.attributes.len() - 1
+                }
+            };
+            b.attributes[pos].data.extend_from_slice(&a.data);
+        }
+        let total = b.positions.len();
+        for x in &mut b.attributes {
+            x.data.resize(total * x.components, 0.0);
+        }
+        b.triangles.extend(mesh.triangles.iter().map(|t| t.map(|i| i + base)));
+        Ok(())
+    }
+
+    // ---- frames ----
+
+    fn instance_for(&self, binding: &Binding) -> Result<ShaderInstance, ApiError> {
+        let program = self.program(binding.shader)?.clone();
+        let mut inst = ShaderInstance::new(program, binding.world_from_shader);
+        for (name, value, m) in &binding.params {
+            inst.set(name, value, m)?;
+        }
+        Ok(inst)
+    }
+
+    /// Builds the world as it stands (resolving shader and object references now) and renders it.
+    pub fn render_frame(&mut self) -> Result<(Framebuffer, FrameReport), ApiError> {
+        let world = self.build_world()?;
+        let out = render_frame(&world, None);
+        self.scene = Some(world.scene);
+        Ok(out)
+    }
+
+    /// Builds the world as it stands, for rendering with options (progress, threads) of the caller's
+    /// choosing. Give the scene back with [`Context::return_scene`] to keep object BVHs for the next
+    /// frame.
+    pub fn build_world(&mut self) -> Result<World, ApiError> {
+        if self.building.is_some() {
+            return Err(ApiError::Nested("render_frame", "an object"));
+        }
+        let mut scene = self.scene.take().unwrap_or_default();
+        // Objects: (re)build only the BVHs of changed geometry.
+        for rec in &mut self.objects {
+            if !rec.dirty {
+                continue;
+            }
+            rec.dirty = false;
+            match (&rec.mesh, rec.scene_object) {
+                (Some(mesh), Some(id)) => scene.set_object_mesh(id, mesh.clone())?,
+                (Some(mesh), None) => rec.scene_object = Some(scene.add_object(mesh.clone())),
+                (None, Some(id)) => {
+                    // An emptied or deleted object keeps its slot with no triangles.
+                    let empty = Mesh::from_triangles(Vec::new(), Vec::new())?;
+                    scene.set_object_mesh(id, empty)?;
+                }
+                (None, None) => {}
+            }
+        }
+        let mut materials = vec![Material::DEFAULT];
+        let mut object_material = vec![0u32; self.objects.len()];
+        for (i, rec) in self.objects.iter().enumerate() {
+            if rec.deleted || rec.mesh.is_none() {
+                continue;
+            }
+            let a = &rec.appearance;
+            let surface = a.surface.as_ref().map(|b| self.instance_for(b)).transpose()?.map(Arc::new);
+            materials.push(Material {
+                surface,
+                color: a.color,
+                opacity: a.opacity,
+                shadow_by_shader: a.shadow_by_shader,
+                object_id: i as u32 + 1,
+            });
+            object_material[i] = materials.len() as u32 - 1;
+        }
+        scene.clear_instances();
+        let mut instances = Vec::new();
+        for inst in &self.instances {
+            let rec = &self.objects[inst.object.0 as usize];
+            let (Some(obj), false) = (rec.scene_object, inst.deleted || rec.deleted || rec.mesh.is_none()) else {
+                continue;
+            };
+            scene.add_instance(obj, inst.transform)?;
+            instances.push(InstanceShading {
+                material: object_material[inst.object.0 as usize],
+                object: obj.0,
+                world_from_object: inst.transform,
+            });
+        }
+        let mut lights = Vec::new();
+        for l in self.lights.iter().filter(|l| l.on) {
+            let program = self.program(l.shader)?.clone();
+            let mut inst = ShaderInstance::new(program.clone(), l.world_from_shader);
+            for (name, value, m) in &l.params {
+                inst.set(name, value, m)?;
+            }
+            let categories = inst
+                .string_param("__category")
+                .map(|c| c.split(',').map(|s| s.trim().to_string()).filter(|s| !s.is_empty()).collect())
+                .unwrap_or_default();
+            let kind = if l.area.is_some() { LightKind::Local } else { program.light_kind };
+            lights.push(LightSource {
+                shader: Arc::new(inst),
+                kind,
+                shadows: l.shadows,
+                categories,
+                area: l.area.clone(),
+            });
+        }
+        let mut world = World::new(scene);
+        world.materials = materials;
+        world.instances = instances;
+        world.lights = lights;
+        world.camera = self.camera;
+        world.options = self.options.clone();
+        world.spaces = self.spaces.clone();
+        world.prepare();
+        Ok(world)
+    }
+
+    /// Takes back the scene of a world made by [`Context::build_world`], so the next frame reuses its
+    /// object BVHs.
+    pub fn return_scene(&mut self, world: World) {
+        self.scene = Some(world.scene);
+    }
+}

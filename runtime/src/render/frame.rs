@@ -1,0 +1,203 @@
+//! One frame: primary rays per 8x8 packet, tiles demand-driven over rayon, samples per pixel on a
+//! jittered grid averaged with a box filter, and the frame's statistics.
+//!
+//! Invariant: the image depends only on the world and the options, not on the thread count (tiles
+//! are independent, jitter is a hash of pixel and sample, and results land in tile order).
+
+use super::shade::{mix, shade_packet, Frame, Sample};
+use super::world::World;
+use crate::camera::{packet_lane_offset, PACKET_SIDE};
+use crate::ray::{HitPacket, RayPacket, PACKET_SIZE};
+use crate::tiles::render_tiles;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::time::{Duration, Instant};
+
+/// Tile side in pixels (a whole number of packets).
+pub const TILE_SIZE: u32 = 16;
+
+/// A rendered image: linear RGBA (premultiplied, as RenderMan's `Ci`/`Oi`), depth and the object id of
+/// the first hit per pixel (rows top to bottom).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Framebuffer {
+    pub width: u32,
+    pub height: u32,
+    pub rgba: Vec<f32>,
+    pub depth: Vec<f32>,
+    pub object_id: Vec<u32>,
+}
+
+impl Framebuffer {
+    pub fn new(width: u32, height: u32) -> Framebuffer {
+        let n = width as usize * height as usize;
+        Framebuffer {
+            width,
+            height,
+            rgba: vec![0.0; 4 * n],
+            depth: vec![f32::INFINITY; n],
+            object_id: vec![u32::MAX; n],
+        }
+    }
+
+    pub fn pixel(&self, x: u32, y: u32) -> [f32; 4] {
+        let i = 4 * (y as usize * self.width as usize + x as usize);
+        [self.rgba[i], self.rgba[i + 1], self.rgba[i + 2], self.rgba[i + 3]]
+    }
+}
+
+/// What a frame cost.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FrameReport {
+    pub elapsed: Duration,
+    pub primary_rays: u64,
+    pub shadow_rays: u64,
+    pub secondary_rays: u64,
+    pub transparency_rays: u64,
+    pub shaded_points: u64,
+    pub light_evaluations: u64,
+}
+
+impl FrameReport {
+    pub fn total_rays(&self) -> u64 {
+        self.primary_rays + self.shadow_rays + self.secondary_rays + self.transparency_rays
+    }
+
+    pub fn rays_per_second(&self) -> f64 {
+        self.total_rays() as f64 / self.elapsed.as_secs_f64().max(1e-9)
+    }
+}
+
+impl std::fmt::Display for FrameReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let m = |n: u64| n as f64 / 1e6;
+        write!(
+            f,
+            "{:.1} ms, {:.2} M rays ({:.2} primary, {:.2} shadow, {:.2} secondary, {:.2} transparency), {:.2} M rays/s, {:.2} M shaded points",
+            self.elapsed.as_secs_f64() * 1e3,
+            m(self.total_rays()),
+            m(self.primary_rays),
+            m(self.shadow_rays),
+            m(self.secondary_rays),
+            m(self.transparency_rays),
+            self.rays_per_second() / 1e6,
+            m(self.shaded_points),
+        )
+    }
+}
+
+/// The primary rays of one packet for sample `(i, j)` of the pixel grid: a pinhole camera whose
+/// field of view spans the image's shorter side, each pixel jittered within its sample cell.
+pub fn primary_packet(world: &World, x0: u32, y0: u32, sample: (u32, u32)) -> RayPacket {
+    let (w, h) = (world.options.width, world.options.height);
+    let (sx, sy) = world.options.samples;
+    let cam = &world.camera;
+    let tan = (cam.fov_degrees.to_radians() * 0.5).tan();
+    let (wf, hf) = (w.max(1) as f32, h.max(1) as f32);
+    let (ax, ay) = if wf >= hf { (wf / hf, 1.0) } else { (1.0, hf / wf) };
+    let m = &cam.world_from_camera;
+    let (right, up, forward) = (m.matrix3.x_axis, m.matrix3.y_axis, m.matrix3.z_axis);
+    let eye = m.translation;
+    let mut p = RayPacket::new();
+    let jittered = sx * sy > 1;
+    for i in 0..PACKET_SIZE {
+        let (dx, dy) = packet_lane_offset(i);
+        let (x, y) = (x0 + dx, y0 + dy);
+        if x >= w || y >= h {
+            continue;
+        }
+        let (jx, jy) = if jittered {
+            let hsh = mix((u64::from(y) << 40) ^ (u64::from(x) << 16) ^ u64::from(sample.1 * sx + sample.0));
+            let r = |k: u64| ((hsh >> k) & 0xFFFF) as f32 / 65536.0;
+            ((sample.0 as f32 + r(0)) / sx as f32, (sample.1 as f32 + r(16)) / sy as f32)
+        } else {
+            (0.5, 0.5)
+        };
+        let scr_x = (2.0 * (x as f32 + jx) / wf - 1.0) * tan * ax;
+        let scr_y = (1.0 - 2.0 * (y as f32 + jy) / hf) * tan * ay;
+        let d = (forward + right * scr_x + up * scr_y).normalize();
+        p.set(i, &crate::ray::Ray::new(eye, d));
+    }
+    p
+}
+
+/// Renders a frame with the threads of the current rayon pool. `progress` is told how many tiles
+/// are done after each tile.
+pub fn render_frame(world: &World, progress: Option<&(dyn Fn(usize, usize) + Sync)>) -> (Framebuffer, FrameReport) {
+    let start = Instant::now();
+    let frame = Frame::new(world);
+    let (w, h) = (world.options.width, world.options.height);
+    let (sx, sy) = (world.options.samples.0.max(1), world.options.samples.1.max(1));
+    let total_tiles = crate::tiles::tiles(w, h, TILE_SIZE).len();
+    let done = AtomicUsize::new(0);
+    let tiles = render_tiles(w, h, TILE_SIZE, |tile| {
+        let mut color = vec![[0.0f32; 4]; (tile.width * tile.height) as usize];
+        let mut depth = vec![f32::INFINITY; color.len()];
+        let mut ids = vec![u32::MAX; color.len()];
+        let mut samples = [Sample::default(); PACKET_SIZE];
+        let mut hits = HitPacket::default();
+        for py in (tile.y0..tile.y0 + tile.height).step_by(PACKET_SIDE as usize) {
+            for px in (tile.x0..tile.x0 + tile.width).step_by(PACKET_SIDE as usize) {
+                for j in 0..sy {
+                    for i in 0..sx {
+                        let packet = primary_packet(world, px, py, (i, j));
+                        world.scene.intersect_packet(&packet, &mut hits);
+                        shade_packet(&frame, &packet, &hits, &mut samples);
+                        for (lane, s) in samples.iter().enumerate() {
+                            if packet.active >> lane & 1 == 0 {
+                                continue;
+                            }
+                            let (dx, dy) = packet_lane_offset(lane);
+                            let (x, y) = (px + dx - tile.x0, py + dy - tile.y0);
+                            if x >= tile.width || y >= tile.height {
+                                continue;
+                            }
+                            let k = (y * tile.width + x) as usize;
+                            let sum = &mut color[k];
+                            for (c, v) in sum.iter_mut().zip(s.color.to_array()) {
+                                *c += v;
+                            }
+                            sum[3] += s.alpha;
+                            if i == 0 && j == 0 {
+                                depth[k] = s.depth;
+                                ids[k] = s.object_id;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        let scale = 1.0 / (sx * sy) as f32;
+        for c in &mut color {
+            for v in c.iter_mut() {
+                *v *= scale;
+            }
+        }
+        if let Some(p) = progress {
+            p(done.fetch_add(1, Ordering::Relaxed) + 1, total_tiles);
+        }
+        (*tile, color, depth, ids)
+    });
+    let mut fb = Framebuffer::new(w, h);
+    for (tile, color, depth, ids) in tiles {
+        for y in 0..tile.height {
+            for x in 0..tile.width {
+                let k = (y * tile.width + x) as usize;
+                let i = ((tile.y0 + y) * w + tile.x0 + x) as usize;
+                fb.rgba[4 * i..4 * i + 4].copy_from_slice(&color[k]);
+                fb.depth[i] = depth[k];
+                fb.object_id[i] = ids[k];
+            }
+        }
+    }
+    let s = &frame.stats;
+    let load = |a: &std::sync::atomic::AtomicU64| a.load(Ordering::Relaxed);
+    let report = FrameReport {
+        elapsed: start.elapsed(),
+        primary_rays: load(&s.primary_rays),
+        shadow_rays: load(&s.shadow_rays),
+        secondary_rays: load(&s.secondary_rays),
+        transparency_rays: load(&s.transparency_rays),
+        shaded_points: load(&s.shaded_points),
+        light_evaluations: load(&s.light_evaluations),
+    };
+    (fb, report)
+}

@@ -1,0 +1,902 @@
+//! Shading on hits: hits are grouped by (material, instance) into batches, the globals are filled
+//! from the hits, the surface shader's packet code runs, and its calls into the renderer (lights and
+//! shadows, `trace`, `transmission`, spaces, messages) are answered by the [`HostTable`] made here.
+//!
+//! Invariants:
+//! - A ray's colour is composited front to back: `C += w * Ci`, `w *= 1 - Oi` (RenderMan's `Ci` is
+//!   premultiplied by `Oi`), continuing through surfaces while `w` is above 1/256 and fewer than
+//!   `max_transparent_layers` were crossed; what is left of `w` sees the background.
+//! - `trace` recursion stops at `RenderOptions::max_ray_depth`: deeper rays return black (RISpec).
+//! - Everything here is deterministic per ray: random numbers (area light samples, occlusion rays,
+//!   `random()` seeds) are hashes of the shading point, never of the thread or the order of work.
+//! - Host callbacks never unwind into JIT code: they only index buffers whose sizes the packet ABI
+//!   fixes and catch nothing because nothing in them panics on user data.
+
+use super::world::{InstanceShading, LightSource, Material, World};
+use crate::ray::{offset_ray_origin, Hit, HitPacket, Ray, RayPacket, PACKET_SIZE};
+use crate::shading::{get3, put1, put3, with_batch, LightKind, ShaderInstance};
+use glam::{Affine3A, Mat4, Vec3A};
+use rtsl_compiler::back::jit::{HostLight, HostTable, MessageOut, StrRef, MAX_LIGHTS};
+use rtsl_compiler::builtins::Builtin;
+use std::ffi::c_void;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// Counters of one frame, summed over threads.
+#[derive(Debug, Default)]
+pub struct Stats {
+    pub primary_rays: AtomicU64,
+    pub shadow_rays: AtomicU64,
+    pub secondary_rays: AtomicU64,
+    pub transparency_rays: AtomicU64,
+    pub shaded_points: AtomicU64,
+    pub light_evaluations: AtomicU64,
+}
+
+impl Stats {
+    fn add(counter: &AtomicU64, n: usize) {
+        counter.fetch_add(n as u64, Ordering::Relaxed);
+    }
+
+    pub fn total_rays(&self) -> u64 {
+        self.primary_rays.load(Ordering::Relaxed)
+            + self.shadow_rays.load(Ordering::Relaxed)
+            + self.secondary_rays.load(Ordering::Relaxed)
+            + self.transparency_rays.load(Ordering::Relaxed)
+    }
+}
+
+/// The frame being rendered: the world and the counters.
+pub struct Frame<'w> {
+    pub world: &'w World,
+    pub stats: Stats,
+    transparent_shadows: bool,
+    camera_from_world: Affine3A,
+}
+
+impl<'w> Frame<'w> {
+    pub fn new(world: &'w World) -> Frame<'w> {
+        Frame {
+            world,
+            stats: Stats::default(),
+            transparent_shadows: world.has_transparent_shadows(),
+            camera_from_world: world.camera.world_from_camera.inverse(),
+        }
+    }
+}
+
+/// The colour seen along a ray and its coverage.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Sample {
+    pub color: Vec3A,
+    pub alpha: f32,
+    /// Distance to the first surface (infinite on a miss).
+    pub depth: f32,
+    /// Material id of the first surface hit (`u32::MAX` on a miss), for pixel shaders and adaptive
+    /// sampling.
+    pub object_id: u32,
+}
+
+/// Shades the rays of a primary packet (already intersected).
+pub fn shade_packet(frame: &Frame, packet: &RayPacket, hits: &HitPacket, out: &mut [Sample; PACKET_SIZE]) {
+    let mut rays = Vec::with_capacity(PACKET_SIZE);
+    let mut hs = Vec::with_capacity(PACKET_SIZE);
+    let mut lanes = Vec::with_capacity(PACKET_SIZE);
+    for i in 0..PACKET_SIZE {
+        if packet.active >> i & 1 != 0 {
+            rays.push(packet.get(i));
+            hs.push(hits.get(i));
+            lanes.push(i);
+        }
+    }
+    Stats::add(&frame.stats.primary_rays, rays.len());
+    let mut samples = vec![Sample::default(); rays.len()];
+    shade_hits(frame, &rays, &hs, 0, &mut samples);
+    for (k, i) in lanes.into_iter().enumerate() {
+        out[i] = samples[k];
+    }
+}
+
+/// Traces and shades single rays (secondary rays: incoherent, traced one by one).
+pub fn trace_rays(frame: &Frame, rays: &[Ray], depth: u32) -> Vec<Sample> {
+    let hits: Vec<Hit> = rays.iter().map(|r| frame.world.scene.intersect(r)).collect();
+    let mut out = vec![Sample::default(); rays.len()];
+    shade_hits(frame, rays, &hits, depth, &mut out);
+    out
+}
+
+struct Pending {
+    index: usize,
+    ray: Ray,
+    hit: Hit,
+}
+
+/// What shading one hit produced.
+#[derive(Clone, Copy, Debug, Default)]
+struct Shaded {
+    ci: Vec3A,
+    oi: Vec3A,
+    p: Vec3A,
+    ng: Vec3A,
+}
+
+fn shade_hits(frame: &Frame, rays: &[Ray], hits: &[Hit], depth: u32, out: &mut [Sample]) {
+    let world = frame.world;
+    let background = Vec3A::from(world.options.background);
+    let mut weight = vec![Vec3A::ONE; rays.len()];
+    let mut current = Vec::with_capacity(rays.len());
+    for (i, (ray, hit)) in rays.iter().zip(hits).enumerate() {
+        out[i] = Sample { color: Vec3A::ZERO, alpha: 0.0, depth: hit.t, object_id: u32::MAX };
+        if hit.is_hit() {
+            if let Some(inst) = world.instances.get(hit.instance as usize) {
+                out[i].object_id = world.materials.get(inst.material as usize).map_or(0, |m| m.object_id);
+            }
+            current.push(Pending { index: i, ray: *ray, hit: *hit });
+        } else {
+            out[i].color = background;
+        }
+    }
+    let mut layer = 0;
+    while !current.is_empty() {
+        let key = |p: &Pending| {
+            let inst = world.instances.get(p.hit.instance as usize);
+            (inst.map_or(0, |i| i.material), p.hit.instance)
+        };
+        current.sort_by_key(key);
+        let mut results = vec![Shaded::default(); current.len()];
+        let mut start = 0;
+        while start < current.len() {
+            let k = key(&current[start]);
+            let mut end = start + 1;
+            while end < current.len() && end - start < PACKET_SIZE && key(&current[end]) == k {
+                end += 1;
+            }
+            shade_group(frame, &current[start..end], depth, &mut results[start..end]);
+            start = end;
+        }
+        Stats::add(&frame.stats.shaded_points, current.len());
+        layer += 1;
+        let mut next = Vec::new();
+        for (p, r) in current.iter().zip(&results) {
+            let w = weight[p.index];
+            out[p.index].color += w * r.ci;
+            let left = w * (Vec3A::ONE - r.oi.clamp(Vec3A::ZERO, Vec3A::ONE));
+            weight[p.index] = left;
+            if left.max_element() > 1.0 / 256.0 {
+                if layer >= world.options.max_transparent_layers {
+                    continue;
+                }
+                let side = if r.ng.dot(p.ray.direction) > 0.0 { r.ng } else { -r.ng };
+                let ray = Ray::new(offset_ray_origin(r.p, side), p.ray.direction);
+                Stats::add(&frame.stats.transparency_rays, 1);
+                let hit = world.scene.intersect(&ray);
+                if hit.is_hit() {
+                    next.push(Pending { index: p.index, ray, hit });
+                } else {
+                    out[p.index].color += left * background;
+                }
+            }
+        }
+        current = next;
+    }
+    for (s, w) in out.iter_mut().zip(&weight) {
+        s.alpha = 1.0 - (w.x + w.y + w.z) / 3.0;
+    }
+}
+
+/// Surface details of one hit, in world space.
+struct HitGeometry {
+    p: Vec3A,
+    n: Vec3A,
+    ng: Vec3A,
+    uv: [f32; 2],
+    st: [f32; 2],
+    dpdu: Vec3A,
+    dpdv: Vec3A,
+    cs: Option<Vec3A>,
+    os: Option<Vec3A>,
+    attributes: Vec<Vec<f32>>,
+}
+
+fn hit_geometry(world: &World, inst: &InstanceShading, hit: &Hit) -> Option<HitGeometry> {
+    let surf = world.scene.surface(hit)?;
+    let mesh = world.scene.mesh(crate::scene::ObjectId(inst.object))?;
+    let [a, b, c] = (*mesh.triangles.get(hit.primitive as usize)?).map(|i| i as usize);
+    let (pa, pb, pc) = (mesh.positions[a], mesh.positions[b], mesh.positions[c]);
+    let xf = &inst.world_from_object;
+    let (e1, e2) = (Vec3A::from(pb - pa), Vec3A::from(pc - pa));
+    // Surface parameters: the mesh's (u, v) when it has them (quadrics, patches, textured meshes),
+    // else the barycentric coordinates of the hit.
+    let (uv, dpdu, dpdv) = match &mesh.uvs {
+        Some(uvs) => {
+            let (ta, tb, tc) = (uvs[a], uvs[b], uvs[c]);
+            let (d1, d2) = (tb - ta, tc - ta);
+            let det = d1.x * d2.y - d1.y * d2.x;
+            let (dpdu, dpdv) = if det.abs() > 1e-12 {
+                let inv = 1.0 / det;
+                ((e1 * d2.y - e2 * d1.y) * inv, (e2 * d1.x - e1 * d2.x) * inv)
+            } else {
+                (e1, e2)
+            };
+            let w = (1.0 - hit.u - hit.v, hit.u, hit.v);
+            let uv = ta * w.0 + tb * w.1 + tc * w.2;
+            ([uv.x, uv.y], dpdu, dpdv)
+        }
+        None => ([hit.u, hit.v], e1, e2),
+    };
+    let find = |name: &str| mesh.attributes.iter().position(|at| at.name == name);
+    let color_attr = |name: &str| {
+        let i = find(name)?;
+        let v = surf.attributes.get(i)?;
+        (v.len() == 3).then(|| Vec3A::new(v[0], v[1], v[2]))
+    };
+    let st = match find("st") {
+        Some(i) if surf.attributes[i].len() == 2 => [surf.attributes[i][0], surf.attributes[i][1]],
+        _ => uv,
+    };
+    Some(HitGeometry {
+        p: surf.p,
+        n: surf.n,
+        ng: surf.ng,
+        uv,
+        st,
+        dpdu: xf.transform_vector3a(dpdu),
+        dpdv: xf.transform_vector3a(dpdv),
+        cs: color_attr("Cs"),
+        os: color_attr("Os"),
+        attributes: surf.attributes,
+    })
+}
+
+/// A cheap well-mixed hash for deterministic sampling (SplitMix64's finaliser).
+pub(crate) fn mix(mut x: u64) -> u64 {
+    x = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    x = (x ^ (x >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    x = (x ^ (x >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    x ^ (x >> 31)
+}
+
+fn point_seed(p: Vec3A) -> u64 {
+    mix(u64::from(p.x.to_bits()) ^ mix(u64::from(p.y.to_bits()) ^ mix(u64::from(p.z.to_bits()))))
+}
+
+fn unit(h: u64) -> f32 {
+    (h >> 40) as f32 / (1u64 << 24) as f32
+}
+
+/// Shades hits that share material and instance.
+fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mut [Shaded]) {
+    let world = frame.world;
+    let Some(inst) = world.instances.get(group[0].hit.instance as usize) else { return };
+    let material = world.materials.get(inst.material as usize).unwrap_or(&Material::DEFAULT);
+    let geoms: Vec<Option<HitGeometry>> = group.iter().map(|p| hit_geometry(world, inst, &p.hit)).collect();
+    let color = Vec3A::from(material.color);
+    let opacity = Vec3A::from(material.opacity);
+    let Some(surface) = &material.surface else {
+        // RenderMan's default surface: a matte that faces the viewer.
+        for ((p, g), o) in group.iter().zip(&geoms).zip(out.iter_mut()) {
+            let Some(g) = g else { continue };
+            let cs = g.cs.unwrap_or(color);
+            let os = g.os.unwrap_or(opacity);
+            let facing = g.n.dot(-p.ray.direction.normalize_or_zero()).abs();
+            *o = Shaded { ci: os * cs * (0.2 + 0.8 * facing), oi: os, p: g.p, ng: g.ng };
+        }
+        return;
+    };
+    let program = &surface.program;
+    let slots = &program.slots;
+    let vertex_params = world.vertex_params.get(group[0].hit.instance as usize);
+    with_batch(program, group.len(), |batch| {
+        {
+            let mut raw = batch.raw_mut();
+            surface.write_params(&mut raw);
+            for (lane, (p, g)) in group.iter().zip(&geoms).enumerate() {
+                let Some(g) = g else {
+                    raw.mask[lane] = 0;
+                    continue;
+                };
+                let e = p.ray.origin;
+                put3(&mut raw, slots.p, lane, g.p);
+                put3(&mut raw, slots.n, lane, g.n);
+                put3(&mut raw, slots.ng, lane, g.ng);
+                put3(&mut raw, slots.i, lane, g.p - e);
+                put3(&mut raw, slots.e, lane, e);
+                put1(&mut raw, slots.u, lane, g.uv[0]);
+                put1(&mut raw, slots.v, lane, g.uv[1]);
+                put1(&mut raw, slots.s, lane, g.st[0]);
+                put1(&mut raw, slots.t, lane, g.st[1]);
+                put3(&mut raw, slots.dpdu, lane, g.dpdu);
+                put3(&mut raw, slots.dpdv, lane, g.dpdv);
+                let os = g.os.unwrap_or(opacity);
+                put3(&mut raw, slots.cs, lane, g.cs.unwrap_or(color));
+                put3(&mut raw, slots.os, lane, os);
+                put3(&mut raw, slots.oi, lane, os);
+                put1(&mut raw, slots.ncomps, lane, 3.0);
+                if let Some(vp) = vertex_params {
+                    for &(param, attr) in vp {
+                        let slot = &program.layout().params[param];
+                        if let Some(values) = g.attributes.get(attr) {
+                            for (k, v) in values.iter().enumerate() {
+                                raw.varying[(slot.offset + k) * raw.stride + lane] = *v;
+                            }
+                            raw.bound[param] = 1;
+                        }
+                    }
+                }
+            }
+            if let Some(seed) = program.layout().seed {
+                for (lane, g) in geoms.iter().enumerate() {
+                    let h = g.as_ref().map_or(0, |g| point_seed(g.p));
+                    raw.varying[seed * raw.stride + lane] = f32::from_bits(h as u32);
+                    raw.varying[(seed + 1) * raw.stride + lane] = f32::from_bits((h >> 32) as u32);
+                }
+            }
+        }
+        let mut call = ShadeCall::new(frame, surface, inst.world_from_object, depth);
+        let table = call.table();
+        program.code.shade_with_table(batch, &table);
+        let raw = batch.raw_mut();
+        for (lane, (g, o)) in geoms.iter().zip(out.iter_mut()).enumerate() {
+            let Some(g) = g else { continue };
+            let os = g.os.unwrap_or(opacity);
+            let ci = get3(&raw, slots.ci, lane, Vec3A::ZERO);
+            let oi = get3(&raw, slots.oi, lane, os);
+            *o = Shaded { ci: finite_or_zero(ci), oi: finite_or_zero(oi), p: g.p, ng: g.ng };
+        }
+    });
+}
+
+fn finite_or_zero(v: Vec3A) -> Vec3A {
+    if v.is_finite() {
+        v
+    } else {
+        Vec3A::ZERO
+    }
+}
+
+/// The renderer side of one shader call: what the host callbacks need to answer it.
+pub(crate) struct ShadeCall<'f, 'w> {
+    frame: &'f Frame<'w>,
+    instance: &'f ShaderInstance,
+    world_from_object: Affine3A,
+    depth: u32,
+    /// The last light query (diffuse() and specular() of one chunk ask for the same lights).
+    light_cache: Option<LightQuery>,
+    text: String,
+}
+
+struct LightQuery {
+    category: String,
+    p: [u32; 12],
+    mask: [i32; 4],
+    lights: Vec<HostLight>,
+    counts: [u32; 4],
+}
+
+impl<'f, 'w> ShadeCall<'f, 'w> {
+    pub(crate) fn new(
+        frame: &'f Frame<'w>,
+        instance: &'f ShaderInstance,
+        world_from_object: Affine3A,
+        depth: u32,
+    ) -> Self {
+        ShadeCall { frame, instance, world_from_object, depth, light_cache: None, text: String::new() }
+    }
+
+    /// The call table; valid while `self` is neither moved nor dropped.
+    pub(crate) fn table(&mut self) -> HostTable {
+        HostTable {
+            ctx: self as *mut ShadeCall as *mut c_void,
+            matrix: host_matrix,
+            lights: host_lights,
+            texture: host_texture,
+            rays: host_rays,
+            depth: host_depth,
+            ray_depth: host_ray_depth,
+            message: host_message,
+            shader_name: host_shader_name,
+            print: host_print,
+        }
+    }
+
+    /// World from a named space, `None` for an unknown name.
+    fn world_from(&self, space: &str) -> Option<Mat4> {
+        let world = self.frame.world;
+        let m = match space {
+            "current" | "world" => Affine3A::IDENTITY,
+            "object" => self.world_from_object,
+            "shader" => self.instance.world_from_shader,
+            "camera" => world.camera.world_from_camera,
+            "screen" | "NDC" | "raster" => return self.world_from_projected(space),
+            other => *world.spaces.get(other)?,
+        };
+        Some(Mat4::from(m))
+    }
+
+    fn world_from_projected(&self, space: &str) -> Option<Mat4> {
+        let world = self.frame.world;
+        let (w, h) = (world.options.width.max(1) as f32, world.options.height.max(1) as f32);
+        let tan = (world.camera.fov_degrees.to_radians() * 0.5).tan();
+        let (ax, ay) = if w >= h { (w / h, 1.0) } else { (1.0, h / w) };
+        // camera -> screen: x' = x / (z tan ax), y' likewise, z' = z (a projective matrix).
+        let near = world.camera.near.max(1e-6);
+        let far = world.camera.far.max(near * 2.0);
+        let proj = Mat4::from_cols_array(&[
+            1.0 / (tan * ax),
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+            1.0 / (tan * ay),
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+            far / (far - near),
+            1.0,
+            0.0,
+            0.0,
+            -far * near / (far - near),
+            0.0,
+        ]);
+        let screen_from_camera = match space {
+            "screen" => proj,
+            "NDC" => {
+                Mat4::from_cols_array(&[
+                    0.5 / ax,
+                    0.0,
+                    0.0,
+                    0.0,
+                    0.0,
+                    -0.5 / ay,
+                    0.0,
+                    0.0,
+                    0.0,
+                    0.0,
+                    1.0,
+                    0.0,
+                    0.5,
+                    0.5,
+                    0.0,
+                    1.0,
+                ]) * proj
+            }
+            _ => {
+                Mat4::from_cols_array(&[
+                    0.5 * w / ax,
+                    0.0,
+                    0.0,
+                    0.0,
+                    0.0,
+                    -0.5 * h / ay,
+                    0.0,
+                    0.0,
+                    0.0,
+                    0.0,
+                    1.0,
+                    0.0,
+                    0.5 * w,
+                    0.5 * h,
+                    0.0,
+                    1.0,
+                ]) * proj
+            }
+        };
+        let camera_from_screen = screen_from_camera.inverse();
+        Some(Mat4::from(world.camera.world_from_camera) * camera_from_screen)
+    }
+}
+
+/// # Safety
+/// `ctx` is the `ctx` of a table made by [`ShadeCall::table`] whose call is alive.
+unsafe fn call<'x>(ctx: *mut c_void) -> &'x mut ShadeCall<'x, 'x> {
+    // SAFETY: the caller's contract.
+    unsafe { &mut *(ctx as *mut ShadeCall<'x, 'x>) }
+}
+
+/// # Safety
+/// `p` points to `n` floats.
+unsafe fn slice<'x>(p: *const f32, n: usize) -> &'x [f32] {
+    // SAFETY: the caller's contract.
+    unsafe { std::slice::from_raw_parts(p, n) }
+}
+
+fn lane3(v: &[f32], k: usize, l: usize) -> Vec3A {
+    Vec3A::new(v[4 * k + l], v[4 * (k + 1) + l], v[4 * (k + 2) + l])
+}
+
+unsafe extern "C" fn host_matrix(ctx: *mut c_void, from: StrRef, to: StrRef, out: *mut f32) -> u32 {
+    // SAFETY: the table's contract: `ctx` is alive, the strings valid, `out` holds 16 floats.
+    let (c, from, to) = unsafe { (call(ctx), from.as_str(), to.as_str()) };
+    let (Some(a), Some(b)) = (c.world_from(from), c.world_from(to)) else { return 0 };
+    // Points go from `from` to world, then from world to `to`. glam's column-major array of a
+    // column-vector matrix is RenderMan's row-major array of the row-vector one.
+    let m = (b.inverse() * a).to_cols_array();
+    if !m.iter().all(|x| x.is_finite()) {
+        return 0;
+    }
+    // SAFETY: `out` holds 16 floats.
+    unsafe { std::ptr::copy_nonoverlapping(m.as_ptr(), out, 16) };
+    1
+}
+
+unsafe extern "C" fn host_lights(
+    ctx: *mut c_void,
+    category: StrRef,
+    mask: *const i32,
+    p: *const f32,
+    out: *mut HostLight,
+    counts: *mut u32,
+) {
+    // SAFETY: the table's contract: 4 mask entries, 12 floats of P, MAX_LIGHTS * 4 lights, 4 counts.
+    let (c, category, mask, p, out, counts) = unsafe {
+        (
+            call(ctx),
+            category.as_str(),
+            &*(mask as *const [i32; 4]),
+            slice(p, 12),
+            std::slice::from_raw_parts_mut(out, MAX_LIGHTS * 4),
+            &mut *(counts as *mut [u32; 4]),
+        )
+    };
+    let pbits: [u32; 12] = std::array::from_fn(|i| p[i].to_bits());
+    if let Some(q) = &c.light_cache {
+        if q.category == category && q.p == pbits && q.mask == *mask {
+            out[..q.lights.len()].copy_from_slice(&q.lights);
+            *counts = q.counts;
+            return;
+        }
+    }
+    *counts = [0; 4];
+    let points: [Vec3A; 4] = std::array::from_fn(|l| lane3(p, 0, l));
+    for light in &c.frame.world.lights {
+        if !light.in_category(category) {
+            continue;
+        }
+        eval_light(c.frame, light, mask, &points, c.depth, out, counts);
+    }
+    c.light_cache = Some(LightQuery {
+        category: category.to_string(),
+        p: pbits,
+        mask: *mask,
+        lights: out.to_vec(),
+        counts: *counts,
+    });
+}
+
+/// Runs one light's shader for the active lanes of a chunk and appends what reaches each lane, with
+/// shadows traced.
+fn eval_light(
+    frame: &Frame,
+    light: &LightSource,
+    mask: &[i32; 4],
+    points: &[Vec3A; 4],
+    depth: u32,
+    out: &mut [HostLight],
+    counts: &mut [u32; 4],
+) {
+    let instance = &light.shader;
+    let program = &instance.program;
+    let slots = &program.slots;
+    let samples = light.area.as_ref().map_or(1, |a| a.samples);
+    let eye = frame.world.camera.eye();
+    for sample in 0..samples {
+        // The emitting point: the light's origin, or a sample of its geometry for area lights.
+        let mut origin = [instance.world_from_shader.translation; 4];
+        let mut normal = [Vec3A::ZERO; 4];
+        if let Some(area) = &light.area {
+            for l in 0..4 {
+                let h = mix(point_seed(points[l]) ^ u64::from(sample).wrapping_mul(0x2545_F491_4F6C_DD1D));
+                if let Some((q, n)) = area.sample(unit(h), unit(mix(h)), unit(mix(h ^ 1))) {
+                    origin[l] = q;
+                    normal[l] = n;
+                }
+            }
+        }
+        Stats::add(&frame.stats.light_evaluations, 1);
+        let results = with_batch(program, 4, |batch| {
+            {
+                let mut raw = batch.raw_mut();
+                instance.write_params(&mut raw);
+                raw.mask[..4].copy_from_slice(mask);
+                for l in 0..4 {
+                    put3(&mut raw, slots.ps, l, points[l]);
+                    put3(&mut raw, slots.p, l, origin[l]);
+                    put3(&mut raw, slots.n, l, normal[l]);
+                    put3(&mut raw, slots.e, l, eye);
+                    put1(&mut raw, slots.ncomps, l, 3.0);
+                }
+            }
+            let mut call = ShadeCall::new(frame, instance, instance.world_from_shader, depth);
+            let table = call.table();
+            program.code.shade_with_table(batch, &table);
+            let raw = batch.raw_mut();
+            std::array::from_fn::<_, 4, _>(|l| {
+                (
+                    get3(&raw, slots.l, l, Vec3A::ZERO),
+                    get3(&raw, slots.cl, l, Vec3A::ZERO),
+                    get3(&raw, slots.ol, l, Vec3A::ZERO),
+                )
+            })
+        });
+        let scale = 1.0 / samples as f32;
+        for l in 0..4 {
+            if mask[l] == 0 || counts[l] as usize >= MAX_LIGHTS {
+                continue;
+            }
+            let (to_surface, cl, ol) = results[l];
+            let ambient = light.kind == LightKind::Ambient;
+            // `illuminate` leaves L at zero where the point is outside its cone: no light there.
+            if !ambient && to_surface == Vec3A::ZERO {
+                continue;
+            }
+            let to_light = -to_surface;
+            let mut cl = finite_or_zero(cl) * scale;
+            if !ambient && light.shadows && cl != Vec3A::ZERO {
+                let distance = if light.kind == LightKind::Distant { f32::INFINITY } else { to_light.length() };
+                cl *= transmission_along(frame, points[l], to_light.normalize_or_zero(), distance);
+            }
+            let k = counts[l] as usize;
+            out[4 * k + l] = HostLight {
+                l: if ambient { [0.0; 3] } else { to_light.to_array() },
+                cl: cl.to_array(),
+                ol: finite_or_zero(ol).to_array(),
+                ambient: u32::from(ambient),
+            };
+            counts[l] += 1;
+        }
+    }
+}
+
+/// A start offset for rays leaving `p` (its scale grows with the coordinates' magnitude).
+fn epsilon(p: Vec3A) -> f32 {
+    1e-4 * p.abs().max_element().max(1.0)
+}
+
+/// How much light gets from `from` along unit `dir` for `distance` (white where nothing blocks):
+/// opaque blockers stop it, transparent ones filter it by their opacity.
+fn transmission_along(frame: &Frame, from: Vec3A, dir: Vec3A, distance: f32) -> Vec3A {
+    if dir == Vec3A::ZERO {
+        return Vec3A::ONE;
+    }
+    let eps = epsilon(from);
+    let tmax = if distance.is_finite() { distance - 2.0 * eps } else { f32::INFINITY };
+    if tmax <= eps {
+        return Vec3A::ONE;
+    }
+    let world = frame.world;
+    Stats::add(&frame.stats.shadow_rays, 1);
+    if !frame.transparent_shadows {
+        let occluded = world.scene.occluded(&Ray::segment(from, dir, eps, tmax));
+        return if occluded { Vec3A::ZERO } else { Vec3A::ONE };
+    }
+    let mut through = Vec3A::ONE;
+    let mut start = eps;
+    for _ in 0..world.options.max_transparent_layers {
+        let hit = world.scene.intersect(&Ray::segment(from, dir, start, tmax));
+        if !hit.is_hit() {
+            return through;
+        }
+        let Some(inst) = world.instances.get(hit.instance as usize) else { return through };
+        let material = world.materials.get(inst.material as usize).unwrap_or(&Material::DEFAULT);
+        if material.is_opaque_for_shadows() {
+            return Vec3A::ZERO;
+        }
+        let opacity = if material.shadow_by_shader {
+            let ray = Ray::segment(from, dir, start, tmax);
+            let mut shaded = [Shaded::default()];
+            shade_group(frame, &[Pending { index: 0, ray, hit }], world.options.max_ray_depth, &mut shaded);
+            shaded[0].oi
+        } else {
+            Vec3A::from(material.opacity)
+        };
+        through *= Vec3A::ONE - opacity.clamp(Vec3A::ZERO, Vec3A::ONE);
+        if through.max_element() < 1.0 / 256.0 {
+            return Vec3A::ZERO;
+        }
+        start = hit.t + epsilon(from + dir * hit.t);
+    }
+    through
+}
+
+unsafe extern "C" fn host_texture(
+    _ctx: *mut c_void,
+    _kind: u32,
+    _name: StrRef,
+    _mask: *const i32,
+    _coords: *const f32,
+    _first: *const f32,
+    _channels: u32,
+    _out: *mut f32,
+    ok: *mut u32,
+) {
+    // Textures arrive with the texture cache; until then every map reads as missing (the shader's
+    // fill value is used).
+    // SAFETY: `ok` holds 4 entries.
+    unsafe { std::ptr::write_bytes(ok, 0, 4) };
+}
+
+unsafe extern "C" fn host_rays(
+    ctx: *mut c_void,
+    kind: u32,
+    mask: *const i32,
+    a: *const f32,
+    b: *const f32,
+    samples: *const f32,
+    out: *mut f32,
+) {
+    // SAFETY: the table's contract: 4 mask entries, 12 floats each of a and b, 4 samples, and room
+    // for the kind's results (at most 4 x 4 floats).
+    let (c, mask, a, b, samples) =
+        unsafe { (call(ctx), &*(mask as *const [i32; 4]), slice(a, 12), slice(b, 12), slice(samples, 4)) };
+    let results = match kind {
+        0 => 4,
+        1 | 3 => 3,
+        _ => 1,
+    };
+    // SAFETY: as above.
+    let out = unsafe { std::slice::from_raw_parts_mut(out, 4 * results) };
+    let frame = c.frame;
+    let max_depth = frame.world.options.max_ray_depth;
+    match kind {
+        0 => {
+            let mut rays = Vec::new();
+            let mut lanes = Vec::new();
+            for l in 0..4 {
+                if mask[l] == 0 {
+                    continue;
+                }
+                for r in 0..3 {
+                    out[4 * r + l] = 0.0;
+                }
+                out[12 + l] = f32::INFINITY;
+                let (from, dir) = (lane3(a, 0, l), lane3(b, 0, l).normalize_or_zero());
+                if c.depth + 1 > max_depth || dir == Vec3A::ZERO || !from.is_finite() {
+                    continue;
+                }
+                rays.push(Ray::segment(from, dir, epsilon(from), f32::INFINITY));
+                lanes.push(l);
+            }
+            if rays.is_empty() {
+                return;
+            }
+            Stats::add(&frame.stats.secondary_rays, rays.len());
+            let seen = trace_rays(frame, &rays, c.depth + 1);
+            for (s, l) in seen.iter().zip(lanes) {
+                for r in 0..3 {
+                    out[4 * r + l] = s.color[r];
+                }
+                out[12 + l] = s.depth;
+            }
+        }
+        1 => {
+            for l in 0..4 {
+                if mask[l] == 0 {
+                    continue;
+                }
+                let (from, to) = (lane3(a, 0, l), lane3(b, 0, l));
+                let d = to - from;
+                let t = transmission_along(frame, from, d.normalize_or_zero(), d.length());
+                for r in 0..3 {
+                    out[4 * r + l] = t[r];
+                }
+            }
+        }
+        _ => {
+            for l in 0..4 {
+                if mask[l] == 0 {
+                    continue;
+                }
+                let (p, n) = (lane3(a, 0, l), lane3(b, 0, l).normalize_or_zero());
+                let count = (samples[l].max(1.0) as u32).min(256);
+                let (blocked, light) = hemisphere(frame, p, n, count, kind == 3, c.depth);
+                if kind == 3 {
+                    for r in 0..3 {
+                        out[4 * r + l] = light[r];
+                    }
+                } else {
+                    out[l] = blocked;
+                }
+            }
+        }
+    }
+}
+
+/// Cosine-weighted rays over the hemisphere around `n`: the fraction blocked, and (when `shade`)
+/// the mean colour seen.
+fn hemisphere(frame: &Frame, p: Vec3A, n: Vec3A, count: u32, shade: bool, depth: u32) -> (f32, Vec3A) {
+    if n == Vec3A::ZERO {
+        return (0.0, Vec3A::ZERO);
+    }
+    let (t1, t2) = orthonormal(n);
+    let seed = point_seed(p);
+    let mut rays = Vec::with_capacity(count as usize);
+    for i in 0..count {
+        let h = mix(seed ^ u64::from(i).wrapping_mul(0x9E37_79B9));
+        let (r1, r2) = (unit(h), unit(mix(h)));
+        let phi = std::f32::consts::TAU * r1;
+        let (s, cz) = (r2.sqrt(), (1.0 - r2).sqrt());
+        let dir = t1 * (s * phi.cos()) + t2 * (s * phi.sin()) + n * cz;
+        rays.push(Ray::segment(p, dir, epsilon(p), f32::INFINITY));
+    }
+    Stats::add(&frame.stats.secondary_rays, rays.len());
+    if shade && depth < frame.world.options.max_ray_depth {
+        let seen = trace_rays(frame, &rays, depth + 1);
+        let blocked = seen.iter().filter(|s| s.depth.is_finite()).count() as f32 / count as f32;
+        let sum = seen.iter().fold(Vec3A::ZERO, |acc, s| acc + s.color);
+        (blocked, sum / count as f32)
+    } else {
+        let blocked = rays.iter().filter(|r| frame.world.scene.occluded(r)).count() as f32 / count as f32;
+        (blocked, Vec3A::ZERO)
+    }
+}
+
+fn orthonormal(n: Vec3A) -> (Vec3A, Vec3A) {
+    let a = if n.x.abs() > 0.9 { Vec3A::Y } else { Vec3A::X };
+    let t1 = n.cross(a).normalize();
+    (t1, n.cross(t1))
+}
+
+unsafe extern "C" fn host_depth(ctx: *mut c_void, mask: *const i32, p: *const f32, out: *mut f32) {
+    // SAFETY: the table's contract.
+    let (c, mask, p, out) =
+        unsafe { (call(ctx), &*(mask as *const [i32; 4]), slice(p, 12), std::slice::from_raw_parts_mut(out, 4)) };
+    let cam = &c.frame.world.camera;
+    for l in 0..4 {
+        if mask[l] != 0 {
+            let z = c.frame.camera_from_world.transform_point3a(lane3(p, 0, l)).z;
+            out[l] = ((z - cam.near) / (cam.far - cam.near)).clamp(0.0, 1.0);
+        }
+    }
+}
+
+unsafe extern "C" fn host_ray_depth(ctx: *mut c_void) -> f32 {
+    // SAFETY: the table's contract.
+    unsafe { call(ctx) }.depth as f32
+}
+
+unsafe extern "C" fn host_message(ctx: *mut c_void, which: u32, name: StrRef, out: *mut MessageOut) -> u32 {
+    // SAFETY: the table's contract.
+    let (c, name, out) = unsafe { (call(ctx), name.as_str(), &mut *out) };
+    let Some(b) = Builtin::ALL.get(which as usize) else { return 0 };
+    let options = &c.frame.world.options;
+    let floats = |out: &mut MessageOut, v: &[f32]| {
+        out.kind = 1;
+        out.len = if v.len() == 1 { 0 } else { v.len() as u32 };
+        out.floats[..v.len()].copy_from_slice(v);
+        1
+    };
+    match (b, name) {
+        (Builtin::Option, "Format") => floats(out, &[options.width as f32, options.height as f32, 1.0]),
+        (Builtin::Option, "PixelSamples") => floats(out, &[options.samples.0 as f32, options.samples.1 as f32]),
+        (Builtin::Rendererinfo, "renderer") => {
+            c.text = "rtsl".to_string();
+            out.kind = 4;
+            out.len = 0;
+            out.string = StrRef::new(&c.text);
+            1
+        }
+        (Builtin::Rendererinfo, "version") => floats(out, &[0.0, 1.0, 0.0, 0.0]),
+        (Builtin::Rendererinfo, "versionstring") => {
+            c.text = env!("CARGO_PKG_VERSION").to_string();
+            out.kind = 4;
+            out.len = 0;
+            out.string = StrRef::new(&c.text);
+            1
+        }
+        _ => 0,
+    }
+}
+
+unsafe extern "C" fn host_shader_name(ctx: *mut c_void, has_kind: u32, _kind: StrRef) -> StrRef {
+    // SAFETY: the table's contract.
+    let c = unsafe { call(ctx) };
+    c.text = if has_kind == 0 { c.instance.program.name.clone() } else { String::new() };
+    StrRef::new(&c.text)
+}
+
+unsafe extern "C" fn host_print(_ctx: *mut c_void, text: StrRef) {
+    use std::io::Write;
+    // SAFETY: the table's contract.
+    let text = unsafe { text.as_str() };
+    let _ = std::io::stdout().lock().write_all(text.as_bytes());
+}

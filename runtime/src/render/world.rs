@@ -1,0 +1,236 @@
+//! What a frame renders: the traceable scene plus everything shading needs (materials, lights, the
+//! camera, named coordinate systems, options). The API ([`crate::api::Context`]) and the RIB reader
+//! build a [`World`]; the frame loop only reads it.
+
+use crate::scene::Scene;
+use crate::shading::{LightKind, ShaderInstance};
+use glam::{Affine3A, Vec3A};
+use std::collections::HashMap;
+use std::sync::Arc;
+
+/// How an object's surface looks: its surface shader (none: a matte grey, see [`Material::DEFAULT`]),
+/// its colour and opacity (the `Cs` and `Os` globals when its mesh carries none per vertex).
+#[derive(Clone, Debug)]
+pub struct Material {
+    pub surface: Option<Arc<ShaderInstance>>,
+    pub color: [f32; 3],
+    pub opacity: [f32; 3],
+    /// Shadow rays run the surface shader at hits on this material to find their opacity (PRMan's
+    /// `Attribute "shade" "transmissionhitmode" "shader"`); otherwise `opacity` is used.
+    pub shadow_by_shader: bool,
+    /// An id the pixel shader and adaptive sampling may read (`objectid`).
+    pub object_id: u32,
+}
+
+impl Material {
+    pub const DEFAULT: Material =
+        Material { surface: None, color: [1.0; 3], opacity: [1.0; 3], shadow_by_shader: false, object_id: 0 };
+
+    /// Whether light passes through this material without running its shader.
+    pub fn is_opaque_for_shadows(&self) -> bool {
+        !self.shadow_by_shader && self.opacity.iter().all(|o| *o >= 1.0)
+    }
+}
+
+/// How one instance of the scene is shaded: its material and where it is.
+#[derive(Clone, Debug)]
+pub struct InstanceShading {
+    pub material: u32,
+    pub object: u32,
+    pub world_from_object: Affine3A,
+}
+
+/// A light source: a light shader instance and whether it casts shadows.
+#[derive(Clone, Debug)]
+pub struct LightSource {
+    pub shader: Arc<ShaderInstance>,
+    pub kind: LightKind,
+    /// The renderer traces shadow rays towards the light (RenderMan ray tracers' `Attribute "light"
+    /// "shadows" "on"`); lights that compute their own shadows turn this off.
+    pub shadows: bool,
+    /// The categories the light belongs to (its `__category` parameter, comma separated).
+    pub categories: Vec<String>,
+    /// For area lights: the instance of the geometry that emits, sampled for soft shadows.
+    pub area: Option<AreaLight>,
+}
+
+/// The emitting geometry of an area light: triangles in world space with their cumulative areas.
+#[derive(Clone, Debug, Default)]
+pub struct AreaLight {
+    pub triangles: Vec<[Vec3A; 3]>,
+    pub cumulative_area: Vec<f32>,
+    /// Samples per shading point.
+    pub samples: u32,
+}
+
+impl AreaLight {
+    pub fn new(triangles: Vec<[Vec3A; 3]>, samples: u32) -> AreaLight {
+        let mut total = 0.0;
+        let cumulative_area = triangles
+            .iter()
+            .map(|[a, b, c]| {
+                total += 0.5 * (*b - *a).cross(*c - *a).length();
+                total
+            })
+            .collect();
+        AreaLight { triangles, cumulative_area, samples: samples.max(1) }
+    }
+
+    pub fn area(&self) -> f32 {
+        self.cumulative_area.last().copied().unwrap_or(0.0)
+    }
+
+    /// A point on the light for the two uniform numbers `r1`, `r2` in [0, 1), and its unit normal.
+    pub fn sample(&self, r0: f32, r1: f32, r2: f32) -> Option<(Vec3A, Vec3A)> {
+        let total = self.area();
+        if total <= 0.0 {
+            return None;
+        }
+        let target = r0 * total;
+        let i = self.cumulative_area.partition_point(|c| *c < target).min(self.triangles.len() - 1);
+        let [a, b, c] = self.triangles[i];
+        let (mut u, mut v) = (r1, r2);
+        if u + v > 1.0 {
+            u = 1.0 - u;
+            v = 1.0 - v;
+        }
+        let p = a + (b - a) * u + (c - a) * v;
+        Some((p, (b - a).cross(c - a).normalize_or_zero()))
+    }
+}
+
+impl LightSource {
+    pub fn in_category(&self, category: &str) -> bool {
+        if category.is_empty() {
+            return true;
+        }
+        // RISpec: a leading '-' excludes the category.
+        match category.strip_prefix('-') {
+            Some(c) => !self.categories.iter().any(|x| x == c),
+            None => self.categories.iter().any(|x| x == category),
+        }
+    }
+}
+
+/// A pinhole camera in RenderMan's terms: camera space has +x right, +y up and +z forward, and the
+/// field of view spans the shorter side of the image.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CameraSetup {
+    pub world_from_camera: Affine3A,
+    pub fov_degrees: f32,
+    pub near: f32,
+    pub far: f32,
+}
+
+impl Default for CameraSetup {
+    fn default() -> Self {
+        CameraSetup { world_from_camera: Affine3A::IDENTITY, fov_degrees: 90.0, near: 1e-2, far: 1e4 }
+    }
+}
+
+impl CameraSetup {
+    /// A camera at `eye` looking at `target`, `up` pointing up in the image.
+    pub fn look_at(eye: Vec3A, target: Vec3A, up: Vec3A, fov_degrees: f32) -> CameraSetup {
+        let forward = (target - eye).normalize_or(Vec3A::NEG_Z);
+        let right = forward.cross(up).normalize_or(Vec3A::X);
+        let up = right.cross(forward);
+        // Camera space is left-handed, so this matrix mirrors: its determinant is negative.
+        let world_from_camera = Affine3A::from_cols(right, up, forward, eye);
+        CameraSetup { world_from_camera, fov_degrees, ..CameraSetup::default() }
+    }
+
+    pub fn eye(&self) -> Vec3A {
+        self.world_from_camera.translation
+    }
+}
+
+/// Render settings (RenderMan's options).
+#[derive(Clone, Debug, PartialEq)]
+pub struct RenderOptions {
+    pub width: u32,
+    pub height: u32,
+    /// Samples per pixel along x and y (RIB `PixelSamples`), on a jittered grid.
+    pub samples: (u32, u32),
+    /// The deepest `trace` recursion (primary rays are depth 0).
+    pub max_ray_depth: u32,
+    /// The colour of rays that hit nothing.
+    pub background: [f32; 3],
+    /// Most transparent surfaces a ray continues through.
+    pub max_transparent_layers: u32,
+}
+
+impl Default for RenderOptions {
+    fn default() -> Self {
+        RenderOptions {
+            width: 640,
+            height: 480,
+            samples: (1, 1),
+            max_ray_depth: 6,
+            background: [0.0; 3],
+            max_transparent_layers: 16,
+        }
+    }
+}
+
+/// Everything a frame renders. Build one with [`crate::api::Context`] or the RIB reader.
+pub struct World {
+    pub scene: Scene,
+    pub materials: Vec<Material>,
+    /// One per scene instance, in the scene's instance order.
+    pub instances: Vec<InstanceShading>,
+    pub lights: Vec<LightSource>,
+    pub camera: CameraSetup,
+    pub options: RenderOptions,
+    /// Named coordinate systems (`CoordinateSystem`), world from the system.
+    pub spaces: HashMap<String, Affine3A>,
+    /// Per-instance vertex-scope bindings: shader parameter index -> mesh attribute index, worked out
+    /// by [`World::prepare`].
+    pub(crate) vertex_params: Vec<Vec<(usize, usize)>>,
+}
+
+impl World {
+    pub fn new(scene: Scene) -> World {
+        World {
+            scene,
+            materials: vec![Material::DEFAULT],
+            instances: Vec::new(),
+            lights: Vec::new(),
+            camera: CameraSetup::default(),
+            options: RenderOptions::default(),
+            spaces: HashMap::new(),
+            vertex_params: Vec::new(),
+        }
+    }
+
+    /// Commits the scene and works out the bindings that depend on both meshes and shaders. Call
+    /// after any change, before rendering.
+    pub fn prepare(&mut self) {
+        self.scene.commit();
+        self.vertex_params = self
+            .instances
+            .iter()
+            .map(|inst| {
+                let Some(program) = self.materials.get(inst.material as usize).and_then(|m| m.surface.as_ref()) else {
+                    return Vec::new();
+                };
+                let Some(mesh) = self.scene.mesh(crate::scene::ObjectId(inst.object)) else { return Vec::new() };
+                let layout = program.program.layout();
+                layout
+                    .params
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, p)| p.varying && !p.string && !p.output)
+                    .filter_map(|(i, p)| {
+                        let a = mesh.attributes.iter().position(|a| a.name == p.name && a.components == p.floats())?;
+                        Some((i, a))
+                    })
+                    .collect()
+            })
+            .collect();
+    }
+
+    /// Whether any material lets light through (then shadow rays must look at what they pass).
+    pub fn has_transparent_shadows(&self) -> bool {
+        self.materials.iter().any(|m| !m.is_opaque_for_shadows())
+    }
+}

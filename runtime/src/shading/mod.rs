@@ -1,0 +1,151 @@
+//! Shaders in the renderer: compiled programs, parameter binding, shader instances (a program with
+//! bound values and its "shader" space), and filling the packet batches the JIT code runs on.
+//!
+//! Invariant: the runtime never parses shader source itself; [`program`] hands source to
+//! `rtsl-compiler` and keeps what comes back.
+
+pub mod params;
+pub mod program;
+
+pub use params::{bind_param, BoundParam, ParamError, ParamValue};
+pub use program::{GlobalSlots, LightKind, Program, ShaderError, ShaderProgram, Slot};
+
+use glam::{Affine3A, Vec3A};
+use rtsl_compiler::back::jit::{BatchData, RawBatch};
+use std::cell::RefCell;
+use std::collections::HashMap;
+use std::sync::{Arc, Weak};
+
+/// A program with bound parameter values, placed in the world: what `bind_shader` + `parameter`
+/// produce, and what a light source, an object's surface or a volume refers to.
+#[derive(Clone, Debug)]
+pub struct ShaderInstance {
+    pub program: Program,
+    pub params: Vec<BoundParam>,
+    /// The "shader" coordinate system: the transform current when the instance was made.
+    pub world_from_shader: Affine3A,
+}
+
+impl ShaderInstance {
+    pub fn new(program: Program, world_from_shader: Affine3A) -> ShaderInstance {
+        ShaderInstance { program, params: Vec::new(), world_from_shader }
+    }
+
+    /// Binds (or rebinds) parameter `name`; point-like values are in the space `world_from_current`.
+    pub fn set(&mut self, name: &str, value: &ParamValue, world_from_current: &Affine3A) -> Result<(), ParamError> {
+        let b = bind_param(&self.program, name, value, world_from_current)?;
+        match self.params.iter_mut().find(|p| p.index == b.index) {
+            Some(p) => *p = b,
+            None => self.params.push(b),
+        }
+        Ok(())
+    }
+
+    /// The bound value of a string parameter, or its constant default.
+    pub fn string_param(&self, name: &str) -> Option<String> {
+        let (index, _) = self.program.layout().param(name)?;
+        if let Some(b) = self.params.iter().find(|p| p.index == index) {
+            return b.string.clone();
+        }
+        match &self.program.interface.parameters[index].default {
+            Some(rtsl_compiler::interface::Value::String(s)) => Some(s.clone()),
+            _ => None,
+        }
+    }
+
+    /// Writes the bound parameters into lanes `0..raw.lanes` of a batch of this instance's program.
+    pub fn write_params(&self, raw: &mut RawBatch<'_>) {
+        let layout = self.program.layout();
+        for b in &self.params {
+            let slot = &layout.params[b.index];
+            raw.bound[b.index] = 1;
+            if let Some(s) = &b.string {
+                let h = raw.strings.intern(s);
+                raw.uniform[slot.offset] = f32::from_bits(h);
+            } else if slot.varying {
+                for (k, v) in b.floats.iter().enumerate() {
+                    let row = (slot.offset + k) * raw.stride;
+                    raw.varying[row..row + raw.lanes].fill(*v);
+                }
+            } else {
+                raw.uniform[slot.offset..slot.offset + b.floats.len()].copy_from_slice(&b.floats);
+            }
+        }
+    }
+}
+
+/// Writes a float global of one lane (uniform globals are written whatever the lane).
+#[inline]
+pub fn put1(raw: &mut RawBatch<'_>, slot: Option<Slot>, lane: usize, v: f32) {
+    if let Some(s) = slot {
+        if s.varying {
+            raw.varying[s.offset * raw.stride + lane] = v;
+        } else {
+            raw.uniform[s.offset] = v;
+        }
+    }
+}
+
+/// Writes a triple global of one lane.
+#[inline]
+pub fn put3(raw: &mut RawBatch<'_>, slot: Option<Slot>, lane: usize, v: Vec3A) {
+    if let Some(s) = slot {
+        if s.varying {
+            let st = raw.stride;
+            raw.varying[s.offset * st + lane] = v.x;
+            raw.varying[(s.offset + 1) * st + lane] = v.y;
+            raw.varying[(s.offset + 2) * st + lane] = v.z;
+        } else {
+            raw.uniform[s.offset..s.offset + 3].copy_from_slice(&v.to_array());
+        }
+    }
+}
+
+/// Reads a triple global of one lane, `default` when the shader does not have it.
+#[inline]
+pub fn get3(raw: &RawBatch<'_>, slot: Option<Slot>, lane: usize, default: Vec3A) -> Vec3A {
+    match slot {
+        Some(s) if s.varying => {
+            let st = raw.stride;
+            Vec3A::new(
+                raw.varying[s.offset * st + lane],
+                raw.varying[(s.offset + 1) * st + lane],
+                raw.varying[(s.offset + 2) * st + lane],
+            )
+        }
+        Some(s) => Vec3A::new(raw.uniform[s.offset], raw.uniform[s.offset + 1], raw.uniform[s.offset + 2]),
+        None => default,
+    }
+}
+
+/// A batch kept for reuse, with the program it was made for.
+type PooledBatch = (Weak<ShaderProgram>, BatchData);
+
+thread_local! {
+    static BATCHES: RefCell<HashMap<usize, Vec<PooledBatch>>> = RefCell::new(HashMap::new());
+}
+
+/// Runs `f` with a batch of `lanes` lanes for `program`, reset (all lanes active, zeros, nothing
+/// bound), taken from this thread's pool and returned to it afterwards. Shading recurses (a surface
+/// traces rays whose hits are shaded with the same program), so a batch is taken out of the pool
+/// while in use rather than borrowed.
+pub fn with_batch<R>(program: &Program, lanes: usize, f: impl FnOnce(&mut BatchData) -> R) -> R {
+    let key = Arc::as_ptr(program) as usize;
+    // A pooled batch is reused only for the very program it was made for (an address can be reused
+    // by a later program once the first is dropped).
+    let taken = BATCHES.with(|b| b.borrow_mut().get_mut(&key).and_then(Vec::pop));
+    let mut batch = match taken {
+        Some((owner, batch)) if owner.upgrade().is_some_and(|o| Arc::ptr_eq(&o, program)) => batch,
+        _ => program.code.batch(lanes),
+    };
+    batch.reset(lanes);
+    let r = f(&mut batch);
+    BATCHES.with(|b| {
+        let mut b = b.borrow_mut();
+        let list = b.entry(key).or_default();
+        if list.len() < 8 {
+            list.push((Arc::downgrade(program), batch));
+        }
+    });
+    r
+}

@@ -1,0 +1,228 @@
+//! Compiled shader programs: source compiled by `rtsl-compiler`, JIT-compiled to packet code, with the
+//! slots of the globals the renderer fills resolved once.
+//!
+//! A [`ShaderProgram`] is immutable and shared (`Arc`) by every object, light and thread that uses it;
+//! parameter values live in [`super::ShaderInstance`]s.
+
+use rtsl_compiler::back::jit::{self, CompiledShader, JitError, Layout};
+use rtsl_compiler::front::parse::ast::ShaderKind;
+use rtsl_compiler::interface::ShaderInterface;
+use rtsl_compiler::ir::{Block, Module, StmtKind};
+use rtsl_compiler::{Options, Session};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// Why a shader could not be made ready to run.
+#[derive(Debug, thiserror::Error)]
+pub enum ShaderError {
+    #[error("cannot read shader {path}: {source}")]
+    Io { path: PathBuf, source: std::io::Error },
+    /// The front end reported errors; `diagnostics` is their rustc-style rendering.
+    #[error("shader {name} does not compile:\n{diagnostics}")]
+    Compile { name: String, diagnostics: String },
+    #[error("{name}: the file defines no shader")]
+    NoShader { name: String },
+    #[error("shader {name}: {error}")]
+    Jit { name: String, error: JitError },
+    #[error("no shader named {name} on the shader search path")]
+    NotFound { name: String },
+}
+
+/// How a light shader emits, read from its code: `illuminate` makes a local light (shadow rays end at
+/// the light), `solar` a distant one (shadow rays are unbounded), neither an ambient light.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LightKind {
+    Ambient,
+    Local,
+    Distant,
+}
+
+/// Where one global lives in the batch of a program (see `docs/packet-abi.md`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Slot {
+    pub varying: bool,
+    pub offset: usize,
+    pub written: bool,
+}
+
+/// The slots of the globals the renderer fills or reads, `None` where the shader does not use one.
+#[derive(Clone, Debug, Default)]
+pub struct GlobalSlots {
+    pub p: Option<Slot>,
+    pub n: Option<Slot>,
+    pub ng: Option<Slot>,
+    pub i: Option<Slot>,
+    pub e: Option<Slot>,
+    pub s: Option<Slot>,
+    pub t: Option<Slot>,
+    pub u: Option<Slot>,
+    pub v: Option<Slot>,
+    pub du: Option<Slot>,
+    pub dv: Option<Slot>,
+    pub dpdu: Option<Slot>,
+    pub dpdv: Option<Slot>,
+    pub cs: Option<Slot>,
+    pub os: Option<Slot>,
+    pub ci: Option<Slot>,
+    pub oi: Option<Slot>,
+    pub ps: Option<Slot>,
+    pub l: Option<Slot>,
+    pub cl: Option<Slot>,
+    pub ol: Option<Slot>,
+    pub time: Option<Slot>,
+    pub ncomps: Option<Slot>,
+    pub alpha: Option<Slot>,
+}
+
+impl GlobalSlots {
+    fn from_layout(layout: &Layout) -> GlobalSlots {
+        let g =
+            |name: &str| layout.global(name).map(|g| Slot { varying: g.varying, offset: g.offset, written: g.written });
+        GlobalSlots {
+            p: g("P"),
+            n: g("N"),
+            ng: g("Ng"),
+            i: g("I"),
+            e: g("E"),
+            s: g("s"),
+            t: g("t"),
+            u: g("u"),
+            v: g("v"),
+            du: g("du"),
+            dv: g("dv"),
+            dpdu: g("dPdu"),
+            dpdv: g("dPdv"),
+            cs: g("Cs"),
+            os: g("Os"),
+            ci: g("Ci"),
+            oi: g("Oi"),
+            ps: g("Ps"),
+            l: g("L"),
+            cl: g("Cl"),
+            ol: g("Ol"),
+            time: g("time"),
+            ncomps: g("ncomps"),
+            alpha: g("alpha"),
+        }
+    }
+}
+
+/// A shader ready to run: its interface, its packet code and the slots of its globals.
+pub struct ShaderProgram {
+    pub name: String,
+    pub kind: ShaderKind,
+    /// The file it came from (`None` for source given as a string).
+    pub path: Option<PathBuf>,
+    pub interface: ShaderInterface,
+    pub code: CompiledShader,
+    pub slots: GlobalSlots,
+    /// For light shaders: how the light emits.
+    pub light_kind: LightKind,
+    /// The front end's warnings, rendered.
+    pub warnings: String,
+    /// Every file the compilation read (the source and its includes), for hot reload.
+    pub files: Vec<PathBuf>,
+}
+
+impl std::fmt::Debug for ShaderProgram {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ShaderProgram").field("name", &self.name).field("kind", &self.kind).finish()
+    }
+}
+
+impl ShaderProgram {
+    pub fn layout(&self) -> &Layout {
+        self.code.layout()
+    }
+
+    /// Compiles the shader in `path` (with `#include` searched in `include_paths`).
+    pub fn from_file(path: &Path, include_paths: &[PathBuf]) -> Result<ShaderProgram, ShaderError> {
+        let text =
+            std::fs::read_to_string(path).map_err(|source| ShaderError::Io { path: path.to_path_buf(), source })?;
+        let mut session = Session::new();
+        let c = session.compile_source_at(path, &text, &options(include_paths));
+        let name = path.display().to_string();
+        Self::from_compilation(c, &name, Some(path.to_path_buf()))
+    }
+
+    /// Compiles shader source given as a string; `name` names it in diagnostics.
+    pub fn from_source(name: &str, text: &str, include_paths: &[PathBuf]) -> Result<ShaderProgram, ShaderError> {
+        let mut session = Session::new();
+        let c = session.compile_source(name, text, &options(include_paths));
+        Self::from_compilation(c, name, None)
+    }
+
+    fn from_compilation(
+        c: rtsl_compiler::Compilation,
+        name: &str,
+        path: Option<PathBuf>,
+    ) -> Result<ShaderProgram, ShaderError> {
+        if !c.ok() {
+            return Err(ShaderError::Compile { name: name.to_string(), diagnostics: c.render() });
+        }
+        let warnings = if c.warnings() > 0 { c.render() } else { String::new() };
+        let (Some(module), Some(interface)) = (c.module.as_ref(), c.interface.clone()) else {
+            return Err(ShaderError::NoShader { name: name.to_string() });
+        };
+        let code = jit::compile(module).map_err(|error| ShaderError::Jit { name: interface.name.clone(), error })?;
+        let files = c.files.iter().filter_map(|f| c.sources.get(*f).path.clone()).collect();
+        Ok(ShaderProgram {
+            name: interface.name.clone(),
+            kind: interface.kind,
+            path,
+            slots: GlobalSlots::from_layout(code.layout()),
+            light_kind: light_kind(module),
+            interface,
+            code,
+            warnings,
+            files,
+        })
+    }
+}
+
+fn options(include_paths: &[PathBuf]) -> Options {
+    let mut o = Options::default();
+    o.preprocessor.include_paths = include_paths.to_vec();
+    o
+}
+
+fn light_kind(m: &Module) -> LightKind {
+    fn scan(b: &Block, kind: &mut LightKind) {
+        for s in &b.stmts {
+            match &s.kind {
+                StmtKind::Illuminate { body, .. } => {
+                    *kind = LightKind::Local;
+                    scan(body, kind);
+                }
+                StmtKind::Solar { body, .. } => {
+                    if *kind == LightKind::Ambient {
+                        *kind = LightKind::Distant;
+                    }
+                    scan(body, kind);
+                }
+                StmtKind::If { then, otherwise, .. } => {
+                    scan(then, kind);
+                    scan(otherwise, kind);
+                }
+                StmtKind::Loop { body, step, .. } => {
+                    scan(body, kind);
+                    scan(step, kind);
+                }
+                StmtKind::Illuminance { body, .. } => scan(body, kind),
+                StmtKind::Gather { body, otherwise, .. } => {
+                    scan(body, kind);
+                    scan(otherwise, kind);
+                }
+                StmtKind::Expr(_) | StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return(_) => {}
+            }
+        }
+    }
+    let mut kind = LightKind::Ambient;
+    for f in &m.functions {
+        scan(&f.body, &mut kind);
+    }
+    kind
+}
+
+/// Shared handle to a program.
+pub type Program = Arc<ShaderProgram>;

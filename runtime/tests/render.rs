@@ -1,0 +1,270 @@
+//! The engine through its API: shading on hits, lights and shadows, vertex-scope parameters,
+//! transparency, `trace`, frame semantics, determinism, and typed errors for misuse.
+
+use glam::Vec3A;
+use rtsl_runtime::api::{ApiError, Context, Primitive};
+use rtsl_runtime::render::Framebuffer;
+use rtsl_runtime::shading::{ParamError, ParamValue, ShaderProgram};
+
+const W: u32 = 64;
+const H: u32 = 48;
+
+fn context() -> Context {
+    let mut rt = Context::new();
+    rt.options.width = W;
+    rt.options.height = H;
+    rt
+}
+
+fn quad(rt: &mut Context, corners: [[f32; 3]; 4]) -> Result<(), ApiError> {
+    rt.begin(Primitive::Quads)?;
+    for c in corners {
+        rt.vertex(c[0], c[1], c[2])?;
+    }
+    rt.end()
+}
+
+fn cube(rt: &mut Context) -> Result<(), ApiError> {
+    let faces: [[[f32; 3]; 4]; 6] = [
+        [[-1., -1., 1.], [1., -1., 1.], [1., 1., 1.], [-1., 1., 1.]],
+        [[1., -1., -1.], [-1., -1., -1.], [-1., 1., -1.], [1., 1., -1.]],
+        [[-1., 1., 1.], [1., 1., 1.], [1., 1., -1.], [-1., 1., -1.]],
+        [[-1., -1., -1.], [1., -1., -1.], [1., -1., 1.], [-1., -1., 1.]],
+        [[1., -1., 1.], [1., -1., -1.], [1., 1., -1.], [1., 1., 1.]],
+        [[-1., -1., -1.], [-1., -1., 1.], [-1., 1., 1.], [-1., 1., -1.]],
+    ];
+    for f in faces {
+        quad(rt, f)?;
+    }
+    Ok(())
+}
+
+/// A floor and a floating cube under a point light, shaded with `plastic`.
+fn shadow_scene(rt: &mut Context) -> Result<rtsl_runtime::api::LightId, ApiError> {
+    let plastic = rt.find_shader("plastic")?;
+    let light = rt.find_shader("pointlight")?;
+    rt.camera_look_at(Vec3A::new(0.0, 4.0, 7.0), Vec3A::new(0.0, 0.5, 0.0), Vec3A::Y, 45.0);
+    let floor = rt.begin_object()?;
+    rt.bind_shader(plastic)?;
+    quad(rt, [[-5.0, 0.0, 5.0], [5.0, 0.0, 5.0], [5.0, 0.0, -5.0], [-5.0, 0.0, -5.0]])?;
+    rt.end_object()?;
+    rt.instantiate_object(floor)?;
+    let boxy = rt.begin_object()?;
+    rt.color(0.9, 0.3, 0.2);
+    cube(rt)?;
+    rt.end_object()?;
+    rt.push_matrix();
+    rt.translate(0.0, 1.5, 0.0);
+    rt.scale(0.6, 0.6, 0.6);
+    rt.instantiate_object(boxy)?;
+    rt.pop_matrix()?;
+    rt.light_source(light, &[("intensity", ParamValue::Float(30.0)), ("from", ParamValue::Point([1.0, 5.0, 1.0]))])
+}
+
+fn luminance(fb: &Framebuffer, x: u32, y: u32) -> f32 {
+    let p = fb.pixel(x, y);
+    p[0] + p[1] + p[2]
+}
+
+#[test]
+fn shadows_darken_only_what_the_cube_hides() -> Result<(), ApiError> {
+    let mut rt = context();
+    let light = shadow_scene(&mut rt)?;
+    let (lit, report) = rt.render_frame()?;
+    assert!(report.shadow_rays > 0, "{report}");
+    rt.set_light(light, true, false)?;
+    let (unshadowed, _) = rt.render_frame()?;
+    let mut darker = 0;
+    for y in 0..H {
+        for x in 0..W {
+            let (a, b) = (luminance(&lit, x, y), luminance(&unshadowed, x, y));
+            assert!(a <= b + 1e-5, "pixel ({x}, {y}) brighter with shadows: {a} > {b}");
+            if a < 0.5 * b {
+                darker += 1;
+            }
+        }
+    }
+    assert!(darker > 20, "only {darker} pixels in shadow");
+    // The lit floor is lit at all, and misses are black with zero alpha.
+    assert!(luminance(&unshadowed, W / 2, H - 2) > 0.05);
+    assert_eq!(lit.pixel(0, 0), [0.0; 4], "the sky is empty");
+    Ok(())
+}
+
+#[test]
+fn the_image_does_not_depend_on_the_thread_count() -> Result<(), ApiError> {
+    let mut rt = context();
+    shadow_scene(&mut rt)?;
+    let mut images = Vec::new();
+    for threads in [1, 2, 3] {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("a thread pool");
+        let world = rt.build_world()?;
+        let (fb, _) = pool.install(|| rtsl_runtime::render::render_frame(&world, None));
+        rt.return_scene(world);
+        images.push(fb);
+    }
+    assert!(images.windows(2).all(|w| w[0] == w[1]));
+    Ok(())
+}
+
+const VERTEX_TINT: &str = "surface tint(varying color tint = 0;) { Oi = 1; Ci = tint; }";
+
+#[test]
+fn vertex_values_are_interpolated_at_the_hit() -> Result<(), ApiError> {
+    let mut rt = context();
+    let tint = rt.compile_shader("tint.sl", VERTEX_TINT)?;
+    rt.camera_look_at(Vec3A::new(0.0, 0.0, 3.0), Vec3A::ZERO, Vec3A::Y, 90.0);
+    let o = rt.begin_object()?;
+    rt.bind_shader(tint)?;
+    rt.begin(Primitive::Quads)?;
+    // Red along the left edge, green along the right.
+    for (x, y) in [(-4.0, -4.0), (4.0, -4.0), (4.0, 4.0), (-4.0, 4.0)] {
+        let red = if x < 0.0 { 1.0 } else { 0.0 };
+        rt.vertex_parameter("tint", ParamValue::Color([red, 1.0 - red, 0.0]))?;
+        rt.vertex(x, y, 0.0)?;
+    }
+    rt.end()?;
+    rt.end_object()?;
+    rt.instantiate_object(o)?;
+    let (fb, _) = rt.render_frame()?;
+    let left = fb.pixel(2, H / 2);
+    let right = fb.pixel(W - 3, H / 2);
+    assert!(left[0] > 0.6 && left[1] < 0.4, "left {left:?}");
+    assert!(right[1] > 0.6 && right[0] < 0.4, "right {right:?}");
+    let mid = fb.pixel(W / 2, H / 2);
+    assert!((mid[0] + mid[1] - 1.0).abs() < 1e-3, "the two weights sum to one: {mid:?}");
+    Ok(())
+}
+
+const FLAT: &str = "surface flat(color c = 1;) { Oi = Os; Ci = Os * c; }";
+
+#[test]
+fn transparent_surfaces_composite_front_to_back() -> Result<(), ApiError> {
+    let mut rt = context();
+    let flat = rt.compile_shader("flat.sl", FLAT)?;
+    rt.camera_look_at(Vec3A::new(0.0, 0.0, 5.0), Vec3A::ZERO, Vec3A::Y, 60.0);
+    let back = rt.begin_object()?;
+    rt.bind_shader(flat)?;
+    rt.parameter("c", ParamValue::Color([1.0, 0.0, 0.0]))?;
+    quad(&mut rt, [[-10.0, -10.0, -1.0], [10.0, -10.0, -1.0], [10.0, 10.0, -1.0], [-10.0, 10.0, -1.0]])?;
+    rt.end_object()?;
+    let front = rt.begin_object()?;
+    rt.bind_shader(flat)?;
+    rt.parameter("c", ParamValue::Color([0.0, 0.0, 1.0]))?;
+    rt.opacity(0.25, 0.25, 0.25);
+    quad(&mut rt, [[-1.0, -1.0, 1.0], [1.0, -1.0, 1.0], [1.0, 1.0, 1.0], [-1.0, 1.0, 1.0]])?;
+    rt.end_object()?;
+    rt.instantiate_object(back)?;
+    rt.instantiate_object(front)?;
+    let (fb, report) = rt.render_frame()?;
+    assert!(report.transparency_rays > 0);
+    let p = fb.pixel(W / 2, H / 2);
+    assert!((p[0] - 0.75).abs() < 1e-4 && (p[2] - 0.25).abs() < 1e-4 && p[1].abs() < 1e-6, "{p:?}");
+    assert!((p[3] - 1.0).abs() < 1e-6);
+    assert_eq!(fb.pixel(0, 0)[..3], [1.0, 0.0, 0.0]);
+    Ok(())
+}
+
+const MIRROR: &str = "surface mirrored() { Oi = 1; Ci = 0.5 * trace(P, reflect(I, normalize(N))); }";
+
+#[test]
+fn trace_sees_what_a_mirror_reflects_up_to_the_depth_limit() -> Result<(), ApiError> {
+    let mut rt = context();
+    let mirror = rt.compile_shader("mirrored.sl", MIRROR)?;
+    let flat = rt.compile_shader("flat.sl", FLAT)?;
+    rt.camera_look_at(Vec3A::new(0.0, 0.0, 5.0), Vec3A::ZERO, Vec3A::Y, 30.0);
+    // A mirror facing the camera, and a green wall behind the camera that it reflects.
+    let m = rt.begin_object()?;
+    rt.bind_shader(mirror)?;
+    quad(&mut rt, [[-10.0, -10.0, 0.0], [10.0, -10.0, 0.0], [10.0, 10.0, 0.0], [-10.0, 10.0, 0.0]])?;
+    rt.end_object()?;
+    let wall = rt.begin_object()?;
+    rt.bind_shader(flat)?;
+    rt.parameter("c", ParamValue::Color([0.0, 1.0, 0.0]))?;
+    quad(&mut rt, [[-10.0, 10.0, 8.0], [10.0, 10.0, 8.0], [10.0, -10.0, 8.0], [-10.0, -10.0, 8.0]])?;
+    rt.end_object()?;
+    rt.instantiate_object(m)?;
+    rt.instantiate_object(wall)?;
+    let (fb, report) = rt.render_frame()?;
+    assert!(report.secondary_rays >= u64::from(W * H));
+    let p = fb.pixel(W / 2, H / 2);
+    assert!((p[1] - 0.5).abs() < 1e-5 && p[0] == 0.0, "{p:?}");
+
+    // Two facing mirrors: each bounce halves, and recursion stops at the depth limit.
+    let mut rt = context();
+    let mirror = rt.compile_shader("mirrored.sl", MIRROR)?;
+    rt.options.max_ray_depth = 3;
+    rt.camera_look_at(Vec3A::new(0.0, 0.0, 5.0), Vec3A::ZERO, Vec3A::Y, 30.0);
+    let m = rt.begin_object()?;
+    rt.bind_shader(mirror)?;
+    quad(&mut rt, [[-10.0, -10.0, 0.0], [10.0, -10.0, 0.0], [10.0, 10.0, 0.0], [-10.0, 10.0, 0.0]])?;
+    quad(&mut rt, [[-10.0, 10.0, 8.0], [10.0, 10.0, 8.0], [10.0, -10.0, 8.0], [-10.0, -10.0, 8.0]])?;
+    rt.end_object()?;
+    rt.instantiate_object(m)?;
+    let (_, report) = rt.render_frame()?;
+    // Depth 1, 2 and 3 rays for every pixel, none deeper.
+    assert_eq!(report.secondary_rays, 3 * u64::from(W * H));
+    Ok(())
+}
+
+#[test]
+fn frames_bind_shaders_when_rendered() -> Result<(), ApiError> {
+    let mut rt = context();
+    let flat = rt.compile_shader("flat.sl", FLAT)?;
+    rt.camera_look_at(Vec3A::new(0.0, 0.0, 5.0), Vec3A::ZERO, Vec3A::Y, 60.0);
+    let o = rt.begin_object()?;
+    rt.bind_shader(flat)?;
+    quad(&mut rt, [[-10.0, -10.0, 0.0], [10.0, -10.0, 0.0], [10.0, 10.0, 0.0], [-10.0, 10.0, 0.0]])?;
+    rt.end_object()?;
+    let inst = rt.instantiate_object(o)?;
+    let (fb, _) = rt.render_frame()?;
+    assert_eq!(fb.pixel(W / 2, H / 2), [1.0; 4]);
+    // Same id, new code: the next frame uses it.
+    let half = ShaderProgram::from_source("flat.sl", "surface flat(color c = 1;) { Oi = 1; Ci = 0.5 * c; }", &[])?;
+    rt.replace_shader(flat, half)?;
+    let (fb, _) = rt.render_frame()?;
+    assert_eq!(fb.pixel(W / 2, H / 2), [0.5, 0.5, 0.5, 1.0]);
+    // A moved instance moves in the next frame.
+    rt.set_instance_transform(inst, glam::Affine3A::from_translation(glam::Vec3::new(100.0, 0.0, 0.0)))?;
+    let (fb, _) = rt.render_frame()?;
+    assert_eq!(fb.pixel(W / 2, H / 2), [0.0; 4]);
+    Ok(())
+}
+
+#[test]
+fn misuse_is_a_typed_error() -> Result<(), ApiError> {
+    let mut rt = context();
+    assert!(matches!(rt.end(), Err(ApiError::Unbalanced(..))));
+    assert!(matches!(rt.end_object(), Err(ApiError::Unbalanced(..))));
+    assert!(matches!(rt.vertex(0.0, 0.0, 0.0), Err(ApiError::Unbalanced(..))));
+    assert!(matches!(rt.begin(Primitive::Triangles), Err(ApiError::NoObject(_))));
+    assert!(matches!(rt.pop_matrix(), Err(ApiError::MatrixStackEmpty)));
+    assert!(matches!(rt.parameter("Kd", ParamValue::Float(1.0)), Err(ApiError::NoShaderBound(_))));
+    assert!(matches!(rt.instantiate_object(rtsl_runtime::api::ObjectId(7)), Err(ApiError::UnknownObject(7))));
+    assert!(matches!(rt.bind_shader(rtsl_runtime::api::ShaderId(3)), Err(ApiError::UnknownShader(3))));
+    let plastic = rt.find_shader("plastic")?;
+    let light = rt.find_shader("pointlight")?;
+    assert!(matches!(rt.bind_shader(light), Err(ApiError::WrongKind { .. })));
+    assert!(matches!(rt.light_source(plastic, &[]), Err(ApiError::WrongKind { .. })));
+    rt.bind_shader(plastic)?;
+    assert!(matches!(
+        rt.parameter("Kd", ParamValue::String("x".into())),
+        Err(ApiError::Param(ParamError::TypeMismatch { .. }))
+    ));
+    assert!(matches!(
+        rt.parameter("nonsense", ParamValue::Float(1.0)),
+        Err(ApiError::Param(ParamError::NoSuchParameter { .. }))
+    ));
+    assert!(matches!(rt.vertex_parameter("Kd", ParamValue::Float(1.0)), Err(ApiError::NotVarying { .. })));
+    rt.begin_object()?;
+    assert!(matches!(rt.begin_object(), Err(ApiError::Nested(..))));
+    rt.begin(Primitive::Triangles)?;
+    rt.vertex(0.0, 0.0, 0.0)?;
+    rt.vertex(1.0, 0.0, 0.0)?;
+    assert!(matches!(rt.end(), Err(ApiError::IncompletePrimitive(2, _))));
+    assert!(matches!(rt.render_frame(), Err(ApiError::Nested(..))));
+    rt.end_object()?;
+    assert!(matches!(rt.find_shader("no_such_shader"), Err(ApiError::Shader(_))));
+    assert!(matches!(rt.compile_shader("bad.sl", "surface bad( { }"), Err(ApiError::Shader(_))));
+    Ok(())
+}
