@@ -242,8 +242,13 @@ impl ExrLayer {
     }
 }
 
+/// The most channel values (pixels times channels) [`read_exr`] accepts: 1 GiB of floats. A
+/// corrupt header can claim any size; refusing it beats aborting on a failed allocation.
+pub const MAX_EXR_VALUES: usize = 1 << 28;
+
 /// Reads the first layer of an EXR file, every channel converted to `f32`.
 pub fn read_exr(path: &Path) -> Result<ExrLayer, ImageError> {
+    check_exr_size(path)?;
     let read = || {
         exrp::read()
             .no_deep_data()
@@ -275,6 +280,29 @@ pub fn read_exr(path: &Path) -> Result<ExrLayer, ImageError> {
         world_to_ndc: attrs.world_to_normalized_device,
         wrap_modes: attrs.wrap_mode_name.as_ref().map(|t| t.to_string()),
     })
+}
+
+fn check_exr_size(path: &Path) -> Result<(), ImageError> {
+    let meta = match std::panic::catch_unwind(|| exr::meta::MetaData::read_from_file(path, false)) {
+        Ok(Ok(meta)) => meta,
+        Ok(Err(exr::error::Error::Io(source))) => return Err(ImageError::Io { path: path.into(), source }),
+        Ok(Err(e)) => return Err(ImageError::Decode { path: path.into(), message: e.to_string() }),
+        Err(_) => return Err(ImageError::Decode { path: path.into(), message: "the decoder panicked".into() }),
+    };
+    for header in meta.headers.iter() {
+        let values = header
+            .layer_size
+            .0
+            .checked_mul(header.layer_size.1)
+            .and_then(|p| p.checked_mul(header.channels.list.len()));
+        if values.is_none_or(|v| v > MAX_EXR_VALUES) {
+            let (w, h) = (header.layer_size.0, header.layer_size.1);
+            let message =
+                format!("{w}x{h} pixels with {} channels is larger than rtsl reads", header.channels.list.len());
+            return Err(ImageError::Decode { path: path.into(), message });
+        }
+    }
+    Ok(())
 }
 
 /// Writes one EXR layer (ZIP-compressed, lossless), 32-bit floats or halves.
@@ -489,6 +517,21 @@ mod tests {
         std::fs::write(&garbage, b"not an exr at all").unwrap();
         let err = read_image(&garbage).unwrap_err();
         assert!(err.to_string().contains("garbage.exr"), "{err}");
+    }
+
+    #[test]
+    fn an_exr_header_claiming_a_huge_image_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("huge.exr");
+        write_image(&path, 1, 1, &[0.0; 4], &WriteOptions::default()).unwrap();
+        let mut bytes = std::fs::read(&path).unwrap();
+        // dataWindow is a box2i: xMin yMin xMax yMax after the name, type and a 4-byte size.
+        let key = b"dataWindow\0box2i\0";
+        let at = bytes.windows(key.len()).position(|w| w == key).unwrap() + key.len() + 4;
+        bytes[at + 8..at + 16].copy_from_slice(&[0, 0, 0, 0x10, 0, 0, 0, 0x10]);
+        std::fs::write(&path, bytes).unwrap();
+        let err = read_image(&path).unwrap_err();
+        assert!(err.to_string().contains("larger than rtsl reads"), "{err}");
     }
 
     #[test]

@@ -41,6 +41,26 @@ impl fmt::Display for TextureWarning {
     }
 }
 
+/// One lane of a batched texture lookup ([`TextureCache::texture_batch`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct TextureQuery {
+    pub s: f32,
+    pub t: f32,
+    pub footprint: Footprint,
+    pub first_channel: usize,
+}
+
+/// What `textureinfo` reports about a texture file.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TextureInfo {
+    pub width: usize,
+    pub height: usize,
+    pub channels: usize,
+    /// `worldToCamera` and `worldToNDC` (RSL's "viewingmatrix" and "projectionmatrix"), when the
+    /// file carries them: shadow maps and rendered EXR frames.
+    pub projection: Option<[[f32; 16]; 2]>,
+}
+
 /// Textures and shadow maps by name (see the module doc). `Send + Sync`.
 #[derive(Default)]
 pub struct TextureCache {
@@ -81,7 +101,9 @@ impl TextureCache {
         let slot = slot(&self.textures[raw as usize], name);
         slot.get_or_init(|| {
             self.load(name, |path| {
-                load_texture_image(path, raw).map(|l| MipMap::with_wrap(l.image, l.wrap.unwrap_or([Wrap::Periodic; 2])))
+                load_texture_image(path, raw).map(|l| {
+                    MipMap::with_wrap(l.image, l.wrap.unwrap_or([Wrap::Periodic; 2])).with_projection(l.projection)
+                })
             })
         })
         .clone()
@@ -133,6 +155,36 @@ impl TextureCache {
         let Some(mip) = self.get_texture(name, opts.raw) else { return false };
         mip.filter(s, t, footprint, first_channel, out, opts);
         true
+    }
+
+    /// Many lookups in one texture, the name resolved once: `out` holds `channels` values per
+    /// query, query after query (`out[q * channels + c]`). Returns false, leaving `out` alone,
+    /// when the texture cannot be loaded.
+    pub fn texture_batch(
+        &self,
+        name: &str,
+        queries: &[TextureQuery],
+        channels: usize,
+        out: &mut [f32],
+        opts: &LookupOptions,
+    ) -> bool {
+        let Some(mip) = self.get_texture(name, opts.raw) else { return false };
+        for (q, lane) in queries.iter().zip(out.chunks_exact_mut(channels.max(1))) {
+            mip.filter(q.s, q.t, q.footprint, q.first_channel, lane, opts);
+        }
+        true
+    }
+
+    /// The size, channels and projection of a texture (RSL's `textureinfo`), loading it if
+    /// needed; `None` when it cannot be loaded.
+    pub fn texture_info(&self, name: &str) -> Option<TextureInfo> {
+        let mip = self.get_texture(name, false)?;
+        Some(TextureInfo {
+            width: mip.width(),
+            height: mip.height(),
+            channels: mip.channels(),
+            projection: mip.projection(),
+        })
     }
 
     /// An environment lookup (RSL's `environment()`) in a lat-long map (see
@@ -285,6 +337,53 @@ mod tests {
             handles.into_iter().map(|h| h.join().unwrap()).collect()
         });
         assert!(maps.iter().all(|m| Arc::ptr_eq(m, &maps[0])));
+    }
+
+    #[test]
+    fn rayon_workers_share_loads_and_warnings() {
+        use rayon::prelude::*;
+        let dir = tempfile::tempdir().unwrap();
+        quad(dir.path());
+        let cache = TextureCache::with_search_paths([dir.path().to_path_buf()]);
+        let names = ["quad.exr", "missing-a.png", "missing-b.exr"];
+        let hits: usize = (0..2000)
+            .into_par_iter()
+            .map(|i| {
+                let mut rgb = [0.0; 3];
+                let s = (i % 97) as f32 / 97.0;
+                let fp = Footprint { dsdx: 0.01, dtdx: 0.0, dsdy: 0.0, dtdy: 0.01 };
+                let ok = cache.texture(names[i % 3], s, 0.3, fp, 0, &mut rgb, &LookupOptions::default());
+                assert!(rgb.iter().all(|v| v.is_finite()));
+                usize::from(ok)
+            })
+            .sum();
+        assert_eq!(hits, (0..2000).filter(|i| i % 3 == 0).count());
+        let mut warned: Vec<String> = cache.take_warnings().into_iter().map(|w| w.name).collect();
+        warned.sort();
+        assert_eq!(warned, ["missing-a.png", "missing-b.exr"], "one warning per missing name");
+    }
+
+    #[test]
+    fn batches_and_info() {
+        let dir = tempfile::tempdir().unwrap();
+        quad(dir.path());
+        let cache = TextureCache::with_search_paths([dir.path().to_path_buf()]);
+        let queries = [
+            TextureQuery { s: 0.25, t: 0.25, ..TextureQuery::default() },
+            TextureQuery { s: 0.75, t: 0.75, first_channel: 1, ..TextureQuery::default() },
+        ];
+        let mut out = [0.0; 4];
+        assert!(cache.texture_batch("quad.exr", &queries, 2, &mut out, &LookupOptions::default()));
+        assert_eq!(out, [1.0, 0.0, 1.0, 1.0], "red's R, G; white's G, B");
+        assert!(!cache.texture_batch("absent.exr", &queries, 2, &mut out, &LookupOptions::default()));
+
+        let info = cache.texture_info("quad.exr").unwrap();
+        assert_eq!((info.width, info.height, info.channels, info.projection), (2, 2, 4, None));
+        let (depth, w, h) = half_occluded_map();
+        let (cam, ndc) = ortho_light();
+        write_shadow_map(dir.path().join("s.shad"), &depth, w, h, cam, ndc).unwrap();
+        let info = cache.texture_info("s.shad").unwrap();
+        assert_eq!((info.width, info.channels, info.projection), (8, 1, Some([cam, ndc])));
     }
 
     #[test]

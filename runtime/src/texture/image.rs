@@ -56,6 +56,9 @@ pub struct LoadedImage {
     pub wrap: Option<[Wrap; 2]>,
     /// Whether the file held integer values (8/16-bit), as opposed to floats.
     pub integer_source: bool,
+    /// The file's `worldToCamera` and `worldToNDC` attributes, when it has both (a shadow map
+    /// or a rendered frame), for `textureinfo`.
+    pub projection: Option<[[f32; 16]; 2]>,
 }
 
 /// Loads a texture file: EXR as stored (channels in R, G, B, A order, then the others by name);
@@ -95,7 +98,7 @@ pub fn load_texture_image(path: &Path, raw: bool) -> Result<LoadedImage, ImageEr
     }
     let image = TexImage::new(width, height, channels, values)
         .ok_or_else(|| ImageError::Decode { path: path.into(), message: "the image has no pixels".into() })?;
-    Ok(LoadedImage { image, wrap: None, integer_source: !is_float })
+    Ok(LoadedImage { image, wrap: None, integer_source: !is_float, projection: None })
 }
 
 fn srgb_lut_8bit() -> [f32; 256] {
@@ -131,7 +134,8 @@ fn load_exr(path: &Path) -> Result<LoadedImage, ImageError> {
         message: "the image has no pixels or no channels".into(),
     })?;
     let wrap = layer.wrap_modes.as_deref().and_then(parse_wrap_modes);
-    Ok(LoadedImage { image, wrap, integer_source: false })
+    let projection = layer.world_to_camera.zip(layer.world_to_ndc).map(|(camera, ndc)| [camera, ndc]);
+    Ok(LoadedImage { image, wrap, integer_source: false, projection })
 }
 
 #[cfg(test)]

@@ -24,6 +24,8 @@ pub struct MipMap {
     levels: Vec<TexImage>,
     /// The wrap modes of the file (s, t); a lookup may override them.
     wrap: [Wrap; 2],
+    /// `worldToCamera` and `worldToNDC` from the file's header, if it had them.
+    projection: Option<[[f32; 16]; 2]>,
 }
 
 impl MipMap {
@@ -43,7 +45,7 @@ impl MipMap {
             let next = downsample(last);
             levels.push(next);
         }
-        MipMap { levels, wrap }
+        MipMap { levels, wrap, projection: None }
     }
 
     /// The levels, finest (the image itself) first.
@@ -66,6 +68,17 @@ impl MipMap {
     /// The file's wrap modes (s, t).
     pub fn wrap(&self) -> [Wrap; 2] {
         self.wrap
+    }
+
+    /// Records the projection the file's header carried (`worldToCamera`, `worldToNDC`).
+    pub fn with_projection(mut self, projection: Option<[[f32; 16]; 2]>) -> MipMap {
+        self.projection = projection;
+        self
+    }
+
+    /// The `worldToCamera` and `worldToNDC` matrices of the file, if it had them.
+    pub fn projection(&self) -> Option<[[f32; 16]; 2]> {
+        self.projection
     }
 
     /// Bilinear interpolation on one level: `out[c]` gets channel `first_channel + c`.

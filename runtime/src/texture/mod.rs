@@ -29,7 +29,7 @@ mod make;
 mod mip;
 mod shadow;
 
-pub use cache::{TextureCache, TextureWarning};
+pub use cache::{TextureCache, TextureInfo, TextureQuery, TextureWarning};
 pub use environment::{direction_to_latlong, latlong_to_direction};
 pub use image::{load_texture_image, LoadedImage, TexImage};
 pub use make::{make_texture, MakeTextureOptions};
