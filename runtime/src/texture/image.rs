@@ -71,20 +71,20 @@ pub fn load_texture_image(path: &Path, raw: bool) -> Result<LoadedImage, ImageEr
     let decoded = image_io::decode_with_image_crate(path)?;
     let (width, height) = (decoded.width() as usize, decoded.height() as usize);
     let color = decoded.color();
-    let channels = color.channel_count() as usize;
+    // Every layout the decoders produce has 1-4 channels; each becomes f32 in [0, 1] (integers
+    // divided by their maximum), keeping its channel count.
+    let channels = (color.channel_count() as usize).clamp(1, 4);
     let has_alpha = color.has_alpha();
     let is_float = matches!(color, ::image::ColorType::Rgb32F | ::image::ColorType::Rgba32F);
-    // Every layout the decoders produce has 1-4 channels; normalise to f32 in [0, 1] per channel.
-    let values: Vec<f32> = match channels {
+    let mut values: Vec<f32> = match channels {
         1 => decoded.to_luma32f().into_raw(),
         2 => decoded.to_luma_alpha32f().into_raw(),
         3 => decoded.to_rgb32f().into_raw(),
         _ => decoded.to_rgba32f().into_raw(),
     };
-    let channels = channels.clamp(1, 4);
-    let mut values = values;
     if !is_float && !raw {
-        let lut = (color.bytes_per_pixel() as usize / channels.max(1) == 1).then(srgb_lut_8bit);
+        let eight_bit = color.bytes_per_pixel() as usize == channels;
+        let lut = eight_bit.then(srgb_lut_8bit);
         for (i, v) in values.iter_mut().enumerate() {
             let is_alpha = has_alpha && i % channels == channels - 1;
             if !is_alpha {
@@ -178,6 +178,23 @@ mod tests {
         ::image::save_buffer(&jpg, &[200u8; 8 * 8 * 3], 8, 8, ::image::ExtendedColorType::Rgb8).unwrap();
         let img = load_texture_image(&jpg, false).unwrap().image;
         assert!((img.texel(3, 3)[1] - srgb_to_linear(200.0 / 255.0)).abs() < 0.02);
+    }
+
+    #[test]
+    fn sixteen_bit_and_grey_alpha_pngs() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("grey16.png");
+        ::image::ImageBuffer::<::image::Luma<u16>, _>::from_raw(2, 1, vec![0u16, 30000]).unwrap().save(&path).unwrap();
+        let img = load_texture_image(&path, false).unwrap().image;
+        assert_eq!(img.channels(), 1);
+        assert!((img.texel(1, 0)[0] - srgb_to_linear(30000.0 / 65535.0)).abs() < 1e-5);
+
+        let path = dir.path().join("grey_alpha.png");
+        ::image::save_buffer(&path, &[64, 64], 1, 1, ::image::ExtendedColorType::La8).unwrap();
+        let img = load_texture_image(&path, false).unwrap().image;
+        assert_eq!(img.channels(), 2);
+        assert!((img.texel(0, 0)[0] - srgb_to_linear(64.0 / 255.0)).abs() < 1e-6);
+        assert!((img.texel(0, 0)[1] - 64.0 / 255.0).abs() < 1e-6, "alpha stays linear");
     }
 
     #[test]
