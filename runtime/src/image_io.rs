@@ -1,0 +1,568 @@
+//! Reading and writing whole images: rendered frames, golden images, and the EXR files behind
+//! textures and shadow maps.
+//!
+//! Conventions, for every function here:
+//! - Pixels are `f32`, row-major, **top row first**, `channels` values per pixel (RGBA frames:
+//!   4, straight from the framebuffer, linear and not premultiplied by this module).
+//! - The format follows the file extension (case-insensitive): `.png`, `.tga`, `.ppm` (8-bit) and
+//!   `.exr` (32-bit or half float).
+//! - 8-bit files are written like RenderMan's default `Quantize "rgba" 255 0 255 0.5`: value times
+//!   255, plus 0.5 (or a dither in [0, 1) when asked), truncated and clamped to 0..=255. No transfer
+//!   curve is applied unless [`WriteOptions::srgb_encode`] says so, so a PNG holds the linear values.
+//!   `.ppm` has no alpha channel: alpha is dropped.
+//! - [`read_image`] gives back exactly what was stored: 8-bit values divided by 255 (no sRGB
+//!   decoding: that is a texture's business, see `crate::texture`), EXR values as they are.
+//!   Missing channels read as 0, a missing alpha as 1; a luminance-only file (`Y`/grey) fills R, G, B.
+//!
+//! Every error names the file it is about.
+
+use std::path::{Path, PathBuf};
+
+use exr::prelude::{self as exrp, ReadChannels, ReadLayers, WritableImage};
+
+/// An error reading, writing or comparing images. Each names the path it concerns.
+#[derive(Debug, thiserror::Error)]
+pub enum ImageError {
+    #[error("{path}: {source}")]
+    Io { path: PathBuf, source: std::io::Error },
+    #[error("{path}: cannot decode: {message}")]
+    Decode { path: PathBuf, message: String },
+    #[error("{path}: cannot encode: {message}")]
+    Encode { path: PathBuf, message: String },
+    #[error("{path}: unsupported image format (known: .png .tga .ppm .exr, and .jpg for reading)")]
+    UnsupportedFormat { path: PathBuf },
+    #[error("{path}: {width}x{height} pixels with {channels} channels need {expected} values, got {got}")]
+    BufferSize { path: PathBuf, width: usize, height: usize, channels: usize, expected: usize, got: usize },
+    #[error("images differ in size: {a_width}x{a_height} and {b_width}x{b_height}")]
+    SizeMismatch { a_width: usize, a_height: usize, b_width: usize, b_height: usize },
+}
+
+/// A file format this module writes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ImageFormat {
+    Png,
+    Tga,
+    Ppm,
+    Exr,
+}
+
+impl ImageFormat {
+    /// The format named by a path's extension, if it is one we write.
+    pub fn from_path(path: &Path) -> Option<ImageFormat> {
+        let ext = path.extension()?.to_str()?.to_ascii_lowercase();
+        match ext.as_str() {
+            "png" => Some(ImageFormat::Png),
+            "tga" => Some(ImageFormat::Tga),
+            "ppm" => Some(ImageFormat::Ppm),
+            "exr" => Some(ImageFormat::Exr),
+            _ => None,
+        }
+    }
+}
+
+/// How [`write_image`] encodes pixels.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct WriteOptions {
+    /// EXR only: store half floats (16-bit) instead of 32-bit floats.
+    pub exr_half: bool,
+    /// 8-bit only: add an ordered dither (a 4x4 Bayer matrix, deterministic) instead of rounding,
+    /// RenderMan's `Quantize ... 0.5` dither amplitude. Breaks up banding in smooth gradients.
+    pub dither: bool,
+    /// 8-bit only: encode colour (not alpha) with the sRGB curve before quantising. Off by
+    /// default: frames are written linear, as RenderMan does unless an imager applies gamma.
+    pub srgb_encode: bool,
+}
+
+/// A decoded image: `channels` floats per pixel, top row first.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RgbaImage {
+    pub width: usize,
+    pub height: usize,
+    /// 4 values (R, G, B, A) per pixel.
+    pub pixels: Vec<f32>,
+}
+
+impl RgbaImage {
+    /// The RGBA value of pixel (x, y), y = 0 the top row.
+    pub fn pixel(&self, x: usize, y: usize) -> [f32; 4] {
+        let i = (y * self.width + x) * 4;
+        [self.pixels[i], self.pixels[i + 1], self.pixels[i + 2], self.pixels[i + 3]]
+    }
+}
+
+/// Writes a linear RGBA frame (4 floats per pixel, top row first), choosing the format by the
+/// path's extension.
+pub fn write_image(
+    path: impl AsRef<Path>,
+    width: usize,
+    height: usize,
+    rgba: &[f32],
+    opts: &WriteOptions,
+) -> Result<(), ImageError> {
+    let path = path.as_ref();
+    check_buffer(path, width, height, 4, rgba.len())?;
+    let format = ImageFormat::from_path(path).ok_or_else(|| ImageError::UnsupportedFormat { path: path.into() })?;
+    match format {
+        ImageFormat::Exr => write_exr_rgba(path, width, height, rgba, opts.exr_half),
+        ImageFormat::Png | ImageFormat::Tga => {
+            let bytes = quantize(width, rgba, 4, opts);
+            save_8bit(path, &bytes, width, height, ::image::ExtendedColorType::Rgba8)
+        }
+        ImageFormat::Ppm => {
+            let rgb: Vec<f32> = rgba.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect();
+            let bytes = quantize(width, &rgb, 3, opts);
+            save_8bit(path, &bytes, width, height, ::image::ExtendedColorType::Rgb8)
+        }
+    }
+}
+
+/// Reads an image as RGBA floats (see the module doc for what the values mean).
+pub fn read_image(path: impl AsRef<Path>) -> Result<RgbaImage, ImageError> {
+    let path = path.as_ref();
+    if is_exr(path) {
+        let layer = read_exr(path)?;
+        let (width, height) = (layer.width, layer.height);
+        let get = |names: &[&str]| names.iter().find_map(|n| layer.channel(n));
+        let luminance = get(&["Y", "y"]);
+        let red = get(&["R", "r"]).or(luminance);
+        let green = get(&["G", "g"]).or(luminance);
+        let blue = get(&["B", "b"]).or(luminance);
+        let alpha = get(&["A", "a"]);
+        let mut pixels = Vec::with_capacity(width * height * 4);
+        for i in 0..width * height {
+            let at = |c: Option<&[f32]>, missing: f32| c.map_or(missing, |c| c[i]);
+            pixels.extend([at(red, 0.0), at(green, 0.0), at(blue, 0.0), at(alpha, 1.0)]);
+        }
+        return Ok(RgbaImage { width, height, pixels });
+    }
+    let decoded = decode_with_image_crate(path)?;
+    let rgba = decoded.to_rgba32f();
+    Ok(RgbaImage { width: rgba.width() as usize, height: rgba.height() as usize, pixels: rgba.into_raw() })
+}
+
+/// Whether a file is OpenEXR: by its magic number, so that a `.tex` or `.shad` made by
+/// `MakeTexture` is recognised; by its extension when it cannot be read (for the error).
+pub fn is_exr(path: &Path) -> bool {
+    use std::io::Read;
+    let mut magic = [0u8; 4];
+    match std::fs::File::open(path).and_then(|mut f| f.read_exact(&mut magic)) {
+        Ok(()) => magic == [0x76, 0x2f, 0x31, 0x01],
+        Err(_) => ImageFormat::from_path(path) == Some(ImageFormat::Exr),
+    }
+}
+
+/// Opens and decodes a non-EXR image with the `image` crate, guessing the format from the
+/// content when the extension does not say. A panic inside a decoder becomes an error: a corrupt
+/// file must never take the renderer down.
+pub(crate) fn decode_with_image_crate(path: &Path) -> Result<::image::DynamicImage, ImageError> {
+    let decode = || -> Result<::image::DynamicImage, ImageError> {
+        let reader = ::image::ImageReader::open(path).map_err(|source| ImageError::Io { path: path.into(), source })?;
+        let reader = reader.with_guessed_format().map_err(|source| ImageError::Io { path: path.into(), source })?;
+        reader.decode().map_err(|e| ImageError::Decode { path: path.into(), message: e.to_string() })
+    };
+    std::panic::catch_unwind(decode)
+        .unwrap_or_else(|_| Err(ImageError::Decode { path: path.into(), message: "the decoder panicked".into() }))
+}
+
+fn check_buffer(path: &Path, width: usize, height: usize, channels: usize, got: usize) -> Result<(), ImageError> {
+    let expected = width * height * channels;
+    if got != expected || width == 0 || height == 0 {
+        return Err(ImageError::BufferSize { path: path.into(), width, height, channels, expected, got });
+    }
+    Ok(())
+}
+
+/// The 4x4 Bayer matrix, as thresholds in [0, 1): the dither added before truncation.
+const BAYER4: [[f32; 4]; 4] = [
+    [0.0 / 16.0, 8.0 / 16.0, 2.0 / 16.0, 10.0 / 16.0],
+    [12.0 / 16.0, 4.0 / 16.0, 14.0 / 16.0, 6.0 / 16.0],
+    [3.0 / 16.0, 11.0 / 16.0, 1.0 / 16.0, 9.0 / 16.0],
+    [15.0 / 16.0, 7.0 / 16.0, 13.0 / 16.0, 5.0 / 16.0],
+];
+
+/// Quantises `channels`-wide pixels to bytes (see the module doc). The last channel of a
+/// 4-channel pixel is alpha, never sRGB-encoded.
+fn quantize(width: usize, values: &[f32], channels: usize, opts: &WriteOptions) -> Vec<u8> {
+    values
+        .iter()
+        .enumerate()
+        .map(|(i, &v)| {
+            let pixel = i / channels;
+            let is_alpha = channels == 4 && i % channels == 3;
+            let v = if opts.srgb_encode && !is_alpha { crate::texture::linear_to_srgb(v) } else { v };
+            let offset = if opts.dither { BAYER4[(pixel / width) % 4][(pixel % width) % 4] } else { 0.5 };
+            // NaN becomes 0 (the `as` cast), infinities clamp.
+            (v * 255.0 + offset).floor().clamp(0.0, 255.0) as u8
+        })
+        .collect()
+}
+
+fn save_8bit(
+    path: &Path,
+    bytes: &[u8],
+    width: usize,
+    height: usize,
+    color: ::image::ExtendedColorType,
+) -> Result<(), ImageError> {
+    let format =
+        ::image::ImageFormat::from_path(path).map_err(|_| ImageError::UnsupportedFormat { path: path.into() })?;
+    ::image::save_buffer_with_format(path, bytes, width as u32, height as u32, color, format).map_err(|e| match e {
+        ::image::ImageError::IoError(source) => ImageError::Io { path: path.into(), source },
+        other => ImageError::Encode { path: path.into(), message: other.to_string() },
+    })
+}
+
+fn write_exr_rgba(path: &Path, width: usize, height: usize, rgba: &[f32], half: bool) -> Result<(), ImageError> {
+    let channel = |c: usize| -> Vec<f32> { rgba.iter().skip(c).step_by(4).copied().collect() };
+    let channels = ["R", "G", "B", "A"].iter().enumerate().map(|(c, name)| (name.to_string(), channel(c))).collect();
+    write_exr(path, &ExrLayer { width, height, channels, ..ExrLayer::default() }, half)
+}
+
+/// One layer of an EXR file as plain floats, with the header attributes rtsl uses.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ExrLayer {
+    pub width: usize,
+    pub height: usize,
+    /// Channels by name, each `width * height` values, top row first. EXR stores channels
+    /// sorted by name; [`write_exr`] sorts them.
+    pub channels: Vec<(String, Vec<f32>)>,
+    /// The standard `worldToCamera` attribute: row-vector convention (`p' = p M`, OpenEXR's
+    /// and Imath's), so elements 12..15 are the translation.
+    pub world_to_camera: Option<[f32; 16]>,
+    /// The standard `worldToNDC` attribute, same convention.
+    pub world_to_ndc: Option<[f32; 16]>,
+    /// The standard `wrapmodes` attribute, e.g. `"periodic,clamp"` (s then t).
+    pub wrap_modes: Option<String>,
+}
+
+impl ExrLayer {
+    /// The values of the channel called `name`, if there is one.
+    pub fn channel(&self, name: &str) -> Option<&[f32]> {
+        self.channels.iter().find(|(n, _)| n == name).map(|(_, v)| v.as_slice())
+    }
+}
+
+/// The most channel values (pixels times channels) [`read_exr`] accepts: 1 GiB of floats. A
+/// corrupt header can claim any size; refusing it beats aborting on a failed allocation.
+pub const MAX_EXR_VALUES: usize = 1 << 28;
+
+/// Reads the first layer of an EXR file, every channel converted to `f32`.
+pub fn read_exr(path: &Path) -> Result<ExrLayer, ImageError> {
+    check_exr_size(path)?;
+    let read = || {
+        exrp::read()
+            .no_deep_data()
+            .largest_resolution_level()
+            .all_channels()
+            .first_valid_layer()
+            .all_attributes()
+            .from_file(path)
+    };
+    let image = match std::panic::catch_unwind(read) {
+        Ok(Ok(image)) => image,
+        Ok(Err(exr::error::Error::Io(source))) => return Err(ImageError::Io { path: path.into(), source }),
+        Ok(Err(e)) => return Err(ImageError::Decode { path: path.into(), message: e.to_string() }),
+        Err(_) => return Err(ImageError::Decode { path: path.into(), message: "the decoder panicked".into() }),
+    };
+    let layer = image.layer_data;
+    let channels = layer
+        .channel_data
+        .list
+        .iter()
+        .map(|c| (c.name.to_string(), c.sample_data.values_as_f32().collect::<Vec<f32>>()))
+        .collect();
+    let attrs = &layer.attributes;
+    Ok(ExrLayer {
+        width: layer.size.0,
+        height: layer.size.1,
+        channels,
+        world_to_camera: attrs.world_to_camera,
+        world_to_ndc: attrs.world_to_normalized_device,
+        wrap_modes: attrs.wrap_mode_name.as_ref().map(|t| t.to_string()),
+    })
+}
+
+fn check_exr_size(path: &Path) -> Result<(), ImageError> {
+    let meta = match std::panic::catch_unwind(|| exr::meta::MetaData::read_from_file(path, false)) {
+        Ok(Ok(meta)) => meta,
+        Ok(Err(exr::error::Error::Io(source))) => return Err(ImageError::Io { path: path.into(), source }),
+        Ok(Err(e)) => return Err(ImageError::Decode { path: path.into(), message: e.to_string() }),
+        Err(_) => return Err(ImageError::Decode { path: path.into(), message: "the decoder panicked".into() }),
+    };
+    for header in meta.headers.iter() {
+        let values = header
+            .layer_size
+            .0
+            .checked_mul(header.layer_size.1)
+            .and_then(|p| p.checked_mul(header.channels.list.len()));
+        if values.is_none_or(|v| v > MAX_EXR_VALUES) {
+            let (w, h) = (header.layer_size.0, header.layer_size.1);
+            let message =
+                format!("{w}x{h} pixels with {} channels is larger than rtsl reads", header.channels.list.len());
+            return Err(ImageError::Decode { path: path.into(), message });
+        }
+    }
+    Ok(())
+}
+
+/// Writes one EXR layer (ZIP-compressed, lossless), 32-bit floats or halves.
+pub fn write_exr(path: &Path, layer: &ExrLayer, half: bool) -> Result<(), ImageError> {
+    let (width, height) = (layer.width, layer.height);
+    for (_, values) in &layer.channels {
+        check_buffer(path, width, height, 1, values.len())?;
+    }
+    let list: exrp::SmallVec<[exrp::AnyChannel<exrp::FlatSamples>; 4]> = layer
+        .channels
+        .iter()
+        .map(|(name, values)| {
+            let samples = if half {
+                exrp::FlatSamples::F16(values.iter().map(|&v| exrp::f16::from_f32(v)).collect())
+            } else {
+                exrp::FlatSamples::F32(values.clone())
+            };
+            exrp::AnyChannel::new(name.as_str(), samples)
+        })
+        .collect();
+    let attributes = exrp::LayerAttributes {
+        world_to_camera: layer.world_to_camera,
+        world_to_normalized_device: layer.world_to_ndc,
+        wrap_mode_name: layer.wrap_modes.as_deref().map(exrp::Text::from),
+        ..exrp::LayerAttributes::default()
+    };
+    let exr_layer =
+        exrp::Layer::new((width, height), attributes, exrp::Encoding::SMALL_LOSSLESS, exrp::AnyChannels::sort(list));
+    exrp::Image::from_layer(exr_layer).write().to_file(path).map_err(|e| match e {
+        exr::error::Error::Io(source) => ImageError::Io { path: path.into(), source },
+        other => ImageError::Encode { path: path.into(), message: other.to_string() },
+    })
+}
+
+/// How two images differ, pixel by pixel: for golden-image tests.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ImageDiff {
+    pub width: usize,
+    pub height: usize,
+    /// The largest absolute difference of any channel of any pixel.
+    pub max_abs: f32,
+    /// The mean absolute difference over all channels of all pixels.
+    pub mean_abs: f32,
+    /// The root mean square difference over all channels of all pixels.
+    pub rmse: f32,
+    /// Per pixel, the largest absolute difference of its four channels.
+    pub per_pixel: Vec<f32>,
+}
+
+impl ImageDiff {
+    /// How many pixels have a channel that differs by more than `threshold`.
+    pub fn differing_pixels(&self, threshold: f32) -> usize {
+        self.per_pixel.iter().filter(|&&d| d > threshold).count()
+    }
+
+    /// A picture of the difference: each pixel's largest channel difference times `scale`, as
+    /// grey, opaque. Write it with [`write_image`].
+    pub fn difference_image(&self, scale: f32) -> RgbaImage {
+        let pixels = self.per_pixel.iter().flat_map(|&d| [d * scale, d * scale, d * scale, 1.0]).collect();
+        RgbaImage { width: self.width, height: self.height, pixels }
+    }
+}
+
+/// Compares two RGBA images of the same size. NaN differences count as infinite, so a NaN
+/// in either image never passes a threshold.
+pub fn diff_image(a: &RgbaImage, b: &RgbaImage) -> Result<ImageDiff, ImageError> {
+    if a.width != b.width || a.height != b.height {
+        return Err(ImageError::SizeMismatch {
+            a_width: a.width,
+            a_height: a.height,
+            b_width: b.width,
+            b_height: b.height,
+        });
+    }
+    let (mut sum, mut sum_sq, mut max_abs) = (0.0f64, 0.0f64, 0.0f32);
+    let per_pixel: Vec<f32> = a
+        .pixels
+        .chunks_exact(4)
+        .zip(b.pixels.chunks_exact(4))
+        .map(|(pa, pb)| {
+            let mut pixel_max = 0.0f32;
+            for (x, y) in pa.iter().zip(pb) {
+                let d = (x - y).abs();
+                let d = if d.is_nan() { f32::INFINITY } else { d };
+                pixel_max = pixel_max.max(d);
+                sum += d as f64;
+                sum_sq += (d as f64) * (d as f64);
+            }
+            max_abs = max_abs.max(pixel_max);
+            pixel_max
+        })
+        .collect();
+    let n = (a.pixels.len().max(1)) as f64;
+    Ok(ImageDiff {
+        width: a.width,
+        height: a.height,
+        max_abs,
+        mean_abs: (sum / n) as f32,
+        rmse: (sum_sq / n).sqrt() as f32,
+        per_pixel,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 3x2 frame with distinct values in every channel, exactly representable in 8 bits.
+    fn frame() -> Vec<f32> {
+        (0..3 * 2 * 4).map(|i| (i * 10) as f32 / 255.0).collect()
+    }
+
+    #[test]
+    fn eight_bit_formats_round_trip_to_the_nearest_level() {
+        let dir = tempfile::tempdir().unwrap();
+        for ext in ["png", "tga"] {
+            let path = dir.path().join(format!("frame.{ext}"));
+            write_image(&path, 3, 2, &frame(), &WriteOptions::default()).unwrap();
+            let back = read_image(&path).unwrap();
+            assert_eq!((back.width, back.height), (3, 2));
+            for (a, b) in back.pixels.iter().zip(frame()) {
+                assert!((a - b).abs() < 1e-6, "{ext}: {a} vs {b}");
+            }
+        }
+    }
+
+    #[test]
+    fn ppm_drops_alpha() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("frame.PPM");
+        write_image(&path, 3, 2, &frame(), &WriteOptions::default()).unwrap();
+        let back = read_image(&path).unwrap();
+        let want = frame();
+        for p in 0..6 {
+            for c in 0..3 {
+                assert!((back.pixels[p * 4 + c] - want[p * 4 + c]).abs() < 1e-6);
+            }
+            assert_eq!(back.pixels[p * 4 + 3], 1.0);
+        }
+    }
+
+    #[test]
+    fn png_quantises_like_renderman_and_clamps() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("q.png");
+        // 0.5/255 rounds up to 1; below it to 0; out of range and NaN clamp.
+        let values = [0.49 / 255.0, 0.5 / 255.0, 2.0, -1.0, f32::NAN, f32::INFINITY, 1.0, 0.0];
+        write_image(&path, 2, 1, &values, &WriteOptions::default()).unwrap();
+        let back = read_image(&path).unwrap();
+        let bytes: Vec<u8> = back.pixels.iter().map(|v| (v * 255.0).round() as u8).collect();
+        assert_eq!(bytes, [0, 1, 255, 0, 0, 255, 255, 0]);
+    }
+
+    #[test]
+    fn dithering_keeps_the_mean_of_a_flat_field() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("d.png");
+        let level = 100.3 / 255.0;
+        let values = vec![level; 8 * 8 * 4];
+        write_image(&path, 8, 8, &values, &WriteOptions { dither: true, ..WriteOptions::default() }).unwrap();
+        let back = read_image(&path).unwrap();
+        let mean = back.pixels.iter().map(|v| v * 255.0).sum::<f32>() / back.pixels.len() as f32;
+        assert!((mean - 100.3).abs() < 0.1, "mean {mean}");
+        assert!(back.pixels.iter().any(|&v| (v * 255.0).round() == 101.0));
+    }
+
+    #[test]
+    fn exr_round_trips_floats_exactly_and_halves_closely() {
+        let dir = tempfile::tempdir().unwrap();
+        let values: Vec<f32> = (0..4 * 3 * 4).map(|i| i as f32 * 0.37 - 3.0).collect();
+        let path = dir.path().join("f.exr");
+        write_image(&path, 4, 3, &values, &WriteOptions::default()).unwrap();
+        assert_eq!(read_image(&path).unwrap().pixels, values);
+
+        let path = dir.path().join("h.exr");
+        write_image(&path, 4, 3, &values, &WriteOptions { exr_half: true, ..WriteOptions::default() }).unwrap();
+        let back = read_image(&path).unwrap();
+        for (a, b) in back.pixels.iter().zip(&values) {
+            assert!((a - b).abs() <= b.abs() * 1e-3 + 1e-3, "{a} vs {b}");
+        }
+    }
+
+    #[test]
+    fn exr_attributes_round_trip() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("z.exr");
+        let m: [f32; 16] = std::array::from_fn(|i| i as f32);
+        let layer = ExrLayer {
+            width: 2,
+            height: 1,
+            channels: vec![("Z".into(), vec![1.0, 2.0])],
+            world_to_camera: Some(m),
+            world_to_ndc: Some(m.map(|v| -v)),
+            wrap_modes: Some("clamp,periodic".into()),
+        };
+        write_exr(&path, &layer, false).unwrap();
+        assert_eq!(read_exr(&path).unwrap(), layer);
+    }
+
+    #[test]
+    fn errors_name_the_path() {
+        let dir = tempfile::tempdir().unwrap();
+        let missing = dir.path().join("missing.png");
+        let err = read_image(&missing).unwrap_err();
+        assert!(matches!(err, ImageError::Io { .. }));
+        assert!(err.to_string().contains("missing.png"));
+        let err = write_image(dir.path().join("x.bmp"), 1, 1, &[0.0; 4], &WriteOptions::default()).unwrap_err();
+        assert!(matches!(err, ImageError::UnsupportedFormat { .. }), "{err}");
+        let err = write_image(dir.path().join("x.png"), 2, 2, &[0.0; 4], &WriteOptions::default()).unwrap_err();
+        assert!(matches!(err, ImageError::BufferSize { expected: 16, got: 4, .. }), "{err}");
+        let garbage = dir.path().join("garbage.exr");
+        std::fs::write(&garbage, b"not an exr at all").unwrap();
+        let err = read_image(&garbage).unwrap_err();
+        assert!(err.to_string().contains("garbage.exr"), "{err}");
+    }
+
+    #[test]
+    fn an_exr_header_claiming_a_huge_image_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("huge.exr");
+        write_image(&path, 1, 1, &[0.0; 4], &WriteOptions::default()).unwrap();
+        let mut bytes = std::fs::read(&path).unwrap();
+        // dataWindow is a box2i: xMin yMin xMax yMax after the name, type and a 4-byte size.
+        let key = b"dataWindow\0box2i\0";
+        let at = bytes.windows(key.len()).position(|w| w == key).unwrap() + key.len() + 4;
+        bytes[at + 8..at + 16].copy_from_slice(&[0, 0, 0, 0x10, 0, 0, 0, 0x10]);
+        std::fs::write(&path, bytes).unwrap();
+        let err = read_image(&path).unwrap_err();
+        assert!(err.to_string().contains("larger than rtsl reads"), "{err}");
+    }
+
+    #[test]
+    fn diff_statistics() {
+        let a = RgbaImage { width: 2, height: 1, pixels: vec![0.0, 0.0, 0.0, 1.0, 0.5, 0.5, 0.5, 1.0] };
+        let mut b = a.clone();
+        b.pixels[4] = 0.7; // one channel of the second pixel differs by 0.2
+        let d = diff_image(&a, &b).unwrap();
+        assert!((d.max_abs - 0.2).abs() < 1e-6);
+        assert!((d.mean_abs - 0.2 / 8.0).abs() < 1e-6);
+        assert!((d.rmse - (0.04f32 / 8.0).sqrt()).abs() < 1e-6);
+        assert_eq!(d.differing_pixels(0.1), 1);
+        assert_eq!(d.differing_pixels(0.3), 0);
+        assert_eq!(d.difference_image(5.0).pixel(1, 0)[0], d.per_pixel[1] * 5.0);
+        assert_eq!(diff_image(&a, &a).unwrap().max_abs, 0.0);
+
+        let mut nan = a.clone();
+        nan.pixels[0] = f32::NAN;
+        assert_eq!(diff_image(&a, &nan).unwrap().differing_pixels(1e9), 1);
+        let small = RgbaImage { width: 1, height: 1, pixels: vec![0.0; 4] };
+        assert!(matches!(diff_image(&a, &small), Err(ImageError::SizeMismatch { .. })));
+    }
+
+    #[test]
+    fn difference_image_can_be_written() {
+        let dir = tempfile::tempdir().unwrap();
+        let a = RgbaImage { width: 1, height: 1, pixels: vec![0.0, 0.0, 0.0, 1.0] };
+        let b = RgbaImage { width: 1, height: 1, pixels: vec![0.1, 0.0, 0.0, 1.0] };
+        let img = diff_image(&a, &b).unwrap().difference_image(10.0);
+        let path = dir.path().join("diff.png");
+        write_image(&path, img.width, img.height, &img.pixels, &WriteOptions::default()).unwrap();
+        assert_eq!(read_image(&path).unwrap().pixel(0, 0), [1.0, 1.0, 1.0, 1.0]);
+    }
+}

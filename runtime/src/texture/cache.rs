@@ -1,0 +1,476 @@
+//! The texture cache: textures and shadow maps by name, loaded on first use, shared by threads.
+//!
+//! Each name has a slot (`Arc<OnceLock<..>>`) made under a short write lock; the load then runs
+//! inside `OnceLock::get_or_init`, so it happens once while other threads asking for the same
+//! name wait for it, and threads asking for other names are not held up. A failed load is
+//! cached as `None` with one warning, so later lookups of that name answer at once.
+//!
+//! Lookups take `&self`. The hot path is a read lock and a hash of the name; an engine that
+//! shades a batch with one texture can instead take the [`MipMap`] once with
+//! [`TextureCache::get_texture`] and call [`MipMap::filter`] per lane.
+
+use std::collections::HashMap;
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex, OnceLock, PoisonError, RwLock};
+
+use super::environment::latlong_footprint;
+use super::image::{load_texture_image, TexImage};
+use super::mip::MipMap;
+use super::shadow::ShadowMap;
+use super::{Footprint, LookupOptions, Wrap};
+
+type Slot<T> = Arc<OnceLock<Option<Arc<T>>>>;
+type Slots<T> = RwLock<HashMap<String, Slot<T>>>;
+
+/// A texture that could not be loaded: the name the shader used, the file it resolved to (if
+/// any), and why.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct TextureWarning {
+    pub name: String,
+    pub path: Option<PathBuf>,
+    pub reason: String,
+}
+
+impl fmt::Display for TextureWarning {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match &self.path {
+            Some(path) => write!(f, "texture \"{}\" ({}): {}", self.name, path.display(), self.reason),
+            None => write!(f, "texture \"{}\": {}", self.name, self.reason),
+        }
+    }
+}
+
+/// One lane of a batched texture lookup ([`TextureCache::texture_batch`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct TextureQuery {
+    pub s: f32,
+    pub t: f32,
+    pub footprint: Footprint,
+    pub first_channel: usize,
+}
+
+/// What `textureinfo` reports about a texture file.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TextureInfo {
+    pub width: usize,
+    pub height: usize,
+    pub channels: usize,
+    /// `worldToCamera` and `worldToNDC` (RSL's "viewingmatrix" and "projectionmatrix"), when the
+    /// file carries them: shadow maps and rendered EXR frames.
+    pub projection: Option<[[f32; 16]; 2]>,
+}
+
+/// Textures and shadow maps by name (see the module doc). `Send + Sync`.
+#[derive(Default)]
+pub struct TextureCache {
+    search_paths: Vec<PathBuf>,
+    /// Colour textures, indexed by [`LookupOptions::raw`]: one file may be used both ways.
+    textures: [Slots<MipMap>; 2],
+    shadows: Slots<ShadowMap>,
+    warnings: Mutex<Vec<TextureWarning>>,
+}
+
+impl TextureCache {
+    /// A cache resolving relative names against the current directory only.
+    pub fn new() -> TextureCache {
+        TextureCache::default()
+    }
+
+    /// A cache resolving relative names against `dirs`, in order, then the current directory.
+    pub fn with_search_paths(dirs: impl IntoIterator<Item = PathBuf>) -> TextureCache {
+        TextureCache { search_paths: dirs.into_iter().collect(), ..TextureCache::default() }
+    }
+
+    pub fn search_paths(&self) -> &[PathBuf] {
+        &self.search_paths
+    }
+
+    /// The file a name stands for: an absolute path as it is; a relative one in the first search
+    /// directory that has it, else relative to the current directory. `None` when none exists.
+    pub fn resolve(&self, name: &str) -> Option<PathBuf> {
+        let name_path = Path::new(name);
+        if name_path.is_absolute() {
+            return name_path.is_file().then(|| name_path.to_path_buf());
+        }
+        self.search_paths.iter().map(|dir| dir.join(name_path)).chain([name_path.to_path_buf()]).find(|p| p.is_file())
+    }
+
+    /// The texture called `name`, loading it on first use; `None` when it cannot be loaded.
+    pub fn get_texture(&self, name: &str, raw: bool) -> Option<Arc<MipMap>> {
+        let slot = slot(&self.textures[raw as usize], name);
+        slot.get_or_init(|| {
+            self.load(name, |path| {
+                load_texture_image(path, raw).map(|l| {
+                    MipMap::with_wrap(l.image, l.wrap.unwrap_or([Wrap::Periodic; 2])).with_projection(l.projection)
+                })
+            })
+        })
+        .clone()
+    }
+
+    /// The shadow map called `name`, loading it on first use; `None` when it cannot be loaded.
+    pub fn get_shadow_map(&self, name: &str) -> Option<Arc<ShadowMap>> {
+        slot(&self.shadows, name).get_or_init(|| self.load(name, ShadowMap::load)).clone()
+    }
+
+    /// Makes `name` stand for an image built in memory (the API's `tex_image_2d`), for both raw
+    /// and decoded lookups, replacing whatever it stood for.
+    pub fn insert_texture(&self, name: &str, image: TexImage, wrap: [Wrap; 2]) {
+        let mip = Arc::new(MipMap::with_wrap(image, wrap));
+        for slots in &self.textures {
+            let filled = Arc::new(OnceLock::from(Some(mip.clone())));
+            slots.write().unwrap_or_else(PoisonError::into_inner).insert(name.to_string(), filled);
+        }
+    }
+
+    /// Forgets every texture and shadow map (they load again on next use, e.g. after files
+    /// changed). Lookups running meanwhile finish with what they hold.
+    pub fn clear(&self) {
+        for slots in &self.textures {
+            slots.write().unwrap_or_else(PoisonError::into_inner).clear();
+        }
+        self.shadows.write().unwrap_or_else(PoisonError::into_inner).clear();
+    }
+
+    /// The warnings since the last call, oldest first: one per name that failed to load.
+    pub fn take_warnings(&self) -> Vec<TextureWarning> {
+        std::mem::take(&mut *self.warnings.lock().unwrap_or_else(PoisonError::into_inner))
+    }
+
+    /// A filtered texture lookup (RSL's `texture()`): `out[c]` gets channel `first_channel + c`
+    /// at `(s, t)` over `footprint` (see `MipMap::filter`). Returns false, leaving `out` alone,
+    /// when the texture cannot be loaded: the caller then uses the `fill` value.
+    #[allow(clippy::too_many_arguments)] // RSL's texture() call, argument for argument
+    pub fn texture(
+        &self,
+        name: &str,
+        s: f32,
+        t: f32,
+        footprint: Footprint,
+        first_channel: usize,
+        out: &mut [f32],
+        opts: &LookupOptions,
+    ) -> bool {
+        let Some(mip) = self.get_texture(name, opts.raw) else { return false };
+        mip.filter(s, t, footprint, first_channel, out, opts);
+        true
+    }
+
+    /// Many lookups in one texture, the name resolved once: `out` holds `channels` values per
+    /// query, query after query (`out[q * channels + c]`). Returns false, leaving `out` alone,
+    /// when the texture cannot be loaded.
+    pub fn texture_batch(
+        &self,
+        name: &str,
+        queries: &[TextureQuery],
+        channels: usize,
+        out: &mut [f32],
+        opts: &LookupOptions,
+    ) -> bool {
+        let Some(mip) = self.get_texture(name, opts.raw) else { return false };
+        for (q, lane) in queries.iter().zip(out.chunks_exact_mut(channels.max(1))) {
+            mip.filter(q.s, q.t, q.footprint, q.first_channel, lane, opts);
+        }
+        true
+    }
+
+    /// The size, channels and projection of a texture (RSL's `textureinfo`), loading it if
+    /// needed; `None` when it cannot be loaded.
+    pub fn texture_info(&self, name: &str) -> Option<TextureInfo> {
+        let mip = self.get_texture(name, false)?;
+        Some(TextureInfo {
+            width: mip.width(),
+            height: mip.height(),
+            channels: mip.channels(),
+            projection: mip.projection(),
+        })
+    }
+
+    /// An environment lookup (RSL's `environment()`) in a lat-long map (see
+    /// `texture::environment` for the mapping): `dir` is the direction, `ddx`/`ddy` how it
+    /// changes over one pixel step in x and y (zero for a point sample). Returns false when the
+    /// map cannot be loaded; a zero direction gives `opts.fill` in every channel.
+    #[allow(clippy::too_many_arguments)] // RSL's environment() call, argument for argument
+    pub fn environment(
+        &self,
+        name: &str,
+        dir: [f32; 3],
+        ddx: [f32; 3],
+        ddy: [f32; 3],
+        first_channel: usize,
+        out: &mut [f32],
+        opts: &LookupOptions,
+    ) -> bool {
+        let Some(mip) = self.get_texture(name, opts.raw) else { return false };
+        match latlong_footprint(dir, ddx, ddy) {
+            Some((s, t, footprint)) => {
+                mip.filter_wrapped(s, t, footprint, first_channel, out, opts, [Wrap::Periodic, Wrap::Clamp])
+            }
+            None => out.fill(opts.fill),
+        }
+        true
+    }
+
+    /// A shadow-map lookup (RSL's `shadow()`): the fraction of the filter kernel around
+    /// world-space `p` that is in shadow, 0 lit to 1 shadowed (see `texture::shadow`). `None` when
+    /// the map cannot be loaded.
+    pub fn shadow(&self, name: &str, p: [f32; 3], opts: &LookupOptions) -> Option<f32> {
+        Some(self.get_shadow_map(name)?.shadow(p, opts))
+    }
+
+    /// Resolves and loads `name` with `load`, turning a failure into one warning and `None`.
+    fn load<T, E: fmt::Display>(&self, name: &str, load: impl FnOnce(&Path) -> Result<T, E>) -> Option<Arc<T>> {
+        let warn = |path: Option<PathBuf>, reason: String| {
+            let warning = TextureWarning { name: name.to_string(), path, reason };
+            self.warnings.lock().unwrap_or_else(PoisonError::into_inner).push(warning);
+            None
+        };
+        let Some(path) = self.resolve(name) else {
+            let reason = if self.search_paths.is_empty() {
+                "file not found".to_string()
+            } else {
+                let dirs: Vec<String> = self.search_paths.iter().map(|d| d.display().to_string()).collect();
+                format!("file not found (searched {} and the current directory)", dirs.join(", "))
+            };
+            return warn(None, reason);
+        };
+        match load(&path) {
+            Ok(value) => Some(Arc::new(value)),
+            Err(e) => warn(Some(path), e.to_string()),
+        }
+    }
+}
+
+/// The slot for `name`, made empty if it is new. The read lock covers the common case.
+fn slot<T>(slots: &Slots<T>, name: &str) -> Slot<T> {
+    if let Some(slot) = slots.read().unwrap_or_else(PoisonError::into_inner).get(name) {
+        return slot.clone();
+    }
+    slots.write().unwrap_or_else(PoisonError::into_inner).entry(name.to_string()).or_default().clone()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::image_io::{write_image, WriteOptions};
+    use crate::texture::shadow::tests::{half_occluded_map, ortho_light};
+    use crate::texture::{latlong_to_direction, write_shadow_map};
+
+    fn assert_send_sync<T: Send + Sync>() {}
+
+    #[test]
+    fn the_cache_is_shareable() {
+        assert_send_sync::<TextureCache>();
+    }
+
+    /// A 2x2 linear EXR: top row red then green, bottom row blue then white.
+    fn quad(dir: &Path) -> PathBuf {
+        let path = dir.join("quad.exr");
+        let px = [1.0, 0.0, 0.0, 1.0, 0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0];
+        write_image(&path, 2, 2, &px, &WriteOptions::default()).unwrap();
+        path
+    }
+
+    #[test]
+    fn lookups_by_name_through_search_paths() {
+        let dir = tempfile::tempdir().unwrap();
+        quad(dir.path());
+        let cache = TextureCache::with_search_paths([PathBuf::from("/nonexistent"), dir.path().to_path_buf()]);
+        let mut rgb = [0.0; 3];
+        let opts = LookupOptions::default();
+        assert!(cache.texture("quad.exr", 0.25, 0.25, Footprint::POINT, 0, &mut rgb, &opts));
+        assert_eq!(rgb, [1.0, 0.0, 0.0], "t = 0.25 is the top row");
+        assert!(cache.texture("quad.exr", 0.25, 0.75, Footprint::POINT, 0, &mut rgb, &opts));
+        assert_eq!(rgb, [0.0, 0.0, 1.0]);
+        let mut alpha = [0.0];
+        assert!(cache.texture("quad.exr", 0.75, 0.25, Footprint::POINT, 3, &mut alpha, &opts));
+        assert_eq!(alpha, [1.0]);
+        // The same Arc every time.
+        assert!(Arc::ptr_eq(
+            &cache.get_texture("quad.exr", false).unwrap(),
+            &cache.get_texture("quad.exr", false).unwrap()
+        ));
+        assert!(cache.take_warnings().is_empty());
+    }
+
+    #[test]
+    fn a_missing_file_warns_once_and_then_fails_fast() {
+        let cache = TextureCache::with_search_paths([PathBuf::from("/nonexistent-dir")]);
+        let mut out = [9.0; 3];
+        for _ in 0..5 {
+            assert!(!cache.texture("nope.png", 0.5, 0.5, Footprint::POINT, 0, &mut out, &LookupOptions::default()));
+            assert_eq!(cache.shadow("nope.shad", [0.0; 3], &LookupOptions::default()), None);
+        }
+        assert_eq!(out, [9.0; 3], "out untouched");
+        let warnings = cache.take_warnings();
+        assert_eq!(warnings.len(), 2, "{warnings:?}");
+        assert!(warnings[0].to_string().contains("nope.png") && warnings[0].reason.contains("not found"));
+        assert!(warnings[0].reason.contains("/nonexistent-dir"));
+        assert!(cache.take_warnings().is_empty(), "drained");
+        assert!(!cache.texture("nope.png", 0.5, 0.5, Footprint::POINT, 0, &mut out, &LookupOptions::default()));
+        assert!(cache.take_warnings().is_empty(), "not warned again");
+    }
+
+    #[test]
+    fn corrupt_files_warn_with_their_path() {
+        let dir = tempfile::tempdir().unwrap();
+        let bad = dir.path().join("bad.png");
+        std::fs::write(&bad, b"\x89PNG\r\n\x1a\n\0\0\0\rIHDR truncated").unwrap();
+        let cache = TextureCache::new();
+        let name = bad.to_str().unwrap();
+        assert!(!cache.texture(name, 0.5, 0.5, Footprint::POINT, 0, &mut [0.0], &LookupOptions::default()));
+        assert_eq!(cache.shadow(name, [0.0; 3], &LookupOptions::default()), None);
+        let warnings = cache.take_warnings();
+        assert_eq!(warnings.len(), 2);
+        assert_eq!(warnings[0].path.as_deref(), Some(bad.as_path()));
+    }
+
+    #[test]
+    fn many_threads_load_once() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = quad(dir.path());
+        let cache = TextureCache::new();
+        let name = path.to_str().unwrap();
+        let maps: Vec<Arc<MipMap>> = std::thread::scope(|scope| {
+            let handles: Vec<_> = (0..8).map(|_| scope.spawn(|| cache.get_texture(name, false).unwrap())).collect();
+            handles.into_iter().map(|h| h.join().unwrap()).collect()
+        });
+        assert!(maps.iter().all(|m| Arc::ptr_eq(m, &maps[0])));
+    }
+
+    #[test]
+    fn rayon_workers_share_loads_and_warnings() {
+        use rayon::prelude::*;
+        let dir = tempfile::tempdir().unwrap();
+        quad(dir.path());
+        let cache = TextureCache::with_search_paths([dir.path().to_path_buf()]);
+        let names = ["quad.exr", "missing-a.png", "missing-b.exr"];
+        let hits: usize = (0..2000)
+            .into_par_iter()
+            .map(|i| {
+                let mut rgb = [0.0; 3];
+                let s = (i % 97) as f32 / 97.0;
+                let fp = Footprint { dsdx: 0.01, dtdx: 0.0, dsdy: 0.0, dtdy: 0.01 };
+                let ok = cache.texture(names[i % 3], s, 0.3, fp, 0, &mut rgb, &LookupOptions::default());
+                assert!(rgb.iter().all(|v| v.is_finite()));
+                usize::from(ok)
+            })
+            .sum();
+        assert_eq!(hits, (0..2000).filter(|i| i % 3 == 0).count());
+        let mut warned: Vec<String> = cache.take_warnings().into_iter().map(|w| w.name).collect();
+        warned.sort();
+        assert_eq!(warned, ["missing-a.png", "missing-b.exr"], "one warning per missing name");
+    }
+
+    #[test]
+    fn batches_and_info() {
+        let dir = tempfile::tempdir().unwrap();
+        quad(dir.path());
+        let cache = TextureCache::with_search_paths([dir.path().to_path_buf()]);
+        let queries = [
+            TextureQuery { s: 0.25, t: 0.25, ..TextureQuery::default() },
+            TextureQuery { s: 0.75, t: 0.75, first_channel: 1, ..TextureQuery::default() },
+        ];
+        let mut out = [0.0; 4];
+        assert!(cache.texture_batch("quad.exr", &queries, 2, &mut out, &LookupOptions::default()));
+        assert_eq!(out, [1.0, 0.0, 1.0, 1.0], "red's R, G; white's G, B");
+        assert!(!cache.texture_batch("absent.exr", &queries, 2, &mut out, &LookupOptions::default()));
+
+        let info = cache.texture_info("quad.exr").unwrap();
+        assert_eq!((info.width, info.height, info.channels, info.projection), (2, 2, 4, None));
+        let (depth, w, h) = half_occluded_map();
+        let (cam, ndc) = ortho_light();
+        write_shadow_map(dir.path().join("s.shad"), &depth, w, h, cam, ndc).unwrap();
+        let info = cache.texture_info("s.shad").unwrap();
+        assert_eq!((info.width, info.channels, info.projection), (8, 1, Some([cam, ndc])));
+    }
+
+    #[test]
+    fn raw_and_decoded_lookups_of_one_png() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("grey.png");
+        ::image::save_buffer(&path, &[128, 128, 128], 1, 1, ::image::ExtendedColorType::Rgb8).unwrap();
+        let cache = TextureCache::new();
+        let name = path.to_str().unwrap();
+        let mut v = [0.0];
+        cache.texture(name, 0.5, 0.5, Footprint::POINT, 0, &mut v, &LookupOptions::default());
+        assert!((v[0] - 0.2158).abs() < 1e-3, "decoded: {}", v[0]);
+        cache.texture(
+            name,
+            0.5,
+            0.5,
+            Footprint::POINT,
+            0,
+            &mut v,
+            &LookupOptions { raw: true, ..LookupOptions::default() },
+        );
+        assert!((v[0] - 128.0 / 255.0).abs() < 1e-6, "raw: {}", v[0]);
+    }
+
+    #[test]
+    fn in_memory_textures_and_clear() {
+        let cache = TextureCache::new();
+        cache.insert_texture("mem", TexImage::new(1, 1, 1, vec![0.25]).unwrap(), [Wrap::Clamp; 2]);
+        let mut v = [0.0];
+        assert!(cache.texture("mem", 3.0, 3.0, Footprint::POINT, 0, &mut v, &LookupOptions::default()));
+        assert_eq!(v, [0.25]);
+        cache.clear();
+        assert!(!cache.texture("mem", 0.5, 0.5, Footprint::POINT, 0, &mut v, &LookupOptions::default()));
+    }
+
+    #[test]
+    fn environment_lookups_follow_the_axes() {
+        // 8x4 lat-long map whose texels hold their own direction, so a lookup returns (about)
+        // the direction asked for.
+        let (w, h) = (64, 32);
+        let mut data = Vec::new();
+        for y in 0..h {
+            for x in 0..w {
+                data.extend(latlong_to_direction((x as f32 + 0.5) / w as f32, (y as f32 + 0.5) / h as f32));
+            }
+        }
+        let cache = TextureCache::new();
+        cache.insert_texture("sky", TexImage::new(w, h, 3, data).unwrap(), [Wrap::Black; 2]);
+        let opts = LookupOptions::default();
+        for axis in
+            [[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [0.0, -1.0, 0.0]]
+        {
+            let mut out = [0.0; 3];
+            assert!(cache.environment("sky", axis, [0.0; 3], [0.0; 3], 0, &mut out, &opts));
+            let dot: f32 = out.iter().zip(axis).map(|(a, b)| a * b).sum();
+            assert!(dot > 0.95, "{axis:?} -> {out:?}");
+        }
+        // A zero direction gives the fill value.
+        let mut out = [0.0; 3];
+        cache.environment(
+            "sky",
+            [0.0; 3],
+            [0.0; 3],
+            [0.0; 3],
+            0,
+            &mut out,
+            &LookupOptions { fill: 2.0, ..opts.clone() },
+        );
+        assert_eq!(out, [2.0; 3]);
+        // A wide footprint averages a large part of the sphere: shorter than a unit vector.
+        cache.environment("sky", [1.0, 0.0, 0.0], [0.0, 0.0, 1.5], [0.0, 1.5, 0.0], 0, &mut out, &opts);
+        let len = out.iter().map(|v| v * v).sum::<f32>().sqrt();
+        assert!(len < 0.9 && out[0] > 0.2, "{out:?}");
+    }
+
+    #[test]
+    fn shadow_lookups_by_name() {
+        let dir = tempfile::tempdir().unwrap();
+        let (depth, w, h) = half_occluded_map();
+        let (cam, ndc) = ortho_light();
+        write_shadow_map(dir.path().join("light.shad"), &depth, w, h, cam, ndc).unwrap();
+        let cache = TextureCache::with_search_paths([dir.path().to_path_buf()]);
+        let opts = LookupOptions { bias: 0.01, ..LookupOptions::default() };
+        assert_eq!(cache.shadow("light.shad", [-0.5, 0.0, 5.0], &opts), Some(1.0));
+        assert_eq!(cache.shadow("light.shad", [0.5, 0.0, 5.0], &opts), Some(0.0));
+        let half = cache.shadow("light.shad", [0.0, 0.0, 5.0], &opts).unwrap();
+        assert!((half - 0.5).abs() < 1e-5);
+        assert!(cache.take_warnings().is_empty());
+    }
+}

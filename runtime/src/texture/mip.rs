@@ -1,0 +1,454 @@
+//! The mip-map pyramid and filtered lookups over it.
+//!
+//! Level 0 is the image; each next level halves each dimension (rounding down, never below 1)
+//! until 1x1. A level's texel is the area-weighted average of the texels of the level below that
+//! it covers: for even sizes exactly the 2x2 box filter; for odd sizes the box is 2.x texels
+//! wide and takes fractional parts of the texels on its edges, so every level keeps the image's
+//! mean exactly (up to rounding).
+//!
+//! Lookups ([`MipMap::filter`]) turn the footprint into an ellipse in level-0 texels (the
+//! covariance of the two derivative vectors, plus the blur), take its minor axis as the filter
+//! width (the mip level, trilinear between two levels), and place up to [`MAX_ANISOTROPY`]
+//! equally weighted trilinear probes along the major axis. That is "EWA-lite": the anisotropy of
+//! EWA at the cost of a handful of bilinear taps, with box rather than Gaussian weights.
+
+use super::image::TexImage;
+use super::{Footprint, LookupOptions, Wrap};
+
+/// The most probes along a footprint's major axis; longer footprints are blurred across.
+pub const MAX_ANISOTROPY: usize = 16;
+
+/// A texture with its pre-filtered levels, immutable once built (so it is shared freely).
+#[derive(Clone, Debug)]
+pub struct MipMap {
+    levels: Vec<TexImage>,
+    /// The wrap modes of the file (s, t); a lookup may override them.
+    wrap: [Wrap; 2],
+    /// `worldToCamera` and `worldToNDC` from the file's header, if it had them.
+    projection: Option<[[f32; 16]; 2]>,
+}
+
+impl MipMap {
+    /// Builds the pyramid of `image`, wrapping periodically unless a lookup says otherwise.
+    pub fn new(image: TexImage) -> MipMap {
+        MipMap::with_wrap(image, [Wrap::Periodic; 2])
+    }
+
+    /// Builds the pyramid with the file's own wrap modes (s, t).
+    pub fn with_wrap(image: TexImage, wrap: [Wrap; 2]) -> MipMap {
+        let mut levels = vec![image];
+        loop {
+            let last = levels.last().expect("level 0 exists");
+            if last.width() == 1 && last.height() == 1 {
+                break;
+            }
+            let next = downsample(last);
+            levels.push(next);
+        }
+        MipMap { levels, wrap, projection: None }
+    }
+
+    /// The levels, finest (the image itself) first.
+    pub fn levels(&self) -> &[TexImage] {
+        &self.levels
+    }
+
+    pub fn width(&self) -> usize {
+        self.levels[0].width()
+    }
+
+    pub fn height(&self) -> usize {
+        self.levels[0].height()
+    }
+
+    pub fn channels(&self) -> usize {
+        self.levels[0].channels()
+    }
+
+    /// The file's wrap modes (s, t).
+    pub fn wrap(&self) -> [Wrap; 2] {
+        self.wrap
+    }
+
+    /// Records the projection the file's header carried (`worldToCamera`, `worldToNDC`).
+    pub fn with_projection(mut self, projection: Option<[[f32; 16]; 2]>) -> MipMap {
+        self.projection = projection;
+        self
+    }
+
+    /// The `worldToCamera` and `worldToNDC` matrices of the file, if it had them.
+    pub fn projection(&self) -> Option<[[f32; 16]; 2]> {
+        self.projection
+    }
+
+    /// Bilinear interpolation on one level: `out[c]` gets channel `first_channel + c`.
+    /// Channels the texture lacks are 0. A `level` past the last means the last.
+    pub fn bilinear(&self, level: usize, s: f32, t: f32, wrap: [Wrap; 2], first_channel: usize, out: &mut [f32]) {
+        out.fill(0.0);
+        let level = &self.levels[level.min(self.levels.len() - 1)];
+        accumulate_bilinear(level, s, t, wrap, first_channel, 1.0, out);
+    }
+
+    /// The filtered value over a footprint (see the module doc): `out[c]` gets channel
+    /// `first_channel + c`, channels the texture lacks get `opts.fill`.
+    pub fn filter(
+        &self,
+        s: f32,
+        t: f32,
+        footprint: Footprint,
+        first_channel: usize,
+        out: &mut [f32],
+        opts: &LookupOptions,
+    ) {
+        let wrap = [opts.swrap.unwrap_or(self.wrap[0]), opts.twrap.unwrap_or(self.wrap[1])];
+        self.filter_wrapped(s, t, footprint, first_channel, out, opts, wrap);
+    }
+
+    /// [`MipMap::filter`] with the wrap modes decided by the caller.
+    #[allow(clippy::too_many_arguments)] // the lookup's full description; a struct would only rename it
+    pub(crate) fn filter_wrapped(
+        &self,
+        s: f32,
+        t: f32,
+        footprint: Footprint,
+        first_channel: usize,
+        out: &mut [f32],
+        opts: &LookupOptions,
+        wrap: [Wrap; 2],
+    ) {
+        // A NaN or infinite coordinate has no texel: answer the fill value rather than NaN.
+        if !(s.is_finite() && t.is_finite()) {
+            out.fill(opts.fill);
+            return;
+        }
+        out.fill(0.0);
+        let (w, h) = (self.width() as f32, self.height() as f32);
+        let ellipse = Ellipse::of(footprint, opts, w, h);
+        // Clamp the eccentricity: beyond MAX_ANISOTROPY probes, widen the filter instead.
+        let minor = ellipse.minor.max(ellipse.major / MAX_ANISOTROPY as f32);
+        let probes = if minor > 0.0 { ((ellipse.major / minor).ceil() as usize).clamp(1, MAX_ANISOTROPY) } else { 1 };
+        let lod = if minor > 0.0 { minor.log2() } else { f32::NEG_INFINITY };
+        let weight = 1.0 / probes as f32;
+        for k in 0..probes {
+            // Probe centres split the major axis into equal parts.
+            let along = ((k as f32 + 0.5) / probes as f32 - 0.5) * ellipse.major;
+            let ps = s + ellipse.direction[0] * along / w;
+            let pt = t + ellipse.direction[1] * along / h;
+            self.accumulate_trilinear(ps, pt, lod, wrap, first_channel, weight, out);
+        }
+        fill_missing(self.channels(), first_channel, opts.fill, out);
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn accumulate_trilinear(
+        &self,
+        s: f32,
+        t: f32,
+        lod: f32,
+        wrap: [Wrap; 2],
+        first: usize,
+        weight: f32,
+        out: &mut [f32],
+    ) {
+        let top = self.levels.len() - 1;
+        // NaN (a degenerate footprint) also means the finest level.
+        if lod.is_nan() || lod <= 0.0 {
+            return accumulate_bilinear(&self.levels[0], s, t, wrap, first, weight, out);
+        }
+        let below = lod.floor() as usize;
+        if below >= top {
+            return accumulate_bilinear(&self.levels[top], s, t, wrap, first, weight, out);
+        }
+        let frac = lod - below as f32;
+        accumulate_bilinear(&self.levels[below], s, t, wrap, first, weight * (1.0 - frac), out);
+        accumulate_bilinear(&self.levels[below + 1], s, t, wrap, first, weight * frac, out);
+    }
+}
+
+/// A footprint as an ellipse in level-0 texels: axis lengths (full widths) and the unit
+/// direction of the major axis (in texel space, s then t).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Ellipse {
+    major: f32,
+    minor: f32,
+    direction: [f32; 2],
+}
+
+impl Ellipse {
+    fn of(fp: Footprint, opts: &LookupOptions, w: f32, h: f32) -> Ellipse {
+        let x = [fp.dsdx * opts.swidth * w, fp.dtdx * opts.twidth * h];
+        let y = [fp.dsdy * opts.swidth * w, fp.dtdy * opts.twidth * h];
+        let (bs, bt) = (opts.sblur * w, opts.tblur * h);
+        // The covariance x x^T + y y^T has eigenvalues |x|^2 and |y|^2 when x and y are
+        // orthogonal; blur adds in quadrature, like convolving with a second filter.
+        let a = (x[0] * x[0] + y[0] * y[0] + bs * bs) as f64;
+        let b = (x[0] * x[1] + y[0] * y[1]) as f64;
+        let c = (x[1] * x[1] + y[1] * y[1] + bt * bt) as f64;
+        let mean = 0.5 * (a + c);
+        let spread = (0.25 * (a - c) * (a - c) + b * b).sqrt();
+        let (l1, l2) = (mean + spread, (mean - spread).max(0.0));
+        let direction = if b.abs() > 1e-12 * (a + c) {
+            let (dx, dy) = (l1 - c, b);
+            let len = (dx * dx + dy * dy).sqrt();
+            [(dx / len) as f32, (dy / len) as f32]
+        } else if a >= c {
+            [1.0, 0.0]
+        } else {
+            [0.0, 1.0]
+        };
+        // NaN is no footprint; anything wider than a few times the texture reads the top level
+        // anyway, so the cap (which also tames infinities) changes nothing else.
+        let cap = 4.0 * w.max(h) as f64;
+        let sanitize = |v: f64| if v.is_nan() { 0.0 } else { v.sqrt().min(cap) as f32 };
+        Ellipse { major: sanitize(l1), minor: sanitize(l2), direction }
+    }
+}
+
+/// Maps an integer texel index to one inside `0..n`, or `None` for black outside.
+fn wrap_index(i: i64, n: usize, mode: Wrap) -> Option<usize> {
+    let n = n as i64;
+    match mode {
+        Wrap::Periodic => Some(i.rem_euclid(n) as usize),
+        Wrap::Clamp => Some(i.clamp(0, n - 1) as usize),
+        Wrap::Black => (0..n).contains(&i).then_some(i as usize),
+    }
+}
+
+/// Adds `weight` times the bilinear interpolation at (s, t) to `out`. Texel centres sit at
+/// `(i + 0.5) / w`, so the four texels around `s * w - 0.5` are blended.
+fn accumulate_bilinear(img: &TexImage, s: f32, t: f32, wrap: [Wrap; 2], first: usize, weight: f32, out: &mut [f32]) {
+    let x = s * img.width() as f32 - 0.5;
+    let y = t * img.height() as f32 - 0.5;
+    let (x0, y0) = (x.floor(), y.floor());
+    let (fx, fy) = (x - x0, y - y0);
+    // Saturating casts: NaN becomes 0, huge values the ends of i64; wrapping keeps them in range.
+    let (x0, y0) = (x0 as i64, y0 as i64);
+    for (dy, wy) in [(0, 1.0 - fy), (1, fy)] {
+        let Some(iy) = wrap_index(y0.saturating_add(dy), img.height(), wrap[1]) else { continue };
+        for (dx, wx) in [(0, 1.0 - fx), (1, fx)] {
+            let tap = weight * wx * wy;
+            if tap == 0.0 {
+                continue;
+            }
+            let Some(ix) = wrap_index(x0.saturating_add(dx), img.width(), wrap[0]) else { continue };
+            let texel = img.texel(ix, iy);
+            for (c, o) in out.iter_mut().enumerate() {
+                if let Some(v) = texel.get(first + c) {
+                    *o += tap * v;
+                }
+            }
+        }
+    }
+}
+
+fn fill_missing(channels: usize, first: usize, fill: f32, out: &mut [f32]) {
+    for (c, o) in out.iter_mut().enumerate() {
+        if first + c >= channels {
+            *o = fill;
+        }
+    }
+}
+
+/// For each of `dst` output texels, the source texels it covers and their weights (summing to
+/// 1): a box `src / dst` texels wide.
+fn box_weights(src: usize, dst: usize) -> Vec<Vec<(usize, f32)>> {
+    let ratio = src as f64 / dst as f64;
+    (0..dst)
+        .map(|i| {
+            let (lo, hi) = (i as f64 * ratio, (i + 1) as f64 * ratio);
+            (lo.floor() as usize..(hi.ceil() as usize).min(src))
+                .filter_map(|j| {
+                    let overlap = hi.min(j as f64 + 1.0) - lo.max(j as f64);
+                    (overlap > 0.0).then_some((j, (overlap / ratio) as f32))
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// The next coarser level (see the module doc), filtering rows then columns.
+fn downsample(img: &TexImage) -> TexImage {
+    let (w, h, ch) = (img.width(), img.height(), img.channels());
+    let (nw, nh) = ((w / 2).max(1), (h / 2).max(1));
+    let (xs, ys) = (box_weights(w, nw), box_weights(h, nh));
+    let mut rows = vec![0.0f32; nw * h * ch];
+    for y in 0..h {
+        for (x, taps) in xs.iter().enumerate() {
+            let dst = &mut rows[(y * nw + x) * ch..][..ch];
+            for &(sx, wt) in taps {
+                for (d, v) in dst.iter_mut().zip(img.texel(sx, y)) {
+                    *d += wt * v;
+                }
+            }
+        }
+    }
+    let mut out = vec![0.0f32; nw * nh * ch];
+    for (y, taps) in ys.iter().enumerate() {
+        for &(sy, wt) in taps {
+            let src = &rows[sy * nw * ch..][..nw * ch];
+            for (d, v) in out[y * nw * ch..][..nw * ch].iter_mut().zip(src) {
+                *d += wt * v;
+            }
+        }
+    }
+    TexImage::new(nw, nh, ch, out).expect("sizes are at least 1 and the buffer matches")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn image(w: usize, h: usize, ch: usize, f: impl Fn(usize, usize, usize) -> f32) -> TexImage {
+        let data =
+            (0..h).flat_map(|y| (0..w).flat_map(move |x| (0..ch).map(move |c| (x, y, c)))).map(|(x, y, c)| f(x, y, c));
+        TexImage::new(w, h, ch, data.collect()).unwrap()
+    }
+
+    fn checker(n: usize) -> MipMap {
+        MipMap::new(image(n, n, 1, |x, y, _| ((x + y) % 2) as f32))
+    }
+
+    fn mean(img: &TexImage) -> f32 {
+        img.data().iter().sum::<f32>() / img.data().len() as f32
+    }
+
+    fn lookup(m: &MipMap, s: f32, t: f32, fp: Footprint, opts: &LookupOptions) -> f32 {
+        let mut out = [0.0];
+        m.filter(s, t, fp, 0, &mut out, opts);
+        out[0]
+    }
+
+    #[test]
+    fn level_sizes_halve_down_to_one_including_odd_and_oblong() {
+        let sizes = |w, h| -> Vec<(usize, usize)> {
+            MipMap::new(image(w, h, 1, |_, _, _| 0.0)).levels().iter().map(|l| (l.width(), l.height())).collect()
+        };
+        assert_eq!(sizes(8, 8), [(8, 8), (4, 4), (2, 2), (1, 1)]);
+        assert_eq!(sizes(5, 3), [(5, 3), (2, 1), (1, 1)]);
+        assert_eq!(sizes(8, 2), [(8, 2), (4, 1), (2, 1), (1, 1)]);
+        assert_eq!(sizes(1, 1), [(1, 1)]);
+    }
+
+    #[test]
+    fn levels_average_exactly() {
+        // Even: each texel of level 1 is the mean of its 2x2 block.
+        let m = MipMap::new(image(4, 4, 2, |x, y, c| (x + 4 * y + 100 * c) as f32));
+        let l1 = &m.levels()[1];
+        assert_eq!(l1.texel(0, 0), &[(0.0 + 1.0 + 4.0 + 5.0) / 4.0, 102.5]);
+        assert_eq!(l1.texel(1, 1), &[(10.0 + 11.0 + 14.0 + 15.0) / 4.0, 112.5]);
+        // Odd sizes keep the mean at every level.
+        let m = MipMap::new(image(7, 5, 1, |x, y, _| (x * x + 3 * y) as f32));
+        let want = mean(&m.levels()[0]);
+        for l in m.levels() {
+            assert!((mean(l) - want).abs() < 1e-4, "{} vs {want}", mean(l));
+        }
+    }
+
+    #[test]
+    fn bilinear_is_exact_at_texel_centres_and_interpolates_between() {
+        let m = MipMap::new(image(4, 2, 1, |x, y, _| (x + 10 * y) as f32));
+        let mut out = [0.0];
+        for y in 0..2 {
+            for x in 0..4 {
+                let (s, t) = ((x as f32 + 0.5) / 4.0, (y as f32 + 0.5) / 2.0);
+                m.bilinear(0, s, t, [Wrap::Clamp; 2], 0, &mut out);
+                assert_eq!(out[0], (x + 10 * y) as f32);
+                // A point-sampled filter is the same thing.
+                assert_eq!(lookup(&m, s, t, Footprint::POINT, &LookupOptions::default()), (x + 10 * y) as f32);
+            }
+        }
+        m.bilinear(0, 0.25, 0.5, [Wrap::Clamp; 2], 0, &mut out);
+        assert!((out[0] - 5.5).abs() < 1e-5, "the mean of texels 0, 1, 10, 11: {}", out[0]);
+    }
+
+    #[test]
+    fn t_runs_down_the_image() {
+        // Top row 1, bottom row 0.
+        let m = MipMap::new(image(2, 2, 1, |_, y, _| if y == 0 { 1.0 } else { 0.0 }));
+        let opts = LookupOptions { twrap: Some(Wrap::Clamp), ..LookupOptions::default() };
+        assert_eq!(lookup(&m, 0.5, 0.1, Footprint::POINT, &opts), 1.0);
+        assert_eq!(lookup(&m, 0.5, 0.9, Footprint::POINT, &opts), 0.0);
+    }
+
+    #[test]
+    fn wrap_modes() {
+        // Left column 1, right column 0; sample just left of s = 0.
+        let m = MipMap::new(image(2, 1, 1, |x, _, _| if x == 0 { 1.0 } else { 0.0 }));
+        let at = |wrap| {
+            let opts = LookupOptions { swrap: Some(wrap), ..LookupOptions::default() };
+            lookup(&m, -0.25, 0.5, Footprint::POINT, &opts)
+        };
+        assert_eq!(at(Wrap::Clamp), 1.0, "the left edge extends");
+        assert_eq!(at(Wrap::Periodic), 0.0, "s = -0.25 is s = 0.75, the right texel");
+        assert_eq!(at(Wrap::Black), 0.0);
+        // Half way over the edge: black blends with the edge texel.
+        let opts = LookupOptions { swrap: Some(Wrap::Black), ..LookupOptions::default() };
+        assert!((lookup(&m, 0.0, 0.5, Footprint::POINT, &opts) - 0.5).abs() < 1e-6);
+        // The file's own modes apply when the lookup does not say.
+        let clamped = MipMap::with_wrap(m.levels()[0].clone(), [Wrap::Clamp, Wrap::Clamp]);
+        assert_eq!(lookup(&clamped, -0.25, 0.5, Footprint::POINT, &LookupOptions::default()), 1.0);
+        // Far away and non-finite coordinates stay in range.
+        assert!(lookup(&m, 1e30, -1e30, Footprint::POINT, &LookupOptions::default()).is_finite());
+        let fill = LookupOptions { fill: 0.5, ..LookupOptions::default() };
+        assert_eq!(lookup(&m, f32::NAN, 0.5, Footprint::POINT, &fill), 0.5, "no texel: the fill value");
+        assert_eq!(lookup(&m, 0.5, f32::INFINITY, Footprint::POINT, &fill), 0.5);
+        let nan_footprint = Footprint { dsdx: f32::NAN, dtdx: 0.0, dsdy: 0.0, dtdy: 1.0 };
+        assert!(lookup(&m, 0.5, 0.5, nan_footprint, &LookupOptions::default()).is_finite());
+        let huge = Footprint { dsdx: f32::INFINITY, dtdx: 0.0, dsdy: 0.0, dtdy: f32::MAX };
+        assert!((lookup(&m, 0.5, 0.5, huge, &LookupOptions::default()) - 0.5).abs() < 1e-6, "the whole texture");
+    }
+
+    #[test]
+    fn a_checkerboard_under_a_large_footprint_is_grey() {
+        let m = checker(64);
+        let opts = LookupOptions::default();
+        // The footprint covers the whole texture.
+        let v = lookup(&m, 0.3, 0.7, Footprint { dsdx: 1.0, dtdx: 0.0, dsdy: 0.0, dtdy: 1.0 }, &opts);
+        assert!((v - 0.5).abs() < 1e-4, "{v}");
+        // A few texels wide, rotated 45 degrees: already close to grey.
+        let fp = Footprint { dsdx: 6.0 / 64.0, dtdx: 6.0 / 64.0, dsdy: -6.0 / 64.0, dtdy: 6.0 / 64.0 };
+        let v = lookup(&m, 0.41, 0.37, fp, &opts);
+        assert!((v - 0.5).abs() < 0.05, "{v}");
+        // A point sample sees black or white.
+        let v = lookup(&m, 0.5 / 64.0, 0.5 / 64.0, Footprint::POINT, &opts);
+        assert_eq!(v, 0.0);
+    }
+
+    #[test]
+    fn anisotropic_footprints_average_along_their_length_only() {
+        // Vertical stripes, one texel each: a footprint long in s averages to grey, one long in
+        // t (and one texel wide in s) keeps the stripe.
+        let m = MipMap::new(image(64, 64, 1, |x, _, _| (x % 2) as f32));
+        let opts = LookupOptions::default();
+        let across =
+            lookup(&m, 0.5 / 64.0, 0.5, Footprint { dsdx: 16.0 / 64.0, dtdx: 0.0, dsdy: 0.0, dtdy: 0.5 / 64.0 }, &opts);
+        assert!((across - 0.5).abs() < 0.05, "{across}");
+        let along =
+            lookup(&m, 1.5 / 64.0, 0.5, Footprint { dsdx: 0.0, dtdx: 16.0 / 64.0, dsdy: 0.5 / 64.0, dtdy: 0.0 }, &opts);
+        assert!(along > 0.9, "stays on the white stripe: {along}");
+    }
+
+    #[test]
+    fn width_and_blur_widen_the_filter() {
+        let m = checker(32);
+        let tiny = Footprint { dsdx: 0.01 / 32.0, dtdx: 0.0, dsdy: 0.0, dtdy: 0.01 / 32.0 };
+        let at = |opts: &LookupOptions| lookup(&m, 0.5 / 32.0, 0.5 / 32.0, tiny, opts);
+        assert_eq!(at(&LookupOptions::default()), 0.0);
+        let blurred = at(&LookupOptions { sblur: 0.5, tblur: 0.5, ..LookupOptions::default() });
+        assert!((blurred - 0.5).abs() < 0.02, "{blurred}");
+        let wide = at(&LookupOptions { swidth: 3200.0, twidth: 3200.0, ..LookupOptions::default() });
+        assert!((wide - 0.5).abs() < 0.02, "{wide}");
+        // Blur in s only, over a texture striped in t: nothing to average.
+        let stripes = MipMap::new(image(32, 32, 1, |_, y, _| (y % 2) as f32));
+        let v = lookup(&stripes, 0.5, 0.5 / 32.0, tiny, &LookupOptions { sblur: 0.5, ..LookupOptions::default() });
+        assert!(v < 0.05, "{v}");
+    }
+
+    #[test]
+    fn channels_beyond_the_texture_get_the_fill_value() {
+        let m = MipMap::new(image(1, 1, 2, |_, _, c| c as f32 + 1.0));
+        let mut out = [0.0; 3];
+        m.filter(0.5, 0.5, Footprint::POINT, 1, &mut out, &LookupOptions { fill: 7.0, ..LookupOptions::default() });
+        assert_eq!(out, [2.0, 7.0, 7.0]);
+    }
+}

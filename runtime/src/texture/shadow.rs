@@ -1,0 +1,214 @@
+//! Depth shadow maps, RenderMan style, stored as OpenEXR.
+//!
+//! A shadow map is a float EXR holding, per pixel, the **camera-space z** (depth along the view
+//! axis of the light's camera) of the nearest surface, in channel `Z` (or, when there is none, the
+//! file's first channel), plus two standard OpenEXR header attributes describing the projection:
+//!
+//! - `worldToCamera`: world to the light's camera space (z > 0 in front of the camera);
+//! - `worldToNDC`: world to RenderMan's NDC space, after the homogeneous divide: `x` and `y` in
+//!   `[0, 1]` with `(0, 0)` the **top-left** pixel of the map, so that `(x, y)` are directly the
+//!   map's `(s, t)`.
+//!
+//! Both use OpenEXR's (Imath's) row-vector convention: `p' = [x y z 1] M`, so `M[12..15]` hold
+//! the translation; a point's result is divided by its `w`.
+//!
+//! A lookup ([`ShadowMap::shadow`]) answers the fraction of the filter kernel in shadow (0 lit, 1
+//! shadowed) by percentage-closer filtering: `samples` points on a square grid over the kernel
+//! (at least 2 texels wide, widened by `sblur`/`tblur` in map coordinates), each comparing the
+//! four nearest depths with the point's depth less `bias` and blending those four verdicts
+//! bilinearly, so the answer varies smoothly across a shadow's edge. A point behind the light's
+//! camera or outside the map is lit.
+
+use std::path::Path;
+
+use super::image::TexImage;
+use super::LookupOptions;
+use crate::image_io::{self, ExrLayer, ImageError};
+
+/// A loaded depth map with its projection.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ShadowMap {
+    depth: TexImage,
+    world_to_camera: [f32; 16],
+    world_to_ndc: [f32; 16],
+}
+
+impl ShadowMap {
+    /// A shadow map from depths (`width * height`, top row first) and its matrices (see the
+    /// module doc for their convention). `None` when the size does not match.
+    pub fn new(
+        depth: Vec<f32>,
+        width: usize,
+        height: usize,
+        world_to_camera: [f32; 16],
+        world_to_ndc: [f32; 16],
+    ) -> Option<ShadowMap> {
+        let depth = TexImage::new(width, height, 1, depth)?;
+        Some(ShadowMap { depth, world_to_camera, world_to_ndc })
+    }
+
+    /// Reads a shadow map written by [`write_shadow_map`] (or any EXR with the two attributes).
+    pub fn load(path: &Path) -> Result<ShadowMap, ImageError> {
+        let layer = image_io::read_exr(path)?;
+        let missing =
+            |what: &str| ImageError::Decode { path: path.into(), message: format!("not a shadow map: no {what}") };
+        let world_to_camera = layer.world_to_camera.ok_or_else(|| missing("worldToCamera attribute"))?;
+        let world_to_ndc = layer.world_to_ndc.ok_or_else(|| missing("worldToNDC attribute"))?;
+        let depth = layer.channel("Z").or_else(|| layer.channels.first().map(|(_, v)| v.as_slice()));
+        let depth = depth.ok_or_else(|| missing("channel"))?.to_vec();
+        ShadowMap::new(depth, layer.width, layer.height, world_to_camera, world_to_ndc).ok_or_else(|| missing("pixels"))
+    }
+
+    pub fn width(&self) -> usize {
+        self.depth.width()
+    }
+
+    pub fn height(&self) -> usize {
+        self.depth.height()
+    }
+
+    /// The fraction of the kernel around world-space point `p` that is in shadow: 0 lit, 1
+    /// shadowed (see the module doc).
+    pub fn shadow(&self, p: [f32; 3], opts: &LookupOptions) -> f32 {
+        let Some(camera) = transform_point(&self.world_to_camera, p) else { return 0.0 };
+        let Some(ndc) = transform_point(&self.world_to_ndc, p) else { return 0.0 };
+        let depth = camera[2];
+        let (x, y) = (ndc[0], ndc[1]);
+        if depth.is_nan() || depth <= 0.0 || !(0.0..=1.0).contains(&x) || !(0.0..=1.0).contains(&y) {
+            return 0.0;
+        }
+        let (w, h) = (self.width() as f32, self.height() as f32);
+        let kernel = [(opts.sblur * w).max(2.0), (opts.tblur * h).max(2.0)];
+        let n = (opts.samples.max(1) as f32).sqrt().ceil() as usize;
+        let reference = depth - opts.bias;
+        let mut shadowed = 0.0;
+        for j in 0..n {
+            for i in 0..n {
+                let offset = |k: usize, width: f32| ((k as f32 + 0.5) / n as f32 - 0.5) * width;
+                let tx = x * w + offset(i, kernel[0]) - 0.5;
+                let ty = y * h + offset(j, kernel[1]) - 0.5;
+                shadowed += self.compare_bilinear(tx, ty, reference);
+            }
+        }
+        shadowed / (n * n) as f32
+    }
+
+    /// The bilinear blend of the four depth comparisons around continuous texel position
+    /// (x, y) (texel centres at integers); edges clamp.
+    fn compare_bilinear(&self, x: f32, y: f32, reference: f32) -> f32 {
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
+        let clamp = |i: f32, n: usize| (i.max(0.0) as usize).min(n - 1);
+        let mut sum = 0.0;
+        for (dy, wy) in [(0.0, 1.0 - fy), (1.0, fy)] {
+            for (dx, wx) in [(0.0, 1.0 - fx), (1.0, fx)] {
+                let stored = self.depth.texel(clamp(x0 + dx, self.width()), clamp(y0 + dy, self.height()))[0];
+                if stored < reference {
+                    sum += wx * wy;
+                }
+            }
+        }
+        sum
+    }
+}
+
+/// `p` (a point, w = 1) through a row-vector matrix, divided by the resulting w; `None` when w
+/// is not positive (behind a projection) or the result is not finite.
+fn transform_point(m: &[f32; 16], p: [f32; 3]) -> Option<[f32; 3]> {
+    let column = |c: usize| p[0] * m[c] + p[1] * m[4 + c] + p[2] * m[8 + c] + m[12 + c];
+    let w = column(3);
+    if w.is_nan() || w <= 0.0 {
+        return None;
+    }
+    let out = [column(0) / w, column(1) / w, column(2) / w];
+    out.iter().all(|v| v.is_finite()).then_some(out)
+}
+
+/// Writes a shadow map: `depth` (camera-space z, `width * height`, top row first) as a 32-bit
+/// float channel `Z`, with the `worldToCamera` and `worldToNDC` attributes (row-vector
+/// convention, NDC as in the module doc).
+pub fn write_shadow_map(
+    path: impl AsRef<Path>,
+    depth: &[f32],
+    width: usize,
+    height: usize,
+    world_to_camera: [f32; 16],
+    world_to_ndc: [f32; 16],
+) -> Result<(), ImageError> {
+    let layer = ExrLayer {
+        width,
+        height,
+        channels: vec![("Z".into(), depth.to_vec())],
+        world_to_camera: Some(world_to_camera),
+        world_to_ndc: Some(world_to_ndc),
+        wrap_modes: None,
+    };
+    image_io::write_exr(path.as_ref(), &layer, false)
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+
+    /// A light at the origin looking down +z with an orthographic view of x, y in [-1, 1]:
+    /// camera space is world space; NDC maps x -1..1 to 0..1 and y 1..-1 to 0..1 (top row up).
+    pub(crate) fn ortho_light() -> ([f32; 16], [f32; 16]) {
+        let identity = [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0];
+        let to_ndc = [0.5, 0.0, 0.0, 0.0, 0.0, -0.5, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.5, 0.5, 0.0, 1.0];
+        (identity, to_ndc)
+    }
+
+    /// 8x8 map: an occluder at depth 1 over the left half (x < 0), nothing (depth 1e30) on the right.
+    pub(crate) fn half_occluded_map() -> (Vec<f32>, usize, usize) {
+        let depth = (0..64).map(|i| if i % 8 < 4 { 1.0 } else { 1e30 }).collect();
+        (depth, 8, 8)
+    }
+
+    fn map() -> ShadowMap {
+        let (depth, w, h) = half_occluded_map();
+        let (cam, ndc) = ortho_light();
+        ShadowMap::new(depth, w, h, cam, ndc).unwrap()
+    }
+
+    #[test]
+    fn lit_shadowed_and_half_way() {
+        let m = map();
+        let opts = LookupOptions { bias: 0.01, ..LookupOptions::default() };
+        assert_eq!(m.shadow([-0.5, 0.2, 5.0], &opts), 1.0, "behind the occluder");
+        assert_eq!(m.shadow([-0.5, 0.2, 0.5], &opts), 0.0, "in front of the occluder");
+        assert_eq!(m.shadow([0.5, -0.2, 5.0], &opts), 0.0, "beside it");
+        let edge = m.shadow([0.0, 0.3, 5.0], &opts);
+        assert!((edge - 0.5).abs() < 1e-5, "on the edge: {edge}");
+        // Across the edge the answer falls off smoothly and monotonically.
+        let xs: Vec<f32> = (0..9).map(|i| m.shadow([-0.4 + 0.1 * i as f32, 0.0, 5.0], &opts)).collect();
+        assert!(xs.windows(2).all(|p| p[0] >= p[1]), "{xs:?}");
+    }
+
+    #[test]
+    fn bias_lifts_self_shadowing_and_outside_is_lit() {
+        let m = map();
+        // A point on the occluder's own surface.
+        let on_surface = [-0.5, 0.0, 1.0001];
+        assert_eq!(m.shadow(on_surface, &LookupOptions::default()), 1.0);
+        assert_eq!(m.shadow(on_surface, &LookupOptions { bias: 0.01, ..LookupOptions::default() }), 0.0);
+        assert_eq!(m.shadow([-5.0, 0.0, 5.0], &LookupOptions::default()), 0.0, "outside the map");
+        assert_eq!(m.shadow([-0.5, 0.0, -5.0], &LookupOptions::default()), 0.0, "behind the light");
+        assert_eq!(m.shadow([f32::NAN, 0.0, 5.0], &LookupOptions::default()), 0.0);
+    }
+
+    #[test]
+    fn written_maps_read_back() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("shadow.exr");
+        let (depth, w, h) = half_occluded_map();
+        let (cam, ndc) = ortho_light();
+        write_shadow_map(&path, &depth, w, h, cam, ndc).unwrap();
+        assert_eq!(ShadowMap::load(&path).unwrap(), map());
+
+        // A plain image is not a shadow map.
+        let plain = dir.path().join("plain.exr");
+        image_io::write_image(&plain, 1, 1, &[0.0; 4], &image_io::WriteOptions::default()).unwrap();
+        let err = ShadowMap::load(&plain).unwrap_err();
+        assert!(err.to_string().contains("worldToCamera"), "{err}");
+    }
+}
