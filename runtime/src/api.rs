@@ -49,6 +49,7 @@ use crate::render::{
 };
 use crate::scene::{ObjectId as SceneObject, Scene, SceneError};
 use crate::shading::{LightKind, ParamError, ParamValue, Program, ShaderError, ShaderInstance, ShaderProgram};
+use crate::texture::TextureCache;
 use glam::{Affine3A, Quat, Vec2, Vec3, Vec3A};
 use rtsl_compiler::front::parse::ast::ShaderKind;
 use std::path::{Path, PathBuf};
@@ -173,7 +174,9 @@ struct LightRecord {
     params: Vec<(String, ParamValue, Affine3A)>,
     world_from_shader: Affine3A,
     shadows: bool,
-    area: Option<AreaLight>,
+    /// World-space emitting triangles of an area light (empty for other lights).
+    area_triangles: Vec<[Vec3A; 3]>,
+    area_samples: u32,
     on: bool,
 }
 
@@ -216,6 +219,8 @@ pub struct Context {
     pub options: RenderOptions,
     spaces: std::collections::HashMap<String, Affine3A>,
     scene: Option<Scene>,
+    texture_search_path: Vec<PathBuf>,
+    textures: Arc<TextureCache>,
 }
 
 impl Default for Context {
@@ -252,6 +257,8 @@ impl Context {
             options: RenderOptions::default(),
             spaces: Default::default(),
             scene: Some(Scene::new()),
+            texture_search_path: Vec::new(),
+            textures: Arc::new(TextureCache::new()),
         }
     }
 
@@ -260,6 +267,23 @@ impl Context {
     /// Directories searched (in order, before the standard library) by [`Context::find_shader`].
     pub fn set_shader_search_path(&mut self, dirs: Vec<PathBuf>) {
         self.shader_search_path = dirs;
+    }
+
+    pub fn shader_search_path(&self) -> &[PathBuf] {
+        &self.shader_search_path
+    }
+
+    /// Adds a directory where textures named by relative paths are looked for.
+    pub fn add_texture_search_path(&mut self, dir: PathBuf) {
+        if !self.texture_search_path.contains(&dir) {
+            self.texture_search_path.push(dir);
+            self.textures = Arc::new(TextureCache::with_search_paths(self.texture_search_path.clone()));
+        }
+    }
+
+    /// The texture cache frames use (textures load once and stay loaded across frames).
+    pub fn textures(&self) -> &Arc<TextureCache> {
+        &self.textures
     }
 
     /// Directories searched by `#include`.
@@ -388,21 +412,29 @@ impl Context {
             params: params.iter().map(|(n, v)| (n.to_string(), v.clone(), self.matrix)).collect(),
             world_from_shader: self.matrix,
             shadows: true,
-            area: None,
+            area_triangles: Vec::new(),
+            area_samples: 16,
             on: true,
         });
         Ok(LightId(self.lights.len() as u32 - 1))
     }
 
-    /// Makes a light an area light emitting from `mesh` (in the current space), sampled `samples`
-    /// times per shading point for soft shadows.
-    pub fn area_light_geometry(&mut self, light: LightId, mesh: &Mesh, samples: u32) -> Result<(), ApiError> {
+    /// Makes a light an area light (RenderMan's `AreaLightSource`) emitting from `mesh` too (in the
+    /// current space): its shader runs with `P` and `N` at samples on the geometry, each sample a
+    /// light of its own with a traced shadow (soft shadows).
+    pub fn area_light_geometry(&mut self, light: LightId, mesh: &Mesh) -> Result<(), ApiError> {
         let m = self.matrix;
         let rec = self.lights.get_mut(light.0 as usize).ok_or(ApiError::UnknownLight(light.0))?;
-        let tris =
-            (0..mesh.triangle_count()).map(|i| mesh.corners(i).map(|c| m.transform_point3a(Vec3A::from(c)))).collect();
-        rec.area = Some(AreaLight::new(tris, samples));
+        rec.area_triangles
+            .extend((0..mesh.triangle_count()).map(|i| mesh.corners(i).map(|c| m.transform_point3a(Vec3A::from(c)))));
         Ok(())
+    }
+
+    /// Samples of an area light per shading point (16 by default).
+    pub fn set_area_light_samples(&mut self, light: LightId, samples: u32) {
+        if let Some(rec) = self.lights.get_mut(light.0 as usize) {
+            rec.area_samples = samples.clamp(1, crate::render::MAX_AREA_SAMPLES);
+        }
     }
 
     /// Switches a light on or off, and its ray-traced shadows.
@@ -490,6 +522,17 @@ impl Context {
     /// Names the current space (RenderMan's `CoordinateSystem`), for shaders' space casts.
     pub fn coordinate_system(&mut self, name: &str) {
         self.spaces.insert(name.to_string(), self.matrix);
+    }
+
+    /// Makes a named space current (RenderMan's `CoordSysTransform`); false for an unknown name.
+    pub fn load_coordinate_system(&mut self, name: &str) -> bool {
+        match self.spaces.get(name) {
+            Some(m) => {
+                self.matrix = *m;
+                true
+            }
+            None => false,
+        }
     }
 
     // ---- camera and options ----
@@ -865,14 +908,9 @@ impl Context {
                 .string_param("__category")
                 .map(|c| c.split(',').map(|s| s.trim().to_string()).filter(|s| !s.is_empty()).collect())
                 .unwrap_or_default();
-            let kind = if l.area.is_some() { LightKind::Local } else { program.light_kind };
-            lights.push(LightSource {
-                shader: Arc::new(inst),
-                kind,
-                shadows: l.shadows,
-                categories,
-                area: l.area.clone(),
-            });
+            let area = (!l.area_triangles.is_empty()).then(|| AreaLight::new(l.area_triangles.clone(), l.area_samples));
+            let kind = if area.is_some() { LightKind::Local } else { program.light_kind };
+            lights.push(LightSource { shader: Arc::new(inst), kind, shadows: l.shadows, categories, area });
         }
         let mut world = World::new(scene);
         world.materials = materials;
@@ -881,6 +919,7 @@ impl Context {
         world.camera = self.camera;
         world.options = self.options.clone();
         world.spaces = self.spaces.clone();
+        world.textures = self.textures.clone();
         world.prepare();
         Ok(world)
     }

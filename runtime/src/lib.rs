@@ -21,6 +21,7 @@ pub mod mesh_io;
 pub mod ray;
 pub mod render;
 pub mod scene;
+pub mod scene_file;
 pub mod shading;
 pub mod texture;
 pub mod tiles;

@@ -177,12 +177,19 @@ pub fn render_frame(world: &World, progress: Option<&(dyn Fn(usize, usize) + Syn
         (*tile, color, depth, ids)
     });
     let mut fb = Framebuffer::new(w, h);
+    let exposure = world.options.exposure.filter(|&(gain, gamma)| gain.is_finite() && gamma > 0.0);
     for (tile, color, depth, ids) in tiles {
         for y in 0..tile.height {
             for x in 0..tile.width {
                 let k = (y * tile.width + x) as usize;
                 let i = ((tile.y0 + y) * w + tile.x0 + x) as usize;
-                fb.rgba[4 * i..4 * i + 4].copy_from_slice(&color[k]);
+                let mut c = color[k];
+                if let Some((gain, gamma)) = exposure {
+                    for v in &mut c[..3] {
+                        *v = (gain * *v).max(0.0).powf(1.0 / gamma);
+                    }
+                }
+                fb.rgba[4 * i..4 * i + 4].copy_from_slice(&c);
                 fb.depth[i] = depth[k];
                 fb.object_id[i] = ids[k];
             }

@@ -8,4 +8,6 @@ pub mod world;
 
 pub use frame::{primary_packet, render_frame, FrameReport, Framebuffer, TILE_SIZE};
 pub use shade::{Frame, Sample, Stats};
-pub use world::{AreaLight, CameraSetup, InstanceShading, LightSource, Material, RenderOptions, World};
+pub use world::{
+    AreaLight, CameraSetup, InstanceShading, LightSource, Material, RenderOptions, World, MAX_AREA_SAMPLES,
+};

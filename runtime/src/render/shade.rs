@@ -15,6 +15,7 @@
 use super::world::{InstanceShading, LightSource, Material, World};
 use crate::ray::{offset_ray_origin, Hit, HitPacket, Ray, RayPacket, PACKET_SIZE};
 use crate::shading::{get3, put1, put3, with_batch, LightKind, ShaderInstance};
+use crate::texture::{Footprint, LookupOptions};
 use glam::{Affine3A, Mat4, Vec3A};
 use rtsl_compiler::back::jit::{HostLight, HostTable, MessageOut, StrRef, MAX_LIGHTS};
 use rtsl_compiler::builtins::Builtin;
@@ -699,20 +700,83 @@ fn transmission_along(frame: &Frame, from: Vec3A, dir: Vec3A, distance: f32) -> 
 }
 
 unsafe extern "C" fn host_texture(
-    _ctx: *mut c_void,
-    _kind: u32,
-    _name: StrRef,
-    _mask: *const i32,
-    _coords: *const f32,
-    _first: *const f32,
-    _channels: u32,
-    _out: *mut f32,
+    ctx: *mut c_void,
+    kind: u32,
+    name: StrRef,
+    mask: *const i32,
+    coords: *const f32,
+    first: *const f32,
+    channels: u32,
+    out: *mut f32,
     ok: *mut u32,
 ) {
-    // Textures arrive with the texture cache; until then every map reads as missing (the shader's
-    // fill value is used).
-    // SAFETY: `ok` holds 4 entries.
-    unsafe { std::ptr::write_bytes(ok, 0, 4) };
+    let values = match kind {
+        0 => channels.min(64) as usize,
+        1 => 3,
+        _ => 1,
+    };
+    // SAFETY: the table's contract: 4 mask entries, 3 x 4 coordinates (2 x 4 for textures), 4 first
+    // channels, `values` x 4 results and 4 flags.
+    let (c, name, mask, coords, first, out, ok) = unsafe {
+        (
+            call(ctx),
+            name.as_str(),
+            &*(mask as *const [i32; 4]),
+            slice(coords, if kind == 0 { 8 } else { 12 }),
+            slice(first, 4),
+            std::slice::from_raw_parts_mut(out, 4 * values),
+            &mut *(ok as *mut [u32; 4]),
+        )
+    };
+    let textures = &c.frame.world.textures;
+    let opts = LookupOptions::default();
+    let mut lane_out = [0.0f32; 64];
+    for l in 0..4 {
+        ok[l] = 0;
+        if mask[l] == 0 {
+            continue;
+        }
+        let found = match kind {
+            0 => {
+                let first = first[l].max(0.0) as usize;
+                textures.texture(
+                    name,
+                    coords[l],
+                    coords[4 + l],
+                    Footprint::POINT,
+                    first,
+                    &mut lane_out[..values],
+                    &opts,
+                )
+            }
+            1 => {
+                let dir = lane3(coords, 0, l).to_array();
+                textures.environment(name, dir, [0.0; 3], [0.0; 3], 0, &mut lane_out[..3], &opts)
+            }
+            _ => {
+                let p = lane3(coords, 0, l);
+                let shadowed = if name == "raytrace" {
+                    // Ray-traced shadows (BMRT's convention): towards the light's own origin.
+                    let to = c.instance.world_from_shader.translation;
+                    let d = to - p;
+                    let t = transmission_along(c.frame, p, d.normalize_or_zero(), d.length());
+                    Some(1.0 - (t.x + t.y + t.z) / 3.0)
+                } else {
+                    textures.shadow(name, p.to_array(), &opts)
+                };
+                if let Some(v) = shadowed {
+                    lane_out[0] = v;
+                }
+                shadowed.is_some()
+            }
+        };
+        if found {
+            ok[l] = 1;
+            for (k, v) in lane_out[..values].iter().enumerate() {
+                out[4 * k + l] = *v;
+            }
+        }
+    }
 }
 
 unsafe extern "C" fn host_rays(

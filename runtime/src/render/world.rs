@@ -4,6 +4,7 @@
 
 use crate::scene::Scene;
 use crate::shading::{LightKind, ShaderInstance};
+use crate::texture::TextureCache;
 use glam::{Affine3A, Vec3A};
 use std::collections::HashMap;
 use std::sync::Arc;
@@ -62,6 +63,9 @@ pub struct AreaLight {
     /// Samples per shading point.
     pub samples: u32,
 }
+
+/// The most samples an area light takes per shading point (each is a light in the `illuminance` loop).
+pub const MAX_AREA_SAMPLES: u32 = 24;
 
 impl AreaLight {
     pub fn new(triangles: Vec<[Vec3A; 3]>, samples: u32) -> AreaLight {
@@ -157,6 +161,8 @@ pub struct RenderOptions {
     pub background: [f32; 3],
     /// Most transparent surfaces a ray continues through.
     pub max_transparent_layers: u32,
+    /// RIB's `Exposure gain gamma`, applied to the finished colours: `(gain * c) ^ (1 / gamma)`.
+    pub exposure: Option<(f32, f32)>,
 }
 
 impl Default for RenderOptions {
@@ -168,6 +174,7 @@ impl Default for RenderOptions {
             max_ray_depth: 6,
             background: [0.0; 3],
             max_transparent_layers: 16,
+            exposure: None,
         }
     }
 }
@@ -183,6 +190,8 @@ pub struct World {
     pub options: RenderOptions,
     /// Named coordinate systems (`CoordinateSystem`), world from the system.
     pub spaces: HashMap<String, Affine3A>,
+    /// Texture, environment and shadow maps, loaded on first use.
+    pub textures: Arc<TextureCache>,
     /// Per-instance vertex-scope bindings: shader parameter index -> mesh attribute index, worked out
     /// by [`World::prepare`].
     pub(crate) vertex_params: Vec<Vec<(usize, usize)>>,
@@ -198,6 +207,7 @@ impl World {
             camera: CameraSetup::default(),
             options: RenderOptions::default(),
             spaces: HashMap::new(),
+            textures: Arc::new(TextureCache::new()),
             vertex_params: Vec::new(),
         }
     }
