@@ -1,0 +1,21 @@
+/*
+ * arealight.sl -- RenderMan Interface Specification 3.2, section 9.2 and
+ * Appendix A: the "arealight" light source shader.
+ *
+ * An area light: the shader is attached to geometry (an AreaLightSource),
+ * and for each sample the renderer sets P and N to a point on the emitting
+ * surface and its normal there, and sums (averages, weighted by area) the
+ * samples' contributions.  Each sample radiates into the hemisphere around
+ * its normal (illuminate with a cone of PI/2) with inverse-square falloff.
+ * As in the specification, no cosine of the emitter is applied: the
+ * surface's own diffuse() supplies the receiver's cosine.
+ *
+ * Parameters:
+ *   intensity  -- brightness of the light (1).
+ *   lightcolor -- colour of the light (1, white).
+ */
+light arealight(float intensity = 1; color lightcolor = 1;)
+{
+    illuminate(P, N, PI / 2)
+        Cl = (intensity / (L . L)) * lightcolor;
+}
