@@ -1,6 +1,6 @@
 /*
- * arealight.sl -- RenderMan Interface Specification 3.2, section 9.2 and
- * Appendix A: the "arealight" light source shader.
+ * arealight.sl -- the area light of the RenderMan Interface Specification
+ * 3.2 (RiAreaLightSource, and the illuminate() statement in Part II).
  *
  * An area light: the shader is attached to geometry (an AreaLightSource),
  * and for each sample the renderer sets P and N to a point on the emitting
