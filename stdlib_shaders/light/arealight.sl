@@ -8,7 +8,9 @@
  * samples' contributions.  Each sample radiates into the hemisphere around
  * its normal (illuminate with a cone of PI/2) with inverse-square falloff.
  * As in the specification, no cosine of the emitter is applied: the
- * surface's own diffuse() supplies the receiver's cosine.
+ * surface's own diffuse() supplies the receiver's cosine.  Unlike the
+ * specification's version, a surface point at the sample itself (L = 0)
+ * gets no light instead of an infinite one.
  *
  * Parameters:
  *   intensity  -- brightness of the light (1).
@@ -16,6 +18,11 @@
  */
 light arealight(float intensity = 1; color lightcolor = 1;)
 {
-    illuminate(P, N, PI / 2)
-        Cl = (intensity / (L . L)) * lightcolor;
+    float d2;
+
+    illuminate(P, N, PI / 2) {
+        d2 = L . L;
+        /* A point on the sample itself (L = 0) is not lit by it. */
+        Cl = d2 > 0 ? (intensity / d2) * lightcolor : color 0;
+    }
 }
