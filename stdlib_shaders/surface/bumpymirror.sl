@@ -29,7 +29,7 @@ surface bumpymirror(float Ks = 1; float Kr = 1; float roughness = .05;
     point PP = bumpfreq * transform("shader", P);
     float h, scale;
     point Pb;
-    normal Nf;
+    normal Nb, Nf;
     vector V = -normalize(I), R;
     color Crefl = 0;
 
@@ -40,7 +40,12 @@ surface bumpymirror(float Ks = 1; float Kr = 1; float roughness = .05;
     scale = 1 / length(vtransform("shader", vector Nn));
     Pb = P + bumpheight * scale * h * Nn;
 
-    Nf = faceforward(normalize(calculatenormal(Pb)), I);
+    /* calculatenormal's orientation follows the parametrisation: align it
+     * with N before facing it towards the viewer. */
+    Nb = normalize(calculatenormal(Pb));
+    if (Nb . Nn < 0)
+        Nb = -Nb;
+    Nf = faceforward(Nb, I);
     R = reflect(normalize(I), Nf);
     if (Kr > 0)
         Crefl = Kr * color trace(P, R);
