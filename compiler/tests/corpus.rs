@@ -22,7 +22,7 @@ fn compile_all(dir: &Path, include: Option<&Path>) -> Vec<(PathBuf, rtsl_compile
 #[test]
 fn the_shader_library_compiles_without_warnings() {
     let results = compile_all(Path::new("../stdlib_shaders"), None);
-    assert!(results.len() >= 13);
+    assert!(results.len() >= 25);
     for (path, c) in &results {
         assert!(c.diagnostics.is_empty(), "{}:\n{}", path.display(), c.render());
         assert!(c.interface.is_some(), "{} defines no shader", path.display());
@@ -42,6 +42,17 @@ fn the_shader_library_compiles_without_warnings() {
         "depthcue",
         "fog",
         "bumpy",
+        "arealight",
+        "wood",
+        "marble",
+        "granite",
+        "checker",
+        "brick",
+        "mirror",
+        "glass",
+        "bumpymirror",
+        "texmap",
+        "material",
     ] {
         assert!(names.contains(&required), "the library lacks `{required}`");
     }
