@@ -20,6 +20,7 @@ pub mod image_io;
 pub mod mesh_io;
 pub mod ray;
 pub mod render;
+pub mod rib;
 pub mod scene;
 pub mod scene_file;
 pub mod shading;

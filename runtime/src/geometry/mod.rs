@@ -6,6 +6,8 @@
 //! and triangle.
 
 pub mod mesh;
+pub mod quadric;
 pub mod triangle;
 
 pub use mesh::{Attribute, Mesh, MeshError};
+pub use quadric::{Quadric, Tessellation};

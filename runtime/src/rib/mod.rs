@@ -1,0 +1,140 @@
+//! The RIB reader: ASCII RenderMan Interface Bytestream files parsed into typed [`Request`]s, and
+//! the conversion of their geometry into [`Mesh`](crate::geometry::Mesh)es ([`mesh`]).
+//!
+//! The reader parses; it builds no scene. An engine walks the requests in order, keeping the
+//! graphics state (attribute and transform stacks, current shaders) itself.
+//!
+//! Invariants:
+//! - parsing never fails and never panics: [`parse_str`] returns every request it could read and
+//!   a diagnostic for everything it could not. A syntax error drops the request it is in, and
+//!   reading resumes at the next request name, so one run reports every error;
+//! - unknown requests and parameters of unknown type are warnings, and are skipped;
+//! - `ReadArchive` is expanded in place (paths relative to the including file), so the request list
+//!   never contains it; cycles and nesting deeper than [`MAX_ARCHIVE_DEPTH`] are errors;
+//! - `Declare` is global, as in RenderMan: a declaration holds for the rest of the stream, archives
+//!   included;
+//! - every parameter's value count is checked against its declaration (see [`request`]).
+
+pub mod decl;
+pub mod lex;
+pub mod mesh;
+mod parse;
+pub mod request;
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+pub use decl::{Class, Decl, DeclTable, Ty};
+pub use mesh::mesh_from_request;
+pub use request::{
+    find_param, Basis, Handle, Location, Orientation, Param, ParamValue, PatchType, Request, RequestKind, Shader, Wrap,
+};
+
+/// How deeply `ReadArchive` may nest.
+pub const MAX_ARCHIVE_DEPTH: usize = 32;
+
+/// An error at a place in a RIB file.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("{loc}: {message}")]
+pub struct RibError {
+    /// Where.
+    pub loc: Location,
+    /// What went wrong.
+    pub message: String,
+}
+
+/// How bad a diagnostic is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Severity {
+    /// Something was skipped, but the file is otherwise fine.
+    Warning,
+    /// Part of the file could not be read.
+    Error,
+}
+
+/// A message about a RIB file.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct RibDiagnostic {
+    /// Error or warning.
+    pub severity: Severity,
+    /// Where.
+    pub loc: Location,
+    /// What.
+    pub message: String,
+}
+
+impl RibDiagnostic {
+    /// An error at `loc`.
+    pub fn error(loc: &Location, message: impl Into<String>) -> Self {
+        RibDiagnostic { severity: Severity::Error, loc: loc.clone(), message: message.into() }
+    }
+
+    /// A warning at `loc`.
+    pub fn warning(loc: &Location, message: impl Into<String>) -> Self {
+        RibDiagnostic { severity: Severity::Warning, loc: loc.clone(), message: message.into() }
+    }
+}
+
+impl fmt::Display for RibDiagnostic {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let level = match self.severity {
+            Severity::Warning => "warning",
+            Severity::Error => "error",
+        };
+        write!(f, "{}: {level}: {}", self.loc, self.message)
+    }
+}
+
+/// What reading a RIB stream produced.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct RibParse {
+    /// The requests, in order, archives expanded.
+    pub requests: Vec<Request>,
+    /// Errors and warnings, in the order they were found.
+    pub diagnostics: Vec<RibDiagnostic>,
+}
+
+impl RibParse {
+    /// Whether any diagnostic is an error.
+    pub fn has_errors(&self) -> bool {
+        self.diagnostics.iter().any(|d| d.severity == Severity::Error)
+    }
+
+    /// The errors only.
+    pub fn errors(&self) -> impl Iterator<Item = &RibDiagnostic> {
+        self.diagnostics.iter().filter(|d| d.severity == Severity::Error)
+    }
+}
+
+/// Parses RIB text. `file_name` names it in locations, and its directory is where relative
+/// `ReadArchive` paths are looked up.
+pub fn parse_str(text: &str, file_name: impl AsRef<Path>) -> RibParse {
+    parse_bytes(text.as_bytes(), file_name.as_ref())
+}
+
+/// Parses RIB bytes (non-ASCII bytes outside strings are errors; strings are read as UTF-8,
+/// invalid sequences replaced).
+pub fn parse_bytes(bytes: &[u8], file_name: &Path) -> RibParse {
+    let mut parser = parse::Parser::new();
+    let file: Arc<Path> = Arc::from(file_name);
+    parser.include_stack.extend(std::fs::canonicalize(file_name).ok());
+    parser.parse_file_text(bytes, file);
+    parser.finish()
+}
+
+/// Reads and parses a RIB file. Only failing to read `path` itself is an `Err`; everything else,
+/// archives that cannot be read included, is a diagnostic.
+pub fn parse_file(path: impl AsRef<Path>) -> Result<RibParse, RibError> {
+    let path = path.as_ref();
+    let bytes = std::fs::read(path).map_err(|e| RibError {
+        loc: Location { file: Arc::from(path), line: 0, column: 0 },
+        message: format!("cannot read RIB file: {e}"),
+    })?;
+    Ok(parse_bytes(&bytes, path))
+}
+
+/// The directory relative `ReadArchive` paths in `file` are resolved against.
+fn base_dir(file: &Path) -> PathBuf {
+    file.parent().map(Path::to_path_buf).unwrap_or_default()
+}

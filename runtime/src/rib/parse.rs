@@ -1,0 +1,660 @@
+//! The parser: tokens grouped into requests (a name and the arguments up to the next name), each
+//! then read by its request's signature into a [`RequestKind`].
+//!
+//! Recovery rests on RIB's shape: request names are the only bare words, so the next name is
+//! always a safe place to resume. An error inside a request drops that request (and reports only
+//! its first error); an error in one parameter drops only that parameter.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use super::decl::{self, Decl, DeclTable, Ty};
+use super::lex::{tokenize, Token, TokenKind};
+use super::request::{
+    Basis, Handle, Location, Orientation, Param, ParamValue, PatchType, Request, RequestKind as K, Shader, Wrap,
+};
+use super::{base_dir, RibDiagnostic, RibParse, MAX_ARCHIVE_DEPTH};
+use crate::geometry::quadric::Quadric;
+use glam::Vec3;
+
+type Result<T> = std::result::Result<T, RibDiagnostic>;
+
+/// One argument of a request, as written.
+#[derive(Clone, Debug)]
+enum ArgValue {
+    Number(f64),
+    Str(String),
+    /// `[ numbers ]`; also `[]`.
+    Numbers(Vec<f64>),
+    /// `[ strings ]`
+    Strings(Vec<String>),
+}
+
+impl ArgValue {
+    fn describe(&self) -> &'static str {
+        match self {
+            ArgValue::Number(_) => "a number",
+            ArgValue::Str(_) => "a string",
+            ArgValue::Numbers(_) => "an array of numbers",
+            ArgValue::Strings(_) => "an array of strings",
+        }
+    }
+}
+
+#[derive(Clone, Debug)]
+struct Arg {
+    value: ArgValue,
+    loc: Location,
+}
+
+/// The reading state of one RIB stream, shared by the files it includes.
+pub(super) struct Parser {
+    /// Canonical paths of the files being read, outermost first (for cycle detection).
+    pub(super) include_stack: Vec<PathBuf>,
+    /// Archive nesting depth of the file being read (the top file is 0).
+    depth: usize,
+    decls: DeclTable,
+    requests: Vec<Request>,
+    diagnostics: Vec<RibDiagnostic>,
+}
+
+fn location(file: &Arc<Path>, token: &Token) -> Location {
+    Location { file: file.clone(), line: token.line, column: token.column }
+}
+
+fn error(loc: &Location, message: impl Into<String>) -> RibDiagnostic {
+    RibDiagnostic::error(loc, message)
+}
+
+fn is_name(token: &Token) -> bool {
+    matches!(token.kind, TokenKind::Name(_))
+}
+
+impl Parser {
+    pub(super) fn new() -> Self {
+        Parser {
+            include_stack: Vec::new(),
+            depth: 0,
+            decls: DeclTable::new(),
+            requests: Vec::new(),
+            diagnostics: Vec::new(),
+        }
+    }
+
+    pub(super) fn finish(self) -> RibParse {
+        RibParse { requests: self.requests, diagnostics: self.diagnostics }
+    }
+
+    /// Reads one file's text, appending its requests.
+    pub(super) fn parse_file_text(&mut self, bytes: &[u8], file: Arc<Path>) {
+        let tokens = tokenize(bytes);
+        let mut pos = 0;
+        while let Some(token) = tokens.get(pos) {
+            let loc = location(&file, token);
+            pos += 1;
+            let TokenKind::Name(name) = &token.kind else {
+                let message = match &token.kind {
+                    TokenKind::Error(message) => message.clone(),
+                    TokenKind::Number(_) => "expected a request name, found a number".into(),
+                    TokenKind::Str(_) => "expected a request name, found a string".into(),
+                    TokenKind::OpenBracket => "expected a request name, found `[`".into(),
+                    _ => "expected a request name, found `]`".into(),
+                };
+                self.diagnostics.push(error(&loc, message));
+                while tokens.get(pos).is_some_and(|t| !is_name(t)) {
+                    pos += 1;
+                }
+                continue;
+            };
+            match collect_args(&tokens, &mut pos, &file) {
+                Ok(args) => self.request(name, loc, &args),
+                Err(diagnostic) => self.diagnostics.push(diagnostic),
+            }
+        }
+    }
+
+    fn request(&mut self, name: &str, loc: Location, args: &[Arg]) {
+        if name == "ReadArchive" {
+            if let Err(diagnostic) = self.read_archive(&loc, args) {
+                self.diagnostics.push(diagnostic);
+            }
+            return;
+        }
+        let mut args = Args { request: name, loc: &loc, items: args, pos: 0 };
+        let kind = self.build(name, &mut args).and_then(|kind| args.finish().map(|()| kind));
+        match kind {
+            Ok(Some(kind)) => {
+                if let K::Declare { name, decl } = &kind {
+                    self.decls.declare(name, *decl);
+                }
+                self.requests.push(Request { kind, loc });
+            }
+            Ok(None) => {
+                self.diagnostics.push(RibDiagnostic::warning(&loc, format!("unknown request `{name}` skipped")))
+            }
+            Err(diagnostic) => self.diagnostics.push(diagnostic),
+        }
+    }
+
+    /// Reads the arguments of request `name`; `Ok(None)` for a request this reader does not know.
+    fn build(&mut self, name: &str, a: &mut Args) -> Result<Option<K>> {
+        let kind = match name {
+            "version" => K::Version(a.float("version number")?),
+            "Format" => K::Format {
+                xres: a.int("xresolution")?,
+                yres: a.int("yresolution")?,
+                pixel_aspect: a.float("pixel aspect ratio")?,
+            },
+            "FrameAspectRatio" => K::FrameAspectRatio(a.float("frame aspect ratio")?),
+            "ScreenWindow" => K::ScreenWindow(a.floats("left right bottom top")?),
+            "CropWindow" => K::CropWindow(a.floats("xmin xmax ymin ymax")?),
+            "Projection" => K::Projection(self.shader(a)?),
+            "Clipping" => K::Clipping { near: a.float("near distance")?, far: a.float("far distance")? },
+            "DepthOfField" => K::DepthOfField(a.floats("fstop focallength focaldistance")?),
+            "Shutter" => K::Shutter(a.floats("open and close times")?),
+            "Display" => K::Display {
+                name: a.string("output name")?,
+                driver: a.string("display type")?,
+                mode: a.string("display mode")?,
+                params: self.params(a),
+            },
+            "PixelSamples" => K::PixelSamples { x: a.float("x samples")?, y: a.float("y samples")? },
+            "PixelFilter" => K::PixelFilter {
+                filter: a.string("filter name")?,
+                xwidth: a.float("x width")?,
+                ywidth: a.float("y width")?,
+            },
+            "Exposure" => K::Exposure { gain: a.float("gain")?, gamma: a.float("gamma")? },
+            "ShadingRate" => K::ShadingRate(a.float("shading rate")?),
+            "Option" => K::Option(self.shader(a)?),
+            "Attribute" => K::Attribute(self.shader(a)?),
+            "Imager" => K::Imager(self.shader(a)?),
+            "Camera" => K::Camera(self.shader(a)?),
+            "Pixel" => K::Pixel(self.shader(a)?),
+            "Surface" => K::Surface(self.shader(a)?),
+            "Displacement" => K::Displacement(self.shader(a)?),
+            "Atmosphere" => K::Atmosphere(self.shader(a)?),
+            "Interior" => K::Interior(self.shader(a)?),
+            "Exterior" => K::Exterior(self.shader(a)?),
+            "FrameBegin" => K::FrameBegin(if a.is_done() { None } else { Some(a.int("frame number")?) }),
+            "FrameEnd" => K::FrameEnd,
+            "WorldBegin" => K::WorldBegin,
+            "WorldEnd" => K::WorldEnd,
+            "AttributeBegin" => K::AttributeBegin,
+            "AttributeEnd" => K::AttributeEnd,
+            "TransformBegin" => K::TransformBegin,
+            "TransformEnd" => K::TransformEnd,
+            "ObjectBegin" => K::ObjectBegin(a.handle("object handle")?),
+            "ObjectEnd" => K::ObjectEnd,
+            "ObjectInstance" => K::ObjectInstance(a.handle("object handle")?),
+            "Identity" => K::Identity,
+            "Transform" => K::Transform(a.floats("4x4 matrix")?),
+            "ConcatTransform" => K::ConcatTransform(a.floats("4x4 matrix")?),
+            "Perspective" => K::Perspective(a.float("field of view")?),
+            "Translate" => K::Translate(a.floats("dx dy dz")?),
+            "Rotate" => K::Rotate { angle: a.float("angle")?, axis: a.floats("axis dx dy dz")? },
+            "Scale" => K::Scale(a.floats("sx sy sz")?),
+            "Skew" => K::Skew(a.floats("angle dx1 dy1 dz1 dx2 dy2 dz2")?),
+            "CoordinateSystem" => K::CoordinateSystem(a.string("coordinate system name")?),
+            "CoordSysTransform" => K::CoordSysTransform(a.string("coordinate system name")?),
+            "LightSource" => {
+                let (shader, handle) = self.light(a)?;
+                K::LightSource { shader, handle }
+            }
+            "AreaLightSource" => {
+                let (shader, handle) = self.light(a)?;
+                K::AreaLightSource { shader, handle }
+            }
+            "Illuminate" => K::Illuminate { light: a.handle("light handle")?, on: a.int("on/off flag")? != 0 },
+            "Color" => K::Color(a.floats("r g b")?),
+            "Opacity" => K::Opacity(a.floats("r g b")?),
+            "Declare" => {
+                let name = a.string("declared name")?;
+                let (text, loc) = a.string_at("declaration")?;
+                let decl = decl::parse_declaration(&text).map_err(|m| error(&loc, m))?;
+                K::Declare { name, decl }
+            }
+            "Sides" => K::Sides(a.int("number of sides")?),
+            "Orientation" => {
+                let (text, loc) = a.string_at("orientation")?;
+                K::Orientation(match text.as_str() {
+                    "outside" => Orientation::Outside,
+                    "inside" => Orientation::Inside,
+                    "lh" => Orientation::LeftHanded,
+                    "rh" => Orientation::RightHanded,
+                    other => {
+                        return Err(error(
+                            &loc,
+                            format!(
+                                "unknown orientation \"{other}\" (expected \"outside\", \"inside\", \"lh\" or \"rh\")"
+                            ),
+                        ))
+                    }
+                })
+            }
+            "ReverseOrientation" => K::ReverseOrientation,
+            "Matte" => K::Matte(a.int("on/off flag")? != 0),
+            "Basis" => K::Basis { u: a.basis()?, ustep: a.int("u step")?, v: a.basis()?, vstep: a.int("v step")? },
+            "Polygon" => K::Polygon(self.params(a)),
+            "GeneralPolygon" => K::GeneralPolygon { nvertices: a.ints("vertices per loop")?, params: self.params(a) },
+            "PointsPolygons" => K::PointsPolygons {
+                nvertices: a.ints("vertices per polygon")?,
+                vertices: a.ints("vertex indices")?,
+                params: self.params(a),
+            },
+            "PointsGeneralPolygons" => K::PointsGeneralPolygons {
+                nloops: a.ints("loops per polygon")?,
+                nvertices: a.ints("vertices per loop")?,
+                vertices: a.ints("vertex indices")?,
+                params: self.params(a),
+            },
+            "Patch" => K::Patch { ty: a.patch_type()?, params: self.params(a) },
+            "PatchMesh" => K::PatchMesh {
+                ty: a.patch_type()?,
+                nu: a.int("nu")?,
+                uwrap: a.wrap()?,
+                nv: a.int("nv")?,
+                vwrap: a.wrap()?,
+                params: self.params(a),
+            },
+            "Sphere" => {
+                let [radius, zmin, zmax, thetamax] = a.floats("radius zmin zmax thetamax")?;
+                self.quadric(a, Quadric::Sphere { radius, zmin, zmax, thetamax })
+            }
+            "Cylinder" => {
+                let [radius, zmin, zmax, thetamax] = a.floats("radius zmin zmax thetamax")?;
+                self.quadric(a, Quadric::Cylinder { radius, zmin, zmax, thetamax })
+            }
+            "Cone" => {
+                let [height, radius, thetamax] = a.floats("height radius thetamax")?;
+                self.quadric(a, Quadric::Cone { height, radius, thetamax })
+            }
+            "Disk" => {
+                let [height, radius, thetamax] = a.floats("height radius thetamax")?;
+                self.quadric(a, Quadric::Disk { height, radius, thetamax })
+            }
+            "Torus" => {
+                let [major_radius, minor_radius, phimin, phimax, thetamax] =
+                    a.floats("majorradius minorradius phimin phimax thetamax")?;
+                self.quadric(a, Quadric::Torus { major_radius, minor_radius, phimin, phimax, thetamax })
+            }
+            "Paraboloid" => {
+                let [rmax, zmin, zmax, thetamax] = a.floats("rmax zmin zmax thetamax")?;
+                self.quadric(a, Quadric::Paraboloid { rmax, zmin, zmax, thetamax })
+            }
+            "Hyperboloid" => {
+                let [x1, y1, z1, x2, y2, z2, thetamax] = a.floats("x1 y1 z1 x2 y2 z2 thetamax")?;
+                let (point1, point2) = (Vec3::new(x1, y1, z1), Vec3::new(x2, y2, z2));
+                self.quadric(a, Quadric::Hyperboloid { point1, point2, thetamax })
+            }
+            "MakeTexture" => K::MakeTexture {
+                picture: a.string("picture file")?,
+                texture: a.string("texture file")?,
+                swrap: a.string("s wrap mode")?,
+                twrap: a.string("t wrap mode")?,
+                filter: a.string("filter name")?,
+                swidth: a.float("s filter width")?,
+                twidth: a.float("t filter width")?,
+                params: self.params(a),
+            },
+            _ => return Ok(None),
+        };
+        Ok(Some(kind))
+    }
+
+    fn quadric(&mut self, a: &mut Args, quadric: Quadric) -> K {
+        K::Quadric { quadric, params: self.params(a) }
+    }
+
+    fn shader(&mut self, a: &mut Args) -> Result<Shader> {
+        let name = a.string("name")?;
+        Ok(Shader { name, params: self.params(a) })
+    }
+
+    /// `LightSource "name" [handle] params`: the handle is a number, or a string that leaves an
+    /// even number of arguments (parameter lists come in pairs).
+    fn light(&mut self, a: &mut Args) -> Result<(Shader, Option<Handle>)> {
+        let name = a.string("shader name")?;
+        let handle = match a.peek() {
+            Some(ArgValue::Number(_) | ArgValue::Numbers(_)) => Some(a.handle("light handle")?),
+            Some(ArgValue::Str(_)) if a.remaining() % 2 == 1 => Some(a.handle("light handle")?),
+            _ => None,
+        };
+        Ok((Shader { name, params: self.params(a) }, handle))
+    }
+
+    /// The rest of the arguments as a parameter list.
+    fn params(&mut self, a: &mut Args) -> Vec<Param> {
+        let mut params = Vec::new();
+        while let Some(name_arg) = a.items.get(a.pos) {
+            let ArgValue::Str(written) = &name_arg.value else {
+                self.diagnostics.push(error(
+                    &name_arg.loc,
+                    format!(
+                        "expected a parameter name (a string) in `{}`'s parameter list, found {}",
+                        a.request,
+                        name_arg.value.describe()
+                    ),
+                ));
+                a.pos = a.items.len();
+                break;
+            };
+            let Some(value_arg) = a.items.get(a.pos + 1) else {
+                self.diagnostics.push(error(&name_arg.loc, format!("parameter \"{written}\" has no value")));
+                a.pos = a.items.len();
+                break;
+            };
+            a.pos += 2;
+            if let Some(param) = self.param(written, &name_arg.loc, value_arg) {
+                params.push(param);
+            }
+        }
+        params
+    }
+
+    fn param(&mut self, written: &str, loc: &Location, value: &Arg) -> Option<Param> {
+        let (decl, name) = if decl::is_inline(written) {
+            match decl::parse_inline(written) {
+                Ok(found) => found,
+                Err(message) => {
+                    self.diagnostics.push(error(loc, message));
+                    return None;
+                }
+            }
+        } else if let Some(decl) = self.decls.get(written) {
+            (decl, written.to_string())
+        } else {
+            self.diagnostics.push(RibDiagnostic::warning(
+                loc,
+                format!(
+                    "parameter \"{written}\" has no declaration and is skipped (declare it with `Declare` or \
+                     write its type inline, e.g. \"uniform float {written}\")"
+                ),
+            ));
+            return None;
+        };
+        match convert_value(&decl, &value.value) {
+            Ok(value) => Some(Param { name, decl, value, loc: loc.clone() }),
+            Err(message) => {
+                self.diagnostics.push(error(&value.loc, format!("parameter \"{name}\" ({decl}): {message}")));
+                None
+            }
+        }
+    }
+
+    /// Expands `ReadArchive "file"` in place.
+    fn read_archive(&mut self, loc: &Location, args: &[Arg]) -> Result<()> {
+        let mut a = Args { request: "ReadArchive", loc, items: args, pos: 0 };
+        let name = a.string("archive file name")?;
+        a.finish()?;
+        if self.depth >= MAX_ARCHIVE_DEPTH {
+            return Err(error(loc, format!("archives nest deeper than {MAX_ARCHIVE_DEPTH} (at \"{name}\")")));
+        }
+        let path = base_dir(&loc.file).join(&name);
+        let unreadable = |e: std::io::Error| error(loc, format!("cannot read archive \"{}\": {e}", path.display()));
+        let canonical = std::fs::canonicalize(&path).map_err(unreadable)?;
+        if self.include_stack.contains(&canonical) {
+            return Err(error(loc, format!("archive \"{}\" includes itself (a ReadArchive cycle)", path.display())));
+        }
+        let bytes = std::fs::read(&canonical).map_err(unreadable)?;
+        self.include_stack.push(canonical);
+        self.depth += 1;
+        self.parse_file_text(&bytes, Arc::from(path.as_path()));
+        self.depth -= 1;
+        self.include_stack.pop();
+        Ok(())
+    }
+}
+
+/// Collects the arguments after a request name, up to the next name. On error the rest of the
+/// request is skipped and the first error returned.
+fn collect_args(tokens: &[Token], pos: &mut usize, file: &Arc<Path>) -> Result<Vec<Arg>> {
+    let mut args = Vec::new();
+    let mut first_error = None;
+    while let Some(token) = tokens.get(*pos).filter(|t| !is_name(t)) {
+        let loc = location(file, token);
+        *pos += 1;
+        let arg = match &token.kind {
+            TokenKind::Number(x) => Ok(ArgValue::Number(*x)),
+            TokenKind::Str(s) => Ok(ArgValue::Str(s.clone())),
+            TokenKind::OpenBracket => collect_array(tokens, pos, file, &loc),
+            TokenKind::CloseBracket => Err(error(&loc, "`]` without a matching `[`")),
+            TokenKind::Error(message) => Err(error(&loc, message.clone())),
+            TokenKind::Name(_) => unreachable!("the loop stops at names"),
+        };
+        match arg {
+            Ok(value) => args.push(Arg { value, loc }),
+            Err(diagnostic) => {
+                first_error.get_or_insert(diagnostic);
+            }
+        }
+    }
+    match first_error {
+        None => Ok(args),
+        Some(diagnostic) => Err(diagnostic),
+    }
+}
+
+/// The elements of an array whose `[` was just read: all numbers or all strings.
+fn collect_array(tokens: &[Token], pos: &mut usize, file: &Arc<Path>, open: &Location) -> Result<ArgValue> {
+    let mut numbers = Vec::new();
+    let mut strings = Vec::new();
+    loop {
+        let Some(token) = tokens.get(*pos).filter(|t| !is_name(t)) else {
+            return Err(error(open, "`[` is never closed"));
+        };
+        *pos += 1;
+        match &token.kind {
+            TokenKind::CloseBracket => break,
+            TokenKind::Number(x) => numbers.push(*x),
+            TokenKind::Str(s) => strings.push(s.clone()),
+            TokenKind::OpenBracket => return Err(error(&location(file, token), "arrays do not nest in RIB")),
+            TokenKind::Error(message) => return Err(error(&location(file, token), message.clone())),
+            TokenKind::Name(_) => unreachable!("the loop stops at names"),
+        }
+        if !numbers.is_empty() && !strings.is_empty() {
+            return Err(error(&location(file, token), "an array mixes numbers and strings"));
+        }
+    }
+    Ok(if strings.is_empty() { ArgValue::Numbers(numbers) } else { ArgValue::Strings(strings) })
+}
+
+fn to_int(x: f64) -> std::result::Result<i32, String> {
+    if x.fract() == 0.0 && x >= f64::from(i32::MIN) && x <= f64::from(i32::MAX) {
+        Ok(x as i32)
+    } else {
+        Err(format!("{x} is not an integer"))
+    }
+}
+
+/// Types a parameter's value by its declaration and checks the count.
+fn convert_value(decl: &Decl, value: &ArgValue) -> std::result::Result<ParamValue, String> {
+    use ArgValue as A;
+    let value = match (decl.ty, value) {
+        (Ty::String, A::Str(s)) => ParamValue::Strings(vec![s.clone()]),
+        (Ty::String, A::Strings(v)) => ParamValue::Strings(v.clone()),
+        (Ty::String, _) => return Err(format!("expected strings, found {}", value.describe())),
+        (Ty::Integer, A::Number(x)) => ParamValue::Ints(vec![to_int(*x)?]),
+        (Ty::Integer, A::Numbers(v)) => {
+            ParamValue::Ints(v.iter().map(|&x| to_int(x)).collect::<std::result::Result<_, _>>()?)
+        }
+        (Ty::Integer, _) => return Err(format!("expected integers, found {}", value.describe())),
+        (_, A::Number(x)) => ParamValue::Floats(vec![*x as f32]),
+        (_, A::Numbers(v)) => ParamValue::Floats(v.iter().map(|&x| x as f32).collect()),
+        (_, _) => return Err(format!("expected numbers, found {}", value.describe())),
+    };
+    let per_value = decl.components();
+    if value.is_empty() {
+        Err("no values given".to_string())
+    } else if value.len() % per_value != 0 {
+        Err(format!("{} numbers given, which is not a multiple of {per_value} (numbers per value)", value.len()))
+    } else {
+        Ok(value)
+    }
+}
+
+/// A cursor over a request's arguments, reading them by the request's signature.
+struct Args<'a> {
+    request: &'a str,
+    loc: &'a Location,
+    items: &'a [Arg],
+    pos: usize,
+}
+
+impl<'a> Args<'a> {
+    fn is_done(&self) -> bool {
+        self.pos >= self.items.len()
+    }
+
+    fn remaining(&self) -> usize {
+        self.items.len().saturating_sub(self.pos)
+    }
+
+    fn peek(&self) -> Option<&'a ArgValue> {
+        self.items.get(self.pos).map(|a| &a.value)
+    }
+
+    fn next(&mut self, what: &str) -> Result<&'a Arg> {
+        let items = self.items;
+        let arg =
+            items.get(self.pos).ok_or_else(|| error(self.loc, format!("`{}` is missing its {what}", self.request)))?;
+        self.pos += 1;
+        Ok(arg)
+    }
+
+    /// `N` numbers, written singly or in arrays (`Translate 1 2 3` or `Translate [1 2 3]`).
+    fn floats<const N: usize>(&mut self, what: &str) -> Result<[f32; N]> {
+        let mut out = [0.0; N];
+        let mut n = 0;
+        while n < N {
+            let Some(arg) = self.items.get(self.pos) else {
+                let message = format!("`{}` needs {N} numbers ({what}) but has {n}", self.request);
+                return Err(error(self.loc, message));
+            };
+            match &arg.value {
+                ArgValue::Number(x) => {
+                    out[n] = *x as f32;
+                    n += 1;
+                }
+                ArgValue::Numbers(xs) if n + xs.len() <= N => {
+                    for &x in xs {
+                        out[n] = x as f32;
+                        n += 1;
+                    }
+                }
+                ArgValue::Numbers(xs) => {
+                    let message =
+                        format!("`{}` needs {N} numbers ({what}) but this array has {}", self.request, xs.len());
+                    return Err(error(&arg.loc, message));
+                }
+                other => {
+                    let message = format!("`{}` expects numbers ({what}), found {}", self.request, other.describe());
+                    return Err(error(&arg.loc, message));
+                }
+            }
+            self.pos += 1;
+        }
+        Ok(out)
+    }
+
+    fn float(&mut self, what: &str) -> Result<f32> {
+        let [x] = self.floats::<1>(what)?;
+        Ok(x)
+    }
+
+    fn int(&mut self, what: &str) -> Result<i32> {
+        let arg = self.next(what)?;
+        let x = match &arg.value {
+            ArgValue::Number(x) => *x,
+            ArgValue::Numbers(xs) if xs.len() == 1 => xs[0],
+            other => {
+                return Err(error(
+                    &arg.loc,
+                    format!("`{}` expects an integer ({what}), found {}", self.request, other.describe()),
+                ))
+            }
+        };
+        to_int(x).map_err(|m| error(&arg.loc, format!("`{}` expects an integer ({what}): {m}", self.request)))
+    }
+
+    /// An array of integers (a single number is accepted as a one-element array).
+    fn ints(&mut self, what: &str) -> Result<Vec<i32>> {
+        let arg = self.next(what)?;
+        let numbers = match &arg.value {
+            ArgValue::Number(x) => std::slice::from_ref(x),
+            ArgValue::Numbers(xs) => xs.as_slice(),
+            other => {
+                let message =
+                    format!("`{}` expects an array of integers ({what}), found {}", self.request, other.describe());
+                return Err(error(&arg.loc, message));
+            }
+        };
+        numbers
+            .iter()
+            .map(|&x| to_int(x))
+            .collect::<std::result::Result<_, _>>()
+            .map_err(|m| error(&arg.loc, format!("`{}` expects integers ({what}): {m}", self.request)))
+    }
+
+    /// A string and where it was written (a one-element string array is accepted too).
+    fn string_at(&mut self, what: &str) -> Result<(String, Location)> {
+        let arg = self.next(what)?;
+        match &arg.value {
+            ArgValue::Str(s) => Ok((s.clone(), arg.loc.clone())),
+            ArgValue::Strings(v) if v.len() == 1 => Ok((v[0].clone(), arg.loc.clone())),
+            other => Err(error(
+                &arg.loc,
+                format!("`{}` expects a string ({what}), found {}", self.request, other.describe()),
+            )),
+        }
+    }
+
+    fn string(&mut self, what: &str) -> Result<String> {
+        self.string_at(what).map(|(s, _)| s)
+    }
+
+    fn handle(&mut self, what: &str) -> Result<Handle> {
+        match self.peek() {
+            Some(ArgValue::Str(_) | ArgValue::Strings(_)) => Ok(Handle::Name(self.string(what)?)),
+            _ => Ok(Handle::Number(self.int(what)?)),
+        }
+    }
+
+    fn patch_type(&mut self) -> Result<PatchType> {
+        let (text, loc) = self.string_at("patch type")?;
+        match text.as_str() {
+            "bilinear" => Ok(PatchType::Bilinear),
+            "bicubic" => Ok(PatchType::Bicubic),
+            other => Err(error(&loc, format!("unknown patch type \"{other}\" (expected \"bilinear\" or \"bicubic\")"))),
+        }
+    }
+
+    fn wrap(&mut self) -> Result<Wrap> {
+        let (text, loc) = self.string_at("wrap mode")?;
+        match text.as_str() {
+            "periodic" => Ok(Wrap::Periodic),
+            "nonperiodic" => Ok(Wrap::NonPeriodic),
+            other => {
+                Err(error(&loc, format!("unknown wrap mode \"{other}\" (expected \"periodic\" or \"nonperiodic\")")))
+            }
+        }
+    }
+
+    fn basis(&mut self) -> Result<Basis> {
+        match self.peek() {
+            Some(ArgValue::Str(_) | ArgValue::Strings(_)) => Ok(Basis::Named(self.string("basis name")?)),
+            _ => Ok(Basis::Matrix(self.floats("basis matrix")?)),
+        }
+    }
+
+    /// Checks that every argument was used.
+    fn finish(&self) -> Result<()> {
+        match self.items.get(self.pos) {
+            None => Ok(()),
+            Some(extra) => Err(error(
+                &extra.loc,
+                format!("unexpected extra argument to `{}`: {}", self.request, extra.value.describe()),
+            )),
+        }
+    }
+}

@@ -1,0 +1,455 @@
+//! The typed requests a RIB stream holds, with their parameter lists.
+//!
+//! Invariants: every [`Param`]'s value count is a non-zero multiple of its declaration's
+//! components ([`Decl::components`]), and its value variant matches the declared type (integers
+//! as [`ParamValue::Ints`], strings as [`ParamValue::Strings`], every other type as
+//! [`ParamValue::Floats`]). `ReadArchive` never appears: the parser expands it inline.
+
+use std::fmt;
+use std::path::Path;
+use std::sync::Arc;
+
+use super::decl::{Decl, Ty};
+use crate::geometry::quadric::Quadric;
+
+/// Where something is in a RIB file.
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+pub struct Location {
+    /// The file as it was named (the `parse_str` name, or an archive path joined to its
+    /// includer's directory).
+    pub file: Arc<Path>,
+    /// 1-based line; 0 when the location is the file as a whole (e.g. it could not be read).
+    pub line: u32,
+    /// 1-based column in characters; 0 with line 0.
+    pub column: u32,
+}
+
+impl fmt::Display for Location {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if self.line == 0 {
+            write!(f, "{}", self.file.display())
+        } else {
+            write!(f, "{}:{}:{}", self.file.display(), self.line, self.column)
+        }
+    }
+}
+
+/// A parameter's values.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ParamValue {
+    /// Every numeric type but `integer`, flattened (a colour is three floats).
+    Floats(Vec<f32>),
+    /// `integer` values.
+    Ints(Vec<i32>),
+    /// `string` values.
+    Strings(Vec<String>),
+}
+
+impl ParamValue {
+    /// Number of numbers or strings.
+    pub fn len(&self) -> usize {
+        match self {
+            ParamValue::Floats(v) => v.len(),
+            ParamValue::Ints(v) => v.len(),
+            ParamValue::Strings(v) => v.len(),
+        }
+    }
+
+    /// Whether there are no values (never true of a parsed parameter).
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// One `"name" value` pair of a parameter list, typed.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Param {
+    /// The bare name (an inline declaration's type words removed).
+    pub name: String,
+    /// Its declaration (inline, `Declare`d or predeclared).
+    pub decl: Decl,
+    /// Its values.
+    pub value: ParamValue,
+    /// Where the name was written.
+    pub loc: Location,
+}
+
+impl Param {
+    /// The values as floats, if the type is a float type.
+    pub fn floats(&self) -> Option<&[f32]> {
+        match &self.value {
+            ParamValue::Floats(v) => Some(v),
+            _ => None,
+        }
+    }
+
+    /// The values as integers, if the type is `integer`.
+    pub fn ints(&self) -> Option<&[i32]> {
+        match &self.value {
+            ParamValue::Ints(v) => Some(v),
+            _ => None,
+        }
+    }
+
+    /// The values as strings, if the type is `string`.
+    pub fn strings(&self) -> Option<&[String]> {
+        match &self.value {
+            ParamValue::Strings(v) => Some(v),
+            _ => None,
+        }
+    }
+
+    /// Number of values (numbers divided by the declaration's components).
+    pub fn value_count(&self) -> usize {
+        self.value.len() / self.decl.components()
+    }
+
+    /// Whether the values are of type `ty`.
+    pub fn is(&self, ty: Ty) -> bool {
+        self.decl.ty == ty
+    }
+}
+
+/// The first parameter called `name`.
+pub fn find_param<'a>(params: &'a [Param], name: &str) -> Option<&'a Param> {
+    params.iter().find(|p| p.name == name)
+}
+
+/// A shader (or other named, parameterised) statement: `Surface "plastic" "Kd" 0.5`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Shader {
+    /// The shader's name.
+    pub name: String,
+    /// Its parameter list.
+    pub params: Vec<Param>,
+}
+
+/// A light or object handle: RIB 3.2's sequence numbers, or the later string handles.
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+pub enum Handle {
+    /// `LightSource "spot" 1`, `ObjectBegin 1`.
+    Number(i32),
+    /// `LightSource "spot" "key"`, `ObjectBegin "tree"`.
+    Name(String),
+}
+
+/// `Orientation`'s argument.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Orientation {
+    /// `"outside"`: normals point out of the current coordinate system's handedness.
+    Outside,
+    /// `"inside"`
+    Inside,
+    /// `"lh"`
+    LeftHanded,
+    /// `"rh"`
+    RightHanded,
+}
+
+/// The patch type of `Patch` and `PatchMesh`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PatchType {
+    /// Four control points per patch.
+    Bilinear,
+    /// Sixteen control points per patch, under the current `Basis`.
+    Bicubic,
+}
+
+/// `PatchMesh`'s wrap mode in one direction.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Wrap {
+    /// The mesh closes on itself.
+    Periodic,
+    /// The mesh is open.
+    NonPeriodic,
+}
+
+/// A spline basis, for `Basis`.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Basis {
+    /// A standard basis by name (`"bezier"`, `"b-spline"`, `"catmull-rom"`, `"hermite"`,
+    /// `"power"`).
+    Named(String),
+    /// An explicit 4x4 basis matrix (row major, as written).
+    Matrix([f32; 16]),
+}
+
+/// A parsed request and where it was written.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Request {
+    /// What it asks for.
+    pub kind: RequestKind,
+    /// Where its name was written.
+    pub loc: Location,
+}
+
+/// Every request the reader understands. Angles are in degrees, as written.
+#[derive(Clone, Debug, PartialEq)]
+pub enum RequestKind {
+    /// `version 3.03` (a header that RIB writers emit).
+    Version(f32),
+    // --- Options: camera and image.
+    /// `Format xres yres pixelaspect`
+    Format {
+        /// Width in pixels.
+        xres: i32,
+        /// Height in pixels.
+        yres: i32,
+        /// Pixel aspect ratio (negative: the renderer chooses).
+        pixel_aspect: f32,
+    },
+    /// `FrameAspectRatio ratio`
+    FrameAspectRatio(f32),
+    /// `ScreenWindow left right bottom top`
+    ScreenWindow([f32; 4]),
+    /// `CropWindow xmin xmax ymin ymax`
+    CropWindow([f32; 4]),
+    /// `Projection "name" params` (`"perspective"`, `"orthographic"`).
+    Projection(Shader),
+    /// `Clipping near far`
+    Clipping {
+        /// Near plane distance.
+        near: f32,
+        /// Far plane distance.
+        far: f32,
+    },
+    /// `DepthOfField fstop focallength focaldistance`
+    DepthOfField([f32; 3]),
+    /// `Shutter open close`
+    Shutter([f32; 2]),
+    /// `Display "name" "type" "mode" params`
+    Display {
+        /// Output name (file name).
+        name: String,
+        /// Display driver (`"file"`, `"framebuffer"`, `"tiff"`...).
+        driver: String,
+        /// Channels (`"rgb"`, `"rgba"`...).
+        mode: String,
+        /// Driver parameters.
+        params: Vec<Param>,
+    },
+    /// `PixelSamples xsamples ysamples`
+    PixelSamples {
+        /// Samples along x.
+        x: f32,
+        /// Samples along y.
+        y: f32,
+    },
+    /// `PixelFilter "name" xwidth ywidth`
+    PixelFilter {
+        /// Filter name (`"box"`, `"gaussian"`...).
+        filter: String,
+        /// Width in x.
+        xwidth: f32,
+        /// Width in y.
+        ywidth: f32,
+    },
+    /// `Exposure gain gamma`
+    Exposure {
+        /// Gain.
+        gain: f32,
+        /// Gamma.
+        gamma: f32,
+    },
+    /// `ShadingRate size` (accepted; a ray tracer shades per hit).
+    ShadingRate(f32),
+    /// `Option "name" params`
+    Option(Shader),
+    /// `Imager "name" params`
+    Imager(Shader),
+    /// OpenRT's `Camera "name" params`: a camera shader.
+    Camera(Shader),
+    /// OpenRT's `Pixel "name" params`: a pixel shader.
+    Pixel(Shader),
+    // --- Structure.
+    /// `FrameBegin n` (the number is optional here).
+    FrameBegin(Option<i32>),
+    /// `FrameEnd`
+    FrameEnd,
+    /// `WorldBegin`
+    WorldBegin,
+    /// `WorldEnd`
+    WorldEnd,
+    /// `AttributeBegin`
+    AttributeBegin,
+    /// `AttributeEnd`
+    AttributeEnd,
+    /// `TransformBegin`
+    TransformBegin,
+    /// `TransformEnd`
+    TransformEnd,
+    /// `ObjectBegin handle`
+    ObjectBegin(Handle),
+    /// `ObjectEnd`
+    ObjectEnd,
+    /// `ObjectInstance handle`
+    ObjectInstance(Handle),
+    // --- Transformations.
+    /// `Identity`
+    Identity,
+    /// `Transform [16 numbers]` (row major, RenderMan's row-vector convention, as written).
+    Transform([f32; 16]),
+    /// `ConcatTransform [16 numbers]`
+    ConcatTransform([f32; 16]),
+    /// `Perspective fov`
+    Perspective(f32),
+    /// `Translate dx dy dz`
+    Translate([f32; 3]),
+    /// `Rotate angle dx dy dz`
+    Rotate {
+        /// Angle in degrees.
+        angle: f32,
+        /// Axis.
+        axis: [f32; 3],
+    },
+    /// `Scale sx sy sz`
+    Scale([f32; 3]),
+    /// `Skew angle dx1 dy1 dz1 dx2 dy2 dz2`
+    Skew([f32; 7]),
+    /// `CoordinateSystem "name"`
+    CoordinateSystem(String),
+    /// `CoordSysTransform "name"`
+    CoordSysTransform(String),
+    // --- Attributes and shaders.
+    /// `Surface "name" params`
+    Surface(Shader),
+    /// `Displacement "name" params`
+    Displacement(Shader),
+    /// `Atmosphere "name" params`
+    Atmosphere(Shader),
+    /// `Interior "name" params`
+    Interior(Shader),
+    /// `Exterior "name" params`
+    Exterior(Shader),
+    /// `LightSource "name" handle params`
+    LightSource {
+        /// The light shader.
+        shader: Shader,
+        /// Its handle, for `Illuminate` (absent in some hand-written files).
+        handle: Option<Handle>,
+    },
+    /// `AreaLightSource "name" handle params`
+    AreaLightSource {
+        /// The light shader.
+        shader: Shader,
+        /// Its handle.
+        handle: Option<Handle>,
+    },
+    /// `Illuminate handle onoff`
+    Illuminate {
+        /// Which light.
+        light: Handle,
+        /// On (true) or off.
+        on: bool,
+    },
+    /// `Color [r g b]` or `Color r g b`
+    Color([f32; 3]),
+    /// `Opacity [r g b]`
+    Opacity([f32; 3]),
+    /// `Attribute "name" params`
+    Attribute(Shader),
+    /// `Declare "name" "class type"`
+    Declare {
+        /// The declared name.
+        name: String,
+        /// Its declaration.
+        decl: Decl,
+    },
+    /// `Sides 1|2`
+    Sides(i32),
+    /// `Orientation "outside"|"inside"|"lh"|"rh"`
+    Orientation(Orientation),
+    /// `ReverseOrientation`
+    ReverseOrientation,
+    /// `Matte onoff`
+    Matte(bool),
+    /// `Basis ustep vstep` with each basis a name or a matrix.
+    Basis {
+        /// The u basis.
+        u: Basis,
+        /// Its step.
+        ustep: i32,
+        /// The v basis.
+        v: Basis,
+        /// Its step.
+        vstep: i32,
+    },
+    // --- Geometry.
+    /// `Polygon params` (a convex polygon; `P` gives the vertices).
+    Polygon(Vec<Param>),
+    /// `GeneralPolygon [nvertices per loop] params` (first loop outer, the rest holes).
+    GeneralPolygon {
+        /// Vertices per loop.
+        nvertices: Vec<i32>,
+        /// Vertex data.
+        params: Vec<Param>,
+    },
+    /// `PointsPolygons [nvertices] [vertices] params`
+    PointsPolygons {
+        /// Vertices per polygon.
+        nvertices: Vec<i32>,
+        /// Vertex indices, polygon after polygon.
+        vertices: Vec<i32>,
+        /// Vertex data.
+        params: Vec<Param>,
+    },
+    /// `PointsGeneralPolygons [nloops] [nvertices] [vertices] params`
+    PointsGeneralPolygons {
+        /// Loops per polygon.
+        nloops: Vec<i32>,
+        /// Vertices per loop.
+        nvertices: Vec<i32>,
+        /// Vertex indices, loop after loop.
+        vertices: Vec<i32>,
+        /// Vertex data.
+        params: Vec<Param>,
+    },
+    /// `Patch "bilinear"|"bicubic" params`
+    Patch {
+        /// Patch type.
+        ty: PatchType,
+        /// Control points and other data.
+        params: Vec<Param>,
+    },
+    /// `PatchMesh type nu uwrap nv vwrap params`
+    PatchMesh {
+        /// Patch type.
+        ty: PatchType,
+        /// Control points along u.
+        nu: i32,
+        /// Wrap along u.
+        uwrap: Wrap,
+        /// Control points along v.
+        nv: i32,
+        /// Wrap along v.
+        vwrap: Wrap,
+        /// Control points and other data.
+        params: Vec<Param>,
+    },
+    /// `Sphere`, `Cylinder`, `Cone`, `Disk`, `Torus`, `Paraboloid`, `Hyperboloid`.
+    Quadric {
+        /// The shape and its parameters.
+        quadric: Quadric,
+        /// Further data (`Cs`, shader parameters...).
+        params: Vec<Param>,
+    },
+    /// `MakeTexture "picture" "texture" swrap twrap "filter" swidth twidth params`
+    MakeTexture {
+        /// Source image.
+        picture: String,
+        /// Texture file to write.
+        texture: String,
+        /// Wrap mode in s (`"periodic"`, `"black"`, `"clamp"`).
+        swrap: String,
+        /// Wrap mode in t.
+        twrap: String,
+        /// Filter name.
+        filter: String,
+        /// Filter width in s.
+        swidth: f32,
+        /// Filter width in t.
+        twidth: f32,
+        /// Further parameters.
+        params: Vec<Param>,
+    },
+}
