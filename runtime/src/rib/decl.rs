@@ -182,9 +182,11 @@ fn parse_words<'a, 'w>(words: &'a [&'w str]) -> Result<(Decl, &'a [&'w str]), St
     let ty = match rest.first() {
         Some(w) => match type_keyword(w) {
             Some(ty) => ty,
-            None => return Err(format!(
+            None => {
+                return Err(format!(
                 "unknown type `{w}` (expected float, integer, color, point, vector, normal, hpoint, string or matrix)"
-            )),
+            ))
+            }
         },
         None => return Err("declaration has no type".to_string()),
     };

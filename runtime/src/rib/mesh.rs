@@ -1,7 +1,757 @@
-//! Placeholder
-use super::{Request, RibDiagnostic};
-use crate::geometry::Mesh;
-/// todo
-pub fn mesh_from_request(_request: &Request, _diagnostics: &mut Vec<RibDiagnostic>) -> Option<Mesh> {
-    None
+//! Geometry requests to triangle [`Mesh`]es: polygons (with holes), bilinear patches and patch
+//! meshes, and quadrics.
+//!
+//! What goes where in the mesh:
+//! - `P` (or `Pw`, divided by `w`; `Pz` for patches) gives the positions;
+//! - `N` gives the per-vertex normals (normalised), `st` (or `s` and `t`) the uvs. Without them
+//!   patches and quadrics get their `(u, v)` parameters as uvs (over the whole patch mesh) and
+//!   their analytic normals; polygons get no normals and no uvs;
+//! - every other float-typed `vertex`, `varying`, `facevarying` or `uniform` parameter becomes a
+//!   named per-vertex [`Attribute`] (uniform values repeat at each vertex of their face);
+//! - `constant` parameters, integers and strings are not per-vertex data: the engine reads them
+//!   from the request's parameter list.
+//!
+//! Invariants: every mesh returned passes [`Mesh::validate`]. Polygons share vertices between
+//! faces unless a facevarying or uniform parameter needs per-corner values, in which case every
+//! face corner is a vertex of its own. Triangles keep the winding of the polygon as written
+//! (holes run either way). Malformed data (counts, indices) is an `Err` with a message, never a
+//! panic.
+
+use glam::{Vec2, Vec3};
+
+use super::decl::{Class, Ty};
+use super::request::{find_param, Param, PatchType, Request, RequestKind, Wrap};
+use super::RibDiagnostic;
+use crate::geometry::quadric::{tessellate_grid, Quadric, Tessellation};
+use crate::geometry::{Attribute, Mesh};
+
+/// Segments per side of a bilinear patch that is not flat (a flat one needs one).
+pub const DEFAULT_PATCH_SEGMENTS: u32 = 8;
+
+/// Polygons with more vertices than this are fanned instead of ear-clipped (ear clipping is
+/// quadratic; RIB polygons this large are in practice convex).
+const MAX_EAR_CLIP_VERTICES: usize = 4096;
+
+/// The mesh of a geometry request with default tessellation, or `None` for requests that are not
+/// geometry or whose data is malformed (an error is pushed then). Warnings about dropped data are
+/// pushed too.
+pub fn mesh_from_request(request: &Request, diagnostics: &mut Vec<RibDiagnostic>) -> Option<Mesh> {
+    mesh_from_request_with(request, None, diagnostics)
+}
+
+/// [`mesh_from_request`] with a tessellation for quadrics and patches (per quadric, or per
+/// patch of a patch mesh) in place of the defaults.
+pub fn mesh_from_request_with(
+    request: &Request,
+    tessellation: Option<Tessellation>,
+    diagnostics: &mut Vec<RibDiagnostic>,
+) -> Option<Mesh> {
+    let mut warnings = Vec::new();
+    let result = match &request.kind {
+        RequestKind::Polygon(params) => polygon_mesh(params, &mut warnings),
+        RequestKind::GeneralPolygon { nvertices, params } => general_polygon_mesh(nvertices, params, &mut warnings),
+        RequestKind::PointsPolygons { nvertices, vertices, params } => {
+            points_polygons_mesh(nvertices, vertices, params, &mut warnings)
+        }
+        RequestKind::PointsGeneralPolygons { nloops, nvertices, vertices, params } => {
+            points_general_polygons_mesh(nloops, nvertices, vertices, params, &mut warnings)
+        }
+        RequestKind::Patch { ty: PatchType::Bilinear, params } => {
+            patch_mesh(2, Wrap::NonPeriodic, 2, Wrap::NonPeriodic, params, tessellation, &mut warnings)
+        }
+        RequestKind::PatchMesh { ty: PatchType::Bilinear, nu, uwrap, nv, vwrap, params } => {
+            patch_mesh(*nu, *uwrap, *nv, *vwrap, params, tessellation, &mut warnings)
+        }
+        RequestKind::Patch { ty: PatchType::Bicubic, .. } | RequestKind::PatchMesh { ty: PatchType::Bicubic, .. } => {
+            Err("bicubic patches are not supported yet: the patch is skipped".to_string())
+        }
+        RequestKind::Quadric { quadric, params } => quadric_mesh(quadric, tessellation, params, &mut warnings),
+        _ => return None,
+    };
+    diagnostics.extend(warnings.into_iter().map(|w| RibDiagnostic::warning(&request.loc, w)));
+    match result {
+        Ok(mesh) => Some(mesh),
+        Err(message) => {
+            diagnostics.push(RibDiagnostic::error(&request.loc, message));
+            None
+        }
+    }
+}
+
+/// `Polygon`: one convex polygon whose vertices are the `P` values.
+pub fn polygon_mesh(params: &[Param], warnings: &mut Vec<String>) -> Result<Mesh, String> {
+    let n = point_count(params)?;
+    general_polygon_mesh(&[n as i32], params, warnings)
+}
+
+/// `GeneralPolygon`: one polygon of several loops (the first the outline, the rest holes) whose
+/// vertices are the `P` values, loop after loop.
+pub fn general_polygon_mesh(nvertices: &[i32], params: &[Param], warnings: &mut Vec<String>) -> Result<Mesh, String> {
+    let total: i64 = nvertices.iter().map(|&n| i64::from(n)).sum();
+    let total = i32::try_from(total).map_err(|_| "too many vertices".to_string())?;
+    let vertices: Vec<i32> = (0..total.max(0)).collect();
+    let nloops = [i32::try_from(nvertices.len()).map_err(|_| "too many loops".to_string())?];
+    points_general_polygons_mesh(&nloops, nvertices, &vertices, params, warnings)
+}
+
+/// `PointsPolygons`: polygons indexing shared vertices.
+pub fn points_polygons_mesh(
+    nvertices: &[i32],
+    vertices: &[i32],
+    params: &[Param],
+    warnings: &mut Vec<String>,
+) -> Result<Mesh, String> {
+    let nloops = vec![1; nvertices.len()];
+    points_general_polygons_mesh(&nloops, nvertices, vertices, params, warnings)
+}
+
+/// `PointsGeneralPolygons`: polygons with holes indexing shared vertices.
+pub fn points_general_polygons_mesh(
+    nloops: &[i32],
+    nvertices: &[i32],
+    vertices: &[i32],
+    params: &[Param],
+    warnings: &mut Vec<String>,
+) -> Result<Mesh, String> {
+    let nloops = counts(nloops, 1, "loops per polygon")?;
+    let nvertices = counts(nvertices, 3, "vertices per loop")?;
+    if nloops.iter().sum::<usize>() != nvertices.len() {
+        return Err(format!(
+            "the polygons have {} loops in all but {} loop sizes are given",
+            nloops.iter().sum::<usize>(),
+            nvertices.len()
+        ));
+    }
+    if nvertices.iter().sum::<usize>() != vertices.len() {
+        return Err(format!(
+            "the loops have {} vertices in all but {} vertex indices are given",
+            nvertices.iter().sum::<usize>(),
+            vertices.len()
+        ));
+    }
+    let points = positions(params)?;
+    let vertices: Vec<u32> = vertices
+        .iter()
+        .map(|&v| u32::try_from(v).ok().filter(|&v| (v as usize) < points.len()))
+        .collect::<Option<_>>()
+        .ok_or_else(|| format!("a vertex index is negative or not below the number of points ({})", points.len()))?;
+
+    // Which polygon each corner belongs to, for uniform values.
+    let mut face_of_corner = Vec::with_capacity(vertices.len());
+    let mut loop_sizes = nvertices.iter();
+    for (face, &loops) in nloops.iter().enumerate() {
+        for size in loop_sizes.by_ref().take(loops) {
+            face_of_corner.extend(std::iter::repeat_n(face, *size));
+        }
+    }
+    let counts =
+        ClassCounts { vertex: points.len(), varying: points.len(), face: nloops.len(), corner: vertices.len() };
+    let data = per_vertex_params(params, &counts, warnings);
+    let per_corner = data.iter().any(|d| matches!(d.class, Class::Uniform | Class::FaceVarying));
+
+    let mut attributes = Vec::with_capacity(data.len());
+    let mesh_positions = if per_corner {
+        for d in &data {
+            let mut values = Vec::with_capacity(d.components * vertices.len());
+            for (corner, &vertex) in vertices.iter().enumerate() {
+                let index = match d.class {
+                    Class::Uniform => face_of_corner[corner],
+                    Class::FaceVarying => corner,
+                    _ => vertex as usize,
+                };
+                values.extend_from_slice(&d.values[index * d.components..(index + 1) * d.components]);
+            }
+            attributes.push(Attribute { name: d.name.clone(), components: d.components, data: values });
+        }
+        vertices.iter().map(|&v| points[v as usize]).collect()
+    } else {
+        for d in &data {
+            attributes.push(Attribute { name: d.name.clone(), components: d.components, data: d.values.to_vec() });
+        }
+        points
+    };
+
+    let mut triangles = Vec::with_capacity(vertices.len());
+    let mut corner = 0usize;
+    let mut loop_sizes = nvertices.iter();
+    for &loops in &nloops {
+        let mut polygon_loops = Vec::with_capacity(loops);
+        for &size in loop_sizes.by_ref().take(loops) {
+            let ids: Vec<u32> = if per_corner {
+                (corner as u32..(corner + size) as u32).collect()
+            } else {
+                vertices[corner..corner + size].to_vec()
+            };
+            polygon_loops.push(ids);
+            corner += size;
+        }
+        triangulate_polygon(&polygon_loops, &mesh_positions, &mut triangles);
+    }
+    let mut mesh = Mesh { positions: mesh_positions, triangles, ..Default::default() };
+    route_attributes(&mut mesh, attributes);
+    mesh.validate().map_err(|e| e.to_string())?;
+    Ok(mesh)
+}
+
+/// A bilinear patch mesh of `nu` x `nv` control points (`Patch "bilinear"` is 2 x 2). Each patch
+/// is tessellated on its own grid (one quad when flat).
+pub fn patch_mesh(
+    nu: i32,
+    uwrap: Wrap,
+    nv: i32,
+    vwrap: Wrap,
+    params: &[Param],
+    tessellation: Option<Tessellation>,
+    warnings: &mut Vec<String>,
+) -> Result<Mesh, String> {
+    let (nu, nv) = match (usize::try_from(nu), usize::try_from(nv)) {
+        (Ok(nu), Ok(nv)) if nu >= 2 && nv >= 2 => (nu, nv),
+        _ => return Err(format!("a bilinear patch mesh needs at least 2 x 2 control points, not {nu} x {nv}")),
+    };
+    let patches_along = |n: usize, wrap: Wrap| if wrap == Wrap::Periodic { n } else { n - 1 };
+    let (nu_patches, nv_patches) = (patches_along(nu, uwrap), patches_along(nv, vwrap));
+    let points = patch_points(params, nu, nv)?;
+    if points.len() != nu * nv {
+        return Err(format!("a {nu} x {nv} patch mesh needs {} control points, but P has {}", nu * nv, points.len()));
+    }
+    let counts = ClassCounts { vertex: nu * nv, varying: nu * nv, face: nu_patches * nv_patches, corner: usize::MAX };
+    let data: Vec<PerVertex> = per_vertex_params(params, &counts, warnings)
+        .into_iter()
+        .filter(|d| {
+            let keep = d.class != Class::FaceVarying;
+            if !keep {
+                warnings.push(format!("facevarying \"{}\" on a patch mesh is not supported and is dropped", d.name));
+            }
+            keep
+        })
+        .collect();
+
+    let mut mesh = Mesh { normals: Some(Vec::new()), uvs: Some(Vec::new()), ..Default::default() };
+    let mut attributes: Vec<Attribute> =
+        data.iter().map(|d| Attribute { name: d.name.clone(), components: d.components, data: Vec::new() }).collect();
+    for pj in 0..nv_patches {
+        for pi in 0..nu_patches {
+            let (i0, i1, j0, j1) = (pi, (pi + 1) % nu, pj, (pj + 1) % nv);
+            let corner_index = [i0 + nu * j0, i1 + nu * j0, i0 + nu * j1, i1 + nu * j1];
+            let corners = corner_index.map(|k| points[k]);
+            let flat = is_flat(corners);
+            let t = tessellation.unwrap_or(if flat {
+                Tessellation { u_segments: 1, v_segments: 1 }
+            } else {
+                Tessellation { u_segments: DEFAULT_PATCH_SEGMENTS, v_segments: DEFAULT_PATCH_SEGMENTS }
+            });
+            let patch = tessellate_grid(t.u_segments.clamp(1, 256), t.v_segments.clamp(1, 256), |u, v| {
+                (bilerp(corners, u, v), bilinear_normal(corners, u, v))
+            });
+            let local_uvs = patch.uvs.clone().unwrap_or_default();
+            for (attribute, d) in attributes.iter_mut().zip(&data) {
+                let face = pi + nu_patches * pj;
+                interpolate_corners(d, corner_index, face, &local_uvs, &mut attribute.data);
+            }
+            let global_uvs = local_uvs
+                .iter()
+                .map(|uv| Vec2::new((pi as f32 + uv.x) / nu_patches as f32, (pj as f32 + uv.y) / nv_patches as f32));
+            append(&mut mesh, patch, global_uvs);
+        }
+    }
+    route_attributes(&mut mesh, attributes);
+    mesh.validate().map_err(|e| e.to_string())?;
+    Ok(mesh)
+}
+
+/// A quadric's mesh, with its varying parameters (four values, at the corners of `(u, v)` space)
+/// interpolated over it.
+pub fn quadric_mesh(
+    quadric: &Quadric,
+    tessellation: Option<Tessellation>,
+    params: &[Param],
+    warnings: &mut Vec<String>,
+) -> Result<Mesh, String> {
+    let tessellation = tessellation.unwrap_or_else(|| quadric.default_tessellation());
+    let mut mesh = quadric
+        .tessellate(tessellation)
+        .map_err(|_| format!("{} has a parameter that is not a finite number", quadric.name()))?;
+    // Uniform values count one per surface, like constant ones: they are not per-vertex data.
+    let counts = ClassCounts { vertex: 4, varying: 4, face: 1, corner: 4 };
+    let uvs = mesh.uvs.clone().unwrap_or_default();
+    let mut attributes = Vec::new();
+    for d in per_vertex_params(params, &counts, warnings) {
+        if d.class == Class::Uniform {
+            continue;
+        }
+        let mut data = Vec::with_capacity(d.components * uvs.len());
+        interpolate_corners(&d, [0, 1, 2, 3], 0, &uvs, &mut data);
+        attributes.push(Attribute { name: d.name.clone(), components: d.components, data });
+    }
+    route_attributes(&mut mesh, attributes);
+    mesh.validate().map_err(|e| e.to_string())?;
+    Ok(mesh)
+}
+
+/// Values expected per storage class for one primitive.
+struct ClassCounts {
+    vertex: usize,
+    varying: usize,
+    /// Uniform values: one per face (polygon or patch).
+    face: usize,
+    /// Facevarying values: one per face corner.
+    corner: usize,
+}
+
+/// A float-typed parameter with per-vertex, per-corner or per-face values.
+struct PerVertex<'a> {
+    name: String,
+    class: Class,
+    components: usize,
+    values: &'a [f32],
+}
+
+/// The float parameters that are data over the surface (not positions), with counts checked: a
+/// parameter with the wrong count is dropped with a warning.
+fn per_vertex_params<'a>(params: &'a [Param], counts: &ClassCounts, warnings: &mut Vec<String>) -> Vec<PerVertex<'a>> {
+    let mut out = Vec::new();
+    for p in params {
+        let Some(values) = p.floats() else { continue };
+        if matches!(p.name.as_str(), "P" | "Pw" | "Pz" | "Np") || p.decl.class == Class::Constant {
+            continue;
+        }
+        let expected = match p.decl.class {
+            Class::Vertex => counts.vertex,
+            Class::Varying => counts.varying,
+            Class::Uniform => counts.face,
+            Class::FaceVarying => counts.corner,
+            Class::Constant => continue,
+        };
+        if p.value_count() != expected {
+            warnings.push(format!(
+                "\"{}\" ({}) has {} values where this primitive needs {expected}: it is dropped",
+                p.name,
+                p.decl,
+                p.value_count()
+            ));
+            continue;
+        }
+        out.push(PerVertex { name: p.name.clone(), class: p.decl.class, components: p.decl.components(), values });
+    }
+    out
+}
+
+/// Moves `N` into the normals and `st` (or `s` and `t`) into the uvs; the rest become attributes.
+fn route_attributes(mesh: &mut Mesh, attributes: Vec<Attribute>) {
+    let mut s = None;
+    let mut t = None;
+    for attribute in attributes {
+        match (attribute.name.as_str(), attribute.components) {
+            ("N", 3) => {
+                let normals =
+                    attribute.data.chunks_exact(3).map(|n| Vec3::from_slice(n).normalize_or(Vec3::Z)).collect();
+                mesh.normals = Some(normals);
+            }
+            ("st", 2) => mesh.uvs = Some(attribute.data.chunks_exact(2).map(Vec2::from_slice).collect()),
+            ("s", 1) => s = Some(attribute.data),
+            ("t", 1) => t = Some(attribute.data),
+            _ => mesh.attributes.push(attribute),
+        }
+    }
+    match (s, t) {
+        (Some(s), Some(t)) => mesh.uvs = Some(s.into_iter().zip(t).map(|(s, t)| Vec2::new(s, t)).collect()),
+        (Some(s), None) => mesh.attributes.push(Attribute { name: "s".into(), components: 1, data: s }),
+        (None, Some(t)) => mesh.attributes.push(Attribute { name: "t".into(), components: 1, data: t }),
+        (None, None) => {}
+    }
+}
+
+fn counts(values: &[i32], min: usize, what: &str) -> Result<Vec<usize>, String> {
+    values
+        .iter()
+        .map(|&n| usize::try_from(n).ok().filter(|&n| n >= min))
+        .collect::<Option<_>>()
+        .ok_or_else(|| format!("every count of {what} must be at least {min}"))
+}
+
+fn point_count(params: &[Param]) -> Result<usize, String> {
+    positions(params).map(|p| p.len())
+}
+
+/// The positions from `P` (points) or `Pw` (homogeneous points, divided by `w`).
+fn positions(params: &[Param]) -> Result<Vec<Vec3>, String> {
+    if let Some(p) = find_param(params, "P").filter(|p| p.decl.components() == 3) {
+        let values = p.floats().unwrap_or_default();
+        return Ok(values.chunks_exact(3).map(Vec3::from_slice).collect());
+    }
+    if let Some(p) = find_param(params, "Pw").filter(|p| p.decl.ty == Ty::HPoint && p.decl.array_len.is_none()) {
+        let values = p.floats().unwrap_or_default();
+        return Ok(values.chunks_exact(4).map(|h| Vec3::new(h[0], h[1], h[2]) / h[3]).collect());
+    }
+    Err("the primitive has no positions: give \"P\" (or \"Pw\")".to_string())
+}
+
+/// Patch control points: `P`, `Pw`, or the height field `Pz` over the unit square.
+fn patch_points(params: &[Param], nu: usize, nv: usize) -> Result<Vec<Vec3>, String> {
+    if let Some(pz) = find_param(params, "Pz").filter(|p| p.decl.components() == 1) {
+        let heights = pz.floats().unwrap_or_default();
+        if heights.len() != nu * nv {
+            return Err(format!("\"Pz\" has {} values, the patch mesh needs {}", heights.len(), nu * nv));
+        }
+        let coordinate = |i: usize, n: usize| i as f32 / (n - 1) as f32;
+        return Ok(heights
+            .iter()
+            .enumerate()
+            .map(|(k, &z)| Vec3::new(coordinate(k % nu, nu), coordinate(k / nu, nv), z))
+            .collect());
+    }
+    positions(params)
+}
+
+fn bilerp<T>(c: [T; 4], u: f32, v: f32) -> T
+where
+    T: Copy + std::ops::Mul<f32, Output = T> + std::ops::Add<Output = T>,
+{
+    c[0] * ((1.0 - u) * (1.0 - v)) + c[1] * (u * (1.0 - v)) + c[2] * ((1.0 - u) * v) + c[3] * (u * v)
+}
+
+/// `dP/du x dP/dv` of the bilinear patch with corners `c` (order `00 10 01 11`), normalised. Where
+/// it vanishes (a corner where two control points coincide) the normal is taken a little inside.
+fn bilinear_normal(c: [Vec3; 4], u: f32, v: f32) -> Vec3 {
+    let cross_at = |u: f32, v: f32| {
+        let dpdu = (c[1] - c[0]) * (1.0 - v) + (c[3] - c[2]) * v;
+        let dpdv = (c[2] - c[0]) * (1.0 - u) + (c[3] - c[1]) * u;
+        dpdu.cross(dpdv)
+    };
+    let n = cross_at(u, v);
+    let n = if n.length_squared() > 1e-20 { n } else { cross_at(0.5 + 0.99 * (u - 0.5), 0.5 + 0.99 * (v - 0.5)) };
+    n.normalize_or(Vec3::Z)
+}
+
+fn is_flat(c: [Vec3; 4]) -> bool {
+    let n = (c[1] - c[0]).cross(c[2] - c[0]);
+    let scale = c.iter().fold(0.0f32, |m, p| m.max((*p - c[0]).length()));
+    n.length_squared() == 0.0 || n.normalize().dot(c[3] - c[0]).abs() <= 1e-6 * scale
+}
+
+/// Appends to `out` the values of `d` at each local `(u, v)`: bilinear between the four corner
+/// values for vertex and varying data, the face's value for uniform data.
+fn interpolate_corners(d: &PerVertex, corner_index: [usize; 4], face: usize, uvs: &[Vec2], out: &mut Vec<f32>) {
+    let value = |k: usize, c: usize| d.values[k * d.components + c];
+    for uv in uvs {
+        for c in 0..d.components {
+            out.push(match d.class {
+                Class::Uniform => value(face, c),
+                _ => bilerp(corner_index.map(|k| value(k, c)), uv.x, uv.y),
+            });
+        }
+    }
+}
+
+/// Appends `part` (with normals) to `mesh`, with `uvs` in place of its own.
+fn append(mesh: &mut Mesh, part: Mesh, uvs: impl Iterator<Item = Vec2>) {
+    let offset = mesh.positions.len() as u32;
+    mesh.positions.extend(part.positions);
+    if let (Some(normals), Some(part_normals)) = (mesh.normals.as_mut(), part.normals) {
+        normals.extend(part_normals);
+    }
+    if let Some(mesh_uvs) = mesh.uvs.as_mut() {
+        mesh_uvs.extend(uvs);
+    }
+    mesh.triangles.extend(part.triangles.into_iter().map(|t| t.map(|i| i + offset)));
+}
+
+/// Triangulates one polygon given as loops of vertex ids (the first the outline, the rest holes)
+/// into `out`, keeping the outline's winding.
+fn triangulate_polygon(loops: &[Vec<u32>], positions: &[Vec3], out: &mut Vec<[u32; 3]>) {
+    let Some(outline) = loops.first() else { return };
+    let position = |id: u32| positions[id as usize];
+    if loops.len() == 1 && outline.len() == 3 {
+        out.push([outline[0], outline[1], outline[2]]);
+        return;
+    }
+    let fan = |ids: &[u32], out: &mut Vec<[u32; 3]>| {
+        for k in 1..ids.len().saturating_sub(1) {
+            out.push([ids[0], ids[k], ids[k + 1]]);
+        }
+    };
+    // Newell's normal of the outline: its direction is the side the outline winds
+    // counter-clockwise around, which is the 2D frame's +z, so the outline projects to a
+    // counter-clockwise ring.
+    let mut normal = Vec3::ZERO;
+    for (k, &id) in outline.iter().enumerate() {
+        let (a, b) = (position(id), position(outline[(k + 1) % outline.len()]));
+        normal += a.cross(b);
+    }
+    let total: usize = loops.iter().map(Vec::len).sum();
+    if !normal.is_finite() || normal.length_squared() < 1e-30 || total > MAX_EAR_CLIP_VERTICES {
+        fan(outline, out);
+        return;
+    }
+    let normal = normal.normalize();
+    let tangent = normal.any_orthonormal_vector();
+    let bitangent = normal.cross(tangent);
+    let project = |id: u32| {
+        let p = position(id);
+        Vertex2 { id, p: Vec2::new(p.dot(tangent), p.dot(bitangent)) }
+    };
+    let mut ring: Vec<Vertex2> = outline.iter().map(|&id| project(id)).collect();
+    let mut holes: Vec<Vec<Vertex2>> = loops[1..]
+        .iter()
+        .map(|hole| {
+            let mut hole: Vec<Vertex2> = hole.iter().map(|&id| project(id)).collect();
+            if signed_area(&hole) > 0.0 {
+                hole.reverse();
+            }
+            hole
+        })
+        .collect();
+    // Bridge holes to the outline, rightmost hole first, so each bridge stays clear of the
+    // holes still to come.
+    holes.sort_by(|a, b| max_x(b).total_cmp(&max_x(a)));
+    for k in 0..holes.len() {
+        let (hole, rest) = holes[k..].split_first().map(|(h, r)| (h.clone(), r)).unwrap_or_default();
+        bridge(&mut ring, &hole, rest);
+    }
+    ear_clip(ring, out);
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Vertex2 {
+    id: u32,
+    p: Vec2,
+}
+
+fn max_x(ring: &[Vertex2]) -> f32 {
+    ring.iter().fold(f32::NEG_INFINITY, |m, v| m.max(v.p.x))
+}
+
+fn signed_area(ring: &[Vertex2]) -> f32 {
+    let mut area = 0.0;
+    for (k, a) in ring.iter().enumerate() {
+        let b = ring[(k + 1) % ring.len()];
+        area += a.p.perp_dot(b.p);
+    }
+    area * 0.5
+}
+
+fn cross2(o: Vec2, a: Vec2, b: Vec2) -> f32 {
+    (a - o).perp_dot(b - o)
+}
+
+/// Whether segments `ab` and `cd` cross at a point inside both (touching endpoints do not count).
+fn segments_cross(a: Vec2, b: Vec2, c: Vec2, d: Vec2) -> bool {
+    let (d1, d2) = (cross2(a, b, c), cross2(a, b, d));
+    let (d3, d4) = (cross2(c, d, a), cross2(c, d, b));
+    d1 * d2 < 0.0 && d3 * d4 < 0.0
+}
+
+/// Splices `hole` into `ring` through a bridge from the hole's rightmost vertex to the nearest
+/// ring vertex it can see (no edge of the ring or of the `other` holes in the way).
+fn bridge(ring: &mut Vec<Vertex2>, hole: &[Vertex2], other: &[Vec<Vertex2>]) {
+    let Some((m_index, m)) = hole.iter().enumerate().max_by(|a, b| a.1.p.x.total_cmp(&b.1.p.x)) else { return };
+    let mut candidates: Vec<usize> = (0..ring.len()).collect();
+    candidates.sort_by(|&a, &b| ring[a].p.distance_squared(m.p).total_cmp(&ring[b].p.distance_squared(m.p)));
+    let edges =
+        |ring: &[Vertex2]| (0..ring.len()).map(move |k| (ring[k].p, ring[(k + 1) % ring.len()].p)).collect::<Vec<_>>();
+    let mut blocking = edges(ring);
+    blocking.extend(edges(hole));
+    for h in other {
+        blocking.extend(edges(h));
+    }
+    let visible = |v: Vec2| blocking.iter().all(|&(a, b)| !segments_cross(m.p, v, a, b));
+    let chosen = candidates.iter().copied().find(|&k| visible(ring[k].p)).unwrap_or(candidates[0]);
+    let mut spliced = Vec::with_capacity(ring.len() + hole.len() + 2);
+    spliced.extend_from_slice(&ring[..=chosen]);
+    spliced.extend(hole[m_index..].iter().chain(&hole[..=m_index]).copied());
+    spliced.push(ring[chosen]);
+    spliced.extend_from_slice(&ring[chosen + 1..]);
+    *ring = spliced;
+}
+
+/// Ear clipping of a counter-clockwise ring (possibly with bridge edges, where vertices repeat).
+/// If no ear can be found (degenerate input) the rest is fanned.
+fn ear_clip(mut ring: Vec<Vertex2>, out: &mut Vec<[u32; 3]>) {
+    let mut k = 0;
+    let mut misses = 0;
+    while ring.len() > 3 {
+        let n = ring.len();
+        let (a, b, c) = (ring[(k + n - 1) % n], ring[k % n], ring[(k + 1) % n]);
+        if is_ear(&ring, a, b, c) {
+            out.push([a.id, b.id, c.id]);
+            ring.remove(k % n);
+            misses = 0;
+        } else {
+            k = (k + 1) % n;
+            misses += 1;
+            if misses > n {
+                for j in 1..ring.len() - 1 {
+                    out.push([ring[0].id, ring[j].id, ring[j + 1].id]);
+                }
+                return;
+            }
+        }
+    }
+    if let [a, b, c] = ring[..] {
+        out.push([a.id, b.id, c.id]);
+    }
+}
+
+fn is_ear(ring: &[Vertex2], a: Vertex2, b: Vertex2, c: Vertex2) -> bool {
+    if cross2(a.p, b.p, c.p) <= 0.0 {
+        return false;
+    }
+    ring.iter().all(|v| {
+        let at_corner = v.p == a.p || v.p == b.p || v.p == c.p;
+        at_corner || !(cross2(a.p, b.p, v.p) >= 0.0 && cross2(b.p, c.p, v.p) >= 0.0 && cross2(c.p, a.p, v.p) >= 0.0)
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rib::parse_str;
+
+    fn only_mesh(text: &str) -> (Mesh, Vec<RibDiagnostic>) {
+        let parse = parse_str(text, "test.rib");
+        assert!(!parse.has_errors(), "{:?}", parse.diagnostics);
+        let mut diagnostics = Vec::new();
+        let mesh = mesh_from_request(&parse.requests[0], &mut diagnostics);
+        (mesh.unwrap_or_else(|| panic!("{diagnostics:?}")), diagnostics)
+    }
+
+    fn area(mesh: &Mesh) -> (f32, f32) {
+        let (mut signed, mut unsigned) = (0.0, 0.0);
+        for t in 0..mesh.triangle_count() {
+            let [a, b, c] = mesh.corners(t);
+            let n = (b - a).cross(c - a);
+            signed += 0.5 * n.z;
+            unsigned += 0.5 * n.length();
+        }
+        (signed, unsigned)
+    }
+
+    #[test]
+    fn polygon_keeps_data_and_winding() {
+        let (mesh, d) = only_mesh(
+            r#"Polygon "P" [0 0 0 1 0 0 1 1 0 0 1 0] "st" [0 0 1 0 1 1 0 1] "Cs" [1 0 0 0 1 0 0 0 1 1 1 1]
+                "N" [0 0 2 0 0 1 0 0 1 0 0 1] "constant float Kd" 0.5"#,
+        );
+        assert!(d.is_empty());
+        assert_eq!(mesh.triangle_count(), 2);
+        assert_eq!(area(&mesh), (1.0, 1.0));
+        assert_eq!(mesh.uvs.as_ref().unwrap()[2], Vec2::new(1.0, 1.0));
+        assert_eq!(mesh.normals.as_ref().unwrap()[0], Vec3::Z);
+        assert_eq!(mesh.attributes.len(), 1);
+        assert_eq!((mesh.attributes[0].name.as_str(), mesh.attributes[0].components), ("Cs", 3));
+    }
+
+    #[test]
+    fn general_polygon_with_holes() {
+        // A 4 x 4 square (clockwise, to check the winding is kept) with two 1 x 1 holes.
+        let (mesh, _) = only_mesh(
+            r#"GeneralPolygon [4 4 4] "P" [0 0 0  0 4 0  4 4 0  4 0 0
+                 1 1 0  2 1 0  2 2 0  1 2 0
+                 3 3 0  2.5 3 0  2.5 2.5 0  3 2.5 0]"#,
+        );
+        let (signed, unsigned) = area(&mesh);
+        assert!((signed + 14.75).abs() < 1e-4 && (unsigned - 14.75).abs() < 1e-4, "{signed} {unsigned}");
+        // 12 vertices, two of them repeated per bridge: 16 - 2 triangles.
+        assert_eq!(mesh.triangle_count(), 14);
+    }
+
+    #[test]
+    fn concave_polygon_is_ear_clipped() {
+        let (mesh, _) = only_mesh(r#"GeneralPolygon [6] "P" [0 0 0 4 0 0 4 4 0 2 1 0 0 4 0 0 2 0]"#);
+        let (signed, unsigned) = area(&mesh);
+        assert!((signed - 10.0).abs() < 1e-4 && (unsigned - 10.0).abs() < 1e-4, "{signed} {unsigned}");
+    }
+
+    #[test]
+    fn points_polygons_share_vertices_unless_uniform_data() {
+        let text = r#"PointsPolygons [3 3] [0 1 2 0 2 3] "P" [0 0 0 1 0 0 1 1 0 0 1 0]"#;
+        let (mesh, _) = only_mesh(text);
+        assert_eq!((mesh.positions.len(), mesh.triangles.clone()), (4, vec![[0, 1, 2], [0, 2, 3]]));
+        let (mesh, _) = only_mesh(&format!(
+            r#"{text} "uniform float id" [7 9] "facevarying float[2] st" [0 0 1 0 1 1 0 0 1 1 0 1]"#
+        ));
+        assert_eq!(mesh.positions.len(), 6);
+        assert_eq!(mesh.attributes[0].data, vec![7.0, 7.0, 7.0, 9.0, 9.0, 9.0]);
+        assert_eq!(mesh.uvs.as_ref().unwrap()[5], Vec2::new(0.0, 1.0));
+        mesh.validate().unwrap();
+    }
+
+    #[test]
+    fn points_general_polygons() {
+        let (mesh, _) = only_mesh(
+            r#"PointsGeneralPolygons [2 1] [4 3 3] [0 1 2 3 4 5 6 0 1 3]
+               "P" [0 0 0 3 0 0 3 3 0 0 3 0 1 1 0 2 1 0 1 2 0]"#,
+        );
+        let (signed, _) = area(&mesh);
+        assert!((signed - (9.0 - 0.5 + 4.5)).abs() < 1e-4, "{signed}");
+    }
+
+    #[test]
+    fn bad_polygon_data_is_an_error() {
+        for text in [
+            r#"PointsPolygons [3] [0 1 5] "P" [0 0 0 1 0 0 1 1 0]"#,
+            r#"PointsPolygons [3 3] [0 1 2] "P" [0 0 0 1 0 0 1 1 0]"#,
+            r#"PointsPolygons [2] [0 1] "P" [0 0 0 1 0 0]"#,
+            r#"PointsGeneralPolygons [2] [3] [0 1 2] "P" [0 0 0 1 0 0 1 1 0]"#,
+            r#"Polygon "Cs" [1 1 1]"#,
+        ] {
+            let parse = parse_str(text, "bad.rib");
+            let mut diagnostics = Vec::new();
+            assert!(mesh_from_request(&parse.requests[0], &mut diagnostics).is_none(), "{text}");
+            assert_eq!(diagnostics.len(), 1, "{text}: {diagnostics:?}");
+            assert!(diagnostics[0].to_string().starts_with("bad.rib:1:1: error: "));
+        }
+    }
+
+    #[test]
+    fn wrong_count_attribute_is_dropped_with_a_warning() {
+        let (mesh, d) = only_mesh(r#"Polygon "P" [0 0 0 1 0 0 1 1 0] "Cs" [1 0 0 0 1 0]"#);
+        assert!(mesh.attributes.is_empty());
+        assert!(d[0].message.contains("\"Cs\" (varying color) has 2 values where this primitive needs 3"));
+    }
+
+    #[test]
+    fn bilinear_patches() {
+        let (flat, _) = only_mesh(
+            r#"Patch "bilinear" "P" [0 0 0 1 0 0 0 1 0 1 1 0] "varying float s" [0 1 0 1] "varying float t" [0 0 1 1]"#,
+        );
+        assert_eq!(flat.triangle_count(), 2);
+        assert_eq!(flat.normals.as_ref().unwrap()[0], Vec3::Z);
+        assert_eq!(flat.uvs.as_ref().unwrap()[3], Vec2::new(1.0, 1.0));
+        let (warped, _) = only_mesh(r#"Patch "bilinear" "P" [0 0 0 1 0 0 0 1 0 1 1 1]"#);
+        assert_eq!(warped.triangle_count() as u32, 2 * DEFAULT_PATCH_SEGMENTS * DEFAULT_PATCH_SEGMENTS);
+        for (p, uv) in warped.positions.iter().zip(warped.uvs.as_ref().unwrap()) {
+            assert!((p.z - uv.x * uv.y).abs() < 1e-5); // z = u v on this patch
+        }
+        // A 3 x 2 mesh periodic in u: three patches around, uvs spanning the mesh.
+        let (ring, _) = only_mesh(
+            r#"PatchMesh "bilinear" 3 "periodic" 2 "nonperiodic" "P" [1 0 0 -1 1 0 -1 -1 0 1 0 1 -1 1 1 -1 -1 1] "Cs" [1 0 0 0 1 0 0 0 1 1 0 0 0 1 0 0 0 1]"#,
+        );
+        assert_eq!(ring.triangle_count(), 6);
+        assert_eq!(ring.attributes[0].data.len(), 3 * ring.positions.len());
+        let max_u = ring.uvs.as_ref().unwrap().iter().fold(0.0f32, |m, uv| m.max(uv.x));
+        assert_eq!(max_u, 1.0);
+        let mut diagnostics = Vec::new();
+        let bicubic = parse_str(r#"Patch "bicubic" "P" [0 0 0]"#, "b.rib");
+        assert!(mesh_from_request(&bicubic.requests[0], &mut diagnostics).is_none());
+        assert!(diagnostics[0].message.contains("bicubic patches are not supported"));
+    }
+
+    #[test]
+    fn quadric_with_varying_colour() {
+        let (mesh, _) = only_mesh(r#"Sphere 1 -1 1 360 "Cs" [1 0 0  0 1 0  0 0 1  1 1 1] "uniform float Kd" 1"#);
+        assert_eq!(mesh.attributes.len(), 1);
+        let cs = &mesh.attributes[0].data;
+        assert_eq!(&cs[..3], &[1.0, 0.0, 0.0]); // vertex (u, v) = (0, 0)
+        let last = cs.len() - 3;
+        assert_eq!(&cs[last..], &[1.0, 1.0, 1.0]); // vertex (1, 1)
+        let parse = parse_str("Sphere 1 -1 1 360", "s.rib");
+        let mesh = mesh_from_request_with(
+            &parse.requests[0],
+            Some(Tessellation { u_segments: 4, v_segments: 2 }),
+            &mut Vec::new(),
+        )
+        .unwrap();
+        assert_eq!(mesh.positions.len(), 15);
+    }
 }
