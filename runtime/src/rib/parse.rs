@@ -121,7 +121,10 @@ impl Parser {
             return;
         }
         let mut args = Args { request: name, loc: &loc, items: args, pos: 0 };
-        let kind = self.build(name, &mut args).and_then(|kind| args.finish().map(|()| kind));
+        let kind = match self.build(name, &mut args) {
+            Ok(Some(kind)) => args.finish().map(|()| Some(kind)),
+            other => other,
+        };
         match kind {
             Ok(Some(kind)) => {
                 if let K::Declare { name, decl } = &kind {

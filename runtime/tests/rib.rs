@@ -1,0 +1,487 @@
+//! The RIB reader through its public API: every request, declarations, archives, error
+//! locations and recovery, and robustness against random and mutated input.
+
+use std::path::Path;
+
+use proptest::prelude::*;
+use rtsl_runtime::geometry::Quadric;
+use rtsl_runtime::rib::{
+    self, mesh_from_request, Basis, Class, Decl, Handle, Orientation, ParamValue, PatchType, RequestKind as K,
+    RibParse, Severity, Ty, Wrap,
+};
+
+/// A scene using every request the reader knows.
+const EVERY_REQUEST: &str = r#"##RenderMan RIB
+version 3.03
+Option "searchpath" "shader" ["./shaders:&"]
+Declare "bump" "uniform float"
+Format 640 480 1
+FrameAspectRatio 1.333
+ScreenWindow -1.333 1.333 -1 1
+CropWindow [0 1 0 1]
+Projection "perspective" "fov" 45
+Clipping 0.1 1000
+DepthOfField 8 0.05 10
+Shutter 0 1
+Display "out.tif" "file" "rgba" "origin" [0 0]
+PixelSamples 4 4
+PixelFilter "gaussian" 2 2
+Exposure 1 2.2
+ShadingRate 1
+Imager "background" "background" [0 0 0.2]
+Camera "pinhole" "float zoom" 2
+Pixel "tonemap" "uniform float exposure" 1.5
+FrameBegin 1
+Identity
+Transform [1 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1]
+Perspective 45
+Skew 45 0 1 0 1 0 0
+WorldBegin
+LightSource "ambientlight" 1 "intensity" 0.2
+LightSource "spotlight" "key" "from" [0 5 0] "to" [0 0 0] "coneangle" 0.5
+LightSource "distantlight" "intensity" 1
+Illuminate 1 0
+Illuminate "key" 1
+AttributeBegin
+  Attribute "identifier" "name" "floor"
+  Color [0.8 0.8 0.8]
+  Opacity 1 1 1
+  Surface "plastic" "Kd" 0.5 "uniform float Ks" [0.3] "bump" 2 "constant string texname" "grid.tex"
+  Displacement "bumpy" "amplitude" 0.1
+  Atmosphere "fog" "distance" 10 "background" [0.5 0.5 0.5]
+  Interior "glass"
+  Exterior "air"
+  AreaLightSource "arealight" 2 "lightcolor" [1 1 0.9]
+  Sides 2
+  Orientation "rh"
+  ReverseOrientation
+  Matte 0
+  Basis "bezier" 3 "bezier" 3
+  Translate 0 -1 0
+  Rotate 90 1 0 0
+  Scale 2 2 2
+  ConcatTransform [1 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1]
+  CoordinateSystem "floorspace"
+  TransformBegin
+    CoordSysTransform "floorspace"
+    Polygon "P" [0 0 0 1 0 0 1 1 0 0 1 0] "st" [0 0 1 0 1 1 0 1]
+  TransformEnd
+  GeneralPolygon [4 3] "P" [0 0 0 4 0 0 4 4 0 0 4 0 1 1 0 2 1 0 1 2 0]
+  PointsPolygons [3 3] [0 1 2 0 2 3] "P" [0 0 0 1 0 0 1 1 0 0 1 0] "varying color Cs" [1 0 0 0 1 0 0 0 1 1 1 1]
+  PointsGeneralPolygons [1] [3] [0 1 2] "P" [0 0 0 1 0 0 1 1 0]
+  Patch "bilinear" "P" [0 0 0 1 0 0 0 1 0 1 1 0]
+  PatchMesh "bilinear" 2 "nonperiodic" 3 "periodic" "P" [0 0 0 1 0 0 0 1 0 1 1 0 0 2 0 1 2 0]
+  Sphere 1 -1 1 360
+  Cylinder 1 0 2 180
+  Cone 2 1 360
+  Disk 0 1 360
+  Torus 2 0.5 0 360 360
+  Paraboloid 1 0 2 360
+  Hyperboloid 1 0 0 0 1 1 360
+AttributeEnd
+ObjectBegin 1
+  Sphere 0.5 -0.5 0.5 360
+ObjectEnd
+ObjectBegin "tree"
+ObjectEnd
+ObjectInstance 1
+ObjectInstance "tree"
+MakeTexture "grid.tif" "grid.tex" "periodic" "clamp" "box" 1 1 "float fov" 10
+WorldEnd
+FrameEnd
+"#;
+
+fn parse(text: &str) -> RibParse {
+    rib::parse_str(text, "scene.rib")
+}
+
+fn messages(parse: &RibParse) -> Vec<String> {
+    parse.diagnostics.iter().map(ToString::to_string).collect()
+}
+
+#[test]
+fn every_request_parses() {
+    let parsed = parse(EVERY_REQUEST);
+    assert!(parsed.diagnostics.is_empty(), "{:#?}", messages(&parsed));
+    let names: Vec<String> = parsed
+        .requests
+        .iter()
+        .map(|r| format!("{:?}", r.kind).split(['(', ' ']).next().unwrap_or_default().to_string())
+        .collect();
+    for expected in [
+        "Version",
+        "Option",
+        "Declare",
+        "Format",
+        "FrameAspectRatio",
+        "ScreenWindow",
+        "CropWindow",
+        "Projection",
+        "Clipping",
+        "DepthOfField",
+        "Shutter",
+        "Display",
+        "PixelSamples",
+        "PixelFilter",
+        "Exposure",
+        "ShadingRate",
+        "Imager",
+        "Camera",
+        "Pixel",
+        "FrameBegin",
+        "Identity",
+        "Transform",
+        "Perspective",
+        "Skew",
+        "WorldBegin",
+        "LightSource",
+        "Illuminate",
+        "AttributeBegin",
+        "Attribute",
+        "Color",
+        "Opacity",
+        "Surface",
+        "Displacement",
+        "Atmosphere",
+        "Interior",
+        "Exterior",
+        "AreaLightSource",
+        "Sides",
+        "Orientation",
+        "ReverseOrientation",
+        "Matte",
+        "Basis",
+        "Translate",
+        "Rotate",
+        "Scale",
+        "ConcatTransform",
+        "CoordinateSystem",
+        "TransformBegin",
+        "CoordSysTransform",
+        "Polygon",
+        "TransformEnd",
+        "GeneralPolygon",
+        "PointsPolygons",
+        "PointsGeneralPolygons",
+        "Patch",
+        "PatchMesh",
+        "Quadric",
+        "AttributeEnd",
+        "ObjectBegin",
+        "ObjectEnd",
+        "ObjectInstance",
+        "MakeTexture",
+        "WorldEnd",
+        "FrameEnd",
+    ] {
+        assert!(names.iter().any(|n| n == expected), "no {expected} in {names:?}");
+    }
+    let kinds: Vec<&K> = parsed.requests.iter().map(|r| &r.kind).collect();
+    assert!(kinds.contains(&&K::Format { xres: 640, yres: 480, pixel_aspect: 1.0 }));
+    assert!(kinds.contains(&&K::CropWindow([0.0, 1.0, 0.0, 1.0])));
+    assert!(kinds.contains(&&K::FrameBegin(Some(1))));
+    assert!(kinds.contains(&&K::Illuminate { light: Handle::Number(1), on: false }));
+    assert!(kinds.contains(&&K::Illuminate { light: Handle::Name("key".into()), on: true }));
+    assert!(kinds.contains(&&K::Rotate { angle: 90.0, axis: [1.0, 0.0, 0.0] }));
+    assert!(kinds.contains(&&K::Orientation(Orientation::RightHanded)));
+    assert!(kinds.contains(&&K::ObjectBegin(Handle::Name("tree".into()))));
+    assert!(kinds.contains(&&K::Basis {
+        u: Basis::Named("bezier".into()),
+        ustep: 3,
+        v: Basis::Named("bezier".into()),
+        vstep: 3
+    }));
+    assert!(kinds.contains(&&K::Quadric {
+        quadric: Quadric::Torus { major_radius: 2.0, minor_radius: 0.5, phimin: 0.0, phimax: 360.0, thetamax: 360.0 },
+        params: vec![]
+    }));
+    let lights: Vec<_> = kinds
+        .iter()
+        .filter_map(|k| match k {
+            K::LightSource { shader, handle } => Some((shader.name.as_str(), handle.clone(), shader.params.len())),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(
+        lights,
+        vec![
+            ("ambientlight", Some(Handle::Number(1)), 1),
+            ("spotlight", Some(Handle::Name("key".into())), 3),
+            ("distantlight", None, 1)
+        ]
+    );
+    let patch_mesh = kinds.iter().find(|k| matches!(k, K::PatchMesh { .. })).unwrap();
+    assert!(matches!(
+        patch_mesh,
+        K::PatchMesh { ty: PatchType::Bilinear, nu: 2, uwrap: Wrap::NonPeriodic, nv: 3, vwrap: Wrap::Periodic, .. }
+    ));
+
+    // Every geometry request makes a valid mesh.
+    let mut diagnostics = Vec::new();
+    let meshes: Vec<_> = parsed.requests.iter().filter_map(|r| mesh_from_request(r, &mut diagnostics)).collect();
+    assert!(diagnostics.is_empty(), "{diagnostics:?}");
+    assert_eq!(meshes.len(), 14);
+    for mesh in &meshes {
+        mesh.validate().unwrap();
+        assert!(mesh.triangle_count() > 0);
+    }
+}
+
+#[test]
+fn parameters_take_their_types_from_every_source() {
+    let parsed = parse(EVERY_REQUEST);
+    let surface = parsed
+        .requests
+        .iter()
+        .find_map(|r| match &r.kind {
+            K::Surface(s) => Some(s),
+            _ => None,
+        })
+        .unwrap();
+    let summary: Vec<(&str, Decl, &ParamValue)> =
+        surface.params.iter().map(|p| (p.name.as_str(), p.decl, &p.value)).collect();
+    assert_eq!(
+        summary,
+        vec![
+            ("Kd", Decl::new(Class::Uniform, Ty::Float), &ParamValue::Floats(vec![0.5])),
+            ("Ks", Decl::new(Class::Uniform, Ty::Float), &ParamValue::Floats(vec![0.3])),
+            ("bump", Decl::new(Class::Uniform, Ty::Float), &ParamValue::Floats(vec![2.0])),
+            ("texname", Decl::new(Class::Constant, Ty::String), &ParamValue::Strings(vec!["grid.tex".into()])),
+        ]
+    );
+    assert_eq!(surface.params[0].loc.to_string(), "scene.rib:36:21");
+    let display = parsed.requests.iter().find(|r| matches!(r.kind, K::Display { .. })).unwrap();
+    let K::Display { params, .. } = &display.kind else { unreachable!() };
+    assert_eq!(params[0].ints(), Some(&[0, 0][..]));
+    // Array types and counts.
+    let parsed =
+        parse(r#"Declare "uv2" "varying float[2]" Surface "s" "uv2" [1 2 3 4] "vertex point Pref" [0 0 0 1 1 1]"#);
+    assert!(parsed.diagnostics.is_empty(), "{:?}", messages(&parsed));
+    let K::Surface(shader) = &parsed.requests[1].kind else { panic!() };
+    assert_eq!((shader.params[0].value_count(), shader.params[1].value_count()), (2, 2));
+}
+
+#[test]
+fn declare_is_global_and_later_declarations_win() {
+    let parsed = parse(
+        r#"AttributeBegin Declare "k" "uniform color" AttributeEnd
+           Surface "a" "k" [1 2 3]
+           Declare "k" "uniform float"
+           Surface "b" "k" 4
+           Surface "c" "k" [1 2 3]"#,
+    );
+    assert_eq!(parsed.requests.len(), 7);
+    let K::Surface(a) = &parsed.requests[3].kind else { panic!() };
+    assert_eq!(a.params[0].decl.ty, Ty::Color);
+    let K::Surface(b) = &parsed.requests[5].kind else { panic!() };
+    assert_eq!(b.params[0].decl.ty, Ty::Float);
+    // Three floats are three values of a float: fine.
+    assert!(parsed.diagnostics.is_empty(), "{:?}", messages(&parsed));
+}
+
+#[test]
+fn parameter_problems_are_reported_where_they_are() {
+    let parsed = parse(
+        "Surface \"plastic\"\n  \"Kdd\" 0.5\n  \"color c\" [1 2]\n  \"uniform flaot x\" 1\n  \"integer n\" 1.5\n  \"string s\" 3\n  \"Kd\" 0.25\n",
+    );
+    assert_eq!(
+        messages(&parsed),
+        vec![
+            "scene.rib:2:3: warning: parameter \"Kdd\" has no declaration and is skipped (declare it with `Declare` or write its type inline, e.g. \"uniform float Kdd\")",
+            "scene.rib:3:13: error: parameter \"c\" (uniform color): 2 numbers given, which is not a multiple of 3 (numbers per value)",
+            "scene.rib:4:3: error: unknown type `flaot` (expected float, integer, color, point, vector, normal, hpoint, string or matrix)",
+            "scene.rib:5:15: error: parameter \"n\" (uniform integer): 1.5 is not an integer",
+            "scene.rib:6:14: error: parameter \"s\" (uniform string): expected strings, found a number",
+        ]
+    );
+    // The request survives with its good parameters.
+    let K::Surface(shader) = &parsed.requests[0].kind else { panic!() };
+    assert_eq!(shader.params.len(), 1);
+    assert_eq!(shader.params[0].name, "Kd");
+}
+
+#[test]
+fn syntax_errors_are_located_and_reading_recovers() {
+    let text = "\"stray\" 1\n\
+                WorldBegin\n\
+                Translate 1 2\n\
+                Sphere 1 -1 \"one\" 360\n\
+                Color [1 0 0] ]\n\
+                Scale 1 1 1 1\n\
+                Rotate 90 [0 0 1\n\
+                Surface \"x\" 0.5\n\
+                Frobnicate 1 2 3\n\
+                Polygon \"P\" [0 0 0 1 0 0 1 1 0] \"Cs\"\n\
+                Disk 0 1 360 12abc\n\
+                Cone 1 1 360\n\
+                WorldEnd\n";
+    let parsed = parse(text);
+    assert_eq!(
+        messages(&parsed),
+        vec![
+            "scene.rib:1:1: error: expected a request name, found a string",
+            "scene.rib:3:1: error: `Translate` needs 3 numbers (dx dy dz) but has 2",
+            "scene.rib:4:13: error: `Sphere` expects numbers (radius zmin zmax thetamax), found a string",
+            "scene.rib:5:15: error: `]` without a matching `[`",
+            "scene.rib:6:13: error: unexpected extra argument to `Scale`: a number",
+            "scene.rib:7:11: error: `[` is never closed",
+            "scene.rib:8:13: error: expected a parameter name (a string) in `Surface`'s parameter list, found a number",
+            "scene.rib:9:1: warning: unknown request `Frobnicate` skipped",
+            "scene.rib:10:33: error: parameter \"Cs\" has no value",
+            "scene.rib:11:14: error: malformed number `12abc`",
+        ]
+    );
+    // The good requests around the errors are all there; a parameter error keeps its request.
+    let kinds: Vec<&K> = parsed.requests.iter().map(|r| &r.kind).collect();
+    assert!(
+        matches!(kinds[..], [K::WorldBegin, K::Surface(_), K::Polygon(_), K::Quadric { .. }, K::WorldEnd]),
+        "{kinds:?}"
+    );
+    assert_eq!(parsed.errors().count(), 9);
+}
+
+#[test]
+fn lexical_errors_are_located() {
+    let parsed = parse("Sphere 1 -1 1 360\n  Color [1 @ 0]\nSurface \"unterminated\nDisk 0 1 360");
+    assert_eq!(
+        messages(&parsed),
+        vec!["scene.rib:2:12: error: unexpected character `@`", "scene.rib:3:9: error: unterminated string",]
+    );
+    assert_eq!(parsed.requests.len(), 2);
+    assert_eq!(parsed.requests[1].loc.to_string(), "scene.rib:4:1");
+}
+
+#[test]
+fn read_archive_expands_in_place_relative_to_the_includer() {
+    let dir = tempfile::tempdir().unwrap();
+    let sub = dir.path().join("parts");
+    std::fs::create_dir(&sub).unwrap();
+    std::fs::write(
+        dir.path().join("main.rib"),
+        "WorldBegin\nReadArchive \"parts/a.rib\"\nSurface \"s\" \"shine\" 2\nWorldEnd\n",
+    )
+    .unwrap();
+    std::fs::write(sub.join("a.rib"), "Declare \"shine\" \"uniform float\"\nReadArchive \"b.rib\"\n").unwrap();
+    std::fs::write(sub.join("b.rib"), "Sphere 1 -1 1 360\nBogus\n").unwrap();
+    let parsed = rib::parse_file(dir.path().join("main.rib")).unwrap();
+    let kinds: Vec<&K> = parsed.requests.iter().map(|r| &r.kind).collect();
+    assert!(matches!(kinds[..], [K::WorldBegin, K::Declare { .. }, K::Quadric { .. }, K::Surface(_), K::WorldEnd]));
+    // The declaration made in the archive holds after it, and locations name the archive.
+    let K::Surface(s) = kinds[3] else { panic!() };
+    assert_eq!(s.params.len(), 1);
+    let sphere_loc = &parsed.requests[2].loc;
+    assert_eq!(sphere_loc.file.as_ref(), sub.join("b.rib").as_path());
+    assert_eq!((sphere_loc.line, sphere_loc.column), (1, 1));
+    assert_eq!(parsed.diagnostics.len(), 1);
+    assert!(parsed.diagnostics[0].to_string().ends_with("b.rib:2:1: warning: unknown request `Bogus` skipped"));
+}
+
+#[test]
+fn archive_cycles_depth_and_missing_files_are_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("a.rib"), "ReadArchive \"b.rib\"\n").unwrap();
+    std::fs::write(dir.path().join("b.rib"), "Identity\nReadArchive \"a.rib\"\n").unwrap();
+    let parsed = rib::parse_file(dir.path().join("a.rib")).unwrap();
+    assert_eq!(parsed.requests.len(), 1);
+    assert_eq!(parsed.diagnostics.len(), 1);
+    assert!(parsed.diagnostics[0].message.contains("includes itself"), "{:?}", parsed.diagnostics);
+    assert!(parsed.diagnostics[0].to_string().contains("b.rib:2:1: error"));
+
+    // A chain 40 archives long stops at the limit.
+    for k in 0..40 {
+        std::fs::write(dir.path().join(format!("c{k}.rib")), format!("Identity\nReadArchive \"c{}.rib\"\n", k + 1))
+            .unwrap();
+    }
+    let parsed = rib::parse_file(dir.path().join("c0.rib")).unwrap();
+    assert_eq!(parsed.requests.len(), rib::MAX_ARCHIVE_DEPTH + 1);
+    assert_eq!(parsed.errors().count(), 1);
+    assert!(parsed.diagnostics[0].message.contains("archives nest deeper than 32"));
+
+    let missing = rib::parse_str("ReadArchive \"nope.rib\"", dir.path().join("x.rib"));
+    assert_eq!(missing.diagnostics.len(), 1);
+    assert!(missing.diagnostics[0].message.starts_with("cannot read archive"));
+    let err = rib::parse_file(dir.path().join("absent.rib")).unwrap_err();
+    assert!(err.to_string().contains("absent.rib: cannot read RIB file"), "{err}");
+}
+
+#[test]
+fn shared_scene_ribs_parse_without_errors() {
+    // Third-party scenes (see ../shared/scenes/README.md); skipped when there are none.
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/scenes");
+    let mut files = Vec::new();
+    let mut dirs = vec![root];
+    while let Some(dir) = dirs.pop() {
+        let Ok(entries) = std::fs::read_dir(&dir) else { continue };
+        for entry in entries.flatten() {
+            let path = entry.path();
+            if path.is_dir() {
+                dirs.push(path);
+            } else if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("rib")) {
+                files.push(path);
+            }
+        }
+    }
+    for file in files {
+        let parsed = rib::parse_file(&file).unwrap();
+        assert!(!parsed.has_errors(), "{}: {:?}", file.display(), messages(&parsed));
+        let mut diagnostics = Vec::new();
+        for request in &parsed.requests {
+            if let Some(mesh) = mesh_from_request(request, &mut diagnostics) {
+                mesh.validate().unwrap();
+            }
+        }
+        assert!(diagnostics.iter().all(|d| d.severity == Severity::Warning), "{diagnostics:?}");
+    }
+}
+
+/// Parses, then converts every request's geometry: neither may panic.
+fn parse_and_mesh(bytes: &[u8]) {
+    let parsed = rib::parse_bytes(bytes, Path::new("fuzz.rib"));
+    let mut diagnostics = Vec::new();
+    for request in &parsed.requests {
+        if let Some(mesh) = mesh_from_request(request, &mut diagnostics) {
+            assert!(mesh.validate().is_ok());
+        }
+    }
+    for d in parsed.diagnostics.iter().chain(&diagnostics) {
+        let _ = d.to_string();
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 400, ..ProptestConfig::default() })]
+
+    #[test]
+    fn random_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..400)) {
+        parse_and_mesh(&bytes);
+    }
+
+    #[test]
+    fn random_tokens_never_panic(tokens in proptest::collection::vec(prop_oneof![
+        Just("Sphere".to_string()), Just("Polygon".to_string()), Just("PointsGeneralPolygons".to_string()),
+        Just("PatchMesh".to_string()), Just("GeneralPolygon".to_string()), Just("Hyperboloid".to_string()),
+        Just("\"P\"".to_string()), Just("\"Pw\"".to_string()), Just("\"Pz\"".to_string()), Just("\"N\"".to_string()),
+        Just("\"facevarying float[2] st\"".to_string()), Just("\"uniform color Cs\"".to_string()),
+        Just("\"bilinear\"".to_string()), Just("\"periodic\"".to_string()), Just("[".to_string()), Just("]".to_string()),
+        Just("ReadArchive".to_string()), Just("\"scene.rib\"".to_string()), Just("Declare".to_string()),
+        (-3i32..8).prop_map(|n| n.to_string()), (-1e3f32..1e3).prop_map(|x| x.to_string()),
+        Just("1e38".to_string()), Just("-0".to_string()), Just("NaN".to_string()),
+    ], 0..60)) {
+        parse_and_mesh(tokens.join(" ").as_bytes());
+    }
+
+    #[test]
+    fn mutated_scene_never_panics(edits in proptest::collection::vec((any::<prop::sample::Index>(), any::<u8>(), 0u8..3), 1..8)) {
+        let mut bytes = EVERY_REQUEST.as_bytes().to_vec();
+        for (at, byte, op) in edits {
+            let i = at.index(bytes.len().max(1));
+            match op {
+                0 if i < bytes.len() => bytes[i] = byte,
+                1 => bytes.insert(i.min(bytes.len()), byte),
+                _ if i < bytes.len() => { bytes.remove(i); }
+                _ => {}
+            }
+        }
+        parse_and_mesh(&bytes);
+    }
+}
