@@ -20,30 +20,57 @@
 use glam::{Vec2, Vec3};
 
 use super::decl::{Class, Ty};
-use super::request::{find_param, Param, PatchType, Request, RequestKind, Wrap};
+use super::patch::patch_mesh;
+pub use super::patch::DEFAULT_PATCH_SEGMENTS;
+use super::request::{find_param, Basis, Param, PatchType, Request, RequestKind, Wrap};
 use super::RibDiagnostic;
-use crate::geometry::quadric::{tessellate_grid, Quadric, Tessellation};
+use crate::geometry::quadric::{Quadric, Tessellation};
 use crate::geometry::{Attribute, Mesh};
-
-/// Segments per side of a bilinear patch that is not flat (a flat one needs one).
-pub const DEFAULT_PATCH_SEGMENTS: u32 = 8;
 
 /// Polygons with more vertices than this are fanned instead of ear-clipped (ear clipping is
 /// quadratic; RIB polygons this large are in practice convex).
 const MAX_EAR_CLIP_VERTICES: usize = 4096;
 
-/// The mesh of a geometry request with default tessellation, or `None` for requests that are not
+/// What the graphics state contributes to a primitive's mesh.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MeshOptions {
+    /// Tessellation of each quadric, or of each patch of a patch mesh; `None` for the defaults
+    /// ([`Quadric::default_tessellation`], one quad per flat bilinear patch, otherwise
+    /// [`DEFAULT_PATCH_SEGMENTS`] per side).
+    pub tessellation: Option<Tessellation>,
+    /// The current `Basis` along u (RenderMan's default is Bezier, step 3).
+    pub u_basis: Basis,
+    /// Its step.
+    pub u_step: i32,
+    /// The current `Basis` along v.
+    pub v_basis: Basis,
+    /// Its step.
+    pub v_step: i32,
+}
+
+impl Default for MeshOptions {
+    fn default() -> Self {
+        MeshOptions {
+            tessellation: None,
+            u_basis: Basis::Named("bezier".into()),
+            u_step: 3,
+            v_basis: Basis::Named("bezier".into()),
+            v_step: 3,
+        }
+    }
+}
+
+/// The mesh of a geometry request with default options, or `None` for requests that are not
 /// geometry or whose data is malformed (an error is pushed then). Warnings about dropped data are
 /// pushed too.
 pub fn mesh_from_request(request: &Request, diagnostics: &mut Vec<RibDiagnostic>) -> Option<Mesh> {
-    mesh_from_request_with(request, None, diagnostics)
+    mesh_from_request_with(request, &MeshOptions::default(), diagnostics)
 }
 
-/// [`mesh_from_request`] with a tessellation for quadrics and patches (per quadric, or per
-/// patch of a patch mesh) in place of the defaults.
+/// [`mesh_from_request`] under the graphics state's basis and a chosen tessellation.
 pub fn mesh_from_request_with(
     request: &Request,
-    tessellation: Option<Tessellation>,
+    options: &MeshOptions,
     diagnostics: &mut Vec<RibDiagnostic>,
 ) -> Option<Mesh> {
     let mut warnings = Vec::new();
@@ -56,16 +83,14 @@ pub fn mesh_from_request_with(
         RequestKind::PointsGeneralPolygons { nloops, nvertices, vertices, params } => {
             points_general_polygons_mesh(nloops, nvertices, vertices, params, &mut warnings)
         }
-        RequestKind::Patch { ty: PatchType::Bilinear, params } => {
-            patch_mesh(2, Wrap::NonPeriodic, 2, Wrap::NonPeriodic, params, tessellation, &mut warnings)
+        RequestKind::Patch { ty, params } => {
+            let n = if *ty == PatchType::Bilinear { 2 } else { 4 };
+            patch_mesh(*ty, n, Wrap::NonPeriodic, n, Wrap::NonPeriodic, params, options, &mut warnings)
         }
-        RequestKind::PatchMesh { ty: PatchType::Bilinear, nu, uwrap, nv, vwrap, params } => {
-            patch_mesh(*nu, *uwrap, *nv, *vwrap, params, tessellation, &mut warnings)
+        RequestKind::PatchMesh { ty, nu, uwrap, nv, vwrap, params } => {
+            patch_mesh(*ty, *nu, *uwrap, *nv, *vwrap, params, options, &mut warnings)
         }
-        RequestKind::Patch { ty: PatchType::Bicubic, .. } | RequestKind::PatchMesh { ty: PatchType::Bicubic, .. } => {
-            Err("bicubic patches are not supported yet: the patch is skipped".to_string())
-        }
-        RequestKind::Quadric { quadric, params } => quadric_mesh(quadric, tessellation, params, &mut warnings),
+        RequestKind::Quadric { quadric, params } => quadric_mesh(quadric, options.tessellation, params, &mut warnings),
         _ => return None,
     };
     diagnostics.extend(warnings.into_iter().map(|w| RibDiagnostic::warning(&request.loc, w)));
@@ -193,72 +218,6 @@ pub fn points_general_polygons_mesh(
     Ok(mesh)
 }
 
-/// A bilinear patch mesh of `nu` x `nv` control points (`Patch "bilinear"` is 2 x 2). Each patch
-/// is tessellated on its own grid (one quad when flat).
-pub fn patch_mesh(
-    nu: i32,
-    uwrap: Wrap,
-    nv: i32,
-    vwrap: Wrap,
-    params: &[Param],
-    tessellation: Option<Tessellation>,
-    warnings: &mut Vec<String>,
-) -> Result<Mesh, String> {
-    let (nu, nv) = match (usize::try_from(nu), usize::try_from(nv)) {
-        (Ok(nu), Ok(nv)) if nu >= 2 && nv >= 2 => (nu, nv),
-        _ => return Err(format!("a bilinear patch mesh needs at least 2 x 2 control points, not {nu} x {nv}")),
-    };
-    let patches_along = |n: usize, wrap: Wrap| if wrap == Wrap::Periodic { n } else { n - 1 };
-    let (nu_patches, nv_patches) = (patches_along(nu, uwrap), patches_along(nv, vwrap));
-    let points = patch_points(params, nu, nv)?;
-    if points.len() != nu * nv {
-        return Err(format!("a {nu} x {nv} patch mesh needs {} control points, but P has {}", nu * nv, points.len()));
-    }
-    let counts = ClassCounts { vertex: nu * nv, varying: nu * nv, face: nu_patches * nv_patches, corner: usize::MAX };
-    let data: Vec<PerVertex> = per_vertex_params(params, &counts, warnings)
-        .into_iter()
-        .filter(|d| {
-            let keep = d.class != Class::FaceVarying;
-            if !keep {
-                warnings.push(format!("facevarying \"{}\" on a patch mesh is not supported and is dropped", d.name));
-            }
-            keep
-        })
-        .collect();
-
-    let mut mesh = Mesh { normals: Some(Vec::new()), uvs: Some(Vec::new()), ..Default::default() };
-    let mut attributes: Vec<Attribute> =
-        data.iter().map(|d| Attribute { name: d.name.clone(), components: d.components, data: Vec::new() }).collect();
-    for pj in 0..nv_patches {
-        for pi in 0..nu_patches {
-            let (i0, i1, j0, j1) = (pi, (pi + 1) % nu, pj, (pj + 1) % nv);
-            let corner_index = [i0 + nu * j0, i1 + nu * j0, i0 + nu * j1, i1 + nu * j1];
-            let corners = corner_index.map(|k| points[k]);
-            let flat = is_flat(corners);
-            let t = tessellation.unwrap_or(if flat {
-                Tessellation { u_segments: 1, v_segments: 1 }
-            } else {
-                Tessellation { u_segments: DEFAULT_PATCH_SEGMENTS, v_segments: DEFAULT_PATCH_SEGMENTS }
-            });
-            let patch = tessellate_grid(t.u_segments.clamp(1, 256), t.v_segments.clamp(1, 256), |u, v| {
-                (bilerp(corners, u, v), bilinear_normal(corners, u, v))
-            });
-            let local_uvs = patch.uvs.clone().unwrap_or_default();
-            for (attribute, d) in attributes.iter_mut().zip(&data) {
-                let face = pi + nu_patches * pj;
-                interpolate_corners(d, corner_index, face, &local_uvs, &mut attribute.data);
-            }
-            let global_uvs = local_uvs
-                .iter()
-                .map(|uv| Vec2::new((pi as f32 + uv.x) / nu_patches as f32, (pj as f32 + uv.y) / nv_patches as f32));
-            append(&mut mesh, patch, global_uvs);
-        }
-    }
-    route_attributes(&mut mesh, attributes);
-    mesh.validate().map_err(|e| e.to_string())?;
-    Ok(mesh)
-}
-
 /// A quadric's mesh, with its varying parameters (four values, at the corners of `(u, v)` space)
 /// interpolated over it.
 pub fn quadric_mesh(
@@ -289,26 +248,30 @@ pub fn quadric_mesh(
 }
 
 /// Values expected per storage class for one primitive.
-struct ClassCounts {
-    vertex: usize,
-    varying: usize,
+pub(super) struct ClassCounts {
+    pub(super) vertex: usize,
+    pub(super) varying: usize,
     /// Uniform values: one per face (polygon or patch).
-    face: usize,
+    pub(super) face: usize,
     /// Facevarying values: one per face corner.
-    corner: usize,
+    pub(super) corner: usize,
 }
 
 /// A float-typed parameter with per-vertex, per-corner or per-face values.
-struct PerVertex<'a> {
-    name: String,
-    class: Class,
-    components: usize,
-    values: &'a [f32],
+pub(super) struct PerVertex<'a> {
+    pub(super) name: String,
+    pub(super) class: Class,
+    pub(super) components: usize,
+    pub(super) values: &'a [f32],
 }
 
 /// The float parameters that are data over the surface (not positions), with counts checked: a
 /// parameter with the wrong count is dropped with a warning.
-fn per_vertex_params<'a>(params: &'a [Param], counts: &ClassCounts, warnings: &mut Vec<String>) -> Vec<PerVertex<'a>> {
+pub(super) fn per_vertex_params<'a>(
+    params: &'a [Param],
+    counts: &ClassCounts,
+    warnings: &mut Vec<String>,
+) -> Vec<PerVertex<'a>> {
     let mut out = Vec::new();
     for p in params {
         let Some(values) = p.floats() else { continue };
@@ -337,7 +300,7 @@ fn per_vertex_params<'a>(params: &'a [Param], counts: &ClassCounts, warnings: &m
 }
 
 /// Moves `N` into the normals and `st` (or `s` and `t`) into the uvs; the rest become attributes.
-fn route_attributes(mesh: &mut Mesh, attributes: Vec<Attribute>) {
+pub(super) fn route_attributes(mesh: &mut Mesh, attributes: Vec<Attribute>) {
     let mut s = None;
     let mut t = None;
     for attribute in attributes {
@@ -374,7 +337,7 @@ fn point_count(params: &[Param]) -> Result<usize, String> {
 }
 
 /// The positions from `P` (points) or `Pw` (homogeneous points, divided by `w`).
-fn positions(params: &[Param]) -> Result<Vec<Vec3>, String> {
+pub(super) fn positions(params: &[Param]) -> Result<Vec<Vec3>, String> {
     if let Some(p) = find_param(params, "P").filter(|p| p.decl.components() == 3) {
         let values = p.floats().unwrap_or_default();
         return Ok(values.chunks_exact(3).map(Vec3::from_slice).collect());
@@ -386,47 +349,11 @@ fn positions(params: &[Param]) -> Result<Vec<Vec3>, String> {
     Err("the primitive has no positions: give \"P\" (or \"Pw\")".to_string())
 }
 
-/// Patch control points: `P`, `Pw`, or the height field `Pz` over the unit square.
-fn patch_points(params: &[Param], nu: usize, nv: usize) -> Result<Vec<Vec3>, String> {
-    if let Some(pz) = find_param(params, "Pz").filter(|p| p.decl.components() == 1) {
-        let heights = pz.floats().unwrap_or_default();
-        if heights.len() != nu * nv {
-            return Err(format!("\"Pz\" has {} values, the patch mesh needs {}", heights.len(), nu * nv));
-        }
-        let coordinate = |i: usize, n: usize| i as f32 / (n - 1) as f32;
-        return Ok(heights
-            .iter()
-            .enumerate()
-            .map(|(k, &z)| Vec3::new(coordinate(k % nu, nu), coordinate(k / nu, nv), z))
-            .collect());
-    }
-    positions(params)
-}
-
-fn bilerp<T>(c: [T; 4], u: f32, v: f32) -> T
+pub(super) fn bilerp<T>(c: [T; 4], u: f32, v: f32) -> T
 where
     T: Copy + std::ops::Mul<f32, Output = T> + std::ops::Add<Output = T>,
 {
     c[0] * ((1.0 - u) * (1.0 - v)) + c[1] * (u * (1.0 - v)) + c[2] * ((1.0 - u) * v) + c[3] * (u * v)
-}
-
-/// `dP/du x dP/dv` of the bilinear patch with corners `c` (order `00 10 01 11`), normalised. Where
-/// it vanishes (a corner where two control points coincide) the normal is taken a little inside.
-fn bilinear_normal(c: [Vec3; 4], u: f32, v: f32) -> Vec3 {
-    let cross_at = |u: f32, v: f32| {
-        let dpdu = (c[1] - c[0]) * (1.0 - v) + (c[3] - c[2]) * v;
-        let dpdv = (c[2] - c[0]) * (1.0 - u) + (c[3] - c[1]) * u;
-        dpdu.cross(dpdv)
-    };
-    let n = cross_at(u, v);
-    let n = if n.length_squared() > 1e-20 { n } else { cross_at(0.5 + 0.99 * (u - 0.5), 0.5 + 0.99 * (v - 0.5)) };
-    n.normalize_or(Vec3::Z)
-}
-
-fn is_flat(c: [Vec3; 4]) -> bool {
-    let n = (c[1] - c[0]).cross(c[2] - c[0]);
-    let scale = c.iter().fold(0.0f32, |m, p| m.max((*p - c[0]).length()));
-    n.length_squared() == 0.0 || n.normalize().dot(c[3] - c[0]).abs() <= 1e-6 * scale
 }
 
 /// Appends to `out` the values of `d` at each local `(u, v)`: bilinear between the four corner
@@ -441,19 +368,6 @@ fn interpolate_corners(d: &PerVertex, corner_index: [usize; 4], face: usize, uvs
             });
         }
     }
-}
-
-/// Appends `part` (with normals) to `mesh`, with `uvs` in place of its own.
-fn append(mesh: &mut Mesh, part: Mesh, uvs: impl Iterator<Item = Vec2>) {
-    let offset = mesh.positions.len() as u32;
-    mesh.positions.extend(part.positions);
-    if let (Some(normals), Some(part_normals)) = (mesh.normals.as_mut(), part.normals) {
-        normals.extend(part_normals);
-    }
-    if let Some(mesh_uvs) = mesh.uvs.as_mut() {
-        mesh_uvs.extend(uvs);
-    }
-    mesh.triangles.extend(part.triangles.into_iter().map(|t| t.map(|i| i + offset)));
 }
 
 /// Triangulates one polygon given as loops of vertex ids (the first the outline, the rest holes)
@@ -605,7 +519,7 @@ fn is_ear(ring: &[Vertex2], a: Vertex2, b: Vertex2, c: Vertex2) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::rib::parse_str;
+    use crate::rib::{parse_str, RequestKind as K};
 
     fn only_mesh(text: &str) -> (Mesh, Vec<RibDiagnostic>) {
         let parse = parse_str(text, "test.rib");
@@ -731,10 +645,62 @@ mod tests {
         assert_eq!(ring.attributes[0].data.len(), 3 * ring.positions.len());
         let max_u = ring.uvs.as_ref().unwrap().iter().fold(0.0f32, |m, uv| m.max(uv.x));
         assert_eq!(max_u, 1.0);
+    }
+
+    #[test]
+    fn bicubic_patches_follow_the_basis() {
+        // A flat Bezier patch with evenly spaced control points is the square, linearly.
+        let grid: Vec<String> = (0..16).map(|k| format!("{} {} 0", k % 4, k / 4)).collect();
+        let (flat, _) = only_mesh(&format!(r#"Patch "bicubic" "P" [{}]"#, grid.join(" ")));
+        for (p, uv) in flat.positions.iter().zip(flat.uvs.as_ref().unwrap()) {
+            assert!((p.x - 3.0 * uv.x).abs() < 1e-5 && (p.y - 3.0 * uv.y).abs() < 1e-5 && p.z == 0.0);
+        }
+        assert!(flat.normals.as_ref().unwrap().iter().all(|n| (*n - Vec3::Z).length() < 1e-5));
+        // Raised inner control points: corners stay put, the middle rises to 3/4 * 9/16... of 1.
+        let raised: Vec<String> = (0..16)
+            .map(|k| {
+                format!("{} {} {}", k % 4, k / 4, u8::from((1..3).contains(&(k % 4)) && (1..3).contains(&(k / 4))))
+            })
+            .collect();
+        let parse = parse_str(&format!(r#"Patch "bicubic" "P" [{}]"#, raised.join(" ")), "b.rib");
+        let options =
+            MeshOptions { tessellation: Some(Tessellation { u_segments: 2, v_segments: 2 }), ..Default::default() };
+        let mesh = mesh_from_request_with(&parse.requests[0], &options, &mut Vec::new()).unwrap();
+        assert_eq!(mesh.positions[0], Vec3::ZERO);
+        assert!((mesh.positions[4].z - 0.5625).abs() < 1e-6, "{}", mesh.positions[4]); // (3/4)^2 at the centre
+        assert!(mesh.normals.as_ref().unwrap()[4].dot(Vec3::Z) > 0.999);
+
+        // A periodic B-spline mesh around a square of 4 x 4 points: 4 x 1 patches.
+        let ring: Vec<String> = (0..16)
+            .map(|k| {
+                let corner = [(1, 1), (-1, 1), (-1, -1), (1, -1)][k % 4];
+                format!("{} {} {}", corner.0, corner.1, k / 4)
+            })
+            .collect();
+        let parse = parse_str(
+            &format!(
+                r#"Basis "b-spline" 1 "b-spline" 1 PatchMesh "bicubic" 4 "periodic" 4 "nonperiodic" "P" [{}]"#,
+                ring.join(" ")
+            ),
+            "b.rib",
+        );
+        assert!(!parse.has_errors());
+        let K::Basis { u, ustep, v, vstep } = parse.requests[0].kind.clone() else { panic!() };
+        let options = MeshOptions { u_basis: u, u_step: ustep, v_basis: v, v_step: vstep, tessellation: None };
+        let mesh = mesh_from_request_with(&parse.requests[1], &options, &mut Vec::new()).unwrap();
+        assert_eq!(mesh.triangle_count() as u32, 4 * 2 * DEFAULT_PATCH_SEGMENTS * DEFAULT_PATCH_SEGMENTS);
+        for (p, n) in mesh.positions.iter().zip(mesh.normals.as_ref().unwrap()) {
+            assert!(p.z >= 1.0 - 1e-5 && p.z <= 2.0 + 1e-5); // a B-spline only spans the middle rows
+            assert!(n.dot(Vec3::new(p.x, p.y, 0.0)) > 0.0, "normal {n} at {p} points inwards");
+        }
+
         let mut diagnostics = Vec::new();
-        let bicubic = parse_str(r#"Patch "bicubic" "P" [0 0 0]"#, "b.rib");
-        assert!(mesh_from_request(&bicubic.requests[0], &mut diagnostics).is_none());
-        assert!(diagnostics[0].message.contains("bicubic patches are not supported"));
+        let bad = parse_str(r#"PatchMesh "bicubic" 5 "nonperiodic" 4 "nonperiodic" "P" [0 0 0]"#, "b.rib");
+        assert!(mesh_from_request(&bad.requests[0], &mut diagnostics).is_none());
+        assert!(
+            diagnostics[0].message.contains("5 control points along u do not make whole patches"),
+            "{diagnostics:?}"
+        );
     }
 
     #[test]
@@ -746,12 +712,9 @@ mod tests {
         let last = cs.len() - 3;
         assert_eq!(&cs[last..], &[1.0, 1.0, 1.0]); // vertex (1, 1)
         let parse = parse_str("Sphere 1 -1 1 360", "s.rib");
-        let mesh = mesh_from_request_with(
-            &parse.requests[0],
-            Some(Tessellation { u_segments: 4, v_segments: 2 }),
-            &mut Vec::new(),
-        )
-        .unwrap();
+        let options =
+            MeshOptions { tessellation: Some(Tessellation { u_segments: 4, v_segments: 2 }), ..Default::default() };
+        let mesh = mesh_from_request_with(&parse.requests[0], &options, &mut Vec::new()).unwrap();
         assert_eq!(mesh.positions.len(), 15);
     }
 }

@@ -19,6 +19,7 @@ pub mod decl;
 pub mod lex;
 pub mod mesh;
 mod parse;
+pub mod patch;
 pub mod request;
 
 use std::fmt;
@@ -26,7 +27,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 pub use decl::{Class, Decl, DeclTable, Ty};
-pub use mesh::mesh_from_request;
+pub use mesh::{mesh_from_request, mesh_from_request_with, MeshOptions};
 pub use request::{
     find_param, Basis, Handle, Location, Orientation, Param, ParamValue, PatchType, Request, RequestKind, Shader, Wrap,
 };
