@@ -274,14 +274,18 @@ impl Quadric {
     }
 
     /// The mesh of `(u_segments + 1) * (v_segments + 1)` vertices over the parameter grid, with
-    /// uvs `(u, v)` and unit normals. Fails only for non-finite parameters.
+    /// uvs `(u, v)` and unit normals. Fails for parameters that are not finite or whose surface
+    /// overflows `f32`.
     pub fn tessellate(&self, tessellation: Tessellation) -> Result<Mesh, MeshError> {
         if !self.is_finite() {
             return Err(MeshError::NonFinite { index: 0 });
         }
         let nu = tessellation.u_segments.clamp(1, MAX_SEGMENTS);
         let nv = tessellation.v_segments.clamp(1, MAX_SEGMENTS);
-        Ok(tessellate_grid(nu, nv, |u, v| (self.position(u, v), self.normal(u, v))))
+        let mesh = tessellate_grid(nu, nv, |u, v| (self.position(u, v), self.normal(u, v)));
+        // Finite parameters can still overflow (a torus of radius 3e38).
+        mesh.validate()?;
+        Ok(mesh)
     }
 }
 

@@ -284,6 +284,9 @@ const PREDECLARED: &[(&str, Class, Ty, Option<usize>)] = &[
     ("name", Class::Uniform, Ty::String, None),
     ("sphere", Class::Uniform, Ty::Float, None),
     ("coordinatesystem", Class::Uniform, Ty::String, None),
+    ("bucketsize", Class::Uniform, Ty::Integer, Some(2)),
+    ("gridsize", Class::Uniform, Ty::Integer, None),
+    ("texturememory", Class::Uniform, Ty::Integer, None),
 ];
 
 /// The declarations in force: `Declare`d names over the predeclared ones. RenderMan's `Declare`

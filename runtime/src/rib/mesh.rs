@@ -113,6 +113,11 @@ pub fn polygon_mesh(params: &[Param], warnings: &mut Vec<String>) -> Result<Mesh
 /// vertices are the `P` values, loop after loop.
 pub fn general_polygon_mesh(nvertices: &[i32], params: &[Param], warnings: &mut Vec<String>) -> Result<Mesh, String> {
     let total: i64 = nvertices.iter().map(|&n| i64::from(n)).sum();
+    // Checked before the index list is made, so a bogus count cannot ask for a huge allocation.
+    let points = point_count(params)?;
+    if total != points as i64 {
+        return Err(format!("the loops have {total} vertices in all but \"P\" has {points}"));
+    }
     let total = i32::try_from(total).map_err(|_| "too many vertices".to_string())?;
     let vertices: Vec<i32> = (0..total.max(0)).collect();
     let nloops = [i32::try_from(nvertices.len()).map_err(|_| "too many loops".to_string())?];
@@ -170,7 +175,7 @@ pub fn points_general_polygons_mesh(
         }
     }
     let counts =
-        ClassCounts { vertex: points.len(), varying: points.len(), face: nloops.len(), corner: vertices.len() };
+        ClassCounts { vertex: points.len(), varying: points.len(), face: nloops.len(), corner: Some(vertices.len()) };
     let data = per_vertex_params(params, &counts, warnings);
     let per_corner = data.iter().any(|d| matches!(d.class, Class::Uniform | Class::FaceVarying));
 
@@ -231,7 +236,7 @@ pub fn quadric_mesh(
         .tessellate(tessellation)
         .map_err(|_| format!("{} has a parameter that is not a finite number", quadric.name()))?;
     // Uniform values count one per surface, like constant ones: they are not per-vertex data.
-    let counts = ClassCounts { vertex: 4, varying: 4, face: 1, corner: 4 };
+    let counts = ClassCounts { vertex: 4, varying: 4, face: 1, corner: Some(4) };
     let uvs = mesh.uvs.clone().unwrap_or_default();
     let mut attributes = Vec::new();
     for d in per_vertex_params(params, &counts, warnings) {
@@ -253,8 +258,8 @@ pub(super) struct ClassCounts {
     pub(super) varying: usize,
     /// Uniform values: one per face (polygon or patch).
     pub(super) face: usize,
-    /// Facevarying values: one per face corner.
-    pub(super) corner: usize,
+    /// Facevarying values: one per face corner; `None` where facevarying data is not supported.
+    pub(super) corner: Option<usize>,
 }
 
 /// A float-typed parameter with per-vertex, per-corner or per-face values.
@@ -266,7 +271,7 @@ pub(super) struct PerVertex<'a> {
 }
 
 /// The float parameters that are data over the surface (not positions), with counts checked: a
-/// parameter with the wrong count is dropped with a warning.
+/// parameter with the wrong count, or unsupported facevarying data, is dropped with a warning.
 pub(super) fn per_vertex_params<'a>(
     params: &'a [Param],
     counts: &ClassCounts,
@@ -282,7 +287,14 @@ pub(super) fn per_vertex_params<'a>(
             Class::Vertex => counts.vertex,
             Class::Varying => counts.varying,
             Class::Uniform => counts.face,
-            Class::FaceVarying => counts.corner,
+            Class::FaceVarying => match counts.corner {
+                Some(corners) => corners,
+                None => {
+                    warnings
+                        .push(format!("facevarying \"{}\" is not supported on this primitive and is dropped", p.name));
+                    continue;
+                }
+            },
             Class::Constant => continue,
         };
         if p.value_count() != expected {
@@ -419,8 +431,8 @@ fn triangulate_polygon(loops: &[Vec<u32>], positions: &[Vec3], out: &mut Vec<[u3
     // holes still to come.
     holes.sort_by(|a, b| max_x(b).total_cmp(&max_x(a)));
     for k in 0..holes.len() {
-        let (hole, rest) = holes[k..].split_first().map(|(h, r)| (h.clone(), r)).unwrap_or_default();
-        bridge(&mut ring, &hole, rest);
+        let (bridged, rest) = holes.split_at(k + 1);
+        bridge(&mut ring, &bridged[k], rest);
     }
     ear_clip(ring, out);
 }
@@ -608,6 +620,8 @@ mod tests {
             r#"PointsPolygons [2] [0 1] "P" [0 0 0 1 0 0]"#,
             r#"PointsGeneralPolygons [2] [3] [0 1 2] "P" [0 0 0 1 0 0 1 1 0]"#,
             r#"Polygon "Cs" [1 1 1]"#,
+            r#"GeneralPolygon [2000000000] "P" [0 0 0 1 0 0 1 1 0]"#,
+            r#"GeneralPolygon [3 -3] "P" [0 0 0 1 0 0 1 1 0]"#,
         ] {
             let parse = parse_str(text, "bad.rib");
             let mut diagnostics = Vec::new();

@@ -13,7 +13,7 @@
 use glam::{Vec2, Vec3};
 
 use super::decl::Class;
-use super::mesh::{per_vertex_params, positions, route_attributes, ClassCounts, MeshOptions, PerVertex};
+use super::mesh::{per_vertex_params, positions, route_attributes, ClassCounts, MeshOptions};
 use super::request::{find_param, Basis, Param, PatchType, Wrap};
 use crate::geometry::quadric::{tessellate_grid, Tessellation};
 use crate::geometry::{Attribute, Mesh};
@@ -140,22 +140,9 @@ pub fn patch_mesh(
     // Varying values sit at patch corners: one more than the patches along an open direction.
     let varying_along = |patches: usize, wrap: Wrap| if wrap == Wrap::Periodic { patches } else { patches + 1 };
     let (nu_varying, nv_varying) = (varying_along(nu_patches, uwrap), varying_along(nv_patches, vwrap));
-    let counts = ClassCounts {
-        vertex: nu * nv,
-        varying: nu_varying * nv_varying,
-        face: nu_patches * nv_patches,
-        corner: usize::MAX,
-    };
-    let data: Vec<PerVertex> = per_vertex_params(params, &counts, warnings)
-        .into_iter()
-        .filter(|d| {
-            let keep = d.class != Class::FaceVarying;
-            if !keep {
-                warnings.push(format!("facevarying \"{}\" on a patch mesh is not supported and is dropped", d.name));
-            }
-            keep
-        })
-        .collect();
+    let counts =
+        ClassCounts { vertex: nu * nv, varying: nu_varying * nv_varying, face: nu_patches * nv_patches, corner: None };
+    let data = per_vertex_params(params, &counts, warnings);
 
     let mut mesh = Mesh { normals: Some(Vec::new()), uvs: Some(Vec::new()), ..Default::default() };
     let mut attributes: Vec<Attribute> =
