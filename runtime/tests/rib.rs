@@ -463,6 +463,8 @@ proptest! {
         Just("\"P\"".to_string()), Just("\"Pw\"".to_string()), Just("\"Pz\"".to_string()), Just("\"N\"".to_string()),
         Just("\"facevarying float[2] st\"".to_string()), Just("\"uniform color Cs\"".to_string()),
         Just("\"bilinear\"".to_string()), Just("\"periodic\"".to_string()), Just("[".to_string()), Just("]".to_string()),
+        Just("Torus".to_string()), Just("Basis".to_string()), Just("\"bicubic\"".to_string()),
+        Just("\"b-spline\"".to_string()), Just("PointsPolygons".to_string()), Just("LightSource".to_string()),
         Just("ReadArchive".to_string()), Just("\"scene.rib\"".to_string()), Just("Declare".to_string()),
         (-3i32..8).prop_map(|n| n.to_string()), (-1e3f32..1e3).prop_map(|x| x.to_string()),
         Just("1e38".to_string()), Just("-0".to_string()), Just("NaN".to_string()),

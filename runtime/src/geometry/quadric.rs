@@ -160,8 +160,10 @@ impl Quadric {
     /// around the axis, 32 per half turn of a curved profile, one segment along profiles that
     /// are straight lines (cylinder, cone, disk, hyperboloid), which is exact.
     pub fn default_tessellation(&self) -> Tessellation {
+        // Sweeps beyond a full turn retrace the surface: they get a full turn's segments, so a
+        // wild angle cannot ask for millions of triangles by default.
         let sweep = |degrees: f32, per_turn: f32, min: f32| {
-            let n = (per_turn * (degrees.abs() / 360.0)).ceil();
+            let n = (per_turn * (degrees.abs().min(360.0) / 360.0)).ceil();
             clamp_segments(if n.is_nan() { min } else { n.max(min) })
         };
         let u_segments = sweep(self.thetamax(), FULL_SWEEP_SEGMENTS, 3.0);
@@ -462,6 +464,13 @@ mod tests {
         assert!(sphere(1.0, -1.0, 1.0, -360.0).normal(0.1, 0.5).dot(Vec3::new(1.0, 0.6, 0.0)) < 0.0);
         assert!(sphere(f32::NAN, -1.0, 1.0, 360.0).tessellate(Tessellation { u_segments: 4, v_segments: 4 }).is_err());
         let huge = sphere(1.0, -1.0, 1.0, 1e30).default_tessellation();
-        assert_eq!(huge.u_segments, MAX_SEGMENTS);
+        assert_eq!(huge.u_segments, 64);
+        let torus = Quadric::Torus { major_radius: 1.0, minor_radius: 0.5, phimin: 0.0, phimax: 1e30, thetamax: 1e30 };
+        assert_eq!(torus.default_tessellation(), Tessellation { u_segments: 64, v_segments: 32 });
+        let huge = Tessellation { u_segments: u32::MAX, v_segments: 0 };
+        assert_eq!(
+            sphere(1.0, -1.0, 1.0, 360.0).tessellate(huge).unwrap().positions.len() as u32,
+            (MAX_SEGMENTS + 1) * 2
+        );
     }
 }
