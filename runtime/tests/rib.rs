@@ -25,6 +25,7 @@ DepthOfField 8 0.05 10
 Shutter 0 1
 Display "out.tif" "file" "rgba" "origin" [0 0]
 PixelSamples 4 4
+Hider "hidden" "integer jitter" [1]
 PixelFilter "gaussian" 2 2
 Exposure 1 2.2
 ShadingRate 1
@@ -56,6 +57,15 @@ AttributeBegin
   Orientation "rh"
   ReverseOrientation
   Matte 0
+  ShadingInterpolation "smooth"
+  TextureCoordinates 0 0 2 0 0 2 2 2
+  Bound [-1 1 -1 1 -1 1]
+  MotionBegin [0 1]
+    Translate 0 0 0
+    Translate 0 0 1
+  MotionEnd
+  SolidBegin "primitive"
+  SolidEnd
   Basis "bezier" 3 "bezier" 3
   Translate 0 -1 0
   Rotate 90 1 0 0
@@ -150,6 +160,14 @@ fn every_request_parses() {
         "Orientation",
         "ReverseOrientation",
         "Matte",
+        "ShadingInterpolation",
+        "Hider",
+        "TextureCoordinates",
+        "Bound",
+        "MotionBegin",
+        "MotionEnd",
+        "SolidBegin",
+        "SolidEnd",
         "Basis",
         "Translate",
         "Rotate",
@@ -179,6 +197,8 @@ fn every_request_parses() {
     let kinds: Vec<&K> = parsed.requests.iter().map(|r| &r.kind).collect();
     assert!(kinds.contains(&&K::Format { xres: 640, yres: 480, pixel_aspect: 1.0 }));
     assert!(kinds.contains(&&K::CropWindow([0.0, 1.0, 0.0, 1.0])));
+    assert!(kinds.contains(&&K::MotionBegin(vec![0.0, 1.0])));
+    assert!(kinds.contains(&&K::TextureCoordinates([0.0, 0.0, 2.0, 0.0, 0.0, 2.0, 2.0, 2.0])));
     assert!(kinds.contains(&&K::FrameBegin(Some(1))));
     assert!(kinds.contains(&&K::Illuminate { light: Handle::Number(1), on: false }));
     assert!(kinds.contains(&&K::Illuminate { light: Handle::Name("key".into()), on: true }));
@@ -249,7 +269,7 @@ fn parameters_take_their_types_from_every_source() {
             ("texname", Decl::new(Class::Constant, Ty::String), &ParamValue::Strings(vec!["grid.tex".into()])),
         ]
     );
-    assert_eq!(surface.params[0].loc.to_string(), "scene.rib:36:21");
+    assert_eq!(surface.params[0].loc.to_string(), "scene.rib:37:21");
     let display = parsed.requests.iter().find(|r| matches!(r.kind, K::Display { .. })).unwrap();
     let K::Display { params, .. } = &display.kind else { unreachable!() };
     assert_eq!(params[0].ints(), Some(&[0, 0][..]));
@@ -310,7 +330,7 @@ fn syntax_errors_are_located_and_reading_recovers() {
                 Scale 1 1 1 1\n\
                 Rotate 90 [0 0 1\n\
                 Surface \"x\" 0.5\n\
-                Frobnicate 1 2 3\n\
+                Frobnicate 1 2 3 Curves\n\
                 Polygon \"P\" [0 0 0 1 0 0 1 1 0] \"Cs\"\n\
                 Disk 0 1 360 12abc\n\
                 Cone 1 1 360\n\
@@ -327,6 +347,7 @@ fn syntax_errors_are_located_and_reading_recovers() {
             "scene.rib:7:11: error: `[` is never closed",
             "scene.rib:8:13: error: expected a parameter name (a string) in `Surface`'s parameter list, found a number",
             "scene.rib:9:1: warning: unknown request `Frobnicate` skipped",
+            "scene.rib:9:18: warning: `Curves` is not supported yet and is skipped",
             "scene.rib:10:33: error: parameter \"Cs\" has no value",
             "scene.rib:11:14: error: malformed number `12abc`",
         ]

@@ -19,6 +19,44 @@ use glam::Vec3;
 
 type Result<T> = std::result::Result<T, RibDiagnostic>;
 
+/// RenderMan requests (RISpec 3.2 and the common later ones) that this reader skips: they get a
+/// warning that says so rather than the "unknown request" one a typo gets.
+const UNSUPPORTED_REQUESTS: &[&str] = &[
+    "ArchiveBegin",
+    "ArchiveEnd",
+    "Blobby",
+    "ClippingPlane",
+    "ColorSamples",
+    "Curves",
+    "Detail",
+    "DetailRange",
+    "Else",
+    "ElseIf",
+    "ErrorHandler",
+    "GeometricApproximation",
+    "Geometry",
+    "IfBegin",
+    "IfEnd",
+    "MakeBump",
+    "MakeCubeFaceEnvironment",
+    "MakeLatLongEnvironment",
+    "MakeShadow",
+    "NuPatch",
+    "PixelVariance",
+    "Points",
+    "Procedural",
+    "Quantize",
+    "RelativeDetail",
+    "Resource",
+    "ResourceBegin",
+    "ResourceEnd",
+    "ScopedCoordinateSystem",
+    "Shader",
+    "SubdivisionMesh",
+    "System",
+    "TrimCurve",
+];
+
 /// One argument of a request, as written.
 #[derive(Clone, Debug)]
 enum ArgValue {
@@ -133,7 +171,12 @@ impl Parser {
                 self.requests.push(Request { kind, loc });
             }
             Ok(None) => {
-                self.diagnostics.push(RibDiagnostic::warning(&loc, format!("unknown request `{name}` skipped")))
+                let message = if UNSUPPORTED_REQUESTS.contains(&name) {
+                    format!("`{name}` is not supported yet and is skipped")
+                } else {
+                    format!("unknown request `{name}` skipped")
+                };
+                self.diagnostics.push(RibDiagnostic::warning(&loc, message));
             }
             Err(diagnostic) => self.diagnostics.push(diagnostic),
         }
@@ -237,6 +280,14 @@ impl Parser {
             }
             "ReverseOrientation" => K::ReverseOrientation,
             "Matte" => K::Matte(a.int("on/off flag")? != 0),
+            "ShadingInterpolation" => K::ShadingInterpolation(a.string("interpolation type")?),
+            "Hider" => K::Hider(self.shader(a)?),
+            "TextureCoordinates" => K::TextureCoordinates(a.floats("s1 t1 s2 t2 s3 t3 s4 t4")?),
+            "Bound" => K::Bound(a.floats("xmin xmax ymin ymax zmin zmax")?),
+            "MotionBegin" => K::MotionBegin(a.numbers("sample times")?),
+            "MotionEnd" => K::MotionEnd,
+            "SolidBegin" => K::SolidBegin(a.string("operation")?),
+            "SolidEnd" => K::SolidEnd,
             "Basis" => K::Basis { u: a.basis()?, ustep: a.int("u step")?, v: a.basis()?, vstep: a.int("v step")? },
             "Polygon" => K::Polygon(self.params(a)),
             "GeneralPolygon" => K::GeneralPolygon { nvertices: a.ints("vertices per loop")?, params: self.params(a) },
@@ -558,6 +609,18 @@ impl<'a> Args<'a> {
             self.pos += 1;
         }
         Ok(out)
+    }
+
+    /// An array of numbers (a single number is accepted as a one-element array).
+    fn numbers(&mut self, what: &str) -> Result<Vec<f32>> {
+        let arg = self.next(what)?;
+        match &arg.value {
+            ArgValue::Number(x) => Ok(vec![*x as f32]),
+            ArgValue::Numbers(xs) => Ok(xs.iter().map(|&x| x as f32).collect()),
+            other => {
+                Err(error(&arg.loc, format!("`{}` expects numbers ({what}), found {}", self.request, other.describe())))
+            }
+        }
     }
 
     fn float(&mut self, what: &str) -> Result<f32> {

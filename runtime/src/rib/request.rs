@@ -363,6 +363,24 @@ pub enum RequestKind {
     ReverseOrientation,
     /// `Matte onoff`
     Matte(bool),
+    /// `ShadingInterpolation "constant"|"smooth"` (accepted; a ray tracer shades per hit).
+    ShadingInterpolation(String),
+    /// `Hider "type" params`
+    Hider(Shader),
+    /// `TextureCoordinates s1 t1 s2 t2 s3 t3 s4 t4`: the default `(s, t)` at the `(u, v)` corners
+    /// `(0, 0) (1, 0) (0, 1) (1, 1)` of patches and quadrics.
+    TextureCoordinates([f32; 8]),
+    /// `Bound [xmin xmax ymin ymax zmin zmax]`
+    Bound([f32; 6]),
+    /// `MotionBegin [times]`: the requests up to `MotionEnd` are samples of one request at these
+    /// times.
+    MotionBegin(Vec<f32>),
+    /// `MotionEnd`
+    MotionEnd,
+    /// `SolidBegin "operation"` (CSG: `"primitive"`, `"union"`, `"intersection"`, `"difference"`).
+    SolidBegin(String),
+    /// `SolidEnd`
+    SolidEnd,
     /// `Basis ustep vstep` with each basis a name or a matrix.
     Basis {
         /// The u basis.
