@@ -46,6 +46,10 @@ pub struct MeshOptions {
     pub v_basis: Basis,
     /// Its step.
     pub v_step: i32,
+    /// The current `TextureCoordinates`: the `(s, t)` at the `(u, v)` corners `(0, 0) (1, 0)
+    /// (0, 1) (1, 1)` that patches and quadrics without `st` get as uvs, bilinearly (RISpec's
+    /// default maps `s = u`, `t = v`).
+    pub texture_coordinates: [f32; 8],
 }
 
 impl Default for MeshOptions {
@@ -56,7 +60,17 @@ impl Default for MeshOptions {
             u_step: 3,
             v_basis: Basis::Named("bezier".into()),
             v_step: 3,
+            texture_coordinates: [0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 1.0, 1.0],
         }
+    }
+}
+
+impl MeshOptions {
+    /// The default `(s, t)` at surface parameters `uv`, from [`MeshOptions::texture_coordinates`].
+    pub fn default_st(&self, uv: Vec2) -> Vec2 {
+        let c = self.texture_coordinates;
+        let corner = |k: usize| Vec2::new(c[2 * k], c[2 * k + 1]);
+        bilerp([corner(0), corner(1), corner(2), corner(3)], uv.x, uv.y)
     }
 }
 
@@ -90,7 +104,7 @@ pub fn mesh_from_request_with(
         RequestKind::PatchMesh { ty, nu, uwrap, nv, vwrap, params } => {
             patch_mesh(*ty, *nu, *uwrap, *nv, *vwrap, params, options, &mut warnings)
         }
-        RequestKind::Quadric { quadric, params } => quadric_mesh(quadric, options.tessellation, params, &mut warnings),
+        RequestKind::Quadric { quadric, params } => quadric_mesh(quadric, params, options, &mut warnings),
         _ => return None,
     };
     diagnostics.extend(warnings.into_iter().map(|w| RibDiagnostic::warning(&request.loc, w)));
@@ -227,14 +241,14 @@ pub fn points_general_polygons_mesh(
 /// interpolated over it.
 pub fn quadric_mesh(
     quadric: &Quadric,
-    tessellation: Option<Tessellation>,
     params: &[Param],
+    options: &MeshOptions,
     warnings: &mut Vec<String>,
 ) -> Result<Mesh, String> {
-    let tessellation = tessellation.unwrap_or_else(|| quadric.default_tessellation());
-    let mut mesh = quadric
-        .tessellate(tessellation)
-        .map_err(|_| format!("{} has a parameter that is not a finite number", quadric.name()))?;
+    let tessellation = options.tessellation.unwrap_or_else(|| quadric.default_tessellation());
+    let mut mesh = quadric.tessellate(tessellation).map_err(|_| {
+        format!("{} has a parameter that is not finite, or a surface too large for f32", quadric.name())
+    })?;
     // Uniform values count one per surface, like constant ones: they are not per-vertex data.
     let counts = ClassCounts { vertex: 4, varying: 4, face: 1, corner: Some(4) };
     let uvs = mesh.uvs.clone().unwrap_or_default();
@@ -247,6 +261,7 @@ pub fn quadric_mesh(
         interpolate_corners(&d, [0, 1, 2, 3], 0, &uvs, &mut data);
         attributes.push(Attribute { name: d.name.clone(), components: d.components, data });
     }
+    mesh.uvs = Some(uvs.iter().map(|&uv| options.default_st(uv)).collect());
     route_attributes(&mut mesh, attributes);
     mesh.validate().map_err(|e| e.to_string())?;
     Ok(mesh)
@@ -700,7 +715,7 @@ mod tests {
         );
         assert!(!parse.has_errors());
         let K::Basis { u, ustep, v, vstep } = parse.requests[0].kind.clone() else { panic!() };
-        let options = MeshOptions { u_basis: u, u_step: ustep, v_basis: v, v_step: vstep, tessellation: None };
+        let options = MeshOptions { u_basis: u, u_step: ustep, v_basis: v, v_step: vstep, ..Default::default() };
         let mesh = mesh_from_request_with(&parse.requests[1], &options, &mut Vec::new()).unwrap();
         assert_eq!(mesh.triangle_count() as u32, 4 * 2 * DEFAULT_PATCH_SEGMENTS * DEFAULT_PATCH_SEGMENTS);
         for (p, n) in mesh.positions.iter().zip(mesh.normals.as_ref().unwrap()) {
@@ -730,5 +745,10 @@ mod tests {
             MeshOptions { tessellation: Some(Tessellation { u_segments: 4, v_segments: 2 }), ..Default::default() };
         let mesh = mesh_from_request_with(&parse.requests[0], &options, &mut Vec::new()).unwrap();
         assert_eq!(mesh.positions.len(), 15);
+        // TextureCoordinates remap the default uvs.
+        let options = MeshOptions { texture_coordinates: [1.0, 1.0, 0.0, 1.0, 1.0, 0.0, 0.0, 0.0], ..options };
+        let mesh = mesh_from_request_with(&parse.requests[0], &options, &mut Vec::new()).unwrap();
+        let uvs = mesh.uvs.as_ref().unwrap();
+        assert_eq!((uvs[0], uvs[14]), (Vec2::new(1.0, 1.0), Vec2::new(0.0, 0.0)));
     }
 }

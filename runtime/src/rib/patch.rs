@@ -6,9 +6,9 @@
 //! Periodic directions wrap around.
 //!
 //! Invariants: each patch is tessellated on its own grid, evaluated exactly on the surface, with
-//! normals `dP/du x dP/dv` (normalised) and uvs `(u, v)` running from 0 to 1 over the whole
-//! mesh; vertex data follows the basis, varying data is bilinear between the patch's corners,
-//! uniform data is constant per patch.
+//! normals `dP/du x dP/dv` (normalised) and uvs `(u, v)` running from 0 to 1 over the whole mesh
+//! (mapped through `TextureCoordinates` when they are set); vertex data follows the basis, varying
+//! data is bilinear between the patch's corners, uniform data is constant per patch.
 
 use glam::{Vec2, Vec3};
 
@@ -208,7 +208,8 @@ pub fn patch_mesh(
             }
             let global_uvs = local_uvs
                 .iter()
-                .map(|uv| Vec2::new((pi as f32 + uv.x) / nu_patches as f32, (pj as f32 + uv.y) / nv_patches as f32));
+                .map(|uv| Vec2::new((pi as f32 + uv.x) / nu_patches as f32, (pj as f32 + uv.y) / nv_patches as f32))
+                .map(|uv| options.default_st(uv));
             append(&mut mesh, patch, global_uvs);
         }
     }
