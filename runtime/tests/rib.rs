@@ -508,3 +508,33 @@ proptest! {
         parse_and_mesh(&bytes);
     }
 }
+
+#[test]
+fn argument_errors_name_the_request_and_the_argument() {
+    let parsed = parse(
+        "Declare \"k\" \"uniform colour\"\n\
+         ConcatTransform [1 0 0 0 0 1 0 0 0 0 1 0 0 0 0]\n\
+         Orientation \"sideways\"\n\
+         PatchMesh \"bilinear\" 2 \"wrapped\" 2 \"nonperiodic\"\n\
+         ObjectBegin\n\
+         Format 640.5 480 1\n\
+         Color 1 0 0\n\
+         FrameBegin\n\
+         PointsPolygons [3] [0 1 \"two\"]\n",
+    );
+    assert_eq!(
+        messages(&parsed),
+        vec![
+            "scene.rib:1:13: error: unknown type `colour` (expected float, integer, color, point, vector, normal, \
+             hpoint, string or matrix)",
+            "scene.rib:2:1: error: `ConcatTransform` needs 16 numbers (4x4 matrix) but has 15",
+            "scene.rib:3:13: error: unknown orientation \"sideways\" (expected \"outside\", \"inside\", \"lh\" or \"rh\")",
+            "scene.rib:4:24: error: unknown wrap mode \"wrapped\" (expected \"periodic\" or \"nonperiodic\")",
+            "scene.rib:5:1: error: `ObjectBegin` is missing its object handle",
+            "scene.rib:6:8: error: `Format` expects an integer (xresolution): 640.5 is not an integer",
+            "scene.rib:9:25: error: an array mixes numbers and strings",
+        ]
+    );
+    let kinds: Vec<&K> = parsed.requests.iter().map(|r| &r.kind).collect();
+    assert_eq!(kinds, vec![&K::Color([1.0, 0.0, 0.0]), &K::FrameBegin(None)]);
+}
