@@ -61,7 +61,7 @@ fn parse_vec3(s: &str) -> Result<[f32; 3], String> {
     Ok(v)
 }
 
-fn parse_size(s: &str) -> Result<(u32, u32), String> {
+pub(crate) fn parse_size(s: &str) -> Result<(u32, u32), String> {
     let (w, h) =
         s.split_once(['x', 'X']).ok_or_else(|| format!("expected an image size WxH such as 1024x768, got `{s}`"))?;
     let w: u32 = w.trim().parse().map_err(|_| format!("width `{w}` is not a positive integer"))?;

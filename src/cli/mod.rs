@@ -3,6 +3,7 @@
 mod bench;
 mod compile;
 mod info;
+mod render;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -16,6 +17,8 @@ struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
+    /// Render a scene (a RIB file or a mesh; with none, the embedded default scene) to an image.
+    Render(render::RenderArgs),
     /// Check shaders: files, or directories searched recursively for `.sl` files.
     Compile(compile::CompileArgs),
     /// Show a shader's type, name and parameters.
@@ -37,6 +40,7 @@ enum BenchCommand {
 pub fn run() -> anyhow::Result<ExitCode> {
     let cli = Cli::parse();
     match cli.command {
+        Command::Render(args) => render::run(&args),
         Command::Compile(args) => compile::run(&args),
         Command::Info(args) => info::run(&args),
         Command::Bench(BenchCommand::Frontend(args)) => compile::bench_frontend(&args),

@@ -17,6 +17,7 @@
 
 pub mod decl;
 pub mod lex;
+pub mod load;
 pub mod mesh;
 mod parse;
 pub mod patch;

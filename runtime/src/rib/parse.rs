@@ -445,6 +445,12 @@ impl Parser {
             return Err(error(loc, format!("archives nest deeper than {MAX_ARCHIVE_DEPTH} (at \"{name}\")")));
         }
         let path = base_dir(&loc.file).join(&name);
+        // A mesh file named as an archive is geometry for the engine to load, not RIB to read.
+        let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+        if matches!(ext.as_deref(), Some("obj" | "ply")) {
+            self.requests.push(Request { kind: crate::rib::RequestKind::MeshArchive(path), loc: loc.clone() });
+            return Ok(());
+        }
         let unreadable = |e: std::io::Error| error(loc, format!("cannot read archive \"{}\": {e}", path.display()));
         let canonical = std::fs::canonicalize(&path).map_err(unreadable)?;
         if self.include_stack.contains(&canonical) {

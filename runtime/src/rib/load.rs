@@ -1,0 +1,517 @@
+//! RIB requests onto the API: a parsed RIB stream becomes calls on a [`Context`].
+//!
+//! RenderMan semantics kept:
+//! - The transform current at `WorldBegin` is the camera's (world to camera, camera space x right,
+//!   y up, z forward); `Projection "perspective" "fov"` spans the shorter image side.
+//! - Transforms post-multiply the current transform (RenderMan's `Translate` applies to what follows,
+//!   as OpenGL's); `Transform`/`ConcatTransform` take RenderMan's row-major matrices.
+//! - `AttributeBegin/End` save and restore the colour, opacity, surface shader, the area light and
+//!   the transform; `TransformBegin/End` the transform only.
+//! - Point-like shader parameters are in the space current at the shader statement.
+//! - Consecutive geometry under one set of attributes becomes one object (one BVH), instanced once;
+//!   `ObjectBegin/End` make a retained object placed by each `ObjectInstance`. The shader of a
+//!   retained object is the one current at `ObjectEnd`.
+//! - `AreaLightSource`: the geometry that follows in the same attribute block both renders and emits
+//!   (sampled for soft shadows).
+//! - `ReadArchive` of an `.obj`, `.ply` file adds that mesh under the current attributes.
+//!
+//! What cannot be honoured (a shader not found, a parameter the shader lacks or of the wrong type, a
+//! request the engine does not support yet) is a warning with the file, line and column, and
+//! loading goes on; syntax errors stop the load with every error listed.
+
+use super::decl::{Class, Ty};
+use super::mesh::{mesh_from_request_with, MeshOptions};
+use super::request::{Handle, Param, ParamValue as RibValue, Request, RequestKind};
+use super::{parse_file, parse_str, RibParse, Severity};
+use crate::api::{ApiError, Context, LightId, ObjectId};
+use crate::geometry::Mesh;
+use crate::scene_file::{add_mesh_file, SceneFileError};
+use crate::shading::ParamValue;
+use glam::{Affine3A, Mat4};
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+/// What loading a RIB stream produced besides the scene in the context.
+#[derive(Debug, Default)]
+pub struct LoadedRib {
+    /// The image file `Display` names (relative to the RIB file's directory).
+    pub display: Option<PathBuf>,
+    /// Everything that was skipped, with its location.
+    pub warnings: Vec<String>,
+}
+
+/// Loads a RIB file into `rt`.
+pub fn load_file(rt: &mut Context, path: &Path) -> Result<LoadedRib, SceneFileError> {
+    let parse = parse_file(path).map_err(|e| SceneFileError::Rib { path: path.to_path_buf(), message: e.message })?;
+    load_parsed(rt, parse, path)
+}
+
+/// Loads RIB text into `rt`; `name` names it in messages and its directory resolves relative paths.
+pub fn load_str(rt: &mut Context, text: &str, name: &Path) -> Result<LoadedRib, SceneFileError> {
+    load_parsed(rt, parse_str(text, name), name)
+}
+
+fn load_parsed(rt: &mut Context, parse: RibParse, path: &Path) -> Result<LoadedRib, SceneFileError> {
+    if parse.has_errors() {
+        let message = parse.errors().map(|d| d.to_string()).collect::<Vec<_>>().join("\n");
+        return Err(SceneFileError::Rib { path: path.to_path_buf(), message });
+    }
+    let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    let mut loader = Loader::new(rt, dir);
+    loader
+        .out
+        .warnings
+        .extend(parse.diagnostics.iter().filter(|d| d.severity == Severity::Warning).map(|d| d.to_string()));
+    for r in &parse.requests {
+        if let Err(e) = loader.request(r) {
+            loader.out.warnings.push(format!("{}: warning: {e}", r.loc));
+        }
+        if loader.frames_done > 0 {
+            break;
+        }
+    }
+    loader.flush()?;
+    // Area lights emit from the geometry that followed them (gathered in world space).
+    let area_meshes = std::mem::take(&mut loader.area_meshes);
+    loader.rt.push_matrix();
+    loader.rt.load_identity();
+    for (light, meshes) in area_meshes {
+        for m in &meshes {
+            loader.rt.area_light_geometry(LightId(light), m)?;
+        }
+    }
+    loader.rt.pop_matrix()?;
+    Ok(loader.out)
+}
+
+#[derive(Clone)]
+struct State {
+    area_light: Option<LightId>,
+    mesh_options: MeshOptions,
+}
+
+struct Loader<'a> {
+    rt: &'a mut Context,
+    dir: PathBuf,
+    out: LoadedRib,
+    state: State,
+    stack: Vec<State>,
+    /// Geometry gathered for one object: the object and the transform it is placed with.
+    pending: Option<(ObjectId, Affine3A)>,
+    /// Inside `ObjectBegin`: the retained object being built.
+    retained: Option<ObjectId>,
+    objects: HashMap<Handle, ObjectId>,
+    lights: HashMap<Handle, LightId>,
+    /// World-space emitting triangles per area light.
+    area_meshes: HashMap<u32, Vec<Mesh>>,
+    shadows: bool,
+    in_world: bool,
+    frames_done: u32,
+    /// Inside `MotionBegin`: how many samples were seen.
+    motion: Option<u32>,
+}
+
+impl<'a> Loader<'a> {
+    fn new(rt: &'a mut Context, dir: PathBuf) -> Loader<'a> {
+        rt.add_texture_search_path(dir.clone());
+        Loader {
+            rt,
+            dir,
+            out: LoadedRib::default(),
+            state: State { area_light: None, mesh_options: MeshOptions::default() },
+            stack: Vec::new(),
+            pending: None,
+            retained: None,
+            objects: HashMap::new(),
+            lights: HashMap::new(),
+            area_meshes: HashMap::new(),
+            shadows: true,
+            in_world: false,
+            frames_done: 0,
+            motion: None,
+        }
+    }
+
+    fn warn(&mut self, r: &Request, message: impl std::fmt::Display) {
+        self.out.warnings.push(format!("{}: warning: {message}", r.loc));
+    }
+
+    /// Ends the object that gathers geometry, instancing it where it began.
+    fn flush(&mut self) -> Result<(), ApiError> {
+        if let Some((id, placed)) = self.pending.take() {
+            self.rt.end_object()?;
+            let now = self.rt.current_matrix();
+            self.rt.load_matrix(placed);
+            self.rt.instantiate_object(id)?;
+            self.rt.load_matrix(now);
+        }
+        Ok(())
+    }
+
+    fn geometry(&mut self, r: &Request, mesh: Mesh) -> Result<(), ApiError> {
+        if let Some(light) = self.state.area_light {
+            let m = self.rt.current_matrix();
+            let mut world = mesh.clone();
+            for p in &mut world.positions {
+                *p = m.transform_point3(*p);
+            }
+            self.area_meshes.entry(light.0).or_default().push(world);
+        }
+        if self.retained.is_none() && self.pending.is_none() {
+            let id = self.rt.begin_object()?;
+            self.pending = Some((id, self.rt.current_matrix()));
+        }
+        self.rt.mesh(&mesh).inspect_err(|_| self.warn(r, "geometry skipped"))
+    }
+
+    fn request(&mut self, r: &Request) -> Result<(), SceneFileError> {
+        use RequestKind as K;
+        // Motion blocks: only the first sample is used (motion blur comes with the camera shaders).
+        if let Some(seen) = self.motion.as_mut() {
+            if !matches!(r.kind, K::MotionEnd) {
+                *seen += 1;
+                if *seen > 1 {
+                    return Ok(());
+                }
+            }
+        }
+        let geometry_or_transform = matches!(
+            r.kind,
+            K::Polygon(_)
+                | K::GeneralPolygon { .. }
+                | K::PointsPolygons { .. }
+                | K::PointsGeneralPolygons { .. }
+                | K::Patch { .. }
+                | K::PatchMesh { .. }
+                | K::Quadric { .. }
+                | K::Translate(_)
+                | K::Rotate { .. }
+                | K::Scale(_)
+                | K::ConcatTransform(_)
+                | K::Transform(_)
+                | K::Identity
+                | K::TransformBegin
+                | K::TransformEnd
+                | K::Skew(_)
+        );
+        if !geometry_or_transform {
+            self.flush()?;
+        }
+        let rt = &mut *self.rt;
+        match &r.kind {
+            K::Version(_) | K::ShadingRate(_) | K::Declare { .. } | K::Sides(_) | K::Matte(_) => {}
+            K::ShadingInterpolation(_) | K::Hider(_) | K::Bound(_) => {}
+            K::TextureCoordinates(st) => self.state.mesh_options.texture_coordinates = *st,
+            K::MotionBegin(_) => self.motion = Some(0),
+            K::MotionEnd => self.motion = None,
+            K::SolidBegin(_) | K::SolidEnd => {
+                self.warn(r, "solid modelling (CSG) is not supported: the parts render as they are")
+            }
+            K::Orientation(_) | K::ReverseOrientation => {}
+            K::Format { xres, yres, .. } => {
+                rt.options.width = (*xres).clamp(1, 16384) as u32;
+                rt.options.height = (*yres).clamp(1, 16384) as u32;
+            }
+            K::PixelSamples { x, y } => {
+                rt.options.samples = (x.round().clamp(1.0, 64.0) as u32, y.round().clamp(1.0, 64.0) as u32);
+            }
+            K::Projection(p) => match p.name.as_str() {
+                "perspective" => {
+                    let fov = p.params.iter().find(|q| q.name == "fov").and_then(|q| q.floats()?.first().copied());
+                    let mut cam = *rt.camera();
+                    cam.fov_degrees = fov.unwrap_or(90.0).clamp(0.01, 179.0);
+                    rt.set_camera(cam);
+                }
+                other => self.warn(r, format_args!("projection \"{other}\" is not supported; perspective is used")),
+            },
+            K::Clipping { near, far } => {
+                let mut cam = *rt.camera();
+                cam.near = *near;
+                cam.far = *far;
+                rt.set_camera(cam);
+            }
+            K::Display { name, .. } => self.out.display = Some(PathBuf::from(name)),
+            K::Exposure { gain, gamma } => rt.options.exposure = Some((*gain, *gamma)),
+            K::FrameBegin(_) => {}
+            K::FrameEnd => self.frames_done += 1,
+            K::WorldBegin => {
+                // The transform now is world-to-camera.
+                let m = rt.current_matrix();
+                let mut cam = *rt.camera();
+                cam.world_from_camera = m.inverse();
+                rt.set_camera(cam);
+                rt.load_identity();
+                self.in_world = true;
+            }
+            K::WorldEnd => {}
+            K::AttributeBegin => {
+                rt.push_attributes();
+                self.stack.push(self.state.clone());
+            }
+            K::AttributeEnd => {
+                rt.pop_attributes()?;
+                self.state =
+                    self.stack.pop().unwrap_or(State { area_light: None, mesh_options: MeshOptions::default() });
+            }
+            K::TransformBegin => rt.push_matrix(),
+            K::TransformEnd => rt.pop_matrix()?,
+            K::Identity => rt.load_identity(),
+            K::Transform(m) => rt.load_matrix(affine(m)),
+            K::ConcatTransform(m) => rt.mult_matrix(affine(m)),
+            K::Translate(t) => rt.translate(t[0], t[1], t[2]),
+            K::Rotate { angle, axis } => rt.rotate(*angle, axis[0], axis[1], axis[2]),
+            K::Scale(s) => {
+                if s.contains(&0.0) {
+                    self.warn(r, "a zero scale is ignored");
+                } else {
+                    rt.scale(s[0], s[1], s[2]);
+                }
+            }
+            K::Perspective(_) | K::Skew(_) => self.warn(r, "this transform is not supported and is ignored"),
+            K::CoordinateSystem(name) => rt.coordinate_system(name),
+            K::CoordSysTransform(name) => {
+                if !rt.load_coordinate_system(name) {
+                    self.warn(r, format_args!("no coordinate system named \"{name}\""));
+                }
+            }
+            K::Surface(s) => {
+                let id = rt.find_shader(&s.name)?;
+                rt.bind_shader(id)?;
+                for p in &s.params {
+                    match shader_value(p) {
+                        Some(v) => {
+                            if let Err(e) = rt.parameter(&p.name, v) {
+                                self.out.warnings.push(format!("{}: warning: {e}", p.loc));
+                            }
+                        }
+                        None => {
+                            self.out.warnings.push(format!("{}: warning: cannot pass {} to a shader", p.loc, p.name))
+                        }
+                    }
+                }
+            }
+            K::LightSource { shader, handle } | K::AreaLightSource { shader, handle } => {
+                let area = matches!(r.kind, K::AreaLightSource { .. });
+                let id = rt.find_shader(&shader.name)?;
+                let mut params = Vec::new();
+                for p in &shader.params {
+                    match shader_value(p) {
+                        Some(v) => params.push((p.name.as_str(), v)),
+                        None => {
+                            self.out.warnings.push(format!("{}: warning: cannot pass {} to a shader", p.loc, p.name))
+                        }
+                    }
+                }
+                // A parameter the light lacks, or of the wrong type, is skipped with a warning.
+                let program = rt.program(id)?.clone();
+                let mut kept = Vec::new();
+                for (name, v) in params {
+                    match crate::shading::bind_param(&program, name, &v, &Affine3A::IDENTITY) {
+                        Ok(_) => kept.push((name, v)),
+                        Err(e) => self.out.warnings.push(format!("{}: warning: {e}", r.loc)),
+                    }
+                }
+                let light = rt.light_source(id, &kept)?;
+                rt.set_light(light, true, self.shadows)?;
+                if let Some(h) = handle {
+                    self.lights.insert(h.clone(), light);
+                }
+                if area {
+                    self.state.area_light = Some(light);
+                }
+            }
+            K::Illuminate { light, on } => match self.lights.get(light) {
+                Some(id) => {
+                    let shadows = self.shadows;
+                    self.rt.set_light(*id, *on, shadows)?;
+                }
+                None => self.warn(r, "Illuminate names no light"),
+            },
+            K::Color(c) => rt.color(c[0], c[1], c[2]),
+            K::Opacity(o) => rt.opacity(o[0], o[1], o[2]),
+            K::Attribute(a) => self.attribute(r, &a.name, &a.params),
+            K::Option(o) => self.option(r, &o.name, &o.params),
+            K::Basis { u, ustep, v, vstep } => {
+                self.state.mesh_options.u_basis = u.clone();
+                self.state.mesh_options.u_step = *ustep;
+                self.state.mesh_options.v_basis = v.clone();
+                self.state.mesh_options.v_step = *vstep;
+            }
+            K::Polygon(_)
+            | K::GeneralPolygon { .. }
+            | K::PointsPolygons { .. }
+            | K::PointsGeneralPolygons { .. }
+            | K::Patch { .. }
+            | K::PatchMesh { .. }
+            | K::Quadric { .. } => {
+                let mut diags = Vec::new();
+                let mesh = mesh_from_request_with(r, &self.state.mesh_options, &mut diags);
+                self.out.warnings.extend(diags.iter().map(|d| d.to_string()));
+                if let Some(mesh) = mesh {
+                    if !mesh.triangles.is_empty() {
+                        self.geometry(r, mesh)?;
+                    }
+                }
+            }
+            K::ObjectBegin(h) => {
+                let id = rt.begin_object()?;
+                self.objects.insert(h.clone(), id);
+                self.retained = Some(id);
+            }
+            K::ObjectEnd => {
+                if self.retained.take().is_some() {
+                    rt.end_object()?;
+                } else {
+                    self.warn(r, "ObjectEnd without ObjectBegin");
+                }
+            }
+            K::ObjectInstance(h) => match self.objects.get(h) {
+                Some(id) => {
+                    rt.instantiate_object(*id)?;
+                }
+                None => self.warn(r, "ObjectInstance names no object"),
+            },
+            K::MakeTexture { picture, texture, swrap, twrap, .. } => {
+                let wrap = |w: &str| match w {
+                    "black" => crate::texture::Wrap::Black,
+                    "clamp" => crate::texture::Wrap::Clamp,
+                    _ => crate::texture::Wrap::Periodic,
+                };
+                let opts = crate::texture::MakeTextureOptions { swrap: wrap(swrap), twrap: wrap(twrap), raw: false };
+                if let Err(e) = crate::texture::make_texture(self.dir.join(picture), self.dir.join(texture), &opts) {
+                    self.warn(r, e);
+                }
+            }
+            K::Imager(s)
+            | K::Camera(s)
+            | K::Pixel(s)
+            | K::Atmosphere(s)
+            | K::Interior(s)
+            | K::Exterior(s)
+            | K::Displacement(s) => self
+                .warn(r, format_args!("shader \"{}\": this shader type is not rendered yet, so it is ignored", s.name)),
+            K::ScreenWindow(_)
+            | K::CropWindow(_)
+            | K::FrameAspectRatio(_)
+            | K::PixelFilter { .. }
+            | K::DepthOfField(_)
+            | K::Shutter(_) => self.warn(r, "this request is accepted but not honoured yet"),
+            K::MeshArchive(path) => {
+                self.flush()?;
+                add_mesh_file(self.rt, path)?;
+            }
+        }
+        Ok(())
+    }
+
+    fn attribute(&mut self, r: &Request, name: &str, params: &[Param]) {
+        for p in params {
+            let s = p.strings().and_then(|s| s.first()).map(String::as_str);
+            let f = p
+                .floats()
+                .and_then(|f| f.first())
+                .copied()
+                .or_else(|| p.ints().and_then(|i| i.first()).map(|i| *i as f32));
+            match (name, p.name.as_str()) {
+                ("light", "shadows") => self.shadows = s.map_or(f.unwrap_or(1.0) != 0.0, |s| s == "on"),
+                ("shade", "transmissionhitmode") => self.rt.shadows_from_shader(s == Some("shader")),
+                ("identifier", _) | ("visibility", _) | ("displacementbound", _) => {}
+                ("trace", "maxdiffusedepth" | "maxspeculardepth") => {}
+                ("light", "nsamples") | ("light", "samples") => {
+                    if let (Some(light), Some(n)) = (self.state.area_light, f) {
+                        self.rt.set_area_light_samples(light, n.max(1.0) as u32);
+                    }
+                }
+                _ => self.warn(r, format_args!("attribute \"{name}\" \"{}\" is not supported", p.name)),
+            }
+        }
+    }
+
+    fn option(&mut self, r: &Request, name: &str, params: &[Param]) {
+        for p in params {
+            let s = p.strings().and_then(|s| s.first()).cloned();
+            let f = p
+                .floats()
+                .and_then(|f| f.first())
+                .copied()
+                .or_else(|| p.ints().and_then(|i| i.first()).map(|i| *i as f32));
+            match (name, p.name.as_str()) {
+                ("searchpath", "shader") => {
+                    let dirs = search_path(&s.unwrap_or_default(), &self.dir, self.rt.shader_search_path());
+                    self.rt.set_shader_search_path(dirs);
+                }
+                ("searchpath", "texture") => {
+                    for d in search_path(&s.unwrap_or_default(), &self.dir, &[]) {
+                        self.rt.add_texture_search_path(d);
+                    }
+                }
+                ("trace", "maxdepth") => {
+                    if let Some(n) = f {
+                        self.rt.options.max_ray_depth = n.clamp(0.0, 64.0) as u32;
+                    }
+                }
+                _ => self.warn(r, format_args!("option \"{name}\" \"{}\" is not supported", p.name)),
+            }
+        }
+    }
+}
+
+/// A RIB search path (`"dir1:dir2:&"`, `&` standing for the previous value), relative to `base`.
+fn search_path(spec: &str, base: &Path, previous: &[PathBuf]) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    for part in spec.split(':').filter(|p| !p.is_empty()) {
+        if part == "&" {
+            out.extend(previous.iter().cloned());
+        } else {
+            out.push(base.join(part));
+        }
+    }
+    out
+}
+
+/// A RenderMan matrix as written (row-major, row vectors) as an affine transform; the projective
+/// column is dropped.
+fn affine(m: &[f32; 16]) -> Affine3A {
+    Affine3A::from_mat4(Mat4::from_cols_array(m))
+}
+
+/// A RIB parameter as a shader parameter value.
+fn shader_value(p: &Param) -> Option<ParamValue> {
+    let many = p.decl.array_len.is_some() || p.value_count() > 1;
+    if p.decl.class == Class::FaceVarying {
+        return None;
+    }
+    match (&p.value, p.decl.ty) {
+        (RibValue::Strings(s), Ty::String) => s.first().map(|s| ParamValue::String(s.clone())),
+        (RibValue::Ints(v), Ty::Integer) => {
+            let f: Vec<f32> = v.iter().map(|i| *i as f32).collect();
+            Some(if many { ParamValue::Floats(f) } else { ParamValue::Float(f[0]) })
+        }
+        (RibValue::Floats(v), Ty::Float) => {
+            Some(if many { ParamValue::Floats(v.clone()) } else { ParamValue::Float(v[0]) })
+        }
+        (RibValue::Floats(v), ty @ (Ty::Color | Ty::Point | Ty::Vector | Ty::Normal)) => {
+            let t: Vec<[f32; 3]> = v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+            if many {
+                return Some(ParamValue::Triples(t));
+            }
+            let t = *t.first()?;
+            Some(match ty {
+                Ty::Color => ParamValue::Color(t),
+                Ty::Point => ParamValue::Point(t),
+                Ty::Vector => ParamValue::Vector(t),
+                _ => ParamValue::Normal(t),
+            })
+        }
+        (RibValue::Floats(v), Ty::HPoint) if v.len() >= 4 && v[3] != 0.0 => {
+            let w = v[3];
+            Some(ParamValue::Point([v[0] / w, v[1] / w, v[2] / w]))
+        }
+        (RibValue::Floats(v), Ty::Matrix) if v.len() >= 16 => {
+            let mut m = [0.0; 16];
+            m.copy_from_slice(&v[..16]);
+            Some(ParamValue::Matrix(m))
+        }
+        _ => None,
+    }
+}

@@ -1,0 +1,133 @@
+//! `rtsl render`: renders a RIB file, a mesh file, or (with no scene) the embedded default scene, and
+//! writes the image, with a progress bar on a terminal and the frame's statistics at the end.
+
+use anyhow::Context as _;
+use rtsl_runtime::api::Context;
+use rtsl_runtime::render::render_frame;
+use rtsl_runtime::scene_file::{add_mesh_file, frame_bounds};
+use rtsl_runtime::{write_image, WriteOptions};
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+/// Flags of `rtsl render`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct RenderArgs {
+    /// The scene: a RIB file, or a mesh (OBJ, PLY). Without one, the embedded default scene.
+    pub scene: Option<PathBuf>,
+    /// The image to write (.png, .exr, .tga, .ppm); a RIB's `Display` names it otherwise.
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+    /// Image size, `WxH` (overrides the scene's `Format`).
+    #[arg(long, value_parser = super::bench::parse_size)]
+    pub size: Option<(u32, u32)>,
+    /// Samples per pixel (a square number is spread on a grid: 4 is 2x2; overrides `PixelSamples`).
+    #[arg(long)]
+    pub samples: Option<u32>,
+    /// Worker threads (0: one per core).
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+    /// Directories searched for `#include`d shader headers.
+    #[arg(short = 'I', long = "include")]
+    pub include: Vec<PathBuf>,
+    /// Directories searched for shaders by name, before the standard library.
+    #[arg(short = 'S', long = "shader-path")]
+    pub shader_path: Vec<PathBuf>,
+    /// Print nothing but errors.
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+/// The default scene, in RIB: the standard shaders on several objects, with shadows and reflections.
+pub const DEFAULT_SCENE: &str = include_str!("../../examples/scenes/default.rib");
+
+fn samples_grid(n: u32) -> (u32, u32) {
+    let n = n.max(1);
+    let side = (n as f64).sqrt().round() as u32;
+    if side * side == n {
+        (side, side)
+    } else {
+        (n, 1)
+    }
+}
+
+pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
+    let mut rt = Context::new();
+    let mut search: Vec<PathBuf> = args.shader_path.clone();
+    if let Ok(env) = std::env::var("RTSL_SHADER_PATH") {
+        search.extend(std::env::split_paths(&env));
+    }
+    rt.set_shader_search_path(search);
+    rt.set_include_paths(args.include.clone());
+    let mut output = args.output.clone();
+    match &args.scene {
+        None => {
+            let loaded = rtsl_runtime::rib::load::load_str(&mut rt, DEFAULT_SCENE, Path::new("<default scene>"))?;
+            output = output.or(loaded.display);
+        }
+        Some(path) => {
+            let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+            match ext.as_deref() {
+                Some("rib") => {
+                    let loaded = rtsl_runtime::rib::load::load_file(&mut rt, path)?;
+                    for w in &loaded.warnings {
+                        eprintln!("warning: {w}");
+                    }
+                    output = output.or(loaded.display.map(|d| path.parent().unwrap_or(Path::new(".")).join(d)));
+                }
+                Some("obj" | "ply") => {
+                    let bounds = add_mesh_file(&mut rt, path)?;
+                    frame_bounds(&mut rt, bounds)?;
+                }
+                _ => anyhow::bail!("{}: unknown scene type (expected .rib, .obj or .ply)", path.display()),
+            }
+        }
+    }
+    if let Some((w, h)) = args.size {
+        rt.options.width = w;
+        rt.options.height = h;
+    }
+    if let Some(n) = args.samples {
+        rt.options.samples = samples_grid(n);
+    }
+    let output = output.unwrap_or_else(|| PathBuf::from("render.png"));
+    let world = rt.build_world()?;
+    let threads =
+        if args.threads == 0 { std::thread::available_parallelism().map_or(1, |n| n.get()) } else { args.threads };
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().context("starting the worker threads")?;
+    let bar = (!args.quiet && std::io::stderr().is_terminal()).then(|| {
+        let bar = indicatif::ProgressBar::new(0);
+        bar.set_style(
+            indicatif::ProgressStyle::with_template("{spinner} rendering [{bar:40}] {pos}/{len} tiles, {elapsed}")
+                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        bar
+    });
+    let progress = |done: usize, total: usize| {
+        if let Some(b) = &bar {
+            b.set_length(total as u64);
+            b.set_position(done as u64);
+        }
+    };
+    let (fb, report) = pool.install(|| render_frame(&world, Some(&progress)));
+    if let Some(b) = bar {
+        b.finish_and_clear();
+    }
+    for w in world.textures.take_warnings() {
+        eprintln!("warning: {w}");
+    }
+    write_image(&output, fb.width as usize, fb.height as usize, &fb.rgba, &WriteOptions::default())
+        .with_context(|| format!("writing {}", output.display()))?;
+    if !args.quiet {
+        println!(
+            "{}: {}x{}, {} sample(s) per pixel, {} thread(s)",
+            output.display(),
+            fb.width,
+            fb.height,
+            world.options.samples.0 * world.options.samples.1,
+            threads
+        );
+        println!("{report}");
+    }
+    Ok(ExitCode::SUCCESS)
+}
