@@ -1,6 +1,7 @@
 //! Built-in functions in the reference interpreter: one exhaustive `match` over [`Builtin`], so a
 //! new built-in does not build until it has reference semantics here.
 
+use super::deriv::{zero_like, Dual};
 use super::value::Value;
 use super::{dot, normalize, Frame, InterpError, Machine, R};
 use crate::builtins::{self, Builtin};
@@ -61,14 +62,24 @@ impl Machine<'_> {
         overload: u16,
         args: &[Arg],
         ty: Type,
-    ) -> R<Value> {
-        // Evaluate every argument left to right (places too: their current value).
+        want: bool,
+    ) -> R<Dual> {
+        // Evaluate every argument left to right (places too: their current value); the arguments
+        // `ir::deriv` marks with their tangents.
         let mut vals = Vec::with_capacity(args.len());
+        let (mut tx, mut ty_) = (Vec::with_capacity(args.len()), Vec::with_capacity(args.len()));
         for a in args {
-            vals.push(match a {
-                Arg::Value(e) => self.expr(f, frame, *e)?,
-                Arg::Ref(p) => self.read_place(f, frame, p)?,
-            });
+            let (v, dx, dy) = match a {
+                Arg::Value(e) => self.dual(f, frame, *e)?,
+                Arg::Ref(p) => {
+                    let v = self.read_place(f, frame, p)?;
+                    let z = zero_like(&v);
+                    (v, z.clone(), z)
+                }
+            };
+            vals.push(v);
+            tx.push(dx);
+            ty_.push(dy);
         }
         let sig = &builtins::signatures(b)[overload as usize];
         let fixed = if sig.repeat_last { vals.len() } else { sig.params.len().min(vals.len()) };
@@ -117,7 +128,7 @@ impl Machine<'_> {
                     if fixed == 3 { Some((v(2).f() - x).abs()) } else { param(&vals, fixed, "width").map(Value::f) };
                 match width {
                     Some(w) => Value::Float(geom::filterstep(edge, x, w)),
-                    None => return Err(InterpError::Unsupported("filterstep without an explicit width (derivatives)")),
+                    None => self.deriv_builtin(b, &vals, &tx, &ty_),
                 }
             }
             Builtin::Spline => {
@@ -253,7 +264,7 @@ impl Machine<'_> {
                 }
             }
             Builtin::Du | Builtin::Dv | Builtin::Deriv | Builtin::Area | Builtin::Calculatenormal => {
-                return Err(InterpError::Unsupported("derivatives"))
+                self.deriv_builtin(b, &vals, &tx, &ty_)
             }
             Builtin::Xcomp => Value::Float(v(0).v3()[0]),
             Builtin::Ycomp => Value::Float(v(0).v3()[1]),
@@ -502,7 +513,12 @@ impl Machine<'_> {
                 self.write_place(f, frame, p, value)?;
             }
         }
-        Ok(result)
+        if want {
+            let (dx, dy) = Self::builtin_tangents(b, &vals, &tx, &ty_, &result);
+            return Ok((result, dx, dy));
+        }
+        let z = zero_like(&result);
+        Ok((result, z.clone(), z))
     }
 
     /// The sum over non-ambient lights of `Cl * weight(light)`, for the lights facing `n`'s
