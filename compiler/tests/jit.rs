@@ -865,3 +865,72 @@ fn strings_format_concat_match_printf() {
         "#,
     );
 }
+
+#[test]
+fn derivatives_agree_with_the_interpreter() {
+    // Every derivative built-in, on values that reach them through the rules: arithmetic, user
+    // functions (value, output and captured parameters, returns under varying conditions),
+    // loops, arrays, selects, space casts, compound assignments and the built-ins with rules.
+    check(
+        r#"
+        float wave(float x) { if (x > 0.5) return sin(x * 7); return cos(x * 3) * x; }
+        void bend(output point p; float k) { p += vector(0, 0, k * xcomp(p) * ycomp(p)); }
+        surface t(float amp = 0.3; output varying float o = 0; output varying vector ov = 0;
+                  output varying normal on = 0; output varying float fa = 0;)
+        {
+            point q = P + N * amp * wave(s);
+            bend(q, 2);
+            float arr[3], i;
+            for (i = 0; i < 3; i += 1) arr[i] = u * (i + 1) + v * v;
+            float a = arr[1] * (s > 0.3 ? exp(t) : sqrt(abs(u - 0.5)));
+            a += min(u, v, s) * max(t, u) + clamp(u * 3, 0.2, 0.9) + mix(s, t, v);
+            vector dir = normalize(vector "object" (q)) * length(q - P);
+            point w = transform("object", q);
+            o = Du(a) + Dv(a) * 2 + Deriv(a, v) + Du(comp(dir, 1)) + filterstep(0.5, a);
+            o += filterstep(0.3, u, "filter", "gaussian") + Dv(xcomp(w));
+            ov = Du(dir) + Dv(q);
+            on = calculatenormal(q);
+            fa = area(q) + area(P);
+            Ci = color(Du(s), Dv(t), Du(u) + Dv(v));
+        }
+        "#,
+    );
+}
+
+#[test]
+fn derivatives_of_an_analytic_surface() {
+    // P = (u, v, uv) built from u and v: Du(P) = (1, 0, v), Dv(P) = (0, 1, u),
+    // calculatenormal(P) = (-v, -u, 1) (Ng agrees with dPdu ^ dPdv), area = du dv |(-v, -u, 1)|.
+    let m = module(
+        "surface t(output varying vector pu = 0, pv = 0; output varying normal n = 0; output varying float ar = 0;)
+         { point q = point(u, v, u * v); pu = Du(q); pv = Dv(q); n = calculatenormal(q); ar = area(q); }",
+    );
+    let shader = jit::compile(&m).expect("compiles");
+    let mut batch = shader.batch(5);
+    for l in 0..5 {
+        let (u, v) = (0.1 * l as f32, 0.9 - 0.1 * l as f32);
+        assert!(batch.set_global("u", l, &[u]) && batch.set_global("v", l, &[v]));
+        assert!(batch.set_global("du", l, &[0.01]) && batch.set_global("dv", l, &[0.02]));
+        assert!(batch.set_global("dPdu", l, &[1.0, 0.0, 0.0]) && batch.set_global("dPdv", l, &[0.0, 1.0, 0.0]));
+        assert!(batch.set_global("Ng", l, &[0.0, 0.0, 1.0]));
+        assert!(batch.set_global_derivs("u", l, &[0.3], &[0.1]));
+        assert!(batch.set_global_derivs("v", l, &[-0.05], &[0.2]));
+    }
+    // The raw layout a renderer fills: u's d/dy of lane 2.
+    let (slot, stride) = (batch.global_slot("u").expect("u is varying"), batch.stride());
+    assert_eq!(batch.derivs_mut()[(2 * slot + 1) * stride + 2], 0.1);
+    shader.shade(&mut batch);
+    let near = |a: &[f32], b: &[f32]| a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-5);
+    for l in 0..5 {
+        let (u, v) = (0.1 * l as f32, 0.9 - 0.1 * l as f32);
+        assert!(near(&batch.param("pu", l).unwrap(), &[1.0, 0.0, v]), "lane {l}: {:?}", batch.param("pu", l));
+        assert!(near(&batch.param("pv", l).unwrap(), &[0.0, 1.0, u]), "lane {l}: {:?}", batch.param("pv", l));
+        assert!(near(&batch.param("n", l).unwrap(), &[-v, -u, 1.0]), "lane {l}: {:?}", batch.param("n", l));
+        let want = 0.01 * 0.02 * (v * v + u * u + 1.0f32).sqrt();
+        assert!(near(&batch.param("ar", l).unwrap(), &[want]), "lane {l}: {:?}", batch.param("ar", l));
+    }
+    // Without derivatives (a fresh batch), every derivative is 0.
+    let mut batch = shader.batch(4);
+    shader.shade(&mut batch);
+    assert_eq!(batch.param("pu", 0).unwrap(), vec![0.0; 3]);
+}
