@@ -88,6 +88,9 @@ fn random_global(rng: &mut Rng, name: &str, comps: usize) -> Vec<f32> {
     }
 }
 
+/// A global's name and its d/dx and d/dy in one lane.
+type LaneDerivs = (String, Vec<f32>, Vec<f32>);
+
 /// Random screen-space derivatives (ray differentials) of a varying global: `u` mostly along x and
 /// `v` along y (so the parameter Jacobian is well conditioned), small ones for everything else.
 fn random_derivs(rng: &mut Rng, name: &str, comps: usize) -> (Vec<f32>, Vec<f32>) {
@@ -142,7 +145,7 @@ fn differential(m: &Module, shader: &CompiledShader, lanes: usize, seed: u64, bi
     // Every lane its own `random()` seed, in both back ends.
     let seeds: Vec<u64> = (0..lanes).map(|_| rng.next()).collect();
     let mut lane_inputs: Vec<Vec<(String, Vec<f32>)>> = vec![Vec::new(); lanes];
-    let mut lane_derivs: Vec<Vec<(String, Vec<f32>, Vec<f32>)>> = vec![Vec::new(); lanes];
+    let mut lane_derivs: Vec<Vec<LaneDerivs>> = vec![Vec::new(); lanes];
     let mut lane_params: Vec<Vec<(String, Vec<f32>)>> = vec![Vec::new(); lanes];
     for l in 0..lanes {
         if !active[l] {
@@ -434,7 +437,10 @@ fn imager_and_volume_shaders() {
 
 #[test]
 fn unsupported_constructs_are_reported_not_panicked() {
-    for src in ["surface t() { string a = format(\"%f\", s); printf(\"%s\", a); }"] {
+    for src in [
+        "surface t() { string a = format(\"%f\", s); printf(\"%s\", a); }",
+        "surface t() { gather(\"illuminance\", P, N, 1, 4) { Ci = 1; } }",
+    ] {
         let m = module(src);
         match jit::compile(&m) {
             Err(JitError::Unsupported(_)) => {}
@@ -491,8 +497,8 @@ proptest! {
     #[test]
     fn random_expressions_agree(e in expr(), seed in 0u64..1000) {
         let src = format!(
-            "surface t(float a = 0.5; varying float w = 0.25; output varying float o = 0;) \
-             {{ o = {e}; Ci = color(o, o * 0.5, 1 - o); }}"
+            "surface t(float a = 0.5; varying float w = 0.25; output varying float o = 0, od = 0;) \
+             {{ o = {e}; od = Du(o) + Dv(o) * 0.5; Ci = color(o, o * 0.5, 1 - o); }}"
         );
         let m = module(&src);
         let shader = jit::compile(&m).unwrap_or_else(|err| panic!("JIT: {err}\n{src}"));

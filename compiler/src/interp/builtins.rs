@@ -62,7 +62,6 @@ impl Machine<'_> {
         overload: u16,
         args: &[Arg],
         ty: Type,
-        want: bool,
     ) -> R<Dual> {
         // Evaluate every argument left to right (places too: their current value); the arguments
         // `ir::deriv` marks with their tangents.
@@ -513,12 +512,9 @@ impl Machine<'_> {
                 self.write_place(f, frame, p, value)?;
             }
         }
-        if want {
-            let (dx, dy) = Self::builtin_tangents(b, &vals, &tx, &ty_, &result);
-            return Ok((result, dx, dy));
-        }
-        let z = zero_like(&result);
-        Ok((result, z.clone(), z))
+        // (Callers that need no derivative drop them.)
+        let (dx, dy) = Self::builtin_tangents(b, &vals, &tx, &ty_, &result);
+        Ok((result, dx, dy))
     }
 
     /// The sum over non-ambient lights of `Cl * weight(light)`, for the lights facing `n`'s

@@ -348,7 +348,7 @@ impl Machine<'_> {
                 }
             }
             ExprKind::CallBuiltin { builtin, overload, args } => {
-                self.builtin(f, frame, *builtin, *overload, args, e.ty, true)?
+                self.builtin(f, frame, *builtin, *overload, args, e.ty)?
             }
             ExprKind::Call { func, args } => {
                 let (v, d) = self.call(f, frame, *func, args)?;

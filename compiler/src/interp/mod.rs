@@ -527,7 +527,7 @@ impl Machine<'_> {
                 }
             }
             ExprKind::CallBuiltin { builtin, overload, args } => {
-                self.builtin(f, frame, *builtin, *overload, args, e.ty, false)?.0
+                self.builtin(f, frame, *builtin, *overload, args, e.ty)?.0
             }
             ExprKind::Call { func, args } => self.call(f, frame, *func, args)?.0,
             ExprKind::Assign { place, op, value } => {

@@ -18,7 +18,7 @@ pub const MIN_JACOBIAN: f32 = 1e-20;
 pub fn du_dv(fx: f32, fy: f32, uv: [f32; 4]) -> (f32, f32) {
     let [ux, uy, vx, vy] = uv;
     let j = ux * vy - uy * vx;
-    if !(j.abs() > MIN_JACOBIAN) {
+    if j.is_nan() || j.abs() <= MIN_JACOBIAN {
         return (0.0, 0.0);
     }
     ((fx * vy - fy * vx) / j, (fy * ux - fx * uy) / j)

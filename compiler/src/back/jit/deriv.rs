@@ -4,7 +4,9 @@
 //! interpreter's scalar formulas are evaluated in the same order):
 //! - a [`Dual`] is a value and its two tangents (d/dx, d/dy), each one `f32x4` per component
 //!   (tangents are always varying: uniform values have zero derivatives); `None` means zero and
-//!   costs nothing;
+//!   costs nothing where tangents only move (loads, stores, conversions, selects), while every
+//!   rule with arithmetic evaluates on materialised zeros exactly as the interpreter does (so
+//!   `0 * inf` is NaN in both);
 //! - the values `ir::deriv` marks are lowered by `dual`; the others by `expr`, with zero tangents;
 //! - a built-in whose result or derivative is needed evaluates its arguments as duals first
 //!   (`builtin_dual`), leaves their values in `Lower::cache` for the ordinary lowering of the call
@@ -198,7 +200,8 @@ impl<'m> Lower<'m, '_> {
 
     fn binary_dual(&mut self, op: BinaryOp, lt: Type, a: &Dual, b: &Dual) -> R<Dual> {
         let v = self.binary(op, lt, &a.v, &b.v)?;
-        if (a.d.is_none() && b.d.is_none()) || !lt.base.is_numeric() || lt.is_array() {
+        // Zero tangents still go through the rule, as in the interpreter (IEEE: 0 * inf is NaN).
+        if !lt.base.is_numeric() || lt.is_array() {
             return Ok(Dual { v, d: None });
         }
         let [ax, ay] = self.tangents(a);
@@ -306,18 +309,14 @@ impl<'m> Lower<'m, '_> {
                 let sp = self.expr(*space)?;
                 let a = self.dual(*arg)?;
                 let v = self.space_cast(e.ty.base, &sp, a.v.clone())?;
-                let d = match a.d {
-                    Some([x, y]) => {
-                        let current = self.const_string("current");
-                        let (m, ok) = self.space_matrix(&sp, &current)?;
-                        let h = if e.ty.base == BaseType::Normal { "rtsl_xform_normal" } else { "rtsl_xform_vector" };
-                        let (x, y) = (Val { vary: true, c: x }, Val { vary: true, c: y });
-                        let x = self.apply_if(h, ok, &m, &x, &x)?.c;
-                        let y = self.apply_if(h, ok, &m, &y, &y)?.c;
-                        Some([x, y])
-                    }
-                    None => None,
-                };
+                let [x, y] = self.tangents(&a);
+                let current = self.const_string("current");
+                let (m, ok) = self.space_matrix(&sp, &current)?;
+                let h = if e.ty.base == BaseType::Normal { "rtsl_xform_normal" } else { "rtsl_xform_vector" };
+                let (x, y) = (Val { vary: true, c: x }, Val { vary: true, c: y });
+                let x = self.apply_if(h, ok, &m, &x, &x)?.c;
+                let y = self.apply_if(h, ok, &m, &y, &y)?.c;
+                let d = Some([x, y]);
                 Ok(Dual { v, d })
             }
             ExprKind::Select { cond, a, b } => self.select_dual(e, *cond, *a, *b),
@@ -586,10 +585,6 @@ impl<'m> Lower<'m, '_> {
 
     /// The tangents of a built-in's result (the interpreter's `builtin_tangent`).
     fn builtin_rule(&mut self, bi: Builtin, args: &[Arg], duals: &[Option<Dual>], r: &Val) -> R<Option<T2>> {
-        let has = |k: usize| duals.get(k).is_some_and(|d| d.as_ref().is_some_and(|d| d.d.is_some()));
-        if !(0..duals.len()).any(has) {
-            return Ok(None);
-        }
         let val = |k: usize| duals[k].as_ref().map(|d| d.v.clone()).unwrap_or(Val { vary: false, c: Vec::new() });
         let mut t: Vec<T2> = Vec::new();
         for d in duals {
@@ -632,12 +627,13 @@ impl<'m> Lower<'m, '_> {
                     .collect(),
                 Builtin::Sin | Builtin::Cos => {
                     let x = val(0).c;
+                    let t0 = td(0);
                     let mut c = Vec::new();
-                    for i in 0..x.len() {
-                        let xi = self.w(x[i]);
+                    for (xi, ti) in x.iter().zip(&t0) {
+                        let xi = self.w(*xi);
                         let h = if bi == Builtin::Sin { "rtsl_cos" } else { "rtsl_sin" };
                         let g = self.call_helper(h, &[xi], true)?[0];
-                        let p = self.mul(td(0)[i], g);
+                        let p = self.mul(*ti, g);
                         c.push(if bi == Builtin::Sin { p } else { self.b.ins().fneg(p) });
                     }
                     c
