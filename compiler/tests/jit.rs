@@ -940,3 +940,25 @@ fn derivatives_of_an_analytic_surface() {
     shader.shade(&mut batch);
     assert_eq!(batch.param("pu", 0).unwrap(), vec![0.0; 3]);
 }
+
+#[test]
+fn texture_footprints_from_derivatives() {
+    // The test host averages a lookup whose footprint exceeds a checker cell, so the outputs depend
+    // on the footprint both back ends pass: every form, with the width and blur options.
+    check(
+        r#"
+        surface t(output varying color a = 0, b = 0, c = 0, d = 0; output varying float e = 0;)
+        {
+            a = texture("grid.tx");
+            b = texture("grid.tx", s * 3, t * u * 4);
+            c = texture("grid.tx", s, t, "width", 2 + 4 * u, "blur", v * 0.1);
+            d = texture("grid.tx", s, t, s + 0.1 * u, t, s, t + 0.2 * v, s, t, "swidth", 1, "twidth", 3);
+            e = float texture("grid.tx"[1], s * 2, t, "fill", 0.5);
+        }
+        "#,
+    );
+    let mut host = TestHost::default();
+    use rtsl_compiler::interp::Services;
+    let fp = interp::TextureFootprint { dsdx: 0.1, dtdx: 0.0, dsdy: 0.1, dtdy: 0.0, blur: 0.0 };
+    assert_eq!(host.texture_filtered("grid.tx", 0.01, 0.01, &fp, 0, 1), Some(vec![0.5]));
+}

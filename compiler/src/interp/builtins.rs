@@ -5,7 +5,7 @@ use super::deriv::{zero_like, Dual};
 use super::value::Value;
 use super::{dot, normalize, Frame, InterpError, Machine, R};
 use crate::builtins::{self, Builtin};
-use crate::interp::host::LightSample;
+use crate::interp::host::{LightSample, TextureFootprint};
 use crate::ir::{Arg, BaseType, Function, Type};
 use crate::shadeops::{color, format, geom, matrix, noise, spline, V3};
 use std::rc::Rc;
@@ -450,7 +450,8 @@ impl Machine<'_> {
                 let first = param(&vals, fixed, "channel").map(|c| c.f().max(0.0) as usize).unwrap_or(0);
                 let fill = param(&vals, fixed, "fill").map(Value::f).unwrap_or(0.0);
                 let n = if ty.base == BaseType::Float { 1 } else { 3 };
-                let got = self.host.texture(v(0).s(), s, t, first, n).unwrap_or_else(|| vec![fill; n]);
+                let fp = self.footprint(&vals, &tx, &ty_, fixed);
+                let got = self.host.texture_filtered(v(0).s(), s, t, &fp, first, n).unwrap_or_else(|| vec![fill; n]);
                 if n == 1 {
                     Value::Float(got.first().copied().unwrap_or(fill))
                 } else {
@@ -515,6 +516,35 @@ impl Machine<'_> {
         // (Callers that need no derivative drop them.)
         let (dx, dy) = Self::builtin_tangents(b, &vals, &tx, &ty_, &result);
         Ok((result, dx, dy))
+    }
+
+    /// A `texture` call's footprint: the derivatives of its coordinates (of the globals s and t
+    /// without coordinates; the corners' differences `(s2 - s1, t2 - t1)` along x and
+    /// `(s3 - s1, t3 - t1)` along y for the four-corner form), scaled by `"swidth"`/`"twidth"`
+    /// (default `"width"`, default 1), and `"blur"` (default 0).
+    fn footprint(&self, vals: &[Value], tx: &[Value], ty: &[Value], fixed: usize) -> TextureFootprint {
+        let [dsdx, dtdx, dsdy, dtdy] = match fixed {
+            1 => {
+                let d = |name: &str| self.point.derivs(name).map(|[x, y]| (x.f(), y.f())).unwrap_or((0.0, 0.0));
+                let ((sx, sy), (tx_, ty_)) = (d("s"), d("t"));
+                [sx, tx_, sy, ty_]
+            }
+            3 => [tx[1].f(), tx[2].f(), ty[1].f(), ty[2].f()],
+            _ => {
+                let c = |k: usize| vals.get(k).map(Value::f).unwrap_or(0.0);
+                [c(3) - c(1), c(4) - c(2), c(5) - c(1), c(6) - c(2)]
+            }
+        };
+        let width = param(vals, fixed, "width").map(Value::f).unwrap_or(1.0);
+        let sw = param(vals, fixed, "swidth").map(Value::f).unwrap_or(width);
+        let tw = param(vals, fixed, "twidth").map(Value::f).unwrap_or(width);
+        TextureFootprint {
+            dsdx: dsdx * sw,
+            dtdx: dtdx * tw,
+            dsdy: dsdy * sw,
+            dtdy: dtdy * tw,
+            blur: param(vals, fixed, "blur").map(Value::f).unwrap_or(0.0),
+        }
     }
 
     /// The sum over non-ambient lights of `Cl * weight(light)`, for the lights facing `n`'s

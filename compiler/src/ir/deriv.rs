@@ -41,6 +41,8 @@ pub struct DerivInfo {
     pub any: bool,
     /// The module calls `calculatenormal` (which reads `dPdu`, `dPdv` and `Ng` for orientation).
     pub normals: bool,
+    /// The module calls `texture` (whose coordinates' derivatives are its filter footprint).
+    pub textures: bool,
 }
 
 impl DerivInfo {
@@ -72,6 +74,9 @@ pub fn is_root_arg(b: Builtin, k: usize, n: usize) -> bool {
         // `filterstep(edge, x, ...)`: the width comes from the derivatives of `x` unless a second
         // value or a "width" parameter gives it (a conservative mark when it does).
         Builtin::Filterstep => k == 1 && n >= 2,
+        // `texture(name, s, t, ...)`: the footprint (numeric arguments only; the four-corner form
+        // takes its footprint from the corners, so this over-marks it harmlessly).
+        Builtin::Texture => k == 1 || k == 2,
         _ => false,
     }
 }
@@ -150,6 +155,18 @@ impl Pass<'_> {
                 let marked = self.info.exprs[fi][ei];
                 match &e.kind {
                     ExprKind::CallBuiltin { builtin, args, .. } => {
+                        // `texture(name)`: the footprint is that of the globals s and t.
+                        let coords = args.get(1).is_some_and(|a| match a {
+                            Arg::Value(x) => func.expr(*x).ty.base.is_numeric(),
+                            Arg::Ref(_) => false,
+                        });
+                        if *builtin == Builtin::Texture && !coords {
+                            for name in ["s", "t"] {
+                                if let Some(g) = crate::globals::Global::lookup(name) {
+                                    self.mark_place(fi, PlaceBase::Global(g));
+                                }
+                            }
+                        }
                         for (k, a) in args.iter().enumerate() {
                             let Arg::Value(x) = a else { continue };
                             let numeric = func.expr(*x).ty.base.is_numeric();
@@ -245,16 +262,18 @@ pub fn analyse(m: &Module) -> DerivInfo {
         globals: vec![false; GLOBALS.len()],
         any: false,
         normals: false,
+        textures: false,
     };
     for f in &m.functions {
         for e in &f.exprs {
             if let ExprKind::CallBuiltin { builtin, .. } = &e.kind {
                 info.any |= is_deriv_builtin(*builtin);
                 info.normals |= *builtin == Builtin::Calculatenormal;
+                info.textures |= *builtin == Builtin::Texture;
             }
         }
     }
-    if !info.any {
+    if !info.any && !info.textures {
         return info;
     }
     let mut pass = Pass { m, info, changed: true };

@@ -583,6 +583,40 @@ impl<'m> Lower<'m, '_> {
         Ok(Val { vary: true, c: vec![self.add(a, b)] })
     }
 
+    /// A `texture` call's coordinate derivatives `[ds/dx, dt/dx, ds/dy, dt/dy]` (before the width
+    /// options): the interpreter's `footprint`.
+    pub(super) fn texture_derivs(&mut self, fixed: usize, vals: &[Val]) -> R<[Val; 4]> {
+        let one = |c: Value| Val { vary: true, c: vec![c] };
+        match fixed {
+            1 => {
+                let mut out = Vec::new();
+                for name in ["s", "t"] {
+                    let d = match Global::lookup(name).and_then(|g| self.dglobals[g.0 as usize].clone()) {
+                        Some([x, y]) => [self.b.use_var(x.vars[0]), self.b.use_var(y.vars[0])],
+                        None => [self.k(0.0), self.k(0.0)],
+                    };
+                    out.push(d);
+                }
+                Ok([one(out[0][0]), one(out[1][0]), one(out[0][1]), one(out[1][1])])
+            }
+            3 => {
+                let s = self.arg_dual(1)?;
+                let t = self.arg_dual(2)?;
+                let [sx, sy] = self.tangents(&s);
+                let [tx, ty] = self.tangents(&t);
+                Ok([one(sx[0]), one(tx[0]), one(sy[0]), one(ty[0])])
+            }
+            _ => {
+                let mut d = |a: usize, b: usize| -> Value {
+                    let x = vals.get(a).map(|v| v.c[0]).unwrap_or_else(|| self.k(0.0));
+                    let y = vals.get(b).map(|v| v.c[0]).unwrap_or_else(|| self.k(0.0));
+                    self.sub(x, y)
+                };
+                Ok([one(d(3, 1)), one(d(4, 2)), one(d(5, 1)), one(d(6, 2))])
+            }
+        }
+    }
+
     /// The tangents of a built-in's result (the interpreter's `builtin_tangent`).
     fn builtin_rule(&mut self, bi: Builtin, args: &[Arg], duals: &[Option<Dual>], r: &Val) -> R<Option<T2>> {
         let val = |k: usize| duals[k].as_ref().map(|d| d.v.clone()).unwrap_or(Val { vary: false, c: Vec::new() });

@@ -952,7 +952,9 @@ impl<'m> Lower<'m, '_> {
         let marked = self.info.expr(self.frame().fid, id);
         match &e.kind {
             ExprKind::Assign { .. } | ExprKind::Call { .. } if marked => return Ok(self.dual(id)?.v),
-            ExprKind::CallBuiltin { builtin, overload, args } if ir::deriv::is_deriv_builtin(*builtin) => {
+            ExprKind::CallBuiltin { builtin, overload, args }
+                if ir::deriv::is_deriv_builtin(*builtin) || *builtin == Builtin::Texture =>
+            {
                 return Ok(self.builtin_dual(*builtin, *overload, args, e, false)?.v)
             }
             _ => {}
@@ -2297,7 +2299,34 @@ impl<'m> Lower<'m, '_> {
                         let first = opt(self, "channel", 0.0)?;
                         let fill = opt(self, "fill", 0.0)?;
                         let nv = Val { vary: false, c: vec![self.fconst(n as f32, false)] };
-                        let r = helper(self, "rtsl_h_texture", &[v(0), s_, t_, first, fill, nv], true)?;
+                        // The footprint (the interpreter's `footprint`).
+                        let width = opt(self, "width", 1.0)?;
+                        let sw = if param_arg(f, args, fixed, "swidth")?.is_some() {
+                            opt(self, "swidth", 1.0)?
+                        } else {
+                            width.clone()
+                        };
+                        let tw = if param_arg(f, args, fixed, "twidth")?.is_some() {
+                            opt(self, "twidth", 1.0)?
+                        } else {
+                            width
+                        };
+                        let blur = opt(self, "blur", 0.0)?;
+                        let d = self.texture_derivs(fixed, &vals)?;
+                        let fp: Vec<Val> = d
+                            .iter()
+                            .enumerate()
+                            .map(|(k, x)| {
+                                let w = if k % 2 == 0 { &sw } else { &tw };
+                                let wv = widen(&mut self.b, w.c[0], true);
+                                let c = vec![self.b.ins().fmul(x.c[0], wv)];
+                                Val { vary: true, c }
+                            })
+                            .collect();
+                        let mut parts = vec![v(0), s_, t_, first, fill, nv];
+                        parts.extend(fp);
+                        parts.push(blur);
+                        let r = helper(self, "rtsl_h_texture", &parts, true)?;
                         Val { vary: true, c: r.c[..n].to_vec() }
                     }
                     Bi::Environment => {
