@@ -14,11 +14,12 @@
 //! - `illuminate` runs its body only where `Ps` lies within the cone around the axis from the light
 //!   position, with `L = Ps - position`; `solar` with a cone sets `L` to the axis;
 //! - loops and calls are budgeted ([`Limits`]): a shader that runs away stops with an error instead
-//!   of hanging the test.
+//!   of hanging the test;
+//! - derivatives come from the renderer's screen-space derivatives of the globals
+//!   ([`ShadingPoint::derivs`]): the values `ir::deriv` marks are evaluated as duals (`deriv.rs`).
 //!
-//! Not yet supported (they report [`InterpError::Unsupported`]): derivatives (`Du`, `Dv`, `Deriv`,
-//! `area`, `calculatenormal`, `filterstep`'s automatic width) and `gather`, which need ray
-//! differentials and ray batches from the renderer (issue 3).
+//! Not yet supported (they report [`InterpError::Unsupported`]): `gather` and `bump`, which need
+//! ray batches from the renderer (issue 3).
 
 mod builtins;
 mod deriv;
