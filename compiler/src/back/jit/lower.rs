@@ -323,8 +323,14 @@ impl<'m> Lower<'m, '_> {
         let varying_p = self.b.ins().load(self.ptr, mem(), batch, OFF_VARYING);
         let uniform_p = self.b.ins().load(self.ptr, mem(), batch, OFF_UNIFORM);
         let bound_p = self.b.ins().load(self.ptr, mem(), batch, OFF_BOUND);
-        let derivs_p = self.b.ins().load(self.ptr, mem(), batch, super::OFF_DERIVS);
-        self.derivs_null = Some(self.b.ins().icmp_imm_u(IntCC::Equal, derivs_p, 0));
+        // Shaders that differentiate nothing never touch `derivs` (no extra instruction).
+        let derivs_p = if self.info.any || self.info.globals.iter().any(|g| *g) {
+            let p = self.b.ins().load(self.ptr, mem(), batch, super::OFF_DERIVS);
+            self.derivs_null = Some(self.b.ins().icmp_imm_u(IntCC::Equal, p, 0));
+            Some(p)
+        } else {
+            None
+        };
         let nchunks = self.b.ins().ushr_imm_u(stride, 2);
         let stride_bytes = self.b.ins().ishl_imm_u(stride, 2);
         let counter = self.b.declare_var(self.ptr);
@@ -350,7 +356,7 @@ impl<'m> Lower<'m, '_> {
         self.b.ins().brif(live, run, &[], next, &[]);
         self.b.switch_to_block(run);
         self.chunk_base = Some(self.b.ins().iadd(varying_p, off));
-        self.derivs_base = Some(self.b.ins().iadd(derivs_p, off));
+        self.derivs_base = derivs_p.map(|p| self.b.ins().iadd(p, off));
         self.stride_bytes = Some(stride_bytes);
         self.uniform = Some(uniform_p);
         self.set_exec(chunk_mask);
