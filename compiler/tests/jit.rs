@@ -88,6 +88,19 @@ fn random_global(rng: &mut Rng, name: &str, comps: usize) -> Vec<f32> {
     }
 }
 
+/// A global's name and its d/dx and d/dy in one lane.
+type LaneDerivs = (String, Vec<f32>, Vec<f32>);
+
+/// Random screen-space derivatives (ray differentials) of a varying global: `u` mostly along x and
+/// `v` along y (so the parameter Jacobian is well conditioned), small ones for everything else.
+fn random_derivs(rng: &mut Rng, name: &str, comps: usize) -> (Vec<f32>, Vec<f32>) {
+    match name {
+        "u" => (vec![rng.f(0.005, 0.02)], vec![rng.f(-0.005, 0.005)]),
+        "v" => (vec![rng.f(-0.005, 0.005)], vec![rng.f(0.005, 0.02)]),
+        _ => ((0..comps).map(|_| rng.f(-0.05, 0.05)).collect(), (0..comps).map(|_| rng.f(-0.05, 0.05)).collect()),
+    }
+}
+
 /// Shades `lanes` random lanes with both back ends and compares. Returns how many lanes ran.
 fn differential(m: &Module, shader: &CompiledShader, lanes: usize, seed: u64, bind_prob: f32) -> usize {
     let mut rng = Rng(seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1);
@@ -132,6 +145,7 @@ fn differential(m: &Module, shader: &CompiledShader, lanes: usize, seed: u64, bi
     // Every lane its own `random()` seed, in both back ends.
     let seeds: Vec<u64> = (0..lanes).map(|_| rng.next()).collect();
     let mut lane_inputs: Vec<Vec<(String, Vec<f32>)>> = vec![Vec::new(); lanes];
+    let mut lane_derivs: Vec<Vec<LaneDerivs>> = vec![Vec::new(); lanes];
     let mut lane_params: Vec<Vec<(String, Vec<f32>)>> = vec![Vec::new(); lanes];
     for l in 0..lanes {
         if !active[l] {
@@ -142,6 +156,9 @@ fn differential(m: &Module, shader: &CompiledShader, lanes: usize, seed: u64, bi
             let v = random_global(&mut rng, g.name, g.components);
             assert!(batch.set_global(g.name, l, &v));
             lane_inputs[l].push((g.name.to_string(), v));
+            let (dx, dy) = random_derivs(&mut rng, g.name, g.components);
+            assert!(batch.set_global_derivs(g.name, l, &dx, &dy));
+            lane_derivs[l].push((g.name.to_string(), dx, dy));
         }
         for (p, (_, b)) in layout.params.iter().zip(&bound_params) {
             if p.varying && b.is_some() {
@@ -166,6 +183,9 @@ fn differential(m: &Module, shader: &CompiledShader, lanes: usize, seed: u64, bi
         point.seed = seeds[l];
         for (name, v) in uniform_bound.iter().chain(&lane_inputs[l]) {
             point.set(name, value_of(v, v.len().min(3)));
+        }
+        for (name, dx, dy) in &lane_derivs[l] {
+            point.set_derivs(name, value_of(dx, dx.len()), value_of(dy, dy.len()));
         }
         let mut bound: Vec<(&str, Value)> = Vec::new();
         for (p, (name, b)) in layout.params.iter().zip(&bound_params) {
@@ -418,9 +438,8 @@ fn imager_and_volume_shaders() {
 #[test]
 fn unsupported_constructs_are_reported_not_panicked() {
     for src in [
-        "surface t() { Ci = Du(s); }",
-        "surface t() { Ci = filterstep(0.5, s); }",
         "surface t() { string a = format(\"%f\", s); printf(\"%s\", a); }",
+        "surface t() { gather(\"illuminance\", P, N, 1, 4) { Ci = 1; } }",
     ] {
         let m = module(src);
         match jit::compile(&m) {
@@ -478,8 +497,8 @@ proptest! {
     #[test]
     fn random_expressions_agree(e in expr(), seed in 0u64..1000) {
         let src = format!(
-            "surface t(float a = 0.5; varying float w = 0.25; output varying float o = 0;) \
-             {{ o = {e}; Ci = color(o, o * 0.5, 1 - o); }}"
+            "surface t(float a = 0.5; varying float w = 0.25; output varying float o = 0, od = 0;) \
+             {{ o = {e}; od = Du(o) + Dv(o) * 0.5; Ci = color(o, o * 0.5, 1 - o); }}"
         );
         let m = module(&src);
         let shader = jit::compile(&m).unwrap_or_else(|err| panic!("JIT: {err}\n{src}"));
@@ -527,8 +546,9 @@ fn the_library_and_corpus_compile_or_report_unsupported() {
     }
     eprintln!("jit: {} of {} shaders compile; {ran} checked against the interpreter", compiled.len(), files.len());
     assert!(compiled.iter().any(|(p, _, _)| p.ends_with("constant.sl")));
-    // Every shader outside derivatives, `gather` and varying strings (85 of 123): none may fall back.
-    assert!(compiled.len() >= 85 && ran >= 85, "{} compile, {ran} checked: fewer than 85", compiled.len());
+    // Every shader outside `gather`, varying strings and two uniform-storage cases (119 of 123),
+    // derivatives included (with random ray differentials): none may fall back.
+    assert!(compiled.len() >= 119 && ran >= 119, "{} compile, {ran} checked: fewer than 119", compiled.len());
 }
 
 /// A rough speed comparison; run with `cargo test --release -p rtsl-compiler --test jit -- --ignored --nocapture`.
@@ -850,4 +870,95 @@ fn strings_format_concat_match_printf() {
         }
         "#,
     );
+}
+
+#[test]
+fn derivatives_agree_with_the_interpreter() {
+    // Every derivative built-in, on values that reach them through the rules: arithmetic, user
+    // functions (value, output and captured parameters, returns under varying conditions),
+    // loops, arrays, selects, space casts, compound assignments and the built-ins with rules.
+    check(
+        r#"
+        float wave(float x) { if (x > 0.5) return sin(x * 7); return cos(x * 3) * x; }
+        void bend(output point p; float k) { p += vector(0, 0, k * xcomp(p) * ycomp(p)); }
+        surface t(float amp = 0.3; output varying float o = 0; output varying vector ov = 0;
+                  output varying normal on = 0; output varying float fa = 0;)
+        {
+            point q = P + N * amp * wave(s);
+            bend(q, 2);
+            float arr[3], i;
+            for (i = 0; i < 3; i += 1) arr[i] = u * (i + 1) + v * v;
+            float a = arr[1] * (s > 0.3 ? exp(t) : sqrt(abs(u - 0.5)));
+            a += min(u, v, s) * max(t, u) + clamp(u * 3, 0.2, 0.9) + mix(s, t, v);
+            vector dir = normalize(vector "object" (q)) * length(q - P);
+            point w = transform("object", q);
+            o = Du(a) + Dv(a) * 2 + Deriv(a, v) + Du(comp(dir, 1)) + filterstep(0.5, a);
+            o += filterstep(0.3, u, "filter", "gaussian") + Dv(xcomp(w));
+            ov = Du(dir) + Dv(q);
+            on = calculatenormal(q);
+            fa = area(q) + area(P);
+            Ci = color(Du(s), Dv(t), Du(u) + Dv(v));
+        }
+        "#,
+    );
+}
+
+#[test]
+fn derivatives_of_an_analytic_surface() {
+    // P = (u, v, uv) built from u and v: Du(P) = (1, 0, v), Dv(P) = (0, 1, u),
+    // calculatenormal(P) = (-v, -u, 1) (Ng agrees with dPdu ^ dPdv), area = du dv |(-v, -u, 1)|.
+    let m = module(
+        "surface t(output varying vector pu = 0, pv = 0; output varying normal n = 0; output varying float ar = 0;)
+         { point q = point(u, v, u * v); pu = Du(q); pv = Dv(q); n = calculatenormal(q); ar = area(q); }",
+    );
+    let shader = jit::compile(&m).expect("compiles");
+    let mut batch = shader.batch(5);
+    for l in 0..5 {
+        let (u, v) = (0.1 * l as f32, 0.9 - 0.1 * l as f32);
+        assert!(batch.set_global("u", l, &[u]) && batch.set_global("v", l, &[v]));
+        assert!(batch.set_global("du", l, &[0.01]) && batch.set_global("dv", l, &[0.02]));
+        assert!(batch.set_global("dPdu", l, &[1.0, 0.0, 0.0]) && batch.set_global("dPdv", l, &[0.0, 1.0, 0.0]));
+        assert!(batch.set_global("Ng", l, &[0.0, 0.0, 1.0]));
+        assert!(batch.set_global_derivs("u", l, &[0.3], &[0.1]));
+        assert!(batch.set_global_derivs("v", l, &[-0.05], &[0.2]));
+    }
+    // The raw layout a renderer fills: u's d/dy of lane 2.
+    let (slot, stride) = (batch.global_slot("u").expect("u is varying"), batch.stride());
+    assert_eq!(batch.derivs_mut()[(2 * slot + 1) * stride + 2], 0.1);
+    shader.shade(&mut batch);
+    let near = |a: &[f32], b: &[f32]| a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-5);
+    for l in 0..5 {
+        let (u, v) = (0.1 * l as f32, 0.9 - 0.1 * l as f32);
+        assert!(near(&batch.param("pu", l).unwrap(), &[1.0, 0.0, v]), "lane {l}: {:?}", batch.param("pu", l));
+        assert!(near(&batch.param("pv", l).unwrap(), &[0.0, 1.0, u]), "lane {l}: {:?}", batch.param("pv", l));
+        assert!(near(&batch.param("n", l).unwrap(), &[-v, -u, 1.0]), "lane {l}: {:?}", batch.param("n", l));
+        let want = 0.01 * 0.02 * (v * v + u * u + 1.0f32).sqrt();
+        assert!(near(&batch.param("ar", l).unwrap(), &[want]), "lane {l}: {:?}", batch.param("ar", l));
+    }
+    // Without derivatives (a fresh batch), every derivative is 0.
+    let mut batch = shader.batch(4);
+    shader.shade(&mut batch);
+    assert_eq!(batch.param("pu", 0).unwrap(), vec![0.0; 3]);
+}
+
+#[test]
+fn texture_footprints_from_derivatives() {
+    // The test host averages a lookup whose footprint exceeds a checker cell, so the outputs depend
+    // on the footprint both back ends pass: every form, with the width and blur options.
+    check(
+        r#"
+        surface t(output varying color a = 0, b = 0, c = 0, d = 0; output varying float e = 0;)
+        {
+            a = texture("grid.tx");
+            b = texture("grid.tx", s * 3, t * u * 4);
+            c = texture("grid.tx", s, t, "width", 2 + 4 * u, "blur", v * 0.1);
+            d = texture("grid.tx", s, t, s + 0.1 * u, t, s, t + 0.2 * v, s, t, "swidth", 1, "twidth", 3);
+            e = float texture("grid.tx"[1], s * 2, t, "fill", 0.5);
+        }
+        "#,
+    );
+    let mut host = TestHost::default();
+    use rtsl_compiler::interp::Services;
+    let fp = interp::TextureFootprint { dsdx: 0.1, dtdx: 0.0, dsdy: 0.1, dtdy: 0.0, blur: 0.0 };
+    assert_eq!(host.texture_filtered("grid.tx", 0.01, 0.01, &fp, 0, 1), Some(vec![0.5]));
 }

@@ -1,10 +1,11 @@
 //! Built-in functions in the reference interpreter: one exhaustive `match` over [`Builtin`], so a
 //! new built-in does not build until it has reference semantics here.
 
+use super::deriv::{zero_like, Dual};
 use super::value::Value;
 use super::{dot, normalize, Frame, InterpError, Machine, R};
 use crate::builtins::{self, Builtin};
-use crate::interp::host::LightSample;
+use crate::interp::host::{LightSample, TextureFootprint};
 use crate::ir::{Arg, BaseType, Function, Type};
 use crate::shadeops::{color, format, geom, matrix, noise, spline, V3};
 use std::rc::Rc;
@@ -61,14 +62,23 @@ impl Machine<'_> {
         overload: u16,
         args: &[Arg],
         ty: Type,
-    ) -> R<Value> {
-        // Evaluate every argument left to right (places too: their current value).
+    ) -> R<Dual> {
+        // Evaluate every argument left to right (places too: their current value); the arguments
+        // `ir::deriv` marks with their tangents.
         let mut vals = Vec::with_capacity(args.len());
+        let (mut tx, mut ty_) = (Vec::with_capacity(args.len()), Vec::with_capacity(args.len()));
         for a in args {
-            vals.push(match a {
-                Arg::Value(e) => self.expr(f, frame, *e)?,
-                Arg::Ref(p) => self.read_place(f, frame, p)?,
-            });
+            let (v, dx, dy) = match a {
+                Arg::Value(e) => self.dual(f, frame, *e)?,
+                Arg::Ref(p) => {
+                    let v = self.read_place(f, frame, p)?;
+                    let z = zero_like(&v);
+                    (v, z.clone(), z)
+                }
+            };
+            vals.push(v);
+            tx.push(dx);
+            ty_.push(dy);
         }
         let sig = &builtins::signatures(b)[overload as usize];
         let fixed = if sig.repeat_last { vals.len() } else { sig.params.len().min(vals.len()) };
@@ -117,7 +127,7 @@ impl Machine<'_> {
                     if fixed == 3 { Some((v(2).f() - x).abs()) } else { param(&vals, fixed, "width").map(Value::f) };
                 match width {
                     Some(w) => Value::Float(geom::filterstep(edge, x, w)),
-                    None => return Err(InterpError::Unsupported("filterstep without an explicit width (derivatives)")),
+                    None => self.deriv_builtin(b, &vals, &tx, &ty_),
                 }
             }
             Builtin::Spline => {
@@ -253,7 +263,7 @@ impl Machine<'_> {
                 }
             }
             Builtin::Du | Builtin::Dv | Builtin::Deriv | Builtin::Area | Builtin::Calculatenormal => {
-                return Err(InterpError::Unsupported("derivatives"))
+                self.deriv_builtin(b, &vals, &tx, &ty_)
             }
             Builtin::Xcomp => Value::Float(v(0).v3()[0]),
             Builtin::Ycomp => Value::Float(v(0).v3()[1]),
@@ -440,7 +450,8 @@ impl Machine<'_> {
                 let first = param(&vals, fixed, "channel").map(|c| c.f().max(0.0) as usize).unwrap_or(0);
                 let fill = param(&vals, fixed, "fill").map(Value::f).unwrap_or(0.0);
                 let n = if ty.base == BaseType::Float { 1 } else { 3 };
-                let got = self.host.texture(v(0).s(), s, t, first, n).unwrap_or_else(|| vec![fill; n]);
+                let fp = self.footprint(&vals, &tx, &ty_, fixed);
+                let got = self.host.texture_filtered(v(0).s(), s, t, &fp, first, n).unwrap_or_else(|| vec![fill; n]);
                 if n == 1 {
                     Value::Float(got.first().copied().unwrap_or(fill))
                 } else {
@@ -502,7 +513,38 @@ impl Machine<'_> {
                 self.write_place(f, frame, p, value)?;
             }
         }
-        Ok(result)
+        // (Callers that need no derivative drop them.)
+        let (dx, dy) = Self::builtin_tangents(b, &vals, &tx, &ty_, &result);
+        Ok((result, dx, dy))
+    }
+
+    /// A `texture` call's footprint: the derivatives of its coordinates (of the globals s and t
+    /// without coordinates; the corners' differences `(s2 - s1, t2 - t1)` along x and
+    /// `(s3 - s1, t3 - t1)` along y for the four-corner form), scaled by `"swidth"`/`"twidth"`
+    /// (default `"width"`, default 1), and `"blur"` (default 0).
+    fn footprint(&self, vals: &[Value], tx: &[Value], ty: &[Value], fixed: usize) -> TextureFootprint {
+        let [dsdx, dtdx, dsdy, dtdy] = match fixed {
+            1 => {
+                let d = |name: &str| self.point.derivs(name).map(|[x, y]| (x.f(), y.f())).unwrap_or((0.0, 0.0));
+                let ((sx, sy), (tx_, ty_)) = (d("s"), d("t"));
+                [sx, tx_, sy, ty_]
+            }
+            3 => [tx[1].f(), tx[2].f(), ty[1].f(), ty[2].f()],
+            _ => {
+                let c = |k: usize| vals.get(k).map(Value::f).unwrap_or(0.0);
+                [c(3) - c(1), c(4) - c(2), c(5) - c(1), c(6) - c(2)]
+            }
+        };
+        let width = param(vals, fixed, "width").map(Value::f).unwrap_or(1.0);
+        let sw = param(vals, fixed, "swidth").map(Value::f).unwrap_or(width);
+        let tw = param(vals, fixed, "twidth").map(Value::f).unwrap_or(width);
+        TextureFootprint {
+            dsdx: dsdx * sw,
+            dtdx: dtdx * tw,
+            dsdy: dsdy * sw,
+            dtdy: dtdy * tw,
+            blur: param(vals, fixed, "blur").map(Value::f).unwrap_or(0.0),
+        }
     }
 
     /// The sum over non-ambient lights of `Cl * weight(light)`, for the lights facing `n`'s

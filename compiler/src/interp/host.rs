@@ -22,6 +22,18 @@ pub struct LightSample {
     pub ambient: bool,
 }
 
+/// The filter footprint of a `texture` lookup: the screen-space derivatives of its coordinates,
+/// already scaled by the lookup's `"swidth"`/`"twidth"` (or `"width"`) options, and its `"blur"`
+/// (`docs/packet-abi.md`, "Derivatives"). All zero: a point sample.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct TextureFootprint {
+    pub dsdx: f32,
+    pub dtdx: f32,
+    pub dsdy: f32,
+    pub dtdy: f32,
+    pub blur: f32,
+}
+
 /// The renderer, as one shading point sees it.
 pub trait Services {
     /// The matrix taking points from space `from` to space `to` ("current" is world space in rtsl),
@@ -32,6 +44,20 @@ pub trait Services {
     /// A filtered texture lookup at (s, t), `channels` values from `first_channel` on; `None` when
     /// the texture cannot be read (the caller uses the fill value).
     fn texture(&mut self, name: &str, s: f32, t: f32, first_channel: usize, channels: usize) -> Option<Vec<f32>>;
+    /// A texture lookup filtered over `footprint` (for mip-mapping); the default ignores the
+    /// footprint and asks [`Services::texture`].
+    fn texture_filtered(
+        &mut self,
+        name: &str,
+        s: f32,
+        t: f32,
+        footprint: &TextureFootprint,
+        first_channel: usize,
+        channels: usize,
+    ) -> Option<Vec<f32>> {
+        let _ = footprint;
+        self.texture(name, s, t, first_channel, channels)
+    }
     /// An environment lookup by direction.
     fn environment(&mut self, name: &str, dir: V3) -> Option<V3>;
     /// The fraction of `p` in shadow according to a shadow map.
@@ -64,7 +90,9 @@ pub trait Services {
 /// - lights: an ambient light of 0.1 grey, and a white distant light shining down the -z axis from
 ///   +z (L = (0, 0, 1000) from every point); categories are ignored;
 /// - textures: any name but "missing" is a checkerboard of 8x8 cells in s and t, channel c of a
-///   white cell is 1 - 0.1c and of a black cell 0.1c; "missing" cannot be read;
+///   white cell is 1 - 0.1c and of a black cell 0.1c; "missing" cannot be read; a filtered lookup
+///   whose footprint (`max(|dsdx| + |dsdy|, |dtdx| + |dtdy|) + blur`) exceeds a cell (1/8) is the
+///   checkerboard's average, 0.5 in every channel;
 /// - environment: the direction mapped to a colour, `0.5 + 0.5 * normalize(dir)`;
 /// - shadow: 0 (nothing in shadow); transmission: white; occlusion: 0.25; indirect: 0.05 grey;
 /// - trace: the environment colour of the direction, distance 10;
@@ -112,6 +140,22 @@ impl Services for TestHost {
                 .map(|c| if white { 1.0 - 0.1 * c as f32 } else { 0.1 * c as f32 })
                 .collect(),
         )
+    }
+
+    fn texture_filtered(
+        &mut self,
+        name: &str,
+        s: f32,
+        t: f32,
+        fp: &TextureFootprint,
+        first_channel: usize,
+        channels: usize,
+    ) -> Option<Vec<f32>> {
+        let width = ((fp.dsdx.abs() + fp.dsdy.abs()).max(fp.dtdx.abs() + fp.dtdy.abs())) + fp.blur;
+        if name != "missing" && width > 0.125 {
+            return Some(vec![0.5; channels]);
+        }
+        self.texture(name, s, t, first_channel, channels)
     }
 
     fn environment(&mut self, _name: &str, dir: V3) -> Option<V3> {

@@ -14,17 +14,19 @@
 //! - `illuminate` runs its body only where `Ps` lies within the cone around the axis from the light
 //!   position, with `L = Ps - position`; `solar` with a cone sets `L` to the axis;
 //! - loops and calls are budgeted ([`Limits`]): a shader that runs away stops with an error instead
-//!   of hanging the test.
+//!   of hanging the test;
+//! - derivatives come from the renderer's screen-space derivatives of the globals
+//!   ([`ShadingPoint::derivs`]): the values `ir::deriv` marks are evaluated as duals (`deriv.rs`).
 //!
-//! Not yet supported (they report [`InterpError::Unsupported`]): derivatives (`Du`, `Dv`, `Deriv`,
-//! `area`, `calculatenormal`, `filterstep`'s automatic width) and `gather`, which need ray
-//! differentials and ray batches from the renderer (issue 3).
+//! Not yet supported (they report [`InterpError::Unsupported`]): `gather` and `bump`, which need
+//! ray batches from the renderer (issue 3).
 
 mod builtins;
+mod deriv;
 pub mod host;
 pub mod value;
 
-pub use host::{LightSample, Services, TestHost};
+pub use host::{LightSample, Services, TestHost, TextureFootprint};
 pub use value::Value;
 
 use crate::front::parse::ast::ShaderKind;
@@ -76,6 +78,10 @@ pub struct ShadingPoint {
     /// Seeds `random()`: the renderer gives every shading point its own (e.g. from the pixel and
     /// sample); successive calls in one run give successive values.
     pub seed: u64,
+    /// Per global (indexed like `globals`): its derivatives with respect to screen x and y, of the
+    /// global's shape (zero by default). The renderer fills them from ray differentials
+    /// (`docs/packet-abi.md`, "Derivatives"); `Du`, `Dv` and the rest read them.
+    pub derivs: Vec<[Value; 2]>,
 }
 
 impl ShadingPoint {
@@ -83,7 +89,7 @@ impl ShadingPoint {
     /// `I` = (0,0,-1), `E` = (0,0,5), `Cs`/`Os` = 1, `Oi` = 1, `ncomps` = 3, `Ci` = 0 (1 for camera
     /// shaders, whose `Ci` is the ray weight).
     pub fn new(kind: ShaderKind) -> ShadingPoint {
-        let globals = GLOBALS
+        let globals: Vec<Value> = GLOBALS
             .iter()
             .map(|g| match g.name {
                 "N" | "Ng" => Value::Triple([0.0, 0.0, 1.0]),
@@ -95,7 +101,8 @@ impl ShadingPoint {
                 _ => Value::zero(ir::Type::scalar(g.ty)),
             })
             .collect();
-        ShadingPoint { globals, seed: 0 }
+        let derivs = globals.iter().map(|g: &Value| [deriv::zero_like(g), deriv::zero_like(g)]).collect();
+        ShadingPoint { globals, seed: 0, derivs }
     }
 
     pub fn get(&self, name: &str) -> Option<&Value> {
@@ -104,6 +111,26 @@ impl ShadingPoint {
 
     pub fn set(&mut self, name: &str, v: Value) {
         if let Some(g) = Global::lookup(name) {
+            self.globals[g.0 as usize] = v;
+        }
+    }
+
+    /// Sets a global's screen-space derivatives (`d/dx`, `d/dy`, of the global's shape).
+    pub fn set_derivs(&mut self, name: &str, dx: Value, dy: Value) {
+        if let Some(g) = Global::lookup(name) {
+            self.derivs[g.0 as usize] = [dx, dy];
+        }
+    }
+
+    /// A global's screen-space derivatives.
+    pub fn derivs(&self, name: &str) -> Option<&[Value; 2]> {
+        Global::lookup(name).map(|g| &self.derivs[g.0 as usize])
+    }
+
+    /// Sets a global from outside the shader's dataflow (a light loop): zero derivatives.
+    fn set_plain(&mut self, name: &str, v: Value) {
+        if let Some(g) = Global::lookup(name) {
+            self.derivs[g.0 as usize] = [deriv::zero_like(&v), deriv::zero_like(&v)];
             self.globals[g.0 as usize] = v;
         }
     }
@@ -125,14 +152,20 @@ pub fn run(
 ) -> Result<RunResult, InterpError> {
     let shader = module.shader.as_ref().ok_or(InterpError::NoShader)?;
     let body = module.function(shader.body);
-    let mut m = Machine { module, point, host, steps: limits.steps, light_depth: 0, random_calls: 0 };
-    let mut frame = Frame::new(body);
+    let info = ir::deriv::analyse(module);
+    let mut m =
+        Machine { module, point, host, steps: limits.steps, light_depth: 0, random_calls: 0, info: &info, ret_d: None };
+    let mut frame = Frame::new(shader.body, body);
     for p in &shader.params {
-        let value = match bound.iter().find(|(n, _)| *n == p.name) {
-            Some((_, v)) => v.clone(),
-            None => m.expr(body, &mut frame, p.default)?,
+        // A bound parameter has zero derivatives (the renderer supplies none for parameters).
+        let (value, dx, dy) = match bound.iter().find(|(n, _)| *n == p.name) {
+            Some((_, v)) => (v.clone(), deriv::zero_like(v), deriv::zero_like(v)),
+            None => m.dual(body, &mut frame, p.default)?,
         };
-        frame.vars[p.var.0 as usize] = value;
+        let i = p.var.0 as usize;
+        frame.vars[i] = value;
+        frame.dx[i] = dx;
+        frame.dy[i] = dy;
     }
     m.block(body, &mut frame, &body.body)?;
     Ok(RunResult {
@@ -141,12 +174,18 @@ pub fn run(
 }
 
 struct Frame {
+    fid: ir::FuncId,
     vars: Vec<Value>,
+    /// The variables' tangents (kept for the variables `ir::deriv` marks; zero for the others).
+    dx: Vec<Value>,
+    dy: Vec<Value>,
 }
 
 impl Frame {
-    fn new(f: &Function) -> Frame {
-        Frame { vars: f.vars.iter().map(|v| Value::zero(v.ty)).collect() }
+    fn new(fid: ir::FuncId, f: &Function) -> Frame {
+        let vars: Vec<Value> = f.vars.iter().map(|v| Value::zero(v.ty)).collect();
+        let dx: Vec<Value> = vars.iter().map(deriv::zero_like).collect();
+        Frame { fid, dy: dx.clone(), dx, vars }
     }
 }
 
@@ -164,6 +203,9 @@ struct Machine<'a> {
     steps: u64,
     light_depth: u32,
     random_calls: u64,
+    info: &'a ir::deriv::DerivInfo,
+    /// The tangents of the value a function whose result is differentiated returned last.
+    ret_d: Option<(Value, Value)>,
 }
 
 type R<T> = Result<T, InterpError>;
@@ -253,6 +295,11 @@ impl Machine<'_> {
             StmtKind::Continue(n) => Ok(Flow::Continue(*n)),
             StmtKind::Return(v) => {
                 let value = match v {
+                    Some(e) if self.info.ret[frame.fid.0 as usize] => {
+                        let (v, dx, dy) = self.dual(f, frame, *e)?;
+                        self.ret_d = Some((dx, dy));
+                        v
+                    }
                     Some(e) => self.expr(f, frame, *e)?,
                     None => Value::Void,
                 };
@@ -278,9 +325,9 @@ impl Machine<'_> {
                             continue;
                         }
                     }
-                    self.point.set("L", Value::Triple(light.l));
-                    self.point.set("Cl", Value::Triple(light.cl));
-                    self.point.set("Ol", Value::Triple(light.ol));
+                    self.point.set_plain("L", Value::Triple(light.l));
+                    self.point.set_plain("Cl", Value::Triple(light.cl));
+                    self.point.set_plain("Ol", Value::Triple(light.ol));
                     self.light_depth += 1;
                     let flow = self.block(f, frame, body);
                     self.light_depth -= 1;
@@ -289,9 +336,9 @@ impl Machine<'_> {
                         break;
                     }
                 }
-                self.point.set("L", saved.0);
-                self.point.set("Cl", saved.1);
-                self.point.set("Ol", saved.2);
+                self.point.set_plain("L", saved.0);
+                self.point.set_plain("Cl", saved.1);
+                self.point.set_plain("Ol", saved.2);
                 Ok(result)
             }
             StmtKind::Illuminate { position, cone, body } => {
@@ -307,14 +354,14 @@ impl Machine<'_> {
                         return Ok(Flow::Next);
                     }
                 }
-                self.point.set("L", Value::Triple(l));
+                self.point.set_plain("L", Value::Triple(l));
                 self.block(f, frame, body)
             }
             StmtKind::Solar { cone, body } => {
                 if let Some((a, b)) = cone {
                     let axis = self.expr(f, frame, *a)?.v3();
                     self.expr(f, frame, *b)?;
-                    self.point.set("L", Value::Triple(axis));
+                    self.point.set_plain("L", Value::Triple(axis));
                 }
                 self.block(f, frame, body)
             }
@@ -323,13 +370,25 @@ impl Machine<'_> {
     }
 
     fn read_place(&mut self, f: &Function, frame: &mut Frame, p: &Place) -> R<Value> {
-        let mut v = match p.base {
-            PlaceBase::Var(var) => frame.vars[var.0 as usize].clone(),
-            PlaceBase::Global(g) => self.point.globals[g.0 as usize].clone(),
+        Ok(self.read_place_d(f, frame, p)?.0)
+    }
+
+    /// A place's value and tangents (indices evaluated once).
+    fn read_place_d(&mut self, f: &Function, frame: &mut Frame, p: &Place) -> R<deriv::Dual> {
+        let (mut v, mut dx, mut dy) = match p.base {
+            PlaceBase::Var(var) => {
+                let i = var.0 as usize;
+                (frame.vars[i].clone(), frame.dx[i].clone(), frame.dy[i].clone())
+            }
+            PlaceBase::Global(g) => {
+                let i = g.0 as usize;
+                let [dx, dy] = self.point.derivs[i].clone();
+                (self.point.globals[i].clone(), dx, dy)
+            }
         };
         for idx in [p.index, p.component].into_iter().flatten() {
             let i = self.expr(f, frame, idx)?;
-            v = match v {
+            let sel = |v: Value| match v {
                 Value::Array(items) => {
                     let k = index_of(&i, items.len());
                     items.get(k).cloned().unwrap_or(Value::Void)
@@ -337,15 +396,52 @@ impl Machine<'_> {
                 Value::Triple(t) => Value::Float(t[index_of(&i, 3)]),
                 other => other,
             };
+            v = sel(v);
+            dx = sel(dx);
+            dy = sel(dy);
         }
-        Ok(v)
+        Ok((v, dx, dy))
     }
 
-    /// Evaluates a place's indices, then stores `value` there.
+    /// Evaluates a place's indices, then stores `value` there (zero tangents when the place keeps
+    /// tangents: a built-in's output).
     fn write_place(&mut self, f: &Function, frame: &mut Frame, p: &Place, value: Value) -> R<()> {
+        self.write_place_d(f, frame, p, value, None)
+    }
+
+    /// Evaluates a place's indices, then stores `value` there, and its tangents (`None`: zero)
+    /// when the place keeps tangents.
+    fn write_place_d(
+        &mut self,
+        f: &Function,
+        frame: &mut Frame,
+        p: &Place,
+        value: Value,
+        d: Option<(Value, Value)>,
+    ) -> R<()> {
         let mut indices = Vec::new();
         for idx in [p.index, p.component].into_iter().flatten() {
             indices.push(self.expr(f, frame, idx)?);
+        }
+        let keeps = match p.base {
+            PlaceBase::Var(var) => self.info.var(frame.fid, var),
+            PlaceBase::Global(g) => self.info.global(g),
+        };
+        if keeps {
+            let (dx, dy) = d.unwrap_or_else(|| (deriv::zero_like(&value), deriv::zero_like(&value)));
+            let pair = match p.base {
+                PlaceBase::Var(var) => {
+                    let i = var.0 as usize;
+                    [&mut frame.dx[i], &mut frame.dy[i]]
+                }
+                PlaceBase::Global(g) => {
+                    let [x, y] = &mut self.point.derivs[g.0 as usize];
+                    [x, y]
+                }
+            };
+            let [sx, sy] = pair;
+            store(sx, &indices, dx);
+            store(sy, &indices, dy);
         }
         let slot = match p.base {
             PlaceBase::Var(var) => &mut frame.vars[var.0 as usize],
@@ -357,6 +453,10 @@ impl Machine<'_> {
 
     fn expr(&mut self, f: &Function, frame: &mut Frame, id: ExprId) -> R<Value> {
         let e = f.expr(id);
+        if matches!(e.kind, ExprKind::Assign { .. } | ExprKind::Call { .. }) && self.info.expr(frame.fid, id) {
+            // Stores tangents (or keeps a callee's result tangents) as it evaluates.
+            return Ok(self.dual(f, frame, id)?.0);
+        }
         Ok(match &e.kind {
             ExprKind::Const(ir::Constant::Float(v)) => Value::Float(*v),
             ExprKind::Const(ir::Constant::String(s)) => Value::String(Rc::from(s.as_str())),
@@ -428,9 +528,9 @@ impl Machine<'_> {
                 }
             }
             ExprKind::CallBuiltin { builtin, overload, args } => {
-                self.builtin(f, frame, *builtin, *overload, args, e.ty)?
+                self.builtin(f, frame, *builtin, *overload, args, e.ty)?.0
             }
-            ExprKind::Call { func, args } => self.call(f, frame, *func, args)?,
+            ExprKind::Call { func, args } => self.call(f, frame, *func, args)?.0,
             ExprKind::Assign { place, op, value } => {
                 let v = self.expr(f, frame, *value)?;
                 let stored = match op {
@@ -471,29 +571,50 @@ impl Machine<'_> {
         }
     }
 
-    fn call(&mut self, f: &Function, frame: &mut Frame, func: ir::FuncId, args: &[Arg]) -> R<Value> {
+    /// Calls a user function; returns its result and, when the result is differentiated, its
+    /// tangents. Differentiated parameters are copied in (and out) with their tangents.
+    fn call(
+        &mut self,
+        f: &Function,
+        frame: &mut Frame,
+        func: ir::FuncId,
+        args: &[Arg],
+    ) -> R<(Value, Option<(Value, Value)>)> {
         self.step()?;
         let module = self.module;
         let callee = module.function(func);
-        let mut inner = Frame::new(callee);
+        let mut inner = Frame::new(func, callee);
         for (a, p) in args.iter().zip(&callee.params) {
-            let v = match a {
-                Arg::Value(e) => self.expr(f, frame, *e)?,
-                Arg::Ref(place) => self.read_place(f, frame, place)?,
+            let marked = self.info.var(func, *p);
+            let (v, dx, dy) = match a {
+                Arg::Value(e) if marked => self.dual(f, frame, *e)?,
+                Arg::Value(e) => {
+                    let v = self.expr(f, frame, *e)?;
+                    let z = deriv::zero_like(&v);
+                    (v, z.clone(), z)
+                }
+                Arg::Ref(place) => self.read_place_d(f, frame, place)?,
             };
-            inner.vars[p.0 as usize] = v;
+            let i = p.0 as usize;
+            inner.vars[i] = v;
+            inner.dx[i] = dx;
+            inner.dy[i] = dy;
         }
+        self.ret_d = None;
         let result = match self.block(callee, &mut inner, &callee.body)? {
             Flow::Return(v) => v,
             _ => Value::Void,
         };
+        let ret_d = if self.info.ret[func.0 as usize] { self.ret_d.take() } else { None };
         for (a, p) in args.iter().zip(&callee.params) {
             if let Arg::Ref(place) = a {
-                let v = inner.vars[p.0 as usize].clone();
-                self.write_place(f, frame, place, v)?;
+                let i = p.0 as usize;
+                let v = inner.vars[i].clone();
+                let d = self.info.var(func, *p).then(|| (inner.dx[i].clone(), inner.dy[i].clone()));
+                self.write_place_d(f, frame, place, v, d)?;
             }
         }
-        Ok(result)
+        Ok((result, ret_d))
     }
 }
 

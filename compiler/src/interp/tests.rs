@@ -100,3 +100,79 @@ fn the_small_regex_matcher() {
     assert!(regex_match("f.o", "xfoo"));
     assert!(!regex_match("z", "foobar"));
 }
+
+/// A point with screen derivatives of `u` and `v`: `u_x, u_y, v_x, v_y` = 0.3, 0.1, -0.05, 0.2.
+fn uv_point(u: f32, v: f32) -> ShadingPoint {
+    let mut p = ShadingPoint::new(ShaderKind::Surface);
+    p.set("u", Value::Float(u));
+    p.set("v", Value::Float(v));
+    p.set_derivs("u", Value::Float(0.3), Value::Float(0.1));
+    p.set_derivs("v", Value::Float(-0.05), Value::Float(0.2));
+    p.set("du", Value::Float(0.01));
+    p.set("dv", Value::Float(0.02));
+    p.set("dPdu", Value::Triple([1.0, 0.0, 0.0]));
+    p.set("dPdv", Value::Triple([0.0, 1.0, 0.0]));
+    p
+}
+
+fn run_point(src: &str, point: &mut ShadingPoint) -> RunResult {
+    let c = compile_source("test.sl", src, &crate::Options::default());
+    assert!(c.ok(), "does not compile:\n{}", c.render());
+    let m = c.module.expect("compiles");
+    run(&m, &[], point, &mut TestHost::default(), Limits::default()).expect("runs")
+}
+
+fn out(r: &RunResult, name: &str) -> Value {
+    r.params.iter().find(|(n, _)| n == name).map(|(_, v)| v.clone()).expect("output")
+}
+
+#[test]
+fn derivatives_of_an_analytic_surface() {
+    // P = (u, v, uv): Du(P) = (1, 0, v), Dv(P) = (0, 1, u), calculatenormal = (-v, -u, 1),
+    // area = du dv |(-v, -u, 1)|; through a user function, a loop and an array.
+    let src = r#"
+        point surf(float a, b) { return point(a, b, a * b); }
+        surface t(output varying vector pu = 0, pv = 0; output varying normal n = 0;
+                  output varying float ar = 0, dd = 0, fs = 0, ds = 0;)
+        {
+            point q = surf(u, v);
+            float k, acc = 0, arr[2];
+            for (k = 0; k < 3; k += 1) acc += u * u;
+            arr[1] = acc;
+            pu = Du(q);
+            pv = Dv(q);
+            n = calculatenormal(q);
+            ar = area(q);
+            dd = Deriv(arr[1], u);
+            fs = filterstep(0.5, u * 10);
+            ds = Du(s) + Dv(sin(u) * 2);
+        }
+    "#;
+    let (u, v) = (0.25, 0.75);
+    let r = run_point(src, &mut uv_point(u, v));
+    let near = |a: V3, b: V3| a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-5);
+    assert!(near(out(&r, "pu").v3(), [1.0, 0.0, v]), "{:?}", out(&r, "pu"));
+    assert!(near(out(&r, "pv").v3(), [0.0, 1.0, u]), "{:?}", out(&r, "pv"));
+    assert!(near(out(&r, "n").v3(), [-v, -u, 1.0]), "{:?}", out(&r, "n"));
+    let want = 0.01 * 0.02 * (v * v + u * u + 1.0f32).sqrt();
+    assert!((out(&r, "ar").f() - want).abs() < 1e-8, "{:?} vs {want}", out(&r, "ar"));
+    // d(3u^2)/du = 6u.
+    assert!((out(&r, "dd").f() - 6.0 * u).abs() < 1e-5, "{:?}", out(&r, "dd"));
+    // Width |10 du| = 0.1: (2.5 - 0.5) / 0.1 + 0.5 clamps to 1.
+    assert_eq!(out(&r, "fs").f(), 1.0);
+    // s has no derivatives here; Dv(2 sin u) = 0.
+    assert!(out(&r, "ds").f().abs() < 1e-6, "{:?}", out(&r, "ds"));
+
+    // The orientation follows Ng: with Ng against dPdu ^ dPdv the normal flips.
+    let mut p = uv_point(u, v);
+    p.set("Ng", Value::Triple([0.0, 0.0, -1.0]));
+    let r = run_point(src, &mut p);
+    assert!(near(out(&r, "n").v3(), [v, u, -1.0]), "{:?}", out(&r, "n"));
+
+    // Renderer-supplied derivatives of P itself (a plane x = 2u, y = 3v).
+    let src = "surface t(output varying vector pu = 0;) { pu = Du(P) + Dv(P); }";
+    let mut p = uv_point(u, v);
+    p.set_derivs("P", Value::Triple([0.6, -0.15, 0.0]), Value::Triple([0.2, 0.6, 0.0]));
+    let r = run_point(src, &mut p);
+    assert!(near(out(&r, "pu").v3(), [2.0, 3.0, 0.0]), "{:?}", out(&r, "pu"));
+}

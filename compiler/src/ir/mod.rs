@@ -30,6 +30,7 @@
 //!   after the declared ones; callers pass them. There is no recursion (the checker rejects it), so
 //!   back ends may inline every call.
 
+pub mod deriv;
 pub mod print;
 pub mod types;
 

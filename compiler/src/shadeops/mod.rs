@@ -9,6 +9,7 @@
 //! row-major as 16 floats, with the translation in elements 12, 13, 14; angles are in radians.
 
 pub mod color;
+pub mod deriv;
 pub mod format;
 pub mod geom;
 pub mod matrix;

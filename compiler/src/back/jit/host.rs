@@ -22,7 +22,7 @@
 
 use super::{Batch, StringTable};
 use crate::builtins::Builtin;
-use crate::interp::{Services, Value};
+use crate::interp::{Services, TextureFootprint, Value};
 use crate::shadeops::format::{self, FormatArg};
 use crate::shadeops::{color, geom, matrix, spline, M4, V3};
 use std::ffi::c_void;
@@ -99,9 +99,11 @@ pub struct HostTable {
         out: *mut HostLight,
         counts: *mut u32,
     ),
-    /// Texture lookups: `kind` 0 `texture` (`coords` s, t; `first[l]` the first channel; `channels`
-    /// values), 1 `environment` (`coords` a direction; 3 values), 2 `shadow` (`coords` a point; 1
-    /// value). Results in `out[4c + l]`; `ok[l]` 0 where the map cannot be read.
+    /// Texture lookups: `kind` 0 `texture` (`coords` seven rows of 4 lanes: s, t, then the filter
+    /// footprint ds/dx, dt/dx, ds/dy, dt/dy (scaled by the lookup's width options) and blur, as
+    /// `interp::TextureFootprint`; `first[l]` the first channel; `channels` values), 1 `environment`
+    /// (`coords` a direction; 3 values), 2 `shadow` (`coords` a point; 1 value). Results in
+    /// `out[4c + l]`; `ok[l]` 0 where the map cannot be read.
     pub texture: unsafe extern "C" fn(
         ctx: *mut c_void,
         kind: u32,
@@ -249,7 +251,9 @@ unsafe extern "C" fn sv_texture(
             let got: Option<Vec<f32>> = match kind {
                 0 => {
                     let f = *first.add(l);
-                    h.host.texture(name, c[0], c[1], f.max(0.0) as usize, channels as usize)
+                    let row = |k: usize| *coords.add(4 * k + l);
+                    let fp = TextureFootprint { dsdx: row(2), dtdx: row(3), dsdy: row(4), dtdy: row(5), blur: row(6) };
+                    h.host.texture_filtered(name, c[0], c[1], &fp, f.max(0.0) as usize, channels as usize)
                 }
                 1 => h.host.environment(name, c).map(|v| v.to_vec()),
                 _ => Some(vec![h.host.shadow(name, c)]),
@@ -697,8 +701,8 @@ host_helpers! {
             cx.set3(0, l, sum);
         }
     }
-    // [name, s, t, first channel, fill, channels] -> 3
-    h_texture "rtsl_h_texture" 6 => 3 |cx| {
+    // [name, s, t, first channel, fill, channels, dsdx, dtdx, dsdy, dtdy, blur] -> 3
+    h_texture "rtsl_h_texture" 11 => 3 |cx| {
         let name = cx.s(0);
         let n = cx.f(5, 0) as u32;
         let (vals, ok) = texture_call(cx, 0, &name, n);
@@ -894,13 +898,17 @@ fn texture_call(cx: &mut Cx<'_>, kind: u32, name: &str, channels: u32) -> (Vec<f
     let mut ok = [0u32; 4];
     let Some(t) = cx.table else { return (vals, ok) };
     let mask: [i32; 4] = cx.mask.map(|m| if m { -1 } else { 0 });
-    // Texture: coords s, t (args 1, 2) and the first channel (arg 3); otherwise a triple at arg 1.
-    let mut coords = [0.0f32; 12];
+    // Texture: coords s, t (args 1, 2), then the footprint dsdx, dtdx, dsdy, dtdy, blur (args
+    // 6..11), and the first channel (arg 3); otherwise a triple at arg 1.
+    let mut coords = [0.0f32; 28];
     let mut first = [0.0f32; 4];
     for l in 0..4 {
         if kind == 0 {
             coords[l] = cx.f(1, l);
             coords[4 + l] = cx.f(2, l);
+            for k in 0..5 {
+                coords[4 * (2 + k) + l] = cx.f(6 + k, l);
+            }
             first[l] = cx.f(3, l);
         } else {
             for k in 0..3 {

@@ -13,6 +13,10 @@
 //! - **Random seeds**: a module that calls `random()` gets two more varying slots after the
 //!   parameters ([`Layout::seed`]): each lane's 64-bit seed (the interpreter's `ShadingPoint::seed`),
 //!   low 32 bits then high 32 bits, carried in the bits of `f32`s (see `BatchData::set_seed`).
+//! - **Derivatives**: the varying globals come first, so slots `0..deriv_slots` are exactly the
+//!   globals' slots; `Batch::derivs` holds, for each of them, d/dx at `derivs[2s * stride + l]` and
+//!   d/dy at `derivs[(2s + 1) * stride + l]`. A module that differentiates (`ir::deriv`) always has
+//!   `u`, `v`, `du`, `dv` (and, with `calculatenormal`, `dPdu`, `dPdv`, `Ng`) in its layout.
 //! - The layout depends only on the module, never on the batch size.
 
 use crate::globals::{Global, GLOBALS};
@@ -67,6 +71,9 @@ pub struct Layout {
     /// The first of the two varying slots holding each lane's `random()` seed (low, high 32 bits),
     /// when the module calls `random()`.
     pub seed: Option<usize>,
+    /// The varying slots that have derivatives in `Batch::derivs` (the globals' slots, `0..n`):
+    /// the derivative buffer holds `2 * deriv_slots * stride` floats.
+    pub deriv_slots: usize,
 }
 
 impl Layout {
@@ -137,6 +144,19 @@ pub(super) fn layout(m: &Module) -> Result<Layout, &'static str> {
             }
         }
     }
+    // Derivatives need the parameters' differentials (and calculatenormal the orientation).
+    let info = crate::ir::deriv::analyse(m);
+    if info.any {
+        let mut names = vec!["u", "v", "du", "dv"];
+        if info.normals {
+            names.extend(["dPdu", "dPdv", "Ng"]);
+        }
+        for name in names {
+            if let Some(g) = Global::lookup(name) {
+                used[g.0 as usize] = true;
+            }
+        }
+    }
     // Light statements read and write the light globals.
     for f in &m.functions {
         light_globals(&f.body, &mut used, &mut written);
@@ -163,6 +183,7 @@ pub(super) fn layout(m: &Module) -> Result<Layout, &'static str> {
             *offset += comps;
         }
     }
+    l.deriv_slots = l.varying_slots;
     for p in &shader.params {
         let comps = components(p.ty).ok_or("a shader parameter of an unstorable type")?;
         let string = p.ty.base == BaseType::String;

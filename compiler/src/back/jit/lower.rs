@@ -36,8 +36,12 @@
 //!   `format` on uniform values) are uniform host-helper calls whose string results are interned in
 //!   the batch's table; `printf` calls `rtsl_h_printf` once per chunk, which formats and prints each
 //!   running lane's text (`format`/`printf` pass a header of argument kinds: `host::format_lane`).
-//! - Unsupported here: `gather`, derivatives (`Du`, `Dv`, `Deriv`, `area`, `calculatenormal`,
-//!   `filterstep` without an explicit width), varying strings (`format` of varying values),
+//! - **Derivatives** (`deriv.rs`): the values `ir::deriv` marks are lowered as duals, a value and
+//!   two tangents (`f32x4` per component, always varying; `None` is zero); marked varying storage
+//!   has two tangent stores beside it (`Frame::dvars`, `Lower::dglobals`), written under the same
+//!   masks as the value. Every other write to such storage (a built-in's output, a light loop's
+//!   globals) zeroes its tangents.
+//! - Unsupported here: `gather`, varying strings (`format` of varying values),
 //!   `bump`, point clouds, and built-ins not handled in `builtin` or
 //!   `builtin_ext`.
 
@@ -60,6 +64,11 @@ use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext, Variable};
 use cranelift_jit::JITModule;
 use cranelift_module::{Linkage, Module as _};
 use std::collections::HashMap;
+
+#[path = "deriv.rs"]
+mod deriv;
+
+pub(super) use deriv::Dual;
 
 type R<T> = Result<T, JitError>;
 
@@ -90,9 +99,14 @@ struct LoopCx {
 }
 
 struct Frame<'m> {
+    fid: FuncId,
     f: &'m Function,
     vars: Vec<Option<Store>>,
+    /// Tangent stores (d/dx, d/dy) of the varying variables `ir::deriv` marks.
+    dvars: Vec<Option<[Store; 2]>>,
     ret: Option<Store>,
+    /// Tangent stores of the result, when the result is differentiated.
+    dret: Option<[Store; 2]>,
     ret_block: Block,
     depth: u32,
     loops: Vec<LoopCx>,
@@ -143,6 +157,18 @@ struct Lower<'m, 'b> {
     /// Per lane, how many `random()` calls it has run in this chunk (`i32x4`, zero at its start):
     /// the interpreter's `random_calls`.
     random_calls: Variable,
+    /// Which values are duals (`ir::deriv`).
+    info: ir::deriv::DerivInfo,
+    /// Tangent stores of the globals that keep tangents.
+    dglobals: Vec<Option<[Store; 2]>>,
+    /// Argument values a built-in call evaluated as duals before lowering the call: `expr` returns
+    /// them instead of evaluating again (key: frame depth, expression).
+    cache: HashMap<(usize, u32), Val>,
+    /// The arguments (as duals) of the built-in call being lowered by `builtin_dual`.
+    arg_duals: Vec<Option<Dual>>,
+    /// The renderer's derivatives for this chunk (`Batch::derivs + 16 * chunk`; null base: zeros).
+    derivs_base: Option<Value>,
+    derivs_null: Option<Value>,
 }
 
 /// Lowers the module's shader into `func` (signature `fn(*mut Batch)`); returns the number of
@@ -178,6 +204,12 @@ pub(super) fn lower(
         batch: None,
         strings: vec![String::new()],
         random_calls,
+        info: ir::deriv::analyse(m),
+        dglobals: vec![None; GLOBALS.len()],
+        cache: HashMap::new(),
+        arg_duals: Vec::new(),
+        derivs_base: None,
+        derivs_null: None,
     };
     l.shade()?;
     l.b.seal_all_blocks();
@@ -291,6 +323,14 @@ impl<'m> Lower<'m, '_> {
         let varying_p = self.b.ins().load(self.ptr, mem(), batch, OFF_VARYING);
         let uniform_p = self.b.ins().load(self.ptr, mem(), batch, OFF_UNIFORM);
         let bound_p = self.b.ins().load(self.ptr, mem(), batch, OFF_BOUND);
+        // Shaders that differentiate nothing never touch `derivs` (no extra instruction).
+        let derivs_p = if self.info.any || self.info.globals.iter().any(|g| *g) {
+            let p = self.b.ins().load(self.ptr, mem(), batch, super::OFF_DERIVS);
+            self.derivs_null = Some(self.b.ins().icmp_imm_u(IntCC::Equal, p, 0));
+            Some(p)
+        } else {
+            None
+        };
         let nchunks = self.b.ins().ushr_imm_u(stride, 2);
         let stride_bytes = self.b.ins().ishl_imm_u(stride, 2);
         let counter = self.b.declare_var(self.ptr);
@@ -316,6 +356,7 @@ impl<'m> Lower<'m, '_> {
         self.b.ins().brif(live, run, &[], next, &[]);
         self.b.switch_to_block(run);
         self.chunk_base = Some(self.b.ins().iadd(varying_p, off));
+        self.derivs_base = derivs_p.map(|p| self.b.ins().iadd(p, off));
         self.stride_bytes = Some(stride_bytes);
         self.uniform = Some(uniform_p);
         self.set_exec(chunk_mask);
@@ -343,8 +384,9 @@ impl<'m> Lower<'m, '_> {
             }
             self.globals[gs.global.0 as usize] = Some(s);
         }
+        self.load_global_derivs()?;
         let body = self.m.function(shader.body);
-        let frame = self.new_frame(body, &[], false)?;
+        let frame = self.new_frame(shader.body, body, &[], &[], false)?;
         self.frames.push(frame);
         let saved = self.exec();
         for (i, p) in shader.params.iter().enumerate() {
@@ -369,8 +411,11 @@ impl<'m> Lower<'m, '_> {
                     self.b.def_var(*var, v);
                 }
             }
-            let v = self.expr(p.default)?;
-            self.write_store(&store, &v)?;
+            let v = self.dual(p.default)?;
+            self.write_store(&store, &v.v)?;
+            if let Some(ds) = self.frame().dvars[p.var.0 as usize].clone() {
+                self.write_tangents(&ds, &v)?;
+            }
             self.b.ins().jump(join, &[]);
             self.b.switch_to_block(join);
         }
@@ -405,8 +450,16 @@ impl<'m> Lower<'m, '_> {
     }
 
     /// A frame for `f` with zeroed locals and parameters initialised from `args` (copy-in).
-    fn new_frame(&mut self, f: &'m Function, args: &[(Val, Option<bool>)], uniform: bool) -> R<Frame<'m>> {
+    fn new_frame(
+        &mut self,
+        fid: FuncId,
+        f: &'m Function,
+        args: &[(Val, Option<bool>)],
+        dargs: &[Option<[Vec<Value>; 2]>],
+        uniform: bool,
+    ) -> R<Frame<'m>> {
         let mut vars = Vec::with_capacity(f.vars.len());
+        let mut dvars = Vec::with_capacity(f.vars.len());
         for (i, var) in f.vars.iter().enumerate() {
             let comps = match components(var.ty) {
                 Some(c) => c,
@@ -416,6 +469,9 @@ impl<'m> Lower<'m, '_> {
                 }
             };
             let param = f.params.iter().position(|p| p.0 as usize == i);
+            while dvars.len() < vars.len() {
+                dvars.push(None);
+            }
             let store = match (var.kind, param) {
                 (VarKind::ShaderParam { index, .. }, _) => {
                     let slot = &self.layout.params[index as usize];
@@ -456,10 +512,37 @@ impl<'m> Lower<'m, '_> {
             if var.ty.base == BaseType::String && store.vary {
                 return unsupported("varying strings");
             }
+            let d = if store.vary && self.info.var(fid, ir::VarId(i as u32)) {
+                let n = store.vars.len();
+                let pair = [self.zero_store(true, n, store.comps), self.zero_store(true, n, store.comps)];
+                if let Some(Some(t)) = param.and_then(|k| dargs.get(k)) {
+                    for (s, tc) in pair.iter().zip(t) {
+                        self.init_store(s, &Val { vary: true, c: tc.clone() })?;
+                    }
+                }
+                Some(pair)
+            } else {
+                None
+            };
             vars.push(Some(store));
+            dvars.push(d);
+        }
+        while dvars.len() < vars.len() {
+            dvars.push(None);
         }
         let ret_block = self.b.create_block();
-        Ok(Frame { f, vars, ret: None, ret_block, depth: self.vdepth, loops: Vec::new(), uniform })
+        Ok(Frame {
+            fid,
+            f,
+            vars,
+            dvars,
+            ret: None,
+            dret: None,
+            ret_block,
+            depth: self.vdepth,
+            loops: Vec::new(),
+            uniform,
+        })
     }
 
     // ---- Statements ----
@@ -593,9 +676,12 @@ impl<'m> Lower<'m, '_> {
             }
             StmtKind::Return(v) => {
                 if let Some(v) = v {
-                    let val = self.expr(*v)?;
+                    let val = self.dual(*v)?;
                     let ret = self.frame().ret.clone().ok_or_else(|| JitError::Codegen("return value".into()))?;
-                    self.write_store(&ret, &val)?;
+                    self.write_store(&ret, &val.v)?;
+                    if let Some(ds) = self.frame().dret.clone() {
+                        self.write_tangents(&ds, &val)?;
+                    }
                 }
                 let z = mask::zero_mask(&mut self.b);
                 self.set_exec(z);
@@ -781,6 +867,10 @@ impl<'m> Lower<'m, '_> {
 
     fn read_targets(&mut self, t: &Targets) -> R<Val> {
         let store = self.store_of(t.base)?;
+        self.read_targets_in(&store, t)
+    }
+
+    fn read_targets_in(&mut self, store: &Store, t: &Targets) -> R<Val> {
         let mut c = Vec::with_capacity(t.comps);
         let mut vary = store.vary;
         for j in 0..t.comps {
@@ -804,8 +894,25 @@ impl<'m> Lower<'m, '_> {
         Ok(Val { vary, c })
     }
 
+    /// Writes a place; its tangents (when it keeps them) become zero.
     fn write_targets(&mut self, t: &Targets, v: &Val) -> R<()> {
+        self.write_targets_d(t, &Dual { v: v.clone(), d: None })
+    }
+
+    /// Writes a place and, when it keeps tangents, the value's tangents (under the same masks).
+    fn write_targets_d(&mut self, t: &Targets, v: &Dual) -> R<()> {
         let store = self.store_of(t.base)?;
+        self.write_targets_in(&store, t, &v.v)?;
+        if let Some(ds) = self.tangent_stores(t.base) {
+            let [dx, dy] = self.tangents(v);
+            self.write_targets_in(&ds[0], t, &Val { vary: true, c: dx })?;
+            self.write_targets_in(&ds[1], t, &Val { vary: true, c: dy })?;
+        }
+        Ok(())
+    }
+
+    fn write_targets_in(&mut self, store: &Store, t: &Targets, v: &Val) -> R<()> {
+        let store = store.clone();
         if !store.vary {
             if v.vary || t.list.iter().any(|(_, _, c)| c.is_some_and(|c| is_vec(&self.b, c))) {
                 return unsupported("a varying value stored in uniform storage");
@@ -841,8 +948,23 @@ impl<'m> Lower<'m, '_> {
     }
 
     fn expr(&mut self, id: ExprId) -> R<Val> {
+        if !self.cache.is_empty() {
+            if let Some(v) = self.cache.get(&(self.frames.len(), id.0)) {
+                return Ok(v.clone());
+            }
+        }
         let f = self.func();
         let e = f.expr(id);
+        let marked = self.info.expr(self.frame().fid, id);
+        match &e.kind {
+            ExprKind::Assign { .. } | ExprKind::Call { .. } if marked => return Ok(self.dual(id)?.v),
+            ExprKind::CallBuiltin { builtin, overload, args }
+                if ir::deriv::is_deriv_builtin(*builtin) || *builtin == Builtin::Texture =>
+            {
+                return Ok(self.builtin_dual(*builtin, *overload, args, e, false)?.v)
+            }
+            _ => {}
+        }
         match &e.kind {
             ExprKind::Const(Constant::Float(x)) => Ok(Val { vary: false, c: vec![self.b.ins().f32const(*x)] }),
             ExprKind::Const(Constant::String(x)) => {
@@ -904,7 +1026,7 @@ impl<'m> Lower<'m, '_> {
             }
             ExprKind::Select { cond, a, b } => self.select(e, *cond, *a, *b),
             ExprKind::CallBuiltin { builtin, overload, args } => self.builtin(*builtin, *overload, args, e),
-            ExprKind::Call { func, args } => self.call(*func, args, e),
+            ExprKind::Call { func, args } => Ok(self.call(*func, args, e)?.v),
             ExprKind::Assign { place, op, value } => {
                 let v = self.expr(*value)?;
                 let t = self.place_targets(place)?;
@@ -1157,21 +1279,35 @@ impl<'m> Lower<'m, '_> {
 
     // ---- Calls ----
 
-    fn call(&mut self, fid: FuncId, args: &'m [Arg], e: &ir::Expr) -> R<Val> {
+    /// Inlines a call; the result is a dual when the callee's result is differentiated.
+    fn call(&mut self, fid: FuncId, args: &'m [Arg], e: &ir::Expr) -> R<Dual> {
         let callee = self.m.function(fid);
         let mut inputs = Vec::with_capacity(args.len());
+        let mut dargs = Vec::with_capacity(args.len());
         let mut places = Vec::with_capacity(args.len());
-        for a in args {
+        for (k, a) in args.iter().enumerate() {
+            let marked = callee.params.get(k).is_some_and(|p| self.info.var(fid, *p));
             match a {
                 Arg::Value(x) => {
-                    inputs.push((self.expr(*x)?, None));
+                    let d = if marked { self.dual(*x)? } else { Dual { v: self.expr(*x)?, d: None } };
+                    inputs.push((d.v, None));
+                    dargs.push(d.d);
                     places.push(None);
                 }
                 Arg::Ref(p) => {
                     let t = self.place_targets(p)?;
                     let v = self.read_targets(&t)?;
                     let vary = self.store_of(p.base)?.vary;
+                    let d = match self.tangent_stores(p.base) {
+                        Some(ds) if marked => {
+                            let x = self.read_targets_in(&ds[0], &t)?;
+                            let y = self.read_targets_in(&ds[1], &t)?;
+                            Some([x.c, y.c])
+                        }
+                        _ => None,
+                    };
                     inputs.push((v, Some(vary)));
+                    dargs.push(d);
                     places.push(Some(t));
                 }
             }
@@ -1186,7 +1322,7 @@ impl<'m> Lower<'m, '_> {
         // flow into uniform storage (e.g. `uniform float n = halvings(1 / cellsize, 1)`).
         let uniform = !callee.reads_varying && inputs.iter().all(|(v, _)| !v.vary);
         let fdiv = !uniform && self.fn_divergent(fid);
-        let mut frame = self.new_frame(callee, &inputs, uniform)?;
+        let mut frame = self.new_frame(fid, callee, &inputs, &dargs, uniform)?;
         if fdiv {
             for (k, (_, by_ref)) in inputs.iter().enumerate() {
                 if by_ref.is_some() {
@@ -1203,7 +1339,11 @@ impl<'m> Lower<'m, '_> {
                 return unsupported("a function returning an array");
             }
             // A function that may return under a varying condition returns into varying storage.
-            frame.ret = Some(self.zero_store((e.varying && !uniform) || fdiv, comps, comps));
+            let vary = (e.varying && !uniform) || fdiv;
+            frame.ret = Some(self.zero_store(vary, comps, comps));
+            if vary && self.info.ret[fid.0 as usize] {
+                frame.dret = Some([self.zero_store(true, comps, comps), self.zero_store(true, comps, comps)]);
+            }
         }
         let save = self.exec();
         let rb = frame.ret_block;
@@ -1219,12 +1359,15 @@ impl<'m> Lower<'m, '_> {
             let pv = callee.params[k];
             let s = frame.vars[pv.0 as usize].clone().ok_or_else(|| JitError::Codegen("parameter".into()))?;
             let v = self.read_store(&s);
-            self.write_targets(t, &v)?;
+            let d = frame.dvars[pv.0 as usize].clone().map(|[x, y]| [self.read_store(&x).c, self.read_store(&y).c]);
+            self.write_targets_d(t, &Dual { v, d })?;
         }
-        Ok(match &frame.ret {
+        let v = match &frame.ret {
             Some(s) => self.read_store(s),
             None => Val { vary: false, c: Vec::new() },
-        })
+        };
+        let d = frame.dret.clone().map(|[x, y]| [self.read_store(&x).c, self.read_store(&y).c]);
+        Ok(Dual { v, d })
     }
 
     fn fn_divergent(&mut self, fid: FuncId) -> bool {
@@ -1951,7 +2094,7 @@ impl<'m> Lower<'m, '_> {
                             let i = args.iter().position(|x| std::ptr::eq(x, a)).unwrap_or(0);
                             vals[i].clone()
                         }
-                        None => return unsupported("filterstep without an explicit width (derivatives)"),
+                        None => self.filter_width(1)?,
                     }
                 };
                 helper(self, "rtsl_filterstep", &[edge, x, width], false)?
@@ -2162,7 +2305,34 @@ impl<'m> Lower<'m, '_> {
                         let first = opt(self, "channel", 0.0)?;
                         let fill = opt(self, "fill", 0.0)?;
                         let nv = Val { vary: false, c: vec![self.fconst(n as f32, false)] };
-                        let r = helper(self, "rtsl_h_texture", &[v(0), s_, t_, first, fill, nv], true)?;
+                        // The footprint (the interpreter's `footprint`).
+                        let width = opt(self, "width", 1.0)?;
+                        let sw = if param_arg(f, args, fixed, "swidth")?.is_some() {
+                            opt(self, "swidth", 1.0)?
+                        } else {
+                            width.clone()
+                        };
+                        let tw = if param_arg(f, args, fixed, "twidth")?.is_some() {
+                            opt(self, "twidth", 1.0)?
+                        } else {
+                            width
+                        };
+                        let blur = opt(self, "blur", 0.0)?;
+                        let d = self.texture_derivs(fixed, &vals)?;
+                        let fp: Vec<Val> = d
+                            .iter()
+                            .enumerate()
+                            .map(|(k, x)| {
+                                let w = if k % 2 == 0 { &sw } else { &tw };
+                                let wv = widen(&mut self.b, w.c[0], true);
+                                let c = vec![self.b.ins().fmul(x.c[0], wv)];
+                                Val { vary: true, c }
+                            })
+                            .collect();
+                        let mut parts = vec![v(0), s_, t_, first, fill, nv];
+                        parts.extend(fp);
+                        parts.push(blur);
+                        let r = helper(self, "rtsl_h_texture", &parts, true)?;
                         Val { vary: true, c: r.c[..n].to_vec() }
                     }
                     Bi::Environment => {
@@ -2288,6 +2458,9 @@ impl<'m> Lower<'m, '_> {
     /// Writes a global under `exec` (nothing when the shader's layout does not hold it).
     fn set_global(&mut self, name: &str, v: &Val) -> R<()> {
         let Some(g) = Global::lookup(name) else { return Ok(()) };
+        if let Some(ds) = self.dglobals[g.0 as usize].clone() {
+            self.write_tangents(&ds, &Dual { v: v.clone(), d: None })?;
+        }
         match self.globals[g.0 as usize].clone() {
             Some(st) => self.write_store(&st, v),
             None => Ok(()),

@@ -79,7 +79,9 @@ pub struct Batch {
     /// The batch's string table (opaque to generated code, which only passes the batch record to
     /// helpers; string values are `u32` handles into it).
     pub strings: *mut StringTable,
-    /// Reserved for differentials (null in this slice).
+    /// Screen-space derivatives of the varying globals (`Layout::deriv_slots` slots): slot `s` of
+    /// lane `l` has d/dx at `derivs[2s * stride + l]` and d/dy at `derivs[(2s + 1) * stride + l]`.
+    /// Null: every derivative is zero.
     pub derivs: *const f32,
     /// The renderer's call table and the helpers' scratch (opaque to generated code; may be null:
     /// then every renderer query answers "unknown").
@@ -126,6 +128,7 @@ pub(crate) const OFF_MASK: i32 = 8;
 pub(crate) const OFF_VARYING: i32 = 16;
 pub(crate) const OFF_UNIFORM: i32 = 24;
 pub(crate) const OFF_BOUND: i32 = 32;
+pub(crate) const OFF_DERIVS: i32 = 48;
 
 /// The entry point of a compiled shader.
 pub type ShadeFn = unsafe extern "C" fn(*mut Batch);
@@ -213,7 +216,7 @@ impl CompiledShader {
             uniform: batch.uniform.as_mut_ptr(),
             bound: batch.bound.as_ptr(),
             strings: &mut batch.strings,
-            derivs: std::ptr::null(),
+            derivs: if batch.derivs.is_empty() { std::ptr::null() } else { batch.derivs.as_ptr() },
             ctx: &mut ctx,
         };
         // SAFETY: the buffers have the sizes the layout implies (BatchData::new), the layout is the
@@ -234,6 +237,8 @@ pub struct BatchData {
     uniform: Vec<f32>,
     bound: Vec<u32>,
     strings: StringTable,
+    /// `2 * deriv_slots * stride` floats (see [`Batch::derivs`]), zero until the renderer sets them.
+    derivs: Vec<f32>,
 }
 
 impl BatchData {
@@ -249,6 +254,7 @@ impl BatchData {
             uniform: vec![0.0; layout.uniform_len],
             bound: vec![0; layout.params.len()],
             strings: StringTable::new(&layout.strings),
+            derivs: vec![0.0; 2 * layout.deriv_slots * stride],
             layout,
         }
     }
@@ -312,6 +318,42 @@ impl BatchData {
         }
         self.set_lane(g.varying, g.offset, value, lane);
         true
+    }
+
+    /// Sets the screen-space derivatives (`d/dx`, `d/dy`) of a varying global in one lane: the
+    /// renderer's ray differentials (`docs/packet-abi.md`, "Derivatives"). Returns false when the
+    /// shader does not use the global or it is uniform, the lane is out of range, or a slice has the
+    /// wrong number of floats. Unset derivatives are 0.
+    pub fn set_global_derivs(&mut self, name: &str, lane: usize, dx: &[f32], dy: &[f32]) -> bool {
+        let Some(s) = self.global_slot(name) else { return false };
+        let n = self.layout.global(name).map_or(0, |g| g.components);
+        if dx.len() != n || dy.len() != n || lane >= self.lanes {
+            return false;
+        }
+        for k in 0..n {
+            self.derivs[2 * (s + k) * self.stride + lane] = dx[k];
+            self.derivs[(2 * (s + k) + 1) * self.stride + lane] = dy[k];
+        }
+        true
+    }
+
+    /// The first derivative slot of a varying global (a triple has three: x, y, z), for a renderer
+    /// that fills [`BatchData::derivs_mut`] directly: component `k`'s d/dx of lane `l` is at
+    /// `(2 * (slot + k)) * stride + l`, its d/dy at `(2 * (slot + k) + 1) * stride + l`. `None` when
+    /// the shader does not use the global or it is uniform.
+    pub fn global_slot(&self, name: &str) -> Option<usize> {
+        let g = self.layout.global(name)?;
+        g.varying.then_some(g.offset)
+    }
+
+    /// The raw derivative buffer (`2 * Layout::deriv_slots * stride` floats; see [`Batch::derivs`]).
+    pub fn derivs_mut(&mut self) -> &mut [f32] {
+        &mut self.derivs
+    }
+
+    /// The raw derivative buffer.
+    pub fn derivs(&self) -> &[f32] {
+        &self.derivs
     }
 
     /// A global of one lane (`None` when the shader does not use it).
