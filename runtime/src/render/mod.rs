@@ -2,6 +2,7 @@
 //! frame. `frame.rs` generates primary packets over tiles; `shade.rs` shades hits through the JIT
 //! code and answers its calls into the renderer (lights, shadows, `trace`, spaces).
 
+pub mod differential;
 pub mod frame;
 pub mod shade;
 pub mod world;

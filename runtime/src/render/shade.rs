@@ -12,11 +12,13 @@
 //! - Host callbacks never unwind into JIT code: they only index buffers whose sizes the packet ABI
 //!   fixes and catch nothing because nothing in them panics on user data.
 
+use super::differential::{barycentric_change, RayDifferential};
 use super::world::{InstanceShading, LightSource, Material, World};
 use crate::ray::{offset_ray_origin, Hit, HitPacket, Ray, RayPacket, PACKET_SIZE};
-use crate::shading::{get3, put1, put3, with_batch, LightKind, ShaderInstance};
+use crate::shading::{get3, put1, put3, with_batch, LightKind, ShaderInstance, Slot};
 use crate::texture::{Footprint, LookupOptions};
 use glam::{Affine3A, Mat4, Vec3A};
+use rtsl_compiler::back::jit::RawBatch;
 use rtsl_compiler::back::jit::{HostLight, HostTable, MessageOut, StrRef, MAX_LIGHTS};
 use rtsl_compiler::builtins::Builtin;
 use std::ffi::c_void;
@@ -52,15 +54,30 @@ pub struct Frame<'w> {
     pub stats: Stats,
     transparent_shadows: bool,
     camera_from_world: Affine3A,
+    /// The camera's forward axis and how an unnormalised camera ray's direction changes per pixel.
+    forward: Vec3A,
+    pixel_dx: Vec3A,
+    pixel_dy: Vec3A,
+    /// The angle one pixel spans (radians, small-angle), for the cones of secondary rays.
+    pixel_spread: f32,
 }
 
 impl<'w> Frame<'w> {
     pub fn new(world: &'w World) -> Frame<'w> {
+        let cam = &world.camera;
+        let (w, h) = (world.options.width.max(1) as f32, world.options.height.max(1) as f32);
+        let tan = (cam.fov_degrees.to_radians() * 0.5).tan();
+        let (ax, ay) = if w >= h { (w / h, 1.0) } else { (1.0, h / w) };
+        let m = &cam.world_from_camera.matrix3;
         Frame {
             world,
             stats: Stats::default(),
             transparent_shadows: world.has_transparent_shadows(),
-            camera_from_world: world.camera.world_from_camera.inverse(),
+            camera_from_world: cam.world_from_camera.inverse(),
+            forward: m.z_axis.normalize_or_zero(),
+            pixel_dx: m.x_axis * (2.0 * tan * ax / w),
+            pixel_dy: m.y_axis * (-2.0 * tan * ay / h),
+            pixel_spread: 2.0 * tan * ay / h,
         }
     }
 }
@@ -90,8 +107,17 @@ pub fn shade_packet(frame: &Frame, packet: &RayPacket, hits: &HitPacket, out: &m
         }
     }
     Stats::add(&frame.stats.primary_rays, rays.len());
+    let diffs: Vec<RayDifferential> = rays
+        .iter()
+        .map(|r| {
+            // The unnormalised camera direction has a forward component of 1.
+            let along = r.direction.dot(frame.forward);
+            let d = if along > 1e-6 { r.direction / along } else { r.direction };
+            RayDifferential::from_camera(d, frame.pixel_dx, frame.pixel_dy)
+        })
+        .collect();
     let mut samples = vec![Sample::default(); rays.len()];
-    shade_hits(frame, &rays, &hs, 0, &mut samples);
+    shade_hits(frame, &rays, &diffs, &hs, 0, &mut samples);
     for (k, i) in lanes.into_iter().enumerate() {
         out[i] = samples[k];
     }
@@ -100,14 +126,23 @@ pub fn shade_packet(frame: &Frame, packet: &RayPacket, hits: &HitPacket, out: &m
 /// Traces and shades single rays (secondary rays: incoherent, traced one by one).
 pub fn trace_rays(frame: &Frame, rays: &[Ray], depth: u32) -> Vec<Sample> {
     let hits: Vec<Hit> = rays.iter().map(|r| frame.world.scene.intersect(r)).collect();
+    let eye = frame.world.camera.eye();
+    let diffs: Vec<RayDifferential> = rays
+        .iter()
+        .map(|r| {
+            let width = frame.pixel_spread * (r.origin - eye).length();
+            RayDifferential::cone(r.direction, width, frame.pixel_spread)
+        })
+        .collect();
     let mut out = vec![Sample::default(); rays.len()];
-    shade_hits(frame, rays, &hits, depth, &mut out);
+    shade_hits(frame, rays, &diffs, &hits, depth, &mut out);
     out
 }
 
 struct Pending {
     index: usize,
     ray: Ray,
+    diff: RayDifferential,
     hit: Hit,
 }
 
@@ -118,20 +153,23 @@ struct Shaded {
     oi: Vec3A,
     p: Vec3A,
     ng: Vec3A,
+    /// The footprint of the hit: dP/dx, dP/dy.
+    dpdx: Vec3A,
+    dpdy: Vec3A,
 }
 
-fn shade_hits(frame: &Frame, rays: &[Ray], hits: &[Hit], depth: u32, out: &mut [Sample]) {
+fn shade_hits(frame: &Frame, rays: &[Ray], diffs: &[RayDifferential], hits: &[Hit], depth: u32, out: &mut [Sample]) {
     let world = frame.world;
     let background = Vec3A::from(world.options.background);
     let mut weight = vec![Vec3A::ONE; rays.len()];
     let mut current = Vec::with_capacity(rays.len());
-    for (i, (ray, hit)) in rays.iter().zip(hits).enumerate() {
+    for (i, ((ray, hit), diff)) in rays.iter().zip(hits).zip(diffs).enumerate() {
         out[i] = Sample { color: Vec3A::ZERO, alpha: 0.0, depth: hit.t, object_id: u32::MAX };
         if hit.is_hit() {
             if let Some(inst) = world.instances.get(hit.instance as usize) {
                 out[i].object_id = world.materials.get(inst.material as usize).map_or(0, |m| m.object_id);
             }
-            current.push(Pending { index: i, ray: *ray, hit: *hit });
+            current.push(Pending { index: i, ray: *ray, diff: *diff, hit: *hit });
         } else {
             out[i].color = background;
         }
@@ -171,7 +209,9 @@ fn shade_hits(frame: &Frame, rays: &[Ray], hits: &[Hit], depth: u32, out: &mut [
                 Stats::add(&frame.stats.transparency_rays, 1);
                 let hit = world.scene.intersect(&ray);
                 if hit.is_hit() {
-                    next.push(Pending { index: p.index, ray, hit });
+                    // The ray goes on unbent: its footprint starts where the surface's ended.
+                    let diff = RayDifferential { dodx: r.dpdx, dody: r.dpdy, ..p.diff };
+                    next.push(Pending { index: p.index, ray, diff, hit });
                 } else {
                     out[p.index].color += left * background;
                 }
@@ -196,6 +236,39 @@ struct HitGeometry {
     cs: Option<Vec3A>,
     os: Option<Vec3A>,
     attributes: Vec<Vec<f32>>,
+    /// The triangle's world-space edges from its first corner, and how (u, v), (s, t) and the
+    /// (unnormalised) shading normal change along them: what turns dP/dx into every derivative.
+    edges: [Vec3A; 2],
+    duv: [[f32; 2]; 2],
+    dst: [[f32; 2]; 2],
+    dn: [Vec3A; 2],
+}
+
+/// The screen-space derivatives of one hit's globals.
+struct HitDerivs {
+    dp: [Vec3A; 2],
+    dn: [Vec3A; 2],
+    du: [f32; 2],
+    dv: [f32; 2],
+    ds: [f32; 2],
+    dt: [f32; 2],
+}
+
+impl HitGeometry {
+    fn derivs(&self, p: &Pending) -> HitDerivs {
+        let (dpx, dpy) = p.diff.at_hit(p.ray.direction, p.hit.t, self.ng);
+        let bx = barycentric_change(self.edges[0], self.edges[1], dpx);
+        let by = barycentric_change(self.edges[0], self.edges[1], dpy);
+        let lin = |d: &[[f32; 2]; 2], k: usize, b: (f32, f32)| d[0][k] * b.0 + d[1][k] * b.1;
+        HitDerivs {
+            dp: [dpx, dpy],
+            dn: [self.dn[0] * bx.0 + self.dn[1] * bx.1, self.dn[0] * by.0 + self.dn[1] * by.1],
+            du: [lin(&self.duv, 0, bx), lin(&self.duv, 0, by)],
+            dv: [lin(&self.duv, 1, bx), lin(&self.duv, 1, by)],
+            ds: [lin(&self.dst, 0, bx), lin(&self.dst, 0, by)],
+            dt: [lin(&self.dst, 1, bx), lin(&self.dst, 1, by)],
+        }
+    }
 }
 
 fn hit_geometry(world: &World, inst: &InstanceShading, hit: &Hit) -> Option<HitGeometry> {
@@ -207,9 +280,11 @@ fn hit_geometry(world: &World, inst: &InstanceShading, hit: &Hit) -> Option<HitG
     let (e1, e2) = (Vec3A::from(pb - pa), Vec3A::from(pc - pa));
     // Surface parameters: the mesh's (u, v) when it has them (quadrics, patches, textured meshes),
     // else the barycentric coordinates of the hit.
+    let mut duv = [[1.0, 0.0], [0.0, 1.0]];
     let (uv, dpdu, dpdv) = match &mesh.uvs {
         Some(uvs) => {
             let (ta, tb, tc) = (uvs[a], uvs[b], uvs[c]);
+            duv = [(tb - ta).to_array(), (tc - ta).to_array()];
             let (d1, d2) = (tb - ta, tc - ta);
             let det = d1.x * d2.y - d1.y * d2.x;
             let (dpdu, dpdv) = if det.abs() > 1e-12 {
@@ -230,9 +305,18 @@ fn hit_geometry(world: &World, inst: &InstanceShading, hit: &Hit) -> Option<HitG
         let v = surf.attributes.get(i)?;
         (v.len() == 3).then(|| Vec3A::new(v[0], v[1], v[2]))
     };
-    let st = match find("st") {
-        Some(i) if surf.attributes[i].len() == 2 => [surf.attributes[i][0], surf.attributes[i][1]],
-        _ => uv,
+    let (st, dst) = match find("st") {
+        Some(i) if surf.attributes[i].len() == 2 => {
+            let d = &mesh.attributes[i].data;
+            let delta = |k: usize, j: usize| d[2 * k + j] - d[2 * a + j];
+            ([surf.attributes[i][0], surf.attributes[i][1]], [[delta(b, 0), delta(b, 1)], [delta(c, 0), delta(c, 1)]])
+        }
+        _ => (uv, duv),
+    };
+    let normal_xf = xf.matrix3.inverse().transpose();
+    let dn = match &mesh.normals {
+        Some(ns) => [normal_xf * Vec3A::from(ns[b] - ns[a]), normal_xf * Vec3A::from(ns[c] - ns[a])],
+        None => [Vec3A::ZERO; 2],
     };
     Some(HitGeometry {
         p: surf.p,
@@ -245,6 +329,10 @@ fn hit_geometry(world: &World, inst: &InstanceShading, hit: &Hit) -> Option<HitG
         cs: color_attr("Cs"),
         os: color_attr("Os"),
         attributes: surf.attributes,
+        edges: [xf.transform_vector3a(e1), xf.transform_vector3a(e2)],
+        duv,
+        dst,
+        dn,
     })
 }
 
@@ -279,13 +367,16 @@ fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mut [Shaded])
             let cs = g.cs.unwrap_or(color);
             let os = g.os.unwrap_or(opacity);
             let facing = g.n.dot(-p.ray.direction.normalize_or_zero()).abs();
-            *o = Shaded { ci: os * cs * (0.2 + 0.8 * facing), oi: os, p: g.p, ng: g.ng };
+            let d = g.derivs(p);
+            *o = Shaded { ci: os * cs * (0.2 + 0.8 * facing), oi: os, p: g.p, ng: g.ng, dpdx: d.dp[0], dpdy: d.dp[1] };
         }
         return;
     };
     let program = &surface.program;
     let slots = &program.slots;
     let vertex_params = world.vertex_params.get(group[0].hit.instance as usize);
+    let deriv_slots = program.layout().deriv_slots;
+    let mut footprints = vec![[Vec3A::ZERO; 2]; group.len()];
     with_batch(program, group.len(), |batch| {
         {
             let mut raw = batch.raw_mut();
@@ -312,6 +403,19 @@ fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mut [Shaded])
                 put3(&mut raw, slots.os, lane, os);
                 put3(&mut raw, slots.oi, lane, os);
                 put1(&mut raw, slots.ncomps, lane, 3.0);
+                let d = g.derivs(p);
+                put1(&mut raw, slots.du, lane, d.du[0].abs().max(d.du[1].abs()));
+                put1(&mut raw, slots.dv, lane, d.dv[0].abs().max(d.dv[1].abs()));
+                if deriv_slots > 0 {
+                    put_d3(&mut raw, slots.p, deriv_slots, lane, d.dp);
+                    put_d3(&mut raw, slots.i, deriv_slots, lane, d.dp);
+                    put_d3(&mut raw, slots.n, deriv_slots, lane, d.dn);
+                    put_d1(&mut raw, slots.u, deriv_slots, lane, d.du);
+                    put_d1(&mut raw, slots.v, deriv_slots, lane, d.dv);
+                    put_d1(&mut raw, slots.s, deriv_slots, lane, d.ds);
+                    put_d1(&mut raw, slots.t, deriv_slots, lane, d.dt);
+                }
+                footprints[lane] = d.dp;
                 if let Some(vp) = vertex_params {
                     for &(param, attr) in vp {
                         let slot = &program.layout().params[param];
@@ -341,9 +445,34 @@ fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mut [Shaded])
             let os = g.os.unwrap_or(opacity);
             let ci = get3(&raw, slots.ci, lane, Vec3A::ZERO);
             let oi = get3(&raw, slots.oi, lane, os);
-            *o = Shaded { ci: finite_or_zero(ci), oi: finite_or_zero(oi), p: g.p, ng: g.ng };
+            *o = Shaded {
+                ci: finite_or_zero(ci),
+                oi: finite_or_zero(oi),
+                p: g.p,
+                ng: g.ng,
+                dpdx: footprints[lane][0],
+                dpdy: footprints[lane][1],
+            };
         }
     });
+}
+
+/// Writes the screen-space derivatives of a varying global (only globals below `deriv_slots` have
+/// them; see `docs/packet-abi.md`).
+fn put_d1(raw: &mut RawBatch<'_>, slot: Option<Slot>, deriv_slots: usize, lane: usize, d: [f32; 2]) {
+    if let Some(s) = slot.filter(|s| s.varying && s.offset < deriv_slots) {
+        raw.derivs[2 * s.offset * raw.stride + lane] = d[0];
+        raw.derivs[(2 * s.offset + 1) * raw.stride + lane] = d[1];
+    }
+}
+
+fn put_d3(raw: &mut RawBatch<'_>, slot: Option<Slot>, deriv_slots: usize, lane: usize, d: [Vec3A; 2]) {
+    if let Some(s) = slot.filter(|s| s.varying && s.offset + 2 < deriv_slots) {
+        for k in 0..3 {
+            raw.derivs[2 * (s.offset + k) * raw.stride + lane] = d[0][k];
+            raw.derivs[(2 * (s.offset + k) + 1) * raw.stride + lane] = d[1][k];
+        }
+    }
 }
 
 fn finite_or_zero(v: Vec3A) -> Vec3A {
@@ -685,7 +814,8 @@ fn transmission_along(frame: &Frame, from: Vec3A, dir: Vec3A, distance: f32) -> 
         let opacity = if material.shadow_by_shader {
             let ray = Ray::segment(from, dir, start, tmax);
             let mut shaded = [Shaded::default()];
-            shade_group(frame, &[Pending { index: 0, ray, hit }], world.options.max_ray_depth, &mut shaded);
+            let diff = RayDifferential::cone(dir, 0.0, frame.pixel_spread);
+            shade_group(frame, &[Pending { index: 0, ray, diff, hit }], world.options.max_ray_depth, &mut shaded);
             shaded[0].oi
         } else {
             Vec3A::from(material.opacity)
@@ -722,14 +852,13 @@ unsafe extern "C" fn host_texture(
             call(ctx),
             name.as_str(),
             &*(mask as *const [i32; 4]),
-            slice(coords, if kind == 0 { 8 } else { 12 }),
+            slice(coords, if kind == 0 { 28 } else { 12 }),
             slice(first, 4),
             std::slice::from_raw_parts_mut(out, 4 * values),
             &mut *(ok as *mut [u32; 4]),
         )
     };
     let textures = &c.frame.world.textures;
-    let opts = LookupOptions::default();
     let mut lane_out = [0.0f32; 64];
     for l in 0..4 {
         ok[l] = 0;
@@ -738,20 +867,17 @@ unsafe extern "C" fn host_texture(
         }
         let found = match kind {
             0 => {
+                // Rows 2..6: the footprint from the coordinates' derivatives, widths applied, and blur.
+                let row = |k: usize| coords[4 * k + l];
+                let footprint = Footprint { dsdx: row(2), dtdx: row(3), dsdy: row(4), dtdy: row(5) };
+                let blur = row(6).max(0.0);
+                let opts = LookupOptions { sblur: blur, tblur: blur, ..LookupOptions::default() };
                 let first = first[l].max(0.0) as usize;
-                textures.texture(
-                    name,
-                    coords[l],
-                    coords[4 + l],
-                    Footprint::POINT,
-                    first,
-                    &mut lane_out[..values],
-                    &opts,
-                )
+                textures.texture(name, row(0), row(1), footprint, first, &mut lane_out[..values], &opts)
             }
             1 => {
                 let dir = lane3(coords, 0, l).to_array();
-                textures.environment(name, dir, [0.0; 3], [0.0; 3], 0, &mut lane_out[..3], &opts)
+                textures.environment(name, dir, [0.0; 3], [0.0; 3], 0, &mut lane_out[..3], &LookupOptions::default())
             }
             _ => {
                 let p = lane3(coords, 0, l);
@@ -762,7 +888,7 @@ unsafe extern "C" fn host_texture(
                     let t = transmission_along(c.frame, p, d.normalize_or_zero(), d.length());
                     Some(1.0 - (t.x + t.y + t.z) / 3.0)
                 } else {
-                    textures.shadow(name, p.to_array(), &opts)
+                    textures.shadow(name, p.to_array(), &LookupOptions::default())
                 };
                 if let Some(v) = shadowed {
                     lane_out[0] = v;

@@ -423,6 +423,8 @@ pub struct RawBatch<'a> {
     pub uniform: &'a mut [f32],
     pub bound: &'a mut [u32],
     pub strings: &'a mut StringTable,
+    /// Screen-space derivatives of the varying globals (see [`Batch::derivs`]).
+    pub derivs: &'a mut [f32],
 }
 
 impl BatchData {
@@ -437,6 +439,8 @@ impl BatchData {
         self.mask[..lanes].fill(-1);
         self.varying.clear();
         self.varying.resize(self.layout.varying_slots * stride, 0.0);
+        self.derivs.clear();
+        self.derivs.resize(2 * self.layout.deriv_slots * stride, 0.0);
         self.uniform.fill(0.0);
         self.bound.fill(0);
         self.strings = StringTable::new(&self.layout.strings);
@@ -452,6 +456,7 @@ impl BatchData {
             uniform: &mut self.uniform,
             bound: &mut self.bound,
             strings: &mut self.strings,
+            derivs: &mut self.derivs,
         }
     }
 }
