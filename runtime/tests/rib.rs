@@ -307,17 +307,18 @@ fn parameter_problems_are_reported_where_they_are() {
     assert_eq!(
         messages(&parsed),
         vec![
-            "scene.rib:2:3: warning: parameter \"Kdd\" has no declaration and is skipped (declare it with `Declare` or write its type inline, e.g. \"uniform float Kdd\")",
             "scene.rib:3:13: error: parameter \"c\" (uniform color): 2 numbers given, which is not a multiple of 3 (numbers per value)",
             "scene.rib:4:3: error: unknown type `flaot` (expected float, integer, color, point, vector, normal, hpoint, string or matrix)",
             "scene.rib:5:15: error: parameter \"n\" (uniform integer): 1.5 is not an integer",
             "scene.rib:6:14: error: parameter \"s\" (uniform string): expected strings, found a number",
         ]
     );
-    // The request survives with its good parameters.
+    // The request survives with its good parameters; the undeclared one is kept for the shader to
+    // type (the loader warns when the shader has no such parameter).
     let K::Surface(shader) = &parsed.requests[0].kind else { panic!() };
-    assert_eq!(shader.params.len(), 1);
-    assert_eq!(shader.params[0].name, "Kd");
+    assert_eq!(shader.params.len(), 2);
+    assert_eq!((shader.params[0].name.as_str(), shader.params[0].decl.class), ("Kdd", Class::Implicit));
+    assert_eq!(shader.params[1].name, "Kd");
 }
 
 #[test]

@@ -20,6 +20,10 @@ pub enum Class {
     Vertex,
     /// One value per face corner.
     FaceVarying,
+    /// No declaration was found: the values are kept as written (numbers as floats, or strings),
+    /// for a shader's interface to type them (PRMan reads undeclared shader parameters' types from
+    /// the shader). Geometry ignores such parameters.
+    Implicit,
 }
 
 /// A parameter's value type.
@@ -79,6 +83,7 @@ impl Class {
             Class::Varying => "varying",
             Class::Vertex => "vertex",
             Class::FaceVarying => "facevarying",
+            Class::Implicit => "undeclared",
         }
     }
 }

@@ -26,8 +26,9 @@ use super::{parse_file, parse_str, RibParse, Severity};
 use crate::api::{ApiError, Context, LightId, ObjectId};
 use crate::geometry::Mesh;
 use crate::scene_file::{add_mesh_file, SceneFileError};
-use crate::shading::ParamValue;
+use crate::shading::{ParamValue, ShaderProgram};
 use glam::{Affine3A, Mat4};
+use rtsl_compiler::ir::BaseType;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
@@ -277,8 +278,9 @@ impl<'a> Loader<'a> {
             K::Surface(s) => {
                 let id = rt.find_shader(&s.name)?;
                 rt.bind_shader(id)?;
+                let program = rt.program(id)?.clone();
                 for p in &s.params {
-                    match shader_value(p) {
+                    match shader_value(p, &program) {
                         Some(v) => {
                             if let Err(e) = rt.parameter(&p.name, v) {
                                 self.out.warnings.push(format!("{}: warning: {e}", p.loc));
@@ -293,9 +295,10 @@ impl<'a> Loader<'a> {
             K::LightSource { shader, handle } | K::AreaLightSource { shader, handle } => {
                 let area = matches!(r.kind, K::AreaLightSource { .. });
                 let id = rt.find_shader(&shader.name)?;
+                let program = rt.program(id)?.clone();
                 let mut params = Vec::new();
                 for p in &shader.params {
-                    match shader_value(p) {
+                    match shader_value(p, &program) {
                         Some(v) => params.push((p.name.as_str(), v)),
                         None => {
                             self.out.warnings.push(format!("{}: warning: cannot pass {} to a shader", p.loc, p.name))
@@ -303,7 +306,6 @@ impl<'a> Loader<'a> {
                     }
                 }
                 // A parameter the light lacks, or of the wrong type, is skipped with a warning.
-                let program = rt.program(id)?.clone();
                 let mut kept = Vec::new();
                 for (name, v) in params {
                     match crate::shading::bind_param(&program, name, &v, &Affine3A::IDENTITY) {
@@ -475,13 +477,46 @@ fn affine(m: &[f32; 16]) -> Affine3A {
     Affine3A::from_mat4(Mat4::from_cols_array(m))
 }
 
-/// A RIB parameter as a shader parameter value.
-fn shader_value(p: &Param) -> Option<ParamValue> {
+/// A RIB parameter as a value for `program`: typed by its declaration, or when it has none by the
+/// shader's own declaration of that parameter.
+fn shader_value(p: &Param, program: &ShaderProgram) -> Option<ParamValue> {
     let many = p.decl.array_len.is_some() || p.value_count() > 1;
-    if p.decl.class == Class::FaceVarying {
-        return None;
+    let mut ty = p.decl.ty;
+    match p.decl.class {
+        Class::FaceVarying => return None,
+        Class::Implicit => {
+            let Some(info) = program.interface.parameters.iter().find(|i| i.name == p.name) else {
+                // Bound as given, so that binding reports the missing parameter.
+                return Some(match &p.value {
+                    RibValue::Strings(s) => ParamValue::String(s.first()?.clone()),
+                    RibValue::Floats(v) => ParamValue::Floats(v.clone()),
+                    RibValue::Ints(v) => ParamValue::Floats(v.iter().map(|i| *i as f32).collect()),
+                });
+            };
+            ty = match info.base {
+                BaseType::Color => Ty::Color,
+                BaseType::Point => Ty::Point,
+                BaseType::Vector => Ty::Vector,
+                BaseType::Normal => Ty::Normal,
+                BaseType::Matrix => Ty::Matrix,
+                BaseType::String => Ty::String,
+                _ => Ty::Float,
+            };
+            let floats = match &p.value {
+                RibValue::Floats(v) => v.len(),
+                _ => 0,
+            };
+            let components = ty.components();
+            let many = info.array_length.is_some() || (ty != Ty::String && floats > components);
+            return typed_value(&p.value, ty, many);
+        }
+        _ => {}
     }
-    match (&p.value, p.decl.ty) {
+    typed_value(&p.value, ty, many)
+}
+
+fn typed_value(value: &RibValue, ty: Ty, many: bool) -> Option<ParamValue> {
+    match (value, ty) {
         (RibValue::Strings(s), Ty::String) => s.first().map(|s| ParamValue::String(s.clone())),
         (RibValue::Ints(v), Ty::Integer) => {
             let f: Vec<f32> = v.iter().map(|i| *i as f32).collect();

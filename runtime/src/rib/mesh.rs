@@ -295,7 +295,9 @@ pub(super) fn per_vertex_params<'a>(
     let mut out = Vec::new();
     for p in params {
         let Some(values) = p.floats() else { continue };
-        if matches!(p.name.as_str(), "P" | "Pw" | "Pz" | "Np") || p.decl.class == Class::Constant {
+        if matches!(p.name.as_str(), "P" | "Pw" | "Pz" | "Np")
+            || matches!(p.decl.class, Class::Constant | Class::Implicit)
+        {
             continue;
         }
         let expected = match p.decl.class {
@@ -310,7 +312,7 @@ pub(super) fn per_vertex_params<'a>(
                     continue;
                 }
             },
-            Class::Constant => continue,
+            Class::Constant | Class::Implicit => continue,
         };
         if p.value_count() != expected {
             warnings.push(format!(

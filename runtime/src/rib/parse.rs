@@ -8,7 +8,7 @@
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use super::decl::{self, Decl, DeclTable, Ty};
+use super::decl::{self, Class, Decl, DeclTable, Ty};
 use super::lex::{tokenize, Token, TokenKind};
 use super::request::{
     Basis, Handle, Location, Orientation, Param, ParamValue, PatchType, Request, RequestKind as K, Shader, Wrap,
@@ -418,14 +418,12 @@ impl Parser {
         } else if let Some(decl) = self.decls.get(written) {
             (decl, written.to_string())
         } else {
-            self.diagnostics.push(RibDiagnostic::warning(
-                loc,
-                format!(
-                    "parameter \"{written}\" has no declaration and is skipped (declare it with `Declare` or \
-                     write its type inline, e.g. \"uniform float {written}\")"
-                ),
-            ));
-            return None;
+            // Typed later by the shader it is given to (a warning there if it has no such parameter).
+            let ty = match &value.value {
+                ArgValue::Str(_) | ArgValue::Strings(_) => Ty::String,
+                _ => Ty::Float,
+            };
+            (Decl { class: Class::Implicit, ty, array_len: None }, written.to_string())
         };
         match convert_value(&decl, &value.value) {
             Ok(value) => Some(Param { name, decl, value, loc: loc.clone() }),

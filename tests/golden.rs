@@ -1,0 +1,192 @@
+//! Golden images: small renders of the default scene and of every library shader, compared with the
+//! references in `tests/golden/` within a tolerance.
+//!
+//! Regenerate the references (after a deliberate change, and look at them) with
+//!
+//! ```sh
+//! RTSL_BLESS=1 cargo test --release --test golden
+//! ```
+//!
+//! A failing comparison writes `NAME.actual.png` and `NAME.diff.png` (the difference, scaled 8x)
+//! next to the reference. Tolerance: the images may differ by at most 0.02 mean absolute error per
+//! channel and in at most 1% of pixels by more than 0.1 (floating-point code generation differs a
+//! little between CPUs; an edit that changes a shader's look changes far more).
+
+use rtsl_runtime::api::Context;
+use rtsl_runtime::image_io::{diff_image, read_image, write_image, WriteOptions};
+use rtsl_runtime::render::render_frame;
+use rtsl_runtime::rib::load::load_str;
+use std::path::{Path, PathBuf};
+
+const W: u32 = 128;
+const H: u32 = 96;
+
+fn golden_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests").join("golden")
+}
+
+fn render_rib(name: &str, rib: &str) -> Vec<f32> {
+    let mut rt = Context::new();
+    let file = golden_dir().join(format!("{name}.rib"));
+    let loaded = load_str(&mut rt, rib, &file).unwrap_or_else(|e| panic!("{name}: {e}"));
+    assert!(loaded.warnings.is_empty(), "{name}: {:?}", loaded.warnings);
+    rt.options.width = W;
+    rt.options.height = H;
+    let world = rt.build_world().unwrap_or_else(|e| panic!("{name}: {e}"));
+    let (fb, _) = render_frame(&world, None);
+    let warnings = world.textures.take_warnings();
+    assert!(warnings.is_empty(), "{name}: {warnings:?}");
+    fb.rgba
+}
+
+/// Compares with (or, under RTSL_BLESS, writes) `tests/golden/NAME.png`.
+fn check(name: &str, rgba: &[f32]) -> Result<(), String> {
+    let reference = golden_dir().join(format!("{name}.png"));
+    let (w, h) = (W as usize, H as usize);
+    if std::env::var_os("RTSL_BLESS").is_some() {
+        write_image(&reference, w, h, rgba, &WriteOptions::default()).map_err(|e| e.to_string())?;
+        return Ok(());
+    }
+    // Compare what would be written: 8-bit quantised.
+    let actual_path = golden_dir().join(format!("{name}.actual.png"));
+    let tmp = std::env::temp_dir().join(format!("rtsl-golden-{}-{name}.png", std::process::id()));
+    write_image(&tmp, w, h, rgba, &WriteOptions::default()).map_err(|e| e.to_string())?;
+    let actual = read_image(&tmp).map_err(|e| e.to_string())?;
+    let _ = std::fs::remove_file(&tmp);
+    let expected =
+        read_image(&reference).map_err(|e| format!("{name}: no reference ({e}); bless with RTSL_BLESS=1"))?;
+    let d = diff_image(&expected, &actual).map_err(|e| e.to_string())?;
+    let far = d.differing_pixels(0.1);
+    if d.mean_abs > 0.02 || far > w * h / 100 {
+        let _ = write_image(&actual_path, w, h, &actual.pixels, &WriteOptions::default());
+        let diff = d.difference_image(8.0);
+        let _ =
+            write_image(&golden_dir().join(format!("{name}.diff.png")), w, h, &diff.pixels, &WriteOptions::default());
+        return Err(format!(
+            "{name}: mean abs {:.4}, {far} pixels off by > 0.1 (see {})",
+            d.mean_abs,
+            actual_path.display()
+        ));
+    }
+    Ok(())
+}
+
+/// A sphere with the shader under test on a plastic floor, lit by a shadowed point light and a dim
+/// ambient light.
+fn surface_scene(surface: &str) -> String {
+    format!(
+        r#"
+Format {W} {H} 1
+PixelSamples 2 2
+Projection "perspective" "fov" [30]
+Rotate -12 1 0 0
+Translate 0 -1.4 6
+WorldBegin
+  LightSource "ambientlight" 1 "intensity" [0.1]
+  LightSource "pointlight" 2 "intensity" [30] "from" [3 5 -4]
+  AttributeBegin
+    Surface "plastic"
+    Color [.6 .6 .6]
+    Polygon "P" [-6 0 -6  6 0 -6  6 0 6  -6 0 6]
+  AttributeEnd
+  AttributeBegin
+    Translate 0 1 0
+    Rotate -90 1 0 0
+    {surface}
+    Sphere 1 -1 1 360
+  AttributeEnd
+WorldEnd
+"#
+    )
+}
+
+fn light_scene(light: &str) -> String {
+    format!(
+        r#"
+Format {W} {H} 1
+PixelSamples 2 2
+Projection "perspective" "fov" [30]
+Rotate -20 1 0 0
+Translate 0 -1.8 6
+WorldBegin
+  {light}
+  Surface "plastic"
+  Polygon "P" [-6 0 -6  6 0 -6  6 0 6  -6 0 6]
+  AttributeBegin
+    Translate 0 1 0
+    Rotate -90 1 0 0
+    Color [.8 .3 .2]
+    Sphere 1 -1 1 360
+  AttributeEnd
+WorldEnd
+"#
+    )
+}
+
+fn surfaces() -> Vec<(&'static str, String)> {
+    let grid = golden_dir().join("textures").join("grid.png").display().to_string();
+    [
+        ("constant", "Surface \"constant\" Color [.2 .5 .9]".to_string()),
+        ("matte", "Surface \"matte\"".into()),
+        ("plastic", "Surface \"plastic\" Color [.9 .3 .2]".into()),
+        ("metal", "Surface \"metal\" Color [.9 .7 .3]".into()),
+        ("shinymetal", "Surface \"shinymetal\"".into()),
+        ("paintedplastic", format!("Surface \"paintedplastic\" \"texturename\" \"{grid}\"")),
+        ("texmap", format!("Surface \"texmap\" \"texturename\" \"{grid}\"")),
+        ("wood", "Surface \"wood\"".into()),
+        ("marble", "Surface \"marble\"".into()),
+        ("granite", "Surface \"granite\"".into()),
+        ("checker", "Surface \"checker\" \"frequency\" [6]".into()),
+        ("brick", "Surface \"brick\"".into()),
+        ("mirror", "Surface \"mirror\"".into()),
+        ("glass", "Surface \"glass\"".into()),
+        ("bumpymirror", "Surface \"bumpymirror\"".into()),
+        (
+            "material",
+            format!(
+                "Surface \"material\" \"diffusecolor\" [.8 .8 .8] \"specularcolor\" [.5 .5 .5] \"shininess\" [.4] \
+                 \"transparency\" [.3] \"texturename\" \"{grid}\""
+            ),
+        ),
+    ]
+    .into_iter()
+    .collect()
+}
+
+#[test]
+fn every_library_surface_shader_matches_its_reference() {
+    let failures: Vec<String> = surfaces()
+        .iter()
+        .filter_map(|(name, s)| check(&format!("surface_{name}"), &render_rib(name, &surface_scene(s))).err())
+        .collect();
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+#[test]
+fn every_library_light_shader_matches_its_reference() {
+    let lights = [
+        ("pointlight", "LightSource \"pointlight\" 1 \"intensity\" [25] \"from\" [2 4 -3]"),
+        ("distantlight", "LightSource \"distantlight\" 1 \"intensity\" [1.2] \"from\" [1 3 -2] \"to\" [0 0 0]"),
+        (
+            "spotlight",
+            "LightSource \"spotlight\" 1 \"intensity\" [30] \"from\" [0 5 -1] \"to\" [0 0 0] \"coneangle\" [.35]",
+        ),
+        ("ambientlight", "LightSource \"ambientlight\" 1 \"intensity\" [0.6]"),
+        (
+            "arealight",
+            "AttributeBegin AreaLightSource \"arealight\" 1 \"intensity\" [12] \
+             Translate 0 3.5 0 Rotate 90 1 0 0 Disk 0 1 360 AttributeEnd",
+        ),
+    ];
+    let failures: Vec<String> = lights
+        .iter()
+        .filter_map(|(name, l)| check(&format!("light_{name}"), &render_rib(name, &light_scene(l))).err())
+        .collect();
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+#[test]
+fn the_default_scene_matches_its_reference() {
+    let rib = include_str!("../examples/scenes/default.rib");
+    check("default_scene", &render_rib("default", rib)).unwrap_or_else(|e| panic!("{e}"));
+}
