@@ -61,7 +61,7 @@ fn check(name: &str, rgba: &[f32]) -> Result<(), String> {
         let _ = write_image(&actual_path, w, h, &actual.pixels, &WriteOptions::default());
         let diff = d.difference_image(8.0);
         let _ =
-            write_image(&golden_dir().join(format!("{name}.diff.png")), w, h, &diff.pixels, &WriteOptions::default());
+            write_image(golden_dir().join(format!("{name}.diff.png")), w, h, &diff.pixels, &WriteOptions::default());
         return Err(format!(
             "{name}: mean abs {:.4}, {far} pixels off by > 0.1 (see {})",
             d.mean_abs,

@@ -358,6 +358,11 @@ impl Context {
         Ok(())
     }
 
+    /// The surface shader bound now, if any.
+    pub fn bound_surface(&self) -> Option<ShaderId> {
+        self.appearance.surface.as_ref().map(|b| b.shader)
+    }
+
     /// Sets a parameter of the bound surface shader (object scope). The value is checked against the
     /// shader's declaration now; point-like values are in the current space.
     pub fn parameter(&mut self, name: &str, value: ParamValue) -> Result<(), ApiError> {
@@ -880,6 +885,7 @@ impl Context {
                 opacity: a.opacity,
                 shadow_by_shader: a.shadow_by_shader,
                 object_id: i as u32 + 1,
+                native: None,
             });
             object_material[i] = materials.len() as u32 - 1;
         }

@@ -4,7 +4,8 @@
 //! OBJ materials become instances of the `material` shader (`docs/shaders.md`): `Kd` -> diffuse
 //! colour, `Ks` -> specular colour, `Ns` -> shininess, `d`/`Tr` -> transparency, `Ke` -> emission,
 //! `map_Kd` -> diffuse texture (resolved next to the OBJ file). Without materials every object gets
-//! `plastic`.
+//! `plastic`. When a surface shader is already bound (a RIB `Surface` before `ReadArchive "x.obj"`),
+//! it shades every object, with the material's diffuse colour as `Cs`.
 
 use crate::api::{ApiError, Context};
 use crate::geometry::{Mesh, MeshError};
@@ -43,12 +44,18 @@ pub fn add_mesh_file(rt: &mut Context, path: &Path) -> Result<(Vec3A, Vec3A), Sc
             bounds.1 = bounds.1.max(w);
         }
     };
+    let bound = rt.bound_surface();
     if !is_obj {
         let mesh = load_mesh(path)?;
         grow(rt, &mesh);
-        let plastic = rt.find_shader("plastic")?;
+        let shader = match bound {
+            Some(s) => s,
+            None => rt.find_shader("plastic")?,
+        };
         rt.push_attributes();
-        rt.bind_shader(plastic)?;
+        if bound.is_none() {
+            rt.bind_shader(shader)?;
+        }
         let o = rt.begin_object()?;
         rt.mesh(&mesh)?;
         rt.end_object()?;
@@ -63,7 +70,8 @@ pub fn add_mesh_file(rt: &mut Context, path: &Path) -> Result<(Vec3A, Vec3A), Sc
     let materials = materials.unwrap_or_default();
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let plastic = rt.find_shader("plastic")?;
-    let material_shader = if materials.is_empty() { None } else { rt.find_shader("material").ok() };
+    let material_shader = if materials.is_empty() || bound.is_some() { None } else { rt.find_shader("material").ok() };
+    let plastic = bound.unwrap_or(plastic);
     for model in &models {
         let m = &model.mesh;
         if m.indices.is_empty() {
@@ -91,12 +99,18 @@ pub fn add_mesh_file(rt: &mut Context, path: &Path) -> Result<(Vec3A, Vec3A), Sc
                 }
             }
             (Some(mat), None) => {
-                rt.bind_shader(plastic)?;
+                if bound.is_none() {
+                    rt.bind_shader(plastic)?;
+                }
                 if let Some(kd) = mat.diffuse {
                     rt.color(kd[0], kd[1], kd[2]);
                 }
             }
-            (None, _) => rt.bind_shader(plastic)?,
+            (None, _) => {
+                if bound.is_none() {
+                    rt.bind_shader(plastic)?;
+                }
+            }
         }
         let o = rt.begin_object()?;
         rt.mesh(&mesh)?;

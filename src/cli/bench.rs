@@ -145,3 +145,100 @@ mod tests {
         assert!(parse_passes("pp,xx").is_err());
     }
 }
+
+/// Flags of `rtsl bench render`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct BenchRenderArgs {
+    /// The scene (RIB or mesh; none: the default scene).
+    pub scene: Option<PathBuf>,
+    /// Timed frames (after one untimed warm-up frame); the median is reported.
+    #[arg(long, default_value_t = 10)]
+    pub frames: usize,
+    /// Worker threads (0: one per core).
+    #[arg(long, default_value_t = 2)]
+    pub threads: usize,
+    /// Image size, `WxH` (overrides the scene's).
+    #[arg(long, value_parser = parse_size)]
+    pub size: Option<(u32, u32)>,
+    /// Samples per pixel (overrides the scene's).
+    #[arg(long, default_value_t = 1)]
+    pub samples: u32,
+    /// Also render with every `plastic` replaced by hand-written Rust, alternating frame by frame,
+    /// and print the JIT's cost as a ratio.
+    #[arg(long)]
+    pub native_plastic: bool,
+    /// Directories searched for shaders by name.
+    #[arg(short = 'S', long = "shader-path")]
+    pub shader_path: Vec<PathBuf>,
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v.get(v.len() / 2).copied().unwrap_or(0.0)
+}
+
+/// Runs `rtsl bench render`: frames per second and rays per second of a scene, and with
+/// `--native-plastic` the JIT frame time over the hand-written one, measured in one run.
+pub fn run_render(args: &BenchRenderArgs) -> anyhow::Result<()> {
+    let (mut rt, _) = super::render::load_scene(args.scene.as_deref(), &args.shader_path, &[])?;
+    if let Some((w, h)) = args.size {
+        rt.options.width = w;
+        rt.options.height = h;
+    }
+    rt.options.samples = super::render::samples_grid(args.samples);
+    let mut world = rt.build_world()?;
+    let threads =
+        if args.threads == 0 { std::thread::available_parallelism().map_or(1, |n| n.get()) } else { args.threads };
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().context("starting the worker threads")?;
+    let frames = args.frames.max(1);
+    let jit_world = world.materials.clone();
+    let native_count = if args.native_plastic { world.use_native_plastic() } else { 0 };
+    let native_world = world.materials.clone();
+    if args.native_plastic && native_count == 0 {
+        anyhow::bail!("the scene has no plastic surface to compare");
+    }
+    let (mut jit_ms, mut native_ms) = (Vec::new(), Vec::new());
+    let mut last = None;
+    for frame in 0..=frames {
+        for native in [false, true] {
+            if native && !args.native_plastic {
+                continue;
+            }
+            world.materials = if native { native_world.clone() } else { jit_world.clone() };
+            let (_, report) = pool.install(|| rtsl_runtime::render::render_frame(&world, None));
+            if frame > 0 {
+                let ms = report.elapsed.as_secs_f64() * 1e3;
+                if native {
+                    native_ms.push(ms);
+                } else {
+                    jit_ms.push(ms);
+                    last = Some(report);
+                }
+            }
+        }
+    }
+    let report = last.unwrap_or_default();
+    let ms = median(jit_ms);
+    println!("scene: {}", args.scene.as_ref().map_or("<default scene>".into(), |p| p.display().to_string()));
+    println!(
+        "size: {}x{}, samples per pixel: {}, threads: {threads}",
+        world.options.width, world.options.height, args.samples
+    );
+    println!("frame_ms: {ms:.2}");
+    println!("fps: {:.2}", 1e3 / ms.max(1e-9));
+    println!(
+        "rays_per_frame: {} (primary {}, shadow {}, secondary {}, transparency {})",
+        report.total_rays(),
+        report.primary_rays,
+        report.shadow_rays,
+        report.secondary_rays,
+        report.transparency_rays
+    );
+    println!("mrays_per_second: {:.2}", report.total_rays() as f64 / ms.max(1e-9) / 1e3);
+    if args.native_plastic {
+        let nms = median(native_ms);
+        println!("native_plastic_frame_ms: {nms:.2} ({native_count} materials)");
+        println!("jit_over_native: {:.3}", ms / nms.max(1e-9));
+    }
+    Ok(())
+}

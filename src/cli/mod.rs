@@ -34,6 +34,9 @@ enum BenchCommand {
     Frontend(compile::BenchFrontendArgs),
     /// Ray tracing throughput on a mesh: packet and single-ray traversal, primary and shadow rays.
     Trace(bench::BenchTraceArgs),
+    /// Rendering speed of a scene: frames and rays per second, and the JIT's cost against
+    /// hand-written Rust plastic.
+    Render(bench::BenchRenderArgs),
 }
 
 /// Runs the command line; the exit code says whether everything succeeded.
@@ -45,5 +48,6 @@ pub fn run() -> anyhow::Result<ExitCode> {
         Command::Info(args) => info::run(&args),
         Command::Bench(BenchCommand::Frontend(args)) => compile::bench_frontend(&args),
         Command::Bench(BenchCommand::Trace(args)) => bench::run_trace(&args).map(|()| ExitCode::SUCCESS),
+        Command::Bench(BenchCommand::Render(args)) => bench::run_render(&args).map(|()| ExitCode::SUCCESS),
     }
 }

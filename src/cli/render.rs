@@ -41,7 +41,7 @@ pub struct RenderArgs {
 /// The default scene, in RIB: the standard shaders on several objects, with shadows and reflections.
 pub const DEFAULT_SCENE: &str = include_str!("../../examples/scenes/default.rib");
 
-fn samples_grid(n: u32) -> (u32, u32) {
+pub(crate) fn samples_grid(n: u32) -> (u32, u32) {
     let n = n.max(1);
     let side = (n as f64).sqrt().round() as u32;
     if side * side == n {
@@ -51,19 +51,25 @@ fn samples_grid(n: u32) -> (u32, u32) {
     }
 }
 
-pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
+/// Makes a context with the search paths of the flags and the environment, and loads the scene (or
+/// the default scene) into it; returns the output file the scene names.
+pub(crate) fn load_scene(
+    scene: Option<&Path>,
+    shader_path: &[PathBuf],
+    include: &[PathBuf],
+) -> anyhow::Result<(Context, Option<PathBuf>)> {
     let mut rt = Context::new();
-    let mut search: Vec<PathBuf> = args.shader_path.clone();
+    let mut search: Vec<PathBuf> = shader_path.to_vec();
     if let Ok(env) = std::env::var("RTSL_SHADER_PATH") {
         search.extend(std::env::split_paths(&env));
     }
     rt.set_shader_search_path(search);
-    rt.set_include_paths(args.include.clone());
-    let mut output = args.output.clone();
-    match &args.scene {
+    rt.set_include_paths(include.to_vec());
+    let mut output = None;
+    match scene {
         None => {
             let loaded = rtsl_runtime::rib::load::load_str(&mut rt, DEFAULT_SCENE, Path::new("<default scene>"))?;
-            output = output.or(loaded.display);
+            output = loaded.display;
         }
         Some(path) => {
             let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
@@ -71,9 +77,9 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
                 Some("rib") => {
                     let loaded = rtsl_runtime::rib::load::load_file(&mut rt, path)?;
                     for w in &loaded.warnings {
-                        eprintln!("warning: {w}");
+                        eprintln!("{w}");
                     }
-                    output = output.or(loaded.display.map(|d| path.parent().unwrap_or(Path::new(".")).join(d)));
+                    output = loaded.display.map(|d| path.parent().unwrap_or(Path::new(".")).join(d));
                 }
                 Some("obj" | "ply") => {
                     let bounds = add_mesh_file(&mut rt, path)?;
@@ -83,6 +89,12 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
             }
         }
     }
+    Ok((rt, output))
+}
+
+pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
+    let (mut rt, named) = load_scene(args.scene.as_deref(), &args.shader_path, &args.include)?;
+    let output = args.output.clone().or(named);
     if let Some((w, h)) = args.size {
         rt.options.width = w;
         rt.options.height = h;

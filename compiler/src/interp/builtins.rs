@@ -553,7 +553,7 @@ impl Machine<'_> {
         let p = self.global("P").v3();
         let mut sum = [0.0; 3];
         for l in self.host.lights("", p).iter().filter(|l| !l.ambient) {
-            if super::angle_between(l.l, n) > std::f32::consts::FRAC_PI_2 {
+            if !crate::shadeops::geom::in_hemisphere(l.l, n) {
                 continue;
             }
             let w = weight(l, n);

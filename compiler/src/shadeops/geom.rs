@@ -252,6 +252,14 @@ pub fn sign(x: f32) -> f32 {
 /// RenderMan's specular weight of one light (`specularbrdf`, and the per-light term of `specular`):
 /// `pow(max(0, N . H), 1 / roughness)` with the half vector `H = normalize(L + V)`. The inputs are
 /// normalised here; a roughness at or below zero is taken as 1e-4 (a very sharp highlight).
+/// Whether a light from direction `l` is within 90 degrees of `n` (the `illuminance(P, N, PI/2)`
+/// of RISpec's `diffuse`, `specular` and `phong`): the cosine of the angle is not negative. (Both
+/// back ends use this one test; comparing `acos` of the cosine with PI/2 costs a libm call per light
+/// and differs only for cosines within an ulp of 0.)
+pub fn in_hemisphere(l: V3, n: V3) -> bool {
+    dot(normalize(l), normalize(n)) >= 0.0
+}
+
 pub fn specular_brdf(l: V3, n: V3, v: V3, roughness: f32) -> f32 {
     let (l, n, v) = (normalize(l), normalize(n), normalize(v));
     let h = normalize([l[0] + v[0], l[1] + v[1], l[2] + v[2]]);

@@ -4,6 +4,7 @@
 
 pub mod differential;
 pub mod frame;
+pub mod native;
 pub mod shade;
 pub mod world;
 

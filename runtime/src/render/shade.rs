@@ -13,7 +13,8 @@
 //!   fixes and catch nothing because nothing in them panics on user data.
 
 use super::differential::{barycentric_change, RayDifferential};
-use super::world::{InstanceShading, LightSource, Material, World};
+use super::native::{LightSeen, NativeSurface};
+use super::world::{InstanceShading, LightSource, World, DEFAULT_MATERIAL};
 use crate::ray::{offset_ray_origin, Hit, HitPacket, Ray, RayPacket, PACKET_SIZE};
 use crate::shading::{get3, put1, put3, with_batch, LightKind, ShaderInstance, Slot};
 use crate::texture::{Footprint, LookupOptions};
@@ -271,15 +272,52 @@ impl HitGeometry {
     }
 }
 
-fn hit_geometry(world: &World, inst: &InstanceShading, hit: &Hit) -> Option<HitGeometry> {
-    let surf = world.scene.surface(hit)?;
-    let mesh = world.scene.mesh(crate::scene::ObjectId(inst.object))?;
+/// What every hit on one instance shares: its mesh and transforms.
+struct InstanceGeometry<'a> {
+    mesh: &'a crate::geometry::Mesh,
+    world_from_object: glam::Affine3A,
+    normal_xf: glam::Mat3A,
+}
+
+impl<'a> InstanceGeometry<'a> {
+    fn new(world: &'a World, inst: &InstanceShading) -> Option<InstanceGeometry<'a>> {
+        let mesh = world.scene.mesh(crate::scene::ObjectId(inst.object))?;
+        let normal_xf = inst.world_from_object.matrix3.inverse().transpose();
+        Some(InstanceGeometry { mesh, world_from_object: inst.world_from_object, normal_xf })
+    }
+}
+
+fn hit_geometry(ig: &InstanceGeometry, hit: &Hit) -> Option<HitGeometry> {
+    let mesh = ig.mesh;
     let [a, b, c] = (*mesh.triangles.get(hit.primitive as usize)?).map(|i| i as usize);
-    let (pa, pb, pc) = (mesh.positions[a], mesh.positions[b], mesh.positions[c]);
-    let xf = &inst.world_from_object;
+    let (pa, pb, pc) = (*mesh.positions.get(a)?, *mesh.positions.get(b)?, *mesh.positions.get(c)?);
+    let xf = &ig.world_from_object;
+    let normal_xf = ig.normal_xf;
     let (e1, e2) = (Vec3A::from(pb - pa), Vec3A::from(pc - pa));
-    // Surface parameters: the mesh's (u, v) when it has them (quadrics, patches, textured meshes),
-    // else the barycentric coordinates of the hit.
+    let (w0, w1, w2) = (1.0 - hit.u - hit.v, hit.u, hit.v);
+    let p_obj = Vec3A::from(pa) * w0 + Vec3A::from(pb) * w1 + Vec3A::from(pc) * w2;
+    let ng = (normal_xf * e1.cross(e2)).normalize_or_zero();
+    let n = match &mesh.normals {
+        Some(ns) => {
+            let ni = Vec3A::from(ns[a] * w0 + ns[b] * w1 + ns[c] * w2);
+            let n = (normal_xf * ni).normalize_or_zero();
+            if n == Vec3A::ZERO {
+                ng
+            } else {
+                n
+            }
+        }
+        None => ng,
+    };
+    let attributes: Vec<Vec<f32>> = mesh
+        .attributes
+        .iter()
+        .map(|at| {
+            let k = at.components;
+            (0..k).map(|j| at.data[a * k + j] * w0 + at.data[b * k + j] * w1 + at.data[c * k + j] * w2).collect()
+        })
+        .collect();
+    let surf_p = xf.transform_point3a(p_obj);
     let mut duv = [[1.0, 0.0], [0.0, 1.0]];
     let (uv, dpdu, dpdv) = match &mesh.uvs {
         Some(uvs) => {
@@ -302,33 +340,32 @@ fn hit_geometry(world: &World, inst: &InstanceShading, hit: &Hit) -> Option<HitG
     let find = |name: &str| mesh.attributes.iter().position(|at| at.name == name);
     let color_attr = |name: &str| {
         let i = find(name)?;
-        let v = surf.attributes.get(i)?;
+        let v = attributes.get(i)?;
         (v.len() == 3).then(|| Vec3A::new(v[0], v[1], v[2]))
     };
     let (st, dst) = match find("st") {
-        Some(i) if surf.attributes[i].len() == 2 => {
+        Some(i) if attributes[i].len() == 2 => {
             let d = &mesh.attributes[i].data;
             let delta = |k: usize, j: usize| d[2 * k + j] - d[2 * a + j];
-            ([surf.attributes[i][0], surf.attributes[i][1]], [[delta(b, 0), delta(b, 1)], [delta(c, 0), delta(c, 1)]])
+            ([attributes[i][0], attributes[i][1]], [[delta(b, 0), delta(b, 1)], [delta(c, 0), delta(c, 1)]])
         }
         _ => (uv, duv),
     };
-    let normal_xf = xf.matrix3.inverse().transpose();
     let dn = match &mesh.normals {
         Some(ns) => [normal_xf * Vec3A::from(ns[b] - ns[a]), normal_xf * Vec3A::from(ns[c] - ns[a])],
         None => [Vec3A::ZERO; 2],
     };
     Some(HitGeometry {
-        p: surf.p,
-        n: surf.n,
-        ng: surf.ng,
+        p: surf_p,
+        n,
+        ng,
         uv,
         st,
         dpdu: xf.transform_vector3a(dpdu),
         dpdv: xf.transform_vector3a(dpdv),
         cs: color_attr("Cs"),
         os: color_attr("Os"),
-        attributes: surf.attributes,
+        attributes,
         edges: [xf.transform_vector3a(e1), xf.transform_vector3a(e2)],
         duv,
         dst,
@@ -356,10 +393,15 @@ fn unit(h: u64) -> f32 {
 fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mut [Shaded]) {
     let world = frame.world;
     let Some(inst) = world.instances.get(group[0].hit.instance as usize) else { return };
-    let material = world.materials.get(inst.material as usize).unwrap_or(&Material::DEFAULT);
-    let geoms: Vec<Option<HitGeometry>> = group.iter().map(|p| hit_geometry(world, inst, &p.hit)).collect();
+    let material = world.materials.get(inst.material as usize).unwrap_or(&DEFAULT_MATERIAL);
+    let Some(ig) = InstanceGeometry::new(world, inst) else { return };
+    let geoms: Vec<Option<HitGeometry>> = group.iter().map(|p| hit_geometry(&ig, &p.hit)).collect();
     let color = Vec3A::from(material.color);
     let opacity = Vec3A::from(material.opacity);
+    if let Some(native) = &material.native {
+        shade_native(frame, native, group, &geoms, color, opacity, depth, out);
+        return;
+    }
     let Some(surface) = &material.surface else {
         // RenderMan's default surface: a matte that faces the viewer.
         for ((p, g), o) in group.iter().zip(&geoms).zip(out.iter_mut()) {
@@ -437,6 +479,8 @@ fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mut [Shaded])
             }
         }
         let mut call = ShadeCall::new(frame, surface, inst.world_from_object, depth);
+        call.batch_points = geoms.iter().map(|g| g.as_ref().map_or(Vec3A::ZERO, |g| g.p)).collect();
+        call.batch_mask = geoms.iter().map(|g| if g.is_some() { -1 } else { 0 }).collect();
         let table = call.table();
         program.code.shade_with_table(batch, &table);
         let raw = batch.raw_mut();
@@ -457,6 +501,37 @@ fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mut [Shaded])
     });
 }
 
+/// The hand-written Rust path: the same lights (shaders and shadows over the batch, as the JIT
+/// path computes them) and the same compositing, Rust for the surface.
+#[allow(clippy::too_many_arguments)]
+fn shade_native(
+    frame: &Frame,
+    native: &NativeSurface,
+    group: &[Pending],
+    geoms: &[Option<HitGeometry>],
+    color: Vec3A,
+    opacity: Vec3A,
+    depth: u32,
+    out: &mut [Shaded],
+) {
+    let points: Vec<Vec3A> = geoms.iter().map(|g| g.as_ref().map_or(Vec3A::ZERO, |g| g.p)).collect();
+    let mask: Vec<i32> = geoms.iter().map(|g| if g.is_some() { -1 } else { 0 }).collect();
+    let table = BatchLights::compute(frame, &points, &mask, depth);
+    let mut seen = Vec::new();
+    for (k, g) in geoms.iter().enumerate() {
+        let Some(g) = g else { continue };
+        seen.clear();
+        seen.extend((0..table.counts[k] as usize).map(|j| {
+            let h = &table.lights[j * table.n + k];
+            LightSeen { l: Vec3A::from(h.l), cl: Vec3A::from(h.cl), ambient: h.ambient != 0 }
+        }));
+        let i = g.p - group[k].ray.origin;
+        let (ci, oi) = native.shade(g.n, i, g.cs.unwrap_or(color), g.os.unwrap_or(opacity), &seen);
+        let d = g.derivs(&group[k]);
+        out[k] = Shaded { ci, oi, p: g.p, ng: g.ng, dpdx: d.dp[0], dpdy: d.dp[1] };
+    }
+}
+
 /// Writes the screen-space derivatives of a varying global (only globals below `deriv_slots` have
 /// them; see `docs/packet-abi.md`).
 fn put_d1(raw: &mut RawBatch<'_>, slot: Option<Slot>, deriv_slots: usize, lane: usize, d: [f32; 2]) {
@@ -468,9 +543,10 @@ fn put_d1(raw: &mut RawBatch<'_>, slot: Option<Slot>, deriv_slots: usize, lane: 
 
 fn put_d3(raw: &mut RawBatch<'_>, slot: Option<Slot>, deriv_slots: usize, lane: usize, d: [Vec3A; 2]) {
     if let Some(s) = slot.filter(|s| s.varying && s.offset + 2 < deriv_slots) {
-        for k in 0..3 {
-            raw.derivs[2 * (s.offset + k) * raw.stride + lane] = d[0][k];
-            raw.derivs[(2 * (s.offset + k) + 1) * raw.stride + lane] = d[1][k];
+        let (dx, dy) = (d[0].to_array(), d[1].to_array());
+        for (k, (x, y)) in dx.into_iter().zip(dy).enumerate() {
+            raw.derivs[2 * (s.offset + k) * raw.stride + lane] = x;
+            raw.derivs[(2 * (s.offset + k) + 1) * raw.stride + lane] = y;
         }
     }
 }
@@ -492,6 +568,12 @@ pub(crate) struct ShadeCall<'f, 'w> {
     /// The last light query (diffuse() and specular() of one chunk ask for the same lights).
     light_cache: Option<LightQuery>,
     text: String,
+    /// For a surface batch: each lane's `P` as filled and whether it is shaded, so the lights of
+    /// the whole batch are computed at the first light query and chunks are served from them.
+    batch_points: Vec<Vec3A>,
+    batch_mask: Vec<i32>,
+    batch_lights: Option<BatchLights>,
+    chunk_cursor: usize,
 }
 
 struct LightQuery {
@@ -509,7 +591,18 @@ impl<'f, 'w> ShadeCall<'f, 'w> {
         world_from_object: Affine3A,
         depth: u32,
     ) -> Self {
-        ShadeCall { frame, instance, world_from_object, depth, light_cache: None, text: String::new() }
+        ShadeCall {
+            frame,
+            instance,
+            world_from_object,
+            depth,
+            light_cache: None,
+            text: String::new(),
+            batch_points: Vec::new(),
+            batch_mask: Vec::new(),
+            batch_lights: None,
+            chunk_cursor: 0,
+        }
     }
 
     /// The call table; valid while `self` is neither moved nor dropped.
@@ -668,6 +761,9 @@ unsafe extern "C" fn host_lights(
             &mut *(counts as *mut [u32; 4]),
         )
     };
+    if category.is_empty() && !c.batch_points.is_empty() && serve_from_batch(c, mask, p, out, counts) {
+        return;
+    }
     let pbits: [u32; 12] = std::array::from_fn(|i| p[i].to_bits());
     if let Some(q) = &c.light_cache {
         if q.category == category && q.p == pbits && q.mask == *mask {
@@ -684,13 +780,59 @@ unsafe extern "C" fn host_lights(
         }
         eval_light(c.frame, light, mask, &points, c.depth, out, counts);
     }
+    let used = 4 * counts.iter().copied().max().unwrap_or(0) as usize;
     c.light_cache = Some(LightQuery {
         category: category.to_string(),
         p: pbits,
         mask: *mask,
-        lights: out.to_vec(),
+        lights: out[..used].to_vec(),
         counts: *counts,
     });
+}
+
+/// Answers a chunk's light query from the batch's lights when the chunk's points are the batch's
+/// (bit for bit: a shader that moved `P` gets its lights computed afresh).
+fn serve_from_batch(
+    c: &mut ShadeCall,
+    mask: &[i32; 4],
+    p: &[f32],
+    out: &mut [HostLight],
+    counts: &mut [u32; 4],
+) -> bool {
+    let n = c.batch_points.len();
+    let chunks = n.div_ceil(4);
+    let matches = |chunk: usize| {
+        (0..4).all(|l| {
+            let lane = 4 * chunk + l;
+            mask[l] == 0
+                || (lane < n && c.batch_mask[lane] != 0 && {
+                    let q = c.batch_points[lane];
+                    q.x.to_bits() == p[l].to_bits()
+                        && q.y.to_bits() == p[4 + l].to_bits()
+                        && q.z.to_bits() == p[8 + l].to_bits()
+                })
+        })
+    };
+    let Some(chunk) = (0..chunks).map(|k| (c.chunk_cursor + k) % chunks).find(|&k| matches(k)) else {
+        return false;
+    };
+    c.chunk_cursor = chunk;
+    if c.batch_lights.is_none() {
+        c.batch_lights = Some(BatchLights::compute(c.frame, &c.batch_points, &c.batch_mask, c.depth));
+    }
+    let Some(table) = &c.batch_lights else { return false };
+    for l in 0..4 {
+        counts[l] = 0;
+        let lane = 4 * chunk + l;
+        if mask[l] == 0 || lane >= table.n {
+            continue;
+        }
+        counts[l] = table.counts[lane];
+        for k in 0..table.counts[lane] as usize {
+            out[4 * k + l] = table.lights[k * table.n + lane];
+        }
+    }
+    true
 }
 
 /// Runs one light's shader for the active lanes of a chunk and appends what reaches each lane, with
@@ -704,34 +846,54 @@ fn eval_light(
     out: &mut [HostLight],
     counts: &mut [u32; 4],
 ) {
+    eval_light_lanes(frame, light, mask, points, depth, |l, h| {
+        if (counts[l] as usize) < MAX_LIGHTS {
+            out[4 * counts[l] as usize + l] = h;
+            counts[l] += 1;
+        }
+    });
+}
+
+/// Runs one light's shader over `points` (up to a packet of lanes, `mask` nonzero where a point
+/// asks) and hands each lane's light to `sink`, its colour attenuated by traced shadows: a packet
+/// of shadow rays when nothing in the scene is transparent, one transmission walk per ray
+/// otherwise. Area lights give one light per sample.
+fn eval_light_lanes(
+    frame: &Frame,
+    light: &LightSource,
+    mask: &[i32],
+    points: &[Vec3A],
+    depth: u32,
+    mut sink: impl FnMut(usize, HostLight),
+) {
+    let n = points.len().min(PACKET_SIZE);
     let instance = &light.shader;
     let program = &instance.program;
     let slots = &program.slots;
     let samples = light.area.as_ref().map_or(1, |a| a.samples);
     let eye = frame.world.camera.eye();
+    let ambient = light.kind == LightKind::Ambient;
+    let scale = 1.0 / samples as f32;
+    let mut results = vec![(Vec3A::ZERO, Vec3A::ZERO, Vec3A::ZERO); n];
     for sample in 0..samples {
-        // The emitting point: the light's origin, or a sample of its geometry for area lights.
-        let mut origin = [instance.world_from_shader.translation; 4];
-        let mut normal = [Vec3A::ZERO; 4];
-        if let Some(area) = &light.area {
-            for l in 0..4 {
-                let h = mix(point_seed(points[l]) ^ u64::from(sample).wrapping_mul(0x2545_F491_4F6C_DD1D));
-                if let Some((q, n)) = area.sample(unit(h), unit(mix(h)), unit(mix(h ^ 1))) {
-                    origin[l] = q;
-                    normal[l] = n;
-                }
-            }
-        }
         Stats::add(&frame.stats.light_evaluations, 1);
-        let results = with_batch(program, 4, |batch| {
+        with_batch(program, n, |batch| {
             {
                 let mut raw = batch.raw_mut();
                 instance.write_params(&mut raw);
-                raw.mask[..4].copy_from_slice(mask);
-                for l in 0..4 {
-                    put3(&mut raw, slots.ps, l, points[l]);
-                    put3(&mut raw, slots.p, l, origin[l]);
-                    put3(&mut raw, slots.n, l, normal[l]);
+                raw.mask[..n].copy_from_slice(&mask[..n]);
+                for (l, &point) in points.iter().enumerate().take(n) {
+                    // The emitting point: the light's origin, or a sample of its geometry.
+                    let (mut origin, mut normal) = (instance.world_from_shader.translation, Vec3A::ZERO);
+                    if let Some(area) = &light.area {
+                        let h = mix(point_seed(point) ^ u64::from(sample).wrapping_mul(0x2545_F491_4F6C_DD1D));
+                        if let Some((q, nn)) = area.sample(unit(h), unit(mix(h)), unit(mix(h ^ 1))) {
+                            (origin, normal) = (q, nn);
+                        }
+                    }
+                    put3(&mut raw, slots.ps, l, point);
+                    put3(&mut raw, slots.p, l, origin);
+                    put3(&mut raw, slots.n, l, normal);
                     put3(&mut raw, slots.e, l, eye);
                     put1(&mut raw, slots.ncomps, l, 3.0);
                 }
@@ -740,40 +902,103 @@ fn eval_light(
             let table = call.table();
             program.code.shade_with_table(batch, &table);
             let raw = batch.raw_mut();
-            std::array::from_fn::<_, 4, _>(|l| {
-                (
+            for (l, r) in results.iter_mut().enumerate() {
+                *r = (
                     get3(&raw, slots.l, l, Vec3A::ZERO),
                     get3(&raw, slots.cl, l, Vec3A::ZERO),
                     get3(&raw, slots.ol, l, Vec3A::ZERO),
-                )
-            })
+                );
+            }
         });
-        let scale = 1.0 / samples as f32;
-        for l in 0..4 {
-            if mask[l] == 0 || counts[l] as usize >= MAX_LIGHTS {
-                continue;
-            }
-            let (to_surface, cl, ol) = results[l];
-            let ambient = light.kind == LightKind::Ambient;
-            // `illuminate` leaves L at zero where the point is outside its cone: no light there.
-            if !ambient && to_surface == Vec3A::ZERO {
-                continue;
-            }
-            let to_light = -to_surface;
-            let mut cl = finite_or_zero(cl) * scale;
-            if !ambient && light.shadows && cl != Vec3A::ZERO {
+        // Shadows: which lanes need a ray, then one packet (or a walk per ray).
+        let mut attenuation = vec![Vec3A::ONE; n];
+        if !ambient && light.shadows {
+            let mut packet = RayPacket::new();
+            for l in 0..n {
+                let (to_surface, cl, _) = results[l];
+                if mask[l] == 0 || to_surface == Vec3A::ZERO || cl == Vec3A::ZERO || !cl.is_finite() {
+                    continue;
+                }
+                let to_light = -to_surface;
                 let distance = if light.kind == LightKind::Distant { f32::INFINITY } else { to_light.length() };
-                cl *= transmission_along(frame, points[l], to_light.normalize_or_zero(), distance);
+                let dir = to_light.normalize_or_zero();
+                if frame.transparent_shadows {
+                    attenuation[l] = transmission_along(frame, points[l], dir, distance);
+                } else if let Some(ray) = shadow_ray(points[l], dir, distance) {
+                    packet.set(l, &ray);
+                }
             }
-            let k = counts[l] as usize;
-            out[4 * k + l] = HostLight {
-                l: if ambient { [0.0; 3] } else { to_light.to_array() },
-                cl: cl.to_array(),
-                ol: finite_or_zero(ol).to_array(),
-                ambient: u32::from(ambient),
-            };
-            counts[l] += 1;
+            if packet.active != 0 {
+                Stats::add(&frame.stats.shadow_rays, packet.active.count_ones() as usize);
+                let blocked = frame.world.scene.occluded_packet(&packet);
+                for (l, a) in attenuation.iter_mut().enumerate() {
+                    if blocked >> l & 1 != 0 {
+                        *a = Vec3A::ZERO;
+                    }
+                }
+            }
         }
+        for l in 0..n {
+            let (to_surface, cl, ol) = results[l];
+            // `illuminate` leaves L at zero where the point is outside its cone: no light there.
+            if mask[l] == 0 || (!ambient && to_surface == Vec3A::ZERO) {
+                continue;
+            }
+            let cl = finite_or_zero(cl) * scale * attenuation[l];
+            sink(
+                l,
+                HostLight {
+                    l: if ambient { [0.0; 3] } else { (-to_surface).to_array() },
+                    cl: cl.to_array(),
+                    ol: finite_or_zero(ol).to_array(),
+                    ambient: u32::from(ambient),
+                },
+            );
+        }
+    }
+}
+
+/// The shadow ray from `from` along unit `dir` for `distance`, kept off both ends; `None` when the
+/// segment is too short to hold anything.
+fn shadow_ray(from: Vec3A, dir: Vec3A, distance: f32) -> Option<Ray> {
+    if dir == Vec3A::ZERO {
+        return None;
+    }
+    let eps = epsilon(from);
+    let tmax = if distance.is_finite() { distance - 2.0 * eps } else { f32::INFINITY };
+    (tmax > eps).then(|| Ray::segment(from, dir, eps, tmax))
+}
+
+/// The lights of every point of a surface batch, computed once for the whole batch when the shader
+/// first asks (light shaders run over the batch, shadow rays go as packets): lane `l`'s light `k`
+/// at `lights[k * n + l]`.
+struct BatchLights {
+    n: usize,
+    counts: Vec<u32>,
+    lights: Vec<HostLight>,
+}
+
+impl BatchLights {
+    fn compute(frame: &Frame, points: &[Vec3A], mask: &[i32], depth: u32) -> BatchLights {
+        let n = points.len();
+        let mut per_lane: Vec<Vec<HostLight>> = vec![Vec::new(); n];
+        for light in &frame.world.lights {
+            if light.in_category("") {
+                eval_light_lanes(frame, light, mask, points, depth, |l, h| {
+                    if per_lane[l].len() < MAX_LIGHTS {
+                        per_lane[l].push(h);
+                    }
+                });
+            }
+        }
+        let max = per_lane.iter().map(Vec::len).max().unwrap_or(0);
+        let mut lights = vec![HostLight::default(); max * n];
+        for (l, list) in per_lane.iter().enumerate() {
+            for (k, h) in list.iter().enumerate() {
+                lights[k * n + l] = *h;
+            }
+        }
+        BatchLights { n, counts: per_lane.iter().map(|v| v.len() as u32).collect(), lights }
     }
 }
 
@@ -785,19 +1010,12 @@ fn epsilon(p: Vec3A) -> f32 {
 /// How much light gets from `from` along unit `dir` for `distance` (white where nothing blocks):
 /// opaque blockers stop it, transparent ones filter it by their opacity.
 fn transmission_along(frame: &Frame, from: Vec3A, dir: Vec3A, distance: f32) -> Vec3A {
-    if dir == Vec3A::ZERO {
-        return Vec3A::ONE;
-    }
-    let eps = epsilon(from);
-    let tmax = if distance.is_finite() { distance - 2.0 * eps } else { f32::INFINITY };
-    if tmax <= eps {
-        return Vec3A::ONE;
-    }
+    let Some(ray) = shadow_ray(from, dir, distance) else { return Vec3A::ONE };
+    let (eps, tmax) = (ray.tmin, ray.tmax);
     let world = frame.world;
     Stats::add(&frame.stats.shadow_rays, 1);
     if !frame.transparent_shadows {
-        let occluded = world.scene.occluded(&Ray::segment(from, dir, eps, tmax));
-        return if occluded { Vec3A::ZERO } else { Vec3A::ONE };
+        return if world.scene.occluded(&ray) { Vec3A::ZERO } else { Vec3A::ONE };
     }
     let mut through = Vec3A::ONE;
     let mut start = eps;
@@ -807,7 +1025,7 @@ fn transmission_along(frame: &Frame, from: Vec3A, dir: Vec3A, distance: f32) -> 
             return through;
         }
         let Some(inst) = world.instances.get(hit.instance as usize) else { return through };
-        let material = world.materials.get(inst.material as usize).unwrap_or(&Material::DEFAULT);
+        let material = world.materials.get(inst.material as usize).unwrap_or(&DEFAULT_MATERIAL);
         if material.is_opaque_for_shadows() {
             return Vec3A::ZERO;
         }

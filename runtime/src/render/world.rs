@@ -21,11 +21,22 @@ pub struct Material {
     pub shadow_by_shader: bool,
     /// An id the pixel shader and adaptive sampling may read (`objectid`).
     pub object_id: u32,
+    /// Shade with hand-written Rust instead of `surface` (benchmarks of the JIT's cost only).
+    pub native: Option<super::native::NativeSurface>,
 }
 
+/// The material of geometry with none (a stale id, or the default slot).
+pub static DEFAULT_MATERIAL: Material = Material::DEFAULT;
+
 impl Material {
-    pub const DEFAULT: Material =
-        Material { surface: None, color: [1.0; 3], opacity: [1.0; 3], shadow_by_shader: false, object_id: 0 };
+    pub const DEFAULT: Material = Material {
+        surface: None,
+        color: [1.0; 3],
+        opacity: [1.0; 3],
+        shadow_by_shader: false,
+        object_id: 0,
+        native: None,
+    };
 
     /// Whether light passes through this material without running its shader.
     pub fn is_opaque_for_shadows(&self) -> bool {
@@ -237,6 +248,29 @@ impl World {
                     .collect()
             })
             .collect();
+    }
+
+    /// Replaces every `plastic` surface by the hand-written Rust plastic with the same parameter
+    /// values (for `rtsl bench render --native-plastic`); returns how many materials changed.
+    pub fn use_native_plastic(&mut self) -> usize {
+        let mut changed = 0;
+        for m in &mut self.materials {
+            let Some(surface) = &m.surface else { continue };
+            if surface.program.name != "plastic" {
+                continue;
+            }
+            let float = |name: &str, default: f32| surface.float_param(name).unwrap_or(default);
+            let color = surface.triple_param("specularcolor").unwrap_or([1.0; 3]);
+            m.native = Some(super::native::NativeSurface::Plastic {
+                ks: float("Ks", 0.5),
+                kd: float("Kd", 0.5),
+                ka: float("Ka", 1.0),
+                roughness: float("roughness", 0.1),
+                specular_color: Vec3A::from(color),
+            });
+            changed += 1;
+        }
+        changed
     }
 
     /// Whether any material lets light through (then shadow rays must look at what they pass).

@@ -53,6 +53,28 @@ impl ShaderInstance {
         }
     }
 
+    /// The value of a float parameter: bound, or its constant default.
+    pub fn float_param(&self, name: &str) -> Option<f32> {
+        self.constant_floats(name).and_then(|v| (v.len() == 1).then(|| v[0]))
+    }
+
+    /// The value of a triple parameter (colour, point...): bound, or its constant default.
+    pub fn triple_param(&self, name: &str) -> Option<[f32; 3]> {
+        self.constant_floats(name).and_then(|v| (v.len() == 3).then(|| [v[0], v[1], v[2]]))
+    }
+
+    fn constant_floats(&self, name: &str) -> Option<Vec<f32>> {
+        let (index, _) = self.program.layout().param(name)?;
+        if let Some(b) = self.params.iter().find(|p| p.index == index) {
+            return Some(b.floats.clone());
+        }
+        match &self.program.interface.parameters[index].default {
+            Some(rtsl_compiler::interface::Value::Float(x)) => Some(vec![*x]),
+            Some(rtsl_compiler::interface::Value::Triple(t)) if t.space.is_none() => Some(t.value.to_vec()),
+            _ => None,
+        }
+    }
+
     /// Writes the bound parameters into lanes `0..raw.lanes` of a batch of this instance's program.
     pub fn write_params(&self, raw: &mut RawBatch<'_>) {
         let layout = self.program.layout();

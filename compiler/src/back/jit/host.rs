@@ -390,6 +390,7 @@ unsafe extern "C" fn sv_print(ctx: *mut c_void, text: StrRef) {
 pub struct HostCtx {
     table: *const HostTable,
     light_sets: Vec<LightSet>,
+    light_buffer: Vec<HostLight>,
     /// The space matrices asked so far, by (from, to) string handle: each pair is asked of the
     /// renderer once per batch, however many chunks use it.
     matrices: Vec<((u32, u32), Option<M4>)>,
@@ -403,7 +404,7 @@ struct LightSet {
 
 impl HostCtx {
     pub(super) fn new(table: *const HostTable) -> HostCtx {
-        HostCtx { table, light_sets: Vec::new(), matrices: Vec::new() }
+        HostCtx { table, light_sets: Vec::new(), light_buffer: Vec::new(), matrices: Vec::new() }
     }
 }
 
@@ -457,11 +458,14 @@ impl Cx<'_> {
         m
     }
     /// The lights reaching the chunk's active lanes at `p` (argument `k`).
-    fn lights(&self, category: &str, k: usize) -> ([Vec<HostLight>; 4], [u32; 4]) {
-        let mut per_lane: [Vec<HostLight>; 4] = Default::default();
+    /// Asks the renderer for the lights of the chunk's points (input `k`): lane `l`'s `i`-th light
+    /// is then `self.light(i, l)` for `i < counts[l]`.
+    fn lights(&mut self, category: &str, k: usize) -> [u32; 4] {
         let mut counts = [0u32; 4];
-        let Some(t) = self.table else { return (per_lane, counts) };
-        let mut out = vec![HostLight::default(); MAX_LIGHTS * 4];
+        let Some(t) = self.table else { return counts };
+        // One buffer per batch: the renderer writes the entries it counts, and only those are read.
+        let out = &mut self.ctx.light_buffer;
+        out.resize(MAX_LIGHTS * 4, HostLight::default());
         let mask: [i32; 4] = self.mask.map(|m| if m { -1 } else { 0 });
         // SAFETY: the table's documented sizes.
         unsafe {
@@ -474,11 +478,12 @@ impl Cx<'_> {
                 counts.as_mut_ptr(),
             )
         };
-        for l in self.active() {
-            let n = (counts[l] as usize).min(MAX_LIGHTS);
-            per_lane[l] = (0..n).map(|i| out[4 * i + l]).collect();
-        }
-        (per_lane, counts)
+        counts.map(|c| c.min(MAX_LIGHTS as u32))
+    }
+
+    /// Lane `l`'s lights after [`Cx::lights`] counted `n` of them.
+    fn lane_lights(&self, l: usize, n: u32) -> impl Iterator<Item = &HostLight> + '_ {
+        (0..n as usize).map(move |i| &self.ctx.light_buffer[4 * i + l])
     }
 }
 
@@ -536,10 +541,10 @@ fn specular_brdf(l: V3, n: V3, v: V3, roughness: f32) -> f32 {
 }
 
 /// `sum_lights` of the interpreter over one lane's lights.
-fn sum_lights(lights: &[HostLight], n: V3, weight: impl Fn(&HostLight) -> f32) -> V3 {
+fn sum_lights<'a>(lights: impl Iterator<Item = &'a HostLight>, n: V3, weight: impl Fn(&HostLight) -> f32) -> V3 {
     let mut sum = [0.0; 3];
-    for l in lights.iter().filter(|l| l.ambient == 0) {
-        if angle_between(l.l, n) > std::f32::consts::FRAC_PI_2 {
+    for l in lights.filter(|l| l.ambient == 0) {
+        if !geom::in_hemisphere(l.l, n) {
             continue;
         }
         let w = weight(l);
@@ -627,13 +632,15 @@ host_helpers! {
     // [category, P] -> [set, count]: the lights of an illuminance loop, kept in the context.
     h_lights "rtsl_h_lights" 4 => 2 |cx| {
         let category = cx.s(0);
-        let (lights, _) = cx.lights(&category, 1);
+        let counts = cx.lights(&category, 1);
+        let active: [bool; 4] = cx.mask;
+        let n = |l: usize| if active[l] { counts[l] } else { 0 };
         let order: [Vec<usize>; 4] = std::array::from_fn(|l| {
-            lights[l].iter().enumerate().filter(|(_, x)| x.ambient == 0).map(|(i, _)| i).collect()
+            cx.lane_lights(l, n(l)).enumerate().filter(|(_, x)| x.ambient == 0).map(|(i, _)| i).collect()
         });
         let count = order.iter().map(Vec::len).max().unwrap_or(0);
         let flat: Vec<HostLight> = (0..4).flat_map(|l| {
-            let mut v = lights[l].clone();
+            let mut v: Vec<HostLight> = cx.lane_lights(l, n(l)).copied().collect();
             v.resize(MAX_LIGHTS, HostLight::default());
             v
         }).collect();
@@ -667,37 +674,37 @@ host_helpers! {
     }
     // [P] -> the ambient lights' sum
     h_ambient "rtsl_h_ambient" 3 => 3 |cx| {
-        let (lights, _) = cx.lights("", 0);
+        let counts = cx.lights("", 0);
         for l in cx.active() {
-            let sum = lights[l].iter().filter(|x| x.ambient != 0).fold([0.0; 3], |acc, x| add(acc, x.cl));
+            let sum = cx.lane_lights(l, counts[l]).filter(|x| x.ambient != 0).fold([0.0; 3], |acc, x| add(acc, x.cl));
             cx.set3(0, l, sum);
         }
     }
     // [P, N] -> diffuse
     h_diffuse "rtsl_h_diffuse" 6 => 3 |cx| {
-        let (lights, _) = cx.lights("", 0);
+        let counts = cx.lights("", 0);
         for l in cx.active() {
             let n = geom::normalize(cx.v3(3, l));
-            let sum = sum_lights(&lights[l], n, |x| dot(geom::normalize(x.l), n).max(0.0));
+            let sum = sum_lights(cx.lane_lights(l, counts[l]), n, |x| dot(geom::normalize(x.l), n).max(0.0));
             cx.set3(0, l, sum);
         }
     }
     // [P, N, V, roughness] -> specular
     h_specular "rtsl_h_specular" 10 => 3 |cx| {
-        let (lights, _) = cx.lights("", 0);
+        let counts = cx.lights("", 0);
         for l in cx.active() {
             let (n, view, rough) = (geom::normalize(cx.v3(3, l)), geom::normalize(cx.v3(6, l)), cx.f(9, l));
-            let sum = sum_lights(&lights[l], n, |x| specular_brdf(geom::normalize(x.l), n, view, rough));
+            let sum = sum_lights(cx.lane_lights(l, counts[l]), n, |x| specular_brdf(geom::normalize(x.l), n, view, rough));
             cx.set3(0, l, sum);
         }
     }
     // [P, N, V, size] -> phong
     h_phong "rtsl_h_phong" 10 => 3 |cx| {
-        let (lights, _) = cx.lights("", 0);
+        let counts = cx.lights("", 0);
         for l in cx.active() {
             let (n, view, size) = (geom::normalize(cx.v3(3, l)), geom::normalize(cx.v3(6, l)), cx.f(9, l));
             let r = geom::reflect(view.map(|x| -x), n);
-            let sum = sum_lights(&lights[l], n, |x| dot(r, geom::normalize(x.l)).max(0.0).powf(size));
+            let sum = sum_lights(cx.lane_lights(l, counts[l]), n, |x| dot(r, geom::normalize(x.l)).max(0.0).powf(size));
             cx.set3(0, l, sum);
         }
     }
