@@ -49,7 +49,7 @@ use crate::render::{
 };
 use crate::scene::{ObjectId as SceneObject, Scene, SceneError};
 use crate::shading::{LightKind, ParamError, ParamValue, Program, ShaderError, ShaderInstance, ShaderProgram};
-use crate::texture::TextureCache;
+use crate::texture::{TexImage, TextureCache, Wrap};
 use glam::{Affine3A, Quat, Vec2, Vec3, Vec3A};
 use rtsl_compiler::front::parse::ast::ShaderKind;
 use std::path::{Path, PathBuf};
@@ -117,6 +117,8 @@ pub enum ApiError {
     Scene(#[from] SceneError),
     #[error("the matrix stack is empty")]
     MatrixStackEmpty,
+    #[error("texture {name}: {width}x{height} texels of {channels} channels need {} floats, {given} given", width * height * channels)]
+    BadTexture { name: String, width: usize, height: usize, channels: usize, given: usize },
 }
 
 fn kind_name(k: ShaderKind) -> &'static str {
@@ -221,6 +223,7 @@ pub struct Context {
     scene: Option<Scene>,
     texture_search_path: Vec<PathBuf>,
     textures: Arc<TextureCache>,
+    memory_textures: Vec<(String, TexImage)>,
 }
 
 impl Default for Context {
@@ -259,6 +262,7 @@ impl Context {
             scene: Some(Scene::new()),
             texture_search_path: Vec::new(),
             textures: Arc::new(TextureCache::new()),
+            memory_textures: Vec::new(),
         }
     }
 
@@ -278,7 +282,34 @@ impl Context {
         if !self.texture_search_path.contains(&dir) {
             self.texture_search_path.push(dir);
             self.textures = Arc::new(TextureCache::with_search_paths(self.texture_search_path.clone()));
+            for (name, image) in &self.memory_textures {
+                self.textures.insert_texture(name, image.clone(), [Wrap::Periodic; 2]);
+            }
         }
+    }
+
+    /// Makes `name` a texture from memory (OpenGL's `glTexImage2D`): `width x height` texels of
+    /// `channels` linear floats each, rows top to bottom. Shaders look it up by that name, before
+    /// any file of the same name; it repeats (periodic wrap).
+    pub fn tex_image_2d(
+        &mut self,
+        name: &str,
+        width: usize,
+        height: usize,
+        channels: usize,
+        texels: &[f32],
+    ) -> Result<(), ApiError> {
+        let image = TexImage::new(width, height, channels, texels.to_vec()).ok_or(ApiError::BadTexture {
+            name: name.to_string(),
+            width,
+            height,
+            channels,
+            given: texels.len(),
+        })?;
+        self.textures.insert_texture(name, image.clone(), [Wrap::Periodic; 2]);
+        self.memory_textures.retain(|(n, _)| n != name);
+        self.memory_textures.push((name.to_string(), image));
+        Ok(())
     }
 
     /// The texture cache frames use (textures load once and stay loaded across frames).

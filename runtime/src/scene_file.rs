@@ -1,5 +1,10 @@
-//! Scenes from files: a RIB file, or a mesh file (OBJ with its materials, PLY) given on its own, which
-//! gets a camera framing it and a default light rig.
+//! Scenes from files: a RIB file, or a mesh file (OBJ with its materials, PLY, glTF 2.0) given on its
+//! own, which gets a camera framing it and a default light rig.
+//!
+//! glTF: every mesh primitive (triangles) becomes an object, placed by each node that uses it with
+//! the node's world transform (so shared meshes are instances of one BVH); the material's base
+//! colour factor becomes `Cs` and its alpha the `material` shader's transparency. Animations are
+//! not played here.
 //!
 //! OBJ materials become instances of the `material` shader (`docs/shaders.md`): `Kd` -> diffuse
 //! colour, `Ks` -> specular colour, `Ns` -> shininess, `d`/`Tr` -> transparency, `Ke` -> emission,
@@ -25,10 +30,119 @@ pub enum SceneFileError {
     BadMesh { path: PathBuf, source: MeshError },
     #[error(transparent)]
     Api(#[from] ApiError),
-    #[error("{path}: unknown scene file type (expected .rib, .obj or .ply)")]
+    #[error("{path}: {source}")]
+    Gltf { path: PathBuf, source: gltf::Error },
+    #[error("{path}: unknown scene file type (expected .rib, .obj, .ply, .gltf or .glb)")]
     UnknownType { path: PathBuf },
     #[error("{path}: {message}")]
     Rib { path: PathBuf, message: String },
+}
+
+/// Adds a mesh file of any supported kind (by extension: `.obj`, `.ply`, `.gltf`, `.glb`).
+pub fn add_model_file(rt: &mut Context, path: &Path) -> Result<(Vec3A, Vec3A), SceneFileError> {
+    match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+        Some("gltf" | "glb") => add_gltf_file(rt, path),
+        Some("obj" | "ply") => add_mesh_file(rt, path),
+        _ => Err(SceneFileError::UnknownType { path: path.to_path_buf() }),
+    }
+}
+
+/// Adds the meshes of a glTF 2.0 file (`.gltf` with its buffers, or `.glb`) to the context, under
+/// the current matrix, and returns the world-space bounds of what was added.
+pub fn add_gltf_file(rt: &mut Context, path: &Path) -> Result<(Vec3A, Vec3A), SceneFileError> {
+    let (doc, buffers, _images) =
+        gltf::import(path).map_err(|source| SceneFileError::Gltf { path: path.to_path_buf(), source })?;
+    let bad = |source: MeshError| SceneFileError::BadMesh { path: path.to_path_buf(), source };
+    let bound = rt.bound_surface();
+    let shader = match bound {
+        Some(s) => s,
+        None => rt.find_shader("material")?,
+    };
+    // Objects per (mesh, primitive), made once.
+    let mut objects: Vec<Vec<Option<crate::api::ObjectId>>> = Vec::new();
+    for mesh in doc.meshes() {
+        let mut prims = Vec::new();
+        for prim in mesh.primitives() {
+            if prim.mode() != gltf::mesh::Mode::Triangles {
+                prims.push(None);
+                continue;
+            }
+            let reader = prim.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
+            let Some(positions) = reader.read_positions() else {
+                prims.push(None);
+                continue;
+            };
+            let positions: Vec<Vec3> = positions.map(Vec3::from).collect();
+            let triangles: Vec<[u32; 3]> = match reader.read_indices() {
+                Some(ix) => {
+                    let ix: Vec<u32> = ix.into_u32().collect();
+                    ix.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect()
+                }
+                None => (0..positions.len() as u32 / 3).map(|t| [3 * t, 3 * t + 1, 3 * t + 2]).collect(),
+            };
+            let count = positions.len();
+            let mut m = Mesh::from_triangles(positions, triangles).map_err(bad)?;
+            if let Some(ns) = reader.read_normals() {
+                let ns: Vec<Vec3> = ns.map(Vec3::from).collect();
+                if ns.len() == count {
+                    m.normals = Some(ns);
+                }
+            }
+            if let Some(uv) = reader.read_tex_coords(0) {
+                // glTF's texture coordinates already have t growing downwards, as RenderMan's.
+                let uv: Vec<Vec2> = uv.into_f32().map(Vec2::from).collect();
+                if uv.len() == count {
+                    m.uvs = Some(uv);
+                }
+            }
+            let base = prim.material().pbr_metallic_roughness().base_color_factor();
+            rt.push_attributes();
+            rt.bind_shader(shader)?;
+            if bound.is_none() {
+                let _ = rt.parameter("diffusecolor", ParamValue::Color([1.0; 3]));
+                let _ = rt.parameter("transparency", ParamValue::Float((1.0 - base[3]).clamp(0.0, 1.0)));
+            }
+            rt.color(base[0], base[1], base[2]);
+            let o = rt.begin_object()?;
+            rt.mesh(&m)?;
+            rt.end_object()?;
+            rt.pop_attributes()?;
+            prims.push(Some(o));
+        }
+        objects.push(prims);
+    }
+    let mut bounds = (Vec3A::splat(f32::INFINITY), Vec3A::splat(f32::NEG_INFINITY));
+    let root = rt.current_matrix();
+    let mut stack: Vec<(gltf::Node, glam::Affine3A)> = match doc.default_scene().or_else(|| doc.scenes().next()) {
+        Some(scene) => scene.nodes().map(|n| (n, root)).collect(),
+        None => doc.nodes().map(|n| (n, root)).collect(),
+    };
+    while let Some((node, parent)) = stack.pop() {
+        let local = glam::Affine3A::from_mat4(glam::Mat4::from_cols_array_2d(&node.transform().matrix()));
+        let xf = parent * local;
+        if let Some(mesh) = node.mesh() {
+            for (k, o) in objects.get(mesh.index()).into_iter().flatten().enumerate() {
+                let Some(o) = o else { continue };
+                rt.load_matrix(xf);
+                rt.instantiate_object(*o)?;
+                if let Some(prim) = mesh.primitives().nth(k) {
+                    let bb = prim.bounding_box();
+                    for corner in 0..8 {
+                        let c = Vec3::new(
+                            if corner & 1 == 0 { bb.min[0] } else { bb.max[0] },
+                            if corner & 2 == 0 { bb.min[1] } else { bb.max[1] },
+                            if corner & 4 == 0 { bb.min[2] } else { bb.max[2] },
+                        );
+                        let w = xf.transform_point3a(c.into());
+                        bounds = (bounds.0.min(w), bounds.1.max(w));
+                    }
+                }
+            }
+        }
+        stack.extend(node.children().map(|c| (c, xf)));
+    }
+    rt.load_matrix(root);
+    Ok(bounds)
 }
 
 /// Adds the meshes of `path` (OBJ or PLY) to the context, each as an object instanced once at the
@@ -154,8 +268,8 @@ fn parse3(s: &str) -> Option<[f32; 3]> {
 }
 
 /// A camera looking at the box `bounds` from the front (+z) and a little above, and a light rig: a
-/// shadowed point light inside the top of the box (which is where the lamp of a room or a Cornell box
-/// is) and a dim ambient light.
+/// shadowed key light above and to the right of the camera, and a dim ambient light. (Interiors,
+/// which such a rig cannot light, come as RIB files with their own lights.)
 pub fn frame_bounds(rt: &mut Context, bounds: (Vec3A, Vec3A)) -> Result<(), ApiError> {
     let (lo, hi) = bounds;
     if !(lo.is_finite() && hi.is_finite()) {
@@ -170,12 +284,13 @@ pub fn frame_bounds(rt: &mut Context, bounds: (Vec3A, Vec3A)) -> Result<(), ApiE
     rt.camera_look_at(eye, center, Vec3A::Y, fov);
     let point = rt.find_shader("pointlight")?;
     let ambient = rt.find_shader("ambientlight")?;
-    let from = center + Vec3A::new(0.0, 0.4 * size.y, 0.0);
+    let from = center + Vec3A::new(0.5, 1.2, 0.9) * distance;
+    let to_light = (from - center).length();
     rt.push_matrix();
     rt.load_identity();
     rt.light_source(
         point,
-        &[("intensity", ParamValue::Float(radius * radius * 1.2)), ("from", ParamValue::Point(from.to_array()))],
+        &[("intensity", ParamValue::Float(to_light * to_light)), ("from", ParamValue::Point(from.to_array()))],
     )?;
     rt.light_source(ambient, &[("intensity", ParamValue::Float(0.08))])?;
     rt.pop_matrix()?;

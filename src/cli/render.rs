@@ -4,7 +4,7 @@
 use anyhow::Context as _;
 use rtsl_runtime::api::Context;
 use rtsl_runtime::render::render_frame;
-use rtsl_runtime::scene_file::{add_mesh_file, frame_bounds};
+use rtsl_runtime::scene_file::{add_model_file, frame_bounds};
 use rtsl_runtime::{write_image, WriteOptions};
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -13,7 +13,7 @@ use std::process::ExitCode;
 /// Flags of `rtsl render`.
 #[derive(clap::Args, Debug, Clone)]
 pub struct RenderArgs {
-    /// The scene: a RIB file, or a mesh (OBJ, PLY). Without one, the embedded default scene.
+    /// The scene: a RIB file, or a model (OBJ, PLY, glTF). Without one, the embedded default scene.
     pub scene: Option<PathBuf>,
     /// The image to write (.png, .exr, .tga, .ppm); a RIB's `Display` names it otherwise.
     #[arg(short, long)]
@@ -81,11 +81,11 @@ pub(crate) fn load_scene(
                     }
                     output = loaded.display.map(|d| path.parent().unwrap_or(Path::new(".")).join(d));
                 }
-                Some("obj" | "ply") => {
-                    let bounds = add_mesh_file(&mut rt, path)?;
+                Some("obj" | "ply" | "gltf" | "glb") => {
+                    let bounds = add_model_file(&mut rt, path)?;
                     frame_bounds(&mut rt, bounds)?;
                 }
-                _ => anyhow::bail!("{}: unknown scene type (expected .rib, .obj or .ply)", path.display()),
+                _ => anyhow::bail!("{}: unknown scene type (expected .rib, .obj, .ply, .gltf or .glb)", path.display()),
             }
         }
     }

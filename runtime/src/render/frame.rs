@@ -54,6 +54,10 @@ pub struct FrameReport {
     pub transparency_rays: u64,
     pub shaded_points: u64,
     pub light_evaluations: u64,
+    /// Thread time spent shading (tracing excluded), summed over threads.
+    pub shading: Duration,
+    /// Threads that rendered.
+    pub threads: usize,
 }
 
 impl FrameReport {
@@ -64,6 +68,11 @@ impl FrameReport {
     pub fn rays_per_second(&self) -> f64 {
         self.total_rays() as f64 / self.elapsed.as_secs_f64().max(1e-9)
     }
+
+    /// The share of the threads' time spent shading.
+    pub fn shading_share(&self) -> f64 {
+        self.shading.as_secs_f64() / (self.elapsed.as_secs_f64() * self.threads.max(1) as f64).max(1e-9)
+    }
 }
 
 impl std::fmt::Display for FrameReport {
@@ -71,7 +80,7 @@ impl std::fmt::Display for FrameReport {
         let m = |n: u64| n as f64 / 1e6;
         write!(
             f,
-            "{:.1} ms, {:.2} M rays ({:.2} primary, {:.2} shadow, {:.2} secondary, {:.2} transparency), {:.2} M rays/s, {:.2} M shaded points",
+            "{:.1} ms, {:.2} M rays ({:.2} primary, {:.2} shadow, {:.2} secondary, {:.2} transparency), {:.2} M rays/s, {:.2} M shaded points, {:.0}% of the time shading",
             self.elapsed.as_secs_f64() * 1e3,
             m(self.total_rays()),
             m(self.primary_rays),
@@ -80,6 +89,7 @@ impl std::fmt::Display for FrameReport {
             m(self.transparency_rays),
             self.rays_per_second() / 1e6,
             m(self.shaded_points),
+            100.0 * self.shading_share(),
         )
     }
 }
@@ -205,6 +215,8 @@ pub fn render_frame(world: &World, progress: Option<&(dyn Fn(usize, usize) + Syn
         transparency_rays: load(&s.transparency_rays),
         shaded_points: load(&s.shaded_points),
         light_evaluations: load(&s.light_evaluations),
+        shading: Duration::from_nanos(load(&s.shading_ns)),
+        threads: rayon::current_num_threads(),
     };
     (fb, report)
 }

@@ -34,6 +34,53 @@ pub struct Stats {
     pub transparency_rays: AtomicU64,
     pub shaded_points: AtomicU64,
     pub light_evaluations: AtomicU64,
+    /// Time spent shading (surface and light shaders and the renderer's side of their calls),
+    /// tracing excluded, summed over threads.
+    pub shading_ns: AtomicU64,
+}
+
+thread_local! {
+    /// Nanoseconds this thread spent in tracer calls made while shading, and how deeply shading
+    /// is nested on this thread (trace() shades recursively; only the outermost level is timed).
+    static TRACE_NS: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
+    static SHADE_NESTING: std::cell::Cell<u32> = const { std::cell::Cell::new(0) };
+}
+
+/// Runs a tracer query, counting its time as tracing rather than shading.
+fn tracing<R>(f: impl FnOnce() -> R) -> R {
+    let start = std::time::Instant::now();
+    let r = f();
+    let ns = start.elapsed().as_nanos() as u64;
+    TRACE_NS.with(|t| t.set(t.get() + ns));
+    r
+}
+
+/// Times the outermost shading on this thread, tracing excluded.
+struct ShadingTimer<'a> {
+    stats: &'a Stats,
+    start: Option<(std::time::Instant, u64)>,
+}
+
+impl<'a> ShadingTimer<'a> {
+    fn start(stats: &'a Stats) -> ShadingTimer<'a> {
+        let outer = SHADE_NESTING.with(|n| {
+            n.set(n.get() + 1);
+            n.get() == 1
+        });
+        let start = outer.then(|| (std::time::Instant::now(), TRACE_NS.with(|t| t.get())));
+        ShadingTimer { stats, start }
+    }
+}
+
+impl Drop for ShadingTimer<'_> {
+    fn drop(&mut self) {
+        SHADE_NESTING.with(|n| n.set(n.get().saturating_sub(1)));
+        if let Some((start, traced_before)) = self.start {
+            let traced = TRACE_NS.with(|t| t.get()) - traced_before;
+            let ns = (start.elapsed().as_nanos() as u64).saturating_sub(traced);
+            self.stats.shading_ns.fetch_add(ns, Ordering::Relaxed);
+        }
+    }
 }
 
 impl Stats {
@@ -126,7 +173,7 @@ pub fn shade_packet(frame: &Frame, packet: &RayPacket, hits: &HitPacket, out: &m
 
 /// Traces and shades single rays (secondary rays: incoherent, traced one by one).
 pub fn trace_rays(frame: &Frame, rays: &[Ray], depth: u32) -> Vec<Sample> {
-    let hits: Vec<Hit> = rays.iter().map(|r| frame.world.scene.intersect(r)).collect();
+    let hits: Vec<Hit> = tracing(|| rays.iter().map(|r| frame.world.scene.intersect(r)).collect());
     let eye = frame.world.camera.eye();
     let diffs: Vec<RayDifferential> = rays
         .iter()
@@ -208,7 +255,7 @@ fn shade_hits(frame: &Frame, rays: &[Ray], diffs: &[RayDifferential], hits: &[Hi
                 let side = if r.ng.dot(p.ray.direction) > 0.0 { r.ng } else { -r.ng };
                 let ray = Ray::new(offset_ray_origin(r.p, side), p.ray.direction);
                 Stats::add(&frame.stats.transparency_rays, 1);
-                let hit = world.scene.intersect(&ray);
+                let hit = tracing(|| world.scene.intersect(&ray));
                 if hit.is_hit() {
                     // The ray goes on unbent: its footprint starts where the surface's ended.
                     let diff = RayDifferential { dodx: r.dpdx, dody: r.dpdy, ..p.diff };
@@ -391,6 +438,7 @@ fn unit(h: u64) -> f32 {
 
 /// Shades hits that share material and instance.
 fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mut [Shaded]) {
+    let _timer = ShadingTimer::start(&frame.stats);
     let world = frame.world;
     let Some(inst) = world.instances.get(group[0].hit.instance as usize) else { return };
     let material = world.materials.get(inst.material as usize).unwrap_or(&DEFAULT_MATERIAL);
@@ -930,7 +978,7 @@ fn eval_light_lanes(
             }
             if packet.active != 0 {
                 Stats::add(&frame.stats.shadow_rays, packet.active.count_ones() as usize);
-                let blocked = frame.world.scene.occluded_packet(&packet);
+                let blocked = tracing(|| frame.world.scene.occluded_packet(&packet));
                 for (l, a) in attenuation.iter_mut().enumerate() {
                     if blocked >> l & 1 != 0 {
                         *a = Vec3A::ZERO;
@@ -1015,12 +1063,12 @@ fn transmission_along(frame: &Frame, from: Vec3A, dir: Vec3A, distance: f32) -> 
     let world = frame.world;
     Stats::add(&frame.stats.shadow_rays, 1);
     if !frame.transparent_shadows {
-        return if world.scene.occluded(&ray) { Vec3A::ZERO } else { Vec3A::ONE };
+        return if tracing(|| world.scene.occluded(&ray)) { Vec3A::ZERO } else { Vec3A::ONE };
     }
     let mut through = Vec3A::ONE;
     let mut start = eps;
     for _ in 0..world.options.max_transparent_layers {
-        let hit = world.scene.intersect(&Ray::segment(from, dir, start, tmax));
+        let hit = tracing(|| world.scene.intersect(&Ray::segment(from, dir, start, tmax)));
         if !hit.is_hit() {
             return through;
         }
@@ -1233,7 +1281,7 @@ fn hemisphere(frame: &Frame, p: Vec3A, n: Vec3A, count: u32, shade: bool, depth:
         let sum = seen.iter().fold(Vec3A::ZERO, |acc, s| acc + s.color);
         (blocked, sum / count as f32)
     } else {
-        let blocked = rays.iter().filter(|r| frame.world.scene.occluded(r)).count() as f32 / count as f32;
+        let blocked = tracing(|| rays.iter().filter(|r| frame.world.scene.occluded(r)).count()) as f32 / count as f32;
         (blocked, Vec3A::ZERO)
     }
 }

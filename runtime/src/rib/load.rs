@@ -13,7 +13,8 @@
 //!   retained object is the one current at `ObjectEnd`.
 //! - `AreaLightSource`: the geometry that follows in the same attribute block both renders and emits
 //!   (sampled for soft shadows).
-//! - `ReadArchive` of an `.obj`, `.ply` file adds that mesh under the current attributes.
+//! - `ReadArchive` of an `.obj`, `.ply`, `.gltf` or `.glb` file adds those meshes under the current
+//!   attributes.
 //!
 //! What cannot be honoured (a shader not found, a parameter the shader lacks or of the wrong type, a
 //! request the engine does not support yet) is a warning with the file, line and column, and
@@ -25,7 +26,7 @@ use super::request::{Handle, Param, ParamValue as RibValue, Request, RequestKind
 use super::{parse_file, parse_str, RibParse, Severity};
 use crate::api::{ApiError, Context, LightId, ObjectId};
 use crate::geometry::Mesh;
-use crate::scene_file::{add_mesh_file, SceneFileError};
+use crate::scene_file::{add_model_file, SceneFileError};
 use crate::shading::{ParamValue, ShaderProgram};
 use glam::{Affine3A, Mat4};
 use rtsl_compiler::ir::BaseType;
@@ -400,7 +401,7 @@ impl<'a> Loader<'a> {
             | K::Shutter(_) => self.warn(r, "this request is accepted but not honoured yet"),
             K::MeshArchive(path) => {
                 self.flush()?;
-                add_mesh_file(self.rt, path)?;
+                add_model_file(self.rt, path)?;
             }
         }
         Ok(())

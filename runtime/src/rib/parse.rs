@@ -445,7 +445,7 @@ impl Parser {
         let path = base_dir(&loc.file).join(&name);
         // A mesh file named as an archive is geometry for the engine to load, not RIB to read.
         let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-        if matches!(ext.as_deref(), Some("obj" | "ply")) {
+        if matches!(ext.as_deref(), Some("obj" | "ply" | "gltf" | "glb")) {
             self.requests.push(Request { kind: crate::rib::RequestKind::MeshArchive(path), loc: loc.clone() });
             return Ok(());
         }

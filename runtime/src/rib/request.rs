@@ -381,7 +381,7 @@ pub enum RequestKind {
     SolidBegin(String),
     /// `SolidEnd`
     SolidEnd,
-    /// `ReadArchive "mesh.obj"` (or `.ply`): a mesh file to add under the current attributes (an
+    /// `ReadArchive "mesh.obj"` (or `.ply`, `.gltf`, `.glb`): a mesh file to add under the current attributes (an
     /// rtsl extension; other archives are RIB, expanded in place).
     MeshArchive(std::path::PathBuf),
     /// `Basis ustep vstep` with each basis a name or a matrix.
