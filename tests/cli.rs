@@ -137,3 +137,44 @@ fn bad_input_gives_clear_errors_not_panics() {
     assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("defines no shader"), "{}", stderr(&o));
 }
+
+#[test]
+fn render_with_no_scene_renders_the_default_scene() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let o = rtsl(&["render", "-o", "out.png", "--size", "64x48", "--samples", "1", "--threads", "2"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let out = stdout(&o);
+    assert!(out.starts_with("out.png: 64x48, 1 sample(s) per pixel, 2 thread(s)"), "{out}");
+    assert!(out.contains("M rays") && out.contains("shading"), "statistics: {out}");
+    let image = rtsl_runtime::read_image(&dir.path().join("out.png")).expect("a PNG");
+    assert_eq!((image.width, image.height), (64, 48));
+    assert!(image.pixels.chunks(4).filter(|p| p[0] + p[1] + p[2] > 0.1).count() > 1000, "the scene is lit");
+}
+
+#[test]
+fn render_writes_exr_and_reports_bad_scenes_with_their_location() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    write(
+        dir.path(),
+        "scene.rib",
+        "Format 32 24 1\nTranslate 0 0 5\nWorldBegin\nLightSource \"distantlight\" 1\nSurface \"plastic\"\nSphere 1 -1 1 360\nWorldEnd\n",
+    );
+    let o = rtsl(&["render", "scene.rib", "-o", "out.exr", "--quiet"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(stdout(&o).is_empty());
+    let image = rtsl_runtime::read_image(&dir.path().join("out.exr")).expect("an EXR");
+    assert_eq!(image.pixels[4 * (12 * 32 + 16) + 3], 1.0, "the sphere covers the centre");
+
+    write(dir.path(), "broken.rib", "WorldBegin\nSphere 1 ]\nWorldEnd\n");
+    let o = rtsl(&["render", "broken.rib"], dir.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("broken.rib:2:"), "{}", stderr(&o));
+
+    let o = rtsl(&["render", "missing.rib"], dir.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("missing.rib"), "{}", stderr(&o));
+
+    let o = rtsl(&["render", "--size", "0x10"], dir.path());
+    assert_eq!(o.status.code(), Some(2), "a clap usage error");
+    assert!(stderr(&o).contains("at least 1x1"), "{}", stderr(&o));
+}

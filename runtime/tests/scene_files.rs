@@ -1,0 +1,221 @@
+//! Scenes from files: RIB requests onto the engine (camera, attributes, shaders, lights, area lights,
+//! retained objects, archives, warnings with locations), models (OBJ, PLY, glTF) and textures.
+
+use rtsl_runtime::api::{ApiError, Context};
+use rtsl_runtime::render::{render_frame, Framebuffer};
+use rtsl_runtime::rib::load::load_str;
+use rtsl_runtime::scene_file::{add_model_file, SceneFileError};
+use std::path::Path;
+
+fn render(rt: &mut Context) -> Framebuffer {
+    let world = rt.build_world().expect("a world");
+    let (fb, _) = render_frame(&world, None);
+    rt.return_scene(world);
+    fb
+}
+
+fn load(rib: &str) -> (Context, Vec<String>) {
+    let mut rt = Context::new();
+    let loaded = load_str(&mut rt, rib, Path::new("test.rib")).unwrap_or_else(|e| panic!("{e}"));
+    (rt, loaded.warnings)
+}
+
+const CAMERA: &str = r#"
+Format 64 48 1
+Projection "perspective" "fov" [40]
+Translate 0 0 5
+WorldBegin
+"#;
+
+#[test]
+fn the_camera_is_the_transform_at_world_begin() {
+    // A constant red square straight ahead of the camera (RenderMan's camera looks down +z).
+    let (mut rt, warnings) = load(&format!(
+        "{CAMERA} Surface \"constant\" Color [1 0 0] Polygon \"P\" [-1 -1 0  1 -1 0  1 1 0  -1 1 0] WorldEnd"
+    ));
+    assert!(warnings.is_empty(), "{warnings:?}");
+    assert_eq!((rt.options.width, rt.options.height), (64, 48));
+    let fb = render(&mut rt);
+    assert_eq!(fb.pixel(32, 24), [1.0, 0.0, 0.0, 1.0]);
+    assert_eq!(fb.pixel(0, 0), [0.0; 4]);
+}
+
+#[test]
+fn attribute_blocks_scope_colour_and_shaders() {
+    let (mut rt, warnings) = load(&format!(
+        r#"{CAMERA}
+        Surface "constant"
+        AttributeBegin
+          Color [0 1 0]
+          Translate -1.2 0 0
+          Polygon "P" [-1 -1 0  1 -1 0  1 1 0  -1 1 0]
+        AttributeEnd
+        Translate 1.2 0 0
+        Polygon "P" [-1 -1 0  1 -1 0  1 1 0  -1 1 0]
+        WorldEnd"#
+    ));
+    assert!(warnings.is_empty(), "{warnings:?}");
+    let fb = render(&mut rt);
+    // RenderMan's camera is left-handed: world -x is on the image's left.
+    assert_eq!(fb.pixel(14, 24)[..3], [0.0, 1.0, 0.0], "inside the block");
+    assert_eq!(fb.pixel(50, 24)[..3], [1.0, 1.0, 1.0], "after it, the colour is back to white");
+}
+
+#[test]
+fn shader_parameters_need_no_declaration_and_bad_ones_warn_with_their_location() {
+    let (mut rt, warnings) = load(&format!(
+        "{CAMERA}\nSurface \"constant\"\nSurface \"plastic\" \"Kd\" [0.2] \"nosuch\" [1] \"Ks\" [1 2 3]\n\
+         LightSource \"distantlight\" 1 \"intensity\" [1]\nPolygon \"P\" [-1 -1 0  1 -1 0  1 1 0  -1 1 0]\nWorldEnd"
+    ));
+    assert_eq!(warnings.len(), 2, "{warnings:?}");
+    assert!(warnings[0] == "test.rib:8:30: warning: shader plastic has no parameter nosuch", "{warnings:?}");
+    assert!(warnings[1].starts_with("test.rib:8:43: warning: parameter Ks of shader plastic is float"), "{warnings:?}");
+    let fb = render(&mut rt);
+    assert!(fb.pixel(32, 24)[0] > 0.0);
+}
+
+#[test]
+fn syntax_errors_stop_the_load_and_name_every_place() {
+    let mut rt = Context::new();
+    let err = load_str(&mut rt, "WorldBegin\nTranslate 1 2\nSphere 1 ]\nWorldEnd\n", Path::new("bad.rib"))
+        .expect_err("syntax errors");
+    let text = err.to_string();
+    assert!(text.contains("bad.rib:2:") && text.contains("bad.rib:3:"), "{text}");
+}
+
+#[test]
+fn unknown_shaders_are_reported_not_fatal() {
+    let mut rt = Context::new();
+    let err = load_str(&mut rt, "WorldBegin\nSurface \"no_such_shader\"\nWorldEnd\n", Path::new("s.rib"));
+    match err {
+        Ok(loaded) => assert!(loaded.warnings.iter().any(|w| w.contains("s.rib:2:1") && w.contains("no_such_shader"))),
+        Err(e) => panic!("{e}"),
+    }
+}
+
+#[test]
+fn illuminate_switches_lights_and_area_lights_cast_soft_shadows() {
+    let scene = |extra: &str| {
+        format!(
+            r#"Format 64 48 1
+            Projection "perspective" "fov" [50]
+            Rotate -60 1 0 0
+            Translate 0 -4 2.5
+            WorldBegin
+              AttributeBegin
+                AreaLightSource "arealight" 1 "intensity" [4]
+                Attribute "light" "nsamples" [16]
+                Translate 0 3 0
+                Rotate 90 1 0 0
+                Disk 0 0.8 360
+              AttributeEnd
+              {extra}
+              Surface "matte"
+              Polygon "P" [-4 0 -4  4 0 -4  4 0 4  -4 0 4]
+              AttributeBegin
+                Translate 0 1 0
+                Sphere 0.5 -0.5 0.5 360
+              AttributeEnd
+            WorldEnd"#
+        )
+    };
+    let (mut rt, warnings) = load(&scene(""));
+    assert!(warnings.is_empty(), "{warnings:?}");
+    let fb = render(&mut rt);
+    // Along a row through the shadow, brightness takes many values (a penumbra), not two.
+    let row: Vec<f32> = (0..64).map(|x| fb.pixel(x, 30)[0]).collect();
+    let mut levels: Vec<u32> = row.iter().map(|v| (v * 200.0) as u32).collect();
+    levels.sort_unstable();
+    levels.dedup();
+    assert!(levels.len() > 8, "a soft shadow has a gradient: {row:?}");
+    let (mut off, _) = load(&scene("Illuminate 1 0"));
+    let dark = render(&mut off);
+    assert!(dark.rgba.chunks(4).all(|p| p[0] == 0.0), "with the only light off, all is black");
+}
+
+#[test]
+fn retained_objects_are_instanced() {
+    let (mut rt, warnings) = load(&format!(
+        r#"{CAMERA}
+        ObjectBegin "square"
+          Polygon "P" [-0.5 -0.5 0  0.5 -0.5 0  0.5 0.5 0  -0.5 0.5 0]
+        ObjectEnd
+        Surface "constant"
+        AttributeBegin Translate -1 0 0 ObjectInstance "square" AttributeEnd
+        AttributeBegin Translate 1 0 0 ObjectInstance "square" AttributeEnd
+        ObjectInstance "nosuch"
+        WorldEnd"#
+    ));
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    let fb = render(&mut rt);
+    let covered = fb.rgba.chunks(4).filter(|p| p[3] > 0.5).count();
+    assert!(fb.pixel(32, 24)[3] == 0.0, "nothing between the two");
+    assert!(covered > 200, "two squares: {covered} pixels");
+}
+
+#[test]
+fn textures_from_memory_are_looked_up_by_name() -> Result<(), ApiError> {
+    let mut rt = Context::new();
+    rt.options.width = 32;
+    rt.options.height = 24;
+    // An 8x1 texture: red on the left half, blue on the right.
+    let texels: Vec<f32> = (0..8).flat_map(|i| if i < 4 { [1.0, 0.0, 0.0] } else { [0.0, 0.0, 1.0] }).collect();
+    rt.tex_image_2d("halves", 8, 1, 3, &texels)?;
+    assert!(matches!(rt.tex_image_2d("bad", 2, 2, 3, &[0.0; 5]), Err(ApiError::BadTexture { .. })));
+    let shader = rt.compile_shader("tex.sl", "surface tex() { Oi = 1; Ci = color texture(\"halves\", s, t); }")?;
+    rt.camera_look_at(glam::Vec3A::new(0.0, 0.0, 3.0), glam::Vec3A::ZERO, glam::Vec3A::Y, 60.0);
+    let o = rt.begin_object()?;
+    rt.bind_shader(shader)?;
+    rt.begin(rtsl_runtime::api::Primitive::Quads)?;
+    for (x, y, s, t) in [(-5.0, -5.0, 0.0, 1.0), (5.0, -5.0, 1.0, 1.0), (5.0, 5.0, 1.0, 0.0), (-5.0, 5.0, 0.0, 0.0)] {
+        rt.tex_coord(s, t);
+        rt.vertex(x, y, 0.0)?;
+    }
+    rt.end()?;
+    rt.end_object()?;
+    rt.instantiate_object(o)?;
+    let fb = render(&mut rt);
+    let (left, right) = (fb.pixel(4, 12), fb.pixel(27, 12));
+    assert!(left[0] > 0.9 && left[2] < 0.1, "{left:?}");
+    assert!(right[2] > 0.9 && right[0] < 0.1, "{right:?}");
+    Ok(())
+}
+
+fn shared(path: &str) -> Option<std::path::PathBuf> {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/scenes").join(path);
+    if p.exists() {
+        Some(p)
+    } else {
+        eprintln!("skipped: {} is absent (the shared test scenes are not here)", p.display());
+        None
+    }
+}
+
+#[test]
+fn models_load_from_obj_ply_and_gltf() -> Result<(), SceneFileError> {
+    for (file, triangles) in [
+        ("cornell_box/cornell_box.obj", 36),
+        ("stanford_dragon/dragon_vrip_res2.ply", 202_520),
+        ("box_animated_gltf/BoxAnimated.gltf", 254),
+    ] {
+        let Some(path) = shared(file) else { continue };
+        let mut rt = Context::new();
+        rt.options.width = 32;
+        rt.options.height = 24;
+        let (lo, hi) = add_model_file(&mut rt, &path)?;
+        assert!(lo.cmplt(hi).all(), "{file}: bounds {lo} {hi}");
+        rtsl_runtime::scene_file::frame_bounds(&mut rt, (lo, hi))?;
+        let world = rt.build_world()?;
+        let count: usize = (0..world.instances.len())
+            .filter_map(|i| world.scene.mesh(rtsl_runtime::ObjectId(world.instances[i].object)))
+            .map(|m| m.triangle_count())
+            .sum();
+        assert!(count >= triangles, "{file}: {count} triangles");
+        let (fb, _) = render_frame(&world, None);
+        assert!(fb.rgba.chunks(4).any(|p| p[3] > 0.0), "{file}: the model is in view");
+    }
+    let mut rt = Context::new();
+    assert!(matches!(add_model_file(&mut rt, Path::new("x.blend")), Err(SceneFileError::UnknownType { .. })));
+    assert!(add_model_file(&mut rt, Path::new("/nonexistent/x.obj")).is_err());
+    Ok(())
+}
