@@ -146,7 +146,7 @@ fn render_with_no_scene_renders_the_default_scene() {
     let out = stdout(&o);
     assert!(out.starts_with("out.png: 64x48, 1 sample(s) per pixel, 2 thread(s)"), "{out}");
     assert!(out.contains("M rays") && out.contains("shading"), "statistics: {out}");
-    let image = rtsl_runtime::read_image(&dir.path().join("out.png")).expect("a PNG");
+    let image = rtsl_runtime::read_image(dir.path().join("out.png")).expect("a PNG");
     assert_eq!((image.width, image.height), (64, 48));
     assert!(image.pixels.chunks(4).filter(|p| p[0] + p[1] + p[2] > 0.1).count() > 1000, "the scene is lit");
 }
@@ -162,7 +162,7 @@ fn render_writes_exr_and_reports_bad_scenes_with_their_location() {
     let o = rtsl(&["render", "scene.rib", "-o", "out.exr", "--quiet"], dir.path());
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     assert!(stdout(&o).is_empty());
-    let image = rtsl_runtime::read_image(&dir.path().join("out.exr")).expect("an EXR");
+    let image = rtsl_runtime::read_image(dir.path().join("out.exr")).expect("an EXR");
     assert_eq!(image.pixels[4 * (12 * 32 + 16) + 3], 1.0, "the sphere covers the centre");
 
     write(dir.path(), "broken.rib", "WorldBegin\nSphere 1 ]\nWorldEnd\n");
