@@ -457,8 +457,8 @@ fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mut [Shaded])
             let cs = g.cs.unwrap_or(color);
             let os = g.os.unwrap_or(opacity);
             let facing = g.n.dot(-p.ray.direction.normalize_or_zero()).abs();
-            let d = g.derivs(p);
-            *o = Shaded { ci: os * cs * (0.2 + 0.8 * facing), oi: os, p: g.p, ng: g.ng, dpdx: d.dp[0], dpdy: d.dp[1] };
+            let (dpdx, dpdy) = p.diff.at_hit(p.ray.direction, p.hit.t, g.ng);
+            *o = Shaded { ci: os * cs * (0.2 + 0.8 * facing), oi: os, p: g.p, ng: g.ng, dpdx, dpdy };
         }
         return;
     };
@@ -466,6 +466,7 @@ fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mut [Shaded])
     let slots = &program.slots;
     let vertex_params = world.vertex_params.get(group[0].hit.instance as usize);
     let deriv_slots = program.layout().deriv_slots;
+    let needs_derivs = deriv_slots > 0 || slots.du.is_some() || slots.dv.is_some();
     let mut footprints = vec![[Vec3A::ZERO; 2]; group.len()];
     with_batch(program, group.len(), |batch| {
         {
@@ -493,19 +494,26 @@ fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mut [Shaded])
                 put3(&mut raw, slots.os, lane, os);
                 put3(&mut raw, slots.oi, lane, os);
                 put1(&mut raw, slots.ncomps, lane, 3.0);
-                let d = g.derivs(p);
-                put1(&mut raw, slots.du, lane, d.du[0].abs().max(d.du[1].abs()));
-                put1(&mut raw, slots.dv, lane, d.dv[0].abs().max(d.dv[1].abs()));
-                if deriv_slots > 0 {
-                    put_d3(&mut raw, slots.p, deriv_slots, lane, d.dp);
-                    put_d3(&mut raw, slots.i, deriv_slots, lane, d.dp);
-                    put_d3(&mut raw, slots.n, deriv_slots, lane, d.dn);
-                    put_d1(&mut raw, slots.u, deriv_slots, lane, d.du);
-                    put_d1(&mut raw, slots.v, deriv_slots, lane, d.dv);
-                    put_d1(&mut raw, slots.s, deriv_slots, lane, d.ds);
-                    put_d1(&mut raw, slots.t, deriv_slots, lane, d.dt);
+                // The full set of derivatives only for shaders that use them (they cost a few
+                // solves per hit); the footprint, for rays continuing through, always.
+                if needs_derivs {
+                    let d = g.derivs(p);
+                    put1(&mut raw, slots.du, lane, d.du[0].abs().max(d.du[1].abs()));
+                    put1(&mut raw, slots.dv, lane, d.dv[0].abs().max(d.dv[1].abs()));
+                    if deriv_slots > 0 {
+                        put_d3(&mut raw, slots.p, deriv_slots, lane, d.dp);
+                        put_d3(&mut raw, slots.i, deriv_slots, lane, d.dp);
+                        put_d3(&mut raw, slots.n, deriv_slots, lane, d.dn);
+                        put_d1(&mut raw, slots.u, deriv_slots, lane, d.du);
+                        put_d1(&mut raw, slots.v, deriv_slots, lane, d.dv);
+                        put_d1(&mut raw, slots.s, deriv_slots, lane, d.ds);
+                        put_d1(&mut raw, slots.t, deriv_slots, lane, d.dt);
+                    }
+                    footprints[lane] = d.dp;
+                } else {
+                    let (dx, dy) = p.diff.at_hit(p.ray.direction, p.hit.t, g.ng);
+                    footprints[lane] = [dx, dy];
                 }
-                footprints[lane] = d.dp;
                 if let Some(vp) = vertex_params {
                     for &(param, attr) in vp {
                         let slot = &program.layout().params[param];
@@ -575,8 +583,8 @@ fn shade_native(
         }));
         let i = g.p - group[k].ray.origin;
         let (ci, oi) = native.shade(g.n, i, g.cs.unwrap_or(color), g.os.unwrap_or(opacity), &seen);
-        let d = g.derivs(&group[k]);
-        out[k] = Shaded { ci, oi, p: g.p, ng: g.ng, dpdx: d.dp[0], dpdy: d.dp[1] };
+        let (dpdx, dpdy) = group[k].diff.at_hit(group[k].ray.direction, group[k].hit.t, g.ng);
+        out[k] = Shaded { ci, oi, p: g.p, ng: g.ng, dpdx, dpdy };
     }
 }
 
@@ -1029,24 +1037,22 @@ struct BatchLights {
 impl BatchLights {
     fn compute(frame: &Frame, points: &[Vec3A], mask: &[i32], depth: u32) -> BatchLights {
         let n = points.len();
-        let mut per_lane: Vec<Vec<HostLight>> = vec![Vec::new(); n];
+        let slots: usize = frame.world.lights.iter().map(|l| l.area.as_ref().map_or(1, |a| a.samples as usize)).sum();
+        let slots = slots.min(MAX_LIGHTS);
+        let mut counts = vec![0u32; n];
+        let mut lights = vec![HostLight::default(); slots * n];
         for light in &frame.world.lights {
             if light.in_category("") {
                 eval_light_lanes(frame, light, mask, points, depth, |l, h| {
-                    if per_lane[l].len() < MAX_LIGHTS {
-                        per_lane[l].push(h);
+                    let k = counts[l] as usize;
+                    if k < slots {
+                        lights[k * n + l] = h;
+                        counts[l] += 1;
                     }
                 });
             }
         }
-        let max = per_lane.iter().map(Vec::len).max().unwrap_or(0);
-        let mut lights = vec![HostLight::default(); max * n];
-        for (l, list) in per_lane.iter().enumerate() {
-            for (k, h) in list.iter().enumerate() {
-                lights[k * n + l] = *h;
-            }
-        }
-        BatchLights { n, counts: per_lane.iter().map(|v| v.len() as u32).collect(), lights }
+        BatchLights { n, counts, lights }
     }
 }
 

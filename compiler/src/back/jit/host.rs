@@ -391,10 +391,16 @@ pub struct HostCtx {
     table: *const HostTable,
     light_sets: Vec<LightSet>,
     light_buffer: Vec<HostLight>,
+    /// The last light query (category, points' bits, lanes) and its counts, answered from
+    /// `light_buffer`.
+    last_lights: Option<(LightQueryKey, [u32; 4])>,
     /// The space matrices asked so far, by (from, to) string handle: each pair is asked of the
     /// renderer once per batch, however many chunks use it.
     matrices: Vec<((u32, u32), Option<M4>)>,
 }
+
+/// What identifies a light query: category, the points' bits, the lanes asking.
+type LightQueryKey = (String, [u32; 12], [bool; 4]);
 
 struct LightSet {
     lights: Vec<HostLight>,
@@ -404,7 +410,7 @@ struct LightSet {
 
 impl HostCtx {
     pub(super) fn new(table: *const HostTable) -> HostCtx {
-        HostCtx { table, light_sets: Vec::new(), light_buffer: Vec::new(), matrices: Vec::new() }
+        HostCtx { table, light_sets: Vec::new(), light_buffer: Vec::new(), last_lights: None, matrices: Vec::new() }
     }
 }
 
@@ -463,6 +469,15 @@ impl Cx<'_> {
     fn lights(&mut self, category: &str, k: usize) -> [u32; 4] {
         let mut counts = [0u32; 4];
         let Some(t) = self.table else { return counts };
+        // `ambient()`, `diffuse()` and `specular()` of one chunk ask for the same lights: the renderer
+        // is asked once per (category, points, lanes).
+        let points: [u32; 12] = std::array::from_fn(|i| self.input[4 * k + i].to_bits());
+        let key = (category.to_string(), points, self.mask);
+        if let Some((last, counts)) = &self.ctx.last_lights {
+            if *last == key {
+                return *counts;
+            }
+        }
         // One buffer per batch: the renderer writes the entries it counts, and only those are read.
         let out = &mut self.ctx.light_buffer;
         out.resize(MAX_LIGHTS * 4, HostLight::default());
@@ -478,7 +493,9 @@ impl Cx<'_> {
                 counts.as_mut_ptr(),
             )
         };
-        counts.map(|c| c.min(MAX_LIGHTS as u32))
+        let counts = counts.map(|c| c.min(MAX_LIGHTS as u32));
+        self.ctx.last_lights = Some((key, counts));
+        counts
     }
 
     /// Lane `l`'s lights after [`Cx::lights`] counted `n` of them.
