@@ -178,3 +178,20 @@ fn render_writes_exr_and_reports_bad_scenes_with_their_location() {
     assert_eq!(o.status.code(), Some(2), "a clap usage error");
     assert!(stderr(&o).contains("at least 1x1"), "{}", stderr(&o));
 }
+
+#[test]
+fn shade_runs_a_surface_shader_over_a_grid() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    write(dir.path(), "st.sl", "surface st(float k = 1;) { Oi = 1; Ci = color(s, t, k); }\n");
+    let o = rtsl(&["shade", "st.sl", "-g", "8", "4", "--param", "k=0.5", "-o", "st.exr", "--iters", "3"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(stdout(&o).contains("M points/s"), "{}", stdout(&o));
+    let image = rtsl_runtime::read_image(dir.path().join("st.exr")).expect("an EXR");
+    assert_eq!((image.width, image.height), (8, 4));
+    // Point (3, 1): s = 3.5 / 8, t = 1.5 / 4.
+    let p = &image.pixels[4 * (8 + 3)..4 * (8 + 4)];
+    assert_eq!(p, &[3.5 / 8.0, 1.5 / 4.0, 0.5, 1.0]);
+    let o = rtsl(&["shade", "st.sl", "--param", "nosuch=1"], dir.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("no parameter `nosuch`"), "{}", stderr(&o));
+}

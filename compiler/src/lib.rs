@@ -10,6 +10,7 @@
 //! crate's public API, and shaders reach the renderer only through the services trait it defines.
 
 pub mod back;
+pub mod bench;
 pub mod builtins;
 pub mod compile;
 pub mod diagnostic;
@@ -21,6 +22,7 @@ pub mod ir;
 pub mod shadeops;
 pub mod source;
 pub mod symbol;
+pub mod testshade;
 pub mod valid;
 
 pub use compile::{compile_file, compile_source, compile_source_at, Compilation, Options, Session};

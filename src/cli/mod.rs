@@ -4,6 +4,7 @@ mod bench;
 mod compile;
 mod info;
 mod render;
+mod shade;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -19,6 +20,8 @@ struct Cli {
 enum Command {
     /// Render a scene (a RIB file or a mesh; with none, the embedded default scene) to an image.
     Render(render::RenderArgs),
+    /// Run a surface shader over a grid of points with no scene and write Ci (like OSL's testshade).
+    Shade(shade::ShadeArgs),
     /// Check shaders: files, or directories searched recursively for `.sl` files.
     Compile(compile::CompileArgs),
     /// Show a shader's type, name and parameters.
@@ -37,6 +40,8 @@ enum BenchCommand {
     /// Rendering speed of a scene: frames and rays per second, and the JIT's cost against
     /// hand-written Rust plastic.
     Render(bench::BenchRenderArgs),
+    /// Shading speed (JIT vs interpreter vs hand-written Rust) and compile cost of a library.
+    Shade(shade::BenchShadeArgs),
 }
 
 /// Runs the command line; the exit code says whether everything succeeded.
@@ -44,10 +49,12 @@ pub fn run() -> anyhow::Result<ExitCode> {
     let cli = Cli::parse();
     match cli.command {
         Command::Render(args) => render::run(&args),
+        Command::Shade(args) => shade::run(&args),
         Command::Compile(args) => compile::run(&args),
         Command::Info(args) => info::run(&args),
         Command::Bench(BenchCommand::Frontend(args)) => compile::bench_frontend(&args),
         Command::Bench(BenchCommand::Trace(args)) => bench::run_trace(&args).map(|()| ExitCode::SUCCESS),
         Command::Bench(BenchCommand::Render(args)) => bench::run_render(&args).map(|()| ExitCode::SUCCESS),
+        Command::Bench(BenchCommand::Shade(args)) => shade::bench(&args),
     }
 }

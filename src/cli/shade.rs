@@ -1,0 +1,115 @@
+//! `rtsl shade`: runs a surface shader over a grid of points with no scene and writes `Ci` as an
+//! image (like OSL's `testshade`); `rtsl bench shade`: the JIT against the interpreter and
+//! hand-written Rust, and the compile cost of a shader library.
+
+use anyhow::Context as _;
+use rtsl_compiler::bench::{compile_benchmark, shading_benchmark};
+use rtsl_compiler::interp::TestHost;
+use rtsl_compiler::testshade::{parse_param, Grid, ParamArg};
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Instant;
+
+/// Flags of `rtsl shade`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct ShadeArgs {
+    /// The surface shader.
+    pub file: PathBuf,
+    /// Grid size: width and height in points.
+    #[arg(short = 'g', long = "grid", num_args = 2, value_names = ["W", "H"], default_values_t = [256, 256])]
+    pub grid: Vec<usize>,
+    /// A parameter value, `NAME=VALUE` (`0.5`, `1,0,0`, or text for strings); repeatable.
+    #[arg(long = "param", value_parser = parse_param)]
+    pub params: Vec<(String, ParamArg)>,
+    /// Write `Ci` (and the mean of `Oi` as alpha) to this image (.png, .exr, .tga, .ppm).
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+    /// Shade the grid this many times and print shaded points per second.
+    #[arg(long, default_value_t = 1)]
+    pub iters: usize,
+    /// Directories searched for `#include`.
+    #[arg(short = 'I', long = "include")]
+    pub include: Vec<PathBuf>,
+}
+
+pub fn run(args: &ShadeArgs) -> anyhow::Result<ExitCode> {
+    let mut options = rtsl_compiler::Options::default();
+    options.preprocessor.include_paths = args.include.clone();
+    let c = rtsl_compiler::compile_file(&args.file, &options)
+        .with_context(|| format!("reading {}", args.file.display()))?;
+    if !c.diagnostics.is_empty() {
+        eprint!("{}", c.render());
+    }
+    let Some(module) = c.module.as_ref() else { return Ok(ExitCode::from(1)) };
+    let (w, h) = (args.grid[0].max(1), args.grid[1].max(1));
+    let mut grid = Grid::new(module, w, h, &args.params).with_context(|| format!("{}", args.file.display()))?;
+    let mut host = TestHost::default();
+    let start = Instant::now();
+    for _ in 0..args.iters.max(1) {
+        grid.shade(&mut host);
+    }
+    let elapsed = start.elapsed().as_secs_f64();
+    for line in &host.printed {
+        print!("{line}");
+    }
+    if args.iters > 1 {
+        let points = (grid.points() * args.iters) as f64;
+        println!(
+            "{:.2} M points/s ({:.1} ns per point, {} x {w}x{h})",
+            points / elapsed / 1e6,
+            elapsed * 1e9 / points,
+            args.iters
+        );
+    }
+    if let Some(out) = &args.output {
+        rtsl_runtime::write_image(out, w, h, &grid.image(), &rtsl_runtime::WriteOptions::default())
+            .with_context(|| format!("writing {}", out.display()))?;
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Flags of `rtsl bench shade`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct BenchShadeArgs {
+    /// Points shaded per repeat.
+    #[arg(long, default_value_t = 16384)]
+    pub points: usize,
+    /// Repeats for the JIT and the Rust code.
+    #[arg(long, default_value_t = 20)]
+    pub repeats: usize,
+    /// The library whose compile cost is measured.
+    #[arg(long, default_value = "stdlib_shaders")]
+    pub library: PathBuf,
+}
+
+pub fn bench(args: &BenchShadeArgs) -> anyhow::Result<ExitCode> {
+    let rows = shading_benchmark(args.points, args.repeats.max(1)).map_err(anyhow::Error::msg)?;
+    println!("shader   jit ns/pt  interpreter ns/pt  rust ns/pt  jit/rust  interpreter/jit  max |jit-rust|");
+    for r in &rows {
+        println!(
+            "{:<8} {:>9.1} {:>18.1} {:>11.1} {:>9.3} {:>16.1} {:>15.2e}",
+            r.shader,
+            r.jit_ns,
+            r.interpreter_ns,
+            r.rust_ns,
+            r.jit_ns / r.rust_ns.max(1e-9),
+            r.interpreter_ns / r.jit_ns.max(1e-9),
+            r.max_difference
+        );
+    }
+    let mut compile = compile_benchmark(&args.library).map_err(anyhow::Error::msg)?;
+    compile.sort_by(|a, b| a.micros.total_cmp(&b.micros));
+    if let (Some(max), false) = (compile.last(), compile.is_empty()) {
+        let median = compile[compile.len() / 2].micros;
+        let total: f64 = compile.iter().map(|r| r.micros).sum();
+        println!(
+            "compile (source to callable code, one thread): {} shaders, median {:.2} ms, max {:.2} ms ({}), total {:.1} ms",
+            compile.len(),
+            median / 1e3,
+            max.micros / 1e3,
+            max.name,
+            total / 1e3
+        );
+    }
+    Ok(ExitCode::SUCCESS)
+}
