@@ -59,11 +59,22 @@ pub struct Grid {
 
 impl Grid {
     pub fn new(module: &Module, width: usize, height: usize, params: &[(String, ParamArg)]) -> Result<Grid, GridError> {
+        Self::with_sources(module, None, width, height, params)
+    }
+
+    /// As [`Grid::new`], with the compilation's sources so runtime checks name file and line.
+    pub fn with_sources(
+        module: &Module,
+        sources: Option<&crate::source::SourceMap>,
+        width: usize,
+        height: usize,
+        params: &[(String, ParamArg)],
+    ) -> Result<Grid, GridError> {
         let kind = module.shader.as_ref().map(|s| s.kind).ok_or(JitError::NoShader)?;
         if kind != ShaderKind::Surface {
             return Err(GridError::NotSurface(kind));
         }
-        let shader = jit::compile(module)?;
+        let shader = jit::compile_with(module, sources, &jit::JitOptions::default())?;
         let (w, h) = (width.max(1), height.max(1));
         let total = w * h;
         let mut batches = Vec::new();
@@ -117,6 +128,11 @@ impl Grid {
         for b in &mut self.batches {
             self.shader.shade_with(b, host);
         }
+    }
+
+    /// What the shader's runtime checks found (see `CompiledShader::runtime_errors`).
+    pub fn runtime_errors(&self) -> Vec<String> {
+        self.shader.runtime_errors()
     }
 
     pub fn points(&self) -> usize {

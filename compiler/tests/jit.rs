@@ -962,3 +962,56 @@ fn texture_footprints_from_derivatives() {
     let fp = interp::TextureFootprint { dsdx: 0.1, dtdx: 0.0, dsdy: 0.1, dtdy: 0.0, blur: 0.0 };
     assert_eq!(host.texture_filtered("grid.tx", 0.01, 0.01, &fp, 0, 1), Some(vec![0.5]));
 }
+
+// ---- Runtime checks ----
+
+fn compiled_with_sources(src: &str, budget: u32) -> CompiledShader {
+    let c = compile_source("checks.sl", src, &Options::default());
+    assert!(c.ok(), "{}", c.render());
+    let m = c.module.as_ref().expect("a module");
+    jit::compile_with(m, Some(&c.sources), &jit::JitOptions { loop_budget: budget }).expect("jit")
+}
+
+#[test]
+fn a_loop_that_never_ends_is_stopped_and_reported_once() {
+    let shader = compiled_with_sources(
+        "surface spin() {\n  float x = 0;\n  while (1) {\n    x += 1;\n  }\n  Ci = color(x);\n  Oi = 1;\n}\n",
+        1000,
+    );
+    let mut batch = shader.batch(7);
+    shader.shade(&mut batch);
+    // The loop body ran the budget's worth of times, then the shader went on.
+    assert_eq!(batch.global("Ci", 6), Some(vec![1000.0; 3]));
+    let errors = shader.runtime_errors();
+    assert_eq!(errors, vec!["the loop at checks.sl:3:3 ran more than 1000 times in one entry and was stopped"]);
+    shader.shade(&mut batch);
+    assert!(shader.runtime_errors().is_empty(), "each place is reported once");
+}
+
+#[test]
+fn an_index_out_of_range_is_clamped_and_reported() {
+    let shader = compiled_with_sources(
+        "surface pick(float k = 0;) {\n  float a[3] = {1, 2, 3};\n  Ci = color(a[k * s]);\n  Oi = 1;\n}\n",
+        1 << 20,
+    );
+    let mut batch = shader.batch(4);
+    for lane in 0..4 {
+        batch.set_global("s", lane, &[lane as f32]);
+    }
+    batch.set_param("k", 0, &[1.0]);
+    shader.shade(&mut batch);
+    // Lanes 0..2 index in range; lane 3's index 3 is clamped to the last element (the interpreter's
+    // rule) and reported once, with its place.
+    let got: Vec<f32> = (0..4).map(|l| batch.global("Ci", l).expect("Ci")[0]).collect();
+    assert_eq!(got, vec![1.0, 2.0, 3.0, 3.0]);
+    let errors = shader.runtime_errors();
+    assert_eq!(errors.len(), 1, "{errors:?}");
+    assert!(
+        errors[0].starts_with("an array index at checks.sl:3:") && errors[0].ends_with("was clamped"),
+        "{errors:?}"
+    );
+    // In range everywhere: nothing to report.
+    batch.set_param("k", 0, &[0.5]);
+    shader.shade(&mut batch);
+    assert!(shader.runtime_errors().is_empty());
+}

@@ -128,6 +128,9 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
     for w in world.textures.take_warnings() {
         eprintln!("warning: {w}");
     }
+    for m in &report.shader_messages {
+        eprintln!("warning: {m}");
+    }
     write_image(&output, fb.width as usize, fb.height as usize, &fb.rgba, &WriteOptions::default())
         .with_context(|| format!("writing {}", output.display()))?;
     if !args.quiet {

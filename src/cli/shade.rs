@@ -42,13 +42,17 @@ pub fn run(args: &ShadeArgs) -> anyhow::Result<ExitCode> {
     }
     let Some(module) = c.module.as_ref() else { return Ok(ExitCode::from(1)) };
     let (w, h) = (args.grid[0].max(1), args.grid[1].max(1));
-    let mut grid = Grid::new(module, w, h, &args.params).with_context(|| format!("{}", args.file.display()))?;
+    let mut grid = Grid::with_sources(module, Some(&c.sources), w, h, &args.params)
+        .with_context(|| format!("{}", args.file.display()))?;
     let mut host = TestHost::default();
     let start = Instant::now();
     for _ in 0..args.iters.max(1) {
         grid.shade(&mut host);
     }
     let elapsed = start.elapsed().as_secs_f64();
+    for m in grid.runtime_errors() {
+        eprintln!("warning: {m}");
+    }
     for line in &host.printed {
         print!("{line}");
     }

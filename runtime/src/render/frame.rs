@@ -58,6 +58,9 @@ pub struct FrameReport {
     pub shading: Duration,
     /// Threads that rendered.
     pub threads: usize,
+    /// What the shaders' runtime checks found during the frame (a loop stopped by its budget, an
+    /// array index clamped), each place once, prefixed by the shader's name.
+    pub shader_messages: Vec<String>,
 }
 
 impl FrameReport {
@@ -217,6 +220,7 @@ pub fn render_frame(world: &World, progress: Option<&(dyn Fn(usize, usize) + Syn
         light_evaluations: load(&s.light_evaluations),
         shading: Duration::from_nanos(load(&s.shading_ns)),
         threads: rayon::current_num_threads(),
+        shader_messages: world.shader_messages(),
     };
     (fb, report)
 }

@@ -273,6 +273,27 @@ impl World {
         changed
     }
 
+    /// The runtime checks' findings of every shader in the world since they were last asked.
+    pub fn shader_messages(&self) -> Vec<String> {
+        let mut seen: Vec<*const crate::shading::ShaderProgram> = Vec::new();
+        let mut out = Vec::new();
+        let programs = self
+            .materials
+            .iter()
+            .filter_map(|m| m.surface.as_ref())
+            .chain(self.lights.iter().map(|l| &l.shader))
+            .map(|i| &i.program);
+        for p in programs {
+            let ptr = Arc::as_ptr(p);
+            if seen.contains(&ptr) {
+                continue;
+            }
+            seen.push(ptr);
+            out.extend(p.code.runtime_errors().into_iter().map(|e| format!("shader {}: {e}", p.name)));
+        }
+        out
+    }
+
     /// Whether any material lets light through (then shadow rays must look at what they pass).
     pub fn has_transparent_shadows(&self) -> bool {
         self.materials.iter().any(|m| !m.is_opaque_for_shadows())

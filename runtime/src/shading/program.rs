@@ -164,7 +164,8 @@ impl ShaderProgram {
         let (Some(module), Some(interface)) = (c.module.as_ref(), c.interface.clone()) else {
             return Err(ShaderError::NoShader { name: name.to_string() });
         };
-        let code = jit::compile(module).map_err(|error| ShaderError::Jit { name: interface.name.clone(), error })?;
+        let code = jit::compile_with(module, Some(&c.sources), &jit::JitOptions::default())
+            .map_err(|error| ShaderError::Jit { name: interface.name.clone(), error })?;
         let files = c.files.iter().filter_map(|f| c.sources.get(*f).path.clone()).collect();
         Ok(ShaderProgram {
             name: interface.name.clone(),

@@ -389,6 +389,8 @@ unsafe extern "C" fn sv_print(ctx: *mut c_void, text: StrRef) {
 /// run so far (a loop asks once per chunk and keeps them here while its body runs).
 pub struct HostCtx {
     table: *const HostTable,
+    /// Where runtime checks (loop budget, array indices) record what they found.
+    errors: *const super::RuntimeErrors,
     light_sets: Vec<LightSet>,
     light_buffer: Vec<HostLight>,
     /// The last light query (category, points' bits, lanes) and its counts, answered from
@@ -409,8 +411,15 @@ struct LightSet {
 }
 
 impl HostCtx {
-    pub(super) fn new(table: *const HostTable) -> HostCtx {
-        HostCtx { table, light_sets: Vec::new(), light_buffer: Vec::new(), last_lights: None, matrices: Vec::new() }
+    pub(super) fn new(table: *const HostTable, errors: *const super::RuntimeErrors) -> HostCtx {
+        HostCtx {
+            table,
+            errors,
+            light_sets: Vec::new(),
+            light_buffer: Vec::new(),
+            last_lights: None,
+            matrices: Vec::new(),
+        }
     }
 }
 
@@ -862,6 +871,14 @@ host_helpers! {
         }
     }
     // As `format`; prints each active lane's text, in lane order.
+    // [kind, site] -> nothing: a runtime check failed (recorded once per site, see `RuntimeErrors`)
+    h_runtime_error "rtsl_h_runtime_error" 2 => 1 |cx| {
+        let (kind, site) = (cx.f(0, 0) as u32, cx.f(1, 0) as u32);
+        // SAFETY: `errors` is null or points to the compiled shader's log, alive while it runs.
+        if let Some(errors) = unsafe { cx.ctx.errors.as_ref() } {
+            errors.record(kind, site);
+        }
+    }
     h_printf "rtsl_h_printf" VARIADIC => 1 |cx| {
         let active: Vec<usize> = cx.active().collect();
         for l in active {

@@ -130,6 +130,10 @@ struct Targets {
     comps: usize,
 }
 
+/// Runtime checks reported through `rtsl_h_runtime_error` (see `CompiledShader::runtime_errors`).
+pub(super) const RUNTIME_LOOP_BUDGET: u32 = 0;
+pub(super) const RUNTIME_INDEX: u32 = 1;
+
 fn mem() -> MemFlagsData {
     MemFlagsData::trusted()
 }
@@ -169,16 +173,30 @@ struct Lower<'m, 'b> {
     /// The renderer's derivatives for this chunk (`Batch::derivs + 16 * chunk`; null base: zeros).
     derivs_base: Option<Value>,
     derivs_null: Option<Value>,
+    /// The most iterations one entry of a loop may run before it is stopped.
+    loop_budget: u32,
+    /// Where each runtime check sits (`file:line:col`, or a byte offset without sources).
+    sites: Vec<String>,
+    sources: Option<&'m crate::source::SourceMap>,
 }
 
 /// Lowers the module's shader into `func` (signature `fn(*mut Batch)`); returns the number of
 /// Cranelift instructions emitted and the string constants (handles `0..n`).
+/// What lowering produced besides the function.
+pub(super) struct Lowered {
+    pub insts: usize,
+    pub strings: Vec<String>,
+    pub sites: Vec<String>,
+}
+
 pub(super) fn lower(
     m: &Module,
     layout: &Layout,
     jit: &mut JITModule,
     func: &mut cranelift_codegen::ir::Function,
-) -> R<(usize, Vec<String>)> {
+    options: &super::JitOptions,
+    sources: Option<&crate::source::SourceMap>,
+) -> R<Lowered> {
     let mut fctx = FunctionBuilderContext::new();
     let config = jit.target_config();
     let ptr = config.pointer_type();
@@ -210,13 +228,17 @@ pub(super) fn lower(
         arg_duals: Vec::new(),
         derivs_base: None,
         derivs_null: None,
+        loop_budget: options.loop_budget.max(1),
+        sites: Vec::new(),
+        sources,
     };
     l.shade()?;
     l.b.seal_all_blocks();
     let n = l.b.func.dfg.num_insts();
     let strings = std::mem::take(&mut l.strings);
+    let sites = std::mem::take(&mut l.sites);
     l.b.finalize(config);
-    Ok((n, strings))
+    Ok(Lowered { insts: n, strings, sites })
 }
 
 /// The interpreter's `index_of` on a constant.
@@ -613,10 +635,30 @@ impl<'m> Lower<'m, '_> {
                 let z = mask::zero_mask(&mut self.b);
                 self.b.def_var(exit_acc, z);
                 self.b.def_var(cont_acc, z);
+                let iterations = self.b.declare_var(types::I32);
+                let zero = self.b.ins().iconst(types::I32, 0);
+                self.b.def_var(iterations, zero);
+                let site = self.site(s.span);
                 let (header, body_b, cont_b, exit_b) =
                     (self.b.create_block(), self.b.create_block(), self.b.create_block(), self.b.create_block());
                 self.b.ins().jump(header, &[]);
                 self.b.switch_to_block(header);
+                // The iteration budget: past it, the running lanes leave the loop (as by `break`)
+                // and the renderer is told once where.
+                let count = self.b.use_var(iterations);
+                let count = self.b.ins().iadd_imm_u(count, 1);
+                self.b.def_var(iterations, count);
+                let over = self.b.ins().icmp_imm_u(IntCC::UnsignedGreaterThan, count, i64::from(self.loop_budget));
+                let (stop_b, go_b) = (self.b.create_block(), self.b.create_block());
+                self.b.ins().brif(over, stop_b, &[], go_b, &[]);
+                self.b.switch_to_block(stop_b);
+                self.runtime_error(RUNTIME_LOOP_BUDGET, site)?;
+                let e = self.exec();
+                let acc = self.b.use_var(exit_acc);
+                let acc = self.b.ins().bor(acc, e);
+                self.b.def_var(exit_acc, acc);
+                self.b.ins().jump(exit_b, &[]);
+                self.b.switch_to_block(go_b);
                 if let Some(c) = cond {
                     let cv = self.expr(*c)?;
                     let cm = to_mask(&mut self.b, cv.c[0]);
@@ -789,7 +831,57 @@ impl<'m> Lower<'m, '_> {
             return Ok(Idx::Const(const_index(x, n)));
         }
         let v = self.expr(e)?;
+        let span = self.func().expr(e).span;
+        self.check_index(v.c[0], n, span)?;
         Ok(self.dyn_index(v.c[0], n))
+    }
+
+    /// Reports (once per site, through the renderer) a running lane whose index is outside
+    /// `0..n`; the index is then clamped as the interpreter does.
+    fn check_index(&mut self, i: Value, n: usize, span: crate::source::Span) -> R<()> {
+        let site = self.site(span);
+        let b = &mut self.b;
+        let zero = konst(b, 0.0, i);
+        let end = konst(b, n as f32, i);
+        let ge = b.ins().fcmp(FloatCC::GreaterThanOrEqual, i, zero);
+        let lt = b.ins().fcmp(FloatCC::LessThan, i, end);
+        let ok = b.ins().band(ge, lt);
+        let bad = if is_vec(b, i) {
+            let m = to_mask(b, ok);
+            let e = self.exec();
+            let bad = self.b.ins().band_not(e, m);
+            any(&mut self.b, bad)
+        } else {
+            let e = self.exec();
+            let running = any(&mut self.b, e);
+            let not_ok = self.b.ins().bxor_imm_u(ok, 1);
+            self.b.ins().band(running, not_ok)
+        };
+        let (report, go) = (self.b.create_block(), self.b.create_block());
+        self.b.ins().brif(bad, report, &[], go, &[]);
+        self.b.switch_to_block(report);
+        self.runtime_error(RUNTIME_INDEX, site)?;
+        self.b.ins().jump(go, &[]);
+        self.b.switch_to_block(go);
+        Ok(())
+    }
+
+    /// The number of a runtime check's site, its description recorded.
+    fn site(&mut self, span: crate::source::Span) -> usize {
+        let text = match self.sources {
+            Some(src) => src.location(span).to_string(),
+            None => format!("byte {} of file {}", span.start, span.file.0),
+        };
+        self.sites.push(text);
+        self.sites.len() - 1
+    }
+
+    /// Calls the runtime-error helper for `kind` at `site` (lane 0; the helper records it once).
+    fn runtime_error(&mut self, kind: u32, site: usize) -> R<()> {
+        let k = self.b.ins().f32const(kind as f32);
+        let s = self.b.ins().f32const(site as f32);
+        self.call_helper("rtsl_h_runtime_error", &[k, s], false)?;
+        Ok(())
     }
 
     /// The interpreter's `index_of` per lane: non-finite or negative gives 0, else `min(trunc, n-1)`.

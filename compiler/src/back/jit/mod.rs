@@ -133,11 +133,49 @@ pub(crate) const OFF_DERIVS: i32 = 48;
 /// The entry point of a compiled shader.
 pub type ShadeFn = unsafe extern "C" fn(*mut Batch);
 
+/// Settings of code generation.
+#[derive(Clone, Debug)]
+pub struct JitOptions {
+    /// The most iterations one entry of a loop runs (per chunk of four lanes); past it the running
+    /// lanes leave the loop and the shader goes on, and the stop is reported
+    /// ([`CompiledShader::runtime_errors`]).
+    pub loop_budget: u32,
+}
+
+impl Default for JitOptions {
+    fn default() -> Self {
+        JitOptions { loop_budget: 1 << 20 }
+    }
+}
+
+/// What the runtime checks of a compiled shader found, each (check, site) once.
+#[derive(Debug, Default)]
+pub struct RuntimeErrors {
+    seen: std::sync::Mutex<Vec<(u32, u32)>>,
+    unread: std::sync::atomic::AtomicBool,
+}
+
+impl RuntimeErrors {
+    fn record(&self, kind: u32, site: u32) {
+        let mut seen = self.seen.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        if !seen.contains(&(kind, site)) {
+            seen.push((kind, site));
+            self.unread.store(true, std::sync::atomic::Ordering::Relaxed);
+        }
+    }
+}
+
 /// A shader compiled to machine code, with its batch layout.
 pub struct CompiledShader {
     module: Option<JITModule>,
     entry: ShadeFn,
     layout: Arc<Layout>,
+    /// Where each runtime check sits, and what they found.
+    sites: Vec<String>,
+    errors: RuntimeErrors,
+    options: JitOptions,
+    /// How many of `errors` were already reported.
+    reported: std::sync::Mutex<usize>,
     /// Cranelift IR instructions emitted (before optimisation), for compile-cost measurements.
     pub ir_insts: usize,
 }
@@ -166,6 +204,32 @@ unsafe impl Sync for CompiledShader {}
 impl CompiledShader {
     pub fn layout(&self) -> &Layout {
         &self.layout
+    }
+
+    /// The runtime checks that failed since the last call, once each, as messages naming the place
+    /// in the source ("the loop at shader.sl:12:5 ran more than 1048576 times ... and was stopped",
+    /// "an array index at shader.sl:8:14 was out of range and was clamped").
+    pub fn runtime_errors(&self) -> Vec<String> {
+        if !self.errors.unread.swap(false, std::sync::atomic::Ordering::Relaxed) {
+            return Vec::new();
+        }
+        let seen = self.errors.seen.lock().unwrap_or_else(std::sync::PoisonError::into_inner).clone();
+        let mut reported = self.reported.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        let new = seen.get(*reported..).unwrap_or(&[]).to_vec();
+        *reported = seen.len();
+        new.into_iter()
+            .map(|(kind, site)| {
+                let at = self.sites.get(site as usize).map_or("?", String::as_str);
+                if kind == lower::RUNTIME_LOOP_BUDGET {
+                    format!(
+                        "the loop at {at} ran more than {} times in one entry and was stopped",
+                        self.options.loop_budget
+                    )
+                } else {
+                    format!("an array index at {at} was out of range and was clamped")
+                }
+            })
+            .collect()
     }
 
     /// A batch of `lanes` lanes for this shader: every lane active, every value 0, no parameter
@@ -207,7 +271,7 @@ impl CompiledShader {
             Arc::ptr_eq(&self.layout, &batch.layout) || *self.layout == *batch.layout,
             "a batch made for another shader layout"
         );
-        let mut ctx = host::HostCtx::new(table);
+        let mut ctx = host::HostCtx::new(table, &self.errors);
         let mut rec = Batch {
             lanes: batch.lanes as u32,
             stride: batch.stride as u32,
@@ -465,8 +529,19 @@ fn unsupported<T>(what: impl Into<String>) -> Result<T, JitError> {
     Err(JitError::Unsupported(what.into()))
 }
 
-/// Compiles the shader of a validated module.
+/// Compiles the shader of a validated module with the default options; runtime checks name their
+/// place by byte offset (see [`compile_with`]).
 pub fn compile(m: &ir::Module) -> Result<CompiledShader, JitError> {
+    compile_with(m, None, &JitOptions::default())
+}
+
+/// Compiles the shader of a validated module; `sources` (the compilation's) lets runtime checks
+/// name file, line and column.
+pub fn compile_with(
+    m: &ir::Module,
+    sources: Option<&crate::source::SourceMap>,
+    options: &JitOptions,
+) -> Result<CompiledShader, JitError> {
     let shader = m.shader.as_ref().ok_or(JitError::NoShader)?;
     let mut layout = layout::layout(m).map_err(|w| JitError::Unsupported(w.to_string()))?;
 
@@ -496,8 +571,9 @@ pub fn compile(m: &ir::Module) -> Result<CompiledShader, JitError> {
         .declare_function(&format!("shade_{}", shader.name), Linkage::Export, &ctx.func.signature)
         .map_err(|e| JitError::Codegen(e.to_string()))?;
     ctx.func.name = UserFuncName::user(0, id.as_u32());
-    let (ir_insts, strings) = lower::lower(m, &layout, &mut jit, &mut ctx.func)?;
-    layout.strings = strings;
+    let lowered = lower::lower(m, &layout, &mut jit, &mut ctx.func, options, sources)?;
+    let ir_insts = lowered.insts;
+    layout.strings = lowered.strings;
     let layout = Arc::new(layout);
     jit.define_function(id, &mut ctx).map_err(|e| JitError::Codegen(format!("{e:?}")))?;
     jit.clear_context(&mut ctx);
@@ -506,5 +582,14 @@ pub fn compile(m: &ir::Module) -> Result<CompiledShader, JitError> {
     // SAFETY: `code` is the function just defined with the signature `fn(*mut Batch)` (one pointer
     // argument, no result, the platform's C calling convention).
     let entry: ShadeFn = unsafe { std::mem::transmute::<*const u8, ShadeFn>(code) };
-    Ok(CompiledShader { module: Some(jit), entry, layout, ir_insts })
+    Ok(CompiledShader {
+        module: Some(jit),
+        entry,
+        layout,
+        ir_insts,
+        sites: lowered.sites,
+        errors: RuntimeErrors::default(),
+        options: options.clone(),
+        reported: std::sync::Mutex::new(0),
+    })
 }
