@@ -224,6 +224,7 @@ pub struct Context {
     texture_search_path: Vec<PathBuf>,
     textures: Arc<TextureCache>,
     memory_textures: Vec<(String, TexImage)>,
+    warnings: Vec<String>,
 }
 
 impl Default for Context {
@@ -263,6 +264,7 @@ impl Context {
             texture_search_path: Vec::new(),
             textures: Arc::new(TextureCache::new()),
             memory_textures: Vec::new(),
+            warnings: Vec::new(),
         }
     }
 
@@ -353,11 +355,46 @@ impl Context {
         self.shader_file(&path)
     }
 
-    /// Replaces the program behind `id` (hot reload): frames from now on use the new code.
+    /// Replaces the program behind `id` (hot reload): frames from now on use the new code. The
+    /// new program must be of the same shader type. Values bound by name stay bound where the new
+    /// shader still has a parameter of that name and type; the others are dropped with a warning
+    /// at the next frame ([`Context::take_warnings`]).
     pub fn replace_shader(&mut self, id: ShaderId, program: ShaderProgram) -> Result<(), ApiError> {
         let slot = self.programs.get_mut(id.0 as usize).ok_or(ApiError::UnknownShader(id.0))?;
+        if let Some(old) = slot.as_ref() {
+            if old.kind != program.kind {
+                return Err(ApiError::WrongKind {
+                    name: program.name.clone(),
+                    expected: kind_name(old.kind),
+                    got: kind_name(program.kind),
+                });
+            }
+        }
         *slot = Some(Arc::new(program));
         Ok(())
+    }
+
+    /// Every file the loaded shaders were compiled from (sources and included headers), for a
+    /// watcher.
+    pub fn shader_files(&self) -> Vec<PathBuf> {
+        let mut files: Vec<PathBuf> = self.programs.iter().flatten().flat_map(|p| p.files.iter().cloned()).collect();
+        files.sort();
+        files.dedup();
+        files
+    }
+
+    /// The loaded programs with their ids.
+    pub fn programs_by_id(&self) -> Vec<(ShaderId, Program)> {
+        self.programs.iter().enumerate().filter_map(|(i, p)| Some((ShaderId(i as u32), p.clone()?))).collect()
+    }
+
+    pub fn include_paths(&self) -> &[PathBuf] {
+        &self.include_paths
+    }
+
+    /// Warnings of the last frames (values that no longer fit a reloaded shader), drained.
+    pub fn take_warnings(&mut self) -> Vec<String> {
+        std::mem::take(&mut self.warnings)
     }
 
     pub fn program(&self, id: ShaderId) -> Result<&Program, ApiError> {
@@ -860,11 +897,18 @@ impl Context {
 
     // ---- frames ----
 
-    fn instance_for(&self, binding: &Binding) -> Result<ShaderInstance, ApiError> {
+    /// A binding's instance; values the (possibly reloaded) program no longer takes are left out and
+    /// reported.
+    fn instance_for(&self, binding: &Binding, warnings: &mut Vec<String>) -> Result<ShaderInstance, ApiError> {
         let program = self.program(binding.shader)?.clone();
         let mut inst = ShaderInstance::new(program, binding.world_from_shader);
         for (name, value, m) in &binding.params {
-            inst.set(name, value, m)?;
+            if let Err(e) = inst.set(name, value, m) {
+                let w = format!("{e}; the value is not used");
+                if !warnings.contains(&w) {
+                    warnings.push(w);
+                }
+            }
         }
         Ok(inst)
     }
@@ -902,6 +946,7 @@ impl Context {
                 (None, None) => {}
             }
         }
+        let mut warnings = Vec::new();
         let mut materials = vec![Material::DEFAULT];
         let mut object_material = vec![0u32; self.objects.len()];
         for (i, rec) in self.objects.iter().enumerate() {
@@ -909,7 +954,7 @@ impl Context {
                 continue;
             }
             let a = &rec.appearance;
-            let surface = a.surface.as_ref().map(|b| self.instance_for(b)).transpose()?.map(Arc::new);
+            let surface = a.surface.as_ref().map(|b| self.instance_for(b, &mut warnings)).transpose()?.map(Arc::new);
             materials.push(Material {
                 surface,
                 color: a.color,
@@ -937,10 +982,9 @@ impl Context {
         let mut lights = Vec::new();
         for l in self.lights.iter().filter(|l| l.on) {
             let program = self.program(l.shader)?.clone();
-            let mut inst = ShaderInstance::new(program.clone(), l.world_from_shader);
-            for (name, value, m) in &l.params {
-                inst.set(name, value, m)?;
-            }
+            let binding =
+                Binding { shader: l.shader, params: l.params.clone(), world_from_shader: l.world_from_shader };
+            let inst = self.instance_for(&binding, &mut warnings)?;
             let categories = inst
                 .string_param("__category")
                 .map(|c| c.split(',').map(|s| s.trim().to_string()).filter(|s| !s.is_empty()).collect())
@@ -958,6 +1002,11 @@ impl Context {
         world.spaces = self.spaces.clone();
         world.textures = self.textures.clone();
         world.prepare();
+        for w in warnings {
+            if !self.warnings.contains(&w) {
+                self.warnings.push(w);
+            }
+        }
         Ok(world)
     }
 

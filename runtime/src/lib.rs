@@ -19,6 +19,7 @@ pub mod geometry;
 pub mod image_io;
 pub mod mesh_io;
 pub mod ray;
+pub mod reload;
 pub mod render;
 pub mod rib;
 pub mod scene;

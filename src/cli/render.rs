@@ -3,12 +3,14 @@
 
 use anyhow::Context as _;
 use rtsl_runtime::api::Context;
+use rtsl_runtime::reload::{reload_changed, ShaderWatcher};
 use rtsl_runtime::render::render_frame;
 use rtsl_runtime::scene_file::{add_model_file, frame_bounds};
 use rtsl_runtime::{write_image, WriteOptions};
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::time::Duration;
 
 /// Flags of `rtsl render`.
 #[derive(clap::Args, Debug, Clone)]
@@ -36,6 +38,9 @@ pub struct RenderArgs {
     /// Print nothing but errors.
     #[arg(short, long)]
     pub quiet: bool,
+    /// Keep running: re-render and rewrite the image whenever a shader source or header changes.
+    #[arg(long)]
+    pub watch: bool,
 }
 
 /// The default scene, in RIB: the standard shaders on several objects, with shadows and reflections.
@@ -48,6 +53,78 @@ pub(crate) fn samples_grid(n: u32) -> (u32, u32) {
         (side, side)
     } else {
         (n, 1)
+    }
+}
+
+/// Renders the context's scene with `pool` and writes `output`; prints warnings.
+fn render_and_write(
+    rt: &mut Context,
+    pool: &rayon::ThreadPool,
+    output: &Path,
+    quiet: bool,
+) -> anyhow::Result<rtsl_runtime::render::FrameReport> {
+    let world = rt.build_world()?;
+    for w in rt.take_warnings() {
+        eprintln!("warning: {w}");
+    }
+    let bar = (!quiet && std::io::stderr().is_terminal()).then(|| {
+        let bar = indicatif::ProgressBar::new(0);
+        bar.set_style(
+            indicatif::ProgressStyle::with_template("{spinner} rendering [{bar:40}] {pos}/{len} tiles, {elapsed}")
+                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        bar
+    });
+    let progress = |done: usize, total: usize| {
+        if let Some(b) = &bar {
+            b.set_length(total as u64);
+            b.set_position(done as u64);
+        }
+    };
+    let (fb, report) = pool.install(|| render_frame(&world, Some(&progress)));
+    if let Some(b) = bar {
+        b.finish_and_clear();
+    }
+    for w in world.textures.take_warnings() {
+        eprintln!("warning: {w}");
+    }
+    for m in &report.shader_messages {
+        eprintln!("warning: {m}");
+    }
+    rt.return_scene(world);
+    write_image(output, fb.width as usize, fb.height as usize, &fb.rgba, &WriteOptions::default())
+        .with_context(|| format!("writing {}", output.display()))?;
+    Ok(report)
+}
+
+/// `--watch`: re-render after every change to a shader source or header that compiles, printing
+/// one line per reload (or the diagnostics of a change that does not compile; the last good shader
+/// stays). Runs until interrupted.
+fn watch(rt: &mut Context, pool: &rayon::ThreadPool, output: &Path) -> anyhow::Result<()> {
+    let watcher = ShaderWatcher::new(rt)?;
+    println!("watching {} shader file(s); Ctrl-C to stop", watcher.files().len());
+    loop {
+        let changed = watcher.wait(Duration::from_secs(3600), Duration::from_millis(150));
+        if changed.is_empty() {
+            continue;
+        }
+        let reloads = reload_changed(rt, &changed);
+        let mut compiled = Vec::new();
+        for r in &reloads {
+            match &r.result {
+                Ok(t) => compiled.push(format!("{} ({:.1} ms)", r.name, t.as_secs_f64() * 1e3)),
+                Err(_) => eprintln!("{r}"),
+            }
+        }
+        if !compiled.is_empty() {
+            let report = render_and_write(rt, pool, output, true)?;
+            println!(
+                "reloaded {}; frame {:.1} ms -> {}",
+                compiled.join(", "),
+                report.elapsed.as_secs_f64() * 1e3,
+                output.display()
+            );
+        }
     }
 }
 
@@ -103,46 +180,23 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
         rt.options.samples = samples_grid(n);
     }
     let output = output.unwrap_or_else(|| PathBuf::from("render.png"));
-    let world = rt.build_world()?;
     let threads =
         if args.threads == 0 { std::thread::available_parallelism().map_or(1, |n| n.get()) } else { args.threads };
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().context("starting the worker threads")?;
-    let bar = (!args.quiet && std::io::stderr().is_terminal()).then(|| {
-        let bar = indicatif::ProgressBar::new(0);
-        bar.set_style(
-            indicatif::ProgressStyle::with_template("{spinner} rendering [{bar:40}] {pos}/{len} tiles, {elapsed}")
-                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
-        );
-        bar
-    });
-    let progress = |done: usize, total: usize| {
-        if let Some(b) = &bar {
-            b.set_length(total as u64);
-            b.set_position(done as u64);
-        }
-    };
-    let (fb, report) = pool.install(|| render_frame(&world, Some(&progress)));
-    if let Some(b) = bar {
-        b.finish_and_clear();
-    }
-    for w in world.textures.take_warnings() {
-        eprintln!("warning: {w}");
-    }
-    for m in &report.shader_messages {
-        eprintln!("warning: {m}");
-    }
-    write_image(&output, fb.width as usize, fb.height as usize, &fb.rgba, &WriteOptions::default())
-        .with_context(|| format!("writing {}", output.display()))?;
+    let report = render_and_write(&mut rt, &pool, &output, args.quiet)?;
     if !args.quiet {
         println!(
             "{}: {}x{}, {} sample(s) per pixel, {} thread(s)",
             output.display(),
-            fb.width,
-            fb.height,
-            world.options.samples.0 * world.options.samples.1,
+            rt.options.width,
+            rt.options.height,
+            rt.options.samples.0 * rt.options.samples.1,
             threads
         );
         println!("{report}");
+    }
+    if args.watch {
+        watch(&mut rt, &pool, &output)?;
     }
     Ok(ExitCode::SUCCESS)
 }

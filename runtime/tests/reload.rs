@@ -1,0 +1,71 @@
+//! Hot reload: edits to a shader or a header it includes are seen by the watcher and swapped in at
+//! the next frame; a broken edit keeps the last good code; values bound by name survive where they
+//! still fit.
+
+use rtsl_runtime::api::{Context, Primitive};
+use rtsl_runtime::reload::{reload_changed, ShaderWatcher};
+use rtsl_runtime::shading::ParamValue;
+use std::time::Duration;
+
+fn scene(rt: &mut Context, path: &std::path::Path) -> rtsl_runtime::api::ShaderId {
+    rt.options.width = 16;
+    rt.options.height = 12;
+    let id = rt.shader_file(path).expect("compiles");
+    rt.camera_look_at(glam::Vec3A::new(0.0, 0.0, 3.0), glam::Vec3A::ZERO, glam::Vec3A::Y, 60.0);
+    let o = rt.begin_object().expect("object");
+    rt.bind_shader(id).expect("bind");
+    rt.parameter("k", ParamValue::Float(0.5)).expect("k");
+    rt.begin(Primitive::Quads).expect("begin");
+    for (x, y) in [(-5.0, -5.0), (5.0, -5.0), (5.0, 5.0), (-5.0, 5.0)] {
+        rt.vertex(x, y, 0.0).expect("vertex");
+    }
+    rt.end().expect("end");
+    rt.end_object().expect("end_object");
+    rt.instantiate_object(o).expect("instance");
+    id
+}
+
+fn centre(rt: &mut Context) -> [f32; 4] {
+    let (fb, _) = rt.render_frame().expect("a frame");
+    fb.pixel(8, 6)
+}
+
+#[test]
+fn edits_are_swapped_in_and_broken_edits_keep_the_last_good_code() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let header = dir.path().join("tint.h");
+    let shader = dir.path().join("flat.sl");
+    std::fs::write(&header, "#define TINT color(1, 0, 0)\n").expect("write");
+    std::fs::write(&shader, "#include \"tint.h\"\nsurface flat(float k = 1;) { Oi = 1; Ci = k * TINT; }\n")
+        .expect("write");
+    let mut rt = Context::new();
+    scene(&mut rt, &shader);
+    assert_eq!(centre(&mut rt), [0.5, 0.0, 0.0, 1.0]);
+    let watcher = ShaderWatcher::new(&rt).expect("a watcher");
+    assert_eq!(watcher.files().len(), 2, "the source and its header");
+
+    // An edit to the header: seen, recompiled, and the bound k = 0.5 still applies.
+    std::fs::write(&header, "#define TINT color(0, 1, 0)\n").expect("write");
+    let changed = watcher.wait(Duration::from_secs(10), Duration::from_millis(100));
+    assert_eq!(changed.len(), 1, "{changed:?}");
+    let reloads = reload_changed(&mut rt, &changed);
+    assert!(reloads.len() == 1 && reloads[0].result.is_ok(), "{reloads:?}");
+    assert_eq!(centre(&mut rt), [0.0, 0.5, 0.0, 1.0]);
+
+    // A broken edit: diagnostics, and the last good code stays.
+    std::fs::write(&shader, "surface flat(float k = 1;) { Oi = 1; Ci = k * undefined_thing; }\n").expect("write");
+    let reloads = reload_changed(&mut rt, &[shader.clone()]);
+    let err = reloads[0].result.as_ref().expect_err("does not compile");
+    assert!(err.contains("undefined_thing"), "{err}");
+    assert_eq!(centre(&mut rt), [0.0, 0.5, 0.0, 1.0]);
+
+    // A new parameter list: `k` became a string, so the bound float no longer fits and is dropped
+    // with a warning; a new parameter takes its default.
+    std::fs::write(&shader, "surface flat(string k = \"\"; color c = color(0, 0, 1);) { Oi = 1; Ci = c; }\n")
+        .expect("write");
+    let reloads = reload_changed(&mut rt, &[shader.clone()]);
+    assert!(reloads[0].result.is_ok(), "{reloads:?}");
+    assert_eq!(centre(&mut rt), [0.0, 0.0, 1.0, 1.0]);
+    let warnings = rt.take_warnings();
+    assert!(warnings.len() == 1 && warnings[0].contains("parameter k of shader flat is string"), "{warnings:?}");
+}
