@@ -54,7 +54,7 @@ fn edits_are_swapped_in_and_broken_edits_keep_the_last_good_code() {
 
     // A broken edit: diagnostics, and the last good code stays.
     std::fs::write(&shader, "surface flat(float k = 1;) { Oi = 1; Ci = k * undefined_thing; }\n").expect("write");
-    let reloads = reload_changed(&mut rt, &[shader.clone()]);
+    let reloads = reload_changed(&mut rt, std::slice::from_ref(&shader));
     let err = reloads[0].result.as_ref().expect_err("does not compile");
     assert!(err.contains("undefined_thing"), "{err}");
     assert_eq!(centre(&mut rt), [0.0, 0.5, 0.0, 1.0]);
@@ -63,7 +63,7 @@ fn edits_are_swapped_in_and_broken_edits_keep_the_last_good_code() {
     // with a warning; a new parameter takes its default.
     std::fs::write(&shader, "surface flat(string k = \"\"; color c = color(0, 0, 1);) { Oi = 1; Ci = c; }\n")
         .expect("write");
-    let reloads = reload_changed(&mut rt, &[shader.clone()]);
+    let reloads = reload_changed(&mut rt, std::slice::from_ref(&shader));
     assert!(reloads[0].result.is_ok(), "{reloads:?}");
     assert_eq!(centre(&mut rt), [0.0, 0.0, 1.0, 1.0]);
     let warnings = rt.take_warnings();
