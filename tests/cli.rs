@@ -195,3 +195,20 @@ fn shade_runs_a_surface_shader_over_a_grid() {
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("no parameter `nosuch`"), "{}", stderr(&o));
 }
+
+#[test]
+fn info_finds_shaders_by_name_on_the_search_path() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    write(dir.path(), "mine/plastic.sl", "surface plastic(float mine = 1;) { Ci = Cs * mine; Oi = Os; }\n");
+    // The library's plastic, then ours first on the search path.
+    let o = rtsl(&["info", "plastic", "--which"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(stdout(&o).trim_end().ends_with("stdlib_shaders/surface/plastic.sl"), "{}", stdout(&o));
+    let o = rtsl(&["info", "plastic", "--which", "-S", "mine"], dir.path());
+    assert_eq!(stdout(&o).trim_end(), "mine/plastic.sl");
+    let o = rtsl(&["info", "plastic", "-S", "mine"], dir.path());
+    assert!(stdout(&o).contains("uniform float mine = 1"), "{}", stdout(&o));
+    let o = rtsl(&["info", "no_such_shader"], dir.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("no shader named `no_such_shader`"), "{}", stderr(&o));
+}

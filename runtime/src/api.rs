@@ -233,6 +233,15 @@ impl Default for Context {
     }
 }
 
+/// Where shader `name` is found: the first `NAME.sl` in `search` (in order), then in the standard
+/// library's folders (`surface/`, `light/`, ...). A name found twice resolves to the first.
+pub fn find_shader_file(name: &str, search: &[PathBuf]) -> Option<PathBuf> {
+    let file = format!("{name}.sl");
+    let std = stdlib_dir();
+    let std_dirs = ["surface", "light", "displacement", "volume", "imager", "camera", "pixel"].map(|d| std.join(d));
+    search.iter().chain(std_dirs.iter()).map(|d| d.join(&file)).find(|p| p.is_file())
+}
+
 /// The directory of the shader library shipped with rtsl (searched last).
 pub fn stdlib_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join("stdlib_shaders")
@@ -327,10 +336,7 @@ impl Context {
     /// Where shader `name` would be loaded from: `NAME.sl` in the search path, then in the standard
     /// library's folders.
     pub fn which_shader(&self, name: &str) -> Option<PathBuf> {
-        let file = format!("{name}.sl");
-        let std = stdlib_dir();
-        let std_dirs = ["surface", "light", "displacement", "volume", "imager", "camera", "pixel"].map(|d| std.join(d));
-        self.shader_search_path.iter().chain(std_dirs.iter()).map(|d| d.join(&file)).find(|p| p.is_file())
+        find_shader_file(name, &self.shader_search_path)
     }
 
     /// Compiles the shader file at `path`.

@@ -9,9 +9,16 @@ use std::process::ExitCode;
 
 #[derive(clap::Args, Debug)]
 pub struct InfoArgs {
-    /// The shader source file.
-    #[arg(value_name = "FILE")]
+    /// The shader: a source file, or a name found on the shader search path (`-S` directories, then
+    /// `RTSL_SHADER_PATH`, then the library).
+    #[arg(value_name = "FILE|NAME")]
     pub file: PathBuf,
+    /// Directories searched for shaders by name, before the standard library.
+    #[arg(short = 'S', long = "shader-path")]
+    pub shader_path: Vec<PathBuf>,
+    /// Print only the file the name resolves to.
+    #[arg(long)]
+    pub which: bool,
     #[command(flatten)]
     pub flags: CompilerFlags,
     /// Print the interface as JSON.
@@ -19,22 +26,43 @@ pub struct InfoArgs {
     pub json: bool,
 }
 
+/// The file `arg` names: itself when it is a file (or looks like one), else the shader of that name
+/// on the search path.
+fn resolve(arg: &std::path::Path, shader_path: &[PathBuf]) -> anyhow::Result<PathBuf> {
+    let looks_like_file = arg.is_file() || arg.extension().is_some() || arg.components().count() > 1;
+    if looks_like_file {
+        return Ok(arg.to_path_buf());
+    }
+    let mut search = shader_path.to_vec();
+    if let Ok(env) = std::env::var("RTSL_SHADER_PATH") {
+        search.extend(std::env::split_paths(&env));
+    }
+    let name = arg.display().to_string();
+    rtsl_runtime::api::find_shader_file(&name, &search).ok_or_else(|| {
+        anyhow::anyhow!("no shader named `{name}` on the search path (-S, RTSL_SHADER_PATH, the library)")
+    })
+}
+
 pub fn run(args: &InfoArgs) -> anyhow::Result<ExitCode> {
-    let c = compile_file(&args.file, &args.flags.options())
-        .with_context(|| format!("cannot read `{}`", args.file.display()))?;
+    let file = resolve(&args.file, &args.shader_path)?;
+    if args.which {
+        println!("{}", file.display());
+        return Ok(ExitCode::SUCCESS);
+    }
+    let c = compile_file(&file, &args.flags.options()).with_context(|| format!("cannot read `{}`", file.display()))?;
     if !c.ok() {
         eprint!("{}", c.render());
         return Ok(ExitCode::from(1));
     }
     let Some(iface) = &c.interface else {
-        eprintln!("{}: defines no shader (only functions or macros)", args.file.display());
+        eprintln!("{}: defines no shader (only functions or macros)", file.display());
         return Ok(ExitCode::from(1));
     };
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
     if args.json {
         let mut value = serde_json::to_value(iface)?;
-        value["path"] = serde_json::Value::String(args.file.display().to_string());
+        value["path"] = serde_json::Value::String(file.display().to_string());
         writeln!(out, "{}", serde_json::to_string_pretty(&value)?)?;
         return Ok(ExitCode::SUCCESS);
     }
