@@ -186,6 +186,27 @@ fn every_library_light_shader_matches_its_reference() {
 }
 
 #[test]
+fn every_library_pixel_shader_matches_its_reference() {
+    let pixels = [
+        ("background", "Imager \"background\" \"background\" [.2 .3 .6]"),
+        ("exposure", "Pixel \"exposure\" \"stops\" [1]"),
+        ("gamma", "Pixel \"gamma\""),
+        ("tonemap_reinhard", "Pixel \"tonemap\" \"exposure\" [4]"),
+        ("tonemap_filmic", "Pixel \"tonemap\" \"curve\" \"filmic\" \"exposure\" [4]"),
+        ("vignette", "Pixel \"vignette\" \"strength\" [.8]"),
+    ];
+    let light = "LightSource \"pointlight\" 1 \"intensity\" [25] \"from\" [2 4 -3]";
+    let failures: Vec<String> = pixels
+        .iter()
+        .filter_map(|(name, pixel)| {
+            let rib = light_scene(light).replacen("WorldBegin", &format!("{pixel}\nWorldBegin"), 1);
+            check(&format!("pixel_{name}"), &render_rib(name, &rib)).err()
+        })
+        .collect();
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+#[test]
 fn the_default_scene_matches_its_reference() {
     let rib = include_str!("../examples/scenes/default.rib");
     check("default_scene", &render_rib("default", rib)).unwrap_or_else(|e| panic!("{e}"));

@@ -217,6 +217,7 @@ pub struct Context {
     primitive_values: Vec<(String, Vec<f32>)>,
     instances: Vec<InstanceRecord>,
     lights: Vec<LightRecord>,
+    pixel: Option<Binding>,
     camera: CameraSetup,
     pub options: RenderOptions,
     spaces: std::collections::HashMap<String, Affine3A>,
@@ -266,6 +267,7 @@ impl Context {
             primitive_values: Vec::new(),
             instances: Vec::new(),
             lights: Vec::new(),
+            pixel: None,
             camera: CameraSetup::default(),
             options: RenderOptions::default(),
             spaces: Default::default(),
@@ -514,6 +516,25 @@ impl Context {
         if let Some(rec) = self.lights.get_mut(light.0 as usize) {
             rec.area_samples = samples.clamp(1, crate::render::MAX_AREA_SAMPLES);
         }
+    }
+
+    /// The pixel shader (RenderMan's imager, OpenRT's pixel shader) run on every finished tile, with
+    /// its parameter values; `None` removes it.
+    pub fn pixel_shader(&mut self, shader: Option<ShaderId>, params: &[(&str, ParamValue)]) -> Result<(), ApiError> {
+        let Some(id) = shader else {
+            self.pixel = None;
+            return Ok(());
+        };
+        let program = self.expect_kind(id, ShaderKind::Imager)?;
+        for (name, value) in params {
+            crate::shading::bind_param(&program, name, value, &self.matrix)?;
+        }
+        self.pixel = Some(Binding {
+            shader: id,
+            params: params.iter().map(|(n, v)| (n.to_string(), v.clone(), self.matrix)).collect(),
+            world_from_shader: self.matrix,
+        });
+        Ok(())
     }
 
     /// Switches a light on or off, and its ray-traced shadows.
@@ -1003,6 +1024,7 @@ impl Context {
         world.materials = materials;
         world.instances = instances;
         world.lights = lights;
+        world.pixel = self.pixel.as_ref().map(|b| self.instance_for(b, &mut warnings)).transpose()?.map(Arc::new);
         world.camera = self.camera;
         world.options = self.options.clone();
         world.spaces = self.spaces.clone();

@@ -4,7 +4,7 @@
 //! Invariant: the image depends only on the world and the options, not on the thread count (tiles
 //! are independent, jitter is a hash of pixel and sample, and results land in tile order).
 
-use super::shade::{mix, shade_packet, Frame, Sample};
+use super::shade::{mix, shade_packet, shade_pixels, Frame, Sample, TilePixels};
 use super::world::World;
 use crate::camera::{packet_lane_offset, PACKET_SIDE};
 use crate::ray::{HitPacket, RayPacket, PACKET_SIZE};
@@ -15,8 +15,8 @@ use std::time::{Duration, Instant};
 /// Tile side in pixels (a whole number of packets).
 pub const TILE_SIZE: u32 = 16;
 
-/// A rendered image: linear RGBA (premultiplied, as RenderMan's `Ci`/`Oi`), depth and the object id of
-/// the first hit per pixel (rows top to bottom).
+/// A rendered image: linear RGBA (premultiplied, as RenderMan's `Ci`/`Oi`, after the pixel shader),
+/// camera-space depth and the object id of the first hit per pixel (rows top to bottom).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Framebuffer {
     pub width: u32,
@@ -141,10 +141,12 @@ pub fn render_frame(world: &World, progress: Option<&(dyn Fn(usize, usize) + Syn
     let (sx, sy) = (world.options.samples.0.max(1), world.options.samples.1.max(1));
     let total_tiles = crate::tiles::tiles(w, h, TILE_SIZE).len();
     let done = AtomicUsize::new(0);
+    let forward = world.camera.world_from_camera.matrix3.z_axis.normalize_or_zero();
     let tiles = render_tiles(w, h, TILE_SIZE, |tile| {
         let mut color = vec![[0.0f32; 4]; (tile.width * tile.height) as usize];
         let mut depth = vec![f32::INFINITY; color.len()];
         let mut ids = vec![u32::MAX; color.len()];
+        let mut shader_ids = vec![u32::MAX; color.len()];
         let mut samples = [Sample::default(); PACKET_SIZE];
         let mut hits = HitPacket::default();
         for py in (tile.y0..tile.y0 + tile.height).step_by(PACKET_SIDE as usize) {
@@ -170,8 +172,11 @@ pub fn render_frame(world: &World, progress: Option<&(dyn Fn(usize, usize) + Syn
                             }
                             sum[3] += s.alpha;
                             if i == 0 && j == 0 {
-                                depth[k] = s.depth;
+                                // Camera-space depth: the distance along the ray times its cosine
+                                // with the view axis.
+                                depth[k] = s.depth * packet.get(lane).direction.dot(forward);
                                 ids[k] = s.object_id;
+                                shader_ids[k] = s.shader_id;
                             }
                         }
                     }
@@ -184,6 +189,18 @@ pub fn render_frame(world: &World, progress: Option<&(dyn Fn(usize, usize) + Syn
                 *v *= scale;
             }
         }
+        shade_pixels(
+            &frame,
+            TilePixels {
+                x0: tile.x0,
+                y0: tile.y0,
+                width: tile.width,
+                rgba: &mut color,
+                depth: &depth,
+                object_id: &ids,
+                shader_id: &shader_ids,
+            },
+        );
         if let Some(p) = progress {
             p(done.fetch_add(1, Ordering::Relaxed) + 1, total_tiles);
         }

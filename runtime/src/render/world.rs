@@ -197,6 +197,8 @@ pub struct World {
     /// One per scene instance, in the scene's instance order.
     pub instances: Vec<InstanceShading>,
     pub lights: Vec<LightSource>,
+    /// The pixel shader (RenderMan's imager), run on every finished tile.
+    pub pixel: Option<Arc<ShaderInstance>>,
     pub camera: CameraSetup,
     pub options: RenderOptions,
     /// Named coordinate systems (`CoordinateSystem`), world from the system.
@@ -215,6 +217,7 @@ impl World {
             materials: vec![Material::DEFAULT],
             instances: Vec::new(),
             lights: Vec::new(),
+            pixel: None,
             camera: CameraSetup::default(),
             options: RenderOptions::default(),
             spaces: HashMap::new(),
@@ -282,6 +285,7 @@ impl World {
             .iter()
             .filter_map(|m| m.surface.as_ref())
             .chain(self.lights.iter().map(|l| &l.shader))
+            .chain(self.pixel.iter())
             .map(|i| &i.program);
         for p in programs {
             let ptr = Arc::as_ptr(p);

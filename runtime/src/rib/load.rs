@@ -385,13 +385,24 @@ impl<'a> Loader<'a> {
                     self.warn(r, e);
                 }
             }
-            K::Imager(s)
-            | K::Camera(s)
-            | K::Pixel(s)
-            | K::Atmosphere(s)
-            | K::Interior(s)
-            | K::Exterior(s)
-            | K::Displacement(s) => self
+            K::Imager(s) | K::Pixel(s) => {
+                let id = rt.find_shader(&s.name)?;
+                let program = rt.program(id)?.clone();
+                let mut params = Vec::new();
+                for p in &s.params {
+                    match shader_value(p, &program) {
+                        Some(v) => match crate::shading::bind_param(&program, &p.name, &v, &Affine3A::IDENTITY) {
+                            Ok(_) => params.push((p.name.as_str(), v)),
+                            Err(e) => self.out.warnings.push(format!("{}: warning: {e}", p.loc)),
+                        },
+                        None => {
+                            self.out.warnings.push(format!("{}: warning: cannot pass {} to a shader", p.loc, p.name))
+                        }
+                    }
+                }
+                rt.pixel_shader(Some(id), &params)?;
+            }
+            K::Camera(s) | K::Atmosphere(s) | K::Interior(s) | K::Exterior(s) | K::Displacement(s) => self
                 .warn(r, format_args!("shader \"{}\": this shader type is not rendered yet, so it is ignored", s.name)),
             K::ScreenWindow(_)
             | K::CropWindow(_)

@@ -72,6 +72,9 @@ pub struct GlobalSlots {
     pub time: Option<Slot>,
     pub ncomps: Option<Slot>,
     pub alpha: Option<Slot>,
+    pub zdepth: Option<Slot>,
+    pub objectid: Option<Slot>,
+    pub shaderid: Option<Slot>,
 }
 
 impl GlobalSlots {
@@ -103,6 +106,9 @@ impl GlobalSlots {
             time: g("time"),
             ncomps: g("ncomps"),
             alpha: g("alpha"),
+            zdepth: g("zdepth"),
+            objectid: g("objectid"),
+            shaderid: g("shaderid"),
         }
     }
 }
