@@ -13,7 +13,6 @@ pub use program::{GlobalSlots, LightKind, Program, ShaderError, ShaderProgram, S
 use glam::{Affine3A, Vec3A};
 use rtsl_compiler::back::jit::{BatchData, RawBatch};
 use std::cell::RefCell;
-use std::collections::HashMap;
 use std::sync::{Arc, Weak};
 
 /// A program with bound parameter values, placed in the world: what `bind_shader` + `parameter`
@@ -143,8 +142,11 @@ pub fn get3(raw: &RawBatch<'_>, slot: Option<Slot>, lane: usize, default: Vec3A)
 /// A batch kept for reuse, with the program it was made for.
 type PooledBatch = (Weak<ShaderProgram>, BatchData);
 
+/// Most batches kept per thread (a frame uses a handful of programs, recursion a few more).
+const POOL_SIZE: usize = 32;
+
 thread_local! {
-    static BATCHES: RefCell<HashMap<usize, Vec<PooledBatch>>> = RefCell::new(HashMap::new());
+    static BATCHES: RefCell<Vec<PooledBatch>> = const { RefCell::new(Vec::new()) };
 }
 
 /// Runs `f` with a batch of `lanes` lanes for `program`, reset (all lanes active, zeros, nothing
@@ -152,22 +154,27 @@ thread_local! {
 /// traces rays whose hits are shaded with the same program), so a batch is taken out of the pool
 /// while in use rather than borrowed.
 pub fn with_batch<R>(program: &Program, lanes: usize, f: impl FnOnce(&mut BatchData) -> R) -> R {
-    let key = Arc::as_ptr(program) as usize;
-    // A pooled batch is reused only for the very program it was made for (an address can be reused
-    // by a later program once the first is dropped).
-    let taken = BATCHES.with(|b| b.borrow_mut().get_mut(&key).and_then(Vec::pop));
-    let mut batch = match taken {
-        Some((owner, batch)) if owner.upgrade().is_some_and(|o| Arc::ptr_eq(&o, program)) => batch,
-        _ => program.code.batch(lanes),
-    };
+    // Identity by address is sound: the pool's `Weak` keeps the program's allocation from being
+    // reused by another program while the batch is pooled.
+    let me = Arc::as_ptr(program);
+    let taken = BATCHES.with(|b| {
+        let mut b = b.borrow_mut();
+        let i = b.iter().rposition(|(owner, _)| std::ptr::eq(owner.as_ptr(), me))?;
+        Some(b.swap_remove(i).1)
+    });
+    let mut batch = taken.unwrap_or_else(|| program.code.batch(lanes));
     batch.reset(lanes);
     let r = f(&mut batch);
     BATCHES.with(|b| {
         let mut b = b.borrow_mut();
-        let list = b.entry(key).or_default();
-        if list.len() < 8 {
-            list.push((Arc::downgrade(program), batch));
+        if b.len() >= POOL_SIZE {
+            // Forget the batches of programs that are gone first, then the oldest.
+            b.retain(|(owner, _)| owner.strong_count() > 0);
+            if b.len() >= POOL_SIZE {
+                b.remove(0);
+            }
         }
+        b.push((Arc::downgrade(program), batch));
     });
     r
 }

@@ -183,7 +183,9 @@ pub(super) fn layout(m: &Module) -> Result<Layout, &'static str> {
             *offset += comps;
         }
     }
-    l.deriv_slots = l.varying_slots;
+    // Only a shader that differentiates something reads derivatives; the others get no buffer
+    // (`deriv_slots` 0), so renderers fill nothing for them.
+    l.deriv_slots = if info.any || info.globals.iter().any(|g| *g) { l.varying_slots } else { 0 };
     for p in &shader.params {
         let comps = components(p.ty).ok_or("a shader parameter of an unstorable type")?;
         let string = p.ty.base == BaseType::String;

@@ -387,11 +387,12 @@ impl BatchData {
     /// Sets the screen-space derivatives (`d/dx`, `d/dy`) of a varying global in one lane: the
     /// renderer's ray differentials (`docs/packet-abi.md`, "Derivatives"). Returns false when the
     /// shader does not use the global or it is uniform, the lane is out of range, or a slice has the
-    /// wrong number of floats. Unset derivatives are 0.
+    /// wrong number of floats, or the shader differentiates nothing (`Layout::deriv_slots` is 0:
+    /// there is nothing to set). Unset derivatives are 0.
     pub fn set_global_derivs(&mut self, name: &str, lane: usize, dx: &[f32], dy: &[f32]) -> bool {
         let Some(s) = self.global_slot(name) else { return false };
         let n = self.layout.global(name).map_or(0, |g| g.components);
-        if dx.len() != n || dy.len() != n || lane >= self.lanes {
+        if dx.len() != n || dy.len() != n || lane >= self.lanes || s + n > self.layout.deriv_slots {
             return false;
         }
         for k in 0..n {
