@@ -481,12 +481,12 @@ impl Cx<'_> {
         // `ambient()`, `diffuse()` and `specular()` of one chunk ask for the same lights: the renderer
         // is asked once per (category, points, lanes).
         let points: [u32; 12] = std::array::from_fn(|i| self.input[4 * k + i].to_bits());
-        let key = (category.to_string(), points, self.mask);
-        if let Some((last, counts)) = &self.ctx.last_lights {
-            if *last == key {
+        if let Some(((cat, p, m), counts)) = &self.ctx.last_lights {
+            if cat == category && *p == points && *m == self.mask {
                 return *counts;
             }
         }
+        let key = (category.to_string(), points, self.mask);
         // One buffer per batch: the renderer writes the entries it counts, and only those are read.
         let out = &mut self.ctx.light_buffer;
         out.resize(MAX_LIGHTS * 4, HostLight::default());
