@@ -252,77 +252,138 @@ fn noisy_rust(p: V3, n: V3, i: V3, lights: &[HostLight], lane: usize, count: u32
     std::array::from_fn(|j| c[j] * kd * dif[j])
 }
 
-type RustShader = fn(V3, V3, V3, &[HostLight], usize, u32) -> V3;
+fn plastic_case(p: V3, n: V3, i: V3, l: &[HostLight], lane: usize, c: u32) -> V3 {
+    let _ = p;
+    plastic_rust(n, i, [1.0, 0.8, 0.6], l, lane, c)
+}
+
+/// One shader of the benchmark, set up once and runnable by each back end (criterion's
+/// `benches/shading.rs` and [`shading_benchmark`] both use it).
+pub struct ShadingCase {
+    pub name: &'static str,
+    module: crate::ir::Module,
+    shader: jit::CompiledShader,
+    batches: Vec<BatchData>,
+    inp: Inputs,
+    table: HostTable,
+    /// The Rust code's `Ci` per point (after [`ShadingCase::rust`]).
+    ci: Vec<V3>,
+}
+
+impl ShadingCase {
+    /// `"plastic"` (the library's) or `"noisy"` ([`NOISY_SOURCE`]) over `points` points.
+    pub fn new(name: &str, points: usize) -> Result<ShadingCase, String> {
+        let (name, src): (&'static str, &str) = match name {
+            "plastic" => ("plastic", PLASTIC_SOURCE),
+            "noisy" => ("noisy", NOISY_SOURCE),
+            other => return Err(format!("no benchmark shader `{other}`")),
+        };
+        let module = module(name, src)?;
+        let shader = jit::compile(&module).map_err(|e| e.to_string())?;
+        let inp = inputs(points.max(64));
+        let batches = batches(&shader, &inp);
+        let ci = vec![[0.0; 3]; inp.p.len()];
+        Ok(ShadingCase { name, module, shader, batches, inp, table: fixed_table(), ci })
+    }
+
+    pub fn points(&self) -> usize {
+        self.inp.p.len()
+    }
+
+    /// Shades every point once with the JIT code.
+    pub fn jit(&mut self) {
+        for b in &mut self.batches {
+            self.shader.shade_with_table(b, &self.table);
+        }
+    }
+
+    /// Shades every point once with the hand-written Rust code over SoA arrays, the lights asked
+    /// once per chunk of four.
+    pub fn rust(&mut self) {
+        // Locals, so that the loop keeps them in registers (as hand-written code would).
+        let (plastic, inp, table, ci) = (self.name == "plastic", &self.inp, &self.table, &mut self.ci[..]);
+        let count = inp.p.len();
+        for c in 0..count.div_ceil(4) {
+            let mut chunk_p = [0.0f32; 12];
+            for l in 0..4 {
+                let k = (4 * c + l).min(count - 1);
+                let p = inp.p[k];
+                (chunk_p[l], chunk_p[4 + l], chunk_p[8 + l]) = (p[0], p[1], p[2]);
+            }
+            let (lights, counts) = lights_of_chunk(table, &chunk_p);
+            for (l, &n) in counts.iter().enumerate() {
+                let k = 4 * c + l;
+                if k < count {
+                    // A direct call (inlined), as hand-written code would make.
+                    ci[k] = if plastic {
+                        plastic_case(inp.p[k], inp.n[k], inp.i[k], &lights, l, n)
+                    } else {
+                        noisy_rust(inp.p[k], inp.n[k], inp.i[k], &lights, l, n)
+                    };
+                }
+            }
+        }
+    }
+
+    /// Shades point `k` with the reference interpreter.
+    pub fn interpreter(&self, k: usize) -> Result<(), String> {
+        let k = k % self.inp.p.len();
+        let kind = self.module.shader.as_ref().map(|s| s.kind).ok_or("no shader")?;
+        let mut point = ShadingPoint::new(kind);
+        point.set("P", Value::Triple(self.inp.p[k]));
+        point.set("N", Value::Triple(self.inp.n[k]));
+        point.set("I", Value::Triple(self.inp.i[k]));
+        point.set("Cs", Value::Triple([1.0, 0.8, 0.6]));
+        interp::run(&self.module, &[], &mut point, &mut TestHost::default(), Limits::default())
+            .map(|_| ())
+            .map_err(|e| e.to_string())
+    }
+
+    /// The largest difference between the JIT's and the Rust code's last `Ci`.
+    pub fn max_difference(&self) -> f32 {
+        let mut max = 0.0f32;
+        for (b, start) in self.batches.iter().zip((0..self.inp.p.len()).step_by(64)) {
+            for l in 0..b.lanes() {
+                let j = b.global("Ci", l).unwrap_or_default();
+                for (a, r) in j.iter().zip(self.ci[start + l]) {
+                    max = max.max((a - r).abs());
+                }
+            }
+        }
+        max
+    }
+}
 
 /// Measures the three back ends on `points` points, `repeats` times over (the interpreter on an
 /// eighth of them: it is slow).
 pub fn shading_benchmark(points: usize, repeats: usize) -> Result<Vec<ShadingRow>, String> {
-    let inp = inputs(points.max(64));
-    let table = fixed_table();
     let mut rows = Vec::new();
-    let plastic: RustShader = |p, n, i, l, lane, c| {
-        let _ = p;
-        plastic_rust(n, i, [1.0, 0.8, 0.6], l, lane, c)
-    };
-    for (name, src, rust) in [("plastic", PLASTIC_SOURCE, plastic), ("noisy", NOISY_SOURCE, noisy_rust as RustShader)] {
-        let m = module(name, src)?;
-        let shader = jit::compile(&m).map_err(|e| e.to_string())?;
-        let mut bs = batches(&shader, &inp);
-        let count = inp.p.len();
-        // (a) JIT
+    for name in ["plastic", "noisy"] {
+        let mut case = ShadingCase::new(name, points)?;
+        let count = case.points();
         let start = Instant::now();
         for _ in 0..repeats {
-            for b in &mut bs {
-                shader.shade_with_table(b, &table);
-            }
+            case.jit();
         }
         let jit_ns = start.elapsed().as_nanos() as f64 / (repeats * count) as f64;
-        // (c) hand-written Rust over SoA arrays, lights asked once per chunk of four.
-        let px: Vec<f32> = inp.p.iter().map(|v| v[0]).collect();
-        let py: Vec<f32> = inp.p.iter().map(|v| v[1]).collect();
-        let pz: Vec<f32> = inp.p.iter().map(|v| v[2]).collect();
-        let mut ci = vec![[0.0f32; 3]; count];
         let start = Instant::now();
         for _ in 0..repeats {
-            for c in 0..count.div_ceil(4) {
-                let mut chunk_p = [0.0f32; 12];
-                for l in 0..4 {
-                    let k = (4 * c + l).min(count - 1);
-                    (chunk_p[l], chunk_p[4 + l], chunk_p[8 + l]) = (px[k], py[k], pz[k]);
-                }
-                let (lights, counts) = lights_of_chunk(&table, &chunk_p);
-                for (l, &n) in counts.iter().enumerate() {
-                    let k = 4 * c + l;
-                    if k < count {
-                        ci[k] = rust(inp.p[k], inp.n[k], inp.i[k], &lights, l, n);
-                    }
-                }
-            }
+            case.rust();
         }
         let rust_ns = start.elapsed().as_nanos() as f64 / (repeats * count) as f64;
-        let mut max_difference = 0.0f32;
-        for (b, start) in bs.iter().zip((0..count).step_by(64)) {
-            for l in 0..b.lanes() {
-                let j = b.global("Ci", l).unwrap_or_default();
-                for (a, r) in j.iter().zip(ci[start + l]) {
-                    max_difference = max_difference.max((a - r).abs());
-                }
-            }
-        }
-        // (b) the interpreter, on an eighth of the points.
         let sample = (count / 8).max(1);
-        let kind = m.shader.as_ref().map(|s| s.kind).ok_or("no shader")?;
         let start = Instant::now();
         for k in 0..sample {
-            let mut point = ShadingPoint::new(kind);
-            point.set("P", Value::Triple(inp.p[k]));
-            point.set("N", Value::Triple(inp.n[k]));
-            point.set("I", Value::Triple(inp.i[k]));
-            point.set("Cs", Value::Triple([1.0, 0.8, 0.6]));
-            interp::run(&m, &[], &mut point, &mut TestHost::default(), Limits::default()).map_err(|e| e.to_string())?;
+            case.interpreter(k)?;
         }
         let interpreter_ns = start.elapsed().as_nanos() as f64 / sample as f64;
-        rows.push(ShadingRow { shader: name, jit_ns, interpreter_ns, rust_ns, max_difference });
+        rows.push(ShadingRow {
+            shader: case.name,
+            jit_ns,
+            interpreter_ns,
+            rust_ns,
+            max_difference: case.max_difference(),
+        });
     }
     Ok(rows)
 }

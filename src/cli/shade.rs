@@ -6,6 +6,7 @@ use anyhow::Context as _;
 use rtsl_compiler::bench::{compile_benchmark, shading_benchmark};
 use rtsl_compiler::interp::TestHost;
 use rtsl_compiler::testshade::{parse_param, Grid, ParamArg};
+use std::io::Write as _;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
@@ -88,9 +89,12 @@ pub struct BenchShadeArgs {
 
 pub fn bench(args: &BenchShadeArgs) -> anyhow::Result<ExitCode> {
     let rows = shading_benchmark(args.points, args.repeats.max(1)).map_err(anyhow::Error::msg)?;
-    println!("shader   jit ns/pt  interpreter ns/pt  rust ns/pt  jit/rust  interpreter/jit  max |jit-rust|");
+    // Written with `?`, so a closed pipe (`| head`) ends quietly instead of panicking.
+    let mut out = std::io::stdout().lock();
+    writeln!(out, "shader   jit ns/pt  interpreter ns/pt  rust ns/pt  jit/rust  interpreter/jit  max |jit-rust|")?;
     for r in &rows {
-        println!(
+        writeln!(
+            out,
             "{:<8} {:>9.1} {:>18.1} {:>11.1} {:>9.3} {:>16.1} {:>15.2e}",
             r.shader,
             r.jit_ns,
@@ -99,21 +103,22 @@ pub fn bench(args: &BenchShadeArgs) -> anyhow::Result<ExitCode> {
             r.jit_ns / r.rust_ns.max(1e-9),
             r.interpreter_ns / r.jit_ns.max(1e-9),
             r.max_difference
-        );
+        )?;
     }
     let mut compile = compile_benchmark(&args.library).map_err(anyhow::Error::msg)?;
     compile.sort_by(|a, b| a.micros.total_cmp(&b.micros));
     if let (Some(max), false) = (compile.last(), compile.is_empty()) {
         let median = compile[compile.len() / 2].micros;
         let total: f64 = compile.iter().map(|r| r.micros).sum();
-        println!(
+        writeln!(
+            out,
             "compile (source to callable code, one thread): {} shaders, median {:.2} ms, max {:.2} ms ({}), total {:.1} ms",
             compile.len(),
             median / 1e3,
             max.micros / 1e3,
             max.name,
             total / 1e3
-        );
+        )?;
     }
     Ok(ExitCode::SUCCESS)
 }
