@@ -1,0 +1,556 @@
+//! The renderer's side of the packet ABI: the `HostTable` a shader call gets (`ShadeCall`), and its
+//! callbacks: named spaces, lights (served from the batch's light table), textures, rays (`trace`,
+//! `transmission`, `occlusion`, `indirectdiffuse`), depth, messages, names and `printf`.
+//!
+//! Invariant: callbacks never unwind into JIT code; they index only buffers whose sizes the packet
+//! ABI fixes, and nothing in them panics on user data.
+
+use super::lights::epsilon;
+use super::lights::{eval_light, transmission_along, BatchLights};
+use super::shade::{mix, point_seed, trace_rays, unit, Frame};
+use super::stats::{tracing, Stats};
+use crate::ray::Ray;
+use crate::shading::ShaderInstance;
+use crate::texture::{Footprint, LookupOptions};
+use glam::{Affine3A, Mat4, Vec3A};
+use rtsl_compiler::back::jit::{HostLight, HostTable, MessageOut, StrRef, MAX_LIGHTS};
+use rtsl_compiler::builtins::Builtin;
+use std::ffi::c_void;
+
+/// The renderer side of one shader call: what the host callbacks need to answer it.
+pub(crate) struct ShadeCall<'f, 'w> {
+    frame: &'f Frame<'w>,
+    instance: &'f ShaderInstance,
+    world_from_object: Affine3A,
+    depth: u32,
+    /// The last light query (diffuse() and specular() of one chunk ask for the same lights).
+    light_cache: Option<LightQuery>,
+    text: String,
+    /// For a surface batch: each lane's `P` as filled and whether it is shaded, so the lights of
+    /// the whole batch are computed at the first light query and chunks are served from them.
+    pub(super) batch_points: Vec<Vec3A>,
+    pub(super) batch_mask: Vec<i32>,
+    batch_lights: Option<BatchLights>,
+    chunk_cursor: usize,
+}
+
+struct LightQuery {
+    category: String,
+    p: [u32; 12],
+    mask: [i32; 4],
+    lights: Vec<HostLight>,
+    counts: [u32; 4],
+}
+
+impl<'f, 'w> ShadeCall<'f, 'w> {
+    pub(crate) fn new(
+        frame: &'f Frame<'w>,
+        instance: &'f ShaderInstance,
+        world_from_object: Affine3A,
+        depth: u32,
+    ) -> Self {
+        ShadeCall {
+            frame,
+            instance,
+            world_from_object,
+            depth,
+            light_cache: None,
+            text: String::new(),
+            batch_points: Vec::new(),
+            batch_mask: Vec::new(),
+            batch_lights: None,
+            chunk_cursor: 0,
+        }
+    }
+
+    /// The call table; valid while `self` is neither moved nor dropped.
+    pub(crate) fn table(&mut self) -> HostTable {
+        HostTable {
+            ctx: self as *mut ShadeCall as *mut c_void,
+            matrix: host_matrix,
+            lights: host_lights,
+            texture: host_texture,
+            rays: host_rays,
+            depth: host_depth,
+            ray_depth: host_ray_depth,
+            message: host_message,
+            shader_name: host_shader_name,
+            print: host_print,
+        }
+    }
+
+    /// World from a named space, `None` for an unknown name.
+    fn world_from(&self, space: &str) -> Option<Mat4> {
+        let world = self.frame.world;
+        let m = match space {
+            "current" | "world" => Affine3A::IDENTITY,
+            "object" => self.world_from_object,
+            "shader" => self.instance.world_from_shader,
+            "camera" => world.camera.world_from_camera,
+            "screen" | "NDC" | "raster" => return self.world_from_projected(space),
+            other => *world.spaces.get(other)?,
+        };
+        Some(Mat4::from(m))
+    }
+
+    fn world_from_projected(&self, space: &str) -> Option<Mat4> {
+        let world = self.frame.world;
+        let (w, h) = (world.options.width.max(1) as f32, world.options.height.max(1) as f32);
+        let tan = (world.camera.fov_degrees.to_radians() * 0.5).tan();
+        let (ax, ay) = if w >= h { (w / h, 1.0) } else { (1.0, h / w) };
+        // camera -> screen: x' = x / (z tan ax), y' likewise, z' = z (a projective matrix).
+        let near = world.camera.near.max(1e-6);
+        let far = world.camera.far.max(near * 2.0);
+        let proj = Mat4::from_cols_array(&[
+            1.0 / (tan * ax),
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+            1.0 / (tan * ay),
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+            far / (far - near),
+            1.0,
+            0.0,
+            0.0,
+            -far * near / (far - near),
+            0.0,
+        ]);
+        let screen_from_camera = match space {
+            "screen" => proj,
+            "NDC" => {
+                Mat4::from_cols_array(&[
+                    0.5 / ax,
+                    0.0,
+                    0.0,
+                    0.0,
+                    0.0,
+                    -0.5 / ay,
+                    0.0,
+                    0.0,
+                    0.0,
+                    0.0,
+                    1.0,
+                    0.0,
+                    0.5,
+                    0.5,
+                    0.0,
+                    1.0,
+                ]) * proj
+            }
+            _ => {
+                Mat4::from_cols_array(&[
+                    0.5 * w / ax,
+                    0.0,
+                    0.0,
+                    0.0,
+                    0.0,
+                    -0.5 * h / ay,
+                    0.0,
+                    0.0,
+                    0.0,
+                    0.0,
+                    1.0,
+                    0.0,
+                    0.5 * w,
+                    0.5 * h,
+                    0.0,
+                    1.0,
+                ]) * proj
+            }
+        };
+        let camera_from_screen = screen_from_camera.inverse();
+        Some(Mat4::from(world.camera.world_from_camera) * camera_from_screen)
+    }
+}
+
+/// # Safety
+/// `ctx` is the `ctx` of a table made by [`ShadeCall::table`] whose call is alive.
+unsafe fn call<'x>(ctx: *mut c_void) -> &'x mut ShadeCall<'x, 'x> {
+    // SAFETY: the caller's contract.
+    unsafe { &mut *(ctx as *mut ShadeCall<'x, 'x>) }
+}
+
+/// # Safety
+/// `p` points to `n` floats.
+unsafe fn slice<'x>(p: *const f32, n: usize) -> &'x [f32] {
+    // SAFETY: the caller's contract.
+    unsafe { std::slice::from_raw_parts(p, n) }
+}
+
+fn lane3(v: &[f32], k: usize, l: usize) -> Vec3A {
+    Vec3A::new(v[4 * k + l], v[4 * (k + 1) + l], v[4 * (k + 2) + l])
+}
+
+unsafe extern "C" fn host_matrix(ctx: *mut c_void, from: StrRef, to: StrRef, out: *mut f32) -> u32 {
+    // SAFETY: the table's contract: `ctx` is alive, the strings valid, `out` holds 16 floats.
+    let (c, from, to) = unsafe { (call(ctx), from.as_str(), to.as_str()) };
+    let (Some(a), Some(b)) = (c.world_from(from), c.world_from(to)) else { return 0 };
+    // Points go from `from` to world, then from world to `to`. glam's column-major array of a
+    // column-vector matrix is RenderMan's row-major array of the row-vector one.
+    let m = (b.inverse() * a).to_cols_array();
+    if !m.iter().all(|x| x.is_finite()) {
+        return 0;
+    }
+    // SAFETY: `out` holds 16 floats.
+    unsafe { std::ptr::copy_nonoverlapping(m.as_ptr(), out, 16) };
+    1
+}
+
+unsafe extern "C" fn host_lights(
+    ctx: *mut c_void,
+    category: StrRef,
+    mask: *const i32,
+    p: *const f32,
+    out: *mut HostLight,
+    counts: *mut u32,
+) {
+    // SAFETY: the table's contract: 4 mask entries, 12 floats of P, MAX_LIGHTS * 4 lights, 4 counts.
+    let (c, category, mask, p, out, counts) = unsafe {
+        (
+            call(ctx),
+            category.as_str(),
+            &*(mask as *const [i32; 4]),
+            slice(p, 12),
+            std::slice::from_raw_parts_mut(out, MAX_LIGHTS * 4),
+            &mut *(counts as *mut [u32; 4]),
+        )
+    };
+    if category.is_empty() && !c.batch_points.is_empty() && serve_from_batch(c, mask, p, out, counts) {
+        return;
+    }
+    let pbits: [u32; 12] = std::array::from_fn(|i| p[i].to_bits());
+    if let Some(q) = &c.light_cache {
+        if q.category == category && q.p == pbits && q.mask == *mask {
+            out[..q.lights.len()].copy_from_slice(&q.lights);
+            *counts = q.counts;
+            return;
+        }
+    }
+    *counts = [0; 4];
+    let points: [Vec3A; 4] = std::array::from_fn(|l| lane3(p, 0, l));
+    for light in &c.frame.world.lights {
+        if !light.in_category(category) {
+            continue;
+        }
+        eval_light(c.frame, light, mask, &points, c.depth, out, counts);
+    }
+    let used = 4 * counts.iter().copied().max().unwrap_or(0) as usize;
+    c.light_cache = Some(LightQuery {
+        category: category.to_string(),
+        p: pbits,
+        mask: *mask,
+        lights: out[..used].to_vec(),
+        counts: *counts,
+    });
+}
+
+/// Answers a chunk's light query from the batch's lights when the chunk's points are the batch's
+/// (bit for bit: a shader that moved `P` gets its lights computed afresh).
+fn serve_from_batch(
+    c: &mut ShadeCall,
+    mask: &[i32; 4],
+    p: &[f32],
+    out: &mut [HostLight],
+    counts: &mut [u32; 4],
+) -> bool {
+    let n = c.batch_points.len();
+    let chunks = n.div_ceil(4);
+    let matches = |chunk: usize| {
+        (0..4).all(|l| {
+            let lane = 4 * chunk + l;
+            mask[l] == 0
+                || (lane < n && c.batch_mask[lane] != 0 && {
+                    let q = c.batch_points[lane];
+                    q.x.to_bits() == p[l].to_bits()
+                        && q.y.to_bits() == p[4 + l].to_bits()
+                        && q.z.to_bits() == p[8 + l].to_bits()
+                })
+        })
+    };
+    let Some(chunk) = (0..chunks).map(|k| (c.chunk_cursor + k) % chunks).find(|&k| matches(k)) else {
+        return false;
+    };
+    c.chunk_cursor = chunk;
+    if c.batch_lights.is_none() {
+        c.batch_lights = Some(BatchLights::compute(c.frame, &c.batch_points, &c.batch_mask, c.depth));
+    }
+    let Some(table) = &c.batch_lights else { return false };
+    for l in 0..4 {
+        counts[l] = 0;
+        let lane = 4 * chunk + l;
+        if mask[l] == 0 || lane >= table.n {
+            continue;
+        }
+        counts[l] = table.counts[lane];
+        for k in 0..table.counts[lane] as usize {
+            out[4 * k + l] = table.lights[k * table.n + lane];
+        }
+    }
+    true
+}
+
+unsafe extern "C" fn host_texture(
+    ctx: *mut c_void,
+    kind: u32,
+    name: StrRef,
+    mask: *const i32,
+    coords: *const f32,
+    first: *const f32,
+    channels: u32,
+    out: *mut f32,
+    ok: *mut u32,
+) {
+    let values = match kind {
+        0 => channels.min(64) as usize,
+        1 => 3,
+        _ => 1,
+    };
+    // SAFETY: the table's contract: 4 mask entries, 3 x 4 coordinates (2 x 4 for textures), 4 first
+    // channels, `values` x 4 results and 4 flags.
+    let (c, name, mask, coords, first, out, ok) = unsafe {
+        (
+            call(ctx),
+            name.as_str(),
+            &*(mask as *const [i32; 4]),
+            slice(coords, if kind == 0 { 28 } else { 12 }),
+            slice(first, 4),
+            std::slice::from_raw_parts_mut(out, 4 * values),
+            &mut *(ok as *mut [u32; 4]),
+        )
+    };
+    let textures = &c.frame.world.textures;
+    let mut lane_out = [0.0f32; 64];
+    for l in 0..4 {
+        ok[l] = 0;
+        if mask[l] == 0 {
+            continue;
+        }
+        let found = match kind {
+            0 => {
+                // Rows 2..6: the footprint from the coordinates' derivatives, widths applied, and blur.
+                let row = |k: usize| coords[4 * k + l];
+                let footprint = Footprint { dsdx: row(2), dtdx: row(3), dsdy: row(4), dtdy: row(5) };
+                let blur = row(6).max(0.0);
+                let opts = LookupOptions { sblur: blur, tblur: blur, ..LookupOptions::default() };
+                let first = first[l].max(0.0) as usize;
+                textures.texture(name, row(0), row(1), footprint, first, &mut lane_out[..values], &opts)
+            }
+            1 => {
+                let dir = lane3(coords, 0, l).to_array();
+                textures.environment(name, dir, [0.0; 3], [0.0; 3], 0, &mut lane_out[..3], &LookupOptions::default())
+            }
+            _ => {
+                let p = lane3(coords, 0, l);
+                let shadowed = if name == "raytrace" {
+                    // Ray-traced shadows (BMRT's convention): towards the light's own origin.
+                    let to = c.instance.world_from_shader.translation;
+                    let d = to - p;
+                    let t = transmission_along(c.frame, p, d.normalize_or_zero(), d.length());
+                    Some(1.0 - (t.x + t.y + t.z) / 3.0)
+                } else {
+                    textures.shadow(name, p.to_array(), &LookupOptions::default())
+                };
+                if let Some(v) = shadowed {
+                    lane_out[0] = v;
+                }
+                shadowed.is_some()
+            }
+        };
+        if found {
+            ok[l] = 1;
+            for (k, v) in lane_out[..values].iter().enumerate() {
+                out[4 * k + l] = *v;
+            }
+        }
+    }
+}
+
+unsafe extern "C" fn host_rays(
+    ctx: *mut c_void,
+    kind: u32,
+    mask: *const i32,
+    a: *const f32,
+    b: *const f32,
+    samples: *const f32,
+    out: *mut f32,
+) {
+    // SAFETY: the table's contract: 4 mask entries, 12 floats each of a and b, 4 samples, and room
+    // for the kind's results (at most 4 x 4 floats).
+    let (c, mask, a, b, samples) =
+        unsafe { (call(ctx), &*(mask as *const [i32; 4]), slice(a, 12), slice(b, 12), slice(samples, 4)) };
+    let results = match kind {
+        0 => 4,
+        1 | 3 => 3,
+        _ => 1,
+    };
+    // SAFETY: as above.
+    let out = unsafe { std::slice::from_raw_parts_mut(out, 4 * results) };
+    let frame = c.frame;
+    let max_depth = frame.world.options.max_ray_depth;
+    match kind {
+        0 => {
+            let mut rays = Vec::new();
+            let mut lanes = Vec::new();
+            for l in 0..4 {
+                if mask[l] == 0 {
+                    continue;
+                }
+                for r in 0..3 {
+                    out[4 * r + l] = 0.0;
+                }
+                out[12 + l] = f32::INFINITY;
+                let (from, dir) = (lane3(a, 0, l), lane3(b, 0, l).normalize_or_zero());
+                if c.depth + 1 > max_depth || dir == Vec3A::ZERO || !from.is_finite() {
+                    continue;
+                }
+                rays.push(Ray::segment(from, dir, epsilon(from), f32::INFINITY));
+                lanes.push(l);
+            }
+            if rays.is_empty() {
+                return;
+            }
+            Stats::add(&frame.stats.secondary_rays, rays.len());
+            let seen = trace_rays(frame, &rays, c.depth + 1);
+            for (s, l) in seen.iter().zip(lanes) {
+                for r in 0..3 {
+                    out[4 * r + l] = s.color[r];
+                }
+                out[12 + l] = s.depth;
+            }
+        }
+        1 => {
+            for l in 0..4 {
+                if mask[l] == 0 {
+                    continue;
+                }
+                let (from, to) = (lane3(a, 0, l), lane3(b, 0, l));
+                let d = to - from;
+                let t = transmission_along(frame, from, d.normalize_or_zero(), d.length());
+                for r in 0..3 {
+                    out[4 * r + l] = t[r];
+                }
+            }
+        }
+        _ => {
+            for l in 0..4 {
+                if mask[l] == 0 {
+                    continue;
+                }
+                let (p, n) = (lane3(a, 0, l), lane3(b, 0, l).normalize_or_zero());
+                let count = (samples[l].max(1.0) as u32).min(256);
+                let (blocked, light) = hemisphere(frame, p, n, count, kind == 3, c.depth);
+                if kind == 3 {
+                    for r in 0..3 {
+                        out[4 * r + l] = light[r];
+                    }
+                } else {
+                    out[l] = blocked;
+                }
+            }
+        }
+    }
+}
+
+/// Cosine-weighted rays over the hemisphere around `n`: the fraction blocked, and (when `shade`)
+/// the mean colour seen.
+fn hemisphere(frame: &Frame, p: Vec3A, n: Vec3A, count: u32, shade: bool, depth: u32) -> (f32, Vec3A) {
+    if n == Vec3A::ZERO {
+        return (0.0, Vec3A::ZERO);
+    }
+    let (t1, t2) = orthonormal(n);
+    let seed = point_seed(p);
+    let mut rays = Vec::with_capacity(count as usize);
+    for i in 0..count {
+        let h = mix(seed ^ u64::from(i).wrapping_mul(0x9E37_79B9));
+        let (r1, r2) = (unit(h), unit(mix(h)));
+        let phi = std::f32::consts::TAU * r1;
+        let (s, cz) = (r2.sqrt(), (1.0 - r2).sqrt());
+        let dir = t1 * (s * phi.cos()) + t2 * (s * phi.sin()) + n * cz;
+        rays.push(Ray::segment(p, dir, epsilon(p), f32::INFINITY));
+    }
+    Stats::add(&frame.stats.secondary_rays, rays.len());
+    if shade && depth < frame.world.options.max_ray_depth {
+        let seen = trace_rays(frame, &rays, depth + 1);
+        let blocked = seen.iter().filter(|s| s.depth.is_finite()).count() as f32 / count as f32;
+        let sum = seen.iter().fold(Vec3A::ZERO, |acc, s| acc + s.color);
+        (blocked, sum / count as f32)
+    } else {
+        let blocked = tracing(|| rays.iter().filter(|r| frame.world.scene.occluded(r)).count()) as f32 / count as f32;
+        (blocked, Vec3A::ZERO)
+    }
+}
+
+fn orthonormal(n: Vec3A) -> (Vec3A, Vec3A) {
+    let a = if n.x.abs() > 0.9 { Vec3A::Y } else { Vec3A::X };
+    let t1 = n.cross(a).normalize();
+    (t1, n.cross(t1))
+}
+
+unsafe extern "C" fn host_depth(ctx: *mut c_void, mask: *const i32, p: *const f32, out: *mut f32) {
+    // SAFETY: the table's contract.
+    let (c, mask, p, out) =
+        unsafe { (call(ctx), &*(mask as *const [i32; 4]), slice(p, 12), std::slice::from_raw_parts_mut(out, 4)) };
+    let cam = &c.frame.world.camera;
+    for l in 0..4 {
+        if mask[l] != 0 {
+            let z = c.frame.camera_from_world.transform_point3a(lane3(p, 0, l)).z;
+            out[l] = ((z - cam.near) / (cam.far - cam.near)).clamp(0.0, 1.0);
+        }
+    }
+}
+
+unsafe extern "C" fn host_ray_depth(ctx: *mut c_void) -> f32 {
+    // SAFETY: the table's contract.
+    unsafe { call(ctx) }.depth as f32
+}
+
+unsafe extern "C" fn host_message(ctx: *mut c_void, which: u32, name: StrRef, out: *mut MessageOut) -> u32 {
+    // SAFETY: the table's contract.
+    let (c, name, out) = unsafe { (call(ctx), name.as_str(), &mut *out) };
+    let Some(b) = Builtin::ALL.get(which as usize) else { return 0 };
+    let options = &c.frame.world.options;
+    let floats = |out: &mut MessageOut, v: &[f32]| {
+        out.kind = 1;
+        out.len = if v.len() == 1 { 0 } else { v.len() as u32 };
+        out.floats[..v.len()].copy_from_slice(v);
+        1
+    };
+    match (b, name) {
+        (Builtin::Option, "Format") => floats(out, &[options.width as f32, options.height as f32, 1.0]),
+        (Builtin::Option, "PixelSamples") => floats(out, &[options.samples.0 as f32, options.samples.1 as f32]),
+        (Builtin::Rendererinfo, "renderer") => {
+            c.text = "rtsl".to_string();
+            out.kind = 4;
+            out.len = 0;
+            out.string = StrRef::new(&c.text);
+            1
+        }
+        (Builtin::Rendererinfo, "version") => floats(out, &[0.0, 1.0, 0.0, 0.0]),
+        (Builtin::Rendererinfo, "versionstring") => {
+            c.text = env!("CARGO_PKG_VERSION").to_string();
+            out.kind = 4;
+            out.len = 0;
+            out.string = StrRef::new(&c.text);
+            1
+        }
+        _ => 0,
+    }
+}
+
+unsafe extern "C" fn host_shader_name(ctx: *mut c_void, has_kind: u32, _kind: StrRef) -> StrRef {
+    // SAFETY: the table's contract.
+    let c = unsafe { call(ctx) };
+    c.text = if has_kind == 0 { c.instance.program.name.clone() } else { String::new() };
+    StrRef::new(&c.text)
+}
+
+unsafe extern "C" fn host_print(_ctx: *mut c_void, text: StrRef) {
+    use std::io::Write;
+    // SAFETY: the table's contract.
+    let text = unsafe { text.as_str() };
+    let _ = std::io::stdout().lock().write_all(text.as_bytes());
+}
