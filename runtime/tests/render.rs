@@ -268,3 +268,52 @@ fn misuse_is_a_typed_error() -> Result<(), ApiError> {
     assert!(matches!(rt.compile_shader("bad.sl", "surface bad( { }"), Err(ApiError::Shader(_))));
     Ok(())
 }
+
+#[test]
+fn adaptive_sampling_adds_rays_only_where_neighbours_differ() -> Result<(), ApiError> {
+    use rtsl_runtime::render::Antialiasing;
+    let render = |aa: Antialiasing, samples: (u32, u32)| -> Result<(Framebuffer, u64), ApiError> {
+        let mut rt = context();
+        let flat = rt.compile_shader("flat.sl", FLAT)?;
+        rt.camera_look_at(Vec3A::new(0.0, 0.0, 5.0), Vec3A::ZERO, Vec3A::Y, 60.0);
+        let o = rt.begin_object()?;
+        rt.bind_shader(flat)?;
+        // A square tilted in the image, so its edges cut pixels.
+        rt.rotate(20.0, 0.0, 0.0, 1.0);
+        quad(&mut rt, [[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [1.0, 1.0, 0.0], [-1.0, 1.0, 0.0]])?;
+        rt.end_object()?;
+        rt.load_identity();
+        rt.instantiate_object(o)?;
+        rt.options.samples = samples;
+        rt.options.antialiasing = aa;
+        let (fb, report) = rt.render_frame()?;
+        Ok((fb, report.primary_rays))
+    };
+    let (one, one_rays) = render(Antialiasing::Grid { jitter: true }, (1, 1))?;
+    let (_, grid_rays) = render(Antialiasing::Grid { jitter: true }, (2, 2))?;
+    let (adaptive, adaptive_rays) = render(Antialiasing::Adaptive { threshold: 0.05 }, (2, 2))?;
+    assert_eq!(one_rays, u64::from(W * H));
+    assert_eq!(grid_rays, 4 * u64::from(W * H));
+    assert!(adaptive_rays > one_rays && adaptive_rays < grid_rays / 2, "{adaptive_rays} rays");
+    let mut edge_pixels = 0;
+    for i in 0..(W * H) as usize {
+        let (a, b) = (&one.rgba[4 * i..4 * i + 4], &adaptive.rgba[4 * i..4 * i + 4]);
+        if a != b {
+            edge_pixels += 1;
+            // A refined pixel changed only because its samples disagree: it is partly covered.
+            assert!(b[3] > 0.0 && b[3] < 1.0, "{a:?} -> {b:?}");
+        }
+    }
+    assert!(edge_pixels > 0 && edge_pixels < (W * H / 4) as usize, "{edge_pixels} pixels refined");
+    // Inside the square and in the empty corners, nothing changed.
+    assert_eq!(adaptive.pixel(W / 2, H / 2), one.pixel(W / 2, H / 2));
+    assert_eq!(adaptive.pixel(0, 0), one.pixel(0, 0));
+
+    // Interleaved sampling: every sample within its pixel, neighbours on different points.
+    let (inter, _) = render(Antialiasing::Interleaved, (2, 2))?;
+    assert_eq!(inter.pixel(W / 2, H / 2), [1.0; 4]);
+    assert!(Antialiasing::parse("adaptive:0.1") == Ok(Antialiasing::Adaptive { threshold: 0.1 }));
+    assert!(Antialiasing::parse("qmc") == Ok(Antialiasing::Interleaved));
+    assert!(Antialiasing::parse("adaptive:x").is_err() && Antialiasing::parse("fancy").is_err());
+    Ok(())
+}

@@ -163,6 +163,9 @@ pub struct BenchRenderArgs {
     /// Samples per pixel (overrides the scene's).
     #[arg(long, default_value_t = 1)]
     pub samples: u32,
+    /// Anti-aliasing mode (as `rtsl render --aa`).
+    #[arg(long, value_parser = rtsl_runtime::render::Antialiasing::parse)]
+    pub aa: Option<rtsl_runtime::render::Antialiasing>,
     /// Also render with every `plastic` replaced by hand-written Rust, alternating frame by frame,
     /// and print the JIT's cost as a ratio.
     #[arg(long)]
@@ -186,6 +189,9 @@ pub fn run_render(args: &BenchRenderArgs) -> anyhow::Result<()> {
         rt.options.height = h;
     }
     rt.options.samples = super::render::samples_grid(args.samples);
+    if let Some(aa) = args.aa {
+        rt.options.antialiasing = aa;
+    }
     let mut world = rt.build_world()?;
     let threads =
         if args.threads == 0 { std::thread::available_parallelism().map_or(1, |n| n.get()) } else { args.threads };

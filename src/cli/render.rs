@@ -4,7 +4,7 @@
 use anyhow::Context as _;
 use rtsl_runtime::api::Context;
 use rtsl_runtime::reload::{reload_changed, ShaderWatcher};
-use rtsl_runtime::render::render_frame;
+use rtsl_runtime::render::{render_frame, Antialiasing};
 use rtsl_runtime::scene_file::{add_model_file, frame_bounds};
 use rtsl_runtime::{write_image, WriteOptions};
 use std::io::IsTerminal;
@@ -29,6 +29,11 @@ pub struct RenderArgs {
     /// Worker threads (0: one per core).
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
+    /// Anti-aliasing: `regular` or `jittered` (the sample grid in every pixel), `interleaved`
+    /// (quasi-Monte Carlo, Keller and Heidrich), or `adaptive[:THRESHOLD]` (one sample, more where
+    /// neighbours differ; default threshold 0.05).
+    #[arg(long, value_parser = Antialiasing::parse)]
+    pub aa: Option<Antialiasing>,
     /// Directories searched for `#include`d shader headers.
     #[arg(short = 'I', long = "include")]
     pub include: Vec<PathBuf>,
@@ -178,6 +183,9 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
     }
     if let Some(n) = args.samples {
         rt.options.samples = samples_grid(n);
+    }
+    if let Some(aa) = args.aa {
+        rt.options.antialiasing = aa;
     }
     let output = output.unwrap_or_else(|| PathBuf::from("render.png"));
     let threads =

@@ -5,7 +5,7 @@
 //! are independent, jitter is a hash of pixel and sample, and results land in tile order).
 
 use super::shade::{mix, shade_packet, shade_pixels, Frame, Sample, TilePixels};
-use super::world::World;
+use super::world::{Antialiasing, World};
 use crate::camera::{packet_lane_offset, PACKET_SIDE};
 use crate::ray::{HitPacket, RayPacket, PACKET_SIZE};
 use crate::tiles::render_tiles;
@@ -97,39 +97,143 @@ impl std::fmt::Display for FrameReport {
     }
 }
 
-/// The primary rays of one packet for sample `(i, j)` of the pixel grid: a pinhole camera whose
-/// field of view spans the image's shorter side, each pixel jittered within its sample cell.
-pub fn primary_packet(world: &World, x0: u32, y0: u32, sample: (u32, u32)) -> RayPacket {
-    let (w, h) = (world.options.width, world.options.height);
-    let (sx, sy) = world.options.samples;
+/// The camera ray through the point `(x + jx, y + jy)` of the image (pixel `(x, y)`, sub-pixel
+/// offset `(jx, jy)` in [0, 1)): a pinhole camera whose field of view spans the image's shorter side.
+pub fn camera_ray(world: &World, x: u32, y: u32, jx: f32, jy: f32) -> crate::ray::Ray {
+    let (wf, hf) = (world.options.width.max(1) as f32, world.options.height.max(1) as f32);
     let cam = &world.camera;
     let tan = (cam.fov_degrees.to_radians() * 0.5).tan();
-    let (wf, hf) = (w.max(1) as f32, h.max(1) as f32);
     let (ax, ay) = if wf >= hf { (wf / hf, 1.0) } else { (1.0, hf / wf) };
     let m = &cam.world_from_camera;
-    let (right, up, forward) = (m.matrix3.x_axis, m.matrix3.y_axis, m.matrix3.z_axis);
-    let eye = m.translation;
+    let scr_x = (2.0 * (x as f32 + jx) / wf - 1.0) * tan * ax;
+    let scr_y = (1.0 - 2.0 * (y as f32 + jy) / hf) * tan * ay;
+    let d = (m.matrix3.z_axis + m.matrix3.x_axis * scr_x + m.matrix3.y_axis * scr_y).normalize();
+    crate::ray::Ray::new(m.translation, d)
+}
+
+/// The radical inverse of `i` in `base` (van der Corput), for Halton points.
+fn radical_inverse(mut i: u32, base: u32) -> f32 {
+    let (mut inv, mut f) = (0.0f64, 1.0f64 / f64::from(base));
+    while i > 0 {
+        inv += f64::from(i % base) * f;
+        i /= base;
+        f /= f64::from(base);
+    }
+    inv as f32
+}
+
+/// The sub-pixel offset of sample `(i, j)` of pixel `(x, y)` under the frame's anti-aliasing mode
+/// (for the fixed-pattern modes; adaptive sampling's extra samples use the jittered grid).
+pub fn sample_offset(world: &World, x: u32, y: u32, sample: (u32, u32)) -> (f32, f32) {
+    let (sx, sy) = (world.options.samples.0.max(1), world.options.samples.1.max(1));
+    let n = sx * sy;
+    let k = sample.1 * sx + sample.0;
+    match world.options.antialiasing {
+        // Adaptive sampling's first sample is the pixel's centre.
+        Antialiasing::Adaptive { .. } => (0.5, 0.5),
+        Antialiasing::Grid { jitter: false } => {
+            ((sample.0 as f32 + 0.5) / sx as f32, (sample.1 as f32 + 0.5) / sy as f32)
+        }
+        Antialiasing::Interleaved => {
+            // Keller & Heidrich: the pixels of a 4x4 block take successive runs of one Halton
+            // sequence, so neighbours sample different points of one low-discrepancy set.
+            let class = (x % 4) + 4 * (y % 4);
+            let i = class * n + k + 1;
+            (radical_inverse(i, 2), radical_inverse(i, 3))
+        }
+        _ if n == 1 => (0.5, 0.5),
+        _ => {
+            let hsh = mix((u64::from(y) << 40) ^ (u64::from(x) << 16) ^ u64::from(k));
+            let r = |b: u64| ((hsh >> b) & 0xFFFF) as f32 / 65536.0;
+            ((sample.0 as f32 + r(0)) / sx as f32, (sample.1 as f32 + r(16)) / sy as f32)
+        }
+    }
+}
+
+/// The primary rays of one 8x8 packet for sample `(i, j)` of each pixel (see [`sample_offset`]).
+pub fn primary_packet(world: &World, x0: u32, y0: u32, sample: (u32, u32)) -> RayPacket {
+    let (w, h) = (world.options.width, world.options.height);
     let mut p = RayPacket::new();
-    let jittered = sx * sy > 1;
     for i in 0..PACKET_SIZE {
         let (dx, dy) = packet_lane_offset(i);
         let (x, y) = (x0 + dx, y0 + dy);
         if x >= w || y >= h {
             continue;
         }
-        let (jx, jy) = if jittered {
-            let hsh = mix((u64::from(y) << 40) ^ (u64::from(x) << 16) ^ u64::from(sample.1 * sx + sample.0));
-            let r = |k: u64| ((hsh >> k) & 0xFFFF) as f32 / 65536.0;
-            ((sample.0 as f32 + r(0)) / sx as f32, (sample.1 as f32 + r(16)) / sy as f32)
-        } else {
-            (0.5, 0.5)
-        };
-        let scr_x = (2.0 * (x as f32 + jx) / wf - 1.0) * tan * ax;
-        let scr_y = (1.0 - 2.0 * (y as f32 + jy) / hf) * tan * ay;
-        let d = (forward + right * scr_x + up * scr_y).normalize();
-        p.set(i, &crate::ray::Ray::new(eye, d));
+        let (jx, jy) = sample_offset(world, x, y, sample);
+        p.set(i, &camera_ray(world, x, y, jx, jy));
     }
     p
+}
+
+/// Adaptive oversampling of one tile (OpenRT's, paper 5.1.2): a pixel that differs from a
+/// neighbour in the tile by more than `threshold` in any colour channel, or in the object or shader
+/// hit, gets a jittered `ex x ey` grid of extra samples, averaged with its first one.
+fn refine_tile(
+    frame: &Frame,
+    tile: &crate::tiles::Tile,
+    threshold: f32,
+    (ex, ey): (u32, u32),
+    color: &mut [[f32; 4]],
+    ids: &[u32],
+    shader_ids: &[u32],
+) {
+    let world = frame.world;
+    let (tw, th) = (tile.width as usize, tile.height as usize);
+    let differs = |a: usize, b: usize| {
+        ids[a] != ids[b]
+            || shader_ids[a] != shader_ids[b]
+            || (0..4).any(|c| (color[a][c] - color[b][c]).abs() > threshold)
+    };
+    let mut refine = vec![false; color.len()];
+    for y in 0..th {
+        for x in 0..tw {
+            let k = y * tw + x;
+            for n in [(x + 1 < tw).then_some(k + 1), (y + 1 < th).then_some(k + tw)].into_iter().flatten() {
+                if differs(k, n) {
+                    refine[k] = true;
+                    refine[n] = true;
+                }
+            }
+        }
+    }
+    // The extra rays, 64 to a packet (incoherent packets fall back to single rays in the tracer).
+    let mut rays = Vec::new();
+    for (k, _) in refine.iter().enumerate().filter(|(_, r)| **r) {
+        let (x, y) = (tile.x0 + (k % tw) as u32, tile.y0 + (k / tw) as u32);
+        for j in 0..ey {
+            for i in 0..ex {
+                let hsh = mix((u64::from(y) << 40) ^ (u64::from(x) << 16) ^ u64::from(0x5A5A_0000 + j * ex + i));
+                let r = |b: u64| ((hsh >> b) & 0xFFFF) as f32 / 65536.0;
+                let (jx, jy) = ((i as f32 + r(0)) / ex as f32, (j as f32 + r(16)) / ey as f32);
+                rays.push((k, camera_ray(world, x, y, jx, jy)));
+            }
+        }
+    }
+    let mut sums = vec![[0.0f32; 4]; color.len()];
+    let mut samples = [Sample::default(); PACKET_SIZE];
+    let mut hits = HitPacket::default();
+    for chunk in rays.chunks(PACKET_SIZE) {
+        let mut packet = RayPacket::new();
+        for (lane, (_, ray)) in chunk.iter().enumerate() {
+            packet.set(lane, ray);
+        }
+        world.scene.intersect_packet(&packet, &mut hits);
+        shade_packet(frame, &packet, &hits, &mut samples);
+        for ((k, _), s) in chunk.iter().zip(&samples) {
+            let sum = &mut sums[*k];
+            for (c, v) in sum.iter_mut().zip(s.color.to_array()) {
+                *c += v;
+            }
+            sum[3] += s.alpha;
+        }
+    }
+    let n = (ex * ey) as f32;
+    for (k, sum) in sums.iter().enumerate().filter(|(k, _)| refine[*k]) {
+        for c in 0..4 {
+            color[k][c] = (color[k][c] + sum[c]) / (1.0 + n);
+        }
+    }
 }
 
 /// Renders a frame with the threads of the current rayon pool. `progress` is told how many tiles
@@ -139,6 +243,14 @@ pub fn render_frame(world: &World, progress: Option<&(dyn Fn(usize, usize) + Syn
     let frame = Frame::new(world);
     let (w, h) = (world.options.width, world.options.height);
     let (sx, sy) = (world.options.samples.0.max(1), world.options.samples.1.max(1));
+    // Adaptive sampling starts with one sample per pixel; its extra samples are the PixelSamples grid
+    // (2x2 when that is 1x1).
+    let adaptive = match world.options.antialiasing {
+        Antialiasing::Adaptive { threshold } => Some(threshold),
+        _ => None,
+    };
+    let (ex, ey) = if (sx, sy) == (1, 1) { (2, 2) } else { (sx, sy) };
+    let (sx, sy) = if adaptive.is_some() { (1, 1) } else { (sx, sy) };
     let total_tiles = crate::tiles::tiles(w, h, TILE_SIZE).len();
     let done = AtomicUsize::new(0);
     let forward = world.camera.world_from_camera.matrix3.z_axis.normalize_or_zero();
@@ -188,6 +300,9 @@ pub fn render_frame(world: &World, progress: Option<&(dyn Fn(usize, usize) + Syn
             for v in c.iter_mut() {
                 *v *= scale;
             }
+        }
+        if let Some(threshold) = adaptive {
+            refine_tile(&frame, tile, threshold, (ex, ey), &mut color, &ids, &shader_ids);
         }
         shade_pixels(
             &frame,

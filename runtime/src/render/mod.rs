@@ -13,9 +13,10 @@ pub mod shade;
 mod stats;
 pub mod world;
 
-pub use frame::{primary_packet, render_frame, FrameReport, Framebuffer, TILE_SIZE};
+pub use frame::{camera_ray, primary_packet, render_frame, sample_offset, FrameReport, Framebuffer, TILE_SIZE};
 pub use shade::{Frame, Sample};
 pub use stats::Stats;
 pub use world::{
-    AreaLight, CameraSetup, InstanceShading, LightSource, Material, RenderOptions, World, MAX_AREA_SAMPLES,
+    Antialiasing, AreaLight, CameraSetup, InstanceShading, LightSource, Material, RenderOptions, World,
+    MAX_AREA_SAMPLES,
 };

@@ -159,6 +159,39 @@ impl CameraSetup {
     }
 }
 
+/// How pixels are sampled (OpenRT paper, 5.1.2).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Antialiasing {
+    /// The `samples` grid in every pixel, at the cells' centres or jittered within them.
+    Grid { jitter: bool },
+    /// Quasi-Monte Carlo interleaved sampling (Keller and Heidrich 2001): the pixels of each 4x4
+    /// block take successive runs of one Halton sequence.
+    Interleaved,
+    /// One sample per pixel, then a jittered grid of extra samples (`samples`, or 2x2) where a pixel
+    /// differs from a neighbour by more than `threshold` in a colour channel or in what it hit.
+    Adaptive { threshold: f32 },
+}
+
+impl Antialiasing {
+    /// Parses `grid`, `regular`, `jittered`, `interleaved` (`qmc`) or `adaptive[:THRESHOLD]`.
+    pub fn parse(s: &str) -> Result<Antialiasing, String> {
+        let (name, arg) = s.split_once(':').map_or((s, None), |(a, b)| (a, Some(b)));
+        match (name, arg) {
+            ("regular", None) => Ok(Antialiasing::Grid { jitter: false }),
+            ("grid" | "jittered", None) => Ok(Antialiasing::Grid { jitter: true }),
+            ("interleaved" | "qmc", None) => Ok(Antialiasing::Interleaved),
+            ("adaptive", None) => Ok(Antialiasing::Adaptive { threshold: 0.05 }),
+            ("adaptive", Some(t)) => t
+                .parse::<f32>()
+                .ok()
+                .filter(|t| t.is_finite() && *t >= 0.0)
+                .map(|threshold| Antialiasing::Adaptive { threshold })
+                .ok_or_else(|| format!("`{t}` is not a threshold (a number, at least 0)")),
+            _ => Err(format!("unknown anti-aliasing mode `{s}` (regular, jittered, interleaved, adaptive[:T])")),
+        }
+    }
+}
+
 /// Render settings (RenderMan's options).
 #[derive(Clone, Debug, PartialEq)]
 pub struct RenderOptions {
@@ -174,6 +207,7 @@ pub struct RenderOptions {
     pub max_transparent_layers: u32,
     /// RIB's `Exposure gain gamma`, applied to the finished colours: `(gain * c) ^ (1 / gamma)`.
     pub exposure: Option<(f32, f32)>,
+    pub antialiasing: Antialiasing,
 }
 
 impl Default for RenderOptions {
@@ -186,6 +220,7 @@ impl Default for RenderOptions {
             background: [0.0; 3],
             max_transparent_layers: 16,
             exposure: None,
+            antialiasing: Antialiasing::Grid { jitter: true },
         }
     }
 }

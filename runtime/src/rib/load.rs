@@ -459,6 +459,18 @@ impl<'a> Loader<'a> {
                         self.rt.add_texture_search_path(d);
                     }
                 }
+                ("antialiasing", "mode") => {
+                    let mode = s.clone().unwrap_or_default();
+                    match crate::render::Antialiasing::parse(&mode) {
+                        Ok(aa) => self.rt.options.antialiasing = aa,
+                        Err(e) => self.warn(r, e),
+                    }
+                }
+                ("antialiasing", "threshold") => {
+                    if let (Some(t), crate::render::Antialiasing::Adaptive { .. }) = (f, self.rt.options.antialiasing) {
+                        self.rt.options.antialiasing = crate::render::Antialiasing::Adaptive { threshold: t.max(0.0) };
+                    }
+                }
                 ("trace", "maxdepth") => {
                     if let Some(n) = f {
                         self.rt.options.max_ray_depth = n.clamp(0.0, 64.0) as u32;
