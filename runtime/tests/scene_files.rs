@@ -219,3 +219,22 @@ fn models_load_from_obj_ply_and_gltf() -> Result<(), SceneFileError> {
     assert!(add_model_file(&mut rt, Path::new("/nonexistent/x.obj")).is_err());
     Ok(())
 }
+
+#[test]
+fn broken_model_files_are_errors_naming_the_file() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    for (name, bytes) in [
+        ("broken.gltf", &b"{ \"asset\": { \"version\": \"2.0\" }, \"meshes\": [ { \"primitives\": 7 } ] }"[..]),
+        ("garbage.glb", &b"glTF\x02\x00\x00\x00\xff\xff\xff\xff"[..]),
+        ("broken.ply", &b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nend_header\n1\n"[..]),
+        ("broken.obj", &b"v 0 0 0\nv 1 0 0\nf 1 2 9\n"[..]),
+    ] {
+        let path = dir.path().join(name);
+        std::fs::write(&path, bytes).expect("write");
+        let mut rt = Context::new();
+        match add_model_file(&mut rt, &path) {
+            Err(e) => assert!(e.to_string().contains(name), "{name}: {e}"),
+            Ok(_) => panic!("{name} loaded"),
+        }
+    }
+}
