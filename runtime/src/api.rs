@@ -795,15 +795,14 @@ impl Context {
         let p = xf.transform_point3(Vec3::new(x, y, z));
         let n = Vec3::from(normal_xf * Vec3A::from(self.current_normal));
         let uv = self.current_uv;
-        let values: Vec<(String, Vec<f32>)> =
-            self.vertex_values.iter().chain(self.primitive_values.iter()).cloned().collect();
+        let values = self.vertex_values.iter().chain(self.primitive_values.iter());
         let (_, _, b) = self.building.as_mut().ok_or(ApiError::NoObject("vertex"))?;
         let index = b.positions.len();
         b.positions.push(p);
         b.normals.push(n);
         b.uvs.push(uv);
         for (name, v) in values {
-            let pos = match b.attributes.iter().position(|a| a.name == name) {
+            let pos = match b.attributes.iter().position(|a| &a.name == name) {
                 Some(i) => i,
                 None => {
                     b.attributes.push(Attribute {
@@ -818,7 +817,7 @@ impl Context {
             if a.components == v.len() {
                 a.data.truncate(index * a.components);
                 a.data.resize(index * a.components, 0.0);
-                a.data.extend_from_slice(&v);
+                a.data.extend_from_slice(v);
             }
         }
         for a in &mut b.attributes {

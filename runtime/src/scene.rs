@@ -215,27 +215,12 @@ impl Scene {
         let xf = &inst.world_from_object;
         let normal_xf = inst.object_from_world.matrix3.transpose();
         let ng = (normal_xf * (pb - pa).cross(pc - pa)).normalize_or_zero();
-        let n = match &mesh.normals {
-            Some(ns) => {
-                let ni = Vec3A::from(ns[a] * w0 + ns[b] * w1 + ns[c] * w2);
-                let n = (normal_xf * ni).normalize_or_zero();
-                if n == Vec3A::ZERO {
-                    ng
-                } else {
-                    n
-                }
-            }
+        let n = match mesh.interpolate_normal([a, b, c], [w0, w1, w2]) {
+            Some(ni) => (normal_xf * Vec3A::from(ni)).normalize_or(ng),
             None => ng,
         };
         let uv = mesh.uvs.as_ref().map(|t| t[a] * w0 + t[b] * w1 + t[c] * w2);
-        let attributes = mesh
-            .attributes
-            .iter()
-            .map(|at| {
-                let k = at.components;
-                (0..k).map(|j| at.data[a * k + j] * w0 + at.data[b * k + j] * w1 + at.data[c * k + j] * w2).collect()
-            })
-            .collect();
+        let attributes = mesh.interpolate_attributes([a, b, c], [w0, w1, w2]);
         Some(SurfaceHit { p: xf.transform_point3a(p_obj), ng, n, uv, attributes })
     }
 }

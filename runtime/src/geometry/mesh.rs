@@ -139,6 +139,27 @@ impl Mesh {
         [self.positions[a as usize], self.positions[b as usize], self.positions[c as usize]]
     }
 
+    /// The vertex normal interpolated at barycentric weights `w` of the triangle with vertices
+    /// `[a, b, c]` (object space, not normalised), when the mesh has normals.
+    pub fn interpolate_normal(&self, [a, b, c]: [usize; 3], w: [f32; 3]) -> Option<Vec3> {
+        let ns = self.normals.as_ref()?;
+        Some(ns[a] * w[0] + ns[b] * w[1] + ns[c] * w[2])
+    }
+
+    /// Every per-vertex attribute interpolated at barycentric weights `w` of the triangle with
+    /// vertices `[a, b, c]`, in the mesh's attribute order.
+    pub fn interpolate_attributes(&self, [a, b, c]: [usize; 3], w: [f32; 3]) -> Vec<Vec<f32>> {
+        self.attributes
+            .iter()
+            .map(|at| {
+                let k = at.components;
+                (0..k)
+                    .map(|j| at.data[a * k + j] * w[0] + at.data[b * k + j] * w[1] + at.data[c * k + j] * w[2])
+                    .collect()
+            })
+            .collect()
+    }
+
     /// Bytes of heap memory held by the mesh data.
     pub fn memory_bytes(&self) -> usize {
         self.positions.len() * size_of::<Vec3>()

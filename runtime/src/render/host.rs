@@ -121,50 +121,18 @@ impl<'f, 'w> ShadeCall<'f, 'w> {
         ]);
         let screen_from_camera = match space {
             "screen" => proj,
-            "NDC" => {
-                Mat4::from_cols_array(&[
-                    0.5 / ax,
-                    0.0,
-                    0.0,
-                    0.0,
-                    0.0,
-                    -0.5 / ay,
-                    0.0,
-                    0.0,
-                    0.0,
-                    0.0,
-                    1.0,
-                    0.0,
-                    0.5,
-                    0.5,
-                    0.0,
-                    1.0,
-                ]) * proj
-            }
-            _ => {
-                Mat4::from_cols_array(&[
-                    0.5 * w / ax,
-                    0.0,
-                    0.0,
-                    0.0,
-                    0.0,
-                    -0.5 * h / ay,
-                    0.0,
-                    0.0,
-                    0.0,
-                    0.0,
-                    1.0,
-                    0.0,
-                    0.5 * w,
-                    0.5 * h,
-                    0.0,
-                    1.0,
-                ]) * proj
-            }
+            // NDC and raster are screen space scaled and moved: x right from 0, y down from 0.
+            "NDC" => window(0.5 / ax, -0.5 / ay, 0.5, 0.5) * proj,
+            _ => window(0.5 * w / ax, -0.5 * h / ay, 0.5 * w, 0.5 * h) * proj,
         };
         let camera_from_screen = screen_from_camera.inverse();
         Some(Mat4::from(world.camera.world_from_camera) * camera_from_screen)
     }
+}
+
+/// Scales x and y, then moves them: screen space to NDC or raster space.
+fn window(sx: f32, sy: f32, ox: f32, oy: f32) -> Mat4 {
+    Mat4::from_translation(glam::Vec3::new(ox, oy, 0.0)) * Mat4::from_scale(glam::Vec3::new(sx, sy, 1.0))
 }
 
 /// # Safety

@@ -274,26 +274,11 @@ fn hit_geometry(ig: &InstanceGeometry, hit: &Hit) -> Option<HitGeometry> {
     let (w0, w1, w2) = (1.0 - hit.u - hit.v, hit.u, hit.v);
     let p_obj = Vec3A::from(pa) * w0 + Vec3A::from(pb) * w1 + Vec3A::from(pc) * w2;
     let ng = (normal_xf * e1.cross(e2)).normalize_or_zero();
-    let n = match &mesh.normals {
-        Some(ns) => {
-            let ni = Vec3A::from(ns[a] * w0 + ns[b] * w1 + ns[c] * w2);
-            let n = (normal_xf * ni).normalize_or_zero();
-            if n == Vec3A::ZERO {
-                ng
-            } else {
-                n
-            }
-        }
+    let n = match mesh.interpolate_normal([a, b, c], [w0, w1, w2]) {
+        Some(ni) => (normal_xf * Vec3A::from(ni)).normalize_or(ng),
         None => ng,
     };
-    let attributes: Vec<Vec<f32>> = mesh
-        .attributes
-        .iter()
-        .map(|at| {
-            let k = at.components;
-            (0..k).map(|j| at.data[a * k + j] * w0 + at.data[b * k + j] * w1 + at.data[c * k + j] * w2).collect()
-        })
-        .collect();
+    let attributes = mesh.interpolate_attributes([a, b, c], [w0, w1, w2]);
     let surf_p = xf.transform_point3a(p_obj);
     let mut duv = [[1.0, 0.0], [0.0, 1.0]];
     let (uv, dpdu, dpdv) = match &mesh.uvs {
@@ -308,8 +293,7 @@ fn hit_geometry(ig: &InstanceGeometry, hit: &Hit) -> Option<HitGeometry> {
             } else {
                 (e1, e2)
             };
-            let w = (1.0 - hit.u - hit.v, hit.u, hit.v);
-            let uv = ta * w.0 + tb * w.1 + tc * w.2;
+            let uv = ta * w0 + tb * w1 + tc * w2;
             ([uv.x, uv.y], dpdu, dpdv)
         }
         None => ([hit.u, hit.v], e1, e2),

@@ -177,25 +177,19 @@ impl<'a> Loader<'a> {
                 }
             }
         }
-        let geometry_or_transform = matches!(
-            r.kind,
-            K::Polygon(_)
-                | K::GeneralPolygon { .. }
-                | K::PointsPolygons { .. }
-                | K::PointsGeneralPolygons { .. }
-                | K::Patch { .. }
-                | K::PatchMesh { .. }
-                | K::Quadric { .. }
-                | K::Translate(_)
-                | K::Rotate { .. }
-                | K::Scale(_)
-                | K::ConcatTransform(_)
-                | K::Transform(_)
-                | K::Identity
-                | K::TransformBegin
-                | K::TransformEnd
-                | K::Skew(_)
-        );
+        let geometry_or_transform = is_geometry(&r.kind)
+            || matches!(
+                r.kind,
+                K::Translate(_)
+                    | K::Rotate { .. }
+                    | K::Scale(_)
+                    | K::ConcatTransform(_)
+                    | K::Transform(_)
+                    | K::Identity
+                    | K::TransformBegin
+                    | K::TransformEnd
+                    | K::Skew(_)
+            );
         if !geometry_or_transform {
             self.flush()?;
         }
@@ -297,23 +291,8 @@ impl<'a> Loader<'a> {
                 let area = matches!(r.kind, K::AreaLightSource { .. });
                 let id = rt.find_shader(&shader.name)?;
                 let program = rt.program(id)?.clone();
-                let mut params = Vec::new();
-                for p in &shader.params {
-                    match shader_value(p, &program) {
-                        Some(v) => params.push((p.name.as_str(), v)),
-                        None => {
-                            self.out.warnings.push(format!("{}: warning: cannot pass {} to a shader", p.loc, p.name))
-                        }
-                    }
-                }
                 // A parameter the light lacks, or of the wrong type, is skipped with a warning.
-                let mut kept = Vec::new();
-                for (name, v) in params {
-                    match crate::shading::bind_param(&program, name, &v, &Affine3A::IDENTITY) {
-                        Ok(_) => kept.push((name, v)),
-                        Err(e) => self.out.warnings.push(format!("{}: warning: {e}", r.loc)),
-                    }
-                }
+                let kept = typed_params(&program, &shader.params, |_| &r.loc, &mut self.out.warnings);
                 let light = rt.light_source(id, &kept)?;
                 rt.set_light(light, true, self.shadows)?;
                 if let Some(h) = handle {
@@ -388,18 +367,7 @@ impl<'a> Loader<'a> {
             K::Imager(s) | K::Pixel(s) => {
                 let id = rt.find_shader(&s.name)?;
                 let program = rt.program(id)?.clone();
-                let mut params = Vec::new();
-                for p in &s.params {
-                    match shader_value(p, &program) {
-                        Some(v) => match crate::shading::bind_param(&program, &p.name, &v, &Affine3A::IDENTITY) {
-                            Ok(_) => params.push((p.name.as_str(), v)),
-                            Err(e) => self.out.warnings.push(format!("{}: warning: {e}", p.loc)),
-                        },
-                        None => {
-                            self.out.warnings.push(format!("{}: warning: cannot pass {} to a shader", p.loc, p.name))
-                        }
-                    }
-                }
+                let params = typed_params(&program, &s.params, |p| &p.loc, &mut self.out.warnings);
                 rt.pixel_shader(Some(id), &params)?;
             }
             K::Camera(s) | K::Atmosphere(s) | K::Interior(s) | K::Exterior(s) | K::Displacement(s) => self
@@ -480,6 +448,42 @@ impl<'a> Loader<'a> {
             }
         }
     }
+}
+
+/// Whether a request is geometry (it becomes part of the object being gathered).
+fn is_geometry(kind: &RequestKind) -> bool {
+    use RequestKind as K;
+    matches!(
+        kind,
+        K::Polygon(_)
+            | K::GeneralPolygon { .. }
+            | K::PointsPolygons { .. }
+            | K::PointsGeneralPolygons { .. }
+            | K::Patch { .. }
+            | K::PatchMesh { .. }
+            | K::Quadric { .. }
+    )
+}
+
+/// The values of `params` that `program` takes, typed by it; each one it cannot take is a warning
+/// (at the parameter for a value with no type, at `bind_loc(param)` for one the shader refuses).
+fn typed_params<'p>(
+    program: &ShaderProgram,
+    params: &'p [Param],
+    bind_loc: impl Fn(&'p Param) -> &'p super::request::Location,
+    warnings: &mut Vec<String>,
+) -> Vec<(&'p str, ParamValue)> {
+    let mut kept = Vec::new();
+    for p in params {
+        match shader_value(p, program) {
+            Some(v) => match crate::shading::bind_param(program, &p.name, &v, &Affine3A::IDENTITY) {
+                Ok(_) => kept.push((p.name.as_str(), v)),
+                Err(e) => warnings.push(format!("{}: warning: {e}", bind_loc(p))),
+            },
+            None => warnings.push(format!("{}: warning: cannot pass {} to a shader", p.loc, p.name)),
+        }
+    }
+    kept
 }
 
 /// A RIB search path (`"dir1:dir2:&"`, `&` standing for the previous value), relative to `base`.
