@@ -212,3 +212,54 @@ fn info_finds_shaders_by_name_on_the_search_path() {
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("no shader named `no_such_shader`"), "{}", stderr(&o));
 }
+
+#[test]
+fn compile_writes_a_library_of_artifacts_that_info_and_the_search_path_use() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    write(dir.path(), "src/inc/tint.h", "#define TINT 0.25\n");
+    write(dir.path(), "src/tinted.sl", "#include \"tint.h\"\nsurface tinted(float k = TINT;) { Ci = k; Oi = 1; }\n");
+    write(dir.path(), "src/zz/tinted.sl", "surface tinted(float j = 1;) { Ci = j; }\n");
+    write(dir.path(), "src/broken.sl", "surface broken() { Ci = nosuch; }\n");
+    let o = rtsl(&["compile", "src", "-I", "src/inc", "-o", "lib", "--threads", "2"], dir.path());
+    let out = stdout(&o);
+    assert_eq!(o.status.code(), Some(1), "a shader failed: {out}");
+    assert!(out.contains("3 shaders: 2 ok, 1 failed") && out.contains("on 2 threads"), "{out}");
+    assert!(out.contains("defines shader `tinted` again"), "{out}");
+    assert!(out.contains("wrote 1 artifact and index.json"), "{out}");
+
+    let index: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("lib/index.json")).expect("index"))
+            .expect("json");
+    let shaders = index["shaders"].as_array().expect("shaders");
+    assert_eq!(shaders.len(), 1);
+    let tinted = &shaders[0];
+    assert_eq!(tinted["name"], "tinted");
+    assert_eq!(tinted["type"], "surface");
+    assert_eq!(tinted["artifact"], "tinted.rtso");
+    assert_eq!(tinted["parameters"][0]["name"], "k");
+    let files = tinted["files"].as_array().expect("files");
+    assert_eq!(files.len(), 2, "the source and its include: {files:?}");
+    assert!(files[1]["path"].as_str().expect("path").ends_with("tint.h"));
+    assert_eq!(files[1]["blake3"].as_str().expect("hash").len(), 64);
+    assert_eq!(index["format_version"], 1);
+
+    // `info` reads the artifact, and finds it by name on the search path before any source.
+    let o = rtsl(&["info", "lib/tinted.rtso"], dir.path());
+    assert!(stdout(&o).contains("uniform float k = 0.25"), "{}{}", stdout(&o), stderr(&o));
+    let o = rtsl(&["info", "tinted", "--which", "-S", "lib"], dir.path());
+    assert_eq!(stdout(&o).trim_end(), "lib/tinted.rtso");
+
+    // An edited include makes the artifact stale: info says so and shows the source as it is now.
+    write(dir.path(), "src/inc/tint.h", "#define TINT 0.75\n");
+    let o = rtsl(&["info", "lib/tinted.rtso"], dir.path());
+    assert!(stdout(&o).contains("uniform float k = 0.75"), "{}", stdout(&o));
+    assert!(stderr(&o).contains("tint.h changed since"), "{}", stderr(&o));
+
+    // A damaged artifact is a clear error.
+    let artifact = dir.path().join("lib/tinted.rtso");
+    let bytes = std::fs::read(&artifact).expect("read");
+    std::fs::write(&artifact, &bytes[..bytes.len() / 2]).expect("write");
+    let o = rtsl(&["info", "lib/tinted.rtso"], dir.path());
+    assert_ne!(o.status.code(), Some(0));
+    assert!(stderr(&o).contains("is truncated"), "{}", stderr(&o));
+}

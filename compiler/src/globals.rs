@@ -83,8 +83,28 @@ pub const GLOBALS: &[GlobalDef] = &[
 ];
 
 /// Index of a global in [`GLOBALS`].
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize)]
+#[serde(try_from = "u8", into = "u8")]
 pub struct Global(pub u8);
+
+/// Decoding (of a compiled artifact) accepts only indices of real globals, so [`Global::def`] cannot
+/// fail on decoded IR.
+impl TryFrom<u8> for Global {
+    type Error = std::string::String;
+    fn try_from(i: u8) -> Result<Global, std::string::String> {
+        if (i as usize) < GLOBALS.len() {
+            Ok(Global(i))
+        } else {
+            Err(format!("no global variable has index {i}"))
+        }
+    }
+}
+
+impl From<Global> for u8 {
+    fn from(g: Global) -> u8 {
+        g.0
+    }
+}
 
 impl Global {
     pub fn def(self) -> &'static GlobalDef {

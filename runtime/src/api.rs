@@ -234,13 +234,15 @@ impl Default for Context {
     }
 }
 
-/// Where shader `name` is found: the first `NAME.sl` in `search` (in order), then in the standard
-/// library's folders (`surface/`, `light/`, ...). A name found twice resolves to the first.
+/// Where shader `name` is found: in each directory of `search` (in order), then in the standard
+/// library's folders (`surface/`, `light/`, ...), the compiled artifact `NAME.rtso` (written by
+/// `rtsl compile -o`; it is checked against its sources when loaded) or else the source `NAME.sl`.
+/// A name found twice resolves to the first.
 pub fn find_shader_file(name: &str, search: &[PathBuf]) -> Option<PathBuf> {
-    let file = format!("{name}.sl");
+    let files = [format!("{name}.{}", rtsl_compiler::artifact::EXTENSION), format!("{name}.sl")];
     let std = stdlib_dir();
     let std_dirs = ["surface", "light", "displacement", "volume", "imager", "camera", "pixel"].map(|d| std.join(d));
-    search.iter().chain(std_dirs.iter()).map(|d| d.join(&file)).find(|p| p.is_file())
+    search.iter().chain(std_dirs.iter()).flat_map(|d| files.iter().map(move |f| d.join(f))).find(|p| p.is_file())
 }
 
 /// The directory of the shader library shipped with rtsl (searched last).

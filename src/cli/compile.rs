@@ -2,7 +2,6 @@
 //! `rtsl bench frontend`: the front end's throughput.
 
 use anyhow::Context as _;
-use rayon::prelude::*;
 use rtsl_compiler::{Compilation, Options, Session};
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
@@ -65,6 +64,13 @@ pub struct CompileArgs {
     /// Print the checked IR of each shader that compiles (its text form).
     #[arg(long)]
     pub emit_ir: bool,
+    /// Write a compiled artifact (`NAME.rtso`) for every shader into this directory, and the
+    /// library's `index.json`.
+    #[arg(short = 'o', long = "output", value_name = "OUTDIR")]
+    pub output: Option<PathBuf>,
+    /// Worker threads (default: every core).
+    #[arg(long, value_name = "N")]
+    pub threads: Option<usize>,
 }
 
 /// Every `.sl` file named or found under the paths, in a stable order.
@@ -98,6 +104,66 @@ fn walk(dir: &Path, out: &mut Vec<PathBuf>) -> std::io::Result<()> {
 struct Outcome {
     path: PathBuf,
     result: Result<Compilation, std::io::Error>,
+    /// The encoded artifact, when one was asked for and the shader compiled.
+    artifact: Option<Vec<u8>>,
+}
+
+/// Compiles `files` on every thread of the current rayon pool, encoding an artifact of each shader
+/// when `encode` is set. Each thread keeps one session (headers are read and lexed once per thread,
+/// not once per shader) and takes the next file when it finishes one, so uneven files balance out.
+fn compile_all(files: &[PathBuf], options: &Options, encode: bool) -> Vec<Outcome> {
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let per_thread = rayon::broadcast(|_| {
+        let mut session = Session::new();
+        let mut done = Vec::new();
+        loop {
+            let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            let Some(path) = files.get(i) else { break };
+            let result = session.compile_file(path, options);
+            let artifact = match (&result, encode) {
+                (Ok(c), true) => rtsl_compiler::artifact::encode(c, options),
+                _ => None,
+            };
+            done.push((i, Outcome { path: path.clone(), result, artifact }));
+        }
+        done
+    });
+    let mut all: Vec<(usize, Outcome)> = per_thread.into_iter().flatten().collect();
+    all.sort_by_key(|(i, _)| *i);
+    all.into_iter().map(|(_, o)| o).collect()
+}
+
+/// Writes each artifact as `OUTDIR/NAME.rtso` and the library's `index.json`. A shader name defined
+/// by two files keeps the first (in path order), as a search path would, and the second is reported.
+fn write_library(outdir: &Path, outcomes: &[Outcome], out: &mut impl std::io::Write) -> anyhow::Result<usize> {
+    use rtsl_compiler::artifact::{self, Index, IndexEntry};
+    std::fs::create_dir_all(outdir).with_context(|| format!("cannot create `{}`", outdir.display()))?;
+    let mut entries: Vec<IndexEntry> = Vec::new();
+    for o in outcomes {
+        let (Ok(c), Some(bytes)) = (&o.result, &o.artifact) else { continue };
+        let Some(name) = c.interface.as_ref().map(|i| i.name.clone()) else { continue };
+        if let Some(first) = entries.iter().find(|e| e.name == name) {
+            writeln!(
+                out,
+                "warning: {} defines shader `{name}` again; the library keeps the one from {}",
+                o.path.display(),
+                first.source.as_deref().unwrap_or("?")
+            )?;
+            continue;
+        }
+        let file_name = format!("{name}.{}", artifact::EXTENSION);
+        let path = outdir.join(&file_name);
+        artifact::write_atomically(&path, bytes).with_context(|| format!("cannot write `{}`", path.display()))?;
+        if let Some(entry) = IndexEntry::new(c, &file_name) {
+            entries.push(entry);
+        }
+    }
+    let written = entries.len();
+    let index = outdir.join("index.json");
+    let json = serde_json::to_string_pretty(&Index::new(entries))?;
+    artifact::write_atomically(&index, json.as_bytes())
+        .with_context(|| format!("cannot write `{}`", index.display()))?;
+    Ok(written)
 }
 
 impl Outcome {
@@ -112,12 +178,9 @@ impl Outcome {
 pub fn run(args: &CompileArgs) -> anyhow::Result<ExitCode> {
     let files = collect_shaders(&args.paths)?;
     let options = args.flags.options();
-    let outcomes: Vec<Outcome> =
-        // One session per worker: headers are read and lexed once per thread, not once per shader.
-        files
-            .par_iter()
-            .map_init(Session::new, |session, path| Outcome { path: path.clone(), result: session.compile_file(path, &options) })
-            .collect();
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(args.threads.unwrap_or(0)).build()?;
+    let start = Instant::now();
+    let outcomes = pool.install(|| compile_all(&files, &options, args.output.is_some()));
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
     let full = args.verbose || (files.len() == 1 && !args.json);
@@ -178,14 +241,24 @@ pub fn run(args: &CompileArgs) -> anyhow::Result<ExitCode> {
             }
         }
     }
+    let written = match &args.output {
+        Some(dir) => Some((write_library(dir, &outcomes, &mut out)?, dir)),
+        None => None,
+    };
     if !args.json {
         writeln!(
             out,
-            "{} shader{}: {ok} ok, {failed} failed, {warnings} warning{}",
+            "{} shader{}: {ok} ok, {failed} failed, {warnings} warning{} ({:.1} ms on {} thread{})",
             outcomes.len(),
             if outcomes.len() == 1 { "" } else { "s" },
-            if warnings == 1 { "" } else { "s" }
+            if warnings == 1 { "" } else { "s" },
+            start.elapsed().as_secs_f64() * 1e3,
+            pool.current_num_threads(),
+            if pool.current_num_threads() == 1 { "" } else { "s" },
         )?;
+        if let Some((n, dir)) = written {
+            writeln!(out, "wrote {n} artifact{} and index.json to {}", if n == 1 { "" } else { "s" }, dir.display())?;
+        }
     }
     Ok(if failed > 0 { ExitCode::from(1) } else { ExitCode::SUCCESS })
 }
@@ -243,4 +316,65 @@ pub fn bench_frontend(args: &BenchFrontendArgs) -> anyhow::Result<ExitCode> {
     println!("pass time ms (median of {}): {:.3}", times.len(), median * 1e3);
     println!("lines per second: {:.0}", lines as f64 / median);
     Ok(ExitCode::SUCCESS)
+}
+
+#[derive(clap::Args, Debug)]
+pub struct BenchLibraryArgs {
+    /// Shader files or directories (default: the shader library and the test corpus).
+    #[arg(value_name = "PATH")]
+    pub paths: Vec<PathBuf>,
+    #[command(flatten)]
+    pub flags: CompilerFlags,
+    /// Threads of the parallel run (default: every core).
+    #[arg(long, value_name = "N")]
+    pub threads: Option<usize>,
+    /// How many times to compile the library in each configuration; medians are reported.
+    #[arg(long, default_value_t = 20)]
+    pub repeats: usize,
+}
+
+/// `rtsl bench library`: what `rtsl compile DIR -o OUT` does (front end and artifact encoding, not
+/// the disk writes), on one thread and on every core in the same process; prints both and the
+/// speedup.
+pub fn bench_library(args: &BenchLibraryArgs) -> anyhow::Result<ExitCode> {
+    let (paths, options) = if args.paths.is_empty() {
+        let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+        let mut flags = args.flags.clone();
+        flags.include.push(root.join("tests/corpus/include"));
+        (vec![root.join("stdlib_shaders"), root.join("tests/corpus")], flags.options())
+    } else {
+        (args.paths.clone(), args.flags.options())
+    };
+    let files = collect_shaders(&paths)?;
+    let one = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
+    let all = rayon::ThreadPoolBuilder::new().num_threads(args.threads.unwrap_or(0)).build()?;
+    let run = |pool: &rayon::ThreadPool| {
+        let start = Instant::now();
+        let outcomes = pool.install(|| compile_all(&files, &options, true));
+        let elapsed = start.elapsed().as_secs_f64();
+        (elapsed, outcomes.iter().filter(|o| o.artifact.is_some()).count())
+    };
+    // Alternate the two so that both see the same machine state.
+    let (mut serial, mut parallel) = (Vec::new(), Vec::new());
+    let mut artifacts = 0;
+    run(&one);
+    run(&all);
+    for _ in 0..args.repeats.max(1) {
+        let (t, n) = run(&one);
+        serial.push(t);
+        artifacts = n;
+        parallel.push(run(&all).0);
+    }
+    let (serial, parallel) = (median(serial), median(parallel));
+    println!("files: {}", files.len());
+    println!("artifacts: {artifacts}");
+    println!("1 thread ms (median of {}): {:.2}", args.repeats.max(1), serial * 1e3);
+    println!("{} threads ms: {:.2}", all.current_num_threads(), parallel * 1e3);
+    println!("speedup: {:.2}x", serial / parallel);
+    Ok(ExitCode::SUCCESS)
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
 }

@@ -2,7 +2,9 @@
 
 use super::compile::CompilerFlags;
 use anyhow::Context as _;
-use rtsl_compiler::compile_file;
+use rtsl_compiler::artifact::{self, Loaded};
+use rtsl_compiler::interface::ShaderInterface;
+use rtsl_compiler::{compile_file, Compilation, Options};
 use std::io::Write as _;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -43,21 +45,42 @@ fn resolve(arg: &std::path::Path, shader_path: &[PathBuf]) -> anyhow::Result<Pat
     })
 }
 
+/// The interface of a source file or of a compiled artifact (checked against its sources, and
+/// recompiled from them when stale, with a note). `None` after printing why there is none.
+fn interface_of(file: &std::path::Path, options: &Options) -> anyhow::Result<Option<ShaderInterface>> {
+    let from_compilation = |c: &Compilation| {
+        if !c.ok() {
+            eprint!("{}", c.render());
+            return None;
+        }
+        if c.interface.is_none() {
+            eprintln!("{}: defines no shader (only functions or macros)", file.display());
+        }
+        c.interface.clone()
+    };
+    if file.extension().is_some_and(|e| e == artifact::EXTENSION) {
+        return Ok(match artifact::load(file, options)? {
+            Loaded::Artifact(a) => Some(a.interface),
+            Loaded::Recompiled { compilation, reason } => {
+                eprintln!("note: {reason}; showing the source as it is now");
+                from_compilation(&compilation)
+            }
+        });
+    }
+    let c = compile_file(file, options).with_context(|| format!("cannot read `{}`", file.display()))?;
+    Ok(from_compilation(&c))
+}
+
 pub fn run(args: &InfoArgs) -> anyhow::Result<ExitCode> {
     let file = resolve(&args.file, &args.shader_path)?;
     if args.which {
         println!("{}", file.display());
         return Ok(ExitCode::SUCCESS);
     }
-    let c = compile_file(&file, &args.flags.options()).with_context(|| format!("cannot read `{}`", file.display()))?;
-    if !c.ok() {
-        eprint!("{}", c.render());
-        return Ok(ExitCode::from(1));
-    }
-    let Some(iface) = &c.interface else {
-        eprintln!("{}: defines no shader (only functions or macros)", file.display());
+    let Some(iface) = interface_of(&file, &args.flags.options())? else {
         return Ok(ExitCode::from(1));
     };
+    let iface = &iface;
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
     if args.json {

@@ -22,7 +22,8 @@ enum Command {
     Render(render::RenderArgs),
     /// Run a surface shader over a grid of points with no scene and write Ci (like OSL's testshade).
     Shade(shade::ShadeArgs),
-    /// Check shaders: files, or directories searched recursively for `.sl` files.
+    /// Check shaders (files, or directories searched recursively for `.sl` files), and with `-o`
+    /// write a compiled library: one artifact per shader and an `index.json`.
     Compile(compile::CompileArgs),
     /// Show a shader's type, name and parameters.
     Info(info::InfoArgs),
@@ -42,6 +43,8 @@ enum BenchCommand {
     Render(bench::BenchRenderArgs),
     /// Shading speed (JIT vs interpreter vs hand-written Rust) and compile cost of a library.
     Shade(shade::BenchShadeArgs),
+    /// Compiling a shader library to artifacts: one thread against every core.
+    Library(compile::BenchLibraryArgs),
 }
 
 /// Runs the command line; the exit code says whether everything succeeded.
@@ -56,5 +59,6 @@ pub fn run() -> anyhow::Result<ExitCode> {
         Command::Bench(BenchCommand::Trace(args)) => bench::run_trace(&args).map(|()| ExitCode::SUCCESS),
         Command::Bench(BenchCommand::Render(args)) => bench::run_render(&args).map(|()| ExitCode::SUCCESS),
         Command::Bench(BenchCommand::Shade(args)) => shade::bench(&args),
+        Command::Bench(BenchCommand::Library(args)) => compile::bench_library(&args),
     }
 }

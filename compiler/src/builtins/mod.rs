@@ -52,7 +52,7 @@ pub mod flags {
 macro_rules! builtins {
     ($($variant:ident $name:literal [$($sig:literal),* $(,)?] $flags:expr, $exec:ident, $doc:literal;)*) => {
         /// Every built-in function, generated from the table.
-        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize)]
         pub enum Builtin { $($variant,)* }
 
         impl Builtin {

@@ -41,18 +41,18 @@ use crate::source::Span;
 pub use types::{ArrayLen, BaseType, Type};
 
 /// Index of a function in [`Module::functions`].
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize)]
 pub struct FuncId(pub u32);
 
 /// Index of a variable in [`Function::vars`].
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize)]
 pub struct VarId(pub u32);
 
 /// Index of an expression in [`Function::exprs`].
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize)]
 pub struct ExprId(pub u32);
 
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Module {
     pub shader: Option<Shader>,
     pub functions: Vec<Function>,
@@ -65,7 +65,7 @@ impl Module {
 }
 
 /// The shader a file defines: its interface and the function holding its body.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Shader {
     pub kind: ShaderKind,
     pub name: String,
@@ -75,7 +75,7 @@ pub struct Shader {
     pub span: Span,
 }
 
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct ShaderParam {
     pub name: String,
     pub ty: Type,
@@ -90,7 +90,7 @@ pub struct ShaderParam {
     pub span: Span,
 }
 
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Function {
     pub name: String,
     pub return_type: Type,
@@ -116,7 +116,7 @@ impl Function {
     }
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum VarKind {
     Local,
     /// A declared parameter of a user function.
@@ -132,7 +132,7 @@ pub enum VarKind {
     Capture,
 }
 
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Variable {
     pub name: String,
     pub ty: Type,
@@ -144,7 +144,7 @@ pub struct Variable {
     pub span: Span,
 }
 
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Expr {
     pub kind: ExprKind,
     pub ty: Type,
@@ -153,13 +153,13 @@ pub struct Expr {
 }
 
 /// A compile-time constant.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum Constant {
     Float(f32),
     String(String),
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 pub enum UnaryOp {
     /// Negation of a float, triple or matrix.
     Neg,
@@ -168,7 +168,7 @@ pub enum UnaryOp {
 }
 
 /// Binary operators on checked operand types.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 pub enum BinaryOp {
     /// Component-wise on equal numeric types; on matrices, the element-wise sum.
     Add,
@@ -194,7 +194,7 @@ pub enum BinaryOp {
 }
 
 /// Where a value is stored: an assignment target or an output argument.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Place {
     pub base: PlaceBase,
     /// An array element (when the base is an array) or a component of a triple (0-2).
@@ -205,20 +205,20 @@ pub struct Place {
     pub ty: Type,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum PlaceBase {
     Var(VarId),
     Global(Global),
 }
 
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub enum Arg {
     Value(ExprId),
     /// An output argument: the callee writes through it.
     Ref(Place),
 }
 
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub enum ExprKind {
     Const(Constant),
     Var(VarId),
@@ -285,18 +285,18 @@ pub enum ExprKind {
     },
 }
 
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct Block {
     pub stmts: Vec<Stmt>,
 }
 
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Stmt {
     pub kind: StmtKind,
     pub span: Span,
 }
 
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub enum StmtKind {
     /// Evaluates an expression for its effects.
     Expr(ExprId),

@@ -4,10 +4,12 @@
 //! A [`ShaderProgram`] is immutable and shared (`Arc`) by every object, light and thread that uses it;
 //! parameter values live in [`super::ShaderInstance`]s.
 
+use rtsl_compiler::artifact::{self, ArtifactError, Loaded};
 use rtsl_compiler::back::jit::{self, CompiledShader, JitError, Layout};
 use rtsl_compiler::front::parse::ast::ShaderKind;
 use rtsl_compiler::interface::ShaderInterface;
 use rtsl_compiler::ir::{Block, Module, StmtKind};
+use rtsl_compiler::source::SourceMap;
 use rtsl_compiler::{Options, Session};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -26,6 +28,9 @@ pub enum ShaderError {
     Jit { name: String, error: JitError },
     #[error("no shader named {name} on the shader search path")]
     NotFound { name: String },
+    /// A compiled artifact that cannot be used (damaged, or stale with no source to recompile).
+    #[error(transparent)]
+    Artifact(#[from] ArtifactError),
 }
 
 /// How a light shader emits, read from its code: `illuminate` makes a local light (shadow rays end at
@@ -141,38 +146,84 @@ impl ShaderProgram {
         self.code.layout()
     }
 
-    /// Compiles the shader in `path` (with `#include` searched in `include_paths`).
+    /// Compiles the shader in `path` (with `#include` searched in `include_paths`), or loads it when
+    /// `path` is a compiled artifact (`.rtso`, see [`ShaderProgram::from_artifact`]).
     pub fn from_file(path: &Path, include_paths: &[PathBuf]) -> Result<ShaderProgram, ShaderError> {
+        if path.extension().is_some_and(|e| e == artifact::EXTENSION) {
+            return Self::from_artifact(path, include_paths);
+        }
         let text =
             std::fs::read_to_string(path).map_err(|source| ShaderError::Io { path: path.to_path_buf(), source })?;
         let mut session = Session::new();
         let c = session.compile_source_at(path, &text, &options(include_paths));
         let name = path.display().to_string();
-        Self::from_compilation(c, &name, Some(path.to_path_buf()))
+        Self::from_compilation(c, &name, Some(path.to_path_buf()), String::new())
+    }
+
+    /// Loads a compiled artifact, skipping the front end. A stale artifact (its source or an include
+    /// changed) or one from another compiler version is recompiled from its source when that is at
+    /// hand (`include_paths` serve only an artifact whose own settings cannot be read); a damaged one,
+    /// or a stale one without its source, is an error. The program's `path` is the artifact's, so hot
+    /// reload goes through the same checks; its `files` are the sources the artifact was made from.
+    pub fn from_artifact(path: &Path, include_paths: &[PathBuf]) -> Result<ShaderProgram, ShaderError> {
+        match artifact::load(path, &options(include_paths))? {
+            Loaded::Artifact(a) => {
+                let files = a.files.iter().filter_map(|f| f.path.clone()).collect();
+                Self::build(
+                    &a.module,
+                    &a.sources,
+                    a.interface.clone(),
+                    a.warnings.clone(),
+                    files,
+                    Some(path.to_path_buf()),
+                )
+            }
+            Loaded::Recompiled { compilation, reason } => {
+                let name = path.display().to_string();
+                Self::from_compilation(
+                    *compilation,
+                    &name,
+                    Some(path.to_path_buf()),
+                    format!("note: {reason}; recompiled from source\n"),
+                )
+            }
+        }
     }
 
     /// Compiles shader source given as a string; `name` names it in diagnostics.
     pub fn from_source(name: &str, text: &str, include_paths: &[PathBuf]) -> Result<ShaderProgram, ShaderError> {
         let mut session = Session::new();
         let c = session.compile_source(name, text, &options(include_paths));
-        Self::from_compilation(c, name, None)
+        Self::from_compilation(c, name, None, String::new())
     }
 
     fn from_compilation(
         c: rtsl_compiler::Compilation,
         name: &str,
         path: Option<PathBuf>,
+        note: String,
     ) -> Result<ShaderProgram, ShaderError> {
         if !c.ok() {
-            return Err(ShaderError::Compile { name: name.to_string(), diagnostics: c.render() });
+            return Err(ShaderError::Compile { name: name.to_string(), diagnostics: format!("{note}{}", c.render()) });
         }
-        let warnings = if c.warnings() > 0 { c.render() } else { String::new() };
+        let warnings = if c.warnings() > 0 { format!("{note}{}", c.render()) } else { note };
         let (Some(module), Some(interface)) = (c.module.as_ref(), c.interface.clone()) else {
             return Err(ShaderError::NoShader { name: name.to_string() });
         };
-        let code = jit::compile_with(module, Some(&c.sources), &jit::JitOptions::default())
-            .map_err(|error| ShaderError::Jit { name: interface.name.clone(), error })?;
         let files = c.files.iter().filter_map(|f| c.sources.get(*f).path.clone()).collect();
+        Self::build(module, &c.sources, interface, warnings, files, path)
+    }
+
+    fn build(
+        module: &Module,
+        sources: &SourceMap,
+        interface: ShaderInterface,
+        warnings: String,
+        files: Vec<PathBuf>,
+        path: Option<PathBuf>,
+    ) -> Result<ShaderProgram, ShaderError> {
+        let code = jit::compile_with(module, Some(sources), &jit::JitOptions::default())
+            .map_err(|error| ShaderError::Jit { name: interface.name.clone(), error })?;
         Ok(ShaderProgram {
             name: interface.name.clone(),
             kind: interface.kind,
