@@ -109,7 +109,8 @@ pub struct StoredFile {
     pub text: String,
 }
 
-#[derive(Serialize, Deserialize)]
+/// What the payload holds; [`PayloadRef`] writes the same encoding without copying the IR.
+#[derive(Deserialize)]
 struct Payload {
     compiler_version: String,
     options: StoredOptions,
@@ -118,6 +119,15 @@ struct Payload {
     /// The front end's warnings, rendered.
     warnings: String,
     module: Module,
+}
+
+#[derive(Serialize)]
+struct PayloadRef<'a> {
+    compiler_version: &'a str,
+    options: StoredOptions,
+    files: Vec<StoredFile>,
+    warnings: String,
+    module: &'a Module,
 }
 
 /// A decoded, validated artifact.
@@ -190,12 +200,12 @@ pub fn encode(c: &Compilation, options: &Options) -> Option<Vec<u8>> {
         })
         .collect();
     let warnings = if c.warnings() > 0 { c.render() } else { String::new() };
-    let payload = Payload {
-        compiler_version: env!("CARGO_PKG_VERSION").to_string(),
+    let payload = PayloadRef {
+        compiler_version: env!("CARGO_PKG_VERSION"),
         options: StoredOptions::from_options(options),
         files,
         warnings,
-        module: module.clone(),
+        module,
     };
     let body = postcard::to_stdvec(&payload).ok()?;
     let source = c.files.first().and_then(|f| c.sources.get(*f).path.as_deref().map(absolute));
