@@ -42,6 +42,9 @@ enum BenchCommand {
     Render(bench::BenchRenderArgs),
     /// Shading speed (JIT vs interpreter vs hand-written Rust) and compile cost of a library.
     Shade(shade::BenchShadeArgs),
+    /// Hot-reload latency: from an edit of `plastic.sl` written to the first frame of the Cornell
+    /// box that uses the new code (watcher, background compile, swap, frame).
+    Reload(bench::BenchReloadArgs),
 }
 
 /// Runs the command line; the exit code says whether everything succeeded.
@@ -56,5 +59,6 @@ pub fn run() -> anyhow::Result<ExitCode> {
         Command::Bench(BenchCommand::Trace(args)) => bench::run_trace(&args).map(|()| ExitCode::SUCCESS),
         Command::Bench(BenchCommand::Render(args)) => bench::run_render(&args).map(|()| ExitCode::SUCCESS),
         Command::Bench(BenchCommand::Shade(args)) => shade::bench(&args),
+        Command::Bench(BenchCommand::Reload(args)) => bench::run_reload(&args).map(|()| ExitCode::SUCCESS),
     }
 }
