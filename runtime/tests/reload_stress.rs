@@ -100,7 +100,7 @@ fn two_hundred_rewrites_while_rendering_swap_whole_shaders_and_leak_nothing() {
 
     // Frames on every thread (render_frame runs tiles over rayon's pool), reloads between them.
     let (mut frames, mut reloaded, mut failed, mut last) = (0, 0, 0, 1);
-    let mut finished_at = None;
+    let (mut finished_at, mut peak) = (None, 0);
     loop {
         for r in reloader.apply(&mut rt) {
             match &r.result {
@@ -113,6 +113,7 @@ fn two_hundred_rewrites_while_rendering_swap_whole_shaders_and_leak_nothing() {
         }
         let (fb, _) = rt.render_frame().expect("a frame");
         frames += 1;
+        peak = peak.max(live_modules() - baseline.0);
         let v = version_of(&fb);
         assert!(v >= last, "frame {frames} shows version {v} after version {last}: reloads went backwards");
         last = v;
@@ -145,7 +146,11 @@ fn two_hundred_rewrites_while_rendering_swap_whole_shaders_and_leak_nothing() {
     drop(rt);
     assert_eq!((live_modules(), live_code_bytes()), baseline, "everything freed with the context");
     eprintln!(
-        "{frames} frames, {reloaded} reloads, {failed} failed compilations shown, in {:.2} s; one shader holds {one_shader_bytes} bytes of code",
-        started.elapsed().as_secs_f64()
+        "{frames} frames, {reloaded} reloads, {failed} failed compilations shown, in {:.2} s; one shader holds \
+         {one_shader_bytes} bytes of code; at most {peak} JIT modules alive between frames (the context's, and \
+         compiled ones not yet applied); {} modules, {} bytes after the context is dropped",
+        started.elapsed().as_secs_f64(),
+        live_modules(),
+        live_code_bytes()
     );
 }
