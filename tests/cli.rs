@@ -263,3 +263,68 @@ fn compile_writes_a_library_of_artifacts_that_info_and_the_search_path_use() {
     assert_ne!(o.status.code(), Some(0));
     assert!(stderr(&o).contains("is truncated"), "{}", stderr(&o));
 }
+
+#[test]
+fn render_watch_prints_one_line_per_reload_and_diagnostics_for_broken_edits() {
+    use std::io::{BufRead, BufReader};
+    use std::time::Duration;
+    let dir = tempfile::tempdir().expect("tempdir");
+    let flat = |c: &str| format!("surface flat(float k = 1;) {{ Oi = 1; Ci = k * {c}; }}\n");
+    write(dir.path(), "shaders/flat.sl", &flat("color(1, 0, 0)"));
+    write(
+        dir.path(),
+        "scene.rib",
+        "Format 32 24 1\nProjection \"perspective\" \"fov\" [60]\nTranslate 0 0 3\nWorldBegin\n  Surface \"flat\" \"k\" [0.5]\n  Polygon \"P\" [-5 -5 0  5 -5 0  5 5 0  -5 5 0]\nWorldEnd\n",
+    );
+    let mut child = Command::new(env!("CARGO_BIN_EXE_rtsl"))
+        .args(["render", "scene.rib", "-o", "out.exr", "-S", "shaders", "--watch"])
+        .current_dir(dir.path())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("the binary runs");
+    let lines = |pipe: Box<dyn std::io::Read + Send>| {
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            for line in BufReader::new(pipe).lines().map_while(Result::ok) {
+                let _ = tx.send(line);
+            }
+        });
+        rx
+    };
+    let out = lines(Box::new(child.stdout.take().expect("stdout")));
+    let err = lines(Box::new(child.stderr.take().expect("stderr")));
+    let next = |rx: &std::sync::mpsc::Receiver<String>, what: &str| {
+        rx.recv_timeout(Duration::from_secs(30)).unwrap_or_else(|_| panic!("no {what} within 30 s"))
+    };
+    // Saves by rename, as many editors do: one event per save.
+    let save = |text: &str| {
+        write(dir.path(), "shaders/flat.tmp", text);
+        std::fs::rename(dir.path().join("shaders/flat.tmp"), dir.path().join("shaders/flat.sl")).expect("rename");
+    };
+    while !next(&out, "start-up output").starts_with("watching 1 shader file") {}
+
+    save(&flat("color(0, 1, 0)"));
+    let line = next(&out, "reload line");
+    assert!(
+        line.starts_with("reloaded flat: compile ") && line.contains(" ms, frame ") && line.ends_with("ms -> out.exr"),
+        "{line}"
+    );
+    let image = rtsl_runtime::read_image(dir.path().join("out.exr")).expect("the image");
+    assert_eq!(&image.pixels[..4], &[0.0, 0.5, 0.0, 1.0], "the rewritten image uses the new code");
+
+    save(&flat("nope"));
+    let line = next(&err, "diagnostics");
+    assert!(line.starts_with("flat (") && line.ends_with("did not compile; the last good version stays:"), "{line}");
+    let mut diagnostics = String::new();
+    while !diagnostics.contains("undefined variable `nope`") {
+        diagnostics += &next(&err, "the diagnostics");
+    }
+    save(&flat("color(0, 0, 1)"));
+    let line = next(&out, "reload line");
+    assert!(line.starts_with("reloaded flat: compile "), "{line}");
+    // Exactly one line per reload: nothing more came for the broken save or after.
+    assert!(out.recv_timeout(Duration::from_millis(300)).is_err(), "one line per reload");
+    child.kill().expect("stop the watcher");
+    let _ = child.wait();
+}

@@ -43,6 +43,7 @@
 //!   have or of the wrong type) returns an [`ApiError`]; nothing panics.
 
 use crate::geometry::{Attribute, Mesh, MeshError};
+use crate::reload::ShaderEvent;
 use crate::render::{
     render_frame, AreaLight, CameraSetup, FrameReport, Framebuffer, InstanceShading, LightSource, Material,
     RenderOptions, World,
@@ -226,6 +227,8 @@ pub struct Context {
     textures: Arc<TextureCache>,
     memory_textures: Vec<(String, TexImage)>,
     warnings: Vec<String>,
+    /// Hot-reload events not yet taken ([`Context::take_shader_events`]).
+    events: Vec<ShaderEvent>,
 }
 
 impl Default for Context {
@@ -278,6 +281,7 @@ impl Context {
             textures: Arc::new(TextureCache::new()),
             memory_textures: Vec::new(),
             warnings: Vec::new(),
+            events: Vec::new(),
         }
     }
 
@@ -368,8 +372,18 @@ impl Context {
     /// Replaces the program behind `id` (hot reload): frames from now on use the new code. The
     /// new program must be of the same shader type. Values bound by name stay bound where the new
     /// shader still has a parameter of that name and type; the others are dropped with a warning
-    /// at the next frame ([`Context::take_warnings`]).
+    /// at the next frame ([`Context::take_warnings`]), and reported now as
+    /// [`ShaderEvent::ParameterDropped`] events ([`Context::take_shader_events`]).
     pub fn replace_shader(&mut self, id: ShaderId, program: ShaderProgram) -> Result<(), ApiError> {
+        let dropped = self.swap_program(id, program)?;
+        self.events.extend(dropped);
+        Ok(())
+    }
+
+    /// [`Context::replace_shader`], returning the [`ShaderEvent::ParameterDropped`] events instead
+    /// of queueing them (hot reload queues them after its own event).
+    pub(crate) fn swap_program(&mut self, id: ShaderId, program: ShaderProgram) -> Result<Vec<ShaderEvent>, ApiError> {
+        let dropped = self.dropped_parameters(id, &program);
         let slot = self.programs.get_mut(id.0 as usize).ok_or(ApiError::UnknownShader(id.0))?;
         if let Some(old) = slot.as_ref() {
             if old.kind != program.kind {
@@ -381,7 +395,46 @@ impl Context {
             }
         }
         *slot = Some(Arc::new(program));
-        Ok(())
+        Ok(dropped)
+    }
+
+    /// The values bound to shader `id` (surface bindings of objects and of the current and saved
+    /// state, lights, the pixel shader) that `program` would not take, once per (parameter, reason).
+    fn dropped_parameters(&self, id: ShaderId, program: &ShaderProgram) -> Vec<ShaderEvent> {
+        let surfaces = std::iter::once(&self.appearance)
+            .chain(&self.appearance_stack)
+            .chain(self.objects.iter().filter(|o| !o.deleted).map(|o| &o.appearance))
+            .filter_map(|a| a.surface.as_ref())
+            .chain(self.pixel.as_ref())
+            .filter(|b| b.shader == id)
+            .flat_map(|b| b.params.iter());
+        let lights = self.lights.iter().filter(|l| l.shader == id).flat_map(|l| l.params.iter());
+        let mut out = Vec::new();
+        for (parameter, value, m) in surfaces.chain(lights) {
+            if let Err(e) = crate::shading::bind_param(program, parameter, value, m) {
+                let event = ShaderEvent::ParameterDropped {
+                    shader: id,
+                    name: program.name.clone(),
+                    parameter: parameter.clone(),
+                    reason: e.to_string(),
+                };
+                if !out.contains(&event) {
+                    out.push(event);
+                }
+            }
+        }
+        out
+    }
+
+    /// The hot-reload events since the last call, oldest first: shaders reloaded or not
+    /// ([`crate::reload`]), and bound values a new parameter list no longer takes. The queue grows
+    /// until taken.
+    pub fn take_shader_events(&mut self) -> Vec<ShaderEvent> {
+        std::mem::take(&mut self.events)
+    }
+
+    pub(crate) fn push_shader_events(&mut self, events: impl IntoIterator<Item = ShaderEvent>) {
+        self.events.extend(events);
     }
 
     /// Every file the loaded shaders were compiled from (sources and included headers), for a

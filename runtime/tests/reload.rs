@@ -3,7 +3,7 @@
 //! still fit.
 
 use rtsl_runtime::api::{Context, Primitive};
-use rtsl_runtime::reload::{reload_changed, ShaderWatcher};
+use rtsl_runtime::reload::{reload_changed, Reload, ShaderEvent, ShaderReloader, ShaderWatcher};
 use rtsl_runtime::shading::ParamValue;
 use std::time::Duration;
 
@@ -68,4 +68,64 @@ fn edits_are_swapped_in_and_broken_edits_keep_the_last_good_code() {
     assert_eq!(centre(&mut rt), [0.0, 0.0, 1.0, 1.0]);
     let warnings = rt.take_warnings();
     assert!(warnings.len() == 1 && warnings[0].contains("parameter k of shader flat is string"), "{warnings:?}");
+
+    // The same story as events, in order: each reload, then the value the last one dropped.
+    let events = rt.take_shader_events();
+    assert_eq!(events.len(), 4, "{events:?}");
+    assert!(
+        matches!(&events[0], ShaderEvent::Reloaded { name, compile_ms, .. } if name == "flat" && *compile_ms > 0.0)
+    );
+    assert!(matches!(&events[1], ShaderEvent::Failed { diagnostics, .. } if diagnostics.contains("undefined_thing")));
+    assert!(matches!(&events[2], ShaderEvent::Reloaded { path, .. } if *path == shader));
+    match &events[3] {
+        ShaderEvent::ParameterDropped { name, parameter, reason, .. } => {
+            assert_eq!((name.as_str(), parameter.as_str()), ("flat", "k"));
+            assert!(reason.contains("is string"), "{reason}");
+        }
+        e => panic!("expected the dropped k, got {e:?}"),
+    }
+    assert!(rt.take_shader_events().is_empty(), "drained");
+}
+
+/// The background reloader: compiles off the caller's thread, swaps only in `apply`, and follows a
+/// header that a new version starts to include.
+#[test]
+fn the_background_reloader_swaps_between_frames_and_follows_new_headers() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let shader = dir.path().join("flat.sl");
+    let header = dir.path().join("tint.h");
+    std::fs::write(&shader, "surface flat(float k = 1;) { Oi = 1; Ci = k * color(1, 0, 0); }\n").expect("write");
+    let mut rt = Context::new();
+    let id = scene(&mut rt, &shader);
+    let mut reloader = ShaderReloader::new(&rt).expect("a reloader");
+    assert_eq!(reloader.watched_files(), 1);
+
+    // Applies reloads until one satisfies `done` (a save may be seen as more than one change).
+    let until = |reloader: &mut ShaderReloader, rt: &mut Context, done: &dyn Fn(&Reload) -> bool| loop {
+        let reloads = reloader.wait_apply(rt, Duration::from_secs(10));
+        assert!(!reloads.is_empty(), "no reload within 10 s");
+        assert!(reloads.iter().all(|r| r.shader == id), "{reloads:?}");
+        if let Some(r) = reloads.into_iter().find(|r| done(r)) {
+            return r;
+        }
+    };
+    std::fs::write(&header, "#define TINT color(0, 1, 0)\n").expect("write");
+    std::fs::write(&shader, "#include \"tint.h\"\nsurface flat(float k = 1;) { Oi = 1; Ci = k * TINT; }\n")
+        .expect("write");
+    until(&mut reloader, &mut rt, &|r| r.result.is_ok());
+    assert_eq!(centre(&mut rt), [0.0, 0.5, 0.0, 1.0]);
+
+    // The header was not a file of the first version; the reloader watches it now.
+    std::fs::write(&header, "#define TINT color(0, 0, 1)\n").expect("write");
+    until(&mut reloader, &mut rt, &|r| r.result.is_ok());
+    assert_eq!(centre(&mut rt), [0.0, 0.0, 0.5, 1.0]);
+
+    // A broken header: reported, and the last good code stays.
+    std::fs::write(&header, "#define TINT color(0, 0, \n").expect("write");
+    let r = until(&mut reloader, &mut rt, &|r| r.result.is_err());
+    let err = r.result.as_ref().expect_err("does not compile");
+    assert!(err.contains("flat.sl") || err.contains("tint.h"), "{err}");
+    assert_eq!(centre(&mut rt), [0.0, 0.0, 0.5, 1.0]);
+    std::thread::sleep(Duration::from_millis(100));
+    assert!(reloader.apply(&mut rt).is_empty());
 }

@@ -248,3 +248,156 @@ pub fn run_render(args: &BenchRenderArgs) -> anyhow::Result<()> {
     }
     Ok(())
 }
+
+/// Flags of `rtsl bench reload`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct BenchReloadArgs {
+    /// Timed edits of `plastic.sl`; the median latency is reported.
+    #[arg(long, default_value_t = 20)]
+    pub edits: usize,
+    /// Image size, `WxH`.
+    #[arg(long, value_parser = parse_size, default_value = "640x480")]
+    pub size: (u32, u32),
+    /// Worker threads (0: one per core).
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+    /// The scene, a RIB file whose surfaces use `plastic` (default: examples/scenes/cornell_box.rib).
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
+    /// The reloader's debounce window in milliseconds (default: the library's).
+    #[arg(long)]
+    pub quiet_ms: Option<u64>,
+}
+
+/// A directory removed when dropped.
+struct TempDir(PathBuf);
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// The sum of a frame's pixels, to tell frames apart.
+fn frame_sum(fb: &rtsl_runtime::render::Framebuffer) -> f64 {
+    fb.rgba.iter().map(|&v| f64::from(v)).sum()
+}
+
+/// Runs `rtsl bench reload`: the latency of hot reload, from the moment an edit of `plastic.sl` is
+/// written to the first finished frame that uses the new code, through the watcher, the background
+/// compilation, the swap between frames and the frame (`ShaderReloader`). Prints each edit's latency
+/// and its parts, and the medians.
+pub fn run_reload(args: &BenchReloadArgs) -> anyhow::Result<()> {
+    use rtsl_runtime::reload::{ShaderReloader, DEFAULT_QUIET};
+    use std::time::{Duration, Instant};
+
+    // plastic.sl and whatever it includes from the library, copied under a temporary directory
+    // with the library's layout (so relative includes still resolve).
+    let stdlib = rtsl_runtime::api::stdlib_dir().canonicalize().context("finding the shader library")?;
+    let original = stdlib.join("surface").join("plastic.sl");
+    let program = rtsl_runtime::shading::ShaderProgram::from_file(&original, &[])?;
+    let tmp = TempDir(std::env::temp_dir().join(format!("rtsl-bench-reload-{}", std::process::id())));
+    for f in &program.files {
+        let f = f.canonicalize().with_context(|| format!("finding {}", f.display()))?;
+        if let Ok(rel) = f.strip_prefix(&stdlib) {
+            let to = tmp.0.join(rel);
+            if let Some(d) = to.parent() {
+                std::fs::create_dir_all(d).with_context(|| format!("creating {}", d.display()))?;
+            }
+            std::fs::copy(&f, &to).with_context(|| format!("copying {} to {}", f.display(), to.display()))?;
+        }
+    }
+    drop(program);
+    let shader_dir = tmp.0.join("surface");
+    let plastic = shader_dir.join("plastic.sl");
+    let text = std::fs::read_to_string(&plastic).with_context(|| format!("reading {}", plastic.display()))?;
+    let anchor = "Ci = Os * (";
+    anyhow::ensure!(
+        text.contains(anchor),
+        "{} no longer contains `{anchor}`, which the edits change",
+        original.display()
+    );
+
+    let scene = args
+        .scene
+        .clone()
+        .unwrap_or_else(|| std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/scenes/cornell_box.rib"));
+    let (mut rt, _) = super::render::load_scene(Some(&scene), std::slice::from_ref(&shader_dir), &[])?;
+    (rt.options.width, rt.options.height) = args.size;
+    let plastic_canon = plastic.canonicalize()?;
+    anyhow::ensure!(
+        rt.programs_by_id()
+            .iter()
+            .any(|(_, p)| p.path.as_ref().and_then(|p| p.canonicalize().ok()) == Some(plastic_canon.clone())),
+        "{} does not use plastic from {}",
+        scene.display(),
+        shader_dir.display()
+    );
+    let threads =
+        if args.threads == 0 { std::thread::available_parallelism().map_or(1, |n| n.get()) } else { args.threads };
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().context("starting the worker threads")?;
+    let frame = |rt: &mut rtsl_runtime::api::Context| -> anyhow::Result<(f64, Instant)> {
+        let world = rt.build_world()?;
+        let (fb, _) = pool.install(|| rtsl_runtime::render::render_frame(&world, None));
+        rt.return_scene(world);
+        Ok((frame_sum(&fb), Instant::now()))
+    };
+    let (mut previous, _) = frame(&mut rt)?;
+    let quiet = args.quiet_ms.map_or(DEFAULT_QUIET, Duration::from_millis);
+    let mut reloader = ShaderReloader::with_quiet(&rt, quiet)?;
+
+    println!("scene: {}", scene.display());
+    println!(
+        "size: {}x{}, threads: {threads}, debounce: {:.0} ms, edits: {}",
+        args.size.0,
+        args.size.1,
+        quiet.as_secs_f64() * 1e3,
+        args.edits
+    );
+    let (mut total, mut detect, mut compile, mut apply, mut render) = (vec![], vec![], vec![], vec![], vec![]);
+    for edit in 1..=args.edits {
+        // Let the previous edit's trailing events and results settle, so they are not timed here.
+        std::thread::sleep(Duration::from_millis(150));
+        reloader.apply(&mut rt);
+        // A different constant each time (consecutive edits always differ), so the code differs.
+        let scale = 0.5 + (edit % 50) as f64 / 100.0;
+        std::fs::write(&plastic, text.replace(anchor, &format!("Ci = Os * {scale:.2} * (")))
+            .with_context(|| format!("writing {}", plastic.display()))?;
+        let written = Instant::now();
+        let reload = loop {
+            let left = Duration::from_secs(10).saturating_sub(written.elapsed());
+            anyhow::ensure!(!left.is_zero(), "edit {edit}: no reload within 10 s");
+            let found = reloader.wait_apply(&mut rt, left).into_iter().find(|r| r.detected >= written);
+            if let Some(r) = found {
+                break r;
+            }
+        };
+        let applied = Instant::now();
+        let compile_time = reload.result.as_ref().map_err(|d| anyhow::anyhow!("edit {edit} did not compile:\n{d}"))?;
+        let (sum, done) = frame(&mut rt)?;
+        anyhow::ensure!(sum != previous, "edit {edit}: the frame after the reload does not use the new code");
+        previous = sum;
+        let ms = |d: Duration| d.as_secs_f64() * 1e3;
+        let parts = [
+            ms(done - written),
+            ms(reload.detected - written),
+            ms(*compile_time),
+            ms(applied - reload.detected) - ms(*compile_time),
+            ms(done - applied),
+        ];
+        println!(
+            "edit {edit}: {:.1} ms (detect {:.1}, compile {:.1}, hand-over {:.1}, frame {:.1})",
+            parts[0], parts[1], parts[2], parts[3], parts[4]
+        );
+        for (v, p) in [&mut total, &mut detect, &mut compile, &mut apply, &mut render].into_iter().zip(parts) {
+            v.push(p);
+        }
+    }
+    drop(reloader);
+    println!("latency_median_ms: {:.1}", median(total));
+    println!("detect_median_ms: {:.1}", median(detect));
+    println!("compile_median_ms: {:.1}", median(compile));
+    println!("handover_median_ms: {:.1}", median(apply));
+    println!("frame_median_ms: {:.1}", median(render));
+    Ok(())
+}

@@ -45,6 +45,9 @@ enum BenchCommand {
     Shade(shade::BenchShadeArgs),
     /// Compiling a shader library to artifacts: one thread against every core.
     Library(compile::BenchLibraryArgs),
+    /// Hot-reload latency: from an edit of `plastic.sl` written to the first frame of the Cornell
+    /// box that uses the new code (watcher, background compile, swap, frame).
+    Reload(bench::BenchReloadArgs),
 }
 
 /// Runs the command line; the exit code says whether everything succeeded.
@@ -60,5 +63,6 @@ pub fn run() -> anyhow::Result<ExitCode> {
         Command::Bench(BenchCommand::Render(args)) => bench::run_render(&args).map(|()| ExitCode::SUCCESS),
         Command::Bench(BenchCommand::Shade(args)) => shade::bench(&args),
         Command::Bench(BenchCommand::Library(args)) => compile::bench_library(&args),
+        Command::Bench(BenchCommand::Reload(args)) => bench::run_reload(&args).map(|()| ExitCode::SUCCESS),
     }
 }

@@ -3,7 +3,7 @@
 
 use anyhow::Context as _;
 use rtsl_runtime::api::Context;
-use rtsl_runtime::reload::{reload_changed, ShaderWatcher};
+use rtsl_runtime::reload::{ShaderEvent, ShaderReloader};
 use rtsl_runtime::render::{render_frame, Antialiasing};
 use rtsl_runtime::scene_file::{add_model_file, frame_bounds};
 use rtsl_runtime::{write_image, WriteOptions};
@@ -61,16 +61,21 @@ pub(crate) fn samples_grid(n: u32) -> (u32, u32) {
     }
 }
 
-/// Renders the context's scene with `pool` and writes `output`; prints warnings.
+/// Renders the context's scene with `pool` and writes `output`; prints warnings (those of values
+/// a reloaded shader no longer takes only with `frame_warnings`: `--watch` prints them once per
+/// reload, from the reload's events).
 fn render_and_write(
     rt: &mut Context,
     pool: &rayon::ThreadPool,
     output: &Path,
     quiet: bool,
+    frame_warnings: bool,
 ) -> anyhow::Result<rtsl_runtime::render::FrameReport> {
     let world = rt.build_world()?;
     for w in rt.take_warnings() {
-        eprintln!("warning: {w}");
+        if frame_warnings {
+            eprintln!("warning: {w}");
+        }
     }
     let bar = (!quiet && std::io::stderr().is_terminal()).then(|| {
         let bar = indicatif::ProgressBar::new(0);
@@ -102,31 +107,37 @@ fn render_and_write(
     Ok(report)
 }
 
-/// `--watch`: re-render after every change to a shader source or header that compiles, printing
-/// one line per reload (or the diagnostics of a change that does not compile; the last good shader
-/// stays). Runs until interrupted.
+/// `--watch`: shaders are recompiled off the render thread as their sources or headers change
+/// ([`ShaderReloader`]); after each batch of reloads the image is rendered and rewritten, and each
+/// reload prints one line: the shader, its compile time and the frame time (or, for a change that
+/// does not compile, the diagnostics: the last good shader stays). Runs until interrupted.
 fn watch(rt: &mut Context, pool: &rayon::ThreadPool, output: &Path) -> anyhow::Result<()> {
-    let watcher = ShaderWatcher::new(rt)?;
-    println!("watching {} shader file(s); Ctrl-C to stop", watcher.files().len());
+    let mut reloader = ShaderReloader::new(rt)?;
+    println!("watching {} shader file(s); Ctrl-C to stop", reloader.watched_files());
     loop {
-        let changed = watcher.wait(Duration::from_secs(3600), Duration::from_millis(150));
-        if changed.is_empty() {
+        let reloads = reloader.wait_apply(rt, Duration::from_secs(1));
+        if reloads.is_empty() {
+            anyhow::ensure!(reloader.is_running(), "the shader reload thread stopped");
             continue;
         }
-        let reloads = reload_changed(rt, &changed);
-        let mut compiled = Vec::new();
-        for r in &reloads {
-            match &r.result {
-                Ok(t) => compiled.push(format!("{} ({:.1} ms)", r.name, t.as_secs_f64() * 1e3)),
-                Err(_) => eprintln!("{r}"),
+        for e in rt.take_shader_events() {
+            if let ShaderEvent::ParameterDropped { .. } = e {
+                eprintln!("warning: {e}");
             }
         }
-        if !compiled.is_empty() {
-            let report = render_and_write(rt, pool, output, true)?;
+        for r in reloads.iter().filter(|r| r.result.is_err()) {
+            eprintln!("{r}");
+        }
+        let compiled: Vec<_> = reloads.iter().filter_map(|r| Some((&r.name, r.result.as_ref().ok()?))).collect();
+        if compiled.is_empty() {
+            continue;
+        }
+        let report = render_and_write(rt, pool, output, true, false)?;
+        let frame_ms = report.elapsed.as_secs_f64() * 1e3;
+        for (name, compile) in compiled {
             println!(
-                "reloaded {}; frame {:.1} ms -> {}",
-                compiled.join(", "),
-                report.elapsed.as_secs_f64() * 1e3,
+                "reloaded {name}: compile {:.1} ms, frame {frame_ms:.1} ms -> {}",
+                compile.as_secs_f64() * 1e3,
                 output.display()
             );
         }
@@ -191,7 +202,7 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
     let threads =
         if args.threads == 0 { std::thread::available_parallelism().map_or(1, |n| n.get()) } else { args.threads };
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().context("starting the worker threads")?;
-    let report = render_and_write(&mut rt, &pool, &output, args.quiet)?;
+    let report = render_and_write(&mut rt, &pool, &output, args.quiet, true)?;
     if !args.quiet {
         println!(
             "{}: {}x{}, {} sample(s) per pixel, {} thread(s)",

@@ -34,7 +34,29 @@ use cranelift_codegen::ir::{AbiParam, UserFuncName};
 use cranelift_codegen::settings::{self, Configurable};
 use cranelift_jit::{JITBuilder, JITModule};
 use cranelift_module::{default_libcall_names, Linkage, Module};
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Arc;
+
+/// JIT modules alive in this process (see [`live_modules`]).
+static LIVE_MODULES: AtomicUsize = AtomicUsize::new(0);
+/// Bytes of machine code those modules hold (see [`live_code_bytes`]).
+static LIVE_CODE_BYTES: AtomicUsize = AtomicUsize::new(0);
+
+/// How many compiled shaders (each one `JITModule`) are alive in this process, whoever made them:
+/// one more for each successful [`compile_with`], one less when a [`CompiledShader`] is dropped and
+/// its memory freed. Hot reload uses it to show that replaced code is freed (`docs/api.md`).
+/// Process-wide: tests that compare it must not run beside other tests that compile shaders.
+pub fn live_modules() -> usize {
+    LIVE_MODULES.load(Ordering::SeqCst)
+}
+
+/// The bytes of machine code (Cranelift's `CodeInfo::total_size` of every function defined: code
+/// and its constant pool) held by the live compiled shaders of this process. The JIT maps memory
+/// by pages, so what the modules reserve is this rounded up to at least one page per module and
+/// section; this counts what the code actually uses.
+pub fn live_code_bytes() -> usize {
+    LIVE_CODE_BYTES.load(Ordering::SeqCst)
+}
 
 /// Why a module could not be compiled.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -178,6 +200,8 @@ pub struct CompiledShader {
     reported: std::sync::Mutex<usize>,
     /// Cranelift IR instructions emitted (before optimisation), for compile-cost measurements.
     pub ir_insts: usize,
+    /// Bytes of machine code in `module` (counted in [`live_code_bytes`] while `self` lives).
+    code_bytes: usize,
 }
 
 impl std::fmt::Debug for CompiledShader {
@@ -192,6 +216,8 @@ impl Drop for CompiledShader {
             // SAFETY: the code is reachable only through `self.entry`, which dies with `self`
             // (`shade` borrows `self`), so nothing can run it after this point.
             unsafe { m.free_memory() };
+            LIVE_MODULES.fetch_sub(1, Ordering::SeqCst);
+            LIVE_CODE_BYTES.fetch_sub(self.code_bytes, Ordering::SeqCst);
         }
     }
 }
@@ -204,6 +230,11 @@ unsafe impl Sync for CompiledShader {}
 impl CompiledShader {
     pub fn layout(&self) -> &Layout {
         &self.layout
+    }
+
+    /// Bytes of machine code this shader holds (its share of [`live_code_bytes`]).
+    pub fn code_bytes(&self) -> usize {
+        self.code_bytes
     }
 
     /// The runtime checks that failed since the last call, once each, as messages naming the place
@@ -564,33 +595,56 @@ pub fn compile_with(
         builder.symbol(h.name, h.ptr());
     }
     let mut jit = JITModule::new(builder);
+    match define(m, &mut layout, &mut jit, &shader.name, options, sources) {
+        Ok((entry, ir_insts, sites, code_bytes)) => {
+            LIVE_MODULES.fetch_add(1, Ordering::SeqCst);
+            LIVE_CODE_BYTES.fetch_add(code_bytes, Ordering::SeqCst);
+            Ok(CompiledShader {
+                module: Some(jit),
+                entry,
+                layout: Arc::new(layout),
+                ir_insts,
+                code_bytes,
+                sites,
+                errors: RuntimeErrors::default(),
+                options: options.clone(),
+                reported: std::sync::Mutex::new(0),
+            })
+        }
+        Err(e) => {
+            // SAFETY: nothing was handed out that could run code of this module.
+            unsafe { jit.free_memory() };
+            Err(e)
+        }
+    }
+}
 
+/// Lowers and defines the shader function in `jit`: its entry point, IR instruction count, runtime
+/// check sites and bytes of machine code.
+fn define(
+    m: &ir::Module,
+    layout: &mut Layout,
+    jit: &mut JITModule,
+    name: &str,
+    options: &JitOptions,
+    sources: Option<&crate::source::SourceMap>,
+) -> Result<(ShadeFn, usize, Vec<String>, usize), JitError> {
     let ptr = jit.target_config().pointer_type();
     let mut ctx = jit.make_context();
     ctx.func.signature.params.push(AbiParam::new(ptr));
     let id = jit
-        .declare_function(&format!("shade_{}", shader.name), Linkage::Export, &ctx.func.signature)
+        .declare_function(&format!("shade_{name}"), Linkage::Export, &ctx.func.signature)
         .map_err(|e| JitError::Codegen(e.to_string()))?;
     ctx.func.name = UserFuncName::user(0, id.as_u32());
-    let lowered = lower::lower(m, &layout, &mut jit, &mut ctx.func, options, sources)?;
-    let ir_insts = lowered.insts;
+    let lowered = lower::lower(m, layout, jit, &mut ctx.func, options, sources)?;
     layout.strings = lowered.strings;
-    let layout = Arc::new(layout);
     jit.define_function(id, &mut ctx).map_err(|e| JitError::Codegen(format!("{e:?}")))?;
+    let code_bytes = ctx.compiled_code().map_or(0, |c| c.code_info().total_size as usize);
     jit.clear_context(&mut ctx);
     jit.finalize_definitions().map_err(|e| JitError::Codegen(e.to_string()))?;
     let code = jit.get_finalized_function(id);
     // SAFETY: `code` is the function just defined with the signature `fn(*mut Batch)` (one pointer
     // argument, no result, the platform's C calling convention).
     let entry: ShadeFn = unsafe { std::mem::transmute::<*const u8, ShadeFn>(code) };
-    Ok(CompiledShader {
-        module: Some(jit),
-        entry,
-        layout,
-        ir_insts,
-        sites: lowered.sites,
-        errors: RuntimeErrors::default(),
-        options: options.clone(),
-        reported: std::sync::Mutex::new(0),
-    })
+    Ok((entry, lowered.insts, lowered.sites, code_bytes))
 }
