@@ -223,7 +223,7 @@ fn compile_writes_a_library_of_artifacts_that_info_and_the_search_path_use() {
     let o = rtsl(&["compile", "src", "-I", "src/inc", "-o", "lib", "--threads", "2"], dir.path());
     let out = stdout(&o);
     assert_eq!(o.status.code(), Some(1), "a shader failed: {out}");
-    assert!(out.contains("3 shaders: 2 ok, 1 failed") && out.contains("on 2 threads"), "{out}");
+    assert!(out.contains("3 shaders: 2 ok, 1 failed") && out.contains("on 2 threads)"), "{out}");
     assert!(out.contains("defines shader `tinted` again"), "{out}");
     assert!(out.contains("wrote 1 artifact and index.json"), "{out}");
 

@@ -248,16 +248,21 @@ pub fn run(args: &CompileArgs) -> anyhow::Result<ExitCode> {
     if !args.json {
         writeln!(
             out,
-            "{} shader{}: {ok} ok, {failed} failed, {warnings} warning{} ({:.1} ms on {} thread{})",
+            "{} shader{}: {ok} ok, {failed} failed, {warnings} warning{}",
             outcomes.len(),
             if outcomes.len() == 1 { "" } else { "s" },
             if warnings == 1 { "" } else { "s" },
-            start.elapsed().as_secs_f64() * 1e3,
-            pool.current_num_threads(),
-            if pool.current_num_threads() == 1 { "" } else { "s" },
         )?;
         if let Some((n, dir)) = written {
-            writeln!(out, "wrote {n} artifact{} and index.json to {}", if n == 1 { "" } else { "s" }, dir.display())?;
+            writeln!(
+                out,
+                "wrote {n} artifact{} and index.json to {} ({:.1} ms on {} thread{})",
+                if n == 1 { "" } else { "s" },
+                dir.display(),
+                start.elapsed().as_secs_f64() * 1e3,
+                pool.current_num_threads(),
+                if pool.current_num_threads() == 1 { "" } else { "s" },
+            )?;
         }
     }
     Ok(if failed > 0 { ExitCode::from(1) } else { ExitCode::SUCCESS })
