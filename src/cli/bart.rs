@@ -85,7 +85,7 @@ pub fn run(args: &BartArgs) -> anyhow::Result<ExitCode> {
     let count = args.frames.unwrap_or(total).clamp(1, total);
     let s = &scene.summary;
     println!(
-        "{}: {} triangles ({} in {} moving instances of {} animated nodes, {} morphing), {} objects, {} lights, {} textures ({} missing){}",
+        "{}: {} triangles ({} in {} moving instances of {} animated nodes, {} morphing), {} objects ({} mirrors, {} glass), {} lights, {} textures ({} missing){}",
         args.scene.display(),
         s.triangles,
         s.moving_triangles,
@@ -93,6 +93,8 @@ pub fn run(args: &BartArgs) -> anyhow::Result<ExitCode> {
         s.animated_nodes,
         s.morphing_triangles,
         s.objects,
+        s.mirror_objects,
+        s.glass_objects,
         s.lights,
         s.textures,
         s.missing_textures,

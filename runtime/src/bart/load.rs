@@ -97,8 +97,11 @@ pub struct Summary {
     pub morphing_triangles: usize,
     /// Nodes animated by keyframes (`x NAME` with keyframes of that name).
     pub animated_nodes: usize,
-    /// Objects (each with its own BVH) and their instances.
+    /// Objects (each with its own BVH, instanced once), and those shaded as traced mirrors and as
+    /// glass.
     pub objects: usize,
+    pub mirror_objects: usize,
+    pub glass_objects: usize,
     /// Instances whose transform changes over time.
     pub moving_instances: usize,
     pub lights: usize,
@@ -431,7 +434,10 @@ pub fn load_parsed(rt: &mut Context, scene: AffScene, path: &Path) -> Result<Bar
         }
         let count = builder.triangles.len();
         let mesh = builder.into_mesh();
-        let object = make_object(rt, &look_of(material, texture), &mesh)?;
+        let look = look_of(material, texture);
+        bart.summary.mirror_objects += usize::from(look.shader == shaders.mirror);
+        bart.summary.glass_objects += usize::from(look.shader == shaders.glass);
+        let object = make_object(rt, &look, &mesh)?;
         bart.summary.triangles += count;
         if node != 0 {
             bart.summary.moving_triangles += count;
