@@ -223,6 +223,10 @@ pub fn load_parsed(rt: &mut Context, scene: AffScene, path: &Path) -> Result<Bar
             };
             NodePlan { parent: n.parent, local }
         })
+        .enumerate()
+        // The reader lists parents first; a hand-made scene that does not is read as if the node
+        // hung from the root.
+        .map(|(i, n)| NodePlan { parent: n.parent.filter(|&p| p < i), ..n })
         .collect();
     summary.animated_nodes = nodes.iter().filter(|n| matches!(n.local, Local::Animated(Some(_)))).count();
     let camera_track = scene.keyframes.iter().position(|k| k.name == "camera");
@@ -293,14 +297,15 @@ pub fn load_parsed(rt: &mut Context, scene: AffScene, path: &Path) -> Result<Bar
     rt.light_source(ambient_light, &[("lightcolor", ParamValue::Color(ambient.to_array()))])?;
     let mut warned_moving_light = false;
     for l in &scene.lights {
-        if anchor[l.node] != 0 && !warned_moving_light {
+        let node = if l.node < anchor.len() { l.node } else { 0 };
+        if anchor[node] != 0 && !warned_moving_light {
             warned_moving_light = true;
             warnings.push(format!(
                 "{}: warning: lights in animated nodes stay where they are at the start of the animation",
                 l.at
             ));
         }
-        let from = start_world[l.node].transform_point3(l.position);
+        let from = start_world[node].transform_point3(l.position);
         rt.light_source(
             light,
             &[("from", ParamValue::Point(from.to_array())), ("lightcolor", ParamValue::Color(l.color.to_array()))],
@@ -350,9 +355,14 @@ pub fn load_parsed(rt: &mut Context, scene: AffScene, path: &Path) -> Result<Bar
     let mut morph_groups: Vec<(GroupKey, Vec<Morphing>)> = Vec::new();
     let mut morph_index: HashMap<GroupKey, usize> = HashMap::new();
     for shape in &scene.shapes {
-        let node = anchor[shape.node];
-        let xf = from_anchor[shape.node];
+        // Shapes of nodes that do not exist (only in hand-made scenes) are on the root.
+        let shape_node = if shape.node < anchor.len() { shape.node } else { 0 };
+        let node = anchor[shape_node];
+        let xf = from_anchor[shape_node];
         if let Geometry::AnimatedTriangle(keys) = &shape.geometry {
+            if keys.is_empty() {
+                continue;
+            }
             let key = GroupKey { node, material: shape.material, texture: None };
             let i = *morph_index.entry(key).or_insert_with(|| {
                 morph_groups.push((key, Vec::new()));
@@ -595,7 +605,7 @@ fn place(rt: &mut Context, p: &mut Placement, world: Affine3A, visible: bool) ->
 fn morph_mesh(triangles: &[Morphing], t: f32) -> Mesh {
     let mut positions = Vec::with_capacity(3 * triangles.len());
     let mut normals = Vec::with_capacity(3 * triangles.len());
-    for keys in triangles {
+    for keys in triangles.iter().filter(|k| !k.is_empty()) {
         let after = keys.partition_point(|k| k.time <= t);
         let (a, b, u) = match (after.checked_sub(1), keys.get(after)) {
             (Some(i), Some(next)) => {
@@ -611,7 +621,7 @@ fn morph_mesh(triangles: &[Morphing], t: f32) -> Mesh {
             normals.push(a.normals[c].lerp(b.normals[c], u));
         }
     }
-    let triangles = (0..triangles.len() as u32).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect();
+    let triangles = (0..positions.len() as u32 / 3).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect();
     Mesh { positions, normals: Some(normals), uvs: None, attributes: Vec::new(), triangles }
 }
 
