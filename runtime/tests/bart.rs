@@ -625,3 +625,40 @@ fn the_museum_sculpture_morphs() {
     assert_eq!(s.missing_textures, 0);
     assert!(changed > 20, "the sculpture changed in front of the fixed camera: {changed} pixels");
 }
+
+#[test]
+fn broken_scenes_that_parse_load_and_play_without_panicking() {
+    // Mutated numbers can make singular or enormous transforms, empty polygons, odd keys: loading
+    // and playing them must give errors or warnings, never a panic.
+    let mut rt = Context::new();
+    let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+    let mut next = || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        seed
+    };
+    let replacements = ["0", "-1", "1e30", "-1e30", "1e-30", "3", "0.5", "-0"];
+    let words: Vec<&str> = SMALL_SCENE.split_whitespace().collect();
+    let mut played = 0;
+    for _ in 0..60 {
+        let mut text: Vec<String> = words.iter().map(|w| w.to_string()).collect();
+        for _ in 0..1 + next() % 4 {
+            let at = (next() % text.len() as u64) as usize;
+            if text[at].parse::<f32>().is_ok() {
+                text[at] = replacements[(next() % replacements.len() as u64) as usize].to_string();
+            }
+        }
+        // Statements span lines freely, so one word per line keeps the scene's meaning.
+        let Ok(parsed) = parse_str(&text.join("\n"), Path::new("mutated.aff")) else { continue };
+        let Ok(mut scene) = load_parsed(&mut rt, parsed, Path::new("mutated.aff")) else { continue };
+        for t in [-1.0, 0.5, 1.0, 5.0] {
+            let _ = scene.set_time(&mut rt, t);
+        }
+        played += 1;
+    }
+    assert!(played > 30, "most mutations still parse and load: {played} of 60");
+    rt.options.width = 8;
+    rt.options.height = 6;
+    let _ = render(&mut rt);
+}
