@@ -658,6 +658,12 @@ fn broken_scenes_that_parse_load_and_play_without_panicking() {
         played += 1;
     }
     assert!(played > 30, "most mutations still parse and load: {played} of 60");
+    // A hand-made scene without the root node, with a shape on a node that does not exist.
+    let mut odd = parse("s 0 0 0 1\n");
+    odd.nodes.clear();
+    odd.shapes[0].node = 7;
+    odd.materials.clear();
+    assert!(load_parsed(&mut rt, odd, Path::new("odd.aff")).is_ok());
     rt.options.width = 8;
     rt.options.height = 6;
     let _ = render(&mut rt);

@@ -195,7 +195,12 @@ pub fn load_file(rt: &mut Context, path: &Path) -> Result<BartScene, BartError> 
 }
 
 /// Loads a parsed scene; `path` is the scene file (it anchors the texture search).
-pub fn load_parsed(rt: &mut Context, scene: AffScene, path: &Path) -> Result<BartScene, BartError> {
+pub fn load_parsed(rt: &mut Context, mut scene: AffScene, path: &Path) -> Result<BartScene, BartError> {
+    if scene.nodes.is_empty() {
+        // The reader always makes the root; a hand-made scene may not.
+        let at = aff::Location { file: std::sync::Arc::from(path), line: 0, column: 0 };
+        scene.nodes.push(aff::Node { parent: None, transform: NodeTransform::Static(Affine3A::IDENTITY), at });
+    }
     let mut warnings = scene.warnings.clone();
     let mut summary = Summary::default();
     let shaders = Shaders {
