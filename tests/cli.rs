@@ -328,3 +328,32 @@ fn render_watch_prints_one_line_per_reload_and_diagnostics_for_broken_edits() {
     child.kill().expect("stop the watcher");
     let _ = child.wait();
 }
+
+#[test]
+fn bart_plays_a_scene_at_its_timing_and_writes_the_frames() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    write(
+        dir.path(),
+        "scene.aff",
+        "v\nfrom 0 2 6\nat 0 0 0\nup 0 1 0\nangle 45\nhither 0.01\nresolution 32 24\nl 0 5 5\n\
+         fm 0.2 0.2 0.2 0.7 0.7 0.7 0 0 0 1 0 0\nx spin\n{\ns 0 0 0 1\n}\na 0 1 10\n\
+         k spin\n{\ntransl 2\n0 -1 0 0 0 0 0\n1 1 0 0 0 0 0\n}\n",
+    );
+    let o = rtsl(&["bart", "scene.aff", "--frames", "3", "-o", "frames", "--threads", "1"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let out = stdout(&o);
+    assert!(out.contains("1 moving instances of 1 animated nodes"), "{out}");
+    let frames: Vec<&str> = out.lines().filter(|l| l.starts_with("frame ")).collect();
+    assert_eq!(frames.len(), 3, "{out}");
+    assert!(frames[1].contains("scene frame    3, t =    0.300 s") && frames[1].contains("M rays/s"), "{out}");
+    assert!(out.lines().last().is_some_and(|l| l.starts_with("3 frames:")), "{out}");
+    for k in 0..3 {
+        let image = rtsl_runtime::read_image(dir.path().join(format!("frames/frame_{k:04}.png"))).expect("a frame");
+        assert_eq!((image.width, image.height), (32, 24));
+    }
+
+    write(dir.path(), "broken.aff", "p 3\n0 0 0\n1 0 x\n");
+    let o = rtsl(&["bart", "broken.aff"], dir.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("broken.aff:3:5:"), "{}", stderr(&o));
+}

@@ -13,6 +13,7 @@
 
 pub mod accel;
 pub mod api;
+pub mod bart;
 pub mod bench;
 pub mod camera;
 pub mod geometry;

@@ -1,5 +1,6 @@
 //! Subcommands of the `rtsl` binary.
 
+mod bart;
 mod bench;
 mod compile;
 mod info;
@@ -27,6 +28,8 @@ enum Command {
     Compile(compile::CompileArgs),
     /// Show a shader's type, name and parameters.
     Info(info::InfoArgs),
+    /// Play a BART animated scene (an AFF file) at its own timing: write the frames, print per-frame times.
+    Bart(bart::BartArgs),
     /// Benchmarks.
     #[command(subcommand)]
     Bench(BenchCommand),
@@ -58,6 +61,7 @@ pub fn run() -> anyhow::Result<ExitCode> {
         Command::Shade(args) => shade::run(&args),
         Command::Compile(args) => compile::run(&args),
         Command::Info(args) => info::run(&args),
+        Command::Bart(args) => bart::run(&args),
         Command::Bench(BenchCommand::Frontend(args)) => compile::bench_frontend(&args),
         Command::Bench(BenchCommand::Trace(args)) => bench::run_trace(&args).map(|()| ExitCode::SUCCESS),
         Command::Bench(BenchCommand::Render(args)) => bench::run_render(&args).map(|()| ExitCode::SUCCESS),

@@ -1,0 +1,206 @@
+//! `rtsl bart`: plays a BART scene (an AFF file) at its own animation timing, writes the frames and
+//! prints how long each took, split into the animation update, the scene update (the BVHs of what
+//! changed and the top-level BVH over the instances) and rendering.
+
+use anyhow::Context as _;
+use rtsl_runtime::api::Context;
+use rtsl_runtime::bart::{load_file, BartScene};
+use rtsl_runtime::render::render_frame;
+use rtsl_runtime::{write_image, WriteOptions};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::{Duration, Instant};
+
+/// Flags of `rtsl bart`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct BartArgs {
+    /// The scene: a BART AFF file (e.g. `robot/aff/Robot.aff`, `kitchen/aff/kitchen.aff`,
+    /// `museum/aff/museum5.aff`).
+    pub scene: PathBuf,
+    /// Frames to render, spread evenly over the whole animation (frame k of N is the scene's frame
+    /// floor(k * F / N) of its F frames); default and at most: all F.
+    #[arg(long)]
+    pub frames: Option<u32>,
+    /// Directory for the frames, `frame_0000.png` and on (created if needed); without it nothing
+    /// is written.
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+    /// Image size, `WxH` (default: the scene's `resolution`).
+    #[arg(long, value_parser = super::bench::parse_size)]
+    pub size: Option<(u32, u32)>,
+    /// Samples per pixel (a square number is spread on a grid: 4 is 2x2).
+    #[arg(long)]
+    pub samples: Option<u32>,
+    /// Worker threads (0: one per core).
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+    /// Print only the summary (and errors).
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+fn ms(d: Duration) -> f64 {
+    d.as_secs_f64() * 1e3
+}
+
+/// What one frame cost.
+struct FrameTimes {
+    animation: Duration,
+    build: Duration,
+    render: Duration,
+    rays: u64,
+}
+
+pub fn run(args: &BartArgs) -> anyhow::Result<ExitCode> {
+    let threads =
+        if args.threads == 0 { std::thread::available_parallelism().map_or(1, |n| n.get()) } else { args.threads };
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().context("starting the worker threads")?;
+
+    let started = Instant::now();
+    let mut rt = Context::new();
+    let mut scene = pool
+        .install(|| load_file(&mut rt, &args.scene))
+        .with_context(|| format!("loading {}", args.scene.display()))?;
+    let loaded = started.elapsed();
+    for w in &scene.warnings {
+        eprintln!("{w}");
+    }
+    if let Some((w, h)) = args.size {
+        rt.options.width = w;
+        rt.options.height = h;
+    }
+    if let Some(n) = args.samples {
+        rt.options.samples = super::render::samples_grid(n);
+    }
+    // The camera depends on the image's shape: place everything again for the final size.
+    let a = scene.animation;
+    scene.set_time(&mut rt, a.start)?;
+    // Every object's BVH, once; frames rebuild only what moves.
+    let build_started = Instant::now();
+    let world = pool.install(|| rt.build_world())?;
+    rt.return_scene(world);
+    let first_build = build_started.elapsed();
+
+    let total = a.frames.max(1);
+    let count = args.frames.unwrap_or(total).clamp(1, total);
+    let s = &scene.summary;
+    println!(
+        "{}: {} triangles ({} in {} moving instances of {} animated nodes, {} morphing), {} objects ({} mirrors, {} glass), {} lights, {} textures ({} missing){}",
+        args.scene.display(),
+        s.triangles,
+        s.moving_triangles,
+        s.moving_instances,
+        s.animated_nodes,
+        s.morphing_triangles,
+        s.objects,
+        s.mirror_objects,
+        s.glass_objects,
+        s.lights,
+        s.textures,
+        s.missing_textures,
+        if s.animated_camera { ", animated camera" } else { "" },
+    );
+    let fps = if a.end > a.start { a.frames as f64 / (a.end - a.start) as f64 } else { 0.0 };
+    println!(
+        "animation {} s to {} s, {} frames ({:.1} per second); rendering {count} of them at {}x{}, {} thread(s); loaded in {:.0} ms, first BVH build {:.0} ms",
+        a.start,
+        a.end,
+        a.frames,
+        fps,
+        rt.options.width,
+        rt.options.height,
+        threads,
+        ms(loaded),
+        ms(first_build),
+    );
+    if let Some(dir) = &args.output {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+
+    let mut times = Vec::with_capacity(count as usize);
+    let mut warned = false;
+    for k in 0..count {
+        let frame = (u64::from(k) * u64::from(total) / u64::from(count)) as u32;
+        let t = scene.frame_time(frame);
+        let f = play_frame(&mut rt, &mut scene, &pool, t, args.output.as_deref().map(|d| frame_path(d, k)))?;
+        if !warned {
+            warned = true;
+            for w in rt.take_warnings() {
+                eprintln!("warning: {w}");
+            }
+        }
+        let frame_total = f.animation + f.build + f.render;
+        if !args.quiet {
+            println!(
+                "frame {k:4} (scene frame {frame:4}, t = {t:8.3} s): {:8.1} ms = update {:6.2} ms (animation {:5.2}, BVHs {:6.2}) + render {:8.1} ms, {:6.2} M rays/s",
+                ms(frame_total),
+                ms(f.animation + f.build),
+                ms(f.animation),
+                ms(f.build),
+                ms(f.render),
+                f.rays as f64 / f.render.as_secs_f64().max(1e-9) / 1e6,
+            );
+        }
+        times.push(f);
+    }
+    summarize(&times);
+    Ok(ExitCode::SUCCESS)
+}
+
+fn frame_path(dir: &Path, k: u32) -> PathBuf {
+    dir.join(format!("frame_{k:04}.png"))
+}
+
+/// Moves the scene to time `t`, updates the BVHs, renders, and writes the frame when asked.
+fn play_frame(
+    rt: &mut Context,
+    scene: &mut BartScene,
+    pool: &rayon::ThreadPool,
+    t: f32,
+    output: Option<PathBuf>,
+) -> anyhow::Result<FrameTimes> {
+    let start = Instant::now();
+    scene.set_time(rt, t)?;
+    let animation = start.elapsed();
+    let start = Instant::now();
+    let world = pool.install(|| rt.build_world())?;
+    let build = start.elapsed();
+    let start = Instant::now();
+    let (fb, report) = pool.install(|| render_frame(&world, None));
+    let render = start.elapsed();
+    for w in world.textures.take_warnings() {
+        eprintln!("warning: {w}");
+    }
+    for m in &report.shader_messages {
+        eprintln!("warning: {m}");
+    }
+    rt.return_scene(world);
+    if let Some(path) = output {
+        write_image(&path, fb.width as usize, fb.height as usize, &fb.rgba, &WriteOptions::default())
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
+    Ok(FrameTimes { animation, build, render, rays: report.total_rays() })
+}
+
+fn summarize(times: &[FrameTimes]) {
+    let n = times.len().max(1) as f64;
+    let mean = |f: &dyn Fn(&FrameTimes) -> Duration| times.iter().map(|t| ms(f(t))).sum::<f64>() / n;
+    let totals: Vec<f64> = times.iter().map(|t| ms(t.animation + t.build + t.render)).collect();
+    let min = totals.iter().copied().fold(f64::INFINITY, f64::min);
+    let max = totals.iter().copied().fold(0.0, f64::max);
+    let rays: u64 = times.iter().map(|t| t.rays).sum();
+    let render_s: f64 = times.iter().map(|t| t.render.as_secs_f64()).sum();
+    println!(
+        "{} frames: {:.1} ms per frame on average (min {:.1}, max {:.1}; {:.2} frames/s): update {:.2} ms (animation {:.2}, BVHs {:.2}), render {:.1} ms; {:.2} M rays/s (image writing not counted)",
+        times.len(),
+        totals.iter().sum::<f64>() / n,
+        min,
+        max,
+        1e3 / (totals.iter().sum::<f64>() / n).max(1e-9),
+        mean(&|t| t.animation + t.build),
+        mean(&|t| t.animation),
+        mean(&|t| t.build),
+        mean(&|t| t.render),
+        rays as f64 / render_s.max(1e-9) / 1e6,
+    );
+}
