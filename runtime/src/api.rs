@@ -1011,11 +1011,14 @@ impl Context {
         }
         let mut scene = self.scene.take().unwrap_or_default();
         // Objects: (re)build only the BVHs of changed geometry.
+        let bvh_start = std::time::Instant::now();
+        let mut objects_rebuilt = 0;
         for rec in &mut self.objects {
             if !rec.dirty {
                 continue;
             }
             rec.dirty = false;
+            objects_rebuilt += 1;
             match (&rec.mesh, rec.scene_object) {
                 (Some(mesh), Some(id)) => scene.set_object_mesh(id, mesh.clone())?,
                 (Some(mesh), None) => rec.scene_object = Some(scene.add_object(mesh.clone())),
@@ -1027,6 +1030,7 @@ impl Context {
                 (None, None) => {}
             }
         }
+        let object_bvhs = bvh_start.elapsed();
         let mut warnings = Vec::new();
         let mut materials = vec![Material::DEFAULT];
         let mut object_material = vec![0u32; self.objects.len()];
@@ -1075,6 +1079,8 @@ impl Context {
             lights.push(LightSource { shader: Arc::new(inst), kind, shadows: l.shadows, categories, area });
         }
         let mut world = World::new(scene);
+        world.accel.objects_rebuilt = objects_rebuilt;
+        world.accel.object_bvhs = object_bvhs;
         world.materials = materials;
         world.instances = instances;
         world.lights = lights;

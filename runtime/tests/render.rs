@@ -317,3 +317,37 @@ fn adaptive_sampling_adds_rays_only_where_neighbours_differ() -> Result<(), ApiE
     assert!(Antialiasing::parse("adaptive:x").is_err() && Antialiasing::parse("fancy").is_err());
     Ok(())
 }
+
+#[test]
+fn a_moved_instance_costs_only_the_top_level_and_an_edited_object_only_its_own_bvh() -> Result<(), ApiError> {
+    let mut rt = context();
+    rt.camera_look_at(Vec3A::new(0.0, 2.0, 8.0), Vec3A::ZERO, Vec3A::Y, 45.0);
+    let boxy = rt.begin_object()?;
+    cube(&mut rt)?;
+    rt.end_object()?;
+    let floor = rt.begin_object()?;
+    quad(&mut rt, [[-5.0, -1.0, 5.0], [5.0, -1.0, 5.0], [5.0, -1.0, -5.0], [-5.0, -1.0, -5.0]])?;
+    rt.end_object()?;
+    rt.instantiate_object(floor)?;
+    let moving = rt.instantiate_object(boxy)?;
+    rt.instantiate_object(boxy)?;
+
+    let (_, first) = rt.render_frame()?;
+    assert_eq!(first.accel.objects_rebuilt, 2, "both objects are built once");
+    assert_eq!(first.accel.instances, 3);
+    assert!(first.accel.memory_bytes > 0);
+
+    rt.set_instance_transform(moving, glam::Affine3A::from_translation(glam::Vec3::new(2.0, 0.0, 0.0)))?;
+    let (_, moved) = rt.render_frame()?;
+    assert_eq!(moved.accel.objects_rebuilt, 0, "moving an instance rebuilds no object BVH");
+    assert_eq!(moved.accel.instances, 3);
+
+    rt.redefine_object(floor)?;
+    quad(&mut rt, [[-6.0, -1.0, 6.0], [6.0, -1.0, 6.0], [6.0, -1.0, -6.0], [-6.0, -1.0, -6.0]])?;
+    rt.end_object()?;
+    let (_, edited) = rt.render_frame()?;
+    assert_eq!(edited.accel.objects_rebuilt, 1, "only the edited object");
+    assert_eq!(edited.accel.memory_bytes, moved.accel.memory_bytes, "same size of geometry");
+    assert!(edited.to_string().contains("BVH update"), "{edited}");
+    Ok(())
+}

@@ -46,9 +46,11 @@ fn ms(d: Duration) -> f64 {
 /// What one frame cost.
 struct FrameTimes {
     animation: Duration,
+    /// `build_world`: BVHs (in `accel`) plus the materials, lights and instances of the frame.
     build: Duration,
     render: Duration,
     rays: u64,
+    accel: rtsl_runtime::render::AccelUpdate,
 }
 
 pub fn run(args: &BartArgs) -> anyhow::Result<ExitCode> {
@@ -132,11 +134,16 @@ pub fn run(args: &BartArgs) -> anyhow::Result<ExitCode> {
         let frame_total = f.animation + f.build + f.render;
         if !args.quiet {
             println!(
-                "frame {k:4} (scene frame {frame:4}, t = {t:8.3} s): {:8.1} ms = update {:6.2} ms (animation {:5.2}, BVHs {:6.2}) + render {:8.1} ms, {:6.2} M rays/s",
+                "frame {k:4} (scene frame {frame:4}, t = {t:8.3} s): {:8.1} ms = update {:6.2} ms (animation {:5.2}, world {:6.2}: BVHs {:5.2} = {} object{} {:5.2} + top level {:5.2}) + render {:8.1} ms, {:6.2} M rays/s",
                 ms(frame_total),
                 ms(f.animation + f.build),
                 ms(f.animation),
                 ms(f.build),
+                ms(f.accel.total()),
+                f.accel.objects_rebuilt,
+                if f.accel.objects_rebuilt == 1 { "" } else { "s" },
+                ms(f.accel.object_bvhs),
+                ms(f.accel.top_level),
                 ms(f.render),
                 f.rays as f64 / f.render.as_secs_f64().max(1e-9) / 1e6,
             );
@@ -179,7 +186,7 @@ fn play_frame(
         write_image(&path, fb.width as usize, fb.height as usize, &fb.rgba, &WriteOptions::default())
             .with_context(|| format!("writing {}", path.display()))?;
     }
-    Ok(FrameTimes { animation, build, render, rays: report.total_rays() })
+    Ok(FrameTimes { animation, build, render, rays: report.total_rays(), accel: report.accel })
 }
 
 fn summarize(times: &[FrameTimes]) {
@@ -191,7 +198,7 @@ fn summarize(times: &[FrameTimes]) {
     let rays: u64 = times.iter().map(|t| t.rays).sum();
     let render_s: f64 = times.iter().map(|t| t.render.as_secs_f64()).sum();
     println!(
-        "{} frames: {:.1} ms per frame on average (min {:.1}, max {:.1}; {:.2} frames/s): update {:.2} ms (animation {:.2}, BVHs {:.2}), render {:.1} ms; {:.2} M rays/s (image writing not counted)",
+        "{} frames: {:.1} ms per frame on average (min {:.1}, max {:.1}; {:.2} frames/s): update {:.2} ms (animation {:.2}, world {:.2} of which BVHs {:.2}), render {:.1} ms; {:.2} M rays/s (image writing not counted)",
         times.len(),
         totals.iter().sum::<f64>() / n,
         min,
@@ -200,6 +207,7 @@ fn summarize(times: &[FrameTimes]) {
         mean(&|t| t.animation + t.build),
         mean(&|t| t.animation),
         mean(&|t| t.build),
+        mean(&|t| t.accel.total()),
         mean(&|t| t.render),
         rays as f64 / render_s.max(1e-9) / 1e6,
     );

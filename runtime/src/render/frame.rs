@@ -61,6 +61,8 @@ pub struct FrameReport {
     /// What the shaders' runtime checks found during the frame (a loop stopped by its budget, an
     /// array index clamped), each place once, prefixed by the shader's name.
     pub shader_messages: Vec<String>,
+    /// The acceleration-structure update made for this frame (before `elapsed` started).
+    pub accel: super::world::AccelUpdate,
 }
 
 impl FrameReport {
@@ -83,7 +85,7 @@ impl std::fmt::Display for FrameReport {
         let m = |n: u64| n as f64 / 1e6;
         write!(
             f,
-            "{:.1} ms, {:.2} M rays ({:.2} primary, {:.2} shadow, {:.2} secondary, {:.2} transparency), {:.2} M rays/s, {:.2} M shaded points, {:.0}% of the time shading",
+            "{:.1} ms, {:.2} M rays ({:.2} primary, {:.2} shadow, {:.2} secondary, {:.2} transparency), {:.2} M rays/s, {:.2} M shaded points, {:.0}% of the time shading; BVH update {:.2} ms ({} object{} rebuilt {:.2} ms, top level over {} instances {:.2} ms), {:.1} MB of geometry",
             self.elapsed.as_secs_f64() * 1e3,
             m(self.total_rays()),
             m(self.primary_rays),
@@ -93,6 +95,13 @@ impl std::fmt::Display for FrameReport {
             self.rays_per_second() / 1e6,
             m(self.shaded_points),
             100.0 * self.shading_share(),
+            self.accel.total().as_secs_f64() * 1e3,
+            self.accel.objects_rebuilt,
+            if self.accel.objects_rebuilt == 1 { "" } else { "s" },
+            self.accel.object_bvhs.as_secs_f64() * 1e3,
+            self.accel.instances,
+            self.accel.top_level.as_secs_f64() * 1e3,
+            self.accel.memory_bytes as f64 / 1e6,
         )
     }
 }
@@ -353,6 +362,7 @@ pub fn render_frame(world: &World, progress: Option<&(dyn Fn(usize, usize) + Syn
         shading: Duration::from_nanos(load(&s.shading_ns)),
         threads: rayon::current_num_threads(),
         shader_messages: world.shader_messages(),
+        accel: world.accel,
     };
     (fb, report)
 }

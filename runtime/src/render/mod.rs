@@ -17,6 +17,6 @@ pub use frame::{camera_ray, primary_packet, render_frame, sample_offset, FrameRe
 pub use shade::{Frame, Sample};
 pub use stats::Stats;
 pub use world::{
-    Antialiasing, AreaLight, CameraSetup, InstanceShading, LightSource, Material, RenderOptions, World,
+    AccelUpdate, Antialiasing, AreaLight, CameraSetup, InstanceShading, LightSource, Material, RenderOptions, World,
     MAX_AREA_SAMPLES,
 };

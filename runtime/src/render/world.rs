@@ -226,8 +226,30 @@ impl Default for RenderOptions {
 }
 
 /// Everything a frame renders. Build one with [`crate::api::Context`] or the RIB reader.
+/// What bringing the acceleration structures up to date cost when the world was built: the
+/// BVHs of objects whose geometry changed, and the top level over the instances (rebuilt every
+/// frame). Reported with each frame ([`super::FrameReport::accel`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct AccelUpdate {
+    /// Objects whose BVH was (re)built for this frame.
+    pub objects_rebuilt: usize,
+    pub object_bvhs: std::time::Duration,
+    pub top_level: std::time::Duration,
+    pub instances: usize,
+    /// Heap bytes of meshes and BVHs (each object once however often instanced).
+    pub memory_bytes: usize,
+}
+
+impl AccelUpdate {
+    pub fn total(&self) -> std::time::Duration {
+        self.object_bvhs + self.top_level
+    }
+}
+
 pub struct World {
     pub scene: Scene,
+    /// What updating the BVHs for this world cost.
+    pub accel: AccelUpdate,
     pub materials: Vec<Material>,
     /// One per scene instance, in the scene's instance order.
     pub instances: Vec<InstanceShading>,
@@ -249,6 +271,7 @@ impl World {
     pub fn new(scene: Scene) -> World {
         World {
             scene,
+            accel: AccelUpdate::default(),
             materials: vec![Material::DEFAULT],
             instances: Vec::new(),
             lights: Vec::new(),
@@ -264,7 +287,11 @@ impl World {
     /// Commits the scene and works out the bindings that depend on both meshes and shaders. Call
     /// after any change, before rendering.
     pub fn prepare(&mut self) {
+        let start = std::time::Instant::now();
         self.scene.commit();
+        self.accel.top_level = start.elapsed();
+        self.accel.instances = self.scene.instance_count();
+        self.accel.memory_bytes = self.scene.memory_bytes();
         self.vertex_params = self
             .instances
             .iter()
