@@ -156,15 +156,6 @@ fn absolute(p: &Path) -> PathBuf {
     std::fs::canonicalize(p).or_else(|_| std::path::absolute(p)).unwrap_or_else(|_| p.to_path_buf())
 }
 
-/// A file's text as the front end reads it (invalid UTF-8 replaced, as [`SourceMap::load`] does).
-fn read_text(path: &Path) -> std::io::Result<String> {
-    let bytes = std::fs::read(path)?;
-    Ok(match String::from_utf8(bytes) {
-        Ok(s) => s,
-        Err(e) => String::from_utf8_lossy(e.as_bytes()).into_owned(),
-    })
-}
-
 /// Identifies the tables the IR indexes into (built-in overloads, globals) and the format version:
 /// an artifact is readable only by a compiler with the same fingerprint.
 pub fn fingerprint() -> [u8; 32] {
@@ -374,7 +365,7 @@ impl Artifact {
         let mut changed = Vec::new();
         for f in &self.files {
             let Some(p) = &f.path else { continue };
-            match read_text(p) {
+            match crate::source::read_source_text(p) {
                 Ok(text) if content_hash(&text) == f.hash => {}
                 _ => changed.push(p.clone()),
             }

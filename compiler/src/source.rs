@@ -135,11 +135,7 @@ impl SourceMap {
     /// Reads a file from disk. Invalid UTF-8 is replaced rather than refused: shader files from old
     /// collections are often Latin-1 in their comments.
     pub fn load(&mut self, path: &Path) -> std::io::Result<FileId> {
-        let bytes = std::fs::read(path)?;
-        let text = match String::from_utf8(bytes) {
-            Ok(s) => s,
-            Err(e) => String::from_utf8_lossy(e.as_bytes()).into_owned(),
-        };
+        let text = read_source_text(path)?;
         Ok(self.add(path.display().to_string(), Some(path.to_path_buf()), text))
     }
 
@@ -208,4 +204,14 @@ impl<'a> codespan_reporting::files::Files<'a> for SourceMap {
         let end = file.line_start(line_index + 1).map(|s| s as usize).unwrap_or(file.text.len());
         Ok(start..end)
     }
+}
+
+/// A source file's text as the compiler reads it: invalid UTF-8 is replaced rather than refused
+/// (shader files from old collections are often Latin-1 in their comments).
+pub fn read_source_text(path: &Path) -> std::io::Result<String> {
+    let bytes = std::fs::read(path)?;
+    Ok(match String::from_utf8(bytes) {
+        Ok(s) => s,
+        Err(e) => String::from_utf8_lossy(e.as_bytes()).into_owned(),
+    })
 }

@@ -280,17 +280,24 @@ pub struct BenchFrontendArgs {
     pub repeats: usize,
 }
 
-/// Compiles every file `repeats` times on one thread and prints lines per second.
-pub fn bench_frontend(args: &BenchFrontendArgs) -> anyhow::Result<ExitCode> {
-    let (paths, mut options) = if args.paths.is_empty() {
+/// The benchmarks' inputs: the given paths, or by default the shader library and the test corpus
+/// (with the corpus's include directory).
+fn paths_or_library(paths: &[PathBuf], flags: &CompilerFlags) -> (Vec<PathBuf>, Options) {
+    let (paths, mut options) = if paths.is_empty() {
         let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-        let mut flags = args.flags.clone();
+        let mut flags = flags.clone();
         flags.include.push(root.join("tests/corpus/include"));
         (vec![root.join("stdlib_shaders"), root.join("tests/corpus")], flags.options())
     } else {
-        (args.paths.clone(), args.flags.options())
+        (paths.to_vec(), flags.options())
     };
     options.preprocessor.include_paths.dedup();
+    (paths, options)
+}
+
+/// Compiles every file `repeats` times on one thread and prints lines per second.
+pub fn bench_frontend(args: &BenchFrontendArgs) -> anyhow::Result<ExitCode> {
+    let (paths, options) = paths_or_library(&args.paths, &args.flags);
     let files = collect_shaders(&paths)?;
     // Read once, so that the timing covers the compiler, not the disk.
     let sources: Vec<(PathBuf, String)> = files
@@ -342,14 +349,7 @@ pub struct BenchLibraryArgs {
 /// the disk writes), on one thread and on every core in the same process; prints both and the
 /// speedup.
 pub fn bench_library(args: &BenchLibraryArgs) -> anyhow::Result<ExitCode> {
-    let (paths, options) = if args.paths.is_empty() {
-        let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-        let mut flags = args.flags.clone();
-        flags.include.push(root.join("tests/corpus/include"));
-        (vec![root.join("stdlib_shaders"), root.join("tests/corpus")], flags.options())
-    } else {
-        (args.paths.clone(), args.flags.options())
-    };
+    let (paths, options) = paths_or_library(&args.paths, &args.flags);
     let files = collect_shaders(&paths)?;
     let one = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
     let all = rayon::ThreadPoolBuilder::new().num_threads(args.threads.unwrap_or(0)).build()?;
