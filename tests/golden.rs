@@ -211,3 +211,51 @@ fn the_default_scene_matches_its_reference() {
     let rib = include_str!("../examples/scenes/default.rib");
     check("default_scene", &render_rib("default", rib)).unwrap_or_else(|e| panic!("{e}"));
 }
+
+#[test]
+fn every_library_camera_shader_matches_its_reference() {
+    let cameras = [
+        ("pinhole", "Camera \"pinhole\""),
+        ("thinlens", "Camera \"thinlens\" \"fstop\" [0.4] \"focallength\" [0.5] \"focaldistance\" [6]"),
+        ("fisheye", "Camera \"fisheye\" \"fov\" [200]"),
+        ("cylindrical", "Camera \"cylindrical\" \"hfov\" [240] \"vfov\" [110]"),
+        ("parabolic", "Camera \"parabolic\" \"scale\" [1.5]"),
+    ];
+    let light = "LightSource \"pointlight\" 1 \"intensity\" [25] \"from\" [2 4 -3]";
+    let failures: Vec<String> = cameras
+        .iter()
+        .filter_map(|(name, camera)| {
+            let rib = light_scene(light).replacen("Projection", &format!("{camera}\nProjection"), 1);
+            check(&format!("camera_{name}"), &render_rib(name, &rib)).err()
+        })
+        .collect();
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+#[test]
+fn motion_blur_matches_its_reference() {
+    let rib = format!(
+        r#"
+Format {W} {H} 1
+PixelSamples 4 4
+Shutter 0 1
+Projection "perspective" "fov" [35]
+Rotate -15 1 0 0
+Translate 0 -1 5
+WorldBegin
+  LightSource "pointlight" 1 "intensity" [25] "from" [2 4 -3]
+  Surface "plastic"
+  Polygon "P" [-6 0 -6  6 0 -6  6 0 6  -6 0 6]
+  AttributeBegin
+    MotionBegin [0 1]
+      Translate -0.8 0.5 0
+      Translate 0.8 0.5 0
+    MotionEnd
+    Color [.8 .3 .2]
+    Sphere 0.45 -0.45 0.45 360
+  AttributeEnd
+WorldEnd
+"#
+    );
+    check("motion_blur", &render_rib("motion_blur", &rib)).unwrap_or_else(|e| panic!("{e}"));
+}

@@ -58,8 +58,8 @@ pub const GLOBALS: &[GlobalDef] = &[
     GlobalDef { name: "E", ty: Point, varying: true, access: [R, R, R, R, N, W, R], doc: "ray origin (the eye for primary rays); in camera shaders the ray origin to generate" },
     GlobalDef { name: "Cs", ty: Color, varying: true, access: [R, N, N, N, N, N, N], doc: "surface colour (from the Color attribute)" },
     GlobalDef { name: "Os", ty: Color, varying: true, access: [R, N, N, N, N, N, N], doc: "surface opacity (from the Opacity attribute)" },
-    GlobalDef { name: "s", ty: Float, varying: true, access: [R, R, R, N, N, R, R], doc: "texture coordinate s; in camera shaders the horizontal screen position in [0,1]" },
-    GlobalDef { name: "t", ty: Float, varying: true, access: [R, R, R, N, N, R, R], doc: "texture coordinate t; in camera shaders the vertical screen position in [0,1]" },
+    GlobalDef { name: "s", ty: Float, varying: true, access: [R, R, R, N, N, R, R], doc: "texture coordinate s; in camera shaders the horizontal screen-window position (the shorter image side spans [-1,1])" },
+    GlobalDef { name: "t", ty: Float, varying: true, access: [R, R, R, N, N, R, R], doc: "texture coordinate t; in camera shaders the vertical screen-window position, up (the shorter image side spans [-1,1])" },
     GlobalDef { name: "u", ty: Float, varying: true, access: [R, R, R, N, N, R, R], doc: "surface parameter u; in camera shaders the lens sample in [0,1)" },
     GlobalDef { name: "v", ty: Float, varying: true, access: [R, R, R, N, N, R, R], doc: "surface parameter v; in camera shaders the lens sample in [0,1)" },
     GlobalDef { name: "du", ty: Float, varying: true, access: [R, R, R, N, N, N, R], doc: "change in u between neighbouring samples (from ray differentials)" },
@@ -78,7 +78,7 @@ pub const GLOBALS: &[GlobalDef] = &[
     GlobalDef { name: "objectid", ty: Float, varying: true, access: [N, N, N, N, R, N, N], doc: "id of the object first hit, -1 for none (pixel shaders)" },
     GlobalDef { name: "shaderid", ty: Float, varying: true, access: [N, N, N, N, R, N, N], doc: "id of the surface shader first hit, -1 for none (pixel shaders)" },
     GlobalDef { name: "ncomps", ty: Float, varying: false, access: [R, R, R, R, R, R, R], doc: "number of colour components (3)" },
-    GlobalDef { name: "time", ty: Float, varying: false, access: [R, R, R, R, R, R, R], doc: "the current shutter time" },
+    GlobalDef { name: "time", ty: Float, varying: true, access: [R, R, R, R, R, R, R], doc: "the time of the ray being shaded within the shutter interval (each primary ray has its own time sample; the rays it spawns inherit it)" },
     GlobalDef { name: "dtime", ty: Float, varying: false, access: [R, R, R, R, R, R, R], doc: "the length of the shutter interval" },
 ];
 

@@ -169,6 +169,8 @@ struct ObjectRecord {
 struct InstanceRecord {
     object: ObjectId,
     transform: Affine3A,
+    /// Where the instance is when the shutter closes, if it moves.
+    close_transform: Option<Affine3A>,
     deleted: bool,
 }
 
@@ -206,7 +208,9 @@ pub struct Context {
     shader_search_path: Vec<PathBuf>,
     include_paths: Vec<PathBuf>,
     matrix: Affine3A,
-    stack: Vec<Affine3A>,
+    stack: Vec<(Affine3A, Option<Affine3A>)>,
+    /// The current matrix at the shutter's close, where it differs from `matrix` (motion blur).
+    close_matrix: Option<Affine3A>,
     appearance: Appearance,
     appearance_stack: Vec<Appearance>,
     objects: Vec<ObjectRecord>,
@@ -219,6 +223,7 @@ pub struct Context {
     instances: Vec<InstanceRecord>,
     lights: Vec<LightRecord>,
     pixel: Option<Binding>,
+    camera_shader: Option<Binding>,
     camera: CameraSetup,
     pub options: RenderOptions,
     spaces: std::collections::HashMap<String, Affine3A>,
@@ -244,7 +249,8 @@ impl Default for Context {
 pub fn find_shader_file(name: &str, search: &[PathBuf]) -> Option<PathBuf> {
     let files = [format!("{name}.{}", rtsl_compiler::artifact::EXTENSION), format!("{name}.sl")];
     let std = stdlib_dir();
-    let std_dirs = ["surface", "light", "displacement", "volume", "imager", "camera", "pixel"].map(|d| std.join(d));
+    let std_dirs =
+        ["surface", "light", "displacement", "volume", "imager", "camera", "pixel", "lightfield"].map(|d| std.join(d));
     search.iter().chain(std_dirs.iter()).flat_map(|d| files.iter().map(move |f| d.join(f))).find(|p| p.is_file())
 }
 
@@ -261,6 +267,7 @@ impl Context {
             include_paths: Vec::new(),
             matrix: Affine3A::IDENTITY,
             stack: Vec::new(),
+            close_matrix: None,
             appearance: Appearance::default(),
             appearance_stack: Vec::new(),
             objects: Vec::new(),
@@ -273,6 +280,7 @@ impl Context {
             instances: Vec::new(),
             lights: Vec::new(),
             pixel: None,
+            camera_shader: None,
             camera: CameraSetup::default(),
             options: RenderOptions::default(),
             spaces: Default::default(),
@@ -481,10 +489,13 @@ impl Context {
         Ok(p)
     }
 
-    /// Binds a surface shader: the object being built (or, outside objects, the objects built from
-    /// now on) is shaded by it. Its "shader" space is the current matrix.
+    /// Binds a surface (or lightfield) shader: the object being built (or, outside objects, the
+    /// objects built from now on) is shaded by it. Its "shader" space is the current matrix.
     pub fn bind_shader(&mut self, id: ShaderId) -> Result<(), ApiError> {
-        self.expect_kind(id, ShaderKind::Surface)?;
+        // A lightfield shader is bound like a surface: it shades the rays that hit the object.
+        if self.program(id)?.kind != ShaderKind::Lightfield {
+            self.expect_kind(id, ShaderKind::Surface)?;
+        }
         self.appearance.surface = Some(Binding { shader: id, params: Vec::new(), world_from_shader: self.matrix });
         Ok(())
     }
@@ -592,6 +603,32 @@ impl Context {
         Ok(())
     }
 
+    /// The camera shader that generates the primary rays (`None`: the built-in pinhole camera). Its
+    /// "shader" and "object" spaces are camera space, whatever the current matrix; the camera's
+    /// placement still comes from [`Context::camera_look_at`] / [`Context::set_camera`]. The globals it
+    /// reads and writes are specified in `docs/cameras.md`.
+    pub fn camera_shader(&mut self, shader: Option<ShaderId>, params: &[(&str, ParamValue)]) -> Result<(), ApiError> {
+        let Some(id) = shader else {
+            self.camera_shader = None;
+            return Ok(());
+        };
+        let program = self.expect_kind(id, ShaderKind::Camera)?;
+        for (name, value) in params {
+            crate::shading::bind_param(&program, name, value, &self.matrix)?;
+        }
+        self.camera_shader = Some(Binding {
+            shader: id,
+            params: params.iter().map(|(n, v)| (n.to_string(), v.clone(), self.matrix)).collect(),
+            world_from_shader: self.matrix,
+        });
+        Ok(())
+    }
+
+    /// The camera shader bound with [`Context::camera_shader`], if any.
+    pub fn camera_shader_id(&self) -> Option<ShaderId> {
+        self.camera_shader.as_ref().map(|b| b.shader)
+    }
+
     /// Switches a light on or off, and its ray-traced shadows.
     pub fn set_light(&mut self, light: LightId, on: bool, shadows: bool) -> Result<(), ApiError> {
         let rec = self.lights.get_mut(light.0 as usize).ok_or(ApiError::UnknownLight(light.0))?;
@@ -620,29 +657,30 @@ impl Context {
     /// Saves the attribute state (colour, opacity, shader binding) and the matrix.
     pub fn push_attributes(&mut self) {
         self.appearance_stack.push(self.appearance.clone());
-        self.stack.push(self.matrix);
+        self.stack.push((self.matrix, self.close_matrix));
     }
 
     pub fn pop_attributes(&mut self) -> Result<(), ApiError> {
         self.appearance =
             self.appearance_stack.pop().ok_or(ApiError::Unbalanced("pop_attributes", "push_attributes"))?;
-        self.matrix = self.stack.pop().ok_or(ApiError::MatrixStackEmpty)?;
+        (self.matrix, self.close_matrix) = self.stack.pop().ok_or(ApiError::MatrixStackEmpty)?;
         Ok(())
     }
 
     // ---- matrices ----
 
     pub fn push_matrix(&mut self) {
-        self.stack.push(self.matrix);
+        self.stack.push((self.matrix, self.close_matrix));
     }
 
     pub fn pop_matrix(&mut self) -> Result<(), ApiError> {
-        self.matrix = self.stack.pop().ok_or(ApiError::MatrixStackEmpty)?;
+        (self.matrix, self.close_matrix) = self.stack.pop().ok_or(ApiError::MatrixStackEmpty)?;
         Ok(())
     }
 
     pub fn load_identity(&mut self) {
         self.matrix = Affine3A::IDENTITY;
+        self.close_matrix = None;
     }
 
     pub fn current_matrix(&self) -> Affine3A {
@@ -651,11 +689,44 @@ impl Context {
 
     pub fn load_matrix(&mut self, m: Affine3A) {
         self.matrix = m;
+        self.close_matrix = None;
     }
 
     /// Post-multiplies the current matrix (OpenGL's order: the last call applies first to points).
     pub fn mult_matrix(&mut self, m: Affine3A) {
         self.matrix *= m;
+        if let Some(close) = &mut self.close_matrix {
+            *close *= m;
+        }
+    }
+
+    /// A transform that moves during the shutter interval (RIB's `MotionBegin` around a
+    /// transform): post-multiplies the current matrix by `open` for the shutter's opening and by
+    /// `close` for its closing. Instances placed from now on (within the current matrix scope) move
+    /// between the two, so they are motion-blurred when the shutter interval
+    /// ([`crate::render::RenderOptions::shutter`]) is not empty.
+    pub fn motion_transform(&mut self, open: Affine3A, close: Affine3A) {
+        let before = self.matrix;
+        let close_before = self.close_matrix.unwrap_or(before);
+        self.matrix = before * open;
+        let close = close_before * close;
+        self.close_matrix = (close != self.matrix).then_some(close);
+    }
+
+    /// The current matrix at the shutter's close (the current matrix unless a motion transform
+    /// applies).
+    pub fn close_matrix(&self) -> Affine3A {
+        self.close_matrix.unwrap_or(self.matrix)
+    }
+
+    /// Places instance `id` at `open` when the shutter opens and at `close` when it closes (motion
+    /// blur; see [`Context::motion_transform`]).
+    pub fn set_instance_motion(&mut self, id: InstanceId, open: Affine3A, close: Affine3A) -> Result<(), ApiError> {
+        let rec =
+            self.instances.get_mut(id.0 as usize).filter(|i| !i.deleted).ok_or(ApiError::UnknownInstance(id.0))?;
+        rec.transform = open;
+        rec.close_transform = (close != open).then_some(close);
+        Ok(())
     }
 
     pub fn translate(&mut self, x: f32, y: f32, z: f32) {
@@ -684,6 +755,7 @@ impl Context {
         match self.spaces.get(name) {
             Some(m) => {
                 self.matrix = *m;
+                self.close_matrix = None;
                 true
             }
             None => false,
@@ -789,7 +861,12 @@ impl Context {
             Some(o) if !o.deleted => {}
             _ => return Err(ApiError::UnknownObject(id.0)),
         }
-        self.instances.push(InstanceRecord { object: id, transform: self.matrix, deleted: false });
+        self.instances.push(InstanceRecord {
+            object: id,
+            transform: self.matrix,
+            close_transform: self.close_matrix,
+            deleted: false,
+        });
         Ok(InstanceId(self.instances.len() as u32 - 1))
     }
 
@@ -798,6 +875,7 @@ impl Context {
         let rec =
             self.instances.get_mut(id.0 as usize).filter(|i| !i.deleted).ok_or(ApiError::UnknownInstance(id.0))?;
         rec.transform = transform;
+        rec.close_transform = None;
         Ok(())
     }
 
@@ -1057,7 +1135,11 @@ impl Context {
             let (Some(obj), false) = (rec.scene_object, inst.deleted || rec.deleted || rec.mesh.is_none()) else {
                 continue;
             };
-            scene.add_instance(obj, inst.transform)?;
+            let (open, close) = self.options.shutter;
+            match inst.close_transform {
+                Some(end) if close > open => scene.add_moving_instance(obj, inst.transform, end, (open, close))?,
+                _ => scene.add_instance(obj, inst.transform)?,
+            };
             instances.push(InstanceShading {
                 material: object_material[inst.object.0 as usize],
                 object: obj.0,
@@ -1086,6 +1168,14 @@ impl Context {
         world.lights = lights;
         world.pixel = self.pixel.as_ref().map(|b| self.instance_for(b, &mut warnings)).transpose()?.map(Arc::new);
         world.camera = self.camera;
+        world.camera_shader = match &self.camera_shader {
+            Some(b) => {
+                let mut inst = self.instance_for(b, &mut warnings)?;
+                inst.world_from_shader = self.camera.world_from_camera;
+                Some(Arc::new(inst))
+            }
+            None => None,
+        };
         world.options = self.options.clone();
         world.spaces = self.spaces.clone();
         world.textures = self.textures.clone();

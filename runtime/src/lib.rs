@@ -18,6 +18,7 @@ pub mod bench;
 pub mod camera;
 pub mod geometry;
 pub mod image_io;
+pub mod lightfield;
 pub mod mesh_io;
 pub mod ray;
 pub mod reload;
@@ -33,6 +34,8 @@ pub use accel::bvh4::BuildQuality;
 pub use bench::{run_bench, BenchError, BenchOptions, BenchReport};
 pub use camera::Camera;
 pub use geometry::{Attribute, Mesh, MeshError};
+/// The vector maths of the API (positions, directions, transforms).
+pub use glam;
 pub use image_io::{diff_image, read_image, write_image, ImageDiff, ImageError, RgbaImage, WriteOptions};
 pub use mesh_io::{load_mesh, MeshIoError};
 pub use ray::{offset_ray_origin, Hit, HitCandidate, HitFilter, HitPacket, Ray, RayPacket, INVALID_ID, PACKET_SIZE};

@@ -32,17 +32,25 @@ pub struct Ray {
     pub tmin: f32,
     /// End of the valid interval (exclusive).
     pub tmax: f32,
+    /// The ray's time within the shutter interval: moving instances are where they are at this
+    /// time (motion blur).
+    pub time: f32,
 }
 
 impl Ray {
-    /// A ray over `(0, inf)`.
+    /// A ray over `(0, inf)` at time 0.
     pub fn new(origin: Vec3A, direction: Vec3A) -> Self {
-        Self { origin, direction, tmin: 0.0, tmax: f32::INFINITY }
+        Self { origin, direction, tmin: 0.0, tmax: f32::INFINITY, time: 0.0 }
     }
 
-    /// A ray over `(tmin, tmax)`.
+    /// A ray over `(tmin, tmax)` at time 0.
     pub fn segment(origin: Vec3A, direction: Vec3A, tmin: f32, tmax: f32) -> Self {
-        Self { origin, direction, tmin, tmax }
+        Self { origin, direction, tmin, tmax, time: 0.0 }
+    }
+
+    /// The same ray at time `time`.
+    pub fn at_time(self, time: f32) -> Self {
+        Self { time, ..self }
     }
 
     /// The point at parameter `t`.
@@ -153,6 +161,8 @@ pub struct RayPacket {
     pub tmin: Lanes,
     /// Interval end per lane.
     pub tmax: Lanes,
+    /// Time per lane (see [`Ray::time`]).
+    pub time: Lanes,
     /// Bit `i` set: lane `i` takes part.
     pub active: u64,
 }
@@ -173,6 +183,7 @@ impl RayPacket {
         self.dz.0[i] = ray.direction.z;
         self.tmin.0[i] = ray.tmin;
         self.tmax.0[i] = ray.tmax;
+        self.time.0[i] = ray.time;
         self.active |= 1u64 << i;
     }
 
@@ -183,6 +194,7 @@ impl RayPacket {
             direction: Vec3A::new(self.dx.0[i], self.dy.0[i], self.dz.0[i]),
             tmin: self.tmin.0[i],
             tmax: self.tmax.0[i],
+            time: self.time.0[i],
         }
     }
 }

@@ -115,12 +115,41 @@ impl Scene {
         Ok(InstanceId(self.instances.len() as u32 - 1))
     }
 
+    /// Adds a moving instance of `object`: placed by `open_transform` at time `open` and by
+    /// `close_transform` at `close`, in between linearly interpolated (motion blur; rays carry
+    /// their time).
+    pub fn add_moving_instance(
+        &mut self,
+        object: ObjectId,
+        open_transform: Affine3A,
+        close_transform: Affine3A,
+        (open, close): (f32, f32),
+    ) -> Result<InstanceId, SceneError> {
+        if object.0 as usize >= self.objects.len() {
+            return Err(SceneError::NoSuchObject(object.0));
+        }
+        check_transform(&open_transform)?;
+        check_transform(&close_transform)?;
+        for s in 0..=8 {
+            // Interpolated matrices can pass through singular ones (e.g. a mirror turning over).
+            let t = InstanceData::moving(object.0, open_transform, close_transform, 0.0, 1.0);
+            check_transform(&t.world_from_object_at(s as f32 / 8.0))?;
+        }
+        self.instances.push(InstanceData::moving(object.0, open_transform, close_transform, open, close));
+        Ok(InstanceId(self.instances.len() as u32 - 1))
+    }
+
     /// Moves an instance (seen by queries after the next [`Scene::commit`]).
     pub fn set_instance_transform(&mut self, id: InstanceId, world_from_object: Affine3A) -> Result<(), SceneError> {
         check_transform(&world_from_object)?;
         let inst = self.instances.get_mut(id.0 as usize).ok_or(SceneError::NoSuchInstance(id.0))?;
         *inst = InstanceData::new(inst.object, world_from_object);
         Ok(())
+    }
+
+    /// The tracer's data of committed instance `id`.
+    pub fn instance_data(&self, id: u32) -> Option<&InstanceData> {
+        self.top.instances.get(id as usize)
     }
 
     /// Removes every instance (objects stay).
@@ -201,8 +230,15 @@ impl Scene {
         self.top.bvh.bounds
     }
 
-    /// Surface details of a hit from this scene; `None` for a miss or stale ids.
+    /// Surface details of a hit from this scene; `None` for a miss or stale ids. A moving instance
+    /// is taken where it is at the shutter's opening: see [`Scene::surface_at`].
     pub fn surface(&self, hit: &Hit) -> Option<SurfaceHit> {
+        let inst = self.top.instances.get(hit.instance as usize)?;
+        self.surface_at(hit, inst.motion.map_or(0.0, |m| m.open))
+    }
+
+    /// Surface details of a hit by a ray at `time` (where a moving instance then is).
+    pub fn surface_at(&self, hit: &Hit, time: f32) -> Option<SurfaceHit> {
         let inst = self.top.instances.get(hit.instance as usize)?;
         let mesh = &self.objects.get(inst.object as usize)?.mesh;
         let tri = *mesh.triangles.get(hit.primitive as usize)?;
@@ -212,8 +248,8 @@ impl Scene {
         let pb = Vec3A::from(mesh.positions[b]);
         let pc = Vec3A::from(mesh.positions[c]);
         let p_obj = pa * w0 + pb * w1 + pc * w2;
-        let xf = &inst.world_from_object;
-        let normal_xf = inst.object_from_world.matrix3.transpose();
+        let xf = &inst.world_from_object_at(time);
+        let normal_xf = inst.object_from_world_at(time).matrix3.transpose();
         let ng = (normal_xf * (pb - pa).cross(pc - pa)).normalize_or_zero();
         let n = match mesh.interpolate_normal([a, b, c], [w0, w1, w2]) {
             Some(ni) => (normal_xf * Vec3A::from(ni)).normalize_or(ng),

@@ -195,3 +195,78 @@ fn ray_inside_a_closed_box_always_hits() {
         assert!(s.intersect(&pk.get(i)).is_hit());
     }
 }
+
+/// Moving instances (motion blur): each lane carries its own time, so packet traversal answers
+/// them one lane at a time; all three traversals must still agree.
+fn moving_world() -> impl Strategy<Value = (World, Vec<Option<Affine3A>>)> {
+    (world(), prop::collection::vec(prop::option::of(transform()), 5)).prop_map(|(w, closes)| {
+        let closes = w.instances.iter().zip(closes).map(|(_, c)| c).collect();
+        (w, closes)
+    })
+}
+
+fn build_moving(w: &World, closes: &[Option<Affine3A>]) -> Scene {
+    let mut s = Scene::new();
+    let ids: Vec<_> = w.meshes.iter().map(|m| s.add_object(m.clone())).collect();
+    for ((o, t), close) in w.instances.iter().zip(closes) {
+        match close {
+            Some(c) => s.add_moving_instance(ids[*o], *t, *c, (0.0, 1.0)).map(|_| ()).or_else(|_| {
+                // The interpolation passes through a singular matrix: keep the instance still.
+                s.add_instance(ids[*o], *t).map(|_| ())
+            }),
+            None => s.add_instance(ids[*o], *t).map(|_| ()),
+        }
+        .expect("valid transform");
+    }
+    s.commit();
+    s
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 128, .. ProptestConfig::default() })]
+
+    #[test]
+    fn traversals_agree_with_moving_instances(
+        (w, closes) in moving_world(),
+        rays in prop::collection::vec(packet(), 1..3),
+        times in prop::collection::vec(0.0f32..1.0, PACKET_SIZE),
+    ) {
+        let scene = build_moving(&w, &closes);
+        for (o, t, spread, active, tmax) in rays {
+            let mut p = make_packet(o, t, spread, active, tmax, true);
+            p.time.0.copy_from_slice(&times);
+            check(&scene, &p, None)?;
+        }
+    }
+
+    /// A ray at time `t` sees a moving instance exactly where a still instance placed by the
+    /// interpolated transform is.
+    #[test]
+    fn a_moving_instance_is_where_its_interpolated_transform_puts_it(
+        m in mesh(),
+        open in transform(),
+        close in transform(),
+        time in 0.0f32..1.0,
+        (o, target, spread, active, tmax) in packet(),
+    ) {
+        let mut moving = Scene::new();
+        let id = moving.add_object(m.clone());
+        prop_assume!(moving.add_moving_instance(id, open, close, (0.0, 1.0)).is_ok());
+        moving.commit();
+        let Some(data) = moving.instance_data(0).copied() else { return Err(TestCaseError::fail("no instance")) };
+        let mut still = Scene::new();
+        let id = still.add_object(m);
+        still.add_instance(id, data.world_from_object_at(time)).expect("checked when added");
+        still.commit();
+        let mut p = make_packet(o, target, spread, active, tmax, true);
+        p.time.0.fill(time);
+        for i in (0..PACKET_SIZE).filter(|i| p.active >> i & 1 != 0) {
+            let (a, b) = (moving.intersect(&p.get(i)), still.intersect(&p.get(i)));
+            prop_assert_eq!(a.is_hit(), b.is_hit(), "lane {}", i);
+            if a.is_hit() {
+                prop_assert_eq!(a.primitive, b.primitive);
+                prop_assert!((a.t - b.t).abs() <= 1e-4 * (1.0 + a.t.abs()), "{} vs {}", a.t, b.t);
+            }
+        }
+    }
+}

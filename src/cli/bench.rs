@@ -45,7 +45,7 @@ pub struct BenchTraceArgs {
     pub passes: [bool; 4],
 }
 
-fn parse_vec3(s: &str) -> Result<[f32; 3], String> {
+pub(crate) fn parse_vec3(s: &str) -> Result<[f32; 3], String> {
     let parts: Vec<&str> = s.split(',').map(str::trim).collect();
     if parts.len() != 3 {
         return Err(format!("expected three comma-separated numbers X,Y,Z, got `{s}`"));
@@ -245,6 +245,71 @@ pub fn run_render(args: &BenchRenderArgs) -> anyhow::Result<()> {
         let nms = median(native_ms);
         println!("native_plastic_frame_ms: {nms:.2} ({native_count} materials)");
         println!("jit_over_native: {:.3}", ms / nms.max(1e-9));
+    }
+    Ok(())
+}
+
+/// Flags of `rtsl bench camera`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct BenchCameraArgs {
+    /// The scene (RIB or mesh; none: the default scene).
+    pub scene: Option<PathBuf>,
+    /// Timed frames per camera (after one untimed warm-up frame each); the median is reported.
+    #[arg(long, default_value_t = 10)]
+    pub frames: usize,
+    /// Worker threads (0: one per core).
+    #[arg(long, default_value_t = 2)]
+    pub threads: usize,
+    /// Image size, `WxH` (overrides the scene's).
+    #[arg(long, value_parser = parse_size)]
+    pub size: Option<(u32, u32)>,
+    /// Camera shaders to compare with the built-in pinhole camera.
+    #[arg(long, value_delimiter = ',', default_value = "pinhole,fisheye,thinlens,cylindrical,parabolic")]
+    pub cameras: Vec<String>,
+}
+
+/// Runs `rtsl bench camera`: Mrays/s of primary rays (made and traced, not shaded) from each camera
+/// shader and from the built-in pinhole camera, frames interleaved camera by camera so that the
+/// machine's drift touches all alike; each camera's speed is also printed as a ratio to the
+/// built-in one.
+pub fn run_camera(args: &BenchCameraArgs) -> anyhow::Result<()> {
+    let (mut rt, _) = super::render::load_scene(args.scene.as_deref(), &[], &[])?;
+    if let Some((w, h)) = args.size {
+        rt.options.width = w;
+        rt.options.height = h;
+    }
+    rt.options.samples = (1, 1);
+    let mut worlds = vec![("builtin".to_string(), {
+        rt.camera_shader(None, &[])?;
+        rt.build_world()?
+    })];
+    for name in &args.cameras {
+        let id = rt.find_shader(name)?;
+        rt.camera_shader(Some(id), &[])?;
+        worlds.push((name.clone(), rt.build_world()?));
+    }
+    let threads =
+        if args.threads == 0 { std::thread::available_parallelism().map_or(1, |n| n.get()) } else { args.threads };
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().context("starting the worker threads")?;
+    let mut times = vec![Vec::new(); worlds.len()];
+    let mut rays = vec![0u64; worlds.len()];
+    for frame in 0..=args.frames.max(1) {
+        for (k, (_, world)) in worlds.iter().enumerate() {
+            let start = std::time::Instant::now();
+            let (n, _) = pool.install(|| rtsl_runtime::render::trace_primary_rays(world));
+            if frame > 0 {
+                times[k].push(start.elapsed().as_secs_f64());
+                rays[k] = n;
+            }
+        }
+    }
+    let (w, h) = (rt.options.width, rt.options.height);
+    println!("scene: {}", args.scene.as_ref().map_or("<default scene>".into(), |p| p.display().to_string()));
+    println!("size: {w}x{h}, threads: {threads}, primary rays made and traced (not shaded)");
+    let base = rays[0] as f64 / median(times[0].clone()).max(1e-12) / 1e6;
+    for (k, (name, _)) in worlds.iter().enumerate() {
+        let mrays = rays[k] as f64 / median(times[k].clone()).max(1e-12) / 1e6;
+        println!("{name}_mrays: {mrays:.2} ({} rays, {:.3} of builtin)", rays[k], mrays / base.max(1e-12));
     }
     Ok(())
 }

@@ -4,6 +4,7 @@ mod bart;
 mod bench;
 mod compile;
 mod info;
+mod lightfield;
 mod render;
 mod shade;
 
@@ -30,9 +31,18 @@ enum Command {
     Info(info::InfoArgs),
     /// Play a BART animated scene (an AFF file) at its own timing: write the frames, print per-frame times.
     Bart(bart::BartArgs),
+    /// Two-plane light fields: `capture` renders one of a scene for the `twoplane` shader.
+    #[command(subcommand)]
+    Lightfield(LightfieldCommand),
     /// Benchmarks.
     #[command(subcommand)]
     Bench(BenchCommand),
+}
+
+#[derive(Subcommand, Debug)]
+enum LightfieldCommand {
+    /// Render a light field of a scene (a grid of cameras on the st plane) to an image atlas.
+    Capture(lightfield::CaptureArgs),
 }
 
 #[derive(Subcommand, Debug)]
@@ -51,6 +61,8 @@ enum BenchCommand {
     /// Hot-reload latency: from an edit of `plastic.sl` written to the first frame of the Cornell
     /// box that uses the new code (watcher, background compile, swap, frame).
     Reload(bench::BenchReloadArgs),
+    /// Primary rays per second from camera shaders against the built-in pinhole camera.
+    Camera(bench::BenchCameraArgs),
 }
 
 /// Runs the command line; the exit code says whether everything succeeded.
@@ -62,11 +74,13 @@ pub fn run() -> anyhow::Result<ExitCode> {
         Command::Compile(args) => compile::run(&args),
         Command::Info(args) => info::run(&args),
         Command::Bart(args) => bart::run(&args),
+        Command::Lightfield(LightfieldCommand::Capture(args)) => lightfield::run_capture(&args),
         Command::Bench(BenchCommand::Frontend(args)) => compile::bench_frontend(&args),
         Command::Bench(BenchCommand::Trace(args)) => bench::run_trace(&args).map(|()| ExitCode::SUCCESS),
         Command::Bench(BenchCommand::Render(args)) => bench::run_render(&args).map(|()| ExitCode::SUCCESS),
         Command::Bench(BenchCommand::Shade(args)) => shade::bench(&args),
         Command::Bench(BenchCommand::Library(args)) => compile::bench_library(&args),
         Command::Bench(BenchCommand::Reload(args)) => bench::run_reload(&args).map(|()| ExitCode::SUCCESS),
+        Command::Bench(BenchCommand::Camera(args)) => bench::run_camera(&args).map(|()| ExitCode::SUCCESS),
     }
 }

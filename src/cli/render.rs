@@ -34,6 +34,10 @@ pub struct RenderArgs {
     /// neighbours differ; default threshold 0.05).
     #[arg(long, value_parser = Antialiasing::parse)]
     pub aa: Option<Antialiasing>,
+    /// A camera shader by name (e.g. `fisheye`, `cylindrical`, `parabolic`, `thinlens`; see
+    /// docs/cameras.md), replacing the scene's camera shader; the camera's placement stays.
+    #[arg(long)]
+    pub camera: Option<String>,
     /// Directories searched for `#include`d shader headers.
     #[arg(short = 'I', long = "include")]
     pub include: Vec<PathBuf>,
@@ -197,6 +201,10 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
     }
     if let Some(aa) = args.aa {
         rt.options.antialiasing = aa;
+    }
+    if let Some(name) = &args.camera {
+        let id = rt.find_shader(name)?;
+        rt.camera_shader(Some(id), &[])?;
     }
     let output = output.unwrap_or_else(|| PathBuf::from("render.png"));
     let threads =

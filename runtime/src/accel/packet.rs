@@ -559,6 +559,25 @@ fn lanes_of(mask: u16, s: &State) -> u64 {
     lanes & s.active & !s.done
 }
 
+/// Lane `i` in the object space of `inst`: from the packet's object-space geometry `og` when the
+/// instance does not move, else from the world-space geometry `g` moved by where the instance is at
+/// the lane's time.
+#[inline(always)]
+fn lane_in_object(
+    g: &Geom,
+    og: Option<&Geom>,
+    inst: &InstanceData,
+    p: &RayPacket,
+    i: usize,
+    tmin: f32,
+    tmax: f32,
+) -> RayPre {
+    match og {
+        Some(og) => og.lane_ray(i, tmin, tmax),
+        None => g.lane_ray(i, tmin, tmax).at_time(p.time.0[i]).in_object_space(inst),
+    }
+}
+
 /// Closest hits of a packet (see the module documentation).
 pub(crate) fn intersect_packet(
     top: &TopLevel,
@@ -600,17 +619,24 @@ pub(crate) fn intersect_packet(
                 intersect_object(obj, inst_id, inst.object, &g, s, clo, chi, filter);
                 continue;
             }
-            let mut og = g.transformed(&inst.object_from_world, clo, chi);
-            if og.finish(clo, chi) {
-                intersect_object(obj, inst_id, inst.object, &og, s, clo, chi, filter);
-                continue;
-            }
-            // Incoherent in this object's space: one ray at a time.
+            let og = match inst.motion {
+                None => {
+                    let mut og = g.transformed(&inst.object_from_world, clo, chi);
+                    if og.finish(clo, chi) {
+                        intersect_object(obj, inst_id, inst.object, &og, s, clo, chi, filter);
+                        continue;
+                    }
+                    Some(og)
+                }
+                Some(_) => None,
+            };
+            // Incoherent in this object's space, or moving (each lane at its own time): one ray at
+            // a time.
             let mut m = lanes_of(mask, s);
             while m != 0 {
                 let i = m.trailing_zeros() as usize;
                 m &= m - 1;
-                let mut r = og.lane_ray(i, s.lane_tmin(i), s.lane_tmax(i));
+                let mut r = lane_in_object(&g, og.as_ref(), inst, p, i, s.lane_tmin(i), s.lane_tmax(i));
                 let (c, j) = (i / 4, i % 4);
                 let mut h = HitState { u: s.u[c][j], v: s.v[c][j], instance: s.instance[i], primitive: s.primitive[i] };
                 single::intersect_object(obj, inst_id, inst.object, &mut r, &mut h, filter, i as u32);
@@ -686,18 +712,24 @@ pub(crate) fn occluded_packet(top: &TopLevel, objects: &[Object], p: &RayPacket,
                 }
                 continue;
             }
-            let mut og = g.transformed(&inst.object_from_world, clo, chi);
-            if og.finish(clo, chi) {
-                if occluded_object(obj, inst_id, inst.object, &og, s, clo, chi, filter) {
-                    return true;
+            let og = match inst.motion {
+                None => {
+                    let mut og = g.transformed(&inst.object_from_world, clo, chi);
+                    if og.finish(clo, chi) {
+                        if occluded_object(obj, inst_id, inst.object, &og, s, clo, chi, filter) {
+                            return true;
+                        }
+                        continue;
+                    }
+                    Some(og)
                 }
-                continue;
-            }
+                Some(_) => None,
+            };
             let mut m = lanes_of(mask, s);
             while m != 0 {
                 let i = m.trailing_zeros() as usize;
                 m &= m - 1;
-                let mut r = og.lane_ray(i, s.lane_tmin(i), s.lane_tmax(i));
+                let mut r = lane_in_object(&g, og.as_ref(), inst, p, i, s.lane_tmin(i), s.lane_tmax(i));
                 if single::occluded_object(obj, inst_id, inst.object, &mut r, filter, i as u32) {
                     s.set_lane_tmax(i, f32::NEG_INFINITY);
                     s.done |= 1 << i;

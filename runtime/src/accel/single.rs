@@ -38,6 +38,8 @@ pub(crate) struct RayPre {
     neg: [bool; 3],
     pub tmin: f32,
     pub tmax: f32,
+    /// The ray's time (where moving instances are).
+    pub time: f32,
 }
 
 impl RayPre {
@@ -59,19 +61,38 @@ impl RayPre {
             neg: [id[0] < 0.0, id[1] < 0.0, id[2] < 0.0],
             tmin,
             tmax,
+            time: 0.0,
         }
     }
 
-    /// This ray moved into the object space of `inst`.
+    /// The same ray at `time`.
+    #[inline(always)]
+    pub fn at_time(self, time: f32) -> Self {
+        RayPre { time, ..self }
+    }
+
+    /// A world-space ray, at its time.
+    #[inline(always)]
+    pub fn of(ray: &Ray) -> Self {
+        RayPre { time: ray.time, ..RayPre::new(ray.origin, ray.direction, ray.tmin, ray.tmax) }
+    }
+
+    /// This ray moved into the object space of `inst` (where `inst` is at the ray's time).
     #[inline(always)]
     pub fn in_object_space(&self, inst: &InstanceData) -> Self {
         if inst.identity {
             return *self;
         }
-        let xf = &inst.object_from_world;
+        let moving;
+        let xf = if inst.motion.is_some() {
+            moving = inst.object_from_world_at(self.time);
+            &moving
+        } else {
+            &inst.object_from_world
+        };
         let o = xf.transform_point3a(Vec3A::from(self.o));
         let d = xf.transform_vector3a(Vec3A::from(self.d));
-        RayPre::new(o, d, self.tmin, self.tmax)
+        RayPre { time: self.time, ..RayPre::new(o, d, self.tmin, self.tmax) }
     }
 }
 
@@ -261,7 +282,7 @@ pub(crate) fn occluded_object(
 
 /// Closest hit of a world-space ray with the scene.
 pub(crate) fn intersect_scene(top: &TopLevel, objects: &[Object], ray: &Ray, filter: HitFilter, lane: u32) -> Hit {
-    let mut r = RayPre::new(ray.origin, ray.direction, ray.tmin, ray.tmax);
+    let mut r = RayPre::of(ray);
     let mut hit = HitState::NONE;
     if let Some(inst_id) = top.sole_instance() {
         // One instance: its object BVH's root test does the top level's culling.
@@ -304,7 +325,7 @@ pub(crate) fn intersect_scene(top: &TopLevel, objects: &[Object], ray: &Ray, fil
 
 /// Whether a world-space ray hits anything within its interval.
 pub(crate) fn occluded_scene(top: &TopLevel, objects: &[Object], ray: &Ray, filter: HitFilter, lane: u32) -> bool {
-    let mut r = RayPre::new(ray.origin, ray.direction, ray.tmin, ray.tmax);
+    let mut r = RayPre::of(ray);
     if let Some(inst_id) = top.sole_instance() {
         let inst = &top.instances[inst_id as usize];
         let mut o = r.in_object_space(inst);
@@ -337,7 +358,7 @@ pub(crate) fn intersect_brute_force(top: &TopLevel, objects: &[Object], ray: &Ra
         let Some(obj) = objects.get(inst.object as usize) else {
             continue;
         };
-        let r = RayPre::new(ray.origin, ray.direction, ray.tmin, ray.tmax).in_object_space(inst);
+        let r = RayPre::of(ray).in_object_space(inst);
         for (s, tri) in obj.bvh.tris.iter().enumerate() {
             let (t, u, v) = intersect(r.o, r.d, tri);
             if accept(t, u, v, ray.tmin, tmax) {
@@ -362,7 +383,7 @@ pub(crate) fn occluded_brute_force(top: &TopLevel, objects: &[Object], ray: &Ray
         let Some(obj) = objects.get(inst.object as usize) else {
             continue;
         };
-        let r = RayPre::new(ray.origin, ray.direction, ray.tmin, ray.tmax).in_object_space(inst);
+        let r = RayPre::of(ray).in_object_space(inst);
         for (s, tri) in obj.bvh.tris.iter().enumerate() {
             let (t, u, v) = intersect(r.o, r.d, tri);
             if accept(t, u, v, ray.tmin, ray.tmax) {

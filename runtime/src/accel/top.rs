@@ -17,12 +17,24 @@ const TOP_LEAF_SIZE: u32 = 2;
 pub struct InstanceData {
     /// The object instanced.
     pub object: u32,
-    /// Object to world.
+    /// Object to world (at the shutter's opening, for a moving instance).
     pub world_from_object: Affine3A,
     /// World to object (applied to rays).
     pub object_from_world: Affine3A,
-    /// Whether the transform is the identity.
+    /// Whether the transform is the identity (never for a moving instance).
     pub identity: bool,
+    /// How a moving instance's transform changes over the shutter interval.
+    pub motion: Option<Motion>,
+}
+
+/// A moving instance: its transform goes from `world_from_object` at `open` to `close_transform`
+/// at `close`, interpolated linearly, matrix element by matrix element (so every point of the
+/// object moves on a straight line, and the boxes of the two end positions bound the whole motion).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Motion {
+    pub close_transform: Affine3A,
+    pub open: f32,
+    pub close: f32,
 }
 
 impl InstanceData {
@@ -33,6 +45,44 @@ impl InstanceData {
             world_from_object,
             object_from_world: world_from_object.inverse(),
             identity: world_from_object == Affine3A::IDENTITY,
+            motion: None,
+        }
+    }
+
+    /// A moving instance: placed by `open_transform` at time `open` and `close_transform` at `close`.
+    pub fn moving(object: u32, open_transform: Affine3A, close_transform: Affine3A, open: f32, close: f32) -> Self {
+        if open_transform == close_transform || close.partial_cmp(&open) != Some(std::cmp::Ordering::Greater) {
+            return InstanceData::new(object, open_transform);
+        }
+        InstanceData {
+            identity: false,
+            motion: Some(Motion { close_transform, open, close }),
+            ..InstanceData::new(object, open_transform)
+        }
+    }
+
+    /// Object to world at `time` (clamped to the shutter interval).
+    #[inline]
+    pub fn world_from_object_at(&self, time: f32) -> Affine3A {
+        match &self.motion {
+            None => self.world_from_object,
+            Some(m) => {
+                let s = ((time - m.open) / (m.close - m.open)).clamp(0.0, 1.0);
+                let (a, b) = (&self.world_from_object, &m.close_transform);
+                Affine3A {
+                    matrix3: a.matrix3 * (1.0 - s) + b.matrix3 * s,
+                    translation: a.translation * (1.0 - s) + b.translation * s,
+                }
+            }
+        }
+    }
+
+    /// World to object at `time`.
+    #[inline]
+    pub fn object_from_world_at(&self, time: f32) -> Affine3A {
+        match &self.motion {
+            None => self.object_from_world,
+            Some(_) => self.world_from_object_at(time).inverse(),
         }
     }
 }
@@ -74,6 +124,9 @@ impl TopLevel {
                     if k & 4 == 0 { lo.z } else { hi.z },
                 );
                 b.extend(inst.world_from_object.transform_point3a(c));
+                if let Some(m) = &inst.motion {
+                    b.extend(m.close_transform.transform_point3a(c));
+                }
             }
             // Widen by a relative epsilon: the transformed corners are rounded.
             let pad = (b.max - b.min).abs().max((b.min.abs()).max(b.max.abs())) * 1e-6;

@@ -4,10 +4,11 @@
 //! Invariant: the image depends only on the world and the options, not on the thread count (tiles
 //! are independent, jitter is a hash of pixel and sample, and results land in tile order).
 
+use super::primary::{pinhole_ray, primary_rays, CameraSample, PrimaryRays};
 use super::shade::{mix, shade_packet, shade_pixels, Frame, Sample, TilePixels};
 use super::world::{Antialiasing, World};
 use crate::camera::{packet_lane_offset, PACKET_SIDE};
-use crate::ray::{HitPacket, RayPacket, PACKET_SIZE};
+use crate::ray::{HitPacket, PACKET_SIZE};
 use crate::tiles::render_tiles;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
@@ -106,18 +107,36 @@ impl std::fmt::Display for FrameReport {
     }
 }
 
-/// The camera ray through the point `(x + jx, y + jy)` of the image (pixel `(x, y)`, sub-pixel
-/// offset `(jx, jy)` in [0, 1)): a pinhole camera whose field of view spans the image's shorter side.
+/// The built-in pinhole camera's ray through the point `(x + jx, y + jy)` of the image (pixel
+/// `(x, y)`, sub-pixel offset `(jx, jy)` in [0, 1)); the field of view spans the image's shorter
+/// side. A bound camera shader is not consulted: see [`primary_packet`].
 pub fn camera_ray(world: &World, x: u32, y: u32, jx: f32, jy: f32) -> crate::ray::Ray {
-    let (wf, hf) = (world.options.width.max(1) as f32, world.options.height.max(1) as f32);
-    let cam = &world.camera;
-    let tan = (cam.fov_degrees.to_radians() * 0.5).tan();
-    let (ax, ay) = if wf >= hf { (wf / hf, 1.0) } else { (1.0, hf / wf) };
-    let m = &cam.world_from_camera;
-    let scr_x = (2.0 * (x as f32 + jx) / wf - 1.0) * tan * ax;
-    let scr_y = (1.0 - 2.0 * (y as f32 + jy) / hf) * tan * ay;
-    let d = (m.matrix3.z_axis + m.matrix3.x_axis * scr_x + m.matrix3.y_axis * scr_y).normalize();
-    crate::ray::Ray::new(m.translation, d)
+    pinhole_ray(world, (x as f32 + jx, y as f32 + jy))
+}
+
+/// A hash of `key` as two numbers in [0, 1).
+fn hash2(key: u64) -> (f32, f32) {
+    let h = mix(key);
+    (((h & 0xFFFF) as f32) / 65536.0, (((h >> 16) & 0xFFFF) as f32) / 65536.0)
+}
+
+/// The time within the shutter of sample `k` of pixel `(x, y)`: a low-discrepancy sequence over the
+/// samples, rotated per pixel.
+fn time_sample(world: &World, x: u32, y: u32, k: u32) -> f32 {
+    let (open, close) = world.options.shutter;
+    if close == open {
+        return open;
+    }
+    let shift = hash2((u64::from(y) << 40) ^ (u64::from(x) << 16) ^ 0x7111_0000).0;
+    let r = (radical_inverse(k + 1, 5) + shift).fract();
+    open + (close - open) * r
+}
+
+/// The lens sample of sample `k` of the packet with corner `(x0, y0)`: one per packet, so a thin
+/// lens packet shares its origin; a Halton sequence over the samples, rotated per packet.
+fn lens_sample(x0: u32, y0: u32, k: u32) -> (f32, f32) {
+    let (a, b) = hash2((u64::from(y0) << 40) ^ (u64::from(x0) << 16) ^ 0x1E25_0000);
+    ((radical_inverse(k + 1, 2) + a).fract(), (radical_inverse(k + 1, 3) + b).fract())
 }
 
 /// The radical inverse of `i` in `base` (van der Corput), for Halton points.
@@ -159,20 +178,31 @@ pub fn sample_offset(world: &World, x: u32, y: u32, sample: (u32, u32)) -> (f32,
     }
 }
 
-/// The primary rays of one 8x8 packet for sample `(i, j)` of each pixel (see [`sample_offset`]).
-pub fn primary_packet(world: &World, x0: u32, y0: u32, sample: (u32, u32)) -> RayPacket {
+/// The camera samples of one 8x8 packet for sample `(i, j)` of each pixel (see [`sample_offset`]),
+/// and the lanes inside the image.
+pub fn camera_samples(world: &World, x0: u32, y0: u32, sample: (u32, u32)) -> ([CameraSample; PACKET_SIZE], u64) {
     let (w, h) = (world.options.width, world.options.height);
-    let mut p = RayPacket::new();
-    for i in 0..PACKET_SIZE {
+    let k = sample.1 * world.options.samples.0.max(1) + sample.0;
+    let lens = lens_sample(x0, y0, k);
+    let mut samples = [CameraSample::default(); PACKET_SIZE];
+    let mut active = 0u64;
+    for (i, s) in samples.iter_mut().enumerate() {
         let (dx, dy) = packet_lane_offset(i);
         let (x, y) = (x0 + dx, y0 + dy);
-        if x >= w || y >= h {
-            continue;
-        }
         let (jx, jy) = sample_offset(world, x, y, sample);
-        p.set(i, &camera_ray(world, x, y, jx, jy));
+        *s = CameraSample { raster: (x as f32 + jx, y as f32 + jy), lens, time: time_sample(world, x, y, k) };
+        if x < w && y < h {
+            active |= 1 << i;
+        }
     }
-    p
+    (samples, active)
+}
+
+/// The primary rays of one 8x8 packet for sample `(i, j)` of each pixel, from the bound camera
+/// shader or the built-in pinhole camera.
+pub fn primary_packet(frame: &Frame, x0: u32, y0: u32, sample: (u32, u32)) -> PrimaryRays {
+    let (samples, active) = camera_samples(frame.world, x0, y0, sample);
+    primary_rays(frame, &samples, active)
 }
 
 /// Adaptive oversampling of one tile (OpenRT's, paper 5.1.2): a pixel that differs from a
@@ -207,15 +237,18 @@ fn refine_tile(
         }
     }
     // The extra rays, 64 to a packet (incoherent packets fall back to single rays in the tracer).
+    // A pixel's extra samples are consecutive lanes, so a 2x2 grid of them is a raster quad.
     let mut rays = Vec::new();
     for (k, _) in refine.iter().enumerate().filter(|(_, r)| **r) {
         let (x, y) = (tile.x0 + (k % tw) as u32, tile.y0 + (k / tw) as u32);
         for j in 0..ey {
             for i in 0..ex {
-                let hsh = mix((u64::from(y) << 40) ^ (u64::from(x) << 16) ^ u64::from(0x5A5A_0000 + j * ex + i));
-                let r = |b: u64| ((hsh >> b) & 0xFFFF) as f32 / 65536.0;
-                let (jx, jy) = ((i as f32 + r(0)) / ex as f32, (j as f32 + r(16)) / ey as f32);
-                rays.push((k, camera_ray(world, x, y, jx, jy)));
+                let key = (u64::from(y) << 40) ^ (u64::from(x) << 16) ^ u64::from(0x5A5A_0000 + j * ex + i);
+                let (rx, ry) = hash2(key);
+                let (jx, jy) = ((i as f32 + rx) / ex as f32, (j as f32 + ry) / ey as f32);
+                let raster = (x as f32 + jx, y as f32 + jy);
+                let lens = hash2(key ^ 0x1E25_0000_0000);
+                rays.push((k, CameraSample { raster, lens, time: time_sample(world, x, y, 1 + j * ex + i) }));
             }
         }
     }
@@ -223,13 +256,18 @@ fn refine_tile(
     let mut samples = [Sample::default(); PACKET_SIZE];
     let mut hits = HitPacket::default();
     for chunk in rays.chunks(PACKET_SIZE) {
-        let mut packet = RayPacket::new();
-        for (lane, (_, ray)) in chunk.iter().enumerate() {
-            packet.set(lane, ray);
+        let mut cams = [CameraSample::default(); PACKET_SIZE];
+        for (lane, (_, s)) in chunk.iter().enumerate() {
+            cams[lane] = *s;
         }
-        world.scene.intersect_packet(&packet, &mut hits);
-        shade_packet(frame, &packet, &hits, &mut samples);
-        for ((k, _), s) in chunk.iter().zip(&samples) {
+        let active = if chunk.len() == PACKET_SIZE { u64::MAX } else { (1u64 << chunk.len()) - 1 };
+        let primary = primary_rays(frame, &cams, active);
+        world.scene.intersect_packet(&primary.packet, &mut hits);
+        shade_packet(frame, &primary, &hits, &mut samples);
+        for (lane, ((k, _), s)) in chunk.iter().zip(&samples).enumerate() {
+            if primary.packet.active >> lane & 1 == 0 {
+                continue;
+            }
             let sum = &mut sums[*k];
             for (c, v) in sum.iter_mut().zip(s.color.to_array()) {
                 *c += v;
@@ -243,6 +281,30 @@ fn refine_tile(
             color[k][c] = (color[k][c] + sum[c]) / (1.0 + n);
         }
     }
+}
+
+/// Generates and traces the primary rays of a frame, one sample per pixel, without shading them
+/// (what `rtsl bench camera` times), with the threads of the current rayon pool. Returns the rays
+/// traced and how many hit something.
+pub fn trace_primary_rays(world: &World) -> (u64, u64) {
+    let frame = Frame::new(world);
+    let (w, h) = (world.options.width, world.options.height);
+    let counts = render_tiles(w, h, TILE_SIZE, |tile| {
+        let mut hits = HitPacket::default();
+        let (mut rays, mut hit) = (0u64, 0u64);
+        for py in (tile.y0..tile.y0 + tile.height).step_by(PACKET_SIDE as usize) {
+            for px in (tile.x0..tile.x0 + tile.width).step_by(PACKET_SIDE as usize) {
+                let primary = primary_packet(&frame, px, py, (0, 0));
+                world.scene.intersect_packet(&primary.packet, &mut hits);
+                let active = primary.packet.active;
+                rays += u64::from(active.count_ones());
+                hit +=
+                    (0..PACKET_SIZE).filter(|&i| active >> i & 1 != 0 && hits.instance.0[i] != u32::MAX).count() as u64;
+            }
+        }
+        (rays, hit)
+    });
+    counts.into_iter().fold((0, 0), |(a, b), (c, d)| (a + c, b + d))
 }
 
 /// Renders a frame with the threads of the current rayon pool. `progress` is told how many tiles
@@ -274,9 +336,10 @@ pub fn render_frame(world: &World, progress: Option<&(dyn Fn(usize, usize) + Syn
             for px in (tile.x0..tile.x0 + tile.width).step_by(PACKET_SIDE as usize) {
                 for j in 0..sy {
                     for i in 0..sx {
-                        let packet = primary_packet(world, px, py, (i, j));
-                        world.scene.intersect_packet(&packet, &mut hits);
-                        shade_packet(&frame, &packet, &hits, &mut samples);
+                        let primary = primary_packet(&frame, px, py, (i, j));
+                        let packet = &primary.packet;
+                        world.scene.intersect_packet(packet, &mut hits);
+                        shade_packet(&frame, &primary, &hits, &mut samples);
                         for (lane, s) in samples.iter().enumerate() {
                             if packet.active >> lane & 1 == 0 {
                                 continue;

@@ -30,6 +30,8 @@ pub(crate) struct ShadeCall<'f, 'w> {
     /// the whole batch are computed at the first light query and chunks are served from them.
     pub(super) batch_points: Vec<Vec3A>,
     pub(super) batch_mask: Vec<i32>,
+    /// Each lane's ray time (rays the shader spawns keep it).
+    pub(super) batch_times: Vec<f32>,
     batch_lights: Option<BatchLights>,
     chunk_cursor: usize,
 }
@@ -58,9 +60,17 @@ impl<'f, 'w> ShadeCall<'f, 'w> {
             text: String::new(),
             batch_points: Vec::new(),
             batch_mask: Vec::new(),
+            batch_times: Vec::new(),
             batch_lights: None,
             chunk_cursor: 0,
         }
+    }
+
+    /// The ray time of lane `l` of the current chunk (the batch's first lane's when out of range;
+    /// 0 without a batch).
+    pub(super) fn lane_time(&self, l: usize) -> f32 {
+        let t = &self.batch_times;
+        t.get(4 * self.chunk_cursor + l).or(t.first()).copied().unwrap_or(0.0)
     }
 
     /// The call table; valid while `self` is neither moved nor dropped.
@@ -200,11 +210,13 @@ unsafe extern "C" fn host_lights(
     }
     *counts = [0; 4];
     let points: [Vec3A; 4] = std::array::from_fn(|l| lane3(p, 0, l));
+    locate_chunk(c, mask, p);
+    let times: [f32; 4] = std::array::from_fn(|l| c.lane_time(l));
     for light in &c.frame.world.lights {
         if !light.in_category(category) {
             continue;
         }
-        eval_light(c.frame, light, mask, &points, c.depth, out, counts);
+        eval_light(c.frame, light, mask, &points, &times, c.depth, out, counts);
     }
     let used = 4 * counts.iter().copied().max().unwrap_or(0) as usize;
     c.light_cache = Some(LightQuery {
@@ -216,15 +228,9 @@ unsafe extern "C" fn host_lights(
     });
 }
 
-/// Answers a chunk's light query from the batch's lights when the chunk's points are the batch's
-/// (bit for bit: a shader that moved `P` gets its lights computed afresh).
-fn serve_from_batch(
-    c: &mut ShadeCall,
-    mask: &[i32; 4],
-    p: &[f32],
-    out: &mut [HostLight],
-    counts: &mut [u32; 4],
-) -> bool {
+/// Finds the chunk of the surface batch whose points are `p` (bit for bit, in the lanes of `mask`)
+/// and makes it the current chunk; false (the current chunk unchanged) when none is.
+fn locate_chunk(c: &mut ShadeCall, mask: &[i32; 4], p: &[f32]) -> bool {
     let n = c.batch_points.len();
     let chunks = n.div_ceil(4);
     let matches = |chunk: usize| {
@@ -239,12 +245,30 @@ fn serve_from_batch(
                 })
         })
     };
-    let Some(chunk) = (0..chunks).map(|k| (c.chunk_cursor + k) % chunks).find(|&k| matches(k)) else {
+    match (0..chunks).map(|k| (c.chunk_cursor + k) % chunks).find(|&k| matches(k)) {
+        Some(chunk) => {
+            c.chunk_cursor = chunk;
+            true
+        }
+        None => false,
+    }
+}
+
+/// Answers a chunk's light query from the batch's lights when the chunk's points are the batch's
+/// (bit for bit: a shader that moved `P` gets its lights computed afresh).
+fn serve_from_batch(
+    c: &mut ShadeCall,
+    mask: &[i32; 4],
+    p: &[f32],
+    out: &mut [HostLight],
+    counts: &mut [u32; 4],
+) -> bool {
+    if !locate_chunk(c, mask, p) {
         return false;
-    };
-    c.chunk_cursor = chunk;
+    }
+    let chunk = c.chunk_cursor;
     if c.batch_lights.is_none() {
-        c.batch_lights = Some(BatchLights::compute(c.frame, &c.batch_points, &c.batch_mask, c.depth));
+        c.batch_lights = Some(BatchLights::compute(c.frame, &c.batch_points, &c.batch_mask, &c.batch_times, c.depth));
     }
     let Some(table) = &c.batch_lights else { return false };
     for l in 0..4 {
@@ -317,7 +341,7 @@ unsafe extern "C" fn host_texture(
                     // Ray-traced shadows (BMRT's convention): towards the light's own origin.
                     let to = c.instance.world_from_shader.translation;
                     let d = to - p;
-                    let t = transmission_along(c.frame, p, d.normalize_or_zero(), d.length());
+                    let t = transmission_along(c.frame, p, d.normalize_or_zero(), d.length(), c.lane_time(l));
                     Some(1.0 - (t.x + t.y + t.z) / 3.0)
                 } else {
                     textures.shadow(name, p.to_array(), &LookupOptions::default())
@@ -359,6 +383,10 @@ unsafe extern "C" fn host_rays(
     let out = unsafe { std::slice::from_raw_parts_mut(out, 4 * results) };
     let frame = c.frame;
     let max_depth = frame.world.options.max_ray_depth;
+    // Spawned rays keep the time of the ray that reached their lane (found from the points when
+    // they are the batch's; otherwise the chunk last served).
+    locate_chunk(c, mask, a);
+    let times: [f32; 4] = std::array::from_fn(|l| c.lane_time(l));
     match kind {
         0 => {
             let mut rays = Vec::new();
@@ -375,7 +403,7 @@ unsafe extern "C" fn host_rays(
                 if c.depth + 1 > max_depth || dir == Vec3A::ZERO || !from.is_finite() {
                     continue;
                 }
-                rays.push(Ray::segment(from, dir, epsilon(from), f32::INFINITY));
+                rays.push(Ray::segment(from, dir, epsilon(from), f32::INFINITY).at_time(times[l]));
                 lanes.push(l);
             }
             if rays.is_empty() {
@@ -397,7 +425,7 @@ unsafe extern "C" fn host_rays(
                 }
                 let (from, to) = (lane3(a, 0, l), lane3(b, 0, l));
                 let d = to - from;
-                let t = transmission_along(frame, from, d.normalize_or_zero(), d.length());
+                let t = transmission_along(frame, from, d.normalize_or_zero(), d.length(), times[l]);
                 for r in 0..3 {
                     out[4 * r + l] = t[r];
                 }
@@ -410,7 +438,7 @@ unsafe extern "C" fn host_rays(
                 }
                 let (p, n) = (lane3(a, 0, l), lane3(b, 0, l).normalize_or_zero());
                 let count = (samples[l].max(1.0) as u32).min(256);
-                let (blocked, light) = hemisphere(frame, p, n, count, kind == 3, c.depth);
+                let (blocked, light) = hemisphere(frame, p, n, count, kind == 3, c.depth, times[l]);
                 if kind == 3 {
                     for r in 0..3 {
                         out[4 * r + l] = light[r];
@@ -425,7 +453,7 @@ unsafe extern "C" fn host_rays(
 
 /// Cosine-weighted rays over the hemisphere around `n`: the fraction blocked, and (when `shade`)
 /// the mean colour seen.
-fn hemisphere(frame: &Frame, p: Vec3A, n: Vec3A, count: u32, shade: bool, depth: u32) -> (f32, Vec3A) {
+fn hemisphere(frame: &Frame, p: Vec3A, n: Vec3A, count: u32, shade: bool, depth: u32, time: f32) -> (f32, Vec3A) {
     if n == Vec3A::ZERO {
         return (0.0, Vec3A::ZERO);
     }
@@ -438,7 +466,7 @@ fn hemisphere(frame: &Frame, p: Vec3A, n: Vec3A, count: u32, shade: bool, depth:
         let phi = std::f32::consts::TAU * r1;
         let (s, cz) = (r2.sqrt(), (1.0 - r2).sqrt());
         let dir = t1 * (s * phi.cos()) + t2 * (s * phi.sin()) + n * cz;
-        rays.push(Ray::segment(p, dir, epsilon(p), f32::INFINITY));
+        rays.push(Ray::segment(p, dir, epsilon(p), f32::INFINITY).at_time(time));
     }
     Stats::add(&frame.stats.secondary_rays, rays.len());
     if shade && depth < frame.world.options.max_ray_depth {
@@ -490,6 +518,13 @@ unsafe extern "C" fn host_message(ctx: *mut c_void, which: u32, name: StrRef, ou
     match (b, name) {
         (Builtin::Option, "Format") => floats(out, &[options.width as f32, options.height as f32, 1.0]),
         (Builtin::Option, "PixelSamples") => floats(out, &[options.samples.0 as f32, options.samples.1 as f32]),
+        (Builtin::Option, "FieldOfView") => floats(out, &[c.frame.world.camera.fov_degrees]),
+        (Builtin::Option, "Clipping") => floats(out, &[c.frame.world.camera.near, c.frame.world.camera.far]),
+        (Builtin::Option, "Shutter") => floats(out, &[options.shutter.0, options.shutter.1]),
+        (Builtin::Option, "DepthOfField") => match options.depth_of_field {
+            Some(dof) => floats(out, &dof),
+            None => 0,
+        },
         (Builtin::Rendererinfo, "renderer") => {
             c.text = "rtsl".to_string();
             out.kind = 4;

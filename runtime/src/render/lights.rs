@@ -14,16 +14,18 @@ use rtsl_compiler::back::jit::{HostLight, MAX_LIGHTS};
 
 /// Runs one light's shader for the active lanes of a chunk and appends what reaches each lane, with
 /// shadows traced.
+#[allow(clippy::too_many_arguments)] // a chunk's lanes: mask, points, times, and where the lights go
 pub(super) fn eval_light(
     frame: &Frame,
     light: &LightSource,
     mask: &[i32; 4],
     points: &[Vec3A; 4],
+    times: &[f32; 4],
     depth: u32,
     out: &mut [HostLight],
     counts: &mut [u32; 4],
 ) {
-    eval_light_lanes(frame, light, mask, points, depth, |l, h| {
+    eval_light_lanes(frame, light, mask, points, times, depth, |l, h| {
         if (counts[l] as usize) < MAX_LIGHTS {
             out[4 * counts[l] as usize + l] = h;
             counts[l] += 1;
@@ -32,7 +34,7 @@ pub(super) fn eval_light(
 }
 
 /// Runs one light's shader over `points` (up to a packet of lanes, `mask` nonzero where a point
-/// asks) and hands each lane's light to `sink`, its colour attenuated by traced shadows: a packet
+/// asks; shadow rays at the lanes' `times`) and hands each lane's light to `sink`, its colour attenuated by traced shadows: a packet
 /// of shadow rays when nothing in the scene is transparent, one transmission walk per ray
 /// otherwise. Area lights give one light per sample.
 fn eval_light_lanes(
@@ -40,6 +42,7 @@ fn eval_light_lanes(
     light: &LightSource,
     mask: &[i32],
     points: &[Vec3A],
+    times: &[f32],
     depth: u32,
     mut sink: impl FnMut(usize, HostLight),
 ) {
@@ -73,6 +76,7 @@ fn eval_light_lanes(
                     put3(&mut raw, slots.n, l, normal);
                     put3(&mut raw, slots.e, l, eye);
                     put1(&mut raw, slots.ncomps, l, 3.0);
+                    put1(&mut raw, slots.time, l, time_of(times, l));
                 }
             }
             let mut call = ShadeCall::new(frame, instance, instance.world_from_shader, depth);
@@ -100,9 +104,9 @@ fn eval_light_lanes(
                 let distance = if light.kind == LightKind::Distant { f32::INFINITY } else { to_light.length() };
                 let dir = to_light.normalize_or_zero();
                 if frame.transparent_shadows {
-                    attenuation[l] = transmission_along(frame, points[l], dir, distance);
+                    attenuation[l] = transmission_along(frame, points[l], dir, distance, time_of(times, l));
                 } else if let Some(ray) = shadow_ray(points[l], dir, distance) {
-                    packet.set(l, &ray);
+                    packet.set(l, &ray.at_time(time_of(times, l)));
                 }
             }
             if packet.active != 0 {
@@ -135,6 +139,11 @@ fn eval_light_lanes(
     }
 }
 
+/// Lane `l`'s time (0 where no times are given).
+fn time_of(times: &[f32], l: usize) -> f32 {
+    times.get(l).copied().unwrap_or(0.0)
+}
+
 /// The shadow ray from `from` along unit `dir` for `distance`, kept off both ends; `None` when the
 /// segment is too short to hold anything.
 fn shadow_ray(from: Vec3A, dir: Vec3A, distance: f32) -> Option<Ray> {
@@ -156,7 +165,7 @@ pub(super) struct BatchLights {
 }
 
 impl BatchLights {
-    pub(super) fn compute(frame: &Frame, points: &[Vec3A], mask: &[i32], depth: u32) -> BatchLights {
+    pub(super) fn compute(frame: &Frame, points: &[Vec3A], mask: &[i32], times: &[f32], depth: u32) -> BatchLights {
         let n = points.len();
         let slots: usize = frame.world.lights.iter().map(|l| l.area.as_ref().map_or(1, |a| a.samples as usize)).sum();
         let slots = slots.min(MAX_LIGHTS);
@@ -164,7 +173,7 @@ impl BatchLights {
         let mut lights = vec![HostLight::default(); slots * n];
         for light in &frame.world.lights {
             if light.in_category("") {
-                eval_light_lanes(frame, light, mask, points, depth, |l, h| {
+                eval_light_lanes(frame, light, mask, points, times, depth, |l, h| {
                     let k = counts[l] as usize;
                     if k < slots {
                         lights[k * n + l] = h;
@@ -183,9 +192,10 @@ pub(super) fn epsilon(p: Vec3A) -> f32 {
 }
 
 /// How much light gets from `from` along unit `dir` for `distance` (white where nothing blocks):
-/// opaque blockers stop it, transparent ones filter it by their opacity.
-pub(super) fn transmission_along(frame: &Frame, from: Vec3A, dir: Vec3A, distance: f32) -> Vec3A {
+/// opaque blockers stop it, transparent ones filter it by their opacity. Rays are at `time`.
+pub(super) fn transmission_along(frame: &Frame, from: Vec3A, dir: Vec3A, distance: f32, time: f32) -> Vec3A {
     let Some(ray) = shadow_ray(from, dir, distance) else { return Vec3A::ONE };
+    let ray = ray.at_time(time);
     let (eps, tmax) = (ray.tmin, ray.tmax);
     let world = frame.world;
     Stats::add(&frame.stats.shadow_rays, 1);
@@ -195,7 +205,7 @@ pub(super) fn transmission_along(frame: &Frame, from: Vec3A, dir: Vec3A, distanc
     let mut through = Vec3A::ONE;
     let mut start = eps;
     for _ in 0..world.options.max_transparent_layers {
-        let hit = tracing(|| world.scene.intersect(&Ray::segment(from, dir, start, tmax)));
+        let hit = tracing(|| world.scene.intersect(&Ray::segment(from, dir, start, tmax).at_time(time)));
         if !hit.is_hit() {
             return through;
         }
@@ -205,7 +215,7 @@ pub(super) fn transmission_along(frame: &Frame, from: Vec3A, dir: Vec3A, distanc
             return Vec3A::ZERO;
         }
         let opacity = if material.shadow_by_shader {
-            let ray = Ray::segment(from, dir, start, tmax);
+            let ray = Ray::segment(from, dir, start, tmax).at_time(time);
             let mut shaded = [Shaded::default()];
             let diff = RayDifferential::cone(dir, 0.0, frame.pixel_spread);
             shade_group(frame, &[Pending { index: 0, ray, diff, hit }], world.options.max_ray_depth, &mut shaded);

@@ -9,11 +9,16 @@ pub mod frame;
 mod host;
 mod lights;
 pub mod native;
+pub mod primary;
 pub mod shade;
 mod stats;
 pub mod world;
 
-pub use frame::{camera_ray, primary_packet, render_frame, sample_offset, FrameReport, Framebuffer, TILE_SIZE};
+pub use frame::{
+    camera_ray, camera_samples, primary_packet, render_frame, sample_offset, trace_primary_rays, FrameReport,
+    Framebuffer, TILE_SIZE,
+};
+pub use primary::{primary_rays, CameraSample, PrimaryRays};
 pub use shade::{Frame, Sample};
 pub use stats::Stats;
 pub use world::{

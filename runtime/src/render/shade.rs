@@ -16,9 +16,10 @@ use super::differential::{barycentric_change, RayDifferential};
 use super::host::ShadeCall;
 use super::lights::BatchLights;
 use super::native::{LightSeen, NativeSurface};
+use super::primary::PrimaryRays;
 use super::stats::{tracing, ShadingTimer, Stats};
 use super::world::{InstanceShading, World, DEFAULT_MATERIAL};
-use crate::ray::{offset_ray_origin, Hit, HitPacket, Ray, RayPacket, PACKET_SIZE};
+use crate::ray::{offset_ray_origin, Hit, HitPacket, Ray, PACKET_SIZE};
 use crate::shading::{get3, put1, put3, with_batch, Slot};
 use glam::{Affine3A, Vec3A};
 use rtsl_compiler::back::jit::RawBatch;
@@ -71,32 +72,39 @@ pub struct Sample {
     pub shader_id: u32,
 }
 
-/// Shades the rays of a primary packet (already intersected).
-pub fn shade_packet(frame: &Frame, packet: &RayPacket, hits: &HitPacket, out: &mut [Sample; PACKET_SIZE]) {
+impl Frame<'_> {
+    /// The differential of a built-in pinhole camera ray with unit direction `dir`.
+    pub(super) fn pinhole_differential(&self, dir: Vec3A) -> RayDifferential {
+        // The unnormalised camera direction has a forward component of 1.
+        let along = dir.dot(self.forward);
+        let d = if along > 1e-6 { dir / along } else { dir };
+        RayDifferential::from_camera(d, self.pixel_dx, self.pixel_dy)
+    }
+}
+
+/// Shades the rays of a primary packet (already intersected): lane `i`'s sample is its radiance
+/// times its camera weight.
+pub fn shade_packet(frame: &Frame, primary: &PrimaryRays, hits: &HitPacket, out: &mut [Sample; PACKET_SIZE]) {
+    let packet = &primary.packet;
     let mut rays = Vec::with_capacity(PACKET_SIZE);
     let mut hs = Vec::with_capacity(PACKET_SIZE);
+    let mut diffs = Vec::with_capacity(PACKET_SIZE);
     let mut lanes = Vec::with_capacity(PACKET_SIZE);
     for i in 0..PACKET_SIZE {
         if packet.active >> i & 1 != 0 {
             rays.push(packet.get(i));
             hs.push(hits.get(i));
+            diffs.push(primary.diffs[i]);
             lanes.push(i);
         }
     }
     Stats::add(&frame.stats.primary_rays, rays.len());
-    let diffs: Vec<RayDifferential> = rays
-        .iter()
-        .map(|r| {
-            // The unnormalised camera direction has a forward component of 1.
-            let along = r.direction.dot(frame.forward);
-            let d = if along > 1e-6 { r.direction / along } else { r.direction };
-            RayDifferential::from_camera(d, frame.pixel_dx, frame.pixel_dy)
-        })
-        .collect();
     let mut samples = vec![Sample::default(); rays.len()];
     shade_hits(frame, &rays, &diffs, &hs, 0, &mut samples);
     for (k, i) in lanes.into_iter().enumerate() {
-        out[i] = samples[k];
+        let w = primary.weights[i];
+        out[i] =
+            Sample { color: samples[k].color * w, alpha: samples[k].alpha * (w.x + w.y + w.z) / 3.0, ..samples[k] };
     }
 }
 
@@ -183,7 +191,7 @@ fn shade_hits(frame: &Frame, rays: &[Ray], diffs: &[RayDifferential], hits: &[Hi
                     continue;
                 }
                 let side = if r.ng.dot(p.ray.direction) > 0.0 { r.ng } else { -r.ng };
-                let ray = Ray::new(offset_ray_origin(r.p, side), p.ray.direction);
+                let ray = Ray::new(offset_ray_origin(r.p, side), p.ray.direction).at_time(p.ray.time);
                 Stats::add(&frame.stats.transparency_rays, 1);
                 let hit = tracing(|| world.scene.intersect(&ray));
                 if hit.is_hit() {
@@ -254,22 +262,30 @@ struct InstanceGeometry<'a> {
     mesh: &'a crate::geometry::Mesh,
     world_from_object: glam::Affine3A,
     normal_xf: glam::Mat3A,
+    /// The tracer's instance, when it moves (its transform then depends on the ray's time).
+    moving: Option<&'a crate::accel::top::InstanceData>,
 }
 
 impl<'a> InstanceGeometry<'a> {
-    fn new(world: &'a World, inst: &InstanceShading) -> Option<InstanceGeometry<'a>> {
+    fn new(world: &'a World, inst: &InstanceShading, index: u32) -> Option<InstanceGeometry<'a>> {
         let mesh = world.scene.mesh(crate::scene::ObjectId(inst.object))?;
         let normal_xf = inst.world_from_object.matrix3.inverse().transpose();
-        Some(InstanceGeometry { mesh, world_from_object: inst.world_from_object, normal_xf })
+        let moving = world.scene.instance_data(index).filter(|d| d.motion.is_some());
+        Some(InstanceGeometry { mesh, world_from_object: inst.world_from_object, normal_xf, moving })
     }
 }
 
-fn hit_geometry(ig: &InstanceGeometry, hit: &Hit) -> Option<HitGeometry> {
+fn hit_geometry(ig: &InstanceGeometry, hit: &Hit, time: f32) -> Option<HitGeometry> {
     let mesh = ig.mesh;
     let [a, b, c] = (*mesh.triangles.get(hit.primitive as usize)?).map(|i| i as usize);
     let (pa, pb, pc) = (*mesh.positions.get(a)?, *mesh.positions.get(b)?, *mesh.positions.get(c)?);
-    let xf = &ig.world_from_object;
-    let normal_xf = ig.normal_xf;
+    let (xf, normal_xf) = match ig.moving {
+        None => (ig.world_from_object, ig.normal_xf),
+        Some(d) => {
+            let xf = d.world_from_object_at(time);
+            (xf, xf.matrix3.inverse().transpose())
+        }
+    };
     let (e1, e2) = (Vec3A::from(pb - pa), Vec3A::from(pc - pa));
     let (w0, w1, w2) = (1.0 - hit.u - hit.v, hit.u, hit.v);
     let p_obj = Vec3A::from(pa) * w0 + Vec3A::from(pb) * w1 + Vec3A::from(pc) * w2;
@@ -356,8 +372,8 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
     let world = frame.world;
     let Some(inst) = world.instances.get(group[0].hit.instance as usize) else { return };
     let material = world.materials.get(inst.material as usize).unwrap_or(&DEFAULT_MATERIAL);
-    let Some(ig) = InstanceGeometry::new(world, inst) else { return };
-    let geoms: Vec<Option<HitGeometry>> = group.iter().map(|p| hit_geometry(&ig, &p.hit)).collect();
+    let Some(ig) = InstanceGeometry::new(world, inst, group[0].hit.instance) else { return };
+    let geoms: Vec<Option<HitGeometry>> = group.iter().map(|p| hit_geometry(&ig, &p.hit, p.ray.time)).collect();
     let color = Vec3A::from(material.color);
     let opacity = Vec3A::from(material.opacity);
     if let Some(native) = &material.native {
@@ -408,6 +424,7 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
                 put3(&mut raw, slots.os, lane, os);
                 put3(&mut raw, slots.oi, lane, os);
                 put1(&mut raw, slots.ncomps, lane, 3.0);
+                put1(&mut raw, slots.time, lane, p.ray.time);
                 // The full set of derivatives only for shaders that use them (they cost a few
                 // solves per hit); the footprint, for rays continuing through, always.
                 if needs_derivs {
@@ -451,6 +468,7 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
         let mut call = ShadeCall::new(frame, surface, inst.world_from_object, depth);
         call.batch_points = geoms.iter().map(|g| g.as_ref().map_or(Vec3A::ZERO, |g| g.p)).collect();
         call.batch_mask = geoms.iter().map(|g| if g.is_some() { -1 } else { 0 }).collect();
+        call.batch_times = group.iter().map(|p| p.ray.time).collect();
         let table = call.table();
         program.code.shade_with_table(batch, &table);
         let raw = batch.raw_mut();
@@ -486,7 +504,8 @@ fn shade_native(
 ) {
     let points: Vec<Vec3A> = geoms.iter().map(|g| g.as_ref().map_or(Vec3A::ZERO, |g| g.p)).collect();
     let mask: Vec<i32> = geoms.iter().map(|g| if g.is_some() { -1 } else { 0 }).collect();
-    let table = BatchLights::compute(frame, &points, &mask, depth);
+    let times: Vec<f32> = group.iter().map(|p| p.ray.time).collect();
+    let table = BatchLights::compute(frame, &points, &mask, &times, depth);
     let mut seen = Vec::new();
     for (k, g) in geoms.iter().enumerate() {
         let Some(g) = g else { continue };

@@ -208,6 +208,12 @@ pub struct RenderOptions {
     /// RIB's `Exposure gain gamma`, applied to the finished colours: `(gain * c) ^ (1 / gamma)`.
     pub exposure: Option<(f32, f32)>,
     pub antialiasing: Antialiasing,
+    /// The shutter interval (RIB `Shutter open close`): each primary ray gets a time in it, and
+    /// moving instances are where they are at that time. `(0, 0)`: no motion blur.
+    pub shutter: (f32, f32),
+    /// RIB's `DepthOfField fstop focallength focaldistance`, which the `thinlens` camera shader
+    /// reads (`option("DepthOfField", ...)`); the built-in camera is a pinhole.
+    pub depth_of_field: Option<[f32; 3]>,
 }
 
 impl Default for RenderOptions {
@@ -221,6 +227,8 @@ impl Default for RenderOptions {
             max_transparent_layers: 16,
             exposure: None,
             antialiasing: Antialiasing::Grid { jitter: true },
+            shutter: (0.0, 0.0),
+            depth_of_field: None,
         }
     }
 }
@@ -257,6 +265,8 @@ pub struct World {
     /// The pixel shader (RenderMan's imager), run on every finished tile.
     pub pixel: Option<Arc<ShaderInstance>>,
     pub camera: CameraSetup,
+    /// The camera shader that generates primary rays; `None` is the built-in pinhole camera.
+    pub camera_shader: Option<Arc<ShaderInstance>>,
     pub options: RenderOptions,
     /// Named coordinate systems (`CoordinateSystem`), world from the system.
     pub spaces: HashMap<String, Affine3A>,
@@ -277,6 +287,7 @@ impl World {
             lights: Vec::new(),
             pixel: None,
             camera: CameraSetup::default(),
+            camera_shader: None,
             options: RenderOptions::default(),
             spaces: HashMap::new(),
             textures: Arc::new(TextureCache::new()),
@@ -348,6 +359,7 @@ impl World {
             .filter_map(|m| m.surface.as_ref())
             .chain(self.lights.iter().map(|l| &l.shader))
             .chain(self.pixel.iter())
+            .chain(self.camera_shader.iter())
             .map(|i| &i.program);
         for p in programs {
             let ptr = Arc::as_ptr(p);

@@ -28,7 +28,7 @@ use crate::api::{ApiError, Context, LightId, ObjectId};
 use crate::geometry::Mesh;
 use crate::scene_file::{add_model_file, SceneFileError};
 use crate::shading::{ParamValue, ShaderProgram};
-use glam::{Affine3A, Mat4};
+use glam::{Affine3A, Mat4, Vec3};
 use rtsl_compiler::ir::BaseType;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -99,7 +99,7 @@ struct Loader<'a> {
     state: State,
     stack: Vec<State>,
     /// Geometry gathered for one object: the object and the transform it is placed with.
-    pending: Option<(ObjectId, Affine3A)>,
+    pending: Option<(ObjectId, Affine3A, Affine3A)>,
     /// Inside `ObjectBegin`: the retained object being built.
     retained: Option<ObjectId>,
     objects: HashMap<Handle, ObjectId>,
@@ -111,6 +111,8 @@ struct Loader<'a> {
     frames_done: u32,
     /// Inside `MotionBegin`: how many samples were seen.
     motion: Option<u32>,
+    /// Inside `MotionBegin`: the matrices of its transform samples (applied at `MotionEnd`).
+    motion_transforms: Vec<(bool, Affine3A)>,
 }
 
 impl<'a> Loader<'a> {
@@ -131,6 +133,7 @@ impl<'a> Loader<'a> {
             in_world: false,
             frames_done: 0,
             motion: None,
+            motion_transforms: Vec::new(),
         }
     }
 
@@ -140,12 +143,18 @@ impl<'a> Loader<'a> {
 
     /// Ends the object that gathers geometry, instancing it where it began.
     fn flush(&mut self) -> Result<(), ApiError> {
-        if let Some((id, placed)) = self.pending.take() {
+        if let Some((id, placed, close)) = self.pending.take() {
             self.rt.end_object()?;
-            let now = self.rt.current_matrix();
+            let (now, now_close) = (self.rt.current_matrix(), self.rt.close_matrix());
             self.rt.load_matrix(placed);
-            self.rt.instantiate_object(id)?;
+            let inst = self.rt.instantiate_object(id)?;
+            if close != placed {
+                self.rt.set_instance_motion(inst, placed, close)?;
+            }
             self.rt.load_matrix(now);
+            if now_close != now {
+                self.rt.motion_transform(Affine3A::IDENTITY, now.inverse() * now_close);
+            }
         }
         Ok(())
     }
@@ -161,14 +170,44 @@ impl<'a> Loader<'a> {
         }
         if self.retained.is_none() && self.pending.is_none() {
             let id = self.rt.begin_object()?;
-            self.pending = Some((id, self.rt.current_matrix()));
+            self.pending = Some((id, self.rt.current_matrix(), self.rt.close_matrix()));
         }
         self.rt.mesh(&mesh).inspect_err(|_| self.warn(r, "geometry skipped"))
     }
 
     fn request(&mut self, r: &Request) -> Result<(), SceneFileError> {
         use RequestKind as K;
-        // Motion blocks: only the first sample is used (motion blur comes with the camera shaders).
+        // Motion blocks: transforms become a motion transform at `MotionEnd` (the first and last
+        // samples: rtsl's motion is linear); of other requests only the first sample is used.
+        if self.motion.is_some() {
+            let sample = match &r.kind {
+                K::Translate(t) => Some((false, Affine3A::from_translation(Vec3::new(t[0], t[1], t[2])))),
+                K::Rotate { angle, axis } => {
+                    let axis = Vec3::new(axis[0], axis[1], axis[2]).normalize_or_zero();
+                    (axis != Vec3::ZERO).then(|| (false, Affine3A::from_axis_angle(axis, angle.to_radians())))
+                }
+                K::Scale(v) if !v.contains(&0.0) => Some((false, Affine3A::from_scale(Vec3::new(v[0], v[1], v[2])))),
+                K::ConcatTransform(m) => Some((false, affine(m))),
+                K::Transform(m) => Some((true, affine(m))),
+                _ => None,
+            };
+            if let Some(sample) = sample {
+                self.motion_transforms.push(sample);
+                return Ok(());
+            }
+        }
+        if let (K::MotionEnd, Some(_)) = (&r.kind, self.motion) {
+            let samples = std::mem::take(&mut self.motion_transforms);
+            if let (Some(&(absolute, open)), Some(&(_, close))) = (samples.first(), samples.last()) {
+                self.flush()?;
+                if absolute {
+                    self.rt.load_matrix(open);
+                    self.rt.motion_transform(Affine3A::IDENTITY, open.inverse() * close);
+                } else {
+                    self.rt.motion_transform(open, close);
+                }
+            }
+        }
         if let Some(seen) = self.motion.as_mut() {
             if !matches!(r.kind, K::MotionEnd) {
                 *seen += 1;
@@ -370,14 +409,26 @@ impl<'a> Loader<'a> {
                 let params = typed_params(&program, &s.params, |p| &p.loc, &mut self.out.warnings);
                 rt.pixel_shader(Some(id), &params)?;
             }
-            K::Camera(s) | K::Atmosphere(s) | K::Interior(s) | K::Exterior(s) | K::Displacement(s) => self
+            K::Camera(s) => {
+                let id = rt.find_shader(&s.name)?;
+                let program = rt.program(id)?.clone();
+                let params = typed_params(&program, &s.params, |p| &p.loc, &mut self.out.warnings);
+                rt.camera_shader(Some(id), &params)?;
+            }
+            K::DepthOfField(dof) => {
+                rt.options.depth_of_field = Some(*dof);
+                // RenderMan's standard camera has depth of field; ours is the thinlens shader.
+                if rt.camera_shader_id().is_none() {
+                    let id = rt.find_shader("thinlens")?;
+                    rt.camera_shader(Some(id), &[])?;
+                }
+            }
+            K::Shutter([open, close]) => rt.options.shutter = (*open, *close),
+            K::Atmosphere(s) | K::Interior(s) | K::Exterior(s) | K::Displacement(s) => self
                 .warn(r, format_args!("shader \"{}\": this shader type is not rendered yet, so it is ignored", s.name)),
-            K::ScreenWindow(_)
-            | K::CropWindow(_)
-            | K::FrameAspectRatio(_)
-            | K::PixelFilter { .. }
-            | K::DepthOfField(_)
-            | K::Shutter(_) => self.warn(r, "this request is accepted but not honoured yet"),
+            K::ScreenWindow(_) | K::CropWindow(_) | K::FrameAspectRatio(_) | K::PixelFilter { .. } => {
+                self.warn(r, "this request is accepted but not honoured yet")
+            }
             K::MeshArchive(path) => {
                 self.flush()?;
                 add_model_file(self.rt, path)?;

@@ -1,0 +1,172 @@
+//! Primary rays: the built-in pinhole camera, or the bound camera shader run over a packet of camera
+//! samples through the packet ABI (`docs/cameras.md` specifies the shader's globals).
+//!
+//! A camera sample is a raster position (pixel plus sub-pixel offset), a lens sample and a time. The
+//! lens sample is shared by the whole packet (one per packet and pixel sample, well spread over the
+//! samples of a pixel), so a thin-lens packet has one origin and stays coherent; the time sample is
+//! per pixel. Ray differentials of shader-made rays come from the packet itself: lanes come in 2x2
+//! raster quads, so the difference to the lane beside and the lane below, divided by their raster
+//! distance, is the change per pixel (what a GPU does for derivatives). Lanes whose neighbours do
+//! not form such a quad get a pinhole-like cone.
+//!
+//! Invariants: a ray with a zero, negative or non-finite weight, or a non-finite or zero direction,
+//! is inactive (it contributes nothing to its pixel); every value here is a function of the sample,
+//! never of the thread.
+
+use super::differential::RayDifferential;
+use super::host::ShadeCall;
+use super::shade::{finite_or_zero, Frame};
+use super::world::World;
+use crate::ray::{Ray, RayPacket, PACKET_SIZE};
+use crate::shading::{get3, put1, put3, with_batch};
+use glam::Vec3A;
+
+/// Where on the image, lens and shutter a primary ray starts.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct CameraSample {
+    /// Raster position: pixel `(x, y)` plus a sub-pixel offset in [0, 1), y down.
+    pub raster: (f32, f32),
+    /// Lens sample in [0, 1)^2.
+    pub lens: (f32, f32),
+    /// Time within the shutter interval.
+    pub time: f32,
+}
+
+/// The primary rays of a packet: the rays (inactive where the camera made no ray), their
+/// differentials, and their weights (the colour a sample's radiance is multiplied by).
+#[derive(Clone, Debug)]
+pub struct PrimaryRays {
+    pub packet: RayPacket,
+    pub diffs: [RayDifferential; PACKET_SIZE],
+    pub weights: [Vec3A; PACKET_SIZE],
+}
+
+impl Default for PrimaryRays {
+    fn default() -> Self {
+        PrimaryRays {
+            packet: RayPacket::new(),
+            diffs: [RayDifferential::default(); PACKET_SIZE],
+            weights: [Vec3A::ONE; PACKET_SIZE],
+        }
+    }
+}
+
+/// RenderMan's screen window position of a raster position: the shorter side of the image spans
+/// [-1, 1], x right and y up.
+pub fn screen_position(world: &World, (x, y): (f32, f32)) -> (f32, f32) {
+    let (w, h) = (world.options.width.max(1) as f32, world.options.height.max(1) as f32);
+    let (ax, ay) = if w >= h { (w / h, 1.0) } else { (1.0, h / w) };
+    ((2.0 * x / w - 1.0) * ax, (1.0 - 2.0 * y / h) * ay)
+}
+
+/// The built-in pinhole camera's ray through a raster position.
+pub fn pinhole_ray(world: &World, raster: (f32, f32)) -> Ray {
+    let cam = &world.camera;
+    let tan = (cam.fov_degrees.to_radians() * 0.5).tan();
+    let (sx, sy) = screen_position(world, raster);
+    let m = &cam.world_from_camera;
+    let d = (m.matrix3.z_axis + m.matrix3.x_axis * (sx * tan) + m.matrix3.y_axis * (sy * tan)).normalize();
+    Ray::new(m.translation, d)
+}
+
+/// The primary rays for `samples` (lane `i` from `samples[i]`, only lanes set in `active`).
+pub fn primary_rays(frame: &Frame, samples: &[CameraSample; PACKET_SIZE], active: u64) -> PrimaryRays {
+    let mut out = PrimaryRays::default();
+    match &frame.world.camera_shader {
+        None => {
+            for (i, s) in samples.iter().enumerate().filter(|(i, _)| active >> i & 1 != 0) {
+                let mut ray = pinhole_ray(frame.world, s.raster);
+                ray.time = s.time;
+                out.packet.set(i, &ray);
+                out.diffs[i] = frame.pinhole_differential(ray.direction);
+            }
+        }
+        Some(camera) => run_camera_shader(frame, camera, samples, active, &mut out),
+    }
+    out
+}
+
+fn run_camera_shader(
+    frame: &Frame,
+    camera: &crate::shading::ShaderInstance,
+    samples: &[CameraSample; PACKET_SIZE],
+    active: u64,
+    out: &mut PrimaryRays,
+) {
+    let world = frame.world;
+    let program = &camera.program;
+    let slots = &program.slots;
+    let (open, close) = world.options.shutter;
+    let eye = world.camera.eye();
+    let mut origins = [Vec3A::ZERO; PACKET_SIZE];
+    // What E and I hold on entry (and keep when the shader does not write them).
+    let mut dirs: [Vec3A; PACKET_SIZE] = std::array::from_fn(|i| pinhole_ray(world, samples[i].raster).direction);
+    let mut valid = 0u64;
+    {
+        let _timer = super::stats::ShadingTimer::start(&frame.stats);
+        with_batch(program, PACKET_SIZE, |batch| {
+            // Every lane runs, those off the image too: their rays give their neighbours'
+            // differentials (they are dropped below).
+            {
+                let mut raw = batch.raw_mut();
+                camera.write_params(&mut raw);
+                for (lane, s) in samples.iter().enumerate() {
+                    let (sx, sy) = screen_position(world, s.raster);
+                    put3(&mut raw, slots.p, lane, Vec3A::new(s.raster.0, s.raster.1, 0.0));
+                    put1(&mut raw, slots.s, lane, sx);
+                    put1(&mut raw, slots.t, lane, sy);
+                    put1(&mut raw, slots.u, lane, s.lens.0);
+                    put1(&mut raw, slots.v, lane, s.lens.1);
+                    put1(&mut raw, slots.time, lane, s.time);
+                    put1(&mut raw, slots.dtime, lane, close - open);
+                    put1(&mut raw, slots.ncomps, lane, 3.0);
+                    put3(&mut raw, slots.e, lane, eye);
+                    put3(&mut raw, slots.i, lane, dirs[lane]);
+                    put3(&mut raw, slots.ci, lane, Vec3A::ONE);
+                }
+            }
+            let mut call = ShadeCall::new(frame, camera, world.camera.world_from_camera, 0);
+            let table = call.table();
+            program.code.shade_with_table(batch, &table);
+            let raw = batch.raw_mut();
+            for lane in 0..PACKET_SIZE {
+                let o = get3(&raw, slots.e, lane, eye);
+                let d = get3(&raw, slots.i, lane, dirs[lane]);
+                let w = get3(&raw, slots.ci, lane, Vec3A::ONE);
+                let len = d.length();
+                origins[lane] = o;
+                if o.is_finite() && len.is_finite() && len > 0.0 {
+                    dirs[lane] = d / len;
+                    if w.is_finite() && w.max_element() > 0.0 {
+                        out.weights[lane] = w.max(Vec3A::ZERO);
+                        valid |= 1 << lane;
+                    }
+                }
+            }
+        });
+    }
+    for (lane, s) in samples.iter().enumerate() {
+        if (active & valid) >> lane & 1 == 0 {
+            continue;
+        }
+        let mut ray = Ray::new(origins[lane], dirs[lane]);
+        ray.time = s.time;
+        out.packet.set(lane, &ray);
+        let neighbour = |other: usize| {
+            let (dx, dy) = (samples[other].raster.0 - s.raster.0, samples[other].raster.1 - s.raster.1);
+            (valid >> other & 1 != 0).then_some((dx, dy, other))
+        };
+        // Lane ^ 1 is the quad's horizontal neighbour, lane ^ 2 its vertical one.
+        let along_x = neighbour(lane ^ 1).filter(|(dx, dy, _)| dx.abs() >= 0.25 && dy.abs() <= 0.5 * dx.abs());
+        let along_y = neighbour(lane ^ 2).filter(|(dx, dy, _)| dy.abs() >= 0.25 && dx.abs() <= 0.5 * dy.abs());
+        out.diffs[lane] = match (along_x, along_y) {
+            (Some((dx, _, nx)), Some((_, dy, ny))) => RayDifferential {
+                dodx: finite_or_zero((origins[nx] - origins[lane]) / dx),
+                dody: finite_or_zero((origins[ny] - origins[lane]) / dy),
+                dddx: finite_or_zero((dirs[nx] - dirs[lane]) / dx),
+                dddy: finite_or_zero((dirs[ny] - dirs[lane]) / dy),
+            },
+            _ => RayDifferential::cone(dirs[lane], 0.0, frame.pixel_spread),
+        };
+    }
+}

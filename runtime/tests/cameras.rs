@@ -1,0 +1,337 @@
+//! Camera shaders and motion blur through the API and RIB: the `pinhole` shader makes the built-in
+//! camera's image, the other library cameras see what their mappings promise, invalid rays are
+//! empty pixels, depth of field blurs only what is off the focal plane, and moving instances smear
+//! over the shutter interval.
+
+use glam::{Affine3A, Vec3, Vec3A};
+use rtsl_runtime::api::{ApiError, Context, ObjectId, Primitive};
+use rtsl_runtime::render::{Antialiasing, Framebuffer};
+use rtsl_runtime::shading::ParamValue;
+
+const W: u32 = 64;
+const H: u32 = 48;
+
+fn context() -> Context {
+    let mut rt = Context::new();
+    rt.options.width = W;
+    rt.options.height = H;
+    rt.options.antialiasing = Antialiasing::Grid { jitter: false };
+    rt
+}
+
+fn quad(rt: &mut Context, corners: [[f32; 3]; 4]) -> Result<(), ApiError> {
+    rt.begin(Primitive::Quads)?;
+    for c in corners {
+        rt.vertex(c[0], c[1], c[2])?;
+    }
+    rt.end()
+}
+
+/// A square of side 2 facing +z at the origin, with a `constant` shader of colour `c`.
+fn card(rt: &mut Context, c: [f32; 3]) -> Result<ObjectId, ApiError> {
+    let constant = rt.find_shader("constant")?;
+    let id = rt.begin_object()?;
+    rt.bind_shader(constant)?;
+    rt.color(c[0], c[1], c[2]);
+    quad(rt, [[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [1.0, 1.0, 0.0], [-1.0, 1.0, 0.0]])?;
+    rt.end_object()?;
+    Ok(id)
+}
+
+/// An unlit checkerboard in world x and y, `frequency` squares per unit.
+const CHECKS: &str = "surface checks(float frequency = 2) {
+    point Pw = transform(\"world\", P);
+    Ci = mod(floor(xcomp(Pw) * frequency) + floor(ycomp(Pw) * frequency), 2);
+    Oi = 1;
+}";
+
+/// A checkerboard wall facing -z at depth `z`.
+fn checker_wall(rt: &mut Context, z: f32, size: f32) -> Result<(), ApiError> {
+    let checker = rt.compile_shader("checks", CHECKS)?;
+    let id = rt.begin_object()?;
+    rt.bind_shader(checker)?;
+    let s = size;
+    quad(rt, [[-s, -s, z], [s, -s, z], [s, s, z], [-s, s, z]])?;
+    rt.end_object()?;
+    rt.instantiate_object(id)?;
+    Ok(())
+}
+
+fn sum(fb: &Framebuffer, x: u32, y: u32) -> f32 {
+    let p = fb.pixel(x, y);
+    p[0] + p[1] + p[2]
+}
+
+fn bind_camera(rt: &mut Context, name: &str, params: &[(&str, ParamValue)]) -> Result<(), ApiError> {
+    let id = rt.find_shader(name)?;
+    rt.camera_shader(Some(id), params)
+}
+
+#[test]
+fn the_pinhole_shader_makes_the_built_in_cameras_image() -> Result<(), ApiError> {
+    let mut rt = context();
+    rt.camera_look_at(Vec3A::new(0.3, 0.5, -5.0), Vec3A::ZERO, Vec3A::Y, 50.0);
+    checker_wall(&mut rt, 0.0, 3.0)?;
+    let (builtin, _) = rt.render_frame()?;
+    bind_camera(&mut rt, "pinhole", &[])?;
+    let (shader, report) = rt.render_frame()?;
+    assert_eq!(report.primary_rays, u64::from(W * H));
+    let mut worst = 0.0f32;
+    for (a, b) in builtin.rgba.iter().zip(&shader.rgba) {
+        worst = worst.max((a - b).abs());
+    }
+    // The rays agree to rounding; a checker edge may fall on the other side in a pixel or two.
+    let differing =
+        builtin.rgba.chunks(4).zip(shader.rgba.chunks(4)).filter(|(a, b)| (a[0] - b[0]).abs() > 1e-3).count();
+    assert!(differing <= 4, "{differing} pixels differ (worst {worst})");
+    // And back to the built-in camera.
+    rt.camera_shader(None, &[])?;
+    let (again, _) = rt.render_frame()?;
+    assert_eq!(again.rgba, builtin.rgba);
+    Ok(())
+}
+
+#[test]
+fn the_fisheye_leaves_the_corners_empty_and_sees_wider() -> Result<(), ApiError> {
+    let mut rt = context();
+    rt.camera_look_at(Vec3A::ZERO, Vec3A::Z, Vec3A::Y, 40.0);
+    // A card far off to the side: outside a 40 degree view, inside a 180 degree fisheye.
+    let id = card(&mut rt, [1.0, 0.0, 0.0])?;
+    rt.push_matrix();
+    rt.translate(4.0, 0.0, 2.0);
+    rt.rotate(-90.0, 0.0, 1.0, 0.0);
+    rt.instantiate_object(id)?;
+    rt.pop_matrix()?;
+    let (narrow, _) = rt.render_frame()?;
+    assert!(narrow.rgba.chunks(4).all(|p| p[0] == 0.0), "the pinhole camera does not see the card");
+    bind_camera(&mut rt, "fisheye", &[("fov", ParamValue::Float(180.0))])?;
+    let (fish, report) = rt.render_frame()?;
+    // Corners are outside the image circle: no ray, alpha 0.
+    for (x, y) in [(0, 0), (W - 1, 0), (0, H - 1), (W - 1, H - 1)] {
+        assert_eq!(fish.pixel(x, y), [0.0; 4], "corner {x},{y}");
+    }
+    assert!(report.primary_rays < u64::from(W * H), "rays outside the circle are not traced");
+    // The card, 63 degrees off the axis towards world +x (the camera looks down +z with y up, so
+    // world +x is the image's left), lands in the left half.
+    let red: Vec<(u32, u32)> =
+        (0..H).flat_map(|y| (0..W).map(move |x| (x, y))).filter(|&(x, y)| fish.pixel(x, y)[0] > 0.5).collect();
+    assert!(!red.is_empty(), "the fisheye sees the card");
+    assert!(red.iter().all(|&(x, _)| x < W / 2), "{red:?}");
+    Ok(())
+}
+
+#[test]
+fn the_cylindrical_panorama_sees_behind_the_camera() -> Result<(), ApiError> {
+    let mut rt = context();
+    rt.camera_look_at(Vec3A::ZERO, Vec3A::Z, Vec3A::Y, 40.0);
+    let id = card(&mut rt, [0.0, 1.0, 0.0])?;
+    rt.push_matrix();
+    rt.translate(0.0, 0.0, -4.0);
+    rt.instantiate_object(id)?;
+    rt.pop_matrix()?;
+    bind_camera(&mut rt, "cylindrical", &[("hfov", ParamValue::Float(360.0))])?;
+    let (pano, _) = rt.render_frame()?;
+    // Behind the camera is the image's left and right edges; its front, the centre, sees nothing.
+    assert!(pano.pixel(0, H / 2)[1] > 0.5 && pano.pixel(W - 1, H / 2)[1] > 0.5);
+    assert_eq!(pano.pixel(W / 2, H / 2)[1], 0.0);
+    Ok(())
+}
+
+#[test]
+fn the_parabolic_mirror_sees_more_than_a_hemisphere_in_a_disc() -> Result<(), ApiError> {
+    let mut rt = context();
+    rt.camera_look_at(Vec3A::ZERO, Vec3A::Z, Vec3A::Y, 40.0);
+    let id = card(&mut rt, [0.0, 0.0, 1.0])?;
+    // A card beside and a little behind the camera (110 degrees off the axis).
+    rt.push_matrix();
+    rt.translate(-4.0, 0.0, -1.5);
+    rt.rotate(90.0, 0.0, 1.0, 0.0);
+    rt.instantiate_object(id)?;
+    rt.pop_matrix()?;
+    bind_camera(&mut rt, "parabolic", &[("scale", ParamValue::Float(1.6)), ("radius", ParamValue::Float(1.0))])?;
+    let (para, _) = rt.render_frame()?;
+    let blue: Vec<(u32, u32)> =
+        (0..H).flat_map(|y| (0..W).map(move |x| (x, y))).filter(|&(x, y)| para.pixel(x, y)[2] > 0.5).collect();
+    assert!(!blue.is_empty(), "the mirror sees behind the camera's side");
+    assert!(blue.iter().all(|&(x, _)| x > W / 2), "the card (world -x) is on the image's right: {blue:?}");
+    assert_eq!(para.pixel(0, 0), [0.0; 4], "outside the image circle");
+    Ok(())
+}
+
+/// The mean absolute difference of neighbouring pixels in a row band: high for a sharp checker,
+/// low once it is blurred.
+fn contrast(fb: &Framebuffer, rows: std::ops::Range<u32>, cols: std::ops::Range<u32>) -> f32 {
+    let mut total = 0.0;
+    let mut n = 0;
+    for y in rows {
+        for x in cols.clone().skip(1) {
+            total += (sum(fb, x, y) - sum(fb, x - 1, y)).abs();
+            n += 1;
+        }
+    }
+    total / n as f32
+}
+
+#[test]
+fn depth_of_field_blurs_only_what_is_off_the_focal_plane() -> Result<(), ApiError> {
+    let mut rt = context();
+    rt.options.samples = (4, 4);
+    rt.camera_look_at(Vec3A::new(0.0, 0.0, -5.0), Vec3A::ZERO, Vec3A::Y, 40.0);
+    // Two checker walls, side by side: on the image's right (world -x: the camera looks down +z)
+    // one on the focal plane (5 away), on the left one far behind (30 away).
+    let checker = rt.compile_shader("checks", CHECKS)?;
+    for (x0, z, s) in [(-3.0f32, 0.0f32, 3.0f32), (0.0, 25.0, 18.0)] {
+        let id = rt.begin_object()?;
+        rt.bind_shader(checker)?;
+        rt.parameter("frequency", ParamValue::Float(if z > 0.0 { 1.0 } else { 6.0 }))?;
+        let x1 = if x0 < 0.0 { 0.0 } else { 2.0 * s };
+        quad(&mut rt, [[x0 * s / 3.0, -s, z], [x1, -s, z], [x1, s, z], [x0 * s / 3.0, s, z]])?;
+        rt.end_object()?;
+        rt.instantiate_object(id)?;
+    }
+    let (sharp, _) = rt.render_frame()?;
+    bind_camera(
+        &mut rt,
+        "thinlens",
+        &[
+            ("fstop", ParamValue::Float(0.5)),
+            ("focallength", ParamValue::Float(1.0)),
+            ("focaldistance", ParamValue::Float(5.0)),
+        ],
+    )?;
+    let (dof, _) = rt.render_frame()?;
+    let (far, near) = (4..W / 2 - 4, W / 2 + 4..W - 4);
+    let rows = 8..H - 8;
+    let (sn, sf) = (contrast(&sharp, rows.clone(), near.clone()), contrast(&sharp, rows.clone(), far.clone()));
+    let (dn, df) = (contrast(&dof, rows.clone(), near), contrast(&dof, rows, far));
+    assert!(sn > 0.05 && sf > 0.05, "both walls show their checks without depth of field: {sn} {sf}");
+    assert!(dn > 0.7 * sn, "the focal plane stays sharp: {dn} vs {sn}");
+    assert!(df < 0.5 * sf, "the far wall is blurred: {df} vs {sf}");
+    Ok(())
+}
+
+#[test]
+fn a_zero_weight_makes_an_empty_pixel() -> Result<(), ApiError> {
+    let mut rt = context();
+    rt.camera_look_at(Vec3A::new(0.0, 0.0, -5.0), Vec3A::ZERO, Vec3A::Y, 40.0);
+    checker_wall(&mut rt, 0.0, 5.0)?;
+    // A camera shader that keeps only the left half of the image, at half weight.
+    let src = r#"camera halfleft() { Ci = (s < 0) ? color(.5, .5, .5) : 0; }"#;
+    let id = rt.compile_shader("halfleft", src)?;
+    rt.camera_shader(Some(id), &[])?;
+    let (half, report) = rt.render_frame()?;
+    rt.camera_shader(None, &[])?;
+    let (full, _) = rt.render_frame()?;
+    assert_eq!(report.primary_rays, u64::from(W * H / 2));
+    for y in 0..H {
+        for x in 0..W {
+            let (a, b) = (half.pixel(x, y), full.pixel(x, y));
+            if x < W / 2 {
+                for c in 0..4 {
+                    assert!((a[c] - 0.5 * b[c]).abs() < 1e-4, "{x},{y}: {a:?} vs {b:?}");
+                }
+            } else {
+                assert_eq!(a, [0.0; 4], "{x},{y}");
+            }
+        }
+    }
+    Ok(())
+}
+
+#[test]
+fn a_camera_shader_of_the_wrong_kind_is_refused() -> Result<(), ApiError> {
+    let mut rt = context();
+    let plastic = rt.find_shader("plastic")?;
+    assert!(matches!(rt.camera_shader(Some(plastic), &[]), Err(ApiError::WrongKind { .. })));
+    Ok(())
+}
+
+/// A small white card moving from x = -2 to x = 2 over the shutter, in front of a black
+/// background.
+fn moving_card(rt: &mut Context) -> Result<(), ApiError> {
+    rt.camera_look_at(Vec3A::new(0.0, 0.0, -6.0), Vec3A::ZERO, Vec3A::Y, 60.0);
+    let id = card(rt, [1.0, 1.0, 1.0])?;
+    rt.push_matrix();
+    rt.scale(0.5, 0.5, 0.5);
+    rt.motion_transform(
+        Affine3A::from_translation(Vec3::new(-4.0, 0.0, 0.0)),
+        Affine3A::from_translation(Vec3::new(4.0, 0.0, 0.0)),
+    );
+    rt.instantiate_object(id)?;
+    rt.pop_matrix()?;
+    Ok(())
+}
+
+fn coverage_columns(fb: &Framebuffer) -> Vec<f32> {
+    (0..fb.width).map(|x| (0..fb.height).map(|y| fb.pixel(x, y)[3]).sum()).collect()
+}
+
+#[test]
+fn a_moving_instance_is_smeared_over_the_shutter_interval() -> Result<(), ApiError> {
+    let mut rt = context();
+    rt.options.samples = (4, 4);
+    moving_card(&mut rt)?;
+    // No shutter interval: the card is where it is at the opening, sharp.
+    let (still, _) = rt.render_frame()?;
+    let cols = coverage_columns(&still);
+    let covered: Vec<usize> = (0..cols.len()).filter(|&x| cols[x] > 0.0).collect();
+    assert!(!covered.is_empty());
+    // At the opening the card is at world x = -2: the image's right.
+    assert!(covered.iter().all(|&x| x > W as usize / 2), "{covered:?}");
+    rt.options.shutter = (0.0, 1.0);
+    let (blurred, _) = rt.render_frame()?;
+    let bcols = coverage_columns(&blurred);
+    let bcovered: Vec<usize> = (0..bcols.len()).filter(|&x| bcols[x] > 0.0).collect();
+    // The smear spans both halves, with partial coverage (no pixel fully covered in the middle),
+    // and about the same total coverage per unit of time... at least as many columns as the card.
+    assert!(bcovered.len() > 2 * covered.len(), "{} vs {} columns", bcovered.len(), covered.len());
+    assert!(bcovered.iter().any(|&x| x > W as usize / 2) && bcovered.iter().any(|&x| x < W as usize / 2));
+    let mid = blurred.pixel(W / 2, H / 2)[3];
+    assert!(mid > 0.0 && mid < 0.9, "partial coverage in the middle: {mid}");
+    Ok(())
+}
+
+#[test]
+fn rib_binds_cameras_depth_of_field_and_motion_blocks() -> Result<(), Box<dyn std::error::Error>> {
+    let rib = r#"
+        Format 48 32 1
+        PixelSamples 2 2
+        Shutter 0 1
+        Projection "perspective" "fov" 60
+        Camera "fisheye" "float fov" 200
+        Translate 0 0 6
+        WorldBegin
+          Surface "constant"
+          AttributeBegin
+            MotionBegin [0 1]
+              Translate -2 0 0
+              Translate 2 0 0
+            MotionEnd
+            Polygon "P" [-0.5 -0.5 0  0.5 -0.5 0  0.5 0.5 0  -0.5 0.5 0]
+          AttributeEnd
+        WorldEnd
+    "#;
+    let mut rt = Context::new();
+    let loaded = rtsl_runtime::rib::load::load_str(&mut rt, rib, std::path::Path::new("."))?;
+    assert!(loaded.warnings.iter().all(|w| !w.contains("not rendered")), "{:?}", loaded.warnings);
+    assert!(rt.camera_shader_id().is_some());
+    assert_eq!(rt.options.shutter, (0.0, 1.0));
+    let world = rt.build_world()?;
+    let data = world.scene.instance_data(0).copied().ok_or("no instance")?;
+    let motion = data.motion.ok_or("the polygon moves")?;
+    let moved = motion.close_transform.translation - data.world_from_object.translation;
+    assert!((moved - Vec3A::new(4.0, 0.0, 0.0)).length() < 1e-5, "{moved}");
+    rt.return_scene(world);
+
+    // DepthOfField with no Camera shader binds thinlens.
+    let mut rt = Context::new();
+    rtsl_runtime::rib::load::load_str(
+        &mut rt,
+        "DepthOfField 2.8 0.1 4\nWorldBegin\nWorldEnd\n",
+        std::path::Path::new("."),
+    )?;
+    let id = rt.camera_shader_id().ok_or("thinlens bound")?;
+    assert_eq!(rt.program(id)?.name, "thinlens");
+    assert_eq!(rt.options.depth_of_field, Some([2.8, 0.1, 4.0]));
+    Ok(())
+}
