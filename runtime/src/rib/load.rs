@@ -370,7 +370,22 @@ impl<'a> Loader<'a> {
                 let params = typed_params(&program, &s.params, |p| &p.loc, &mut self.out.warnings);
                 rt.pixel_shader(Some(id), &params)?;
             }
-            K::Camera(s) | K::Atmosphere(s) | K::Interior(s) | K::Exterior(s) | K::Displacement(s) => self
+            K::Atmosphere(s) | K::Interior(s) => {
+                // An empty name removes the binding.
+                let (id, params) = if s.name.is_empty() {
+                    (None, Vec::new())
+                } else {
+                    let id = rt.find_shader(&s.name)?;
+                    let program = rt.program(id)?.clone();
+                    (Some(id), typed_params(&program, &s.params, |p| &p.loc, &mut self.out.warnings))
+                };
+                if matches!(r.kind, K::Atmosphere(_)) {
+                    rt.atmosphere(id, &params)?;
+                } else {
+                    rt.interior(id, &params)?;
+                }
+            }
+            K::Camera(s) | K::Exterior(s) | K::Displacement(s) => self
                 .warn(r, format_args!("shader \"{}\": this shader type is not rendered yet, so it is ignored", s.name)),
             K::ScreenWindow(_)
             | K::CropWindow(_)
