@@ -6,6 +6,7 @@ mod compile;
 mod info;
 mod render;
 mod shade;
+mod volume;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -30,9 +31,18 @@ enum Command {
     Info(info::InfoArgs),
     /// Play a BART animated scene (an AFF file) at its own timing: write the frames, print per-frame times.
     Bart(bart::BartArgs),
+    /// Volume data sets for the `volumegrid` shader.
+    #[command(subcommand)]
+    Volume(VolumeCommand),
     /// Benchmarks.
     #[command(subcommand)]
     Bench(BenchCommand),
+}
+
+#[derive(Subcommand, Debug)]
+enum VolumeCommand {
+    /// Write a small synthetic 3-D grid (an RTSLGRID file, docs/volumes.md).
+    Generate(volume::GenerateArgs),
 }
 
 #[derive(Subcommand, Debug)]
@@ -62,6 +72,7 @@ pub fn run() -> anyhow::Result<ExitCode> {
         Command::Compile(args) => compile::run(&args),
         Command::Info(args) => info::run(&args),
         Command::Bart(args) => bart::run(&args),
+        Command::Volume(VolumeCommand::Generate(args)) => volume::generate_cmd(&args),
         Command::Bench(BenchCommand::Frontend(args)) => compile::bench_frontend(&args),
         Command::Bench(BenchCommand::Trace(args)) => bench::run_trace(&args).map(|()| ExitCode::SUCCESS),
         Command::Bench(BenchCommand::Render(args)) => bench::run_render(&args).map(|()| ExitCode::SUCCESS),
