@@ -54,15 +54,15 @@ surface volumegrid(string gridname = "";
 
     color C = 0;
     float T = 1;
-    float t = 0.5 * stepsize;
-    while (t < texit && T > 0.004) {
-        float d = texture3d(gridname, Ps + t * Ds);
+    float dist = 0.5 * stepsize;
+    while (dist < texit && T > 0.004) {
+        float d = texture3d(gridname, Ps + dist * Ds);
         float ext = density * smoothstep(threshold, 1, d);
         float a = 1 - exp(-ext * stepsize);
         color c = brightness * spline(d, color0, color0, color1, color2, color3, color3);
         C += T * a * c;
         T *= 1 - a;
-        t += stepsize;
+        dist += stepsize;
     }
     Ci = C;
     Oi = 1 - T;
