@@ -357,3 +357,18 @@ fn bart_plays_a_scene_at_its_timing_and_writes_the_frames() {
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("broken.aff:3:5:"), "{}", stderr(&o));
 }
+
+#[test]
+fn volume_generate_reproduces_the_shipped_data_sets() {
+    let dir = tempfile::tempdir().unwrap();
+    for (kind, file) in [("neghip-like", "neghip32.grid"), ("cloud", "cloud32.grid")] {
+        let out = rtsl(&["volume", "generate", "--kind", kind, "--size", "32", "-o", file], dir.path());
+        assert!(out.status.success(), "{}", stderr(&out));
+        let made = std::fs::read(dir.path().join(file)).unwrap();
+        let shipped =
+            std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/office/data").join(file)).unwrap();
+        assert!(made == shipped, "{file} differs from what `rtsl volume generate --kind {kind}` writes");
+    }
+    let bad = rtsl(&["volume", "generate", "--size", "1", "-o", "x.grid"], dir.path());
+    assert!(!bad.status.success());
+}

@@ -259,3 +259,69 @@ WorldEnd
     );
     check("motion_blur", &render_rib("motion_blur", &rib)).unwrap_or_else(|e| panic!("{e}"));
 }
+
+/// The data set shipped with the examples (`docs/volumes.md`).
+fn neghip_grid() -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/office/data/neghip32.grid").display().to_string()
+}
+
+/// The box -1..1 with counter-clockwise faces seen from outside (outward normals).
+const BOX: &str = r#"
+    Polygon "P" [1 -1 -1  1 1 -1  1 1 1  1 -1 1]
+    Polygon "P" [-1 -1 -1  -1 -1 1  -1 1 1  -1 1 -1]
+    Polygon "P" [-1 1 -1  -1 1 1  1 1 1  1 1 -1]
+    Polygon "P" [-1 -1 -1  1 -1 -1  1 -1 1  -1 -1 1]
+    Polygon "P" [-1 -1 1  1 -1 1  1 1 1  -1 1 1]
+    Polygon "P" [-1 -1 -1  -1 1 -1  1 1 -1  1 -1 -1]
+"#;
+
+#[test]
+fn volume_shaders_match_their_references() {
+    let light = "LightSource \"pointlight\" 1 \"intensity\" [25] \"from\" [2 4 -3]";
+    // Fog over the lit scene, with a wall behind so that every ray has a segment to fog.
+    let fog = light_scene(light).replacen(
+        "WorldBegin",
+        "WorldBegin\n  Atmosphere \"fog\" \"distance\" [6] \"background\" [.6 .65 .75]\n  \
+         AttributeBegin Surface \"matte\" Polygon \"P\" [-9 -1 5  9 -1 5  9 9 5  -9 9 5] AttributeEnd",
+        1,
+    );
+    // A glass ball with a red-absorbing interior before a bright wall: refracted `trace` rays
+    // cross it inside.
+    let interior =
+        surface_scene("Surface \"glass\"\n    Interior \"medium\" \"density\" [1] \"absorption\" [1 .35 .1]").replacen(
+            "WorldBegin",
+            "WorldBegin\n  AttributeBegin Surface \"constant\" Color [.9 .85 .8] \
+         Polygon \"P\" [-9 0 3  9 0 3  9 9 3  -9 9 3] AttributeEnd",
+            1,
+        );
+    // The data set on a box above the floor, its transparent shadow cast by a point light.
+    let grid = format!(
+        r#"
+Format {W} {H} 1
+PixelSamples 2 2
+Projection "perspective" "fov" [40]
+Rotate -15 1 0 0
+Translate 0 -1.6 7
+WorldBegin
+  LightSource "ambientlight" 1 "intensity" [0.1]
+  LightSource "pointlight" 2 "intensity" [30] "from" [1 6 -1]
+  AttributeBegin
+    Surface "plastic"
+    Polygon "P" [-6 0 -6  6 0 -6  6 0 6  -6 0 6]
+  AttributeEnd
+  AttributeBegin
+    Translate 0 1.4 0
+    Attribute "shade" "transmissionhitmode" "shader"
+    Surface "volumegrid" "gridname" "{}" "density" [10] "threshold" [0.55]
+    {BOX}
+  AttributeEnd
+WorldEnd
+"#,
+        neghip_grid()
+    );
+    let failures: Vec<String> = [("volume_fog", fog), ("volume_interior", interior), ("volume_grid", grid)]
+        .iter()
+        .filter_map(|(name, rib)| check(name, &render_rib(name, rib)).err())
+        .collect();
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}

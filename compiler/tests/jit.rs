@@ -744,6 +744,28 @@ fn textures_rays_and_messages() {
 }
 
 #[test]
+fn texture3d_grid_lookups() {
+    // The test host's grids are the ramp x/4 + y/2 + z/8; "missing" cannot be read (fill).
+    check(
+        r#"
+        surface t(string grid = "ramp.grid"; output varying float a = 0; output varying color b = 0;)
+        {
+            a = texture3d(grid, P) + texture3d("missing", P * 2, "fill", 0.25 + s);
+            if (u > 0.5)
+                b = color texture3d(grid, transform("shader", P));
+            else
+                b = texture3d("missing", P);
+            Ci = b + a;
+        }
+        "#,
+    );
+    let mut host = TestHost::default();
+    use rtsl_compiler::interp::Services;
+    assert_eq!(host.texture3d("ramp.grid", [4.0, 2.0, 8.0]), Some(3.0));
+    assert_eq!(host.texture3d("missing", [0.0; 3]), None);
+}
+
+#[test]
 fn uniform_calls_into_uniform_storage() {
     // The callee's locals are inferred varying (for all call sites); called with uniform arguments
     // it is lowered in uniform mode, so its result may initialise a uniform variable.

@@ -148,12 +148,14 @@ struct Appearance {
     color: [f32; 3],
     opacity: [f32; 3],
     surface: Option<Binding>,
+    /// The volume shader of the inside of objects built from now on (RIB `Interior`).
+    interior: Option<Binding>,
     shadow_by_shader: bool,
 }
 
 impl Default for Appearance {
     fn default() -> Self {
-        Appearance { color: [1.0; 3], opacity: [1.0; 3], surface: None, shadow_by_shader: false }
+        Appearance { color: [1.0; 3], opacity: [1.0; 3], surface: None, interior: None, shadow_by_shader: false }
     }
 }
 
@@ -224,6 +226,7 @@ pub struct Context {
     lights: Vec<LightRecord>,
     pixel: Option<Binding>,
     camera_shader: Option<Binding>,
+    atmosphere: Option<Binding>,
     camera: CameraSetup,
     pub options: RenderOptions,
     spaces: std::collections::HashMap<String, Affine3A>,
@@ -281,6 +284,7 @@ impl Context {
             lights: Vec::new(),
             pixel: None,
             camera_shader: None,
+            atmosphere: None,
             camera: CameraSetup::default(),
             options: RenderOptions::default(),
             spaces: Default::default(),
@@ -412,8 +416,9 @@ impl Context {
         let surfaces = std::iter::once(&self.appearance)
             .chain(&self.appearance_stack)
             .chain(self.objects.iter().filter(|o| !o.deleted).map(|o| &o.appearance))
-            .filter_map(|a| a.surface.as_ref())
+            .flat_map(|a| a.surface.iter().chain(a.interior.iter()))
             .chain(self.pixel.as_ref())
+            .chain(self.atmosphere.as_ref())
             .filter(|b| b.shader == id)
             .flat_map(|b| b.params.iter());
         let lights = self.lights.iter().filter(|l| l.shader == id).flat_map(|l| l.params.iter());
@@ -627,6 +632,41 @@ impl Context {
     /// The camera shader bound with [`Context::camera_shader`], if any.
     pub fn camera_shader_id(&self) -> Option<ShaderId> {
         self.camera_shader.as_ref().map(|b| b.shader)
+    }
+
+    /// The atmosphere (RenderMan's `Atmosphere`): a volume shader run on every ray segment that ends
+    /// on a surface outside objects with an interior shader (`docs/volumes.md`), with its parameter
+    /// values; `None` removes it.
+    pub fn atmosphere(&mut self, shader: Option<ShaderId>, params: &[(&str, ParamValue)]) -> Result<(), ApiError> {
+        self.atmosphere = self.volume_binding(shader, params)?;
+        Ok(())
+    }
+
+    /// The interior volume shader (RenderMan's `Interior`) of objects built from now on, an
+    /// attribute like the surface shader (saved by `push_attributes`): it runs on ray segments that
+    /// reach such an object's surface from behind, i.e. travel inside it (`docs/volumes.md`).
+    /// `None` removes it.
+    pub fn interior(&mut self, shader: Option<ShaderId>, params: &[(&str, ParamValue)]) -> Result<(), ApiError> {
+        self.appearance.interior = self.volume_binding(shader, params)?;
+        Ok(())
+    }
+
+    /// A volume shader's binding with its values checked now; `None` for `None`.
+    fn volume_binding(
+        &self,
+        shader: Option<ShaderId>,
+        params: &[(&str, ParamValue)],
+    ) -> Result<Option<Binding>, ApiError> {
+        let Some(id) = shader else { return Ok(None) };
+        let program = self.expect_kind(id, ShaderKind::Volume)?;
+        for (name, value) in params {
+            crate::shading::bind_param(&program, name, value, &self.matrix)?;
+        }
+        Ok(Some(Binding {
+            shader: id,
+            params: params.iter().map(|(n, v)| (n.to_string(), v.clone(), self.matrix)).collect(),
+            world_from_shader: self.matrix,
+        }))
     }
 
     /// Switches a light on or off, and its ray-traced shadows.
@@ -1118,8 +1158,10 @@ impl Context {
             }
             let a = &rec.appearance;
             let surface = a.surface.as_ref().map(|b| self.instance_for(b, &mut warnings)).transpose()?.map(Arc::new);
+            let interior = a.interior.as_ref().map(|b| self.instance_for(b, &mut warnings)).transpose()?.map(Arc::new);
             materials.push(Material {
                 surface,
+                interior,
                 color: a.color,
                 opacity: a.opacity,
                 shadow_by_shader: a.shadow_by_shader,
@@ -1167,6 +1209,8 @@ impl Context {
         world.instances = instances;
         world.lights = lights;
         world.pixel = self.pixel.as_ref().map(|b| self.instance_for(b, &mut warnings)).transpose()?.map(Arc::new);
+        world.atmosphere =
+            self.atmosphere.as_ref().map(|b| self.instance_for(b, &mut warnings)).transpose()?.map(Arc::new);
         world.camera = self.camera;
         world.camera_shader = match &self.camera_shader {
             Some(b) => {

@@ -7,6 +7,7 @@ mod info;
 mod lightfield;
 mod render;
 mod shade;
+mod volume;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -34,6 +35,9 @@ enum Command {
     /// Two-plane light fields: `capture` renders one of a scene for the `twoplane` shader.
     #[command(subcommand)]
     Lightfield(LightfieldCommand),
+    /// Volume data sets for the `volumegrid` shader.
+    #[command(subcommand)]
+    Volume(VolumeCommand),
     /// Benchmarks.
     #[command(subcommand)]
     Bench(BenchCommand),
@@ -43,6 +47,12 @@ enum Command {
 enum LightfieldCommand {
     /// Render a light field of a scene (a grid of cameras on the st plane) to an image atlas.
     Capture(lightfield::CaptureArgs),
+}
+
+#[derive(Subcommand, Debug)]
+enum VolumeCommand {
+    /// Write a small synthetic 3-D grid (an RTSLGRID file, docs/volumes.md).
+    Generate(volume::GenerateArgs),
 }
 
 #[derive(Subcommand, Debug)]
@@ -75,6 +85,7 @@ pub fn run() -> anyhow::Result<ExitCode> {
         Command::Info(args) => info::run(&args),
         Command::Bart(args) => bart::run(&args),
         Command::Lightfield(LightfieldCommand::Capture(args)) => lightfield::run_capture(&args),
+        Command::Volume(VolumeCommand::Generate(args)) => volume::generate_cmd(&args),
         Command::Bench(BenchCommand::Frontend(args)) => compile::bench_frontend(&args),
         Command::Bench(BenchCommand::Trace(args)) => bench::run_trace(&args).map(|()| ExitCode::SUCCESS),
         Command::Bench(BenchCommand::Render(args)) => bench::run_render(&args).map(|()| ExitCode::SUCCESS),

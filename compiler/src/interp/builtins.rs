@@ -475,6 +475,16 @@ impl Machine<'_> {
                 }
             }
             Builtin::Bump => return Err(InterpError::Unsupported("bump")),
+            Builtin::Texture3d if fixed == 2 => {
+                // The grid form: one scalar, every component of a triple result alike.
+                let fill = param(&vals, fixed, "fill").map(Value::f).unwrap_or(0.0);
+                let x = self.host.texture3d(v(0).s(), v(1).v3()).unwrap_or(fill);
+                if ty.base == BaseType::Float {
+                    Value::Float(x)
+                } else {
+                    Value::Triple([x; 3])
+                }
+            }
             Builtin::Texture3d | Builtin::Bake3d => {
                 self.host.unsupported(b);
                 Value::Float(0.0)

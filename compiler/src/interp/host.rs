@@ -58,6 +58,13 @@ pub trait Services {
         let _ = footprint;
         self.texture(name, s, t, first_channel, channels)
     }
+    /// A trilinear lookup in the 3-D grid file `name` (`docs/volumes.md`) at `p`, given in the
+    /// grid's own coordinates (its header's bounds); `None` when the file cannot be read (the
+    /// caller uses the fill value). The default knows no grids.
+    fn texture3d(&mut self, name: &str, p: V3) -> Option<f32> {
+        let _ = (name, p);
+        None
+    }
     /// An environment lookup by direction.
     fn environment(&mut self, name: &str, dir: V3) -> Option<V3>;
     /// The fraction of `p` in shadow according to a shadow map.
@@ -93,6 +100,8 @@ pub trait Services {
 ///   white cell is 1 - 0.1c and of a black cell 0.1c; "missing" cannot be read; a filtered lookup
 ///   whose footprint (`max(|dsdx| + |dsdy|, |dtdx| + |dtdy|) + blur`) exceeds a cell (1/8) is the
 ///   checkerboard's average, 0.5 in every channel;
+/// - 3-D grids (`texture3d`): any name but "missing" is the linear ramp `x/4 + y/2 + z/8` of the
+///   point; "missing" cannot be read;
 /// - environment: the direction mapped to a colour, `0.5 + 0.5 * normalize(dir)`;
 /// - shadow: 0 (nothing in shadow); transmission: white; occlusion: 0.25; indirect: 0.05 grey;
 /// - trace: the environment colour of the direction, distance 10;
@@ -156,6 +165,10 @@ impl Services for TestHost {
             return Some(vec![0.5; channels]);
         }
         self.texture(name, s, t, first_channel, channels)
+    }
+
+    fn texture3d(&mut self, name: &str, p: V3) -> Option<f32> {
+        (name != "missing").then(|| 0.25 * p[0] + 0.5 * p[1] + 0.125 * p[2])
     }
 
     fn environment(&mut self, _name: &str, dir: V3) -> Option<V3> {

@@ -299,6 +299,7 @@ unsafe extern "C" fn host_texture(
     let values = match kind {
         0 => channels.min(64) as usize,
         1 => 3,
+        // 2 shadow, 3 a texture3d grid: one value.
         _ => 1,
     };
     // SAFETY: the table's contract: 4 mask entries, 3 x 4 coordinates (2 x 4 for textures), 4 first
@@ -316,6 +317,8 @@ unsafe extern "C" fn host_texture(
     };
     let textures = &c.frame.world.textures;
     let mut lane_out = [0.0f32; 64];
+    // The grid is found once per chunk, not per lane.
+    let grid = if kind == 3 { textures.get_grid(name) } else { None };
     for l in 0..4 {
         ok[l] = 0;
         if mask[l] == 0 {
@@ -335,6 +338,13 @@ unsafe extern "C" fn host_texture(
                 let dir = lane3(coords, 0, l).to_array();
                 textures.environment(name, dir, [0.0; 3], [0.0; 3], 0, &mut lane_out[..3], &LookupOptions::default())
             }
+            3 => match &grid {
+                Some(grid) => {
+                    lane_out[0] = grid.lookup(lane3(coords, 0, l).to_array());
+                    true
+                }
+                None => false,
+            },
             _ => {
                 let p = lane3(coords, 0, l);
                 let shadowed = if name == "raytrace" {

@@ -2,7 +2,7 @@
 //! frame. `frame.rs` generates primary packets over tiles; `shade.rs` shades hits through the JIT
 //! code; `host.rs` answers the shaders' calls into the renderer (spaces, `trace`, textures,
 //! messages); `lights.rs` runs light shaders over a batch and traces their shadows; `stats.rs`
-//! counts; `differential.rs` carries ray differentials; `native.rs` is the hand-written baseline.
+//! counts; `volume.rs` runs atmosphere and interior shaders on ray segments; `differential.rs` carries ray differentials; `native.rs` is the hand-written baseline.
 
 pub mod differential;
 pub mod frame;
@@ -12,6 +12,7 @@ pub mod native;
 pub mod primary;
 pub mod shade;
 mod stats;
+mod volume;
 pub mod world;
 
 pub use frame::{

@@ -178,6 +178,8 @@ fn shade_hits(frame: &Frame, rays: &[Ray], diffs: &[RayDifferential], hits: &[Hi
             shade_group(frame, &current[start..end], depth, &mut results[start..end]);
             start = end;
         }
+        // The atmosphere or interior between each ray's origin and its hit (`volume.rs`).
+        super::volume::shade_segments(frame, &current, &mut results, depth);
         Stats::add(&frame.stats.shaded_points, current.len());
         layer += 1;
         let mut next = Vec::new();

@@ -19,6 +19,9 @@ pub struct Material {
     /// Shadow rays run the surface shader at hits on this material to find their opacity (PRMan's
     /// `Attribute "shade" "transmissionhitmode" "shader"`); otherwise `opacity` is used.
     pub shadow_by_shader: bool,
+    /// The volume shader of the object's inside (RIB `Interior`): it runs on ray segments that
+    /// reach this material's surface from behind (`render/volume.rs`).
+    pub interior: Option<Arc<ShaderInstance>>,
     /// An id the pixel shader and adaptive sampling may read (`objectid`).
     pub object_id: u32,
     /// Shade with hand-written Rust instead of `surface` (benchmarks of the JIT's cost only).
@@ -34,6 +37,7 @@ impl Material {
         color: [1.0; 3],
         opacity: [1.0; 3],
         shadow_by_shader: false,
+        interior: None,
         object_id: 0,
         native: None,
     };
@@ -264,6 +268,9 @@ pub struct World {
     pub lights: Vec<LightSource>,
     /// The pixel shader (RenderMan's imager), run on every finished tile.
     pub pixel: Option<Arc<ShaderInstance>>,
+    /// The atmosphere volume shader, run on every ray segment that ends on a surface outside any
+    /// object with an interior shader (`render/volume.rs`).
+    pub atmosphere: Option<Arc<ShaderInstance>>,
     pub camera: CameraSetup,
     /// The camera shader that generates primary rays; `None` is the built-in pinhole camera.
     pub camera_shader: Option<Arc<ShaderInstance>>,
@@ -286,6 +293,7 @@ impl World {
             instances: Vec::new(),
             lights: Vec::new(),
             pixel: None,
+            atmosphere: None,
             camera: CameraSetup::default(),
             camera_shader: None,
             options: RenderOptions::default(),
@@ -358,8 +366,10 @@ impl World {
             .iter()
             .filter_map(|m| m.surface.as_ref())
             .chain(self.lights.iter().map(|l| &l.shader))
+            .chain(self.materials.iter().filter_map(|m| m.interior.as_ref()))
             .chain(self.pixel.iter())
             .chain(self.camera_shader.iter())
+            .chain(self.atmosphere.iter())
             .map(|i| &i.program);
         for p in programs {
             let ptr = Arc::as_ptr(p);

@@ -15,6 +15,7 @@ use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex, OnceLock, PoisonError, RwLock};
 
 use super::environment::latlong_footprint;
+use super::grid::Grid;
 use super::image::{load_texture_image, TexImage};
 use super::mip::MipMap;
 use super::shadow::ShadowMap;
@@ -68,6 +69,8 @@ pub struct TextureCache {
     /// Colour textures, indexed by [`LookupOptions::raw`]: one file may be used both ways.
     textures: [Slots<MipMap>; 2],
     shadows: Slots<ShadowMap>,
+    /// 3-D grids for `texture3d` (`docs/volumes.md`).
+    grids: Slots<Grid>,
     warnings: Mutex<Vec<TextureWarning>>,
 }
 
@@ -114,6 +117,11 @@ impl TextureCache {
         slot(&self.shadows, name).get_or_init(|| self.load(name, ShadowMap::load)).clone()
     }
 
+    /// The 3-D grid called `name`, loading it on first use; `None` when it cannot be loaded.
+    pub fn get_grid(&self, name: &str) -> Option<Arc<Grid>> {
+        slot(&self.grids, name).get_or_init(|| self.load(name, Grid::load)).clone()
+    }
+
     /// Makes `name` stand for an image built in memory (the API's `tex_image_2d`), for both raw
     /// and decoded lookups, replacing whatever it stood for.
     pub fn insert_texture(&self, name: &str, image: TexImage, wrap: [Wrap; 2]) {
@@ -131,6 +139,7 @@ impl TextureCache {
             slots.write().unwrap_or_else(PoisonError::into_inner).clear();
         }
         self.shadows.write().unwrap_or_else(PoisonError::into_inner).clear();
+        self.grids.write().unwrap_or_else(PoisonError::into_inner).clear();
     }
 
     /// The warnings since the last call, oldest first: one per name that failed to load.

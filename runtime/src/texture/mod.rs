@@ -1,4 +1,5 @@
-//! Textures for the shading language's `texture()`, `environment()` and `shadow()`.
+//! Textures for the shading language's `texture()`, `environment()` and `shadow()`, and the 3-D
+//! grids of `texture3d()` (`grid.rs`, `docs/volumes.md`).
 //!
 //! `docs/textures.md` is the user-facing description; the conventions every part keeps are:
 //!
@@ -24,6 +25,8 @@
 
 mod cache;
 mod environment;
+pub mod grid;
+pub mod grid_data;
 mod image;
 mod make;
 mod mip;
@@ -31,6 +34,7 @@ mod shadow;
 
 pub use cache::{TextureCache, TextureInfo, TextureQuery, TextureWarning};
 pub use environment::{direction_to_latlong, latlong_to_direction};
+pub use grid::{Grid, GridError, GridType};
 pub use image::{load_texture_image, LoadedImage, TexImage};
 pub use make::{make_texture, MakeTextureOptions};
 pub use mip::{MipMap, MAX_ANISOTROPY};

@@ -102,7 +102,8 @@ pub struct HostTable {
     /// Texture lookups: `kind` 0 `texture` (`coords` seven rows of 4 lanes: s, t, then the filter
     /// footprint ds/dx, dt/dx, ds/dy, dt/dy (scaled by the lookup's width options) and blur, as
     /// `interp::TextureFootprint`; `first[l]` the first channel; `channels` values), 1 `environment`
-    /// (`coords` a direction; 3 values), 2 `shadow` (`coords` a point; 1 value). Results in
+    /// (`coords` a direction; 3 values), 2 `shadow` (`coords` a point; 1 value), 3 `texture3d`'s
+    /// grid lookup (`coords` a point in the grid's coordinates; 1 value). Results in
     /// `out[4c + l]`; `ok[l]` 0 where the map cannot be read.
     pub texture: unsafe extern "C" fn(
         ctx: *mut c_void,
@@ -256,6 +257,7 @@ unsafe extern "C" fn sv_texture(
                     h.host.texture_filtered(name, c[0], c[1], &fp, f.max(0.0) as usize, channels as usize)
                 }
                 1 => h.host.environment(name, c).map(|v| v.to_vec()),
+                3 => h.host.texture3d(name, c).map(|v| vec![v]),
                 _ => Some(vec![h.host.shadow(name, c)]),
             };
             *ok.add(l) = u32::from(got.is_some());
@@ -754,6 +756,17 @@ host_helpers! {
             let fill = cx.f(4, l);
             for j in 0..3 {
                 cx.set(j, l, if ok[l] != 0 { vals[4 * j + l] } else { fill });
+            }
+        }
+    }
+    // [name, p, fill] -> 3: texture3d's grid lookup, one value splatted
+    h_texture3d "rtsl_h_texture3d" 5 => 3 |cx| {
+        let name = cx.s(0);
+        let (vals, ok) = texture_call(cx, 3, &name, 1);
+        for l in cx.active() {
+            let x = if ok[l] != 0 { vals[l] } else { cx.f(4, l) };
+            for j in 0..3 {
+                cx.set(j, l, x);
             }
         }
     }

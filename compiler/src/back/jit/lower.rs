@@ -2084,6 +2084,7 @@ impl<'m> Lower<'m, '_> {
             | Bi::Texture
             | Bi::Environment
             | Bi::Shadow
+            | Bi::Texture3d
             | Bi::Trace
             | Bi::Transmission
             | Bi::Visibility
@@ -2437,6 +2438,25 @@ impl<'m> Lower<'m, '_> {
                         Val { vary: true, c: vec![r.c[0]; n] }
                     }
                 }
+            }
+            Bi::Texture3d => {
+                // PRMan's point-cloud form (with a normal) stays unsupported.
+                if fixed != 2 {
+                    return unsupported("texture3d's point-cloud form");
+                }
+                if vals[0].vary {
+                    return unsupported("varying texture names");
+                }
+                let fill = match param_arg(f, args, fixed, "fill")? {
+                    Some(a) => {
+                        let i = args.iter().position(|x| std::ptr::eq(x, a)).unwrap_or(0);
+                        vals[i].clone()
+                    }
+                    None => Val { vary: false, c: vec![self.fconst(0.0, false)] },
+                };
+                let n = if e.ty.base == BaseType::Float { 1 } else { 3 };
+                let r = helper(self, "rtsl_h_texture3d", &[v(0), v(1), fill], true)?;
+                Val { vary: true, c: r.c[..n].to_vec() }
             }
             Bi::Trace => {
                 let r = helper(self, "rtsl_h_trace", &[v(0), v(1)], true)?;

@@ -254,7 +254,10 @@ impl Checker<'_> {
             }
             None => {
                 let b = builtin.expect("built-in candidate");
-                if b.flags() & flags::UNSUPPORTED != 0 {
+                // `texture3d` with a normal is PRMan's point-cloud lookup, which rtsl lacks; its
+                // grid form (no normal) is supported.
+                let point_cloud = b == Builtin::Texture3d && fixed == 3;
+                if b.flags() & flags::UNSUPPORTED != 0 || point_cloud {
                     self.diags.push(
                         Diagnostic::new(
                             Code::Unsupported,
