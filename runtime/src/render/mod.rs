@@ -2,13 +2,15 @@
 //! frame. `frame.rs` generates primary packets over tiles; `shade.rs` shades hits through the JIT
 //! code; `host.rs` answers the shaders' calls into the renderer (spaces, `trace`, textures,
 //! messages); `lights.rs` runs light shaders over a batch and traces their shadows; `stats.rs`
-//! counts; `differential.rs` carries ray differentials; `native.rs` is the hand-written baseline.
+//! counts; `differential.rs` carries ray differentials; `native.rs` is the hand-written baseline;
+//! `progressive.rs` renders chosen pixels pass by pass into an accumulator (interactive viewers).
 
 pub mod differential;
 pub mod frame;
 mod host;
 mod lights;
 pub mod native;
+pub mod progressive;
 pub mod shade;
 mod stats;
 pub mod world;
