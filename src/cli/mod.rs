@@ -6,6 +6,7 @@ mod compile;
 mod info;
 mod render;
 mod shade;
+mod view;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -30,6 +31,9 @@ enum Command {
     Info(info::InfoArgs),
     /// Play a BART animated scene (an AFF file) at its own timing: write the frames, print per-frame times.
     Bart(bart::BartArgs),
+    /// Open a window showing the scene, rendered continuously: orbit, fly, pick and move objects;
+    /// progressive or frameless rendering; shaders reload as they are edited.
+    View(view::ViewArgs),
     /// Benchmarks.
     #[command(subcommand)]
     Bench(BenchCommand),
@@ -62,6 +66,7 @@ pub fn run() -> anyhow::Result<ExitCode> {
         Command::Compile(args) => compile::run(&args),
         Command::Info(args) => info::run(&args),
         Command::Bart(args) => bart::run(&args),
+        Command::View(args) => view::run(&args),
         Command::Bench(BenchCommand::Frontend(args)) => compile::bench_frontend(&args),
         Command::Bench(BenchCommand::Trace(args)) => bench::run_trace(&args).map(|()| ExitCode::SUCCESS),
         Command::Bench(BenchCommand::Render(args)) => bench::run_render(&args).map(|()| ExitCode::SUCCESS),
