@@ -919,6 +919,29 @@ impl Context {
         Ok(())
     }
 
+    /// Where an instance is (its world-from-object transform).
+    pub fn instance_transform(&self, id: InstanceId) -> Result<Affine3A, ApiError> {
+        self.instances
+            .get(id.0 as usize)
+            .filter(|i| !i.deleted)
+            .map(|i| i.transform)
+            .ok_or(ApiError::UnknownInstance(id.0))
+    }
+
+    /// The instances a world built now holds, in its order: `World::instances[k]` and a hit's
+    /// `instance == k` are `world_instance_ids()[k]` (for picking).
+    pub fn world_instance_ids(&self) -> Vec<InstanceId> {
+        self.instances
+            .iter()
+            .enumerate()
+            .filter(|(_, inst)| {
+                let rec = &self.objects[inst.object.0 as usize];
+                !inst.deleted && !rec.deleted && rec.mesh.is_some() && (rec.scene_object.is_some() || rec.dirty)
+            })
+            .map(|(i, _)| InstanceId(i as u32))
+            .collect()
+    }
+
     pub fn delete_instance(&mut self, id: InstanceId) -> Result<(), ApiError> {
         let rec =
             self.instances.get_mut(id.0 as usize).filter(|i| !i.deleted).ok_or(ApiError::UnknownInstance(id.0))?;

@@ -7,6 +7,7 @@ mod info;
 mod lightfield;
 mod render;
 mod shade;
+mod view;
 mod volume;
 
 use clap::{Parser, Subcommand};
@@ -38,6 +39,9 @@ enum Command {
     /// Volume data sets for the `volumegrid` shader.
     #[command(subcommand)]
     Volume(VolumeCommand),
+    /// Open a window showing the scene, rendered continuously: orbit, fly, pick and move objects;
+    /// progressive or frameless rendering; shaders reload as they are edited.
+    View(view::ViewArgs),
     /// Benchmarks.
     #[command(subcommand)]
     Bench(BenchCommand),
@@ -86,6 +90,7 @@ pub fn run() -> anyhow::Result<ExitCode> {
         Command::Bart(args) => bart::run(&args),
         Command::Lightfield(LightfieldCommand::Capture(args)) => lightfield::run_capture(&args),
         Command::Volume(VolumeCommand::Generate(args)) => volume::generate_cmd(&args),
+        Command::View(args) => view::run(&args),
         Command::Bench(BenchCommand::Frontend(args)) => compile::bench_frontend(&args),
         Command::Bench(BenchCommand::Trace(args)) => bench::run_trace(&args).map(|()| ExitCode::SUCCESS),
         Command::Bench(BenchCommand::Render(args)) => bench::run_render(&args).map(|()| ExitCode::SUCCESS),

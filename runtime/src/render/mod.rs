@@ -2,7 +2,9 @@
 //! frame. `frame.rs` generates primary packets over tiles; `shade.rs` shades hits through the JIT
 //! code; `host.rs` answers the shaders' calls into the renderer (spaces, `trace`, textures,
 //! messages); `lights.rs` runs light shaders over a batch and traces their shadows; `stats.rs`
-//! counts; `volume.rs` runs atmosphere and interior shaders on ray segments; `differential.rs` carries ray differentials; `native.rs` is the hand-written baseline.
+//! counts; `volume.rs` runs atmosphere and interior shaders on ray segments; `differential.rs` carries ray differentials; `native.rs` is the hand-written baseline;
+//! `progressive.rs` renders chosen pixels pass by pass into an accumulator (interactive viewers);
+//! `primary.rs` makes primary rays (the built-in camera or the camera shader).
 
 pub mod differential;
 pub mod frame;
@@ -10,6 +12,7 @@ mod host;
 mod lights;
 pub mod native;
 pub mod primary;
+pub mod progressive;
 pub mod shade;
 mod stats;
 mod volume;

@@ -1,0 +1,205 @@
+//! `rtsl view` in a real window under Xvfb: scripted input (`--events`) drives an orbit drag, an
+//! object drag and keys, and `--screenshot` saves what the window shows, which is checked. Without
+//! Xvfb on the machine the tests say so and skip (CI installs it: `.ci/run`).
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+/// An X server of our own, stopped when dropped.
+struct Xvfb {
+    child: Child,
+    display: String,
+}
+
+impl Drop for Xvfb {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// Starts `Xvfb` on a free display (it picks one and tells us through `-displayfd`), or says why
+/// not and returns `None`.
+fn xvfb() -> Option<Xvfb> {
+    let spawned = Command::new("Xvfb")
+        .args(["-displayfd", "1", "-screen", "0", "320x240x24", "-nolisten", "tcp"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn();
+    let mut child = match spawned {
+        Ok(c) => c,
+        Err(e) => {
+            eprintln!(
+                "SKIPPED: Xvfb is not installed ({e}); install it (`apt-get install xvfb`) to run the viewer tests"
+            );
+            return None;
+        }
+    };
+    let mut line = String::new();
+    let read = child.stdout.take().map(|out| BufReader::new(out).read_line(&mut line));
+    let number = line.trim();
+    if !matches!(read, Some(Ok(n)) if n > 0) || number.parse::<u32>().is_err() {
+        let _ = child.kill();
+        let _ = child.wait();
+        eprintln!("SKIPPED: Xvfb did not start (it printed {line:?})");
+        return None;
+    }
+    Some(Xvfb { display: format!(":{number}"), child })
+}
+
+/// Runs `rtsl view ARGS` on `display`, killed after two minutes.
+fn view(display: &str, dir: &Path, args: &[&str]) -> Output {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_rtsl"))
+        .arg("view")
+        .args(args)
+        .current_dir(dir)
+        .env("DISPLAY", display)
+        .env_remove("WAYLAND_DISPLAY")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("the binary starts");
+    let deadline = Instant::now() + Duration::from_secs(120);
+    loop {
+        match child.try_wait().expect("waiting for the viewer") {
+            Some(_) => break,
+            None if Instant::now() > deadline => {
+                let _ = child.kill();
+                break;
+            }
+            None => std::thread::sleep(Duration::from_millis(50)),
+        }
+    }
+    child.wait_with_output().expect("the viewer's output")
+}
+
+struct Shot {
+    width: usize,
+    height: usize,
+    rgba: Vec<f32>,
+}
+
+impl Shot {
+    fn mean(&self) -> [f32; 3] {
+        let n = (self.width * self.height) as f32;
+        let mut m = [0.0; 3];
+        for p in self.rgba.chunks_exact(4) {
+            for c in 0..3 {
+                m[c] += p[c] / n;
+            }
+        }
+        m
+    }
+
+    fn luminance_spread(&self) -> f32 {
+        let l: Vec<f32> = self.rgba.chunks_exact(4).map(|p| (p[0] + p[1] + p[2]) / 3.0).collect();
+        let mean = l.iter().sum::<f32>() / l.len() as f32;
+        (l.iter().map(|v| (v - mean).powi(2)).sum::<f32>() / l.len() as f32).sqrt()
+    }
+
+    fn mean_difference(&self, other: &Shot) -> f32 {
+        self.rgba.iter().zip(&other.rgba).map(|(a, b)| (a - b).abs()).sum::<f32>() / self.rgba.len() as f32
+    }
+
+    /// Mean absolute difference over a band of rows.
+    fn rows_difference(&self, other: &Shot, rows: std::ops::Range<usize>) -> f32 {
+        let (a, b) = (4 * rows.start * self.width, 4 * rows.end * self.width);
+        self.rgba[a..b].iter().zip(&other.rgba[a..b]).map(|(x, y)| (x - y).abs()).sum::<f32>() / (b - a) as f32
+    }
+
+    /// Pure white pixels (the overlay's text) in the top-left corner.
+    fn white_in_corner(&self) -> usize {
+        (0..24)
+            .flat_map(|y| (0..80).map(move |x| (x, y)))
+            .filter(|&(x, y)| {
+                let i = 4 * (y * self.width + x);
+                self.rgba[i..i + 3].iter().all(|v| *v >= 1.0)
+            })
+            .count()
+    }
+}
+
+/// Runs the viewer on the default scene at 96x72 with `extra` flags and returns its screenshot.
+fn screenshot(x: &Xvfb, dir: &Path, name: &str, extra: &[&str]) -> Shot {
+    let path: PathBuf = dir.join(name);
+    let mut args = vec!["--size", "96x72", "--threads", "2", "--frames", "2", "--no-watch", "--screenshot", name];
+    args.extend_from_slice(extra);
+    let o = view(&x.display, dir, &args);
+    let (out, err) = (String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
+    assert!(o.status.success(), "rtsl view {args:?} failed\nstdout: {out}\nstderr: {err}");
+    assert!(out.contains("still:") && out.contains("fps"), "the frame rates are printed: {out}");
+    let img = rtsl::runtime::read_image(&path).expect("the screenshot is a PNG");
+    Shot { width: img.width, height: img.height, rgba: img.pixels }
+}
+
+#[test]
+fn scripted_input_changes_what_the_window_shows() {
+    let Some(x) = xvfb() else { return };
+    let dir = tempfile::tempdir().expect("tempdir");
+    let still = screenshot(&x, dir.path(), "still.png", &["--no-overlay"]);
+    assert_eq!((still.width, still.height), (96, 72), "the window's size");
+    let m = still.mean();
+    assert!(still.luminance_spread() > 0.03, "the screenshot is not blank: mean {m:?}");
+    assert!(m.iter().all(|c| (0.02..0.9).contains(c)), "the default scene's colours: mean {m:?}");
+
+    // The same view twice gives the same picture: samples depend on pixel and pass only.
+    let again = screenshot(&x, dir.path(), "again.png", &["--no-overlay"]);
+    assert!(still.mean_difference(&again) < 1e-3, "two still renders differ by {}", still.mean_difference(&again));
+
+    // An orbit drag turns the scene; a key cycles anti-aliasing on the way.
+    let orbit = screenshot(&x, dir.path(), "orbit.png", &["--no-overlay", "--events", "drag:30,36,60,36;key:x"]);
+    assert_eq!((orbit.width, orbit.height), (96, 72));
+    assert!(orbit.luminance_spread() > 0.03, "the orbited view is not blank");
+    let d = still.mean_difference(&orbit);
+    assert!(d > 0.01, "an orbit drag changes the view (mean difference {d})");
+
+    // Dragging with shift moves the object under the cursor (the wooden block): the picture
+    // changes, but the camera stays where it was, so the wall at the top does not, unlike after
+    // an orbit.
+    let moved = screenshot(&x, dir.path(), "moved.png", &["--no-overlay", "--events", "shiftdrag:33,45,60,45"]);
+    let d = still.mean_difference(&moved);
+    assert!(d > 0.002, "moving an object changes the view (mean difference {d})");
+    let (wall_moved, wall_orbit) = (still.rows_difference(&moved, 0..10), still.rows_difference(&orbit, 0..10));
+    assert!(wall_moved < 0.01, "the wall stays when an object moves (difference {wall_moved})");
+    assert!(wall_orbit > 2.0 * wall_moved, "an orbit moves the wall ({wall_orbit})");
+
+    // C switches to the fisheye camera shader: its image circle leaves the corners black.
+    let fish = screenshot(&x, dir.path(), "fisheye.png", &["--no-overlay", "--events", "key:c"]);
+    let corner = |s: &Shot| s.rgba[..4].iter().take(3).sum::<f32>();
+    assert!(corner(&still) > 0.0 && corner(&fish) == 0.0, "the fisheye's corner is empty");
+    assert!(fish.luminance_spread() > 0.03, "the fisheye view is not blank");
+
+    // The overlay draws white text in the top-left corner.
+    let overlay = screenshot(&x, dir.path(), "overlay.png", &[]);
+    assert!(overlay.white_in_corner() > 20, "the overlay's text is visible");
+    assert_eq!(still.white_in_corner(), 0);
+}
+
+#[test]
+fn frameless_mode_converges_to_a_picture_too() {
+    let Some(x) = xvfb() else { return };
+    let dir = tempfile::tempdir().expect("tempdir");
+    let frameless = screenshot(&x, dir.path(), "frameless.png", &["--no-overlay", "--frameless"]);
+    let progressive = screenshot(&x, dir.path(), "progressive.png", &["--no-overlay"]);
+    let d = frameless.mean_difference(&progressive);
+    // Two sweeps take the same samples as two passes, in another order; frameless images are shown
+    // every 33 ms, not at sweep ends, so some pixels may already hold a third sample.
+    assert!(d < 0.01, "frameless and progressive images differ by {d}");
+    assert!(frameless.luminance_spread() > 0.03);
+}
+
+#[test]
+fn a_broken_scene_is_a_located_error_not_a_window() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    std::fs::write(dir.path().join("bad.rib"), "WorldBegin\nSurface \"plastic\nWorldEnd\n").expect("write");
+    // No display is needed to fail: the scene loads before the window opens.
+    let o = view(":99999", dir.path(), &["bad.rib", "--frames", "1"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert!(err.contains("bad.rib:2"), "the error names file and line: {err}");
+    let o = view(":99999", dir.path(), &["--events", "jump:1", "--frames", "1"]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("unknown step"));
+}
