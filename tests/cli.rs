@@ -372,3 +372,28 @@ fn volume_generate_reproduces_the_shipped_data_sets() {
     let bad = rtsl(&["volume", "generate", "--size", "1", "-o", "x.grid"], dir.path());
     assert!(!bad.status.success());
 }
+
+#[test]
+fn bench_instances_and_camera_report_their_numbers() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let o = rtsl(&["bench", "instances", "--counts", "10,200", "--repeats", "3"], dir.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    for n in [10, 200] {
+        let line =
+            out.lines().find(|l| l.starts_with(&format!("instances_{n}_top_level_ms: "))).expect("a line per count");
+        let ms: f64 = line.rsplit(' ').next().and_then(|v| v.parse().ok()).expect("a number");
+        assert!(ms.is_finite() && ms >= 0.0, "{line}");
+    }
+    let o = rtsl(&["bench", "camera", "--size", "32x24", "--frames", "1", "--cameras", "fisheye"], dir.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    assert!(out.contains("builtin_mrays: ") && out.contains("fisheye_mrays: "), "{out}");
+    // The fisheye makes no rays outside its image circle: fewer rays than the built-in camera.
+    let rays = |name: &str| -> u64 {
+        let line = out.lines().find(|l| l.starts_with(name)).expect("line");
+        line.split('(').nth(1).and_then(|r| r.split(' ').next()).and_then(|v| v.parse().ok()).expect("rays")
+    };
+    assert_eq!(rays("builtin_mrays"), 32 * 24);
+    assert!(rays("fisheye_mrays") < 32 * 24);
+}

@@ -279,24 +279,27 @@ pub fn run_camera(args: &BenchCameraArgs) -> anyhow::Result<()> {
         rt.options.height = h;
     }
     rt.options.samples = (1, 1);
-    let mut worlds = vec![("builtin".to_string(), {
-        rt.camera_shader(None, &[])?;
-        rt.build_world()?
-    })];
+    // One world; only its camera shader changes from run to run.
+    let mut cameras = vec![("builtin".to_string(), None)];
     for name in &args.cameras {
         let id = rt.find_shader(name)?;
         rt.camera_shader(Some(id), &[])?;
-        worlds.push((name.clone(), rt.build_world()?));
+        let world = rt.build_world()?;
+        cameras.push((name.clone(), world.camera_shader.clone()));
+        rt.return_scene(world);
     }
+    rt.camera_shader(None, &[])?;
+    let mut world = rt.build_world()?;
     let threads =
         if args.threads == 0 { std::thread::available_parallelism().map_or(1, |n| n.get()) } else { args.threads };
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().context("starting the worker threads")?;
-    let mut times = vec![Vec::new(); worlds.len()];
-    let mut rays = vec![0u64; worlds.len()];
+    let mut times = vec![Vec::new(); cameras.len()];
+    let mut rays = vec![0u64; cameras.len()];
     for frame in 0..=args.frames.max(1) {
-        for (k, (_, world)) in worlds.iter().enumerate() {
+        for (k, (_, camera)) in cameras.iter().enumerate() {
+            world.camera_shader = camera.clone();
             let start = std::time::Instant::now();
-            let (n, _) = pool.install(|| rtsl_runtime::render::trace_primary_rays(world));
+            let (n, _) = pool.install(|| rtsl_runtime::render::trace_primary_rays(&world));
             if frame > 0 {
                 times[k].push(start.elapsed().as_secs_f64());
                 rays[k] = n;
@@ -307,9 +310,55 @@ pub fn run_camera(args: &BenchCameraArgs) -> anyhow::Result<()> {
     println!("scene: {}", args.scene.as_ref().map_or("<default scene>".into(), |p| p.display().to_string()));
     println!("size: {w}x{h}, threads: {threads}, primary rays made and traced (not shaded)");
     let base = rays[0] as f64 / median(times[0].clone()).max(1e-12) / 1e6;
-    for (k, (name, _)) in worlds.iter().enumerate() {
+    for (k, (name, _)) in cameras.iter().enumerate() {
         let mrays = rays[k] as f64 / median(times[k].clone()).max(1e-12) / 1e6;
         println!("{name}_mrays: {mrays:.2} ({} rays, {:.3} of builtin)", rays[k], mrays / base.max(1e-12));
+    }
+    Ok(())
+}
+
+/// Flags of `rtsl bench instances`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct BenchInstancesArgs {
+    /// Instance counts to time.
+    #[arg(long, value_delimiter = ',', default_value = "1000,10000")]
+    pub counts: Vec<usize>,
+    /// Timed rebuilds per count; the median is reported.
+    #[arg(long, default_value_t = 21)]
+    pub repeats: usize,
+}
+
+/// Runs `rtsl bench instances`: the time to rebuild the top-level BVH (`Scene::commit`, what every
+/// frame of a dynamic scene pays) over N instances of one small object, each placed by its own
+/// rotation and translation on a jittered grid, for each N.
+pub fn run_instances(args: &BenchInstancesArgs) -> anyhow::Result<()> {
+    use rtsl_runtime::glam::{Affine3A, Quat, Vec3};
+    let corners: Vec<Vec3> =
+        (0..8).map(|k| Vec3::new((k & 1) as f32, (k >> 1 & 1) as f32, (k >> 2 & 1) as f32)).collect();
+    let faces: [[u32; 4]; 6] = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]];
+    let cube = rtsl_runtime::Mesh::from_polygons(corners, &faces)?;
+    for &n in &args.counts {
+        let mut scene = rtsl_runtime::Scene::new();
+        let object = scene.add_object(cube.clone());
+        let side = (n as f32).cbrt().ceil().max(1.0);
+        for i in 0..n {
+            // A deterministic scatter: a grid, jittered and turned by a hash of the index.
+            let h = (i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+            let r = |b: u32| ((h >> b) & 0xFFFF) as f32 / 65536.0;
+            let (x, y, z) =
+                ((i as f32) % side, ((i as f32) / side).floor() % side, ((i as f32) / (side * side)).floor());
+            let at = Vec3::new(x + r(0), y + r(16), z + r(32)) * 3.0;
+            let turn = Quat::from_axis_angle(Vec3::new(r(8), r(24), 1.0).normalize(), r(40) * std::f32::consts::TAU);
+            scene.add_instance(object, Affine3A::from_rotation_translation(turn, at))?;
+        }
+        scene.commit();
+        let mut times = Vec::new();
+        for _ in 0..args.repeats.max(1) {
+            let start = std::time::Instant::now();
+            scene.commit();
+            times.push(start.elapsed().as_secs_f64() * 1e3);
+        }
+        println!("instances_{n}_top_level_ms: {:.3}", median(times));
     }
     Ok(())
 }

@@ -77,6 +77,8 @@ enum BenchCommand {
     Reload(bench::BenchReloadArgs),
     /// Primary rays per second from camera shaders against the built-in pinhole camera.
     Camera(bench::BenchCameraArgs),
+    /// Top-level BVH rebuild time over 1,000 and 10,000 instances (what a dynamic frame pays).
+    Instances(bench::BenchInstancesArgs),
 }
 
 /// Runs the command line; the exit code says whether everything succeeded.
@@ -98,5 +100,6 @@ pub fn run() -> anyhow::Result<ExitCode> {
         Command::Bench(BenchCommand::Library(args)) => compile::bench_library(&args),
         Command::Bench(BenchCommand::Reload(args)) => bench::run_reload(&args).map(|()| ExitCode::SUCCESS),
         Command::Bench(BenchCommand::Camera(args)) => bench::run_camera(&args).map(|()| ExitCode::SUCCESS),
+        Command::Bench(BenchCommand::Instances(args)) => bench::run_instances(&args).map(|()| ExitCode::SUCCESS),
     }
 }
