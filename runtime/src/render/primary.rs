@@ -61,12 +61,39 @@ pub fn screen_position(world: &World, (x, y): (f32, f32)) -> (f32, f32) {
 
 /// The built-in pinhole camera's ray through a raster position.
 pub fn pinhole_ray(world: &World, raster: (f32, f32)) -> Ray {
-    let cam = &world.camera;
-    let tan = (cam.fov_degrees.to_radians() * 0.5).tan();
-    let (sx, sy) = screen_position(world, raster);
-    let m = &cam.world_from_camera;
-    let d = (m.matrix3.z_axis + m.matrix3.x_axis * (sx * tan) + m.matrix3.y_axis * (sy * tan)).normalize();
-    Ray::new(m.translation, d)
+    Pinhole::of(world).ray(raster)
+}
+
+/// The built-in pinhole camera, worked out once per packet: a ray's unnormalised direction is
+/// `forward + right * x + up * y` for raster position `(x, y)`.
+struct Pinhole {
+    eye: Vec3A,
+    forward: Vec3A,
+    right: Vec3A,
+    up: Vec3A,
+}
+
+impl Pinhole {
+    fn of(world: &World) -> Pinhole {
+        let cam = &world.camera;
+        let tan = (cam.fov_degrees.to_radians() * 0.5).tan();
+        let (w, h) = (world.options.width.max(1) as f32, world.options.height.max(1) as f32);
+        let (ax, ay) = if w >= h { (w / h, 1.0) } else { (1.0, h / w) };
+        let m = &cam.world_from_camera;
+        // screen_position: sx = (2x/w - 1) ax, sy = (1 - 2y/h) ay; the direction adds sx, sy times tan.
+        let (kx, ky) = (2.0 * ax * tan / w, -2.0 * ay * tan / h);
+        Pinhole {
+            eye: m.translation,
+            forward: m.matrix3.z_axis - m.matrix3.x_axis * (ax * tan) + m.matrix3.y_axis * (ay * tan),
+            right: m.matrix3.x_axis * kx,
+            up: m.matrix3.y_axis * ky,
+        }
+    }
+
+    #[inline]
+    fn ray(&self, (x, y): (f32, f32)) -> Ray {
+        Ray::new(self.eye, (self.forward + self.right * x + self.up * y).normalize())
+    }
 }
 
 /// The primary rays for `samples` (lane `i` from `samples[i]`, only lanes set in `active`).
@@ -74,8 +101,9 @@ pub fn primary_rays(frame: &Frame, samples: &[CameraSample; PACKET_SIZE], active
     let mut out = PrimaryRays::default();
     match &frame.world.camera_shader {
         None => {
+            let pinhole = Pinhole::of(frame.world);
             for (i, s) in samples.iter().enumerate().filter(|(i, _)| active >> i & 1 != 0) {
-                let mut ray = pinhole_ray(frame.world, s.raster);
+                let mut ray = pinhole.ray(s.raster);
                 ray.time = s.time;
                 out.packet.set(i, &ray);
                 out.diffs[i] = frame.pinhole_differential(ray.direction);
@@ -100,7 +128,8 @@ fn run_camera_shader(
     let eye = world.camera.eye();
     let mut origins = [Vec3A::ZERO; PACKET_SIZE];
     // What E and I hold on entry (and keep when the shader does not write them).
-    let mut dirs: [Vec3A; PACKET_SIZE] = std::array::from_fn(|i| pinhole_ray(world, samples[i].raster).direction);
+    let pinhole = Pinhole::of(world);
+    let mut dirs: [Vec3A; PACKET_SIZE] = std::array::from_fn(|i| pinhole.ray(samples[i].raster).direction);
     let mut valid = 0u64;
     {
         let _timer = super::stats::ShadingTimer::start(&frame.stats);
