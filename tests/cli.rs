@@ -397,3 +397,24 @@ fn bench_instances_and_camera_report_their_numbers() {
     assert_eq!(rays("builtin_mrays"), 32 * 24);
     assert!(rays("fisheye_mrays") < 32 * 24);
 }
+
+#[test]
+fn bad_camera_and_lightfield_flags_are_clear_errors() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let o = rtsl(&["render", "--camera", "nosuchcamera", "-o", "x.png", "--size", "8x8"], dir.path());
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("nosuchcamera"), "{}", stderr(&o));
+    let o = rtsl(&["render", "--camera", "plastic", "-o", "x.png", "--size", "8x8"], dir.path());
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("camera"), "a surface shader is not a camera: {}", stderr(&o));
+    for args in [&["--views", "1"][..], &["--view-size", "0"], &["--distance=-2"], &["--half-size", "0"]] {
+        let mut all = vec!["lightfield", "capture", "-o", "lf.png"];
+        all.extend_from_slice(args);
+        let o = rtsl(&all, dir.path());
+        assert!(!o.status.success(), "{args:?} is refused");
+        let flag = args[0].split('=').next().unwrap_or(args[0]);
+        assert!(stderr(&o).contains(flag), "{args:?}: {}", stderr(&o));
+        assert!(!stderr(&o).contains("panicked"));
+    }
+    assert!(!dir.path().join("lf.png").exists());
+}

@@ -140,7 +140,7 @@ fn lens_sample(x0: u32, y0: u32, k: u32) -> (f32, f32) {
 }
 
 /// The radical inverse of `i` in `base` (van der Corput), for Halton points.
-fn radical_inverse(mut i: u32, base: u32) -> f32 {
+pub(super) fn radical_inverse(mut i: u32, base: u32) -> f32 {
     let (mut inv, mut f) = (0.0f64, 1.0f64 / f64::from(base));
     while i > 0 {
         inv += f64::from(i % base) * f;

@@ -25,7 +25,7 @@
 //! Invariant: as in [`super::render_frame`], a sample depends only on the world, the pixel and the
 //! pass number, never on threads or timing, so a given sequence of passes gives the same image.
 
-use super::frame::Framebuffer;
+use super::frame::{radical_inverse, Framebuffer};
 use super::primary::{primary_rays, CameraSample};
 use super::shade::{shade_packet, shade_pixels, Frame, Sample, TilePixels};
 use super::world::{Antialiasing, World};
@@ -95,17 +95,6 @@ pub fn frameless_order(width: u32, height: u32) -> Vec<PixelLattice> {
         }
     }
     out
-}
-
-/// The radical inverse of `i` in `base` (van der Corput), for Halton points.
-fn radical_inverse(mut i: u32, base: u32) -> f32 {
-    let (mut inv, mut f) = (0.0f64, 1.0f64 / f64::from(base));
-    while i > 0 {
-        inv += f64::from(i % base) * f;
-        i /= base;
-        f /= f64::from(base);
-    }
-    inv as f32
 }
 
 /// A 64-bit finaliser (splitmix64), to hash pixel and pass into jitter.
