@@ -927,12 +927,42 @@ fn derivatives_agree_with_the_interpreter() {
 }
 
 #[test]
+fn difference_rule_derivatives_agree_with_the_interpreter() {
+    // noise, the space transforms and the other built-ins differentiated by a central difference
+    // (`ir::deriv::has_difference_rule`), as bump mapping uses them.
+    check(
+        r#"
+        surface t(float amp = 0.2; output varying normal nb = 0; output varying float o = 0;
+                  output varying vector ov = 0;)
+        {
+            point pp = 4 * transform("object", P);
+            float h = (float noise(pp) - .5) + .5 * (float pnoise(2 * pp, point(8, 8, 8)) - .5);
+            vector n3 = vector noise(pp * 0.5);
+            nb = calculatenormal(P + amp * h * normalize(N));
+            o = Du(smoothstep(0.2, 0.8, u)) + Dv(distance(P, point(1, 2, 3)))
+                + Du(spline(u, 0, 0.3, 0.9, 1)) + Dv(radians(degrees(v)))
+                + Du(pow(u + 1, 2.5)) + Dv(log(v + 2)) + Du(tan(u)) + Dv(asin(v * 0.5))
+                + Du(acos(u * 0.5)) + Dv(atan(v, u + 1)) + Du(inversesqrt(u + 1));
+            ov = Du(vtransform("object", n3)) + Dv(reflect(normalize(I), normalize(N)))
+                + Du(rotate(P, u, point(0, 0, 0), point(0, 1, 0)));
+            Ci = color(o, 0, 1);
+        }
+        "#,
+    );
+}
+
+#[test]
 fn derivatives_of_an_analytic_surface() {
     // P = (u, v, uv) built from u and v: Du(P) = (1, 0, v), Dv(P) = (0, 1, u),
     // calculatenormal(P) = (-v, -u, 1) (Ng agrees with dPdu ^ dPdv), area = du dv |(-v, -u, 1)|.
+    // Through built-ins with a difference rule: Du(smoothstep(-1, 2, u)) = 2 w (1 - w) with
+    // w = (u + 1) / 3, up to the central difference's error; a noise bump turns the normal.
     let m = module(
-        "surface t(output varying vector pu = 0, pv = 0; output varying normal n = 0; output varying float ar = 0;)
-         { point q = point(u, v, u * v); pu = Du(q); pv = Dv(q); n = calculatenormal(q); ar = area(q); }",
+        "surface t(output varying vector pu = 0, pv = 0; output varying normal n = 0; output varying float ar = 0;
+                   output varying float sm = 0; output varying normal bn = 0;)
+         { point q = point(u, v, u * v); pu = Du(q); pv = Dv(q); n = calculatenormal(q); ar = area(q);
+           sm = Du(smoothstep(-1, 2, u));
+           bn = calculatenormal(q + normal(0, 0, 1) * 0.2 * float noise(q * 4)); }",
     );
     let shader = jit::compile(&m).expect("compiles");
     let mut batch = shader.batch(5);
@@ -957,7 +987,18 @@ fn derivatives_of_an_analytic_surface() {
         assert!(near(&batch.param("n", l).unwrap(), &[-v, -u, 1.0]), "lane {l}: {:?}", batch.param("n", l));
         let want = 0.01 * 0.02 * (v * v + u * u + 1.0f32).sqrt();
         assert!(near(&batch.param("ar", l).unwrap(), &[want]), "lane {l}: {:?}", batch.param("ar", l));
+        let sm = batch.param("sm", l).unwrap()[0];
+        let w = (u + 1.0) / 3.0;
+        assert!((sm - 2.0 * w * (1.0 - w)).abs() < 0.01, "lane {l}: Du(smoothstep) {sm}");
     }
+    let bumped = (0..5)
+        .filter(|&l| {
+            let (u, v) = (0.1 * l as f32, 0.9 - 0.1 * l as f32);
+            let bn = batch.param("bn", l).unwrap();
+            bn.iter().zip([-v, -u, 1.0]).any(|(a, b)| (a - b).abs() > 1e-2)
+        })
+        .count();
+    assert!(bumped >= 4, "the noise bump turned the normal on only {bumped} of 5 lanes");
     // Without derivatives (a fresh batch), every derivative is 0.
     let mut batch = shader.batch(4);
     shader.shade(&mut batch);

@@ -10,8 +10,9 @@
  * direction of that normal, plus "plastic"-like highlights.  The bump
  * height is given in shader-space units.
  *
- * calculatenormal() needs derivatives of P: until the JIT compiles
- * derivatives this shader runs only in the interpreter.
+ * calculatenormal() differentiates Pb with respect to the screen: the
+ * renderer's ray differentials, carried through noise() by a central
+ * difference over the pixel's footprint (docs/packet-abi.md).
  *
  * Parameters:
  *   Ks            -- scale applied to the specular highlight (1).

@@ -83,8 +83,36 @@ impl Machine<'_> {
         let sig = &builtins::signatures(b)[overload as usize];
         let fixed = if sig.repeat_last { vals.len() } else { sig.params.len().min(vals.len()) };
         let mut writes: Vec<(usize, Value)> = Vec::new();
+        let result = self.eval_builtin(b, &vals, &tx, &ty_, fixed, ty, &mut writes)?;
+        for (i, value) in writes {
+            if let Some(Arg::Ref(p)) = args.get(i) {
+                self.write_place(f, frame, p, value)?;
+            }
+        }
+        // (Callers that need no derivative drop them.)
+        let (dx, dy) = if crate::ir::deriv::has_difference_rule(b) {
+            self.difference_tangents(b, &vals, &tx, &ty_, fixed, ty, &result)
+        } else {
+            Self::builtin_tangents(b, &vals, &tx, &ty_, &result)
+        };
+        Ok((result, dx, dy))
+    }
+
+    /// A built-in's result from its evaluated arguments (with their tangents, for the built-ins
+    /// that filter by them); the values it writes to output arguments go to `writes`.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn eval_builtin(
+        &mut self,
+        b: Builtin,
+        vals: &[Value],
+        tx: &[Value],
+        ty_: &[Value],
+        fixed: usize,
+        ty: Type,
+        writes: &mut Vec<(usize, Value)>,
+    ) -> R<Value> {
         let v = |i: usize| vals.get(i).cloned().unwrap_or(Value::Void);
-        let result = match b {
+        Ok(match b {
             Builtin::Abs => map1(&v(0), f32::abs),
             Builtin::Sign => map1(&v(0), |x| {
                 if x > 0.0 {
@@ -124,10 +152,10 @@ impl Machine<'_> {
                 let edge = v(0).f();
                 let x = v(1).f();
                 let width =
-                    if fixed == 3 { Some((v(2).f() - x).abs()) } else { param(&vals, fixed, "width").map(Value::f) };
+                    if fixed == 3 { Some((v(2).f() - x).abs()) } else { param(vals, fixed, "width").map(Value::f) };
                 match width {
                     Some(w) => Value::Float(geom::filterstep(edge, x, w)),
-                    None => self.deriv_builtin(b, &vals, &tx, &ty_),
+                    None => self.deriv_builtin(b, vals, tx, ty_),
                 }
             }
             Builtin::Spline => {
@@ -263,7 +291,7 @@ impl Machine<'_> {
                 }
             }
             Builtin::Du | Builtin::Dv | Builtin::Deriv | Builtin::Area | Builtin::Calculatenormal => {
-                self.deriv_builtin(b, &vals, &tx, &ty_)
+                self.deriv_builtin(b, vals, tx, ty_)
             }
             Builtin::Xcomp => Value::Float(v(0).v3()[0]),
             Builtin::Ycomp => Value::Float(v(0).v3()[1]),
@@ -428,12 +456,12 @@ impl Machine<'_> {
             }
             Builtin::Occlusion => {
                 let samples =
-                    if fixed == 3 { v(2).f() } else { param(&vals, fixed, "samples").map(Value::f).unwrap_or(16.0) };
+                    if fixed == 3 { v(2).f() } else { param(vals, fixed, "samples").map(Value::f).unwrap_or(16.0) };
                 Value::Float(self.host.occlusion(v(0).v3(), v(1).v3(), samples))
             }
             Builtin::Indirectdiffuse => {
                 let samples =
-                    if fixed == 3 { v(2).f() } else { param(&vals, fixed, "samples").map(Value::f).unwrap_or(16.0) };
+                    if fixed == 3 { v(2).f() } else { param(vals, fixed, "samples").map(Value::f).unwrap_or(16.0) };
                 Value::Triple(self.host.indirect_diffuse(v(0).v3(), v(1).v3(), samples))
             }
             Builtin::Raydepth => Value::Float(self.host.ray_depth()),
@@ -447,10 +475,10 @@ impl Machine<'_> {
                         (v(2).f() + v(4).f() + v(6).f() + v(8).f()) / 4.0,
                     ),
                 };
-                let first = param(&vals, fixed, "channel").map(|c| c.f().max(0.0) as usize).unwrap_or(0);
-                let fill = param(&vals, fixed, "fill").map(Value::f).unwrap_or(0.0);
+                let first = param(vals, fixed, "channel").map(|c| c.f().max(0.0) as usize).unwrap_or(0);
+                let fill = param(vals, fixed, "fill").map(Value::f).unwrap_or(0.0);
                 let n = if ty.base == BaseType::Float { 1 } else { 3 };
-                let fp = self.footprint(&vals, &tx, &ty_, fixed);
+                let fp = self.footprint(vals, tx, ty_, fixed);
                 let got = self.host.texture_filtered(v(0).s(), s, t, &fp, first, n).unwrap_or_else(|| vec![fill; n]);
                 if n == 1 {
                     Value::Float(got.first().copied().unwrap_or(fill))
@@ -463,7 +491,7 @@ impl Machine<'_> {
                 let c = self
                     .host
                     .environment(v(0).s(), dir)
-                    .unwrap_or([param(&vals, fixed, "fill").map(Value::f).unwrap_or(0.0); 3]);
+                    .unwrap_or([param(vals, fixed, "fill").map(Value::f).unwrap_or(0.0); 3]);
                 shaped(ty, c)
             }
             Builtin::Shadow => {
@@ -477,7 +505,7 @@ impl Machine<'_> {
             Builtin::Bump => return Err(InterpError::Unsupported("bump")),
             Builtin::Texture3d if fixed == 2 => {
                 // The grid form: one scalar, every component of a triple result alike.
-                let fill = param(&vals, fixed, "fill").map(Value::f).unwrap_or(0.0);
+                let fill = param(vals, fixed, "fill").map(Value::f).unwrap_or(0.0);
                 let x = self.host.texture3d(v(0).s(), v(1).v3()).unwrap_or(fill);
                 if ty.base == BaseType::Float {
                     Value::Float(x)
@@ -517,15 +545,7 @@ impl Machine<'_> {
                 }
                 _ => Value::Float(0.0),
             },
-        };
-        for (i, value) in writes {
-            if let Some(Arg::Ref(p)) = args.get(i) {
-                self.write_place(f, frame, p, value)?;
-            }
-        }
-        // (Callers that need no derivative drop them.)
-        let (dx, dy) = Self::builtin_tangents(b, &vals, &tx, &ty_, &result);
-        Ok((result, dx, dy))
+        })
     }
 
     /// A `texture` call's footprint: the derivatives of its coordinates (of the globals s and t

@@ -13,8 +13,9 @@
 //! with the components; a space cast transforms a point's or vector's tangent as a vector and a
 //! normal's as a normal (colour casts: zero); `?:` takes the chosen side's. Built-ins with rules:
 //! `xcomp ycomp zcomp comp` (of triples), `abs sqrt sin cos exp`, `min max clamp` (the chosen
-//! argument's), `mix`, `length normalize`. Every other built-in, and the outputs a built-in writes,
-//! have zero derivatives (noise included), as do the derivative built-ins' own results (no second
+//! argument's), `mix`, `length normalize`; `noise`, the space transforms and a few other smooth built-ins by a
+//! central difference (`ir::deriv::has_difference_rule`). Every other built-in, and the outputs a
+//! built-in writes, have zero derivatives, as do the derivative built-ins' own results (no second
 //! derivatives).
 
 use super::value::Value;
@@ -43,6 +44,27 @@ fn zero_dual(v: Value) -> Dual {
 
 fn numeric(v: &Value) -> bool {
     matches!(v, Value::Float(_) | Value::Triple(_))
+}
+
+fn is_zero(v: &Value) -> bool {
+    match v {
+        Value::Float(x) => *x == 0.0,
+        Value::Triple(x) => x.iter().all(|c| *c == 0.0),
+        Value::Array(items) => items.iter().all(is_zero),
+        _ => true,
+    }
+}
+
+/// `v + h * t` for floats and triples (arrays element by element); other values as they are.
+fn perturb(v: &Value, t: &Value, h: f32) -> Value {
+    match (v, t) {
+        (Value::Float(x), Value::Float(d)) => Value::Float(x + d * h),
+        (Value::Triple(x), Value::Triple(d)) => Value::Triple([0, 1, 2].map(|i| x[i] + d[i] * h)),
+        (Value::Array(xs), Value::Array(ds)) if xs.len() == ds.len() => {
+            Value::Array(xs.iter().zip(ds).map(|(x, d)| perturb(x, d, h)).collect())
+        }
+        _ => v.clone(),
+    }
 }
 
 fn map2(a: &Value, b: &Value, g: impl Fn(f32, f32) -> f32) -> Value {
@@ -248,6 +270,41 @@ impl Machine<'_> {
                 Value::Float(geom::filterstep(vals[0].f(), vals[1].f(), w))
             }
         }
+    }
+
+    /// The tangents of a built-in with a difference rule (`ir::deriv::has_difference_rule`):
+    /// `f(x + t/2) - f(x - t/2)` along each direction, evaluated only where a tangent is not zero.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn difference_tangents(
+        &mut self,
+        b: Builtin,
+        vals: &[Value],
+        tx: &[Value],
+        ty_: &[Value],
+        fixed: usize,
+        ty: crate::ir::Type,
+        r: &Value,
+    ) -> (Value, Value) {
+        let mut out = [zero_like(r), zero_like(r)];
+        for (dir, t) in [tx, ty_].into_iter().enumerate() {
+            if t.iter().all(is_zero) {
+                continue;
+            }
+            let mut ends = Vec::with_capacity(2);
+            for h in [0.5f32, -0.5] {
+                let moved: Vec<Value> = vals.iter().zip(t).map(|(v, t)| perturb(v, t, h)).collect();
+                let mut writes = Vec::new();
+                match self.eval_builtin(b, &moved, tx, ty_, fixed, ty, &mut writes) {
+                    Ok(v) => ends.push(v),
+                    Err(_) => return (zero_like(r), zero_like(r)),
+                }
+            }
+            if numeric(r) {
+                out[dir] = map2(&ends[0], &ends[1], |p, q| p - q);
+            }
+        }
+        let [dx, dy] = out;
+        (dx, dy)
     }
 
     /// The tangents of a built-in's result.

@@ -81,6 +81,38 @@ pub fn is_root_arg(b: Builtin, k: usize, n: usize) -> bool {
     }
 }
 
+/// Whether the back ends differentiate a built-in by a central difference: evaluated again with
+/// every argument moved half its tangent forwards and half backwards, the result's tangent is the
+/// difference of the two. For smooth built-ins without a closed-form rule and without side
+/// effects, chiefly `noise` and the space transforms that bump mapping feeds to `calculatenormal`
+/// (RenderMan's grids difference neighbouring points the same way). Piecewise-constant built-ins
+/// (`floor`, `step`, `cellnoise`, ...) keep zero derivatives.
+pub fn has_difference_rule(b: Builtin) -> bool {
+    matches!(
+        b,
+        Builtin::Noise
+            | Builtin::Pnoise
+            | Builtin::Transform
+            | Builtin::Vtransform
+            | Builtin::Ntransform
+            | Builtin::Smoothstep
+            | Builtin::Spline
+            | Builtin::Distance
+            | Builtin::Reflect
+            | Builtin::Rotate
+            | Builtin::Ptlined
+            | Builtin::Radians
+            | Builtin::Degrees
+            | Builtin::Pow
+            | Builtin::Log
+            | Builtin::Tan
+            | Builtin::Asin
+            | Builtin::Acos
+            | Builtin::Atan
+            | Builtin::InverseSqrt
+    )
+}
+
 /// Whether a built-in needs derivatives at all.
 pub fn is_deriv_builtin(b: Builtin) -> bool {
     matches!(

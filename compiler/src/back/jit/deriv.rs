@@ -459,6 +459,12 @@ impl<'m> Lower<'m, '_> {
             _ => self.builtin(bi, overload, args, e),
         };
         let duals = std::mem::replace(&mut self.arg_duals, saved);
+        let differenced = match &r {
+            Ok(v) if want && crate::ir::deriv::has_difference_rule(bi) => {
+                Some(self.difference_rule(bi, overload, args, e, &duals, v, depth))
+            }
+            _ => None,
+        };
         for k in keys {
             self.cache.remove(&k);
         }
@@ -466,8 +472,55 @@ impl<'m> Lower<'m, '_> {
         if !want {
             return Ok(Dual { v, d: None });
         }
-        let d = self.builtin_rule(bi, args, &duals, &v)?;
+        let d = match differenced {
+            Some(d) => d?,
+            None => self.builtin_rule(bi, args, &duals, &v)?,
+        };
         Ok(Dual { v, d })
+    }
+
+    /// The interpreter's `difference_tangents`: the built-in lowered again with its arguments
+    /// (left in `cache` by `builtin_dual`) moved by plus and minus half their tangents, per
+    /// direction. `None` (zero) when no argument has tangents.
+    #[allow(clippy::too_many_arguments)]
+    fn difference_rule(
+        &mut self,
+        bi: Builtin,
+        overload: u16,
+        args: &'m [Arg],
+        e: &ir::Expr,
+        duals: &[Option<Dual>],
+        r: &Val,
+        depth: usize,
+    ) -> R<Option<T2>> {
+        if !duals.iter().flatten().any(|d| d.d.is_some()) {
+            return Ok(None);
+        }
+        let mut out: T2 = [Vec::new(), Vec::new()];
+        for (dir, o) in out.iter_mut().enumerate() {
+            let mut ends = Vec::with_capacity(2);
+            for h in [0.5f32, -0.5] {
+                for (a, d) in args.iter().zip(duals) {
+                    let (Arg::Value(x), Some(d)) = (a, d) else { continue };
+                    let Some(t) = &d.d else { continue };
+                    let mut c = Vec::with_capacity(d.v.c.len());
+                    for (v, t) in d.v.c.iter().zip(&t[dir]) {
+                        let k = self.k(h);
+                        let step = self.mul(*t, k);
+                        c.push(self.add(*v, step));
+                    }
+                    self.cache.insert((depth, x.0), Val { vary: true, c });
+                }
+                ends.push(self.builtin(bi, overload, args, e)?);
+            }
+            *o = (0..r.c.len()).map(|i| self.sub(ends[0].c[i], ends[1].c[i])).collect();
+        }
+        for (a, d) in args.iter().zip(duals) {
+            if let (Arg::Value(x), Some(d)) = (a, d) {
+                self.cache.insert((depth, x.0), d.v.clone());
+            }
+        }
+        Ok(Some(out))
     }
 
     /// The screen derivatives of `u` and `v`: `[u_x, u_y, v_x, v_y]`.
