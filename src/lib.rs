@@ -6,3 +6,5 @@
 
 pub use rtsl_compiler as compiler;
 pub use rtsl_runtime as runtime;
+
+pub mod default_scene;

@@ -207,9 +207,45 @@ fn every_library_pixel_shader_matches_its_reference() {
 }
 
 #[test]
-fn the_default_scene_matches_its_reference() {
-    let rib = include_str!("../examples/scenes/default.rib");
-    check("default_scene", &render_rib("default", rib)).unwrap_or_else(|e| panic!("{e}"));
+fn the_library_scene_matches_its_reference() {
+    let rib = include_str!("../examples/scenes/library.rib");
+    check("library_scene", &render_rib("library", rib)).unwrap_or_else(|e| panic!("{e}"));
+}
+
+fn render_office(rt: &mut Context) -> Vec<f32> {
+    rt.options.width = W;
+    rt.options.height = H;
+    let world = rt.build_world().expect("the office builds");
+    let (fb, report) = render_frame(&world, None);
+    let warnings = world.textures.take_warnings();
+    assert!(warnings.is_empty(), "{warnings:?}");
+    // The frame's shading time is split by shader type and by shader.
+    use rtsl_compiler::front::parse::ast::ShaderKind;
+    for kind in [ShaderKind::Surface, ShaderKind::Light, ShaderKind::Lightfield] {
+        assert!(report.shader_time(kind) > std::time::Duration::ZERO, "no time in {kind:?} shaders");
+    }
+    for name in ["volumegrid", "twoplane", "bumpymirror", "wood", "marble", "spotlight"] {
+        assert!(report.by_shader.iter().any(|(n, _, t)| n == name && !t.is_zero()), "{name}: {:?}", report.by_shader);
+    }
+    let total: std::time::Duration = report.by_kind.iter().sum();
+    assert!(total <= report.shading + std::time::Duration::from_millis(1), "{total:?} > {:?}", report.shading);
+    fb.rgba
+}
+
+#[test]
+fn the_default_scene_is_the_office_and_matches_its_reference() {
+    // Every shader type in one frame: surfaces (wood, marble, the bump-mapped mirror), the volume
+    // data set, the light field, three lights and an ambient one.
+    let mut embedded = Context::new();
+    let loaded = rtsl::default_scene::load(&mut embedded).expect("the embedded office loads");
+    assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+    let rgba = render_office(&mut embedded);
+    check("office", &rgba).unwrap_or_else(|e| panic!("{e}"));
+    // The embedded copy is the scene and data of examples/office/.
+    let mut from_files = Context::new();
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/office/office.rib");
+    rtsl_runtime::rib::load::load_file(&mut from_files, &path).expect("office.rib loads");
+    assert_eq!(render_office(&mut from_files), rgba, "the files and the embedded copy differ");
 }
 
 #[test]
@@ -324,4 +360,23 @@ WorldEnd
         .filter_map(|(name, rib)| check(name, &render_rib(name, rib)).err())
         .collect();
     assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+#[test]
+fn the_lightfield_shader_matches_its_reference() {
+    // The office's light field (a cow captured from examples/office/lightfield_subject.rib) on its
+    // rectangle above a plastic floor, seen from off its axis: the floor shows where it is empty.
+    let atlas = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/office/data/spot_lightfield.png");
+    let light = "LightSource \"pointlight\" 1 \"intensity\" [25] \"from\" [2 4 -3]";
+    let rib = light_scene(light).replacen(
+        "WorldBegin",
+        &format!(
+            "WorldBegin\n  AttributeBegin Translate 0.5 0.95 -1.8 Rotate -20 0 1 0 Scale 0.9 0.9 0.9 \
+             Attribute \"shade\" \"transmissionhitmode\" \"shader\" Surface \"twoplane\" \"lightfield\" \"{}\" \"nviews\" [10] \"viewsize\" [40] \"distance\" [0.8] \
+             Polygon \"P\" [-1 -1 0  1 -1 0  1 1 0  -1 1 0] AttributeEnd",
+            atlas.display()
+        ),
+        1,
+    );
+    check("lightfield_twoplane", &render_rib("lightfield", &rib)).unwrap_or_else(|e| panic!("{e}"));
 }

@@ -120,6 +120,8 @@ pub enum ApiError {
     MatrixStackEmpty,
     #[error("texture {name}: {width}x{height} texels of {channels} channels need {} floats, {given} given", width * height * channels)]
     BadTexture { name: String, width: usize, height: usize, channels: usize, given: usize },
+    #[error("texture {name}: {message}")]
+    BadTextureFile { name: String, message: String },
 }
 
 fn kind_name(k: ShaderKind) -> &'static str {
@@ -234,6 +236,7 @@ pub struct Context {
     texture_search_path: Vec<PathBuf>,
     textures: Arc<TextureCache>,
     memory_textures: Vec<(String, TexImage)>,
+    memory_grids: Vec<(String, crate::texture::grid::Grid)>,
     warnings: Vec<String>,
     /// Hot-reload events not yet taken ([`Context::take_shader_events`]).
     events: Vec<ShaderEvent>,
@@ -292,6 +295,7 @@ impl Context {
             texture_search_path: Vec::new(),
             textures: Arc::new(TextureCache::new()),
             memory_textures: Vec::new(),
+            memory_grids: Vec::new(),
             warnings: Vec::new(),
             events: Vec::new(),
         }
@@ -315,6 +319,9 @@ impl Context {
             self.textures = Arc::new(TextureCache::with_search_paths(self.texture_search_path.clone()));
             for (name, image) in &self.memory_textures {
                 self.textures.insert_texture(name, image.clone(), [Wrap::Periodic; 2]);
+            }
+            for (name, grid) in &self.memory_grids {
+                self.textures.insert_grid(name, grid.clone());
             }
         }
     }
@@ -340,6 +347,29 @@ impl Context {
         self.textures.insert_texture(name, image.clone(), [Wrap::Periodic; 2]);
         self.memory_textures.retain(|(n, _)| n != name);
         self.memory_textures.push((name.to_string(), image));
+        Ok(())
+    }
+
+    /// Makes `name` a texture decoded from a texture file's bytes held in memory (PNG, JPEG, TGA
+    /// or PPM, 8-bit colour taken as sRGB like a file's): an application's embedded assets. Shaders
+    /// look it up by that name before any file of the same name; it repeats (periodic wrap).
+    pub fn texture_file_in_memory(&mut self, name: &str, bytes: &[u8]) -> Result<(), ApiError> {
+        let loaded = crate::texture::image::decode_texture_image(Path::new(name), bytes, false)
+            .map_err(|e| ApiError::BadTextureFile { name: name.to_string(), message: e.to_string() })?;
+        self.textures.insert_texture(name, loaded.image.clone(), [Wrap::Periodic; 2]);
+        self.memory_textures.retain(|(n, _)| n != name);
+        self.memory_textures.push((name.to_string(), loaded.image));
+        Ok(())
+    }
+
+    /// Makes `name` a 3-D grid for `texture3d` parsed from a grid file's bytes held in memory (the
+    /// RTSLGRID format of `docs/volumes.md`), looked up before any file of the same name.
+    pub fn grid_file_in_memory(&mut self, name: &str, bytes: &[u8]) -> Result<(), ApiError> {
+        let grid = crate::texture::grid::Grid::parse(bytes)
+            .map_err(|message| ApiError::BadTextureFile { name: name.to_string(), message })?;
+        self.textures.insert_grid(name, grid.clone());
+        self.memory_grids.retain(|(n, _)| n != name);
+        self.memory_grids.push((name.to_string(), grid));
         Ok(())
     }
 

@@ -164,6 +164,16 @@ pub(crate) fn decode_with_image_crate(path: &Path) -> Result<::image::DynamicIma
         .unwrap_or_else(|_| Err(ImageError::Decode { path: path.into(), message: "the decoder panicked".into() }))
 }
 
+/// Decodes an image file's bytes held in memory with the `image` crate (format from the content);
+/// `name` is what errors call it. Never panics on corrupt bytes.
+pub(crate) fn decode_memory_with_image_crate(name: &Path, bytes: &[u8]) -> Result<::image::DynamicImage, ImageError> {
+    let decode = || {
+        ::image::load_from_memory(bytes).map_err(|e| ImageError::Decode { path: name.into(), message: e.to_string() })
+    };
+    std::panic::catch_unwind(decode)
+        .unwrap_or_else(|_| Err(ImageError::Decode { path: name.into(), message: "the decoder panicked".into() }))
+}
+
 fn check_buffer(path: &Path, width: usize, height: usize, channels: usize, got: usize) -> Result<(), ImageError> {
     let expected = width * height * channels;
     if got != expected || width == 0 || height == 0 {

@@ -241,6 +241,15 @@ pub fn run_render(args: &BenchRenderArgs) -> anyhow::Result<()> {
         report.transparency_rays
     );
     println!("mrays_per_second: {:.2}", report.total_rays() as f64 / ms.max(1e-9) / 1e3);
+    println!("shading_share: {:.3}", report.shading_share());
+    for kind in rtsl_runtime::render::SHADER_KINDS {
+        let share = report.shader_share(kind);
+        if share > 0.0 {
+            println!("{}_shader_share: {share:.3}", kind.name());
+        }
+    }
+    // Per shader, the last frame's thread time: where the shading time goes.
+    print!("{}", report.shader_table());
     if args.native_plastic {
         let nms = median(native_ms);
         println!("native_plastic_frame_ms: {nms:.2} ({native_count} materials)");

@@ -52,9 +52,6 @@ pub struct RenderArgs {
     pub watch: bool,
 }
 
-/// The default scene, in RIB: the standard shaders on several objects, with shadows and reflections.
-pub const DEFAULT_SCENE: &str = include_str!("../../examples/scenes/default.rib");
-
 pub(crate) fn samples_grid(n: u32) -> (u32, u32) {
     let n = n.max(1);
     let side = (n as f64).sqrt().round() as u32;
@@ -165,7 +162,7 @@ pub(crate) fn load_scene(
     let mut output = None;
     match scene {
         None => {
-            let loaded = rtsl_runtime::rib::load::load_str(&mut rt, DEFAULT_SCENE, Path::new("<default scene>"))?;
+            let loaded = rtsl::default_scene::load(&mut rt)?;
             output = loaded.display;
         }
         Some(path) => {

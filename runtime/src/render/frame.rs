@@ -10,6 +10,7 @@ use super::world::{Antialiasing, World};
 use crate::camera::{packet_lane_offset, PACKET_SIDE};
 use crate::ray::{HitPacket, PACKET_SIZE};
 use crate::tiles::render_tiles;
+use rtsl_compiler::front::parse::ast::ShaderKind;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
@@ -57,6 +58,11 @@ pub struct FrameReport {
     pub light_evaluations: u64,
     /// Thread time spent shading (tracing excluded), summed over threads.
     pub shading: Duration,
+    /// Of that, the time in each type of shader (in [`super::SHADER_KINDS`] order; see
+    /// [`FrameReport::shader_time`]).
+    pub by_kind: [Duration; super::SHADER_KINDS.len()],
+    /// The same per shader: name, type and time, the longest first.
+    pub by_shader: Vec<(String, ShaderKind, Duration)>,
     /// Threads that rendered.
     pub threads: usize,
     /// What the shaders' runtime checks found during the frame (a loop stopped by its budget, an
@@ -75,9 +81,56 @@ impl FrameReport {
         self.total_rays() as f64 / self.elapsed.as_secs_f64().max(1e-9)
     }
 
+    /// " (surface 41%, light 12%, ...)" for the shader types that ran, by share of the threads'
+    /// time.
+    fn shader_shares(&self) -> String {
+        let parts: Vec<String> = super::SHADER_KINDS
+            .iter()
+            .zip(&self.by_kind)
+            .filter(|(_, t)| !t.is_zero())
+            .map(|(kind, t)| format!("{} {:.0}%", kind.name(), 100.0 * t.as_secs_f64() / self.thread_seconds()))
+            .collect();
+        if parts.is_empty() {
+            String::new()
+        } else {
+            format!(" ({})", parts.join(", "))
+        }
+    }
+
+    /// One line per shader that ran, the longest first: name, type, milliseconds (thread time) and
+    /// share of the threads' time.
+    pub fn shader_table(&self) -> String {
+        self.by_shader
+            .iter()
+            .map(|(name, kind, t)| {
+                format!(
+                    "  {name:<16} {:<10} {:8.2} ms {:5.1}%\n",
+                    kind.name(),
+                    t.as_secs_f64() * 1e3,
+                    100.0 * t.as_secs_f64() / self.thread_seconds()
+                )
+            })
+            .collect()
+    }
+
     /// The share of the threads' time spent shading.
     pub fn shading_share(&self) -> f64 {
-        self.shading.as_secs_f64() / (self.elapsed.as_secs_f64() * self.threads.max(1) as f64).max(1e-9)
+        self.shading.as_secs_f64() / self.thread_seconds()
+    }
+
+    /// The threads' time inside shaders of `kind` (their batches: filling, running, reading back
+    /// and their calls to the renderer, exclusive of tracing and of other shaders they cause to run).
+    pub fn shader_time(&self, kind: ShaderKind) -> Duration {
+        super::SHADER_KINDS.iter().position(|k| *k == kind).map_or(Duration::ZERO, |i| self.by_kind[i])
+    }
+
+    /// The share of the threads' time spent in shaders of `kind`.
+    pub fn shader_share(&self, kind: ShaderKind) -> f64 {
+        self.shader_time(kind).as_secs_f64() / self.thread_seconds()
+    }
+
+    fn thread_seconds(&self) -> f64 {
+        (self.elapsed.as_secs_f64() * self.threads.max(1) as f64).max(1e-9)
     }
 }
 
@@ -86,7 +139,7 @@ impl std::fmt::Display for FrameReport {
         let m = |n: u64| n as f64 / 1e6;
         write!(
             f,
-            "{:.1} ms, {:.2} M rays ({:.2} primary, {:.2} shadow, {:.2} secondary, {:.2} transparency), {:.2} M rays/s, {:.2} M shaded points, {:.0}% of the time shading; BVH update {:.2} ms ({} object{} rebuilt {:.2} ms, top level over {} instances {:.2} ms), {:.1} MB of geometry",
+            "{:.1} ms, {:.2} M rays ({:.2} primary, {:.2} shadow, {:.2} secondary, {:.2} transparency), {:.2} M rays/s, {:.2} M shaded points, {:.0}% of the time shading{}; BVH update {:.2} ms ({} object{} rebuilt {:.2} ms, top level over {} instances {:.2} ms), {:.1} MB of geometry",
             self.elapsed.as_secs_f64() * 1e3,
             m(self.total_rays()),
             m(self.primary_rays),
@@ -96,6 +149,7 @@ impl std::fmt::Display for FrameReport {
             self.rays_per_second() / 1e6,
             m(self.shaded_points),
             100.0 * self.shading_share(),
+            self.shader_shares(),
             self.accel.total().as_secs_f64() * 1e3,
             self.accel.objects_rebuilt,
             if self.accel.objects_rebuilt == 1 { "" } else { "s" },
@@ -423,6 +477,14 @@ pub fn render_frame(world: &World, progress: Option<&(dyn Fn(usize, usize) + Syn
         shaded_points: load(&s.shaded_points),
         light_evaluations: load(&s.light_evaluations),
         shading: Duration::from_nanos(load(&s.shading_ns)),
+        by_kind: std::array::from_fn(|i| Duration::from_nanos(load(&s.kind_ns[i]))),
+        by_shader: {
+            let programs = s.program_ns.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+            let mut v: Vec<_> =
+                programs.iter().map(|(p, ns)| (p.name.clone(), p.kind, Duration::from_nanos(*ns))).collect();
+            v.sort_by(|a, b| b.2.cmp(&a.2).then_with(|| a.0.cmp(&b.0)));
+            v
+        },
         threads: rayon::current_num_threads(),
         shader_messages: world.shader_messages(),
         accel: world.accel,

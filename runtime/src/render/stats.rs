@@ -1,8 +1,105 @@
 //! What a frame counts: rays by kind, shaded points, light shader runs, and the time spent shading
 //! with tracing excluded (per-thread timers around the outermost shading, minus the tracer calls
-//! made meanwhile).
+//! made meanwhile), split by the type of the shader that ran.
+//!
+//! The split is exclusive time: each thread keeps a stack of what runs (a shader's batch, or the
+//! tracer), and the clock is charged to the top of the stack whenever it changes. A surface shader
+//! that traces a reflection and shades the hit with a volume shader is charged for its own work
+//! only; the tracer and the volume shader get theirs.
 
+use crate::shading::Program;
+use rtsl_compiler::front::parse::ast::ShaderKind;
+use std::cell::RefCell;
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, PoisonError};
+use std::time::Instant;
+
+/// The shader types, in the order of [`Stats::kind_ns`] and `FrameReport::by_kind`.
+pub const SHADER_KINDS: [ShaderKind; 7] = [
+    ShaderKind::Surface,
+    ShaderKind::Light,
+    ShaderKind::Displacement,
+    ShaderKind::Volume,
+    ShaderKind::Imager,
+    ShaderKind::Camera,
+    ShaderKind::Lightfield,
+];
+
+fn kind_index(kind: ShaderKind) -> usize {
+    SHADER_KINDS.iter().position(|k| *k == kind).unwrap_or(0)
+}
+
+/// One thread's exclusive-time clock (see the module doc): `stack` holds indices into `entries`,
+/// the programs that ran since the outermost shading began (`None`: the tracer).
+struct KindClock {
+    stack: Vec<usize>,
+    since: Instant,
+    entries: Vec<(Option<Program>, u64)>,
+}
+
+impl KindClock {
+    fn charge(&mut self, now: Instant) {
+        if let Some(&top) = self.stack.last() {
+            self.entries[top].1 += now.saturating_duration_since(self.since).as_nanos() as u64;
+        }
+        self.since = now;
+    }
+
+    fn slot(&mut self, program: Option<&Program>) -> usize {
+        let same = |e: &Option<Program>| match (e, program) {
+            (Some(a), Some(b)) => Arc::ptr_eq(a, b),
+            (None, None) => true,
+            _ => false,
+        };
+        match self.entries.iter().position(|(e, _)| same(e)) {
+            Some(i) => i,
+            None => {
+                self.entries.push((program.cloned(), 0));
+                self.entries.len() - 1
+            }
+        }
+    }
+}
+
+thread_local! {
+    static CLOCK: RefCell<KindClock> =
+        RefCell::new(KindClock { stack: Vec::new(), since: Instant::now(), entries: Vec::new() });
+}
+
+fn enter(program: Option<&Program>) {
+    let now = Instant::now();
+    CLOCK.with(|c| {
+        let mut c = c.borrow_mut();
+        c.charge(now);
+        let slot = c.slot(program);
+        c.stack.push(slot);
+    });
+}
+
+fn leave() {
+    let now = Instant::now();
+    CLOCK.with(|c| {
+        let mut c = c.borrow_mut();
+        c.charge(now);
+        c.stack.pop();
+    });
+}
+
+/// Charges the time until it is dropped to `program` (exclusive of what runs inside).
+pub(crate) struct ShaderKindTimer(());
+
+impl ShaderKindTimer {
+    pub(crate) fn enter(program: &Program) -> ShaderKindTimer {
+        enter(Some(program));
+        ShaderKindTimer(())
+    }
+}
+
+impl Drop for ShaderKindTimer {
+    fn drop(&mut self) {
+        leave();
+    }
+}
 
 /// Counters of one frame, summed over threads.
 #[derive(Debug, Default)]
@@ -16,6 +113,12 @@ pub struct Stats {
     /// Time spent shading (surface and light shaders and the renderer's side of their calls),
     /// tracing excluded, summed over threads.
     pub shading_ns: AtomicU64,
+    /// Of that, the time inside each type of shader's batches (in [`SHADER_KINDS`] order):
+    /// filling the batch, running it, reading it back and the host calls it makes, exclusive of
+    /// tracing and of other shaders it runs.
+    pub kind_ns: [AtomicU64; SHADER_KINDS.len()],
+    /// The same time per shader program, in nanoseconds.
+    pub program_ns: Mutex<Vec<(Program, u64)>>,
 }
 
 thread_local! {
@@ -27,9 +130,11 @@ thread_local! {
 
 /// Runs a tracer query, counting its time as tracing rather than shading.
 pub(super) fn tracing<R>(f: impl FnOnce() -> R) -> R {
+    enter(None);
     let start = std::time::Instant::now();
     let r = f();
     let ns = start.elapsed().as_nanos() as u64;
+    leave();
     TRACE_NS.with(|t| t.set(t.get() + ns));
     r
 }
@@ -46,6 +151,14 @@ impl<'a> ShadingTimer<'a> {
             n.set(n.get() + 1);
             n.get() == 1
         });
+        if outer {
+            // What the clock gathered outside any frame's shading is not this frame's.
+            CLOCK.with(|c| {
+                let mut c = c.borrow_mut();
+                c.stack.clear();
+                c.entries.clear();
+            });
+        }
         let start = outer.then(|| (std::time::Instant::now(), TRACE_NS.with(|t| t.get())));
         ShadingTimer { stats, start }
     }
@@ -58,6 +171,16 @@ impl Drop for ShadingTimer<'_> {
             let traced = TRACE_NS.with(|t| t.get()) - traced_before;
             let ns = (start.elapsed().as_nanos() as u64).saturating_sub(traced);
             self.stats.shading_ns.fetch_add(ns, Ordering::Relaxed);
+            let entries = CLOCK.with(|c| std::mem::take(&mut c.borrow_mut().entries));
+            let mut programs = self.stats.program_ns.lock().unwrap_or_else(PoisonError::into_inner);
+            for (program, ns) in entries {
+                let Some(program) = program.filter(|_| ns > 0) else { continue };
+                self.stats.kind_ns[kind_index(program.kind)].fetch_add(ns, Ordering::Relaxed);
+                match programs.iter_mut().find(|(p, _)| Arc::ptr_eq(p, &program)) {
+                    Some((_, total)) => *total += ns,
+                    None => programs.push((program, ns)),
+                }
+            }
         }
     }
 }

@@ -164,7 +164,10 @@ pub fn with_batch<R>(program: &Program, lanes: usize, f: impl FnOnce(&mut BatchD
     });
     let mut batch = taken.unwrap_or_else(|| program.code.batch(lanes));
     batch.reset(lanes);
-    let r = f(&mut batch);
+    let r = {
+        let _timer = crate::render::ShaderKindTimer::enter(program);
+        f(&mut batch)
+    };
     BATCHES.with(|b| {
         let mut b = b.borrow_mut();
         if b.len() >= POOL_SIZE {

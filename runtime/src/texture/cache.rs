@@ -132,6 +132,12 @@ impl TextureCache {
         }
     }
 
+    /// Makes `name` stand for a 3-D grid built in memory, replacing whatever it stood for.
+    pub fn insert_grid(&self, name: &str, grid: Grid) {
+        let filled = Arc::new(OnceLock::from(Some(Arc::new(grid))));
+        self.grids.write().unwrap_or_else(PoisonError::into_inner).insert(name.to_string(), filled);
+    }
+
     /// Forgets every texture and shadow map (they load again on next use, e.g. after files
     /// changed). Lookups running meanwhile finish with what they hold.
     pub fn clear(&self) {

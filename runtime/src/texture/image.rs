@@ -68,7 +68,16 @@ pub fn load_texture_image(path: &Path, raw: bool) -> Result<LoadedImage, ImageEr
     if image_io::is_exr(path) {
         return load_exr(path);
     }
-    let decoded = image_io::decode_with_image_crate(path)?;
+    texture_from_decoded(path, image_io::decode_with_image_crate(path)?, raw)
+}
+
+/// Decodes a texture file's bytes held in memory (PNG, JPEG, TGA, PPM: what the `image` crate
+/// reads; not EXR) as [`load_texture_image`] would decode the file; `name` is what errors call it.
+pub fn decode_texture_image(name: &Path, bytes: &[u8], raw: bool) -> Result<LoadedImage, ImageError> {
+    texture_from_decoded(name, image_io::decode_memory_with_image_crate(name, bytes)?, raw)
+}
+
+fn texture_from_decoded(path: &Path, decoded: ::image::DynamicImage, raw: bool) -> Result<LoadedImage, ImageError> {
     let (width, height) = (decoded.width() as usize, decoded.height() as usize);
     let color = decoded.color();
     // Every layout the decoders produce has 1-4 channels; each becomes f32 in [0, 1] (integers

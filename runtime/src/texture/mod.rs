@@ -27,7 +27,7 @@ mod cache;
 mod environment;
 pub mod grid;
 pub mod grid_data;
-mod image;
+pub(crate) mod image;
 mod make;
 mod mip;
 mod shadow;
