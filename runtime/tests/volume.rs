@@ -233,3 +233,32 @@ fn texture3d_reads_grids_through_the_texture_cache() {
     assert!(warnings.len() == 1 && warnings[0].contains("no-such.grid"), "{warnings:?}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn files_in_memory_are_used_by_name_and_corrupt_bytes_are_errors() {
+    // A grid that is 1 everywhere, given as a file's bytes: texture3d finds it by its name.
+    let grid = Grid::new([2, 2, 2], [-1.0; 3], [1.0; 3], vec![1.0; 8]).expect("a grid");
+    let mut rt = Context::new();
+    rt.grid_file_in_memory("mem/ones.grid", &grid.to_bytes(GridType::F32)).expect("a valid grid file");
+    let found = rt.textures().get_grid("mem/ones.grid").expect("the grid is in the cache");
+    assert_eq!(found.lookup([0.2, -0.3, 0.5]), 1.0);
+    // A PNG's bytes: decoded like the file would be (8-bit colour as sRGB).
+    let png = std::env::temp_dir().join(format!("rtsl-mem-{}.png", std::process::id()));
+    rtsl_runtime::write_image(&png, 1, 1, &[0.5, 0.5, 0.5, 1.0], &rtsl_runtime::WriteOptions::default())
+        .expect("writes");
+    let bytes = std::fs::read(&png).expect("reads");
+    let _ = std::fs::remove_file(&png);
+    rt.texture_file_in_memory("mem/grey.png", &bytes).expect("a valid PNG");
+    assert!(rt.textures().get_texture("mem/grey.png", false).is_some());
+    // Corrupt bytes are typed errors naming the file, never panics.
+    for (name, result) in [
+        ("bad.grid", rt.grid_file_in_memory("bad.grid", b"RTSLGRID garbage")),
+        ("bad.png", rt.texture_file_in_memory("bad.png", &bytes[..bytes.len() / 2])),
+        ("empty.png", rt.texture_file_in_memory("empty.png", b"")),
+    ] {
+        match result {
+            Err(e @ ApiError::BadTextureFile { .. }) => assert!(e.to_string().contains(name), "{e}"),
+            other => panic!("{name}: {other:?}"),
+        }
+    }
+}
