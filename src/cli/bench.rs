@@ -242,7 +242,7 @@ pub fn run_render(args: &BenchRenderArgs) -> anyhow::Result<()> {
     );
     println!("mrays_per_second: {:.2}", report.total_rays() as f64 / ms.max(1e-9) / 1e3);
     println!("shading_share: {:.3}", report.shading_share());
-    for kind in rtsl_runtime::render::SHADER_KINDS {
+    for kind in rtsl_compiler::front::parse::ast::ShaderKind::ALL {
         let share = report.shader_share(kind);
         if share > 0.0 {
             println!("{}_shader_share: {share:.3}", kind.name());

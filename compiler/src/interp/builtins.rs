@@ -53,6 +53,17 @@ fn shaped(ty: Type, v: V3) -> Value {
     }
 }
 
+/// A built-in call's evaluated arguments: values and their tangents along screen x and y, how
+/// many are positional (the rest are name/value pairs), and the result type.
+#[derive(Clone, Copy)]
+pub(super) struct CallArgs<'a> {
+    pub vals: &'a [Value],
+    pub tx: &'a [Value],
+    pub ty_: &'a [Value],
+    pub fixed: usize,
+    pub ty: Type,
+}
+
 impl Machine<'_> {
     pub(super) fn builtin(
         &mut self,
@@ -83,7 +94,8 @@ impl Machine<'_> {
         let sig = &builtins::signatures(b)[overload as usize];
         let fixed = if sig.repeat_last { vals.len() } else { sig.params.len().min(vals.len()) };
         let mut writes: Vec<(usize, Value)> = Vec::new();
-        let result = self.eval_builtin(b, &vals, &tx, &ty_, fixed, ty, &mut writes)?;
+        let call = CallArgs { vals: &vals, tx: &tx, ty_: &ty_, fixed, ty };
+        let result = self.eval_builtin(b, call, &mut writes)?;
         for (i, value) in writes {
             if let Some(Arg::Ref(p)) = args.get(i) {
                 self.write_place(f, frame, p, value)?;
@@ -91,7 +103,7 @@ impl Machine<'_> {
         }
         // (Callers that need no derivative drop them.)
         let (dx, dy) = if crate::ir::deriv::has_difference_rule(b) {
-            self.difference_tangents(b, &vals, &tx, &ty_, fixed, ty, &result)
+            self.difference_tangents(b, call, &result)
         } else {
             Self::builtin_tangents(b, &vals, &tx, &ty_, &result)
         };
@@ -100,17 +112,13 @@ impl Machine<'_> {
 
     /// A built-in's result from its evaluated arguments (with their tangents, for the built-ins
     /// that filter by them); the values it writes to output arguments go to `writes`.
-    #[allow(clippy::too_many_arguments)]
     pub(super) fn eval_builtin(
         &mut self,
         b: Builtin,
-        vals: &[Value],
-        tx: &[Value],
-        ty_: &[Value],
-        fixed: usize,
-        ty: Type,
+        call: CallArgs<'_>,
         writes: &mut Vec<(usize, Value)>,
     ) -> R<Value> {
+        let CallArgs { vals, tx, ty_, fixed, ty } = call;
         let v = |i: usize| vals.get(i).cloned().unwrap_or(Value::Void);
         Ok(match b {
             Builtin::Abs => map1(&v(0), f32::abs),

@@ -18,6 +18,7 @@
 //! built-in writes, have zero derivatives, as do the derivative built-ins' own results (no second
 //! derivatives).
 
+use super::builtins::CallArgs;
 use super::value::Value;
 use super::{binary, convert, index_of, Frame, Machine, R};
 use crate::builtins::Builtin;
@@ -274,27 +275,17 @@ impl Machine<'_> {
 
     /// The tangents of a built-in with a difference rule (`ir::deriv::has_difference_rule`):
     /// `f(x + t/2) - f(x - t/2)` along each direction, evaluated only where a tangent is not zero.
-    #[allow(clippy::too_many_arguments)]
-    pub(super) fn difference_tangents(
-        &mut self,
-        b: Builtin,
-        vals: &[Value],
-        tx: &[Value],
-        ty_: &[Value],
-        fixed: usize,
-        ty: crate::ir::Type,
-        r: &Value,
-    ) -> (Value, Value) {
+    pub(super) fn difference_tangents(&mut self, b: Builtin, call: CallArgs<'_>, r: &Value) -> (Value, Value) {
         let mut out = [zero_like(r), zero_like(r)];
-        for (dir, t) in [tx, ty_].into_iter().enumerate() {
+        for (dir, t) in [call.tx, call.ty_].into_iter().enumerate() {
             if t.iter().all(is_zero) {
                 continue;
             }
             let mut ends = Vec::with_capacity(2);
             for h in [0.5f32, -0.5] {
-                let moved: Vec<Value> = vals.iter().zip(t).map(|(v, t)| perturb(v, t, h)).collect();
+                let moved: Vec<Value> = call.vals.iter().zip(t).map(|(v, t)| perturb(v, t, h)).collect();
                 let mut writes = Vec::new();
-                match self.eval_builtin(b, &moved, tx, ty_, fixed, ty, &mut writes) {
+                match self.eval_builtin(b, CallArgs { vals: &moved, ..call }, &mut writes) {
                     Ok(v) => ends.push(v),
                     Err(_) => return (zero_like(r), zero_like(r)),
                 }

@@ -58,9 +58,9 @@ pub struct FrameReport {
     pub light_evaluations: u64,
     /// Thread time spent shading (tracing excluded), summed over threads.
     pub shading: Duration,
-    /// Of that, the time in each type of shader (in [`super::SHADER_KINDS`] order; see
+    /// Of that, the time in each type of shader (in [`ShaderKind::ALL`] order; see
     /// [`FrameReport::shader_time`]).
-    pub by_kind: [Duration; super::SHADER_KINDS.len()],
+    pub by_kind: [Duration; ShaderKind::ALL.len()],
     /// The same per shader: name, type and time, the longest first.
     pub by_shader: Vec<(String, ShaderKind, Duration)>,
     /// Threads that rendered.
@@ -84,7 +84,7 @@ impl FrameReport {
     /// " (surface 41%, light 12%, ...)" for the shader types that ran, by share of the threads'
     /// time.
     fn shader_shares(&self) -> String {
-        let parts: Vec<String> = super::SHADER_KINDS
+        let parts: Vec<String> = ShaderKind::ALL
             .iter()
             .zip(&self.by_kind)
             .filter(|(_, t)| !t.is_zero())
@@ -121,7 +121,7 @@ impl FrameReport {
     /// The threads' time inside shaders of `kind` (their batches: filling, running, reading back
     /// and their calls to the renderer, exclusive of tracing and of other shaders they cause to run).
     pub fn shader_time(&self, kind: ShaderKind) -> Duration {
-        super::SHADER_KINDS.iter().position(|k| *k == kind).map_or(Duration::ZERO, |i| self.by_kind[i])
+        self.by_kind[super::stats::kind_index(kind)]
     }
 
     /// The share of the threads' time spent in shaders of `kind`.

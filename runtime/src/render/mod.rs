@@ -25,7 +25,7 @@ pub use frame::{
 pub use primary::{primary_rays, CameraSample, PrimaryRays};
 pub use shade::{Frame, Sample};
 pub(crate) use stats::ShaderKindTimer;
-pub use stats::{Stats, SHADER_KINDS};
+pub use stats::Stats;
 pub use world::{
     AccelUpdate, Antialiasing, AreaLight, CameraSetup, InstanceShading, LightSource, Material, RenderOptions, World,
     MAX_AREA_SAMPLES,

@@ -14,19 +14,10 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Instant;
 
-/// The shader types, in the order of [`Stats::kind_ns`] and `FrameReport::by_kind`.
-pub const SHADER_KINDS: [ShaderKind; 7] = [
-    ShaderKind::Surface,
-    ShaderKind::Light,
-    ShaderKind::Displacement,
-    ShaderKind::Volume,
-    ShaderKind::Imager,
-    ShaderKind::Camera,
-    ShaderKind::Lightfield,
-];
-
-fn kind_index(kind: ShaderKind) -> usize {
-    SHADER_KINDS.iter().position(|k| *k == kind).unwrap_or(0)
+/// The index of `kind` in [`ShaderKind::ALL`], the order of [`Stats::kind_ns`] and
+/// `FrameReport::by_kind`.
+pub(crate) fn kind_index(kind: ShaderKind) -> usize {
+    ShaderKind::ALL.iter().position(|k| *k == kind).unwrap_or(0)
 }
 
 /// One thread's exclusive-time clock (see the module doc): `stack` holds indices into `entries`,
@@ -66,7 +57,8 @@ thread_local! {
         RefCell::new(KindClock { stack: Vec::new(), since: Instant::now(), entries: Vec::new() });
 }
 
-fn enter(program: Option<&Program>) {
+/// Starts charging `program` (`None`: the tracer); returns the time it started.
+fn enter(program: Option<&Program>) -> Instant {
     let now = Instant::now();
     CLOCK.with(|c| {
         let mut c = c.borrow_mut();
@@ -74,15 +66,18 @@ fn enter(program: Option<&Program>) {
         let slot = c.slot(program);
         c.stack.push(slot);
     });
+    now
 }
 
-fn leave() {
+/// Stops charging what [`enter`] started; returns the time it stopped.
+fn leave() -> Instant {
     let now = Instant::now();
     CLOCK.with(|c| {
         let mut c = c.borrow_mut();
         c.charge(now);
         c.stack.pop();
     });
+    now
 }
 
 /// Charges the time until it is dropped to `program` (exclusive of what runs inside).
@@ -113,10 +108,10 @@ pub struct Stats {
     /// Time spent shading (surface and light shaders and the renderer's side of their calls),
     /// tracing excluded, summed over threads.
     pub shading_ns: AtomicU64,
-    /// Of that, the time inside each type of shader's batches (in [`SHADER_KINDS`] order):
+    /// Of that, the time inside each type of shader's batches (in [`ShaderKind::ALL`] order):
     /// filling the batch, running it, reading it back and the host calls it makes, exclusive of
     /// tracing and of other shaders it runs.
-    pub kind_ns: [AtomicU64; SHADER_KINDS.len()],
+    pub kind_ns: [AtomicU64; ShaderKind::ALL.len()],
     /// The same time per shader program, in nanoseconds.
     pub program_ns: Mutex<Vec<(Program, u64)>>,
 }
@@ -130,11 +125,9 @@ thread_local! {
 
 /// Runs a tracer query, counting its time as tracing rather than shading.
 pub(super) fn tracing<R>(f: impl FnOnce() -> R) -> R {
-    enter(None);
-    let start = std::time::Instant::now();
+    let start = enter(None);
     let r = f();
-    let ns = start.elapsed().as_nanos() as u64;
-    leave();
+    let ns = leave().saturating_duration_since(start).as_nanos() as u64;
     TRACE_NS.with(|t| t.set(t.get() + ns));
     r
 }
