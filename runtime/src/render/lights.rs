@@ -4,10 +4,10 @@
 
 use super::differential::RayDifferential;
 use super::host::ShadeCall;
-use super::shade::{finite_or_zero, mix, point_seed, shade_group, unit, Frame, Pending, Shaded};
+use super::shade::{finite_or_zero, mix, point_seed, shade_in_groups, unit, Frame, Pending, Shaded};
 use super::stats::{tracing, Stats};
 use super::world::{LightSource, DEFAULT_MATERIAL};
-use crate::ray::{Ray, RayPacket, PACKET_SIZE};
+use crate::ray::{HitCandidate, HitPacket, Ray, RayPacket, PACKET_SIZE};
 use crate::shading::{get3, put1, put3, with_batch, LightKind};
 use glam::Vec3A;
 use rtsl_compiler::back::jit::{HostLight, MAX_LIGHTS};
@@ -34,9 +34,9 @@ pub(super) fn eval_light(
 }
 
 /// Runs one light's shader over `points` (up to a packet of lanes, `mask` nonzero where a point
-/// asks; shadow rays at the lanes' `times`) and hands each lane's light to `sink`, its colour attenuated by traced shadows: a packet
-/// of shadow rays when nothing in the scene is transparent, one transmission walk per ray
-/// otherwise. Area lights give one light per sample.
+/// asks; shadow rays at the lanes' `times`) and hands each lane's light to `sink`, its colour
+/// attenuated by the shadow rays traced as one packet (`transmission_packet`). Area lights give one
+/// light per sample.
 fn eval_light_lanes(
     frame: &Frame,
     light: &LightSource,
@@ -102,22 +102,11 @@ fn eval_light_lanes(
                 }
                 let to_light = -to_surface;
                 let distance = if light.kind == LightKind::Distant { f32::INFINITY } else { to_light.length() };
-                let dir = to_light.normalize_or_zero();
-                if frame.transparent_shadows {
-                    attenuation[l] = transmission_along(frame, points[l], dir, distance, time_of(times, l));
-                } else if let Some(ray) = shadow_ray(points[l], dir, distance) {
+                if let Some(ray) = shadow_ray(points[l], to_light.normalize_or_zero(), distance) {
                     packet.set(l, &ray.at_time(time_of(times, l)));
                 }
             }
-            if packet.active != 0 {
-                Stats::add(&frame.stats.shadow_rays, packet.active.count_ones() as usize);
-                let blocked = tracing(|| frame.world.scene.occluded_packet(&packet));
-                for (l, a) in attenuation.iter_mut().enumerate() {
-                    if blocked >> l & 1 != 0 {
-                        *a = Vec3A::ZERO;
-                    }
-                }
-            }
+            transmission_packet(frame, &packet, &mut attenuation);
         }
         for l in 0..n {
             let (to_surface, cl, ol) = results[l];
@@ -194,40 +183,113 @@ pub(super) fn epsilon(p: Vec3A) -> f32 {
 /// How much light gets from `from` along unit `dir` for `distance` (white where nothing blocks):
 /// opaque blockers stop it, transparent ones filter it by their opacity. Rays are at `time`.
 pub(super) fn transmission_along(frame: &Frame, from: Vec3A, dir: Vec3A, distance: f32, time: f32) -> Vec3A {
-    let Some(ray) = shadow_ray(from, dir, distance) else { return Vec3A::ONE };
-    let ray = ray.at_time(time);
-    let (eps, tmax) = (ray.tmin, ray.tmax);
+    let mut packet = RayPacket::new();
+    if let Some(ray) = shadow_ray(from, dir, distance) {
+        packet.set(0, &ray.at_time(time));
+    }
+    let mut through = [Vec3A::ONE];
+    transmission_packet(frame, &packet, &mut through);
+    through[0]
+}
+
+/// Multiplies `through[l]` by how much light passes along the active shadow rays of `packet`:
+/// zero where an opaque surface blocks, the product of `1 - opacity` of the transparent surfaces
+/// crossed otherwise (their order does not matter). Opaque blockers are found by one packet
+/// occlusion query that ignores transparent surfaces, rays that meet nothing by a second; only the
+/// rays left walk through their transparent surfaces, together, layer by layer, each layer's hits
+/// shaded in batches (shaders that set the shadow's opacity, `transmissionhitmode "shader"`).
+fn transmission_packet(frame: &Frame, packet: &RayPacket, through: &mut [Vec3A]) {
+    let active = packet.active & lane_mask(through.len());
+    if active == 0 {
+        return;
+    }
+    Stats::add(&frame.stats.shadow_rays, active.count_ones() as usize);
     let world = frame.world;
-    Stats::add(&frame.stats.shadow_rays, 1);
+    let scene = &world.scene;
+    let mut packet = packet.clone();
+    packet.active = active;
     if !frame.transparent_shadows {
-        return if tracing(|| world.scene.occluded(&ray)) { Vec3A::ZERO } else { Vec3A::ONE };
+        let blocked = tracing(|| scene.occluded_packet(&packet));
+        clear_lanes(through, blocked);
+        return;
     }
-    let mut through = Vec3A::ONE;
-    let mut start = eps;
+    let material_of = |instance: u32| {
+        let inst = world.instances.get(instance as usize);
+        inst.and_then(|i| world.materials.get(i.material as usize)).unwrap_or(&DEFAULT_MATERIAL)
+    };
+    let opaque = |c: &HitCandidate| material_of(c.instance).is_opaque_for_shadows();
+    let (blocked, crossing) = tracing(|| {
+        let blocked = scene.occluded_packet_filtered(&packet, Some(&opaque));
+        let mut rest = packet.clone();
+        rest.active &= !blocked;
+        let crossing = if rest.active == 0 { 0 } else { scene.occluded_packet(&rest) };
+        (blocked, crossing)
+    });
+    clear_lanes(through, blocked);
+    let mut walking = crossing & !blocked;
+    let mut hits = HitPacket::default();
     for _ in 0..world.options.max_transparent_layers {
-        let hit = tracing(|| world.scene.intersect(&Ray::segment(from, dir, start, tmax).at_time(time)));
-        if !hit.is_hit() {
-            return through;
+        if walking == 0 {
+            return;
         }
-        let Some(inst) = world.instances.get(hit.instance as usize) else { return through };
-        let material = world.materials.get(inst.material as usize).unwrap_or(&DEFAULT_MATERIAL);
-        if material.is_opaque_for_shadows() {
-            return Vec3A::ZERO;
+        packet.active = walking;
+        tracing(|| scene.intersect_packet(&packet, &mut hits));
+        let mut shaded_by_shader = Vec::new();
+        for l in lanes(walking) {
+            let hit = hits.get(l);
+            if !hit.is_hit() {
+                walking &= !(1u64 << l);
+                continue;
+            }
+            let material = material_of(hit.instance);
+            if material.is_opaque_for_shadows() {
+                through[l] = Vec3A::ZERO;
+            } else if material.shadow_by_shader {
+                let ray = packet.get(l);
+                let diff = RayDifferential::cone(ray.direction, 0.0, frame.pixel_spread);
+                shaded_by_shader.push(Pending { index: l, ray, diff, hit });
+            } else {
+                through[l] *= Vec3A::ONE - Vec3A::from(material.opacity).clamp(Vec3A::ZERO, Vec3A::ONE);
+            }
         }
-        let opacity = if material.shadow_by_shader {
-            let ray = Ray::segment(from, dir, start, tmax).at_time(time);
-            let mut shaded = [Shaded::default()];
-            let diff = RayDifferential::cone(dir, 0.0, frame.pixel_spread);
-            shade_group(frame, &[Pending { index: 0, ray, diff, hit }], world.options.max_ray_depth, &mut shaded);
-            shaded[0].oi
-        } else {
-            Vec3A::from(material.opacity)
-        };
-        through *= Vec3A::ONE - opacity.clamp(Vec3A::ZERO, Vec3A::ONE);
-        if through.max_element() < 1.0 / 256.0 {
-            return Vec3A::ZERO;
+        if !shaded_by_shader.is_empty() {
+            let mut shaded = vec![Shaded::default(); shaded_by_shader.len()];
+            shade_in_groups(frame, &mut shaded_by_shader, world.options.max_ray_depth, &mut shaded);
+            for (p, s) in shaded_by_shader.iter().zip(&shaded) {
+                through[p.index] *= Vec3A::ONE - s.oi.clamp(Vec3A::ZERO, Vec3A::ONE);
+            }
         }
-        start = hit.t + epsilon(from + dir * hit.t);
+        for l in lanes(walking) {
+            if through[l].max_element() < 1.0 / 256.0 {
+                through[l] = Vec3A::ZERO;
+                walking &= !(1u64 << l);
+            } else {
+                let t = hits.t.0[l];
+                let from = packet.get(l).origin;
+                packet.tmin.0[l] = t + epsilon(from + packet.get(l).direction * t);
+            }
+        }
     }
-    through
+}
+
+/// The first `n` lanes of a packet (all of them from `PACKET_SIZE` on).
+fn lane_mask(n: usize) -> u64 {
+    if n >= 64 {
+        u64::MAX
+    } else {
+        (1u64 << n) - 1
+    }
+}
+
+/// The lanes set in `mask`, lowest first.
+fn lanes(mask: u64) -> impl Iterator<Item = usize> {
+    (0..64).filter(move |l| mask >> l & 1 != 0)
+}
+
+fn clear_lanes(through: &mut [Vec3A], mask: u64) {
+    for (l, t) in through.iter_mut().enumerate() {
+        if mask >> l & 1 != 0 {
+            *t = Vec3A::ZERO;
+        }
+    }
 }

@@ -162,22 +162,8 @@ fn shade_hits(frame: &Frame, rays: &[Ray], diffs: &[RayDifferential], hits: &[Hi
     }
     let mut layer = 0;
     while !current.is_empty() {
-        let key = |p: &Pending| {
-            let inst = world.instances.get(p.hit.instance as usize);
-            (inst.map_or(0, |i| i.material), p.hit.instance)
-        };
-        current.sort_by_key(key);
         let mut results = vec![Shaded::default(); current.len()];
-        let mut start = 0;
-        while start < current.len() {
-            let k = key(&current[start]);
-            let mut end = start + 1;
-            while end < current.len() && end - start < PACKET_SIZE && key(&current[end]) == k {
-                end += 1;
-            }
-            shade_group(frame, &current[start..end], depth, &mut results[start..end]);
-            start = end;
-        }
+        shade_in_groups(frame, &mut current, depth, &mut results);
         // The atmosphere or interior between each ray's origin and its hit (`volume.rs`).
         super::volume::shade_segments(frame, &current, &mut results, depth);
         Stats::add(&frame.stats.shaded_points, current.len());
@@ -366,6 +352,27 @@ pub(super) fn point_seed(p: Vec3A) -> u64 {
 
 pub(super) fn unit(h: u64) -> f32 {
     (h >> 40) as f32 / (1u64 << 24) as f32
+}
+
+/// Sorts `pending` by (material, instance) and shades it in groups of one material and instance,
+/// a packet at most each: `out[i]` is what the sorted `pending[i]` produced.
+pub(super) fn shade_in_groups(frame: &Frame, pending: &mut [Pending], depth: u32, out: &mut [Shaded]) {
+    let world = frame.world;
+    let key = |p: &Pending| {
+        let inst = world.instances.get(p.hit.instance as usize);
+        (inst.map_or(0, |i| i.material), p.hit.instance)
+    };
+    pending.sort_by_key(key);
+    let mut start = 0;
+    while start < pending.len() {
+        let k = key(&pending[start]);
+        let mut end = start + 1;
+        while end < pending.len() && end - start < PACKET_SIZE && key(&pending[end]) == k {
+            end += 1;
+        }
+        shade_group(frame, &pending[start..end], depth, &mut out[start..end]);
+        start = end;
+    }
 }
 
 /// Shades hits that share material and instance.
