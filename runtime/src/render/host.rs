@@ -11,7 +11,8 @@ use super::shade::{mix, point_seed, trace_rays, unit, Frame};
 use super::stats::{tracing, Stats};
 use crate::ray::Ray;
 use crate::shading::ShaderInstance;
-use crate::texture::{Footprint, LookupOptions};
+use crate::texture::{Footprint, Grid, LookupOptions, MipMap};
+use std::sync::Arc;
 use glam::{Affine3A, Mat4, Vec3A};
 use rtsl_compiler::back::jit::{HostLight, HostTable, MessageOut, StrRef, MAX_LIGHTS};
 use rtsl_compiler::builtins::Builtin;
@@ -34,6 +35,10 @@ pub(crate) struct ShadeCall<'f, 'w> {
     pub(super) batch_times: Vec<f32>,
     batch_lights: Option<BatchLights>,
     chunk_cursor: usize,
+    /// The grid and the texture last looked up, by name: a volume's march asks for the same grid
+    /// at every step, and finding it in the shared cache costs a lock, a hash and an atomic count.
+    last_grid: Option<(String, Option<Arc<Grid>>)>,
+    last_texture: Option<(String, Option<Arc<MipMap>>)>,
 }
 
 struct LightQuery {
@@ -63,7 +68,23 @@ impl<'f, 'w> ShadeCall<'f, 'w> {
             batch_times: Vec::new(),
             batch_lights: None,
             chunk_cursor: 0,
+            last_grid: None,
+            last_texture: None,
         }
+    }
+
+    fn grid(&mut self, name: &str) -> Option<&Grid> {
+        if self.last_grid.as_ref().is_none_or(|(last, _)| last != name) {
+            self.last_grid = Some((name.to_string(), self.frame.world.textures.get_grid(name)));
+        }
+        self.last_grid.as_ref().and_then(|(_, g)| g.as_deref())
+    }
+
+    fn texture(&mut self, name: &str) -> Option<&MipMap> {
+        if self.last_texture.as_ref().is_none_or(|(last, _)| last != name) {
+            self.last_texture = Some((name.to_string(), self.frame.world.textures.get_texture(name, false)));
+        }
+        self.last_texture.as_ref().and_then(|(_, t)| t.as_deref())
     }
 
     /// The ray time of lane `l` of the current chunk (the batch's first lane's when out of range;
@@ -315,36 +336,48 @@ unsafe extern "C" fn host_texture(
             &mut *(ok as *mut [u32; 4]),
         )
     };
+    let active = || (0..4).filter(|&l| mask[l] != 0);
+    *ok = [0; 4];
+    match kind {
+        0 => {
+            let Some(mip) = c.texture(name) else { return };
+            for l in active() {
+                // Rows 2..6: the footprint from the coordinates' derivatives, widths applied, and blur.
+                let row = |k: usize| coords[4 * k + l];
+                let footprint = Footprint { dsdx: row(2), dtdx: row(3), dsdy: row(4), dtdy: row(5) };
+                let blur = row(6).max(0.0);
+                let opts = LookupOptions { sblur: blur, tblur: blur, ..LookupOptions::default() };
+                let mut lane_out = [0.0f32; 64];
+                mip.filter(row(0), row(1), footprint, first[l].max(0.0) as usize, &mut lane_out[..values], &opts);
+                ok[l] = 1;
+                for (k, v) in lane_out[..values].iter().enumerate() {
+                    out[4 * k + l] = *v;
+                }
+            }
+            return;
+        }
+        3 => {
+            let Some(grid) = c.grid(name) else { return };
+            for l in active() {
+                out[l] = grid.lookup(lane3(coords, 0, l).to_array());
+                ok[l] = 1;
+            }
+            return;
+        }
+        _ => {}
+    }
     let textures = &c.frame.world.textures;
     let mut lane_out = [0.0f32; 64];
-    // The grid is found once per chunk, not per lane.
-    let grid = if kind == 3 { textures.get_grid(name) } else { None };
     for l in 0..4 {
         ok[l] = 0;
         if mask[l] == 0 {
             continue;
         }
         let found = match kind {
-            0 => {
-                // Rows 2..6: the footprint from the coordinates' derivatives, widths applied, and blur.
-                let row = |k: usize| coords[4 * k + l];
-                let footprint = Footprint { dsdx: row(2), dtdx: row(3), dsdy: row(4), dtdy: row(5) };
-                let blur = row(6).max(0.0);
-                let opts = LookupOptions { sblur: blur, tblur: blur, ..LookupOptions::default() };
-                let first = first[l].max(0.0) as usize;
-                textures.texture(name, row(0), row(1), footprint, first, &mut lane_out[..values], &opts)
-            }
             1 => {
                 let dir = lane3(coords, 0, l).to_array();
                 textures.environment(name, dir, [0.0; 3], [0.0; 3], 0, &mut lane_out[..3], &LookupOptions::default())
             }
-            3 => match &grid {
-                Some(grid) => {
-                    lane_out[0] = grid.lookup(lane3(coords, 0, l).to_array());
-                    true
-                }
-                None => false,
-            },
             _ => {
                 let p = lane3(coords, 0, l);
                 let shadowed = if name == "raytrace" {

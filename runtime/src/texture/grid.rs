@@ -93,17 +93,22 @@ impl Grid {
             }
             let last = self.dims[a] - 1;
             let x = u * last as f32;
-            let i = (x.floor() as usize).min(last.saturating_sub(1));
+            // `x >= 0`, so truncation is floor (and no libm call).
+            let i = (x as usize).min(last.saturating_sub(1));
             base[a] = i;
             frac[a] = if last == 0 { 0.0 } else { (x - i as f32).clamp(0.0, 1.0) };
         }
-        let step = |a: usize| usize::from(self.dims[a] > 1);
-        let (i0, j0, k0) = (base[0], base[1], base[2]);
-        let (i1, j1, k1) = (i0 + step(0), j0 + step(1), k0 + step(2));
+        let [nx, ny, _] = self.dims;
+        // The strides to the next node along each axis (0 along an axis of one sample).
+        let dx = usize::from(nx > 1);
+        let dy = if ny > 1 { nx } else { 0 };
+        let dz = if self.dims[2] > 1 { nx * ny } else { 0 };
+        let at = base[0] + nx * (base[1] + ny * base[2]);
+        let v = |i: usize| self.values.get(i).copied().unwrap_or(0.0);
         let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
-        let along_x = |j: usize, k: usize| lerp(self.sample(i0, j, k), self.sample(i1, j, k), frac[0]);
-        let c0 = lerp(along_x(j0, k0), along_x(j1, k0), frac[1]);
-        let c1 = lerp(along_x(j0, k1), along_x(j1, k1), frac[1]);
+        let along_x = |i: usize| lerp(v(i), v(i + dx), frac[0]);
+        let c0 = lerp(along_x(at), along_x(at + dy), frac[1]);
+        let c1 = lerp(along_x(at + dz), along_x(at + dz + dy), frac[1]);
         lerp(c0, c1, frac[2])
     }
 

@@ -738,9 +738,8 @@ host_helpers! {
     }
     // [name, s, t, first channel, fill, channels, dsdx, dtdx, dsdy, dtdy, blur] -> 3
     h_texture "rtsl_h_texture" 11 => 3 |cx| {
-        let name = cx.s(0);
-        let n = cx.f(5, 0) as u32;
-        let (vals, ok) = texture_call(cx, 0, &name, n);
+        let n = (cx.f(5, 0) as u32).min(MAX_TEXTURE_CHANNELS);
+        let (vals, ok) = texture_call(cx, 0, n);
         for l in cx.active() {
             let fill = cx.f(4, l);
             for j in 0..n as usize {
@@ -750,8 +749,7 @@ host_helpers! {
     }
     // [name, dir, fill] -> 3
     h_environment "rtsl_h_environment" 5 => 3 |cx| {
-        let name = cx.s(0);
-        let (vals, ok) = texture_call(cx, 1, &name, 3);
+        let (vals, ok) = texture_call(cx, 1, 3);
         for l in cx.active() {
             let fill = cx.f(4, l);
             for j in 0..3 {
@@ -761,8 +759,7 @@ host_helpers! {
     }
     // [name, p, fill] -> 3: texture3d's grid lookup, one value splatted
     h_texture3d "rtsl_h_texture3d" 5 => 3 |cx| {
-        let name = cx.s(0);
-        let (vals, ok) = texture_call(cx, 3, &name, 1);
+        let (vals, ok) = texture_call(cx, 3, 1);
         for l in cx.active() {
             let x = if ok[l] != 0 { vals[l] } else { cx.f(4, l) };
             for j in 0..3 {
@@ -772,8 +769,7 @@ host_helpers! {
     }
     // [name, p] -> 1 (0 without a renderer)
     h_shadow "rtsl_h_shadow" 4 => 1 |cx| {
-        let name = cx.s(0);
-        let (vals, ok) = texture_call(cx, 2, &name, 1);
+        let (vals, ok) = texture_call(cx, 2, 1);
         for l in cx.active() {
             cx.set(0, l, if ok[l] != 0 { vals[l] } else { 0.0 });
         }
@@ -947,8 +943,16 @@ fn format_lane(cx: &Cx<'_>, l: usize) -> String {
     format::format(&cx.s(0), &args)
 }
 
-fn texture_call(cx: &mut Cx<'_>, kind: u32, name: &str, channels: u32) -> (Vec<f32>, [u32; 4]) {
-    let mut vals = vec![0.0f32; 4 * channels.max(1) as usize];
+/// The most channels one texture lookup returns (a colour and its alpha).
+const MAX_TEXTURE_CHANNELS: u32 = 4;
+
+/// A texture query of one chunk through the renderer's table, the name at argument 0: the values
+/// (`vals[4 * channel + lane]`, at most [`MAX_TEXTURE_CHANNELS`]) and which lanes found them.
+/// Allocates nothing: volume shaders call it at every step of their march.
+fn texture_call(cx: &Cx<'_>, kind: u32, channels: u32) -> ([f32; 4 * MAX_TEXTURE_CHANNELS as usize], [u32; 4]) {
+    let name = cx.strings.get(cx.input[0].to_bits());
+    let channels = channels.clamp(1, MAX_TEXTURE_CHANNELS);
+    let mut vals = [0.0f32; 4 * MAX_TEXTURE_CHANNELS as usize];
     let mut ok = [0u32; 4];
     let Some(t) = cx.table else { return (vals, ok) };
     let mask: [i32; 4] = cx.mask.map(|m| if m { -1 } else { 0 });
