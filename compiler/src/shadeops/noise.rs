@@ -34,6 +34,8 @@
 
 use super::V3;
 
+pub mod x4;
+
 /// `lowbias32` (Chris Wellons): a bijective 32-bit mix with very low avalanche bias.
 const fn mix32(mut x: u32) -> u32 {
     x ^= x >> 16;

@@ -12,11 +12,11 @@ use super::stats::{tracing, Stats};
 use crate::ray::Ray;
 use crate::shading::ShaderInstance;
 use crate::texture::{Footprint, Grid, LookupOptions, MipMap};
-use std::sync::Arc;
 use glam::{Affine3A, Mat4, Vec3A};
 use rtsl_compiler::back::jit::{HostLight, HostTable, MessageOut, StrRef, MAX_LIGHTS};
 use rtsl_compiler::builtins::Builtin;
 use std::ffi::c_void;
+use std::sync::Arc;
 
 /// The renderer side of one shader call: what the host callbacks need to answer it.
 pub(crate) struct ShadeCall<'f, 'w> {

@@ -194,14 +194,6 @@ helpers! {
     h_log "rtsl_log" 1 -> 1 |[x]| [x.ln()];
     h_logb "rtsl_logb" 2 -> 1 |[x, base]| [x.ln() / base.ln()];
     h_pow "rtsl_pow" 2 -> 1 |[x, y]| [x.powf(y)];
-    h_noise1 "rtsl_noise1" 1 -> 1 |[x]| [noise::noise1(x)];
-    h_noise2 "rtsl_noise2" 2 -> 1 |[x, y]| [noise::noise2(x, y)];
-    h_noise3 "rtsl_noise3" 3 -> 1 |[x, y, z]| [noise::noise3([x, y, z])];
-    h_noise4 "rtsl_noise4" 4 -> 1 |[x, y, z, t]| [noise::noise4([x, y, z], t)];
-    h_vnoise1 "rtsl_vnoise1" 1 -> 3 |[x]| noise::vnoise1(x);
-    h_vnoise2 "rtsl_vnoise2" 2 -> 3 |[x, y]| noise::vnoise2(x, y);
-    h_vnoise3 "rtsl_vnoise3" 3 -> 3 |[x, y, z]| noise::vnoise3([x, y, z]);
-    h_vnoise4 "rtsl_vnoise4" 4 -> 3 |[x, y, z, t]| noise::vnoise4([x, y, z], t);
     h_cell1 "rtsl_cellnoise1" 1 -> 1 |[x]| [noise::cellnoise1(x)];
     h_cell2 "rtsl_cellnoise2" 2 -> 1 |[x, y]| [noise::cellnoise2(x, y)];
     h_cell3 "rtsl_cellnoise3" 3 -> 1 |[x, y, z]| [noise::cellnoise3([x, y, z])];
@@ -251,6 +243,57 @@ fn m4(x: &[f32], at: usize) -> M4 {
     std::array::from_fn(|i| x[at + i])
 }
 
+/// Runs `f` on the whole chunk at once: argument `k` of lane `l` at `[k][l]`, the same for results.
+///
+/// # Safety
+/// As [`lanes`].
+unsafe fn chunk<const I: usize, const O: usize>(
+    input: *const f32,
+    out: *mut f32,
+    f: impl Fn([[f32; 4]; I]) -> [[f32; 4]; O],
+) {
+    // SAFETY: the caller's contract.
+    let (input, out) =
+        unsafe { (std::slice::from_raw_parts(input, 4 * I), std::slice::from_raw_parts_mut(out, 4 * O)) };
+    let r = f(std::array::from_fn(|k| std::array::from_fn(|l| input[4 * k + l])));
+    for (k, v) in r.iter().enumerate() {
+        out[4 * k..4 * k + 4].copy_from_slice(v);
+    }
+}
+
+macro_rules! chunk_helpers {
+    ($($fname:ident $sym:literal $i:literal -> $o:literal $body:expr;)*) => {
+        $(
+            /// # Safety
+            /// See [`lanes`].
+            unsafe extern "C" fn $fname(input: *const f32, out: *mut f32) {
+                // SAFETY: generated code passes stack buffers of the declared sizes.
+                unsafe { chunk::<$i, $o>(input, out, $body) }
+            }
+        )*
+        static CHUNK_HELPERS: &[Helper] = &[
+            $(Helper { name: $sym, f: $fname, ins: $i, outs: $o },)*
+        ];
+    };
+}
+
+// Helpers written four lanes at a time (`noise::x4`).
+chunk_helpers! {
+    h_noise1 "rtsl_noise1" 1 -> 1 |p| [noise::x4::noise::<1>(p)];
+    h_noise2 "rtsl_noise2" 2 -> 1 |p| [noise::x4::noise::<2>(p)];
+    h_noise3 "rtsl_noise3" 3 -> 1 |p| [noise::x4::noise::<3>(p)];
+    h_noise4 "rtsl_noise4" 4 -> 1 |p| [noise::x4::noise::<4>(p)];
+    h_vnoise1 "rtsl_vnoise1" 1 -> 3 noise::x4::vnoise::<1>;
+    h_vnoise2 "rtsl_vnoise2" 2 -> 3 noise::x4::vnoise::<2>;
+    h_vnoise3 "rtsl_vnoise3" 3 -> 3 noise::x4::vnoise::<3>;
+    h_vnoise4 "rtsl_vnoise4" 4 -> 3 noise::x4::vnoise::<4>;
+}
+
+/// Every per-chunk helper.
+pub(super) fn helpers() -> impl Iterator<Item = &'static Helper> {
+    HELPERS.iter().chain(CHUNK_HELPERS)
+}
+
 pub(super) fn helper(name: &str) -> Option<&'static Helper> {
-    HELPERS.iter().find(|h| h.name == name)
+    helpers().find(|h| h.name == name)
 }

@@ -588,7 +588,7 @@ pub fn compile_with(
         .finish(settings::Flags::new(flags))
         .map_err(|e| JitError::Codegen(e.to_string()))?;
     let mut builder = JITBuilder::with_isa(isa, default_libcall_names());
-    for h in math::HELPERS {
+    for h in math::helpers() {
         builder.symbol(h.name, h.ptr());
     }
     for h in host::HOST_HELPERS {

@@ -1,0 +1,192 @@
+//! Gradient noise (`noise` in 1-4 D, float and triple forms) four lanes at a time, equal bit for bit
+//! to the scalar functions lane by lane: the same operations in the order the parent module
+//! documents, written as loops over `[_; 4]` so that the compiler keeps the lanes together in SIMD
+//! registers (the hashing is most of the cost). The JIT's helpers call these once per chunk.
+//!
+//! Where a lane's coordinate is below 2^23 in magnitude, `floor(x)` is the truncation `x as i32`
+//! corrected by one and the lattice coordinate fits an `i32`: that is the fast path. Lanes with a
+//! larger or non-finite coordinate are recomputed by the scalar code (inactive lanes may hold
+//! anything).
+
+use super::{fade, gradient, mix32, noise_n, seed, vnoise_n, KIND_GRADIENT, SCALE, V3};
+
+/// Four lanes of a float: lane `l` at `[l]`.
+pub type X4 = [f32; 4];
+
+/// Four lanes' lattice cells (see the parent's `Cell`), and whether each lane took the fast path.
+struct Cells<const N: usize> {
+    frac: [X4; N],
+    lo: [[u32; 4]; N],
+    hi: [[u32; 4]; N],
+    fits: [bool; 4],
+}
+
+/// Below this magnitude an `f32` may have a fractional part, and `as i32` cannot saturate.
+const EXACT: f32 = 8_388_608.0;
+
+#[allow(clippy::needless_range_loop)] // lane loops over fixed arrays: what vectorises
+fn cells<const N: usize>(p: &[X4; N]) -> Cells<N> {
+    let mut c = Cells { frac: [[0.0; 4]; N], lo: [[0; 4]; N], hi: [[0; 4]; N], fits: [true; 4] };
+    for k in 0..N {
+        for l in 0..4 {
+            let x = p[k][l];
+            c.fits[l] &= x.abs() < EXACT;
+            let t = x as i32;
+            let i = if (t as f32) > x { t.wrapping_sub(1) } else { t };
+            c.frac[k][l] = x - i as f32;
+            c.lo[k][l] = i as u32;
+            c.hi[k][l] = i.wrapping_add(1) as u32;
+        }
+    }
+    c
+}
+
+#[allow(clippy::needless_range_loop)]
+fn corner_hashes<const N: usize>(c: &Cells<N>, seed: u32) -> [[u32; 4]; 16] {
+    let mut h = [[0u32; 4]; 16];
+    for l in 0..4 {
+        h[0][l] = mix32(mix32(c.lo[0][l]) ^ seed);
+        h[1][l] = mix32(mix32(c.hi[0][l]) ^ seed);
+    }
+    let mut len = 2;
+    for k in 1..N {
+        for i in 0..len {
+            for l in 0..4 {
+                let base = h[i][l];
+                h[i][l] = mix32(base.wrapping_add(c.lo[k][l]));
+                h[i + len][l] = mix32(base.wrapping_add(c.hi[k][l]));
+            }
+        }
+        len *= 2;
+    }
+    h
+}
+
+#[allow(clippy::needless_range_loop)]
+fn gradient_noise<const N: usize>(c: &Cells<N>, seed: u32) -> X4 {
+    let h = corner_hashes(c, seed);
+    let mut v = [[0.0f32; 4]; 16];
+    for i in 0..1 << N {
+        for l in 0..4 {
+            let g = gradient::<N>(h[i][l]);
+            let mut dot = 0.0f32;
+            for k in 0..N {
+                let d = if (i >> k) & 1 == 0 { c.frac[k][l] } else { c.frac[k][l] - 1.0 };
+                dot += g[k] * d;
+            }
+            v[i][l] = dot;
+        }
+    }
+    for k in (0..N).rev() {
+        let t = c.frac[k].map(fade);
+        let half = 1 << k;
+        for i in 0..half {
+            for l in 0..4 {
+                v[i][l] += t[l] * (v[i + half][l] - v[i][l]);
+            }
+        }
+    }
+    v[0].map(|x| (0.5 + x * SCALE[N - 1]).clamp(0.0, 1.0))
+}
+
+/// Lane `l` of a chunk of points.
+fn lane<const N: usize>(p: &[X4; N], l: usize) -> [f32; N] {
+    p.map(|x| x[l])
+}
+
+/// `noise_n` of each lane of `p` (`p[k][l]`: coordinate `k` of lane `l`).
+#[allow(clippy::needless_range_loop)]
+pub fn noise<const N: usize>(p: [X4; N]) -> X4 {
+    let c = cells(&p);
+    let mut r = gradient_noise(&c, seed(KIND_GRADIENT, N, 0));
+    for l in 0..4 {
+        if !c.fits[l] {
+            r[l] = noise_n(lane(&p, l));
+        }
+    }
+    r
+}
+
+/// `vnoise_n` of each lane of `p`: component `j` of lane `l` at `[j][l]`.
+#[allow(clippy::needless_range_loop)]
+pub fn vnoise<const N: usize>(p: [X4; N]) -> [X4; 3] {
+    let c = cells(&p);
+    let mut r = [1, 2, 3].map(|k| gradient_noise(&c, seed(KIND_GRADIENT, N, k)));
+    for l in 0..4 {
+        if !c.fits[l] {
+            let v: V3 = vnoise_n(lane(&p, l));
+            for j in 0..3 {
+                r[j][l] = v[j];
+            }
+        }
+    }
+    r
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Inputs that exercise every path: lattice points, signed zeros, values just below integers,
+    /// the fast path's limit, huge and non-finite values, and a spread of ordinary ones.
+    fn samples() -> Vec<f32> {
+        let mut v = vec![
+            0.0,
+            -0.0,
+            1.0,
+            -1.0,
+            0.5,
+            -0.5,
+            1e-30,
+            -1e-30,
+            0.999_999_94,
+            -0.999_999_94,
+            EXACT,
+            -EXACT,
+            EXACT - 0.5,
+            -(EXACT - 0.5),
+            3e9,
+            -3e9,
+            1e30,
+            f32::MAX,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+        ];
+        let mut h = 0x1234_5678u32;
+        for _ in 0..400 {
+            h = mix32(h);
+            let scale = [1.0, 10.0, 1000.0, 1e6][(h >> 30) as usize];
+            v.push(((h >> 8) as f32 / 16_777_216.0 - 0.5) * 2.0 * scale);
+        }
+        v
+    }
+
+    fn chunk<const N: usize>(s: &[f32], at: usize) -> [X4; N] {
+        std::array::from_fn(|k| std::array::from_fn(|l| s[(at + 7 * k + 3 * l) % s.len()]))
+    }
+
+    fn agree<const N: usize>() {
+        let s = samples();
+        for at in 0..s.len() {
+            let p = chunk::<N>(&s, at);
+            let (f, v) = (noise(p), vnoise(p));
+            for l in 0..4 {
+                let q = lane(&p, l);
+                assert_eq!(f[l].to_bits(), noise_n(q).to_bits(), "noise {q:?}");
+                let w = vnoise_n(q);
+                for j in 0..3 {
+                    assert_eq!(v[j][l].to_bits(), w[j].to_bits(), "vnoise {q:?} component {j}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn four_lanes_equal_the_scalar_noise_bit_for_bit() {
+        agree::<1>();
+        agree::<2>();
+        agree::<3>();
+        agree::<4>();
+    }
+}
