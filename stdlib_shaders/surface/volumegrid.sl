@@ -57,11 +57,14 @@ surface volumegrid(string gridname = "";
     float dist = 0.5 * stepsize;
     while (dist < texit && T > 0.004) {
         float d = texture3d(gridname, Ps + dist * Ds);
-        float ext = density * smoothstep(threshold, 1, d);
-        float a = 1 - exp(-ext * stepsize);
-        color c = brightness * spline(d, color0, color0, color1, color2, color3, color3);
-        C += T * a * c;
-        T *= 1 - a;
+        /* Below the threshold a step absorbs and adds nothing: skip its work. */
+        if (d > threshold) {
+            float ext = density * smoothstep(threshold, 1, d);
+            float a = 1 - exp(-ext * stepsize);
+            color c = brightness * spline(d, color0, color0, color1, color2, color3, color3);
+            C += T * a * c;
+            T *= 1 - a;
+        }
         dist += stepsize;
     }
     Ci = C;

@@ -57,6 +57,9 @@ pub struct Grid {
     min: [f32; 3],
     max: [f32; 3],
     values: Vec<f32>,
+    /// Lattice steps per unit along each axis: `(dims - 1) / (max - min)` (`1 / (max - min)` for
+    /// an axis of one sample, so that the bounds test still sees the box).
+    scale: [f32; 3],
 }
 
 impl Grid {
@@ -65,7 +68,8 @@ impl Grid {
     pub fn new(dims: [usize; 3], min: [f32; 3], max: [f32; 3], values: Vec<f32>) -> Option<Grid> {
         let count = dims.iter().try_fold(1usize, |acc, d| acc.checked_mul(*d))?;
         let bounds_ok = (0..3).all(|a| min[a].is_finite() && max[a].is_finite() && max[a] > min[a]);
-        (count == values.len() && count > 0 && bounds_ok).then_some(Grid { dims, min, max, values })
+        let scale = std::array::from_fn(|a| (dims[a].max(2) - 1) as f32 / (max[a] - min[a]));
+        (count == values.len() && count > 0 && bounds_ok).then_some(Grid { dims, min, max, values, scale })
     }
 
     pub fn dims(&self) -> [usize; 3] {
@@ -86,13 +90,12 @@ impl Grid {
         let mut base = [0usize; 3];
         let mut frac = [0.0f32; 3];
         for a in 0..3 {
-            let u = (p[a] - self.min[a]) / (self.max[a] - self.min[a]);
+            let last = self.dims[a] - 1;
+            let x = (p[a] - self.min[a]) * self.scale[a];
             // `!(..)` also sends NaN outside.
-            if !(0.0..=1.0).contains(&u) {
+            if !(0.0..=last.max(1) as f32).contains(&x) {
                 return 0.0;
             }
-            let last = self.dims[a] - 1;
-            let x = u * last as f32;
             // `x >= 0`, so truncation is floor (and no libm call).
             let i = (x as usize).min(last.saturating_sub(1));
             base[a] = i;

@@ -444,7 +444,11 @@ impl Cx<'_> {
     }
     /// A string argument (uniform: lane 0).
     fn s(&self, k: usize) -> String {
-        self.strings.get(self.input[4 * k].to_bits()).to_string()
+        self.str(k).to_string()
+    }
+    /// A string argument, borrowed.
+    fn str(&self, k: usize) -> &str {
+        self.strings.get(self.input[4 * k].to_bits())
     }
     fn set(&mut self, j: usize, l: usize, x: f32) {
         self.out[4 * j + l] = x;
@@ -846,7 +850,7 @@ host_helpers! {
     }
     // [basis, x, knots] -> [first knot of the segment, four weights]: `spline`'s segment and weights
     h_spline "rtsl_h_spline" 3 => 5 |cx| {
-        let basis = spline::Basis::parse(&cx.s(0));
+        let basis = spline::Basis::parse(cx.str(0));
         let n = cx.f(2, 0) as usize;
         for l in cx.active() {
             let (first, w) = basis.weights(cx.f(1, l), n).unwrap_or((0, [1.0, 0.0, 0.0, 0.0]));
@@ -866,7 +870,7 @@ host_helpers! {
     }
     // [pattern, subject] -> 1 or 0
     h_match "rtsl_h_match" 2 => 1 |cx| {
-        let m = format::regex_match(&cx.s(0), &cx.s(1));
+        let m = format::regex_match(cx.str(0), cx.str(1));
         for l in 0..4 {
             cx.set(0, l, if m { 1.0 } else { 0.0 });
         }
