@@ -11,6 +11,7 @@ use crate::ray::{HitCandidate, HitPacket, Ray, RayPacket, PACKET_SIZE};
 use crate::shading::{get3, put1, put3, with_batch, LightKind};
 use glam::Vec3A;
 use rtsl_compiler::back::jit::{HostLight, MAX_LIGHTS};
+use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Runs one light's shader for the active lanes of a chunk and appends what reaches each lane, with
 /// shadows traced.
@@ -106,7 +107,7 @@ fn eval_light_lanes(
                     packet.set(l, &ray.at_time(time_of(times, l)));
                 }
             }
-            transmission_packet(frame, &packet, &mut attenuation);
+            transmission_packet(frame, &mut packet, &mut attenuation);
         }
         for l in 0..n {
             let (to_surface, cl, ol) = results[l];
@@ -188,17 +189,18 @@ pub(super) fn transmission_along(frame: &Frame, from: Vec3A, dir: Vec3A, distanc
         packet.set(0, &ray.at_time(time));
     }
     let mut through = [Vec3A::ONE];
-    transmission_packet(frame, &packet, &mut through);
+    transmission_packet(frame, &mut packet, &mut through);
     through[0]
 }
 
-/// Multiplies `through[l]` by how much light passes along the active shadow rays of `packet`:
+/// Multiplies `through[l]` by how much light passes along the active shadow rays of `packet` (whose
+/// lanes' `active` and `tmin` it uses as scratch):
 /// zero where an opaque surface blocks, the product of `1 - opacity` of the transparent surfaces
-/// crossed otherwise (their order does not matter). Opaque blockers are found by one packet
-/// occlusion query that ignores transparent surfaces, rays that meet nothing by a second; only the
-/// rays left walk through their transparent surfaces, together, layer by layer, each layer's hits
+/// crossed otherwise (their order does not matter). One packet occlusion query finds the opaque
+/// blockers, its hit filter passing over transparent surfaces and noting which rays met one; only
+/// those rays walk through their transparent surfaces, together, layer by layer, each layer's hits
 /// shaded in batches (shaders that set the shadow's opacity, `transmissionhitmode "shader"`).
-fn transmission_packet(frame: &Frame, packet: &RayPacket, through: &mut [Vec3A]) {
+fn transmission_packet(frame: &Frame, packet: &mut RayPacket, through: &mut [Vec3A]) {
     let active = packet.active & lane_mask(through.len());
     if active == 0 {
         return;
@@ -206,10 +208,9 @@ fn transmission_packet(frame: &Frame, packet: &RayPacket, through: &mut [Vec3A])
     Stats::add(&frame.stats.shadow_rays, active.count_ones() as usize);
     let world = frame.world;
     let scene = &world.scene;
-    let mut packet = packet.clone();
     packet.active = active;
     if !frame.transparent_shadows {
-        let blocked = tracing(|| scene.occluded_packet(&packet));
+        let blocked = tracing(|| scene.occluded_packet(packet));
         clear_lanes(through, blocked);
         return;
     }
@@ -217,23 +218,25 @@ fn transmission_packet(frame: &Frame, packet: &RayPacket, through: &mut [Vec3A])
         let inst = world.instances.get(instance as usize);
         inst.and_then(|i| world.materials.get(i.material as usize)).unwrap_or(&DEFAULT_MATERIAL)
     };
-    let opaque = |c: &HitCandidate| material_of(c.instance).is_opaque_for_shadows();
-    let (blocked, crossing) = tracing(|| {
-        let blocked = scene.occluded_packet_filtered(&packet, Some(&opaque));
-        let mut rest = packet.clone();
-        rest.active &= !blocked;
-        let crossing = if rest.active == 0 { 0 } else { scene.occluded_packet(&rest) };
-        (blocked, crossing)
-    });
+    // Transparent candidates are ignored (the traversal goes on) but remembered by lane.
+    let crossing = AtomicU64::new(0);
+    let opaque = |c: &HitCandidate| {
+        let opaque = material_of(c.instance).is_opaque_for_shadows();
+        if !opaque {
+            crossing.fetch_or(1u64 << (c.lane & 63), Ordering::Relaxed);
+        }
+        opaque
+    };
+    let blocked = tracing(|| scene.occluded_packet_filtered(packet, Some(&opaque)));
     clear_lanes(through, blocked);
-    let mut walking = crossing & !blocked;
+    let mut walking = crossing.into_inner() & active & !blocked;
     let mut hits = HitPacket::default();
     for _ in 0..world.options.max_transparent_layers {
         if walking == 0 {
             return;
         }
         packet.active = walking;
-        tracing(|| scene.intersect_packet(&packet, &mut hits));
+        tracing(|| scene.intersect_packet(packet, &mut hits));
         let mut shaded_by_shader = Vec::new();
         for l in lanes(walking) {
             let hit = hits.get(l);
