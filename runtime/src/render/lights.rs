@@ -8,7 +8,7 @@ use super::shade::{finite_or_zero, mix, point_seed, shade_in_groups, unit, Frame
 use super::stats::{tracing, Stats};
 use super::world::{LightSource, DEFAULT_MATERIAL};
 use crate::ray::{HitCandidate, HitPacket, Ray, RayPacket, PACKET_SIZE};
-use crate::shading::{get3, put1, put3, with_batch, LightKind};
+use crate::shading::{fill1, fill3, get3, put1, put3, with_batch, LightKind};
 use glam::Vec3A;
 use rtsl_compiler::back::jit::{HostLight, MAX_LIGHTS};
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -63,20 +63,28 @@ fn eval_light_lanes(
                 let mut raw = batch.raw_mut();
                 instance.write_params(&mut raw);
                 raw.mask[..n].copy_from_slice(&mask[..n]);
-                for (l, &point) in points.iter().enumerate().take(n) {
-                    // The emitting point: the light's origin, or a sample of its geometry.
-                    let (mut origin, mut normal) = (instance.world_from_shader.translation, Vec3A::ZERO);
-                    if let Some(area) = &light.area {
-                        let h = mix(point_seed(point) ^ u64::from(sample).wrapping_mul(0x2545_F491_4F6C_DD1D));
-                        if let Some((q, nn)) = area.sample(unit(h), unit(mix(h)), unit(mix(h ^ 1))) {
-                            (origin, normal) = (q, nn);
+                // What every lane shares is written a row at a time.
+                fill3(&mut raw, slots.e, eye);
+                fill1(&mut raw, slots.ncomps, 3.0);
+                match &light.area {
+                    None => {
+                        fill3(&mut raw, slots.p, instance.world_from_shader.translation);
+                        fill3(&mut raw, slots.n, Vec3A::ZERO);
+                    }
+                    Some(area) => {
+                        for (l, &point) in points.iter().enumerate().take(n) {
+                            // The emitting point: a sample of the light's geometry.
+                            let h = mix(point_seed(point) ^ u64::from(sample).wrapping_mul(0x2545_F491_4F6C_DD1D));
+                            let (origin, normal) = area
+                                .sample(unit(h), unit(mix(h)), unit(mix(h ^ 1)))
+                                .unwrap_or((instance.world_from_shader.translation, Vec3A::ZERO));
+                            put3(&mut raw, slots.p, l, origin);
+                            put3(&mut raw, slots.n, l, normal);
                         }
                     }
+                }
+                for (l, &point) in points.iter().enumerate().take(n) {
                     put3(&mut raw, slots.ps, l, point);
-                    put3(&mut raw, slots.p, l, origin);
-                    put3(&mut raw, slots.n, l, normal);
-                    put3(&mut raw, slots.e, l, eye);
-                    put1(&mut raw, slots.ncomps, l, 3.0);
                     put1(&mut raw, slots.time, l, time_of(times, l));
                 }
             }

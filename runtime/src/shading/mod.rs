@@ -107,6 +107,27 @@ pub fn put1(raw: &mut RawBatch<'_>, slot: Option<Slot>, lane: usize, v: f32) {
     }
 }
 
+/// Writes the same float global into lanes `0..raw.lanes` (one row fill, not a store per lane).
+pub fn fill1(raw: &mut RawBatch<'_>, slot: Option<Slot>, v: f32) {
+    if let Some(s) = slot {
+        if s.varying {
+            let row = s.offset * raw.stride;
+            raw.varying[row..row + raw.lanes].fill(v);
+        } else {
+            raw.uniform[s.offset] = v;
+        }
+    }
+}
+
+/// Writes the same triple global into lanes `0..raw.lanes`.
+pub fn fill3(raw: &mut RawBatch<'_>, slot: Option<Slot>, v: Vec3A) {
+    if let Some(s) = slot {
+        for (k, x) in v.to_array().into_iter().enumerate() {
+            fill1(raw, Some(Slot { offset: s.offset + k, ..s }), x);
+        }
+    }
+}
+
 /// Writes a triple global of one lane.
 #[inline]
 pub fn put3(raw: &mut RawBatch<'_>, slot: Option<Slot>, lane: usize, v: Vec3A) {
