@@ -399,6 +399,33 @@ fn bench_instances_and_camera_report_their_numbers() {
 }
 
 #[test]
+fn bench_aa_reports_rays_and_error_per_mode() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let args = ["bench", "aa", "--size", "32x24", "--reference", "16", "--samples", "4", "--thresholds", "0.1,0"];
+    let o = rtsl(&args, dir.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    let field = |mode: &str, name: &str| -> f64 {
+        let line = out.lines().find(|l| l.starts_with(&format!("{mode}: "))).unwrap_or_else(|| panic!("{mode}: {out}"));
+        let at = line.find(name).unwrap_or_else(|| panic!("{name} in {line}")) + name.len() + 1;
+        line[at..].split([' ', ',']).next().and_then(|v| v.parse().ok()).unwrap_or_else(|| panic!("{line}"))
+    };
+    for mode in ["regular", "jittered", "interleaved"] {
+        assert_eq!(field(mode, "primary_rays_per_pixel"), 4.0, "{out}");
+    }
+    assert_eq!(field("one_sample", "primary_rays_per_pixel"), 1.0);
+    // Threshold 0 refines every pixel that differs at all from a neighbour: more rays than 0.1.
+    let (loose, strict) =
+        (field("adaptive:0.1", "primary_rays_per_pixel"), field("adaptive:0", "primary_rays_per_pixel"));
+    assert!((1.0..=5.0).contains(&loose) && loose < strict && strict <= 5.0, "{out}");
+    // Four samples a pixel are closer to the reference than one.
+    for mode in ["regular", "jittered", "interleaved"] {
+        let (e, one) = (field(mode, "rmse"), field("one_sample", "rmse"));
+        assert!(e.is_finite() && e < one, "{mode}: {e} against one sample's {one}\n{out}");
+    }
+}
+
+#[test]
 fn bad_camera_and_lightfield_flags_are_clear_errors() {
     let dir = tempfile::tempdir().expect("tempdir");
     let o = rtsl(&["render", "--camera", "nosuchcamera", "-o", "x.png", "--size", "8x8"], dir.path());

@@ -326,6 +326,85 @@ pub fn run_camera(args: &BenchCameraArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Flags of `rtsl bench aa`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct BenchAaArgs {
+    /// The scene (RIB or mesh; none: the default scene).
+    pub scene: Option<PathBuf>,
+    /// Image size, `WxH` (the reference takes many samples a pixel, so smaller than the scene's).
+    #[arg(long, value_parser = parse_size, default_value = "320x240")]
+    pub size: (u32, u32),
+    /// Samples per pixel of the reference image (a jittered grid; a square number).
+    #[arg(long, default_value_t = 64)]
+    pub reference: u32,
+    /// The ray budget: samples per pixel of each fixed-rate mode (a square number).
+    #[arg(long, default_value_t = 4)]
+    pub samples: u32,
+    /// Thresholds of adaptive oversampling to try (it spends as many rays as its threshold asks).
+    #[arg(long, value_delimiter = ',', default_value = "0.4,0.2,0.1,0.05,0.02")]
+    pub thresholds: Vec<f32>,
+    /// Worker threads (0: one per core).
+    #[arg(long, default_value_t = 2)]
+    pub threads: usize,
+}
+
+/// Runs `rtsl bench aa`: renders a reference with many jittered samples a pixel, then the scene with
+/// each anti-aliasing mode (regular and jittered grids and interleaved QMC sampling at the budget,
+/// adaptive oversampling at several thresholds) and prints, per mode, the primary rays traced (all
+/// rays too) and the root-mean-square error of the final RGB against the reference.
+pub fn run_aa(args: &BenchAaArgs) -> anyhow::Result<()> {
+    use rtsl_runtime::render::Antialiasing;
+    let (mut rt, _) = super::render::load_scene(args.scene.as_deref(), &[], &[])?;
+    (rt.options.width, rt.options.height) = args.size;
+    let threads =
+        if args.threads == 0 { std::thread::available_parallelism().map_or(1, |n| n.get()) } else { args.threads };
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().context("starting the worker threads")?;
+    let mut world = rt.build_world()?;
+    let mut render = |aa: Antialiasing, samples: u32| {
+        world.options.antialiasing = aa;
+        world.options.samples = super::render::samples_grid(samples);
+        let start = std::time::Instant::now();
+        let (fb, report) = pool.install(|| rtsl_runtime::render::render_frame(&world, None));
+        (fb, report, start.elapsed().as_secs_f64() * 1e3)
+    };
+    let (reference, _, _) = render(Antialiasing::Grid { jitter: true }, args.reference);
+    let pixels = (args.size.0 as u64 * args.size.1 as u64).max(1);
+    let rmse = |fb: &rtsl_runtime::render::Framebuffer| {
+        let sum: f64 = fb
+            .rgba
+            .chunks(4)
+            .zip(reference.rgba.chunks(4))
+            .map(|(a, b)| (0..3).map(|c| f64::from(a[c] - b[c]).powi(2)).sum::<f64>())
+            .sum();
+        (sum / (3 * pixels) as f64).sqrt()
+    };
+    println!("scene: {}", args.scene.as_ref().map_or("<default scene>".into(), |p| p.display().to_string()));
+    println!(
+        "size: {}x{}, threads: {threads}, reference: {} jittered samples per pixel, budget: {} samples per pixel",
+        args.size.0, args.size.1, args.reference, args.samples
+    );
+    let mut modes: Vec<(String, Antialiasing, u32)> = vec![
+        ("regular".into(), Antialiasing::Grid { jitter: false }, args.samples),
+        ("jittered".into(), Antialiasing::Grid { jitter: true }, args.samples),
+        ("interleaved".into(), Antialiasing::Interleaved, args.samples),
+        ("one_sample".into(), Antialiasing::Grid { jitter: false }, 1),
+    ];
+    for t in &args.thresholds {
+        modes.push((format!("adaptive:{t}"), Antialiasing::Adaptive { threshold: *t }, 1));
+    }
+    for (name, aa, samples) in modes {
+        let (fb, report, ms) = render(aa, samples);
+        println!(
+            "{name}: primary_rays_per_pixel {:.2}, rays {} (primary {}), rmse {:.5}, {ms:.0} ms",
+            report.primary_rays as f64 / pixels as f64,
+            report.total_rays(),
+            report.primary_rays,
+            rmse(&fb)
+        );
+    }
+    Ok(())
+}
+
 /// Flags of `rtsl bench instances`.
 #[derive(clap::Args, Debug, Clone)]
 pub struct BenchInstancesArgs {

@@ -79,6 +79,8 @@ enum BenchCommand {
     Camera(bench::BenchCameraArgs),
     /// Top-level BVH rebuild time over 1,000 and 10,000 instances (what a dynamic frame pays).
     Instances(bench::BenchInstancesArgs),
+    /// Anti-aliasing modes against a many-sample reference: rays traced and RMS error of each.
+    Aa(bench::BenchAaArgs),
 }
 
 /// Runs the command line; the exit code says whether everything succeeded.
@@ -101,5 +103,6 @@ pub fn run() -> anyhow::Result<ExitCode> {
         Command::Bench(BenchCommand::Reload(args)) => bench::run_reload(&args).map(|()| ExitCode::SUCCESS),
         Command::Bench(BenchCommand::Camera(args)) => bench::run_camera(&args).map(|()| ExitCode::SUCCESS),
         Command::Bench(BenchCommand::Instances(args)) => bench::run_instances(&args).map(|()| ExitCode::SUCCESS),
+        Command::Bench(BenchCommand::Aa(args)) => bench::run_aa(&args).map(|()| ExitCode::SUCCESS),
     }
 }

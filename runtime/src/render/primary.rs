@@ -18,7 +18,7 @@ use super::host::ShadeCall;
 use super::shade::{finite_or_zero, Frame};
 use super::world::World;
 use crate::ray::{Ray, RayPacket, PACKET_SIZE};
-use crate::shading::{get3, put1, put3, with_batch};
+use crate::shading::{fill1, fill3, get3, put1, put3, with_batch};
 use glam::Vec3A;
 
 /// Where on the image, lens and shutter a primary ray starts.
@@ -139,6 +139,10 @@ fn run_camera_shader(
             {
                 let mut raw = batch.raw_mut();
                 camera.write_params(&mut raw);
+                fill1(&mut raw, slots.dtime, close - open);
+                fill1(&mut raw, slots.ncomps, 3.0);
+                fill3(&mut raw, slots.e, eye);
+                fill3(&mut raw, slots.ci, Vec3A::ONE);
                 for (lane, s) in samples.iter().enumerate() {
                     let (sx, sy) = screen_position(world, s.raster);
                     put3(&mut raw, slots.p, lane, Vec3A::new(s.raster.0, s.raster.1, 0.0));
@@ -147,11 +151,7 @@ fn run_camera_shader(
                     put1(&mut raw, slots.u, lane, s.lens.0);
                     put1(&mut raw, slots.v, lane, s.lens.1);
                     put1(&mut raw, slots.time, lane, s.time);
-                    put1(&mut raw, slots.dtime, lane, close - open);
-                    put1(&mut raw, slots.ncomps, lane, 3.0);
-                    put3(&mut raw, slots.e, lane, eye);
                     put3(&mut raw, slots.i, lane, dirs[lane]);
-                    put3(&mut raw, slots.ci, lane, Vec3A::ONE);
                 }
             }
             let mut call = ShadeCall::new(frame, camera, world.camera.world_from_camera, 0);
