@@ -41,6 +41,11 @@ fn cube(rt: &mut Context) -> Result<(), ApiError> {
 
 /// A floor and a floating cube under a point light, shaded with `plastic`.
 fn shadow_scene(rt: &mut Context) -> Result<rtsl_runtime::api::LightId, ApiError> {
+    shadow_scene_with_cube_opacity(rt, 1.0)
+}
+
+/// [`shadow_scene`] with a cube of the given opacity.
+fn shadow_scene_with_cube_opacity(rt: &mut Context, opacity: f32) -> Result<rtsl_runtime::api::LightId, ApiError> {
     let plastic = rt.find_shader("plastic")?;
     let light = rt.find_shader("pointlight")?;
     rt.camera_look_at(Vec3A::new(0.0, 4.0, 7.0), Vec3A::new(0.0, 0.5, 0.0), Vec3A::Y, 45.0);
@@ -51,6 +56,7 @@ fn shadow_scene(rt: &mut Context) -> Result<rtsl_runtime::api::LightId, ApiError
     rt.instantiate_object(floor)?;
     let boxy = rt.begin_object()?;
     rt.color(0.9, 0.3, 0.2);
+    rt.opacity(opacity, opacity, opacity);
     cube(rt)?;
     rt.end_object()?;
     rt.push_matrix();
@@ -88,6 +94,38 @@ fn shadows_darken_only_what_the_cube_hides() -> Result<(), ApiError> {
     // The lit floor is lit at all, and misses are black with zero alpha.
     assert!(luminance(&unshadowed, W / 2, H - 2) > 0.05);
     assert_eq!(lit.pixel(0, 0), [0.0; 4], "the sky is empty");
+    Ok(())
+}
+
+#[test]
+fn a_translucent_cube_passes_light_through_both_of_its_walls() -> Result<(), ApiError> {
+    // Every shadow ray under the cube crosses two of its faces, each letting half the light
+    // through: the floor there gets a quarter of the light (no ambient light in the scene).
+    let render = |opacity: f32, shadows: bool| -> Result<Framebuffer, ApiError> {
+        let mut rt = context();
+        let light = shadow_scene_with_cube_opacity(&mut rt, opacity)?;
+        rt.set_light(light, true, shadows)?;
+        Ok(rt.render_frame()?.0)
+    };
+    let (opaque, translucent) = (render(1.0, true)?, render(0.5, true)?);
+    let (unshadowed, opaque_unshadowed) = (render(0.5, false)?, render(1.0, false)?);
+    let (mut shadowed, mut quarter) = (0, 0);
+    for y in 0..H {
+        for x in 0..W {
+            let (o, t, u) = (luminance(&opaque, x, y), luminance(&translucent, x, y), luminance(&unshadowed, x, y));
+            // Without shadows the cube's opacity shows only where the camera sees the cube.
+            let floor_seen = unshadowed.pixel(x, y) == opaque_unshadowed.pixel(x, y);
+            if floor_seen && u > 0.05 && o < 1e-4 {
+                shadowed += 1;
+                if (t / u - 0.25).abs() < 0.01 {
+                    quarter += 1;
+                }
+            }
+        }
+    }
+    assert!(shadowed > 20, "only {shadowed} pixels in the cube's shadow");
+    // Rays that graze an edge or a corner may cross one face only.
+    assert!(quarter * 10 >= shadowed * 9, "{quarter} of {shadowed} shadowed pixels get a quarter of the light");
     Ok(())
 }
 
