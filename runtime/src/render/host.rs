@@ -6,7 +6,7 @@
 //! ABI fixes, and nothing in them panics on user data.
 
 use super::lights::epsilon;
-use super::lights::{eval_light, transmission_along, BatchLights};
+use super::lights::{eval_light, transmission_between, BatchLights};
 use super::shade::{mix, point_seed, trace_rays, unit, Frame};
 use super::stats::{tracing, Stats};
 use crate::ray::Ray;
@@ -368,11 +368,7 @@ unsafe extern "C" fn host_texture(
     }
     let textures = &c.frame.world.textures;
     let mut lane_out = [0.0f32; 64];
-    for l in 0..4 {
-        ok[l] = 0;
-        if mask[l] == 0 {
-            continue;
-        }
+    for l in active() {
         let found = match kind {
             1 => {
                 let dir = lane3(coords, 0, l).to_array();
@@ -383,9 +379,9 @@ unsafe extern "C" fn host_texture(
                 let shadowed = if name == "raytrace" {
                     // Ray-traced shadows (BMRT's convention): towards the light's own origin.
                     let to = c.instance.world_from_shader.translation;
-                    let d = to - p;
-                    let t = transmission_along(c.frame, p, d.normalize_or_zero(), d.length(), c.lane_time(l));
-                    Some(1.0 - (t.x + t.y + t.z) / 3.0)
+                    let mut t = [Vec3A::ONE];
+                    transmission_between(c.frame, &[Some((p, to, c.lane_time(l)))], &mut t);
+                    Some(1.0 - (t[0].x + t[0].y + t[0].z) / 3.0)
                 } else {
                     textures.shadow(name, p.to_array(), &LookupOptions::default())
                 };
@@ -462,13 +458,12 @@ unsafe extern "C" fn host_rays(
             }
         }
         1 => {
-            for l in 0..4 {
-                if mask[l] == 0 {
-                    continue;
-                }
-                let (from, to) = (lane3(a, 0, l), lane3(b, 0, l));
-                let d = to - from;
-                let t = transmission_along(frame, from, d.normalize_or_zero(), d.length(), times[l]);
+            // The chunk's segments go as one packet.
+            let segments: [Option<(Vec3A, Vec3A, f32)>; 4] =
+                std::array::from_fn(|l| (mask[l] != 0).then(|| (lane3(a, 0, l), lane3(b, 0, l), times[l])));
+            let mut through = [Vec3A::ONE; 4];
+            transmission_between(frame, &segments, &mut through);
+            for (l, t) in through.iter().enumerate().filter(|(l, _)| mask[*l] != 0) {
                 for r in 0..3 {
                     out[4 * r + l] = t[r];
                 }

@@ -189,16 +189,19 @@ pub(super) fn epsilon(p: Vec3A) -> f32 {
     1e-4 * p.abs().max_element().max(1.0)
 }
 
-/// How much light gets from `from` along unit `dir` for `distance` (white where nothing blocks):
-/// opaque blockers stop it, transparent ones filter it by their opacity. Rays are at `time`.
-pub(super) fn transmission_along(frame: &Frame, from: Vec3A, dir: Vec3A, distance: f32, time: f32) -> Vec3A {
+/// How much light gets along each segment `from -> to` at its time (white where nothing blocks, and
+/// for `None`): opaque blockers stop it, transparent ones filter it by their opacity. The segments
+/// (at most a packet) are traced together; `through[l]` receives segment `l`'s.
+pub(super) fn transmission_between(frame: &Frame, segments: &[Option<(Vec3A, Vec3A, f32)>], through: &mut [Vec3A]) {
     let mut packet = RayPacket::new();
-    if let Some(ray) = shadow_ray(from, dir, distance) {
-        packet.set(0, &ray.at_time(time));
+    for (l, (from, to, time)) in segments.iter().enumerate().take(PACKET_SIZE).filter_map(|(l, s)| Some((l, (*s)?))) {
+        let d = to - from;
+        if let Some(ray) = shadow_ray(from, d.normalize_or_zero(), d.length()) {
+            packet.set(l, &ray.at_time(time));
+        }
     }
-    let mut through = [Vec3A::ONE];
-    transmission_packet(frame, &mut packet, &mut through);
-    through[0]
+    through.fill(Vec3A::ONE);
+    transmission_packet(frame, &mut packet, through);
 }
 
 /// Multiplies `through[l]` by how much light passes along the active shadow rays of `packet` (whose
