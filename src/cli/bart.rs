@@ -54,9 +54,7 @@ struct FrameTimes {
 }
 
 pub fn run(args: &BartArgs) -> anyhow::Result<ExitCode> {
-    let threads =
-        if args.threads == 0 { std::thread::available_parallelism().map_or(1, |n| n.get()) } else { args.threads };
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().context("starting the worker threads")?;
+    let (threads, pool) = super::worker_pool(args.threads)?;
 
     let started = Instant::now();
     let mut rt = Context::new();

@@ -193,9 +193,7 @@ pub fn run_render(args: &BenchRenderArgs) -> anyhow::Result<()> {
         rt.options.antialiasing = aa;
     }
     let mut world = rt.build_world()?;
-    let threads =
-        if args.threads == 0 { std::thread::available_parallelism().map_or(1, |n| n.get()) } else { args.threads };
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().context("starting the worker threads")?;
+    let (threads, pool) = super::worker_pool(args.threads)?;
     let frames = args.frames.max(1);
     let jit_world = world.materials.clone();
     let native_count = if args.native_plastic { world.use_native_plastic() } else { 0 };
@@ -299,9 +297,7 @@ pub fn run_camera(args: &BenchCameraArgs) -> anyhow::Result<()> {
     }
     rt.camera_shader(None, &[])?;
     let mut world = rt.build_world()?;
-    let threads =
-        if args.threads == 0 { std::thread::available_parallelism().map_or(1, |n| n.get()) } else { args.threads };
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().context("starting the worker threads")?;
+    let (threads, pool) = super::worker_pool(args.threads)?;
     let mut times = vec![Vec::new(); cameras.len()];
     let mut rays = vec![0u64; cameras.len()];
     for frame in 0..=args.frames.max(1) {
@@ -356,9 +352,7 @@ pub fn run_aa(args: &BenchAaArgs) -> anyhow::Result<()> {
     use rtsl_runtime::render::Antialiasing;
     let (mut rt, _) = super::render::load_scene(args.scene.as_deref(), &[], &[])?;
     (rt.options.width, rt.options.height) = args.size;
-    let threads =
-        if args.threads == 0 { std::thread::available_parallelism().map_or(1, |n| n.get()) } else { args.threads };
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().context("starting the worker threads")?;
+    let (threads, pool) = super::worker_pool(args.threads)?;
     let mut world = rt.build_world()?;
     let mut render = |aa: Antialiasing, samples: u32| {
         world.options.antialiasing = aa;
@@ -535,9 +529,7 @@ pub fn run_reload(args: &BenchReloadArgs) -> anyhow::Result<()> {
         scene.display(),
         shader_dir.display()
     );
-    let threads =
-        if args.threads == 0 { std::thread::available_parallelism().map_or(1, |n| n.get()) } else { args.threads };
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().context("starting the worker threads")?;
+    let (threads, pool) = super::worker_pool(args.threads)?;
     let frame = |rt: &mut rtsl_runtime::api::Context| -> anyhow::Result<(f64, Instant)> {
         let world = rt.build_world()?;
         let (fb, _) = pool.install(|| rtsl_runtime::render::render_frame(&world, None));

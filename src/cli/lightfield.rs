@@ -72,9 +72,7 @@ pub fn run_capture(args: &CaptureArgs) -> anyhow::Result<ExitCode> {
     spec.views = args.views;
     spec.view_size = args.view_size;
     spec.samples = args.samples.max(1);
-    let threads =
-        if args.threads == 0 { std::thread::available_parallelism().map_or(1, |n| n.get()) } else { args.threads };
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().context("starting the worker threads")?;
+    let (_, pool) = super::worker_pool(args.threads)?;
     let start = std::time::Instant::now();
     let atlas = pool.install(|| capture(&mut rt, &spec, &mut |_, _| {}))?;
     let side = atlas.side as usize;

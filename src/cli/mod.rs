@@ -106,3 +106,11 @@ pub fn run() -> anyhow::Result<ExitCode> {
         Command::Bench(BenchCommand::Aa(args)) => bench::run_aa(&args).map(|()| ExitCode::SUCCESS),
     }
 }
+
+/// The rayon pool of `--threads` workers (0: one per core) and its size.
+pub(crate) fn worker_pool(threads: usize) -> anyhow::Result<(usize, rayon::ThreadPool)> {
+    use anyhow::Context as _;
+    let threads = if threads == 0 { std::thread::available_parallelism().map_or(1, |n| n.get()) } else { threads };
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().context("starting the worker threads")?;
+    Ok((threads, pool))
+}

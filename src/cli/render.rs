@@ -204,9 +204,7 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
         rt.camera_shader(Some(id), &[])?;
     }
     let output = output.unwrap_or_else(|| PathBuf::from("render.png"));
-    let threads =
-        if args.threads == 0 { std::thread::available_parallelism().map_or(1, |n| n.get()) } else { args.threads };
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().context("starting the worker threads")?;
+    let (threads, pool) = super::worker_pool(args.threads)?;
     let report = render_and_write(&mut rt, &pool, &output, args.quiet, true)?;
     if !args.quiet {
         println!(
