@@ -418,6 +418,16 @@ fn bench_aa_reports_rays_and_error_per_mode() {
     let (loose, strict) =
         (field("adaptive:0.1", "primary_rays_per_pixel"), field("adaptive:0", "primary_rays_per_pixel"));
     assert!((1.0..=5.0).contains(&loose) && loose < strict && strict <= 5.0, "{out}");
+    // Bad flags and scenes are clear errors.
+    for (bad, says) in [
+        (&["--size", "0x0"][..], "at least 1x1"),
+        (&["--reference", "0"], "--reference"),
+        (&["--thresholds", "abc"], "--thresholds"),
+        (&["no_such_scene.rib"], "no_such_scene.rib"),
+    ] {
+        let o = rtsl(&[&["bench", "aa"][..], bad].concat(), dir.path());
+        assert!(!o.status.success() && stderr(&o).contains(says), "{bad:?}: {}", stderr(&o));
+    }
     // Four samples a pixel are closer to the reference than one.
     for mode in ["regular", "jittered", "interleaved"] {
         let (e, one) = (field(mode, "rmse"), field("one_sample", "rmse"));

@@ -331,10 +331,10 @@ pub struct BenchAaArgs {
     #[arg(long, value_parser = parse_size, default_value = "320x240")]
     pub size: (u32, u32),
     /// Samples per pixel of the reference image (a jittered grid; a square number).
-    #[arg(long, default_value_t = 64)]
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..), default_value_t = 64)]
     pub reference: u32,
     /// The ray budget: samples per pixel of each fixed-rate mode (a square number).
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..), default_value_t = 4)]
     pub samples: u32,
     /// Thresholds of adaptive oversampling to try (it spends as many rays as its threshold asks).
     #[arg(long, value_delimiter = ',', default_value = "0.4,0.2,0.1,0.05,0.02")]
