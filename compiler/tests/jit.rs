@@ -1079,3 +1079,19 @@ fn an_index_out_of_range_is_clamped_and_reported() {
     shader.shade(&mut batch);
     assert!(shader.runtime_errors().is_empty());
 }
+
+/// Found by `random_expressions_agree`: where no argument moves along a screen direction the
+/// derivative is zero, also where the function is NaN (pow of a negative base); the JIT's central
+/// difference gave NaN - NaN.
+#[test]
+fn a_zero_tangent_gives_a_zero_difference_derivative_even_where_the_function_is_nan() {
+    let e = "pow(min(a, xcomp(P)), a)";
+    let src = format!(
+        "surface t(float a = 0.5; varying float w = 0.25; output varying float o = 0, od = 0;) \
+         {{ o = {e}; od = Du(o) + Dv(o) * 0.5; Ci = color(o, o * 0.5, 1 - o); }}"
+    );
+    let m = module(&src);
+    let shader = jit::compile(&m).unwrap_or_else(|err| panic!("JIT: {err}\n{src}"));
+    differential(&m, &shader, 13, 213, 0.5);
+    differential(&m, &shader, 16, 214, 1.0);
+}

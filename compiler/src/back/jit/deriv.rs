@@ -498,6 +498,21 @@ impl<'m> Lower<'m, '_> {
         }
         let mut out: T2 = [Vec::new(), Vec::new()];
         for (dir, o) in out.iter_mut().enumerate() {
+            // Lanes where no argument moves along this direction have a zero derivative, as in the
+            // interpreter, even where the function itself is NaN (pow of a negative base).
+            let zero = self.k(0.0);
+            let mut moving = None;
+            for t in duals.iter().flatten().filter_map(|d| d.d.as_ref()) {
+                for c in &t[dir] {
+                    let c = widen(&mut self.b, *c, true);
+                    let zero = widen(&mut self.b, zero, true);
+                    let m = self.b.ins().fcmp(FloatCC::NotEqual, c, zero);
+                    moving = Some(match moving {
+                        Some(acc) => self.b.ins().bor(acc, m),
+                        None => m,
+                    });
+                }
+            }
             let mut ends = Vec::with_capacity(2);
             for h in [0.5f32, -0.5] {
                 for (a, d) in args.iter().zip(duals) {
@@ -513,7 +528,15 @@ impl<'m> Lower<'m, '_> {
                 }
                 ends.push(self.builtin(bi, overload, args, e)?);
             }
-            *o = (0..r.c.len()).map(|i| self.sub(ends[0].c[i], ends[1].c[i])).collect();
+            *o = (0..r.c.len())
+                .map(|i| {
+                    let diff = self.sub(ends[0].c[i], ends[1].c[i]);
+                    match moving {
+                        Some(m) => choose(&mut self.b, m, diff, zero),
+                        None => zero,
+                    }
+                })
+                .collect();
         }
         for (a, d) in args.iter().zip(duals) {
             if let (Arg::Value(x), Some(d)) = (a, d) {
