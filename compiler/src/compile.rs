@@ -76,7 +76,7 @@ impl Session {
     /// looked up in the include path only.
     pub fn compile_source(&mut self, name: &str, text: &str, options: &Options) -> Compilation {
         let mut sources = SourceMap::new();
-        let file = sources.add_virtual(name, text.to_string());
+        let file = sources.add_virtual(name, std::sync::Arc::<str>::from(text));
         self.compile_loaded(sources, file, options)
     }
 
@@ -84,7 +84,7 @@ impl Session {
     /// file's directory first).
     pub fn compile_source_at(&mut self, path: &Path, text: &str, options: &Options) -> Compilation {
         let mut sources = SourceMap::new();
-        let file = sources.add(path.display().to_string(), Some(path.to_path_buf()), text.to_string());
+        let file = sources.add(path.display().to_string(), Some(path.to_path_buf()), std::sync::Arc::<str>::from(text));
         self.compile_loaded(sources, file, options)
     }
 

@@ -57,13 +57,8 @@ pub struct SourceFile {
 }
 
 fn line_starts(text: &str) -> Arc<[u32]> {
-    let mut starts = vec![0u32];
-    for (i, b) in text.bytes().enumerate() {
-        if b == b'\n' {
-            starts.push(i as u32 + 1);
-        }
-    }
-    starts.into()
+    // memchr finds the newlines with SIMD; the front end's speed depends on it.
+    std::iter::once(0u32).chain(memchr::memchr_iter(b'\n', text.as_bytes()).map(|i| i as u32 + 1)).collect()
 }
 
 impl SourceFile {

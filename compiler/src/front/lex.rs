@@ -435,9 +435,7 @@ fn scan_gap(gap: &str) -> (bool, bool) {
             b'\n' => newline = true,
             b'/' if i + 1 < bytes.len() && bytes[i + 1] == b'/' => {
                 // A line comment runs to the newline, which the next iteration sees.
-                while i < bytes.len() && bytes[i] != b'\n' {
-                    i += 1;
-                }
+                i = memchr::memchr(b'\n', &bytes[i..]).map_or(bytes.len(), |k| i + k);
                 continue;
             }
             _ => {}

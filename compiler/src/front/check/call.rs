@@ -46,19 +46,14 @@ struct Candidate {
     describe: Describe,
 }
 
-/// How to show a candidate in messages (made only when a call fails to match).
+/// How to show a candidate in messages: the text is made only when a call fails to match.
 enum Describe {
     Builtin(Builtin, usize),
-    User(String),
-}
-
-impl Describe {
-    fn text(&self) -> String {
-        match self {
-            Describe::Builtin(b, i) => builtins::describe(*b, &builtins::signatures(*b)[*i]),
-            Describe::User(s) => s.clone(),
-        }
-    }
+    /// The user function `sigs[index]`, called by this name.
+    User {
+        index: usize,
+        name: crate::symbol::Symbol,
+    },
 }
 
 /// A candidate and, for user functions, the function's index.
@@ -177,7 +172,7 @@ impl Checker<'_> {
         }
         let user_candidates: Candidates;
         let candidates: &[(Option<usize>, Candidate)] = if !user.is_empty() {
-            user_candidates = user.iter().map(|&i| (Some(i), self.user_candidate(i, text))).collect();
+            user_candidates = user.iter().map(|&i| (Some(i), self.user_candidate(i, name.sym))).collect();
             &user_candidates
         } else {
             builtin_candidates(builtin.expect("checked above"))
@@ -200,25 +195,24 @@ impl Checker<'_> {
         }
 
         let mut best: Option<(u32, usize)> = None;
-        let mut tied: Vec<usize> = Vec::new();
+        // Among the cheapest, the first whose result has the expected type.
+        let mut best_expected: Option<(u32, usize)> = None;
         for (i, (_, c)) in candidates.iter().enumerate() {
             let Some(cost) = c.cost(&lowered) else { continue };
-            match best {
-                Some((b, _)) if cost > b => {}
-                Some((b, _)) if cost == b => tied.push(i),
-                _ => {
-                    best = Some((cost, i));
-                    tied = vec![i];
-                }
+            if best.is_none_or(|(b, _)| cost < b) {
+                best = Some((cost, i));
+            }
+            if expected == Some(c.ret.base) && best_expected.is_none_or(|(b, _)| cost < b) {
+                best_expected = Some((cost, i));
             }
         }
-        let Some((_, first)) = best else {
+        let Some((best_cost, first)) = best else {
             self.no_match(text, name.span, span, candidates, &lowered, !user.is_empty(), args);
             return None;
         };
-        let chosen = match expected {
-            Some(t) => tied.iter().copied().find(|&i| candidates[i].1.ret.base == t).unwrap_or(first),
-            None => first,
+        let chosen = match best_expected {
+            Some((cost, i)) if cost == best_cost => i,
+            _ => first,
         };
         let (user_index, cand) = &candidates[chosen];
         let ret = cand.ret;
@@ -275,20 +269,29 @@ impl Checker<'_> {
         }
     }
 
-    fn user_candidate(&self, index: usize, name: &str) -> Candidate {
+    fn user_candidate(&self, index: usize, name: crate::symbol::Symbol) -> Candidate {
         let sig = &self.sigs[index];
         let params: Vec<Param> = sig.params.iter().map(|(t, o)| Param { ty: Some(*t), output: *o }).collect();
-        let describe = format!(
-            "{} {}({})",
-            sig.ret,
-            name,
-            sig.params
-                .iter()
-                .map(|(t, o)| if *o { format!("output {t}") } else { t.to_string() })
-                .collect::<Vec<_>>()
-                .join(", ")
-        );
-        Candidate { params, repeat_last: false, param_list: false, ret: sig.ret, describe: Describe::User(describe) }
+        Candidate {
+            params,
+            repeat_last: false,
+            param_list: false,
+            ret: sig.ret,
+            describe: Describe::User { index, name },
+        }
+    }
+
+    /// A candidate as a signature for messages: `color mix(color, color, float)`.
+    fn describe(&self, c: &Candidate) -> String {
+        match c.describe {
+            Describe::Builtin(b, i) => builtins::describe(b, &builtins::signatures(b)[i]),
+            Describe::User { index, name } => {
+                let sig = &self.sigs[index];
+                let params: Vec<String> =
+                    sig.params.iter().map(|(t, o)| if *o { format!("output {t}") } else { t.to_string() }).collect();
+                format!("{} {}({})", sig.ret, self.name(name), params.join(", "))
+            }
+        }
     }
 
     /// Lowers the arguments: as places where every candidate takes an output there, as values
@@ -404,6 +407,7 @@ impl Checker<'_> {
         let given = format!("({})", given.join(", "));
         if is_user && candidates.len() == 1 {
             let c = &candidates[0].1;
+            let declared = format!("declared as `{}`", self.describe(c));
             let count = c.params.len();
             if args.len() != count {
                 self.error(
@@ -417,7 +421,7 @@ impl Checker<'_> {
                 )
                 .with_label(&format!("called with {given}"))
                 .notes
-                .push(format!("declared as `{}`", c.describe.text()));
+                .push(declared);
                 if let Some(index) = candidates[0].0 {
                     let def = self.sigs[index].span;
                     if let Some(d) = self.diags.list.last_mut() {
@@ -433,7 +437,7 @@ impl Checker<'_> {
             )
             .with_label(&format!("called with {given}"))
             .notes
-            .push(format!("declared as `{}`", c.describe.text()));
+            .push(declared);
             return;
         }
         let mut d =
@@ -441,7 +445,7 @@ impl Checker<'_> {
                 .with_label("no matching signature");
         let mut shown: Vec<String> = Vec::new();
         for (_, c) in candidates {
-            let text = c.describe.text();
+            let text = self.describe(c);
             if !shown.contains(&text) {
                 shown.push(text);
             }

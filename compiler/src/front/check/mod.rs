@@ -75,8 +75,10 @@ impl FnBuilder {
                 name,
                 return_type,
                 params: Vec::new(),
-                vars: Vec::new(),
-                exprs: Vec::new(),
+                // About one expression per eight bytes of source and a variable per hundred, so
+                // that the arenas rarely regrow.
+                vars: Vec::with_capacity(span.range().len() / 100),
+                exprs: Vec::with_capacity(span.range().len() / 8),
                 body: Block::default(),
                 span,
                 reads_varying: false,
@@ -129,6 +131,8 @@ pub struct Checker<'a> {
     /// How deeply expressions and statements nest at the point being checked.
     depth: u32,
     depth_reported: bool,
+    /// Emptied scopes kept for reuse: their maps keep their capacity, so blocks rarely allocate.
+    spare_scopes: Vec<Scope>,
 }
 
 /// Nesting deeper than this is refused: checking recurses, and so do the back ends.
@@ -155,6 +159,7 @@ pub fn check(unit: &ast::TranslationUnit, interner: &Interner, diags: &mut Diagn
         incomplete,
         depth: 0,
         depth_reported: false,
+        spare_scopes: Vec::new(),
     };
     let mut shader_seen: Option<Span> = None;
     for item in &unit.items {
@@ -559,11 +564,16 @@ impl Checker<'_> {
     // ---- Scopes ---------------------------------------------------------------------------------
 
     fn push_scope(&mut self) {
-        self.b().scopes.push(Scope::default());
+        let scope = self.spare_scopes.pop().unwrap_or_default();
+        self.b().scopes.push(scope);
     }
 
     fn pop_scope(&mut self) {
-        self.b().scopes.pop();
+        if let Some(mut scope) = self.b().scopes.pop() {
+            scope.vars.clear();
+            scope.funcs.clear();
+            self.spare_scopes.push(scope);
+        }
     }
 
     /// Declares a variable in the innermost scope, reporting a redefinition.

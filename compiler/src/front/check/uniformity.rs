@@ -138,6 +138,10 @@ struct Analysis<'a> {
     /// Variables whose storage is fixed: declared `uniform` (violations are errors) or `varying`.
     fixed: Vec<bool>,
     violations: Vec<Violation>,
+    /// Variables read during the current pass. A variable that turns varying after it was read
+    /// makes the pass stale (the read saw the old value), and only then is another pass needed: a
+    /// pass in which every variable turned varying before its first read is already the fixpoint.
+    read: Vec<bool>,
     changed: bool,
     /// Some `return` gives a varying value, or returns under varying control.
     ret_varying: bool,
@@ -183,6 +187,7 @@ impl<'a> Analysis<'a> {
             var_varying,
             fixed,
             violations: Vec::new(),
+            read: vec![false; f.vars.len()],
             changed: false,
             ret_varying: false,
             defaults: Vec::new(),
@@ -192,6 +197,7 @@ impl<'a> Analysis<'a> {
     fn run(&mut self, f: &Function) {
         loop {
             self.changed = false;
+            self.read.fill(false);
             self.violations.clear();
             self.ret_varying = false;
             for (var, default, varying) in self.defaults.clone() {
@@ -234,7 +240,7 @@ impl<'a> Analysis<'a> {
             return;
         }
         self.var_varying[i] = true;
-        self.changed = true;
+        self.changed |= self.read[i];
     }
 
     fn block(&mut self, f: &Function, block: &ir::Block, ctl: bool) -> Exits {
@@ -355,11 +361,17 @@ impl<'a> Analysis<'a> {
         }
     }
 
+    fn read_var(&mut self, var: VarId) -> bool {
+        let i = var.0 as usize;
+        self.read[i] = true;
+        self.var_varying[i]
+    }
+
     fn walk(&mut self, f: &Function, id: ExprId, ctl: bool) -> bool {
         let e = f.expr(id);
         let varying = match &e.kind {
             ExprKind::Const(_) => false,
-            ExprKind::Var(v) => self.var_varying[v.0 as usize],
+            ExprKind::Var(v) => self.read_var(*v),
             ExprKind::Global(g) => g.def().varying,
             ExprKind::Index { base, index } => {
                 let a = self.walk(f, *base, ctl);
@@ -424,7 +436,7 @@ impl<'a> Analysis<'a> {
                         Arg::Ref(p) => {
                             if let PlaceBase::Var(var) = p.base {
                                 // Captured variables and in-out arguments carry values in.
-                                v |= self.var_varying[var.0 as usize];
+                                v |= self.read_var(var);
                             }
                         }
                     }
@@ -443,7 +455,7 @@ impl<'a> Analysis<'a> {
                 let mut v = self.walk(f, *value, ctl);
                 if op.is_some() {
                     if let PlaceBase::Var(var) = place.base {
-                        v |= self.var_varying[var.0 as usize];
+                        v |= self.read_var(var);
                     } else {
                         v = true;
                     }

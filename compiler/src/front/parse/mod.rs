@@ -163,26 +163,44 @@ pub fn precedence(op: ast::BinaryOp) -> u8 {
 }
 
 /// Groups a chain `first op1 e1 op2 e2 ...` by precedence (operator-precedence parsing).
+///
+/// The operator stack holds strictly rising precedences, so it never holds more than one operator
+/// per level: both stacks fit in fixed arrays and a chain allocates nothing but its nodes.
 pub fn climb(first: ast::Expr, rest: Vec<(ast::BinaryOp, ast::Expr)>) -> ast::Expr {
-    fn reduce(operands: &mut Vec<ast::Expr>, ops: &mut Vec<ast::BinaryOp>) {
-        let (Some(rhs), Some(lhs), Some(op)) = (operands.pop(), operands.pop(), ops.pop()) else { return };
-        let span = lhs.span.to(rhs.span);
-        operands.push(ast::Expr::new(ast::ExprKind::Binary(op, Box::new(lhs), Box::new(rhs)), span));
+    const LEVELS: usize = 8;
+    struct Stacks {
+        operands: [Option<ast::Expr>; LEVELS + 1],
+        ops: [ast::BinaryOp; LEVELS],
+        len: usize,
     }
-    let mut operands = Vec::with_capacity(rest.len() + 1);
-    let mut ops: Vec<ast::BinaryOp> = Vec::with_capacity(rest.len());
-    operands.push(first);
-    for (op, e) in rest {
-        while ops.last().is_some_and(|top| precedence(*top) >= precedence(op)) {
-            reduce(&mut operands, &mut ops);
+    impl Stacks {
+        /// Replaces the top two operands by the top operator applied to them.
+        fn reduce(&mut self) {
+            let rhs = self.operands[self.len].take();
+            let lhs = self.operands[self.len - 1].take();
+            let op = self.ops[self.len - 1];
+            self.len -= 1;
+            if let (Some(lhs), Some(rhs)) = (lhs, rhs) {
+                let span = lhs.span.to(rhs.span);
+                self.operands[self.len] =
+                    Some(ast::Expr::new(ast::ExprKind::Binary(op, Box::new(lhs), Box::new(rhs)), span));
+            }
         }
-        ops.push(op);
-        operands.push(e);
     }
-    while !ops.is_empty() {
-        reduce(&mut operands, &mut ops);
+    let mut stacks = Stacks { operands: Default::default(), ops: [ast::BinaryOp::Add; LEVELS], len: 0 };
+    stacks.operands[0] = Some(first);
+    for (op, e) in rest {
+        while stacks.len > 0 && precedence(stacks.ops[stacks.len - 1]) >= precedence(op) {
+            stacks.reduce();
+        }
+        stacks.ops[stacks.len] = op;
+        stacks.len += 1;
+        stacks.operands[stacks.len] = Some(e);
     }
-    operands.pop().unwrap_or_else(|| ast::Expr::new(ast::ExprKind::Error, crate::source::Span::default()))
+    while stacks.len > 0 {
+        stacks.reduce();
+    }
+    stacks.operands[0].take().unwrap_or_else(|| ast::Expr::new(ast::ExprKind::Error, crate::source::Span::default()))
 }
 
 /// The value of a `break n` level (clamped to `u32`).
@@ -453,4 +471,52 @@ fn report(e: ParseError<u32, Tok, ()>, spans: &[Span], interner: &Interner, diag
         ParseError::User { .. } => return,
     };
     diags.push(d);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::ast::{ExprKind, Item, StmtKind};
+    use crate::diagnostic::Diagnostics;
+    use crate::source::FileId;
+    use crate::symbol::Interner;
+
+    /// The expression of `surface s() { x = EXPR; }`, fully parenthesised.
+    fn grouped(expr: &str) -> String {
+        fn show(e: &super::ast::Expr, interner: &Interner) -> String {
+            match &e.kind {
+                ExprKind::Ident(s) => interner.resolve(*s).to_string(),
+                ExprKind::Binary(op, a, b) => {
+                    format!("({} {} {})", show(a, interner), op.spelling(), show(b, interner))
+                }
+                ExprKind::Assign(_, _, v) => show(v, interner),
+                other => format!("{other:?}"),
+            }
+        }
+        let mut interner = Interner::new();
+        let mut diags = Diagnostics::default();
+        let text = format!("surface s() {{ x = {expr}; }}");
+        let tokens = crate::front::lex::lex(FileId(0), &text, &mut interner);
+        let unit = super::parse(&tokens, &mut interner, &mut diags);
+        assert!(diags.list.is_empty(), "{expr}: {:?}", diags.list);
+        let Some(Item::Shader(shader)) = unit.items.first() else { panic!("no shader in {text}") };
+        let StmtKind::Expr(e) = &shader.body.stmts[0].kind else { panic!("not an expression statement") };
+        show(e, &interner)
+    }
+
+    #[test]
+    fn binary_operators_group_by_precedence_and_to_the_left() {
+        // Every level, loosest first: the deepest operator stack the grouping can build.
+        assert_eq!(
+            grouped("a || b && c == d < e + f ^ g * h . i"),
+            "(a || (b && (c == (d < (e + (f ^ (g * (h . i))))))))"
+        );
+        // Tightest first: each operator closes the group before it.
+        assert_eq!(
+            grouped("a . b * c ^ d + e < f == g && h || i"),
+            "((((((((a . b) * c) ^ d) + e) < f) == g) && h) || i)"
+        );
+        assert_eq!(grouped("a - b - c"), "((a - b) - c)");
+        assert_eq!(grouped("a + b * c - d / e"), "((a + (b * c)) - (d / e))");
+        assert_eq!(grouped("a * b + c . d ^ e"), "((a * b) + ((c . d) ^ e))");
+    }
 }

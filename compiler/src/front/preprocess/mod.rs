@@ -192,8 +192,9 @@ pub fn preprocess(
     pp.end_span = Span::new(main, main_len, main_len);
     let tokens = pp.tokens_of(main);
     pp.read_files.push(main);
+    // Room for the main file and about as much again from headers, so the stream rarely regrows.
+    let mut out = Vec::with_capacity(tokens.len() * 2 + 64);
     pp.files.push(FileFrame { file: main, tokens, pos: 0, cond_base: 0 });
-    let mut out = Vec::new();
     loop {
         let t = pp.next_expanded();
         if t.kind == TokenKind::Eof {
@@ -414,8 +415,8 @@ impl Preprocessor<'_> {
             }
             frame.pos += 1;
             if t.kind == TokenKind::Hash && t.line_start() {
-                let line = self.directive_line();
-                self.directive(t, &line);
+                let (tokens, line) = self.directive_line();
+                self.directive(t, &tokens[line]);
                 continue;
             }
             if self.active() {
@@ -424,16 +425,17 @@ impl Preprocessor<'_> {
         }
     }
 
-    /// The rest of the current directive's line (the tokens after `#`).
-    fn directive_line(&mut self) -> Vec<Token> {
+    /// The rest of the current directive's line (the tokens after `#`): the file's tokens (shared,
+    /// not copied) and the line's range in them.
+    fn directive_line(&mut self) -> (Rc<[Token]>, std::ops::Range<usize>) {
         let Some(frame) = self.files.last_mut() else {
-            return Vec::new();
+            return (Rc::from([]), 0..0);
         };
         let start = frame.pos;
         while !frame.tokens[frame.pos].line_start() {
             frame.pos += 1;
         }
-        frame.tokens[start..frame.pos].to_vec()
+        (frame.tokens.clone(), start..frame.pos)
     }
 
     // ---- Directives -----------------------------------------------------------------------------
