@@ -7,7 +7,7 @@ use super::{dot, normalize, Frame, InterpError, Machine, R};
 use crate::builtins::{self, Builtin};
 use crate::interp::host::{LightSample, TextureFootprint};
 use crate::ir::{Arg, BaseType, Function, Type};
-use crate::shadeops::{color, format, geom, matrix, noise, spline, V3};
+use crate::shadeops::{color, format, geom, matrix, noise, spline, transcendental as tm, V3};
 use std::rc::Rc;
 
 /// Applies a scalar function to a float or each component of a triple.
@@ -136,17 +136,18 @@ impl Machine<'_> {
             Builtin::Round => map1(&v(0), f32::round),
             Builtin::Sqrt => map1(&v(0), |x| if x > 0.0 { x.sqrt() } else { 0.0 }),
             Builtin::InverseSqrt => map1(&v(0), |x| if x > 0.0 { 1.0 / x.sqrt() } else { 0.0 }),
-            Builtin::Exp => map1(&v(0), f32::exp),
-            Builtin::Log if vals.len() == 2 => map2(&v(0), &v(1), |x, base| x.ln() / base.ln()),
-            Builtin::Log => map1(&v(0), f32::ln),
-            Builtin::Pow => map2(&v(0), &v(1), f32::powf),
-            Builtin::Sin => map1(&v(0), f32::sin),
-            Builtin::Cos => map1(&v(0), f32::cos),
-            Builtin::Tan => map1(&v(0), f32::tan),
-            Builtin::Asin => map1(&v(0), |x| x.clamp(-1.0, 1.0).asin()),
-            Builtin::Acos => map1(&v(0), |x| x.clamp(-1.0, 1.0).acos()),
-            Builtin::Atan if vals.len() == 2 => map2(&v(0), &v(1), f32::atan2),
-            Builtin::Atan => map1(&v(0), f32::atan),
+            // The JIT's helpers compute the same bits (`shadeops::transcendental`).
+            Builtin::Exp => map1(&v(0), tm::exp),
+            Builtin::Log if vals.len() == 2 => map2(&v(0), &v(1), |x, base| tm::ln(x) / tm::ln(base)),
+            Builtin::Log => map1(&v(0), tm::ln),
+            Builtin::Pow => map2(&v(0), &v(1), tm::pow),
+            Builtin::Sin => map1(&v(0), tm::sin),
+            Builtin::Cos => map1(&v(0), tm::cos),
+            Builtin::Tan => map1(&v(0), tm::tan),
+            Builtin::Asin => map1(&v(0), tm::asin),
+            Builtin::Acos => map1(&v(0), tm::acos),
+            Builtin::Atan if vals.len() == 2 => map2(&v(0), &v(1), tm::atan2),
+            Builtin::Atan => map1(&v(0), tm::atan),
             Builtin::Radians => map1(&v(0), f32::to_radians),
             Builtin::Degrees => map1(&v(0), f32::to_degrees),
             Builtin::Mod => map2(&v(0), &v(1), geom::mod_),
@@ -443,7 +444,7 @@ impl Machine<'_> {
             Builtin::Phong => {
                 let (n, view, size) = (normalize(v(0).v3()), normalize(v(1).v3()), v(2).f());
                 let r = geom::reflect(view.map(|x| -x), n);
-                Value::Triple(self.sum_lights(n, |l, _| dot(r, normalize(l.l)).max(0.0).powf(size)))
+                Value::Triple(self.sum_lights(n, |l, _| tm::pow(dot(r, normalize(l.l)).max(0.0), size)))
             }
             Builtin::Trace => {
                 let (c, dist) = self.host.trace(v(0).v3(), v(1).v3());

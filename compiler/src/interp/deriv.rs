@@ -140,8 +140,8 @@ fn builtin_tangent(b: Builtin, vals: &[Value], t: &[Value], r: &Value) -> Value 
         Builtin::Comp if vals.len() == 2 => Value::Float(d(0).v3()[index_of(&v(1), 3)]),
         Builtin::Abs => map2(&v(0), &d(0), |x, dx| dx * geom::sign(x)),
         Builtin::Sqrt => map2(r, &d(0), |r, dx| if r > 0.0 { dx * 0.5 / r } else { 0.0 }),
-        Builtin::Sin => map2(&v(0), &d(0), |x, dx| dx * x.cos()),
-        Builtin::Cos => map2(&v(0), &d(0), |x, dx| -(dx * x.sin())),
+        Builtin::Sin => map2(&v(0), &d(0), |x, dx| dx * crate::shadeops::transcendental::cos(x)),
+        Builtin::Cos => map2(&v(0), &d(0), |x, dx| -(dx * crate::shadeops::transcendental::sin(x))),
         Builtin::Exp => map2(r, &d(0), |r, dx| dx * r),
         Builtin::Min | Builtin::Max if vals.len() >= 2 => {
             // The fold of `interp::builtins`: each step keeps the chosen operand's tangent.

@@ -264,7 +264,7 @@ pub fn specular_brdf(l: V3, n: V3, v: V3, roughness: f32) -> f32 {
     let (l, n, v) = (normalize(l), normalize(n), normalize(v));
     let h = normalize([l[0] + v[0], l[1] + v[1], l[2] + v[2]]);
     let r = if roughness > 0.0 { roughness } else { 1e-4 };
-    dot(n, h).max(0.0).powf(1.0 / r)
+    super::transcendental::pow(dot(n, h).max(0.0), 1.0 / r)
 }
 
 #[cfg(test)]

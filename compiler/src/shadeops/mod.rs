@@ -15,6 +15,7 @@ pub mod geom;
 pub mod matrix;
 pub mod noise;
 pub mod spline;
+pub mod transcendental;
 
 /// A triple: colour, point, vector or normal.
 pub type V3 = [f32; 3];

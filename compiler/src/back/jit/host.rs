@@ -24,7 +24,7 @@ use super::{Batch, StringTable};
 use crate::builtins::Builtin;
 use crate::interp::{Services, TextureFootprint, Value};
 use crate::shadeops::format::{self, FormatArg};
-use crate::shadeops::{color, geom, matrix, spline, M4, V3};
+use crate::shadeops::{color, geom, matrix, spline, transcendental, M4, V3};
 use std::ffi::c_void;
 
 /// A borrowed string across the C ABI (not NUL-terminated).
@@ -569,7 +569,7 @@ pub(super) fn angle_between(a: V3, b: V3) -> f32 {
 fn specular_brdf(l: V3, n: V3, v: V3, roughness: f32) -> f32 {
     let h = geom::normalize(add(l, v));
     let r = if roughness > 0.0 { roughness } else { 1e-4 };
-    dot(n, h).max(0.0).powf(1.0 / r)
+    transcendental::pow(dot(n, h).max(0.0), 1.0 / r)
 }
 
 /// `sum_lights` of the interpreter over one lane's lights.
@@ -736,7 +736,9 @@ host_helpers! {
         for l in cx.active() {
             let (n, view, size) = (geom::normalize(cx.v3(3, l)), geom::normalize(cx.v3(6, l)), cx.f(9, l));
             let r = geom::reflect(view.map(|x| -x), n);
-            let sum = sum_lights(cx.lane_lights(l, counts[l]), n, |x| dot(r, geom::normalize(x.l)).max(0.0).powf(size));
+            let sum = sum_lights(cx.lane_lights(l, counts[l]), n, |x| {
+                transcendental::pow(dot(r, geom::normalize(x.l)).max(0.0), size)
+            });
             cx.set3(0, l, sum);
         }
     }

@@ -7,14 +7,14 @@
 //!   `min`/`max` follow `f32::min`/`f32::max`: a NaN operand yields the other operand.
 //! - Transcendental functions (`sin cos tan asin acos atan exp log pow`) and the noise family are
 //!   **helpers**: `extern "C" fn(in: *const f32, out: *mut f32)` over one chunk, reading `4 * ins`
-//!   floats (input `k` lane `l` at `in[4k + l]`) and writing `4 * outs`. They call the same Rust
-//!   functions as the interpreter per lane, so they agree exactly (max error 0 against the oracle;
-//!   against true values, that of Rust's `f32` functions). One call per chunk, never per lane; a
-//!   uniform argument is splatted and lane 0 of the result taken.
-//!   Inline `f32x4` polynomials (faster, ~1e-6 relative error) are the planned next step.
+//!   floats (input `k` lane `l` at `in[4k + l]`) and writing `4 * outs`. They compute what the
+//!   interpreter computes per lane, bit for bit: the transcendental functions are the four-lane forms
+//!   of `shadeops::transcendental` (polynomial kernels, accuracy documented there), whose lanes equal
+//!   its scalar functions that the interpreter calls. One call per chunk, never per lane; a uniform
+//!   argument is splatted and lane 0 of the result taken.
 
 use super::mask::{choose, konst};
-use crate::shadeops::{geom, matrix, noise, M4};
+use crate::shadeops::{geom, matrix, noise, transcendental as tm, M4};
 use cranelift_codegen::ir::condcodes::FloatCC;
 use cranelift_codegen::ir::{InstBuilder, Value};
 use cranelift_frontend::FunctionBuilder;
@@ -183,17 +183,6 @@ macro_rules! helpers {
 }
 
 helpers! {
-    h_sin "rtsl_sin" 1 -> 1 |[x]| [x.sin()];
-    h_cos "rtsl_cos" 1 -> 1 |[x]| [x.cos()];
-    h_tan "rtsl_tan" 1 -> 1 |[x]| [x.tan()];
-    h_asin "rtsl_asin" 1 -> 1 |[x]| [x.clamp(-1.0, 1.0).asin()];
-    h_acos "rtsl_acos" 1 -> 1 |[x]| [x.clamp(-1.0, 1.0).acos()];
-    h_atan "rtsl_atan" 1 -> 1 |[x]| [x.atan()];
-    h_atan2 "rtsl_atan2" 2 -> 1 |[y, x]| [y.atan2(x)];
-    h_exp "rtsl_exp" 1 -> 1 |[x]| [x.exp()];
-    h_log "rtsl_log" 1 -> 1 |[x]| [x.ln()];
-    h_logb "rtsl_logb" 2 -> 1 |[x, base]| [x.ln() / base.ln()];
-    h_pow "rtsl_pow" 2 -> 1 |[x, y]| [x.powf(y)];
     h_cell1 "rtsl_cellnoise1" 1 -> 1 |[x]| [noise::cellnoise1(x)];
     h_cell2 "rtsl_cellnoise2" 2 -> 1 |[x, y]| [noise::cellnoise2(x, y)];
     h_cell3 "rtsl_cellnoise3" 3 -> 1 |[x, y, z]| [noise::cellnoise3([x, y, z])];
@@ -277,8 +266,22 @@ macro_rules! chunk_helpers {
     };
 }
 
-// Helpers written four lanes at a time (`noise::x4`).
+// Helpers written four lanes at a time (`noise::x4`, `transcendental`).
 chunk_helpers! {
+    h_sin "rtsl_sin" 1 -> 1 |[x]| [tm::sin4(x)];
+    h_cos "rtsl_cos" 1 -> 1 |[x]| [tm::cos4(x)];
+    h_tan "rtsl_tan" 1 -> 1 |[x]| [tm::tan4(x)];
+    h_asin "rtsl_asin" 1 -> 1 |[x]| [tm::asin4(x)];
+    h_acos "rtsl_acos" 1 -> 1 |[x]| [tm::acos4(x)];
+    h_atan "rtsl_atan" 1 -> 1 |[x]| [tm::atan4(x)];
+    h_atan2 "rtsl_atan2" 2 -> 1 |[y, x]| [tm::atan24(y, x)];
+    h_exp "rtsl_exp" 1 -> 1 |[x]| [tm::exp4(x)];
+    h_log "rtsl_log" 1 -> 1 |[x]| [tm::ln4(x)];
+    h_logb "rtsl_logb" 2 -> 1 |[x, base]| {
+        let (a, b) = (tm::ln4(x), tm::ln4(base));
+        [std::array::from_fn(|l| a[l] / b[l])]
+    };
+    h_pow "rtsl_pow" 2 -> 1 |[x, y]| [tm::pow4(x, y)];
     h_noise1 "rtsl_noise1" 1 -> 1 |p| [noise::x4::noise::<1>(p)];
     h_noise2 "rtsl_noise2" 2 -> 1 |p| [noise::x4::noise::<2>(p)];
     h_noise3 "rtsl_noise3" 3 -> 1 |p| [noise::x4::noise::<3>(p)];
