@@ -1,0 +1,36 @@
+//! The transcendental kernels (`shadeops::transcendental`), four lanes a call as the JIT's helpers
+//! run them, against Rust's `f32` functions (libm) lane by lane, the baseline, over the same inputs.
+//! (`exp`, `log` and `pow` are not here: glibc's ran faster than Cephes-style kernels, so rtsl uses
+//! them.)
+
+use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use rtsl_compiler::shadeops::transcendental as tm;
+use std::hint::black_box;
+
+const N: usize = 4096;
+
+fn inputs(lo: f32, hi: f32) -> Vec<[f32; 4]> {
+    (0..N / 4).map(|i| std::array::from_fn(|l| lo + (hi - lo) * ((4 * i + l) as f32 / N as f32))).collect()
+}
+
+fn transcendental(c: &mut Criterion) {
+    type Case = (&'static str, f32, f32, fn([f32; 4]) -> [f32; 4], fn(f32) -> f32);
+    let cases: [Case; 4] = [
+        ("sin", -10.0, 10.0, tm::sin4, f32::sin),
+        ("tan", -1.5, 1.5, tm::tan4, f32::tan),
+        ("acos", -1.0, 1.0, tm::acos4, f32::acos),
+        ("atan", -10.0, 10.0, tm::atan4, f32::atan),
+    ];
+    for (name, lo, hi, four, libm) in cases {
+        let xs = inputs(lo, hi);
+        let mut group = c.benchmark_group(name);
+        group.throughput(Throughput::Elements(N as u64));
+        group.bench_function("kernel_x4", |b| b.iter(|| xs.iter().map(|x| four(black_box(*x))[3]).sum::<f32>()));
+        group
+            .bench_function("libm_per_lane", |b| b.iter(|| xs.iter().map(|x| black_box(*x).map(libm)[3]).sum::<f32>()));
+        group.finish();
+    }
+}
+
+criterion_group!(benches, transcendental);
+criterion_main!(benches);
