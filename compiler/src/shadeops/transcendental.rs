@@ -1,9 +1,9 @@
 //! Transcendental functions of `f32`: one lane at a time for the interpreter, four at a time for
 //! the JIT's per-chunk helpers, with the same bits either way.
 //!
-//! Each function is a branch-free polynomial kernel after Cephes' single-precision routines
-//! (Moshier), used where its argument reduction is accurate, and Rust's `f32` function (libm) for
-//! the rest: huge, infinite, NaN or subnormal arguments, and results near overflow. The four-lane
+//! Each trigonometric function is a branch-free polynomial kernel after Cephes' single-precision
+//! routines (Moshier), used where its argument reduction is accurate, and Rust's `f32` function
+//! (libm) for the rest: |x| > 8192, infinities and NaN (and atan2's zero and infinite cases). The four-lane
 //! forms run the same kernel on every lane (the compiler may vectorise it; Rust never fuses a
 //! multiply and an add, so vector and scalar arithmetic round alike), then redo the lanes outside the
 //! kernel's range one by one. Hence `sin4(x)[l] == sin(x[l])` bit for bit, which keeps the JIT equal
@@ -168,7 +168,7 @@ pub fn tan4(x: F4) -> F4 {
     four(x, tan_kernel, trig_in_range, f32::tan)
 }
 
-/// asin of `|x| <= 1` (the callers clamp; NaN stays NaN).
+/// asin of `|x| <= 1`.
 #[inline(always)]
 fn asin_kernel(x: f32) -> f32 {
     let a = x.abs();
@@ -202,36 +202,23 @@ fn acos_kernel(x: f32) -> f32 {
     }
 }
 
-fn unit_in_range(x: f32) -> bool {
-    x.abs() <= 1.0
-}
+// The argument is clamped to [-1, 1] first, as RSL shaders expect, so the kernels cover every
+// argument (a NaN stays NaN).
 
-/// asin, with the argument clamped to [-1, 1] first, as RSL shaders expect.
 pub fn asin(x: f32) -> f32 {
-    let x = x.clamp(-1.0, 1.0);
-    if unit_in_range(x) {
-        asin_kernel(x)
-    } else {
-        x.asin()
-    }
+    asin_kernel(x.clamp(-1.0, 1.0))
 }
 
-/// acos, with the argument clamped to [-1, 1] first.
 pub fn acos(x: f32) -> f32 {
-    let x = x.clamp(-1.0, 1.0);
-    if unit_in_range(x) {
-        acos_kernel(x)
-    } else {
-        x.acos()
-    }
+    acos_kernel(x.clamp(-1.0, 1.0))
 }
 
 pub fn asin4(x: F4) -> F4 {
-    four(x.map(|v| v.clamp(-1.0, 1.0)), asin_kernel, unit_in_range, f32::asin)
+    x.map(asin)
 }
 
 pub fn acos4(x: F4) -> F4 {
-    four(x.map(|v| v.clamp(-1.0, 1.0)), acos_kernel, unit_in_range, f32::acos)
+    x.map(acos)
 }
 
 #[inline(always)]
