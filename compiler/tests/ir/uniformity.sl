@@ -1,6 +1,9 @@
 // Uniform/varying inference: `k` stays uniform, `n` becomes varying through noise(P), `acc` becomes
 // varying because it is assigned under a varying condition, and the helper's result is uniform for
-// uniform arguments (it reads no varying state).
+// uniform arguments (it reads no varying state). In the loop, `carried` reads `later` before the
+// iteration makes `later` varying, so both end varying (the value reaches the next iteration), and
+// `before` is assigned ahead of a divergent `break`, which makes it varying from the second
+// iteration on; `count` turns varying too, since only the lanes still looping step it.
 float twice(float x) { return 2 * x; }
 
 surface uniformity(float Kd = .5; string mapname = "";)
@@ -13,6 +16,15 @@ surface uniformity(float Kd = .5; string mapname = "";)
     }
     uniform float depth = 0;
     rayinfo("depth", depth);
-    Ci = Cs * (acc + depth);
+    float carried = 0, later = 0, before = 0, count = 0;
+    for (count = 0; count < 3; count += 1) {
+        before = count;
+        carried = later;
+        later = s;
+        if (n > .9) {
+            break;
+        }
+    }
+    Ci = Cs * (acc + depth + carried + before);
     Oi = Os;
 }

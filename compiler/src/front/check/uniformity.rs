@@ -276,9 +276,12 @@ impl<'a> Analysis<'a> {
                 let c = cond.is_some_and(|c| self.expr_ctl(f, c, ctl));
                 let inner = ctl || c;
                 let e = self.block(f, body, inner);
-                let inner = inner || e.loop_exit || e.func_exit;
-                // Values of one iteration reach the next: a second walk sees them.
-                let e2 = self.block(f, body, inner);
+                // Values of one iteration reach the next through variables read before they turn
+                // varying, which the fixpoint catches (`read`). Lanes that left in one iteration
+                // make the whole next iteration divergent: only that needs a second walk here.
+                let diverged = !inner && (e.loop_exit || e.func_exit);
+                let inner = inner || diverged;
+                let e2 = if diverged { self.block(f, body, inner) } else { Exits::default() };
                 self.block(f, step, inner);
                 if let Some(c) = cond {
                     self.expr_ctl(f, *c, inner);
