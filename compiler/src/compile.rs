@@ -1,6 +1,7 @@
 //! The compiler driver: one `.sl` file through every phase.
 
 use crate::diagnostic::{Diagnostic, Diagnostics, Severity};
+use crate::front::lex::Token;
 use crate::front::parse::ast::{self, ShaderKind};
 use crate::front::{check, parse, preprocess};
 use crate::interface::ShaderInterface;
@@ -52,12 +53,15 @@ impl Compilation {
     }
 }
 
-/// State shared by the compilations of one command or one thread: the interner, and the headers
-/// already read and lexed. Headers are assumed not to change while a session lives.
+/// State shared by the compilations of one command or one thread: the interner, the headers
+/// already read and lexed, and buffers reused from one file to the next. Headers are assumed not to
+/// change while a session lives.
 #[derive(Debug, Default)]
 pub struct Session {
     interner: Interner,
     headers: preprocess::HeaderCache,
+    /// The token stream of the previous file, kept for its capacity.
+    tokens: Vec<Token>,
 }
 
 impl Session {
@@ -94,7 +98,7 @@ impl Session {
     }
 
     fn compile_loaded(&mut self, sources: SourceMap, file: FileId, options: &Options) -> Compilation {
-        compile_loaded(sources, file, options, &mut self.interner, &mut self.headers)
+        compile_loaded(sources, file, options, self)
     }
 }
 
@@ -114,15 +118,19 @@ pub fn compile_source_at(path: &Path, text: &str, options: &Options) -> Compilat
     Session::new().compile_source_at(path, text, options)
 }
 
-fn compile_loaded(
-    mut sources: SourceMap,
-    file: FileId,
-    options: &Options,
-    interner: &mut Interner,
-    headers: &mut preprocess::HeaderCache,
-) -> Compilation {
+fn compile_loaded(mut sources: SourceMap, file: FileId, options: &Options, session: &mut Session) -> Compilation {
     let mut diags = Diagnostics::default();
-    let pre = preprocess::preprocess(file, &mut sources, interner, headers, &options.preprocessor, &mut diags);
+    let buffer = std::mem::take(&mut session.tokens);
+    let interner = &mut session.interner;
+    let mut pre = preprocess::preprocess(
+        buffer,
+        file,
+        &mut sources,
+        interner,
+        &mut session.headers,
+        &options.preprocessor,
+        &mut diags,
+    );
     let unit = if pre.aborted {
         ast::TranslationUnit { items: Vec::new() }
     } else {
@@ -132,6 +140,7 @@ fn compile_loaded(
         ast::Item::Shader(s) => Some((s.kind, interner.resolve(s.name.sym).to_string())),
         _ => None,
     });
+    session.tokens = std::mem::take(&mut pre.tokens);
     let mut checked = check::check(&unit, interner, &mut diags);
     // Only validated IR leaves the compiler: a violation is a compiler bug, reported as such.
     if let Some(module) = &checked.module {

@@ -152,6 +152,7 @@ pub struct Expansion {
 
 /// Preprocesses `main` into one token stream ending in `Eof`.
 pub fn preprocess(
+    buffer: Vec<Token>,
     main: FileId,
     sources: &mut SourceMap,
     interner: &mut Interner,
@@ -192,8 +193,11 @@ pub fn preprocess(
     pp.end_span = Span::new(main, main_len, main_len);
     let tokens = pp.tokens_of(main);
     pp.read_files.push(main);
-    // Room for the main file and about as much again from headers, so the stream rarely regrows.
-    let mut out = Vec::with_capacity(tokens.len() * 2 + 64);
+    // Room for the main file and about as much again from headers, so the stream rarely regrows;
+    // a buffer reused from an earlier file usually has room already.
+    let mut out = buffer;
+    out.clear();
+    out.reserve(tokens.len() * 2 + 64);
     pp.files.push(FileFrame { file: main, tokens, pos: 0, cond_base: 0 });
     loop {
         let t = pp.next_expanded();

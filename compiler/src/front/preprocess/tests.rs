@@ -19,7 +19,8 @@ fn run_with(main: &str, headers: &[(&str, &str)], options: Options) -> (String, 
     let mut interner = Interner::new();
     let mut diags = Diagnostics::default();
     let file = sources.load(&main_path).unwrap();
-    let out = preprocess(file, &mut sources, &mut interner, &mut HeaderCache::default(), &options, &mut diags);
+    let out =
+        preprocess(Vec::new(), file, &mut sources, &mut interner, &mut HeaderCache::default(), &options, &mut diags);
     let text: Vec<String> = out
         .tokens
         .iter()
