@@ -62,6 +62,9 @@ pub struct Session {
     headers: preprocess::HeaderCache,
     /// The token stream of the previous file, kept for its capacity.
     tokens: Vec<Token>,
+    /// Where the syntax tree of the file being compiled lives; emptied (keeping its memory) before
+    /// each file.
+    syntax_arena: bumpalo::Bump,
 }
 
 impl Session {
@@ -121,6 +124,8 @@ pub fn compile_source_at(path: &Path, text: &str, options: &Options) -> Compilat
 fn compile_loaded(mut sources: SourceMap, file: FileId, options: &Options, session: &mut Session) -> Compilation {
     let mut diags = Diagnostics::default();
     let buffer = std::mem::take(&mut session.tokens);
+    session.syntax_arena.reset();
+    let arena = &session.syntax_arena;
     let interner = &mut session.interner;
     let mut pre = preprocess::preprocess(
         buffer,
@@ -132,9 +137,9 @@ fn compile_loaded(mut sources: SourceMap, file: FileId, options: &Options, sessi
         &mut diags,
     );
     let unit = if pre.aborted {
-        ast::TranslationUnit { items: Vec::new() }
+        ast::TranslationUnit { items: &[] }
     } else {
-        parse::parse(&pre.tokens, interner, &mut diags)
+        parse::parse(arena, &pre.tokens, interner, &mut diags)
     };
     let shader = unit.items.iter().find_map(|i| match i {
         ast::Item::Shader(s) => Some((s.kind, interner.resolve(s.name.sym).to_string())),

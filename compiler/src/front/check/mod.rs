@@ -162,7 +162,7 @@ pub fn check(unit: &ast::TranslationUnit, interner: &Interner, diags: &mut Diagn
         spare_scopes: Vec::new(),
     };
     let mut shader_seen: Option<Span> = None;
-    for item in &unit.items {
+    for item in unit.items {
         match item {
             ast::Item::Function(f) => c.top_level_function(f),
             ast::Item::Shader(s) => {
@@ -336,7 +336,7 @@ impl Checker<'_> {
     fn declare_function(&mut self, f: &ast::FunctionDef) -> Option<usize> {
         let ret_base = self.resolve_type(&f.return_type);
         let mut params = Vec::new();
-        for p in &f.params {
+        for p in f.params {
             let base = self.resolve_type(&p.ty);
             let array = self.array_len(&p.array, true).unwrap_or(None);
             params.push((Type { base, array }, p.output));
@@ -486,7 +486,7 @@ impl Checker<'_> {
         self.builders.push(FnBuilder::new(name.clone(), Type::VOID, s.span, true));
         self.builder_funcs.push(None);
         let mut params = Vec::new();
-        for p in &s.params {
+        for p in s.params {
             if let Some(param) = self.shader_param(p, params.len() as u32) {
                 params.push(param);
             }

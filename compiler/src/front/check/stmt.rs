@@ -15,7 +15,7 @@ impl Checker<'_> {
             self.push_scope();
         }
         let mut out = Block::default();
-        self.stmts_into(&block.stmts, &mut out);
+        self.stmts_into(block.stmts, &mut out);
         if new_scope {
             self.pop_scope();
         }
@@ -48,7 +48,7 @@ impl Checker<'_> {
         self.push_scope();
         let mut out = Block::default();
         match &s.kind {
-            ast::StmtKind::Block(b) => self.stmts_into(&b.stmts, &mut out),
+            ast::StmtKind::Block(b) => self.stmts_into(b.stmts, &mut out),
             _ => self.stmt(s, &mut out),
         }
         self.pop_scope();
@@ -202,7 +202,7 @@ impl Checker<'_> {
             self.error(Code::AssignTypeMismatch, d.ty.span, "a variable cannot have type `void`");
             return;
         }
-        for decl in &d.vars {
+        for decl in d.vars {
             let Some(array) = self.array_len(&decl.array, false) else {
                 // Declare it anyway (as a one-element array) so later uses do not cascade.
                 let ty = Type { base, array: Some(ir::ArrayLen::Fixed(1)) };
@@ -307,7 +307,7 @@ impl Checker<'_> {
                 return None;
             }
             let mut ids = Vec::with_capacity(elements.len());
-            for el in elements {
+            for el in elements.iter() {
                 let id = self.expr(el, Some(ty.base))?;
                 ids.push(self.coerce(id, ty.element(), el.span, Code::ArrayMismatch, "array element")?);
             }

@@ -3,6 +3,10 @@
 //! It is a faithful tree of what was written, with a [`Span`] on every node, and no types or name
 //! resolution yet. Constructs that failed to parse appear as `Error` nodes, so the checker can go on
 //! with the rest of the file (it reports nothing about them: the parser already did).
+//!
+//! Nodes are allocated in a bump arena that the caller of [`parse`](super::parse) owns, and freed
+//! all at once when it is reset: no node is dropped on its own, which also means that trees of any
+//! depth (`1+1+1+...` with a hundred thousand terms) cannot overflow the stack when they go away.
 
 use crate::source::Span;
 use crate::symbol::Symbol;
@@ -73,34 +77,34 @@ pub enum Storage {
 }
 
 #[derive(Debug, Clone)]
-pub struct TranslationUnit {
-    pub items: Vec<Item>,
+pub struct TranslationUnit<'a> {
+    pub items: &'a [Item<'a>],
 }
 
 #[derive(Debug, Clone)]
-pub enum Item {
-    Function(Box<FunctionDef>),
-    Shader(Box<ShaderDef>),
+pub enum Item<'a> {
+    Function(&'a FunctionDef<'a>),
+    Shader(&'a ShaderDef<'a>),
     /// Something that failed to parse at the top level.
     Error(Span),
 }
 
 #[derive(Debug, Clone)]
-pub struct ShaderDef {
+pub struct ShaderDef<'a> {
     pub kind: ShaderKind,
     pub kind_span: Span,
     pub name: Ident,
-    pub params: Vec<ParamDecl>,
-    pub body: Block,
+    pub params: &'a [ParamDecl<'a>],
+    pub body: Block<'a>,
     pub span: Span,
 }
 
 #[derive(Debug, Clone)]
-pub struct FunctionDef {
+pub struct FunctionDef<'a> {
     pub return_type: TypeSpec,
     pub name: Ident,
-    pub params: Vec<ParamDecl>,
-    pub body: Block,
+    pub params: &'a [ParamDecl<'a>],
+    pub body: Block<'a>,
     pub span: Span,
 }
 
@@ -113,96 +117,96 @@ pub struct TypeSpec {
 }
 
 #[derive(Debug, Clone)]
-pub enum ArraySpec {
-    Sized(Box<Expr>),
+pub enum ArraySpec<'a> {
+    Sized(&'a Expr<'a>),
     /// `float a[]`, allowed for function parameters.
     Unsized(Span),
 }
 
 /// One parameter of a shader or function (a group `float a = 1, b = 2` becomes several).
 #[derive(Debug, Clone)]
-pub struct ParamDecl {
+pub struct ParamDecl<'a> {
     pub output: bool,
     pub ty: TypeSpec,
     pub name: Ident,
-    pub array: Option<ArraySpec>,
-    pub default: Option<Expr>,
+    pub array: Option<ArraySpec<'a>>,
+    pub default: Option<Expr<'a>>,
     pub span: Span,
 }
 
 #[derive(Debug, Clone)]
-pub struct Block {
-    pub stmts: Vec<Stmt>,
+pub struct Block<'a> {
+    pub stmts: &'a [Stmt<'a>],
     pub span: Span,
 }
 
 #[derive(Debug, Clone)]
-pub struct Declarator {
+pub struct Declarator<'a> {
     pub name: Ident,
-    pub array: Option<ArraySpec>,
-    pub init: Option<Expr>,
+    pub array: Option<ArraySpec<'a>>,
+    pub init: Option<Expr<'a>>,
 }
 
 #[derive(Debug, Clone)]
-pub struct VarDecl {
+pub struct VarDecl<'a> {
     pub is_extern: bool,
     pub ty: TypeSpec,
-    pub vars: Vec<Declarator>,
+    pub vars: &'a [Declarator<'a>],
     pub span: Span,
 }
 
 #[derive(Debug, Clone)]
-pub struct Stmt {
-    pub kind: StmtKind,
+pub struct Stmt<'a> {
+    pub kind: StmtKind<'a>,
     pub span: Span,
 }
 
 #[derive(Debug, Clone)]
-pub enum StmtKind {
-    Decl(VarDecl),
-    Expr(Expr),
-    Block(Block),
+pub enum StmtKind<'a> {
+    Decl(VarDecl<'a>),
+    Expr(Expr<'a>),
+    Block(Block<'a>),
     If {
-        cond: Expr,
-        then: Box<Stmt>,
-        otherwise: Option<Box<Stmt>>,
+        cond: Expr<'a>,
+        then: &'a Stmt<'a>,
+        otherwise: Option<&'a Stmt<'a>>,
     },
     While {
-        cond: Expr,
-        body: Box<Stmt>,
+        cond: Expr<'a>,
+        body: &'a Stmt<'a>,
     },
     For {
-        init: Option<Box<Stmt>>,
-        cond: Option<Box<Expr>>,
-        step: Option<Box<Expr>>,
-        body: Box<Stmt>,
+        init: Option<&'a Stmt<'a>>,
+        cond: Option<&'a Expr<'a>>,
+        step: Option<&'a Expr<'a>>,
+        body: &'a Stmt<'a>,
     },
     /// `break n;` (n defaults to 1), with the span of `n` when written.
     Break(u32, Option<Span>),
     Continue(u32, Option<Span>),
-    Return(Option<Expr>),
+    Return(Option<Expr<'a>>),
     /// `illuminance ([category,] position [, axis, angle]) stmt`: the arguments as written.
     Illuminance {
-        args: Vec<Expr>,
-        body: Box<Stmt>,
+        args: &'a [Expr<'a>],
+        body: &'a Stmt<'a>,
     },
     /// `illuminate (position [, axis, angle]) stmt`.
     Illuminate {
-        args: Vec<Expr>,
-        body: Box<Stmt>,
+        args: &'a [Expr<'a>],
+        body: &'a Stmt<'a>,
     },
     /// `solar ([axis, angle]) stmt`.
     Solar {
-        args: Vec<Expr>,
-        body: Box<Stmt>,
+        args: &'a [Expr<'a>],
+        body: &'a Stmt<'a>,
     },
     /// `gather (category, P, dir, angle, samples, params...) stmt [else stmt]`.
     Gather {
-        args: Vec<Expr>,
-        body: Box<Stmt>,
-        otherwise: Option<Box<Stmt>>,
+        args: &'a [Expr<'a>],
+        body: &'a Stmt<'a>,
+        otherwise: Option<&'a Stmt<'a>>,
     },
-    Function(Box<FunctionDef>),
+    Function(&'a FunctionDef<'a>),
     Empty,
     /// A statement that failed to parse.
     Error,
@@ -278,166 +282,70 @@ impl AssignOp {
 }
 
 #[derive(Debug, Clone)]
-pub struct Expr {
-    pub kind: ExprKind,
+pub struct Expr<'a> {
+    pub kind: ExprKind<'a>,
     pub span: Span,
 }
 
 #[derive(Debug, Clone)]
-pub enum ExprKind {
+pub enum ExprKind<'a> {
     /// A number literal, with its spelling.
     Number(f64),
     /// A string literal (adjacent literals already joined).
     String(Symbol),
     Ident(Symbol),
-    Index(Box<Expr>, Box<Expr>),
+    Index(&'a Expr<'a>, &'a Expr<'a>),
     Call {
         name: Ident,
-        args: Vec<Expr>,
+        args: &'a [Expr<'a>],
     },
     /// `(a, b, c)` or the 16 values of a matrix.
-    Tuple(Vec<Expr>),
+    Tuple(&'a [Expr<'a>]),
     /// `{a, b, c}`: an array initialiser.
-    ArrayLiteral(Vec<Expr>),
+    ArrayLiteral(&'a [Expr<'a>]),
     /// `type ["space"] expr`.
     Cast {
         ty: TypeName,
         space: Option<(Symbol, Span)>,
-        expr: Box<Expr>,
+        expr: &'a Expr<'a>,
     },
-    Unary(UnaryOp, Box<Expr>),
-    Binary(BinaryOp, Box<Expr>, Box<Expr>),
-    Ternary(Box<Expr>, Box<Expr>, Box<Expr>),
-    Assign(AssignOp, Box<Expr>, Box<Expr>),
+    Unary(UnaryOp, &'a Expr<'a>),
+    Binary(BinaryOp, &'a Expr<'a>, &'a Expr<'a>),
+    Ternary(&'a Expr<'a>, &'a Expr<'a>, &'a Expr<'a>),
+    Assign(AssignOp, &'a Expr<'a>, &'a Expr<'a>),
     /// `++x`, `x++`, `--x`, `x--` (an extension: the value is the variable after the update for the
     /// prefix form and before it for the postfix form).
     IncDec {
         increment: bool,
         prefix: bool,
-        target: Box<Expr>,
+        target: &'a Expr<'a>,
     },
     /// An expression that failed to parse.
     Error,
 }
 
-impl Expr {
-    pub fn new(kind: ExprKind, span: Span) -> Expr {
+impl<'a> Expr<'a> {
+    pub fn new(kind: ExprKind<'a>, span: Span) -> Expr<'a> {
         Expr { kind, span }
     }
 }
 
-/// Deeply nested trees (`1+1+1+...` with a hundred thousand terms, or long `if` chains) would overflow
-/// the stack if dropped recursively. Drops recurse normally up to a depth, and past it move children
-/// onto a heap stack that the outermost deep drop empties.
-mod deep_drop {
-    use std::cell::{Cell, RefCell};
-
-    pub const LIMIT: u32 = 200;
-
-    thread_local! {
-        pub static DEPTH: Cell<u32> = const { Cell::new(0) };
-        pub static PENDING_EXPRS: RefCell<Vec<super::Expr>> = const { RefCell::new(Vec::new()) };
-        pub static PENDING_STMTS: RefCell<Vec<super::Stmt>> = const { RefCell::new(Vec::new()) };
-    }
+// Nodes live in the parse arena and are never dropped one by one, so these do nothing. Having drop
+// glue is still the point: lalrpop moves a popped payload out of its stack symbol only when the
+// payload needs dropping; otherwise it drops the whole symbol through an out-of-line call (see
+// `parse::Tok`).
+impl Drop for Expr<'_> {
+    fn drop(&mut self) {}
 }
 
-impl Drop for Expr {
-    fn drop(&mut self) {
-        if matches!(self.kind, ExprKind::Number(_) | ExprKind::String(_) | ExprKind::Ident(_) | ExprKind::Error) {
-            return;
-        }
-        let kind = std::mem::replace(&mut self.kind, ExprKind::Error);
-        let depth = deep_drop::DEPTH.with(|d| d.get());
-        if depth >= deep_drop::LIMIT {
-            // Too deep: leave the children for the drop below the limit to take care of.
-            let mut kind = kind;
-            deep_drop::PENDING_EXPRS.with(|p| take_children(&mut kind, &mut p.borrow_mut()));
-            return;
-        }
-        deep_drop::DEPTH.with(|d| d.set(depth + 1));
-        drop(kind);
-        if depth == 0 {
-            // The outermost drop empties what deeper drops left, without recursing deeply.
-            while let Some(e) = deep_drop::PENDING_EXPRS.with(|p| p.borrow_mut().pop()) {
-                drop(e);
-            }
-        }
-        deep_drop::DEPTH.with(|d| d.set(depth));
-    }
+impl Drop for Stmt<'_> {
+    fn drop(&mut self) {}
 }
 
-fn take_children(kind: &mut ExprKind, stack: &mut Vec<Expr>) {
-    let placeholder = || Box::new(Expr { kind: ExprKind::Error, span: Span::default() });
-    match kind {
-        ExprKind::Index(a, b) | ExprKind::Binary(_, a, b) | ExprKind::Assign(_, a, b) => {
-            stack.push(*std::mem::replace(a, placeholder()));
-            stack.push(*std::mem::replace(b, placeholder()));
-        }
-        ExprKind::Ternary(a, b, c) => {
-            stack.push(*std::mem::replace(a, placeholder()));
-            stack.push(*std::mem::replace(b, placeholder()));
-            stack.push(*std::mem::replace(c, placeholder()));
-        }
-        ExprKind::Cast { expr: a, .. } | ExprKind::Unary(_, a) | ExprKind::IncDec { target: a, .. } => {
-            stack.push(*std::mem::replace(a, placeholder()));
-        }
-        ExprKind::Call { args, .. } | ExprKind::Tuple(args) | ExprKind::ArrayLiteral(args) => {
-            stack.append(args);
-        }
-        ExprKind::Number(_) | ExprKind::String(_) | ExprKind::Ident(_) | ExprKind::Error => {}
-    }
+impl Drop for Block<'_> {
+    fn drop(&mut self) {}
 }
 
-impl Drop for Stmt {
-    fn drop(&mut self) {
-        let kind = std::mem::replace(&mut self.kind, StmtKind::Empty);
-        let depth = deep_drop::DEPTH.with(|d| d.get());
-        if depth >= deep_drop::LIMIT {
-            let mut kind = kind;
-            deep_drop::PENDING_STMTS.with(|p| take_stmt_children(&mut kind, &mut p.borrow_mut()));
-            return;
-        }
-        deep_drop::DEPTH.with(|d| d.set(depth + 1));
-        drop(kind);
-        if depth == 0 {
-            while let Some(s) = deep_drop::PENDING_STMTS.with(|p| p.borrow_mut().pop()) {
-                drop(s);
-            }
-            while let Some(e) = deep_drop::PENDING_EXPRS.with(|p| p.borrow_mut().pop()) {
-                drop(e);
-            }
-        }
-        deep_drop::DEPTH.with(|d| d.set(depth));
-    }
-}
-
-fn take_stmt_children(kind: &mut StmtKind, stack: &mut Vec<Stmt>) {
-    let placeholder = || Box::new(Stmt { kind: StmtKind::Empty, span: Span::default() });
-    let mut take = |b: &mut Box<Stmt>| stack.push(*std::mem::replace(b, placeholder()));
-    match kind {
-        StmtKind::If { then, otherwise, .. } => {
-            take(then);
-            if let Some(o) = otherwise {
-                take(o);
-            }
-        }
-        StmtKind::While { body, .. }
-        | StmtKind::Illuminance { body, .. }
-        | StmtKind::Illuminate { body, .. }
-        | StmtKind::Solar { body, .. } => take(body),
-        StmtKind::For { init, body, .. } => {
-            if let Some(i) = init {
-                take(i);
-            }
-            take(body);
-        }
-        StmtKind::Gather { body, otherwise, .. } => {
-            take(body);
-            if let Some(o) = otherwise {
-                take(o);
-            }
-        }
-        StmtKind::Block(b) => stack.append(&mut b.stmts),
-        _ => {}
-    }
+impl Drop for VarDecl<'_> {
+    fn drop(&mut self) {}
 }

@@ -197,16 +197,20 @@ pub fn precedence(op: ast::BinaryOp) -> u8 {
 ///
 /// The operator stack holds strictly rising precedences, so it never holds more than one operator
 /// per level: both stacks fit in fixed arrays and a chain allocates nothing but its nodes.
-pub fn climb(first: ast::Expr, rest: Vec<(ast::BinaryOp, ast::Expr)>) -> ast::Expr {
+pub fn climb<'a>(
+    arena: &'a bumpalo::Bump,
+    first: ast::Expr<'a>,
+    rest: ArenaVec<'a, (ast::BinaryOp, ast::Expr<'a>)>,
+) -> ast::Expr<'a> {
     const LEVELS: usize = 8;
-    struct Stacks {
-        operands: [Option<ast::Expr>; LEVELS + 1],
+    struct Stacks<'a> {
+        operands: [Option<ast::Expr<'a>>; LEVELS + 1],
         ops: [ast::BinaryOp; LEVELS],
         len: usize,
     }
-    impl Stacks {
+    impl<'a> Stacks<'a> {
         /// Replaces the top two operands by the top operator applied to them.
-        fn reduce(&mut self) {
+        fn reduce(&mut self, arena: &'a bumpalo::Bump) {
             let rhs = self.operands[self.len].take();
             let lhs = self.operands[self.len - 1].take();
             let op = self.ops[self.len - 1];
@@ -214,7 +218,7 @@ pub fn climb(first: ast::Expr, rest: Vec<(ast::BinaryOp, ast::Expr)>) -> ast::Ex
             if let (Some(lhs), Some(rhs)) = (lhs, rhs) {
                 let span = lhs.span.to(rhs.span);
                 self.operands[self.len] =
-                    Some(ast::Expr::new(ast::ExprKind::Binary(op, Box::new(lhs), Box::new(rhs)), span));
+                    Some(ast::Expr::new(ast::ExprKind::Binary(op, arena.alloc(lhs), arena.alloc(rhs)), span));
             }
         }
     }
@@ -222,14 +226,14 @@ pub fn climb(first: ast::Expr, rest: Vec<(ast::BinaryOp, ast::Expr)>) -> ast::Ex
     stacks.operands[0] = Some(first);
     for (op, e) in rest {
         while stacks.len > 0 && precedence(stacks.ops[stacks.len - 1]) >= precedence(op) {
-            stacks.reduce();
+            stacks.reduce(arena);
         }
         stacks.ops[stacks.len] = op;
         stacks.len += 1;
         stacks.operands[stacks.len] = Some(e);
     }
     while stacks.len > 0 {
-        stacks.reduce();
+        stacks.reduce(arena);
     }
     stacks.operands[0].take().unwrap_or_else(|| ast::Expr::new(ast::ExprKind::Error, crate::source::Span::default()))
 }
@@ -425,8 +429,17 @@ fn expected_list(expected: &[String]) -> String {
     }
 }
 
-/// Parses preprocessed tokens (ending in `Eof`). Never fails: syntax errors become diagnostics.
-pub fn parse(tokens: &[Token], interner: &mut Interner, diags: &mut Diagnostics) -> ast::TranslationUnit {
+/// A list under construction in the parse arena.
+pub type ArenaVec<'a, T> = bumpalo::collections::Vec<'a, T>;
+
+/// Parses preprocessed tokens (ending in `Eof`) into a tree allocated in `arena`. Never fails:
+/// syntax errors become diagnostics.
+pub fn parse<'a>(
+    arena: &'a bumpalo::Bump,
+    tokens: &[Token],
+    interner: &mut Interner,
+    diags: &mut Diagnostics,
+) -> ast::TranslationUnit<'a> {
     // Join adjacent string literals, as C does.
     let mut toks: Vec<Tok> = Vec::with_capacity(tokens.len());
     let mut spans: Vec<Span> = Vec::with_capacity(tokens.len());
@@ -479,7 +492,7 @@ pub fn parse(tokens: &[Token], interner: &mut Interner, diags: &mut Diagnostics)
 
     let mut recovered = Vec::new();
     let input = toks.into_iter().enumerate().map(|(i, t)| Ok::<_, ()>((i as u32, t, i as u32 + 1)));
-    let result = grammar::TranslationUnitParser::new().parse(&spans, &mut recovered, input);
+    let result = grammar::TranslationUnitParser::new().parse(arena, &spans, &mut recovered, input);
     for r in recovered {
         report(r.error, &spans, interner, diags);
     }
@@ -487,7 +500,7 @@ pub fn parse(tokens: &[Token], interner: &mut Interner, diags: &mut Diagnostics)
         Ok(unit) => unit,
         Err(e) => {
             report(e, &spans, interner, diags);
-            ast::TranslationUnit { items: Vec::new() }
+            ast::TranslationUnit { items: &[] }
         }
     }
 }
@@ -607,7 +620,8 @@ mod tests {
         let mut diags = Diagnostics::default();
         let text = format!("surface s() {{ x = {expr}; }}");
         let tokens = crate::front::lex::lex(FileId(0), &text, &mut interner);
-        let unit = super::parse(&tokens, &mut interner, &mut diags);
+        let arena = bumpalo::Bump::new();
+        let unit = super::parse(&arena, &tokens, &mut interner, &mut diags);
         assert!(diags.list.is_empty(), "{expr}: {:?}", diags.list);
         let Some(Item::Shader(shader)) = unit.items.first() else { panic!("no shader in {text}") };
         let StmtKind::Expr(e) = &shader.body.stmts[0].kind else { panic!("not an expression statement") };
