@@ -91,7 +91,13 @@ pub fn run(args: &ViewArgs) -> anyhow::Result<ExitCode> {
     let threads =
         if args.threads == 0 { std::thread::available_parallelism().map_or(1, |n| n.get()) } else { args.threads };
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().context("starting the worker threads")?;
-    let renderer = renderer::Renderer::new(rt, !args.no_watch, args.frameless, threads)?;
+    let renderer = renderer::Renderer::new(
+        rt,
+        !args.no_watch,
+        args.frameless,
+        threads,
+        args.frames.unwrap_or(renderer::MAX_PASSES),
+    )?;
 
     let event_loop = winit::event_loop::EventLoop::<window::FrameReady>::with_user_event()
         .build()

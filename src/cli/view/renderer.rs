@@ -133,6 +133,8 @@ pub struct Renderer {
     home: Navigation,
     acc: Accumulator,
     frameless: bool,
+    /// Full passes or sweeps after which a still view stops refining.
+    still_limit: u32,
     /// The view changed at this time (camera, scene, mode).
     changed_at: Instant,
     scene_dirty: bool,
@@ -183,7 +185,15 @@ fn aa_name(aa: Antialiasing) -> String {
 
 impl Renderer {
     /// A renderer for the scene in `rt` (its options give the image size). `watch` starts hot reload.
-    pub fn new(mut rt: Context, watch: bool, frameless: bool, threads: usize) -> anyhow::Result<Renderer> {
+    /// Refinement stops after `still_limit` passes or sweeps (at most [`MAX_PASSES`]): a scripted
+    /// screenshot after N still frames then shows exactly N samples per pixel in either mode.
+    pub fn new(
+        mut rt: Context,
+        watch: bool,
+        frameless: bool,
+        threads: usize,
+        still_limit: u32,
+    ) -> anyhow::Result<Renderer> {
         let world = rt.build_world()?;
         for w in rt.take_warnings() {
             eprintln!("warning: {w}");
@@ -209,6 +219,7 @@ impl Renderer {
             home: nav,
             acc: Accumulator::new(w, h),
             frameless,
+            still_limit: still_limit.min(MAX_PASSES),
             changed_at: now,
             scene_dirty: false,
             selected: None,
@@ -407,7 +418,8 @@ impl Renderer {
         let (w, h) = self.size();
         let moving = self.changed_at.elapsed() < SETTLE;
         if self.frameless {
-            return self.step_frameless().then_some(moving);
+            // A completed sweep since the last change is a still image, however soon it came.
+            return self.step_frameless().then_some(moving && self.still_sweeps == 0);
         }
         if moving {
             // The smallest stride whose pass fits the budget.
@@ -417,12 +429,14 @@ impl Renderer {
             let lattices = pass_lattices(w, h, stride);
             let (results, report) = trace_lattices(self.world(), &lattices, 0, stride > 1, &|_, _| true);
             self.account(&report);
-            self.acc.add_lattices(&results, stride > 1);
+            // Previews replace, even at stride 1: counted as samples, the same pass-0 sample would
+            // pile up once per preview frame and outweigh the still passes that follow.
+            self.acc.add_lattices(&results, true);
             self.pass = 0;
             self.pass_cursor = 0;
             return Some(true);
         }
-        if self.pass >= MAX_PASSES {
+        if self.pass >= self.still_limit {
             return None;
         }
         // A slice of the current full pass, sized to the budget.
@@ -457,7 +471,7 @@ impl Renderer {
     }
 
     fn step_frameless(&mut self) -> bool {
-        if self.still_sweeps >= MAX_PASSES {
+        if self.still_sweeps >= self.still_limit {
             return false;
         }
         // Half a refresh interval of work per step, so input is applied at least that often.
@@ -473,6 +487,10 @@ impl Renderer {
             self.sweeps = self.sweeps.wrapping_add(1);
             self.still_sweeps += 1;
             self.summary.full_passes += 1;
+            if self.still_sweeps >= self.still_limit {
+                // The last sweep: show it now, nothing comes after it to publish it.
+                return true;
+            }
         }
         self.last_publish.elapsed() >= FRAMELESS_REFRESH
     }
@@ -544,7 +562,8 @@ impl Renderer {
         // The first image straight away, as a preview.
         self.changed_at = Instant::now();
         loop {
-            let idle = if self.frameless { self.still_sweeps >= MAX_PASSES } else { self.pass >= MAX_PASSES };
+            let idle =
+                if self.frameless { self.still_sweeps >= self.still_limit } else { self.pass >= self.still_limit };
             let first = if idle {
                 // Converged: sleep until input arrives.
                 match commands.recv_timeout(Duration::from_millis(100)) {
