@@ -21,6 +21,10 @@
 //! | `atan` | finite | 3 ulp |
 //! | `atan2` | finite, `x != 0` | 4 ulp |
 //!
+//! On x86-64 the four-lane forms are written in SSE2 (`sse2.rs`), the same operations in the same
+//! order, so the bit-for-bit equality holds for them too (tested); elsewhere they run the scalar
+//! kernel lane by lane ([`portable`]).
+//!
 //! `exp`, `ln` and `pow` are Rust's (glibc's), which were faster here than such kernels.
 
 // The constants are Cephes' as published, digits and all.
@@ -157,15 +161,24 @@ pub fn tan(x: f32) -> f32 {
 }
 
 pub fn sin4(x: F4) -> F4 {
-    four(x, sin_kernel, trig_in_range, f32::sin)
+    #[cfg(target_arch = "x86_64")]
+    return sse2::sin4(x);
+    #[cfg(not(target_arch = "x86_64"))]
+    return portable::sin4(x);
 }
 
 pub fn cos4(x: F4) -> F4 {
-    four(x, cos_kernel, trig_in_range, f32::cos)
+    #[cfg(target_arch = "x86_64")]
+    return sse2::cos4(x);
+    #[cfg(not(target_arch = "x86_64"))]
+    return portable::cos4(x);
 }
 
 pub fn tan4(x: F4) -> F4 {
-    four(x, tan_kernel, trig_in_range, f32::tan)
+    #[cfg(target_arch = "x86_64")]
+    return sse2::tan4(x);
+    #[cfg(not(target_arch = "x86_64"))]
+    return portable::tan4(x);
 }
 
 /// asin of `|x| <= 1`.
@@ -214,11 +227,17 @@ pub fn acos(x: f32) -> f32 {
 }
 
 pub fn asin4(x: F4) -> F4 {
-    x.map(asin)
+    #[cfg(target_arch = "x86_64")]
+    return sse2::asin4(x);
+    #[cfg(not(target_arch = "x86_64"))]
+    return portable::asin4(x);
 }
 
 pub fn acos4(x: F4) -> F4 {
-    x.map(acos)
+    #[cfg(target_arch = "x86_64")]
+    return sse2::acos4(x);
+    #[cfg(not(target_arch = "x86_64"))]
+    return portable::acos4(x);
 }
 
 #[inline(always)]
@@ -284,12 +303,55 @@ pub fn atan2(y: f32, x: f32) -> f32 {
 }
 
 pub fn atan4(x: F4) -> F4 {
-    four(x, atan_kernel, atan_in_range, f32::atan)
+    #[cfg(target_arch = "x86_64")]
+    return sse2::atan4(x);
+    #[cfg(not(target_arch = "x86_64"))]
+    return portable::atan4(x);
 }
 
 pub fn atan24(y: F4, x: F4) -> F4 {
-    four2(y, x, atan2_kernel, atan2_in_range, f32::atan2)
+    #[cfg(target_arch = "x86_64")]
+    return sse2::atan24(y, x);
+    #[cfg(not(target_arch = "x86_64"))]
+    return portable::atan24(y, x);
 }
+
+/// The four-lane functions written lane by lane: what other targets run, and the baseline that
+/// `benches/transcendental.rs` compares the SSE2 forms with.
+pub mod portable {
+    use super::*;
+
+    pub fn sin4(x: F4) -> F4 {
+        four(x, sin_kernel, trig_in_range, f32::sin)
+    }
+
+    pub fn cos4(x: F4) -> F4 {
+        four(x, cos_kernel, trig_in_range, f32::cos)
+    }
+
+    pub fn tan4(x: F4) -> F4 {
+        four(x, tan_kernel, trig_in_range, f32::tan)
+    }
+
+    pub fn asin4(x: F4) -> F4 {
+        x.map(asin)
+    }
+
+    pub fn acos4(x: F4) -> F4 {
+        x.map(acos)
+    }
+
+    pub fn atan4(x: F4) -> F4 {
+        four(x, atan_kernel, atan_in_range, f32::atan)
+    }
+
+    pub fn atan24(y: F4, x: F4) -> F4 {
+        four2(y, x, atan2_kernel, atan2_in_range, f32::atan2)
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+mod sse2;
 
 // `exp`, `ln` and `pow` are glibc's: its `expf`, `logf` and `powf` (table-driven, correctly rounded
 // or nearly) ran faster per lane than Cephes-style kernels here (`benches/transcendental.rs`), so
@@ -450,6 +512,52 @@ mod tests {
             let a = atan24(y, x);
             for l in 0..4 {
                 assert!(same(a[l], atan2(y[l], x[l])), "atan2({}, {})", y[l], x[l]);
+            }
+        }
+    }
+
+    /// The four-lane functions (SSE2 on x86-64) against the lane-by-lane forms, bit for bit, on
+    /// raw bit patterns (every exponent, subnormals, infinities, NaNs) and on the kernels' ranges.
+    #[test]
+    fn vector_forms_equal_the_portable_ones_bit_for_bit() {
+        let mut state = 0x9e37_79b9_u32;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            state
+        };
+        let same = |a: f32, b: f32| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan());
+        for i in 0..150_000 {
+            let mut value = || {
+                let bits = next();
+                let unit = bits as f32 / u32::MAX as f32;
+                match i % 3 {
+                    0 => f32::from_bits(bits),
+                    1 => (unit - 0.5) * 40.0,
+                    _ => (unit - 0.5) * 2.4,
+                }
+            };
+            let x: F4 = std::array::from_fn(|_| value());
+            let y: F4 = std::array::from_fn(|_| value());
+            type Pair = (fn(F4) -> F4, fn(F4) -> F4, &'static str);
+            let pairs: [Pair; 6] = [
+                (sin4, portable::sin4, "sin"),
+                (cos4, portable::cos4, "cos"),
+                (tan4, portable::tan4, "tan"),
+                (asin4, portable::asin4, "asin"),
+                (acos4, portable::acos4, "acos"),
+                (atan4, portable::atan4, "atan"),
+            ];
+            for (fast, reference, name) in pairs {
+                let (a, b) = (fast(x), reference(x));
+                for l in 0..4 {
+                    assert!(same(a[l], b[l]), "{name}({:e}): {:e} vs {:e}", x[l], a[l], b[l]);
+                }
+            }
+            let (a, b) = (atan24(y, x), portable::atan24(y, x));
+            for l in 0..4 {
+                assert!(same(a[l], b[l]), "atan2({:e}, {:e}): {:e} vs {:e}", y[l], x[l], a[l], b[l]);
             }
         }
     }
