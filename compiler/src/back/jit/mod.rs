@@ -116,7 +116,10 @@ pub struct Batch {
 #[derive(Clone, Debug, Default)]
 pub struct StringTable {
     strings: Vec<String>,
-    index: std::collections::HashMap<String, u32>,
+    index: rustc_hash::FxHashMap<String, u32>,
+    /// How many of `strings` are the shader's constants (fewer than `Layout::strings` when those
+    /// repeat): what [`StringTable::reset`] keeps.
+    constants: usize,
 }
 
 impl StringTable {
@@ -125,7 +128,18 @@ impl StringTable {
         for c in constants {
             t.intern(c);
         }
+        t.constants = t.strings.len();
         t
+    }
+
+    /// Back to the constants alone, as [`StringTable::new`] made it (same handles), without
+    /// building it again: a batch is reset for every call, and most calls add no string.
+    pub fn reset(&mut self) {
+        while self.strings.len() > self.constants {
+            if let Some(s) = self.strings.pop() {
+                self.index.remove(&s);
+            }
+        }
     }
 
     /// The handle of `s`, added when new.
@@ -539,7 +553,7 @@ impl BatchData {
         self.derivs.resize(2 * self.layout.deriv_slots * stride, 0.0);
         self.uniform.fill(0.0);
         self.bound.fill(0);
-        self.strings = StringTable::new(&self.layout.strings);
+        self.strings.reset();
     }
 
     /// The raw buffers, to fill inputs and read outputs by slot.
@@ -647,4 +661,26 @@ fn define(
     // argument, no result, the platform's C calling convention).
     let entry: ShadeFn = unsafe { std::mem::transmute::<*const u8, ShadeFn>(code) };
     Ok((entry, lowered.insts, lowered.sites, code_bytes))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::StringTable;
+
+    #[test]
+    fn a_reset_string_table_is_a_new_one() {
+        let constants = ["camera".to_string(), "world".to_string(), "camera".to_string()];
+        let fresh = StringTable::new(&constants);
+        let mut used = StringTable::new(&constants);
+        let added = used.intern("FieldOfView");
+        assert_eq!(used.get(added), "FieldOfView");
+        used.intern("more");
+        used.reset();
+        for c in &constants {
+            assert_eq!(used.intern(c), fresh.clone().intern(c), "the handle of constant {c}");
+        }
+        assert_eq!(used.get(added), "", "strings added after the constants are gone");
+        assert_eq!(used.intern("other"), added, "and their handles are given out again");
+        assert_eq!(used.strings.len(), 3);
+    }
 }
