@@ -719,6 +719,58 @@ fn light_shaders_illuminate_and_solar() {
 }
 
 #[test]
+fn hoisted_uniform_statements_match_per_chunk_execution() {
+    // The leading uniform statements run once per batch (`back/jit/hoist.rs`); each chunk must still
+    // see what it would have computed itself: queries, a uniform `if`, a space's matrix, strings,
+    // and locals that the rest of the body changes or that start at zero in every chunk.
+    check(
+        r#"
+        surface t(float fov = 0; float k = 2; output float uo = 0; output varying float vo = 0;)
+        {
+            uniform float f = fov;
+            if (f <= 0)
+                option("FieldOfView", f);
+            uniform float half = tan(radians(f) / 2) * k;
+            uniform float fmt[3];
+            option("Format", fmt);
+            uniform point o = point "camera" (0, 0, 1);
+            uniform string msg = format("%g", half);
+            uniform float count;
+            vo = s * half;
+            count += 1;
+            f = f * 2;
+            uo = count + f + fmt[0] + xcomp(o) + (msg == "" ? 100 : 0);
+            vo += count + t;
+            Ci = Cs * half;
+        }
+        "#,
+    );
+    // Hoisting stops at the first statement it cannot move: a varying one, `random()`, `printf`.
+    check(
+        r#"
+        surface t(float k = 3; output varying float vo = 0;)
+        {
+            uniform float a = k * 2;
+            float r = random();
+            uniform float b = a * 3;
+            vo = a + b + r + s;
+        }
+        "#,
+    );
+    check(
+        r#"
+        surface t(float k = 3; output varying float vo = 0;)
+        {
+            uniform float a = sin(k);
+            printf("%f\n", a);
+            uniform float b = cos(a);
+            vo = a + b * t;
+        }
+        "#,
+    );
+}
+
+#[test]
 fn textures_rays_and_messages() {
     check(
         r#"

@@ -45,6 +45,7 @@
 //!   `bump`, point clouds, and built-ins not handled in `builtin` or
 //!   `builtin_ext`.
 
+use super::hoist::Prefix;
 use super::host;
 use super::layout::{components, Layout};
 use super::mask::{self, and, any, choose, fconst, is_vec, konst, merge, not, or, to_mask, widen};
@@ -365,6 +366,29 @@ impl<'m> Lower<'m, '_> {
             self.b.create_block(),
             self.b.create_block(),
         );
+        let prefix = super::hoist::uniform_prefix(self.m, shader, self.layout);
+        let hoisted = if prefix.len > 0 {
+            // The prologue runs when the batch has a chunk, with chunk 0's buffers: it reads nothing
+            // varying (`hoist.rs`), and whatever it lowers stays within the batch.
+            let prologue = self.b.create_block();
+            let some = self.b.ins().icmp_imm_u(IntCC::NotEqual, nchunks, 0);
+            self.b.ins().brif(some, prologue, &[], exit, &[]);
+            self.b.switch_to_block(prologue);
+            self.chunk_base = Some(varying_p);
+            self.derivs_base = derivs_p;
+            self.stride_bytes = Some(stride_bytes);
+            self.uniform = Some(uniform_p);
+            let ones = self.b.ins().iconst(types::I32, -1);
+            let all = self.b.ins().splat(types::I32X4, ones);
+            self.set_exec(all);
+            let z = mask::zero_mask(&mut self.b);
+            self.b.def_var(self.random_calls, z);
+            let vars = self.prologue(shader, bound_p, &prefix)?;
+            self.cache.clear();
+            Some((vars, prefix))
+        } else {
+            None
+        };
         self.b.ins().jump(header, &[]);
         self.b.switch_to_block(header);
         let c = self.b.use_var(counter);
@@ -384,7 +408,7 @@ impl<'m> Lower<'m, '_> {
         self.set_exec(chunk_mask);
         let z = mask::zero_mask(&mut self.b);
         self.b.def_var(self.random_calls, z);
-        self.chunk(shader, bound_p)?;
+        self.chunk(shader, bound_p, hoisted.as_ref())?;
         self.b.ins().jump(next, &[]);
         self.b.switch_to_block(next);
         let c = self.b.use_var(counter);
@@ -396,8 +420,8 @@ impl<'m> Lower<'m, '_> {
         Ok(())
     }
 
-    /// One chunk: load globals and parameters, run the body, store results.
-    fn chunk(&mut self, shader: &'m ir::Shader, bound_p: Value) -> R<()> {
+    /// Loads the globals of the current chunk (set up by the caller) into their stores.
+    fn load_globals(&mut self) -> R<()> {
         for gs in self.layout.globals.clone() {
             let s = self.new_store(gs.varying, gs.components, gs.components);
             for (k, var) in s.vars.iter().enumerate() {
@@ -406,43 +430,107 @@ impl<'m> Lower<'m, '_> {
             }
             self.globals[gs.global.0 as usize] = Some(s);
         }
-        self.load_global_derivs()?;
+        self.load_global_derivs()
+    }
+
+    /// Sets shader parameter `i` in the current frame: its bound value, or its default.
+    fn load_param(&mut self, i: usize, p: &'m ir::ShaderParam, bound_p: Value) -> R<()> {
+        let slot = self.layout.params[i].clone();
+        let store = self.frame().vars[p.var.0 as usize]
+            .clone()
+            .ok_or_else(|| JitError::Unsupported(format!("parameter {} of type {}", p.name, p.ty)))?;
+        let flag = self.b.ins().load(types::I32, mem(), bound_p, (4 * i) as i32);
+        let (load_b, default_b, join) = (self.b.create_block(), self.b.create_block(), self.b.create_block());
+        self.b.ins().brif(flag, load_b, &[], default_b, &[]);
+        self.b.switch_to_block(load_b);
+        for (k, var) in store.vars.iter().enumerate() {
+            let v = self.load_slot(slot.varying, slot.offset + k);
+            self.b.def_var(*var, v);
+        }
+        self.b.ins().jump(join, &[]);
+        self.b.switch_to_block(default_b);
+        if store.vary {
+            // Inactive lanes keep what the batch holds (an output is stored back).
+            for (k, var) in store.vars.iter().enumerate() {
+                let v = self.load_slot(true, slot.offset + k);
+                self.b.def_var(*var, v);
+            }
+        }
+        let v = self.dual(p.default)?;
+        self.write_store(&store, &v.v)?;
+        if let Some(ds) = self.frame().dvars[p.var.0 as usize].clone() {
+            self.write_tangents(&ds, &v)?;
+        }
+        self.b.ins().jump(join, &[]);
+        self.b.switch_to_block(join);
+        Ok(())
+    }
+
+    /// The once-per-batch prologue (`hoist.rs`): the uniform parameters and the body's hoisted
+    /// statements in a frame of their own; returns that frame's variables for the chunks to copy.
+    fn prologue(&mut self, shader: &'m ir::Shader, bound_p: Value, prefix: &Prefix) -> R<Vec<Option<Store>>> {
+        self.load_globals()?;
+        let body = self.m.function(shader.body);
+        let frame = self.new_frame(shader.body, body, &[], &[], false)?;
+        self.frames.push(frame);
+        for (i, p) in shader.params.iter().enumerate() {
+            if prefix.writes.contains(&p.var) {
+                self.load_param(i, p, bound_p)?;
+            }
+        }
+        for s in &body.body.stmts[..prefix.len] {
+            if self.stmt(s)? {
+                return Err(JitError::Codegen("a hoisted statement left the body".into()));
+            }
+        }
+        let frame = self.frames.pop().expect("frame");
+        Ok(frame.vars)
+    }
+
+    /// One chunk: load globals and parameters (or take the prologue's), run the rest of the body,
+    /// store results.
+    fn chunk(
+        &mut self,
+        shader: &'m ir::Shader,
+        bound_p: Value,
+        hoisted: Option<&(Vec<Option<Store>>, Prefix)>,
+    ) -> R<()> {
+        self.load_globals()?;
         let body = self.m.function(shader.body);
         let frame = self.new_frame(shader.body, body, &[], &[], false)?;
         self.frames.push(frame);
         let saved = self.exec();
-        for (i, p) in shader.params.iter().enumerate() {
-            let slot = self.layout.params[i].clone();
-            let store = self.frame().vars[p.var.0 as usize]
-                .clone()
-                .ok_or_else(|| JitError::Unsupported(format!("parameter {} of type {}", p.name, p.ty)))?;
-            let flag = self.b.ins().load(types::I32, mem(), bound_p, (4 * i) as i32);
-            let (load_b, default_b, join) = (self.b.create_block(), self.b.create_block(), self.b.create_block());
-            self.b.ins().brif(flag, load_b, &[], default_b, &[]);
-            self.b.switch_to_block(load_b);
-            for (k, var) in store.vars.iter().enumerate() {
-                let v = self.load_slot(slot.varying, slot.offset + k);
-                self.b.def_var(*var, v);
-            }
-            self.b.ins().jump(join, &[]);
-            self.b.switch_to_block(default_b);
-            if store.vary {
-                // Inactive lanes keep what the batch holds (an output is stored back).
-                for (k, var) in store.vars.iter().enumerate() {
-                    let v = self.load_slot(true, slot.offset + k);
-                    self.b.def_var(*var, v);
+        // A fresh frame with the prologue's results copied in: the state this chunk would have
+        // reached by running the hoisted statements itself.
+        let copied: &[ir::VarId] = match hoisted {
+            Some((vars, prefix)) => {
+                for v in &prefix.writes {
+                    let from = vars[v.0 as usize].clone();
+                    let to = self.frame().vars[v.0 as usize].clone();
+                    let (Some(from), Some(to)) = (from, to) else {
+                        return Err(JitError::Codegen("a hoisted variable without storage".into()));
+                    };
+                    for (a, b) in from.vars.iter().zip(&to.vars) {
+                        let x = self.b.use_var(*a);
+                        self.b.def_var(*b, x);
+                    }
                 }
+                &prefix.writes
             }
-            let v = self.dual(p.default)?;
-            self.write_store(&store, &v.v)?;
-            if let Some(ds) = self.frame().dvars[p.var.0 as usize].clone() {
-                self.write_tangents(&ds, &v)?;
+            None => &[],
+        };
+        for (i, p) in shader.params.iter().enumerate() {
+            if !copied.contains(&p.var) {
+                self.load_param(i, p, bound_p)?;
             }
-            self.b.ins().jump(join, &[]);
-            self.b.switch_to_block(join);
         }
         let ret_block = self.frame().ret_block;
-        self.block(&body.body)?;
+        let skip = hoisted.map_or(0, |(_, prefix)| prefix.len);
+        for s in &body.body.stmts[skip..] {
+            if self.stmt(s)? {
+                break;
+            }
+        }
         self.b.ins().jump(ret_block, &[]);
         self.b.switch_to_block(ret_block);
         self.set_exec(saved);

@@ -3,7 +3,8 @@
 //! [`compile`] turns a validated [`ir::Module`] into a [`CompiledShader`]: one `JITModule` holding one
 //! function `extern "C" fn(*mut Batch)` that shades every active lane of a batch (the ABI of
 //! `docs/packet-abi.md`). The function walks the batch in chunks of four lanes (`f32x4`) and runs the
-//! whole shader, with every user function inlined, once per chunk that has an active lane.
+//! whole shader, with every user function inlined, once per chunk that has an active lane; leading
+//! uniform statements that every chunk would compute alike run once before the loop (`hoist.rs`).
 //!
 //! Invariants:
 //! - **Never panics on input IR**: anything outside the supported subset is
@@ -20,6 +21,7 @@
 //!   helper call per chunk), so results agree bit for bit except where noted in `math.rs`.
 //! - The Cranelift verifier runs in debug and test builds only.
 
+mod hoist;
 mod host;
 mod layout;
 mod lower;
