@@ -745,6 +745,24 @@ fn hoisted_uniform_statements_match_per_chunk_execution() {
         }
         "#,
     );
+    // Uniform calls inside varying statements, loops and divergent branches are evaluated once per
+    // batch when they read only constants and parameters nothing writes; `k` is written, so
+    // `sin(k)` is not.
+    check(
+        r#"
+        surface t(float fov = 60; float k = 2; output varying float vo = 0;)
+        {
+            vo = s * tan(radians(fov) / 2) + xcomp(point "camera" (0, 0, 1));
+            if (t > 0.5)
+                vo += sin(k) + ycomp(vector "world" (1, fov, 0));
+            k = k + 1;
+            float i;
+            for (i = 0; i < 3; i += 1)
+                vo += cos(radians(fov)) * i + sin(k);
+            Ci = Cs * vo;
+        }
+        "#,
+    );
     // Hoisting stops at the first statement it cannot move: a varying one, `random()`, `printf`.
     check(
         r#"

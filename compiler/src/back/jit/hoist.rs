@@ -19,24 +19,42 @@ use super::layout::Layout;
 use crate::builtins::{flags, Builtin};
 use crate::ir::{self, Arg, ExprId, ExprKind, Function, Place, PlaceBase, Shader, StmtKind, VarId, VarKind};
 
-/// What the prologue runs: the first `len` statements of the body, which write `writes`.
+/// What the prologue does: binds the uniform parameters, runs the first `len` statements of the
+/// body, and evaluates the batch constants `consts`.
 #[derive(Debug, Default)]
 pub(super) struct Prefix {
     pub len: usize,
-    /// Variables the prologue sets (hoisted writes and uniform parameters), each once.
+    /// Variables the prologue sets (uniform parameters and hoisted writes), each once: every chunk
+    /// starts with copies of them.
     pub writes: Vec<VarId>,
+    pub consts: Vec<ExprId>,
 }
 
-/// The hoistable leading statements of `shader`'s body (none when nothing can be hoisted).
+impl Prefix {
+    /// Whether there is anything to do once per batch.
+    pub fn any(&self) -> bool {
+        self.len > 0 || !self.consts.is_empty()
+    }
+}
+
+/// What of `shader`'s body can run once per batch (nothing when a uniform parameter's default is
+/// not safe to evaluate there).
 pub(super) fn uniform_prefix(m: &ir::Module, shader: &Shader, layout: &Layout) -> Prefix {
     let f = m.function(shader.body);
     let mut check = Check { f, layout, writes: Vec::new() };
-    for (i, p) in shader.params.iter().enumerate() {
-        let uniform = layout.params.get(i).is_some_and(|s| !s.varying) && !f.var(p.var).varying;
-        if uniform && !check.expr(p.default) {
+    let uniform_params: Vec<VarId> = shader
+        .params
+        .iter()
+        .enumerate()
+        .filter(|(i, p)| layout.params.get(*i).is_some_and(|s| !s.varying) && !f.var(p.var).varying)
+        .map(|(_, p)| p.var)
+        .collect();
+    for p in &shader.params {
+        if uniform_params.contains(&p.var) && !check.expr(p.default) {
             return Prefix::default();
         }
     }
+    check.writes.clear();
     let mut len = 0;
     for s in &f.body.stmts {
         let before = check.writes.len();
@@ -46,18 +64,15 @@ pub(super) fn uniform_prefix(m: &ir::Module, shader: &Shader, layout: &Layout) -
         }
         len += 1;
     }
-    if len == 0 {
+    let consts = batch_constants(m, shader, layout);
+    if len == 0 && consts.is_empty() {
         return Prefix::default();
     }
     let mut writes = check.writes;
-    for (i, p) in shader.params.iter().enumerate() {
-        if layout.params.get(i).is_some_and(|s| !s.varying) && !f.var(p.var).varying {
-            writes.push(p.var);
-        }
-    }
+    writes.extend(uniform_params);
     writes.sort_by_key(|v| v.0);
     writes.dedup();
-    Prefix { len, writes }
+    Prefix { len, writes, consts }
 }
 
 struct Check<'a> {
@@ -147,4 +162,176 @@ fn hoistable(b: Builtin) -> bool {
         return matches!(b, Builtin::Option | Builtin::Rendererinfo);
     }
     true
+}
+
+/// Uniform expressions anywhere in the body that compute the same value for every chunk and
+/// involve a call (a helper, a space's matrix): the prologue evaluates them once and the chunks
+/// use that value (`E = point "camera" (0, 0, 0)`, `radians(fov)`). They may read only constants,
+/// shader parameters and uniform globals that nothing in the body writes, and call only built-ins
+/// without side effects (they are evaluated whether or not the chunk reaches them, which is
+/// harmless for such pure computations). Maximal ones only: a listed expression's parts are not.
+fn batch_constants(m: &ir::Module, shader: &Shader, layout: &Layout) -> Vec<ExprId> {
+    let f = m.function(shader.body);
+    let mut written = Vec::new();
+    for e in &f.exprs {
+        match &e.kind {
+            ExprKind::Assign { place, .. } => written.push(place.base),
+            ExprKind::CallBuiltin { args, .. } | ExprKind::Call { args, .. } => {
+                written.extend(args.iter().filter_map(|a| match a {
+                    Arg::Ref(p) => Some(p.base),
+                    Arg::Value(_) => None,
+                }))
+            }
+            _ => {}
+        }
+    }
+    gather_refs(&f.body, &mut written);
+    let pure = Pure { f, layout, written };
+    let mut found = Vec::new();
+    pure.block(&f.body, &mut found);
+    found
+}
+
+fn gather_refs(b: &ir::Block, out: &mut Vec<PlaceBase>) {
+    for s in &b.stmts {
+        match &s.kind {
+            StmtKind::If { then, otherwise, .. } => {
+                gather_refs(then, out);
+                gather_refs(otherwise, out);
+            }
+            StmtKind::Loop { body, step, .. } => {
+                gather_refs(body, out);
+                gather_refs(step, out);
+            }
+            StmtKind::Illuminance { body, .. } | StmtKind::Illuminate { body, .. } | StmtKind::Solar { body, .. } => {
+                gather_refs(body, out)
+            }
+            StmtKind::Gather { params, body, otherwise, .. } => {
+                out.extend(params.iter().filter_map(|(_, a)| match a {
+                    Arg::Ref(p) => Some(p.base),
+                    Arg::Value(_) => None,
+                }));
+                gather_refs(body, out);
+                gather_refs(otherwise, out);
+            }
+            _ => {}
+        }
+    }
+}
+
+struct Pure<'a> {
+    f: &'a Function,
+    layout: &'a Layout,
+    written: Vec<PlaceBase>,
+}
+
+impl Pure<'_> {
+    fn block(&self, b: &ir::Block, found: &mut Vec<ExprId>) {
+        for s in &b.stmts {
+            match &s.kind {
+                StmtKind::Expr(e) => self.visit(*e, found),
+                StmtKind::If { cond, then, otherwise } => {
+                    self.visit(*cond, found);
+                    self.block(then, found);
+                    self.block(otherwise, found);
+                }
+                StmtKind::Loop { cond, body, step } => {
+                    if let Some(c) = cond {
+                        self.visit(*c, found);
+                    }
+                    self.block(body, found);
+                    self.block(step, found);
+                }
+                StmtKind::Return(Some(e)) => self.visit(*e, found),
+                StmtKind::Illuminance { body, .. }
+                | StmtKind::Illuminate { body, .. }
+                | StmtKind::Solar { body, .. } => self.block(body, found),
+                StmtKind::Gather { body, otherwise, .. } => {
+                    self.block(body, found);
+                    self.block(otherwise, found);
+                }
+                _ => {}
+            }
+        }
+    }
+
+    /// Lists `id` if it qualifies, else looks inside it.
+    fn visit(&self, id: ExprId, found: &mut Vec<ExprId>) {
+        if self.pure(id) && self.calls(id) {
+            if !found.contains(&id) {
+                found.push(id);
+            }
+            return;
+        }
+        let e = self.f.expr(id);
+        let mut each = |ids: &mut dyn Iterator<Item = ExprId>| ids.for_each(|c| self.visit(c, found));
+        match &e.kind {
+            ExprKind::Const(_) | ExprKind::Var(_) | ExprKind::Global(_) => {}
+            ExprKind::Index { base, index } => each(&mut [*base, *index].into_iter()),
+            ExprKind::Unary { arg, .. } | ExprKind::Convert { arg } => each(&mut std::iter::once(*arg)),
+            ExprKind::Binary { lhs, rhs, .. } => each(&mut [*lhs, *rhs].into_iter()),
+            ExprKind::Construct { args } => each(&mut args.iter().copied()),
+            ExprKind::ArrayLiteral { elements } => each(&mut elements.iter().copied()),
+            ExprKind::SpaceCast { space, arg } => each(&mut [*space, *arg].into_iter()),
+            ExprKind::Select { cond, a, b } => each(&mut [*cond, *a, *b].into_iter()),
+            ExprKind::CallBuiltin { args, .. } | ExprKind::Call { args, .. } => {
+                each(&mut args.iter().filter_map(|a| match a {
+                    Arg::Value(v) => Some(*v),
+                    Arg::Ref(_) => None,
+                }))
+            }
+            ExprKind::Assign { value, .. } => each(&mut std::iter::once(*value)),
+        }
+    }
+
+    /// Uniform, free of effects, and reading only what no statement of the body writes.
+    fn pure(&self, id: ExprId) -> bool {
+        let e = self.f.expr(id);
+        if e.varying {
+            return false;
+        }
+        match &e.kind {
+            ExprKind::Const(_) => true,
+            ExprKind::Var(v) => {
+                let var = self.f.var(*v);
+                let VarKind::ShaderParam { index, .. } = var.kind else { return false };
+                !var.varying
+                    && self.layout.params.get(index as usize).is_some_and(|s| !s.varying)
+                    && !self.written.contains(&PlaceBase::Var(*v))
+            }
+            ExprKind::Global(g) => {
+                self.layout.globals.iter().any(|s| s.global == *g && !s.varying && !s.written)
+                    && !self.written.contains(&PlaceBase::Global(*g))
+            }
+            ExprKind::Index { base, index } => self.pure(*base) && self.pure(*index),
+            ExprKind::Unary { arg, .. } | ExprKind::Convert { arg } => self.pure(*arg),
+            ExprKind::Binary { lhs, rhs, .. } => self.pure(*lhs) && self.pure(*rhs),
+            ExprKind::Construct { args } => args.iter().all(|a| self.pure(*a)),
+            ExprKind::ArrayLiteral { elements } => elements.iter().all(|a| self.pure(*a)),
+            ExprKind::SpaceCast { space, arg } => self.pure(*space) && self.pure(*arg),
+            ExprKind::Select { cond, a, b } => self.pure(*cond) && self.pure(*a) && self.pure(*b),
+            ExprKind::CallBuiltin { builtin, args, .. } => {
+                hoistable(*builtin)
+                    && builtin.flags() & flags::SIDE_EFFECTS == 0
+                    && args.iter().all(|a| matches!(a, Arg::Value(v) if self.pure(*v)))
+            }
+            ExprKind::Call { .. } | ExprKind::Assign { .. } => false,
+        }
+    }
+
+    /// Whether evaluating `id` calls out (worth doing once): a built-in or a space cast.
+    fn calls(&self, id: ExprId) -> bool {
+        let e = self.f.expr(id);
+        match &e.kind {
+            ExprKind::CallBuiltin { .. } | ExprKind::SpaceCast { .. } => true,
+            ExprKind::Const(_) | ExprKind::Var(_) | ExprKind::Global(_) => false,
+            ExprKind::Index { base, index } => self.calls(*base) || self.calls(*index),
+            ExprKind::Unary { arg, .. } | ExprKind::Convert { arg } => self.calls(*arg),
+            ExprKind::Binary { lhs, rhs, .. } => self.calls(*lhs) || self.calls(*rhs),
+            ExprKind::Construct { args } => args.iter().any(|a| self.calls(*a)),
+            ExprKind::ArrayLiteral { elements } => elements.iter().any(|a| self.calls(*a)),
+            ExprKind::Select { cond, a, b } => self.calls(*cond) || self.calls(*a) || self.calls(*b),
+            ExprKind::Call { .. } | ExprKind::Assign { .. } => false,
+        }
+    }
 }

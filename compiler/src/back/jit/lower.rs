@@ -169,6 +169,9 @@ struct Lower<'m, 'b> {
     /// Argument values a built-in call evaluated as duals before lowering the call: `expr` returns
     /// them instead of evaluating again (key: frame depth, expression).
     cache: HashMap<(usize, u32), Val>,
+    /// Expressions of the shader body that the prologue evaluated (`hoist::Prefix::consts`): their
+    /// values, defined before the chunk loop.
+    batch_consts: HashMap<u32, Val>,
     /// The arguments (as duals) of the built-in call being lowered by `builtin_dual`.
     arg_duals: Vec<Option<Dual>>,
     /// The renderer's derivatives for this chunk (`Batch::derivs + 16 * chunk`; null base: zeros).
@@ -226,6 +229,7 @@ pub(super) fn lower(
         info: ir::deriv::analyse(m),
         dglobals: vec![None; GLOBALS.len()],
         cache: HashMap::new(),
+        batch_consts: HashMap::new(),
         arg_duals: Vec::new(),
         derivs_base: None,
         derivs_null: None,
@@ -367,7 +371,7 @@ impl<'m> Lower<'m, '_> {
             self.b.create_block(),
         );
         let prefix = super::hoist::uniform_prefix(self.m, shader, self.layout);
-        let hoisted = if prefix.len > 0 {
+        let hoisted = if prefix.any() {
             // The prologue runs when the batch has a chunk, with chunk 0's buffers: it reads nothing
             // varying (`hoist.rs`), and whatever it lowers stays within the batch.
             let prologue = self.b.create_block();
@@ -481,6 +485,12 @@ impl<'m> Lower<'m, '_> {
         for s in &body.body.stmts[..prefix.len] {
             if self.stmt(s)? {
                 return Err(JitError::Codegen("a hoisted statement left the body".into()));
+            }
+        }
+        for id in &prefix.consts {
+            let v = self.expr(*id)?;
+            if !v.vary {
+                self.batch_consts.insert(id.0, v);
             }
         }
         let frame = self.frames.pop().expect("frame");
@@ -1128,6 +1138,12 @@ impl<'m> Lower<'m, '_> {
     }
 
     fn expr(&mut self, id: ExprId) -> R<Val> {
+        // The prologue's values, in the shader body itself (inlined functions have ids of their own).
+        if self.frames.len() == 1 {
+            if let Some(v) = self.batch_consts.get(&id.0) {
+                return Ok(v.clone());
+            }
+        }
         if !self.cache.is_empty() {
             if let Some(v) = self.cache.get(&(self.frames.len(), id.0)) {
                 return Ok(v.clone());
