@@ -753,6 +753,8 @@ fn hoisted_uniform_statements_match_per_chunk_execution() {
         surface t(float fov = 60; float k = 2; output varying float vo = 0;)
         {
             vo = s * tan(radians(fov) / 2) + xcomp(point "camera" (0, 0, 1));
+            point q = point "camera" (s, t * fov, 1);
+            vo += ycomp(q) + zcomp(normal "world" (t, 1, s)) + xcomp(Du(point "camera" (s * s, t, 0)));
             if (t > 0.5)
                 vo += sin(k) + ycomp(vector "world" (1, fov, 0));
             k = k + 1;

@@ -308,10 +308,16 @@ impl<'m> Lower<'m, '_> {
             ExprKind::SpaceCast { space, arg } if e.ty.base.is_pointlike() => {
                 let sp = self.expr(*space)?;
                 let a = self.dual(*arg)?;
-                let v = self.space_cast(e.ty.base, &sp, a.v.clone())?;
+                let cached = self.batch_matrix(*space);
+                let v = self.space_cast(e.ty.base, &sp, a.v.clone(), cached.clone())?;
                 let [x, y] = self.tangents(&a);
-                let current = self.const_string("current");
-                let (m, ok) = self.space_matrix(&sp, &current)?;
+                let (m, ok) = match cached {
+                    Some(m) => m,
+                    None => {
+                        let current = self.const_string("current");
+                        self.space_matrix(&sp, &current)?
+                    }
+                };
                 let h = if e.ty.base == BaseType::Normal { "rtsl_xform_normal" } else { "rtsl_xform_vector" };
                 let (x, y) = (Val { vary: true, c: x }, Val { vary: true, c: y });
                 let x = self.apply_if(h, ok, &m, &x, &x)?.c;

@@ -28,12 +28,16 @@ pub(super) struct Prefix {
     /// starts with copies of them.
     pub writes: Vec<VarId>,
     pub consts: Vec<ExprId>,
+    /// Space names of the body's point, vector, normal and matrix casts that read nothing the body
+    /// writes (`point "camera" (...)` with varying coordinates): the prologue looks up their
+    /// matrices once.
+    pub spaces: Vec<ExprId>,
 }
 
 impl Prefix {
     /// Whether there is anything to do once per batch.
     pub fn any(&self) -> bool {
-        self.len > 0 || !self.consts.is_empty()
+        self.len > 0 || !self.consts.is_empty() || !self.spaces.is_empty()
     }
 }
 
@@ -64,15 +68,15 @@ pub(super) fn uniform_prefix(m: &ir::Module, shader: &Shader, layout: &Layout) -
         }
         len += 1;
     }
-    let consts = batch_constants(m, shader, layout);
-    if len == 0 && consts.is_empty() {
+    let (consts, spaces) = batch_constants(m, shader, layout);
+    if len == 0 && consts.is_empty() && spaces.is_empty() {
         return Prefix::default();
     }
     let mut writes = check.writes;
     writes.extend(uniform_params);
     writes.sort_by_key(|v| v.0);
     writes.dedup();
-    Prefix { len, writes, consts }
+    Prefix { len, writes, consts, spaces }
 }
 
 struct Check<'a> {
@@ -170,7 +174,7 @@ fn hoistable(b: Builtin) -> bool {
 /// shader parameters and uniform globals that nothing in the body writes, and call only built-ins
 /// without side effects (they are evaluated whether or not the chunk reaches them, which is
 /// harmless for such pure computations). Maximal ones only: a listed expression's parts are not.
-fn batch_constants(m: &ir::Module, shader: &Shader, layout: &Layout) -> Vec<ExprId> {
+fn batch_constants(m: &ir::Module, shader: &Shader, layout: &Layout) -> (Vec<ExprId>, Vec<ExprId>) {
     let f = m.function(shader.body);
     let mut written = Vec::new();
     for e in &f.exprs {
@@ -189,7 +193,15 @@ fn batch_constants(m: &ir::Module, shader: &Shader, layout: &Layout) -> Vec<Expr
     let pure = Pure { f, layout, written };
     let mut found = Vec::new();
     pure.block(&f.body, &mut found);
-    found
+    let spaces = f
+        .exprs
+        .iter()
+        .filter_map(|e| match e.kind {
+            ExprKind::SpaceCast { space, .. } if e.ty.base != ir::BaseType::Color && pure.pure(space) => Some(space),
+            _ => None,
+        })
+        .collect();
+    (found, spaces)
 }
 
 fn gather_refs(b: &ir::Block, out: &mut Vec<PlaceBase>) {

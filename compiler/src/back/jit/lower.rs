@@ -172,6 +172,9 @@ struct Lower<'m, 'b> {
     /// Expressions of the shader body that the prologue evaluated (`hoist::Prefix::consts`): their
     /// values, defined before the chunk loop.
     batch_consts: HashMap<u32, Val>,
+    /// The matrices (and whether the space is known) of the space-name expressions the prologue
+    /// looked up (`hoist::Prefix::spaces`).
+    batch_matrices: HashMap<u32, (Val, Value)>,
     /// The arguments (as duals) of the built-in call being lowered by `builtin_dual`.
     arg_duals: Vec<Option<Dual>>,
     /// The renderer's derivatives for this chunk (`Batch::derivs + 16 * chunk`; null base: zeros).
@@ -230,6 +233,7 @@ pub(super) fn lower(
         dglobals: vec![None; GLOBALS.len()],
         cache: HashMap::new(),
         batch_consts: HashMap::new(),
+        batch_matrices: HashMap::new(),
         arg_duals: Vec::new(),
         derivs_base: None,
         derivs_null: None,
@@ -491,6 +495,14 @@ impl<'m> Lower<'m, '_> {
             let v = self.expr(*id)?;
             if !v.vary {
                 self.batch_consts.insert(id.0, v);
+            }
+        }
+        for id in &prefix.spaces {
+            let sp = self.expr(*id)?;
+            if !sp.vary {
+                let current = self.const_string("current");
+                let m = self.space_matrix(&sp, &current)?;
+                self.batch_matrices.insert(id.0, m);
             }
         }
         let frame = self.frames.pop().expect("frame");
@@ -1218,7 +1230,8 @@ impl<'m> Lower<'m, '_> {
             ExprKind::SpaceCast { space, arg } => {
                 let sp = self.expr(*space)?;
                 let v = self.expr(*arg)?;
-                self.space_cast(e.ty.base, &sp, v)
+                let m = self.batch_matrix(*space);
+                self.space_cast(e.ty.base, &sp, v, m)
             }
             ExprKind::Select { cond, a, b } => self.select(e, *cond, *a, *b),
             ExprKind::CallBuiltin { builtin, overload, args } => self.builtin(*builtin, *overload, args, e),
@@ -2133,7 +2146,17 @@ impl<'m> Lower<'m, '_> {
         Ok(Val { vary, c })
     }
 
-    fn space_cast(&mut self, ty: BaseType, space: &Val, v: Val) -> R<Val> {
+    /// The prologue's matrix for the space name `space`, in the shader body itself.
+    fn batch_matrix(&self, space: ExprId) -> Option<(Val, Value)> {
+        if self.frames.len() == 1 {
+            self.batch_matrices.get(&space.0).cloned()
+        } else {
+            None
+        }
+    }
+
+    /// `v` cast from `space` to "current"; `matrix` is that transform when already known.
+    fn space_cast(&mut self, ty: BaseType, space: &Val, v: Val, matrix: Option<(Val, Value)>) -> R<Val> {
         if ty == BaseType::Color {
             if space.vary {
                 return unsupported("varying space names");
@@ -2142,8 +2165,13 @@ impl<'m> Lower<'m, '_> {
             let c = self.call_helper("rtsl_h_to_rgb", &all.c, all.vary)?;
             return Ok(Val { vary: all.vary, c });
         }
-        let current = self.const_string("current");
-        let (m, ok) = self.space_matrix(space, &current)?;
+        let (m, ok) = match matrix {
+            Some(m) => m,
+            None => {
+                let current = self.const_string("current");
+                self.space_matrix(space, &current)?
+            }
+        };
         match ty {
             // mul(v, m): the value first.
             BaseType::Matrix => self.apply_if("rtsl_mmul", ok, &v, &m, &v),
