@@ -18,7 +18,7 @@ use super::host::ShadeCall;
 use super::shade::{finite_or_zero, Frame};
 use super::world::World;
 use crate::ray::{Ray, RayPacket, PACKET_SIZE};
-use crate::shading::{fill1, fill3, get3, put1, put3, with_batch};
+use crate::shading::{fill1, fill3, get_row, put_row, with_batch};
 use glam::Vec3A;
 
 /// Where on the image, lens and shutter a primary ray starts.
@@ -57,6 +57,28 @@ pub fn screen_position(world: &World, (x, y): (f32, f32)) -> (f32, f32) {
     let (w, h) = (world.options.width.max(1) as f32, world.options.height.max(1) as f32);
     let (ax, ay) = if w >= h { (w / h, 1.0) } else { (1.0, h / w) };
     ((2.0 * x / w - 1.0) * ax, (1.0 - 2.0 * y / h) * ay)
+}
+
+/// [`screen_position`] with its per-image factors worked out once (the same arithmetic, so the same
+/// bits).
+struct ScreenWindow {
+    w: f32,
+    h: f32,
+    ax: f32,
+    ay: f32,
+}
+
+impl ScreenWindow {
+    fn of(world: &World) -> ScreenWindow {
+        let (w, h) = (world.options.width.max(1) as f32, world.options.height.max(1) as f32);
+        let (ax, ay) = if w >= h { (w / h, 1.0) } else { (1.0, h / w) };
+        ScreenWindow { w, h, ax, ay }
+    }
+
+    #[inline]
+    fn position(&self, (x, y): (f32, f32)) -> (f32, f32) {
+        ((2.0 * x / self.w - 1.0) * self.ax, (1.0 - 2.0 * y / self.h) * self.ay)
+    }
 }
 
 /// The built-in pinhole camera's ray through a raster position.
@@ -143,25 +165,56 @@ fn run_camera_shader(
                 fill1(&mut raw, slots.ncomps, 3.0);
                 fill3(&mut raw, slots.e, eye);
                 fill3(&mut raw, slots.ci, Vec3A::ONE);
-                for (lane, s) in samples.iter().enumerate() {
-                    let (sx, sy) = screen_position(world, s.raster);
-                    put3(&mut raw, slots.p, lane, Vec3A::new(s.raster.0, s.raster.1, 0.0));
-                    put1(&mut raw, slots.s, lane, sx);
-                    put1(&mut raw, slots.t, lane, sy);
-                    put1(&mut raw, slots.u, lane, s.lens.0);
-                    put1(&mut raw, slots.v, lane, s.lens.1);
-                    put1(&mut raw, slots.time, lane, s.time);
-                    put3(&mut raw, slots.i, lane, dirs[lane]);
-                }
+                // Row by row (structure of arrays, as the batch holds them): the same values as
+                // `put1`/`put3` lane by lane.
+                let screen = ScreenWindow::of(world);
+                let mut row = [0.0f32; PACKET_SIZE];
+                let mut put = |raw: &mut rtsl_compiler::back::jit::RawBatch<'_>,
+                               slot: Option<crate::shading::Slot>,
+                               comp: usize,
+                               f: &dyn Fn(usize) -> f32| {
+                    if slot.is_some() {
+                        for (lane, x) in row.iter_mut().enumerate() {
+                            *x = f(lane);
+                        }
+                        put_row(raw, slot, comp, &row);
+                    }
+                };
+                put(&mut raw, slots.p, 0, &|l| samples[l].raster.0);
+                put(&mut raw, slots.p, 1, &|l| samples[l].raster.1);
+                put(&mut raw, slots.p, 2, &|_| 0.0);
+                put(&mut raw, slots.s, 0, &|l| screen.position(samples[l].raster).0);
+                put(&mut raw, slots.t, 0, &|l| screen.position(samples[l].raster).1);
+                put(&mut raw, slots.u, 0, &|l| samples[l].lens.0);
+                put(&mut raw, slots.v, 0, &|l| samples[l].lens.1);
+                put(&mut raw, slots.time, 0, &|l| samples[l].time);
+                put(&mut raw, slots.i, 0, &|l| dirs[l].x);
+                put(&mut raw, slots.i, 1, &|l| dirs[l].y);
+                put(&mut raw, slots.i, 2, &|l| dirs[l].z);
             }
             let mut call = ShadeCall::new(frame, camera, world.camera.world_from_camera, 0);
             let table = call.table();
             program.code.shade_with_table(batch, &table);
             let raw = batch.raw_mut();
+            let mut rows = [[0.0f32; PACKET_SIZE]; 9];
+            for k in 0..3 {
+                get_row(&raw, slots.e, k, eye[k], &mut rows[k]);
+                get_row(&raw, slots.ci, k, 1.0, &mut rows[6 + k]);
+            }
+            if slots.i.is_some() {
+                for k in 0..3 {
+                    get_row(&raw, slots.i, k, 0.0, &mut rows[3 + k]);
+                }
+            } else {
+                for (lane, d) in dirs.iter().enumerate() {
+                    (rows[3][lane], rows[4][lane], rows[5][lane]) = (d.x, d.y, d.z);
+                }
+            }
+            let at = |r: usize, lane: usize| Vec3A::new(rows[r][lane], rows[r + 1][lane], rows[r + 2][lane]);
             for lane in 0..PACKET_SIZE {
-                let o = get3(&raw, slots.e, lane, eye);
-                let d = get3(&raw, slots.i, lane, dirs[lane]);
-                let w = get3(&raw, slots.ci, lane, Vec3A::ONE);
+                let o = at(0, lane);
+                let d = at(3, lane);
+                let w = at(6, lane);
                 let len = d.length();
                 origins[lane] = o;
                 if o.is_finite() && len.is_finite() && len > 0.0 {

@@ -160,6 +160,34 @@ pub fn get3(raw: &RawBatch<'_>, slot: Option<Slot>, lane: usize, default: Vec3A)
     }
 }
 
+/// Writes component `comp` of a global for every lane at once: lane `l` gets `values[l]`. The
+/// same as [`put1`] lane by lane (a uniform global takes the last lane's value), written as one
+/// row.
+pub fn put_row(raw: &mut RawBatch<'_>, slot: Option<Slot>, comp: usize, values: &[f32]) {
+    let Some(s) = slot else { return };
+    let n = raw.lanes.min(values.len());
+    if s.varying {
+        let row = (s.offset + comp) * raw.stride;
+        raw.varying[row..row + n].copy_from_slice(&values[..n]);
+    } else if n > 0 {
+        raw.uniform[s.offset + comp] = values[n - 1];
+    }
+}
+
+/// Reads component `comp` of a global for every lane into `out` (`default` when the shader does
+/// not have the global): [`get3`] lane by lane, as one row.
+pub fn get_row(raw: &RawBatch<'_>, slot: Option<Slot>, comp: usize, default: f32, out: &mut [f32]) {
+    let n = raw.lanes.min(out.len());
+    match slot {
+        Some(s) if s.varying => {
+            let row = (s.offset + comp) * raw.stride;
+            out[..n].copy_from_slice(&raw.varying[row..row + n]);
+        }
+        Some(s) => out[..n].fill(raw.uniform[s.offset + comp]),
+        None => out[..n].fill(default),
+    }
+}
+
 /// A batch kept for reuse, with the program it was made for.
 type PooledBatch = (Weak<ShaderProgram>, BatchData);
 
