@@ -160,25 +160,26 @@ pub fn tan(x: f32) -> f32 {
     }
 }
 
-pub fn sin4(x: F4) -> F4 {
-    #[cfg(target_arch = "x86_64")]
-    return sse2::sin4(x);
-    #[cfg(not(target_arch = "x86_64"))]
-    return portable::sin4(x);
+/// The four-lane functions: SSE2 on x86-64, the lane-by-lane kernels ([`portable`]) elsewhere.
+macro_rules! four_lanes {
+    ($($name:ident($($arg:ident),+);)*) => {$(
+        pub fn $name($($arg: F4),+) -> F4 {
+            #[cfg(target_arch = "x86_64")]
+            return sse2::$name($($arg),+);
+            #[cfg(not(target_arch = "x86_64"))]
+            return portable::$name($($arg),+);
+        }
+    )*};
 }
 
-pub fn cos4(x: F4) -> F4 {
-    #[cfg(target_arch = "x86_64")]
-    return sse2::cos4(x);
-    #[cfg(not(target_arch = "x86_64"))]
-    return portable::cos4(x);
-}
-
-pub fn tan4(x: F4) -> F4 {
-    #[cfg(target_arch = "x86_64")]
-    return sse2::tan4(x);
-    #[cfg(not(target_arch = "x86_64"))]
-    return portable::tan4(x);
+four_lanes! {
+    sin4(x);
+    cos4(x);
+    tan4(x);
+    asin4(x);
+    acos4(x);
+    atan4(x);
+    atan24(y, x);
 }
 
 /// asin of `|x| <= 1`.
@@ -224,20 +225,6 @@ pub fn asin(x: f32) -> f32 {
 
 pub fn acos(x: f32) -> f32 {
     acos_kernel(x.clamp(-1.0, 1.0))
-}
-
-pub fn asin4(x: F4) -> F4 {
-    #[cfg(target_arch = "x86_64")]
-    return sse2::asin4(x);
-    #[cfg(not(target_arch = "x86_64"))]
-    return portable::asin4(x);
-}
-
-pub fn acos4(x: F4) -> F4 {
-    #[cfg(target_arch = "x86_64")]
-    return sse2::acos4(x);
-    #[cfg(not(target_arch = "x86_64"))]
-    return portable::acos4(x);
 }
 
 #[inline(always)]
@@ -300,20 +287,6 @@ pub fn atan2(y: f32, x: f32) -> f32 {
     } else {
         y.atan2(x)
     }
-}
-
-pub fn atan4(x: F4) -> F4 {
-    #[cfg(target_arch = "x86_64")]
-    return sse2::atan4(x);
-    #[cfg(not(target_arch = "x86_64"))]
-    return portable::atan4(x);
-}
-
-pub fn atan24(y: F4, x: F4) -> F4 {
-    #[cfg(target_arch = "x86_64")]
-    return sse2::atan24(y, x);
-    #[cfg(not(target_arch = "x86_64"))]
-    return portable::atan24(y, x);
 }
 
 /// The four-lane functions written lane by lane: what other targets run, and the baseline that

@@ -96,10 +96,6 @@ impl Check<'_> {
         }
     }
 
-    fn exprs(&mut self, es: &[ExprId]) -> bool {
-        es.iter().all(|e| self.expr(*e))
-    }
-
     fn expr(&mut self, id: ExprId) -> bool {
         let e = self.f.expr(id);
         if e.varying {
@@ -109,13 +105,6 @@ impl Check<'_> {
             ExprKind::Const(_) => true,
             ExprKind::Var(v) => self.uniform_var(*v),
             ExprKind::Global(g) => self.layout.globals.iter().any(|s| s.global == *g && !s.varying),
-            ExprKind::Index { base, index } => self.expr(*base) && self.expr(*index),
-            ExprKind::Unary { arg, .. } | ExprKind::Convert { arg } => self.expr(*arg),
-            ExprKind::Binary { lhs, rhs, .. } => self.expr(*lhs) && self.expr(*rhs),
-            ExprKind::Construct { args } => self.exprs(args),
-            ExprKind::ArrayLiteral { elements } => self.exprs(elements),
-            ExprKind::SpaceCast { space, arg } => self.expr(*space) && self.expr(*arg),
-            ExprKind::Select { cond, a, b } => self.expr(*cond) && self.expr(*a) && self.expr(*b),
             ExprKind::CallBuiltin { builtin, args, .. } => {
                 hoistable(*builtin)
                     && args.iter().all(|a| match a {
@@ -125,6 +114,7 @@ impl Check<'_> {
             }
             ExprKind::Call { .. } => false,
             ExprKind::Assign { place, value, .. } => self.place(place) && self.expr(*value),
+            other => operands(other).into_iter().all(|c| self.expr(c)),
         }
     }
 
@@ -151,6 +141,29 @@ impl Check<'_> {
             self.writes.push(v);
         }
         indices_ok
+    }
+}
+
+/// The value operands of an expression (the values of calls' arguments, not the places of their
+/// output arguments), in evaluation order.
+fn operands(kind: &ExprKind) -> Vec<ExprId> {
+    match kind {
+        ExprKind::Const(_) | ExprKind::Var(_) | ExprKind::Global(_) => Vec::new(),
+        ExprKind::Index { base, index } => vec![*base, *index],
+        ExprKind::Unary { arg, .. } | ExprKind::Convert { arg } => vec![*arg],
+        ExprKind::Binary { lhs, rhs, .. } => vec![*lhs, *rhs],
+        ExprKind::Construct { args } => args.clone(),
+        ExprKind::ArrayLiteral { elements } => elements.clone(),
+        ExprKind::SpaceCast { space, arg } => vec![*space, *arg],
+        ExprKind::Select { cond, a, b } => vec![*cond, *a, *b],
+        ExprKind::CallBuiltin { args, .. } | ExprKind::Call { args, .. } => args
+            .iter()
+            .filter_map(|a| match a {
+                Arg::Value(v) => Some(*v),
+                Arg::Ref(_) => None,
+            })
+            .collect(),
+        ExprKind::Assign { value, .. } => vec![*value],
     }
 }
 
@@ -275,24 +288,8 @@ impl Pure<'_> {
             }
             return;
         }
-        let e = self.f.expr(id);
-        let mut each = |ids: &mut dyn Iterator<Item = ExprId>| ids.for_each(|c| self.visit(c, found));
-        match &e.kind {
-            ExprKind::Const(_) | ExprKind::Var(_) | ExprKind::Global(_) => {}
-            ExprKind::Index { base, index } => each(&mut [*base, *index].into_iter()),
-            ExprKind::Unary { arg, .. } | ExprKind::Convert { arg } => each(&mut std::iter::once(*arg)),
-            ExprKind::Binary { lhs, rhs, .. } => each(&mut [*lhs, *rhs].into_iter()),
-            ExprKind::Construct { args } => each(&mut args.iter().copied()),
-            ExprKind::ArrayLiteral { elements } => each(&mut elements.iter().copied()),
-            ExprKind::SpaceCast { space, arg } => each(&mut [*space, *arg].into_iter()),
-            ExprKind::Select { cond, a, b } => each(&mut [*cond, *a, *b].into_iter()),
-            ExprKind::CallBuiltin { args, .. } | ExprKind::Call { args, .. } => {
-                each(&mut args.iter().filter_map(|a| match a {
-                    Arg::Value(v) => Some(*v),
-                    Arg::Ref(_) => None,
-                }))
-            }
-            ExprKind::Assign { value, .. } => each(&mut std::iter::once(*value)),
+        for c in operands(&self.f.expr(id).kind) {
+            self.visit(c, found);
         }
     }
 
@@ -315,35 +312,22 @@ impl Pure<'_> {
                 self.layout.globals.iter().any(|s| s.global == *g && !s.varying && !s.written)
                     && !self.written.contains(&PlaceBase::Global(*g))
             }
-            ExprKind::Index { base, index } => self.pure(*base) && self.pure(*index),
-            ExprKind::Unary { arg, .. } | ExprKind::Convert { arg } => self.pure(*arg),
-            ExprKind::Binary { lhs, rhs, .. } => self.pure(*lhs) && self.pure(*rhs),
-            ExprKind::Construct { args } => args.iter().all(|a| self.pure(*a)),
-            ExprKind::ArrayLiteral { elements } => elements.iter().all(|a| self.pure(*a)),
-            ExprKind::SpaceCast { space, arg } => self.pure(*space) && self.pure(*arg),
-            ExprKind::Select { cond, a, b } => self.pure(*cond) && self.pure(*a) && self.pure(*b),
             ExprKind::CallBuiltin { builtin, args, .. } => {
                 hoistable(*builtin)
                     && builtin.flags() & flags::SIDE_EFFECTS == 0
                     && args.iter().all(|a| matches!(a, Arg::Value(v) if self.pure(*v)))
             }
             ExprKind::Call { .. } | ExprKind::Assign { .. } => false,
+            other => operands(other).into_iter().all(|c| self.pure(c)),
         }
     }
 
     /// Whether evaluating `id` calls out (worth doing once): a built-in or a space cast.
     fn calls(&self, id: ExprId) -> bool {
-        let e = self.f.expr(id);
-        match &e.kind {
+        match &self.f.expr(id).kind {
             ExprKind::CallBuiltin { .. } | ExprKind::SpaceCast { .. } => true,
-            ExprKind::Const(_) | ExprKind::Var(_) | ExprKind::Global(_) => false,
-            ExprKind::Index { base, index } => self.calls(*base) || self.calls(*index),
-            ExprKind::Unary { arg, .. } | ExprKind::Convert { arg } => self.calls(*arg),
-            ExprKind::Binary { lhs, rhs, .. } => self.calls(*lhs) || self.calls(*rhs),
-            ExprKind::Construct { args } => args.iter().any(|a| self.calls(*a)),
-            ExprKind::ArrayLiteral { elements } => elements.iter().any(|a| self.calls(*a)),
-            ExprKind::Select { cond, a, b } => self.calls(*cond) || self.calls(*a) || self.calls(*b),
             ExprKind::Call { .. } | ExprKind::Assign { .. } => false,
+            other => operands(other).into_iter().any(|c| self.calls(c)),
         }
     }
 }

@@ -263,33 +263,23 @@ fn atan24_sse2(y4: F4, x4: F4) -> F4 {
     out
 }
 
-// SAFETY (every wrapper below): SSE2 is part of the x86-64 baseline, so every processor that runs
-// this build has it.
-
-pub fn sin4(x4: F4) -> F4 {
-    unsafe { sin4_sse2(x4) }
+/// Safe entry points to the `#[target_feature]` functions above.
+macro_rules! safe_entry_points {
+    ($($name:ident => $imp:ident($($arg:ident),+);)*) => {$(
+        pub fn $name($($arg: F4),+) -> F4 {
+            // SAFETY: SSE2 is part of the x86-64 baseline, so every processor that runs this build
+            // has it.
+            unsafe { $imp($($arg),+) }
+        }
+    )*};
 }
 
-pub fn cos4(x4: F4) -> F4 {
-    unsafe { cos4_sse2(x4) }
-}
-
-pub fn tan4(x4: F4) -> F4 {
-    unsafe { tan4_sse2(x4) }
-}
-
-pub fn asin4(x4: F4) -> F4 {
-    unsafe { asin4_sse2(x4) }
-}
-
-pub fn acos4(x4: F4) -> F4 {
-    unsafe { acos4_sse2(x4) }
-}
-
-pub fn atan4(x4: F4) -> F4 {
-    unsafe { atan4_sse2(x4) }
-}
-
-pub fn atan24(y4: F4, x4: F4) -> F4 {
-    unsafe { atan24_sse2(y4, x4) }
+safe_entry_points! {
+    sin4 => sin4_sse2(x4);
+    cos4 => cos4_sse2(x4);
+    tan4 => tan4_sse2(x4);
+    asin4 => asin4_sse2(x4);
+    acos4 => acos4_sse2(x4);
+    atan4 => atan4_sse2(x4);
+    atan24 => atan24_sse2(y4, x4);
 }
