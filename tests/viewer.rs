@@ -191,6 +191,19 @@ fn frameless_mode_converges_to_a_picture_too() {
 }
 
 #[test]
+fn zero_still_frames_still_shows_one_and_exits() {
+    let Some(x) = xvfb() else { return };
+    let dir = tempfile::tempdir().expect("tempdir");
+    let args = ["--size", "32x24", "--frames", "0", "--no-watch", "--no-overlay", "--screenshot", "zero.png"];
+    for extra in [&[][..], &["--frameless"][..]] {
+        let o = view(&x.display, dir.path(), &[&args[..], extra].concat());
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "rtsl view --frames 0 {extra:?} did not finish: {err}");
+        assert!(dir.path().join("zero.png").exists(), "the screenshot is written");
+    }
+}
+
+#[test]
 fn a_broken_scene_is_a_located_error_not_a_window() {
     let dir = tempfile::tempdir().expect("tempdir");
     std::fs::write(dir.path().join("bad.rib"), "WorldBegin\nSurface \"plastic\nWorldEnd\n").expect("write");

@@ -185,7 +185,7 @@ fn aa_name(aa: Antialiasing) -> String {
 
 impl Renderer {
     /// A renderer for the scene in `rt` (its options give the image size). `watch` starts hot reload.
-    /// Refinement stops after `still_limit` passes or sweeps (at most [`MAX_PASSES`]): a scripted
+    /// Refinement stops after `still_limit` passes or sweeps (1 to [`MAX_PASSES`]): a scripted
     /// screenshot after N still frames then shows exactly N samples per pixel in either mode.
     pub fn new(
         mut rt: Context,
@@ -219,7 +219,7 @@ impl Renderer {
             home: nav,
             acc: Accumulator::new(w, h),
             frameless,
-            still_limit: still_limit.min(MAX_PASSES),
+            still_limit: still_limit.clamp(1, MAX_PASSES),
             changed_at: now,
             scene_dirty: false,
             selected: None,
