@@ -3,7 +3,9 @@
 // uniform arguments (it reads no varying state). In the loop, `carried` reads `later` before the
 // iteration makes `later` varying, so both end varying (the value reaches the next iteration), and
 // `before` is assigned ahead of a divergent `break`, which makes it varying from the second
-// iteration on; `count` turns varying too, since only the lanes still looping step it.
+// iteration on; `count` turns varying too, since only the lanes still looping step it. A divergent
+// `break 2` in an inner loop leaves the outer loop too: `row`, stepped by the outer loop, turns
+// varying, while the inner counter `col` (reset every outer iteration) was varying anyway.
 float twice(float x) { return 2 * x; }
 
 surface uniformity(float Kd = .5; string mapname = "";)
@@ -25,6 +27,15 @@ surface uniformity(float Kd = .5; string mapname = "";)
             break;
         }
     }
-    Ci = Cs * (acc + depth + carried + before);
+    float row, col, found = 0;
+    for (row = 0; row < 3; row += 1) {
+        for (col = 0; col < 3; col += 1) {
+            if (s > col / 3) {
+                found = row;
+                break 2;
+            }
+        }
+    }
+    Ci = Cs * (acc + depth + carried + before + found);
     Oi = Os;
 }

@@ -152,7 +152,8 @@ struct Analysis<'a> {
 /// How a statement left control flow: some lanes may have left the loop, or the function.
 #[derive(Clone, Copy, Default)]
 struct Exits {
-    loop_exit: bool,
+    /// How many enclosing loops a divergent `break n`/`continue n` reaches (0: none).
+    loop_exit: u32,
     func_exit: bool,
 }
 
@@ -248,12 +249,12 @@ impl<'a> Analysis<'a> {
         let mut exits = Exits::default();
         for s in &block.stmts {
             let e = self.stmt(f, s, ctl);
-            if (e.loop_exit || e.func_exit) && !ctl {
+            if (e.loop_exit > 0 || e.func_exit) && !ctl {
                 // Later statements run only in lanes that did not leave: divergent from here on if
                 // the exit was taken under varying control (`stmt` reports only divergent exits).
                 ctl = true;
             }
-            exits.loop_exit |= e.loop_exit;
+            exits.loop_exit = exits.loop_exit.max(e.loop_exit);
             exits.func_exit |= e.func_exit;
         }
         exits
@@ -270,7 +271,7 @@ impl<'a> Analysis<'a> {
                 let c = self.expr_ctl(f, *cond, ctl);
                 let a = self.block(f, then, ctl || c);
                 let b = self.block(f, otherwise, ctl || c);
-                Exits { loop_exit: a.loop_exit || b.loop_exit, func_exit: a.func_exit || b.func_exit }
+                Exits { loop_exit: a.loop_exit.max(b.loop_exit), func_exit: a.func_exit || b.func_exit }
             }
             StmtKind::Loop { cond, body, step } => {
                 let c = cond.is_some_and(|c| self.expr_ctl(f, c, ctl));
@@ -279,20 +280,25 @@ impl<'a> Analysis<'a> {
                 // Values of one iteration reach the next through variables read before they turn
                 // varying, which the fixpoint catches (`read`). Lanes that left in one iteration
                 // make the whole next iteration divergent: only that needs a second walk here.
-                let diverged = !inner && (e.loop_exit || e.func_exit);
+                let diverged = !inner && (e.loop_exit > 0 || e.func_exit);
                 let inner = inner || diverged;
                 let e2 = if diverged { self.block(f, body, inner) } else { Exits::default() };
                 self.block(f, step, inner);
                 if let Some(c) = cond {
                     self.expr_ctl(f, *c, inner);
                 }
-                Exits { loop_exit: false, func_exit: e.func_exit || e2.func_exit }
+                // A `break 2` inside leaves this loop and the next one out: the rest of the outer
+                // loop's body, and its next iteration, are divergent too.
+                let outer = e.loop_exit.max(e2.loop_exit).saturating_sub(1);
+                Exits { loop_exit: outer, func_exit: e.func_exit || e2.func_exit }
             }
-            StmtKind::Break(_) | StmtKind::Continue(_) => Exits { loop_exit: ctl, func_exit: false },
+            StmtKind::Break(n) | StmtKind::Continue(n) => {
+                Exits { loop_exit: if ctl { (*n).max(1) } else { 0 }, func_exit: false }
+            }
             StmtKind::Return(value) => {
                 let v = value.is_some_and(|v| self.expr_ctl(f, v, ctl));
                 self.ret_varying |= v || ctl;
-                Exits { loop_exit: false, func_exit: ctl }
+                Exits { loop_exit: 0, func_exit: ctl }
             }
             StmtKind::Illuminance { category, position, cone, body } => {
                 if let Some(c) = category {
@@ -304,7 +310,7 @@ impl<'a> Analysis<'a> {
                     self.expr_ctl(f, *b, ctl);
                 }
                 let e = self.block(f, body, true);
-                Exits { loop_exit: false, func_exit: e.func_exit }
+                Exits { loop_exit: e.loop_exit.saturating_sub(1), func_exit: e.func_exit }
             }
             StmtKind::Illuminate { position, cone, body } => {
                 self.expr_ctl(f, *position, ctl);
@@ -340,7 +346,10 @@ impl<'a> Analysis<'a> {
                 }
                 let a = self.block(f, body, true);
                 let b = self.block(f, otherwise, true);
-                Exits { loop_exit: false, func_exit: a.func_exit || b.func_exit }
+                Exits {
+                    loop_exit: a.loop_exit.max(b.loop_exit).saturating_sub(1),
+                    func_exit: a.func_exit || b.func_exit,
+                }
             }
         }
     }
