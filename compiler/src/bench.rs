@@ -112,6 +112,18 @@ unsafe extern "C" fn no_rays(
     _: *mut f32,
 ) {
 }
+unsafe extern "C" fn no_gather(
+    _: *mut c_void,
+    _: StrRef,
+    _: *const i32,
+    _: *const f32,
+    _: *const f32,
+    _: *const f32,
+    out: *mut f32,
+) {
+    // SAFETY: row 0 (the hit flags) has 4 floats: everything misses.
+    unsafe { std::ptr::write_bytes(out, 0, 4) };
+}
 unsafe extern "C" fn no_depth(_: *mut c_void, _: *const i32, _: *const f32, _: *mut f32) {}
 unsafe extern "C" fn no_ray_depth(_: *mut c_void) -> f32 {
     0.0
@@ -131,6 +143,7 @@ fn fixed_table() -> HostTable {
         lights: fixed_lights,
         texture: no_texture,
         rays: no_rays,
+        gather: no_gather,
         depth: no_depth,
         ray_depth: no_ray_depth,
         message: no_message,

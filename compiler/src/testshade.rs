@@ -36,7 +36,7 @@ pub fn parse_param(arg: &str) -> Result<(String, ParamArg), String> {
 /// Why a grid cannot be shaded.
 #[derive(Debug, thiserror::Error)]
 pub enum GridError {
-    #[error("{0}")]
+    #[error(transparent)]
     Jit(#[from] JitError),
     #[error("the shader is a {0:?} shader; only surface shaders shade a grid")]
     NotSurface(ShaderKind),

@@ -245,6 +245,58 @@ fn trace_sees_what_a_mirror_reflects_up_to_the_depth_limit() -> Result<(), ApiEr
     Ok(())
 }
 
+const GLOSSY: &str = r#"
+surface glossy(float samples = 8; float cone = 0.2;)
+{
+    vector R = normalize(reflect(I, normalize(N)));
+    color hitc = 0, sum = 0;
+    float len = 0, total = 0, n = 0, misses = 0;
+    gather("illuminance", P, R, cone, samples, "surface:Ci", hitc, "ray:length", len) {
+        sum += hitc;
+        total += len;
+        n += 1;
+    }
+    gather("illuminance", P, -N, cone, samples) {
+        n += 1000;
+    } else {
+        misses += 1;
+    }
+    Oi = 1;
+    Ci = color(comp(sum, 1) / samples, total / max(n, 1) / 100, misses / samples);
+}
+"#;
+
+#[test]
+fn gather_samples_a_cone_of_shaded_rays() -> Result<(), ApiError> {
+    let mut rt = context();
+    let glossy = rt.compile_shader("glossy.sl", GLOSSY)?;
+    let flat = rt.compile_shader("flat.sl", FLAT)?;
+    rt.camera_look_at(Vec3A::new(0.0, 0.0, 5.0), Vec3A::ZERO, Vec3A::Y, 30.0);
+    // A glossy quad facing the camera; a green wall behind the camera that its cone of reflected
+    // rays meets at a distance of 8 to 8 / cos(0.2); nothing behind the quad.
+    let m = rt.begin_object()?;
+    rt.bind_shader(glossy)?;
+    quad(&mut rt, [[-10.0, -10.0, 0.0], [10.0, -10.0, 0.0], [10.0, 10.0, 0.0], [-10.0, 10.0, 0.0]])?;
+    rt.end_object()?;
+    let wall = rt.begin_object()?;
+    rt.bind_shader(flat)?;
+    rt.parameter("c", ParamValue::Color([0.0, 1.0, 0.0]))?;
+    quad(&mut rt, [[-40.0, 40.0, 8.0], [40.0, 40.0, 8.0], [40.0, -40.0, 8.0], [-40.0, -40.0, 8.0]])?;
+    rt.end_object()?;
+    rt.instantiate_object(m)?;
+    rt.instantiate_object(wall)?;
+    let (fb, report) = rt.render_frame()?;
+    // Two gathers of 8 rays for every pixel.
+    assert!(report.secondary_rays >= 16 * u64::from(W * H), "{}", report.secondary_rays);
+    for (x, y) in [(W / 2, H / 2), (3, 4), (W - 2, H - 3)] {
+        let p = fb.pixel(x, y);
+        assert!((p[0] - 1.0).abs() < 1e-5, "every reflected ray sees the green wall: {p:?}");
+        assert!(p[1] >= 0.08 - 1e-4 && p[1] <= 0.08 / 0.2f32.cos() * 1.1, "mean length / 100: {p:?}");
+        assert_eq!(p[2], 1.0, "every ray behind the quad misses: {p:?}");
+    }
+    Ok(())
+}
+
 #[test]
 fn frames_bind_shaders_when_rendered() -> Result<(), ApiError> {
     let mut rt = context();

@@ -7,6 +7,7 @@
 
 use super::value::Value;
 use crate::builtins::Builtin;
+use crate::shadeops::gather::GatherHit;
 use crate::shadeops::{matrix, M4, V3};
 
 /// One light reaching a point, as an `illuminance` loop or `diffuse()` sees it.
@@ -71,6 +72,9 @@ pub trait Services {
     fn shadow(&mut self, name: &str, p: V3) -> f32;
     /// The colour seen along a ray, and the hit distance (infinite on a miss).
     fn trace(&mut self, from: V3, dir: V3) -> (V3, f32);
+    /// What a `gather` ray of `category` from `from` along the unit direction `dir` hits within
+    /// `maxdist`, shaded (`shadeops::gather`); `None` on a miss.
+    fn gather_ray(&mut self, category: &str, from: V3, dir: V3, maxdist: f32) -> Option<GatherHit>;
     /// How much light passes from `from` to `to` (1 where nothing blocks).
     fn transmission(&mut self, from: V3, to: V3) -> V3;
     /// The fraction of the hemisphere around `n` that is blocked.
@@ -105,6 +109,9 @@ pub trait Services {
 /// - environment: the direction mapped to a colour, `0.5 + 0.5 * normalize(dir)`;
 /// - shadow: 0 (nothing in shadow); transmission: white; occlusion: 0.25; indirect: 0.05 grey;
 /// - trace: the environment colour of the direction, distance 10;
+/// - gather rays: a ceiling 10 above every point, facing down: a ray with a positive z component
+///   hits it (length `10 / dir.z`, unless beyond `maxdist`) with Ci the environment colour of the
+///   direction, Oi white, P on the ceiling and N (0, 0, -1); other rays miss;
 /// - messages: `option("Format")` is [640 480 1], `rendererinfo("renderer")` is "rtsl", `attribute`
 ///   and other shaders' parameters are unknown (`None`);
 /// - `printf` output is collected in [`TestHost::printed`]; depth is `p.z / 100`; ray depth 0.
@@ -185,6 +192,20 @@ impl Services for TestHost {
 
     fn trace(&mut self, _from: V3, dir: V3) -> (V3, f32) {
         (self.environment("", dir).unwrap_or([0.0; 3]), 10.0)
+    }
+
+    fn gather_ray(&mut self, _category: &str, from: V3, dir: V3, maxdist: f32) -> Option<GatherHit> {
+        if dir[2] <= 0.0 {
+            return None;
+        }
+        let length = 10.0 / dir[2];
+        (length <= maxdist).then(|| GatherHit {
+            length,
+            ci: self.environment("", dir).unwrap_or([0.0; 3]),
+            oi: [1.0; 3],
+            p: [from[0] + dir[0] * length, from[1] + dir[1] * length, from[2] + dir[2] * length],
+            n: [0.0, 0.0, -1.0],
+        })
     }
 
     fn transmission(&mut self, _from: V3, _to: V3) -> V3 {

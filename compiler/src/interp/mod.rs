@@ -18,8 +18,12 @@
 //! - derivatives come from the renderer's screen-space derivatives of the globals
 //!   ([`ShadingPoint::derivs`]): the values `ir::deriv` marks are evaluated as duals (`deriv.rs`).
 //!
-//! Not yet supported (they report [`InterpError::Unsupported`]): `gather` and `bump`, which need
-//! ray batches from the renderer (issue 3).
+//! - `gather` takes its samples in order (`shadeops::gather`): each sample's ray from
+//!   [`gather::sample_ray`], its outputs written (the `ray:` ones always, the `surface:` ones on a
+//!   hit, in parameter order, indices evaluated at each write), then `body` on a hit (every sample of
+//!   `"samplepattern"`) or `otherwise` on a miss; it counts as a loop for `break`/`continue`.
+//!
+//! Not yet supported (it reports [`InterpError::Unsupported`]): `bump`.
 
 mod builtins;
 mod deriv;
@@ -32,6 +36,7 @@ pub use value::Value;
 use crate::front::parse::ast::ShaderKind;
 use crate::globals::{Global, GLOBALS};
 use crate::ir::{self, Arg, BaseType, BinaryOp, Block, ExprId, ExprKind, Function, Module, Place, PlaceBase, StmtKind};
+use crate::shadeops::gather::{self, Output};
 use crate::shadeops::{color, geom, matrix, V3};
 use std::rc::Rc;
 
@@ -365,7 +370,58 @@ impl Machine<'_> {
                 }
                 self.block(f, frame, body)
             }
-            StmtKind::Gather { .. } => Err(InterpError::Unsupported("gather")),
+            StmtKind::Gather { category, position, direction, angle, samples, params, body, otherwise } => {
+                let category = self.expr(f, frame, *category)?.s().to_string();
+                let from = self.expr(f, frame, *position)?.v3();
+                let axis = self.expr(f, frame, *direction)?.v3();
+                let angle = self.expr(f, frame, *angle)?.f();
+                let n = gather::sample_count(self.expr(f, frame, *samples)?.f());
+                let mut options = gather::Options::default();
+                let mut outputs = Vec::new();
+                for (name, arg) in params {
+                    let name = self.expr(f, frame, *name)?.s().to_string();
+                    match arg {
+                        Arg::Value(x) => match (self.expr(f, frame, *x)?, gather::Options::float_slot(&name)) {
+                            (Value::Float(x), Some(slot)) => options.set_float(slot, x),
+                            (Value::String(s), None) if name == "distribution" => {
+                                options.cosine = gather::Options::is_cosine(&s)
+                            }
+                            _ => {}
+                        },
+                        Arg::Ref(p) => {
+                            if let Some(o) = Output::parse(&name).filter(|o| o.fits(p.ty)) {
+                                outputs.push((o, p));
+                            }
+                        }
+                    }
+                }
+                let trace = gather::traces(&category);
+                for k in 0..n {
+                    self.step()?;
+                    let (origin, dir) = gather::sample_ray(from, axis, angle, k, n, &options);
+                    let hit = if trace && dir != [0.0; 3] {
+                        self.host.gather_ray(&category, origin, dir, options.maxdist)
+                    } else {
+                        None
+                    };
+                    let rec = gather::record(origin, dir, hit.as_ref(), trace);
+                    for (o, p) in &outputs {
+                        if rec[0] == gather::HIT || o.on_miss() {
+                            let r = o.row();
+                            let v = match o.components() {
+                                1 => Value::Float(rec[r]),
+                                _ => Value::Triple([rec[r], rec[r + 1], rec[r + 2]]),
+                            };
+                            self.write_place(f, frame, p, v)?;
+                        }
+                    }
+                    let flow = self.block(f, frame, if rec[0] != gather::MISS { body } else { otherwise })?;
+                    if let Some(out) = Self::loop_flow(flow) {
+                        return Ok(out);
+                    }
+                }
+                Ok(Flow::Next)
+            }
         }
     }
 

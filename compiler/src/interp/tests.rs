@@ -176,3 +176,52 @@ fn derivatives_of_an_analytic_surface() {
     let r = run_point(src, &mut p);
     assert!(near(out(&r, "pu").v3(), [2.0, 3.0, 0.0]), "{:?}", out(&r, "pu"));
 }
+
+#[test]
+fn gather_runs_body_for_hits_and_else_for_misses() {
+    // The test host's ceiling is 10 above the point: a ray straight up hits it at length 10, a ray
+    // straight down misses; a cone of 0.5 radians around +z hits at 10 / cos(angle).
+    let src = r#"
+        surface t(output varying float hits = 0, misses = 0, total = 0, longest = 0, pattern = 0;
+                  output varying color seen = 0; vector axis = vector(0, 0, 1); float cone = 0;
+                  float n = 5; float maxdist = 0;)
+        {
+            float len = -1;
+            color c = 0;
+            vector d = 0;
+            gather("illuminance", P, axis, cone, n, "ray:length", len, "surface:Ci", c,
+                   "ray:direction", d, "maxdist", maxdist) {
+                hits += 1;
+                total += len;
+                longest = max(longest, len);
+                seen += c;
+            } else {
+                misses += 1;
+                total += zcomp(d);
+            }
+            gather("samplepattern", P, axis, cone, n, "ray:direction", d) {
+                pattern += zcomp(d);
+            }
+        }
+    "#;
+    let param = |r: &RunResult, name: &str| match r.params.iter().find(|(n, _)| n == name) {
+        Some((_, Value::Float(x))) => *x,
+        other => panic!("{name}: {other:?}"),
+    };
+    let (_, r, _) = run_src(src, &[]);
+    assert_eq!((param(&r, "hits"), param(&r, "misses")), (5.0, 0.0));
+    assert_eq!(param(&r, "total"), 50.0);
+    assert_eq!(param(&r, "pattern"), 5.0, "samplepattern runs every sample without tracing");
+    // Straight down: every sample misses, and the else branch sees the direction (0, 0, -1).
+    let (_, r, _) = run_src(src, &[("axis", Value::Triple([0.0, 0.0, -1.0])), ("n", Value::Float(2.5))]);
+    assert_eq!((param(&r, "hits"), param(&r, "misses"), param(&r, "total")), (0.0, 3.0, -3.0));
+    // A cone: every length lies between 10 and 10 / cos(0.5); maxdist 10.5 cuts the longest.
+    let cone = [("cone", Value::Float(0.5)), ("n", Value::Float(64.0))];
+    let (_, r, _) = run_src(src, &cone);
+    let longest = param(&r, "longest");
+    assert!(longest > 10.5 && longest <= 10.0 / 0.5f32.cos() + 1e-3, "{longest}");
+    assert!(param(&r, "pattern") > 64.0 * 0.5f32.cos() && param(&r, "pattern") < 64.0);
+    let (_, r, _) = run_src(src, &[cone[0].clone(), cone[1].clone(), ("maxdist", Value::Float(10.5))]);
+    assert!(param(&r, "longest") <= 10.5 && param(&r, "misses") > 0.0 && param(&r, "hits") > 0.0);
+    assert_eq!(param(&r, "hits") + param(&r, "misses"), 64.0);
+}

@@ -11,6 +11,7 @@
 pub mod color;
 pub mod deriv;
 pub mod format;
+pub mod gather;
 pub mod geom;
 pub mod matrix;
 pub mod noise;

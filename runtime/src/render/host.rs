@@ -7,7 +7,7 @@
 
 use super::lights::epsilon;
 use super::lights::{eval_light, transmission_between, BatchLights};
-use super::shade::{mix, point_seed, trace_rays, unit, Frame};
+use super::shade::{gather_rays, mix, point_seed, trace_rays, unit, Frame};
 use super::stats::{tracing, Stats};
 use crate::ray::Ray;
 use crate::shading::ShaderInstance;
@@ -15,6 +15,7 @@ use crate::texture::{Footprint, Grid, LookupOptions, MipMap};
 use glam::{Affine3A, Mat4, Vec3A};
 use rtsl_compiler::back::jit::{HostLight, HostTable, MessageOut, StrRef, MAX_LIGHTS};
 use rtsl_compiler::builtins::Builtin;
+use rtsl_compiler::shadeops::gather::GatherHit;
 use std::ffi::c_void;
 use std::sync::Arc;
 
@@ -102,6 +103,7 @@ impl<'f, 'w> ShadeCall<'f, 'w> {
             lights: host_lights,
             texture: host_texture,
             rays: host_rays,
+            gather: host_gather,
             depth: host_depth,
             ray_depth: host_ray_depth,
             message: host_message,
@@ -522,6 +524,59 @@ fn orthonormal(n: Vec3A) -> (Vec3A, Vec3A) {
     let a = if n.x.abs() > 0.9 { Vec3A::Y } else { Vec3A::X };
     let t1 = n.cross(a).normalize();
     (t1, n.cross(t1))
+}
+
+unsafe extern "C" fn host_gather(
+    ctx: *mut c_void,
+    _category: StrRef,
+    mask: *const i32,
+    from: *const f32,
+    dir: *const f32,
+    maxdist: *const f32,
+    out: *mut f32,
+) {
+    // SAFETY: the table's contract: 4 mask entries, 12 floats of `from` and `dir`, 4 of `maxdist`,
+    // room for 14 x 4 results.
+    let (c, mask, from, dir, maxdist, out) = unsafe {
+        (
+            call(ctx),
+            &*(mask as *const [i32; 4]),
+            slice(from, 12),
+            slice(dir, 12),
+            slice(maxdist, 4),
+            std::slice::from_raw_parts_mut(out, 4 * (1 + GatherHit::ROWS)),
+        )
+    };
+    let frame = c.frame;
+    locate_chunk(c, mask, from);
+    let times: [f32; 4] = std::array::from_fn(|l| c.lane_time(l));
+    let mut rays = Vec::with_capacity(4);
+    let mut lanes = Vec::with_capacity(4);
+    for l in 0..4 {
+        if mask[l] == 0 {
+            continue;
+        }
+        out[l] = 0.0;
+        let (o, d) = (lane3(from, 0, l), lane3(dir, 0, l));
+        if !o.is_finite() || !d.is_finite() || d == Vec3A::ZERO {
+            continue;
+        }
+        let far = if maxdist[l] > 0.0 { maxdist[l] } else { f32::INFINITY };
+        rays.push(Ray::segment(o, d, epsilon(o), far).at_time(times[l]));
+        lanes.push(l);
+    }
+    if rays.is_empty() {
+        return;
+    }
+    Stats::add(&frame.stats.secondary_rays, rays.len());
+    for (seen, l) in gather_rays(frame, &rays, c.depth + 1).into_iter().zip(lanes) {
+        let Some((t, s)) = seen else { continue };
+        out[l] = 1.0;
+        let rows = [t, s.ci.x, s.ci.y, s.ci.z, s.oi.x, s.oi.y, s.oi.z, s.p.x, s.p.y, s.p.z, s.ng.x, s.ng.y, s.ng.z];
+        for (j, x) in rows.into_iter().enumerate() {
+            out[4 * (j + 1) + l] = x;
+        }
+    }
 }
 
 unsafe extern "C" fn host_depth(ctx: *mut c_void, mask: *const i32, p: *const f32, out: *mut f32) {

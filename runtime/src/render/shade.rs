@@ -124,6 +124,37 @@ pub fn trace_rays(frame: &Frame, rays: &[Ray], depth: u32) -> Vec<Sample> {
     out
 }
 
+/// What `gather` rays meet (`shadeops::gather`): for each ray that hits a surface, the distance
+/// and that surface's own shading (its shader's Ci and Oi, not composited with what lies behind
+/// it, no atmosphere). Beyond the ray-depth limit a hit is reported unshaded (black, transparent).
+pub(super) fn gather_rays(frame: &Frame, rays: &[Ray], depth: u32) -> Vec<Option<(f32, Shaded)>> {
+    let hits: Vec<Hit> = tracing(|| rays.iter().map(|r| frame.world.scene.intersect(r)).collect());
+    let eye = frame.world.camera.eye();
+    let mut out = vec![None; rays.len()];
+    let mut pending = Vec::new();
+    for (i, (ray, hit)) in rays.iter().zip(&hits).enumerate() {
+        if !hit.is_hit() {
+            continue;
+        }
+        let at = ray.origin + ray.direction * hit.t;
+        out[i] = Some((hit.t, Shaded { p: at, ..Shaded::default() }));
+        if depth <= frame.world.options.max_ray_depth {
+            let width = frame.pixel_spread * (ray.origin - eye).length();
+            let diff = RayDifferential::cone(ray.direction, width, frame.pixel_spread);
+            pending.push(Pending { index: i, ray: *ray, diff, hit: *hit });
+        }
+    }
+    if !pending.is_empty() {
+        let mut results = vec![Shaded::default(); pending.len()];
+        shade_in_groups(frame, &mut pending, depth, &mut results);
+        Stats::add(&frame.stats.shaded_points, pending.len());
+        for (p, r) in pending.iter().zip(results) {
+            out[p.index] = Some((p.hit.t, r));
+        }
+    }
+    out
+}
+
 pub(super) struct Pending {
     pub(super) index: usize,
     pub(super) ray: Ray,

@@ -24,6 +24,7 @@ use super::{Batch, StringTable};
 use crate::builtins::Builtin;
 use crate::interp::{Services, TextureFootprint, Value};
 use crate::shadeops::format::{self, FormatArg};
+use crate::shadeops::gather::{self, GatherHit};
 use crate::shadeops::{color, geom, matrix, spline, transcendental, M4, V3};
 use std::ffi::c_void;
 
@@ -128,6 +129,19 @@ pub struct HostTable {
         samples: *const f32,
         out: *mut f32,
     ),
+    /// `gather` rays of `category` (`shadeops::gather`): from `from` along the unit `dir` (3 x 4
+    /// floats each) up to `maxdist` (4); for each active lane, `out` row 0 is 1 where the ray hit a
+    /// surface and 0 where it missed, and rows 1 to 13 the hit's [`GatherHit`] rows (length, the
+    /// hit shader's Ci and Oi, the point, the geometric normal).
+    pub gather: unsafe extern "C" fn(
+        ctx: *mut c_void,
+        category: StrRef,
+        mask: *const i32,
+        from: *const f32,
+        dir: *const f32,
+        maxdist: *const f32,
+        out: *mut f32,
+    ),
     /// Normalised camera depth of each active lane's `p`.
     pub depth: unsafe extern "C" fn(ctx: *mut c_void, mask: *const i32, p: *const f32, out: *mut f32),
     /// How many bounces led to this batch's rays.
@@ -160,6 +174,7 @@ impl<'a> ServicesHost<'a> {
             lights: sv_lights,
             texture: sv_texture,
             rays: sv_rays,
+            gather: sv_gather,
             depth: sv_depth,
             ray_depth: sv_ray_depth,
             message: sv_message,
@@ -297,6 +312,39 @@ unsafe extern "C" fn sv_rays(
             };
             for (j, v) in r.iter().enumerate() {
                 *out.add(4 * j + l) = *v;
+            }
+        }
+    }
+}
+
+unsafe extern "C" fn sv_gather(
+    ctx: *mut c_void,
+    category: StrRef,
+    mask: *const i32,
+    from: *const f32,
+    dir: *const f32,
+    maxdist: *const f32,
+    out: *mut f32,
+) {
+    // SAFETY: the table's contract.
+    let (h, category) = unsafe { (sv(ctx), category.as_str()) };
+    for (l, on) in lanes_of(mask).into_iter().enumerate() {
+        if !on {
+            continue;
+        }
+        // SAFETY: the sizes the table documents (3 x 4 floats of `from` and `dir`, 4 of `maxdist`,
+        // 14 x 4 of `out`).
+        unsafe {
+            let hit = h.host.gather_ray(category, lane3(from, 0, l), lane3(dir, 0, l), *maxdist.add(l));
+            *out.add(l) = if hit.is_some() { 1.0 } else { 0.0 };
+            if let Some(g) = hit {
+                let rows = [
+                    g.length, g.ci[0], g.ci[1], g.ci[2], g.oi[0], g.oi[1], g.oi[2], g.p[0], g.p[1], g.p[2], g.n[0],
+                    g.n[1], g.n[2],
+                ];
+                for (j, x) in rows.iter().enumerate() {
+                    *out.add(4 * (j + 1) + l) = *x;
+                }
             }
         }
     }
@@ -449,6 +497,10 @@ impl Cx<'_> {
     /// A string argument, borrowed.
     fn str(&self, k: usize) -> &str {
         self.strings.get(self.input[4 * k].to_bits())
+    }
+    /// Lane `l`'s string of argument `k` (generated code splats uniform strings).
+    fn str_lane(&self, k: usize, l: usize) -> &str {
+        self.strings.get(self.input[4 * k + l].to_bits())
     }
     fn set(&mut self, j: usize, l: usize, x: f32) {
         self.out[4 * j + l] = x;
@@ -786,6 +838,8 @@ host_helpers! {
     // [p, n, samples] -> 1 / 3
     h_occlusion "rtsl_h_occlusion" 7 => 1 |cx| { rays_call(cx, 2, 1) }
     h_indirect "rtsl_h_indirectdiffuse" 7 => 3 |cx| { rays_call(cx, 3, 3) }
+    // [category, P, axis, angle, k, n, maxdist, bias, distribution] -> a gather::Record
+    h_gather "rtsl_h_gather" 13 => 20 |cx| { gather_call(cx) }
     h_depth "rtsl_h_depth" 3 => 1 |cx| {
         let mut out = [0.0f32; 4];
         let mask: [i32; 4] = cx.mask.map(|m| if m { -1 } else { 0 });
@@ -864,24 +918,26 @@ host_helpers! {
     }
     // [a, b] -> handle of a + b
     h_concat "rtsl_h_concat" 2 => 1 |cx| {
-        let s = cx.s(0) + &cx.s(1);
-        let h = cx.strings.intern(&s);
-        for l in 0..4 {
+        let active: Vec<usize> = cx.active().collect();
+        for l in active {
+            let s = cx.str_lane(0, l).to_string() + cx.str_lane(1, l);
+            let h = cx.strings.intern(&s);
             cx.set(0, l, f32::from_bits(h));
         }
     }
     // [pattern, subject] -> 1 or 0
     h_match "rtsl_h_match" 2 => 1 |cx| {
-        let m = format::regex_match(cx.str(0), cx.str(1));
-        for l in 0..4 {
+        for l in cx.active() {
+            let m = format::regex_match(cx.str_lane(0, l), cx.str_lane(1, l));
             cx.set(0, l, if m { 1.0 } else { 0.0 });
         }
     }
-    // [fmt, inputs, n, kinds; n, values...] -> handle (uniform: lane 0's text)
+    // [fmt, inputs, n, kinds; n, values...] -> each running lane's handle
     h_format "rtsl_h_format" VARIADIC => 1 |cx| {
-        let text = format_lane(cx, 0);
-        let h = cx.strings.intern(&text);
-        for l in 0..4 {
+        let active: Vec<usize> = cx.active().collect();
+        for l in active {
+            let text = format_lane(cx, l);
+            let h = cx.strings.intern(&text);
             cx.set(0, l, f32::from_bits(h));
         }
     }
@@ -931,7 +987,7 @@ fn format_lane(cx: &Cx<'_>, l: usize) -> String {
             FMT_FLOAT => (A::F(cx.f(at, l)), 1),
             FMT_TRIPLE => (A::T(cx.v3(at, l)), 3),
             FMT_MATRIX => (A::M(std::array::from_fn(|k| cx.f(at + k, l))), 16),
-            FMT_STRING => (A::S(cx.s(at)), 1),
+            FMT_STRING => (A::S(cx.str_lane(at, l).to_string()), 1),
             _ => (A::F(if cx.f(at, l).to_bits() != 0 { 1.0 } else { 0.0 }), 1),
         };
         parts.push(part);
@@ -946,7 +1002,7 @@ fn format_lane(cx: &Cx<'_>, l: usize) -> String {
             A::S(s) => FormatArg::Str(s),
         })
         .collect();
-    format::format(&cx.s(0), &args)
+    format::format(cx.str_lane(0, l), &args)
 }
 
 /// The most channels one texture lookup returns (a colour and its alpha).
@@ -998,6 +1054,54 @@ fn texture_call(cx: &Cx<'_>, kind: u32, channels: u32) -> ([f32; 4 * MAX_TEXTURE
 }
 
 /// Rays: arguments `a` (0..3), `b` (3..6), samples (6) when the helper has them.
+/// One sample of a `gather` for the chunk: the rays from `shadeops::gather` (as the interpreter
+/// makes them), traced together through the table.
+fn gather_call(cx: &mut Cx<'_>) {
+    let traced = gather::traces(cx.str(0));
+    let cosine = gather::Options::is_cosine(cx.str(12));
+    let mut rays = [([0.0f32; 3], [0.0f32; 3], 0.0f32); 4];
+    let mut trace_mask = [0i32; 4];
+    for l in cx.active() {
+        let mut options = gather::Options { cosine, ..gather::Options::default() };
+        options.set_float(0, cx.f(10, l));
+        options.set_float(1, cx.f(11, l));
+        let (k, n) = (cx.f(8, l) as u32, cx.f(9, l) as u32);
+        let (origin, dir) = gather::sample_ray(cx.v3(1, l), cx.v3(4, l), cx.f(7, l), k, n, &options);
+        rays[l] = (origin, dir, options.maxdist);
+        if traced && dir != [0.0; 3] {
+            trace_mask[l] = -1;
+        }
+    }
+    let mut answer = [0.0f32; 4 * (1 + GatherHit::ROWS)];
+    if let (Some(t), true) = (cx.table, trace_mask.iter().any(|m| *m != 0)) {
+        let rows = |f: fn(&(V3, V3, f32)) -> V3| -> [f32; 12] { std::array::from_fn(|i| f(&rays[i % 4])[i / 4]) };
+        let (from, dir) = (rows(|r| r.0), rows(|r| r.1));
+        let maxdist: [f32; 4] = std::array::from_fn(|l| rays[l].2);
+        let category = StrRef::new(cx.str(0));
+        // SAFETY: the table's documented sizes; `category` borrows the batch's string table,
+        // which the call does not touch.
+        unsafe {
+            (t.gather)(
+                t.ctx,
+                category,
+                trace_mask.as_ptr(),
+                from.as_ptr(),
+                dir.as_ptr(),
+                maxdist.as_ptr(),
+                answer.as_mut_ptr(),
+            )
+        };
+    }
+    for l in cx.active() {
+        let hit = (trace_mask[l] != 0 && answer[l] != 0.0)
+            .then(|| GatherHit::from_rows(&std::array::from_fn(|j| answer[4 * (j + 1) + l])));
+        let rec = gather::record(rays[l].0, rays[l].1, hit.as_ref(), traced);
+        for (j, x) in rec.iter().enumerate() {
+            cx.set(j, l, *x);
+        }
+    }
+}
+
 fn rays_call(cx: &mut Cx<'_>, kind: u32, outs: usize) {
     let mut out = [0.0f32; 16];
     if kind == 0 || kind == 1 {

@@ -22,8 +22,9 @@
 //! - **Uniform mode**: a call whose callee reads no varying state and whose arguments are all
 //!   uniform is lowered with uniform locals and uniform control flow (`Frame::uniform`), whatever the
 //!   checker inferred for the callee's locals in general; its result can then reach uniform storage.
-//! - **Strings** are uniform `f32`s holding a handle's bits (handles are interned per batch: `==` is
-//!   an integer compare); **matrices** 16 components, row-major, identity when uninitialised; matrix
+//! - **Strings** are `f32`s holding a handle's bits, uniform or varying like floats (handles are
+//!   interned per batch: `==` is an integer compare); a built-in given a varying string runs once
+//!   per distinct string (`split_strings`); **matrices** 16 components, row-major, identity when uninitialised; matrix
 //!   products, inverses and everything from the renderer go through chunk helpers (`math.rs`,
 //!   `host.rs`), one call per chunk.
 //! - **Light loops**: see `illuminance`; `illuminate` masks by its cone, `solar` sets `L`.
@@ -31,18 +32,19 @@
 //!   call count (`random_calls`, an `i32x4` counting the calls each lane ran in this chunk, bumped
 //!   under `exec`): the interpreter's `seed * 0x9E3779B97F4A7C15 + calls`, so they agree lane for
 //!   lane wherever the call sits.
+//! - **`gather`**: see `gather`; sample rays come from `shadeops::gather`, as in the interpreter.
 //! - **`spline`**: the host helper `rtsl_h_spline` returns each lane's segment and weights; knots
 //!   are selected and summed inline (see `spline`). **String built-ins** (`concat`, `match`,
-//!   `format` on uniform values) are uniform host-helper calls whose string results are interned in
-//!   the batch's table; `printf` calls `rtsl_h_printf` once per chunk, which formats and prints each
+//!   `format`) are host-helper calls reading each running lane's strings, whose string results are
+//!   interned in the batch's table (one per lane when varying); `printf` calls `rtsl_h_printf` once per chunk, which formats and prints each
 //!   running lane's text (`format`/`printf` pass a header of argument kinds: `host::format_lane`).
 //! - **Derivatives** (`deriv.rs`): the values `ir::deriv` marks are lowered as duals, a value and
 //!   two tangents (`f32x4` per component, always varying; `None` is zero); marked varying storage
 //!   has two tangent stores beside it (`Frame::dvars`, `Lower::dglobals`), written under the same
 //!   masks as the value. Every other write to such storage (a built-in's output, a light loop's
 //!   globals) zeroes its tangents.
-//! - Unsupported here: `gather`, varying strings (`format` of varying values),
-//!   `bump`, point clouds, and built-ins not handled in `builtin` or
+//! - Unsupported here: `gather` options named by computed strings, a category of `gather` or
+//!   `illuminance` that varies, `bump`, point clouds, and built-ins not handled in `builtin` or
 //!   `builtin_ext`.
 
 use super::hoist::Prefix;
@@ -169,6 +171,8 @@ struct Lower<'m, 'b> {
     /// Argument values a built-in call evaluated as duals before lowering the call: `expr` returns
     /// them instead of evaluating again (key: frame depth, expression).
     cache: HashMap<(usize, u32), Val>,
+    /// The `cache` entries `split_strings` added (removed when its built-in call is lowered).
+    split_keys: Vec<(usize, u32)>,
     /// Expressions of the shader body that the prologue evaluated (`hoist::Prefix::consts`): their
     /// values, defined before the chunk loop.
     batch_consts: HashMap<u32, Val>,
@@ -232,6 +236,7 @@ pub(super) fn lower(
         info: ir::deriv::analyse(m),
         dglobals: vec![None; GLOBALS.len()],
         cache: HashMap::new(),
+        split_keys: Vec::new(),
         batch_consts: HashMap::new(),
         batch_matrices: HashMap::new(),
         arg_duals: Vec::new(),
@@ -641,8 +646,8 @@ impl<'m> Lower<'m, '_> {
                     s
                 }
             };
-            if var.ty.base == BaseType::String && store.vary {
-                return unsupported("varying strings");
+            if var.ty.base == BaseType::String && store.vary && matches!(var.kind, VarKind::ShaderParam { .. }) {
+                return unsupported("a varying string parameter");
             }
             let d = if store.vary && self.info.var(fid, ir::VarId(i as u32)) {
                 let n = store.vars.len();
@@ -888,7 +893,10 @@ impl<'m> Lower<'m, '_> {
                 }
                 self.block(body)?;
             }
-            StmtKind::Gather { .. } => return unsupported("gather"),
+            StmtKind::Gather { category, position, direction, angle, samples, params, body, otherwise } => {
+                let cone = [*category, *position, *direction, *angle, *samples];
+                self.gather(cone, params, body, otherwise)?;
+            }
         }
         Ok(false)
     }
@@ -1405,26 +1413,18 @@ impl<'m> Lower<'m, '_> {
         use BinaryOp::*;
         let vary = a.vary || b.vary;
         if lt.base == BaseType::String {
-            if a.vary || b.vary {
-                return unsupported("varying strings");
-            }
             // Handles are interned per batch: equal handles are equal strings.
-            let x = self.b.ins().bitcast(
-                types::I32,
-                MemFlagsData::new().with_endianness(cranelift_codegen::ir::Endianness::Little),
-                a.c[0],
-            );
-            let y = self.b.ins().bitcast(
-                types::I32,
-                MemFlagsData::new().with_endianness(cranelift_codegen::ir::Endianness::Little),
-                b.c[0],
-            );
+            let ty = if vary { types::I32X4 } else { types::I32 };
+            let (x, y) = (widen(&mut self.b, a.c[0], vary), widen(&mut self.b, b.c[0], vary));
+            let flags = MemFlagsData::new().with_endianness(cranelift_codegen::ir::Endianness::Little);
+            let x = self.b.ins().bitcast(ty, flags, x);
+            let y = self.b.ins().bitcast(ty, flags, y);
             let cc = match op {
                 Eq => IntCC::Equal,
                 Ne => IntCC::NotEqual,
                 _ => return unsupported(format!("{op:?} on strings")),
             };
-            return Ok(Val { vary: false, c: vec![self.b.ins().icmp(cc, x, y)] });
+            return Ok(Val { vary, c: vec![self.b.ins().icmp(cc, x, y)] });
         }
         if lt.base == BaseType::Matrix && matches!(op, Mul | Div) {
             let all = self.concat(&[a.clone(), b.clone()]);
@@ -1699,7 +1699,19 @@ impl<'m> Lower<'m, '_> {
     }
 
     fn builtin(&mut self, bi: Builtin, overload: u16, args: &'m [Arg], e: &ir::Expr) -> R<Val> {
+        let mark = self.split_keys.len();
+        let r = self.builtin_once(bi, overload, args, e);
+        for k in self.split_keys.split_off(mark) {
+            self.cache.remove(&k);
+        }
+        r
+    }
+
+    fn builtin_once(&mut self, bi: Builtin, overload: u16, args: &'m [Arg], e: &ir::Expr) -> R<Val> {
         use Builtin as Bi;
+        if let Some(r) = self.split_strings(bi, overload, args, e)? {
+            return Ok(r);
+        }
         if let Some(r) = self.builtin_ext(bi, overload, args, e)? {
             return Ok(r);
         }
@@ -2084,6 +2096,101 @@ impl<'m> Lower<'m, '_> {
         Ok((Val { vary: false, c: out[..16].to_vec() }, ok))
     }
 
+    /// A built-in whose string arguments differ between lanes (a texture name, a space, a light
+    /// category per lane) runs once per distinct string: the first string argument that is
+    /// varying is evaluated once, then each round takes the string of the first pending lane, runs
+    /// the call under the lanes holding that string (with it as a uniform argument: the call may
+    /// split again on another string argument), and merges the result under those lanes. `None`
+    /// when no string argument varies; string arguments are then left evaluated in `cache`.
+    /// `concat`, `match`, `format` and `printf` need no split: their helpers read every lane's
+    /// strings.
+    fn split_strings(&mut self, bi: Builtin, overload: u16, args: &'m [Arg], e: &ir::Expr) -> R<Option<Val>> {
+        use Builtin as Bi;
+        if matches!(bi, Bi::Concat | Bi::Match | Bi::Format | Bi::Printf) {
+            return Ok(None);
+        }
+        let f = self.func();
+        let depth = self.frames.len();
+        let strings: Vec<ExprId> = args
+            .iter()
+            .filter_map(|a| match a {
+                Arg::Value(x) if f.expr(*x).ty.base == BaseType::String => Some(*x),
+                _ => None,
+            })
+            .collect();
+        let mut split = None;
+        for x in &strings {
+            let v = match self.cache.get(&(depth, x.0)) {
+                Some(v) => v.clone(),
+                None => {
+                    let v = self.expr(*x)?;
+                    self.cache.insert((depth, x.0), v.clone());
+                    self.split_keys.push((depth, x.0));
+                    v
+                }
+            };
+            if v.vary && split.is_none() {
+                split = Some((*x, v));
+            }
+        }
+        let Some((x, names)) = split else { return Ok(None) };
+        let comps = match e.ty.base {
+            BaseType::Void => 0,
+            _ => components(e.ty).ok_or_else(|| JitError::Unsupported(format!("a built-in returning {}", e.ty)))?,
+        };
+        let save = self.exec();
+        self.div += 1;
+        self.vdepth += 1;
+        let pending = self.b.declare_var(types::I32X4);
+        self.b.def_var(pending, save);
+        let acc: Vec<Variable> = (0..comps).map(|_| self.b.declare_var(types::F32X4)).collect();
+        let zero = self.fconst(0.0, true);
+        for a in &acc {
+            self.b.def_var(*a, zero);
+        }
+        let (header, body, done) = (self.b.create_block(), self.b.create_block(), self.b.create_block());
+        self.b.ins().jump(header, &[]);
+        self.b.switch_to_block(header);
+        let p = self.b.use_var(pending);
+        let live = any(&mut self.b, p);
+        self.b.ins().brif(live, body, &[], done, &[]);
+
+        self.b.switch_to_block(body);
+        let flags = MemFlagsData::new().with_endianness(cranelift_codegen::ir::Endianness::Little);
+        let handles = self.b.ins().bitcast(types::I32X4, flags, names.c[0]);
+        // The handle of the first pending lane.
+        let mut h = self.b.ins().extractlane(handles, 3);
+        for l in (0..3u8).rev() {
+            let on = self.b.ins().extractlane(p, l);
+            let hl = self.b.ins().extractlane(handles, l);
+            h = self.b.ins().select(on, hl, h);
+        }
+        let hs = self.b.ins().splat(types::I32X4, h);
+        let same = self.b.ins().icmp(IntCC::Equal, handles, hs);
+        let m = self.b.ins().band(p, same);
+        self.set_exec(m);
+        let one = self.b.ins().bitcast(types::F32, flags, h);
+        self.cache.insert((depth, x.0), Val { vary: false, c: vec![one] });
+        let r = self.builtin(bi, overload, args, e);
+        self.cache.insert((depth, x.0), names);
+        let r = r?;
+        for (a, c) in acc.iter().zip(&r.c) {
+            let old = self.b.use_var(*a);
+            let new = merge(&mut self.b, m, *c, old);
+            self.b.def_var(*a, new);
+        }
+        let rest = self.b.ins().band_not(p, m);
+        self.b.def_var(pending, rest);
+        self.b.ins().jump(header, &[]);
+
+        self.b.switch_to_block(done);
+        self.div -= 1;
+        self.vdepth -= 1;
+        self.set_exec(save);
+        let c = acc.iter().map(|a| self.b.use_var(*a)).collect();
+        Ok(Some(Val { vary: true, c }))
+    }
+
     /// `helper(a, b)` where `ok`, else `fallback` (of the result's size).
     fn apply_if(&mut self, helper: &'static str, ok: Value, a: &Val, b: &Val, fallback: &Val) -> R<Val> {
         let all = self.concat(&[a.clone(), b.clone()]);
@@ -2281,7 +2388,11 @@ impl<'m> Lower<'m, '_> {
         }
         let v = |i: usize| vals[i].clone();
         let void = Val { vary: false, c: Vec::new() };
-        let mut vary = e.varying || vals.iter().any(|x| x.vary);
+        // In uniform mode the IR's flag describes the callee's general case, not this call: only
+        // the built-in's own variation (`random`, ...) and the actual operands count.
+        let ir_varying =
+            if self.frame().uniform { bi.flags() & crate::builtins::flags::VARYING != 0 } else { e.varying };
+        let mut vary = ir_varying || vals.iter().any(|x| x.vary);
         let helper = |s: &mut Self, name: &'static str, parts: &[Val], vary: bool| -> R<Val> {
             let all = s.concat(parts);
             let c = s.call_helper(name, &all.c, vary || all.vary)?;
@@ -2338,29 +2449,16 @@ impl<'m> Lower<'m, '_> {
                 Val { vary: true, c }
             }
             Bi::Concat => {
-                if vals.iter().any(|x| x.vary) {
-                    return unsupported("varying strings");
-                }
+                // Each lane's strings (a varying call interns a result per lane).
                 let mut acc = v(0);
                 for x in &vals[1..] {
                     acc = helper(self, "rtsl_h_concat", &[acc, x.clone()], false)?;
                 }
                 acc
             }
-            Bi::Match => {
-                if vals.iter().any(|x| x.vary) {
-                    return unsupported("varying strings");
-                }
-                helper(self, "rtsl_h_match", &[v(0), v(1)], false)?
-            }
+            Bi::Match => helper(self, "rtsl_h_match", &[v(0), v(1)], false)?,
             Bi::Format | Bi::Printf => {
                 let printf = bi == Bi::Printf;
-                if !printf && (e.varying || vals.iter().any(|x| x.vary)) {
-                    return unsupported("varying strings (format of varying values)");
-                }
-                if vals[0].vary {
-                    return unsupported("varying strings");
-                }
                 let mut kinds = Vec::new();
                 for a in &args[1..] {
                     let ty = match a {
@@ -2394,9 +2492,10 @@ impl<'m> Lower<'m, '_> {
                     self.call_helper("rtsl_h_printf", &inputs, true)?;
                     Val { vary: false, c: Vec::new() }
                 } else {
-                    vary = false;
-                    let c = self.call_helper("rtsl_h_format", &inputs, false)?;
-                    Val { vary: false, c }
+                    // A varying call formats and interns each running lane's text.
+                    vary = vals.iter().any(|x| x.vary);
+                    let c = self.call_helper("rtsl_h_format", &inputs, vary)?;
+                    Val { vary, c }
                 }
             }
             Bi::Comp => {
@@ -2658,9 +2757,6 @@ impl<'m> Lower<'m, '_> {
             return unsupported("a message of this shape");
         }
         let vary = e.varying;
-        if vary && class == 4 {
-            return unsupported("varying strings");
-        }
         let which = self.fconst(bi as u32 as f32, false);
         let cl = self.fconst(class as f32, false);
         let ln = self.fconst(len as f32, false);
@@ -2709,6 +2805,151 @@ impl<'m> Lower<'m, '_> {
             Some(st) => self.write_store(&st, v),
             None => Ok(()),
         }
+    }
+
+    /// `gather` (`shadeops::gather`): the arguments and options once, then per sample `k` one
+    /// `rtsl_h_gather` call for the chunk's lanes with `k` below their sample count, the outputs
+    /// written (`ray:` under those lanes, `surface:` under the hits), `body` under the hits and
+    /// `otherwise` under the misses. Lanes whose samples are done leave through the exit
+    /// accumulator; `break`/`continue` use the loop accumulators as in `illuminance`.
+    fn gather(
+        &mut self,
+        [category, position, direction, angle, samples]: [ExprId; 5],
+        params: &'m [(ExprId, Arg)],
+        body: &'m ir::Block,
+        otherwise: &'m ir::Block,
+    ) -> R<()> {
+        use crate::shadeops::gather::{self as g, Output};
+        let f = self.func();
+        let cat = self.expr(category)?;
+        let p = self.expr(position)?;
+        let axis = self.expr(direction)?;
+        let ang = self.expr(angle)?;
+        let count = self.expr(samples)?;
+        let mut maxdist = Val { vary: false, c: vec![self.fconst(f32::INFINITY, false)] };
+        let mut bias = Val { vary: false, c: vec![self.fconst(0.0, false)] };
+        let mut distribution = self.const_string("");
+        let mut outputs: Vec<(Output, &'m Place)> = Vec::new();
+        for (name, arg) in params {
+            let ExprKind::Const(Constant::String(name)) = &f.expr(*name).kind else {
+                return unsupported("a gather parameter named by a computed string");
+            };
+            match arg {
+                Arg::Value(x) => {
+                    let ty = f.expr(*x).ty;
+                    let v = self.expr(*x)?;
+                    match g::Options::float_slot(name) {
+                        Some(0) if ty == Type::FLOAT => maxdist = v,
+                        Some(_) if ty == Type::FLOAT => bias = v,
+                        None if name == "distribution" && ty == Type::STRING => distribution = v,
+                        _ => {}
+                    }
+                }
+                Arg::Ref(place) => {
+                    if let Some(o) = Output::parse(name).filter(|o| o.fits(place.ty)) {
+                        outputs.push((o, place));
+                    }
+                }
+            }
+        }
+        if cat.vary || distribution.vary {
+            return unsupported("varying strings");
+        }
+        // The sample count, `gather::sample_count` per lane: NaN and negatives give 0.
+        let n = {
+            let x = widen(&mut self.b, count.c[0], true);
+            let zero = self.fconst(0.0, true);
+            let top = self.fconst(g::MAX_SAMPLES, true);
+            let pos = self.b.ins().fcmp(FloatCC::GreaterThan, x, zero);
+            let x = choose(&mut self.b, pos, x, zero);
+            let below = self.b.ins().fcmp(FloatCC::LessThan, x, top);
+            let x = choose(&mut self.b, below, x, top);
+            self.b.ins().ceil(x)
+        };
+
+        self.vdepth += 1;
+        self.div += 1;
+        let k = self.b.declare_var(types::F32);
+        let z = self.b.ins().f32const(0.0);
+        self.b.def_var(k, z);
+        let exit_acc = self.b.declare_var(types::I32X4);
+        let cont_acc = self.b.declare_var(types::I32X4);
+        let zm = mask::zero_mask(&mut self.b);
+        self.b.def_var(exit_acc, zm);
+        self.b.def_var(cont_acc, zm);
+        let (header, body_b, leave, exit_b) =
+            (self.b.create_block(), self.b.create_block(), self.b.create_block(), self.b.create_block());
+        self.b.ins().jump(header, &[]);
+
+        self.b.switch_to_block(header);
+        let kv = self.b.use_var(k);
+        let kv = self.b.ins().splat(types::F32X4, kv);
+        let more = self.b.ins().fcmp(FloatCC::LessThan, kv, n);
+        let e = self.exec();
+        let go = self.b.ins().band(e, more);
+        let done = self.b.ins().band_not(e, more);
+        let acc = self.b.use_var(exit_acc);
+        let acc = self.b.ins().bor(acc, done);
+        self.b.def_var(exit_acc, acc);
+        self.set_exec(go);
+        let live = any(&mut self.b, go);
+        self.b.ins().brif(live, body_b, &[], leave, &[]);
+
+        self.b.switch_to_block(body_b);
+        let kv = self.b.use_var(k);
+        let kval = Val { vary: false, c: vec![kv] };
+        let nval = Val { vary: true, c: vec![n] };
+        let inputs = self.concat(&[
+            cat,
+            p.clone(),
+            axis.clone(),
+            ang.clone(),
+            kval,
+            nval,
+            maxdist.clone(),
+            bias.clone(),
+            distribution,
+        ]);
+        let rec = self.call_helper("rtsl_h_gather", &inputs.c, true)?;
+        let e = self.exec();
+        let miss = self.fconst(g::MISS, true);
+        let hit = self.fconst(g::HIT, true);
+        let ran = self.b.ins().fcmp(FloatCC::NotEqual, rec[0], miss);
+        let ran = self.b.ins().band(e, ran);
+        let surf = self.b.ins().fcmp(FloatCC::Equal, rec[0], hit);
+        let surf = self.b.ins().band(e, surf);
+        for (o, place) in &outputs {
+            self.set_exec(if o.on_miss() { e } else { surf });
+            let t = self.place_targets(place)?;
+            let row = o.row();
+            self.write_targets(&t, &Val { vary: true, c: rec[row..row + o.components()].to_vec() })?;
+        }
+        self.b.def_var(cont_acc, zm);
+        let lp = LoopCx { exit_acc, cont_acc, exit: exit_b, cont: header, depth: u32::MAX };
+        self.frames.last_mut().expect("frame").loops.push(lp);
+        let after_hit = self.masked_block(ran, body);
+        let missed = self.b.ins().band_not(e, ran);
+        let after = after_hit.and_then(|h| Ok((h, self.masked_block(missed, otherwise)?)));
+        self.frames.last_mut().expect("frame").loops.pop();
+        let (after_hit, after_miss) = after?;
+        let ca = self.b.use_var(cont_acc);
+        let next = self.b.ins().bor(after_hit, after_miss);
+        let next = self.b.ins().bor(next, ca);
+        self.set_exec(next);
+        let kv = self.b.use_var(k);
+        let one = self.b.ins().f32const(1.0);
+        let k1 = self.b.ins().fadd(kv, one);
+        self.b.def_var(k, k1);
+        self.b.ins().jump(header, &[]);
+
+        self.b.switch_to_block(leave);
+        self.b.ins().jump(exit_b, &[]);
+        self.b.switch_to_block(exit_b);
+        self.vdepth -= 1;
+        self.div -= 1;
+        let after = self.b.use_var(exit_acc);
+        self.set_exec(after);
+        Ok(())
     }
 
     /// `illuminance`: one `lights` call per chunk, then the body once per light index `k` under the
