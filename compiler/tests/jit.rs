@@ -486,6 +486,79 @@ fn varying_strings_select_format_and_split_calls_per_string() {
 }
 
 #[test]
+fn bump_agrees_lane_by_lane_across_height_steps() {
+    // Lanes straddling the test host's checkerboard edge at s = 1/8 (heights 1 then 0), where
+    // `bump` differences across cells, and lanes inside a cell; random lanes go through `check`.
+    let src = r#"
+        surface t(string map = "bumps"; output varying normal o = 0;)
+        {
+            o = bump(map, normalize(N), dPdu, dPdv);
+            Ci = color(o);
+        }
+    "#;
+    check(src);
+    let m = module(src);
+    let shader = jit::compile(&m).expect("compiles");
+    let step = rtsl_compiler::shadeops::geom::BUMP_STEP;
+    let ss = [0.125 - step / 2.0, 0.125 - 2.0 * step, 0.125 + step / 2.0, 0.3, 0.25 - step / 4.0, 0.01, 0.99, 0.5];
+    let mut batch = shader.batch(ss.len());
+    let lane_globals = |s: f32| {
+        [
+            ("s", vec![s]),
+            ("t", vec![0.01]),
+            ("N", vec![0.2, 0.1, 1.0]),
+            ("dPdu", vec![1.0, 0.0, 0.1]),
+            ("dPdv", vec![0.0, 2.0, 0.0]),
+        ]
+    };
+    for (l, s) in ss.iter().enumerate() {
+        for (name, v) in lane_globals(*s) {
+            batch.set_global(name, l, &v);
+        }
+    }
+    shader.shade_with(&mut batch, &mut TestHost::default());
+    let mut bumped = 0;
+    for (l, s) in ss.iter().enumerate() {
+        let mut point = ShadingPoint::new(m.shader.as_ref().expect("shader").kind);
+        for (name, v) in lane_globals(*s) {
+            point.set(name, value_of(&v, v.len()));
+        }
+        let r = interp::run(&m, &[], &mut point, &mut TestHost::default(), Limits::default()).expect("runs");
+        let want = r.params[1].1.v3();
+        let got = batch.param("o", l).expect("o");
+        assert_eq!(got, want.to_vec(), "lane {l} (s = {s})");
+        bumped += usize::from(want != rtsl_compiler::shadeops::geom::normalize([0.2, 0.1, 1.0]));
+    }
+    assert_eq!(bumped, 2, "the two lanes less than a step short of an edge are bumped");
+}
+
+#[test]
+fn point_clouds_and_photon_maps_return_zero_and_are_reported_once() {
+    let src = r#"
+        surface t(output varying float o = 0; output varying color c = 1;)
+        {
+            if (s > 2) o = bake3d("cloud.ptc", "", P, N, "value", s);
+            o += texture3d("cloud.ptc", P, N, "value", o) + 1;
+            c = photonmap("global", P, N);
+        }
+    "#;
+    check(src);
+    let m = module(src);
+    let shader = jit::compile(&m).expect("compiles");
+    let mut batch = shader.batch(8);
+    shader.shade_with(&mut batch, &mut TestHost::default());
+    assert_eq!(batch.param("o", 3), Some(vec![1.0]));
+    assert_eq!(batch.param("c", 5), Some(vec![0.0; 3]));
+    let errors = shader.runtime_errors();
+    // `bake3d` sits under a condition no lane meets: only the two calls that ran are reported.
+    assert_eq!(errors.len(), 2, "{errors:?}");
+    assert!(errors[0].contains("`texture3d` at") && errors[1].contains("`photonmap` at"), "{errors:?}");
+    assert!(errors.iter().all(|e| e.contains("not supported")), "{errors:?}");
+    shader.shade_with(&mut batch, &mut TestHost::default());
+    assert!(shader.runtime_errors().is_empty(), "reported once");
+}
+
+#[test]
 fn gather_samples_outputs_branches_and_loop_exits() {
     // The test host's ceiling (z = P.z + 10) is hit by rays with a positive z component: axes
     // along N (random) and cones from 0.3 to 2.3 radians give hits and misses in one chunk.

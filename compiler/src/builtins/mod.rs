@@ -174,7 +174,7 @@ builtins! {
     Texture "texture" ["R(s,...)", "R(s,f,f,...)", "R(s,f,f,f,f,f,f,f,f,...)"] VARYING | DERIVS | TEXTURE, Host, "filtered texture lookup";
     Environment "environment" ["R(s,v,...)", "R(s,v,v,v,v,...)"] VARYING | DERIVS | TEXTURE, Host, "environment map lookup by direction";
     Shadow "shadow" ["R(s,p,...)", "R(s,p,p,p,p,...)"] VARYING | DERIVS | TEXTURE, Host, "shadow map lookup: the fraction in shadow";
-    Bump "bump" ["p(s,n,v,v,...)"] VARYING | DERIVS | TEXTURE, Host, "bump map displacement (RISpec 3.0)";
+    Bump "bump" ["p(s,n,v,v,...)"] VARYING | DERIVS | TEXTURE, Host, "the normal of the surface bumped by a height map (channel 0) at (s, t) (RISpec 3.0; options ignored)";
     Texture3d "texture3d" ["f(s,p,n,...)", "R(s,p,...)"] VARYING, Host, "trilinear lookup in a 3-D grid file at a point (OSL's form); PRMan's point-cloud form (with a normal) is unsupported: returns 0 and leaves outputs unchanged";
     Bake3d "bake3d" ["f(s,s,p,n,...)"] VARYING | SIDE_EFFECTS | UNSUPPORTED, Host, "point-cloud baking; unsupported: returns 0 and writes nothing";
     Photonmap "photonmap" ["c(s,p,...)", "c(s,p,n,...)"] VARYING | UNSUPPORTED, Host, "photon map lookup; unsupported: returns black";

@@ -3,7 +3,7 @@
 
 use super::deriv::{zero_like, Dual};
 use super::value::Value;
-use super::{dot, normalize, Frame, InterpError, Machine, R};
+use super::{dot, normalize, Frame, Machine, R};
 use crate::builtins::{self, Builtin};
 use crate::interp::host::{LightSample, TextureFootprint};
 use crate::ir::{Arg, BaseType, Function, Type};
@@ -511,7 +511,19 @@ impl Machine<'_> {
                     Value::Triple([s; 3])
                 }
             }
-            Builtin::Bump => return Err(InterpError::Unsupported("bump")),
+            Builtin::Bump => {
+                // Point samples of the height map, as the JIT's helper asks for them.
+                let (s, t) = (self.global("s").f(), self.global("t").f());
+                let mut height = |s: f32, t: f32| {
+                    let fp = crate::interp::TextureFootprint::default();
+                    self.host
+                        .texture_filtered(v(0).s(), s, t, &fp, 0, 1)
+                        .and_then(|h| h.first().copied())
+                        .unwrap_or(0.0)
+                };
+                let (h, hs, ht) = (height(s, t), height(s + geom::BUMP_STEP, t), height(s, t + geom::BUMP_STEP));
+                Value::Triple(geom::bump(v(1).v3(), v(2).v3(), v(3).v3(), h, hs, ht))
+            }
             Builtin::Texture3d if fixed == 2 => {
                 // The grid form: one scalar, every component of a triple result alike.
                 let fill = param(vals, fixed, "fill").map(Value::f).unwrap_or(0.0);

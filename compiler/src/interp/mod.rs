@@ -22,8 +22,8 @@
 //!   [`gather::sample_ray`], its outputs written (the `ray:` ones always, the `surface:` ones on a
 //!   hit, in parameter order, indices evaluated at each write), then `body` on a hit (every sample of
 //!   `"samplepattern"`) or `otherwise` on a miss; it counts as a loop for `break`/`continue`.
-//!
-//! Not yet supported (it reports [`InterpError::Unsupported`]): `bump`.
+//! - `bump` point-samples channel 0 of its height map at (s, t) and one `geom::BUMP_STEP` along
+//!   each, with a zero footprint, as the JIT's helper does.
 
 mod builtins;
 mod deriv;

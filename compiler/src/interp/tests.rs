@@ -225,3 +225,31 @@ fn gather_runs_body_for_hits_and_else_for_misses() {
     assert!(param(&r, "longest") <= 10.5 && param(&r, "misses") > 0.0 && param(&r, "hits") > 0.0);
     assert_eq!(param(&r, "hits") + param(&r, "misses"), 64.0);
 }
+
+#[test]
+fn bump_perturbs_the_normal_across_a_height_step() {
+    // The test host's textures are an 8x8 checkerboard: channel 0 is 1 in white cells and 0 in
+    // black ones. Just left of s = 1/8 a step of `BUMP_STEP` crosses from white to black, so the
+    // height falls by 1 over the step; mid-cell nothing changes; an unreadable map is flat.
+    let src = r#"
+        surface t(string map = "bumps"; output varying normal o = 0;)
+        {
+            o = bump(map, normal(0, 0, 1), vector(1, 0, 0), vector(0, 1, 0));
+        }
+    "#;
+    let c = compile_source("test.sl", src, &crate::Options::default());
+    let m = c.module.expect("compiles");
+    let run_at = |s: f32, map: &str| {
+        let mut point = ShadingPoint::new(ShaderKind::Surface);
+        point.set("s", Value::Float(s));
+        point.set("t", Value::Float(0.01));
+        let bound = [("map", Value::String(map.into()))];
+        let r = run(&m, &bound, &mut point, &mut TestHost::default(), Limits::default()).expect("runs");
+        r.params[1].1.v3()
+    };
+    assert_eq!(run_at(0.05, "bumps"), [0.0, 0.0, 1.0]);
+    assert_eq!(run_at(0.05, "missing"), [0.0, 0.0, 1.0]);
+    let n = run_at(0.125 - geom::BUMP_STEP / 2.0, "bumps");
+    // h_s = -1 / step: N + h_s (n x dPdt) = (0, 0, 1) - (1/step) * (-1, 0, 0).
+    assert!((n[0] - 1.0 / geom::BUMP_STEP).abs() < 1.0 && n[1] == 0.0 && n[2] == 1.0, "{n:?}");
+}

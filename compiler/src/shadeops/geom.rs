@@ -260,6 +260,21 @@ pub fn in_hemisphere(l: V3, n: V3) -> bool {
     dot(normalize(l), normalize(n)) >= 0.0
 }
 
+/// How far apart (in s and t) `bump` samples its height map to difference it.
+pub const BUMP_STEP: f32 = 1.0 / 1024.0;
+
+/// `bump(name, N, dPds, dPdt)`: the normal of the surface displaced by the height map along the
+/// unit normal (Blinn's bump mapping), from the heights at (s, t), (s + step, t) and (s, t + step):
+/// `N + h_s (n x dPdt) + h_t (dPds x n)`, with `n` the unit `N` and `h_s`, `h_t` the forward
+/// differences over [`BUMP_STEP`]. Not normalised (like `calculatenormal`).
+pub fn bump(n: V3, dpds: V3, dpdt: V3, h: f32, h_s: f32, h_t: f32) -> V3 {
+    let unit = normalize(n);
+    let (hs, ht) = ((h_s - h) / BUMP_STEP, (h_t - h) / BUMP_STEP);
+    let a = cross(unit, dpdt);
+    let b = cross(dpds, unit);
+    [n[0] + hs * a[0] + ht * b[0], n[1] + hs * a[1] + ht * b[1], n[2] + hs * a[2] + ht * b[2]]
+}
+
 pub fn specular_brdf(l: V3, n: V3, v: V3, roughness: f32) -> f32 {
     let (l, n, v) = (normalize(l), normalize(n), normalize(v));
     let h = normalize([l[0] + v[0], l[1] + v[1], l[2] + v[2]]);

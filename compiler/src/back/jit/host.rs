@@ -816,6 +816,19 @@ host_helpers! {
         }
     }
     // [name, p, fill] -> 3: texture3d's grid lookup, one value splatted
+    // [name, s, t, N, dPds, dPdt] -> the bumped normal
+    h_bump "rtsl_h_bump" 12 => 3 |cx| {
+        let mut heights = [[0.0f32; 4]; 3];
+        for (k, (ds, dt)) in [(0.0, 0.0), (geom::BUMP_STEP, 0.0), (0.0, geom::BUMP_STEP)].into_iter().enumerate() {
+            let s: [f32; 4] = std::array::from_fn(|l| cx.f(1, l) + ds);
+            let t: [f32; 4] = std::array::from_fn(|l| cx.f(2, l) + dt);
+            heights[k] = point_heights(cx, s, t);
+        }
+        for l in cx.active() {
+            let n = geom::bump(cx.v3(3, l), cx.v3(6, l), cx.v3(9, l), heights[0][l], heights[1][l], heights[2][l]);
+            cx.set3(0, l, n);
+        }
+    }
     h_texture3d "rtsl_h_texture3d" 5 => 3 |cx| {
         let (vals, ok) = texture_call(cx, 3, 1);
         for l in cx.active() {
@@ -1053,7 +1066,39 @@ fn texture_call(cx: &Cx<'_>, kind: u32, channels: u32) -> ([f32; 4 * MAX_TEXTURE
     (vals, ok)
 }
 
-/// Rays: arguments `a` (0..3), `b` (3..6), samples (6) when the helper has them.
+/// Channel 0 of the texture named by argument 0, point-sampled at each running lane's (s, t); 0
+/// where it cannot be read.
+fn point_heights(cx: &Cx<'_>, s: [f32; 4], t: [f32; 4]) -> [f32; 4] {
+    let mut out = [0.0f32; 4];
+    let Some(table) = cx.table else { return out };
+    let mask: [i32; 4] = cx.mask.map(|m| if m { -1 } else { 0 });
+    let mut coords = [0.0f32; 28];
+    coords[..4].copy_from_slice(&s);
+    coords[4..8].copy_from_slice(&t);
+    let (first, mut vals, mut ok) = ([0.0f32; 4], [0.0f32; 4 * MAX_TEXTURE_CHANNELS as usize], [0u32; 4]);
+    let name = cx.strings.get(cx.input[0].to_bits());
+    // SAFETY: the table's documented sizes (seven rows of coordinates, one channel).
+    unsafe {
+        (table.texture)(
+            table.ctx,
+            0,
+            StrRef::new(name),
+            mask.as_ptr(),
+            coords.as_ptr(),
+            first.as_ptr(),
+            1,
+            vals.as_mut_ptr(),
+            ok.as_mut_ptr(),
+        )
+    };
+    for l in 0..4 {
+        if ok[l] != 0 {
+            out[l] = vals[l];
+        }
+    }
+    out
+}
+
 /// One sample of a `gather` for the chunk: the rays from `shadeops::gather` (as the interpreter
 /// makes them), traced together through the table.
 fn gather_call(cx: &mut Cx<'_>) {
@@ -1102,6 +1147,7 @@ fn gather_call(cx: &mut Cx<'_>) {
     }
 }
 
+/// Rays: arguments `a` (0..3), `b` (3..6), samples (6) when the helper has them.
 fn rays_call(cx: &mut Cx<'_>, kind: u32, outs: usize) {
     let mut out = [0.0f32; 16];
     if kind == 0 || kind == 1 {

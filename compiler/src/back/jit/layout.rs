@@ -130,7 +130,7 @@ pub(super) fn layout(m: &Module) -> Result<Layout, &'static str> {
                         let implicit: &[&str] = match builtin {
                             Bi::Faceforward if args.len() == 2 => &["Ng"],
                             Bi::Ambient | Bi::Diffuse | Bi::Specular | Bi::Phong => &["P"],
-                            Bi::Texture => &["s", "t"],
+                            Bi::Texture | Bi::Bump => &["s", "t"],
                             _ => &[],
                         };
                         for name in implicit {

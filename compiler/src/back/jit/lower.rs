@@ -136,6 +136,7 @@ struct Targets {
 /// Runtime checks reported through `rtsl_h_runtime_error` (see `CompiledShader::runtime_errors`).
 pub(super) const RUNTIME_LOOP_BUDGET: u32 = 0;
 pub(super) const RUNTIME_INDEX: u32 = 1;
+pub(super) const RUNTIME_UNSUPPORTED: u32 = 2;
 
 fn mem() -> MemFlagsData {
     MemFlagsData::trusted()
@@ -995,6 +996,22 @@ impl<'m> Lower<'m, '_> {
     }
 
     /// Calls the runtime-error helper for `kind` at `site` (lane 0; the helper records it once).
+    /// Reports (once per site, see `RuntimeErrors`) that a running lane called a built-in rtsl
+    /// accepts but cannot honour.
+    fn report_unsupported(&mut self, bi: Builtin, span: crate::source::Span) -> R<()> {
+        let site = self.site(span);
+        self.sites[site] = format!("`{}` at {}", bi.name(), self.sites[site]);
+        let e = self.exec();
+        let running = any(&mut self.b, e);
+        let (report, go) = (self.b.create_block(), self.b.create_block());
+        self.b.ins().brif(running, report, &[], go, &[]);
+        self.b.switch_to_block(report);
+        self.runtime_error(RUNTIME_UNSUPPORTED, site)?;
+        self.b.ins().jump(go, &[]);
+        self.b.switch_to_block(go);
+        Ok(())
+    }
+
     fn runtime_error(&mut self, kind: u32, site: usize) -> R<()> {
         let k = self.b.ins().f32const(kind as f32);
         let s = self.b.ins().f32const(site as f32);
@@ -2324,6 +2341,9 @@ impl<'m> Lower<'m, '_> {
             | Bi::Environment
             | Bi::Shadow
             | Bi::Texture3d
+            | Bi::Bump
+            | Bi::Bake3d
+            | Bi::Photonmap
             | Bi::Trace
             | Bi::Transmission
             | Bi::Visibility
@@ -2670,11 +2690,18 @@ impl<'m> Lower<'m, '_> {
                     }
                 }
             }
+            Bi::Bump => {
+                let (s, t) = (global(self, "s")?, global(self, "t")?);
+                helper(self, "rtsl_h_bump", &[v(0), s, t, v(1), v(2), v(3)], true)?
+            }
+            // Point clouds and photon maps: reported once per call site when a lane runs the
+            // call, which returns its documented value (the built-in table) and writes nothing.
+            Bi::Bake3d | Bi::Photonmap | Bi::Texture3d if bi != Bi::Texture3d || fixed != 2 => {
+                self.report_unsupported(bi, e.span)?;
+                let n = components(e.ty).unwrap_or(1);
+                Val { vary: false, c: vec![self.fconst(0.0, false); n] }
+            }
             Bi::Texture3d => {
-                // PRMan's point-cloud form (with a normal) stays unsupported.
-                if fixed != 2 {
-                    return unsupported("texture3d's point-cloud form");
-                }
                 if vals[0].vary {
                     return unsupported("varying texture names");
                 }

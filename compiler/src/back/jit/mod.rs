@@ -272,6 +272,8 @@ impl CompiledShader {
                         "the loop at {at} ran more than {} times in one entry and was stopped",
                         self.options.loop_budget
                     )
+                } else if kind == lower::RUNTIME_UNSUPPORTED {
+                    format!("{at} is not supported by rtsl (no point clouds or photon maps): it returned 0")
                 } else {
                     format!("an array index at {at} was out of range and was clamped")
                 }
