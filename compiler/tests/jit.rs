@@ -558,6 +558,98 @@ fn point_clouds_and_photon_maps_return_zero_and_are_reported_once() {
     assert!(shader.runtime_errors().is_empty(), "reported once");
 }
 
+/// A shader calling every overload of `bi` once, with arguments of exactly the overload's types
+/// (locals seeded from the globals, so values vary per lane), or `None` for built-ins that only
+/// make sense elsewhere (message passing into light shaders and the like is covered by the corpus).
+fn every_overload_shader(bi: rtsl_compiler::builtins::Builtin) -> String {
+    use rtsl_compiler::builtins::signatures;
+    use rtsl_compiler::ir::BaseType as T;
+    fn name(t: Option<T>) -> &'static str {
+        match t {
+            Some(T::Color) => "color",
+            Some(T::Point) => "point",
+            Some(T::Vector) => "vector",
+            Some(T::Normal) => "normal",
+            Some(T::Matrix) => "matrix",
+            Some(T::String) => "string",
+            _ => "float",
+        }
+    }
+    let mut body = String::new();
+    let mut sum = String::from("0");
+    for (k, sig) in signatures(bi).iter().enumerate() {
+        let mut args = Vec::new();
+        for (j, p) in sig.params.iter().enumerate() {
+            let ty = name(p.ty);
+            let var = format!("a{k}_{j}");
+            let init = match p.ty {
+                Some(T::String) => format!("\"{}\"", ["grid", "shader", "catmull-rom", "%f %g"][j % 4]),
+                Some(T::Matrix) => "matrix \"shader\" 1".to_string(),
+                Some(T::Color | T::Point | T::Vector | T::Normal) => format!("{ty}(s + {j}, t * 2 - 1, u + 0.5)"),
+                _ => format!("s * {} + t - 0.25", j + 1),
+            };
+            if p.array {
+                body.push_str(&format!("    {ty} {var}[4] = {{{init}, {init}, {init}, {init}}};\n"));
+            } else {
+                body.push_str(&format!("    {ty} {var} = {init};\n"));
+            }
+            args.push(var);
+        }
+        let call = format!("{}({})", bi.name(), args.join(", "));
+        match sig.ret {
+            T::Void => body.push_str(&format!("    {call};\n")),
+            T::String => body.push_str(&format!("    string r{k} = {call};\n    o += match(\"1\", r{k});\n")),
+            T::Matrix => {
+                body.push_str(&format!("    matrix r{k} = {call};\n"));
+                sum.push_str(&format!(" + comp(r{k}, 1, 2) + comp(r{k}, 3, 0)"));
+            }
+            T::Float => {
+                body.push_str(&format!("    float r{k} = float {call};\n"));
+                sum.push_str(&format!(" + r{k}"));
+            }
+            t => {
+                let ty = name(Some(t));
+                body.push_str(&format!("    {ty} r{k} = {ty} {call};\n"));
+                sum.push_str(&format!(" + comp(r{k}, 0) + comp(r{k}, 2)"));
+            }
+        }
+        for (j, p) in sig.params.iter().enumerate() {
+            if p.output && !p.array && matches!(p.ty, None | Some(T::Float)) {
+                sum.push_str(&format!(" + a{k}_{j}"));
+            }
+        }
+    }
+    format!("surface every(output varying float o = 0;)\n{{\n{body}    o += {sum};\n    Ci = o;\n}}\n")
+}
+
+#[test]
+fn every_builtin_overload_agrees_with_the_interpreter() {
+    use rtsl_compiler::builtins::Builtin;
+    let mut failed = Vec::new();
+    let mut ran = 0;
+    for bi in Builtin::ALL {
+        let src = every_overload_shader(*bi);
+        let c = compile_source("every.sl", &src, &Options::default());
+        let ok = c.ok();
+        let rendered = c.render();
+        let Some(m) = c.module.filter(|_| ok) else {
+            failed.push(format!("{}: does not check\n{src}\n{rendered}", bi.name()));
+            continue;
+        };
+        match jit::compile(&m) {
+            Ok(shader) => {
+                for seed in 0..2 {
+                    differential(&m, &shader, 13, seed, 0.0);
+                }
+                ran += 1;
+            }
+            Err(e) => failed.push(format!("{}: {e}", bi.name())),
+        }
+    }
+    assert!(failed.is_empty(), "{} of {} built-ins:\n{}", failed.len(), Builtin::ALL.len(), failed.join("\n"));
+    assert_eq!(ran, Builtin::ALL.len());
+}
+
 #[test]
 fn gather_samples_outputs_branches_and_loop_exits() {
     // The test host's ceiling (z = P.z + 10) is hit by rays with a positive z component: axes
