@@ -22,7 +22,7 @@
 //! rely on it: an unmarked value is treated as having zero derivatives, so over-marking costs time
 //! but never changes results, and under-marking would be a bug).
 
-use super::{Arg, Block, ExprKind, FuncId, Module, PlaceBase, StmtKind};
+use super::{Arg, Block, Constant, ExprKind, FuncId, Function, Module, PlaceBase, StmtKind};
 use crate::builtins::Builtin;
 use crate::globals::GLOBALS;
 
@@ -79,6 +79,21 @@ pub fn is_root_arg(b: Builtin, k: usize, n: usize) -> bool {
         Builtin::Texture => k == 1 || k == 2,
         _ => false,
     }
+}
+
+/// Whether a `texture` call's parameter list sets its filter width to a literal 0 in both
+/// directions (`"width", 0`, or `"swidth", 0` and `"twidth", 0`): its footprint is then zero
+/// whatever the coordinates' derivatives, so they need not be computed.
+fn zero_width(func: &Function, args: &[Arg]) -> bool {
+    let literal = |k: usize, want: &str| matches!(args.get(k), Some(Arg::Value(x)) if matches!(&func.expr(*x).kind, ExprKind::Const(Constant::String(s)) if s == want));
+    let zero_after = |name: &str| {
+        (1..args.len()).any(|k| {
+            literal(k, name)
+                && matches!(args.get(k + 1), Some(Arg::Value(v)) if matches!(func.expr(*v).kind, ExprKind::Const(Constant::Float(x)) if x == 0.0))
+        })
+    };
+    let named = |name: &str| (1..args.len()).any(|k| literal(k, name));
+    (zero_after("width") && !named("swidth") && !named("twidth")) || (zero_after("swidth") && zero_after("twidth"))
 }
 
 /// Whether the back ends differentiate a built-in by a central difference: evaluated again with
@@ -192,7 +207,9 @@ impl Pass<'_> {
                             Arg::Value(x) => func.expr(*x).ty.base.is_numeric(),
                             Arg::Ref(_) => false,
                         });
-                        if *builtin == Builtin::Texture && !coords {
+                        // A lookup whose filter width is a literal 0 needs no footprint.
+                        let pointwise = *builtin == Builtin::Texture && zero_width(func, args);
+                        if *builtin == Builtin::Texture && !coords && !pointwise {
                             for name in ["s", "t"] {
                                 if let Some(g) = crate::globals::Global::lookup(name) {
                                     self.mark_place(fi, PlaceBase::Global(g));
@@ -203,7 +220,8 @@ impl Pass<'_> {
                             let Arg::Value(x) = a else { continue };
                             let numeric = func.expr(*x).ty.base.is_numeric();
                             if numeric
-                                && (is_root_arg(*builtin, k, args.len()) || (marked && !is_deriv_builtin(*builtin)))
+                                && ((is_root_arg(*builtin, k, args.len()) && !pointwise)
+                                    || (marked && !is_deriv_builtin(*builtin)))
                             {
                                 self.mark_expr(fi, *x);
                             }
