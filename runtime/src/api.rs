@@ -42,7 +42,8 @@
 //! - **Errors**: misuse (unbalanced begin/end, unknown ids, a parameter the bound shader does not
 //!   have or of the wrong type) returns an [`ApiError`]; nothing panics.
 
-use crate::geometry::{Attribute, Mesh, MeshError};
+use crate::geometry::alpha::DEFAULT_CUTOFF as ALPHA_CUTOFF;
+use crate::geometry::{AlphaMask, Attribute, Mesh, MeshError};
 use crate::reload::ShaderEvent;
 use crate::render::{
     render_frame, AreaLight, CameraSetup, FrameReport, Framebuffer, InstanceShading, LightSource, Material,
@@ -53,6 +54,7 @@ use crate::shading::{LightKind, ParamError, ParamValue, Program, ShaderError, Sh
 use crate::texture::{TexImage, TextureCache, Wrap};
 use glam::{Affine3A, Quat, Vec2, Vec3, Vec3A};
 use rtsl_compiler::front::parse::ast::ShaderKind;
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -153,11 +155,20 @@ struct Appearance {
     /// The volume shader of the inside of objects built from now on (RIB `Interior`).
     interior: Option<Binding>,
     shadow_by_shader: bool,
+    /// The texture whose alpha cuts objects built from now on ([`Context::alpha_mask`]).
+    alpha_mask: Option<String>,
 }
 
 impl Default for Appearance {
     fn default() -> Self {
-        Appearance { color: [1.0; 3], opacity: [1.0; 3], surface: None, interior: None, shadow_by_shader: false }
+        Appearance {
+            color: [1.0; 3],
+            opacity: [1.0; 3],
+            surface: None,
+            interior: None,
+            shadow_by_shader: false,
+            alpha_mask: None,
+        }
     }
 }
 
@@ -724,6 +735,15 @@ impl Context {
         self.appearance.shadow_by_shader = on;
     }
 
+    /// Cuts objects built from now on where the alpha of texture `name` (at their texture
+    /// coordinates) is below one half, for every ray: cut-outs such as leaves drawn on quads are
+    /// seen through and cast shaped shadows, with no shading. `None` makes them solid again. The
+    /// texture is found as shader textures are; one that cannot be read, or has no transparent
+    /// texel, leaves the object solid (a missing one with a warning).
+    pub fn alpha_mask(&mut self, name: Option<&str>) {
+        self.appearance.alpha_mask = name.map(str::to_string);
+    }
+
     /// Saves the attribute state (colour, opacity, shader binding) and the matrix.
     pub fn push_attributes(&mut self) {
         self.appearance_stack.push(self.appearance.clone());
@@ -852,6 +872,12 @@ impl Context {
 
     /// Starts a retained object; geometry calls until `end_object` go into it.
     pub fn begin_object(&mut self) -> Result<ObjectId, ApiError> {
+        self.begin_object_in(self.matrix)
+    }
+
+    /// Starts a retained object whose own space is `frame`: its geometry is placed by the current
+    /// matrix relative to `frame` (with `begin_object`, `frame` is the current matrix).
+    pub fn begin_object_in(&mut self, frame: Affine3A) -> Result<ObjectId, ApiError> {
         if self.building.is_some() {
             return Err(ApiError::Nested("begin_object", "an object"));
         }
@@ -863,7 +889,7 @@ impl Context {
             dirty: true,
             deleted: false,
         });
-        self.building = Some((id, self.matrix, MeshBuilder::default()));
+        self.building = Some((id, frame, MeshBuilder::default()));
         Ok(id)
     }
 
@@ -1184,6 +1210,7 @@ impl Context {
         // Objects: (re)build only the BVHs of changed geometry.
         let bvh_start = std::time::Instant::now();
         let mut objects_rebuilt = 0;
+        let mut masks: HashMap<String, Option<Arc<AlphaMask>>> = HashMap::new();
         for rec in &mut self.objects {
             if !rec.dirty {
                 continue;
@@ -1199,6 +1226,25 @@ impl Context {
                     scene.set_object_mesh(id, empty)?;
                 }
                 (None, None) => {}
+            }
+            if let Some(id) = rec.scene_object {
+                let mask = rec.appearance.alpha_mask.as_ref().and_then(|name| {
+                    let textures = &self.textures;
+                    let warnings = &mut self.warnings;
+                    masks
+                        .entry(name.clone())
+                        .or_insert_with(|| match textures.get_texture(name, false) {
+                            Some(mip) => {
+                                mip.levels().first().and_then(|l| AlphaMask::from_image(l, ALPHA_CUTOFF)).map(Arc::new)
+                            }
+                            None => {
+                                warnings.push(format!("alpha mask \"{name}\": texture not found; the object is solid"));
+                                None
+                            }
+                        })
+                        .clone()
+                });
+                scene.set_object_alpha_mask(id, mask)?;
             }
         }
         let object_bvhs = bvh_start.elapsed();

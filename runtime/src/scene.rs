@@ -12,7 +12,7 @@ use crate::accel::bvh4::BuildQuality;
 use crate::accel::object::Object;
 use crate::accel::top::{InstanceData, TopLevel};
 use crate::accel::{packet, single};
-use crate::geometry::Mesh;
+use crate::geometry::{AlphaMask, Mesh};
 use crate::ray::{Hit, HitFilter, HitPacket, Ray, RayPacket};
 use glam::{Affine3A, Vec2, Vec3, Vec3A};
 use std::sync::Arc;
@@ -91,7 +91,16 @@ impl Scene {
     pub fn set_object_mesh(&mut self, id: ObjectId, mesh: impl Into<Arc<Mesh>>) -> Result<(), SceneError> {
         let quality = self.quality;
         let obj = self.objects.get_mut(id.0 as usize).ok_or(SceneError::NoSuchObject(id.0))?;
-        *obj = Object::new(mesh.into(), quality);
+        let alpha = obj.alpha.take();
+        *obj = Object { alpha, ..Object::new(mesh.into(), quality) };
+        Ok(())
+    }
+
+    /// Gives an object cut-outs (or takes them away with `None`); no BVH is rebuilt. Every query
+    /// skips hits where the mask is uncovered.
+    pub fn set_object_alpha_mask(&mut self, id: ObjectId, mask: Option<Arc<AlphaMask>>) -> Result<(), SceneError> {
+        let obj = self.objects.get_mut(id.0 as usize).ok_or(SceneError::NoSuchObject(id.0))?;
+        obj.alpha = mask;
         Ok(())
     }
 
@@ -162,6 +171,17 @@ impl Scene {
         self.instances.len()
     }
 
+    /// Triangles of the committed instances, each instance counting its object's triangles (what
+    /// the scene would hold without instancing).
+    pub fn instanced_triangle_count(&self) -> usize {
+        self.top
+            .instances
+            .iter()
+            .filter_map(|i| self.objects.get(i.object as usize))
+            .map(|o| o.mesh.triangle_count())
+            .sum()
+    }
+
     /// Rebuilds the top-level BVH from the instance list; call once per frame before tracing.
     pub fn commit(&mut self) {
         self.top = TopLevel::build(self.instances.clone(), &self.objects);
@@ -169,7 +189,10 @@ impl Scene {
 
     /// Bytes of heap memory of meshes and BVHs (objects counted once however often instanced).
     pub fn memory_bytes(&self) -> usize {
-        self.objects.iter().map(|o| o.mesh.memory_bytes() + o.bvh.memory_bytes()).sum::<usize>()
+        self.objects
+            .iter()
+            .map(|o| o.mesh.memory_bytes() + o.bvh.memory_bytes() + o.alpha.as_ref().map_or(0, |a| a.memory_bytes()))
+            .sum::<usize>()
             + self.top.bvh.memory_bytes()
             + self.top.instances.len() * size_of::<InstanceData>()
     }

@@ -8,15 +8,17 @@
 //!
 //! OBJ materials become instances of the `material` shader (`docs/shaders.md`): `Kd` -> diffuse
 //! colour, `Ks` -> specular colour, `Ns` -> shininess, `d`/`Tr` -> transparency, `Ke` -> emission,
-//! `map_Kd` -> diffuse texture (resolved next to the OBJ file). Without materials every object gets
+//! `map_Kd` -> diffuse texture (resolved next to the OBJ file). The alpha of `map_d`, or else of
+//! `map_Kd`, cuts the geometry where it is below one half ([`Context::alpha_mask`]), as alpha-tested
+//! leaves and fences expect. Without materials every object gets
 //! `plastic`. When a surface shader is already bound (a RIB `Surface` before `ReadArchive "x.obj"`),
 //! it shades every object, with the material's diffuse colour as `Cs`.
 
-use crate::api::{ApiError, Context};
+use crate::api::{ApiError, Context, ObjectId};
 use crate::geometry::{Mesh, MeshError};
 use crate::mesh_io::{load_mesh, MeshIoError};
 use crate::shading::ParamValue;
-use glam::{Vec2, Vec3, Vec3A};
+use glam::{Affine3A, Vec2, Vec3, Vec3A};
 use std::path::{Path, PathBuf};
 
 /// Why a scene file could not be loaded.
@@ -36,6 +38,8 @@ pub enum SceneFileError {
     UnknownType { path: PathBuf },
     #[error("{path}: {message}")]
     Rib { path: PathBuf, message: String },
+    #[error("{path}: a glTF file places its own instances, so it cannot be read into a retained object (ObjectBegin)")]
+    NotRetainable { path: PathBuf },
 }
 
 /// Adds a mesh file of any supported kind (by extension: `.obj`, `.ply`, `.gltf`, `.glb`).
@@ -43,6 +47,51 @@ pub fn add_model_file(rt: &mut Context, path: &Path) -> Result<(Vec3A, Vec3A), S
     match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
         Some("gltf" | "glb") => add_gltf_file(rt, path),
         Some("obj" | "ply") => add_mesh_file(rt, path),
+        _ => Err(SceneFileError::UnknownType { path: path.to_path_buf() }),
+    }
+}
+
+/// Where the objects made from a model file go.
+pub enum Placement<'a> {
+    /// Each object is instanced once, by the current matrix.
+    Instanced,
+    /// Retained objects in the space `frame` (the geometry placed by the current matrix relative
+    /// to it), not instanced; their ids are appended to `objects`. This is how one RIB
+    /// `ObjectBegin` block holds a model with several materials.
+    Retained { frame: Affine3A, objects: &'a mut Vec<ObjectId> },
+}
+
+impl Placement<'_> {
+    fn begin(&self, rt: &mut Context) -> Result<ObjectId, ApiError> {
+        match self {
+            Placement::Instanced => rt.begin_object(),
+            Placement::Retained { frame, .. } => rt.begin_object_in(*frame),
+        }
+    }
+
+    fn place(&mut self, rt: &mut Context, object: ObjectId) -> Result<(), ApiError> {
+        match self {
+            Placement::Instanced => rt.instantiate_object(object).map(drop),
+            Placement::Retained { objects, .. } => {
+                objects.push(object);
+                Ok(())
+            }
+        }
+    }
+}
+
+/// Adds an OBJ or PLY file's objects to the context as `placement` says, returning the world-space
+/// bounds of what was added (as placed by the current matrix). glTF files, whose nodes place their
+/// own instances, are only [`Placement::Instanced`].
+pub fn add_model_file_placed(
+    rt: &mut Context,
+    path: &Path,
+    placement: Placement,
+) -> Result<(Vec3A, Vec3A), SceneFileError> {
+    match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+        Some("gltf" | "glb") if matches!(placement, Placement::Instanced) => add_gltf_file(rt, path),
+        Some("gltf" | "glb") => Err(SceneFileError::NotRetainable { path: path.to_path_buf() }),
+        Some("obj" | "ply") => add_mesh_file_placed(rt, path, placement),
         _ => Err(SceneFileError::UnknownType { path: path.to_path_buf() }),
     }
 }
@@ -148,6 +197,14 @@ pub fn add_gltf_file(rt: &mut Context, path: &Path) -> Result<(Vec3A, Vec3A), Sc
 /// Adds the meshes of `path` (OBJ or PLY) to the context, each as an object instanced once at the
 /// current matrix, and returns the world-space bounds of what was added.
 pub fn add_mesh_file(rt: &mut Context, path: &Path) -> Result<(Vec3A, Vec3A), SceneFileError> {
+    add_mesh_file_placed(rt, path, Placement::Instanced)
+}
+
+fn add_mesh_file_placed(
+    rt: &mut Context,
+    path: &Path,
+    mut placement: Placement,
+) -> Result<(Vec3A, Vec3A), SceneFileError> {
     let is_obj = path.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case("obj"));
     let mut bounds = (Vec3A::splat(f32::INFINITY), Vec3A::splat(f32::NEG_INFINITY));
     let mut grow = |rt: &Context, mesh: &Mesh| {
@@ -170,10 +227,10 @@ pub fn add_mesh_file(rt: &mut Context, path: &Path) -> Result<(Vec3A, Vec3A), Sc
         if bound.is_none() {
             rt.bind_shader(shader)?;
         }
-        let o = rt.begin_object()?;
+        let o = placement.begin(rt)?;
         rt.mesh(&mesh)?;
         rt.end_object()?;
-        rt.instantiate_object(o)?;
+        placement.place(rt, o)?;
         rt.pop_attributes()?;
         return Ok(bounds);
     }
@@ -204,7 +261,12 @@ pub fn add_mesh_file(rt: &mut Context, path: &Path) -> Result<(Vec3A, Vec3A), Sc
         }
         grow(rt, &mesh);
         rt.push_attributes();
-        match (m.material_id.and_then(|i| materials.get(i)), material_shader) {
+        let material = m.material_id.and_then(|i| materials.get(i));
+        // Cut-outs (leaves on quads): the alpha of `map_d`, else of `map_Kd` where it has any.
+        if let Some(tex) = material.and_then(|mat| mat.dissolve_texture.as_ref().or(mat.diffuse_texture.as_ref())) {
+            rt.alpha_mask(Some(&dir.join(tex.replace('\\', "/")).display().to_string()));
+        }
+        match (material, material_shader) {
             (Some(mat), Some(shader)) => {
                 rt.bind_shader(shader)?;
                 bind_obj_material(rt, mat, &dir);
@@ -226,10 +288,10 @@ pub fn add_mesh_file(rt: &mut Context, path: &Path) -> Result<(Vec3A, Vec3A), Sc
                 }
             }
         }
-        let o = rt.begin_object()?;
+        let o = placement.begin(rt)?;
         rt.mesh(&mesh)?;
         rt.end_object()?;
-        rt.instantiate_object(o)?;
+        placement.place(rt, o)?;
         rt.pop_attributes()?;
     }
     Ok(bounds)

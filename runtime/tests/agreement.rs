@@ -5,6 +5,8 @@
 
 use glam::{Affine3A, Quat, Vec3, Vec3A};
 use proptest::prelude::*;
+use rtsl_runtime::geometry::AlphaMask;
+use rtsl_runtime::texture::TexImage;
 use rtsl_runtime::{Hit, HitCandidate, HitPacket, Mesh, Ray, RayPacket, Scene, PACKET_SIZE};
 
 fn v3() -> impl Strategy<Value = Vec3> {
@@ -161,6 +163,107 @@ proptest! {
             check(&scene, &p, Some(&f))?;
         }
     }
+}
+
+/// A random cut-out: an 8x8 grey-alpha image with random holes, and texture coordinates for every
+/// vertex of the world's meshes (some beyond [0, 1], so that the mask wraps).
+fn masks() -> impl Strategy<Value = (Vec<bool>, u64)> {
+    (prop::collection::vec(any::<bool>(), 64), any::<u64>())
+}
+
+fn mask_of(bits: &[bool]) -> Option<AlphaMask> {
+    let data: Vec<f32> = bits.iter().flat_map(|&b| [1.0, if b { 1.0 } else { 0.2 }]).collect();
+    AlphaMask::from_image(&TexImage::new(8, 8, 2, data).expect("8x8x2"), 0.5)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 128, .. ProptestConfig::default() })]
+
+    #[test]
+    fn traversals_agree_with_alpha_masks(
+        w in world(),
+        (bits, seed) in masks(),
+        rays in prop::collection::vec(packet(), 1..3),
+    ) {
+        let mut w = w;
+        let mut state = seed | 1;
+        for m in &mut w.meshes {
+            let uvs = (0..m.positions.len())
+                .map(|_| {
+                    // xorshift: texture coordinates in [-1, 2).
+                    let mut next = || {
+                        state ^= state << 13;
+                        state ^= state >> 7;
+                        state ^= state << 17;
+                        (state >> 40) as f32 / (1u64 << 24) as f32 * 3.0 - 1.0
+                    };
+                    glam::Vec2::new(next(), next())
+                })
+                .collect();
+            m.uvs = Some(uvs);
+        }
+        let mut scene = build(&w);
+        let mask = mask_of(&bits).map(std::sync::Arc::new);
+        // Only the first object is cut; instances of the others stay solid.
+        scene.set_object_alpha_mask(rtsl_runtime::ObjectId(0), mask.clone()).expect("object 0 exists");
+        let f = |c: &HitCandidate| c.primitive % 5 != 2;
+        for (o, t, spread, active, tmax) in rays {
+            let p = make_packet(o, t, spread, active, tmax, true);
+            check(&scene, &p, None)?;
+            check(&scene, &p, Some(&f))?;
+            // No hit lies in a hole.
+            let (Some(mask), mut hp) = (&mask, HitPacket::default()) else { continue };
+            scene.intersect_packet(&p, &mut hp);
+            for i in (0..PACKET_SIZE).filter(|i| p.active >> i & 1 != 0) {
+                let h = hp.get(i);
+                let Some(inst) = w.instances.get(h.instance as usize).filter(|_| h.is_hit()) else { continue };
+                if inst.0 == 0 {
+                    prop_assert!(mask.covers(&w.meshes[0], h.primitive, h.u, h.v), "lane {i} hit a hole: {h:?}");
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn a_mask_with_holes_lets_rays_through_and_blocks_elsewhere() {
+    // One quad facing -z at z = 1, its left half covered (s < 0.5), its right half a hole.
+    let quad = Mesh {
+        uvs: Some(vec![
+            glam::Vec2::new(0.0, 1.0),
+            glam::Vec2::new(1.0, 1.0),
+            glam::Vec2::new(1.0, 0.0),
+            glam::Vec2::new(0.0, 0.0),
+        ]),
+        ..Mesh::from_triangles(
+            vec![
+                Vec3::new(-1.0, -1.0, 1.0),
+                Vec3::new(1.0, -1.0, 1.0),
+                Vec3::new(1.0, 1.0, 1.0),
+                Vec3::new(-1.0, 1.0, 1.0),
+            ],
+            vec![[0, 1, 2], [0, 2, 3]],
+        )
+        .expect("a quad")
+    };
+    let mut scene = Scene::new();
+    let id = scene.add_object(quad);
+    scene.add_instance(id, Affine3A::IDENTITY).expect("identity");
+    scene.commit();
+    let bits: Vec<bool> = (0..64).map(|i| i % 8 < 4).collect();
+    let ray = |x: f32| Ray::new(Vec3A::new(x, 0.1, 0.0), Vec3A::Z);
+    assert!(scene.intersect(&ray(-0.5)).is_hit() && scene.intersect(&ray(0.5)).is_hit(), "solid before masking");
+    scene.set_object_alpha_mask(id, mask_of(&bits).map(std::sync::Arc::new)).expect("object exists");
+    assert!(scene.intersect(&ray(-0.5)).is_hit());
+    assert!(!scene.intersect(&ray(0.5)).is_hit(), "the right half is a hole");
+    assert!(scene.occluded(&ray(-0.5)));
+    assert!(!scene.occluded(&ray(0.5)));
+    let mut p = RayPacket::new();
+    for i in 0..PACKET_SIZE {
+        p.set(i, &ray(-0.9 + 1.8 * i as f32 / 63.0));
+    }
+    let occ = scene.occluded_packet(&p);
+    assert_eq!(occ, (1u64 << 32) - 1, "the 32 left lanes are blocked, the right ones pass");
 }
 
 #[test]

@@ -456,6 +456,35 @@ fn shared_scene_ribs_parse_without_errors() {
     }
 }
 
+#[test]
+fn example_ribs_parse_and_every_mesh_file_they_name_exists() {
+    // The scenes under examples/ name meshes in ../shared/scenes, which a checkout may lack.
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let shared = root.join("../shared/scenes").is_dir();
+    let mut files = Vec::new();
+    let mut dirs = vec![root.join("examples")];
+    while let Some(dir) = dirs.pop() {
+        for entry in std::fs::read_dir(&dir).unwrap().flatten() {
+            let path = entry.path();
+            if path.is_dir() {
+                dirs.push(path);
+            } else if path.extension().is_some_and(|e| e == "rib") {
+                files.push(path);
+            }
+        }
+    }
+    assert!(files.iter().any(|f| f.ends_with("forest/forest.rib")), "{files:?}");
+    for file in files {
+        let parsed = rib::parse_file(&file).unwrap();
+        assert!(!parsed.has_errors(), "{}: {:?}", file.display(), messages(&parsed));
+        for request in &parsed.requests {
+            if let (K::MeshArchive(mesh), true) = (&request.kind, shared) {
+                assert!(mesh.is_file(), "{}: {} is missing", request.loc, mesh.display());
+            }
+        }
+    }
+}
+
 /// Parses, then converts every request's geometry: neither may panic.
 fn parse_and_mesh(bytes: &[u8]) {
     let parsed = rib::parse_bytes(bytes, Path::new("fuzz.rib"));

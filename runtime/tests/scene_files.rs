@@ -238,3 +238,67 @@ fn broken_model_files_are_errors_naming_the_file() {
         }
     }
 }
+
+/// An 8x8 RGBA picture whose left half (s < 0.5) is opaque white and right half transparent.
+fn write_cutout(path: &Path) {
+    let img = image::RgbaImage::from_fn(8, 8, |x, _| image::Rgba(if x < 4 { [255; 4] } else { [255, 255, 255, 0] }));
+    img.save(path).expect("write the cut-out picture");
+}
+
+#[test]
+fn a_retained_object_holds_every_material_of_a_mesh_file_and_its_cut_outs() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    write_cutout(&dir.path().join("cutout.png"));
+    std::fs::write(dir.path().join("card.mtl"), "newmtl leaf\nKd 1 0 0\nmap_Kd cutout.png\nnewmtl bark\nKd 0 0 1\n")
+        .expect("write the mtl");
+    // A leaf card above y = 0 (s across x) and a bark card below.
+    std::fs::write(
+        dir.path().join("card.obj"),
+        "mtllib card.mtl\nv -1 0 0\nv 1 0 0\nv 1 1 0\nv -1 1 0\nv -1 -1 0\nv 1 -1 0\nv 1 -0.1 0\nv -1 -0.1 0\n\
+         vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nusemtl leaf\nf 1/1 2/2 3/3 4/4\nusemtl bark\nf 5/1 6/2 7/3 8/4\n",
+    )
+    .expect("write the obj");
+    let rib = format!(
+        r#"{CAMERA}
+        Surface "constant"
+        ObjectBegin "tree"
+          TransformBegin Translate 0 0 0.5 ReadArchive "card.obj" TransformEnd
+        ObjectEnd
+        ObjectInstance "tree"
+        WorldEnd"#
+    );
+    let mut rt = Context::new();
+    let loaded = load_str(&mut rt, &rib, &dir.path().join("scene.rib")).unwrap_or_else(|e| panic!("{e}"));
+    assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+    let world = rt.build_world().expect("a world");
+    assert_eq!(world.scene.instance_count(), 2, "one ObjectInstance places the leaf and the bark objects");
+    let (fb, _) = render_frame(&world, None);
+    // Rows 17 (y = 0.5) and 31 (y = -0.5); columns 26 (x = -0.5) and 38 (x = 0.5).
+    assert_eq!(fb.pixel(26, 17), [1.0, 0.0, 0.0, 1.0], "the covered half of the leaf card");
+    assert_eq!(fb.pixel(38, 17)[3], 0.0, "the cut-out half lets the ray through");
+    assert_eq!(fb.pixel(38, 31), [0.0, 0.0, 1.0, 1.0], "the bark card has no mask");
+}
+
+#[test]
+fn the_alphamask_attribute_cuts_rib_geometry_until_its_block_ends() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    write_cutout(&dir.path().join("cutout.png"));
+    let square = r#"Polygon "P" [-1 -1 0  1 -1 0  1 1 0  -1 1 0] "st" [0 0  1 0  1 1  0 1]"#;
+    let rib = format!(
+        r#"{CAMERA}
+        Surface "constant"
+        AttributeBegin
+          Attribute "trace" "string alphamask" ["cutout.png"]
+          Translate 0 0.7 0 Scale 1 0.5 1 {square}
+        AttributeEnd
+        Translate 0 -0.7 0 Scale 1 0.5 1 {square}
+        WorldEnd"#
+    );
+    let mut rt = Context::new();
+    let loaded = load_str(&mut rt, &rib, &dir.path().join("scene.rib")).unwrap_or_else(|e| panic!("{e}"));
+    assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+    let fb = render(&mut rt);
+    assert_eq!(fb.pixel(26, 14)[3], 1.0, "s < 0.5 of the masked square");
+    assert_eq!(fb.pixel(38, 14)[3], 0.0, "s > 0.5 of the masked square is cut");
+    assert_eq!(fb.pixel(38, 34)[3], 1.0, "the square after the block is whole");
+}

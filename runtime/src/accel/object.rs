@@ -5,7 +5,7 @@
 //! gives both the triangle to test and the primitive id to report.
 
 use super::bvh4::{BuildQuality, Bvh4};
-use crate::geometry::{triangle::PreTriangle, Mesh};
+use crate::geometry::{triangle::PreTriangle, AlphaMask, Mesh};
 use glam::Vec3A;
 use obvhs::aabb::Aabb;
 use rayon::prelude::*;
@@ -62,12 +62,24 @@ pub struct Object {
     pub mesh: Arc<Mesh>,
     /// Its BVH.
     pub bvh: ObjectBvh,
+    /// Cut-outs: where the mask is uncovered the object has no surface.
+    pub alpha: Option<Arc<AlphaMask>>,
 }
 
 impl Object {
     /// Builds an object from a mesh.
     pub fn new(mesh: Arc<Mesh>, quality: BuildQuality) -> Self {
         let bvh = ObjectBvh::build(&mesh, quality);
-        Object { mesh, bvh }
+        Object { mesh, bvh, alpha: None }
+    }
+
+    /// Whether a candidate hit of triangle `primitive` at barycentrics `(u, v)` is on the surface
+    /// (not in a cut-out of the alpha mask).
+    #[inline(always)]
+    pub fn solid_at(&self, primitive: u32, u: f32, v: f32) -> bool {
+        match &self.alpha {
+            None => true,
+            Some(mask) => mask.covers(&self.mesh, primitive, u, v),
+        }
     }
 }

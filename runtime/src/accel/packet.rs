@@ -433,11 +433,16 @@ fn intersect_object(
         for slot in first as usize..(first + count) as usize {
             let primitive = order[slot];
             leaf_triangle(g, s, &tris[slot], mask, |c, mut bits, t, u, v, s| {
-                if let Some(f) = filter {
+                if filter.is_some() || obj.alpha.is_some() {
                     let mut b = bits;
                     while b != 0 {
                         let j = b.trailing_zeros() as usize;
                         b &= b - 1;
+                        if !obj.solid_at(primitive, u[j], v[j]) {
+                            bits &= !(1 << j);
+                            continue;
+                        }
+                        let Some(f) = filter else { continue };
                         let cand = HitCandidate {
                             t: t[j],
                             u: u[j],
@@ -496,11 +501,16 @@ fn occluded_object(
         for slot in first as usize..(first + count) as usize {
             let primitive = order[slot];
             leaf_triangle(g, s, &tris[slot], mask, |c, mut bits, t, u, v, s| {
-                if let Some(f) = filter {
+                if filter.is_some() || obj.alpha.is_some() {
                     let mut b = bits;
                     while b != 0 {
                         let j = b.trailing_zeros() as usize;
                         b &= b - 1;
+                        if !obj.solid_at(primitive, u[j], v[j]) {
+                            bits &= !(1 << j);
+                            continue;
+                        }
+                        let Some(f) = filter else { continue };
                         let cand = HitCandidate {
                             t: t[j],
                             u: u[j],

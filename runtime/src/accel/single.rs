@@ -234,6 +234,9 @@ pub(crate) fn intersect_object(
         for s in first as usize..(first + count) as usize {
             if let Some((t, u, v)) = intersect_accept(ray.o, ray.d, &tris[s], ray.tmin, ray.tmax) {
                 let primitive = order[s];
+                if !obj.solid_at(primitive, u, v) {
+                    continue;
+                }
                 if let Some(f) = filter {
                     let c = HitCandidate { t, u, v, instance: inst_id, object: object_id, primitive, lane };
                     if !f(&c) {
@@ -264,6 +267,9 @@ pub(crate) fn occluded_object(
     traverse::<false, _, _>(&obj.bvh.bvh, 0, ray, pf, |first, count, ray| {
         for s in first as usize..(first + count) as usize {
             if let Some((t, u, v)) = intersect_accept(ray.o, ray.d, &tris[s], ray.tmin, ray.tmax) {
+                if !obj.solid_at(order[s], u, v) {
+                    continue;
+                }
                 match filter {
                     None => return true,
                     Some(f) => {
@@ -363,6 +369,9 @@ pub(crate) fn intersect_brute_force(top: &TopLevel, objects: &[Object], ray: &Ra
             let (t, u, v) = intersect(r.o, r.d, tri);
             if accept(t, u, v, ray.tmin, tmax) {
                 let primitive = obj.bvh.bvh.prim_order[s];
+                if !obj.solid_at(primitive, u, v) {
+                    continue;
+                }
                 if let Some(f) = filter {
                     let c = HitCandidate { t, u, v, instance: i as u32, object: inst.object, primitive, lane: 0 };
                     if !f(&c) {
@@ -386,7 +395,7 @@ pub(crate) fn occluded_brute_force(top: &TopLevel, objects: &[Object], ray: &Ray
         let r = RayPre::of(ray).in_object_space(inst);
         for (s, tri) in obj.bvh.tris.iter().enumerate() {
             let (t, u, v) = intersect(r.o, r.d, tri);
-            if accept(t, u, v, ray.tmin, ray.tmax) {
+            if accept(t, u, v, ray.tmin, ray.tmax) && obj.solid_at(obj.bvh.bvh.prim_order[s], u, v) {
                 let ok = filter.is_none_or(|f| {
                     f(&HitCandidate {
                         t,

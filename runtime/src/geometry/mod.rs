@@ -5,9 +5,11 @@
 //! [`triangle::intersect`] formula, so they compute bit-identical `t`, `u` and `v` for the same ray
 //! and triangle.
 
+pub mod alpha;
 pub mod mesh;
 pub mod quadric;
 pub mod triangle;
 
+pub use alpha::AlphaMask;
 pub use mesh::{Attribute, Mesh, MeshError};
 pub use quadric::{Quadric, Tessellation};

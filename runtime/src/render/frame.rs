@@ -139,7 +139,7 @@ impl std::fmt::Display for FrameReport {
         let m = |n: u64| n as f64 / 1e6;
         write!(
             f,
-            "{:.1} ms, {:.2} M rays ({:.2} primary, {:.2} shadow, {:.2} secondary, {:.2} transparency), {:.2} M rays/s, {:.2} M shaded points, {:.0}% of the time shading{}; BVH update {:.2} ms ({} object{} rebuilt {:.2} ms, top level over {} instances {:.2} ms), {:.1} MB of geometry",
+            "{:.1} ms, {:.2} M rays ({:.2} primary, {:.2} shadow, {:.2} secondary, {:.2} transparency), {:.2} M rays/s, {:.2} M shaded points, {:.0}% of the time shading{}; BVH update {:.2} ms ({} object{} rebuilt {:.2} ms, top level over {} instances {:.2} ms), {:.1} MB of geometry for {:.2} M triangles after instancing",
             self.elapsed.as_secs_f64() * 1e3,
             m(self.total_rays()),
             m(self.primary_rays),
@@ -157,6 +157,7 @@ impl std::fmt::Display for FrameReport {
             self.accel.instances,
             self.accel.top_level.as_secs_f64() * 1e3,
             self.accel.memory_bytes as f64 / 1e6,
+            m(self.accel.instanced_triangles as u64),
         )
     }
 }

@@ -250,6 +250,8 @@ pub struct AccelUpdate {
     pub instances: usize,
     /// Heap bytes of meshes and BVHs (each object once however often instanced).
     pub memory_bytes: usize,
+    /// Triangles after instancing (each instance counts its object's triangles).
+    pub instanced_triangles: usize,
 }
 
 impl AccelUpdate {
@@ -311,6 +313,7 @@ impl World {
         self.accel.top_level = start.elapsed();
         self.accel.instances = self.scene.instance_count();
         self.accel.memory_bytes = self.scene.memory_bytes();
+        self.accel.instanced_triangles = self.scene.instanced_triangle_count();
         self.vertex_params = self
             .instances
             .iter()

@@ -10,11 +10,15 @@
 //! - Point-like shader parameters are in the space current at the shader statement.
 //! - Consecutive geometry under one set of attributes becomes one object (one BVH), instanced once;
 //!   `ObjectBegin/End` make a retained object placed by each `ObjectInstance`. The shader of a
-//!   retained object is the one current at `ObjectEnd`.
+//!   retained object is the one current at `ObjectEnd`; a mesh file read inside the block
+//!   (`ReadArchive "tree.obj"`) adds its objects, one per material with its own shader, to the
+//!   ones each `ObjectInstance` places.
 //! - `AreaLightSource`: the geometry that follows in the same attribute block both renders and emits
 //!   (sampled for soft shadows).
 //! - `ReadArchive` of an `.obj`, `.ply`, `.gltf` or `.glb` file adds those meshes under the current
 //!   attributes.
+//! - `Attribute "trace" "string alphamask" ["leaf.tga"]` (rtsl's own) cuts the geometry that
+//!   follows in the block where the texture's alpha is below one half (`Context::alpha_mask`).
 //!
 //! What cannot be honoured (a shader not found, a parameter the shader lacks or of the wrong type, a
 //! request the engine does not support yet) is a warning with the file, line and column, and
@@ -26,7 +30,7 @@ use super::request::{Handle, Param, ParamValue as RibValue, Request, RequestKind
 use super::{parse_file, parse_str, RibParse, Severity};
 use crate::api::{ApiError, Context, LightId, ObjectId};
 use crate::geometry::Mesh;
-use crate::scene_file::{add_model_file, SceneFileError};
+use crate::scene_file::{add_model_file, add_model_file_placed, Placement, SceneFileError};
 use crate::shading::{ParamValue, ShaderProgram};
 use glam::{Affine3A, Mat4, Vec3};
 use rtsl_compiler::ir::BaseType;
@@ -100,9 +104,10 @@ struct Loader<'a> {
     stack: Vec<State>,
     /// Geometry gathered for one object: the object and the transform it is placed with.
     pending: Option<(ObjectId, Affine3A, Affine3A)>,
-    /// Inside `ObjectBegin`: the retained object being built.
-    retained: Option<ObjectId>,
-    objects: HashMap<Handle, ObjectId>,
+    /// Inside `ObjectBegin`: its handle, and the space its geometry is in.
+    retained: Option<(Handle, Affine3A)>,
+    /// The API objects of each retained object (more than one when it read a mesh file).
+    objects: HashMap<Handle, Vec<ObjectId>>,
     lights: HashMap<Handle, LightId>,
     /// World-space emitting triangles per area light.
     area_meshes: HashMap<u32, Vec<Mesh>>,
@@ -375,9 +380,10 @@ impl<'a> Loader<'a> {
                 }
             }
             K::ObjectBegin(h) => {
+                let frame = rt.current_matrix();
                 let id = rt.begin_object()?;
-                self.objects.insert(h.clone(), id);
-                self.retained = Some(id);
+                self.objects.insert(h.clone(), vec![id]);
+                self.retained = Some((h.clone(), frame));
             }
             K::ObjectEnd => {
                 if self.retained.take().is_some() {
@@ -387,8 +393,10 @@ impl<'a> Loader<'a> {
                 }
             }
             K::ObjectInstance(h) => match self.objects.get(h) {
-                Some(id) => {
-                    rt.instantiate_object(*id)?;
+                Some(ids) => {
+                    for id in ids {
+                        rt.instantiate_object(*id)?;
+                    }
                 }
                 None => self.warn(r, "ObjectInstance names no object"),
             },
@@ -444,10 +452,22 @@ impl<'a> Loader<'a> {
             K::ScreenWindow(_) | K::CropWindow(_) | K::FrameAspectRatio(_) | K::PixelFilter { .. } => {
                 self.warn(r, "this request is accepted but not honoured yet")
             }
-            K::MeshArchive(path) => {
-                self.flush()?;
-                add_model_file(self.rt, path)?;
-            }
+            K::MeshArchive(path) => match self.retained.clone() {
+                None => {
+                    self.flush()?;
+                    add_model_file(self.rt, path)?;
+                }
+                Some((handle, frame)) => {
+                    // The file's objects join the retained one; the block's own geometry goes on
+                    // into a fresh object, whatever became of the file.
+                    self.rt.end_object()?;
+                    let mut ids = Vec::new();
+                    let added = add_model_file_placed(self.rt, path, Placement::Retained { frame, objects: &mut ids });
+                    ids.push(self.rt.begin_object_in(frame)?);
+                    self.objects.entry(handle).or_default().extend(ids);
+                    added?;
+                }
+            },
         }
         Ok(())
     }
@@ -463,6 +483,8 @@ impl<'a> Loader<'a> {
             match (name, p.name.as_str()) {
                 ("light", "shadows") => self.shadows = s.map_or(f.unwrap_or(1.0) != 0.0, |s| s == "on"),
                 ("shade", "transmissionhitmode") => self.rt.shadows_from_shader(s == Some("shader")),
+                // rtsl's own: cut-outs by a texture's alpha ("" for none); see `Context::alpha_mask`.
+                ("trace", "alphamask") => self.rt.alpha_mask(s.filter(|s| !s.is_empty())),
                 ("identifier", _) | ("visibility", _) | ("displacementbound", _) => {}
                 ("trace", "maxdiffusedepth" | "maxspeculardepth") => {}
                 ("light", "nsamples") | ("light", "samples") => {
