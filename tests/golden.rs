@@ -163,6 +163,19 @@ fn every_library_surface_shader_matches_its_reference() {
 }
 
 #[test]
+fn the_library_displacement_shader_matches_its_reference() {
+    // `bumpy` over the grid texture: the grid's lines raise ridges on the plastic sphere (as bump
+    // mapping: the sphere's outline stays round).
+    let grid = golden_dir().join("textures").join("grid.png").display().to_string();
+    let surface = format!(
+        "Surface \"plastic\" Color [.9 .3 .2] Displacement \"bumpy\" \"amplitude\" [.02] \"texturename\" \"{grid}\""
+    );
+    if let Err(e) = check("displacement_bumpy", &render_rib("bumpy", &surface_scene(&surface))) {
+        panic!("{e}");
+    }
+}
+
+#[test]
 fn every_library_light_shader_matches_its_reference() {
     let lights = [
         ("pointlight", "LightSource \"pointlight\" 1 \"intensity\" [25] \"from\" [2 4 -3]"),

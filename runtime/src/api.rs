@@ -154,6 +154,8 @@ struct Appearance {
     surface: Option<Binding>,
     /// The volume shader of the inside of objects built from now on (RIB `Interior`).
     interior: Option<Binding>,
+    /// The displacement shader of objects built from now on (RIB `Displacement`).
+    displacement: Option<Binding>,
     shadow_by_shader: bool,
     /// The texture whose alpha cuts objects built from now on ([`Context::alpha_mask`]).
     alpha_mask: Option<String>,
@@ -166,6 +168,7 @@ impl Default for Appearance {
             opacity: [1.0; 3],
             surface: None,
             interior: None,
+            displacement: None,
             shadow_by_shader: false,
             alpha_mask: None,
         }
@@ -683,6 +686,16 @@ impl Context {
         Ok(())
     }
 
+    /// The displacement shader (RenderMan's `Displacement`) of objects built from now on, an
+    /// attribute like the surface shader. It runs on every hit before the surface shader, and the
+    /// normal it leaves is the surface shader's `N`: displacement as bump mapping. The traced
+    /// geometry does not move (silhouettes and shadows keep the undisplaced shape) and `P` stays on
+    /// it (`docs/rendering.md`). `None` removes it.
+    pub fn displacement(&mut self, shader: Option<ShaderId>, params: &[(&str, ParamValue)]) -> Result<(), ApiError> {
+        self.appearance.displacement = self.kind_binding(ShaderKind::Displacement, shader, params)?;
+        Ok(())
+    }
+
     /// The interior volume shader (RenderMan's `Interior`) of objects built from now on, an
     /// attribute like the surface shader (saved by `push_attributes`): it runs on ray segments that
     /// reach such an object's surface from behind, i.e. travel inside it (`docs/volumes.md`).
@@ -698,8 +711,18 @@ impl Context {
         shader: Option<ShaderId>,
         params: &[(&str, ParamValue)],
     ) -> Result<Option<Binding>, ApiError> {
+        self.kind_binding(ShaderKind::Volume, shader, params)
+    }
+
+    /// A binding of a shader of `kind` with its values checked now; `None` for `None`.
+    fn kind_binding(
+        &self,
+        kind: ShaderKind,
+        shader: Option<ShaderId>,
+        params: &[(&str, ParamValue)],
+    ) -> Result<Option<Binding>, ApiError> {
         let Some(id) = shader else { return Ok(None) };
-        let program = self.expect_kind(id, ShaderKind::Volume)?;
+        let program = self.expect_kind(id, kind)?;
         for (name, value) in params {
             crate::shading::bind_param(&program, name, value, &self.matrix)?;
         }
@@ -1258,9 +1281,12 @@ impl Context {
             let a = &rec.appearance;
             let surface = a.surface.as_ref().map(|b| self.instance_for(b, &mut warnings)).transpose()?.map(Arc::new);
             let interior = a.interior.as_ref().map(|b| self.instance_for(b, &mut warnings)).transpose()?.map(Arc::new);
+            let displacement =
+                a.displacement.as_ref().map(|b| self.instance_for(b, &mut warnings)).transpose()?.map(Arc::new);
             materials.push(Material {
                 surface,
                 interior,
+                displacement,
                 color: a.color,
                 opacity: a.opacity,
                 shadow_by_shader: a.shadow_by_shader,

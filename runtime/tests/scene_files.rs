@@ -302,3 +302,51 @@ fn the_alphamask_attribute_cuts_rib_geometry_until_its_block_ends() {
     assert_eq!(fb.pixel(38, 14)[3], 0.0, "s > 0.5 of the masked square is cut");
     assert_eq!(fb.pixel(38, 34)[3], 1.0, "the square after the block is whole");
 }
+
+#[test]
+fn a_displacement_shader_bumps_the_normal_the_surface_shader_sees() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    // Ridges across s: a height of 0.5 + 0.5 sin(2 pi s * 4).
+    let ridges = image::GrayImage::from_fn(64, 8, |x, _| {
+        image::Luma([(127.5 + 127.5 * (std::f32::consts::TAU * x as f32 / 16.0).sin()) as u8])
+    });
+    ridges.save(dir.path().join("ridges.png")).expect("write the height map");
+    let scene = |displacement: &str| {
+        format!(
+            r#"{CAMERA}
+            LightSource "distantlight" 1 "from" [-1 0.3 -1] "to" [0 0 0]
+            Surface "matte"
+            {displacement}
+            Polygon "P" [-1.5 -1 0  1.5 -1 0  1.5 1 0  -1.5 1 0] "st" [0 0  1 0  1 1  0 1]
+            WorldEnd"#
+        )
+    };
+    let row = |displacement: &str| {
+        let mut rt = Context::new();
+        let loaded =
+            load_str(&mut rt, &scene(displacement), &dir.path().join("scene.rib")).unwrap_or_else(|e| panic!("{e}"));
+        assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+        let fb = render(&mut rt);
+        (14..50).map(|x| fb.pixel(x, 24)[0]).collect::<Vec<f32>>()
+    };
+    let spread = |r: &[f32]| {
+        r.iter().copied().fold(f32::NEG_INFINITY, f32::max) - r.iter().copied().fold(f32::INFINITY, f32::min)
+    };
+    let flat = row("");
+    assert!(spread(&flat) < 1e-4, "an unbumped plane under a distant light is even: {flat:?}");
+    let bumped = row(r#"Displacement "bumpy" "amplitude" [0.05] "texturename" ["ridges.png"]"#);
+    assert!(spread(&bumped) > 0.2, "the ridges turn the normal: {bumped:?}");
+    assert_eq!(row(r#"Displacement "bumpy" "amplitude" [0]"#), flat, "no height, no change");
+    // The geometry does not move: the same pixels are covered.
+    let mut rt = Context::new();
+    load_str(
+        &mut rt,
+        &scene(r#"Displacement "bumpy" "amplitude" [0.5] "texturename" ["ridges.png"]"#),
+        &dir.path().join("s.rib"),
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    let covered = render(&mut rt).rgba.chunks(4).filter(|p| p[3] > 0.5).count();
+    let mut rt = Context::new();
+    load_str(&mut rt, &scene(""), &dir.path().join("s.rib")).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(covered, render(&mut rt).rgba.chunks(4).filter(|p| p[3] > 0.5).count());
+}

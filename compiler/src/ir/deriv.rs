@@ -125,6 +125,9 @@ pub fn has_difference_rule(b: Builtin) -> bool {
             | Builtin::Acos
             | Builtin::Atan
             | Builtin::InverseSqrt
+            // Bump and displacement maps (RISpec's `bumpy`): the height read at the moved
+            // coordinates, each lookup filtered by the coordinates' own footprint.
+            | Builtin::Texture
     )
 }
 

@@ -20,7 +20,7 @@ use super::primary::PrimaryRays;
 use super::stats::{tracing, ShadingTimer, Stats};
 use super::world::{InstanceShading, World, DEFAULT_MATERIAL};
 use crate::ray::{offset_ray_origin, Hit, HitPacket, Ray, PACKET_SIZE};
-use crate::shading::{get3, put1, put3, with_batch, Slot};
+use crate::shading::{get3, put1, put3, with_batch, ShaderInstance, Slot};
 use glam::{Affine3A, Vec3A};
 use rtsl_compiler::back::jit::RawBatch;
 
@@ -279,7 +279,7 @@ impl HitGeometry {
 /// What every hit on one instance shares: its mesh and transforms.
 struct InstanceGeometry<'a> {
     mesh: &'a crate::geometry::Mesh,
-    world_from_object: glam::Affine3A,
+    world_from_object: Affine3A,
     normal_xf: glam::Mat3A,
     /// The tracer's instance, when it moves (its transform then depends on the ray's time).
     moving: Option<&'a crate::accel::top::InstanceData>,
@@ -413,9 +413,12 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
     let Some(inst) = world.instances.get(group[0].hit.instance as usize) else { return };
     let material = world.materials.get(inst.material as usize).unwrap_or(&DEFAULT_MATERIAL);
     let Some(ig) = InstanceGeometry::new(world, inst, group[0].hit.instance) else { return };
-    let geoms: Vec<Option<HitGeometry>> = group.iter().map(|p| hit_geometry(&ig, &p.hit, p.ray.time)).collect();
+    let mut geoms: Vec<Option<HitGeometry>> = group.iter().map(|p| hit_geometry(&ig, &p.hit, p.ray.time)).collect();
     let color = Vec3A::from(material.color);
     let opacity = Vec3A::from(material.opacity);
+    if let Some(displacement) = &material.displacement {
+        displace(frame, displacement, inst.world_from_object, group, &mut geoms, (color, opacity), depth);
+    }
     if let Some(native) = &material.native {
         shade_native(frame, native, group, &geoms, color, opacity, depth, out);
         return;
@@ -432,60 +435,18 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
         }
         return;
     };
+    let vertex_params = world.vertex_params.get(group[0].hit.instance as usize);
     let program = &surface.program;
     let slots = &program.slots;
-    let vertex_params = world.vertex_params.get(group[0].hit.instance as usize);
-    let deriv_slots = program.layout().deriv_slots;
-    let needs_derivs = deriv_slots > 0 || slots.du.is_some() || slots.dv.is_some();
     let mut footprints = vec![[Vec3A::ZERO; 2]; group.len()];
     with_batch(program, group.len(), |batch| {
         {
             let mut raw = batch.raw_mut();
             surface.write_params(&mut raw);
-            for (lane, (p, g)) in group.iter().zip(&geoms).enumerate() {
-                let Some(g) = g else {
-                    raw.mask[lane] = 0;
-                    continue;
-                };
-                let e = p.ray.origin;
-                put3(&mut raw, slots.p, lane, g.p);
-                put3(&mut raw, slots.n, lane, g.n);
-                put3(&mut raw, slots.ng, lane, g.ng);
-                put3(&mut raw, slots.i, lane, g.p - e);
-                put3(&mut raw, slots.e, lane, e);
-                put1(&mut raw, slots.u, lane, g.uv[0]);
-                put1(&mut raw, slots.v, lane, g.uv[1]);
-                put1(&mut raw, slots.s, lane, g.st[0]);
-                put1(&mut raw, slots.t, lane, g.st[1]);
-                put3(&mut raw, slots.dpdu, lane, g.dpdu);
-                put3(&mut raw, slots.dpdv, lane, g.dpdv);
-                let os = g.os.unwrap_or(opacity);
-                put3(&mut raw, slots.cs, lane, g.cs.unwrap_or(color));
-                put3(&mut raw, slots.os, lane, os);
-                put3(&mut raw, slots.oi, lane, os);
-                put1(&mut raw, slots.ncomps, lane, 3.0);
-                put1(&mut raw, slots.time, lane, p.ray.time);
-                // The full set of derivatives only for shaders that use them (they cost a few
-                // solves per hit); the footprint, for rays continuing through, always.
-                if needs_derivs {
-                    let d = g.derivs(p);
-                    put1(&mut raw, slots.du, lane, d.du[0].abs().max(d.du[1].abs()));
-                    put1(&mut raw, slots.dv, lane, d.dv[0].abs().max(d.dv[1].abs()));
-                    if deriv_slots > 0 {
-                        put_d3(&mut raw, slots.p, deriv_slots, lane, d.dp);
-                        put_d3(&mut raw, slots.i, deriv_slots, lane, d.dp);
-                        put_d3(&mut raw, slots.n, deriv_slots, lane, d.dn);
-                        put_d1(&mut raw, slots.u, deriv_slots, lane, d.du);
-                        put_d1(&mut raw, slots.v, deriv_slots, lane, d.dv);
-                        put_d1(&mut raw, slots.s, deriv_slots, lane, d.ds);
-                        put_d1(&mut raw, slots.t, deriv_slots, lane, d.dt);
-                    }
-                    footprints[lane] = d.dp;
-                } else {
-                    let (dx, dy) = p.diff.at_hit(p.ray.direction, p.hit.t, g.ng);
-                    footprints[lane] = [dx, dy];
-                }
-                if let Some(vp) = vertex_params {
+            fill_hit_globals(&mut raw, program, group, &geoms, (color, opacity), &mut footprints);
+            if let Some(vp) = vertex_params {
+                for (lane, g) in geoms.iter().enumerate() {
+                    let Some(g) = g else { continue };
                     for &(param, attr) in vp {
                         let slot = &program.layout().params[param];
                         if let Some(values) = g.attributes.get(attr) {
@@ -495,13 +456,6 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
                             raw.bound[param] = 1;
                         }
                     }
-                }
-            }
-            if let Some(seed) = program.layout().seed {
-                for (lane, g) in geoms.iter().enumerate() {
-                    let h = g.as_ref().map_or(0, |g| point_seed(g.p));
-                    raw.varying[seed * raw.stride + lane] = f32::from_bits(h as u32);
-                    raw.varying[(seed + 1) * raw.stride + lane] = f32::from_bits((h >> 32) as u32);
                 }
             }
         }
@@ -525,6 +479,110 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
                 dpdx: footprints[lane][0],
                 dpdy: footprints[lane][1],
             };
+        }
+    });
+}
+
+/// Writes the globals of a batch of hits on one material and instance (lanes without geometry are
+/// masked off), with their screen-space derivatives when `program` uses them, and the seed of its
+/// random numbers; `footprints[lane]` gets the hit's dP/dx and dP/dy either way.
+fn fill_hit_globals(
+    raw: &mut RawBatch<'_>,
+    program: &crate::shading::ShaderProgram,
+    group: &[Pending],
+    geoms: &[Option<HitGeometry>],
+    (color, opacity): (Vec3A, Vec3A),
+    footprints: &mut [[Vec3A; 2]],
+) {
+    let slots = &program.slots;
+    let deriv_slots = program.layout().deriv_slots;
+    let needs_derivs = deriv_slots > 0 || slots.du.is_some() || slots.dv.is_some();
+    for (lane, (p, g)) in group.iter().zip(geoms).enumerate() {
+        let Some(g) = g else {
+            raw.mask[lane] = 0;
+            continue;
+        };
+        let e = p.ray.origin;
+        put3(raw, slots.p, lane, g.p);
+        put3(raw, slots.n, lane, g.n);
+        put3(raw, slots.ng, lane, g.ng);
+        put3(raw, slots.i, lane, g.p - e);
+        put3(raw, slots.e, lane, e);
+        put1(raw, slots.u, lane, g.uv[0]);
+        put1(raw, slots.v, lane, g.uv[1]);
+        put1(raw, slots.s, lane, g.st[0]);
+        put1(raw, slots.t, lane, g.st[1]);
+        put3(raw, slots.dpdu, lane, g.dpdu);
+        put3(raw, slots.dpdv, lane, g.dpdv);
+        let os = g.os.unwrap_or(opacity);
+        put3(raw, slots.cs, lane, g.cs.unwrap_or(color));
+        put3(raw, slots.os, lane, os);
+        put3(raw, slots.oi, lane, os);
+        put1(raw, slots.ncomps, lane, 3.0);
+        put1(raw, slots.time, lane, p.ray.time);
+        // The full set of derivatives only for shaders that use them (they cost a few solves per
+        // hit); the footprint, for rays continuing through, always.
+        if needs_derivs {
+            let d = g.derivs(p);
+            put1(raw, slots.du, lane, d.du[0].abs().max(d.du[1].abs()));
+            put1(raw, slots.dv, lane, d.dv[0].abs().max(d.dv[1].abs()));
+            if deriv_slots > 0 {
+                put_d3(raw, slots.p, deriv_slots, lane, d.dp);
+                put_d3(raw, slots.i, deriv_slots, lane, d.dp);
+                put_d3(raw, slots.n, deriv_slots, lane, d.dn);
+                put_d1(raw, slots.u, deriv_slots, lane, d.du);
+                put_d1(raw, slots.v, deriv_slots, lane, d.dv);
+                put_d1(raw, slots.s, deriv_slots, lane, d.ds);
+                put_d1(raw, slots.t, deriv_slots, lane, d.dt);
+            }
+            footprints[lane] = d.dp;
+        } else {
+            let (dx, dy) = p.diff.at_hit(p.ray.direction, p.hit.t, g.ng);
+            footprints[lane] = [dx, dy];
+        }
+    }
+    if let Some(seed) = program.layout().seed {
+        for (lane, g) in geoms.iter().enumerate() {
+            let h = g.as_ref().map_or(0, |g| point_seed(g.p));
+            raw.varying[seed * raw.stride + lane] = f32::from_bits(h as u32);
+            raw.varying[(seed + 1) * raw.stride + lane] = f32::from_bits((h >> 32) as u32);
+        }
+    }
+}
+
+/// Runs a displacement shader over a group of hits as bump mapping: the `N` it leaves (when
+/// finite and not zero) replaces each hit's shading normal; `P` and the geometry stay where the
+/// ray met them. Vertex-scope parameters are bound for the surface shader only.
+fn displace(
+    frame: &Frame,
+    displacement: &ShaderInstance,
+    world_from_object: Affine3A,
+    group: &[Pending],
+    geoms: &mut [Option<HitGeometry>],
+    appearance: (Vec3A, Vec3A),
+    depth: u32,
+) {
+    let program = &displacement.program;
+    let mut footprints = vec![[Vec3A::ZERO; 2]; group.len()];
+    with_batch(program, group.len(), |batch| {
+        {
+            let mut raw = batch.raw_mut();
+            displacement.write_params(&mut raw);
+            fill_hit_globals(&mut raw, program, group, geoms, appearance, &mut footprints);
+        }
+        let mut call = ShadeCall::new(frame, displacement, world_from_object, depth);
+        call.batch_points = geoms.iter().map(|g| g.as_ref().map_or(Vec3A::ZERO, |g| g.p)).collect();
+        call.batch_mask = geoms.iter().map(|g| if g.is_some() { -1 } else { 0 }).collect();
+        call.batch_times = group.iter().map(|p| p.ray.time).collect();
+        let table = call.table();
+        program.code.shade_with_table(batch, &table);
+        let raw = batch.raw_mut();
+        for (lane, g) in geoms.iter_mut().enumerate() {
+            let Some(g) = g else { continue };
+            let n = get3(&raw, program.slots.n, lane, g.n);
+            if n.is_finite() && n != Vec3A::ZERO {
+                g.n = n;
+            }
         }
     });
 }

@@ -22,6 +22,9 @@ pub struct Material {
     /// The volume shader of the object's inside (RIB `Interior`): it runs on ray segments that
     /// reach this material's surface from behind (`render/volume.rs`).
     pub interior: Option<Arc<ShaderInstance>>,
+    /// The displacement shader, run before the surface shader as bump mapping (its `N` becomes
+    /// the surface shader's; the geometry does not move).
+    pub displacement: Option<Arc<ShaderInstance>>,
     /// An id the pixel shader and adaptive sampling may read (`objectid`).
     pub object_id: u32,
     /// Shade with hand-written Rust instead of `surface` (benchmarks of the JIT's cost only).
@@ -38,6 +41,7 @@ impl Material {
         opacity: [1.0; 3],
         shadow_by_shader: false,
         interior: None,
+        displacement: None,
         object_id: 0,
         native: None,
     };

@@ -447,7 +447,18 @@ impl<'a> Loader<'a> {
                     rt.interior(id, &params)?;
                 }
             }
-            K::Exterior(s) | K::Displacement(s) => self
+            K::Displacement(s) => {
+                // An empty name removes the binding.
+                let (id, params) = if s.name.is_empty() {
+                    (None, Vec::new())
+                } else {
+                    let id = rt.find_shader(&s.name)?;
+                    let program = rt.program(id)?.clone();
+                    (Some(id), typed_params(&program, &s.params, |p| &p.loc, &mut self.out.warnings))
+                };
+                rt.displacement(id, &params)?;
+            }
+            K::Exterior(s) => self
                 .warn(r, format_args!("shader \"{}\": this shader type is not rendered yet, so it is ignored", s.name)),
             K::ScreenWindow(_) | K::CropWindow(_) | K::FrameAspectRatio(_) | K::PixelFilter { .. } => {
                 self.warn(r, "this request is accepted but not honoured yet")

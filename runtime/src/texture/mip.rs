@@ -228,8 +228,7 @@ fn accumulate_bilinear(img: &TexImage, s: f32, t: f32, wrap: [Wrap; 2], first: u
     let (fx, fy) = (x - x0, y - y0);
     // Saturating casts: NaN becomes 0, huge values the ends of i64; wrapping keeps them in range.
     let (x0, y0) = (x0 as i64, y0 as i64);
-    let columns =
-        [wrap_index(x0, img.width(), wrap[0]), wrap_index(x0.saturating_add(1), img.width(), wrap[0])];
+    let columns = [wrap_index(x0, img.width(), wrap[0]), wrap_index(x0.saturating_add(1), img.width(), wrap[0])];
     for (dy, wy) in [(0, 1.0 - fy), (1, fy)] {
         let Some(iy) = wrap_index(y0.saturating_add(dy), img.height(), wrap[1]) else { continue };
         for (column, wx) in columns.iter().zip([1.0 - fx, fx]) {

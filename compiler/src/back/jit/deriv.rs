@@ -532,7 +532,11 @@ impl<'m> Lower<'m, '_> {
                     }
                     self.cache.insert((depth, x.0), Val { vary: true, c });
                 }
-                ends.push(self.builtin(bi, overload, args, e)?);
+                // The moved lookup filters by the arguments' tangents, as the interpreter's does.
+                let saved = std::mem::replace(&mut self.arg_duals, duals.to_vec());
+                let end = self.builtin(bi, overload, args, e);
+                self.arg_duals = saved;
+                ends.push(end?);
             }
             *o = (0..r.c.len())
                 .map(|i| {
