@@ -441,3 +441,58 @@ fn a_moved_instance_costs_only_the_top_level_and_an_edited_object_only_its_own_b
     assert!(edited.to_string().contains("BVH update"), "{edited}");
     Ok(())
 }
+
+/// A light whose colour is the lit surface's `Kd` (message passing from light to surface).
+const KD_LIGHT: &str = r#"
+light kdlight() {
+    float kd = -1;
+    if (surface("Kd", kd) == 0) kd = 0.25;
+    solar(vector(0, 0, -1), 0) Cl = kd;
+}"#;
+
+/// A surface that shows its displacement shader's `height` and `tint` and its light.
+const MESSAGES: &str = r#"
+surface messages(float Kd = 0.5;) {
+    float h = -1;
+    color tint = 0;
+    displacement("height", h);
+    displacement("tint", tint);
+    color lit = 0;
+    illuminance(P) { lit += Cl; }
+    Ci = color(h, comp(tint, 1), comp(lit, 0));
+    Oi = 1;
+}"#;
+
+const HEIGHT: &str = "displacement lift(float height = 0.75; color tint = color(0, 0.5, 0);) { }";
+
+#[test]
+fn shaders_read_the_parameters_of_the_shaders_bound_with_them() -> Result<(), ApiError> {
+    let mut rt = context();
+    let surface = rt.compile_shader("messages.sl", MESSAGES)?;
+    let lift = rt.compile_shader("lift.sl", HEIGHT)?;
+    let light = rt.compile_shader("kdlight.sl", KD_LIGHT)?;
+    rt.camera_look_at(Vec3A::new(0.0, 0.0, 5.0), Vec3A::ZERO, Vec3A::Y, 60.0);
+    rt.light_source(light, &[])?;
+    // Left: Kd bound to 0.9 and a displacement shader with its defaults but `tint`; right: Kd
+    // by default and no displacement shader.
+    let left = rt.begin_object()?;
+    rt.bind_shader(surface)?;
+    rt.parameter("Kd", ParamValue::Float(0.9))?;
+    rt.displacement(Some(lift), &[("tint", ParamValue::Color([0.0, 0.3, 0.0]))])?;
+    quad(&mut rt, [[-3.0, -1.0, 0.0], [-0.5, -1.0, 0.0], [-0.5, 1.0, 0.0], [-3.0, 1.0, 0.0]])?;
+    rt.end_object()?;
+    rt.displacement(None, &[])?;
+    let right = rt.begin_object()?;
+    rt.bind_shader(surface)?;
+    quad(&mut rt, [[0.5, -1.0, 0.0], [3.0, -1.0, 0.0], [3.0, 1.0, 0.0], [0.5, 1.0, 0.0]])?;
+    rt.end_object()?;
+    rt.instantiate_object(left)?;
+    rt.instantiate_object(right)?;
+    let (fb, _) = rt.render_frame()?;
+    let l = fb.pixel(W / 4, H / 2);
+    let r = fb.pixel(3 * W / 4, H / 2);
+    let near = |a: f32, b: f32| (a - b).abs() < 1e-5;
+    assert!(near(l[0], 0.75) && near(l[1], 0.3) && near(l[2], 0.9), "bound displacement and Kd: {l:?}");
+    assert!(near(r[0], -1.0) && near(r[1], 0.0) && near(r[2], 0.5), "no displacement, default Kd: {r:?}");
+    Ok(())
+}

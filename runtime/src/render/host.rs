@@ -40,6 +40,9 @@ pub(crate) struct ShadeCall<'f, 'w> {
     /// at every step, and finding it in the shared cache costs a lock, a hash and an atomic count.
     last_grid: Option<(String, Option<Arc<Grid>>)>,
     last_texture: Option<(String, Option<Arc<MipMap>>)>,
+    /// The material of the surface being shaded (for the surface's own shaders and the lights
+    /// that light it): what `surface()` and `displacement()` messages read.
+    pub(super) material: Option<u32>,
 }
 
 struct LightQuery {
@@ -71,6 +74,7 @@ impl<'f, 'w> ShadeCall<'f, 'w> {
             chunk_cursor: 0,
             last_grid: None,
             last_texture: None,
+            material: None,
         }
     }
 
@@ -239,7 +243,7 @@ unsafe extern "C" fn host_lights(
         if !light.in_category(category) {
             continue;
         }
-        eval_light(c.frame, light, mask, &points, &times, c.depth, out, counts);
+        eval_light(c.frame, light, c.material, mask, &points, &times, c.depth, out, counts);
     }
     let used = 4 * counts.iter().copied().max().unwrap_or(0) as usize;
     c.light_cache = Some(LightQuery {
@@ -291,7 +295,8 @@ fn serve_from_batch(
     }
     let chunk = c.chunk_cursor;
     if c.batch_lights.is_none() {
-        c.batch_lights = Some(BatchLights::compute(c.frame, &c.batch_points, &c.batch_mask, &c.batch_times, c.depth));
+        c.batch_lights =
+            Some(BatchLights::compute(c.frame, c.material, &c.batch_points, &c.batch_mask, &c.batch_times, c.depth));
     }
     let Some(table) = &c.batch_lights else { return false };
     for l in 0..4 {
@@ -626,6 +631,20 @@ unsafe extern "C" fn host_message(ctx: *mut c_void, which: u32, name: StrRef, ou
             1
         }
         (Builtin::Rendererinfo, "version") => floats(out, &[0.0, 1.0, 0.0, 0.0]),
+        // Message passing: the parameters of the shaders bound with the one running, as bound
+        // (or their constant defaults). Outputs a shader computes are not seen.
+        (Builtin::Surface | Builtin::Displacement, _) => {
+            let world = c.frame.world;
+            let material = c.material.and_then(|m| world.materials.get(m as usize));
+            let shader = match b {
+                Builtin::Surface => material.and_then(|m| m.surface.as_deref()),
+                _ => material.and_then(|m| m.displacement.as_deref()),
+            };
+            shader.map_or(0, |s| param_message(s, name, out, &mut c.text))
+        }
+        (Builtin::Atmosphere, _) => {
+            c.frame.world.atmosphere.as_deref().map_or(0, |s| param_message(s, name, out, &mut c.text))
+        }
         (Builtin::Rendererinfo, "versionstring") => {
             c.text = env!("CARGO_PKG_VERSION").to_string();
             out.kind = 4;
@@ -635,6 +654,64 @@ unsafe extern "C" fn host_message(ctx: *mut c_void, which: u32, name: StrRef, ou
         }
         _ => 0,
     }
+}
+
+/// Parameter `name` of `shader` (bound, or its constant default) as a message answer: 1 when found.
+fn param_message(shader: &ShaderInstance, name: &str, out: &mut MessageOut, text: &mut String) -> u32 {
+    use rtsl_compiler::interface::Value;
+    let Some((index, _)) = shader.program.layout().param(name) else { return 0 };
+    let Some(info) = shader.program.interface.parameters.get(index) else { return 0 };
+    let kind = match info.base {
+        rtsl_compiler::ir::BaseType::Float => 1,
+        rtsl_compiler::ir::BaseType::Matrix => 3,
+        rtsl_compiler::ir::BaseType::String => 4,
+        b if b.is_triple() => 2,
+        _ => return 0,
+    };
+    let bound = shader.params.iter().find(|p| p.index == index);
+    if kind == 4 {
+        let s = match (bound, &info.default) {
+            (Some(b), _) => b.string.clone(),
+            (None, Some(Value::String(s))) => Some(s.clone()),
+            _ => None,
+        };
+        let Some(s) = s.filter(|_| info.array_length.is_none()) else { return 0 };
+        *text = s;
+        out.kind = 4;
+        out.len = 0;
+        out.string = StrRef::new(text);
+        return 1;
+    }
+    // Constant defaults in the current space only (a default in a named space needs its matrix).
+    fn flatten(v: &Value, into: &mut Vec<f32>) -> bool {
+        match v {
+            Value::Float(x) => into.push(*x),
+            Value::Triple(t) if t.space.is_none() => into.extend(t.value),
+            Value::Matrix(m) if m.space.is_none() => into.extend(m.value),
+            Value::Array(items) => return items.iter().all(|x| flatten(x, into)),
+            _ => return false,
+        }
+        true
+    }
+    let mut floats = Vec::new();
+    match (bound, &info.default) {
+        (Some(b), _) => floats.extend_from_slice(&b.floats),
+        (None, Some(v)) if flatten(v, &mut floats) => {}
+        _ => return 0,
+    }
+    let per = match kind {
+        1 => 1,
+        2 => 3,
+        _ => 16,
+    };
+    let len = info.array_length.unwrap_or(0);
+    if floats.len() != per * len.max(1) as usize || floats.len() > out.floats.len() {
+        return 0;
+    }
+    out.kind = kind;
+    out.len = len;
+    out.floats[..floats.len()].copy_from_slice(&floats);
+    1
 }
 
 unsafe extern "C" fn host_shader_name(ctx: *mut c_void, has_kind: u32, _kind: StrRef) -> StrRef {

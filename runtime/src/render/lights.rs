@@ -16,9 +16,11 @@ use std::sync::atomic::{AtomicU64, Ordering};
 /// Runs one light's shader for the active lanes of a chunk and appends what reaches each lane, with
 /// shadows traced.
 #[allow(clippy::too_many_arguments)] // a chunk's lanes: mask, points, times, and where the lights go
+#[allow(clippy::too_many_arguments)]
 pub(super) fn eval_light(
     frame: &Frame,
     light: &LightSource,
+    material: Option<u32>,
     mask: &[i32; 4],
     points: &[Vec3A; 4],
     times: &[f32; 4],
@@ -26,7 +28,7 @@ pub(super) fn eval_light(
     out: &mut [HostLight],
     counts: &mut [u32; 4],
 ) {
-    eval_light_lanes(frame, light, mask, points, times, depth, |l, h| {
+    eval_light_lanes(frame, light, material, mask, points, times, depth, |l, h| {
         if (counts[l] as usize) < MAX_LIGHTS {
             out[4 * counts[l] as usize + l] = h;
             counts[l] += 1;
@@ -37,10 +39,12 @@ pub(super) fn eval_light(
 /// Runs one light's shader over `points` (up to a packet of lanes, `mask` nonzero where a point
 /// asks; shadow rays at the lanes' `times`) and hands each lane's light to `sink`, its colour
 /// attenuated by the shadow rays traced as one packet (`transmission_packet`). Area lights give one
-/// light per sample.
+/// light per sample. `material` is the lit surface's (for `surface()` messages).
+#[allow(clippy::too_many_arguments)]
 fn eval_light_lanes(
     frame: &Frame,
     light: &LightSource,
+    material: Option<u32>,
     mask: &[i32],
     points: &[Vec3A],
     times: &[f32],
@@ -89,6 +93,7 @@ fn eval_light_lanes(
                 }
             }
             let mut call = ShadeCall::new(frame, instance, instance.world_from_shader, depth);
+            call.material = material;
             let table = call.table();
             program.code.shade_with_table(batch, &table);
             let raw = batch.raw_mut();
@@ -163,7 +168,14 @@ pub(super) struct BatchLights {
 }
 
 impl BatchLights {
-    pub(super) fn compute(frame: &Frame, points: &[Vec3A], mask: &[i32], times: &[f32], depth: u32) -> BatchLights {
+    pub(super) fn compute(
+        frame: &Frame,
+        material: Option<u32>,
+        points: &[Vec3A],
+        mask: &[i32],
+        times: &[f32],
+        depth: u32,
+    ) -> BatchLights {
         let n = points.len();
         let slots: usize = frame.world.lights.iter().map(|l| l.area.as_ref().map_or(1, |a| a.samples as usize)).sum();
         let slots = slots.min(MAX_LIGHTS);
@@ -171,7 +183,7 @@ impl BatchLights {
         let mut lights = vec![HostLight::default(); slots * n];
         for light in &frame.world.lights {
             if light.in_category("") {
-                eval_light_lanes(frame, light, mask, points, times, depth, |l, h| {
+                eval_light_lanes(frame, light, material, mask, points, times, depth, |l, h| {
                     let k = counts[l] as usize;
                     if k < slots {
                         lights[k * n + l] = h;

@@ -417,7 +417,8 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
     let color = Vec3A::from(material.color);
     let opacity = Vec3A::from(material.opacity);
     if let Some(displacement) = &material.displacement {
-        displace(frame, displacement, inst.world_from_object, group, &mut geoms, (color, opacity), depth);
+        let at = (inst.material, inst.world_from_object);
+        displace(frame, displacement, at, group, &mut geoms, (color, opacity), depth);
     }
     if let Some(native) = &material.native {
         shade_native(frame, native, group, &geoms, color, opacity, depth, out);
@@ -460,6 +461,7 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
             }
         }
         let mut call = ShadeCall::new(frame, surface, inst.world_from_object, depth);
+        call.material = Some(inst.material);
         call.batch_points = geoms.iter().map(|g| g.as_ref().map_or(Vec3A::ZERO, |g| g.p)).collect();
         call.batch_mask = geoms.iter().map(|g| if g.is_some() { -1 } else { 0 }).collect();
         call.batch_times = group.iter().map(|p| p.ray.time).collect();
@@ -556,7 +558,7 @@ fn fill_hit_globals(
 fn displace(
     frame: &Frame,
     displacement: &ShaderInstance,
-    world_from_object: Affine3A,
+    (material, world_from_object): (u32, Affine3A),
     group: &[Pending],
     geoms: &mut [Option<HitGeometry>],
     appearance: (Vec3A, Vec3A),
@@ -571,6 +573,7 @@ fn displace(
             fill_hit_globals(&mut raw, program, group, geoms, appearance, &mut footprints);
         }
         let mut call = ShadeCall::new(frame, displacement, world_from_object, depth);
+        call.material = Some(material);
         call.batch_points = geoms.iter().map(|g| g.as_ref().map_or(Vec3A::ZERO, |g| g.p)).collect();
         call.batch_mask = geoms.iter().map(|g| if g.is_some() { -1 } else { 0 }).collect();
         call.batch_times = group.iter().map(|p| p.ray.time).collect();
@@ -603,7 +606,7 @@ fn shade_native(
     let points: Vec<Vec3A> = geoms.iter().map(|g| g.as_ref().map_or(Vec3A::ZERO, |g| g.p)).collect();
     let mask: Vec<i32> = geoms.iter().map(|g| if g.is_some() { -1 } else { 0 }).collect();
     let times: Vec<f32> = group.iter().map(|p| p.ray.time).collect();
-    let table = BatchLights::compute(frame, &points, &mask, &times, depth);
+    let table = BatchLights::compute(frame, None, &points, &mask, &times, depth);
     let mut seen = Vec::new();
     for (k, g) in geoms.iter().enumerate() {
         let Some(g) = g else { continue };
