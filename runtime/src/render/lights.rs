@@ -16,7 +16,6 @@ use std::sync::atomic::{AtomicU64, Ordering};
 /// Runs one light's shader for the active lanes of a chunk and appends what reaches each lane, with
 /// shadows traced.
 #[allow(clippy::too_many_arguments)] // a chunk's lanes: mask, points, times, and where the lights go
-#[allow(clippy::too_many_arguments)]
 pub(super) fn eval_light(
     frame: &Frame,
     light: &LightSource,
