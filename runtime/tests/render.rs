@@ -496,3 +496,47 @@ fn shaders_read_the_parameters_of_the_shaders_bound_with_them() -> Result<(), Ap
     assert!(near(r[0], -1.0) && near(r[1], 0.0) && near(r[2], 0.5), "no displacement, default Kd: {r:?}");
     Ok(())
 }
+
+/// A surface showing its diffuse and specular light in red and green.
+const LIGHT_PARTS: &str = r#"
+surface lightparts() {
+    normal Nf = faceforward(normalize(N), I);
+    vector V = -normalize(I);
+    Ci = color(comp(diffuse(Nf), 0), comp(specular(Nf, V, 0.3), 0), 0);
+    Oi = 1;
+}"#;
+
+/// A head-on light with RenderMan's flags; `computed` sets `__nondiffuse` in the light's body.
+const FLAGGED: &str = r#"
+light flagged(output float __nondiffuse = 0; output float __nonspecular = 0; float computed = 0;) {
+    solar(vector(0, 0, -1), 0) {
+        Cl = 1;
+        if (computed != 0) __nondiffuse = 1;
+    }
+}"#;
+
+#[test]
+fn diffuse_and_specular_skip_lights_flagged_nondiffuse_and_nonspecular() -> Result<(), ApiError> {
+    let render = |params: &[(&str, ParamValue)]| -> Result<[f32; 4], ApiError> {
+        let mut rt = context();
+        let surface = rt.compile_shader("lightparts.sl", LIGHT_PARTS)?;
+        let light = rt.compile_shader("flagged.sl", FLAGGED)?;
+        rt.camera_look_at(Vec3A::new(0.0, 0.0, 5.0), Vec3A::ZERO, Vec3A::Y, 60.0);
+        rt.light_source(light, params)?;
+        let o = rt.begin_object()?;
+        rt.bind_shader(surface)?;
+        quad(&mut rt, [[-3.0, -3.0, 0.0], [3.0, -3.0, 0.0], [3.0, 3.0, 0.0], [-3.0, 3.0, 0.0]])?;
+        rt.end_object()?;
+        rt.instantiate_object(o)?;
+        Ok(rt.render_frame()?.0.pixel(W / 2, H / 2))
+    };
+    let both = render(&[])?;
+    assert!(both[0] > 0.9 && both[1] > 0.1, "a plain light gives diffuse and specular: {both:?}");
+    let no_spec = render(&[("__nonspecular", ParamValue::Float(1.0))])?;
+    assert_eq!((no_spec[0], no_spec[1]), (both[0], 0.0), "{no_spec:?}");
+    let no_diff = render(&[("__nondiffuse", ParamValue::Float(1.0))])?;
+    assert_eq!((no_diff[0], no_diff[1]), (0.0, both[1]), "{no_diff:?}");
+    let computed = render(&[("computed", ParamValue::Float(1.0))])?;
+    assert_eq!((computed[0], computed[1]), (0.0, both[1]), "the value the light computed counts: {computed:?}");
+    Ok(())
+}

@@ -431,12 +431,14 @@ impl Machine<'_> {
             }
             Builtin::Diffuse => {
                 let n = normalize(v(0).v3());
-                let sum = self.sum_lights(n, |l, _| dot(normalize(l.l), n).max(0.0));
+                let sum = self.sum_lights(n, |l, _| dot(normalize(l.l), n).max(0.0) * (1.0 - l.nondiffuse));
                 Value::Triple(sum)
             }
             Builtin::Specular => {
                 let (n, view, rough) = (normalize(v(0).v3()), normalize(v(1).v3()), v(2).f());
-                Value::Triple(self.sum_lights(n, |l, _| specular_brdf(normalize(l.l), n, view, rough)))
+                Value::Triple(
+                    self.sum_lights(n, |l, _| specular_brdf(normalize(l.l), n, view, rough) * (1.0 - l.nonspecular)),
+                )
             }
             Builtin::Specularbrdf => Value::Triple(
                 [specular_brdf(normalize(v(0).v3()), normalize(v(1).v3()), normalize(v(2).v3()), v(3).f()); 3],
@@ -444,7 +446,9 @@ impl Machine<'_> {
             Builtin::Phong => {
                 let (n, view, size) = (normalize(v(0).v3()), normalize(v(1).v3()), v(2).f());
                 let r = geom::reflect(view.map(|x| -x), n);
-                Value::Triple(self.sum_lights(n, |l, _| tm::pow(dot(r, normalize(l.l)).max(0.0), size)))
+                Value::Triple(
+                    self.sum_lights(n, |l, _| tm::pow(dot(r, normalize(l.l)).max(0.0), size) * (1.0 - l.nonspecular)),
+                )
             }
             Builtin::Trace => {
                 let (c, dist) = self.host.trace(v(0).v3(), v(1).v3());

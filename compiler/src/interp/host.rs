@@ -21,6 +21,10 @@ pub struct LightSample {
     pub ol: V3,
     /// An ambient light (no `illuminate`/`solar`): only `ambient()` counts it.
     pub ambient: bool,
+    /// The light's `__nondiffuse` and `__nonspecular` outputs (0 when it has none): `diffuse()`
+    /// weighs it by `1 - nondiffuse`, `specular()` and `phong()` by `1 - nonspecular`.
+    pub nondiffuse: f32,
+    pub nonspecular: f32,
 }
 
 /// The filter footprint of a `texture` lookup: the screen-space derivatives of its coordinates,
@@ -141,8 +145,15 @@ impl Services for TestHost {
 
     fn lights(&mut self, _category: &str, _p: V3) -> Vec<LightSample> {
         vec![
-            LightSample { l: [0.0; 3], cl: [0.1; 3], ol: [0.0; 3], ambient: true },
-            LightSample { l: [0.0, 0.0, 1000.0], cl: [1.0; 3], ol: [0.0; 3], ambient: false },
+            LightSample { l: [0.0; 3], cl: [0.1; 3], ol: [0.0; 3], ambient: true, nondiffuse: 0.0, nonspecular: 0.0 },
+            LightSample {
+                l: [0.0, 0.0, 1000.0],
+                cl: [1.0; 3],
+                ol: [0.0; 3],
+                ambient: false,
+                nondiffuse: 0.0,
+                nonspecular: 0.0,
+            },
         ]
     }
 

@@ -59,6 +59,9 @@ fn eval_light_lanes(
     let ambient = light.kind == LightKind::Ambient;
     let scale = 1.0 / samples as f32;
     let mut results = vec![(Vec3A::ZERO, Vec3A::ZERO, Vec3A::ZERO); n];
+    // RenderMan's light flags: `diffuse()` and `specular()` skip (weigh by 1 minus) a light whose
+    // `__nondiffuse` / `__nonspecular` output is set, as the shader left it for each lane.
+    let mut flags = vec![(0.0f32, 0.0f32); n];
     for sample in 0..samples {
         Stats::add(&frame.stats.light_evaluations, 1);
         with_batch(program, n, |batch| {
@@ -103,6 +106,22 @@ fn eval_light_lanes(
                     get3(&raw, slots.ol, l, Vec3A::ZERO),
                 );
             }
+            for (name, pick) in [("__nondiffuse", 0), ("__nonspecular", 1)] {
+                let Some((_, slot)) = program.layout().param(name) else { continue };
+                if slot.components != 1 || slot.len != 1 || slot.string {
+                    continue;
+                }
+                for (l, f) in flags.iter_mut().enumerate() {
+                    let v =
+                        if slot.varying { raw.varying[slot.offset * raw.stride + l] } else { raw.uniform[slot.offset] };
+                    let v = if v.is_finite() { v.clamp(0.0, 1.0) } else { 0.0 };
+                    if pick == 0 {
+                        f.0 = v;
+                    } else {
+                        f.1 = v;
+                    }
+                }
+            }
         });
         // Shadows: which lanes need a ray, then one packet (or a walk per ray).
         let mut attenuation = vec![Vec3A::ONE; n];
@@ -135,6 +154,8 @@ fn eval_light_lanes(
                     cl: cl.to_array(),
                     ol: finite_or_zero(ol).to_array(),
                     ambient: u32::from(ambient),
+                    nondiffuse: flags[l].0,
+                    nonspecular: flags[l].1,
                 },
             );
         }

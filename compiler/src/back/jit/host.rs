@@ -62,6 +62,10 @@ pub struct HostLight {
     pub ol: [f32; 3],
     /// Nonzero for an ambient light (only `ambient()` counts it).
     pub ambient: u32,
+    /// The light's `__nondiffuse` and `__nonspecular` outputs (0 when it has none): `diffuse()`
+    /// weighs it by `1 - nondiffuse`, `specular()` and `phong()` by `1 - nonspecular`.
+    pub nondiffuse: f32,
+    pub nonspecular: f32,
 }
 
 /// The most lights `HostTable::lights` reports per lane (more are dropped).
@@ -236,7 +240,14 @@ unsafe extern "C" fn sv_lights(
             let lights = h.host.lights(category, lane3(p, 0, l));
             let n = lights.len().min(MAX_LIGHTS);
             for (k, s) in lights.iter().take(n).enumerate() {
-                *out.add(4 * k + l) = HostLight { l: s.l, cl: s.cl, ol: s.ol, ambient: u32::from(s.ambient) };
+                *out.add(4 * k + l) = HostLight {
+                    l: s.l,
+                    cl: s.cl,
+                    ol: s.ol,
+                    ambient: u32::from(s.ambient),
+                    nondiffuse: s.nondiffuse,
+                    nonspecular: s.nonspecular,
+                };
             }
             *counts.add(l) = n as u32;
         }
@@ -769,7 +780,9 @@ host_helpers! {
         let counts = cx.lights("", 0);
         for l in cx.active() {
             let n = geom::normalize(cx.v3(3, l));
-            let sum = sum_lights(cx.lane_lights(l, counts[l]), n, |x| dot(geom::normalize(x.l), n).max(0.0));
+            let sum = sum_lights(cx.lane_lights(l, counts[l]), n, |x| {
+                dot(geom::normalize(x.l), n).max(0.0) * (1.0 - x.nondiffuse)
+            });
             cx.set3(0, l, sum);
         }
     }
@@ -778,7 +791,9 @@ host_helpers! {
         let counts = cx.lights("", 0);
         for l in cx.active() {
             let (n, view, rough) = (geom::normalize(cx.v3(3, l)), geom::normalize(cx.v3(6, l)), cx.f(9, l));
-            let sum = sum_lights(cx.lane_lights(l, counts[l]), n, |x| specular_brdf(geom::normalize(x.l), n, view, rough));
+            let sum = sum_lights(cx.lane_lights(l, counts[l]), n, |x| {
+                specular_brdf(geom::normalize(x.l), n, view, rough) * (1.0 - x.nonspecular)
+            });
             cx.set3(0, l, sum);
         }
     }
@@ -789,7 +804,7 @@ host_helpers! {
             let (n, view, size) = (geom::normalize(cx.v3(3, l)), geom::normalize(cx.v3(6, l)), cx.f(9, l));
             let r = geom::reflect(view.map(|x| -x), n);
             let sum = sum_lights(cx.lane_lights(l, counts[l]), n, |x| {
-                transcendental::pow(dot(r, geom::normalize(x.l)).max(0.0), size)
+                transcendental::pow(dot(r, geom::normalize(x.l)).max(0.0), size) * (1.0 - x.nonspecular)
             });
             cx.set3(0, l, sum);
         }
