@@ -54,8 +54,16 @@ pub struct CompileRow {
 
 /// The lights every back end sees (`TestHost`'s).
 const LIGHTS: [HostLight; 2] = [
-    HostLight { l: [0.0; 3], cl: [0.1; 3], ol: [0.0; 3], ambient: 1, nondiffuse: 0.0, nonspecular: 0.0 },
-    HostLight { l: [0.0, 0.0, 1000.0], cl: [1.0; 3], ol: [0.0; 3], ambient: 0, nondiffuse: 0.0, nonspecular: 0.0 },
+    HostLight { l: [0.0; 3], cl: [0.1; 3], ol: [0.0; 3], ambient: 1, nondiffuse: 0.0, nonspecular: 0.0, id: 0 },
+    HostLight {
+        l: [0.0, 0.0, 1000.0],
+        cl: [1.0; 3],
+        ol: [0.0; 3],
+        ambient: 0,
+        nondiffuse: 0.0,
+        nonspecular: 0.0,
+        id: 1,
+    },
 ];
 
 unsafe extern "C" fn fixed_matrix(_: *mut c_void, _: StrRef, _: StrRef, out: *mut f32) -> u32 {
@@ -147,6 +155,7 @@ fn fixed_table() -> HostTable {
         depth: no_depth,
         ray_depth: no_ray_depth,
         message: no_message,
+        light_message: no_message,
         shader_name: no_name,
         print: no_print,
     }

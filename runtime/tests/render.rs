@@ -540,3 +540,41 @@ fn diffuse_and_specular_skip_lights_flagged_nondiffuse_and_nonspecular() -> Resu
     assert_eq!((computed[0], computed[1]), (0.0, both[1]), "the value the light computed counts: {computed:?}");
     Ok(())
 }
+
+/// A surface that adds, per light, `Cl` scaled by the light's `gain` parameter (message passing in
+/// an illuminance loop; 1 where a light has no such parameter).
+const PER_LIGHT: &str = r#"
+surface perlight() {
+    color sum = 0;
+    illuminance(P) {
+        float gain = 1;
+        lightsource("gain", gain);
+        sum += gain * Cl;
+    }
+    Ci = sum;
+    Oi = 1;
+}"#;
+
+const GAIN_LIGHT: &str = "light gainlight(float gain = 1; color c = 1;) { solar(vector(0, 0, -1), 0) Cl = c; }";
+const PLAIN_LIGHT: &str = "light plainlight(color c = 1;) { solar(vector(0, 0, -1), 0) Cl = c; }";
+
+#[test]
+fn lightsource_in_an_illuminance_loop_reads_the_current_light() -> Result<(), ApiError> {
+    let mut rt = context();
+    let surface = rt.compile_shader("perlight.sl", PER_LIGHT)?;
+    let gain = rt.compile_shader("gainlight.sl", GAIN_LIGHT)?;
+    let plain = rt.compile_shader("plainlight.sl", PLAIN_LIGHT)?;
+    rt.camera_look_at(Vec3A::new(0.0, 0.0, 5.0), Vec3A::ZERO, Vec3A::Y, 60.0);
+    // Red with gain 0.5, green with its default gain 1, blue with no gain parameter at all.
+    rt.light_source(gain, &[("gain", ParamValue::Float(0.5)), ("c", ParamValue::Color([1.0, 0.0, 0.0]))])?;
+    rt.light_source(gain, &[("c", ParamValue::Color([0.0, 1.0, 0.0]))])?;
+    rt.light_source(plain, &[("c", ParamValue::Color([0.0, 0.0, 1.0]))])?;
+    let o = rt.begin_object()?;
+    rt.bind_shader(surface)?;
+    quad(&mut rt, [[-3.0, -3.0, 0.0], [3.0, -3.0, 0.0], [3.0, 3.0, 0.0], [-3.0, 3.0, 0.0]])?;
+    rt.end_object()?;
+    rt.instantiate_object(o)?;
+    let p = rt.render_frame()?.0.pixel(W / 2, H / 2);
+    assert_eq!(p[..3], [0.5, 1.0, 1.0], "each light's own gain: {p:?}");
+    Ok(())
+}

@@ -111,6 +111,7 @@ impl<'f, 'w> ShadeCall<'f, 'w> {
             depth: host_depth,
             ray_depth: host_ray_depth,
             message: host_message,
+            light_message: host_light_message,
             shader_name: host_shader_name,
             print: host_print,
         }
@@ -712,6 +713,13 @@ fn param_message(shader: &ShaderInstance, name: &str, out: &mut MessageOut, text
     out.len = len;
     out.floats[..floats.len()].copy_from_slice(&floats);
     1
+}
+
+unsafe extern "C" fn host_light_message(ctx: *mut c_void, light: u32, name: StrRef, out: *mut MessageOut) -> u32 {
+    // SAFETY: the table's contract.
+    let (c, name, out) = unsafe { (call(ctx), name.as_str(), &mut *out) };
+    let Some(light) = c.frame.world.lights.get(light as usize) else { return 0 };
+    param_message(&light.shader, name, out, &mut c.text)
 }
 
 unsafe extern "C" fn host_shader_name(ctx: *mut c_void, has_kind: u32, _kind: StrRef) -> StrRef {

@@ -62,6 +62,7 @@ fn eval_light_lanes(
     // RenderMan's light flags: `diffuse()` and `specular()` skip (weigh by 1 minus) a light whose
     // `__nondiffuse` / `__nonspecular` output is set, as the shader left it for each lane.
     let mut flags = vec![(0.0f32, 0.0f32); n];
+    let id = frame.world.lights.iter().position(|x| std::ptr::eq(x, light)).map_or(u32::MAX, |i| i as u32);
     for sample in 0..samples {
         Stats::add(&frame.stats.light_evaluations, 1);
         with_batch(program, n, |batch| {
@@ -156,6 +157,7 @@ fn eval_light_lanes(
                     ambient: u32::from(ambient),
                     nondiffuse: flags[l].0,
                     nonspecular: flags[l].1,
+                    id,
                 },
             );
         }

@@ -66,6 +66,8 @@ pub struct HostLight {
     /// weighs it by `1 - nondiffuse`, `specular()` and `phong()` by `1 - nonspecular`.
     pub nondiffuse: f32,
     pub nonspecular: f32,
+    /// Which light this is, for [`HostTable::light_message`] (the renderer's numbering).
+    pub id: u32,
 }
 
 /// The most lights `HostTable::lights` reports per lane (more are dropped).
@@ -153,6 +155,9 @@ pub struct HostTable {
     /// Message passing and queries: `which` is the built-in's index in `Builtin::ALL`. Returns 0 when
     /// unknown.
     pub message: unsafe extern "C" fn(ctx: *mut c_void, which: u32, name: StrRef, out: *mut MessageOut) -> u32,
+    /// `lightsource(name)` inside an `illuminance` loop: a parameter of light `light` (a
+    /// [`HostLight::id`]). Returns 0 when unknown.
+    pub light_message: unsafe extern "C" fn(ctx: *mut c_void, light: u32, name: StrRef, out: *mut MessageOut) -> u32,
     /// The name of this shader (`has_kind` 0) or of the one bound as `kind`; valid until the next call.
     pub shader_name: unsafe extern "C" fn(ctx: *mut c_void, has_kind: u32, kind: StrRef) -> StrRef,
     /// `printf` output.
@@ -182,6 +187,7 @@ impl<'a> ServicesHost<'a> {
             depth: sv_depth,
             ray_depth: sv_ray_depth,
             message: sv_message,
+            light_message: sv_light_message,
             shader_name: sv_shader_name,
             print: sv_print,
         }
@@ -247,6 +253,7 @@ unsafe extern "C" fn sv_lights(
                     ambient: u32::from(s.ambient),
                     nondiffuse: s.nondiffuse,
                     nonspecular: s.nonspecular,
+                    id: k as u32,
                 };
             }
             *counts.add(l) = n as u32;
@@ -375,6 +382,12 @@ unsafe extern "C" fn sv_depth(ctx: *mut c_void, mask: *const i32, p: *const f32,
 unsafe extern "C" fn sv_ray_depth(ctx: *mut c_void) -> f32 {
     // SAFETY: the table's contract.
     unsafe { sv(ctx) }.host.ray_depth()
+}
+
+/// A `Services` host has one answer for `lightsource()` whichever the light (the interpreter's).
+unsafe extern "C" fn sv_light_message(ctx: *mut c_void, _light: u32, name: StrRef, out: *mut MessageOut) -> u32 {
+    // SAFETY: the caller's contract, passed on.
+    unsafe { sv_message(ctx, Builtin::Lightsource as u32, name, out) }
 }
 
 unsafe extern "C" fn sv_message(ctx: *mut c_void, which: u32, name: StrRef, out: *mut MessageOut) -> u32 {
@@ -648,6 +661,32 @@ fn sum_lights<'a>(lights: impl Iterator<Item = &'a HostLight>, n: V3, weight: im
     sum
 }
 
+/// Writes a message answer into lane `l` of a message helper's outputs: `[found, value...]`, found
+/// only when the answer has exactly the destination's shape (the interpreter's `same_shape`;
+/// textureinfo: the same scalar kind).
+fn put_message(cx: &mut Cx<'_>, l: usize, found: u32, out: &MessageOut, class: u32, len: u32, textureinfo: bool) {
+    let fits = found != 0 && out.kind == class && out.len == len && !(textureinfo && len != 0);
+    cx.set(0, l, if fits { 1.0 } else { 0.0 });
+    if !fits {
+        return;
+    }
+    if class == 4 {
+        // SAFETY: the table's contract: valid until the next call.
+        let s = unsafe { out.string.as_str() }.to_string();
+        let h = cx.strings.intern(&s);
+        cx.set(1, l, f32::from_bits(h));
+    } else {
+        let per = match class {
+            1 => 1,
+            2 => 3,
+            _ => 16,
+        };
+        for j in 0..(per * len.max(1) as usize).min(MESSAGE_FLOATS) {
+            cx.set(1 + j, l, out.floats[j]);
+        }
+    }
+}
+
 /// The input arity of a variadic host helper (`format`, `printf`): its input 1 holds the number of
 /// inputs.
 pub(super) const VARIADIC: usize = usize::MAX;
@@ -900,23 +939,25 @@ host_helpers! {
                 Some(t) => unsafe { (t.message)(t.ctx, which, StrRef::new(&name), &mut out) },
                 None => 0,
             };
-            // The interpreter's `same_shape` (textureinfo: the same scalar kind).
-            let fits = found != 0 && out.kind == class && out.len == len && !(textureinfo && len != 0);
-            cx.set(0, l, if fits { 1.0 } else { 0.0 });
-            if !fits {
-                continue;
-            }
-            if class == 4 {
-                // SAFETY: the table's contract: valid until the next call.
-                let s = unsafe { out.string.as_str() }.to_string();
-                let h = cx.strings.intern(&s);
-                cx.set(1, l, f32::from_bits(h));
-            } else {
-                let per = match class { 1 => 1, 2 => 3, _ => 16 };
-                for j in 0..(per * len.max(1) as usize).min(MESSAGE_FLOATS) {
-                    cx.set(1 + j, l, out.floats[j]);
-                }
-            }
+            put_message(cx, l, found, &out, class, len, textureinfo);
+        }
+    }
+    // [set, k, name, class, len] -> [found, value...]: `lightsource()` of each lane's k-th light
+    // of the enclosing illuminance loop's set
+    h_light_message "rtsl_h_light_message" 5 => 65 |cx| {
+        let (set, k) = (cx.f(0, 0) as usize, cx.f(1, 0) as usize);
+        let name = cx.s(2);
+        let (class, len) = (cx.f(3, 0) as u32, cx.f(4, 0) as u32);
+        let active: Vec<usize> = cx.active().collect();
+        for l in active {
+            let light = cx.ctx.light_sets.get(set).and_then(|s| Some(s.lights[l * MAX_LIGHTS + *s.order[l].get(k)?]));
+            let mut out = MessageOut { kind: 0, len: 0, floats: [0.0; MESSAGE_FLOATS], string: StrRef::new("") };
+            let found = match (cx.table, light) {
+                // SAFETY: the runtime's table.
+                (Some(t), Some(light)) => unsafe { (t.light_message)(t.ctx, light.id, StrRef::new(&name), &mut out) },
+                _ => 0,
+            };
+            put_message(cx, l, found, &out, class, len, false);
         }
     }
     // [kind, has kind] -> handle

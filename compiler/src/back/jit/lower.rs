@@ -182,6 +182,9 @@ struct Lower<'m, 'b> {
     batch_matrices: HashMap<u32, (Val, Value)>,
     /// The arguments (as duals) of the built-in call being lowered by `builtin_dual`.
     arg_duals: Vec<Option<Dual>>,
+    /// The enclosing `illuminance` loops, innermost last: their light set (from `rtsl_h_lights`)
+    /// and iteration counter, for `lightsource()` in their bodies.
+    light_loops: Vec<(Value, Variable)>,
     /// The renderer's derivatives for this chunk (`Batch::derivs + 16 * chunk`; null base: zeros).
     derivs_base: Option<Value>,
     derivs_null: Option<Value>,
@@ -241,6 +244,7 @@ pub(super) fn lower(
         batch_consts: HashMap::new(),
         batch_matrices: HashMap::new(),
         arg_duals: Vec::new(),
+        light_loops: Vec::new(),
         derivs_base: None,
         derivs_null: None,
         loop_budget: options.loop_budget.max(1),
@@ -2784,10 +2788,20 @@ impl<'m> Lower<'m, '_> {
             return unsupported("a message of this shape");
         }
         let vary = e.varying;
-        let which = self.fconst(bi as u32 as f32, false);
         let cl = self.fconst(class as f32, false);
         let ln = self.fconst(len as f32, false);
-        let out = self.call_helper("rtsl_h_message", &[which, name.c[0], cl, ln], vary)?;
+        // Inside an illuminance loop, `lightsource()` asks about each lane's current light.
+        let out = match self.light_loops.last() {
+            Some(&(set, k)) if bi == Builtin::Lightsource => {
+                let k = self.b.use_var(k);
+                self.call_helper("rtsl_h_light_message", &[set, k, name.c[0], cl, ln], true)?
+            }
+            _ => {
+                let which = self.fconst(bi as u32 as f32, false);
+                self.call_helper("rtsl_h_message", &[which, name.c[0], cl, ln], vary)?
+            }
+        };
+        let vary = vary || (bi == Builtin::Lightsource && !self.light_loops.is_empty());
         let found = out[0];
         let value = Val { vary, c: out[1..1 + floats].to_vec() };
         let t = self.place_targets(place)?;
@@ -3067,7 +3081,9 @@ impl<'m> Lower<'m, '_> {
         let live = any(&mut self.b, run);
         self.b.ins().brif(live, run_b, &[], after, &[]);
         self.b.switch_to_block(run_b);
+        self.light_loops.push((set, k));
         let r = self.block(body);
+        self.light_loops.pop();
         self.frames.last_mut().expect("frame").loops.pop();
         r?;
         self.b.ins().jump(after, &[]);
