@@ -168,29 +168,29 @@ fn run_camera_shader(
                 // Row by row (structure of arrays, as the batch holds them): the same values as
                 // `put1`/`put3` lane by lane.
                 let screen = ScreenWindow::of(world);
-                let mut row = [0.0f32; PACKET_SIZE];
-                let mut put = |raw: &mut rtsl_compiler::back::jit::RawBatch<'_>,
-                               slot: Option<crate::shading::Slot>,
-                               comp: usize,
-                               f: &dyn Fn(usize) -> f32| {
+                // Generic, so each row's loop is compiled for its own values (no call per lane).
+                fn put(
+                    raw: &mut rtsl_compiler::back::jit::RawBatch<'_>,
+                    slot: Option<crate::shading::Slot>,
+                    comp: usize,
+                    f: impl Fn(usize) -> f32,
+                ) {
                     if slot.is_some() {
-                        for (lane, x) in row.iter_mut().enumerate() {
-                            *x = f(lane);
-                        }
+                        let row: [f32; PACKET_SIZE] = std::array::from_fn(f);
                         put_row(raw, slot, comp, &row);
                     }
-                };
-                put(&mut raw, slots.p, 0, &|l| samples[l].raster.0);
-                put(&mut raw, slots.p, 1, &|l| samples[l].raster.1);
-                put(&mut raw, slots.p, 2, &|_| 0.0);
-                put(&mut raw, slots.s, 0, &|l| screen.position(samples[l].raster).0);
-                put(&mut raw, slots.t, 0, &|l| screen.position(samples[l].raster).1);
-                put(&mut raw, slots.u, 0, &|l| samples[l].lens.0);
-                put(&mut raw, slots.v, 0, &|l| samples[l].lens.1);
-                put(&mut raw, slots.time, 0, &|l| samples[l].time);
-                put(&mut raw, slots.i, 0, &|l| dirs[l].x);
-                put(&mut raw, slots.i, 1, &|l| dirs[l].y);
-                put(&mut raw, slots.i, 2, &|l| dirs[l].z);
+                }
+                put(&mut raw, slots.p, 0, |l| samples[l].raster.0);
+                put(&mut raw, slots.p, 1, |l| samples[l].raster.1);
+                put(&mut raw, slots.p, 2, |_| 0.0);
+                put(&mut raw, slots.s, 0, |l| screen.position(samples[l].raster).0);
+                put(&mut raw, slots.t, 0, |l| screen.position(samples[l].raster).1);
+                put(&mut raw, slots.u, 0, |l| samples[l].lens.0);
+                put(&mut raw, slots.v, 0, |l| samples[l].lens.1);
+                put(&mut raw, slots.time, 0, |l| samples[l].time);
+                put(&mut raw, slots.i, 0, |l| dirs[l].x);
+                put(&mut raw, slots.i, 1, |l| dirs[l].y);
+                put(&mut raw, slots.i, 2, |l| dirs[l].z);
             }
             let mut call = ShadeCall::new(frame, camera, world.camera.world_from_camera, 0);
             let table = call.table();
