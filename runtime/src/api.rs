@@ -157,8 +157,9 @@ struct Appearance {
     /// The displacement shader of objects built from now on (RIB `Displacement`).
     displacement: Option<Binding>,
     shadow_by_shader: bool,
-    /// The texture whose alpha cuts objects built from now on ([`Context::alpha_mask`]).
-    alpha_mask: Option<String>,
+    /// The texture whose alpha cuts objects built from now on, and the cut-off
+    /// ([`Context::alpha_mask`]).
+    alpha_mask: Option<(String, f32)>,
 }
 
 impl Default for Appearance {
@@ -764,7 +765,12 @@ impl Context {
     /// texture is found as shader textures are; one that cannot be read, or has no transparent
     /// texel, leaves the object solid (a missing one with a warning).
     pub fn alpha_mask(&mut self, name: Option<&str>) {
-        self.appearance.alpha_mask = name.map(str::to_string);
+        self.alpha_mask_with_cutoff(name, ALPHA_CUTOFF);
+    }
+
+    /// [`Context::alpha_mask`] with the alpha below which a texel is cut (glTF's `alphaCutoff`).
+    pub fn alpha_mask_with_cutoff(&mut self, name: Option<&str>, cutoff: f32) {
+        self.appearance.alpha_mask = name.map(|n| (n.to_string(), cutoff));
     }
 
     /// Saves the attribute state (colour, opacity, shader binding) and the matrix.
@@ -1233,7 +1239,7 @@ impl Context {
         // Objects: (re)build only the BVHs of changed geometry.
         let bvh_start = std::time::Instant::now();
         let mut objects_rebuilt = 0;
-        let mut masks: HashMap<String, Option<Arc<AlphaMask>>> = HashMap::new();
+        let mut masks: HashMap<(String, u32), Option<Arc<AlphaMask>>> = HashMap::new();
         for rec in &mut self.objects {
             if !rec.dirty {
                 continue;
@@ -1251,14 +1257,14 @@ impl Context {
                 (None, None) => {}
             }
             if let Some(id) = rec.scene_object {
-                let mask = rec.appearance.alpha_mask.as_ref().and_then(|name| {
+                let mask = rec.appearance.alpha_mask.as_ref().and_then(|(name, cutoff)| {
                     let textures = &self.textures;
                     let warnings = &mut self.warnings;
                     masks
-                        .entry(name.clone())
+                        .entry((name.clone(), cutoff.to_bits()))
                         .or_insert_with(|| match textures.get_texture(name, false) {
                             Some(mip) => {
-                                mip.levels().first().and_then(|l| AlphaMask::from_image(l, ALPHA_CUTOFF)).map(Arc::new)
+                                mip.levels().first().and_then(|l| AlphaMask::from_image(l, *cutoff)).map(Arc::new)
                             }
                             None => {
                                 warnings.push(format!("alpha mask \"{name}\": texture not found; the object is solid"));

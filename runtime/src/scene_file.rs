@@ -3,8 +3,11 @@
 //!
 //! glTF: every mesh primitive (triangles) becomes an object, placed by each node that uses it with
 //! the node's world transform (so shared meshes are instances of one BVH); the material's base
-//! colour factor becomes `Cs` and its alpha the `material` shader's transparency. Animations are
-//! not played here.
+//! colour factor becomes `Cs`, its base colour texture (decoded by the importer, colour taken as
+//! sRGB) an in-memory texture `FILE#imageN` that the `material` shader multiplies in. Alpha follows
+//! `alphaMode`: `BLEND` makes the factor's alpha the transparency, `MASK` cuts the geometry where
+//! the texture's alpha is below `alphaCutoff` ([`Context::alpha_mask_with_cutoff`]), `OPAQUE`
+//! ignores alpha. Animations are not played here.
 //!
 //! OBJ materials become instances of the `material` shader (`docs/shaders.md`): `Kd` -> diffuse
 //! colour, `Ks` -> specular colour, `Ns` -> shininess, `d`/`Tr` -> transparency, `Ke` -> emission,
@@ -99,8 +102,11 @@ pub fn add_model_file_placed(
 /// Adds the meshes of a glTF 2.0 file (`.gltf` with its buffers, or `.glb`) to the context, under
 /// the current matrix, and returns the world-space bounds of what was added.
 pub fn add_gltf_file(rt: &mut Context, path: &Path) -> Result<(Vec3A, Vec3A), SceneFileError> {
-    let (doc, buffers, _images) =
+    let (doc, buffers, images) =
         gltf::import(path).map_err(|source| SceneFileError::Gltf { path: path.to_path_buf(), source })?;
+    // Images become in-memory textures named after the file, made when a material first uses one.
+    let image_name = |i: usize| format!("{}#image{i}", path.display());
+    let mut made = vec![false; images.len()];
     let bad = |source: MeshError| SceneFileError::BadMesh { path: path.to_path_buf(), source };
     let bound = rt.bound_surface();
     let shader = match bound {
@@ -144,12 +150,29 @@ pub fn add_gltf_file(rt: &mut Context, path: &Path) -> Result<(Vec3A, Vec3A), Sc
                     m.uvs = Some(uv);
                 }
             }
-            let base = prim.material().pbr_metallic_roughness().base_color_factor();
+            let material = prim.material();
+            let base = material.pbr_metallic_roughness().base_color_factor();
+            let texture = material.pbr_metallic_roughness().base_color_texture().map(|t| t.texture().source().index());
+            let texture = texture.filter(|&i| {
+                if !made.get(i).copied().unwrap_or(true) {
+                    made[i] = gltf_texture(rt, &image_name(i), &images[i]);
+                }
+                made.get(i).copied().unwrap_or(false)
+            });
             rt.push_attributes();
             rt.bind_shader(shader)?;
             if bound.is_none() {
                 let _ = rt.parameter("diffusecolor", ParamValue::Color([1.0; 3]));
-                let _ = rt.parameter("transparency", ParamValue::Float((1.0 - base[3]).clamp(0.0, 1.0)));
+                // Only BLEND blends; OPAQUE and MASK ignore the alpha factor.
+                if material.alpha_mode() == gltf::material::AlphaMode::Blend {
+                    let _ = rt.parameter("transparency", ParamValue::Float((1.0 - base[3]).clamp(0.0, 1.0)));
+                }
+                if let Some(i) = texture {
+                    let _ = rt.parameter("texturename", ParamValue::String(image_name(i)));
+                }
+            }
+            if let (gltf::material::AlphaMode::Mask, Some(i)) = (material.alpha_mode(), texture) {
+                rt.alpha_mask_with_cutoff(Some(&image_name(i)), material.alpha_cutoff().unwrap_or(0.5));
             }
             rt.color(base[0], base[1], base[2]);
             let o = rt.begin_object()?;
@@ -295,6 +318,40 @@ fn add_mesh_file_placed(
         rt.pop_attributes()?;
     }
     Ok(bounds)
+}
+
+/// Makes a glTF image the in-memory texture `name`: 8- and 16-bit colour channels are sRGB (a base
+/// colour texture), alpha is linear, floats are taken as they are. Returns whether it was made.
+fn gltf_texture(rt: &mut Context, name: &str, image: &gltf::image::Data) -> bool {
+    use gltf::image::Format as F;
+    let (channels, bytes) = match image.format {
+        F::R8 => (1, 1),
+        F::R8G8 => (2, 1),
+        F::R8G8B8 => (3, 1),
+        F::R8G8B8A8 => (4, 1),
+        F::R16 => (1, 2),
+        F::R16G16 => (2, 2),
+        F::R16G16B16 => (3, 2),
+        F::R16G16B16A16 => (4, 2),
+        F::R32G32B32FLOAT => (3, 4),
+        F::R32G32B32A32FLOAT => (4, 4),
+    };
+    let values: Vec<f32> = match bytes {
+        1 => image.pixels.iter().map(|&b| f32::from(b) / 255.0).collect(),
+        2 => image.pixels.chunks_exact(2).map(|b| f32::from(u16::from_ne_bytes([b[0], b[1]])) / 65535.0).collect(),
+        _ => image.pixels.chunks_exact(4).map(|b| f32::from_ne_bytes([b[0], b[1], b[2], b[3]])).collect(),
+    };
+    let alpha = |c: usize| (channels == 2 || channels == 4) && c == channels - 1;
+    let texels: Vec<f32> = if bytes == 4 {
+        values
+    } else {
+        values
+            .iter()
+            .enumerate()
+            .map(|(i, &v)| if alpha(i % channels) { v } else { crate::texture::srgb_to_linear(v) })
+            .collect()
+    };
+    rt.tex_image_2d(name, image.width as usize, image.height as usize, channels, &texels).is_ok()
 }
 
 /// Binds the parameters of the `material` shader that the OBJ material gives; a parameter the shader

@@ -350,3 +350,50 @@ fn a_displacement_shader_bumps_the_normal_the_surface_shader_sees() {
     load_str(&mut rt, &scene(""), &dir.path().join("s.rib")).unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(covered, render(&mut rt).rgba.chunks(4).filter(|p| p[3] > 0.5).count());
 }
+
+#[test]
+fn gltf_base_colour_textures_are_mapped_and_mask_mode_cuts() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    write_cutout(&dir.path().join("cutout.png"));
+    // A card above y = 0, s across x, t down (glTF's convention), two triangles.
+    let mut bin = Vec::new();
+    for v in [[-1.0f32, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [-1.0, 1.0, 0.0]] {
+        v.iter().for_each(|x| bin.extend(x.to_le_bytes()));
+    }
+    for v in [[0.0f32, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]] {
+        v.iter().for_each(|x| bin.extend(x.to_le_bytes()));
+    }
+    for i in [0u16, 1, 2, 0, 2, 3] {
+        bin.extend(i.to_le_bytes());
+    }
+    std::fs::write(dir.path().join("card.bin"), &bin).expect("write the buffer");
+    let gltf = |mode: &str| {
+        format!(
+            r#"{{"asset": {{"version": "2.0"}}, "scene": 0, "scenes": [{{"nodes": [0]}}], "nodes": [{{"mesh": 0}}],
+            "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0, "TEXCOORD_0": 1}}, "indices": 2, "material": 0}}]}}],
+            "materials": [{{"pbrMetallicRoughness": {{"baseColorTexture": {{"index": 0}}}}, "alphaMode": "{mode}"}}],
+            "textures": [{{"source": 0}}], "images": [{{"uri": "cutout.png"}}],
+            "buffers": [{{"uri": "card.bin", "byteLength": 92}}],
+            "bufferViews": [{{"buffer": 0, "byteOffset": 0, "byteLength": 48}}, {{"buffer": 0, "byteOffset": 48, "byteLength": 32}},
+                            {{"buffer": 0, "byteOffset": 80, "byteLength": 12}}],
+            "accessors": [{{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [-1, 0, 0], "max": [1, 1, 0]}},
+                          {{"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC2"}},
+                          {{"bufferView": 2, "componentType": 5123, "count": 6, "type": "SCALAR"}}]}}"#
+        )
+    };
+    let render_mode = |mode: &str| {
+        std::fs::write(dir.path().join("card.gltf"), gltf(mode)).expect("write the glTF");
+        let rib = format!(r#"{CAMERA} LightSource "ambientlight" 1 "intensity" [5] ReadArchive "card.gltf" WorldEnd"#);
+        let mut rt = Context::new();
+        let loaded = load_str(&mut rt, &rib, &dir.path().join("scene.rib")).unwrap_or_else(|e| panic!("{e}"));
+        assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+        render(&mut rt)
+    };
+    let masked = render_mode("MASK");
+    let left = masked.pixel(26, 17);
+    assert!(left[..3].iter().all(|c| (c - 1.0).abs() < 1e-3) && left[3] == 1.0, "the texture's white: {left:?}");
+    assert_eq!(masked.pixel(38, 17)[3], 0.0, "alpha below the cut-off is cut");
+    let opaque = render_mode("OPAQUE");
+    assert_eq!(opaque.pixel(38, 17)[3], 1.0, "OPAQUE ignores alpha");
+    assert!(opaque.pixel(38, 17)[0] > 0.9, "the (white, transparent) texels' colour: {:?}", opaque.pixel(38, 17));
+}
