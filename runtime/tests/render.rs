@@ -578,3 +578,65 @@ fn lightsource_in_an_illuminance_loop_reads_the_current_light() -> Result<(), Ap
     assert_eq!(p[..3], [0.5, 1.0, 1.0], "each light's own gain: {p:?}");
     Ok(())
 }
+
+/// A surface showing its point in raster space (x, y), NDC x and screen y.
+const RASTER: &str = r#"
+surface rasterpos() {
+    point r = transform("raster", P);
+    point n = transform("NDC", P);
+    point s = transform("screen", P);
+    Ci = color(xcomp(r), ycomp(r), 10 * xcomp(n) + ycomp(s));
+    Oi = 1;
+}"#;
+
+/// Renders `RASTER` on a wall filling the view of a 64x48 image with `window` as RIB's
+/// `ScreenWindow`.
+fn projected_spaces(window: Option<[f32; 4]>) -> Result<rtsl_runtime::render::Framebuffer, ApiError> {
+    let mut rt = context();
+    rt.options.screen_window = window;
+    let surface = rt.compile_shader("rasterpos.sl", RASTER)?;
+    rt.camera_look_at(Vec3A::new(0.0, 0.0, 5.0), Vec3A::ZERO, Vec3A::Y, 60.0);
+    let o = rt.begin_object()?;
+    rt.bind_shader(surface)?;
+    quad(&mut rt, [[-30.0, -30.0, 0.0], [30.0, -30.0, 0.0], [30.0, 30.0, 0.0], [-30.0, 30.0, 0.0]])?;
+    rt.end_object()?;
+    rt.instantiate_object(o)?;
+    Ok(rt.render_frame()?.0)
+}
+
+#[test]
+fn raster_ndc_and_screen_spaces_follow_renderman() -> Result<(), ApiError> {
+    // The default window of a 4:3 image: screen x in [-4/3, 4/3], y in [-1, 1]; and a window
+    // zoomed 2x on the upper right quarter.
+    for (window, (b, t)) in [(None, (-1.0, 1.0)), (Some([0.0, 1.0, 0.0, 0.75]), (0.0, 0.75))] {
+        let fb = projected_spaces(window)?;
+        for (x, y) in [(48, 12), (5, 40), (63, 0)] {
+            let p = fb.pixel(x, y);
+            let (rx, ry) = (x as f32 + 0.5, y as f32 + 0.5);
+            // Pixel centres in raster space; NDC is raster over the image size; screen y runs
+            // from t at the top to b at the bottom.
+            let (ndc_x, screen_y) = (rx / W as f32, t - (t - b) * ry / H as f32);
+            let near = |a: f32, b: f32| (a - b).abs() < 2e-3 * (1.0 + b.abs());
+            assert!(near(p[0], rx) && near(p[1], ry), "{window:?} ({x}, {y}): raster {p:?}");
+            assert!(near(p[2], 10.0 * ndc_x + screen_y), "{window:?} ({x}, {y}): NDC x and screen y {p:?}");
+        }
+    }
+    Ok(())
+}
+
+#[test]
+fn the_screen_window_chooses_what_the_camera_sees() -> Result<(), ApiError> {
+    // With the window on the upper right quarter of the default view, the image's centre pixel
+    // sees what the default view showed at its upper right quarter's centre.
+    let whole = projected_spaces(None)?;
+    let quarter = projected_spaces(Some([0.0, 4.0 / 3.0, 0.0, 1.0]))?;
+    let there = whole.pixel(48, 12);
+    let here = quarter.pixel(32, 24);
+    // Raster positions differ (each image's own), screen y agrees (within the half-pixel offsets
+    // of the two pixel grids): the same point of the wall. Ignoring the window would put the
+    // centre pixel at screen y 0.
+    let screen_y = |p: [f32; 4]| p[2] - 10.0 * p[0] / W as f32;
+    assert!((screen_y(there) - 0.479).abs() < 1e-2, "{there:?}");
+    assert!((screen_y(there) - screen_y(here)).abs() < 0.02, "{there:?} vs {here:?}");
+    Ok(())
+}

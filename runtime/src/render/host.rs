@@ -135,17 +135,19 @@ impl<'f, 'w> ShadeCall<'f, 'w> {
         let world = self.frame.world;
         let (w, h) = (world.options.width.max(1) as f32, world.options.height.max(1) as f32);
         let tan = (world.camera.fov_degrees.to_radians() * 0.5).tan();
-        let (ax, ay) = if w >= h { (w / h, 1.0) } else { (1.0, h / w) };
-        // camera -> screen: x' = x / (z tan ax), y' likewise, z' = z (a projective matrix).
+        let e = world.options.screen_extent();
+        let ((ax, ay), (cx, cy)) = (e.half, e.centre);
+        // camera -> screen: x' = x / (z tan), y' likewise, z' = z (a projective matrix); the
+        // screen window [cx - ax, cx + ax] x [cy - ay, cy + ay] is the image.
         let near = world.camera.near.max(1e-6);
         let far = world.camera.far.max(near * 2.0);
         let proj = Mat4::from_cols_array(&[
-            1.0 / (tan * ax),
+            1.0 / tan,
             0.0,
             0.0,
             0.0,
             0.0,
-            1.0 / (tan * ay),
+            1.0 / tan,
             0.0,
             0.0,
             0.0,
@@ -160,8 +162,8 @@ impl<'f, 'w> ShadeCall<'f, 'w> {
         let screen_from_camera = match space {
             "screen" => proj,
             // NDC and raster are screen space scaled and moved: x right from 0, y down from 0.
-            "NDC" => window(0.5 / ax, -0.5 / ay, 0.5, 0.5) * proj,
-            _ => window(0.5 * w / ax, -0.5 * h / ay, 0.5 * w, 0.5 * h) * proj,
+            "NDC" => window(0.5 / ax, -0.5 / ay, 0.5 - 0.5 * cx / ax, 0.5 + 0.5 * cy / ay) * proj,
+            _ => window(0.5 * w / ax, -0.5 * h / ay, (0.5 - 0.5 * cx / ax) * w, (0.5 + 0.5 * cy / ay) * h) * proj,
         };
         let camera_from_screen = screen_from_camera.inverse();
         Some(Mat4::from(world.camera.world_from_camera) * camera_from_screen)

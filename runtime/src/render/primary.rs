@@ -51,12 +51,10 @@ impl Default for PrimaryRays {
     }
 }
 
-/// RenderMan's screen window position of a raster position: the shorter side of the image spans
-/// [-1, 1], x right and y up.
-pub fn screen_position(world: &World, (x, y): (f32, f32)) -> (f32, f32) {
-    let (w, h) = (world.options.width.max(1) as f32, world.options.height.max(1) as f32);
-    let (ax, ay) = if w >= h { (w / h, 1.0) } else { (1.0, h / w) };
-    ((2.0 * x / w - 1.0) * ax, (1.0 - 2.0 * y / h) * ay)
+/// RenderMan's screen space position of a raster position, x right and y up: by default the
+/// shorter side of the image spans [-1, 1]; `ScreenWindow` chooses another window.
+pub fn screen_position(world: &World, raster: (f32, f32)) -> (f32, f32) {
+    ScreenWindow::of(world).position(raster)
 }
 
 /// [`screen_position`] with its per-image factors worked out once (the same arithmetic, so the same
@@ -66,18 +64,20 @@ struct ScreenWindow {
     h: f32,
     ax: f32,
     ay: f32,
+    cx: f32,
+    cy: f32,
 }
 
 impl ScreenWindow {
     fn of(world: &World) -> ScreenWindow {
         let (w, h) = (world.options.width.max(1) as f32, world.options.height.max(1) as f32);
-        let (ax, ay) = if w >= h { (w / h, 1.0) } else { (1.0, h / w) };
-        ScreenWindow { w, h, ax, ay }
+        let e = world.options.screen_extent();
+        ScreenWindow { w, h, ax: e.half.0, ay: e.half.1, cx: e.centre.0, cy: e.centre.1 }
     }
 
     #[inline]
     fn position(&self, (x, y): (f32, f32)) -> (f32, f32) {
-        ((2.0 * x / self.w - 1.0) * self.ax, (1.0 - 2.0 * y / self.h) * self.ay)
+        ((2.0 * x / self.w - 1.0) * self.ax + self.cx, (1.0 - 2.0 * y / self.h) * self.ay + self.cy)
     }
 }
 
@@ -100,13 +100,15 @@ impl Pinhole {
         let cam = &world.camera;
         let tan = (cam.fov_degrees.to_radians() * 0.5).tan();
         let (w, h) = (world.options.width.max(1) as f32, world.options.height.max(1) as f32);
-        let (ax, ay) = if w >= h { (w / h, 1.0) } else { (1.0, h / w) };
+        let e = world.options.screen_extent();
+        let ((ax, ay), (cx, cy)) = (e.half, e.centre);
         let m = &cam.world_from_camera;
-        // screen_position: sx = (2x/w - 1) ax, sy = (1 - 2y/h) ay; the direction adds sx, sy times tan.
+        // screen_position: sx = (2x/w - 1) ax + cx, sy = (1 - 2y/h) ay + cy; the direction adds sx,
+        // sy times tan.
         let (kx, ky) = (2.0 * ax * tan / w, -2.0 * ay * tan / h);
         Pinhole {
             eye: m.translation,
-            forward: m.matrix3.z_axis - m.matrix3.x_axis * (ax * tan) + m.matrix3.y_axis * (ay * tan),
+            forward: m.matrix3.z_axis + m.matrix3.x_axis * ((cx - ax) * tan) + m.matrix3.y_axis * ((cy + ay) * tan),
             right: m.matrix3.x_axis * kx,
             up: m.matrix3.y_axis * ky,
         }

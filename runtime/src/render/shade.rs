@@ -43,7 +43,7 @@ impl<'w> Frame<'w> {
         let cam = &world.camera;
         let (w, h) = (world.options.width.max(1) as f32, world.options.height.max(1) as f32);
         let tan = (cam.fov_degrees.to_radians() * 0.5).tan();
-        let (ax, ay) = if w >= h { (w / h, 1.0) } else { (1.0, h / w) };
+        let (ax, ay) = world.options.screen_extent().half;
         let m = &cam.world_from_camera.matrix3;
         Frame {
             world,

@@ -222,6 +222,34 @@ pub struct RenderOptions {
     /// RIB's `DepthOfField fstop focallength focaldistance`, which the `thinlens` camera shader
     /// reads (`option("DepthOfField", ...)`); the built-in camera is a pinhole.
     pub depth_of_field: Option<[f32; 3]>,
+    /// RIB's `ScreenWindow left right bottom top`: the part of screen space (the perspective
+    /// projection, `x / (z tan(fov/2))`) the image shows. `None`: the shorter side of the image
+    /// spans [-1, 1], centred.
+    pub screen_window: Option<[f32; 4]>,
+}
+
+/// The screen window as centre and half extents, the form the cameras use: screen `x` of raster
+/// `x` is `(2 x / w - 1) * half.0 + centre.0` (y up: `(1 - 2 y / h) * half.1 + centre.1`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ScreenExtent {
+    pub centre: (f32, f32),
+    pub half: (f32, f32),
+}
+
+impl RenderOptions {
+    /// The screen window in use (see [`RenderOptions::screen_window`]).
+    pub fn screen_extent(&self) -> ScreenExtent {
+        let (w, h) = (self.width.max(1) as f32, self.height.max(1) as f32);
+        match self.screen_window {
+            Some([l, r, b, t]) if l != r && b != t && [l, r, b, t].iter().all(|v| v.is_finite()) => {
+                ScreenExtent { centre: (0.5 * (l + r), 0.5 * (b + t)), half: (0.5 * (r - l), 0.5 * (t - b)) }
+            }
+            _ => {
+                let half = if w >= h { (w / h, 1.0) } else { (1.0, h / w) };
+                ScreenExtent { centre: (0.0, 0.0), half }
+            }
+        }
+    }
 }
 
 impl Default for RenderOptions {
@@ -237,6 +265,7 @@ impl Default for RenderOptions {
             antialiasing: Antialiasing::Grid { jitter: true },
             shutter: (0.0, 0.0),
             depth_of_field: None,
+            screen_window: None,
         }
     }
 }

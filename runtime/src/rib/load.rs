@@ -460,7 +460,8 @@ impl<'a> Loader<'a> {
             }
             K::Exterior(s) => self
                 .warn(r, format_args!("shader \"{}\": this shader type is not rendered yet, so it is ignored", s.name)),
-            K::ScreenWindow(_) | K::CropWindow(_) | K::FrameAspectRatio(_) | K::PixelFilter { .. } => {
+            K::ScreenWindow(window) => rt.options.screen_window = Some(*window),
+            K::CropWindow(_) | K::FrameAspectRatio(_) | K::PixelFilter { .. } => {
                 self.warn(r, "this request is accepted but not honoured yet")
             }
             K::MeshArchive(path) => match self.retained.clone() {
