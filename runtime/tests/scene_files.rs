@@ -397,3 +397,35 @@ fn gltf_base_colour_textures_are_mapped_and_mask_mode_cuts() {
     assert_eq!(opaque.pixel(38, 17)[3], 1.0, "OPAQUE ignores alpha");
     assert!(opaque.pixel(38, 17)[0] > 0.9, "the (white, transparent) texels' colour: {:?}", opaque.pixel(38, 17));
 }
+
+#[test]
+fn crop_window_and_frame_aspect_ratio_are_honoured() {
+    let wall = r#"Surface "constant" Color [.2 .6 .9] Polygon "P" [-1 -1 0  1 -1 0  1 1 0  -1 1 0]"#;
+    let render_with = |options: &str| {
+        let (mut rt, warnings) = load(&format!(
+            "Format 64 48 1\n{options}\nProjection \"perspective\" \"fov\" [40]\nTranslate 0 0 5\nWorldBegin\n{wall}\nWorldEnd"
+        ));
+        assert!(warnings.is_empty(), "{warnings:?}");
+        render(&mut rt)
+    };
+    let whole = render_with("");
+    // The top right quarter: columns 32..64 (ceil(64 * 0.5)), rows 0..24.
+    let cropped = render_with("CropWindow 0.5 1 0 0.5");
+    for y in 0..48 {
+        for x in 0..64 {
+            let inside = x >= 32 && y < 24;
+            let p = cropped.pixel(x, y);
+            if inside {
+                assert_eq!(p, whole.pixel(x, y), "({x}, {y}) is rendered as without the crop");
+            } else {
+                assert_eq!(p, [0.0; 4], "({x}, {y}) is outside the crop");
+            }
+        }
+    }
+    // A frame aspect ratio of 2 is the screen window [-2, 2] x [-1, 1].
+    let aspect = render_with("FrameAspectRatio 2");
+    assert!(aspect.rgba == render_with("ScreenWindow -2 2 -1 1").rgba, "FrameAspectRatio 2 is that window");
+    let covered = |fb: &rtsl_runtime::render::Framebuffer| fb.rgba.chunks(4).filter(|p| p[3] > 0.5).count();
+    // The window is 1.5 times wider than the default [-4/3, 4/3]: the square covers fewer columns.
+    assert!(covered(&aspect) < covered(&whole), "{} vs {}", covered(&aspect), covered(&whole));
+}

@@ -236,7 +236,7 @@ pub fn sample_offset(world: &World, x: u32, y: u32, sample: (u32, u32)) -> (f32,
 /// The camera samples of one 8x8 packet for sample `(i, j)` of each pixel (see [`sample_offset`]),
 /// and the lanes inside the image.
 pub fn camera_samples(world: &World, x0: u32, y0: u32, sample: (u32, u32)) -> ([CameraSample; PACKET_SIZE], u64) {
-    let (w, h) = (world.options.width, world.options.height);
+    let (cx0, cx1, cy0, cy1) = world.options.pixel_range();
     let k = sample.1 * world.options.samples.0.max(1) + sample.0;
     let lens = lens_sample(x0, y0, k);
     let mut samples = [CameraSample::default(); PACKET_SIZE];
@@ -246,7 +246,7 @@ pub fn camera_samples(world: &World, x0: u32, y0: u32, sample: (u32, u32)) -> ([
         let (x, y) = (x0 + dx, y0 + dy);
         let (jx, jy) = sample_offset(world, x, y, sample);
         *s = CameraSample { raster: (x as f32 + jx, y as f32 + jy), lens, time: time_sample(world, x, y, k) };
-        if x < w && y < h {
+        if (cx0..cx1).contains(&x) && (cy0..cy1).contains(&y) {
             active |= 1 << i;
         }
     }

@@ -226,6 +226,12 @@ pub struct RenderOptions {
     /// projection, `x / (z tan(fov/2))`) the image shows. `None`: the shorter side of the image
     /// spans [-1, 1], centred.
     pub screen_window: Option<[f32; 4]>,
+    /// RIB's `FrameAspectRatio`: the default screen window's aspect (`None`: the image's).
+    pub frame_aspect_ratio: Option<f32>,
+    /// RIB's `CropWindow xmin xmax ymin ymax` (NDC, y down): only pixels from `ceil(width * xmin)`
+    /// to `ceil(width * xmax) - 1` (and likewise in y) are rendered; the rest stay empty (black,
+    /// alpha 0). `None`: the whole image.
+    pub crop_window: Option<[f32; 4]>,
 }
 
 /// The screen window as centre and half extents, the form the cameras use: screen `x` of raster
@@ -245,9 +251,26 @@ impl RenderOptions {
                 ScreenExtent { centre: (0.5 * (l + r), 0.5 * (b + t)), half: (0.5 * (r - l), 0.5 * (t - b)) }
             }
             _ => {
-                let half = if w >= h { (w / h, 1.0) } else { (1.0, h / w) };
+                let half = match self.frame_aspect_ratio.filter(|a| a.is_finite() && *a > 0.0) {
+                    Some(a) if a >= 1.0 => (a, 1.0),
+                    Some(a) => (1.0, 1.0 / a),
+                    None if w >= h => (w / h, 1.0),
+                    None => (1.0, h / w),
+                };
                 ScreenExtent { centre: (0.0, 0.0), half }
             }
+        }
+    }
+
+    /// The pixels rendered, `x0..x1` by `y0..y1`: the whole image, or the crop window's.
+    pub fn pixel_range(&self) -> (u32, u32, u32, u32) {
+        let (w, h) = (self.width, self.height);
+        match self.crop_window {
+            Some([x0, x1, y0, y1]) if [x0, x1, y0, y1].iter().all(|v| v.is_finite()) => {
+                let at = |f: f32, n: u32| ((f.clamp(0.0, 1.0) * n as f32).ceil() as u32).min(n);
+                (at(x0, w), at(x1, w), at(y0, h), at(y1, h))
+            }
+            _ => (0, w, 0, h),
         }
     }
 }
@@ -266,6 +289,8 @@ impl Default for RenderOptions {
             shutter: (0.0, 0.0),
             depth_of_field: None,
             screen_window: None,
+            frame_aspect_ratio: None,
+            crop_window: None,
         }
     }
 }

@@ -461,9 +461,9 @@ impl<'a> Loader<'a> {
             K::Exterior(s) => self
                 .warn(r, format_args!("shader \"{}\": this shader type is not rendered yet, so it is ignored", s.name)),
             K::ScreenWindow(window) => rt.options.screen_window = Some(*window),
-            K::CropWindow(_) | K::FrameAspectRatio(_) | K::PixelFilter { .. } => {
-                self.warn(r, "this request is accepted but not honoured yet")
-            }
+            K::FrameAspectRatio(a) => rt.options.frame_aspect_ratio = Some(*a),
+            K::CropWindow(window) => rt.options.crop_window = Some(*window),
+            K::PixelFilter { .. } => self.warn(r, "this request is accepted but not honoured yet"),
             K::MeshArchive(path) => match self.retained.clone() {
                 None => {
                     self.flush()?;
