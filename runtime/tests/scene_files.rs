@@ -429,3 +429,28 @@ fn crop_window_and_frame_aspect_ratio_are_honoured() {
     // The window is 1.5 times wider than the default [-4/3, 4/3]: the square covers fewer columns.
     assert!(covered(&aspect) < covered(&whole), "{} vs {}", covered(&aspect), covered(&whole));
 }
+
+#[test]
+fn bad_cut_outs_windows_and_displacements_are_warnings_not_failures() {
+    let square = r#"Surface "constant" Polygon "P" [-1 -1 0  1 -1 0  1 1 0  -1 1 0]"#;
+    let (mut plain, _) = load(&format!("{CAMERA} {square} WorldEnd"));
+    let plain = render(&mut plain);
+    // A cut-out texture that does not exist: one warning, and the square stays solid.
+    let (mut rt, warnings) =
+        load(&format!(r#"{CAMERA} Attribute "trace" "string alphamask" ["nosuch.png"] {square} WorldEnd"#));
+    assert!(warnings.is_empty(), "{warnings:?}");
+    let fb = render(&mut rt);
+    assert!(fb.rgba == plain.rgba, "a missing mask cuts nothing");
+    let context_warnings = rt.take_warnings();
+    assert!(context_warnings.iter().any(|w| w.contains("nosuch.png")), "{context_warnings:?}");
+    // A window of zero width is the default window; an inverted crop renders nothing.
+    let (mut rt, warnings) = load(&format!("ScreenWindow 1 1 0 0\n{CAMERA} {square} WorldEnd"));
+    assert!(warnings.is_empty(), "{warnings:?}");
+    assert!(render(&mut rt).rgba == plain.rgba);
+    let (mut rt, _) = load(&format!("CropWindow 0.8 0.2 0 1\n{CAMERA} {square} WorldEnd"));
+    assert!(render(&mut rt).rgba.iter().all(|&v| v == 0.0));
+    // A surface shader named as a displacement: a located warning, and the square still renders.
+    let (mut rt, warnings) = load(&format!(r#"{CAMERA} Displacement "plastic" {square} WorldEnd"#));
+    assert!(warnings.iter().any(|w| w.contains("test.rib:") && w.contains("plastic")), "{warnings:?}");
+    assert!(render(&mut rt).rgba == plain.rgba);
+}

@@ -460,11 +460,7 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
                 }
             }
         }
-        let mut call = ShadeCall::new(frame, surface, inst.world_from_object, depth);
-        call.material = Some(inst.material);
-        call.batch_points = geoms.iter().map(|g| g.as_ref().map_or(Vec3A::ZERO, |g| g.p)).collect();
-        call.batch_mask = geoms.iter().map(|g| if g.is_some() { -1 } else { 0 }).collect();
-        call.batch_times = group.iter().map(|p| p.ray.time).collect();
+        let mut call = batch_call(frame, surface, (inst.material, inst.world_from_object), group, &geoms, depth);
         let table = call.table();
         program.code.shade_with_table(batch, &table);
         let raw = batch.raw_mut();
@@ -552,6 +548,31 @@ fn fill_hit_globals(
     }
 }
 
+/// Each lane's point, shading mask and ray time: what the lights of a batch of hits are computed
+/// for.
+fn batch_lanes(group: &[Pending], geoms: &[Option<HitGeometry>]) -> (Vec<Vec3A>, Vec<i32>, Vec<f32>) {
+    let points = geoms.iter().map(|g| g.as_ref().map_or(Vec3A::ZERO, |g| g.p)).collect();
+    let mask = geoms.iter().map(|g| if g.is_some() { -1 } else { 0 }).collect();
+    let times = group.iter().map(|p| p.ray.time).collect();
+    (points, mask, times)
+}
+
+/// The renderer's side of a shader run over a batch of hits on `material` (placed by
+/// `world_from_object`): it serves the batch's lights and answers its messages.
+fn batch_call<'f, 'w>(
+    frame: &'f Frame<'w>,
+    shader: &'f ShaderInstance,
+    (material, world_from_object): (u32, Affine3A),
+    group: &[Pending],
+    geoms: &[Option<HitGeometry>],
+    depth: u32,
+) -> ShadeCall<'f, 'w> {
+    let mut call = ShadeCall::new(frame, shader, world_from_object, depth);
+    call.material = Some(material);
+    (call.batch_points, call.batch_mask, call.batch_times) = batch_lanes(group, geoms);
+    call
+}
+
 /// Runs a displacement shader over a group of hits as bump mapping: the `N` it leaves (when
 /// finite and not zero) replaces each hit's shading normal; `P` and the geometry stay where the
 /// ray met them. Vertex-scope parameters are bound for the surface shader only.
@@ -572,11 +593,7 @@ fn displace(
             displacement.write_params(&mut raw);
             fill_hit_globals(&mut raw, program, group, geoms, appearance, &mut footprints);
         }
-        let mut call = ShadeCall::new(frame, displacement, world_from_object, depth);
-        call.material = Some(material);
-        call.batch_points = geoms.iter().map(|g| g.as_ref().map_or(Vec3A::ZERO, |g| g.p)).collect();
-        call.batch_mask = geoms.iter().map(|g| if g.is_some() { -1 } else { 0 }).collect();
-        call.batch_times = group.iter().map(|p| p.ray.time).collect();
+        let mut call = batch_call(frame, displacement, (material, world_from_object), group, geoms, depth);
         let table = call.table();
         program.code.shade_with_table(batch, &table);
         let raw = batch.raw_mut();
@@ -603,9 +620,7 @@ fn shade_native(
     depth: u32,
     out: &mut [Shaded],
 ) {
-    let points: Vec<Vec3A> = geoms.iter().map(|g| g.as_ref().map_or(Vec3A::ZERO, |g| g.p)).collect();
-    let mask: Vec<i32> = geoms.iter().map(|g| if g.is_some() { -1 } else { 0 }).collect();
-    let times: Vec<f32> = group.iter().map(|p| p.ray.time).collect();
+    let (points, mask, times) = batch_lanes(group, geoms);
     let table = BatchLights::compute(frame, None, &points, &mask, &times, depth);
     let mut seen = Vec::new();
     for (k, g) in geoms.iter().enumerate() {

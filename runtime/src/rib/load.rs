@@ -432,7 +432,7 @@ impl<'a> Loader<'a> {
                 }
             }
             K::Shutter([open, close]) => rt.options.shutter = (*open, *close),
-            K::Atmosphere(s) | K::Interior(s) => {
+            K::Atmosphere(s) | K::Interior(s) | K::Displacement(s) => {
                 // An empty name removes the binding.
                 let (id, params) = if s.name.is_empty() {
                     (None, Vec::new())
@@ -441,22 +441,11 @@ impl<'a> Loader<'a> {
                     let program = rt.program(id)?.clone();
                     (Some(id), typed_params(&program, &s.params, |p| &p.loc, &mut self.out.warnings))
                 };
-                if matches!(r.kind, K::Atmosphere(_)) {
-                    rt.atmosphere(id, &params)?;
-                } else {
-                    rt.interior(id, &params)?;
+                match r.kind {
+                    K::Atmosphere(_) => rt.atmosphere(id, &params)?,
+                    K::Interior(_) => rt.interior(id, &params)?,
+                    _ => rt.displacement(id, &params)?,
                 }
-            }
-            K::Displacement(s) => {
-                // An empty name removes the binding.
-                let (id, params) = if s.name.is_empty() {
-                    (None, Vec::new())
-                } else {
-                    let id = rt.find_shader(&s.name)?;
-                    let program = rt.program(id)?.clone();
-                    (Some(id), typed_params(&program, &s.params, |p| &p.loc, &mut self.out.warnings))
-                };
-                rt.displacement(id, &params)?;
             }
             K::Exterior(s) => self
                 .warn(r, format_args!("shader \"{}\": this shader type is not rendered yet, so it is ignored", s.name)),
