@@ -15,6 +15,7 @@ use crate::scene::{scene_from_mesh, Scene};
 use crate::tiles::{render_tiles, Tile};
 use glam::Vec3A;
 use std::path::PathBuf;
+use std::sync::Mutex;
 use std::time::Instant;
 
 /// Tile side in pixels (a multiple of the packet side).
@@ -159,8 +160,33 @@ pub fn run_bench(opts: &BenchOptions) -> Result<BenchReport, BenchError> {
 /// The per-pixel results of one tile, row-major within the tile.
 type TileHits = Vec<Hit>;
 
-fn primary_packets(scene: &Scene, cam: &Camera, tile: &Tile) -> TileHits {
-    let mut out = vec![Hit::MISS; (tile.width * tile.height) as usize];
+/// One output buffer per tile, reused by every repeat of a pass: the timed passes then measure
+/// tracing, not the kernel handing out and zeroing fresh pages for each repeat's results (an
+/// image's worth of hits is about 4,000 pages).
+struct TileBuffers<T>(Vec<Mutex<Vec<T>>>);
+
+impl<T: Clone + Send> TileBuffers<T> {
+    fn new(tiles: usize) -> Self {
+        TileBuffers((0..tiles).map(|_| Mutex::new(Vec::new())).collect())
+    }
+
+    /// Runs `f` on every tile with that tile's buffer (emptied first).
+    fn fill(&self, w: u32, h: u32, f: impl Fn(&Tile, &mut Vec<T>) + Sync) {
+        render_tiles(w, h, TILE, |t| {
+            // Each tile's lock is taken by one worker only; a poisoned one still holds a buffer.
+            let mut out = self.0[t.index].lock().unwrap_or_else(|e| e.into_inner());
+            out.clear();
+            f(t, &mut out);
+        });
+    }
+
+    fn into_vecs(self) -> Vec<Vec<T>> {
+        self.0.into_iter().map(|m| m.into_inner().unwrap_or_else(|e| e.into_inner())).collect()
+    }
+}
+
+fn primary_packets(scene: &Scene, cam: &Camera, tile: &Tile, out: &mut TileHits) {
+    out.resize((tile.width * tile.height) as usize, Hit::MISS);
     let mut hp = HitPacket::default();
     for by in (0..tile.height).step_by(PACKET_SIDE as usize) {
         for bx in (0..tile.width).step_by(PACKET_SIDE as usize) {
@@ -175,17 +201,14 @@ fn primary_packets(scene: &Scene, cam: &Camera, tile: &Tile) -> TileHits {
             }
         }
     }
-    out
 }
 
-fn primary_single(scene: &Scene, cam: &Camera, tile: &Tile) -> TileHits {
-    let mut out = Vec::with_capacity((tile.width * tile.height) as usize);
+fn primary_single(scene: &Scene, cam: &Camera, tile: &Tile, out: &mut TileHits) {
     for y in 0..tile.height {
         for x in 0..tile.width {
             out.push(scene.intersect(&cam.ray(tile.x0 + x, tile.y0 + y)));
         }
     }
-    out
 }
 
 /// Shadow rays of one tile, row-major, `None` where the primary ray missed.
@@ -203,8 +226,8 @@ fn shadow_rays(scene: &Scene, light: Vec3A, hits: &TileHits) -> TileShadows {
         .collect()
 }
 
-fn shadow_packets(scene: &Scene, tile: &Tile, rays: &TileShadows) -> Vec<bool> {
-    let mut out = vec![false; rays.len()];
+fn shadow_packets(scene: &Scene, tile: &Tile, rays: &TileShadows, out: &mut Vec<bool>) {
+    out.resize(rays.len(), false);
     for by in (0..tile.height).step_by(PACKET_SIDE as usize) {
         for bx in (0..tile.width).step_by(PACKET_SIDE as usize) {
             let mut p = RayPacket::new();
@@ -228,24 +251,22 @@ fn shadow_packets(scene: &Scene, tile: &Tile, rays: &TileShadows) -> Vec<bool> {
             }
         }
     }
-    out
 }
 
-fn shadow_single(scene: &Scene, rays: &TileShadows) -> Vec<bool> {
-    rays.iter().map(|r| r.as_ref().is_some_and(|r| scene.occluded(r))).collect()
+fn shadow_single(scene: &Scene, rays: &TileShadows, out: &mut Vec<bool>) {
+    out.extend(rays.iter().map(|r| r.as_ref().is_some_and(|r| scene.occluded(r))));
 }
 
-fn timed<T>(repeats: usize, mut f: impl FnMut() -> T) -> (T, f64) {
-    let mut times = Vec::new();
-    let mut last = None;
-    for _ in 0..repeats.max(1) {
-        let t = Instant::now();
-        let r = f();
-        times.push(t.elapsed().as_secs_f64());
-        last = Some(r);
-    }
-    let Some(r) = last else { unreachable!("at least one repeat runs") };
-    (r, median(times))
+/// The median time of `repeats` runs of `f`.
+fn timed(repeats: usize, mut f: impl FnMut()) -> f64 {
+    let times = (0..repeats.max(1))
+        .map(|_| {
+            let t = Instant::now();
+            f();
+            t.elapsed().as_secs_f64()
+        })
+        .collect();
+    median(times)
 }
 
 fn trace_all(opts: &BenchOptions, scene: &Scene, triangles: usize, load_ms: f64, build_ms: f64) -> BenchReport {
@@ -254,9 +275,13 @@ fn trace_all(opts: &BenchOptions, scene: &Scene, triangles: usize, load_ms: f64,
     let list = crate::tiles::tiles(w, h, TILE);
     let [pp, ps, sp, ss] = opts.passes;
     let reps = |on: bool| if on { opts.repeats } else { 1 };
-    let (packet_hits, t_pp) = timed(reps(pp), || render_tiles(w, h, TILE, |t| primary_packets(scene, &cam, t)));
+    let buffers = TileBuffers::new(list.len());
+    let t_pp = timed(reps(pp), || buffers.fill(w, h, |t, out| primary_packets(scene, &cam, t, out)));
+    let packet_hits = buffers.into_vecs();
     let (single_hits, t_ps) = if ps {
-        timed(opts.repeats, || render_tiles(w, h, TILE, |t| primary_single(scene, &cam, t)))
+        let buffers = TileBuffers::new(list.len());
+        let t = timed(opts.repeats, || buffers.fill(w, h, |t, out| primary_single(scene, &cam, t, out)));
+        (buffers.into_vecs(), t)
     } else {
         (packet_hits.clone(), f64::INFINITY)
     };
@@ -265,16 +290,17 @@ fn trace_all(opts: &BenchOptions, scene: &Scene, triangles: usize, load_ms: f64,
         if !on {
             return (None, f64::INFINITY);
         }
-        let (r, t) = timed(opts.repeats, || {
-            render_tiles(w, h, TILE, |t| {
+        let buffers = TileBuffers::new(list.len());
+        let t = timed(opts.repeats, || {
+            buffers.fill(w, h, |t, out| {
                 if packets {
-                    shadow_packets(scene, &list[t.index], &shadows[t.index])
+                    shadow_packets(scene, t, &shadows[t.index], out)
                 } else {
-                    shadow_single(scene, &shadows[t.index])
+                    shadow_single(scene, &shadows[t.index], out)
                 }
             })
         });
-        (Some(r), t)
+        (Some(buffers.into_vecs()), t)
     };
     let (packet_occ, t_sp) = shadow_pass(sp, true);
     let (single_occ, t_ss) = shadow_pass(ss, false);
