@@ -890,6 +890,26 @@ fn matrices_arithmetic_and_components() {
     );
 }
 
+/// Transforms by projective matrices (w of 0, 1, negative, infinite and ordinary, lane by lane, and
+/// uniform), which the JIT computes in its own code: the same bits as the interpreter.
+#[test]
+fn projective_transforms_divide_like_the_interpreter() {
+    check(
+        r#"
+        surface t(float k = 0.25; output varying float o = 0;)
+        {
+            float w = (s < 0.2) ? 0 : (s < 0.4) ? 1 : (s < 0.6) ? 1 / (t - t) : (s < 0.8) ? -2 * u : u + 0.5;
+            matrix pm = matrix(2, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, s, t, u, w);
+            matrix um = matrix(1, 0, 0, k, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1 - k);
+            point p = transform(pm, P) + transform(um, P) + transform(um, point(1, 2, 3));
+            vector q = vtransform(pm, I) + vtransform(um, vector(s, t, u));
+            o = comp(pm, 3, 3);
+            Ci = color(p) + color(q);
+        }
+        "#,
+    );
+}
+
 #[test]
 fn space_casts_and_transforms() {
     check(

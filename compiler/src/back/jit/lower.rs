@@ -2214,10 +2214,60 @@ impl<'m> Lower<'m, '_> {
 
     /// `helper(a, b)` where `ok`, else `fallback` (of the result's size).
     fn apply_if(&mut self, helper: &'static str, ok: Value, a: &Val, b: &Val, fallback: &Val) -> R<Val> {
+        if let Some(point) = match helper {
+            "rtsl_xform_point" => Some(true),
+            "rtsl_xform_vector" => Some(false),
+            _ => None,
+        } {
+            let r = self.transform_inline(a, b, point);
+            let c = r.c.iter().zip(&fallback.c).map(|(x, y)| choose(&mut self.b, ok, *x, *y)).collect();
+            return Ok(Val { vary: r.vary || fallback.vary, c });
+        }
         let all = self.concat(&[a.clone(), b.clone()]);
         let r = self.call_helper(helper, &all.c, all.vary)?;
         let c = r.iter().zip(&fallback.c).map(|(x, y)| choose(&mut self.b, ok, *x, *y)).collect();
         Ok(Val { vary: all.vary || fallback.vary, c })
+    }
+
+    /// `p` times the 4x4 matrix `m` in the code itself, by the operations of
+    /// `shadeops::matrix::transform_point` (or `transform_vector`, without translation and divide)
+    /// in their order, so the same bits: a helper call would move 19 values a lane through memory
+    /// for 12 multiply-adds, and space casts sit in the inner loops of most shaders.
+    fn transform_inline(&mut self, m: &Val, p: &Val, point: bool) -> Val {
+        let vary = m.vary || p.vary;
+        let m: Vec<Value> = m.c.iter().map(|x| widen(&mut self.b, *x, vary)).collect();
+        let p: Vec<Value> = p.c.iter().map(|x| widen(&mut self.b, *x, vary)).collect();
+        let columns = if point { 4 } else { 3 };
+        let mut out = Vec::with_capacity(columns);
+        for j in 0..columns {
+            let mut sum = self.b.ins().fmul(p[0], m[j]);
+            for (k, pk) in p.iter().enumerate().skip(1) {
+                let term = self.b.ins().fmul(*pk, m[4 * k + j]);
+                sum = self.b.ins().fadd(sum, term);
+            }
+            if point {
+                sum = self.b.ins().fadd(sum, m[12 + j]);
+            }
+            out.push(sum);
+        }
+        if point {
+            // Divided by w unless w is 1, 0 or not finite.
+            let w = out.pop().expect("four columns");
+            let one = konst(&mut self.b, 1.0, w);
+            let zero = konst(&mut self.b, 0.0, w);
+            let inf = konst(&mut self.b, f32::INFINITY, w);
+            let not_one = self.b.ins().fcmp(FloatCC::NotEqual, w, one);
+            let not_zero = self.b.ins().fcmp(FloatCC::NotEqual, w, zero);
+            let abs = self.b.ins().fabs(w);
+            let finite = self.b.ins().fcmp(FloatCC::LessThan, abs, inf);
+            let divide = and(&mut self.b, not_one, not_zero);
+            let divide = and(&mut self.b, divide, finite);
+            for x in &mut out {
+                let q = self.b.ins().fdiv(*x, w);
+                *x = choose(&mut self.b, divide, q, *x);
+            }
+        }
+        Val { vary, c: out }
     }
 
     /// `spline([basis,] x, knots... | knots[])`: the host helper finds each lane's segment and its
