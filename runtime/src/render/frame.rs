@@ -4,7 +4,7 @@
 //! Invariant: the image depends only on the world and the options, not on the thread count (tiles
 //! are independent, jitter is a hash of pixel and sample, and results land in tile order).
 
-use super::primary::{pinhole_ray, primary_rays, CameraSample, PrimaryRays};
+use super::primary::{pinhole_ray, primary_rays, primary_rays_into, CameraSample, PrimaryRays};
 use super::shade::{mix, shade_packet, shade_pixels, Frame, Sample, TilePixels};
 use super::world::{Antialiasing, World};
 use crate::camera::{packet_lane_offset, PACKET_SIDE};
@@ -239,12 +239,21 @@ pub fn camera_samples(world: &World, x0: u32, y0: u32, sample: (u32, u32)) -> ([
     let (cx0, cx1, cy0, cy1) = world.options.pixel_range();
     let k = sample.1 * world.options.samples.0.max(1) + sample.0;
     let lens = lens_sample(x0, y0, k);
+    // The sub-pixel offset is the same for every pixel unless it is jittered or interleaved: worked
+    // out once per packet then.
+    let (sx, sy) = (world.options.samples.0.max(1), world.options.samples.1.max(1));
+    let same_offset = match world.options.antialiasing {
+        Antialiasing::Adaptive { .. } | Antialiasing::Grid { jitter: false } => true,
+        Antialiasing::Interleaved => false,
+        Antialiasing::Grid { jitter: true } => sx * sy == 1,
+    };
+    let offset = same_offset.then(|| sample_offset(world, x0, y0, sample));
     let mut samples = [CameraSample::default(); PACKET_SIZE];
     let mut active = 0u64;
     for (i, s) in samples.iter_mut().enumerate() {
         let (dx, dy) = packet_lane_offset(i);
         let (x, y) = (x0 + dx, y0 + dy);
-        let (jx, jy) = sample_offset(world, x, y, sample);
+        let (jx, jy) = offset.unwrap_or_else(|| sample_offset(world, x, y, sample));
         *s = CameraSample { raster: (x as f32 + jx, y as f32 + jy), lens, time: time_sample(world, x, y, k) };
         if (cx0..cx1).contains(&x) && (cy0..cy1).contains(&y) {
             active |= 1 << i;
@@ -256,8 +265,15 @@ pub fn camera_samples(world: &World, x0: u32, y0: u32, sample: (u32, u32)) -> ([
 /// The primary rays of one 8x8 packet for sample `(i, j)` of each pixel, from the bound camera
 /// shader or the built-in pinhole camera.
 pub fn primary_packet(frame: &Frame, x0: u32, y0: u32, sample: (u32, u32)) -> PrimaryRays {
+    let mut out = PrimaryRays::default();
+    primary_packet_into(frame, x0, y0, sample, &mut out);
+    out
+}
+
+/// [`primary_packet`] into a packet that the caller reuses (see [`primary_rays_into`]).
+pub fn primary_packet_into(frame: &Frame, x0: u32, y0: u32, sample: (u32, u32), out: &mut PrimaryRays) {
     let (samples, active) = camera_samples(frame.world, x0, y0, sample);
-    primary_rays(frame, &samples, active)
+    primary_rays_into(frame, &samples, active, out);
 }
 
 /// Adaptive oversampling of one tile (OpenRT's, paper 5.1.2): a pixel that differs from a
@@ -342,17 +358,31 @@ fn refine_tile(
 /// (what `rtsl bench camera` times), with the threads of the current rayon pool. Returns the rays
 /// traced and how many hit something.
 pub fn trace_primary_rays(world: &World) -> (u64, u64) {
+    primary_rays_of_frame(world, true)
+}
+
+/// [`trace_primary_rays`] without the tracing: the rays made (and 0 hits), so that benchmarks can
+/// tell the cost of making rays from the cost of tracing them.
+pub fn make_primary_rays(world: &World) -> (u64, u64) {
+    primary_rays_of_frame(world, false)
+}
+
+fn primary_rays_of_frame(world: &World, trace: bool) -> (u64, u64) {
     let frame = Frame::new(world);
     let (w, h) = (world.options.width, world.options.height);
     let counts = render_tiles(w, h, TILE_SIZE, |tile| {
         let mut hits = HitPacket::default();
+        let mut primary = PrimaryRays::default();
         let (mut rays, mut hit) = (0u64, 0u64);
         for py in (tile.y0..tile.y0 + tile.height).step_by(PACKET_SIDE as usize) {
             for px in (tile.x0..tile.x0 + tile.width).step_by(PACKET_SIDE as usize) {
-                let primary = primary_packet(&frame, px, py, (0, 0));
-                world.scene.intersect_packet(&primary.packet, &mut hits);
+                primary_packet_into(&frame, px, py, (0, 0), &mut primary);
                 let active = primary.packet.active;
                 rays += u64::from(active.count_ones());
+                if !trace {
+                    continue;
+                }
+                world.scene.intersect_packet(&primary.packet, &mut hits);
                 hit +=
                     (0..PACKET_SIZE).filter(|&i| active >> i & 1 != 0 && hits.instance.0[i] != u32::MAX).count() as u64;
             }
@@ -387,11 +417,12 @@ pub fn render_frame(world: &World, progress: Option<&(dyn Fn(usize, usize) + Syn
         let mut shader_ids = vec![u32::MAX; color.len()];
         let mut samples = [Sample::default(); PACKET_SIZE];
         let mut hits = HitPacket::default();
+        let mut primary = PrimaryRays::default();
         for py in (tile.y0..tile.y0 + tile.height).step_by(PACKET_SIDE as usize) {
             for px in (tile.x0..tile.x0 + tile.width).step_by(PACKET_SIDE as usize) {
                 for j in 0..sy {
                     for i in 0..sx {
-                        let primary = primary_packet(&frame, px, py, (i, j));
+                        primary_packet_into(&frame, px, py, (i, j), &mut primary);
                         let packet = &primary.packet;
                         world.scene.intersect_packet(packet, &mut hits);
                         shade_packet(&frame, &primary, &hits, &mut samples);

@@ -19,10 +19,10 @@ mod volume;
 pub mod world;
 
 pub use frame::{
-    camera_ray, camera_samples, primary_packet, render_frame, sample_offset, trace_primary_rays, FrameReport,
-    Framebuffer, TILE_SIZE,
+    camera_ray, camera_samples, make_primary_rays, primary_packet, primary_packet_into, render_frame, sample_offset,
+    trace_primary_rays, FrameReport, Framebuffer, TILE_SIZE,
 };
-pub use primary::{primary_rays, CameraSample, PrimaryRays};
+pub use primary::{primary_rays, primary_rays_into, CameraSample, PrimaryRays};
 pub use shade::{Frame, Sample};
 pub(crate) use stats::ShaderKindTimer;
 pub use stats::Stats;

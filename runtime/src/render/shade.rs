@@ -31,9 +31,9 @@ pub struct Frame<'w> {
     pub(super) transparent_shadows: bool,
     pub(super) camera_from_world: Affine3A,
     /// The camera's forward axis and how an unnormalised camera ray's direction changes per pixel.
-    forward: Vec3A,
-    pixel_dx: Vec3A,
-    pixel_dy: Vec3A,
+    pub(super) forward: Vec3A,
+    pub(super) pixel_dx: Vec3A,
+    pub(super) pixel_dy: Vec3A,
     /// The angle one pixel spans (radians, small-angle), for the cones of secondary rays.
     pub(super) pixel_spread: f32,
 }
@@ -70,16 +70,6 @@ pub struct Sample {
     pub object_id: u32,
     /// Material (shader instance) of the first surface hit (`u32::MAX` on a miss).
     pub shader_id: u32,
-}
-
-impl Frame<'_> {
-    /// The differential of a built-in pinhole camera ray with unit direction `dir`.
-    pub(super) fn pinhole_differential(&self, dir: Vec3A) -> RayDifferential {
-        // The unnormalised camera direction has a forward component of 1.
-        let along = dir.dot(self.forward);
-        let d = if along > 1e-6 { dir / along } else { dir };
-        RayDifferential::from_camera(d, self.pixel_dx, self.pixel_dy)
-    }
 }
 
 /// Shades the rays of a primary packet (already intersected): lane `i`'s sample is its radiance
