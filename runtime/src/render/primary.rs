@@ -194,6 +194,8 @@ fn pinhole_rays(frame: &Frame, samples: &[CameraSample; PACKET_SIZE], active: u6
 
 /// [`RayDifferential::from_camera`] by rows: the change per pixel of the unit direction `d / |d|`
 /// when the unnormalised direction `d` changes by `dd_dx` and `dd_dy` (zero where `d` is zero).
+// Lane-indexed loops over several rows at once are the point here (they compile to vector code).
+#[allow(clippy::needless_range_loop)]
 fn camera_derivatives(d: &Rows3, dd_dx: Vec3A, dd_dy: Vec3A) -> (Rows3, Rows3) {
     let (vx, vy) = (dd_dx.to_array(), dd_dy.to_array());
     let mut out = ([[0.0f32; PACKET_SIZE]; 3], [[0.0f32; PACKET_SIZE]; 3]);
@@ -312,11 +314,9 @@ fn run_camera_shader(
         (ox[l], oy[l], oz[l]) = if ok[l] { (ox[l], oy[l], oz[l]) } else { (0.0, 0.0, 0.0) };
     }
     let valid = ok.iter().enumerate().fold(0u64, |m, (l, &v)| m | (u64::from(v) << l));
-    for l in 0..PACKET_SIZE {
-        packet.tmin.0[l] = 0.0;
-        packet.tmax.0[l] = f32::INFINITY;
-        packet.time.0[l] = samples[l].time;
-    }
+    packet.tmin.0 = [0.0; PACKET_SIZE];
+    packet.tmax.0 = [f32::INFINITY; PACKET_SIZE];
+    packet.time.0 = std::array::from_fn(|l| samples[l].time);
     packet.active = active & valid;
     for l in (0..PACKET_SIZE).filter(|l| ok[*l]) {
         out.weights[l] = Vec3A::new(wr[l], wg[l], wb[l]).max(Vec3A::ZERO);
@@ -389,6 +389,7 @@ mod tests {
     fn camera_derivatives_by_rows_match_the_scalar_formula() {
         let (vx, vy) = (Vec3A::new(0.002, 0.0, 0.0003), Vec3A::new(0.0, -0.002, 0.0001));
         let mut d = [[0.0f32; PACKET_SIZE]; 3];
+        #[allow(clippy::needless_range_loop)]
         for l in 0..PACKET_SIZE {
             let a = l as f32 / PACKET_SIZE as f32;
             (d[0][l], d[1][l], d[2][l]) = (a - 0.5, 0.3 - a * a, if l == 7 { 0.0 } else { 1.0 + a });
