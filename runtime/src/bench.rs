@@ -185,6 +185,17 @@ impl<T: Clone + Send> TileBuffers<T> {
     }
 }
 
+/// The lane of each pixel of an 8x8 packet, row by row (the inverse of [`packet_lane_offset`]).
+static LANES_BY_ROW: std::sync::LazyLock<[[u8; PACKET_SIDE as usize]; PACKET_SIDE as usize]> =
+    std::sync::LazyLock::new(|| {
+        let mut t = [[0u8; PACKET_SIDE as usize]; PACKET_SIDE as usize];
+        for i in 0..PACKET_SIZE {
+            let (dx, dy) = packet_lane_offset(i);
+            t[dy as usize][dx as usize] = i as u8;
+        }
+        t
+    });
+
 fn primary_packets(scene: &Scene, cam: &Camera, tile: &Tile, out: &mut TileHits) {
     out.resize((tile.width * tile.height) as usize, Hit::MISS);
     let mut hp = HitPacket::default();
@@ -192,6 +203,16 @@ fn primary_packets(scene: &Scene, cam: &Camera, tile: &Tile, out: &mut TileHits)
         for bx in (0..tile.width).step_by(PACKET_SIDE as usize) {
             let p = cam.packet(tile.x0 + bx, tile.y0 + by);
             scene.intersect_packet(&p, &mut hp);
+            if p.active == u64::MAX && bx + PACKET_SIDE <= tile.width && by + PACKET_SIDE <= tile.height {
+                // A whole packet inside the tile: row by row.
+                for (r, lanes) in LANES_BY_ROW.iter().enumerate() {
+                    let at = ((by + r as u32) * tile.width + bx) as usize;
+                    for (dst, &i) in out[at..at + lanes.len()].iter_mut().zip(lanes) {
+                        *dst = hp.get(i as usize);
+                    }
+                }
+                continue;
+            }
             for i in 0..PACKET_SIZE {
                 let (dx, dy) = packet_lane_offset(i);
                 let (x, y) = (bx + dx, by + dy);

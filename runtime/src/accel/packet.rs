@@ -127,24 +127,26 @@ impl Geom {
 
     /// The world-space geometry of a packet; lanes outside `active` copy lane `fill`.
     fn world(p: &RayPacket, fill: usize) -> Self {
-        let mut g = Geom::zeroed();
-        let src = [&p.ox.0, &p.oy.0, &p.oz.0, &p.dx.0, &p.dy.0, &p.dz.0];
-        for (k, arr) in src.iter().enumerate() {
-            let dst = if k < 3 { &mut g.o[k] } else { &mut g.d[k - 3] };
-            for (c, v) in dst.iter_mut().enumerate() {
-                if p.active >> (4 * c) & 0xF == 0xF {
-                    *v = Vec4::from_slice(&arr[4 * c..4 * c + 4]);
-                    continue;
-                }
-                let mut lanes = [0.0f32; 4];
-                for (j, l) in lanes.iter_mut().enumerate() {
-                    let i = 4 * c + j;
-                    *l = if p.active >> i & 1 != 0 { arr[i] } else { arr[fill] };
-                }
-                *v = Vec4::from_array(lanes);
+        // Built in place rather than zeroed and then overwritten: this runs once per packet.
+        #[inline(always)]
+        fn rows(arr: &[f32; PACKET_SIZE], active: u64, fill: usize) -> Chunks {
+            let mut out = [Vec4::ZERO; CHUNKS];
+            for (c, v) in out.iter_mut().enumerate() {
+                *v = if active >> (4 * c) & 0xF == 0xF {
+                    Vec4::from_slice(&arr[4 * c..4 * c + 4])
+                } else {
+                    let lane = |j: usize| if active >> (4 * c + j) & 1 != 0 { arr[4 * c + j] } else { arr[fill] };
+                    Vec4::new(lane(0), lane(1), lane(2), lane(3))
+                };
             }
+            out
         }
-        g
+        let rows = |arr: &[f32; PACKET_SIZE]| rows(arr, p.active, fill);
+        Geom {
+            o: [rows(&p.ox.0), rows(&p.oy.0), rows(&p.oz.0)],
+            d: [rows(&p.dx.0), rows(&p.dy.0), rows(&p.dz.0)],
+            ..Geom::zeroed()
+        }
     }
 
     /// This geometry moved into object space by `xf`, for chunks `lo..=hi`.
@@ -554,6 +556,11 @@ fn chunk_range(mask: u64) -> (usize, usize) {
     (lo, hi)
 }
 
+/// The chunk mask of chunks `lo..=hi`.
+fn chunk_mask(lo: usize, hi: usize) -> u16 {
+    ((1u32 << (hi + 1)) - (1u32 << lo)) as u16
+}
+
 fn mask_range(mask: u16) -> (usize, usize) {
     (mask.trailing_zeros() as usize, 15 - mask.leading_zeros() as usize)
 }
@@ -619,22 +626,22 @@ pub(crate) fn intersect_packet(
         return single_all(out);
     }
     let mut s = State::new(p);
-    traverse(&top.bvh, &g, &mut s, lo, hi, |first, count, mask, s| {
-        for slot in first..first + count {
-            let inst_id = top.bvh.prim_order[slot as usize];
+    // The packet's chunks `mask` against instance `inst_id`.
+    let visit = |inst_id: u32, mask: u16, s: &mut State| {
+        {
             let inst: &InstanceData = &top.instances[inst_id as usize];
             let obj = &objects[inst.object as usize];
             let (clo, chi) = mask_range(mask);
             if inst.identity {
                 intersect_object(obj, inst_id, inst.object, &g, s, clo, chi, filter);
-                continue;
+                return;
             }
             let og = match inst.motion {
                 None => {
                     let mut og = g.transformed(&inst.object_from_world, clo, chi);
                     if og.finish(clo, chi) {
                         intersect_object(obj, inst_id, inst.object, &og, s, clo, chi, filter);
-                        continue;
+                        return;
                     }
                     Some(og)
                 }
@@ -658,8 +665,18 @@ pub(crate) fn intersect_packet(
             }
             s.update_tmax_hi();
         }
-        false
-    });
+    };
+    if let Some(inst_id) = top.sole_instance() {
+        // One instance: its object BVH's root test does the top level's culling.
+        visit(inst_id, chunk_mask(lo, hi), &mut s);
+    } else {
+        traverse(&top.bvh, &g, &mut s, lo, hi, |first, count, mask, s| {
+            for slot in first..first + count {
+                visit(top.bvh.prim_order[slot as usize], mask, s);
+            }
+            false
+        });
+    }
     let mut m = active;
     while m != 0 {
         let i = m.trailing_zeros() as usize;
@@ -710,26 +727,21 @@ pub(crate) fn occluded_packet(top: &TopLevel, objects: &[Object], p: &RayPacket,
         return single_lanes(active);
     }
     let mut s = State::new(p);
-    traverse(&top.bvh, &g, &mut s, lo, hi, |first, count, mask, s| {
-        for slot in first..first + count {
-            let inst_id = top.bvh.prim_order[slot as usize];
+    // The packet's chunks `mask` against instance `inst_id`: `true` ends the traversal (every lane
+    // occluded, or few enough left to finish one by one).
+    let visit = |inst_id: u32, mask: u16, s: &mut State| -> bool {
+        {
             let inst: &InstanceData = &top.instances[inst_id as usize];
             let obj = &objects[inst.object as usize];
             let (clo, chi) = mask_range(mask);
             if inst.identity {
-                if occluded_object(obj, inst_id, inst.object, &g, s, clo, chi, filter) {
-                    return true;
-                }
-                continue;
+                return occluded_object(obj, inst_id, inst.object, &g, s, clo, chi, filter);
             }
             let og = match inst.motion {
                 None => {
                     let mut og = g.transformed(&inst.object_from_world, clo, chi);
                     if og.finish(clo, chi) {
-                        if occluded_object(obj, inst_id, inst.object, &og, s, clo, chi, filter) {
-                            return true;
-                        }
-                        continue;
+                        return occluded_object(obj, inst_id, inst.object, &og, s, clo, chi, filter);
                     }
                     Some(og)
                 }
@@ -756,7 +768,14 @@ pub(crate) fn occluded_packet(top: &TopLevel, objects: &[Object], p: &RayPacket,
             s.update_tmax_hi();
         }
         false
-    });
+    };
+    if let Some(inst_id) = top.sole_instance() {
+        visit(inst_id, chunk_mask(lo, hi), &mut s);
+    } else {
+        traverse(&top.bvh, &g, &mut s, lo, hi, |first, count, mask, s| {
+            (first..first + count).any(|slot| visit(top.bvh.prim_order[slot as usize], mask, s))
+        });
+    }
     let mut hit = s.done & active;
     if s.bail {
         hit |= single_lanes(active & !s.done);
