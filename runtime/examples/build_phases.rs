@@ -1,9 +1,11 @@
 //! Times the phases of an object BVH build: `build_phases MESH [THREADS] [REPEATS]`.
-//! Prints obvhs's phases (PLOC, reinsertion, collapse) for each build-quality preset, then the
-//! whole `ObjectBvh::build` (which adds boxes, the 4-wide conversion and triangle preparation).
+//! Prints obvhs's phases (PLOC, reinsertion, collapse), the 8-wide copy, for each build-quality preset, then the
+//! whole `ObjectBvh::build` (which adds boxes, the 4-wide conversion, the 8-wide copy and triangle
+//! preparation).
 
 use obvhs::{aabb::Aabb, bvh2::reinsertion::ReinsertionOptimizer, ploc::PlocBuilder};
 use rtsl_runtime::accel::bvh4::{BuildQuality, Bvh4};
+use rtsl_runtime::accel::bvh8::Bvh8;
 use rtsl_runtime::accel::object::{ObjectBvh, OBJECT_LEAF_SIZE};
 use rtsl_runtime::load_mesh;
 use std::time::Instant;
@@ -75,11 +77,15 @@ fn main() {
                     println!("  convert again {:.1} ms", ms(t));
                 }
                 let t = Instant::now();
+                let b8 = Bvh8::from_bvh4(&b4);
+                let t_wide = ms(t);
+                let t = Instant::now();
                 let full = ObjectBvh::build(&mesh, q);
                 let t_full = ms(t);
                 println!(
-                    "{q:?}: ploc {t_ploc:.1} reinsert {t_re1:.1} collapse+to4 {t_conv:.1} | full ObjectBvh::build {t_full:.1} ms ({} nodes, sah {:.2})",
+                    "{q:?}: ploc {t_ploc:.1} reinsert {t_re1:.1} collapse+to4 {t_conv:.1} to8 {t_wide:.1} | full ObjectBvh::build {t_full:.1} ms ({} 4-wide nodes, {} 8-wide, sah {:.2})",
                     b4.nodes.len(),
+                    b8.nodes.len(),
                     full.bvh.sah_cost()
                 );
             }

@@ -1,9 +1,10 @@
 //! Acceleration structures and their traversal: a two-level BVH.
 //!
 //! - [`bvh4`]: the 4-wide node layout shared by both levels, built from obvhs's binary BVH.
+//! - [`bvh8`]: the 8-wide form of an object's BVH that single rays traverse (same leaves).
 //! - [`object`]: an object's own BVH over its triangles (built once per geometry change).
 //! - [`top`]: the top-level BVH over instances (rebuilt every frame from the instance list).
-//! - [`single`]: single-ray traversal (SSE node tests), for incoherent rays.
+//! - [`single`]: single-ray traversal (SSE node tests, 8-wide in objects), for incoherent rays.
 //! - [`packet`]: packet traversal for coherent packets of 64 rays (interval-arithmetic culling,
 //!   ranged first/last-active-chunk traversal, per-lane masks), falling back to [`single`].
 //!
@@ -13,6 +14,7 @@
 //! closest primitive (up to ties at equal `t`) and the same occlusion answers.
 
 pub mod bvh4;
+pub mod bvh8;
 pub mod object;
 pub mod packet;
 pub mod single;

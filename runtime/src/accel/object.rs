@@ -5,6 +5,7 @@
 //! gives both the triangle to test and the primitive id to report.
 
 use super::bvh4::{BuildQuality, Bvh4};
+use super::bvh8::Bvh8;
 use crate::geometry::{triangle::PreTriangle, AlphaMask, Mesh};
 use glam::Vec3A;
 use obvhs::aabb::Aabb;
@@ -18,8 +19,10 @@ pub const OBJECT_LEAF_SIZE: u32 = 2;
 /// An object's BVH with its triangles in leaf order.
 #[derive(Clone, Debug, Default)]
 pub struct ObjectBvh {
-    /// The BVH over the triangles.
+    /// The BVH over the triangles (read by packets).
     pub bvh: Bvh4,
+    /// Its 8-wide form (read by single rays; same leaves).
+    pub wide: Bvh8,
     /// Prepared triangles in leaf-slot order.
     pub tris: Vec<PreTriangle>,
 }
@@ -37,21 +40,22 @@ impl ObjectBvh {
             })
             .collect();
         let bvh = Bvh4::build(&boxes, quality, OBJECT_LEAF_SIZE);
-        let tris = bvh
-            .prim_order
+        let mut tris = Vec::with_capacity(bvh.prim_order.len());
+        bvh.prim_order
             .par_iter()
             .with_min_len(4096)
             .map(|&p| {
                 let [a, b, c] = mesh.corners(p as usize);
                 PreTriangle::new(a, b, c)
             })
-            .collect();
-        ObjectBvh { bvh, tris }
+            .collect_into_vec(&mut tris);
+        let wide = Bvh8::from_bvh4(&bvh);
+        ObjectBvh { bvh, wide, tris }
     }
 
     /// Heap bytes of the BVH and the prepared triangles.
     pub fn memory_bytes(&self) -> usize {
-        self.bvh.memory_bytes() + self.tris.len() * size_of::<PreTriangle>()
+        self.bvh.memory_bytes() + self.wide.memory_bytes() + self.tris.len() * size_of::<PreTriangle>()
     }
 }
 

@@ -1,14 +1,16 @@
 //! Single-ray traversal of the two-level BVH, and the brute-force reference.
 //!
-//! Each 4-wide node is tested with one SSE slab test (glam's `Vec4`); hit children are visited
-//! nearest first, and popped entries farther than the current closest hit are skipped. This is the
+//! Object BVHs are traversed through their 8-wide form ([`super::bvh8`]), the top level through
+//! its 4-wide nodes; one generic loop serves both (`WideNode`). Each group of four child boxes is
+//! tested with one SSE slab test (glam's `Vec4`); hit children are visited nearest first, and popped entries farther than the current closest hit are skipped. This is the
 //! path for incoherent rays and the fallback of packet traversal.
 //!
 //! Invariant: traversal state (`tmax`, the hit record) lives in [`RayPre`] and is shared between
 //! the levels: `t` is the same number in world and object space because origin and direction are
 //! transformed by the same affine map.
 
-use super::bvh4::{leaf_range, Bvh4, Node4, EMPTY_CHILD, LEAF_BIT};
+use super::bvh4::{leaf_range, Node4, EMPTY_CHILD, LEAF_BIT};
+use super::bvh8::Node8;
 use super::object::Object;
 use super::stack::Stack;
 use super::top::{InstanceData, TopLevel};
@@ -31,7 +33,7 @@ pub(crate) struct RayPre {
     idx: Vec4,
     idy: Vec4,
     idz: Vec4,
-    /// The inverse direction times [`ROBUST`], for the far planes (see [`node_hits`]).
+    /// The inverse direction times [`ROBUST`], for the far planes (see [`slab4`]).
     fidx: Vec4,
     fidy: Vec4,
     fidz: Vec4,
@@ -96,7 +98,59 @@ impl RayPre {
     }
 }
 
-/// Tests the four child boxes of `n`: returns the hit mask and the entry distances.
+/// A node that single-ray traversal reads: the 4-wide nodes of both levels and the 8-wide nodes of
+/// object BVHs.
+pub(crate) trait WideNode {
+    /// Cache lines of one node (prefetched whole).
+    const LINES: usize;
+    /// Tests the child boxes: the hit mask and the entry distances (entries beyond the width are
+    /// not meaningful).
+    fn hits(&self, r: &RayPre) -> (u32, [f32; 8]);
+    /// Child reference `k`.
+    fn child(&self, k: usize) -> u32;
+}
+
+impl WideNode for Node4 {
+    const LINES: usize = 2;
+
+    #[inline(always)]
+    fn hits(&self, r: &RayPre) -> (u32, [f32; 8]) {
+        let (mask, t) = slab4([&self.min_x, &self.max_x, &self.min_y, &self.max_y, &self.min_z, &self.max_z], r);
+        let mut all = [0.0; 8];
+        t.write_to_slice(&mut all[..4]);
+        (mask, all)
+    }
+
+    #[inline(always)]
+    fn child(&self, k: usize) -> u32 {
+        self.child[k]
+    }
+}
+
+impl WideNode for Node8 {
+    const LINES: usize = 4;
+
+    #[inline(always)]
+    fn hits(&self, r: &RayPre) -> (u32, [f32; 8]) {
+        let half = |h: usize| {
+            slab4([&self.min_x[h], &self.max_x[h], &self.min_y[h], &self.max_y[h], &self.min_z[h], &self.max_z[h]], r)
+        };
+        let (m0, t0) = half(0);
+        let (m1, t1) = half(1);
+        let mut all = [0.0; 8];
+        t0.write_to_slice(&mut all[..4]);
+        t1.write_to_slice(&mut all[4..]);
+        (m0 | m1 << 4, all)
+    }
+
+    #[inline(always)]
+    fn child(&self, k: usize) -> u32 {
+        self.child[k]
+    }
+}
+
+/// Tests four boxes, given as `[min_x, max_x, min_y, max_y, min_z, max_z]` of four each: returns
+/// the hit mask and the entry distances.
 ///
 /// Robustness (Ize 2013): the far distances are scaled by [`ROBUST`] through the inverse direction
 /// (`(f - o) * (inv * ROBUST)`) rather than after the slab minimum (`min(..) * ROBUST`): both are
@@ -105,10 +159,10 @@ impl RayPre {
 /// conservativeness, is the same, while one multiplication leaves the node-to-node dependency
 /// chain (single-ray traversal is bound by that latency: measured on s1500k).
 #[inline(always)]
-fn node_hits(n: &Node4, r: &RayPre) -> (u32, Vec4) {
-    let (nx, fx) = if r.neg[0] { (&n.max_x, &n.min_x) } else { (&n.min_x, &n.max_x) };
-    let (ny, fy) = if r.neg[1] { (&n.max_y, &n.min_y) } else { (&n.min_y, &n.max_y) };
-    let (nz, fz) = if r.neg[2] { (&n.max_z, &n.min_z) } else { (&n.min_z, &n.max_z) };
+fn slab4(b: [&[f32; 4]; 6], r: &RayPre) -> (u32, Vec4) {
+    let (nx, fx) = if r.neg[0] { (b[1], b[0]) } else { (b[0], b[1]) };
+    let (ny, fy) = if r.neg[1] { (b[3], b[2]) } else { (b[2], b[3]) };
+    let (nz, fz) = if r.neg[2] { (b[5], b[4]) } else { (b[4], b[5]) };
     let tnx = (Vec4::from_array(*nx) - r.ox) * r.idx;
     let tny = (Vec4::from_array(*ny) - r.oy) * r.idy;
     let tnz = (Vec4::from_array(*nz) - r.oz) * r.idz;
@@ -128,14 +182,14 @@ fn node_hits(n: &Node4, r: &RayPre) -> (u32, Vec4) {
 /// is called for hit leaf children (to prefetch their triangles); hit inner children are
 /// prefetched here.
 #[inline(always)]
-pub(crate) fn traverse<const ORDERED: bool, F: FnMut(u32, u32, &mut RayPre) -> bool, P: Fn(u32)>(
-    bvh: &Bvh4,
+pub(crate) fn traverse<const ORDERED: bool, N: WideNode, F: FnMut(u32, u32, &mut RayPre) -> bool, P: Fn(u32)>(
+    nodes: &[N],
     start: u32,
     ray: &mut RayPre,
     prefetch_leaf: P,
     mut leaf: F,
 ) -> bool {
-    if bvh.nodes.is_empty() {
+    if nodes.is_empty() {
         return false;
     }
     let mut stack: Stack<(u32, f32), STACK> = Stack::new();
@@ -143,9 +197,9 @@ pub(crate) fn traverse<const ORDERED: bool, F: FnMut(u32, u32, &mut RayPre) -> b
     loop {
         // Descend towards the nearest hit child, pushing the others.
         while cur & LEAF_BIT == 0 {
-            // Child references of inner nodes are valid node indices (bvh4 invariant).
-            let node = &bvh.nodes[cur as usize];
-            let (mask, tnear) = node_hits(node, ray);
+            // Child references of inner nodes are valid node indices (bvh4 and bvh8 invariants).
+            let node = &nodes[cur as usize];
+            let (mask, t) = node.hits(ray);
             if mask == 0 {
                 cur = EMPTY_CHILD;
                 break;
@@ -153,21 +207,20 @@ pub(crate) fn traverse<const ORDERED: bool, F: FnMut(u32, u32, &mut RayPre) -> b
             let k0 = mask.trailing_zeros() as usize;
             let rest = mask & (mask - 1);
             if rest == 0 {
-                cur = node.child[k0];
+                cur = node.child(k0);
                 continue;
             }
-            let t = tnear.to_array();
-            // Sort the (2 to 4) hit children by entry distance, nearest last, and start loading
+            // Sort the (2 to 8) hit children by entry distance, nearest last, and start loading
             // them all.
-            let mut kids = [(0u32, 0f32); 4];
+            let mut kids = [(0u32, 0f32); 8];
             let mut n = 0;
             let mut m = mask;
             while m != 0 {
                 let k = m.trailing_zeros() as usize;
                 m &= m - 1;
-                let c = node.child[k];
+                let c = node.child(k);
                 if c & LEAF_BIT == 0 {
-                    prefetch(bvh.nodes.as_ptr().wrapping_add(c as usize), 2);
+                    prefetch(nodes.as_ptr().wrapping_add(c as usize), N::LINES);
                 } else {
                     prefetch_leaf(leaf_range(c).0);
                 }
@@ -176,7 +229,7 @@ pub(crate) fn traverse<const ORDERED: bool, F: FnMut(u32, u32, &mut RayPre) -> b
                     kids[j] = kids[j - 1];
                     j -= 1;
                 }
-                kids[j] = (node.child[k], t[k]);
+                kids[j] = (c, t[k]);
                 n += 1;
             }
             for &kid in &kids[..n - 1] {
@@ -230,7 +283,7 @@ pub(crate) fn intersect_object(
     let tris = &obj.bvh.tris;
     let order = &obj.bvh.bvh.prim_order;
     let pf = |first: u32| prefetch(tris.as_ptr().wrapping_add(first as usize), 2);
-    traverse::<true, _, _>(&obj.bvh.bvh, 0, ray, pf, |first, count, ray| {
+    traverse::<true, _, _, _>(&obj.bvh.wide.nodes, 0, ray, pf, |first, count, ray| {
         for s in first as usize..(first + count) as usize {
             if let Some((t, u, v)) = intersect_accept(ray.o, ray.d, &tris[s], ray.tmin, ray.tmax) {
                 let primitive = order[s];
@@ -264,7 +317,7 @@ pub(crate) fn occluded_object(
     let tris = &obj.bvh.tris;
     let order = &obj.bvh.bvh.prim_order;
     let pf = |first: u32| prefetch(tris.as_ptr().wrapping_add(first as usize), 2);
-    traverse::<false, _, _>(&obj.bvh.bvh, 0, ray, pf, |first, count, ray| {
+    traverse::<false, _, _, _>(&obj.bvh.wide.nodes, 0, ray, pf, |first, count, ray| {
         for s in first as usize..(first + count) as usize {
             if let Some((t, u, v)) = intersect_accept(ray.o, ray.d, &tris[s], ray.tmin, ray.tmax) {
                 if !obj.solid_at(order[s], u, v) {
@@ -297,8 +350,8 @@ pub(crate) fn intersect_scene(top: &TopLevel, objects: &[Object], ray: &Ray, fil
         intersect_object(&objects[inst.object as usize], inst_id, inst.object, &mut o, &mut hit, filter, lane);
         r.tmax = o.tmax;
     } else {
-        traverse::<true, _, _>(
-            &top.bvh,
+        traverse::<true, _, _, _>(
+            &top.bvh.nodes,
             0,
             &mut r,
             |_| {},
@@ -337,8 +390,8 @@ pub(crate) fn occluded_scene(top: &TopLevel, objects: &[Object], ray: &Ray, filt
         let mut o = r.in_object_space(inst);
         return occluded_object(&objects[inst.object as usize], inst_id, inst.object, &mut o, filter, lane);
     }
-    traverse::<false, _, _>(
-        &top.bvh,
+    traverse::<false, _, _, _>(
+        &top.bvh.nodes,
         0,
         &mut r,
         |_| {},
@@ -422,7 +475,8 @@ mod tests {
 
     /// The slab test never culls a box that the ray touches (evaluated in `f64` from the same `f32`
     /// inputs), also for rays aimed exactly at box faces, edges and corners, and for boxes behind
-    /// or beyond the interval. Checks the robustness argument of [`node_hits`].
+    /// or beyond the interval. Checks the robustness argument of [`slab4`], and that an 8-wide
+    /// node's test gives each half's 4-wide answer.
     #[test]
     fn node_test_is_conservative() {
         let mut x = 0x9e37_79b9_7f4a_7c15u64;
@@ -468,7 +522,26 @@ mod tests {
                 _ => (0.0, next()),
             };
             let r = RayPre::new(Vec3A::from(o), Vec3A::from(d), tmin, tmax);
-            let (mask, _) = node_hits(&n, &r);
+            let (mask, t) = n.hits(&r);
+            // The 8-wide test is the 4-wide test on each half: here the same boxes in both halves,
+            // the second half in reverse order.
+            let mut wide = Node8::default();
+            for k in 0..4 {
+                for (h, j) in [(0, k), (1, 3 - k)] {
+                    wide.min_x[h][j] = n.min_x[k];
+                    wide.min_y[h][j] = n.min_y[k];
+                    wide.min_z[h][j] = n.min_z[k];
+                    wide.max_x[h][j] = n.max_x[k];
+                    wide.max_y[h][j] = n.max_y[k];
+                    wide.max_z[h][j] = n.max_z[k];
+                }
+            }
+            let (mask8, t8) = wide.hits(&r);
+            let reversed = (0..4).fold(0, |m, k| m | (mask >> k & 1) << (3 - k));
+            assert_eq!(mask8, mask | reversed << 4, "case {i}");
+            for k in (0..4).filter(|k| mask >> k & 1 != 0) {
+                assert_eq!((t8[k], t8[7 - k]), (t[k], t[k]), "case {i}");
+            }
             for k in 0..4 {
                 let b = [[n.min_x[k], n.max_x[k]], [n.min_y[k], n.max_y[k]], [n.min_z[k], n.max_z[k]]];
                 let (mut t0, mut t1) = (tmin as f64, tmax as f64);
