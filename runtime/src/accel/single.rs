@@ -2,8 +2,9 @@
 //!
 //! Object BVHs are traversed through their 8-wide form ([`super::bvh8`]), the top level through
 //! its 4-wide nodes; one generic loop serves both (`WideNode`). Each group of four child boxes is
-//! tested with one SSE slab test (glam's `Vec4`); hit children are visited nearest first, and popped entries farther than the current closest hit are skipped. This is the
-//! path for incoherent rays and the fallback of packet traversal.
+//! tested with one SSE slab test (glam's `Vec4`); hit children are visited nearest first, and
+//! popped entries farther than the current closest hit are skipped. This is the path for
+//! incoherent rays and the fallback of packet traversal.
 //!
 //! Invariant: traversal state (`tmax`, the hit record) lives in [`RayPre`] and is shared between
 //! the levels: `t` is the same number in world and object space because origin and direction are
