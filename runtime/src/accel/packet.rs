@@ -628,43 +628,41 @@ pub(crate) fn intersect_packet(
     let mut s = State::new(p);
     // The packet's chunks `mask` against instance `inst_id`.
     let visit = |inst_id: u32, mask: u16, s: &mut State| {
-        {
-            let inst: &InstanceData = &top.instances[inst_id as usize];
-            let obj = &objects[inst.object as usize];
-            let (clo, chi) = mask_range(mask);
-            if inst.identity {
-                intersect_object(obj, inst_id, inst.object, &g, s, clo, chi, filter);
-                return;
-            }
-            let og = match inst.motion {
-                None => {
-                    let mut og = g.transformed(&inst.object_from_world, clo, chi);
-                    if og.finish(clo, chi) {
-                        intersect_object(obj, inst_id, inst.object, &og, s, clo, chi, filter);
-                        return;
-                    }
-                    Some(og)
-                }
-                Some(_) => None,
-            };
-            // Incoherent in this object's space, or moving (each lane at its own time): one ray at
-            // a time.
-            let mut m = lanes_of(mask, s);
-            while m != 0 {
-                let i = m.trailing_zeros() as usize;
-                m &= m - 1;
-                let mut r = lane_in_object(&g, og.as_ref(), inst, p, i, s.lane_tmin(i), s.lane_tmax(i));
-                let (c, j) = (i / 4, i % 4);
-                let mut h = HitState { u: s.u[c][j], v: s.v[c][j], instance: s.instance[i], primitive: s.primitive[i] };
-                single::intersect_object(obj, inst_id, inst.object, &mut r, &mut h, filter, i as u32);
-                s.set_lane_tmax(i, r.tmax);
-                s.u[c][j] = h.u;
-                s.v[c][j] = h.v;
-                s.instance[i] = h.instance;
-                s.primitive[i] = h.primitive;
-            }
-            s.update_tmax_hi();
+        let inst: &InstanceData = &top.instances[inst_id as usize];
+        let obj = &objects[inst.object as usize];
+        let (clo, chi) = mask_range(mask);
+        if inst.identity {
+            intersect_object(obj, inst_id, inst.object, &g, s, clo, chi, filter);
+            return;
         }
+        let og = match inst.motion {
+            None => {
+                let mut og = g.transformed(&inst.object_from_world, clo, chi);
+                if og.finish(clo, chi) {
+                    intersect_object(obj, inst_id, inst.object, &og, s, clo, chi, filter);
+                    return;
+                }
+                Some(og)
+            }
+            Some(_) => None,
+        };
+        // Incoherent in this object's space, or moving (each lane at its own time): one ray at
+        // a time.
+        let mut m = lanes_of(mask, s);
+        while m != 0 {
+            let i = m.trailing_zeros() as usize;
+            m &= m - 1;
+            let mut r = lane_in_object(&g, og.as_ref(), inst, p, i, s.lane_tmin(i), s.lane_tmax(i));
+            let (c, j) = (i / 4, i % 4);
+            let mut h = HitState { u: s.u[c][j], v: s.v[c][j], instance: s.instance[i], primitive: s.primitive[i] };
+            single::intersect_object(obj, inst_id, inst.object, &mut r, &mut h, filter, i as u32);
+            s.set_lane_tmax(i, r.tmax);
+            s.u[c][j] = h.u;
+            s.v[c][j] = h.v;
+            s.instance[i] = h.instance;
+            s.primitive[i] = h.primitive;
+        }
+        s.update_tmax_hi();
     };
     if let Some(inst_id) = top.sole_instance() {
         // One instance: its object BVH's root test does the top level's culling.
@@ -730,43 +728,41 @@ pub(crate) fn occluded_packet(top: &TopLevel, objects: &[Object], p: &RayPacket,
     // The packet's chunks `mask` against instance `inst_id`: `true` ends the traversal (every lane
     // occluded, or few enough left to finish one by one).
     let visit = |inst_id: u32, mask: u16, s: &mut State| -> bool {
-        {
-            let inst: &InstanceData = &top.instances[inst_id as usize];
-            let obj = &objects[inst.object as usize];
-            let (clo, chi) = mask_range(mask);
-            if inst.identity {
-                return occluded_object(obj, inst_id, inst.object, &g, s, clo, chi, filter);
-            }
-            let og = match inst.motion {
-                None => {
-                    let mut og = g.transformed(&inst.object_from_world, clo, chi);
-                    if og.finish(clo, chi) {
-                        return occluded_object(obj, inst_id, inst.object, &og, s, clo, chi, filter);
-                    }
-                    Some(og)
-                }
-                Some(_) => None,
-            };
-            let mut m = lanes_of(mask, s);
-            while m != 0 {
-                let i = m.trailing_zeros() as usize;
-                m &= m - 1;
-                let mut r = lane_in_object(&g, og.as_ref(), inst, p, i, s.lane_tmin(i), s.lane_tmax(i));
-                if single::occluded_object(obj, inst_id, inst.object, &mut r, filter, i as u32) {
-                    s.set_lane_tmax(i, f32::NEG_INFINITY);
-                    s.done |= 1 << i;
-                }
-            }
-            let left = s.active & !s.done;
-            if left == 0 {
-                return true;
-            }
-            if left.count_ones() <= SINGLE_RAY_THRESHOLD {
-                s.bail = true;
-                return true;
-            }
-            s.update_tmax_hi();
+        let inst: &InstanceData = &top.instances[inst_id as usize];
+        let obj = &objects[inst.object as usize];
+        let (clo, chi) = mask_range(mask);
+        if inst.identity {
+            return occluded_object(obj, inst_id, inst.object, &g, s, clo, chi, filter);
         }
+        let og = match inst.motion {
+            None => {
+                let mut og = g.transformed(&inst.object_from_world, clo, chi);
+                if og.finish(clo, chi) {
+                    return occluded_object(obj, inst_id, inst.object, &og, s, clo, chi, filter);
+                }
+                Some(og)
+            }
+            Some(_) => None,
+        };
+        let mut m = lanes_of(mask, s);
+        while m != 0 {
+            let i = m.trailing_zeros() as usize;
+            m &= m - 1;
+            let mut r = lane_in_object(&g, og.as_ref(), inst, p, i, s.lane_tmin(i), s.lane_tmax(i));
+            if single::occluded_object(obj, inst_id, inst.object, &mut r, filter, i as u32) {
+                s.set_lane_tmax(i, f32::NEG_INFINITY);
+                s.done |= 1 << i;
+            }
+        }
+        let left = s.active & !s.done;
+        if left == 0 {
+            return true;
+        }
+        if left.count_ones() <= SINGLE_RAY_THRESHOLD {
+            s.bail = true;
+            return true;
+        }
+        s.update_tmax_hi();
         false
     };
     if let Some(inst_id) = top.sole_instance() {

@@ -147,24 +147,14 @@ type Rows3 = [Row; 3];
 /// the camera's ray differentials, as vector code over the packet).
 fn pinhole_rays(frame: &Frame, samples: &[CameraSample; PACKET_SIZE], active: u64, out: &mut PrimaryRays) {
     let pinhole = Pinhole::of(frame.world);
-    let (f, r, u) = (pinhole.forward.to_array(), pinhole.right.to_array(), pinhole.up.to_array());
-    let mut dir = [[0.0f32; PACKET_SIZE]; 3];
-    for (k, row) in dir.iter_mut().enumerate() {
-        for (l, x) in row.iter_mut().enumerate() {
-            let (px, py) = samples[l].raster;
-            *x = f[k] + r[k] * px + u[k] * py;
-        }
-    }
-    normalize_rows(&mut dir);
-    let origin = pinhole.eye.to_array();
+    let rx: Row = std::array::from_fn(|l| samples[l].raster.0);
+    let ry: Row = std::array::from_fn(|l| samples[l].raster.1);
     let packet = &mut out.packet;
-    for (k, (o, d)) in
-        [(&mut packet.ox, &mut packet.dx), (&mut packet.oy, &mut packet.dy), (&mut packet.oz, &mut packet.dz)]
-            .into_iter()
-            .enumerate()
-    {
+    pinhole_directions(&pinhole, &rx, &ry, [&mut packet.dx.0, &mut packet.dy.0, &mut packet.dz.0]);
+    let dir = [packet.dx.0, packet.dy.0, packet.dz.0];
+    let origin = pinhole.eye.to_array();
+    for (k, o) in [&mut packet.ox, &mut packet.oy, &mut packet.oz].into_iter().enumerate() {
         o.0 = [origin[k]; PACKET_SIZE];
-        d.0 = dir[k];
     }
     packet.tmin.0 = [0.0; PACKET_SIZE];
     packet.tmax.0 = [f32::INFINITY; PACKET_SIZE];
@@ -231,15 +221,8 @@ fn run_camera_shader(
     let ry: Row = std::array::from_fn(|l| samples[l].raster.1);
     // I on entry: the built-in pinhole ray's direction, made in the packet's direction rows (the
     // shader's I replaces it there after the call).
-    let pinhole = Pinhole::of(world);
-    let (f, r, u) = (pinhole.forward.to_array(), pinhole.right.to_array(), pinhole.up.to_array());
     let packet = &mut out.packet;
-    for (k, row) in [&mut packet.dx, &mut packet.dy, &mut packet.dz].into_iter().enumerate() {
-        for l in 0..PACKET_SIZE {
-            row.0[l] = f[k] + r[k] * rx[l] + u[k] * ry[l];
-        }
-    }
-    normalize_rows3([&mut packet.dx.0, &mut packet.dy.0, &mut packet.dz.0]);
+    pinhole_directions(&Pinhole::of(world), &rx, &ry, [&mut packet.dx.0, &mut packet.dy.0, &mut packet.dz.0]);
     // The shader's weight, Ci.
     let mut w = [[1.0f32; PACKET_SIZE]; 3];
     {
@@ -256,7 +239,7 @@ fn run_camera_shader(
                 fill3(&mut raw, slots.ci, Vec3A::ONE);
                 put_row(&mut raw, slots.p, 0, &rx);
                 put_row(&mut raw, slots.p, 1, &ry);
-                fill_row(&mut raw, slots.p, 2, 0.0);
+                put_row(&mut raw, slots.p, 2, &[0.0; PACKET_SIZE]);
                 if slots.s.is_some() || slots.t.is_some() {
                     let screen = ScreenWindow::of(world);
                     let (mut sx, mut sy) = ([0.0f32; PACKET_SIZE], [0.0f32; PACKET_SIZE]);
@@ -362,22 +345,19 @@ fn run_camera_shader(
     }
 }
 
-/// Scales three rows of vector components to unit length, lane by lane.
-fn normalize_rows(v: &mut Rows3) {
-    let [x, y, z] = v;
-    normalize_rows3([x, y, z]);
-}
-
-fn normalize_rows3([x, y, z]: [&mut Row; 3]) {
+/// The built-in pinhole camera's unit directions through raster positions `(rx, ry)`, as rows
+/// (the arithmetic of [`Pinhole::ray`]).
+fn pinhole_directions(pinhole: &Pinhole, rx: &Row, ry: &Row, [x, y, z]: [&mut Row; 3]) {
+    let (f, r, u) = (pinhole.forward.to_array(), pinhole.right.to_array(), pinhole.up.to_array());
+    for (k, row) in [&mut *x, &mut *y, &mut *z].into_iter().enumerate() {
+        for l in 0..PACKET_SIZE {
+            row[l] = f[k] + r[k] * rx[l] + u[k] * ry[l];
+        }
+    }
     for l in 0..PACKET_SIZE {
         let inv = 1.0 / (x[l] * x[l] + y[l] * y[l] + z[l] * z[l]).sqrt();
         (x[l], y[l], z[l]) = (x[l] * inv, y[l] * inv, z[l] * inv);
     }
-}
-
-/// Writes component `comp` of a global as the same value in every lane.
-fn fill_row(raw: &mut rtsl_compiler::back::jit::RawBatch<'_>, slot: Option<crate::shading::Slot>, comp: usize, v: f32) {
-    put_row(raw, slot, comp, &[v; PACKET_SIZE]);
 }
 
 #[cfg(test)]
