@@ -4,7 +4,9 @@
 //! Invariant: the image depends only on the world and the options, not on the thread count (tiles
 //! are independent, jitter is a hash of pixel and sample, and results land in tile order).
 
-use super::primary::{pinhole_ray, primary_rays, primary_rays_into, CameraSample, PrimaryRays};
+use super::primary::{
+    pinhole_ray, primary_rays, primary_rays_into, primary_rays_of_packets, CameraSample, PacketSamples, PrimaryRays,
+};
 use super::shade::{mix, shade_packet, shade_pixels, Frame, Sample, TilePixels};
 use super::world::{Antialiasing, World};
 use crate::camera::{packet_lane_offset, PACKET_SIDE};
@@ -236,6 +238,13 @@ pub fn sample_offset(world: &World, x: u32, y: u32, sample: (u32, u32)) -> (f32,
 /// The camera samples of one 8x8 packet for sample `(i, j)` of each pixel (see [`sample_offset`]),
 /// and the lanes inside the image.
 pub fn camera_samples(world: &World, x0: u32, y0: u32, sample: (u32, u32)) -> ([CameraSample; PACKET_SIZE], u64) {
+    let mut out = PacketSamples::default();
+    camera_samples_into(world, x0, y0, sample, &mut out);
+    (out.samples, out.active)
+}
+
+/// [`camera_samples`] into `out` (a tile's packets are made in place).
+fn camera_samples_into(world: &World, x0: u32, y0: u32, sample: (u32, u32), out: &mut PacketSamples) {
     let (cx0, cx1, cy0, cy1) = world.options.pixel_range();
     let k = sample.1 * world.options.samples.0.max(1) + sample.0;
     let lens = lens_sample(x0, y0, k);
@@ -248,9 +257,8 @@ pub fn camera_samples(world: &World, x0: u32, y0: u32, sample: (u32, u32)) -> ([
         Antialiasing::Grid { jitter: true } => sx * sy == 1,
     };
     let offset = same_offset.then(|| sample_offset(world, x0, y0, sample));
-    let mut samples = [CameraSample::default(); PACKET_SIZE];
     let mut active = 0u64;
-    for (i, s) in samples.iter_mut().enumerate() {
+    for (i, s) in out.samples.iter_mut().enumerate() {
         let (dx, dy) = packet_lane_offset(i);
         let (x, y) = (x0 + dx, y0 + dy);
         let (jx, jy) = offset.unwrap_or_else(|| sample_offset(world, x, y, sample));
@@ -259,7 +267,7 @@ pub fn camera_samples(world: &World, x0: u32, y0: u32, sample: (u32, u32)) -> ([
             active |= 1 << i;
         }
     }
-    (samples, active)
+    out.active = active;
 }
 
 /// The primary rays of one 8x8 packet for sample `(i, j)` of each pixel, from the bound camera
@@ -274,6 +282,51 @@ pub fn primary_packet(frame: &Frame, x0: u32, y0: u32, sample: (u32, u32)) -> Pr
 pub fn primary_packet_into(frame: &Frame, x0: u32, y0: u32, sample: (u32, u32), out: &mut PrimaryRays) {
     let (samples, active) = camera_samples(frame.world, x0, y0, sample);
     primary_rays_into(frame, &samples, active, out);
+}
+
+/// The primary rays of every 8x8 packet of a tile for one sample of each pixel, made together (a
+/// camera shader runs once for the tile: [`primary_rays_of_packets`]). Kept by a tile loop and
+/// reused from sample to sample and tile to tile.
+#[derive(Default)]
+pub struct TilePrimary {
+    /// The packets' top left pixels, rows of packets from the top left.
+    pub corners: Vec<(u32, u32)>,
+    samples: Vec<PacketSamples>,
+    /// The rays of packet `p`, from corner `corners[p]`.
+    pub rays: Vec<PrimaryRays>,
+}
+
+thread_local! {
+    /// Each thread's [`TilePrimary`]: making a tile's packets afresh (zeroed differentials and
+    /// weights) cost as much as a simple camera shader.
+    static TILE_PRIMARY: std::cell::Cell<Option<Box<TilePrimary>>> = const { std::cell::Cell::new(None) };
+}
+
+impl TilePrimary {
+    /// Runs `f` with this thread's tile scratch (a fresh one if a caller further up holds it).
+    pub fn with<R>(f: impl FnOnce(&mut TilePrimary) -> R) -> R {
+        let mut scratch = TILE_PRIMARY.take().unwrap_or_default();
+        let r = f(&mut scratch);
+        TILE_PRIMARY.set(Some(scratch));
+        r
+    }
+
+    /// Makes the rays of sample `(i, j)` of each pixel of `tile`.
+    pub fn make(&mut self, frame: &Frame, tile: &crate::tiles::Tile, sample: (u32, u32)) {
+        self.corners.clear();
+        for py in (tile.y0..tile.y0 + tile.height).step_by(PACKET_SIDE as usize) {
+            for px in (tile.x0..tile.x0 + tile.width).step_by(PACKET_SIDE as usize) {
+                self.corners.push((px, py));
+            }
+        }
+        let n = self.corners.len();
+        self.samples.resize_with(n, PacketSamples::default);
+        self.rays.resize_with(n, PrimaryRays::default);
+        for (&(px, py), ps) in self.corners.iter().zip(&mut self.samples) {
+            camera_samples_into(frame.world, px, py, sample, ps);
+        }
+        primary_rays_of_packets(frame, &self.samples, &mut self.rays);
+    }
 }
 
 /// Adaptive oversampling of one tile (OpenRT's, paper 5.1.2): a pixel that differs from a
@@ -372,21 +425,20 @@ fn primary_rays_of_frame(world: &World, trace: bool) -> (u64, u64) {
     let (w, h) = (world.options.width, world.options.height);
     let counts = render_tiles(w, h, TILE_SIZE, |tile| {
         let mut hits = HitPacket::default();
-        let mut primary = PrimaryRays::default();
         let (mut rays, mut hit) = (0u64, 0u64);
-        for py in (tile.y0..tile.y0 + tile.height).step_by(PACKET_SIDE as usize) {
-            for px in (tile.x0..tile.x0 + tile.width).step_by(PACKET_SIDE as usize) {
-                primary_packet_into(&frame, px, py, (0, 0), &mut primary);
-                let active = primary.packet.active;
+        TilePrimary::with(|primary| {
+            primary.make(&frame, tile, (0, 0));
+            for rays_of_packet in &primary.rays {
+                let active = rays_of_packet.packet.active;
                 rays += u64::from(active.count_ones());
                 if !trace {
                     continue;
                 }
-                world.scene.intersect_packet(&primary.packet, &mut hits);
+                world.scene.intersect_packet(&rays_of_packet.packet, &mut hits);
                 hit +=
                     (0..PACKET_SIZE).filter(|&i| active >> i & 1 != 0 && hits.instance.0[i] != u32::MAX).count() as u64;
             }
-        }
+        });
         (rays, hit)
     });
     counts.into_iter().fold((0, 0), |(a, b), (c, d)| (a + c, b + d))
@@ -417,15 +469,14 @@ pub fn render_frame(world: &World, progress: Option<&(dyn Fn(usize, usize) + Syn
         let mut shader_ids = vec![u32::MAX; color.len()];
         let mut samples = [Sample::default(); PACKET_SIZE];
         let mut hits = HitPacket::default();
-        let mut primary = PrimaryRays::default();
-        for py in (tile.y0..tile.y0 + tile.height).step_by(PACKET_SIDE as usize) {
-            for px in (tile.x0..tile.x0 + tile.width).step_by(PACKET_SIDE as usize) {
-                for j in 0..sy {
-                    for i in 0..sx {
-                        primary_packet_into(&frame, px, py, (i, j), &mut primary);
+        TilePrimary::with(|primary| {
+            for j in 0..sy {
+                for i in 0..sx {
+                    primary.make(&frame, tile, (i, j));
+                    for (&(px, py), primary) in primary.corners.iter().zip(&primary.rays) {
                         let packet = &primary.packet;
                         world.scene.intersect_packet(packet, &mut hits);
-                        shade_packet(&frame, &primary, &hits, &mut samples);
+                        shade_packet(&frame, primary, &hits, &mut samples);
                         for (lane, s) in samples.iter().enumerate() {
                             if packet.active >> lane & 1 == 0 {
                                 continue;
@@ -452,7 +503,7 @@ pub fn render_frame(world: &World, progress: Option<&(dyn Fn(usize, usize) + Syn
                     }
                 }
             }
-        }
+        });
         let scale = 1.0 / (sx * sy) as f32;
         for c in &mut color {
             for v in c.iter_mut() {

@@ -18,8 +18,8 @@ use super::host::ShadeCall;
 use super::shade::Frame;
 use super::world::World;
 use crate::ray::{Ray, RayPacket, PACKET_SIZE};
-use crate::shading::{fill1, fill3, get_row, put_row, with_batch};
-use glam::Vec3A;
+use crate::shading::{fill1, fill3, get_row_at, put_row_at, with_batch, Slot};
+use glam::{Vec3A, Vec4, Vec4Swizzles};
 
 /// Where on the image, lens and shutter a primary ray starts.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -133,7 +133,10 @@ pub fn primary_rays(frame: &Frame, samples: &[CameraSample; PACKET_SIZE], active
 pub fn primary_rays_into(frame: &Frame, samples: &[CameraSample; PACKET_SIZE], active: u64, out: &mut PrimaryRays) {
     match &frame.world.camera_shader {
         None => pinhole_rays(frame, samples, active, out),
-        Some(camera) => run_camera_shader(frame, camera, samples, active, out),
+        Some(camera) => {
+            let packet = PacketSamples { samples: *samples, active };
+            run_camera_shader(frame, camera, std::slice::from_ref(&packet), std::slice::from_mut(out));
+        }
     }
 }
 
@@ -202,147 +205,230 @@ fn camera_derivatives(d: &Rows3, dd_dx: Vec3A, dd_dy: Vec3A) -> (Rows3, Rows3) {
     out
 }
 
-/// Runs the camera shader over the packet. The renderer's side works row by row (structure of
-/// arrays, as the batch and the ray packet hold them) so that its loops compile to vector code:
-/// per packet it is as much work as the shader itself for a simple camera.
+/// The camera samples of one packet and the lanes to make rays for.
+#[derive(Clone, Copy, Debug)]
+pub struct PacketSamples {
+    pub samples: [CameraSample; PACKET_SIZE],
+    pub active: u64,
+}
+
+impl Default for PacketSamples {
+    fn default() -> Self {
+        PacketSamples { samples: [CameraSample::default(); PACKET_SIZE], active: 0 }
+    }
+}
+
+/// The primary rays of several packets, `out[p]` from `packets[p]` (the shorter of the two counts):
+/// a camera shader makes them in one call, so that its per-call costs (the batch, the timers, the
+/// shader's uniform prologue: `option()` queries, the camera space matrix) are paid once for
+/// all of them. A frame passes the packets of a tile.
+pub fn primary_rays_of_packets(frame: &Frame, packets: &[PacketSamples], out: &mut [PrimaryRays]) {
+    match &frame.world.camera_shader {
+        None => {
+            for (p, o) in packets.iter().zip(out.iter_mut()) {
+                pinhole_rays(frame, &p.samples, p.active, o);
+            }
+        }
+        Some(camera) => {
+            let n = packets.len().min(out.len());
+            for (ps, os) in packets[..n].chunks(MAX_PACKETS_PER_CALL).zip(out[..n].chunks_mut(MAX_PACKETS_PER_CALL)) {
+                run_camera_shader(frame, camera, ps, os);
+            }
+        }
+    }
+}
+
+/// The most packets one camera shader call makes (its batch holds `PACKET_SIZE` lanes for each).
+const MAX_PACKETS_PER_CALL: usize = 16;
+
+/// The raster positions of a packet's samples, as rows.
+fn raster_rows(samples: &[CameraSample; PACKET_SIZE]) -> (Row, Row) {
+    (std::array::from_fn(|l| samples[l].raster.0), std::array::from_fn(|l| samples[l].raster.1))
+}
+
+/// Runs the camera shader over packets (at most [`MAX_PACKETS_PER_CALL`]) in one batch, packet `p`
+/// in lanes `p * PACKET_SIZE ..`. The renderer's side works row by row (structure of arrays, as the
+/// batch and the ray packet hold them) so that its loops compile to vector code: per packet it is as
+/// much work as the shader itself for a simple camera.
 fn run_camera_shader(
     frame: &Frame,
     camera: &crate::shading::ShaderInstance,
-    samples: &[CameraSample; PACKET_SIZE],
-    active: u64,
-    out: &mut PrimaryRays,
+    packets: &[PacketSamples],
+    out: &mut [PrimaryRays],
 ) {
     let world = frame.world;
     let program = &camera.program;
     let slots = &program.slots;
     let (open, close) = world.options.shutter;
     let eye = world.camera.eye();
-    let rx: Row = std::array::from_fn(|l| samples[l].raster.0);
-    let ry: Row = std::array::from_fn(|l| samples[l].raster.1);
     // I on entry: the built-in pinhole ray's direction, made in the packet's direction rows (the
     // shader's I replaces it there after the call).
-    let packet = &mut out.packet;
-    pinhole_directions(&Pinhole::of(world), &rx, &ry, [&mut packet.dx.0, &mut packet.dy.0, &mut packet.dz.0]);
-    // The shader's weight, Ci.
-    let mut w = [[1.0f32; PACKET_SIZE]; 3];
-    {
-        let _timer = super::stats::ShadingTimer::start(&frame.stats);
-        with_batch(program, PACKET_SIZE, |batch| {
-            // Every lane runs, those off the image too: their rays give their neighbours'
-            // differentials (they are dropped below).
-            {
-                let mut raw = batch.raw_mut();
-                camera.write_params(&mut raw);
-                fill1(&mut raw, slots.dtime, close - open);
-                fill1(&mut raw, slots.ncomps, 3.0);
-                fill3(&mut raw, slots.e, eye);
-                fill3(&mut raw, slots.ci, Vec3A::ONE);
-                put_row(&mut raw, slots.p, 0, &rx);
-                put_row(&mut raw, slots.p, 1, &ry);
-                put_row(&mut raw, slots.p, 2, &[0.0; PACKET_SIZE]);
+    let pinhole = Pinhole::of(world);
+    for (ps, o) in packets.iter().zip(out.iter_mut()) {
+        let (rx, ry) = raster_rows(&ps.samples);
+        let packet = &mut o.packet;
+        pinhole_directions(&pinhole, &rx, &ry, [&mut packet.dx.0, &mut packet.dy.0, &mut packet.dz.0]);
+    }
+    let screen = ScreenWindow::of(world);
+    let _timer = super::stats::ShadingTimer::start(&frame.stats);
+    with_batch(program, packets.len() * PACKET_SIZE, |batch| {
+        // Every lane runs, those off the image too: their rays give their neighbours'
+        // differentials (they are dropped after the call).
+        {
+            let mut raw = batch.raw_mut();
+            camera.write_params(&mut raw);
+            fill1(&mut raw, slots.dtime, close - open);
+            fill1(&mut raw, slots.ncomps, 3.0);
+            fill3(&mut raw, slots.e, eye);
+            fill3(&mut raw, slots.ci, Vec3A::ONE);
+            fill1(&mut raw, slots.p.map(|s| Slot { offset: s.offset + 2, ..s }), 0.0);
+            for (p, (ps, o)) in packets.iter().zip(out.iter()).enumerate() {
+                let first = p * PACKET_SIZE;
+                let (rx, ry) = raster_rows(&ps.samples);
+                put_row_at(&mut raw, slots.p, 0, first, &rx);
+                put_row_at(&mut raw, slots.p, 1, first, &ry);
                 if slots.s.is_some() || slots.t.is_some() {
-                    let screen = ScreenWindow::of(world);
                     let (mut sx, mut sy) = ([0.0f32; PACKET_SIZE], [0.0f32; PACKET_SIZE]);
                     for l in 0..PACKET_SIZE {
                         (sx[l], sy[l]) = screen.position((rx[l], ry[l]));
                     }
-                    put_row(&mut raw, slots.s, 0, &sx);
-                    put_row(&mut raw, slots.t, 0, &sy);
+                    put_row_at(&mut raw, slots.s, 0, first, &sx);
+                    put_row_at(&mut raw, slots.t, 0, first, &sy);
                 }
                 if slots.u.is_some() || slots.v.is_some() || slots.time.is_some() {
-                    let row = |f: fn(&CameraSample) -> f32| -> Row { std::array::from_fn(|l| f(&samples[l])) };
-                    put_row(&mut raw, slots.u, 0, &row(|s| s.lens.0));
-                    put_row(&mut raw, slots.v, 0, &row(|s| s.lens.1));
-                    put_row(&mut raw, slots.time, 0, &row(|s| s.time));
+                    let row = |f: fn(&CameraSample) -> f32| -> Row { std::array::from_fn(|l| f(&ps.samples[l])) };
+                    put_row_at(&mut raw, slots.u, 0, first, &row(|s| s.lens.0));
+                    put_row_at(&mut raw, slots.v, 0, first, &row(|s| s.lens.1));
+                    put_row_at(&mut raw, slots.time, 0, first, &row(|s| s.time));
                 }
+                let packet = &o.packet;
                 for (k, row) in [&packet.dx, &packet.dy, &packet.dz].into_iter().enumerate() {
-                    put_row(&mut raw, slots.i, k, &row.0);
+                    put_row_at(&mut raw, slots.i, k, first, &row.0);
                 }
             }
-            let mut call = ShadeCall::new(frame, camera, world.camera.world_from_camera, 0);
-            let table = call.table();
-            program.code.shade_with_table(batch, &table);
-            let raw = batch.raw_mut();
+        }
+        let mut call = ShadeCall::new(frame, camera, world.camera.world_from_camera, 0);
+        let table = call.table();
+        program.code.shade_with_table(batch, &table);
+        let raw = batch.raw_mut();
+        for (p, (ps, o)) in packets.iter().zip(out.iter_mut()).enumerate() {
+            let first = p * PACKET_SIZE;
+            let packet = &mut o.packet;
             for (k, row) in [&mut packet.ox, &mut packet.oy, &mut packet.oz].into_iter().enumerate() {
-                get_row(&raw, slots.e, k, eye[k], &mut row.0);
+                get_row_at(&raw, slots.e, k, first, eye[k], &mut row.0);
             }
             if slots.i.is_some() {
                 for (k, row) in [&mut packet.dx, &mut packet.dy, &mut packet.dz].into_iter().enumerate() {
-                    get_row(&raw, slots.i, k, 0.0, &mut row.0);
+                    get_row_at(&raw, slots.i, k, first, 0.0, &mut row.0);
                 }
             }
+            let mut w = [[1.0f32; PACKET_SIZE]; 3];
             for (k, row) in w.iter_mut().enumerate() {
-                get_row(&raw, slots.ci, k, 1.0, row);
+                get_row_at(&raw, slots.ci, k, first, 1.0, row);
             }
-        });
-    }
-    let (ox, oy, oz) = (&mut packet.ox.0, &mut packet.oy.0, &mut packet.oz.0);
-    let (dx, dy, dz) = (&mut packet.dx.0, &mut packet.dy.0, &mut packet.dz.0);
-    let [wr, wg, wb] = &w;
+            finish_shader_rays(frame, ps, &w, o);
+        }
+    });
+}
+
+/// Makes a packet of rays from what a camera shader left in `out`'s origin and direction rows and
+/// in `w` (its `Ci`, the weight): drops the lanes that made no usable ray, normalises the
+/// directions, and works out the ray differentials. Four lanes at a time (`Vec4`): this runs for
+/// every packet a camera shader makes, and written lane by lane it cost several times the shader.
+fn finish_shader_rays(frame: &Frame, ps: &PacketSamples, w: &Rows3, out: &mut PrimaryRays) {
+    let packet = &mut out.packet;
     // A lane makes a ray when its origin is finite, its direction finite and not zero, and its
     // weight finite with a positive component; the others are zeroed.
-    let mut ok = [false; PACKET_SIZE];
-    for l in 0..PACKET_SIZE {
-        let len = (dx[l] * dx[l] + dy[l] * dy[l] + dz[l] * dz[l]).sqrt();
-        let finite = ox[l].is_finite()
-            & oy[l].is_finite()
-            & oz[l].is_finite()
-            & len.is_finite()
-            & wr[l].is_finite()
-            & wg[l].is_finite()
-            & wb[l].is_finite();
-        ok[l] = finite & (len > 0.0) & (wr[l].max(wg[l]).max(wb[l]) > 0.0);
-        let inv = 1.0 / len;
-        (dx[l], dy[l], dz[l]) = if ok[l] { (dx[l] * inv, dy[l] * inv, dz[l] * inv) } else { (0.0, 0.0, 0.0) };
-        (ox[l], oy[l], oz[l]) = if ok[l] { (ox[l], oy[l], oz[l]) } else { (0.0, 0.0, 0.0) };
+    let mut valid = 0u64;
+    for q in (0..PACKET_SIZE).step_by(4) {
+        let (ox, oy, oz) = (quad(&packet.ox.0, q), quad(&packet.oy.0, q), quad(&packet.oz.0, q));
+        let (dx, dy, dz) = (quad(&packet.dx.0, q), quad(&packet.dy.0, q), quad(&packet.dz.0, q));
+        let (wr, wg, wb) = (quad(&w[0], q), quad(&w[1], q), quad(&w[2], q));
+        let len = (dx * dx + dy * dy + dz * dz).sqrt();
+        let ok = ox.is_finite_mask()
+            & oy.is_finite_mask()
+            & oz.is_finite_mask()
+            & len.is_finite_mask()
+            & wr.is_finite_mask()
+            & wg.is_finite_mask()
+            & wb.is_finite_mask()
+            & len.cmpgt(Vec4::ZERO)
+            & wr.max(wg).max(wb).cmpgt(Vec4::ZERO);
+        let inv = Vec4::ONE / len;
+        for (row, v) in [(&mut packet.dx.0, dx * inv), (&mut packet.dy.0, dy * inv), (&mut packet.dz.0, dz * inv)] {
+            Vec4::select(ok, v, Vec4::ZERO).write_to_slice(&mut row[q..q + 4]);
+        }
+        for (row, v) in [(&mut packet.ox.0, ox), (&mut packet.oy.0, oy), (&mut packet.oz.0, oz)] {
+            Vec4::select(ok, v, Vec4::ZERO).write_to_slice(&mut row[q..q + 4]);
+        }
+        valid |= u64::from(ok.bitmask()) << q;
     }
-    let valid = ok.iter().enumerate().fold(0u64, |m, (l, &v)| m | (u64::from(v) << l));
     packet.tmin.0 = [0.0; PACKET_SIZE];
     packet.tmax.0 = [f32::INFINITY; PACKET_SIZE];
-    packet.time.0 = std::array::from_fn(|l| samples[l].time);
-    packet.active = active & valid;
-    for l in (0..PACKET_SIZE).filter(|l| ok[*l]) {
+    packet.time.0 = std::array::from_fn(|l| ps.samples[l].time);
+    packet.active = ps.active & valid;
+    let [wr, wg, wb] = w;
+    for l in (0..PACKET_SIZE).filter(|l| packet.active >> l & 1 != 0) {
         out.weights[l] = Vec3A::new(wr[l], wg[l], wb[l]).max(Vec3A::ZERO);
     }
-    // Differentials from the 2x2 quads: lane ^ 1 is a lane's horizontal neighbour, lane ^ 2 its
-    // vertical one; a neighbour counts when it made a ray and lies about one step along its axis.
-    let o = [&*ox, &*oy, &*oz];
-    let d = [&*dx, &*dy, &*dz];
-    let neighbour = |flip: usize, across: bool| -> (Row, [bool; PACKET_SIZE]) {
-        let mut step = [0.0f32; PACKET_SIZE];
-        let mut usable = [false; PACKET_SIZE];
-        for l in 0..PACKET_SIZE {
-            let (ex, ey) = (rx[l ^ flip] - rx[l], ry[l ^ flip] - ry[l]);
-            let (along, other) = if across { (ey, ex) } else { (ex, ey) };
-            step[l] = along;
-            usable[l] = ok[l ^ flip] & (along.abs() >= 0.25) & (other.abs() <= 0.5 * along.abs());
-        }
-        (step, usable)
-    };
-    // (v[neighbour] - v[lane]) / step, zero where a component is not finite.
-    let change = |v: &[&Row; 3], flip: usize, step: &Row| -> Rows3 {
-        let mut c = [[0.0f32; PACKET_SIZE]; 3];
-        for l in 0..PACKET_SIZE {
-            let inv = 1.0 / step[l];
-            let x = (v[0][l ^ flip] - v[0][l]) * inv;
-            let y = (v[1][l ^ flip] - v[1][l]) * inv;
-            let z = (v[2][l ^ flip] - v[2][l]) * inv;
-            let finite = x.is_finite() & y.is_finite() & z.is_finite();
-            (c[0][l], c[1][l], c[2][l]) = if finite { (x, y, z) } else { (0.0, 0.0, 0.0) };
-        }
-        c
-    };
-    let (sx, ux) = neighbour(1, false);
-    let (sy, uy) = neighbour(2, true);
-    let (dodx, dody, dddx, dddy) = (change(&o, 1, &sx), change(&o, 2, &sy), change(&d, 1, &sx), change(&d, 2, &sy));
+    let (rx, ry) = raster_rows(&ps.samples);
+    let o = [&packet.ox.0, &packet.oy.0, &packet.oz.0];
+    let d = [&packet.dx.0, &packet.dy.0, &packet.dz.0];
+    // Lane l ^ 1 is a lane's horizontal neighbour, l ^ 2 its vertical one: whether the neighbour
+    // made a ray is `valid` with those bits swapped.
+    let valid_x = ((valid >> 1) & 0x5555_5555_5555_5555) | ((valid << 1) & 0xAAAA_AAAA_AAAA_AAAA);
+    let valid_y = ((valid >> 2) & 0x3333_3333_3333_3333) | ((valid << 2) & 0xCCCC_CCCC_CCCC_CCCC);
+    let (ux, dodx, dddx) = quad_changes::<1>(&rx, &ry, valid_x, o, d);
+    let (uy, dody, dddy) = quad_changes::<2>(&ry, &rx, valid_y, o, d);
+    let both = ux & uy;
     let at = |v: &Rows3, l: usize| Vec3A::new(v[0][l], v[1][l], v[2][l]);
     for l in (0..PACKET_SIZE).filter(|l| packet.active >> l & 1 != 0) {
-        out.diffs[l] = if ux[l] && uy[l] {
+        out.diffs[l] = if both >> l & 1 != 0 {
             RayDifferential { dodx: at(&dodx, l), dody: at(&dody, l), dddx: at(&dddx, l), dddy: at(&dddy, l) }
         } else {
             RayDifferential::cone(Vec3A::new(d[0][l], d[1][l], d[2][l]), 0.0, frame.pixel_spread)
         };
     }
+}
+
+/// Lanes `q .. q + 4` of a row.
+#[inline(always)]
+fn quad(row: &Row, q: usize) -> Vec4 {
+    Vec4::from_slice(&row[q..q + 4])
+}
+
+/// Ray differentials from the packet's 2x2 raster quads (four consecutive lanes): lane `l ^ FLIP`
+/// is lane `l`'s neighbour along one raster axis (`FLIP` 1: x, 2: y), `along` the raster
+/// coordinate on that axis and `across` the other, `neighbour_valid` whether each lane's neighbour
+/// made a ray. Returns the lanes whose neighbour counts (it made a ray and lies about one step
+/// along the axis) and the change per step of the origin and the direction
+/// (`(v[neighbour] - v[lane]) / step`, zero where a component is not finite).
+fn quad_changes<const FLIP: usize>(
+    along: &Row,
+    across: &Row,
+    neighbour_valid: u64,
+    o: [&Row; 3],
+    d: [&Row; 3],
+) -> (u64, Rows3, Rows3) {
+    let neighbour = |v: Vec4| if FLIP == 1 { v.yxwz() } else { v.zwxy() };
+    let mut usable = 0u64;
+    let mut change = ([[0.0f32; PACKET_SIZE]; 3], [[0.0f32; PACKET_SIZE]; 3]);
+    for q in (0..PACKET_SIZE).step_by(4) {
+        let (a, c) = (quad(along, q), quad(across, q));
+        let (step, other) = (neighbour(a) - a, neighbour(c) - c);
+        let near = step.abs().cmpge(Vec4::splat(0.25)) & other.abs().cmple(step.abs() * 0.5);
+        usable |= u64::from(near.bitmask()) << q;
+        let inv = Vec4::ONE / step;
+        for (v, out) in [(o, &mut change.0), (d, &mut change.1)] {
+            let (x, y, z) = (quad(v[0], q), quad(v[1], q), quad(v[2], q));
+            let (cx, cy, cz) = ((neighbour(x) - x) * inv, (neighbour(y) - y) * inv, (neighbour(z) - z) * inv);
+            let finite = cx.is_finite_mask() & cy.is_finite_mask() & cz.is_finite_mask();
+            for (row, c) in out.iter_mut().zip([cx, cy, cz]) {
+                Vec4::select(finite, c, Vec4::ZERO).write_to_slice(&mut row[q..q + 4]);
+            }
+        }
+    }
+    (usable & neighbour_valid, change.0, change.1)
 }
 
 /// The built-in pinhole camera's unit directions through raster positions `(rx, ry)`, as rows

@@ -164,10 +164,16 @@ pub fn get3(raw: &RawBatch<'_>, slot: Option<Slot>, lane: usize, default: Vec3A)
 /// same as [`put1`] lane by lane (a uniform global takes the last lane's value), written as one
 /// row.
 pub fn put_row(raw: &mut RawBatch<'_>, slot: Option<Slot>, comp: usize, values: &[f32]) {
+    put_row_at(raw, slot, comp, 0, values);
+}
+
+/// [`put_row`] for the lanes from `first` on: lane `first + l` gets `values[l]` (a batch holding
+/// several packets takes each packet's row at its own lanes).
+pub fn put_row_at(raw: &mut RawBatch<'_>, slot: Option<Slot>, comp: usize, first: usize, values: &[f32]) {
     let Some(s) = slot else { return };
-    let n = raw.lanes.min(values.len());
+    let n = raw.lanes.saturating_sub(first).min(values.len());
     if s.varying {
-        let row = (s.offset + comp) * raw.stride;
+        let row = (s.offset + comp) * raw.stride + first;
         raw.varying[row..row + n].copy_from_slice(&values[..n]);
     } else if n > 0 {
         raw.uniform[s.offset + comp] = values[n - 1];
@@ -177,10 +183,15 @@ pub fn put_row(raw: &mut RawBatch<'_>, slot: Option<Slot>, comp: usize, values: 
 /// Reads component `comp` of a global for every lane into `out` (`default` when the shader does
 /// not have the global): [`get3`] lane by lane, as one row.
 pub fn get_row(raw: &RawBatch<'_>, slot: Option<Slot>, comp: usize, default: f32, out: &mut [f32]) {
-    let n = raw.lanes.min(out.len());
+    get_row_at(raw, slot, comp, 0, default, out);
+}
+
+/// [`get_row`] for the lanes from `first` on: `out[l]` gets lane `first + l`.
+pub fn get_row_at(raw: &RawBatch<'_>, slot: Option<Slot>, comp: usize, first: usize, default: f32, out: &mut [f32]) {
+    let n = raw.lanes.saturating_sub(first).min(out.len());
     match slot {
         Some(s) if s.varying => {
-            let row = (s.offset + comp) * raw.stride;
+            let row = (s.offset + comp) * raw.stride + first;
             out[..n].copy_from_slice(&raw.varying[row..row + n]);
         }
         Some(s) => out[..n].fill(raw.uniform[s.offset + comp]),
