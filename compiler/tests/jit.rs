@@ -1438,3 +1438,26 @@ fn a_zero_tangent_gives_a_zero_difference_derivative_even_where_the_function_is_
     differential(&m, &shader, 13, 213, 0.5);
     differential(&m, &shader, 16, 214, 1.0);
 }
+
+/// A global is marked as needing no value on entry only when the shader assigns the whole of it in
+/// a top-level statement that every lane reaches and reads it nowhere.
+#[test]
+fn entry_unused_marks_only_globals_assigned_before_any_use() {
+    let cases: [(&str, &[(&str, bool)]); 5] = [
+        (
+            "camera c() { E = point \"camera\" (0, 0, 0); I = vector (s, t, 1); Ci = 1; }",
+            &[("E", true), ("I", true), ("Ci", true)],
+        ),
+        ("camera c() { if (s > 0) I = vector (s, t, 1); E = point (0, 0, 0); }", &[("I", false), ("E", true)]),
+        ("camera c() { E = point (0, 0, 0); I = I * 2; }", &[("I", false), ("E", true)]),
+        ("camera c() { float k; for (k = 0; k < s; k += 1) I = vector (s, t, 1); }", &[("I", false)]),
+        ("camera c() { I = vector (s, t, 1); setxcomp(I, 1); Ci = 1; Ci += 1; }", &[("I", false), ("Ci", false)]),
+    ];
+    for (src, want) in cases {
+        let shader = jit::compile(&module(src)).expect("compiles");
+        for &(name, unused) in want {
+            let g = shader.layout().global(name).expect("the global is in the layout");
+            assert_eq!(g.entry_unused, unused, "{name} in {src}");
+        }
+    }
+}

@@ -319,12 +319,19 @@ pub fn run_camera(args: &BenchCameraArgs) -> anyhow::Result<()> {
     let (w, h) = (rt.options.width, rt.options.height);
     println!("scene: {}", args.scene.as_ref().map_or("<default scene>".into(), |p| p.display().to_string()));
     println!("size: {w}x{h}, threads: {threads}, primary rays made and traced (not shaded)");
-    let base = rays[0] as f64 / median(times[0].clone()).max(1e-12) / 1e6;
     let pixels = f64::from(w) * f64::from(h);
+    let base = rays[0] as f64 / median(times[0].clone()).max(1e-12) / 1e6;
     let base_make = median(make_times[0].clone());
     for (k, (name, _)) in cameras.iter().enumerate() {
         let mrays = rays[k] as f64 / median(times[k].clone()).max(1e-12) / 1e6;
         println!("{name}_mrays: {mrays:.2} ({} rays, {:.3} of builtin)", rays[k], mrays / base.max(1e-12));
+    }
+    // Camera samples (one a pixel) per second: a camera that makes no ray for some samples (a
+    // fisheye outside its image circle) still runs for them, so this is its throughput per sample.
+    let base_samples = pixels / median(times[0].clone()).max(1e-12) / 1e6;
+    for (k, (name, _)) in cameras.iter().enumerate() {
+        let msamples = pixels / median(times[k].clone()).max(1e-12) / 1e6;
+        println!("{name}_msamples: {msamples:.2} ({:.3} of builtin)", msamples / base_samples.max(1e-12));
     }
     // Making the rays alone (camera samples and the camera, no tracing): where a camera shader's
     // cost over the built-in camera lies.

@@ -57,11 +57,11 @@ pub fn screen_position(world: &World, raster: (f32, f32)) -> (f32, f32) {
     ScreenWindow::of(world).position(raster)
 }
 
-/// [`screen_position`] with its per-image factors worked out once (the same arithmetic, so the same
-/// bits).
+/// [`screen_position`] with its per-image factors worked out once (`kx`, `ky`: 2 over the width and
+/// the height, so that a position costs no division).
 struct ScreenWindow {
-    w: f32,
-    h: f32,
+    kx: f32,
+    ky: f32,
     ax: f32,
     ay: f32,
     cx: f32,
@@ -72,12 +72,12 @@ impl ScreenWindow {
     fn of(world: &World) -> ScreenWindow {
         let (w, h) = (world.options.width.max(1) as f32, world.options.height.max(1) as f32);
         let e = world.options.screen_extent();
-        ScreenWindow { w, h, ax: e.half.0, ay: e.half.1, cx: e.centre.0, cy: e.centre.1 }
+        ScreenWindow { kx: 2.0 / w, ky: 2.0 / h, ax: e.half.0, ay: e.half.1, cx: e.centre.0, cy: e.centre.1 }
     }
 
     #[inline]
     fn position(&self, (x, y): (f32, f32)) -> (f32, f32) {
-        ((2.0 * x / self.w - 1.0) * self.ax + self.cx, (1.0 - 2.0 * y / self.h) * self.ay + self.cy)
+        ((x * self.kx - 1.0) * self.ax + self.cx, (1.0 - y * self.ky) * self.ay + self.cy)
     }
 }
 
@@ -262,12 +262,17 @@ fn run_camera_shader(
     let (open, close) = world.options.shutter;
     let eye = world.camera.eye();
     // I on entry: the built-in pinhole ray's direction, made in the packet's direction rows (the
-    // shader's I replaces it there after the call).
-    let pinhole = Pinhole::of(world);
-    for (ps, o) in packets.iter().zip(out.iter_mut()) {
-        let (rx, ry) = raster_rows(&ps.samples);
-        let packet = &mut o.packet;
-        pinhole_directions(&pinhole, &rx, &ry, [&mut packet.dx.0, &mut packet.dy.0, &mut packet.dz.0]);
+    // shader's I replaces it there after the call). Globals the shader assigns before it could read
+    // them are not filled (the cameras of the library assign E, I and Ci first thing).
+    let needed = |slot: Option<Slot>| slot.is_some_and(|s| !s.entry_unused);
+    let entry_i = needed(slots.i) || slots.i.is_none();
+    if entry_i {
+        let pinhole = Pinhole::of(world);
+        for (ps, o) in packets.iter().zip(out.iter_mut()) {
+            let (rx, ry) = raster_rows(&ps.samples);
+            let packet = &mut o.packet;
+            pinhole_directions(&pinhole, &rx, &ry, [&mut packet.dx.0, &mut packet.dy.0, &mut packet.dz.0]);
+        }
     }
     let screen = ScreenWindow::of(world);
     let _timer = super::stats::ShadingTimer::start(&frame.stats);
@@ -279,8 +284,12 @@ fn run_camera_shader(
             camera.write_params(&mut raw);
             fill1(&mut raw, slots.dtime, close - open);
             fill1(&mut raw, slots.ncomps, 3.0);
-            fill3(&mut raw, slots.e, eye);
-            fill3(&mut raw, slots.ci, Vec3A::ONE);
+            if needed(slots.e) {
+                fill3(&mut raw, slots.e, eye);
+            }
+            if needed(slots.ci) {
+                fill3(&mut raw, slots.ci, Vec3A::ONE);
+            }
             fill1(&mut raw, slots.p.map(|s| Slot { offset: s.offset + 2, ..s }), 0.0);
             for (p, (ps, o)) in packets.iter().zip(out.iter()).enumerate() {
                 let first = p * PACKET_SIZE;
@@ -301,9 +310,11 @@ fn run_camera_shader(
                     put_row_at(&mut raw, slots.v, 0, first, &row(|s| s.lens.1));
                     put_row_at(&mut raw, slots.time, 0, first, &row(|s| s.time));
                 }
-                let packet = &o.packet;
-                for (k, row) in [&packet.dx, &packet.dy, &packet.dz].into_iter().enumerate() {
-                    put_row_at(&mut raw, slots.i, k, first, &row.0);
+                if needed(slots.i) {
+                    let packet = &o.packet;
+                    for (k, row) in [&packet.dx, &packet.dy, &packet.dz].into_iter().enumerate() {
+                        put_row_at(&mut raw, slots.i, k, first, &row.0);
+                    }
                 }
             }
         }
@@ -337,6 +348,10 @@ fn run_camera_shader(
 /// every packet a camera shader makes, and written lane by lane it cost several times the shader.
 fn finish_shader_rays(frame: &Frame, ps: &PacketSamples, w: &Rows3, out: &mut PrimaryRays) {
     let packet = &mut out.packet;
+    // Most cameras give every ray of a packet one origin (a thin lens samples one lens position
+    // per packet): then the origin does not change from lane to lane.
+    let same = |row: &Row| row.iter().all(|v| v.to_bits() == row[0].to_bits());
+    let fixed_origin = same(&packet.ox.0) && same(&packet.oy.0) && same(&packet.oz.0);
     // A lane makes a ray when its origin is finite, its direction finite and not zero, and its
     // weight finite with a positive component; the others are zeroed.
     let mut valid = 0u64;
@@ -378,13 +393,20 @@ fn finish_shader_rays(frame: &Frame, ps: &PacketSamples, w: &Rows3, out: &mut Pr
     // made a ray is `valid` with those bits swapped.
     let valid_x = ((valid >> 1) & 0x5555_5555_5555_5555) | ((valid << 1) & 0xAAAA_AAAA_AAAA_AAAA);
     let valid_y = ((valid >> 2) & 0x3333_3333_3333_3333) | ((valid << 2) & 0xCCCC_CCCC_CCCC_CCCC);
+    let o = (!fixed_origin).then_some(o);
     let (ux, dodx, dddx) = quad_changes::<1>(&rx, &ry, valid_x, o, d);
     let (uy, dody, dddy) = quad_changes::<2>(&ry, &rx, valid_y, o, d);
     let both = ux & uy;
     let at = |v: &Rows3, l: usize| Vec3A::new(v[0][l], v[1][l], v[2][l]);
+    let origin_change = |v: &Option<Rows3>, l: usize| v.as_ref().map_or(Vec3A::ZERO, |v| at(v, l));
     for l in (0..PACKET_SIZE).filter(|l| packet.active >> l & 1 != 0) {
         out.diffs[l] = if both >> l & 1 != 0 {
-            RayDifferential { dodx: at(&dodx, l), dody: at(&dody, l), dddx: at(&dddx, l), dddy: at(&dddy, l) }
+            RayDifferential {
+                dodx: origin_change(&dodx, l),
+                dody: origin_change(&dody, l),
+                dddx: at(&dddx, l),
+                dddy: at(&dddy, l),
+            }
         } else {
             RayDifferential::cone(Vec3A::new(d[0][l], d[1][l], d[2][l]), 0.0, frame.pixel_spread)
         };
@@ -401,34 +423,39 @@ fn quad(row: &Row, q: usize) -> Vec4 {
 /// is lane `l`'s neighbour along one raster axis (`FLIP` 1: x, 2: y), `along` the raster
 /// coordinate on that axis and `across` the other, `neighbour_valid` whether each lane's neighbour
 /// made a ray. Returns the lanes whose neighbour counts (it made a ray and lies about one step
-/// along the axis) and the change per step of the origin and the direction
-/// (`(v[neighbour] - v[lane]) / step`, zero where a component is not finite).
+/// along the axis) and the change per step of the origin (`None` when `o` is: a fixed origin) and
+/// of the direction (`(v[neighbour] - v[lane]) / step`, zero where a component is not finite).
 fn quad_changes<const FLIP: usize>(
     along: &Row,
     across: &Row,
     neighbour_valid: u64,
-    o: [&Row; 3],
+    o: Option<[&Row; 3]>,
     d: [&Row; 3],
-) -> (u64, Rows3, Rows3) {
+) -> (u64, Option<Rows3>, Rows3) {
     let neighbour = |v: Vec4| if FLIP == 1 { v.yxwz() } else { v.zwxy() };
+    let changes = |v: [&Row; 3], inv: Vec4, q: usize, out: &mut Rows3| {
+        let (x, y, z) = (quad(v[0], q), quad(v[1], q), quad(v[2], q));
+        let (cx, cy, cz) = ((neighbour(x) - x) * inv, (neighbour(y) - y) * inv, (neighbour(z) - z) * inv);
+        let finite = cx.is_finite_mask() & cy.is_finite_mask() & cz.is_finite_mask();
+        for (row, c) in out.iter_mut().zip([cx, cy, cz]) {
+            Vec4::select(finite, c, Vec4::ZERO).write_to_slice(&mut row[q..q + 4]);
+        }
+    };
     let mut usable = 0u64;
-    let mut change = ([[0.0f32; PACKET_SIZE]; 3], [[0.0f32; PACKET_SIZE]; 3]);
+    let mut origin = o.map(|_| [[0.0f32; PACKET_SIZE]; 3]);
+    let mut direction = [[0.0f32; PACKET_SIZE]; 3];
     for q in (0..PACKET_SIZE).step_by(4) {
         let (a, c) = (quad(along, q), quad(across, q));
         let (step, other) = (neighbour(a) - a, neighbour(c) - c);
         let near = step.abs().cmpge(Vec4::splat(0.25)) & other.abs().cmple(step.abs() * 0.5);
         usable |= u64::from(near.bitmask()) << q;
         let inv = Vec4::ONE / step;
-        for (v, out) in [(o, &mut change.0), (d, &mut change.1)] {
-            let (x, y, z) = (quad(v[0], q), quad(v[1], q), quad(v[2], q));
-            let (cx, cy, cz) = ((neighbour(x) - x) * inv, (neighbour(y) - y) * inv, (neighbour(z) - z) * inv);
-            let finite = cx.is_finite_mask() & cy.is_finite_mask() & cz.is_finite_mask();
-            for (row, c) in out.iter_mut().zip([cx, cy, cz]) {
-                Vec4::select(finite, c, Vec4::ZERO).write_to_slice(&mut row[q..q + 4]);
-            }
+        if let (Some(o), Some(out)) = (o, origin.as_mut()) {
+            changes(o, inv, q, out);
         }
+        changes(d, inv, q, &mut direction);
     }
-    (usable & neighbour_valid, change.0, change.1)
+    (usable & neighbour_valid, origin, direction)
 }
 
 /// The built-in pinhole camera's unit directions through raster positions `(rx, ry)`, as rows

@@ -48,6 +48,9 @@ pub struct Slot {
     pub varying: bool,
     pub offset: usize,
     pub written: bool,
+    /// The shader assigns the global before any use of its value on entry (`GlobalSlot::entry_unused`):
+    /// a caller need not fill it.
+    pub entry_unused: bool,
 }
 
 /// The slots of the globals the renderer fills or reads, `None` where the shader does not use one.
@@ -85,8 +88,14 @@ pub struct GlobalSlots {
 
 impl GlobalSlots {
     fn from_layout(layout: &Layout) -> GlobalSlots {
-        let g =
-            |name: &str| layout.global(name).map(|g| Slot { varying: g.varying, offset: g.offset, written: g.written });
+        let g = |name: &str| {
+            layout.global(name).map(|g| Slot {
+                varying: g.varying,
+                offset: g.offset,
+                written: g.written,
+                entry_unused: g.entry_unused,
+            })
+        };
         GlobalSlots {
             p: g("P"),
             n: g("N"),

@@ -34,6 +34,10 @@ pub struct GlobalSlot {
     pub components: usize,
     /// Assigned somewhere in the module: the shader stores it back.
     pub written: bool,
+    /// The shader never uses the value the global holds on entry: nothing in the module reads it,
+    /// and a top-level statement of the shader body that every lane reaches (no `return` before it)
+    /// assigns the whole of it. A caller need not fill it.
+    pub entry_unused: bool,
 }
 
 /// Where one shader parameter lives.
@@ -104,14 +108,21 @@ pub(super) fn layout(m: &Module) -> Result<Layout, &'static str> {
     let mut used = vec![false; GLOBALS.len()];
     let mut random = false;
     let mut written = vec![false; GLOBALS.len()];
+    // Whether anything may read a global's value (conservatively: a partial or compound assignment
+    // and a reference argument read it too).
+    let mut read = vec![false; GLOBALS.len()];
     for f in &m.functions {
         for e in &f.exprs {
             match &e.kind {
-                ExprKind::Global(g) => used[g.0 as usize] = true,
-                ExprKind::Assign { place, .. } => {
+                ExprKind::Global(g) => {
+                    used[g.0 as usize] = true;
+                    read[g.0 as usize] = true;
+                }
+                ExprKind::Assign { place, op, .. } => {
                     if let PlaceBase::Global(g) = place.base {
                         used[g.0 as usize] = true;
                         written[g.0 as usize] = true;
+                        read[g.0 as usize] |= op.is_some() || place.index.is_some() || place.component.is_some();
                     }
                 }
                 ExprKind::Call { args, .. } | ExprKind::CallBuiltin { args, .. } => {
@@ -120,6 +131,7 @@ pub(super) fn layout(m: &Module) -> Result<Layout, &'static str> {
                             if let PlaceBase::Global(g) = p.base {
                                 used[g.0 as usize] = true;
                                 written[g.0 as usize] = true;
+                                read[g.0 as usize] = true;
                             }
                         }
                     }
@@ -136,6 +148,7 @@ pub(super) fn layout(m: &Module) -> Result<Layout, &'static str> {
                         for name in implicit {
                             if let Some(g) = Global::lookup(name) {
                                 used[g.0 as usize] = true;
+                                read[g.0 as usize] = true;
                             }
                         }
                     }
@@ -154,13 +167,20 @@ pub(super) fn layout(m: &Module) -> Result<Layout, &'static str> {
         for name in names {
             if let Some(g) = Global::lookup(name) {
                 used[g.0 as usize] = true;
+                read[g.0 as usize] = true;
             }
         }
     }
     // Light statements read and write the light globals.
+    let mut by_lights = vec![false; GLOBALS.len()];
     for f in &m.functions {
-        light_globals(&f.body, &mut used, &mut written);
+        light_globals(&f.body, &mut by_lights, &mut written);
     }
+    for (i, lit) in by_lights.into_iter().enumerate() {
+        used[i] |= lit;
+        read[i] |= lit;
+    }
+    let assigned_first = assigned_on_entry(m.function(shader.body));
     let mut l = Layout::default();
     for pass_varying in [true, false] {
         for (i, g) in GLOBALS.iter().enumerate() {
@@ -179,6 +199,7 @@ pub(super) fn layout(m: &Module) -> Result<Layout, &'static str> {
                 offset: *offset,
                 components: comps,
                 written: written[i],
+                entry_unused: !read[i] && assigned_first[i],
             });
             *offset += comps;
         }
@@ -213,6 +234,40 @@ pub(super) fn layout(m: &Module) -> Result<Layout, &'static str> {
         l.varying_slots += 2;
     }
     Ok(l)
+}
+
+/// The globals that a top-level statement of the shader body assigns whole (`g = value`) before
+/// any statement that holds a `return`: every lane that runs the shader assigns them.
+fn assigned_on_entry(body: &crate::ir::Function) -> Vec<bool> {
+    use crate::ir::{Stmt, StmtKind};
+    fn returns(s: &Stmt) -> bool {
+        let any = |b: &crate::ir::Block| b.stmts.iter().any(returns);
+        match &s.kind {
+            StmtKind::Return(_) => true,
+            StmtKind::If { then, otherwise, .. } | StmtKind::Gather { body: then, otherwise, .. } => {
+                any(then) || any(otherwise)
+            }
+            StmtKind::Loop { body, step, .. } => any(body) || any(step),
+            StmtKind::Illuminance { body, .. } | StmtKind::Illuminate { body, .. } | StmtKind::Solar { body, .. } => {
+                any(body)
+            }
+            StmtKind::Expr(_) | StmtKind::Break(_) | StmtKind::Continue(_) => false,
+        }
+    }
+    let mut assigned = vec![false; GLOBALS.len()];
+    for s in &body.body.stmts {
+        if let StmtKind::Expr(e) = s.kind {
+            if let ExprKind::Assign { place, op: None, .. } = &body.expr(e).kind {
+                if let (PlaceBase::Global(g), None, None) = (place.base, place.index, place.component) {
+                    assigned[g.0 as usize] = true;
+                }
+            }
+        }
+        if returns(s) {
+            break;
+        }
+    }
+    assigned
 }
 
 /// Marks `L`, `Cl`, `Ol` (illuminance: set per light and restored), `L` and `Ps` (illuminate, solar)
