@@ -473,10 +473,10 @@ pub fn render_frame(world: &World, progress: Option<&(dyn Fn(usize, usize) + Syn
             for j in 0..sy {
                 for i in 0..sx {
                     primary.make(&frame, tile, (i, j));
-                    for (&(px, py), primary) in primary.corners.iter().zip(&primary.rays) {
-                        let packet = &primary.packet;
+                    for (&(px, py), rays) in primary.corners.iter().zip(&primary.rays) {
+                        let packet = &rays.packet;
                         world.scene.intersect_packet(packet, &mut hits);
-                        shade_packet(&frame, primary, &hits, &mut samples);
+                        shade_packet(&frame, rays, &hits, &mut samples);
                         for (lane, s) in samples.iter().enumerate() {
                             if packet.active >> lane & 1 == 0 {
                                 continue;

@@ -256,11 +256,16 @@ fn run_camera_shader(
     packets: &[PacketSamples],
     out: &mut [PrimaryRays],
 ) {
+    let n = packets.len().min(out.len()).min(MAX_PACKETS_PER_CALL);
+    let (packets, out) = (&packets[..n], &mut out[..n]);
     let world = frame.world;
     let program = &camera.program;
     let slots = &program.slots;
     let (open, close) = world.options.shutter;
     let eye = world.camera.eye();
+    // The shader's weights (Ci) by packet: the rays are finished after the call, outside the
+    // shading timers.
+    let mut weights = [[[1.0f32; PACKET_SIZE]; 3]; MAX_PACKETS_PER_CALL];
     // I on entry: the built-in pinhole ray's direction, made in the packet's direction rows (the
     // shader's I replaces it there after the call). Globals the shader assigns before it could read
     // them are not filled (the cameras of the library assign E, I and Ci first thing).
@@ -275,8 +280,8 @@ fn run_camera_shader(
         }
     }
     let screen = ScreenWindow::of(world);
-    let _timer = super::stats::ShadingTimer::start(&frame.stats);
-    with_batch(program, packets.len() * PACKET_SIZE, |batch| {
+    let timer = super::stats::ShadingTimer::start(&frame.stats);
+    with_batch(program, n * PACKET_SIZE, |batch| {
         // Every lane runs, those off the image too: their rays give their neighbours'
         // differentials (they are dropped after the call).
         {
@@ -322,7 +327,7 @@ fn run_camera_shader(
         let table = call.table();
         program.code.shade_with_table(batch, &table);
         let raw = batch.raw_mut();
-        for (p, (ps, o)) in packets.iter().zip(out.iter_mut()).enumerate() {
+        for (p, (o, w)) in out.iter_mut().zip(&mut weights).enumerate() {
             let first = p * PACKET_SIZE;
             let packet = &mut o.packet;
             for (k, row) in [&mut packet.ox, &mut packet.oy, &mut packet.oz].into_iter().enumerate() {
@@ -333,13 +338,15 @@ fn run_camera_shader(
                     get_row_at(&raw, slots.i, k, first, 0.0, &mut row.0);
                 }
             }
-            let mut w = [[1.0f32; PACKET_SIZE]; 3];
             for (k, row) in w.iter_mut().enumerate() {
                 get_row_at(&raw, slots.ci, k, first, 1.0, row);
             }
-            finish_shader_rays(frame, ps, &w, o);
         }
     });
+    drop(timer);
+    for ((ps, o), w) in packets.iter().zip(out.iter_mut()).zip(&weights) {
+        finish_shader_rays(frame, ps, w, o);
+    }
 }
 
 /// Makes a packet of rays from what a camera shader left in `out`'s origin and direction rows and
