@@ -266,6 +266,10 @@ fn run_camera_shader(
     // The shader's weights (Ci) by packet: the rays are finished after the call, outside the
     // shading timers.
     let mut weights = [[[1.0f32; PACKET_SIZE]; 3]; MAX_PACKETS_PER_CALL];
+    let mut rasters = [([0.0f32; PACKET_SIZE], [0.0f32; PACKET_SIZE]); MAX_PACKETS_PER_CALL];
+    for (r, ps) in rasters.iter_mut().zip(packets) {
+        *r = raster_rows(&ps.samples);
+    }
     // I on entry: the built-in pinhole ray's direction, made in the packet's direction rows (the
     // shader's I replaces it there after the call). Globals the shader assigns before it could read
     // them are not filled (the cameras of the library assign E, I and Ci first thing).
@@ -273,10 +277,9 @@ fn run_camera_shader(
     let entry_i = needed(slots.i) || slots.i.is_none();
     if entry_i {
         let pinhole = Pinhole::of(world);
-        for (ps, o) in packets.iter().zip(out.iter_mut()) {
-            let (rx, ry) = raster_rows(&ps.samples);
+        for ((rx, ry), o) in rasters.iter().zip(out.iter_mut()) {
             let packet = &mut o.packet;
-            pinhole_directions(&pinhole, &rx, &ry, [&mut packet.dx.0, &mut packet.dy.0, &mut packet.dz.0]);
+            pinhole_directions(&pinhole, rx, ry, [&mut packet.dx.0, &mut packet.dy.0, &mut packet.dz.0]);
         }
     }
     let screen = ScreenWindow::of(world);
@@ -296,11 +299,10 @@ fn run_camera_shader(
                 fill3(&mut raw, slots.ci, Vec3A::ONE);
             }
             fill1(&mut raw, slots.p.map(|s| Slot { offset: s.offset + 2, ..s }), 0.0);
-            for (p, (ps, o)) in packets.iter().zip(out.iter()).enumerate() {
+            for (p, ((ps, o), (rx, ry))) in packets.iter().zip(out.iter()).zip(&rasters).enumerate() {
                 let first = p * PACKET_SIZE;
-                let (rx, ry) = raster_rows(&ps.samples);
-                put_row_at(&mut raw, slots.p, 0, first, &rx);
-                put_row_at(&mut raw, slots.p, 1, first, &ry);
+                put_row_at(&mut raw, slots.p, 0, first, rx);
+                put_row_at(&mut raw, slots.p, 1, first, ry);
                 if slots.s.is_some() || slots.t.is_some() {
                     let (mut sx, mut sy) = ([0.0f32; PACKET_SIZE], [0.0f32; PACKET_SIZE]);
                     for l in 0..PACKET_SIZE {
@@ -344,16 +346,16 @@ fn run_camera_shader(
         }
     });
     drop(timer);
-    for ((ps, o), w) in packets.iter().zip(out.iter_mut()).zip(&weights) {
-        finish_shader_rays(frame, ps, w, o);
+    for (((ps, o), w), raster) in packets.iter().zip(out.iter_mut()).zip(&weights).zip(&rasters) {
+        finish_shader_rays(frame, ps, raster, w, o);
     }
 }
 
 /// Makes a packet of rays from what a camera shader left in `out`'s origin and direction rows and
-/// in `w` (its `Ci`, the weight): drops the lanes that made no usable ray, normalises the
+/// in `w` (its `Ci`, the weight), for samples at raster positions `(rx, ry)`: drops the lanes that made no usable ray, normalises the
 /// directions, and works out the ray differentials. Four lanes at a time (`Vec4`): this runs for
 /// every packet a camera shader makes, and written lane by lane it cost several times the shader.
-fn finish_shader_rays(frame: &Frame, ps: &PacketSamples, w: &Rows3, out: &mut PrimaryRays) {
+fn finish_shader_rays(frame: &Frame, ps: &PacketSamples, (rx, ry): &(Row, Row), w: &Rows3, out: &mut PrimaryRays) {
     let packet = &mut out.packet;
     // Most cameras give every ray of a packet one origin (a thin lens samples one lens position
     // per packet): then the origin does not change from lane to lane.
@@ -393,7 +395,6 @@ fn finish_shader_rays(frame: &Frame, ps: &PacketSamples, w: &Rows3, out: &mut Pr
     for l in (0..PACKET_SIZE).filter(|l| packet.active >> l & 1 != 0) {
         out.weights[l] = Vec3A::new(wr[l], wg[l], wb[l]).max(Vec3A::ZERO);
     }
-    let (rx, ry) = raster_rows(&ps.samples);
     let o = [&packet.ox.0, &packet.oy.0, &packet.oz.0];
     let d = [&packet.dx.0, &packet.dy.0, &packet.dz.0];
     // Lane l ^ 1 is a lane's horizontal neighbour, l ^ 2 its vertical one: whether the neighbour
@@ -401,8 +402,8 @@ fn finish_shader_rays(frame: &Frame, ps: &PacketSamples, w: &Rows3, out: &mut Pr
     let valid_x = ((valid >> 1) & 0x5555_5555_5555_5555) | ((valid << 1) & 0xAAAA_AAAA_AAAA_AAAA);
     let valid_y = ((valid >> 2) & 0x3333_3333_3333_3333) | ((valid << 2) & 0xCCCC_CCCC_CCCC_CCCC);
     let o = (!fixed_origin).then_some(o);
-    let (ux, dodx, dddx) = quad_changes::<1>(&rx, &ry, valid_x, o, d);
-    let (uy, dody, dddy) = quad_changes::<2>(&ry, &rx, valid_y, o, d);
+    let (ux, dodx, dddx) = quad_changes::<1>(rx, ry, valid_x, o, d);
+    let (uy, dody, dddy) = quad_changes::<2>(ry, rx, valid_y, o, d);
     let both = ux & uy;
     let at = |v: &Rows3, l: usize| Vec3A::new(v[0][l], v[1][l], v[2][l]);
     let origin_change = |v: &Option<Rows3>, l: usize| v.as_ref().map_or(Vec3A::ZERO, |v| at(v, l));

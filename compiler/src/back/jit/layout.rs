@@ -35,8 +35,8 @@ pub struct GlobalSlot {
     /// Assigned somewhere in the module: the shader stores it back.
     pub written: bool,
     /// The shader never uses the value the global holds on entry: nothing in the module reads it,
-    /// and a top-level statement of the shader body that every lane reaches (no `return` before it)
-    /// assigns the whole of it. A caller need not fill it.
+    /// and a top-level statement of the shader body (which every lane reaches) assigns the whole of
+    /// it. A caller need not fill it.
     pub entry_unused: bool,
 }
 
@@ -236,24 +236,10 @@ pub(super) fn layout(m: &Module) -> Result<Layout, &'static str> {
     Ok(l)
 }
 
-/// The globals that a top-level statement of the shader body assigns whole (`g = value`) before
-/// any statement that holds a `return`: every lane that runs the shader assigns them.
+/// The globals that a top-level statement of the shader body assigns whole (`g = value`): every
+/// lane that runs the shader assigns them (a shader body cannot `return`; the checker refuses it).
 fn assigned_on_entry(body: &crate::ir::Function) -> Vec<bool> {
-    use crate::ir::{Stmt, StmtKind};
-    fn returns(s: &Stmt) -> bool {
-        let any = |b: &crate::ir::Block| b.stmts.iter().any(returns);
-        match &s.kind {
-            StmtKind::Return(_) => true,
-            StmtKind::If { then, otherwise, .. } | StmtKind::Gather { body: then, otherwise, .. } => {
-                any(then) || any(otherwise)
-            }
-            StmtKind::Loop { body, step, .. } => any(body) || any(step),
-            StmtKind::Illuminance { body, .. } | StmtKind::Illuminate { body, .. } | StmtKind::Solar { body, .. } => {
-                any(body)
-            }
-            StmtKind::Expr(_) | StmtKind::Break(_) | StmtKind::Continue(_) => false,
-        }
-    }
+    use crate::ir::StmtKind;
     let mut assigned = vec![false; GLOBALS.len()];
     for s in &body.body.stmts {
         if let StmtKind::Expr(e) = s.kind {
@@ -262,9 +248,6 @@ fn assigned_on_entry(body: &crate::ir::Function) -> Vec<bool> {
                     assigned[g.0 as usize] = true;
                 }
             }
-        }
-        if returns(s) {
-            break;
         }
     }
     assigned
