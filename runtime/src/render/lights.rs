@@ -8,7 +8,7 @@ use super::shade::{finite_or_zero, mix, point_seed, shade_in_groups, unit, Frame
 use super::stats::{tracing, Stats};
 use super::world::{LightSource, DEFAULT_MATERIAL};
 use crate::ray::{HitCandidate, HitPacket, Ray, RayPacket, PACKET_SIZE};
-use crate::shading::{fill1, fill3, get3, put1, put3, with_batch, LightKind};
+use crate::shading::{fill1, fill3, get_row, put3, put_row, with_batch, LightKind};
 use glam::Vec3A;
 use rtsl_compiler::back::jit::{HostLight, MAX_LIGHTS};
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -58,10 +58,26 @@ fn eval_light_lanes(
     let eye = frame.world.camera.eye();
     let ambient = light.kind == LightKind::Ambient;
     let scale = 1.0 / samples as f32;
-    let mut results = vec![(Vec3A::ZERO, Vec3A::ZERO, Vec3A::ZERO); n];
+    // The lanes' points and times as rows, written into each batch a row at a time.
+    let mut ps = [[0.0f32; PACKET_SIZE]; 3];
+    let mut lane_times = [0.0f32; PACKET_SIZE];
+    for (l, p) in points.iter().enumerate().take(n) {
+        (ps[0][l], ps[1][l], ps[2][l]) = (p.x, p.y, p.z);
+        lane_times[l] = time_of(times, l);
+    }
+    // What the light shader left: L, Cl and Ol, a row per component.
+    let mut rows = [[0.0f32; PACKET_SIZE]; 9];
     // RenderMan's light flags: `diffuse()` and `specular()` skip (weigh by 1 minus) a light whose
     // `__nondiffuse` / `__nonspecular` output is set, as the shader left it for each lane.
-    let mut flags = vec![(0.0f32, 0.0f32); n];
+    let mut flags = [[0.0f32; PACKET_SIZE]; 2];
+    let flag_slots = ["__nondiffuse", "__nonspecular"].map(|name| {
+        program
+            .layout()
+            .param(name)
+            .map(|(_, slot)| slot)
+            .filter(|slot| slot.components == 1 && slot.len == 1 && !slot.string)
+            .cloned()
+    });
     let id = frame.world.lights.iter().position(|x| std::ptr::eq(x, light)).map_or(u32::MAX, |i| i as u32);
     for sample in 0..samples {
         Stats::add(&frame.stats.light_evaluations, 1);
@@ -90,46 +106,36 @@ fn eval_light_lanes(
                         }
                     }
                 }
-                for (l, &point) in points.iter().enumerate().take(n) {
-                    put3(&mut raw, slots.ps, l, point);
-                    put1(&mut raw, slots.time, l, time_of(times, l));
+                for (k, row) in ps.iter().enumerate() {
+                    put_row(&mut raw, slots.ps, k, &row[..n]);
                 }
+                put_row(&mut raw, slots.time, 0, &lane_times[..n]);
             }
             let mut call = ShadeCall::new(frame, instance, instance.world_from_shader, depth);
             call.material = material;
             let table = call.table();
             program.code.shade_with_table(batch, &table);
             let raw = batch.raw_mut();
-            for (l, r) in results.iter_mut().enumerate() {
-                *r = (
-                    get3(&raw, slots.l, l, Vec3A::ZERO),
-                    get3(&raw, slots.cl, l, Vec3A::ZERO),
-                    get3(&raw, slots.ol, l, Vec3A::ZERO),
-                );
+            for (k, row) in rows.iter_mut().enumerate() {
+                let slot = [slots.l, slots.cl, slots.ol][k / 3];
+                get_row(&raw, slot, k % 3, 0.0, &mut row[..n]);
             }
-            for (name, pick) in [("__nondiffuse", 0), ("__nonspecular", 1)] {
-                let Some((_, slot)) = program.layout().param(name) else { continue };
-                if slot.components != 1 || slot.len != 1 || slot.string {
-                    continue;
-                }
-                for (l, f) in flags.iter_mut().enumerate() {
+            for (flag, slot) in flags.iter_mut().zip(&flag_slots) {
+                let Some(slot) = slot else { continue };
+                for (l, f) in flag.iter_mut().enumerate().take(n) {
                     let v =
                         if slot.varying { raw.varying[slot.offset * raw.stride + l] } else { raw.uniform[slot.offset] };
-                    let v = if v.is_finite() { v.clamp(0.0, 1.0) } else { 0.0 };
-                    if pick == 0 {
-                        f.0 = v;
-                    } else {
-                        f.1 = v;
-                    }
+                    *f = if v.is_finite() { v.clamp(0.0, 1.0) } else { 0.0 };
                 }
             }
         });
+        let lane3 = |first: usize, l: usize| Vec3A::new(rows[first][l], rows[first + 1][l], rows[first + 2][l]);
         // Shadows: which lanes need a ray, then one packet (or a walk per ray).
-        let mut attenuation = vec![Vec3A::ONE; n];
+        let mut attenuation = [Vec3A::ONE; PACKET_SIZE];
         if !ambient && light.shadows {
             let mut packet = RayPacket::new();
             for l in 0..n {
-                let (to_surface, cl, _) = results[l];
+                let (to_surface, cl) = (lane3(0, l), lane3(3, l));
                 if mask[l] == 0 || to_surface == Vec3A::ZERO || cl == Vec3A::ZERO || !cl.is_finite() {
                     continue;
                 }
@@ -139,24 +145,24 @@ fn eval_light_lanes(
                     packet.set(l, &ray.at_time(time_of(times, l)));
                 }
             }
-            transmission_packet(frame, &mut packet, &mut attenuation);
+            transmission_packet(frame, &mut packet, &mut attenuation[..n]);
         }
         for l in 0..n {
-            let (to_surface, cl, ol) = results[l];
+            let to_surface = lane3(0, l);
             // `illuminate` leaves L at zero where the point is outside its cone: no light there.
             if mask[l] == 0 || (!ambient && to_surface == Vec3A::ZERO) {
                 continue;
             }
-            let cl = finite_or_zero(cl) * scale * attenuation[l];
+            let cl = finite_or_zero(lane3(3, l)) * scale * attenuation[l];
             sink(
                 l,
                 HostLight {
                     l: if ambient { [0.0; 3] } else { (-to_surface).to_array() },
                     cl: cl.to_array(),
-                    ol: finite_or_zero(ol).to_array(),
+                    ol: finite_or_zero(lane3(6, l)).to_array(),
                     ambient: u32::from(ambient),
-                    nondiffuse: flags[l].0,
-                    nonspecular: flags[l].1,
+                    nondiffuse: flags[0][l],
+                    nonspecular: flags[1][l],
                     id,
                 },
             );

@@ -20,7 +20,7 @@ use super::primary::PrimaryRays;
 use super::stats::{tracing, ShadingTimer, Stats};
 use super::world::{InstanceShading, World, DEFAULT_MATERIAL};
 use crate::ray::{offset_ray_origin, Hit, HitPacket, Ray, PACKET_SIZE};
-use crate::shading::{get3, put1, put3, with_batch, ShaderInstance, Slot};
+use crate::shading::{get3, get_row, put1, put3, with_batch, ShaderInstance, Slot};
 use glam::{Affine3A, Vec3A};
 use rtsl_compiler::back::jit::RawBatch;
 
@@ -76,25 +76,23 @@ pub struct Sample {
 /// times its camera weight.
 pub fn shade_packet(frame: &Frame, primary: &PrimaryRays, hits: &HitPacket, out: &mut [Sample; PACKET_SIZE]) {
     let packet = &primary.packet;
-    let mut rays = Vec::with_capacity(PACKET_SIZE);
-    let mut hs = Vec::with_capacity(PACKET_SIZE);
-    let mut diffs = Vec::with_capacity(PACKET_SIZE);
-    let mut lanes = Vec::with_capacity(PACKET_SIZE);
-    for i in 0..PACKET_SIZE {
-        if packet.active >> i & 1 != 0 {
-            rays.push(packet.get(i));
-            hs.push(hits.get(i));
-            diffs.push(primary.diffs[i]);
-            lanes.push(i);
+    Stats::add(&frame.stats.primary_rays, packet.active.count_ones() as usize);
+    // Each hit becomes a pending shading job at its lane's index (no copies of the packet's rays
+    // in between); misses see the background at once.
+    let mut pending = Vec::with_capacity(PACKET_SIZE);
+    for i in (0..PACKET_SIZE).filter(|i| packet.active >> i & 1 != 0) {
+        if let Some(p) = start_sample(frame, i, packet.get(i), primary.diffs[i], hits.get(i), &mut out[i]) {
+            pending.push(p);
         }
     }
-    Stats::add(&frame.stats.primary_rays, rays.len());
-    let mut samples = vec![Sample::default(); rays.len()];
-    shade_hits(frame, &rays, &diffs, &hs, 0, &mut samples);
-    for (k, i) in lanes.into_iter().enumerate() {
+    let mut weight = [Vec3A::ONE; PACKET_SIZE];
+    shade_pending(frame, pending, 0, out, &mut weight);
+    for i in (0..PACKET_SIZE).filter(|i| packet.active >> i & 1 != 0) {
+        let s = &mut out[i];
         let w = primary.weights[i];
-        out[i] =
-            Sample { color: samples[k].color * w, alpha: samples[k].alpha * (w.x + w.y + w.z) / 3.0, ..samples[k] };
+        let alpha = 1.0 - (weight[i].x + weight[i].y + weight[i].z) / 3.0;
+        s.color *= w;
+        s.alpha = alpha * (w.x + w.y + w.z) / 3.0;
     }
 }
 
@@ -165,25 +163,52 @@ pub(super) struct Shaded {
 }
 
 fn shade_hits(frame: &Frame, rays: &[Ray], diffs: &[RayDifferential], hits: &[Hit], depth: u32, out: &mut [Sample]) {
-    let world = frame.world;
-    let background = Vec3A::from(world.options.background);
-    let mut weight = vec![Vec3A::ONE; rays.len()];
-    let mut current = Vec::with_capacity(rays.len());
+    let mut pending = Vec::with_capacity(rays.len());
     for (i, ((ray, hit), diff)) in rays.iter().zip(hits).zip(diffs).enumerate() {
-        out[i] = Sample { color: Vec3A::ZERO, alpha: 0.0, depth: hit.t, object_id: u32::MAX, shader_id: u32::MAX };
-        if hit.is_hit() {
-            if let Some(inst) = world.instances.get(hit.instance as usize) {
-                out[i].object_id = world.materials.get(inst.material as usize).map_or(0, |m| m.object_id);
-                out[i].shader_id = inst.material;
-            }
-            current.push(Pending { index: i, ray: *ray, diff: *diff, hit: *hit });
-        } else {
-            out[i].color = background;
+        if let Some(p) = start_sample(frame, i, *ray, *diff, *hit, &mut out[i]) {
+            pending.push(p);
         }
     }
+    let mut weight = vec![Vec3A::ONE; rays.len()];
+    shade_pending(frame, pending, depth, out, &mut weight);
+    for (s, w) in out.iter_mut().zip(&weight) {
+        s.alpha = 1.0 - (w.x + w.y + w.z) / 3.0;
+    }
+}
+
+/// Starts the sample of ray `index`: the background on a miss (`None`), else the first hit's ids
+/// and the shading job.
+fn start_sample(
+    frame: &Frame,
+    index: usize,
+    ray: Ray,
+    diff: RayDifferential,
+    hit: Hit,
+    out: &mut Sample,
+) -> Option<Pending> {
+    let world = frame.world;
+    *out = Sample { color: Vec3A::ZERO, alpha: 0.0, depth: hit.t, object_id: u32::MAX, shader_id: u32::MAX };
+    if !hit.is_hit() {
+        out.color = Vec3A::from(world.options.background);
+        return None;
+    }
+    if let Some(inst) = world.instances.get(hit.instance as usize) {
+        out.object_id = world.materials.get(inst.material as usize).map_or(0, |m| m.object_id);
+        out.shader_id = inst.material;
+    }
+    Some(Pending { index, ray, diff, hit })
+}
+
+/// Shades the pending hits and composites them into `out[p.index]`, following rays through
+/// transparent surfaces; `weight[p.index]` is left with what the surfaces let through.
+fn shade_pending(frame: &Frame, mut current: Vec<Pending>, depth: u32, out: &mut [Sample], weight: &mut [Vec3A]) {
+    let world = frame.world;
+    let background = Vec3A::from(world.options.background);
     let mut layer = 0;
+    let mut results = Vec::new();
     while !current.is_empty() {
-        let mut results = vec![Shaded::default(); current.len()];
+        results.clear();
+        results.resize(current.len(), Shaded::default());
         shade_in_groups(frame, &mut current, depth, &mut results);
         // The atmosphere or interior between each ray's origin and its hit (`volume.rs`).
         super::volume::shade_segments(frame, &current, &mut results, depth);
@@ -213,9 +238,6 @@ fn shade_hits(frame: &Frame, rays: &[Ray], diffs: &[RayDifferential], hits: &[Hi
             }
         }
         current = next;
-    }
-    for (s, w) in out.iter_mut().zip(&weight) {
-        s.alpha = 1.0 - (w.x + w.y + w.z) / 3.0;
     }
 }
 
@@ -273,14 +295,33 @@ struct InstanceGeometry<'a> {
     normal_xf: glam::Mat3A,
     /// The tracer's instance, when it moves (its transform then depends on the ray's time).
     moving: Option<&'a crate::accel::top::InstanceData>,
+    /// Whether the shaders want screen-space derivatives (then the triangle's edges and the change
+    /// of its normal are kept per hit).
+    derivs: bool,
+    /// The mesh's `st` (two floats), `Cs` and `Os` (three) attributes, found once for all hits.
+    st: Option<usize>,
+    cs: Option<usize>,
+    os: Option<usize>,
 }
 
 impl<'a> InstanceGeometry<'a> {
-    fn new(world: &'a World, inst: &InstanceShading, index: u32) -> Option<InstanceGeometry<'a>> {
+    fn new(world: &'a World, inst: &InstanceShading, index: u32, derivs: bool) -> Option<InstanceGeometry<'a>> {
         let mesh = world.scene.mesh(crate::scene::ObjectId(inst.object))?;
         let normal_xf = inst.world_from_object.matrix3.inverse().transpose();
         let moving = world.scene.instance_data(index).filter(|d| d.motion.is_some());
-        Some(InstanceGeometry { mesh, world_from_object: inst.world_from_object, normal_xf, moving })
+        let find = |name: &str, components: usize| {
+            mesh.attributes.iter().position(|at| at.name == name && at.components == components)
+        };
+        Some(InstanceGeometry {
+            mesh,
+            world_from_object: inst.world_from_object,
+            normal_xf,
+            moving,
+            derivs,
+            st: find("st", 2),
+            cs: find("Cs", 3),
+            os: find("Os", 3),
+        })
     }
 }
 
@@ -323,14 +364,12 @@ fn hit_geometry(ig: &InstanceGeometry, hit: &Hit, time: f32) -> Option<HitGeomet
         }
         None => ([hit.u, hit.v], e1, e2),
     };
-    let find = |name: &str| mesh.attributes.iter().position(|at| at.name == name);
-    let color_attr = |name: &str| {
-        let i = find(name)?;
-        let v = attributes.get(i)?;
+    let color_attr = |index: Option<usize>| {
+        let v = attributes.get(index?)?;
         (v.len() == 3).then(|| Vec3A::new(v[0], v[1], v[2]))
     };
-    let (st, dst) = match find("st") {
-        Some(i) if attributes[i].len() == 2 => {
+    let (st, dst) = match ig.st {
+        Some(i) if attributes.get(i).is_some_and(|v| v.len() == 2) => {
             let d = &mesh.attributes[i].data;
             let delta = |k: usize, j: usize| d[2 * k + j] - d[2 * a + j];
             ([attributes[i][0], attributes[i][1]], [[delta(b, 0), delta(b, 1)], [delta(c, 0), delta(c, 1)]])
@@ -338,8 +377,8 @@ fn hit_geometry(ig: &InstanceGeometry, hit: &Hit, time: f32) -> Option<HitGeomet
         _ => (uv, duv),
     };
     let dn = match &mesh.normals {
-        Some(ns) => [normal_xf * Vec3A::from(ns[b] - ns[a]), normal_xf * Vec3A::from(ns[c] - ns[a])],
-        None => [Vec3A::ZERO; 2],
+        Some(ns) if ig.derivs => [normal_xf * Vec3A::from(ns[b] - ns[a]), normal_xf * Vec3A::from(ns[c] - ns[a])],
+        _ => [Vec3A::ZERO; 2],
     };
     Some(HitGeometry {
         p: surf_p,
@@ -349,10 +388,10 @@ fn hit_geometry(ig: &InstanceGeometry, hit: &Hit, time: f32) -> Option<HitGeomet
         st,
         dpdu: xf.transform_vector3a(dpdu),
         dpdv: xf.transform_vector3a(dpdv),
-        cs: color_attr("Cs"),
-        os: color_attr("Os"),
+        cs: color_attr(ig.cs),
+        os: color_attr(ig.os),
         attributes,
-        edges: [xf.transform_vector3a(e1), xf.transform_vector3a(e2)],
+        edges: if ig.derivs { [xf.transform_vector3a(e1), xf.transform_vector3a(e2)] } else { [e1, e2] },
         duv,
         dst,
         dn,
@@ -383,7 +422,10 @@ pub(super) fn shade_in_groups(frame: &Frame, pending: &mut [Pending], depth: u32
         let inst = world.instances.get(p.hit.instance as usize);
         (inst.map_or(0, |i| i.material), p.hit.instance)
     };
-    pending.sort_by_key(key);
+    // Coherent rays mostly arrive in order already; sorting moves whole jobs.
+    if !pending.is_sorted_by_key(key) {
+        pending.sort_by_key(key);
+    }
     let mut start = 0;
     while start < pending.len() {
         let k = key(&pending[start]);
@@ -402,7 +444,8 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
     let world = frame.world;
     let Some(inst) = world.instances.get(group[0].hit.instance as usize) else { return };
     let material = world.materials.get(inst.material as usize).unwrap_or(&DEFAULT_MATERIAL);
-    let Some(ig) = InstanceGeometry::new(world, inst, group[0].hit.instance) else { return };
+    let derivs = [&material.surface, &material.displacement].into_iter().flatten().any(|s| needs_derivs(&s.program));
+    let Some(ig) = InstanceGeometry::new(world, inst, group[0].hit.instance, derivs) else { return };
     let mut geoms: Vec<Option<HitGeometry>> = group.iter().map(|p| hit_geometry(&ig, &p.hit, p.ray.time)).collect();
     let color = Vec3A::from(material.color);
     let opacity = Vec3A::from(material.opacity);
@@ -454,11 +497,19 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
         let table = call.table();
         program.code.shade_with_table(batch, &table);
         let raw = batch.raw_mut();
-        for (lane, (g, o)) in geoms.iter().zip(out.iter_mut()).enumerate() {
+        // Ci and Oi read a row at a time (no Oi: the surface's opacity).
+        let lanes = group.len().min(PACKET_SIZE);
+        let mut rows = [[0.0f32; PACKET_SIZE]; 6];
+        for (k, row) in rows.iter_mut().enumerate() {
+            get_row(&raw, [slots.ci, slots.oi][k / 3], k % 3, 0.0, &mut row[..lanes]);
+        }
+        for (lane, (g, o)) in geoms.iter().zip(out.iter_mut()).enumerate().take(lanes) {
             let Some(g) = g else { continue };
-            let os = g.os.unwrap_or(opacity);
-            let ci = get3(&raw, slots.ci, lane, Vec3A::ZERO);
-            let oi = get3(&raw, slots.oi, lane, os);
+            let ci = Vec3A::new(rows[0][lane], rows[1][lane], rows[2][lane]);
+            let oi = match slots.oi {
+                Some(_) => Vec3A::new(rows[3][lane], rows[4][lane], rows[5][lane]),
+                None => g.os.unwrap_or(opacity),
+            };
             *o = Shaded {
                 ci: finite_or_zero(ci),
                 oi: finite_or_zero(oi),
@@ -484,30 +535,32 @@ fn fill_hit_globals(
 ) {
     let slots = &program.slots;
     let deriv_slots = program.layout().deriv_slots;
-    let needs_derivs = deriv_slots > 0 || slots.du.is_some() || slots.dv.is_some();
+    let needs_derivs = needs_derivs(program);
+    for (m, g) in raw.mask.iter_mut().zip(geoms) {
+        if g.is_none() {
+            *m = 0;
+        }
+    }
+    // A global at a time, a row per component: the shader reads few of them, and a row is written
+    // without looking up its slot again for every lane.
+    put3_rows(raw, slots.p, geoms, |g, _| g.p);
+    put3_rows(raw, slots.n, geoms, |g, _| g.n);
+    put3_rows(raw, slots.ng, geoms, |g, _| g.ng);
+    put3_rows(raw, slots.i, geoms, |g, lane| g.p - group[lane].ray.origin);
+    put3_rows(raw, slots.e, geoms, |_, lane| group[lane].ray.origin);
+    put1_rows(raw, slots.u, geoms, |g, _| g.uv[0]);
+    put1_rows(raw, slots.v, geoms, |g, _| g.uv[1]);
+    put1_rows(raw, slots.s, geoms, |g, _| g.st[0]);
+    put1_rows(raw, slots.t, geoms, |g, _| g.st[1]);
+    put3_rows(raw, slots.dpdu, geoms, |g, _| g.dpdu);
+    put3_rows(raw, slots.dpdv, geoms, |g, _| g.dpdv);
+    put3_rows(raw, slots.cs, geoms, |g, _| g.cs.unwrap_or(color));
+    put3_rows(raw, slots.os, geoms, |g, _| g.os.unwrap_or(opacity));
+    put3_rows(raw, slots.oi, geoms, |g, _| g.os.unwrap_or(opacity));
+    put1_rows(raw, slots.ncomps, geoms, |_, _| 3.0);
+    put1_rows(raw, slots.time, geoms, |_, lane| group[lane].ray.time);
     for (lane, (p, g)) in group.iter().zip(geoms).enumerate() {
-        let Some(g) = g else {
-            raw.mask[lane] = 0;
-            continue;
-        };
-        let e = p.ray.origin;
-        put3(raw, slots.p, lane, g.p);
-        put3(raw, slots.n, lane, g.n);
-        put3(raw, slots.ng, lane, g.ng);
-        put3(raw, slots.i, lane, g.p - e);
-        put3(raw, slots.e, lane, e);
-        put1(raw, slots.u, lane, g.uv[0]);
-        put1(raw, slots.v, lane, g.uv[1]);
-        put1(raw, slots.s, lane, g.st[0]);
-        put1(raw, slots.t, lane, g.st[1]);
-        put3(raw, slots.dpdu, lane, g.dpdu);
-        put3(raw, slots.dpdv, lane, g.dpdv);
-        let os = g.os.unwrap_or(opacity);
-        put3(raw, slots.cs, lane, g.cs.unwrap_or(color));
-        put3(raw, slots.os, lane, os);
-        put3(raw, slots.oi, lane, os);
-        put1(raw, slots.ncomps, lane, 3.0);
-        put1(raw, slots.time, lane, p.ray.time);
+        let Some(g) = g else { continue };
         // The full set of derivatives only for shaders that use them (they cost a few solves per
         // hit); the footprint, for rays continuing through, always.
         if needs_derivs {
@@ -536,6 +589,11 @@ fn fill_hit_globals(
             raw.varying[(seed + 1) * raw.stride + lane] = f32::from_bits((h >> 32) as u32);
         }
     }
+}
+
+/// Whether `program` reads screen-space derivatives of its globals (or `du`, `dv`).
+fn needs_derivs(program: &crate::shading::ShaderProgram) -> bool {
+    program.layout().deriv_slots > 0 || program.slots.du.is_some() || program.slots.dv.is_some()
 }
 
 /// Each lane's point, shading mask and ray time: what the lights of a batch of hits are computed
@@ -702,6 +760,58 @@ fn put_d3(raw: &mut RawBatch<'_>, slot: Option<Slot>, deriv_slots: usize, lane: 
         for (k, (x, y)) in dx.into_iter().zip(dy).enumerate() {
             raw.derivs[2 * (s.offset + k) * raw.stride + lane] = x;
             raw.derivs[(2 * (s.offset + k) + 1) * raw.stride + lane] = y;
+        }
+    }
+}
+
+/// Writes a triple global for every lane that has geometry, `value(hit, lane)`, a row per
+/// component (a uniform global takes the last such lane's value, as [`put3`] lane by lane would).
+fn put3_rows(
+    raw: &mut RawBatch<'_>,
+    slot: Option<Slot>,
+    geoms: &[Option<HitGeometry>],
+    value: impl Fn(&HitGeometry, usize) -> Vec3A,
+) {
+    let Some(s) = slot else { return };
+    let st = raw.stride;
+    if !s.varying {
+        let last = geoms.iter().enumerate().rev().find_map(|(lane, g)| Some(value(g.as_ref()?, lane)));
+        if let Some(v) = last {
+            raw.uniform[s.offset..s.offset + 3].copy_from_slice(&v.to_array());
+        }
+        return;
+    }
+    let rows = &mut raw.varying[s.offset * st..(s.offset + 3) * st];
+    let (x, rest) = rows.split_at_mut(st);
+    let (y, z) = rest.split_at_mut(st);
+    for (lane, ((g, x), (y, z))) in geoms.iter().zip(x).zip(y.iter_mut().zip(z)).enumerate() {
+        if let Some(g) = g {
+            let v = value(g, lane);
+            (*x, *y, *z) = (v.x, v.y, v.z);
+        }
+    }
+}
+
+/// [`put3_rows`] for a float global.
+fn put1_rows(
+    raw: &mut RawBatch<'_>,
+    slot: Option<Slot>,
+    geoms: &[Option<HitGeometry>],
+    value: impl Fn(&HitGeometry, usize) -> f32,
+) {
+    let Some(s) = slot else { return };
+    let st = raw.stride;
+    if !s.varying {
+        let last = geoms.iter().enumerate().rev().find_map(|(lane, g)| Some(value(g.as_ref()?, lane)));
+        if let Some(v) = last {
+            raw.uniform[s.offset] = v;
+        }
+        return;
+    }
+    let row = &mut raw.varying[s.offset * st..(s.offset + 1) * st];
+    for (lane, (g, x)) in geoms.iter().zip(row).enumerate() {
+        if let Some(g) = g {
+            *x = value(g, lane);
         }
     }
 }

@@ -568,7 +568,6 @@ impl Cx<'_> {
                 return *counts;
             }
         }
-        let key = (category.to_string(), points, self.mask);
         // One buffer per batch: the renderer writes the entries it counts, and only those are read.
         let out = &mut self.ctx.light_buffer;
         out.resize(MAX_LIGHTS * 4, HostLight::default());
@@ -585,7 +584,17 @@ impl Cx<'_> {
             )
         };
         let counts = counts.map(|c| c.min(MAX_LIGHTS as u32));
-        self.ctx.last_lights = Some((key, counts));
+        // The key's string is kept from query to query: a chunk's first query must not allocate.
+        match &mut self.ctx.last_lights {
+            Some(((cat, p, m), c)) => {
+                if cat != category {
+                    cat.clear();
+                    cat.push_str(category);
+                }
+                (*p, *m, *c) = (points, self.mask, counts);
+            }
+            None => self.ctx.last_lights = Some(((category.to_string(), points, self.mask), counts)),
+        }
         counts
     }
 
@@ -648,14 +657,20 @@ fn specular_brdf(l: V3, n: V3, v: V3, roughness: f32) -> f32 {
     transcendental::pow(dot(n, h).max(0.0), 1.0 / r)
 }
 
-/// `sum_lights` of the interpreter over one lane's lights.
-fn sum_lights<'a>(lights: impl Iterator<Item = &'a HostLight>, n: V3, weight: impl Fn(&HostLight) -> f32) -> V3 {
+/// `sum_lights` of the interpreter over one lane's lights; `weight` gets each light and its unit
+/// direction. Bit for bit the interpreter's: `in_hemisphere` and the weights normalise the same
+/// vectors, here once each.
+fn sum_lights<'a>(lights: impl Iterator<Item = &'a HostLight>, n: V3, weight: impl Fn(&HostLight, V3) -> f32) -> V3 {
     let mut sum = [0.0; 3];
+    let unit_n = geom::normalize(n);
     for l in lights.filter(|l| l.ambient == 0) {
-        if !geom::in_hemisphere(l.l, n) {
+        let unit_l = geom::normalize(l.l);
+        // `geom::in_hemisphere(l.l, n)`: a NaN cosine is not facing either.
+        let facing = dot(unit_l, unit_n) >= 0.0;
+        if !facing {
             continue;
         }
-        let w = weight(l);
+        let w = weight(l, unit_l);
         sum = add(sum, l.cl.map(|c| c * w));
     }
     sum
@@ -819,8 +834,8 @@ host_helpers! {
         let counts = cx.lights("", 0);
         for l in cx.active() {
             let n = geom::normalize(cx.v3(3, l));
-            let sum = sum_lights(cx.lane_lights(l, counts[l]), n, |x| {
-                dot(geom::normalize(x.l), n).max(0.0) * (1.0 - x.nondiffuse)
+            let sum = sum_lights(cx.lane_lights(l, counts[l]), n, |x, unit_l| {
+                dot(unit_l, n).max(0.0) * (1.0 - x.nondiffuse)
             });
             cx.set3(0, l, sum);
         }
@@ -830,8 +845,8 @@ host_helpers! {
         let counts = cx.lights("", 0);
         for l in cx.active() {
             let (n, view, rough) = (geom::normalize(cx.v3(3, l)), geom::normalize(cx.v3(6, l)), cx.f(9, l));
-            let sum = sum_lights(cx.lane_lights(l, counts[l]), n, |x| {
-                specular_brdf(geom::normalize(x.l), n, view, rough) * (1.0 - x.nonspecular)
+            let sum = sum_lights(cx.lane_lights(l, counts[l]), n, |x, unit_l| {
+                specular_brdf(unit_l, n, view, rough) * (1.0 - x.nonspecular)
             });
             cx.set3(0, l, sum);
         }
@@ -842,8 +857,8 @@ host_helpers! {
         for l in cx.active() {
             let (n, view, size) = (geom::normalize(cx.v3(3, l)), geom::normalize(cx.v3(6, l)), cx.f(9, l));
             let r = geom::reflect(view.map(|x| -x), n);
-            let sum = sum_lights(cx.lane_lights(l, counts[l]), n, |x| {
-                transcendental::pow(dot(r, geom::normalize(x.l)).max(0.0), size) * (1.0 - x.nonspecular)
+            let sum = sum_lights(cx.lane_lights(l, counts[l]), n, |x, unit_l| {
+                transcendental::pow(dot(r, unit_l).max(0.0), size) * (1.0 - x.nonspecular)
             });
             cx.set3(0, l, sum);
         }
