@@ -149,6 +149,9 @@ impl Mesh {
     /// Every per-vertex attribute interpolated at barycentric weights `w` of the triangle with
     /// vertices `[a, b, c]`, in the mesh's attribute order.
     pub fn interpolate_attributes(&self, [a, b, c]: [usize; 3], w: [f32; 3]) -> Vec<Vec<f32>> {
+        if self.attributes.is_empty() {
+            return Vec::new();
+        }
         self.attributes
             .iter()
             .map(|at| {

@@ -36,6 +36,8 @@ pub(crate) struct ShadeCall<'f, 'w> {
     pub(super) batch_times: Vec<f32>,
     batch_lights: Option<BatchLights>,
     chunk_cursor: usize,
+    /// Where the next chunk search starts.
+    chunk_next: usize,
     /// The grid and the texture last looked up, by name: a volume's march asks for the same grid
     /// at every step, and finding it in the shared cache costs a lock, a hash and an atomic count.
     last_grid: Option<(String, Option<Arc<Grid>>)>,
@@ -72,6 +74,7 @@ impl<'f, 'w> ShadeCall<'f, 'w> {
             batch_times: Vec::new(),
             batch_lights: None,
             chunk_cursor: 0,
+            chunk_next: 0,
             last_grid: None,
             last_texture: None,
             material: None,
@@ -275,9 +278,11 @@ fn locate_chunk(c: &mut ShadeCall, mask: &[i32; 4], p: &[f32]) -> bool {
                 })
         })
     };
-    match (0..chunks).map(|k| (c.chunk_cursor + k) % chunks).find(|&k| matches(k)) {
+    // The shader asks chunk after chunk: the search starts after the last chunk found.
+    match (0..chunks).map(|k| (c.chunk_next + k) % chunks).find(|&k| matches(k)) {
         Some(chunk) => {
             c.chunk_cursor = chunk;
+            c.chunk_next = chunk + 1;
             true
         }
         None => false,

@@ -564,7 +564,9 @@ impl Cx<'_> {
         // is asked once per (category, points, lanes).
         let points: [u32; 12] = std::array::from_fn(|i| self.input[4 * k + i].to_bits());
         if let Some(((cat, p, m), counts)) = &self.ctx.last_lights {
-            if cat == category && *p == points && *m == self.mask {
+            // Points first (they differ from chunk to chunk), compared lane by lane: an array
+            // comparison is a memcmp call.
+            if p.iter().zip(&points).all(|(a, b)| a == b) && *m == self.mask && cat == category {
                 return *counts;
             }
         }
