@@ -255,6 +255,7 @@ struct HitGeometry {
     attributes: Vec<Vec<f32>>,
     /// The triangle's world-space edges from its first corner, and how (u, v), (s, t) and the
     /// (unnormalised) shading normal change along them: what turns dP/dx into every derivative.
+    /// `edges` and `dn` are zero unless the shaders want derivatives (`InstanceGeometry::derivs`).
     edges: [Vec3A; 2],
     duv: [[f32; 2]; 2],
     dst: [[f32; 2]; 2],
@@ -391,7 +392,7 @@ fn hit_geometry(ig: &InstanceGeometry, hit: &Hit, time: f32) -> Option<HitGeomet
         cs: color_attr(ig.cs),
         os: color_attr(ig.os),
         attributes,
-        edges: if ig.derivs { [xf.transform_vector3a(e1), xf.transform_vector3a(e2)] } else { [e1, e2] },
+        edges: if ig.derivs { [xf.transform_vector3a(e1), xf.transform_vector3a(e2)] } else { [Vec3A::ZERO; 2] },
         duv,
         dst,
         dn,
