@@ -299,6 +299,9 @@ struct InstanceGeometry<'a> {
     /// Whether the shaders want screen-space derivatives (then the triangle's edges and the change
     /// of its normal are kept per hit).
     derivs: bool,
+    /// Whether they read the surface coordinates (`u v s t dPdu dPdv`, or derivatives): without,
+    /// a hit's `uv` and `st` are its barycentrics and `dpdu`, `dpdv` zero.
+    coords: bool,
     /// The mesh's `st` (two floats), `Cs` and `Os` (three) attributes, found once for all hits.
     st: Option<usize>,
     cs: Option<usize>,
@@ -306,7 +309,12 @@ struct InstanceGeometry<'a> {
 }
 
 impl<'a> InstanceGeometry<'a> {
-    fn new(world: &'a World, inst: &InstanceShading, index: u32, derivs: bool) -> Option<InstanceGeometry<'a>> {
+    fn new(
+        world: &'a World,
+        inst: &InstanceShading,
+        index: u32,
+        (derivs, coords): (bool, bool),
+    ) -> Option<InstanceGeometry<'a>> {
         let mesh = world.scene.mesh(crate::scene::ObjectId(inst.object))?;
         let normal_xf = inst.world_from_object.matrix3.inverse().transpose();
         let moving = world.scene.instance_data(index).filter(|d| d.motion.is_some());
@@ -319,6 +327,7 @@ impl<'a> InstanceGeometry<'a> {
             normal_xf,
             moving,
             derivs,
+            coords: coords || derivs,
             st: find("st", 2),
             cs: find("Cs", 3),
             os: find("Os", 3),
@@ -349,6 +358,7 @@ fn hit_geometry(ig: &InstanceGeometry, hit: &Hit, time: f32) -> Option<HitGeomet
     let surf_p = xf.transform_point3a(p_obj);
     let mut duv = [[1.0, 0.0], [0.0, 1.0]];
     let (uv, dpdu, dpdv) = match &mesh.uvs {
+        _ if !ig.coords => ([hit.u, hit.v], Vec3A::ZERO, Vec3A::ZERO),
         Some(uvs) => {
             let (ta, tb, tc) = (uvs[a], uvs[b], uvs[c]);
             duv = [(tb - ta).to_array(), (tc - ta).to_array()];
@@ -370,7 +380,7 @@ fn hit_geometry(ig: &InstanceGeometry, hit: &Hit, time: f32) -> Option<HitGeomet
         (v.len() == 3).then(|| Vec3A::new(v[0], v[1], v[2]))
     };
     let (st, dst) = match ig.st {
-        Some(i) if attributes.get(i).is_some_and(|v| v.len() == 2) => {
+        Some(i) if ig.coords && attributes.get(i).is_some_and(|v| v.len() == 2) => {
             let d = &mesh.attributes[i].data;
             let delta = |k: usize, j: usize| d[2 * k + j] - d[2 * a + j];
             ([attributes[i][0], attributes[i][1]], [[delta(b, 0), delta(b, 1)], [delta(c, 0), delta(c, 1)]])
@@ -387,8 +397,8 @@ fn hit_geometry(ig: &InstanceGeometry, hit: &Hit, time: f32) -> Option<HitGeomet
         ng,
         uv,
         st,
-        dpdu: xf.transform_vector3a(dpdu),
-        dpdv: xf.transform_vector3a(dpdv),
+        dpdu: if ig.coords { xf.transform_vector3a(dpdu) } else { dpdu },
+        dpdv: if ig.coords { xf.transform_vector3a(dpdv) } else { dpdv },
         cs: color_attr(ig.cs),
         os: color_attr(ig.os),
         attributes,
@@ -445,8 +455,13 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
     let world = frame.world;
     let Some(inst) = world.instances.get(group[0].hit.instance as usize) else { return };
     let material = world.materials.get(inst.material as usize).unwrap_or(&DEFAULT_MATERIAL);
-    let derivs = [&material.surface, &material.displacement].into_iter().flatten().any(|s| needs_derivs(&s.program));
-    let Some(ig) = InstanceGeometry::new(world, inst, group[0].hit.instance, derivs) else { return };
+    let shaders = || [&material.surface, &material.displacement].into_iter().flatten();
+    let derivs = shaders().any(|s| needs_derivs(&s.program));
+    let coords = shaders().any(|s| {
+        let g = &s.program.slots;
+        [g.u, g.v, g.s, g.t, g.dpdu, g.dpdv].iter().any(Option::is_some)
+    });
+    let Some(ig) = InstanceGeometry::new(world, inst, group[0].hit.instance, (derivs, coords)) else { return };
     let mut geoms: Vec<Option<HitGeometry>> = group.iter().map(|p| hit_geometry(&ig, &p.hit, p.ray.time)).collect();
     let color = Vec3A::from(material.color);
     let opacity = Vec3A::from(material.opacity);
