@@ -808,7 +808,8 @@ fn put3_rows(
     }
 }
 
-/// [`put3_rows`] for a float global.
+/// [`put3_rows`] for a float global. (One generic `put_rows::<N>` indexing `rows[c * stride + lane]`
+/// ran 2.5% more instructions per Cornell box frame: the zipped rows here need no bounds checks.)
 fn put1_rows(
     raw: &mut RawBatch<'_>,
     slot: Option<Slot>,
