@@ -1087,6 +1087,26 @@ fn textures_rays_and_messages() {
 }
 
 #[test]
+fn shadow_lookups_pass_their_region_and_options() {
+    // The test host's shadow() is a function of every field of the query (the point, the four
+    // corners, each option), so the JIT and the interpreter agree only when both pass the same.
+    check(
+        r#"
+        surface t(float b = 0.05; output varying float o = 0; output varying float o2 = 0;)
+        {
+            o = shadow("shad", P) + shadow("shad", P * 2, "bias", b, "samples", 4 + s);
+            o += shadow("shad", P, "blur", 0.1, "tblur", 0.3 * t, "width", 2, "swidth", 0.5);
+            o2 = shadow("shad", P, P + dPdu, P + dPdv, P + dPdu + dPdv, "sblur", 0.2);
+            point q = P + vector(u, v, 0);
+            if (u > 0.3)
+                o2 += float shadow("shad", q, "twidth", 3);
+            Ci = color shadow("shad", transform("shader", P));
+        }
+        "#,
+    );
+}
+
+#[test]
 fn texture3d_grid_lookups() {
     // The test host's grids are the ramp x/4 + y/2 + z/8; "missing" cannot be read (fill).
     check(

@@ -145,6 +145,62 @@ fn the_image_does_not_depend_on_the_thread_count() -> Result<(), ApiError> {
     Ok(())
 }
 
+const SHADOWED: &str = r#"
+surface shadowed(string map = ""; float blur = 0; float width = 1; float bias = 0;)
+{
+    Oi = 1;
+    Ci = shadow(map, P, "blur", blur, "width", width, "bias", bias);
+}
+"#;
+
+/// The shadow map of an occluder at depth 4 over the half x < 0 of an orthographic light looking
+/// down -z from z = 5 onto x, y in [-4, 4] (64x64 texels of 0.125).
+fn write_half_occluded_map(path: &std::path::Path) {
+    let depth: Vec<f32> = (0..64 * 64).map(|i| if i % 64 < 32 { 4.0 } else { 1e30 }).collect();
+    let world_to_camera = [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 5.0, 1.0];
+    let world_to_ndc = [0.125, 0.0, 0.0, 0.0, 0.0, -0.125, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.5, 0.5, 0.0, 1.0];
+    rtsl_runtime::texture::write_shadow_map(path, &depth, 64, 64, world_to_camera, world_to_ndc).expect("a shadow map");
+}
+
+#[test]
+fn shadow_maps_honour_blur_bias_and_the_pixel_footprint() -> Result<(), ApiError> {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let map = dir.path().join("half.shad");
+    write_half_occluded_map(&map);
+    // The plane z = 0 seen head-on: a pixel is 0.125 across, one texel of the map.
+    let row = |params: &[(&str, ParamValue)]| -> Result<Vec<f32>, ApiError> {
+        let mut rt = context();
+        let shader = rt.compile_shader("shadowed.sl", SHADOWED)?;
+        rt.camera_look_at(Vec3A::new(0.0, 0.0, 3.0), Vec3A::ZERO, Vec3A::Y, 90.0);
+        let o = rt.begin_object()?;
+        rt.bind_shader(shader)?;
+        rt.parameter("map", ParamValue::String(map.display().to_string()))?;
+        for (name, value) in params {
+            rt.parameter(name, value.clone())?;
+        }
+        quad(&mut rt, [[-10.0, -10.0, 0.0], [10.0, -10.0, 0.0], [10.0, 10.0, 0.0], [-10.0, 10.0, 0.0]])?;
+        rt.end_object()?;
+        rt.instantiate_object(o)?;
+        let (fb, _) = rt.render_frame()?;
+        Ok((0..W).map(|x| fb.pixel(x, H / 2)[0]).collect())
+    };
+    let penumbra = |r: &[f32]| r.iter().filter(|v| **v > 0.02 && **v < 0.98).count();
+    let sharp = row(&[])?;
+    assert_eq!((sharp[0], sharp[W as usize - 1]), (1.0, 0.0), "shadowed left, lit right: {sharp:?}");
+    assert!(sharp.windows(2).all(|p| p[0] >= p[1]), "{sharp:?}");
+    assert!(penumbra(&sharp) <= 3, "the default kernel is 2 texels: {sharp:?}");
+    // "width" scales the pixel footprint the shader's derivatives of P give (8 texels here)...
+    let wide = row(&[("width", ParamValue::Float(8.0))])?;
+    assert!(penumbra(&wide) >= 6, "{wide:?}");
+    // ...and "blur" adds its own width, in map coordinates.
+    let blurred = row(&[("blur", ParamValue::Float(0.125))])?;
+    assert!(penumbra(&blurred) >= 6, "{blurred:?}");
+    // The bias moves the compared depth towards the light, past the occluder.
+    let biased = row(&[("bias", ParamValue::Float(2.0))])?;
+    assert!(biased.iter().all(|v| *v == 0.0), "{biased:?}");
+    Ok(())
+}
+
 const VERTEX_TINT: &str = "surface tint(varying color tint = 0;) { Oi = 1; Ci = tint; }";
 
 #[test]

@@ -5,7 +5,7 @@ use super::deriv::{zero_like, Dual};
 use super::value::Value;
 use super::{dot, normalize, Frame, Machine, R};
 use crate::builtins::{self, Builtin};
-use crate::interp::host::{LightSample, TextureFootprint};
+use crate::interp::host::{LightSample, ShadowQuery, TextureFootprint};
 use crate::ir::{Arg, BaseType, Function, Type};
 use crate::shadeops::{color, format, geom, matrix, noise, spline, transcendental as tm, V3};
 use std::rc::Rc;
@@ -42,6 +42,37 @@ fn map3(a: &Value, b: &Value, c: &Value, g: impl Fn(f32, f32, f32) -> f32) -> Va
 /// The `"name", value` pairs after `fixed` arguments.
 fn param<'v>(vals: &'v [Value], fixed: usize, name: &str) -> Option<&'v Value> {
     vals.get(fixed..)?.chunks(2).find(|p| p.len() == 2 && p[0].s() == name).map(|p| &p[1])
+}
+
+/// A `shadow()` call's query: the point and its region (the four points, or the point's pixel
+/// footprint from its derivatives `tx`/`ty`), and its options. The JIT computes the same values
+/// with the same operations in the same order (`back/jit/lower.rs`).
+fn shadow_query(vals: &[Value], tx: &[Value], ty: &[Value], fixed: usize) -> ShadowQuery {
+    let arg = |k: usize| vals.get(k).map(Value::v3).unwrap_or([0.0; 3]);
+    let (p, corners) = if fixed == 5 {
+        let corners = [arg(1), arg(2), arg(3), arg(4)];
+        let centre =
+            std::array::from_fn(|i| (((corners[0][i] + corners[1][i]) + corners[2][i]) + corners[3][i]) * 0.25);
+        (centre, corners)
+    } else {
+        let p = arg(1);
+        let half = |d: Option<&Value>| d.map(Value::v3).unwrap_or([0.0; 3]).map(|x| x * 0.5);
+        let (hx, hy) = (half(tx.get(1)), half(ty.get(1)));
+        let corner = |sx: f32, sy: f32| std::array::from_fn(|i| (p[i] + sx * hx[i]) + sy * hy[i]);
+        (p, [corner(-1.0, -1.0), corner(1.0, -1.0), corner(-1.0, 1.0), corner(1.0, 1.0)])
+    };
+    let option = |name: &str, default: f32| param(vals, fixed, name).map(Value::f).unwrap_or(default);
+    let (blur, width) = (option("blur", 0.0), option("width", 1.0));
+    ShadowQuery {
+        p,
+        corners,
+        samples: option("samples", 16.0),
+        sblur: option("sblur", blur),
+        tblur: option("tblur", blur),
+        swidth: option("swidth", width),
+        twidth: option("twidth", width),
+        bias: option("bias", 0.0),
+    }
 }
 
 /// A value of type `ty` made from a triple or float result.
@@ -508,7 +539,8 @@ impl Machine<'_> {
                 shaped(ty, c)
             }
             Builtin::Shadow => {
-                let s = self.host.shadow(v(0).s(), v(1).v3());
+                let query = shadow_query(vals, tx, ty_, fixed);
+                let s = self.host.shadow(v(0).s(), &query);
                 if ty.base == BaseType::Float {
                     Value::Float(s)
                 } else {

@@ -39,6 +39,34 @@ pub struct TextureFootprint {
     pub blur: f32,
 }
 
+/// A `shadow()` lookup: the point, the region its filter covers and the options RSL gives it
+/// (`docs/textures.md`, "Shadow maps").
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShadowQuery {
+    /// The point looked up (world space); the four-point form's centre.
+    pub p: V3,
+    /// The region the filter covers: the four points of `shadow(name, P1, P2, P3, P4)`, or the
+    /// shading point's pixel footprint `P ± dPdx/2 ± dPdy/2` (all `p` without derivatives).
+    pub corners: [V3; 4],
+    /// `"samples"`: percentage-closer samples (default 16).
+    pub samples: f32,
+    /// `"sblur"`/`"tblur"` (or `"blur"` for both): added kernel width, in map coordinates.
+    pub sblur: f32,
+    pub tblur: f32,
+    /// `"swidth"`/`"twidth"` (or `"width"` for both): scales the region's extent on the map.
+    pub swidth: f32,
+    pub twidth: f32,
+    /// `"bias"`: subtracted from the point's depth before comparing.
+    pub bias: f32,
+}
+
+impl ShadowQuery {
+    /// A lookup at `p` alone with the default options.
+    pub fn at(p: V3) -> ShadowQuery {
+        ShadowQuery { p, corners: [p; 4], samples: 16.0, sblur: 0.0, tblur: 0.0, swidth: 1.0, twidth: 1.0, bias: 0.0 }
+    }
+}
+
 /// The renderer, as one shading point sees it.
 pub trait Services {
     /// The matrix taking points from space `from` to space `to` ("current" is world space in rtsl),
@@ -72,8 +100,8 @@ pub trait Services {
     }
     /// An environment lookup by direction.
     fn environment(&mut self, name: &str, dir: V3) -> Option<V3>;
-    /// The fraction of `p` in shadow according to a shadow map.
-    fn shadow(&mut self, name: &str, p: V3) -> f32;
+    /// The fraction of the query's region in shadow according to the shadow map `name`.
+    fn shadow(&mut self, name: &str, query: &ShadowQuery) -> f32;
     /// The colour seen along a ray, and the hit distance (infinite on a miss).
     fn trace(&mut self, from: V3, dir: V3) -> (V3, f32);
     /// What a `gather` ray of `category` from `from` along the unit direction `dir` hits within
@@ -197,8 +225,15 @@ impl Services for TestHost {
         Some(dir.map(|d| 0.5 + 0.5 * d / len))
     }
 
-    fn shadow(&mut self, _name: &str, _p: V3) -> f32 {
-        0.0
+    /// Not a shadow map: a value in [0, 1) that every field of the query changes, so the
+    /// JIT's and the interpreter's queries can be compared through it.
+    fn shadow(&mut self, _name: &str, q: &ShadowQuery) -> f32 {
+        let spread: f32 = q.corners.iter().map(|c| (c[0] - q.p[0]).abs() + (c[1] - q.p[1]).abs()).sum();
+        let x = q.p[0] + 0.5 * q.p[1] + 0.25 * q.p[2] + 0.7 * spread + 0.01 * q.samples + 0.1 * q.sblur - 0.2 * q.tblur
+            + 0.3 * q.swidth
+            + 0.05 * q.twidth
+            + 0.9 * q.bias;
+        x - x.floor()
     }
 
     fn trace(&mut self, _from: V3, dir: V3) -> (V3, f32) {

@@ -30,7 +30,7 @@ mod deriv;
 pub mod host;
 pub mod value;
 
-pub use host::{LightSample, Services, TestHost, TextureFootprint};
+pub use host::{LightSample, Services, ShadowQuery, TestHost, TextureFootprint};
 pub use value::Value;
 
 use crate::front::parse::ast::ShaderKind;

@@ -77,6 +77,9 @@ pub fn is_root_arg(b: Builtin, k: usize, n: usize) -> bool {
         // `texture(name, s, t, ...)`: the footprint (numeric arguments only; the four-corner form
         // takes its footprint from the corners, so this over-marks it harmlessly).
         Builtin::Texture => k == 1 || k == 2,
+        // `shadow(name, P, ...)`: the kernel covers P's pixel footprint (the four-point form takes
+        // its region from the points, so this over-marks it harmlessly, as for `texture`).
+        Builtin::Shadow => k == 1,
         _ => false,
     }
 }
@@ -322,7 +325,7 @@ pub fn analyse(m: &Module) -> DerivInfo {
             if let ExprKind::CallBuiltin { builtin, .. } = &e.kind {
                 info.any |= is_deriv_builtin(*builtin);
                 info.normals |= *builtin == Builtin::Calculatenormal;
-                info.textures |= *builtin == Builtin::Texture;
+                info.textures |= matches!(builtin, Builtin::Texture | Builtin::Shadow);
             }
         }
     }

@@ -13,7 +13,7 @@ use crate::ray::Ray;
 use crate::shading::ShaderInstance;
 use crate::texture::{Footprint, Grid, LookupOptions, MipMap};
 use glam::{Affine3A, Mat4, Vec3A};
-use rtsl_compiler::back::jit::{HostLight, HostTable, MessageOut, StrRef, MAX_LIGHTS};
+use rtsl_compiler::back::jit::{shadow_query_of, HostLight, HostTable, MessageOut, StrRef, MAX_LIGHTS, SHADOW_ROWS};
 use rtsl_compiler::builtins::Builtin;
 use rtsl_compiler::shadeops::gather::GatherHit;
 use std::ffi::c_void;
@@ -338,14 +338,19 @@ unsafe extern "C" fn host_texture(
         // 2 shadow, 3 a texture3d grid: one value.
         _ => 1,
     };
-    // SAFETY: the table's contract: 4 mask entries, 3 x 4 coordinates (2 x 4 for textures), 4 first
-    // channels, `values` x 4 results and 4 flags.
+    let rows = match kind {
+        0 => 7,
+        2 => SHADOW_ROWS,
+        _ => 3,
+    };
+    // SAFETY: the table's contract: 4 mask entries, `rows` x 4 coordinates, 4 first channels,
+    // `values` x 4 results and 4 flags.
     let (c, name, mask, coords, first, out, ok) = unsafe {
         (
             call(ctx),
             name.as_str(),
             &*(mask as *const [i32; 4]),
-            slice(coords, if kind == 0 { 28 } else { 12 }),
+            slice(coords, 4 * rows),
             slice(first, 4),
             std::slice::from_raw_parts_mut(out, 4 * values),
             &mut *(ok as *mut [u32; 4]),
@@ -390,7 +395,8 @@ unsafe extern "C" fn host_texture(
                 textures.environment(name, dir, [0.0; 3], [0.0; 3], 0, &mut lane_out[..3], &LookupOptions::default())
             }
             _ => {
-                let p = lane3(coords, 0, l);
+                let query = shadow_query_of(coords, l);
+                let p = Vec3A::from(query.p);
                 let shadowed = if name == "raytrace" {
                     // Ray-traced shadows (BMRT's convention): towards the light's own origin.
                     let to = c.instance.world_from_shader.translation;
@@ -398,7 +404,17 @@ unsafe extern "C" fn host_texture(
                     transmission_between(c.frame, &[Some((p, to, c.lane_time(l)))], &mut t);
                     Some(1.0 - (t[0].x + t[0].y + t[0].z) / 3.0)
                 } else {
-                    textures.shadow(name, p.to_array(), &LookupOptions::default())
+                    let opts = LookupOptions {
+                        sblur: query.sblur,
+                        tblur: query.tblur,
+                        swidth: query.swidth,
+                        twidth: query.twidth,
+                        bias: query.bias,
+                        // Saturating: NaN and negative counts are 0, then at least one sample.
+                        samples: query.samples as u32,
+                        ..LookupOptions::default()
+                    };
+                    textures.shadow_over(name, query.p, &query.corners, &opts)
                 };
                 if let Some(v) = shadowed {
                     lane_out[0] = v;

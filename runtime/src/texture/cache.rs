@@ -234,6 +234,12 @@ impl TextureCache {
         Some(self.get_shadow_map(name)?.shadow(p, opts))
     }
 
+    /// [`TextureCache::shadow`] with a kernel that also covers the world-space `corners` (see
+    /// [`ShadowMap::shadow_over`]).
+    pub fn shadow_over(&self, name: &str, p: [f32; 3], corners: &[[f32; 3]], opts: &LookupOptions) -> Option<f32> {
+        Some(self.get_shadow_map(name)?.shadow_over(p, corners, opts))
+    }
+
     /// Resolves and loads `name` with `load`, turning a failure into one warning and `None`.
     fn load<T, E: fmt::Display>(&self, name: &str, load: impl FnOnce(&Path) -> Result<T, E>) -> Option<Arc<T>> {
         let warn = |path: Option<PathBuf>, reason: String| {

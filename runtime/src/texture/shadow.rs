@@ -25,6 +25,9 @@ use super::image::TexImage;
 use super::LookupOptions;
 use crate::image_io::{self, ExrLayer, ImageError};
 
+/// The most percentage-closer samples one lookup takes, whatever a shader asks for.
+pub const MAX_SAMPLES: u32 = 1024;
+
 /// A loaded depth map with its projection.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ShadowMap {
@@ -70,6 +73,14 @@ impl ShadowMap {
     /// The fraction of the kernel around world-space point `p` that is in shadow: 0 lit, 1
     /// shadowed (see the module doc).
     pub fn shadow(&self, p: [f32; 3], opts: &LookupOptions) -> f32 {
+        self.shadow_over(p, &[], opts)
+    }
+
+    /// [`ShadowMap::shadow`] over a region: the kernel, centred on `p`'s place in the map, also
+    /// covers the world-space `corners` (RSL's four-point `shadow()`, or a shading point's pixel
+    /// footprint), its extent scaled by `swidth`/`twidth` before the blur is added. Corners behind
+    /// the light's camera are left out.
+    pub fn shadow_over(&self, p: [f32; 3], corners: &[[f32; 3]], opts: &LookupOptions) -> f32 {
         let Some(camera) = transform_point(&self.world_to_camera, p) else { return 0.0 };
         let Some(ndc) = transform_point(&self.world_to_ndc, p) else { return 0.0 };
         let depth = camera[2];
@@ -78,8 +89,20 @@ impl ShadowMap {
             return 0.0;
         }
         let (w, h) = (self.width() as f32, self.height() as f32);
-        let kernel = [(opts.sblur * w).max(2.0), (opts.tblur * h).max(2.0)];
-        let n = (opts.samples.max(1) as f32).sqrt().ceil() as usize;
+        // Half the corners' extent around the centre, in map coordinates.
+        let (mut reach_s, mut reach_t) = (0.0f32, 0.0f32);
+        for c in corners.iter().filter_map(|c| transform_point(&self.world_to_ndc, *c)) {
+            reach_s = reach_s.max((c[0] - x).abs());
+            reach_t = reach_t.max((c[1] - y).abs());
+        }
+        // At least 2 texels, so the answer varies smoothly across an edge; at most twice the map,
+        // so that absurd options (infinite, NaN) still give a finite answer.
+        let extent = |reach: f32, scale: f32, blur: f32, texels: f32| {
+            let spread = (2.0 * reach * scale).max(0.0) + blur;
+            (spread * texels).max(2.0).min(2.0 * texels.max(1.0))
+        };
+        let kernel = [extent(reach_s, opts.swidth, opts.sblur, w), extent(reach_t, opts.twidth, opts.tblur, h)];
+        let n = (opts.samples.clamp(1, MAX_SAMPLES) as f32).sqrt().ceil() as usize;
         let reference = depth - opts.bias;
         let mut shadowed = 0.0;
         for j in 0..n {
@@ -194,6 +217,31 @@ pub(crate) mod tests {
         assert_eq!(m.shadow([-5.0, 0.0, 5.0], &LookupOptions::default()), 0.0, "outside the map");
         assert_eq!(m.shadow([-0.5, 0.0, -5.0], &LookupOptions::default()), 0.0, "behind the light");
         assert_eq!(m.shadow([f32::NAN, 0.0, 5.0], &LookupOptions::default()), 0.0);
+    }
+
+    #[test]
+    fn a_region_widens_the_kernel_and_its_widths_scale_it() {
+        let m = map();
+        let opts = LookupOptions { bias: 0.01, ..LookupOptions::default() };
+        // Two texels inside the shadow: the default kernel sees only the occluder...
+        let p = [-0.5, 0.0, 5.0];
+        assert_eq!(m.shadow_over(p, &[], &opts), 1.0);
+        // ...a region reaching across the edge sees the lit half too...
+        let region = [[-1.1, 0.0, 5.0], [0.1, 0.0, 5.0], [-1.1, 0.1, 5.0], [0.1, 0.1, 5.0]];
+        let wide = m.shadow_over(p, &region, &opts);
+        assert!(wide > 0.5 && wide < 1.0, "{wide}");
+        // ...and a zero width shrinks it back to the default kernel.
+        let narrow = LookupOptions { swidth: 0.0, ..opts };
+        assert_eq!(m.shadow_over(p, &region, &narrow), 1.0);
+        // Absurd options still answer a fraction, at a bounded cost.
+        for absurd in [
+            LookupOptions { swidth: f32::NAN, twidth: f32::INFINITY, ..opts },
+            LookupOptions { sblur: f32::INFINITY, samples: u32::MAX, ..opts },
+            LookupOptions { sblur: f32::NAN, tblur: -3.0, ..opts },
+        ] {
+            let v = m.shadow_over(p, &region, &absurd);
+            assert!((0.0..=1.0).contains(&v), "{absurd:?}: {v}");
+        }
     }
 
     #[test]

@@ -703,6 +703,50 @@ impl<'m> Lower<'m, '_> {
         }
     }
 
+    /// The point and region of a `shadow()` call (the interpreter's `shadow_query`): the centre
+    /// and the four points of the four-point form, else the point and its pixel footprint
+    /// `P ± dPdx/2 ± dPdy/2`, computed with the interpreter's operations in its order.
+    pub(super) fn shadow_region(&mut self, vals: &[Val], fixed: usize) -> R<Vec<Val>> {
+        let varying = |c: Vec<Value>| Val { vary: true, c };
+        let component = |v: &Val, i: usize| v.c.get(i).or(v.c.first()).copied();
+        let mut out = Vec::with_capacity(5);
+        if fixed == 5 {
+            let quarter = self.k(0.25);
+            let mut centre = Vec::with_capacity(3);
+            for i in 0..3 {
+                let mut sum =
+                    component(&vals[1], i).ok_or_else(|| super::JitError::Codegen("a shadow corner".into()))?;
+                for corner in &vals[2..5] {
+                    let c = component(corner, i).ok_or_else(|| super::JitError::Codegen("a shadow corner".into()))?;
+                    sum = self.add(sum, c);
+                }
+                centre.push(self.mul(sum, quarter));
+            }
+            out.push(varying(centre));
+            out.extend(vals[1..5].iter().cloned());
+            return Ok(out);
+        }
+        let p = self.arg_dual(1)?;
+        let [dx, dy] = self.tangents(&p);
+        let half = self.k(0.5);
+        let (mut hx, mut hy) = (Vec::with_capacity(3), Vec::with_capacity(3));
+        for i in 0..3 {
+            hx.push(self.mul(dx[i], half));
+            hy.push(self.mul(dy[i], half));
+        }
+        out.push(p.v.clone());
+        for (right, down) in [(false, false), (true, false), (false, true), (true, true)] {
+            let mut c = Vec::with_capacity(3);
+            for i in 0..3 {
+                let pi = component(&p.v, i).ok_or_else(|| super::JitError::Codegen("a shadow point".into()))?;
+                let x = if right { self.add(pi, hx[i]) } else { self.sub(pi, hx[i]) };
+                c.push(if down { self.add(x, hy[i]) } else { self.sub(x, hy[i]) });
+            }
+            out.push(varying(c));
+        }
+        Ok(out)
+    }
+
     /// The tangents of a built-in's result (the interpreter's `builtin_tangent`).
     fn builtin_rule(&mut self, bi: Builtin, args: &[Arg], duals: &[Option<Dual>], r: &Val) -> R<Option<T2>> {
         let val = |k: usize| duals[k].as_ref().map(|d| d.v.clone()).unwrap_or(Val { vary: false, c: Vec::new() });

@@ -22,7 +22,7 @@
 
 use super::{Batch, StringTable};
 use crate::builtins::Builtin;
-use crate::interp::{Services, TextureFootprint, Value};
+use crate::interp::{Services, ShadowQuery, TextureFootprint, Value};
 use crate::shadeops::format::{self, FormatArg};
 use crate::shadeops::gather::{self, GatherHit};
 use crate::shadeops::{color, geom, matrix, spline, transcendental, M4, V3};
@@ -109,7 +109,9 @@ pub struct HostTable {
     /// Texture lookups: `kind` 0 `texture` (`coords` seven rows of 4 lanes: s, t, then the filter
     /// footprint ds/dx, dt/dx, ds/dy, dt/dy (scaled by the lookup's width options) and blur, as
     /// `interp::TextureFootprint`; `first[l]` the first channel; `channels` values), 1 `environment`
-    /// (`coords` a direction; 3 values), 2 `shadow` (`coords` a point; 1 value), 3 `texture3d`'s
+    /// (`coords` a direction; 3 values), 2 `shadow` (`coords` [`SHADOW_ROWS`] rows: the point, the
+    /// four corners of the region its kernel covers, then samples, sblur, tblur, swidth, twidth
+    /// and bias, as `interp::ShadowQuery`; 1 value), 3 `texture3d`'s
     /// grid lookup (`coords` a point in the grid's coordinates; 1 value). Results in
     /// `out[4c + l]`; `ok[l]` 0 where the map cannot be read.
     pub texture: unsafe extern "C" fn(
@@ -291,13 +293,33 @@ unsafe extern "C" fn sv_texture(
                 }
                 1 => h.host.environment(name, c).map(|v| v.to_vec()),
                 3 => h.host.texture3d(name, c).map(|v| vec![v]),
-                _ => Some(vec![h.host.shadow(name, c)]),
+                _ => {
+                    let rows = std::slice::from_raw_parts(coords, 4 * SHADOW_ROWS);
+                    Some(vec![h.host.shadow(name, &shadow_query_of(rows, l))])
+                }
             };
             *ok.add(l) = u32::from(got.is_some());
             for (j, x) in got.unwrap_or_default().iter().take(channels.max(1) as usize).enumerate() {
                 *out.add(4 * j + l) = *x;
             }
         }
+    }
+}
+
+/// Lane `l`'s shadow query from a table call's coordinate rows (see [`HostTable::texture`]:
+/// [`SHADOW_ROWS`] rows of 4 lanes; missing rows read 0).
+pub fn shadow_query_of(coords: &[f32], l: usize) -> ShadowQuery {
+    let row = |k: usize| coords.get(4 * k + l).copied().unwrap_or(0.0);
+    let triple = |k: usize| [row(k), row(k + 1), row(k + 2)];
+    ShadowQuery {
+        p: triple(0),
+        corners: [triple(3), triple(6), triple(9), triple(12)],
+        samples: row(15),
+        sblur: row(16),
+        tblur: row(17),
+        swidth: row(18),
+        twidth: row(19),
+        bias: row(20),
     }
 }
 
@@ -909,8 +931,8 @@ host_helpers! {
             }
         }
     }
-    // [name, p] -> 1 (0 without a renderer)
-    h_shadow "rtsl_h_shadow" 4 => 1 |cx| {
+    // [name, p, 4 corners, samples, sblur, tblur, swidth, twidth, bias] -> 1 (0 without a renderer)
+    h_shadow "rtsl_h_shadow" 22 => 1 |cx| {
         let (vals, ok) = texture_call(cx, 2, 1);
         for l in cx.active() {
             cx.set(0, l, if ok[l] != 0 { vals[l] } else { 0.0 });
@@ -1094,6 +1116,10 @@ fn format_lane(cx: &Cx<'_>, l: usize) -> String {
 /// The most channels one texture lookup returns (a colour and its alpha).
 const MAX_TEXTURE_CHANNELS: u32 = 4;
 
+/// The rows of a shadow lookup's coordinates in the table's `texture` call: the point (3), the
+/// region's four corners (12) and six options.
+pub const SHADOW_ROWS: usize = 21;
+
 /// A texture query of one chunk through the renderer's table, the name at argument 0: the values
 /// (`vals[4 * channel + lane]`, at most [`MAX_TEXTURE_CHANNELS`]) and which lanes found them.
 /// Allocates nothing: volume shaders call it at every step of their march.
@@ -1105,8 +1131,9 @@ fn texture_call(cx: &Cx<'_>, kind: u32, channels: u32) -> ([f32; 4 * MAX_TEXTURE
     let Some(t) = cx.table else { return (vals, ok) };
     let mask: [i32; 4] = cx.mask.map(|m| if m { -1 } else { 0 });
     // Texture: coords s, t (args 1, 2), then the footprint dsdx, dtdx, dsdy, dtdy, blur (args
-    // 6..11), and the first channel (arg 3); otherwise a triple at arg 1.
-    let mut coords = [0.0f32; 28];
+    // 6..11), and the first channel (arg 3); shadows: every argument after the name; otherwise a
+    // triple at arg 1.
+    let mut coords = [0.0f32; 4 * SHADOW_ROWS];
     let mut first = [0.0f32; 4];
     for l in 0..4 {
         if kind == 0 {
@@ -1116,6 +1143,10 @@ fn texture_call(cx: &Cx<'_>, kind: u32, channels: u32) -> ([f32; 4 * MAX_TEXTURE
                 coords[4 * (2 + k) + l] = cx.f(6 + k, l);
             }
             first[l] = cx.f(3, l);
+        } else if kind == 2 {
+            for k in 0..SHADOW_ROWS {
+                coords[4 * k + l] = cx.f(1 + k, l);
+            }
         } else {
             for k in 0..3 {
                 coords[4 * k + l] = cx.f(1 + k, l);

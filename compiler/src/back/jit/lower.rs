@@ -1196,7 +1196,7 @@ impl<'m> Lower<'m, '_> {
         match &e.kind {
             ExprKind::Assign { .. } | ExprKind::Call { .. } if marked => return Ok(self.dual(id)?.v),
             ExprKind::CallBuiltin { builtin, overload, args }
-                if ir::deriv::is_deriv_builtin(*builtin) || *builtin == Builtin::Texture =>
+                if ir::deriv::is_deriv_builtin(*builtin) || matches!(builtin, Builtin::Texture | Builtin::Shadow) =>
             {
                 return Ok(self.builtin_dual(*builtin, *overload, args, e, false)?.v)
             }
@@ -2739,7 +2739,23 @@ impl<'m> Lower<'m, '_> {
                         Val { vary: true, c: r.c[..n].to_vec() }
                     }
                     _ => {
-                        let r = helper(self, "rtsl_h_shadow", &[v(0), v(1)], true)?;
+                        // The interpreter's `shadow_query`: the region, then the options, each
+                        // one float ("sblur" over "blur", "swidth" over "width").
+                        let given = |name: &str| -> R<bool> { Ok(param_arg(f, args, fixed, name)?.is_some()) };
+                        let first = |x: Val| Val { vary: x.vary, c: x.c[..1].to_vec() };
+                        let blur = first(opt(self, "blur", 0.0)?);
+                        let width = first(opt(self, "width", 1.0)?);
+                        let mut inputs = vec![v(0)];
+                        inputs.extend(self.shadow_region(&vals, fixed)?);
+                        inputs.push(first(opt(self, "samples", 16.0)?));
+                        for (name, fallback) in
+                            [("sblur", &blur), ("tblur", &blur), ("swidth", &width), ("twidth", &width)]
+                        {
+                            let x = if given(name)? { first(opt(self, name, 0.0)?) } else { fallback.clone() };
+                            inputs.push(x);
+                        }
+                        inputs.push(first(opt(self, "bias", 0.0)?));
+                        let r = helper(self, "rtsl_h_shadow", &inputs, true)?;
                         Val { vary: true, c: vec![r.c[0]; n] }
                     }
                 }

@@ -28,7 +28,7 @@ mod lower;
 mod mask;
 mod math;
 
-pub use host::{HostLight, HostTable, MessageOut, ServicesHost, StrRef, MAX_LIGHTS};
+pub use host::{shadow_query_of, HostLight, HostTable, MessageOut, ServicesHost, StrRef, MAX_LIGHTS, SHADOW_ROWS};
 pub use layout::{GlobalSlot, Layout, ParamSlot};
 
 use crate::ir;
