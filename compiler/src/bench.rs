@@ -156,6 +156,7 @@ fn fixed_table() -> HostTable {
         ray_depth: no_ray_depth,
         message: no_message,
         light_message: no_message,
+        volume_message: no_message,
         shader_name: no_name,
         print: no_print,
     }

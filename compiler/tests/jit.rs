@@ -1107,6 +1107,27 @@ fn shadow_lookups_pass_their_region_and_options() {
 }
 
 #[test]
+fn incident_and_opposite_ask_the_volume_on_each_side() {
+    // The test host answers "side" 1 inside and 2 outside, and "ior" inside only; the globals I and
+    // Ng are random per lane, so lanes see both sides.
+    check(
+        r#"
+        surface t(output varying float a = 0; output varying float b = 0; output varying float c = 0;)
+        {
+            float side = 0, ior = 0;
+            a = incident("side", side) * 10 + side;
+            b = opposite("side", side) * 10 + side;
+            c = incident("ior", ior) + opposite("ior", ior) * 2 + ior + incident("side", ior);
+            color nope = 0;
+            if (incident("side", nope) == 0 && opposite("nosuch", side) == 0)
+                c += 100;
+            Ci = color(a, b, c);
+        }
+        "#,
+    );
+}
+
+#[test]
 fn texture3d_grid_lookups() {
     // The test host's grids are the ramp x/4 + y/2 + z/8; "missing" cannot be read (fill).
     check(

@@ -553,6 +553,52 @@ fn shaders_read_the_parameters_of_the_shaders_bound_with_them() -> Result<(), Ap
     Ok(())
 }
 
+/// A surface showing the `density` of the volume its ray comes from (red) and of the one behind it
+/// (green), -1 where there is none.
+const SIDES: &str = r#"
+surface sides() {
+    float from = -1, to = -1;
+    incident("density", from);
+    opposite("density", to);
+    Ci = color(from, to, 0);
+    Oi = 1;
+}"#;
+
+#[test]
+fn incident_and_opposite_read_the_volumes_on_either_side() -> Result<(), ApiError> {
+    let mut rt = context();
+    let surface = rt.compile_shader("sides.sl", SIDES)?;
+    let inside = rt.compile_shader("inside.sl", "volume inside(float density = 0.25;) { }")?;
+    let outside = rt.compile_shader("outside.sl", "volume outside(float density = 0.125;) { }")?;
+    rt.camera_look_at(Vec3A::new(0.0, 0.0, 5.0), Vec3A::ZERO, Vec3A::Y, 60.0);
+    rt.interior(Some(inside), &[("density", ParamValue::Float(0.5))])?;
+    // Left: the camera sees the front of the surface (its ray comes from outside); right: the back.
+    let front = rt.begin_object()?;
+    rt.bind_shader(surface)?;
+    quad(&mut rt, [[-3.0, -1.0, 0.0], [-0.5, -1.0, 0.0], [-0.5, 1.0, 0.0], [-3.0, 1.0, 0.0]])?;
+    rt.end_object()?;
+    let back = rt.begin_object()?;
+    rt.bind_shader(surface)?;
+    quad(&mut rt, [[0.5, -1.0, 0.0], [0.5, 1.0, 0.0], [3.0, 1.0, 0.0], [3.0, -1.0, 0.0]])?;
+    rt.end_object()?;
+    rt.instantiate_object(front)?;
+    rt.instantiate_object(back)?;
+    let sample = |rt: &mut Context| -> Result<([f32; 4], [f32; 4]), ApiError> {
+        let (fb, _) = rt.render_frame()?;
+        Ok((fb.pixel(W / 4, H / 2), fb.pixel(3 * W / 4, H / 2)))
+    };
+    // Without an atmosphere the outside has no volume to ask.
+    let (f, b) = sample(&mut rt)?;
+    assert_eq!((f[0], f[1]), (-1.0, 0.5), "front: from outside into the interior");
+    assert_eq!((b[0], b[1]), (0.5, -1.0), "back: from the interior out");
+    // The atmosphere is the volume outside.
+    rt.atmosphere(Some(outside), &[])?;
+    let (f, b) = sample(&mut rt)?;
+    assert_eq!((f[0], f[1]), (0.125, 0.5), "front, with an atmosphere");
+    assert_eq!((b[0], b[1]), (0.5, 0.125), "back, with an atmosphere");
+    Ok(())
+}
+
 /// A surface showing its diffuse and specular light in red and green.
 const LIGHT_PARTS: &str = r#"
 surface lightparts() {

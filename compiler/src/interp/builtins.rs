@@ -578,6 +578,17 @@ impl Machine<'_> {
                 self.host.unsupported(b);
                 Value::Triple([0.0; 3])
             }
+            Builtin::Incident | Builtin::Opposite => {
+                let interior =
+                    geom::asks_interior(self.global("I").v3(), self.global("Ng").v3(), b == Builtin::Opposite);
+                match self.host.volume_message(interior, v(0).s()) {
+                    Some(x) if same_shape(&x, &v(1)) => {
+                        writes.push((1, x));
+                        Value::Float(1.0)
+                    }
+                    _ => Value::Float(0.0),
+                }
+            }
             Builtin::Textureinfo => match self.host.message(b, v(1).s()) {
                 Some(x) if Value::zero(Type::scalar(kind_of(&x))) == Value::zero(Type::scalar(kind_of(&v(2)))) => {
                     writes.push((2, x));
@@ -589,8 +600,6 @@ impl Machine<'_> {
             | Builtin::Displacement
             | Builtin::Lightsource
             | Builtin::Surface
-            | Builtin::Incident
-            | Builtin::Opposite
             | Builtin::Attribute
             | Builtin::Option
             | Builtin::Rendererinfo

@@ -115,6 +115,12 @@ pub trait Services {
     fn indirect_diffuse(&mut self, p: V3, n: V3, samples: f32) -> V3;
     /// Message passing and renderer queries (`surface("Kd", x)`, `option("Format", f)`, ...).
     fn message(&mut self, which: Builtin, name: &str) -> Option<Value>;
+    /// `incident(name)` and `opposite(name)`: a parameter of the volume shader inside the surface
+    /// (`interior`) or outside it (the exterior: the atmosphere in rtsl). The default knows none.
+    fn volume_message(&mut self, interior: bool, name: &str) -> Option<Value> {
+        let _ = (interior, name);
+        None
+    }
     /// `printf` output.
     fn print(&mut self, text: &str);
     /// Normalised camera depth of a point.
@@ -270,6 +276,15 @@ impl Services for TestHost {
         match (which, name) {
             (Builtin::Option, "Format") => Some(Value::Triple([640.0, 480.0, 1.0])),
             (Builtin::Rendererinfo, "renderer") => Some(Value::String("rtsl".into())),
+            _ => None,
+        }
+    }
+
+    /// "side": 1 inside, 2 outside; "ior": an interior's index of refraction only.
+    fn volume_message(&mut self, interior: bool, name: &str) -> Option<Value> {
+        match (name, interior) {
+            ("side", _) => Some(Value::Float(if interior { 1.0 } else { 2.0 })),
+            ("ior", true) => Some(Value::Float(1.5)),
             _ => None,
         }
     }

@@ -260,6 +260,14 @@ pub fn in_hemisphere(l: V3, n: V3) -> bool {
     dot(normalize(l), normalize(n)) >= 0.0
 }
 
+/// Whether `incident()` (or, with `opposite`, `opposite()`) asks about the volume inside the
+/// surface: a ray arriving through the back of the geometric normal `ng` (along `i`) comes from
+/// inside, so its incident volume is the interior and the opposite one the exterior. Both back
+/// ends use this one test.
+pub fn asks_interior(i: V3, ng: V3, opposite: bool) -> bool {
+    (dot(i, ng) > 0.0) != opposite
+}
+
 /// How far apart (in s and t) `bump` samples its height map to difference it.
 pub const BUMP_STEP: f32 = 1.0 / 1024.0;
 

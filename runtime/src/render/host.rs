@@ -115,6 +115,7 @@ impl<'f, 'w> ShadeCall<'f, 'w> {
             ray_depth: host_ray_depth,
             message: host_message,
             light_message: host_light_message,
+            volume_message: host_volume_message,
             shader_name: host_shader_name,
             print: host_print,
         }
@@ -743,6 +744,20 @@ unsafe extern "C" fn host_light_message(ctx: *mut c_void, light: u32, name: StrR
     let (c, name, out) = unsafe { (call(ctx), name.as_str(), &mut *out) };
     let Some(light) = c.frame.world.lights.get(light as usize) else { return 0 };
     param_message(&light.shader, name, out, &mut c.text)
+}
+
+/// `incident()`/`opposite()`: the surface's interior shader inside, the atmosphere outside (an
+/// `Exterior` shader is not rendered, so the atmosphere is what fills the space around objects).
+unsafe extern "C" fn host_volume_message(ctx: *mut c_void, interior: u32, name: StrRef, out: *mut MessageOut) -> u32 {
+    // SAFETY: the table's contract.
+    let (c, name, out) = unsafe { (call(ctx), name.as_str(), &mut *out) };
+    let world = c.frame.world;
+    let shader = if interior != 0 {
+        c.material.and_then(|m| world.materials.get(m as usize)).and_then(|m| m.interior.as_deref())
+    } else {
+        world.atmosphere.as_deref()
+    };
+    shader.map_or(0, |s| param_message(s, name, out, &mut c.text))
 }
 
 unsafe extern "C" fn host_shader_name(ctx: *mut c_void, has_kind: u32, _kind: StrRef) -> StrRef {

@@ -160,6 +160,11 @@ pub struct HostTable {
     /// `lightsource(name)` inside an `illuminance` loop: a parameter of light `light` (a
     /// [`HostLight::id`]). Returns 0 when unknown.
     pub light_message: unsafe extern "C" fn(ctx: *mut c_void, light: u32, name: StrRef, out: *mut MessageOut) -> u32,
+    /// `incident(name)`/`opposite(name)`: a parameter of the volume shader inside the surface being
+    /// shaded (`interior` 1) or outside it (0); the helper picks the side per lane
+    /// (`shadeops::geom::asks_interior`). Returns 0 when unknown.
+    pub volume_message:
+        unsafe extern "C" fn(ctx: *mut c_void, interior: u32, name: StrRef, out: *mut MessageOut) -> u32,
     /// The name of this shader (`has_kind` 0) or of the one bound as `kind`; valid until the next call.
     pub shader_name: unsafe extern "C" fn(ctx: *mut c_void, has_kind: u32, kind: StrRef) -> StrRef,
     /// `printf` output.
@@ -190,6 +195,7 @@ impl<'a> ServicesHost<'a> {
             ray_depth: sv_ray_depth,
             message: sv_message,
             light_message: sv_light_message,
+            volume_message: sv_volume_message,
             shader_name: sv_shader_name,
             print: sv_print,
         }
@@ -417,6 +423,18 @@ unsafe extern "C" fn sv_message(ctx: *mut c_void, which: u32, name: StrRef, out:
     let (h, name, out) = unsafe { (sv(ctx), name.as_str(), &mut *out) };
     let Some(b) = Builtin::ALL.get(which as usize) else { return 0 };
     let Some(v) = h.host.message(*b, name) else { return 0 };
+    put_value(h, v, out)
+}
+
+unsafe extern "C" fn sv_volume_message(ctx: *mut c_void, interior: u32, name: StrRef, out: *mut MessageOut) -> u32 {
+    // SAFETY: the table's contract.
+    let (h, name, out) = unsafe { (sv(ctx), name.as_str(), &mut *out) };
+    let Some(v) = h.host.volume_message(interior != 0, name) else { return 0 };
+    put_value(h, v, out)
+}
+
+/// A message's answer into the table's reply: 1, or 0 when it has no reply's shape.
+fn put_value(h: &mut ServicesHost<'_>, v: Value, out: &mut MessageOut) -> u32 {
     fn kind(v: &Value) -> u32 {
         match v {
             Value::Float(_) => 1,
@@ -995,6 +1013,24 @@ host_helpers! {
                 // SAFETY: the runtime's table.
                 (Some(t), Some(light)) => unsafe { (t.light_message)(t.ctx, light.id, StrRef::new(&name), &mut out) },
                 _ => 0,
+            };
+            put_message(cx, l, found, &out, class, len, false);
+        }
+    }
+    // [which, name, class, len, I, Ng] -> [found, value...]: `incident()`/`opposite()` of the
+    // volume on the side of each lane's surface its ray comes from or goes to
+    h_volume_message "rtsl_h_volume_message" 10 => 65 |cx| {
+        let opposite = Builtin::ALL.get(cx.f(0, 0) as usize) == Some(&Builtin::Opposite);
+        let name = cx.s(1);
+        let (class, len) = (cx.f(2, 0) as u32, cx.f(3, 0) as u32);
+        let active: Vec<usize> = cx.active().collect();
+        for l in active {
+            let interior = geom::asks_interior(cx.v3(4, l), cx.v3(7, l), opposite);
+            let mut out = MessageOut { kind: 0, len: 0, floats: [0.0; MESSAGE_FLOATS], string: StrRef::new("") };
+            let found = match cx.table {
+                // SAFETY: the runtime's table.
+                Some(t) => unsafe { (t.volume_message)(t.ctx, u32::from(interior), StrRef::new(&name), &mut out) },
+                None => 0,
             };
             put_message(cx, l, found, &out, class, len, false);
         }

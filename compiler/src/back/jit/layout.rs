@@ -143,6 +143,7 @@ pub(super) fn layout(m: &Module) -> Result<Layout, &'static str> {
                             Bi::Faceforward if args.len() == 2 => &["Ng"],
                             Bi::Ambient | Bi::Diffuse | Bi::Specular | Bi::Phong => &["P"],
                             Bi::Texture | Bi::Bump => &["s", "t"],
+                            Bi::Incident | Bi::Opposite => &["I", "Ng"],
                             _ => &[],
                         };
                         for name in implicit {

@@ -2862,6 +2862,15 @@ impl<'m> Lower<'m, '_> {
                 let k = self.b.use_var(k);
                 self.call_helper("rtsl_h_light_message", &[set, k, name.c[0], cl, ln], true)?
             }
+            // `incident()` and `opposite()` ask about the volume on one side of each lane's surface.
+            _ if matches!(bi, Builtin::Incident | Builtin::Opposite) => {
+                let which = self.fconst(bi as u32 as f32, false);
+                let mut inputs = vec![which, name.c[0], cl, ln];
+                for g in ["I", "Ng"] {
+                    inputs.extend(self.global_val(g)?.c);
+                }
+                self.call_helper("rtsl_h_volume_message", &inputs, true)?
+            }
             _ => {
                 let which = self.fconst(bi as u32 as f32, false);
                 self.call_helper("rtsl_h_message", &[which, name.c[0], cl, ln], vary)?

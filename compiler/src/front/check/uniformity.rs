@@ -416,7 +416,9 @@ impl<'a> Analysis<'a> {
             }
             ExprKind::CallBuiltin { builtin, args, .. } => {
                 let fl = builtin.flags();
-                let mut v = fl & flags::VARYING != 0;
+                // `incident()`/`opposite()` answer from the volume on each lane's side of its
+                // surface, so even whether they find the name varies.
+                let mut v = fl & flags::VARYING != 0 || matches!(builtin, Builtin::Incident | Builtin::Opposite);
                 for a in args {
                     if let Arg::Value(x) = a {
                         v |= self.walk(f, *x, ctl);
