@@ -431,6 +431,32 @@ fn crop_window_and_frame_aspect_ratio_are_honoured() {
 }
 
 #[test]
+fn adaptive_sampling_leaves_pixels_outside_the_crop_window_empty() {
+    // The square's edges cross the crop's border, where rendered pixels meet empty ones: neither
+    // side is refined for that, and only rendered pixels get extra samples.
+    let wall = r#"Surface "constant" Color [.2 .6 .9] Polygon "P" [-1 -1 0  1 -1 0  1 1 0  -1 1 0]"#;
+    let (mut rt, warnings) = load(&format!(
+        "Format 64 48 1\nCropWindow 0.3 0.7 0.3 0.7\nOption \"antialiasing\" \"mode\" [\"adaptive\"]\n\
+         Projection \"perspective\" \"fov\" [40]\nTranslate 0 0 5\nWorldBegin\n{wall}\nWorldEnd"
+    ));
+    assert!(warnings.is_empty(), "{warnings:?}");
+    let fb = render(&mut rt);
+    let (x0, x1, y0, y1) = rt.options.pixel_range();
+    let mut rendered = 0;
+    for y in 0..48 {
+        for x in 0..64 {
+            let inside = (x0..x1).contains(&x) && (y0..y1).contains(&y);
+            if inside {
+                rendered += usize::from(fb.pixel(x, y)[3] > 0.0);
+            } else {
+                assert_eq!(fb.pixel(x, y), [0.0; 4], "({x}, {y}) is outside the crop");
+            }
+        }
+    }
+    assert!(rendered > 50, "{rendered} covered pixels in the crop");
+}
+
+#[test]
 fn bad_cut_outs_windows_and_displacements_are_warnings_not_failures() {
     let square = r#"Surface "constant" Polygon "P" [-1 -1 0  1 -1 0  1 1 0  -1 1 0]"#;
     let (mut plain, _) = load(&format!("{CAMERA} {square} WorldEnd"));

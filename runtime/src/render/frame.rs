@@ -348,12 +348,19 @@ fn refine_tile(
             || shader_ids[a] != shader_ids[b]
             || (0..4).any(|c| (color[a][c] - color[b][c]).abs() > threshold)
     };
+    // Pixels outside the crop window are not rendered: they stay empty, and an edge between one and
+    // a rendered pixel is no reason to refine either.
+    let (cx0, cx1, cy0, cy1) = world.options.pixel_range();
+    let rendered = |k: usize| {
+        let (x, y) = (tile.x0 + (k % tw) as u32, tile.y0 + (k / tw) as u32);
+        (cx0..cx1).contains(&x) && (cy0..cy1).contains(&y)
+    };
     let mut refine = vec![false; color.len()];
     for y in 0..th {
         for x in 0..tw {
             let k = y * tw + x;
             for n in [(x + 1 < tw).then_some(k + 1), (y + 1 < th).then_some(k + tw)].into_iter().flatten() {
-                if differs(k, n) {
+                if rendered(k) && rendered(n) && differs(k, n) {
                     refine[k] = true;
                     refine[n] = true;
                 }
