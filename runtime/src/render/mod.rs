@@ -4,9 +4,11 @@
 //! messages); `lights.rs` runs light shaders over a batch and traces their shadows; `stats.rs`
 //! counts; `volume.rs` runs atmosphere and interior shaders on ray segments; `differential.rs` carries ray differentials; `native.rs` is the hand-written baseline;
 //! `progressive.rs` renders chosen pixels pass by pass into an accumulator (interactive viewers);
-//! `primary.rs` makes primary rays (the built-in camera or the camera shader).
+//! `primary.rs` makes primary rays (the built-in camera or the camera shader); `filter.rs` holds the
+//! pixel filters.
 
 pub mod differential;
+pub mod filter;
 pub mod frame;
 mod host;
 mod lights;
@@ -18,6 +20,7 @@ mod stats;
 mod volume;
 pub mod world;
 
+pub use filter::{FilterKind, PixelFilter};
 pub use frame::{
     camera_ray, camera_samples, make_primary_rays, primary_packet, primary_packet_into, render_frame, sample_offset,
     trace_primary_rays, FrameReport, Framebuffer, TILE_SIZE,

@@ -2,6 +2,7 @@
 //! camera, named coordinate systems, options). The API ([`crate::api::Context`]) and the RIB reader
 //! build a [`World`]; the frame loop only reads it.
 
+use super::filter::PixelFilter;
 use crate::scene::Scene;
 use crate::shading::{LightKind, ShaderInstance};
 use crate::texture::TextureCache;
@@ -232,6 +233,11 @@ pub struct RenderOptions {
     /// to `ceil(width * xmax) - 1` (and likewise in y) are rendered; the rest stay empty (black,
     /// alpha 0). `None`: the whole image.
     pub crop_window: Option<[f32; 4]>,
+    /// RIB's `PixelFilter "name" xwidth ywidth`: how samples are weighted into pixels. The default
+    /// is box 1x1, each pixel the plain mean of its own samples (RenderMan's default is gaussian
+    /// 2x2; box 1x1 keeps images as they were and one sample per pixel sharp). Any other filter
+    /// splats every sample onto the pixels within its support (`render/film.rs`).
+    pub pixel_filter: PixelFilter,
 }
 
 /// The screen window as centre and half extents, the form the cameras use: screen `x` of raster
@@ -291,6 +297,7 @@ impl Default for RenderOptions {
             screen_window: None,
             frame_aspect_ratio: None,
             crop_window: None,
+            pixel_filter: PixelFilter::default(),
         }
     }
 }
