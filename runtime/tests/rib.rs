@@ -197,6 +197,7 @@ fn every_request_parses() {
     let kinds: Vec<&K> = parsed.requests.iter().map(|r| &r.kind).collect();
     assert!(kinds.contains(&&K::Format { xres: 640, yres: 480, pixel_aspect: 1.0 }));
     assert!(kinds.contains(&&K::CropWindow([0.0, 1.0, 0.0, 1.0])));
+    assert!(kinds.contains(&&K::PixelFilter { filter: "gaussian".into(), xwidth: 2.0, ywidth: 2.0 }));
     assert!(kinds.contains(&&K::MotionBegin(vec![0.0, 1.0])));
     assert!(kinds.contains(&&K::TextureCoordinates([0.0, 0.0, 2.0, 0.0, 0.0, 2.0, 2.0, 2.0])));
     assert!(kinds.contains(&&K::FrameBegin(Some(1))));

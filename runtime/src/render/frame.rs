@@ -1,9 +1,12 @@
 //! One frame: primary rays per 8x8 packet, tiles demand-driven over rayon, samples per pixel on a
-//! jittered grid averaged with a box filter, and the frame's statistics.
+//! jittered grid, averaged per pixel (the default box 1x1 filter) or splatted through the pixel
+//! filter (`film.rs`), and the frame's statistics.
 //!
 //! Invariant: the image depends only on the world and the options, not on the thread count (tiles
-//! are independent, jitter is a hash of pixel and sample, and results land in tile order).
+//! are independent, jitter is a hash of pixel and sample, results land in tile order, and filtered
+//! tiles are added up in tile order).
 
+use super::film::{Film, TileFilm};
 use super::primary::{
     pinhole_ray, primary_rays, primary_rays_into, primary_rays_of_packets, CameraSample, PacketSamples, PrimaryRays,
 };
@@ -11,7 +14,9 @@ use super::shade::{mix, shade_packet, shade_pixels, Frame, Sample, TilePixels};
 use super::world::{Antialiasing, World};
 use crate::camera::{packet_lane_offset, PACKET_SIDE};
 use crate::ray::{HitPacket, PACKET_SIZE};
-use crate::tiles::render_tiles;
+use crate::tiles::{render_tiles, Tile};
+use glam::Vec3A;
+use rayon::prelude::*;
 use rtsl_compiler::front::parse::ast::ShaderKind;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
@@ -312,7 +317,7 @@ impl TilePrimary {
     }
 
     /// Makes the rays of sample `(i, j)` of each pixel of `tile`.
-    pub fn make(&mut self, frame: &Frame, tile: &crate::tiles::Tile, sample: (u32, u32)) {
+    pub fn make(&mut self, frame: &Frame, tile: &Tile, sample: (u32, u32)) {
         self.corners.clear();
         for py in (tile.y0..tile.y0 + tile.height).step_by(PACKET_SIDE as usize) {
             for px in (tile.x0..tile.x0 + tile.width).step_by(PACKET_SIDE as usize) {
@@ -331,17 +336,56 @@ impl TilePrimary {
 
 /// Adaptive oversampling of one tile (OpenRT's, paper 5.1.2): a pixel that differs from a
 /// neighbour in the tile by more than `threshold` in any colour channel, or in the object or shader
-/// hit, gets a jittered `ex x ey` grid of extra samples, averaged with its first one.
+/// hit, gets a jittered `ex x ey` grid of extra samples, averaged with its first one into `px`'s
+/// colour. `splat` sees each extra sample too (raster position, colour and alpha), for a filter.
 fn refine_tile(
     frame: &Frame,
-    tile: &crate::tiles::Tile,
+    tile: &Tile,
     threshold: f32,
-    (ex, ey): (u32, u32),
-    color: &mut [[f32; 4]],
-    ids: &[u32],
-    shader_ids: &[u32],
+    extra: (u32, u32),
+    px: &mut TileSamples,
+    splat: &mut impl FnMut((f32, f32), [f32; 4]),
 ) {
     let world = frame.world;
+    let refine = pixels_to_refine(world, tile, threshold, px);
+    let rays = extra_samples(world, tile, extra, &refine);
+    let color = &mut px.color;
+    let mut sums = vec![[0.0f32; 4]; color.len()];
+    let mut samples = [Sample::default(); PACKET_SIZE];
+    let mut hits = HitPacket::default();
+    for chunk in rays.chunks(PACKET_SIZE) {
+        let mut cams = [CameraSample::default(); PACKET_SIZE];
+        for (lane, (_, s)) in chunk.iter().enumerate() {
+            cams[lane] = *s;
+        }
+        let active = if chunk.len() == PACKET_SIZE { u64::MAX } else { (1u64 << chunk.len()) - 1 };
+        let primary = primary_rays(frame, &cams, active);
+        world.scene.intersect_packet(&primary.packet, &mut hits);
+        shade_packet(frame, &primary, &hits, &mut samples);
+        for (lane, ((k, cam), s)) in chunk.iter().zip(&samples).enumerate() {
+            if primary.packet.active >> lane & 1 == 0 {
+                continue;
+            }
+            let sum = &mut sums[*k];
+            for (c, v) in sum.iter_mut().zip(s.color.to_array()) {
+                *c += v;
+            }
+            sum[3] += s.alpha;
+            splat(cam.raster, rgba(s));
+        }
+    }
+    let n = (extra.0 * extra.1) as f32;
+    for (k, sum) in sums.iter().enumerate().filter(|(k, _)| refine[*k]) {
+        for c in 0..4 {
+            color[k][c] = (color[k][c] + sum[c]) / (1.0 + n);
+        }
+    }
+}
+
+/// Which pixels of a tile adaptive sampling refines (see [`refine_tile`]), judged on their first
+/// samples.
+fn pixels_to_refine(world: &World, tile: &Tile, threshold: f32, px: &TileSamples) -> Vec<bool> {
+    let (color, ids, shader_ids) = (&px.color, &px.ids, &px.shader_ids);
     let (tw, th) = (tile.width as usize, tile.height as usize);
     let differs = |a: usize, b: usize| {
         ids[a] != ids[b]
@@ -367,8 +411,15 @@ fn refine_tile(
             }
         }
     }
-    // The extra rays, 64 to a packet (incoherent packets fall back to single rays in the tracer).
-    // A pixel's extra samples are consecutive lanes, so a 2x2 grid of them is a raster quad.
+    refine
+}
+
+/// The extra camera samples of the pixels to `refine` (tile-local index, sample): a jittered
+/// `ex x ey` grid each. A pixel's extra samples are consecutive, so that once they go 64 to a
+/// packet (incoherent packets fall back to single rays in the tracer) a 2x2 grid of them is a
+/// raster quad.
+fn extra_samples(world: &World, tile: &Tile, (ex, ey): (u32, u32), refine: &[bool]) -> Vec<(usize, CameraSample)> {
+    let tw = tile.width as usize;
     let mut rays = Vec::new();
     for (k, _) in refine.iter().enumerate().filter(|(_, r)| **r) {
         let (x, y) = (tile.x0 + (k % tw) as u32, tile.y0 + (k / tw) as u32);
@@ -383,35 +434,12 @@ fn refine_tile(
             }
         }
     }
-    let mut sums = vec![[0.0f32; 4]; color.len()];
-    let mut samples = [Sample::default(); PACKET_SIZE];
-    let mut hits = HitPacket::default();
-    for chunk in rays.chunks(PACKET_SIZE) {
-        let mut cams = [CameraSample::default(); PACKET_SIZE];
-        for (lane, (_, s)) in chunk.iter().enumerate() {
-            cams[lane] = *s;
-        }
-        let active = if chunk.len() == PACKET_SIZE { u64::MAX } else { (1u64 << chunk.len()) - 1 };
-        let primary = primary_rays(frame, &cams, active);
-        world.scene.intersect_packet(&primary.packet, &mut hits);
-        shade_packet(frame, &primary, &hits, &mut samples);
-        for (lane, ((k, _), s)) in chunk.iter().zip(&samples).enumerate() {
-            if primary.packet.active >> lane & 1 == 0 {
-                continue;
-            }
-            let sum = &mut sums[*k];
-            for (c, v) in sum.iter_mut().zip(s.color.to_array()) {
-                *c += v;
-            }
-            sum[3] += s.alpha;
-        }
-    }
-    let n = (ex * ey) as f32;
-    for (k, sum) in sums.iter().enumerate().filter(|(k, _)| refine[*k]) {
-        for c in 0..4 {
-            color[k][c] = (color[k][c] + sum[c]) / (1.0 + n);
-        }
-    }
+    rays
+}
+
+/// A sample's colour and alpha.
+fn rgba(s: &Sample) -> [f32; 4] {
+    [s.color.x, s.color.y, s.color.z, s.alpha]
 }
 
 /// Generates and traces the primary rays of a frame, one sample per pixel, without shading them
@@ -451,114 +479,243 @@ fn primary_rays_of_frame(world: &World, trace: bool) -> (u64, u64) {
     counts.into_iter().fold((0, 0), |(a, b), (c, d)| (a + c, b + d))
 }
 
+/// How a frame samples its pixels, as its options say.
+struct Sampling {
+    /// The grid of samples every pixel gets (1x1 under adaptive sampling, whose first sample is
+    /// the pixel's centre).
+    grid: (u32, u32),
+    /// Adaptive sampling's threshold and its grid of extra samples: the `PixelSamples` grid, or
+    /// 2x2 when that is 1x1.
+    adaptive: Option<(f32, (u32, u32))>,
+    /// The camera's view axis in world space, for camera-space depth.
+    forward: Vec3A,
+}
+
+impl Sampling {
+    fn of(world: &World) -> Sampling {
+        let grid = (world.options.samples.0.max(1), world.options.samples.1.max(1));
+        let adaptive = match world.options.antialiasing {
+            Antialiasing::Adaptive { threshold } => Some((threshold, if grid == (1, 1) { (2, 2) } else { grid })),
+            _ => None,
+        };
+        Sampling {
+            grid: if adaptive.is_some() { (1, 1) } else { grid },
+            adaptive,
+            forward: world.camera.world_from_camera.matrix3.z_axis.normalize_or_zero(),
+        }
+    }
+}
+
+/// A tile's pixels once sampled (rows of the tile, top to bottom): the mean of each pixel's own
+/// samples, and the camera-space depth, object and shader of its first sample.
+struct TileSamples {
+    color: Vec<[f32; 4]>,
+    depth: Vec<f32>,
+    ids: Vec<u32>,
+    shader_ids: Vec<u32>,
+}
+
+impl TileSamples {
+    fn empty(tile: &Tile) -> TileSamples {
+        let n = (tile.width * tile.height) as usize;
+        TileSamples {
+            color: vec![[0.0; 4]; n],
+            depth: vec![f32::INFINITY; n],
+            ids: vec![u32::MAX; n],
+            shader_ids: vec![u32::MAX; n],
+        }
+    }
+}
+
+/// Tells the caller of [`render_frame`] how many tiles are done.
+struct Progress<'a> {
+    report: Option<&'a (dyn Fn(usize, usize) + Sync)>,
+    done: AtomicUsize,
+    total: usize,
+}
+
+impl Progress<'_> {
+    fn tile_done(&self) {
+        if let Some(p) = self.report {
+            p(self.done.fetch_add(1, Ordering::Relaxed) + 1, self.total);
+        }
+    }
+}
+
+/// Traces and shades every sample of a tile (adaptive sampling's extra ones included) into the
+/// mean of each pixel's own samples; `splat` sees each sample's raster position, colour and alpha.
+fn sample_tile(
+    frame: &Frame,
+    tile: &Tile,
+    sampling: &Sampling,
+    mut splat: impl FnMut((f32, f32), [f32; 4]),
+) -> TileSamples {
+    let world = frame.world;
+    let mut px = TileSamples::empty(tile);
+    let (sx, sy) = sampling.grid;
+    let mut samples = [Sample::default(); PACKET_SIZE];
+    let mut hits = HitPacket::default();
+    TilePrimary::with(|primary| {
+        for j in 0..sy {
+            for i in 0..sx {
+                primary.make(frame, tile, (i, j));
+                for ((&(x0, y0), rays), cams) in primary.corners.iter().zip(&primary.rays).zip(&primary.samples) {
+                    let packet = &rays.packet;
+                    world.scene.intersect_packet(packet, &mut hits);
+                    shade_packet(frame, rays, &hits, &mut samples);
+                    for (lane, s) in samples.iter().enumerate() {
+                        if packet.active >> lane & 1 == 0 {
+                            continue;
+                        }
+                        let (dx, dy) = packet_lane_offset(lane);
+                        let (x, y) = (x0 + dx - tile.x0, y0 + dy - tile.y0);
+                        if x >= tile.width || y >= tile.height {
+                            continue;
+                        }
+                        let k = (y * tile.width + x) as usize;
+                        let sum = &mut px.color[k];
+                        for (c, v) in sum.iter_mut().zip(s.color.to_array()) {
+                            *c += v;
+                        }
+                        sum[3] += s.alpha;
+                        splat(cams.samples[lane].raster, rgba(s));
+                        if i == 0 && j == 0 {
+                            // Camera-space depth: the distance along the ray times its cosine
+                            // with the view axis.
+                            px.depth[k] = s.depth * packet.get(lane).direction.dot(sampling.forward);
+                            px.ids[k] = s.object_id;
+                            px.shader_ids[k] = s.shader_id;
+                        }
+                    }
+                }
+            }
+        }
+    });
+    let scale = 1.0 / (sx * sy) as f32;
+    for c in &mut px.color {
+        for v in c.iter_mut() {
+            *v *= scale;
+        }
+    }
+    if let Some((threshold, extra)) = sampling.adaptive {
+        refine_tile(frame, tile, threshold, extra, &mut px, &mut splat);
+    }
+    px
+}
+
+/// Runs the pixel shader over a tile's finished colours.
+fn shade_tile_pixels(frame: &Frame, tile: &Tile, px: &mut TileSamples) {
+    shade_pixels(
+        frame,
+        TilePixels {
+            x0: tile.x0,
+            y0: tile.y0,
+            width: tile.width,
+            rgba: &mut px.color,
+            depth: &px.depth,
+            object_id: &px.ids,
+            shader_id: &px.shader_ids,
+        },
+    );
+}
+
 /// Renders a frame with the threads of the current rayon pool. `progress` is told how many tiles
 /// are done after each tile.
 pub fn render_frame(world: &World, progress: Option<&(dyn Fn(usize, usize) + Sync)>) -> (Framebuffer, FrameReport) {
     let start = Instant::now();
     let frame = Frame::new(world);
+    let sampling = Sampling::of(world);
     let (w, h) = (world.options.width, world.options.height);
-    let (sx, sy) = (world.options.samples.0.max(1), world.options.samples.1.max(1));
-    // Adaptive sampling starts with one sample per pixel; its extra samples are the PixelSamples grid
-    // (2x2 when that is 1x1).
-    let adaptive = match world.options.antialiasing {
-        Antialiasing::Adaptive { threshold } => Some(threshold),
-        _ => None,
+    let progress =
+        Progress { report: progress, done: AtomicUsize::new(0), total: crate::tiles::tiles(w, h, TILE_SIZE).len() };
+    let tiles = if world.options.pixel_filter.is_unit_box() {
+        box_filtered_tiles(&frame, &sampling, &progress)
+    } else {
+        filtered_tiles(&frame, &sampling, &progress)
     };
-    let (ex, ey) = if (sx, sy) == (1, 1) { (2, 2) } else { (sx, sy) };
-    let (sx, sy) = if adaptive.is_some() { (1, 1) } else { (sx, sy) };
-    let total_tiles = crate::tiles::tiles(w, h, TILE_SIZE).len();
-    let done = AtomicUsize::new(0);
-    let forward = world.camera.world_from_camera.matrix3.z_axis.normalize_or_zero();
-    let tiles = render_tiles(w, h, TILE_SIZE, |tile| {
-        let mut color = vec![[0.0f32; 4]; (tile.width * tile.height) as usize];
-        let mut depth = vec![f32::INFINITY; color.len()];
-        let mut ids = vec![u32::MAX; color.len()];
-        let mut shader_ids = vec![u32::MAX; color.len()];
-        let mut samples = [Sample::default(); PACKET_SIZE];
-        let mut hits = HitPacket::default();
-        TilePrimary::with(|primary| {
-            for j in 0..sy {
-                for i in 0..sx {
-                    primary.make(&frame, tile, (i, j));
-                    for (&(px, py), rays) in primary.corners.iter().zip(&primary.rays) {
-                        let packet = &rays.packet;
-                        world.scene.intersect_packet(packet, &mut hits);
-                        shade_packet(&frame, rays, &hits, &mut samples);
-                        for (lane, s) in samples.iter().enumerate() {
-                            if packet.active >> lane & 1 == 0 {
-                                continue;
-                            }
-                            let (dx, dy) = packet_lane_offset(lane);
-                            let (x, y) = (px + dx - tile.x0, py + dy - tile.y0);
-                            if x >= tile.width || y >= tile.height {
-                                continue;
-                            }
-                            let k = (y * tile.width + x) as usize;
-                            let sum = &mut color[k];
-                            for (c, v) in sum.iter_mut().zip(s.color.to_array()) {
-                                *c += v;
-                            }
-                            sum[3] += s.alpha;
-                            if i == 0 && j == 0 {
-                                // Camera-space depth: the distance along the ray times its cosine
-                                // with the view axis.
-                                depth[k] = s.depth * packet.get(lane).direction.dot(forward);
-                                ids[k] = s.object_id;
-                                shader_ids[k] = s.shader_id;
-                            }
-                        }
-                    }
-                }
-            }
-        });
-        let scale = 1.0 / (sx * sy) as f32;
-        for c in &mut color {
-            for v in c.iter_mut() {
-                *v *= scale;
-            }
-        }
-        if let Some(threshold) = adaptive {
-            refine_tile(&frame, tile, threshold, (ex, ey), &mut color, &ids, &shader_ids);
-        }
-        shade_pixels(
-            &frame,
-            TilePixels {
-                x0: tile.x0,
-                y0: tile.y0,
-                width: tile.width,
-                rgba: &mut color,
-                depth: &depth,
-                object_id: &ids,
-                shader_id: &shader_ids,
-            },
-        );
-        if let Some(p) = progress {
-            p(done.fetch_add(1, Ordering::Relaxed) + 1, total_tiles);
-        }
-        (*tile, color, depth, ids)
+    let fb = framebuffer(world, tiles);
+    (fb, frame_report(&frame, start))
+}
+
+/// The finished tiles under the default box 1x1 filter: each pixel is the mean of its own samples,
+/// so a tile is finished (pixel shader included) by the thread that sampled it.
+fn box_filtered_tiles(frame: &Frame, sampling: &Sampling, progress: &Progress) -> Vec<(Tile, TileSamples)> {
+    let (w, h) = (frame.world.options.width, frame.world.options.height);
+    render_tiles(w, h, TILE_SIZE, |tile| {
+        let mut px = sample_tile(frame, tile, sampling, |_, _| {});
+        shade_tile_pixels(frame, tile, &mut px);
+        progress.tile_done();
+        (*tile, px)
+    })
+}
+
+/// The finished tiles under any other filter: every tile splats its samples into its own film, the
+/// films are added up in tile order (so the sums do not depend on the threads), and then each
+/// pixel gets its filtered value (its own samples' mean where too little weight reached it, as
+/// outside the crop window) and the pixel shader runs on that.
+fn filtered_tiles(frame: &Frame, sampling: &Sampling, progress: &Progress) -> Vec<(Tile, TileSamples)> {
+    let options = &frame.world.options;
+    let (w, h) = (options.width, options.height);
+    let (filter, pixels) = (options.pixel_filter, options.pixel_range());
+    let sampled = render_tiles(w, h, TILE_SIZE, |tile| {
+        let mut film = TileFilm::new(filter, tile, pixels);
+        let px = sample_tile(frame, tile, sampling, |raster, rgba| film.splat(raster, rgba));
+        progress.tile_done();
+        (*tile, px, film)
     });
+    let mut film = Film::new(&filter, w, h);
+    for (_, _, tile_film) in &sampled {
+        film.add(tile_film);
+    }
+    let mut tiles: Vec<(Tile, TileSamples)> = sampled.into_iter().map(|(tile, px, _)| (tile, px)).collect();
+    tiles.par_iter_mut().for_each(|(tile, px)| {
+        resolve_tile(&film, tile, &mut px.color);
+        shade_tile_pixels(frame, tile, px);
+    });
+    tiles
+}
+
+/// Replaces the colours of a tile's pixels by their filtered values where they have one.
+fn resolve_tile(film: &Film, tile: &Tile, color: &mut [[f32; 4]]) {
+    for (k, c) in color.iter_mut().enumerate() {
+        let (x, y) = (tile.x0 + k as u32 % tile.width, tile.y0 + k as u32 / tile.width);
+        if let Some(filtered) = film.resolve(x, y) {
+            *c = filtered;
+        }
+    }
+}
+
+/// The image of finished tiles, with the frame's exposure applied.
+fn framebuffer(world: &World, tiles: Vec<(Tile, TileSamples)>) -> Framebuffer {
+    let (w, h) = (world.options.width, world.options.height);
     let mut fb = Framebuffer::new(w, h);
     let exposure = world.options.exposure.filter(|&(gain, gamma)| gain.is_finite() && gamma > 0.0);
-    for (tile, color, depth, ids) in tiles {
+    for (tile, px) in tiles {
         for y in 0..tile.height {
             for x in 0..tile.width {
                 let k = (y * tile.width + x) as usize;
                 let i = ((tile.y0 + y) * w + tile.x0 + x) as usize;
-                let mut c = color[k];
+                let mut c = px.color[k];
                 if let Some((gain, gamma)) = exposure {
                     for v in &mut c[..3] {
                         *v = (gain * *v).max(0.0).powf(1.0 / gamma);
                     }
                 }
                 fb.rgba[4 * i..4 * i + 4].copy_from_slice(&c);
-                fb.depth[i] = depth[k];
-                fb.object_id[i] = ids[k];
+                fb.depth[i] = px.depth[k];
+                fb.object_id[i] = px.ids[k];
             }
         }
     }
+    fb
+}
+
+/// What the frame cost, from its counters.
+fn frame_report(frame: &Frame, start: Instant) -> FrameReport {
+    let world = frame.world;
     let s = &frame.stats;
     let load = |a: &std::sync::atomic::AtomicU64| a.load(Ordering::Relaxed);
-    let report = FrameReport {
+    FrameReport {
         elapsed: start.elapsed(),
         primary_rays: load(&s.primary_rays),
         shadow_rays: load(&s.shadow_rays),
@@ -578,6 +735,5 @@ pub fn render_frame(world: &World, progress: Option<&(dyn Fn(usize, usize) + Syn
         threads: rayon::current_num_threads(),
         shader_messages: world.shader_messages(),
         accel: world.accel,
-    };
-    (fb, report)
+    }
 }

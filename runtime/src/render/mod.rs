@@ -5,9 +5,10 @@
 //! counts; `volume.rs` runs atmosphere and interior shaders on ray segments; `differential.rs` carries ray differentials; `native.rs` is the hand-written baseline;
 //! `progressive.rs` renders chosen pixels pass by pass into an accumulator (interactive viewers);
 //! `primary.rs` makes primary rays (the built-in camera or the camera shader); `filter.rs` holds the
-//! pixel filters.
+//! pixel filters and `film.rs` splats samples through them.
 
 pub mod differential;
+mod film;
 pub mod filter;
 pub mod frame;
 mod host;

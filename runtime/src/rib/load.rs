@@ -452,7 +452,7 @@ impl<'a> Loader<'a> {
             K::ScreenWindow(window) => rt.options.screen_window = Some(*window),
             K::FrameAspectRatio(a) => rt.options.frame_aspect_ratio = Some(*a),
             K::CropWindow(window) => rt.options.crop_window = Some(*window),
-            K::PixelFilter { .. } => self.warn(r, "this request is accepted but not honoured yet"),
+            K::PixelFilter { filter, xwidth, ywidth } => self.pixel_filter(r, filter, *xwidth, *ywidth),
             K::MeshArchive(path) => match self.retained.clone() {
                 None => {
                     self.flush()?;
@@ -471,6 +471,24 @@ impl<'a> Loader<'a> {
             },
         }
         Ok(())
+    }
+
+    /// `PixelFilter`: an unknown name is warned about and falls back to the default filter; widths
+    /// that are not finite and positive are warned about and leave the filter as it was.
+    fn pixel_filter(&mut self, r: &Request, name: &str, xwidth: f32, ywidth: f32) {
+        use crate::render::{FilterKind, PixelFilter};
+        let Some(kind) = FilterKind::parse(name) else {
+            self.warn(
+                r,
+                format_args!("unknown pixel filter \"{name}\" (known: {}); using box 1 1", FilterKind::names()),
+            );
+            self.rt.options.pixel_filter = PixelFilter::default();
+            return;
+        };
+        match PixelFilter::new(kind, xwidth, ywidth) {
+            Ok(f) => self.rt.options.pixel_filter = f,
+            Err(e) => self.warn(r, format_args!("{e}; the pixel filter stays as it was")),
+        }
     }
 
     fn attribute(&mut self, r: &Request, name: &str, params: &[Param]) {
