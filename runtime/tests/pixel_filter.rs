@@ -279,12 +279,17 @@ fn bad_rib_pixel_filters_are_located_warnings() {
     assert_eq!(warnings.len(), 1, "{warnings:?}");
     assert!(warnings[0].starts_with("test.rib:3:1: warning: unknown pixel filter \"nonsense\""), "{warnings:?}");
     assert!(rt.options.pixel_filter.is_unit_box());
-    // Widths that are not finite and positive: the filter stays as it was.
+    // Widths that are not positive and at most 16: the filter stays as it was.
     let (rt, warnings) = load(&rib_scene("PixelFilter \"catmull-rom\" 4 4\nPixelFilter \"gaussian\" 0 2"));
     assert_eq!(warnings.len(), 1, "{warnings:?}");
     assert!(warnings[0].starts_with("test.rib:3:1: warning: filter widths 0 2"), "{warnings:?}");
     assert_eq!(rt.options.pixel_filter, filter(FilterKind::CatmullRom, 4.0));
     let (rt, warnings) = load(&rib_scene("PixelFilter \"box\" -1 1"));
     assert_eq!(warnings.len(), 1, "{warnings:?}");
+    assert!(rt.options.pixel_filter.is_unit_box());
+    // A huge width would take memory per tile in proportion to the image.
+    let (rt, warnings) = load(&rib_scene("PixelFilter \"gaussian\" 1e9 2"));
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    assert!(warnings[0].contains("at most 16 pixels"), "{warnings:?}");
     assert!(rt.options.pixel_filter.is_unit_box());
 }

@@ -86,14 +86,23 @@ impl Default for PixelFilter {
 }
 
 impl PixelFilter {
-    /// A filter of `kind`, `xwidth` by `ywidth` pixels; an error unless both widths are finite and
-    /// positive.
+    /// A filter of `kind`, `xwidth` by `ywidth` pixels; an error unless both widths are positive
+    /// and at most [`PixelFilter::MAX_WIDTH`].
     pub fn new(kind: FilterKind, xwidth: f32, ywidth: f32) -> Result<PixelFilter, String> {
-        if !(xwidth.is_finite() && ywidth.is_finite() && xwidth > 0.0 && ywidth > 0.0) {
-            return Err(format!("filter widths {xwidth} {ywidth} are not both finite and positive"));
+        let valid = |w: f32| w > 0.0 && w <= Self::MAX_WIDTH;
+        if !(valid(xwidth) && valid(ywidth)) {
+            return Err(format!(
+                "filter widths {xwidth} {ywidth} are not both positive and at most {} pixels",
+                Self::MAX_WIDTH
+            ));
         }
         Ok(PixelFilter { kind, xwidth, ywidth })
     }
+
+    /// The widest support accepted, in pixels. Each tile splats into its own buffer grown by the
+    /// filter's reach, so a huge width would take memory in proportion to the tile count times the
+    /// image; RenderMan's filters are a few pixels wide.
+    pub const MAX_WIDTH: f32 = 16.0;
 
     /// The filter named `name` (RIB's names, see [`FilterKind::name`]), `xwidth` by `ywidth`.
     pub fn named(name: &str, xwidth: f32, ywidth: f32) -> Result<PixelFilter, String> {
@@ -250,10 +259,11 @@ mod tests {
 
     #[test]
     fn widths_must_be_finite_and_positive() {
-        for (x, y) in [(0.0, 1.0), (1.0, -2.0), (f32::NAN, 1.0), (1.0, f32::INFINITY)] {
+        for (x, y) in [(0.0, 1.0), (1.0, -2.0), (f32::NAN, 1.0), (1.0, f32::INFINITY), (1e6, 2.0)] {
             assert!(PixelFilter::new(FilterKind::Box, x, y).is_err(), "{x} {y}");
         }
         assert!(PixelFilter::new(FilterKind::Box, 0.5, 3.0).is_ok());
+        assert!(PixelFilter::new(FilterKind::Gaussian, PixelFilter::MAX_WIDTH, 1.0).is_ok());
     }
 
     #[test]

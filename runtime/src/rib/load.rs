@@ -474,7 +474,7 @@ impl<'a> Loader<'a> {
     }
 
     /// `PixelFilter`: an unknown name is warned about and falls back to the default filter; widths
-    /// that are not finite and positive are warned about and leave the filter as it was.
+    /// that are not positive and at most 16 pixels are warned about and leave the filter as it was.
     fn pixel_filter(&mut self, r: &Request, name: &str, xwidth: f32, ywidth: f32) {
         use crate::render::{FilterKind, PixelFilter};
         let Some(kind) = FilterKind::parse(name) else {
