@@ -140,7 +140,8 @@ impl PixelFilter {
         match self.kind {
             FilterKind::Box => 1.0,
             FilterKind::Triangle => (1.0 - dx.abs() / rx) * (1.0 - dy.abs() / ry),
-            FilterKind::CatmullRom => catmull_rom_radial((dx * dx + dy * dy).sqrt()),
+            // RISpec's radial Catmull-Rom is twice the one-dimensional cubic of the distance.
+            FilterKind::CatmullRom => 2.0 * catmull_rom((dx * dx + dy * dy).sqrt()),
             FilterKind::Gaussian => {
                 let (x, y) = (dx * 2.0 / w, dy * 2.0 / h);
                 (-2.0 * (x * x + y * y)).exp()
@@ -158,18 +159,6 @@ impl PixelFilter {
                 }
             }
         }
-    }
-}
-
-/// RISpec's radial Catmull-Rom, `r` in pixels (twice the separable kernel: its scale cancels).
-fn catmull_rom_radial(r: f32) -> f32 {
-    let r2 = r * r;
-    if r >= 2.0 {
-        0.0
-    } else if r < 1.0 {
-        3.0 * r * r2 - 5.0 * r2 + 2.0
-    } else {
-        -r * r2 + 5.0 * r2 - 8.0 * r + 4.0
     }
 }
 
