@@ -518,7 +518,7 @@ proptest! {
         Just("Torus".to_string()), Just("Basis".to_string()), Just("\"bicubic\"".to_string()),
         Just("\"b-spline\"".to_string()), Just("PointsPolygons".to_string()), Just("LightSource".to_string()),
         Just("ReadArchive".to_string()), Just("\"scene.rib\"".to_string()), Just("Declare".to_string()),
-        (-3i32..8).prop_map(|n| n.to_string()), (-1e3f32..1e3).prop_map(|x| x.to_string()),
+        (-3i32..8).prop_map(|n| n.to_string()), (-1_000_000i32..1_000_000).prop_map(|k| (k as f32 / 1e3).to_string()),
         Just("1e38".to_string()), Just("-0".to_string()), Just("NaN".to_string()),
     ], 0..60)) {
         parse_and_mesh(tokens.join(" ").as_bytes());
