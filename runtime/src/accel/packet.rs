@@ -11,9 +11,14 @@
 //!    only those chunks are tested against the leaf's triangles.
 //! 3. **Ordering.** Children are visited in the order of the entry distance of the first hitting
 //!    lane.
-//! 4. **Fallback to single rays.** Packets whose direction signs differ (incoherent, e.g. after an
-//!    instance's rotation), packets with few active lanes, and occlusion packets whose unfinished
-//!    lanes drop to [`SINGLE_RAY_THRESHOLD`] continue with [`super::single`] traversal per lane.
+//! 4. **Octant split.** A packet whose direction signs differ between lanes (shadow rays toward a
+//!    light among the hits, reflections off a curved mirror) is split by the octant of its lanes'
+//!    directions; each octant with more than [`SINGLE_RAY_THRESHOLD`] lanes is traced as its own
+//!    packet (the other lanes are inactive in it), so interval culling stays valid.
+//! 5. **Fallback to single rays.** Octants with few lanes, packets with few active lanes, lanes
+//!    that become incoherent in an instance's space (a rotation), and occlusion packets whose
+//!    unfinished lanes drop to [`SINGLE_RAY_THRESHOLD`] continue with [`super::single`] traversal
+//!    per lane.
 //!
 //! Invariants:
 //! - Lanes outside `active` are never reported: they are given the ray of an active lane with an
@@ -125,8 +130,8 @@ impl Geom {
         true
     }
 
-    /// The world-space geometry of a packet; lanes outside `active` copy lane `fill`.
-    fn world(p: &RayPacket, fill: usize) -> Self {
+    /// The world-space geometry of a packet's lanes `active`; the other lanes copy lane `fill`.
+    fn world(p: &RayPacket, active: u64, fill: usize) -> Self {
         // Built in place rather than zeroed and then overwritten: this runs once per packet.
         #[inline(always)]
         fn rows(arr: &[f32; PACKET_SIZE], active: u64, fill: usize) -> Chunks {
@@ -141,7 +146,7 @@ impl Geom {
             }
             out
         }
-        let rows = |arr: &[f32; PACKET_SIZE]| rows(arr, p.active, fill);
+        let rows = |arr: &[f32; PACKET_SIZE]| rows(arr, active, fill);
         Geom {
             o: [rows(&p.ox.0), rows(&p.oy.0), rows(&p.oz.0)],
             d: [rows(&p.dx.0), rows(&p.dy.0), rows(&p.dz.0)],
@@ -181,7 +186,8 @@ impl Geom {
 }
 
 impl State {
-    fn new(p: &RayPacket) -> Self {
+    /// The state of the packet's lanes `active`; the others get an empty interval.
+    fn new(p: &RayPacket, active: u64) -> Self {
         let mut tmin = [Vec4::ZERO; CHUNKS];
         let mut tmax = [Vec4::ZERO; CHUNKS];
         for c in 0..CHUNKS {
@@ -189,7 +195,7 @@ impl State {
             let mut hi = [0.0f32; 4];
             for j in 0..4 {
                 let i = 4 * c + j;
-                if p.active >> i & 1 != 0 {
+                if active >> i & 1 != 0 {
                     lo[j] = p.tmin.0[i];
                     hi[j] = p.tmax.0[i];
                 } else {
@@ -209,7 +215,7 @@ impl State {
             v: [Vec4::ZERO; CHUNKS],
             instance: [INVALID_ID; PACKET_SIZE],
             primitive: [INVALID_ID; PACKET_SIZE],
-            active: p.active,
+            active,
             done: 0,
             bail: false,
         };
@@ -565,6 +571,22 @@ fn mask_range(mask: u16) -> (usize, usize) {
     (mask.trailing_zeros() as usize, 15 - mask.leading_zeros() as usize)
 }
 
+/// The lanes of `active` grouped by the octant of their direction (bit `a` set: negative along
+/// axis `a`), with the sign test `finish` uses (`-0.0` counts as negative, as its inverse does).
+fn octants(p: &RayPacket, active: u64) -> [u64; 8] {
+    let mut by_octant = [0u64; 8];
+    let mut m = active;
+    while m != 0 {
+        let i = m.trailing_zeros() as usize;
+        m &= m - 1;
+        let octant = p.dx.0[i].is_sign_negative() as usize
+            | (p.dy.0[i].is_sign_negative() as usize) << 1
+            | (p.dz.0[i].is_sign_negative() as usize) << 2;
+        by_octant[octant] |= 1 << i;
+    }
+    by_octant
+}
+
 /// Lanes of chunks in `mask` that are active and not done.
 fn lanes_of(mask: u16, s: &State) -> u64 {
     let mut lanes = 0u64;
@@ -603,7 +625,20 @@ pub(crate) fn intersect_packet(
     out: &mut HitPacket,
     filter: HitFilter,
 ) {
-    let active = p.active;
+    intersect_lanes(top, objects, p, p.active, out, filter, true);
+}
+
+/// Closest hits of the packet's lanes `active`; an incoherent packet is split by octant when
+/// `split` is set.
+fn intersect_lanes(
+    top: &TopLevel,
+    objects: &[Object],
+    p: &RayPacket,
+    active: u64,
+    out: &mut HitPacket,
+    filter: HitFilter,
+    split: bool,
+) {
     if active == 0 {
         return;
     }
@@ -620,12 +655,18 @@ pub(crate) fn intersect_packet(
         return single_all(out);
     }
     let fill = active.trailing_zeros() as usize;
-    let mut g = Geom::world(p, fill);
+    let mut g = Geom::world(p, active, fill);
     let (lo, hi) = chunk_range(active);
     if !g.finish(lo, hi) {
-        return single_all(out);
+        if !split {
+            return single_all(out);
+        }
+        for lanes in octants(p, active) {
+            intersect_lanes(top, objects, p, lanes, out, filter, false);
+        }
+        return;
     }
-    let mut s = State::new(p);
+    let mut s = State::new(p, active);
     // The packet's chunks `mask` against instance `inst_id`.
     let visit = |inst_id: u32, mask: u16, s: &mut State| {
         let inst: &InstanceData = &top.instances[inst_id as usize];
@@ -699,7 +740,19 @@ fn write_lane(out: &mut HitPacket, i: usize, t: f32, u: f32, v: f32, inst: u32, 
 
 /// Occlusion of a packet: returns the mask of active lanes that hit something.
 pub(crate) fn occluded_packet(top: &TopLevel, objects: &[Object], p: &RayPacket, filter: HitFilter) -> u64 {
-    let active = p.active;
+    occluded_lanes(top, objects, p, p.active, filter, true)
+}
+
+/// Occlusion of the packet's lanes `active`; an incoherent packet is split by octant when `split`
+/// is set.
+fn occluded_lanes(
+    top: &TopLevel,
+    objects: &[Object],
+    p: &RayPacket,
+    active: u64,
+    filter: HitFilter,
+    split: bool,
+) -> u64 {
     if active == 0 {
         return 0;
     }
@@ -719,12 +772,18 @@ pub(crate) fn occluded_packet(top: &TopLevel, objects: &[Object], p: &RayPacket,
         return single_lanes(active);
     }
     let fill = active.trailing_zeros() as usize;
-    let mut g = Geom::world(p, fill);
+    let mut g = Geom::world(p, active, fill);
     let (lo, hi) = chunk_range(active);
     if !g.finish(lo, hi) {
-        return single_lanes(active);
+        if !split {
+            return single_lanes(active);
+        }
+        return octants(p, active)
+            .into_iter()
+            .map(|lanes| occluded_lanes(top, objects, p, lanes, filter, false))
+            .fold(0, |a, b| a | b);
     }
-    let mut s = State::new(p);
+    let mut s = State::new(p, active);
     // The packet's chunks `mask` against instance `inst_id`: `true` ends the traversal (every lane
     // occluded, or few enough left to finish one by one).
     let visit = |inst_id: u32, mask: u16, s: &mut State| -> bool {
