@@ -76,7 +76,9 @@ unsafe extern "C" fn fixed_matrix(_: *mut c_void, _: StrRef, _: StrRef, out: *mu
 unsafe extern "C" fn fixed_lights(
     _: *mut c_void,
     _: StrRef,
+    _: u32,
     mask: *const i32,
+    _: *const f32,
     _: *const f32,
     out: *mut HostLight,
     counts: *mut u32,
@@ -217,9 +219,20 @@ fn lights_of_chunk(table: &HostTable, p: &[f32; 12]) -> ([HostLight; 8], [u32; 4
     let mut out = [HostLight::default(); jit::MAX_LIGHTS * 4];
     let mut counts = [0u32; 4];
     let mask = [-1i32; 4];
+    let mut every = [0.0f32; 4 * jit::CONE_ROWS];
+    every[12..].fill(jit::EVERY_LIGHT);
     // SAFETY: the sizes the table's contract gives.
     unsafe {
-        (table.lights)(table.ctx, StrRef::new(""), mask.as_ptr(), p.as_ptr(), out.as_mut_ptr(), counts.as_mut_ptr())
+        (table.lights)(
+            table.ctx,
+            StrRef::new(""),
+            u32::MAX,
+            mask.as_ptr(),
+            p.as_ptr(),
+            every.as_ptr(),
+            out.as_mut_ptr(),
+            counts.as_mut_ptr(),
+        )
     };
     let mut first = [HostLight::default(); 8];
     first.copy_from_slice(&out[..8]);

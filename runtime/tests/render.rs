@@ -742,3 +742,60 @@ fn the_screen_window_chooses_what_the_camera_sees() -> Result<(), ApiError> {
     assert!((screen_y(there) - screen_y(here)).abs() < 0.02, "{there:?} vs {here:?}");
     Ok(())
 }
+
+/// A surface lit from both sides: `diffuse()` of the side facing the eye first, then the lights of
+/// the far side through an illuminance loop.
+const BACKLIT: &str = r#"
+surface backlit() {
+    normal Nf = faceforward(normalize(N), I);
+    color front = diffuse(Nf);
+    color back = 0;
+    illuminance(P, -Nf, PI / 2) {
+        back += Cl;
+    }
+    Ci = front + back;
+    Oi = 1;
+}"#;
+
+/// A wall facing the eye, a point light behind it and a card between the two that hides the light
+/// from the wall's middle; the wall shaded with `surface`. Returns the frame and its shadow rays.
+fn wall_lit_from_behind(surface: &str, src: &str) -> Result<(Framebuffer, u64), ApiError> {
+    let mut rt = context();
+    let surface = rt.compile_shader(surface, src)?;
+    let light = rt.find_shader("pointlight")?;
+    rt.camera_look_at(Vec3A::new(0.0, 0.0, 5.0), Vec3A::ZERO, Vec3A::Y, 60.0);
+    rt.light_source(light, &[("intensity", ParamValue::Float(20.0)), ("from", ParamValue::Point([0.0, 0.0, -3.0]))])?;
+    let wall = rt.begin_object()?;
+    rt.bind_shader(surface)?;
+    quad(&mut rt, [[-3.0, -3.0, 0.0], [3.0, -3.0, 0.0], [3.0, 3.0, 0.0], [-3.0, 3.0, 0.0]])?;
+    rt.end_object()?;
+    rt.instantiate_object(wall)?;
+    let card = rt.begin_object()?;
+    quad(&mut rt, [[-0.5, -0.5, -1.5], [0.5, -0.5, -1.5], [0.5, 0.5, -1.5], [-0.5, 0.5, -1.5]])?;
+    rt.end_object()?;
+    rt.instantiate_object(card)?;
+    let (fb, report) = rt.render_frame()?;
+    Ok((fb, report.shadow_rays))
+}
+
+#[test]
+fn shadows_of_lights_behind_a_surface_are_traced_only_when_a_shader_asks_for_them() -> Result<(), ApiError> {
+    // `plastic` sums the lights in front of the wall only: the light behind it needs no shadow ray.
+    let (plain, rays) = wall_lit_from_behind(
+        "plasticwall.sl",
+        &std::fs::read_to_string("../stdlib_shaders/surface/plastic.sl").expect("plastic"),
+    )?;
+    assert_eq!(rays, 0, "no shadow ray toward a light behind every point");
+    assert_eq!(plain.pixel(W / 2, H / 2)[..3], [0.0; 3]);
+    // A shader asking for the far side after `diffuse()` gets those lights shadowed all the same:
+    // dark where the card hides the light, lit around it.
+    let (backlit, rays) = wall_lit_from_behind("backlit.sl", BACKLIT)?;
+    assert!(rays > 0);
+    assert!(luminance(&backlit, W / 2, H / 2) < 1e-6, "the card's shadow: {:?}", backlit.pixel(W / 2, H / 2));
+    assert!(
+        luminance(&backlit, W / 2 + W / 4, H / 2) > 0.05,
+        "lit beside it: {:?}",
+        backlit.pixel(W / 2 + W / 4, H / 2)
+    );
+    Ok(())
+}

@@ -13,7 +13,9 @@ use crate::ray::Ray;
 use crate::shading::ShaderInstance;
 use crate::texture::{Footprint, Grid, LookupOptions, MipMap};
 use glam::{Affine3A, Mat4, Vec3A};
-use rtsl_compiler::back::jit::{shadow_query_of, HostLight, HostTable, MessageOut, StrRef, MAX_LIGHTS, SHADOW_ROWS};
+use rtsl_compiler::back::jit::{
+    shadow_query_of, HostLight, HostTable, MessageOut, StrRef, CONE_ROWS, LIGHTS_PARTIAL, MAX_LIGHTS, SHADOW_ROWS,
+};
 use rtsl_compiler::builtins::Builtin;
 use rtsl_compiler::shadeops::gather::GatherHit;
 use std::ffi::c_void;
@@ -34,6 +36,9 @@ pub(crate) struct ShadeCall<'f, 'w> {
     pub(super) batch_mask: Vec<i32>,
     /// Each lane's ray time (rays the shader spawns keep it).
     pub(super) batch_times: Vec<f32>,
+    /// Each lane's normal faced toward the eye (empty when unknown): the lights in front of it get
+    /// their shadows traced with the batch's, the others when a query asks for them.
+    pub(super) batch_front: Vec<Vec3A>,
     batch_lights: Option<BatchLights>,
     chunk_cursor: usize,
     /// Where the next chunk search starts.
@@ -72,6 +77,7 @@ impl<'f, 'w> ShadeCall<'f, 'w> {
             batch_points: Vec::new(),
             batch_mask: Vec::new(),
             batch_times: Vec::new(),
+            batch_front: Vec::new(),
             batch_lights: None,
             chunk_cursor: 0,
             chunk_next: 0,
@@ -215,23 +221,27 @@ unsafe extern "C" fn host_matrix(ctx: *mut c_void, from: StrRef, to: StrRef, out
 unsafe extern "C" fn host_lights(
     ctx: *mut c_void,
     category: StrRef,
+    chunk: u32,
     mask: *const i32,
     p: *const f32,
+    cone: *const f32,
     out: *mut HostLight,
     counts: *mut u32,
 ) {
-    // SAFETY: the table's contract: 4 mask entries, 12 floats of P, MAX_LIGHTS * 4 lights, 4 counts.
-    let (c, category, mask, p, out, counts) = unsafe {
+    // SAFETY: the table's contract: 4 mask entries, 12 floats of P, CONE_ROWS x 4 floats of cone,
+    // MAX_LIGHTS * 4 lights, 4 counts.
+    let (c, category, mask, p, cone, out, counts) = unsafe {
         (
             call(ctx),
             category.as_str(),
             &*(mask as *const [i32; 4]),
             slice(p, 12),
+            slice(cone, 4 * CONE_ROWS),
             std::slice::from_raw_parts_mut(out, MAX_LIGHTS * 4),
             &mut *(counts as *mut [u32; 4]),
         )
     };
-    if category.is_empty() && !c.batch_points.is_empty() && serve_from_batch(c, mask, p, out, counts) {
+    if category.is_empty() && !c.batch_points.is_empty() && serve_from_batch(c, chunk, mask, p, cone, out, counts) {
         return;
     }
     let pbits: [u32; 12] = std::array::from_fn(|i| p[i].to_bits());
@@ -265,21 +275,13 @@ unsafe extern "C" fn host_lights(
 /// Finds the chunk of the surface batch whose points are `p` (bit for bit, in the lanes of `mask`)
 /// and makes it the current chunk; false (the current chunk unchanged) when none is.
 fn locate_chunk(c: &mut ShadeCall, mask: &[i32; 4], p: &[f32]) -> bool {
-    let n = c.batch_points.len();
-    let chunks = n.div_ceil(4);
-    let matches = |chunk: usize| {
-        (0..4).all(|l| {
-            let lane = 4 * chunk + l;
-            mask[l] == 0
-                || (lane < n && c.batch_mask[lane] != 0 && {
-                    let q = c.batch_points[lane];
-                    q.x.to_bits() == p[l].to_bits()
-                        && q.y.to_bits() == p[4 + l].to_bits()
-                        && q.z.to_bits() == p[8 + l].to_bits()
-                })
-        })
-    };
-    // The shader asks chunk after chunk: the search starts after the last chunk found.
+    let chunks = c.batch_points.len().div_ceil(4);
+    let matches = |chunk: usize| chunk_matches(c, chunk, mask, p);
+    // The shader asks chunk after chunk, several times per chunk (`ambient()`, then `diffuse()`):
+    // the search starts at the last chunk found, then goes on after it.
+    if c.chunk_cursor < chunks && matches(c.chunk_cursor) {
+        return true;
+    }
     match (0..chunks).map(|k| (c.chunk_next + k) % chunks).find(|&k| matches(k)) {
         Some(chunk) => {
             c.chunk_cursor = chunk;
@@ -290,24 +292,65 @@ fn locate_chunk(c: &mut ShadeCall, mask: &[i32; 4], p: &[f32]) -> bool {
     }
 }
 
+/// Whether the active lanes of chunk `chunk` of the batch are at the points `p` (bit for bit).
+fn chunk_matches(c: &ShadeCall, chunk: usize, mask: &[i32; 4], p: &[f32]) -> bool {
+    let n = c.batch_points.len();
+    (0..4).all(|l| {
+        let lane = 4 * chunk + l;
+        mask[l] == 0
+            || (lane < n && c.batch_mask[lane] != 0 && {
+                let q = c.batch_points[lane];
+                q.x.to_bits() == p[l].to_bits()
+                    && q.y.to_bits() == p[4 + l].to_bits()
+                    && q.z.to_bits() == p[8 + l].to_bits()
+            })
+    })
+}
+
 /// Answers a chunk's light query from the batch's lights when the chunk's points are the batch's
 /// (bit for bit: a shader that moved `P` gets its lights computed afresh).
+#[allow(clippy::too_many_arguments)]
 fn serve_from_batch(
     c: &mut ShadeCall,
+    chunk: u32,
     mask: &[i32; 4],
     p: &[f32],
+    cone: &[f32],
     out: &mut [HostLight],
     counts: &mut [u32; 4],
 ) -> bool {
-    if !locate_chunk(c, mask, p) {
+    let found = match chunk as usize {
+        k if k < c.batch_points.len().div_ceil(4) => {
+            chunk_matches(c, k, mask, p) && {
+                c.chunk_cursor = k;
+                true
+            }
+        }
+        _ => locate_chunk(c, mask, p),
+    };
+    if !found {
         return false;
     }
     let chunk = c.chunk_cursor;
     if c.batch_lights.is_none() {
-        c.batch_lights =
-            Some(BatchLights::compute(c.frame, c.material, &c.batch_points, &c.batch_mask, &c.batch_times, c.depth));
+        let front = (c.batch_front.len() == c.batch_points.len()).then_some(&c.batch_front[..]);
+        c.batch_lights = Some(BatchLights::compute(
+            c.frame,
+            c.material,
+            &c.batch_points,
+            &c.batch_mask,
+            &c.batch_times,
+            front,
+            c.depth,
+        ));
     }
-    let Some(table) = &c.batch_lights else { return false };
+    let Some(table) = &mut c.batch_lights else { return false };
+    if (0..4).any(|l| mask[l] != 0 && table.is_pending(4 * chunk + l)) {
+        let queries = (0..4)
+            .filter(|&l| mask[l] != 0)
+            .map(|l| (4 * chunk + l, [cone[l], cone[4 + l], cone[8 + l]], cone[12 + l]));
+        table.resolve(c.frame, &c.batch_points, &c.batch_times, queries);
+    }
     for l in 0..4 {
         counts[l] = 0;
         let lane = 4 * chunk + l;
@@ -317,6 +360,9 @@ fn serve_from_batch(
         counts[l] = table.counts[lane];
         for k in 0..table.counts[lane] as usize {
             out[4 * k + l] = table.lights[k * table.n + lane];
+        }
+        if table.is_pending(lane) {
+            counts[l] |= LIGHTS_PARTIAL;
         }
     }
     true

@@ -10,7 +10,7 @@ use super::world::{LightSource, DEFAULT_MATERIAL};
 use crate::ray::{HitCandidate, HitPacket, Ray, RayPacket, PACKET_SIZE};
 use crate::shading::{fill1, fill3, get_row, put3, put_row, with_batch, LightKind};
 use glam::Vec3A;
-use rtsl_compiler::back::jit::{HostLight, MAX_LIGHTS};
+use rtsl_compiler::back::jit::{light_in_cone, HostLight, MAX_LIGHTS};
 use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Runs one light's shader for the active lanes of a chunk and appends what reaches each lane, with
@@ -27,18 +27,31 @@ pub(super) fn eval_light(
     out: &mut [HostLight],
     counts: &mut [u32; 4],
 ) {
-    eval_light_lanes(frame, light, material, mask, points, times, depth, |l, h| {
-        if (counts[l] as usize) < MAX_LIGHTS {
-            out[4 * counts[l] as usize + l] = h;
-            counts[l] += 1;
-        }
-    });
+    eval_light_lanes(
+        frame,
+        light,
+        material,
+        mask,
+        points,
+        times,
+        depth,
+        |_, _| true,
+        |l, h, _| {
+            if (counts[l] as usize) < MAX_LIGHTS {
+                out[4 * counts[l] as usize + l] = h;
+                counts[l] += 1;
+            }
+        },
+    );
 }
 
 /// Runs one light's shader over `points` (up to a packet of lanes, `mask` nonzero where a point
 /// asks; shadow rays at the lanes' `times`) and hands each lane's light to `sink`, its colour
 /// attenuated by the shadow rays traced as one packet (`transmission_packet`). Area lights give one
 /// light per sample. `material` is the lit surface's (for `surface()` messages).
+/// `traced(lane, L)` says whether lane's shadow ray toward a light in direction `L` is traced now;
+/// where it is not, `sink` gets the light unshadowed and `true` (its shadow is pending: see
+/// [`BatchLights::resolve`]).
 #[allow(clippy::too_many_arguments)]
 fn eval_light_lanes(
     frame: &Frame,
@@ -48,7 +61,8 @@ fn eval_light_lanes(
     points: &[Vec3A],
     times: &[f32],
     depth: u32,
-    mut sink: impl FnMut(usize, HostLight),
+    traced: impl Fn(usize, Vec3A) -> bool,
+    mut sink: impl FnMut(usize, HostLight, bool),
 ) {
     let n = points.len().min(PACKET_SIZE);
     let instance = &light.shader;
@@ -132,6 +146,7 @@ fn eval_light_lanes(
         let lane3 = |first: usize, l: usize| Vec3A::new(rows[first][l], rows[first + 1][l], rows[first + 2][l]);
         // Shadows: which lanes need a ray, then one packet (or a walk per ray).
         let mut attenuation = [Vec3A::ONE; PACKET_SIZE];
+        let mut pending = 0u64;
         if !ambient && light.shadows {
             let mut packet = RayPacket::new();
             for l in 0..n {
@@ -139,10 +154,11 @@ fn eval_light_lanes(
                 if mask[l] == 0 || to_surface == Vec3A::ZERO || cl == Vec3A::ZERO || !cl.is_finite() {
                     continue;
                 }
-                let to_light = -to_surface;
-                let distance = if light.kind == LightKind::Distant { f32::INFINITY } else { to_light.length() };
-                if let Some(ray) = shadow_ray(points[l], to_light.normalize_or_zero(), distance) {
-                    packet.set(l, &ray.at_time(time_of(times, l)));
+                let Some(ray) = light_shadow_ray(light, points[l], -to_surface, time_of(times, l)) else { continue };
+                if traced(l, -to_surface) {
+                    packet.set(l, &ray);
+                } else {
+                    pending |= 1 << l;
                 }
             }
             transmission_packet(frame, &mut packet, &mut attenuation[..n]);
@@ -165,6 +181,7 @@ fn eval_light_lanes(
                     nonspecular: flags[1][l],
                     id,
                 },
+                pending >> l & 1 != 0,
             );
         }
     }
@@ -173,6 +190,13 @@ fn eval_light_lanes(
 /// Lane `l`'s time (0 where no times are given).
 fn time_of(times: &[f32], l: usize) -> f32 {
     times.get(l).copied().unwrap_or(0.0)
+}
+
+/// The shadow ray of `light` from the lit point `from` toward it along `to_light` (its `L`, reversed)
+/// at `time`: to the light's point, or unbounded for a distant light.
+fn light_shadow_ray(light: &LightSource, from: Vec3A, to_light: Vec3A, time: f32) -> Option<Ray> {
+    let distance = if light.kind == LightKind::Distant { f32::INFINITY } else { to_light.length() };
+    Some(shadow_ray(from, to_light.normalize_or_zero(), distance)?.at_time(time))
 }
 
 /// The shadow ray from `from` along unit `dir` for `distance`, kept off both ends; `None` when the
@@ -189,19 +213,29 @@ fn shadow_ray(from: Vec3A, dir: Vec3A, distance: f32) -> Option<Ray> {
 /// The lights of every point of a surface batch, computed once for the whole batch when the shader
 /// first asks (light shaders run over the batch, shadow rays go as packets): lane `l`'s light `k`
 /// at `lights[k * n + l]`.
+///
+/// Shadows are traced at once only for the lights in front of each point (see
+/// [`BatchLights::compute`]); the others are pending (bit `k` of `pending[l]`, their `cl`
+/// unshadowed) until a query whose cone takes them in resolves them.
 pub(super) struct BatchLights {
     pub(super) n: usize,
     pub(super) counts: Vec<u32>,
     pub(super) lights: Vec<HostLight>,
+    pending: Vec<u32>,
 }
 
 impl BatchLights {
+    /// Runs the lights over the batch's lanes. With `front`, lane `l`'s shadows are traced only
+    /// for the lights within 90 degrees of `front[l]` (the side a shader facing its normal
+    /// forward lights: `faceforward(N, I)`); without, for all.
+    #[allow(clippy::too_many_arguments)]
     pub(super) fn compute(
         frame: &Frame,
         material: Option<u32>,
         points: &[Vec3A],
         mask: &[i32],
         times: &[f32],
+        front: Option<&[Vec3A]>,
         depth: u32,
     ) -> BatchLights {
         let n = points.len();
@@ -209,18 +243,72 @@ impl BatchLights {
         let slots = slots.min(MAX_LIGHTS);
         let mut counts = vec![0u32; n];
         let mut lights = vec![HostLight::default(); slots * n];
+        let mut pending = vec![0u32; n];
+        // Only a guess (a query that needs more resolves it), so no normalisation or slack.
+        let traced = |l: usize, to_light: Vec3A| front.and_then(|f| f.get(l)).is_none_or(|f| to_light.dot(*f) >= 0.0);
         for light in &frame.world.lights {
             if light.in_category("") {
-                eval_light_lanes(frame, light, material, mask, points, times, depth, |l, h| {
+                eval_light_lanes(frame, light, material, mask, points, times, depth, traced, |l, h, later| {
                     let k = counts[l] as usize;
                     if k < slots {
                         lights[k * n + l] = h;
+                        pending[l] |= u32::from(later) << k;
                         counts[l] += 1;
                     }
                 });
             }
         }
-        BatchLights { n, counts, lights }
+        BatchLights { n, counts, lights, pending }
+    }
+
+    /// Whether some shadow of `lane`'s lights is still untraced.
+    pub(super) fn is_pending(&self, lane: usize) -> bool {
+        self.pending.get(lane).is_some_and(|&p| p != 0)
+    }
+
+    /// Traces the pending shadows that queries need: for each `(lane, axis, cos)`, those of the
+    /// lane's lights within the cone (`light_in_cone`), all together as packets.
+    pub(super) fn resolve(
+        &mut self,
+        frame: &Frame,
+        points: &[Vec3A],
+        times: &[f32],
+        queries: impl IntoIterator<Item = (usize, [f32; 3], f32)>,
+    ) {
+        let mut wanted: Vec<(usize, usize)> = Vec::new();
+        for (lane, axis, cos) in queries {
+            let Some(&pending) = self.pending.get(lane) else { continue };
+            if cos > 1.0 {
+                // `ambient()`: no non-ambient light counts.
+                continue;
+            }
+            let mut m = pending;
+            while m != 0 {
+                let k = m.trailing_zeros() as usize;
+                m &= m - 1;
+                if light_in_cone(self.lights[k * self.n + lane].l, axis, cos) {
+                    wanted.push((k, lane));
+                    self.pending[lane] &= !(1 << k);
+                }
+            }
+        }
+        for group in wanted.chunks(PACKET_SIZE) {
+            let mut packet = RayPacket::new();
+            for (slot, &(k, lane)) in group.iter().enumerate() {
+                let h = &self.lights[k * self.n + lane];
+                let Some(light) = frame.world.lights.get(h.id as usize) else { continue };
+                let (Some(&from), time) = (points.get(lane), time_of(times, lane)) else { continue };
+                if let Some(ray) = light_shadow_ray(light, from, Vec3A::from(h.l), time) {
+                    packet.set(slot, &ray);
+                }
+            }
+            let mut attenuation = [Vec3A::ONE; PACKET_SIZE];
+            transmission_packet(frame, &mut packet, &mut attenuation[..group.len()]);
+            for (&(k, lane), a) in group.iter().zip(attenuation) {
+                let h = &mut self.lights[k * self.n + lane];
+                h.cl = (Vec3A::from(h.cl) * a).to_array();
+            }
+        }
     }
 }
 

@@ -634,7 +634,22 @@ fn batch_call<'f, 'w>(
     let mut call = ShadeCall::new(frame, shader, world_from_object, depth);
     call.material = Some(material);
     (call.batch_points, call.batch_mask, call.batch_times) = batch_lanes(group, geoms);
+    call.batch_front = batch_front(group, geoms);
     call
+}
+
+/// Each lane's shading normal turned toward the ray's origin (by the geometric normal, as
+/// `faceforward(N, I)`): the side whose lights a typical surface shader sums.
+fn batch_front(group: &[Pending], geoms: &[Option<HitGeometry>]) -> Vec<Vec3A> {
+    group
+        .iter()
+        .zip(geoms)
+        .map(|(p, g)| match g {
+            Some(g) if p.ray.direction.dot(g.ng) > 0.0 => -g.n,
+            Some(g) => g.n,
+            None => Vec3A::ZERO,
+        })
+        .collect()
 }
 
 /// Runs a displacement shader over a group of hits as bump mapping: the `N` it leaves (when
@@ -685,7 +700,15 @@ fn shade_native(
     out: &mut [Shaded],
 ) {
     let (points, mask, times) = batch_lanes(group, geoms);
-    let table = BatchLights::compute(frame, None, &points, &mask, &times, depth);
+    let front = batch_front(group, geoms);
+    let mut table = BatchLights::compute(frame, None, &points, &mask, &times, Some(&front), depth);
+    // The hand-written plastic sums the lights in front of its normal faced forward by itself.
+    let faced = |(k, g): (usize, &Option<HitGeometry>)| {
+        let g = g.as_ref()?;
+        let nf = if (g.p - group[k].ray.origin).dot(g.n) < 0.0 { g.n } else { -g.n };
+        Some((k, nf.to_array(), 0.0))
+    };
+    table.resolve(frame, &points, &times, geoms.iter().enumerate().filter_map(faced));
     let mut seen = Vec::new();
     for (k, g) in geoms.iter().enumerate() {
         let Some(g) = g else { continue };

@@ -72,6 +72,27 @@ pub struct HostLight {
 
 /// The most lights `HostTable::lights` reports per lane (more are dropped).
 pub const MAX_LIGHTS: usize = 32;
+/// Set in a lane's light count when some of its lights are left unshadowed (outside the query's
+/// cone): the answer serves that cone only.
+pub const LIGHTS_PARTIAL: u32 = 1 << 31;
+/// Rows of a light query's cone: the axis (3), then the cosine of its half-angle.
+pub const CONE_ROWS: usize = 4;
+/// A cone's cosine that asks for every light.
+pub const EVERY_LIGHT: f32 = -2.0;
+/// A cone's cosine that asks for no non-ambient light (`ambient()`).
+pub const NO_LIGHT: f32 = 2.0;
+
+/// Whether a light from direction `l` may count for a query with cone (`axis`, `cos`): the lights
+/// `diffuse()`, `specular()` and `illuminance` use must all pass. It errs toward `true` (a slack
+/// on the cosine; NaN passes), so a renderer that traces shadows only for these lights never
+/// leaves one the shader uses unshadowed.
+pub fn light_in_cone(l: [f32; 3], axis: [f32; 3], cos: f32) -> bool {
+    if cos <= -1.0 {
+        return true;
+    }
+    let d = dot(geom::normalize(l), geom::normalize(axis));
+    d.is_nan() || cos.is_nan() || d >= cos - 1e-3
+}
 /// The most floats a message value may hold.
 pub const MESSAGE_FLOATS: usize = 64;
 
@@ -98,11 +119,19 @@ pub struct HostTable {
     pub matrix: unsafe extern "C" fn(ctx: *mut c_void, from: StrRef, to: StrRef, out: *mut f32) -> u32,
     /// The lights of `category` reaching each active lane at `p` (3 x 4 floats): lane `l`'s light
     /// `k` at `out[4k + l]` (room for `MAX_LIGHTS` per lane), its count in `counts[l]`.
+    /// `cone` ([`CONE_ROWS`] rows: an axis, then a cosine) says which lights the caller will use:
+    /// lane `l` counts only the non-ambient lights whose `L` lies within `acos(cos)` of its axis
+    /// (see [`light_in_cone`]; a cosine of -1 or less: every light; above 1: none). The renderer
+    /// may leave the shadows of the others untraced, their `cl` unshadowed; it then sets
+    /// [`LIGHTS_PARTIAL`] in `counts[l]` (the answer holds for this cone only). `chunk` is the
+    /// batch's chunk asking ([`super::Batch::chunk`]; `u32::MAX` when unknown).
     pub lights: unsafe extern "C" fn(
         ctx: *mut c_void,
         category: StrRef,
+        chunk: u32,
         mask: *const i32,
         p: *const f32,
+        cone: *const f32,
         out: *mut HostLight,
         counts: *mut u32,
     ),
@@ -238,8 +267,10 @@ unsafe extern "C" fn sv_matrix(ctx: *mut c_void, from: StrRef, to: StrRef, out: 
 unsafe extern "C" fn sv_lights(
     ctx: *mut c_void,
     category: StrRef,
+    _chunk: u32,
     mask: *const i32,
     p: *const f32,
+    _cone: *const f32,
     out: *mut HostLight,
     counts: *mut u32,
 ) {
@@ -515,8 +546,9 @@ pub struct HostCtx {
     matrices: Vec<((u32, u32), Option<M4>)>,
 }
 
-/// What identifies a light query: category, the points' bits, the lanes asking.
-type LightQueryKey = (String, [u32; 12], [bool; 4]);
+/// What identifies a light query: category, the points' bits, the cone's bits (`None` when the
+/// answer was complete, so that it serves any cone), the lanes asking.
+type LightQueryKey = (String, [u32; 12], Option<[u32; 4 * CONE_ROWS]>, [bool; 4]);
 
 struct LightSet {
     lights: Vec<HostLight>,
@@ -540,6 +572,8 @@ impl HostCtx {
 /// The pieces of a batch a helper works with.
 struct Cx<'a> {
     table: Option<&'a HostTable>,
+    /// The chunk being shaded (`Batch::chunk`).
+    chunk: u32,
     strings: &'a mut StringTable,
     ctx: &'a mut HostCtx,
     mask: [bool; 4],
@@ -597,16 +631,22 @@ impl Cx<'_> {
     /// The lights reaching the chunk's active lanes at `p` (argument `k`).
     /// Asks the renderer for the lights of the chunk's points (input `k`): lane `l`'s `i`-th light
     /// is then `self.light(i, l)` for `i < counts[l]`.
-    fn lights(&mut self, category: &str, k: usize) -> [u32; 4] {
+    /// `cone` as `HostTable::lights` takes it.
+    fn lights(&mut self, category: &str, k: usize, cone: &[f32; 4 * CONE_ROWS]) -> [u32; 4] {
         let mut counts = [0u32; 4];
         let Some(t) = self.table else { return counts };
-        // `ambient()`, `diffuse()` and `specular()` of one chunk ask for the same lights: the renderer
-        // is asked once per (category, points, lanes).
+        // `diffuse()` and `specular()` of one chunk ask for the same lights: the renderer is asked
+        // once per (category, points, cone, lanes).
         let points: [u32; 12] = std::array::from_fn(|i| self.input[4 * k + i].to_bits());
-        if let Some(((cat, p, m), counts)) = &self.ctx.last_lights {
+        let cone_bits: [u32; 4 * CONE_ROWS] = cone.map(f32::to_bits);
+        if let Some(((cat, p, c, m), counts)) = &self.ctx.last_lights {
             // Points first (they differ from chunk to chunk), compared lane by lane: an array
             // comparison is a memcmp call.
-            if p.iter().zip(&points).all(|(a, b)| a == b) && *m == self.mask && cat == category {
+            if p.iter().zip(&points).all(|(a, b)| a == b)
+                && c.is_none_or(|c| c.iter().zip(&cone_bits).all(|(a, b)| a == b))
+                && *m == self.mask
+                && cat == category
+            {
                 return *counts;
             }
         }
@@ -619,25 +659,35 @@ impl Cx<'_> {
             (t.lights)(
                 t.ctx,
                 StrRef::new(category),
+                self.chunk,
                 mask.as_ptr(),
                 self.input[4 * k..].as_ptr(),
+                cone.as_ptr(),
                 out.as_mut_ptr(),
                 counts.as_mut_ptr(),
             )
         };
-        let counts = counts.map(|c| c.min(MAX_LIGHTS as u32));
+        let partial = counts.iter().any(|c| c & LIGHTS_PARTIAL != 0);
+        let counts = counts.map(|c| (c & !LIGHTS_PARTIAL).min(MAX_LIGHTS as u32));
+        let cone_bits = partial.then_some(cone_bits);
         // The key's string is kept from query to query: a chunk's first query must not allocate.
         match &mut self.ctx.last_lights {
-            Some(((cat, p, m), c)) => {
+            Some(((cat, p, cb, m), c)) => {
                 if cat != category {
                     cat.clear();
                     cat.push_str(category);
                 }
-                (*p, *m, *c) = (points, self.mask, counts);
+                (*p, *cb, *m, *c) = (points, cone_bits, self.mask, counts);
             }
-            None => self.ctx.last_lights = Some(((category.to_string(), points, self.mask), counts)),
+            None => self.ctx.last_lights = Some(((category.to_string(), points, cone_bits, self.mask), counts)),
         }
         counts
+    }
+
+    /// The cone of a query about the lights around each lane's normal (input `k`): what
+    /// `diffuse()`, `specular()` and `phong()` sum over.
+    fn hemisphere(&self, k: usize) -> [f32; 4 * CONE_ROWS] {
+        std::array::from_fn(|i| if i < 12 { self.input[4 * k + i] } else { 0.0 })
     }
 
     /// Lane `l`'s lights after [`Cx::lights`] counted `n` of them.
@@ -670,6 +720,7 @@ unsafe fn with(
         let table = ctx.table.as_ref();
         let mut cx = Cx {
             table,
+            chunk: b.chunk,
             strings: &mut *b.strings,
             ctx,
             mask: lanes_of(mask),
@@ -820,10 +871,16 @@ host_helpers! {
             cx.set3(0, l, r.unwrap_or(c));
         }
     }
-    // [category, P] -> [set, count]: the lights of an illuminance loop, kept in the context.
-    h_lights "rtsl_h_lights" 4 => 2 |cx| {
+    // [category, P, axis, angle, cone] -> [set, count]: the lights of an illuminance loop, kept in
+    // the context.
+    h_lights "rtsl_h_lights" 9 => 2 |cx| {
         let category = cx.s(0);
-        let counts = cx.lights(&category, 1);
+        let cone: [f32; 4 * CONE_ROWS] = std::array::from_fn(|i| match i {
+            0..12 => cx.input[16 + i],
+            _ if cx.f(8, i - 12) != 0.0 => cx.f(7, i - 12).cos(),
+            _ => EVERY_LIGHT,
+        });
+        let counts = cx.lights(&category, 1, &cone);
         let active: [bool; 4] = cx.mask;
         let n = |l: usize| if active[l] { counts[l] } else { 0 };
         let order: [Vec<usize>; 4] = std::array::from_fn(|l| {
@@ -865,7 +922,9 @@ host_helpers! {
     }
     // [P] -> the ambient lights' sum
     h_ambient "rtsl_h_ambient" 3 => 3 |cx| {
-        let counts = cx.lights("", 0);
+        let mut cone = [0.0; 4 * CONE_ROWS];
+        cone[12..].fill(NO_LIGHT);
+        let counts = cx.lights("", 0, &cone);
         for l in cx.active() {
             let sum = cx.lane_lights(l, counts[l]).filter(|x| x.ambient != 0).fold([0.0; 3], |acc, x| add(acc, x.cl));
             cx.set3(0, l, sum);
@@ -873,7 +932,7 @@ host_helpers! {
     }
     // [P, N] -> diffuse
     h_diffuse "rtsl_h_diffuse" 6 => 3 |cx| {
-        let counts = cx.lights("", 0);
+        let counts = cx.lights("", 0, &cx.hemisphere(3));
         for l in cx.active() {
             let n = geom::normalize(cx.v3(3, l));
             let sum = sum_lights(cx.lane_lights(l, counts[l]), n, |x, unit_l| {
@@ -884,7 +943,7 @@ host_helpers! {
     }
     // [P, N, V, roughness] -> specular
     h_specular "rtsl_h_specular" 10 => 3 |cx| {
-        let counts = cx.lights("", 0);
+        let counts = cx.lights("", 0, &cx.hemisphere(3));
         for l in cx.active() {
             let (n, view, rough) = (geom::normalize(cx.v3(3, l)), geom::normalize(cx.v3(6, l)), cx.f(9, l));
             let sum = sum_lights(cx.lane_lights(l, counts[l]), n, |x, unit_l| {
@@ -895,7 +954,7 @@ host_helpers! {
     }
     // [P, N, V, size] -> phong
     h_phong "rtsl_h_phong" 10 => 3 |cx| {
-        let counts = cx.lights("", 0);
+        let counts = cx.lights("", 0, &cx.hemisphere(3));
         for l in cx.active() {
             let (n, view, size) = (geom::normalize(cx.v3(3, l)), geom::normalize(cx.v3(6, l)), cx.f(9, l));
             let r = geom::reflect(view.map(|x| -x), n);

@@ -52,7 +52,7 @@ use super::host;
 use super::layout::{components, Layout};
 use super::mask::{self, and, any, choose, fconst, is_vec, konst, merge, not, or, to_mask, widen};
 use super::math;
-use super::{unsupported, JitError, OFF_BOUND, OFF_MASK, OFF_STRIDE, OFF_UNIFORM, OFF_VARYING};
+use super::{unsupported, JitError, OFF_BOUND, OFF_CHUNK, OFF_MASK, OFF_STRIDE, OFF_UNIFORM, OFF_VARYING};
 use crate::builtins::Builtin;
 use crate::globals::{Global, GLOBALS};
 use crate::ir::{
@@ -419,6 +419,8 @@ impl<'m> Lower<'m, '_> {
         let live = any(&mut self.b, chunk_mask);
         self.b.ins().brif(live, run, &[], next, &[]);
         self.b.switch_to_block(run);
+        let c32 = if self.ptr == types::I32 { c } else { self.b.ins().ireduce(types::I32, c) };
+        self.b.ins().store(mem(), c32, batch, OFF_CHUNK);
         self.chunk_base = Some(self.b.ins().iadd(varying_p, off));
         self.derivs_base = derivs_p.map(|p| self.b.ins().iadd(p, off));
         self.stride_bytes = Some(stride_bytes);
@@ -3098,7 +3100,9 @@ impl<'m> Lower<'m, '_> {
         let saved: Vec<(&str, Option<Val>)> =
             ["L", "Cl", "Ol"].into_iter().map(|n| (n, self.global_val(n).ok())).collect();
         let entry = self.exec();
-        let all = self.concat(&[cat, p]);
+        // The cone goes with the query too: the renderer need not trace the shadows of lights
+        // outside it.
+        let all = self.concat(&[cat, p, axis.clone(), angle.clone(), has.clone()]);
         let out = self.call_helper("rtsl_h_lights", &all.c, true)?;
         let set = self.b.ins().extractlane(out[0], 0);
         let count = self.b.ins().extractlane(out[1], 0);

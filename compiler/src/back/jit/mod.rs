@@ -28,7 +28,10 @@ mod lower;
 mod mask;
 mod math;
 
-pub use host::{shadow_query_of, HostLight, HostTable, MessageOut, ServicesHost, StrRef, MAX_LIGHTS, SHADOW_ROWS};
+pub use host::{
+    light_in_cone, shadow_query_of, HostLight, HostTable, MessageOut, ServicesHost, StrRef, CONE_ROWS, EVERY_LIGHT,
+    LIGHTS_PARTIAL, MAX_LIGHTS, NO_LIGHT, SHADOW_ROWS,
+};
 pub use layout::{GlobalSlot, Layout, ParamSlot};
 
 use crate::ir;
@@ -110,6 +113,9 @@ pub struct Batch {
     /// The renderer's call table and the helpers' scratch (opaque to generated code; may be null:
     /// then every renderer query answers "unknown").
     pub ctx: *mut host::HostCtx,
+    /// The chunk generated code is shading, written at the start of each (`u32::MAX` before the
+    /// first): helpers pass it on to the renderer, which keeps per-lane state for the batch.
+    pub chunk: u32,
 }
 
 /// The strings one batch can name, each once (so equal handles are equal strings and the reverse:
@@ -167,6 +173,19 @@ pub(crate) const OFF_VARYING: i32 = 16;
 pub(crate) const OFF_UNIFORM: i32 = 24;
 pub(crate) const OFF_BOUND: i32 = 32;
 pub(crate) const OFF_DERIVS: i32 = 48;
+pub(crate) const OFF_CHUNK: i32 = 64;
+
+// Generated code addresses the record's fields by these offsets.
+const _: () = {
+    use std::mem::offset_of;
+    assert!(offset_of!(Batch, stride) == OFF_STRIDE as usize);
+    assert!(offset_of!(Batch, mask) == OFF_MASK as usize);
+    assert!(offset_of!(Batch, varying) == OFF_VARYING as usize);
+    assert!(offset_of!(Batch, uniform) == OFF_UNIFORM as usize);
+    assert!(offset_of!(Batch, bound) == OFF_BOUND as usize);
+    assert!(offset_of!(Batch, derivs) == OFF_DERIVS as usize);
+    assert!(offset_of!(Batch, chunk) == OFF_CHUNK as usize);
+};
 
 /// The entry point of a compiled shader.
 pub type ShadeFn = unsafe extern "C" fn(*mut Batch);
@@ -331,6 +350,7 @@ impl CompiledShader {
             strings: &mut batch.strings,
             derivs: if batch.derivs.is_empty() { std::ptr::null() } else { batch.derivs.as_ptr() },
             ctx: &mut ctx,
+            chunk: u32::MAX,
         };
         // SAFETY: the buffers have the sizes the layout implies (BatchData::new), the layout is the
         // one the code was compiled for (checked above), and the code stays alive while `self` is
