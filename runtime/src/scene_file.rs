@@ -266,25 +266,10 @@ fn add_mesh_file_placed(
     let plastic = rt.find_shader("plastic")?;
     let material_shader = if materials.is_empty() || bound.is_some() { None } else { rt.find_shader("material").ok() };
     let plastic = bound.unwrap_or(plastic);
-    for model in &models {
-        let m = &model.mesh;
-        if m.indices.is_empty() {
-            continue;
-        }
-        let positions: Vec<Vec3> = m.positions.chunks_exact(3).map(|p| Vec3::new(p[0], p[1], p[2])).collect();
-        let triangles: Vec<[u32; 3]> = m.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
-        let mut mesh = Mesh::from_triangles(positions, triangles)
-            .map_err(|source| SceneFileError::BadMesh { path: path.to_path_buf(), source })?;
-        if m.normals.len() == m.positions.len() {
-            mesh.normals = Some(m.normals.chunks_exact(3).map(|n| Vec3::new(n[0], n[1], n[2])).collect());
-        }
-        if m.texcoords.len() / 2 == m.positions.len() / 3 {
-            // OBJ's v grows upwards; RenderMan's t grows downwards.
-            mesh.uvs = Some(m.texcoords.chunks_exact(2).map(|t| Vec2::new(t[0], 1.0 - t[1])).collect());
-        }
+    for (material_id, mesh) in obj_meshes_by_material(path, &models)? {
         grow(rt, &mesh);
         rt.push_attributes();
-        let material = m.material_id.and_then(|i| materials.get(i));
+        let material = material_id.and_then(|i| materials.get(i));
         // Cut-outs (leaves on quads): the alpha of `map_d`, else of `map_Kd` where it has any.
         if let Some(tex) = material.and_then(|mat| mat.dissolve_texture.as_ref().or(mat.diffuse_texture.as_ref())) {
             rt.alpha_mask(Some(&dir.join(tex.replace('\\', "/")).display().to_string()));
@@ -318,6 +303,56 @@ fn add_mesh_file_placed(
         rt.pop_attributes()?;
     }
     Ok(bounds)
+}
+
+/// The meshes of an OBJ file's models, those of one material merged into one mesh (in the order
+/// the materials first appear). An object per OBJ group would give the tracer a top-level BVH
+/// over overlapping objects, each entered on its own: the Dabrovic Sponza's 34 groups, one
+/// material, traced as one object take fewer instructions per frame. Groups whose meshes differ in
+/// having normals or texture coordinates stay apart, so no vertex gets made-up values.
+fn obj_meshes_by_material(path: &Path, models: &[tobj::Model]) -> Result<Vec<(Option<usize>, Mesh)>, SceneFileError> {
+    let mut merged: Vec<(Option<usize>, Mesh)> = Vec::new();
+    for model in models {
+        let m = &model.mesh;
+        if m.indices.is_empty() {
+            continue;
+        }
+        let positions: Vec<Vec3> = m.positions.chunks_exact(3).map(|p| Vec3::new(p[0], p[1], p[2])).collect();
+        let triangles: Vec<[u32; 3]> = m.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
+        let mut mesh = Mesh::from_triangles(positions, triangles)
+            .map_err(|source| SceneFileError::BadMesh { path: path.to_path_buf(), source })?;
+        if m.normals.len() == m.positions.len() {
+            mesh.normals = Some(m.normals.chunks_exact(3).map(|n| Vec3::new(n[0], n[1], n[2])).collect());
+        }
+        if m.texcoords.len() / 2 == m.positions.len() / 3 {
+            // OBJ's v grows upwards; RenderMan's t grows downwards.
+            mesh.uvs = Some(m.texcoords.chunks_exact(2).map(|t| Vec2::new(t[0], 1.0 - t[1])).collect());
+        }
+        let same = |(id, into): &(Option<usize>, Mesh)| {
+            *id == m.material_id
+                && into.normals.is_some() == mesh.normals.is_some()
+                && into.uvs.is_some() == mesh.uvs.is_some()
+        };
+        match merged.iter_mut().find(|entry| same(entry)) {
+            Some((_, into)) => append_mesh(into, mesh),
+            None => merged.push((m.material_id, mesh)),
+        }
+    }
+    Ok(merged)
+}
+
+/// Appends `mesh`'s vertices and triangles to `into` (both without further attributes, with normals
+/// and texture coordinates alike).
+fn append_mesh(into: &mut Mesh, mesh: Mesh) {
+    let base = into.positions.len() as u32;
+    into.positions.extend(mesh.positions);
+    into.triangles.extend(mesh.triangles.into_iter().map(|t| t.map(|i| i + base)));
+    if let (Some(a), Some(b)) = (into.normals.as_mut(), mesh.normals) {
+        a.extend(b);
+    }
+    if let (Some(a), Some(b)) = (into.uvs.as_mut(), mesh.uvs) {
+        a.extend(b);
+    }
 }
 
 /// Makes a glTF image the in-memory texture `name`: 8- and 16-bit colour channels are sRGB (a base

@@ -480,3 +480,41 @@ fn bad_cut_outs_windows_and_displacements_are_warnings_not_failures() {
     assert!(warnings.iter().any(|w| w.contains("test.rib:") && w.contains("plastic")), "{warnings:?}");
     assert!(render(&mut rt).rgba == plain.rgba);
 }
+
+#[test]
+fn obj_groups_of_one_material_become_one_object() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    std::fs::write(dir.path().join("two.mtl"), "newmtl red\nKd 1 0 0\nnewmtl blue\nKd 0 0 1\n").expect("write the mtl");
+    // Four squares side by side: two groups without a material, a red and a blue group, then a
+    // group with normals (which the groups without cannot share a mesh with) and a second red group.
+    let square = |x: f32, normals: bool| {
+        let v: String = [(0.0, 0.0), (0.5, 0.0), (0.5, 0.5), (0.0, 0.5)]
+            .iter()
+            .map(|(dx, dy)| format!("v {} {} 0\n", x + dx, dy))
+            .collect();
+        let f = if normals { "f -4//1 -3//1 -2//1 -1//1\n" } else { "f -4 -3 -2 -1\n" };
+        format!("{v}{f}")
+    };
+    let obj = format!(
+        "mtllib two.mtl\nvn 0 0 1\ng a\n{}g b\n{}g c\nusemtl red\n{}g d\nusemtl blue\n{}g e\nusemtl red\n{}g f\nusemtl none\n{}",
+        square(-2.0, false),
+        square(-1.4, false),
+        square(-0.8, false),
+        square(-0.2, false),
+        square(0.4, false),
+        square(1.0, true),
+    );
+    let path = dir.path().join("groups.obj");
+    std::fs::write(&path, obj).expect("write the obj");
+    let mut rt = Context::new();
+    add_model_file(&mut rt, &path).expect("loads");
+    let world = rt.build_world().expect("a world");
+    let meshes: Vec<_> = (0..world.instances.len())
+        .filter_map(|i| world.scene.mesh(rtsl_runtime::ObjectId(world.instances[i].object)))
+        .collect();
+    let mut triangles: Vec<(usize, bool)> = meshes.iter().map(|m| (m.triangle_count(), m.normals.is_some())).collect();
+    triangles.sort();
+    // No material (a, b; f names an unknown one): 4 triangles; red (c, e): 4; blue: 2; f alone:
+    // it has normals.
+    assert_eq!(triangles, [(2, false), (2, true), (4, false), (4, false)], "{triangles:?}");
+}
