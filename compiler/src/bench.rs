@@ -82,12 +82,14 @@ unsafe extern "C" fn fixed_lights(
     _: *const f32,
     out: *mut HostLight,
     counts: *mut u32,
+    pending: *mut u32,
 ) {
     for l in 0..4 {
         // SAFETY: 4 mask entries and counts, room for MAX_LIGHTS x 4 lights (the table's contract).
         unsafe {
             let active = *mask.add(l) != 0;
             *counts.add(l) = if active { 2 } else { 0 };
+            *pending.add(l) = 0;
             if active {
                 *out.add(l) = LIGHTS[0];
                 *out.add(4 + l) = LIGHTS[1];
@@ -232,6 +234,7 @@ fn lights_of_chunk(table: &HostTable, p: &[f32; 12]) -> ([HostLight; 8], [u32; 4
             every.as_ptr(),
             out.as_mut_ptr(),
             counts.as_mut_ptr(),
+            [0u32; 4].as_mut_ptr(),
         )
     };
     let mut first = [HostLight::default(); 8];

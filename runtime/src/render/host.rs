@@ -14,7 +14,7 @@ use crate::shading::ShaderInstance;
 use crate::texture::{Footprint, Grid, LookupOptions, MipMap};
 use glam::{Affine3A, Mat4, Vec3A};
 use rtsl_compiler::back::jit::{
-    shadow_query_of, HostLight, HostTable, MessageOut, StrRef, CONE_ROWS, LIGHTS_PARTIAL, MAX_LIGHTS, SHADOW_ROWS,
+    shadow_query_of, HostLight, HostTable, MessageOut, StrRef, CONE_ROWS, MAX_LIGHTS, SHADOW_ROWS,
 };
 use rtsl_compiler::builtins::Builtin;
 use rtsl_compiler::shadeops::gather::GatherHit;
@@ -227,10 +227,11 @@ unsafe extern "C" fn host_lights(
     cone: *const f32,
     out: *mut HostLight,
     counts: *mut u32,
+    pending: *mut u32,
 ) {
     // SAFETY: the table's contract: 4 mask entries, 12 floats of P, CONE_ROWS x 4 floats of cone,
-    // MAX_LIGHTS * 4 lights, 4 counts.
-    let (c, category, mask, p, cone, out, counts) = unsafe {
+    // MAX_LIGHTS * 4 lights, 4 counts, 4 pending masks.
+    let (c, category, mask, p, cone, out, counts, pending) = unsafe {
         (
             call(ctx),
             category.as_str(),
@@ -239,9 +240,14 @@ unsafe extern "C" fn host_lights(
             slice(cone, 4 * CONE_ROWS),
             std::slice::from_raw_parts_mut(out, MAX_LIGHTS * 4),
             &mut *(counts as *mut [u32; 4]),
+            &mut *(pending as *mut [u32; 4]),
         )
     };
-    if category.is_empty() && !c.batch_points.is_empty() && serve_from_batch(c, chunk, mask, p, cone, out, counts) {
+    *pending = [0; 4];
+    if category.is_empty()
+        && !c.batch_points.is_empty()
+        && serve_from_batch(c, chunk, mask, p, cone, out, (counts, pending))
+    {
         return;
     }
     let pbits: [u32; 12] = std::array::from_fn(|i| p[i].to_bits());
@@ -317,7 +323,7 @@ fn serve_from_batch(
     p: &[f32],
     cone: &[f32],
     out: &mut [HostLight],
-    counts: &mut [u32; 4],
+    (counts, pending): (&mut [u32; 4], &mut [u32; 4]),
 ) -> bool {
     let found = match chunk as usize {
         k if k < c.batch_points.len().div_ceil(4) => {
@@ -361,9 +367,7 @@ fn serve_from_batch(
         for k in 0..table.counts[lane] as usize {
             out[4 * k + l] = table.lights[k * table.n + lane];
         }
-        if table.is_pending(lane) {
-            counts[l] |= LIGHTS_PARTIAL;
-        }
+        pending[l] = table.pending_of(lane);
     }
     true
 }

@@ -263,7 +263,12 @@ impl BatchLights {
 
     /// Whether some shadow of `lane`'s lights is still untraced.
     pub(super) fn is_pending(&self, lane: usize) -> bool {
-        self.pending.get(lane).is_some_and(|&p| p != 0)
+        self.pending_of(lane) != 0
+    }
+
+    /// Which of `lane`'s lights (bit `k`: light `k`) still have their shadows untraced.
+    pub(super) fn pending_of(&self, lane: usize) -> u32 {
+        self.pending.get(lane).copied().unwrap_or(0)
     }
 
     /// Traces the pending shadows that queries need: for each `(lane, axis, cos)`, those of the

@@ -72,9 +72,6 @@ pub struct HostLight {
 
 /// The most lights `HostTable::lights` reports per lane (more are dropped).
 pub const MAX_LIGHTS: usize = 32;
-/// Set in a lane's light count when some of its lights are left unshadowed (outside the query's
-/// cone): the answer serves that cone only.
-pub const LIGHTS_PARTIAL: u32 = 1 << 31;
 /// Rows of a light query's cone: the axis (3), then the cosine of its half-angle.
 pub const CONE_ROWS: usize = 4;
 /// A cone's cosine that asks for every light.
@@ -122,9 +119,9 @@ pub struct HostTable {
     /// `cone` ([`CONE_ROWS`] rows: an axis, then a cosine) says which lights the caller will use:
     /// lane `l` counts only the non-ambient lights whose `L` lies within `acos(cos)` of its axis
     /// (see [`light_in_cone`]; a cosine of -1 or less: every light; above 1: none). The renderer
-    /// may leave the shadows of the others untraced, their `cl` unshadowed; it then sets
-    /// [`LIGHTS_PARTIAL`] in `counts[l]` (the answer holds for this cone only). `chunk` is the
-    /// batch's chunk asking ([`super::Batch::chunk`]; `u32::MAX` when unknown).
+    /// may leave the shadows of the others untraced, their `cl` unshadowed, and says which in
+    /// `pending[l]` (bit `k`: lane `l`'s light `k`). `chunk` is the batch's chunk asking
+    /// ([`super::Batch::chunk`]; `u32::MAX` when unknown).
     pub lights: unsafe extern "C" fn(
         ctx: *mut c_void,
         category: StrRef,
@@ -134,6 +131,7 @@ pub struct HostTable {
         cone: *const f32,
         out: *mut HostLight,
         counts: *mut u32,
+        pending: *mut u32,
     ),
     /// Texture lookups: `kind` 0 `texture` (`coords` seven rows of 4 lanes: s, t, then the filter
     /// footprint ds/dx, dt/dx, ds/dy, dt/dy (scaled by the lookup's width options) and blur, as
@@ -273,9 +271,12 @@ unsafe extern "C" fn sv_lights(
     _cone: *const f32,
     out: *mut HostLight,
     counts: *mut u32,
+    pending: *mut u32,
 ) {
     // SAFETY: the table's contract.
     let (h, category) = unsafe { (sv(ctx), category.as_str()) };
+    // SAFETY: `pending` holds 4 entries. The services answer every light shadowed.
+    unsafe { std::ptr::write_bytes(pending, 0, 4) };
     for (l, on) in lanes_of(mask).into_iter().enumerate() {
         if !on {
             continue;
@@ -540,15 +541,17 @@ pub struct HostCtx {
     light_buffer: Vec<HostLight>,
     /// The last light query (category, points' bits, lanes) and its counts, answered from
     /// `light_buffer`.
-    last_lights: Option<(LightQueryKey, [u32; 4])>,
+    last_lights: Option<(LightQueryKey, LightAnswer)>,
     /// The space matrices asked so far, by (from, to) string handle: each pair is asked of the
     /// renderer once per batch, however many chunks use it.
     matrices: Vec<((u32, u32), Option<M4>)>,
 }
 
-/// What identifies a light query: category, the points' bits, the cone's bits (`None` when the
-/// answer was complete, so that it serves any cone), the lanes asking.
-type LightQueryKey = (String, [u32; 12], Option<[u32; 4 * CONE_ROWS]>, [bool; 4]);
+/// What identifies a light query: category, the points' bits, the lanes asking.
+type LightQueryKey = (String, [u32; 12], [bool; 4]);
+
+/// The answer kept for the last light query: counts, and the lights left unshadowed per lane.
+type LightAnswer = ([u32; 4], [u32; 4]);
 
 struct LightSet {
     lights: Vec<HostLight>,
@@ -635,25 +638,36 @@ impl Cx<'_> {
     fn lights(&mut self, category: &str, k: usize, cone: &[f32; 4 * CONE_ROWS]) -> [u32; 4] {
         let mut counts = [0u32; 4];
         let Some(t) = self.table else { return counts };
-        // `diffuse()` and `specular()` of one chunk ask for the same lights: the renderer is asked
-        // once per (category, points, cone, lanes).
+        // `ambient()`, `diffuse()` and `specular()` of one chunk ask for the same lights: the
+        // renderer is asked once per (category, points, lanes), and again only when a query's cone
+        // takes in a light the last answer left unshadowed.
         let points: [u32; 12] = std::array::from_fn(|i| self.input[4 * k + i].to_bits());
-        let cone_bits: [u32; 4 * CONE_ROWS] = cone.map(f32::to_bits);
-        if let Some(((cat, p, c, m), counts)) = &self.ctx.last_lights {
+        if let Some(((cat, p, m), (counts, pending))) = &self.ctx.last_lights {
             // Points first (they differ from chunk to chunk), compared lane by lane: an array
             // comparison is a memcmp call.
-            if p.iter().zip(&points).all(|(a, b)| a == b)
-                && c.is_none_or(|c| c.iter().zip(&cone_bits).all(|(a, b)| a == b))
-                && *m == self.mask
-                && cat == category
-            {
-                return *counts;
+            if p.iter().zip(&points).all(|(a, b)| a == b) && *m == self.mask && cat == category {
+                let buffer = &self.ctx.light_buffer;
+                let needs_more = (0..4).any(|l| {
+                    let axis = [cone[l], cone[4 + l], cone[8 + l]];
+                    let mut bits = pending[l];
+                    let mut inside = false;
+                    while bits != 0 && !inside {
+                        let i = bits.trailing_zeros() as usize;
+                        bits &= bits - 1;
+                        inside = buffer.get(4 * i + l).is_some_and(|x| light_in_cone(x.l, axis, cone[12 + l]));
+                    }
+                    inside
+                });
+                if !needs_more {
+                    return *counts;
+                }
             }
         }
         // One buffer per batch: the renderer writes the entries it counts, and only those are read.
         let out = &mut self.ctx.light_buffer;
         out.resize(MAX_LIGHTS * 4, HostLight::default());
         let mask: [i32; 4] = self.mask.map(|m| if m { -1 } else { 0 });
+        let mut pending = [0u32; 4];
         // SAFETY: the table's documented sizes.
         unsafe {
             (t.lights)(
@@ -665,21 +679,28 @@ impl Cx<'_> {
                 cone.as_ptr(),
                 out.as_mut_ptr(),
                 counts.as_mut_ptr(),
+                pending.as_mut_ptr(),
             )
         };
-        let partial = counts.iter().any(|c| c & LIGHTS_PARTIAL != 0);
-        let counts = counts.map(|c| (c & !LIGHTS_PARTIAL).min(MAX_LIGHTS as u32));
-        let cone_bits = partial.then_some(cone_bits);
+        let counts = counts.map(|c| c.min(MAX_LIGHTS as u32));
+        let pending: [u32; 4] = std::array::from_fn(|l| {
+            let kept = if counts[l] >= 32 { u32::MAX } else { (1u32 << counts[l]) - 1 };
+            if self.mask[l] {
+                pending[l] & kept
+            } else {
+                0
+            }
+        });
         // The key's string is kept from query to query: a chunk's first query must not allocate.
         match &mut self.ctx.last_lights {
-            Some(((cat, p, cb, m), c)) => {
+            Some(((cat, p, m), answer)) => {
                 if cat != category {
                     cat.clear();
                     cat.push_str(category);
                 }
-                (*p, *cb, *m, *c) = (points, cone_bits, self.mask, counts);
+                (*p, *m, *answer) = (points, self.mask, (counts, pending));
             }
-            None => self.ctx.last_lights = Some(((category.to_string(), points, cone_bits, self.mask), counts)),
+            None => self.ctx.last_lights = Some(((category.to_string(), points, self.mask), (counts, pending))),
         }
         counts
     }

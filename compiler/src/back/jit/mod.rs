@@ -30,7 +30,7 @@ mod math;
 
 pub use host::{
     light_in_cone, shadow_query_of, HostLight, HostTable, MessageOut, ServicesHost, StrRef, CONE_ROWS, EVERY_LIGHT,
-    LIGHTS_PARTIAL, MAX_LIGHTS, NO_LIGHT, SHADOW_ROWS,
+    MAX_LIGHTS, NO_LIGHT, SHADOW_ROWS,
 };
 pub use layout::{GlobalSlot, Layout, ParamSlot};
 
