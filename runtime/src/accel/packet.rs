@@ -130,13 +130,15 @@ impl Geom {
         true
     }
 
-    /// The world-space geometry of a packet's lanes `active`; the other lanes copy lane `fill`.
-    fn world(p: &RayPacket, active: u64, fill: usize) -> Self {
-        // Built in place rather than zeroed and then overwritten: this runs once per packet.
+    /// The world-space geometry of a packet's lanes `active` in its chunks `lo..=hi` (the chunks
+    /// the traversal reads); their other lanes copy lane `fill`, chunks outside are zero.
+    fn world(p: &RayPacket, active: u64, fill: usize, (lo, hi): (usize, usize)) -> Self {
+        // Built in place rather than zeroed and then overwritten: this runs once per packet, and
+        // small packets (a shader's `trace` of four rays) touch one chunk of sixteen.
         #[inline(always)]
-        fn rows(arr: &[f32; PACKET_SIZE], active: u64, fill: usize) -> Chunks {
+        fn rows(arr: &[f32; PACKET_SIZE], active: u64, fill: usize, lo: usize, hi: usize) -> Chunks {
             let mut out = [Vec4::ZERO; CHUNKS];
-            for (c, v) in out.iter_mut().enumerate() {
+            for (c, v) in out.iter_mut().enumerate().take(hi + 1).skip(lo) {
                 *v = if active >> (4 * c) & 0xF == 0xF {
                     Vec4::from_slice(&arr[4 * c..4 * c + 4])
                 } else {
@@ -146,7 +148,7 @@ impl Geom {
             }
             out
         }
-        let rows = |arr: &[f32; PACKET_SIZE]| rows(arr, active, fill);
+        let rows = |arr: &[f32; PACKET_SIZE]| rows(arr, active, fill, lo, hi);
         Geom {
             o: [rows(&p.ox.0), rows(&p.oy.0), rows(&p.oz.0)],
             d: [rows(&p.dx.0), rows(&p.dy.0), rows(&p.dz.0)],
@@ -186,11 +188,12 @@ impl Geom {
 }
 
 impl State {
-    /// The state of the packet's lanes `active`; the others get an empty interval.
-    fn new(p: &RayPacket, active: u64) -> Self {
-        let mut tmin = [Vec4::ZERO; CHUNKS];
-        let mut tmax = [Vec4::ZERO; CHUNKS];
-        for c in 0..CHUNKS {
+    /// The state of the packet's lanes `active`, all in chunks `lo..=hi`; the others get an empty
+    /// interval.
+    fn new(p: &RayPacket, active: u64, (lo, hi): (usize, usize)) -> Self {
+        let mut tmin = [Vec4::INFINITY; CHUNKS];
+        let mut tmax = [Vec4::NEG_INFINITY; CHUNKS];
+        for c in lo..=hi {
             let mut lo = [0.0f32; 4];
             let mut hi = [0.0f32; 4];
             for j in 0..4 {
@@ -655,8 +658,8 @@ fn intersect_lanes(
         return single_all(out);
     }
     let fill = active.trailing_zeros() as usize;
-    let mut g = Geom::world(p, active, fill);
     let (lo, hi) = chunk_range(active);
+    let mut g = Geom::world(p, active, fill, (lo, hi));
     if !g.finish(lo, hi) {
         if !split {
             return single_all(out);
@@ -666,7 +669,7 @@ fn intersect_lanes(
         }
         return;
     }
-    let mut s = State::new(p, active);
+    let mut s = State::new(p, active, (lo, hi));
     // The packet's chunks `mask` against instance `inst_id`.
     let visit = |inst_id: u32, mask: u16, s: &mut State| {
         let inst: &InstanceData = &top.instances[inst_id as usize];
@@ -772,8 +775,8 @@ fn occluded_lanes(
         return single_lanes(active);
     }
     let fill = active.trailing_zeros() as usize;
-    let mut g = Geom::world(p, active, fill);
     let (lo, hi) = chunk_range(active);
+    let mut g = Geom::world(p, active, fill, (lo, hi));
     if !g.finish(lo, hi) {
         if !split {
             return single_lanes(active);
@@ -783,7 +786,7 @@ fn occluded_lanes(
             .map(|lanes| occluded_lanes(top, objects, p, lanes, filter, false))
             .fold(0, |a, b| a | b);
     }
-    let mut s = State::new(p, active);
+    let mut s = State::new(p, active, (lo, hi));
     // The packet's chunks `mask` against instance `inst_id`: `true` ends the traversal (every lane
     // occluded, or few enough left to finish one by one).
     let visit = |inst_id: u32, mask: u16, s: &mut State| -> bool {
