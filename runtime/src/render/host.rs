@@ -351,7 +351,7 @@ fn serve_from_batch(
         ));
     }
     let Some(table) = &mut c.batch_lights else { return false };
-    if (0..4).any(|l| mask[l] != 0 && table.is_pending(4 * chunk + l)) {
+    if (0..4).any(|l| mask[l] != 0 && table.pending_of(4 * chunk + l) != 0) {
         let queries = (0..4)
             .filter(|&l| mask[l] != 0)
             .map(|l| (4 * chunk + l, [cone[l], cone[4 + l], cone[8 + l]], cone[12 + l]));

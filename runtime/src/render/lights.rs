@@ -261,11 +261,6 @@ impl BatchLights {
         BatchLights { n, counts, lights, pending }
     }
 
-    /// Whether some shadow of `lane`'s lights is still untraced.
-    pub(super) fn is_pending(&self, lane: usize) -> bool {
-        self.pending_of(lane) != 0
-    }
-
     /// Which of `lane`'s lights (bit `k`: light `k`) still have their shadows untraced.
     pub(super) fn pending_of(&self, lane: usize) -> u32 {
         self.pending.get(lane).copied().unwrap_or(0)

@@ -12,6 +12,16 @@ pub enum NativeSurface {
     Plastic { ks: f32, kd: f32, ka: f32, roughness: f32, specular_color: Vec3A },
 }
 
+/// `n` flipped to face against `i`, as `faceforward(N, I)` with `N` its own reference: the side
+/// whose lights the hand-written surfaces sum.
+pub(crate) fn faced_against(n: Vec3A, i: Vec3A) -> Vec3A {
+    if i.dot(n) < 0.0 {
+        n
+    } else {
+        -n
+    }
+}
+
 /// One light as the surface sees it.
 pub(crate) struct LightSeen {
     pub l: Vec3A,
@@ -24,9 +34,7 @@ impl NativeSurface {
     pub(crate) fn shade(&self, n: Vec3A, i: Vec3A, cs: Vec3A, os: Vec3A, lights: &[LightSeen]) -> (Vec3A, Vec3A) {
         match *self {
             NativeSurface::Plastic { ks, kd, ka, roughness, specular_color } => {
-                let nn = n.normalize_or_zero();
-                // faceforward(N, I): N flipped to face against I.
-                let nf = if i.dot(nn) < 0.0 { nn } else { -nn };
+                let nf = faced_against(n.normalize_or_zero(), i);
                 let v = -i.normalize_or_zero();
                 let (mut ambient, mut diffuse, mut specular) = (Vec3A::ZERO, Vec3A::ZERO, Vec3A::ZERO);
                 let r = if roughness > 0.0 { roughness } else { 1e-4 };

@@ -15,7 +15,7 @@
 use super::differential::{barycentric_change, RayDifferential};
 use super::host::ShadeCall;
 use super::lights::BatchLights;
-use super::native::{LightSeen, NativeSurface};
+use super::native::{faced_against, LightSeen, NativeSurface};
 use super::primary::PrimaryRays;
 use super::stats::{tracing, ShadingTimer, Stats};
 use super::world::{InstanceShading, World, DEFAULT_MATERIAL};
@@ -705,8 +705,7 @@ fn shade_native(
     // The hand-written plastic sums the lights in front of its normal faced forward by itself.
     let faced = |(k, g): (usize, &Option<HitGeometry>)| {
         let g = g.as_ref()?;
-        let nf = if (g.p - group[k].ray.origin).dot(g.n) < 0.0 { g.n } else { -g.n };
-        Some((k, nf.to_array(), 0.0))
+        Some((k, faced_against(g.n, g.p - group[k].ray.origin).to_array(), 0.0))
     };
     table.resolve(frame, &points, &times, geoms.iter().enumerate().filter_map(faced));
     let mut seen = Vec::new();

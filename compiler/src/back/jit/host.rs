@@ -79,6 +79,9 @@ pub const EVERY_LIGHT: f32 = -2.0;
 /// A cone's cosine that asks for no non-ambient light (`ambient()`).
 pub const NO_LIGHT: f32 = 2.0;
 
+/// The most floats a message value may hold.
+pub const MESSAGE_FLOATS: usize = 64;
+
 /// Whether a light from direction `l` may count for a query with cone (`axis`, `cos`): the lights
 /// `diffuse()`, `specular()` and `illuminance` use must all pass. It errs toward `true` (a slack
 /// on the cosine; NaN passes), so a renderer that traces shadows only for these lights never
@@ -90,8 +93,6 @@ pub fn light_in_cone(l: [f32; 3], axis: [f32; 3], cos: f32) -> bool {
     let d = dot(geom::normalize(l), geom::normalize(axis));
     d.is_nan() || cos.is_nan() || d >= cos - 1e-3
 }
-/// The most floats a message value may hold.
-pub const MESSAGE_FLOATS: usize = 64;
 
 /// A message-passing answer: `kind` 0 none, 1 float, 2 triple, 3 matrix, 4 string, 5 bool; `len` 0
 /// for a single value or the array length; `floats` element-major; `string` valid until the next
