@@ -1504,3 +1504,33 @@ fn entry_unused_marks_only_globals_assigned_before_any_use() {
         }
     }
 }
+
+/// `reset_except` keeps the slots a caller promises to fill and zeroes every other one, so a
+/// value from an earlier call never reaches a slot nobody writes; a batch of another size starts
+/// from zeros throughout.
+#[test]
+fn a_reset_keeps_only_the_slots_its_caller_fills() {
+    let m = module("surface s() { Ci = Cs * (N . I) + color(xcomp(P), 0, 0); }");
+    let shader = jit::compile(&m).expect("compiles");
+    let mut batch = shader.batch(8);
+    for lane in 0..8 {
+        for name in ["P", "N", "I", "Cs"] {
+            assert!(batch.set_global(name, lane, &[1.0, 2.0, 3.0]), "{name}");
+        }
+    }
+    batch.set_active(3, false);
+    let p = batch.global_slot("P").expect("P is varying");
+    let filled = [p..p + 3, 0..0];
+    batch.reset_except(8, &filled);
+    for lane in 0..8 {
+        assert_eq!(batch.global("P", lane), Some(vec![1.0, 2.0, 3.0]), "lane {lane}");
+        for name in ["N", "I", "Cs"] {
+            assert_eq!(batch.global(name, lane), Some(vec![0.0; 3]), "{name}, lane {lane}");
+        }
+    }
+    assert_eq!(batch.raw_mut().mask[3], -1, "every lane active again");
+    batch.reset_except(12, &filled);
+    for lane in 0..12 {
+        assert_eq!(batch.global("P", lane), Some(vec![0.0; 3]), "lane {lane}");
+    }
+}

@@ -13,7 +13,7 @@ use glam::{Vec3A, Vec4};
 pub const PACKET_SIDE: u32 = 8;
 
 /// The pixel offset `(dx, dy)` within its 8x8 packet of lane `i`.
-pub fn packet_lane_offset(i: usize) -> (u32, u32) {
+pub const fn packet_lane_offset(i: usize) -> (u32, u32) {
     let chunk = (i / 4) as u32;
     let j = (i % 4) as u32;
     // Morton decode of the chunk index on a 4x4 grid of 2x2 quads.
@@ -21,6 +21,17 @@ pub fn packet_lane_offset(i: usize) -> (u32, u32) {
     let qy = ((chunk >> 1) & 1) | ((chunk >> 2) & 2);
     (qx * 2 + (j & 1), qy * 2 + (j >> 1))
 }
+
+/// [`packet_lane_offset`] of every lane, for loops over a packet's lanes.
+pub const PACKET_LANE_OFFSETS: [(u32, u32); PACKET_SIZE] = {
+    let mut t = [(0, 0); PACKET_SIZE];
+    let mut i = 0;
+    while i < PACKET_SIZE {
+        t[i] = packet_lane_offset(i);
+        i += 1;
+    }
+    t
+};
 
 /// A pinhole camera.
 #[derive(Clone, Copy, Debug, PartialEq)]

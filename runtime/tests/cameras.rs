@@ -96,7 +96,7 @@ fn the_pinhole_shader_makes_the_built_in_cameras_image() -> Result<(), ApiError>
 /// exact); a tile's packets made in one shader call are each packet's made alone, bit for bit.
 #[test]
 fn the_pinhole_shaders_rays_and_differentials_are_the_built_in_cameras() -> Result<(), ApiError> {
-    use rtsl_runtime::render::primary::{primary_rays_of_packets, PacketSamples};
+    use rtsl_runtime::render::primary::{pinhole_ray, primary_rays_of_packets, PacketSamples};
     use rtsl_runtime::render::{camera_samples, primary_rays, Frame, PrimaryRays};
     let mut rt = context();
     rt.camera_look_at(Vec3A::new(0.3, 0.5, -5.0), Vec3A::ZERO, Vec3A::Y, 50.0);
@@ -127,6 +127,17 @@ fn the_pinhole_shaders_rays_and_differentials_are_the_built_in_cameras() -> Resu
         let builtin = primary_rays(&Frame::new(&world), &p.samples, p.active);
         assert_eq!(builtin.packet.active, made.packet.active);
         for lane in (0..64).filter(|l| builtin.packet.active >> l & 1 != 0) {
+            // The built-in camera's own differentials are its rays' change per pixel (central
+            // differences over a pixel's step, raster y down).
+            let (x, y) = p.samples[lane].raster;
+            let along = |dx: f32, dy: f32| {
+                pinhole_ray(&world, (x + dx / 2.0, y + dy / 2.0)).direction
+                    - pinhole_ray(&world, (x - dx / 2.0, y - dy / 2.0)).direction
+            };
+            let d = builtin.diffs[lane];
+            for (want, got) in [(along(1.0, 0.0), d.dddx), (along(0.0, 1.0), d.dddy)] {
+                assert!((want - got).length() <= 1e-3 * want.length(), "lane {lane}: {want} {got}");
+            }
             let (a, b) = (builtin.packet.get(lane), made.packet.get(lane));
             assert!((a.origin - b.origin).length() < 1e-5 && (a.direction - b.direction).length() < 1e-5);
             let (da, db) = (builtin.diffs[lane], made.diffs[lane]);
@@ -284,6 +295,31 @@ fn a_zero_weight_makes_an_empty_pixel() -> Result<(), ApiError> {
                 }
             } else {
                 assert_eq!(a, [0.0; 4], "{x},{y}");
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Each ray keeps its own weight: a camera weighting odd and even columns differently (every 2x2
+/// quad of a packet mixes both) scales each pixel of the built-in camera's image by its own.
+#[test]
+fn each_ray_keeps_its_own_weight() -> Result<(), ApiError> {
+    let mut rt = context();
+    rt.camera_look_at(Vec3A::new(0.0, 0.0, -5.0), Vec3A::ZERO, Vec3A::Y, 40.0);
+    checker_wall(&mut rt, 0.0, 5.0)?;
+    let src = r#"camera columns() { Ci = (mod(floor(xcomp(P)), 2) == 0) ? color(.5, .25, 1) : color(.25, 1, .5); }"#;
+    let id = rt.compile_shader("columns", src)?;
+    rt.camera_shader(Some(id), &[])?;
+    let (weighted, _) = rt.render_frame()?;
+    rt.camera_shader(None, &[])?;
+    let (full, _) = rt.render_frame()?;
+    for y in 0..H {
+        for x in 0..W {
+            let w = if x % 2 == 0 { [0.5, 0.25, 1.0] } else { [0.25, 1.0, 0.5] };
+            let (a, b) = (weighted.pixel(x, y), full.pixel(x, y));
+            for c in 0..3 {
+                assert!((a[c] - w[c] * b[c]).abs() < 1e-4, "{x},{y}: {a:?} vs {b:?}");
             }
         }
     }

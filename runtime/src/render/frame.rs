@@ -12,7 +12,7 @@ use super::primary::{
 };
 use super::shade::{mix, shade_packet, shade_pixels, Frame, Sample, TilePixels};
 use super::world::{Antialiasing, World};
-use crate::camera::{packet_lane_offset, PACKET_SIDE};
+use crate::camera::{packet_lane_offset, PACKET_LANE_OFFSETS, PACKET_SIDE};
 use crate::ray::{HitPacket, PACKET_SIZE};
 use crate::tiles::{render_tiles, Tile};
 use glam::Vec3A;
@@ -262,15 +262,22 @@ fn camera_samples_into(world: &World, x0: u32, y0: u32, sample: (u32, u32), out:
         Antialiasing::Grid { jitter: true } => sx * sy == 1,
     };
     let offset = same_offset.then(|| sample_offset(world, x0, y0, sample));
+    let (open, close) = world.options.shutter;
     let mut active = 0u64;
-    for (i, s) in out.samples.iter_mut().enumerate() {
-        let (dx, dy) = packet_lane_offset(i);
+    for (i, (s, &(dx, dy))) in out.samples.iter_mut().zip(&PACKET_LANE_OFFSETS).enumerate() {
         let (x, y) = (x0 + dx, y0 + dy);
-        let (jx, jy) = offset.unwrap_or_else(|| sample_offset(world, x, y, sample));
-        *s = CameraSample { raster: (x as f32 + jx, y as f32 + jy), lens, time: time_sample(world, x, y, k) };
-        if (cx0..cx1).contains(&x) && (cy0..cy1).contains(&y) {
-            active |= 1 << i;
-        }
+        active |= u64::from((cx0..cx1).contains(&x) && (cy0..cy1).contains(&y)) << i;
+        // Without jitter and motion blur (the common case) a lane is a few additions: the general
+        // case's per-lane hashing is kept out of that loop.
+        *s = match offset {
+            Some((jx, jy)) if open == close => {
+                CameraSample { raster: (x as f32 + jx, y as f32 + jy), lens, time: open }
+            }
+            _ => {
+                let (jx, jy) = offset.unwrap_or_else(|| sample_offset(world, x, y, sample));
+                CameraSample { raster: (x as f32 + jx, y as f32 + jy), lens, time: time_sample(world, x, y, k) }
+            }
+        };
     }
     out.active = active;
 }

@@ -18,7 +18,7 @@ use super::host::ShadeCall;
 use super::shade::Frame;
 use super::world::World;
 use crate::ray::{Ray, RayPacket, PACKET_SIZE};
-use crate::shading::{fill1, fill3, get_row_at, put_row_at, with_batch, Slot};
+use crate::shading::{fill1, fill3, get_row_at, put_row_at, with_filled_batch, Slot};
 use glam::{Vec3A, Vec4, Vec4Swizzles};
 
 /// Where on the image, lens and shutter a primary ray starts.
@@ -128,8 +128,8 @@ pub fn primary_rays(frame: &Frame, samples: &[CameraSample; PACKET_SIZE], active
 }
 
 /// [`primary_rays`] into `out`, which loops over packets reuse (a packet's rays are several
-/// kilobytes: making a fresh one per packet was a measurable share of making the rays). Lanes
-/// that make no ray keep whatever `out` held; only active lanes are defined.
+/// kilobytes: making a fresh one per packet was a measurable share of making the rays). Only the
+/// active lanes are defined: the others hold whatever `out` held or the camera left.
 pub fn primary_rays_into(frame: &Frame, samples: &[CameraSample; PACKET_SIZE], active: u64, out: &mut PrimaryRays) {
     match &frame.world.camera_shader {
         None => pinhole_rays(frame, samples, active, out),
@@ -175,13 +175,11 @@ fn pinhole_rays(frame: &Frame, samples: &[CameraSample; PACKET_SIZE], active: u6
         }
     }
     let (ddx, ddy) = camera_derivatives(&d, frame.pixel_dx, frame.pixel_dy);
-    for l in (0..PACKET_SIZE).filter(|l| active >> l & 1 != 0) {
-        out.diffs[l] = RayDifferential {
-            dodx: Vec3A::ZERO,
-            dody: Vec3A::ZERO,
-            dddx: Vec3A::new(ddx[0][l], ddx[1][l], ddx[2][l]),
-            dddy: Vec3A::new(ddy[0][l], ddy[1][l], ddy[2][l]),
-        };
+    let diffs = &mut out.diffs;
+    lane_vectors(&ddx, |l, v| diffs[l].dddx = v);
+    lane_vectors(&ddy, |l, v| diffs[l].dddy = v);
+    for diff in diffs.iter_mut() {
+        (diff.dodx, diff.dody) = (Vec3A::ZERO, Vec3A::ZERO);
     }
 }
 
@@ -263,13 +261,6 @@ fn run_camera_shader(
     let slots = &program.slots;
     let (open, close) = world.options.shutter;
     let eye = world.camera.eye();
-    // The shader's weights (Ci) by packet: the rays are finished after the call, outside the
-    // shading timers.
-    let mut weights = [[[1.0f32; PACKET_SIZE]; 3]; MAX_PACKETS_PER_CALL];
-    let mut rasters = [([0.0f32; PACKET_SIZE], [0.0f32; PACKET_SIZE]); MAX_PACKETS_PER_CALL];
-    for (r, ps) in rasters.iter_mut().zip(packets) {
-        *r = raster_rows(&ps.samples);
-    }
     // I on entry: the built-in pinhole ray's direction, made in the packet's direction rows (the
     // shader's I replaces it there after the call). Globals the shader assigns before it could read
     // them are not filled (the cameras of the library assign E, I and Ci first thing).
@@ -277,14 +268,34 @@ fn run_camera_shader(
     let entry_i = needed(slots.i) || slots.i.is_none();
     if entry_i {
         let pinhole = Pinhole::of(world);
-        for ((rx, ry), o) in rasters.iter().zip(out.iter_mut()) {
+        for (ps, o) in packets.iter().zip(out.iter_mut()) {
+            let (rx, ry) = raster_rows(&ps.samples);
             let packet = &mut o.packet;
-            pinhole_directions(&pinhole, rx, ry, [&mut packet.dx.0, &mut packet.dy.0, &mut packet.dz.0]);
+            pinhole_directions(&pinhole, &rx, &ry, [&mut packet.dx.0, &mut packet.dy.0, &mut packet.dz.0]);
         }
     }
+    // Every lane of these globals is written below, or by the shader before it reads them (the
+    // ones not filled here are `entry_unused`): the batch need not zero them first.
+    let filled: [std::ops::Range<usize>; 11] = [
+        (slots.p, 3),
+        (slots.s, 1),
+        (slots.t, 1),
+        (slots.u, 1),
+        (slots.v, 1),
+        (slots.time, 1),
+        (slots.dtime, 1),
+        (slots.ncomps, 1),
+        (slots.i, 3),
+        (slots.e, 3),
+        (slots.ci, 3),
+    ]
+    .map(|(slot, comps)| match slot {
+        Some(s) if s.varying => s.offset..s.offset + comps,
+        _ => 0..0,
+    });
     let screen = ScreenWindow::of(world);
     let timer = super::stats::ShadingTimer::start(&frame.stats);
-    with_batch(program, n * PACKET_SIZE, |batch| {
+    with_filled_batch(program, n * PACKET_SIZE, &filled, |batch| {
         // Every lane runs, those off the image too: their rays give their neighbours'
         // differentials (they are dropped after the call).
         {
@@ -299,10 +310,11 @@ fn run_camera_shader(
                 fill3(&mut raw, slots.ci, Vec3A::ONE);
             }
             fill1(&mut raw, slots.p.map(|s| Slot { offset: s.offset + 2, ..s }), 0.0);
-            for (p, ((ps, o), (rx, ry))) in packets.iter().zip(out.iter()).zip(&rasters).enumerate() {
+            for (p, (ps, o)) in packets.iter().zip(out.iter()).enumerate() {
                 let first = p * PACKET_SIZE;
-                put_row_at(&mut raw, slots.p, 0, first, rx);
-                put_row_at(&mut raw, slots.p, 1, first, ry);
+                let (rx, ry) = raster_rows(&ps.samples);
+                put_row_at(&mut raw, slots.p, 0, first, &rx);
+                put_row_at(&mut raw, slots.p, 1, first, &ry);
                 if slots.s.is_some() || slots.t.is_some() {
                     let (mut sx, mut sy) = ([0.0f32; PACKET_SIZE], [0.0f32; PACKET_SIZE]);
                     for l in 0..PACKET_SIZE {
@@ -328,8 +340,11 @@ fn run_camera_shader(
         let mut call = ShadeCall::new(frame, camera, world.camera.world_from_camera, 0);
         let table = call.table();
         program.code.shade_with_table(batch, &table);
+        // The rays are finished straight from the batch (the renderer's side of the call, so
+        // within the shading timers).
         let raw = batch.raw_mut();
-        for (p, (o, w)) in out.iter_mut().zip(&mut weights).enumerate() {
+        let mut weights: Rows3 = [[1.0; PACKET_SIZE]; 3];
+        for (p, (ps, o)) in packets.iter().zip(out.iter_mut()).enumerate() {
             let first = p * PACKET_SIZE;
             let packet = &mut o.packet;
             for (k, row) in [&mut packet.ox, &mut packet.oy, &mut packet.oz].into_iter().enumerate() {
@@ -340,15 +355,15 @@ fn run_camera_shader(
                     get_row_at(&raw, slots.i, k, first, 0.0, &mut row.0);
                 }
             }
-            for (k, row) in w.iter_mut().enumerate() {
-                get_row_at(&raw, slots.ci, k, first, 1.0, row);
+            if slots.ci.is_some() {
+                for (k, row) in weights.iter_mut().enumerate() {
+                    get_row_at(&raw, slots.ci, k, first, 1.0, row);
+                }
             }
+            finish_shader_rays(frame, ps, &raster_rows(&ps.samples), &weights, o);
         }
     });
     drop(timer);
-    for (((ps, o), w), raster) in packets.iter().zip(out.iter_mut()).zip(&weights).zip(&rasters) {
-        finish_shader_rays(frame, ps, raster, w, o);
-    }
 }
 
 /// Makes a packet of rays from what a camera shader left in `out`'s origin and direction rows and
@@ -391,10 +406,8 @@ fn finish_shader_rays(frame: &Frame, ps: &PacketSamples, (rx, ry): &(Row, Row), 
     packet.tmax.0 = [f32::INFINITY; PACKET_SIZE];
     packet.time.0 = std::array::from_fn(|l| ps.samples[l].time);
     packet.active = ps.active & valid;
-    let [wr, wg, wb] = w;
-    for l in (0..PACKET_SIZE).filter(|l| packet.active >> l & 1 != 0) {
-        out.weights[l] = Vec3A::new(wr[l], wg[l], wb[l]).max(Vec3A::ZERO);
-    }
+    // Every lane, active or not: a loop without a test per lane (inactive lanes are undefined).
+    lane_vectors(w, |l, v| out.weights[l] = v.max(Vec3A::ZERO));
     let o = [&packet.ox.0, &packet.oy.0, &packet.oz.0];
     let d = [&packet.dx.0, &packet.dy.0, &packet.dz.0];
     // Lane l ^ 1 is a lane's horizontal neighbour, l ^ 2 its vertical one: whether the neighbour
@@ -404,20 +417,37 @@ fn finish_shader_rays(frame: &Frame, ps: &PacketSamples, (rx, ry): &(Row, Row), 
     let o = (!fixed_origin).then_some(o);
     let (ux, dodx, dddx) = quad_changes::<1>(rx, ry, valid_x, o, d);
     let (uy, dody, dddy) = quad_changes::<2>(ry, rx, valid_y, o, d);
-    let both = ux & uy;
-    let at = |v: &Rows3, l: usize| Vec3A::new(v[0][l], v[1][l], v[2][l]);
-    let origin_change = |v: &Option<Rows3>, l: usize| v.as_ref().map_or(Vec3A::ZERO, |v| at(v, l));
-    for l in (0..PACKET_SIZE).filter(|l| packet.active >> l & 1 != 0) {
-        out.diffs[l] = if both >> l & 1 != 0 {
-            RayDifferential {
-                dodx: origin_change(&dodx, l),
-                dody: origin_change(&dody, l),
-                dddx: at(&dddx, l),
-                dddy: at(&dddy, l),
-            }
-        } else {
-            RayDifferential::cone(Vec3A::new(d[0][l], d[1][l], d[2][l]), 0.0, frame.pixel_spread)
-        };
+    // Every lane from its quad first (loops without a test per lane), then the few whose quad does
+    // not count get a cone instead.
+    let diffs = &mut out.diffs;
+    lane_vectors(&dddx, |l, v| diffs[l].dddx = v);
+    lane_vectors(&dddy, |l, v| diffs[l].dddy = v);
+    if let (Some(dodx), Some(dody)) = (&dodx, &dody) {
+        lane_vectors(dodx, |l, v| diffs[l].dodx = v);
+        lane_vectors(dody, |l, v| diffs[l].dody = v);
+    } else {
+        for diff in diffs.iter_mut() {
+            (diff.dodx, diff.dody) = (Vec3A::ZERO, Vec3A::ZERO);
+        }
+    }
+    let mut cones = packet.active & !(ux & uy);
+    while cones != 0 {
+        let l = cones.trailing_zeros() as usize;
+        cones &= cones - 1;
+        out.diffs[l] = RayDifferential::cone(Vec3A::new(d[0][l], d[1][l], d[2][l]), 0.0, frame.pixel_spread);
+    }
+}
+
+/// Gives `put` each lane's vector from its rows (x, y, z), four lanes at a time by a 4x4
+/// transpose: writing per-lane records from rows one component at a time cost as much as a simple
+/// camera shader.
+#[inline(always)]
+fn lane_vectors([x, y, z]: &Rows3, mut put: impl FnMut(usize, Vec3A)) {
+    for q in (0..PACKET_SIZE).step_by(4) {
+        let m = glam::Mat4::from_cols(quad(x, q), quad(y, q), quad(z, q), Vec4::ZERO).transpose();
+        for j in 0..4 {
+            put(q + j, Vec3A::from_vec4(m.col(j)));
+        }
     }
 }
 

@@ -214,6 +214,18 @@ thread_local! {
 /// traces rays whose hits are shaded with the same program), so a batch is taken out of the pool
 /// while in use rather than borrowed.
 pub fn with_batch<R>(program: &Program, lanes: usize, f: impl FnOnce(&mut BatchData) -> R) -> R {
+    with_filled_batch(program, lanes, &[], f)
+}
+
+/// [`with_batch`] for a caller that fills the varying slots in `filled` (ranges of slot indices)
+/// for every lane itself, or leaves them to a shader that assigns them first thing: the reset does
+/// not zero them (see [`BatchData::reset_except`]).
+pub fn with_filled_batch<R>(
+    program: &Program,
+    lanes: usize,
+    filled: &[std::ops::Range<usize>],
+    f: impl FnOnce(&mut BatchData) -> R,
+) -> R {
     // Identity by address is sound: the pool's `Weak` keeps the program's allocation from being
     // reused by another program while the batch is pooled.
     let me = Arc::as_ptr(program);
@@ -223,7 +235,7 @@ pub fn with_batch<R>(program: &Program, lanes: usize, f: impl FnOnce(&mut BatchD
         Some(b.swap_remove(i).1)
     });
     let mut batch = taken.unwrap_or_else(|| program.code.batch(lanes));
-    batch.reset(lanes);
+    batch.reset_except(lanes, filled);
     let r = {
         let _timer = crate::render::ShaderKindTimer::enter(program);
         f(&mut batch)

@@ -565,14 +565,34 @@ impl BatchData {
     /// Makes the batch `lanes` lanes long with every lane active, every value 0 and no parameter
     /// bound, reusing the buffers (a renderer keeps one batch per shader and thread).
     pub fn reset(&mut self, lanes: usize) {
+        self.reset_except(lanes, &[]);
+    }
+
+    /// [`reset`](Self::reset), except that the varying slots in `filled` (ranges of slot indices)
+    /// keep whatever they held: for a caller that writes every lane of them before running the
+    /// shader, or whose shader assigns them for every lane before reading them (a global's
+    /// `entry_unused`), so that zeroing them first would be wasted. The values stay a function of
+    /// what the caller and the shader write, never of an earlier call.
+    pub fn reset_except(&mut self, lanes: usize, filled: &[std::ops::Range<usize>]) {
         let stride = lanes.div_ceil(4) * 4;
+        let resized = stride != self.stride;
         self.lanes = lanes;
         self.stride = stride;
         self.mask.clear();
         self.mask.resize(stride, 0);
         self.mask[..lanes].fill(-1);
-        self.varying.clear();
-        self.varying.resize(self.layout.varying_slots * stride, 0.0);
+        let slots = self.layout.varying_slots;
+        if filled.is_empty() || resized {
+            self.varying.clear();
+            self.varying.resize(slots * stride, 0.0);
+        } else {
+            self.varying.resize(slots * stride, 0.0);
+            for (slot, row) in self.varying.chunks_exact_mut(stride).enumerate() {
+                if !filled.iter().any(|r| r.contains(&slot)) {
+                    row.fill(0.0);
+                }
+            }
+        }
         self.derivs.clear();
         self.derivs.resize(2 * self.layout.deriv_slots * stride, 0.0);
         self.uniform.fill(0.0);
