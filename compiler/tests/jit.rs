@@ -101,6 +101,12 @@ fn random_derivs(rng: &mut Rng, name: &str, comps: usize) -> (Vec<f32>, Vec<f32>
     }
 }
 
+/// The test host with a point light among the random points, so that lanes differ in their
+/// lights (direction, colour, which side of the surface).
+fn lit_host() -> TestHost {
+    TestHost { point_light: Some([0.5, 2.0, 1.0]), ..TestHost::default() }
+}
+
 /// Shades `lanes` random lanes with both back ends and compares. Returns how many lanes ran.
 fn differential(m: &Module, shader: &CompiledShader, lanes: usize, seed: u64, bind_prob: f32) -> usize {
     let mut rng = Rng(seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1);
@@ -169,7 +175,7 @@ fn differential(m: &Module, shader: &CompiledShader, lanes: usize, seed: u64, bi
             }
         }
     }
-    let mut jit_host = TestHost::default();
+    let mut jit_host = lit_host();
     shader.shade_with(&mut batch, &mut jit_host);
     let mut printed = Vec::new();
 
@@ -200,7 +206,7 @@ fn differential(m: &Module, shader: &CompiledShader, lanes: usize, seed: u64, bi
         for (name, s) in &bound_strings {
             bound.push((name.as_str(), Value::String(s.as_str().into())));
         }
-        let mut host = TestHost::default();
+        let mut host = lit_host();
         let r = interp::run(m, &bound, &mut point, &mut host, Limits::default()).expect("the interpreter runs");
         printed.extend(host.printed);
         for g in layout.globals.iter().filter(|g| g.written) {

@@ -157,6 +157,10 @@ pub trait Services {
 pub struct TestHost {
     pub printed: Vec<String>,
     pub unsupported: Vec<Builtin>,
+    /// A point light at this position besides the two fixed lights, whose colour varies with the
+    /// lit point and which sets `__nondiffuse` 0.25 and `__nonspecular` 0.5: lanes then differ in
+    /// their lights' directions, colours and sides.
+    pub point_light: Option<V3>,
 }
 
 fn space(name: &str) -> Option<M4> {
@@ -177,8 +181,16 @@ impl Services for TestHost {
         Some(matrix::mul(&a, &matrix::inverse(&b)?))
     }
 
-    fn lights(&mut self, _category: &str, _p: V3) -> Vec<LightSample> {
-        vec![
+    fn lights(&mut self, _category: &str, p: V3) -> Vec<LightSample> {
+        let point = self.point_light.map(|from| LightSample {
+            l: [from[0] - p[0], from[1] - p[1], from[2] - p[2]],
+            cl: [0.8, 0.25 + 0.5 * p[0].abs().min(1.0), 0.4],
+            ol: [0.0; 3],
+            ambient: false,
+            nondiffuse: 0.25,
+            nonspecular: 0.5,
+        });
+        let fixed = [
             LightSample { l: [0.0; 3], cl: [0.1; 3], ol: [0.0; 3], ambient: true, nondiffuse: 0.0, nonspecular: 0.0 },
             LightSample {
                 l: [0.0, 0.0, 1000.0],
@@ -188,7 +200,8 @@ impl Services for TestHost {
                 nondiffuse: 0.0,
                 nonspecular: 0.0,
             },
-        ]
+        ];
+        fixed.into_iter().chain(point).collect()
     }
 
     fn texture(&mut self, name: &str, s: f32, t: f32, first_channel: usize, channels: usize) -> Option<Vec<f32>> {
