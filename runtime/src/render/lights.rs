@@ -8,7 +8,7 @@ use super::shade::{finite_or_zero, mix, point_seed, shade_in_groups, unit, Frame
 use super::stats::{tracing, Stats};
 use super::world::{LightSource, DEFAULT_MATERIAL};
 use crate::ray::{HitCandidate, HitPacket, Ray, RayPacket, PACKET_SIZE};
-use crate::shading::{fill1, fill3, get_row, put3, put_row, with_batch, LightKind};
+use crate::shading::{fill1, fill3, get_row, put3, put_row, varying_rows, with_filled_batch, LightKind};
 use glam::Vec3A;
 use rtsl_compiler::back::jit::{light_in_cone, HostLight, MAX_LIGHTS};
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -95,7 +95,10 @@ fn eval_light_lanes(
     let id = frame.world.lights.iter().position(|x| std::ptr::eq(x, light)).map_or(u32::MAX, |i| i as u32);
     for sample in 0..samples {
         Stats::add(&frame.stats.light_evaluations, 1);
-        with_batch(program, n, |batch| {
+        // Every lane of these is written below.
+        let filled =
+            varying_rows([(slots.e, 3), (slots.ncomps, 1), (slots.p, 3), (slots.n, 3), (slots.ps, 3), (slots.time, 1)]);
+        with_filled_batch(program, n, &filled, |batch| {
             {
                 let mut raw = batch.raw_mut();
                 instance.write_params(&mut raw);

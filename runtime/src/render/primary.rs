@@ -18,7 +18,7 @@ use super::host::ShadeCall;
 use super::shade::Frame;
 use super::world::World;
 use crate::ray::{Ray, RayPacket, PACKET_SIZE};
-use crate::shading::{fill1, fill3, get_row_at, put_row_at, with_filled_batch, Slot};
+use crate::shading::{fill1, fill3, get_row_at, put_row_at, varying_rows, with_filled_batch, Slot};
 use glam::{Vec3A, Vec4, Vec4Swizzles};
 
 /// Where on the image, lens and shutter a primary ray starts.
@@ -276,7 +276,7 @@ fn run_camera_shader(
     }
     // Every lane of these globals is written below, or by the shader before it reads them (the
     // ones not filled here are `entry_unused`): the batch need not zero them first.
-    let filled: [std::ops::Range<usize>; 11] = [
+    let filled = varying_rows([
         (slots.p, 3),
         (slots.s, 1),
         (slots.t, 1),
@@ -288,11 +288,7 @@ fn run_camera_shader(
         (slots.i, 3),
         (slots.e, 3),
         (slots.ci, 3),
-    ]
-    .map(|(slot, comps)| match slot {
-        Some(s) if s.varying => s.offset..s.offset + comps,
-        _ => 0..0,
-    });
+    ]);
     let screen = ScreenWindow::of(world);
     let timer = super::stats::ShadingTimer::start(&frame.stats);
     with_filled_batch(program, n * PACKET_SIZE, &filled, |batch| {

@@ -20,7 +20,7 @@ use super::primary::PrimaryRays;
 use super::stats::{tracing, ShadingTimer, Stats};
 use super::world::{InstanceShading, World, DEFAULT_MATERIAL};
 use crate::ray::{offset_ray_origin, Hit, HitPacket, Ray, PACKET_SIZE};
-use crate::shading::{get3, get_row, put1, put3, with_batch, ShaderInstance, Slot};
+use crate::shading::{get3, get_row, put1, put3, varying_rows, with_batch, with_filled_batch, ShaderInstance, Slot};
 use glam::{Affine3A, Vec3A};
 use rtsl_compiler::back::jit::RawBatch;
 
@@ -489,7 +489,7 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
     let program = &surface.program;
     let slots = &program.slots;
     let mut footprints = vec![[Vec3A::ZERO; 2]; group.len()];
-    with_batch(program, group.len(), |batch| {
+    with_filled_batch(program, group.len(), &hit_global_rows(program), |batch| {
         {
             let mut raw = batch.raw_mut();
             surface.write_params(&mut raw);
@@ -607,6 +607,32 @@ fn fill_hit_globals(
     }
 }
 
+/// The varying slots [`fill_hit_globals`] writes in every lane (zeros where a lane has no
+/// geometry): a batch need not zero them first.
+fn hit_global_rows(program: &crate::shading::ShaderProgram) -> [std::ops::Range<usize>; 17] {
+    let s = &program.slots;
+    let [p, n, ng, i, e, u, v, ss, t, dpdu, dpdv, cs, os, oi, ncomps, time] = varying_rows([
+        (s.p, 3),
+        (s.n, 3),
+        (s.ng, 3),
+        (s.i, 3),
+        (s.e, 3),
+        (s.u, 1),
+        (s.v, 1),
+        (s.s, 1),
+        (s.t, 1),
+        (s.dpdu, 3),
+        (s.dpdv, 3),
+        (s.cs, 3),
+        (s.os, 3),
+        (s.oi, 3),
+        (s.ncomps, 1),
+        (s.time, 1),
+    ]);
+    let seed = program.layout().seed.map_or(0..0, |k| k..k + 2);
+    [p, n, ng, i, e, u, v, ss, t, dpdu, dpdv, cs, os, oi, ncomps, time, seed]
+}
+
 /// Whether `program` reads screen-space derivatives of its globals (or `du`, `dv`).
 fn needs_derivs(program: &crate::shading::ShaderProgram) -> bool {
     program.layout().deriv_slots > 0 || program.slots.du.is_some() || program.slots.dv.is_some()
@@ -666,7 +692,7 @@ fn displace(
 ) {
     let program = &displacement.program;
     let mut footprints = vec![[Vec3A::ZERO; 2]; group.len()];
-    with_batch(program, group.len(), |batch| {
+    with_filled_batch(program, group.len(), &hit_global_rows(program), |batch| {
         {
             let mut raw = batch.raw_mut();
             displacement.write_params(&mut raw);
@@ -802,8 +828,9 @@ fn put_d3(raw: &mut RawBatch<'_>, slot: Option<Slot>, deriv_slots: usize, lane: 
     }
 }
 
-/// Writes a triple global for every lane that has geometry, `value(hit, lane)`, a row per
-/// component (a uniform global takes the last such lane's value, as [`put3`] lane by lane would).
+/// Writes a triple global for every lane, `value(hit, lane)` where the lane has geometry and zero
+/// where not, a row per component (a uniform global takes the last such lane's value, as [`put3`]
+/// lane by lane would).
 fn put3_rows(
     raw: &mut RawBatch<'_>,
     slot: Option<Slot>,
@@ -823,10 +850,8 @@ fn put3_rows(
     let (x, rest) = rows.split_at_mut(st);
     let (y, z) = rest.split_at_mut(st);
     for (lane, ((g, x), (y, z))) in geoms.iter().zip(x).zip(y.iter_mut().zip(z)).enumerate() {
-        if let Some(g) = g {
-            let v = value(g, lane);
-            (*x, *y, *z) = (v.x, v.y, v.z);
-        }
+        let v = g.as_ref().map_or(Vec3A::ZERO, |g| value(g, lane));
+        (*x, *y, *z) = (v.x, v.y, v.z);
     }
 }
 
@@ -849,9 +874,7 @@ fn put1_rows(
     }
     let row = &mut raw.varying[s.offset * st..(s.offset + 1) * st];
     for (lane, (g, x)) in geoms.iter().zip(row).enumerate() {
-        if let Some(g) = g {
-            *x = value(g, lane);
-        }
+        *x = g.as_ref().map_or(0.0, |g| value(g, lane));
     }
 }
 

@@ -217,6 +217,15 @@ pub fn with_batch<R>(program: &Program, lanes: usize, f: impl FnOnce(&mut BatchD
     with_filled_batch(program, lanes, &[], f)
 }
 
+/// The varying slots of globals (each with its number of components) as ranges of slot indices,
+/// for [`with_filled_batch`]: empty for a global the shader does not use or has uniform.
+pub fn varying_rows<const N: usize>(globals: [(Option<Slot>, usize); N]) -> [std::ops::Range<usize>; N] {
+    globals.map(|(slot, comps)| match slot {
+        Some(s) if s.varying => s.offset..s.offset + comps,
+        _ => 0..0,
+    })
+}
+
 /// [`with_batch`] for a caller that fills the varying slots in `filled` (ranges of slot indices)
 /// for every lane itself, or leaves them to a shader that assigns them first thing: the reset does
 /// not zero them (see [`BatchData::reset_except`]).

@@ -582,13 +582,24 @@ impl BatchData {
         self.mask.resize(stride, 0);
         self.mask[..lanes].fill(-1);
         let slots = self.layout.varying_slots;
-        if filled.is_empty() || resized {
+        // The filled slots as bits (a batch has rarely more than a few dozen slots; past 256 all
+        // are zeroed).
+        let mut kept = [0u64; 4];
+        for r in filled {
+            for slot in r.clone().take_while(|&slot| slot < 256) {
+                kept[slot / 64] |= 1 << (slot % 64);
+            }
+        }
+        if kept == [0; 4] || resized {
             self.varying.clear();
             self.varying.resize(slots * stride, 0.0);
         } else {
             self.varying.resize(slots * stride, 0.0);
             for (slot, row) in self.varying.chunks_exact_mut(stride).enumerate() {
-                if !filled.iter().any(|r| r.contains(&slot)) {
+                if slot < 256 && kept[slot / 64] >> (slot % 64) & 1 != 0 {
+                    // The padding lanes past `lanes`, which nobody fills.
+                    row[lanes..].fill(0.0);
+                } else {
                     row.fill(0.0);
                 }
             }
