@@ -219,6 +219,28 @@ fn wrap_index(i: i64, n: usize, mode: Wrap) -> Option<usize> {
     }
 }
 
+/// [`wrap_index`] of `i` and of `i + 1` (saturating), with at most one division: a tiled texture
+/// (periodic, coordinates past 1) wraps every tap, and a 64-bit division per tap was most of the
+/// time of its lookups.
+#[inline(always)]
+fn wrap_pair(i: i64, n: usize, mode: Wrap) -> [Option<usize>; 2] {
+    let len = n as i64;
+    if i >= 0 && i < len - 1 {
+        return [Some(i as usize), Some(i as usize + 1)];
+    }
+    match mode {
+        Wrap::Periodic if i < i64::MAX && len > 0 => {
+            let first = match (i32::try_from(i), i32::try_from(len)) {
+                (Ok(i), Ok(len)) => i64::from(i.rem_euclid(len)),
+                _ => i.rem_euclid(len),
+            };
+            let second = if first + 1 == len { 0 } else { first + 1 };
+            [Some(first as usize), Some(second as usize)]
+        }
+        _ => [wrap_index(i, n, mode), wrap_index(i.saturating_add(1), n, mode)],
+    }
+}
+
 /// Adds `weight` times the bilinear interpolation at (s, t) to `out`. Texel centres sit at
 /// `(i + 0.5) / w`, so the four texels around `s * w - 0.5` are blended.
 fn accumulate_bilinear(img: &TexImage, s: f32, t: f32, wrap: [Wrap; 2], first: usize, weight: f32, out: &mut [f32]) {
@@ -228,9 +250,9 @@ fn accumulate_bilinear(img: &TexImage, s: f32, t: f32, wrap: [Wrap; 2], first: u
     let (fx, fy) = (x - x0, y - y0);
     // Saturating casts: NaN becomes 0, huge values the ends of i64; wrapping keeps them in range.
     let (x0, y0) = (x0 as i64, y0 as i64);
-    let columns = [wrap_index(x0, img.width(), wrap[0]), wrap_index(x0.saturating_add(1), img.width(), wrap[0])];
-    for (dy, wy) in [(0, 1.0 - fy), (1, fy)] {
-        let Some(iy) = wrap_index(y0.saturating_add(dy), img.height(), wrap[1]) else { continue };
+    let columns = wrap_pair(x0, img.width(), wrap[0]);
+    for (row, wy) in wrap_pair(y0, img.height(), wrap[1]).into_iter().zip([1.0 - fy, fy]) {
+        let Some(iy) = row else { continue };
         for (column, wx) in columns.iter().zip([1.0 - fx, fx]) {
             let tap = weight * wx * wy;
             if tap == 0.0 {
@@ -322,6 +344,24 @@ fn downsample(img: &TexImage) -> TexImage {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The pair of wrapped taps is the two taps wrapped one at a time, for every mode, inside and
+    /// outside the image, near the 32-bit limits and at the saturated ends.
+    #[test]
+    fn wrapping_a_pair_of_taps_equals_wrapping_each() {
+        let mut taps: Vec<i64> = (-40..40).collect();
+        for edge in [i64::from(i32::MAX), i64::from(i32::MIN), i64::MAX, i64::MIN, 1 << 40, -(1 << 40)] {
+            taps.extend([edge - 1, edge, edge.saturating_add(1)]);
+        }
+        for n in [1, 2, 3, 7, 16] {
+            for mode in [Wrap::Periodic, Wrap::Clamp, Wrap::Black] {
+                for &i in &taps {
+                    let each = [wrap_index(i, n, mode), wrap_index(i.saturating_add(1), n, mode)];
+                    assert_eq!(wrap_pair(i, n, mode), each, "tap {i}, {n} texels, {mode:?}");
+                }
+            }
+        }
+    }
 
     #[test]
     fn the_inline_floor_equals_the_library_floor_bit_for_bit() {
