@@ -136,6 +136,13 @@ fn bad_input_gives_clear_errors_not_panics() {
     let o = rtsl(&["info", "lib.sl"], dir.path());
     assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("defines no shader"), "{}", stderr(&o));
+    // A missing BART scene: the file and the system's reason, each said once.
+    let o = rtsl(&["bart", "missing.aff"], dir.path());
+    assert_ne!(o.status.code(), Some(0));
+    let err = stderr(&o);
+    assert!(err.contains("cannot read missing.aff"), "{err}");
+    assert_eq!(err.matches("missing.aff").count(), 1, "{err}");
+    assert_eq!(err.matches("(os error").count(), 1, "{err}");
 }
 
 #[test]

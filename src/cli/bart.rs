@@ -58,9 +58,7 @@ pub fn run(args: &BartArgs) -> anyhow::Result<ExitCode> {
 
     let started = Instant::now();
     let mut rt = Context::new();
-    let mut scene = pool
-        .install(|| load_file(&mut rt, &args.scene))
-        .with_context(|| format!("loading {}", args.scene.display()))?;
+    let mut scene = pool.install(|| load_file(&mut rt, &args.scene)).context("cannot load the BART scene")?;
     let loaded = started.elapsed();
     for w in &scene.warnings {
         eprintln!("{w}");

@@ -61,7 +61,8 @@ impl std::fmt::Display for Location {
 pub enum AffError {
     #[error("{at}: {message}")]
     Syntax { at: Location, message: String },
-    #[error("{}: {source}", path.display())]
+    // The I/O error is the source (printed after this by an error chain), not part of the message.
+    #[error("cannot read {}", path.display())]
     Read { path: PathBuf, source: std::io::Error },
 }
 
