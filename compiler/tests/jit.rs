@@ -899,7 +899,8 @@ fn matrices_arithmetic_and_components() {
 }
 
 /// Transforms by projective matrices (w of 0, 1, negative, infinite and ordinary, lane by lane, and
-/// uniform), which the JIT computes in its own code: the same bits as the interpreter.
+/// uniform) and by a uniform affine one, which the JIT computes in its own code: the same bits as
+/// the interpreter.
 #[test]
 fn projective_transforms_divide_like_the_interpreter() {
     check(
@@ -911,8 +912,15 @@ fn projective_transforms_divide_like_the_interpreter() {
             matrix um = matrix(1, 0, 0, k, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1 - k);
             point p = transform(pm, P) + transform(um, P) + transform(um, point(1, 2, 3));
             vector q = vtransform(pm, I) + vtransform(um, vector(s, t, u));
+            // A uniform affine matrix (which skips the divide), also of a point with an infinite
+            // coordinate (whose w is NaN).
+            matrix ua = matrix(2, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 1, 2, 3, 1);
+            point a = transform(ua, P) + transform(ua, point((s < 0.5) ? 1 / (t - t) : s, t, u));
+            // Projective with a last entry of 1 all the same.
+            matrix up = matrix(1, 0, 0, 0.5, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1);
+            a += transform(up, P);
             o = comp(pm, 3, 3);
-            Ci = color(p) + color(q);
+            Ci = color(p) + color(q) + color(a);
         }
         "#,
     );

@@ -2237,39 +2237,85 @@ impl<'m> Lower<'m, '_> {
     /// for 12 multiply-adds, and space casts sit in the inner loops of most shaders.
     fn transform_inline(&mut self, m: &Val, p: &Val, point: bool) -> Val {
         let vary = m.vary || p.vary;
+        // The matrix's own (scalar) entries when it is uniform.
+        let uniform_m = (!m.vary).then(|| m.c.clone());
         let m: Vec<Value> = m.c.iter().map(|x| widen(&mut self.b, *x, vary)).collect();
         let p: Vec<Value> = p.c.iter().map(|x| widen(&mut self.b, *x, vary)).collect();
-        let columns = if point { 4 } else { 3 };
-        let mut out = Vec::with_capacity(columns);
-        for j in 0..columns {
-            let mut sum = self.b.ins().fmul(p[0], m[j]);
-            for (k, pk) in p.iter().enumerate().skip(1) {
-                let term = self.b.ins().fmul(*pk, m[4 * k + j]);
-                sum = self.b.ins().fadd(sum, term);
-            }
-            if point {
-                sum = self.b.ins().fadd(sum, m[12 + j]);
-            }
-            out.push(sum);
+        let mut out: Vec<Value> = (0..3).map(|j| self.transform_column(&m, &p, j, point)).collect();
+        if !point {
+            return Val { vary, c: out };
         }
-        if point {
-            // Divided by w unless w is 1, 0 or not finite.
-            let w = out.pop().expect("four columns");
-            let one = konst(&mut self.b, 1.0, w);
-            let zero = konst(&mut self.b, 0.0, w);
-            let inf = konst(&mut self.b, f32::INFINITY, w);
-            let not_one = self.b.ins().fcmp(FloatCC::NotEqual, w, one);
-            let not_zero = self.b.ins().fcmp(FloatCC::NotEqual, w, zero);
-            let abs = self.b.ins().fabs(w);
-            let finite = self.b.ins().fcmp(FloatCC::LessThan, abs, inf);
-            let divide = and(&mut self.b, not_one, not_zero);
-            let divide = and(&mut self.b, divide, finite);
-            for x in &mut out {
-                let q = self.b.ins().fdiv(*x, w);
-                *x = choose(&mut self.b, divide, q, *x);
+        match uniform_m {
+            // A uniform affine matrix (last column 0 0 0 1) makes w 1, or NaN where p is not
+            // finite: no division either way, so that case skips the w column and the divisions
+            // (space casts to "camera" or "shader" space are mostly of this kind).
+            Some(um) => {
+                let ty = self.b.func.dfg.value_type(out[0]);
+                let vars: Vec<Variable> = out
+                    .iter()
+                    .map(|x| {
+                        let v = self.b.declare_var(ty);
+                        self.b.def_var(v, *x);
+                        v
+                    })
+                    .collect();
+                let mut affine = None;
+                for (k, want) in [(3, 0.0), (7, 0.0), (11, 0.0), (15, 1.0)] {
+                    let c = self.b.ins().f32const(want);
+                    let eq = self.b.ins().fcmp(FloatCC::Equal, um[k], c);
+                    affine = Some(match affine {
+                        Some(a) => self.b.ins().band(a, eq),
+                        None => eq,
+                    });
+                }
+                let affine = affine.expect("four entries");
+                let (divide_b, join) = (self.b.create_block(), self.b.create_block());
+                self.b.ins().brif(affine, join, &[], divide_b, &[]);
+                self.b.switch_to_block(divide_b);
+                let divided = self.divide_by_w(&m, &p, &out);
+                for (v, x) in vars.iter().zip(divided) {
+                    self.b.def_var(*v, x);
+                }
+                self.b.ins().jump(join, &[]);
+                self.b.switch_to_block(join);
+                out = vars.iter().map(|v| self.b.use_var(*v)).collect();
             }
+            None => out = self.divide_by_w(&m, &p, &out),
         }
         Val { vary, c: out }
+    }
+
+    /// Column `j` of `p` (with a 1 appended for a point) times `m`, in `transform_point`'s order.
+    fn transform_column(&mut self, m: &[Value], p: &[Value], j: usize, point: bool) -> Value {
+        let mut sum = self.b.ins().fmul(p[0], m[j]);
+        for (k, pk) in p.iter().enumerate().skip(1) {
+            let term = self.b.ins().fmul(*pk, m[4 * k + j]);
+            sum = self.b.ins().fadd(sum, term);
+        }
+        if point {
+            sum = self.b.ins().fadd(sum, m[12 + j]);
+        }
+        sum
+    }
+
+    /// `xyz` divided by the point's w (`transform_column` 3) unless w is 1, 0 or not finite.
+    fn divide_by_w(&mut self, m: &[Value], p: &[Value], xyz: &[Value]) -> Vec<Value> {
+        let w = self.transform_column(m, p, 3, true);
+        let one = konst(&mut self.b, 1.0, w);
+        let zero = konst(&mut self.b, 0.0, w);
+        let inf = konst(&mut self.b, f32::INFINITY, w);
+        let not_one = self.b.ins().fcmp(FloatCC::NotEqual, w, one);
+        let not_zero = self.b.ins().fcmp(FloatCC::NotEqual, w, zero);
+        let abs = self.b.ins().fabs(w);
+        let finite = self.b.ins().fcmp(FloatCC::LessThan, abs, inf);
+        let divide = and(&mut self.b, not_one, not_zero);
+        let divide = and(&mut self.b, divide, finite);
+        xyz.iter()
+            .map(|x| {
+                let q = self.b.ins().fdiv(*x, w);
+                choose(&mut self.b, divide, q, *x)
+            })
+            .collect()
     }
 
     /// `spline([basis,] x, knots... | knots[])`: the host helper finds each lane's segment and its
