@@ -5,7 +5,7 @@
 
 use glam::{Affine3A, Vec3, Vec3A};
 use rtsl_runtime::api::{ApiError, Context, ObjectId, Primitive};
-use rtsl_runtime::render::{Antialiasing, Framebuffer};
+use rtsl_runtime::render::{Antialiasing, FrameReport, Framebuffer};
 use rtsl_runtime::shading::ParamValue;
 
 const W: u32 = 64;
@@ -273,18 +273,25 @@ fn depth_of_field_blurs_only_what_is_off_the_focal_plane() -> Result<(), ApiErro
     Ok(())
 }
 
-#[test]
-fn a_zero_weight_makes_an_empty_pixel() -> Result<(), ApiError> {
+/// A checker wall seen through the camera shader `src` (named `name`) and through the built-in
+/// camera: the frame (with its report) and the built-in camera's image.
+fn weighted_and_plain(name: &str, src: &str) -> Result<(Framebuffer, FrameReport, Framebuffer), ApiError> {
     let mut rt = context();
     rt.camera_look_at(Vec3A::new(0.0, 0.0, -5.0), Vec3A::ZERO, Vec3A::Y, 40.0);
     checker_wall(&mut rt, 0.0, 5.0)?;
+    let id = rt.compile_shader(name, src)?;
+    rt.camera_shader(Some(id), &[])?;
+    let (weighted, report) = rt.render_frame()?;
+    rt.camera_shader(None, &[])?;
+    let (plain, _) = rt.render_frame()?;
+    Ok((weighted, report, plain))
+}
+
+#[test]
+fn a_zero_weight_makes_an_empty_pixel() -> Result<(), ApiError> {
     // A camera shader that keeps only the left half of the image, at half weight.
     let src = r#"camera halfleft() { Ci = (s < 0) ? color(.5, .5, .5) : 0; }"#;
-    let id = rt.compile_shader("halfleft", src)?;
-    rt.camera_shader(Some(id), &[])?;
-    let (half, report) = rt.render_frame()?;
-    rt.camera_shader(None, &[])?;
-    let (full, _) = rt.render_frame()?;
+    let (half, report, full) = weighted_and_plain("halfleft", src)?;
     assert_eq!(report.primary_rays, u64::from(W * H / 2));
     for y in 0..H {
         for x in 0..W {
@@ -305,15 +312,8 @@ fn a_zero_weight_makes_an_empty_pixel() -> Result<(), ApiError> {
 /// quad of a packet mixes both) scales each pixel of the built-in camera's image by its own.
 #[test]
 fn each_ray_keeps_its_own_weight() -> Result<(), ApiError> {
-    let mut rt = context();
-    rt.camera_look_at(Vec3A::new(0.0, 0.0, -5.0), Vec3A::ZERO, Vec3A::Y, 40.0);
-    checker_wall(&mut rt, 0.0, 5.0)?;
     let src = r#"camera columns() { Ci = (mod(floor(xcomp(P)), 2) == 0) ? color(.5, .25, 1) : color(.25, 1, .5); }"#;
-    let id = rt.compile_shader("columns", src)?;
-    rt.camera_shader(Some(id), &[])?;
-    let (weighted, _) = rt.render_frame()?;
-    rt.camera_shader(None, &[])?;
-    let (full, _) = rt.render_frame()?;
+    let (weighted, _, full) = weighted_and_plain("columns", src)?;
     for y in 0..H {
         for x in 0..W {
             let w = if x % 2 == 0 { [0.5, 0.25, 1.0] } else { [0.25, 1.0, 0.5] };
