@@ -351,7 +351,7 @@ mod tests {
     fn wrapping_a_pair_of_taps_equals_wrapping_each() {
         let mut taps: Vec<i64> = (-40..40).collect();
         for edge in [i64::from(i32::MAX), i64::from(i32::MIN), i64::MAX, i64::MIN, 1 << 40, -(1 << 40)] {
-            taps.extend([edge - 1, edge, edge.saturating_add(1)]);
+            taps.extend([edge.saturating_sub(1), edge, edge.saturating_add(1)]);
         }
         for n in [1, 2, 3, 7, 16] {
             for mode in [Wrap::Periodic, Wrap::Clamp, Wrap::Black] {
