@@ -93,11 +93,11 @@ fn eval_light_lanes(
             .cloned()
     });
     let id = frame.world.lights.iter().position(|x| std::ptr::eq(x, light)).map_or(u32::MAX, |i| i as u32);
+    // Every lane of these is written below, for every sample.
+    let filled =
+        varying_rows([(slots.e, 3), (slots.ncomps, 1), (slots.p, 3), (slots.n, 3), (slots.ps, 3), (slots.time, 1)]);
     for sample in 0..samples {
         Stats::add(&frame.stats.light_evaluations, 1);
-        // Every lane of these is written below.
-        let filled =
-            varying_rows([(slots.e, 3), (slots.ncomps, 1), (slots.p, 3), (slots.n, 3), (slots.ps, 3), (slots.time, 1)]);
         with_filled_batch(program, n, &filled, |batch| {
             {
                 let mut raw = batch.raw_mut();

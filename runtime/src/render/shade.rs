@@ -611,7 +611,9 @@ fn fill_hit_globals(
 /// geometry): a batch need not zero them first.
 fn hit_global_rows(program: &crate::shading::ShaderProgram) -> [std::ops::Range<usize>; 17] {
     let s = &program.slots;
-    let [p, n, ng, i, e, u, v, ss, t, dpdu, dpdv, cs, os, oi, ncomps, time] = varying_rows([
+    // The random numbers' seed: two slots, written for every lane.
+    let seed = program.layout().seed.map(|offset| Slot { varying: true, offset, written: false, entry_unused: false });
+    varying_rows([
         (s.p, 3),
         (s.n, 3),
         (s.ng, 3),
@@ -628,9 +630,8 @@ fn hit_global_rows(program: &crate::shading::ShaderProgram) -> [std::ops::Range<
         (s.oi, 3),
         (s.ncomps, 1),
         (s.time, 1),
-    ]);
-    let seed = program.layout().seed.map_or(0..0, |k| k..k + 2);
-    [p, n, ng, i, e, u, v, ss, t, dpdu, dpdv, cs, os, oi, ncomps, time, seed]
+        (seed, 2),
+    ])
 }
 
 /// Whether `program` reads screen-space derivatives of its globals (or `du`, `dv`).
