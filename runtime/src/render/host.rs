@@ -412,13 +412,14 @@ unsafe extern "C" fn host_texture(
     match kind {
         0 => {
             let Some(mip) = c.texture(name) else { return };
+            // `filter` writes every value it is given, so the buffer is cleared once, not per lane.
+            let mut lane_out = [0.0f32; 64];
             for l in active() {
                 // Rows 2..6: the footprint from the coordinates' derivatives, widths applied, and blur.
                 let row = |k: usize| coords[4 * k + l];
                 let footprint = Footprint { dsdx: row(2), dtdx: row(3), dsdy: row(4), dtdy: row(5) };
                 let blur = row(6).max(0.0);
                 let opts = LookupOptions { sblur: blur, tblur: blur, ..LookupOptions::default() };
-                let mut lane_out = [0.0f32; 64];
                 mip.filter(row(0), row(1), footprint, first[l].max(0.0) as usize, &mut lane_out[..values], &opts);
                 ok[l] = 1;
                 for (k, v) in lane_out[..values].iter().enumerate() {

@@ -230,9 +230,15 @@ fn wrap_pair(i: i64, n: usize, mode: Wrap) -> [Option<usize>; 2] {
     }
     match mode {
         Wrap::Periodic if i < i64::MAX && len > 0 => {
-            let first = match (i32::try_from(i), i32::try_from(len)) {
-                (Ok(i), Ok(len)) => i64::from(i.rem_euclid(len)),
-                _ => i.rem_euclid(len),
+            // Most textures are a power of two wide: a mask is their remainder (two's complement
+            // makes it the Euclidean one for negative taps too).
+            let first = if len & (len - 1) == 0 {
+                i & (len - 1)
+            } else {
+                match (i32::try_from(i), i32::try_from(len)) {
+                    (Ok(i), Ok(len)) => i64::from(i.rem_euclid(len)),
+                    _ => i.rem_euclid(len),
+                }
             };
             let second = if first + 1 == len { 0 } else { first + 1 };
             [Some(first as usize), Some(second as usize)]
@@ -243,28 +249,86 @@ fn wrap_pair(i: i64, n: usize, mode: Wrap) -> [Option<usize>; 2] {
 
 /// Adds `weight` times the bilinear interpolation at (s, t) to `out`. Texel centres sit at
 /// `(i + 0.5) / w`, so the four texels around `s * w - 0.5` are blended.
+///
+/// Each channel gets `tap * value` added tap by tap (rows, then columns), skipping taps of zero
+/// weight, so a texel centre reads its texel exactly even next to an infinite one.
 fn accumulate_bilinear(img: &TexImage, s: f32, t: f32, wrap: [Wrap; 2], first: usize, weight: f32, out: &mut [f32]) {
-    let x = s * img.width() as f32 - 0.5;
+    // The channels both the texture and `out` have; the rest stay as they are.
+    let n = out.len().min(img.channels().saturating_sub(first));
+    match n {
+        0 => {}
+        1 => accumulate_taps::<1>(img, s, t, wrap, first, weight, out),
+        3 => accumulate_taps::<3>(img, s, t, wrap, first, weight, out),
+        4 => accumulate_taps::<4>(img, s, t, wrap, first, weight, out),
+        _ => accumulate_taps_dyn(img, s, t, wrap, first, weight, &mut out[..n]),
+    }
+}
+
+/// The four taps around (s, t), rows then columns: each texel's offset in the image's data and
+/// its weight. A tap outside a black border gets weight 0 (and offset 0), which callers skip.
+#[inline(always)]
+fn bilinear_taps(img: &TexImage, s: f32, t: f32, wrap: [Wrap; 2], weight: f32) -> ([usize; 4], [f32; 4]) {
+    let (w, ch) = (img.width(), img.channels());
+    let x = s * w as f32 - 0.5;
     let y = t * img.height() as f32 - 0.5;
     let (x0, y0) = (floor(x), floor(y));
     let (fx, fy) = (x - x0, y - y0);
     // Saturating casts: NaN becomes 0, huge values the ends of i64; wrapping keeps them in range.
     let (x0, y0) = (x0 as i64, y0 as i64);
-    let columns = wrap_pair(x0, img.width(), wrap[0]);
-    for (row, wy) in wrap_pair(y0, img.height(), wrap[1]).into_iter().zip([1.0 - fy, fy]) {
-        let Some(iy) = row else { continue };
-        for (column, wx) in columns.iter().zip([1.0 - fx, fx]) {
-            let tap = weight * wx * wy;
-            if tap == 0.0 {
-                continue;
-            }
-            let Some(ix) = *column else { continue };
-            let texel = img.texel(ix, iy);
-            for (c, o) in out.iter_mut().enumerate() {
-                if let Some(v) = texel.get(first + c) {
-                    *o += tap * v;
-                }
-            }
+    let columns = wrap_pair(x0, w, wrap[0]);
+    let rows = wrap_pair(y0, img.height(), wrap[1]);
+    let (wx, wy) = ([1.0 - fx, fx], [1.0 - fy, fy]);
+    let mut offsets = [0; 4];
+    let mut taps = [0.0; 4];
+    for (k, (offset, tap)) in offsets.iter_mut().zip(&mut taps).enumerate() {
+        let (row, column) = (k / 2, k % 2);
+        if let (Some(iy), Some(ix)) = (rows[row], columns[column]) {
+            *offset = (iy * w + ix) * ch;
+            *tap = weight * wx[column] * wy[row];
+        }
+    }
+    (offsets, taps)
+}
+
+/// [`accumulate_bilinear`] for `N` channels, unrolled.
+#[inline(always)]
+fn accumulate_taps<const N: usize>(
+    img: &TexImage,
+    s: f32,
+    t: f32,
+    wrap: [Wrap; 2],
+    first: usize,
+    weight: f32,
+    out: &mut [f32],
+) {
+    let Some(out) = out.first_chunk_mut::<N>() else { return };
+    let data = img.data();
+    let (offsets, taps) = bilinear_taps(img, s, t, wrap, weight);
+    // Summed in registers: through `out` each tap would wait for the last one's store.
+    let mut sum = *out;
+    for (offset, tap) in offsets.into_iter().zip(taps) {
+        if tap == 0.0 {
+            continue;
+        }
+        let Some(texel) = data.get(offset + first..).and_then(|d| d.first_chunk::<N>()) else { continue };
+        for (o, v) in sum.iter_mut().zip(texel) {
+            *o += tap * v;
+        }
+    }
+    *out = sum;
+}
+
+/// [`accumulate_bilinear`] for any number of channels (`out` holds exactly those to read).
+fn accumulate_taps_dyn(img: &TexImage, s: f32, t: f32, wrap: [Wrap; 2], first: usize, weight: f32, out: &mut [f32]) {
+    let data = img.data();
+    let (offsets, taps) = bilinear_taps(img, s, t, wrap, weight);
+    for (offset, tap) in offsets.into_iter().zip(taps) {
+        if tap == 0.0 {
+            continue;
+        }
+        let Some(texel) = data.get(offset + first..offset + first + out.len()) else { continue };
+        for (o, v) in out.iter_mut().zip(texel) {
+            *o += tap * v;
         }
     }
 }
@@ -358,6 +422,59 @@ mod tests {
                 for &i in &taps {
                     let each = [wrap_index(i, n, mode), wrap_index(i.saturating_add(1), n, mode)];
                     assert_eq!(wrap_pair(i, n, mode), each, "tap {i}, {n} texels, {mode:?}");
+                }
+            }
+        }
+    }
+
+    /// The bilinear blend as first written: every tap wrapped on its own, each channel looked up
+    /// by index, zero-weight and missing taps skipped.
+    fn bilinear_tap_by_tap(img: &TexImage, s: f32, t: f32, wrap: [Wrap; 2], first: usize, out: &mut [f32]) {
+        let x = s * img.width() as f32 - 0.5;
+        let y = t * img.height() as f32 - 0.5;
+        let (fx, fy) = (x - x.floor(), y - y.floor());
+        let (x0, y0) = (x.floor() as i64, y.floor() as i64);
+        for (dy, wy) in [(0, 1.0 - fy), (1, fy)] {
+            for (dx, wx) in [(0, 1.0 - fx), (1, fx)] {
+                let tap = 1.0 * wx * wy;
+                let (Some(ix), Some(iy)) =
+                    (wrap_index(x0 + dx, img.width(), wrap[0]), wrap_index(y0 + dy, img.height(), wrap[1]))
+                else {
+                    continue;
+                };
+                if tap == 0.0 {
+                    continue;
+                }
+                for (c, o) in out.iter_mut().enumerate() {
+                    if let Some(v) = img.texel(ix, iy).get(first + c) {
+                        *o += tap * v;
+                    }
+                }
+            }
+        }
+    }
+
+    /// Every channel count, first channel and result width (the unrolled widths and the rest)
+    /// blends exactly as tap by tap, in every wrap mode, inside and outside the image.
+    #[test]
+    fn bilinear_blends_any_channels_exactly_as_tap_by_tap() {
+        let modes = [Wrap::Periodic, Wrap::Clamp, Wrap::Black];
+        let coords = [-1.3f32, -0.01, 0.0, 0.124, 0.5, 0.77, 0.999, 1.0, 2.6];
+        for channels in 1..=5 {
+            for (w, h) in [(4, 4), (5, 3), (1, 2)] {
+                let img = image(w, h, channels, |x, y, c| (x * 7 + y * 13 + c * 29) as f32 * 0.37 - 1.0);
+                for first in 0..=channels {
+                    for width in 1..=5 {
+                        for (&s, &t) in coords.iter().zip(coords.iter().rev()) {
+                            for wrap in [[modes[0], modes[1]], [modes[1], modes[2]], [modes[2], modes[0]]] {
+                                let (mut fast, mut slow) = (vec![0.5; width], vec![0.5; width]);
+                                accumulate_bilinear(&img, s, t, wrap, first, 1.0, &mut fast);
+                                bilinear_tap_by_tap(&img, s, t, wrap, first, &mut slow);
+                                let case = format!("{channels} channels, {w}x{h}, first {first}, {width} wide, at ({s}, {t}), {wrap:?}");
+                                assert_eq!(fast, slow, "{case}");
+                            }
+                        }
+                    }
                 }
             }
         }
