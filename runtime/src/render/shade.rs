@@ -23,6 +23,7 @@ use crate::ray::{offset_ray_origin, Hit, HitPacket, Ray, PACKET_SIZE};
 use crate::shading::{get3, get_row, put1, put3, varying_rows, with_batch, with_filled_batch, ShaderInstance, Slot};
 use glam::{Affine3A, Vec3A};
 use rtsl_compiler::back::jit::RawBatch;
+use std::cell::RefCell;
 
 /// The frame being rendered: the world and the counters.
 pub struct Frame<'w> {
@@ -462,80 +463,104 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
         [g.u, g.v, g.s, g.t, g.dpdu, g.dpdv].iter().any(Option::is_some)
     });
     let Some(ig) = InstanceGeometry::new(world, inst, group[0].hit.instance, (derivs, coords)) else { return };
-    let mut geoms: Vec<Option<HitGeometry>> = group.iter().map(|p| hit_geometry(&ig, &p.hit, p.ray.time)).collect();
-    let color = Vec3A::from(material.color);
-    let opacity = Vec3A::from(material.opacity);
-    if let Some(displacement) = &material.displacement {
-        let at = (inst.material, inst.world_from_object);
-        displace(frame, displacement, at, group, &mut geoms, (color, opacity), depth);
-    }
-    if let Some(native) = &material.native {
-        shade_native(frame, native, group, &geoms, color, opacity, depth, out);
-        return;
-    }
-    let Some(surface) = &material.surface else {
-        // RenderMan's default surface: a matte that faces the viewer.
-        for ((p, g), o) in group.iter().zip(&geoms).zip(out.iter_mut()) {
-            let Some(g) = g else { continue };
-            let cs = g.cs.unwrap_or(color);
-            let os = g.os.unwrap_or(opacity);
-            let facing = g.n.dot(-p.ray.direction.normalize_or_zero()).abs();
-            let (dpdx, dpdy) = p.diff.at_hit(p.ray.direction, p.hit.t, g.ng);
-            *o = Shaded { ci: os * cs * (0.2 + 0.8 * facing), oi: os, p: g.p, ng: g.ng, dpdx, dpdy };
+    with_hit_geometry(|geoms| {
+        geoms.extend(group.iter().map(|p| hit_geometry(&ig, &p.hit, p.ray.time)));
+        let color = Vec3A::from(material.color);
+        let opacity = Vec3A::from(material.opacity);
+        if let Some(displacement) = &material.displacement {
+            let at = (inst.material, inst.world_from_object);
+            displace(frame, displacement, at, group, geoms, (color, opacity), depth);
         }
-        return;
-    };
-    let vertex_params = world.vertex_params.get(group[0].hit.instance as usize);
-    let program = &surface.program;
-    let slots = &program.slots;
-    let mut footprints = vec![[Vec3A::ZERO; 2]; group.len()];
-    with_filled_batch(program, group.len(), &hit_global_rows(program), |batch| {
-        {
-            let mut raw = batch.raw_mut();
-            surface.write_params(&mut raw);
-            fill_hit_globals(&mut raw, program, group, &geoms, (color, opacity), &mut footprints);
-            if let Some(vp) = vertex_params {
-                for (lane, g) in geoms.iter().enumerate() {
-                    let Some(g) = g else { continue };
-                    for &(param, attr) in vp {
-                        let slot = &program.layout().params[param];
-                        if let Some(values) = g.attributes.get(attr) {
-                            for (k, v) in values.iter().enumerate() {
-                                raw.varying[(slot.offset + k) * raw.stride + lane] = *v;
+        if let Some(native) = &material.native {
+            shade_native(frame, native, group, geoms, color, opacity, depth, out);
+            return;
+        }
+        let Some(surface) = &material.surface else {
+            // RenderMan's default surface: a matte that faces the viewer.
+            for ((p, g), o) in group.iter().zip(geoms.iter()).zip(out.iter_mut()) {
+                let Some(g) = g else { continue };
+                let cs = g.cs.unwrap_or(color);
+                let os = g.os.unwrap_or(opacity);
+                let facing = g.n.dot(-p.ray.direction.normalize_or_zero()).abs();
+                let (dpdx, dpdy) = p.diff.at_hit(p.ray.direction, p.hit.t, g.ng);
+                *o = Shaded { ci: os * cs * (0.2 + 0.8 * facing), oi: os, p: g.p, ng: g.ng, dpdx, dpdy };
+            }
+            return;
+        };
+        let vertex_params = world.vertex_params.get(group[0].hit.instance as usize);
+        let program = &surface.program;
+        let slots = &program.slots;
+        let mut footprints = vec![[Vec3A::ZERO; 2]; group.len()];
+        with_filled_batch(program, group.len(), &hit_global_rows(program), |batch| {
+            {
+                let mut raw = batch.raw_mut();
+                surface.write_params(&mut raw);
+                fill_hit_globals(&mut raw, program, group, geoms, (color, opacity), &mut footprints);
+                if let Some(vp) = vertex_params {
+                    for (lane, g) in geoms.iter().enumerate() {
+                        let Some(g) = g else { continue };
+                        for &(param, attr) in vp {
+                            let slot = &program.layout().params[param];
+                            if let Some(values) = g.attributes.get(attr) {
+                                for (k, v) in values.iter().enumerate() {
+                                    raw.varying[(slot.offset + k) * raw.stride + lane] = *v;
+                                }
+                                raw.bound[param] = 1;
                             }
-                            raw.bound[param] = 1;
                         }
                     }
                 }
             }
-        }
-        let mut call = batch_call(frame, surface, (inst.material, inst.world_from_object), group, &geoms, depth);
-        let table = call.table();
-        program.code.shade_with_table(batch, &table);
-        let raw = batch.raw_mut();
-        // Ci and Oi read a row at a time (no Oi: the surface's opacity).
-        let lanes = group.len().min(PACKET_SIZE);
-        let mut rows = [[0.0f32; PACKET_SIZE]; 6];
-        for (k, row) in rows.iter_mut().enumerate() {
-            get_row(&raw, [slots.ci, slots.oi][k / 3], k % 3, 0.0, &mut row[..lanes]);
-        }
-        for (lane, (g, o)) in geoms.iter().zip(out.iter_mut()).enumerate().take(lanes) {
-            let Some(g) = g else { continue };
-            let ci = Vec3A::new(rows[0][lane], rows[1][lane], rows[2][lane]);
-            let oi = match slots.oi {
-                Some(_) => Vec3A::new(rows[3][lane], rows[4][lane], rows[5][lane]),
-                None => g.os.unwrap_or(opacity),
-            };
-            *o = Shaded {
-                ci: finite_or_zero(ci),
-                oi: finite_or_zero(oi),
-                p: g.p,
-                ng: g.ng,
-                dpdx: footprints[lane][0],
-                dpdy: footprints[lane][1],
-            };
+            let mut call = batch_call(frame, surface, (inst.material, inst.world_from_object), group, geoms, depth);
+            let table = call.table();
+            program.code.shade_with_table(batch, &table);
+            let raw = batch.raw_mut();
+            // Ci and Oi read a row at a time (no Oi: the surface's opacity).
+            let lanes = group.len().min(PACKET_SIZE);
+            let mut rows = [[0.0f32; PACKET_SIZE]; 6];
+            for (k, row) in rows.iter_mut().enumerate() {
+                get_row(&raw, [slots.ci, slots.oi][k / 3], k % 3, 0.0, &mut row[..lanes]);
+            }
+            for (lane, (g, o)) in geoms.iter().zip(out.iter_mut()).enumerate().take(lanes) {
+                let Some(g) = g else { continue };
+                let ci = Vec3A::new(rows[0][lane], rows[1][lane], rows[2][lane]);
+                let oi = match slots.oi {
+                    Some(_) => Vec3A::new(rows[3][lane], rows[4][lane], rows[5][lane]),
+                    None => g.os.unwrap_or(opacity),
+                };
+                *o = Shaded {
+                    ci: finite_or_zero(ci),
+                    oi: finite_or_zero(oi),
+                    p: g.p,
+                    ng: g.ng,
+                    dpdx: footprints[lane][0],
+                    dpdy: footprints[lane][1],
+                };
+            }
+        });
+    })
+}
+
+thread_local! {
+    /// Hit geometry buffers reused from group to group: a group's is a packet of hits of a few
+    /// hundred bytes each, and a fresh one per group faulted in new pages. A stack, because shading
+    /// recurses (a surface traces rays whose hits are shaded in groups of their own).
+    static HIT_GEOMETRY_BUFFERS: RefCell<Vec<Vec<Option<HitGeometry>>>> = const { RefCell::new(Vec::new()) };
+}
+
+/// Runs `f` with an empty hit geometry buffer from this thread's stack of them.
+fn with_hit_geometry<R>(f: impl FnOnce(&mut Vec<Option<HitGeometry>>) -> R) -> R {
+    let mut buffer = HIT_GEOMETRY_BUFFERS.with(|b| b.borrow_mut().pop()).unwrap_or_default();
+    let r = f(&mut buffer);
+    buffer.clear();
+    HIT_GEOMETRY_BUFFERS.with(|b| {
+        let mut b = b.borrow_mut();
+        // As deep as trace recursion goes; deeper buffers are dropped.
+        if b.len() < 16 {
+            b.push(buffer);
         }
     });
+    r
 }
 
 /// Writes the globals of a batch of hits on one material and instance (lanes without geometry are
