@@ -294,6 +294,44 @@ fn float_and_triple_math() {
     );
 }
 
+/// `sin` and `cos` of one value share one `rtsl_sincos` call within a block: pairs in one
+/// expression, pairs split between a branch and the code after it, in varying and uniform branches
+/// and in loops, agree with the interpreter (and pass Cranelift's verifier in debug builds).
+#[test]
+fn sine_and_cosine_of_one_value_share_a_call_only_within_a_block() {
+    check(
+        r#"
+        surface t(float turns = 1.5; output varying float o = 0; output varying float o2 = 0;)
+        {
+            float a = s * 10 - 3;
+            float x = 0;
+            if (t > 0.5)
+                x = cos(a);
+            o = x + sin(a);
+            if (turns > 1)
+                x = cos(a);
+            else
+                x = sin(a) * 3;
+            if (t < 0.3)
+                x += sin(a);
+            else
+                x -= cos(a);
+            o += x;
+            uniform float k = turns * 2;
+            uniform float y = 0;
+            if (turns > 1)
+                y = sin(k);
+            o2 = y + cos(k) + sin(k);
+            float z = 0;
+            for (float i = 0; i < 3 * u; i += 1)
+                z += cos(a + i) * sin(a + i);
+            point q = point(cos(a) * 2, sin(a) * 2, sin(a) - cos(a * 2));
+            Ci = color(xcomp(q), ycomp(q) + z, zcomp(q) + cos(a * 2) * sin(a * 2));
+        }
+        "#,
+    );
+}
+
 #[test]
 fn divergent_if_else_and_ternary() {
     check(

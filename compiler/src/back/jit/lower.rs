@@ -182,6 +182,9 @@ struct Lower<'m, 'b> {
     batch_matrices: HashMap<u32, (Val, Value)>,
     /// The arguments (as duals) of the built-in call being lowered by `builtin_dual`.
     arg_duals: Vec<Option<Dual>>,
+    /// The `rtsl_sincos` results of a value (sin, cos) and the block whose call made them: a
+    /// `sin` or `cos` of the same value later in that block reuses them.
+    sincos_results: HashMap<Value, (Option<Block>, [Value; 2])>,
     /// The enclosing `illuminance` loops, innermost last: their light set (from `rtsl_h_lights`)
     /// and iteration counter, for `lightsource()` in their bodies.
     light_loops: Vec<(Value, Variable)>,
@@ -244,6 +247,7 @@ pub(super) fn lower(
         batch_consts: HashMap::new(),
         batch_matrices: HashMap::new(),
         arg_duals: Vec::new(),
+        sincos_results: HashMap::new(),
         light_loops: Vec::new(),
         derivs_base: None,
         derivs_null: None,
@@ -1681,6 +1685,28 @@ impl<'m> Lower<'m, '_> {
         Ok(out)
     }
 
+    /// `sin` (`which` 0) or `cos` (1) of each component. Both come from one `rtsl_sincos` call,
+    /// whose results are kept for the rest of the block: `sin(a)` and `cos(a)` of the same value
+    /// (a rotation, a point on a circle) then cost one call and one range reduction.
+    fn sin_cos(&mut self, v: &Val, which: usize) -> R<Val> {
+        let mut c = Vec::with_capacity(v.c.len());
+        for &x in &v.c {
+            let block = self.b.current_block();
+            let cached = self.sincos_results.get(&x).filter(|(b, _)| *b == block).map(|(_, r)| *r);
+            let results = match cached {
+                Some(r) => r,
+                None => {
+                    let r = self.call_helper("rtsl_sincos", &[x], v.vary)?;
+                    let r = [r[0], r[1]];
+                    self.sincos_results.insert(x, (block, r));
+                    r
+                }
+            };
+            c.push(results[which]);
+        }
+        Ok(Val { vary: v.vary, c })
+    }
+
     /// A one-input helper applied to each component.
     fn map_helper(&mut self, name: &'static str, v: &Val) -> R<Val> {
         let mut c = Vec::new();
@@ -1822,8 +1848,8 @@ impl<'m> Lower<'m, '_> {
             Bi::Log if vals.len() == 2 => self.map2_helper("rtsl_logb", &v(0), &v(1))?,
             Bi::Log => self.map_helper("rtsl_log", &v(0))?,
             Bi::Pow => self.map2_helper("rtsl_pow", &v(0), &v(1))?,
-            Bi::Sin => self.map_helper("rtsl_sin", &v(0))?,
-            Bi::Cos => self.map_helper("rtsl_cos", &v(0))?,
+            Bi::Sin => self.sin_cos(&v(0), 0)?,
+            Bi::Cos => self.sin_cos(&v(0), 1)?,
             Bi::Tan => self.map_helper("rtsl_tan", &v(0))?,
             Bi::Asin => self.map_helper("rtsl_asin", &v(0))?,
             Bi::Acos => self.map_helper("rtsl_acos", &v(0))?,

@@ -270,6 +270,10 @@ macro_rules! chunk_helpers {
 chunk_helpers! {
     h_sin "rtsl_sin" 1 -> 1 |[x]| [tm::sin4(x)];
     h_cos "rtsl_cos" 1 -> 1 |[x]| [tm::cos4(x)];
+    h_sincos "rtsl_sincos" 1 -> 2 |[x]| {
+        let (sin, cos) = tm::sincos4(x);
+        [sin, cos]
+    };
     h_tan "rtsl_tan" 1 -> 1 |[x]| [tm::tan4(x)];
     h_asin "rtsl_asin" 1 -> 1 |[x]| [tm::asin4(x)];
     h_acos "rtsl_acos" 1 -> 1 |[x]| [tm::acos4(x)];

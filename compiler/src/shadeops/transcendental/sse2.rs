@@ -160,6 +160,22 @@ fn cos4_sse2(x4: F4) -> F4 {
     patch(r, trig_in_range(x), x4, f32::cos)
 }
 
+/// `sin4_sse2` and `cos4_sse2` of the same lanes with one range reduction: each result is the
+/// same bits as its own function's (the same reduction, polynomials and sign rules).
+#[target_feature(enable = "sse2")]
+fn sincos4_sse2(x4: F4) -> (F4, F4) {
+    let x = load(x4);
+    let (z, j) = reduce_quarter_pi(abs(x));
+    let (s, c) = (sin_poly(z), cos_poly(z));
+    let swapped = has_bit(j, 2);
+    let flip = _mm_castsi128_ps(_mm_slli_epi32::<29>(_mm_and_si128(j, _mm_set1_epi32(4))));
+    let sin = _mm_xor_ps(select(swapped, c, s), _mm_xor_ps(sign_of(x), flip));
+    let odd = _mm_and_si128(_mm_xor_si128(_mm_srli_epi32::<1>(j), _mm_srli_epi32::<2>(j)), _mm_set1_epi32(1));
+    let cos = _mm_xor_ps(select(swapped, s, c), _mm_castsi128_ps(_mm_slli_epi32::<31>(odd)));
+    let in_range = trig_in_range(x);
+    (patch(sin, in_range, x4, f32::sin), patch(cos, in_range, x4, f32::cos))
+}
+
 #[target_feature(enable = "sse2")]
 fn tan4_sse2(x4: F4) -> F4 {
     let x = load(x4);
@@ -272,6 +288,12 @@ macro_rules! safe_entry_points {
             unsafe { $imp($($arg),+) }
         }
     )*};
+}
+
+/// [`sincos4_sse2`]'s safe entry point.
+pub fn sincos4(x: F4) -> (F4, F4) {
+    // SAFETY: SSE2 is part of the x86-64 baseline.
+    unsafe { sincos4_sse2(x) }
 }
 
 safe_entry_points! {
