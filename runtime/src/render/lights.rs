@@ -9,7 +9,7 @@ use super::stats::{tracing, Stats};
 use super::world::{LightSource, DEFAULT_MATERIAL};
 use crate::ray::{HitCandidate, HitPacket, Ray, RayPacket, PACKET_SIZE};
 use crate::shading::{fill1, fill3, get_row, put3, put_row, varying_rows, with_filled_batch, LightKind};
-use glam::Vec3A;
+use glam::{Vec3A, Vec4};
 use rtsl_compiler::back::jit::{light_in_cone, HostLight, MAX_LIGHTS};
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -152,14 +152,13 @@ fn eval_light_lanes(
         let mut pending = 0u64;
         if !ambient && light.shadows {
             let mut packet = RayPacket::new();
-            for l in 0..n {
-                let (to_surface, cl) = (lane3(0, l), lane3(3, l));
-                if mask[l] == 0 || to_surface == Vec3A::ZERO || cl == Vec3A::ZERO || !cl.is_finite() {
-                    continue;
-                }
-                let Some(ray) = light_shadow_ray(light, points[l], -to_surface, time_of(times, l)) else { continue };
-                if traced(l, -to_surface) {
-                    packet.set(l, &ray);
+            let distant = light.kind == LightKind::Distant;
+            let mut m = shadow_packet_rows(&rows, &ps, &lane_times, points, mask, distant, &mut packet);
+            while m != 0 {
+                let l = m.trailing_zeros() as usize;
+                m &= m - 1;
+                if traced(l, -lane3(0, l)) {
+                    packet.active |= 1 << l;
                 } else {
                     pending |= 1 << l;
                 }
@@ -190,6 +189,72 @@ fn eval_light_lanes(
     }
 }
 
+/// The shadow rays of a light shader's lanes, four at a time: from each lane's point (`ps`, a
+/// row per coordinate) toward the light (`-L`: `rows` 0-2; `Cl` in rows 3-5) at its time, written
+/// into `packet`'s rows for every lane (without marking any active). Returns the lanes that have a
+/// ray: asking (`mask`), `L` and `Cl` nonzero, `Cl` finite, and [`light_shadow_ray`] giving one.
+/// Lane for lane the same operations as `light_shadow_ray`, so the same rays.
+fn shadow_packet_rows(
+    rows: &[[f32; PACKET_SIZE]; 9],
+    ps: &[[f32; PACKET_SIZE]; 3],
+    times: &[f32; PACKET_SIZE],
+    points: &[Vec3A],
+    mask: &[i32],
+    distant: bool,
+    packet: &mut RayPacket,
+) -> u64 {
+    let n = points.len().min(mask.len()).min(PACKET_SIZE);
+    let mut lanes = 0u64;
+    for c in 0..n.div_ceil(4) {
+        let at = 4 * c..4 * c + 4;
+        let row = |r: &[f32; PACKET_SIZE]| Vec4::from_slice(&r[at.clone()]);
+        let (lx, ly, lz) = (row(&rows[0]), row(&rows[1]), row(&rows[2]));
+        let (cx, cy, cz) = (row(&rows[3]), row(&rows[4]), row(&rows[5]));
+        let zero = Vec4::ZERO;
+        let l_zero = lx.cmpeq(zero) & ly.cmpeq(zero) & lz.cmpeq(zero);
+        let cl_zero = cx.cmpeq(zero) & cy.cmpeq(zero) & cz.cmpeq(zero);
+        let cl_finite = cx.is_finite_mask() & cy.is_finite_mask() & cz.is_finite_mask();
+        // `-L`, its length and `normalize_or_zero` as glam computes them for a `Vec3A`.
+        let (tx, ty, tz) = (-lx, -ly, -lz);
+        let dot = (tx * tx + ty * ty) + tz * tz;
+        let length = dot.sqrt();
+        let recip = Vec4::ONE / length;
+        let normalisable = recip.is_finite_mask() & recip.cmpgt(zero);
+        let (dx, dy, dz) = (
+            Vec4::select(normalisable, tx * recip, zero),
+            Vec4::select(normalisable, ty * recip, zero),
+            Vec4::select(normalisable, tz * recip, zero),
+        );
+        let no_direction = dx.cmpeq(zero) & dy.cmpeq(zero) & dz.cmpeq(zero);
+        let eps = Vec4::from_array(std::array::from_fn(|j| points.get(4 * c + j).map_or(0.0, |&p| epsilon(p))));
+        let tmax = if distant { Vec4::INFINITY } else { length - Vec4::splat(2.0) * eps };
+        // (`light_shadow_ray` leaves the segment open for a non-finite length; here an infinite
+        // length gives an infinite `tmax` anyway, and a NaN one no direction.)
+        let long_enough = tmax.cmpgt(eps);
+        let ok = !l_zero & !cl_zero & cl_finite & !no_direction & long_enough;
+        for (dst, v) in [
+            (&mut packet.ox, row(&ps[0])),
+            (&mut packet.oy, row(&ps[1])),
+            (&mut packet.oz, row(&ps[2])),
+            (&mut packet.dx, dx),
+            (&mut packet.dy, dy),
+            (&mut packet.dz, dz),
+            (&mut packet.tmin, eps),
+            (&mut packet.tmax, tmax),
+            (&mut packet.time, row(times)),
+        ] {
+            v.write_to_slice(&mut dst.0[at.clone()]);
+        }
+        for j in 0..4 {
+            let l = 4 * c + j;
+            if l < n && mask[l] != 0 && ok.test(j) {
+                lanes |= 1 << l;
+            }
+        }
+    }
+    lanes
+}
+
 /// Lane `l`'s time (0 where no times are given).
 fn time_of(times: &[f32], l: usize) -> f32 {
     times.get(l).copied().unwrap_or(0.0)
@@ -198,7 +263,12 @@ fn time_of(times: &[f32], l: usize) -> f32 {
 /// The shadow ray of `light` from the lit point `from` toward it along `to_light` (its `L`, reversed)
 /// at `time`: to the light's point, or unbounded for a distant light.
 fn light_shadow_ray(light: &LightSource, from: Vec3A, to_light: Vec3A, time: f32) -> Option<Ray> {
-    let distance = if light.kind == LightKind::Distant { f32::INFINITY } else { to_light.length() };
+    shadow_ray_toward(light.kind == LightKind::Distant, from, to_light, time)
+}
+
+/// [`light_shadow_ray`] of a distant light (an unbounded ray) or not (a segment to the light).
+fn shadow_ray_toward(distant: bool, from: Vec3A, to_light: Vec3A, time: f32) -> Option<Ray> {
+    let distance = if distant { f32::INFINITY } else { to_light.length() };
     Some(shadow_ray(from, to_light.normalize_or_zero(), distance)?.at_time(time))
 }
 
@@ -435,6 +505,80 @@ fn clear_lanes(through: &mut [Vec3A], mask: u64) {
     for (l, t) in through.iter_mut().enumerate() {
         if mask >> l & 1 != 0 {
             *t = Vec3A::ZERO;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The four-lane shadow rays are `shadow_ray_toward`'s, lane for lane and bit for bit, and only
+    /// the lanes that ask and have light get one: random and special directions (zero, tiny,
+    /// huge, infinite, NaN), colours (zero, infinite, NaN), points, masks and batch sizes, for
+    /// point and distant lights.
+    #[test]
+    fn four_lane_shadow_rays_are_the_per_lane_ones() {
+        let mut state = 0x2545_f491_u32;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            state
+        };
+        let specials = [0.0, -0.0, 1e-30, -1e-20, 1e30, f32::INFINITY, f32::NAN, 3.0, -0.5];
+        for round in 0..400 {
+            let n = 1 + (next() % 64) as usize;
+            let distant = round % 3 == 0;
+            let mut value = |scale: f32| {
+                let bits = next();
+                if bits % 11 == 0 {
+                    specials[(bits >> 8) as usize % specials.len()]
+                } else {
+                    (bits as f32 / u32::MAX as f32 - 0.5) * scale
+                }
+            };
+            let mut rows = [[0.0f32; PACKET_SIZE]; 9];
+            let mut ps = [[0.0f32; PACKET_SIZE]; 3];
+            let mut times = [0.0f32; PACKET_SIZE];
+            let mut points = Vec::new();
+            let mut mask = Vec::new();
+            for l in 0..n {
+                for row in rows.iter_mut().take(6) {
+                    row[l] = value(20.0);
+                }
+                if l % 7 == 3 {
+                    // Nonzero, but its length underflows to zero: no direction.
+                    (rows[0][l], rows[1][l], rows[2][l]) = (1e-30, -1e-25, 0.0);
+                }
+                let p = Vec3A::new(value(2000.0), value(2.0), value(1e5));
+                (ps[0][l], ps[1][l], ps[2][l]) = (p.x, p.y, p.z);
+                times[l] = value(1.0);
+                points.push(p);
+                mask.push(if value(1.0) < -0.3 { 0 } else { -1 });
+            }
+            let mut packet = RayPacket::new();
+            let lanes = shadow_packet_rows(&rows, &ps, &times, &points, &mask, distant, &mut packet);
+            for l in 0..n {
+                let to_surface = Vec3A::new(rows[0][l], rows[1][l], rows[2][l]);
+                let cl = Vec3A::new(rows[3][l], rows[4][l], rows[5][l]);
+                let asks = mask[l] != 0 && to_surface != Vec3A::ZERO && cl != Vec3A::ZERO && cl.is_finite();
+                let expected = if asks { shadow_ray_toward(distant, points[l], -to_surface, times[l]) } else { None };
+                let case = format!("round {round}, lane {l} of {n}, L {to_surface}, Cl {cl}, from {}", points[l]);
+                assert_eq!(lanes >> l & 1 != 0, expected.is_some(), "{case}");
+                if let Some(ray) = expected {
+                    let got = packet.get(l);
+                    let bits = |r: &Ray| {
+                        [r.origin.x, r.origin.y, r.origin.z, r.direction.x, r.direction.y, r.direction.z]
+                            .into_iter()
+                            .chain([r.tmin, r.tmax, r.time])
+                            .map(f32::to_bits)
+                            .collect::<Vec<_>>()
+                    };
+                    assert_eq!(bits(&got), bits(&ray), "{case}");
+                }
+            }
+            assert_eq!(lanes & !lane_mask(n), 0, "no lane past the batch");
         }
     }
 }
