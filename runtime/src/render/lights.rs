@@ -211,8 +211,9 @@ fn shadow_packet_rows(
         let (lx, ly, lz) = (row(&rows[0]), row(&rows[1]), row(&rows[2]));
         let (cx, cy, cz) = (row(&rows[3]), row(&rows[4]), row(&rows[5]));
         let zero = Vec4::ZERO;
-        let l_zero = lx.cmpeq(zero) & ly.cmpeq(zero) & lz.cmpeq(zero);
-        let cl_zero = cx.cmpeq(zero) & cy.cmpeq(zero) & cz.cmpeq(zero);
+        // Lanes where a vector, a row per component, is zero (as `Vec3A == ZERO`).
+        let all_zero = |x: Vec4, y: Vec4, z: Vec4| x.cmpeq(zero) & y.cmpeq(zero) & z.cmpeq(zero);
+        let (l_zero, cl_zero) = (all_zero(lx, ly, lz), all_zero(cx, cy, cz));
         let cl_finite = cx.is_finite_mask() & cy.is_finite_mask() & cz.is_finite_mask();
         // `-L`, its length and `normalize_or_zero` as glam computes them for a `Vec3A`.
         let (tx, ty, tz) = (-lx, -ly, -lz);
@@ -225,7 +226,7 @@ fn shadow_packet_rows(
             Vec4::select(normalisable, ty * recip, zero),
             Vec4::select(normalisable, tz * recip, zero),
         );
-        let no_direction = dx.cmpeq(zero) & dy.cmpeq(zero) & dz.cmpeq(zero);
+        let no_direction = all_zero(dx, dy, dz);
         let eps = Vec4::from_array(std::array::from_fn(|j| points.get(4 * c + j).map_or(0.0, |&p| epsilon(p))));
         let tmax = if distant { Vec4::INFINITY } else { length - Vec4::splat(2.0) * eps };
         // (`light_shadow_ray` leaves the segment open for a non-finite length; here an infinite
