@@ -27,6 +27,7 @@ mod layout;
 mod lower;
 mod mask;
 mod math;
+mod profile;
 
 pub use host::{
     light_in_cone, shadow_query_of, HostLight, HostTable, MessageOut, ServicesHost, StrRef, CONE_ROWS, EVERY_LIGHT,
@@ -707,11 +708,14 @@ fn define(
     ctx.func.name = UserFuncName::user(0, id.as_u32());
     let lowered = lower::lower(m, layout, jit, &mut ctx.func, options, sources)?;
     layout.strings = lowered.strings;
+    ctx.set_disasm(profile::disasm_dir().is_some());
     jit.define_function(id, &mut ctx).map_err(|e| JitError::Codegen(format!("{e:?}")))?;
     let code_bytes = ctx.compiled_code().map_or(0, |c| c.code_info().total_size as usize);
+    let disasm = ctx.compiled_code().and_then(|c| c.vcode.clone());
     jit.clear_context(&mut ctx);
     jit.finalize_definitions().map_err(|e| JitError::Codegen(e.to_string()))?;
     let code = jit.get_finalized_function(id);
+    profile::record(&format!("shade_{name}"), code, code_bytes, disasm.as_deref());
     // SAFETY: `code` is the function just defined with the signature `fn(*mut Batch)` (one pointer
     // argument, no result, the platform's C calling convention).
     let entry: ShadeFn = unsafe { std::mem::transmute::<*const u8, ShadeFn>(code) };
