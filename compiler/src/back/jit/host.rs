@@ -28,6 +28,9 @@ use crate::shadeops::gather::{self, GatherHit};
 use crate::shadeops::{color, geom, matrix, spline, transcendental, M4, V3};
 use std::ffi::c_void;
 
+mod light_sums;
+use light_sums::Lanes3;
+
 /// A borrowed string across the C ABI (not NUL-terminated).
 #[repr(C)]
 #[derive(Clone, Copy, Debug)]
@@ -841,6 +844,9 @@ pub(super) fn angle_between(a: V3, b: V3) -> f32 {
     dot(geom::normalize(a), geom::normalize(b)).clamp(-1.0, 1.0).acos()
 }
 
+/// The scalar reference of [`light_sums::specular`]'s weight (the interpreter's `specular_brdf`
+/// with `l`, `n` and `v` normalised by the caller).
+#[cfg(test)]
 fn specular_brdf(l: V3, n: V3, v: V3, roughness: f32) -> f32 {
     let h = geom::normalize(add(l, v));
     let r = if roughness > 0.0 { roughness } else { 1e-4 };
@@ -1030,23 +1036,21 @@ host_helpers! {
     // [P, N] -> diffuse
     h_diffuse "rtsl_h_diffuse" 6 => 3 |cx| {
         let counts = cx.lights("", 0, &cx.hemisphere(3));
+        let n = Lanes3::of_rows(cx.input, 3).normalized();
+        let sum = light_sums::diffuse(&cx.ctx.light_buffer, counts, cx.mask, &n);
         for l in cx.active() {
-            let n = geom::normalize(cx.v3(3, l));
-            let sum = sum_lights(cx.lane_lights(l, counts[l]), n, |x, unit_l| {
-                dot(unit_l, n).max(0.0) * (1.0 - x.nondiffuse)
-            });
-            cx.set3(0, l, sum);
+            cx.set3(0, l, sum.lane(l));
         }
     }
     // [P, N, V, roughness] -> specular
     h_specular "rtsl_h_specular" 10 => 3 |cx| {
         let counts = cx.lights("", 0, &cx.hemisphere(3));
+        let n = Lanes3::of_rows(cx.input, 3).normalized();
+        let view = Lanes3::of_rows(cx.input, 6).normalized();
+        let roughness = glam::Vec4::from_array(std::array::from_fn(|l| cx.f(9, l)));
+        let sum = light_sums::specular(&cx.ctx.light_buffer, counts, cx.mask, &n, &view, roughness);
         for l in cx.active() {
-            let (n, view, rough) = (geom::normalize(cx.v3(3, l)), geom::normalize(cx.v3(6, l)), cx.f(9, l));
-            let sum = sum_lights(cx.lane_lights(l, counts[l]), n, |x, unit_l| {
-                specular_brdf(unit_l, n, view, rough) * (1.0 - x.nonspecular)
-            });
-            cx.set3(0, l, sum);
+            cx.set3(0, l, sum.lane(l));
         }
     }
     // [P, N, V, size] -> phong
