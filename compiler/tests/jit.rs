@@ -332,6 +332,45 @@ fn sine_and_cosine_of_one_value_share_a_call_only_within_a_block() {
     );
 }
 
+/// Inline `sin`/`cos` (a chunk's own code, with the helper as the fallback for a chunk that has a
+/// lane beyond its range) give the interpreter's bits exactly, whatever mix of lanes a chunk holds:
+/// ordinary values, values near multiples of pi/4, the edges of the range, huge, infinite and NaN
+/// arguments, signed zeros and subnormals.
+#[test]
+fn inline_sine_and_cosine_are_the_interpreters_bits_in_every_chunk() {
+    use rtsl_compiler::shadeops::transcendental;
+    let m =
+        module("surface t(output varying float so = 0; output varying float co = 0;) { so = sin(s); co = cos(s); }");
+    let shader = jit::compile(&m).expect("JIT");
+    let quarter = std::f32::consts::FRAC_PI_4;
+    let mut special = vec![0.0, -0.0, 1e-40, -1e-40, 8192.0, -8192.0, 8192.001, 1e9, f32::INFINITY, f32::NAN];
+    special.extend((-40..40).map(|k| k as f32 * quarter));
+    special.extend((-40..40).map(|k| f32::from_bits((k as f32 * quarter).to_bits() + 1)));
+    let mut rng = Rng(77);
+    let values: Vec<f32> = (0..4000)
+        .map(|i| match i % 5 {
+            0 => special[(rng.next() % special.len() as u64) as usize],
+            1 => rng.f(-10.0, 10.0),
+            2 => rng.f(-9000.0, 9000.0),
+            _ => rng.f(-1.0, 1.0),
+        })
+        .collect();
+    for lanes in values.chunks(64) {
+        let mut batch: BatchData = shader.batch(lanes.len());
+        for (l, x) in lanes.iter().enumerate() {
+            assert!(batch.set_global("s", l, &[*x]));
+        }
+        shader.shade_with(&mut batch, &mut lit_host());
+        for (l, x) in lanes.iter().enumerate() {
+            let (so, co) = (batch.param("so", l).expect("so")[0], batch.param("co", l).expect("co")[0]);
+            let (want_s, want_c) = (transcendental::sin(*x), transcendental::cos(*x));
+            let same = |a: f32, b: f32| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan());
+            assert!(same(so, want_s), "sin({x:e}) = {so:e}, the interpreter says {want_s:e}");
+            assert!(same(co, want_c), "cos({x:e}) = {co:e}, the interpreter says {want_c:e}");
+        }
+    }
+}
+
 #[test]
 fn divergent_if_else_and_ternary() {
     check(

@@ -32,16 +32,16 @@
 
 type F4 = [f32; 4];
 
-const FOPI: f32 = 1.27323954473516; // 4 / pi
-const DP1: f32 = 0.78515625;
-const DP2: f32 = 2.4187564849853515625e-4;
-const DP3: f32 = 3.77489497744594108e-8;
+pub(crate) const FOPI: f32 = 1.27323954473516; // 4 / pi
+pub(crate) const DP1: f32 = 0.78515625;
+pub(crate) const DP2: f32 = 2.4187564849853515625e-4;
+pub(crate) const DP3: f32 = 3.77489497744594108e-8;
 const PIO2: f32 = std::f32::consts::FRAC_PI_2;
 const PIO4: f32 = std::f32::consts::FRAC_PI_4;
 const PI: f32 = std::f32::consts::PI;
 
 /// The largest |x| for which the three-part reduction by pi/4 stays accurate.
-const TRIG_MAX: f32 = 8192.0;
+pub(crate) const TRIG_MAX: f32 = 8192.0;
 
 /// Runs `kernel` on all four lanes, then `fallback` on the lanes where `in_range` fails.
 #[inline(always)]
@@ -82,18 +82,24 @@ fn reduce_quarter_pi(ax: f32) -> (f32, u32) {
     (((ax - y * DP1) - y * DP2) - y * DP3, j)
 }
 
+/// The coefficients of [`sin_poly`] and [`cos_poly`] (the JIT's inline `sin`/`cos` uses them too).
+pub(crate) const SIN_POLY: [f32; 3] = [-1.9515295891e-4, 8.3321608736e-3, 1.6666654611e-1];
+pub(crate) const COS_POLY: [f32; 3] = [2.443315711809948e-5, 1.388731625493765e-3, 4.166664568298827e-2];
+
 /// sin on [-pi/4, pi/4].
 #[inline(always)]
 fn sin_poly(z: f32) -> f32 {
     let zz = z * z;
-    ((-1.9515295891e-4 * zz + 8.3321608736e-3) * zz - 1.6666654611e-1) * zz * z + z
+    let [a, b, c] = SIN_POLY;
+    ((a * zz + b) * zz - c) * zz * z + z
 }
 
 /// cos on [-pi/4, pi/4].
 #[inline(always)]
 fn cos_poly(z: f32) -> f32 {
     let zz = z * z;
-    ((2.443315711809948e-5 * zz - 1.388731625493765e-3) * zz + 4.166664568298827e-2) * zz * zz - 0.5 * zz + 1.0
+    let [a, b, c] = COS_POLY;
+    ((a * zz - b) * zz + c) * zz * zz - 0.5 * zz + 1.0
 }
 
 #[inline(always)]
