@@ -1713,89 +1713,12 @@ impl<'m> Lower<'m, '_> {
         Ok(Val { vary: v.vary, c })
     }
 
-    /// `sin` and `cos` of four lanes in the chunk's own code: `tm::sincos4`'s operations in its
-    /// order (Cody-Waite reduction by pi/4, Cephes' polynomials, sign fix-ups), so the same bits
-    /// as the helper and the interpreter. A chunk with a lane beyond `TRIG_MAX` (or NaN) calls the
+    /// `sin` and `cos` of four lanes in the chunk's own code ([`math::sincos4`]: the same bits as
+    /// the helper and the interpreter). A chunk with a lane beyond `TRIG_MAX` (or NaN) calls the
     /// helper instead, which computes those lanes the slow way. Inline because the call cost more
     /// than the arithmetic: every live vector is spilled around it (they are all caller-saved).
     fn sincos_inline(&mut self, x: Value) -> R<[Value; 2]> {
-        use crate::shadeops::transcendental::{COS_POLY, DP1, DP2, DP3, FOPI, SIN_POLY, TRIG_MAX};
-        let b = &mut self.b;
-        let f = |b: &mut FunctionBuilder<'_>, c: f32| fconst(b, c, true);
-        let i = |b: &mut FunctionBuilder<'_>, c: i32| {
-            let c = b.ins().iconst(types::I32, i64::from(c));
-            b.ins().splat(types::I32X4, c)
-        };
-        let ax = b.ins().fabs(x);
-        let in_range = {
-            let max = f(b, TRIG_MAX);
-            let m = b.ins().fcmp(FloatCC::LessThanOrEqual, ax, max);
-            b.ins().vall_true(m)
-        };
-        // j = (trunc(|x| * 4/pi) + 1) & !1; the saturating conversion agrees with SSE's on every
-        // lane within range, and the others take the fallback.
-        let fopi = f(b, FOPI);
-        let t = b.ins().fmul(ax, fopi);
-        let j = b.ins().fcvt_to_sint_sat(types::I32X4, t);
-        let one = i(b, 1);
-        let j = b.ins().iadd(j, one);
-        let not_one = i(b, !1);
-        let j = b.ins().band(j, not_one);
-        let y = b.ins().fcvt_from_sint(types::F32X4, j);
-        let mut z = ax;
-        for dp in [DP1, DP2, DP3] {
-            let dp = f(b, dp);
-            let yd = b.ins().fmul(y, dp);
-            z = b.ins().fsub(z, yd);
-        }
-        let zz = b.ins().fmul(z, z);
-        // sin: ((a * zz + b) * zz - c) * zz * z + z
-        let [sa, sb, sc] = SIN_POLY.map(|c| f(b, c));
-        let p = b.ins().fmul(sa, zz);
-        let p = b.ins().fadd(p, sb);
-        let p = b.ins().fmul(p, zz);
-        let p = b.ins().fsub(p, sc);
-        let p = b.ins().fmul(p, zz);
-        let p = b.ins().fmul(p, z);
-        let s = b.ins().fadd(p, z);
-        // cos: ((a * zz - b) * zz + c) * zz * zz - 0.5 * zz + 1
-        let [ca, cb, cc] = COS_POLY.map(|c| f(b, c));
-        let q = b.ins().fmul(ca, zz);
-        let q = b.ins().fsub(q, cb);
-        let q = b.ins().fmul(q, zz);
-        let q = b.ins().fadd(q, cc);
-        let q = b.ins().fmul(q, zz);
-        let q = b.ins().fmul(q, zz);
-        let half = f(b, 0.5);
-        let h = b.ins().fmul(half, zz);
-        let q = b.ins().fsub(q, h);
-        let one_f = f(b, 1.0);
-        let c = b.ins().fadd(q, one_f);
-        // j mod 8: sin is (0) sin, (2) cos, (4) -sin, (6) -cos, negated again for a negative x;
-        // cos is (0) cos, (2) -sin, (4) -cos, (6) sin.
-        let two = i(b, 2);
-        let j2 = b.ins().band(j, two);
-        let swapped = b.ins().icmp(IntCC::Equal, j2, two);
-        let swapped = mask::mask_as_f32(b, swapped);
-        let sin_v = b.ins().bitselect(swapped, c, s);
-        let cos_v = b.ins().bitselect(swapped, s, c);
-        let four = i(b, 4);
-        let j4 = b.ins().band(j, four);
-        let flip = b.ins().ishl_imm_u(j4, 29);
-        let sign_bit = i(b, i32::MIN);
-        let little = MemFlagsData::new().with_endianness(cranelift_codegen::ir::Endianness::Little);
-        let xbits = b.ins().bitcast(types::I32X4, little, x);
-        let sign = b.ins().band(xbits, sign_bit);
-        let sin_sign = b.ins().bxor(sign, flip);
-        let sin_sign = b.ins().bitcast(types::F32X4, little, sin_sign);
-        let sin_v = b.ins().bxor(sin_v, sin_sign);
-        let j_1 = b.ins().ushr_imm_u(j, 1);
-        let j_2 = b.ins().ushr_imm_u(j, 2);
-        let odd = b.ins().bxor(j_1, j_2);
-        let odd = b.ins().band(odd, one);
-        let cos_sign = b.ins().ishl_imm_u(odd, 31);
-        let cos_sign = b.ins().bitcast(types::F32X4, little, cos_sign);
-        let cos_v = b.ins().bxor(cos_v, cos_sign);
+        let (sin_v, cos_v, in_range) = math::sincos4(&mut self.b, x);
         // Lanes out of range: the helper, for the whole chunk (its in-range lanes are these bits).
         let (slow, join) = (self.b.create_block(), self.b.create_block());
         let (sin_p, cos_p) =

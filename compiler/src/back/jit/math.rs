@@ -97,6 +97,91 @@ pub(super) fn step(b: B<'_, '_>, edge: Value, x: Value) -> Value {
     choose(b, lt, zero, one)
 }
 
+/// `tm::sincos4` of a chunk, operation for operation (Cody-Waite reduction by pi/4, Cephes'
+/// polynomials, sign fix-ups), and whether every lane is within the kernels' range (an `i8`): the
+/// lanes outside it (beyond `TRIG_MAX`, or NaN) are wrong here and left to the caller.
+pub(super) fn sincos4(b: B<'_, '_>, x: Value) -> (Value, Value, Value) {
+    use cranelift_codegen::ir::condcodes::IntCC;
+    use cranelift_codegen::ir::{types, MemFlagsData};
+    use tm::{COS_POLY, DP1, DP2, DP3, FOPI, SIN_POLY, TRIG_MAX};
+    let f = |b: &mut FunctionBuilder<'_>, c: f32| super::mask::fconst(b, c, true);
+    let i = |b: &mut FunctionBuilder<'_>, c: i32| {
+        let c = b.ins().iconst(types::I32, i64::from(c));
+        b.ins().splat(types::I32X4, c)
+    };
+    let ax = b.ins().fabs(x);
+    let in_range = {
+        let max = f(b, TRIG_MAX);
+        let m = b.ins().fcmp(FloatCC::LessThanOrEqual, ax, max);
+        b.ins().vall_true(m)
+    };
+    // j = (trunc(|x| * 4/pi) + 1) & !1; the saturating conversion agrees with SSE's on every
+    // lane within range, and the others take the fallback.
+    let fopi = f(b, FOPI);
+    let t = b.ins().fmul(ax, fopi);
+    let j = b.ins().fcvt_to_sint_sat(types::I32X4, t);
+    let one = i(b, 1);
+    let j = b.ins().iadd(j, one);
+    let not_one = i(b, !1);
+    let j = b.ins().band(j, not_one);
+    let y = b.ins().fcvt_from_sint(types::F32X4, j);
+    let mut z = ax;
+    for dp in [DP1, DP2, DP3] {
+        let dp = f(b, dp);
+        let yd = b.ins().fmul(y, dp);
+        z = b.ins().fsub(z, yd);
+    }
+    let zz = b.ins().fmul(z, z);
+    // sin: ((a * zz + b) * zz - c) * zz * z + z
+    let [sa, sb, sc] = SIN_POLY.map(|c| f(b, c));
+    let p = b.ins().fmul(sa, zz);
+    let p = b.ins().fadd(p, sb);
+    let p = b.ins().fmul(p, zz);
+    let p = b.ins().fsub(p, sc);
+    let p = b.ins().fmul(p, zz);
+    let p = b.ins().fmul(p, z);
+    let s = b.ins().fadd(p, z);
+    // cos: ((a * zz - b) * zz + c) * zz * zz - 0.5 * zz + 1
+    let [ca, cb, cc] = COS_POLY.map(|c| f(b, c));
+    let q = b.ins().fmul(ca, zz);
+    let q = b.ins().fsub(q, cb);
+    let q = b.ins().fmul(q, zz);
+    let q = b.ins().fadd(q, cc);
+    let q = b.ins().fmul(q, zz);
+    let q = b.ins().fmul(q, zz);
+    let half = f(b, 0.5);
+    let h = b.ins().fmul(half, zz);
+    let q = b.ins().fsub(q, h);
+    let one_f = f(b, 1.0);
+    let c = b.ins().fadd(q, one_f);
+    // j mod 8: sin is (0) sin, (2) cos, (4) -sin, (6) -cos, negated again for a negative x;
+    // cos is (0) cos, (2) -sin, (4) -cos, (6) sin.
+    let two = i(b, 2);
+    let j2 = b.ins().band(j, two);
+    let swapped = b.ins().icmp(IntCC::Equal, j2, two);
+    let swapped = super::mask::mask_as_f32(b, swapped);
+    let sin_v = b.ins().bitselect(swapped, c, s);
+    let cos_v = b.ins().bitselect(swapped, s, c);
+    let four = i(b, 4);
+    let j4 = b.ins().band(j, four);
+    let flip = b.ins().ishl_imm_u(j4, 29);
+    let sign_bit = i(b, i32::MIN);
+    let little = MemFlagsData::new().with_endianness(cranelift_codegen::ir::Endianness::Little);
+    let xbits = b.ins().bitcast(types::I32X4, little, x);
+    let sign = b.ins().band(xbits, sign_bit);
+    let sin_sign = b.ins().bxor(sign, flip);
+    let sin_sign = b.ins().bitcast(types::F32X4, little, sin_sign);
+    let sin_v = b.ins().bxor(sin_v, sin_sign);
+    let j_1 = b.ins().ushr_imm_u(j, 1);
+    let j_2 = b.ins().ushr_imm_u(j, 2);
+    let odd = b.ins().bxor(j_1, j_2);
+    let odd = b.ins().band(odd, one);
+    let cos_sign = b.ins().ishl_imm_u(odd, 31);
+    let cos_sign = b.ins().bitcast(types::F32X4, little, cos_sign);
+    let cos_v = b.ins().bxor(cos_v, cos_sign);
+    (sin_v, cos_v, in_range)
+}
+
 /// `geom::smoothstep(a, b, x)`.
 pub(super) fn smoothstep(b: B<'_, '_>, lo: Value, hi: Value, x: Value) -> Value {
     let zero = konst(b, 0.0, x);
