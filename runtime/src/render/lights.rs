@@ -288,9 +288,7 @@ fn shadow_ray(from: Vec3A, dir: Vec3A, distance: f32) -> Option<Ray> {
 type BatchLightBuffers = (Vec<u32>, Vec<HostLight>, Vec<u32>);
 
 thread_local! {
-    /// Buffers of dropped [`BatchLights`], for the next batch: allocated afresh for every batch,
-    /// the light table's first stores cost page faults on memory the allocator had just returned
-    /// to the system (a tenth of a Sponza frame's light evaluation).
+    /// Buffers of dropped [`BatchLights`], for the next batch (`scratch`).
     static BATCH_LIGHT_BUFFERS: std::cell::RefCell<Vec<BatchLightBuffers>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
@@ -312,15 +310,7 @@ impl Drop for BatchLights {
     fn drop(&mut self) {
         let buffers =
             (std::mem::take(&mut self.counts), std::mem::take(&mut self.lights), std::mem::take(&mut self.pending));
-        // Batches nest as deep as shading recurses; more buffers than that are not worth keeping.
-        // A thread that is exiting has no pool left to return them to.
-        let _ = BATCH_LIGHT_BUFFERS.try_with(|b| {
-            if let Ok(mut b) = b.try_borrow_mut() {
-                if b.len() < 16 {
-                    b.push(buffers);
-                }
-            }
-        });
+        super::scratch::give(&BATCH_LIGHT_BUFFERS, buffers);
     }
 }
 
@@ -341,8 +331,7 @@ impl BatchLights {
         let n = points.len();
         let slots: usize = frame.world.lights.iter().map(|l| l.area.as_ref().map_or(1, |a| a.samples as usize)).sum();
         let slots = slots.min(MAX_LIGHTS);
-        let (mut counts, mut lights, mut pending) =
-            BATCH_LIGHT_BUFFERS.with(|b| b.borrow_mut().pop()).unwrap_or_default();
+        let (mut counts, mut lights, mut pending) = super::scratch::take(&BATCH_LIGHT_BUFFERS);
         counts.clear();
         counts.resize(n, 0);
         lights.clear();

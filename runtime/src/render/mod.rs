@@ -16,6 +16,7 @@ mod lights;
 pub mod native;
 pub mod primary;
 pub mod progressive;
+mod scratch;
 pub mod shade;
 mod stats;
 mod volume;

@@ -542,24 +542,17 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
 }
 
 thread_local! {
-    /// Hit geometry buffers reused from group to group: a group's is a packet of hits of a few
-    /// hundred bytes each, and a fresh one per group faulted in new pages. A stack, because shading
-    /// recurses (a surface traces rays whose hits are shaded in groups of their own).
+    /// Hit geometry buffers reused from group to group (a group's is a packet of hits of a few
+    /// hundred bytes each).
     static HIT_GEOMETRY_BUFFERS: RefCell<Vec<Vec<Option<HitGeometry>>>> = const { RefCell::new(Vec::new()) };
 }
 
 /// Runs `f` with an empty hit geometry buffer from this thread's stack of them.
 fn with_hit_geometry<R>(f: impl FnOnce(&mut Vec<Option<HitGeometry>>) -> R) -> R {
-    let mut buffer = HIT_GEOMETRY_BUFFERS.with(|b| b.borrow_mut().pop()).unwrap_or_default();
+    let mut buffer = super::scratch::take(&HIT_GEOMETRY_BUFFERS);
     let r = f(&mut buffer);
     buffer.clear();
-    HIT_GEOMETRY_BUFFERS.with(|b| {
-        let mut b = b.borrow_mut();
-        // As deep as trace recursion goes; deeper buffers are dropped.
-        if b.len() < 16 {
-            b.push(buffer);
-        }
-    });
+    super::scratch::give(&HIT_GEOMETRY_BUFFERS, buffer);
     r
 }
 

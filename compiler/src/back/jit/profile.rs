@@ -43,17 +43,39 @@ pub fn record(name: &str, code: *const u8, bytes: usize, disasm: Option<&str>) {
         }
     }
     if let (Some(dir), Some(text)) = (disasm_dir(), disasm) {
-        let path = dir.join(format!("{name}.s"));
         let header = format!("; {name} at {:#x}, {bytes} bytes\n", code as usize);
-        if let Err(e) = std::fs::create_dir_all(dir).and_then(|()| std::fs::write(&path, header + text)) {
-            warn_once(&format!("RTSL_JIT_DISASM: cannot write {}: {e}", path.display()));
+        if let Err(e) = write_disasm(dir, name, &(header + text)) {
+            warn_once(&format!("RTSL_JIT_DISASM: cannot write {name}.s in {}: {e}", dir.display()));
         }
     }
+}
+
+/// Writes `DIR/<name>.s`, making `dir` if it is missing.
+fn write_disasm(dir: &std::path::Path, name: &str, text: &str) -> std::io::Result<()> {
+    std::fs::create_dir_all(dir)?;
+    std::fs::write(dir.join(format!("{name}.s")), text)
 }
 
 fn warn_once(message: &str) {
     static WARNED: OnceLock<()> = OnceLock::new();
     if WARNED.set(()).is_ok() {
         eprintln!("warning: {message}");
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn disassembly_goes_into_a_made_directory_and_a_bad_one_is_an_error() {
+        let tmp = tempfile::tempdir().expect("temp dir");
+        let dir = tmp.path().join("nested/dis");
+        write_disasm(&dir, "shade_x", "; code\n").expect("written");
+        assert_eq!(std::fs::read_to_string(dir.join("shade_x.s")).expect("read"), "; code\n");
+        // A "directory" that is a file: an error to warn about, not a panic.
+        let file = tmp.path().join("plain");
+        std::fs::write(&file, "").expect("file");
+        assert!(write_disasm(&file, "shade_x", "; code\n").is_err());
     }
 }
