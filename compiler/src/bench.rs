@@ -7,7 +7,7 @@
 //! light from +z (`interp::TestHost`'s lights; the JIT gets them through a minimal `HostTable`, the
 //! Rust code reads them from the same table once per chunk, as the JIT's helpers do).
 
-use crate::back::jit::{self, BatchData, HostLight, HostTable, MessageOut, StrRef};
+use crate::back::jit::{self, BatchData, HostLight, HostTable, LightLanes, MessageOut, StrRef};
 use crate::interp::{self, Limits, ShadingPoint, TestHost, Value};
 use crate::shadeops::{geom, noise, V3};
 use std::ffi::c_void;
@@ -80,19 +80,20 @@ unsafe extern "C" fn fixed_lights(
     mask: *const i32,
     _: *const f32,
     _: *const f32,
-    out: *mut HostLight,
+    out: *mut LightLanes,
     counts: *mut u32,
     pending: *mut u32,
 ) {
     for l in 0..4 {
-        // SAFETY: 4 mask entries and counts, room for MAX_LIGHTS x 4 lights (the table's contract).
+        // SAFETY: 4 mask entries and counts, room for MAX_LIGHTS rows of lights (the table's
+        // contract).
         unsafe {
             let active = *mask.add(l) != 0;
             *counts.add(l) = if active { 2 } else { 0 };
             *pending.add(l) = 0;
             if active {
-                *out.add(l) = LIGHTS[0];
-                *out.add(4 + l) = LIGHTS[1];
+                (*out).set_lane(l, &LIGHTS[0]);
+                (*out.add(1)).set_lane(l, &LIGHTS[1]);
             }
         }
     }
@@ -218,7 +219,7 @@ fn batches(shader: &jit::CompiledShader, inp: &Inputs) -> Vec<BatchData> {
 
 /// The lights of one point from the table (what the Rust shaders read, once per chunk in `run`).
 fn lights_of_chunk(table: &HostTable, p: &[f32; 12]) -> ([HostLight; 8], [u32; 4]) {
-    let mut out = [HostLight::default(); jit::MAX_LIGHTS * 4];
+    let mut out = [LightLanes::default(); jit::MAX_LIGHTS];
     let mut counts = [0u32; 4];
     let mask = [-1i32; 4];
     let mut every = [0.0f32; 4 * jit::CONE_ROWS];
@@ -237,8 +238,8 @@ fn lights_of_chunk(table: &HostTable, p: &[f32; 12]) -> ([HostLight; 8], [u32; 4
             [0u32; 4].as_mut_ptr(),
         )
     };
-    let mut first = [HostLight::default(); 8];
-    first.copy_from_slice(&out[..8]);
+    // The Rust shaders read lane `l`'s light `k` at `4k + l`.
+    let first = std::array::from_fn(|i| out[i / 4].lane(i % 4));
     (first, counts)
 }
 

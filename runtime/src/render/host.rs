@@ -14,7 +14,7 @@ use crate::shading::ShaderInstance;
 use crate::texture::{Footprint, Grid, LookupOptions, MipMap};
 use glam::{Affine3A, Mat4, Vec3A};
 use rtsl_compiler::back::jit::{
-    shadow_query_of, HostLight, HostTable, MessageOut, StrRef, CONE_ROWS, MAX_LIGHTS, SHADOW_ROWS,
+    shadow_query_of, HostTable, LightLanes, MessageOut, StrRef, CONE_ROWS, MAX_LIGHTS, SHADOW_ROWS,
 };
 use rtsl_compiler::builtins::Builtin;
 use rtsl_compiler::shadeops::gather::GatherHit;
@@ -56,7 +56,7 @@ struct LightQuery {
     category: String,
     p: [u32; 12],
     mask: [i32; 4],
-    lights: Vec<HostLight>,
+    lights: Vec<LightLanes>,
     counts: [u32; 4],
 }
 
@@ -225,12 +225,12 @@ unsafe extern "C" fn host_lights(
     mask: *const i32,
     p: *const f32,
     cone: *const f32,
-    out: *mut HostLight,
+    out: *mut LightLanes,
     counts: *mut u32,
     pending: *mut u32,
 ) {
     // SAFETY: the table's contract: 4 mask entries, 12 floats of P, CONE_ROWS x 4 floats of cone,
-    // MAX_LIGHTS * 4 lights, 4 counts, 4 pending masks.
+    // MAX_LIGHTS rows of lights, 4 counts, 4 pending masks.
     let (c, category, mask, p, cone, out, counts, pending) = unsafe {
         (
             call(ctx),
@@ -238,7 +238,7 @@ unsafe extern "C" fn host_lights(
             &*(mask as *const [i32; 4]),
             slice(p, 12),
             slice(cone, 4 * CONE_ROWS),
-            std::slice::from_raw_parts_mut(out, MAX_LIGHTS * 4),
+            std::slice::from_raw_parts_mut(out, MAX_LIGHTS),
             &mut *(counts as *mut [u32; 4]),
             &mut *(pending as *mut [u32; 4]),
         )
@@ -268,7 +268,7 @@ unsafe extern "C" fn host_lights(
         }
         eval_light(c.frame, light, c.material, mask, &points, &times, c.depth, out, counts);
     }
-    let used = 4 * counts.iter().copied().max().unwrap_or(0) as usize;
+    let used = counts.iter().copied().max().unwrap_or(0) as usize;
     c.light_cache = Some(LightQuery {
         category: category.to_string(),
         p: pbits,
@@ -322,7 +322,7 @@ fn serve_from_batch(
     mask: &[i32; 4],
     p: &[f32],
     cone: &[f32],
-    out: &mut [HostLight],
+    out: &mut [LightLanes],
     (counts, pending): (&mut [u32; 4], &mut [u32; 4]),
 ) -> bool {
     let found = match chunk as usize {
@@ -364,11 +364,11 @@ fn serve_from_batch(
             continue;
         }
         counts[l] = table.counts[lane];
-        for k in 0..table.counts[lane] as usize {
-            out[4 * k + l] = table.lights[k * table.n + lane];
-        }
         pending[l] = table.pending_of(lane);
     }
+    // The chunk's rows as they lie: lanes past their count hold whatever, which the ABI allows.
+    let rows = table.chunk_lights(chunk, counts.iter().copied().max().unwrap_or(0) as usize);
+    out[..rows.len()].copy_from_slice(rows);
     true
 }
 

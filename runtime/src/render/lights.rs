@@ -4,13 +4,13 @@
 
 use super::differential::RayDifferential;
 use super::host::ShadeCall;
-use super::shade::{finite_or_zero, mix, point_seed, shade_in_groups, unit, Frame, Pending, Shaded};
+use super::shade::{mix, point_seed, shade_in_groups, unit, Frame, Pending, Shaded};
 use super::stats::{tracing, Stats};
 use super::world::{LightSource, DEFAULT_MATERIAL};
 use crate::ray::{HitCandidate, HitPacket, Ray, RayPacket, PACKET_SIZE};
 use crate::shading::{fill1, fill3, get_row, put3, put_row, varying_rows, with_filled_batch, LightKind};
 use glam::{Vec3A, Vec4};
-use rtsl_compiler::back::jit::{light_in_cone, HostLight, MAX_LIGHTS};
+use rtsl_compiler::back::jit::{light_in_cone, HostLight, LightLanes, MAX_LIGHTS};
 use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Runs one light's shader for the active lanes of a chunk and appends what reaches each lane, with
@@ -24,7 +24,7 @@ pub(super) fn eval_light(
     points: &[Vec3A; 4],
     times: &[f32; 4],
     depth: u32,
-    out: &mut [HostLight],
+    out: &mut [LightLanes],
     counts: &mut [u32; 4],
 ) {
     eval_light_lanes(
@@ -36,21 +36,47 @@ pub(super) fn eval_light(
         times,
         depth,
         |_, _| true,
-        |l, h, _| {
-            if (counts[l] as usize) < MAX_LIGHTS {
-                out[4 * counts[l] as usize + l] = h;
-                counts[l] += 1;
-            }
+        |_, row, lanes, _| {
+            append_row(out, counts, row, lanes);
         },
     );
 }
 
+/// Appends lane `l`'s light in `row` to `lights` (lane `l`'s `counts[l]`-th, while there is room)
+/// for the lanes whose bit is set in `lanes`; returns the lanes appended.
+/// When the four lanes have as many lights so far, the row goes in whole: what it holds for the
+/// other lanes lies past their counts, where nothing reads and their next light overwrites it.
+fn append_row(lights: &mut [LightLanes], counts: &mut [u32; 4], row: &LightLanes, lanes: u32) -> u32 {
+    let k = counts[0];
+    if counts.iter().all(|&c| c == k) {
+        let Some(slot) = lights.get_mut(k as usize) else { return 0 };
+        *slot = *row;
+        for (l, c) in counts.iter_mut().enumerate() {
+            *c += lanes >> l & 1;
+        }
+        return lanes;
+    }
+    let mut appended = 0;
+    for (l, c) in counts.iter_mut().enumerate() {
+        if lanes >> l & 1 == 0 {
+            continue;
+        }
+        let Some(slot) = lights.get_mut(*c as usize) else { continue };
+        slot.set_lane(l, &row.lane(l));
+        *c += 1;
+        appended |= 1 << l;
+    }
+    appended
+}
+
 /// Runs one light's shader over `points` (up to a packet of lanes, `mask` nonzero where a point
-/// asks; shadow rays at the lanes' `times`) and hands each lane's light to `sink`, its colour
-/// attenuated by the shadow rays traced as one packet (`transmission_packet`). Area lights give one
-/// light per sample. `material` is the lit surface's (for `surface()` messages).
+/// asks; shadow rays at the lanes' `times`) and hands the lights to `sink` a chunk at a time:
+/// `sink(chunk, row, lanes, pending)` gets the chunk's four lanes as rows, bit `j` of `lanes` set
+/// where lane `4 * chunk + j` is lit (elsewhere the row holds whatever), each colour attenuated by
+/// the shadow rays traced as one packet (`transmission_packet`). Area lights give one light per
+/// sample. `material` is the lit surface's (for `surface()` messages).
 /// `traced(lane, L)` says whether lane's shadow ray toward a light in direction `L` is traced now;
-/// where it is not, `sink` gets the light unshadowed and `true` (its shadow is pending: see
+/// where it is not, the light is unshadowed and its bit set in `pending` (see
 /// [`BatchLights::resolve`]).
 #[allow(clippy::too_many_arguments)]
 fn eval_light_lanes(
@@ -62,7 +88,7 @@ fn eval_light_lanes(
     times: &[f32],
     depth: u32,
     traced: impl Fn(usize, Vec3A) -> bool,
-    mut sink: impl FnMut(usize, HostLight, bool),
+    mut sink: impl FnMut(usize, &LightLanes, u32, u32),
 ) {
     let n = points.len().min(PACKET_SIZE);
     let instance = &light.shader;
@@ -165,26 +191,41 @@ fn eval_light_lanes(
             }
             transmission_packet(frame, &mut packet, &mut attenuation[..n]);
         }
-        for l in 0..n {
-            let to_surface = lane3(0, l);
+        let mut row = LightLanes { ambient: [u32::from(ambient); 4], id: [id; 4], ..LightLanes::default() };
+        for c in 0..n.div_ceil(4) {
+            let at = 4 * c..4 * c + 4;
+            let lanes4 =
+                |first: usize| -> [Vec4; 3] { std::array::from_fn(|k| Vec4::from_slice(&rows[first + k][at.clone()])) };
+            // `finite_or_zero` of each lane's triple: zero unless all three components are finite.
+            let finite_or_zero = |v: [Vec4; 3]| {
+                let finite = v[0].is_finite_mask() & v[1].is_finite_mask() & v[2].is_finite_mask();
+                v.map(|x| Vec4::select(finite, x, Vec4::ZERO))
+            };
+            let (to_surface, cl, ol) = (lanes4(0), finite_or_zero(lanes4(3)), finite_or_zero(lanes4(6)));
+            let shadow: [Vec4; 3] = std::array::from_fn(|k| {
+                Vec4::from_array(std::array::from_fn(|j| attenuation.get(4 * c + j).map_or(1.0, |a| a[k])))
+            });
             // `illuminate` leaves L at zero where the point is outside its cone: no light there.
-            if mask[l] == 0 || (!ambient && to_surface == Vec3A::ZERO) {
+            let unlit =
+                to_surface[0].cmpeq(Vec4::ZERO) & to_surface[1].cmpeq(Vec4::ZERO) & to_surface[2].cmpeq(Vec4::ZERO);
+            let mut lanes = 0u32;
+            for j in 0..4 {
+                let l = 4 * c + j;
+                if l < n && mask[l] != 0 && (ambient || !unlit.test(j)) {
+                    lanes |= 1 << j;
+                }
+            }
+            if lanes == 0 {
                 continue;
             }
-            let cl = finite_or_zero(lane3(3, l)) * scale * attenuation[l];
-            sink(
-                l,
-                HostLight {
-                    l: if ambient { [0.0; 3] } else { (-to_surface).to_array() },
-                    cl: cl.to_array(),
-                    ol: finite_or_zero(lane3(6, l)).to_array(),
-                    ambient: u32::from(ambient),
-                    nondiffuse: flags[0][l],
-                    nonspecular: flags[1][l],
-                    id,
-                },
-                pending >> l & 1 != 0,
-            );
+            for k in 0..3 {
+                row.l[k] = if ambient { [0.0; 4] } else { (-to_surface[k]).to_array() };
+                row.cl[k] = (cl[k] * scale * shadow[k]).to_array();
+                row.ol[k] = ol[k].to_array();
+            }
+            row.nondiffuse.copy_from_slice(&flags[0][at.clone()]);
+            row.nonspecular.copy_from_slice(&flags[1][at.clone()]);
+            sink(c, &row, lanes, (pending >> (4 * c)) as u32 & lanes);
         }
     }
 }
@@ -285,7 +326,7 @@ fn shadow_ray(from: Vec3A, dir: Vec3A, distance: f32) -> Option<Ray> {
 }
 
 /// The buffers of a [`BatchLights`]: counts, lights, pending.
-type BatchLightBuffers = (Vec<u32>, Vec<HostLight>, Vec<u32>);
+type BatchLightBuffers = (Vec<u32>, Vec<LightLanes>, Vec<u32>);
 
 thread_local! {
     /// Buffers of dropped [`BatchLights`], for the next batch (`scratch`).
@@ -294,15 +335,18 @@ thread_local! {
 
 /// The lights of every point of a surface batch, computed once for the whole batch when the shader
 /// first asks (light shaders run over the batch, shadow rays go as packets): lane `l`'s light `k`
-/// at `lights[k * n + l]`.
+/// in lane `l % 4` of `lights[(l / 4) * slots + k]`, so that a chunk's lights lie together as the
+/// host ABI hands them over (`LightLanes` rows).
 ///
 /// Shadows are traced at once only for the lights in front of each point (see
 /// [`BatchLights::compute`]); the others are pending (bit `k` of `pending[l]`, their `cl`
 /// unshadowed) until a query whose cone takes them in resolves them.
 pub(super) struct BatchLights {
     pub(super) n: usize,
+    /// Light rows per chunk.
+    pub(super) slots: usize,
     pub(super) counts: Vec<u32>,
-    pub(super) lights: Vec<HostLight>,
+    pub(super) lights: Vec<LightLanes>,
     pending: Vec<u32>,
 }
 
@@ -335,24 +379,41 @@ impl BatchLights {
         counts.clear();
         counts.resize(n, 0);
         lights.clear();
-        lights.resize(slots * n, HostLight::default());
+        lights.resize(slots * n.div_ceil(4), LightLanes::default());
         pending.clear();
         pending.resize(n, 0);
         // Only a guess (a query that needs more resolves it), so no normalisation or slack.
         let traced = |l: usize, to_light: Vec3A| front.and_then(|f| f.get(l)).is_none_or(|f| to_light.dot(*f) >= 0.0);
         for light in &frame.world.lights {
             if light.in_category("") {
-                eval_light_lanes(frame, light, material, mask, points, times, depth, traced, |l, h, later| {
-                    let k = counts[l] as usize;
-                    if k < slots {
-                        lights[k * n + l] = h;
-                        pending[l] |= u32::from(later) << k;
-                        counts[l] += 1;
+                eval_light_lanes(frame, light, material, mask, points, times, depth, traced, |c, row, lanes, later| {
+                    let at = 4 * c..(4 * c + 4).min(n);
+                    let mut chunk_counts = [u32::MAX; 4];
+                    chunk_counts[..at.len()].copy_from_slice(&counts[at.clone()]);
+                    let before = chunk_counts;
+                    let chunk_lights = &mut lights[c * slots..(c + 1) * slots];
+                    let appended = append_row(chunk_lights, &mut chunk_counts, row, lanes);
+                    for (j, lane) in at.enumerate() {
+                        if appended >> j & 1 != 0 {
+                            pending[lane] |= (later >> j & 1) << before[j];
+                            counts[lane] = chunk_counts[j];
+                        }
                     }
                 });
             }
         }
-        BatchLights { n, counts, lights, pending }
+        BatchLights { n, slots, counts, lights, pending }
+    }
+
+    /// Lane `lane`'s light `k` (`k` below the lane's count).
+    pub(super) fn light(&self, lane: usize, k: usize) -> HostLight {
+        self.lights.get((lane / 4) * self.slots + k).map_or_else(HostLight::default, |row| row.lane(lane % 4))
+    }
+
+    /// Lights `0..count` of chunk `chunk`, every lane's, as rows.
+    pub(super) fn chunk_lights(&self, chunk: usize, count: usize) -> &[LightLanes] {
+        let start = (chunk * self.slots).min(self.lights.len());
+        &self.lights[start..(start + count.min(self.slots)).min(self.lights.len())]
     }
 
     /// Which of `lane`'s lights (bit `k`: light `k`) still have their shadows untraced.
@@ -380,7 +441,7 @@ impl BatchLights {
             while m != 0 {
                 let k = m.trailing_zeros() as usize;
                 m &= m - 1;
-                if light_in_cone(self.lights[k * self.n + lane].l, axis, cos) {
+                if light_in_cone(self.light(lane, k).l, axis, cos) {
                     wanted.push((k, lane));
                     self.pending[lane] &= !(1 << k);
                 }
@@ -389,7 +450,7 @@ impl BatchLights {
         for group in wanted.chunks(PACKET_SIZE) {
             let mut packet = RayPacket::new();
             for (slot, &(k, lane)) in group.iter().enumerate() {
-                let h = &self.lights[k * self.n + lane];
+                let h = self.light(lane, k);
                 let Some(light) = frame.world.lights.get(h.id as usize) else { continue };
                 let (Some(&from), time) = (points.get(lane), time_of(times, lane)) else { continue };
                 if let Some(ray) = light_shadow_ray(light, from, Vec3A::from(h.l), time) {
@@ -399,8 +460,9 @@ impl BatchLights {
             let mut attenuation = [Vec3A::ONE; PACKET_SIZE];
             transmission_packet(frame, &mut packet, &mut attenuation[..group.len()]);
             for (&(k, lane), a) in group.iter().zip(attenuation) {
-                let h = &mut self.lights[k * self.n + lane];
-                h.cl = (Vec3A::from(h.cl) * a).to_array();
+                if let Some(row) = self.lights.get_mut((lane / 4) * self.slots + k) {
+                    row.scale_cl(lane % 4, a.to_array());
+                }
             }
         }
     }
@@ -533,6 +595,41 @@ fn clear_lanes(through: &mut [Vec3A], mask: u64) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A row whose lane `j` carries `tag` in its light's id and colour.
+    fn tagged_row(tag: u32) -> LightLanes {
+        let mut row = LightLanes::default();
+        for j in 0..4 {
+            let h = HostLight { cl: [tag as f32, j as f32, 0.0], id: tag * 10 + j as u32, ..HostLight::default() };
+            row.set_lane(j, &h);
+        }
+        row
+    }
+
+    /// Appending rows gives each lane its lights in order, whether the row goes in whole (equal
+    /// counts) or lane by lane (counts apart), and stops at the room there is.
+    #[test]
+    fn appended_rows_give_each_lane_its_own_lights_in_order() {
+        let mut lights = vec![LightLanes::default(); 3];
+        let mut counts = [0u32; 4];
+        // Equal counts: whole rows. Lane 1 unlit by the first light, lane 3 by the second.
+        assert_eq!(append_row(&mut lights, &mut counts, &tagged_row(1), 0b1101), 0b1101);
+        assert_eq!(counts, [1, 0, 1, 1]);
+        // Counts apart now: lane by lane.
+        assert_eq!(append_row(&mut lights, &mut counts, &tagged_row(2), 0b0111), 0b0111);
+        assert_eq!(counts, [2, 1, 2, 1]);
+        assert_eq!(append_row(&mut lights, &mut counts, &tagged_row(3), 0b1111), 0b1111);
+        assert_eq!(counts, [3, 2, 3, 2]);
+        // No room left for lanes 0 and 2.
+        assert_eq!(append_row(&mut lights, &mut counts, &tagged_row(4), 0b1111), 0b1010);
+        assert_eq!(counts, [3, 3, 3, 3]);
+        let ids = |l: usize| (0..counts[l] as usize).map(|k| lights[k].lane(l).id).collect::<Vec<_>>();
+        assert_eq!(ids(0), [10, 20, 30]);
+        assert_eq!(ids(1), [21, 31, 41]);
+        assert_eq!(ids(2), [12, 22, 32]);
+        assert_eq!(ids(3), [13, 33, 43]);
+        assert_eq!(lights[1].lane(3).cl, [3.0, 3.0, 0.0]);
+    }
 
     /// The four-lane shadow rays are `shadow_ray_toward`'s, lane for lane and bit for bit, and only
     /// the lanes that ask and have light get one: random and special directions (zero, tiny,

@@ -758,7 +758,7 @@ fn shade_native(
         let Some(g) = g else { continue };
         seen.clear();
         seen.extend((0..table.counts[k] as usize).map(|j| {
-            let h = &table.lights[j * table.n + k];
+            let h = table.light(k, j);
             LightSeen { l: Vec3A::from(h.l), cl: Vec3A::from(h.cl), ambient: h.ambient != 0 }
         }));
         let i = g.p - group[k].ray.origin;

@@ -73,6 +73,68 @@ pub struct HostLight {
     pub id: u32,
 }
 
+/// The `k`-th light of each of a chunk's four lanes, a row per component (structure of arrays):
+/// what `HostTable::lights` writes, one entry per light slot, so that the light sums load rows
+/// (`Vec4`s) instead of gathering each lane's light, and a renderer hands a chunk's lights over in
+/// one copy. Lane `l`'s light is [`LightLanes::lane`]`(l)`.
+#[repr(C, align(16))]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct LightLanes {
+    /// From the surface point to the light: x, y, z rows.
+    pub l: [[f32; 4]; 3],
+    pub cl: [[f32; 4]; 3],
+    pub ol: [[f32; 4]; 3],
+    pub ambient: [u32; 4],
+    pub nondiffuse: [f32; 4],
+    pub nonspecular: [f32; 4],
+    pub id: [u32; 4],
+}
+
+impl LightLanes {
+    /// Lane `l`'s light (`l < 4`).
+    #[inline]
+    pub fn lane(&self, l: usize) -> HostLight {
+        let v3 = |rows: &[[f32; 4]; 3]| [rows[0][l], rows[1][l], rows[2][l]];
+        HostLight {
+            l: v3(&self.l),
+            cl: v3(&self.cl),
+            ol: v3(&self.ol),
+            ambient: self.ambient[l],
+            nondiffuse: self.nondiffuse[l],
+            nonspecular: self.nonspecular[l],
+            id: self.id[l],
+        }
+    }
+
+    /// Lane `l`'s direction to the light.
+    #[inline]
+    pub fn lane_l(&self, l: usize) -> [f32; 3] {
+        [self.l[0][l], self.l[1][l], self.l[2][l]]
+    }
+
+    /// Makes lane `l`'s light `h` (`l < 4`).
+    #[inline]
+    pub fn set_lane(&mut self, l: usize, h: &HostLight) {
+        for k in 0..3 {
+            self.l[k][l] = h.l[k];
+            self.cl[k][l] = h.cl[k];
+            self.ol[k][l] = h.ol[k];
+        }
+        self.ambient[l] = h.ambient;
+        self.nondiffuse[l] = h.nondiffuse;
+        self.nonspecular[l] = h.nonspecular;
+        self.id[l] = h.id;
+    }
+
+    /// Scales lane `l`'s colour by `a` (a shadow's transmission).
+    #[inline]
+    pub fn scale_cl(&mut self, l: usize, a: [f32; 3]) {
+        for (row, a) in self.cl.iter_mut().zip(a) {
+            row[l] *= a;
+        }
+    }
+}
+
 /// The most lights `HostTable::lights` reports per lane (more are dropped).
 pub const MAX_LIGHTS: usize = 32;
 /// Rows of a light query's cone: the axis (3), then the cosine of its half-angle.
@@ -194,7 +256,8 @@ pub struct HostTable {
     /// The matrix taking points from `from` to `to` (row-major, 16 floats); 0 for an unknown space.
     pub matrix: unsafe extern "C" fn(ctx: *mut c_void, from: StrRef, to: StrRef, out: *mut f32) -> u32,
     /// The lights of `category` reaching each active lane at `p` (3 x 4 floats): lane `l`'s light
-    /// `k` at `out[4k + l]` (room for `MAX_LIGHTS` per lane), its count in `counts[l]`.
+    /// `k` in lane `l` of `out[k]` (room for `MAX_LIGHTS` rows of lights), its count in
+    /// `counts[l]`.
     /// `cone` ([`CONE_ROWS`] rows: an axis, then a cosine) says which lights the caller will use:
     /// lane `l` counts only the non-ambient lights whose `L` lies within `acos(cos)` of its axis
     /// (see [`light_in_cone`]; a cosine of -1 or less: every light; above 1: none). The renderer
@@ -208,7 +271,7 @@ pub struct HostTable {
         mask: *const i32,
         p: *const f32,
         cone: *const f32,
-        out: *mut HostLight,
+        out: *mut LightLanes,
         counts: *mut u32,
         pending: *mut u32,
     ),
@@ -348,7 +411,7 @@ unsafe extern "C" fn sv_lights(
     mask: *const i32,
     p: *const f32,
     _cone: *const f32,
-    out: *mut HostLight,
+    out: *mut LightLanes,
     counts: *mut u32,
     pending: *mut u32,
 ) {
@@ -360,12 +423,12 @@ unsafe extern "C" fn sv_lights(
         if !on {
             continue;
         }
-        // SAFETY: `p` holds 3 x 4 floats; `out` room for MAX_LIGHTS x 4 lights, `counts` 4.
+        // SAFETY: `p` holds 3 x 4 floats; `out` room for MAX_LIGHTS rows of lights, `counts` 4.
         unsafe {
             let lights = h.host.lights(category, lane3(p, 0, l));
             let n = lights.len().min(MAX_LIGHTS);
             for (k, s) in lights.iter().take(n).enumerate() {
-                *out.add(4 * k + l) = HostLight {
+                let light = HostLight {
                     l: s.l,
                     cl: s.cl,
                     ol: s.ol,
@@ -374,6 +437,7 @@ unsafe extern "C" fn sv_lights(
                     nonspecular: s.nonspecular,
                     id: k as u32,
                 };
+                (*out.add(k)).set_lane(l, &light);
             }
             *counts.add(l) = n as u32;
         }
@@ -617,7 +681,7 @@ pub struct HostCtx {
     /// Where runtime checks (loop budget, array indices) record what they found.
     errors: *const super::RuntimeErrors,
     light_sets: Vec<LightSet>,
-    light_buffer: Vec<HostLight>,
+    light_buffer: Vec<LightLanes>,
     /// The last light query (category, points' bits, lanes) and its counts, answered from
     /// `light_buffer`.
     last_lights: Option<(LightQueryKey, LightAnswer)>,
@@ -733,7 +797,7 @@ impl Cx<'_> {
                     while bits != 0 && !inside {
                         let i = bits.trailing_zeros() as usize;
                         bits &= bits - 1;
-                        inside = buffer.get(4 * i + l).is_some_and(|x| light_in_cone(x.l, axis, cone[12 + l]));
+                        inside = buffer.get(i).is_some_and(|x| light_in_cone(x.lane_l(l), axis, cone[12 + l]));
                     }
                     inside
                 });
@@ -744,7 +808,7 @@ impl Cx<'_> {
         }
         // One buffer per batch: the renderer writes the entries it counts, and only those are read.
         let out = &mut self.ctx.light_buffer;
-        out.resize(MAX_LIGHTS * 4, HostLight::default());
+        out.resize(MAX_LIGHTS, LightLanes::default());
         let mask: [i32; 4] = self.mask.map(|m| if m { -1 } else { 0 });
         let mut pending = [0u32; 4];
         // SAFETY: the table's documented sizes.
@@ -791,8 +855,8 @@ impl Cx<'_> {
     }
 
     /// Lane `l`'s lights after [`Cx::lights`] counted `n` of them.
-    fn lane_lights(&self, l: usize, n: u32) -> impl Iterator<Item = &HostLight> + '_ {
-        (0..n as usize).map(move |i| &self.ctx.light_buffer[4 * i + l])
+    fn lane_lights(&self, l: usize, n: u32) -> impl Iterator<Item = HostLight> + '_ {
+        self.ctx.light_buffer.iter().take(n as usize).map(move |x| x.lane(l))
     }
 }
 
@@ -856,7 +920,7 @@ fn specular_brdf(l: V3, n: V3, v: V3, roughness: f32) -> f32 {
 /// `sum_lights` of the interpreter over one lane's lights; `weight` gets each light and its unit
 /// direction. Bit for bit the interpreter's: `in_hemisphere` and the weights normalise the same
 /// vectors, here once each.
-fn sum_lights<'a>(lights: impl Iterator<Item = &'a HostLight>, n: V3, weight: impl Fn(&HostLight, V3) -> f32) -> V3 {
+fn sum_lights(lights: impl Iterator<Item = HostLight>, n: V3, weight: impl Fn(&HostLight, V3) -> f32) -> V3 {
     let mut sum = [0.0; 3];
     let unit_n = geom::normalize(n);
     for l in lights.filter(|l| l.ambient == 0) {
@@ -866,7 +930,7 @@ fn sum_lights<'a>(lights: impl Iterator<Item = &'a HostLight>, n: V3, weight: im
         if !facing {
             continue;
         }
-        let w = weight(l, unit_l);
+        let w = weight(&l, unit_l);
         sum = add(sum, l.cl.map(|c| c * w));
     }
     sum
@@ -991,7 +1055,7 @@ host_helpers! {
         });
         let count = order.iter().map(Vec::len).max().unwrap_or(0);
         let flat: Vec<HostLight> = (0..4).flat_map(|l| {
-            let mut v: Vec<HostLight> = cx.lane_lights(l, n(l)).copied().collect();
+            let mut v: Vec<HostLight> = cx.lane_lights(l, n(l)).collect();
             v.resize(MAX_LIGHTS, HostLight::default());
             v
         }).collect();
@@ -1028,9 +1092,9 @@ host_helpers! {
         let mut cone = [0.0; 4 * CONE_ROWS];
         cone[12..].fill(NO_LIGHT);
         let counts = cx.lights("", 0, &cone);
+        let sum = light_sums::ambient(&cx.ctx.light_buffer, counts, cx.mask);
         for l in cx.active() {
-            let sum = cx.lane_lights(l, counts[l]).filter(|x| x.ambient != 0).fold([0.0; 3], |acc, x| add(acc, x.cl));
-            cx.set3(0, l, sum);
+            cx.set3(0, l, sum.lane(l));
         }
     }
     // [P, N] -> diffuse

@@ -1,6 +1,6 @@
-//! `diffuse()` and `specular()` over a chunk's four lanes at once: each light's direction is
-//! normalised, tested against the hemisphere and weighed for all lanes together in `Vec4`s
-//! (structure of arrays), instead of lane by lane.
+//! `ambient()`, `diffuse()` and `specular()` over a chunk's four lanes at once: the lights come
+//! as rows ([`LightLanes`]), and each light's direction is normalised, tested against the
+//! hemisphere and weighed for all lanes together in `Vec4`s, instead of lane by lane.
 //!
 //! Bit for bit the scalar `sum_lights` (and so the interpreter's): every lane computes the same
 //! IEEE operations in the same order (`sqrtps` and `divps` are exactly rounded like their scalar
@@ -10,7 +10,7 @@
 //! Written with explicit `Vec4`s: the same code over `[f32; 4]` arrays came out as scalar
 //! square roots and store-forwarding stalls, slower than the lane-by-lane loop it replaced.
 
-use super::{HostLight, MAX_LIGHTS};
+use super::{LightLanes, MAX_LIGHTS};
 use crate::shadeops::{transcendental, V3};
 use glam::{BVec4A, Vec4};
 
@@ -59,27 +59,61 @@ struct LightRow {
     has: BVec4A,
 }
 
+/// Rows of a light: loaded as they lie.
+#[inline(always)]
+fn rows3(rows: &[[f32; 4]; 3]) -> Lanes3 {
+    Lanes3(rows.map(Vec4::from_array))
+}
+
+/// The lanes that are asking (`mask`) and have an `i`-th light (`counts`).
+#[inline(always)]
+fn lanes_with(counts: [u32; 4], mask: [bool; 4], i: usize) -> BVec4A {
+    let has = |l: usize| mask[l] && (i as u32) < counts[l];
+    BVec4A::new(has(0), has(1), has(2), has(3))
+}
+
+/// The lanes whose light in `lights` is ambient.
+#[inline(always)]
+fn ambient_lanes(lights: &LightLanes) -> BVec4A {
+    let a = lights.ambient;
+    BVec4A::new(a[0] != 0, a[1] != 0, a[2] != 0, a[3] != 0)
+}
+
 impl LightRow {
     #[inline(always)]
-    fn of(lights: &[HostLight; 4], counts: [u32; 4], mask: [bool; 4], i: usize) -> LightRow {
-        let [a, b, c, d] = lights;
-        let row = |f: fn(&HostLight) -> f32| Vec4::new(f(a), f(b), f(c), f(d));
-        let has = |l: usize| mask[l] && (i as u32) < counts[l] && lights[l].ambient == 0;
+    fn of(lights: &LightLanes, counts: [u32; 4], mask: [bool; 4], i: usize) -> LightRow {
         LightRow {
-            l: Lanes3([row(|x| x.l[0]), row(|x| x.l[1]), row(|x| x.l[2])]),
-            cl: Lanes3([row(|x| x.cl[0]), row(|x| x.cl[1]), row(|x| x.cl[2])]),
-            nondiffuse: row(|x| x.nondiffuse),
-            nonspecular: row(|x| x.nonspecular),
-            has: BVec4A::new(has(0), has(1), has(2), has(3)),
+            l: rows3(&lights.l),
+            cl: rows3(&lights.cl),
+            nondiffuse: Vec4::from_array(lights.nondiffuse),
+            nonspecular: Vec4::from_array(lights.nonspecular),
+            has: lanes_with(counts, mask, i) & !ambient_lanes(lights),
         }
     }
+}
+
+/// The most lights any asking lane has.
+fn most_lights(counts: [u32; 4], mask: [bool; 4]) -> usize {
+    (0..4).filter(|&l| mask[l]).map(|l| counts[l] as usize).max().unwrap_or(0).min(MAX_LIGHTS)
+}
+
+/// `ambient()` of four lanes: the sum of each lane's ambient lights' colours, in order.
+pub(super) fn ambient(buffer: &[LightLanes], counts: [u32; 4], mask: [bool; 4]) -> Lanes3 {
+    let mut sum = Lanes3::default();
+    for (i, lights) in buffer.iter().take(most_lights(counts, mask)).enumerate() {
+        let counted = lanes_with(counts, mask, i) & ambient_lanes(lights);
+        for (s, cl) in sum.0.iter_mut().zip(&lights.cl) {
+            *s = Vec4::select(counted, *s + Vec4::from_array(*cl), *s);
+        }
+    }
+    sum
 }
 
 /// The lights of each lane that face `n` (its normalised normal, normalised once more for the
 /// hemisphere test as `sum_lights` does), summed with `weight(light, unit L, counted)`.
 #[inline(always)]
 fn sum_lights(
-    buffer: &[HostLight],
+    buffer: &[LightLanes],
     counts: [u32; 4],
     mask: [bool; 4],
     n: &Lanes3,
@@ -87,9 +121,7 @@ fn sum_lights(
 ) -> Lanes3 {
     let mut sum = Lanes3::default();
     let unit_n = n.normalized();
-    let most = (0..4).filter(|&l| mask[l]).map(|l| counts[l] as usize).max().unwrap_or(0).min(MAX_LIGHTS);
-    for (i, lights) in buffer.chunks_exact(4).take(most).enumerate() {
-        let Ok(lights) = <&[HostLight; 4]>::try_from(lights) else { break };
+    for (i, lights) in buffer.iter().take(most_lights(counts, mask)).enumerate() {
         let row = LightRow::of(lights, counts, mask, i);
         let unit_l = row.l.normalized();
         let counted = row.has & unit_l.dot(&unit_n).cmpge(Vec4::ZERO);
@@ -105,13 +137,13 @@ fn sum_lights(
 }
 
 /// `diffuse(N)` of four lanes: `n` is each lane's normalised `N`.
-pub(super) fn diffuse(buffer: &[HostLight], counts: [u32; 4], mask: [bool; 4], n: &Lanes3) -> Lanes3 {
+pub(super) fn diffuse(buffer: &[LightLanes], counts: [u32; 4], mask: [bool; 4], n: &Lanes3) -> Lanes3 {
     sum_lights(buffer, counts, mask, n, |row, unit_l, _| unit_l.dot(n).max(Vec4::ZERO) * (Vec4::ONE - row.nondiffuse))
 }
 
 /// `specular(N, V, roughness)` of four lanes: `n` and `view` normalised.
 pub(super) fn specular(
-    buffer: &[HostLight],
+    buffer: &[LightLanes],
     counts: [u32; 4],
     mask: [bool; 4],
     n: &Lanes3,
@@ -172,16 +204,19 @@ mod tests {
         for case in 0..4000 {
             let counts: [u32; 4] = std::array::from_fn(|_| (rng.next() % 6) as u32);
             let mask: [bool; 4] = std::array::from_fn(|_| rng.next() % 5 != 0);
-            let mut buffer = vec![HostLight::default(); 4 * MAX_LIGHTS];
-            for x in buffer.iter_mut().take(4 * 6) {
-                *x = HostLight {
-                    l: rng.triple(),
-                    cl: rng.triple(),
-                    ambient: u32::from(rng.next() % 6 == 0),
-                    nondiffuse: if rng.next() % 4 == 0 { rng.value() } else { 0.0 },
-                    nonspecular: if rng.next() % 4 == 0 { rng.value() } else { 0.0 },
-                    ..HostLight::default()
-                };
+            let mut buffer = vec![LightLanes::default(); MAX_LIGHTS];
+            for x in buffer.iter_mut().take(6) {
+                for l in 0..4 {
+                    let light = HostLight {
+                        l: rng.triple(),
+                        cl: rng.triple(),
+                        ambient: u32::from(rng.next() % 6 == 0),
+                        nondiffuse: if rng.next() % 4 == 0 { rng.value() } else { 0.0 },
+                        nonspecular: if rng.next() % 4 == 0 { rng.value() } else { 0.0 },
+                        ..HostLight::default()
+                    };
+                    x.set_lane(l, &light);
+                }
             }
             let raw_n = Lanes3(std::array::from_fn(|_| Vec4::from_array(std::array::from_fn(|_| rng.value()))));
             let raw_v = Lanes3(std::array::from_fn(|_| Vec4::from_array(std::array::from_fn(|_| rng.value()))));
@@ -189,8 +224,9 @@ mod tests {
             let (n, view) = (raw_n.normalized(), raw_v.normalized());
             let diffuse = diffuse(&buffer, counts, mask, &n);
             let specular = specular(&buffer, counts, mask, &n, &view, roughness);
+            let ambient = ambient(&buffer, counts, mask);
             for l in (0..4).filter(|&l| mask[l]) {
-                let lights = || (0..counts[l] as usize).map(|i| &buffer[4 * i + l]);
+                let lights = || (0..counts[l] as usize).map(|i| buffer[i].lane(l));
                 let (ln, lv) = (geom::normalize(raw_n.lane(l)), geom::normalize(raw_v.lane(l)));
                 assert_eq!(n.lane(l).map(f32::to_bits), ln.map(f32::to_bits), "case {case}: normalize");
                 let want_d = scalar_sum_lights(lights(), ln, |x, unit_l| {
@@ -199,6 +235,15 @@ mod tests {
                 let want_s = scalar_sum_lights(lights(), ln, |x, unit_l| {
                     specular_brdf(unit_l, ln, lv, roughness[l]) * (1.0 - x.nonspecular)
                 });
+                // `h_ambient`'s sum as it was lane by lane.
+                let want_a = lights()
+                    .filter(|x| x.ambient != 0)
+                    .fold([0.0f32; 3], |acc, x| [acc[0] + x.cl[0], acc[1] + x.cl[1], acc[2] + x.cl[2]]);
+                assert!(
+                    same_bits(ambient.lane(l), want_a),
+                    "case {case} lane {l}: ambient {:?} != {want_a:?}",
+                    ambient.lane(l)
+                );
                 assert!(
                     same_bits(diffuse.lane(l), want_d),
                     "case {case} lane {l}: diffuse {:?} != {want_d:?}",
