@@ -158,9 +158,10 @@ pub(super) struct Shaded {
     pub(super) oi: Vec3A,
     pub(super) p: Vec3A,
     pub(super) ng: Vec3A,
-    /// The footprint of the hit: dP/dx, dP/dy.
-    pub(super) dpdx: Vec3A,
-    pub(super) dpdy: Vec3A,
+    /// Whether a surface's geometry was found for the hit: its footprint (dP/dx, dP/dy) then
+    /// follows from the ray's differential and `ng`, computed only for the rays that go on
+    /// through it (`shade_pending`).
+    pub(super) on_surface: bool,
 }
 
 fn shade_hits(frame: &Frame, rays: &[Ray], diffs: &[RayDifferential], hits: &[Hit], depth: u32, out: &mut [Sample]) {
@@ -231,7 +232,12 @@ fn shade_pending(frame: &Frame, mut current: Vec<Pending>, depth: u32, out: &mut
                 let hit = tracing(|| world.scene.intersect(&ray));
                 if hit.is_hit() {
                     // The ray goes on unbent: its footprint starts where the surface's ended.
-                    let diff = RayDifferential { dodx: r.dpdx, dody: r.dpdy, ..p.diff };
+                    let (dodx, dody) = if r.on_surface {
+                        p.diff.at_hit(p.ray.direction, p.hit.t, r.ng)
+                    } else {
+                        (Vec3A::ZERO, Vec3A::ZERO)
+                    };
+                    let diff = RayDifferential { dodx, dody, ..p.diff };
                     next.push(Pending { index: p.index, ray, diff, hit });
                 } else {
                     out[p.index].color += left * background;
@@ -482,20 +488,18 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
                 let cs = g.cs.unwrap_or(color);
                 let os = g.os.unwrap_or(opacity);
                 let facing = g.n.dot(-p.ray.direction.normalize_or_zero()).abs();
-                let (dpdx, dpdy) = p.diff.at_hit(p.ray.direction, p.hit.t, g.ng);
-                *o = Shaded { ci: os * cs * (0.2 + 0.8 * facing), oi: os, p: g.p, ng: g.ng, dpdx, dpdy };
+                *o = Shaded { ci: os * cs * (0.2 + 0.8 * facing), oi: os, p: g.p, ng: g.ng, on_surface: true };
             }
             return;
         };
         let vertex_params = world.vertex_params.get(group[0].hit.instance as usize);
         let program = &surface.program;
         let slots = &program.slots;
-        let mut footprints = vec![[Vec3A::ZERO; 2]; group.len()];
         with_filled_batch(program, group.len(), &hit_global_rows(program), |batch| {
             {
                 let mut raw = batch.raw_mut();
                 surface.write_params(&mut raw);
-                fill_hit_globals(&mut raw, program, group, geoms, (color, opacity), &mut footprints);
+                fill_hit_globals(&mut raw, program, group, geoms, (color, opacity));
                 if let Some(vp) = vertex_params {
                     for (lane, g) in geoms.iter().enumerate() {
                         let Some(g) = g else { continue };
@@ -533,8 +537,7 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
                     oi: finite_or_zero(oi),
                     p: g.p,
                     ng: g.ng,
-                    dpdx: footprints[lane][0],
-                    dpdy: footprints[lane][1],
+                    on_surface: true,
                 };
             }
         });
@@ -558,14 +561,13 @@ fn with_hit_geometry<R>(f: impl FnOnce(&mut Vec<Option<HitGeometry>>) -> R) -> R
 
 /// Writes the globals of a batch of hits on one material and instance (lanes without geometry are
 /// masked off), with their screen-space derivatives when `program` uses them, and the seed of its
-/// random numbers; `footprints[lane]` gets the hit's dP/dx and dP/dy either way.
+/// random numbers.
 fn fill_hit_globals(
     raw: &mut RawBatch<'_>,
     program: &crate::shading::ShaderProgram,
     group: &[Pending],
     geoms: &[Option<HitGeometry>],
     (color, opacity): (Vec3A, Vec3A),
-    footprints: &mut [[Vec3A; 2]],
 ) {
     let slots = &program.slots;
     let deriv_slots = program.layout().deriv_slots;
@@ -593,11 +595,10 @@ fn fill_hit_globals(
     put3_rows(raw, slots.oi, geoms, |g, _| g.os.unwrap_or(opacity));
     put1_rows(raw, slots.ncomps, geoms, |_, _| 3.0);
     put1_rows(raw, slots.time, geoms, |_, lane| group[lane].ray.time);
-    for (lane, (p, g)) in group.iter().zip(geoms).enumerate() {
-        let Some(g) = g else { continue };
-        // The full set of derivatives only for shaders that use them (they cost a few solves per
-        // hit); the footprint, for rays continuing through, always.
-        if needs_derivs {
+    // The derivatives only for shaders that use them (they cost a few solves per hit).
+    if needs_derivs {
+        for (lane, (p, g)) in group.iter().zip(geoms).enumerate() {
+            let Some(g) = g else { continue };
             let d = g.derivs(p);
             put1(raw, slots.du, lane, d.du[0].abs().max(d.du[1].abs()));
             put1(raw, slots.dv, lane, d.dv[0].abs().max(d.dv[1].abs()));
@@ -610,10 +611,6 @@ fn fill_hit_globals(
                 put_d1(raw, slots.s, deriv_slots, lane, d.ds);
                 put_d1(raw, slots.t, deriv_slots, lane, d.dt);
             }
-            footprints[lane] = d.dp;
-        } else {
-            let (dx, dy) = p.diff.at_hit(p.ray.direction, p.hit.t, g.ng);
-            footprints[lane] = [dx, dy];
         }
     }
     if let Some(seed) = program.layout().seed {
@@ -710,12 +707,11 @@ fn displace(
     depth: u32,
 ) {
     let program = &displacement.program;
-    let mut footprints = vec![[Vec3A::ZERO; 2]; group.len()];
     with_filled_batch(program, group.len(), &hit_global_rows(program), |batch| {
         {
             let mut raw = batch.raw_mut();
             displacement.write_params(&mut raw);
-            fill_hit_globals(&mut raw, program, group, geoms, appearance, &mut footprints);
+            fill_hit_globals(&mut raw, program, group, geoms, appearance);
         }
         let mut call = batch_call(frame, displacement, (material, world_from_object), group, geoms, depth);
         let table = call.table();
@@ -763,8 +759,7 @@ fn shade_native(
         }));
         let i = g.p - group[k].ray.origin;
         let (ci, oi) = native.shade(g.n, i, g.cs.unwrap_or(color), g.os.unwrap_or(opacity), &seen);
-        let (dpdx, dpdy) = group[k].diff.at_hit(group[k].ray.direction, group[k].hit.t, g.ng);
-        out[k] = Shaded { ci, oi, p: g.p, ng: g.ng, dpdx, dpdy };
+        out[k] = Shaded { ci, oi, p: g.p, ng: g.ng, on_surface: true };
     }
 }
 
