@@ -784,13 +784,16 @@ impl Cx<'_> {
         // `ambient()`, `diffuse()` and `specular()` of one chunk ask for the same lights: the
         // renderer is asked once per (category, points, lanes), and again only when a query's cone
         // takes in a light the last answer left unshadowed.
-        let points: [u32; 12] = std::array::from_fn(|i| self.input[4 * k + i].to_bits());
+        let Some(Ok(rows)) = self.input.get(4 * k..4 * k + 12).map(<&[f32; 12]>::try_from) else { return counts };
+        let points: [u32; 12] = rows.map(f32::to_bits);
         if let Some(((cat, p, m), (counts, pending))) = &self.ctx.last_lights {
-            // Points first (they differ from chunk to chunk), compared lane by lane: an array
-            // comparison is a memcmp call.
-            if p.iter().zip(&points).all(|(a, b)| a == b) && *m == self.mask && cat == category {
+            // Points first (they differ from chunk to chunk), all twelve words at once: an array
+            // comparison is a memcmp call, a short-circuiting one a branch per word.
+            let differ = p.iter().zip(&points).fold(0, |acc, (a, b)| acc | (a ^ b));
+            if differ == 0 && *m == self.mask && cat == category {
                 let buffer = &self.ctx.light_buffer;
-                let needs_more = (0..4).any(|l| {
+                let any_pending = pending.iter().fold(0, |acc, p| acc | p) != 0;
+                let needs_more = any_pending && (0..4).any(|l| {
                     let axis = [cone[l], cone[4 + l], cone[8 + l]];
                     let mut bits = pending[l];
                     let mut inside = false;
@@ -851,7 +854,11 @@ impl Cx<'_> {
     /// The cone of a query about the lights around each lane's normal (input `k`): what
     /// `diffuse()`, `specular()` and `phong()` sum over.
     fn hemisphere(&self, k: usize) -> [f32; 4 * CONE_ROWS] {
-        std::array::from_fn(|i| if i < 12 { self.input[4 * k + i] } else { 0.0 })
+        let mut cone = [0.0; 4 * CONE_ROWS];
+        if let Some(rows) = self.input.get(4 * k..4 * k + 12) {
+            cone[..12].copy_from_slice(rows);
+        }
+        cone
     }
 
     /// Lane `l`'s lights after [`Cx::lights`] counted `n` of them.
