@@ -532,13 +532,7 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
                     Some(_) => Vec3A::new(rows[3][lane], rows[4][lane], rows[5][lane]),
                     None => g.os.unwrap_or(opacity),
                 };
-                *o = Shaded {
-                    ci: finite_or_zero(ci),
-                    oi: finite_or_zero(oi),
-                    p: g.p,
-                    ng: g.ng,
-                    on_surface: true,
-                };
+                *o = Shaded { ci: finite_or_zero(ci), oi: finite_or_zero(oi), p: g.p, ng: g.ng, on_surface: true };
             }
         });
     })

@@ -791,19 +791,8 @@ impl Cx<'_> {
             // comparison is a memcmp call, a short-circuiting one a branch per word.
             let differ = p.iter().zip(&points).fold(0, |acc, (a, b)| acc | (a ^ b));
             if differ == 0 && *m == self.mask && cat == category {
-                let buffer = &self.ctx.light_buffer;
                 let any_pending = pending.iter().fold(0, |acc, p| acc | p) != 0;
-                let needs_more = any_pending && (0..4).any(|l| {
-                    let axis = [cone[l], cone[4 + l], cone[8 + l]];
-                    let mut bits = pending[l];
-                    let mut inside = false;
-                    while bits != 0 && !inside {
-                        let i = bits.trailing_zeros() as usize;
-                        bits &= bits - 1;
-                        inside = buffer.get(i).is_some_and(|x| light_in_cone(x.lane_l(l), axis, cone[12 + l]));
-                    }
-                    inside
-                });
+                let needs_more = any_pending && light_sums::pending_in_cone(&self.ctx.light_buffer, *pending, cone);
                 if !needs_more {
                     return *counts;
                 }

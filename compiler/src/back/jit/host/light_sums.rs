@@ -10,7 +10,7 @@
 //! Written with explicit `Vec4`s: the same code over `[f32; 4]` arrays came out as scalar
 //! square roots and store-forwarding stalls, slower than the lane-by-lane loop it replaced.
 
-use super::{LightLanes, MAX_LIGHTS};
+use super::{LightLanes, CONE_ROWS, MAX_LIGHTS};
 use crate::shadeops::{transcendental, V3};
 use glam::{BVec4A, Vec4};
 
@@ -109,6 +109,46 @@ pub(super) fn ambient(buffer: &[LightLanes], counts: [u32; 4], mask: [bool; 4]) 
     sum
 }
 
+/// [`light_in_cone`](super::light_in_cone) of four lanes: lane `j` is `light_in_cone(l_j, axis_j, cos_j)`, by the same
+/// operations in each lane.
+#[inline(always)]
+fn in_cone(l: &Lanes3, axis: &Lanes3, cos: Vec4) -> BVec4A {
+    let every = cos.cmple(Vec4::splat(-1.0));
+    let c = cos - Vec4::splat(1e-3);
+    let (la, lengths) = (l.dot(axis), l.dot(l) * axis.dot(axis));
+    let unsure = la.is_nan_mask() | c.is_nan_mask() | !lengths.is_finite_mask();
+    let (zero, c_nonpositive, c_negative) = (lengths.cmpeq(Vec4::ZERO), c.cmple(Vec4::ZERO), c.cmplt(Vec4::ZERO));
+    let (la2, bound) = (la * la, c * c * lengths);
+    let front = la.cmpge(Vec4::ZERO);
+    let facing = (front & (c_nonpositive | la2.cmpge(bound))) | (!front & c_negative & la2.cmple(bound));
+    let decided = (zero & c_nonpositive) | (!zero & facing);
+    every | unsure | decided
+}
+
+/// Whether any lane's pending light (bit `k` of `pending[l]`: lane `l`'s light `k` in `buffer`)
+/// lies within the lane's cone (`cone` as `HostTable::lights` takes it: axis rows, then the
+/// cosines), as [`light_in_cone`](super::light_in_cone) decides: four lanes per light at once.
+pub(super) fn pending_in_cone(buffer: &[LightLanes], pending: [u32; 4], cone: &[f32; 4 * CONE_ROWS]) -> bool {
+    let row = |r: usize| Vec4::from_slice(&cone[4 * r..4 * r + 4]);
+    let (axis, cos) = (Lanes3([row(0), row(1), row(2)]), row(3));
+    let mut lights = pending[0] | pending[1] | pending[2] | pending[3];
+    while lights != 0 {
+        let k = lights.trailing_zeros() as usize;
+        lights &= lights - 1;
+        let Some(light) = buffer.get(k) else { continue };
+        let lanes = BVec4A::new(
+            pending[0] >> k & 1 != 0,
+            pending[1] >> k & 1 != 0,
+            pending[2] >> k & 1 != 0,
+            pending[3] >> k & 1 != 0,
+        );
+        if (lanes & in_cone(&rows3(&light.l), &axis, cos)).any() {
+            return true;
+        }
+    }
+    false
+}
+
 /// The lights of each lane that face `n` (its normalised normal, normalised once more for the
 /// hemisphere test as `sum_lights` does), summed with `weight(light, unit L, counted)`.
 #[inline(always)]
@@ -164,7 +204,7 @@ pub(super) fn specular(
 
 #[cfg(test)]
 mod tests {
-    use super::super::{geom, specular_brdf, sum_lights as scalar_sum_lights, HostLight, MAX_LIGHTS};
+    use super::super::{geom, light_in_cone, specular_brdf, sum_lights as scalar_sum_lights, HostLight, MAX_LIGHTS};
     use super::*;
 
     /// A small deterministic generator (xorshift), so that failures reproduce.
@@ -196,6 +236,39 @@ mod tests {
     /// order, which the optimiser may swap in either form (a release build does).
     fn same_bits(a: V3, b: V3) -> bool {
         a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits() || (x.is_nan() && y.is_nan()))
+    }
+
+    /// The four-lane cone test decides as `light_in_cone` lane by lane, on random and special
+    /// directions (zero too), axes and cosines (every light, none, NaN, a bound of 0 after the
+    /// slack), and any pattern of pending lights.
+    #[test]
+    fn four_lane_cone_test_is_the_lane_by_lane_one() {
+        let mut rng = Rng(0x2545_F491_4F6C_DD1D);
+        for case in 0..20000 {
+            let mut buffer = vec![LightLanes::default(); 3];
+            for x in buffer.iter_mut() {
+                for l in 0..4 {
+                    let l_dir = if rng.next() % 8 == 0 { [0.0; 3] } else { rng.triple() };
+                    x.set_lane(l, &HostLight { l: l_dir, ..HostLight::default() });
+                }
+            }
+            let pending: [u32; 4] = std::array::from_fn(|_| (rng.next() % 16) as u32);
+            let cone: [f32; 4 * CONE_ROWS] = std::array::from_fn(|i| match (i, rng.next() % 8) {
+                (12.., 0) => -2.0,
+                (12.., 1) => 2.0,
+                (12.., 2) => 0.0,
+                // The slack cancels: a cosine bound of exactly 0.
+                (12.., 3) => 1e-3,
+                _ => rng.value(),
+            });
+            let want = (0..4).any(|l| {
+                let axis = [cone[l], cone[4 + l], cone[8 + l]];
+                (0..32)
+                    .filter(|k| pending[l] >> k & 1 != 0)
+                    .any(|k| buffer.get(k).is_some_and(|x| light_in_cone(x.lane_l(l), axis, cone[12 + l])))
+            });
+            assert_eq!(pending_in_cone(&buffer, pending, &cone), want, "case {case}: {pending:?} {cone:?} {buffer:?}");
+        }
     }
 
     #[test]
