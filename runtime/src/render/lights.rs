@@ -36,26 +36,29 @@ pub(super) fn eval_light(
         times,
         depth,
         |_, _| true,
-        |_, row, lanes, _| {
-            append_row(out, counts, row, lanes);
+        |_, fill, lanes, _| {
+            append_row(out, counts, fill, lanes);
         },
     );
 }
 
-/// Appends lane `l`'s light in `row` to `lights` (lane `l`'s `counts[l]`-th, while there is room)
-/// for the lanes whose bit is set in `lanes`; returns the lanes appended.
-/// When the four lanes have as many lights so far, the row goes in whole: what it holds for the
-/// other lanes lies past their counts, where nothing reads and their next light overwrites it.
-fn append_row(lights: &mut [LightLanes], counts: &mut [u32; 4], row: &LightLanes, lanes: u32) -> u32 {
+/// Appends lane `l`'s light in the row `fill` writes to `lights` (lane `l`'s `counts[l]`-th, while
+/// there is room) for the lanes whose bit is set in `lanes`; returns the lanes appended.
+/// When the four lanes have as many lights so far, `fill` writes the row in place: what it holds
+/// for the other lanes lies past their counts, where nothing reads and their next light overwrites
+/// it. (In place, because a row is 208 bytes: built apart, each costs a copy.)
+fn append_row(lights: &mut [LightLanes], counts: &mut [u32; 4], fill: &dyn Fn(&mut LightLanes), lanes: u32) -> u32 {
     let k = counts[0];
     if counts.iter().all(|&c| c == k) {
         let Some(slot) = lights.get_mut(k as usize) else { return 0 };
-        *slot = *row;
+        fill(slot);
         for (l, c) in counts.iter_mut().enumerate() {
             *c += lanes >> l & 1;
         }
         return lanes;
     }
+    let mut row = LightLanes::default();
+    fill(&mut row);
     let mut appended = 0;
     for (l, c) in counts.iter_mut().enumerate() {
         if lanes >> l & 1 == 0 {
@@ -74,7 +77,8 @@ fn append_row(lights: &mut [LightLanes], counts: &mut [u32; 4], row: &LightLanes
 /// `sink(chunk, row, lanes, pending)` gets the chunk's four lanes as rows, bit `j` of `lanes` set
 /// where lane `4 * chunk + j` is lit (elsewhere the row holds whatever), each colour attenuated by
 /// the shadow rays traced as one packet (`transmission_packet`). Area lights give one light per
-/// sample. `material` is the lit surface's (for `surface()` messages).
+/// sample. `material` is the lit surface's (for `surface()` messages). The row comes as a function
+/// that writes it where the sink wants it.
 /// `traced(lane, L)` says whether lane's shadow ray toward a light in direction `L` is traced now;
 /// where it is not, the light is unshadowed and its bit set in `pending` (see
 /// [`BatchLights::resolve`]).
@@ -88,7 +92,7 @@ fn eval_light_lanes(
     times: &[f32],
     depth: u32,
     traced: impl Fn(usize, Vec3A) -> bool,
-    mut sink: impl FnMut(usize, &LightLanes, u32, u32),
+    mut sink: impl FnMut(usize, &dyn Fn(&mut LightLanes), u32, u32),
 ) {
     let n = points.len().min(PACKET_SIZE);
     let instance = &light.shader;
@@ -191,7 +195,6 @@ fn eval_light_lanes(
             }
             transmission_packet(frame, &mut packet, &mut attenuation[..n]);
         }
-        let mut row = LightLanes { ambient: [u32::from(ambient); 4], id: [id; 4], ..LightLanes::default() };
         for c in 0..n.div_ceil(4) {
             let at = 4 * c..4 * c + 4;
             let lanes4 =
@@ -218,14 +221,18 @@ fn eval_light_lanes(
             if lanes == 0 {
                 continue;
             }
-            for k in 0..3 {
-                row.l[k] = if ambient { [0.0; 4] } else { (-to_surface[k]).to_array() };
-                row.cl[k] = (cl[k] * scale * shadow[k]).to_array();
-                row.ol[k] = ol[k].to_array();
-            }
-            row.nondiffuse.copy_from_slice(&flags[0][at.clone()]);
-            row.nonspecular.copy_from_slice(&flags[1][at.clone()]);
-            sink(c, &row, lanes, (pending >> (4 * c)) as u32 & lanes);
+            let fill = |row: &mut LightLanes| {
+                for k in 0..3 {
+                    row.l[k] = if ambient { [0.0; 4] } else { (-to_surface[k]).to_array() };
+                    row.cl[k] = (cl[k] * scale * shadow[k]).to_array();
+                    row.ol[k] = ol[k].to_array();
+                }
+                row.ambient = [u32::from(ambient); 4];
+                row.nondiffuse.copy_from_slice(&flags[0][at.clone()]);
+                row.nonspecular.copy_from_slice(&flags[1][at.clone()]);
+                row.id = [id; 4];
+            };
+            sink(c, &fill, lanes, (pending >> (4 * c)) as u32 & lanes);
         }
     }
 }
@@ -386,20 +393,30 @@ impl BatchLights {
         let traced = |l: usize, to_light: Vec3A| front.and_then(|f| f.get(l)).is_none_or(|f| to_light.dot(*f) >= 0.0);
         for light in &frame.world.lights {
             if light.in_category("") {
-                eval_light_lanes(frame, light, material, mask, points, times, depth, traced, |c, row, lanes, later| {
-                    let at = 4 * c..(4 * c + 4).min(n);
-                    let mut chunk_counts = [u32::MAX; 4];
-                    chunk_counts[..at.len()].copy_from_slice(&counts[at.clone()]);
-                    let before = chunk_counts;
-                    let chunk_lights = &mut lights[c * slots..(c + 1) * slots];
-                    let appended = append_row(chunk_lights, &mut chunk_counts, row, lanes);
-                    for (j, lane) in at.enumerate() {
-                        if appended >> j & 1 != 0 {
-                            pending[lane] |= (later >> j & 1) << before[j];
-                            counts[lane] = chunk_counts[j];
+                eval_light_lanes(
+                    frame,
+                    light,
+                    material,
+                    mask,
+                    points,
+                    times,
+                    depth,
+                    traced,
+                    |c, fill, lanes, later| {
+                        let at = 4 * c..(4 * c + 4).min(n);
+                        let mut chunk_counts = [u32::MAX; 4];
+                        chunk_counts[..at.len()].copy_from_slice(&counts[at.clone()]);
+                        let before = chunk_counts;
+                        let chunk_lights = &mut lights[c * slots..(c + 1) * slots];
+                        let appended = append_row(chunk_lights, &mut chunk_counts, fill, lanes);
+                        for (j, lane) in at.enumerate() {
+                            if appended >> j & 1 != 0 {
+                                pending[lane] |= (later >> j & 1) << before[j];
+                                counts[lane] = chunk_counts[j];
+                            }
                         }
-                    }
-                });
+                    },
+                );
             }
         }
         BatchLights { n, slots, counts, lights, pending }
@@ -596,7 +613,11 @@ fn clear_lanes(through: &mut [Vec3A], mask: u64) {
 mod tests {
     use super::*;
 
-    /// A row whose lane `j` carries `tag` in its light's id and colour.
+    /// Writes a row whose lane `j` carries `tag` in its light's id and colour.
+    fn tagged(tag: u32) -> impl Fn(&mut LightLanes) {
+        move |row| *row = tagged_row(tag)
+    }
+
     fn tagged_row(tag: u32) -> LightLanes {
         let mut row = LightLanes::default();
         for j in 0..4 {
@@ -613,15 +634,15 @@ mod tests {
         let mut lights = vec![LightLanes::default(); 3];
         let mut counts = [0u32; 4];
         // Equal counts: whole rows. Lane 1 unlit by the first light, lane 3 by the second.
-        assert_eq!(append_row(&mut lights, &mut counts, &tagged_row(1), 0b1101), 0b1101);
+        assert_eq!(append_row(&mut lights, &mut counts, &tagged(1), 0b1101), 0b1101);
         assert_eq!(counts, [1, 0, 1, 1]);
         // Counts apart now: lane by lane.
-        assert_eq!(append_row(&mut lights, &mut counts, &tagged_row(2), 0b0111), 0b0111);
+        assert_eq!(append_row(&mut lights, &mut counts, &tagged(2), 0b0111), 0b0111);
         assert_eq!(counts, [2, 1, 2, 1]);
-        assert_eq!(append_row(&mut lights, &mut counts, &tagged_row(3), 0b1111), 0b1111);
+        assert_eq!(append_row(&mut lights, &mut counts, &tagged(3), 0b1111), 0b1111);
         assert_eq!(counts, [3, 2, 3, 2]);
         // No room left for lanes 0 and 2.
-        assert_eq!(append_row(&mut lights, &mut counts, &tagged_row(4), 0b1111), 0b1010);
+        assert_eq!(append_row(&mut lights, &mut counts, &tagged(4), 0b1111), 0b1010);
         assert_eq!(counts, [3, 3, 3, 3]);
         let ids = |l: usize| (0..counts[l] as usize).map(|k| lights[k].lane(l).id).collect::<Vec<_>>();
         assert_eq!(ids(0), [10, 20, 30]);

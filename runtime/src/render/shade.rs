@@ -249,6 +249,7 @@ fn shade_pending(frame: &Frame, mut current: Vec<Pending>, depth: u32, out: &mut
 }
 
 /// Surface details of one hit, in world space.
+#[derive(Default)]
 struct HitGeometry {
     p: Vec3A,
     n: Vec3A,
@@ -342,7 +343,19 @@ impl<'a> InstanceGeometry<'a> {
     }
 }
 
-fn hit_geometry(ig: &InstanceGeometry, hit: &Hit, time: f32) -> Option<HitGeometry> {
+/// Writes the geometry of `hit` (at the ray's `time`) into `slot`, or `None` when its triangle is not
+/// in the mesh. In place: a hit's geometry is a few hundred bytes, and built apart and then moved
+/// into the batch's buffer it costs a copy of each.
+fn hit_geometry_into(ig: &InstanceGeometry, hit: &Hit, time: f32, slot: &mut Option<HitGeometry>) {
+    let g = slot.get_or_insert_with(HitGeometry::default);
+    if hit_geometry(ig, hit, time, g).is_none() {
+        *slot = None;
+    }
+}
+
+/// Writes every field of `g` for `hit`; `None` (and `g` partly written) when its triangle is not in
+/// the mesh.
+fn hit_geometry(ig: &InstanceGeometry, hit: &Hit, time: f32, g: &mut HitGeometry) -> Option<()> {
     let mesh = ig.mesh;
     let [a, b, c] = (*mesh.triangles.get(hit.primitive as usize)?).map(|i| i as usize);
     let (pa, pb, pc) = (*mesh.positions.get(a)?, *mesh.positions.get(b)?, *mesh.positions.get(c)?);
@@ -398,7 +411,7 @@ fn hit_geometry(ig: &InstanceGeometry, hit: &Hit, time: f32) -> Option<HitGeomet
         Some(ns) if ig.derivs => [normal_xf * Vec3A::from(ns[b] - ns[a]), normal_xf * Vec3A::from(ns[c] - ns[a])],
         _ => [Vec3A::ZERO; 2],
     };
-    Some(HitGeometry {
+    *g = HitGeometry {
         p: surf_p,
         n,
         ng,
@@ -413,7 +426,8 @@ fn hit_geometry(ig: &InstanceGeometry, hit: &Hit, time: f32) -> Option<HitGeomet
         duv,
         dst,
         dn,
-    })
+    };
+    Some(())
 }
 
 /// A cheap well-mixed hash for deterministic sampling (SplitMix64's finaliser).
@@ -470,7 +484,12 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
     });
     let Some(ig) = InstanceGeometry::new(world, inst, group[0].hit.instance, (derivs, coords)) else { return };
     with_hit_geometry(|geoms| {
-        geoms.extend(group.iter().map(|p| hit_geometry(&ig, &p.hit, p.ray.time)));
+        // The slots of earlier groups are written over in place (`hit_geometry_into`).
+        geoms.truncate(group.len());
+        geoms.resize_with(group.len(), || None);
+        for (slot, p) in geoms.iter_mut().zip(group) {
+            hit_geometry_into(&ig, &p.hit, p.ray.time, slot);
+        }
         let color = Vec3A::from(material.color);
         let opacity = Vec3A::from(material.opacity);
         if let Some(displacement) = &material.displacement {
@@ -544,11 +563,11 @@ thread_local! {
     static HIT_GEOMETRY_BUFFERS: RefCell<Vec<Vec<Option<HitGeometry>>>> = const { RefCell::new(Vec::new()) };
 }
 
-/// Runs `f` with an empty hit geometry buffer from this thread's stack of them.
+/// Runs `f` with a hit geometry buffer from this thread's stack of them. Its slots still hold
+/// earlier groups' geometry, to be written over in place (`hit_geometry_into`).
 fn with_hit_geometry<R>(f: impl FnOnce(&mut Vec<Option<HitGeometry>>) -> R) -> R {
     let mut buffer = super::scratch::take(&HIT_GEOMETRY_BUFFERS);
     let r = f(&mut buffer);
-    buffer.clear();
     super::scratch::give(&HIT_GEOMETRY_BUFFERS, buffer);
     r
 }
