@@ -74,11 +74,11 @@ fn append_row(lights: &mut [LightLanes], counts: &mut [u32; 4], fill: &dyn Fn(&m
 
 /// Runs one light's shader over `points` (up to a packet of lanes, `mask` nonzero where a point
 /// asks; shadow rays at the lanes' `times`) and hands the lights to `sink` a chunk at a time:
-/// `sink(chunk, row, lanes, pending)` gets the chunk's four lanes as rows, bit `j` of `lanes` set
-/// where lane `4 * chunk + j` is lit (elsewhere the row holds whatever), each colour attenuated by
-/// the shadow rays traced as one packet (`transmission_packet`). Area lights give one light per
-/// sample. `material` is the lit surface's (for `surface()` messages). The row comes as a function
-/// that writes it where the sink wants it.
+/// `sink(chunk, fill, lanes, pending)` gets a function `fill` that writes the chunk's four lanes
+/// as a row wherever the sink wants it, with bit `j` of `lanes` set where lane `4 * chunk + j` is
+/// lit (elsewhere the row holds whatever), each colour attenuated by the shadow rays traced as one
+/// packet (`transmission_packet`). Area lights give one light per sample. `material` is the lit
+/// surface's (for `surface()` messages).
 /// `traced(lane, L)` says whether lane's shadow ray toward a light in direction `L` is traced now;
 /// where it is not, the light is unshadowed and its bit set in `pending` (see
 /// [`BatchLights::resolve`]).
