@@ -13,8 +13,10 @@ camera fisheye(float fov = 180;)
 {
     float r = sqrt(s * s + t * t);
     float theta = r * radians(fov) / 2;
-    float phi = atan(t, s);
+    /* (s, t) / r is the cosine and sine of the angle around the optical axis, so the direction
+     * needs no atan, and no sin and cos of it; at the centre s and t are 0 and any factor will do. */
+    float k = (r > 0) ? sin(theta) / r : 0;
     E = point "camera" (0, 0, 0);
-    I = vector "camera" (sin(theta) * cos(phi), sin(theta) * sin(phi), cos(theta));
+    I = vector "camera" (k * s, k * t, cos(theta));
     Ci = (r <= 1) ? 1 : 0;
 }
