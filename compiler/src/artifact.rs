@@ -169,6 +169,7 @@ pub fn fingerprint() -> [u8; 32] {
         for g in crate::globals::GLOBALS {
             h.update(format!("{}{:?}{}{:?};", g.name, g.ty, g.varying, g.access).as_bytes());
         }
+        h.update(format!("{:?}", crate::globals::UNIFORM_IN_CAMERA).as_bytes());
         *h.finalize().as_bytes()
     })
 }

@@ -23,6 +23,7 @@ pub enum Access {
 pub struct GlobalDef {
     pub name: &'static str,
     pub ty: BaseType,
+    /// Whether the global is varying; [`GlobalDef::varying_in`] says where it is not.
     pub varying: bool,
     /// Access per shader kind, in the order of [`ShaderKind::ALL`]:
     /// surface, light, displacement, volume, imager, camera, lightfield.
@@ -35,6 +36,14 @@ impl GlobalDef {
         self.access[kind_index(kind)]
     }
 
+    /// Whether the global is varying in shaders of `kind` (`None`: a module without a shader).
+    /// The lens sample (`u`, `v`) of a camera shader is uniform: the renderer gives every lane of
+    /// a call one lens sample (`docs/cameras.md`), so a thin lens maps it onto its aperture once a
+    /// call rather than once a lane.
+    pub fn varying_in(&self, kind: Option<ShaderKind>) -> bool {
+        self.varying && !(kind == Some(ShaderKind::Camera) && UNIFORM_IN_CAMERA.contains(&self.name))
+    }
+
     /// Whether the value is only defined inside a light loop (`illuminance`).
     pub fn light_loop_only(&self) -> bool {
         matches!(self.name, "L" | "Cl" | "Ol")
@@ -44,6 +53,9 @@ impl GlobalDef {
 pub fn kind_index(kind: ShaderKind) -> usize {
     ShaderKind::ALL.iter().position(|k| *k == kind).unwrap_or(0)
 }
+
+/// The globals that are uniform in camera shaders although varying elsewhere.
+pub const UNIFORM_IN_CAMERA: &[&str] = &["u", "v"];
 
 use Access::{None as N, Read as R, Write as W};
 use BaseType::*;
@@ -60,8 +72,8 @@ pub const GLOBALS: &[GlobalDef] = &[
     GlobalDef { name: "Os", ty: Color, varying: true, access: [R, N, N, N, N, N, N], doc: "surface opacity (from the Opacity attribute)" },
     GlobalDef { name: "s", ty: Float, varying: true, access: [R, R, R, N, N, R, R], doc: "texture coordinate s; in camera shaders the horizontal screen-window position (the shorter image side spans [-1,1])" },
     GlobalDef { name: "t", ty: Float, varying: true, access: [R, R, R, N, N, R, R], doc: "texture coordinate t; in camera shaders the vertical screen-window position, up (the shorter image side spans [-1,1])" },
-    GlobalDef { name: "u", ty: Float, varying: true, access: [R, R, R, N, N, R, R], doc: "surface parameter u; in camera shaders the lens sample in [0,1)" },
-    GlobalDef { name: "v", ty: Float, varying: true, access: [R, R, R, N, N, R, R], doc: "surface parameter v; in camera shaders the lens sample in [0,1)" },
+    GlobalDef { name: "u", ty: Float, varying: true, access: [R, R, R, N, N, R, R], doc: "surface parameter u; in camera shaders the lens sample in [0,1), uniform there (one per call)" },
+    GlobalDef { name: "v", ty: Float, varying: true, access: [R, R, R, N, N, R, R], doc: "surface parameter v; in camera shaders the lens sample in [0,1), uniform there (one per call)" },
     GlobalDef { name: "du", ty: Float, varying: true, access: [R, R, R, N, N, N, R], doc: "change in u between neighbouring samples (from ray differentials)" },
     GlobalDef { name: "dv", ty: Float, varying: true, access: [R, R, R, N, N, N, R], doc: "change in v between neighbouring samples" },
     GlobalDef { name: "dPdu", ty: Vector, varying: true, access: [R, R, R, N, N, N, R], doc: "derivative of P along u" },

@@ -1154,6 +1154,56 @@ fn hoisted_uniform_statements_match_per_chunk_execution() {
     );
 }
 
+/// In a camera shader the lens sample (`u`, `v`) is uniform: locals computed from it are inferred
+/// uniform, the leading statements that map it onto a disc run once per batch, and the uniform
+/// calls after them (`cos`, `sin` of those locals, a space cast) are batch constants. Every chunk
+/// must still see what it would have computed itself, also when the body changes a local after
+/// the hoisted statements (`phi`: its `cos` must not be taken from the prologue).
+#[test]
+fn the_lens_sample_is_uniform_in_camera_shaders_and_its_mapping_runs_once_per_batch() {
+    let src = r#"
+        camera t(float radius = 0.5; output varying float vo = 0;)
+        {
+            float a = 2 * u - 1, b = 2 * v - 1;
+            float r = 0, phi = 0;
+            if (abs(a) > abs(b)) {
+                r = a;
+                phi = (PI / 4) * (b / a);
+            } else if (b != 0) {
+                r = b;
+                phi = PI / 2 - (PI / 4) * (a / b);
+            }
+            E = point "camera" (radius * r * cos(phi), radius * r * sin(phi), 0);
+            I = point "camera" (s, t, 1) - E;
+            phi = phi + 1;
+            vo = cos(phi) * s + sin(radius * r);
+            Ci = 1;
+        }
+    "#;
+    let shader = jit::compile(&module(src)).expect("JIT");
+    for name in ["u", "v"] {
+        assert!(shader.layout().globals.iter().any(|g| g.name == name && !g.varying), "{name} is uniform");
+    }
+    check(src);
+    // A uniform lens sample differentiates to zero.
+    check(
+        r#"
+        camera t(output varying float o = 0;)
+        {
+            o = Du(s * u) + Dv(t + v) + Deriv(u * s, s);
+            E = point "camera" (0, 0, 0);
+            I = vector "camera" (s, t, 1);
+            Ci = 1;
+        }
+        "#,
+    );
+    // Elsewhere the lens globals are varying: a uniform variable cannot hold them.
+    let surface = compile_source("t.sl", "surface t() { uniform float a = u; Ci = a; }", &Options::default());
+    assert!(!surface.ok(), "u is varying in a surface shader");
+    let surface = jit::compile(&module("surface t() { Ci = u + v; }")).expect("JIT");
+    assert!(surface.layout().globals.iter().filter(|g| g.name == "u" || g.name == "v").all(|g| g.varying));
+}
+
 #[test]
 fn textures_rays_and_messages() {
     check(

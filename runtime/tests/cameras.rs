@@ -273,6 +273,49 @@ fn depth_of_field_blurs_only_what_is_off_the_focal_plane() -> Result<(), ApiErro
     Ok(())
 }
 
+/// The lens sample is uniform in camera shaders. A frame gives every packet of a tile one lens
+/// sample (so a tile's rays take one call of the thin lens); a packet whose lanes have different
+/// lens samples (an application's own) still gives each lane the ray of its own lens sample.
+#[test]
+fn each_lane_gets_the_ray_of_its_own_lens_sample() -> Result<(), ApiError> {
+    use rtsl_runtime::render::{camera_samples, primary_rays, Frame, TILE_SIZE};
+    let mut rt = context();
+    rt.camera_look_at(Vec3A::new(0.0, 0.0, -5.0), Vec3A::ZERO, Vec3A::Y, 40.0);
+    checker_wall(&mut rt, 0.0, 3.0)?;
+    let lens = [("fstop", ParamValue::Float(0.5)), ("focallength", ParamValue::Float(1.0))];
+    bind_camera(&mut rt, "thinlens", &lens)?;
+    let world = rt.build_world()?;
+    let frame = Frame::new(&world);
+    let (first, _) = camera_samples(&world, 0, 0, (0, 0));
+    for corner in [(8, 0), (0, 8), (8, 8)] {
+        let (other, _) = camera_samples(&world, corner.0, corner.1, (0, 0));
+        assert_eq!(first[0].lens, other[0].lens, "the packets of a tile share a lens sample");
+    }
+    let (next_tile, _) = camera_samples(&world, TILE_SIZE, 0, (0, 0));
+    assert_ne!(first[0].lens, next_tile[0].lens, "the next tile has its own");
+    let choices = [(0.1, 0.2), (0.7, 0.9), (0.5, 0.5), (0.95, 0.3)];
+    let mut mixed = first;
+    for (l, s) in mixed.iter_mut().enumerate() {
+        s.lens = choices[(l / 3) % choices.len()];
+    }
+    let rays = primary_rays(&frame, &mixed, u64::MAX);
+    for lens in choices {
+        let mut same = mixed;
+        for s in same.iter_mut() {
+            s.lens = lens;
+        }
+        let alone = primary_rays(&frame, &same, u64::MAX);
+        for l in (0..64).filter(|&l| mixed[l].lens == lens) {
+            assert_eq!(rays.packet.get(l), alone.packet.get(l), "lane {l}");
+            assert_eq!(rays.weights[l], alone.weights[l], "lane {l}");
+        }
+    }
+    // The lens sample matters: lanes with different ones start from different points.
+    assert_ne!(rays.packet.get(0).origin, rays.packet.get(3).origin);
+    rt.return_scene(world);
+    Ok(())
+}
+
 /// A checker wall seen through the camera shader `src` (named `name`) and through the built-in
 /// camera: the frame (with its report) and the built-in camera's image.
 fn weighted_and_plain(name: &str, src: &str) -> Result<(Framebuffer, FrameReport, Framebuffer), ApiError> {

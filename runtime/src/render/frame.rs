@@ -194,9 +194,12 @@ fn time_sample(world: &World, x: u32, y: u32, k: u32) -> f32 {
     open + (close - open) * r
 }
 
-/// The lens sample of sample `k` of the packet with corner `(x0, y0)`: one per packet, so a thin
-/// lens packet shares its origin; a Halton sequence over the samples, rotated per packet.
-fn lens_sample(x0: u32, y0: u32, k: u32) -> (f32, f32) {
+/// The lens sample of sample `k` of the pixels of the tile that holds pixel `(x, y)`: one per tile,
+/// so that a thin lens's packets share their origin and a camera shader makes a tile's rays in one
+/// call (the lens sample is uniform in camera shaders); a Halton sequence over the samples,
+/// rotated per tile.
+fn lens_sample(x: u32, y: u32, k: u32) -> (f32, f32) {
+    let (x0, y0) = (x - x % TILE_SIZE, y - y % TILE_SIZE);
     let (a, b) = hash2((u64::from(y0) << 40) ^ (u64::from(x0) << 16) ^ 0x1E25_0000);
     ((radical_inverse(k + 1, 2) + a).fract(), (radical_inverse(k + 1, 3) + b).fract())
 }
@@ -424,7 +427,8 @@ fn pixels_to_refine(world: &World, tile: &Tile, threshold: f32, px: &TileSamples
 /// The extra camera samples of the pixels to `refine` (tile-local index, sample): a jittered
 /// `ex x ey` grid each. A pixel's extra samples are consecutive, so that once they go 64 to a
 /// packet (incoherent packets fall back to single rays in the tracer) a 2x2 grid of them is a
-/// raster quad.
+/// raster quad. Extra sample `k` of every pixel of the tile takes the tile's lens sample `1 + k`, so
+/// a camera shader that reads the lens makes such a packet in `ex * ey` calls.
 fn extra_samples(world: &World, tile: &Tile, (ex, ey): (u32, u32), refine: &[bool]) -> Vec<(usize, CameraSample)> {
     let tw = tile.width as usize;
     let mut rays = Vec::new();
@@ -436,7 +440,8 @@ fn extra_samples(world: &World, tile: &Tile, (ex, ey): (u32, u32), refine: &[boo
                 let (rx, ry) = hash2(key);
                 let (jx, jy) = ((i as f32 + rx) / ex as f32, (j as f32 + ry) / ey as f32);
                 let raster = (x as f32 + jx, y as f32 + jy);
-                let lens = hash2(key ^ 0x1E25_0000_0000);
+                // The pixel's first sample is the tile's lens sample 0.
+                let lens = lens_sample(tile.x0, tile.y0, 1 + j * ex + i);
                 rays.push((k, CameraSample { raster, lens, time: time_sample(world, x, y, 1 + j * ex + i) }));
             }
         }

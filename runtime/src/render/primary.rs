@@ -244,10 +244,14 @@ fn raster_rows(samples: &[CameraSample; PACKET_SIZE]) -> (Row, Row) {
     (std::array::from_fn(|l| samples[l].raster.0), std::array::from_fn(|l| samples[l].raster.1))
 }
 
-/// Runs the camera shader over packets (at most [`MAX_PACKETS_PER_CALL`]) in one batch, packet `p`
-/// in lanes `p * PACKET_SIZE ..`. The renderer's side works row by row (structure of arrays, as the
-/// batch and the ray packet hold them) so that its loops compile to vector code: per packet it is as
-/// much work as the shader itself for a simple camera.
+/// Runs the camera shader over packets (at most [`MAX_PACKETS_PER_CALL`]), packet `p` in lanes
+/// `p * PACKET_SIZE ..` of a batch, and finishes their rays. The renderer's side works row by row
+/// (structure of arrays, as the batch and the ray packet hold them) so that its loops compile to
+/// vector code: per packet it is as much work as the shader itself for a simple camera.
+///
+/// The lens sample (`u`, `v`) is uniform in camera shaders: one call covers a run of packets
+/// that share a lens sample (a frame gives a tile's packets one). A packet whose lanes have
+/// different lens samples takes a call per lens sample, each keeping its own lanes.
 fn run_camera_shader(
     frame: &Frame,
     camera: &crate::shading::ShaderInstance,
@@ -256,22 +260,72 @@ fn run_camera_shader(
 ) {
     let n = packets.len().min(out.len()).min(MAX_PACKETS_PER_CALL);
     let (packets, out) = (&packets[..n], &mut out[..n]);
+    let slots = &camera.program.slots;
+    let reads_lens = [slots.u, slots.v].iter().flatten().any(|s| !s.varying);
+    if !reads_lens {
+        return camera_call(frame, camera, packets, None, out, None);
+    }
+    let lanes_with = |ps: &PacketSamples, lens: (f32, f32)| -> u64 {
+        let same = |s: &CameraSample| s.lens.0.to_bits() == lens.0.to_bits() && s.lens.1.to_bits() == lens.1.to_bits();
+        ps.samples.iter().enumerate().fold(0, |m, (l, s)| m | u64::from(same(s)) << l)
+    };
+    let mut start = 0;
+    while start < n {
+        let lens = packets[start].samples[0].lens;
+        let mut end = start;
+        while end < n && lanes_with(&packets[end], lens) == u64::MAX {
+            end += 1;
+        }
+        if end > start {
+            camera_call(frame, camera, &packets[start..end], Some((lens, u64::MAX)), &mut out[start..end], None);
+            start = end;
+            continue;
+        }
+        // Lanes with different lens samples (an application's own samples): a call for each lens
+        // sample, which keeps the lanes that have it; the rays are finished once all are made.
+        let (ps, o) = (std::slice::from_ref(&packets[start]), std::slice::from_mut(&mut out[start]));
+        let mut weights: Rows3 = [[1.0; PACKET_SIZE]; 3];
+        let mut done = 0u64;
+        while done != u64::MAX {
+            let lens = ps[0].samples[(!done).trailing_zeros() as usize].lens;
+            let lanes = lanes_with(&ps[0], lens);
+            camera_call(frame, camera, ps, Some((lens, lanes)), o, Some(&mut weights));
+            done |= lanes;
+        }
+        finish_shader_rays(frame, &ps[0], &raster_rows(&ps[0].samples), &weights, &mut o[0]);
+        start += 1;
+    }
+}
+
+/// One call of the camera shader over `packets`. `lens`: the lens sample shared by the call (when
+/// the shader reads it) and the lanes to keep. Without `unfinished` every lane is kept and each
+/// packet's rays are finished at once; with it (one packet) the kept lanes' origins and directions
+/// go to the packet's rows and their weights to `unfinished`, the other lanes keep what they held,
+/// and the caller finishes the rays.
+fn camera_call(
+    frame: &Frame,
+    camera: &crate::shading::ShaderInstance,
+    packets: &[PacketSamples],
+    lens: Option<((f32, f32), u64)>,
+    out: &mut [PrimaryRays],
+    mut unfinished: Option<&mut Rows3>,
+) {
+    let n = packets.len();
     let world = frame.world;
     let program = &camera.program;
     let slots = &program.slots;
     let (open, close) = world.options.shutter;
     let eye = world.camera.eye();
-    // I on entry: the built-in pinhole ray's direction, made in the packet's direction rows (the
-    // shader's I replaces it there after the call). Globals the shader assigns before it could read
-    // them are not filled (the cameras of the library assign E, I and Ci first thing).
+    // I on entry is the built-in pinhole ray's direction; a shader without I makes those rays.
+    // Globals the shader assigns before it could read them are not filled (the cameras of the
+    // library assign E, I and Ci first thing).
     let needed = |slot: Option<Slot>| slot.is_some_and(|s| !s.entry_unused);
-    let entry_i = needed(slots.i) || slots.i.is_none();
-    if entry_i {
-        let pinhole = Pinhole::of(world);
+    let pinhole = (needed(slots.i) || slots.i.is_none()).then(|| Pinhole::of(world));
+    if let (Some(pinhole), None) = (&pinhole, slots.i) {
         for (ps, o) in packets.iter().zip(out.iter_mut()) {
             let (rx, ry) = raster_rows(&ps.samples);
             let packet = &mut o.packet;
-            pinhole_directions(&pinhole, &rx, &ry, [&mut packet.dx.0, &mut packet.dy.0, &mut packet.dz.0]);
+            pinhole_directions(pinhole, &rx, &ry, [&mut packet.dx.0, &mut packet.dy.0, &mut packet.dz.0]);
         }
     }
     // Every lane of these globals is written below, or by the shader before it reads them (the
@@ -305,8 +359,12 @@ fn run_camera_shader(
             if needed(slots.ci) {
                 fill3(&mut raw, slots.ci, Vec3A::ONE);
             }
+            if let Some(((lu, lv), _)) = lens {
+                fill1(&mut raw, slots.u, lu);
+                fill1(&mut raw, slots.v, lv);
+            }
             fill1(&mut raw, slots.p.map(|s| Slot { offset: s.offset + 2, ..s }), 0.0);
-            for (p, (ps, o)) in packets.iter().zip(out.iter()).enumerate() {
+            for (p, ps) in packets.iter().enumerate() {
                 let first = p * PACKET_SIZE;
                 let (rx, ry) = raster_rows(&ps.samples);
                 put_row_at(&mut raw, slots.p, 0, first, &rx);
@@ -319,16 +377,19 @@ fn run_camera_shader(
                     put_row_at(&mut raw, slots.s, 0, first, &sx);
                     put_row_at(&mut raw, slots.t, 0, first, &sy);
                 }
-                if slots.u.is_some() || slots.v.is_some() || slots.time.is_some() {
-                    let row = |f: fn(&CameraSample) -> f32| -> Row { std::array::from_fn(|l| f(&ps.samples[l])) };
+                let row = |f: fn(&CameraSample) -> f32| -> Row { std::array::from_fn(|l| f(&ps.samples[l])) };
+                if lens.is_none() && (slots.u.is_some() || slots.v.is_some()) {
                     put_row_at(&mut raw, slots.u, 0, first, &row(|s| s.lens.0));
                     put_row_at(&mut raw, slots.v, 0, first, &row(|s| s.lens.1));
+                }
+                if slots.time.is_some() {
                     put_row_at(&mut raw, slots.time, 0, first, &row(|s| s.time));
                 }
-                if needed(slots.i) {
-                    let packet = &o.packet;
-                    for (k, row) in [&packet.dx, &packet.dy, &packet.dz].into_iter().enumerate() {
-                        put_row_at(&mut raw, slots.i, k, first, &row.0);
+                if let (Some(pinhole), true) = (&pinhole, needed(slots.i)) {
+                    let [mut x, mut y, mut z] = [[0.0f32; PACKET_SIZE]; 3];
+                    pinhole_directions(pinhole, &rx, &ry, [&mut x, &mut y, &mut z]);
+                    for (k, row) in [x, y, z].iter().enumerate() {
+                        put_row_at(&mut raw, slots.i, k, first, row);
                     }
                 }
             }
@@ -336,27 +397,44 @@ fn run_camera_shader(
         let mut call = ShadeCall::new(frame, camera, world.camera.world_from_camera, 0);
         let table = call.table();
         program.code.shade_with_table(batch, &table);
-        // The rays are finished straight from the batch (the renderer's side of the call, so
-        // within the shading timers).
+        // The rays are read straight from the batch (the renderer's side of the call, so within
+        // the shading timers).
         let raw = batch.raw_mut();
+        let keep = if unfinished.is_some() { lens.map_or(u64::MAX, |(_, lanes)| lanes) } else { u64::MAX };
+        let read = |slot: Option<Slot>, k: usize, first: usize, default: f32, row: &mut Row| {
+            if keep == u64::MAX {
+                get_row_at(&raw, slot, k, first, default, row);
+            } else {
+                let mut all = [0.0; PACKET_SIZE];
+                get_row_at(&raw, slot, k, first, default, &mut all);
+                for (l, (r, v)) in row.iter_mut().zip(all).enumerate() {
+                    if keep >> l & 1 != 0 {
+                        *r = v;
+                    }
+                }
+            }
+        };
         let mut weights: Rows3 = [[1.0; PACKET_SIZE]; 3];
         for (p, (ps, o)) in packets.iter().zip(out.iter_mut()).enumerate() {
             let first = p * PACKET_SIZE;
+            let w = unfinished.as_deref_mut().unwrap_or(&mut weights);
             let packet = &mut o.packet;
             for (k, row) in [&mut packet.ox, &mut packet.oy, &mut packet.oz].into_iter().enumerate() {
-                get_row_at(&raw, slots.e, k, first, eye[k], &mut row.0);
+                read(slots.e, k, first, eye[k], &mut row.0);
             }
             if slots.i.is_some() {
                 for (k, row) in [&mut packet.dx, &mut packet.dy, &mut packet.dz].into_iter().enumerate() {
-                    get_row_at(&raw, slots.i, k, first, 0.0, &mut row.0);
+                    read(slots.i, k, first, 0.0, &mut row.0);
                 }
             }
             if slots.ci.is_some() {
-                for (k, row) in weights.iter_mut().enumerate() {
-                    get_row_at(&raw, slots.ci, k, first, 1.0, row);
+                for (k, row) in w.iter_mut().enumerate() {
+                    read(slots.ci, k, first, 1.0, row);
                 }
             }
-            finish_shader_rays(frame, ps, &raster_rows(&ps.samples), &weights, o);
+            if unfinished.is_none() {
+                finish_shader_rays(frame, ps, &raster_rows(&ps.samples), &weights, o);
+            }
         }
     });
     drop(timer);

@@ -68,7 +68,7 @@ pub(super) fn uniform_prefix(m: &ir::Module, shader: &Shader, layout: &Layout) -
         }
         len += 1;
     }
-    let (consts, spaces) = batch_constants(m, shader, layout);
+    let (consts, spaces) = batch_constants(m, shader, layout, len, &check.writes);
     if len == 0 && consts.is_empty() && spaces.is_empty() {
         return Prefix::default();
     }
@@ -181,16 +181,34 @@ fn hoistable(b: Builtin) -> bool {
     true
 }
 
-/// Uniform expressions anywhere in the body that compute the same value for every chunk and
-/// involve a call (a helper, a space's matrix): the prologue evaluates them once and the chunks
-/// use that value (`E = point "camera" (0, 0, 0)`, `radians(fov)`). They may read only constants,
-/// shader parameters and uniform globals that nothing in the body writes, and call only built-ins
-/// without side effects (they are evaluated whether or not the chunk reaches them, which is
-/// harmless for such pure computations). Maximal ones only: a listed expression's parts are not.
-fn batch_constants(m: &ir::Module, shader: &Shader, layout: &Layout) -> (Vec<ExprId>, Vec<ExprId>) {
+/// Uniform expressions anywhere in the body after the hoisted prefix (its first `prefix_len`
+/// statements) that compute the same value for every chunk and involve a call (a helper, a space's
+/// matrix): the prologue evaluates them once, after the prefix, and the chunks use that value
+/// (`E = point "camera" (0, 0, 0)`, `radians(fov)`, a thin lens's `cos(phi)` of a uniform lens
+/// sample). They may read only constants, shader parameters, uniform globals and the uniform
+/// locals the prefix wrote (`prefix_writes`), none of which the rest of the body writes, and call
+/// only built-ins without side effects (they are evaluated whether or not the chunk reaches them,
+/// which is harmless for such pure computations). Maximal ones only: a listed expression's parts
+/// are not.
+fn batch_constants(
+    m: &ir::Module,
+    shader: &Shader,
+    layout: &Layout,
+    prefix_len: usize,
+    prefix_writes: &[VarId],
+) -> (Vec<ExprId>, Vec<ExprId>) {
     let f = m.function(shader.body);
+    let (prefix, rest) = f.body.stmts.split_at(prefix_len.min(f.body.stmts.len()));
+    // The prologue has run the prefix when the constants are evaluated: only writes after it count.
+    let mut in_prefix = vec![false; f.exprs.len()];
+    for s in prefix {
+        mark_prefix_stmt(f, s, &mut in_prefix);
+    }
     let mut written = Vec::new();
-    for e in &f.exprs {
+    for (i, e) in f.exprs.iter().enumerate() {
+        if in_prefix[i] {
+            continue;
+        }
         match &e.kind {
             ExprKind::Assign { place, .. } => written.push(place.base),
             ExprKind::CallBuiltin { args, .. } | ExprKind::Call { args, .. } => {
@@ -203,9 +221,10 @@ fn batch_constants(m: &ir::Module, shader: &Shader, layout: &Layout) -> (Vec<Exp
         }
     }
     gather_refs(&f.body, &mut written);
-    let pure = Pure { f, layout, written };
+    let settled = prefix_writes.iter().copied().filter(|v| f.var(*v).kind == VarKind::Local).collect();
+    let pure = Pure { f, layout, written, settled };
     let mut found = Vec::new();
-    pure.block(&f.body, &mut found);
+    pure.stmts(rest, &mut found);
     let spaces = f
         .exprs
         .iter()
@@ -244,15 +263,59 @@ fn gather_refs(b: &ir::Block, out: &mut Vec<PlaceBase>) {
     }
 }
 
+/// Marks the expressions of a hoisted statement (an expression or a uniform `if` of them), the
+/// indices of the places it assigns included.
+fn mark_prefix_stmt(f: &Function, s: &ir::Stmt, marks: &mut [bool]) {
+    match &s.kind {
+        StmtKind::Expr(e) => mark_expr(f, *e, marks),
+        StmtKind::If { cond, then, otherwise } => {
+            mark_expr(f, *cond, marks);
+            for s in then.stmts.iter().chain(&otherwise.stmts) {
+                mark_prefix_stmt(f, s, marks);
+            }
+        }
+        _ => {}
+    }
+}
+
+fn mark_expr(f: &Function, id: ExprId, marks: &mut [bool]) {
+    if let Some(m) = marks.get_mut(id.0 as usize) {
+        *m = true;
+    }
+    let kind = &f.expr(id).kind;
+    let places: Vec<&Place> = match kind {
+        ExprKind::Assign { place, .. } => vec![place],
+        ExprKind::CallBuiltin { args, .. } | ExprKind::Call { args, .. } => args
+            .iter()
+            .filter_map(|a| match a {
+                Arg::Ref(p) => Some(p),
+                Arg::Value(_) => None,
+            })
+            .collect(),
+        _ => Vec::new(),
+    };
+    let indices = places.into_iter().flat_map(|p| p.index.into_iter().chain(p.component));
+    for c in operands(kind).into_iter().chain(indices) {
+        mark_expr(f, c, marks);
+    }
+}
+
 struct Pure<'a> {
     f: &'a Function,
     layout: &'a Layout,
+    /// What the body writes after the hoisted prefix.
     written: Vec<PlaceBase>,
+    /// Uniform locals the hoisted prefix writes: the prologue has their values.
+    settled: Vec<VarId>,
 }
 
 impl Pure<'_> {
     fn block(&self, b: &ir::Block, found: &mut Vec<ExprId>) {
-        for s in &b.stmts {
+        self.stmts(&b.stmts, found);
+    }
+
+    fn stmts(&self, stmts: &[ir::Stmt], found: &mut Vec<ExprId>) {
+        for s in stmts {
             match &s.kind {
                 StmtKind::Expr(e) => self.visit(*e, found),
                 StmtKind::If { cond, then, otherwise } => {
@@ -303,10 +366,14 @@ impl Pure<'_> {
             ExprKind::Const(_) => true,
             ExprKind::Var(v) => {
                 let var = self.f.var(*v);
-                let VarKind::ShaderParam { index, .. } = var.kind else { return false };
-                !var.varying
-                    && self.layout.params.get(index as usize).is_some_and(|s| !s.varying)
-                    && !self.written.contains(&PlaceBase::Var(*v))
+                let storage = match var.kind {
+                    VarKind::ShaderParam { index, .. } => {
+                        self.layout.params.get(index as usize).is_some_and(|s| !s.varying)
+                    }
+                    VarKind::Local => self.settled.contains(v),
+                    VarKind::Param { .. } | VarKind::Capture => false,
+                };
+                !var.varying && storage && !self.written.contains(&PlaceBase::Var(*v))
             }
             ExprKind::Global(g) => {
                 self.layout.globals.iter().any(|s| s.global == *g && !s.varying && !s.written)

@@ -185,18 +185,19 @@ pub(super) fn layout(m: &Module) -> Result<Layout, &'static str> {
     let mut l = Layout::default();
     for pass_varying in [true, false] {
         for (i, g) in GLOBALS.iter().enumerate() {
-            if !used[i] || g.varying != pass_varying {
+            let varying = g.varying_in(Some(shader.kind));
+            if !used[i] || varying != pass_varying {
                 continue;
             }
             let comps = g.ty.components();
             if !(comps == 1 || comps == 3) || g.ty == BaseType::String {
                 return Err("a matrix or string global");
             }
-            let offset = if g.varying { &mut l.varying_slots } else { &mut l.uniform_len };
+            let offset = if varying { &mut l.varying_slots } else { &mut l.uniform_len };
             l.globals.push(GlobalSlot {
                 global: Global(i as u8),
                 name: g.name,
-                varying: g.varying,
+                varying,
                 offset: *offset,
                 components: comps,
                 written: written[i],

@@ -13,6 +13,7 @@
 
 use crate::builtins::{flags, Builtin};
 use crate::diagnostic::{Code, Diagnostic, Diagnostics};
+use crate::front::parse::ast::ShaderKind;
 use crate::ir::{self, Arg, ExprId, ExprKind, FuncId, Function, PlaceBase, Shader, StmtKind, VarId, VarKind};
 use crate::source::Span;
 
@@ -22,6 +23,7 @@ use crate::source::Span;
 /// those get pass B's annotations; every function gets pass A and its errors.
 pub fn infer(functions: &mut [Function], shader: Option<&Shader>, needed: &[bool], diags: &mut Diagnostics) {
     let body = shader.map(|s| s.body);
+    let kind = shader.map(|s| s.kind);
     let writes = written_params(functions);
     // Pass A, callees before callers (there is no recursion), so each function is analysed once with
     // the final `reads_varying` of everything it calls.
@@ -31,7 +33,7 @@ pub fn infer(functions: &mut [Function], shader: Option<&Shader>, needed: &[bool
         if Some(FuncId(i as u32)) == body {
             continue;
         }
-        let mut a = Analysis::new(&functions[i], &reads, &writes, false, true);
+        let mut a = Analysis::new(&functions[i], &reads, &writes, kind, false, true);
         a.run(&functions[i]);
         let r = a.reads_varying(&functions[i]);
         violations[i] = a.violations;
@@ -43,7 +45,7 @@ pub fn infer(functions: &mut [Function], shader: Option<&Shader>, needed: &[bool
     // The shader body: one pass, with errors.
     if let (Some(shader), Some(body)) = (shader, body) {
         let f = &functions[body.0 as usize];
-        let mut a = Analysis::new(f, &reads, &writes, false, true);
+        let mut a = Analysis::new(f, &reads, &writes, kind, false, true);
         a.defaults = shader.params.iter().map(|p| (p.var, p.default, p.varying)).collect();
         a.run(f);
         violations[body.0 as usize] = a.violations;
@@ -59,7 +61,7 @@ pub fn infer(functions: &mut [Function], shader: Option<&Shader>, needed: &[bool
         if Some(FuncId(i as u32)) == body || !needed.get(i).copied().unwrap_or(true) {
             continue;
         }
-        let mut a = Analysis::new(f, &reads, &writes, true, false);
+        let mut a = Analysis::new(f, &reads, &writes, kind, true, false);
         a.run(f);
         let (exprs, vars) = (a.expr_varying, a.var_varying);
         apply(f, &exprs, &vars);
@@ -147,6 +149,8 @@ struct Analysis<'a> {
     ret_varying: bool,
     /// Shader parameters: variable, default value, declared varying.
     defaults: Vec<(VarId, ExprId, bool)>,
+    /// The module's shader type, which decides whether some globals are varying.
+    kind: Option<ShaderKind>,
 }
 
 /// How a statement left control flow: some lanes may have left the loop, or the function.
@@ -164,6 +168,7 @@ impl<'a> Analysis<'a> {
         f: &Function,
         reads: &'a [bool],
         writes: &'a [Vec<bool>],
+        kind: Option<ShaderKind>,
         params_varying: bool,
         strict: bool,
     ) -> Analysis<'a> {
@@ -192,6 +197,7 @@ impl<'a> Analysis<'a> {
             changed: false,
             ret_varying: false,
             defaults: Vec::new(),
+            kind,
         }
     }
 
@@ -384,7 +390,7 @@ impl<'a> Analysis<'a> {
         let varying = match &e.kind {
             ExprKind::Const(_) => false,
             ExprKind::Var(v) => self.read_var(*v),
-            ExprKind::Global(g) => g.def().varying,
+            ExprKind::Global(g) => g.def().varying_in(self.kind),
             ExprKind::Index { base, index } => {
                 let a = self.walk(f, *base, ctl);
                 let b = self.walk(f, *index, ctl);
