@@ -277,7 +277,7 @@ fn run_camera_shader(
             end += 1;
         }
         if end > start {
-            camera_call(frame, camera, &packets[start..end], Some((lens, u64::MAX)), &mut out[start..end], None);
+            camera_call(frame, camera, &packets[start..end], Some(lens), &mut out[start..end], None);
             start = end;
             continue;
         }
@@ -289,7 +289,7 @@ fn run_camera_shader(
         while done != u64::MAX {
             let lens = ps[0].samples[(!done).trailing_zeros() as usize].lens;
             let lanes = lanes_with(&ps[0], lens);
-            camera_call(frame, camera, ps, Some((lens, lanes)), o, Some(&mut weights));
+            camera_call(frame, camera, ps, Some(lens), o, Some((lanes, &mut weights)));
             done |= lanes;
         }
         finish_shader_rays(frame, &ps[0], &raster_rows(&ps[0].samples), &weights, &mut o[0]);
@@ -298,17 +298,17 @@ fn run_camera_shader(
 }
 
 /// One call of the camera shader over `packets`. `lens`: the lens sample shared by the call (when
-/// the shader reads it) and the lanes to keep. Without `unfinished` every lane is kept and each
-/// packet's rays are finished at once; with it (one packet) the kept lanes' origins and directions
-/// go to the packet's rows and their weights to `unfinished`, the other lanes keep what they held,
+/// the shader reads it). Without `unfinished` each packet's rays are finished at once; with it
+/// (one packet: the lanes to keep and their weights) the kept lanes' origins and directions go to
+/// the packet's rows and their weights to the given rows, the other lanes keep what they held,
 /// and the caller finishes the rays.
 fn camera_call(
     frame: &Frame,
     camera: &crate::shading::ShaderInstance,
     packets: &[PacketSamples],
-    lens: Option<((f32, f32), u64)>,
+    lens: Option<(f32, f32)>,
     out: &mut [PrimaryRays],
-    mut unfinished: Option<&mut Rows3>,
+    mut unfinished: Option<(u64, &mut Rows3)>,
 ) {
     let n = packets.len();
     let world = frame.world;
@@ -359,7 +359,7 @@ fn camera_call(
             if needed(slots.ci) {
                 fill3(&mut raw, slots.ci, Vec3A::ONE);
             }
-            if let Some(((lu, lv), _)) = lens {
+            if let Some((lu, lv)) = lens {
                 fill1(&mut raw, slots.u, lu);
                 fill1(&mut raw, slots.v, lv);
             }
@@ -400,7 +400,7 @@ fn camera_call(
         // The rays are read straight from the batch (the renderer's side of the call, so within
         // the shading timers).
         let raw = batch.raw_mut();
-        let keep = if unfinished.is_some() { lens.map_or(u64::MAX, |(_, lanes)| lanes) } else { u64::MAX };
+        let keep = unfinished.as_ref().map_or(u64::MAX, |(lanes, _)| *lanes);
         let read = |slot: Option<Slot>, k: usize, first: usize, default: f32, row: &mut Row| {
             if keep == u64::MAX {
                 get_row_at(&raw, slot, k, first, default, row);
@@ -417,7 +417,7 @@ fn camera_call(
         let mut weights: Rows3 = [[1.0; PACKET_SIZE]; 3];
         for (p, (ps, o)) in packets.iter().zip(out.iter_mut()).enumerate() {
             let first = p * PACKET_SIZE;
-            let w = unfinished.as_deref_mut().unwrap_or(&mut weights);
+            let w = unfinished.as_mut().map_or(&mut weights, |(_, w)| &mut **w);
             let packet = &mut o.packet;
             for (k, row) in [&mut packet.ox, &mut packet.oy, &mut packet.oz].into_iter().enumerate() {
                 read(slots.e, k, first, eye[k], &mut row.0);
