@@ -109,7 +109,7 @@ fn the_pinhole_shaders_rays_and_differentials_are_the_built_in_cameras() -> Resu
         .iter()
         .map(|&(x, y)| {
             let (samples, active) = camera_samples(&world, x, y, (0, 0));
-            PacketSamples { samples, active }
+            PacketSamples::new(samples, active)
         })
         .collect();
     let mut together = vec![PrimaryRays::default(); packets.len()];
@@ -119,7 +119,7 @@ fn the_pinhole_shaders_rays_and_differentials_are_the_built_in_cameras() -> Resu
         assert_eq!(alone.packet.active, made.packet.active);
         for lane in (0..64).filter(|l| alone.packet.active >> l & 1 != 0) {
             assert_eq!(alone.packet.get(lane), made.packet.get(lane), "lane {lane}");
-            assert_eq!(alone.diffs[lane], made.diffs[lane], "lane {lane}");
+            assert_eq!(alone.diffs.lane(lane), made.diffs.lane(lane), "lane {lane}");
         }
     }
     world.camera_shader = None;
@@ -134,13 +134,13 @@ fn the_pinhole_shaders_rays_and_differentials_are_the_built_in_cameras() -> Resu
                 pinhole_ray(&world, (x + dx / 2.0, y + dy / 2.0)).direction
                     - pinhole_ray(&world, (x - dx / 2.0, y - dy / 2.0)).direction
             };
-            let d = builtin.diffs[lane];
+            let d = builtin.diffs.lane(lane);
             for (want, got) in [(along(1.0, 0.0), d.dddx), (along(0.0, 1.0), d.dddy)] {
                 assert!((want - got).length() <= 1e-3 * want.length(), "lane {lane}: {want} {got}");
             }
             let (a, b) = (builtin.packet.get(lane), made.packet.get(lane));
             assert!((a.origin - b.origin).length() < 1e-5 && (a.direction - b.direction).length() < 1e-5);
-            let (da, db) = (builtin.diffs[lane], made.diffs[lane]);
+            let (da, db) = (builtin.diffs.lane(lane), made.diffs.lane(lane));
             // A pixel's step turns the ray by about 0.9 degrees: finite differences over one step
             // agree with the derivative to a few per cent.
             for (x, y) in [(da.dddx, db.dddx), (da.dddy, db.dddy)] {
@@ -307,7 +307,7 @@ fn each_lane_gets_the_ray_of_its_own_lens_sample() -> Result<(), ApiError> {
         let alone = primary_rays(&frame, &same, u64::MAX);
         for l in (0..64).filter(|&l| mixed[l].lens == lens) {
             assert_eq!(rays.packet.get(l), alone.packet.get(l), "lane {l}");
-            assert_eq!(rays.weights[l], alone.weights[l], "lane {l}");
+            assert_eq!(rays.weight(l), alone.weight(l), "lane {l}");
         }
     }
     // The lens sample matters: lanes with different ones start from different points.

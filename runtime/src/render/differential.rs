@@ -7,6 +7,7 @@
 //! cone: a footprint as wide as the primary ray's at the shading point, spreading like a camera ray
 //! (curved mirrors magnify more than that; the cone does not model it).
 
+use crate::ray::PACKET_SIZE;
 use glam::Vec3A;
 
 /// The derivatives of a ray's origin and unit direction with respect to the image's x and y.
@@ -50,6 +51,52 @@ impl RayDifferential {
             return (px, py);
         }
         (px - dir * (px.dot(n) / dn), py - dir * (py.dot(n) / dn))
+    }
+}
+
+/// Three rows of a packet: component `k` of lane `l` at `[k][l]`.
+pub type LaneRows3 = [[f32; PACKET_SIZE]; 3];
+
+/// The differentials of a packet's rays by rows (structure of arrays), as the camera makes them:
+/// four lanes at a time, with no per-lane records to transpose into (writing those cost as much as
+/// a simple camera shader). Shading reads a lane at a time with [`DifferentialRows::lane`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct DifferentialRows {
+    pub dodx: LaneRows3,
+    pub dody: LaneRows3,
+    pub dddx: LaneRows3,
+    pub dddy: LaneRows3,
+}
+
+impl Default for DifferentialRows {
+    fn default() -> Self {
+        let zero = [[0.0; PACKET_SIZE]; 3];
+        DifferentialRows { dodx: zero, dody: zero, dddx: zero, dddy: zero }
+    }
+}
+
+impl DifferentialRows {
+    /// Lane `l`'s differential.
+    pub fn lane(&self, l: usize) -> RayDifferential {
+        let at = |rows: &LaneRows3| Vec3A::new(rows[0][l], rows[1][l], rows[2][l]);
+        RayDifferential { dodx: at(&self.dodx), dody: at(&self.dody), dddx: at(&self.dddx), dddy: at(&self.dddy) }
+    }
+
+    /// Sets lane `l`'s differential.
+    pub fn set_lane(&mut self, l: usize, d: RayDifferential) {
+        for (rows, v) in
+            [(&mut self.dodx, d.dodx), (&mut self.dody, d.dody), (&mut self.dddx, d.dddx), (&mut self.dddy, d.dddy)]
+        {
+            for (row, x) in rows.iter_mut().zip(v.to_array()) {
+                row[l] = x;
+            }
+        }
+    }
+
+    /// Zeroes the change of the origins (a camera whose rays share one origin).
+    pub fn fixed_origin(&mut self) {
+        self.dodx = [[0.0; PACKET_SIZE]; 3];
+        self.dody = [[0.0; PACKET_SIZE]; 3];
     }
 }
 

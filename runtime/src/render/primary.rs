@@ -13,7 +13,7 @@
 //! is inactive (it contributes nothing to its pixel); every value here is a function of the sample,
 //! never of the thread.
 
-use super::differential::RayDifferential;
+use super::differential::{DifferentialRows, LaneRows3, RayDifferential};
 use super::host::ShadeCall;
 use super::shade::Frame;
 use super::world::World;
@@ -33,21 +33,25 @@ pub struct CameraSample {
 }
 
 /// The primary rays of a packet: the rays (inactive where the camera made no ray), their
-/// differentials, and their weights (the colour a sample's radiance is multiplied by).
+/// differentials, and their weights (the colour a sample's radiance is multiplied by), all by rows
+/// like the packet itself.
 #[derive(Clone, Debug)]
 pub struct PrimaryRays {
     pub packet: RayPacket,
-    pub diffs: [RayDifferential; PACKET_SIZE],
-    pub weights: [Vec3A; PACKET_SIZE],
+    pub diffs: DifferentialRows,
+    pub weights: LaneRows3,
 }
 
 impl Default for PrimaryRays {
     fn default() -> Self {
-        PrimaryRays {
-            packet: RayPacket::new(),
-            diffs: [RayDifferential::default(); PACKET_SIZE],
-            weights: [Vec3A::ONE; PACKET_SIZE],
-        }
+        PrimaryRays { packet: RayPacket::new(), diffs: DifferentialRows::default(), weights: [[1.0; PACKET_SIZE]; 3] }
+    }
+}
+
+impl PrimaryRays {
+    /// Lane `l`'s weight.
+    pub fn weight(&self, l: usize) -> Vec3A {
+        Vec3A::new(self.weights[0][l], self.weights[1][l], self.weights[2][l])
     }
 }
 
@@ -134,7 +138,7 @@ pub fn primary_rays_into(frame: &Frame, samples: &[CameraSample; PACKET_SIZE], a
     match &frame.world.camera_shader {
         None => pinhole_rays(frame, samples, active, out),
         Some(camera) => {
-            let packet = PacketSamples { samples: *samples, active };
+            let packet = PacketSamples::new(*samples, active);
             run_camera_shader(frame, camera, std::slice::from_ref(&packet), std::slice::from_mut(out));
         }
     }
@@ -144,7 +148,7 @@ pub fn primary_rays_into(frame: &Frame, samples: &[CameraSample; PACKET_SIZE], a
 type Row = [f32; PACKET_SIZE];
 
 /// Three rows: a vector per lane.
-type Rows3 = [Row; 3];
+type Rows3 = LaneRows3;
 
 /// The built-in pinhole camera's rays, by rows (the arithmetic of [`Pinhole::ray`] and
 /// the camera's ray differentials, as vector code over the packet).
@@ -163,7 +167,7 @@ fn pinhole_rays(frame: &Frame, samples: &[CameraSample; PACKET_SIZE], active: u6
     packet.tmax.0 = [f32::INFINITY; PACKET_SIZE];
     packet.time.0 = std::array::from_fn(|l| samples[l].time);
     packet.active = active;
-    out.weights = [Vec3A::ONE; PACKET_SIZE];
+    out.weights = [[1.0; PACKET_SIZE]; 3];
     // The differentials: the unnormalised direction has a forward component of 1.
     let fw = frame.forward.to_array();
     let mut d = dir;
@@ -174,33 +178,28 @@ fn pinhole_rays(frame: &Frame, samples: &[CameraSample; PACKET_SIZE], active: u6
             row[l] *= scale;
         }
     }
-    let (ddx, ddy) = camera_derivatives(&d, frame.pixel_dx, frame.pixel_dy);
     let diffs = &mut out.diffs;
-    lane_vectors(&ddx, |l, v| diffs[l].dddx = v);
-    lane_vectors(&ddy, |l, v| diffs[l].dddy = v);
-    for diff in diffs.iter_mut() {
-        (diff.dodx, diff.dody) = (Vec3A::ZERO, Vec3A::ZERO);
-    }
+    camera_derivatives(&d, frame.pixel_dx, frame.pixel_dy, &mut diffs.dddx, &mut diffs.dddy);
+    diffs.fixed_origin();
 }
 
 /// [`RayDifferential::from_camera`] by rows: the change per pixel of the unit direction `d / |d|`
-/// when the unnormalised direction `d` changes by `dd_dx` and `dd_dy` (zero where `d` is zero).
+/// when the unnormalised direction `d` changes by `dd_dx` and `dd_dy` (zero where `d` is zero),
+/// into `ddx` and `ddy`.
 // Lane-indexed loops over several rows at once are the point here (they compile to vector code).
 #[allow(clippy::needless_range_loop)]
-fn camera_derivatives(d: &Rows3, dd_dx: Vec3A, dd_dy: Vec3A) -> (Rows3, Rows3) {
+fn camera_derivatives(d: &Rows3, dd_dx: Vec3A, dd_dy: Vec3A, ddx: &mut Rows3, ddy: &mut Rows3) {
     let (vx, vy) = (dd_dx.to_array(), dd_dy.to_array());
-    let mut out = ([[0.0f32; PACKET_SIZE]; 3], [[0.0f32; PACKET_SIZE]; 3]);
     for l in 0..PACKET_SIZE {
         let len = (d[0][l] * d[0][l] + d[1][l] * d[1][l] + d[2][l] * d[2][l]).sqrt();
         let inv = if len > 0.0 { 1.0 / len } else { 0.0 };
         let n = [d[0][l] * inv, d[1][l] * inv, d[2][l] * inv];
         let (nx, ny) = (n[0] * vx[0] + n[1] * vx[1] + n[2] * vx[2], n[0] * vy[0] + n[1] * vy[1] + n[2] * vy[2]);
         for k in 0..3 {
-            out.0[k][l] = (vx[k] - n[k] * nx) * inv;
-            out.1[k][l] = (vy[k] - n[k] * ny) * inv;
+            ddx[k][l] = (vx[k] - n[k] * nx) * inv;
+            ddy[k][l] = (vy[k] - n[k] * ny) * inv;
         }
     }
-    out
 }
 
 /// The camera samples of one packet and the lanes to make rays for.
@@ -208,12 +207,31 @@ fn camera_derivatives(d: &Rows3, dd_dx: Vec3A, dd_dy: Vec3A) -> (Rows3, Rows3) {
 pub struct PacketSamples {
     pub samples: [CameraSample; PACKET_SIZE],
     pub active: u64,
+    /// The lens sample of every lane, when all share one (a frame's packets do); `None` when
+    /// they may differ. A camera shader that reads the lens sample runs once for a run of
+    /// packets that share one, and once per distinct lens sample for a packet whose lanes
+    /// differ. [`PacketSamples::new`] works it out; a frame knows it without looking.
+    pub shared_lens: Option<(f32, f32)>,
 }
 
 impl Default for PacketSamples {
     fn default() -> Self {
-        PacketSamples { samples: [CameraSample::default(); PACKET_SIZE], active: 0 }
+        PacketSamples::new([CameraSample::default(); PACKET_SIZE], 0)
     }
+}
+
+impl PacketSamples {
+    /// A packet's samples, with [`PacketSamples::shared_lens`] worked out from them.
+    pub fn new(samples: [CameraSample; PACKET_SIZE], active: u64) -> PacketSamples {
+        let lens = samples[0].lens;
+        let shared = samples.iter().fold(true, |all, s| all & same_lens(s.lens, lens));
+        PacketSamples { samples, active, shared_lens: shared.then_some(lens) }
+    }
+}
+
+/// Whether two lens samples are the same (bit for bit, so that a NaN matches itself).
+fn same_lens(a: (f32, f32), b: (f32, f32)) -> bool {
+    a.0.to_bits() == b.0.to_bits() && a.1.to_bits() == b.1.to_bits()
 }
 
 /// The primary rays of several packets, `out[p]` from `packets[p]` (the shorter of the two counts):
@@ -266,17 +284,15 @@ fn run_camera_shader(
         return camera_call(frame, camera, packets, None, out, None);
     }
     let lanes_with = |ps: &PacketSamples, lens: (f32, f32)| -> u64 {
-        let same = |s: &CameraSample| s.lens.0.to_bits() == lens.0.to_bits() && s.lens.1.to_bits() == lens.1.to_bits();
-        ps.samples.iter().enumerate().fold(0, |m, (l, s)| m | u64::from(same(s)) << l)
+        ps.samples.iter().enumerate().fold(0, |m, (l, s)| m | u64::from(same_lens(s.lens, lens)) << l)
     };
     let mut start = 0;
     while start < n {
-        let lens = packets[start].samples[0].lens;
-        let mut end = start;
-        while end < n && lanes_with(&packets[end], lens) == u64::MAX {
-            end += 1;
-        }
-        if end > start {
+        if let Some(lens) = packets[start].shared_lens {
+            let mut end = start + 1;
+            while end < n && packets[end].shared_lens.is_some_and(|l| same_lens(l, lens)) {
+                end += 1;
+            }
             camera_call(frame, camera, &packets[start..end], Some(lens), &mut out[start..end], None);
             start = end;
             continue;
@@ -445,7 +461,7 @@ fn camera_call(
 /// directions, and works out the ray differentials. Four lanes at a time (`Vec4`): this runs for
 /// every packet a camera shader makes, and written lane by lane it cost several times the shader.
 fn finish_shader_rays(frame: &Frame, ps: &PacketSamples, (rx, ry): &(Row, Row), w: &Rows3, out: &mut PrimaryRays) {
-    let packet = &mut out.packet;
+    let PrimaryRays { packet, diffs, weights } = out;
     // Most cameras give every ray of a packet one origin (a thin lens samples one lens position
     // per packet): then the origin does not change from lane to lane.
     let same = |row: &Row| row.iter().all(|v| v.to_bits() == row[0].to_bits());
@@ -481,47 +497,36 @@ fn finish_shader_rays(frame: &Frame, ps: &PacketSamples, (rx, ry): &(Row, Row), 
     packet.time.0 = std::array::from_fn(|l| ps.samples[l].time);
     packet.active = ps.active & valid;
     // Every lane, active or not: a loop without a test per lane (inactive lanes are undefined).
-    lane_vectors(w, |l, v| out.weights[l] = v.max(Vec3A::ZERO));
+    for (row, w) in weights.iter_mut().zip(w) {
+        for (x, v) in row.iter_mut().zip(w) {
+            *x = v.max(0.0);
+        }
+    }
     let o = [&packet.ox.0, &packet.oy.0, &packet.oz.0];
     let d = [&packet.dx.0, &packet.dy.0, &packet.dz.0];
     // Lane l ^ 1 is a lane's horizontal neighbour, l ^ 2 its vertical one: whether the neighbour
     // made a ray is `valid` with those bits swapped.
     let valid_x = ((valid >> 1) & 0x5555_5555_5555_5555) | ((valid << 1) & 0xAAAA_AAAA_AAAA_AAAA);
     let valid_y = ((valid >> 2) & 0x3333_3333_3333_3333) | ((valid << 2) & 0xCCCC_CCCC_CCCC_CCCC);
-    let o = (!fixed_origin).then_some(o);
-    let (ux, dodx, dddx) = quad_changes::<1>(rx, ry, valid_x, o, d);
-    let (uy, dody, dddy) = quad_changes::<2>(ry, rx, valid_y, o, d);
     // Every lane from its quad first (loops without a test per lane), then the few whose quad does
     // not count get a cone instead.
-    let diffs = &mut out.diffs;
-    lane_vectors(&dddx, |l, v| diffs[l].dddx = v);
-    lane_vectors(&dddy, |l, v| diffs[l].dddy = v);
-    if let (Some(dodx), Some(dody)) = (&dodx, &dody) {
-        lane_vectors(dodx, |l, v| diffs[l].dodx = v);
-        lane_vectors(dody, |l, v| diffs[l].dody = v);
+    let (ux, uy) = if fixed_origin {
+        diffs.fixed_origin();
+        (
+            quad_changes::<1>(rx, ry, valid_x, None, d, &mut diffs.dddx),
+            quad_changes::<2>(ry, rx, valid_y, None, d, &mut diffs.dddy),
+        )
     } else {
-        for diff in diffs.iter_mut() {
-            (diff.dodx, diff.dody) = (Vec3A::ZERO, Vec3A::ZERO);
-        }
-    }
+        (
+            quad_changes::<1>(rx, ry, valid_x, Some((o, &mut diffs.dodx)), d, &mut diffs.dddx),
+            quad_changes::<2>(ry, rx, valid_y, Some((o, &mut diffs.dody)), d, &mut diffs.dddy),
+        )
+    };
     let mut cones = packet.active & !(ux & uy);
     while cones != 0 {
         let l = cones.trailing_zeros() as usize;
         cones &= cones - 1;
-        out.diffs[l] = RayDifferential::cone(Vec3A::new(d[0][l], d[1][l], d[2][l]), 0.0, frame.pixel_spread);
-    }
-}
-
-/// Gives `put` each lane's vector from its rows (x, y, z), four lanes at a time by a 4x4
-/// transpose: writing per-lane records from rows one component at a time cost as much as a simple
-/// camera shader.
-#[inline(always)]
-fn lane_vectors([x, y, z]: &Rows3, mut put: impl FnMut(usize, Vec3A)) {
-    for q in (0..PACKET_SIZE).step_by(4) {
-        let m = glam::Mat4::from_cols(quad(x, q), quad(y, q), quad(z, q), Vec4::ZERO).transpose();
-        for j in 0..4 {
-            put(q + j, Vec3A::from_vec4(m.col(j)));
-        }
+        diffs.set_lane(l, RayDifferential::cone(Vec3A::new(d[0][l], d[1][l], d[2][l]), 0.0, frame.pixel_spread));
     }
 }
 
@@ -534,16 +539,18 @@ fn quad(row: &Row, q: usize) -> Vec4 {
 /// Ray differentials from the packet's 2x2 raster quads (four consecutive lanes): lane `l ^ FLIP`
 /// is lane `l`'s neighbour along one raster axis (`FLIP` 1: x, 2: y), `along` the raster
 /// coordinate on that axis and `across` the other, `neighbour_valid` whether each lane's neighbour
-/// made a ray. Returns the lanes whose neighbour counts (it made a ray and lies about one step
-/// along the axis) and the change per step of the origin (`None` when `o` is: a fixed origin) and
-/// of the direction (`(v[neighbour] - v[lane]) / step`, zero where a component is not finite).
+/// made a ray. Writes the change per step of the origin (into the rows given with `o`; none: a
+/// fixed origin) and of the direction `d` (into `dd`): `(v[neighbour] - v[lane]) / step`, zero
+/// where a component is not finite. Returns the lanes whose neighbour counts (it made a ray and
+/// lies about one step along the axis).
 fn quad_changes<const FLIP: usize>(
     along: &Row,
     across: &Row,
     neighbour_valid: u64,
-    o: Option<[&Row; 3]>,
+    mut o: Option<([&Row; 3], &mut Rows3)>,
     d: [&Row; 3],
-) -> (u64, Option<Rows3>, Rows3) {
+    dd: &mut Rows3,
+) -> u64 {
     let neighbour = |v: Vec4| if FLIP == 1 { v.yxwz() } else { v.zwxy() };
     let changes = |v: [&Row; 3], inv: Vec4, q: usize, out: &mut Rows3| {
         let (x, y, z) = (quad(v[0], q), quad(v[1], q), quad(v[2], q));
@@ -554,20 +561,18 @@ fn quad_changes<const FLIP: usize>(
         }
     };
     let mut usable = 0u64;
-    let mut origin = o.map(|_| [[0.0f32; PACKET_SIZE]; 3]);
-    let mut direction = [[0.0f32; PACKET_SIZE]; 3];
     for q in (0..PACKET_SIZE).step_by(4) {
         let (a, c) = (quad(along, q), quad(across, q));
         let (step, other) = (neighbour(a) - a, neighbour(c) - c);
         let near = step.abs().cmpge(Vec4::splat(0.25)) & other.abs().cmple(step.abs() * 0.5);
         usable |= u64::from(near.bitmask()) << q;
         let inv = Vec4::ONE / step;
-        if let (Some(o), Some(out)) = (o, origin.as_mut()) {
-            changes(o, inv, q, out);
+        if let Some((o, out)) = o.as_mut() {
+            changes(*o, inv, q, out);
         }
-        changes(d, inv, q, &mut direction);
+        changes(d, inv, q, dd);
     }
-    (usable & neighbour_valid, origin, direction)
+    usable & neighbour_valid
 }
 
 /// The built-in pinhole camera's unit directions through raster positions `(rx, ry)`, as rows
@@ -601,7 +606,8 @@ mod tests {
         }
         // One zero direction: no change.
         (d[0][9], d[1][9], d[2][9]) = (0.0, 0.0, 0.0);
-        let (ddx, ddy) = camera_derivatives(&d, vx, vy);
+        let (mut ddx, mut ddy) = ([[0.0f32; PACKET_SIZE]; 3], [[0.0f32; PACKET_SIZE]; 3]);
+        camera_derivatives(&d, vx, vy, &mut ddx, &mut ddy);
         for l in 0..PACKET_SIZE {
             let want = RayDifferential::from_camera(Vec3A::new(d[0][l], d[1][l], d[2][l]), vx, vy);
             let got = (Vec3A::new(ddx[0][l], ddx[1][l], ddx[2][l]), Vec3A::new(ddy[0][l], ddy[1][l], ddy[2][l]));

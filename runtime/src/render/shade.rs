@@ -82,7 +82,7 @@ pub fn shade_packet(frame: &Frame, primary: &PrimaryRays, hits: &HitPacket, out:
     // in between); misses see the background at once.
     let mut pending = Vec::with_capacity(PACKET_SIZE);
     for i in (0..PACKET_SIZE).filter(|i| packet.active >> i & 1 != 0) {
-        if let Some(p) = start_sample(frame, i, packet.get(i), primary.diffs[i], hits.get(i), &mut out[i]) {
+        if let Some(p) = start_sample(frame, i, packet.get(i), primary.diffs.lane(i), hits.get(i), &mut out[i]) {
             pending.push(p);
         }
     }
@@ -90,7 +90,7 @@ pub fn shade_packet(frame: &Frame, primary: &PrimaryRays, hits: &HitPacket, out:
     shade_pending(frame, pending, 0, out, &mut weight);
     for i in (0..PACKET_SIZE).filter(|i| packet.active >> i & 1 != 0) {
         let s = &mut out[i];
-        let w = primary.weights[i];
+        let w = primary.weight(i);
         let alpha = 1.0 - (weight[i].x + weight[i].y + weight[i].z) / 3.0;
         s.color *= w;
         s.alpha = alpha * (w.x + w.y + w.z) / 3.0;
