@@ -1624,10 +1624,11 @@ fn a_zero_tangent_gives_a_zero_difference_derivative_even_where_the_function_is_
 }
 
 /// A global is marked as needing no value on entry only when the shader assigns the whole of it in
-/// a top-level statement that every lane reaches and reads it nowhere.
+/// a top-level statement that every lane reaches, before any statement that might read it (reads
+/// after that see the shader's own value).
 #[test]
 fn entry_unused_marks_only_globals_assigned_before_any_use() {
-    let cases: [(&str, &[(&str, bool)]); 5] = [
+    let cases: [(&str, &[(&str, bool)]); 8] = [
         (
             "camera c() { E = point \"camera\" (0, 0, 0); I = vector (s, t, 1); Ci = 1; }",
             &[("E", true), ("I", true), ("Ci", true)],
@@ -1635,7 +1636,22 @@ fn entry_unused_marks_only_globals_assigned_before_any_use() {
         ("camera c() { if (s > 0) I = vector (s, t, 1); E = point (0, 0, 0); }", &[("I", false), ("E", true)]),
         ("camera c() { E = point (0, 0, 0); I = I * 2; }", &[("I", false), ("E", true)]),
         ("camera c() { float k; for (k = 0; k < s; k += 1) I = vector (s, t, 1); }", &[("I", false)]),
-        ("camera c() { I = vector (s, t, 1); setxcomp(I, 1); Ci = 1; Ci += 1; }", &[("I", false), ("Ci", false)]),
+        ("camera c() { I = vector (s, t, 1); setxcomp(I, 1); Ci = 1; Ci += 1; }", &[("I", true), ("Ci", true)]),
+        // Read by an earlier statement, or by the assignment's own value.
+        (
+            "camera c() { I = vector (s, t, 1) * xcomp(E); E = point (0, 0, 0); Ci = Ci + 1; }",
+            &[("I", true), ("E", false), ("Ci", false)],
+        ),
+        // Assigned under a condition first, or after a user function (which may read anything).
+        (
+            "float f() { return s; } camera c() { if (s > 0) E = point (1, 0, 0); E = point (0, 0, 0); \
+             float x = f(); I = vector (x, t, 1); }",
+            &[("E", false), ("I", false)],
+        ),
+        (
+            "camera c() { E = point (0, 0, 0); I = vector (s, t, 1) - E; Ci = 1; Ci *= 0.5; }",
+            &[("E", true), ("I", true), ("Ci", true)],
+        ),
     ];
     for (src, want) in cases {
         let shader = jit::compile(&module(src)).expect("compiles");

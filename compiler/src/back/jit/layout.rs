@@ -34,8 +34,8 @@ pub struct GlobalSlot {
     pub components: usize,
     /// Assigned somewhere in the module: the shader stores it back.
     pub written: bool,
-    /// The shader never uses the value the global holds on entry: nothing in the module reads it,
-    /// and a top-level statement of the shader body (which every lane reaches) assigns the whole of
+    /// The shader never uses the value the global holds on entry: a top-level statement of the
+    /// shader body (which every lane reaches) assigns the whole of it before anything might read
     /// it. A caller need not fill it.
     pub entry_unused: bool,
 }
@@ -139,14 +139,7 @@ pub(super) fn layout(m: &Module) -> Result<Layout, &'static str> {
                     if let ExprKind::CallBuiltin { builtin, args, .. } = &e.kind {
                         use crate::builtins::Builtin as Bi;
                         random |= *builtin == Bi::Random;
-                        let implicit: &[&str] = match builtin {
-                            Bi::Faceforward if args.len() == 2 => &["Ng"],
-                            Bi::Ambient | Bi::Diffuse | Bi::Specular | Bi::Phong => &["P"],
-                            Bi::Texture | Bi::Bump => &["s", "t"],
-                            Bi::Incident | Bi::Opposite => &["I", "Ng"],
-                            _ => &[],
-                        };
-                        for name in implicit {
+                        for name in implicit_reads(*builtin, args.len()) {
                             if let Some(g) = Global::lookup(name) {
                                 used[g.0 as usize] = true;
                                 read[g.0 as usize] = true;
@@ -158,6 +151,8 @@ pub(super) fn layout(m: &Module) -> Result<Layout, &'static str> {
             }
         }
     }
+    // Globals read behind the statements' backs (by derivatives and light statements).
+    let mut behind = vec![false; GLOBALS.len()];
     // Derivatives need the parameters' differentials (and calculatenormal the orientation).
     let info = crate::ir::deriv::analyse(m);
     if info.any {
@@ -169,6 +164,7 @@ pub(super) fn layout(m: &Module) -> Result<Layout, &'static str> {
             if let Some(g) = Global::lookup(name) {
                 used[g.0 as usize] = true;
                 read[g.0 as usize] = true;
+                behind[g.0 as usize] = true;
             }
         }
     }
@@ -180,8 +176,9 @@ pub(super) fn layout(m: &Module) -> Result<Layout, &'static str> {
     for (i, lit) in by_lights.into_iter().enumerate() {
         used[i] |= lit;
         read[i] |= lit;
+        behind[i] |= lit;
     }
-    let assigned_first = assigned_on_entry(m.function(shader.body));
+    let assigned_first = assigned_before_read(m.function(shader.body));
     let mut l = Layout::default();
     for pass_varying in [true, false] {
         for (i, g) in GLOBALS.iter().enumerate() {
@@ -201,7 +198,7 @@ pub(super) fn layout(m: &Module) -> Result<Layout, &'static str> {
                 offset: *offset,
                 components: comps,
                 written: written[i],
-                entry_unused: !read[i] && assigned_first[i],
+                entry_unused: !behind[i] && assigned_first[i],
             });
             *offset += comps;
         }
@@ -238,21 +235,130 @@ pub(super) fn layout(m: &Module) -> Result<Layout, &'static str> {
     Ok(l)
 }
 
-/// The globals that a top-level statement of the shader body assigns whole (`g = value`): every
-/// lane that runs the shader assigns them (a shader body cannot `return`; the checker refuses it).
-fn assigned_on_entry(body: &crate::ir::Function) -> Vec<bool> {
+/// The built-in's globals that it reads without taking them as arguments.
+fn implicit_reads(builtin: crate::builtins::Builtin, args: usize) -> &'static [&'static str] {
+    use crate::builtins::Builtin as Bi;
+    match builtin {
+        Bi::Faceforward if args == 2 => &["Ng"],
+        Bi::Ambient | Bi::Diffuse | Bi::Specular | Bi::Phong => &["P"],
+        Bi::Texture | Bi::Bump => &["s", "t"],
+        Bi::Incident | Bi::Opposite => &["I", "Ng"],
+        _ => &[],
+    }
+}
+
+/// The globals whose value on entry the shader body never reads: its top-level statements, in
+/// order, assign each of them whole (`g = value`, which every lane runs: a shader body cannot
+/// `return`, the checker refuses it) before any statement that might read it. The scan stops at
+/// the first statement it cannot see through (a call of a user function, which may read any
+/// global, or a light, gather or jump statement); globals not yet assigned by then count as read.
+/// Reads behind the statements' backs (derivatives, light statements) are the caller's to add.
+fn assigned_before_read(body: &crate::ir::Function) -> Vec<bool> {
     use crate::ir::StmtKind;
     let mut assigned = vec![false; GLOBALS.len()];
+    // Read or assigned (even in part, or under a condition) by an earlier statement.
+    let mut touched = vec![false; GLOBALS.len()];
     for s in &body.body.stmts {
-        if let StmtKind::Expr(e) = s.kind {
-            if let ExprKind::Assign { place, op: None, .. } = &body.expr(e).kind {
-                if let (PlaceBase::Global(g), None, None) = (place.base, place.index, place.component) {
-                    assigned[g.0 as usize] = true;
-                }
-            }
+        let (mut reads, mut writes) = (vec![false; GLOBALS.len()], vec![false; GLOBALS.len()]);
+        if !stmt_reads(body, s, &mut reads, &mut writes) {
+            break;
+        }
+        let whole = match s.kind {
+            StmtKind::Expr(e) => match &body.expr(e).kind {
+                ExprKind::Assign { place, op: None, .. } => match (place.base, place.index, place.component) {
+                    (PlaceBase::Global(g), None, None) => Some(g.0 as usize),
+                    _ => None,
+                },
+                _ => None,
+            },
+            _ => None,
+        };
+        if let Some(g) = whole.filter(|&g| !touched[g] && !reads[g]) {
+            assigned[g] = true;
+        }
+        for ((t, r), w) in touched.iter_mut().zip(&reads).zip(&writes) {
+            *t |= *r || *w;
         }
     }
     assigned
+}
+
+/// Marks in `reads` the globals statement `s` might read and in `assigned` those it assigns
+/// (nested ones included); `false` when it cannot tell (see [`assigned_before_read`]).
+fn stmt_reads(f: &crate::ir::Function, s: &crate::ir::Stmt, reads: &mut [bool], assigned: &mut [bool]) -> bool {
+    use crate::ir::StmtKind;
+    let block = |b: &crate::ir::Block, reads: &mut [bool], assigned: &mut [bool]| {
+        b.stmts.iter().all(|s| stmt_reads(f, s, reads, assigned))
+    };
+    match &s.kind {
+        StmtKind::Expr(e) => expr_reads(f, *e, reads, assigned),
+        StmtKind::If { cond, then, otherwise } => {
+            expr_reads(f, *cond, reads, assigned) && block(then, reads, assigned) && block(otherwise, reads, assigned)
+        }
+        StmtKind::Loop { cond, body, step } => {
+            cond.is_none_or(|c| expr_reads(f, c, reads, assigned))
+                && block(body, reads, assigned)
+                && block(step, reads, assigned)
+        }
+        _ => false,
+    }
+}
+
+/// [`stmt_reads`] of an expression.
+fn expr_reads(f: &crate::ir::Function, e: crate::ir::ExprId, reads: &mut [bool], assigned: &mut [bool]) -> bool {
+    let place = |p: &crate::ir::Place, reads: &mut [bool], assigned: &mut [bool]| {
+        [p.index, p.component].into_iter().flatten().all(|i| expr_reads(f, i, reads, assigned))
+    };
+    match &f.expr(e).kind {
+        ExprKind::Global(g) => {
+            reads[g.0 as usize] = true;
+            true
+        }
+        ExprKind::Call { .. } => false,
+        ExprKind::CallBuiltin { builtin, args, .. } => {
+            for name in implicit_reads(*builtin, args.len()) {
+                if let Some(g) = Global::lookup(name) {
+                    reads[g.0 as usize] = true;
+                }
+            }
+            args.iter().all(|a| match a {
+                Arg::Value(v) => expr_reads(f, *v, reads, assigned),
+                Arg::Ref(p) => {
+                    if let PlaceBase::Global(g) = p.base {
+                        reads[g.0 as usize] = true;
+                        assigned[g.0 as usize] = true;
+                    }
+                    place(p, reads, assigned)
+                }
+            })
+        }
+        ExprKind::Assign { place: p, op, value } => {
+            if let PlaceBase::Global(g) = p.base {
+                reads[g.0 as usize] |= op.is_some() || p.index.is_some() || p.component.is_some();
+                assigned[g.0 as usize] = true;
+            }
+            expr_reads(f, *value, reads, assigned) && place(p, reads, assigned)
+        }
+        ExprKind::Const(_) | ExprKind::Var(_) => true,
+        ExprKind::Index { base, index } => {
+            expr_reads(f, *base, reads, assigned) && expr_reads(f, *index, reads, assigned)
+        }
+        ExprKind::Unary { arg, .. } | ExprKind::Convert { arg } => expr_reads(f, *arg, reads, assigned),
+        ExprKind::Binary { lhs, rhs, .. } => {
+            expr_reads(f, *lhs, reads, assigned) && expr_reads(f, *rhs, reads, assigned)
+        }
+        ExprKind::Construct { args } | ExprKind::ArrayLiteral { elements: args } => {
+            args.iter().all(|a| expr_reads(f, *a, reads, assigned))
+        }
+        ExprKind::SpaceCast { space, arg } => {
+            expr_reads(f, *space, reads, assigned) && expr_reads(f, *arg, reads, assigned)
+        }
+        ExprKind::Select { cond, a, b } => {
+            expr_reads(f, *cond, reads, assigned)
+                && expr_reads(f, *a, reads, assigned)
+                && expr_reads(f, *b, reads, assigned)
+        }
+    }
 }
 
 /// Marks `L`, `Cl`, `Ol` (illuminance: set per light and restored), `L` and `Ps` (illuminate, solar)
