@@ -209,7 +209,8 @@ unsafe extern "C" fn host_matrix(ctx: *mut c_void, from: StrRef, to: StrRef, out
     let (Some(a), Some(b)) = (c.world_from(from), c.world_from(to)) else { return 0 };
     // Points go from `from` to world, then from world to `to`. glam's column-major array of a
     // column-vector matrix is RenderMan's row-major array of the row-vector one.
-    let m = (b.inverse() * a).to_cols_array();
+    // Most spaces are asked for into world ("current") space: no inverse to work out then.
+    let m = if b == Mat4::IDENTITY { a } else { b.inverse() * a }.to_cols_array();
     if !m.iter().all(|x| x.is_finite()) {
         return 0;
     }
