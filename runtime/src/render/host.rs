@@ -14,7 +14,7 @@ use crate::shading::ShaderInstance;
 use crate::texture::{Footprint, Grid, LookupOptions, MipMap};
 use glam::{Affine3A, Mat4, Vec3A};
 use rtsl_compiler::back::jit::{
-    shadow_query_of, HostTable, LightLanes, MessageOut, StrRef, CONE_ROWS, MAX_LIGHTS, SHADOW_ROWS,
+    same_category, shadow_query_of, HostTable, LightLanes, MessageOut, StrRef, CONE_ROWS, MAX_LIGHTS, SHADOW_ROWS,
 };
 use rtsl_compiler::builtins::Builtin;
 use rtsl_compiler::shadeops::gather::GatherHit;
@@ -253,7 +253,7 @@ unsafe extern "C" fn host_lights(
     }
     let pbits: [u32; 12] = std::array::from_fn(|i| p[i].to_bits());
     if let Some(q) = &c.light_cache {
-        if q.category == category && q.p == pbits && q.mask == *mask {
+        if same_category(&q.category, category) && q.p == pbits && q.mask == *mask {
             out[..q.lights.len()].copy_from_slice(&q.lights);
             *counts = q.counts;
             return;

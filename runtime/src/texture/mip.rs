@@ -593,7 +593,9 @@ mod tests {
                                 accumulate_bilinear(img, s, t, wrap, first, weight, &mut each);
                             }
                             let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-                            let case = format!("{channels} channels, {w}x{h}, first {first}, {width} wide, at ({s}, {t}), {wrap:?}");
+                            let case = format!(
+                                "{channels} channels, {w}x{h}, first {first}, {width} wide, at ({s}, {t}), {wrap:?}"
+                            );
                             assert_eq!(bits(&paired), bits(&each), "{case}");
                         }
                     }

@@ -30,8 +30,8 @@ mod math;
 mod profile;
 
 pub use host::{
-    light_in_cone, shadow_query_of, HostLight, HostTable, LightLanes, MessageOut, ServicesHost, StrRef, CONE_ROWS,
-    EVERY_LIGHT, MAX_LIGHTS, NO_LIGHT, SHADOW_ROWS,
+    light_in_cone, same_category, shadow_query_of, HostLight, HostTable, LightLanes, MessageOut, ServicesHost, StrRef,
+    CONE_ROWS, EVERY_LIGHT, MAX_LIGHTS, NO_LIGHT, SHADOW_ROWS,
 };
 pub use layout::{GlobalSlot, Layout, ParamSlot};
 
