@@ -286,11 +286,22 @@ fn accumulate_bilinear_pair(
         1 => accumulate_pair_taps::<1>(levels, s, t, wrap, first, weights, out),
         3 => accumulate_pair_taps::<3>(levels, s, t, wrap, first, weights, out),
         4 => accumulate_pair_taps::<4>(levels, s, t, wrap, first, weights, out),
-        _ => {
-            for (img, weight) in levels.into_iter().zip(weights) {
-                accumulate_bilinear(img, s, t, wrap, first, weight, out);
-            }
-        }
+        _ => one_level_after_the_other(levels, s, t, wrap, first, weights, out),
+    }
+}
+
+/// [`accumulate_bilinear_pair`] the plain way: what it must equal, and what it falls back on.
+fn one_level_after_the_other(
+    levels: [&TexImage; 2],
+    s: f32,
+    t: f32,
+    wrap: [Wrap; 2],
+    first: usize,
+    weights: [f32; 2],
+    out: &mut [f32],
+) {
+    for (img, weight) in levels.into_iter().zip(weights) {
+        accumulate_bilinear(img, s, t, wrap, first, weight, out);
     }
 }
 
@@ -312,10 +323,7 @@ fn accumulate_pair_taps<const N: usize>(
     // Beyond 2^23 a float is an integer already, and far beyond it no i32 holds its floor: such
     // coordinates (and NaN) take the level-by-level way, which handles them.
     if !p.abs().cmplt(Vec4::splat(8_388_608.0)).all() {
-        for (img, weight) in levels.into_iter().zip(weights) {
-            accumulate_bilinear(img, s, t, wrap, first, weight, out);
-        }
-        return;
+        return one_level_after_the_other(levels, s, t, wrap, first, weights, out);
     }
     let floor = p.floor();
     let f = p - floor;
@@ -589,9 +597,7 @@ mod tests {
                             let weights = [0.3 + 0.01 * i as f32, 0.25];
                             let (mut paired, mut each) = (vec![0.5; width], vec![0.5; width]);
                             accumulate_bilinear_pair(levels, s, t, wrap, first, weights, &mut paired);
-                            for (img, weight) in levels.into_iter().zip(weights) {
-                                accumulate_bilinear(img, s, t, wrap, first, weight, &mut each);
-                            }
+                            one_level_after_the_other(levels, s, t, wrap, first, weights, &mut each);
                             let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
                             let case = format!(
                                 "{channels} channels, {w}x{h}, first {first}, {width} wide, at ({s}, {t}), {wrap:?}"
