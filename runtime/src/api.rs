@@ -46,8 +46,8 @@ use crate::geometry::alpha::DEFAULT_CUTOFF as ALPHA_CUTOFF;
 use crate::geometry::{AlphaMask, Attribute, Mesh, MeshError};
 use crate::reload::ShaderEvent;
 use crate::render::{
-    render_frame, AreaLight, CameraSetup, FrameReport, Framebuffer, InstanceShading, LightSource, Material,
-    RenderOptions, World,
+    render_frame, AreaLight, CameraSetup, FrameReport, Framebuffer, InstanceParts, InstanceShading, LightSource,
+    Material, RenderOptions, World,
 };
 use crate::scene::{ObjectId as SceneObject, Scene, SceneError};
 use crate::shading::{LightKind, ParamError, ParamValue, Program, ShaderError, ShaderInstance, ShaderProgram};
@@ -179,10 +179,19 @@ impl Default for Appearance {
 struct ObjectRecord {
     mesh: Option<Arc<Mesh>>,
     appearance: Appearance,
+    /// The parts of an object built in parts ([`Context::end_part`]); `None`: one appearance.
+    parts: Option<ObjectParts>,
     scene_object: Option<SceneObject>,
     /// The geometry changed since the scene last saw it.
     dirty: bool,
     deleted: bool,
+}
+
+/// An object's parts: each part's appearance, and each triangle's part.
+#[derive(Clone, Debug)]
+struct ObjectParts {
+    appearances: Vec<Appearance>,
+    of_triangle: Arc<[u32]>,
 }
 
 struct InstanceRecord {
@@ -214,6 +223,9 @@ struct MeshBuilder {
     has_uvs: bool,
     attributes: Vec<Attribute>,
     triangles: Vec<[u32; 3]>,
+    /// The parts ended so far ([`Context::end_part`]): where each ends (a triangle count) and its
+    /// appearance.
+    parts: Vec<(usize, Appearance)>,
 }
 
 struct OpenPrimitive {
@@ -458,14 +470,17 @@ impl Context {
     /// The values bound to shader `id` (surface bindings of objects and of the current and saved
     /// state, lights, the pixel shader) that `program` would not take, once per (parameter, reason).
     fn dropped_parameters(&self, id: ShaderId, program: &ShaderProgram) -> Vec<ShaderEvent> {
-        let surfaces = std::iter::once(&self.appearance)
-            .chain(&self.appearance_stack)
-            .chain(self.objects.iter().filter(|o| !o.deleted).map(|o| &o.appearance))
-            .flat_map(|a| a.surface.iter().chain(a.interior.iter()))
-            .chain(self.pixel.as_ref())
-            .chain(self.atmosphere.as_ref())
-            .filter(|b| b.shader == id)
-            .flat_map(|b| b.params.iter());
+        let surfaces =
+            std::iter::once(&self.appearance)
+                .chain(&self.appearance_stack)
+                .chain(self.objects.iter().filter(|o| !o.deleted).flat_map(|o| {
+                    std::iter::once(&o.appearance).chain(o.parts.iter().flat_map(|p| p.appearances.iter()))
+                }))
+                .flat_map(|a| a.surface.iter().chain(a.interior.iter()))
+                .chain(self.pixel.as_ref())
+                .chain(self.atmosphere.as_ref())
+                .filter(|b| b.shader == id)
+                .flat_map(|b| b.params.iter());
         let lights = self.lights.iter().filter(|l| l.shader == id).flat_map(|l| l.params.iter());
         let mut out = Vec::new();
         for (parameter, value, m) in surfaces.chain(lights) {
@@ -914,6 +929,7 @@ impl Context {
         self.objects.push(ObjectRecord {
             mesh: None,
             appearance: Appearance::default(),
+            parts: None,
             scene_object: None,
             dirty: true,
             deleted: false,
@@ -936,13 +952,53 @@ impl Context {
         Ok(())
     }
 
+    /// Ends a part of the object being built: the triangles added since the object began (or since
+    /// the last part) are shaded with the current appearance (colour, opacity, shaders), as
+    /// [`Context::end_object`] gives a whole object its appearance; later triangles make the next
+    /// part. One object of several materials is one BVH, where an object per material would make
+    /// rays enter every one of them that overlaps. Without `end_part` an object has one appearance.
+    /// A part without triangles is dropped. The alpha mask ([`Context::alpha_mask`]) stays the
+    /// object's: the one current at `end_object`.
+    pub fn end_part(&mut self) -> Result<(), ApiError> {
+        if self.primitive.is_some() {
+            return Err(ApiError::Nested("end_part", "begin/end"));
+        }
+        let (_, _, b) = self.building.as_mut().ok_or(ApiError::Unbalanced("end_part", "begin_object"))?;
+        let start = b.parts.last().map_or(0, |(end, _)| *end);
+        if b.triangles.len() > start {
+            b.parts.push((b.triangles.len(), self.appearance.clone()));
+        }
+        Ok(())
+    }
+
     /// Finishes the object: its geometry, and the current appearance (colour, opacity, shader
-    /// binding) as its material.
+    /// binding) as its material (that of its last part, when it was built in parts).
     pub fn end_object(&mut self) -> Result<ObjectId, ApiError> {
         if self.primitive.is_some() {
             return Err(ApiError::Nested("end_object", "begin/end"));
         }
-        let (id, _, b) = self.building.take().ok_or(ApiError::Unbalanced("end_object", "begin_object"))?;
+        let (id, _, mut b) = self.building.take().ok_or(ApiError::Unbalanced("end_object", "begin_object"))?;
+        let start = b.parts.last().map_or(0, |(end, _)| *end);
+        if !b.parts.is_empty() && b.triangles.len() > start {
+            b.parts.push((b.triangles.len(), self.appearance.clone()));
+        }
+        // One part is an object of one appearance.
+        let parts = (b.parts.len() > 1).then(|| {
+            let mut of_triangle = Vec::with_capacity(b.triangles.len());
+            let mut from = 0;
+            for (k, (end, _)) in b.parts.iter().enumerate() {
+                of_triangle.resize(of_triangle.len() + (end - from), k as u32);
+                from = *end;
+            }
+            ObjectParts {
+                appearances: b.parts.iter().map(|(_, a)| a.clone()).collect(),
+                of_triangle: of_triangle.into(),
+            }
+        });
+        let appearance = match b.parts.as_slice() {
+            [(_, only)] => only.clone(),
+            _ => self.appearance.clone(),
+        };
         let mesh = if b.triangles.is_empty() {
             None
         } else {
@@ -958,7 +1014,8 @@ impl Context {
         };
         let rec = &mut self.objects[id.0 as usize];
         rec.mesh = mesh;
-        rec.appearance = self.appearance.clone();
+        rec.appearance = appearance;
+        rec.parts = parts;
         rec.dirty = true;
         Ok(id)
     }
@@ -1280,26 +1337,25 @@ impl Context {
         let mut warnings = Vec::new();
         let mut materials = vec![Material::DEFAULT];
         let mut object_material = vec![0u32; self.objects.len()];
+        let mut object_parts: Vec<Option<InstanceParts>> = vec![None; self.objects.len()];
         for (i, rec) in self.objects.iter().enumerate() {
             if rec.deleted || rec.mesh.is_none() {
                 continue;
             }
-            let a = &rec.appearance;
-            let surface = a.surface.as_ref().map(|b| self.instance_for(b, &mut warnings)).transpose()?.map(Arc::new);
-            let interior = a.interior.as_ref().map(|b| self.instance_for(b, &mut warnings)).transpose()?.map(Arc::new);
-            let displacement =
-                a.displacement.as_ref().map(|b| self.instance_for(b, &mut warnings)).transpose()?.map(Arc::new);
-            materials.push(Material {
-                surface,
-                interior,
-                displacement,
-                color: a.color,
-                opacity: a.opacity,
-                shadow_by_shader: a.shadow_by_shader,
-                object_id: i as u32 + 1,
-                native: None,
-            });
-            object_material[i] = materials.len() as u32 - 1;
+            let appearances = match &rec.parts {
+                Some(parts) => &parts.appearances[..],
+                None => std::slice::from_ref(&rec.appearance),
+            };
+            let first = materials.len() as u32;
+            for a in appearances {
+                let material = self.material_of(a, i as u32 + 1, &mut warnings)?;
+                materials.push(material);
+            }
+            object_material[i] = first;
+            if let Some(parts) = &rec.parts {
+                let ids: Vec<u32> = (first..materials.len() as u32).collect();
+                object_parts[i] = Some(InstanceParts { of_triangle: parts.of_triangle.clone(), materials: ids.into() });
+            }
         }
         scene.clear_instances();
         let mut instances = Vec::new();
@@ -1317,6 +1373,7 @@ impl Context {
                 material: object_material[inst.object.0 as usize],
                 object: obj.0,
                 world_from_object: inst.transform,
+                parts: object_parts[inst.object.0 as usize].clone(),
             });
         }
         let mut lights = Vec::new();
@@ -1361,6 +1418,23 @@ impl Context {
             }
         }
         Ok(world)
+    }
+
+    /// The material of an appearance, for an object with id `object_id` (1-based).
+    fn material_of(&self, a: &Appearance, object_id: u32, warnings: &mut Vec<String>) -> Result<Material, ApiError> {
+        let mut shader = |b: &Option<Binding>| -> Result<_, ApiError> {
+            Ok(b.as_ref().map(|b| self.instance_for(b, warnings)).transpose()?.map(Arc::new))
+        };
+        Ok(Material {
+            surface: shader(&a.surface)?,
+            interior: shader(&a.interior)?,
+            displacement: shader(&a.displacement)?,
+            color: a.color,
+            opacity: a.opacity,
+            shadow_by_shader: a.shadow_by_shader,
+            object_id,
+            native: None,
+        })
     }
 
     /// Takes back the scene of a world made by [`Context::build_world`], so the next frame reuses its

@@ -799,3 +799,99 @@ fn shadows_of_lights_behind_a_surface_are_traced_only_when_a_shader_asks_for_the
     );
     Ok(())
 }
+
+/// Three quads side by side in one object, in parts: red and green ended by `end_part`, the last
+/// one taking the appearance current at `end_object` (blue).
+fn object_in_parts(rt: &mut Context) -> Result<(), ApiError> {
+    let constant = rt.find_shader("constant")?;
+    rt.camera_look_at(Vec3A::new(0.0, 0.0, 5.0), Vec3A::ZERO, Vec3A::Y, 45.0);
+    rt.bind_shader(constant)?;
+    let strip = rt.begin_object()?;
+    let column = |x0: f32| [[x0, -1.0, 0.0], [x0 + 1.0, -1.0, 0.0], [x0 + 1.0, 1.0, 0.0], [x0, 1.0, 0.0]];
+    quad(rt, column(-1.5))?;
+    rt.color(1.0, 0.0, 0.0);
+    rt.end_part()?;
+    // A part without triangles is dropped.
+    rt.end_part()?;
+    quad(rt, column(-0.5))?;
+    rt.color(0.0, 1.0, 0.0);
+    rt.end_part()?;
+    quad(rt, column(0.5))?;
+    rt.color(0.0, 0.0, 1.0);
+    rt.end_object()?;
+    rt.instantiate_object(strip)?;
+    Ok(())
+}
+
+#[test]
+fn an_object_built_in_parts_shades_each_part_with_its_own_appearance() -> Result<(), ApiError> {
+    let mut rt = context();
+    object_in_parts(&mut rt)?;
+    let world = rt.build_world()?;
+    assert_eq!(world.instances.len(), 1, "one object, one instance");
+    assert_eq!(world.materials.len(), 4, "the default material and one for each part");
+    rt.return_scene(world);
+    let fb = rt.render_frame()?.0;
+    let rgb = |x: u32| {
+        let p = fb.pixel(x, H / 2);
+        [p[0], p[1], p[2]]
+    };
+    // The strip spans the middle of the image; its thirds are each a part.
+    let third = |k: u32| {
+        let x = (0..W).filter(|&x| fb.pixel(x, H / 2)[3] > 0.0).collect::<Vec<_>>();
+        let (lo, hi) = (x[0], x[x.len() - 1]);
+        lo + (hi - lo) * (2 * k + 1) / 6
+    };
+    assert_eq!(rgb(third(0)), [1.0, 0.0, 0.0]);
+    assert_eq!(rgb(third(1)), [0.0, 1.0, 0.0]);
+    assert_eq!(rgb(third(2)), [0.0, 0.0, 1.0]);
+    // Each part is its own shader in the frame's ids (what adaptive sampling compares).
+    let ids: std::collections::HashSet<u32> = (0..3).map(|k| fb.object_id[(H / 2 * W + third(k)) as usize]).collect();
+    assert_eq!(ids.len(), 1, "one object id for the three parts");
+    // Outside an object there is no part to end.
+    assert!(rt.end_part().is_err());
+    Ok(())
+}
+
+#[test]
+fn shadows_pass_through_the_transparent_part_of_an_object_only() -> Result<(), ApiError> {
+    // The camera looks straight down at a floor, under a roof it cannot see (the roof is behind
+    // it); a light straight down casts the roof's shadow over the whole view. The roof is one
+    // object in two parts: the half over x < 0 opaque, the other opaque or clear.
+    let render = |clear_part: bool| -> Result<Framebuffer, ApiError> {
+        let mut rt = context();
+        let plastic = rt.find_shader("plastic")?;
+        let light = rt.find_shader("distantlight")?;
+        rt.camera_look_at(Vec3A::new(0.0, 2.0, 0.0), Vec3A::ZERO, Vec3A::NEG_Z, 60.0);
+        rt.bind_shader(plastic)?;
+        let floor = rt.begin_object()?;
+        quad(&mut rt, [[-5.0, 0.0, 5.0], [5.0, 0.0, 5.0], [5.0, 0.0, -5.0], [-5.0, 0.0, -5.0]])?;
+        rt.end_object()?;
+        rt.instantiate_object(floor)?;
+        let roof = rt.begin_object()?;
+        quad(&mut rt, [[-4.0, 3.0, 4.0], [0.0, 3.0, 4.0], [0.0, 3.0, -4.0], [-4.0, 3.0, -4.0]])?;
+        rt.end_part()?;
+        quad(&mut rt, [[0.0, 3.0, 4.0], [4.0, 3.0, 4.0], [4.0, 3.0, -4.0], [0.0, 3.0, -4.0]])?;
+        if clear_part {
+            rt.opacity(0.0, 0.0, 0.0);
+        }
+        rt.end_object()?;
+        rt.instantiate_object(roof)?;
+        let (from, to) = (ParamValue::Point([0.0, 0.0, 0.0]), ParamValue::Point([0.0, -1.0, 0.0]));
+        rt.light_source(light, &[("intensity", ParamValue::Float(1.0)), ("from", from), ("to", to)])?;
+        Ok(rt.render_frame()?.0)
+    };
+    let (opaque, clear) = (render(false)?, render(true)?);
+    for y in 0..H {
+        for x in 0..W {
+            let (o, c) = (luminance(&opaque, x, y), luminance(&clear, x, y));
+            assert!(o < 1e-4, "the opaque roof shadows all the floor: {o} at ({x}, {y})");
+            if x + 2 < W / 2 {
+                assert!(c < 1e-4, "under the opaque part: {c} at ({x}, {y})");
+            } else if x > W / 2 + 2 {
+                assert!(c > 0.05, "under the clear part: {c} at ({x}, {y})");
+            }
+        }
+    }
+    Ok(())
+}

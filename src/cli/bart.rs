@@ -83,7 +83,7 @@ pub fn run(args: &BartArgs) -> anyhow::Result<ExitCode> {
     let count = args.frames.unwrap_or(total).clamp(1, total);
     let s = &scene.summary;
     println!(
-        "{}: {} triangles ({} in {} moving instances of {} animated nodes, {} morphing), {} objects ({} mirrors, {} glass), {} lights, {} textures ({} missing){}",
+        "{}: {} triangles ({} in {} moving instances of {} animated nodes, {} morphing), {} objects of {} parts ({} mirrors, {} glass), {} lights, {} textures ({} missing){}",
         args.scene.display(),
         s.triangles,
         s.moving_triangles,
@@ -91,8 +91,9 @@ pub fn run(args: &BartArgs) -> anyhow::Result<ExitCode> {
         s.animated_nodes,
         s.morphing_triangles,
         s.objects,
-        s.mirror_objects,
-        s.glass_objects,
+        s.parts,
+        s.mirror_parts,
+        s.glass_parts,
         s.lights,
         s.textures,
         s.missing_textures,

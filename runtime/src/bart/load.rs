@@ -97,11 +97,12 @@ pub struct Summary {
     pub morphing_triangles: usize,
     /// Nodes animated by keyframes (`x NAME` with keyframes of that name).
     pub animated_nodes: usize,
-    /// Objects (each with its own BVH, instanced once), and those shaded as traced mirrors and as
-    /// glass.
+    /// Objects (each with its own BVH, instanced once: one per rigid part of the scene), their
+    /// parts (one per material and texture), and the parts shaded as traced mirrors and as glass.
     pub objects: usize,
-    pub mirror_objects: usize,
-    pub glass_objects: usize,
+    pub parts: usize,
+    pub mirror_parts: usize,
+    pub glass_parts: usize,
     /// Instances whose transform changes over time.
     pub moving_instances: usize,
     pub lights: usize,
@@ -443,24 +444,38 @@ pub fn load_parsed(rt: &mut Context, mut scene: AffScene, path: &Path) -> Result
         let m = scene.materials.get(material).copied().unwrap_or(Material::DEFAULT);
         look(&m, texture.and_then(|t| texture_names[t].as_deref()), ambient, &shaders)
     };
+    // One object per rigid part, in parts of one material and texture each: one BVH per node
+    // (objects of the static city per material overlapped, and rays entered many of them).
+    let mut by_node: Vec<(usize, Vec<(Look, Mesh)>)> = Vec::new();
+    let mut node_index: HashMap<usize, usize> = HashMap::new();
     for (GroupKey { node, material, texture }, builder) in groups {
         if builder.triangles.is_empty() {
             continue;
         }
         let count = builder.triangles.len();
-        let mesh = builder.into_mesh();
         let look = look_of(material, texture);
-        bart.summary.mirror_objects += usize::from(look.shader == shaders.mirror);
-        bart.summary.glass_objects += usize::from(look.shader == shaders.glass);
-        let object = make_object(rt, &look, &mesh)?;
+        bart.summary.parts += 1;
+        bart.summary.mirror_parts += usize::from(look.shader == shaders.mirror);
+        bart.summary.glass_parts += usize::from(look.shader == shaders.glass);
         bart.summary.triangles += count;
         if node != 0 {
             bart.summary.moving_triangles += count;
         }
+        let i = *node_index.entry(node).or_insert_with(|| {
+            by_node.push((node, Vec::new()));
+            by_node.len() - 1
+        });
+        by_node[i].1.push((look, builder.into_mesh()));
+    }
+    for (node, parts) in by_node {
+        let object = make_object_of_parts(rt, &parts)?;
         bart.placements.push(Placement { object, node, instance: None });
     }
     for (GroupKey { node, material, .. }, triangles) in morph_groups {
         let look = look_of(material, None);
+        bart.summary.parts += 1;
+        bart.summary.mirror_parts += usize::from(look.shader == shaders.mirror);
+        bart.summary.glass_parts += usize::from(look.shader == shaders.glass);
         let mesh = morph_mesh(&triangles, animation.start);
         let object = make_object(rt, &look, &mesh)?;
         bart.summary.triangles += triangles.len();
@@ -508,6 +523,21 @@ fn make_object(rt: &mut Context, look: &Look, mesh: &Mesh) -> Result<ObjectId, A
     apply_look(rt, look)?;
     let object = rt.begin_object()?;
     rt.mesh(mesh)?;
+    rt.end_object()?;
+    rt.pop_attributes()?;
+    Ok(object)
+}
+
+/// One object of several meshes, each a part shaded by its own look ([`Context::end_part`]).
+fn make_object_of_parts(rt: &mut Context, parts: &[(Look, Mesh)]) -> Result<ObjectId, ApiError> {
+    rt.push_attributes();
+    rt.load_identity();
+    let object = rt.begin_object()?;
+    for (look, mesh) in parts {
+        rt.mesh(mesh)?;
+        apply_look(rt, look)?;
+        rt.end_part()?;
+    }
     rt.end_object()?;
     rt.pop_attributes()?;
     Ok(object)

@@ -526,14 +526,14 @@ fn transmission_packet(frame: &Frame, packet: &mut RayPacket, through: &mut [Vec
         clear_lanes(through, blocked);
         return;
     }
-    let material_of = |instance: u32| {
+    let material_of = |instance: u32, primitive: u32| {
         let inst = world.instances.get(instance as usize);
-        inst.and_then(|i| world.materials.get(i.material as usize)).unwrap_or(&DEFAULT_MATERIAL)
+        inst.and_then(|i| world.materials.get(i.material_at(primitive) as usize)).unwrap_or(&DEFAULT_MATERIAL)
     };
     // Transparent candidates are ignored (the traversal goes on) but remembered by lane.
     let crossing = AtomicU64::new(0);
     let opaque = |c: &HitCandidate| {
-        let opaque = material_of(c.instance).is_opaque_for_shadows();
+        let opaque = material_of(c.instance, c.primitive).is_opaque_for_shadows();
         if !opaque {
             crossing.fetch_or(1u64 << (c.lane & 63), Ordering::Relaxed);
         }
@@ -556,7 +556,7 @@ fn transmission_packet(frame: &Frame, packet: &mut RayPacket, through: &mut [Vec
                 walking &= !(1u64 << l);
                 continue;
             }
-            let material = material_of(hit.instance);
+            let material = material_of(hit.instance, hit.primitive);
             if material.is_opaque_for_shadows() {
                 through[l] = Vec3A::ZERO;
             } else if material.shadow_by_shader {

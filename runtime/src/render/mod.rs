@@ -32,6 +32,6 @@ pub use shade::{Frame, Sample};
 pub(crate) use stats::ShaderKindTimer;
 pub use stats::Stats;
 pub use world::{
-    AccelUpdate, Antialiasing, AreaLight, CameraSetup, InstanceShading, LightSource, Material, RenderOptions, World,
-    MAX_AREA_SAMPLES,
+    AccelUpdate, Antialiasing, AreaLight, CameraSetup, InstanceParts, InstanceShading, LightSource, Material,
+    RenderOptions, World, MAX_AREA_SAMPLES,
 };

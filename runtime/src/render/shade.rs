@@ -195,8 +195,9 @@ fn start_sample(
         return None;
     }
     if let Some(inst) = world.instances.get(hit.instance as usize) {
-        out.object_id = world.materials.get(inst.material as usize).map_or(0, |m| m.object_id);
-        out.shader_id = inst.material;
+        let material = inst.material_at(hit.primitive);
+        out.object_id = world.materials.get(material as usize).map_or(0, |m| m.object_id);
+        out.shader_id = material;
     }
     Some(Pending { index, ray, diff, hit })
 }
@@ -452,7 +453,7 @@ pub(super) fn shade_in_groups(frame: &Frame, pending: &mut [Pending], depth: u32
     let world = frame.world;
     let key = |p: &Pending| {
         let inst = world.instances.get(p.hit.instance as usize);
-        (inst.map_or(0, |i| i.material), p.hit.instance)
+        (inst.map_or(0, |i| i.material_at(p.hit.primitive)), p.hit.instance)
     };
     // Coherent rays mostly arrive in order already; sorting moves whole jobs.
     if !pending.is_sorted_by_key(key) {
@@ -475,7 +476,9 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
     let _timer = ShadingTimer::start(&frame.stats);
     let world = frame.world;
     let Some(inst) = world.instances.get(group[0].hit.instance as usize) else { return };
-    let material = world.materials.get(inst.material as usize).unwrap_or(&DEFAULT_MATERIAL);
+    // The group's hits share their material (`shade_in_groups`).
+    let material_id = inst.material_at(group[0].hit.primitive);
+    let material = world.materials.get(material_id as usize).unwrap_or(&DEFAULT_MATERIAL);
     let shaders = || [&material.surface, &material.displacement].into_iter().flatten();
     let derivs = shaders().any(|s| needs_derivs(&s.program));
     let coords = shaders().any(|s| {
@@ -493,7 +496,7 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
         let color = Vec3A::from(material.color);
         let opacity = Vec3A::from(material.opacity);
         if let Some(displacement) = &material.displacement {
-            let at = (inst.material, inst.world_from_object);
+            let at = (material_id, inst.world_from_object);
             displace(frame, displacement, at, group, geoms, (color, opacity), depth);
         }
         if let Some(native) = &material.native {
@@ -511,7 +514,7 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
             }
             return;
         };
-        let vertex_params = world.vertex_params.get(group[0].hit.instance as usize);
+        let vertex_params = world.vertex_params.get(&(group[0].hit.instance, material_id));
         let program = &surface.program;
         let slots = &program.slots;
         with_filled_batch(program, group.len(), &hit_global_rows(program), |batch| {
@@ -534,7 +537,7 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
                     }
                 }
             }
-            let mut call = batch_call(frame, surface, (inst.material, inst.world_from_object), group, geoms, depth);
+            let mut call = batch_call(frame, surface, (material_id, inst.world_from_object), group, geoms, depth);
             let table = call.table();
             program.code.shade_with_table(batch, &table);
             let raw = batch.raw_mut();

@@ -35,7 +35,9 @@ fn segment_volume<'w>(frame: &Frame<'w>, p: &Pending, shaded: &Shaded) -> Option
     }
     if shaded.ng.dot(p.ray.direction) > 0.0 {
         let inst = world.instances.get(p.hit.instance as usize);
-        let material = inst.and_then(|i| world.materials.get(i.material as usize)).unwrap_or(&DEFAULT_MATERIAL);
+        let material = inst
+            .and_then(|i| world.materials.get(i.material_at(p.hit.primitive) as usize))
+            .unwrap_or(&DEFAULT_MATERIAL);
         if let Some(interior) = &material.interior {
             return Some(interior);
         }

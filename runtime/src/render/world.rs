@@ -56,9 +56,42 @@ impl Material {
 /// How one instance of the scene is shaded: its material and where it is.
 #[derive(Clone, Debug)]
 pub struct InstanceShading {
+    /// The material of the whole object, or of its first part when it has parts.
     pub material: u32,
     pub object: u32,
     pub world_from_object: Affine3A,
+    /// The materials of an object built in parts (`Context::end_part`), `None` for one material.
+    pub parts: Option<InstanceParts>,
+}
+
+/// Which material shades each triangle of an object built in parts.
+#[derive(Clone, Debug)]
+pub struct InstanceParts {
+    /// Each triangle's part.
+    pub of_triangle: Arc<[u32]>,
+    /// Each part's material.
+    pub materials: Arc<[u32]>,
+}
+
+impl InstanceShading {
+    /// The material that shades triangle `primitive` of the instance's object (the object's own
+    /// for a triangle the parts do not know).
+    #[inline]
+    pub fn material_at(&self, primitive: u32) -> u32 {
+        match &self.parts {
+            None => self.material,
+            Some(p) => {
+                let part = p.of_triangle.get(primitive as usize).copied();
+                part.and_then(|k| p.materials.get(k as usize).copied()).unwrap_or(self.material)
+            }
+        }
+    }
+
+    /// Every material of the instance: its own, or each part's.
+    pub fn materials(&self) -> impl Iterator<Item = u32> + '_ {
+        let parts = self.parts.as_ref().map(|p| &p.materials[..]).unwrap_or(&[]);
+        std::iter::once(self.material).filter(move |_| parts.is_empty()).chain(parts.iter().copied())
+    }
 }
 
 /// A light source: a light shader instance and whether it casts shadows.
@@ -346,9 +379,9 @@ pub struct World {
     pub spaces: HashMap<String, Affine3A>,
     /// Texture, environment and shadow maps, loaded on first use.
     pub textures: Arc<TextureCache>,
-    /// Per-instance vertex-scope bindings: shader parameter index -> mesh attribute index, worked out
-    /// by [`World::prepare`].
-    pub(crate) vertex_params: Vec<Vec<(usize, usize)>>,
+    /// Vertex-scope bindings by (instance, material): shader parameter index -> mesh attribute
+    /// index, worked out by [`World::prepare`] (only where there is one).
+    pub(crate) vertex_params: HashMap<(u32, u32), Vec<(usize, usize)>>,
 }
 
 impl World {
@@ -366,7 +399,7 @@ impl World {
             options: RenderOptions::default(),
             spaces: HashMap::new(),
             textures: Arc::new(TextureCache::new()),
-            vertex_params: Vec::new(),
+            vertex_params: HashMap::new(),
         }
     }
 
@@ -379,16 +412,18 @@ impl World {
         self.accel.instances = self.scene.instance_count();
         self.accel.memory_bytes = self.scene.memory_bytes();
         self.accel.instanced_triangles = self.scene.instanced_triangle_count();
-        self.vertex_params = self
-            .instances
-            .iter()
-            .map(|inst| {
-                let Some(program) = self.materials.get(inst.material as usize).and_then(|m| m.surface.as_ref()) else {
-                    return Vec::new();
+        let mut vertex_params = HashMap::new();
+        for (index, inst) in self.instances.iter().enumerate() {
+            let Some(mesh) = self.scene.mesh(crate::scene::ObjectId(inst.object)) else { continue };
+            if mesh.attributes.is_empty() {
+                continue;
+            }
+            for material in inst.materials() {
+                let Some(program) = self.materials.get(material as usize).and_then(|m| m.surface.as_ref()) else {
+                    continue;
                 };
-                let Some(mesh) = self.scene.mesh(crate::scene::ObjectId(inst.object)) else { return Vec::new() };
                 let layout = program.program.layout();
-                layout
+                let bound: Vec<_> = layout
                     .params
                     .iter()
                     .enumerate()
@@ -397,9 +432,13 @@ impl World {
                         let a = mesh.attributes.iter().position(|a| a.name == p.name && a.components == p.floats())?;
                         Some((i, a))
                     })
-                    .collect()
-            })
-            .collect();
+                    .collect();
+                if !bound.is_empty() {
+                    vertex_params.insert((index as u32, material), bound);
+                }
+            }
+        }
+        self.vertex_params = vertex_params;
     }
 
     /// Replaces every `plastic` surface by the hand-written Rust plastic with the same parameter
