@@ -30,6 +30,9 @@ pub struct Frame<'w> {
     pub world: &'w World,
     pub stats: Stats,
     pub(super) transparent_shadows: bool,
+    /// [`World::has_volumes`], asked once a frame: its scan of the materials ran for every packet
+    /// (1.5% of a BART robot frame, 1,103 materials and no volume).
+    pub(super) volumes: bool,
     pub(super) camera_from_world: Affine3A,
     /// The camera's forward axis and how an unnormalised camera ray's direction changes per pixel.
     pub(super) forward: Vec3A,
@@ -50,6 +53,7 @@ impl<'w> Frame<'w> {
             world,
             stats: Stats::default(),
             transparent_shadows: world.has_transparent_shadows(),
+            volumes: world.has_volumes(),
             camera_from_world: cam.world_from_camera.inverse(),
             forward: m.z_axis.normalize_or_zero(),
             pixel_dx: m.x_axis * (2.0 * tan * ax / w),

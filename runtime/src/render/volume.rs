@@ -47,8 +47,7 @@ fn segment_volume<'w>(frame: &Frame<'w>, p: &Pending, shaded: &Shaded) -> Option
 
 /// Runs the volume shaders of a layer of shaded hits, changing their `ci`/`oi` in place.
 pub(super) fn shade_segments(frame: &Frame, current: &[Pending], results: &mut [Shaded], depth: u32) {
-    let world = frame.world;
-    if world.atmosphere.is_none() && !world.materials.iter().any(|m| m.interior.is_some()) {
+    if !frame.volumes {
         return;
     }
     // Lanes grouped by shader instance (by address: one instance per binding).

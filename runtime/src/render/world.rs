@@ -493,4 +493,10 @@ impl World {
     pub fn has_transparent_shadows(&self) -> bool {
         self.materials.iter().any(|m| !m.is_opaque_for_shadows())
     }
+
+    /// Whether any ray segment may run a volume shader: an atmosphere, or a material with an
+    /// interior.
+    pub fn has_volumes(&self) -> bool {
+        self.atmosphere.is_some() || self.materials.iter().any(|m| m.interior.is_some())
+    }
 }
