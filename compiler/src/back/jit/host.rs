@@ -25,7 +25,9 @@ use crate::builtins::Builtin;
 use crate::interp::{Services, ShadowQuery, TextureFootprint, Value};
 use crate::shadeops::format::{self, FormatArg};
 use crate::shadeops::gather::{self, GatherHit};
-use crate::shadeops::{color, geom, matrix, spline, transcendental, M4, V3};
+#[cfg(test)]
+use crate::shadeops::transcendental;
+use crate::shadeops::{color, geom, matrix, spline, M4, V3};
 use std::ffi::c_void;
 
 mod light_sums;
@@ -914,6 +916,7 @@ fn dot(a: V3, b: V3) -> f32 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
+#[cfg(test)]
 fn add(a: V3, b: V3) -> V3 {
     [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
 }
@@ -934,7 +937,8 @@ fn specular_brdf(l: V3, n: V3, v: V3, roughness: f32) -> f32 {
 
 /// `sum_lights` of the interpreter over one lane's lights; `weight` gets each light and its unit
 /// direction. Bit for bit the interpreter's: `in_hemisphere` and the weights normalise the same
-/// vectors, here once each.
+/// vectors, here once each. The reference the four-lane sums (`light_sums`) are tested against.
+#[cfg(test)]
 fn sum_lights(lights: impl Iterator<Item = HostLight>, n: V3, weight: impl Fn(&HostLight, V3) -> f32) -> V3 {
     let mut sum = [0.0; 3];
     let unit_n = geom::normalize(n);
@@ -1135,13 +1139,12 @@ host_helpers! {
     // [P, N, V, size] -> phong
     h_phong "rtsl_h_phong" 10 => 3 |cx| {
         let counts = cx.lights("", 0, &cx.hemisphere(3));
+        let n = Lanes3::of_rows(cx.input, 3).normalized();
+        let view = Lanes3::of_rows(cx.input, 6).normalized();
+        let size = glam::Vec4::from_array(std::array::from_fn(|l| cx.f(9, l)));
+        let sum = light_sums::phong(&cx.ctx.light_buffer, counts, cx.mask, &n, &view, size);
         for l in cx.active() {
-            let (n, view, size) = (geom::normalize(cx.v3(3, l)), geom::normalize(cx.v3(6, l)), cx.f(9, l));
-            let r = geom::reflect(view.map(|x| -x), n);
-            let sum = sum_lights(cx.lane_lights(l, counts[l]), n, |x, unit_l| {
-                transcendental::pow(dot(r, unit_l).max(0.0), size) * (1.0 - x.nonspecular)
-            });
-            cx.set3(0, l, sum);
+            cx.set3(0, l, sum.lane(l));
         }
     }
     // [name, s, t, first channel, fill, channels, dsdx, dtdx, dsdy, dtdy, blur] -> 3

@@ -202,6 +202,31 @@ pub(super) fn specular(
     })
 }
 
+/// `phong(N, V, size)` of four lanes: `n` and `view` normalised; each light weighs
+/// `pow(max(R . L, 0), size)`, `R` the reflection of `-view` about `n` (`geom::reflect`'s
+/// operations).
+pub(super) fn phong(
+    buffer: &[LightLanes],
+    counts: [u32; 4],
+    mask: [bool; 4],
+    n: &Lanes3,
+    view: &Lanes3,
+    size: Vec4,
+) -> Lanes3 {
+    let incident = Lanes3(view.0.map(|row| -row));
+    let twice = Vec4::splat(2.0) * incident.dot(n);
+    let r = Lanes3(std::array::from_fn(|k| incident.0[k] - n.0[k] * twice));
+    let size = size.to_array();
+    sum_lights(buffer, counts, mask, n, |row, unit_l, counted| {
+        let base = r.dot(unit_l).max(Vec4::ZERO).to_array();
+        let counted = counted.bitmask();
+        // `pow` is a library call: made only for the lanes that use it.
+        let powers: [f32; 4] =
+            std::array::from_fn(|l| if counted >> l & 1 != 0 { transcendental::pow(base[l], size[l]) } else { 0.0 });
+        Vec4::from_array(powers) * (Vec4::ONE - row.nonspecular)
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::super::{geom, light_in_cone, specular_brdf, sum_lights as scalar_sum_lights, HostLight, MAX_LIGHTS};
@@ -298,6 +323,8 @@ mod tests {
             let diffuse = diffuse(&buffer, counts, mask, &n);
             let specular = specular(&buffer, counts, mask, &n, &view, roughness);
             let ambient = ambient(&buffer, counts, mask);
+            let size = Vec4::from_array(std::array::from_fn(|_| if rng.next() % 2 == 0 { rng.value() } else { 20.0 }));
+            let phong = phong(&buffer, counts, mask, &n, &view, size);
             for l in (0..4).filter(|&l| mask[l]) {
                 let lights = || (0..counts[l] as usize).map(|i| buffer[i].lane(l));
                 let (ln, lv) = (geom::normalize(raw_n.lane(l)), geom::normalize(raw_v.lane(l)));
@@ -308,6 +335,16 @@ mod tests {
                 let want_s = scalar_sum_lights(lights(), ln, |x, unit_l| {
                     specular_brdf(unit_l, ln, lv, roughness[l]) * (1.0 - x.nonspecular)
                 });
+                // `h_phong` as it was lane by lane.
+                let r = geom::reflect(lv.map(|x| -x), ln);
+                let want_p = scalar_sum_lights(lights(), ln, |x, unit_l| {
+                    transcendental::pow(geom::dot(r, unit_l).max(0.0), size[l]) * (1.0 - x.nonspecular)
+                });
+                assert!(
+                    same_bits(phong.lane(l), want_p),
+                    "case {case} lane {l}: phong {:?} != {want_p:?}",
+                    phong.lane(l)
+                );
                 // `h_ambient`'s sum as it was lane by lane.
                 let want_a = lights()
                     .filter(|x| x.ambient != 0)
