@@ -193,13 +193,18 @@ pub(super) fn specular(
     let exponent = Vec4::ONE / Vec4::select(roughness.cmpgt(Vec4::ZERO), roughness, Vec4::splat(1e-4));
     sum_lights(buffer, counts, mask, n, |row, unit_l, counted| {
         let h = unit_l.add(view).normalized();
-        let base = n.dot(&h).max(Vec4::ZERO).to_array();
-        let (e, counted) = (exponent.to_array(), counted.bitmask());
-        // `pow` is a library call: made only for the lanes that use it.
-        let powers: [f32; 4] =
-            std::array::from_fn(|l| if counted >> l & 1 != 0 { transcendental::pow(base[l], e[l]) } else { 0.0 });
-        Vec4::from_array(powers) * (Vec4::ONE - row.nonspecular)
+        highlight(n.dot(&h).max(Vec4::ZERO), exponent, counted, row.nonspecular)
     })
+}
+
+/// `pow(base, exponent) * (1 - nonspecular)` in the lanes `counted`, 0 in the others: `pow` is a
+/// library call, made only for the lanes that use it.
+#[inline(always)]
+fn highlight(base: Vec4, exponent: Vec4, counted: BVec4A, nonspecular: Vec4) -> Vec4 {
+    let (base, exponent, counted) = (base.to_array(), exponent.to_array(), counted.bitmask());
+    let powers: [f32; 4] =
+        std::array::from_fn(|l| if counted >> l & 1 != 0 { transcendental::pow(base[l], exponent[l]) } else { 0.0 });
+    Vec4::from_array(powers) * (Vec4::ONE - nonspecular)
 }
 
 /// `phong(N, V, size)` of four lanes: `n` and `view` normalised; each light weighs
@@ -216,14 +221,8 @@ pub(super) fn phong(
     let incident = Lanes3(view.0.map(|row| -row));
     let twice = Vec4::splat(2.0) * incident.dot(n);
     let r = Lanes3(std::array::from_fn(|k| incident.0[k] - n.0[k] * twice));
-    let size = size.to_array();
     sum_lights(buffer, counts, mask, n, |row, unit_l, counted| {
-        let base = r.dot(unit_l).max(Vec4::ZERO).to_array();
-        let counted = counted.bitmask();
-        // `pow` is a library call: made only for the lanes that use it.
-        let powers: [f32; 4] =
-            std::array::from_fn(|l| if counted >> l & 1 != 0 { transcendental::pow(base[l], size[l]) } else { 0.0 });
-        Vec4::from_array(powers) * (Vec4::ONE - row.nonspecular)
+        highlight(r.dot(unit_l).max(Vec4::ZERO), size, counted, row.nonspecular)
     })
 }
 
