@@ -228,6 +228,16 @@ struct MeshBuilder {
     parts: Vec<(usize, Appearance)>,
 }
 
+impl MeshBuilder {
+    /// Makes the triangles added since the last part a part of `appearance` (none: no part).
+    fn close_part(&mut self, appearance: &Appearance) {
+        let start = self.parts.last().map_or(0, |(end, _)| *end);
+        if self.triangles.len() > start {
+            self.parts.push((self.triangles.len(), appearance.clone()));
+        }
+    }
+}
+
 struct OpenPrimitive {
     kind: Primitive,
     first_vertex: u32,
@@ -964,10 +974,7 @@ impl Context {
             return Err(ApiError::Nested("end_part", "begin/end"));
         }
         let (_, _, b) = self.building.as_mut().ok_or(ApiError::Unbalanced("end_part", "begin_object"))?;
-        let start = b.parts.last().map_or(0, |(end, _)| *end);
-        if b.triangles.len() > start {
-            b.parts.push((b.triangles.len(), self.appearance.clone()));
-        }
+        b.close_part(&self.appearance);
         Ok(())
     }
 
@@ -978,9 +985,8 @@ impl Context {
             return Err(ApiError::Nested("end_object", "begin/end"));
         }
         let (id, _, mut b) = self.building.take().ok_or(ApiError::Unbalanced("end_object", "begin_object"))?;
-        let start = b.parts.last().map_or(0, |(end, _)| *end);
-        if !b.parts.is_empty() && b.triangles.len() > start {
-            b.parts.push((b.triangles.len(), self.appearance.clone()));
+        if !b.parts.is_empty() {
+            b.close_part(&self.appearance);
         }
         // One part is an object of one appearance.
         let parts = (b.parts.len() > 1).then(|| {

@@ -152,6 +152,15 @@ struct GroupKey {
     texture: Option<usize>,
 }
 
+impl Summary {
+    /// Counts a part shaded by `look`.
+    fn count_part(&mut self, look: &Look, shaders: &Shaders) {
+        self.parts += 1;
+        self.mirror_parts += usize::from(look.shader == shaders.mirror);
+        self.glass_parts += usize::from(look.shader == shaders.glass);
+    }
+}
+
 /// One animated triangle's keys, in its node's space.
 type Morphing = Vec<TriangleKey>;
 
@@ -454,9 +463,7 @@ pub fn load_parsed(rt: &mut Context, mut scene: AffScene, path: &Path) -> Result
         }
         let count = builder.triangles.len();
         let look = look_of(material, texture);
-        bart.summary.parts += 1;
-        bart.summary.mirror_parts += usize::from(look.shader == shaders.mirror);
-        bart.summary.glass_parts += usize::from(look.shader == shaders.glass);
+        bart.summary.count_part(&look, &shaders);
         bart.summary.triangles += count;
         if node != 0 {
             bart.summary.moving_triangles += count;
@@ -473,9 +480,7 @@ pub fn load_parsed(rt: &mut Context, mut scene: AffScene, path: &Path) -> Result
     }
     for (GroupKey { node, material, .. }, triangles) in morph_groups {
         let look = look_of(material, None);
-        bart.summary.parts += 1;
-        bart.summary.mirror_parts += usize::from(look.shader == shaders.mirror);
-        bart.summary.glass_parts += usize::from(look.shader == shaders.glass);
+        bart.summary.count_part(&look, &shaders);
         let mesh = morph_mesh(&triangles, animation.start);
         let object = make_object(rt, &look, &mesh)?;
         bart.summary.triangles += triangles.len();
