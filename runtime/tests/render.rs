@@ -145,6 +145,28 @@ fn the_image_does_not_depend_on_the_thread_count() -> Result<(), ApiError> {
     Ok(())
 }
 
+#[test]
+fn shader_timing_can_be_turned_off_without_changing_the_image() -> Result<(), ApiError> {
+    use rtsl_compiler::front::parse::ast::ShaderKind;
+    let mut rt = context();
+    shadow_scene(&mut rt)?;
+    let (timed_image, timed) = rt.render_frame()?;
+    assert!(timed.shading > std::time::Duration::ZERO, "{timed}");
+    assert!(timed.shader_time(ShaderKind::Surface) > std::time::Duration::ZERO, "{timed}");
+    assert!(!timed.by_shader.is_empty());
+    rt.options.time_shaders = false;
+    let (untimed_image, untimed) = rt.render_frame()?;
+    assert_eq!(untimed.shading, std::time::Duration::ZERO, "{untimed}");
+    assert!(untimed.by_kind.iter().all(|t| t.is_zero()), "{untimed}");
+    assert!(untimed.by_shader.is_empty());
+    assert_eq!((untimed.primary_rays, untimed.shadow_rays), (timed.primary_rays, timed.shadow_rays));
+    assert!(untimed_image == timed_image);
+    // Timing comes back with the option: nothing of the untimed frame stays switched off.
+    rt.options.time_shaders = true;
+    assert!(rt.render_frame()?.1.shader_time(ShaderKind::Surface) > std::time::Duration::ZERO);
+    Ok(())
+}
+
 const SHADOWED: &str = r#"
 surface shadowed(string map = ""; float blur = 0; float width = 1; float bias = 0;)
 {

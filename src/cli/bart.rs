@@ -70,6 +70,8 @@ pub fn run(args: &BartArgs) -> anyhow::Result<ExitCode> {
     if let Some(n) = args.samples {
         rt.options.samples = super::render::samples_grid(n);
     }
+    // Playback reports frame times and ray counts, not where shading time goes.
+    rt.options.time_shaders = false;
     // The camera depends on the image's shape: place everything again for the final size.
     let a = scene.animation;
     scene.set_time(&mut rt, a.start)?;

@@ -51,7 +51,7 @@ impl<'w> Frame<'w> {
         let m = &cam.world_from_camera.matrix3;
         Frame {
             world,
-            stats: Stats::default(),
+            stats: Stats { timed: world.options.time_shaders, ..Stats::default() },
             transparent_shadows: world.has_transparent_shadows(),
             volumes: world.has_volumes(),
             camera_from_world: cam.world_from_camera.inverse(),

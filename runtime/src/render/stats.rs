@@ -80,19 +80,27 @@ fn leave() -> Instant {
     now
 }
 
-/// Charges the time until it is dropped to `program` (exclusive of what runs inside).
-pub(crate) struct ShaderKindTimer(());
+/// Charges the time until it is dropped to `program` (exclusive of what runs inside), when this
+/// thread's frame times its shaders.
+pub(crate) struct ShaderKindTimer {
+    timed: bool,
+}
 
 impl ShaderKindTimer {
     pub(crate) fn enter(program: &Program) -> ShaderKindTimer {
-        enter(Some(program));
-        ShaderKindTimer(())
+        let timed = TIMING.with(|t| t.get());
+        if timed {
+            enter(Some(program));
+        }
+        ShaderKindTimer { timed }
     }
 }
 
 impl Drop for ShaderKindTimer {
     fn drop(&mut self) {
-        leave();
+        if self.timed {
+            leave();
+        }
     }
 }
 
@@ -114,6 +122,9 @@ pub struct Stats {
     pub kind_ns: [AtomicU64; ShaderKind::ALL.len()],
     /// The same time per shader program, in nanoseconds.
     pub program_ns: Mutex<Vec<(Program, u64)>>,
+    /// Whether the shading times above are measured (`RenderOptions::time_shaders`; the frame
+    /// sets it). Untimed, they stay zero and no clock is read.
+    pub timed: bool,
 }
 
 thread_local! {
@@ -121,10 +132,16 @@ thread_local! {
     /// is nested on this thread (trace() shades recursively; only the outermost level is timed).
     static TRACE_NS: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
     static SHADE_NESTING: std::cell::Cell<u32> = const { std::cell::Cell::new(0) };
+    /// Whether the outermost shading on this thread is timed ([`Stats::timed`] of its frame): the
+    /// shader and tracer clocks run only then.
+    static TIMING: std::cell::Cell<bool> = const { std::cell::Cell::new(true) };
 }
 
 /// Runs a tracer query, counting its time as tracing rather than shading.
 pub(super) fn tracing<R>(f: impl FnOnce() -> R) -> R {
+    if !TIMING.with(|t| t.get()) {
+        return f();
+    }
     let start = enter(None);
     let r = f();
     let ns = leave().saturating_duration_since(start).as_nanos() as u64;
@@ -145,6 +162,9 @@ impl<'a> ShadingTimer<'a> {
             n.get() == 1
         });
         if outer {
+            TIMING.with(|t| t.set(stats.timed));
+        }
+        if outer && stats.timed {
             // What the clock gathered outside any frame's shading is not this frame's.
             CLOCK.with(|c| {
                 let mut c = c.borrow_mut();
@@ -152,7 +172,7 @@ impl<'a> ShadingTimer<'a> {
                 c.entries.clear();
             });
         }
-        let start = outer.then(|| (std::time::Instant::now(), TRACE_NS.with(|t| t.get())));
+        let start = (outer && stats.timed).then(|| (std::time::Instant::now(), TRACE_NS.with(|t| t.get())));
         ShadingTimer { stats, start }
     }
 }

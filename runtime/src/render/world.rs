@@ -271,6 +271,12 @@ pub struct RenderOptions {
     /// 2x2; box 1x1 keeps images as they were and one sample per pixel sharp). Any other filter
     /// splats every sample onto the pixels within its support (`render/film.rs`).
     pub pixel_filter: PixelFilter,
+    /// Whether frames time their shaders: the report's shading time and its split by shader type
+    /// and by shader. Timing reads the clock on entering and leaving every shader batch and every
+    /// tracer call made while shading (a few percent of a frame of many small batches); a caller
+    /// that only wants frames and ray counts (BART playback) turns it off, and the report's
+    /// shading times are then zero.
+    pub time_shaders: bool,
 }
 
 /// The screen window as centre and half extents, the form the cameras use: screen `x` of raster
@@ -331,6 +337,7 @@ impl Default for RenderOptions {
             frame_aspect_ratio: None,
             crop_window: None,
             pixel_filter: PixelFilter::default(),
+            time_shaders: true,
         }
     }
 }
