@@ -18,8 +18,9 @@ use super::host::ShadeCall;
 use super::shade::Frame;
 use super::world::World;
 use crate::ray::{Ray, RayPacket, PACKET_SIZE};
-use crate::shading::{fill1, fill3, get_row_at, put_row_at, varying_rows, with_filled_batch, Slot};
+use crate::shading::{fill1, fill3, put_row_at, varying_rows, with_filled_batch, Slot};
 use glam::{Vec3A, Vec4, Vec4Swizzles};
+use rtsl_compiler::back::jit::RawBatch;
 
 /// Where on the image, lens and shutter a primary ray starts.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -308,7 +309,10 @@ fn run_camera_shader(
             camera_call(frame, camera, ps, Some(lens), o, Some((lanes, &mut weights)));
             done |= lanes;
         }
-        finish_shader_rays(frame, &ps[0], &raster_rows(&ps[0].samples), &weights, &mut o[0]);
+        let packet = &o[0].packet;
+        let (origin, dir) = ([packet.ox.0, packet.oy.0, packet.oz.0], [packet.dx.0, packet.dy.0, packet.dz.0]);
+        let made = MadeRays { origin: origin.each_ref(), dir: dir.each_ref(), weight: weights.each_ref() };
+        finish_shader_rays(frame, &ps[0], &raster_rows(&ps[0].samples), &made, &mut o[0]);
         start += 1;
     }
 }
@@ -337,12 +341,10 @@ fn camera_call(
     // library assign E, I and Ci first thing).
     let needed = |slot: Option<Slot>| slot.is_some_and(|s| !s.entry_unused);
     let pinhole = (needed(slots.i) || slots.i.is_none()).then(|| Pinhole::of(world));
-    if let (Some(pinhole), None) = (&pinhole, slots.i) {
-        for (ps, o) in packets.iter().zip(out.iter_mut()) {
-            let (rx, ry) = raster_rows(&ps.samples);
-            let packet = &mut o.packet;
-            pinhole_directions(pinhole, &rx, &ry, [&mut packet.dx.0, &mut packet.dy.0, &mut packet.dz.0]);
-        }
+    // Each packet's raster positions as rows, gathered once for the fills and the finish.
+    let mut rasters = [([0.0f32; PACKET_SIZE], [0.0f32; PACKET_SIZE]); MAX_PACKETS_PER_CALL];
+    for (r, ps) in rasters.iter_mut().zip(packets) {
+        *r = raster_rows(&ps.samples);
     }
     // Every lane of these globals is written below, or by the shader before it reads them (the
     // ones not filled here are `entry_unused`): the batch need not zero them first.
@@ -382,9 +384,9 @@ fn camera_call(
             fill1(&mut raw, slots.p.map(|s| Slot { offset: s.offset + 2, ..s }), 0.0);
             for (p, ps) in packets.iter().enumerate() {
                 let first = p * PACKET_SIZE;
-                let (rx, ry) = raster_rows(&ps.samples);
-                put_row_at(&mut raw, slots.p, 0, first, &rx);
-                put_row_at(&mut raw, slots.p, 1, first, &ry);
+                let (rx, ry) = &rasters[p];
+                put_row_at(&mut raw, slots.p, 0, first, rx);
+                put_row_at(&mut raw, slots.p, 1, first, ry);
                 if slots.s.is_some() || slots.t.is_some() {
                     let (mut sx, mut sy) = ([0.0f32; PACKET_SIZE], [0.0f32; PACKET_SIZE]);
                     for l in 0..PACKET_SIZE {
@@ -403,7 +405,7 @@ fn camera_call(
                 }
                 if let (Some(pinhole), true) = (&pinhole, needed(slots.i)) {
                     let [mut x, mut y, mut z] = [[0.0f32; PACKET_SIZE]; 3];
-                    pinhole_directions(pinhole, &rx, &ry, [&mut x, &mut y, &mut z]);
+                    pinhole_directions(pinhole, rx, ry, [&mut x, &mut y, &mut z]);
                     for (k, row) in [x, y, z].iter().enumerate() {
                         put_row_at(&mut raw, slots.i, k, first, row);
                     }
@@ -414,65 +416,120 @@ fn camera_call(
         let table = call.table();
         program.code.shade_with_table(batch, &table);
         // The rays are read straight from the batch (the renderer's side of the call, so within
-        // the shading timers).
+        // the shading timers), without copying them out first.
         let raw = batch.raw_mut();
-        let keep = unfinished.as_ref().map_or(u64::MAX, |(lanes, _)| *lanes);
-        let read = |slot: Option<Slot>, k: usize, first: usize, default: f32, row: &mut Row| {
-            if keep == u64::MAX {
-                get_row_at(&raw, slot, k, first, default, row);
-            } else {
-                let mut all = [0.0; PACKET_SIZE];
-                get_row_at(&raw, slot, k, first, default, &mut all);
-                for (l, (r, v)) in row.iter_mut().zip(all).enumerate() {
-                    if keep >> l & 1 != 0 {
-                        *r = v;
-                    }
-                }
-            }
-        };
-        let mut weights: Rows3 = [[1.0; PACKET_SIZE]; 3];
+        // Rows for the uniform globals and the pinhole's directions, written only where needed.
+        let mut scratch = [[[0.0f32; PACKET_SIZE]; 3]; 3];
         for (p, (ps, o)) in packets.iter().zip(out.iter_mut()).enumerate() {
             let first = p * PACKET_SIZE;
-            let w = unfinished.as_mut().map_or(&mut weights, |(_, w)| &mut **w);
-            let packet = &mut o.packet;
-            for (k, row) in [&mut packet.ox, &mut packet.oy, &mut packet.oz].into_iter().enumerate() {
-                read(slots.e, k, first, eye[k], &mut row.0);
-            }
-            if slots.i.is_some() {
-                for (k, row) in [&mut packet.dx, &mut packet.dy, &mut packet.dz].into_iter().enumerate() {
-                    read(slots.i, k, first, 0.0, &mut row.0);
+            let [origin_rows, dir_rows, weight_rows] = &mut scratch;
+            let dir = match (slots.i, &pinhole) {
+                (None, Some(pinhole)) => {
+                    let [x, y, z] = dir_rows;
+                    pinhole_directions(pinhole, &rasters[p].0, &rasters[p].1, [x, y, z]);
+                    dir_rows.each_ref()
                 }
-            }
-            if slots.ci.is_some() {
-                for (k, row) in w.iter_mut().enumerate() {
-                    read(slots.ci, k, first, 1.0, row);
-                }
-            }
-            if unfinished.is_none() {
-                finish_shader_rays(frame, ps, &raster_rows(&ps.samples), &weights, o);
+                _ => rows_of(&raw, slots.i, first, [0.0; 3], dir_rows),
+            };
+            let made = MadeRays {
+                origin: rows_of(&raw, slots.e, first, eye.to_array(), origin_rows),
+                dir,
+                weight: rows_of(&raw, slots.ci, first, [1.0; 3], weight_rows),
+            };
+            match unfinished.as_mut() {
+                None => finish_shader_rays(frame, ps, &rasters[p], &made, o),
+                Some((keep, weights)) => made.keep(*keep, &mut o.packet, weights),
             }
         }
     });
     drop(timer);
 }
 
-/// Makes a packet of rays from what a camera shader left in `out`'s origin and direction rows and
-/// in `w` (its `Ci`, the weight), for samples at raster positions `(rx, ry)`: drops the lanes that made no usable ray, normalises the
-/// directions, and works out the ray differentials. Four lanes at a time (`Vec4`): this runs for
-/// every packet a camera shader makes, and written lane by lane it cost several times the shader.
-fn finish_shader_rays(frame: &Frame, ps: &PacketSamples, (rx, ry): &(Row, Row), w: &Rows3, out: &mut PrimaryRays) {
+/// A packet's rays as the camera shader made them: origins (`E`), directions (`I`) and weights
+/// (`Ci`), by component, each a row of the packet's lanes (read where the shader left them).
+struct MadeRays<'a> {
+    origin: [&'a Row; 3],
+    dir: [&'a Row; 3],
+    weight: [&'a Row; 3],
+}
+
+/// The rows of a triple global for the packet at lanes `first ..` of a batch: the batch's own rows
+/// when the global is varying, else rows of `scratch` filled with its uniform value (or with
+/// `defaults` when the shader does not have it).
+fn rows_of<'a>(
+    raw: &'a RawBatch<'_>,
+    slot: Option<Slot>,
+    first: usize,
+    defaults: [f32; 3],
+    scratch: &'a mut Rows3,
+) -> [&'a Row; 3] {
+    let varying: &'a [f32] = raw.varying;
+    let batch_row = |k: usize| -> Option<&'a Row> {
+        let s = slot.filter(|s| s.varying)?;
+        let row = (s.offset + k) * raw.stride + first;
+        varying.get(row..row + PACKET_SIZE)?.try_into().ok()
+    };
+    for (k, row) in scratch.iter_mut().enumerate() {
+        if batch_row(k).is_none() {
+            let value = match slot {
+                Some(s) if !s.varying => raw.uniform.get(s.offset + k).copied(),
+                _ => None,
+            };
+            *row = [value.unwrap_or(defaults[k]); PACKET_SIZE];
+        }
+    }
+    let scratch: &'a Rows3 = scratch;
+    [0, 1, 2].map(|k| batch_row(k).unwrap_or(&scratch[k]))
+}
+
+impl MadeRays<'_> {
+    /// Copies the lanes in `keep` into `packet`'s origin and direction rows and into `weights`,
+    /// for the caller to finish later; the other lanes keep what they held.
+    fn keep(&self, keep: u64, packet: &mut RayPacket, weights: &mut Rows3) {
+        let rows = [
+            (&mut packet.ox.0, self.origin[0]),
+            (&mut packet.oy.0, self.origin[1]),
+            (&mut packet.oz.0, self.origin[2]),
+            (&mut packet.dx.0, self.dir[0]),
+            (&mut packet.dy.0, self.dir[1]),
+            (&mut packet.dz.0, self.dir[2]),
+        ];
+        let weight_rows = weights.iter_mut().zip(self.weight);
+        for (row, made) in rows.into_iter().chain(weight_rows) {
+            for (l, v) in row.iter_mut().enumerate() {
+                if keep >> l & 1 != 0 {
+                    *v = made[l];
+                }
+            }
+        }
+    }
+}
+
+/// Makes a packet of rays from what a camera shader made (`made`, read where the shader left it)
+/// for samples at raster positions `(rx, ry)`: drops the lanes that made no usable ray, normalises
+/// the directions, and works out the ray differentials. Four lanes at a time (`Vec4`): this runs
+/// for every packet a camera shader makes, and written lane by lane it cost several times the
+/// shader.
+fn finish_shader_rays(
+    frame: &Frame,
+    ps: &PacketSamples,
+    (rx, ry): &(Row, Row),
+    made: &MadeRays,
+    out: &mut PrimaryRays,
+) {
     let PrimaryRays { packet, diffs, weights } = out;
     // Most cameras give every ray of a packet one origin (a thin lens samples one lens position
     // per packet): then the origin does not change from lane to lane.
     let same = |row: &Row| row.iter().all(|v| v.to_bits() == row[0].to_bits());
-    let fixed_origin = same(&packet.ox.0) && same(&packet.oy.0) && same(&packet.oz.0);
+    let fixed_origin = made.origin.iter().all(|o| same(o));
     // A lane makes a ray when its origin is finite, its direction finite and not zero, and its
-    // weight finite with a positive component; the others are zeroed.
+    // weight finite with a positive component; the others are zeroed. Weights are clamped at
+    // zero in every lane, active or not (inactive lanes are undefined).
     let mut valid = 0u64;
     for q in (0..PACKET_SIZE).step_by(4) {
-        let (ox, oy, oz) = (quad(&packet.ox.0, q), quad(&packet.oy.0, q), quad(&packet.oz.0, q));
-        let (dx, dy, dz) = (quad(&packet.dx.0, q), quad(&packet.dy.0, q), quad(&packet.dz.0, q));
-        let (wr, wg, wb) = (quad(&w[0], q), quad(&w[1], q), quad(&w[2], q));
+        let [ox, oy, oz] = made.origin.map(|r| quad(r, q));
+        let [dx, dy, dz] = made.dir.map(|r| quad(r, q));
+        let [wr, wg, wb] = made.weight.map(|r| quad(r, q));
         let len = (dx * dx + dy * dy + dz * dz).sqrt();
         let ok = ox.is_finite_mask()
             & oy.is_finite_mask()
@@ -490,18 +547,16 @@ fn finish_shader_rays(frame: &Frame, ps: &PacketSamples, (rx, ry): &(Row, Row), 
         for (row, v) in [(&mut packet.ox.0, ox), (&mut packet.oy.0, oy), (&mut packet.oz.0, oz)] {
             Vec4::select(ok, v, Vec4::ZERO).write_to_slice(&mut row[q..q + 4]);
         }
+        for (row, w) in weights.iter_mut().zip([wr, wg, wb]) {
+            // `max` answers zero for NaN, as `f32::max` does.
+            w.max(Vec4::ZERO).write_to_slice(&mut row[q..q + 4]);
+        }
         valid |= u64::from(ok.bitmask()) << q;
     }
     packet.tmin.0 = [0.0; PACKET_SIZE];
     packet.tmax.0 = [f32::INFINITY; PACKET_SIZE];
     packet.time.0 = std::array::from_fn(|l| ps.samples[l].time);
     packet.active = ps.active & valid;
-    // Every lane, active or not: a loop without a test per lane (inactive lanes are undefined).
-    for (row, w) in weights.iter_mut().zip(w) {
-        for (x, v) in row.iter_mut().zip(w) {
-            *x = v.max(0.0);
-        }
-    }
     let o = [&packet.ox.0, &packet.oy.0, &packet.oz.0];
     let d = [&packet.dx.0, &packet.dy.0, &packet.dz.0];
     // Lane l ^ 1 is a lane's horizontal neighbour, l ^ 2 its vertical one: whether the neighbour
