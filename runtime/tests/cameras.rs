@@ -183,6 +183,40 @@ fn the_fisheye_leaves_the_corners_empty_and_sees_wider() -> Result<(), ApiError>
     Ok(())
 }
 
+/// A full-frame fisheye (fit "diagonal") spans its angle from corner to corner: the corners look
+/// `fov / 2` off the axis, every pixel makes a ray, and the edge's middle looks at its share of
+/// the half diagonal.
+#[test]
+fn the_full_frame_fisheye_spans_its_angle_corner_to_corner() -> Result<(), ApiError> {
+    use rtsl_runtime::render::{primary_rays, CameraSample, Frame};
+    let mut rt = context();
+    rt.camera_look_at(Vec3A::ZERO, Vec3A::Z, Vec3A::Y, 40.0);
+    let fit = ("fit", ParamValue::String("diagonal".into()));
+    bind_camera(&mut rt, "fisheye", &[("fov", ParamValue::Float(180.0)), fit])?;
+    let (image, report) = rt.render_frame()?;
+    assert_eq!(report.primary_rays, u64::from(W * H), "every pixel sees");
+    assert_eq!(image.width, W);
+    let world = rt.build_world()?;
+    let mut samples = [CameraSample::default(); rtsl_runtime::ray::PACKET_SIZE];
+    let (w, h) = (W as f32, H as f32);
+    for (sample, raster) in samples.iter_mut().zip([(0.0, 0.0), (w / 2.0, h / 2.0), (w, h / 2.0)]) {
+        sample.raster = raster;
+    }
+    let rays = primary_rays(&Frame::new(&world), &samples, 0b111);
+    rt.return_scene(world);
+    assert_eq!(rays.packet.active, 0b111);
+    let angle = |l: usize| {
+        let d = Vec3A::new(rays.packet.dx.0[l], rays.packet.dy.0[l], rays.packet.dz.0[l]);
+        d.angle_between(Vec3A::Z).to_degrees()
+    };
+    let aspect = w / h;
+    let edge = 90.0 * aspect / (1.0 + aspect * aspect).sqrt();
+    for (lane, want) in [(0, 90.0), (1, 0.0), (2, edge)] {
+        assert!((angle(lane) - want).abs() < 0.05, "lane {lane}: {} degrees, not {want}", angle(lane));
+    }
+    Ok(())
+}
+
 #[test]
 fn the_cylindrical_panorama_sees_behind_the_camera() -> Result<(), ApiError> {
     let mut rt = context();

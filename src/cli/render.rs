@@ -6,6 +6,7 @@ use rtsl_runtime::api::Context;
 use rtsl_runtime::reload::{ShaderEvent, ShaderReloader};
 use rtsl_runtime::render::{render_frame, Antialiasing};
 use rtsl_runtime::scene_file::{add_model_file, frame_bounds};
+use rtsl_runtime::shading::ParamValue;
 use rtsl_runtime::{write_image, WriteOptions};
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -35,9 +36,10 @@ pub struct RenderArgs {
     #[arg(long, value_parser = Antialiasing::parse)]
     pub aa: Option<Antialiasing>,
     /// A camera shader by name (e.g. `fisheye`, `cylindrical`, `parabolic`, `thinlens`; see
-    /// docs/cameras.md), replacing the scene's camera shader; the camera's placement stays.
-    #[arg(long)]
-    pub camera: Option<String>,
+    /// docs/cameras.md), with parameters after colons (`fisheye:fit=diagonal:fov=200`), replacing
+    /// the scene's camera shader; the camera's placement stays.
+    #[arg(long, value_parser = CameraSpec::parse)]
+    pub camera: Option<CameraSpec>,
     /// Directories searched for `#include`d shader headers.
     #[arg(short = 'I', long = "include")]
     pub include: Vec<PathBuf>,
@@ -50,6 +52,58 @@ pub struct RenderArgs {
     /// Keep running: re-render and rewrite the image whenever a shader source or header changes.
     #[arg(long)]
     pub watch: bool,
+}
+
+/// A camera shader and parameter values, written `NAME[:PARAM=VALUE]...`: a value that reads as a
+/// number is a float, any other a string (`fisheye:fit=diagonal:fov=200`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct CameraSpec {
+    pub name: String,
+    pub params: Vec<(String, ParamValue)>,
+}
+
+impl CameraSpec {
+    pub fn parse(spec: &str) -> Result<CameraSpec, String> {
+        let mut parts = spec.split(':');
+        let name = parts.next().unwrap_or_default().trim();
+        if name.is_empty() {
+            return Err(format!("`{spec}` names no camera shader"));
+        }
+        let params = parts
+            .map(|p| {
+                let (param, value) = p
+                    .split_once('=')
+                    .filter(|(n, _)| !n.trim().is_empty())
+                    .ok_or_else(|| format!("`{p}` in `{spec}` is not PARAM=VALUE"))?;
+                let value = value.trim();
+                let value = value.parse::<f32>().map_or_else(|_| ParamValue::String(value.into()), ParamValue::Float);
+                Ok((param.trim().to_string(), value))
+            })
+            .collect::<Result<_, String>>()?;
+        Ok(CameraSpec { name: name.to_string(), params })
+    }
+
+    /// A name for reports: the spec with its separators as underscores (`fisheye_fit_diagonal`).
+    pub fn label(&self) -> String {
+        let mut label = self.name.clone();
+        for (param, value) in &self.params {
+            let value = match value {
+                ParamValue::String(s) => s.clone(),
+                ParamValue::Float(f) => f.to_string(),
+                other => format!("{other:?}"),
+            };
+            label.extend(["_", param.as_str(), "_", value.as_str()]);
+        }
+        label.chars().map(|c| if c.is_ascii_alphanumeric() { c } else { '_' }).collect()
+    }
+
+    /// Makes this the context's camera shader.
+    pub fn bind(&self, rt: &mut Context) -> anyhow::Result<()> {
+        let id = rt.find_shader(&self.name)?;
+        let params: Vec<(&str, ParamValue)> = self.params.iter().map(|(n, v)| (n.as_str(), v.clone())).collect();
+        rt.camera_shader(Some(id), &params).with_context(|| format!("camera shader `{}`", self.name))?;
+        Ok(())
+    }
 }
 
 pub(crate) fn samples_grid(n: u32) -> (u32, u32) {
@@ -199,9 +253,8 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
     if let Some(aa) = args.aa {
         rt.options.antialiasing = aa;
     }
-    if let Some(name) = &args.camera {
-        let id = rt.find_shader(name)?;
-        rt.camera_shader(Some(id), &[])?;
+    if let Some(camera) = &args.camera {
+        camera.bind(&mut rt)?;
     }
     let output = output.unwrap_or_else(|| PathBuf::from("render.png"));
     let (threads, pool) = super::worker_pool(args.threads)?;
@@ -221,4 +274,27 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
         watch(&mut rt, &pool, &output)?;
     }
     Ok(ExitCode::SUCCESS)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn camera_specs_read_numbers_as_floats_and_anything_else_as_strings() {
+        let spec = CameraSpec::parse("fisheye:fit=diagonal:fov=200").expect("a valid spec");
+        assert_eq!(spec.name, "fisheye");
+        assert_eq!(
+            spec.params,
+            vec![
+                ("fit".to_string(), ParamValue::String("diagonal".into())),
+                ("fov".to_string(), ParamValue::Float(200.0))
+            ]
+        );
+        assert_eq!(spec.label(), "fisheye_fit_diagonal_fov_200");
+        assert_eq!(CameraSpec::parse("thinlens").map(|s| s.params.len()), Ok(0));
+        for bad in ["", ":fov=1", "fisheye:fov", "fisheye:=3"] {
+            assert!(CameraSpec::parse(bad).is_err(), "`{bad}` is not a camera spec");
+        }
+    }
 }
