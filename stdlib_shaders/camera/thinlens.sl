@@ -37,8 +37,11 @@ camera thinlens(float fov = 0; float fstop = 0; float focallength = 0; float foc
         r = b;
         phi = PI / 2 - (PI / 4) * (a / b);
     }
-    point focus = point "camera" (s * halfwidth * fd, t * halfwidth * fd, fd);
-    E = point "camera" (radius * r * cos(phi), radius * r * sin(phi), 0);
-    I = focus - E;
+    /* The lens point is one per packet; the direction from it to the focal
+     * plane is cast as a vector, which costs less per ray than casting the
+     * focal point and subtracting. */
+    uniform float lx = radius * r * cos(phi), ly = radius * r * sin(phi);
+    E = point "camera" (lx, ly, 0);
+    I = vector "camera" (s * halfwidth * fd - lx, t * halfwidth * fd - ly, fd);
     Ci = 1;
 }
