@@ -130,14 +130,43 @@ impl MipMap {
         let probes = if minor > 0.0 { ((ellipse.major / minor).ceil() as usize).clamp(1, MAX_ANISOTROPY) } else { 1 };
         let lod = if minor > 0.0 { minor.log2() } else { f32::NEG_INFINITY };
         let weight = 1.0 / probes as f32;
-        for k in 0..probes {
-            // Probe centres split the major axis into equal parts.
+        // Probe centres split the major axis into equal parts.
+        let probe = |k: usize| {
             let along = ((k as f32 + 0.5) / probes as f32 - 0.5) * ellipse.major;
-            let ps = s + ellipse.direction[0] * along / w;
-            let pt = t + ellipse.direction[1] * along / h;
-            self.accumulate_trilinear(ps, pt, lod, wrap, first_channel, weight, out);
+            (s + ellipse.direction[0] * along / w, t + ellipse.direction[1] * along / h)
+        };
+        // Every probe blends the same levels with the same weights: that is worked out once, and
+        // the probe loop is unrolled for the common channel counts.
+        let n = out.len().min(self.channels().saturating_sub(first_channel));
+        let plan = self.trilinear(lod, weight);
+        match n {
+            1 => plan.accumulate_probes::<1>(probes, probe, wrap, first_channel, out),
+            3 => plan.accumulate_probes::<3>(probes, probe, wrap, first_channel, out),
+            4 => plan.accumulate_probes::<4>(probes, probe, wrap, first_channel, out),
+            _ => {
+                for k in 0..probes {
+                    let (ps, pt) = probe(k);
+                    self.accumulate_trilinear(ps, pt, lod, wrap, first_channel, weight, out);
+                }
+            }
         }
         fill_missing(self.channels(), first_channel, opts.fill, out);
+    }
+
+    /// The levels a trilinear probe at `lod` blends, and their weights (a probe's `weight` split
+    /// between them): what [`MipMap::accumulate_trilinear`] decides for each probe.
+    fn trilinear(&self, lod: f32, weight: f32) -> Trilinear<'_> {
+        let top = self.levels.len() - 1;
+        // NaN (a degenerate footprint) also means the finest level.
+        if lod.is_nan() || lod <= 0.0 {
+            return Trilinear::One(&self.levels[0], weight);
+        }
+        let below = lod.floor() as usize;
+        if below >= top {
+            return Trilinear::One(&self.levels[top], weight);
+        }
+        let frac = lod - below as f32;
+        Trilinear::Two(LevelPair::new([&self.levels[below], &self.levels[below + 1]], [weight * (1.0 - frac), weight * frac]))
     }
 
     #[allow(clippy::too_many_arguments)]
@@ -163,6 +192,57 @@ impl MipMap {
         let frac = lod - below as f32;
         let levels = [&self.levels[below], &self.levels[below + 1]];
         accumulate_bilinear_pair(levels, s, t, wrap, first, [weight * (1.0 - frac), weight * frac], out);
+    }
+}
+
+/// Where a filtered lookup's probes read: one level, or two adjacent levels blended, with weights.
+enum Trilinear<'a> {
+    One(&'a TexImage, f32),
+    Two(LevelPair<'a>),
+}
+
+impl Trilinear<'_> {
+    /// Adds the `probes` probes at `probe(k)` to `out`, for `N` channels from `first`, in order:
+    /// the same values as [`MipMap::accumulate_trilinear`] for each probe.
+    #[inline(always)]
+    fn accumulate_probes<const N: usize>(
+        &self,
+        probes: usize,
+        probe: impl Fn(usize) -> (f32, f32),
+        wrap: [Wrap; 2],
+        first: usize,
+        out: &mut [f32],
+    ) {
+        match self {
+            Trilinear::One(img, weight) => {
+                for k in 0..probes {
+                    let (s, t) = probe(k);
+                    accumulate_taps::<N>(img, s, t, wrap, first, *weight, out);
+                }
+            }
+            Trilinear::Two(pair) => {
+                for k in 0..probes {
+                    let (s, t) = probe(k);
+                    accumulate_pair_taps::<N>(pair, s, t, wrap, first, out);
+                }
+            }
+        }
+    }
+}
+
+/// Two levels a trilinear probe blends, their weights, and their sizes as floats (level 0's
+/// width and height, then level 1's).
+struct LevelPair<'a> {
+    levels: [&'a TexImage; 2],
+    weights: [f32; 2],
+    size: Vec4,
+}
+
+impl<'a> LevelPair<'a> {
+    fn new(levels: [&'a TexImage; 2], weights: [f32; 2]) -> LevelPair<'a> {
+        let [a, b] = levels;
+        let size = Vec4::new(a.width() as f32, a.height() as f32, b.width() as f32, b.height() as f32);
+        LevelPair { levels, weights, size }
     }
 }
 
@@ -281,11 +361,12 @@ fn accumulate_bilinear_pair(
 ) {
     // Levels of one pyramid have the same channels.
     let n = out.len().min(levels[0].channels().saturating_sub(first));
+    let pair = LevelPair::new(levels, weights);
     match n {
         0 => {}
-        1 => accumulate_pair_taps::<1>(levels, s, t, wrap, first, weights, out),
-        3 => accumulate_pair_taps::<3>(levels, s, t, wrap, first, weights, out),
-        4 => accumulate_pair_taps::<4>(levels, s, t, wrap, first, weights, out),
+        1 => accumulate_pair_taps::<1>(&pair, s, t, wrap, first, out),
+        3 => accumulate_pair_taps::<3>(&pair, s, t, wrap, first, out),
+        4 => accumulate_pair_taps::<4>(&pair, s, t, wrap, first, out),
         _ => one_level_after_the_other(levels, s, t, wrap, first, weights, out),
     }
 }
@@ -307,17 +388,8 @@ fn one_level_after_the_other(
 
 /// [`accumulate_bilinear_pair`] for `N` channels.
 #[inline(always)]
-fn accumulate_pair_taps<const N: usize>(
-    levels: [&TexImage; 2],
-    s: f32,
-    t: f32,
-    wrap: [Wrap; 2],
-    first: usize,
-    weights: [f32; 2],
-    out: &mut [f32],
-) {
-    let [a, b] = levels;
-    let size = Vec4::new(a.width() as f32, a.height() as f32, b.width() as f32, b.height() as f32);
+fn accumulate_pair_taps<const N: usize>(pair: &LevelPair, s: f32, t: f32, wrap: [Wrap; 2], first: usize, out: &mut [f32]) {
+    let LevelPair { levels, weights, size } = *pair;
     // Texel coordinates of both levels, x then y: `bilinear_taps`' arithmetic, lane by lane.
     let p = Vec4::new(s, t, s, t) * size - Vec4::splat(0.5);
     // Beyond 2^23 a float is an integer already, and far beyond it no i32 holds its floor: such
