@@ -166,7 +166,10 @@ impl MipMap {
             return Trilinear::One(&self.levels[top], weight);
         }
         let frac = lod - below as f32;
-        Trilinear::Two(LevelPair::new([&self.levels[below], &self.levels[below + 1]], [weight * (1.0 - frac), weight * frac]))
+        Trilinear::Two(LevelPair::new(
+            [&self.levels[below], &self.levels[below + 1]],
+            [weight * (1.0 - frac), weight * frac],
+        ))
     }
 
     #[allow(clippy::too_many_arguments)]
@@ -388,7 +391,14 @@ fn one_level_after_the_other(
 
 /// [`accumulate_bilinear_pair`] for `N` channels.
 #[inline(always)]
-fn accumulate_pair_taps<const N: usize>(pair: &LevelPair, s: f32, t: f32, wrap: [Wrap; 2], first: usize, out: &mut [f32]) {
+fn accumulate_pair_taps<const N: usize>(
+    pair: &LevelPair,
+    s: f32,
+    t: f32,
+    wrap: [Wrap; 2],
+    first: usize,
+    out: &mut [f32],
+) {
     let LevelPair { levels, weights, size } = *pair;
     // Texel coordinates of both levels, x then y: `bilinear_taps`' arithmetic, lane by lane.
     let p = Vec4::new(s, t, s, t) * size - Vec4::splat(0.5);
