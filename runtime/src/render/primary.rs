@@ -520,7 +520,11 @@ fn finish_shader_rays(
     let PrimaryRays { packet, diffs, weights } = out;
     // Most cameras give every ray of a packet one origin (a thin lens samples one lens position
     // per packet): then the origin does not change from lane to lane.
-    let same = |row: &Row| row.iter().all(|v| v.to_bits() == row[0].to_bits());
+    // Bit for bit, without an early exit per lane, so that it compiles to vector code.
+    let same = |row: &Row| {
+        let first = row[0].to_bits();
+        row.iter().fold(0, |differ, v| differ | (v.to_bits() ^ first)) == 0
+    };
     let fixed_origin = made.origin.iter().all(|o| same(o));
     // A lane makes a ray when its origin is finite, its direction finite and not zero, and its
     // weight finite with a positive component; the others are zeroed. Weights are clamped at
