@@ -263,6 +263,33 @@ fn constant_surface() {
     check("surface constant() { Oi = Os; Ci = Os * Cs; }");
 }
 
+/// Globals the body assigns whole before reading (`Ci`, `Oi` here) start each chunk empty and are
+/// blended back under the chunk's mask at its end; writes at the top level skip the merge. Writes
+/// under varying control flow, in loops and in user functions, and component writes, must still
+/// keep the lanes that did not run, and inactive lanes the sentinel.
+#[test]
+fn globals_assigned_before_read_keep_the_lanes_that_did_not_run() {
+    check(
+        r#"
+        void tint(output color c; float f) { if (f > 0.3) c *= color(f, 1, 0.5); }
+        void paint(float f) { if (f > 0.6) return; Ci = color(0, f, 0); }
+        surface fresh(float k = 0.5;)
+        {
+            Ci = color(s, t, 1);
+            if (s > k) Ci = color(t, 0, s); else Oi = 1;
+            Oi = Ci * 0.5;
+            setcomp(Ci, 1, t * 2);
+            for (uniform float i = 0; i < 2; i += 1) Ci += color(i, 0, 0);
+            float j = 0;
+            while (j < s * 3) { Ci += 0.25; j += 1; }
+            tint(Ci, u);
+            paint(v);
+            Oi = (t > 0.5) ? Oi : Ci;
+        }
+        "#,
+    );
+}
+
 #[test]
 fn float_and_triple_math() {
     check(

@@ -90,6 +90,10 @@ struct Store {
     comps: usize,
     /// `div` when the storage was created: uniform writes need the same level.
     div: u32,
+    /// A global that a chunk starts as zeros and blends with the batch under the chunk's mask at
+    /// its end (see `load_globals`): its lanes outside that mask are never observed, so a write
+    /// outside varying control flow, where every lane of the mask runs, need not keep them.
+    fresh: bool,
 }
 
 #[derive(Clone, Copy)]
@@ -293,7 +297,7 @@ impl<'m> Lower<'m, '_> {
     fn new_store(&mut self, vary: bool, n: usize, comps: usize) -> Store {
         let ty = if vary { types::F32X4 } else { types::F32 };
         let vars = (0..n).map(|_| self.b.declare_var(ty)).collect();
-        Store { vary, vars, comps, div: self.div }
+        Store { vary, vars, comps, div: self.div, fresh: false }
     }
 
     fn zero_store(&mut self, vary: bool, n: usize, comps: usize) -> Store {
@@ -444,12 +448,21 @@ impl<'m> Lower<'m, '_> {
         Ok(())
     }
 
-    /// Loads the globals of the current chunk (set up by the caller) into their stores.
-    fn load_globals(&mut self) -> R<()> {
+    /// Loads the globals of the current chunk (set up by the caller) into their stores. With
+    /// `fresh_outputs`, the varying globals whose value on entry the body never reads
+    /// ([`fresh_output`]) start as zeros instead: the chunk's end blends them with the batch's
+    /// values under the chunk's mask, so their inactive lanes keep their bits all the same, and the
+    /// old values need not live (in registers or spilled) through the whole chunk.
+    fn load_globals(&mut self, fresh_outputs: bool) -> R<()> {
         for gs in self.layout.globals.clone() {
-            let s = self.new_store(gs.varying, gs.components, gs.components);
+            let mut s = self.new_store(gs.varying, gs.components, gs.components);
+            let zero = (fresh_outputs && fresh_output(&gs)).then(|| fconst(&mut self.b, 0.0, true));
+            s.fresh = zero.is_some();
             for (k, var) in s.vars.iter().enumerate() {
-                let v = self.load_slot(gs.varying, gs.offset + k);
+                let v = match zero {
+                    Some(z) => z,
+                    None => self.load_slot(gs.varying, gs.offset + k),
+                };
                 self.b.def_var(*var, v);
             }
             self.globals[gs.global.0 as usize] = Some(s);
@@ -493,7 +506,7 @@ impl<'m> Lower<'m, '_> {
     /// The once-per-batch prologue (`hoist.rs`): the uniform parameters and the body's hoisted
     /// statements in a frame of their own; returns that frame's variables for the chunks to copy.
     fn prologue(&mut self, shader: &'m ir::Shader, bound_p: Value, prefix: &Prefix) -> R<Vec<Option<Store>>> {
-        self.load_globals()?;
+        self.load_globals(false)?;
         let body = self.m.function(shader.body);
         let frame = self.new_frame(shader.body, body, &[], &[], false)?;
         self.frames.push(frame);
@@ -533,7 +546,7 @@ impl<'m> Lower<'m, '_> {
         bound_p: Value,
         hoisted: Option<&(Vec<Option<Store>>, Prefix)>,
     ) -> R<()> {
-        self.load_globals()?;
+        self.load_globals(true)?;
         let body = self.m.function(shader.body);
         let frame = self.new_frame(shader.body, body, &[], &[], false)?;
         self.frames.push(frame);
@@ -579,7 +592,11 @@ impl<'m> Lower<'m, '_> {
             }
             let s = self.globals[gs.global.0 as usize].clone().expect("loaded");
             for (k, var) in s.vars.iter().enumerate() {
-                let v = self.b.use_var(*var);
+                let mut v = self.b.use_var(*var);
+                if fresh_output(&gs) {
+                    let old = self.load_slot(true, gs.offset + k);
+                    v = merge(&mut self.b, saved, v, old);
+                }
                 self.store_slot(true, gs.offset + k, v);
             }
         }
@@ -1159,6 +1176,9 @@ impl<'m> Lower<'m, '_> {
             }
         }
         let e = if store.vary { Some(self.exec()) } else { None };
+        // In the shader body outside varying control flow every lane of the chunk's mask runs, and
+        // a fresh global's other lanes are blended back at the chunk's end: no merge.
+        let whole = store.fresh && self.div == 0 && self.frames.len() == 1;
         for (flat, j, cond) in &t.list {
             let var = store.vars[*flat];
             let old = self.b.use_var(var);
@@ -1169,6 +1189,7 @@ impl<'m> Lower<'m, '_> {
                     let m = self.b.ins().band(e, cm);
                     merge(&mut self.b, m, x, old)
                 }
+                (Some(_), None) if whole => widen(&mut self.b, x, true),
                 (Some(e), None) => merge(&mut self.b, e, x, old),
                 (None, Some(c)) => self.b.ins().select(*c, x, old),
                 (None, None) => x,
@@ -3299,4 +3320,11 @@ impl<'m> Lower<'m, '_> {
         self.set_exec(after);
         Ok(())
     }
+}
+
+/// Whether a chunk may start `gs` as zeros rather than loading it (see `load_globals`): a varying
+/// global the shader writes and whose value on entry its body never reads, since its top-level
+/// statements assign it whole, under the chunk's mask, before anything could read it.
+fn fresh_output(gs: &super::layout::GlobalSlot) -> bool {
+    gs.varying && gs.written && gs.entry_unused
 }
