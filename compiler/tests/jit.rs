@@ -1046,6 +1046,8 @@ fn space_casts_and_transforms() {
             m2 += matrix "nowhere" m2;
             point d = transform("camera", P) + transform("object", "camera", P) + transform(sp, m, P);
             vector e = vtransform("world", sp, I) + ntransform("nowhere", N);
+            // An unknown space leaves the value as it is (a uniform choice between vectors).
+            e += vector(point "nowhere" (s, t, 1)) + vector "nowhere" (u, v, 1);
             color f = ctransform("hsv", Cs) + ctransform("hsv", "rgb", Cs) + ctransform("nowhere", Cs);
             o = depth(P) + comp(m2, 3, 2);
             Ci = color(a + b + n + c + d + e) + h + f;

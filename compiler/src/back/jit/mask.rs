@@ -65,6 +65,12 @@ pub(super) fn choose(b: &mut FunctionBuilder<'_>, cond: Value, a: Value, x: Valu
     let x = widen(b, x, vary);
     if is_vec(b, cond) {
         select_lanes(b, cond, a, x)
+    } else if vary {
+        // A uniform condition between vectors (a space cast's lookup succeeded, a uniform
+        // ternary): as a lane mask it is one blend, and the mask, loop-invariant, leaves the chunk
+        // loop; a scalar `select` of vectors re-tests the condition with branches in every chunk.
+        let mask = widen(b, cond, true);
+        select_lanes(b, mask, a, x)
     } else {
         b.ins().select(cond, a, x)
     }
