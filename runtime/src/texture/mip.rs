@@ -146,7 +146,7 @@ impl MipMap {
             _ => {
                 for k in 0..probes {
                     let (ps, pt) = probe(k);
-                    self.accumulate_trilinear(ps, pt, lod, wrap, first_channel, weight, out);
+                    plan.accumulate(ps, pt, wrap, first_channel, out);
                 }
             }
         }
@@ -154,7 +154,7 @@ impl MipMap {
     }
 
     /// The levels a trilinear probe at `lod` blends, and their weights (a probe's `weight` split
-    /// between them): what [`MipMap::accumulate_trilinear`] decides for each probe.
+    /// between them), the same for every probe of a lookup.
     fn trilinear(&self, lod: f32, weight: f32) -> Trilinear<'_> {
         let top = self.levels.len() - 1;
         // NaN (a degenerate footprint) also means the finest level.
@@ -171,31 +171,6 @@ impl MipMap {
             [weight * (1.0 - frac), weight * frac],
         ))
     }
-
-    #[allow(clippy::too_many_arguments)]
-    fn accumulate_trilinear(
-        &self,
-        s: f32,
-        t: f32,
-        lod: f32,
-        wrap: [Wrap; 2],
-        first: usize,
-        weight: f32,
-        out: &mut [f32],
-    ) {
-        let top = self.levels.len() - 1;
-        // NaN (a degenerate footprint) also means the finest level.
-        if lod.is_nan() || lod <= 0.0 {
-            return accumulate_bilinear(&self.levels[0], s, t, wrap, first, weight, out);
-        }
-        let below = lod.floor() as usize;
-        if below >= top {
-            return accumulate_bilinear(&self.levels[top], s, t, wrap, first, weight, out);
-        }
-        let frac = lod - below as f32;
-        let levels = [&self.levels[below], &self.levels[below + 1]];
-        accumulate_bilinear_pair(levels, s, t, wrap, first, [weight * (1.0 - frac), weight * frac], out);
-    }
 }
 
 /// Where a filtered lookup's probes read: one level, or two adjacent levels blended, with weights.
@@ -205,8 +180,16 @@ enum Trilinear<'a> {
 }
 
 impl Trilinear<'_> {
+    /// Adds one probe at (s, t) to `out`, for any number of channels.
+    fn accumulate(&self, s: f32, t: f32, wrap: [Wrap; 2], first: usize, out: &mut [f32]) {
+        match self {
+            Trilinear::One(img, weight) => accumulate_bilinear(img, s, t, wrap, first, *weight, out),
+            Trilinear::Two(pair) => accumulate_bilinear_pair(pair.levels, s, t, wrap, first, pair.weights, out),
+        }
+    }
+
     /// Adds the `probes` probes at `probe(k)` to `out`, for `N` channels from `first`, in order:
-    /// the same values as [`MipMap::accumulate_trilinear`] for each probe.
+    /// the same values as [`Trilinear::accumulate`] for each probe, unrolled.
     #[inline(always)]
     fn accumulate_probes<const N: usize>(
         &self,
