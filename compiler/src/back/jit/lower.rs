@@ -90,9 +90,10 @@ struct Store {
     comps: usize,
     /// `div` when the storage was created: uniform writes need the same level.
     div: u32,
-    /// A global that a chunk starts as zeros and blends with the batch under the chunk's mask at
-    /// its end (see `load_globals`): its lanes outside that mask are never observed, so a write
-    /// outside varying control flow, where every lane of the mask runs, need not keep them.
+    /// Storage whose lanes outside the chunk's mask are never observed, so that a write outside
+    /// varying control flow, where every lane of the mask runs, need not keep them: a global that
+    /// a chunk starts as zeros and blends with the batch under the chunk's mask at its end (see
+    /// `load_globals`), or a local of the shader body.
     fresh: bool,
 }
 
@@ -200,6 +201,9 @@ struct Lower<'m, 'b> {
     /// Where each runtime check sits (`file:line:col`, or a byte offset without sources).
     sites: Vec<String>,
     sources: Option<&'m crate::source::SourceMap>,
+    /// The entry block and the chunk loop's blocks: its fixed ones, and every block numbered
+    /// from the second value on (those lowered for the chunk's body), for `invariants.rs`.
+    loop_blocks: Option<(Block, Vec<Block>, usize)>,
 }
 
 /// Lowers the module's shader into `func` (signature `fn(*mut Batch)`); returns the number of
@@ -209,6 +213,8 @@ pub(super) struct Lowered {
     pub insts: usize,
     pub strings: Vec<String>,
     pub sites: Vec<String>,
+    /// The entry block and the chunk loop's blocks (see `Lower::loop_blocks`).
+    pub loop_blocks: Option<(Block, Vec<Block>, usize)>,
 }
 
 pub(super) fn lower(
@@ -258,14 +264,16 @@ pub(super) fn lower(
         loop_budget: options.loop_budget.max(1),
         sites: Vec::new(),
         sources,
+        loop_blocks: None,
     };
     l.shade()?;
     l.b.seal_all_blocks();
     let n = l.b.func.dfg.num_insts();
     let strings = std::mem::take(&mut l.strings);
     let sites = std::mem::take(&mut l.sites);
+    let loop_blocks = l.loop_blocks.take();
     l.b.finalize(config);
-    Ok(Lowered { insts: n, strings, sites })
+    Ok(Lowered { insts: n, strings, sites, loop_blocks })
 }
 
 /// The interpreter's `index_of` on a constant.
@@ -436,6 +444,8 @@ impl<'m> Lower<'m, '_> {
         self.set_exec(chunk_mask);
         let z = mask::zero_mask(&mut self.b);
         self.b.def_var(self.random_calls, z);
+        let first_chunk_block = self.b.func.dfg.num_blocks();
+        self.loop_blocks = Some((entry, vec![header, body, run, next], first_chunk_block));
         self.chunk(shader, bound_p, hoisted.as_ref())?;
         self.b.ins().jump(next, &[]);
         self.b.switch_to_block(next);
@@ -505,7 +515,7 @@ impl<'m> Lower<'m, '_> {
 
     /// The once-per-batch prologue (`hoist.rs`): the uniform parameters and the body's hoisted
     /// statements in a frame of their own; returns that frame's variables for the chunks to copy.
-    fn prologue(&mut self, shader: &'m ir::Shader, bound_p: Value, prefix: &Prefix) -> R<Vec<Option<Store>>> {
+    fn prologue(&mut self, shader: &'m ir::Shader, bound_p: Value, prefix: &Prefix) -> R<Vec<Option<Vec<Value>>>> {
         self.load_globals(false)?;
         let body = self.m.function(shader.body);
         let frame = self.new_frame(shader.body, body, &[], &[], false)?;
@@ -535,7 +545,15 @@ impl<'m> Lower<'m, '_> {
             }
         }
         let frame = self.frames.pop().expect("frame");
-        Ok(frame.vars)
+        // The values the prologue leaves, read here, before the chunk loop: read inside it, each
+        // would become a loop-carried block parameter of the loop's header.
+        let mut values = vec![None; frame.vars.len()];
+        for v in &prefix.writes {
+            if let Some(store) = &frame.vars[v.0 as usize] {
+                values[v.0 as usize] = Some(store.vars.iter().map(|var| self.b.use_var(*var)).collect());
+            }
+        }
+        Ok(values)
     }
 
     /// One chunk: load globals and parameters (or take the prologue's), run the rest of the body,
@@ -544,7 +562,7 @@ impl<'m> Lower<'m, '_> {
         &mut self,
         shader: &'m ir::Shader,
         bound_p: Value,
-        hoisted: Option<&(Vec<Option<Store>>, Prefix)>,
+        hoisted: Option<&(Vec<Option<Vec<Value>>>, Prefix)>,
     ) -> R<()> {
         self.load_globals(true)?;
         let body = self.m.function(shader.body);
@@ -561,9 +579,8 @@ impl<'m> Lower<'m, '_> {
                     let (Some(from), Some(to)) = (from, to) else {
                         return Err(JitError::Codegen("a hoisted variable without storage".into()));
                     };
-                    for (a, b) in from.vars.iter().zip(&to.vars) {
-                        let x = self.b.use_var(*a);
-                        self.b.def_var(*b, x);
+                    for (x, b) in from.iter().zip(&to.vars) {
+                        self.b.def_var(*b, *x);
                     }
                 }
                 &prefix.writes
@@ -586,17 +603,35 @@ impl<'m> Lower<'m, '_> {
         self.b.switch_to_block(ret_block);
         self.set_exec(saved);
         let frame = self.frames.pop().expect("frame");
-        for gs in self.layout.globals.clone() {
-            if !(gs.written && gs.varying) {
-                continue;
+        let globals = self.layout.globals.clone();
+        let written = |gs: &&super::layout::GlobalSlot| gs.written && gs.varying;
+        // The fresh outputs' inactive lanes come from the batch: a blend under the chunk's mask,
+        // or, in a chunk whose lanes all ran (nearly every chunk), plain stores.
+        if globals.iter().filter(written).any(fresh_output) {
+            let (whole, partial, join) = (self.b.create_block(), self.b.create_block(), self.b.create_block());
+            let all = self.b.ins().vall_true(saved);
+            self.b.ins().brif(all, whole, &[], partial, &[]);
+            for (block, blend) in [(whole, false), (partial, true)] {
+                self.b.switch_to_block(block);
+                for gs in globals.iter().filter(written).filter(|gs| fresh_output(gs)) {
+                    let s = self.globals[gs.global.0 as usize].clone().expect("loaded");
+                    for (k, var) in s.vars.iter().enumerate() {
+                        let mut v = self.b.use_var(*var);
+                        if blend {
+                            let old = self.load_slot(true, gs.offset + k);
+                            v = merge(&mut self.b, saved, v, old);
+                        }
+                        self.store_slot(true, gs.offset + k, v);
+                    }
+                }
+                self.b.ins().jump(join, &[]);
             }
+            self.b.switch_to_block(join);
+        }
+        for gs in globals.iter().filter(written).filter(|gs| !fresh_output(gs)) {
             let s = self.globals[gs.global.0 as usize].clone().expect("loaded");
             for (k, var) in s.vars.iter().enumerate() {
-                let mut v = self.b.use_var(*var);
-                if fresh_output(&gs) {
-                    let old = self.load_slot(true, gs.offset + k);
-                    v = merge(&mut self.b, saved, v, old);
-                }
+                let v = self.b.use_var(*var);
                 self.store_slot(true, gs.offset + k, v);
             }
         }
@@ -661,7 +696,11 @@ impl<'m> Lower<'m, '_> {
                         },
                     };
                     let vary = var.varying && !uniform;
-                    let s = self.zero_store(vary, n * comps, comps);
+                    let mut s = self.zero_store(vary, n * comps, comps);
+                    // The shader body's locals: a lane outside the chunk's mask never shows what
+                    // they hold (outputs and globals merge under that mask), so writes outside
+                    // varying control flow need no merge either.
+                    s.fresh = self.frames.is_empty();
                     if var.ty.base == BaseType::Matrix {
                         // An uninitialised matrix is the identity (the interpreter's zero value).
                         let one = fconst(&mut self.b, 1.0, vary);
@@ -1177,7 +1216,8 @@ impl<'m> Lower<'m, '_> {
         }
         let e = if store.vary { Some(self.exec()) } else { None };
         // In the shader body outside varying control flow every lane of the chunk's mask runs, and
-        // a fresh global's other lanes are blended back at the chunk's end: no merge.
+        // a fresh global's other lanes are blended back at the chunk's end (a body's local's are
+        // never read into anything that is stored): no merge.
         let whole = store.fresh && self.div == 0 && self.frames.len() == 1;
         for (flat, j, cond) in &t.list {
             let var = store.vars[*flat];

@@ -23,6 +23,7 @@
 
 mod hoist;
 mod host;
+mod invariants;
 mod layout;
 mod lower;
 mod mask;
@@ -39,7 +40,7 @@ use crate::ir;
 use cranelift_codegen::ir::{AbiParam, UserFuncName};
 use cranelift_codegen::settings::{self, Configurable};
 use cranelift_jit::{JITBuilder, JITModule};
-use cranelift_module::{default_libcall_names, Linkage, Module};
+use cranelift_module::{default_libcall_names, Linkage, Module, ModuleReloc};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Arc;
 
@@ -655,6 +656,12 @@ pub fn compile_with(
     set(&mut flags, "enable_verifier", if cfg!(debug_assertions) { "true" } else { "false" })?;
     let isa = cranelift_native::builder()
         .map_err(|e| JitError::Codegen(e.to_string()))?
+        .finish(settings::Flags::new(flags.clone()))
+        .map_err(|e| JitError::Codegen(e.to_string()))?;
+    // The final compilation's: the function arrives optimised (see `define`).
+    set(&mut flags, "opt_level", "none")?;
+    let final_isa = cranelift_native::builder()
+        .map_err(|e| JitError::Codegen(e.to_string()))?
         .finish(settings::Flags::new(flags))
         .map_err(|e| JitError::Codegen(e.to_string()))?;
     let mut builder = JITBuilder::with_isa(isa, default_libcall_names());
@@ -665,7 +672,7 @@ pub fn compile_with(
         builder.symbol(h.name, h.ptr());
     }
     let mut jit = JITModule::new(builder);
-    match define(m, &mut layout, &mut jit, &shader.name, options, sources) {
+    match define(m, &mut layout, &mut jit, &*final_isa, &shader.name, options, sources) {
         Ok((entry, ir_insts, sites, code_bytes)) => {
             LIVE_MODULES.fetch_add(1, Ordering::SeqCst);
             LIVE_CODE_BYTES.fetch_add(code_bytes, Ordering::SeqCst);
@@ -695,6 +702,7 @@ fn define(
     m: &ir::Module,
     layout: &mut Layout,
     jit: &mut JITModule,
+    final_isa: &dyn cranelift_codegen::isa::TargetIsa,
     name: &str,
     options: &JitOptions,
     sources: Option<&crate::source::SourceMap>,
@@ -709,7 +717,24 @@ fn define(
     let lowered = lower::lower(m, layout, jit, &mut ctx.func, options, sources)?;
     layout.strings = lowered.strings;
     ctx.set_disasm(profile::disasm_dir().is_some());
-    jit.define_function(id, &mut ctx).map_err(|e| JitError::Codegen(format!("{e:?}")))?;
+    // Optimised here, then the invariants pass (`invariants.rs`) puts its loads beside the
+    // instructions that use them, and the final compilation optimises nothing more: a second
+    // e-graph pass would move every pure instruction down to its first side-effecting user, and
+    // so away from its loads again.
+    let fail = |e: cranelift_codegen::CodegenError| JitError::Codegen(format!("{e:?}"));
+    let mut ctrl = Default::default();
+    ctx.optimize(jit.isa(), &mut ctrl).map_err(fail)?;
+    if let Some((entry, fixed, first)) = &lowered.loop_blocks {
+        let in_loop = |b: cranelift_codegen::ir::Block| fixed.contains(&b) || b.as_u32() as usize >= *first;
+        invariants::keep_in_memory(&mut ctx.func, ptr, *entry, &in_loop);
+    }
+    ctx.compile(final_isa, &mut ctrl).map_err(|e| fail(e.inner))?;
+    let compiled = ctx.compiled_code().ok_or_else(|| JitError::Codegen("no code".into()))?;
+    let alignment = u64::from(compiled.buffer.alignment);
+    let relocs: Vec<ModuleReloc> =
+        compiled.buffer.relocs().iter().map(|r| ModuleReloc::from_mach_reloc(r, &ctx.func, id)).collect();
+    jit.define_function_bytes(id, alignment, compiled.code_buffer(), &relocs)
+        .map_err(|e| JitError::Codegen(format!("{e:?}")))?;
     let code_bytes = ctx.compiled_code().map_or(0, |c| c.code_info().total_size as usize);
     let disasm = ctx.compiled_code().and_then(|c| c.vcode.clone());
     jit.clear_context(&mut ctx);
