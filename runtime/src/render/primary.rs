@@ -341,11 +341,10 @@ fn camera_call(
     // library assign E, I and Ci first thing).
     let needed = |slot: Option<Slot>| slot.is_some_and(|s| !s.entry_unused);
     let pinhole = (needed(slots.i) || slots.i.is_none()).then(|| Pinhole::of(world));
-    // Each packet's raster positions as rows, gathered once for the fills and the finish.
-    let mut rasters = [([0.0f32; PACKET_SIZE], [0.0f32; PACKET_SIZE]); MAX_PACKETS_PER_CALL];
-    for (r, ps) in rasters.iter_mut().zip(packets) {
-        *r = raster_rows(&ps.samples);
-    }
+    // Each packet's raster positions as rows, gathered once for the fills and the finish (only
+    // the call's packets: a frame's calls have a tile's few, and zeroing rows for the most a call
+    // may have was a measurable part of a call).
+    let rasters: Vec<(Row, Row)> = packets.iter().map(|ps| raster_rows(&ps.samples)).collect();
     // Every lane of these globals is written below, or by the shader before it reads them (the
     // ones not filled here are `entry_unused`): the batch need not zero them first.
     let filled = varying_rows([
@@ -535,15 +534,11 @@ fn finish_shader_rays(
         let [dx, dy, dz] = made.dir.map(|r| quad(r, q));
         let [wr, wg, wb] = made.weight.map(|r| quad(r, q));
         let len = (dx * dx + dy * dy + dz * dz).sqrt();
-        let ok = ox.is_finite_mask()
-            & oy.is_finite_mask()
-            & oz.is_finite_mask()
-            & len.is_finite_mask()
-            & wr.is_finite_mask()
-            & wg.is_finite_mask()
-            & wb.is_finite_mask()
-            & len.cmpgt(Vec4::ZERO)
-            & wr.max(wg).max(wb).cmpgt(Vec4::ZERO);
+        // `x * 0` is zero for a finite `x` and NaN otherwise, so the sum is zero only when all
+        // seven are finite (`len` is not when a component of the direction is not).
+        let z = |x: Vec4| x * Vec4::ZERO;
+        let finite = (z(ox) + z(oy) + z(oz)) + (z(len) + z(wr) + z(wg) + z(wb));
+        let ok = finite.cmpeq(Vec4::ZERO) & len.cmpgt(Vec4::ZERO) & wr.max(wg).max(wb).cmpgt(Vec4::ZERO);
         let inv = Vec4::ONE / len;
         for (row, v) in [(&mut packet.dx.0, dx * inv), (&mut packet.dy.0, dy * inv), (&mut packet.dz.0, dz * inv)] {
             Vec4::select(ok, v, Vec4::ZERO).write_to_slice(&mut row[q..q + 4]);
@@ -599,9 +594,13 @@ fn quad(row: &Row, q: usize) -> Vec4 {
 /// is lane `l`'s neighbour along one raster axis (`FLIP` 1: x, 2: y), `along` the raster
 /// coordinate on that axis and `across` the other, `neighbour_valid` whether each lane's neighbour
 /// made a ray. Writes the change per step of the origin (into the rows given with `o`; none: a
-/// fixed origin) and of the direction `d` (into `dd`): `(v[neighbour] - v[lane]) / step`, zero
-/// where a component is not finite. Returns the lanes whose neighbour counts (it made a ray and
-/// lies about one step along the axis).
+/// fixed origin) and of the direction `d` (into `dd`): `(v[neighbour] - v[lane]) / step`. Returns
+/// the lanes whose neighbour counts (it made a ray and lies about one step along the axis).
+///
+/// Every value written is finite: a lane whose neighbour is not about one step away gets zero
+/// changes (and a cone from the caller), and the directions are finite unit vectors or zero, so
+/// their changes need no test; an origin's change, a difference of arbitrary finite values, is
+/// zeroed where it is not finite.
 fn quad_changes<const FLIP: usize>(
     along: &Row,
     across: &Row,
@@ -611,13 +610,9 @@ fn quad_changes<const FLIP: usize>(
     dd: &mut Rows3,
 ) -> u64 {
     let neighbour = |v: Vec4| if FLIP == 1 { v.yxwz() } else { v.zwxy() };
-    let changes = |v: [&Row; 3], inv: Vec4, q: usize, out: &mut Rows3| {
+    let changes = |v: [&Row; 3], inv: Vec4, q: usize| {
         let (x, y, z) = (quad(v[0], q), quad(v[1], q), quad(v[2], q));
-        let (cx, cy, cz) = ((neighbour(x) - x) * inv, (neighbour(y) - y) * inv, (neighbour(z) - z) * inv);
-        let finite = cx.is_finite_mask() & cy.is_finite_mask() & cz.is_finite_mask();
-        for (row, c) in out.iter_mut().zip([cx, cy, cz]) {
-            Vec4::select(finite, c, Vec4::ZERO).write_to_slice(&mut row[q..q + 4]);
-        }
+        [(neighbour(x) - x) * inv, (neighbour(y) - y) * inv, (neighbour(z) - z) * inv]
     };
     let mut usable = 0u64;
     for q in (0..PACKET_SIZE).step_by(4) {
@@ -625,11 +620,18 @@ fn quad_changes<const FLIP: usize>(
         let (step, other) = (neighbour(a) - a, neighbour(c) - c);
         let near = step.abs().cmpge(Vec4::splat(0.25)) & other.abs().cmple(step.abs() * 0.5);
         usable |= u64::from(near.bitmask()) << q;
-        let inv = Vec4::ONE / step;
+        // At most 4 where the neighbour is near; zero elsewhere, so that no change is infinite.
+        let inv = Vec4::select(near, Vec4::ONE / step, Vec4::ZERO);
         if let Some((o, out)) = o.as_mut() {
-            changes(*o, inv, q, out);
+            let c = changes(*o, inv, q);
+            let finite = c[0].is_finite_mask() & c[1].is_finite_mask() & c[2].is_finite_mask();
+            for (row, c) in out.iter_mut().zip(c) {
+                Vec4::select(finite, c, Vec4::ZERO).write_to_slice(&mut row[q..q + 4]);
+            }
         }
-        changes(d, inv, q, dd);
+        for (row, c) in dd.iter_mut().zip(changes(d, inv, q)) {
+            c.write_to_slice(&mut row[q..q + 4]);
+        }
     }
     usable & neighbour_valid
 }
