@@ -17,11 +17,14 @@
 //!   dominates every load that replaces one of its uses.
 //! - Loads go only into loop blocks (`in_loop`); uses outside the loop keep the value itself.
 //! - Nothing else writes the slot, so a load reads what the value was when its use would have run.
+//! - The pass runs on optimised code and nothing optimises after it (`define` in `mod.rs`): a
+//!   second e-graph pass would sink every pure instruction to its first side-effecting user, away
+//!   from the loads placed beside it.
 
 use cranelift_codegen::cursor::{Cursor, FuncCursor};
 use cranelift_codegen::ir::{
-    types, Block, ConstantData, Function, Inst, InstBuilder, InstructionData, Opcode, StackSlotData, StackSlotKind,
-    Type, Value, ValueDef,
+    types, Block, ConstantData, Function, Inst, InstBuilder, InstructionData, MemFlagsData, Opcode, StackSlotData,
+    StackSlotKind, Type, Value, ValueDef,
 };
 
 /// What a use in the loop refers to.
@@ -92,13 +95,20 @@ pub(super) fn keep_in_memory(func: &mut Function, ptr: Type, entry: Block, in_lo
             pos.ins().stack_store(ptr, value, slot, *offset);
         }
     }
+    // The slot's address, in a register through the loop: a load from it plus an offset is then a
+    // memory operand (one addressed as a stack slot costs an extra `lea` when sunk).
+    let Some(last) = pos.func.layout.last_inst(entry) else { return 0 };
+    pos.goto_inst(last);
+    let base = pos.ins().stack_addr(ptr, slot, 0);
     for (k, (inst, v, inv)) in uses.iter().enumerate() {
         let ty = match *inv {
             Invariant::Constant(ty, _) => ty,
             Invariant::Value(x) => pos.func.dfg.value_type(x),
         };
         pos.goto_inst(*inst);
-        let loaded = pos.ins().stack_load(ptr, ty, slot, (k * 16) as i32);
+        // Aligned (the slot and its entries are 16-byte aligned): x86-64 sinks only an aligned
+        // 128-bit load into a float instruction's memory operand.
+        let loaded = pos.ins().load(ty, MemFlagsData::trusted(), base, (k * 16) as i32);
         pos.func.dfg.map_inst_values(*inst, |x| if x == *v { loaded } else { x });
     }
     uses.len()

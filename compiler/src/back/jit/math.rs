@@ -115,11 +115,16 @@ pub(super) fn sincos4(b: B<'_, '_>, x: Value) -> (Value, Value, Value) {
         let m = b.ins().fcmp(FloatCC::LessThanOrEqual, ax, max);
         b.ins().vall_true(m)
     };
-    // j = (trunc(|x| * 4/pi) + 1) & !1; the saturating conversion agrees with SSE's on every
-    // lane within range, and the others take the fallback.
+    // j = (trunc(|x| * 4/pi) + 1) & !1; the conversion matters only on lanes within range (the
+    // others take the fallback), where SSE's truncating one (one instruction) and the saturating
+    // one (seven on x86-64) agree.
     let fopi = f(b, FOPI);
     let t = b.ins().fmul(ax, fopi);
-    let j = b.ins().fcvt_to_sint_sat(types::I32X4, t);
+    let j = if cfg!(target_arch = "x86_64") {
+        b.ins().x86_cvtt2dq(types::I32X4, t)
+    } else {
+        b.ins().fcvt_to_sint_sat(types::I32X4, t)
+    };
     let one = i(b, 1);
     let j = b.ins().iadd(j, one);
     let not_one = i(b, !1);
