@@ -20,8 +20,10 @@ camera fisheye(float fov = 180; string fit = "circle";)
     option("Format", format);
     uniform float aspect = max(format[0], format[1]) / max(1, min(format[0], format[1]));
     uniform float rim = (fit == "diagonal") ? sqrt(1 + aspect * aspect) : 1;
+    /* The angle per unit of r, worked out once. */
+    uniform float scale = radians(fov) / (2 * rim);
     float r = sqrt(s * s + t * t);
-    float theta = r * radians(fov) / (2 * rim);
+    float theta = r * scale;
     /* (s, t) / r is the cosine and sine of the angle around the optical axis, so the direction
      * needs no atan, and no sin and cos of it; at the centre s and t are 0 and any factor will do. */
     float k = (r > 0) ? sin(theta) / r : 0;

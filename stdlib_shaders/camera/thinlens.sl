@@ -41,7 +41,9 @@ camera thinlens(float fov = 0; float fstop = 0; float focallength = 0; float foc
      * plane is cast as a vector, which costs less per ray than casting the
      * focal point and subtracting. */
     uniform float lx = radius * r * cos(phi), ly = radius * r * sin(phi);
+    /* Screen position to the focal plane's, worked out once. */
+    uniform float tofocus = halfwidth * fd;
     E = point "camera" (lx, ly, 0);
-    I = vector "camera" (s * halfwidth * fd - lx, t * halfwidth * fd - ly, fd);
+    I = vector "camera" (s * tofocus - lx, t * tofocus - ly, fd);
     Ci = 1;
 }
