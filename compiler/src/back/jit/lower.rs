@@ -147,6 +147,11 @@ fn mem() -> MemFlagsData {
     MemFlagsData::trusted()
 }
 
+/// Memory that nothing writes while the shader runs: loads from it are pure.
+fn readonly() -> MemFlagsData {
+    MemFlagsData::trusted().with_readonly().with_can_move()
+}
+
 struct Lower<'m, 'b> {
     m: &'m Module,
     layout: &'m Layout,
@@ -346,12 +351,16 @@ impl<'m> Lower<'m, '_> {
     }
 
     fn load_slot(&mut self, vary: bool, offset: usize) -> Value {
+        self.load_slot_with(vary, offset, mem())
+    }
+
+    fn load_slot_with(&mut self, vary: bool, offset: usize, flags: MemFlagsData) -> Value {
         if vary {
             let a = self.addr(offset);
-            self.b.ins().load(types::F32X4, mem(), a, 0)
+            self.b.ins().load(types::F32X4, flags, a, 0)
         } else {
             let u = self.uniform.expect("chunk");
-            self.b.ins().load(types::F32, mem(), u, (offset * 4) as i32)
+            self.b.ins().load(types::F32, flags, u, (offset * 4) as i32)
         }
     }
 
@@ -471,6 +480,11 @@ impl<'m> Lower<'m, '_> {
             for (k, var) in s.vars.iter().enumerate() {
                 let v = match zero {
                     Some(z) => z,
+                    // A global the shader never writes is read-only memory while it runs (no
+                    // helper writes the batch's globals): its load is pure, so the optimiser drops
+                    // it where nothing uses it and places it at its first use, not at the chunk's
+                    // start with the value alive (or spilled) until then.
+                    None if !gs.written => self.load_slot_with(gs.varying, gs.offset + k, readonly()),
                     None => self.load_slot(gs.varying, gs.offset + k),
                 };
                 self.b.def_var(*var, v);
