@@ -290,6 +290,28 @@ fn globals_assigned_before_read_keep_the_lanes_that_did_not_run() {
     );
 }
 
+/// The chunk loop's uses of loop invariants (a sine's polynomial constants, the prologue's uniform
+/// values, a space's matrix entries) load from memory beside each use (`invariants.rs`), and the
+/// results still agree with the interpreter lane for lane, in full and partial chunks.
+#[test]
+fn loop_invariants_are_loaded_where_used_and_agree_with_the_interpreter() {
+    let src = r#"
+        surface waves(float freq = 7; float k = 0.5;)
+        {
+            uniform float scale = freq * 2 + k;
+            float a = sin(s * scale) * cos(t * freq);
+            vector d = vector "object" (a, s - k, t * scale);
+            Ci = color(a, xcomp(d), zcomp(d) * k);
+            Oi = (s > k) ? color(scale, 1, a) : Os;
+        }
+        "#;
+    check(src);
+    let shader = jit::compile(&module(src)).expect("compiles");
+    assert!(shader.invariant_loads >= 10, "only {} invariant loads", shader.invariant_loads);
+    let plain = jit::compile(&module("surface plain() { Ci = Cs; Oi = Os; }")).expect("compiles");
+    assert!(plain.invariant_loads < shader.invariant_loads);
+}
+
 #[test]
 fn float_and_triple_math() {
     check(

@@ -237,6 +237,8 @@ pub struct CompiledShader {
     reported: std::sync::Mutex<usize>,
     /// Cranelift IR instructions emitted (before optimisation), for compile-cost measurements.
     pub ir_insts: usize,
+    /// Uses of loop invariants inside the chunk loop that load from memory (`invariants.rs`).
+    pub invariant_loads: usize,
     /// Bytes of machine code in `module` (counted in [`live_code_bytes`] while `self` lives).
     code_bytes: usize,
 }
@@ -673,7 +675,7 @@ pub fn compile_with(
     }
     let mut jit = JITModule::new(builder);
     match define(m, &mut layout, &mut jit, &*final_isa, &shader.name, options, sources) {
-        Ok((entry, ir_insts, sites, code_bytes)) => {
+        Ok(Defined { entry, ir_insts, invariant_loads, sites, code_bytes }) => {
             LIVE_MODULES.fetch_add(1, Ordering::SeqCst);
             LIVE_CODE_BYTES.fetch_add(code_bytes, Ordering::SeqCst);
             Ok(CompiledShader {
@@ -681,6 +683,7 @@ pub fn compile_with(
                 entry,
                 layout: Arc::new(layout),
                 ir_insts,
+                invariant_loads,
                 code_bytes,
                 sites,
                 errors: RuntimeErrors::default(),
@@ -696,8 +699,20 @@ pub fn compile_with(
     }
 }
 
-/// Lowers and defines the shader function in `jit`: its entry point, IR instruction count, runtime
-/// check sites and bytes of machine code.
+/// What defining a shader's function produced.
+struct Defined {
+    entry: ShadeFn,
+    /// Cranelift IR instructions emitted (before optimisation).
+    ir_insts: usize,
+    /// Uses of loop invariants that load from memory (`invariants.rs`).
+    invariant_loads: usize,
+    /// Where each runtime check sits.
+    sites: Vec<String>,
+    /// Bytes of machine code.
+    code_bytes: usize,
+}
+
+/// Lowers and defines the shader function in `jit`.
 fn define(
     m: &ir::Module,
     layout: &mut Layout,
@@ -706,7 +721,7 @@ fn define(
     name: &str,
     options: &JitOptions,
     sources: Option<&crate::source::SourceMap>,
-) -> Result<(ShadeFn, usize, Vec<String>, usize), JitError> {
+) -> Result<Defined, JitError> {
     let ptr = jit.target_config().pointer_type();
     let mut ctx = jit.make_context();
     ctx.func.signature.params.push(AbiParam::new(ptr));
@@ -724,9 +739,10 @@ fn define(
     let fail = |e: cranelift_codegen::CodegenError| JitError::Codegen(format!("{e:?}"));
     let mut ctrl = Default::default();
     ctx.optimize(jit.isa(), &mut ctrl).map_err(fail)?;
+    let mut invariant_loads = 0;
     if let Some((entry, fixed, first)) = &lowered.loop_blocks {
         let in_loop = |b: cranelift_codegen::ir::Block| fixed.contains(&b) || b.as_u32() as usize >= *first;
-        invariants::keep_in_memory(&mut ctx.func, ptr, *entry, &in_loop);
+        invariant_loads = invariants::keep_in_memory(&mut ctx.func, ptr, *entry, &in_loop);
     }
     ctx.compile(final_isa, &mut ctrl).map_err(|e| fail(e.inner))?;
     let compiled = ctx.compiled_code().ok_or_else(|| JitError::Codegen("no code".into()))?;
@@ -744,7 +760,7 @@ fn define(
     // SAFETY: `code` is the function just defined with the signature `fn(*mut Batch)` (one pointer
     // argument, no result, the platform's C calling convention).
     let entry: ShadeFn = unsafe { std::mem::transmute::<*const u8, ShadeFn>(code) };
-    Ok((entry, lowered.insts, lowered.sites, code_bytes))
+    Ok(Defined { entry, ir_insts: lowered.insts, invariant_loads, sites: lowered.sites, code_bytes })
 }
 
 #[cfg(test)]
