@@ -10,8 +10,9 @@
 //! load used once next to its user becomes that instruction's memory operand.
 //!
 //! Invariants:
-//! - Only values of 128-bit vector types and `f32` are moved; integers (pointers, flags) stay in
-//!   registers, and scalar constants stay as they are (Cranelift rematerialises them).
+//! - Moved: vector constants, and values of 128-bit vector, `f32` and integer types (pointers, row
+//!   offsets, flags) defined outside the loop. Scalar constants stay as they are (Cranelift
+//!   rematerialises them).
 //! - A constant is stored at the function's entry, before anything runs; any other value right
 //!   after its definition (the first instruction of its block, for a block parameter), so the store
 //!   dominates every load that replaces one of its uses.
@@ -26,9 +27,10 @@ use cranelift_codegen::ir::{
     types, Block, ConstantData, Function, Inst, InstBuilder, InstructionData, MemFlagsData, Opcode, StackSlotData,
     StackSlotKind, Type, Value, ValueDef,
 };
+use std::collections::HashMap;
 
 /// What a use in the loop refers to.
-#[derive(Clone, Copy, PartialEq, Eq)]
+#[derive(Clone, Copy, PartialEq, Eq, Hash)]
 enum Invariant {
     /// A vector constant of this type and these bytes (little endian).
     Constant(Type, u128),
@@ -40,9 +42,8 @@ enum Invariant {
 /// is the function's entry block, `in_loop` tells the chunk loop's blocks. Returns how many uses
 /// now load.
 ///
-/// Each use has its own 16 bytes of the slot: alias analysis would merge loads of one address with
-/// no store between them into the first, and that value would then live from the first use to the
-/// last, which is what this pass is here to avoid.
+/// One 16-byte entry per invariant, loaded afresh at every use: nothing after this pass merges
+/// loads (alias analysis runs in the e-graph pass, which the final compilation skips).
 pub(super) fn keep_in_memory(func: &mut Function, ptr: Type, entry: Block, in_loop: &dyn Fn(Block) -> bool) -> usize {
     let mut uses: Vec<(Inst, Value, Invariant)> = Vec::new();
     for block in func.layout.blocks() {
@@ -59,25 +60,26 @@ pub(super) fn keep_in_memory(func: &mut Function, ptr: Type, entry: Block, in_lo
             }
         }
     }
+    // The invariants in the order first used, and each one's offset in the slot.
+    let mut invariants: Vec<Invariant> = Vec::new();
+    let mut offsets: HashMap<Invariant, i32> = HashMap::new();
+    for (_, _, inv) in &uses {
+        offsets.entry(*inv).or_insert_with(|| {
+            invariants.push(*inv);
+            ((invariants.len() - 1) * 16) as i32
+        });
+    }
+    let Some(last) = func.layout.last_inst(entry) else { return 0 };
     if uses.is_empty() {
         return 0;
     }
-    let size = (uses.len() * 16) as u32;
+    let size = (invariants.len() * 16) as u32;
     let slot = func.create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, size, 4));
-    // Each invariant's offsets, in the order first used.
-    let mut offsets: Vec<(Invariant, Vec<i32>)> = Vec::new();
-    for (k, (_, _, inv)) in uses.iter().enumerate() {
-        let offset = (k * 16) as i32;
-        match offsets.iter_mut().find(|(i, _)| i == inv) {
-            Some((_, list)) => list.push(offset),
-            None => offsets.push((*inv, vec![offset])),
-        }
-    }
+    let offset = |inv: &Invariant| offsets.get(inv).copied().unwrap_or(0);
     let mut pos = FuncCursor::new(func);
-    for (inv, list) in &offsets {
+    for inv in &invariants {
         let value = match *inv {
             Invariant::Constant(ty, bits) => {
-                let Some(last) = pos.func.layout.last_inst(entry) else { continue };
                 pos.goto_inst(last);
                 let handle = pos.func.dfg.constants.insert(ConstantData::from(bits.to_le_bytes().to_vec()));
                 pos.ins().vconst(ty, handle)
@@ -91,16 +93,13 @@ pub(super) fn keep_in_memory(func: &mut Function, ptr: Type, entry: Block, in_lo
                 v
             }
         };
-        for offset in list {
-            pos.ins().stack_store(ptr, value, slot, *offset);
-        }
+        pos.ins().stack_store(ptr, value, slot, offset(inv));
     }
     // The slot's address, in a register through the loop: a load from it plus an offset is then a
     // memory operand (one addressed as a stack slot costs an extra `lea` when sunk).
-    let Some(last) = pos.func.layout.last_inst(entry) else { return 0 };
     pos.goto_inst(last);
     let base = pos.ins().stack_addr(ptr, slot, 0);
-    for (k, (inst, v, inv)) in uses.iter().enumerate() {
+    for (inst, v, inv) in &uses {
         let ty = match *inv {
             Invariant::Constant(ty, _) => ty,
             Invariant::Value(x) => pos.func.dfg.value_type(x),
@@ -108,7 +107,7 @@ pub(super) fn keep_in_memory(func: &mut Function, ptr: Type, entry: Block, in_lo
         pos.goto_inst(*inst);
         // Aligned (the slot and its entries are 16-byte aligned): x86-64 sinks only an aligned
         // 128-bit load into a float instruction's memory operand.
-        let loaded = pos.ins().load(ty, MemFlagsData::trusted(), base, (k * 16) as i32);
+        let loaded = pos.ins().load(ty, MemFlagsData::trusted(), base, offset(inv));
         pos.func.dfg.map_inst_values(*inst, |x| if x == *v { loaded } else { x });
     }
     uses.len()
