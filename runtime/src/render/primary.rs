@@ -564,19 +564,11 @@ fn finish_shader_rays(
     let valid_y = ((valid >> 2) & 0x3333_3333_3333_3333) | ((valid << 2) & 0xCCCC_CCCC_CCCC_CCCC);
     // Every lane from its quad first (loops without a test per lane), then the few whose quad does
     // not count get a cone instead.
-    let (ux, uy) = if fixed_origin {
+    if fixed_origin {
         diffs.fixed_origin();
-        (
-            quad_changes::<1>(rx, ry, valid_x, None, d, &mut diffs.dddx),
-            quad_changes::<2>(ry, rx, valid_y, None, d, &mut diffs.dddy),
-        )
-    } else {
-        (
-            quad_changes::<1>(rx, ry, valid_x, Some((o, &mut diffs.dodx)), d, &mut diffs.dddx),
-            quad_changes::<2>(ry, rx, valid_y, Some((o, &mut diffs.dody)), d, &mut diffs.dddy),
-        )
-    };
-    let mut cones = packet.active & !(ux & uy);
+    }
+    let (ux, uy) = quad_differentials(rx, ry, (!fixed_origin).then_some(o), d, diffs);
+    let mut cones = packet.active & !(ux & valid_x & uy & valid_y);
     while cones != 0 {
         let l = cones.trailing_zeros() as usize;
         cones &= cones - 1;
@@ -590,50 +582,58 @@ fn quad(row: &Row, q: usize) -> Vec4 {
     Vec4::from_slice(&row[q..q + 4])
 }
 
-/// Ray differentials from the packet's 2x2 raster quads (four consecutive lanes): lane `l ^ FLIP`
-/// is lane `l`'s neighbour along one raster axis (`FLIP` 1: x, 2: y), `along` the raster
-/// coordinate on that axis and `across` the other, `neighbour_valid` whether each lane's neighbour
-/// made a ray. Writes the change per step of the origin (into the rows given with `o`; none: a
-/// fixed origin) and of the direction `d` (into `dd`): `(v[neighbour] - v[lane]) / step`. Returns
-/// the lanes whose neighbour counts (it made a ray and lies about one step along the axis).
+/// Ray differentials from the packet's 2x2 raster quads (four consecutive lanes): lane `l ^ 1` is
+/// lane `l`'s neighbour along x, lane `l ^ 2` along y, for samples at raster positions `(rx, ry)`.
+/// Writes the change per step of the origin `o` (none: a fixed origin, whose rows the caller
+/// zeroed) and of the direction `d`, `(v[neighbour] - v[lane]) / step`, into `diffs`. Returns the
+/// lanes whose x neighbour and whose y neighbour lie about one step away along their axis (the
+/// caller also asks whether they made rays). Both axes in one pass over the quads, which loads each
+/// row once.
 ///
 /// Every value written is finite: a lane whose neighbour is not about one step away gets zero
 /// changes (and a cone from the caller), and the directions are finite unit vectors or zero, so
 /// their changes need no test; an origin's change, a difference of arbitrary finite values, is
 /// zeroed where it is not finite.
-fn quad_changes<const FLIP: usize>(
-    along: &Row,
-    across: &Row,
-    neighbour_valid: u64,
-    mut o: Option<([&Row; 3], &mut Rows3)>,
+// Component-indexed loops over several rows at once (the direction's, and two outputs).
+#[allow(clippy::needless_range_loop)]
+fn quad_differentials(
+    rx: &Row,
+    ry: &Row,
+    o: Option<[&Row; 3]>,
     d: [&Row; 3],
-    dd: &mut Rows3,
-) -> u64 {
-    let neighbour = |v: Vec4| if FLIP == 1 { v.yxwz() } else { v.zwxy() };
-    let changes = |v: [&Row; 3], inv: Vec4, q: usize| {
-        let (x, y, z) = (quad(v[0], q), quad(v[1], q), quad(v[2], q));
-        [(neighbour(x) - x) * inv, (neighbour(y) - y) * inv, (neighbour(z) - z) * inv]
+    diffs: &mut DifferentialRows,
+) -> (u64, u64) {
+    // The reciprocal step to the neighbour where it is about one step away along its axis (at
+    // most 4), zero elsewhere, so that no change is infinite; and those lanes.
+    let near = |step: Vec4, drift: Vec4| {
+        let near = step.abs().cmpge(Vec4::splat(0.25)) & drift.abs().cmple(step.abs() * 0.5);
+        (Vec4::select(near, Vec4::ONE / step, Vec4::ZERO), u64::from(near.bitmask()))
     };
-    let mut usable = 0u64;
+    let (mut ux, mut uy) = (0u64, 0u64);
     for q in (0..PACKET_SIZE).step_by(4) {
-        let (a, c) = (quad(along, q), quad(across, q));
-        let (step, other) = (neighbour(a) - a, neighbour(c) - c);
-        let near = step.abs().cmpge(Vec4::splat(0.25)) & other.abs().cmple(step.abs() * 0.5);
-        usable |= u64::from(near.bitmask()) << q;
-        // At most 4 where the neighbour is near; zero elsewhere, so that no change is infinite.
-        let inv = Vec4::select(near, Vec4::ONE / step, Vec4::ZERO);
-        if let Some((o, out)) = o.as_mut() {
-            let c = changes(*o, inv, q);
-            let finite = c[0].is_finite_mask() & c[1].is_finite_mask() & c[2].is_finite_mask();
-            for (row, c) in out.iter_mut().zip(c) {
-                Vec4::select(finite, c, Vec4::ZERO).write_to_slice(&mut row[q..q + 4]);
+        let (x, y) = (quad(rx, q), quad(ry, q));
+        let (inv_x, nx) = near(x.yxwz() - x, y.yxwz() - y);
+        let (inv_y, ny) = near(y.zwxy() - y, x.zwxy() - x);
+        ux |= nx << q;
+        uy |= ny << q;
+        for k in 0..3 {
+            let v = quad(d[k], q);
+            ((v.yxwz() - v) * inv_x).write_to_slice(&mut diffs.dddx[k][q..q + 4]);
+            ((v.zwxy() - v) * inv_y).write_to_slice(&mut diffs.dddy[k][q..q + 4]);
+        }
+        if let Some(o) = o {
+            let v = [quad(o[0], q), quad(o[1], q), quad(o[2], q)];
+            let cx = v.map(|v| (v.yxwz() - v) * inv_x);
+            let cy = v.map(|v| (v.zwxy() - v) * inv_y);
+            let finite = |c: &[Vec4; 3]| c[0].is_finite_mask() & c[1].is_finite_mask() & c[2].is_finite_mask();
+            let (fx, fy) = (finite(&cx), finite(&cy));
+            for k in 0..3 {
+                Vec4::select(fx, cx[k], Vec4::ZERO).write_to_slice(&mut diffs.dodx[k][q..q + 4]);
+                Vec4::select(fy, cy[k], Vec4::ZERO).write_to_slice(&mut diffs.dody[k][q..q + 4]);
             }
         }
-        for (row, c) in dd.iter_mut().zip(changes(d, inv, q)) {
-            c.write_to_slice(&mut row[q..q + 4]);
-        }
     }
-    usable & neighbour_valid
+    (ux, uy)
 }
 
 /// The built-in pinhole camera's unit directions through raster positions `(rx, ry)`, as rows
