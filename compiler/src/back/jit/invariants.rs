@@ -60,6 +60,7 @@ pub(super) fn keep_in_memory(func: &mut Function, ptr: Type, entry: Block, in_lo
             }
         }
     }
+    let Some(last) = func.layout.last_inst(entry).filter(|_| !uses.is_empty()) else { return 0 };
     // The invariants in the order first used, and each one's offset in the slot.
     let mut invariants: Vec<Invariant> = Vec::new();
     let mut offsets: HashMap<Invariant, i32> = HashMap::new();
@@ -68,10 +69,6 @@ pub(super) fn keep_in_memory(func: &mut Function, ptr: Type, entry: Block, in_lo
             invariants.push(*inv);
             ((invariants.len() - 1) * 16) as i32
         });
-    }
-    let Some(last) = func.layout.last_inst(entry) else { return 0 };
-    if uses.is_empty() {
-        return 0;
     }
     let size = (invariants.len() * 16) as u32;
     let slot = func.create_sized_stack_slot(StackSlotData::new(StackSlotKind::ExplicitSlot, size, 4));

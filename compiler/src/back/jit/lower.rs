@@ -528,7 +528,8 @@ impl<'m> Lower<'m, '_> {
     }
 
     /// The once-per-batch prologue (`hoist.rs`): the uniform parameters and the body's hoisted
-    /// statements in a frame of their own; returns that frame's variables for the chunks to copy.
+    /// statements in a frame of their own; returns, by variable, the values it left in the
+    /// variables it wrote, for each chunk's frame to start from.
     fn prologue(&mut self, shader: &'m ir::Shader, bound_p: Value, prefix: &Prefix) -> R<Vec<Option<Vec<Value>>>> {
         self.load_globals(false)?;
         let body = self.m.function(shader.body);

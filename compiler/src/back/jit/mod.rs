@@ -749,10 +749,10 @@ fn define(
     let alignment = u64::from(compiled.buffer.alignment);
     let relocs: Vec<ModuleReloc> =
         compiled.buffer.relocs().iter().map(|r| ModuleReloc::from_mach_reloc(r, &ctx.func, id)).collect();
+    let code_bytes = compiled.code_info().total_size as usize;
+    let disasm = compiled.vcode.clone();
     jit.define_function_bytes(id, alignment, compiled.code_buffer(), &relocs)
         .map_err(|e| JitError::Codegen(format!("{e:?}")))?;
-    let code_bytes = ctx.compiled_code().map_or(0, |c| c.code_info().total_size as usize);
-    let disasm = ctx.compiled_code().and_then(|c| c.vcode.clone());
     jit.clear_context(&mut ctx);
     jit.finalize_definitions().map_err(|e| JitError::Codegen(e.to_string()))?;
     let code = jit.get_finalized_function(id);
