@@ -122,6 +122,21 @@ fn the_pinhole_shaders_rays_and_differentials_are_the_built_in_cameras() -> Resu
             assert_eq!(alone.diffs.lane(lane), made.diffs.lane(lane), "lane {lane}");
         }
     }
+    // A frame's packets say that their samples are one pixel apart (`unit_steps`), which skips
+    // working the steps out from the raster positions: the same differentials.
+    let on_grid: Vec<PacketSamples> = packets.iter().map(|p| PacketSamples { unit_steps: true, ..*p }).collect();
+    let mut by_grid = vec![PrimaryRays::default(); packets.len()];
+    primary_rays_of_packets(&Frame::new(&world), &on_grid, &mut by_grid);
+    for (p, (made, grid)) in packets.iter().zip(together.iter().zip(&by_grid)) {
+        assert_eq!(made.packet.active, grid.packet.active);
+        for lane in (0..64).filter(|l| p.active >> l & 1 != 0) {
+            assert_eq!(made.packet.get(lane), grid.packet.get(lane), "lane {lane}");
+            let (a, b) = (made.diffs.lane(lane), grid.diffs.lane(lane));
+            for (x, y) in [(a.dddx, b.dddx), (a.dddy, b.dddy), (a.dodx, b.dodx), (a.dody, b.dody)] {
+                assert!((x - y).length() <= 1e-6 * x.length().max(1e-6), "lane {lane}: {x} {y}");
+            }
+        }
+    }
     world.camera_shader = None;
     for (p, made) in packets.iter().zip(&together) {
         let builtin = primary_rays(&Frame::new(&world), &p.samples, p.active);

@@ -284,6 +284,7 @@ fn camera_samples_into(world: &World, x0: u32, y0: u32, sample: (u32, u32), out:
     }
     out.active = active;
     out.shared_lens = Some(lens);
+    out.unit_steps = offset.is_some();
 }
 
 /// The primary rays of one 8x8 packet for sample `(i, j)` of each pixel, from the bound camera

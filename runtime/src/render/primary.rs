@@ -19,7 +19,7 @@ use super::shade::Frame;
 use super::world::World;
 use crate::ray::{Ray, RayPacket, PACKET_SIZE};
 use crate::shading::{fill1, fill3, put_row_at, varying_rows, with_filled_batch, Slot};
-use glam::{Vec3A, Vec4, Vec4Swizzles};
+use glam::{BVec4A, Vec3A, Vec4, Vec4Swizzles};
 use rtsl_compiler::back::jit::RawBatch;
 
 /// Where on the image, lens and shutter a primary ray starts.
@@ -213,6 +213,10 @@ pub struct PacketSamples {
     /// packets that share one, and once per distinct lens sample for a packet whose lanes
     /// differ. [`PacketSamples::new`] works it out; a frame knows it without looking.
     pub shared_lens: Option<(f32, f32)>,
+    /// The samples lie on the pixel grid with one sub-pixel offset for all (a frame's packets
+    /// without jitter): each 2x2 quad of lanes is one pixel apart along x and along y, so the
+    /// differentials need no steps worked out from the raster positions. `false` says nothing.
+    pub unit_steps: bool,
 }
 
 impl Default for PacketSamples {
@@ -226,7 +230,7 @@ impl PacketSamples {
     pub fn new(samples: [CameraSample; PACKET_SIZE], active: u64) -> PacketSamples {
         let lens = samples[0].lens;
         let shared = samples.iter().fold(true, |all, s| all & same_lens(s.lens, lens));
-        PacketSamples { samples, active, shared_lens: shared.then_some(lens) }
+        PacketSamples { samples, active, shared_lens: shared.then_some(lens), unit_steps: false }
     }
 }
 
@@ -417,24 +421,28 @@ fn camera_call(
         // The rays are read straight from the batch (the renderer's side of the call, so within
         // the shading timers), without copying them out first.
         let raw = batch.raw_mut();
-        // Rows for the uniform globals and the pinhole's directions, written only where needed.
-        let mut scratch = [[[0.0f32; PACKET_SIZE]; 3]; 3];
+        // Where the rays' parts are: the batch's rows for a varying global, else rows holding its
+        // uniform value (or the default), filled once for the call's packets.
+        let origins = MadeRows::of(&raw, slots.e, eye.to_array());
+        let weights = MadeRows::of(&raw, slots.ci, [1.0; 3]);
+        // A shader without `I` makes the pinhole's rays.
+        let dirs = match (slots.i, &pinhole) {
+            (None, Some(pinhole)) => Err(pinhole),
+            _ => Ok(MadeRows::of(&raw, slots.i, [0.0; 3])),
+        };
+        let mut pinhole_rows = [[0.0f32; PACKET_SIZE]; 3];
         for (p, (ps, o)) in packets.iter().zip(out.iter_mut()).enumerate() {
             let first = p * PACKET_SIZE;
-            let [origin_rows, dir_rows, weight_rows] = &mut scratch;
-            let dir = match (slots.i, &pinhole) {
-                (None, Some(pinhole)) => {
-                    let [x, y, z] = dir_rows;
+            let dir = match &dirs {
+                Ok(dirs) => dirs.rows(raw.varying, first),
+                Err(pinhole) => {
+                    let [x, y, z] = &mut pinhole_rows;
                     pinhole_directions(pinhole, &rasters[p].0, &rasters[p].1, [x, y, z]);
-                    dir_rows.each_ref()
+                    pinhole_rows.each_ref()
                 }
-                _ => rows_of(&raw, slots.i, first, [0.0; 3], dir_rows),
             };
-            let made = MadeRays {
-                origin: rows_of(&raw, slots.e, first, eye.to_array(), origin_rows),
-                dir,
-                weight: rows_of(&raw, slots.ci, first, [1.0; 3], weight_rows),
-            };
+            let made =
+                MadeRays { origin: origins.rows(raw.varying, first), dir, weight: weights.rows(raw.varying, first) };
             match unfinished.as_mut() {
                 None => finish_shader_rays(frame, ps, &rasters[p], &made, o),
                 Some((keep, weights)) => made.keep(*keep, &mut o.packet, weights),
@@ -452,33 +460,43 @@ struct MadeRays<'a> {
     weight: [&'a Row; 3],
 }
 
-/// The rows of a triple global for the packet at lanes `first ..` of a batch: the batch's own rows
-/// when the global is varying, else rows of `scratch` filled with its uniform value (or with
-/// `defaults` when the shader does not have it).
-fn rows_of<'a>(
-    raw: &'a RawBatch<'_>,
-    slot: Option<Slot>,
-    first: usize,
-    defaults: [f32; 3],
-    scratch: &'a mut Rows3,
-) -> [&'a Row; 3] {
-    let varying: &'a [f32] = raw.varying;
-    let batch_row = |k: usize| -> Option<&'a Row> {
-        let s = slot.filter(|s| s.varying)?;
-        let row = (s.offset + k) * raw.stride + first;
-        varying.get(row..row + PACKET_SIZE)?.try_into().ok()
-    };
-    for (k, row) in scratch.iter_mut().enumerate() {
-        if batch_row(k).is_none() {
-            let value = match slot {
-                Some(s) if !s.varying => raw.uniform.get(s.offset + k).copied(),
-                _ => None,
-            };
-            *row = [value.unwrap_or(defaults[k]); PACKET_SIZE];
+/// Where a triple global's rows lie after a camera shader call, worked out once per call.
+// One lives on the stack for a call: boxing the uniform rows would allocate per call.
+#[allow(clippy::large_enum_variant)]
+enum MadeRows {
+    /// A varying global: where its three rows start in the batch's varying floats (lane 0).
+    Batch([usize; 3]),
+    /// A uniform global (or one the shader does not have): its value in every lane.
+    Uniform(Rows3),
+}
+
+impl MadeRows {
+    /// The rows of the global in `slot` (its value when uniform, `defaults` when absent).
+    fn of(raw: &RawBatch<'_>, slot: Option<Slot>, defaults: [f32; 3]) -> MadeRows {
+        match slot {
+            Some(s) if s.varying => MadeRows::Batch([0, 1, 2].map(|k| (s.offset + k) * raw.stride)),
+            _ => {
+                let value = |k: usize| match slot {
+                    Some(s) => raw.uniform.get(s.offset + k).copied().unwrap_or(defaults[k]),
+                    None => defaults[k],
+                };
+                MadeRows::Uniform([0, 1, 2].map(|k| [value(k); PACKET_SIZE]))
+            }
         }
     }
-    let scratch: &'a Rows3 = scratch;
-    [0, 1, 2].map(|k| batch_row(k).unwrap_or(&scratch[k]))
+
+    /// The rows of the packet at lanes `first ..` of the batch whose varying floats are `varying`
+    /// (zero rows where the batch is too short, which a batch of the call's lanes never is).
+    fn rows<'a>(&'a self, varying: &'a [f32], first: usize) -> [&'a Row; 3] {
+        const ZERO: Row = [0.0; PACKET_SIZE];
+        match self {
+            MadeRows::Batch(starts) => starts.map(|start| {
+                let at = start + first;
+                varying.get(at..at + PACKET_SIZE).and_then(|row| row.try_into().ok()).unwrap_or(&ZERO)
+            }),
+            MadeRows::Uniform(rows) => rows.each_ref(),
+        }
+    }
 }
 
 impl MadeRays<'_> {
@@ -506,9 +524,10 @@ impl MadeRays<'_> {
 
 /// Makes a packet of rays from what a camera shader made (`made`, read where the shader left it)
 /// for samples at raster positions `(rx, ry)`: drops the lanes that made no usable ray, normalises
-/// the directions, and works out the ray differentials. Four lanes at a time (`Vec4`): this runs
-/// for every packet a camera shader makes, and written lane by lane it cost several times the
-/// shader.
+/// the directions, and works out the ray differentials. One pass over the packet, four lanes at a
+/// time (`Vec4`), the differentials taken from each quad's directions while they are in registers:
+/// this runs for every packet a camera shader makes, and written lane by lane it cost several times
+/// the shader.
 fn finish_shader_rays(
     frame: &Frame,
     ps: &PacketSamples,
@@ -518,57 +537,72 @@ fn finish_shader_rays(
 ) {
     let PrimaryRays { packet, diffs, weights } = out;
     // Most cameras give every ray of a packet one origin (a thin lens samples one lens position
-    // per packet): then the origin does not change from lane to lane.
-    // Bit for bit, without an early exit per lane, so that it compiles to vector code.
+    // per packet): then it is checked and written once, and the origins do not change from lane to
+    // lane. Bit for bit, without an early exit per lane, so that it compiles to vector code.
     let same = |row: &Row| {
         let first = row[0].to_bits();
         row.iter().fold(0, |differ, v| differ | (v.to_bits() ^ first)) == 0
     };
-    let fixed_origin = made.origin.iter().all(|o| same(o));
+    let fixed = made.origin.iter().all(|o| same(o)).then(|| made.origin.map(|row| row[0]));
+    let origin_ok = BVec4A::splat(fixed.is_none_or(|o| o.iter().all(|v| v.is_finite())));
+    if let Some(o) = fixed {
+        for (row, v) in [&mut packet.ox.0, &mut packet.oy.0, &mut packet.oz.0].into_iter().zip(o) {
+            *row = [v; PACKET_SIZE];
+        }
+        diffs.fixed_origin();
+    }
     // A lane makes a ray when its origin is finite, its direction finite and not zero, and its
-    // weight finite with a positive component; the others are zeroed. Weights are clamped at
-    // zero in every lane, active or not (inactive lanes are undefined).
-    let mut valid = 0u64;
+    // weight finite with a positive component; the others get a zero direction (and a zero origin
+    // when the origins differ). Weights are clamped at zero in every lane, active or not (inactive
+    // lanes are undefined).
+    let (mut valid, mut near_x, mut near_y) = (0u64, 0u64, 0u64);
     for q in (0..PACKET_SIZE).step_by(4) {
-        let [ox, oy, oz] = made.origin.map(|r| quad(r, q));
         let [dx, dy, dz] = made.dir.map(|r| quad(r, q));
         let [wr, wg, wb] = made.weight.map(|r| quad(r, q));
+        let origin = fixed.is_none().then(|| made.origin.map(|r| quad(r, q)));
         let len = (dx * dx + dy * dy + dz * dz).sqrt();
         // `x * 0` is zero for a finite `x` and NaN otherwise, so the sum is zero only when all
-        // seven are finite (`len` is not when a component of the direction is not).
+        // are finite (`len` is not when a component of the direction is not).
         let z = |x: Vec4| x * Vec4::ZERO;
-        let finite = (z(ox) + z(oy) + z(oz)) + (z(len) + z(wr) + z(wg) + z(wb));
-        let ok = finite.cmpeq(Vec4::ZERO) & len.cmpgt(Vec4::ZERO) & wr.max(wg).max(wb).cmpgt(Vec4::ZERO);
-        let inv = Vec4::ONE / len;
-        for (row, v) in [(&mut packet.dx.0, dx * inv), (&mut packet.dy.0, dy * inv), (&mut packet.dz.0, dz * inv)] {
-            Vec4::select(ok, v, Vec4::ZERO).write_to_slice(&mut row[q..q + 4]);
+        let mut finite = z(len) + z(wr) + z(wg) + z(wb);
+        if let Some([ox, oy, oz]) = origin {
+            finite += z(ox) + z(oy) + z(oz);
         }
-        for (row, v) in [(&mut packet.ox.0, ox), (&mut packet.oy.0, oy), (&mut packet.oz.0, oz)] {
-            Vec4::select(ok, v, Vec4::ZERO).write_to_slice(&mut row[q..q + 4]);
+        let ok = finite.cmpeq(Vec4::ZERO) & len.cmpgt(Vec4::ZERO) & wr.max(wg).max(wb).cmpgt(Vec4::ZERO) & origin_ok;
+        let inv = Vec4::ONE / len;
+        let d = [dx, dy, dz].map(|v| Vec4::select(ok, v * inv, Vec4::ZERO));
+        for (row, v) in [&mut packet.dx.0, &mut packet.dy.0, &mut packet.dz.0].into_iter().zip(d) {
+            v.write_to_slice(&mut row[q..q + 4]);
         }
         for (row, w) in weights.iter_mut().zip([wr, wg, wb]) {
             // `max` answers zero for NaN, as `f32::max` does.
             w.max(Vec4::ZERO).write_to_slice(&mut row[q..q + 4]);
         }
         valid |= u64::from(ok.bitmask()) << q;
+        let steps = if ps.unit_steps { QuadSteps::UNIT } else { QuadSteps::new(quad(rx, q), quad(ry, q)) };
+        near_x |= u64::from(steps.near_x) << q;
+        near_y |= u64::from(steps.near_y) << q;
+        steps.changes(d, [&mut diffs.dddx, &mut diffs.dddy], q);
+        if let Some(o) = origin {
+            let o = o.map(|v| Vec4::select(ok, v, Vec4::ZERO));
+            for (row, v) in [&mut packet.ox.0, &mut packet.oy.0, &mut packet.oz.0].into_iter().zip(o) {
+                v.write_to_slice(&mut row[q..q + 4]);
+            }
+            steps.finite_changes(o, [&mut diffs.dodx, &mut diffs.dody], q);
+        }
     }
     packet.tmin.0 = [0.0; PACKET_SIZE];
     packet.tmax.0 = [f32::INFINITY; PACKET_SIZE];
     packet.time.0 = std::array::from_fn(|l| ps.samples[l].time);
     packet.active = ps.active & valid;
-    let o = [&packet.ox.0, &packet.oy.0, &packet.oz.0];
-    let d = [&packet.dx.0, &packet.dy.0, &packet.dz.0];
     // Lane l ^ 1 is a lane's horizontal neighbour, l ^ 2 its vertical one: whether the neighbour
     // made a ray is `valid` with those bits swapped.
     let valid_x = ((valid >> 1) & 0x5555_5555_5555_5555) | ((valid << 1) & 0xAAAA_AAAA_AAAA_AAAA);
     let valid_y = ((valid >> 2) & 0x3333_3333_3333_3333) | ((valid << 2) & 0xCCCC_CCCC_CCCC_CCCC);
     // Every lane from its quad first (loops without a test per lane), then the few whose quad does
     // not count get a cone instead.
-    if fixed_origin {
-        diffs.fixed_origin();
-    }
-    let (ux, uy) = quad_differentials(rx, ry, (!fixed_origin).then_some(o), d, diffs);
-    let mut cones = packet.active & !(ux & valid_x & uy & valid_y);
+    let d = [&packet.dx.0, &packet.dy.0, &packet.dz.0];
+    let mut cones = packet.active & !(near_x & valid_x & near_y & valid_y);
     while cones != 0 {
         let l = cones.trailing_zeros() as usize;
         cones &= cones - 1;
@@ -582,58 +616,67 @@ fn quad(row: &Row, q: usize) -> Vec4 {
     Vec4::from_slice(&row[q..q + 4])
 }
 
-/// Ray differentials from the packet's 2x2 raster quads (four consecutive lanes): lane `l ^ 1` is
-/// lane `l`'s neighbour along x, lane `l ^ 2` along y, for samples at raster positions `(rx, ry)`.
-/// Writes the change per step of the origin `o` (none: a fixed origin, whose rows the caller
-/// zeroed) and of the direction `d`, `(v[neighbour] - v[lane]) / step`, into `diffs`. Returns the
-/// lanes whose x neighbour and whose y neighbour lie about one step away along their axis (the
-/// caller also asks whether they made rays). Both axes in one pass over the quads, which loads each
-/// row once.
-///
-/// Every value written is finite: a lane whose neighbour is not about one step away gets zero
-/// changes (and a cone from the caller), and the directions are finite unit vectors or zero, so
-/// their changes need no test; an origin's change, a difference of arbitrary finite values, is
-/// zeroed where it is not finite.
-// Component-indexed loops over several rows at once (the direction's, and two outputs).
-#[allow(clippy::needless_range_loop)]
-fn quad_differentials(
-    rx: &Row,
-    ry: &Row,
-    o: Option<[&Row; 3]>,
-    d: [&Row; 3],
-    diffs: &mut DifferentialRows,
-) -> (u64, u64) {
-    // The reciprocal step to the neighbour where it is about one step away along its axis (at
-    // most 4), zero elsewhere, so that no change is infinite; and those lanes.
-    let near = |step: Vec4, drift: Vec4| {
-        let near = step.abs().cmpge(Vec4::splat(0.25)) & drift.abs().cmple(step.abs() * 0.5);
-        (Vec4::select(near, Vec4::ONE / step, Vec4::ZERO), u64::from(near.bitmask()))
+/// The steps across one 2x2 raster quad (four consecutive lanes of a packet): lane `l ^ 1` is lane
+/// `l`'s neighbour along x, lane `l ^ 2` along y. A value's change per step is
+/// `(v[neighbour] - v[lane]) / step`.
+struct QuadSteps {
+    /// The reciprocal step to each lane's neighbour along x where that neighbour lies about one
+    /// step away along x (at least a quarter pixel, drifting at most half a step in y), zero
+    /// elsewhere, so that no change is infinite.
+    inv_x: Vec4,
+    /// The same along y.
+    inv_y: Vec4,
+    /// The lanes whose neighbour along x, and along y, is near (bit per lane; the caller also asks
+    /// whether the neighbours made rays, and gives the others a cone).
+    near_x: u32,
+    near_y: u32,
+}
+
+impl QuadSteps {
+    /// A quad of samples one pixel apart: lanes 0 and 2 have their x neighbour one pixel to the
+    /// right, lanes 0 and 1 their y neighbour one pixel down.
+    const UNIT: QuadSteps = QuadSteps {
+        inv_x: Vec4::new(1.0, -1.0, 1.0, -1.0),
+        inv_y: Vec4::new(1.0, 1.0, -1.0, -1.0),
+        near_x: 0b1111,
+        near_y: 0b1111,
     };
-    let (mut ux, mut uy) = (0u64, 0u64);
-    for q in (0..PACKET_SIZE).step_by(4) {
-        let (x, y) = (quad(rx, q), quad(ry, q));
-        let (inv_x, nx) = near(x.yxwz() - x, y.yxwz() - y);
-        let (inv_y, ny) = near(y.zwxy() - y, x.zwxy() - x);
-        ux |= nx << q;
-        uy |= ny << q;
-        for k in 0..3 {
-            let v = quad(d[k], q);
-            ((v.yxwz() - v) * inv_x).write_to_slice(&mut diffs.dddx[k][q..q + 4]);
-            ((v.zwxy() - v) * inv_y).write_to_slice(&mut diffs.dddy[k][q..q + 4]);
-        }
-        if let Some(o) = o {
-            let v = [quad(o[0], q), quad(o[1], q), quad(o[2], q)];
-            let cx = v.map(|v| (v.yxwz() - v) * inv_x);
-            let cy = v.map(|v| (v.zwxy() - v) * inv_y);
-            let finite = |c: &[Vec4; 3]| c[0].is_finite_mask() & c[1].is_finite_mask() & c[2].is_finite_mask();
-            let (fx, fy) = (finite(&cx), finite(&cy));
-            for k in 0..3 {
-                Vec4::select(fx, cx[k], Vec4::ZERO).write_to_slice(&mut diffs.dodx[k][q..q + 4]);
-                Vec4::select(fy, cy[k], Vec4::ZERO).write_to_slice(&mut diffs.dody[k][q..q + 4]);
-            }
+
+    /// The steps of a quad at raster positions `(x, y)`.
+    #[inline(always)]
+    fn new(x: Vec4, y: Vec4) -> QuadSteps {
+        let near = |step: Vec4, drift: Vec4| {
+            let near = step.abs().cmpge(Vec4::splat(0.25)) & drift.abs().cmple(step.abs() * 0.5);
+            (Vec4::select(near, Vec4::ONE / step, Vec4::ZERO), near.bitmask())
+        };
+        let (inv_x, near_x) = near(x.yxwz() - x, y.yxwz() - y);
+        let (inv_y, near_y) = near(y.zwxy() - y, x.zwxy() - x);
+        QuadSteps { inv_x, inv_y, near_x, near_y }
+    }
+
+    /// Writes the change per step of a vector `v` along x and along y into lanes `q .. q + 4` of
+    /// `[dx, dy]`. Finite when `v` is: the directions are finite unit vectors or zero.
+    #[inline(always)]
+    fn changes(&self, v: [Vec4; 3], [dx, dy]: [&mut Rows3; 2], q: usize) {
+        for (k, v) in v.into_iter().enumerate() {
+            ((v.yxwz() - v) * self.inv_x).write_to_slice(&mut dx[k][q..q + 4]);
+            ((v.zwxy() - v) * self.inv_y).write_to_slice(&mut dy[k][q..q + 4]);
         }
     }
-    (ux, uy)
+
+    /// [`QuadSteps::changes`] of a vector whose components may be any finite values (origins), so
+    /// that a difference may overflow: a lane whose change is not finite gets zero.
+    #[inline(always)]
+    fn finite_changes(&self, v: [Vec4; 3], [dx, dy]: [&mut Rows3; 2], q: usize) {
+        let cx = v.map(|v| (v.yxwz() - v) * self.inv_x);
+        let cy = v.map(|v| (v.zwxy() - v) * self.inv_y);
+        let finite = |c: &[Vec4; 3]| c[0].is_finite_mask() & c[1].is_finite_mask() & c[2].is_finite_mask();
+        let (fx, fy) = (finite(&cx), finite(&cy));
+        for k in 0..3 {
+            Vec4::select(fx, cx[k], Vec4::ZERO).write_to_slice(&mut dx[k][q..q + 4]);
+            Vec4::select(fy, cy[k], Vec4::ZERO).write_to_slice(&mut dy[k][q..q + 4]);
+        }
+    }
 }
 
 /// The built-in pinhole camera's unit directions through raster positions `(rx, ry)`, as rows
