@@ -420,6 +420,26 @@ fn inline_sine_and_cosine_are_the_interpreters_bits_in_every_chunk() {
     }
 }
 
+/// The inline sine's fallback for a chunk with a lane beyond its range goes through a trampoline
+/// that keeps every register: the many values live across that call (here in registers, not
+/// spilled) must arrive intact, in chunks that take the fallback and chunks that do not.
+#[test]
+fn values_live_across_the_sine_fallback_survive_it() {
+    check(
+        r#"
+        surface keep(output varying float o = 0;)
+        {
+            float a = s * t, b = s + u, c = t - v, d = u * v, e = s / (1 + t), f = t * t + u;
+            vector w = vector(a, b, c) + vector(d, e, f);
+            float x = sin(s * 20000) + cos(t * 30000);
+            float y = sin(u * 3) * cos(v * 2);
+            Ci = color(x * a + b, y * c + d, e * f - x) + color(xcomp(w), ycomp(w), zcomp(w));
+            o = a + b + c + d + e + f + x * y + xcomp(w) * ycomp(w) * zcomp(w);
+        }
+        "#,
+    );
+}
+
 #[test]
 fn divergent_if_else_and_ternary() {
     check(

@@ -63,6 +63,7 @@ use cranelift_codegen::ir::condcodes::{FloatCC, IntCC};
 use cranelift_codegen::ir::{
     types, AbiParam, Block, FuncRef, InstBuilder, MemFlagsData, StackSlotData, StackSlotKind, Value,
 };
+use cranelift_codegen::isa::CallConv;
 use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext, Variable};
 use cranelift_jit::JITModule;
 use cranelift_module::{Linkage, Module as _};
@@ -158,6 +159,9 @@ struct Lower<'m, 'b> {
     b: FunctionBuilder<'b>,
     jit: &'m mut JITModule,
     helpers: HashMap<&'static str, FuncRef>,
+    /// The helpers called through a register-preserving trampoline (see `keep_registers_call`):
+    /// each trampoline's id in the module and the helper it calls, for `define` to compile.
+    trampolines: Vec<(cranelift_module::FuncId, &'static str)>,
     exec: Variable,
     vdepth: u32,
     div: u32,
@@ -220,6 +224,9 @@ pub(super) struct Lowered {
     pub sites: Vec<String>,
     /// The entry block and the chunk loop's blocks (see `Lower::loop_blocks`).
     pub loop_blocks: Option<(Block, Vec<Block>, usize)>,
+    /// The register-preserving trampolines the code calls, to define in the module (see
+    /// `super::define_trampoline`): each one's id and the helper it calls.
+    pub trampolines: Vec<(cranelift_module::FuncId, &'static str)>,
 }
 
 pub(super) fn lower(
@@ -242,6 +249,7 @@ pub(super) fn lower(
         b,
         jit,
         helpers: HashMap::new(),
+        trampolines: Vec::new(),
         exec,
         vdepth: 0,
         div: 0,
@@ -277,8 +285,9 @@ pub(super) fn lower(
     let strings = std::mem::take(&mut l.strings);
     let sites = std::mem::take(&mut l.sites);
     let loop_blocks = l.loop_blocks.take();
+    let trampolines = std::mem::take(&mut l.trampolines);
     l.b.finalize(config);
-    Ok(Lowered { insts: n, strings, sites, loop_blocks })
+    Ok(Lowered { insts: n, strings, sites, loop_blocks, trampolines })
 }
 
 /// The interpreter's `index_of` on a constant.
@@ -1713,6 +1722,37 @@ impl<'m> Lower<'m, '_> {
     /// Host helpers (`host::HOST_HELPERS`) also receive the batch record and a mask: the lanes of
     /// `exec` when `vary`, else lane 0 alone (the result is uniform).
     fn call_helper(&mut self, name: &'static str, inputs: &[Value], vary: bool) -> R<Vec<Value>> {
+        self.call_helper_as(name, inputs, vary, false)
+    }
+
+    /// [`Lower::call_helper`] for a call on a cold path: on x86-64 through a trampoline that
+    /// preserves every register (`CallConv::PreserveAll`), so that the values live across the call
+    /// stay in their registers instead of being spilled (at their definitions, which the hot path
+    /// then pays too). A per-chunk (not host) helper.
+    fn call_helper_keeping_registers(&mut self, name: &'static str, inputs: &[Value]) -> R<Vec<Value>> {
+        self.call_helper_as(name, inputs, true, cfg!(target_arch = "x86_64"))
+    }
+
+    /// The reference to the register-preserving trampoline of per-chunk helper `name`.
+    fn trampoline_ref(&mut self, name: &'static str) -> R<FuncRef> {
+        let key: &'static str = match name {
+            "rtsl_sincos" => "rtsl_sincos_keep",
+            _ => return Err(JitError::Codegen(format!("no register-preserving trampoline for {name}"))),
+        };
+        if let Some(r) = self.helpers.get(key) {
+            return Ok(*r);
+        }
+        let mut sig = self.jit.make_signature();
+        sig.call_conv = CallConv::PreserveAll;
+        sig.params.extend([AbiParam::new(self.ptr), AbiParam::new(self.ptr)]);
+        let id = self.jit.declare_function(key, Linkage::Local, &sig).map_err(|e| JitError::Codegen(e.to_string()))?;
+        self.trampolines.push((id, name));
+        let r = self.jit.declare_func_in_func(id, self.b.func);
+        self.helpers.insert(key, r);
+        Ok(r)
+    }
+
+    fn call_helper_as(&mut self, name: &'static str, inputs: &[Value], vary: bool, keep: bool) -> R<Vec<Value>> {
         let (hname, ins, outs, is_host) = match (math::helper(name), host::host_helper(name)) {
             (Some(h), _) => (h.name, h.ins, h.outs, false),
             (None, Some(h)) => (h.name, h.ins, h.outs, true),
@@ -1722,7 +1762,11 @@ impl<'m> Lower<'m, '_> {
         if ins != inputs.len() {
             return Err(JitError::Codegen(format!("{name} takes {ins} inputs, not {}", inputs.len())));
         }
-        let fr = self.helper_ref(hname, if is_host { 4 } else { 2 })?;
+        let fr = if keep && !is_host {
+            self.trampoline_ref(hname)?
+        } else {
+            self.helper_ref(hname, if is_host { 4 } else { 2 })?
+        };
         let slot = |n: usize| StackSlotData::new(StackSlotKind::ExplicitSlot, 16 * n.max(1) as u32, 4);
         let sin = self.b.create_sized_stack_slot(slot(ins));
         let sout = self.b.create_sized_stack_slot(slot(outs));
@@ -1792,7 +1836,8 @@ impl<'m> Lower<'m, '_> {
     /// `sin` and `cos` of four lanes in the chunk's own code ([`math::sincos4`]: the same bits as
     /// the helper and the interpreter). A chunk with a lane beyond `TRIG_MAX` (or NaN) calls the
     /// helper instead, which computes those lanes the slow way. Inline because the call cost more
-    /// than the arithmetic: every live vector is spilled around it (they are all caller-saved).
+    /// than the arithmetic. The fallback goes through a register-preserving trampoline: with an
+    /// ordinary call every vector live across it was spilled where it was defined, on the hot path.
     fn sincos_inline(&mut self, x: Value) -> R<[Value; 2]> {
         let (sin_v, cos_v, in_range) = math::sincos4(&mut self.b, x);
         // Lanes out of range: the helper, for the whole chunk (its in-range lanes are these bits).
@@ -1803,7 +1848,7 @@ impl<'m> Lower<'m, '_> {
         self.b.set_cold_block(slow);
         self.b.switch_to_block(slow);
         self.b.seal_block(slow);
-        let r = self.call_helper("rtsl_sincos", &[x], true)?;
+        let r = self.call_helper_keeping_registers("rtsl_sincos", &[x])?;
         self.b.ins().jump(join, &[r[0].into(), r[1].into()]);
         self.b.switch_to_block(join);
         self.b.seal_block(join);

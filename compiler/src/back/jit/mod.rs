@@ -754,6 +754,9 @@ fn define(
     jit.define_function_bytes(id, alignment, compiled.code_buffer(), &relocs)
         .map_err(|e| JitError::Codegen(format!("{e:?}")))?;
     jit.clear_context(&mut ctx);
+    for (trampoline, helper) in &lowered.trampolines {
+        define_trampoline(jit, *trampoline, helper)?;
+    }
     jit.finalize_definitions().map_err(|e| JitError::Codegen(e.to_string()))?;
     let code = jit.get_finalized_function(id);
     profile::record(&format!("shade_{name}"), code, code_bytes, disasm.as_deref());
@@ -761,6 +764,38 @@ fn define(
     // argument, no result, the platform's C calling convention).
     let entry: ShadeFn = unsafe { std::mem::transmute::<*const u8, ShadeFn>(code) };
     Ok(Defined { entry, ir_insts: lowered.insts, invariant_loads, sites: lowered.sites, code_bytes })
+}
+
+/// Defines `id`, a trampoline with `CallConv::PreserveAll` that calls the per-chunk helper
+/// `helper` (`extern "C" fn(in, out)`) with its two arguments. Cranelift saves every register the
+/// trampoline clobbers, the helper call's clobbers included, so a caller keeps all its registers
+/// across a call (see `Lower::call_helper_keeping_registers`).
+fn define_trampoline(jit: &mut JITModule, id: cranelift_module::FuncId, helper: &str) -> Result<(), JitError> {
+    use cranelift_codegen::ir::InstBuilder;
+    let codegen = |e: &dyn std::fmt::Display| JitError::Codegen(e.to_string());
+    let config = jit.target_config();
+    let ptr = config.pointer_type();
+    let mut ctx = jit.make_context();
+    ctx.func.signature.call_conv = cranelift_codegen::isa::CallConv::PreserveAll;
+    ctx.func.signature.params.extend([AbiParam::new(ptr), AbiParam::new(ptr)]);
+    ctx.func.name = UserFuncName::user(0, id.as_u32());
+    let mut callee = jit.make_signature();
+    callee.params.extend([AbiParam::new(ptr), AbiParam::new(ptr)]);
+    let callee = jit.declare_function(helper, Linkage::Import, &callee).map_err(|e| codegen(&e))?;
+    let callee = jit.declare_func_in_func(callee, &mut ctx.func);
+    let mut fctx = cranelift_frontend::FunctionBuilderContext::new();
+    let mut b = cranelift_frontend::FunctionBuilder::new(&mut ctx.func, &mut fctx);
+    let entry = b.create_block();
+    b.append_block_params_for_function_params(entry);
+    b.switch_to_block(entry);
+    b.seal_block(entry);
+    let args = b.block_params(entry).to_vec();
+    b.ins().call(callee, &args);
+    b.ins().return_(&[]);
+    b.finalize(config);
+    jit.define_function(id, &mut ctx).map_err(|e| JitError::Codegen(format!("{e:?}")))?;
+    jit.clear_context(&mut ctx);
+    Ok(())
 }
 
 #[cfg(test)]
