@@ -440,6 +440,25 @@ fn values_live_across_the_sine_fallback_survive_it() {
     );
 }
 
+/// A varying choice against zero (`c ? x : 0`, `c ? 0 : x`, a square root's guard) is an `and`
+/// of the mask, not a blend: the same values either way round.
+#[test]
+fn choices_against_zero_keep_the_chosen_side() {
+    check(
+        r#"
+        surface z(output varying float o = 0;)
+        {
+            float a = (s > 0.5) ? t : 0;
+            float b = (t > 0.3) ? 0 : u;
+            color c = (u > v) ? color(s, t, u) : color(0);
+            color d = (v > 0.6) ? color(0) : color(v, s, t);
+            Ci = color(a, b, sqrt(s - 0.5)) + c - d;
+            o = step(0.4, s) * t + ((s < t) ? -u : 0);
+        }
+        "#,
+    );
+}
+
 #[test]
 fn divergent_if_else_and_ternary() {
     check(
