@@ -313,7 +313,11 @@ pub fn run_camera(args: &BenchCameraArgs) -> anyhow::Result<()> {
         for (k, (_, camera)) in cameras.iter().enumerate() {
             world.camera_shader = camera.clone();
             let start = std::time::Instant::now();
-            let (n, _) = pool.install(|| rtsl_runtime::render::trace_primary_rays(&world));
+            let (n, _) = if std::env::var_os("RTSL_MAKE_ONLY").is_some() {
+                (1, 0)
+            } else {
+                pool.install(|| rtsl_runtime::render::trace_primary_rays(&world))
+            };
             let traced = start.elapsed().as_secs_f64();
             let start = std::time::Instant::now();
             pool.install(|| rtsl_runtime::render::make_primary_rays(&world));
@@ -328,18 +332,20 @@ pub fn run_camera(args: &BenchCameraArgs) -> anyhow::Result<()> {
     println!("scene: {}", args.scene.as_ref().map_or("<default scene>".into(), |p| p.display().to_string()));
     println!("size: {w}x{h}, threads: {threads}, primary rays made and traced (not shaded)");
     let pixels = f64::from(w) * f64::from(h);
-    let base = rays[0] as f64 / median(times[0].clone()).max(1e-12) / 1e6;
-    let base_make = median(make_times[0].clone());
+    // Ratios to the built-in camera are the median over frames of each frame's ratio: a frame's
+    // cameras run back to back, so the ratio of the two is paired against the machine's drift
+    // (the ratio of the two medians is not, and on a shared machine varied by 10% from run to run).
+    let paired = |t: &[Vec<f64>], k: usize| median(t[0].iter().zip(&t[k]).map(|(b, c)| b / c.max(1e-12)).collect());
     for (k, (name, _)) in cameras.iter().enumerate() {
         let mrays = rays[k] as f64 / median(times[k].clone()).max(1e-12) / 1e6;
-        println!("{name}_mrays: {mrays:.2} ({} rays, {:.3} of builtin)", rays[k], mrays / base.max(1e-12));
+        let ratio = paired(&times, k) * rays[k] as f64 / (rays[0] as f64).max(1.0);
+        println!("{name}_mrays: {mrays:.2} ({} rays, {ratio:.3} of builtin)", rays[k]);
     }
     // Camera samples (one a pixel) per second: a camera that makes no ray for some samples (a
     // fisheye outside its image circle) still runs for them, so this is its throughput per sample.
-    let base_samples = pixels / median(times[0].clone()).max(1e-12) / 1e6;
     for (k, (name, _)) in cameras.iter().enumerate() {
         let msamples = pixels / median(times[k].clone()).max(1e-12) / 1e6;
-        println!("{name}_msamples: {msamples:.2} ({:.3} of builtin)", msamples / base_samples.max(1e-12));
+        println!("{name}_msamples: {msamples:.2} ({:.3} of builtin)", paired(&times, k));
     }
     // Making the rays alone (camera samples and the camera, no tracing): where a camera shader's
     // cost over the built-in camera lies.
@@ -348,7 +354,7 @@ pub fn run_camera(args: &BenchCameraArgs) -> anyhow::Result<()> {
         println!(
             "{name}_make_ns_per_pixel: {:.1} ({:.2}x builtin)",
             t * 1e9 / pixels.max(1.0),
-            t / base_make.max(1e-12)
+            1.0 / paired(&make_times, k).max(1e-12)
         );
     }
     Ok(())
