@@ -162,6 +162,8 @@ struct Lower<'m, 'b> {
     /// The helpers called through a register-preserving trampoline (see `keep_registers_call`):
     /// each trampoline's id in the module and the helper it calls, for `define` to compile.
     trampolines: Vec<(cranelift_module::FuncId, &'static str)>,
+    /// Host helper calls emitted so far (they read the batch's current chunk).
+    host_calls: usize,
     exec: Variable,
     vdepth: u32,
     div: u32,
@@ -250,6 +252,7 @@ pub(super) fn lower(
         jit,
         helpers: HashMap::new(),
         trampolines: Vec::new(),
+        host_calls: 0,
         exec,
         vdepth: 0,
         div: 0,
@@ -454,7 +457,9 @@ impl<'m> Lower<'m, '_> {
         self.b.ins().brif(live, run, &[], next, &[]);
         self.b.switch_to_block(run);
         let c32 = if self.ptr == types::I32 { c } else { self.b.ins().ireduce(types::I32, c) };
-        self.b.ins().store(mem(), c32, batch, OFF_CHUNK);
+        // Only host helpers read the chunk: without one in the chunk's code the store goes again.
+        let chunk_store = self.b.ins().store(mem(), c32, batch, OFF_CHUNK);
+        let host_calls_before = self.host_calls;
         self.chunk_base = Some(self.b.ins().iadd(varying_p, off));
         self.derivs_base = derivs_p.map(|p| self.b.ins().iadd(p, off));
         self.stride_bytes = Some(stride_bytes);
@@ -465,6 +470,9 @@ impl<'m> Lower<'m, '_> {
         let first_chunk_block = self.b.func.dfg.num_blocks();
         self.loop_blocks = Some((entry, vec![header, body, run, next], first_chunk_block));
         self.chunk(shader, bound_p, hoisted.as_ref())?;
+        if self.host_calls == host_calls_before {
+            self.b.func.layout.remove_inst(chunk_store);
+        }
         self.b.ins().jump(next, &[]);
         self.b.switch_to_block(next);
         let c = self.b.use_var(counter);
@@ -1793,6 +1801,7 @@ impl<'m> Lower<'m, '_> {
             self.b.ins().stack_store(self.ptr, m, smask, 0);
             let pmask = self.b.ins().stack_addr(self.ptr, smask, 0);
             let batch = self.batch.expect("batch");
+            self.host_calls += 1;
             self.b.ins().call(fr, &[batch, pmask, pin, pout]);
         } else {
             self.b.ins().call(fr, &[pin, pout]);

@@ -116,7 +116,8 @@ pub struct Batch {
     /// then every renderer query answers "unknown").
     pub ctx: *mut host::HostCtx,
     /// The chunk generated code is shading, written at the start of each (`u32::MAX` before the
-    /// first): helpers pass it on to the renderer, which keeps per-lane state for the batch.
+    /// first) by code that calls host helpers: they pass it on to the renderer, which keeps
+    /// per-lane state for the batch. Code without host calls in its chunks does not write it.
     pub chunk: u32,
 }
 
