@@ -196,6 +196,9 @@ struct Lower<'m, 'b> {
     /// The matrices (and whether the space is known) of the space-name expressions the prologue
     /// looked up (`hoist::Prefix::spaces`).
     batch_matrices: HashMap<u32, (Val, Value)>,
+    /// While the prologue evaluates the batch constants and the casts' matrices: the matrices
+    /// looked up so far, by the bits of their two constant space names (see `prologue`).
+    prologue_matrices: Option<Vec<((u32, u32), SpaceMatrix)>>,
     /// The arguments (as duals) of the built-in call being lowered by `builtin_dual`.
     arg_duals: Vec<Option<Dual>>,
     /// The `rtsl_sincos` results of a value (sin, cos) and the block whose call made them: a
@@ -272,6 +275,7 @@ pub(super) fn lower(
         split_keys: Vec::new(),
         batch_consts: HashMap::new(),
         batch_matrices: HashMap::new(),
+        prologue_matrices: None,
         arg_duals: Vec::new(),
         sincos_results: HashMap::new(),
         light_loops: Vec::new(),
@@ -291,6 +295,22 @@ pub(super) fn lower(
     let trampolines = std::mem::take(&mut l.trampolines);
     l.b.finalize(config);
     Ok(Lowered { insts: n, strings, sites, loop_blocks, trampolines })
+}
+
+/// A space's matrix (uniform, 16 entries) and whether the lookup found the space (a uniform bool).
+type SpaceMatrix = (Val, Value);
+
+/// The bits of a scalar `f32` constant (a string handle is one), if `v` is one.
+fn constant_bits(b: &FunctionBuilder<'_>, v: Value) -> Option<u32> {
+    use cranelift_codegen::ir::{InstructionData, Opcode, ValueDef};
+    let dfg = &b.func.dfg;
+    match dfg.value_def(dfg.resolve_aliases(v)) {
+        ValueDef::Result(def, _) => match dfg.insts[def] {
+            InstructionData::UnaryIeee32 { opcode: Opcode::F32const, imm } => Some(imm.bits()),
+            _ => None,
+        },
+        _ => None,
+    }
 }
 
 /// The interpreter's `index_of` on a constant.
@@ -562,6 +582,10 @@ impl<'m> Lower<'m, '_> {
                 return Err(JitError::Codegen("a hoisted statement left the body".into()));
             }
         }
+        // The batch constants and the casts' matrices look each pair of space names up once (a
+        // constant `point "camera" (0, 0, 0)` and a cast of a varying vector to "camera" share
+        // one): straight-line code, so a lookup dominates every later one it stands for.
+        self.prologue_matrices = Some(Vec::new());
         for id in &prefix.consts {
             let v = self.expr(*id)?;
             if !v.vary {
@@ -576,6 +600,7 @@ impl<'m> Lower<'m, '_> {
                 self.batch_matrices.insert(id.0, m);
             }
         }
+        self.prologue_matrices = None;
         let frame = self.frames.pop().expect("frame");
         // The values the prologue leaves, read here, before the chunk loop: read inside it, each
         // would become a loop-carried block parameter of the loop's header.
@@ -2296,10 +2321,20 @@ impl<'m> Lower<'m, '_> {
         if from.vary || to.vary {
             return unsupported("varying space names");
         }
+        let names = constant_bits(&self.b, from.c[0]).zip(constant_bits(&self.b, to.c[0]));
+        if let (Some(names), Some(known)) = (names, &self.prologue_matrices) {
+            if let Some((_, m)) = known.iter().find(|(k, _)| *k == names) {
+                return Ok(m.clone());
+            }
+        }
         let out = self.call_helper("rtsl_h_matrix", &[from.c[0], to.c[0]], false)?;
         let zero = self.b.ins().f32const(0.0);
         let ok = self.b.ins().fcmp(FloatCC::NotEqual, out[16], zero);
-        Ok((Val { vary: false, c: out[..16].to_vec() }, ok))
+        let m = (Val { vary: false, c: out[..16].to_vec() }, ok);
+        if let (Some(names), Some(known)) = (names, &mut self.prologue_matrices) {
+            known.push((names, m.clone()));
+        }
+        Ok(m)
     }
 
     /// A built-in whose string arguments differ between lanes (a texture name, a space, a light
