@@ -403,6 +403,19 @@ fn bench_instances_and_camera_report_their_numbers() {
     };
     assert_eq!(rays("builtin_mrays"), 32 * 24);
     assert!(rays("fisheye_mrays") < 32 * 24);
+    // Making the rays alone: only the making lines, each with a time and a ratio.
+    let o = rtsl(
+        &["bench", "camera", "--size", "32x24", "--frames", "1", "--cameras", "thinlens", "--make-only"],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    assert!(!out.contains("_mrays: "), "{out}");
+    for name in ["builtin", "thinlens"] {
+        let line = out.lines().find(|l| l.starts_with(&format!("{name}_make_ns_per_pixel: "))).expect("a line");
+        let ns: f64 = line.split(' ').nth(1).and_then(|v| v.parse().ok()).expect("a number");
+        assert!(ns.is_finite() && ns > 0.0, "{line}");
+    }
 }
 
 #[test]

@@ -280,6 +280,10 @@ pub struct BenchCameraArgs {
         default_value = "pinhole,fisheye,fisheye:fit=diagonal,thinlens,cylindrical,parabolic"
     )]
     pub cameras: Vec<CameraSpec>,
+    /// Only make the rays, without tracing them (the `*_make_ns_per_pixel` lines; for profiling
+    /// the cameras alone): the rays per second then read 0.
+    #[arg(long)]
+    pub make_only: bool,
 }
 
 /// Runs `rtsl bench camera`: Mrays/s of primary rays (made and traced, not shaded) from each camera
@@ -313,11 +317,8 @@ pub fn run_camera(args: &BenchCameraArgs) -> anyhow::Result<()> {
         for (k, (_, camera)) in cameras.iter().enumerate() {
             world.camera_shader = camera.clone();
             let start = std::time::Instant::now();
-            let (n, _) = if std::env::var_os("RTSL_MAKE_ONLY").is_some() {
-                (1, 0)
-            } else {
-                pool.install(|| rtsl_runtime::render::trace_primary_rays(&world))
-            };
+            let (n, _) =
+                if args.make_only { (0, 0) } else { pool.install(|| rtsl_runtime::render::trace_primary_rays(&world)) };
             let traced = start.elapsed().as_secs_f64();
             let start = std::time::Instant::now();
             pool.install(|| rtsl_runtime::render::make_primary_rays(&world));
@@ -330,20 +331,24 @@ pub fn run_camera(args: &BenchCameraArgs) -> anyhow::Result<()> {
     }
     let (w, h) = (rt.options.width, rt.options.height);
     println!("scene: {}", args.scene.as_ref().map_or("<default scene>".into(), |p| p.display().to_string()));
-    println!("size: {w}x{h}, threads: {threads}, primary rays made and traced (not shaded)");
+    if args.make_only {
+        println!("size: {w}x{h}, threads: {threads}, primary rays made (not traced)");
+    } else {
+        println!("size: {w}x{h}, threads: {threads}, primary rays made and traced (not shaded)");
+    }
     let pixels = f64::from(w) * f64::from(h);
     // Ratios to the built-in camera are the median over frames of each frame's ratio: a frame's
     // cameras run back to back, so the ratio of the two is paired against the machine's drift
     // (the ratio of the two medians is not, and on a shared machine varied by 10% from run to run).
     let paired = |t: &[Vec<f64>], k: usize| median(t[0].iter().zip(&t[k]).map(|(b, c)| b / c.max(1e-12)).collect());
-    for (k, (name, _)) in cameras.iter().enumerate() {
+    for (k, (name, _)) in cameras.iter().enumerate().filter(|_| !args.make_only) {
         let mrays = rays[k] as f64 / median(times[k].clone()).max(1e-12) / 1e6;
         let ratio = paired(&times, k) * rays[k] as f64 / (rays[0] as f64).max(1.0);
         println!("{name}_mrays: {mrays:.2} ({} rays, {ratio:.3} of builtin)", rays[k]);
     }
     // Camera samples (one a pixel) per second: a camera that makes no ray for some samples (a
     // fisheye outside its image circle) still runs for them, so this is its throughput per sample.
-    for (k, (name, _)) in cameras.iter().enumerate() {
+    for (k, (name, _)) in cameras.iter().enumerate().filter(|_| !args.make_only) {
         let msamples = pixels / median(times[k].clone()).max(1e-12) / 1e6;
         println!("{name}_msamples: {msamples:.2} ({:.3} of builtin)", paired(&times, k));
     }
