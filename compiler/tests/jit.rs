@@ -440,6 +440,26 @@ fn values_live_across_the_sine_fallback_survive_it() {
     );
 }
 
+/// A cast by a uniform space lookup branches once around the transform: the known space's
+/// transform, and for an unknown one the value unchanged, whichever the lookup answers.
+#[test]
+fn casts_of_varying_values_to_known_and_unknown_spaces() {
+    check(
+        r#"
+        surface c(string sp = "object"; output varying float o = 0;)
+        {
+            vector a = vector "camera" (s, t, 1);
+            point b = point "nowhere" (u, v, s);
+            vector d = vector "nowhere" (t, -s, u);
+            point e = transform(sp, P) + transform("nowhere", P);
+            point f = point "world" (s * t, u, -v);
+            o = xcomp(a) + ycomp(b) * zcomp(d) + xcomp(e) - zcomp(f) + ycomp(a) * xcomp(b);
+            Ci = color(zcomp(a), xcomp(d), ycomp(e));
+        }
+        "#,
+    );
+}
+
 /// A varying choice against zero (`c ? x : 0`, `c ? 0 : x`, a square root's guard) is an `and`
 /// of the mask, not a blend: the same values either way round.
 #[test]

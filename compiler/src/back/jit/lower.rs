@@ -2439,6 +2439,26 @@ impl<'m> Lower<'m, '_> {
             "rtsl_xform_vector" => Some(false),
             _ => None,
         } {
+            let vary = a.vary || b.vary || fallback.vary;
+            if vary && !is_vec(&self.b, ok) {
+                // A uniform lookup result: one branch around the transform, not a blend per
+                // component in every chunk.
+                let ty = types::F32X4;
+                let (found, join) = (self.b.create_block(), self.b.create_block());
+                let params: Vec<Value> = fallback.c.iter().map(|_| self.b.append_block_param(join, ty)).collect();
+                let kept: Vec<cranelift_codegen::ir::BlockArg> =
+                    fallback.c.iter().map(|x| widen(&mut self.b, *x, true).into()).collect();
+                self.b.ins().brif(ok, found, &[], join, &kept);
+                self.b.switch_to_block(found);
+                self.b.seal_block(found);
+                let r = self.transform_inline(a, b, point);
+                let made: Vec<cranelift_codegen::ir::BlockArg> =
+                    r.c.iter().map(|x| widen(&mut self.b, *x, true).into()).collect();
+                self.b.ins().jump(join, &made);
+                self.b.switch_to_block(join);
+                self.b.seal_block(join);
+                return Ok(Val { vary: true, c: params });
+            }
             let r = self.transform_inline(a, b, point);
             let c = r.c.iter().zip(&fallback.c).map(|(x, y)| choose(&mut self.b, ok, *x, *y)).collect();
             return Ok(Val { vary: r.vary || fallback.vary, c });
