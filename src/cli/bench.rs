@@ -280,8 +280,8 @@ pub struct BenchCameraArgs {
         default_value = "pinhole,fisheye,fisheye:fit=diagonal,thinlens,cylindrical,parabolic"
     )]
     pub cameras: Vec<CameraSpec>,
-    /// Only make the rays, without tracing them (the `*_make_ns_per_pixel` lines; for profiling
-    /// the cameras alone): the rays per second then read 0.
+    /// Only make the rays, without tracing them, for profiling the cameras alone: only the
+    /// `*_make_ns_per_pixel` lines are printed.
     #[arg(long)]
     pub make_only: bool,
 }

@@ -137,7 +137,7 @@ fn classify(func: &Function, v: Value, in_loop: &dyn Fn(Block) -> bool) -> Optio
 
 /// The bytes of a vector constant defined by `def` (a `vconst`, or a `splat` of a 32-bit integer
 /// or float constant).
-fn vector_constant(func: &Function, def: Inst, ty: Type) -> Option<u128> {
+pub(super) fn vector_constant(func: &Function, def: Inst, ty: Type) -> Option<u128> {
     let dfg = &func.dfg;
     match dfg.insts[def] {
         InstructionData::UnaryConst { opcode: Opcode::Vconst, constant_handle } => {

@@ -159,7 +159,7 @@ struct Lower<'m, 'b> {
     b: FunctionBuilder<'b>,
     jit: &'m mut JITModule,
     helpers: HashMap<&'static str, FuncRef>,
-    /// The helpers called through a register-preserving trampoline (see `keep_registers_call`):
+    /// The helpers called through a register-preserving trampoline (see `call_helper_keeping_registers`):
     /// each trampoline's id in the module and the helper it calls, for `define` to compile.
     trampolines: Vec<(cranelift_module::FuncId, &'static str)>,
     /// Host helper calls emitted so far (they read the batch's current chunk).

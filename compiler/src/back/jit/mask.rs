@@ -92,21 +92,10 @@ fn select_lanes(b: &mut FunctionBuilder<'_>, m: Value, a: Value, x: Value) -> Va
     // step) the masked choice is one `and` (or and-not) with the mask, no blend and no zero
     // constant; the same bits, for canonical masks.
     if ty == types::F32X4 || ty == types::I32X4 {
-        let flags = MemFlagsData::new().with_endianness(cranelift_codegen::ir::Endianness::Little);
-        let shaped = |b: &mut FunctionBuilder<'_>, m: Value| {
-            if ty == types::I32X4 {
-                m
-            } else {
-                b.ins().bitcast(ty, flags, m)
-            }
-        };
-        if is_zero_vector(b, x) {
-            let m = shaped(b, m);
-            return b.ins().band(a, m);
-        }
-        if is_zero_vector(b, a) {
-            let m = shaped(b, m);
-            return b.ins().band_not(x, m);
+        let (x_zero, a_zero) = (is_zero_vector(b, x), is_zero_vector(b, a));
+        if x_zero || a_zero {
+            let m = if ty == types::I32X4 { m } else { mask_as_f32(b, m) };
+            return if x_zero { b.ins().band(a, m) } else { b.ins().band_not(x, m) };
         }
     }
     if blendv_available() && (ty == types::F32X4 || ty == types::I32X4) {
@@ -126,23 +115,13 @@ fn select_lanes(b: &mut FunctionBuilder<'_>, m: Value, a: Value, x: Value) -> Va
     b.ins().bitselect(m, a, x)
 }
 
-/// Whether `v` is a vector of zero bits: a `vconst` of zeros, or a splat of the integer 0 or of
-/// the float +0.0.
+/// Whether `v` is a vector constant of zero bits (see `invariants::vector_constant`).
 fn is_zero_vector(b: &FunctionBuilder<'_>, v: Value) -> bool {
-    use cranelift_codegen::ir::{InstructionData, Opcode, ValueDef};
     let dfg = &b.func.dfg;
-    let ValueDef::Result(def, _) = dfg.value_def(dfg.resolve_aliases(v)) else { return false };
-    match dfg.insts[def] {
-        InstructionData::UnaryConst { opcode: Opcode::Vconst, constant_handle } => {
-            dfg.constants.get(constant_handle).as_slice().iter().all(|&byte| byte == 0)
-        }
-        InstructionData::Unary { opcode: Opcode::Splat, arg } => {
-            let ValueDef::Result(c, _) = dfg.value_def(dfg.resolve_aliases(arg)) else { return false };
-            match dfg.insts[c] {
-                InstructionData::UnaryIeee32 { opcode: Opcode::F32const, imm } => imm.bits() == 0,
-                InstructionData::UnaryImm { opcode: Opcode::Iconst, imm } => imm.bits() == 0,
-                _ => false,
-            }
+    let v = dfg.resolve_aliases(v);
+    match dfg.value_def(v) {
+        cranelift_codegen::ir::ValueDef::Result(def, _) => {
+            super::invariants::vector_constant(b.func, def, dfg.value_type(v)) == Some(0)
         }
         _ => false,
     }
