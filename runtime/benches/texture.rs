@@ -5,7 +5,8 @@
 //! lookup on the finest level, measured in the same process (this host's speed drifts).
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use rtsl_runtime::texture::{Footprint, LookupOptions, MipMap, TexImage};
+use glam::Vec4;
+use rtsl_runtime::texture::{Footprint, LookupLanes, LookupOptions, MipMap, TexImage};
 use std::hint::black_box;
 use std::time::Instant;
 
@@ -72,6 +73,28 @@ fn filtered(map: &MipMap, lookups: &[(f32, f32, Footprint)], opts: &LookupOption
     sum
 }
 
+/// The lookups four at a time, as a shader chunk makes them (the renderer's way).
+fn filtered_lanes(map: &MipMap, lookups: &[(f32, f32, Footprint)], opts: &LookupOptions) -> f32 {
+    let mut out = [0.0; 12];
+    let mut sum = 0.0;
+    for chunk in lookups.chunks_exact(4) {
+        let lane = |f: &dyn Fn(&(f32, f32, Footprint)) -> f32| Vec4::from_array(std::array::from_fn(|l| f(&chunk[l])));
+        let lanes = LookupLanes {
+            s: lane(&|l| l.0),
+            t: lane(&|l| l.1),
+            dsdx: lane(&|l| l.2.dsdx),
+            dtdx: lane(&|l| l.2.dtdx),
+            dsdy: lane(&|l| l.2.dsdy),
+            dtdy: lane(&|l| l.2.dtdy),
+            sblur: Vec4::ZERO,
+            tblur: Vec4::ZERO,
+        };
+        map.filter_lanes(&lanes, [true; 4], [0; 4], &mut out, opts);
+        sum += out.iter().sum::<f32>();
+    }
+    sum
+}
+
 fn bilinear(map: &MipMap, lookups: &[(f32, f32, Footprint)], opts: &LookupOptions) -> f32 {
     let mut out = [0.0; 3];
     let mut sum = 0.0;
@@ -90,31 +113,37 @@ fn bench(c: &mut Criterion) {
 
     let mut g = c.benchmark_group("texture_256_rgb");
     g.bench_function("filtered", |b| b.iter(|| black_box(filtered(&map, black_box(&lookups), &opts))));
+    g.bench_function("filtered_lanes", |b| b.iter(|| black_box(filtered_lanes(&map, black_box(&lookups), &opts))));
     g.bench_function("bilinear", |b| b.iter(|| black_box(bilinear(&map, black_box(&lookups), &opts))));
     g.finish();
 
-    // Paired rounds, alternating, so that both see the same drift of the host.
-    let mut ratios = Vec::new();
-    let mut per_lookup = Vec::new();
+    // Paired rounds, alternating, so that all see the same drift of the host.
+    let mut rounds = Vec::new();
     for _ in 0..15 {
-        let start = Instant::now();
-        for _ in 0..20 {
-            black_box(filtered(&map, black_box(&lookups), &opts));
-        }
-        let filter_time = start.elapsed().as_secs_f64();
-        let start = Instant::now();
-        for _ in 0..20 {
-            black_box(bilinear(&map, black_box(&lookups), &opts));
-        }
-        let bilinear_time = start.elapsed().as_secs_f64();
-        ratios.push(filter_time / bilinear_time);
-        per_lookup.push(filter_time / (20 * LOOKUPS) as f64 * 1e9);
+        let time = |f: &dyn Fn() -> f32| {
+            let start = Instant::now();
+            for _ in 0..20 {
+                black_box(f());
+            }
+            start.elapsed().as_secs_f64() / (20 * LOOKUPS) as f64 * 1e9
+        };
+        let one = time(&|| filtered(&map, black_box(&lookups), &opts));
+        let lanes = time(&|| filtered_lanes(&map, black_box(&lookups), &opts));
+        let point = time(&|| bilinear(&map, black_box(&lookups), &opts));
+        rounds.push([one, lanes, one / point, lanes / point]);
     }
-    ratios.sort_by(f64::total_cmp);
-    per_lookup.sort_by(f64::total_cmp);
+    let median = |k: usize| {
+        let mut v: Vec<f64> = rounds.iter().map(|r| r[k]).collect();
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
     println!(
-        "texture: a filtered lookup takes {:.0} ns, {:.2} times one bilinear lookup (median of 15 paired rounds)",
-        per_lookup[7], ratios[7]
+        "texture: a filtered lookup takes {:.0} ns one at a time, {:.0} ns four lanes at a time: {:.2} and {:.2} times one \
+         bilinear lookup (medians of 15 paired rounds)",
+        median(0),
+        median(1),
+        median(2),
+        median(3)
     );
 }
 

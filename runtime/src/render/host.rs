@@ -11,8 +11,8 @@ use super::shade::{gather_rays, mix, point_seed, trace_rays, unit, Frame};
 use super::stats::{tracing, Stats};
 use crate::ray::Ray;
 use crate::shading::ShaderInstance;
-use crate::texture::{Footprint, Grid, LookupOptions, MipMap};
-use glam::{Affine3A, Mat4, Vec3A};
+use crate::texture::{Grid, LookupLanes, LookupOptions, MipMap};
+use glam::{Affine3A, Mat4, Vec3A, Vec4};
 use rtsl_compiler::back::jit::{
     same_category, shadow_query_of, HostTable, LightLanes, MessageOut, StrRef, CONE_ROWS, MAX_LIGHTS, SHADOW_ROWS,
 };
@@ -413,19 +413,25 @@ unsafe extern "C" fn host_texture(
     match kind {
         0 => {
             let Some(mip) = c.texture(name) else { return };
-            // `filter` writes every value it is given, so the buffer is cleared once, not per lane.
-            let mut lane_out = [0.0f32; 64];
-            for l in active() {
-                // Rows 2..6: the footprint from the coordinates' derivatives, widths applied, and blur.
-                let row = |k: usize| coords[4 * k + l];
-                let footprint = Footprint { dsdx: row(2), dtdx: row(3), dsdy: row(4), dtdy: row(5) };
-                let blur = row(6).max(0.0);
-                let opts = LookupOptions { sblur: blur, tblur: blur, ..LookupOptions::default() };
-                mip.filter(row(0), row(1), footprint, first[l].max(0.0) as usize, &mut lane_out[..values], &opts);
+            // Rows 0..1 the coordinates; 2..6 the footprint from their derivatives (widths
+            // applied), and blur.
+            let row = |k: usize| Vec4::from_slice(&coords[4 * k..4 * k + 4]);
+            let blur = row(6).max(Vec4::ZERO);
+            let lanes = LookupLanes {
+                s: row(0),
+                t: row(1),
+                dsdx: row(2),
+                dtdx: row(3),
+                dsdy: row(4),
+                dtdy: row(5),
+                sblur: blur,
+                tblur: blur,
+            };
+            let active = mask.map(|m| m != 0);
+            let first = std::array::from_fn(|l| first[l].max(0.0) as usize);
+            mip.filter_lanes(&lanes, active, first, out, &LookupOptions::default());
+            for l in (0..4).filter(|&l| active[l]) {
                 ok[l] = 1;
-                for (k, v) in lane_out[..values].iter().enumerate() {
-                    out[4 * k + l] = *v;
-                }
             }
             return;
         }

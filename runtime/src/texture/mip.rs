@@ -11,6 +11,9 @@
 //! width (the mip level, trilinear between two levels), and place up to [`MAX_ANISOTROPY`]
 //! equally weighted trilinear probes along the major axis. That is "EWA-lite": the anisotropy of
 //! EWA at the cost of a handful of bilinear taps, with box rather than Gaussian weights.
+//!
+//! [`MipMap::filter_lanes`] makes four lookups (a shader chunk's lanes) with the plan of their
+//! probes worked out together in vector arithmetic; [`MipMap::filter`] is the same on one lane.
 
 use super::image::TexImage;
 use super::{Footprint, LookupOptions, Wrap};
@@ -134,23 +137,102 @@ impl MipMap {
         wrap: [Wrap; 2],
         probing: Probing,
     ) {
+        let lanes = LookupLanes::splat(s, t, footprint, [opts.sblur, opts.tblur]);
+        let [plan, ..] = self.probe_plans(&lanes, opts);
+        self.filter_planned(s, t, plan, first_channel, out, opts.fill, wrap, probing);
+    }
+
+    /// Four filtered lookups at once, a shader chunk's lanes: for each active lane `l`,
+    /// `out[4 * c + l]` gets channel `first[l] + c` (channels the texture lacks get `opts.fill`);
+    /// inactive lanes' values stay as they are. Each lane has its own blur (`opts.sblur` and
+    /// `opts.tblur` are not read). The same values as [`MipMap::filter`] lane by lane.
+    ///
+    /// Working out where a lookup's probes go is a chain of square roots, a division and a
+    /// logarithm that a processor cannot overlap with the next lookup's; four lanes take that
+    /// chain once.
+    pub fn filter_lanes(
+        &self,
+        lanes: &LookupLanes,
+        active: [bool; 4],
+        first: [usize; 4],
+        out: &mut [f32],
+        opts: &LookupOptions,
+    ) {
+        let wrap = [opts.swrap.unwrap_or(self.wrap[0]), opts.twrap.unwrap_or(self.wrap[1])];
+        let plans = self.probe_plans(lanes, opts);
+        let values = (out.len() / 4).min(MAX_LANE_VALUES);
+        let mut lane_out = [0.0f32; MAX_LANE_VALUES];
+        let (s, t) = (lanes.s.to_array(), lanes.t.to_array());
+        for lane in (0..4).filter(|&l| active[l]) {
+            let lane_out = &mut lane_out[..values];
+            self.filter_planned(
+                s[lane],
+                t[lane],
+                plans[lane],
+                first[lane],
+                lane_out,
+                opts.fill,
+                wrap,
+                Probing::Fastest,
+            );
+            for (c, v) in lane_out.iter().enumerate() {
+                out[4 * c + lane] = *v;
+            }
+        }
+    }
+
+    /// Where the probes of four lookups go (see the module doc).
+    #[inline(always)]
+    fn probe_plans(&self, lanes: &LookupLanes, opts: &LookupOptions) -> [ProbePlan; 4] {
+        let ellipses = Ellipses::of(lanes, opts, self.width() as f32, self.height() as f32);
+        // Clamp the eccentricity: beyond MAX_ANISOTROPY probes, widen the filter instead.
+        let major = ellipses.major;
+        let minor = ellipses.minor.max(major / MAX_ANISOTROPY as f32);
+        let positive = minor.cmpgt(Vec4::ZERO);
+        let probes = Vec4::select(
+            positive,
+            (major / minor).ceil().clamp(Vec4::ONE, Vec4::splat(MAX_ANISOTROPY as f32)),
+            Vec4::ONE,
+        );
+        let lod = Vec4::select(positive, log2(minor), Vec4::splat(f32::NEG_INFINITY));
+        let (probes, lod, major) = (probes.to_array(), lod.to_array(), major.to_array());
+        let direction = ellipses.direction.map(|d| d.to_array());
+        std::array::from_fn(|l| ProbePlan {
+            probes: probes[l] as usize,
+            lod: lod[l],
+            major: major[l],
+            direction: [direction[0][l], direction[1][l]],
+        })
+    }
+
+    /// One lookup's probes, planned, summed into `out` (channel `first_channel + c` into
+    /// `out[c]`, `fill` where the texture has no such channel).
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn filter_planned(
+        &self,
+        s: f32,
+        t: f32,
+        plan: ProbePlan,
+        first_channel: usize,
+        out: &mut [f32],
+        fill: f32,
+        wrap: [Wrap; 2],
+        probing: Probing,
+    ) {
         // A NaN or infinite coordinate has no texel: answer the fill value rather than NaN.
         if !(s.is_finite() && t.is_finite()) {
-            out.fill(opts.fill);
+            out.fill(fill);
             return;
         }
         out.fill(0.0);
         let (w, h) = (self.width() as f32, self.height() as f32);
-        let ellipse = Ellipse::of(footprint, opts, w, h);
-        // Clamp the eccentricity: beyond MAX_ANISOTROPY probes, widen the filter instead.
-        let minor = ellipse.minor.max(ellipse.major / MAX_ANISOTROPY as f32);
-        let probes = if minor > 0.0 { ((ellipse.major / minor).ceil() as usize).clamp(1, MAX_ANISOTROPY) } else { 1 };
-        let lod = if minor > 0.0 { minor.log2() } else { f32::NEG_INFINITY };
+        let ProbePlan { probes, lod, major, direction } = plan;
         let weight = 1.0 / probes as f32;
         // Probe centres split the major axis into equal parts.
         let probe = |k: usize| {
-            let along = ((k as f32 + 0.5) / probes as f32 - 0.5) * ellipse.major;
-            (s + ellipse.direction[0] * along / w, t + ellipse.direction[1] * along / h)
+            let along = ((k as f32 + 0.5) / probes as f32 - 0.5) * major;
+            (s + direction[0] * along / w, t + direction[1] * along / h)
         };
         // Every probe blends the same levels with the same weights: that is worked out once, and
         // the probe loop is unrolled for the common channel counts.
@@ -167,7 +249,7 @@ impl MipMap {
                 }
             }
         }
-        fill_missing(self.channels(), first_channel, opts.fill, out);
+        fill_missing(self.channels(), first_channel, fill, out);
     }
 
     /// The levels a trilinear probe at `lod` blends, and their weights (a probe's `weight` split
@@ -178,7 +260,7 @@ impl MipMap {
         if lod.is_nan() || lod <= 0.0 {
             return Trilinear::One(&self.levels[0], weight);
         }
-        let below = lod.floor() as usize;
+        let below = floor(lod) as usize;
         if below >= top {
             return Trilinear::One(&self.levels[top], weight);
         }
@@ -415,43 +497,121 @@ fn periodic_masks<const K: usize>(sizes: [usize; K], wrap: [Wrap; 2]) -> Option<
     (wrap == [Wrap::Periodic; 2] && sizes.iter().all(|&n| fits(n))).then(|| sizes.map(|n| n as i32 - 1))
 }
 
-/// A footprint as an ellipse in level-0 texels: axis lengths (full widths) and the unit
-/// direction of the major axis (in texel space, s then t).
+/// The most values a lane of [`MipMap::filter_lanes`] gets (the shading ABI's limit).
+const MAX_LANE_VALUES: usize = 64;
+
+/// Four lookups (a shader chunk's lanes): coordinates, their screen-space derivatives and blur,
+/// a lane each.
 #[derive(Clone, Copy, Debug, PartialEq)]
-struct Ellipse {
+pub struct LookupLanes {
+    pub s: Vec4,
+    pub t: Vec4,
+    pub dsdx: Vec4,
+    pub dtdx: Vec4,
+    pub dsdy: Vec4,
+    pub dtdy: Vec4,
+    /// Added filter widths in s and t, in texture coordinates.
+    pub sblur: Vec4,
+    pub tblur: Vec4,
+}
+
+impl LookupLanes {
+    /// One lookup in every lane.
+    pub fn splat(s: f32, t: f32, footprint: Footprint, [sblur, tblur]: [f32; 2]) -> LookupLanes {
+        LookupLanes {
+            s: Vec4::splat(s),
+            t: Vec4::splat(t),
+            dsdx: Vec4::splat(footprint.dsdx),
+            dtdx: Vec4::splat(footprint.dtdx),
+            dsdy: Vec4::splat(footprint.dsdy),
+            dtdy: Vec4::splat(footprint.dtdy),
+            sblur: Vec4::splat(sblur),
+            tblur: Vec4::splat(tblur),
+        }
+    }
+}
+
+/// Where a lookup's probes go: how many, along which axis (its full length, in level-0 texels,
+/// and unit direction in texel space, s then t), and the level of detail each probe reads.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct ProbePlan {
+    probes: usize,
+    lod: f32,
     major: f32,
-    minor: f32,
     direction: [f32; 2],
 }
 
-impl Ellipse {
-    fn of(fp: Footprint, opts: &LookupOptions, w: f32, h: f32) -> Ellipse {
-        let x = [fp.dsdx * opts.swidth * w, fp.dtdx * opts.twidth * h];
-        let y = [fp.dsdy * opts.swidth * w, fp.dtdy * opts.twidth * h];
-        let (bs, bt) = (opts.sblur * w, opts.tblur * h);
+/// Four footprints as ellipses in level-0 texels: axis lengths (full widths) and the unit
+/// direction of the major axis (in texel space, s then t), a lane each.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Ellipses {
+    major: Vec4,
+    minor: Vec4,
+    direction: [Vec4; 2],
+}
+
+impl Ellipses {
+    fn of(lanes: &LookupLanes, opts: &LookupOptions, w: f32, h: f32) -> Ellipses {
+        // Anything wider than a few times the texture reads the top level anyway: axes are capped
+        // there. Components are clamped to a billion texels, far past any cap, which keeps every
+        // product below finite (infinities would make NaN of the direction); NaN is no footprint.
+        let cap = Vec4::splat(4.0 * w.max(h));
+        let tame = |v: Vec4| Vec4::select(v.is_nan_mask(), Vec4::ZERO, v.clamp(Vec4::splat(-1e9), Vec4::splat(1e9)));
+        let (sw, tw) = (Vec4::splat(opts.swidth * w), Vec4::splat(opts.twidth * h));
+        let (x0, x1) = (tame(lanes.dsdx * sw), tame(lanes.dtdx * tw));
+        let (y0, y1) = (tame(lanes.dsdy * sw), tame(lanes.dtdy * tw));
+        let (bs, bt) = (tame(lanes.sblur * w), tame(lanes.tblur * h));
         // The covariance x x^T + y y^T has eigenvalues |x|^2 and |y|^2 when x and y are
         // orthogonal; blur adds in quadrature, like convolving with a second filter.
-        let a = (x[0] * x[0] + y[0] * y[0] + bs * bs) as f64;
-        let b = (x[0] * x[1] + y[0] * y[1]) as f64;
-        let c = (x[1] * x[1] + y[1] * y[1] + bt * bt) as f64;
-        let mean = 0.5 * (a + c);
-        let spread = (0.25 * (a - c) * (a - c) + b * b).sqrt();
-        let (l1, l2) = (mean + spread, (mean - spread).max(0.0));
-        let direction = if b.abs() > 1e-12 * (a + c) {
-            let (dx, dy) = (l1 - c, b);
-            let len = (dx * dx + dy * dy).sqrt();
-            [(dx / len) as f32, (dy / len) as f32]
-        } else if a >= c {
-            [1.0, 0.0]
-        } else {
-            [0.0, 1.0]
-        };
-        // NaN is no footprint; anything wider than a few times the texture reads the top level
-        // anyway, so the cap (which also tames infinities) changes nothing else.
-        let cap = 4.0 * w.max(h) as f64;
-        let sanitize = |v: f64| if v.is_nan() { 0.0 } else { v.sqrt().min(cap) as f32 };
-        Ellipse { major: sanitize(l1), minor: sanitize(l2), direction }
+        let (bs2, bt2) = (bs * bs, bt * bt);
+        let (a0, c0) = (x0 * x0 + y0 * y0, x1 * x1 + y1 * y1);
+        let (a, b, c) = (a0 + bs2, x0 * x1 + y0 * y1, c0 + bt2);
+        let half_difference = 0.5 * (a - c);
+        let l1 = 0.5 * (a + c) + (half_difference * half_difference + b * b).sqrt();
+        // The smaller eigenvalue as the determinant over the larger: `mean - spread` would lose
+        // the digits of a thin ellipse. The determinant is a sum of positive terms (Lagrange's
+        // identity for the footprint's part), so it keeps them.
+        let cross = x0 * y1 - x1 * y0;
+        let determinant = cross * cross + a0 * bt2 + c0 * bs2 + bs2 * bt2;
+        let l2 = Vec4::select(l1.cmpgt(Vec4::ZERO), (determinant / l1).min(l1), Vec4::ZERO);
+        // The major axis: an eigenvector of l1, from the covariance's row that keeps its digits
+        // (l1 - c and l1 - a are the differences of nearly equal numbers on the other side).
+        let s_major = a.cmpge(c);
+        let dx = Vec4::select(s_major, l1 - c, b);
+        let dy = Vec4::select(s_major, b, l1 - a);
+        let length = (dx * dx + dy * dy).sqrt();
+        // A circle (or no footprint) has no major axis: s, or t where it is the longer.
+        let axis = length.cmpgt(Vec4::ZERO);
+        let (on_s, on_t) = (Vec4::select(s_major, Vec4::ONE, Vec4::ZERO), Vec4::select(s_major, Vec4::ZERO, Vec4::ONE));
+        let direction = [Vec4::select(axis, dx / length, on_s), Vec4::select(axis, dy / length, on_t)];
+        let axis_length = |v: Vec4| v.sqrt().min(cap);
+        Ellipses { major: axis_length(l1), minor: axis_length(l2), direction }
     }
+}
+
+/// `log2` of four positive floats, to within a few units in the last place; values below the
+/// smallest normal float (no level is that fine) give -127.
+#[inline(always)]
+fn log2(v: Vec4) -> Vec4 {
+    // v = m 2^e with m in [sqrt(1/2), sqrt(2)); log2(m) = 2 atanh(z) / ln 2 with
+    // z = (m - 1) / (m + 1), |z| < 0.172, whose odd series to z^9 leaves under 1e-9.
+    let split = v.to_array().map(|x| {
+        let bits = x.to_bits();
+        let (exponent, mantissa) = ((bits >> 23) as i32 - 127, bits & 0x007F_FFFF);
+        // Mantissas past sqrt(2) (0x3504F3 in the fraction's bits) take the next exponent.
+        if mantissa > 0x0035_04F3 {
+            (exponent + 1, f32::from_bits(mantissa | 0x3F00_0000))
+        } else {
+            (exponent, f32::from_bits(mantissa | 0x3F80_0000))
+        }
+    });
+    let exponent = Vec4::from_array(split.map(|(e, _)| e as f32));
+    let m = Vec4::from_array(split.map(|(_, m)| m));
+    let z = (m - Vec4::ONE) / (m + Vec4::ONE);
+    let z2 = z * z;
+    let series = z * (Vec4::ONE + z2 * (1.0 / 3.0 + z2 * (1.0 / 5.0 + z2 * (1.0 / 7.0 + z2 * (1.0 / 9.0)))));
+    let log = exponent + series * (2.0 / std::f32::consts::LN_2);
+    Vec4::select(v.cmpge(Vec4::splat(f32::MIN_POSITIVE)), log, Vec4::splat(-127.0))
 }
 
 /// Maps an integer texel index to one inside `0..n`, or `None` for black outside.
@@ -914,6 +1074,133 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// Four lanes at once give each lane the values of a lookup of its own, bit for bit, with
+    /// inactive lanes untouched: lanes with different footprints, blur, first channels and
+    /// coordinates (one not finite).
+    #[test]
+    fn lanes_filter_as_lookups_one_at_a_time() {
+        /// A lane's s, t, footprint, blur and first channel.
+        type Lane = (f32, f32, Footprint, f32, usize);
+        let m = MipMap::new(image(32, 16, 3, |x, y, c| ((x * 5 + y * 11 + c * 3) % 17) as f32 / 17.0));
+        let mut state = 0x9E37_79B9_7F4A_7C15u64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 40) as f32 / (1u64 << 24) as f32
+        };
+        for round in 0..200 {
+            let mut lane = |_| {
+                let scale = (next() * 12.0 - 8.0).exp2();
+                let fp = Footprint {
+                    dsdx: scale * (next() - 0.5),
+                    dtdx: scale * (next() - 0.5),
+                    dsdy: scale * (next() - 0.5),
+                    dtdy: scale * (next() - 0.5),
+                };
+                let blur = if next() < 0.3 { next() * 0.1 } else { 0.0 };
+                (next() * 4.0 - 2.0, next() * 4.0 - 2.0, fp, blur, (next() * 4.0) as usize)
+            };
+            let mut lanes: [Lane; 4] = std::array::from_fn(&mut lane);
+            if round % 7 == 0 {
+                lanes[round % 4].0 = f32::NAN;
+            }
+            let active = std::array::from_fn(|l| (round + l) % 5 != 0);
+            let opts = LookupOptions { fill: 0.25, swidth: 1.5, ..LookupOptions::default() };
+            let row = |f: &dyn Fn(&Lane) -> f32| Vec4::from_array(std::array::from_fn(|l| f(&lanes[l])));
+            let query = LookupLanes {
+                s: row(&|l| l.0),
+                t: row(&|l| l.1),
+                dsdx: row(&|l| l.2.dsdx),
+                dtdx: row(&|l| l.2.dtdx),
+                dsdy: row(&|l| l.2.dsdy),
+                dtdy: row(&|l| l.2.dtdy),
+                sblur: row(&|l| l.3),
+                tblur: row(&|l| l.3),
+            };
+            let mut out = [-1.0f32; 16];
+            m.filter_lanes(&query, active, lanes.map(|l| l.4), &mut out, &opts);
+            for (l, &(s, t, fp, blur, first)) in lanes.iter().enumerate() {
+                let mut alone = [0.0; 4];
+                m.filter(s, t, fp, first, &mut alone, &LookupOptions { sblur: blur, tblur: blur, ..opts });
+                for (c, v) in alone.iter().enumerate() {
+                    let want = if active[l] { v.to_bits() } else { (-1.0f32).to_bits() };
+                    assert_eq!(out[4 * c + l].to_bits(), want, "round {round}, lane {l}, channel {c}");
+                }
+            }
+        }
+    }
+
+    /// The footprint's ellipse, worked out in f32 four lanes at a time, against the same
+    /// eigen-decomposition in f64: thin, round, rotated, blurred, tiny and huge footprints.
+    #[test]
+    fn ellipses_match_the_eigenvalues_in_double_precision() {
+        let (w, h) = (64.0f32, 32.0f32);
+        let mut state = 0x2545_F491_4F6C_DD1Du64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 40) as f64 / (1u64 << 24) as f64
+        };
+        for round in 0..2000 {
+            let scale = (next() * 16.0 - 12.0).exp2();
+            let (angle, ratio) = (next() * std::f64::consts::TAU, (next() * 12.0).exp2());
+            let (blur_s, blur_t) = if round % 3 == 0 { (next() * 0.02, next() * 0.02) } else { (0.0, 0.0) };
+            let (sin, cos) = angle.sin_cos();
+            let fp = [scale * cos, scale * sin, -scale / ratio * sin, scale / ratio * cos].map(|v| v as f32);
+            let footprint = Footprint { dsdx: fp[0], dtdx: fp[1], dsdy: fp[2], dtdy: fp[3] };
+            let lanes = LookupLanes::splat(0.5, 0.5, footprint, [blur_s as f32, blur_t as f32]);
+            let e = Ellipses::of(&lanes, &LookupOptions::default(), w, h);
+            // The reference, in f64 from the same f32 inputs.
+            let (x0, x1) = (fp[0] as f64 * w as f64, fp[1] as f64 * h as f64);
+            let (y0, y1) = (fp[2] as f64 * w as f64, fp[3] as f64 * h as f64);
+            let (bs, bt) = ((blur_s as f32) as f64 * w as f64, (blur_t as f32) as f64 * h as f64);
+            let (a, b, c) = (x0 * x0 + y0 * y0 + bs * bs, x0 * x1 + y0 * y1, x1 * x1 + y1 * y1 + bt * bt);
+            let spread = (0.25 * (a - c) * (a - c) + b * b).sqrt();
+            let l1 = 0.5 * (a + c) + spread;
+            let l2 = (a * c - b * b) / l1;
+            let cap = 4.0 * 64.0;
+            let (major, minor) = (l1.sqrt().min(cap), l2.max(0.0).sqrt().min(cap));
+            let case = format!("round {round}: {footprint:?}, blur {blur_s} {blur_t}");
+            let close = |got: f32, want: f64| (got as f64 - want).abs() <= 1e-5 * want + 1e-30;
+            assert!(close(e.major.x, major), "major {} vs {major}: {case}", e.major.x);
+            assert!(close(e.minor.x, minor), "minor {} vs {minor}: {case}", e.minor.x);
+            // The direction is a unit eigenvector of l1 (up to sign), where the ellipse is not
+            // nearly round.
+            if l1 > 1.01 * l2 {
+                let (dx, dy) = (e.direction[0].x as f64, e.direction[1].x as f64);
+                assert!(((dx * dx + dy * dy) - 1.0).abs() < 1e-5, "unit: {case}");
+                let residual = ((a - l1) * dx + b * dy).abs() + (b * dx + (c - l1) * dy).abs();
+                assert!(residual <= 1e-4 * l1, "eigenvector residual {residual} of {l1}: {case}");
+            }
+        }
+    }
+
+    #[test]
+    fn the_vector_logarithm_is_within_a_few_ulps_of_the_library_one() {
+        let mut values = vec![f32::MIN_POSITIVE, 1.0, 2.0, 0.5, std::f32::consts::SQRT_2, 1.4142134, 1.4142137, 3.0e38];
+        let mut state = 0x9E37_79B9_7F4A_7C15u64;
+        for _ in 0..100_000 {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            values.push(((state >> 40) as f32 / (1u64 << 24) as f32 * 200.0 - 100.0).exp2());
+        }
+        for chunk in values.chunks(4) {
+            let v = Vec4::from_array(std::array::from_fn(|l| chunk.get(l).copied().unwrap_or(1.0)));
+            for (got, x) in log2(v).to_array().into_iter().zip(v.to_array()) {
+                let want = (x as f64).log2();
+                assert!(
+                    (got as f64 - want).abs() <= 4.0 * f32::EPSILON as f64 * want.abs().max(1.0),
+                    "log2({x:e}): {got} vs {want}"
+                );
+            }
+        }
+        let below = log2(Vec4::new(0.0, 1e-40, -1.0, f32::MIN_POSITIVE / 2.0)).to_array();
+        assert_eq!(below, [-127.0; 4], "nothing below the smallest normal float");
     }
 
     #[test]

@@ -37,7 +37,7 @@ pub use environment::{direction_to_latlong, latlong_to_direction};
 pub use grid::{Grid, GridError, GridType};
 pub use image::{load_texture_image, LoadedImage, TexImage};
 pub use make::{make_texture, MakeTextureOptions};
-pub use mip::{MipMap, MAX_ANISOTROPY};
+pub use mip::{LookupLanes, MipMap, MAX_ANISOTROPY};
 pub use shadow::{write_shadow_map, ShadowMap};
 
 /// What a lookup outside `[0, 1]` sees, per axis (RenderMan's `swrap`/`twrap` names).
