@@ -229,10 +229,12 @@ impl MipMap {
         let (w, h) = (self.width() as f32, self.height() as f32);
         let ProbePlan { probes, lod, major, direction } = plan;
         let weight = 1.0 / probes as f32;
-        // Probe centres split the major axis into equal parts.
+        // Probe centres split the major axis into equal parts (no division per probe: each
+        // would be on the probe's path to its texels).
+        let axis = [direction[0] * major / w, direction[1] * major / h];
         let probe = |k: usize| {
-            let along = ((k as f32 + 0.5) / probes as f32 - 0.5) * major;
-            (s + direction[0] * along / w, t + direction[1] * along / h)
+            let along = (k as f32 + 0.5) * weight - 0.5;
+            (s + axis[0] * along, t + axis[1] * along)
         };
         // Every probe blends the same levels with the same weights: that is worked out once, and
         // the probe loop is unrolled for the common channel counts.
