@@ -17,7 +17,7 @@
 
 use super::image::TexImage;
 use super::{Footprint, LookupOptions, Wrap};
-use glam::{IVec4, Vec4};
+use glam::{IVec4, Mat4, Vec4};
 
 /// The most probes along a footprint's major axis; longer footprints are blurred across.
 pub const MAX_ANISOTROPY: usize = 16;
@@ -318,18 +318,29 @@ impl Trilinear<'_> {
             for (lane, o) in out.iter().enumerate() {
                 sum[lane] = *o;
             }
-            for k in 0..probes {
-                let (s, t) = probe(k);
-                sum = match fast.accumulate::<N>(s, t, first, sum) {
-                    Some(sum) => sum,
-                    // Coordinates too far out for the fast way: the general one, from where the
-                    // sums are.
-                    None => {
-                        out.copy_from_slice(&sum.to_array()[..N]);
-                        self.accumulate(s, t, wrap, first, out);
-                        Vec4::from_array(std::array::from_fn(|lane| out.get(lane).copied().unwrap_or(0.0)))
-                    }
-                };
+            let mut one_probe = |(s, t): (f32, f32), sum: Vec4| match fast.accumulate::<N>(s, t, first, sum) {
+                Some(sum) => sum,
+                // Coordinates too far out for the fast way: the general one, from where the sums
+                // are.
+                None => {
+                    out.copy_from_slice(&sum.to_array()[..N]);
+                    self.accumulate(s, t, wrap, first, out);
+                    Vec4::from_array(std::array::from_fn(|lane| out.get(lane).copied().unwrap_or(0.0)))
+                }
+            };
+            if probes == 1 {
+                sum = one_probe(probe(0), sum);
+            } else {
+                // Four probes at a time (the last group padded with its last probe, not summed).
+                for group in (0..probes).step_by(4) {
+                    let count = (probes - group).min(4);
+                    let at: [(f32, f32); 4] = std::array::from_fn(|j| probe(group + j.min(count - 1)));
+                    let (s, t) = (Vec4::from_array(at.map(|p| p.0)), Vec4::from_array(at.map(|p| p.1)));
+                    sum = match fast.accumulate_four::<N>(s, t, count, first, sum) {
+                        Some(sum) => sum,
+                        None => at[..count].iter().fold(sum, |sum, &p| one_probe(p, sum)),
+                    };
+                }
             }
             out.copy_from_slice(&sum.to_array()[..N]);
             return;
@@ -418,6 +429,53 @@ impl<'a> PeriodicProbes<'a> {
         }
         Some(sum)
     }
+}
+
+impl PeriodicProbes<'_> {
+    /// `sum` plus the first `count` (1 to 4) of the probes at (s, t), lane by lane: the same
+    /// values as [`PeriodicProbes::accumulate`] probe after probe, with each level's coordinates,
+    /// floors, wrapped taps and tap weights worked out for the four probes together. `None`, with
+    /// nothing added, where a probe is beyond the fast way's limit.
+    #[inline(always)]
+    fn accumulate_four<const N: usize>(&self, s: Vec4, t: Vec4, count: usize, first: usize, sum: Vec4) -> Option<Vec4> {
+        let [w0, h0, w1, h1] = self.size.to_array();
+        let [mw0, mh0, mw1, mh1] = self.masks.to_array();
+        let first_level = four_probes(s, t, [w0, h0], [mw0, mh0], self.weights[0])?;
+        let second_level =
+            if self.two { Some(four_probes(s, t, [w1, h1], [mw1, mh1], self.weights[1])?) } else { None };
+        let mut sum = sum;
+        for k in 0..count.min(4) {
+            sum = level_taps::<N>(self.levels[0], first_level.0[k], first_level.1[k], first, sum);
+            if let Some((corners, taps)) = &second_level {
+                sum = level_taps::<N>(self.levels[1], corners[k], taps[k], first, sum);
+            }
+        }
+        Some(sum)
+    }
+}
+
+/// Four probes' taps on one level (`size` its width and height, `masks` each less one): per probe
+/// the wrapped columns and rows `[x0, x1, y0, y1]` and the four tap weights in row-major order,
+/// by the arithmetic of [`PeriodicProbes::accumulate`] lane by lane. `None` where a probe is
+/// beyond 2^22 texels (or NaN).
+#[inline(always)]
+fn four_probes(s: Vec4, t: Vec4, size: [f32; 2], masks: [i32; 2], weight: f32) -> Option<([[i32; 4]; 4], [Vec4; 4])> {
+    let (x, y) = (s * size[0] - Vec4::splat(0.5), t * size[1] - Vec4::splat(0.5));
+    let limit = Vec4::splat(4_194_304.0);
+    if !(x.abs().cmplt(limit) & y.abs().cmplt(limit)).all() {
+        return None;
+    }
+    let (x_floor, y_floor) = (x.floor(), y.floor());
+    let (fx, fy) = (x - x_floor, y - y_floor);
+    let (gx, gy) = (Vec4::ONE - fx, Vec4::ONE - fy);
+    let (column, row) = (small_integers(x_floor), small_integers(y_floor));
+    let wrap = |v: IVec4, mask: i32| (v & IVec4::splat(mask)).to_array();
+    let (x0, x1) = (wrap(column, masks[0]), wrap(column + IVec4::ONE, masks[0]));
+    let (y0, y1) = (wrap(row, masks[1]), wrap(row + IVec4::ONE, masks[1]));
+    let weight = Vec4::splat(weight);
+    // The taps of all four probes, a tap a column; transposed, a probe a column.
+    let taps = Mat4::from_cols(weight * gx * gy, weight * fx * gy, weight * gx * fy, weight * fx * fy).transpose();
+    Some((std::array::from_fn(|k| [x0[k], x1[k], y0[k], y1[k]]), std::array::from_fn(|k| taps.col(k))))
 }
 
 /// The integers of `v`, whose lanes are integers under 2^22 in magnitude: added to 1.5 * 2^23,
