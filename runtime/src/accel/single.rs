@@ -6,7 +6,7 @@
 //! popped entries farther than the current closest hit are skipped. This is the path for
 //! incoherent rays and the fallback of packet traversal.
 //!
-//! Invariant: traversal state (`tmax`, the hit record) lives in [`RayPre`] and is shared between
+//! Invariant: traversal state (`tmax`, the hit record) lives in `RayPre` and is shared between
 //! the levels: `t` is the same number in world and object space because origin and direction are
 //! transformed by the same affine map.
 
