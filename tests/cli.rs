@@ -353,7 +353,11 @@ fn bart_plays_a_scene_at_its_timing_and_writes_the_frames() {
     let frames: Vec<&str> = out.lines().filter(|l| l.starts_with("frame ")).collect();
     assert_eq!(frames.len(), 3, "{out}");
     assert!(frames[1].contains("scene frame    3, t =    0.300 s") && frames[1].contains("M rays/s"), "{out}");
-    assert!(out.lines().last().is_some_and(|l| l.starts_with("3 frames:")), "{out}");
+    let summary = out.lines().last().unwrap_or_default();
+    assert!(
+        summary.starts_with("3 frames:") && summary.contains(", median ") && summary.contains("% of a frame"),
+        "{out}"
+    );
     for k in 0..3 {
         let image = rtsl_runtime::read_image(dir.path().join(format!("frames/frame_{k:04}.png"))).expect("a frame");
         assert_eq!((image.width, image.height), (32, 24));

@@ -194,19 +194,32 @@ fn summarize(times: &[FrameTimes]) {
     let totals: Vec<f64> = times.iter().map(|t| ms(t.animation + t.build + t.render)).collect();
     let min = totals.iter().copied().fold(f64::INFINITY, f64::min);
     let max = totals.iter().copied().fold(0.0, f64::max);
+    let median = {
+        let mut sorted = totals.clone();
+        sorted.sort_by(f64::total_cmp);
+        match sorted.len() {
+            0 => 0.0,
+            len if len % 2 == 1 => sorted[len / 2],
+            len => 0.5 * (sorted[len / 2 - 1] + sorted[len / 2]),
+        }
+    };
+    let frame = totals.iter().sum::<f64>() / n;
+    let accel = mean(&|t| t.accel.total());
     let rays: u64 = times.iter().map(|t| t.rays).sum();
     let render_s: f64 = times.iter().map(|t| t.render.as_secs_f64()).sum();
     println!(
-        "{} frames: {:.1} ms per frame on average (min {:.1}, max {:.1}; {:.2} frames/s): update {:.2} ms (animation {:.2}, world {:.2} of which BVHs {:.2}), render {:.1} ms; {:.2} M rays/s (image writing not counted)",
+        "{} frames: {:.1} ms per frame on average (min {:.1}, median {:.1}, max {:.1}; {:.2} frames/s): update {:.2} ms (animation {:.2}, world {:.2} of which BVHs {:.2}, {:.2}% of a frame), render {:.1} ms; {:.2} M rays/s (image writing not counted)",
         times.len(),
-        totals.iter().sum::<f64>() / n,
+        frame,
         min,
+        median,
         max,
-        1e3 / (totals.iter().sum::<f64>() / n).max(1e-9),
+        1e3 / frame.max(1e-9),
         mean(&|t| t.animation + t.build),
         mean(&|t| t.animation),
         mean(&|t| t.build),
-        mean(&|t| t.accel.total()),
+        accel,
+        100.0 * accel / frame.max(1e-9),
         mean(&|t| t.render),
         rays as f64 / render_s.max(1e-9) / 1e6,
     );
