@@ -429,9 +429,7 @@ impl<'a> PeriodicProbes<'a> {
         }
         Some(sum)
     }
-}
 
-impl PeriodicProbes<'_> {
     /// `sum` plus the first `count` (1 to 4) of the probes at (s, t), lane by lane: the same
     /// values as [`PeriodicProbes::accumulate`] probe after probe, with each level's coordinates,
     /// floors, wrapped taps and tap weights worked out for the four probes together. `None`, with
