@@ -1084,12 +1084,7 @@ mod tests {
     #[test]
     fn periodic_probes_sum_exactly_as_tap_by_tap() {
         let mut state = 0x2545_F491_4F6C_DD1Du64;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut next = || unit_random(&mut state);
         let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
         for channels in 1..=5 {
             for (w, h) in [(16, 16), (32, 4), (1, 8), (8, 1), (12, 8)] {
@@ -1143,12 +1138,7 @@ mod tests {
         type Lane = (f32, f32, Footprint, f32, usize);
         let m = MipMap::new(image(32, 16, 3, |x, y, c| ((x * 5 + y * 11 + c * 3) % 17) as f32 / 17.0));
         let mut state = 0x9E37_79B9_7F4A_7C15u64;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut next = || unit_random(&mut state);
         for round in 0..200 {
             let mut lane = |_| {
                 let scale = (next() * 12.0 - 8.0).exp2();
@@ -1197,12 +1187,7 @@ mod tests {
     fn ellipses_match_the_eigenvalues_in_double_precision() {
         let (w, h) = (64.0f32, 32.0f32);
         let mut state = 0x2545_F491_4F6C_DD1Du64;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 40) as f64 / (1u64 << 24) as f64
-        };
+        let mut next = || f64::from(unit_random(&mut state));
         for round in 0..2000 {
             let scale = (next() * 16.0 - 12.0).exp2();
             let (angle, ratio) = (next() * std::f64::consts::TAU, (next() * 12.0).exp2());
@@ -1242,10 +1227,7 @@ mod tests {
         let mut values = vec![f32::MIN_POSITIVE, 1.0, 2.0, 0.5, std::f32::consts::SQRT_2, 1.4142134, 1.4142137, 3.0e38];
         let mut state = 0x9E37_79B9_7F4A_7C15u64;
         for _ in 0..100_000 {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            values.push(((state >> 40) as f32 / (1u64 << 24) as f32 * 200.0 - 100.0).exp2());
+            values.push((unit_random(&mut state) * 200.0 - 100.0).exp2());
         }
         for chunk in values.chunks(4) {
             let v = Vec4::from_array(std::array::from_fn(|l| chunk.get(l).copied().unwrap_or(1.0)));
@@ -1278,6 +1260,14 @@ mod tests {
             let (a, b) = (floor(x), x.floor());
             assert!(a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()), "floor({x:e}): {a:e} vs {b:e}");
         }
+    }
+
+    /// The next number in [0, 1) of a xorshift generator (24 bits): the same cases every run.
+    fn unit_random(state: &mut u64) -> f32 {
+        *state ^= *state << 13;
+        *state ^= *state >> 7;
+        *state ^= *state << 17;
+        (*state >> 40) as f32 / (1u64 << 24) as f32
     }
 
     fn image(w: usize, h: usize, ch: usize, f: impl Fn(usize, usize, usize) -> f32) -> TexImage {
