@@ -102,18 +102,16 @@ fn eval_light_lanes(
     let eye = frame.world.camera.eye();
     let ambient = light.kind == LightKind::Ambient;
     let scale = 1.0 / samples as f32;
+    let mut scratch = super::scratch::take(&LIGHT_LANE_ROWS);
+    let LightLaneRows { ps, lane_times, rows, flags, attenuation, packet, .. } = scratch.fresh(n);
     // The lanes' points and times as rows, written into each batch a row at a time.
-    let mut ps = [[0.0f32; PACKET_SIZE]; 3];
-    let mut lane_times = [0.0f32; PACKET_SIZE];
     for (l, p) in points.iter().enumerate().take(n) {
         (ps[0][l], ps[1][l], ps[2][l]) = (p.x, p.y, p.z);
         lane_times[l] = time_of(times, l);
     }
-    // What the light shader left: L, Cl and Ol, a row per component.
-    let mut rows = [[0.0f32; PACKET_SIZE]; 9];
+    // What the light shader left, L, Cl and Ol, a row per component, in `rows`; in `flags`,
     // RenderMan's light flags: `diffuse()` and `specular()` skip (weigh by 1 minus) a light whose
     // `__nondiffuse` / `__nonspecular` output is set, as the shader left it for each lane.
-    let mut flags = [[0.0f32; PACKET_SIZE]; 2];
     let flag_slots = ["__nondiffuse", "__nonspecular"].map(|name| {
         program
             .layout()
@@ -178,12 +176,13 @@ fn eval_light_lanes(
         });
         let lane3 = |first: usize, l: usize| Vec3A::new(rows[first][l], rows[first + 1][l], rows[first + 2][l]);
         // Shadows: which lanes need a ray, then one packet (or a walk per ray).
-        let mut attenuation = [Vec3A::ONE; PACKET_SIZE];
+        attenuation[..n.div_ceil(4) * 4].fill(Vec3A::ONE);
         let mut pending = 0u64;
         if !ambient && light.shadows {
-            let mut packet = RayPacket::new();
+            // As `RayPacket::new()` in the lanes this batch writes (the others are as new).
+            reset_packet_lanes(packet, n.div_ceil(4) * 4);
             let distant = light.kind == LightKind::Distant;
-            let mut m = shadow_packet_rows(&rows, &ps, &lane_times, points, mask, distant, &mut packet);
+            let mut m = shadow_packet_rows(rows, ps, lane_times, points, mask, distant, packet);
             while m != 0 {
                 let l = m.trailing_zeros() as usize;
                 m &= m - 1;
@@ -193,7 +192,7 @@ fn eval_light_lanes(
                     pending |= 1 << l;
                 }
             }
-            transmission_packet(frame, &mut packet, &mut attenuation[..n]);
+            transmission_packet(frame, packet, &mut attenuation[..n]);
         }
         for c in 0..n.div_ceil(4) {
             let at = 4 * c..4 * c + 4;
@@ -234,6 +233,66 @@ fn eval_light_lanes(
             };
             sink(c, &fill, lanes, (pending >> (4 * c)) as u32 & lanes);
         }
+    }
+    super::scratch::give(&LIGHT_LANE_ROWS, scratch);
+}
+
+thread_local! {
+    /// [`LightLaneRows`] for the next light evaluation (`scratch`: shadows recurse into shading).
+    static LIGHT_LANE_ROWS: std::cell::RefCell<Vec<Box<LightLaneRows>>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// The rows [`eval_light_lanes`] works in, kept from call to call. Made afresh they were 6 KB
+/// zeroed for every light and sample of every batch however few its lanes: in the BART kitchen,
+/// whose incoherent rays make small batches, `memset` was a fifth of the instructions.
+struct LightLaneRows {
+    ps: [[f32; PACKET_SIZE]; 3],
+    lane_times: [f32; PACKET_SIZE],
+    rows: [[f32; PACKET_SIZE]; 9],
+    flags: [[f32; PACKET_SIZE]; 2],
+    attenuation: [Vec3A; PACKET_SIZE],
+    packet: RayPacket,
+    /// Every lane from this one on holds its fresh value (zero; one for `attenuation`).
+    written: usize,
+}
+
+/// `packet` as `RayPacket::new()` in its first `lanes` lanes, and no lane active.
+fn reset_packet_lanes(packet: &mut RayPacket, lanes: usize) {
+    let p = packet;
+    for row in [&mut p.ox, &mut p.oy, &mut p.oz, &mut p.dx, &mut p.dy, &mut p.dz, &mut p.tmin, &mut p.tmax, &mut p.time]
+    {
+        row.0[..lanes.min(PACKET_SIZE)].fill(0.0);
+    }
+    p.active = 0;
+}
+
+impl Default for LightLaneRows {
+    fn default() -> LightLaneRows {
+        LightLaneRows {
+            ps: [[0.0; PACKET_SIZE]; 3],
+            lane_times: [0.0; PACKET_SIZE],
+            rows: [[0.0; PACKET_SIZE]; 9],
+            flags: [[0.0; PACKET_SIZE]; 2],
+            attenuation: [Vec3A::ONE; PACKET_SIZE],
+            packet: RayPacket::new(),
+            written: 0,
+        }
+    }
+}
+
+impl LightLaneRows {
+    /// These rows as fresh ones (every lane zero, `attenuation` one), for a batch of `n` lanes:
+    /// only the lanes earlier batches wrote are reset, and the new batch writes the chunks of
+    /// four that hold its `n` lanes.
+    fn fresh(&mut self, n: usize) -> &mut LightLaneRows {
+        let written = self.written.min(PACKET_SIZE);
+        for row in self.ps.iter_mut().chain([&mut self.lane_times]).chain(&mut self.rows).chain(&mut self.flags) {
+            row[..written].fill(0.0);
+        }
+        self.attenuation[..written].fill(Vec3A::ONE);
+        reset_packet_lanes(&mut self.packet, written);
+        self.written = n.div_ceil(4).saturating_mul(4).min(PACKET_SIZE);
+        self
     }
 }
 
