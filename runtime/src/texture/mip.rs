@@ -74,6 +74,11 @@ impl MipMap {
         self.wrap
     }
 
+    /// The wrap modes a lookup uses: its own where it gives them, else the file's.
+    fn wrap_for(&self, opts: &LookupOptions) -> [Wrap; 2] {
+        [opts.swrap.unwrap_or(self.wrap[0]), opts.twrap.unwrap_or(self.wrap[1])]
+    }
+
     /// Records the projection the file's header carried (`worldToCamera`, `worldToNDC`).
     pub fn with_projection(mut self, projection: Option<[[f32; 16]; 2]>) -> MipMap {
         self.projection = projection;
@@ -104,7 +109,7 @@ impl MipMap {
         out: &mut [f32],
         opts: &LookupOptions,
     ) {
-        let wrap = [opts.swrap.unwrap_or(self.wrap[0]), opts.twrap.unwrap_or(self.wrap[1])];
+        let wrap = self.wrap_for(opts);
         self.filter_wrapped(s, t, footprint, first_channel, out, opts, wrap);
     }
 
@@ -158,7 +163,7 @@ impl MipMap {
         out: &mut [f32],
         opts: &LookupOptions,
     ) {
-        let wrap = [opts.swrap.unwrap_or(self.wrap[0]), opts.twrap.unwrap_or(self.wrap[1])];
+        let wrap = self.wrap_for(opts);
         let plans = self.probe_plans(lanes, opts);
         let values = (out.len() / 4).min(MAX_LANE_VALUES);
         let mut lane_out = [0.0f32; MAX_LANE_VALUES];
