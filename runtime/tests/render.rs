@@ -876,6 +876,50 @@ fn an_object_built_in_parts_shades_each_part_with_its_own_appearance() -> Result
 }
 
 #[test]
+fn shadows_through_a_stack_of_sheets_multiply_the_nearest_layers() -> Result<(), ApiError> {
+    // A light straight down through `sheets` parallel sheets, each letting 0.9 of the light
+    // through, onto a floor the camera looks straight down at (the sheets are behind it): the floor
+    // gets 0.9 to the power of the sheets crossed, at most `max_transparent_layers` (16) of them.
+    let render = |sheets: usize| -> Result<Framebuffer, ApiError> {
+        let mut rt = context();
+        let plastic = rt.find_shader("plastic")?;
+        let light = rt.find_shader("distantlight")?;
+        rt.camera_look_at(Vec3A::new(0.0, 2.0, 0.0), Vec3A::ZERO, Vec3A::NEG_Z, 60.0);
+        rt.bind_shader(plastic)?;
+        let floor = rt.begin_object()?;
+        quad(&mut rt, [[-5.0, 0.0, 5.0], [5.0, 0.0, 5.0], [5.0, 0.0, -5.0], [-5.0, 0.0, -5.0]])?;
+        rt.end_object()?;
+        rt.instantiate_object(floor)?;
+        if sheets > 0 {
+            let stack = rt.begin_object()?;
+            rt.opacity(0.1, 0.1, 0.1);
+            for k in 0..sheets {
+                let y = 3.0 + 0.05 * k as f32;
+                quad(&mut rt, [[-6.0, y, 6.0], [6.0, y, 6.0], [6.0, y, -6.0], [-6.0, y, -6.0]])?;
+            }
+            rt.end_object()?;
+            rt.instantiate_object(stack)?;
+        }
+        let (from, to) = (ParamValue::Point([0.0, 0.0, 0.0]), ParamValue::Point([0.0, -1.0, 0.0]));
+        rt.light_source(light, &[("intensity", ParamValue::Float(1.0)), ("from", from), ("to", to)])?;
+        Ok(rt.render_frame()?.0)
+    };
+    let open = render(0)?;
+    for (sheets, crossed) in [(3, 3), (20, 16)] {
+        let through = render(sheets)?;
+        let expected = 0.9f32.powi(crossed);
+        for y in 0..H {
+            for x in 0..W {
+                let (o, t) = (luminance(&open, x, y), luminance(&through, x, y));
+                assert!(o > 0.05, "the open floor is lit at ({x}, {y})");
+                assert!((t / o - expected).abs() < 1e-3, "{sheets} sheets at ({x}, {y}): {} of the light", t / o);
+            }
+        }
+    }
+    Ok(())
+}
+
+#[test]
 fn shadows_pass_through_the_transparent_part_of_an_object_only() -> Result<(), ApiError> {
     // The camera looks straight down at a floor, under a roof it cannot see (the roof is behind
     // it); a light straight down casts the roof's shadow over the whole view. The roof is one
