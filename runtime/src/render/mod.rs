@@ -1,6 +1,6 @@
 //! The rendering engine: a [`World`] (scene, materials, lights, camera, options) rendered frame by
 //! frame. `frame.rs` generates primary packets over tiles; `shade.rs` shades hits through the JIT
-//! code; `host.rs` answers the shaders' calls into the renderer (spaces, `trace`, textures,
+//! code, from their geometry (`hit_geometry.rs`); `host.rs` answers the shaders' calls into the renderer (spaces, `trace`, textures,
 //! messages); `lights.rs` runs light shaders over a batch and traces their shadows; `stats.rs`
 //! counts; `volume.rs` runs atmosphere and interior shaders on ray segments; `differential.rs` carries ray differentials; `native.rs` is the hand-written baseline;
 //! `progressive.rs` renders chosen pixels pass by pass into an accumulator (interactive viewers);
@@ -11,6 +11,7 @@ pub mod differential;
 mod film;
 pub mod filter;
 pub mod frame;
+mod hit_geometry;
 mod host;
 mod lights;
 pub mod native;
