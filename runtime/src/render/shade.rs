@@ -13,7 +13,7 @@
 //! - Only the outermost shading of a thread is timed (`stats.rs`), tracing excluded.
 
 use super::differential::RayDifferential;
-use super::hit_geometry::{hit_geometry_into, HitGeometry, InstanceGeometry};
+use super::hit_geometry::{hit_geometries, HitGeometry, InstanceGeometry};
 use super::host::ShadeCall;
 use super::lights::BatchLights;
 use super::native::{faced_against, LightSeen, NativeSurface};
@@ -313,9 +313,7 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
         // The slots of earlier groups are written over in place (`hit_geometry_into`).
         geoms.truncate(group.len());
         geoms.resize_with(group.len(), || None);
-        for (slot, p) in geoms.iter_mut().zip(group) {
-            hit_geometry_into(&ig, &p.hit, p.ray.time, slot);
-        }
+        hit_geometries(&ig, group, geoms);
         let color = Vec3A::from(material.color);
         let opacity = Vec3A::from(material.opacity);
         if let Some(displacement) = &material.displacement {
