@@ -715,16 +715,47 @@ struct LightSet {
     order: [Vec<usize>; 4],
 }
 
+/// A [`HostCtx`]'s buffers, reused from run to run: a renderer runs shaders batch after batch,
+/// and allocating them afresh for each was 14,000 allocations a BART robot frame.
+#[derive(Default)]
+struct CtxBuffers {
+    light_sets: Vec<LightSet>,
+    light_buffer: Vec<LightLanes>,
+    matrices: Vec<((u32, u32), Option<M4>)>,
+}
+
+/// Buffers kept per thread: as many as runs nest (a surface's lights, the shading of traced rays).
+const KEPT_CTX_BUFFERS: usize = 16;
+
+thread_local! {
+    static CTX_BUFFERS: std::cell::RefCell<Vec<CtxBuffers>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
 impl HostCtx {
     pub(super) fn new(table: *const HostTable, errors: *const super::RuntimeErrors) -> HostCtx {
-        HostCtx {
-            table,
-            errors,
-            light_sets: Vec::new(),
-            light_buffer: Vec::new(),
-            last_lights: None,
-            matrices: Vec::new(),
-        }
+        let taken = CTX_BUFFERS.try_with(|s| s.try_borrow_mut().ok().and_then(|mut s| s.pop())).ok().flatten();
+        let CtxBuffers { mut light_sets, mut light_buffer, mut matrices } = taken.unwrap_or_default();
+        light_sets.clear();
+        light_buffer.clear();
+        matrices.clear();
+        HostCtx { table, errors, light_sets, light_buffer, last_lights: None, matrices }
+    }
+}
+
+impl Drop for HostCtx {
+    fn drop(&mut self) {
+        let buffers = CtxBuffers {
+            light_sets: std::mem::take(&mut self.light_sets),
+            light_buffer: std::mem::take(&mut self.light_buffer),
+            matrices: std::mem::take(&mut self.matrices),
+        };
+        let _ = CTX_BUFFERS.try_with(|s| {
+            if let Ok(mut s) = s.try_borrow_mut() {
+                if s.len() < KEPT_CTX_BUFFERS {
+                    s.push(buffers);
+                }
+            }
+        });
     }
 }
 
