@@ -18,6 +18,7 @@ use rtsl_compiler::back::jit::{
 };
 use rtsl_compiler::builtins::Builtin;
 use rtsl_compiler::shadeops::gather::GatherHit;
+use std::cell::RefCell;
 use std::ffi::c_void;
 use std::sync::Arc;
 
@@ -47,9 +48,44 @@ pub(crate) struct ShadeCall<'f, 'w> {
     /// at every step, and finding it in the shared cache costs a lock, a hash and an atomic count.
     last_grid: Option<(String, Option<Arc<Grid>>)>,
     last_texture: Option<(String, Option<Arc<MipMap>>)>,
+    /// A buffer for `last_texture`'s name.
+    texture_name: String,
     /// The material of the surface being shaded (for the surface's own shaders and the lights
     /// that light it): what `surface()` and `displacement()` messages read.
     pub(super) material: Option<u32>,
+}
+
+/// The buffers of a [`ShadeCall`], reused from call to call: a call is made for every batch, and
+/// allocating them afresh was 35,000 allocations a BART robot frame.
+#[derive(Default)]
+struct CallBuffers {
+    points: Vec<Vec3A>,
+    mask: Vec<i32>,
+    times: Vec<f32>,
+    front: Vec<Vec3A>,
+    texture_name: String,
+}
+
+thread_local! {
+    /// A stack, because calls nest (a surface's light shaders, shading the hits of traced rays).
+    static CALL_BUFFERS: RefCell<Vec<CallBuffers>> = const { RefCell::new(Vec::new()) };
+}
+
+impl Drop for ShadeCall<'_, '_> {
+    fn drop(&mut self) {
+        let texture_name = match self.last_texture.take() {
+            Some((name, _)) => name,
+            None => std::mem::take(&mut self.texture_name),
+        };
+        let buffers = CallBuffers {
+            points: std::mem::take(&mut self.batch_points),
+            mask: std::mem::take(&mut self.batch_mask),
+            times: std::mem::take(&mut self.batch_times),
+            front: std::mem::take(&mut self.batch_front),
+            texture_name,
+        };
+        super::scratch::give(&CALL_BUFFERS, buffers);
+    }
 }
 
 struct LightQuery {
@@ -67,6 +103,12 @@ impl<'f, 'w> ShadeCall<'f, 'w> {
         world_from_object: Affine3A,
         depth: u32,
     ) -> Self {
+        let CallBuffers { mut points, mut mask, mut times, mut front, texture_name } =
+            super::scratch::take(&CALL_BUFFERS);
+        points.clear();
+        mask.clear();
+        times.clear();
+        front.clear();
         ShadeCall {
             frame,
             instance,
@@ -74,15 +116,16 @@ impl<'f, 'w> ShadeCall<'f, 'w> {
             depth,
             light_cache: None,
             text: String::new(),
-            batch_points: Vec::new(),
-            batch_mask: Vec::new(),
-            batch_times: Vec::new(),
-            batch_front: Vec::new(),
+            batch_points: points,
+            batch_mask: mask,
+            batch_times: times,
+            batch_front: front,
             batch_lights: None,
             chunk_cursor: 0,
             chunk_next: 0,
             last_grid: None,
             last_texture: None,
+            texture_name,
             material: None,
         }
     }
@@ -96,7 +139,13 @@ impl<'f, 'w> ShadeCall<'f, 'w> {
 
     fn texture(&mut self, name: &str) -> Option<&MipMap> {
         if self.last_texture.as_ref().is_none_or(|(last, _)| last != name) {
-            self.last_texture = Some((name.to_string(), self.frame.world.textures.get_texture(name, false)));
+            let mut key = match self.last_texture.take() {
+                Some((last, _)) => last,
+                None => std::mem::take(&mut self.texture_name),
+            };
+            key.clear();
+            key.push_str(name);
+            self.last_texture = Some((key, self.frame.world.textures.get_texture(name, false)));
         }
         self.last_texture.as_ref().and_then(|(_, t)| t.as_deref())
     }

@@ -11,6 +11,7 @@ use crate::ray::{HitCandidate, HitPacket, Ray, RayPacket, PACKET_SIZE};
 use crate::shading::{fill1, fill3, get_row, put3, put_row, varying_rows, with_filled_batch, LightKind};
 use glam::{Vec3A, Vec4};
 use rtsl_compiler::back::jit::{light_in_cone, HostLight, LightLanes, MAX_LIGHTS};
+use std::cell::RefCell;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Mutex, PoisonError};
 
@@ -592,7 +593,9 @@ fn transmission_packet(frame: &Frame, packet: &mut RayPacket, through: &mut [Vec
     }
     let material_of = |instance: u32, primitive: u32| material_at(world, instance, primitive);
     // Transparent candidates are passed over (the traversal goes on) but noted.
-    let crossings = Mutex::new(Vec::new());
+    let mut noted = super::scratch::take(&CROSSING_BUFFERS);
+    noted.clear();
+    let crossings = Mutex::new(noted);
     let by_shader = AtomicU64::new(0);
     let opaque = |c: &HitCandidate| {
         let material = material_of(c.instance, c.primitive);
@@ -629,7 +632,14 @@ fn transmission_packet(frame: &Frame, packet: &mut RayPacket, through: &mut [Vec
             }
         }
     });
+    super::scratch::give(&CROSSING_BUFFERS, crossings);
     walk_transparent_layers(frame, packet, walking, through);
+}
+
+thread_local! {
+    /// The crossings' lists, reused from packet to packet (one allocated afresh for each shadow
+    /// packet that crossed a window was 20,000 allocations a BART robot frame).
+    static CROSSING_BUFFERS: RefCell<Vec<Vec<Crossing>>> = const { RefCell::new(Vec::new()) };
 }
 
 /// The material of triangle `primitive` of instance `instance` (the default for ids out of range).

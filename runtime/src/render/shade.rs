@@ -512,23 +512,22 @@ fn batch_call<'f, 'w>(
 ) -> ShadeCall<'f, 'w> {
     let mut call = ShadeCall::new(frame, shader, world_from_object, depth);
     call.material = Some(material);
-    (call.batch_points, call.batch_mask, call.batch_times) = batch_lanes(group, geoms);
-    call.batch_front = batch_front(group, geoms);
+    // Into the call's own (reused) buffers.
+    call.batch_points.extend(geoms.iter().map(|g| g.as_ref().map_or(Vec3A::ZERO, |g| g.p)));
+    call.batch_mask.extend(geoms.iter().map(|g| if g.is_some() { -1 } else { 0 }));
+    call.batch_times.extend(group.iter().map(|p| p.ray.time));
+    call.batch_front.extend(front_normals(group, geoms));
     call
 }
 
 /// Each lane's shading normal turned toward the ray's origin (by the geometric normal, as
 /// `faceforward(N, I)`): the side whose lights a typical surface shader sums.
-fn batch_front(group: &[Pending], geoms: &[Option<HitGeometry>]) -> Vec<Vec3A> {
-    group
-        .iter()
-        .zip(geoms)
-        .map(|(p, g)| match g {
-            Some(g) if p.ray.direction.dot(g.ng) > 0.0 => -g.n,
-            Some(g) => g.n,
-            None => Vec3A::ZERO,
-        })
-        .collect()
+fn front_normals<'a>(group: &'a [Pending], geoms: &'a [Option<HitGeometry>]) -> impl Iterator<Item = Vec3A> + 'a {
+    group.iter().zip(geoms).map(|(p, g)| match g {
+        Some(g) if p.ray.direction.dot(g.ng) > 0.0 => -g.n,
+        Some(g) => g.n,
+        None => Vec3A::ZERO,
+    })
 }
 
 /// Runs a displacement shader over a group of hits as bump mapping: the `N` it leaves (when
@@ -578,7 +577,7 @@ fn shade_native(
     out: &mut [Shaded],
 ) {
     let (points, mask, times) = batch_lanes(group, geoms);
-    let front = batch_front(group, geoms);
+    let front: Vec<Vec3A> = front_normals(group, geoms).collect();
     let mut table = BatchLights::compute(frame, None, &points, &mask, &times, Some(&front), depth);
     // The hand-written plastic sums the lights in front of its normal faced forward by itself.
     let faced = |(k, g): (usize, &Option<HitGeometry>)| {
