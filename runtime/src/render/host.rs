@@ -73,6 +73,9 @@ thread_local! {
 
 impl Drop for ShadeCall<'_, '_> {
     fn drop(&mut self) {
+        if self.batch_points.capacity() == 0 {
+            return;
+        }
         let texture_name = match self.last_texture.take() {
             Some((name, _)) => name,
             None => std::mem::take(&mut self.texture_name),
@@ -103,12 +106,6 @@ impl<'f, 'w> ShadeCall<'f, 'w> {
         world_from_object: Affine3A,
         depth: u32,
     ) -> Self {
-        let CallBuffers { mut points, mut mask, mut times, mut front, texture_name } =
-            super::scratch::take(&CALL_BUFFERS);
-        points.clear();
-        mask.clear();
-        times.clear();
-        front.clear();
         ShadeCall {
             frame,
             instance,
@@ -116,18 +113,32 @@ impl<'f, 'w> ShadeCall<'f, 'w> {
             depth,
             light_cache: None,
             text: String::new(),
-            batch_points: points,
-            batch_mask: mask,
-            batch_times: times,
-            batch_front: front,
+            batch_points: Vec::new(),
+            batch_mask: Vec::new(),
+            batch_times: Vec::new(),
+            batch_front: Vec::new(),
             batch_lights: None,
             chunk_cursor: 0,
             chunk_next: 0,
             last_grid: None,
             last_texture: None,
-            texture_name,
+            texture_name: String::new(),
             material: None,
         }
+    }
+
+    /// Takes this thread's spare buffers for the batch's lanes (empty) and texture names. Only the
+    /// calls that use them take them: most calls (light shaders, small batches) need none, and
+    /// a call that takes nothing gives nothing back.
+    pub(super) fn take_buffers(&mut self) {
+        let CallBuffers { mut points, mut mask, mut times, mut front, texture_name } =
+            super::scratch::take(&CALL_BUFFERS);
+        points.clear();
+        mask.clear();
+        times.clear();
+        front.clear();
+        (self.batch_points, self.batch_mask, self.batch_times, self.batch_front) = (points, mask, times, front);
+        self.texture_name = texture_name;
     }
 
     fn grid(&mut self, name: &str) -> Option<&Grid> {

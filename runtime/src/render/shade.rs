@@ -512,7 +512,8 @@ fn batch_call<'f, 'w>(
 ) -> ShadeCall<'f, 'w> {
     let mut call = ShadeCall::new(frame, shader, world_from_object, depth);
     call.material = Some(material);
-    // Into the call's own (reused) buffers.
+    // Into reused buffers.
+    call.take_buffers();
     call.batch_points.extend(geoms.iter().map(|g| g.as_ref().map_or(Vec3A::ZERO, |g| g.p)));
     call.batch_mask.extend(geoms.iter().map(|g| if g.is_some() { -1 } else { 0 }));
     call.batch_times.extend(group.iter().map(|p| p.ray.time));

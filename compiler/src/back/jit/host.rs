@@ -1576,7 +1576,11 @@ fn rays_call(cx: &mut Cx<'_>, kind: u32, outs: usize) {
     }
     if let Some(t) = cx.table {
         let mask: [i32; 4] = cx.mask.map(|m| if m { -1 } else { 0 });
-        let samples: Vec<f32> = if kind >= 2 { cx.input[24..28].to_vec() } else { vec![0.0; 4] };
+        // On the stack: a `Vec` here was an allocation per chunk of every `trace` call.
+        let samples: [f32; 4] = match cx.input.get(24..28) {
+            Some(s) if kind >= 2 => [s[0], s[1], s[2], s[3]],
+            _ => [0.0; 4],
+        };
         // SAFETY: the table's documented sizes.
         unsafe {
             (t.rays)(
