@@ -875,6 +875,20 @@ fn an_object_built_in_parts_shades_each_part_with_its_own_appearance() -> Result
     Ok(())
 }
 
+/// A plastic floor that the camera looks straight down at from y = 2; returns `distantlight`, for
+/// a light straight down (what lies above the camera it does not see).
+fn floor_seen_from_above(rt: &mut Context) -> Result<rtsl_runtime::api::ShaderId, ApiError> {
+    let plastic = rt.find_shader("plastic")?;
+    let light = rt.find_shader("distantlight")?;
+    rt.camera_look_at(Vec3A::new(0.0, 2.0, 0.0), Vec3A::ZERO, Vec3A::NEG_Z, 60.0);
+    rt.bind_shader(plastic)?;
+    let floor = rt.begin_object()?;
+    quad(rt, [[-5.0, 0.0, 5.0], [5.0, 0.0, 5.0], [5.0, 0.0, -5.0], [-5.0, 0.0, -5.0]])?;
+    rt.end_object()?;
+    rt.instantiate_object(floor)?;
+    Ok(light)
+}
+
 #[test]
 fn shadows_through_a_stack_of_sheets_multiply_the_nearest_layers() -> Result<(), ApiError> {
     // A light straight down through `sheets` parallel sheets, each letting 0.9 of the light
@@ -882,14 +896,7 @@ fn shadows_through_a_stack_of_sheets_multiply_the_nearest_layers() -> Result<(),
     // gets 0.9 to the power of the sheets crossed, at most `max_transparent_layers` (16) of them.
     let render = |sheets: usize| -> Result<Framebuffer, ApiError> {
         let mut rt = context();
-        let plastic = rt.find_shader("plastic")?;
-        let light = rt.find_shader("distantlight")?;
-        rt.camera_look_at(Vec3A::new(0.0, 2.0, 0.0), Vec3A::ZERO, Vec3A::NEG_Z, 60.0);
-        rt.bind_shader(plastic)?;
-        let floor = rt.begin_object()?;
-        quad(&mut rt, [[-5.0, 0.0, 5.0], [5.0, 0.0, 5.0], [5.0, 0.0, -5.0], [-5.0, 0.0, -5.0]])?;
-        rt.end_object()?;
-        rt.instantiate_object(floor)?;
+        let light = floor_seen_from_above(&mut rt)?;
         if sheets > 0 {
             let stack = rt.begin_object()?;
             rt.opacity(0.1, 0.1, 0.1);
@@ -926,14 +933,7 @@ fn shadows_pass_through_the_transparent_part_of_an_object_only() -> Result<(), A
     // object in two parts: the half over x < 0 opaque, the other opaque or clear.
     let render = |clear_part: bool| -> Result<Framebuffer, ApiError> {
         let mut rt = context();
-        let plastic = rt.find_shader("plastic")?;
-        let light = rt.find_shader("distantlight")?;
-        rt.camera_look_at(Vec3A::new(0.0, 2.0, 0.0), Vec3A::ZERO, Vec3A::NEG_Z, 60.0);
-        rt.bind_shader(plastic)?;
-        let floor = rt.begin_object()?;
-        quad(&mut rt, [[-5.0, 0.0, 5.0], [5.0, 0.0, 5.0], [5.0, 0.0, -5.0], [-5.0, 0.0, -5.0]])?;
-        rt.end_object()?;
-        rt.instantiate_object(floor)?;
+        let light = floor_seen_from_above(&mut rt)?;
         let roof = rt.begin_object()?;
         quad(&mut rt, [[-4.0, 3.0, 4.0], [0.0, 3.0, 4.0], [0.0, 3.0, -4.0], [-4.0, 3.0, -4.0]])?;
         rt.end_part()?;
