@@ -701,6 +701,8 @@ pub struct HostCtx {
     /// The space matrices asked so far, by (from, to) string handle: each pair is asked of the
     /// renderer once per batch, however many chunks use it.
     matrices: Vec<((u32, u32), Option<M4>)>,
+    /// Whether the buffers above came from this thread's spares ([`HostCtx::use_spare_buffers`]).
+    pooled: bool,
 }
 
 /// What identifies a light query: category, the points' bits, the lanes asking.
@@ -733,17 +735,39 @@ thread_local! {
 
 impl HostCtx {
     pub(super) fn new(table: *const HostTable, errors: *const super::RuntimeErrors) -> HostCtx {
+        HostCtx {
+            table,
+            errors,
+            light_sets: Vec::new(),
+            light_buffer: Vec::new(),
+            last_lights: None,
+            matrices: Vec::new(),
+            pooled: false,
+        }
+    }
+
+    /// Takes this thread's spare buffers before the first use of any: only runs that use them
+    /// take them (many runs, a light shader's or a small batch's, need none), and a run that took
+    /// none gives none back.
+    fn use_spare_buffers(&mut self) {
+        if self.pooled {
+            return;
+        }
+        self.pooled = true;
         let taken = CTX_BUFFERS.try_with(|s| s.try_borrow_mut().ok().and_then(|mut s| s.pop())).ok().flatten();
         let CtxBuffers { mut light_sets, mut light_buffer, mut matrices } = taken.unwrap_or_default();
         light_sets.clear();
         light_buffer.clear();
         matrices.clear();
-        HostCtx { table, errors, light_sets, light_buffer, last_lights: None, matrices }
+        (self.light_sets, self.light_buffer, self.matrices) = (light_sets, light_buffer, matrices);
     }
 }
 
 impl Drop for HostCtx {
     fn drop(&mut self) {
+        if !self.pooled {
+            return;
+        }
         let buffers = CtxBuffers {
             light_sets: std::mem::take(&mut self.light_sets),
             light_buffer: std::mem::take(&mut self.light_buffer),
@@ -815,6 +839,7 @@ impl Cx<'_> {
             let ok = unsafe { (t.matrix)(t.ctx, StrRef::new(f), StrRef::new(g), m.as_mut_ptr()) };
             (ok != 0).then_some(m)
         });
+        self.ctx.use_spare_buffers();
         self.ctx.matrices.push(((from, to), m));
         m
     }
@@ -843,6 +868,7 @@ impl Cx<'_> {
             }
         }
         // One buffer per batch: the renderer writes the entries it counts, and only those are read.
+        self.ctx.use_spare_buffers();
         let out = &mut self.ctx.light_buffer;
         out.resize(MAX_LIGHTS, LightLanes::default());
         let mask: [i32; 4] = self.mask.map(|m| if m { -1 } else { 0 });
@@ -1109,6 +1135,7 @@ host_helpers! {
             v.resize(MAX_LIGHTS, HostLight::default());
             v
         }).collect();
+        cx.ctx.use_spare_buffers();
         let set = cx.ctx.light_sets.len();
         cx.ctx.light_sets.push(LightSet { lights: flat, order });
         for l in 0..4 {
