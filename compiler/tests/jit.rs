@@ -1772,6 +1772,33 @@ fn entry_unused_marks_only_globals_assigned_before_any_use() {
     }
 }
 
+/// A global is marked as having its derivatives read exactly when the code keeps tangents for it:
+/// what a derivative built-in or a texture's footprint differentiates depends on, and `u`, `v` in
+/// any module that calls a derivative built-in. A renderer fills only these.
+#[test]
+fn derivs_marks_the_globals_whose_derivatives_the_code_reads() {
+    let cases: [(&str, &[(&str, bool)]); 4] = [
+        (
+            "surface m(string name = \"x.tex\") { Ci = color texture(name, s, t) * (N . I) + color(xcomp(P), 0, 0); }",
+            &[("s", true), ("t", true), ("u", false), ("v", false), ("N", false), ("I", false), ("P", false)],
+        ),
+        (
+            "surface m() { Ci = Du(P . N) + Dv(t); }",
+            &[("P", true), ("N", true), ("t", true), ("u", true), ("v", true), ("s", false), ("I", false)],
+        ),
+        ("surface m() { float x = s * 2; Ci = Du(x); }", &[("s", true), ("t", false), ("P", false)]),
+        ("surface m() { Ci = Cs * (N . I); }", &[("N", false), ("I", false), ("Cs", false)]),
+    ];
+    for (src, want) in cases {
+        let shader = jit::compile(&module(src)).expect("compiles");
+        for &(name, derivs) in want {
+            // A global the shader does not use is not in the layout: nothing to fill.
+            let got = shader.layout().global(name).is_some_and(|g| g.derivs);
+            assert_eq!(got, derivs, "{name} in {src}");
+        }
+    }
+}
+
 /// `reset_except` keeps the slots a caller promises to fill and zeroes every other one, so a
 /// value from an earlier call never reaches a slot nobody writes; a batch of another size starts
 /// from zeros throughout.

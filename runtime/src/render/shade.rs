@@ -464,7 +464,13 @@ fn fill_hit_globals(
 fn hit_global_rows(program: &crate::shading::ShaderProgram) -> [std::ops::Range<usize>; 17] {
     let s = &program.slots;
     // The random numbers' seed: two slots, written for every lane.
-    let seed = program.layout().seed.map(|offset| Slot { varying: true, offset, written: false, entry_unused: false });
+    let seed = program.layout().seed.map(|offset| Slot {
+        varying: true,
+        offset,
+        written: false,
+        entry_unused: false,
+        derivs: false,
+    });
     varying_rows([
         (s.p, 3),
         (s.n, 3),
@@ -660,17 +666,19 @@ pub fn shade_pixels(frame: &Frame, tile: TilePixels<'_>) {
     }
 }
 
-/// Writes the screen-space derivatives of a varying global (only globals below `deriv_slots` have
-/// them; see `docs/packet-abi.md`).
+/// Writes the screen-space derivatives of a varying global, when the shader reads them
+/// (`Slot::derivs`: a material that only filters a texture reads those of `s` and `t`, and writing
+/// those of `P`, `I` and `N` too was 2% of a BART robot frame). Only globals below `deriv_slots`
+/// have them; see `docs/packet-abi.md`.
 fn put_d1(raw: &mut RawBatch<'_>, slot: Option<Slot>, deriv_slots: usize, lane: usize, d: [f32; 2]) {
-    if let Some(s) = slot.filter(|s| s.varying && s.offset < deriv_slots) {
+    if let Some(s) = slot.filter(|s| s.derivs && s.varying && s.offset < deriv_slots) {
         raw.derivs[2 * s.offset * raw.stride + lane] = d[0];
         raw.derivs[(2 * s.offset + 1) * raw.stride + lane] = d[1];
     }
 }
 
 fn put_d3(raw: &mut RawBatch<'_>, slot: Option<Slot>, deriv_slots: usize, lane: usize, d: [Vec3A; 2]) {
-    if let Some(s) = slot.filter(|s| s.varying && s.offset + 2 < deriv_slots) {
+    if let Some(s) = slot.filter(|s| s.derivs && s.varying && s.offset + 2 < deriv_slots) {
         let (dx, dy) = (d[0].to_array(), d[1].to_array());
         for (k, (x, y)) in dx.into_iter().zip(dy).enumerate() {
             raw.derivs[2 * (s.offset + k) * raw.stride + lane] = x;

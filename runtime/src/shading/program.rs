@@ -51,6 +51,9 @@ pub struct Slot {
     /// The shader assigns the global before any use of its value on entry (`GlobalSlot::entry_unused`):
     /// a caller need not fill it.
     pub entry_unused: bool,
+    /// The shader reads the renderer's derivatives of the global (`GlobalSlot::derivs`): a caller
+    /// need fill only these derivatives.
+    pub derivs: bool,
 }
 
 /// The slots of the globals the renderer fills or reads, `None` where the shader does not use one.
@@ -94,6 +97,7 @@ impl GlobalSlots {
                 offset: g.offset,
                 written: g.written,
                 entry_unused: g.entry_unused,
+                derivs: g.derivs,
             })
         };
         GlobalSlots {

@@ -64,13 +64,7 @@ impl<'m> Lower<'m, '_> {
     /// Loads the renderer's derivatives of the globals that keep tangents (zeros for a null
     /// `derivs`): slot `s`'s d/dx at `derivs[2s * stride ..]`, d/dy at `derivs[(2s + 1) * stride ..]`.
     pub(super) fn load_global_derivs(&mut self) -> R<()> {
-        let wanted: Vec<_> = self
-            .layout
-            .globals
-            .iter()
-            .filter(|g| g.varying && (self.info.global(g.global) || (self.info.any && matches!(g.name, "u" | "v"))))
-            .cloned()
-            .collect();
+        let wanted: Vec<_> = self.layout.globals.iter().filter(|g| g.derivs).cloned().collect();
         if wanted.is_empty() {
             return Ok(());
         }

@@ -38,6 +38,9 @@ pub struct GlobalSlot {
     /// shader body (which every lane reaches) assigns the whole of it before anything might read
     /// it. A caller need not fill it.
     pub entry_unused: bool,
+    /// The code reads the renderer's derivatives of this global (it keeps tangents for it: see
+    /// `ir::deriv`); a renderer need fill only these of the derivative buffer.
+    pub derivs: bool,
 }
 
 /// Where one shader parameter lives.
@@ -199,6 +202,7 @@ pub(super) fn layout(m: &Module) -> Result<Layout, &'static str> {
                 components: comps,
                 written: written[i],
                 entry_unused: !behind[i] && assigned_first[i],
+                derivs: varying && (info.global(Global(i as u8)) || (info.any && matches!(g.name, "u" | "v"))),
             });
             *offset += comps;
         }
