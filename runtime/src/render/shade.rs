@@ -499,11 +499,15 @@ fn needs_derivs(program: &crate::shading::ShaderProgram) -> bool {
 
 /// Each lane's point, shading mask and ray time: what the lights of a batch of hits are computed
 /// for.
-fn batch_lanes(group: &[Pending], geoms: &[Option<HitGeometry>]) -> (Vec<Vec3A>, Vec<i32>, Vec<f32>) {
-    let points = geoms.iter().map(|g| g.as_ref().map_or(Vec3A::ZERO, |g| g.p)).collect();
-    let mask = geoms.iter().map(|g| if g.is_some() { -1 } else { 0 }).collect();
-    let times = group.iter().map(|p| p.ray.time).collect();
-    (points, mask, times)
+/// Appended to `points`, `mask` and `times`.
+fn extend_batch_lanes(
+    group: &[Pending],
+    geoms: &[Option<HitGeometry>],
+    (points, mask, times): (&mut Vec<Vec3A>, &mut Vec<i32>, &mut Vec<f32>),
+) {
+    points.extend(geoms.iter().map(|g| g.as_ref().map_or(Vec3A::ZERO, |g| g.p)));
+    mask.extend(geoms.iter().map(|g| if g.is_some() { -1 } else { 0 }));
+    times.extend(group.iter().map(|p| p.ray.time));
 }
 
 /// The renderer's side of a shader run over a batch of hits on `material` (placed by
@@ -520,9 +524,7 @@ fn batch_call<'f, 'w>(
     call.material = Some(material);
     // Into reused buffers.
     call.take_buffers();
-    call.batch_points.extend(geoms.iter().map(|g| g.as_ref().map_or(Vec3A::ZERO, |g| g.p)));
-    call.batch_mask.extend(geoms.iter().map(|g| if g.is_some() { -1 } else { 0 }));
-    call.batch_times.extend(group.iter().map(|p| p.ray.time));
+    extend_batch_lanes(group, geoms, (&mut call.batch_points, &mut call.batch_mask, &mut call.batch_times));
     call.batch_front.extend(front_normals(group, geoms));
     call
 }
@@ -583,7 +585,8 @@ fn shade_native(
     depth: u32,
     out: &mut [Shaded],
 ) {
-    let (points, mask, times) = batch_lanes(group, geoms);
+    let (mut points, mut mask, mut times) = (Vec::new(), Vec::new(), Vec::new());
+    extend_batch_lanes(group, geoms, (&mut points, &mut mask, &mut times));
     let front: Vec<Vec3A> = front_normals(group, geoms).collect();
     let mut table = BatchLights::compute(frame, None, &points, &mask, &times, Some(&front), depth);
     // The hand-written plastic sums the lights in front of its normal faced forward by itself.
