@@ -497,9 +497,8 @@ fn needs_derivs(program: &crate::shading::ShaderProgram) -> bool {
     program.layout().deriv_slots > 0 || program.slots.du.is_some() || program.slots.dv.is_some()
 }
 
-/// Each lane's point, shading mask and ray time: what the lights of a batch of hits are computed
-/// for.
-/// Appended to `points`, `mask` and `times`.
+/// Appends each lane's point, shading mask and ray time to `points`, `mask` and `times`: what the
+/// lights of a batch of hits are computed for.
 fn extend_batch_lanes(
     group: &[Pending],
     geoms: &[Option<HitGeometry>],
