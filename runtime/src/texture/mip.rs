@@ -7,10 +7,12 @@
 //! mean exactly (up to rounding).
 //!
 //! Lookups ([`MipMap::filter`]) turn the footprint into an ellipse in level-0 texels (the
-//! covariance of the two derivative vectors, plus the blur), take its minor axis as the filter
-//! width (the mip level, trilinear between two levels), and place up to [`MAX_ANISOTROPY`]
-//! equally weighted trilinear probes along the major axis. That is "EWA-lite": the anisotropy of
-//! EWA at the cost of a handful of bilinear taps, with box rather than Gaussian weights.
+//! covariance of the two derivative vectors, plus the blur), and place up to [`MAX_ANISOTROPY`]
+//! equally weighted trilinear probes along its major axis: as many as the major axis is times
+//! the minor one, less a quarter of slack, each as wide as its share of the major axis and at
+//! least the minor axis (the mip level, trilinear between two levels). That is "EWA-lite": the
+//! anisotropy of EWA at the cost of a handful of bilinear taps, with box rather than Gaussian
+//! weights.
 //!
 //! [`MipMap::filter_lanes`] makes four lookups (a shader chunk's lanes) with the plan of their
 //! probes worked out together in vector arithmetic; [`MipMap::filter`] is the same on one lane.
@@ -21,6 +23,13 @@ use glam::{IVec4, Mat4, Vec4};
 
 /// The most probes along a footprint's major axis; longer footprints are blurred across.
 pub const MAX_ANISOTROPY: usize = 16;
+
+/// How far past a whole number of probes a footprint's eccentricity may go before it takes
+/// another: an ellipse 1.2 times as long as it is wide gets one probe as wide as the ellipse is
+/// long (a quarter of a mip level blurrier across), not two. Nearly every footprint is slightly eccentric (a surface
+/// seen a little off square), so without slack nearly every lookup took twice the probes it
+/// needed.
+const ANISOTROPY_SLACK: f32 = 0.25;
 
 /// A texture with its pre-filtered levels, immutable once built (so it is shared freely).
 #[derive(Clone, Debug)]
@@ -196,10 +205,13 @@ impl MipMap {
         let positive = minor.cmpgt(Vec4::ZERO);
         let probes = Vec4::select(
             positive,
-            (major / minor).ceil().clamp(Vec4::ONE, Vec4::splat(MAX_ANISOTROPY as f32)),
+            (major / minor - Vec4::splat(ANISOTROPY_SLACK)).ceil().clamp(Vec4::ONE, Vec4::splat(MAX_ANISOTROPY as f32)),
             Vec4::ONE,
         );
-        let lod = Vec4::select(positive, log2(minor), Vec4::splat(f32::NEG_INFINITY));
+        // Each probe filters its share of the major axis, and at least the minor one: where the
+        // slack spared a probe, the others widen a little rather than alias.
+        let width = minor.max(major / probes);
+        let lod = Vec4::select(positive, log2(width), Vec4::splat(f32::NEG_INFINITY));
         let (probes, lod, major) = (probes.to_array(), lod.to_array(), major.to_array());
         let direction = ellipses.direction.map(|d| d.to_array());
         std::array::from_fn(|l| ProbePlan {
@@ -1403,6 +1415,33 @@ mod tests {
         let along =
             lookup(&m, 1.5 / 64.0, 0.5, Footprint { dsdx: 0.0, dtdx: 16.0 / 64.0, dsdy: 0.5 / 64.0, dtdy: 0.0 }, &opts);
         assert!(along > 0.9, "stays on the white stripe: {along}");
+    }
+
+    #[test]
+    fn probes_follow_the_eccentricity_with_a_quarter_of_slack_each_as_wide_as_its_share() {
+        let m = MipMap::new(image(256, 256, 1, |x, y, _| ((x + y) % 2) as f32));
+        let opts = LookupOptions::default();
+        // A footprint `aspect` times as long in s as it is wide in t, 4 texels wide.
+        let plan = |aspect: f32| {
+            let fp = Footprint { dsdx: 4.0 * aspect / 256.0, dtdx: 0.0, dsdy: 0.0, dtdy: 4.0 / 256.0 };
+            m.probe_plans(&LookupLanes::splat(0.5, 0.5, fp, [0.0, 0.0]), &opts)[0]
+        };
+        for (aspect, probes, width) in [
+            (1.0, 1, 4.0),
+            // Slightly eccentric: one probe, as wide as the footprint is long.
+            (1.2, 1, 4.8),
+            (1.3, 2, 4.0),
+            // Two probes, each as wide as half the length.
+            (2.2, 2, 4.4),
+            (2.3, 3, 4.0),
+            (7.9, 8, 4.0),
+            // Past the most probes, each widens to its share of the length.
+            (32.0, MAX_ANISOTROPY, 8.0),
+        ] {
+            let p = plan(aspect);
+            assert_eq!(p.probes, probes, "aspect {aspect}");
+            assert!((p.lod - f32::log2(width)).abs() < 1e-4, "aspect {aspect}: lod {} for width {width}", p.lod);
+        }
     }
 
     #[test]
