@@ -274,24 +274,54 @@ pub(super) fn unit(h: u64) -> f32 {
 /// a packet at most each: `out[i]` is what the sorted `pending[i]` produced.
 pub(super) fn shade_in_groups(frame: &Frame, pending: &mut [Pending], depth: u32, out: &mut [Shaded]) {
     let world = frame.world;
-    let key = |p: &Pending| {
+    // Each key once: finding a hit's material reads its instance's per-primitive table, a cache
+    // miss, which comparisons would repeat.
+    let mut keys = super::scratch::take(&GROUP_KEYS);
+    keys.clear();
+    keys.extend(pending.iter().enumerate().map(|(i, p)| {
         let inst = world.instances.get(p.hit.instance as usize);
-        (inst.map_or(0, |i| i.material_at(p.hit.primitive)), p.hit.instance)
-    };
-    // Coherent rays mostly arrive in order already; sorting moves whole jobs.
-    if !pending.is_sorted_by_key(key) {
-        pending.sort_by_key(key);
+        ((inst.map_or(0, |i| i.material_at(p.hit.primitive)), p.hit.instance), i as u32)
+    }));
+    // Coherent rays mostly arrive in order already; sorting moves whole jobs, so it sorts their
+    // keys and then moves each job once.
+    if !keys.is_sorted() {
+        // The index breaks ties: the order of a stable sort.
+        keys.sort_unstable();
+        permute(pending, &mut keys);
     }
     let mut start = 0;
     while start < pending.len() {
-        let k = key(&pending[start]);
+        let k = keys[start].0;
         let mut end = start + 1;
-        while end < pending.len() && end - start < PACKET_SIZE && key(&pending[end]) == k {
+        while end < pending.len() && end - start < PACKET_SIZE && keys[end].0 == k {
             end += 1;
         }
         shade_group(frame, &pending[start..end], depth, &mut out[start..end]);
         start = end;
     }
+    super::scratch::give(&GROUP_KEYS, keys);
+}
+
+/// Puts `items[order[i].1]` at `i`, for every `i` (`order` a permutation of the indices, its
+/// indices changed on the way).
+fn permute<K, T>(items: &mut [T], order: &mut [(K, u32)]) {
+    for i in 0..items.len().min(order.len()) {
+        // Where the item that belongs at `i` is now: earlier swaps moved it from `order[i].1`
+        // along the chain of places they put things.
+        let mut from = order[i].1 as usize;
+        while from < i {
+            from = order[from].1 as usize;
+        }
+        order[i].1 = from as u32;
+        items.swap(i, from);
+    }
+}
+
+type GroupKey = ((u32, u32), u32);
+
+thread_local! {
+    /// The (material, instance) keys of the jobs `shade_in_groups` sorts, with their indices.
+    static GROUP_KEYS: RefCell<Vec<Vec<GroupKey>>> = const { RefCell::new(Vec::new()) };
 }
 
 /// Shades hits that share material and instance.
@@ -744,5 +774,31 @@ pub(super) fn finite_or_zero(v: Vec3A) -> Vec3A {
         v
     } else {
         Vec3A::ZERO
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn permuting_by_sorted_keys_orders_the_items_as_a_stable_sort() {
+        let mut state = 7u64;
+        for n in [0usize, 1, 2, 5, 64, 200] {
+            // Few distinct keys, so ties are common and the order among them shows.
+            let keys: Vec<u32> = (0..n)
+                .map(|_| {
+                    state = mix(state);
+                    (state % 5) as u32
+                })
+                .collect();
+            let mut items: Vec<(u32, usize)> = keys.iter().copied().zip(0..).collect();
+            let mut expected = items.clone();
+            expected.sort_by_key(|&(k, _)| k);
+            let mut order: Vec<(u32, u32)> = keys.iter().copied().zip(0..).collect();
+            order.sort_unstable();
+            permute(&mut items, &mut order);
+            assert_eq!(items, expected, "{n} items");
+        }
     }
 }
