@@ -1799,9 +1799,25 @@ fn derivs_marks_the_globals_whose_derivatives_the_code_reads() {
     }
 }
 
+/// A reset zeroes the derivatives the code reads, so an earlier batch's never reach a shader;
+/// the rows nobody reads are left alone (zeroing them was most of a reset).
+#[test]
+fn a_reset_zeroes_the_derivatives_the_code_reads() {
+    let m = module("surface m() { Ci = Du(s) + Dv(s); }");
+    let shader = jit::compile(&m).expect("compiles");
+    let mut batch = shader.batch(4);
+    for lane in 0..4 {
+        assert!(batch.set_global_derivs("s", lane, &[0.5], &[0.25]));
+    }
+    batch.reset(4);
+    let s = batch.global_slot("s").expect("s is varying");
+    let stride = batch.raw_mut().stride;
+    assert!(shader.layout().global("s").is_some_and(|g| g.derivs));
+    assert_eq!(&batch.derivs()[2 * s * stride..2 * (s + 1) * stride], &[0.0; 8]);
+}
+
 /// `reset_except` keeps the slots a caller promises to fill and zeroes every other one, so a
-/// value from an earlier call never reaches a slot nobody writes; a batch of another size starts
-/// from zeros throughout.
+/// value from an earlier call never reaches a slot nobody writes, at any batch size.
 #[test]
 fn a_reset_keeps_only_the_slots_its_caller_fills() {
     let m = module("surface s() { Ci = Cs * (N . I) + color(xcomp(P), 0, 0); }");
@@ -1824,8 +1840,20 @@ fn a_reset_keeps_only_the_slots_its_caller_fills() {
         }
     }
     assert_eq!(batch.raw_mut().mask[3], -1, "every lane active again");
-    batch.reset_except(12, filled);
-    for lane in 0..12 {
-        assert_eq!(batch.global("P", lane), Some(vec![0.0; 3]), "lane {lane}");
+    // Another size moves the rows: the kept ones hold nothing meaningful (their caller writes
+    // them), the others are zero again, and so are the kept ones' padding lanes.
+    for lane in 0..8 {
+        assert!(batch.set_global("N", lane, &[1.0, 2.0, 3.0]));
+    }
+    batch.reset_except(10, filled);
+    for lane in 0..10 {
+        for name in ["N", "I", "Cs"] {
+            assert_eq!(batch.global(name, lane), Some(vec![0.0; 3]), "{name}, lane {lane}");
+        }
+    }
+    let raw = batch.raw_mut();
+    assert_eq!(raw.stride, 12);
+    for k in 0..3 {
+        assert_eq!(&raw.varying[(p + k) * 12 + 10..(p + k + 1) * 12], &[0.0, 0.0], "P's padding lanes");
     }
 }

@@ -400,7 +400,9 @@ pub struct BatchData {
     uniform: Vec<f32>,
     bound: Vec<u32>,
     strings: StringTable,
-    /// `2 * deriv_slots * stride` floats (see [`Batch::derivs`]), zero until the renderer sets them.
+    /// `2 * deriv_slots * stride` floats (see [`Batch::derivs`]). The rows of the globals whose
+    /// derivatives the code reads (`GlobalSlot::derivs`) are zero until the renderer sets them;
+    /// the others are never read, and a reset leaves whatever they held.
     derivs: Vec<f32>,
 }
 
@@ -511,6 +513,7 @@ impl BatchData {
     }
 
     /// The raw derivative buffer (`2 * Layout::deriv_slots * stride` floats; see [`Batch::derivs`]).
+    /// After a reset only the rows of the globals whose derivatives the code reads are zero.
     pub fn derivs_mut(&mut self) -> &mut [f32] {
         &mut self.derivs
     }
@@ -605,7 +608,6 @@ impl BatchData {
     /// what the caller and the shader write, never of an earlier call.
     pub fn reset_except(&mut self, lanes: usize, filled: &[std::ops::Range<usize>]) {
         let stride = lanes.div_ceil(4) * 4;
-        let resized = stride != self.stride;
         self.lanes = lanes;
         self.stride = stride;
         self.mask.clear();
@@ -620,10 +622,11 @@ impl BatchData {
                 kept[slot / 64] |= 1 << (slot % 64);
             }
         }
-        if kept == [0; 4] || resized {
+        if kept == [0; 4] {
             self.varying.clear();
             self.varying.resize(slots * stride, 0.0);
         } else {
+            // A new stride moves every row, but a kept row is written over all the same.
             self.varying.resize(slots * stride, 0.0);
             for (slot, row) in self.varying.chunks_exact_mut(stride).enumerate() {
                 if slot < 256 && kept[slot / 64] >> (slot % 64) & 1 != 0 {
@@ -634,8 +637,15 @@ impl BatchData {
                 }
             }
         }
-        self.derivs.clear();
+        // Only the derivatives the code reads (`GlobalSlot::derivs`) are zeroed: the others' rows
+        // are never read, and zeroing all of them was most of a batch's reset.
         self.derivs.resize(2 * self.layout.deriv_slots * stride, 0.0);
+        for g in self.layout.globals.iter().filter(|g| g.varying && g.derivs) {
+            let rows = 2 * g.offset * stride..2 * (g.offset + g.components) * stride;
+            if let Some(rows) = self.derivs.get_mut(rows) {
+                rows.fill(0.0);
+            }
+        }
         self.uniform.fill(0.0);
         self.bound.fill(0);
         self.strings.reset();
