@@ -598,6 +598,9 @@ fn transmission_packet(frame: &Frame, packet: &mut RayPacket, through: &mut [Vec
     let crossings = Mutex::new(noted);
     let by_shader = AtomicU64::new(0);
     let opaque = |c: &HitCandidate| {
+        if frame.opaque_instances.get(c.instance as usize).copied().unwrap_or(false) {
+            return true;
+        }
         let material = material_of(c.instance, c.primitive);
         if material.is_opaque_for_shadows() {
             return true;

@@ -31,6 +31,10 @@ pub struct Frame<'w> {
     pub world: &'w World,
     pub stats: Stats,
     pub(super) transparent_shadows: bool,
+    /// Per instance: every material of it is opaque for shadows (empty without
+    /// `transparent_shadows`). A shadow ray's hit filter answers these at once, without finding
+    /// the triangle's material (two cache misses a candidate).
+    pub(super) opaque_instances: Vec<bool>,
     /// [`World::has_volumes`], asked once a frame: its scan of the materials ran for every packet
     /// (1.5% of a BART robot frame, 1,103 materials and no volume).
     pub(super) volumes: bool,
@@ -50,10 +54,13 @@ impl<'w> Frame<'w> {
         let tan = (cam.fov_degrees.to_radians() * 0.5).tan();
         let (ax, ay) = world.options.screen_extent().half;
         let m = &cam.world_from_camera.matrix3;
+        let transparent_shadows = world.has_transparent_shadows();
+        let opaque_instances = if transparent_shadows { world.opaque_instances_for_shadows() } else { Vec::new() };
         Frame {
             world,
             stats: Stats { timed: world.options.time_shaders, ..Stats::default() },
-            transparent_shadows: world.has_transparent_shadows(),
+            transparent_shadows,
+            opaque_instances,
             volumes: world.has_volumes(),
             camera_from_world: cam.world_from_camera.inverse(),
             forward: m.z_axis.normalize_or_zero(),

@@ -501,9 +501,46 @@ impl World {
         self.materials.iter().any(|m| !m.is_opaque_for_shadows())
     }
 
+    /// For each instance, whether every material it may shade a triangle with is opaque for
+    /// shadows.
+    pub fn opaque_instances_for_shadows(&self) -> Vec<bool> {
+        let opaque = |m: u32| self.materials.get(m as usize).unwrap_or(&DEFAULT_MATERIAL).is_opaque_for_shadows();
+        self.instances.iter().map(|inst| opaque(inst.material) && inst.materials().all(opaque)).collect()
+    }
+
     /// Whether any ray segment may run a volume shader: an atmosphere, or a material with an
     /// interior.
     pub fn has_volumes(&self) -> bool {
         self.atmosphere.is_some() || self.materials.iter().any(|m| m.interior.is_some())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_instance_is_opaque_for_shadows_when_every_material_it_may_use_is() {
+        let mut world = World::new(Scene::new());
+        let glass = Material { opacity: [0.5; 3], ..Material::DEFAULT };
+        let by_shader = Material { shadow_by_shader: true, ..Material::DEFAULT };
+        // 0: the default, 1: opaque, 2: glass, 3: shadows by shader.
+        world.materials = vec![Material::DEFAULT, Material::DEFAULT, glass, by_shader];
+        let instance = |material: u32, parts: Option<&[u32]>| InstanceShading {
+            material,
+            object: 0,
+            world_from_object: Affine3A::IDENTITY,
+            parts: parts.map(|m| InstanceParts { of_triangle: vec![0; m.len()].into(), materials: m.into() }),
+        };
+        world.instances = vec![
+            instance(1, None),
+            instance(2, None),
+            instance(3, None),
+            instance(1, Some(&[1, 0])),
+            instance(1, Some(&[1, 2])),
+            // Out of range: the default material, opaque.
+            instance(9, None),
+        ];
+        assert_eq!(world.opaque_instances_for_shadows(), [true, false, false, true, false, true]);
     }
 }
