@@ -758,26 +758,30 @@ struct BandOut<'a> {
 /// Writes finished tiles into `out`, which holds their rows.
 fn write_tiles(out: BandOut<'_>, tiles: Vec<(Tile, TileSamples)>, exposure: Option<(f32, f32)>) {
     for (tile, px) in tiles {
+        let tw = tile.width as usize;
         for y in 0..tile.height as usize {
             let Some(row) = (tile.y0 as usize + y).checked_sub(out.y0) else { continue };
-            for x in 0..tile.width as usize {
-                let k = y * tile.width as usize + x;
-                let i = row * out.width + tile.x0 as usize + x;
-                let (Some(&(mut c)), Some(rgba)) = (px.color.get(k), out.rgba.get_mut(4 * i..4 * i + 4)) else {
-                    continue;
-                };
+            // A row of the tile at a time, as slices: pixel by pixel, with a bounds check per
+            // pixel and buffer, this took more than a percent of a BART robot frame.
+            let (from, to) = (y * tw, row * out.width + tile.x0 as usize);
+            let (Some(colors), Some(rgba)) = (px.color.get(from..from + tw), out.rgba.get_mut(4 * to..4 * (to + tw)))
+            else {
+                continue;
+            };
+            for (c, rgba) in colors.iter().zip(rgba.chunks_exact_mut(4)) {
+                let mut c = *c;
                 if let Some((gain, gamma)) = exposure {
                     for v in &mut c[..3] {
                         *v = (gain * *v).max(0.0).powf(1.0 / gamma);
                     }
                 }
                 rgba.copy_from_slice(&c);
-                if let (Some(d), Some(&v)) = (out.depth.get_mut(i), px.depth.get(k)) {
-                    *d = v;
-                }
-                if let (Some(d), Some(&v)) = (out.ids.get_mut(i), px.ids.get(k)) {
-                    *d = v;
-                }
+            }
+            if let (Some(d), Some(v)) = (out.depth.get_mut(to..to + tw), px.depth.get(from..from + tw)) {
+                d.copy_from_slice(v);
+            }
+            if let (Some(d), Some(v)) = (out.ids.get_mut(to..to + tw), px.ids.get(from..from + tw)) {
+                d.copy_from_slice(v);
             }
         }
     }
