@@ -190,8 +190,8 @@ fn shade_hits(frame: &Frame, rays: &[Ray], diffs: &[RayDifferential], hits: &[Hi
     }
 }
 
-/// Starts the sample of ray `index`: the background on a miss (`None`), else the first hit's ids
-/// and the shading job.
+/// Starts the sample of ray `index`: the background on a miss (`None`), else the shading job
+/// (`shade_pending` writes the hit's ids).
 fn start_sample(
     frame: &Frame,
     index: usize,
@@ -206,11 +206,7 @@ fn start_sample(
         out.color = Vec3A::from(world.options.background);
         return None;
     }
-    if let Some(inst) = world.instances.get(hit.instance as usize) {
-        let material = inst.material_at(hit.primitive);
-        out.object_id = world.materials.get(material as usize).map_or(0, |m| m.object_id);
-        out.shader_id = material;
-    }
+    // The hit's ids are written by `shade_pending`, once its hits are sorted by material.
     Some(Pending { index, ray, diff, hit })
 }
 
@@ -225,6 +221,9 @@ fn shade_pending(frame: &Frame, mut current: Vec<Pending>, depth: u32, out: &mut
         results.clear();
         results.resize(current.len(), Shaded::default());
         shade_in_groups(frame, &mut current, depth, &mut results);
+        if layer == 0 {
+            first_hit_ids(world, &current, out);
+        }
         // The atmosphere or interior between each ray's origin and its hit (`volume.rs`).
         super::volume::shade_segments(frame, &current, &mut results, depth);
         Stats::add(&frame.stats.shaded_points, current.len());
@@ -258,6 +257,25 @@ fn shade_pending(frame: &Frame, mut current: Vec<Pending>, depth: u32, out: &mut
             }
         }
         current = next;
+    }
+}
+
+/// The object and material ids of each first hit into its sample. `pending` comes sorted by
+/// material (`shade_in_groups`), so each run of one material reads the material once, and each
+/// hit's material is found again in the caches `shade_in_groups` just filled.
+fn first_hit_ids(world: &World, pending: &[Pending], out: &mut [Sample]) {
+    let mut last: Option<(u32, u32)> = None;
+    for p in pending {
+        let Some(inst) = world.instances.get(p.hit.instance as usize) else { continue };
+        let material = inst.material_at(p.hit.primitive);
+        let object_id = match last {
+            Some((m, id)) if m == material => id,
+            _ => world.materials.get(material as usize).map_or(0, |m| m.object_id),
+        };
+        last = Some((material, object_id));
+        if let Some(s) = out.get_mut(p.index) {
+            (s.object_id, s.shader_id) = (object_id, material);
+        }
     }
 }
 
