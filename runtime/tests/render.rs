@@ -961,3 +961,32 @@ fn shadows_pass_through_the_transparent_part_of_an_object_only() -> Result<(), A
     }
     Ok(())
 }
+
+#[test]
+fn frames_reuse_unchanged_materials_and_rebuild_them_for_a_new_program() -> Result<(), Box<dyn std::error::Error>> {
+    const FLAT: &str = "surface flat(float k = 1;) { Oi = 1; Ci = k; }";
+    let mut rt = context();
+    let flat = rt.compile_shader("flat.sl", FLAT)?;
+    rt.bind_shader(flat)?;
+    rt.parameter("k", ParamValue::Float(0.5))?;
+    let object = rt.begin_object()?;
+    quad(&mut rt, [[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [1.0, 1.0, 0.0], [-1.0, 1.0, 0.0]])?;
+    rt.end_object()?;
+    rt.instantiate_object(object)?;
+    let surface = |world: &rtsl_runtime::render::World| world.materials.get(1).and_then(|m| m.surface.clone());
+    let first = rt.build_world()?;
+    let built = surface(&first).ok_or("the object's material")?;
+    rt.return_scene(first);
+    let second = rt.build_world()?;
+    let reused = surface(&second).ok_or("the object's material")?;
+    rt.return_scene(second);
+    assert!(std::sync::Arc::ptr_eq(&built, &reused), "nothing changed: the same shader instance");
+    let program = ShaderProgram::from_source("flat.sl", "surface flat(float k = 1;) { Oi = 1; Ci = 2 * k; }", &[])?;
+    rt.replace_shader(flat, program)?;
+    let third = rt.build_world()?;
+    let rebuilt = surface(&third).ok_or("the object's material")?;
+    assert!(!std::sync::Arc::ptr_eq(&built, &rebuilt), "a new program: a new shader instance");
+    assert!(!std::sync::Arc::ptr_eq(&built.program, &rebuilt.program));
+    assert_eq!(rebuilt.params.len(), 1, "k stays bound");
+    Ok(())
+}
