@@ -1371,18 +1371,17 @@ impl Context {
                 None => std::slice::from_ref(&rec.appearance),
             };
             let first = materials.len() as u32;
-            let programs = appearances
-                .iter()
-                .flat_map(|a| [&a.surface, &a.interior, &a.displacement])
-                .flatten()
-                .map(|b| self.program(b.shader).cloned())
-                .collect::<Result<Vec<_>, _>>()?;
+            let bindings = || appearances.iter().flat_map(|a| [&a.surface, &a.interior, &a.displacement]).flatten();
+            // Equal appearances name the same shaders, so the programs line up one for one.
             let reusable = built[i].as_ref().is_some_and(|b| {
                 b.appearances == appearances
-                    && b.programs.len() == programs.len()
-                    && b.programs.iter().zip(&programs).all(|(was, is)| Arc::ptr_eq(was, is))
+                    && b.programs
+                        .iter()
+                        .zip(bindings())
+                        .all(|(was, binding)| self.program(binding.shader).is_ok_and(|is| Arc::ptr_eq(was, is)))
             });
             if !reusable {
+                let programs = bindings().map(|b| self.program(b.shader).cloned()).collect::<Result<Vec<_>, _>>()?;
                 let mut object_warnings = Vec::new();
                 let built_now = appearances
                     .iter()
