@@ -39,6 +39,11 @@ pub struct MipMap {
     wrap: [Wrap; 2],
     /// `worldToCamera` and `worldToNDC` from the file's header, if it had them.
     projection: Option<[[f32; 16]; 2]>,
+    /// Every level is a power of two in both sizes (that an `i32` holds): periodic taps are
+    /// their coordinates' low bits ([`MipMap::filter_lanes_periodic`]).
+    power_of_two_levels: bool,
+    /// Each level's sizes, masks and row length, for [`periodic_taps`].
+    shapes: Vec<LevelShape>,
 }
 
 impl MipMap {
@@ -58,7 +63,13 @@ impl MipMap {
             let next = downsample(last);
             levels.push(next);
         }
-        MipMap { levels, wrap, projection: None }
+        // The periodic way's offsets are 32-bit: a level 0 of under 2^32 values (16 GiB) keeps
+        // every offset and the four values after it in range.
+        let power_of_two_levels =
+            levels.iter().all(|l| periodic_masks([l.width(), l.height()], [Wrap::Periodic; 2]).is_some())
+                && levels[0].data().len() < (u32::MAX - 8) as usize;
+        let shapes = levels.iter().map(LevelShape::of).collect();
+        MipMap { levels, wrap, projection: None, power_of_two_levels, shapes }
     }
 
     /// The levels, finest (the image itself) first.
@@ -177,7 +188,11 @@ impl MipMap {
         let values = (out.len() / 4).min(MAX_LANE_VALUES);
         let mut lane_out = [0.0f32; MAX_LANE_VALUES];
         let (s, t) = (lanes.s.to_array(), lanes.t.to_array());
-        for lane in (0..4).filter(|&l| active[l]) {
+        let mut left = active;
+        if wrap == [Wrap::Periodic; 2] && self.power_of_two_levels && values <= 4 {
+            left = self.filter_lanes_periodic([s, t], active, first, &plans, out, values, opts.fill);
+        }
+        for lane in (0..4).filter(|&l| left[l]) {
             let lane_out = &mut lane_out[..values];
             self.filter_planned(
                 s[lane],
@@ -195,6 +210,133 @@ impl MipMap {
         }
     }
 
+    /// [`MipMap::filter_lanes`] for textures whose levels wrap periodically and are powers of two
+    /// in size (most textures; all of BART's), at most four values a lane: the same values, bit
+    /// for bit, as [`PeriodicProbes`] sums them, written straight into `out`. Returns the active
+    /// lanes it left to the caller: those with a probe beyond 2^22 texels, where the integer
+    /// conversion of [`small_integers`] does not hold.
+    #[allow(clippy::too_many_arguments)] // filter_lanes' own arguments, worked out once there
+    #[inline(always)]
+    fn filter_lanes_periodic(
+        &self,
+        [s, t]: [[f32; 4]; 2],
+        active: [bool; 4],
+        first: [usize; 4],
+        plans: &[ProbePlan; 4],
+        out: &mut [f32],
+        values: usize,
+        fill: f32,
+    ) -> [bool; 4] {
+        let mut left = [false; 4];
+        let channels = self.channels();
+        for lane in (0..4).filter(|&l| active[l]) {
+            let (s, t) = (s[lane], t[lane]);
+            let n = values.min(channels.saturating_sub(first[lane]));
+            // A NaN or infinite coordinate has no texel: the fill value rather than NaN.
+            let sum = if s.is_finite() && t.is_finite() && n > 0 {
+                match self.lane_periodic(s, t, plans[lane], first[lane]) {
+                    Some(sum) => sum.to_array(),
+                    None => {
+                        left[lane] = true;
+                        continue;
+                    }
+                }
+            } else {
+                [fill; 4]
+            };
+            for c in 0..values {
+                out[4 * c + lane] = if c < n { sum[c] } else { fill };
+            }
+        }
+        left
+    }
+
+    /// One lookup of [`MipMap::filter_lanes_periodic`]: its four channels from `first`, or `None`
+    /// where a probe is beyond 2^22 texels.
+    #[inline(always)]
+    fn lane_periodic(&self, s: f32, t: f32, plan: ProbePlan, first: usize) -> Option<Vec4> {
+        let ProbePlan { probes, lod, major, direction } = plan;
+        let weight = 1.0 / probes as f32;
+        let top = self.levels.len() - 1;
+        // The levels the probes blend and their weights, as `trilinear` has them.
+        let (levels, weights, two) = if lod.is_nan() || lod <= 0.0 {
+            ([0, 0], [weight, 0.0], false)
+        } else {
+            let below = floor(lod) as usize;
+            if below >= top {
+                ([top, top], [weight, 0.0], false)
+            } else {
+                let frac = lod - below as f32;
+                ([below, below + 1], [weight * (1.0 - frac), weight * frac], true)
+            }
+        };
+        let [a, b] = levels.map(|l| (&self.levels[l], &self.shapes[l]));
+        let (w, h) = (self.width() as f32, self.height() as f32);
+        let axis = [direction[0] * major / w, direction[1] * major / h];
+        let probe = |k: usize| {
+            let along = (k as f32 + 0.5) * weight - 0.5;
+            (s + axis[0] * along, t + axis[1] * along)
+        };
+        let limit = Vec4::splat(4_194_304.0);
+        let mut sum = Vec4::ZERO;
+        if probes == 1 {
+            // Both levels' coordinates in one vector, as `PeriodicProbes::accumulate`.
+            let (s, t) = probe(0);
+            let size = Vec4::new(a.1.size[0], a.1.size[1], b.1.size[0], b.1.size[1]);
+            let p = Vec4::new(s, t, s, t) * size - Vec4::splat(0.5);
+            if !p.abs().cmplt(limit).all() {
+                return None;
+            }
+            let floor = p.floor();
+            let f = p - floor;
+            let g = Vec4::ONE - f;
+            let corner = small_integers(floor);
+            let masks = IVec4::new(a.1.mask[0], a.1.mask[1], b.1.mask[0], b.1.mask[1]);
+            let lo = (corner & masks).to_array();
+            let hi = ((corner + IVec4::ONE) & masks).to_array();
+            let taps = |weight: f32, gx: f32, fx: f32, gy: f32, fy: f32| {
+                Vec4::splat(weight) * Vec4::new(gx, fx, gx, fx) * Vec4::new(gy, gy, fy, fy)
+            };
+            sum = periodic_taps(a, [lo[0], hi[0], lo[1], hi[1]], taps(weights[0], g.x, f.x, g.y, f.y), first, sum);
+            if two {
+                sum = periodic_taps(b, [lo[2], hi[2], lo[3], hi[3]], taps(weights[1], g.z, f.z, g.w, f.w), first, sum);
+            }
+            return Some(sum);
+        }
+        // Four probes at a time (the last group padded with its last probe, not summed), their
+        // centres as `probe` places them.
+        let probes = probes.min(MAX_ANISOTROPY);
+        let (s, t, axis_s, axis_t, weight) =
+            (Vec4::splat(s), Vec4::splat(t), Vec4::splat(axis[0]), Vec4::splat(axis[1]), Vec4::splat(weight));
+        let mut group = 0;
+        while group < probes {
+            let count = (probes - group).min(4);
+            let last = (count - 1) as f32;
+            let k = Vec4::new(0.0, 1.0f32.min(last), 2.0f32.min(last), 3.0f32.min(last)) + Vec4::splat(group as f32);
+            let along = (k + Vec4::splat(0.5)) * weight - Vec4::splat(0.5);
+            let (s, t) = (s + axis_s * along, t + axis_t * along);
+            let level_a = FourProbes::of(s, t, a.1.size, a.1.mask, weights[0]);
+            if two {
+                let level_b = FourProbes::of(s, t, b.1.size, b.1.mask, weights[1]);
+                if level_a.far || level_b.far {
+                    return None;
+                }
+                for k in 0..count {
+                    sum = level_a.add(a, k, first, sum);
+                    sum = level_b.add(b, k, first, sum);
+                }
+            } else {
+                if level_a.far {
+                    return None;
+                }
+                for k in 0..count {
+                    sum = level_a.add(a, k, first, sum);
+                }
+            }
+            group += 4;
+        }
+        Some(sum)
+    }
     /// Where the probes of four lookups go (see the module doc).
     #[inline(always)]
     fn probe_plans(&self, lanes: &LookupLanes, opts: &LookupOptions) -> [ProbePlan; 4] {
@@ -493,6 +635,44 @@ fn four_probes(s: Vec4, t: Vec4, size: [f32; 2], masks: [i32; 2], weight: f32) -
     Some((std::array::from_fn(|k| [x0[k], x1[k], y0[k], y1[k]]), std::array::from_fn(|k| taps.col(k))))
 }
 
+/// [`four_probes`] without the `Option`: `far` where a probe is beyond 2^22 texels (or NaN), and
+/// then the rest is not to be used.
+struct FourProbes {
+    corners: [[i32; 4]; 4],
+    taps: [Vec4; 4],
+    far: bool,
+}
+
+impl FourProbes {
+    #[inline(always)]
+    fn of(s: Vec4, t: Vec4, size: [f32; 2], masks: [i32; 2], weight: f32) -> FourProbes {
+        let (x, y) = (s * size[0] - Vec4::splat(0.5), t * size[1] - Vec4::splat(0.5));
+        let limit = Vec4::splat(4_194_304.0);
+        let far = !(x.abs().cmplt(limit) & y.abs().cmplt(limit)).all();
+        let (x_floor, y_floor) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x_floor, y - y_floor);
+        let (gx, gy) = (Vec4::ONE - fx, Vec4::ONE - fy);
+        let (column, row) = (small_integers(x_floor), small_integers(y_floor));
+        let wrap = |v: IVec4, mask: i32| (v & IVec4::splat(mask)).to_array();
+        let (x0, x1) = (wrap(column, masks[0]), wrap(column + IVec4::ONE, masks[0]));
+        let (y0, y1) = (wrap(row, masks[1]), wrap(row + IVec4::ONE, masks[1]));
+        let weight = Vec4::splat(weight);
+        // The taps of all four probes, a tap a column; transposed, a probe a column.
+        let taps = Mat4::from_cols(weight * gx * gy, weight * fx * gy, weight * gx * fy, weight * fx * fy).transpose();
+        FourProbes {
+            corners: std::array::from_fn(|k| [x0[k], x1[k], y0[k], y1[k]]),
+            taps: std::array::from_fn(|k| taps.col(k)),
+            far,
+        }
+    }
+
+    /// `sum` plus probe `k`'s taps on `level`.
+    #[inline(always)]
+    fn add(&self, level: (&TexImage, &LevelShape), k: usize, first: usize, sum: Vec4) -> Vec4 {
+        periodic_taps(level, self.corners[k], self.taps[k], first, sum)
+    }
+}
+
 /// The integers of `v`, whose lanes are integers under 2^22 in magnitude: added to 1.5 * 2^23,
 /// each is the low bits of the sum's mantissa, exactly (no rounding, no saturating conversion).
 #[inline(always)]
@@ -522,6 +702,66 @@ fn level_taps<const N: usize>(img: &TexImage, [x0, x1, y0, y1]: [i32; 4], taps: 
                     0.0
                 }
             })),
+        }
+    };
+    let texels = [(0, 0), (1, 0), (0, 1), (1, 1)];
+    let weights = taps.to_array();
+    let mut sum = sum;
+    if taps.cmpeq(Vec4::ZERO).any() {
+        for ((x, y), tap) in texels.into_iter().zip(weights) {
+            if tap != 0.0 {
+                sum += Vec4::splat(tap) * texel(x, y);
+            }
+        }
+    } else {
+        for ((x, y), tap) in texels.into_iter().zip(weights) {
+            sum += Vec4::splat(tap) * texel(x, y);
+        }
+    }
+    sum
+}
+
+/// A level's sizes as floats, each less one (its periodic mask where it is a power of two), and
+/// its row length and texel length in values, for [`periodic_taps`].
+#[derive(Clone, Debug)]
+struct LevelShape {
+    size: [f32; 2],
+    mask: [i32; 2],
+    row: u32,
+    texel: u32,
+}
+
+impl LevelShape {
+    fn of(img: &TexImage) -> LevelShape {
+        let (w, h, ch) = (img.width(), img.height(), img.channels());
+        LevelShape {
+            size: [w as f32, h as f32],
+            mask: [w, h].map(|n| n.min(i32::MAX as usize) as i32 - 1),
+            row: (w * ch).min(u32::MAX as usize) as u32,
+            texel: ch.min(u32::MAX as usize) as u32,
+        }
+    }
+}
+
+/// [`level_taps`] on a level of [`MipMap::power_of_two_levels`], for four channels, the offsets
+/// in 32 bits (which cannot overflow there, so each texel costs one bounds check) and each texel
+/// one load: the same sum.
+#[inline(always)]
+fn periodic_taps(
+    (img, shape): (&TexImage, &LevelShape),
+    [x0, x1, y0, y1]: [i32; 4],
+    taps: Vec4,
+    first: usize,
+    sum: Vec4,
+) -> Vec4 {
+    let data = img.data();
+    let rows = [y0, y1].map(|y| (y as u32).wrapping_mul(shape.row));
+    let columns = [x0, x1].map(|x| (x as u32).wrapping_mul(shape.texel).wrapping_add(first as u32));
+    let texel = |x: usize, y: usize| {
+        let offset = rows[y].wrapping_add(columns[x]) as usize;
+        match data.get(offset..offset + 4).and_then(|four| <&[f32; 4]>::try_from(four).ok()) {
+            Some(four) => Vec4::from_array(*four),
+            None => Vec4::from_array(std::array::from_fn(|c| data.get(offset + c).copied().unwrap_or(0.0))),
         }
     };
     let texels = [(0, 0), (1, 0), (0, 1), (1, 1)];
@@ -1148,15 +1388,20 @@ mod tests {
 
     /// Four lanes at once give each lane the values of a lookup of its own, bit for bit, with
     /// inactive lanes untouched: lanes with different footprints, blur, first channels and
-    /// coordinates (one not finite).
+    /// coordinates (one not finite, some past 2^22 texels), on power-of-two textures (the
+    /// periodic way) of 1, 3 and 4 channels and one that is not, 1 to 5 values a lane, with the
+    /// texture's wrap modes and with clamping.
     #[test]
     fn lanes_filter_as_lookups_one_at_a_time() {
         /// A lane's s, t, footprint, blur and first channel.
         type Lane = (f32, f32, Footprint, f32, usize);
-        let m = MipMap::new(image(32, 16, 3, |x, y, c| ((x * 5 + y * 11 + c * 3) % 17) as f32 / 17.0));
+        let maps = [(32, 16, 3), (16, 16, 4), (8, 32, 1), (12, 8, 3)]
+            .map(|(w, h, ch)| MipMap::new(image(w, h, ch, |x, y, c| ((x * 5 + y * 11 + c * 3) % 17) as f32 / 17.0)));
         let mut state = 0x9E37_79B9_7F4A_7C15u64;
         let mut next = || unit_random(&mut state);
-        for round in 0..200 {
+        for round in 0..800 {
+            let m = &maps[round % maps.len()];
+            let values = 1 + round / maps.len() % 5;
             let mut lane = |_| {
                 let scale = (next() * 12.0 - 8.0).exp2();
                 let fp = Footprint {
@@ -1166,14 +1411,16 @@ mod tests {
                     dtdy: scale * (next() - 0.5),
                 };
                 let blur = if next() < 0.3 { next() * 0.1 } else { 0.0 };
-                (next() * 4.0 - 2.0, next() * 4.0 - 2.0, fp, blur, (next() * 4.0) as usize)
+                let far = if next() < 0.1 { 4_194_300.0 / 8.0 } else { 0.0 };
+                (next() * 4.0 - 2.0 + far, next() * 4.0 - 2.0, fp, blur, (next() * 5.0) as usize)
             };
             let mut lanes: [Lane; 4] = std::array::from_fn(&mut lane);
             if round % 7 == 0 {
                 lanes[round % 4].0 = f32::NAN;
             }
             let active = std::array::from_fn(|l| (round + l) % 5 != 0);
-            let opts = LookupOptions { fill: 0.25, swidth: 1.5, ..LookupOptions::default() };
+            let wrap = if round % 9 == 0 { Some(Wrap::Clamp) } else { None };
+            let opts = LookupOptions { fill: 0.25, swidth: 1.5, swrap: wrap, twrap: wrap, ..LookupOptions::default() };
             let row = |f: &dyn Fn(&Lane) -> f32| Vec4::from_array(std::array::from_fn(|l| f(&lanes[l])));
             let query = LookupLanes {
                 s: row(&|l| l.0),
@@ -1185,10 +1432,10 @@ mod tests {
                 sblur: row(&|l| l.3),
                 tblur: row(&|l| l.3),
             };
-            let mut out = [-1.0f32; 16];
+            let mut out = vec![-1.0f32; 4 * values];
             m.filter_lanes(&query, active, lanes.map(|l| l.4), &mut out, &opts);
             for (l, &(s, t, fp, blur, first)) in lanes.iter().enumerate() {
-                let mut alone = [0.0; 4];
+                let mut alone = vec![0.0; values];
                 m.filter(s, t, fp, first, &mut alone, &LookupOptions { sblur: blur, tblur: blur, ..opts });
                 for (c, v) in alone.iter().enumerate() {
                     let want = if active[l] { v.to_bits() } else { (-1.0f32).to_bits() };
