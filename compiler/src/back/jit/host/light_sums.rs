@@ -163,6 +163,10 @@ fn sum_lights(
     let unit_n = n.normalized();
     for (i, lights) in buffer.iter().take(most_lights(counts, mask)).enumerate() {
         let row = LightRow::of(lights, counts, mask, i);
+        // Most often an ambient light, in every lane's list (and the same row of each).
+        if !row.has.any() {
+            continue;
+        }
         let unit_l = row.l.normalized();
         let counted = row.has & unit_l.dot(&unit_n).cmpge(Vec4::ZERO);
         if !counted.any() {
