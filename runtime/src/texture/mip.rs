@@ -755,30 +755,60 @@ fn periodic_taps(
     sum: Vec4,
 ) -> Vec4 {
     let data = img.data();
-    let rows = [y0, y1].map(|y| (y as u32).wrapping_mul(shape.row));
-    let columns = [x0, x1].map(|x| (x as u32).wrapping_mul(shape.texel).wrapping_add(first as u32));
-    let texel = |x: usize, y: usize| {
-        let offset = rows[y].wrapping_add(columns[x]) as usize;
-        match data.get(offset..offset + 4).and_then(|four| <&[f32; 4]>::try_from(four).ok()) {
-            Some(four) => Vec4::from_array(*four),
-            None => Vec4::from_array(std::array::from_fn(|c| data.get(offset + c).copied().unwrap_or(0.0))),
-        }
+    let (row0, row1) = ((y0 as u32).wrapping_mul(shape.row), (y1 as u32).wrapping_mul(shape.row));
+    let column = |x: i32| (x as u32).wrapping_mul(shape.texel).wrapping_add(first as u32);
+    let (column0, column1) = (column(x0), column(x1));
+    // Row-major, as the taps.
+    let offsets = [
+        row0.wrapping_add(column0) as usize,
+        row0.wrapping_add(column1) as usize,
+        row1.wrapping_add(column0) as usize,
+        row1.wrapping_add(column1) as usize,
+    ];
+    let texels = match four_values_at(data, offsets) {
+        Some(texels) => texels,
+        None => offsets
+            .map(|offset| Vec4::from_array(std::array::from_fn(|c| data.get(offset + c).copied().unwrap_or(0.0)))),
     };
-    let texels = [(0, 0), (1, 0), (0, 1), (1, 1)];
     let weights = taps.to_array();
     let mut sum = sum;
     if taps.cmpeq(Vec4::ZERO).any() {
-        for ((x, y), tap) in texels.into_iter().zip(weights) {
+        for (texel, tap) in texels.into_iter().zip(weights) {
             if tap != 0.0 {
-                sum += Vec4::splat(tap) * texel(x, y);
+                sum += Vec4::splat(tap) * texel;
             }
         }
     } else {
-        for ((x, y), tap) in texels.into_iter().zip(weights) {
-            sum += Vec4::splat(tap) * texel(x, y);
+        for (texel, tap) in texels.into_iter().zip(weights) {
+            sum += Vec4::splat(tap) * texel;
         }
     }
     sum
+}
+
+/// The four values from each of `offsets` in `data`, or `None` where one runs past its end
+/// (offsets under 2^32, as [`periodic_taps`] makes them, so nothing overflows): one bounds check
+/// and one load for each.
+#[inline(always)]
+fn four_values_at(data: &[f32], offsets: [usize; 4]) -> Option<[Vec4; 4]> {
+    let furthest = offsets[0].max(offsets[1]).max(offsets[2]).max(offsets[3]);
+    if furthest.checked_add(4)? > data.len() {
+        return None;
+    }
+    let load = |offset: usize| {
+        #[cfg(target_arch = "x86_64")]
+        {
+            // SAFETY: `offset + 4 <= furthest + 4 <= data.len()`, checked above: the 16 bytes
+            // read are inside `data`; `_mm_loadu_ps` needs no alignment, and SSE2 is part of
+            // x86-64.
+            Vec4::from(unsafe { std::arch::x86_64::_mm_loadu_ps(data.as_ptr().add(offset)) })
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            Vec4::from_slice(&data[offset..offset + 4])
+        }
+    };
+    Some([load(offsets[0]), load(offsets[1]), load(offsets[2]), load(offsets[3])])
 }
 
 /// Two levels a trilinear probe blends, their weights, and their sizes as floats (level 0's
