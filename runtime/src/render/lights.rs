@@ -10,7 +10,7 @@ use super::world::{LightSource, Material, World, DEFAULT_MATERIAL};
 use crate::ray::{HitCandidate, HitPacket, Ray, RayPacket, PACKET_SIZE};
 use crate::shading::{fill1, fill3, get_row, put3, put_row, varying_rows, with_filled_batch, LightKind};
 use glam::{Vec3A, Vec4};
-use rtsl_compiler::back::jit::{light_in_cone, HostLight, LightLanes, MAX_LIGHTS};
+use rtsl_compiler::back::jit::{light_in_cone, HostLight, LightLanes, ParamSlot, MAX_LIGHTS};
 use std::cell::RefCell;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Mutex, PoisonError};
@@ -103,6 +103,10 @@ fn eval_light_lanes(
     let samples = light.area.as_ref().map_or(1, |a| a.samples);
     let eye = frame.world.camera.eye();
     let ambient = light.kind == LightKind::Ambient;
+    if ambient && program.lane_invariant && light.area.is_none() {
+        eval_invariant_light_lanes(frame, light, material, mask, points, times, depth, sink);
+        return;
+    }
     let scale = 1.0 / samples as f32;
     let mut scratch = super::scratch::take(&LIGHT_LANE_ROWS);
     let LightLaneRows { ps, lane_times, rows, flags, attenuation, packet, .. } = scratch.fresh(n);
@@ -114,15 +118,8 @@ fn eval_light_lanes(
     // What the light shader left, L, Cl and Ol, a row per component, in `rows`; in `flags`,
     // RenderMan's light flags: `diffuse()` and `specular()` skip (weigh by 1 minus) a light whose
     // `__nondiffuse` / `__nonspecular` output is set, as the shader left it for each lane.
-    let flag_slots = ["__nondiffuse", "__nonspecular"].map(|name| {
-        program
-            .layout()
-            .param(name)
-            .map(|(_, slot)| slot)
-            .filter(|slot| slot.components == 1 && slot.len == 1 && !slot.string)
-            .cloned()
-    });
-    let id = frame.world.lights.iter().position(|x| std::ptr::eq(x, light)).map_or(u32::MAX, |i| i as u32);
+    let flag_slots = light_flag_slots(program);
+    let id = light_id(frame, light);
     // Every lane of these is written below, for every sample.
     let filled =
         varying_rows([(slots.e, 3), (slots.ncomps, 1), (slots.p, 3), (slots.n, 3), (slots.ps, 3), (slots.time, 1)]);
@@ -237,6 +234,105 @@ fn eval_light_lanes(
         }
     }
     super::scratch::give(&LIGHT_LANE_ROWS, scratch);
+}
+
+/// [`eval_light_lanes`] for an ambient light whose shader gives every lane the same values
+/// ([`ShaderProgram::lane_invariant`](crate::shading::ShaderProgram::lane_invariant)): the shader
+/// runs on one lane, and every asking lane gets its row. The same rows as running it on all: an
+/// ambient light casts no shadows and has no direction, and every lane would compute the same.
+/// (BART's scenes have one, in every lane's list: running it over whole batches and taking their
+/// rows apart lane by lane was 2% of a robot frame.)
+#[allow(clippy::too_many_arguments)]
+fn eval_invariant_light_lanes(
+    frame: &Frame,
+    light: &LightSource,
+    material: Option<u32>,
+    mask: &[i32],
+    points: &[Vec3A],
+    times: &[f32],
+    depth: u32,
+    mut sink: impl FnMut(usize, &dyn Fn(&mut LightLanes), u32, u32),
+) {
+    let n = points.len().min(PACKET_SIZE);
+    let instance = &light.shader;
+    let program = &instance.program;
+    let slots = &program.slots;
+    let flag_slots = light_flag_slots(program);
+    Stats::add(&frame.stats.light_evaluations, 1);
+    let filled =
+        varying_rows([(slots.e, 3), (slots.ncomps, 1), (slots.p, 3), (slots.n, 3), (slots.ps, 3), (slots.time, 1)]);
+    let mut values = [[0.0f32; 3]; 3];
+    let mut flags = [0.0f32; 2];
+    with_filled_batch(program, 1, &filled, |batch| {
+        {
+            let mut raw = batch.raw_mut();
+            instance.write_params(&mut raw);
+            raw.mask[0] = -1;
+            fill3(&mut raw, slots.e, frame.world.camera.eye());
+            fill1(&mut raw, slots.ncomps, 3.0);
+            fill3(&mut raw, slots.p, instance.world_from_shader.translation);
+            fill3(&mut raw, slots.n, Vec3A::ZERO);
+            // Not read (the shader reads no global on entry), but written as everywhere.
+            fill3(&mut raw, slots.ps, points.first().copied().unwrap_or(Vec3A::ZERO));
+            fill1(&mut raw, slots.time, time_of(times, 0));
+        }
+        let mut call = ShadeCall::new(frame, instance, instance.world_from_shader, depth);
+        call.material = material;
+        let table = call.table();
+        program.code.shade_with_table(batch, &table);
+        let raw = batch.raw_mut();
+        for (k, slot) in [slots.l, slots.cl, slots.ol].into_iter().enumerate() {
+            for (c, value) in values[k].iter_mut().enumerate() {
+                let mut one = [0.0f32];
+                get_row(&raw, slot, c, 0.0, &mut one);
+                *value = one[0];
+            }
+        }
+        for (flag, slot) in flags.iter_mut().zip(&flag_slots) {
+            let Some(slot) = slot else { continue };
+            let v = if slot.varying { raw.varying[slot.offset * raw.stride] } else { raw.uniform[slot.offset] };
+            *flag = if v.is_finite() { v.clamp(0.0, 1.0) } else { 0.0 };
+        }
+    });
+    // As `eval_light_lanes` makes a row of an ambient light: `finite_or_zero` colours, no shadow.
+    let finite_or_zero = |v: [f32; 3]| if v.iter().all(|x| x.is_finite()) { v } else { [0.0; 3] };
+    let (cl, ol) = (finite_or_zero(values[1]), finite_or_zero(values[2]));
+    let mut template = LightLanes::default();
+    for k in 0..3 {
+        template.l[k] = [0.0; 4];
+        template.cl[k] = (Vec4::splat(cl[k]) * 1.0 * Vec4::ONE).to_array();
+        template.ol[k] = [ol[k]; 4];
+    }
+    template.ambient = [1; 4];
+    template.nondiffuse = [flags[0]; 4];
+    template.nonspecular = [flags[1]; 4];
+    template.id = [light_id(frame, light); 4];
+    let fill = |row: &mut LightLanes| *row = template;
+    for c in 0..n.div_ceil(4) {
+        let lanes = (0..4)
+            .filter(|&j| 4 * c + j < n && mask.get(4 * c + j).is_some_and(|&m| m != 0))
+            .fold(0, |a, j| a | 1 << j);
+        if lanes != 0 {
+            sink(c, &fill, lanes, 0);
+        }
+    }
+}
+
+/// A light shader's `__nondiffuse` and `__nonspecular` outputs, where it has them as floats.
+fn light_flag_slots(program: &crate::shading::ShaderProgram) -> [Option<ParamSlot>; 2] {
+    ["__nondiffuse", "__nonspecular"].map(|name| {
+        program
+            .layout()
+            .param(name)
+            .map(|(_, slot)| slot)
+            .filter(|slot| slot.components == 1 && slot.len == 1 && !slot.string)
+            .cloned()
+    })
+}
+
+/// `light`'s index among the world's lights (`u32::MAX` if it is not one of them).
+fn light_id(frame: &Frame, light: &LightSource) -> u32 {
+    frame.world.lights.iter().position(|x| std::ptr::eq(x, light)).map_or(u32::MAX, |i| i as u32)
 }
 
 thread_local! {

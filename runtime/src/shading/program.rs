@@ -8,7 +8,7 @@ use rtsl_compiler::artifact::{self, ArtifactError, Loaded};
 use rtsl_compiler::back::jit::{self, CompiledShader, JitError, Layout};
 use rtsl_compiler::front::parse::ast::ShaderKind;
 use rtsl_compiler::interface::ShaderInterface;
-use rtsl_compiler::ir::{Block, Module, StmtKind};
+use rtsl_compiler::ir::{Block, ExprKind, Module, StmtKind};
 use rtsl_compiler::source::SourceMap;
 use rtsl_compiler::{Options, Session};
 use std::path::{Path, PathBuf};
@@ -144,6 +144,11 @@ pub struct ShaderProgram {
     pub slots: GlobalSlots,
     /// For light shaders: how the light emits.
     pub light_kind: LightKind,
+    /// Every lane of a batch gets the same results: the code reads no global's value on entry,
+    /// calls no function or built-in (no lookups, messages, noise or `random()`) and has no
+    /// `illuminance`, `illuminate`, `solar` or `gather`. Its outputs are then functions of its
+    /// parameters alone, and one lane may be run for all (an `ambientlight`, for instance).
+    pub lane_invariant: bool,
     /// The front end's warnings, rendered.
     pub warnings: String,
     /// Every file the compilation read (the source and its includes), for hot reload.
@@ -245,6 +250,7 @@ impl ShaderProgram {
             path,
             slots: GlobalSlots::from_layout(code.layout()),
             light_kind: light_kind(module),
+            lane_invariant: lane_invariant(module, code.layout()),
             interface,
             code,
             warnings,
@@ -295,6 +301,24 @@ fn light_kind(m: &Module) -> LightKind {
         scan(&f.body, &mut kind);
     }
     kind
+}
+
+/// See [`ShaderProgram::lane_invariant`].
+fn lane_invariant(m: &Module, layout: &Layout) -> bool {
+    fn plain(b: &Block) -> bool {
+        b.stmts.iter().all(|s| match &s.kind {
+            StmtKind::If { then, otherwise, .. } => plain(then) && plain(otherwise),
+            StmtKind::Loop { body, step, .. } => plain(body) && plain(step),
+            StmtKind::Expr(_) | StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return(_) => true,
+            _ => false,
+        })
+    }
+    let calls_nothing = m.functions.iter().all(|f| {
+        plain(&f.body)
+            && f.exprs.iter().all(|e| !matches!(e.kind, ExprKind::Call { .. } | ExprKind::CallBuiltin { .. }))
+    });
+    let reads_no_global = layout.globals.iter().all(|g| g.written && g.entry_unused);
+    calls_nothing && reads_no_global && layout.seed.is_none()
 }
 
 /// Shared handle to a program.
