@@ -287,10 +287,9 @@ impl MipMap {
             if !p.abs().cmplt(limit).all() {
                 return None;
             }
-            let floor = p.floor();
+            let (floor, corner) = floor_small(p);
             let f = p - floor;
             let g = Vec4::ONE - f;
-            let corner = small_integers(floor);
             let masks = IVec4::new(a.1.mask[0], a.1.mask[1], b.1.mask[0], b.1.mask[1]);
             let lo = (corner & masks).to_array();
             let hi = ((corner + IVec4::ONE) & masks).to_array();
@@ -649,10 +648,9 @@ impl FourProbes {
         let (x, y) = (s * size[0] - Vec4::splat(0.5), t * size[1] - Vec4::splat(0.5));
         let limit = Vec4::splat(4_194_304.0);
         let far = !(x.abs().cmplt(limit) & y.abs().cmplt(limit)).all();
-        let (x_floor, y_floor) = (x.floor(), y.floor());
+        let ((x_floor, column), (y_floor, row)) = (floor_small(x), floor_small(y));
         let (fx, fy) = (x - x_floor, y - y_floor);
         let (gx, gy) = (Vec4::ONE - fx, Vec4::ONE - fy);
-        let (column, row) = (small_integers(x_floor), small_integers(y_floor));
         let wrap = |v: IVec4, mask: i32| (v & IVec4::splat(mask)).to_array();
         let (x0, x1) = (wrap(column, masks[0]), wrap(column + IVec4::ONE, masks[0]));
         let (y0, y1) = (wrap(row, masks[1]), wrap(row + IVec4::ONE, masks[1]));
@@ -670,6 +668,39 @@ impl FourProbes {
     #[inline(always)]
     fn add(&self, level: (&TexImage, &LevelShape), k: usize, first: usize, sum: Vec4) -> Vec4 {
         periodic_taps(level, self.corners[k], self.taps[k], first, sum)
+    }
+}
+
+/// `v.floor()` and [`small_integers`] of it, for lanes under 2^22 in magnitude (others give
+/// values not to be used): truncated by one conversion and stepped down where that rounded up,
+/// the integers kept from the conversion. The same values (a floor of -0 is +0 here, which no
+/// texel coordinate `s * size - 0.5` is).
+#[inline(always)]
+fn floor_small(v: Vec4) -> (Vec4, IVec4) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{
+            _mm_add_epi32, _mm_and_ps, _mm_castps_si128, _mm_cmplt_ps, _mm_cvtepi32_ps, _mm_cvttps_epi32, _mm_set1_ps,
+            _mm_storeu_si128, _mm_sub_ps,
+        };
+        let x = v.into();
+        let mut lanes = [0i32; 4];
+        // SAFETY: SSE2 is part of x86-64, so these instructions exist; `lanes` is 16 writable
+        // bytes, and the store needs no alignment.
+        let floor = unsafe {
+            let truncated = _mm_cvttps_epi32(x);
+            let back = _mm_cvtepi32_ps(truncated);
+            // All ones where the truncation rounded up (negative non-integers).
+            let above = _mm_cmplt_ps(x, back);
+            _mm_storeu_si128(lanes.as_mut_ptr().cast(), _mm_add_epi32(truncated, _mm_castps_si128(above)));
+            _mm_sub_ps(back, _mm_and_ps(above, _mm_set1_ps(1.0)))
+        };
+        (Vec4::from(floor), IVec4::from_array(lanes))
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        let floor = v.floor();
+        (floor, small_integers(floor))
     }
 }
 
@@ -1553,6 +1584,25 @@ mod tests {
         for x in special {
             let (a, b) = (floor(x), x.floor());
             assert!(a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()), "floor({x:e}): {a:e} vs {b:e}");
+        }
+    }
+
+    /// `floor_small` against `floor` and `small_integers` of it: integers, halves, tiny values on
+    /// both sides of zero and random values up to 2^22 (zero itself positive: no texel coordinate
+    /// is -0).
+    #[test]
+    fn the_vector_floor_and_its_integers_equal_the_library_ones() {
+        let mut values = vec![0.0, 0.5, -0.5, 1.0, -1.0, 1e-45, -1e-45, 4_194_303.5, -4_194_303.5, -4_194_304.0];
+        let mut state = 0x9E37_79B9_7F4A_7C15u64;
+        for _ in 0..100_000 {
+            let r = unit_random(&mut state);
+            values.push((r - 0.5) * 8_388_607.0 * unit_random(&mut state).powi(8));
+        }
+        for four in values.chunks_exact(4) {
+            let v = Vec4::from_slice(four);
+            let (floor, integers) = floor_small(v);
+            assert_eq!(floor.to_array().map(f32::to_bits), v.floor().to_array().map(f32::to_bits), "{v}");
+            assert_eq!(integers, small_integers(v.floor()), "{v}");
         }
     }
 
