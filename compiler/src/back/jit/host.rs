@@ -1473,23 +1473,20 @@ fn texture_call(cx: &Cx<'_>, kind: u32, channels: u32) -> ([f32; 4 * MAX_TEXTURE
     // triple at arg 1.
     let mut coords = [0.0f32; 4 * SHADOW_ROWS];
     let mut first = [0.0f32; 4];
-    for l in 0..4 {
-        if kind == 0 {
-            coords[l] = cx.f(1, l);
-            coords[4 + l] = cx.f(2, l);
-            for k in 0..5 {
-                coords[4 * (2 + k) + l] = cx.f(6 + k, l);
-            }
-            first[l] = cx.f(3, l);
-        } else if kind == 2 {
-            for k in 0..SHADOW_ROWS {
-                coords[4 * k + l] = cx.f(1 + k, l);
-            }
-        } else {
-            for k in 0..3 {
-                coords[4 * k + l] = cx.f(1 + k, l);
-            }
+    // Arguments `k..k + n` (rows of four lanes) into `to`.
+    let rows = |to: &mut [f32], k: usize, n: usize| {
+        if let (Some(to), Some(from)) = (to.get_mut(..4 * n), cx.input.get(4 * k..4 * (k + n))) {
+            to.copy_from_slice(from);
         }
+    };
+    match kind {
+        0 => {
+            rows(&mut coords[..8], 1, 2);
+            rows(&mut coords[8..28], 6, 5);
+            rows(&mut first, 3, 1);
+        }
+        2 => rows(&mut coords, 1, SHADOW_ROWS),
+        _ => rows(&mut coords, 1, 3),
     }
     // SAFETY: the table's documented sizes.
     unsafe {
