@@ -213,8 +213,8 @@ impl MipMap {
     /// [`MipMap::filter_lanes`] for textures whose levels wrap periodically and are powers of two
     /// in size (most textures; all of BART's), at most four values a lane: the same values, bit
     /// for bit, as [`PeriodicProbes`] sums them, written straight into `out`. Returns the active
-    /// lanes it left to the caller: those with a probe beyond 2^22 texels, where the integer
-    /// conversion of [`small_integers`] does not hold.
+    /// lanes it left to the caller: those with a probe beyond 2^22 texels, where its integer
+    /// conversions ([`floor_small`]) do not hold.
     #[allow(clippy::too_many_arguments)] // filter_lanes' own arguments, worked out once there
     #[inline(always)]
     fn filter_lanes_periodic(
@@ -336,6 +336,7 @@ impl MipMap {
         }
         Some(sum)
     }
+
     /// Where the probes of four lookups go (see the module doc).
     #[inline(always)]
     fn probe_plans(&self, lanes: &LookupLanes, opts: &LookupOptions) -> [ProbePlan; 4] {
