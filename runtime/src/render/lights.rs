@@ -261,7 +261,8 @@ fn eval_invariant_light_lanes(
     Stats::add(&frame.stats.light_evaluations, 1);
     let filled =
         varying_rows([(slots.e, 3), (slots.ncomps, 1), (slots.p, 3), (slots.n, 3), (slots.ps, 3), (slots.time, 1)]);
-    let mut values = [[0.0f32; 3]; 3];
+    // Cl and Ol (an ambient light has no L).
+    let mut values = [[0.0f32; 3]; 2];
     let mut flags = [0.0f32; 2];
     with_filled_batch(program, 1, &filled, |batch| {
         {
@@ -281,7 +282,7 @@ fn eval_invariant_light_lanes(
         let table = call.table();
         program.code.shade_with_table(batch, &table);
         let raw = batch.raw_mut();
-        for (k, slot) in [slots.l, slots.cl, slots.ol].into_iter().enumerate() {
+        for (k, slot) in [slots.cl, slots.ol].into_iter().enumerate() {
             for (c, value) in values[k].iter_mut().enumerate() {
                 let mut one = [0.0f32];
                 get_row(&raw, slot, c, 0.0, &mut one);
@@ -294,13 +295,14 @@ fn eval_invariant_light_lanes(
             *flag = if v.is_finite() { v.clamp(0.0, 1.0) } else { 0.0 };
         }
     });
-    // As `eval_light_lanes` makes a row of an ambient light: `finite_or_zero` colours, no shadow.
+    // As `eval_light_lanes` makes a row of an ambient light: `finite_or_zero` colours, L zero,
+    // and `Cl` times a sample weight and a shadow that are both one (so exactly `Cl`).
     let finite_or_zero = |v: [f32; 3]| if v.iter().all(|x| x.is_finite()) { v } else { [0.0; 3] };
-    let (cl, ol) = (finite_or_zero(values[1]), finite_or_zero(values[2]));
+    let (cl, ol) = (finite_or_zero(values[0]), finite_or_zero(values[1]));
     let mut template = LightLanes::default();
     for k in 0..3 {
         template.l[k] = [0.0; 4];
-        template.cl[k] = (Vec4::splat(cl[k]) * 1.0 * Vec4::ONE).to_array();
+        template.cl[k] = [cl[k]; 4];
         template.ol[k] = [ol[k]; 4];
     }
     template.ambient = [1; 4];
