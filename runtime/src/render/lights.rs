@@ -238,8 +238,9 @@ fn eval_light_lanes(
 
 /// [`eval_light_lanes`] for an ambient light whose shader gives every lane the same values
 /// ([`ShaderProgram::lane_invariant`](crate::shading::ShaderProgram::lane_invariant)): the shader
-/// runs on one lane, and every asking lane gets its row. The same rows as running it on all: an
-/// ambient light casts no shadows and has no direction, and every lane would compute the same.
+/// runs on one lane, once a frame (`Frame::invariant_light_rows`), and every asking lane gets its
+/// row. The same rows as running it on all: an ambient light casts no shadows and has no
+/// direction, and every lane of every batch would compute the same from the same parameters.
 /// (BART's scenes have one, in every lane's list: running it over whole batches and taking their
 /// rows apart lane by lane was 2% of a robot frame.)
 #[allow(clippy::too_many_arguments)]
@@ -254,11 +255,37 @@ fn eval_invariant_light_lanes(
     mut sink: impl FnMut(usize, &dyn Fn(&mut LightLanes), u32, u32),
 ) {
     let n = points.len().min(PACKET_SIZE);
+    Stats::add(&frame.stats.light_evaluations, 1);
+    let id = light_id(frame, light);
+    let template = match frame.invariant_light_rows.get(id as usize) {
+        Some(row) => *row.get_or_init(|| invariant_light_row(frame, light, material, points, times, depth)),
+        None => invariant_light_row(frame, light, material, points, times, depth),
+    };
+    let fill = |row: &mut LightLanes| *row = template;
+    for c in 0..n.div_ceil(4) {
+        let lanes = (0..4)
+            .filter(|&j| 4 * c + j < n && mask.get(4 * c + j).is_some_and(|&m| m != 0))
+            .fold(0, |a, j| a | 1 << j);
+        if lanes != 0 {
+            sink(c, &fill, lanes, 0);
+        }
+    }
+}
+
+/// The row every lane gets from a lane-invariant ambient light ([`eval_invariant_light_lanes`]):
+/// its shader run on one lane.
+fn invariant_light_row(
+    frame: &Frame,
+    light: &LightSource,
+    material: Option<u32>,
+    points: &[Vec3A],
+    times: &[f32],
+    depth: u32,
+) -> LightLanes {
     let instance = &light.shader;
     let program = &instance.program;
     let slots = &program.slots;
     let flag_slots = light_flag_slots(program);
-    Stats::add(&frame.stats.light_evaluations, 1);
     let filled =
         varying_rows([(slots.e, 3), (slots.ncomps, 1), (slots.p, 3), (slots.n, 3), (slots.ps, 3), (slots.time, 1)]);
     // Cl and Ol (an ambient light has no L).
@@ -309,15 +336,7 @@ fn eval_invariant_light_lanes(
     template.nondiffuse = [flags[0]; 4];
     template.nonspecular = [flags[1]; 4];
     template.id = [light_id(frame, light); 4];
-    let fill = |row: &mut LightLanes| *row = template;
-    for c in 0..n.div_ceil(4) {
-        let lanes = (0..4)
-            .filter(|&j| 4 * c + j < n && mask.get(4 * c + j).is_some_and(|&m| m != 0))
-            .fold(0, |a, j| a | 1 << j);
-        if lanes != 0 {
-            sink(c, &fill, lanes, 0);
-        }
-    }
+    template
 }
 
 /// A light shader's `__nondiffuse` and `__nonspecular` outputs, where it has them as floats.

@@ -45,6 +45,9 @@ pub struct Frame<'w> {
     pub(super) pixel_dy: Vec3A,
     /// The angle one pixel spans (radians, small-angle), for the cones of secondary rays.
     pub(super) pixel_spread: f32,
+    /// Per light: the row of a lane-invariant ambient light, worked out by the first batch that
+    /// asks (its value depends on the light's parameters alone, fixed for the frame).
+    pub(super) invariant_light_rows: Vec<std::sync::OnceLock<rtsl_compiler::back::jit::LightLanes>>,
 }
 
 impl<'w> Frame<'w> {
@@ -67,6 +70,7 @@ impl<'w> Frame<'w> {
             pixel_dx: m.x_axis * (2.0 * tan * ax / w),
             pixel_dy: m.y_axis * (-2.0 * tan * ay / h),
             pixel_spread: 2.0 * tan * ay / h,
+            invariant_light_rows: world.lights.iter().map(|_| std::sync::OnceLock::new()).collect(),
         }
     }
 }
