@@ -103,8 +103,9 @@ fn eval_light_lanes(
     let samples = light.area.as_ref().map_or(1, |a| a.samples);
     let eye = frame.world.camera.eye();
     let ambient = light.kind == LightKind::Ambient;
+    let id = light_id(frame, light);
     if ambient && program.lane_invariant && light.area.is_none() {
-        eval_invariant_light_lanes(frame, light, material, mask, points, times, depth, sink);
+        eval_invariant_light_lanes(frame, (id, light), material, mask, points, times, depth, sink);
         return;
     }
     let scale = 1.0 / samples as f32;
@@ -119,7 +120,6 @@ fn eval_light_lanes(
     // RenderMan's light flags: `diffuse()` and `specular()` skip (weigh by 1 minus) a light whose
     // `__nondiffuse` / `__nonspecular` output is set, as the shader left it for each lane.
     let flag_slots = light_flag_slots(program);
-    let id = light_id(frame, light);
     // Every lane of these is written below, for every sample.
     let filled =
         varying_rows([(slots.e, 3), (slots.ncomps, 1), (slots.p, 3), (slots.n, 3), (slots.ps, 3), (slots.time, 1)]);
@@ -246,7 +246,7 @@ fn eval_light_lanes(
 #[allow(clippy::too_many_arguments)]
 fn eval_invariant_light_lanes(
     frame: &Frame,
-    light: &LightSource,
+    (id, light): (u32, &LightSource),
     material: Option<u32>,
     mask: &[i32],
     points: &[Vec3A],
@@ -256,10 +256,10 @@ fn eval_invariant_light_lanes(
 ) {
     let n = points.len().min(PACKET_SIZE);
     Stats::add(&frame.stats.light_evaluations, 1);
-    let id = light_id(frame, light);
+    let row = || invariant_light_row(frame, (id, light), material, points, times, depth);
     let template = match frame.invariant_light_rows.get(id as usize) {
-        Some(row) => *row.get_or_init(|| invariant_light_row(frame, light, material, points, times, depth)),
-        None => invariant_light_row(frame, light, material, points, times, depth),
+        Some(cached) => *cached.get_or_init(row),
+        None => row(),
     };
     let fill = |row: &mut LightLanes| *row = template;
     for c in 0..n.div_ceil(4) {
@@ -276,7 +276,7 @@ fn eval_invariant_light_lanes(
 /// its shader run on one lane.
 fn invariant_light_row(
     frame: &Frame,
-    light: &LightSource,
+    (id, light): (u32, &LightSource),
     material: Option<u32>,
     points: &[Vec3A],
     times: &[f32],
@@ -335,7 +335,7 @@ fn invariant_light_row(
     template.ambient = [1; 4];
     template.nondiffuse = [flags[0]; 4];
     template.nonspecular = [flags[1]; 4];
-    template.id = [light_id(frame, light); 4];
+    template.id = [id; 4];
     template
 }
 

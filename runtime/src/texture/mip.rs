@@ -257,19 +257,7 @@ impl MipMap {
     fn lane_periodic(&self, s: f32, t: f32, plan: ProbePlan, first: usize) -> Option<Vec4> {
         let ProbePlan { probes, lod, major, direction } = plan;
         let weight = 1.0 / probes as f32;
-        let top = self.levels.len() - 1;
-        // The levels the probes blend and their weights, as `trilinear` has them.
-        let (levels, weights, two) = if lod.is_nan() || lod <= 0.0 {
-            ([0, 0], [weight, 0.0], false)
-        } else {
-            let below = floor(lod) as usize;
-            if below >= top {
-                ([top, top], [weight, 0.0], false)
-            } else {
-                let frac = lod - below as f32;
-                ([below, below + 1], [weight * (1.0 - frac), weight * frac], true)
-            }
-        };
+        let (levels, weights, two) = self.blended_levels(lod, weight);
         let [a, b] = levels.map(|l| (&self.levels[l], &self.shapes[l]));
         let (w, h) = (self.width() as f32, self.height() as f32);
         let axis = [direction[0] * major / w, direction[1] * major / h];
@@ -416,21 +404,29 @@ impl MipMap {
     /// The levels a trilinear probe at `lod` blends, and their weights (a probe's `weight` split
     /// between them), the same for every probe of a lookup.
     fn trilinear(&self, lod: f32, weight: f32, wrap: [Wrap; 2]) -> Trilinear<'_> {
+        let ([a, b], weights, two) = self.blended_levels(lod, weight);
+        if two {
+            Trilinear::Two(LevelPair::new([&self.levels[a], &self.levels[b]], weights, wrap))
+        } else {
+            Trilinear::One(&self.levels[a], weights[0])
+        }
+    }
+
+    /// The levels a probe at `lod` reads and their weights (its `weight` split between them), and
+    /// whether it blends two; with one, the first level and weight.
+    #[inline(always)]
+    fn blended_levels(&self, lod: f32, weight: f32) -> ([usize; 2], [f32; 2], bool) {
         let top = self.levels.len() - 1;
         // NaN (a degenerate footprint) also means the finest level.
         if lod.is_nan() || lod <= 0.0 {
-            return Trilinear::One(&self.levels[0], weight);
+            return ([0, 0], [weight, 0.0], false);
         }
         let below = floor(lod) as usize;
         if below >= top {
-            return Trilinear::One(&self.levels[top], weight);
+            return ([top, top], [weight, 0.0], false);
         }
         let frac = lod - below as f32;
-        Trilinear::Two(LevelPair::new(
-            [&self.levels[below], &self.levels[below + 1]],
-            [weight * (1.0 - frac), weight * frac],
-            wrap,
-        ))
+        ([below, below + 1], [weight * (1.0 - frac), weight * frac], true)
     }
 }
 
@@ -597,14 +593,16 @@ impl<'a> PeriodicProbes<'a> {
     fn accumulate_four<const N: usize>(&self, s: Vec4, t: Vec4, count: usize, first: usize, sum: Vec4) -> Option<Vec4> {
         let [w0, h0, w1, h1] = self.size.to_array();
         let [mw0, mh0, mw1, mh1] = self.masks.to_array();
-        let first_level = four_probes(s, t, [w0, h0], [mw0, mh0], self.weights[0])?;
-        let second_level =
-            if self.two { Some(four_probes(s, t, [w1, h1], [mw1, mh1], self.weights[1])?) } else { None };
+        let first_level = FourProbes::of(s, t, [w0, h0], [mw0, mh0], self.weights[0]);
+        let second_level = self.two.then(|| FourProbes::of(s, t, [w1, h1], [mw1, mh1], self.weights[1]));
+        if first_level.far || second_level.as_ref().is_some_and(|l| l.far) {
+            return None;
+        }
         let mut sum = sum;
         for k in 0..count.min(4) {
-            sum = level_taps::<N>(self.levels[0], first_level.0[k], first_level.1[k], first, sum);
-            if let Some((corners, taps)) = &second_level {
-                sum = level_taps::<N>(self.levels[1], corners[k], taps[k], first, sum);
+            sum = level_taps::<N>(self.levels[0], first_level.corners[k], first_level.taps[k], first, sum);
+            if let Some(level) = &second_level {
+                sum = level_taps::<N>(self.levels[1], level.corners[k], level.taps[k], first, sum);
             }
         }
         Some(sum)
@@ -613,30 +611,8 @@ impl<'a> PeriodicProbes<'a> {
 
 /// Four probes' taps on one level (`size` its width and height, `masks` each less one): per probe
 /// the wrapped columns and rows `[x0, x1, y0, y1]` and the four tap weights in row-major order,
-/// by the arithmetic of [`PeriodicProbes::accumulate`] lane by lane. `None` where a probe is
-/// beyond 2^22 texels (or NaN).
-#[inline(always)]
-fn four_probes(s: Vec4, t: Vec4, size: [f32; 2], masks: [i32; 2], weight: f32) -> Option<([[i32; 4]; 4], [Vec4; 4])> {
-    let (x, y) = (s * size[0] - Vec4::splat(0.5), t * size[1] - Vec4::splat(0.5));
-    let limit = Vec4::splat(4_194_304.0);
-    if !(x.abs().cmplt(limit) & y.abs().cmplt(limit)).all() {
-        return None;
-    }
-    let (x_floor, y_floor) = (x.floor(), y.floor());
-    let (fx, fy) = (x - x_floor, y - y_floor);
-    let (gx, gy) = (Vec4::ONE - fx, Vec4::ONE - fy);
-    let (column, row) = (small_integers(x_floor), small_integers(y_floor));
-    let wrap = |v: IVec4, mask: i32| (v & IVec4::splat(mask)).to_array();
-    let (x0, x1) = (wrap(column, masks[0]), wrap(column + IVec4::ONE, masks[0]));
-    let (y0, y1) = (wrap(row, masks[1]), wrap(row + IVec4::ONE, masks[1]));
-    let weight = Vec4::splat(weight);
-    // The taps of all four probes, a tap a column; transposed, a probe a column.
-    let taps = Mat4::from_cols(weight * gx * gy, weight * fx * gy, weight * gx * fy, weight * fx * fy).transpose();
-    Some((std::array::from_fn(|k| [x0[k], x1[k], y0[k], y1[k]]), std::array::from_fn(|k| taps.col(k))))
-}
-
-/// [`four_probes`] without the `Option`: `far` where a probe is beyond 2^22 texels (or NaN), and
-/// then the rest is not to be used.
+/// by the arithmetic of [`PeriodicProbes::accumulate`] lane by lane. `far` where a probe is
+/// beyond 2^22 texels (or NaN), and then the rest is not to be used.
 struct FourProbes {
     corners: [[i32; 4]; 4],
     taps: [Vec4; 4],
