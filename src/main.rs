@@ -65,6 +65,24 @@ unsafe impl std::alloc::GlobalAlloc for MiMalloc {
     }
 }
 
+/// Whether this CPU has the instructions the build was compiled for (`.cargo/config.toml`
+/// targets x86-64-v3), or the first one it lacks. Without them the program would stop with an
+/// illegal instruction somewhere in its first vector loop.
+fn check_instruction_set() -> Result<(), &'static str> {
+    #[cfg(target_arch = "x86_64")]
+    {
+        macro_rules! require {
+            ($($feature:tt),*) => {
+                $(if cfg!(target_feature = $feature) && !std::arch::is_x86_feature_detected!($feature) {
+                    return Err($feature);
+                })*
+            };
+        }
+        require!("avx", "avx2", "fma", "bmi1", "bmi2", "f16c", "lzcnt", "movbe");
+    }
+    Ok(())
+}
+
 /// `mi_option_arena_purge_mult` in mimalloc 3's `mi_option_e` (mimalloc.h), which
 /// libmimalloc-sys does not name without its `extended` feature.
 const MI_OPTION_ARENA_PURGE_MULT: std::ffi::c_int = 24;
@@ -92,6 +110,13 @@ fn keep_freed_memory_for_the_next_frames() {
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
+    if let Err(missing) = check_instruction_set() {
+        eprintln!(
+            "error: this build of rtsl needs a CPU with {missing} (x86-64-v3, `.cargo/config.toml`); \
+             rebuild it with RUSTFLAGS=\"-C target-cpu=x86-64\" for this one"
+        );
+        return ExitCode::from(2);
+    }
     keep_freed_memory_for_the_next_frames();
     match cli::run() {
         Ok(code) => code,

@@ -166,8 +166,18 @@ impl Lanes3 {
         self.x * o.x + self.y * o.y + self.z * o.z
     }
 
+    /// `Vec3A::cross`, whose second product is fused into the subtraction where the target has
+    /// FMA (`x86-64-v3`, `.cargo/config.toml`).
     fn cross(self, o: Lanes3) -> Lanes3 {
-        Lanes3 { x: self.y * o.z - self.z * o.y, y: self.z * o.x - self.x * o.z, z: self.x * o.y - self.y * o.x }
+        #[cfg(target_feature = "fma")]
+        let minus_product = |a: Vec4, b: Vec4, from: Vec4| (-a).mul_add(b, from);
+        #[cfg(not(target_feature = "fma"))]
+        let minus_product = |a: Vec4, b: Vec4, from: Vec4| from - a * b;
+        Lanes3 {
+            x: minus_product(self.z, o.y, self.y * o.z),
+            y: minus_product(self.x, o.z, self.z * o.x),
+            z: minus_product(self.y, o.x, self.x * o.y),
+        }
     }
 
     /// `m * v` as `Mat3A * Vec3A` sums it: column by column.
