@@ -2,7 +2,6 @@
 //! shading needs of it (normals, surface coordinates and their derivatives along the triangle's
 //! edges), and the screen-space derivatives that a ray differential gives at it.
 
-use super::differential::barycentric_change;
 use super::shade::Pending;
 use super::world::{InstanceShading, World};
 use crate::ray::Hit;
@@ -31,6 +30,7 @@ pub(super) struct HitGeometry {
 }
 
 /// The screen-space derivatives of one hit's globals.
+#[cfg(test)]
 pub(super) struct HitDerivs {
     pub(super) dp: [Vec3A; 2],
     pub(super) dn: [Vec3A; 2],
@@ -40,8 +40,11 @@ pub(super) struct HitDerivs {
     pub(super) dt: [f32; 2],
 }
 
+#[cfg(test)]
 impl HitGeometry {
+    /// One hit's derivatives: the arithmetic [`derivs_four`] does four hits at a time.
     pub(super) fn derivs(&self, p: &Pending) -> HitDerivs {
+        use super::differential::barycentric_change;
         let (dpx, dpy) = p.diff.at_hit(p.ray.direction, p.hit.t, self.ng);
         let bx = barycentric_change(self.edges[0], self.edges[1], dpx);
         let by = barycentric_change(self.edges[0], self.edges[1], dpy);
@@ -122,13 +125,73 @@ pub(super) fn hit_geometries(ig: &InstanceGeometry, group: &[Pending], geoms: &m
     }
 }
 
+/// The screen-space derivatives of four hits' globals, a lane each.
+pub(super) struct DerivsFour {
+    pub(super) dp: [Lanes3; 2],
+    pub(super) dn: [Lanes3; 2],
+    pub(super) du: [Vec4; 2],
+    pub(super) dv: [Vec4; 2],
+    pub(super) ds: [Vec4; 2],
+    pub(super) dt: [Vec4; 2],
+}
+
+/// The derivatives along x and y of four hits (`geoms`, of the rays `pending`; where a lane has
+/// no geometry its values are not to be used), lane by lane the arithmetic of one hit at a time
+/// (`RayDifferential::at_hit`, `barycentric_change`), so each lane's bits are the same. One hit at
+/// a time, the six divisions of each stood in a chain, and writing the results a lane at a time
+/// looked up their rows again: together two thirds of filling a BART robot batch.
+pub(super) fn derivs_four(pending: [&Pending; 4], geoms: [Option<&HitGeometry>; 4]) -> DerivsFour {
+    let from_pending = |f: fn(&Pending) -> Vec3A| Lanes3::of(pending.map(f));
+    let from_geometry = |f: fn(&HitGeometry) -> Vec3A| Lanes3::of(geoms.map(|g| g.map_or(Vec3A::ZERO, f)));
+    // `[d1.x, d1.y, d2.x, d2.y]` of a change `d` along the edges (`duv`, `dst`).
+    let changes = |f: fn(&HitGeometry) -> [[f32; 2]; 2]| {
+        let d = geoms.map(|g| g.map_or([[0.0; 2]; 2], f));
+        [(0, 0), (0, 1), (1, 0), (1, 1)].map(|(e, k)| Vec4::new(d[0][e][k], d[1][e][k], d[2][e][k], d[3][e][k]))
+    };
+    let (dir, ng) = (from_pending(|p| p.ray.direction), from_geometry(|g| g.ng));
+    let t = Vec4::from_array(pending.map(|p| p.hit.t));
+    // `at_hit`: the offsets at the hit, moved along the ray onto the tangent plane.
+    let facing = dir.dot(ng);
+    let along_plane = facing.abs().cmplt(Vec4::splat(1e-6));
+    let at_hit = |dodx: Lanes3, dddx: Lanes3| {
+        let p = dodx.add(dddx.scale(t));
+        Lanes3::select(along_plane, p, p.sub(dir.scale(p.dot(ng) / facing)))
+    };
+    let dpx = at_hit(from_pending(|p| p.diff.dodx), from_pending(|p| p.diff.dddx));
+    let dpy = at_hit(from_pending(|p| p.diff.dody), from_pending(|p| p.diff.dddy));
+    // `barycentric_change` of each.
+    let (e1, e2) = (from_geometry(|g| g.edges[0]), from_geometry(|g| g.edges[1]));
+    let (a, b, c) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
+    let det = a * c - b * b;
+    let degenerate = det.abs().cmplt(Vec4::splat(1e-30));
+    let barycentric = |dp: Lanes3| {
+        let (r1, r2) = (e1.dot(dp), e2.dot(dp));
+        let (b1, b2) = ((c * r1 - b * r2) / det, (a * r2 - b * r1) / det);
+        (Vec4::select(degenerate, Vec4::ZERO, b1), Vec4::select(degenerate, Vec4::ZERO, b2))
+    };
+    let (bx, by) = (barycentric(dpx), barycentric(dpy));
+    let (dn1, dn2) = (from_geometry(|g| g.dn[0]), from_geometry(|g| g.dn[1]));
+    let normal = |b: (Vec4, Vec4)| dn1.scale(b.0).add(dn2.scale(b.1));
+    // `d[0][k] * b.0 + d[1][k] * b.1` of each hit's change `d`.
+    let along = |d: [Vec4; 4], k: usize| [bx, by].map(|b| d[k] * b.0 + d[2 + k] * b.1);
+    let (duv, dst) = (changes(|g| g.duv), changes(|g| g.dst));
+    DerivsFour {
+        dp: [dpx, dpy],
+        dn: [normal(bx), normal(by)],
+        du: along(duv, 0),
+        dv: along(duv, 1),
+        ds: along(dst, 0),
+        dt: along(dst, 1),
+    }
+}
+
 /// A 3-vector for each of four lanes, a `Vec4` per component. The operations are `Vec3A`'s, in
 /// the same order, so that each lane gets the bits a `Vec3A` would.
 #[derive(Clone, Copy, Debug, Default)]
-struct Lanes3 {
-    x: Vec4,
-    y: Vec4,
-    z: Vec4,
+pub(super) struct Lanes3 {
+    pub(super) x: Vec4,
+    pub(super) y: Vec4,
+    pub(super) z: Vec4,
 }
 
 impl Lanes3 {
@@ -147,6 +210,16 @@ impl Lanes3 {
     #[inline(always)]
     fn lane(&self, j: usize) -> Vec3A {
         Vec3A::new(self.x[j], self.y[j], self.z[j])
+    }
+
+    /// Four vectors, one a lane.
+    #[inline(always)]
+    fn of(v: [Vec3A; 4]) -> Lanes3 {
+        Lanes3 {
+            x: Vec4::new(v[0].x, v[1].x, v[2].x, v[3].x),
+            y: Vec4::new(v[0].y, v[1].y, v[2].y, v[3].y),
+            z: Vec4::new(v[0].z, v[1].z, v[2].z, v[3].z),
+        }
     }
 
     fn add(self, o: Lanes3) -> Lanes3 {
@@ -408,9 +481,30 @@ mod tests {
         floats.map(f32::to_bits).collect()
     }
 
+    fn deriv_bits(d: &HitDerivs) -> Vec<u32> {
+        let v3 = |v: Vec3A| v.to_array();
+        let floats = d.dp.map(v3).into_iter().chain(d.dn.map(v3)).flatten();
+        floats.chain([d.du, d.dv, d.ds, d.dt].into_iter().flatten()).map(f32::to_bits).collect()
+    }
+
+    impl DerivsFour {
+        fn lane(&self, j: usize) -> HitDerivs {
+            let pair = |d: &[Vec4; 2]| [d[0][j], d[1][j]];
+            HitDerivs {
+                dp: self.dp.map(|v| v.lane(j)),
+                dn: self.dn.map(|v| v.lane(j)),
+                du: pair(&self.du),
+                dv: pair(&self.dv),
+                ds: pair(&self.ds),
+                dt: pair(&self.dt),
+            }
+        }
+    }
+
     /// Four hits at a time give every field the bits that one hit at a time gives: with and
     /// without normals and texture coordinates, surface coordinates and derivatives, degenerate
-    /// texture coordinates, and triangles the mesh does not have.
+    /// texture coordinates and triangles, rays along a triangle's plane, and triangles the mesh
+    /// does not have; and so do their screen-space derivatives ([`derivs_four`]).
     #[test]
     fn four_hits_at_a_time_match_one_at_a_time_bit_for_bit() {
         let mut r = stream(0x5EED_1234_ABCD_0001);
@@ -426,7 +520,17 @@ mod tests {
             // Triangle 0 has texture coordinates all alike at two corners (vertex 3 twice).
             let mut triangles = vec![[3, 3, 5]];
             triangles.extend((0..9).map(|k| [k, (k + 1) % vertices, (k + 5) % vertices]));
-            let mesh = Mesh { positions, normals, uvs, attributes: Vec::new(), triangles };
+            // Every fifth round's mesh has its own `st` (and goes one hit at a time).
+            let attributes = match round % 5 {
+                4 => vec![crate::geometry::mesh::Attribute {
+                    name: "st".into(),
+                    components: 2,
+                    data: (0..2 * vertices).map(|_| r() * 3.0).collect(),
+                }],
+                _ => Vec::new(),
+            };
+            let st = (!attributes.is_empty()).then_some(0);
+            let mesh = Mesh { positions, normals, uvs, attributes, triangles };
             let m = Mat3A::from_cols(
                 Vec3A::new(r() * 2.0, r(), r()),
                 Vec3A::new(r(), r() * 2.0, r()),
@@ -440,7 +544,7 @@ mod tests {
                 moving: None,
                 derivs: round % 4 < 2,
                 coords: round % 4 != 3,
-                st: None,
+                st,
                 cs: None,
                 os: None,
             };
@@ -454,6 +558,13 @@ mod tests {
                     let mut v3 = || Vec3A::new(r(), r(), r());
                     let (direction, dodx, dody, dddx, dddy) =
                         (v3(), v3() * 0.01, v3() * 0.01, v3() * 0.01, v3() * 0.01);
+                    // Lane 2 grazes its triangle: its ray runs along an edge, in the plane.
+                    let direction = match mesh.triangles.get(primitive as usize) {
+                        Some(&[a, b, _]) if k == 2 => {
+                            xf.matrix3 * Vec3A::from(mesh.positions[b as usize] - mesh.positions[a as usize])
+                        }
+                        _ => direction,
+                    };
                     let hit = Hit { t: 1.0 + 4.0 * (r() + 1.0), ..hit };
                     let diff = RayDifferential { dodx, dody, dddx, dddy };
                     Pending { index: k, ray: Ray::new(Vec3A::ZERO, direction), diff, hit }
@@ -461,6 +572,17 @@ mod tests {
                 .collect();
             let mut four: Vec<Option<HitGeometry>> = (0..lanes).map(|_| None).collect();
             hit_geometries(&ig, &group, &mut four);
+            let derivs: Vec<HitDerivs> = group
+                .chunks(4)
+                .zip(four.chunks(4))
+                .flat_map(|(p, g)| {
+                    let d = derivs_four(
+                        std::array::from_fn(|j| &p[j.min(p.len() - 1)]),
+                        std::array::from_fn(|j| g.get(j).and_then(Option::as_ref)),
+                    );
+                    (0..p.len()).map(move |j| d.lane(j))
+                })
+                .collect();
             for (k, p) in group.iter().enumerate() {
                 let mut one = None;
                 hit_geometry_into(&ig, &p.hit, 0.0, &mut one);
@@ -468,6 +590,7 @@ mod tests {
                 assert_eq!(one.is_some(), four[k].is_some(), "{case}");
                 if let (Some(a), Some(b)) = (&one, &four[k]) {
                     assert_eq!(bits(a), bits(b), "{case}");
+                    assert_eq!(deriv_bits(&a.derivs(p)), deriv_bits(&derivs[k]), "{case}");
                 }
             }
         }

@@ -13,7 +13,7 @@
 //! - Only the outermost shading of a thread is timed (`stats.rs`), tracing excluded.
 
 use super::differential::RayDifferential;
-use super::hit_geometry::{hit_geometries, HitGeometry, InstanceGeometry};
+use super::hit_geometry::{derivs_four, hit_geometries, HitGeometry, InstanceGeometry, Lanes3};
 use super::host::ShadeCall;
 use super::lights::BatchLights;
 use super::native::{faced_against, LightSeen, NativeSurface};
@@ -22,7 +22,7 @@ use super::stats::{tracing, ShadingTimer, Stats};
 use super::world::{World, DEFAULT_MATERIAL};
 use crate::ray::{offset_ray_origin, Hit, HitPacket, Ray, PACKET_SIZE};
 use crate::shading::{get3, get_row, put1, put3, varying_rows, with_batch, with_filled_batch, ShaderInstance, Slot};
-use glam::{Affine3A, Vec3A};
+use glam::{Affine3A, BVec4A, Vec3A, Vec4};
 use rtsl_compiler::back::jit::RawBatch;
 use std::cell::RefCell;
 
@@ -466,7 +466,6 @@ fn fill_hit_globals(
     (color, opacity): (Vec3A, Vec3A),
 ) {
     let slots = &program.slots;
-    let deriv_slots = program.layout().deriv_slots;
     let needs_derivs = needs_derivs(program);
     for (m, g) in raw.mask.iter_mut().zip(geoms) {
         if g.is_none() {
@@ -493,27 +492,65 @@ fn fill_hit_globals(
     put1_rows(raw, slots.time, geoms, |_, lane| group[lane].ray.time);
     // The derivatives only for shaders that use them (they cost a few solves per hit).
     if needs_derivs {
-        for (lane, (p, g)) in group.iter().zip(geoms).enumerate() {
-            let Some(g) = g else { continue };
-            let d = g.derivs(p);
-            put1(raw, slots.du, lane, d.du[0].abs().max(d.du[1].abs()));
-            put1(raw, slots.dv, lane, d.dv[0].abs().max(d.dv[1].abs()));
-            if deriv_slots > 0 {
-                put_d3(raw, slots.p, deriv_slots, lane, d.dp);
-                put_d3(raw, slots.i, deriv_slots, lane, d.dp);
-                put_d3(raw, slots.n, deriv_slots, lane, d.dn);
-                put_d1(raw, slots.u, deriv_slots, lane, d.du);
-                put_d1(raw, slots.v, deriv_slots, lane, d.dv);
-                put_d1(raw, slots.s, deriv_slots, lane, d.ds);
-                put_d1(raw, slots.t, deriv_slots, lane, d.dt);
-            }
-        }
+        fill_hit_derivs(raw, program, group, geoms);
     }
     if let Some(seed) = program.layout().seed {
         for (lane, g) in geoms.iter().enumerate() {
             let h = g.as_ref().map_or(0, |g| point_seed(g.p));
             raw.varying[seed * raw.stride + lane] = f32::from_bits(h as u32);
             raw.varying[(seed + 1) * raw.stride + lane] = f32::from_bits((h >> 32) as u32);
+        }
+    }
+}
+
+/// Writes the screen-space derivatives of the globals `program` reads them of, and `du`, `dv`,
+/// four hits at a time ([`derivs_four`]). Lanes without geometry get zeros, as the batch's reset
+/// left them.
+fn fill_hit_derivs(
+    raw: &mut RawBatch<'_>,
+    program: &crate::shading::ShaderProgram,
+    group: &[Pending],
+    geoms: &[Option<HitGeometry>],
+) {
+    let slots = &program.slots;
+    let deriv_slots = program.layout().deriv_slots;
+    // The rows each derivative goes to, found once for the batch.
+    let (d1, d3) = (|slot| deriv_row(slot, 1, deriv_slots), |slot| deriv_row(slot, 3, deriv_slots));
+    let (dp, di, dn) = (d3(slots.p), d3(slots.i), d3(slots.n));
+    let (du, dv, ds, dt) = (d1(slots.u), d1(slots.v), d1(slots.s), d1(slots.t));
+    let st = raw.stride;
+    for (chunk, (pending, geoms)) in group.chunks(4).zip(geoms.chunks(4)).enumerate() {
+        let lanes = pending.len().min(geoms.len());
+        let pending: [&Pending; 4] = std::array::from_fn(|j| &pending[j.min(lanes - 1)]);
+        let geoms: [Option<&HitGeometry>; 4] = std::array::from_fn(|j| geoms.get(j).and_then(Option::as_ref));
+        let has = BVec4A::from_array(geoms.map(|g| g.is_some()));
+        let d = derivs_four(pending, geoms);
+        let derivs = &mut *raw.derivs;
+        // Rows `first` (along x) and `first + 1` (along y) of this chunk's lanes; the batch's
+        // rows hold whole chunks (`stride` is a multiple of four).
+        let mut put = |first: Option<usize>, [x, y]: [Vec4; 2]| {
+            let Some(row) = first else { return };
+            for (k, v) in [x, y].into_iter().enumerate() {
+                let at = (row + k) * st + 4 * chunk;
+                if let Some(out) = derivs.get_mut(at..at + 4) {
+                    out.copy_from_slice(&Vec4::select(has, v, Vec4::ZERO).to_array());
+                }
+            }
+        };
+        let components = |v: [Lanes3; 2]| [[v[0].x, v[1].x], [v[0].y, v[1].y], [v[0].z, v[1].z]];
+        for (first, v) in [(dp, d.dp), (di, d.dp), (dn, d.dn)] {
+            for (k, xy) in components(v).into_iter().enumerate() {
+                put(first.map(|row| row + 2 * k), xy);
+            }
+        }
+        for (first, xy) in [(du, d.du), (dv, d.dv), (ds, d.ds), (dt, d.dt)] {
+            put(first, xy);
+        }
+        let widest = |[x, y]: [Vec4; 2]| -> [f32; 4] { std::array::from_fn(|j| x[j].abs().max(y[j].abs())) };
+        for (slot, change) in [(slots.du, widest(d.du)), (slots.dv, widest(d.dv))] {
+            for (j, v) in change.into_iter().enumerate().take(lanes).filter(|&(j, _)| has.test(j)) {
+                put1(raw, slot, 4 * chunk + j, v);
+            }
         }
     }
 }
@@ -727,25 +764,13 @@ pub fn shade_pixels(frame: &Frame, tile: TilePixels<'_>) {
     }
 }
 
-/// Writes the screen-space derivatives of a varying global, when the shader reads them
-/// (`Slot::derivs`: a material that only filters a texture reads those of `s` and `t`, and writing
-/// those of `P`, `I` and `N` too was 2% of a BART robot frame). Only globals below `deriv_slots`
-/// have them; see `docs/packet-abi.md`.
-fn put_d1(raw: &mut RawBatch<'_>, slot: Option<Slot>, deriv_slots: usize, lane: usize, d: [f32; 2]) {
-    if let Some(s) = slot.filter(|s| s.derivs && s.varying && s.offset < deriv_slots) {
-        raw.derivs[2 * s.offset * raw.stride + lane] = d[0];
-        raw.derivs[(2 * s.offset + 1) * raw.stride + lane] = d[1];
-    }
-}
-
-fn put_d3(raw: &mut RawBatch<'_>, slot: Option<Slot>, deriv_slots: usize, lane: usize, d: [Vec3A; 2]) {
-    if let Some(s) = slot.filter(|s| s.derivs && s.varying && s.offset + 2 < deriv_slots) {
-        let (dx, dy) = (d[0].to_array(), d[1].to_array());
-        for (k, (x, y)) in dx.into_iter().zip(dy).enumerate() {
-            raw.derivs[2 * (s.offset + k) * raw.stride + lane] = x;
-            raw.derivs[(2 * (s.offset + k) + 1) * raw.stride + lane] = y;
-        }
-    }
+/// The first derivative row of a varying global of `components` values, when the shader reads
+/// its screen-space derivatives (`Slot::derivs`: a material that only filters a texture reads
+/// those of `s` and `t`, and writing those of `P`, `I` and `N` too was 2% of a BART robot frame).
+/// Only globals below `deriv_slots` have them; see `docs/packet-abi.md`. Component `k`'s
+/// derivative along x is row `first + 2k`, along y the row after it.
+fn deriv_row(slot: Option<Slot>, components: usize, deriv_slots: usize) -> Option<usize> {
+    slot.filter(|s| s.derivs && s.varying && s.offset + components <= deriv_slots).map(|s| 2 * s.offset)
 }
 
 /// Writes a triple global for every lane, `value(hit, lane)` where the lane has geometry and zero
