@@ -4,7 +4,7 @@
 
 use super::shade::Pending;
 use super::world::{InstanceShading, World};
-use crate::ray::Hit;
+use crate::ray::{Hit, PACKET_SIZE};
 use glam::{Affine3A, BVec4A, Mat3A, Vec2, Vec3, Vec3A, Vec4};
 
 /// Surface details of one hit, in world space.
@@ -106,23 +106,79 @@ impl<'a> InstanceGeometry<'a> {
     }
 }
 
+/// The geometry of a group's hits by rows, a row per component and a lane per hit (zeros where a
+/// hit has no geometry), as [`hit_geometries`] writes it four hits at a time: what a batch's
+/// globals copy row by row instead of gathering them from each hit's [`HitGeometry`].
+pub(super) struct HitRows {
+    pub(super) p: [[f32; PACKET_SIZE]; 3],
+    pub(super) n: [[f32; PACKET_SIZE]; 3],
+    pub(super) ng: [[f32; PACKET_SIZE]; 3],
+    /// `uv`, which is also `st` (meshes with an `st` of their own go one hit at a time).
+    pub(super) uv: [[f32; PACKET_SIZE]; 2],
+    pub(super) dpdu: [[f32; PACKET_SIZE]; 3],
+    pub(super) dpdv: [[f32; PACKET_SIZE]; 3],
+    /// The screen-space derivatives, when the shaders want them (`InstanceGeometry::derivs`):
+    /// dP/dx, dP/dy, dN/dx, dN/dy a row per component, d(u, v)/dx and /dy (also (s, t)'s).
+    pub(super) dp: [[[f32; PACKET_SIZE]; 3]; 2],
+    pub(super) dn: [[[f32; PACKET_SIZE]; 3]; 2],
+    pub(super) du: [[f32; PACKET_SIZE]; 2],
+    pub(super) dv: [[f32; PACKET_SIZE]; 2],
+}
+
+impl Default for HitRows {
+    fn default() -> Self {
+        let rows = [[0.0; PACKET_SIZE]; 3];
+        let pair = [[0.0; PACKET_SIZE]; 2];
+        HitRows {
+            p: rows,
+            n: rows,
+            ng: rows,
+            uv: pair,
+            dpdu: rows,
+            dpdv: rows,
+            dp: [rows; 2],
+            dn: [rows; 2],
+            du: pair,
+            dv: pair,
+        }
+    }
+}
+
+impl HitRows {
+    /// The derivatives of chunk `k` (lanes `4k..4k + 4`), as [`derivs_four`] gives them.
+    pub(super) fn derivs(&self, k: usize) -> DerivsFour {
+        let at = |row: &[f32; PACKET_SIZE]| row.get(4 * k..4 * k + 4).map_or(Vec4::ZERO, Vec4::from_slice);
+        let lanes = |rows: &[[f32; PACKET_SIZE]; 3]| Lanes3 { x: at(&rows[0]), y: at(&rows[1]), z: at(&rows[2]) };
+        let (du, dv) = (self.du.each_ref().map(at), self.dv.each_ref().map(at));
+        DerivsFour { dp: self.dp.each_ref().map(lanes), dn: self.dn.each_ref().map(lanes), du, dv, ds: du, dt: dv }
+    }
+}
+
 /// Writes the geometry of each pending hit into its slot of `geoms` (`None` where its triangle is
 /// not in the mesh), the same as [`hit_geometry_into`] would, bit for bit. Instances that stand
 /// still, with meshes without further attributes (all of a BART scene), are done four hits at a
 /// time in vector arithmetic ([`hit_geometry_four`]): one hit at a time, each hit's square roots
 /// and divisions stood in a chain of their own (9% of a BART robot frame went to hit geometry and
-/// grouping).
-pub(super) fn hit_geometries(ig: &InstanceGeometry, group: &[Pending], geoms: &mut [Option<HitGeometry>]) {
+/// grouping). Those groups, of a packet at most, are also written into `rows`, and then it returns
+/// `true`.
+pub(super) fn hit_geometries(
+    ig: &InstanceGeometry,
+    group: &[Pending],
+    geoms: &mut [Option<HitGeometry>],
+    rows: &mut HitRows,
+) -> bool {
     if ig.moving.is_some() || !ig.mesh.attributes.is_empty() {
         for (slot, p) in geoms.iter_mut().zip(group) {
             hit_geometry_into(ig, &p.hit, p.ray.time, slot);
         }
-        return;
+        return false;
     }
-    for (slots, pending) in geoms.chunks_mut(4).zip(group.chunks(4)) {
-        let hits: [&Hit; 4] = std::array::from_fn(|j| &pending[j.min(pending.len() - 1)].hit);
-        hit_geometry_four(ig, hits, slots);
+    let by_rows = group.len() <= PACKET_SIZE && geoms.len() <= PACKET_SIZE;
+    for (chunk, (slots, pending)) in geoms.chunks_mut(4).zip(group.chunks(4)).enumerate() {
+        let pending: [&Pending; 4] = std::array::from_fn(|j| &pending[j.min(pending.len() - 1)]);
+        hit_geometry_four(ig, pending, slots, by_rows.then_some((&mut *rows, chunk)));
     }
+    by_rows
 }
 
 /// The screen-space derivatives of four hits' globals, a lane each.
@@ -141,53 +197,77 @@ pub(super) struct DerivsFour {
 /// a time, the six divisions of each stood in a chain, and writing the results a lane at a time
 /// looked up their rows again: together two thirds of filling a BART robot batch.
 pub(super) fn derivs_four(pending: [&Pending; 4], geoms: [Option<&HitGeometry>; 4]) -> DerivsFour {
-    let from_pending = |f: fn(&Pending) -> Vec3A| Lanes3::of(pending.map(f));
     let from_geometry = |f: fn(&HitGeometry) -> Vec3A| Lanes3::of(geoms.map(|g| g.map_or(Vec3A::ZERO, f)));
     // `[d1.x, d1.y, d2.x, d2.y]` of a change `d` along the edges (`duv`, `dst`).
     let changes = |f: fn(&HitGeometry) -> [[f32; 2]; 2]| {
         let d = geoms.map(|g| g.map_or([[0.0; 2]; 2], f));
         [(0, 0), (0, 1), (1, 0), (1, 1)].map(|(e, k)| Vec4::new(d[0][e][k], d[1][e][k], d[2][e][k], d[3][e][k]))
     };
-    let (dir, ng) = (from_pending(|p| p.ray.direction), from_geometry(|g| g.ng));
-    let t = Vec4::from_array(pending.map(|p| p.hit.t));
-    // `at_hit`: the offsets at the hit, moved along the ray onto the tangent plane.
-    let facing = dir.dot(ng);
-    let along_plane = facing.abs().cmplt(Vec4::splat(1e-6));
-    let at_hit = |dodx: Lanes3, dddx: Lanes3| {
-        let p = dodx.add(dddx.scale(t));
-        Lanes3::select(along_plane, p, p.sub(dir.scale(p.dot(ng) / facing)))
+    let surface = SurfaceChange {
+        ng: from_geometry(|g| g.ng),
+        edges: [from_geometry(|g| g.edges[0]), from_geometry(|g| g.edges[1])],
+        dn: [from_geometry(|g| g.dn[0]), from_geometry(|g| g.dn[1])],
+        duv: changes(|g| g.duv),
+        dst: changes(|g| g.dst),
     };
-    let dpx = at_hit(from_pending(|p| p.diff.dodx), from_pending(|p| p.diff.dddx));
-    let dpy = at_hit(from_pending(|p| p.diff.dody), from_pending(|p| p.diff.dddy));
-    // `barycentric_change` of each.
-    let (e1, e2) = (from_geometry(|g| g.edges[0]), from_geometry(|g| g.edges[1]));
-    let (a, b, c) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
-    let det = a * c - b * b;
-    let degenerate = det.abs().cmplt(Vec4::splat(1e-30));
-    let barycentric = |dp: Lanes3| {
-        let (r1, r2) = (e1.dot(dp), e2.dot(dp));
-        let (b1, b2) = ((c * r1 - b * r2) / det, (a * r2 - b * r1) / det);
-        (Vec4::select(degenerate, Vec4::ZERO, b1), Vec4::select(degenerate, Vec4::ZERO, b2))
-    };
-    let (bx, by) = (barycentric(dpx), barycentric(dpy));
-    let (dn1, dn2) = (from_geometry(|g| g.dn[0]), from_geometry(|g| g.dn[1]));
-    let normal = |b: (Vec4, Vec4)| dn1.scale(b.0).add(dn2.scale(b.1));
-    // `d[0][k] * b.0 + d[1][k] * b.1` of each hit's change `d`.
-    let along = |d: [Vec4; 4], k: usize| [bx, by].map(|b| d[k] * b.0 + d[2 + k] * b.1);
-    let (duv, dst) = (changes(|g| g.duv), changes(|g| g.dst));
-    DerivsFour {
-        dp: [dpx, dpy],
-        dn: [normal(bx), normal(by)],
-        du: along(duv, 0),
-        dv: along(duv, 1),
-        ds: along(dst, 0),
-        dt: along(dst, 1),
+    surface.derivs(pending)
+}
+
+/// What the derivatives of four hits need of their surfaces, a lane each: world-space geometric
+/// normals and edges, and the change of the normal, (u, v) and (s, t) along the edges (the
+/// latter as `[d1.x, d1.y, d2.x, d2.y]`).
+struct SurfaceChange {
+    ng: Lanes3,
+    edges: [Lanes3; 2],
+    dn: [Lanes3; 2],
+    duv: [Vec4; 4],
+    dst: [Vec4; 4],
+}
+
+impl SurfaceChange {
+    /// The derivatives of the hits of `pending` on these surfaces.
+    #[inline(always)]
+    fn derivs(&self, pending: [&Pending; 4]) -> DerivsFour {
+        let from_pending = |f: fn(&Pending) -> Vec3A| Lanes3::of(pending.map(f));
+        let SurfaceChange { ng, edges: [e1, e2], dn: [dn1, dn2], duv, dst } = *self;
+        let dir = from_pending(|p| p.ray.direction);
+        let t = Vec4::from_array(pending.map(|p| p.hit.t));
+        // `at_hit`: the offsets at the hit, moved along the ray onto the tangent plane.
+        let facing = dir.dot(ng);
+        let along_plane = facing.abs().cmplt(Vec4::splat(1e-6));
+        let at_hit = |dodx: Lanes3, dddx: Lanes3| {
+            let p = dodx.add(dddx.scale(t));
+            Lanes3::select(along_plane, p, p.sub(dir.scale(p.dot(ng) / facing)))
+        };
+        let dpx = at_hit(from_pending(|p| p.diff.dodx), from_pending(|p| p.diff.dddx));
+        let dpy = at_hit(from_pending(|p| p.diff.dody), from_pending(|p| p.diff.dddy));
+        // `barycentric_change` of each.
+        let (a, b, c) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
+        let det = a * c - b * b;
+        let degenerate = det.abs().cmplt(Vec4::splat(1e-30));
+        let barycentric = |dp: Lanes3| {
+            let (r1, r2) = (e1.dot(dp), e2.dot(dp));
+            let (b1, b2) = ((c * r1 - b * r2) / det, (a * r2 - b * r1) / det);
+            (Vec4::select(degenerate, Vec4::ZERO, b1), Vec4::select(degenerate, Vec4::ZERO, b2))
+        };
+        let (bx, by) = (barycentric(dpx), barycentric(dpy));
+        let normal = |b: (Vec4, Vec4)| dn1.scale(b.0).add(dn2.scale(b.1));
+        // `d[0][k] * b.0 + d[1][k] * b.1` of each hit's change `d`.
+        let along = |d: [Vec4; 4], k: usize| [bx, by].map(|b| d[k] * b.0 + d[2 + k] * b.1);
+        DerivsFour {
+            dp: [dpx, dpy],
+            dn: [normal(bx), normal(by)],
+            du: along(duv, 0),
+            dv: along(duv, 1),
+            ds: along(dst, 0),
+            dt: along(dst, 1),
+        }
     }
 }
 
 /// A 3-vector for each of four lanes, a `Vec4` per component. The operations are `Vec3A`'s, in
 /// the same order, so that each lane gets the bits a `Vec3A` would.
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(super) struct Lanes3 {
     pub(super) x: Vec4,
     pub(super) y: Vec4,
@@ -275,9 +355,17 @@ impl Lanes3 {
 }
 
 /// [`hit_geometry_into`] for four hits of an instance that stands still, with a mesh without
-/// further attributes, into `slots` (up to four: lanes past them are computed and dropped).
-fn hit_geometry_four(ig: &InstanceGeometry, hits: [&Hit; 4], slots: &mut [Option<HitGeometry>]) {
+/// further attributes, into `slots` (up to four: lanes past them are computed and dropped), and
+/// into chunk `k` of `rows` (lanes past `slots`, and those without geometry, zero), with the
+/// hits' screen-space derivatives when the shaders want them.
+fn hit_geometry_four(
+    ig: &InstanceGeometry,
+    pending: [&Pending; 4],
+    slots: &mut [Option<HitGeometry>],
+    rows: Option<(&mut HitRows, usize)>,
+) {
     let mesh = ig.mesh;
+    let hits = pending.map(|p| &p.hit);
     let corners = |hit: &Hit| {
         let tri = mesh.triangles.get(hit.primitive as usize)?.map(|i| i as usize);
         tri.iter().all(|&i| i < mesh.positions.len()).then_some(tri)
@@ -334,6 +422,42 @@ fn hit_geometry_four(ig: &InstanceGeometry, hits: [&Hit; 4], slots: &mut [Option
         _ => [Lanes3::ZERO; 2],
     };
     let edges = if ig.derivs { [e1.transformed(&xf.matrix3), e2.transformed(&xf.matrix3)] } else { [Lanes3::ZERO; 2] };
+    if let Some((rows, k)) = rows {
+        let valid = BVec4A::from_array(std::array::from_fn(|j| j < slots.len() && tris[j].is_some()));
+        let lanes = 4 * k..4 * k + 4;
+        let put = |row: &mut [f32; PACKET_SIZE], v: Vec4| {
+            if let Some(out) = row.get_mut(lanes.clone()) {
+                out.copy_from_slice(&Vec4::select(valid, v, Vec4::ZERO).to_array());
+            }
+        };
+        for (to, v) in [
+            (&mut rows.p, surf_p),
+            (&mut rows.n, n),
+            (&mut rows.ng, ng),
+            (&mut rows.dpdu, dpdu),
+            (&mut rows.dpdv, dpdv),
+        ] {
+            put(&mut to[0], v.x);
+            put(&mut to[1], v.y);
+            put(&mut to[2], v.z);
+        }
+        put(&mut rows.uv[0], uv[0]);
+        put(&mut rows.uv[1], uv[1]);
+        if ig.derivs {
+            // Without an `st` of the mesh's own, (s, t) changes as (u, v).
+            let surface = SurfaceChange { ng, edges, dn, duv, dst: duv };
+            let d = surface.derivs(pending);
+            for axis in 0..2 {
+                for (to, v) in [(&mut rows.dp[axis], d.dp[axis]), (&mut rows.dn[axis], d.dn[axis])] {
+                    put(&mut to[0], v.x);
+                    put(&mut to[1], v.y);
+                    put(&mut to[2], v.z);
+                }
+                put(&mut rows.du[axis], d.du[axis]);
+                put(&mut rows.dv[axis], d.dv[axis]);
+            }
+        }
+    }
     // A loop of four with constant lanes, unrolled: each value is taken out of its register, where
     // a variable lane would go through memory (and loads across the stores there stall). `st` and
     // `dst` are written from the values, not read back from `g`, for the same reason: a load of
@@ -571,7 +695,9 @@ mod tests {
                 })
                 .collect();
             let mut four: Vec<Option<HitGeometry>> = (0..lanes).map(|_| None).collect();
-            hit_geometries(&ig, &group, &mut four);
+            let mut rows = HitRows::default();
+            let by_rows = hit_geometries(&ig, &group, &mut four, &mut rows);
+            assert_eq!(by_rows, mesh.attributes.is_empty(), "round {round}");
             let derivs: Vec<HitDerivs> = group
                 .chunks(4)
                 .zip(four.chunks(4))
@@ -583,14 +709,41 @@ mod tests {
                     (0..p.len()).map(move |j| d.lane(j))
                 })
                 .collect();
+            if by_rows {
+                // The lanes past the group, up to a whole chunk, are zero.
+                for k in lanes..lanes.div_ceil(4) * 4 {
+                    let all = [&rows.p[..], &rows.n, &rows.ng, &rows.uv, &rows.dpdu, &rows.dpdv];
+                    assert!(all.iter().all(|rows| rows.iter().all(|r| r[k] == 0.0)), "round {round}, lane {k}");
+                }
+            }
             for (k, p) in group.iter().enumerate() {
                 let mut one = None;
                 hit_geometry_into(&ig, &p.hit, 0.0, &mut one);
                 let case = format!("round {round}, lane {k} of {lanes}, triangle {}", p.hit.primitive);
                 assert_eq!(one.is_some(), four[k].is_some(), "{case}");
+                if by_rows {
+                    // The rows hold the same bits, and zeros for a hit without geometry.
+                    let v3 = |v: Vec3A| v.to_array();
+                    let at = |rows: &[[f32; PACKET_SIZE]]| rows.iter().map(|r| r[k].to_bits()).collect::<Vec<_>>();
+                    let want = |f: &dyn Fn(&HitGeometry) -> Vec<f32>| {
+                        let values = one.as_ref().map_or(vec![0.0; f(&HitGeometry::default()).len()], f);
+                        values.into_iter().map(f32::to_bits).collect::<Vec<_>>()
+                    };
+                    assert_eq!(at(&rows.p), want(&|g| v3(g.p).to_vec()), "{case}");
+                    assert_eq!(at(&rows.n), want(&|g| v3(g.n).to_vec()), "{case}");
+                    assert_eq!(at(&rows.ng), want(&|g| v3(g.ng).to_vec()), "{case}");
+                    assert_eq!(at(&rows.dpdu), want(&|g| v3(g.dpdu).to_vec()), "{case}");
+                    assert_eq!(at(&rows.dpdv), want(&|g| v3(g.dpdv).to_vec()), "{case}");
+                    assert_eq!(at(&rows.uv), want(&|g| g.uv.to_vec()), "{case}");
+                    assert_eq!(at(&rows.uv), want(&|g| g.st.to_vec()), "{case}");
+                }
                 if let (Some(a), Some(b)) = (&one, &four[k]) {
                     assert_eq!(bits(a), bits(b), "{case}");
                     assert_eq!(deriv_bits(&a.derivs(p)), deriv_bits(&derivs[k]), "{case}");
+                    if by_rows && ig.derivs {
+                        let from_rows = rows.derivs(k / 4).lane(k % 4);
+                        assert_eq!(deriv_bits(&a.derivs(p)), deriv_bits(&from_rows), "{case}");
+                    }
                 }
             }
         }

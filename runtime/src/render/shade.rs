@@ -13,7 +13,7 @@
 //! - Only the outermost shading of a thread is timed (`stats.rs`), tracing excluded.
 
 use super::differential::RayDifferential;
-use super::hit_geometry::{derivs_four, hit_geometries, HitGeometry, InstanceGeometry, Lanes3};
+use super::hit_geometry::{derivs_four, hit_geometries, HitGeometry, HitRows, InstanceGeometry, Lanes3};
 use super::host::ShadeCall;
 use super::lights::BatchLights;
 use super::native::{faced_against, LightSeen, NativeSurface};
@@ -368,16 +368,18 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
         [g.u, g.v, g.s, g.t, g.dpdu, g.dpdv].iter().any(Option::is_some)
     });
     let Some(ig) = InstanceGeometry::new(world, inst, group[0].hit.instance, (derivs, coords)) else { return };
-    with_hit_geometry(|geoms| {
+    with_hit_geometry(|HitBuffers { geoms, rows }| {
         // The slots of earlier groups are written over in place (`hit_geometry_into`).
         geoms.truncate(group.len());
         geoms.resize_with(group.len(), || None);
-        hit_geometries(&ig, group, geoms);
+        let mut rows = hit_geometries(&ig, group, geoms, rows).then_some(&**rows);
         let color = Vec3A::from(material.color);
         let opacity = Vec3A::from(material.opacity);
         if let Some(displacement) = &material.displacement {
             let at = (material_id, inst.world_from_object);
             displace(frame, displacement, at, group, geoms, (color, opacity), depth);
+            // The hits' normals (and points) are the displaced ones now, not the rows'.
+            rows = None;
         }
         if let Some(native) = &material.native {
             shade_native(frame, native, group, geoms, color, opacity, depth, out);
@@ -401,7 +403,7 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
             {
                 let mut raw = batch.raw_mut();
                 surface.write_params(&mut raw);
-                fill_hit_globals(&mut raw, program, group, geoms, (color, opacity));
+                fill_hit_globals(&mut raw, program, group, (geoms, rows), (color, opacity));
                 if let Some(vp) = vertex_params {
                     for (lane, g) in geoms.iter().enumerate() {
                         let Some(g) = g else { continue };
@@ -440,15 +442,22 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
     })
 }
 
+/// A group's hit geometry, hit by hit and (for most groups) by rows.
+#[derive(Default)]
+struct HitBuffers {
+    geoms: Vec<Option<HitGeometry>>,
+    rows: Box<HitRows>,
+}
+
 thread_local! {
     /// Hit geometry buffers reused from group to group (a group's is a packet of hits of a few
     /// hundred bytes each).
-    static HIT_GEOMETRY_BUFFERS: RefCell<Vec<Vec<Option<HitGeometry>>>> = const { RefCell::new(Vec::new()) };
+    static HIT_GEOMETRY_BUFFERS: RefCell<Vec<HitBuffers>> = const { RefCell::new(Vec::new()) };
 }
 
 /// Runs `f` with a hit geometry buffer from this thread's stack of them. Its slots still hold
 /// earlier groups' geometry, to be written over in place (`hit_geometry_into`).
-fn with_hit_geometry<R>(f: impl FnOnce(&mut Vec<Option<HitGeometry>>) -> R) -> R {
+fn with_hit_geometry<R>(f: impl FnOnce(&mut HitBuffers) -> R) -> R {
     let mut buffer = super::scratch::take(&HIT_GEOMETRY_BUFFERS);
     let r = f(&mut buffer);
     super::scratch::give(&HIT_GEOMETRY_BUFFERS, buffer);
@@ -462,7 +471,7 @@ fn fill_hit_globals(
     raw: &mut RawBatch<'_>,
     program: &crate::shading::ShaderProgram,
     group: &[Pending],
-    geoms: &[Option<HitGeometry>],
+    (geoms, rows): (&[Option<HitGeometry>], Option<&HitRows>),
     (color, opacity): (Vec3A, Vec3A),
 ) {
     let slots = &program.slots;
@@ -474,17 +483,41 @@ fn fill_hit_globals(
     }
     // A global at a time, a row per component: the shader reads few of them, and a row is written
     // without looking up its slot again for every lane.
-    put3_rows(raw, slots.p, geoms, |g, _| g.p);
-    put3_rows(raw, slots.n, geoms, |g, _| g.n);
-    put3_rows(raw, slots.ng, geoms, |g, _| g.ng);
+    // The hit's own geometry, copied from its rows where `hit_geometries` wrote them.
+    let lanes = geoms.len();
+    let copied = |raw: &mut RawBatch<'_>, slot: Option<Slot>, from: Option<&[[f32; PACKET_SIZE]]>| {
+        copy_rows(raw, slot, from.map(|rows| rows.iter().map(|r| &r[..lanes.min(PACKET_SIZE)])))
+    };
+    if !copied(raw, slots.p, rows.map(|r| &r.p[..])) {
+        put3_rows(raw, slots.p, geoms, |g, _| g.p);
+    }
+    if !copied(raw, slots.n, rows.map(|r| &r.n[..])) {
+        put3_rows(raw, slots.n, geoms, |g, _| g.n);
+    }
+    if !copied(raw, slots.ng, rows.map(|r| &r.ng[..])) {
+        put3_rows(raw, slots.ng, geoms, |g, _| g.ng);
+    }
     put3_rows(raw, slots.i, geoms, |g, lane| g.p - group[lane].ray.origin);
     put3_rows(raw, slots.e, geoms, |_, lane| group[lane].ray.origin);
-    put1_rows(raw, slots.u, geoms, |g, _| g.uv[0]);
-    put1_rows(raw, slots.v, geoms, |g, _| g.uv[1]);
-    put1_rows(raw, slots.s, geoms, |g, _| g.st[0]);
-    put1_rows(raw, slots.t, geoms, |g, _| g.st[1]);
-    put3_rows(raw, slots.dpdu, geoms, |g, _| g.dpdu);
-    put3_rows(raw, slots.dpdv, geoms, |g, _| g.dpdv);
+    let uv = |k: usize| rows.map(|r| std::slice::from_ref(&r.uv[k]));
+    if !copied(raw, slots.u, uv(0)) {
+        put1_rows(raw, slots.u, geoms, |g, _| g.uv[0]);
+    }
+    if !copied(raw, slots.v, uv(1)) {
+        put1_rows(raw, slots.v, geoms, |g, _| g.uv[1]);
+    }
+    if !copied(raw, slots.s, uv(0)) {
+        put1_rows(raw, slots.s, geoms, |g, _| g.st[0]);
+    }
+    if !copied(raw, slots.t, uv(1)) {
+        put1_rows(raw, slots.t, geoms, |g, _| g.st[1]);
+    }
+    if !copied(raw, slots.dpdu, rows.map(|r| &r.dpdu[..])) {
+        put3_rows(raw, slots.dpdu, geoms, |g, _| g.dpdu);
+    }
+    if !copied(raw, slots.dpdv, rows.map(|r| &r.dpdv[..])) {
+        put3_rows(raw, slots.dpdv, geoms, |g, _| g.dpdv);
+    }
     put3_rows(raw, slots.cs, geoms, |g, _| g.cs.unwrap_or(color));
     put3_rows(raw, slots.os, geoms, |g, _| g.os.unwrap_or(opacity));
     put3_rows(raw, slots.oi, geoms, |g, _| g.os.unwrap_or(opacity));
@@ -492,7 +525,7 @@ fn fill_hit_globals(
     put1_rows(raw, slots.time, geoms, |_, lane| group[lane].ray.time);
     // The derivatives only for shaders that use them (they cost a few solves per hit).
     if needs_derivs {
-        fill_hit_derivs(raw, program, group, geoms);
+        fill_hit_derivs(raw, program, group, (geoms, rows));
     }
     if let Some(seed) = program.layout().seed {
         for (lane, g) in geoms.iter().enumerate() {
@@ -504,13 +537,13 @@ fn fill_hit_globals(
 }
 
 /// Writes the screen-space derivatives of the globals `program` reads them of, and `du`, `dv`,
-/// four hits at a time ([`derivs_four`]). Lanes without geometry get zeros, as the batch's reset
-/// left them.
+/// four hits at a time: from `rows` where `hit_geometries` worked them out with the geometry,
+/// else by [`derivs_four`]. Lanes without geometry get zeros, as the batch's reset left them.
 fn fill_hit_derivs(
     raw: &mut RawBatch<'_>,
     program: &crate::shading::ShaderProgram,
     group: &[Pending],
-    geoms: &[Option<HitGeometry>],
+    (geoms, rows): (&[Option<HitGeometry>], Option<&HitRows>),
 ) {
     let slots = &program.slots;
     let deriv_slots = program.layout().deriv_slots;
@@ -524,7 +557,10 @@ fn fill_hit_derivs(
         let pending: [&Pending; 4] = std::array::from_fn(|j| &pending[j.min(lanes - 1)]);
         let geoms: [Option<&HitGeometry>; 4] = std::array::from_fn(|j| geoms.get(j).and_then(Option::as_ref));
         let has = BVec4A::from_array(geoms.map(|g| g.is_some()));
-        let d = derivs_four(pending, geoms);
+        let d = match rows {
+            Some(rows) => rows.derivs(chunk),
+            None => derivs_four(pending, geoms),
+        };
         let derivs = &mut *raw.derivs;
         // Rows `first` (along x) and `first + 1` (along y) of this chunk's lanes; the batch's
         // rows hold whole chunks (`stride` is a multiple of four).
@@ -651,7 +687,7 @@ fn displace(
         {
             let mut raw = batch.raw_mut();
             displacement.write_params(&mut raw);
-            fill_hit_globals(&mut raw, program, group, geoms, appearance);
+            fill_hit_globals(&mut raw, program, group, (geoms, None), appearance);
         }
         let mut call = batch_call(frame, displacement, (material, world_from_object), group, geoms, depth);
         let table = call.table();
@@ -771,6 +807,29 @@ pub fn shade_pixels(frame: &Frame, tile: TilePixels<'_>) {
 /// derivative along x is row `first + 2k`, along y the row after it.
 fn deriv_row(slot: Option<Slot>, components: usize, deriv_slots: usize) -> Option<usize> {
     slot.filter(|s| s.derivs && s.varying && s.offset + components <= deriv_slots).map(|s| 2 * s.offset)
+}
+
+/// Copies `from` (a row per component of a varying global, a lane per hit) into the batch's rows
+/// of `slot`; `false`, with nothing written, where the slot is uniform or there are no rows (the
+/// caller then gathers the global hit by hit).
+fn copy_rows<'r>(
+    raw: &mut RawBatch<'_>,
+    slot: Option<Slot>,
+    from: Option<impl ExactSizeIterator<Item = &'r [f32]>>,
+) -> bool {
+    let (Some(s), Some(from)) = (slot, from) else { return slot.is_none() };
+    if !s.varying {
+        return false;
+    }
+    let st = raw.stride;
+    for (k, row) in from.enumerate() {
+        let at = (s.offset + k) * st;
+        match raw.varying.get_mut(at..at + row.len()) {
+            Some(out) if row.len() <= st => out.copy_from_slice(row),
+            _ => return false,
+        }
+    }
+    true
 }
 
 /// Writes a triple global for every lane, `value(hit, lane)` where the lane has geometry and zero
