@@ -146,11 +146,14 @@ impl Default for HitRows {
 
 impl HitRows {
     /// The derivatives of chunk `k` (lanes `4k..4k + 4`), as [`derivs_four`] gives them.
+    #[inline(always)]
     pub(super) fn derivs(&self, k: usize) -> DerivsFour {
+        // Written out: through `array::map` each row went through the stack several times.
         let at = |row: &[f32; PACKET_SIZE]| row.get(4 * k..4 * k + 4).map_or(Vec4::ZERO, Vec4::from_slice);
         let lanes = |rows: &[[f32; PACKET_SIZE]; 3]| Lanes3 { x: at(&rows[0]), y: at(&rows[1]), z: at(&rows[2]) };
-        let (du, dv) = (self.du.each_ref().map(at), self.dv.each_ref().map(at));
-        DerivsFour { dp: self.dp.each_ref().map(lanes), dn: self.dn.each_ref().map(lanes), du, dv, ds: du, dt: dv }
+        let (du, dv) = ([at(&self.du[0]), at(&self.du[1])], [at(&self.dv[0]), at(&self.dv[1])]);
+        let (dp, dn) = ([lanes(&self.dp[0]), lanes(&self.dp[1])], [lanes(&self.dn[0]), lanes(&self.dn[1])]);
+        DerivsFour { dp, dn, du, dv, ds: du, dt: dv }
     }
 }
 
@@ -197,10 +200,12 @@ pub(super) struct DerivsFour {
 /// a time, the six divisions of each stood in a chain, and writing the results a lane at a time
 /// looked up their rows again: together two thirds of filling a BART robot batch.
 pub(super) fn derivs_four(pending: [&Pending; 4], geoms: [Option<&HitGeometry>; 4]) -> DerivsFour {
-    let from_geometry = |f: fn(&HitGeometry) -> Vec3A| Lanes3::of(geoms.map(|g| g.map_or(Vec3A::ZERO, f)));
+    let zero = HitGeometry::default();
+    let geoms = geoms.map(|g| g.unwrap_or(&zero));
+    let from_geometry = |f: fn(&HitGeometry) -> Vec3A| Lanes3::of(geoms, f);
     // `[d1.x, d1.y, d2.x, d2.y]` of a change `d` along the edges (`duv`, `dst`).
     let changes = |f: fn(&HitGeometry) -> [[f32; 2]; 2]| {
-        let d = geoms.map(|g| g.map_or([[0.0; 2]; 2], f));
+        let d = geoms.map(f);
         [(0, 0), (0, 1), (1, 0), (1, 1)].map(|(e, k)| Vec4::new(d[0][e][k], d[1][e][k], d[2][e][k], d[3][e][k]))
     };
     let surface = SurfaceChange {
@@ -228,7 +233,7 @@ impl SurfaceChange {
     /// The derivatives of the hits of `pending` on these surfaces.
     #[inline(always)]
     fn derivs(&self, pending: [&Pending; 4]) -> DerivsFour {
-        let from_pending = |f: fn(&Pending) -> Vec3A| Lanes3::of(pending.map(f));
+        let from_pending = |f: fn(&Pending) -> Vec3A| Lanes3::of(pending, f);
         let SurfaceChange { ng, edges: [e1, e2], dn: [dn1, dn2], duv, dst } = *self;
         let dir = from_pending(|p| p.ray.direction);
         let t = Vec4::from_array(pending.map(|p| p.hit.t));
@@ -292,14 +297,27 @@ impl Lanes3 {
         Vec3A::new(self.x[j], self.y[j], self.z[j])
     }
 
-    /// Four vectors, one a lane.
+    /// The vectors `f(items[j])`, one a lane: transposed in registers. (Built as an array of
+    /// vectors and read back a component at a time, the reads straddled the array's stores,
+    /// which stalls them: the most sampled instructions of a BART robot's hit geometry.)
     #[inline(always)]
-    fn of(v: [Vec3A; 4]) -> Lanes3 {
-        Lanes3 {
-            x: Vec4::new(v[0].x, v[1].x, v[2].x, v[3].x),
-            y: Vec4::new(v[0].y, v[1].y, v[2].y, v[3].y),
-            z: Vec4::new(v[0].z, v[1].z, v[2].z, v[3].z),
+    fn of<T>(items: [&T; 4], f: impl Fn(&T) -> Vec3A) -> Lanes3 {
+        let [a, b, c, d] = items.map(f);
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::x86_64::{_mm_movehl_ps, _mm_movelh_ps, _mm_unpackhi_ps, _mm_unpacklo_ps};
+            let (a, b, c, d) = (a.into(), b.into(), c.into(), d.into());
+            // `_MM_TRANSPOSE4_PS`, less the fourth row.
+            // SAFETY: SSE is part of x86-64, and these only shuffle registers.
+            let [x, y, z] = unsafe {
+                let (ab_low, cd_low) = (_mm_unpacklo_ps(a, b), _mm_unpacklo_ps(c, d));
+                let (ab_high, cd_high) = (_mm_unpackhi_ps(a, b), _mm_unpackhi_ps(c, d));
+                [_mm_movelh_ps(ab_low, cd_low), _mm_movehl_ps(cd_low, ab_low), _mm_movelh_ps(ab_high, cd_high)]
+            };
+            Lanes3 { x: x.into(), y: y.into(), z: z.into() }
         }
+        #[cfg(not(target_arch = "x86_64"))]
+        Lanes3 { x: Vec4::new(a.x, b.x, c.x, d.x), y: Vec4::new(a.y, b.y, c.y, d.y), z: Vec4::new(a.z, b.z, c.z, d.z) }
     }
 
     fn add(self, o: Lanes3) -> Lanes3 {

@@ -369,9 +369,13 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
     });
     let Some(ig) = InstanceGeometry::new(world, inst, group[0].hit.instance, (derivs, coords)) else { return };
     with_hit_geometry(|HitBuffers { geoms, rows }| {
-        // The slots of earlier groups are written over in place (`hit_geometry_into`).
-        geoms.truncate(group.len());
-        geoms.resize_with(group.len(), || None);
+        // The slots of earlier groups are written over in place (`hit_geometry_into`). The buffer
+        // only grows: slots cut off and made again were each a `HitGeometry::default()` built on
+        // the stack and copied in (with loads across its stores, which stall).
+        if geoms.len() < group.len() {
+            geoms.resize_with(group.len(), || None);
+        }
+        let geoms = &mut geoms[..group.len()];
         let mut rows = hit_geometries(&ig, group, geoms, rows).then_some(&**rows);
         let color = Vec3A::from(material.color);
         let opacity = Vec3A::from(material.opacity);
