@@ -487,41 +487,18 @@ fn fill_hit_globals(
     }
     // A global at a time, a row per component: the shader reads few of them, and a row is written
     // without looking up its slot again for every lane.
-    // The hit's own geometry, copied from its rows where `hit_geometries` wrote them.
-    let lanes = geoms.len();
-    let copied = |raw: &mut RawBatch<'_>, slot: Option<Slot>, from: Option<&[[f32; PACKET_SIZE]]>| {
-        copy_rows(raw, slot, from.map(|rows| rows.iter().map(|r| &r[..lanes.min(PACKET_SIZE)])))
-    };
-    if !copied(raw, slots.p, rows.map(|r| &r.p[..])) {
-        put3_rows(raw, slots.p, geoms, |g, _| g.p);
-    }
-    if !copied(raw, slots.n, rows.map(|r| &r.n[..])) {
-        put3_rows(raw, slots.n, geoms, |g, _| g.n);
-    }
-    if !copied(raw, slots.ng, rows.map(|r| &r.ng[..])) {
-        put3_rows(raw, slots.ng, geoms, |g, _| g.ng);
-    }
+    // The hit's own geometry is copied from its rows where `hit_geometries` wrote them.
+    put3_hit_rows(raw, slots.p, rows.map(|r| &r.p), geoms, |g| g.p);
+    put3_hit_rows(raw, slots.n, rows.map(|r| &r.n), geoms, |g| g.n);
+    put3_hit_rows(raw, slots.ng, rows.map(|r| &r.ng), geoms, |g| g.ng);
     put3_rows(raw, slots.i, geoms, |g, lane| g.p - group[lane].ray.origin);
     put3_rows(raw, slots.e, geoms, |_, lane| group[lane].ray.origin);
-    let uv = |k: usize| rows.map(|r| std::slice::from_ref(&r.uv[k]));
-    if !copied(raw, slots.u, uv(0)) {
-        put1_rows(raw, slots.u, geoms, |g, _| g.uv[0]);
-    }
-    if !copied(raw, slots.v, uv(1)) {
-        put1_rows(raw, slots.v, geoms, |g, _| g.uv[1]);
-    }
-    if !copied(raw, slots.s, uv(0)) {
-        put1_rows(raw, slots.s, geoms, |g, _| g.st[0]);
-    }
-    if !copied(raw, slots.t, uv(1)) {
-        put1_rows(raw, slots.t, geoms, |g, _| g.st[1]);
-    }
-    if !copied(raw, slots.dpdu, rows.map(|r| &r.dpdu[..])) {
-        put3_rows(raw, slots.dpdu, geoms, |g, _| g.dpdu);
-    }
-    if !copied(raw, slots.dpdv, rows.map(|r| &r.dpdv[..])) {
-        put3_rows(raw, slots.dpdv, geoms, |g, _| g.dpdv);
-    }
+    put1_hit_rows(raw, slots.u, rows.map(|r| &r.uv[0]), geoms, |g| g.uv[0]);
+    put1_hit_rows(raw, slots.v, rows.map(|r| &r.uv[1]), geoms, |g| g.uv[1]);
+    put1_hit_rows(raw, slots.s, rows.map(|r| &r.uv[0]), geoms, |g| g.st[0]);
+    put1_hit_rows(raw, slots.t, rows.map(|r| &r.uv[1]), geoms, |g| g.st[1]);
+    put3_hit_rows(raw, slots.dpdu, rows.map(|r| &r.dpdu), geoms, |g| g.dpdu);
+    put3_hit_rows(raw, slots.dpdv, rows.map(|r| &r.dpdv), geoms, |g| g.dpdv);
     put3_rows(raw, slots.cs, geoms, |g, _| g.cs.unwrap_or(color));
     put3_rows(raw, slots.os, geoms, |g, _| g.os.unwrap_or(opacity));
     put3_rows(raw, slots.oi, geoms, |g, _| g.os.unwrap_or(opacity));
@@ -813,14 +790,39 @@ fn deriv_row(slot: Option<Slot>, components: usize, deriv_slots: usize) -> Optio
     slot.filter(|s| s.derivs && s.varying && s.offset + components <= deriv_slots).map(|s| 2 * s.offset)
 }
 
+/// [`put3_rows`] of a hit's own geometry, copied from the group's [`HitRows`] `from` where there
+/// are rows.
+fn put3_hit_rows(
+    raw: &mut RawBatch<'_>,
+    slot: Option<Slot>,
+    from: Option<&[[f32; PACKET_SIZE]; 3]>,
+    geoms: &[Option<HitGeometry>],
+    value: impl Fn(&HitGeometry) -> Vec3A,
+) {
+    let lanes = geoms.len().min(PACKET_SIZE);
+    if !copy_rows(raw, slot, from.map(|rows| rows.iter().map(|r| &r[..lanes]))) {
+        put3_rows(raw, slot, geoms, |g, _| value(g));
+    }
+}
+
+/// [`put3_hit_rows`] for a float global.
+fn put1_hit_rows(
+    raw: &mut RawBatch<'_>,
+    slot: Option<Slot>,
+    from: Option<&[f32; PACKET_SIZE]>,
+    geoms: &[Option<HitGeometry>],
+    value: impl Fn(&HitGeometry) -> f32,
+) {
+    let lanes = geoms.len().min(PACKET_SIZE);
+    if !copy_rows(raw, slot, from.map(|row| std::iter::once(&row[..lanes]))) {
+        put1_rows(raw, slot, geoms, |g, _| value(g));
+    }
+}
+
 /// Copies `from` (a row per component of a varying global, a lane per hit) into the batch's rows
 /// of `slot`; `false`, with nothing written, where the slot is uniform or there are no rows (the
 /// caller then gathers the global hit by hit).
-fn copy_rows<'r>(
-    raw: &mut RawBatch<'_>,
-    slot: Option<Slot>,
-    from: Option<impl ExactSizeIterator<Item = &'r [f32]>>,
-) -> bool {
+fn copy_rows<'r>(raw: &mut RawBatch<'_>, slot: Option<Slot>, from: Option<impl Iterator<Item = &'r [f32]>>) -> bool {
     let (Some(s), Some(from)) = (slot, from) else { return slot.is_none() };
     if !s.varying {
         return false;
