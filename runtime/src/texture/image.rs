@@ -1,12 +1,16 @@
 //! A texture's pixels as linear floats, and loading them from a file.
 //!
 //! Invariant: a [`TexImage`] has `width >= 1`, `height >= 1`, `channels >= 1` and exactly
-//! `width * height * channels` values, row-major, top row (t = 0) first.
+//! `width * height * channels` values, row-major, top row (t = 0) first, followed in memory by
+//! [`TEXEL_PADDING`] zeros (see [`TexImage::padded_data`]).
 
 use std::path::Path;
 
 use super::{parse_wrap_modes, srgb_to_linear, Wrap};
 use crate::image_io::{self, ImageError};
+
+/// How many zeros follow an image's values: enough for a four-value load from any value.
+pub(crate) const TEXEL_PADDING: usize = 4;
 
 /// An N-channel float image, top row first.
 #[derive(Clone, Debug, PartialEq)]
@@ -14,15 +18,20 @@ pub struct TexImage {
     width: usize,
     height: usize,
     channels: usize,
+    /// The values, then [`TEXEL_PADDING`] zeros.
     data: Vec<f32>,
 }
 
 impl TexImage {
     /// An image from its values; `None` when a dimension is zero or the length does not match.
-    pub fn new(width: usize, height: usize, channels: usize, data: Vec<f32>) -> Option<TexImage> {
+    pub fn new(width: usize, height: usize, channels: usize, mut data: Vec<f32>) -> Option<TexImage> {
         let ok =
             width > 0 && height > 0 && channels > 0 && width.checked_mul(height)?.checked_mul(channels)? == data.len();
-        ok.then_some(TexImage { width, height, channels, data })
+        if !ok {
+            return None;
+        }
+        data.extend_from_slice(&[0.0; TEXEL_PADDING]);
+        Some(TexImage { width, height, channels, data })
     }
 
     pub fn width(&self) -> usize {
@@ -38,13 +47,20 @@ impl TexImage {
     }
 
     pub fn data(&self) -> &[f32] {
+        &self.data[..self.data.len() - TEXEL_PADDING]
+    }
+
+    /// The values followed by [`TEXEL_PADDING`] zeros: the four values from the offset of any
+    /// value (a texel's channels and what follows) are inside it, so a filter loads them at once
+    /// without a shorter way for the last texel of an image of fewer than four channels.
+    pub(crate) fn padded_data(&self) -> &[f32] {
         &self.data
     }
 
     /// The values of texel (x, y), y = 0 the top row. Panics when out of range.
     pub fn texel(&self, x: usize, y: usize) -> &[f32] {
         let start = (y * self.width + x) * self.channels;
-        &self.data[start..start + self.channels]
+        &self.data()[start..start + self.channels]
     }
 }
 
@@ -154,6 +170,18 @@ mod tests {
 
     fn save_rgba8(path: &Path, w: u32, h: u32, bytes: &[u8]) {
         ::image::save_buffer(path, bytes, w, h, ::image::ExtendedColorType::Rgba8).unwrap();
+    }
+
+    /// The values are exactly the image's; the padding after them is zeros that no texel reads.
+    #[test]
+    fn values_are_followed_by_zeros_that_are_not_texels() {
+        let img = TexImage::new(2, 1, 3, vec![1.0, 2.0, 3.0, 4.0, 5.0, 6.0]).unwrap();
+        assert_eq!(img.data(), &[1.0, 2.0, 3.0, 4.0, 5.0, 6.0]);
+        assert_eq!(img.padded_data(), &[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 0.0, 0.0, 0.0, 0.0]);
+        assert_eq!(img.texel(1, 0), &[4.0, 5.0, 6.0]);
+        assert!(std::panic::catch_unwind(|| img.texel(2, 0).to_vec()).is_err(), "past the last texel");
+        assert_eq!(img.clone(), img);
+        assert!(TexImage::new(2, 1, 3, vec![0.0; 7]).is_none());
     }
 
     #[test]

@@ -15,11 +15,13 @@
 //! weights.
 //!
 //! [`MipMap::filter_lanes`] makes four lookups (a shader chunk's lanes) with the plan of their
-//! probes worked out together in vector arithmetic; [`MipMap::filter`] is the same on one lane.
+//! probes worked out together in vector arithmetic, and, on textures whose levels wrap
+//! periodically and are powers of two, their probes stepped through together too (probe `k` of
+//! every lane at once); [`MipMap::filter`] is the same on one lane.
 
-use super::image::TexImage;
+use super::image::{TexImage, TEXEL_PADDING};
 use super::{Footprint, LookupOptions, Wrap};
-use glam::{IVec4, Mat4, Vec4};
+use glam::{BVec4A, IVec4, Mat4, UVec4, Vec4};
 
 /// The most probes along a footprint's major axis; longer footprints are blurred across.
 pub const MAX_ANISOTROPY: usize = 16;
@@ -42,8 +44,11 @@ pub struct MipMap {
     /// Every level is a power of two in both sizes (that an `i32` holds): periodic taps are
     /// their coordinates' low bits ([`MipMap::filter_lanes_periodic`]).
     power_of_two_levels: bool,
-    /// Each level's sizes, masks and row length, for [`periodic_taps`].
+    /// Each level's sizes, masks and row length, for [`LevelLanes`].
     shapes: Vec<LevelShape>,
+    /// No level has an infinite or NaN value, so [`MipMap::filter_lanes_periodic`] may add taps
+    /// of zero weight.
+    finite: bool,
 }
 
 impl MipMap {
@@ -69,7 +74,8 @@ impl MipMap {
             levels.iter().all(|l| periodic_masks([l.width(), l.height()], [Wrap::Periodic; 2]).is_some())
                 && levels[0].data().len() < (u32::MAX - 8) as usize;
         let shapes = levels.iter().map(LevelShape::of).collect();
-        MipMap { levels, wrap, projection: None, power_of_two_levels, shapes }
+        let finite = levels.iter().all(|l| l.data().iter().all(|v| v.is_finite()));
+        MipMap { levels, wrap, projection: None, power_of_two_levels, shapes, finite }
     }
 
     /// The levels, finest (the image itself) first.
@@ -163,7 +169,7 @@ impl MipMap {
         probing: Probing,
     ) {
         let lanes = LookupLanes::splat(s, t, footprint, [opts.sblur, opts.tblur]);
-        let [plan, ..] = self.probe_plans(&lanes, opts);
+        let plan = self.probe_plans(&lanes, opts).lane(0);
         self.filter_planned(s, t, plan, first_channel, out, opts.fill, wrap, probing);
     }
 
@@ -189,7 +195,7 @@ impl MipMap {
         let mut lane_out = [0.0f32; MAX_LANE_VALUES];
         let (s, t) = (lanes.s.to_array(), lanes.t.to_array());
         let mut left = active;
-        if wrap == [Wrap::Periodic; 2] && self.power_of_two_levels && values <= 4 {
+        if wrap == [Wrap::Periodic; 2] && self.power_of_two_levels && self.finite && values <= 4 {
             left = self.filter_lanes_periodic([s, t], active, first, &plans, out, values, opts.fill);
         }
         for lane in (0..4).filter(|&l| left[l]) {
@@ -197,7 +203,7 @@ impl MipMap {
             self.filter_planned(
                 s[lane],
                 t[lane],
-                plans[lane],
+                plans.lane(lane),
                 first[lane],
                 lane_out,
                 opts.fill,
@@ -211,10 +217,20 @@ impl MipMap {
     }
 
     /// [`MipMap::filter_lanes`] for textures whose levels wrap periodically and are powers of two
-    /// in size (most textures; all of BART's), at most four values a lane: the same values, bit
-    /// for bit, as [`PeriodicProbes`] sums them, written straight into `out`. Returns the active
-    /// lanes it left to the caller: those with a probe beyond 2^22 texels, where its integer
-    /// conversions ([`floor_small`]) do not hold.
+    /// in size (most textures; all of BART's) and whose texels are all finite, at most four values
+    /// a lane: the same values, bit for bit, as [`PeriodicProbes`] sums them lane by lane, written
+    /// straight into `out`. Returns the active lanes it left to the caller: those with a probe
+    /// beyond 2^22 texels, where its integer conversions ([`floor_small`]) do not hold.
+    ///
+    /// The four lanes step through their probes together, in vector arithmetic: probe `k` of every
+    /// lane, on its first level and then its second. Lookup by lookup, each lane's setup (its
+    /// levels, its probes' places, their floors and tap weights) stood in a chain of its own, and
+    /// took more instructions than its taps (BART robot frames, `callgrind`).
+    ///
+    /// Where the lanes differ, the work is padded: a lane past its last probe, or with one level,
+    /// adds taps of zero weight. That changes no bit: a sum starts at +0 and never becomes -0, and
+    /// zero times a finite texel is a zero, so adding it leaves the sum as it was (which is why
+    /// the texels must be finite: zero times infinity is NaN).
     #[allow(clippy::too_many_arguments)] // filter_lanes' own arguments, worked out once there
     #[inline(always)]
     fn filter_lanes_periodic(
@@ -222,112 +238,64 @@ impl MipMap {
         [s, t]: [[f32; 4]; 2],
         active: [bool; 4],
         first: [usize; 4],
-        plans: &[ProbePlan; 4],
+        plans: &ProbePlans,
         out: &mut [f32],
         values: usize,
         fill: f32,
     ) -> [bool; 4] {
-        let mut left = [false; 4];
         let channels = self.channels();
-        for lane in (0..4).filter(|&l| active[l]) {
-            let (s, t) = (s[lane], t[lane]);
-            let n = values.min(channels.saturating_sub(first[lane]));
+        let mut summed = [false; 4];
+        let mut counts = [0usize; 4];
+        for l in (0..4).filter(|&l| active[l]) {
+            counts[l] = values.min(channels.saturating_sub(first[l]));
             // A NaN or infinite coordinate has no texel: the fill value rather than NaN.
-            let sum = if s.is_finite() && t.is_finite() && n > 0 {
-                match self.lane_periodic(s, t, plans[lane], first[lane]) {
-                    Some(sum) => sum.to_array(),
-                    None => {
-                        left[lane] = true;
-                        continue;
-                    }
+            summed[l] = s[l].is_finite() && t[l].is_finite() && counts[l] > 0;
+            if !summed[l] {
+                for c in 0..values {
+                    out[4 * c + l] = fill;
                 }
-            } else {
-                [fill; 4]
-            };
-            for c in 0..values {
-                out[4 * c + lane] = if c < n { sum[c] } else { fill };
             }
         }
-        left
-    }
-
-    /// One lookup of [`MipMap::filter_lanes_periodic`]: its four channels from `first`, or `None`
-    /// where a probe is beyond 2^22 texels.
-    #[inline(always)]
-    fn lane_periodic(&self, s: f32, t: f32, plan: ProbePlan, first: usize) -> Option<Vec4> {
-        let ProbePlan { probes, lod, major, direction } = plan;
-        let weight = 1.0 / probes as f32;
-        let (levels, weights, two) = self.blended_levels(lod, weight);
-        let [a, b] = levels.map(|l| (&self.levels[l], &self.shapes[l]));
-        let (w, h) = (self.width() as f32, self.height() as f32);
-        let axis = [direction[0] * major / w, direction[1] * major / h];
-        let probe = |k: usize| {
-            let along = (k as f32 + 0.5) * weight - 0.5;
-            (s + axis[0] * along, t + axis[1] * along)
-        };
-        let limit = Vec4::splat(4_194_304.0);
-        let mut sum = Vec4::ZERO;
-        if probes == 1 {
-            // Both levels' coordinates in one vector, as `PeriodicProbes::accumulate`.
-            let (s, t) = probe(0);
-            let size = Vec4::new(a.1.size[0], a.1.size[1], b.1.size[0], b.1.size[1]);
-            let p = Vec4::new(s, t, s, t) * size - Vec4::splat(0.5);
-            if !p.abs().cmplt(limit).all() {
-                return None;
-            }
-            let (floor, corner) = floor_small(p);
-            let f = p - floor;
-            let g = Vec4::ONE - f;
-            let masks = IVec4::new(a.1.mask[0], a.1.mask[1], b.1.mask[0], b.1.mask[1]);
-            let lo = (corner & masks).to_array();
-            let hi = ((corner + IVec4::ONE) & masks).to_array();
-            let taps = |weight: f32, gx: f32, fx: f32, gy: f32, fy: f32| {
-                Vec4::splat(weight) * Vec4::new(gx, fx, gx, fx) * Vec4::new(gy, gy, fy, fy)
-            };
-            sum = periodic_taps(a, [lo[0], hi[0], lo[1], hi[1]], taps(weights[0], g.x, f.x, g.y, f.y), first, sum);
-            if two {
-                sum = periodic_taps(b, [lo[2], hi[2], lo[3], hi[3]], taps(weights[1], g.z, f.z, g.w, f.w), first, sum);
-            }
-            return Some(sum);
+        if !summed.contains(&true) {
+            return [false; 4];
         }
-        // Four probes at a time (the last group padded with its last probe, not summed), their
-        // centres as `probe` places them.
-        let probes = probes.min(MAX_ANISOTROPY);
-        let (s, t, axis_s, axis_t, weight) =
-            (Vec4::splat(s), Vec4::splat(t), Vec4::splat(axis[0]), Vec4::splat(axis[1]), Vec4::splat(weight));
-        let mut group = 0;
-        while group < probes {
-            let count = (probes - group).min(4);
-            let last = (count - 1) as f32;
-            let k = Vec4::new(0.0, 1.0f32.min(last), 2.0f32.min(last), 3.0f32.min(last)) + Vec4::splat(group as f32);
-            let along = (k + Vec4::splat(0.5)) * weight - Vec4::splat(0.5);
-            let (s, t) = (s + axis_s * along, t + axis_t * along);
-            let level_a = FourProbes::of(s, t, a.1.size, a.1.mask, weights[0]);
-            if two {
-                let level_b = FourProbes::of(s, t, b.1.size, b.1.mask, weights[1]);
-                if level_a.far || level_b.far {
-                    return None;
-                }
-                for k in 0..count {
-                    sum = level_a.add(a, k, first, sum);
-                    sum = level_b.add(b, k, first, sum);
-                }
-            } else {
-                if level_a.far {
-                    return None;
-                }
-                for k in 0..count {
-                    sum = level_a.add(a, k, first, sum);
+        let plan = LanePlan::of(self, plans, summed, first);
+        let mut sums = [Vec4::ZERO; 4];
+        let mut far = BVec4A::FALSE;
+        let (s, t) = (Vec4::from_array(s), Vec4::from_array(t));
+        let probes = plan.probes;
+        let steps = probes.max_element() as usize;
+        let levels = if plan.two { 2 } else { 1 };
+        for k in 0..steps {
+            let k = Vec4::splat(k as f32);
+            let live = k.cmplt(probes);
+            // The probe's centre, as `filter_planned` places it.
+            let along = (k + Vec4::splat(0.5)) * plan.weight - Vec4::splat(0.5);
+            let (s, t) = (s + plan.axis[0] * along, t + plan.axis[1] * along);
+            for level in &plan.levels[..levels] {
+                match level.add_probe(s, t, live, &mut sums) {
+                    Some(beyond) => far |= beyond,
+                    // An offset past its level (which the masks rule out): every lane the long way.
+                    None => return summed,
                 }
             }
-            group += 4;
         }
-        Some(sum)
+        let far = far.bitmask();
+        // A lane's values in a row each: channel `c` of every lane.
+        let rows = Mat4::from_cols(sums[0], sums[1], sums[2], sums[3]).transpose();
+        let written = BVec4A::from_array(std::array::from_fn(|l| summed[l] && far >> l & 1 == 0));
+        for c in 0..values.min(4) {
+            let Some(chunk) = out.get_mut(4 * c..4 * c + 4) else { break };
+            let has = BVec4A::from_array(counts.map(|n| c < n));
+            let value = Vec4::select(has, rows.col(c), Vec4::splat(fill));
+            Vec4::select(written, value, Vec4::from_slice(chunk)).write_to_slice(chunk);
+        }
+        std::array::from_fn(|l| summed[l] && far >> l & 1 != 0)
     }
 
     /// Where the probes of four lookups go (see the module doc).
     #[inline(always)]
-    fn probe_plans(&self, lanes: &LookupLanes, opts: &LookupOptions) -> [ProbePlan; 4] {
+    fn probe_plans(&self, lanes: &LookupLanes, opts: &LookupOptions) -> ProbePlans {
         let ellipses = Ellipses::of(lanes, opts, self.width() as f32, self.height() as f32);
         // Clamp the eccentricity: beyond MAX_ANISOTROPY probes, widen the filter instead.
         let major = ellipses.major;
@@ -342,14 +310,7 @@ impl MipMap {
         // slack spared a probe, the others widen a little rather than alias.
         let width = minor.max(major / probes);
         let lod = Vec4::select(positive, log2(width), Vec4::splat(f32::NEG_INFINITY));
-        let (probes, lod, major) = (probes.to_array(), lod.to_array(), major.to_array());
-        let direction = ellipses.direction.map(|d| d.to_array());
-        std::array::from_fn(|l| ProbePlan {
-            probes: probes[l] as usize,
-            lod: lod[l],
-            major: major[l],
-            direction: [direction[0][l], direction[1][l]],
-        })
+        ProbePlans { probes, lod, major, direction: ellipses.direction }
     }
 
     /// One lookup's probes, planned, summed into `out` (channel `first_channel + c` into
@@ -517,6 +478,152 @@ impl Trilinear<'_> {
     }
 }
 
+/// Four lookups' probe plans as lanes, for [`MipMap::filter_lanes_periodic`]: each lane's number
+/// of probes (0 for a lane it does not sum), probe weight and axis, and its levels.
+struct LanePlan<'a> {
+    probes: Vec4,
+    weight: Vec4,
+    /// The major axis in texture coordinates, s then t.
+    axis: [Vec4; 2],
+    /// Each lane's first level, then its second (the first again, weighted zero, where a lane
+    /// reads one).
+    levels: [LevelLanes<'a>; 2],
+    /// Whether any lane reads two levels.
+    two: bool,
+}
+
+impl<'a> LanePlan<'a> {
+    #[inline(always)]
+    fn of(map: &'a MipMap, plans: &ProbePlans, summed: [bool; 4], first: [usize; 4]) -> LanePlan<'a> {
+        let (w, h) = (map.width() as f32, map.height() as f32);
+        let summing = BVec4A::from_array(summed);
+        let probes = Vec4::select(summing, plans.probes.min(Vec4::splat(MAX_ANISOTROPY as f32)), Vec4::ZERO);
+        let weight = Vec4::ONE / plans.probes;
+        let axis =
+            [plans.direction[0] * plans.major / Vec4::splat(w), plans.direction[1] * plans.major / Vec4::splat(h)];
+        // `blended_levels`, lane by lane: the finest level where the level of detail is not
+        // positive (or NaN), the coarsest at or past it, else the two around it.
+        let top = Vec4::splat((map.levels.len() - 1) as f32);
+        let lod = plans.lod;
+        let positive = lod.cmpgt(Vec4::ZERO);
+        let below = Vec4::select(positive, lod.min(top).floor(), Vec4::ZERO);
+        let two = positive & below.cmplt(top) & summing;
+        let frac = lod - below;
+        let weights =
+            [Vec4::select(two, weight * (Vec4::ONE - frac), weight), Vec4::select(two, weight * frac, Vec4::ZERO)];
+        let first_level = below.to_array().map(|b| b as usize);
+        let second_level = std::array::from_fn(|l| first_level[l] + usize::from(two.test(l)));
+        let first = std::array::from_fn(|l| if summed[l] { first[l] } else { 0 });
+        LanePlan {
+            probes,
+            weight,
+            axis,
+            levels: [
+                LevelLanes::of(map, first_level, weights[0], first),
+                LevelLanes::of(map, second_level, weights[1], first),
+            ],
+            two: two.any(),
+        }
+    }
+}
+
+/// A level for each of four lookups (their levels may differ), for their probes' taps.
+struct LevelLanes<'a> {
+    /// Each lane's level's values, padded ([`TexImage::padded_data`]).
+    data: [&'a [f32]; 4],
+    /// Each lane's level's number of values: the furthest offset a four-value load may start at.
+    limit: UVec4,
+    /// Widths, then heights, as floats.
+    size: [Vec4; 2],
+    /// Widths less one, then heights less one: a tap's texel index is its coordinate's low bits.
+    mask: [IVec4; 2],
+    /// Values in a row of each lane's level.
+    row: UVec4,
+    /// Values in a texel.
+    texel: UVec4,
+    /// Each lane's first channel.
+    first: UVec4,
+    /// The weight of each lane's probes on this level.
+    weight: Vec4,
+}
+
+impl<'a> LevelLanes<'a> {
+    #[inline(always)]
+    fn of(map: &'a MipMap, levels: [usize; 4], weight: Vec4, first: [usize; 4]) -> LevelLanes<'a> {
+        let data = levels.map(|l| map.levels[l].padded_data());
+        let shapes = levels.map(|l| &map.shapes[l]);
+        // `power_of_two_levels` keeps every count and offset of these under 2^32.
+        let limit = data.map(|d| (d.len() - TEXEL_PADDING) as u32);
+        LevelLanes {
+            data,
+            limit: UVec4::from_array(limit),
+            size: [0, 1].map(|k| Vec4::from_array(shapes.map(|s| s.size[k]))),
+            mask: [0, 1].map(|k| IVec4::from_array(shapes.map(|s| s.mask[k]))),
+            row: UVec4::from_array(shapes.map(|s| s.row)),
+            texel: UVec4::from_array(shapes.map(|s| s.texel)),
+            first: UVec4::from_array(first.map(|f| f as u32)),
+            weight,
+        }
+    }
+
+    /// Adds each `live` lane's probe at (s, t) on this level to its sum (and zeros to the other
+    /// lanes' sums): the taps and weights of [`PeriodicProbes::accumulate`], lane by lane.
+    /// Returns the live lanes whose probe is beyond 2^22 texels (their sums are not to be used),
+    /// or `None` if an offset would pass its level's end, which the masks rule out.
+    #[inline(always)]
+    fn add_probe(&self, s: Vec4, t: Vec4, live: BVec4A, sums: &mut [Vec4; 4]) -> Option<BVec4A> {
+        let (x, y) = (s * self.size[0] - Vec4::splat(0.5), t * self.size[1] - Vec4::splat(0.5));
+        let limit = Vec4::splat(4_194_304.0);
+        let far = live & !(x.abs().cmplt(limit) & y.abs().cmplt(limit));
+        let ((x_floor, column), (y_floor, row)) = (floor_small(x), floor_small(y));
+        let (fx, fy) = (x - x_floor, y - y_floor);
+        let (gx, gy) = (Vec4::ONE - fx, Vec4::ONE - fy);
+        let wrap = |v: IVec4, mask: IVec4| (v & mask).as_uvec4();
+        let (x0, x1) = (wrap(column, self.mask[0]), wrap(column + IVec4::ONE, self.mask[0]));
+        let (y0, y1) = (wrap(row, self.mask[1]), wrap(row + IVec4::ONE, self.mask[1]));
+        let weight = Vec4::select(live, self.weight, Vec4::ZERO);
+        // Row-major, as everywhere.
+        let taps = [weight * gx * gy, weight * fx * gy, weight * gx * fy, weight * fx * fy].map(|v| v.to_array());
+        let rows = [y0, y1].map(|y| y.wrapping_mul(self.row));
+        let columns = [x0, x1].map(|x| x.wrapping_mul(self.texel).wrapping_add(self.first));
+        let offsets = [
+            rows[0].wrapping_add(columns[0]),
+            rows[0].wrapping_add(columns[1]),
+            rows[1].wrapping_add(columns[0]),
+            rows[1].wrapping_add(columns[1]),
+        ];
+        let furthest = offsets[0].max(offsets[1]).max(offsets[2]).max(offsets[3]);
+        if !furthest.cmple(self.limit).all() {
+            return None;
+        }
+        let offsets = offsets.map(|v| v.to_array());
+        for (l, sum) in sums.iter_mut().enumerate() {
+            let data = self.data[l];
+            for (tap, offset) in taps.iter().zip(&offsets) {
+                *sum += Vec4::splat(tap[l]) * four_values(data, offset[l] as usize);
+            }
+        }
+        Some(far)
+    }
+}
+
+/// The four values of `data` from `offset`, which the caller has checked: `offset + 4` is at most
+/// `data.len()`.
+#[inline(always)]
+fn four_values(data: &[f32], offset: usize) -> Vec4 {
+    debug_assert!(offset + 4 <= data.len());
+    #[cfg(target_arch = "x86_64")]
+    {
+        // SAFETY: the caller checked that the 16 bytes read are inside `data`; `_mm_loadu_ps`
+        // needs no alignment, and SSE2 is part of x86-64.
+        Vec4::from(unsafe { std::arch::x86_64::_mm_loadu_ps(data.as_ptr().add(offset)) })
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        Vec4::from_slice(&data[offset..offset + 4])
+    }
+}
+
 /// The probes of a lookup whose levels wrap periodically in both axes and are powers of two in
 /// size: the same sums, in the same order, as the general way ([`accumulate_taps`] and
 /// [`accumulate_pair_taps`]), with less work per tap. Most of a filtered lookup's time is its
@@ -640,12 +747,6 @@ impl FourProbes {
             far,
         }
     }
-
-    /// `sum` plus probe `k`'s taps on `level`.
-    #[inline(always)]
-    fn add(&self, level: (&TexImage, &LevelShape), k: usize, first: usize, sum: Vec4) -> Vec4 {
-        periodic_taps(level, self.corners[k], self.taps[k], first, sum)
-    }
 }
 
 /// `v.floor()` and [`small_integers`] of it, for lanes under 2^22 in magnitude (others give
@@ -730,7 +831,7 @@ fn level_taps<const N: usize>(img: &TexImage, [x0, x1, y0, y1]: [i32; 4], taps: 
 }
 
 /// A level's sizes as floats, each less one (its periodic mask where it is a power of two), and
-/// its row length and texel length in values, for [`periodic_taps`].
+/// its row length and texel length in values, for [`LevelLanes`].
 #[derive(Clone, Debug)]
 struct LevelShape {
     size: [f32; 2],
@@ -749,74 +850,6 @@ impl LevelShape {
             texel: ch.min(u32::MAX as usize) as u32,
         }
     }
-}
-
-/// [`level_taps`] on a level of [`MipMap::power_of_two_levels`], for four channels, the offsets
-/// in 32 bits (which cannot overflow there, so each texel costs one bounds check) and each texel
-/// one load: the same sum.
-#[inline(always)]
-fn periodic_taps(
-    (img, shape): (&TexImage, &LevelShape),
-    [x0, x1, y0, y1]: [i32; 4],
-    taps: Vec4,
-    first: usize,
-    sum: Vec4,
-) -> Vec4 {
-    let data = img.data();
-    let (row0, row1) = ((y0 as u32).wrapping_mul(shape.row), (y1 as u32).wrapping_mul(shape.row));
-    let column = |x: i32| (x as u32).wrapping_mul(shape.texel).wrapping_add(first as u32);
-    let (column0, column1) = (column(x0), column(x1));
-    // Row-major, as the taps.
-    let offsets = [
-        row0.wrapping_add(column0) as usize,
-        row0.wrapping_add(column1) as usize,
-        row1.wrapping_add(column0) as usize,
-        row1.wrapping_add(column1) as usize,
-    ];
-    let texels = match four_values_at(data, offsets) {
-        Some(texels) => texels,
-        None => offsets
-            .map(|offset| Vec4::from_array(std::array::from_fn(|c| data.get(offset + c).copied().unwrap_or(0.0)))),
-    };
-    let weights = taps.to_array();
-    let mut sum = sum;
-    if taps.cmpeq(Vec4::ZERO).any() {
-        for (texel, tap) in texels.into_iter().zip(weights) {
-            if tap != 0.0 {
-                sum += Vec4::splat(tap) * texel;
-            }
-        }
-    } else {
-        for (texel, tap) in texels.into_iter().zip(weights) {
-            sum += Vec4::splat(tap) * texel;
-        }
-    }
-    sum
-}
-
-/// The four values from each of `offsets` in `data`, or `None` where one runs past its end
-/// (offsets under 2^32, as [`periodic_taps`] makes them, so nothing overflows): one bounds check
-/// and one load for each.
-#[inline(always)]
-fn four_values_at(data: &[f32], offsets: [usize; 4]) -> Option<[Vec4; 4]> {
-    let furthest = offsets[0].max(offsets[1]).max(offsets[2]).max(offsets[3]);
-    if furthest.checked_add(4)? > data.len() {
-        return None;
-    }
-    let load = |offset: usize| {
-        #[cfg(target_arch = "x86_64")]
-        {
-            // SAFETY: `offset + 4 <= furthest + 4 <= data.len()`, checked above: the 16 bytes
-            // read are inside `data`; `_mm_loadu_ps` needs no alignment, and SSE2 is part of
-            // x86-64.
-            Vec4::from(unsafe { std::arch::x86_64::_mm_loadu_ps(data.as_ptr().add(offset)) })
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        {
-            Vec4::from_slice(&data[offset..offset + 4])
-        }
-    };
-    Some([load(offsets[0]), load(offsets[1]), load(offsets[2]), load(offsets[3])])
 }
 
 /// Two levels a trilinear probe blends, their weights, and their sizes as floats (level 0's
@@ -892,6 +925,26 @@ struct ProbePlan {
     lod: f32,
     major: f32,
     direction: [f32; 2],
+}
+
+/// Four lookups' [`ProbePlan`]s, a lane each (the number of probes as a float).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct ProbePlans {
+    probes: Vec4,
+    lod: Vec4,
+    major: Vec4,
+    direction: [Vec4; 2],
+}
+
+impl ProbePlans {
+    fn lane(&self, l: usize) -> ProbePlan {
+        ProbePlan {
+            probes: self.probes[l] as usize,
+            lod: self.lod[l],
+            major: self.major[l],
+            direction: [self.direction[0][l], self.direction[1][l]],
+        }
+    }
 }
 
 /// Four footprints as ellipses in level-0 texels: axis lengths (full widths) and the unit
@@ -1425,16 +1478,23 @@ mod tests {
     }
 
     /// Four lanes at once give each lane the values of a lookup of its own, bit for bit, with
-    /// inactive lanes untouched: lanes with different footprints, blur, first channels and
-    /// coordinates (one not finite, some past 2^22 texels), on power-of-two textures (the
-    /// periodic way) of 1, 3 and 4 channels and one that is not, 1 to 5 values a lane, with the
-    /// texture's wrap modes and with clamping.
+    /// inactive lanes untouched: lanes with different footprints (so different numbers of probes
+    /// and levels), blur, first channels and coordinates (one not finite, some past 2^22 texels),
+    /// on power-of-two textures (the periodic way) of 1, 3 and 4 channels, one that is not, and
+    /// one with an infinite texel, 1 to 5 values a lane, with the texture's wrap modes and with
+    /// clamping.
     #[test]
     fn lanes_filter_as_lookups_one_at_a_time() {
         /// A lane's s, t, footprint, blur and first channel.
         type Lane = (f32, f32, Footprint, f32, usize);
-        let maps = [(32, 16, 3), (16, 16, 4), (8, 32, 1), (12, 8, 3)]
+        let mut maps = [(32, 16, 3), (16, 16, 4), (8, 32, 1), (12, 8, 3), (16, 8, 2)]
             .map(|(w, h, ch)| MipMap::new(image(w, h, ch, |x, y, c| ((x * 5 + y * 11 + c * 3) % 17) as f32 / 17.0)));
+        // An infinite texel: the periodic way adds zero-weight taps, which only finite texels
+        // allow, so this one goes lane by lane.
+        let mut data = maps[4].levels()[0].data().to_vec();
+        data[2 * (16 * 3 + 5)] = f32::INFINITY;
+        maps[4] = MipMap::new(TexImage::new(16, 8, 2, data).unwrap());
+        assert!(maps.iter().map(|m| m.finite).eq([true, true, true, true, false]));
         let mut state = 0x9E37_79B9_7F4A_7C15u64;
         let mut next = || unit_random(&mut state);
         for round in 0..800 {
@@ -1728,7 +1788,7 @@ mod tests {
         // A footprint `aspect` times as long in s as it is wide in t, 4 texels wide.
         let plan = |aspect: f32| {
             let fp = Footprint { dsdx: 4.0 * aspect / 256.0, dtdx: 0.0, dsdy: 0.0, dtdy: 4.0 / 256.0 };
-            m.probe_plans(&LookupLanes::splat(0.5, 0.5, fp, [0.0, 0.0]), &opts)[0]
+            m.probe_plans(&LookupLanes::splat(0.5, 0.5, fp, [0.0, 0.0]), &opts).lane(0)
         };
         for (aspect, probes, width) in [
             (1.0, 1, 4.0),
