@@ -192,12 +192,32 @@ impl MipMap {
         let wrap = self.wrap_for(opts);
         let plans = self.probe_plans(lanes, opts);
         let values = (out.len() / 4).min(MAX_LANE_VALUES);
-        let mut lane_out = [0.0f32; MAX_LANE_VALUES];
         let (s, t) = (lanes.s.to_array(), lanes.t.to_array());
         let mut left = active;
         if wrap == [Wrap::Periodic; 2] && self.power_of_two_levels && self.finite && values <= 4 {
             left = self.filter_lanes_periodic([s, t], active, first, &plans, out, values, opts.fill);
         }
+        if left.contains(&true) {
+            self.filter_lanes_one_by_one([s, t], left, first, &plans, out, values, opts.fill, wrap);
+        }
+    }
+
+    /// [`MipMap::filter_lanes`] of the lanes `left`, one after the other. Out of line: the common
+    /// way needs none of its buffer.
+    #[allow(clippy::too_many_arguments)] // filter_lanes' own arguments, worked out once there
+    #[inline(never)]
+    fn filter_lanes_one_by_one(
+        &self,
+        [s, t]: [[f32; 4]; 2],
+        left: [bool; 4],
+        first: [usize; 4],
+        plans: &ProbePlans,
+        out: &mut [f32],
+        values: usize,
+        fill: f32,
+        wrap: [Wrap; 2],
+    ) {
+        let mut lane_out = [0.0f32; MAX_LANE_VALUES];
         for lane in (0..4).filter(|&l| left[l]) {
             let lane_out = &mut lane_out[..values];
             self.filter_planned(
@@ -206,7 +226,7 @@ impl MipMap {
                 plans.lane(lane),
                 first[lane],
                 lane_out,
-                opts.fill,
+                fill,
                 wrap,
                 Probing::Fastest,
             );
@@ -550,6 +570,7 @@ struct LevelLanes<'a> {
 impl<'a> LevelLanes<'a> {
     #[inline(always)]
     fn of(map: &'a MipMap, levels: [usize; 4], weight: Vec4, first: [usize; 4]) -> LevelLanes<'a> {
+        let first = UVec4::from_array(first.map(|f| f as u32));
         let data = levels.map(|l| map.levels[l].padded_data());
         let shapes = levels.map(|l| &map.shapes[l]);
         // `power_of_two_levels` keeps every count and offset of these under 2^32.
@@ -561,7 +582,7 @@ impl<'a> LevelLanes<'a> {
             mask: [0, 1].map(|k| IVec4::from_array(shapes.map(|s| s.mask[k]))),
             row: UVec4::from_array(shapes.map(|s| s.row)),
             texel: UVec4::from_array(shapes.map(|s| s.texel)),
-            first: UVec4::from_array(first.map(|f| f as u32)),
+            first,
             weight,
         }
     }
