@@ -11,7 +11,7 @@ use super::shade::{gather_rays, mix, point_seed, trace_rays, unit, Frame};
 use super::stats::{tracing, Stats};
 use crate::ray::Ray;
 use crate::shading::ShaderInstance;
-use crate::texture::{Grid, LookupLanes, LookupOptions, MipMap};
+use crate::texture::{Grid, LookupLanes, LookupOptions, MipMap, TextureCache};
 use glam::{Affine3A, Mat4, Vec3A, Vec4};
 use rtsl_compiler::back::jit::{
     same_category, shadow_query_of, HostTable, LightLanes, MessageOut, StrRef, CONE_ROWS, MAX_LIGHTS, SHADOW_ROWS,
@@ -19,6 +19,7 @@ use rtsl_compiler::back::jit::{
 use rtsl_compiler::builtins::Builtin;
 use rtsl_compiler::shadeops::gather::GatherHit;
 use std::cell::RefCell;
+use std::collections::HashMap;
 use std::ffi::c_void;
 use std::sync::Arc;
 
@@ -44,12 +45,11 @@ pub(crate) struct ShadeCall<'f, 'w> {
     chunk_cursor: usize,
     /// Where the next chunk search starts.
     chunk_next: usize,
-    /// The grid and the texture last looked up, by name: a volume's march asks for the same grid
-    /// at every step, and finding it in the shared cache costs a lock, a hash and an atomic count.
+    /// The grid last looked up, by name: a volume's march asks for the same grid at every step,
+    /// and finding it in the shared cache costs a lock, a hash and an atomic count.
     last_grid: Option<(String, Option<Arc<Grid>>)>,
-    last_texture: Option<(String, Option<Arc<MipMap>>)>,
-    /// A buffer for `last_texture`'s name.
-    texture_name: String,
+    /// The textures looked up, by name (this thread's, where the call took its buffers).
+    textures: TextureHandles,
     /// The material of the surface being shaded (for the surface's own shaders and the lights
     /// that light it): what `surface()` and `displacement()` messages read.
     pub(super) material: Option<u32>,
@@ -63,7 +63,43 @@ struct CallBuffers {
     mask: Vec<i32>,
     times: Vec<f32>,
     front: Vec<Vec3A>,
-    texture_name: String,
+    textures: TextureHandles,
+}
+
+/// Textures found in the frame's texture cache, kept by name for as long as the cache's
+/// [generation](crate::texture::TextureCache::generation) stays the same, and from call to call
+/// (in a thread's [`CallBuffers`]). Each batch looked its textures up in the shared cache: its lock
+/// and the counts of the texture's `Arc`, taken and dropped by both threads of a BART robot frame
+/// at every batch, were 1% of the frame (`perf`), most of it waiting for the other thread's
+/// writes to those counts.
+#[derive(Default)]
+struct TextureHandles {
+    generation: u64,
+    by_name: HashMap<String, Option<Arc<MipMap>>>,
+    /// The name looked up last, and what it stands for (most lookups repeat it).
+    last: Option<(String, Option<Arc<MipMap>>)>,
+}
+
+impl TextureHandles {
+    fn get(&mut self, cache: &TextureCache, name: &str) -> Option<&MipMap> {
+        let generation = cache.generation();
+        if generation != self.generation {
+            self.by_name.clear();
+            self.last = None;
+            self.generation = generation;
+        }
+        if self.last.as_ref().is_none_or(|(last, _)| last != name) {
+            if let Some((last, texture)) = self.last.take() {
+                self.by_name.insert(last, texture);
+            }
+            let texture = match self.by_name.remove_entry(name) {
+                Some(found) => found,
+                None => (name.to_string(), cache.get_texture(name, false)),
+            };
+            self.last = Some(texture);
+        }
+        self.last.as_ref().and_then(|(_, t)| t.as_deref())
+    }
 }
 
 thread_local! {
@@ -76,16 +112,12 @@ impl Drop for ShadeCall<'_, '_> {
         if self.batch_points.capacity() == 0 {
             return;
         }
-        let texture_name = match self.last_texture.take() {
-            Some((name, _)) => name,
-            None => std::mem::take(&mut self.texture_name),
-        };
         let buffers = CallBuffers {
             points: std::mem::take(&mut self.batch_points),
             mask: std::mem::take(&mut self.batch_mask),
             times: std::mem::take(&mut self.batch_times),
             front: std::mem::take(&mut self.batch_front),
-            texture_name,
+            textures: std::mem::take(&mut self.textures),
         };
         super::scratch::give(&CALL_BUFFERS, buffers);
     }
@@ -121,8 +153,7 @@ impl<'f, 'w> ShadeCall<'f, 'w> {
             chunk_cursor: 0,
             chunk_next: 0,
             last_grid: None,
-            last_texture: None,
-            texture_name: String::new(),
+            textures: TextureHandles::default(),
             material: None,
         }
     }
@@ -131,14 +162,13 @@ impl<'f, 'w> ShadeCall<'f, 'w> {
     /// calls that use them take them: most calls (light shaders, small batches) need none, and
     /// a call that takes nothing gives nothing back.
     pub(super) fn take_buffers(&mut self) {
-        let CallBuffers { mut points, mut mask, mut times, mut front, texture_name } =
-            super::scratch::take(&CALL_BUFFERS);
+        let CallBuffers { mut points, mut mask, mut times, mut front, textures } = super::scratch::take(&CALL_BUFFERS);
         points.clear();
         mask.clear();
         times.clear();
         front.clear();
         (self.batch_points, self.batch_mask, self.batch_times, self.batch_front) = (points, mask, times, front);
-        self.texture_name = texture_name;
+        self.textures = textures;
     }
 
     fn grid(&mut self, name: &str) -> Option<&Grid> {
@@ -149,16 +179,7 @@ impl<'f, 'w> ShadeCall<'f, 'w> {
     }
 
     fn texture(&mut self, name: &str) -> Option<&MipMap> {
-        if self.last_texture.as_ref().is_none_or(|(last, _)| last != name) {
-            let mut key = match self.last_texture.take() {
-                Some((last, _)) => last,
-                None => std::mem::take(&mut self.texture_name),
-            };
-            key.clear();
-            key.push_str(name);
-            self.last_texture = Some((key, self.frame.world.textures.get_texture(name, false)));
-        }
-        self.last_texture.as_ref().and_then(|(_, t)| t.as_deref())
+        self.textures.get(&self.frame.world.textures, name)
     }
 
     /// The ray time of lane `l` of the current chunk (the batch's first lane's when out of range;
@@ -890,4 +911,39 @@ unsafe extern "C" fn host_print(_ctx: *mut c_void, text: StrRef) {
     // SAFETY: the table's contract.
     let text = unsafe { text.as_str() };
     let _ = std::io::stdout().lock().write_all(text.as_bytes());
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::texture::{TexImage, Wrap};
+
+    fn value(handles: &mut TextureHandles, cache: &TextureCache, name: &str) -> Option<f32> {
+        handles.get(cache, name).map(|m| m.levels()[0].data()[0])
+    }
+
+    /// Handles kept from call to call give what the cache gives, and follow it when a name comes
+    /// to stand for another texture, or the handles are used with another cache.
+    #[test]
+    fn texture_handles_follow_the_cache() {
+        let image = |v: f32| TexImage::new(1, 1, 1, vec![v]).unwrap();
+        let cache = TextureCache::new();
+        cache.insert_texture("a", image(0.25), [Wrap::Clamp; 2]);
+        cache.insert_texture("b", image(0.5), [Wrap::Clamp; 2]);
+        let mut handles = TextureHandles::default();
+        assert_eq!(value(&mut handles, &cache, "a"), Some(0.25));
+        assert_eq!(value(&mut handles, &cache, "b"), Some(0.5));
+        assert_eq!(value(&mut handles, &cache, "a"), Some(0.25));
+        assert_eq!(value(&mut handles, &cache, "missing.tex"), None);
+        assert_eq!(value(&mut handles, &cache, "b"), Some(0.5));
+        cache.insert_texture("a", image(0.75), [Wrap::Clamp; 2]);
+        assert_eq!(value(&mut handles, &cache, "a"), Some(0.75));
+        assert_eq!(value(&mut handles, &cache, "b"), Some(0.5));
+        let other = TextureCache::new();
+        other.insert_texture("b", image(1.0), [Wrap::Clamp; 2]);
+        assert_eq!(value(&mut handles, &other, "b"), Some(1.0));
+        assert_eq!(value(&mut handles, &cache, "b"), Some(0.5));
+        cache.clear();
+        assert_eq!(value(&mut handles, &cache, "b"), None, "no file is called b");
+    }
 }

@@ -12,6 +12,7 @@
 use std::collections::HashMap;
 use std::fmt;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, OnceLock, PoisonError, RwLock};
 
 use super::environment::latlong_footprint;
@@ -63,8 +64,11 @@ pub struct TextureInfo {
 }
 
 /// Textures and shadow maps by name (see the module doc). `Send + Sync`.
-#[derive(Default)]
 pub struct TextureCache {
+    /// Unique among the caches of this process, and renewed whenever a name comes to stand for
+    /// something else (`clear`, `insert_texture`, `insert_grid`): what a texture handle kept
+    /// outside the cache ([`TextureCache::generation`]) is valid for.
+    generation: AtomicU64,
     search_paths: Vec<PathBuf>,
     /// Colour textures, indexed by [`LookupOptions::raw`]: one file may be used both ways.
     textures: [Slots<MipMap>; 2],
@@ -74,7 +78,37 @@ pub struct TextureCache {
     warnings: Mutex<Vec<TextureWarning>>,
 }
 
+impl Default for TextureCache {
+    fn default() -> TextureCache {
+        TextureCache {
+            generation: AtomicU64::new(next_generation()),
+            search_paths: Vec::new(),
+            textures: Default::default(),
+            shadows: Default::default(),
+            grids: Default::default(),
+            warnings: Default::default(),
+        }
+    }
+}
+
+/// A generation no cache has had yet.
+fn next_generation() -> u64 {
+    static NEXT: AtomicU64 = AtomicU64::new(1);
+    NEXT.fetch_add(1, Ordering::Relaxed)
+}
+
 impl TextureCache {
+    /// What the textures this cache gives out stay valid for: while it reads the same, a name
+    /// stands for what it stood for (a caller may keep the handles it got, and skip the cache's
+    /// lock and counts). Changes made between frames are seen by the next frame's threads.
+    pub fn generation(&self) -> u64 {
+        self.generation.load(Ordering::Acquire)
+    }
+
+    fn renew_generation(&self) {
+        self.generation.store(next_generation(), Ordering::Release);
+    }
+
     /// A cache resolving relative names against the current directory only.
     pub fn new() -> TextureCache {
         TextureCache::default()
@@ -130,12 +164,14 @@ impl TextureCache {
             let filled = Arc::new(OnceLock::from(Some(mip.clone())));
             slots.write().unwrap_or_else(PoisonError::into_inner).insert(name.to_string(), filled);
         }
+        self.renew_generation();
     }
 
     /// Makes `name` stand for a 3-D grid built in memory, replacing whatever it stood for.
     pub fn insert_grid(&self, name: &str, grid: Grid) {
         let filled = Arc::new(OnceLock::from(Some(Arc::new(grid))));
         self.grids.write().unwrap_or_else(PoisonError::into_inner).insert(name.to_string(), filled);
+        self.renew_generation();
     }
 
     /// Forgets every texture and shadow map (they load again on next use, e.g. after files
@@ -146,6 +182,7 @@ impl TextureCache {
         }
         self.shadows.write().unwrap_or_else(PoisonError::into_inner).clear();
         self.grids.write().unwrap_or_else(PoisonError::into_inner).clear();
+        self.renew_generation();
     }
 
     /// The warnings since the last call, oldest first: one per name that failed to load.
@@ -279,6 +316,26 @@ mod tests {
     use crate::texture::{latlong_to_direction, write_shadow_map};
 
     fn assert_send_sync<T: Send + Sync>() {}
+
+    /// Every cache has a generation of its own, which changes whenever a name may come to stand
+    /// for something else, and only then.
+    #[test]
+    fn generations_are_unique_and_renewed_by_changes() {
+        let (a, b) = (TextureCache::new(), TextureCache::new());
+        assert_ne!(a.generation(), b.generation());
+        let first = a.generation();
+        assert!(a.get_texture("missing.png", false).is_none());
+        assert_eq!(a.generation(), first, "a lookup changes nothing");
+        let mut seen = vec![first, b.generation()];
+        a.insert_texture("mem", TexImage::new(1, 1, 1, vec![0.25]).unwrap(), [Wrap::Clamp; 2]);
+        seen.push(a.generation());
+        a.insert_grid("fog", Grid::new([1, 1, 1], [0.0; 3], [1.0; 3], vec![0.5]).unwrap());
+        seen.push(a.generation());
+        a.clear();
+        seen.push(a.generation());
+        let unique: std::collections::HashSet<u64> = seen.iter().copied().collect();
+        assert_eq!(unique.len(), seen.len(), "{seen:?}");
+    }
 
     #[test]
     fn the_cache_is_shareable() {
