@@ -791,7 +791,7 @@ fn write_tiles(out: BandOut<'_>, tiles: Vec<(Tile, TileSamples)>, exposure: Opti
 fn frame_report(frame: &Frame, start: Instant) -> FrameReport {
     let world = frame.world;
     let s = &frame.stats;
-    let load = |a: &std::sync::atomic::AtomicU64| a.load(Ordering::Relaxed);
+    let load = |c: &super::stats::Counter| c.load();
     FrameReport {
         elapsed: start.elapsed(),
         primary_rays: load(&s.primary_rays),
@@ -800,8 +800,8 @@ fn frame_report(frame: &Frame, start: Instant) -> FrameReport {
         transparency_rays: load(&s.transparency_rays),
         shaded_points: load(&s.shaded_points),
         light_evaluations: load(&s.light_evaluations),
-        shading: Duration::from_nanos(load(&s.shading_ns)),
-        by_kind: std::array::from_fn(|i| Duration::from_nanos(load(&s.kind_ns[i]))),
+        shading: Duration::from_nanos(s.shading_ns.load(Ordering::Relaxed)),
+        by_kind: std::array::from_fn(|i| Duration::from_nanos(s.kind_ns[i].load(Ordering::Relaxed))),
         by_shader: {
             let programs = s.program_ns.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
             let mut v: Vec<_> =

@@ -32,7 +32,6 @@ use super::world::{Antialiasing, World};
 use crate::camera::packet_lane_offset;
 use crate::ray::{HitPacket, PACKET_SIZE};
 use rayon::prelude::*;
-use std::sync::atomic::Ordering;
 
 /// Pixels per lattice side (a lattice is one packet of rays).
 pub const LATTICE_SIDE: u32 = 8;
@@ -219,7 +218,7 @@ pub fn trace_lattices(
         .map(|l| trace_lattice(&frame, *l, if preview { l.stride } else { 1 }, &offset, wanted))
         .collect();
     let s = &frame.stats;
-    let load = |a: &std::sync::atomic::AtomicU64| a.load(Ordering::Relaxed);
+    let load = |c: &super::stats::Counter| c.load();
     let primary_rays = load(&s.primary_rays);
     let total_rays = primary_rays + load(&s.shadow_rays) + load(&s.secondary_rays) + load(&s.transparency_rays);
     (out, BatchReport { primary_rays, total_rays, elapsed: start.elapsed() })
