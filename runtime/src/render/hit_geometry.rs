@@ -406,11 +406,17 @@ fn hit_geometry_four(
 ) {
     let mesh = ig.mesh;
     let hits = pending.map(|p| &p.hit);
-    let corners = |hit: &Hit| {
-        let tri = mesh.triangles.get(hit.primitive as usize)?.map(|i| i as usize);
-        tri.iter().all(|&i| i < mesh.positions.len()).then_some(tri)
-    };
-    let tris: [Option<[usize; 3]>; 4] = hits.map(corners);
+    // Each hit's corners, where its triangle is in the mesh. A plain loop: as `hits.map` of a
+    // closure returning `Option`s it was an out-of-line call writing them through memory.
+    let mut tris: [Option<[usize; 3]>; 4] = [None; 4];
+    for (tri, hit) in tris.iter_mut().zip(hits) {
+        if let Some(corners) = mesh.triangles.get(hit.primitive as usize) {
+            let corners = corners.map(|i| i as usize);
+            if corners.iter().all(|&i| i < mesh.positions.len()) {
+                *tri = Some(corners);
+            }
+        }
+    }
     let tri = |j: usize| tris[j].unwrap_or([0; 3]);
     let vertex = |data: &[Vec3], k: usize| Lanes3::gather(data, |j| tri(j)[k]);
     let (xf, normal_xf) = (&ig.world_from_object, &ig.normal_xf);

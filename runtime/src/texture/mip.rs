@@ -531,7 +531,8 @@ impl<'a> LanePlan<'a> {
         let frac = lod - below;
         let weights =
             [Vec4::select(two, weight * (Vec4::ONE - frac), weight), Vec4::select(two, weight * frac, Vec4::ZERO)];
-        let first_level = below.to_array().map(|b| b as usize);
+        // Whole numbers from 0 to the top level: one truncation gives them.
+        let first_level = floor_small(below).1.to_array().map(|b| b.max(0) as usize);
         let second_level = std::array::from_fn(|l| first_level[l] + usize::from(two.test(l)));
         let first = std::array::from_fn(|l| if summed[l] { first[l] } else { 0 });
         LanePlan {
