@@ -60,6 +60,17 @@ impl HitGeometry {
     }
 }
 
+/// What of a hit's geometry the shaders of its material read (see [`InstanceGeometry`]'s fields of
+/// the same names). A BART material reads neither `dPdu`/`dPdv` nor the derivatives of `N`:
+/// working them out for every hit was a tenth of the hit geometry's instructions.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) struct GeometryNeeds {
+    pub(super) derivs: bool,
+    pub(super) coords: bool,
+    pub(super) dpduv: bool,
+    pub(super) normal_derivs: bool,
+}
+
 /// What every hit on one instance shares: its mesh and transforms.
 pub(super) struct InstanceGeometry<'a> {
     pub(super) mesh: &'a crate::geometry::Mesh,
@@ -73,6 +84,10 @@ pub(super) struct InstanceGeometry<'a> {
     /// Whether they read the surface coordinates (`u v s t dPdu dPdv`, or derivatives): without,
     /// a hit's `uv` and `st` are its barycentrics and `dpdu`, `dpdv` zero.
     pub(super) coords: bool,
+    /// Whether they read `dPdu` or `dPdv`: without, a hit's `dpdu` and `dpdv` are zero.
+    pub(super) dpduv: bool,
+    /// Whether they read the derivatives of `N`: without, a hit's `dn` is zero.
+    pub(super) normal_derivs: bool,
     /// The mesh's `st` (two floats), `Cs` and `Os` (three) attributes, found once for all hits.
     pub(super) st: Option<usize>,
     pub(super) cs: Option<usize>,
@@ -84,8 +99,9 @@ impl<'a> InstanceGeometry<'a> {
         world: &'a World,
         inst: &InstanceShading,
         index: u32,
-        (derivs, coords): (bool, bool),
+        needs: GeometryNeeds,
     ) -> Option<InstanceGeometry<'a>> {
+        let GeometryNeeds { derivs, coords, dpduv, normal_derivs } = needs;
         let mesh = world.scene.mesh(crate::scene::ObjectId(inst.object))?;
         let normal_xf = inst.world_from_object.matrix3.inverse().transpose();
         let moving = world.scene.instance_data(index).filter(|d| d.motion.is_some());
@@ -99,6 +115,8 @@ impl<'a> InstanceGeometry<'a> {
             moving,
             derivs,
             coords: coords || derivs,
+            dpduv: dpduv && (coords || derivs),
+            normal_derivs: normal_derivs && derivs,
             st: find("st", 2),
             cs: find("Cs", 3),
             os: find("Os", 3),
@@ -458,10 +476,13 @@ fn hit_geometry_four(
         }
         None => ([u, v], identity, e1, e2),
     };
-    let (dpdu, dpdv) =
-        if ig.coords { (dpdu.transformed(&xf.matrix3), dpdv.transformed(&xf.matrix3)) } else { (dpdu, dpdv) };
+    let (dpdu, dpdv) = match (ig.coords, ig.dpduv) {
+        (true, true) => (dpdu.transformed(&xf.matrix3), dpdv.transformed(&xf.matrix3)),
+        (true, false) => (Lanes3::ZERO, Lanes3::ZERO),
+        (false, _) => (dpdu, dpdv),
+    };
     let dn = match normals {
-        Some(ns) if ig.derivs => {
+        Some(ns) if ig.normal_derivs => {
             let (na, nb, nc) = (vertex(ns, 0), vertex(ns, 1), vertex(ns, 2));
             [nb.sub(na).transformed(normal_xf), nc.sub(na).transformed(normal_xf)]
         }
@@ -598,8 +619,15 @@ pub(super) fn hit_geometry(ig: &InstanceGeometry, hit: &Hit, time: f32, g: &mut 
         _ => (uv, duv),
     };
     let dn = match &mesh.normals {
-        Some(ns) if ig.derivs => [normal_xf * Vec3A::from(ns[b] - ns[a]), normal_xf * Vec3A::from(ns[c] - ns[a])],
+        Some(ns) if ig.normal_derivs => {
+            [normal_xf * Vec3A::from(ns[b] - ns[a]), normal_xf * Vec3A::from(ns[c] - ns[a])]
+        }
         _ => [Vec3A::ZERO; 2],
+    };
+    let (dpdu, dpdv) = match (ig.coords, ig.dpduv) {
+        (true, true) => (xf.transform_vector3a(dpdu), xf.transform_vector3a(dpdv)),
+        (true, false) => (Vec3A::ZERO, Vec3A::ZERO),
+        (false, _) => (dpdu, dpdv),
     };
     *g = HitGeometry {
         p: surf_p,
@@ -607,8 +635,8 @@ pub(super) fn hit_geometry(ig: &InstanceGeometry, hit: &Hit, time: f32, g: &mut 
         ng,
         uv,
         st,
-        dpdu: if ig.coords { xf.transform_vector3a(dpdu) } else { dpdu },
-        dpdv: if ig.coords { xf.transform_vector3a(dpdv) } else { dpdv },
+        dpdu,
+        dpdv,
         cs: color_attr(ig.cs),
         os: color_attr(ig.os),
         attributes,
@@ -714,6 +742,10 @@ mod tests {
                 moving: None,
                 derivs: round % 4 < 2,
                 coords: round % 4 != 3,
+                // Round 4 of every 8 (with normals and derivatives) skips the normal's
+                // derivatives, round 6 (with coordinates) dPdu and dPdv.
+                dpduv: round % 8 != 6 && round % 4 != 3,
+                normal_derivs: round % 8 != 4 && round % 4 < 2,
                 st,
                 cs: None,
                 os: None,

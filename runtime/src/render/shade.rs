@@ -13,7 +13,7 @@
 //! - Only the outermost shading of a thread is timed (`stats.rs`), tracing excluded.
 
 use super::differential::RayDifferential;
-use super::hit_geometry::{derivs_four, hit_geometries, HitGeometry, HitRows, InstanceGeometry, Lanes3};
+use super::hit_geometry::{derivs_four, hit_geometries, GeometryNeeds, HitGeometry, HitRows, InstanceGeometry, Lanes3};
 use super::host::ShadeCall;
 use super::lights::BatchLights;
 use super::native::{faced_against, LightSeen, NativeSurface};
@@ -362,12 +362,16 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
     let material_id = inst.material_at(group[0].hit.primitive);
     let material = world.materials.get(material_id as usize).unwrap_or(&DEFAULT_MATERIAL);
     let shaders = || [&material.surface, &material.displacement].into_iter().flatten();
-    let derivs = shaders().any(|s| needs_derivs(&s.program));
-    let coords = shaders().any(|s| {
-        let g = &s.program.slots;
-        [g.u, g.v, g.s, g.t, g.dpdu, g.dpdv].iter().any(Option::is_some)
-    });
-    let Some(ig) = InstanceGeometry::new(world, inst, group[0].hit.instance, (derivs, coords)) else { return };
+    let needs = GeometryNeeds {
+        derivs: shaders().any(|s| needs_derivs(&s.program)),
+        coords: shaders().any(|s| {
+            let g = &s.program.slots;
+            [g.u, g.v, g.s, g.t, g.dpdu, g.dpdv].iter().any(Option::is_some)
+        }),
+        dpduv: shaders().any(|s| s.program.slots.dpdu.is_some() || s.program.slots.dpdv.is_some()),
+        normal_derivs: shaders().any(|s| deriv_row(s.program.slots.n, 3, s.program.layout().deriv_slots).is_some()),
+    };
+    let Some(ig) = InstanceGeometry::new(world, inst, group[0].hit.instance, needs) else { return };
     with_hit_geometry(|HitBuffers { geoms, rows }| {
         // The slots of earlier groups are written over in place (`hit_geometry_into`). The buffer
         // only grows: slots cut off and made again were each a `HitGeometry::default()` built on
@@ -899,6 +903,32 @@ pub(super) fn finite_or_zero(v: Vec3A) -> Vec3A {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The hit geometry works out `dPdu`, `dPdv` and the normal's derivatives only for shaders that
+    /// read them: a shader that does gets them (not zero, on a quad whose normals vary).
+    #[test]
+    fn shaders_that_read_dpdu_and_the_normals_derivatives_get_them() {
+        let probe =
+            "surface probe() { Ci = color(length(Du(N)) + length(Dv(N)), length(dPdu), length(dPdv)); Oi = 1; }";
+        let rib = r#"
+            Format 16 16 1
+            Projection "perspective" "fov" 40
+            Translate 0 0 4
+            WorldBegin
+            Surface "probe"
+            PointsPolygons [4] [0 1 2 3] "P" [-1 -1 0  1 -1 0  1 1 0  -1 1 0]
+                "N" [-0.5 -0.5 1  0.5 -0.5 1  0.5 0.5 1  -0.5 0.5 1]
+            WorldEnd
+        "#;
+        let mut rt = crate::api::Context::new();
+        rt.compile_shader("probe", probe).expect("the probe compiles");
+        crate::rib::load::load_str(&mut rt, rib, std::path::Path::new("<test>")).expect("the test scene loads");
+        let world = rt.build_world().expect("the test scene builds");
+        let (fb, _) = super::super::render_frame(&world, None);
+        let centre = (8 * 16 + 8) * 4;
+        let rgb = &fb.rgba[centre..centre + 3];
+        assert!(rgb.iter().all(|v| v.is_finite() && *v > 1e-3), "dN, dPdu, dPdv at the centre: {rgb:?}");
+    }
 
     #[test]
     fn permuting_by_sorted_keys_orders_the_items_as_a_stable_sort() {
