@@ -71,9 +71,9 @@ struct CallBuffers {
 /// (in a thread's [`CallBuffers`]). Each batch looked its textures up in the shared cache: its lock
 /// and the counts of the texture's `Arc`, taken and dropped by both threads of a BART robot frame
 /// at every batch, were 1% of the frame (`perf`), most of it waiting for the other thread's
-/// writes to those counts. The handles keep their textures alive until the thread's next lookup
-/// finds the generation changed (after a scene is dropped, that can be a while: at most one
-/// scene's textures a thread).
+/// writes to those counts. The handles keep their textures alive until a lookup through them
+/// finds the generation changed: after a scene is dropped, a thread may hold its textures until
+/// it next shades a textured batch.
 #[derive(Default)]
 struct TextureHandles {
     generation: u64,
