@@ -560,7 +560,7 @@ struct LevelLanes<'a> {
     mask: [IVec4; 2],
     /// Values in a row of each lane's level.
     row: UVec4,
-    /// Values in a texel.
+    /// Values in a texel (every level's, the map's channels).
     texel: UVec4,
     /// Each lane's first channel.
     first: UVec4,
@@ -582,7 +582,7 @@ impl<'a> LevelLanes<'a> {
             size: [0, 1].map(|k| Vec4::from_array(shapes.map(|s| s.size[k]))),
             mask: [0, 1].map(|k| IVec4::from_array(shapes.map(|s| s.mask[k]))),
             row: UVec4::from_array(shapes.map(|s| s.row)),
-            texel: UVec4::from_array(shapes.map(|s| s.texel)),
+            texel: UVec4::splat(map.channels() as u32),
             first,
             weight,
         }
@@ -853,13 +853,12 @@ fn level_taps<const N: usize>(img: &TexImage, [x0, x1, y0, y1]: [i32; 4], taps: 
 }
 
 /// A level's sizes as floats, each less one (its periodic mask where it is a power of two), and
-/// its row length and texel length in values, for [`LevelLanes`].
+/// its row length in values, for [`LevelLanes`].
 #[derive(Clone, Debug)]
 struct LevelShape {
     size: [f32; 2],
     mask: [i32; 2],
     row: u32,
-    texel: u32,
 }
 
 impl LevelShape {
@@ -869,7 +868,6 @@ impl LevelShape {
             size: [w as f32, h as f32],
             mask: [w, h].map(|n| n.min(i32::MAX as usize) as i32 - 1),
             row: (w * ch).min(u32::MAX as usize) as u32,
-            texel: ch.min(u32::MAX as usize) as u32,
         }
     }
 }
