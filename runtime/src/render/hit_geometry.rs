@@ -128,6 +128,8 @@ impl<'a> InstanceGeometry<'a> {
 /// hit has no geometry), as [`hit_geometries`] writes it four hits at a time: what a batch's
 /// globals copy row by row instead of gathering them from each hit's [`HitGeometry`].
 pub(super) struct HitRows {
+    /// The lanes whose hit has geometry (its triangle is in the mesh).
+    pub(super) valid: u64,
     pub(super) p: [[f32; PACKET_SIZE]; 3],
     pub(super) n: [[f32; PACKET_SIZE]; 3],
     pub(super) ng: [[f32; PACKET_SIZE]; 3],
@@ -148,6 +150,7 @@ impl Default for HitRows {
         let rows = [[0.0; PACKET_SIZE]; 3];
         let pair = [[0.0; PACKET_SIZE]; 2];
         HitRows {
+            valid: 0,
             p: rows,
             n: rows,
             ng: rows,
@@ -182,11 +185,16 @@ impl HitRows {
 /// and divisions stood in a chain of their own (9% of a BART robot frame went to hit geometry and
 /// grouping). Those groups, of a packet at most, are also written into `rows`, and then it returns
 /// `true`.
+///
+/// With `each` false the caller reads only the rows where there are rows ([`GroupHits::Rows`]),
+/// and then the slots of `geoms` are left as they were: writing every hit's fields a lane at a
+/// time, and holding all of them until then, was a fifth of this function's instructions.
 pub(super) fn hit_geometries(
     ig: &InstanceGeometry,
     group: &[Pending],
     geoms: &mut [Option<HitGeometry>],
     rows: &mut HitRows,
+    each: bool,
 ) -> bool {
     if ig.moving.is_some() || !ig.mesh.attributes.is_empty() {
         for (slot, p) in geoms.iter_mut().zip(group) {
@@ -195,11 +203,94 @@ pub(super) fn hit_geometries(
         return false;
     }
     let by_rows = group.len() <= PACKET_SIZE && geoms.len() <= PACKET_SIZE;
+    let each = each || !by_rows;
+    rows.valid = 0;
     for (chunk, (slots, pending)) in geoms.chunks_mut(4).zip(group.chunks(4)).enumerate() {
         let pending: [&Pending; 4] = std::array::from_fn(|j| &pending[j.min(pending.len() - 1)]);
-        hit_geometry_four(ig, pending, slots, by_rows.then_some((&mut *rows, chunk)));
+        hit_geometry_four(ig, pending, (slots, each), by_rows.then_some((&mut *rows, chunk)));
     }
     by_rows
+}
+
+/// A group's hits as the batch around a surface shader reads them: each hit's [`HitGeometry`]
+/// (with the rows [`hit_geometries`] wrote, where it wrote them), or the rows alone.
+#[derive(Clone, Copy)]
+pub(super) enum GroupHits<'a> {
+    Each(&'a [Option<HitGeometry>], Option<&'a HitRows>),
+    /// The rows of the group's first `usize` hits.
+    Rows(&'a HitRows, usize),
+}
+
+/// What the batch around a surface shader reads of one hit (its globals, its lights, its
+/// result): the fields of its [`HitGeometry`] of those names.
+#[derive(Clone, Copy)]
+pub(super) struct HitSurface {
+    pub(super) p: Vec3A,
+    pub(super) n: Vec3A,
+    pub(super) ng: Vec3A,
+    pub(super) uv: [f32; 2],
+    pub(super) st: [f32; 2],
+    pub(super) dpdu: Vec3A,
+    pub(super) dpdv: Vec3A,
+    pub(super) cs: Option<Vec3A>,
+    pub(super) os: Option<Vec3A>,
+}
+
+impl<'a> GroupHits<'a> {
+    pub(super) fn len(&self) -> usize {
+        match self {
+            GroupHits::Each(geoms, _) => geoms.len(),
+            GroupHits::Rows(_, len) => *len,
+        }
+    }
+
+    pub(super) fn rows(&self) -> Option<&'a HitRows> {
+        match *self {
+            GroupHits::Each(_, rows) => rows,
+            GroupHits::Rows(rows, _) => Some(rows),
+        }
+    }
+
+    /// The hit of `lane`, `None` where it has no geometry (or the group no such lane).
+    #[inline(always)]
+    pub(super) fn get(&self, lane: usize) -> Option<HitSurface> {
+        match *self {
+            GroupHits::Each(geoms, _) => geoms.get(lane)?.as_ref().map(|g| HitSurface {
+                p: g.p,
+                n: g.n,
+                ng: g.ng,
+                uv: g.uv,
+                st: g.st,
+                dpdu: g.dpdu,
+                dpdv: g.dpdv,
+                cs: g.cs,
+                os: g.os,
+            }),
+            GroupHits::Rows(rows, len) => {
+                if lane >= len.min(PACKET_SIZE) || rows.valid >> lane & 1 == 0 {
+                    return None;
+                }
+                let v3 = |r: &[[f32; PACKET_SIZE]; 3]| Vec3A::new(r[0][lane], r[1][lane], r[2][lane]);
+                let uv = [rows.uv[0][lane], rows.uv[1][lane]];
+                Some(HitSurface {
+                    p: v3(&rows.p),
+                    n: v3(&rows.n),
+                    ng: v3(&rows.ng),
+                    uv,
+                    st: uv,
+                    dpdu: v3(&rows.dpdu),
+                    dpdv: v3(&rows.dpdv),
+                    cs: None,
+                    os: None,
+                })
+            }
+        }
+    }
+
+    /// Each lane's hit, as [`GroupHits::get`] gives it.
+    pub(super) fn iter(&self) -> impl Iterator<Item = Option<HitSurface>> + '_ {
+        (0..self.len()).map(|lane| self.get(lane))
+    }
 }
 
 /// The screen-space derivatives of four hits' globals, a lane each.
@@ -419,7 +510,7 @@ impl Lanes3 {
 fn hit_geometry_four(
     ig: &InstanceGeometry,
     pending: [&Pending; 4],
-    slots: &mut [Option<HitGeometry>],
+    (slots, each): (&mut [Option<HitGeometry>], bool),
     rows: Option<(&mut HitRows, usize)>,
 ) {
     let mesh = ig.mesh;
@@ -491,6 +582,7 @@ fn hit_geometry_four(
     let edges = if ig.derivs { [e1.transformed(&xf.matrix3), e2.transformed(&xf.matrix3)] } else { [Lanes3::ZERO; 2] };
     if let Some((rows, k)) = rows {
         let valid = BVec4A::from_array(std::array::from_fn(|j| j < slots.len() && tris[j].is_some()));
+        rows.valid |= u64::from(valid.bitmask()) << (4 * k);
         let lanes = 4 * k..4 * k + 4;
         let put = |row: &mut [f32; PACKET_SIZE], v: Vec4| {
             if let Some(out) = row.get_mut(lanes.clone()) {
@@ -529,6 +621,9 @@ fn hit_geometry_four(
     // a variable lane would go through memory (and loads across the stores there stall). `st` and
     // `dst` are written from the values, not read back from `g`, for the same reason: a load of
     // what narrower stores just wrote is not forwarded from them (a fifth of this function's time).
+    if !each {
+        return;
+    }
     for j in 0..4 {
         let Some(slot) = slots.get_mut(j) else { break };
         if tris[j].is_none() {
@@ -679,6 +774,26 @@ mod tests {
         floats.map(f32::to_bits).collect()
     }
 
+    /// Every value of the rows (and the valid lanes), as bits.
+    fn row_bits(r: &HitRows) -> Vec<u32> {
+        let mut rows: Vec<&[f32; PACKET_SIZE]> = Vec::new();
+        rows.extend(r.p.iter().chain(&r.n).chain(&r.ng).chain(&r.uv).chain(&r.dpdu).chain(&r.dpdv));
+        rows.extend(r.dp.iter().chain(&r.dn).flatten().chain(&r.du).chain(&r.dv));
+        let bits = rows.into_iter().flatten().map(|v| v.to_bits());
+        [r.valid as u32, (r.valid >> 32) as u32].into_iter().chain(bits).collect()
+    }
+
+    fn surface_bits(h: &HitSurface) -> Vec<u32> {
+        let v3 = |v: Vec3A| v.to_array();
+        let some = |v: Option<Vec3A>| v.map_or([f32::NAN; 3], |v| v.to_array());
+        [v3(h.p), v3(h.n), v3(h.ng), v3(h.dpdu), v3(h.dpdv), some(h.cs), some(h.os)]
+            .into_iter()
+            .flatten()
+            .chain(h.uv.into_iter().chain(h.st))
+            .map(f32::to_bits)
+            .collect()
+    }
+
     fn deriv_bits(d: &HitDerivs) -> Vec<u32> {
         let v3 = |v: Vec3A| v.to_array();
         let floats = d.dp.map(v3).into_iter().chain(d.dn.map(v3)).flatten();
@@ -774,7 +889,7 @@ mod tests {
                 .collect();
             let mut four: Vec<Option<HitGeometry>> = (0..lanes).map(|_| None).collect();
             let mut rows = HitRows::default();
-            let by_rows = hit_geometries(&ig, &group, &mut four, &mut rows);
+            let by_rows = hit_geometries(&ig, &group, &mut four, &mut rows, true);
             assert_eq!(by_rows, mesh.attributes.is_empty(), "round {round}");
             let derivs: Vec<HitDerivs> = group
                 .chunks(4)
@@ -787,6 +902,21 @@ mod tests {
                     (0..p.len()).map(move |j| d.lane(j))
                 })
                 .collect();
+            // Without `each` the slots are left as they were, the rows are the same, and what
+            // `GroupHits::Rows` gives of each hit is what `GroupHits::Each` gives of its slot.
+            let mut untouched: Vec<Option<HitGeometry>> = (0..lanes).map(|_| None).collect();
+            let mut only = HitRows { valid: u64::MAX, ..HitRows::default() };
+            assert_eq!(hit_geometries(&ig, &group, &mut untouched, &mut only, false), by_rows, "round {round}");
+            assert_eq!(untouched.iter().all(Option::is_none), by_rows, "round {round}");
+            if by_rows {
+                assert_eq!(row_bits(&only), row_bits(&rows), "round {round}");
+                let (each, alone) = (GroupHits::Each(&four, Some(&rows)), GroupHits::Rows(&only, lanes));
+                for k in 0..lanes + 2 {
+                    assert_eq!(only.valid >> k & 1 != 0, four.get(k).is_some_and(Option::is_some), "round {round}");
+                    let a = each.get(k).map(|h| surface_bits(&h));
+                    assert_eq!(a, alone.get(k).map(|h| surface_bits(&h)), "round {round}, lane {k}");
+                }
+            }
             if by_rows {
                 // The lanes past the group, up to a whole chunk, are zero.
                 for k in lanes..lanes.div_ceil(4) * 4 {

@@ -13,7 +13,9 @@
 //! - Only the outermost shading of a thread is timed (`stats.rs`), tracing excluded.
 
 use super::differential::RayDifferential;
-use super::hit_geometry::{derivs_four, hit_geometries, GeometryNeeds, HitGeometry, HitRows, InstanceGeometry, Lanes3};
+use super::hit_geometry::{
+    derivs_four, hit_geometries, GeometryNeeds, GroupHits, HitGeometry, HitRows, HitSurface, InstanceGeometry, Lanes3,
+};
 use super::host::ShadeCall;
 use super::lights::BatchLights;
 use super::native::{faced_against, LightSeen, NativeSurface};
@@ -380,7 +382,14 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
             geoms.resize_with(group.len(), || None);
         }
         let geoms = &mut geoms[..group.len()];
-        let mut rows = hit_geometries(&ig, group, geoms, rows).then_some(&**rows);
+        let vertex_params = world.vertex_params.get(&(group[0].hit.instance, material_id));
+        // Whether anything here reads more of the hits than a surface batch does.
+        let each = material.displacement.is_some()
+            || material.native.is_some()
+            || material.surface.is_none()
+            || vertex_params.is_some();
+        let by_rows = hit_geometries(&ig, group, geoms, rows, each);
+        let mut rows = by_rows.then_some(&**rows);
         let color = Vec3A::from(material.color);
         let opacity = Vec3A::from(material.opacity);
         if let Some(displacement) = &material.displacement {
@@ -404,14 +413,18 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
             }
             return;
         };
-        let vertex_params = world.vertex_params.get(&(group[0].hit.instance, material_id));
+        let hits = match rows {
+            Some(rows) if !each => GroupHits::Rows(rows, group.len()),
+            // (The slots were not written without `each`, and there are rows without it.)
+            _ => GroupHits::Each(geoms, rows),
+        };
         let program = &surface.program;
         let slots = &program.slots;
         with_filled_batch(program, group.len(), &hit_global_rows(program), |batch| {
             {
                 let mut raw = batch.raw_mut();
                 surface.write_params(&mut raw);
-                fill_hit_globals(&mut raw, program, group, (geoms, rows), (color, opacity));
+                fill_hit_globals(&mut raw, program, group, hits, (color, opacity));
                 if let Some(vp) = vertex_params {
                     for (lane, g) in geoms.iter().enumerate() {
                         let Some(g) = g else { continue };
@@ -427,7 +440,7 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
                     }
                 }
             }
-            let mut call = batch_call(frame, surface, (material_id, inst.world_from_object), group, geoms, depth);
+            let mut call = batch_call(frame, surface, (material_id, inst.world_from_object), group, hits, depth);
             let table = call.table();
             program.code.shade_with_table(batch, &table);
             let raw = batch.raw_mut();
@@ -437,7 +450,7 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
             for (k, row) in rows.iter_mut().enumerate() {
                 get_row(&raw, [slots.ci, slots.oi][k / 3], k % 3, 0.0, &mut row[..lanes]);
             }
-            for (lane, (g, o)) in geoms.iter().zip(out.iter_mut()).enumerate().take(lanes) {
+            for (lane, (g, o)) in hits.iter().zip(out.iter_mut()).enumerate().take(lanes) {
                 let Some(g) = g else { continue };
                 let ci = Vec3A::new(rows[0][lane], rows[1][lane], rows[2][lane]);
                 let oi = match slots.oi {
@@ -479,41 +492,42 @@ fn fill_hit_globals(
     raw: &mut RawBatch<'_>,
     program: &crate::shading::ShaderProgram,
     group: &[Pending],
-    (geoms, rows): (&[Option<HitGeometry>], Option<&HitRows>),
+    hits: GroupHits,
     (color, opacity): (Vec3A, Vec3A),
 ) {
     let slots = &program.slots;
     let needs_derivs = needs_derivs(program);
-    for (m, g) in raw.mask.iter_mut().zip(geoms) {
+    for (m, g) in raw.mask.iter_mut().zip(hits.iter()) {
         if g.is_none() {
             *m = 0;
         }
     }
+    let rows = hits.rows();
     // A global at a time, a row per component: the shader reads few of them, and a row is written
     // without looking up its slot again for every lane.
     // The hit's own geometry is copied from its rows where `hit_geometries` wrote them.
-    put3_hit_rows(raw, slots.p, rows.map(|r| &r.p), geoms, |g| g.p);
-    put3_hit_rows(raw, slots.n, rows.map(|r| &r.n), geoms, |g| g.n);
-    put3_hit_rows(raw, slots.ng, rows.map(|r| &r.ng), geoms, |g| g.ng);
-    put3_rows(raw, slots.i, geoms, |g, lane| g.p - group[lane].ray.origin);
-    put3_rows(raw, slots.e, geoms, |_, lane| group[lane].ray.origin);
-    put1_hit_rows(raw, slots.u, rows.map(|r| &r.uv[0]), geoms, |g| g.uv[0]);
-    put1_hit_rows(raw, slots.v, rows.map(|r| &r.uv[1]), geoms, |g| g.uv[1]);
-    put1_hit_rows(raw, slots.s, rows.map(|r| &r.uv[0]), geoms, |g| g.st[0]);
-    put1_hit_rows(raw, slots.t, rows.map(|r| &r.uv[1]), geoms, |g| g.st[1]);
-    put3_hit_rows(raw, slots.dpdu, rows.map(|r| &r.dpdu), geoms, |g| g.dpdu);
-    put3_hit_rows(raw, slots.dpdv, rows.map(|r| &r.dpdv), geoms, |g| g.dpdv);
-    put3_rows(raw, slots.cs, geoms, |g, _| g.cs.unwrap_or(color));
-    put3_rows(raw, slots.os, geoms, |g, _| g.os.unwrap_or(opacity));
-    put3_rows(raw, slots.oi, geoms, |g, _| g.os.unwrap_or(opacity));
-    put1_rows(raw, slots.ncomps, geoms, |_, _| 3.0);
-    put1_rows(raw, slots.time, geoms, |_, lane| group[lane].ray.time);
+    put3_hit_rows(raw, slots.p, rows.map(|r| &r.p), hits, |g| g.p);
+    put3_hit_rows(raw, slots.n, rows.map(|r| &r.n), hits, |g| g.n);
+    put3_hit_rows(raw, slots.ng, rows.map(|r| &r.ng), hits, |g| g.ng);
+    put3_rows(raw, slots.i, hits, |g, lane| g.p - group[lane].ray.origin);
+    put3_rows(raw, slots.e, hits, |_, lane| group[lane].ray.origin);
+    put1_hit_rows(raw, slots.u, rows.map(|r| &r.uv[0]), hits, |g| g.uv[0]);
+    put1_hit_rows(raw, slots.v, rows.map(|r| &r.uv[1]), hits, |g| g.uv[1]);
+    put1_hit_rows(raw, slots.s, rows.map(|r| &r.uv[0]), hits, |g| g.st[0]);
+    put1_hit_rows(raw, slots.t, rows.map(|r| &r.uv[1]), hits, |g| g.st[1]);
+    put3_hit_rows(raw, slots.dpdu, rows.map(|r| &r.dpdu), hits, |g| g.dpdu);
+    put3_hit_rows(raw, slots.dpdv, rows.map(|r| &r.dpdv), hits, |g| g.dpdv);
+    put3_rows(raw, slots.cs, hits, |g, _| g.cs.unwrap_or(color));
+    put3_rows(raw, slots.os, hits, |g, _| g.os.unwrap_or(opacity));
+    put3_rows(raw, slots.oi, hits, |g, _| g.os.unwrap_or(opacity));
+    put1_rows(raw, slots.ncomps, hits, |_, _| 3.0);
+    put1_rows(raw, slots.time, hits, |_, lane| group[lane].ray.time);
     // The derivatives only for shaders that use them (they cost a few solves per hit).
     if needs_derivs {
-        fill_hit_derivs(raw, program, group, (geoms, rows));
+        fill_hit_derivs(raw, program, group, hits);
     }
     if let Some(seed) = program.layout().seed {
-        for (lane, g) in geoms.iter().enumerate() {
+        for (lane, g) in hits.iter().enumerate() {
             let h = g.as_ref().map_or(0, |g| point_seed(g.p));
             raw.varying[seed * raw.stride + lane] = f32::from_bits(h as u32);
             raw.varying[(seed + 1) * raw.stride + lane] = f32::from_bits((h >> 32) as u32);
@@ -528,7 +542,7 @@ fn fill_hit_derivs(
     raw: &mut RawBatch<'_>,
     program: &crate::shading::ShaderProgram,
     group: &[Pending],
-    (geoms, rows): (&[Option<HitGeometry>], Option<&HitRows>),
+    hits: GroupHits,
 ) {
     let slots = &program.slots;
     let deriv_slots = program.layout().deriv_slots;
@@ -537,14 +551,16 @@ fn fill_hit_derivs(
     let (dp, di, dn) = (d3(slots.p), d3(slots.i), d3(slots.n));
     let (du, dv, ds, dt) = (d1(slots.u), d1(slots.v), d1(slots.s), d1(slots.t));
     let st = raw.stride;
-    for (chunk, (pending, geoms)) in group.chunks(4).zip(geoms.chunks(4)).enumerate() {
-        let lanes = pending.len().min(geoms.len());
+    for (chunk, pending) in group[..hits.len().min(group.len())].chunks(4).enumerate() {
+        let lanes = pending.len();
         let pending: [&Pending; 4] = std::array::from_fn(|j| &pending[j.min(lanes - 1)]);
-        let geoms: [Option<&HitGeometry>; 4] = std::array::from_fn(|j| geoms.get(j).and_then(Option::as_ref));
-        let has = BVec4A::from_array(geoms.map(|g| g.is_some()));
-        let d = match rows {
-            Some(rows) => rows.derivs(chunk),
-            None => derivs_four(pending, geoms),
+        let has = BVec4A::from_array(std::array::from_fn(|j| j < lanes && hits.get(4 * chunk + j).is_some()));
+        let d = match hits {
+            GroupHits::Each(_, Some(rows)) | GroupHits::Rows(rows, _) => rows.derivs(chunk),
+            GroupHits::Each(geoms, None) => {
+                let at = |j: usize| if j < lanes { geoms.get(4 * chunk + j).and_then(Option::as_ref) } else { None };
+                derivs_four(pending, std::array::from_fn(at))
+            }
         };
         let derivs = &mut *raw.derivs;
         // Rows `first` (along x) and `first + 1` (along y) of this chunk's lanes; the batch's
@@ -618,11 +634,11 @@ fn needs_derivs(program: &crate::shading::ShaderProgram) -> bool {
 /// lights of a batch of hits are computed for.
 fn extend_batch_lanes(
     group: &[Pending],
-    geoms: &[Option<HitGeometry>],
+    hits: GroupHits,
     (points, mask, times): (&mut Vec<Vec3A>, &mut Vec<i32>, &mut Vec<f32>),
 ) {
-    points.extend(geoms.iter().map(|g| g.as_ref().map_or(Vec3A::ZERO, |g| g.p)));
-    mask.extend(geoms.iter().map(|g| if g.is_some() { -1 } else { 0 }));
+    points.extend(hits.iter().map(|g| g.map_or(Vec3A::ZERO, |g| g.p)));
+    mask.extend(hits.iter().map(|g| if g.is_some() { -1 } else { 0 }));
     times.extend(group.iter().map(|p| p.ray.time));
 }
 
@@ -633,22 +649,22 @@ fn batch_call<'f, 'w>(
     shader: &'f ShaderInstance,
     (material, world_from_object): (u32, Affine3A),
     group: &[Pending],
-    geoms: &[Option<HitGeometry>],
+    hits: GroupHits,
     depth: u32,
 ) -> ShadeCall<'f, 'w> {
     let mut call = ShadeCall::new(frame, shader, world_from_object, depth);
     call.material = Some(material);
     // Into reused buffers.
     call.take_buffers();
-    extend_batch_lanes(group, geoms, (&mut call.batch_points, &mut call.batch_mask, &mut call.batch_times));
-    call.batch_front.extend(front_normals(group, geoms));
+    extend_batch_lanes(group, hits, (&mut call.batch_points, &mut call.batch_mask, &mut call.batch_times));
+    call.batch_front.extend(front_normals(group, hits));
     call
 }
 
 /// Each lane's shading normal turned toward the ray's origin (by the geometric normal, as
 /// `faceforward(N, I)`): the side whose lights a typical surface shader sums.
-fn front_normals<'a>(group: &'a [Pending], geoms: &'a [Option<HitGeometry>]) -> impl Iterator<Item = Vec3A> + 'a {
-    group.iter().zip(geoms).map(|(p, g)| match g {
+fn front_normals<'a>(group: &'a [Pending], hits: GroupHits<'a>) -> impl Iterator<Item = Vec3A> + 'a {
+    group.iter().zip(0..hits.len()).map(move |(p, lane)| match hits.get(lane) {
         Some(g) if p.ray.direction.dot(g.ng) > 0.0 => -g.n,
         Some(g) => g.n,
         None => Vec3A::ZERO,
@@ -672,9 +688,10 @@ fn displace(
         {
             let mut raw = batch.raw_mut();
             displacement.write_params(&mut raw);
-            fill_hit_globals(&mut raw, program, group, (geoms, None), appearance);
+            fill_hit_globals(&mut raw, program, group, GroupHits::Each(geoms, None), appearance);
         }
-        let mut call = batch_call(frame, displacement, (material, world_from_object), group, geoms, depth);
+        let hits = GroupHits::Each(geoms, None);
+        let mut call = batch_call(frame, displacement, (material, world_from_object), group, hits, depth);
         let table = call.table();
         program.code.shade_with_table(batch, &table);
         let raw = batch.raw_mut();
@@ -702,8 +719,9 @@ fn shade_native(
     out: &mut [Shaded],
 ) {
     let (mut points, mut mask, mut times) = (Vec::new(), Vec::new(), Vec::new());
-    extend_batch_lanes(group, geoms, (&mut points, &mut mask, &mut times));
-    let front: Vec<Vec3A> = front_normals(group, geoms).collect();
+    let hits = GroupHits::Each(geoms, None);
+    extend_batch_lanes(group, hits, (&mut points, &mut mask, &mut times));
+    let front: Vec<Vec3A> = front_normals(group, hits).collect();
     let mut table = BatchLights::compute(frame, None, &points, &mask, &times, Some(&front), depth);
     // The hand-written plastic sums the lights in front of its normal faced forward by itself.
     let faced = |(k, g): (usize, &Option<HitGeometry>)| {
@@ -800,12 +818,12 @@ fn put3_hit_rows(
     raw: &mut RawBatch<'_>,
     slot: Option<Slot>,
     from: Option<&[[f32; PACKET_SIZE]; 3]>,
-    geoms: &[Option<HitGeometry>],
-    value: impl Fn(&HitGeometry) -> Vec3A,
+    hits: GroupHits,
+    value: impl Fn(&HitSurface) -> Vec3A,
 ) {
-    let lanes = geoms.len().min(PACKET_SIZE);
+    let lanes = hits.len().min(PACKET_SIZE);
     if !copy_rows(raw, slot, from.map(|rows| rows.iter().map(|r| &r[..lanes]))) {
-        put3_rows(raw, slot, geoms, |g, _| value(g));
+        put3_rows(raw, slot, hits, |g, _| value(g));
     }
 }
 
@@ -814,12 +832,12 @@ fn put1_hit_rows(
     raw: &mut RawBatch<'_>,
     slot: Option<Slot>,
     from: Option<&[f32; PACKET_SIZE]>,
-    geoms: &[Option<HitGeometry>],
-    value: impl Fn(&HitGeometry) -> f32,
+    hits: GroupHits,
+    value: impl Fn(&HitSurface) -> f32,
 ) {
-    let lanes = geoms.len().min(PACKET_SIZE);
+    let lanes = hits.len().min(PACKET_SIZE);
     if !copy_rows(raw, slot, from.map(|row| std::iter::once(&row[..lanes]))) {
-        put1_rows(raw, slot, geoms, |g, _| value(g));
+        put1_rows(raw, slot, hits, |g, _| value(g));
     }
 }
 
@@ -845,16 +863,11 @@ fn copy_rows<'r>(raw: &mut RawBatch<'_>, slot: Option<Slot>, from: Option<impl I
 /// Writes a triple global for every lane, `value(hit, lane)` where the lane has geometry and zero
 /// where not, a row per component (a uniform global takes the last such lane's value, as [`put3`]
 /// lane by lane would).
-fn put3_rows(
-    raw: &mut RawBatch<'_>,
-    slot: Option<Slot>,
-    geoms: &[Option<HitGeometry>],
-    value: impl Fn(&HitGeometry, usize) -> Vec3A,
-) {
+fn put3_rows(raw: &mut RawBatch<'_>, slot: Option<Slot>, hits: GroupHits, value: impl Fn(&HitSurface, usize) -> Vec3A) {
     let Some(s) = slot else { return };
     let st = raw.stride;
     if !s.varying {
-        let last = geoms.iter().enumerate().rev().find_map(|(lane, g)| Some(value(g.as_ref()?, lane)));
+        let last = (0..hits.len()).rev().find_map(|lane| Some(value(&hits.get(lane)?, lane)));
         if let Some(v) = last {
             raw.uniform[s.offset..s.offset + 3].copy_from_slice(&v.to_array());
         }
@@ -863,32 +876,27 @@ fn put3_rows(
     let rows = &mut raw.varying[s.offset * st..(s.offset + 3) * st];
     let (x, rest) = rows.split_at_mut(st);
     let (y, z) = rest.split_at_mut(st);
-    for (lane, ((g, x), (y, z))) in geoms.iter().zip(x).zip(y.iter_mut().zip(z)).enumerate() {
-        let v = g.as_ref().map_or(Vec3A::ZERO, |g| value(g, lane));
+    for (lane, ((g, x), (y, z))) in hits.iter().zip(x).zip(y.iter_mut().zip(z)).enumerate() {
+        let v = g.map_or(Vec3A::ZERO, |g| value(&g, lane));
         (*x, *y, *z) = (v.x, v.y, v.z);
     }
 }
 
 /// [`put3_rows`] for a float global. (One generic `put_rows::<N>` indexing `rows[c * stride + lane]`
 /// ran 2.5% more instructions per Cornell box frame: the zipped rows here need no bounds checks.)
-fn put1_rows(
-    raw: &mut RawBatch<'_>,
-    slot: Option<Slot>,
-    geoms: &[Option<HitGeometry>],
-    value: impl Fn(&HitGeometry, usize) -> f32,
-) {
+fn put1_rows(raw: &mut RawBatch<'_>, slot: Option<Slot>, hits: GroupHits, value: impl Fn(&HitSurface, usize) -> f32) {
     let Some(s) = slot else { return };
     let st = raw.stride;
     if !s.varying {
-        let last = geoms.iter().enumerate().rev().find_map(|(lane, g)| Some(value(g.as_ref()?, lane)));
+        let last = (0..hits.len()).rev().find_map(|lane| Some(value(&hits.get(lane)?, lane)));
         if let Some(v) = last {
             raw.uniform[s.offset] = v;
         }
         return;
     }
     let row = &mut raw.varying[s.offset * st..(s.offset + 1) * st];
-    for (lane, (g, x)) in geoms.iter().zip(row).enumerate() {
-        *x = g.as_ref().map_or(0.0, |g| value(g, lane));
+    for (lane, (g, x)) in hits.iter().zip(row).enumerate() {
+        *x = g.map_or(0.0, |g| value(&g, lane));
     }
 }
 
