@@ -622,7 +622,7 @@ impl<'a> LevelLanes<'a> {
         for (l, sum) in sums.iter_mut().enumerate() {
             let data = self.data[l];
             for (tap, offset) in taps.iter().zip(&offsets) {
-                *sum += Vec4::splat(tap[l]) * four_values(data, offset[l] as usize);
+                *sum = Vec4::splat(tap[l]).mul_add(four_values(data, offset[l] as usize), *sum);
             }
         }
         Some(far)
@@ -841,12 +841,12 @@ fn level_taps<const N: usize>(img: &TexImage, [x0, x1, y0, y1]: [i32; 4], taps: 
     if taps.cmpeq(Vec4::ZERO).any() {
         for ((x, y), tap) in texels.into_iter().zip(weights) {
             if tap != 0.0 {
-                sum += Vec4::splat(tap) * texel(x, y);
+                sum = Vec4::splat(tap).mul_add(texel(x, y), sum);
             }
         }
     } else {
         for ((x, y), tap) in texels.into_iter().zip(weights) {
-            sum += Vec4::splat(tap) * texel(x, y);
+            sum = Vec4::splat(tap).mul_add(texel(x, y), sum);
         }
     }
     sum
@@ -1181,7 +1181,7 @@ fn accumulate_pair_taps<const N: usize>(
                 continue;
             };
             for (o, v) in sum.iter_mut().zip(texel) {
-                *o += weight * v;
+                *o = weight.mul_add(*v, *o);
             }
         }
     }
@@ -1236,7 +1236,7 @@ fn accumulate_taps<const N: usize>(
         }
         let Some(texel) = data.get(offset + first..).and_then(|d| d.first_chunk::<N>()) else { continue };
         for (o, v) in sum.iter_mut().zip(texel) {
-            *o += tap * v;
+            *o = tap.mul_add(*v, *o);
         }
     }
     *out = sum;
@@ -1252,7 +1252,7 @@ fn accumulate_taps_dyn(img: &TexImage, s: f32, t: f32, wrap: [Wrap; 2], first: u
         }
         let Some(texel) = data.get(offset + first..offset + first + out.len()) else { continue };
         for (o, v) in out.iter_mut().zip(texel) {
-            *o += tap * v;
+            *o = tap.mul_add(*v, *o);
         }
     }
 }
@@ -1371,7 +1371,7 @@ mod tests {
                 }
                 for (c, o) in out.iter_mut().enumerate() {
                     if let Some(v) = img.texel(ix, iy).get(first + c) {
-                        *o += tap * v;
+                        *o = tap.mul_add(*v, *o);
                     }
                 }
             }
