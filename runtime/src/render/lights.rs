@@ -6,7 +6,7 @@ use super::differential::RayDifferential;
 use super::host::ShadeCall;
 use super::shade::{mix, point_seed, shade_in_groups, unit, Frame, Pending, Shaded};
 use super::stats::{tracing, Stats};
-use super::world::{LightSource, Material, World, DEFAULT_MATERIAL};
+use super::world::{InstanceShadows, LightSource, Material, ShadowKind, World, DEFAULT_MATERIAL};
 use crate::ray::{HitCandidate, HitPacket, Ray, RayPacket, PACKET_SIZE};
 use crate::shading::{fill1, fill3, get_row, put3, put_row, varying_rows, with_filled_batch, LightKind};
 use glam::{Vec3A, Vec4};
@@ -715,18 +715,22 @@ fn transmission_packet(frame: &Frame, packet: &mut RayPacket, through: &mut [Vec
     let crossings = Mutex::new(noted);
     let by_shader = AtomicU64::new(0);
     let opaque = |c: &HitCandidate| {
-        if frame.opaque_instances.get(c.instance as usize).copied().unwrap_or(false) {
-            return true;
-        }
-        let material = material_of(c.instance, c.primitive);
-        if material.is_opaque_for_shadows() {
-            return true;
-        }
-        if material.shadow_by_shader {
-            by_shader.fetch_or(1u64 << (c.lane & 63), Ordering::Relaxed);
-        } else {
-            let crossing = Crossing { lane: c.lane & 63, t: c.t, instance: c.instance, primitive: c.primitive };
-            crossings.lock().unwrap_or_else(PoisonError::into_inner).push(crossing);
+        let i = c.instance as usize;
+        // An instance out of range is shaded with the default material, which blocks.
+        let kind = match (frame.instance_shadows.get(i), world.instances.get(i)) {
+            (Some(InstanceShadows::Opaque), _) | (_, None) => ShadowKind::Blocked,
+            (Some(shadows), Some(inst)) => shadows.kind(inst, c.primitive),
+            (None, Some(inst)) => world.shadow_kind(inst.material_at(c.primitive)),
+        };
+        match kind {
+            ShadowKind::Blocked => return true,
+            ShadowKind::ByShader => {
+                by_shader.fetch_or(1u64 << (c.lane & 63), Ordering::Relaxed);
+            }
+            ShadowKind::Crossed => {
+                let crossing = Crossing { lane: c.lane & 63, t: c.t, instance: c.instance, primitive: c.primitive };
+                crossings.lock().unwrap_or_else(PoisonError::into_inner).push(crossing);
+            }
         }
         false
     };

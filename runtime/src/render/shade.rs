@@ -21,7 +21,7 @@ use super::lights::BatchLights;
 use super::native::{faced_against, LightSeen, NativeSurface};
 use super::primary::PrimaryRays;
 use super::stats::{tracing, ShadingTimer, Stats};
-use super::world::{World, DEFAULT_MATERIAL};
+use super::world::{InstanceShadows, World, DEFAULT_MATERIAL};
 use crate::ray::{offset_ray_origin, Hit, HitPacket, Ray, PACKET_SIZE};
 use crate::shading::{get3, get_row, put1, put3, varying_rows, with_batch, with_filled_batch, ShaderInstance, Slot};
 use glam::{Affine3A, BVec4A, Vec3A, Vec4};
@@ -33,10 +33,9 @@ pub struct Frame<'w> {
     pub world: &'w World,
     pub stats: Stats,
     pub(super) transparent_shadows: bool,
-    /// Per instance: every material of it is opaque for shadows (empty without
-    /// `transparent_shadows`). A shadow ray's hit filter answers these at once, without finding
-    /// the triangle's material (two cache misses a candidate).
-    pub(super) opaque_instances: Vec<bool>,
+    /// Per instance: what shadow rays do at its triangles (empty without `transparent_shadows`).
+    /// A shadow ray's hit filter answers from these without finding the triangle's material.
+    pub(super) instance_shadows: Vec<InstanceShadows>,
     /// [`World::has_volumes`], asked once a frame: its scan of the materials ran for every packet
     /// (1.5% of a BART robot frame, 1,103 materials and no volume).
     pub(super) volumes: bool,
@@ -60,12 +59,12 @@ impl<'w> Frame<'w> {
         let (ax, ay) = world.options.screen_extent().half;
         let m = &cam.world_from_camera.matrix3;
         let transparent_shadows = world.has_transparent_shadows();
-        let opaque_instances = if transparent_shadows { world.opaque_instances_for_shadows() } else { Vec::new() };
+        let instance_shadows = if transparent_shadows { world.instance_shadows() } else { Vec::new() };
         Frame {
             world,
             stats: Stats { timed: world.options.time_shaders, ..Stats::default() },
             transparent_shadows,
-            opaque_instances,
+            instance_shadows,
             volumes: world.has_volumes(),
             camera_from_world: cam.world_from_camera.inverse(),
             forward: m.z_axis.normalize_or_zero(),
