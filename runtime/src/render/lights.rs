@@ -711,8 +711,8 @@ fn transmission_packet(frame: &Frame, packet: &mut RayPacket, through: &mut [Vec
     let material_of = |instance: u32, primitive: u32| material_at(world, instance, primitive);
     // Transparent candidates are passed over (the traversal goes on) but noted: in this thread's
     // log, where the filter runs on this thread (the traversal does not spread over threads),
-    // else under a lock. A lock for every crossing (the first thing noted, and 73% of a BART
-    // robot frame's candidates are crossings) was a third of the filter's time.
+    // else under a lock. A lock for every crossing (73% of a BART robot frame's candidates are
+    // crossings) was a third of the filter's time.
     let here = NOTED_HERE.with(|log| std::ptr::from_ref(log) as usize);
     let start = NOTED_HERE.with(|log| log.borrow().len());
     let elsewhere = Mutex::new(Vec::new());

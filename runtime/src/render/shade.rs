@@ -414,7 +414,7 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
         };
         let hits = match rows {
             Some(rows) if !each => GroupHits::Rows(rows, group.len()),
-            // (The slots were not written without `each`, and there are rows without it.)
+            // Without `each`, `hit_geometries` wrote the slots only where it wrote no rows.
             _ => GroupHits::Each(geoms, rows),
         };
         let program = &surface.program;
