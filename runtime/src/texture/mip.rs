@@ -272,11 +272,9 @@ impl MipMap {
         let asking = BVec4A::from_array(active);
         let summing = asking & finite & BVec4A::from_array(counts.map(|n| n > 0));
         let unsummed = (asking & !summing).bitmask();
-        if unsummed != 0 {
-            for l in (0..4).filter(|&l| unsummed >> l & 1 != 0) {
-                for c in 0..values {
-                    out[4 * c + l] = fill;
-                }
+        for l in (0..4).filter(|&l| unsummed >> l & 1 != 0) {
+            for c in 0..values {
+                out[4 * c + l] = fill;
             }
         }
         if !summing.any() {
