@@ -138,7 +138,8 @@ pub(super) struct HitRows {
     pub(super) dpdu: [[f32; PACKET_SIZE]; 3],
     pub(super) dpdv: [[f32; PACKET_SIZE]; 3],
     /// The screen-space derivatives, when the shaders want them (`InstanceGeometry::derivs`):
-    /// dP/dx, dP/dy, dN/dx, dN/dy a row per component, d(u, v)/dx and /dy (also (s, t)'s).
+    /// dP/dx, dP/dy, dN/dx, dN/dy a row per component, d(u, v)/dx and /dy (also (s, t)'s). The
+    /// normal's hold whatever an earlier group left unless `InstanceGeometry::normal_derivs`.
     pub(super) dp: [[[f32; PACKET_SIZE]; 3]; 2],
     pub(super) dn: [[[f32; PACKET_SIZE]; 3]; 2],
     pub(super) du: [[f32; PACKET_SIZE]; 2],
@@ -441,7 +442,7 @@ impl Lanes3 {
     /// vectors and read back a component at a time, the reads straddled the array's stores,
     /// which stalls them: the most sampled instructions of a BART robot's hit geometry.)
     #[inline(always)]
-    fn of<T>(items: [&T; 4], f: impl Fn(&T) -> Vec3A) -> Lanes3 {
+    pub(super) fn of<T>(items: [&T; 4], f: impl Fn(&T) -> Vec3A) -> Lanes3 {
         let [a, b, c, d] = items.map(f);
         #[cfg(target_arch = "x86_64")]
         {
@@ -607,10 +608,15 @@ fn hit_geometry_four(
             let surface = SurfaceChange { ng, edges, dn, duv, dst: duv };
             let d = surface.derivs(pending);
             for axis in 0..2 {
-                for (to, v) in [(&mut rows.dp[axis], d.dp[axis]), (&mut rows.dn[axis], d.dn[axis])] {
+                let put3 = |to: &mut [[f32; PACKET_SIZE]; 3], v: Lanes3| {
                     put(&mut to[0], v.x);
                     put(&mut to[1], v.y);
                     put(&mut to[2], v.z);
+                };
+                put3(&mut rows.dp[axis], d.dp[axis]);
+                // Unread without: then left as they were, and not worked out (from zeros).
+                if ig.normal_derivs {
+                    put3(&mut rows.dn[axis], d.dn[axis]);
                 }
                 put(&mut rows.du[axis], d.du[axis]);
                 put(&mut rows.dv[axis], d.dv[axis]);
@@ -949,8 +955,10 @@ mod tests {
                     assert_eq!(bits(a), bits(b), "{case}");
                     assert_eq!(deriv_bits(&a.derivs(p)), deriv_bits(&derivs[k]), "{case}");
                     if by_rows && ig.derivs {
-                        let from_rows = rows.derivs(k / 4).lane(k % 4);
-                        assert_eq!(deriv_bits(&a.derivs(p)), deriv_bits(&from_rows), "{case}");
+                        let (want, from_rows) = (a.derivs(p), rows.derivs(k / 4).lane(k % 4));
+                        // The normal's rows only where they are wanted (else left zero here).
+                        let dn = if ig.normal_derivs { want.dn } else { [Vec3A::ZERO; 2] };
+                        assert_eq!(deriv_bits(&HitDerivs { dn, ..want }), deriv_bits(&from_rows), "{case}");
                     }
                 }
             }
