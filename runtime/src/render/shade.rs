@@ -496,9 +496,23 @@ fn fill_hit_globals(
 ) {
     let slots = &program.slots;
     let needs_derivs = needs_derivs(program);
-    for (m, g) in raw.mask.iter_mut().zip(hits.iter()) {
-        if g.is_none() {
-            *m = 0;
+    match hits {
+        GroupHits::Rows(rows, len) => {
+            fill_lane_globals_by_chunks(raw, program, group, (hits, rows, len), (color, opacity))
+        }
+        GroupHits::Each(..) => {
+            for (m, g) in raw.mask.iter_mut().zip(hits.iter()) {
+                if g.is_none() {
+                    *m = 0;
+                }
+            }
+            put3_rows(raw, slots.i, hits, |g, lane| g.p - group[lane].ray.origin);
+            put3_rows(raw, slots.e, hits, |_, lane| group[lane].ray.origin);
+            put3_rows(raw, slots.cs, hits, |g, _| g.cs.unwrap_or(color));
+            put3_rows(raw, slots.os, hits, |g, _| g.os.unwrap_or(opacity));
+            put3_rows(raw, slots.oi, hits, |g, _| g.os.unwrap_or(opacity));
+            put1_rows(raw, slots.ncomps, hits, |_, _| 3.0);
+            put1_rows(raw, slots.time, hits, |_, lane| group[lane].ray.time);
         }
     }
     let rows = hits.rows();
@@ -508,19 +522,12 @@ fn fill_hit_globals(
     put3_hit_rows(raw, slots.p, rows.map(|r| &r.p), hits, |g| g.p);
     put3_hit_rows(raw, slots.n, rows.map(|r| &r.n), hits, |g| g.n);
     put3_hit_rows(raw, slots.ng, rows.map(|r| &r.ng), hits, |g| g.ng);
-    put3_rows(raw, slots.i, hits, |g, lane| g.p - group[lane].ray.origin);
-    put3_rows(raw, slots.e, hits, |_, lane| group[lane].ray.origin);
     put1_hit_rows(raw, slots.u, rows.map(|r| &r.uv[0]), hits, |g| g.uv[0]);
     put1_hit_rows(raw, slots.v, rows.map(|r| &r.uv[1]), hits, |g| g.uv[1]);
     put1_hit_rows(raw, slots.s, rows.map(|r| &r.uv[0]), hits, |g| g.st[0]);
     put1_hit_rows(raw, slots.t, rows.map(|r| &r.uv[1]), hits, |g| g.st[1]);
     put3_hit_rows(raw, slots.dpdu, rows.map(|r| &r.dpdu), hits, |g| g.dpdu);
     put3_hit_rows(raw, slots.dpdv, rows.map(|r| &r.dpdv), hits, |g| g.dpdv);
-    put3_rows(raw, slots.cs, hits, |g, _| g.cs.unwrap_or(color));
-    put3_rows(raw, slots.os, hits, |g, _| g.os.unwrap_or(opacity));
-    put3_rows(raw, slots.oi, hits, |g, _| g.os.unwrap_or(opacity));
-    put1_rows(raw, slots.ncomps, hits, |_, _| 3.0);
-    put1_rows(raw, slots.time, hits, |_, lane| group[lane].ray.time);
     // The derivatives only for shaders that use them (they cost a few solves per hit).
     if needs_derivs {
         fill_hit_derivs(raw, program, group, hits);
@@ -532,6 +539,77 @@ fn fill_hit_globals(
             raw.varying[(seed + 1) * raw.stride + lane] = f32::from_bits((h >> 32) as u32);
         }
     }
+}
+
+/// [`fill_hit_globals`]' mask and the globals that are not the hits' own rows (`I E Cs Os Oi
+/// ncomps time`), for a group read from its rows alone (`hits`, whose rows are `rows`, `len`
+/// lanes): four lanes at a time, zeros where a lane has no geometry (and in the lanes past `len` up
+/// to a whole chunk, which the batch's rows hold). Lane by lane, each lane's `GroupHits::get` and
+/// its row stores cost more than the values.
+fn fill_lane_globals_by_chunks(
+    raw: &mut RawBatch<'_>,
+    program: &crate::shading::ShaderProgram,
+    group: &[Pending],
+    (hits, rows, len): (GroupHits, &HitRows, usize),
+    (color, opacity): (Vec3A, Vec3A),
+) {
+    let slots = &program.slots;
+    let len = len.min(group.len()).min(PACKET_SIZE);
+    let first_row = |slot: Option<Slot>| slot.filter(|s| s.varying).map(|s| s.offset);
+    let (i, e, ncomps, time) = (first_row(slots.i), first_row(slots.e), first_row(slots.ncomps), first_row(slots.time));
+    let constants = [(first_row(slots.cs), color), (first_row(slots.os), opacity), (first_row(slots.oi), opacity)];
+    let st = raw.stride;
+    for (chunk, pending) in group[..len].chunks(4).enumerate() {
+        let (at, lanes) = (4 * chunk, pending.len());
+        let pending: [&Pending; 4] = std::array::from_fn(|j| &pending[j.min(lanes - 1)]);
+        let bits = (rows.valid >> at) as u32 & ((1 << lanes) - 1);
+        let valid = BVec4A::from_array(std::array::from_fn(|j| bits >> j & 1 != 0));
+        for (j, m) in raw.mask.iter_mut().skip(at).take(lanes).enumerate() {
+            if bits >> j & 1 == 0 {
+                *m = 0;
+            }
+        }
+        let varying = &mut *raw.varying;
+        let mut put = |row: usize, v: Vec4| {
+            if let Some(out) = varying.get_mut(row * st + at..row * st + at + 4) {
+                out.copy_from_slice(&Vec4::select(valid, v, Vec4::ZERO).to_array());
+            }
+        };
+        if i.is_some() || e.is_some() {
+            let origin = Lanes3::of(pending, |p| p.ray.origin);
+            let origin = [origin.x, origin.y, origin.z];
+            for (k, origin) in origin.into_iter().enumerate() {
+                if let Some(i) = i {
+                    // `g.p - origin` of each lane, as `Vec3A` subtracts.
+                    put(i + k, Vec4::from_slice(&rows.p[k][at..at + 4]) - origin);
+                }
+                if let Some(e) = e {
+                    put(e + k, origin);
+                }
+            }
+        }
+        for (first, value) in constants {
+            let Some(first) = first else { continue };
+            for k in 0..3 {
+                put(first + k, Vec4::splat(value[k]));
+            }
+        }
+        if let Some(ncomps) = ncomps {
+            put(ncomps, Vec4::splat(3.0));
+        }
+        if let Some(time) = time {
+            put(time, Vec4::from_array(pending.map(|p| p.ray.time)));
+        }
+    }
+    // Uniform globals (a shader's own choice, rare) take the last lane's value, as lane by lane.
+    let uniform = |slot: Option<Slot>| slot.filter(|s| !s.varying);
+    put3_rows(raw, uniform(slots.i), hits, |g, lane| g.p - group[lane].ray.origin);
+    put3_rows(raw, uniform(slots.e), hits, |_, lane| group[lane].ray.origin);
+    put3_rows(raw, uniform(slots.cs), hits, |_, _| color);
+    put3_rows(raw, uniform(slots.os), hits, |_, _| opacity);
+    put3_rows(raw, uniform(slots.oi), hits, |_, _| opacity);
+    put1_rows(raw, uniform(slots.ncomps), hits, |_, _| 3.0);
+    put1_rows(raw, uniform(slots.time), hits, |_, lane| group[lane].ray.time);
 }
 
 /// Writes the screen-space derivatives of the globals `program` reads them of, and `du`, `dv`,
@@ -935,6 +1013,46 @@ mod tests {
         let centre = (8 * 16 + 8) * 4;
         let rgb = &fb.rgba[centre..centre + 3];
         assert!(rgb.iter().all(|v| v.is_finite() && *v > 1e-3), "dN, dPdu, dPdv at the centre: {rgb:?}");
+    }
+
+    /// A surface batch read from the hits' rows alone (`GroupHits::Rows`, its lane globals four
+    /// lanes at a time) gets the globals that one read hit by hit does (`GroupHits::Each`, which a
+    /// displacement shader that leaves the surface alone forces): the same image, bit for bit.
+    #[test]
+    fn globals_from_the_rows_alone_are_those_read_hit_by_hit() {
+        let probe = "surface probe() {
+            Ci = color(xcomp(I), ycomp(I), zcomp(I)) + 0.25 * color(xcomp(E), ycomp(E), zcomp(E))
+                + Cs * Os + time + ncomps + color(s, t, 0);
+            Oi = 1;
+        }";
+        let render = |displaced: bool| {
+            let rib = format!(
+                r#"
+                Format 16 16 1
+                Projection "perspective" "fov" 40
+                Translate 0.3 0.2 4
+                WorldBegin
+                Color [0.2 0.5 0.7]
+                Opacity [0.9 0.8 0.6]
+                Surface "probe"
+                {}
+                Polygon "P" [-1 -1 0  1 -1 0.5  1 1 0  -1 1 -0.5]
+                WorldEnd
+            "#,
+                if displaced { r#"Displacement "unmoved""# } else { "" }
+            );
+            let mut rt = crate::api::Context::new();
+            rt.compile_shader("probe", probe).expect("the probe compiles");
+            rt.compile_shader("unmoved", "displacement unmoved() { }").expect("the displacement compiles");
+            crate::rib::load::load_str(&mut rt, &rib, std::path::Path::new("<test>")).expect("the test scene loads");
+            let world = rt.build_world().expect("the test scene builds");
+            super::super::render_frame(&world, None).0.rgba
+        };
+        let (rows, each) = (render(false), render(true));
+        let lit = rows.chunks(4).filter(|px| px[..3].iter().any(|v| *v != 0.0)).count();
+        assert!(lit > 64 && lit < 256, "{lit} of 256 pixels see the quad");
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&rows), bits(&each));
     }
 
     #[test]
