@@ -13,6 +13,7 @@ pub mod filter;
 pub mod frame;
 mod hit_geometry;
 mod host;
+mod lanes;
 mod lights;
 pub mod native;
 pub mod primary;

@@ -1,0 +1,271 @@
+//! Lane vectors: the arithmetic that hit geometry does for several hits at once, four lanes wide
+//! (glam's `Vec4`) or eight (wide's `f32x8`, one AVX register where the target has AVX, as
+//! `x86-64-v3` in `.cargo/config.toml` does). Every operation is the IEEE operation lane by lane,
+//! so a lane gets the same bits at either width.
+
+use super::hit_geometry::Lanes3;
+use glam::{BVec4A, Vec3, Vec3A, Vec4};
+use std::ops::{Add, BitAnd, Div, Mul, Neg, Not, Sub};
+use wide::f32x8;
+
+/// A vector of `LANES` floats, a hit a lane.
+pub(super) trait Lanes:
+    Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> + Div<Output = Self> + Neg<Output = Self>
+{
+    /// A mask with a lane per lane of the vector.
+    type Mask: Copy + BitAnd<Output = Self::Mask> + Not<Output = Self::Mask>;
+    const LANES: usize;
+    fn splat(v: f32) -> Self;
+    /// Lane `j` is `f(j)`.
+    fn from_fn(f: impl Fn(usize) -> f32) -> Self;
+    fn sqrt(self) -> Self;
+    fn abs(self) -> Self;
+    fn cmplt(self, o: Self) -> Self::Mask;
+    fn cmpgt(self, o: Self) -> Self::Mask;
+    fn is_finite_mask(self) -> Self::Mask;
+    /// `a` where `mask` is set, else `b`.
+    fn select(mask: Self::Mask, a: Self, b: Self) -> Self;
+    /// `self * a + b`, rounded once.
+    fn mul_add(self, a: Self, b: Self) -> Self;
+    /// The mask whose lane `j` is `f(j)`.
+    fn mask_from_fn(f: impl Fn(usize) -> bool) -> Self::Mask;
+    /// Bit `j` set where lane `j` of `mask` is.
+    fn bitmask(mask: Self::Mask) -> u32;
+    /// Writes the lanes to `out[..LANES]` (if `out` is that long).
+    fn write_to(self, out: &mut [f32]);
+    /// Element `index(j)` of `data` in lane `j` (zero where there is none).
+    fn gather3(data: &[Vec3], index: impl Fn(usize) -> usize) -> Lanes3<Self>;
+    /// The vectors `f(j)`, one a lane.
+    fn of3(f: impl Fn(usize) -> Vec3A) -> Lanes3<Self>;
+}
+
+impl Lanes for Vec4 {
+    type Mask = BVec4A;
+    const LANES: usize = 4;
+
+    #[inline(always)]
+    fn splat(v: f32) -> Self {
+        Vec4::splat(v)
+    }
+
+    #[inline(always)]
+    fn from_fn(f: impl Fn(usize) -> f32) -> Self {
+        Vec4::new(f(0), f(1), f(2), f(3))
+    }
+
+    #[inline(always)]
+    fn sqrt(self) -> Self {
+        Vec4::sqrt(self)
+    }
+
+    #[inline(always)]
+    fn abs(self) -> Self {
+        Vec4::abs(self)
+    }
+
+    #[inline(always)]
+    fn cmplt(self, o: Self) -> BVec4A {
+        Vec4::cmplt(self, o)
+    }
+
+    #[inline(always)]
+    fn cmpgt(self, o: Self) -> BVec4A {
+        Vec4::cmpgt(self, o)
+    }
+
+    #[inline(always)]
+    fn is_finite_mask(self) -> BVec4A {
+        Vec4::is_finite_mask(self)
+    }
+
+    #[inline(always)]
+    fn select(mask: BVec4A, a: Self, b: Self) -> Self {
+        Vec4::select(mask, a, b)
+    }
+
+    #[inline(always)]
+    fn mul_add(self, a: Self, b: Self) -> Self {
+        Vec4::mul_add(self, a, b)
+    }
+
+    #[inline(always)]
+    fn mask_from_fn(f: impl Fn(usize) -> bool) -> BVec4A {
+        BVec4A::new(f(0), f(1), f(2), f(3))
+    }
+
+    #[inline(always)]
+    fn bitmask(mask: BVec4A) -> u32 {
+        mask.bitmask()
+    }
+
+    #[inline(always)]
+    fn write_to(self, out: &mut [f32]) {
+        if let Some(out) = out.get_mut(..4) {
+            self.write_to_slice(out);
+        }
+    }
+
+    #[inline(always)]
+    fn gather3(data: &[Vec3], index: impl Fn(usize) -> usize) -> Lanes3<Self> {
+        Lanes3::gather(data, index)
+    }
+
+    #[inline(always)]
+    fn of3(f: impl Fn(usize) -> Vec3A) -> Lanes3<Self> {
+        Lanes3::of([&0, &1, &2, &3], |&j| f(j))
+    }
+}
+
+/// Lanes `0..4` from `lo`, `4..8` from `hi`.
+#[inline(always)]
+fn halves(lo: Vec4, hi: Vec4) -> f32x8 {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::__m128;
+        // Two 16-byte registers as one 32-byte one: `vinsertf128` where the target has AVX.
+        bytemuck::cast::<[__m128; 2], f32x8>([lo.into(), hi.into()])
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        let (lo, hi) = (lo.to_array(), hi.to_array());
+        f32x8::new([lo[0], lo[1], lo[2], lo[3], hi[0], hi[1], hi[2], hi[3]])
+    }
+}
+
+impl Lanes for f32x8 {
+    type Mask = f32x8;
+    const LANES: usize = 8;
+
+    #[inline(always)]
+    fn splat(v: f32) -> Self {
+        f32x8::splat(v)
+    }
+
+    #[inline(always)]
+    fn from_fn(f: impl Fn(usize) -> f32) -> Self {
+        halves(Vec4::from_fn(&f), Vec4::from_fn(|j| f(j + 4)))
+    }
+
+    #[inline(always)]
+    fn sqrt(self) -> Self {
+        f32x8::sqrt(self)
+    }
+
+    #[inline(always)]
+    fn abs(self) -> Self {
+        f32x8::abs(self)
+    }
+
+    #[inline(always)]
+    fn cmplt(self, o: Self) -> f32x8 {
+        self.simd_lt(o)
+    }
+
+    #[inline(always)]
+    fn cmpgt(self, o: Self) -> f32x8 {
+        self.simd_gt(o)
+    }
+
+    #[inline(always)]
+    fn is_finite_mask(self) -> f32x8 {
+        self.is_finite()
+    }
+
+    #[inline(always)]
+    fn select(mask: f32x8, a: Self, b: Self) -> Self {
+        mask.select(a, b)
+    }
+
+    #[inline(always)]
+    fn mul_add(self, a: Self, b: Self) -> Self {
+        f32x8::mul_add(self, a, b)
+    }
+
+    #[inline(always)]
+    fn mask_from_fn(f: impl Fn(usize) -> bool) -> f32x8 {
+        let lane = |j: usize| if f(j) { f32::from_bits(u32::MAX) } else { 0.0 };
+        <f32x8 as Lanes>::from_fn(lane)
+    }
+
+    #[inline(always)]
+    fn bitmask(mask: f32x8) -> u32 {
+        mask.to_bitmask()
+    }
+
+    #[inline(always)]
+    fn write_to(self, out: &mut [f32]) {
+        if let Some(out) = out.get_mut(..8) {
+            out.copy_from_slice(&self.to_array());
+        }
+    }
+
+    #[inline(always)]
+    fn gather3(data: &[Vec3], index: impl Fn(usize) -> usize) -> Lanes3<Self> {
+        let (lo, hi) = (Lanes3::gather(data, &index), Lanes3::gather(data, |j| index(j + 4)));
+        Lanes3 { x: halves(lo.x, hi.x), y: halves(lo.y, hi.y), z: halves(lo.z, hi.z) }
+    }
+
+    #[inline(always)]
+    fn of3(f: impl Fn(usize) -> Vec3A) -> Lanes3<Self> {
+        let (lo, hi) = (Vec4::of3(&f), Vec4::of3(|j| f(j + 4)));
+        Lanes3 { x: halves(lo.x, hi.x), y: halves(lo.y, hi.y), z: halves(lo.z, hi.z) }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Eight lanes give each lane the bits four give it, for the operations hit geometry uses,
+    /// on ordinary, tiny, huge, zero, infinite and NaN values.
+    #[test]
+    fn eight_lanes_compute_what_four_do() {
+        let values = [1.5f32, -2.25, 1e-30, -3e30, 0.0, -0.0, f32::INFINITY, f32::NAN, 7.0, 1.0 / 3.0, -1e-40, 2.0];
+        let pick = |seed: usize| move |j: usize| values[(seed * 7 + j * 5) % values.len()];
+        for seed in 0..values.len() {
+            let (a, b, c) = (pick(seed), pick(seed + 1), pick(seed + 3));
+            let lanes8 = |f: &dyn Fn(usize) -> f32| <f32x8 as Lanes>::from_fn(f);
+            let (a8, b8, c8) = (lanes8(&a), lanes8(&b), lanes8(&c));
+            let four = |off: usize| {
+                let (a4, b4, c4) =
+                    (Vec4::from_fn(|j| a(j + off)), Vec4::from_fn(|j| b(j + off)), Vec4::from_fn(|j| c(j + off)));
+                let m = a4.cmplt(b4) & !c4.cmpgt(a4) & a4.is_finite_mask();
+                [
+                    a4 + b4,
+                    a4 - b4,
+                    a4 * b4,
+                    a4 / b4,
+                    -a4,
+                    a4.sqrt(),
+                    a4.abs(),
+                    a4.mul_add(b4, c4),
+                    Vec4::select(m, a4, c4),
+                ]
+                .map(|v| v.to_array())
+            };
+            let m8 = Lanes::cmplt(a8, b8) & !Lanes::cmpgt(c8, a8) & Lanes::is_finite_mask(a8);
+            let eight = [
+                a8 + b8,
+                a8 - b8,
+                a8 * b8,
+                a8 / b8,
+                -a8,
+                Lanes::sqrt(a8),
+                Lanes::abs(a8),
+                Lanes::mul_add(a8, b8, c8),
+                <f32x8 as Lanes>::select(m8, a8, c8),
+            ];
+            let (lo, hi) = (four(0), four(4));
+            for (k, v) in eight.iter().enumerate() {
+                let v = v.to_array();
+                for j in 0..8 {
+                    let want = if j < 4 { lo[k][j] } else { hi[k][j - 4] };
+                    assert_eq!(v[j].to_bits(), want.to_bits(), "seed {seed}, operation {k}, lane {j}");
+                }
+            }
+            let mask = <f32x8 as Lanes>::mask_from_fn(|j| a(j) > 1.0);
+            let want = (0..8).filter(|&j| a(j) > 1.0).fold(0, |m, j| m | 1 << j);
+            assert_eq!(<f32x8 as Lanes>::bitmask(mask), want);
+        }
+    }
+}
