@@ -563,7 +563,9 @@ impl BatchLights {
         let (mut counts, mut lights, mut pending) = super::scratch::take(&BATCH_LIGHT_BUFFERS);
         counts.clear();
         counts.resize(n, 0);
-        lights.clear();
+        // Not cleared: a row is read only below its lanes' counts, where an append wrote it (the
+        // host ABI leaves lanes past their count undefined), and zeroing a batch's rows was most
+        // of the stores here.
         lights.resize(slots * n.div_ceil(4), LightLanes::default());
         pending.clear();
         pending.resize(n, 0);
