@@ -25,7 +25,7 @@ pub(super) trait Lanes:
     fn is_finite_mask(self) -> Self::Mask;
     /// `a` where `mask` is set, else `b`.
     fn select(mask: Self::Mask, a: Self, b: Self) -> Self;
-    /// `self * a + b`, rounded once.
+    /// `self * a + b`, rounded once where the target has FMA (as glam and wide both do), else twice.
     fn mul_add(self, a: Self, b: Self) -> Self;
     /// The mask whose lane `j` is `f(j)`.
     fn mask_from_fn(f: impl Fn(usize) -> bool) -> Self::Mask;
