@@ -1,7 +1,8 @@
 //! Packet traversal of the two-level BVH for coherent packets of 64 rays.
 //!
 //! The algorithm is ranged packet traversal (Wald et al. 2007; Overbeck et al. 2008) over 4-wide
-//! nodes, in chunks of four lanes (one SSE register per quantity):
+//! nodes, in chunks of eight lanes (one AVX register per quantity on `x86-64-v3`, two SSE
+//! registers without AVX):
 //! 1. **Interval culling.** When every lane's direction has the same sign on each axis, the packet
 //!    is bounded by intervals of origins and inverse directions; one interval-arithmetic slab test
 //!    per node rejects the children that no lane can enter (4 children at once).
@@ -37,14 +38,52 @@ use super::top::{InstanceData, TopLevel};
 use super::ROBUST;
 use crate::geometry::triangle::{intersect, intersect_shared, PreTriangle, SharedOrigin};
 use crate::ray::{HitCandidate, HitFilter, HitPacket, RayPacket, INVALID_ID, PACKET_SIZE};
-use glam::{BVec4A, Vec3A, Vec4};
+use glam::{Vec3A, Vec4};
+use wide::{f32x8, i32x8};
 
-/// Chunks of four lanes per packet.
-pub const CHUNKS: usize = PACKET_SIZE / 4;
+/// Lanes per chunk.
+const W: usize = 8;
+/// Chunks of [`W`] lanes per packet.
+pub const CHUNKS: usize = PACKET_SIZE / W;
 /// Packets with at most this many active (unfinished) lanes are traced one ray at a time.
 pub const SINGLE_RAY_THRESHOLD: u32 = 3;
 
-type Chunks = [Vec4; CHUNKS];
+/// One value of each lane of a chunk. Its arithmetic is IEEE lane by lane, as the single-ray
+/// code's: a lane gets the same bits in either.
+type Chunk = f32x8;
+type Chunks = [Chunk; CHUNKS];
+/// A packet row (`[f32; PACKET_SIZE]`) seen chunk by chunk.
+type RowChunks = [[f32; W]; CHUNKS];
+
+/// The chunks of the packet row `row`.
+#[inline(always)]
+fn row_chunks(row: &[f32; PACKET_SIZE]) -> &RowChunks {
+    bytemuck::cast_ref(row)
+}
+
+/// Lane `j` of `v`.
+#[inline(always)]
+fn lane(v: &Chunk, j: usize) -> f32 {
+    v.as_array()[j]
+}
+
+/// The smallest of the lanes, and the largest.
+#[inline(always)]
+fn min_lane(v: Chunk) -> f32 {
+    v.to_array().into_iter().fold(f32::INFINITY, f32::min)
+}
+
+#[inline(always)]
+fn max_lane(v: Chunk) -> f32 {
+    v.to_array().into_iter().fold(f32::NEG_INFINITY, f32::max)
+}
+
+/// The lane mask whose lane `j` is set where bit `j` of `bits` is.
+#[inline(always)]
+fn lane_mask(bits: u32) -> Chunk {
+    let lane_bits = i32x8::new([1, 2, 4, 8, 16, 32, 64, 128]);
+    bytemuck::cast((i32x8::splat(bits as i32) & lane_bits).simd_eq(lane_bits))
+}
 
 /// The packet's rays in one space (world, or an object's space), with interval bounds.
 struct Geom {
@@ -77,18 +116,18 @@ struct State {
 }
 
 #[inline(always)]
-fn safe_inv4(d: Vec4) -> Vec4 {
+fn safe_inv(d: Chunk) -> Chunk {
     const TINY: f32 = 1e-30;
-    let small = d.abs().cmplt(Vec4::splat(TINY));
-    Vec4::ONE / Vec4::select(small, Vec4::splat(TINY).copysign(d), d)
+    let small = d.abs().simd_lt(Chunk::splat(TINY));
+    Chunk::splat(1.0) / small.select(Chunk::splat(TINY).copysign(d), d)
 }
 
 impl Geom {
     fn zeroed() -> Self {
         Geom {
-            o: [[Vec4::ZERO; CHUNKS]; 3],
-            d: [[Vec4::ZERO; CHUNKS]; 3],
-            id: [[Vec4::ZERO; CHUNKS]; 3],
+            o: [[Chunk::ZERO; CHUNKS]; 3],
+            d: [[Chunk::ZERO; CHUNKS]; 3],
+            id: [[Chunk::ZERO; CHUNKS]; 3],
             neg: [false; 3],
             o_lo: [0.0; 3],
             o_hi: [0.0; 3],
@@ -103,28 +142,28 @@ impl Geom {
     fn finish(&mut self, lo: usize, hi: usize) -> bool {
         for a in 0..3 {
             let mut neg = 0u64;
-            let mut olo = Vec4::splat(f32::INFINITY);
-            let mut ohi = Vec4::splat(f32::NEG_INFINITY);
+            let mut olo = Chunk::splat(f32::INFINITY);
+            let mut ohi = Chunk::splat(f32::NEG_INFINITY);
             let mut ilo = olo;
             let mut ihi = ohi;
             for c in lo..=hi {
-                let id = safe_inv4(self.d[a][c]);
+                let id = safe_inv(self.d[a][c]);
                 self.id[a][c] = id;
-                neg |= (id.cmplt(Vec4::ZERO).bitmask() as u64) << (4 * (c - lo));
-                olo = olo.min(self.o[a][c]);
-                ohi = ohi.max(self.o[a][c]);
-                ilo = ilo.min(id);
-                ihi = ihi.max(id);
+                neg |= (id.simd_lt(Chunk::ZERO).to_bitmask() as u64) << (W * (c - lo));
+                olo = olo.fast_min(self.o[a][c]);
+                ohi = ohi.fast_max(self.o[a][c]);
+                ilo = ilo.fast_min(id);
+                ihi = ihi.fast_max(id);
             }
-            let all = if hi - lo + 1 >= 16 { u64::MAX } else { (1u64 << (4 * (hi - lo + 1))) - 1 };
+            let all = if hi - lo + 1 >= CHUNKS { u64::MAX } else { (1u64 << (W * (hi - lo + 1))) - 1 };
             if neg != 0 && neg != all {
                 return false;
             }
             self.neg[a] = neg != 0;
-            self.o_lo[a] = olo.min_element();
-            self.o_hi[a] = ohi.max_element();
-            self.id_lo[a] = ilo.min_element();
-            self.id_hi[a] = ihi.max_element();
+            self.o_lo[a] = min_lane(olo);
+            self.o_hi[a] = max_lane(ohi);
+            self.id_lo[a] = min_lane(ilo);
+            self.id_hi[a] = max_lane(ihi);
         }
         self.shared_origin = (0..3).all(|a| self.o_lo[a].to_bits() == self.o_hi[a].to_bits());
         true
@@ -138,13 +177,13 @@ impl Geom {
         let mut g = Geom::zeroed();
         let rows = [&p.ox.0, &p.oy.0, &p.oz.0, &p.dx.0, &p.dy.0, &p.dz.0];
         for c in lo..=hi {
-            let full = active >> (4 * c) & 0xF == 0xF;
+            let lanes = (active >> (W * c)) as u8;
             for (k, row) in rows.iter().enumerate() {
-                let v = if full {
-                    Vec4::from_slice(&row[4 * c..4 * c + 4])
+                let chunk = &row_chunks(row)[c];
+                let v = if lanes == u8::MAX {
+                    Chunk::new(*chunk)
                 } else {
-                    let lane = |j: usize| if active >> (4 * c + j) & 1 != 0 { row[4 * c + j] } else { row[fill] };
-                    Vec4::new(lane(0), lane(1), lane(2), lane(3))
+                    Chunk::new(std::array::from_fn(|j| if lanes >> j & 1 != 0 { chunk[j] } else { row[fill] }))
                 };
                 if k < 3 {
                     g.o[k][c] = v;
@@ -164,23 +203,24 @@ impl Geom {
         let (ax, ay, az) = (m.x_axis, m.y_axis, m.z_axis);
         for c in lo..=hi {
             let (x, y, z) = (self.o[0][c], self.o[1][c], self.o[2][c]);
-            g.o[0][c] = ((Vec4::splat(ax.x) * x + Vec4::splat(ay.x) * y) + Vec4::splat(az.x) * z) + Vec4::splat(t.x);
-            g.o[1][c] = ((Vec4::splat(ax.y) * x + Vec4::splat(ay.y) * y) + Vec4::splat(az.y) * z) + Vec4::splat(t.y);
-            g.o[2][c] = ((Vec4::splat(ax.z) * x + Vec4::splat(ay.z) * y) + Vec4::splat(az.z) * z) + Vec4::splat(t.z);
+            let k = Chunk::splat;
+            g.o[0][c] = ((k(ax.x) * x + k(ay.x) * y) + k(az.x) * z) + k(t.x);
+            g.o[1][c] = ((k(ax.y) * x + k(ay.y) * y) + k(az.y) * z) + k(t.y);
+            g.o[2][c] = ((k(ax.z) * x + k(ay.z) * y) + k(az.z) * z) + k(t.z);
             let (x, y, z) = (self.d[0][c], self.d[1][c], self.d[2][c]);
-            g.d[0][c] = (Vec4::splat(ax.x) * x + Vec4::splat(ay.x) * y) + Vec4::splat(az.x) * z;
-            g.d[1][c] = (Vec4::splat(ax.y) * x + Vec4::splat(ay.y) * y) + Vec4::splat(az.y) * z;
-            g.d[2][c] = (Vec4::splat(ax.z) * x + Vec4::splat(ay.z) * y) + Vec4::splat(az.z) * z;
+            g.d[0][c] = (k(ax.x) * x + k(ay.x) * y) + k(az.x) * z;
+            g.d[1][c] = (k(ax.y) * x + k(ay.y) * y) + k(az.y) * z;
+            g.d[2][c] = (k(ax.z) * x + k(ay.z) * y) + k(az.z) * z;
         }
         g
     }
 
     #[inline(always)]
     fn lane_ray(&self, i: usize, tmin: f32, tmax: f32) -> RayPre {
-        let (c, j) = (i / 4, i % 4);
+        let (c, j) = (i / W, i % W);
         RayPre::new(
-            Vec3A::new(self.o[0][c][j], self.o[1][c][j], self.o[2][c][j]),
-            Vec3A::new(self.d[0][c][j], self.d[1][c][j], self.d[2][c][j]),
+            Vec3A::new(lane(&self.o[0][c], j), lane(&self.o[1][c], j), lane(&self.o[2][c], j)),
+            Vec3A::new(lane(&self.d[0][c], j), lane(&self.d[1][c], j), lane(&self.d[2][c], j)),
             tmin,
             tmax,
         )
@@ -191,13 +231,13 @@ impl State {
     /// The state of the packet's lanes `active`, all in chunks `lo..=hi`; the others get an empty
     /// interval.
     fn new(p: &RayPacket, active: u64, (lo, hi): (usize, usize)) -> Self {
-        let mut tmin = [Vec4::INFINITY; CHUNKS];
-        let mut tmax = [Vec4::NEG_INFINITY; CHUNKS];
+        let mut tmin = [Chunk::splat(f32::INFINITY); CHUNKS];
+        let mut tmax = [Chunk::splat(f32::NEG_INFINITY); CHUNKS];
         for c in lo..=hi {
-            let mut lo = [0.0f32; 4];
-            let mut hi = [0.0f32; 4];
-            for j in 0..4 {
-                let i = 4 * c + j;
+            let mut lo = [0.0f32; W];
+            let mut hi = [0.0f32; W];
+            for j in 0..W {
+                let i = W * c + j;
                 if active >> i & 1 != 0 {
                     lo[j] = p.tmin.0[i];
                     hi[j] = p.tmax.0[i];
@@ -206,45 +246,45 @@ impl State {
                     hi[j] = f32::NEG_INFINITY;
                 }
             }
-            tmin[c] = Vec4::from_array(lo);
-            tmax[c] = Vec4::from_array(hi);
+            tmin[c] = Chunk::new(lo);
+            tmax[c] = Chunk::new(hi);
         }
         let mut s = State {
             tmin,
             tmax,
             tmin_lo: 0.0,
             tmax_hi: 0.0,
-            u: [Vec4::ZERO; CHUNKS],
-            v: [Vec4::ZERO; CHUNKS],
+            u: [Chunk::ZERO; CHUNKS],
+            v: [Chunk::ZERO; CHUNKS],
             instance: [INVALID_ID; PACKET_SIZE],
             primitive: [INVALID_ID; PACKET_SIZE],
             active,
             done: 0,
             bail: false,
         };
-        s.tmin_lo = s.tmin.iter().fold(Vec4::splat(f32::INFINITY), |a, b| a.min(*b)).min_element();
+        s.tmin_lo = min_lane(s.tmin.iter().fold(Chunk::splat(f32::INFINITY), |a, b| a.fast_min(*b)));
         s.update_tmax_hi();
         s
     }
 
     #[inline(always)]
     fn update_tmax_hi(&mut self) {
-        self.tmax_hi = self.tmax.iter().fold(Vec4::splat(f32::NEG_INFINITY), |a, b| a.max(*b)).max_element();
+        self.tmax_hi = max_lane(self.tmax.iter().fold(Chunk::splat(f32::NEG_INFINITY), |a, b| a.fast_max(*b)));
     }
 
     #[inline(always)]
     fn lane_tmin(&self, i: usize) -> f32 {
-        self.tmin[i / 4][i % 4]
+        lane(&self.tmin[i / W], i % W)
     }
 
     #[inline(always)]
     fn lane_tmax(&self, i: usize) -> f32 {
-        self.tmax[i / 4][i % 4]
+        lane(&self.tmax[i / W], i % W)
     }
 
     #[inline(always)]
     fn set_lane_tmax(&mut self, i: usize, t: f32) {
-        self.tmax[i / 4][i % 4] = t;
+        self.tmax[i / W].as_mut_array()[i % W] = t;
     }
 }
 
@@ -270,8 +310,8 @@ fn interval_mask(n: &Node4, g: &Geom, s: &State) -> u32 {
 /// relative to that origin: the subtraction each chunk's test would repeat is done once per child,
 /// with the same result.
 struct BoxSplat<const SHARED: bool> {
-    n: [Vec4; 3],
-    f: [Vec4; 3],
+    n: [Chunk; 3],
+    f: [Chunk; 3],
 }
 
 impl<const SHARED: bool> BoxSplat<SHARED> {
@@ -279,29 +319,31 @@ impl<const SHARED: bool> BoxSplat<SHARED> {
     fn new(node: &Node4, k: usize, g: &Geom) -> Self {
         let lo = [node.min_x[k], node.min_y[k], node.min_z[k]];
         let hi = [node.max_x[k], node.max_y[k], node.max_z[k]];
-        let mut b = BoxSplat { n: [Vec4::ZERO; 3], f: [Vec4::ZERO; 3] };
+        let mut b = BoxSplat { n: [Chunk::ZERO; 3], f: [Chunk::ZERO; 3] };
         for a in 0..3 {
             let (n, f) = if g.neg[a] { (hi[a], lo[a]) } else { (lo[a], hi[a]) };
             let (n, f) = if SHARED { (n - g.o_lo[a], f - g.o_lo[a]) } else { (n, f) };
-            b.n[a] = Vec4::splat(n);
-            b.f[a] = Vec4::splat(f);
+            b.n[a] = Chunk::splat(n);
+            b.f[a] = Chunk::splat(f);
         }
         b
     }
 
-    /// Slab test of chunk `c`: hit mask and entry distances. Same operations as the single-ray test.
+    /// Slab test of chunk `c`: the lanes that hit, and their entry distances (`+inf` in the other
+    /// lanes). Same operations as the single-ray test.
     #[inline(always)]
-    fn test(&self, g: &Geom, s: &State, c: usize) -> (u32, Vec4) {
-        let rel = |plane: Vec4, a: usize| if SHARED { plane } else { plane - g.o[a][c] };
+    fn test(&self, g: &Geom, s: &State, c: usize) -> (u32, Chunk) {
+        let rel = |plane: Chunk, a: usize| if SHARED { plane } else { plane - g.o[a][c] };
         let tnx = rel(self.n[0], 0) * g.id[0][c];
         let tny = rel(self.n[1], 1) * g.id[1][c];
         let tnz = rel(self.n[2], 2) * g.id[2][c];
         let tfx = rel(self.f[0], 0) * g.id[0][c];
         let tfy = rel(self.f[1], 1) * g.id[1][c];
         let tfz = rel(self.f[2], 2) * g.id[2][c];
-        let tnear = tnx.max(tny).max(tnz.max(s.tmin[c]));
-        let tfar = tfx.min(tfy).min(tfz.min(s.tmax[c]));
-        (tnear.cmple(tfar * ROBUST).bitmask(), tnear)
+        let tnear = tnx.fast_max(tny).fast_max(tnz.fast_max(s.tmin[c]));
+        let tfar = tfx.fast_min(tfy).fast_min(tfz.fast_min(s.tmax[c]));
+        let hit = tnear.simd_le(tfar * Chunk::splat(ROBUST));
+        (hit.to_bitmask(), hit.select(tnear, Chunk::splat(f32::INFINITY)))
     }
 }
 
@@ -310,7 +352,7 @@ struct Entry {
     r: u32,
     lo: u8,
     hi: u8,
-    mask: u16,
+    mask: u8,
 }
 
 /// Traverses `bvh` with the chunks `lo..=hi` of the packet. `leaf(first, count, chunk_mask, state)`
@@ -319,7 +361,7 @@ struct Entry {
 ///
 /// `SHARED` must equal `g.shared_origin` (see [`BoxSplat`]).
 #[inline(always)]
-fn traverse<const SHARED: bool, F: FnMut(u32, u32, u16, &mut State) -> bool>(
+fn traverse<const SHARED: bool, F: FnMut(u32, u32, u8, &mut State) -> bool>(
     bvh: &Bvh4,
     g: &Geom,
     s: &mut State,
@@ -353,13 +395,7 @@ fn traverse<const SHARED: bool, F: FnMut(u32, u32, u16, &mut State) -> bool>(
             for c in elo..=ehi {
                 let (hm, tn) = b.test(g, s, c);
                 if hm != 0 {
-                    let mut t = f32::INFINITY;
-                    for j in 0..4 {
-                        if hm >> j & 1 != 0 {
-                            t = t.min(tn[j]);
-                        }
-                    }
-                    first = Some((c, t));
+                    first = Some((c, min_lane(tn)));
                     break;
                 }
             }
@@ -395,19 +431,14 @@ fn traverse<const SHARED: bool, F: FnMut(u32, u32, u16, &mut State) -> bool>(
     false
 }
 
-#[inline(always)]
-fn lane_mask4(bits: u32) -> BVec4A {
-    BVec4A::new(bits & 1 != 0, bits & 2 != 0, bits & 4 != 0, bits & 8 != 0)
-}
-
 /// Tests the chunks in `mask` against one triangle: the hit mask and `(t, u, v)` per chunk is
 /// handed to `on_hit`.
 #[inline(always)]
-fn leaf_triangle<H: FnMut(usize, u32, Vec4, Vec4, Vec4, &mut State)>(
+fn leaf_triangle<H: FnMut(usize, u32, Chunk, Chunk, Chunk, &mut State)>(
     g: &Geom,
     s: &mut State,
     tri: &PreTriangle,
-    mask: u16,
+    mask: u8,
     mut on_hit: H,
 ) {
     let mut m = mask as u32;
@@ -420,12 +451,12 @@ fn leaf_triangle<H: FnMut(usize, u32, Vec4, Vec4, Vec4, &mut State)>(
             Some(so) => intersect_shared(so, d, tri),
             None => intersect([g.o[0][c], g.o[1][c], g.o[2][c]], d, tri),
         };
-        let hit = u.cmpge(Vec4::ZERO)
-            & v.cmpge(Vec4::ZERO)
-            & (u + v).cmple(Vec4::ONE)
-            & t.cmpgt(s.tmin[c])
-            & t.cmplt(s.tmax[c]);
-        let bits = hit.bitmask();
+        let hit = u.simd_ge(Chunk::ZERO)
+            & v.simd_ge(Chunk::ZERO)
+            & (u + v).simd_le(Chunk::splat(1.0))
+            & t.simd_gt(s.tmin[c])
+            & t.simd_lt(s.tmax[c]);
+        let bits = hit.to_bitmask();
         if bits != 0 {
             on_hit(c, bits, t, u, v, s);
         }
@@ -478,19 +509,19 @@ fn intersect_object_with<const SHARED: bool>(
                     while b != 0 {
                         let j = b.trailing_zeros() as usize;
                         b &= b - 1;
-                        if !obj.solid_at(primitive, u[j], v[j]) {
+                        if !obj.solid_at(primitive, lane(&u, j), lane(&v, j)) {
                             bits &= !(1 << j);
                             continue;
                         }
                         let Some(f) = filter else { continue };
                         let cand = HitCandidate {
-                            t: t[j],
-                            u: u[j],
-                            v: v[j],
+                            t: lane(&t, j),
+                            u: lane(&u, j),
+                            v: lane(&v, j),
                             instance: inst_id,
                             object: object_id,
                             primitive,
-                            lane: (4 * c + j) as u32,
+                            lane: (W * c + j) as u32,
                         };
                         if !f(&cand) {
                             bits &= !(1 << j);
@@ -500,16 +531,16 @@ fn intersect_object_with<const SHARED: bool>(
                         return;
                     }
                 }
-                let hm = lane_mask4(bits);
-                s.tmax[c] = Vec4::select(hm, t, s.tmax[c]);
-                s.u[c] = Vec4::select(hm, u, s.u[c]);
-                s.v[c] = Vec4::select(hm, v, s.v[c]);
+                let hm = lane_mask(bits);
+                s.tmax[c] = hm.select(t, s.tmax[c]);
+                s.u[c] = hm.select(u, s.u[c]);
+                s.v[c] = hm.select(v, s.v[c]);
                 let mut b = bits;
                 while b != 0 {
                     let j = b.trailing_zeros() as usize;
                     b &= b - 1;
-                    s.instance[4 * c + j] = inst_id;
-                    s.primitive[4 * c + j] = primitive;
+                    s.instance[W * c + j] = inst_id;
+                    s.primitive[W * c + j] = primitive;
                 }
                 any = true;
             });
@@ -567,19 +598,19 @@ fn occluded_object_with<const SHARED: bool>(
                     while b != 0 {
                         let j = b.trailing_zeros() as usize;
                         b &= b - 1;
-                        if !obj.solid_at(primitive, u[j], v[j]) {
+                        if !obj.solid_at(primitive, lane(&u, j), lane(&v, j)) {
                             bits &= !(1 << j);
                             continue;
                         }
                         let Some(f) = filter else { continue };
                         let cand = HitCandidate {
-                            t: t[j],
-                            u: u[j],
-                            v: v[j],
+                            t: lane(&t, j),
+                            u: lane(&u, j),
+                            v: lane(&v, j),
                             instance: inst_id,
                             object: object_id,
                             primitive,
-                            lane: (4 * c + j) as u32,
+                            lane: (W * c + j) as u32,
                         };
                         if !f(&cand) {
                             bits &= !(1 << j);
@@ -589,8 +620,8 @@ fn occluded_object_with<const SHARED: bool>(
                         return;
                     }
                 }
-                s.tmax[c] = Vec4::select(lane_mask4(bits), Vec4::NEG_INFINITY, s.tmax[c]);
-                s.done |= (bits as u64) << (4 * c);
+                s.tmax[c] = lane_mask(bits).select(Chunk::splat(f32::NEG_INFINITY), s.tmax[c]);
+                s.done |= (bits as u64) << (W * c);
                 any = true;
             });
         }
@@ -610,18 +641,18 @@ fn occluded_object_with<const SHARED: bool>(
 }
 
 fn chunk_range(mask: u64) -> (usize, usize) {
-    let lo = mask.trailing_zeros() as usize / 4;
-    let hi = (63 - mask.leading_zeros() as usize) / 4;
+    let lo = mask.trailing_zeros() as usize / W;
+    let hi = (63 - mask.leading_zeros() as usize) / W;
     (lo, hi)
 }
 
 /// The chunk mask of chunks `lo..=hi`.
-fn chunk_mask(lo: usize, hi: usize) -> u16 {
-    ((1u32 << (hi + 1)) - (1u32 << lo)) as u16
+fn chunk_mask(lo: usize, hi: usize) -> u8 {
+    ((1u32 << (hi + 1)) - (1u32 << lo)) as u8
 }
 
-fn mask_range(mask: u16) -> (usize, usize) {
-    (mask.trailing_zeros() as usize, 15 - mask.leading_zeros() as usize)
+fn mask_range(mask: u8) -> (usize, usize) {
+    (mask.trailing_zeros() as usize, CHUNKS - 1 - mask.leading_zeros() as usize)
 }
 
 /// The lanes of `active` grouped by the octant of their direction (bit `a` set: negative along
@@ -641,11 +672,11 @@ fn octants(p: &RayPacket, active: u64) -> [u64; 8] {
 }
 
 /// Lanes of chunks in `mask` that are active and not done.
-fn lanes_of(mask: u16, s: &State) -> u64 {
+fn lanes_of(mask: u8, s: &State) -> u64 {
     let mut lanes = 0u64;
     for c in 0..CHUNKS {
         if mask >> c & 1 != 0 {
-            lanes |= 0xF << (4 * c);
+            lanes |= 0xFF << (W * c);
         }
     }
     lanes & s.active & !s.done
@@ -721,7 +752,7 @@ fn intersect_lanes(
     }
     let mut s = State::new(p, active, (lo, hi));
     // The packet's chunks `mask` against instance `inst_id`.
-    let visit = |inst_id: u32, mask: u16, s: &mut State| {
+    let visit = |inst_id: u32, mask: u8, s: &mut State| {
         let inst: &InstanceData = &top.instances[inst_id as usize];
         let obj = &objects[inst.object as usize];
         let (clo, chi) = mask_range(mask);
@@ -747,12 +778,17 @@ fn intersect_lanes(
             let i = m.trailing_zeros() as usize;
             m &= m - 1;
             let mut r = lane_in_object(&g, og.as_ref(), inst, p, i, s.lane_tmin(i), s.lane_tmax(i));
-            let (c, j) = (i / 4, i % 4);
-            let mut h = HitState { u: s.u[c][j], v: s.v[c][j], instance: s.instance[i], primitive: s.primitive[i] };
+            let (c, j) = (i / W, i % W);
+            let mut h = HitState {
+                u: lane(&s.u[c], j),
+                v: lane(&s.v[c], j),
+                instance: s.instance[i],
+                primitive: s.primitive[i],
+            };
             single::intersect_object(obj, inst_id, inst.object, &mut r, &mut h, filter, i as u32);
             s.set_lane_tmax(i, r.tmax);
-            s.u[c][j] = h.u;
-            s.v[c][j] = h.v;
+            s.u[c].as_mut_array()[j] = h.u;
+            s.v[c].as_mut_array()[j] = h.v;
             s.instance[i] = h.instance;
             s.primitive[i] = h.primitive;
         }
@@ -773,11 +809,12 @@ fn intersect_lanes(
     while m != 0 {
         let i = m.trailing_zeros() as usize;
         m &= m - 1;
-        let (c, j) = (i / 4, i % 4);
+        let (c, j) = (i / W, i % W);
         if s.instance[i] == INVALID_ID {
             write_lane(out, i, f32::INFINITY, 0.0, 0.0, INVALID_ID, INVALID_ID);
         } else {
-            write_lane(out, i, s.tmax[c][j], s.u[c][j], s.v[c][j], s.instance[i], s.primitive[i]);
+            let (t, u, v) = (lane(&s.tmax[c], j), lane(&s.u[c], j), lane(&s.v[c], j));
+            write_lane(out, i, t, u, v, s.instance[i], s.primitive[i]);
         }
     }
 }
@@ -839,7 +876,7 @@ fn occluded_lanes(
     let mut s = State::new(p, active, (lo, hi));
     // The packet's chunks `mask` against instance `inst_id`: `true` ends the traversal (every lane
     // occluded, or few enough left to finish one by one).
-    let visit = |inst_id: u32, mask: u16, s: &mut State| -> bool {
+    let visit = |inst_id: u32, mask: u8, s: &mut State| -> bool {
         let inst: &InstanceData = &top.instances[inst_id as usize];
         let obj = &objects[inst.object as usize];
         let (clo, chi) = mask_range(mask);

@@ -1,7 +1,7 @@
 //! The ray-triangle test (Möller-Trumbore) and the precomputed triangle layout the BVH leaves use.
 //!
-//! Invariant: [`intersect`] is generic over the lane type (`f32` for single rays, `glam::Vec4` for
-//! four packet lanes) and performs the same IEEE operations in the same order for both, with no
+//! Invariant: [`intersect`] is generic over the lane type (`f32` for single rays, `wide::f32x8` for
+//! a chunk of eight packet lanes, `glam::Vec4` for four) and performs the same IEEE operations in the same order for both, with no
 //! fused multiply-add, so a triangle gives bit-identical `t`, `u`, `v` on every traversal path.
 //! Acceptance ([`accept`] and its SIMD twin in the packet code) uses only comparisons, never
 //! further arithmetic except the single `u + v`, which is also the same everywhere.
@@ -30,6 +30,13 @@ impl Arith for glam::Vec4 {
     #[inline(always)]
     fn splat(v: f32) -> Self {
         glam::Vec4::splat(v)
+    }
+}
+
+impl Arith for wide::f32x8 {
+    #[inline(always)]
+    fn splat(v: f32) -> Self {
+        wide::f32x8::splat(v)
     }
 }
 
@@ -222,5 +229,18 @@ mod tests {
         assert_eq!(s.0.to_bits(), sh.0.w.to_bits());
         assert_eq!(s.1.to_bits(), sh.1.x.to_bits());
         assert_eq!(s.2.to_bits(), sh.2.y.to_bits());
+        // Eight lanes, each with its own direction, as the packet traversal's chunks.
+        let dirs: [[f32; 3]; 8] = std::array::from_fn(|j| [0.01 + 0.03 * j as f32, 0.05 - 0.02 * j as f32, 1.0]);
+        let row = |a: usize| wide::f32x8::new(dirs.map(|d| d[a]));
+        let d8 = [row(0), row(1), row(2)];
+        let wide = intersect(o.map(wide::f32x8::splat), d8, &tri);
+        let wide_shared = intersect_shared(&so, d8, &tri);
+        for (j, d) in dirs.iter().enumerate() {
+            let s = intersect(o, *d, &tri);
+            for got in [wide, wide_shared] {
+                let got = [got.0, got.1, got.2].map(|v| v.to_array()[j].to_bits());
+                assert_eq!(got, [s.0.to_bits(), s.1.to_bits(), s.2.to_bits()], "lane {j}");
+            }
+        }
     }
 }
