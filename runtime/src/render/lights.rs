@@ -10,7 +10,7 @@ use super::world::{InstanceShadows, LightSource, Material, ShadowKind, World, DE
 use crate::ray::{HitCandidate, HitPacket, Ray, RayPacket, PACKET_SIZE};
 use crate::shading::{fill1, fill3, get_row, put3, put_row, varying_rows, with_filled_batch, LightKind};
 use glam::{Vec3A, Vec4};
-use rtsl_compiler::back::jit::{light_in_cone, HostLight, LightLanes, ParamSlot, MAX_LIGHTS};
+use rtsl_compiler::back::jit::{light_in_cone, HostLight, LightLanes, MAX_LIGHTS};
 use std::cell::RefCell;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Mutex, PoisonError};
@@ -339,15 +339,21 @@ fn invariant_light_row(
     template
 }
 
-/// A light shader's `__nondiffuse` and `__nonspecular` outputs, where it has them as floats.
-fn light_flag_slots(program: &crate::shading::ShaderProgram) -> [Option<ParamSlot>; 2] {
+/// Where a light shader leaves one of its light flags.
+#[derive(Clone, Copy)]
+struct FlagSlot {
+    offset: usize,
+    varying: bool,
+}
+
+/// A light shader's `__nondiffuse` and `__nonspecular` outputs, where it has them as floats. (Only
+/// where they are, not the whole `ParamSlot`: cloned for every light of every batch, its `Option`
+/// moves were among the hottest stores of the kitchen's light batches.)
+fn light_flag_slots(program: &crate::shading::ShaderProgram) -> [Option<FlagSlot>; 2] {
     ["__nondiffuse", "__nonspecular"].map(|name| {
-        program
-            .layout()
-            .param(name)
-            .map(|(_, slot)| slot)
-            .filter(|slot| slot.components == 1 && slot.len == 1 && !slot.string)
-            .cloned()
+        let (_, slot) = program.layout().param(name)?;
+        (slot.components == 1 && slot.len == 1 && !slot.string)
+            .then_some(FlagSlot { offset: slot.offset, varying: slot.varying })
     })
 }
 
