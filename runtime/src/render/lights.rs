@@ -175,10 +175,10 @@ fn eval_light_lanes(
         });
         let lane3 = |first: usize, l: usize| Vec3A::new(rows[first][l], rows[first + 1][l], rows[first + 2][l]);
         // Shadows: which lanes need a ray, then one packet (or a walk per ray).
-        attenuation[..n.div_ceil(4) * 4].fill(Vec3A::ONE);
+        fill_attenuation(attenuation, n.div_ceil(4) * 4, Vec3A::ONE);
         let mut pending = 0u64;
         if !ambient && light.shadows {
-            // As `RayPacket::new()` in the lanes this batch writes (the others are as new).
+            // As `RayPacket::new()` in the lanes this batch writes (no other lane is active or read).
             reset_packet_lanes(packet, n.div_ceil(4) * 4);
             let distant = light.kind == LightKind::Distant;
             let mut m = shadow_packet_rows(rows, ps, lane_times, points, mask, distant, packet);
@@ -369,7 +369,10 @@ thread_local! {
 
 /// The rows [`eval_light_lanes`] works in, kept from call to call. Made afresh they were 6 KB
 /// zeroed for every light and sample of every batch however few its lanes: in the BART kitchen,
-/// whose incoherent rays make small batches, `memset` was a fifth of the instructions.
+/// whose incoherent rays make small batches, `memset` was a fifth of the instructions. Now a
+/// batch of `n` lanes reads only the chunks of four that hold them, and writes every lane below
+/// `n` before it reads it (`fresh` zeroes the padding lanes and the flags); lanes past its chunks
+/// hold whatever an earlier batch left.
 struct LightLaneRows {
     ps: [[f32; PACKET_SIZE]; 3],
     lane_times: [f32; PACKET_SIZE],
@@ -377,8 +380,6 @@ struct LightLaneRows {
     flags: [[f32; PACKET_SIZE]; 2],
     attenuation: [Vec3A; PACKET_SIZE],
     packet: RayPacket,
-    /// Every lane from this one on holds its fresh value (zero; one for `attenuation`).
-    written: usize,
 }
 
 /// `packet` as `RayPacket::new()` in its first `lanes` lanes, and no lane active.
@@ -386,9 +387,32 @@ fn reset_packet_lanes(packet: &mut RayPacket, lanes: usize) {
     let p = packet;
     for row in [&mut p.ox, &mut p.oy, &mut p.oz, &mut p.dx, &mut p.dy, &mut p.dz, &mut p.tmin, &mut p.tmax, &mut p.time]
     {
-        row.0[..lanes.min(PACKET_SIZE)].fill(0.0);
+        fill_lanes(&mut row.0, lanes, 0.0);
     }
     p.active = 0;
+}
+
+/// Sets the first `lanes` lanes of `row` to `value`, and the rest of their chunk of 8 (lanes the
+/// caller does not read), a 32-byte store a chunk. A small batch's rows are a few lanes long, and a
+/// `memset` call for each cost more than the stores (in the BART kitchen, a light's evaluation
+/// reset a dozen rows); the value is hidden from the optimiser, which would otherwise make those
+/// stores the very `memset` calls again.
+#[inline(always)]
+fn fill_lanes(row: &mut [f32; PACKET_SIZE], lanes: usize, value: f32) {
+    let chunks: &mut [wide::f32x8; PACKET_SIZE / 8] = bytemuck::cast_mut(row);
+    let value = std::hint::black_box(wide::f32x8::splat(value));
+    for chunk in &mut chunks[..lanes.div_ceil(8).min(PACKET_SIZE / 8)] {
+        *chunk = value;
+    }
+}
+
+/// [`fill_lanes`] for the attenuation, a 16-byte store a lane.
+#[inline(always)]
+fn fill_attenuation(row: &mut [Vec3A; PACKET_SIZE], lanes: usize, value: Vec3A) {
+    let value = std::hint::black_box(value);
+    for lane in &mut row[..lanes.min(PACKET_SIZE)] {
+        *lane = value;
+    }
 }
 
 impl Default for LightLaneRows {
@@ -400,23 +424,28 @@ impl Default for LightLaneRows {
             flags: [[0.0; PACKET_SIZE]; 2],
             attenuation: [Vec3A::ONE; PACKET_SIZE],
             packet: RayPacket::new(),
-            written: 0,
         }
     }
 }
 
 impl LightLaneRows {
-    /// These rows as fresh ones (every lane zero, `attenuation` one), for a batch of `n` lanes:
-    /// only the lanes earlier batches wrote are reset, and the new batch writes the chunks of
-    /// four that hold its `n` lanes.
+    /// These rows for a batch of `n` lanes: in every row the padding lanes of its last chunk of
+    /// four are zero, and so are the flags in all its lanes (a light shader without them leaves
+    /// them). Each evaluation writes the other lanes below `n` before reading them (the points and
+    /// times once, the light's rows and flags every sample), and the attenuation and the packet
+    /// are reset every sample.
     fn fresh(&mut self, n: usize) -> &mut LightLaneRows {
-        let written = self.written.min(PACKET_SIZE);
-        for row in self.ps.iter_mut().chain([&mut self.lane_times]).chain(&mut self.rows).chain(&mut self.flags) {
-            row[..written].fill(0.0);
+        let n = n.min(PACKET_SIZE);
+        let chunked = n.div_ceil(4) * 4;
+        let zero = std::hint::black_box(0.0f32);
+        for row in self.ps.iter_mut().chain([&mut self.lane_times]).chain(&mut self.rows) {
+            for lane in &mut row[n..chunked] {
+                *lane = zero;
+            }
         }
-        self.attenuation[..written].fill(Vec3A::ONE);
-        reset_packet_lanes(&mut self.packet, written);
-        self.written = n.div_ceil(4).saturating_mul(4).min(PACKET_SIZE);
+        for row in &mut self.flags {
+            fill_lanes(row, chunked, 0.0);
+        }
         self
     }
 }

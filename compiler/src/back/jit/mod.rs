@@ -626,16 +626,26 @@ impl BatchData {
             self.varying.clear();
             self.varying.resize(slots * stride, 0.0);
         } else {
-            // A new stride moves every row, but a kept row is written over all the same.
+            // A new stride moves every row, but a kept row is written over all the same. The rows
+            // are zeroed a run at a time, from one kept row's padding lanes past `lanes` (which
+            // nobody fills) to the next kept row: a `memset` call per row cost more than the
+            // zeroing itself in small batches (the light batches of the BART kitchen).
             self.varying.resize(slots * stride, 0.0);
-            for (slot, row) in self.varying.chunks_exact_mut(stride).enumerate() {
-                if slot < 256 && kept[slot / 64] >> (slot % 64) & 1 != 0 {
-                    // The padding lanes past `lanes`, which nobody fills.
-                    row[lanes..].fill(0.0);
-                } else {
-                    row.fill(0.0);
+            let mut zero_from = 0;
+            for (word, bits) in kept.iter().enumerate() {
+                let mut bits = *bits;
+                while bits != 0 {
+                    let slot = 64 * word + bits.trailing_zeros() as usize;
+                    bits &= bits - 1;
+                    if slot >= slots {
+                        break;
+                    }
+                    let row = slot * stride;
+                    self.varying[zero_from..row].fill(0.0);
+                    zero_from = row + lanes;
                 }
             }
+            self.varying[zero_from..].fill(0.0);
         }
         // Only the derivatives the code reads (`GlobalSlot::derivs`) are zeroed: the others' rows
         // are never read, and zeroing all of them was most of a batch's reset.
@@ -836,6 +846,35 @@ fn define_trampoline(jit: &mut JITModule, id: cranelift_module::FuncId, helper: 
 
 #[cfg(test)]
 mod tests {
+    use super::{BatchData, Layout};
+    use std::sync::Arc;
+
+    /// A reset zeroes every varying row but the kept ones, whose padding lanes past the batch's
+    /// lanes it zeroes too, whatever the batch held and whatever its earlier size.
+    #[test]
+    fn a_reset_zeroes_all_but_the_kept_rows_lanes() {
+        let layout = Arc::new(Layout { varying_slots: 70, ..Layout::default() });
+        let mut batch = BatchData::new(layout, 64);
+        let kept = [0..1, 5..8, 63..66, 69..75];
+        for lanes in [64, 5, 1, 8, 13, 64] {
+            // Sized for `lanes` first, so that every value the second reset finds is nonzero.
+            batch.reset_except(lanes, &kept);
+            for (i, v) in batch.raw_mut().varying.iter_mut().enumerate() {
+                *v = 1.0 + i as f32;
+            }
+            batch.reset_except(lanes, &kept);
+            let stride = lanes.div_ceil(4) * 4;
+            let raw = batch.raw_mut();
+            assert_eq!(raw.varying.len(), 70 * stride);
+            for (slot, row) in raw.varying.chunks_exact(stride).enumerate() {
+                let is_kept = kept.iter().any(|r| r.contains(&slot));
+                for (lane, v) in row.iter().enumerate() {
+                    let zeroed = !is_kept || lane >= lanes;
+                    assert_eq!(*v == 0.0, zeroed, "{lanes} lanes: slot {slot}, lane {lane} is {v}");
+                }
+            }
+        }
+    }
 
     /// Reset and interned again, in reused buffers, strings keep one handle each and read back
     /// as themselves; the constants keep theirs.
