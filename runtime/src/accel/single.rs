@@ -1,8 +1,9 @@
 //! Single-ray traversal of the two-level BVH, and the brute-force reference.
 //!
 //! Object BVHs are traversed through their 8-wide form ([`super::bvh8`]), the top level through
-//! its 4-wide nodes; one generic loop serves both (`WideNode`). Each group of four child boxes is
-//! tested with one SSE slab test (glam's `Vec4`); hit children are visited nearest first, and
+//! its 4-wide nodes; one generic loop serves both (`WideNode`). An 8-wide node's boxes are tested
+//! with one eight-lane slab test (wide's `f32x8`: one AVX register on `x86-64-v3`), a 4-wide
+//! node's with one SSE test (glam's `Vec4`), the same operations; hit children are visited nearest first, and
 //! popped entries farther than the current closest hit are skipped. This is the path for
 //! incoherent rays and the fallback of packet traversal.
 //!
@@ -19,6 +20,7 @@ use super::{prefetch, safe_inv, ROBUST};
 use crate::geometry::triangle::{accept, intersect, intersect_accept};
 use crate::ray::{Hit, HitCandidate, HitFilter, Ray, INVALID_ID};
 use glam::{Vec3A, Vec4};
+use wide::f32x8;
 
 /// Traversal stack depth that fits on the machine stack; deeper BVHs use a heap stack.
 pub(crate) const STACK: usize = 96;
@@ -28,16 +30,17 @@ pub(crate) const STACK: usize = 96;
 pub(crate) struct RayPre {
     pub o: [f32; 3],
     pub d: [f32; 3],
-    ox: Vec4,
-    oy: Vec4,
-    oz: Vec4,
-    idx: Vec4,
-    idy: Vec4,
-    idz: Vec4,
+    /// The origin and inverse direction splatted, eight lanes (the first four for 4-wide nodes).
+    ox: f32x8,
+    oy: f32x8,
+    oz: f32x8,
+    idx: f32x8,
+    idy: f32x8,
+    idz: f32x8,
     /// The inverse direction times [`ROBUST`], for the far planes (see [`slab4`]).
-    fidx: Vec4,
-    fidy: Vec4,
-    fidz: Vec4,
+    fidx: f32x8,
+    fidy: f32x8,
+    fidz: f32x8,
     neg: [bool; 3],
     pub tmin: f32,
     pub tmax: f32,
@@ -52,15 +55,15 @@ impl RayPre {
         RayPre {
             o: o.to_array(),
             d: d.to_array(),
-            ox: Vec4::splat(o.x),
-            oy: Vec4::splat(o.y),
-            oz: Vec4::splat(o.z),
-            idx: Vec4::splat(id[0]),
-            idy: Vec4::splat(id[1]),
-            idz: Vec4::splat(id[2]),
-            fidx: Vec4::splat(id[0] * ROBUST),
-            fidy: Vec4::splat(id[1] * ROBUST),
-            fidz: Vec4::splat(id[2] * ROBUST),
+            ox: f32x8::splat(o.x),
+            oy: f32x8::splat(o.y),
+            oz: f32x8::splat(o.z),
+            idx: f32x8::splat(id[0]),
+            idy: f32x8::splat(id[1]),
+            idz: f32x8::splat(id[2]),
+            fidx: f32x8::splat(id[0] * ROBUST),
+            fidy: f32x8::splat(id[1] * ROBUST),
+            fidz: f32x8::splat(id[2] * ROBUST),
             neg: [id[0] < 0.0, id[1] < 0.0, id[2] < 0.0],
             tmin,
             tmax,
@@ -133,15 +136,8 @@ impl WideNode for Node8 {
 
     #[inline(always)]
     fn hits(&self, r: &RayPre) -> (u32, [f32; 8]) {
-        let half = |h: usize| {
-            slab4([&self.min_x[h], &self.max_x[h], &self.min_y[h], &self.max_y[h], &self.min_z[h], &self.max_z[h]], r)
-        };
-        let (m0, t0) = half(0);
-        let (m1, t1) = half(1);
-        let mut all = [0.0; 8];
-        t0.write_to_slice(&mut all[..4]);
-        t1.write_to_slice(&mut all[4..]);
-        (m0 | m1 << 4, all)
+        let (mask, t) = slab8([&self.min_x, &self.max_x, &self.min_y, &self.max_y, &self.min_z, &self.max_z], r);
+        (mask, t.to_array())
     }
 
     #[inline(always)]
@@ -164,15 +160,51 @@ fn slab4(b: [&[f32; 4]; 6], r: &RayPre) -> (u32, Vec4) {
     let (nx, fx) = if r.neg[0] { (b[1], b[0]) } else { (b[0], b[1]) };
     let (ny, fy) = if r.neg[1] { (b[3], b[2]) } else { (b[2], b[3]) };
     let (nz, fz) = if r.neg[2] { (b[5], b[4]) } else { (b[4], b[5]) };
-    let tnx = (Vec4::from_array(*nx) - r.ox) * r.idx;
-    let tny = (Vec4::from_array(*ny) - r.oy) * r.idy;
-    let tnz = (Vec4::from_array(*nz) - r.oz) * r.idz;
-    let tfx = (Vec4::from_array(*fx) - r.ox) * r.fidx;
-    let tfy = (Vec4::from_array(*fy) - r.oy) * r.fidy;
-    let tfz = (Vec4::from_array(*fz) - r.oz) * r.fidz;
+    let tnx = (Vec4::from_array(*nx) - low(r.ox)) * low(r.idx);
+    let tny = (Vec4::from_array(*ny) - low(r.oy)) * low(r.idy);
+    let tnz = (Vec4::from_array(*nz) - low(r.oz)) * low(r.idz);
+    let tfx = (Vec4::from_array(*fx) - low(r.ox)) * low(r.fidx);
+    let tfy = (Vec4::from_array(*fy) - low(r.oy)) * low(r.fidy);
+    let tfz = (Vec4::from_array(*fz) - low(r.oz)) * low(r.fidz);
     let tnear = tnx.max(tny).max(tnz.max(Vec4::splat(r.tmin)));
     let tfar = tfx.min(tfy).min(tfz.min(Vec4::splat(r.tmax * ROBUST)));
     (tnear.cmple(tfar).bitmask(), tnear)
+}
+
+/// [`slab4`] of eight boxes at once (each coordinate eight floats, children 0-7), with the same
+/// operations lane by lane: `f32x8`'s `fast_min` and `fast_max` are the `minps` and `maxps` that
+/// glam's `min` and `max` are.
+#[inline(always)]
+fn slab8(b: [&[[f32; 4]; 2]; 6], r: &RayPre) -> (u32, f32x8) {
+    let row = |v: &[[f32; 4]; 2]| f32x8::new(bytemuck::cast(*v));
+    let (nx, fx) = if r.neg[0] { (b[1], b[0]) } else { (b[0], b[1]) };
+    let (ny, fy) = if r.neg[1] { (b[3], b[2]) } else { (b[2], b[3]) };
+    let (nz, fz) = if r.neg[2] { (b[5], b[4]) } else { (b[4], b[5]) };
+    let tnx = (row(nx) - r.ox) * r.idx;
+    let tny = (row(ny) - r.oy) * r.idy;
+    let tnz = (row(nz) - r.oz) * r.idz;
+    let tfx = (row(fx) - r.ox) * r.fidx;
+    let tfy = (row(fy) - r.oy) * r.fidy;
+    let tfz = (row(fz) - r.oz) * r.fidz;
+    let tnear = tnx.fast_max(tny).fast_max(tnz.fast_max(f32x8::splat(r.tmin)));
+    let tfar = tfx.fast_min(tfy).fast_min(tfz.fast_min(f32x8::splat(r.tmax * ROBUST)));
+    (tnear.simd_le(tfar).to_bitmask(), tnear)
+}
+
+/// The first four lanes of `v`.
+#[inline(always)]
+fn low(v: f32x8) -> Vec4 {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::__m128;
+        // The low half of the register (no instruction where the target has AVX).
+        Vec4::from(bytemuck::cast::<f32x8, [__m128; 2]>(v)[0])
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        let a = v.to_array();
+        Vec4::new(a[0], a[1], a[2], a[3])
+    }
 }
 
 /// Traverses `bvh` from child reference `start` (0 for the root). `leaf(first, count, ray)` is called
