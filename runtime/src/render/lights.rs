@@ -119,7 +119,7 @@ fn eval_light_lanes(
     // What the light shader left, L, Cl and Ol, a row per component, in `rows`; in `flags`,
     // RenderMan's light flags: `diffuse()` and `specular()` skip (weigh by 1 minus) a light whose
     // `__nondiffuse` / `__nonspecular` output is set, as the shader left it for each lane.
-    let flag_slots = light_flag_slots(program);
+    let flag_slots = program.light_flags;
     // Every lane of these is written below, for every sample.
     let filled =
         varying_rows([(slots.e, 3), (slots.ncomps, 1), (slots.p, 3), (slots.n, 3), (slots.ps, 3), (slots.time, 1)]);
@@ -285,7 +285,7 @@ fn invariant_light_row(
     let instance = &light.shader;
     let program = &instance.program;
     let slots = &program.slots;
-    let flag_slots = light_flag_slots(program);
+    let flag_slots = program.light_flags;
     let filled =
         varying_rows([(slots.e, 3), (slots.ncomps, 1), (slots.p, 3), (slots.n, 3), (slots.ps, 3), (slots.time, 1)]);
     // Cl and Ol (an ambient light has no L).
@@ -337,24 +337,6 @@ fn invariant_light_row(
     template.nonspecular = [flags[1]; 4];
     template.id = [id; 4];
     template
-}
-
-/// Where a light shader leaves one of its light flags.
-#[derive(Clone, Copy)]
-struct FlagSlot {
-    offset: usize,
-    varying: bool,
-}
-
-/// A light shader's `__nondiffuse` and `__nonspecular` outputs, where it has them as floats. (Only
-/// where they are, not the whole `ParamSlot`: cloned for every light of every batch, its `Option`
-/// moves were among the hottest stores of the kitchen's light batches.)
-fn light_flag_slots(program: &crate::shading::ShaderProgram) -> [Option<FlagSlot>; 2] {
-    ["__nondiffuse", "__nonspecular"].map(|name| {
-        let (_, slot) = program.layout().param(name)?;
-        (slot.components == 1 && slot.len == 1 && !slot.string)
-            .then_some(FlagSlot { offset: slot.offset, varying: slot.varying })
-    })
 }
 
 /// `light`'s index among the world's lights (`u32::MAX` if it is not one of them).

@@ -149,6 +149,9 @@ pub struct ShaderProgram {
     /// `illuminance`, `illuminate`, `solar` or `gather`. Its outputs are then functions of its
     /// parameters alone, and one lane may be run for all (an `ambientlight`, for instance).
     pub lane_invariant: bool,
+    /// For light shaders: where the code leaves its `__nondiffuse` and `__nonspecular` outputs,
+    /// where it has them as single floats (found once: every light evaluation reads them).
+    pub light_flags: [Option<FlagSlot>; 2],
     /// The front end's warnings, rendered.
     pub warnings: String,
     /// Every file the compilation read (the source and its includes), for hot reload.
@@ -251,6 +254,7 @@ impl ShaderProgram {
             slots: GlobalSlots::from_layout(code.layout()),
             light_kind: light_kind(module),
             lane_invariant: lane_invariant(module, code.layout()),
+            light_flags: light_flags(code.layout()),
             interface,
             code,
             warnings,
@@ -301,6 +305,22 @@ fn light_kind(m: &Module) -> LightKind {
         scan(&f.body, &mut kind);
     }
     kind
+}
+
+/// Where a light shader leaves one of its light flags: a float slot.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FlagSlot {
+    pub offset: usize,
+    pub varying: bool,
+}
+
+/// See [`ShaderProgram::light_flags`].
+fn light_flags(layout: &Layout) -> [Option<FlagSlot>; 2] {
+    ["__nondiffuse", "__nonspecular"].map(|name| {
+        let (_, slot) = layout.param(name)?;
+        (slot.components == 1 && slot.len == 1 && !slot.string)
+            .then_some(FlagSlot { offset: slot.offset, varying: slot.varying })
+    })
 }
 
 /// See [`ShaderProgram::lane_invariant`].
