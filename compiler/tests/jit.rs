@@ -312,6 +312,19 @@ fn loop_invariants_are_loaded_where_used_and_agree_with_the_interpreter() {
     assert!(plain.invariant_loads < shader.invariant_loads);
 }
 
+/// A compiled shader tells which built-ins that shoot rays it calls (the renderer runs a batch of
+/// a shader that traces twice, to trace its rays together), also through a user function.
+#[test]
+fn compiled_shaders_tell_which_ray_built_ins_they_call() {
+    let calls = |src: &str| jit::compile(&module(src)).expect("compiles").ray_calls();
+    assert_eq!(calls("surface plain() { Ci = Cs; Oi = Os; }"), jit::RayCalls::default());
+    let mirror =
+        calls("color seen(vector d) { return trace(P, d); } surface m() { Ci = seen(reflect(I, N)); Oi = 1; }");
+    assert_eq!(mirror, jit::RayCalls { trace: true, ..jit::RayCalls::default() });
+    let shadows = calls("surface o() { Ci = transmission(P, P + N) * (1 - occlusion(P, N, 4)); Oi = 1; }");
+    assert_eq!(shadows, jit::RayCalls { transmission: true, hemisphere: true, ..jit::RayCalls::default() });
+}
+
 #[test]
 fn float_and_triple_math() {
     check(

@@ -323,6 +323,78 @@ fn trace_sees_what_a_mirror_reflects_up_to_the_depth_limit() -> Result<(), ApiEr
     Ok(())
 }
 
+/// A floor shaded with `floor_src` (which traces), under a red plastic cube and a point light.
+fn reflecting_floor(rt: &mut Context, floor_src: &str) -> Result<(), ApiError> {
+    let plastic = rt.find_shader("plastic")?;
+    let light = rt.find_shader("pointlight")?;
+    let tracing = rt.compile_shader("floor.sl", floor_src)?;
+    rt.camera_look_at(Vec3A::new(0.0, 2.0, 7.0), Vec3A::new(0.0, 0.5, 0.0), Vec3A::Y, 45.0);
+    let floor = rt.begin_object()?;
+    rt.bind_shader(tracing)?;
+    quad(rt, [[-5.0, 0.0, 5.0], [5.0, 0.0, 5.0], [5.0, 0.0, -5.0], [-5.0, 0.0, -5.0]])?;
+    rt.end_object()?;
+    rt.instantiate_object(floor)?;
+    let boxy = rt.begin_object()?;
+    rt.bind_shader(plastic)?;
+    rt.color(0.9, 0.3, 0.2);
+    cube(rt)?;
+    rt.end_object()?;
+    rt.push_matrix();
+    rt.translate(0.0, 1.2, 0.0);
+    rt.scale(0.6, 0.6, 0.6);
+    rt.instantiate_object(boxy)?;
+    rt.pop_matrix()?;
+    rt.light_source(light, &[("intensity", ParamValue::Float(30.0)), ("from", ParamValue::Point([1.0, 5.0, 3.0]))])?;
+    Ok(())
+}
+
+/// Two reflections: the second ray's direction depends on what the first one saw, so a batch's
+/// first run (whose `trace` answers black) notes a different second ray than its second run asks.
+/// The shader also changes a global it reads (`N`), which the second run must find as it was.
+const BENT: &str = r#"
+surface bent()
+{
+    N = normalize(N + normal(0.2, 0, 0));
+    normal Nf = faceforward(normalize(N), I);
+    vector R = reflect(normalize(I), Nf);
+    color first = trace(P, R);
+    vector V = normalize(R + vector(0, comp(first, 0), 0));
+    color second = trace(P, V);
+    Oi = 1;
+    Ci = 0.5 * first + 0.25 * second + 0.25 * diffuse(Nf);
+}
+"#;
+
+/// A batch whose shader traces runs twice so that its chunks' rays are traced together
+/// (`RenderOptions::trace_ahead`): the image is the one of tracing each chunk's rays on its own,
+/// bit for bit, also where a ray depends on an earlier one's answer.
+#[test]
+fn tracing_a_batchs_rays_ahead_changes_no_pixel() -> Result<(), ApiError> {
+    for floor in [MIRROR, BENT] {
+        let mut rt = context();
+        reflecting_floor(&mut rt, floor)?;
+        let (ahead, ahead_report) = rt.render_frame()?;
+        rt.options.trace_ahead = false;
+        let (chunked, chunked_report) = rt.render_frame()?;
+        assert!(ahead == chunked, "{floor}");
+        // The floor reflects the cube: some pixels are red.
+        let red = (0..H).flat_map(|y| (0..W).map(move |x| (x, y))).filter(|&(x, y)| {
+            let p = ahead.pixel(x, y);
+            p[0] > 0.05 && p[0] > 2.0 * p[2]
+        });
+        assert!(red.count() > 20, "{floor}");
+        assert!(chunked_report.secondary_rays > u64::from(W * H) / 2, "{chunked_report}");
+        if floor == MIRROR {
+            // No ray depends on another: each is traced once either way.
+            assert_eq!(ahead_report.secondary_rays, chunked_report.secondary_rays);
+        } else {
+            // The second rays of the first runs were the wrong ones where the first rays saw red.
+            assert!(ahead_report.secondary_rays > chunked_report.secondary_rays);
+        }
+    }
+    Ok(())
+}
+
 const GLOSSY: &str = r#"
 surface glossy(float samples = 8; float cone = 0.2;)
 {

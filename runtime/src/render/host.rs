@@ -7,8 +7,9 @@
 
 use super::lights::epsilon;
 use super::lights::{eval_light, transmission_between, BatchLights};
-use super::shade::{gather_rays, mix, point_seed, trace_rays, unit, Frame};
+use super::shade::{gather_rays, mix, point_seed, trace_rays, unit, Frame, Sample};
 use super::stats::{tracing, Stats};
+use super::trace_ahead::RayLog;
 use crate::ray::Ray;
 use crate::shading::ShaderInstance;
 use crate::texture::{Grid, LookupLanes, LookupOptions, MipMap, TextureCache};
@@ -53,6 +54,9 @@ pub(crate) struct ShadeCall<'f, 'w> {
     /// The material of the surface being shaded (for the surface's own shaders and the lights
     /// that light it): what `surface()` and `displacement()` messages read.
     pub(super) material: Option<u32>,
+    /// What `trace` does with its rays: traces them, or (running a batch twice) notes them or
+    /// answers them from the notes (`trace_ahead.rs`).
+    pub(super) rays_log: RayLog,
 }
 
 /// The buffers of a [`ShadeCall`], reused from call to call: a call is made for every batch, and
@@ -157,6 +161,7 @@ impl<'f, 'w> ShadeCall<'f, 'w> {
             last_grid: None,
             textures: TextureHandles::default(),
             material: None,
+            rays_log: RayLog::Direct,
         }
     }
 
@@ -601,8 +606,7 @@ unsafe extern "C" fn host_rays(
     let times: [f32; 4] = std::array::from_fn(|l| c.lane_time(l));
     match kind {
         0 => {
-            let mut rays = Vec::new();
-            let mut lanes = Vec::new();
+            let mut requested: [Option<Ray>; 4] = [None; 4];
             for l in 0..4 {
                 if mask[l] == 0 {
                     continue;
@@ -615,19 +619,41 @@ unsafe extern "C" fn host_rays(
                 if c.depth + 1 > max_depth || dir == Vec3A::ZERO || !from.is_finite() {
                     continue;
                 }
-                rays.push(Ray::segment(from, dir, epsilon(from), f32::INFINITY).at_time(times[l]));
-                lanes.push(l);
+                requested[l] = Some(Ray::segment(from, dir, epsilon(from), f32::INFINITY).at_time(times[l]));
             }
+            let answer = |out: &mut [f32], l: usize, s: &Sample| {
+                for r in 0..3 {
+                    out[4 * r + l] = s.color[r];
+                }
+                out[12 + l] = s.depth;
+            };
+            // Lanes answered from a first run's notes need no ray now.
+            let mut left = requested;
+            match &mut c.rays_log {
+                RayLog::Direct => {}
+                RayLog::Record(noted) => {
+                    // Answered as if nothing were hit, until the second run.
+                    noted.note(requested);
+                    return;
+                }
+                RayLog::Replay(replayed) => {
+                    for (l, seen) in replayed.answers(&requested).iter().enumerate() {
+                        if let Some(s) = seen {
+                            answer(out, l, s);
+                            left[l] = None;
+                        }
+                    }
+                }
+            }
+            let (lanes, rays): (Vec<usize>, Vec<Ray>) =
+                left.iter().enumerate().filter_map(|(l, r)| Some((l, (*r)?))).unzip();
             if rays.is_empty() {
                 return;
             }
             Stats::add(&frame.stats.secondary_rays, rays.len());
             let seen = trace_rays(frame, &rays, c.depth + 1);
             for (s, l) in seen.iter().zip(lanes) {
-                for r in 0..3 {
-                    out[4 * r + l] = s.color[r];
-                }
-                out[12 + l] = s.depth;
+                answer(out, l, s);
             }
         }
         1 => {
@@ -908,10 +934,15 @@ unsafe extern "C" fn host_shader_name(ctx: *mut c_void, has_kind: u32, _kind: St
     StrRef::new(&c.text)
 }
 
-unsafe extern "C" fn host_print(_ctx: *mut c_void, text: StrRef) {
+unsafe extern "C" fn host_print(ctx: *mut c_void, text: StrRef) {
     use std::io::Write;
     // SAFETY: the table's contract.
-    let text = unsafe { text.as_str() };
+    let (c, text) = unsafe { (call(ctx), text.as_str()) };
+    if let RayLog::Record(noted) = &mut c.rays_log {
+        // A first run (`trace_ahead.rs`): the second one prints.
+        noted.silenced = true;
+        return;
+    }
     let _ = std::io::stdout().lock().write_all(text.as_bytes());
 }
 

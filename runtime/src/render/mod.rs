@@ -21,6 +21,7 @@ pub mod progressive;
 mod scratch;
 pub mod shade;
 mod stats;
+mod trace_ahead;
 mod volume;
 pub mod world;
 

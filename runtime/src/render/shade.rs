@@ -21,6 +21,7 @@ use super::lights::BatchLights;
 use super::native::{faced_against, LightSeen, NativeSurface};
 use super::primary::PrimaryRays;
 use super::stats::{tracing, ShadingTimer, Stats};
+use super::trace_ahead::RayLog;
 use super::world::{InstanceShadows, World, DEFAULT_MATERIAL};
 use crate::ray::{offset_ray_origin, Hit, HitPacket, Ray, PACKET_SIZE};
 use crate::shading::{get3, get_row, put1, put3, varying_rows, with_batch, with_filled_batch, ShaderInstance, Slot};
@@ -484,8 +485,12 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
                 }
             }
             let mut call = batch_call(frame, surface, (material_id, inst.world_from_object), group, hits, depth);
-            let table = call.table();
-            program.code.shade_with_table(batch, &table);
+            if traces_ahead(frame, program, group.len(), depth) {
+                run_tracing_ahead(frame, program, batch, &mut call, depth);
+            } else {
+                let table = call.table();
+                program.code.shade_with_table(batch, &table);
+            }
             let raw = batch.raw_mut();
             // Ci and Oi read a row at a time (no Oi: the surface's opacity).
             let lanes = group.len().min(PACKET_SIZE);
@@ -504,6 +509,52 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
             }
         });
     })
+}
+
+/// Whether a surface batch of `lanes` lanes runs twice to trace its `trace` rays together
+/// (`trace_ahead.rs`): when it has more than one chunk, its rays may go deeper, and its shader
+/// calls `trace` and none of the built-ins whose rays cost more than a second run of the shader
+/// saves (`gather`, `occlusion`, `indirectdiffuse`: the first run would trace theirs too).
+fn traces_ahead(frame: &Frame, program: &crate::shading::ShaderProgram, lanes: usize, depth: u32) -> bool {
+    let options = &frame.world.options;
+    let calls = program.code.ray_calls();
+    options.trace_ahead
+        && lanes > 4
+        && depth < options.max_ray_depth
+        && calls.trace
+        && !calls.gather
+        && !calls.hemisphere
+}
+
+/// Runs a surface batch's shader twice (`trace_ahead.rs`): a first run notes its `trace` rays,
+/// they are traced and shaded together, and a second run from the same values gets their answers.
+fn run_tracing_ahead(
+    frame: &Frame,
+    program: &crate::shading::ShaderProgram,
+    batch: &mut rtsl_compiler::back::jit::BatchData,
+    call: &mut ShadeCall,
+    depth: u32,
+) {
+    let mut saved = super::scratch::take(&SAVED_VALUES);
+    batch.save_values(&mut saved);
+    call.rays_log = RayLog::Record(Default::default());
+    let table = call.table();
+    program.code.shade_with_table(batch, &table);
+    if let RayLog::Record(noted) = std::mem::take(&mut call.rays_log) {
+        if noted.needs_replay() {
+            call.rays_log = RayLog::Replay(noted.trace(frame, depth + 1));
+            batch.restore_values(&saved);
+            let table = call.table();
+            program.code.shade_with_table(batch, &table);
+            call.rays_log = RayLog::Direct;
+        }
+    }
+    super::scratch::give(&SAVED_VALUES, saved);
+}
+
+thread_local! {
+    /// Batches' values kept for their second runs (`run_tracing_ahead`).
+    static SAVED_VALUES: RefCell<Vec<rtsl_compiler::back::jit::SavedValues>> = const { RefCell::new(Vec::new()) };
 }
 
 /// A group's hit geometry, hit by hit and (for most groups) by rows.

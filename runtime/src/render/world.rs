@@ -316,6 +316,11 @@ pub struct RenderOptions {
     /// that only wants frames and ray counts (BART playback) turns it off, and the report's
     /// shading times are then zero.
     pub time_shaders: bool,
+    /// Whether a batch of hits whose surface shader calls `trace` runs the shader twice, so that
+    /// the rays of all its chunks are traced and shaded together (`render/trace_ahead.rs`). The
+    /// images are the same either way; off, each chunk's rays are traced and shaded on their own
+    /// (kept for comparisons).
+    pub trace_ahead: bool,
 }
 
 /// The screen window as centre and half extents, the form the cameras use: screen `x` of raster
@@ -377,6 +382,7 @@ impl Default for RenderOptions {
             crop_window: None,
             pixel_filter: PixelFilter::default(),
             time_shaders: true,
+            trace_ahead: true,
         }
     }
 }

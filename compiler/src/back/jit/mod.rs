@@ -267,6 +267,21 @@ pub struct CompiledShader {
     pub invariant_loads: usize,
     /// Bytes of machine code in `module` (counted in [`live_code_bytes`] while `self` lives).
     code_bytes: usize,
+    /// The names of the helpers the code calls (sorted).
+    helpers: Vec<&'static str>,
+}
+
+/// The built-ins that shoot rays which a compiled shader calls (see [`CompiledShader::ray_calls`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct RayCalls {
+    /// `trace`.
+    pub trace: bool,
+    /// `transmission`.
+    pub transmission: bool,
+    /// `occlusion` or `indirectdiffuse`.
+    pub hemisphere: bool,
+    /// `gather`.
+    pub gather: bool,
 }
 
 impl std::fmt::Debug for CompiledShader {
@@ -295,6 +310,17 @@ unsafe impl Sync for CompiledShader {}
 impl CompiledShader {
     pub fn layout(&self) -> &Layout {
         &self.layout
+    }
+
+    /// Which of the built-ins that shoot rays the code calls.
+    pub fn ray_calls(&self) -> RayCalls {
+        let calls = |symbol: &str| self.helpers.binary_search(&symbol).is_ok();
+        RayCalls {
+            trace: calls("rtsl_h_trace"),
+            transmission: calls("rtsl_h_transmission"),
+            hemisphere: calls("rtsl_h_occlusion") || calls("rtsl_h_indirectdiffuse"),
+            gather: calls("rtsl_h_gather"),
+        }
     }
 
     /// Bytes of machine code this shader holds (its share of [`live_code_bytes`]).
@@ -582,6 +608,16 @@ impl BatchData {
 
 /// The buffers of a [`BatchData`] for a renderer that fills batches itself, by the slot numbers
 /// of the [`Layout`] (slot `s` of lane `l` at `varying[s * stride + l]`).
+/// A batch's values, saved by [`BatchData::save_values`].
+#[derive(Clone, Debug, Default)]
+pub struct SavedValues {
+    mask: Vec<i32>,
+    varying: Vec<f32>,
+    uniform: Vec<f32>,
+    bound: Vec<u32>,
+    derivs: Vec<f32>,
+}
+
 pub struct RawBatch<'a> {
     pub lanes: usize,
     pub stride: usize,
@@ -662,6 +698,27 @@ impl BatchData {
     }
 
     /// The raw buffers, to fill inputs and read outputs by slot.
+    /// Copies the batch's values (mask, globals, parameters, outputs and derivatives) into `to`,
+    /// for [`restore_values`](Self::restore_values). Not its strings: handles stay valid as the
+    /// table grows, and equal strings keep one handle.
+    pub fn save_values(&self, to: &mut SavedValues) {
+        to.mask.clone_from(&self.mask);
+        to.varying.clone_from(&self.varying);
+        to.uniform.clone_from(&self.uniform);
+        to.bound.clone_from(&self.bound);
+        to.derivs.clone_from(&self.derivs);
+    }
+
+    /// Puts back the values [`save_values`](Self::save_values) copied from this batch, so that
+    /// running a shader again starts where the first run did.
+    pub fn restore_values(&mut self, from: &SavedValues) {
+        self.mask.clone_from(&from.mask);
+        self.varying.clone_from(&from.varying);
+        self.uniform.clone_from(&from.uniform);
+        self.bound.clone_from(&from.bound);
+        self.derivs.clone_from(&from.derivs);
+    }
+
     pub fn raw_mut(&mut self) -> RawBatch<'_> {
         RawBatch {
             lanes: self.lanes,
@@ -721,7 +778,7 @@ pub fn compile_with(
     }
     let mut jit = JITModule::new(builder);
     match define(m, &mut layout, &mut jit, &*final_isa, &shader.name, options, sources) {
-        Ok(Defined { entry, ir_insts, invariant_loads, sites, code_bytes }) => {
+        Ok(Defined { entry, ir_insts, invariant_loads, sites, code_bytes, helpers }) => {
             LIVE_MODULES.fetch_add(1, Ordering::SeqCst);
             LIVE_CODE_BYTES.fetch_add(code_bytes, Ordering::SeqCst);
             Ok(CompiledShader {
@@ -731,6 +788,7 @@ pub fn compile_with(
                 ir_insts,
                 invariant_loads,
                 code_bytes,
+                helpers,
                 sites,
                 errors: RuntimeErrors::default(),
                 options: options.clone(),
@@ -756,6 +814,8 @@ struct Defined {
     sites: Vec<String>,
     /// Bytes of machine code.
     code_bytes: usize,
+    /// The helpers the code calls.
+    helpers: Vec<&'static str>,
 }
 
 /// Lowers and defines the shader function in `jit`.
@@ -809,7 +869,14 @@ fn define(
     // SAFETY: `code` is the function just defined with the signature `fn(*mut Batch)` (one pointer
     // argument, no result, the platform's C calling convention).
     let entry: ShadeFn = unsafe { std::mem::transmute::<*const u8, ShadeFn>(code) };
-    Ok(Defined { entry, ir_insts: lowered.insts, invariant_loads, sites: lowered.sites, code_bytes })
+    Ok(Defined {
+        entry,
+        ir_insts: lowered.insts,
+        invariant_loads,
+        sites: lowered.sites,
+        code_bytes,
+        helpers: lowered.helpers,
+    })
 }
 
 /// Defines `id`, a trampoline with `CallConv::PreserveAll` that calls the per-chunk helper

@@ -1,0 +1,132 @@
+//! A batch's `trace` rays traced and shaded together.
+//!
+//! The JIT runs a shader a chunk of four lanes at a time, and a chunk's `trace` needs its answer
+//! before the chunk goes on. Answered there, each chunk's rays were traced and shaded as a batch
+//! of at most four, and every such batch evaluated each light for its few points: the BART
+//! kitchen, whose glass and chrome reflect, spent two thirds of its frame on such batches.
+//!
+//! So a batch whose shader calls `trace` (and no costlier ray built-in) runs twice
+//! (`shade::shade_group`):
+//! 1. **Recording.** Every `trace` call notes its rays ([`RayLog::Record`]) and answers as if
+//!    nothing were hit (black, at infinity); `printf` says nothing.
+//! 2. The rays of all calls are traced and shaded together ([`Recorded::trace`]): their hits form
+//!    batches as large as those of primary rays.
+//! 3. **Replay.** The batch's values are put back as they were before the first run, and the
+//!    shader runs again. Its `trace` calls come in the same order; a lane whose ray is the one
+//!    noted, bit for bit, gets that ray's answer ([`RayLog::Replay`]). Any other lane (a ray that
+//!    depended on an earlier placeholder answer) is traced there and then, as without this.
+//!
+//! Each lane's answer is the same either way: a ray's shading does not depend on the other rays
+//! shaded beside it. The cost is a second run of the shader itself, which for a reflecting or
+//! refracting surface is small beside the shading of what its rays meet.
+
+use super::shade::{trace_rays, Frame, Sample};
+use super::stats::Stats;
+use crate::ray::Ray;
+
+/// What a `trace` call does with its rays.
+#[derive(Default)]
+pub(super) enum RayLog {
+    /// Traces and shades them at once.
+    #[default]
+    Direct,
+    /// Notes them (the first run of a batch).
+    Record(Recorded),
+    /// Answers those noted (the second run).
+    Replay(Replayed),
+}
+
+/// The rays of a first run's `trace` calls, call by call.
+#[derive(Default)]
+pub(super) struct Recorded {
+    calls: Vec<[Option<Ray>; 4]>,
+    /// Whether the run had output it did not write (`printf`).
+    pub(super) silenced: bool,
+}
+
+/// The answers to a first run's rays.
+pub(super) struct Replayed {
+    calls: Vec<[Option<(Ray, usize)>; 4]>,
+    seen: Vec<Sample>,
+    next: usize,
+}
+
+impl Recorded {
+    /// Notes one call's rays (by lane).
+    pub(super) fn note(&mut self, rays: [Option<Ray>; 4]) {
+        self.calls.push(rays);
+    }
+
+    /// Whether the run must be made again: it traced, or kept output back.
+    pub(super) fn needs_replay(&self) -> bool {
+        self.silenced || self.calls.iter().any(|c| c.iter().any(Option::is_some))
+    }
+
+    /// Traces and shades every noted ray together, `depth` deep.
+    pub(super) fn trace(self, frame: &Frame, depth: u32) -> Replayed {
+        let mut rays = Vec::new();
+        let calls = self
+            .calls
+            .into_iter()
+            .map(|call| {
+                call.map(|ray| {
+                    ray.map(|r| {
+                        rays.push(r);
+                        (r, rays.len() - 1)
+                    })
+                })
+            })
+            .collect();
+        let seen = if rays.is_empty() {
+            Vec::new()
+        } else {
+            Stats::add(&frame.stats.secondary_rays, rays.len());
+            trace_rays(frame, &rays, depth)
+        };
+        Replayed { calls, seen, next: 0 }
+    }
+}
+
+impl Replayed {
+    /// The answers noted for the next call's rays, lane by lane: `None` for a lane whose ray is not
+    /// the one noted in its place (bit for bit), to be traced anew.
+    pub(super) fn answers(&mut self, rays: &[Option<Ray>; 4]) -> [Option<Sample>; 4] {
+        let noted = self.calls.get(self.next).copied().unwrap_or([None; 4]);
+        self.next += 1;
+        std::array::from_fn(|l| match (rays[l], noted[l]) {
+            (Some(ray), Some((was, k))) if same_ray(&ray, &was) => self.seen.get(k).copied(),
+            _ => None,
+        })
+    }
+}
+
+/// Whether two rays are the same bit for bit (`-0` is not `+0`; a NaN is never the same).
+fn same_ray(a: &Ray, b: &Ray) -> bool {
+    let bits = |r: &Ray| {
+        let (o, d) = (r.origin.to_array(), r.direction.to_array());
+        [o[0], o[1], o[2], d[0], d[1], d[2], r.tmin, r.tmax, r.time].map(f32::to_bits)
+    };
+    let finite = |r: &Ray| r.origin.is_finite() && r.direction.is_finite();
+    finite(a) && bits(a) == bits(b)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3A;
+
+    #[test]
+    fn rays_are_the_same_only_bit_for_bit() {
+        let ray = Ray::segment(Vec3A::new(1.0, 2.0, 3.0), Vec3A::new(0.0, 0.0, 1.0), 1e-4, f32::INFINITY);
+        assert!(same_ray(&ray, &ray));
+        let mut signed = ray;
+        signed.direction.x = -0.0;
+        assert!(!same_ray(&ray, &signed), "-0 and +0 differ");
+        let mut later = ray;
+        later.time = 0.5;
+        assert!(!same_ray(&ray, &later));
+        let mut nan = ray;
+        nan.origin.y = f32::NAN;
+        assert!(!same_ray(&nan, &nan));
+    }
+}
