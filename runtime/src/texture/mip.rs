@@ -41,8 +41,10 @@ pub struct MipMap {
     wrap: [Wrap; 2],
     /// `worldToCamera` and `worldToNDC` from the file's header, if it had them.
     projection: Option<[[f32; 16]; 2]>,
-    /// Every level is a power of two in both sizes (that an `i32` holds): periodic taps are
-    /// their coordinates' low bits ([`MipMap::filter_lanes_periodic`]).
+    /// Every level's sizes fit an `i32` and its values 32-bit offsets, so periodic lookups go
+    /// four lanes at once ([`MipMap::filter_lanes_periodic`]).
+    periodic_lanes: bool,
+    /// Every level is a power of two in both sizes: periodic taps are their coordinates' low bits.
     power_of_two_levels: bool,
     /// Each level's sizes, masks and row length, for [`LevelLanes`].
     shapes: Vec<LevelShape>,
@@ -70,12 +72,13 @@ impl MipMap {
         }
         // The periodic way's offsets are 32-bit: a level 0 of under 2^32 values (16 GiB) keeps
         // every offset and the four values after it in range.
-        let power_of_two_levels =
-            levels.iter().all(|l| periodic_masks([l.width(), l.height()], [Wrap::Periodic; 2]).is_some())
-                && levels[0].data().len() < (u32::MAX - 8) as usize;
+        let periodic_lanes = levels[0].data().len() < (u32::MAX - 8) as usize
+            && levels.iter().all(|l| i32::try_from(l.width().max(l.height())).is_ok());
+        let power_of_two_levels = periodic_lanes
+            && levels.iter().all(|l| periodic_masks([l.width(), l.height()], [Wrap::Periodic; 2]).is_some());
         let shapes = levels.iter().map(LevelShape::of).collect();
         let finite = levels.iter().all(|l| l.data().iter().all(|v| v.is_finite()));
-        MipMap { levels, wrap, projection: None, power_of_two_levels, shapes, finite }
+        MipMap { levels, wrap, projection: None, periodic_lanes, power_of_two_levels, shapes, finite }
     }
 
     /// The levels, finest (the image itself) first.
@@ -194,7 +197,7 @@ impl MipMap {
         let values = (out.len() / 4).min(MAX_LANE_VALUES);
         let (s, t) = (lanes.s.to_array(), lanes.t.to_array());
         let mut left = active;
-        if wrap == [Wrap::Periodic; 2] && self.power_of_two_levels && self.finite && values <= 4 {
+        if wrap == [Wrap::Periodic; 2] && self.periodic_lanes && self.finite && values <= 4 {
             left = self.filter_lanes_periodic([s, t], active, first, &plans, out, values, opts.fill);
         }
         if left.contains(&true) {
@@ -236,10 +239,10 @@ impl MipMap {
         }
     }
 
-    /// [`MipMap::filter_lanes`] for textures whose levels wrap periodically and are powers of two
-    /// in size (most textures; all of BART's) and whose texels are all finite, at most four values
-    /// a lane: the same values, bit for bit, as [`PeriodicProbes`] sums them lane by lane, written
-    /// straight into `out`. Returns the active lanes it left to the caller: those with a probe
+    /// [`MipMap::filter_lanes`] for textures whose levels wrap periodically (most textures; all of
+    /// BART's) and whose texels are all finite, at most four values a lane: the same values, bit
+    /// for bit, as [`PeriodicProbes`] (power-of-two levels) and the general way (others) sum them
+    /// lane by lane, written straight into `out`. Returns the active lanes it left to the caller: those with a probe
     /// beyond 2^22 texels, where its integer conversions ([`floor_small`]) do not hold.
     ///
     /// The four lanes step through their probes together, in vector arithmetic: probe `k` of every
@@ -558,8 +561,13 @@ struct LevelLanes<'a> {
     limit: UVec4,
     /// Widths, then heights, as floats.
     size: [Vec4; 2],
-    /// Widths less one, then heights less one: a tap's texel index is its coordinate's low bits.
+    /// Widths less one, then heights less one: a tap's texel index is its coordinate's low bits
+    /// where every level is a power of two (`pow2`).
     mask: [IVec4; 2],
+    /// Widths, then heights: a tap's texel index is its coordinate's Euclidean remainder by them
+    /// where not every level is a power of two.
+    count: [IVec4; 2],
+    pow2: bool,
     /// Values in a row of each lane's level.
     row: UVec4,
     /// Values in a texel (every level's, the map's channels).
@@ -579,18 +587,42 @@ impl<'a> LevelLanes<'a> {
         let (images, shapes) = (&map.levels[..n], &map.shapes[..n]);
         let data = levels.map(|l| images[l].padded_data());
         let shapes = levels.map(|l| &shapes[l]);
-        // `power_of_two_levels` keeps every count and offset of these under 2^32.
+        // `periodic_lanes` keeps every count and offset of these under 2^32.
         let limit = data.map(|d| (d.len() - TEXEL_PADDING) as u32);
         LevelLanes {
             data,
             limit: UVec4::from_array(limit),
             size: [0, 1].map(|k| Vec4::from_array(shapes.map(|s| s.size[k]))),
             mask: [0, 1].map(|k| IVec4::from_array(shapes.map(|s| s.mask[k]))),
+            count: [0, 1].map(|k| IVec4::from_array(shapes.map(|s| s.mask[k].wrapping_add(1)))),
+            pow2: map.power_of_two_levels,
             row: UVec4::from_array(shapes.map(|s| s.row)),
             texel: UVec4::splat(map.channels() as u32),
             first,
             weight,
         }
+    }
+
+    /// The periodic texel indices along `axis` (0 columns, 1 rows) of the taps at `corner` and
+    /// `corner + 1` (corners under 2^22 in magnitude): those of [`wrap_pair`], lane by lane.
+    #[inline(always)]
+    fn wrap(&self, corner: IVec4, axis: usize) -> [UVec4; 2] {
+        if self.pow2 {
+            let mask = self.mask[axis];
+            return [(corner & mask).as_uvec4(), ((corner + IVec4::ONE) & mask).as_uvec4()];
+        }
+        // `corner.rem_euclid(n)`, by the floor of a float quotient, which is the true one here:
+        // corner and size are exact as floats, the quotient of an integer corner `c` by `n` is
+        // an integer or at least `1 / n` from one, and rounding moves it by at most half a
+        // float's spacing, under `2^-2 / n` for `|c| < 2^22`, so it never reaches an integer it
+        // is not. Wrapping arithmetic: a lane beyond 2^22 texels computes garbage here, which the
+        // caller does not use.
+        let n = self.count[axis];
+        let quotient = (corner.as_vec4() / n.as_vec4()).floor().as_ivec4();
+        let first = corner.wrapping_sub(quotient.wrapping_mul(n));
+        let next = first.wrapping_add(IVec4::ONE);
+        let second = IVec4::select(next.cmpeq(n), IVec4::ZERO, next);
+        [first.as_uvec4(), second.as_uvec4()]
     }
 
     /// Adds each `live` lane's probe at (s, t) on this level to its sum (and zeros to the other
@@ -605,9 +637,7 @@ impl<'a> LevelLanes<'a> {
         let ((x_floor, column), (y_floor, row)) = (floor_small(x), floor_small(y));
         let (fx, fy) = (x - x_floor, y - y_floor);
         let (gx, gy) = (Vec4::ONE - fx, Vec4::ONE - fy);
-        let wrap = |v: IVec4, mask: IVec4| (v & mask).as_uvec4();
-        let (x0, x1) = (wrap(column, self.mask[0]), wrap(column + IVec4::ONE, self.mask[0]));
-        let (y0, y1) = (wrap(row, self.mask[1]), wrap(row + IVec4::ONE, self.mask[1]));
+        let ([x0, x1], [y0, y1]) = (self.wrap(column, 0), self.wrap(row, 1));
         let weight = Vec4::select(live, self.weight, Vec4::ZERO);
         // Row-major, as everywhere.
         let taps = [weight * gx * gy, weight * fx * gy, weight * gx * fy, weight * fx * fy].map(|v| v.to_array());
@@ -1506,18 +1536,41 @@ mod tests {
     /// on power-of-two textures (the periodic way) of 1, 3 and 4 channels, one that is not, and
     /// one with an infinite texel, 1 to 5 values a lane, with the texture's wrap modes and with
     /// clamping.
+    /// Four lanes' periodic tap indices, for levels of any size, are those of `wrap_pair`: for
+    /// corners on either side of zero, at the sizes' multiples and up to 2^22.
+    #[test]
+    fn lanes_wrap_taps_as_one_lane_does() {
+        for n in [1usize, 2, 3, 7, 12, 1044, 65_537] {
+            let map = MipMap::new(image(n, 1, 1, |x, _, _| x as f32));
+            assert_eq!(map.power_of_two_levels, n.is_power_of_two());
+            let level = LevelLanes::of(&map, [0; 4], Vec4::ONE, [0; 4]);
+            let mut corners: Vec<i64> = (-3 * n as i64 - 2..3 * n as i64 + 2).collect();
+            for big in [4_194_303i64, 4_194_304 - n as i64, 3_000_017, 1 << 21] {
+                corners.extend([big, -big, big - 1, 1 - big]);
+            }
+            for four in corners.chunks(4) {
+                let lanes: [i64; 4] = std::array::from_fn(|l| four[l % four.len()]);
+                let [first, second] = level.wrap(IVec4::from_array(lanes.map(|c| c as i32)), 0);
+                for (l, &corner) in lanes.iter().enumerate() {
+                    let want = wrap_pair(corner, n, Wrap::Periodic).map(|i| i.map(|i| i as u32));
+                    assert_eq!([Some(first.to_array()[l]), Some(second.to_array()[l])], want, "{n} texels, {corner}");
+                }
+            }
+        }
+    }
+
     #[test]
     fn lanes_filter_as_lookups_one_at_a_time() {
         /// A lane's s, t, footprint, blur and first channel.
         type Lane = (f32, f32, Footprint, f32, usize);
-        let mut maps = [(32, 16, 3), (16, 16, 4), (8, 32, 1), (12, 8, 3), (16, 8, 2)]
+        let mut maps = [(32, 16, 3), (16, 16, 4), (8, 32, 1), (12, 8, 3), (21, 7, 4), (16, 8, 2)]
             .map(|(w, h, ch)| MipMap::new(image(w, h, ch, |x, y, c| ((x * 5 + y * 11 + c * 3) % 17) as f32 / 17.0)));
         // An infinite texel: the periodic way adds zero-weight taps, which only finite texels
         // allow, so this one goes lane by lane.
-        let mut data = maps[4].levels()[0].data().to_vec();
+        let mut data = maps[5].levels()[0].data().to_vec();
         data[2 * (16 * 3 + 5)] = f32::INFINITY;
-        maps[4] = MipMap::new(TexImage::new(16, 8, 2, data).unwrap());
-        assert!(maps.iter().map(|m| m.finite).eq([true, true, true, true, false]));
+        maps[5] = MipMap::new(TexImage::new(16, 8, 2, data).unwrap());
+        assert!(maps.iter().map(|m| m.finite).eq([true, true, true, true, true, false]));
         let mut state = 0x9E37_79B9_7F4A_7C15u64;
         let mut next = || unit_random(&mut state);
         for round in 0..800 {
