@@ -232,7 +232,8 @@ pub(super) struct Lowered {
     /// The register-preserving trampolines the code calls, to define in the module (see
     /// `super::define_trampoline`): each one's id and the helper it calls.
     pub trampolines: Vec<(cranelift_module::FuncId, &'static str)>,
-    /// The names of the helpers the code calls, directly or through a trampoline.
+    /// The names of the helpers the code calls, directly or through a trampoline (a name may
+    /// come twice).
     pub helpers: Vec<&'static str>,
 }
 
@@ -295,9 +296,7 @@ pub(super) fn lower(
     let sites = std::mem::take(&mut l.sites);
     let loop_blocks = l.loop_blocks.take();
     let trampolines = std::mem::take(&mut l.trampolines);
-    let mut helpers: Vec<&'static str> = l.helpers.keys().chain(trampolines.iter().map(|(_, h)| h)).copied().collect();
-    helpers.sort_unstable();
-    helpers.dedup();
+    let helpers: Vec<&'static str> = l.helpers.keys().chain(trampolines.iter().map(|(_, h)| h)).copied().collect();
     l.b.finalize(config);
     Ok(Lowered { insts: n, strings, sites, loop_blocks, trampolines, helpers })
 }

@@ -267,8 +267,8 @@ pub struct CompiledShader {
     pub invariant_loads: usize,
     /// Bytes of machine code in `module` (counted in [`live_code_bytes`] while `self` lives).
     code_bytes: usize,
-    /// The names of the helpers the code calls (sorted).
-    helpers: Vec<&'static str>,
+    /// The built-ins that shoot rays which the code calls.
+    ray_calls: RayCalls,
 }
 
 /// The built-ins that shoot rays which a compiled shader calls (see [`CompiledShader::ray_calls`]).
@@ -282,6 +282,19 @@ pub struct RayCalls {
     pub hemisphere: bool,
     /// `gather`.
     pub gather: bool,
+}
+
+impl RayCalls {
+    /// The ray built-ins among the helpers a shader's code calls (by symbol).
+    fn of(helpers: &[&str]) -> RayCalls {
+        let calls = |symbol: &str| helpers.contains(&symbol);
+        RayCalls {
+            trace: calls("rtsl_h_trace"),
+            transmission: calls("rtsl_h_transmission"),
+            hemisphere: calls("rtsl_h_occlusion") || calls("rtsl_h_indirectdiffuse"),
+            gather: calls("rtsl_h_gather"),
+        }
+    }
 }
 
 impl std::fmt::Debug for CompiledShader {
@@ -314,13 +327,7 @@ impl CompiledShader {
 
     /// Which of the built-ins that shoot rays the code calls.
     pub fn ray_calls(&self) -> RayCalls {
-        let calls = |symbol: &str| self.helpers.binary_search(&symbol).is_ok();
-        RayCalls {
-            trace: calls("rtsl_h_trace"),
-            transmission: calls("rtsl_h_transmission"),
-            hemisphere: calls("rtsl_h_occlusion") || calls("rtsl_h_indirectdiffuse"),
-            gather: calls("rtsl_h_gather"),
-        }
+        self.ray_calls
     }
 
     /// Bytes of machine code this shader holds (its share of [`live_code_bytes`]).
@@ -788,7 +795,7 @@ pub fn compile_with(
                 ir_insts,
                 invariant_loads,
                 code_bytes,
-                helpers,
+                ray_calls: RayCalls::of(&helpers),
                 sites,
                 errors: RuntimeErrors::default(),
                 options: options.clone(),
