@@ -384,6 +384,40 @@ fn volume_generate_reproduces_the_shipped_data_sets() {
     assert!(!bad.status.success());
 }
 
+/// `rtsl bench render --compare-trace-ahead` times a scene with reflections both ways and prints
+/// the ratio.
+#[test]
+fn bench_render_compares_tracing_ahead_with_chunk_by_chunk() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = r#"Format 32 24 1
+Projection "perspective" "fov" [40]
+Translate 0 -0.5 4
+WorldBegin
+  LightSource "pointlight" 1 "intensity" [20] "from" [1 3 -1]
+  Surface "mirror"
+  Polygon "P" [-3 0 -3  3 0 -3  3 0 3  -3 0 3]
+  Surface "plastic"
+  Translate 0 0.6 0
+  Sphere 0.5 -0.5 0.5 360
+WorldEnd
+"#;
+    std::fs::write(dir.path().join("mirror.rib"), scene).expect("scene written");
+    let args = ["bench", "render", "mirror.rib", "--frames", "1", "--threads", "1", "--compare-trace-ahead"];
+    let o = rtsl(&args, dir.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    let value = |name: &str| -> f64 {
+        let line = out.lines().find(|l| l.starts_with(name)).unwrap_or_else(|| panic!("no {name} in {out}"));
+        line.split(' ').nth(1).and_then(|v| v.parse().ok()).expect("a number")
+    };
+    assert!(value("chunk_by_chunk_trace_frame_ms: ") > 0.0, "{out}");
+    let ratio = value("trace_ahead_over_chunk_by_chunk: ");
+    assert!(ratio.is_finite() && ratio > 0.0, "{out}");
+    // The floor reflects: the frame traced secondary rays.
+    let rays = out.lines().find(|l| l.starts_with("rays_per_frame: ")).expect("rays line");
+    assert!(!rays.contains("secondary 0,"), "{rays}");
+}
+
 #[test]
 fn bench_instances_and_camera_report_their_numbers() {
     let dir = tempfile::tempdir().expect("tempdir");

@@ -171,6 +171,11 @@ pub struct BenchRenderArgs {
     /// and print the JIT's cost as a ratio.
     #[arg(long)]
     pub native_plastic: bool,
+    /// Also render with `RenderOptions::trace_ahead` off (each chunk's `trace` rays traced and
+    /// shaded on their own, not a batch's together), alternating frame by frame, and print the
+    /// ratio.
+    #[arg(long)]
+    pub compare_trace_ahead: bool,
     /// Directories searched for shaders by name.
     #[arg(short = 'S', long = "shader-path")]
     pub shader_path: Vec<PathBuf>,
@@ -202,22 +207,33 @@ pub fn run_render(args: &BenchRenderArgs) -> anyhow::Result<()> {
     if args.native_plastic && native_count == 0 {
         anyhow::bail!("the scene has no plastic surface to compare");
     }
-    let (mut jit_ms, mut native_ms) = (Vec::new(), Vec::new());
+    let (mut jit_ms, mut native_ms, mut chunked_ms) = (Vec::new(), Vec::new(), Vec::new());
     let mut last = None;
+    #[derive(PartialEq)]
+    enum Variant {
+        Jit,
+        Native,
+        Chunked,
+    }
     for frame in 0..=frames {
-        for native in [false, true] {
-            if native && !args.native_plastic {
+        for variant in [Variant::Jit, Variant::Native, Variant::Chunked] {
+            if (variant == Variant::Native && !args.native_plastic)
+                || (variant == Variant::Chunked && !args.compare_trace_ahead)
+            {
                 continue;
             }
-            world.materials = if native { native_world.clone() } else { jit_world.clone() };
+            world.materials = if variant == Variant::Native { native_world.clone() } else { jit_world.clone() };
+            world.options.trace_ahead = variant != Variant::Chunked;
             let (_, report) = pool.install(|| rtsl_runtime::render::render_frame(&world, None));
             if frame > 0 {
                 let ms = report.elapsed.as_secs_f64() * 1e3;
-                if native {
-                    native_ms.push(ms);
-                } else {
-                    jit_ms.push(ms);
-                    last = Some(report);
+                match variant {
+                    Variant::Native => native_ms.push(ms),
+                    Variant::Chunked => chunked_ms.push(ms),
+                    Variant::Jit => {
+                        jit_ms.push(ms);
+                        last = Some(report);
+                    }
                 }
             }
         }
@@ -253,6 +269,11 @@ pub fn run_render(args: &BenchRenderArgs) -> anyhow::Result<()> {
         let nms = median(native_ms);
         println!("native_plastic_frame_ms: {nms:.2} ({native_count} materials)");
         println!("jit_over_native: {:.3}", ms / nms.max(1e-9));
+    }
+    if args.compare_trace_ahead {
+        let cms = median(chunked_ms);
+        println!("chunk_by_chunk_trace_frame_ms: {cms:.2}");
+        println!("trace_ahead_over_chunk_by_chunk: {:.3}", ms / cms.max(1e-9));
     }
     Ok(())
 }
