@@ -238,6 +238,44 @@ impl Scene {
         packet::occluded_packet(&self.top, &self.objects, packet, filter)
     }
 
+    /// Whether instance `instance` moves over the shutter interval (false for ids out of range).
+    pub fn instance_moves(&self, instance: u32) -> bool {
+        self.top.instances.get(instance as usize).is_some_and(|i| i.motion.is_some())
+    }
+
+    /// The lanes of `lanes` (active in `packet`) whose ray hits triangle `primitive` of instance
+    /// `instance` within its interval, on a solid part: by the traversals' own arithmetic (the
+    /// ray moved into object space as they move it, the same triangle test), so that a lane this
+    /// finds blocked is one they find blocked too. 0 for a moving instance or ids out of range.
+    pub fn lanes_hitting_triangle(&self, packet: &RayPacket, lanes: u64, instance: u32, primitive: u32) -> u64 {
+        let Some(inst) = self.top.instances.get(instance as usize) else { return 0 };
+        let Some(obj) = self.objects.get(inst.object as usize) else { return 0 };
+        if inst.motion.is_some() || primitive as usize >= obj.mesh.triangle_count() {
+            return 0;
+        }
+        let [a, b, c] = obj.mesh.corners(primitive as usize);
+        let tri = crate::geometry::triangle::PreTriangle::new(a, b, c);
+        let mut hit = 0;
+        let mut m = lanes & packet.active;
+        while m != 0 {
+            let i = m.trailing_zeros() as usize;
+            m &= m - 1;
+            let ray = packet.get(i);
+            let (o, d) = if inst.identity {
+                (ray.origin, ray.direction)
+            } else {
+                let xf = &inst.object_from_world;
+                (xf.transform_point3a(ray.origin), xf.transform_vector3a(ray.direction))
+            };
+            let found =
+                crate::geometry::triangle::intersect_accept(o.to_array(), d.to_array(), &tri, ray.tmin, ray.tmax);
+            if found.is_some_and(|(_, u, v)| obj.solid_at(primitive, u, v)) {
+                hit |= 1 << i;
+            }
+        }
+        hit
+    }
+
     /// The closest hit by testing every triangle (the reference for tests; slow).
     pub fn intersect_brute_force(&self, ray: &Ray, filter: HitFilter) -> Hit {
         single::intersect_brute_force(&self.top, &self.objects, ray, filter)

@@ -137,6 +137,19 @@ fn check(scene: &Scene, p: &RayPacket, filter: rtsl_runtime::HitFilter) -> Resul
         // Different ids are accepted only as ties: `same_hit` has checked that the distances agree.
     }
     let occ = scene.occluded_packet_filtered(p, filter);
+    if filter.is_none() {
+        // A lane's closest triangle, tested alone as shadow rays test a known blocker: the lane
+        // hits it; and every lane that test finds is one the traversals find occluded.
+        for i in (0..PACKET_SIZE).filter(|i| p.active >> i & 1 != 0) {
+            let h = hp.get(i);
+            if !h.is_hit() {
+                continue;
+            }
+            let lanes = scene.lanes_hitting_triangle(p, p.active, h.instance, h.primitive);
+            prop_assert!(lanes >> i & 1 != 0 || scene.instance_moves(h.instance), "lane {i}: {h:?}");
+            prop_assert_eq!(lanes & !occ, 0, "lane {}: {:?}", i, h);
+        }
+    }
     for i in 0..PACKET_SIZE {
         if p.active >> i & 1 == 0 {
             prop_assert_eq!(occ >> i & 1, 0);

@@ -11,7 +11,7 @@ use crate::ray::{HitCandidate, HitPacket, Ray, RayPacket, PACKET_SIZE};
 use crate::shading::{fill1, fill3, get_row, put3, put_row, varying_rows, with_filled_batch, LightKind};
 use glam::{Vec3A, Vec4};
 use rtsl_compiler::back::jit::{light_in_cone, HostLight, LightLanes, MAX_LIGHTS};
-use std::cell::RefCell;
+use std::cell::{Cell, RefCell};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Mutex, PoisonError};
 
@@ -744,16 +744,21 @@ fn transmission_packet(frame: &Frame, packet: &mut RayPacket, through: &mut [Vec
         }
     };
     let by_shader = AtomicU64::new(0);
-    let opaque = |c: &HitCandidate| {
-        let i = c.instance as usize;
+    let kind_of = |instance: u32, primitive: u32| {
+        let i = instance as usize;
         // An instance out of range is shaded with the default material, which blocks.
-        let kind = match (frame.instance_shadows.get(i), world.instances.get(i)) {
+        match (frame.instance_shadows.get(i), world.instances.get(i)) {
             (Some(InstanceShadows::Opaque), _) | (_, None) => ShadowKind::Blocked,
-            (Some(shadows), Some(inst)) => shadows.kind(inst, c.primitive),
-            (None, Some(inst)) => world.shadow_kind(inst.material_at(c.primitive)),
-        };
-        match kind {
-            ShadowKind::Blocked => return true,
+            (Some(shadows), Some(inst)) => shadows.kind(inst, primitive),
+            (None, Some(inst)) => world.shadow_kind(inst.material_at(primitive)),
+        }
+    };
+    let opaque = |c: &HitCandidate| {
+        match kind_of(c.instance, c.primitive) {
+            ShadowKind::Blocked => {
+                LAST_BLOCKER.with(|b| b.set(Some((c.instance, c.primitive))));
+                return true;
+            }
             ShadowKind::ByShader => {
                 by_shader.fetch_or(1u64 << (c.lane & 63), Ordering::Relaxed);
             }
@@ -763,7 +768,18 @@ fn transmission_packet(frame: &Frame, packet: &mut RayPacket, through: &mut [Vec
         }
         false
     };
-    let blocked = tracing(|| scene.occluded_packet_filtered(packet, Some(&opaque)));
+    // The triangle that blocked this thread's last shadow ray most often blocks the next packet's
+    // too (a wall between a light and the points a batch shades): lanes it blocks need no
+    // traversal. It is tested as the traversal tests it, and blocks whichever triangle it has
+    // become since, if that is opaque: the lanes found are exactly blocked lanes.
+    let known = LAST_BLOCKER
+        .with(Cell::get)
+        .filter(|&(instance, primitive)| kind_of(instance, primitive) == ShadowKind::Blocked)
+        .map_or(0, |(instance, primitive)| scene.lanes_hitting_triangle(packet, active, instance, primitive));
+    packet.active = active & !known;
+    let traced = if packet.active != 0 { tracing(|| scene.occluded_packet_filtered(packet, Some(&opaque))) } else { 0 };
+    packet.active = active;
+    let blocked = traced | known;
     clear_lanes(through, blocked);
     let walking = by_shader.into_inner() & active & !blocked;
     let mut crossings = super::scratch::take(&CROSSING_BUFFERS);
@@ -799,6 +815,8 @@ thread_local! {
     /// The crossings that shadow filters running on this thread note during a traversal; each
     /// `transmission_packet` takes those past where the log stood when it began.
     static NOTED_HERE: RefCell<Vec<Crossing>> = const { RefCell::new(Vec::new()) };
+    /// The triangle (instance, primitive) that last blocked a shadow ray this thread traced.
+    static LAST_BLOCKER: Cell<Option<(u32, u32)>> = const { Cell::new(None) };
 }
 
 /// The material of triangle `primitive` of instance `instance` (the default for ids out of range).
