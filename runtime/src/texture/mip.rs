@@ -562,11 +562,8 @@ struct LevelLanes<'a> {
     /// Widths, then heights, as floats.
     size: [Vec4; 2],
     /// Widths less one, then heights less one: a tap's texel index is its coordinate's low bits
-    /// where every level is a power of two (`pow2`).
+    /// where every level is a power of two (`pow2`), else its Euclidean remainder by the size.
     mask: [IVec4; 2],
-    /// Widths, then heights: a tap's texel index is its coordinate's Euclidean remainder by them
-    /// where not every level is a power of two.
-    count: [IVec4; 2],
     pow2: bool,
     /// Values in a row of each lane's level.
     row: UVec4,
@@ -594,7 +591,6 @@ impl<'a> LevelLanes<'a> {
             limit: UVec4::from_array(limit),
             size: [0, 1].map(|k| Vec4::from_array(shapes.map(|s| s.size[k]))),
             mask: [0, 1].map(|k| IVec4::from_array(shapes.map(|s| s.mask[k]))),
-            count: [0, 1].map(|k| IVec4::from_array(shapes.map(|s| s.mask[k].wrapping_add(1)))),
             pow2: map.power_of_two_levels,
             row: UVec4::from_array(shapes.map(|s| s.row)),
             texel: UVec4::splat(map.channels() as u32),
@@ -617,7 +613,7 @@ impl<'a> LevelLanes<'a> {
         // float's spacing, under `2^-2 / n` for `|c| < 2^22`, so it never reaches an integer it
         // is not. Wrapping arithmetic: a lane beyond 2^22 texels computes garbage here, which the
         // caller does not use.
-        let n = self.count[axis];
+        let n = self.mask[axis] + IVec4::ONE;
         let quotient = (corner.as_vec4() / n.as_vec4()).floor().as_ivec4();
         let first = corner.wrapping_sub(quotient.wrapping_mul(n));
         let next = first.wrapping_add(IVec4::ONE);
