@@ -12,6 +12,13 @@ use obvhs::aabb::Aabb;
 /// Leaf size of the top-level BVH.
 const TOP_LEAF_SIZE: u32 = 2;
 
+/// Top levels over at most this many instances are built at [`BuildQuality::High`], larger ones at
+/// [`BuildQuality::Fast`]. A few hundred instances build in tens of microseconds either way, and
+/// the better tree pays for itself: BART's robots (157 instances) render 0.6% fewer instructions a
+/// frame for 0.05 ms more build (0.08 to 0.13 ms), a net 0.35 ms of a 70 ms frame. Thousands of
+/// instances keep the fast build, for the per-frame rebuild targets (1,000 under 1 ms).
+const TOP_HIGH_QUALITY_UP_TO: usize = 512;
+
 /// One instance as the tracer sees it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct InstanceData {
@@ -133,7 +140,8 @@ impl TopLevel {
             boxes.push(Aabb::new(b.min - pad, b.max + pad));
             ids.push(i as u32);
         }
-        let mut bvh = Bvh4::build(&boxes, BuildQuality::Fast, TOP_LEAF_SIZE);
+        let quality = if boxes.len() <= TOP_HIGH_QUALITY_UP_TO { BuildQuality::High } else { BuildQuality::Fast };
+        let mut bvh = Bvh4::build(&boxes, quality, TOP_LEAF_SIZE);
         for slot in &mut bvh.prim_order {
             *slot = ids[*slot as usize];
         }
