@@ -10,7 +10,7 @@ use super::film::{Film, TileFilm};
 use super::primary::{
     pinhole_ray, primary_rays, primary_rays_into, primary_rays_of_packets, CameraSample, PacketSamples, PrimaryRays,
 };
-use super::shade::{mix, shade_packet, shade_pixels, Frame, Sample, TilePixels};
+use super::shade::{mix, shade_packet, shade_packets, shade_pixels, Frame, Sample, TilePixels};
 use super::world::{Antialiasing, World};
 use crate::camera::{packet_lane_offset, PACKET_LANE_OFFSETS, PACKET_SIDE};
 use crate::ray::{HitPacket, PACKET_SIZE};
@@ -311,6 +311,9 @@ pub struct TilePrimary {
     samples: Vec<PacketSamples>,
     /// The rays of packet `p`, from corner `corners[p]`.
     pub rays: Vec<PrimaryRays>,
+    /// Their hits, and their samples once shaded ([`sample_tile`]).
+    hits: Vec<HitPacket>,
+    shaded: Vec<[Sample; PACKET_SIZE]>,
 }
 
 thread_local! {
@@ -567,16 +570,23 @@ fn sample_tile(
     let world = frame.world;
     let mut px = TileSamples::empty(tile);
     let (sx, sy) = sampling.grid;
-    let mut samples = [Sample::default(); PACKET_SIZE];
-    let mut hits = HitPacket::default();
     TilePrimary::with(|primary| {
         for j in 0..sy {
             for i in 0..sx {
                 primary.make(frame, tile, (i, j));
-                for ((&(x0, y0), rays), cams) in primary.corners.iter().zip(&primary.rays).zip(&primary.samples) {
+                let TilePrimary { corners, samples: cameras, rays, hits, shaded } = primary;
+                let n = corners.len();
+                hits.resize_with(n, HitPacket::default);
+                shaded.resize(n, [Sample::default(); PACKET_SIZE]);
+                for (rays, hits) in rays.iter().zip(hits.iter_mut()) {
+                    world.scene.intersect_packet(&rays.packet, hits);
+                }
+                let packets: Vec<(&PrimaryRays, &HitPacket)> = rays.iter().zip(hits.iter()).collect();
+                shade_packets(frame, &packets, shaded);
+                for (((&(x0, y0), rays), cams), samples) in
+                    corners.iter().zip(rays.iter()).zip(cameras.iter()).zip(shaded.iter())
+                {
                     let packet = &rays.packet;
-                    world.scene.intersect_packet(packet, &mut hits);
-                    shade_packet(frame, rays, &hits, &mut samples);
                     for (lane, s) in samples.iter().enumerate() {
                         if packet.active >> lane & 1 == 0 {
                             continue;

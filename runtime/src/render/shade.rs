@@ -94,24 +94,43 @@ pub struct Sample {
 /// Shades the rays of a primary packet (already intersected): lane `i`'s sample is its radiance
 /// times its camera weight.
 pub fn shade_packet(frame: &Frame, primary: &PrimaryRays, hits: &HitPacket, out: &mut [Sample; PACKET_SIZE]) {
-    let packet = &primary.packet;
-    Stats::add(&frame.stats.primary_rays, packet.active.count_ones() as usize);
-    // Each hit becomes a pending shading job at its lane's index (no copies of the packet's rays
-    // in between); misses see the background at once.
-    let mut pending = Vec::with_capacity(PACKET_SIZE);
-    for i in (0..PACKET_SIZE).filter(|i| packet.active >> i & 1 != 0) {
-        if let Some(p) = start_sample(frame, i, packet.get(i), primary.diffs.lane(i), hits.get(i), &mut out[i]) {
-            pending.push(p);
+    shade_packets(frame, &[(primary, hits)], std::slice::from_mut(out));
+}
+
+/// [`shade_packet`] of several packets together (a tile's): their hits are grouped by material
+/// across the packets, so that a material's shading batches are fuller and fewer. Each batch has
+/// its fixed costs (filling, its lights, its shadow packet), and a small batch's shadow packet
+/// shares fewer node tests: shaded packet by packet, BART's robots averaged 43 hits a batch.
+/// Lane for lane the same values as [`shade_packet`] of each packet: shading a hit reads nothing
+/// of the other hits in its batch.
+pub fn shade_packets(frame: &Frame, packets: &[(&PrimaryRays, &HitPacket)], out: &mut [[Sample; PACKET_SIZE]]) {
+    let packets = &packets[..packets.len().min(out.len())];
+    // Each hit becomes a pending shading job at its sample's index (`PACKET_SIZE` a packet, no
+    // copies of the packets' rays in between); misses see the background at once.
+    let mut pending = Vec::with_capacity(PACKET_SIZE * packets.len());
+    for (k, ((primary, hits), out)) in packets.iter().zip(out.iter_mut()).enumerate() {
+        let packet = &primary.packet;
+        Stats::add(&frame.stats.primary_rays, packet.active.count_ones() as usize);
+        for i in (0..PACKET_SIZE).filter(|i| packet.active >> i & 1 != 0) {
+            let index = k * PACKET_SIZE + i;
+            if let Some(p) = start_sample(frame, index, packet.get(i), primary.diffs.lane(i), hits.get(i), &mut out[i])
+            {
+                pending.push(p);
+            }
         }
     }
-    let mut weight = [Vec3A::ONE; PACKET_SIZE];
-    shade_pending(frame, pending, 0, out, &mut weight);
-    for i in (0..PACKET_SIZE).filter(|i| packet.active >> i & 1 != 0) {
-        let s = &mut out[i];
-        let w = primary.weight(i);
-        let alpha = 1.0 - (weight[i].x + weight[i].y + weight[i].z) / 3.0;
-        s.color *= w;
-        s.alpha = alpha * (w.x + w.y + w.z) / 3.0;
+    let out = &mut out[..packets.len()];
+    let mut weight = vec![Vec3A::ONE; PACKET_SIZE * packets.len()];
+    shade_pending(frame, pending, 0, out.as_flattened_mut(), &mut weight);
+    for (k, ((primary, _), out)) in packets.iter().zip(out.iter_mut()).enumerate() {
+        let packet = &primary.packet;
+        for i in (0..PACKET_SIZE).filter(|i| packet.active >> i & 1 != 0) {
+            let (s, left) = (&mut out[i], weight[k * PACKET_SIZE + i]);
+            let w = primary.weight(i);
+            let alpha = 1.0 - (left.x + left.y + left.z) / 3.0;
+            s.color *= w;
+            s.alpha = alpha * (w.x + w.y + w.z) / 3.0;
+        }
     }
 }
 
@@ -1172,6 +1191,79 @@ mod tests {
         assert!(lit > 64 && lit < 256, "{lit} of 256 pixels see the quad");
         let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
         assert_eq!(bits(&rows), bits(&each));
+    }
+
+    /// Shading a tile's packets together (`shade_packets`, whose batches mix the packets' hits)
+    /// gives every sample what shading each packet alone gives it, bit for bit: in a scene of
+    /// several materials over the packets' seams, shadows (an opaque and a transparent blocker),
+    /// a mirror (rays traced ahead) and a transparent surface (a second layer of hits).
+    #[test]
+    fn packets_shaded_together_get_what_each_gets_alone() {
+        let rib = r#"
+            Format 16 16 1
+            Projection "perspective" "fov" 50
+            Translate 0 0 4
+            WorldBegin
+            LightSource "ambientlight" 1 "intensity" [0.1]
+            LightSource "pointlight" 2 "intensity" [6] "from" [1 2 -3]
+            AttributeBegin
+              Surface "mirror" "Kr" [0.7]
+              Color [0.3 0.3 0.4]
+              Polygon "P" [-3 -1 -3  3 -1 -3  3 -1 3  -3 -1 3]
+            AttributeEnd
+            AttributeBegin
+              Surface "plastic" "Ks" [0.5] "roughness" [0.1]
+              Color [0.8 0.3 0.2]
+              Polygon "P" [-1.5 -1 0.5  0.1 -1 0.5  0.1 0.6 0.5  -1.5 0.6 0.5]
+            AttributeEnd
+            AttributeBegin
+              Surface "checker"
+              Polygon "P" [-0.2 -0.8 -0.5  1.4 -0.8 -0.5  1.4 0.9 -0.5  -0.2 0.9 -0.5]
+            AttributeEnd
+            AttributeBegin
+              Surface "matte"
+              Opacity [0.5 0.5 0.5]
+              Color [0.2 0.7 0.3]
+              Polygon "P" [-0.6 -0.3 -1  0.7 -0.3 -1  0.7 0.4 -1  -0.6 0.4 -1]
+            AttributeEnd
+            WorldEnd
+        "#;
+        let mut rt = crate::api::Context::new();
+        crate::rib::load::load_str(&mut rt, rib, std::path::Path::new("<test>")).expect("the test scene loads");
+        let world = rt.build_world().expect("the test scene builds");
+        let frame = Frame::new(&world);
+        let corners = [(0, 0), (8, 0), (0, 8), (8, 8)];
+        let rays: Vec<PrimaryRays> =
+            corners.iter().map(|&(x, y)| super::super::frame::primary_packet(&frame, x, y, (0, 0))).collect();
+        let hits: Vec<HitPacket> = rays
+            .iter()
+            .map(|r| {
+                let mut hits = HitPacket::default();
+                world.scene.intersect_packet(&r.packet, &mut hits);
+                hits
+            })
+            .collect();
+        let mut alone = vec![[Sample::default(); PACKET_SIZE]; corners.len()];
+        for ((r, h), out) in rays.iter().zip(&hits).zip(&mut alone) {
+            shade_packet(&frame, r, h, out);
+        }
+        let packets: Vec<(&PrimaryRays, &HitPacket)> = rays.iter().zip(&hits).collect();
+        let mut together = vec![[Sample::default(); PACKET_SIZE]; corners.len()];
+        shade_packets(&frame, &packets, &mut together);
+        let bits = |samples: &[[Sample; PACKET_SIZE]]| {
+            samples
+                .iter()
+                .flatten()
+                .map(|s| {
+                    let c = s.color.to_array().map(f32::to_bits);
+                    (c, s.alpha.to_bits(), s.depth.to_bits(), s.object_id, s.shader_id)
+                })
+                .collect::<Vec<_>>()
+        };
+        // The scene is what the test is about: several materials, some lanes in shadow.
+        let materials: std::collections::HashSet<u32> = alone.iter().flatten().map(|s| s.shader_id).collect();
+        assert!(materials.len() >= 4, "materials seen: {materials:?}");
+        assert_eq!(bits(&alone), bits(&together));
     }
 
     #[test]
