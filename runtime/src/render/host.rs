@@ -452,7 +452,7 @@ fn serve_from_batch(
         if mask[l] == 0 || lane >= table.n {
             continue;
         }
-        counts[l] = table.counts[lane];
+        counts[l] = table.count_of(lane);
         pending[l] = table.pending_of(lane);
     }
     // The chunk's rows as they lie: lanes past their count hold whatever, which the ABI allows.

@@ -3,13 +3,14 @@
 //! the per-lane table the shader's light queries are served from.
 
 use super::differential::RayDifferential;
+use super::hit_geometry::Lanes3;
 use super::host::ShadeCall;
 use super::shade::{mix, point_seed, shade_in_groups, unit, Frame, Pending, Shaded};
 use super::stats::{tracing, Stats};
 use super::world::{InstanceShadows, LightSource, Material, ShadowKind, World, DEFAULT_MATERIAL};
 use crate::ray::{HitCandidate, HitPacket, Ray, RayPacket, PACKET_SIZE};
 use crate::shading::{fill1, fill3, get_row, put3, put_row, varying_rows, with_filled_batch, LightKind};
-use glam::{Vec3A, Vec4};
+use glam::{IVec4, Vec3A, Vec4};
 use rtsl_compiler::back::jit::{light_in_cone, HostLight, LightLanes, MAX_LIGHTS};
 use std::cell::{Cell, RefCell};
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -29,19 +30,9 @@ pub(super) fn eval_light(
     out: &mut [LightLanes],
     counts: &mut [u32; 4],
 ) {
-    eval_light_lanes(
-        frame,
-        light,
-        material,
-        mask,
-        points,
-        times,
-        depth,
-        |_, _| true,
-        |_, fill, lanes, _| {
-            append_row(out, counts, fill, lanes);
-        },
-    );
+    eval_light_lanes(frame, light, material, mask, points, times, depth, None, |_, fill, lanes, _| {
+        append_row(out, counts, fill, lanes);
+    });
 }
 
 /// Appends lane `l`'s light in the row `fill` writes to `lights` (lane `l`'s `counts[l]`-th, while
@@ -81,9 +72,9 @@ fn append_row(lights: &mut [LightLanes], counts: &mut [u32; 4], fill: &dyn Fn(&m
 /// lit (elsewhere the row holds whatever), each colour attenuated by the shadow rays traced as one
 /// packet (`transmission_packet`). Area lights give one light per sample. `material` is the lit
 /// surface's (for `surface()` messages).
-/// `traced(lane, L)` says whether lane's shadow ray toward a light in direction `L` is traced now;
-/// where it is not, the light is unshadowed and its bit set in `pending` (see
-/// [`BatchLights::resolve`]).
+/// With `front`, a lane's shadow ray is traced now only toward a light within 90 degrees of its
+/// `front` normal ([`traced_lanes`]); elsewhere the light is unshadowed and its bit set in
+/// `pending` (see [`BatchLights::resolve`]).
 #[allow(clippy::too_many_arguments)]
 fn eval_light_lanes(
     frame: &Frame,
@@ -93,7 +84,7 @@ fn eval_light_lanes(
     points: &[Vec3A],
     times: &[f32],
     depth: u32,
-    traced: impl Fn(usize, Vec3A) -> bool,
+    front: Option<&[Vec3A]>,
     mut sink: impl FnMut(usize, &dyn Fn(&mut LightLanes), u32, u32),
 ) {
     let n = points.len().min(PACKET_SIZE);
@@ -111,10 +102,25 @@ fn eval_light_lanes(
     let scale = 1.0 / samples as f32;
     let mut scratch = super::scratch::take(&LIGHT_LANE_ROWS);
     let LightLaneRows { ps, lane_times, rows, flags, attenuation, packet, .. } = scratch.fresh(n);
-    // The lanes' points and times as rows, written into each batch a row at a time.
-    for (l, p) in points.iter().enumerate().take(n) {
+    // The lanes' points and times as rows, written into each batch a row at a time; the points
+    // four at a time, transposed in registers.
+    let whole = n / 4 * 4;
+    for (c, four) in points[..whole].chunks_exact(4).enumerate() {
+        let p = Lanes3::of([&four[0], &four[1], &four[2], &four[3]], |p| *p);
+        for (row, v) in ps.iter_mut().zip([p.x, p.y, p.z]) {
+            v.write_to_slice(&mut row[4 * c..4 * c + 4]);
+        }
+    }
+    for (l, p) in points.iter().enumerate().take(n).skip(whole) {
         (ps[0][l], ps[1][l], ps[2][l]) = (p.x, p.y, p.z);
-        lane_times[l] = time_of(times, l);
+    }
+    match times.get(..n) {
+        Some(times) => lane_times[..n].copy_from_slice(times),
+        None => {
+            for (l, t) in lane_times.iter_mut().enumerate().take(n) {
+                *t = time_of(times, l);
+            }
+        }
     }
     // What the light shader left, L, Cl and Ol, a row per component, in `rows`; in `flags`,
     // RenderMan's light flags: `diffuse()` and `specular()` skip (weigh by 1 minus) a light whose
@@ -173,7 +179,6 @@ fn eval_light_lanes(
                 }
             }
         });
-        let lane3 = |first: usize, l: usize| Vec3A::new(rows[first][l], rows[first + 1][l], rows[first + 2][l]);
         // Shadows: which lanes need a ray, then one packet (or a walk per ray).
         fill_attenuation(attenuation, n.div_ceil(4) * 4, Vec3A::ONE);
         let mut pending = 0u64;
@@ -181,16 +186,10 @@ fn eval_light_lanes(
             // As `RayPacket::new()` in the lanes this batch writes (no other lane is active or read).
             reset_packet_lanes(packet, n.div_ceil(4) * 4);
             let distant = light.kind == LightKind::Distant;
-            let mut m = shadow_packet_rows(rows, ps, lane_times, points, mask, distant, packet);
-            while m != 0 {
-                let l = m.trailing_zeros() as usize;
-                m &= m - 1;
-                if traced(l, -lane3(0, l)) {
-                    packet.active |= 1 << l;
-                } else {
-                    pending |= 1 << l;
-                }
-            }
+            let rays = shadow_packet_rows(rows, ps, lane_times, points, mask, distant, packet);
+            let traced = traced_lanes(front, rows, rays, n);
+            packet.active |= traced;
+            pending |= rays & !traced;
             transmission_packet(frame, packet, &mut attenuation[..n]);
         }
         for c in 0..n.div_ceil(4) {
@@ -203,9 +202,15 @@ fn eval_light_lanes(
                 v.map(|x| Vec4::select(finite, x, Vec4::ZERO))
             };
             let (to_surface, cl, ol) = (lanes4(0), finite_or_zero(lanes4(3)), finite_or_zero(lanes4(6)));
-            let shadow: [Vec4; 3] = std::array::from_fn(|k| {
-                Vec4::from_array(std::array::from_fn(|j| attenuation.get(4 * c + j).map_or(1.0, |a| a[k])))
-            });
+            let shadow = match attenuation.get(at.clone()) {
+                Some(a) => {
+                    let a = Lanes3::of([&a[0], &a[1], &a[2], &a[3]], |v| *v);
+                    [a.x, a.y, a.z]
+                }
+                None => std::array::from_fn(|k| {
+                    Vec4::from_array(std::array::from_fn(|j| attenuation.get(4 * c + j).map_or(1.0, |a| a[k])))
+                }),
+            };
             // `illuminate` leaves L at zero where the point is outside its cone: no light there.
             let unlit =
                 to_surface[0].cmpeq(Vec4::ZERO) & to_surface[1].cmpeq(Vec4::ZERO) & to_surface[2].cmpeq(Vec4::ZERO);
@@ -263,9 +268,12 @@ fn eval_invariant_light_lanes(
     };
     let fill = |row: &mut LightLanes| *row = template;
     for c in 0..n.div_ceil(4) {
-        let lanes = (0..4)
-            .filter(|&j| 4 * c + j < n && mask.get(4 * c + j).is_some_and(|&m| m != 0))
-            .fold(0, |a, j| a | 1 << j);
+        let lanes = match mask.get(4 * c..4 * c + 4).filter(|_| 4 * c + 4 <= n) {
+            Some(four) => IVec4::from_slice(four).cmpne(IVec4::ZERO).bitmask(),
+            None => (0..4)
+                .filter(|&j| 4 * c + j < n && mask.get(4 * c + j).is_some_and(|&m| m != 0))
+                .fold(0, |a, j| a | 1 << j),
+        };
         if lanes != 0 {
             sink(c, &fill, lanes, 0);
         }
@@ -499,6 +507,37 @@ fn shadow_packet_rows(
     lanes
 }
 
+/// The lanes of `lanes` (lanes with a shadow ray, of the first `n`) whose shadow ray is traced at
+/// once: all without `front`, else those whose direction toward the light (`-L`, rows 0-2 of
+/// `rows`) is within 90 degrees of their `front` normal, or that have none. Only a guess (a query
+/// that needs more resolves it), so no normalisation or slack. Four lanes at a time, each dot
+/// product summed in `Vec3A::dot`'s order, so the same signs.
+fn traced_lanes(front: Option<&[Vec3A]>, rows: &[[f32; PACKET_SIZE]; 9], lanes: u64, n: usize) -> u64 {
+    let Some(front) = front else { return lanes };
+    let mut traced = 0u64;
+    for c in 0..n.min(PACKET_SIZE).div_ceil(4) {
+        let four = (lanes >> (4 * c)) & 0xF;
+        if four == 0 {
+            continue;
+        }
+        let at = 4 * c..4 * c + 4;
+        let toward = |l: usize| -Vec3A::new(rows[0][l], rows[1][l], rows[2][l]);
+        let facing = match front.get(at.clone()) {
+            Some(f) => {
+                let f = Lanes3::of([&f[0], &f[1], &f[2], &f[3]], |v| *v);
+                let row = |k: usize| -Vec4::from_slice(&rows[k][at.clone()]);
+                let dot = (row(0) * f.x + row(1) * f.y) + row(2) * f.z;
+                u64::from(dot.cmpge(Vec4::ZERO).bitmask())
+            }
+            None => (0..4)
+                .filter(|&j| front.get(4 * c + j).is_none_or(|f| toward(4 * c + j).dot(*f) >= 0.0))
+                .fold(0, |a, j| a | 1 << j),
+        };
+        traced |= (four & facing) << (4 * c);
+    }
+    traced
+}
+
 /// Lane `l`'s time (0 where no times are given).
 fn time_of(times: &[f32], l: usize) -> f32 {
     times.get(l).copied().unwrap_or(0.0)
@@ -528,7 +567,7 @@ fn shadow_ray(from: Vec3A, dir: Vec3A, distance: f32) -> Option<Ray> {
 }
 
 /// The buffers of a [`BatchLights`]: counts, lights, pending.
-type BatchLightBuffers = (Vec<u32>, Vec<LightLanes>, Vec<u32>);
+type BatchLightBuffers = (Vec<[u32; 4]>, Vec<LightLanes>, Vec<[u32; 4]>);
 
 thread_local! {
     /// Buffers of dropped [`BatchLights`], for the next batch (`scratch`).
@@ -541,15 +580,19 @@ thread_local! {
 /// host ABI hands them over (`LightLanes` rows).
 ///
 /// Shadows are traced at once only for the lights in front of each point (see
-/// [`BatchLights::compute`]); the others are pending (bit `k` of `pending[l]`, their `cl`
-/// unshadowed) until a query whose cone takes them in resolves them.
+/// [`BatchLights::compute`]); the others are pending (bit `k` of lane `l`'s pending mask, their
+/// `cl` unshadowed) until a query whose cone takes them in resolves them.
+///
+/// Counts and pending masks are kept a chunk at a time (lane `l`'s in `[l / 4][l % 4]`), as the
+/// rows are: appending a light's row to a chunk updates them in place, where copying them in and
+/// out lane by lane was a fifth of this table's making (BART's robots).
 pub(super) struct BatchLights {
     pub(super) n: usize,
     /// Light rows per chunk.
     pub(super) slots: usize,
-    pub(super) counts: Vec<u32>,
+    counts: Vec<[u32; 4]>,
     pub(super) lights: Vec<LightLanes>,
-    pending: Vec<u32>,
+    pending: Vec<[u32; 4]>,
 }
 
 impl Drop for BatchLights {
@@ -578,42 +621,31 @@ impl BatchLights {
         let slots: usize = frame.world.lights.iter().map(|l| l.area.as_ref().map_or(1, |a| a.samples as usize)).sum();
         let slots = slots.min(MAX_LIGHTS);
         let (mut counts, mut lights, mut pending) = super::scratch::take(&BATCH_LIGHT_BUFFERS);
+        let chunks = n.div_ceil(4);
         counts.clear();
-        counts.resize(n, 0);
+        counts.resize(chunks, [0; 4]);
         // Not cleared: a row is read only below its lanes' counts, where an append wrote it (the
         // host ABI leaves lanes past their count undefined), and zeroing a batch's rows was most
         // of the stores here.
-        lights.resize(slots * n.div_ceil(4), LightLanes::default());
+        lights.resize(slots * chunks, LightLanes::default());
         pending.clear();
-        pending.resize(n, 0);
-        // Only a guess (a query that needs more resolves it), so no normalisation or slack.
-        let traced = |l: usize, to_light: Vec3A| front.and_then(|f| f.get(l)).is_none_or(|f| to_light.dot(*f) >= 0.0);
+        pending.resize(chunks, [0; 4]);
         for light in &frame.world.lights {
             if light.in_category("") {
-                eval_light_lanes(
-                    frame,
-                    light,
-                    material,
-                    mask,
-                    points,
-                    times,
-                    depth,
-                    traced,
-                    |c, fill, lanes, later| {
-                        let at = 4 * c..(4 * c + 4).min(n);
-                        let mut chunk_counts = [u32::MAX; 4];
-                        chunk_counts[..at.len()].copy_from_slice(&counts[at.clone()]);
-                        let before = chunk_counts;
-                        let chunk_lights = &mut lights[c * slots..(c + 1) * slots];
-                        let appended = append_row(chunk_lights, &mut chunk_counts, fill, lanes);
-                        for (j, lane) in at.enumerate() {
-                            if appended >> j & 1 != 0 {
-                                pending[lane] |= (later >> j & 1) << before[j];
-                                counts[lane] = chunk_counts[j];
-                            }
+                eval_light_lanes(frame, light, material, mask, points, times, depth, front, |c, fill, lanes, later| {
+                    let (Some(chunk_counts), Some(chunk_pending), Some(chunk_lights)) =
+                        (counts.get_mut(c), pending.get_mut(c), lights.get_mut(c * slots..(c + 1) * slots))
+                    else {
+                        return;
+                    };
+                    let before = *chunk_counts;
+                    let appended = append_row(chunk_lights, chunk_counts, fill, lanes);
+                    for j in 0..4 {
+                        if appended >> j & 1 != 0 {
+                            chunk_pending[j] |= (later >> j & 1) << before[j];
                         }
-                    },
-                );
+                    }
+                });
             }
         }
         BatchLights { n, slots, counts, lights, pending }
@@ -632,7 +664,12 @@ impl BatchLights {
 
     /// Which of `lane`'s lights (bit `k`: light `k`) still have their shadows untraced.
     pub(super) fn pending_of(&self, lane: usize) -> u32 {
-        self.pending.get(lane).copied().unwrap_or(0)
+        self.pending.get(lane / 4).map_or(0, |p| p[lane % 4])
+    }
+
+    /// How many lights lane `lane` has (0 past the batch).
+    pub(super) fn count_of(&self, lane: usize) -> u32 {
+        self.counts.get(lane / 4).map_or(0, |c| c[lane % 4])
     }
 
     /// Traces the pending shadows that queries need: for each `(lane, axis, cos)`, those of the
@@ -646,7 +683,10 @@ impl BatchLights {
     ) {
         let mut wanted: Vec<(usize, usize)> = Vec::new();
         for (lane, axis, cos) in queries {
-            let Some(&pending) = self.pending.get(lane) else { continue };
+            if lane >= self.n {
+                continue;
+            }
+            let pending = self.pending_of(lane);
             if cos > 1.0 {
                 // `ambient()`: no non-ambient light counts.
                 continue;
@@ -657,7 +697,9 @@ impl BatchLights {
                 m &= m - 1;
                 if light_in_cone(self.light(lane, k).l, axis, cos) {
                     wanted.push((k, lane));
-                    self.pending[lane] &= !(1 << k);
+                    if let Some(p) = self.pending.get_mut(lane / 4) {
+                        p[lane % 4] &= !(1 << k);
+                    }
                 }
             }
         }
@@ -980,6 +1022,54 @@ mod tests {
         assert_eq!(ids(2), [12, 22, 32]);
         assert_eq!(ids(3), [13, 33, 43]);
         assert_eq!(lights[1].lane(3).cl, [3.0, 3.0, 0.0]);
+    }
+
+    /// Four lanes at a time, `traced_lanes` picks the lanes that the one-lane test picks: a lane
+    /// with a ray whose direction toward the light (`-L`) has a non-negative dot product with its
+    /// front normal (as `Vec3A::dot` sums it), or that has no front normal; random and special
+    /// values (zeros of both signs, tiny, huge, infinite, NaN), front lists shorter than the batch,
+    /// and none.
+    #[test]
+    fn four_lane_shadow_choice_is_the_per_lane_one() {
+        let mut state = 0x9e37_79b9_u32;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            state
+        };
+        let specials = [0.0, -0.0, 1e-30, -1e-30, 1e30, -f32::INFINITY, f32::NAN, 1.0, -1.0];
+        for round in 0..2000 {
+            let n = 1 + (next() % 64) as usize;
+            let mut value = || {
+                let bits = next();
+                if bits % 7 == 0 {
+                    specials[(bits >> 8) as usize % specials.len()]
+                } else {
+                    bits as f32 / u32::MAX as f32 - 0.5
+                }
+            };
+            let mut rows = [[0.0f32; PACKET_SIZE]; 9];
+            for row in rows.iter_mut().take(3) {
+                for v in row.iter_mut().take(n) {
+                    *v = value();
+                }
+            }
+            let front: Vec<Vec3A> = (0..n).map(|_| Vec3A::new(value(), value(), value())).collect();
+            let lanes = (u64::from(next()) << 32 | u64::from(next())) & if n == 64 { u64::MAX } else { (1 << n) - 1 };
+            let cut = match round % 4 {
+                0 => n,
+                _ => (next() as usize) % (n + 1),
+            };
+            let front = &front[..cut];
+            let one_lane = |l: usize| {
+                let toward = -Vec3A::new(rows[0][l], rows[1][l], rows[2][l]);
+                front.get(l).is_none_or(|f| toward.dot(*f) >= 0.0)
+            };
+            let expected = (0..n).filter(|&l| lanes >> l & 1 != 0 && one_lane(l)).fold(0u64, |a, l| a | 1 << l);
+            assert_eq!(traced_lanes(Some(front), &rows, lanes, n), expected, "round {round}, {n} lanes, {cut} fronts");
+            assert_eq!(traced_lanes(None, &rows, lanes, n), lanes);
+        }
     }
 
     /// The four-lane shadow rays are `shadow_ray_toward`'s, lane for lane and bit for bit, and only

@@ -924,7 +924,7 @@ fn shade_native(
     for (k, g) in geoms.iter().enumerate() {
         let Some(g) = g else { continue };
         seen.clear();
-        seen.extend((0..table.counts[k] as usize).map(|j| {
+        seen.extend((0..table.count_of(k) as usize).map(|j| {
             let h = table.light(k, j);
             LightSeen { l: Vec3A::from(h.l), cl: Vec3A::from(h.cl), ambient: h.ambient != 0 }
         }));
