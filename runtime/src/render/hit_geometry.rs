@@ -584,8 +584,8 @@ impl<V: Lanes> SurfaceLanes<V> {
             _ if !ig.coords => ([u, v], identity, Lanes3::zero(), Lanes3::zero()),
             Some(uvs) => {
                 let corner = |k: usize| {
-                    let at = |j: usize| uvs.get(tri(j)[k]).copied().unwrap_or_default();
-                    (V::from_fn(|j| at(j).x), V::from_fn(|j| at(j).y))
+                    let [x, y] = V::gather2(uvs, |j| tri(j)[k]);
+                    (x, y)
                 };
                 let (ta, tb, tc) = (corner(0), corner(1), corner(2));
                 let (d1, d2) = ((tb.0 - ta.0, tb.1 - ta.1), (tc.0 - ta.0, tc.1 - ta.1));

@@ -4,7 +4,7 @@
 //! so a lane gets the same bits at either width.
 
 use super::hit_geometry::Lanes3;
-use glam::{BVec4A, Vec3, Vec3A, Vec4};
+use glam::{BVec4A, Vec2, Vec3, Vec3A, Vec4};
 use std::ops::{Add, BitAnd, Div, Mul, Neg, Not, Sub};
 use wide::f32x8;
 
@@ -35,6 +35,8 @@ pub(super) trait Lanes:
     fn write_to(self, out: &mut [f32]);
     /// Element `index(j)` of `data` in lane `j` (zero where there is none).
     fn gather3(data: &[Vec3], index: impl Fn(usize) -> usize) -> Lanes3<Self>;
+    /// Element `index(j)` of `data` in lane `j`, its `x` and its `y` (zeros where there is none).
+    fn gather2(data: &[Vec2], index: impl Fn(usize) -> usize) -> [Self; 2];
     /// The vectors `f(j)`, one a lane.
     fn of3(f: impl Fn(usize) -> Vec3A) -> Lanes3<Self>;
 }
@@ -108,6 +110,35 @@ impl Lanes for Vec4 {
     #[inline(always)]
     fn gather3(data: &[Vec3], index: impl Fn(usize) -> usize) -> Lanes3<Self> {
         Lanes3::gather(data, index)
+    }
+
+    #[inline(always)]
+    fn gather2(data: &[Vec2], index: impl Fn(usize) -> usize) -> [Self; 2] {
+        let at = [index(0), index(1), index(2), index(3)];
+        #[cfg(target_arch = "x86_64")]
+        {
+            // Eight bytes an element, shuffled into rows in registers: element by element, each
+            // took a bounds check and two loads and inserts (a sixth of a BART robot's hit
+            // geometry, for the texture coordinates of a triangle's corners).
+            if at[0].max(at[1]).max(at[2]).max(at[3]) < data.len() {
+                use std::arch::x86_64::{_mm_castpd_ps, _mm_load_sd, _mm_movelh_ps, _mm_shuffle_ps};
+                // SAFETY: every `i < data.len()`, checked above, so the 8 bytes of element `i` lie
+                // inside `data`; `Vec2` is two `f32`s (`repr(C)`), and `_mm_load_sd` needs no
+                // alignment. The rest only shuffles registers (SSE2 is part of x86-64).
+                return unsafe {
+                    let load = |i: usize| _mm_castpd_ps(_mm_load_sd(data.as_ptr().add(i).cast::<f64>()));
+                    let (low, high) =
+                        (_mm_movelh_ps(load(at[0]), load(at[1])), _mm_movelh_ps(load(at[2]), load(at[3])));
+                    [
+                        _mm_shuffle_ps::<0b10_00_10_00>(low, high).into(),
+                        _mm_shuffle_ps::<0b11_01_11_01>(low, high).into(),
+                    ]
+                };
+            }
+        }
+        let at = |j: usize| data.get(at[j]).copied().unwrap_or_default();
+        let (a, b, c, d) = (at(0), at(1), at(2), at(3));
+        [Vec4::new(a.x, b.x, c.x, d.x), Vec4::new(a.y, b.y, c.y, d.y)]
     }
 
     #[inline(always)]
@@ -206,6 +237,12 @@ impl Lanes for f32x8 {
     }
 
     #[inline(always)]
+    fn gather2(data: &[Vec2], index: impl Fn(usize) -> usize) -> [Self; 2] {
+        let (lo, hi) = (Vec4::gather2(data, &index), Vec4::gather2(data, |j| index(j + 4)));
+        [halves(lo[0], hi[0]), halves(lo[1], hi[1])]
+    }
+
+    #[inline(always)]
     fn of3(f: impl Fn(usize) -> Vec3A) -> Lanes3<Self> {
         let (lo, hi) = (Vec4::of3(&f), Vec4::of3(|j| f(j + 4)));
         Lanes3 { x: halves(lo.x, hi.x), y: halves(lo.y, hi.y), z: halves(lo.z, hi.z) }
@@ -267,5 +304,30 @@ mod tests {
             let want = (0..8).filter(|&j| a(j) > 1.0).fold(0, |m, j| m | 1 << j);
             assert_eq!(<f32x8 as Lanes>::bitmask(mask), want);
         }
+    }
+    /// Gathering texture coordinates four or eight lanes at a time gives each lane its element's
+    /// bits, and zeros for an index past the data (every lane then goes the slow way).
+    #[test]
+    fn gathered_pairs_are_the_elements() {
+        let data: Vec<Vec2> = (0..37).map(|i| Vec2::new(i as f32 * 1.5 - 3.0, -(i as f32) / 7.0)).collect();
+        for seed in 0..60usize {
+            let index = |j: usize| (seed * 11 + j * 13) % if seed % 5 == 0 { 40 } else { 37 };
+            let want = |j: usize| data.get(index(j)).copied().unwrap_or_default();
+            let [x, y] = Vec4::gather2(&data, index);
+            let [x8, y8] = <f32x8 as Lanes>::gather2(&data, index);
+            for j in 0..8 {
+                if j < 4 {
+                    assert_eq!(
+                        [x[j].to_bits(), y[j].to_bits()],
+                        [want(j).x.to_bits(), want(j).y.to_bits()],
+                        "seed {seed}"
+                    );
+                }
+                let (x8, y8) = (x8.to_array()[j], y8.to_array()[j]);
+                assert_eq!([x8.to_bits(), y8.to_bits()], [want(j).x.to_bits(), want(j).y.to_bits()], "seed {seed}");
+            }
+        }
+        let [x, _] = Vec4::gather2(&[], |j| j);
+        assert_eq!(x, Vec4::ZERO);
     }
 }
