@@ -836,8 +836,25 @@ fn extend_batch_lanes(
     hits: GroupHits,
     (points, mask, times): (&mut Vec<Vec3A>, &mut Vec<i32>, &mut Vec<f32>),
 ) {
-    points.extend(hits.iter().map(|g| g.map_or(Vec3A::ZERO, |g| g.p)));
-    mask.extend(hits.iter().map(|g| if g.is_some() { -1 } else { 0 }));
+    match hits {
+        // Straight from the rows: through `GroupHits::get`, each lane's whole surface was read
+        // for its point and validity.
+        GroupHits::Rows(rows, len) => {
+            let valid = |lane: usize| lane < PACKET_SIZE && rows.valid >> lane & 1 != 0;
+            points.extend((0..len).map(|l| {
+                if valid(l) {
+                    Vec3A::new(rows.p[0][l], rows.p[1][l], rows.p[2][l])
+                } else {
+                    Vec3A::ZERO
+                }
+            }));
+            mask.extend((0..len).map(|l| if valid(l) { -1 } else { 0 }));
+        }
+        GroupHits::Each(..) => {
+            points.extend(hits.iter().map(|g| g.map_or(Vec3A::ZERO, |g| g.p)));
+            mask.extend(hits.iter().map(|g| if g.is_some() { -1 } else { 0 }));
+        }
+    }
     times.extend(group.iter().map(|p| p.ray.time));
 }
 
@@ -863,10 +880,30 @@ fn batch_call<'f, 'w>(
 /// Each lane's shading normal turned toward the ray's origin (by the geometric normal, as
 /// `faceforward(N, I)`): the side whose lights a typical surface shader sums.
 fn front_normals<'a>(group: &'a [Pending], hits: GroupHits<'a>) -> impl Iterator<Item = Vec3A> + 'a {
-    group.iter().zip(0..hits.len()).map(move |(p, lane)| match hits.get(lane) {
-        Some(g) if p.ray.direction.dot(g.ng) > 0.0 => -g.n,
-        Some(g) => g.n,
-        None => Vec3A::ZERO,
+    // The normals straight from the rows where there are rows (see `extend_batch_lanes`).
+    let rows = match hits {
+        GroupHits::Rows(rows, len) => Some((rows, len)),
+        GroupHits::Each(..) => None,
+    };
+    let v3 = |r: &[[f32; PACKET_SIZE]; 3], l: usize| Vec3A::new(r[0][l], r[1][l], r[2][l]);
+    group.iter().zip(0..hits.len()).map(move |(p, lane)| {
+        let (n, ng) = match rows {
+            Some((rows, len)) => {
+                if lane >= len.min(PACKET_SIZE) || rows.valid >> lane & 1 == 0 {
+                    return Vec3A::ZERO;
+                }
+                (v3(&rows.n, lane), v3(&rows.ng, lane))
+            }
+            None => match hits.get(lane) {
+                Some(g) => (g.n, g.ng),
+                None => return Vec3A::ZERO,
+            },
+        };
+        if p.ray.direction.dot(ng) > 0.0 {
+            -n
+        } else {
+            n
+        }
     })
 }
 
