@@ -450,6 +450,12 @@ impl Lanes3 {
         Vec3A::new(self.x[j], self.y[j], self.z[j])
     }
 
+    /// Four consecutive vectors, a vector a lane.
+    #[inline(always)]
+    pub(super) fn of_four(four: &[Vec3A; 4]) -> Lanes3 {
+        Lanes3::of([&four[0], &four[1], &four[2], &four[3]], |v| *v)
+    }
+
     /// The vectors `f(items[j])`, one a lane: transposed in registers. (Built as an array of
     /// vectors and read back a component at a time, the reads straddled the array's stores,
     /// which stalls them: the most sampled instructions of a BART robot's hit geometry.)

@@ -105,8 +105,9 @@ fn eval_light_lanes(
     // The lanes' points and times as rows, written into each batch a row at a time; the points
     // four at a time, transposed in registers.
     let whole = n / 4 * 4;
-    for (c, four) in points[..whole].chunks_exact(4).enumerate() {
-        let p = Lanes3::of([&four[0], &four[1], &four[2], &four[3]], |p| *p);
+    for c in 0..whole / 4 {
+        let Some(four) = chunk_of_four(points, c) else { break };
+        let p = Lanes3::of_four(four);
         for (row, v) in ps.iter_mut().zip([p.x, p.y, p.z]) {
             v.write_to_slice(&mut row[4 * c..4 * c + 4]);
         }
@@ -202,15 +203,11 @@ fn eval_light_lanes(
                 v.map(|x| Vec4::select(finite, x, Vec4::ZERO))
             };
             let (to_surface, cl, ol) = (lanes4(0), finite_or_zero(lanes4(3)), finite_or_zero(lanes4(6)));
-            let shadow = match attenuation.get(at.clone()) {
-                Some(a) => {
-                    let a = Lanes3::of([&a[0], &a[1], &a[2], &a[3]], |v| *v);
-                    [a.x, a.y, a.z]
-                }
-                None => std::array::from_fn(|k| {
-                    Vec4::from_array(std::array::from_fn(|j| attenuation.get(4 * c + j).map_or(1.0, |a| a[k])))
-                }),
-            };
+            // (A packet's worth of rows: every chunk has its four, the `ONE`s never serve.)
+            let shadow = chunk_of_four(&attenuation[..], c).map_or([Vec4::ONE; 3], |four| {
+                let a = Lanes3::of_four(four);
+                [a.x, a.y, a.z]
+            });
             // `illuminate` leaves L at zero where the point is outside its cone: no light there.
             let unlit =
                 to_surface[0].cmpeq(Vec4::ZERO) & to_surface[1].cmpeq(Vec4::ZERO) & to_surface[2].cmpeq(Vec4::ZERO);
@@ -522,9 +519,9 @@ fn traced_lanes(front: Option<&[Vec3A]>, rows: &[[f32; PACKET_SIZE]; 9], lanes: 
         }
         let at = 4 * c..4 * c + 4;
         let toward = |l: usize| -Vec3A::new(rows[0][l], rows[1][l], rows[2][l]);
-        let facing = match front.get(at.clone()) {
+        let facing = match chunk_of_four(front, c) {
             Some(f) => {
-                let f = Lanes3::of([&f[0], &f[1], &f[2], &f[3]], |v| *v);
+                let f = Lanes3::of_four(f);
                 let row = |k: usize| -Vec4::from_slice(&rows[k][at.clone()]);
                 let dot = (row(0) * f.x + row(1) * f.y) + row(2) * f.z;
                 u64::from(dot.cmpge(Vec4::ZERO).bitmask())
@@ -536,6 +533,11 @@ fn traced_lanes(front: Option<&[Vec3A]>, rows: &[[f32; PACKET_SIZE]; 9], lanes: 
         traced |= (four & facing) << (4 * c);
     }
     traced
+}
+
+/// Chunk `c` of `v`: its four vectors, if it has them all.
+fn chunk_of_four(v: &[Vec3A], c: usize) -> Option<&[Vec3A; 4]> {
+    v.get(4 * c..4 * c + 4)?.try_into().ok()
 }
 
 /// Lane `l`'s time (0 where no times are given).
@@ -1024,6 +1026,16 @@ mod tests {
         assert_eq!(lights[1].lane(3).cl, [3.0, 3.0, 0.0]);
     }
 
+    /// A small deterministic generator (xorshift), so that failures reproduce.
+    fn xorshift(mut state: u32) -> impl FnMut() -> u32 {
+        move || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            state
+        }
+    }
+
     /// Four lanes at a time, `traced_lanes` picks the lanes that the one-lane test picks: a lane
     /// with a ray whose direction toward the light (`-L`) has a non-negative dot product with its
     /// front normal (as `Vec3A::dot` sums it), or that has no front normal; random and special
@@ -1031,13 +1043,7 @@ mod tests {
     /// and none.
     #[test]
     fn four_lane_shadow_choice_is_the_per_lane_one() {
-        let mut state = 0x9e37_79b9_u32;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 17;
-            state ^= state << 5;
-            state
-        };
+        let mut next = xorshift(0x9e37_79b9);
         let specials = [0.0, -0.0, 1e-30, -1e-30, 1e30, -f32::INFINITY, f32::NAN, 1.0, -1.0];
         for round in 0..2000 {
             let n = 1 + (next() % 64) as usize;
@@ -1078,13 +1084,7 @@ mod tests {
     /// point and distant lights.
     #[test]
     fn four_lane_shadow_rays_are_the_per_lane_ones() {
-        let mut state = 0x2545_f491_u32;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 17;
-            state ^= state << 5;
-            state
-        };
+        let mut next = xorshift(0x2545_f491);
         let specials = [0.0, -0.0, 1e-30, -1e-20, 1e30, f32::INFINITY, f32::NAN, 3.0, -0.5];
         for round in 0..400 {
             let n = 1 + (next() % 64) as usize;
