@@ -353,6 +353,9 @@ fn bart_plays_a_scene_at_its_timing_and_writes_the_frames() {
     let frames: Vec<&str> = out.lines().filter(|l| l.starts_with("frame ")).collect();
     assert_eq!(frames.len(), 3, "{out}");
     assert!(frames[1].contains("scene frame    3, t =    0.300 s") && frames[1].contains("M rays/s"), "{out}");
+    // 32x24 camera rays a frame, each lit point one shadow ray toward the one light.
+    let rays = out.lines().find(|l| l.starts_with("rays per frame: ")).unwrap_or_default();
+    assert!(rays.contains("(768 primary, ") && !rays.contains(" 0 shadow"), "{out}");
     let summary = out.lines().last().unwrap_or_default();
     assert!(
         summary.starts_with("3 frames:") && summary.contains(", median ") && summary.contains("% of a frame"),

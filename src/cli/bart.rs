@@ -50,6 +50,8 @@ struct FrameTimes {
     build: Duration,
     render: Duration,
     rays: u64,
+    /// Rays by kind: primary, shadow, secondary, transparency.
+    rays_by_kind: [u64; 4],
     accel: rtsl_runtime::render::AccelUpdate,
 }
 
@@ -185,7 +187,8 @@ fn play_frame(
         write_image(&path, fb.width as usize, fb.height as usize, &fb.rgba, &WriteOptions::default())
             .with_context(|| format!("writing {}", path.display()))?;
     }
-    Ok(FrameTimes { animation, build, render, rays: report.total_rays(), accel: report.accel })
+    let rays_by_kind = [report.primary_rays, report.shadow_rays, report.secondary_rays, report.transparency_rays];
+    Ok(FrameTimes { animation, build, render, rays: report.total_rays(), rays_by_kind, accel: report.accel })
 }
 
 fn summarize(times: &[FrameTimes]) {
@@ -207,6 +210,18 @@ fn summarize(times: &[FrameTimes]) {
     let accel = mean(&|t| t.accel.total());
     let rays: u64 = times.iter().map(|t| t.rays).sum();
     let render_s: f64 = times.iter().map(|t| t.render.as_secs_f64()).sum();
+    // What a frame asks of the tracer, whatever the host's speed: the bound below which no
+    // shading makes a frame (rays over the tracer's best rate).
+    let per_frame = |k: usize| (times.iter().map(|t| t.rays_by_kind[k]).sum::<u64>() as f64 / n).round();
+    println!(
+        "rays per frame: {:.0} on average ({} primary, {} shadow, {} secondary, {} transparency), at most {}",
+        rays as f64 / n,
+        per_frame(0),
+        per_frame(1),
+        per_frame(2),
+        per_frame(3),
+        times.iter().map(|t| t.rays).max().unwrap_or(0),
+    );
     println!(
         "{} frames: {:.1} ms per frame on average (min {:.1}, median {:.1}, max {:.1}; {:.2} frames/s): update {:.2} ms (animation {:.2}, world {:.2} of which BVHs {:.2}, {:.2}% of a frame), render {:.1} ms; {:.2} M rays/s (image writing not counted)",
         times.len(),
