@@ -826,6 +826,14 @@ impl Cx<'_> {
             self.set(j + k, l, *x);
         }
     }
+    /// Output triple `j` of the active lanes from rows of four lanes; inactive lanes keep theirs.
+    fn set3_lanes(&mut self, j: usize, v: &Lanes3) {
+        let mask = glam::BVec4A::from_array(self.mask);
+        for (k, row) in v.0.iter().enumerate() {
+            let Some(out) = self.out.get_mut(4 * (j + k)..4 * (j + k) + 4) else { return };
+            glam::Vec4::select(mask, *row, glam::Vec4::from_slice(out)).write_to_slice(out);
+        }
+    }
     fn active(&self) -> impl Iterator<Item = usize> {
         let m = self.mask;
         (0..4).filter(move |l| m[*l])
@@ -1174,18 +1182,14 @@ host_helpers! {
         cone[12..].fill(NO_LIGHT);
         let counts = cx.lights("", 0, &cone);
         let sum = light_sums::ambient(&cx.ctx.light_buffer, counts, cx.mask);
-        for l in cx.active() {
-            cx.set3(0, l, sum.lane(l));
-        }
+        cx.set3_lanes(0, &sum);
     }
     // [P, N] -> diffuse
     h_diffuse "rtsl_h_diffuse" 6 => 3 |cx| {
         let counts = cx.lights("", 0, &cx.hemisphere(3));
         let n = Lanes3::of_rows(cx.input, 3).normalized();
         let sum = light_sums::diffuse(&cx.ctx.light_buffer, counts, cx.mask, &n);
-        for l in cx.active() {
-            cx.set3(0, l, sum.lane(l));
-        }
+        cx.set3_lanes(0, &sum);
     }
     // [P, N, V, roughness] -> specular
     h_specular "rtsl_h_specular" 10 => 3 |cx| {
@@ -1194,9 +1198,7 @@ host_helpers! {
         let view = Lanes3::of_rows(cx.input, 6).normalized();
         let roughness = glam::Vec4::from_array(std::array::from_fn(|l| cx.f(9, l)));
         let sum = light_sums::specular(&cx.ctx.light_buffer, counts, cx.mask, &n, &view, roughness);
-        for l in cx.active() {
-            cx.set3(0, l, sum.lane(l));
-        }
+        cx.set3_lanes(0, &sum);
     }
     // [P, N, V, size] -> phong
     h_phong "rtsl_h_phong" 10 => 3 |cx| {
@@ -1205,9 +1207,7 @@ host_helpers! {
         let view = Lanes3::of_rows(cx.input, 6).normalized();
         let size = glam::Vec4::from_array(std::array::from_fn(|l| cx.f(9, l)));
         let sum = light_sums::phong(&cx.ctx.light_buffer, counts, cx.mask, &n, &view, size);
-        for l in cx.active() {
-            cx.set3(0, l, sum.lane(l));
-        }
+        cx.set3_lanes(0, &sum);
     }
     // [name, s, t, first channel, fill, channels, dsdx, dtdx, dsdy, dtdy, blur] -> 3
     h_texture "rtsl_h_texture" 11 => 3 |cx| {

@@ -11,7 +11,9 @@
 //! square roots and store-forwarding stalls, slower than the lane-by-lane loop it replaced.
 
 use super::{LightLanes, CONE_ROWS, MAX_LIGHTS};
-use crate::shadeops::{transcendental, V3};
+use crate::shadeops::transcendental;
+#[cfg(test)]
+use crate::shadeops::V3;
 use glam::{BVec4A, Vec4};
 
 /// Four lanes of a triple, as rows x, y, z.
@@ -25,6 +27,7 @@ impl Lanes3 {
         Lanes3([row(k), row(k + 1), row(k + 2)])
     }
 
+    #[cfg(test)]
     pub(super) fn lane(&self, l: usize) -> V3 {
         [self.0[0][l], self.0[1][l], self.0[2][l]]
     }
@@ -65,43 +68,57 @@ fn rows3(rows: &[[f32; 4]; 3]) -> Lanes3 {
     Lanes3(rows.map(Vec4::from_array))
 }
 
-/// The lanes that are asking (`mask`) and have an `i`-th light (`counts`).
-#[inline(always)]
-fn lanes_with(counts: [u32; 4], mask: [bool; 4], i: usize) -> BVec4A {
-    let has = |l: usize| mask[l] && (i as u32) < counts[l];
-    BVec4A::new(has(0), has(1), has(2), has(3))
+/// Which lanes ask (`mask`) and how many lights each has (`counts`), for the tests of each light
+/// row in vector lanes.
+struct Asking {
+    /// Each asking lane's count (at most [`MAX_LIGHTS`], so exact as a float); 0 elsewhere.
+    counts: Vec4,
+    /// The most lights any asking lane has.
+    most: usize,
+}
+
+impl Asking {
+    #[inline(always)]
+    fn of(counts: [u32; 4], mask: [bool; 4]) -> Asking {
+        // Clamped as floats: a count past MAX_LIGHTS converts to a float past it too.
+        let counts = Vec4::from_array(counts.map(|c| c as f32)).min(Vec4::splat(MAX_LIGHTS as f32));
+        let counts = Vec4::select(BVec4A::from_array(mask), counts, Vec4::ZERO);
+        Asking { counts, most: counts.max_element() as usize }
+    }
+
+    /// The lanes that are asking and have an `i`-th light (`i` below [`MAX_LIGHTS`]).
+    #[inline(always)]
+    fn with(&self, i: usize) -> BVec4A {
+        self.counts.cmpgt(Vec4::splat(i as f32))
+    }
 }
 
 /// The lanes whose light in `lights` is ambient.
 #[inline(always)]
 fn ambient_lanes(lights: &LightLanes) -> BVec4A {
-    let a = lights.ambient;
-    BVec4A::new(a[0] != 0, a[1] != 0, a[2] != 0, a[3] != 0)
+    // A nonzero integer converts to a nonzero float (in one instruction for the four lanes).
+    Vec4::from_array(lights.ambient.map(|a| a as i32 as f32)).cmpne(Vec4::ZERO)
 }
 
 impl LightRow {
     #[inline(always)]
-    fn of(lights: &LightLanes, counts: [u32; 4], mask: [bool; 4], i: usize) -> LightRow {
+    fn of(lights: &LightLanes, asking: &Asking, i: usize) -> LightRow {
         LightRow {
             l: rows3(&lights.l),
             cl: rows3(&lights.cl),
             nondiffuse: Vec4::from_array(lights.nondiffuse),
             nonspecular: Vec4::from_array(lights.nonspecular),
-            has: lanes_with(counts, mask, i) & !ambient_lanes(lights),
+            has: asking.with(i) & !ambient_lanes(lights),
         }
     }
-}
-
-/// The most lights any asking lane has.
-fn most_lights(counts: [u32; 4], mask: [bool; 4]) -> usize {
-    (0..4).filter(|&l| mask[l]).map(|l| counts[l] as usize).max().unwrap_or(0).min(MAX_LIGHTS)
 }
 
 /// `ambient()` of four lanes: the sum of each lane's ambient lights' colours, in order.
 pub(super) fn ambient(buffer: &[LightLanes], counts: [u32; 4], mask: [bool; 4]) -> Lanes3 {
     let mut sum = Lanes3::default();
-    for (i, lights) in buffer.iter().take(most_lights(counts, mask)).enumerate() {
-        let counted = lanes_with(counts, mask, i) & ambient_lanes(lights);
+    let asking = Asking::of(counts, mask);
+    for (i, lights) in buffer.iter().take(asking.most).enumerate() {
+        let counted = asking.with(i) & ambient_lanes(lights);
         for (s, cl) in sum.0.iter_mut().zip(&lights.cl) {
             *s = Vec4::select(counted, *s + Vec4::from_array(*cl), *s);
         }
@@ -161,8 +178,9 @@ fn sum_lights(
 ) -> Lanes3 {
     let mut sum = Lanes3::default();
     let unit_n = n.normalized();
-    for (i, lights) in buffer.iter().take(most_lights(counts, mask)).enumerate() {
-        let row = LightRow::of(lights, counts, mask, i);
+    let asking = Asking::of(counts, mask);
+    for (i, lights) in buffer.iter().take(asking.most).enumerate() {
+        let row = LightRow::of(lights, &asking, i);
         // Most often an ambient light, in every lane's list (and the same row of each).
         if !row.has.any() {
             continue;
