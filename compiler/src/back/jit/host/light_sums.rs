@@ -223,7 +223,10 @@ pub(super) fn specular(
 /// library call, made only for the lanes that use it.
 #[inline(always)]
 fn highlight(base: Vec4, exponent: Vec4, counted: BVec4A, nonspecular: Vec4) -> Vec4 {
-    let (base, exponent, counted) = (base.to_array(), exponent.to_array(), counted.bitmask());
+    // `base` is a `max(_, 0)`: positive, or +0 (never -0 or NaN), and `pow(+0, y)` is +0 for
+    // every positive `y`, so those lanes (a light behind the highlight's lobe) need no call.
+    let zero = base.cmpeq(Vec4::ZERO) & exponent.cmpgt(Vec4::ZERO);
+    let (base, exponent, counted) = (base.to_array(), exponent.to_array(), (counted & !zero).bitmask());
     let powers: [f32; 4] =
         std::array::from_fn(|l| if counted >> l & 1 != 0 { transcendental::pow(base[l], exponent[l]) } else { 0.0 });
     Vec4::from_array(powers) * (Vec4::ONE - nonspecular)
