@@ -16,6 +16,7 @@ pub mod api;
 pub mod bart;
 pub mod bench;
 pub mod camera;
+pub mod distributed;
 pub mod geometry;
 pub mod image_io;
 pub mod lightfield;

@@ -80,6 +80,17 @@ impl TileFilm {
         TileFilm { filter, rect, sums: vec![[0.0; 5]; rect.width() * rect.height()] }
     }
 
+    /// The film's sums, a row of its pixels after another: red, green, blue, alpha and weight.
+    pub fn sums(&self) -> &[[f32; 5]] {
+        &self.sums
+    }
+
+    /// [`TileFilm::sums`], to fill in sums made elsewhere (a film of the same filter, tile and
+    /// pixels has as many).
+    pub fn sums_mut(&mut self) -> &mut [[f32; 5]] {
+        &mut self.sums
+    }
+
     /// Adds a sample of colour and alpha `rgba` at raster position `(x, y)` to every pixel of the
     /// film its filter reaches.
     pub fn splat(&mut self, (x, y): (f32, f32), rgba: [f32; 4]) {

@@ -647,56 +647,166 @@ fn shade_tile_pixels(frame: &Frame, tile: &Tile, px: &mut TileSamples) {
 /// are done after each tile.
 pub fn render_frame(world: &World, progress: Option<&(dyn Fn(usize, usize) + Sync)>) -> (Framebuffer, FrameReport) {
     let start = Instant::now();
-    let frame = Frame::new(world);
-    let sampling = Sampling::of(world);
+    let renderer = TileRenderer::new(world);
     let (w, h) = (world.options.width, world.options.height);
     let progress =
         Progress { report: progress, done: AtomicUsize::new(0), total: crate::tiles::tiles(w, h, TILE_SIZE).len() };
-    let tiles = if world.options.pixel_filter.is_unit_box() {
-        box_filtered_tiles(&frame, &sampling, &progress)
-    } else {
-        filtered_tiles(&frame, &sampling, &progress)
-    };
-    let fb = framebuffer(world, tiles);
-    (fb, frame_report(&frame, start))
-}
-
-/// The finished tiles under the default box 1x1 filter: each pixel is the mean of its own samples,
-/// so a tile is finished (pixel shader included) by the thread that sampled it.
-fn box_filtered_tiles(frame: &Frame, sampling: &Sampling, progress: &Progress) -> Vec<(Tile, TileSamples)> {
-    let (w, h) = (frame.world.options.width, frame.world.options.height);
-    render_tiles(w, h, TILE_SIZE, |tile| {
-        let mut px = sample_tile(frame, tile, sampling, |_, _| {});
-        shade_tile_pixels(frame, tile, &mut px);
+    let tiles = render_tiles(w, h, TILE_SIZE, |tile| {
+        let rendered = renderer.render_tile(tile);
         progress.tile_done();
-        (*tile, px)
-    })
-}
-
-/// The finished tiles under any other filter: every tile splats its samples into its own film, the
-/// films are added up in tile order (so the sums do not depend on the threads), and then each
-/// pixel gets its filtered value (its own samples' mean where too little weight reached it, as
-/// outside the crop window) and the pixel shader runs on that.
-fn filtered_tiles(frame: &Frame, sampling: &Sampling, progress: &Progress) -> Vec<(Tile, TileSamples)> {
-    let options = &frame.world.options;
-    let (w, h) = (options.width, options.height);
-    let (filter, pixels) = (options.pixel_filter, options.pixel_range());
-    let sampled = render_tiles(w, h, TILE_SIZE, |tile| {
-        let mut film = TileFilm::new(filter, tile, pixels);
-        let px = sample_tile(frame, tile, sampling, |raster, rgba| film.splat(raster, rgba));
-        progress.tile_done();
-        (*tile, px, film)
+        rendered
     });
-    let mut film = Film::new(&filter, w, h);
-    for (_, _, tile_film) in &sampled {
-        film.add(tile_film);
+    renderer.finish(tiles, start)
+}
+
+/// A frame cut into tiles that are rendered one by one, wherever they are rendered (this
+/// process's threads, or other processes that render the same world: `crate::distributed`), and
+/// then put together by [`TileRenderer::finish`].
+pub struct TileRenderer<'w> {
+    frame: Frame<'w>,
+    sampling: Sampling,
+}
+
+/// A tile as rendered: its pixels (under the default box 1x1 filter finished, pixel shader
+/// included; under any other filter the means of their own samples) and, under any other filter,
+/// its samples' splats.
+pub struct RenderedTile {
+    pub tile: Tile,
+    px: TileSamples,
+    film: Option<TileFilm>,
+}
+
+impl RenderedTile {
+    /// Appends the tile's pixels (and film) to `out`, every value little-endian: colours, depths,
+    /// object ids, shader ids, then the film's sums if it has one. The tile itself is not written:
+    /// whoever decodes knows which tile it asked for.
+    pub fn encode(&self, out: &mut Vec<u8>) {
+        let px = &self.px;
+        let film_values = self.film.as_ref().map_or(0, |f| 5 * f.sums().len());
+        out.reserve(4 * (7 * px.depth.len() + film_values) + 1);
+        let mut floats = |v: &mut dyn Iterator<Item = f32>| v.for_each(|x| out.extend_from_slice(&x.to_le_bytes()));
+        floats(&mut px.color.iter().flatten().copied());
+        floats(&mut px.depth.iter().copied());
+        for id in px.ids.iter().chain(&px.shader_ids) {
+            out.extend_from_slice(&id.to_le_bytes());
+        }
+        match &self.film {
+            None => out.push(0),
+            Some(film) => {
+                out.push(1);
+                for v in film.sums().iter().flatten() {
+                    out.extend_from_slice(&v.to_le_bytes());
+                }
+            }
+        }
     }
-    let mut tiles: Vec<(Tile, TileSamples)> = sampled.into_iter().map(|(tile, px, _)| (tile, px)).collect();
-    tiles.par_iter_mut().for_each(|(tile, px)| {
-        resolve_tile(&film, tile, &mut px.color);
-        shade_tile_pixels(frame, tile, px);
-    });
-    tiles
+
+    /// The tile that [`RenderedTile::encode`] wrote to `bytes`, for `tile` of a frame of `world`
+    /// (its pixel filter says whether a film follows and how large it is); an error unless the
+    /// bytes hold exactly that.
+    pub fn decode(world: &World, tile: Tile, bytes: &[u8]) -> Result<RenderedTile, String> {
+        let n = tile.width as usize * tile.height as usize;
+        let mut words = bytes.chunks_exact(4).map(|w| [w[0], w[1], w[2], w[3]]);
+        let mut next = |count: usize| -> Result<Vec<[u8; 4]>, String> {
+            let v: Vec<[u8; 4]> = words.by_ref().take(count).collect();
+            if v.len() == count {
+                Ok(v)
+            } else {
+                Err(format!("tile {} arrived short: {} bytes for {n} pixels", tile.index, bytes.len()))
+            }
+        };
+        let color = next(4 * n)?.chunks_exact(4).map(|c| std::array::from_fn(|i| f32::from_le_bytes(c[i]))).collect();
+        let depth = next(n)?.into_iter().map(f32::from_le_bytes).collect();
+        let ids = next(n)?.into_iter().map(u32::from_le_bytes).collect();
+        let shader_ids = next(n)?.into_iter().map(u32::from_le_bytes).collect();
+        let px = TileSamples { color, depth, ids, shader_ids };
+        let options = &world.options;
+        let film_at = 4 * 7 * n;
+        let film = match (bytes.get(film_at), options.pixel_filter.is_unit_box()) {
+            (Some(0), true) if bytes.len() == film_at + 1 => None,
+            (Some(1), false) => {
+                let mut film = TileFilm::new(options.pixel_filter, &tile, options.pixel_range());
+                let sums = &bytes[film_at + 1..];
+                if sums.len() != 20 * film.sums().len() {
+                    return Err(format!("tile {}: its film does not match the frame's pixel filter", tile.index));
+                }
+                for (s, b) in film.sums_mut().iter_mut().zip(sums.chunks_exact(20)) {
+                    *s = std::array::from_fn(|i| {
+                        f32::from_le_bytes([b[4 * i], b[4 * i + 1], b[4 * i + 2], b[4 * i + 3]])
+                    });
+                }
+                Some(film)
+            }
+            _ => return Err(format!("tile {}: its pixels do not match the frame's pixel filter", tile.index)),
+        };
+        Ok(RenderedTile { tile, px, film })
+    }
+}
+
+impl<'w> TileRenderer<'w> {
+    pub fn new(world: &'w World) -> TileRenderer<'w> {
+        TileRenderer { frame: Frame::new(world), sampling: Sampling::of(world) }
+    }
+
+    /// The frame being rendered (its world and its counters).
+    pub fn frame(&self) -> &Frame<'w> {
+        &self.frame
+    }
+
+    /// What the tiles rendered so far cost since `start`, by this frame's counters.
+    pub fn report(&self, start: Instant) -> FrameReport {
+        frame_report(&self.frame, start)
+    }
+
+    /// The frame's tiles, in tile order.
+    pub fn tiles(&self) -> Vec<Tile> {
+        let options = &self.frame.world.options;
+        crate::tiles::tiles(options.width, options.height, TILE_SIZE)
+    }
+
+    /// Traces and shades every sample of `tile`. Under the box filter each pixel is the mean of
+    /// its own samples, so the tile is finished (pixel shader included) here; under any other
+    /// filter its samples are splatted into a film of its own, for [`TileRenderer::finish`].
+    pub fn render_tile(&self, tile: &Tile) -> RenderedTile {
+        let options = &self.frame.world.options;
+        if options.pixel_filter.is_unit_box() {
+            let mut px = sample_tile(&self.frame, tile, &self.sampling, |_, _| {});
+            shade_tile_pixels(&self.frame, tile, &mut px);
+            RenderedTile { tile: *tile, px, film: None }
+        } else {
+            let mut film = TileFilm::new(options.pixel_filter, tile, options.pixel_range());
+            let px = sample_tile(&self.frame, tile, &self.sampling, |raster, rgba| film.splat(raster, rgba));
+            RenderedTile { tile: *tile, px, film: Some(film) }
+        }
+    }
+
+    /// The image of every tile of the frame, rendered by [`TileRenderer::render_tile`] (in tile
+    /// order), and what the frame cost since `start` by this process's counters. Under a filter
+    /// other than the box, the films are added up in tile order (so the sums do not depend on
+    /// who rendered which tile), then each pixel gets its filtered value (its own samples' mean
+    /// where too little weight reached it, as outside the crop window) and the pixel shader runs
+    /// on that.
+    pub fn finish(self, tiles: Vec<RenderedTile>, start: Instant) -> (Framebuffer, FrameReport) {
+        let world = self.frame.world;
+        let tiles = if world.options.pixel_filter.is_unit_box() {
+            tiles.into_iter().map(|t| (t.tile, t.px)).collect()
+        } else {
+            let mut film = Film::new(&world.options.pixel_filter, world.options.width, world.options.height);
+            for t in &tiles {
+                if let Some(tile_film) = &t.film {
+                    film.add(tile_film);
+                }
+            }
+            let mut tiles: Vec<(Tile, TileSamples)> = tiles.into_iter().map(|t| (t.tile, t.px)).collect();
+            tiles.par_iter_mut().for_each(|(tile, px)| {
+                resolve_tile(&film, tile, &mut px.color);
+                shade_tile_pixels(&self.frame, tile, px);
+            });
+            tiles
+        };
+        let fb = framebuffer(world, tiles);
+        (fb, frame_report(&self.frame, start))
+    }
 }
 
 /// Replaces the colours of a tile's pixels by their filtered values where they have one.

@@ -1,0 +1,228 @@
+//! The master: the rank that owns the scene and the output. It greets its workers, hands each
+//! frame's tiles out on demand ([`Schedule`]), and assembles the image from the tiles they send.
+
+use super::message::{build_fingerprint, greeting_version, FrameCounts, Message, PROTOCOL_VERSION};
+use super::schedule::Schedule;
+use super::transport::Transport;
+use super::DistributedError;
+use crate::render::{FrameReport, Framebuffer, RenderedTile, TileRenderer, World};
+use std::time::Instant;
+
+/// Tiles each worker has in flight per thread: while it renders one, the next is on its way.
+const TILES_IN_FLIGHT_PER_THREAD: usize = 2;
+
+/// A worker as it introduced itself.
+struct WorkerInfo {
+    threads: u32,
+    /// Why it cannot render, if it cannot.
+    failure: Option<String>,
+}
+
+/// The master's side of a distributed run: rank 0 of `transport`, every other rank a worker.
+/// Dropping it tells the workers to stop.
+pub struct Master<T: Transport> {
+    transport: T,
+    workers: Vec<WorkerInfo>,
+    frame: u64,
+    /// Who rendered each tile of the last frame, so that each worker gets its own tiles again.
+    last_owner: Vec<Option<usize>>,
+    /// Whether the workers still wait for work (not yet told to quit).
+    open: bool,
+}
+
+impl<T: Transport> Master<T> {
+    /// Waits for every worker's greeting and checks that each runs this very program and
+    /// protocol. A worker whose scene failed to load is no error here: see
+    /// [`Master::check_workers`].
+    pub fn connect(transport: T) -> Result<Master<T>, DistributedError> {
+        let n = transport.size();
+        let mut master = Master { transport, workers: Vec::new(), frame: 0, last_owner: Vec::new(), open: true };
+        let build = build_fingerprint();
+        let mut hellos: Vec<Option<WorkerInfo>> = (1..n).map(|_| None).collect();
+        for _ in 1..n {
+            let (rank, bytes) = master.transport.recv()?;
+            let slot = rank.checked_sub(1).and_then(|w| hellos.get_mut(w)).filter(|h| h.is_none());
+            let protocol_error = |message: String| DistributedError::Protocol { rank, message };
+            let Some(slot) = slot else {
+                return Err(protocol_error("greeted twice, or is no worker".into()));
+            };
+            match greeting_version(&bytes) {
+                Some(PROTOCOL_VERSION) => {}
+                Some(version) => {
+                    return Err(DistributedError::Mismatch {
+                        rank,
+                        what: format!("protocol version {version}, where the master speaks {PROTOCOL_VERSION}"),
+                    })
+                }
+                None => return Err(protocol_error("its first message is no greeting".into())),
+            }
+            match Message::decode(&bytes).map_err(protocol_error)? {
+                Message::Hello { build: theirs, threads, failure, .. } => {
+                    if theirs != build {
+                        return Err(DistributedError::Mismatch {
+                            rank,
+                            what: "another build of the program (every rank must run the same executable)".into(),
+                        });
+                    }
+                    *slot = Some(WorkerInfo { threads, failure });
+                }
+                _ => return Err(protocol_error("its first message is no greeting".into())),
+            }
+        }
+        master.workers = hellos.into_iter().flatten().collect();
+        Ok(master)
+    }
+
+    /// How many workers render.
+    pub fn workers(&self) -> usize {
+        self.workers.len()
+    }
+
+    /// The threads of all the workers together.
+    pub fn worker_threads(&self) -> usize {
+        self.workers.iter().map(|w| w.threads as usize).sum()
+    }
+
+    /// The first worker that said it cannot render (its scene did not load), with its reason.
+    pub fn check_workers(&self) -> Result<(), DistributedError> {
+        match self.workers.iter().enumerate().find_map(|(w, info)| Some((w + 1, info.failure.clone()?))) {
+            Some((rank, message)) => Err(DistributedError::Worker { rank, message }),
+            None => Ok(()),
+        }
+    }
+
+    /// Renders a frame of `world` on the workers, which first apply `update` to their copy of the
+    /// scene, and assembles it: bit for bit the image [`crate::render::render_frame`] makes of
+    /// `world`. `progress` is told how many tiles are done. With no worker, renders here.
+    pub fn render_frame(
+        &mut self,
+        world: &World,
+        update: &[u8],
+        progress: Option<&dyn Fn(usize, usize)>,
+    ) -> Result<(Framebuffer, FrameReport), DistributedError> {
+        if self.workers.is_empty() {
+            return Ok(crate::render::render_frame(world, None));
+        }
+        let start = Instant::now();
+        self.frame += 1;
+        let frame = self.frame;
+        let renderer = TileRenderer::new(world);
+        let tiles = renderer.tiles();
+        let mut schedule = Schedule::new(tiles.len(), self.workers.len(), &self.last_owner);
+        let mut given: Vec<Option<usize>> = vec![None; tiles.len()];
+        let mut told_last = vec![false; self.workers.len()];
+        for (w, info) in self.workers.iter().enumerate() {
+            let k = TILES_IN_FLIGHT_PER_THREAD * (info.threads as usize).max(1);
+            let first: Vec<u32> = (0..k).map_while(|_| schedule.next(w)).collect();
+            for &t in &first {
+                given[t as usize] = Some(w);
+            }
+            told_last[w] = schedule.left() == 0;
+            let m = Message::Frame { frame, update: update.to_vec(), tiles: first, last: told_last[w] };
+            self.transport.send(w + 1, &m.encode())?;
+        }
+        let mut rendered: Vec<Option<RenderedTile>> = tiles.iter().map(|_| None).collect();
+        let (mut received, mut done) = (0, vec![false; self.workers.len()]);
+        let mut counts = Vec::new();
+        let mut failure = None;
+        while done.contains(&false) {
+            let (rank, bytes) = self.transport.recv()?;
+            let protocol_error = |message: String| DistributedError::Protocol { rank, message };
+            let Some(w) = rank.checked_sub(1).filter(|&w| w < self.workers.len()) else {
+                return Err(protocol_error("a message from no worker".into()));
+            };
+            match Message::decode(&bytes).map_err(protocol_error)? {
+                Message::Tile { frame: f, tile, pixels } if f == frame => {
+                    let t = tile as usize;
+                    if given.get(t) != Some(&Some(w)) || rendered[t].is_some() {
+                        return Err(protocol_error(format!("sent tile {tile}, which it was not given")));
+                    }
+                    rendered[t] = Some(RenderedTile::decode(world, tiles[t], &pixels).map_err(protocol_error)?);
+                    received += 1;
+                    if let Some(p) = progress {
+                        p(received, tiles.len());
+                    }
+                    if !told_last[w] {
+                        // After a failure nothing more is handed out: the frame ends as soon as
+                        // every worker has sent what it holds.
+                        let next = if failure.is_none() { schedule.next(w) } else { None };
+                        if let Some(t) = next {
+                            given[t as usize] = Some(w);
+                        }
+                        told_last[w] = schedule.left() == 0 || next.is_none();
+                        let m = Message::Assign { frame, tiles: next.into_iter().collect(), last: told_last[w] };
+                        self.transport.send(rank, &m.encode())?;
+                    }
+                }
+                Message::FrameDone { frame: f, counts: c, failure: worker_failure } if f == frame && !done[w] => {
+                    done[w] = true;
+                    counts.push(c);
+                    if let Some(message) = worker_failure {
+                        failure.get_or_insert(DistributedError::Worker { rank, message });
+                    }
+                }
+                _ => return Err(protocol_error(format!("a message out of place in frame {frame}"))),
+            }
+        }
+        if let Some(e) = failure {
+            return Err(e);
+        }
+        let rendered: Vec<RenderedTile> = rendered.into_iter().flatten().collect();
+        if rendered.len() != tiles.len() {
+            return Err(DistributedError::Protocol {
+                rank: 0,
+                message: format!("the workers finished frame {frame} with {} of {} tiles", rendered.len(), tiles.len()),
+            });
+        }
+        self.last_owner = given;
+        let (fb, mut report) = renderer.finish(rendered, start);
+        for c in &counts {
+            super::add_counts(&mut report, c);
+        }
+        report.threads = self.worker_threads();
+        report.elapsed = start.elapsed();
+        Ok((fb, report))
+    }
+
+    /// Tells the workers to stop (as dropping the master does).
+    pub fn shutdown(mut self) -> Result<(), DistributedError> {
+        self.quit()
+    }
+
+    fn quit(&mut self) -> Result<(), DistributedError> {
+        if !std::mem::replace(&mut self.open, false) {
+            return Ok(());
+        }
+        let quit = Message::Quit.encode();
+        let mut first_error = None;
+        for rank in 1..self.transport.size() {
+            if let Err(e) = self.transport.send(rank, &quit) {
+                first_error.get_or_insert(e);
+            }
+        }
+        first_error.map_or(Ok(()), |e| Err(e.into()))
+    }
+}
+
+impl<T: Transport> Drop for Master<T> {
+    fn drop(&mut self) {
+        // Workers wait for a word from the master whatever happened to it; an error here has no
+        // one left to tell.
+        let _ = self.quit();
+    }
+}
+
+/// What a worker reports of its share of a frame.
+pub(super) fn counts_of(report: &FrameReport) -> FrameCounts {
+    use rtsl_compiler::front::parse::ast::ShaderKind;
+    let kind_index = |k: ShaderKind| ShaderKind::ALL.iter().position(|&x| x == k).unwrap_or(0) as u8;
+    FrameCounts {
+        rays: [report.primary_rays, report.shadow_rays, report.secondary_rays, report.transparency_rays],
+        shaded_points: report.shaded_points,
+        light_evaluations: report.light_evaluations,
+        shading_ns: report.shading.as_nanos() as u64,
+        kind_ns: report.by_kind.iter().map(|d| d.as_nanos() as u64).collect(),
+        by_shader: report.by_shader.iter().map(|(n, k, d)| (n.clone(), kind_index(*k), d.as_nanos() as u64)).collect(),
+        shader_messages: report.shader_messages.clone(),
+    }
+}

@@ -1,0 +1,366 @@
+//! The messages between the master and its workers, and their encoding: a tag byte, then each
+//! field little-endian (integers fixed-size, byte strings and lists length-prefixed). Decoding
+//! checks every length against the bytes at hand, so a damaged message is an error, never a
+//! panic or an allocation larger than the message.
+
+use rtsl_compiler::front::parse::ast::ShaderKind;
+
+/// The protocol's version: ranks that speak different versions refuse each other at start-up.
+pub const PROTOCOL_VERSION: u32 = 1;
+
+/// What the master's counters add up from a worker's share of a frame.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FrameCounts {
+    /// Primary, shadow, secondary and transparency rays.
+    pub rays: [u64; 4],
+    pub shaded_points: u64,
+    pub light_evaluations: u64,
+    /// Thread time spent shading, and of it the time in each type of shader
+    /// ([`ShaderKind::ALL`] order), in nanoseconds.
+    pub shading_ns: u64,
+    pub kind_ns: Vec<u64>,
+    /// Per shader: name, type (its index in [`ShaderKind::ALL`]) and nanoseconds.
+    pub by_shader: Vec<(String, u8, u64)>,
+    /// What the shaders' runtime checks reported.
+    pub shader_messages: Vec<String>,
+}
+
+/// A message of the protocol.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Message {
+    /// Worker to master, once, first: who it is and whether its scene loaded.
+    Hello {
+        protocol: u32,
+        /// [`build_fingerprint`] of the worker's program.
+        build: Vec<u8>,
+        threads: u32,
+        /// Why the worker cannot render, if it cannot.
+        failure: Option<String>,
+    },
+    /// Master to worker: render frame `frame`, after applying `update` to the scene; these tiles
+    /// first. `last`: no more will come.
+    Frame { frame: u64, update: Vec<u8>, tiles: Vec<u32>, last: bool },
+    /// Master to worker: more tiles of the frame; `last`: no more will come.
+    Assign { frame: u64, tiles: Vec<u32>, last: bool },
+    /// Worker to master: one tile's pixels ([`crate::render::RenderedTile::encode`]).
+    Tile { frame: u64, tile: u32, pixels: Vec<u8> },
+    /// Worker to master: the worker has sent every tile it was given, or could not render the
+    /// frame (`failure`).
+    FrameDone { frame: u64, counts: FrameCounts, failure: Option<String> },
+    /// Master to worker: stop.
+    Quit,
+}
+
+const HELLO: u8 = 1;
+const FRAME: u8 = 2;
+const ASSIGN: u8 = 3;
+const TILE: u8 = 4;
+const FRAME_DONE: u8 = 5;
+const QUIT: u8 = 6;
+
+/// The protocol version a greeting states, read without decoding the rest: a greeting starts with
+/// its kind and the version in every version of the protocol, so that ranks of different versions
+/// can tell each other so.
+pub fn greeting_version(bytes: &[u8]) -> Option<u32> {
+    match bytes {
+        [HELLO, a, b, c, d, ..] => Some(u32::from_le_bytes([*a, *b, *c, *d])),
+        _ => None,
+    }
+}
+
+/// Identifies the program a rank runs: the protocol version, the target and a hash of the
+/// executable file itself, so that ranks running different builds refuse each other at start-up.
+pub fn build_fingerprint() -> Vec<u8> {
+    let mut hasher = Fnv64::default();
+    hasher.write(&PROTOCOL_VERSION.to_le_bytes());
+    for part in [env!("CARGO_PKG_VERSION"), std::env::consts::ARCH, std::env::consts::OS] {
+        hasher.write(part.as_bytes());
+    }
+    hasher.write(if cfg!(target_endian = "little") { b"le" } else { b"be" });
+    // Reading the executable costs a few milliseconds once per run; where it cannot be read, the
+    // version and target above are all that is compared.
+    if let Ok(bytes) = std::env::current_exe().and_then(std::fs::read) {
+        hasher.write(&bytes);
+    }
+    hasher.0.to_le_bytes().to_vec()
+}
+
+/// FNV-1a, 64 bits: enough to tell two builds apart, with no dependency.
+struct Fnv64(u64);
+
+impl Default for Fnv64 {
+    fn default() -> Self {
+        Fnv64(0xcbf2_9ce4_8422_2325)
+    }
+}
+
+impl Fnv64 {
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 = (self.0 ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    }
+}
+
+impl Message {
+    pub fn encode(&self) -> Vec<u8> {
+        let mut w = Writer(Vec::new());
+        match self {
+            Message::Hello { protocol, build, threads, failure } => {
+                w.u8(HELLO);
+                w.u32(*protocol);
+                w.bytes(build);
+                w.u32(*threads);
+                w.opt_str(failure.as_deref());
+            }
+            Message::Frame { frame, update, tiles, last } => {
+                w.u8(FRAME);
+                w.u64(*frame);
+                w.bytes(update);
+                w.u32s(tiles);
+                w.u8(u8::from(*last));
+            }
+            Message::Assign { frame, tiles, last } => {
+                w.u8(ASSIGN);
+                w.u64(*frame);
+                w.u32s(tiles);
+                w.u8(u8::from(*last));
+            }
+            Message::Tile { frame, tile, pixels } => {
+                w.u8(TILE);
+                w.u64(*frame);
+                w.u32(*tile);
+                w.bytes(pixels);
+            }
+            Message::FrameDone { frame, counts, failure } => {
+                w.u8(FRAME_DONE);
+                w.u64(*frame);
+                for n in counts.rays {
+                    w.u64(n);
+                }
+                w.u64(counts.shaded_points);
+                w.u64(counts.light_evaluations);
+                w.u64(counts.shading_ns);
+                w.u32(counts.kind_ns.len() as u32);
+                for &n in &counts.kind_ns {
+                    w.u64(n);
+                }
+                w.u32(counts.by_shader.len() as u32);
+                for (name, kind, ns) in &counts.by_shader {
+                    w.str(name);
+                    w.u8(*kind);
+                    w.u64(*ns);
+                }
+                w.u32(counts.shader_messages.len() as u32);
+                for m in &counts.shader_messages {
+                    w.str(m);
+                }
+                w.opt_str(failure.as_deref());
+            }
+            Message::Quit => w.u8(QUIT),
+        }
+        w.0
+    }
+
+    pub fn decode(bytes: &[u8]) -> Result<Message, String> {
+        let mut r = Reader { bytes, at: 0 };
+        let m = match r.u8()? {
+            HELLO => Message::Hello { protocol: r.u32()?, build: r.bytes()?, threads: r.u32()?, failure: r.opt_str()? },
+            FRAME => Message::Frame { frame: r.u64()?, update: r.bytes()?, tiles: r.u32s()?, last: r.bool()? },
+            ASSIGN => Message::Assign { frame: r.u64()?, tiles: r.u32s()?, last: r.bool()? },
+            TILE => Message::Tile { frame: r.u64()?, tile: r.u32()?, pixels: r.bytes()? },
+            FRAME_DONE => {
+                let frame = r.u64()?;
+                let rays = [r.u64()?, r.u64()?, r.u64()?, r.u64()?];
+                let (shaded_points, light_evaluations, shading_ns) = (r.u64()?, r.u64()?, r.u64()?);
+                let kinds = r.count(8)?;
+                let kind_ns = (0..kinds).map(|_| r.u64()).collect::<Result<_, _>>()?;
+                let shaders = r.count(13)?;
+                let by_shader =
+                    (0..shaders).map(|_| Ok((r.str()?, r.u8()?, r.u64()?))).collect::<Result<_, String>>()?;
+                let messages = r.count(4)?;
+                let shader_messages = (0..messages).map(|_| r.str()).collect::<Result<_, _>>()?;
+                let counts = FrameCounts {
+                    rays,
+                    shaded_points,
+                    light_evaluations,
+                    shading_ns,
+                    kind_ns,
+                    by_shader,
+                    shader_messages,
+                };
+                Message::FrameDone { frame, counts, failure: r.opt_str()? }
+            }
+            QUIT => Message::Quit,
+            tag => return Err(format!("unknown message kind {tag}")),
+        };
+        if r.at != bytes.len() {
+            return Err(format!("{} bytes after the end of a message", bytes.len() - r.at));
+        }
+        Ok(m)
+    }
+}
+
+impl FrameCounts {
+    /// The shader type of a [`FrameCounts::by_shader`] entry.
+    pub fn kind(index: u8) -> Option<ShaderKind> {
+        ShaderKind::ALL.get(usize::from(index)).copied()
+    }
+}
+
+struct Writer(Vec<u8>);
+
+impl Writer {
+    fn u8(&mut self, v: u8) {
+        self.0.push(v);
+    }
+    fn u32(&mut self, v: u32) {
+        self.0.extend_from_slice(&v.to_le_bytes());
+    }
+    fn u64(&mut self, v: u64) {
+        self.0.extend_from_slice(&v.to_le_bytes());
+    }
+    fn bytes(&mut self, v: &[u8]) {
+        self.u64(v.len() as u64);
+        self.0.extend_from_slice(v);
+    }
+    fn str(&mut self, v: &str) {
+        self.bytes(v.as_bytes());
+    }
+    fn opt_str(&mut self, v: Option<&str>) {
+        match v {
+            None => self.u8(0),
+            Some(s) => {
+                self.u8(1);
+                self.str(s);
+            }
+        }
+    }
+    fn u32s(&mut self, v: &[u32]) {
+        self.u32(v.len() as u32);
+        for &x in v {
+            self.u32(x);
+        }
+    }
+}
+
+struct Reader<'a> {
+    bytes: &'a [u8],
+    at: usize,
+}
+
+impl Reader<'_> {
+    fn take(&mut self, n: usize) -> Result<&[u8], String> {
+        let end = self.at.checked_add(n).filter(|&e| e <= self.bytes.len()).ok_or("a message ended early")?;
+        let s = &self.bytes[self.at..end];
+        self.at = end;
+        Ok(s)
+    }
+    fn u8(&mut self) -> Result<u8, String> {
+        Ok(self.take(1)?[0])
+    }
+    fn bool(&mut self) -> Result<bool, String> {
+        match self.u8()? {
+            0 => Ok(false),
+            1 => Ok(true),
+            v => Err(format!("{v} is not a truth value")),
+        }
+    }
+    fn u32(&mut self) -> Result<u32, String> {
+        let b = self.take(4)?;
+        Ok(u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+    }
+    fn u64(&mut self) -> Result<u64, String> {
+        let b = self.take(8)?;
+        Ok(u64::from_le_bytes(std::array::from_fn(|i| b[i])))
+    }
+    /// A count of items at least `min_size` bytes each, checked against the bytes left, so that no
+    /// count sizes an allocation beyond what the message holds.
+    fn count(&mut self, min_size: usize) -> Result<usize, String> {
+        let n = self.u32()? as usize;
+        if n.saturating_mul(min_size) > self.bytes.len() - self.at {
+            return Err(format!("a message claims {n} items it does not hold"));
+        }
+        Ok(n)
+    }
+    fn bytes(&mut self) -> Result<Vec<u8>, String> {
+        let n = usize::try_from(self.u64()?).map_err(|_| "a length past the address space".to_string())?;
+        Ok(self.take(n)?.to_vec())
+    }
+    fn str(&mut self) -> Result<String, String> {
+        String::from_utf8(self.bytes()?).map_err(|_| "a string that is not UTF-8".to_string())
+    }
+    fn opt_str(&mut self) -> Result<Option<String>, String> {
+        match self.u8()? {
+            0 => Ok(None),
+            1 => Ok(Some(self.str()?)),
+            v => Err(format!("{v} is not an option marker")),
+        }
+    }
+    fn u32s(&mut self) -> Result<Vec<u32>, String> {
+        let n = self.count(4)?;
+        (0..n).map(|_| self.u32()).collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn examples() -> Vec<Message> {
+        vec![
+            Message::Hello { protocol: PROTOCOL_VERSION, build: vec![1, 2, 3], threads: 4, failure: None },
+            Message::Hello { protocol: 7, build: vec![], threads: 1, failure: Some("no such file".into()) },
+            Message::Frame { frame: 3, update: vec![9; 10], tiles: vec![0, 5, 7], last: false },
+            Message::Assign { frame: 3, tiles: vec![], last: true },
+            Message::Tile { frame: u64::MAX, tile: 12, pixels: vec![0xAB; 100] },
+            Message::FrameDone {
+                frame: 1,
+                counts: FrameCounts {
+                    rays: [1, 2, 3, 4],
+                    shaded_points: 5,
+                    light_evaluations: 6,
+                    shading_ns: 7,
+                    kind_ns: vec![8, 9],
+                    by_shader: vec![("plastic".into(), 0, 10)],
+                    shader_messages: vec!["plastic: a loop stopped".into()],
+                },
+                failure: Some("cannot build".into()),
+            },
+            Message::Quit,
+        ]
+    }
+
+    #[test]
+    fn every_message_decodes_to_itself() {
+        for m in examples() {
+            assert_eq!(Message::decode(&m.encode()), Ok(m.clone()), "{m:?}");
+        }
+    }
+
+    #[test]
+    fn damaged_messages_are_errors() {
+        for m in examples() {
+            let bytes = m.encode();
+            // Every prefix is short, and one byte more is too long.
+            for end in 0..bytes.len() {
+                assert!(Message::decode(&bytes[..end]).is_err(), "{m:?} cut at {end}");
+            }
+            let mut longer = bytes.clone();
+            longer.push(0);
+            assert!(Message::decode(&longer).is_err());
+        }
+        // A count far past the message's size is refused before anything is allocated for it.
+        let mut huge = vec![ASSIGN];
+        huge.extend_from_slice(&0u64.to_le_bytes());
+        huge.extend_from_slice(&u32::MAX.to_le_bytes());
+        assert!(Message::decode(&huge).unwrap_err().contains("claims"));
+        assert!(Message::decode(&[99]).is_err());
+    }
+
+    #[test]
+    fn the_fingerprint_is_stable_within_a_build() {
+        assert_eq!(build_fingerprint(), build_fingerprint());
+        assert_eq!(build_fingerprint().len(), 8);
+    }
+}
