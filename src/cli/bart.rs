@@ -5,7 +5,8 @@
 use anyhow::Context as _;
 use rtsl_runtime::api::Context;
 use rtsl_runtime::bart::{load_file, BartScene};
-use rtsl_runtime::render::render_frame;
+use rtsl_runtime::distributed::{Master, Transport, WorkerScene};
+use rtsl_runtime::render::{render_frame, World};
 use rtsl_runtime::{write_image, WriteOptions};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -37,6 +38,47 @@ pub struct BartArgs {
     /// Print only the summary (and errors).
     #[arg(short, long)]
     pub quiet: bool,
+    /// Render over the ranks of an `mpirun` job: rank 0 plays the animation and writes the frames,
+    /// the others render tiles, each frame's time sent to them as its update (docs/distributed.md).
+    #[arg(long)]
+    pub mpi: bool,
+}
+
+/// A worker rank's copy of the animation: each frame's update is its time.
+struct BartWorker {
+    rt: Context,
+    scene: BartScene,
+}
+
+impl WorkerScene for BartWorker {
+    fn world(&mut self, update: &[u8]) -> Result<World, String> {
+        let t = <[u8; 4]>::try_from(update).map(f32::from_le_bytes).map_err(|_| "an update that is no time")?;
+        self.scene.set_time(&mut self.rt, t).map_err(|e| e.to_string())?;
+        self.rt.build_world().map_err(|e| e.to_string())
+    }
+
+    fn finished(&mut self, world: World) {
+        self.rt.return_scene(world);
+    }
+}
+
+/// Loads the scene and applies the flags, as every rank does.
+fn load(args: &BartArgs, pool: &rayon::ThreadPool) -> anyhow::Result<(Context, BartScene)> {
+    let mut rt = Context::new();
+    let mut scene = pool.install(|| load_file(&mut rt, &args.scene)).context("cannot load the BART scene")?;
+    if let Some((w, h)) = args.size {
+        rt.options.width = w;
+        rt.options.height = h;
+    }
+    if let Some(n) = args.samples {
+        rt.options.samples = super::render::samples_grid(n);
+    }
+    // Playback reports frame times and ray counts, not where shading time goes.
+    rt.options.time_shaders = false;
+    // The camera depends on the image's shape: place everything again for the final size.
+    let start = scene.animation.start;
+    scene.set_time(&mut rt, start)?;
+    Ok((rt, scene))
 }
 
 fn ms(d: Duration) -> f64 {
@@ -63,25 +105,22 @@ impl FrameTimes {
 pub fn run(args: &BartArgs) -> anyhow::Result<ExitCode> {
     let (threads, pool) = super::worker_pool(args.threads)?;
 
+    let transport = if args.mpi { Some(super::mpi::transport()?) } else { None };
+    if let Some(t) = transport.as_ref().filter(|t| t.rank() != 0) {
+        let scene = load(args, &pool).map(|(rt, scene)| BartWorker { rt, scene });
+        return super::mpi::work(&**t, scene, &pool);
+    }
+    let mut master = transport.map(Master::connect).transpose()?;
     let started = Instant::now();
-    let mut rt = Context::new();
-    let mut scene = pool.install(|| load_file(&mut rt, &args.scene)).context("cannot load the BART scene")?;
+    let (mut rt, mut scene) = load(args, &pool)?;
     let loaded = started.elapsed();
     for w in &scene.warnings {
         eprintln!("{w}");
     }
-    if let Some((w, h)) = args.size {
-        rt.options.width = w;
-        rt.options.height = h;
+    if let Some(m) = &master {
+        m.check_workers()?;
     }
-    if let Some(n) = args.samples {
-        rt.options.samples = super::render::samples_grid(n);
-    }
-    // Playback reports frame times and ray counts, not where shading time goes.
-    rt.options.time_shaders = false;
-    // The camera depends on the image's shape: place everything again for the final size.
     let a = scene.animation;
-    scene.set_time(&mut rt, a.start)?;
     // Every object's BVH, once; frames rebuild only what moves.
     let build_started = Instant::now();
     let world = pool.install(|| rt.build_world())?;
@@ -109,8 +148,12 @@ pub fn run(args: &BartArgs) -> anyhow::Result<ExitCode> {
         if s.animated_camera { ", animated camera" } else { "" },
     );
     let fps = if a.end > a.start { a.frames as f64 / (a.end - a.start) as f64 } else { 0.0 };
+    let threads = match &master {
+        Some(m) => format!("{} worker rank(s), {} thread(s) in all", m.workers(), m.worker_threads()),
+        None => format!("{threads} thread(s)"),
+    };
     println!(
-        "animation {} s to {} s, {} frames ({:.1} per second); rendering {count} of them at {}x{}, {} thread(s); loaded in {:.0} ms, first BVH build {:.0} ms",
+        "animation {} s to {} s, {} frames ({:.1} per second); rendering {count} of them at {}x{}, {}; loaded in {:.0} ms, first BVH build {:.0} ms",
         a.start,
         a.end,
         a.frames,
@@ -130,7 +173,8 @@ pub fn run(args: &BartArgs) -> anyhow::Result<ExitCode> {
     for k in 0..count {
         let frame = (u64::from(k) * u64::from(total) / u64::from(count)) as u32;
         let t = scene.frame_time(frame);
-        let f = play_frame(&mut rt, &mut scene, &pool, t, args.output.as_deref().map(|d| frame_path(d, k)))?;
+        let output = args.output.as_deref().map(|d| frame_path(d, k));
+        let f = play_frame(&mut rt, &mut scene, &pool, master.as_mut(), t, output)?;
         if !warned {
             warned = true;
             for w in rt.take_warnings() {
@@ -157,6 +201,9 @@ pub fn run(args: &BartArgs) -> anyhow::Result<ExitCode> {
         times.push(f);
     }
     summarize(&times);
+    if let Some(m) = master {
+        m.shutdown()?;
+    }
     Ok(ExitCode::SUCCESS)
 }
 
@@ -164,11 +211,13 @@ fn frame_path(dir: &Path, k: u32) -> PathBuf {
     dir.join(format!("frame_{k:04}.png"))
 }
 
-/// Moves the scene to time `t`, updates the BVHs, renders, and writes the frame when asked.
+/// Moves the scene to time `t`, updates the BVHs, renders (on `pool`, or over the master's
+/// workers, which move their scenes to `t` first), and writes the frame when asked.
 fn play_frame(
     rt: &mut Context,
     scene: &mut BartScene,
     pool: &rayon::ThreadPool,
+    master: Option<&mut Master<Box<dyn Transport>>>,
     t: f32,
     output: Option<PathBuf>,
 ) -> anyhow::Result<FrameTimes> {
@@ -179,7 +228,10 @@ fn play_frame(
     let world = pool.install(|| rt.build_world())?;
     let build = start.elapsed();
     let start = Instant::now();
-    let (fb, report) = pool.install(|| render_frame(&world, None));
+    let (fb, report) = match master {
+        Some(m) if m.workers() > 0 => m.render_frame(&world, &t.to_le_bytes(), None)?,
+        _ => pool.install(|| render_frame(&world, None)),
+    };
     let render = start.elapsed();
     for w in world.textures.take_warnings() {
         eprintln!("warning: {w}");

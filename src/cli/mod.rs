@@ -5,6 +5,7 @@ mod bench;
 mod compile;
 mod info;
 mod lightfield;
+mod mpi;
 mod render;
 mod shade;
 mod view;

@@ -3,8 +3,9 @@
 
 use anyhow::Context as _;
 use rtsl_runtime::api::Context;
+use rtsl_runtime::distributed::Master;
 use rtsl_runtime::reload::{ShaderEvent, ShaderReloader};
-use rtsl_runtime::render::{render_frame, Antialiasing};
+use rtsl_runtime::render::{render_frame, Antialiasing, FrameReport, Framebuffer, World};
 use rtsl_runtime::scene_file::{add_model_file, frame_bounds};
 use rtsl_runtime::shading::ParamValue;
 use rtsl_runtime::{write_image, WriteOptions};
@@ -52,6 +53,10 @@ pub struct RenderArgs {
     /// Keep running: re-render and rewrite the image whenever a shader source or header changes.
     #[arg(long)]
     pub watch: bool,
+    /// Render over the ranks of an `mpirun` job: rank 0 writes the image, the others render
+    /// tiles (docs/distributed.md; needs a build with `--features mpi`).
+    #[arg(long)]
+    pub mpi: bool,
 }
 
 /// A camera shader and parameter values, written `NAME[:PARAM=VALUE]...`: a value that reads as a
@@ -125,7 +130,21 @@ fn render_and_write(
     output: &Path,
     quiet: bool,
     frame_warnings: bool,
-) -> anyhow::Result<rtsl_runtime::render::FrameReport> {
+) -> anyhow::Result<FrameReport> {
+    render_and_write_with(rt, output, quiet, frame_warnings, |world, progress| {
+        Ok(pool.install(|| render_frame(world, Some(progress))))
+    })
+}
+
+/// [`render_and_write`] with the frame rendered by `render` (on a thread pool, or over MPI, which
+/// is called from this thread only).
+fn render_and_write_with(
+    rt: &mut Context,
+    output: &Path,
+    quiet: bool,
+    frame_warnings: bool,
+    render: impl FnOnce(&World, &(dyn Fn(usize, usize) + Sync)) -> anyhow::Result<(Framebuffer, FrameReport)>,
+) -> anyhow::Result<FrameReport> {
     let world = rt.build_world()?;
     for w in rt.take_warnings() {
         if frame_warnings {
@@ -146,10 +165,11 @@ fn render_and_write(
             b.set_position(done as u64);
         }
     };
-    let (fb, report) = pool.install(|| render_frame(&world, Some(&progress)));
+    let rendered = render(&world, &progress);
     if let Some(b) = bar {
         b.finish_and_clear();
     }
+    let (fb, report) = rendered?;
     for w in world.textures.take_warnings() {
         eprintln!("warning: {w}");
     }
@@ -206,6 +226,17 @@ pub(crate) fn load_scene(
     shader_path: &[PathBuf],
     include: &[PathBuf],
 ) -> anyhow::Result<(Context, Option<PathBuf>)> {
+    load_scene_warning(scene, shader_path, include, true)
+}
+
+/// [`load_scene`], printing the scene file's warnings only if `warn` (a worker rank leaves them to
+/// the master).
+fn load_scene_warning(
+    scene: Option<&Path>,
+    shader_path: &[PathBuf],
+    include: &[PathBuf],
+    warn: bool,
+) -> anyhow::Result<(Context, Option<PathBuf>)> {
     let mut rt = Context::new();
     let mut search: Vec<PathBuf> = shader_path.to_vec();
     if let Ok(env) = std::env::var("RTSL_SHADER_PATH") {
@@ -224,7 +255,7 @@ pub(crate) fn load_scene(
             match ext.as_deref() {
                 Some("rib") => {
                     let loaded = rtsl_runtime::rib::load::load_file(&mut rt, path)?;
-                    for w in &loaded.warnings {
+                    for w in loaded.warnings.iter().filter(|_| warn) {
                         eprintln!("{w}");
                     }
                     output = loaded.display.map(|d| path.parent().unwrap_or(Path::new(".")).join(d));
@@ -240,8 +271,9 @@ pub(crate) fn load_scene(
     Ok((rt, output))
 }
 
-pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
-    let (mut rt, named) = load_scene(args.scene.as_deref(), &args.shader_path, &args.include)?;
+/// Loads the scene and applies the flags to it; returns it and the image to write.
+fn prepare(args: &RenderArgs, warn: bool) -> anyhow::Result<(Context, PathBuf)> {
+    let (mut rt, named) = load_scene_warning(args.scene.as_deref(), &args.shader_path, &args.include, warn)?;
     let output = args.output.clone().or(named);
     if let Some((w, h)) = args.size {
         rt.options.width = w;
@@ -256,23 +288,61 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
     if let Some(camera) = &args.camera {
         camera.bind(&mut rt)?;
     }
-    let output = output.unwrap_or_else(|| PathBuf::from("render.png"));
+    Ok((rt, output.unwrap_or_else(|| PathBuf::from("render.png"))))
+}
+
+pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
+    if args.mpi {
+        return run_mpi(args);
+    }
+    let (mut rt, output) = prepare(args, true)?;
     let (threads, pool) = super::worker_pool(args.threads)?;
     let report = render_and_write(&mut rt, &pool, &output, args.quiet, true)?;
     if !args.quiet {
-        println!(
-            "{}: {}x{}, {} sample(s) per pixel, {} thread(s)",
-            output.display(),
-            rt.options.width,
-            rt.options.height,
-            rt.options.samples.0 * rt.options.samples.1,
-            threads
-        );
-        println!("{report}");
+        print_summary(&rt, &output, &format!("{threads} thread(s)"), &report);
     }
     if args.watch {
         watch(&mut rt, &pool, &output)?;
     }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn print_summary(rt: &Context, output: &Path, threads: &str, report: &FrameReport) {
+    println!(
+        "{}: {}x{}, {} sample(s) per pixel, {threads}",
+        output.display(),
+        rt.options.width,
+        rt.options.height,
+        rt.options.samples.0 * rt.options.samples.1,
+    );
+    println!("{report}");
+}
+
+/// `render --mpi`: rank 0 renders over the other ranks and writes the image; the others serve it.
+fn run_mpi(args: &RenderArgs) -> anyhow::Result<ExitCode> {
+    anyhow::ensure!(!args.watch, "--watch does not run over MPI yet: render without --mpi to watch shaders");
+    let transport = super::mpi::transport()?;
+    let (_, pool) = super::worker_pool(args.threads)?;
+    if transport.rank() != 0 {
+        return super::mpi::work(&*transport, prepare(args, false).map(|(rt, _)| rt), &pool);
+    }
+    let mut master = Master::connect(transport)?;
+    let (mut rt, output) = prepare(args, true)?;
+    master.check_workers()?;
+    if master.workers() == 0 {
+        eprintln!("warning: --mpi with no worker rank (run it with mpirun -n 2 or more): rendering on rank 0 alone");
+    }
+    let report = render_and_write_with(&mut rt, &output, args.quiet, true, |world, progress| {
+        if master.workers() == 0 {
+            return Ok(pool.install(|| render_frame(world, Some(progress))));
+        }
+        Ok(master.render_frame(world, &[], Some(progress))?)
+    })?;
+    if !args.quiet {
+        let ranks = format!("{} worker rank(s), {} thread(s) in all", master.workers(), master.worker_threads());
+        print_summary(&rt, &output, &ranks, &report);
+    }
+    master.shutdown()?;
     Ok(ExitCode::SUCCESS)
 }
 

@@ -18,6 +18,20 @@ pub trait WorkerScene {
     fn finished(&mut self, world: World);
 }
 
+/// A scene that stays as it was loaded: every frame's update is empty.
+impl WorkerScene for crate::api::Context {
+    fn world(&mut self, update: &[u8]) -> Result<World, String> {
+        if !update.is_empty() {
+            return Err(format!("a scene that does not change was sent an update of {} bytes", update.len()));
+        }
+        self.build_world().map_err(|e| e.to_string())
+    }
+
+    fn finished(&mut self, world: World) {
+        self.return_scene(world);
+    }
+}
+
 /// Serves the master on rank 0 of `transport` until it says to stop: greets it (with `scene`'s
 /// failure if the scene could not be loaded), then renders each frame's tiles on `pool`.
 pub fn serve<T: Transport>(

@@ -1,0 +1,138 @@
+//! `--mpi` as a user runs it: `mpirun -n 3 rtsl ... --mpi` on this machine (ranks talking over
+//! loopback and shared memory), against the same command in one process. Built only with the
+//! `mpi` feature (`cargo test --features mpi --test mpi`); skips with a message where `mpirun`
+//! is missing.
+#![cfg(feature = "mpi")]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn repo(path: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(path)
+}
+
+fn mpirun_present() -> bool {
+    let found = Command::new("mpirun").arg("--version").output().is_ok_and(|o| o.status.success());
+    if !found {
+        eprintln!("skipped: mpirun is not installed (apt-get install openmpi-bin libopenmpi-dev)");
+    }
+    found
+}
+
+fn rtsl(args: &[&str], dir: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_rtsl")).args(args).current_dir(dir).output().expect("the binary runs")
+}
+
+/// `rtsl ARGS --mpi` over `ranks` ranks, with two threads each (as root, Open MPI wants to be told).
+fn mpirun(ranks: usize, args: &[&str], dir: &Path) -> Output {
+    Command::new("mpirun")
+        .args(["-n", &ranks.to_string(), "--oversubscribe", "--bind-to", "none"])
+        .arg(env!("CARGO_BIN_EXE_rtsl"))
+        .args(args)
+        .args(["--mpi", "--threads", "2"])
+        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+        .current_dir(dir)
+        .output()
+        .expect("mpirun runs")
+}
+
+fn text(o: &Output) -> String {
+    format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
+}
+
+/// The two images hold the same values, bit for bit.
+fn assert_same_image(a: &Path, b: &Path) {
+    let (a_img, b_img) =
+        (rtsl_runtime::read_image(a).expect("an image"), rtsl_runtime::read_image(b).expect("an image"));
+    assert_eq!((a_img.width, a_img.height), (b_img.width, b_img.height));
+    let differ = a_img.pixels.iter().zip(&b_img.pixels).filter(|(x, y)| x.to_bits() != y.to_bits()).count();
+    assert_eq!(differ, 0, "{} and {}: {differ} values differ", a.display(), b.display());
+    assert!(a_img.pixels.iter().any(|&v| v > 0.0), "{} is black", a.display());
+}
+
+#[test]
+fn the_default_scene_renders_the_same_over_three_ranks() {
+    if !mpirun_present() {
+        return;
+    }
+    let dir = tempfile::tempdir().expect("tempdir");
+    let alone = rtsl(&["render", "--size", "96x72", "-o", "alone.exr", "-q"], dir.path());
+    assert!(alone.status.success(), "{}", text(&alone));
+    let ranks = mpirun(3, &["render", "--size", "96x72", "-o", "mpi.exr"], dir.path());
+    assert!(ranks.status.success(), "{}", text(&ranks));
+    assert!(text(&ranks).contains("2 worker rank(s), 4 thread(s) in all"), "{}", text(&ranks));
+    assert_same_image(&dir.path().join("alone.exr"), &dir.path().join("mpi.exr"));
+}
+
+#[test]
+fn a_camera_shader_a_pixel_shader_and_a_filter_render_the_same_over_three_ranks() {
+    if !mpirun_present() {
+        return;
+    }
+    let dir = tempfile::tempdir().expect("tempdir");
+    let rib = "Format 80 60 1\nPixelSamples 2 2\nPixelFilter \"gaussian\" 2 2\nImager \"exposure\" \"gain\" 1.5\n\
+               Projection \"perspective\" \"fov\" 45\nTranslate 0 0 5\nWorldBegin\n\
+               LightSource \"pointlight\" 1 \"intensity\" 20 \"from\" [2 2 -3]\n\
+               Surface \"marble\"\nSphere 1 -1 1 360\nTranslate 0 -1 0\nSurface \"checker\"\n\
+               Polygon \"P\" [-4 0 -4  4 0 -4  4 0 4  -4 0 4]\nWorldEnd\n";
+    std::fs::write(dir.path().join("scene.rib"), rib).expect("write");
+    let args = ["render", "scene.rib", "--camera", "fisheye:fov=200", "-o"];
+    let alone = rtsl(&[&args[..], &["alone.exr", "-q"]].concat(), dir.path());
+    assert!(alone.status.success(), "{}", text(&alone));
+    let ranks = mpirun(3, &[&args[..], &["mpi.exr", "-q"]].concat(), dir.path());
+    assert!(ranks.status.success(), "{}", text(&ranks));
+    assert_same_image(&dir.path().join("alone.exr"), &dir.path().join("mpi.exr"));
+}
+
+#[test]
+fn bart_frames_render_the_same_over_three_ranks() {
+    let robots = repo("../shared/scenes/bart/robot/aff/Robot.aff");
+    if !robots.exists() {
+        eprintln!("skipped: {} is absent", robots.display());
+        return;
+    }
+    if !mpirun_present() {
+        return;
+    }
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = robots.to_string_lossy().into_owned();
+    let args = ["bart", scene.as_str(), "--frames", "2", "--size", "64x48", "-q", "-o"];
+    let alone = rtsl(&[&args[..], &["alone"]].concat(), dir.path());
+    assert!(alone.status.success(), "{}", text(&alone));
+    let ranks = mpirun(3, &[&args[..], &["mpi"]].concat(), dir.path());
+    assert!(ranks.status.success(), "{}", text(&ranks));
+    for frame in ["frame_0000.png", "frame_0001.png"] {
+        let (a, b) = (dir.path().join("alone").join(frame), dir.path().join("mpi").join(frame));
+        assert_eq!(std::fs::read(&a).expect("a frame"), std::fs::read(&b).expect("a frame"), "{frame}");
+    }
+}
+
+#[test]
+fn a_scene_that_fails_to_load_is_reported_once_and_ends_the_job() {
+    if !mpirun_present() {
+        return;
+    }
+    let dir = tempfile::tempdir().expect("tempdir");
+    std::fs::write(dir.path().join("bad.rib"), "WorldBegin\nSurface \"plastic\nWorldEnd\n").expect("write");
+    let ranks = mpirun(3, &["render", "bad.rib", "-o", "x.png", "-q"], dir.path());
+    let out = text(&ranks);
+    assert!(!ranks.status.success(), "{out}");
+    let alone = rtsl(&["render", "bad.rib", "-o", "x.png", "-q"], dir.path());
+    let first_error = String::from_utf8_lossy(&alone.stderr).lines().find(|l| l.contains("error")).map(str::to_owned);
+    let first_error = first_error.expect("the single process reports an error");
+    assert_eq!(out.matches(first_error.as_str()).count(), 1, "the error once, as alone: {out}");
+}
+
+#[test]
+fn without_mpirun_the_flag_renders_on_one_rank() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let o = rtsl(&["render", "--size", "32x24", "-o", "x.png", "--mpi", "-q"], dir.path());
+    // A singleton MPI process may fail to start where no MPI runtime is installed; where one is,
+    // it renders alone and says so.
+    if mpirun_present() {
+        assert!(o.status.success(), "{}", text(&o));
+        assert!(text(&o).contains("no worker rank"), "{}", text(&o));
+        assert!(dir.path().join("x.png").exists());
+    }
+}
