@@ -374,8 +374,7 @@ pub fn pow4(x: F4, y: F4) -> F4 {
 
 /// Whether `x^y` is certainly below 2^-151, so that `powf` rounds it to zero: then it is zero
 /// here without the call. glibc's `powf` takes a slow path for results that underflow (it sets
-/// `errno`), and specular highlights raise small cosines to large exponents all the time: in a
-/// BART robot frame that path was half a percent of the time (`perf`, `xflowf`).
+/// `errno`), and specular highlights raise small cosines to large exponents all the time.
 #[inline]
 fn underflows_to_zero(x: f32, y: f32) -> bool {
     if !(x > 0.0 && x < 1.0 && y > 0.0) {

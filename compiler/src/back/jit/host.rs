@@ -53,8 +53,8 @@ impl StrRef {
             return "";
         }
         // SAFETY: the caller's contract. Every `StrRef` the JIT and the host pass is made by
-        // `StrRef::new` from a `&str`; checking the bytes again cost a texture lookup more than
-        // half a percent of a frame (texture names are file paths).
+        // `StrRef::new` from a `&str`; checking the bytes again would scan a file path (a texture's
+        // name) for every lookup.
         unsafe { std::str::from_utf8_unchecked(std::slice::from_raw_parts(self.ptr, self.len)) }
     }
 }
@@ -720,7 +720,7 @@ struct LightSet {
 }
 
 /// A [`HostCtx`]'s buffers, reused from run to run: a renderer runs shaders batch after batch,
-/// and allocating them afresh for each was 14,000 allocations a BART robot frame.
+/// and allocating them afresh for each would be thousands of allocations a frame.
 #[derive(Default)]
 struct CtxBuffers {
     light_sets: Vec<LightSet>,
@@ -760,8 +760,7 @@ impl HostCtx {
         let CtxBuffers { mut light_sets, light_buffer, mut matrices } = taken.unwrap_or_default();
         light_sets.clear();
         // Not cleared: the renderer writes the entries it counts before any is read, and clearing
-        // it made the batch's first query write all `MAX_LIGHTS` rows (6.6 KB) again, for every
-        // batch (a third of the samples of `Cx::lights` in BART robot frames).
+        // it would make each batch's first query write all `MAX_LIGHTS` rows (6.6 KB) again.
         matrices.clear();
         (self.light_sets, self.light_buffer, self.matrices) = (light_sets, light_buffer, matrices);
     }
@@ -974,8 +973,9 @@ unsafe fn with(
 }
 
 /// Whether two light categories are the same. Most are empty (every light): an empty one is
-/// told by its length, where `==` would still call `memcmp`, which perf put at 5% of a BART frame
-/// (three light queries a chunk).
+/// told by its length, where `==` would still call `memcmp` (three light queries a chunk), and
+/// glibc's EVEX `memcmp` makes a masked load at an empty string's dangling address: a
+/// fault-suppressed load, very slow on some CPUs.
 #[inline]
 pub fn same_category(a: &str, b: &str) -> bool {
     a.len() == b.len() && (a.is_empty() || a == b)

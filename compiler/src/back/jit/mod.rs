@@ -1,4 +1,4 @@
-//! The Cranelift packet JIT (first slice of issue 3).
+//! The Cranelift packet JIT.
 //!
 //! [`compile`] turns a validated [`ir::Module`] into a [`CompiledShader`]: one `JITModule` holding one
 //! function `extern "C" fn(*mut Batch)` that shades every active lane of a batch (the ABI of
@@ -133,7 +133,7 @@ pub struct StringTable {
     constants: usize,
     /// Strings dropped by [`StringTable::reset`], whose buffers the next ones reuse: a batch is
     /// reset for every call, and a renderer's calls intern their string parameters again each
-    /// time (two allocations a string, 14,000 a BART robot frame).
+    /// time (two allocations a string, thousands a frame).
     spare: Vec<String>,
 }
 
@@ -671,8 +671,8 @@ impl BatchData {
         } else {
             // A new stride moves every row, but a kept row is written over all the same. The rows
             // are zeroed a run at a time, from one kept row's padding lanes past `lanes` (which
-            // nobody fills) to the next kept row: a `memset` call per row cost more than the
-            // zeroing itself in small batches (the light batches of the BART kitchen).
+            // nobody fills) to the next kept row: a `memset` call per row costs more than the
+            // zeroing itself in small batches (light batches of incoherent rays).
             self.varying.resize(slots * stride, 0.0);
             let mut zero_from = 0;
             for (word, bits) in kept.iter().enumerate() {

@@ -8,7 +8,7 @@
 //! (past its count, ambient, facing away, or an inactive lane) leaves its sum alone.
 //!
 //! Written with explicit `Vec4`s: the same code over `[f32; 4]` arrays came out as scalar
-//! square roots and store-forwarding stalls, slower than the lane-by-lane loop it replaced.
+//! square roots and store-forwarding stalls, slower than a plain lane-by-lane loop.
 
 use super::{LightLanes, CONE_ROWS, MAX_LIGHTS};
 use crate::shadeops::transcendental;
