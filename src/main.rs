@@ -13,7 +13,7 @@ static GLOBAL: MiMalloc = MiMalloc;
 ///
 /// The `mimalloc` crate's allocator calls `mi_malloc_aligned` for every allocation, which in
 /// mimalloc 3 takes a slower path than `mi_malloc` even when the alignment is one that `mi_malloc`
-/// guarantees anyway: 1.5% of the front end's instructions (`rtsl bench frontend` under callgrind).
+/// guarantees anyway, which shows in allocation-heavy code such as the front end's.
 struct MiMalloc;
 
 /// The alignment every `mi_malloc` block has on 64-bit targets (`MI_MAX_ALIGN_SIZE`).
@@ -97,9 +97,9 @@ unsafe extern "C" {
 /// (mimalloc's default; `MIMALLOC_ARENA_PURGE_MULT` still overrides this).
 ///
 /// A frame frees its large buffers (the framebuffer, tiles' samples, batches) when it ends, and
-/// the next frame asks for them again. Each time mimalloc purged the free memory, the frames
-/// after it faulted it back in and zeroed it: 100 robot frames took 17,000-25,000 page faults
-/// and `clear_page_erms` was 9% of the time (`perf`); with the longer delay, 1,400-2,900.
+/// the next frame asks for them again. Each time mimalloc purges the free memory, the frames
+/// after it fault it back in and the kernel zeroes it (`clear_page_erms` in `perf`); with the
+/// longer delay an animation's frames reuse the memory instead.
 fn keep_freed_memory_for_the_next_frames() {
     // The purge delay (1000 ms by default) times this multiplier is how long free arena memory
     // stays committed.

@@ -283,8 +283,8 @@ pub struct Context {
 
 /// An object's materials as a frame built them, and what they were built from: reused by the next
 /// frame while its appearances and the programs their bindings name are the same. Building the
-/// shader instances of a BART robot frame's 1,103 materials again each frame was most of its
-/// serial world update (about 1 ms).
+/// shader instances of every material again each frame would be most of the serial world update
+/// of an animation with many materials.
 struct BuiltMaterials {
     appearances: Vec<Appearance>,
     /// The program of each binding of `appearances` (surface, interior, displacement), kept so

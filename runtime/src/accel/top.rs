@@ -14,9 +14,8 @@ const TOP_LEAF_SIZE: u32 = 2;
 
 /// Top levels over at most this many instances are built at [`BuildQuality::High`], larger ones at
 /// [`BuildQuality::Fast`]. A few hundred instances build in tens of microseconds either way, and
-/// the better tree pays for itself: BART's robots (157 instances) render 0.6% fewer instructions a
-/// frame for 0.05 ms more build (0.08 to 0.13 ms), a net 0.35 ms of a 70 ms frame. Thousands of
-/// instances keep the fast build, for the per-frame rebuild targets (1,000 under 1 ms).
+/// the better tree saves more traversal in a frame than its build adds (an animation's rigid
+/// parts, rebuilt every frame, are this case). Thousands of instances keep the fast build, for the per-frame rebuild targets (1,000 under 1 ms).
 const TOP_HIGH_QUALITY_UP_TO: usize = 512;
 
 /// One instance as the tracer sees it.

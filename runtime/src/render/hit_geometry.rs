@@ -185,15 +185,14 @@ impl HitRows {
 /// not in the mesh), the same as [`hit_geometry_into`] would, bit for bit. Instances that stand
 /// still, with meshes without further attributes (all of a BART scene), are done four hits at a
 /// time in vector arithmetic ([`hit_geometry_four`]): one hit at a time, each hit's square roots
-/// and divisions stood in a chain of their own (9% of a BART robot frame went to hit geometry and
-/// grouping). Those groups, of a packet at most, are also written into `rows`, and then it returns
+/// and divisions would stand in a chain of their own. Those groups, of a packet at most, are also written into `rows`, and then it returns
 /// `true`.
 ///
 /// With `each` false the caller reads only the rows where there are rows ([`GroupHits::Rows`]),
 /// and then the slots of `geoms` are left as they were: writing every hit's fields a lane at a
-/// time, and holding all of them until then, was a fifth of this function's instructions. The rows
-/// alone are worked out eight hits at a time ([`hit_rows_eight`]; 12% fewer instructions in this
-/// function for BART's robots: the loads of corners and rays, a lane at a time, stay).
+/// time, and holding all of them until then, would cost more than the rows. The rows alone are
+/// worked out eight hits at a time ([`hit_rows_eight`]; the loads of corners and rays stay a lane
+/// at a time).
 pub(super) fn hit_geometries(
     ig: &InstanceGeometry,
     group: &[Pending],
@@ -320,8 +319,8 @@ pub(super) type DerivsFour = Derivs<Vec4>;
 /// The derivatives along x and y of four hits (`geoms`, of the rays `pending`; where a lane has
 /// no geometry its values are not to be used), lane by lane the arithmetic of one hit at a time
 /// (`RayDifferential::at_hit`, `barycentric_change`), so each lane's bits are the same. One hit at
-/// a time, the six divisions of each stood in a chain, and writing the results a lane at a time
-/// looked up their rows again: together two thirds of filling a BART robot batch.
+/// a time, the six divisions of each would stand in a chain, and writing the results a lane at a
+/// time would look up their rows again.
 pub(super) fn derivs_four(pending: [&Pending; 4], geoms: [Option<&HitGeometry>; 4]) -> DerivsFour {
     let zero = HitGeometry::default();
     let geoms = geoms.map(|g| g.unwrap_or(&zero));
@@ -413,8 +412,8 @@ impl Lanes3 {
         #[cfg(target_arch = "x86_64")]
         {
             // Sixteen bytes from each element: its three values and the first of the next one,
-            // which the transposition drops. Element by element, each took a bounds check and
-            // three loads and inserts (a third of a BART robot's hit geometry).
+            // which the transposition drops. Element by element, each would take a bounds
+            // check and three loads and inserts.
             if at[0].max(at[1]).max(at[2]).max(at[3]) < data.len().saturating_sub(1) {
                 let load = |i: usize| {
                     // SAFETY: `i + 1 < data.len()`, checked above, so the 16 bytes from element `i`
@@ -457,8 +456,8 @@ impl Lanes3 {
     }
 
     /// The vectors `f(items[j])`, one a lane: transposed in registers. (Built as an array of
-    /// vectors and read back a component at a time, the reads straddled the array's stores,
-    /// which stalls them: the most sampled instructions of a BART robot's hit geometry.)
+    /// vectors and read back a component at a time, the reads would straddle the array's
+    /// stores, which stalls them: store forwarding fails.)
     #[inline(always)]
     pub(super) fn of<T>(items: [&T; 4], f: impl Fn(&T) -> Vec3A) -> Lanes3 {
         let [a, b, c, d] = [f(items[0]), f(items[1]), f(items[2]), f(items[3])];

@@ -60,7 +60,7 @@ pub(crate) struct ShadeCall<'f, 'w> {
 }
 
 /// The buffers of a [`ShadeCall`], reused from call to call: a call is made for every batch, and
-/// allocating them afresh was 35,000 allocations a BART robot frame.
+/// allocating them afresh would be tens of thousands of allocations a frame.
 #[derive(Default)]
 struct CallBuffers {
     points: Vec<Vec3A>,
@@ -72,10 +72,9 @@ struct CallBuffers {
 
 /// Textures found in the frame's texture cache, kept by name for as long as the cache's
 /// [generation](crate::texture::TextureCache::generation) stays the same, and from call to call
-/// (in a thread's [`CallBuffers`]). Each batch looked its textures up in the shared cache: its lock
-/// and the counts of the texture's `Arc`, taken and dropped by both threads of a BART robot frame
-/// at every batch, were 1% of the frame (`perf`), most of it waiting for the other thread's
-/// writes to those counts. The handles keep their textures alive until a lookup through them
+/// (in a thread's [`CallBuffers`]). Looked up in the shared cache for every batch, the cache's lock
+/// and the counts of the texture's `Arc` would be taken and dropped by every thread at every
+/// batch, each waiting for the other threads' writes to those counts. The handles keep their textures alive until a lookup through them
 /// finds the generation changed: after a scene is dropped, a thread may hold its textures until
 /// it next shades a textured batch.
 #[derive(Default)]

@@ -118,8 +118,8 @@ impl Lanes for Vec4 {
         #[cfg(target_arch = "x86_64")]
         {
             // Eight bytes an element, shuffled into rows in registers: element by element, each
-            // took a bounds check and two loads and inserts (a sixth of a BART robot's hit
-            // geometry, for the texture coordinates of a triangle's corners).
+            // would take a bounds check and two loads and inserts (for the texture coordinates of
+            // a triangle's corners, on every hit).
             if at[0].max(at[1]).max(at[2]).max(at[3]) < data.len() {
                 use std::arch::x86_64::{_mm_castpd_ps, _mm_load_sd, _mm_movelh_ps, _mm_shuffle_ps};
                 // SAFETY: every `i < data.len()`, checked above, so the 8 bytes of element `i` lie

@@ -243,8 +243,8 @@ fn eval_light_lanes(
 /// runs on one lane, once a frame (`Frame::invariant_light_rows`), and every asking lane gets its
 /// row. The same rows as running it on all: an ambient light casts no shadows and has no
 /// direction, and every lane of every batch would compute the same from the same parameters.
-/// (BART's scenes have one, in every lane's list: running it over whole batches and taking their
-/// rows apart lane by lane was 2% of a robot frame.)
+/// (Scenes with an ambient light have it in every lane's list: running it over whole batches and
+/// taking their rows apart lane by lane would repeat that work for every batch.)
 #[allow(clippy::too_many_arguments)]
 fn eval_invariant_light_lanes(
     frame: &Frame,
@@ -354,10 +354,9 @@ thread_local! {
     static LIGHT_LANE_ROWS: std::cell::RefCell<Vec<Box<LightLaneRows>>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
-/// The rows [`eval_light_lanes`] works in, kept from call to call. Made afresh they were 6 KB
-/// zeroed for every light and sample of every batch however few its lanes: in the BART kitchen,
-/// whose incoherent rays make small batches, `memset` was a fifth of the instructions. Now a
-/// batch of `n` lanes reads only the chunks of four that hold them, and writes every lane below
+/// The rows [`eval_light_lanes`] works in, kept from call to call. Made afresh they would be 6 KB
+/// zeroed for every light and sample of every batch however few its lanes, which dominates
+/// where incoherent rays make small batches. A batch of `n` lanes reads only the chunks of four that hold them, and writes every lane below
 /// `n` before it reads it (`fresh` zeroes the padding lanes and the flags); lanes past its chunks
 /// hold whatever an earlier batch left.
 struct LightLaneRows {
@@ -381,8 +380,7 @@ fn reset_packet_lanes(packet: &mut RayPacket, lanes: usize) {
 
 /// Sets the first `lanes` lanes of `row` to `value`, and the rest of their chunk of 8 (lanes the
 /// caller does not read), a 32-byte store a chunk. A small batch's rows are a few lanes long, and a
-/// `memset` call for each cost more than the stores (in the BART kitchen, a light's evaluation
-/// reset a dozen rows); the value is hidden from the optimiser, which would otherwise make those
+/// `memset` call for each costs more than the stores (a light's evaluation resets a dozen rows); the value is hidden from the optimiser, which would otherwise make those
 /// stores the very `memset` calls again.
 #[inline(always)]
 fn fill_lanes(row: &mut [f32; PACKET_SIZE], lanes: usize, value: f32) {
@@ -755,8 +753,8 @@ pub(super) fn transmission_between(frame: &Frame, segments: &[Option<(Vec3A, Vec
 /// surfaces and notes each crossing; the crossings of surfaces with a fixed opacity are multiplied
 /// in afterwards ([`resolve_crossings`]). Only rays that cross a surface whose shader sets the
 /// shadow's opacity (`transmissionhitmode "shader"`) walk through their surfaces again, together,
-/// layer by layer, each layer's hits shaded in batches. (Walking every crossing ray that way took a
-/// closest-hit packet query per layer: 7% of a BART robot frame, whose city has glass windows.)
+/// layer by layer, each layer's hits shaded in batches. (Walking every crossing ray that way takes a
+/// closest-hit packet query per layer, costly in scenes where most shadow rays cross a window.)
 fn transmission_packet(frame: &Frame, packet: &mut RayPacket, through: &mut [Vec3A]) {
     let active = packet.active & lane_mask(through.len());
     if active == 0 {
@@ -774,8 +772,8 @@ fn transmission_packet(frame: &Frame, packet: &mut RayPacket, through: &mut [Vec
     let material_of = |instance: u32, primitive: u32| material_at(world, instance, primitive);
     // Transparent candidates are passed over (the traversal goes on) but noted: in this thread's
     // log, where the filter runs on this thread (the traversal does not spread over threads),
-    // else under a lock. A lock for every crossing (73% of a BART robot frame's candidates are
-    // crossings) was a third of the filter's time.
+    // else under a lock. A lock for every crossing would dominate the filter's time where most
+    // candidates are crossings (a city with glass windows).
     let here = NOTED_HERE.with(|log| std::ptr::from_ref(log) as usize);
     let start = NOTED_HERE.with(|log| log.borrow().len());
     let elsewhere = Mutex::new(Vec::new());
@@ -853,8 +851,8 @@ fn transmission_packet(frame: &Frame, packet: &mut RayPacket, through: &mut [Vec
 }
 
 thread_local! {
-    /// The crossings' lists, reused from packet to packet (one allocated afresh for each shadow
-    /// packet that crossed a window was 20,000 allocations a BART robot frame).
+    /// The crossings' lists, reused from packet to packet (rather than one allocated afresh for
+    /// each shadow packet that crosses a transparent surface).
     static CROSSING_BUFFERS: RefCell<Vec<Vec<Crossing>>> = const { RefCell::new(Vec::new()) };
     /// The crossings that shadow filters running on this thread note during a traversal; each
     /// `transmission_packet` takes those past where the log stood when it began.

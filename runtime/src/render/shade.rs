@@ -37,8 +37,8 @@ pub struct Frame<'w> {
     /// Per instance: what shadow rays do at its triangles (empty without `transparent_shadows`).
     /// A shadow ray's hit filter answers from these without finding the triangle's material.
     pub(super) instance_shadows: Vec<InstanceShadows>,
-    /// [`World::has_volumes`], asked once a frame: its scan of the materials ran for every packet
-    /// (1.5% of a BART robot frame, 1,103 materials and no volume).
+    /// [`World::has_volumes`], asked once a frame rather than for every packet: it scans every
+    /// material (thousands in an animation of many parts).
     pub(super) volumes: bool,
     pub(super) camera_from_world: Affine3A,
     /// The camera's forward axis and how an unnormalised camera ray's direction changes per pixel.
@@ -384,7 +384,7 @@ const MAX_BUCKETED_KEYS: usize = 8;
 
 /// Sorts `keys` (each index once) as `sort_unstable` would, `spare` a buffer to use. A packet's
 /// hits mostly have one to three distinct (material, instance) keys, so they are bucketed by key
-/// in two passes, where a comparison sort of the 64 was 1% of a BART robot frame's instructions.
+/// in two passes, cheaper than a comparison sort of the 64.
 fn sort_group_keys(keys: &mut Vec<GroupKey>, spare: &mut Vec<GroupKey>) {
     let mut distinct = [(0u32, 0u32); MAX_BUCKETED_KEYS];
     let mut count = 0;
@@ -1041,7 +1041,7 @@ pub fn shade_pixels(frame: &Frame, tile: TilePixels<'_>) {
 
 /// The first derivative row of a varying global of `components` values, when the shader reads
 /// its screen-space derivatives (`Slot::derivs`: a material that only filters a texture reads
-/// those of `s` and `t`, and writing those of `P`, `I` and `N` too was 2% of a BART robot frame).
+/// those of `s` and `t`, and the others are not written for it).
 /// Only globals below `deriv_slots` have them; see `docs/packet-abi.md`. Component `k`'s
 /// derivative along x is row `first + 2k`, along y the row after it.
 fn deriv_row(slot: Option<Slot>, components: usize, deriv_slots: usize) -> Option<usize> {
@@ -1118,8 +1118,8 @@ fn put3_rows(raw: &mut RawBatch<'_>, slot: Option<Slot>, hits: GroupHits, value:
     }
 }
 
-/// [`put3_rows`] for a float global. (One generic `put_rows::<N>` indexing `rows[c * stride + lane]`
-/// ran 2.5% more instructions per Cornell box frame: the zipped rows here need no bounds checks.)
+/// [`put3_rows`] for a float global. (Not one generic `put_rows::<N>` indexing `rows[c * stride + lane]`:
+/// the zipped rows here need no bounds checks.)
 fn put1_rows(raw: &mut RawBatch<'_>, slot: Option<Slot>, hits: GroupHits, value: impl Fn(&HitSurface, usize) -> f32) {
     let Some(s) = slot else { return };
     let st = raw.stride;

@@ -106,11 +106,9 @@ impl Drop for ShaderKindTimer {
 
 /// A count of one frame, summed over threads. Each thread adds to a slot of its own, on a cache
 /// line of its own: with one shared count, both threads of a frame added to the same line at every
-/// packet and batch, and each addition waited for the line to come back from the other core (the
-/// instructions after those additions drew a few percent of their functions' samples in BART robot
-/// frames, `perf`). A slot belongs to one thread for good ([`OWN_SLOT`]), so that thread adds with
-/// a plain load and store: a locked addition also waits for every store before it to drain (6% of
-/// the light batches' samples in a BART kitchen frame sat after one). Threads past the slots share
+/// packet and batch, and each addition would wait for the line to come back from the other core. A slot belongs to
+/// one thread for good ([`OWN_SLOT`]), so that thread adds with a plain load and store: a locked
+/// addition also waits for every store before it to drain (such as a light batch's row stores). Threads past the slots share
 /// one more, by locked additions.
 #[derive(Debug, Default)]
 pub struct Counter {

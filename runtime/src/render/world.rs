@@ -66,8 +66,8 @@ pub enum ShadowKind {
 
 /// What shadow rays do at the triangles of one instance, worked out once a frame: a shadow ray's
 /// hit filter asks for every candidate, and finding the triangle's material and then the
-/// material's opacity were two dependent loads a candidate (on a BART robot frame, 73% of the
-/// candidates are on the city's few transparent parts).
+/// material's opacity would be two dependent loads a candidate (in a city with glass windows, most
+/// candidates are on its few transparent parts).
 #[derive(Clone, Debug, PartialEq)]
 pub enum InstanceShadows {
     /// Every material of the instance blocks shadows.

@@ -201,8 +201,8 @@ pub fn get_row_at(raw: &RawBatch<'_>, slot: Option<Slot>, comp: usize, first: us
 
 /// A batch kept for reuse, with the program it was made for; `None` while a caller has it. The
 /// entry outlives the loan, so taking and giving back touch neither the program's reference counts
-/// (atomics on a line every thread shares: a `Weak` dropped and made again for every light of
-/// every batch was 4% of a BART kitchen frame) nor the batch (boxed: a few hundred bytes).
+/// (atomics on a line every thread shares, which a `Weak` dropped and made again would touch for
+/// every light of every batch) nor the batch (boxed: a few hundred bytes).
 type PooledBatch = (Weak<ShaderProgram>, Option<Box<BatchData>>);
 
 /// Most batches kept per thread (a frame uses a handful of programs, recursion a few more).

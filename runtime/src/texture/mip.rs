@@ -247,8 +247,8 @@ impl MipMap {
     ///
     /// The four lanes step through their probes together, in vector arithmetic: probe `k` of every
     /// lane, on its first level and then its second. Lookup by lookup, each lane's setup (its
-    /// levels, its probes' places, their floors and tap weights) stood in a chain of its own, and
-    /// took more instructions than its taps (BART robot frames, `callgrind`).
+    /// levels, its probes' places, their floors and tap weights) would stand in a chain of its own,
+    /// and take more instructions than its taps.
     ///
     /// Where the lanes differ, the work is padded: a lane past its last probe, or with one level,
     /// adds taps of zero weight. That changes no bit: a sum starts at +0 and never becomes -0, and
