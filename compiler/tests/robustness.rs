@@ -210,3 +210,31 @@ fn every_seed_still_compiles_unmutated() {
         }
     }
 }
+
+/// `#if` expressions recurse once per level of parentheses, unary operators or `?:`; a deep one is
+/// refused with a located diagnostic instead of overflowing the stack (test threads have small
+/// stacks, so an unbounded evaluator fails here).
+#[test]
+fn deep_if_expressions_are_refused_with_a_location() {
+    let cases = [
+        format!("{}1{}", "(".repeat(6000), ")".repeat(6000)),
+        format!("{}1", "!".repeat(20_000)),
+        format!("{}1{}", "1 ? ".repeat(6000), " : 1".repeat(6000)),
+        format!("{}1", "-~".repeat(10_000)),
+    ];
+    for expr in &cases {
+        let src = format!("// deep\n#if {expr}\n#endif\nsurface s() {{}}\n");
+        let c = compile_source("deep.sl", &src, &options());
+        assert!(!c.ok());
+        let lines: Vec<String> = c.diagnostics.iter().map(|d| d.one_line(&c.sources)).collect();
+        assert_eq!(lines.len(), 1, "{lines:?}");
+        assert!(lines[0].starts_with("deep.sl:2:"), "{}", lines[0]);
+        assert!(lines[0].contains("error[E0006]"), "{}", lines[0]);
+        assert!(lines[0].contains("nests more than 400 levels deep"), "{}", lines[0]);
+    }
+    // Nesting within the limit still evaluates.
+    let src = format!("#if {}0{}\n#error reached\n#endif\n", "!(".repeat(151), ")".repeat(151));
+    let c = compile_source("shallow.sl", &src, &options());
+    let codes: Vec<&str> = c.diagnostics.iter().map(|d| d.code.as_str()).collect();
+    assert_eq!(codes, ["E0009"], "{}", c.render());
+}

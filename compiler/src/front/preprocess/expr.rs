@@ -9,8 +9,13 @@ use crate::symbol::Interner;
 
 type Error = (Option<Span>, String);
 
+/// How deeply parentheses, unary operators and `?:` may nest. The evaluator recurses once per
+/// level, so without a bound a long enough line overflows the stack; the bound is the checker's
+/// for shader expressions, far beyond what a real header writes.
+pub const MAX_DEPTH: u32 = 400;
+
 pub fn evaluate(tokens: &[Token], interner: &Interner) -> Result<i64, Error> {
-    let mut p = Parser { tokens, pos: 0, interner };
+    let mut p = Parser { tokens, pos: 0, interner, depth: 0 };
     let v = p.ternary()?;
     match p.peek() {
         None => Ok(v),
@@ -30,6 +35,7 @@ struct Parser<'a> {
     tokens: &'a [Token],
     pos: usize,
     interner: &'a Interner,
+    depth: u32,
 }
 
 impl Parser<'_> {
@@ -50,17 +56,30 @@ impl Parser<'_> {
         (self.tokens.last().map(|t| t.span), "the expression ends too early".to_string())
     }
 
+    /// Runs `f` one nesting level deeper, refusing at `MAX_DEPTH` with the span of the token that
+    /// would have gone too deep.
+    fn nested(&mut self, f: impl FnOnce(&mut Self) -> Result<i64, Error>) -> Result<i64, Error> {
+        if self.depth >= MAX_DEPTH {
+            let at = self.peek().or(self.tokens.last()).map(|t| t.span);
+            return Err((at, format!("the expression nests more than {MAX_DEPTH} levels deep")));
+        }
+        self.depth += 1;
+        let v = f(self);
+        self.depth -= 1;
+        v
+    }
+
     fn ternary(&mut self) -> Result<i64, Error> {
         let cond = self.binary(0)?;
         if self.eat(TokenKind::Question) {
-            let a = self.ternary()?;
+            let a = self.nested(Self::ternary)?;
             if !self.eat(TokenKind::Colon) {
                 return Err(match self.peek() {
                     Some(t) => (Some(t.span), "expected `:`".to_string()),
                     None => self.end_error(),
                 });
             }
-            let b = self.ternary()?;
+            let b = self.nested(Self::ternary)?;
             return Ok(if cond != 0 { a } else { b });
         }
         Ok(cond)
@@ -82,6 +101,10 @@ impl Parser<'_> {
     }
 
     fn unary(&mut self) -> Result<i64, Error> {
+        self.nested(Self::unary_inner)
+    }
+
+    fn unary_inner(&mut self) -> Result<i64, Error> {
         let Some(t) = self.peek().copied() else {
             return Err(self.end_error());
         };
