@@ -13,8 +13,11 @@
 //!   skipping those outside the cone (angle between `L` and the axis greater than the cone angle);
 //! - `illuminate` runs its body only where `Ps` lies within the cone around the axis from the light
 //!   position, with `L = Ps - position`; `solar` with a cone sets `L` to the axis;
-//! - loops and calls are budgeted ([`Limits`]): a shader that runs away stops with an error instead
-//!   of hanging the test;
+//! - loop iterations are budgeted per run, all loops together, exactly as the JIT budgets a
+//!   chunk's (`ir::LOOP_BUDGET`): past the budget the loop is left as by `break`, every loop reached
+//!   later stops at once, and the run goes on ([`RunResult::stopped_loops`]);
+//! - calls, lights and `gather` samples are budgeted too ([`Limits::steps`]): a shader that runs
+//!   away there stops with an error instead of hanging the test;
 //! - derivatives come from the renderer's screen-space derivatives of the globals
 //!   ([`ShadingPoint::derivs`]): the values `ir::deriv` marks are evaluated as duals (`deriv.rs`).
 //!
@@ -47,7 +50,7 @@ pub enum InterpError {
     NoShader,
     /// A construct the interpreter does not implement yet.
     Unsupported(&'static str),
-    /// The loop or call budget ran out.
+    /// The call budget ran out.
     Budget,
 }
 
@@ -56,7 +59,7 @@ impl std::fmt::Display for InterpError {
         match self {
             InterpError::NoShader => write!(f, "the module defines no shader"),
             InterpError::Unsupported(what) => write!(f, "the interpreter does not support {what} yet"),
-            InterpError::Budget => write!(f, "the shader ran past its loop and call budget"),
+            InterpError::Budget => write!(f, "the shader ran past its call budget"),
         }
     }
 }
@@ -66,13 +69,15 @@ impl std::error::Error for InterpError {}
 /// How much work one run may do.
 #[derive(Clone, Copy, Debug)]
 pub struct Limits {
-    /// Loop iterations plus calls.
+    /// Calls, lights visited by light loops, and `gather` samples.
     pub steps: u64,
+    /// Loop iterations, all loops of the run together (the JIT's `JitOptions::loop_budget`).
+    pub loop_iterations: u32,
 }
 
 impl Default for Limits {
     fn default() -> Limits {
-        Limits { steps: 10_000_000 }
+        Limits { steps: 10_000_000, loop_iterations: ir::LOOP_BUDGET }
     }
 }
 
@@ -145,6 +150,8 @@ impl ShadingPoint {
 #[derive(Clone, Debug)]
 pub struct RunResult {
     pub params: Vec<(String, Value)>,
+    /// Where the loop budget stopped a loop, each place once, in the order they stopped.
+    pub stopped_loops: Vec<crate::source::Span>,
 }
 
 /// Runs a module's shader on one shading point. `bound` overrides parameter defaults by name.
@@ -158,8 +165,19 @@ pub fn run(
     let shader = module.shader.as_ref().ok_or(InterpError::NoShader)?;
     let body = module.function(shader.body);
     let info = ir::deriv::analyse(module);
-    let mut m =
-        Machine { module, point, host, steps: limits.steps, light_depth: 0, random_calls: 0, info: &info, ret_d: None };
+    let mut m = Machine {
+        module,
+        point,
+        host,
+        steps: limits.steps,
+        loop_iterations: 0,
+        loop_budget: limits.loop_iterations,
+        stopped_loops: Vec::new(),
+        light_depth: 0,
+        random_calls: 0,
+        info: &info,
+        ret_d: None,
+    };
     let mut frame = Frame::new(shader.body, body);
     for p in &shader.params {
         // A bound parameter has zero derivatives (the renderer supplies none for parameters).
@@ -175,6 +193,7 @@ pub fn run(
     m.block(body, &mut frame, &body.body)?;
     Ok(RunResult {
         params: shader.params.iter().map(|p| (p.name.clone(), frame.vars[p.var.0 as usize].clone())).collect(),
+        stopped_loops: m.stopped_loops,
     })
 }
 
@@ -206,6 +225,10 @@ struct Machine<'a> {
     point: &'a mut ShadingPoint,
     host: &'a mut dyn Services,
     steps: u64,
+    /// Loop iterations begun in this run (every loop's condition tests), against `loop_budget`.
+    loop_iterations: u32,
+    loop_budget: u32,
+    stopped_loops: Vec<crate::source::Span>,
     light_depth: u32,
     random_calls: u64,
     info: &'a ir::deriv::DerivInfo,
@@ -284,7 +307,13 @@ impl Machine<'_> {
                 }
             }
             StmtKind::Loop { cond, body, step } => loop {
-                self.step()?;
+                self.loop_iterations = self.loop_iterations.saturating_add(1);
+                if self.loop_iterations > self.loop_budget {
+                    if !self.stopped_loops.contains(&s.span) {
+                        self.stopped_loops.push(s.span);
+                    }
+                    return Ok(Flow::Next);
+                }
                 if let Some(c) = cond {
                     if !self.expr(f, frame, *c)?.b() {
                         return Ok(Flow::Next);

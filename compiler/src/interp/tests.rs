@@ -77,17 +77,47 @@ fn light_loops_and_cones() {
     assert!(close(ci(&p), [2.0; 3]), "one light within the cone, none behind: {:?}", ci(&p));
 }
 
-#[test]
-fn runaway_loops_stop_with_an_error() {
-    let c = compile_source(
-        "t.sl",
-        "surface t() { float x = 0; while (1) { x += 1; } Ci = x; }",
-        &crate::Options::default(),
-    );
+/// Runs `src` with a loop budget of `loops` iterations; returns `Ci`'s first component and where
+/// loops were stopped (as byte offsets).
+fn run_budgeted(src: &str, loops: u32) -> (f32, Vec<u32>) {
+    let c = compile_source("t.sl", src, &crate::Options::default());
     let m = c.module.expect("compiles");
     let mut point = ShadingPoint::new(ShaderKind::Surface);
-    let r = run(&m, &[], &mut point, &mut TestHost::default(), Limits { steps: 1000 });
-    assert_eq!(r.err(), Some(InterpError::Budget));
+    let limits = Limits { loop_iterations: loops, ..Limits::default() };
+    let r = run(&m, &[], &mut point, &mut TestHost::default(), limits).expect("runs");
+    let ci = point.get("Ci").expect("Ci").clone();
+    (ci.f(), r.stopped_loops.iter().map(|s| s.start).collect())
+}
+
+#[test]
+fn runaway_loops_are_stopped_and_the_shader_goes_on() {
+    let (ci, stopped) = run_budgeted("surface t() { float x = 0; while (1) { x += 1; } Ci = x; }", 1000);
+    assert_eq!(ci, 1000.0);
+    assert_eq!(stopped.len(), 1);
+}
+
+#[test]
+fn the_loop_budget_holds_for_the_whole_run_not_per_loop() {
+    // Nested: the inner loop uses up the budget; the outer loop stops at its next test instead of
+    // entering the inner one again for another budget's worth.
+    let (ci, stopped) =
+        run_budgeted("surface t() { float x = 0; while (1) { while (1) { x += 1; } x += 1000000; } Ci = x; }", 1000);
+    assert_eq!(ci, 1000000.0 + 999.0);
+    assert_eq!(stopped.len(), 2, "both loops are reported");
+    // In sequence: the first loop's 600 iterations (and its failing test) count against the second.
+    let (ci, _) = run_budgeted(
+        "surface t() { float a = 0, b = 0, i; for (i = 0; i < 600; i += 1) a += 1;\n\
+         for (i = 0; i < 600; i += 1) b += 1; Ci = a * 1000 + b; }",
+        1000,
+    );
+    assert_eq!(ci, 600.0 * 1000.0 + 399.0);
+    // Loops in called functions share the counter.
+    let (ci, _) = run_budgeted(
+        "float spin() { float n = 0; while (1) n += 1; return n; }\n\
+         surface t() { Ci = spin() + spin(); }",
+        1000,
+    );
+    assert_eq!(ci, 1000.0);
 }
 
 #[test]

@@ -12,6 +12,10 @@
 //! - **Statements form a tree** of [`Block`]s. `Loop` evaluates `cond` before each iteration, runs
 //!   `body`, then `step` (where `continue` lands). `Break(n)`/`Continue(n)` leave `n` enclosing loops;
 //!   light loops (`illuminance`, `gather`) count as loops.
+//! - **Loops are budgeted per invocation** ([`LOOP_BUDGET`] by default): each time any `Loop` is
+//!   about to test its condition, one counter for the whole invocation goes up; once it passes the
+//!   budget, that loop and every loop reached afterwards is left as by `break` and the shader goes
+//!   on. One counter rather than one per loop, so nesting cannot multiply the budget.
 //! - **Types are explicit.** Every expression has its [`Type`]; implicit conversions of the source
 //!   (float to triple or matrix, among point/vector/normal, relation to float) are `Convert` nodes, so
 //!   operands of a `Binary` have the types its operator expects (see [`BinaryOp`]).
@@ -39,6 +43,9 @@ use crate::front::parse::ast::ShaderKind;
 use crate::globals::Global;
 use crate::source::Span;
 pub use types::{ArrayLen, BaseType, Type};
+
+/// The loop iterations one shader invocation may run, all loops together (see the module doc).
+pub const LOOP_BUDGET: u32 = 1 << 20;
 
 /// Index of a function in [`Module::functions`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize)]

@@ -210,10 +210,14 @@ struct Lower<'m, 'b> {
     /// The renderer's derivatives for this chunk (`Batch::derivs + 16 * chunk`; null base: zeros).
     derivs_base: Option<Value>,
     derivs_null: Option<Value>,
-    /// The most iterations one entry of a loop may run before it is stopped.
+    /// The most loop iterations one invocation (a chunk) may run, all loops together.
     loop_budget: u32,
+    /// The loop iterations the current chunk has run so far (`I32`): one counter for every loop,
+    /// so that nested loops cannot multiply the budget.
+    loop_count: Variable,
     /// Where each runtime check sits (`file:line:col`, or a byte offset without sources).
     sites: Vec<String>,
+    site_ids: HashMap<crate::source::Span, usize>,
     sources: Option<&'m crate::source::SourceMap>,
     /// The entry block and the chunk loop's blocks: its fixed ones, and every block numbered
     /// from the second value on (those lowered for the chunk's body), for `invariants.rs`.
@@ -251,6 +255,7 @@ pub(super) fn lower(
     let mut b = FunctionBuilder::new(func, &mut fctx);
     let exec = b.declare_var(types::I32X4);
     let random_calls = b.declare_var(types::I32X4);
+    let loop_count = b.declare_var(types::I32);
     let mut l = Lower {
         m,
         layout,
@@ -285,7 +290,9 @@ pub(super) fn lower(
         derivs_base: None,
         derivs_null: None,
         loop_budget: options.loop_budget.max(1),
+        loop_count,
         sites: Vec::new(),
+        site_ids: HashMap::new(),
         sources,
         loop_blocks: None,
     };
@@ -446,6 +453,10 @@ impl<'m> Lower<'m, '_> {
             self.b.create_block(),
         );
         let prefix = super::hoist::uniform_prefix(self.m, shader, self.layout);
+        let zero32 = self.b.ins().iconst(types::I32, 0);
+        self.b.def_var(self.loop_count, zero32);
+        // The prologue's loop iterations count for every chunk, as if each chunk had run them.
+        let mut prologue_loops = None;
         let hoisted = if prefix.any() {
             // The prologue runs when the batch has a chunk, with chunk 0's buffers: it reads nothing
             // varying (`hoist.rs`), and whatever it lowers stays within the batch.
@@ -463,6 +474,7 @@ impl<'m> Lower<'m, '_> {
             let z = mask::zero_mask(&mut self.b);
             self.b.def_var(self.random_calls, z);
             let vars = self.prologue(shader, bound_p, &prefix)?;
+            prologue_loops = Some(self.b.use_var(self.loop_count));
             self.cache.clear();
             Some((vars, prefix))
         } else {
@@ -491,6 +503,11 @@ impl<'m> Lower<'m, '_> {
         self.set_exec(chunk_mask);
         let z = mask::zero_mask(&mut self.b);
         self.b.def_var(self.random_calls, z);
+        let loops_at_start = match prologue_loops {
+            Some(v) => v,
+            None => self.b.ins().iconst(types::I32, 0),
+        };
+        self.b.def_var(self.loop_count, loops_at_start);
         let first_chunk_block = self.b.func.dfg.num_blocks();
         self.loop_blocks = Some((entry, vec![header, body, run, next], first_chunk_block));
         self.chunk(shader, bound_p, hoisted.as_ref())?;
@@ -878,16 +895,15 @@ impl<'m> Lower<'m, '_> {
                 let z = mask::zero_mask(&mut self.b);
                 self.b.def_var(exit_acc, z);
                 self.b.def_var(cont_acc, z);
-                let iterations = self.b.declare_var(types::I32);
-                let zero = self.b.ins().iconst(types::I32, 0);
-                self.b.def_var(iterations, zero);
+                let iterations = self.loop_count;
                 let site = self.site(s.span);
                 let (header, body_b, cont_b, exit_b) =
                     (self.b.create_block(), self.b.create_block(), self.b.create_block(), self.b.create_block());
                 self.b.ins().jump(header, &[]);
                 self.b.switch_to_block(header);
-                // The iteration budget: past it, the running lanes leave the loop (as by `break`)
-                // and the renderer is told once where.
+                // The iteration budget, shared by every loop of the invocation: past it, the running
+                // lanes leave this loop (as by `break`), every later loop header stops too, and the
+                // renderer is told once per loop where.
                 let count = self.b.use_var(iterations);
                 let count = self.b.ins().iadd_imm_u(count, 1);
                 self.b.def_var(iterations, count);
@@ -1113,13 +1129,23 @@ impl<'m> Lower<'m, '_> {
     }
 
     /// The number of a runtime check's site, its description recorded.
+    /// The site of a runtime check at `span`. Inlined copies of a function share their sites, so
+    /// that a check is reported once per place in the source, as the interpreter reports it.
     fn site(&mut self, span: crate::source::Span) -> usize {
-        let text = match self.sources {
+        if let Some(&i) = self.site_ids.get(&span) {
+            return i;
+        }
+        let text = self.location_text(span);
+        self.sites.push(text);
+        self.site_ids.insert(span, self.sites.len() - 1);
+        self.sites.len() - 1
+    }
+
+    fn location_text(&self, span: crate::source::Span) -> String {
+        match self.sources {
             Some(src) => src.location(span).to_string(),
             None => format!("byte {} of file {}", span.start, span.file.0),
-        };
-        self.sites.push(text);
-        self.sites.len() - 1
+        }
     }
 
     /// Calls the runtime-error helper for `kind` at `site` (lane 0; the helper records it once).
@@ -1127,7 +1153,7 @@ impl<'m> Lower<'m, '_> {
     /// accepts but cannot honour.
     fn report_unsupported(&mut self, bi: Builtin, span: crate::source::Span) -> R<()> {
         let site = self.site(span);
-        self.sites[site] = format!("`{}` at {}", bi.name(), self.sites[site]);
+        self.sites[site] = format!("`{}` at {}", bi.name(), self.location_text(span));
         let e = self.exec();
         let running = any(&mut self.b, e);
         let (report, go) = (self.b.create_block(), self.b.create_block());

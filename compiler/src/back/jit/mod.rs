@@ -221,15 +221,16 @@ pub type ShadeFn = unsafe extern "C" fn(*mut Batch);
 /// Settings of code generation.
 #[derive(Clone, Debug)]
 pub struct JitOptions {
-    /// The most iterations one entry of a loop runs (per chunk of four lanes); past it the running
-    /// lanes leave the loop and the shader goes on, and the stop is reported
-    /// ([`CompiledShader::runtime_errors`]).
+    /// The most loop iterations one invocation runs, every loop together (counted per chunk of
+    /// four lanes: an iteration any of its lanes runs); past it the running lanes leave the loop
+    /// they are in, every loop they reach later stops at once, the shader goes on, and each stop is
+    /// reported ([`CompiledShader::runtime_errors`]). The interpreter's `Limits::loop_iterations`.
     pub loop_budget: u32,
 }
 
 impl Default for JitOptions {
     fn default() -> Self {
-        JitOptions { loop_budget: 1 << 20 }
+        JitOptions { loop_budget: crate::ir::LOOP_BUDGET }
     }
 }
 
@@ -336,7 +337,8 @@ impl CompiledShader {
     }
 
     /// The runtime checks that failed since the last call, once each, as messages naming the place
-    /// in the source ("the loop at shader.sl:12:5 ran more than 1048576 times ... and was stopped",
+    /// in the source ("the loop at shader.sl:12:5 was stopped: the shader ran more than 1048576 loop
+    /// iterations",
     /// "an array index at shader.sl:8:14 was out of range and was clamped").
     pub fn runtime_errors(&self) -> Vec<String> {
         if !self.errors.unread.swap(false, std::sync::atomic::Ordering::Relaxed) {
@@ -351,7 +353,7 @@ impl CompiledShader {
                 let at = self.sites.get(site as usize).map_or("?", String::as_str);
                 if kind == lower::RUNTIME_LOOP_BUDGET {
                     format!(
-                        "the loop at {at} ran more than {} times in one entry and was stopped",
+                        "the loop at {at} was stopped: the shader ran more than {} loop iterations",
                         self.options.loop_budget
                     )
                 } else if kind == lower::RUNTIME_UNSUPPORTED {
