@@ -32,24 +32,51 @@ pub struct Compilation {
     pub files: Vec<FileId>,
     /// Lines of source read (main file and includes, counting each include once).
     pub lines: usize,
+    /// Errors and warnings found beyond the first [`crate::diagnostic::MAX_REPORTED`], counted but
+    /// left out of `diagnostics`.
+    pub suppressed: (usize, usize),
 }
 
 impl Compilation {
     pub fn ok(&self) -> bool {
-        !self.diagnostics.iter().any(Diagnostic::is_error)
+        self.errors() == 0
     }
 
+    /// Errors found, the suppressed ones included.
     pub fn errors(&self) -> usize {
-        self.diagnostics.iter().filter(|d| d.severity == Severity::Error).count()
+        self.diagnostics.iter().filter(|d| d.severity == Severity::Error).count() + self.suppressed.0
     }
 
+    /// Warnings found, the suppressed ones included.
     pub fn warnings(&self) -> usize {
-        self.diagnostics.iter().filter(|d| d.severity == Severity::Warning).count()
+        self.diagnostics.iter().filter(|d| d.severity == Severity::Warning).count() + self.suppressed.1
     }
 
-    /// The diagnostics rendered as rustc does (no colour).
+    /// The diagnostics rendered as rustc does (no colour), with a final note counting those left
+    /// out.
     pub fn render(&self) -> String {
-        crate::diagnostic::render(&self.sources, &self.diagnostics)
+        let mut out = crate::diagnostic::render(&self.sources, &self.diagnostics);
+        if let Some(note) = self.suppressed_note() {
+            out.push_str(&note);
+            out.push('\n');
+        }
+        out
+    }
+
+    /// "note: ... not shown" when diagnostics were suppressed.
+    pub fn suppressed_note(&self) -> Option<String> {
+        let (errors, warnings) = self.suppressed;
+        let count = |n: usize, what: &str| format!("{n} more {what}{}", if n == 1 { "" } else { "s" });
+        let what = match (errors, warnings) {
+            (0, 0) => return None,
+            (e, 0) => count(e, "error"),
+            (0, w) => count(w, "warning"),
+            (e, w) => format!("{} and {}", count(e, "error"), count(w, "warning")),
+        };
+        Some(format!(
+            "note: {what} not shown (only the first {} diagnostics of a file are reported)",
+            crate::diagnostic::MAX_REPORTED
+        ))
     }
 }
 
@@ -162,11 +189,22 @@ fn compile_loaded(mut sources: SourceMap, file: FileId, options: &Options, sessi
         }
     }
     drop_syntax_cascades(&mut diags, &sources);
-    note_macro_expansions(&mut diags, &pre.expansions, interner);
     diags.finish();
+    let suppressed = diags.cap();
+    // After the cap: only the diagnostics shown are looked up among the expansions.
+    note_macro_expansions(&mut diags, &pre.expansions, interner);
     let interface = checked.module.as_ref().and_then(|m| ShaderInterface::from_module(m, &sources));
     let lines = pre.files.iter().map(|f| sources.get(*f).line_count()).sum();
-    Compilation { diagnostics: diags.list, module: checked.module, interface, shader, files: pre.files, lines, sources }
+    Compilation {
+        diagnostics: diags.list,
+        module: checked.module,
+        interface,
+        shader,
+        files: pre.files,
+        lines,
+        sources,
+        suppressed,
+    }
 }
 
 /// A bad character or unterminated string is dropped by the preprocessor, so the parser usually
@@ -174,7 +212,7 @@ fn compile_loaded(mut sources: SourceMap, file: FileId, options: &Options, sessi
 /// that already has a lexical error.
 fn drop_syntax_cascades(diags: &mut Diagnostics, sources: &SourceMap) {
     use crate::diagnostic::Code;
-    let lexical: Vec<(FileId, usize)> = diags
+    let lexical: std::collections::HashSet<(FileId, usize)> = diags
         .list
         .iter()
         .filter(|d| matches!(d.code, Code::InvalidCharacter | Code::UnterminatedString | Code::UnterminatedComment))
@@ -188,7 +226,8 @@ fn drop_syntax_cascades(diags: &mut Diagnostics, sources: &SourceMap) {
             return true;
         }
         let line = sources.get(d.span.file).line_index(d.span.start);
-        !lexical.iter().any(|&(f, l)| f == d.span.file && (l == line || l + 1 == line))
+        let after_lexical = line.checked_sub(1).is_some_and(|above| lexical.contains(&(d.span.file, above)));
+        !lexical.contains(&(d.span.file, line)) && !after_lexical
     });
 }
 

@@ -272,9 +272,131 @@ pub fn render_to(sources: &SourceMap, diagnostics: &[Diagnostic], out: &mut dyn 
     for d in diagnostics {
         // Rendering can only fail on an I/O error of `out` or a span outside its file; neither is the
         // user's fault, and the one-line form below still reaches them.
-        if term::emit_to_write_style(out, &config, sources, &d.to_codespan()).is_err() {
+        let emitted = match Clipped::new(sources, d) {
+            Some(clipped) => term::emit_to_write_style(out, &config, &clipped, &clipped.diagnostic),
+            None => term::emit_to_write_style(out, &config, sources, &d.to_codespan()),
+        };
+        if emitted.is_err() {
             let _ = writeln!(out, "{}", d.one_line(sources));
         }
+    }
+}
+
+/// The most diagnostics one compilation reports; the rest are counted, not shown (as rustc stops
+/// after too many errors), so a file of garbage costs a bounded amount of output.
+pub const MAX_REPORTED: usize = 100;
+
+/// Source lines longer than this are shown clipped around the diagnostic's labels.
+const MAX_SHOWN_LINE: usize = 200;
+/// How much of the line to show on each side of the labels when clipping.
+const CLIP_CONTEXT: usize = 40;
+/// The most of one label's span shown when clipping.
+const CLIP_SPAN: usize = 120;
+
+/// A diagnostic whose labels all sit on one long line, rendered over a file of that one line cut
+/// down to a window around them: the output of each diagnostic stays proportional to its window,
+/// not to the line, while line and column numbers stay those of the real file.
+struct Clipped<'a> {
+    name: &'a str,
+    /// The window's text, between `...` where the line goes on, with a final newline.
+    text: String,
+    line_number: usize,
+    /// Columns of the real line before the window (in characters).
+    columns_before: usize,
+    /// The length of the `...` before the window.
+    prefix: usize,
+    diagnostic: cs::Diagnostic<()>,
+}
+
+impl<'a> Clipped<'a> {
+    fn new(sources: &'a SourceMap, d: &Diagnostic) -> Option<Clipped<'a>> {
+        let file = sources.get(d.span.file);
+        let text: &str = &file.text;
+        let line = file.line_index(d.span.start);
+        let line_start = file.line_start(line)? as usize;
+        let line_end = file.line_start(line + 1).map_or(text.len(), |s| s as usize);
+        let line_end = line_start + text.get(line_start..line_end)?.trim_end_matches(['\n', '\r']).len();
+        if line_end - line_start <= MAX_SHOWN_LINE {
+            return None;
+        }
+        let spans: Vec<Span> = std::iter::once(d.span).chain(d.secondary.iter().map(|(s, _)| *s)).collect();
+        let on_line = |s: &Span| {
+            s.file == d.span.file && (line_start..=line_end).contains(&(s.start as usize)) && s.end >= s.start
+        };
+        if !spans.iter().all(on_line) {
+            return None;
+        }
+        let shown_end = |s: &Span| (s.end as usize).min(line_end).min(s.start as usize + CLIP_SPAN);
+        let lo = spans.iter().map(|s| s.start as usize).min()?;
+        let hi = spans.iter().map(shown_end).max()?;
+        let floor = |mut i: usize| {
+            while !text.is_char_boundary(i) {
+                i -= 1;
+            }
+            i
+        };
+        let start = floor(lo.saturating_sub(CLIP_CONTEXT).max(line_start));
+        let end = floor((hi + CLIP_CONTEXT).min(line_end));
+        let (prefix, suffix) = (if start > line_start { "..." } else { "" }, if end < line_end { "..." } else { "" });
+        let window = format!("{prefix}{}{suffix}\n", text.get(start..end)?);
+        let columns_before = text.get(line_start..start)?.chars().count();
+        let to_window = |s: &Span| {
+            let a = floor((s.start as usize).clamp(start, end)) - start + prefix.len();
+            let b = floor(shown_end(s).clamp(start, end)) - start + prefix.len();
+            a..b.max(a)
+        };
+        let cd = d.to_codespan();
+        let labels = cd
+            .labels
+            .into_iter()
+            .zip(&spans)
+            .map(|(label, span)| cs::Label::new(label.style, (), to_window(span)).with_message(label.message))
+            .collect();
+        let mut diagnostic =
+            cs::Diagnostic::new(cd.severity).with_message(cd.message).with_labels(labels).with_notes(cd.notes);
+        if let Some(code) = cd.code {
+            diagnostic = diagnostic.with_code(code);
+        }
+        Some(Clipped {
+            name: &file.name,
+            text: window,
+            line_number: line + 1,
+            columns_before,
+            prefix: prefix.len(),
+            diagnostic,
+        })
+    }
+}
+
+impl<'a> codespan_reporting::files::Files<'a> for Clipped<'_> {
+    type FileId = ();
+    type Name = &'a str;
+    type Source = &'a str;
+
+    fn name(&'a self, _: ()) -> Result<&'a str, codespan_reporting::files::Error> {
+        Ok(self.name)
+    }
+
+    fn source(&'a self, _: ()) -> Result<&'a str, codespan_reporting::files::Error> {
+        Ok(&self.text)
+    }
+
+    fn line_index(&'a self, _: (), _: usize) -> Result<usize, codespan_reporting::files::Error> {
+        Ok(0)
+    }
+
+    fn line_number(&'a self, _: (), _: usize) -> Result<usize, codespan_reporting::files::Error> {
+        Ok(self.line_number)
+    }
+
+    fn column_number(&'a self, _: (), _: usize, byte: usize) -> Result<usize, codespan_reporting::files::Error> {
+        // A position inside the window counts the real line's characters before the window.
+        let inside = self.text.get(self.prefix..byte.max(self.prefix)).map_or(0, |s| s.chars().count());
+        Ok(self.columns_before + inside + 1)
+    }
+
+    fn line_range(&'a self, _: (), _: usize) -> Result<std::ops::Range<usize>, codespan_reporting::files::Error> {
+        Ok(0..self.text.len())
     }
 }
 
@@ -310,5 +432,16 @@ impl Diagnostics {
     pub fn finish(&mut self) {
         self.list.sort_by_key(|d| (d.span.file, d.span.start, d.severity == Severity::Warning));
         self.list.dedup_by(|a, b| a.code == b.code && a.span == b.span && a.message == b.message);
+    }
+
+    /// Keeps the first [`MAX_REPORTED`] diagnostics (in the order of `finish`); returns how many
+    /// errors and warnings were dropped.
+    pub fn cap(&mut self) -> (usize, usize) {
+        if self.list.len() <= MAX_REPORTED {
+            return (0, 0);
+        }
+        let dropped = self.list.split_off(MAX_REPORTED);
+        let errors = dropped.iter().filter(|d| d.is_error()).count();
+        (errors, dropped.len() - errors)
     }
 }

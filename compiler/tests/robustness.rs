@@ -238,3 +238,37 @@ fn deep_if_expressions_are_refused_with_a_location() {
     let codes: Vec<&str> = c.diagnostics.iter().map(|d| d.code.as_str()).collect();
     assert_eq!(codes, ["E0009"], "{}", c.render());
 }
+
+/// A line of 10,000 bad characters: one error each, but only the first hundred are shown, each
+/// with a window of the line rather than all of it, and a final note counts the rest.
+#[test]
+fn thousands_of_errors_on_one_line_give_bounded_output() {
+    let src = format!("surface s() {{ {} }}\n", "@".repeat(10_000));
+    let c = compile_source("at.sl", &src, &options());
+    assert!(!c.ok());
+    assert_eq!(c.diagnostics.len(), rtsl_compiler::diagnostic::MAX_REPORTED);
+    assert_eq!(c.errors(), 10_000);
+    let out = c.render();
+    assert!(out.len() < 100 * 1000, "{} bytes of diagnostics", out.len());
+    assert!(out.ends_with("note: 9900 more errors not shown (only the first 100 diagnostics of a file are reported)\n"));
+    // Columns stay those of the real line.
+    assert!(out.contains("at.sl:1:15\n"), "{}", &out[..out.len().min(2000)]);
+    assert!(out.contains("at.sl:1:114\n"));
+}
+
+/// A mistake far into a long line is shown with its neighbourhood, between `...`, at its real
+/// column.
+#[test]
+fn a_long_line_is_clipped_around_the_mistake() {
+    let filler = "x = x + 1; ".repeat(500);
+    let src = format!("surface s() {{ float x = 0; {filler}x = @; {filler}Ci = x; }}\n");
+    let c = compile_source("long.sl", &src, &options());
+    let out = c.render();
+    assert!(out.len() < 2000, "{out}");
+    let column = src.find('@').expect("an @") + 1;
+    assert!(out.contains(&format!("long.sl:1:{column}\n")), "{out}");
+    let shown = out.lines().find(|l| l.contains('@')).expect("the line is shown");
+    assert!(shown.contains("...") && shown.ends_with("..."), "{shown}");
+    let caret = out.lines().find(|l| l.contains('^') && !l.contains('@')).expect("a caret");
+    assert_eq!(caret.find('^'), shown.find('@'), "the caret is under the `@`:\n{out}");
+}
