@@ -102,6 +102,7 @@ codes! {
     ShaderGlobalRedeclared = "E0134", Error, "a shader parameter or function named like a shader global it would hide";
     MessagePassing = "E0135", Error, "a message-passing call whose name is not a constant string";
     DefaultNotUniform = "E0136", Error, "a default value that depends on varying data";
+    InlineBudget = "E0137", Error, "a shader too large once its user function calls are inlined (calls that nest multiply its size)";
     InternalError = "E0999", Error, "an internal compiler error: the compiler produced invalid IR (please report it)";
     // Warnings.
     UnusedVariable = "W0001", Warning, "a local variable that is never read";

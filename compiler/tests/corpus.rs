@@ -107,3 +107,29 @@ fn interfaces_report_parameters_and_defaults() {
         ref other => panic!("coneangle default {other:?}"),
     }
 }
+
+/// Every library and corpus shader stays far within the inlining budget (`ir::INLINE_BUDGET`), so
+/// the budget refuses only runaway call trees, never a real shader.
+#[test]
+fn every_shader_is_far_within_the_inlining_budget() {
+    let (files, options) = common::library_and_corpora();
+    let mut largest = (0, PathBuf::new());
+    for f in files {
+        let c = compile_file(&f, &options).expect("readable");
+        let Some(m) = &c.module else { continue };
+        let Some(shader) = &m.shader else { continue };
+        let size = rtsl_compiler::ir::inlined_sizes(m)[shader.body.0 as usize];
+        if size > largest.0 {
+            largest = (size, f);
+        }
+    }
+    println!("largest inlined shader: {} ({} IR nodes)", largest.1.display(), largest.0);
+    assert!(largest.0 > 0);
+    assert!(
+        largest.0 * 8 <= rtsl_compiler::ir::INLINE_BUDGET,
+        "{} inlines to {} IR nodes: within 8x of the budget of {}",
+        largest.1.display(),
+        largest.0,
+        rtsl_compiler::ir::INLINE_BUDGET
+    );
+}

@@ -354,3 +354,79 @@ pub enum StmtKind {
         otherwise: Block,
     },
 }
+
+/// The most IR nodes (expressions and statements) a shader may hold once every user function call
+/// is inlined, as the JIT inlines them. Calls nest, so a few lines of source can stand for
+/// exponentially many nodes (each function calling the previous one twice); past this budget the
+/// checker refuses the shader (E0137) instead of letting the JIT run out of memory. The largest
+/// library and corpus shaders stay far below it (`compiler/tests/corpus.rs` checks the margin).
+pub const INLINE_BUDGET: u64 = 20_000;
+
+/// Each function's size once every call in it is inlined: its own expressions and statements plus,
+/// at each call site, the callee's inlined size. Memoised over the call graph, so it costs linear
+/// time however large the sizes are; sizes saturate rather than overflow, and a call cycle (which
+/// valid IR never has) or a call to a missing function counts nothing for the call.
+pub fn inlined_sizes(m: &Module) -> Vec<u64> {
+    let n = m.functions.len();
+    // 0: not started, 1: in progress, 2: done.
+    let mut state = vec![0u8; n];
+    let mut size = vec![0u64; n];
+    for root in 0..n {
+        if state[root] != 0 {
+            continue;
+        }
+        // An explicit stack rather than recursion: call chains may be as long as the file is. Each
+        // entry is a function and how far its expressions have been scanned for callees.
+        let mut stack = vec![(root, 0usize)];
+        state[root] = 1;
+        while let Some(&mut (f, ref mut scanned)) = stack.last_mut() {
+            let exprs = &m.functions[f].exprs;
+            let pending = exprs[*scanned..].iter().position(|e| match e.kind {
+                ExprKind::Call { func, .. } => state.get(func.0 as usize) == Some(&0),
+                _ => false,
+            });
+            if let Some(k) = pending {
+                *scanned += k + 1;
+                if let ExprKind::Call { func, .. } = exprs[*scanned - 1].kind {
+                    state[func.0 as usize] = 1;
+                    stack.push((func.0 as usize, 0));
+                }
+                continue;
+            }
+            let func = &m.functions[f];
+            let mut total = own_size(func);
+            for e in &func.exprs {
+                if let ExprKind::Call { func: callee, .. } = e.kind {
+                    if state.get(callee.0 as usize) == Some(&2) {
+                        total = total.saturating_add(size[callee.0 as usize]);
+                    }
+                }
+            }
+            size[f] = total;
+            state[f] = 2;
+            stack.pop();
+        }
+    }
+    size
+}
+
+/// A function's own expressions and statements, calls not inlined.
+pub fn own_size(f: &Function) -> u64 {
+    fn stmts(b: &Block) -> u64 {
+        b.stmts
+            .iter()
+            .map(|s| {
+                1 + match &s.kind {
+                    StmtKind::If { then, otherwise, .. } => stmts(then) + stmts(otherwise),
+                    StmtKind::Loop { body, step, .. } => stmts(body) + stmts(step),
+                    StmtKind::Illuminance { body, .. }
+                    | StmtKind::Illuminate { body, .. }
+                    | StmtKind::Solar { body, .. } => stmts(body),
+                    StmtKind::Gather { body, otherwise, .. } => stmts(body) + stmts(otherwise),
+                    _ => 0,
+                }
+            })
+            .sum()
+    }
+    f.exprs.len() as u64 + stmts(&f.body)
+}

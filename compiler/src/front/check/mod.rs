@@ -195,7 +195,57 @@ pub fn check(unit: &ast::TranslationUnit, interner: &Interner, diags: &mut Diagn
     // Functions the shader never calls (most of a header's) have been checked; back ends need only
     // the rest.
     let functions = prune(functions, &needed, shader.as_mut());
-    Checked { module: Some(Module { shader, functions }) }
+    let module = Module { shader, functions };
+    if !within_inline_budget(&module, c.diags) {
+        return Checked { module: None };
+    }
+    Checked { module: Some(module) }
+}
+
+/// The JIT inlines every user function call, so a shader's size after inlining is what it compiles;
+/// nested calls can make that exponential in the source. Over [`ir::INLINE_BUDGET`] the shader is
+/// refused, at the first call of its body that takes it over.
+fn within_inline_budget(m: &Module, diags: &mut Diagnostics) -> bool {
+    let Some(shader) = &m.shader else { return true };
+    let sizes = ir::inlined_sizes(m);
+    let body_id = shader.body.0 as usize;
+    if sizes.get(body_id).is_none_or(|s| *s <= ir::INLINE_BUDGET) {
+        return true;
+    }
+    let body = &m.functions[body_id];
+    let mut total = ir::own_size(body);
+    for e in &body.exprs {
+        let ir::ExprKind::Call { func, .. } = e.kind else { continue };
+        let callee = sizes.get(func.0 as usize).copied().unwrap_or(0);
+        total = total.saturating_add(callee);
+        if total > ir::INLINE_BUDGET {
+            let name = m.functions.get(func.0 as usize).map_or("?", |f| f.name.as_str());
+            diags.push(
+                Diagnostic::new(
+                    Code::InlineBudget,
+                    e.span,
+                    format!(
+                        "the shader is too large once its function calls are inlined: this call of `{name}` \
+                         inlines {callee} IR nodes, taking the shader past the limit of {}",
+                        ir::INLINE_BUDGET
+                    ),
+                )
+                .with_label("takes the shader over the limit")
+                .with_note(
+                    "every call of a user function is compiled as a copy of its body, and calls nest; \
+                     call large functions from fewer places, or keep a result in a variable",
+                ),
+            );
+            return false;
+        }
+    }
+    // No call takes the body over: its own statements are.
+    diags.push(Diagnostic::new(
+        Code::InlineBudget,
+        shader.span,
+        format!("the shader is larger than the limit of {} IR nodes", ir::INLINE_BUDGET),
+    ));
+    false
 }
 
 /// Which functions a shader can reach through calls (all of them in a file without a shader).
