@@ -201,3 +201,293 @@ fn well_checksummed_nonsense_is_refused_by_decoding_or_validation() {
     }
     assert!(refused > 50, "only {refused} of 300 forgeries refused");
 }
+
+/// One place in a module that holds a handle, a count or a length the back ends index by.
+enum Slot<'a> {
+    Var(&'a mut u32),
+    Expr(&'a mut u32),
+    Func(&'a mut u32),
+    ParamIndex(&'a mut u32),
+    Overload(&'a mut u16),
+    Levels(&'a mut u32),
+    ArrayLen(&'a mut u32),
+}
+
+/// Calls `f` on every slot of `m`, in a fixed order.
+fn visit_slots(m: &mut ir::Module, f: &mut dyn FnMut(Slot<'_>)) {
+    use ir::{Arg, ArrayLen, ExprKind, PlaceBase, StmtKind, VarKind};
+    fn ty(t: &mut ir::Type, f: &mut dyn FnMut(Slot<'_>)) {
+        if let Some(ArrayLen::Fixed(n)) = &mut t.array {
+            f(Slot::ArrayLen(n));
+        }
+    }
+    fn place(p: &mut ir::Place, f: &mut dyn FnMut(Slot<'_>)) {
+        if let PlaceBase::Var(v) = &mut p.base {
+            f(Slot::Var(&mut v.0));
+        }
+        for e in [&mut p.index, &mut p.component].into_iter().flatten() {
+            f(Slot::Expr(&mut e.0));
+        }
+        ty(&mut p.ty, f);
+    }
+    fn args(list: &mut [Arg], f: &mut dyn FnMut(Slot<'_>)) {
+        for a in list {
+            match a {
+                Arg::Value(e) => f(Slot::Expr(&mut e.0)),
+                Arg::Ref(p) => place(p, f),
+            }
+        }
+    }
+    fn block(b: &mut ir::Block, f: &mut dyn FnMut(Slot<'_>)) {
+        for s in &mut b.stmts {
+            match &mut s.kind {
+                StmtKind::Expr(e) => f(Slot::Expr(&mut e.0)),
+                StmtKind::If { cond, then, otherwise } => {
+                    f(Slot::Expr(&mut cond.0));
+                    block(then, f);
+                    block(otherwise, f);
+                }
+                StmtKind::Loop { cond, body, step } => {
+                    if let Some(c) = cond {
+                        f(Slot::Expr(&mut c.0));
+                    }
+                    block(body, f);
+                    block(step, f);
+                }
+                StmtKind::Break(n) | StmtKind::Continue(n) => f(Slot::Levels(n)),
+                StmtKind::Return(v) => {
+                    if let Some(e) = v {
+                        f(Slot::Expr(&mut e.0));
+                    }
+                }
+                StmtKind::Illuminance { category, position, cone, body } => {
+                    if let Some(c) = category {
+                        f(Slot::Expr(&mut c.0));
+                    }
+                    f(Slot::Expr(&mut position.0));
+                    if let Some((a, b)) = cone {
+                        f(Slot::Expr(&mut a.0));
+                        f(Slot::Expr(&mut b.0));
+                    }
+                    block(body, f);
+                }
+                StmtKind::Illuminate { position, cone, body } => {
+                    f(Slot::Expr(&mut position.0));
+                    if let Some((a, b)) = cone {
+                        f(Slot::Expr(&mut a.0));
+                        f(Slot::Expr(&mut b.0));
+                    }
+                    block(body, f);
+                }
+                StmtKind::Solar { cone, body } => {
+                    if let Some((a, b)) = cone {
+                        f(Slot::Expr(&mut a.0));
+                        f(Slot::Expr(&mut b.0));
+                    }
+                    block(body, f);
+                }
+                StmtKind::Gather { category, position, direction, angle, samples, params, body, otherwise } => {
+                    for e in [category, position, direction, angle, samples] {
+                        f(Slot::Expr(&mut e.0));
+                    }
+                    for (name, a) in params {
+                        f(Slot::Expr(&mut name.0));
+                        args(std::slice::from_mut(a), f);
+                    }
+                    block(body, f);
+                    block(otherwise, f);
+                }
+            }
+        }
+    }
+    if let Some(s) = &mut m.shader {
+        f(Slot::Func(&mut s.body.0));
+        for p in &mut s.params {
+            f(Slot::Var(&mut p.var.0));
+            f(Slot::Expr(&mut p.default.0));
+            ty(&mut p.ty, f);
+        }
+    }
+    for func in &mut m.functions {
+        for p in &mut func.params {
+            f(Slot::Var(&mut p.0));
+        }
+        for v in &mut func.vars {
+            ty(&mut v.ty, f);
+            if let VarKind::ShaderParam { index, .. } = &mut v.kind {
+                f(Slot::ParamIndex(index));
+            }
+        }
+        for e in &mut func.exprs {
+            ty(&mut e.ty, f);
+            match &mut e.kind {
+                ExprKind::Const(_) | ExprKind::Global(_) => {}
+                ExprKind::Var(v) => f(Slot::Var(&mut v.0)),
+                ExprKind::Index { base, index } => {
+                    f(Slot::Expr(&mut base.0));
+                    f(Slot::Expr(&mut index.0));
+                }
+                ExprKind::Unary { arg, .. } | ExprKind::Convert { arg } => f(Slot::Expr(&mut arg.0)),
+                ExprKind::Binary { lhs, rhs, .. } => {
+                    f(Slot::Expr(&mut lhs.0));
+                    f(Slot::Expr(&mut rhs.0));
+                }
+                ExprKind::Construct { args } | ExprKind::ArrayLiteral { elements: args } => {
+                    for a in args {
+                        f(Slot::Expr(&mut a.0));
+                    }
+                }
+                ExprKind::SpaceCast { space, arg } => {
+                    f(Slot::Expr(&mut space.0));
+                    f(Slot::Expr(&mut arg.0));
+                }
+                ExprKind::Select { cond, a, b } => {
+                    for e in [cond, a, b] {
+                        f(Slot::Expr(&mut e.0));
+                    }
+                }
+                ExprKind::CallBuiltin { overload, args: list, .. } => {
+                    f(Slot::Overload(overload));
+                    args(list, f);
+                }
+                ExprKind::Call { func: callee, args: list } => {
+                    f(Slot::Func(&mut callee.0));
+                    args(list, f);
+                }
+                ExprKind::Assign { place: p, value, .. } => {
+                    place(p, f);
+                    f(Slot::Expr(&mut value.0));
+                }
+            }
+        }
+        block(&mut func.body, f);
+    }
+}
+
+/// A shader that puts a handle in every kind of slot: user functions with output and array
+/// parameters, arrays, triple components, loops with `break`, built-ins, lights.
+const EVERY_SLOT: &str = r#"
+float total(float a[]; output float n) {
+    float i, sum = 0;
+    n = 3;
+    for (i = 0; i < n; i += 1) {
+        if (a[i] < 0) break;
+        sum += a[i];
+    }
+    return sum;
+}
+
+surface slots(float k = 2; color tint = color(1, 0.5, 0.25); output varying float count = 0;) {
+    float w[3] = {1, k, 3};
+    point p = P;
+    p[1] = s * k;
+    point ps[2] = {P, p};
+    ps[1][2] = t;
+    float m = total(w, count);
+    color c = 0;
+    illuminance(P, N, PI / 2) {
+        c += Cl * max(0, normalize(L) . normalize(N));
+    }
+    while (m > 1) { m = m / 2; if (m < 3) continue; }
+    Ci = tint * c * noise(ps[1]) * (k > 1 ? m : 1);
+    Oi = Os;
+}
+"#;
+
+/// Encodes `module` as the payload of an artifact (the field order of `artifact`'s payload),
+/// sealed with a correct checksum, as someone editing an artifact would.
+fn forge(bytes: &[u8], a: &artifact::Artifact, module: &ir::Module) -> Vec<u8> {
+    let payload = (&a.compiler_version, &a.options, &a.files, &a.warnings, module);
+    let body = postcard::to_stdvec(&payload).expect("encodes");
+    let source_len = u32::from_le_bytes(bytes[44..48].try_into().expect("4 bytes")) as usize;
+    let mut out = bytes[..48 + source_len].to_vec();
+    out.extend_from_slice(&(body.len() as u64).to_le_bytes());
+    let mut h = blake3::Hasher::new();
+    h.update(&out);
+    h.update(&body);
+    out.extend_from_slice(h.finalize().as_bytes());
+    out.extend_from_slice(&body);
+    out
+}
+
+/// Replaces slot `k` of `m` by what `value` makes of it; false when `m` has fewer slots.
+fn mutate(m: &mut ir::Module, k: usize, value: &dyn Fn(u32) -> u32) -> bool {
+    let mut seen = 0;
+    let mut done = false;
+    visit_slots(m, &mut |slot| {
+        if seen == k {
+            done = true;
+            match slot {
+                Slot::Var(x)
+                | Slot::Expr(x)
+                | Slot::Func(x)
+                | Slot::ParamIndex(x)
+                | Slot::Levels(x)
+                | Slot::ArrayLen(x) => *x = value(*x),
+                Slot::Overload(x) => *x = value(u32::from(*x)) as u16,
+            }
+        }
+        seen += 1;
+    });
+    done
+}
+
+#[test]
+fn forged_handles_and_sizes_are_refused_before_any_back_end_sees_them() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let shader = dir.path().join("slots.sl");
+    std::fs::write(&shader, EVERY_SLOT).expect("write");
+    let (path, bytes) = compiled_artifact(&shader, &Options::default());
+    let a = artifact::decode(&path, &bytes).expect("the real artifact decodes");
+    // Sanity: the forging itself keeps a valid artifact valid.
+    assert!(artifact::decode(&path, &forge(&bytes, &a, &a.module)).is_ok());
+    let mut kinds = std::collections::BTreeSet::new();
+    visit_slots(&mut a.module.clone(), &mut |slot| {
+        kinds.insert(match slot {
+            Slot::Var(_) => "var",
+            Slot::Expr(_) => "expr",
+            Slot::Func(_) => "func",
+            Slot::ParamIndex(_) => "param index",
+            Slot::Overload(_) => "overload",
+            Slot::Levels(_) => "levels",
+            Slot::ArrayLen(_) => "array length",
+        });
+    });
+    assert_eq!(kinds.len(), 7, "the shader exercises every kind of slot: {kinds:?}");
+    // Out of range, in every slot: always an `Invalid` error, never a panic.
+    let mut slots = 0;
+    for k in 0.. {
+        let mut forged = a.module.clone();
+        if !mutate(&mut forged, k, &|_| 2_000_000) {
+            break;
+        }
+        slots += 1;
+        match artifact::decode(&path, &forge(&bytes, &a, &forged)) {
+            Err(ArtifactError::Invalid { detail, .. }) => assert!(!detail.is_empty()),
+            Err(e) => panic!("slot {k}: unexpected error {e}"),
+            Ok(_) => panic!("slot {k}: an out-of-range value passed validation"),
+        }
+    }
+    assert!(slots > 100, "only {slots} slots");
+    // Zero-length arrays and `break 0` are out of range too; in-range but wrong values (another
+    // variable, expression or function) may make a different valid shader, which both back ends
+    // must then run without a panic.
+    for k in 0..slots {
+        let values: [&dyn Fn(u32) -> u32; 3] = [&|_| 0, &|x| x + 1, &|x| x.saturating_sub(1)];
+        for value in values {
+            let mut forged = a.module.clone();
+            mutate(&mut forged, k, value);
+            if let Ok(loaded) = artifact::decode(&path, &forge(&bytes, &a, &forged)) {
+                let m = &loaded.module;
+                let compiled = rtsl_compiler::back::jit::compile(m);
+                let mut point = rtsl_compiler::interp::ShadingPoint::new(m.shader.as_ref().expect("a shader").kind);
+                let mut host = rtsl_compiler::interp::TestHost::default();
+                let _ = rtsl_compiler::interp::run(m, &[], &mut point, &mut host, Default::default());
+                if let Ok(shader) = compiled {
+                    let mut batch = shader.batch(4);
+                    shader.shade_with(&mut batch, &mut rtsl_compiler::interp::TestHost::default());
+                }
+            }
+        }
+    }
+}

@@ -44,6 +44,9 @@ use crate::globals::Global;
 use crate::source::Span;
 pub use types::{ArrayLen, BaseType, Type};
 
+/// The longest array the checker accepts (and the validator lets through).
+pub const MAX_ARRAY_LEN: u32 = 1_000_000;
+
 /// The loop iterations one shader invocation may run, all loops together (see the module doc).
 pub const LOOP_BUDGET: u32 = 1 << 20;
 

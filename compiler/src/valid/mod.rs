@@ -1,35 +1,47 @@
 //! The IR validator: checks the invariants `ir` documents, so back ends can rely on them.
 //!
 //! What it checks, in order:
-//! 1. handles: every `ExprId`, `VarId` and `FuncId` is in range;
-//! 2. trees: every expression is used exactly once (by an expression, a statement, or a shader
+//! 1. handles: every `ExprId`, `VarId` and `FuncId` is in range, the shader's body and its
+//!    parameters' variables and defaults included; a shader parameter's variable says which
+//!    parameter it is (`VarKind::ShaderParam`), and only those do; function parameters are
+//!    parameters (`VarKind::Param` or `Capture`);
+//! 2. sizes: array lengths are between 1 and [`ir::MAX_ARRAY_LEN`], unsized only for function
+//!    parameters; the shader's size once calls are inlined is within [`ir::INLINE_BUDGET`];
+//! 3. trees: every expression is used exactly once (by an expression, a statement, or a shader
 //!    parameter's default), so back ends may evaluate each where it appears;
-//! 3. types: operands of every operator, conversion, constructor, select, assignment, call and
-//!    statement have the types the IR's documentation promises;
-//! 4. calls: overload indices exist; arguments match the signature's arity, and exactly the output
+//! 4. types: operands of every operator, conversion, constructor, select, assignment, call and
+//!    statement have the types the IR's documentation promises; an index applies to an array or a
+//!    triple, a component to an element of an array of triples;
+//! 5. calls: overload indices exist; arguments match the signature's arity, and exactly the output
 //!    (and captured) parameters receive places; there is no recursion;
-//! 5. control flow: `break n`/`continue n` stay within their loops; `return` values match the
+//! 6. control flow: `break n`/`continue n` stay within their loops; `return` values match the
 //!    function's type;
-//! 6. storage: a uniform variable is never assigned a varying value.
+//! 7. storage: a uniform variable is never assigned a varying value.
 //!
 //! What it does not check yet: that assignments to uniform variables happen under uniform control
 //! flow (the checker's inference guarantees it, and a later pass will verify it).
 //!
-//! A failure is a compiler bug, never a user error: valid source always lowers to valid IR.
+//! A failure is a compiler bug, never a user error: valid source always lowers to valid IR. The
+//! validator itself indexes nothing it has not checked, so any decoded IR gets an answer.
 
 use crate::builtins::{self, Builtin};
 use crate::ir::{
-    Arg, BaseType, BinaryOp, Block, ExprId, ExprKind, FuncId, Function, Module, Place, PlaceBase, StmtKind, Type,
-    UnaryOp, VarKind,
+    self, Arg, ArrayLen, BaseType, BinaryOp, Block, ExprId, ExprKind, FuncId, Function, Module, Place, PlaceBase,
+    StmtKind, Type, UnaryOp, VarKind,
 };
 
 /// Checks a module; returns every violation found.
 pub fn validate(m: &Module) -> Result<(), Vec<String>> {
     let mut v = Validator { m, errors: Vec::new() };
+    v.shader();
     for (i, f) in m.functions.iter().enumerate() {
         v.function(i, f);
     }
     v.recursion();
+    if v.errors.is_empty() {
+        // Sizes are computed over an acyclic call graph with every handle in range.
+        v.inline_budget();
+    }
     if v.errors.is_empty() {
         Ok(())
     } else {
@@ -53,20 +65,86 @@ impl<'a> Validator<'a> {
         self.errors.push(format!("fn{} {}: {msg}", st.index, st.f.name));
     }
 
+    /// The shader's body and parameters refer to real storage, consistently.
+    fn shader(&mut self) {
+        let Some(s) = &self.m.shader else { return };
+        let Some(body) = self.m.functions.get(s.body.0 as usize) else {
+            self.errors.push(format!("the shader's body fn{} out of range", s.body.0));
+            return;
+        };
+        for (i, p) in s.params.iter().enumerate() {
+            match body.vars.get(p.var.0 as usize) {
+                None => self.errors.push(format!("shader parameter {}: variable {} out of range", p.name, p.var.0)),
+                Some(var) => {
+                    if var.ty != p.ty {
+                        self.errors
+                            .push(format!("shader parameter {} is {} but its variable is {}", p.name, p.ty, var.ty));
+                    }
+                    if var.kind != (VarKind::ShaderParam { index: i as u32, output: p.output }) {
+                        self.errors.push(format!("shader parameter {}: its variable is {:?}", p.name, var.kind));
+                    }
+                }
+            }
+            if p.default.0 as usize >= body.exprs.len() {
+                self.errors.push(format!("shader parameter {}: default {} out of range", p.name, p.default.0));
+            }
+        }
+    }
+
+    /// Checks an array length wherever a type appears.
+    fn ty(&mut self, st: &FnState<'_>, ty: Type, unsized_ok: bool, what: &str) {
+        match ty.array {
+            Some(ArrayLen::Fixed(n)) if n == 0 || n > ir::MAX_ARRAY_LEN => {
+                self.err(st, format!("{what} has array length {n}"));
+            }
+            Some(ArrayLen::Unsized) if !unsized_ok => self.err(st, format!("{what} is an unsized array")),
+            _ => {}
+        }
+    }
+
+    fn inline_budget(&mut self) {
+        let Some(s) = &self.m.shader else { return };
+        let sizes = ir::inlined_sizes(self.m);
+        if let Some(size) = sizes.get(s.body.0 as usize).filter(|n| **n > ir::INLINE_BUDGET) {
+            self.errors
+                .push(format!("the shader inlines to {size} IR nodes, over the budget of {}", ir::INLINE_BUDGET));
+        }
+    }
+
     fn function(&mut self, index: usize, f: &'a Function) {
         let mut st = FnState { index, f, uses: vec![0; f.exprs.len()] };
         for p in &f.params {
-            if p.0 as usize >= f.vars.len() {
-                self.err(&st, format!("parameter {} out of range", p.0));
+            match f.vars.get(p.0 as usize) {
+                None => self.err(&st, format!("parameter {} out of range", p.0)),
+                Some(var) if !matches!(var.kind, VarKind::Param { .. } | VarKind::Capture) => {
+                    self.err(&st, format!("parameter %{} is a {:?}", var.name, var.kind));
+                }
+                Some(_) => {}
             }
         }
-        if let Some(s) = &self.m.shader {
-            if s.body.0 as usize == index {
-                for p in &s.params {
-                    self.expr(&mut st, p.default);
-                    if self.in_range(&st, p.default) && f.expr(p.default).ty != p.ty {
-                        self.err(&st, format!("default of {} has type {} not {}", p.name, f.expr(p.default).ty, p.ty));
-                    }
+        let shader = self.m.shader.as_ref().filter(|s| s.body.0 as usize == index);
+        for (i, var) in f.vars.iter().enumerate() {
+            self.ty(
+                &st,
+                var.ty,
+                matches!(var.kind, VarKind::Param { .. } | VarKind::Capture),
+                &format!("%{}", var.name),
+            );
+            if let VarKind::ShaderParam { index: k, .. } = var.kind {
+                if shader.and_then(|s| s.params.get(k as usize)).is_none_or(|p| p.var.0 as usize != i) {
+                    self.err(&st, format!("%{} claims to be shader parameter {k}", var.name));
+                }
+            }
+        }
+        self.ty(&st, f.return_type, false, "the return type");
+        for (i, e) in f.exprs.iter().enumerate() {
+            self.ty(&st, e.ty, true, &format!("e{i}"));
+        }
+        if let Some(s) = shader {
+            for p in &s.params {
+                self.expr(&mut st, p.default);
+                if self.in_range(&st, p.default) && f.expr(p.default).ty != p.ty {
+                    self.err(&st, format!("default of {} has type {} not {}", p.name, f.expr(p.default).ty, p.ty));
                 }
             }
         }
@@ -184,10 +262,14 @@ impl<'a> Validator<'a> {
             self.expect(st, i, Type::FLOAT, "index");
         }
         let expected = match (p.index.is_some(), p.component.is_some()) {
-            (false, _) => base_ty,
+            (false, false) => base_ty,
             (true, false) if base_ty.is_array() => base_ty.element(),
-            (true, false) => Type::FLOAT,
-            (true, true) => Type::FLOAT,
+            (true, false) if base_ty.base.is_triple() => Type::FLOAT,
+            (true, true) if base_ty.is_array() && base_ty.base.is_triple() => Type::FLOAT,
+            _ => {
+                self.err(st, format!("place indexes {base_ty} with {:?}, {:?}", p.index, p.component));
+                return None;
+            }
         };
         if expected != p.ty {
             self.err(st, format!("place has type {} but its base gives {expected}", p.ty));
@@ -295,8 +377,8 @@ impl<'a> Validator<'a> {
                 if op.is_some() && !(ty.base.is_numeric() || ty.base == BaseType::Matrix) {
                     self.err(st, format!("compound assignment on {ty}"));
                 }
-                if let PlaceBase::Var(v) = place.base {
-                    let value_varying = st.f.expr(*value).varying;
+                if let (PlaceBase::Var(v), Some(value)) = (place.base, st.f.exprs.get(value.0 as usize)) {
+                    let value_varying = value.varying;
                     if let Some(var) = st.f.vars.get(v.0 as usize) {
                         if !var.varying && value_varying {
                             self.err(st, format!("uniform %{} assigned a varying value", var.name));

@@ -358,7 +358,7 @@ impl Checker<'_> {
                 }
             }
             Some(ast::ArraySpec::Sized(e)) => match const_number(e) {
-                Some(v) if v >= 1.0 && v.fract() == 0.0 && v <= 1_000_000.0 => {
+                Some(v) if v >= 1.0 && v.fract() == 0.0 && v <= f64::from(ir::MAX_ARRAY_LEN) => {
                     Some(Some(ir::ArrayLen::Fixed(v as u32)))
                 }
                 Some(v) => {
