@@ -23,7 +23,7 @@ use exr::prelude::{self as exrp, ReadChannels, ReadLayers, WritableImage};
 /// An error reading, writing or comparing images. Each names the path it concerns.
 #[derive(Debug, thiserror::Error)]
 pub enum ImageError {
-    #[error("{path}: {source}")]
+    #[error("{path}")]
     Io { path: PathBuf, source: std::io::Error },
     #[error("{path}: cannot decode: {message}")]
     Decode { path: PathBuf, message: String },
@@ -216,10 +216,45 @@ fn save_8bit(
 ) -> Result<(), ImageError> {
     let format =
         ::image::ImageFormat::from_path(path).map_err(|_| ImageError::UnsupportedFormat { path: path.into() })?;
-    ::image::save_buffer_with_format(path, bytes, width as u32, height as u32, color, format).map_err(|e| match e {
-        ::image::ImageError::IoError(source) => ImageError::Io { path: path.into(), source },
-        other => ImageError::Encode { path: path.into(), message: other.to_string() },
-    })
+    let mut encoded = std::io::Cursor::new(Vec::new());
+    ::image::write_buffer_with_format(&mut encoded, bytes, width as u32, height as u32, color, format)
+        .map_err(|e| ImageError::Encode { path: path.into(), message: e.to_string() })?;
+    write_file(path, encoded.get_ref())
+}
+
+/// Writes a whole encoded file, every failure (a full disk included) an error. A regular file, or
+/// a new one, is written to a temporary file beside it and renamed over it, so a failed write
+/// leaves the old file as it was and a reader never sees half an image. A symbolic link is
+/// followed and its target replaced, so the link stays. What cannot be renamed over (a device such
+/// as `/dev/stdout`, a named pipe) is written in place.
+pub(crate) fn write_file(path: &Path, bytes: &[u8]) -> Result<(), ImageError> {
+    use std::io::Write;
+    let io = |source| ImageError::Io { path: path.into(), source };
+    let target = std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf());
+    if let Ok(meta) = std::fs::metadata(&target) {
+        if !meta.is_file() && !meta.is_dir() {
+            let mut file = std::fs::OpenOptions::new().write(true).open(&target).map_err(io)?;
+            return file.write_all(bytes).and_then(|()| file.flush()).map_err(io);
+        }
+    }
+    let dir = match target.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let name = target.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    static COUNTER: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let n = COUNTER.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let tmp = dir.join(format!(".{name}.{}.{n}.tmp", std::process::id()));
+    let written = std::fs::OpenOptions::new().write(true).create_new(true).open(&tmp).and_then(|mut file| {
+        file.write_all(bytes)?;
+        // Some file systems report a full disk only when the data reaches it.
+        file.sync_all()
+    });
+    if let Err(e) = written.and_then(|()| std::fs::rename(&tmp, &target)) {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(io(e));
+    }
+    Ok(())
 }
 
 fn write_exr_rgba(path: &Path, width: usize, height: usize, rgba: &[f32], half: bool) -> Result<(), ImageError> {
@@ -341,10 +376,12 @@ pub fn write_exr(path: &Path, layer: &ExrLayer, half: bool) -> Result<(), ImageE
     };
     let exr_layer =
         exrp::Layer::new((width, height), attributes, exrp::Encoding::SMALL_LOSSLESS, exrp::AnyChannels::sort(list));
-    exrp::Image::from_layer(exr_layer).write().to_file(path).map_err(|e| match e {
-        exr::error::Error::Io(source) => ImageError::Io { path: path.into(), source },
-        other => ImageError::Encode { path: path.into(), message: other.to_string() },
-    })
+    let mut encoded = std::io::Cursor::new(Vec::new());
+    exrp::Image::from_layer(exr_layer)
+        .write()
+        .to_buffered(&mut encoded)
+        .map_err(|e| ImageError::Encode { path: path.into(), message: e.to_string() })?;
+    write_file(path, encoded.get_ref())
 }
 
 /// How two images differ, pixel by pixel: for golden-image tests.

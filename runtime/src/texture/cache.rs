@@ -278,26 +278,44 @@ impl TextureCache {
     }
 
     /// Resolves and loads `name` with `load`, turning a failure into one warning and `None`.
-    fn load<T, E: fmt::Display>(&self, name: &str, load: impl FnOnce(&Path) -> Result<T, E>) -> Option<Arc<T>> {
+    fn load<T, E: std::error::Error>(&self, name: &str, load: impl FnOnce(&Path) -> Result<T, E>) -> Option<Arc<T>> {
         let warn = |path: Option<PathBuf>, reason: String| {
             let warning = TextureWarning { name: name.to_string(), path, reason };
             self.warnings.lock().unwrap_or_else(PoisonError::into_inner).push(warning);
             None
         };
         let Some(path) = self.resolve(name) else {
-            let reason = if self.search_paths.is_empty() {
+            // An empty search path (a scene file's folder given as a bare file name) is the
+            // current directory, which is searched anyway.
+            let dirs: Vec<String> = self
+                .search_paths
+                .iter()
+                .filter(|d| !d.as_os_str().is_empty())
+                .map(|d| d.display().to_string())
+                .collect();
+            let reason = if dirs.is_empty() {
                 "file not found".to_string()
             } else {
-                let dirs: Vec<String> = self.search_paths.iter().map(|d| d.display().to_string()).collect();
                 format!("file not found (searched {} and the current directory)", dirs.join(", "))
             };
             return warn(None, reason);
         };
         match load(&path) {
             Ok(value) => Some(Arc::new(value)),
-            Err(e) => warn(Some(path), e.to_string()),
+            Err(e) => warn(Some(path), error_chain(&e)),
         }
     }
+}
+
+/// An error's message followed by its causes', as anyhow's `{:#}` writes them.
+fn error_chain(e: &dyn std::error::Error) -> String {
+    let mut text = e.to_string();
+    let mut cause = e.source();
+    while let Some(c) = cause {
+        text = format!("{text}: {c}");
+        cause = c.source();
+    }
+    text
 }
 
 /// The slot for `name`, made empty if it is new. The read lock covers the common case.
