@@ -118,6 +118,8 @@ pub enum ApiError {
     Mesh(#[from] MeshError),
     #[error(transparent)]
     Scene(#[from] SceneError),
+    #[error("{0}")]
+    ImageSize(String),
     #[error("the matrix stack is empty")]
     MatrixStackEmpty,
     #[error("texture {name}: {width}x{height} texels of {channels} channels need {} floats, {given} given", width * height * channels)]
@@ -1314,6 +1316,9 @@ impl Context {
         if self.building.is_some() {
             return Err(ApiError::Nested("render_frame", "an object"));
         }
+        // Refused here, before the scene is built, rather than when the framebuffer is allocated.
+        crate::render::check_image_size(u64::from(self.options.width), u64::from(self.options.height))
+            .map_err(ApiError::ImageSize)?;
         let mut scene = self.scene.take().unwrap_or_default();
         // Objects: (re)build only the BVHs of changed geometry.
         let bvh_start = std::time::Instant::now();

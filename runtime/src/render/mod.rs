@@ -35,6 +35,6 @@ pub use shade::{Frame, Sample};
 pub(crate) use stats::ShaderKindTimer;
 pub use stats::Stats;
 pub use world::{
-    AccelUpdate, Antialiasing, AreaLight, CameraSetup, InstanceParts, InstanceShading, LightSource, Material,
-    RenderOptions, World, MAX_AREA_SAMPLES,
+    check_image_size, AccelUpdate, Antialiasing, AreaLight, CameraSetup, InstanceParts, InstanceShading, LightSource,
+    Material, RenderOptions, World, MAX_AREA_SAMPLES, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE,
 };

@@ -273,6 +273,33 @@ impl Antialiasing {
     }
 }
 
+/// The most pixels a side of an image may have.
+pub const MAX_IMAGE_SIDE: u32 = 32768;
+
+/// The most pixels an image may have (`8192 x 4096`, or `5792 x 5792`). A frame's framebuffer, its
+/// tiles' samples and the encoded file all grow with the pixel count; the cap keeps them under
+/// 3 GiB together (`docs/rendering.md`, "Limits").
+pub const MAX_IMAGE_PIXELS: u64 = 1 << 25;
+
+/// Whether `width x height` is an image size rtsl renders: at least one pixel, at most
+/// [`MAX_IMAGE_SIDE`] a side and [`MAX_IMAGE_PIXELS`] in all. The error says which limit is passed.
+pub fn check_image_size(width: u64, height: u64) -> Result<(), String> {
+    let size = format!("{width}x{height}");
+    if width == 0 || height == 0 {
+        return Err(format!("image size {size} has no pixels"));
+    }
+    if width > u64::from(MAX_IMAGE_SIDE) || height > u64::from(MAX_IMAGE_SIDE) {
+        return Err(format!("image size {size} is too large: at most {MAX_IMAGE_SIDE} pixels a side"));
+    }
+    if width * height > MAX_IMAGE_PIXELS {
+        return Err(format!(
+            "image size {size} is too large: {} pixels, at most {MAX_IMAGE_PIXELS} (8192x4096)",
+            width * height
+        ));
+    }
+    Ok(())
+}
+
 /// Render settings (RenderMan's options).
 #[derive(Clone, Debug, PartialEq)]
 pub struct RenderOptions {
