@@ -19,7 +19,7 @@
 
 use crate::api::{ApiError, Context, ObjectId};
 use crate::geometry::{Mesh, MeshError};
-use crate::mesh_io::{load_mesh, MeshIoError};
+use crate::mesh_io::{load_mesh, read_obj, MeshIoError};
 use crate::shading::ParamValue;
 use glam::{Affine3A, Vec2, Vec3, Vec3A};
 use std::path::{Path, PathBuf};
@@ -29,18 +29,24 @@ use std::path::{Path, PathBuf};
 pub enum SceneFileError {
     #[error(transparent)]
     Mesh(#[from] MeshIoError),
-    #[error("{path}: {source}")]
-    Obj { path: PathBuf, source: tobj::LoadError },
-    #[error("{path}: {source}")]
+    #[error("{path}: invalid mesh")]
     BadMesh { path: PathBuf, source: MeshError },
     #[error(transparent)]
     Api(#[from] ApiError),
-    #[error("{path}: {source}")]
+    #[error("{path}: cannot load glTF file")]
     Gltf { path: PathBuf, source: gltf::Error },
+    /// A limit that protects memory was passed; the load stops.
+    #[error("{at}: {message}")]
+    TooLarge { at: String, message: String },
+    #[error("{path}: {message}")]
+    InvalidGltf { path: PathBuf, message: String },
     #[error("{path}: unknown scene file type (expected .rib, .obj, .ply, .gltf or .glb)")]
     UnknownType { path: PathBuf },
     #[error("{path}: {message}")]
     Rib { path: PathBuf, message: String },
+    /// Syntax errors, one a line, each already naming its file, line and column.
+    #[error("{errors}")]
+    RibSyntax { errors: String },
     #[error("{path}: a glTF file places its own instances, so it cannot be read into a retained object (ObjectBegin)")]
     NotRetainable { path: PathBuf },
 }
@@ -102,8 +108,7 @@ pub fn add_model_file_placed(
 /// Adds the meshes of a glTF 2.0 file (`.gltf` with its buffers, or `.glb`) to the context, under
 /// the current matrix, and returns the world-space bounds of what was added.
 pub fn add_gltf_file(rt: &mut Context, path: &Path) -> Result<(Vec3A, Vec3A), SceneFileError> {
-    let (doc, buffers, images) =
-        gltf::import(path).map_err(|source| SceneFileError::Gltf { path: path.to_path_buf(), source })?;
+    let (doc, buffers, images) = import_gltf(path)?;
     // Images become in-memory textures named after the file, made when a material first uses one.
     let image_name = |i: usize| format!("{}#image{i}", path.display());
     let mut made = vec![false; images.len()];
@@ -185,9 +190,12 @@ pub fn add_gltf_file(rt: &mut Context, path: &Path) -> Result<(Vec3A, Vec3A), Sc
     }
     let mut bounds = (Vec3A::splat(f32::INFINITY), Vec3A::splat(f32::NEG_INFINITY));
     let root = rt.current_matrix();
+    // Checked to be trees of bounded depth, so the walk below ends and needs no recursion limit.
+    let tops = gltf_hierarchy(path, &doc)?;
     let mut stack: Vec<(gltf::Node, glam::Affine3A)> = match doc.default_scene().or_else(|| doc.scenes().next()) {
         Some(scene) => scene.nodes().map(|n| (n, root)).collect(),
-        None => doc.nodes().map(|n| (n, root)).collect(),
+        // Without a scene every tree is placed, each once from its top.
+        None => doc.nodes().filter(|n| tops.get(n.index()).copied().unwrap_or(false)).map(|n| (n, root)).collect(),
     };
     while let Some((node, parent)) = stack.pop() {
         let local = glam::Affine3A::from_mat4(glam::Mat4::from_cols_array_2d(&node.transform().matrix()));
@@ -215,6 +223,192 @@ pub fn add_gltf_file(rt: &mut Context, path: &Path) -> Result<(Vec3A, Vec3A), Sc
     }
     rt.load_matrix(root);
     Ok(bounds)
+}
+
+/// How deeply glTF nodes may nest: deeper hierarchies are refused, so that nothing that walks
+/// one (here or in a library) runs out of stack.
+pub const MAX_GLTF_NODE_DEPTH: usize = 1024;
+
+/// A glTF document with its buffers' and images' data.
+type GltfImport = (gltf::Document, Vec<gltf::buffer::Data>, Vec<gltf::image::Data>);
+
+/// Reads a glTF file and the buffers and images it refers to, refusing external files outside the
+/// model's folder and accessors that claim more data than their buffers hold.
+fn import_gltf(path: &Path) -> Result<GltfImport, SceneFileError> {
+    let gltf_err = |source| SceneFileError::Gltf { path: path.to_path_buf(), source };
+    let invalid = |message: String| SceneFileError::InvalidGltf { path: path.to_path_buf(), message };
+    let gltf::Gltf { document, blob } = gltf::Gltf::open(path).map_err(gltf_err)?;
+    let uris = document
+        .buffers()
+        .filter_map(|b| match b.source() {
+            gltf::buffer::Source::Uri(uri) => Some(("buffer", b.index(), uri)),
+            gltf::buffer::Source::Bin => None,
+        })
+        .chain(document.images().filter_map(|i| match i.source() {
+            gltf::image::Source::Uri { uri, .. } => Some(("image", i.index(), uri)),
+            gltf::image::Source::View { .. } => None,
+        }));
+    for (what, index, uri) in uris {
+        if let Err(why) = check_gltf_uri(uri) {
+            return Err(invalid(format!("{what} {index}: uri \"{uri}\" {why}")));
+        }
+    }
+    let base = path.parent().map_or_else(|| PathBuf::from("."), Path::to_path_buf);
+    let buffers = gltf::import_buffers(&document, Some(&base), blob).map_err(gltf_err)?;
+    check_gltf_accessors(&document, &buffers).map_err(invalid)?;
+    let images = gltf::import_images(&document, Some(&base), &buffers).map_err(gltf_err)?;
+    Ok((document, buffers, images))
+}
+
+/// Why a glTF file's `uri` is not read: only data URIs and relative paths that stay inside the
+/// model's folder are. (The importer would read any absolute path or `file:` URI, and panics on a
+/// percent-escape that does not decode to UTF-8.)
+fn check_gltf_uri(uri: &str) -> Result<(), &'static str> {
+    if uri.starts_with("data:") {
+        return Ok(());
+    }
+    if uri.contains(':') {
+        return Err("is not a data URI or a relative path");
+    }
+    let mut bytes = Vec::with_capacity(uri.len());
+    let mut rest = uri.as_bytes();
+    while let Some((&b, tail)) = rest.split_first() {
+        if b == b'%' {
+            let hex = tail.get(..2).and_then(|h| std::str::from_utf8(h).ok());
+            let Some(value) = hex.and_then(|h| u8::from_str_radix(h, 16).ok()) else {
+                return Err("has a malformed percent-escape");
+            };
+            bytes.push(value);
+            rest = &tail[2..];
+        } else {
+            bytes.push(b);
+            rest = tail;
+        }
+    }
+    let decoded = String::from_utf8(bytes).map_err(|_| "does not decode to UTF-8")?;
+    let mut depth = 0usize;
+    for part in Path::new(&decoded).components() {
+        match part {
+            std::path::Component::Normal(_) => depth += 1,
+            std::path::Component::CurDir => {}
+            std::path::Component::ParentDir => {
+                depth = depth.checked_sub(1).ok_or("leads out of the model's folder")?;
+            }
+            std::path::Component::RootDir | std::path::Component::Prefix(_) => {
+                return Err("is an absolute path; only paths relative to the model's folder are read")
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Checks that every accessor's elements lie inside its buffer view, and the view inside its
+/// buffer's data, so that no count in the file makes the reader invent or allocate data.
+fn check_gltf_accessors(doc: &gltf::Document, buffers: &[gltf::buffer::Data]) -> Result<(), String> {
+    let view_end = |view: &gltf::buffer::View| -> Result<u64, String> {
+        let end = view.offset() as u64 + view.length() as u64;
+        let data = buffers.get(view.buffer().index()).map_or(0, |d| d.0.len() as u64);
+        if end > data {
+            return Err(format!("buffer view {} ends at byte {end}, past its buffer's {data} bytes", view.index()));
+        }
+        Ok(end)
+    };
+    // The bytes `count` elements of `size` bytes take from `offset` into `view`, strided as the view says.
+    let fits = |view: &gltf::buffer::View, offset: usize, count: usize, size: usize| -> Result<bool, String> {
+        view_end(view)?;
+        if count == 0 {
+            return Ok(true);
+        }
+        let stride = view.stride().unwrap_or(size).max(size) as u64;
+        let needed = (count as u64 - 1).checked_mul(stride).and_then(|n| n.checked_add(offset as u64 + size as u64));
+        Ok(needed.is_some_and(|n| n <= view.length() as u64))
+    };
+    let total: u64 = buffers.iter().map(|d| d.0.len() as u64).sum();
+    for a in doc.accessors() {
+        let (count, size) = (a.count(), a.size());
+        match a.view() {
+            Some(view) if !fits(&view, a.offset(), count, size)? => {
+                return Err(format!(
+                    "accessor {} claims {count} elements of {size} bytes, more than buffer view {} holds ({} bytes)",
+                    a.index(),
+                    view.index(),
+                    view.length()
+                ));
+            }
+            Some(_) => {}
+            // Without a view the elements are zeros the reader makes up: no more than the file's
+            // data could plausibly describe.
+            None if count as u64 > total => {
+                return Err(format!(
+                    "accessor {} claims {count} elements but has no buffer view (and the buffers hold {total} bytes)",
+                    a.index()
+                ));
+            }
+            None => {}
+        }
+        if let Some(sparse) = a.sparse() {
+            let (indices, values) = (sparse.indices(), sparse.values());
+            // At least a byte an index: `index_type` panics on a component type that is not an
+            // integer, so the file's own type is not asked for.
+            let index_size = 1;
+            if sparse.count() > count
+                || !fits(&indices.view(), indices.offset(), sparse.count(), index_size)?
+                || !fits(&values.view(), values.offset(), sparse.count(), size)?
+            {
+                return Err(format!(
+                    "accessor {}'s {} sparse elements do not fit their buffer views",
+                    a.index(),
+                    sparse.count()
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Which of a glTF file's nodes are tops of its hierarchy, after checking that it is a set of trees (no node is
+/// the child of two nodes, or its own ancestor) no deeper than [`MAX_GLTF_NODE_DEPTH`].
+fn gltf_hierarchy(path: &Path, doc: &gltf::Document) -> Result<Vec<bool>, SceneFileError> {
+    let invalid = |message: String| SceneFileError::InvalidGltf { path: path.to_path_buf(), message };
+    let nodes: Vec<gltf::Node> = doc.nodes().collect();
+    let count = nodes.len();
+    let mut parent: Vec<Option<usize>> = vec![None; count];
+    for node in doc.nodes() {
+        for child in node.children() {
+            let c = child.index();
+            if c == node.index() {
+                return Err(invalid(format!("node {c} lists itself as a child")));
+            }
+            match parent.get_mut(c) {
+                Some(Some(first)) => {
+                    return Err(invalid(format!("node {c} is a child of both node {first} and node {}", node.index())))
+                }
+                Some(slot) => *slot = Some(node.index()),
+                None => return Err(invalid(format!("node {} has a child {c} that does not exist", node.index()))),
+            }
+        }
+    }
+    let tops: Vec<usize> = (0..count).filter(|&n| parent[n].is_none()).collect();
+    let mut seen = vec![false; count];
+    let mut stack: Vec<(usize, usize)> = tops.iter().map(|&n| (n, 1)).collect();
+    while let Some((n, depth)) = stack.pop() {
+        if depth > MAX_GLTF_NODE_DEPTH {
+            return Err(invalid(format!("nodes nest deeper than {MAX_GLTF_NODE_DEPTH} levels (at node {n})")));
+        }
+        seen[n] = true;
+        if let Some(node) = nodes.get(n) {
+            stack.extend(node.children().map(|c| (c.index(), depth + 1)));
+        }
+    }
+    // Every node has at most one parent, so one not reached from a top is on a cycle or under one.
+    if let Some(n) = seen.iter().position(|&s| !s) {
+        return Err(invalid(format!("node {n} is its own ancestor (the children form a cycle)")));
+    }
+    let mut is_top = vec![false; count];
+    for n in tops {
+        is_top[n] = true;
+    }
+    Ok(is_top)
 }
 
 /// Adds the meshes of `path` (OBJ or PLY) to the context, each as an object instanced once at the
@@ -257,11 +451,8 @@ fn add_mesh_file_placed(
         rt.pop_attributes()?;
         return Ok(bounds);
     }
-    let opts = tobj::LoadOptions { triangulate: true, single_index: true, ignore_points: true, ignore_lines: true };
-    let (models, materials) =
-        tobj::load_obj(path, &opts).map_err(|source| SceneFileError::Obj { path: path.to_path_buf(), source })?;
-    // A missing or broken .mtl file leaves the objects without materials (plastic), not an error.
-    let materials = materials.unwrap_or_default();
+    // A missing .mtl file leaves the objects without materials (plastic); a malformed one is an error.
+    let (models, materials) = read_obj(path, true)?;
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let plastic = rt.find_shader("plastic")?;
     let material_shader = if materials.is_empty() || bound.is_some() { None } else { rt.find_shader("material").ok() };

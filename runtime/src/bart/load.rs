@@ -68,7 +68,7 @@ pub enum BartError {
     Aff(#[from] AffError),
     #[error(transparent)]
     Api(#[from] ApiError),
-    #[error("{at}: {source}")]
+    #[error("{at}: invalid mesh")]
     Mesh { at: Location, source: MeshError },
 }
 

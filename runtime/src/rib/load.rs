@@ -27,7 +27,7 @@
 use super::decl::{Class, Ty};
 use super::mesh::{mesh_from_request_with, MeshOptions};
 use super::request::{Handle, Param, ParamValue as RibValue, Request, RequestKind};
-use super::{parse_file, parse_str, RibParse, Severity};
+use super::{parse_file, parse_str, RibParse, Severity, MAX_RIB_TRIANGLES};
 use crate::api::{ApiError, Context, LightId, ObjectId};
 use crate::geometry::Mesh;
 use crate::scene_file::{add_model_file, add_model_file_placed, Placement, SceneFileError};
@@ -59,8 +59,8 @@ pub fn load_str(rt: &mut Context, text: &str, name: &Path) -> Result<LoadedRib, 
 
 fn load_parsed(rt: &mut Context, parse: RibParse, path: &Path) -> Result<LoadedRib, SceneFileError> {
     if parse.has_errors() {
-        let message = parse.errors().map(|d| d.to_string()).collect::<Vec<_>>().join("\n");
-        return Err(SceneFileError::Rib { path: path.to_path_buf(), message });
+        let errors = parse.errors().map(|d| format!("{}: {}", d.loc, d.message)).collect::<Vec<_>>().join("\n");
+        return Err(SceneFileError::RibSyntax { errors });
     }
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let mut loader = Loader::new(rt, dir);
@@ -69,8 +69,10 @@ fn load_parsed(rt: &mut Context, parse: RibParse, path: &Path) -> Result<LoadedR
         .warnings
         .extend(parse.diagnostics.iter().filter(|d| d.severity == Severity::Warning).map(|d| d.to_string()));
     for r in &parse.requests {
-        if let Err(e) = loader.request(r) {
-            loader.out.warnings.push(format!("{}: warning: {e}", r.loc));
+        match loader.request(r) {
+            Ok(()) => {}
+            Err(e @ SceneFileError::TooLarge { .. }) => return Err(e),
+            Err(e) => loader.out.warnings.push(format!("{}: warning: {e}", r.loc)),
         }
         if loader.frames_done > 0 {
             break;
@@ -118,6 +120,8 @@ struct Loader<'a> {
     motion: Option<u32>,
     /// Inside `MotionBegin`: the matrices of its transform samples (applied at `MotionEnd`).
     motion_transforms: Vec<(bool, Affine3A)>,
+    /// Triangles of the geometry requests so far, against [`MAX_RIB_TRIANGLES`].
+    triangles: usize,
 }
 
 impl<'a> Loader<'a> {
@@ -139,6 +143,7 @@ impl<'a> Loader<'a> {
             frames_done: 0,
             motion: None,
             motion_transforms: Vec::new(),
+            triangles: 0,
         }
     }
 
@@ -164,7 +169,17 @@ impl<'a> Loader<'a> {
         Ok(())
     }
 
-    fn geometry(&mut self, r: &Request, mesh: Mesh) -> Result<(), ApiError> {
+    fn geometry(&mut self, r: &Request, mesh: Mesh) -> Result<(), SceneFileError> {
+        self.triangles = self.triangles.saturating_add(mesh.triangles.len());
+        if self.triangles > MAX_RIB_TRIANGLES {
+            return Err(SceneFileError::TooLarge {
+                at: r.loc.to_string(),
+                message: format!(
+                    "the scene's geometry passes {MAX_RIB_TRIANGLES} triangles (quadrics and patches \
+                     count as tessellated); rtsl loads no more from one RIB file"
+                ),
+            });
+        }
         if let Some(light) = self.state.area_light {
             let m = self.rt.current_matrix();
             let mut world = mesh.clone();
@@ -177,7 +192,8 @@ impl<'a> Loader<'a> {
             let id = self.rt.begin_object()?;
             self.pending = Some((id, self.rt.current_matrix(), self.rt.close_matrix()));
         }
-        self.rt.mesh(&mesh).inspect_err(|_| self.warn(r, "geometry skipped"))
+        self.rt.mesh(&mesh).inspect_err(|_| self.warn(r, "geometry skipped"))?;
+        Ok(())
     }
 
     fn request(&mut self, r: &Request) -> Result<(), SceneFileError> {
@@ -249,8 +265,10 @@ impl<'a> Loader<'a> {
             }
             K::Orientation(_) | K::ReverseOrientation => {}
             K::Format { xres, yres, .. } => {
-                rt.options.width = (*xres).clamp(1, 16384) as u32;
-                rt.options.height = (*yres).clamp(1, 16384) as u32;
+                // Kept as given (a size too large is refused when the frame is built, unless
+                // `--size` replaces it).
+                rt.options.width = (*xres).max(1) as u32;
+                rt.options.height = (*yres).max(1) as u32;
             }
             K::PixelSamples { x, y } => {
                 rt.options.samples = (x.round().clamp(1.0, 64.0) as u32, y.round().clamp(1.0, 64.0) as u32);

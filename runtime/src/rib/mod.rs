@@ -36,6 +36,11 @@ pub use request::{
 /// How deeply `ReadArchive` may nest.
 pub const MAX_ARCHIVE_DEPTH: usize = 32;
 
+/// The most triangles the geometry requests of one RIB load may make, quadrics and patches counted
+/// as tessellated: a line of text can ask for thousands, and memory runs out long before a file
+/// does (`docs/rendering.md`, "Limits"). Meshes read from OBJ, PLY or glTF files are not counted.
+pub const MAX_RIB_TRIANGLES: usize = 1 << 24;
+
 /// An error at a place in a RIB file.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 #[error("{loc}: {message}")]

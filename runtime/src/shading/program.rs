@@ -17,8 +17,10 @@ use std::sync::Arc;
 /// Why a shader could not be made ready to run.
 #[derive(Debug, thiserror::Error)]
 pub enum ShaderError {
-    #[error("cannot read shader {path}: {source}")]
-    Io { path: PathBuf, source: std::io::Error },
+    // The cause is part of the message and not a `source`, so that an error chain does not say it
+    // twice while a reload's one-line message still gives it.
+    #[error("cannot read shader {path}: {cause}")]
+    Io { path: PathBuf, cause: std::io::Error },
     /// The front end reported errors; `diagnostics` is their rustc-style rendering.
     #[error("shader {name} does not compile:\n{diagnostics}")]
     Compile { name: String, diagnostics: String },
@@ -176,7 +178,7 @@ impl ShaderProgram {
             return Self::from_artifact(path, include_paths);
         }
         let text =
-            std::fs::read_to_string(path).map_err(|source| ShaderError::Io { path: path.to_path_buf(), source })?;
+            std::fs::read_to_string(path).map_err(|cause| ShaderError::Io { path: path.to_path_buf(), cause })?;
         let mut session = Session::new();
         let c = session.compile_source_at(path, &text, &options(include_paths));
         let name = path.display().to_string();
