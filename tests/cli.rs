@@ -516,3 +516,128 @@ fn bad_camera_and_lightfield_flags_are_clear_errors() {
     }
     assert!(!dir.path().join("lf.png").exists());
 }
+
+/// A small RIB scene: a plastic sphere in front of the camera.
+const SPHERE_RIB: &str =
+    "Format 32 32 1\nTranslate 0 0 5\nWorldBegin\nLightSource \"distantlight\" 1\nSurface \"plastic\"\nSphere 1 -1 1 360\nWorldEnd\n";
+
+#[test]
+fn thread_counts_beyond_the_cap_are_refused_and_the_cap_renders() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    write(dir.path(), "s.rib", SPHERE_RIB);
+    let o = rtsl(&["render", "s.rib", "-o", "out.png", "--threads", "10000", "--quiet"], dir.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--threads 10000 is too many: at most 256"), "{}", stderr(&o));
+    assert!(!dir.path().join("out.png").exists());
+    let start = std::time::Instant::now();
+    let o = rtsl(&["render", "s.rib", "-o", "out.png", "--threads", "256", "--quiet"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(start.elapsed() < std::time::Duration::from_secs(60), "256 threads took {:?}", start.elapsed());
+}
+
+#[test]
+fn image_sizes_beyond_the_limits_are_clear_errors() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let o = rtsl(&["render", "--size", "100000x100000", "-o", "out.png"], dir.path());
+    assert_eq!(o.status.code(), Some(2), "a usage error");
+    assert!(stderr(&o).contains("at most 32768 pixels a side"), "{}", stderr(&o));
+    write(dir.path(), "big.rib", &SPHERE_RIB.replace("Format 32 32 1", "Format 100000 100000 1"));
+    let o = rtsl(&["render", "big.rib", "-o", "out.png"], dir.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("image size 100000x100000 is too large"), "{}", stderr(&o));
+    // `--size` replaces the file's size, so the frame renders.
+    let o = rtsl(&["render", "big.rib", "-o", "out.png", "--size", "16x16", "--quiet"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+}
+
+#[test]
+fn a_full_disk_is_an_error_for_every_image_format() {
+    let dev_full = Path::new("/dev/full");
+    if !dev_full.exists() {
+        eprintln!("skipped: there is no /dev/full on this system");
+        return;
+    }
+    let dir = tempfile::tempdir().expect("tempdir");
+    write(dir.path(), "s.rib", SPHERE_RIB);
+    for ext in ["png", "tga", "ppm", "exr"] {
+        let name = format!("full.{ext}");
+        std::os::unix::fs::symlink(dev_full, dir.path().join(&name)).expect("a symlink");
+        let o = rtsl(&["render", "s.rib", "-o", &name, "--quiet"], dir.path());
+        assert_ne!(o.status.code(), Some(0), "{ext}: {}", stderr(&o));
+        let err = stderr(&o);
+        assert!(err.contains(&name) && err.contains("No space left on device"), "{ext}: {err}");
+        assert_eq!(err.matches("No space left").count(), 1, "{ext}: said once: {err}");
+        let link = std::fs::symlink_metadata(dir.path().join(&name)).expect("the link");
+        assert!(link.file_type().is_symlink(), "{ext}: the link is left as it was");
+    }
+    // An ordinary file is replaced whole, and no temporary is left beside it.
+    let o = rtsl(&["render", "s.rib", "-o", "out.png", "--quiet"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let names: Vec<String> = std::fs::read_dir(dir.path())
+        .expect("list")
+        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+        .collect();
+    assert!(!names.iter().any(|n| n.ends_with(".tmp")), "{names:?}");
+}
+
+#[test]
+fn messages_say_each_thing_once() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    write(dir.path(), "s.rib", SPHERE_RIB);
+    // An output path that is a directory: the system's reason, once.
+    std::fs::create_dir(dir.path().join("out.png")).expect("mkdir");
+    let o = rtsl(&["render", "s.rib", "-o", "out.png", "--quiet"], dir.path());
+    assert_ne!(o.status.code(), Some(0));
+    assert_eq!(stderr(&o).matches("Is a directory").count(), 1, "{}", stderr(&o));
+
+    // A RIB syntax error: the location once, one `error:`.
+    write(dir.path(), "case.rib", "WorldBegin\nSphere 1 ]\nWorldEnd\n");
+    let o = rtsl(&["render", "case.rib"], dir.path());
+    let err = stderr(&o);
+    assert!(err.starts_with("error: case.rib:2:"), "{err}");
+    assert_eq!(err.matches("case.rib").count(), 1, "{err}");
+    assert_eq!(err.matches("error:").count(), 1, "{err}");
+
+    // A malformed OBJ: file and line, the reason once.
+    write(dir.path(), "bad.obj", "v 0 0 0\nv 1 0\nf 1 2 3\n");
+    let o = rtsl(&["render", "bad.obj", "-o", "bad.png"], dir.path());
+    let err = stderr(&o);
+    assert!(err.contains("bad.obj:2: `v` needs three numbers"), "{err}");
+    assert_eq!(err.matches("needs three numbers").count(), 1, "{err}");
+
+    // A texture that is not there, from a RIB named without a folder: no empty search list.
+    write(
+        dir.path(),
+        "tex.rib",
+        &SPHERE_RIB.replace("Surface \"plastic\"", "Surface \"texmap\" \"string texturename\" \"nope.png\""),
+    );
+    let o = rtsl(&["render", "tex.rib", "-o", "tex.png"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let err = stderr(&o);
+    assert!(err.contains("nope.png") && err.contains("file not found"), "{err}");
+    assert!(!err.contains("searched  and"), "{err}");
+}
+
+#[test]
+fn a_file_without_a_shader_is_not_counted_as_one() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    write(dir.path(), "empty.sl", "");
+    let o = rtsl(&["compile", "empty.sl"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stdout(&o));
+    let out = stdout(&o);
+    assert!(out.contains("empty.sl: defines no shader"), "{out}");
+    assert!(out.contains("0 shaders: 0 ok, 0 failed, 0 warnings; 1 file defines no shader"), "{out}");
+    write(dir.path(), "lib/good.sl", GOOD);
+    write(dir.path(), "lib/empty.sl", "");
+    let o = rtsl(&["compile", "lib"], dir.path());
+    assert!(stdout(&o).contains("1 shader: 1 ok, 0 failed, 0 warnings; 1 file defines no shader"), "{}", stdout(&o));
+}
+
+#[test]
+fn shading_a_grid_with_an_imager_names_its_type_with_the_right_article() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    write(dir.path(), "img.sl", "imager img() { Ci = Ci * 0.5; }\n");
+    let o = rtsl(&["shade", "img.sl"], dir.path());
+    assert_ne!(o.status.code(), Some(0));
+    assert!(stderr(&o).contains("the shader is an imager shader"), "{}", stderr(&o));
+}

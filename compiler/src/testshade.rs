@@ -38,7 +38,7 @@ pub fn parse_param(arg: &str) -> Result<(String, ParamArg), String> {
 pub enum GridError {
     #[error(transparent)]
     Jit(#[from] JitError),
-    #[error("the shader is a {0:?} shader; only surface shaders shade a grid")]
+    #[error("the shader is {} shader; only surface shaders shade a grid", .0.with_article())]
     NotSurface(ShaderKind),
     #[error("the shader has no parameter `{0}`")]
     NoParameter(String),

@@ -70,6 +70,7 @@ pub(crate) fn parse_size(s: &str) -> Result<(u32, u32), String> {
     if w == 0 || h == 0 {
         return Err(format!("image size `{s}` must be at least 1x1"));
     }
+    rtsl_runtime::render::check_image_size(u64::from(w), u64::from(h))?;
     Ok((w, h))
 }
 
@@ -104,6 +105,7 @@ pub fn run_trace(args: &BenchTraceArgs) -> anyhow::Result<()> {
     o.fov_deg = args.fov;
     o.light = args.light.into();
     (o.width, o.height) = args.size;
+    super::thread_count(args.threads)?;
     o.threads = args.threads;
     o.repeats = args.repeats.max(1);
     o.quality = args.quality;

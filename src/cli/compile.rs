@@ -178,17 +178,22 @@ impl Outcome {
 pub fn run(args: &CompileArgs) -> anyhow::Result<ExitCode> {
     let files = collect_shaders(&args.paths)?;
     let options = args.flags.options();
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(args.threads.unwrap_or(0)).build()?;
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(super::thread_count(args.threads.unwrap_or(0))?).build()?;
     let start = Instant::now();
     let outcomes = pool.install(|| compile_all(&files, &options, args.output.is_some()));
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
     let full = args.verbose || (files.len() == 1 && !args.json);
-    let (mut ok, mut failed, mut warnings) = (0usize, 0usize, 0usize);
+    let (mut ok, mut failed, mut warnings, mut no_shader) = (0usize, 0usize, 0usize, 0usize);
     for o in &outcomes {
         let fails = o.failed(args.werror);
+        // A file that compiles but defines no shader (empty, or only functions for `#include`)
+        // is not a shader, so it is counted apart.
+        let shaderless = !fails && o.result.as_ref().is_ok_and(|c| c.shader.is_none());
         if fails {
             failed += 1;
+        } else if shaderless {
+            no_shader += 1;
         } else {
             ok += 1;
         }
@@ -226,6 +231,9 @@ pub fn run(args: &CompileArgs) -> anyhow::Result<ExitCode> {
                     if !c.diagnostics.is_empty() {
                         write!(out, "{}", c.render())?;
                     }
+                    if shaderless {
+                        writeln!(out, "{}: defines no shader", o.path.display())?;
+                    }
                 } else if fails {
                     let first = c
                         .diagnostics
@@ -246,11 +254,16 @@ pub fn run(args: &CompileArgs) -> anyhow::Result<ExitCode> {
         None => None,
     };
     if !args.json {
+        let shaders = outcomes.len() - no_shader;
+        let shaderless = match no_shader {
+            0 => String::new(),
+            1 => "; 1 file defines no shader".to_string(),
+            n => format!("; {n} files define no shader"),
+        };
         writeln!(
             out,
-            "{} shader{}: {ok} ok, {failed} failed, {warnings} warning{}",
-            outcomes.len(),
-            if outcomes.len() == 1 { "" } else { "s" },
+            "{shaders} shader{}: {ok} ok, {failed} failed, {warnings} warning{}{shaderless}",
+            if shaders == 1 { "" } else { "s" },
             if warnings == 1 { "" } else { "s" },
         )?;
         if let Some((n, dir)) = written {
@@ -352,7 +365,7 @@ pub fn bench_library(args: &BenchLibraryArgs) -> anyhow::Result<ExitCode> {
     let (paths, options) = paths_or_library(&args.paths, &args.flags);
     let files = collect_shaders(&paths)?;
     let one = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
-    let all = rayon::ThreadPoolBuilder::new().num_threads(args.threads.unwrap_or(0)).build()?;
+    let all = rayon::ThreadPoolBuilder::new().num_threads(super::thread_count(args.threads.unwrap_or(0))?).build()?;
     let run = |pool: &rayon::ThreadPool| {
         let start = Instant::now();
         let outcomes = pool.install(|| compile_all(&files, &options, true));

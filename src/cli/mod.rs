@@ -108,10 +108,27 @@ pub fn run() -> anyhow::Result<ExitCode> {
     }
 }
 
+/// The most worker threads `--threads` may ask for. Every worker keeps state of its own (statistics
+/// slots, scratch buffers, a pool of batches), and rayon's idle workers spin before they sleep, so
+/// thousands of them on a few cores make a frame take minutes; a count this high is a mistake.
+pub(crate) const MAX_THREADS: usize = 256;
+
+/// `--threads`, checked against [`MAX_THREADS`] (0: one per core).
+pub(crate) fn thread_count(threads: usize) -> anyhow::Result<usize> {
+    if threads > MAX_THREADS {
+        anyhow::bail!("--threads {threads} is too many: at most {MAX_THREADS} (0 is one per core)");
+    }
+    Ok(if threads == 0 {
+        std::thread::available_parallelism().map_or(1, |n| n.get()).min(MAX_THREADS)
+    } else {
+        threads
+    })
+}
+
 /// The rayon pool of `--threads` workers (0: one per core) and its size.
 pub(crate) fn worker_pool(threads: usize) -> anyhow::Result<(usize, rayon::ThreadPool)> {
     use anyhow::Context as _;
-    let threads = if threads == 0 { std::thread::available_parallelism().map_or(1, |n| n.get()) } else { threads };
+    let threads = thread_count(threads)?;
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().context("starting the worker threads")?;
     Ok((threads, pool))
 }

@@ -88,8 +88,7 @@ pub fn run(args: &ViewArgs) -> anyhow::Result<ExitCode> {
     if let Some(aa) = args.aa {
         rt.options.antialiasing = aa;
     }
-    let threads =
-        if args.threads == 0 { std::thread::available_parallelism().map_or(1, |n| n.get()) } else { args.threads };
+    let threads = super::thread_count(args.threads)?;
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().context("starting the worker threads")?;
     let renderer = renderer::Renderer::new(
         rt,

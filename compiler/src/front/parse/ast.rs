@@ -46,6 +46,12 @@ impl ShaderKind {
         }
     }
 
+    /// The name with its indefinite article, for messages ("an imager", "a surface").
+    pub fn with_article(self) -> String {
+        let article = if self.name().starts_with(['a', 'e', 'i', 'o', 'u']) { "an" } else { "a" };
+        format!("{article} {}", self.name())
+    }
+
     pub const ALL: [ShaderKind; 7] = [
         ShaderKind::Surface,
         ShaderKind::Light,
