@@ -5,7 +5,7 @@
 use anyhow::Context as _;
 use rtsl_runtime::api::Context;
 use rtsl_runtime::bart::{load_file, BartScene};
-use rtsl_runtime::distributed::{Master, Transport, WorkerScene};
+use rtsl_runtime::distributed::{Master, Traffic, Transport, WorkerScene};
 use rtsl_runtime::render::{render_frame, World};
 use rtsl_runtime::{write_image, WriteOptions};
 use std::path::{Path, PathBuf};
@@ -94,6 +94,8 @@ struct FrameTimes {
     /// Rays by kind: primary, shadow, secondary, transparency.
     rays_by_kind: [u64; 4],
     accel: rtsl_runtime::render::AccelUpdate,
+    /// What the frame moved between the ranks, when it was rendered over MPI.
+    traffic: Option<Traffic>,
 }
 
 impl FrameTimes {
@@ -228,9 +230,15 @@ fn play_frame(
     let world = pool.install(|| rt.build_world())?;
     let build = start.elapsed();
     let start = Instant::now();
-    let (fb, report) = match master {
-        Some(m) if m.workers() > 0 => m.render_frame(&world, &t.to_le_bytes(), None)?,
-        _ => pool.install(|| render_frame(&world, None)),
+    let (fb, report, traffic) = match master {
+        Some(m) if m.workers() > 0 => {
+            let (fb, report) = m.render_frame(&world, &t.to_le_bytes(), None)?;
+            (fb, report, Some(m.traffic()))
+        }
+        _ => {
+            let (fb, report) = pool.install(|| render_frame(&world, None));
+            (fb, report, None)
+        }
     };
     let render = start.elapsed();
     for w in world.textures.take_warnings() {
@@ -245,7 +253,7 @@ fn play_frame(
             .with_context(|| format!("writing {}", path.display()))?;
     }
     let rays_by_kind = [report.primary_rays, report.shadow_rays, report.secondary_rays, report.transparency_rays];
-    Ok(FrameTimes { animation, build, render, rays_by_kind, accel: report.accel })
+    Ok(FrameTimes { animation, build, render, rays_by_kind, accel: report.accel, traffic })
 }
 
 fn summarize(times: &[FrameTimes]) {
@@ -295,4 +303,16 @@ fn summarize(times: &[FrameTimes]) {
         mean(&|t| t.render),
         rays as f64 / render_s.max(1e-9) / 1e6,
     );
+    let traffic: Vec<Traffic> = times.iter().filter_map(|t| t.traffic).collect();
+    if !traffic.is_empty() {
+        let k = traffic.len() as u64;
+        let mean = |f: fn(&Traffic) -> u64| traffic.iter().map(f).sum::<u64>() / k;
+        let t = Traffic {
+            updates: mean(|t| t.updates),
+            control: mean(|t| t.control),
+            pixels: mean(|t| t.pixels),
+            counters: mean(|t| t.counters),
+        };
+        println!("{}", super::mpi::traffic_line(&t));
+    }
 }

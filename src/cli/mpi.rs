@@ -2,7 +2,7 @@
 //! (it loads the scene, prints and writes what a single process would); every other rank loads
 //! the same scene quietly and serves the master as a worker (`rtsl_runtime::distributed`).
 
-use rtsl_runtime::distributed::{serve, DistributedError, Transport, WorkerScene};
+use rtsl_runtime::distributed::{serve, DistributedError, Traffic, Transport, WorkerScene};
 
 /// This process's rank of the `mpirun` job.
 #[cfg(feature = "mpi")]
@@ -31,4 +31,17 @@ pub(crate) fn work<S: WorkerScene>(
     };
     result?;
     Ok(std::process::ExitCode::SUCCESS)
+}
+
+/// "MPI traffic per frame: ..." of a frame's (or the mean frame's) traffic.
+pub(crate) fn traffic_line(t: &Traffic) -> String {
+    let kb = |b: u64| b as f64 / 1e3;
+    format!(
+        "MPI traffic per frame: {:.1} kB: pixels {:.1} kB, updates {:.2} kB, tile assignments {:.1} kB, counters {:.2} kB",
+        kb(t.total()),
+        kb(t.pixels),
+        kb(t.updates),
+        kb(t.control),
+        kb(t.counters)
+    )
 }

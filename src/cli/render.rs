@@ -341,6 +341,9 @@ fn run_mpi(args: &RenderArgs) -> anyhow::Result<ExitCode> {
     if !args.quiet {
         let ranks = format!("{} worker rank(s), {} thread(s) in all", master.workers(), master.worker_threads());
         print_summary(&rt, &output, &ranks, &report);
+        if master.workers() > 0 {
+            println!("{}", super::mpi::traffic_line(&master.traffic()));
+        }
     }
     master.shutdown()?;
     Ok(ExitCode::SUCCESS)

@@ -18,6 +18,25 @@ struct WorkerInfo {
     failure: Option<String>,
 }
 
+/// The bytes a frame moved between the master and its workers, by kind (whole messages).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Traffic {
+    /// The frame's update, as sent to every worker.
+    pub updates: u64,
+    /// Tile assignments and the rest of the frame messages.
+    pub control: u64,
+    /// Tile messages: pixels (and filter splats).
+    pub pixels: u64,
+    /// The workers' end-of-frame counters.
+    pub counters: u64,
+}
+
+impl Traffic {
+    pub fn total(&self) -> u64 {
+        self.updates + self.control + self.pixels + self.counters
+    }
+}
+
 /// The master's side of a distributed run: rank 0 of `transport`, every other rank a worker.
 /// Dropping it tells the workers to stop.
 pub struct Master<T: Transport> {
@@ -28,6 +47,7 @@ pub struct Master<T: Transport> {
     last_owner: Vec<Option<usize>>,
     /// Whether the workers still wait for work (not yet told to quit).
     open: bool,
+    traffic: Traffic,
 }
 
 impl<T: Transport> Master<T> {
@@ -36,7 +56,14 @@ impl<T: Transport> Master<T> {
     /// [`Master::check_workers`].
     pub fn connect(transport: T) -> Result<Master<T>, DistributedError> {
         let n = transport.size();
-        let mut master = Master { transport, workers: Vec::new(), frame: 0, last_owner: Vec::new(), open: true };
+        let mut master = Master {
+            transport,
+            workers: Vec::new(),
+            frame: 0,
+            last_owner: Vec::new(),
+            open: true,
+            traffic: Traffic::default(),
+        };
         let build = build_fingerprint();
         let mut hellos: Vec<Option<WorkerInfo>> = (1..n).map(|_| None).collect();
         for _ in 1..n {
@@ -83,6 +110,11 @@ impl<T: Transport> Master<T> {
         self.workers.iter().map(|w| w.threads as usize).sum()
     }
 
+    /// What the last distributed frame moved.
+    pub fn traffic(&self) -> Traffic {
+        self.traffic
+    }
+
     /// The first worker that said it cannot render (its scene did not load), with its reason.
     pub fn check_workers(&self) -> Result<(), DistributedError> {
         match self.workers.iter().enumerate().find_map(|(w, info)| Some((w + 1, info.failure.clone()?))) {
@@ -111,6 +143,7 @@ impl<T: Transport> Master<T> {
         let mut schedule = Schedule::new(tiles.len(), self.workers.len(), &self.last_owner);
         let mut given: Vec<Option<usize>> = vec![None; tiles.len()];
         let mut told_last = vec![false; self.workers.len()];
+        let mut traffic = Traffic::default();
         for (w, info) in self.workers.iter().enumerate() {
             let k = TILES_IN_FLIGHT_PER_THREAD * (info.threads as usize).max(1);
             let first: Vec<u32> = (0..k).map_while(|_| schedule.next(w)).collect();
@@ -118,8 +151,10 @@ impl<T: Transport> Master<T> {
                 given[t as usize] = Some(w);
             }
             told_last[w] = schedule.left() == 0;
-            let m = Message::Frame { frame, update: update.to_vec(), tiles: first, last: told_last[w] };
-            self.transport.send(w + 1, &m.encode())?;
+            let m = Message::Frame { frame, update: update.to_vec(), tiles: first, last: told_last[w] }.encode();
+            traffic.updates += update.len() as u64;
+            traffic.control += (m.len() - update.len()) as u64;
+            self.transport.send(w + 1, &m)?;
         }
         let mut rendered: Vec<Option<RenderedTile>> = tiles.iter().map(|_| None).collect();
         let (mut received, mut done) = (0, vec![false; self.workers.len()]);
@@ -133,6 +168,7 @@ impl<T: Transport> Master<T> {
             };
             match Message::decode(&bytes).map_err(protocol_error)? {
                 Message::Tile { frame: f, tile, pixels } if f == frame => {
+                    traffic.pixels += bytes.len() as u64;
                     let t = tile as usize;
                     if given.get(t) != Some(&Some(w)) || rendered[t].is_some() {
                         return Err(protocol_error(format!("sent tile {tile}, which it was not given")));
@@ -151,10 +187,13 @@ impl<T: Transport> Master<T> {
                         }
                         told_last[w] = schedule.left() == 0 || next.is_none();
                         let m = Message::Assign { frame, tiles: next.into_iter().collect(), last: told_last[w] };
-                        self.transport.send(rank, &m.encode())?;
+                        let m = m.encode();
+                        traffic.control += m.len() as u64;
+                        self.transport.send(rank, &m)?;
                     }
                 }
                 Message::FrameDone { frame: f, counts: c, failure: worker_failure } if f == frame && !done[w] => {
+                    traffic.counters += bytes.len() as u64;
                     done[w] = true;
                     counts.push(c);
                     if let Some(message) = worker_failure {
@@ -175,6 +214,7 @@ impl<T: Transport> Master<T> {
             });
         }
         self.last_owner = given;
+        self.traffic = traffic;
         let (fb, mut report) = renderer.finish(rendered, start);
         for c in &counts {
             super::add_counts(&mut report, c);

@@ -32,7 +32,7 @@ pub mod schedule;
 pub mod transport;
 mod worker;
 
-pub use master::Master;
+pub use master::{Master, Traffic};
 pub use message::{FrameCounts, Message, PROTOCOL_VERSION};
 pub use transport::{LocalTransport, Transport, TransportError};
 pub use worker::{serve, WorkerScene};
