@@ -109,7 +109,12 @@ pub fn run(args: &BartArgs) -> anyhow::Result<ExitCode> {
 
     let transport = if args.mpi { Some(super::mpi::transport()?) } else { None };
     if let Some(t) = transport.as_ref().filter(|t| t.rank() != 0) {
-        let scene = load(args, &pool).map(|(rt, scene)| BartWorker { rt, scene });
+        let scene = load(args, &pool).and_then(|(mut rt, scene)| {
+            // Every object's BVH now, as the master builds them before the first frame.
+            let world = pool.install(|| rt.build_world())?;
+            rt.return_scene(world);
+            Ok(BartWorker { rt, scene })
+        });
         return super::mpi::work(&**t, scene, &pool);
     }
     let mut master = transport.map(Master::connect).transpose()?;

@@ -8,8 +8,10 @@ use super::DistributedError;
 use crate::render::{FrameReport, Framebuffer, RenderedTile, TileRenderer, World};
 use std::time::Instant;
 
-/// Tiles each worker has in flight per thread: while it renders one, the next is on its way.
-const TILES_IN_FLIGHT_PER_THREAD: usize = 2;
+/// Tiles each worker has in flight per thread: while it renders one, the next ones are on their
+/// way (a tile of a simple scene renders in less time than a round trip through a sleeping
+/// master).
+const TILES_IN_FLIGHT_PER_THREAD: usize = 16;
 
 /// A worker as it introduced itself.
 struct WorkerInfo {
@@ -167,27 +169,34 @@ impl<T: Transport> Master<T> {
                 return Err(protocol_error("a message from no worker".into()));
             };
             match Message::decode(&bytes).map_err(protocol_error)? {
-                Message::Tile { frame: f, tile, pixels } if f == frame => {
+                Message::Tiles { frame: f, tiles: batch } if f == frame => {
                     traffic.pixels += bytes.len() as u64;
-                    let t = tile as usize;
-                    if given.get(t) != Some(&Some(w)) || rendered[t].is_some() {
-                        return Err(protocol_error(format!("sent tile {tile}, which it was not given")));
-                    }
-                    rendered[t] = Some(RenderedTile::decode(world, tiles[t], &pixels).map_err(protocol_error)?);
-                    received += 1;
-                    if let Some(p) = progress {
-                        p(received, tiles.len());
+                    let arrived = batch.len();
+                    for (tile, pixels) in batch {
+                        let t = tile as usize;
+                        if given.get(t) != Some(&Some(w)) || rendered[t].is_some() {
+                            return Err(protocol_error(format!("sent tile {tile}, which it was not given")));
+                        }
+                        rendered[t] = Some(RenderedTile::decode(world, tiles[t], &pixels).map_err(protocol_error)?);
+                        received += 1;
+                        if let Some(p) = progress {
+                            p(received, tiles.len());
+                        }
                     }
                     if !told_last[w] {
+                        // As many new tiles as arrived, keeping the worker's tiles in flight.
                         // After a failure nothing more is handed out: the frame ends as soon as
                         // every worker has sent what it holds.
-                        let next = if failure.is_none() { schedule.next(w) } else { None };
-                        if let Some(t) = next {
+                        let next: Vec<u32> = if failure.is_none() {
+                            (0..arrived).map_while(|_| schedule.next(w)).collect()
+                        } else {
+                            Vec::new()
+                        };
+                        for &t in &next {
                             given[t as usize] = Some(w);
                         }
-                        told_last[w] = schedule.left() == 0 || next.is_none();
-                        let m = Message::Assign { frame, tiles: next.into_iter().collect(), last: told_last[w] };
-                        let m = m.encode();
+                        told_last[w] = schedule.left() == 0 || next.len() < arrived;
+                        let m = Message::Assign { frame, tiles: next, last: told_last[w] }.encode();
                         traffic.control += m.len() as u64;
                         self.transport.send(rank, &m)?;
                     }

@@ -6,7 +6,7 @@
 use rtsl_compiler::front::parse::ast::ShaderKind;
 
 /// The protocol's version: ranks that speak different versions refuse each other at start-up.
-pub const PROTOCOL_VERSION: u32 = 1;
+pub const PROTOCOL_VERSION: u32 = 2;
 
 /// What the master's counters add up from a worker's share of a frame.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -42,8 +42,10 @@ pub enum Message {
     Frame { frame: u64, update: Vec<u8>, tiles: Vec<u32>, last: bool },
     /// Master to worker: more tiles of the frame; `last`: no more will come.
     Assign { frame: u64, tiles: Vec<u32>, last: bool },
-    /// Worker to master: one tile's pixels ([`crate::render::RenderedTile::encode`]).
-    Tile { frame: u64, tile: u32, pixels: Vec<u8> },
+    /// Worker to master: finished tiles, each its index and its pixels
+    /// ([`crate::render::RenderedTile::encode`]): all that were ready when the worker sent, so
+    /// that a master slow to answer gets fewer, larger messages.
+    Tiles { frame: u64, tiles: Vec<(u32, Vec<u8>)> },
     /// Worker to master: the worker has sent every tile it was given, or could not render the
     /// frame (`failure`).
     FrameDone { frame: u64, counts: FrameCounts, failure: Option<String> },
@@ -54,7 +56,7 @@ pub enum Message {
 const HELLO: u8 = 1;
 const FRAME: u8 = 2;
 const ASSIGN: u8 = 3;
-const TILE: u8 = 4;
+const TILES: u8 = 4;
 const FRAME_DONE: u8 = 5;
 const QUIT: u8 = 6;
 
@@ -126,11 +128,14 @@ impl Message {
                 w.u32s(tiles);
                 w.u8(u8::from(*last));
             }
-            Message::Tile { frame, tile, pixels } => {
-                w.u8(TILE);
+            Message::Tiles { frame, tiles } => {
+                w.u8(TILES);
                 w.u64(*frame);
-                w.u32(*tile);
-                w.bytes(pixels);
+                w.u32(tiles.len() as u32);
+                for (tile, pixels) in tiles {
+                    w.u32(*tile);
+                    w.bytes(pixels);
+                }
             }
             Message::FrameDone { frame, counts, failure } => {
                 w.u8(FRAME_DONE);
@@ -168,7 +173,12 @@ impl Message {
             HELLO => Message::Hello { protocol: r.u32()?, build: r.bytes()?, threads: r.u32()?, failure: r.opt_str()? },
             FRAME => Message::Frame { frame: r.u64()?, update: r.bytes()?, tiles: r.u32s()?, last: r.bool()? },
             ASSIGN => Message::Assign { frame: r.u64()?, tiles: r.u32s()?, last: r.bool()? },
-            TILE => Message::Tile { frame: r.u64()?, tile: r.u32()?, pixels: r.bytes()? },
+            TILES => {
+                let frame = r.u64()?;
+                let n = r.count(12)?;
+                let tiles = (0..n).map(|_| Ok((r.u32()?, r.bytes()?))).collect::<Result<_, String>>()?;
+                Message::Tiles { frame, tiles }
+            }
             FRAME_DONE => {
                 let frame = r.u64()?;
                 let rays = [r.u64()?, r.u64()?, r.u64()?, r.u64()?];
@@ -313,7 +323,7 @@ mod tests {
             Message::Hello { protocol: 7, build: vec![], threads: 1, failure: Some("no such file".into()) },
             Message::Frame { frame: 3, update: vec![9; 10], tiles: vec![0, 5, 7], last: false },
             Message::Assign { frame: 3, tiles: vec![], last: true },
-            Message::Tile { frame: u64::MAX, tile: 12, pixels: vec![0xAB; 100] },
+            Message::Tiles { frame: u64::MAX, tiles: vec![(12, vec![0xAB; 100]), (3, vec![])] },
             Message::FrameDone {
                 frame: 1,
                 counts: FrameCounts {

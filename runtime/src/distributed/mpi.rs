@@ -24,8 +24,9 @@ pub struct MpiTransport {
 }
 
 /// How long a receive polls flat out before it starts sleeping between polls, and how long it
-/// then sleeps: short enough for a tile's round trip, long enough to leave the core to rendering.
-const SPIN: Duration = Duration::from_micros(200);
+/// then sleeps: short enough for a tile's round trip, long enough to leave the core to rendering
+/// (a master that spun while its workers shared its cores slowed them by a third).
+const SPIN: Duration = Duration::from_micros(0);
 const NAP: Duration = Duration::from_micros(50);
 
 impl MpiTransport {

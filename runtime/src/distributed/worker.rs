@@ -5,8 +5,8 @@ use super::message::{build_fingerprint, Message, PROTOCOL_VERSION};
 use super::transport::Transport;
 use super::DistributedError;
 use crate::render::{TileRenderer, World};
-use rayon::prelude::*;
 use std::collections::VecDeque;
+use std::sync::{Condvar, Mutex};
 use std::time::Instant;
 
 /// A worker's copy of the scene.
@@ -100,6 +100,11 @@ fn out_of_place<T: Transport>(transport: &T) -> DistributedError {
 /// Renders this worker's share of a frame: the tiles it was given first, then those it gets for
 /// each one it sends back, until the master says no more will come; then reports its counts.
 /// Returns whether the master said to stop meanwhile.
+///
+/// The pool's threads take tiles from a queue and render them for as long as the frame lasts,
+/// each keeping its scratch warm; this thread (the only one that talks to the master) passes
+/// finished tiles on and new tiles in. Handing the pool one tile at a time cost a thread wake-up
+/// per tile, as much as rendering a tile of a simple scene.
 fn render_share<T: Transport>(
     transport: &T,
     world: &World,
@@ -111,53 +116,119 @@ fn render_share<T: Transport>(
     let start = Instant::now();
     let renderer = TileRenderer::new(world);
     let tiles = renderer.tiles();
-    let mut queue: VecDeque<u32> = first.into();
-    let take = |m: Message, queue: &mut VecDeque<u32>, last: &mut bool| match m {
-        Message::Assign { frame: f, tiles, last: l } if f == frame => {
-            queue.extend(tiles);
-            *last |= l;
-            Ok(false)
-        }
-        Message::Quit => Ok(true),
-        _ => Err(out_of_place(transport)),
-    };
-    loop {
-        while let Some((rank, bytes)) = transport.try_recv()? {
-            if take(decode_from(transport, rank, &bytes)?, &mut queue, &mut last)? {
-                return Ok(true);
-            }
-        }
-        if queue.is_empty() {
-            if last {
-                break;
-            }
-            if take(receive(transport)?, &mut queue, &mut last)? {
-                return Ok(true);
-            }
-            continue;
-        }
-        let batch: Vec<u32> = (0..pool.current_num_threads()).map_while(|_| queue.pop_front()).collect();
-        if let Some(&bad) = batch.iter().find(|&&t| t as usize >= tiles.len()) {
+    let queue = TileQueue::default();
+    let mut outstanding = 0usize;
+    let give = |new: Vec<u32>, outstanding: &mut usize| -> Result<(), DistributedError> {
+        if let Some(&bad) = new.iter().find(|&&t| t as usize >= tiles.len()) {
             return Err(DistributedError::Protocol {
                 rank: transport.rank(),
                 message: format!("the master handed out tile {bad} of a frame of {} tiles", tiles.len()),
             });
         }
-        let done: Vec<(u32, Vec<u8>)> = pool.install(|| {
-            batch
-                .par_iter()
-                .map(|&t| {
+        *outstanding += new.len();
+        queue.push(new);
+        Ok(())
+    };
+    let (done_tx, done_rx) = std::sync::mpsc::channel::<(u32, Vec<u8>)>();
+    let quit = pool.in_place_scope(|scope| -> Result<bool, DistributedError> {
+        // However this thread leaves the scope, the renderers stop: the scope waits for them.
+        let _close = CloseOnDrop(&queue);
+        for _ in 0..pool.current_num_threads() {
+            let (queue, renderer, tiles, done_tx) = (&queue, &renderer, &tiles, done_tx.clone());
+            scope.spawn(move |_| {
+                while let Some(t) = queue.pop() {
                     let mut pixels = Vec::new();
                     renderer.render_tile(&tiles[t as usize]).encode(&mut pixels);
-                    (t, pixels)
-                })
-                .collect()
-        });
-        for (tile, pixels) in done {
-            transport.send(0, &Message::Tile { frame, tile, pixels }.encode())?;
+                    if done_tx.send((t, pixels)).is_err() {
+                        break;
+                    }
+                }
+            });
         }
+        give(first, &mut outstanding)?;
+        let mut finished = Vec::new();
+        loop {
+            finished.extend(done_rx.try_iter());
+            if !finished.is_empty() {
+                outstanding -= finished.len();
+                let tiles = std::mem::take(&mut finished);
+                transport.send(0, &Message::Tiles { frame, tiles }.encode())?;
+            }
+            while let Some((rank, bytes)) = transport.try_recv()? {
+                match decode_from(transport, rank, &bytes)? {
+                    Message::Assign { frame: f, tiles: new, last: l } if f == frame => {
+                        give(new, &mut outstanding)?;
+                        last |= l;
+                    }
+                    Message::Quit => return Ok(true),
+                    _ => return Err(out_of_place(transport)),
+                }
+            }
+            if last && outstanding == 0 {
+                return Ok(false);
+            }
+            // Wakes at once for a finished tile; the master's messages wait for the next poll.
+            if let Ok(done) = done_rx.recv_timeout(POLL) {
+                finished.push(done);
+            }
+        }
+    })?;
+    if quit {
+        return Ok(true);
     }
     let counts = super::master::counts_of(&renderer.report(start));
     transport.send(0, &Message::FrameDone { frame, counts, failure: None }.encode())?;
     Ok(false)
+}
+
+/// How long the worker's talking thread waits for a finished tile before it looks for the
+/// master's messages again.
+const POLL: std::time::Duration = std::time::Duration::from_micros(100);
+
+/// The tiles a worker's renderers take, until it is closed.
+#[derive(Default)]
+struct TileQueue {
+    state: Mutex<(VecDeque<u32>, bool)>,
+    ready: Condvar,
+}
+
+impl TileQueue {
+    fn lock(&self) -> std::sync::MutexGuard<'_, (VecDeque<u32>, bool)> {
+        self.state.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+
+    fn push(&self, tiles: Vec<u32>) {
+        self.lock().0.extend(tiles);
+        self.ready.notify_all();
+    }
+
+    /// The next tile, waiting for one; `None` once the queue is closed.
+    fn pop(&self) -> Option<u32> {
+        let mut state = self.lock();
+        loop {
+            if state.1 {
+                return None;
+            }
+            if let Some(t) = state.0.pop_front() {
+                return Some(t);
+            }
+            state = self.ready.wait(state).unwrap_or_else(std::sync::PoisonError::into_inner);
+        }
+    }
+
+    fn close(&self) {
+        let mut state = self.lock();
+        state.0.clear();
+        state.1 = true;
+        drop(state);
+        self.ready.notify_all();
+    }
+}
+
+struct CloseOnDrop<'a>(&'a TileQueue);
+
+impl Drop for CloseOnDrop<'_> {
+    fn drop(&mut self) {
+        self.0.close();
+    }
 }

@@ -677,28 +677,21 @@ pub struct RenderedTile {
 }
 
 impl RenderedTile {
-    /// Appends the tile's pixels (and film) to `out`, every value little-endian: colours, depths,
-    /// object ids, shader ids, then the film's sums if it has one. The tile itself is not written:
-    /// whoever decodes knows which tile it asked for.
+    /// Appends the tile's pixels (and film) to `out`: colours, depths, object ids, shader ids,
+    /// then a byte that says whether the film's sums follow, and those. Values are copied as they
+    /// lie in memory (the processes that exchange tiles run one build on one kind of machine:
+    /// `crate::distributed` checks), so a tile costs a few copies of its bytes. The tile itself is
+    /// not written: whoever decodes knows which tile it asked for.
     pub fn encode(&self, out: &mut Vec<u8>) {
         let px = &self.px;
-        let film_values = self.film.as_ref().map_or(0, |f| 5 * f.sums().len());
-        out.reserve(4 * (7 * px.depth.len() + film_values) + 1);
-        let mut floats = |v: &mut dyn Iterator<Item = f32>| v.for_each(|x| out.extend_from_slice(&x.to_le_bytes()));
-        floats(&mut px.color.iter().flatten().copied());
-        floats(&mut px.depth.iter().copied());
-        for id in px.ids.iter().chain(&px.shader_ids) {
-            out.extend_from_slice(&id.to_le_bytes());
-        }
-        match &self.film {
-            None => out.push(0),
-            Some(film) => {
-                out.push(1);
-                for v in film.sums().iter().flatten() {
-                    out.extend_from_slice(&v.to_le_bytes());
-                }
-            }
-        }
+        let film: &[[f32; 5]] = self.film.as_ref().map_or(&[], |f| f.sums());
+        out.reserve(4 * (7 * px.depth.len() + 5 * film.len()) + 1);
+        out.extend_from_slice(bytemuck::cast_slice(&px.color));
+        out.extend_from_slice(bytemuck::cast_slice(&px.depth));
+        out.extend_from_slice(bytemuck::cast_slice(&px.ids));
+        out.extend_from_slice(bytemuck::cast_slice(&px.shader_ids));
+        out.push(u8::from(self.film.is_some()));
+        out.extend_from_slice(bytemuck::cast_slice(film));
     }
 
     /// The tile that [`RenderedTile::encode`] wrote to `bytes`, for `tile` of a frame of `world`
@@ -706,35 +699,29 @@ impl RenderedTile {
     /// bytes hold exactly that.
     pub fn decode(world: &World, tile: Tile, bytes: &[u8]) -> Result<RenderedTile, String> {
         let n = tile.width as usize * tile.height as usize;
-        let mut words = bytes.chunks_exact(4).map(|w| [w[0], w[1], w[2], w[3]]);
-        let mut next = |count: usize| -> Result<Vec<[u8; 4]>, String> {
-            let v: Vec<[u8; 4]> = words.by_ref().take(count).collect();
-            if v.len() == count {
-                Ok(v)
-            } else {
-                Err(format!("tile {} arrived short: {} bytes for {n} pixels", tile.index, bytes.len()))
-            }
+        let short = || format!("tile {} arrived short: {} bytes for {n} pixels", tile.index, bytes.len());
+        let mut rest = bytes;
+        let mut values = |count: usize| -> Result<&[u8], String> {
+            let bytes_needed = 4 * count;
+            let (head, tail) = rest.split_at_checked(bytes_needed).ok_or_else(short)?;
+            rest = tail;
+            Ok(head)
         };
-        let color = next(4 * n)?.chunks_exact(4).map(|c| std::array::from_fn(|i| f32::from_le_bytes(c[i]))).collect();
-        let depth = next(n)?.into_iter().map(f32::from_le_bytes).collect();
-        let ids = next(n)?.into_iter().map(u32::from_le_bytes).collect();
-        let shader_ids = next(n)?.into_iter().map(u32::from_le_bytes).collect();
-        let px = TileSamples { color, depth, ids, shader_ids };
+        let mut px = TileSamples::empty(&tile);
+        bytemuck::cast_slice_mut::<[f32; 4], u8>(&mut px.color).copy_from_slice(values(4 * n)?);
+        bytemuck::cast_slice_mut::<f32, u8>(&mut px.depth).copy_from_slice(values(n)?);
+        bytemuck::cast_slice_mut::<u32, u8>(&mut px.ids).copy_from_slice(values(n)?);
+        bytemuck::cast_slice_mut::<u32, u8>(&mut px.shader_ids).copy_from_slice(values(n)?);
         let options = &world.options;
-        let film_at = 4 * 7 * n;
-        let film = match (bytes.get(film_at), options.pixel_filter.is_unit_box()) {
-            (Some(0), true) if bytes.len() == film_at + 1 => None,
-            (Some(1), false) => {
+        let film = match (rest.split_first(), options.pixel_filter.is_unit_box()) {
+            (Some((0, [])), true) => None,
+            (Some((1, sums)), false) => {
                 let mut film = TileFilm::new(options.pixel_filter, &tile, options.pixel_range());
-                let sums = &bytes[film_at + 1..];
-                if sums.len() != 20 * film.sums().len() {
+                let into: &mut [u8] = bytemuck::cast_slice_mut(film.sums_mut());
+                if sums.len() != into.len() {
                     return Err(format!("tile {}: its film does not match the frame's pixel filter", tile.index));
                 }
-                for (s, b) in film.sums_mut().iter_mut().zip(sums.chunks_exact(20)) {
-                    *s = std::array::from_fn(|i| {
-                        f32::from_le_bytes([b[4 * i], b[4 * i + 1], b[4 * i + 2], b[4 * i + 3]])
-                    });
-                }
+                into.copy_from_slice(sums);
                 Some(film)
             }
             _ => return Err(format!("tile {}: its pixels do not match the frame's pixel filter", tile.index)),
