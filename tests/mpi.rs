@@ -136,3 +136,20 @@ fn without_mpirun_the_flag_renders_on_one_rank() {
         assert!(dir.path().join("x.png").exists());
     }
 }
+
+#[test]
+fn bench_render_times_frames_over_the_workers() {
+    if !mpirun_present() {
+        return;
+    }
+    let dir = tempfile::tempdir().expect("tempdir");
+    let o = mpirun(2, &["bench", "render", "--frames", "2", "--size", "48x32"], dir.path());
+    let out = text(&o);
+    assert!(o.status.success(), "{out}");
+    assert!(out.contains("worker ranks: 1, threads: 2"), "{out}");
+    assert!(out.lines().any(|l| l.starts_with("fps: ")), "{out}");
+    assert!(out.contains("MPI traffic per frame"), "{out}");
+    let refused = mpirun(2, &["bench", "render", "--frames", "1", "--native-plastic"], dir.path());
+    assert!(!refused.status.success());
+    assert!(text(&refused).contains("without --mpi"), "{}", text(&refused));
+}

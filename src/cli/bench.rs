@@ -181,6 +181,10 @@ pub struct BenchRenderArgs {
     /// Directories searched for shaders by name.
     #[arg(short = 'S', long = "shader-path")]
     pub shader_path: Vec<PathBuf>,
+    /// Render over the ranks of an `mpirun` job: rank 0 times the frames, the others render tiles
+    /// (`--threads` each; docs/distributed.md).
+    #[arg(long)]
+    pub mpi: bool,
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -191,17 +195,63 @@ fn median(mut v: Vec<f64>) -> f64 {
 /// Runs `rtsl bench render`: frames per second and rays per second of a scene, and with
 /// `--native-plastic` the JIT frame time over the hand-written one, measured in one run.
 pub fn run_render(args: &BenchRenderArgs) -> anyhow::Result<()> {
-    let (mut rt, _) = super::render::load_scene(args.scene.as_deref(), &args.shader_path, &[])?;
-    if let Some((w, h)) = args.size {
-        rt.options.width = w;
-        rt.options.height = h;
-    }
-    rt.options.samples = super::render::samples_grid(args.samples);
-    if let Some(aa) = args.aa {
-        rt.options.antialiasing = aa;
-    }
-    let mut world = rt.build_world()?;
+    let load = || -> anyhow::Result<rtsl_runtime::api::Context> {
+        let (mut rt, _) = super::render::load_scene(args.scene.as_deref(), &args.shader_path, &[])?;
+        if let Some((w, h)) = args.size {
+            rt.options.width = w;
+            rt.options.height = h;
+        }
+        rt.options.samples = super::render::samples_grid(args.samples);
+        if let Some(aa) = args.aa {
+            rt.options.antialiasing = aa;
+        }
+        Ok(rt)
+    };
     let (threads, pool) = super::worker_pool(args.threads)?;
+    if args.mpi {
+        anyhow::ensure!(
+            !args.native_plastic && !args.compare_trace_ahead,
+            "--native-plastic and --compare-trace-ahead change the world on rank 0 only: run them without --mpi"
+        );
+        let transport = super::mpi::transport()?;
+        if transport.rank() != 0 {
+            super::mpi::work(&*transport, load().map(rtsl_runtime::distributed::StillScene::new), &pool)?;
+            return Ok(());
+        }
+        let mut master = rtsl_runtime::distributed::Master::connect(transport)?;
+        let mut rt = load()?;
+        master.check_workers()?;
+        anyhow::ensure!(master.workers() > 0, "--mpi needs worker ranks: run it with mpirun -n 2 or more");
+        let world = rt.build_world()?;
+        let mut ms = Vec::new();
+        let mut last = None;
+        for frame in 0..=args.frames.max(1) {
+            let (_, report) = master.render_frame(&world, &[], None)?;
+            if frame > 0 {
+                ms.push(report.elapsed.as_secs_f64() * 1e3);
+                last = Some(report);
+            }
+        }
+        let report = last.unwrap_or_default();
+        let ms = median(ms);
+        println!("scene: {}", args.scene.as_ref().map_or("<default scene>".into(), |p| p.display().to_string()));
+        println!(
+            "size: {}x{}, samples per pixel: {}, worker ranks: {}, threads: {}",
+            world.options.width,
+            world.options.height,
+            args.samples,
+            master.workers(),
+            master.worker_threads()
+        );
+        println!("frame_ms: {ms:.2}");
+        println!("fps: {:.2}", 1e3 / ms.max(1e-9));
+        println!("mrays_per_second: {:.2}", report.total_rays() as f64 / ms.max(1e-9) / 1e3);
+        println!("{}", super::mpi::traffic_line(&master.traffic()));
+        master.shutdown()?;
+        return Ok(());
+    }
+    let mut rt = load()?;
+    let mut world = rt.build_world()?;
     let frames = args.frames.max(1);
     let jit_world = world.materials.clone();
     let native_count = if args.native_plastic { world.use_native_plastic() } else { 0 };

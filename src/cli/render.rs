@@ -3,7 +3,7 @@
 
 use anyhow::Context as _;
 use rtsl_runtime::api::Context;
-use rtsl_runtime::distributed::Master;
+use rtsl_runtime::distributed::{Master, StillScene};
 use rtsl_runtime::reload::{ShaderEvent, ShaderReloader};
 use rtsl_runtime::render::{render_frame, Antialiasing, FrameReport, Framebuffer, World};
 use rtsl_runtime::scene_file::{add_model_file, frame_bounds};
@@ -324,7 +324,7 @@ fn run_mpi(args: &RenderArgs) -> anyhow::Result<ExitCode> {
     let transport = super::mpi::transport()?;
     let (_, pool) = super::worker_pool(args.threads)?;
     if transport.rank() != 0 {
-        return super::mpi::work(&*transport, prepare(args, false).map(|(rt, _)| rt), &pool);
+        return super::mpi::work(&*transport, prepare(args, false).map(|(rt, _)| StillScene::new(rt)), &pool);
     }
     let mut master = Master::connect(transport)?;
     let (mut rt, output) = prepare(args, true)?;

@@ -35,7 +35,7 @@ mod worker;
 pub use master::{Master, Traffic};
 pub use message::{FrameCounts, Message, PROTOCOL_VERSION};
 pub use transport::{LocalTransport, Transport, TransportError};
-pub use worker::{serve, WorkerScene};
+pub use worker::{serve, StillScene, WorkerScene};
 
 use crate::render::FrameReport;
 use std::time::Duration;

@@ -18,17 +18,32 @@ pub trait WorkerScene {
     fn finished(&mut self, world: World);
 }
 
-/// A scene that stays as it was loaded: every frame's update is empty.
-impl WorkerScene for crate::api::Context {
+/// A scene that stays as it was loaded: every frame's update is empty, and every frame renders
+/// the world built for the first.
+pub struct StillScene {
+    context: crate::api::Context,
+    world: Option<World>,
+}
+
+impl StillScene {
+    pub fn new(context: crate::api::Context) -> StillScene {
+        StillScene { context, world: None }
+    }
+}
+
+impl WorkerScene for StillScene {
     fn world(&mut self, update: &[u8]) -> Result<World, String> {
         if !update.is_empty() {
             return Err(format!("a scene that does not change was sent an update of {} bytes", update.len()));
         }
-        self.build_world().map_err(|e| e.to_string())
+        match self.world.take() {
+            Some(world) => Ok(world),
+            None => self.context.build_world().map_err(|e| e.to_string()),
+        }
     }
 
     fn finished(&mut self, world: World) {
-        self.return_scene(world);
+        self.world = Some(world);
     }
 }
 
