@@ -153,3 +153,64 @@ fn bench_render_times_frames_over_the_workers() {
     assert!(!refused.status.success());
     assert!(text(&refused).contains("without --mpi"), "{}", text(&refused));
 }
+
+/// The process of rank `rank` of an mpirun job started in `dir` (found by its environment and
+/// working directory), if it is running.
+fn rank_process(dir: &Path, rank: usize) -> Option<u32> {
+    let marker = format!("OMPI_COMM_WORLD_RANK={rank}");
+    std::fs::read_dir("/proc").ok()?.flatten().find_map(|entry| {
+        let pid: u32 = entry.file_name().to_str()?.parse().ok()?;
+        let cwd = std::fs::read_link(entry.path().join("cwd")).ok()?;
+        let environ = std::fs::read(entry.path().join("environ")).ok()?;
+        let ours = cwd == dir && environ.split(|&b| b == 0).any(|v| v == marker.as_bytes());
+        ours.then_some(pid)
+    })
+}
+
+#[test]
+fn a_worker_that_dies_ends_the_job_with_its_rank_named() {
+    if !mpirun_present() {
+        return;
+    }
+    let dir = tempfile::tempdir().expect("tempdir");
+    let dir_path = dir.path().canonicalize().expect("a real path");
+    // Frames enough to outlast the test by far.
+    let mut job = Command::new("mpirun")
+        .args(["-n", "3", "--oversubscribe", "--bind-to", "none"])
+        .arg(env!("CARGO_BIN_EXE_rtsl"))
+        .args(["bench", "render", "--frames", "1000000", "--size", "64x48", "--threads", "1", "--mpi"])
+        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+        .current_dir(&dir_path)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("mpirun runs");
+    let start = std::time::Instant::now();
+    let victim = loop {
+        if let Some(pid) = rank_process(&dir_path, 2) {
+            break pid;
+        }
+        assert!(start.elapsed().as_secs() < 60, "rank 2 never started");
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    };
+    // Let the frames begin, then kill the worker outright.
+    std::thread::sleep(std::time::Duration::from_secs(3));
+    let killed = Command::new("kill").args(["-9", &victim.to_string()]).status().expect("kill runs");
+    assert!(killed.success());
+    let waited = std::time::Instant::now();
+    let status = loop {
+        if let Some(status) = job.try_wait().expect("mpirun's status") {
+            break status;
+        }
+        if waited.elapsed().as_secs() > 60 {
+            let _ = job.kill();
+            panic!("the job went on for a minute after rank 2 died");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    };
+    let out = job.wait_with_output().expect("mpirun's output");
+    let text = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    assert!(!status.success(), "{text}");
+    assert!(text.contains("rank 2"), "{text}");
+}
