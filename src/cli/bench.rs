@@ -4,6 +4,7 @@
 
 use super::render::CameraSpec;
 use anyhow::Context as _;
+use rtsl_runtime::render::FrameReport;
 use rtsl_runtime::{run_bench, BenchOptions, BuildQuality};
 use std::path::PathBuf;
 
@@ -192,6 +193,24 @@ fn median(mut v: Vec<f64>) -> f64 {
     v.get(v.len() / 2).copied().unwrap_or(0.0)
 }
 
+/// The lines every `rtsl bench render` prints: the scene and its size, who rendered it, the
+/// median frame time `ms` and the rays of the last frame.
+fn print_rate(args: &BenchRenderArgs, world: &rtsl_runtime::render::World, who: &str, ms: f64, report: &FrameReport) {
+    println!("scene: {}", args.scene.as_ref().map_or("<default scene>".into(), |p| p.display().to_string()));
+    println!("size: {}x{}, samples per pixel: {}, {who}", world.options.width, world.options.height, args.samples);
+    println!("frame_ms: {ms:.2}");
+    println!("fps: {:.2}", 1e3 / ms.max(1e-9));
+    println!(
+        "rays_per_frame: {} (primary {}, shadow {}, secondary {}, transparency {})",
+        report.total_rays(),
+        report.primary_rays,
+        report.shadow_rays,
+        report.secondary_rays,
+        report.transparency_rays
+    );
+    println!("mrays_per_second: {:.2}", report.total_rays() as f64 / ms.max(1e-9) / 1e3);
+}
+
 /// Runs `rtsl bench render`: frames per second and rays per second of a scene, and with
 /// `--native-plastic` the JIT frame time over the hand-written one, measured in one run.
 pub fn run_render(args: &BenchRenderArgs) -> anyhow::Result<()> {
@@ -232,20 +251,8 @@ pub fn run_render(args: &BenchRenderArgs) -> anyhow::Result<()> {
                 last = Some(report);
             }
         }
-        let report = last.unwrap_or_default();
-        let ms = median(ms);
-        println!("scene: {}", args.scene.as_ref().map_or("<default scene>".into(), |p| p.display().to_string()));
-        println!(
-            "size: {}x{}, samples per pixel: {}, worker ranks: {}, threads: {}",
-            world.options.width,
-            world.options.height,
-            args.samples,
-            master.workers(),
-            master.worker_threads()
-        );
-        println!("frame_ms: {ms:.2}");
-        println!("fps: {:.2}", 1e3 / ms.max(1e-9));
-        println!("mrays_per_second: {:.2}", report.total_rays() as f64 / ms.max(1e-9) / 1e3);
+        let threads = format!("worker ranks: {}, threads: {}", master.workers(), master.worker_threads());
+        print_rate(args, &world, &threads, median(ms), &last.unwrap_or_default());
         println!("{}", super::mpi::traffic_line(&master.traffic()));
         master.shutdown()?;
         return Ok(());
@@ -292,22 +299,7 @@ pub fn run_render(args: &BenchRenderArgs) -> anyhow::Result<()> {
     }
     let report = last.unwrap_or_default();
     let ms = median(jit_ms);
-    println!("scene: {}", args.scene.as_ref().map_or("<default scene>".into(), |p| p.display().to_string()));
-    println!(
-        "size: {}x{}, samples per pixel: {}, threads: {threads}",
-        world.options.width, world.options.height, args.samples
-    );
-    println!("frame_ms: {ms:.2}");
-    println!("fps: {:.2}", 1e3 / ms.max(1e-9));
-    println!(
-        "rays_per_frame: {} (primary {}, shadow {}, secondary {}, transparency {})",
-        report.total_rays(),
-        report.primary_rays,
-        report.shadow_rays,
-        report.secondary_rays,
-        report.transparency_rays
-    );
-    println!("mrays_per_second: {:.2}", report.total_rays() as f64 / ms.max(1e-9) / 1e3);
+    print_rate(args, &world, &format!("threads: {threads}"), ms, &report);
     println!("shading_share: {:.3}", report.shading_share());
     for kind in rtsl_compiler::front::parse::ast::ShaderKind::ALL {
         let share = report.shader_share(kind);
