@@ -215,3 +215,31 @@ fn a_worker_that_goes_silent_is_an_error_not_a_hang() {
     assert!(master.render_frame(&world, &[], None).is_err());
     drop(worker_end);
 }
+
+#[test]
+fn a_tile_decodes_to_itself_and_damaged_tiles_are_errors() {
+    use rtsl_runtime::render::{RenderedTile, TileRenderer};
+    for make in [office as MakeScene, library_with_camera_and_pixel_shader] {
+        let mut rt = make().expect("the scene loads");
+        let world = rt.build_world().expect("a world");
+        let renderer = TileRenderer::new(&world);
+        let tile = renderer.tiles()[5];
+        let mut bytes = Vec::new();
+        renderer.render_tile(&tile).encode(&mut bytes);
+        let decoded = RenderedTile::decode(&world, tile, &bytes).expect("a whole tile");
+        let mut again = Vec::new();
+        decoded.encode(&mut again);
+        assert_eq!(again, bytes);
+        for cut in [0, 1, bytes.len() / 2, bytes.len() - 1] {
+            assert!(RenderedTile::decode(&world, tile, &bytes[..cut]).is_err(), "cut at {cut}");
+        }
+        let mut longer = bytes.clone();
+        longer.push(0);
+        assert!(RenderedTile::decode(&world, tile, &longer).is_err());
+        // The pixels of another tile's size do not fit this one.
+        let other = renderer.tiles().last().copied().expect("tiles");
+        if (other.width, other.height) != (tile.width, tile.height) {
+            assert!(RenderedTile::decode(&world, other, &bytes).is_err());
+        }
+    }
+}

@@ -677,11 +677,12 @@ pub struct RenderedTile {
 }
 
 impl RenderedTile {
-    /// Appends the tile's pixels (and film) to `out`: colours, depths, object ids, shader ids,
-    /// then a byte that says whether the film's sums follow, and those. Values are copied as they
-    /// lie in memory (the processes that exchange tiles run one build on one kind of machine:
-    /// `crate::distributed` checks), so a tile costs a few copies of its bytes. The tile itself is
-    /// not written: whoever decodes knows which tile it asked for.
+    /// Appends the tile's pixels (and film) to `out`: colours, depths, object ids, then a byte
+    /// that says whether the tile is unfinished (filtered on the master), and if it is, its shader
+    /// ids (for the pixel shader that runs after filtering) and its film's sums. Values are copied
+    /// as they lie in memory (the processes that exchange tiles run one build on one kind of
+    /// machine: `crate::distributed` checks), so a tile costs a few copies of its bytes. The tile
+    /// itself is not written: whoever decodes knows which tile it asked for.
     pub fn encode(&self, out: &mut Vec<u8>) {
         let px = &self.px;
         let film: &[[f32; 5]] = self.film.as_ref().map_or(&[], |f| f.sums());
@@ -689,9 +690,11 @@ impl RenderedTile {
         out.extend_from_slice(bytemuck::cast_slice(&px.color));
         out.extend_from_slice(bytemuck::cast_slice(&px.depth));
         out.extend_from_slice(bytemuck::cast_slice(&px.ids));
-        out.extend_from_slice(bytemuck::cast_slice(&px.shader_ids));
         out.push(u8::from(self.film.is_some()));
-        out.extend_from_slice(bytemuck::cast_slice(film));
+        if self.film.is_some() {
+            out.extend_from_slice(bytemuck::cast_slice(&px.shader_ids));
+            out.extend_from_slice(bytemuck::cast_slice(film));
+        }
     }
 
     /// The tile that [`RenderedTile::encode`] wrote to `bytes`, for `tile` of a frame of `world`
@@ -711,11 +714,12 @@ impl RenderedTile {
         bytemuck::cast_slice_mut::<[f32; 4], u8>(&mut px.color).copy_from_slice(values(4 * n)?);
         bytemuck::cast_slice_mut::<f32, u8>(&mut px.depth).copy_from_slice(values(n)?);
         bytemuck::cast_slice_mut::<u32, u8>(&mut px.ids).copy_from_slice(values(n)?);
-        bytemuck::cast_slice_mut::<u32, u8>(&mut px.shader_ids).copy_from_slice(values(n)?);
         let options = &world.options;
         let film = match (rest.split_first(), options.pixel_filter.is_unit_box()) {
             (Some((0, [])), true) => None,
-            (Some((1, sums)), false) => {
+            (Some((1, unfinished)), false) => {
+                let (shader_ids, sums) = unfinished.split_at_checked(4 * n).ok_or_else(short)?;
+                bytemuck::cast_slice_mut::<u32, u8>(&mut px.shader_ids).copy_from_slice(shader_ids);
                 let mut film = TileFilm::new(options.pixel_filter, &tile, options.pixel_range());
                 let into: &mut [u8] = bytemuck::cast_slice_mut(film.sums_mut());
                 if sums.len() != into.len() {
