@@ -1,0 +1,13 @@
+//! AFF text (BART's NFF with keyframes) through the reader, and what it reads onto a `Context`.
+#![no_main]
+
+use libfuzzer_sys::fuzz_target;
+
+fuzz_target!(|data: &[u8]| {
+    let text = String::from_utf8_lossy(data);
+    let path = std::path::Path::new("fuzz.aff");
+    if let Ok(scene) = rtsl_runtime::bart::parse_str(&text, path) {
+        let mut rt = rtsl_runtime::api::Context::new();
+        let _ = rtsl_runtime::bart::load_parsed(&mut rt, scene, path);
+    }
+});
