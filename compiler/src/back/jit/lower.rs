@@ -1128,7 +1128,6 @@ impl<'m> Lower<'m, '_> {
         Ok(())
     }
 
-    /// The number of a runtime check's site, its description recorded.
     /// The site of a runtime check at `span`. Inlined copies of a function share their sites, so
     /// that a check is reported once per place in the source, as the interpreter reports it.
     fn site(&mut self, span: crate::source::Span) -> usize {
