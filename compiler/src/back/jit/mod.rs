@@ -16,7 +16,7 @@
 //!   `f32x4` chunks that write back the loaded bits in inactive lanes; wholly inactive chunks are not
 //!   touched at all).
 //! - **Agreement**: every lane computes what the reference interpreter computes for that lane
-//!   (differential tests in `compiler/tests/jit.rs`); arithmetic is evaluated in the interpreter's
+//!   (differential tests in `compiler/tests/jit_*.rs`); arithmetic is evaluated in the interpreter's
 //!   order, and transcendental and noise functions call the same scalar Rust code per lane (one
 //!   helper call per chunk), so results agree bit for bit except where noted in `math.rs`.
 //! - The Cranelift verifier runs in debug and test builds only.

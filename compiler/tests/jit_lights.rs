@@ -1,0 +1,85 @@
+//! Lights in the packet JIT against the interpreter, lane by lane: illuminance loops and shading
+//! models, light shaders (`illuminate`, `solar`), and the other shader types (imager, volume).
+
+mod common;
+
+use common::check;
+
+#[test]
+fn lights_loops_and_shading_models() {
+    check(
+        r#"
+        surface t(float Ks = 0.5; float roughness = 0.2; output varying float cnt = 0;)
+        {
+            normal Nf = faceforward(normalize(N), I);
+            vector V = -normalize(I);
+            color c = 0;
+            illuminance(P, Nf, 1.5707964) {
+                cnt += 1;
+                c += Cl * (normalize(L) . Nf);
+            }
+            illuminance("specular", P) {
+                if (s > 0.5) break;
+                cnt += 10;
+            }
+            illuminance(P, vector(0, 0, 1), 0.1 + s) { cnt += 100; }
+            Ci = c + ambient() + diffuse(Nf) + Ks * specular(Nf, V, roughness) + phong(Nf, V, 20);
+            Oi = Os;
+        }
+        "#,
+    );
+}
+
+#[test]
+fn light_shaders_illuminate_and_solar() {
+    check(
+        r#"
+        light spot(point from = point(0, 0, 0); vector axis = vector(0, 0, 1); float angle = 0.8;)
+        {
+            illuminate(from, axis, angle) {
+                Cl = color(1, 0.5, 0.25) / (L . L + 1);
+            }
+        }
+        "#,
+    );
+    check(
+        r#"
+        light pt(point from = point(0.2, 0.1, 0);)
+        {
+            illuminate(from) { Cl = color(length(L)); }
+        }
+        "#,
+    );
+    check(
+        r#"
+        light sun(vector to = vector(0, 0, -1);)
+        {
+            solar(to, 0) { Cl = color(1, 1, 0.9) * s; }
+        }
+        "#,
+    );
+}
+
+#[test]
+fn imager_and_volume_shaders() {
+    check(
+        r#"
+        imager background(color background = 1;)
+        {
+            Ci += (1 - alpha) * background;
+            Oi = 1;
+            alpha = 1;
+        }
+        "#,
+    );
+    check(
+        r#"
+        volume fogish(float distance = 1; color background = 0;)
+        {
+            float d = 1 - exp(-length(I) / distance);
+            Ci = mix(Ci, background, d);
+            Oi = mix(Oi, color(1, 1, 1), d);
+        }
+        "#,
+    );
+}

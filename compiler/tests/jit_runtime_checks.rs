@@ -1,0 +1,100 @@
+//! The packet JIT's runtime checks: the loop budget (per invocation, as in the interpreter) and
+//! array indices out of range, each stopped or clamped and reported once with its place.
+
+mod common;
+
+use common::{floats_of, module};
+use rtsl_compiler::back::jit::{self, CompiledShader};
+use rtsl_compiler::interp::{self, Limits, ShadingPoint, TestHost, Value};
+use rtsl_compiler::{compile_source, Options};
+
+fn compiled_with_sources(src: &str, budget: u32) -> CompiledShader {
+    let c = compile_source("checks.sl", src, &Options::default());
+    assert!(c.ok(), "{}", c.render());
+    let m = c.module.as_ref().expect("a module");
+    jit::compile_with(m, Some(&c.sources), &jit::JitOptions { loop_budget: budget }).expect("jit")
+}
+
+#[test]
+fn a_loop_that_never_ends_is_stopped_and_reported_once() {
+    let shader = compiled_with_sources(
+        "surface spin() {\n  float x = 0;\n  while (1) {\n    x += 1;\n  }\n  Ci = color(x);\n  Oi = 1;\n}\n",
+        1000,
+    );
+    let mut batch = shader.batch(7);
+    shader.shade(&mut batch);
+    // The loop body ran the budget's worth of times, then the shader went on.
+    assert_eq!(batch.global("Ci", 6), Some(vec![1000.0; 3]));
+    let errors = shader.runtime_errors();
+    assert_eq!(errors, vec!["the loop at checks.sl:3:3 was stopped: the shader ran more than 1000 loop iterations"]);
+    shader.shade(&mut batch);
+    assert!(shader.runtime_errors().is_empty(), "each place is reported once");
+}
+
+/// The loop budget counts every loop of an invocation together, in the JIT as in the interpreter:
+/// nested runaway loops stop after one budget, not one per entry of the inner loop, and both back
+/// ends stop at the same iteration.
+#[test]
+fn the_loop_budget_holds_per_invocation_in_both_back_ends() {
+    let budget = 1000;
+    let cases = [
+        // Nested runaway loops: the outer one stops at its next test.
+        ("surface t() {\n  float x = 0;\n  while (1) {\n    while (1) { x += 1; }\n    x += 1000000;\n  }\n  Ci = x;\n}\n", 1_000_999.0, 2),
+        // Loops in sequence share the budget.
+        ("surface t() {\n  float a = 0, b = 0, i;\n  for (i = 0; i < 600; i += 1) a += 1;\n  for (i = 0; i < 600; i += 1) b += 1;\n  Ci = a * 1000 + b;\n}\n", 600_399.0, 1),
+        // Loops in (inlined) functions share it too.
+        ("float spin() { float n = 0; while (1) n += 1; return n; }\nsurface t() {\n  Ci = spin() + spin();\n}\n", 1000.0, 1),
+        // A uniform loop ahead of the varying work runs in the JIT's once-per-batch prologue.
+        ("surface t(float k = 700;) {\n  uniform float i, a = 0;\n  for (i = 0; i < k; i += 1) a += 1;\n  float b = 0;\n  while (s >= 0) b += 1;\n  Ci = a * 1000 + b;\n}\n", 700_299.0, 1),
+    ];
+    for (src, want, stopped) in cases {
+        let shader = compiled_with_sources(src, budget);
+        let mut batch = shader.batch(6);
+        for lane in 0..6 {
+            batch.set_global("s", lane, &[lane as f32]);
+        }
+        shader.shade(&mut batch);
+        let m = module(src);
+        let errors = shader.runtime_errors();
+        assert_eq!(errors.len(), stopped, "{src}: {errors:?}");
+        assert!(errors.iter().all(|e| e.ends_with("the shader ran more than 1000 loop iterations")), "{errors:?}");
+        for lane in 0..6 {
+            assert_eq!(batch.global("Ci", lane).expect("Ci")[0], want, "{src}: JIT, lane {lane}");
+            let mut point = ShadingPoint::new(m.shader.as_ref().expect("shader").kind);
+            point.set("s", Value::Float(lane as f32));
+            let limits = Limits { loop_iterations: budget, ..Limits::default() };
+            let r = interp::run(&m, &[], &mut point, &mut TestHost::default(), limits).expect("runs");
+            let ci = floats_of(point.get("Ci").expect("Ci"))[0];
+            assert_eq!(ci, want, "{src}: interpreter, lane {lane}");
+            assert_eq!(r.stopped_loops.len(), stopped, "{src}");
+        }
+    }
+}
+
+#[test]
+fn an_index_out_of_range_is_clamped_and_reported() {
+    let shader = compiled_with_sources(
+        "surface pick(float k = 0;) {\n  float a[3] = {1, 2, 3};\n  Ci = color(a[k * s]);\n  Oi = 1;\n}\n",
+        1 << 20,
+    );
+    let mut batch = shader.batch(4);
+    for lane in 0..4 {
+        batch.set_global("s", lane, &[lane as f32]);
+    }
+    batch.set_param("k", 0, &[1.0]);
+    shader.shade(&mut batch);
+    // Lanes 0..2 index in range; lane 3's index 3 is clamped to the last element (the interpreter's
+    // rule) and reported once, with its place.
+    let got: Vec<f32> = (0..4).map(|l| batch.global("Ci", l).expect("Ci")[0]).collect();
+    assert_eq!(got, vec![1.0, 2.0, 3.0, 3.0]);
+    let errors = shader.runtime_errors();
+    assert_eq!(errors.len(), 1, "{errors:?}");
+    assert!(
+        errors[0].starts_with("an array index at checks.sl:3:") && errors[0].ends_with("was clamped"),
+        "{errors:?}"
+    );
+    // In range everywhere: nothing to report.
+    batch.set_param("k", 0, &[0.5]);
+    shader.shade(&mut batch);
+    assert!(shader.runtime_errors().is_empty());
+}

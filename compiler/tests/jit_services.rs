@@ -1,0 +1,175 @@
+//! The renderer's services in the packet JIT against the interpreter (through `TestHost` for both
+//! back ends): textures, environments, shadows, rays, `gather`, messages, the volumes on either
+//! side, 3D textures, point clouds and photon maps.
+
+mod common;
+
+use common::{check, module};
+use rtsl_compiler::back::jit;
+use rtsl_compiler::interp::TestHost;
+
+#[test]
+fn textures_rays_and_messages() {
+    check(
+        r#"
+        surface t(string tex = "grid.tx"; output varying float o = 0; output varying float found = 0;)
+        {
+            color c = texture(tex) + color texture(tex, s * 2, t) + color texture("missing", s, t, "fill", 0.5);
+            float x = float texture(tex[1], s, t) + texture(tex, s, t, "channel", 2);
+            c += color environment("sky", I) + color environment("missing", I, "fill", 0.25);
+            x += shadow("shad", P) + float trace(P, N) + occlusion(P, N) + occlusion(P, N, 8);
+            c += trace(P, reflect(I, N)) + transmission(P, point(0, 0, 0)) + indirectdiffuse(P, N, 4);
+            x += float visibility(P, point(1, 1, 1)) + raydepth();
+            color kd = 0;
+            float fmt[3];
+            string r = "";
+            found = surface("Kd", kd) + option("Format", fmt) * 10 + rendererinfo("renderer", r) * 100;
+            found += attribute("identifier:name", r) * 1000 + (r == "rtsl" ? 10000 : 0);
+            if (shadername() != "") found += 100000;
+            o = x + fmt[0] + fmt[2];
+            Ci = c + kd;
+        }
+        "#,
+    );
+}
+
+#[test]
+fn shadow_lookups_pass_their_region_and_options() {
+    // The test host's shadow() is a function of every field of the query (the point, the four
+    // corners, each option), so the JIT and the interpreter agree only when both pass the same.
+    check(
+        r#"
+        surface t(float b = 0.05; output varying float o = 0; output varying float o2 = 0;)
+        {
+            o = shadow("shad", P) + shadow("shad", P * 2, "bias", b, "samples", 4 + s);
+            o += shadow("shad", P, "blur", 0.1, "tblur", 0.3 * t, "width", 2, "swidth", 0.5);
+            o2 = shadow("shad", P, P + dPdu, P + dPdv, P + dPdu + dPdv, "sblur", 0.2);
+            point q = P + vector(u, v, 0);
+            if (u > 0.3)
+                o2 += float shadow("shad", q, "twidth", 3);
+            Ci = color shadow("shad", transform("shader", P));
+        }
+        "#,
+    );
+}
+
+#[test]
+fn incident_and_opposite_ask_the_volume_on_each_side() {
+    // The test host answers "side" 1 inside and 2 outside, and "ior" inside only; the globals I and
+    // Ng are random per lane, so lanes see both sides.
+    check(
+        r#"
+        surface t(output varying float a = 0; output varying float b = 0; output varying float c = 0;)
+        {
+            float side = 0, ior = 0;
+            a = incident("side", side) * 10 + side;
+            b = opposite("side", side) * 10 + side;
+            c = incident("ior", ior) + opposite("ior", ior) * 2 + ior + incident("side", ior);
+            color nope = 0;
+            if (incident("side", nope) == 0 && opposite("nosuch", side) == 0)
+                c += 100;
+            Ci = color(a, b, c);
+        }
+        "#,
+    );
+}
+
+#[test]
+fn texture3d_grid_lookups() {
+    // The test host's grids are the ramp x/4 + y/2 + z/8; "missing" cannot be read (fill).
+    check(
+        r#"
+        surface t(string grid = "ramp.grid"; output varying float a = 0; output varying color b = 0;)
+        {
+            a = texture3d(grid, P) + texture3d("missing", P * 2, "fill", 0.25 + s);
+            if (u > 0.5)
+                b = color texture3d(grid, transform("shader", P));
+            else
+                b = texture3d("missing", P);
+            Ci = b + a;
+        }
+        "#,
+    );
+    let mut host = TestHost::default();
+    use rtsl_compiler::interp::Services;
+    assert_eq!(host.texture3d("ramp.grid", [4.0, 2.0, 8.0]), Some(3.0));
+    assert_eq!(host.texture3d("missing", [0.0; 3]), None);
+}
+
+#[test]
+fn gather_samples_outputs_branches_and_loop_exits() {
+    // The test host's ceiling (z = P.z + 10) is hit by rays with a positive z component: axes
+    // along N (random) and cones from 0.3 to 2.3 radians give hits and misses in one chunk.
+    // Varying sample counts (0 to 5, and NaN-free negatives), options, every output kind,
+    // `break`/`continue` in both branches, a `return` from a function, and "samplepattern".
+    check(
+        r#"
+        float firsthit(point p; vector d; float cone)
+        {
+            float len = -1;
+            gather("illuminance", p, d, cone, 8, "ray:length", len) {
+                return len;
+            }
+            return -2;
+        }
+        surface t(float Kd = 0.5; string dist = "cosine"; output varying float o = 0;
+                  output varying color oc = 0; output varying vector ov = 0;)
+        {
+            color hitc = 0, sum = 0, opac = 0;
+            float len = 0, nhit = 0, nmiss = 0, k = 0;
+            vector dir = 0; point org = 0, hp = 0; normal hn = 0;
+            float arr[3] = {7, 8, 9};
+            float cone = 0.3 + 2 * s;
+            gather("illuminance", P, N, cone, floor(t * 6) - 0.5,
+                   "surface:Ci", hitc, "surface:Oi", opac, "ray:length", len, "ray:direction", dir,
+                   "ray:origin", org, "surface:P", hp, "surface:N", hn, "maxdist", 8 + 20 * u,
+                   "bias", v * 0.01, "distribution", dist, "label", "x", "ray:length", arr[1],
+                   "surface:Ci", len) {
+                sum += hitc * opac + color(hp * 0.01 + hn);
+                nhit += 1;
+                if (len > 14) break;
+                k += len;
+            } else {
+                nmiss += 1;
+                ov += dir + org * 0.1;
+                if (nmiss > 2) continue;
+                k -= 1;
+            }
+            float pat = 0;
+            gather("samplepattern", P, vector(0, 0, 1), 0.5, 3, "ray:direction", dir, "surface:Ci", hitc) {
+                pat += zcomp(dir) + comp(hitc, 0);
+            }
+            o = nhit * 100 + nmiss * 10 + k + arr[1] + pat + firsthit(P, N, cone);
+            oc = sum * Kd;
+            ov += dir;
+            Ci = oc;
+        }
+        "#,
+    );
+}
+
+#[test]
+fn point_clouds_and_photon_maps_return_zero_and_are_reported_once() {
+    let src = r#"
+        surface t(output varying float o = 0; output varying color c = 1;)
+        {
+            if (s > 2) o = bake3d("cloud.ptc", "", P, N, "value", s);
+            o += texture3d("cloud.ptc", P, N, "value", o) + 1;
+            c = photonmap("global", P, N);
+        }
+    "#;
+    check(src);
+    let m = module(src);
+    let shader = jit::compile(&m).expect("compiles");
+    let mut batch = shader.batch(8);
+    shader.shade_with(&mut batch, &mut TestHost::default());
+    assert_eq!(batch.param("o", 3), Some(vec![1.0]));
+    assert_eq!(batch.param("c", 5), Some(vec![0.0; 3]));
+    let errors = shader.runtime_errors();
+    // `bake3d` sits under a condition no lane meets: only the two calls that ran are reported.
+    assert_eq!(errors.len(), 2, "{errors:?}");
+    assert!(errors[0].contains("`texture3d` at") && errors[1].contains("`photonmap` at"), "{errors:?}");
+    assert!(errors.iter().all(|e| e.contains("not supported")), "{errors:?}");
+    shader.shade_with(&mut batch, &mut TestHost::default());
+    assert!(shader.runtime_errors().is_empty(), "reported once");
+}
