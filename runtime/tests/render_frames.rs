@@ -1,0 +1,223 @@
+//! The engine through its API: frames. Images that depend neither on the thread count nor on shader
+//! timing, shaders bound when a frame is rendered, typed errors for misuse, adaptive sampling,
+//! incremental rebuilds (a moved instance, an edited object) and materials reused between frames.
+
+mod common;
+
+use common::{context, cube, quad, shadow_scene, FLAT, H, W};
+use glam::Vec3A;
+use rtsl_runtime::api::{ApiError, Primitive};
+use rtsl_runtime::render::Framebuffer;
+use rtsl_runtime::shading::{ParamError, ParamValue, ShaderProgram};
+
+#[test]
+fn the_image_does_not_depend_on_the_thread_count() -> Result<(), ApiError> {
+    let mut rt = context();
+    shadow_scene(&mut rt)?;
+    let mut images = Vec::new();
+    for threads in [1, 2, 3] {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("a thread pool");
+        let world = rt.build_world()?;
+        let (fb, _) = pool.install(|| rtsl_runtime::render::render_frame(&world, None));
+        rt.return_scene(world);
+        images.push(fb);
+    }
+    assert!(images.windows(2).all(|w| w[0] == w[1]));
+    Ok(())
+}
+
+#[test]
+fn shader_timing_can_be_turned_off_without_changing_the_image() -> Result<(), ApiError> {
+    use rtsl_compiler::front::parse::ast::ShaderKind;
+    let mut rt = context();
+    shadow_scene(&mut rt)?;
+    let (timed_image, timed) = rt.render_frame()?;
+    assert!(timed.shading > std::time::Duration::ZERO, "{timed}");
+    assert!(timed.shader_time(ShaderKind::Surface) > std::time::Duration::ZERO, "{timed}");
+    assert!(!timed.by_shader.is_empty());
+    rt.options.time_shaders = false;
+    let (untimed_image, untimed) = rt.render_frame()?;
+    assert_eq!(untimed.shading, std::time::Duration::ZERO, "{untimed}");
+    assert!(untimed.by_kind.iter().all(|t| t.is_zero()), "{untimed}");
+    assert!(untimed.by_shader.is_empty());
+    assert_eq!((untimed.primary_rays, untimed.shadow_rays), (timed.primary_rays, timed.shadow_rays));
+    assert!(untimed_image == timed_image);
+    // Timing comes back with the option: nothing of the untimed frame stays switched off.
+    rt.options.time_shaders = true;
+    assert!(rt.render_frame()?.1.shader_time(ShaderKind::Surface) > std::time::Duration::ZERO);
+    Ok(())
+}
+
+#[test]
+fn frames_bind_shaders_when_rendered() -> Result<(), ApiError> {
+    let mut rt = context();
+    let flat = rt.compile_shader("flat.sl", FLAT)?;
+    rt.camera_look_at(Vec3A::new(0.0, 0.0, 5.0), Vec3A::ZERO, Vec3A::Y, 60.0);
+    let o = rt.begin_object()?;
+    rt.bind_shader(flat)?;
+    quad(&mut rt, [[-10.0, -10.0, 0.0], [10.0, -10.0, 0.0], [10.0, 10.0, 0.0], [-10.0, 10.0, 0.0]])?;
+    rt.end_object()?;
+    let inst = rt.instantiate_object(o)?;
+    let (fb, _) = rt.render_frame()?;
+    assert_eq!(fb.pixel(W / 2, H / 2), [1.0; 4]);
+    // Same id, new code: the next frame uses it.
+    let half = ShaderProgram::from_source("flat.sl", "surface flat(color c = 1;) { Oi = 1; Ci = 0.5 * c; }", &[])?;
+    rt.replace_shader(flat, half)?;
+    let (fb, _) = rt.render_frame()?;
+    assert_eq!(fb.pixel(W / 2, H / 2), [0.5, 0.5, 0.5, 1.0]);
+    // A moved instance moves in the next frame.
+    rt.set_instance_transform(inst, glam::Affine3A::from_translation(glam::Vec3::new(100.0, 0.0, 0.0)))?;
+    let (fb, _) = rt.render_frame()?;
+    assert_eq!(fb.pixel(W / 2, H / 2), [0.0; 4]);
+    Ok(())
+}
+
+#[test]
+fn misuse_is_a_typed_error() -> Result<(), ApiError> {
+    let mut rt = context();
+    assert!(matches!(rt.end(), Err(ApiError::Unbalanced(..))));
+    assert!(matches!(rt.end_object(), Err(ApiError::Unbalanced(..))));
+    assert!(matches!(rt.vertex(0.0, 0.0, 0.0), Err(ApiError::Unbalanced(..))));
+    assert!(matches!(rt.begin(Primitive::Triangles), Err(ApiError::NoObject(_))));
+    assert!(matches!(rt.pop_matrix(), Err(ApiError::MatrixStackEmpty)));
+    assert!(matches!(rt.parameter("Kd", ParamValue::Float(1.0)), Err(ApiError::NoShaderBound(_))));
+    assert!(matches!(rt.instantiate_object(rtsl_runtime::api::ObjectId(7)), Err(ApiError::UnknownObject(7))));
+    assert!(matches!(rt.bind_shader(rtsl_runtime::api::ShaderId(3)), Err(ApiError::UnknownShader(3))));
+    let plastic = rt.find_shader("plastic")?;
+    let light = rt.find_shader("pointlight")?;
+    assert!(matches!(rt.bind_shader(light), Err(ApiError::WrongKind { .. })));
+    assert!(matches!(rt.light_source(plastic, &[]), Err(ApiError::WrongKind { .. })));
+    rt.bind_shader(plastic)?;
+    assert!(matches!(
+        rt.parameter("Kd", ParamValue::String("x".into())),
+        Err(ApiError::Param(ParamError::TypeMismatch { .. }))
+    ));
+    assert!(matches!(
+        rt.parameter("nonsense", ParamValue::Float(1.0)),
+        Err(ApiError::Param(ParamError::NoSuchParameter { .. }))
+    ));
+    assert!(matches!(rt.vertex_parameter("Kd", ParamValue::Float(1.0)), Err(ApiError::NotVarying { .. })));
+    rt.begin_object()?;
+    assert!(matches!(rt.begin_object(), Err(ApiError::Nested(..))));
+    rt.begin(Primitive::Triangles)?;
+    rt.vertex(0.0, 0.0, 0.0)?;
+    rt.vertex(1.0, 0.0, 0.0)?;
+    assert!(matches!(rt.end(), Err(ApiError::IncompletePrimitive(2, _))));
+    assert!(matches!(rt.render_frame(), Err(ApiError::Nested(..))));
+    rt.end_object()?;
+    assert!(matches!(rt.find_shader("no_such_shader"), Err(ApiError::Shader(_))));
+    assert!(matches!(rt.compile_shader("bad.sl", "surface bad( { }"), Err(ApiError::Shader(_))));
+    Ok(())
+}
+
+#[test]
+fn adaptive_sampling_adds_rays_only_where_neighbours_differ() -> Result<(), ApiError> {
+    use rtsl_runtime::render::Antialiasing;
+    let render = |aa: Antialiasing, samples: (u32, u32)| -> Result<(Framebuffer, u64), ApiError> {
+        let mut rt = context();
+        let flat = rt.compile_shader("flat.sl", FLAT)?;
+        rt.camera_look_at(Vec3A::new(0.0, 0.0, 5.0), Vec3A::ZERO, Vec3A::Y, 60.0);
+        let o = rt.begin_object()?;
+        rt.bind_shader(flat)?;
+        // A square tilted in the image, so its edges cut pixels.
+        rt.rotate(20.0, 0.0, 0.0, 1.0);
+        quad(&mut rt, [[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [1.0, 1.0, 0.0], [-1.0, 1.0, 0.0]])?;
+        rt.end_object()?;
+        rt.load_identity();
+        rt.instantiate_object(o)?;
+        rt.options.samples = samples;
+        rt.options.antialiasing = aa;
+        let (fb, report) = rt.render_frame()?;
+        Ok((fb, report.primary_rays))
+    };
+    let (one, one_rays) = render(Antialiasing::Grid { jitter: true }, (1, 1))?;
+    let (_, grid_rays) = render(Antialiasing::Grid { jitter: true }, (2, 2))?;
+    let (adaptive, adaptive_rays) = render(Antialiasing::Adaptive { threshold: 0.05 }, (2, 2))?;
+    assert_eq!(one_rays, u64::from(W * H));
+    assert_eq!(grid_rays, 4 * u64::from(W * H));
+    assert!(adaptive_rays > one_rays && adaptive_rays < grid_rays / 2, "{adaptive_rays} rays");
+    let mut edge_pixels = 0;
+    for i in 0..(W * H) as usize {
+        let (a, b) = (&one.rgba[4 * i..4 * i + 4], &adaptive.rgba[4 * i..4 * i + 4]);
+        if a != b {
+            edge_pixels += 1;
+            // A refined pixel changed only because its samples disagree: it is partly covered.
+            assert!(b[3] > 0.0 && b[3] < 1.0, "{a:?} -> {b:?}");
+        }
+    }
+    assert!(edge_pixels > 0 && edge_pixels < (W * H / 4) as usize, "{edge_pixels} pixels refined");
+    // Inside the square and in the empty corners, nothing changed.
+    assert_eq!(adaptive.pixel(W / 2, H / 2), one.pixel(W / 2, H / 2));
+    assert_eq!(adaptive.pixel(0, 0), one.pixel(0, 0));
+
+    // Interleaved sampling: every sample within its pixel, neighbours on different points.
+    let (inter, _) = render(Antialiasing::Interleaved, (2, 2))?;
+    assert_eq!(inter.pixel(W / 2, H / 2), [1.0; 4]);
+    assert!(Antialiasing::parse("adaptive:0.1") == Ok(Antialiasing::Adaptive { threshold: 0.1 }));
+    assert!(Antialiasing::parse("qmc") == Ok(Antialiasing::Interleaved));
+    assert!(Antialiasing::parse("adaptive:x").is_err() && Antialiasing::parse("fancy").is_err());
+    Ok(())
+}
+
+#[test]
+fn a_moved_instance_costs_only_the_top_level_and_an_edited_object_only_its_own_bvh() -> Result<(), ApiError> {
+    let mut rt = context();
+    rt.camera_look_at(Vec3A::new(0.0, 2.0, 8.0), Vec3A::ZERO, Vec3A::Y, 45.0);
+    let boxy = rt.begin_object()?;
+    cube(&mut rt)?;
+    rt.end_object()?;
+    let floor = rt.begin_object()?;
+    quad(&mut rt, [[-5.0, -1.0, 5.0], [5.0, -1.0, 5.0], [5.0, -1.0, -5.0], [-5.0, -1.0, -5.0]])?;
+    rt.end_object()?;
+    rt.instantiate_object(floor)?;
+    let moving = rt.instantiate_object(boxy)?;
+    rt.instantiate_object(boxy)?;
+
+    let (_, first) = rt.render_frame()?;
+    assert_eq!(first.accel.objects_rebuilt, 2, "both objects are built once");
+    assert_eq!(first.accel.instances, 3);
+    assert!(first.accel.memory_bytes > 0);
+
+    rt.set_instance_transform(moving, glam::Affine3A::from_translation(glam::Vec3::new(2.0, 0.0, 0.0)))?;
+    let (_, moved) = rt.render_frame()?;
+    assert_eq!(moved.accel.objects_rebuilt, 0, "moving an instance rebuilds no object BVH");
+    assert_eq!(moved.accel.instances, 3);
+
+    rt.redefine_object(floor)?;
+    quad(&mut rt, [[-6.0, -1.0, 6.0], [6.0, -1.0, 6.0], [6.0, -1.0, -6.0], [-6.0, -1.0, -6.0]])?;
+    rt.end_object()?;
+    let (_, edited) = rt.render_frame()?;
+    assert_eq!(edited.accel.objects_rebuilt, 1, "only the edited object");
+    assert_eq!(edited.accel.memory_bytes, moved.accel.memory_bytes, "same size of geometry");
+    assert!(edited.to_string().contains("BVH update"), "{edited}");
+    Ok(())
+}
+
+#[test]
+fn frames_reuse_unchanged_materials_and_rebuild_them_for_a_new_program() -> Result<(), Box<dyn std::error::Error>> {
+    const FLAT: &str = "surface flat(float k = 1;) { Oi = 1; Ci = k; }";
+    let mut rt = context();
+    let flat = rt.compile_shader("flat.sl", FLAT)?;
+    rt.bind_shader(flat)?;
+    rt.parameter("k", ParamValue::Float(0.5))?;
+    let object = rt.begin_object()?;
+    quad(&mut rt, [[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [1.0, 1.0, 0.0], [-1.0, 1.0, 0.0]])?;
+    rt.end_object()?;
+    rt.instantiate_object(object)?;
+    let surface = |world: &rtsl_runtime::render::World| world.materials.get(1).and_then(|m| m.surface.clone());
+    let first = rt.build_world()?;
+    let built = surface(&first).ok_or("the object's material")?;
+    rt.return_scene(first);
+    let second = rt.build_world()?;
+    let reused = surface(&second).ok_or("the object's material")?;
+    rt.return_scene(second);
+    assert!(std::sync::Arc::ptr_eq(&built, &reused), "nothing changed: the same shader instance");
+    let program = ShaderProgram::from_source("flat.sl", "surface flat(float k = 1;) { Oi = 1; Ci = 2 * k; }", &[])?;
+    rt.replace_shader(flat, program)?;
+    let third = rt.build_world()?;
+    let rebuilt = surface(&third).ok_or("the object's material")?;
+    assert!(!std::sync::Arc::ptr_eq(&built, &rebuilt), "a new program: a new shader instance");
+    assert!(!std::sync::Arc::ptr_eq(&built.program, &rebuilt.program));
+    assert_eq!(rebuilt.params.len(), 1, "k stays bound");
+    Ok(())
+}

@@ -1,0 +1,175 @@
+//! The engine through its API: secondary rays. `trace` sees what a mirror reflects up to the depth
+//! limit, tracing a batch's rays ahead changes no pixel, and `gather` samples a cone of shaded rays.
+
+mod common;
+
+use common::{context, cube, quad, FLAT, H, W};
+use glam::Vec3A;
+use rtsl_runtime::api::{ApiError, Context};
+use rtsl_runtime::shading::ParamValue;
+
+const MIRROR: &str = "surface mirrored() { Oi = 1; Ci = 0.5 * trace(P, reflect(I, normalize(N))); }";
+
+#[test]
+fn trace_sees_what_a_mirror_reflects_up_to_the_depth_limit() -> Result<(), ApiError> {
+    let mut rt = context();
+    let mirror = rt.compile_shader("mirrored.sl", MIRROR)?;
+    let flat = rt.compile_shader("flat.sl", FLAT)?;
+    rt.camera_look_at(Vec3A::new(0.0, 0.0, 5.0), Vec3A::ZERO, Vec3A::Y, 30.0);
+    // A mirror facing the camera, and a green wall behind the camera that it reflects.
+    let m = rt.begin_object()?;
+    rt.bind_shader(mirror)?;
+    quad(&mut rt, [[-10.0, -10.0, 0.0], [10.0, -10.0, 0.0], [10.0, 10.0, 0.0], [-10.0, 10.0, 0.0]])?;
+    rt.end_object()?;
+    let wall = rt.begin_object()?;
+    rt.bind_shader(flat)?;
+    rt.parameter("c", ParamValue::Color([0.0, 1.0, 0.0]))?;
+    quad(&mut rt, [[-10.0, 10.0, 8.0], [10.0, 10.0, 8.0], [10.0, -10.0, 8.0], [-10.0, -10.0, 8.0]])?;
+    rt.end_object()?;
+    rt.instantiate_object(m)?;
+    rt.instantiate_object(wall)?;
+    let (fb, report) = rt.render_frame()?;
+    assert!(report.secondary_rays >= u64::from(W * H));
+    let p = fb.pixel(W / 2, H / 2);
+    assert!((p[1] - 0.5).abs() < 1e-5 && p[0] == 0.0, "{p:?}");
+
+    // Two facing mirrors: each bounce halves, and recursion stops at the depth limit.
+    let mut rt = context();
+    let mirror = rt.compile_shader("mirrored.sl", MIRROR)?;
+    rt.options.max_ray_depth = 3;
+    rt.camera_look_at(Vec3A::new(0.0, 0.0, 5.0), Vec3A::ZERO, Vec3A::Y, 30.0);
+    let m = rt.begin_object()?;
+    rt.bind_shader(mirror)?;
+    quad(&mut rt, [[-10.0, -10.0, 0.0], [10.0, -10.0, 0.0], [10.0, 10.0, 0.0], [-10.0, 10.0, 0.0]])?;
+    quad(&mut rt, [[-10.0, 10.0, 8.0], [10.0, 10.0, 8.0], [10.0, -10.0, 8.0], [-10.0, -10.0, 8.0]])?;
+    rt.end_object()?;
+    rt.instantiate_object(m)?;
+    let (_, report) = rt.render_frame()?;
+    // Depth 1, 2 and 3 rays for every pixel, none deeper.
+    assert_eq!(report.secondary_rays, 3 * u64::from(W * H));
+    Ok(())
+}
+
+/// A floor shaded with `floor_src` (which traces), under a red plastic cube and a point light.
+fn reflecting_floor(rt: &mut Context, floor_src: &str) -> Result<(), ApiError> {
+    let plastic = rt.find_shader("plastic")?;
+    let light = rt.find_shader("pointlight")?;
+    let tracing = rt.compile_shader("floor.sl", floor_src)?;
+    rt.camera_look_at(Vec3A::new(0.0, 2.0, 7.0), Vec3A::new(0.0, 0.5, 0.0), Vec3A::Y, 45.0);
+    let floor = rt.begin_object()?;
+    rt.bind_shader(tracing)?;
+    quad(rt, [[-5.0, 0.0, 5.0], [5.0, 0.0, 5.0], [5.0, 0.0, -5.0], [-5.0, 0.0, -5.0]])?;
+    rt.end_object()?;
+    rt.instantiate_object(floor)?;
+    let boxy = rt.begin_object()?;
+    rt.bind_shader(plastic)?;
+    rt.color(0.9, 0.3, 0.2);
+    cube(rt)?;
+    rt.end_object()?;
+    rt.push_matrix();
+    rt.translate(0.0, 1.2, 0.0);
+    rt.scale(0.6, 0.6, 0.6);
+    rt.instantiate_object(boxy)?;
+    rt.pop_matrix()?;
+    rt.light_source(light, &[("intensity", ParamValue::Float(30.0)), ("from", ParamValue::Point([1.0, 5.0, 3.0]))])?;
+    Ok(())
+}
+
+/// Two reflections: the second ray's direction depends on what the first one saw, so a batch's
+/// first run (whose `trace` answers black) notes a different second ray than its second run asks.
+/// The shader also changes a global it reads (`N`), which the second run must find as it was.
+const BENT: &str = r#"
+surface bent()
+{
+    N = normalize(N + normal(0.2, 0, 0));
+    normal Nf = faceforward(normalize(N), I);
+    vector R = reflect(normalize(I), Nf);
+    color first = trace(P, R);
+    vector V = normalize(R + vector(0, comp(first, 0), 0));
+    color second = trace(P, V);
+    Oi = 1;
+    Ci = 0.5 * first + 0.25 * second + 0.25 * diffuse(Nf);
+}
+"#;
+
+/// A batch whose shader traces runs twice so that its chunks' rays are traced together
+/// (`RenderOptions::trace_ahead`): the image is the one of tracing each chunk's rays on its own,
+/// bit for bit, also where a ray depends on an earlier one's answer.
+#[test]
+fn tracing_a_batchs_rays_ahead_changes_no_pixel() -> Result<(), ApiError> {
+    for floor in [MIRROR, BENT] {
+        let mut rt = context();
+        reflecting_floor(&mut rt, floor)?;
+        let (ahead, ahead_report) = rt.render_frame()?;
+        rt.options.trace_ahead = false;
+        let (chunked, chunked_report) = rt.render_frame()?;
+        assert!(ahead == chunked, "{floor}");
+        // The floor reflects the cube: some pixels are red.
+        let red = (0..H).flat_map(|y| (0..W).map(move |x| (x, y))).filter(|&(x, y)| {
+            let p = ahead.pixel(x, y);
+            p[0] > 0.05 && p[0] > 2.0 * p[2]
+        });
+        assert!(red.count() > 20, "{floor}");
+        assert!(chunked_report.secondary_rays > u64::from(W * H) / 2, "{chunked_report}");
+        if floor == MIRROR {
+            // No ray depends on another: each is traced once either way.
+            assert_eq!(ahead_report.secondary_rays, chunked_report.secondary_rays);
+        } else {
+            // The second rays of the first runs were the wrong ones where the first rays saw red.
+            assert!(ahead_report.secondary_rays > chunked_report.secondary_rays);
+        }
+    }
+    Ok(())
+}
+
+const GLOSSY: &str = r#"
+surface glossy(float samples = 8; float cone = 0.2;)
+{
+    vector R = normalize(reflect(I, normalize(N)));
+    color hitc = 0, sum = 0;
+    float len = 0, total = 0, n = 0, misses = 0;
+    gather("illuminance", P, R, cone, samples, "surface:Ci", hitc, "ray:length", len) {
+        sum += hitc;
+        total += len;
+        n += 1;
+    }
+    gather("illuminance", P, -N, cone, samples) {
+        n += 1000;
+    } else {
+        misses += 1;
+    }
+    Oi = 1;
+    Ci = color(comp(sum, 1) / samples, total / max(n, 1) / 100, misses / samples);
+}
+"#;
+
+#[test]
+fn gather_samples_a_cone_of_shaded_rays() -> Result<(), ApiError> {
+    let mut rt = context();
+    let glossy = rt.compile_shader("glossy.sl", GLOSSY)?;
+    let flat = rt.compile_shader("flat.sl", FLAT)?;
+    rt.camera_look_at(Vec3A::new(0.0, 0.0, 5.0), Vec3A::ZERO, Vec3A::Y, 30.0);
+    // A glossy quad facing the camera; a green wall behind the camera that its cone of reflected
+    // rays meets at a distance of 8 to 8 / cos(0.2); nothing behind the quad.
+    let m = rt.begin_object()?;
+    rt.bind_shader(glossy)?;
+    quad(&mut rt, [[-10.0, -10.0, 0.0], [10.0, -10.0, 0.0], [10.0, 10.0, 0.0], [-10.0, 10.0, 0.0]])?;
+    rt.end_object()?;
+    let wall = rt.begin_object()?;
+    rt.bind_shader(flat)?;
+    rt.parameter("c", ParamValue::Color([0.0, 1.0, 0.0]))?;
+    quad(&mut rt, [[-40.0, 40.0, 8.0], [40.0, 40.0, 8.0], [40.0, -40.0, 8.0], [-40.0, -40.0, 8.0]])?;
+    rt.end_object()?;
+    rt.instantiate_object(m)?;
+    rt.instantiate_object(wall)?;
+    let (fb, report) = rt.render_frame()?;
+    // Two gathers of 8 rays for every pixel.
+    assert!(report.secondary_rays >= 16 * u64::from(W * H), "{}", report.secondary_rays);
+    for (x, y) in [(W / 2, H / 2), (3, 4), (W - 2, H - 3)] {
+        let p = fb.pixel(x, y);
+        assert!((p[0] - 1.0).abs() < 1e-5, "every reflected ray sees the green wall: {p:?}");
+        assert!(p[1] >= 0.08 - 1e-4 && p[1] <= 0.08 / 0.2f32.cos() * 1.1, "mean length / 100: {p:?}");
+        assert_eq!(p[2], 1.0, "every ray behind the quad misses: {p:?}");
+    }
+    Ok(())
+}
