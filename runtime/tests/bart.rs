@@ -2,12 +2,15 @@
 //! the keyframe splines against hand-computed values, the loader on small scenes, and the three
 //! real scenes of `../shared/scenes/bart` (skipped when absent) played at two times.
 
+mod common;
+
+use common::render;
 use glam::{Quat, Vec3};
 use rtsl_runtime::api::Context;
 use rtsl_runtime::bart::aff::{parse_str, AffError, Geometry, NodeTransform};
 use rtsl_runtime::bart::animation::{AxisAngle, Key, Keyframes, RotationTrack, Tcb, VectorTrack, VisibilityTrack};
 use rtsl_runtime::bart::{load_file, load_parsed, BartScene};
-use rtsl_runtime::render::{render_frame, Framebuffer};
+use rtsl_runtime::render::Framebuffer;
 use std::path::{Path, PathBuf};
 
 fn parse(text: &str) -> rtsl_runtime::bart::AffScene {
@@ -442,16 +445,6 @@ fn keyframes_scale_then_rotate_then_translate() {
 }
 
 // ---- the loader ----
-
-fn render(rt: &mut Context) -> Framebuffer {
-    let world = match rt.build_world() {
-        Ok(w) => w,
-        Err(e) => panic!("{e}"),
-    };
-    let (fb, _) = render_frame(&world, None);
-    rt.return_scene(world);
-    fb
-}
 
 /// Pixels whose colour differs by more than a small amount.
 fn differing_pixels(a: &Framebuffer, b: &Framebuffer) -> usize {

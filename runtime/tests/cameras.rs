@@ -3,28 +3,20 @@
 //! empty pixels, depth of field blurs only what is off the focal plane, and moving instances smear
 //! over the shutter interval.
 
+mod common;
+
+use common::luminance as sum;
+use common::{quad, H, W};
 use glam::{Affine3A, Vec3, Vec3A};
-use rtsl_runtime::api::{ApiError, Context, ObjectId, Primitive};
+use rtsl_runtime::api::{ApiError, Context, ObjectId};
 use rtsl_runtime::render::{Antialiasing, FrameReport, Framebuffer};
 use rtsl_runtime::shading::ParamValue;
 
-const W: u32 = 64;
-const H: u32 = 48;
-
+/// The shared context, sampled on a fixed grid.
 fn context() -> Context {
-    let mut rt = Context::new();
-    rt.options.width = W;
-    rt.options.height = H;
+    let mut rt = common::context();
     rt.options.antialiasing = Antialiasing::Grid { jitter: false };
     rt
-}
-
-fn quad(rt: &mut Context, corners: [[f32; 3]; 4]) -> Result<(), ApiError> {
-    rt.begin(Primitive::Quads)?;
-    for c in corners {
-        rt.vertex(c[0], c[1], c[2])?;
-    }
-    rt.end()
 }
 
 /// A square of side 2 facing +z at the origin, with a `constant` shader of colour `c`.
@@ -55,11 +47,6 @@ fn checker_wall(rt: &mut Context, z: f32, size: f32) -> Result<(), ApiError> {
     rt.end_object()?;
     rt.instantiate_object(id)?;
     Ok(())
-}
-
-fn sum(fb: &Framebuffer, x: u32, y: u32) -> f32 {
-    let p = fb.pixel(x, y);
-    p[0] + p[1] + p[2]
 }
 
 fn bind_camera(rt: &mut Context, name: &str, params: &[(&str, ParamValue)]) -> Result<(), ApiError> {

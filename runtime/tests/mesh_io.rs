@@ -1,13 +1,10 @@
 //! Broken, truncated or unsupported mesh files give errors that name the file, never panics; a
 //! well-formed file loads with its triangles.
 
-use rtsl_runtime::load_mesh;
+mod common;
 
-fn write(dir: &std::path::Path, name: &str, text: &[u8]) -> std::path::PathBuf {
-    let p = dir.join(name);
-    std::fs::write(&p, text).expect("write");
-    p
-}
+use common::write;
+use rtsl_runtime::load_mesh;
 
 #[test]
 fn bad_mesh_files_are_errors_naming_the_file() {

@@ -2,36 +2,16 @@
 //! filters spread samples over neighbouring pixels, deterministically whatever the threads, under
 //! adaptive sampling and crop windows, before the pixel shader and exposure; RIB `PixelFilter`.
 
+mod common;
+
+use common::{context, load, quad, FLAT, H, W};
 use glam::Vec3A;
-use rtsl_runtime::api::{ApiError, Context, Primitive};
+use rtsl_runtime::api::{ApiError, Context};
 use rtsl_runtime::render::{render_frame, Antialiasing, FilterKind, Framebuffer, PixelFilter};
-use rtsl_runtime::rib::load::load_str;
 use rtsl_runtime::shading::ParamValue;
-use std::path::Path;
-
-const W: u32 = 64;
-const H: u32 = 48;
-
-/// Constant white where opaque: a sample is exactly 1 on the surface and 0 off it.
-const FLAT: &str = "surface flat(color c = 1;) { Oi = Os; Ci = Os * c; }";
 
 fn filter(kind: FilterKind, width: f32) -> PixelFilter {
     PixelFilter::new(kind, width, width).expect("valid widths")
-}
-
-fn context() -> Context {
-    let mut rt = Context::new();
-    rt.options.width = W;
-    rt.options.height = H;
-    rt
-}
-
-fn quad(rt: &mut Context, corners: [[f32; 3]; 4]) -> Result<(), ApiError> {
-    rt.begin(Primitive::Quads)?;
-    for c in corners {
-        rt.vertex(c[0], c[1], c[2])?;
-    }
-    rt.end()
 }
 
 /// A white half-plane on the left of the image, black and empty on the right. The edge runs down
@@ -231,12 +211,6 @@ fn the_pixel_shader_and_exposure_see_the_filtered_colours() -> Result<(), ApiErr
         assert_eq!((s[3], e[3]), (p[3], p[3]));
     }
     Ok(())
-}
-
-fn load(rib: &str) -> (Context, Vec<String>) {
-    let mut rt = Context::new();
-    let loaded = load_str(&mut rt, rib, Path::new("test.rib")).unwrap_or_else(|e| panic!("{e}"));
-    (rt, loaded.warnings)
 }
 
 /// A RIB scene with `options` before the camera: a white square on black.

@@ -1,6 +1,9 @@
 //! Hostile input to the runtime's readers and writers: each is a clear error (or warning) naming
 //! the file and, where there is one, the line, never a panic, a hang or memory exhausted.
 
+mod common;
+
+use common::write;
 use rtsl_runtime::api::Context;
 use rtsl_runtime::load_mesh;
 use rtsl_runtime::render::{check_image_size, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE};
@@ -8,12 +11,6 @@ use rtsl_runtime::rib::load::load_str;
 use rtsl_runtime::rib::MAX_RIB_TRIANGLES;
 use rtsl_runtime::scene_file::{add_model_file, MAX_GLTF_NODE_DEPTH};
 use std::path::{Path, PathBuf};
-
-fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
-    let path = dir.join(name);
-    std::fs::write(&path, text).expect("write");
-    path
-}
 
 const TRIANGLE_OBJ: &str = "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl a\nf 1 2 3\n";
 

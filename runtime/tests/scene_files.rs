@@ -1,24 +1,14 @@
 //! Scenes from files: RIB requests onto the engine (camera, attributes, shaders, lights, area lights,
 //! retained objects, archives, warnings with locations), models (OBJ, PLY, glTF) and textures.
 
+mod common;
+
+use common::{load, render};
 use rtsl_runtime::api::{ApiError, Context};
-use rtsl_runtime::render::{render_frame, Framebuffer};
+use rtsl_runtime::render::render_frame;
 use rtsl_runtime::rib::load::load_str;
 use rtsl_runtime::scene_file::{add_model_file, SceneFileError};
 use std::path::Path;
-
-fn render(rt: &mut Context) -> Framebuffer {
-    let world = rt.build_world().expect("a world");
-    let (fb, _) = render_frame(&world, None);
-    rt.return_scene(world);
-    fb
-}
-
-fn load(rib: &str) -> (Context, Vec<String>) {
-    let mut rt = Context::new();
-    let loaded = load_str(&mut rt, rib, Path::new("test.rib")).unwrap_or_else(|e| panic!("{e}"));
-    (rt, loaded.warnings)
-}
 
 const CAMERA: &str = r#"
 Format 64 48 1
