@@ -1,5 +1,6 @@
 //! The engine through its API: secondary rays. `trace` sees what a mirror reflects up to the depth
-//! limit, tracing a batch's rays ahead changes no pixel, and `gather` samples a cone of shaded rays.
+//! limit, tracing a batch's rays ahead changes no pixel (also past the calls a first run notes),
+//! and `gather` samples a cone of shaded rays.
 
 mod common;
 
@@ -119,6 +120,54 @@ fn tracing_a_batchs_rays_ahead_changes_no_pixel() -> Result<(), ApiError> {
             assert!(ahead_report.secondary_rays > chunked_report.secondary_rays);
         }
     }
+    Ok(())
+}
+
+/// Traces in a long loop, each ray its own (none depends on an answer).
+const LOOPED: &str = r#"
+surface looped()
+{
+    color c = 0;
+    float i;
+    for (i = 0; i < 200; i += 1)
+        c += trace(P, reflect(I, normalize(N)) + vector(0, i * 0.001, 0));
+    Oi = 1;
+    Ci = c / 200;
+}
+"#;
+
+/// A batch's first run notes a bounded number of `trace` calls (a 16-by-16 tile's 64 chunks times
+/// 200 calls is past it): the calls past it are traced in the second run, each once, and the
+/// image is the one of tracing chunk by chunk.
+#[test]
+fn trace_in_a_long_loop_traces_each_ray_once_and_changes_no_pixel() -> Result<(), ApiError> {
+    let (w, h) = (16, 16);
+    let mut rt = context();
+    rt.options.width = w;
+    rt.options.height = h;
+    let looped = rt.compile_shader("looped.sl", LOOPED)?;
+    let flat = rt.compile_shader("flat.sl", FLAT)?;
+    rt.camera_look_at(Vec3A::new(0.0, 0.0, 5.0), Vec3A::ZERO, Vec3A::Y, 30.0);
+    // A quad filling the view that reflects a green wall behind the camera.
+    let m = rt.begin_object()?;
+    rt.bind_shader(looped)?;
+    quad(&mut rt, [[-10.0, -10.0, 0.0], [10.0, -10.0, 0.0], [10.0, 10.0, 0.0], [-10.0, 10.0, 0.0]])?;
+    rt.end_object()?;
+    let wall = rt.begin_object()?;
+    rt.bind_shader(flat)?;
+    rt.parameter("c", ParamValue::Color([0.0, 1.0, 0.0]))?;
+    quad(&mut rt, [[-10.0, 10.0, 8.0], [10.0, 10.0, 8.0], [10.0, -10.0, 8.0], [-10.0, -10.0, 8.0]])?;
+    rt.end_object()?;
+    rt.instantiate_object(m)?;
+    rt.instantiate_object(wall)?;
+    let (ahead, ahead_report) = rt.render_frame()?;
+    rt.options.trace_ahead = false;
+    let (chunked, chunked_report) = rt.render_frame()?;
+    assert!(ahead == chunked);
+    assert_eq!(chunked_report.secondary_rays, 200 * u64::from(w * h));
+    assert_eq!(ahead_report.secondary_rays, chunked_report.secondary_rays);
+    let p = ahead.pixel(w / 2, h / 2);
+    assert!(p[1] > 0.4 && p[0] == 0.0, "{p:?}");
     Ok(())
 }
 

@@ -16,6 +16,11 @@
 //!    noted, bit for bit, gets that ray's answer ([`RayLog::Replay`]). Any other lane (a ray that
 //!    depended on an earlier placeholder answer) is traced there and then, as without this.
 //!
+//! A first run notes at most [`MAX_NOTED_CALLS`] calls: a shader that calls `trace` in a long
+//! loop would otherwise hold every call's rays, and then all their answers, at once. The calls
+//! past it answer black in the first run, as noted calls do, and are traced call by call in the
+//! second, which finds no note for them.
+//!
 //! Each lane's answer is the same either way: a ray's shading does not depend on the other rays
 //! shaded beside it. The cost is a second run of the shader itself, which for a reflecting or
 //! refracting surface is small beside the shading of what its rays meet.
@@ -36,6 +41,11 @@ pub(super) enum RayLog {
     Replay(Replayed),
 }
 
+/// The most `trace` calls a batch's first run notes (each up to four rays): enough for every chunk
+/// of a batch to trace several times, and few enough that the notes and their answers stay small
+/// however many times a shader's loop calls `trace`.
+pub(super) const MAX_NOTED_CALLS: usize = 4096;
+
 /// The rays of a first run's `trace` calls, call by call.
 #[derive(Default)]
 pub(super) struct Recorded {
@@ -52,9 +62,11 @@ pub(super) struct Replayed {
 }
 
 impl Recorded {
-    /// Notes one call's rays (by lane).
+    /// Notes one call's rays (by lane), unless [`MAX_NOTED_CALLS`] are noted already.
     pub(super) fn note(&mut self, rays: [Option<Ray>; 4]) {
-        self.calls.push(rays);
+        if self.calls.len() < MAX_NOTED_CALLS {
+            self.calls.push(rays);
+        }
     }
 
     /// Whether the run must be made again: it traced, or kept output back.
@@ -114,6 +126,17 @@ fn same_ray(a: &Ray, b: &Ray) -> bool {
 mod tests {
     use super::*;
     use glam::Vec3A;
+
+    #[test]
+    fn a_first_run_notes_a_bounded_number_of_calls() {
+        let ray = Ray::segment(Vec3A::ZERO, Vec3A::Z, 1e-4, f32::INFINITY);
+        let mut noted = Recorded::default();
+        for _ in 0..3 * MAX_NOTED_CALLS {
+            noted.note([Some(ray); 4]);
+        }
+        assert_eq!(noted.calls.len(), MAX_NOTED_CALLS);
+        assert!(noted.needs_replay());
+    }
 
     #[test]
     fn rays_are_the_same_only_bit_for_bit() {
