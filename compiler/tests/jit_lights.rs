@@ -30,6 +30,34 @@ fn lights_loops_and_shading_models() {
     );
 }
 
+/// Light loops run many times and nested: each loop's lights are kept at its nesting depth, so a
+/// loop replaces the set of the last one at its depth and the inner loops' sets, never one that
+/// an enclosing loop still reads.
+#[test]
+fn light_loops_in_loops_and_nested_read_their_own_lights() {
+    check(
+        r#"
+        surface t(output varying float cnt = 0;)
+        {
+            color c = 0;
+            float i;
+            for (i = 0; i < 40; i += 1) {
+                illuminance(P + vector(i * 0.01, 0, 0)) {
+                    c += Cl * (1 + i);
+                    vector outer = L;
+                    illuminance("specular", P - vector(0, i * 0.02, 0)) {
+                        cnt += 1;
+                        c += Cl * length(L - outer);
+                    }
+                    c += color(length(L - outer));
+                }
+            }
+            Ci = c;
+        }
+        "#,
+    );
+}
+
 #[test]
 fn light_shaders_illuminate_and_solar() {
     check(

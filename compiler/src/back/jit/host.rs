@@ -1126,9 +1126,12 @@ host_helpers! {
             cx.set3(0, l, r.unwrap_or(c));
         }
     }
-    // [category, P, axis, angle, cone] -> [set, count]: the lights of an illuminance loop, kept in
-    // the context.
-    h_lights "rtsl_h_lights" 9 => 2 |cx| {
+    // [category, P, axis, angle, cone, nesting] -> [set, count]: the lights of an illuminance loop,
+    // kept in the context at the loop's nesting depth. A loop's set is read only in its body, and
+    // a loop at depth `d` starts only once the last one at `d` has ended, so it replaces that
+    // one's set and those of loops nested in it: the sets kept are bounded by the nesting depth,
+    // not by how many times loops run (an illuminance in a long `for` loop).
+    h_lights "rtsl_h_lights" 10 => 2 |cx| {
         let category = cx.s(0);
         let cone: [f32; 4 * CONE_ROWS] = std::array::from_fn(|i| match i {
             0..12 => cx.input[16 + i],
@@ -1148,7 +1151,9 @@ host_helpers! {
             v
         }).collect();
         cx.ctx.use_spare_buffers();
-        let set = cx.ctx.light_sets.len();
+        let nesting = cx.input[36].max(0.0) as usize;
+        let set = nesting.min(cx.ctx.light_sets.len());
+        cx.ctx.light_sets.truncate(set);
         cx.ctx.light_sets.push(LightSet { lights: flat, order });
         for l in 0..4 {
             cx.set(0, l, set as f32);

@@ -3415,7 +3415,8 @@ impl<'m> Lower<'m, '_> {
         let entry = self.exec();
         // The cone goes with the query too: the renderer need not trace the shadows of lights
         // outside it.
-        let all = self.concat(&[cat, p, axis.clone(), angle.clone(), has.clone()]);
+        let nesting = Val { vary: false, c: vec![self.fconst(self.light_loops.len() as f32, false)] };
+        let all = self.concat(&[cat, p, axis.clone(), angle.clone(), has.clone(), nesting]);
         let out = self.call_helper("rtsl_h_lights", &all.c, true)?;
         let set = self.b.ins().extractlane(out[0], 0);
         let count = self.b.ins().extractlane(out[1], 0);
