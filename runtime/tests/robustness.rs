@@ -186,3 +186,28 @@ fn a_rib_tessellating_past_the_triangle_budget_stops_with_an_error() {
     let err = load_str(&mut Context::new(), &rib, Path::new("many.rib")).expect_err("past the budget").to_string();
     assert!(err.starts_with("many.rib:") && err.contains(&format!("passes {MAX_RIB_TRIANGLES} triangles")), "{err}");
 }
+
+/// A mesh of 100,000 copies of one triangle (and one triangle in front of part of them) builds its
+/// BVH in n log n, and rays still find the nearest triangle.
+#[test]
+fn a_mesh_of_many_coincident_triangles_builds_and_is_hit() {
+    use glam::{Affine3A, Vec3, Vec3A};
+    use rtsl_runtime::{Mesh, Ray, Scene};
+    let copies = 100_000u32;
+    let mut positions = vec![Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, -1.0, 0.0), Vec3::new(-1.0, 1.0, 0.0)];
+    let mut triangles = vec![[0, 1, 2]; copies as usize];
+    positions.extend([Vec3::new(-1.0, -1.0, 1.0), Vec3::new(0.0, -1.0, 1.0), Vec3::new(-1.0, 0.0, 1.0)]);
+    triangles.push([3, 4, 5]);
+    let mesh = Mesh::from_triangles(positions, triangles).expect("valid triangles");
+    let mut scene = Scene::new();
+    let id = scene.add_object(mesh);
+    scene.add_instance(id, Affine3A::IDENTITY).expect("identity");
+    scene.commit();
+    let down = |x: f32, y: f32| Ray::new(Vec3A::new(x, y, 5.0), Vec3A::NEG_Z);
+    let front = scene.intersect(&down(-0.8, -0.8));
+    assert!(front.is_hit() && front.primitive == copies && (front.t - 4.0).abs() < 1e-5, "{front:?}");
+    let behind = scene.intersect(&down(0.3, -0.5));
+    assert!(behind.is_hit() && behind.primitive < copies && (behind.t - 5.0).abs() < 1e-5, "{behind:?}");
+    assert!(!scene.intersect(&down(0.9, 0.9)).is_hit());
+    assert!(scene.occluded(&down(0.3, -0.5)));
+}

@@ -139,18 +139,145 @@ pub const HIGH_AS_BEST_UP_TO: usize = 400_000;
 /// collapse (`p.max_prims_per_leaf`, `p.collapse_traversal_cost`) is left to [`Bvh4::from_bvh2`],
 /// which does it in the same pass as the 4-wide conversion; `p.pre_split` and
 /// `p.post_collapse_reinsertion_batch_ratio_multiplier` are not used.
+///
+/// Runs of more than [`SAME_BOX_RUN`] primitives with the same box (bit for bit) go to PLOC as
+/// one box each, and each such leaf is then replaced by a balanced subtree of the run's primitives
+/// ([`same_box_runs`]). PLOC merges a pair of clusters only when each is the other's best
+/// neighbour, and among identical boxes every cost ties, so it merged one pair per pass: a build
+/// quadratic in the number of coincident primitives, with a binary tree as deep as their count.
 pub fn build_binary(boxes: &[Aabb], p: &BvhBuildParams) -> Bvh2 {
-    let mut bvh2 = PlocBuilder::with_capacity(boxes.len()).build(
+    let runs = same_box_runs(boxes);
+    let items: &[Aabb] = runs.as_ref().map_or(boxes, |r| &r.boxes);
+    let mut bvh2 = PlocBuilder::with_capacity(items.len()).build(
         p.ploc_search_distance,
-        boxes,
-        (0..boxes.len() as u32).collect::<Vec<_>>(),
+        items,
+        (0..items.len() as u32).collect::<Vec<_>>(),
         p.sort_precision,
         p.search_depth_threshold,
     );
     if p.reinsertion_batch_ratio > 0.0 {
         ReinsertionOptimizer::default().run(&mut bvh2, p.reinsertion_batch_ratio, None);
     }
+    if let Some(runs) = runs {
+        runs.expand(&mut bvh2, boxes);
+    }
     bvh2
+}
+
+/// Runs of primitives with the same box longer than this are built apart ([`build_binary`]): any
+/// tree over them is as good as any other, and shorter runs cost PLOC little.
+pub const SAME_BOX_RUN: usize = 32;
+
+/// The input of PLOC when some primitives share their box: one item per primitive, except one per
+/// run of more than [`SAME_BOX_RUN`] primitives with the same box.
+struct SameBoxRuns {
+    /// The items' boxes.
+    boxes: Vec<Aabb>,
+    /// Each item's primitives: `members[starts[i]..starts[i + 1]]`.
+    starts: Vec<u32>,
+    members: Vec<u32>,
+}
+
+/// The box's bits, equal exactly when the boxes are the same bit for bit.
+fn box_bits(b: &Aabb) -> [u32; 6] {
+    [b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z].map(f32::to_bits)
+}
+
+/// Groups the primitives that share their box, or `None` when no run is longer than
+/// [`SAME_BOX_RUN`] (the usual case: the input goes to PLOC as it is).
+fn same_box_runs(boxes: &[Aabb]) -> Option<SameBoxRuns> {
+    use rayon::slice::ParallelSliceMut;
+    if boxes.len() <= SAME_BOX_RUN {
+        return None;
+    }
+    let mut order: Vec<([u32; 6], u32)> = boxes.iter().enumerate().map(|(i, b)| (box_bits(b), i as u32)).collect();
+    order.par_sort_unstable();
+    let mut long = false;
+    let mut run_start = 0;
+    for k in 1..=order.len() {
+        if k == order.len() || order[k].0 != order[run_start].0 {
+            long |= k - run_start > SAME_BOX_RUN;
+            run_start = k;
+        }
+    }
+    if !long {
+        return None;
+    }
+    let mut runs = SameBoxRuns { boxes: Vec::new(), starts: vec![0], members: Vec::with_capacity(boxes.len()) };
+    let mut run_start = 0;
+    for k in 1..=order.len() {
+        if k < order.len() && order[k].0 == order[run_start].0 {
+            continue;
+        }
+        let run = &order[run_start..k];
+        let long = run.len() > SAME_BOX_RUN;
+        for (j, &(_, prim)) in run.iter().enumerate() {
+            runs.members.push(prim);
+            if !long || j + 1 == run.len() {
+                runs.boxes.push(boxes[prim as usize]);
+                runs.starts.push(runs.members.len() as u32);
+            }
+        }
+        run_start = k;
+    }
+    Some(runs)
+}
+
+impl SameBoxRuns {
+    /// Turns PLOC's tree over the items into one over the primitives: each leaf's items are
+    /// replaced by their primitives, in a balanced subtree where there is more than one.
+    fn expand(&self, bvh2: &mut Bvh2, boxes: &[Aabb]) {
+        let items = std::mem::take(&mut bvh2.primitive_indices);
+        let mut slots = Vec::with_capacity(self.members.len());
+        let mut prims = Vec::new();
+        for i in 0..bvh2.nodes.len() {
+            let node = bvh2.nodes[i];
+            if !node.is_leaf() {
+                continue;
+            }
+            prims.clear();
+            let first = node.first_index as usize;
+            for &item in items.get(first..first + node.prim_count as usize).unwrap_or(&[]) {
+                let item = item as usize;
+                let (a, b) = (self.starts[item] as usize, self.starts[item + 1] as usize);
+                prims.extend_from_slice(&self.members[a..b]);
+            }
+            if prims.len() <= 1 {
+                bvh2.nodes[i].first_index = slots.len() as u32;
+                slots.extend_from_slice(&prims);
+            } else {
+                balanced(bvh2, i, &prims, boxes, &mut slots);
+            }
+        }
+        bvh2.primitive_indices = slots;
+        // The maps obvhs keeps beside the nodes no longer match them; they are rebuilt on demand
+        // from empty ones.
+        bvh2.primitives_to_nodes.clear();
+        bvh2.parents.clear();
+        bvh2.children_are_ordered_after_parents = false;
+        let longest = self.starts.windows(2).map(|w| w[1] - w[0]).max().unwrap_or(1);
+        bvh2.max_depth += (u32::BITS - longest.leading_zeros()) as usize;
+    }
+}
+
+/// Makes node `at` the root of a balanced binary subtree with leaves of one primitive of `prims`
+/// each (appending its nodes and slots).
+fn balanced(bvh2: &mut Bvh2, at: usize, prims: &[u32], boxes: &[Aabb], slots: &mut Vec<u32>) {
+    let mut aabb = Aabb::empty();
+    for &p in prims {
+        aabb = aabb.union(&boxes[p as usize]);
+    }
+    if let [prim] = prims {
+        bvh2.nodes[at] = Bvh2Node::new(aabb, 1, slots.len() as u32);
+        slots.push(*prim);
+        return;
+    }
+    let kids = bvh2.nodes.len();
+    bvh2.nodes[at] = Bvh2Node::new(aabb, 0, kids as u32);
+    bvh2.nodes.extend([Bvh2Node::default(); 2]);
+    let (left, right) = prims.split_at(prims.len() / 2);
+    balanced(bvh2, kids, left, boxes, slots);
+    balanced(bvh2, kids + 1, right, boxes, slots);
 }
 
 /// A 4-wide BVH over primitives given by their boxes.
@@ -621,6 +748,45 @@ mod tests {
                 Aabb::new(p, p + Vec3A::splat(0.5))
             })
             .collect()
+    }
+
+    /// Coincident primitives (a mesh with a triangle repeated many times) build in n log n: runs of
+    /// the same box become balanced subtrees, so the tree stays shallow and every primitive is
+    /// still in exactly one leaf whose box holds it.
+    #[test]
+    fn many_coincident_primitives_build_a_shallow_tree() {
+        let n = 100_000;
+        let same = Aabb::new(Vec3A::ZERO, Vec3A::new(1.0, 1.0, 0.0));
+        let mut boxes = vec![same; n];
+        // A few others among them, and a second run of another box.
+        for (k, b) in boxes.iter_mut().enumerate().step_by(997) {
+            *b = Aabb::new(Vec3A::splat(k as f32), Vec3A::splat(k as f32 + 0.5));
+        }
+        let other = Aabb::new(Vec3A::splat(-3.0), Vec3A::splat(-2.0));
+        boxes[50_000..50_500].fill(other);
+        for q in [BuildQuality::Fast, BuildQuality::High] {
+            let bvh = Bvh4::build(&boxes, q, 4);
+            let mut seen = vec![0u32; n];
+            let (lo, hi) = bvh.bounds.expect("bounds");
+            check_subtree(&bvh, 0, lo, hi, &boxes, &mut seen);
+            assert!(seen.iter().all(|&c| c == 1), "{q:?}");
+            assert!(bvh.depth <= 24, "{q:?}: depth {}", bvh.depth);
+            assert!(bvh.nodes.len() <= n / 2, "{q:?}: {} nodes", bvh.nodes.len());
+        }
+    }
+
+    /// Inputs without long runs of the same box go to PLOC as they are.
+    #[test]
+    fn short_runs_of_the_same_box_are_not_grouped() {
+        let mut boxes = test_boxes(1000);
+        let first = boxes[0];
+        // `first` and its copies: a run of `SAME_BOX_RUN`, then one longer.
+        boxes[100..99 + SAME_BOX_RUN].fill(first);
+        assert!(same_box_runs(&boxes).is_none());
+        boxes[100..100 + SAME_BOX_RUN].fill(first);
+        let runs = same_box_runs(&boxes).expect("a run");
+        assert_eq!(runs.boxes.len(), 1000 - SAME_BOX_RUN);
+        assert_eq!(runs.members.len(), 1000);
     }
 
     #[test]
