@@ -183,11 +183,43 @@ fn box_bits(b: &Aabb) -> [u32; 6] {
     [b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z].map(f32::to_bits)
 }
 
+/// Whether more than [`SAME_BOX_RUN`] of `boxes` may share one box: false is certain (equal boxes
+/// hash to one bucket, and no bucket holds that many), true is to be confirmed by sorting. Sorting
+/// every input to find runs that are almost never there cost a good share of a large build;
+/// counting into a table that fits in cache costs little, and with at least one bucket for every
+/// box a bucket fills past the limit by chance only for inputs of millions of times its size.
+fn may_share_boxes(boxes: &[Aabb]) -> bool {
+    use rayon::prelude::*;
+    const BUCKET_BITS: u32 = 20;
+    let bucket = |b: &Aabb| {
+        let h = box_bits(b).iter().fold(0u64, |h, &v| (h ^ u64::from(v)).wrapping_mul(0x9E37_79B9_7F4A_7C15));
+        (h >> (64 - BUCKET_BITS)) as usize
+    };
+    let chunk = boxes.len().div_ceil(rayon::current_num_threads().max(1)).max(1 << 16);
+    let counts = boxes
+        .par_chunks(chunk)
+        .map(|part| {
+            let mut counts = vec![0u8; 1 << BUCKET_BITS];
+            for b in part {
+                let c = &mut counts[bucket(b)];
+                *c = c.saturating_add(1);
+            }
+            counts
+        })
+        .reduce_with(|mut a, b| {
+            for (x, y) in a.iter_mut().zip(&b) {
+                *x = x.saturating_add(*y);
+            }
+            a
+        });
+    counts.is_some_and(|c| c.iter().any(|&n| usize::from(n) > SAME_BOX_RUN))
+}
+
 /// Groups the primitives that share their box, or `None` when no run is longer than
 /// [`SAME_BOX_RUN`] (the usual case: the input goes to PLOC as it is).
 fn same_box_runs(boxes: &[Aabb]) -> Option<SameBoxRuns> {
     use rayon::slice::ParallelSliceMut;
-    if boxes.len() <= SAME_BOX_RUN {
+    if boxes.len() <= SAME_BOX_RUN || !may_share_boxes(boxes) {
         return None;
     }
     let mut order: Vec<([u32; 6], u32)> = boxes.iter().enumerate().map(|(i, b)| (box_bits(b), i as u32)).collect();
