@@ -8,14 +8,17 @@ use super::DistributedError;
 use crate::render::{FrameReport, Framebuffer, RenderedTile, TileRenderer, World};
 use std::time::Instant;
 
-/// Tiles each worker has in flight per thread: while it renders one, the next ones are on their
-/// way (a tile of a simple scene renders in less time than a round trip through a sleeping
-/// master).
+/// Tiles each worker has in flight per thread at first: while it renders one, the next ones are
+/// on their way. A worker that runs out of tiles while waiting for more (its tiles take less time
+/// than a round trip through the master) has its window doubled, up to the most.
 const TILES_IN_FLIGHT_PER_THREAD: usize = 16;
+const MOST_TILES_IN_FLIGHT_PER_THREAD: usize = 256;
 
 /// A worker as it introduced itself.
 struct WorkerInfo {
     threads: u32,
+    /// Tiles it has in flight: grown whenever it runs dry, kept from frame to frame.
+    window: usize,
     /// Why it cannot render, if it cannot.
     failure: Option<String>,
 }
@@ -93,7 +96,8 @@ impl<T: Transport> Master<T> {
                             what: "another build of the program (every rank must run the same executable)".into(),
                         });
                     }
-                    *slot = Some(WorkerInfo { threads, failure });
+                    let window = TILES_IN_FLIGHT_PER_THREAD * (threads as usize).max(1);
+                    *slot = Some(WorkerInfo { threads, window, failure });
                 }
                 _ => return Err(protocol_error("its first message is no greeting".into())),
             }
@@ -147,8 +151,7 @@ impl<T: Transport> Master<T> {
         let mut told_last = vec![false; self.workers.len()];
         let mut traffic = Traffic::default();
         for (w, info) in self.workers.iter().enumerate() {
-            let k = TILES_IN_FLIGHT_PER_THREAD * (info.threads as usize).max(1);
-            let first: Vec<u32> = (0..k).map_while(|_| schedule.next(w)).collect();
+            let first: Vec<u32> = (0..info.window).map_while(|_| schedule.next(w)).collect();
             for &t in &first {
                 given[t as usize] = Some(w);
             }
@@ -169,9 +172,16 @@ impl<T: Transport> Master<T> {
                 return Err(protocol_error("a message from no worker".into()));
             };
             match Message::decode(&bytes).map_err(protocol_error)? {
-                Message::Tiles { frame: f, tiles: batch } if f == frame => {
+                Message::Tiles { frame: f, tiles: batch, starved } if f == frame => {
                     traffic.pixels += bytes.len() as u64;
-                    let arrived = batch.len();
+                    let mut wanted = batch.len();
+                    if starved {
+                        let info = &mut self.workers[w];
+                        let most = MOST_TILES_IN_FLIGHT_PER_THREAD * (info.threads as usize).max(1);
+                        let grown = (2 * info.window).min(most);
+                        wanted += grown - info.window;
+                        info.window = grown;
+                    }
                     for (tile, pixels) in batch {
                         let t = tile as usize;
                         if given.get(t) != Some(&Some(w)) || rendered[t].is_some() {
@@ -184,18 +194,18 @@ impl<T: Transport> Master<T> {
                         }
                     }
                     if !told_last[w] {
-                        // As many new tiles as arrived, keeping the worker's tiles in flight.
-                        // After a failure nothing more is handed out: the frame ends as soon as
-                        // every worker has sent what it holds.
+                        // As many new tiles as arrived (and more if the window grew), keeping the
+                        // worker's tiles in flight. After a failure nothing more is handed out: the
+                        // frame ends as soon as every worker has sent what it holds.
                         let next: Vec<u32> = if failure.is_none() {
-                            (0..arrived).map_while(|_| schedule.next(w)).collect()
+                            (0..wanted).map_while(|_| schedule.next(w)).collect()
                         } else {
                             Vec::new()
                         };
                         for &t in &next {
                             given[t as usize] = Some(w);
                         }
-                        told_last[w] = schedule.left() == 0 || next.len() < arrived;
+                        told_last[w] = schedule.left() == 0 || next.len() < wanted;
                         let m = Message::Assign { frame, tiles: next, last: told_last[w] }.encode();
                         traffic.control += m.len() as u64;
                         self.transport.send(rank, &m)?;

@@ -6,7 +6,7 @@
 use rtsl_compiler::front::parse::ast::ShaderKind;
 
 /// The protocol's version: ranks that speak different versions refuse each other at start-up.
-pub const PROTOCOL_VERSION: u32 = 2;
+pub const PROTOCOL_VERSION: u32 = 3;
 
 /// What the master's counters add up from a worker's share of a frame.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -44,8 +44,9 @@ pub enum Message {
     Assign { frame: u64, tiles: Vec<u32>, last: bool },
     /// Worker to master: finished tiles, each its index and its pixels
     /// ([`crate::render::RenderedTile::encode`]): all that were ready when the worker sent, so
-    /// that a master slow to answer gets fewer, larger messages.
-    Tiles { frame: u64, tiles: Vec<(u32, Vec<u8>)> },
+    /// that a master slow to answer gets fewer, larger messages. `starved`: the worker ran out of
+    /// tiles while waiting for more since its last message.
+    Tiles { frame: u64, tiles: Vec<(u32, Vec<u8>)>, starved: bool },
     /// Worker to master: the worker has sent every tile it was given, or could not render the
     /// frame (`failure`).
     FrameDone { frame: u64, counts: FrameCounts, failure: Option<String> },
@@ -128,9 +129,10 @@ impl Message {
                 w.u32s(tiles);
                 w.u8(u8::from(*last));
             }
-            Message::Tiles { frame, tiles } => {
+            Message::Tiles { frame, tiles, starved } => {
                 w.u8(TILES);
                 w.u64(*frame);
+                w.u8(u8::from(*starved));
                 w.u32(tiles.len() as u32);
                 for (tile, pixels) in tiles {
                     w.u32(*tile);
@@ -174,10 +176,10 @@ impl Message {
             FRAME => Message::Frame { frame: r.u64()?, update: r.bytes()?, tiles: r.u32s()?, last: r.bool()? },
             ASSIGN => Message::Assign { frame: r.u64()?, tiles: r.u32s()?, last: r.bool()? },
             TILES => {
-                let frame = r.u64()?;
+                let (frame, starved) = (r.u64()?, r.bool()?);
                 let n = r.count(12)?;
                 let tiles = (0..n).map(|_| Ok((r.u32()?, r.bytes()?))).collect::<Result<_, String>>()?;
-                Message::Tiles { frame, tiles }
+                Message::Tiles { frame, tiles, starved }
             }
             FRAME_DONE => {
                 let frame = r.u64()?;
@@ -323,7 +325,7 @@ mod tests {
             Message::Hello { protocol: 7, build: vec![], threads: 1, failure: Some("no such file".into()) },
             Message::Frame { frame: 3, update: vec![9; 10], tiles: vec![0, 5, 7], last: false },
             Message::Assign { frame: 3, tiles: vec![], last: true },
-            Message::Tiles { frame: u64::MAX, tiles: vec![(12, vec![0xAB; 100]), (3, vec![])] },
+            Message::Tiles { frame: u64::MAX, tiles: vec![(12, vec![0xAB; 100]), (3, vec![])], starved: true },
             Message::FrameDone {
                 frame: 1,
                 counts: FrameCounts {

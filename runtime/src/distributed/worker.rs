@@ -162,12 +162,14 @@ fn render_share<T: Transport>(
         }
         give(first, &mut outstanding)?;
         let mut finished = Vec::new();
+        let mut starved = false;
         loop {
             finished.extend(done_rx.try_iter());
             if !finished.is_empty() {
                 outstanding -= finished.len();
                 let tiles = std::mem::take(&mut finished);
-                transport.send(0, &Message::Tiles { frame, tiles }.encode())?;
+                let starved = std::mem::take(&mut starved);
+                transport.send(0, &Message::Tiles { frame, tiles, starved }.encode())?;
             }
             while let Some((rank, bytes)) = transport.try_recv()? {
                 match decode_from(transport, rank, &bytes)? {
@@ -182,6 +184,8 @@ fn render_share<T: Transport>(
             if last && outstanding == 0 {
                 return Ok(false);
             }
+            // Every tile given is finished and sent back, and the master has not yet answered.
+            starved |= !last && outstanding == 0;
             // Wakes at once for a finished tile; the master's messages wait for the next poll.
             if let Ok(done) = done_rx.recv_timeout(POLL) {
                 finished.push(done);
