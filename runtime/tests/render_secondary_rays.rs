@@ -6,8 +6,26 @@ mod common;
 
 use common::{context, cube, quad, FLAT, H, W};
 use glam::Vec3A;
-use rtsl_runtime::api::{ApiError, Context};
+use rtsl_runtime::api::{ApiError, Context, ShaderId};
 use rtsl_runtime::shading::ParamValue;
+
+/// A quad at z = 0 facing the camera, shaded by `surface`, and a green wall `2 * half` wide at
+/// z = 8, behind the camera, that the quad's reflected rays meet.
+fn before_a_green_wall(rt: &mut Context, surface: ShaderId, half: f32) -> Result<(), ApiError> {
+    let flat = rt.compile_shader("flat.sl", FLAT)?;
+    let m = rt.begin_object()?;
+    rt.bind_shader(surface)?;
+    quad(rt, [[-10.0, -10.0, 0.0], [10.0, -10.0, 0.0], [10.0, 10.0, 0.0], [-10.0, 10.0, 0.0]])?;
+    rt.end_object()?;
+    let wall = rt.begin_object()?;
+    rt.bind_shader(flat)?;
+    rt.parameter("c", ParamValue::Color([0.0, 1.0, 0.0]))?;
+    quad(rt, [[-half, half, 8.0], [half, half, 8.0], [half, -half, 8.0], [-half, -half, 8.0]])?;
+    rt.end_object()?;
+    rt.instantiate_object(m)?;
+    rt.instantiate_object(wall)?;
+    Ok(())
+}
 
 const MIRROR: &str = "surface mirrored() { Oi = 1; Ci = 0.5 * trace(P, reflect(I, normalize(N))); }";
 
@@ -15,20 +33,9 @@ const MIRROR: &str = "surface mirrored() { Oi = 1; Ci = 0.5 * trace(P, reflect(I
 fn trace_sees_what_a_mirror_reflects_up_to_the_depth_limit() -> Result<(), ApiError> {
     let mut rt = context();
     let mirror = rt.compile_shader("mirrored.sl", MIRROR)?;
-    let flat = rt.compile_shader("flat.sl", FLAT)?;
     rt.camera_look_at(Vec3A::new(0.0, 0.0, 5.0), Vec3A::ZERO, Vec3A::Y, 30.0);
     // A mirror facing the camera, and a green wall behind the camera that it reflects.
-    let m = rt.begin_object()?;
-    rt.bind_shader(mirror)?;
-    quad(&mut rt, [[-10.0, -10.0, 0.0], [10.0, -10.0, 0.0], [10.0, 10.0, 0.0], [-10.0, 10.0, 0.0]])?;
-    rt.end_object()?;
-    let wall = rt.begin_object()?;
-    rt.bind_shader(flat)?;
-    rt.parameter("c", ParamValue::Color([0.0, 1.0, 0.0]))?;
-    quad(&mut rt, [[-10.0, 10.0, 8.0], [10.0, 10.0, 8.0], [10.0, -10.0, 8.0], [-10.0, -10.0, 8.0]])?;
-    rt.end_object()?;
-    rt.instantiate_object(m)?;
-    rt.instantiate_object(wall)?;
+    before_a_green_wall(&mut rt, mirror, 10.0)?;
     let (fb, report) = rt.render_frame()?;
     assert!(report.secondary_rays >= u64::from(W * H));
     let p = fb.pixel(W / 2, H / 2);
@@ -146,20 +153,9 @@ fn trace_in_a_long_loop_traces_each_ray_once_and_changes_no_pixel() -> Result<()
     rt.options.width = w;
     rt.options.height = h;
     let looped = rt.compile_shader("looped.sl", LOOPED)?;
-    let flat = rt.compile_shader("flat.sl", FLAT)?;
     rt.camera_look_at(Vec3A::new(0.0, 0.0, 5.0), Vec3A::ZERO, Vec3A::Y, 30.0);
     // A quad filling the view that reflects a green wall behind the camera.
-    let m = rt.begin_object()?;
-    rt.bind_shader(looped)?;
-    quad(&mut rt, [[-10.0, -10.0, 0.0], [10.0, -10.0, 0.0], [10.0, 10.0, 0.0], [-10.0, 10.0, 0.0]])?;
-    rt.end_object()?;
-    let wall = rt.begin_object()?;
-    rt.bind_shader(flat)?;
-    rt.parameter("c", ParamValue::Color([0.0, 1.0, 0.0]))?;
-    quad(&mut rt, [[-10.0, 10.0, 8.0], [10.0, 10.0, 8.0], [10.0, -10.0, 8.0], [-10.0, -10.0, 8.0]])?;
-    rt.end_object()?;
-    rt.instantiate_object(m)?;
-    rt.instantiate_object(wall)?;
+    before_a_green_wall(&mut rt, looped, 10.0)?;
     let (ahead, ahead_report) = rt.render_frame()?;
     rt.options.trace_ahead = false;
     let (chunked, chunked_report) = rt.render_frame()?;
@@ -196,21 +192,10 @@ surface glossy(float samples = 8; float cone = 0.2;)
 fn gather_samples_a_cone_of_shaded_rays() -> Result<(), ApiError> {
     let mut rt = context();
     let glossy = rt.compile_shader("glossy.sl", GLOSSY)?;
-    let flat = rt.compile_shader("flat.sl", FLAT)?;
     rt.camera_look_at(Vec3A::new(0.0, 0.0, 5.0), Vec3A::ZERO, Vec3A::Y, 30.0);
     // A glossy quad facing the camera; a green wall behind the camera that its cone of reflected
     // rays meets at a distance of 8 to 8 / cos(0.2); nothing behind the quad.
-    let m = rt.begin_object()?;
-    rt.bind_shader(glossy)?;
-    quad(&mut rt, [[-10.0, -10.0, 0.0], [10.0, -10.0, 0.0], [10.0, 10.0, 0.0], [-10.0, 10.0, 0.0]])?;
-    rt.end_object()?;
-    let wall = rt.begin_object()?;
-    rt.bind_shader(flat)?;
-    rt.parameter("c", ParamValue::Color([0.0, 1.0, 0.0]))?;
-    quad(&mut rt, [[-40.0, 40.0, 8.0], [40.0, 40.0, 8.0], [40.0, -40.0, 8.0], [-40.0, -40.0, 8.0]])?;
-    rt.end_object()?;
-    rt.instantiate_object(m)?;
-    rt.instantiate_object(wall)?;
+    before_a_green_wall(&mut rt, glossy, 40.0)?;
     let (fb, report) = rt.render_frame()?;
     // Two gathers of 8 rays for every pixel.
     assert!(report.secondary_rays >= 16 * u64::from(W * H), "{}", report.secondary_rays);
