@@ -26,8 +26,8 @@ pub(crate) fn work<S: WorkerScene>(
     pool: &rayon::ThreadPool,
 ) -> anyhow::Result<std::process::ExitCode> {
     let result: Result<(), DistributedError> = match scene {
-        Ok(mut s) => serve(&transport, Ok(&mut s), pool),
-        Err(e) => serve(&transport, Err(format!("{e:#}")), pool),
+        Ok(mut s) => serve(transport, Ok(&mut s), pool),
+        Err(e) => serve(transport, Err(format!("{e:#}")), pool),
     };
     result?;
     Ok(std::process::ExitCode::SUCCESS)

@@ -28,24 +28,6 @@ pub trait Transport {
     fn try_recv(&self) -> Result<Option<(usize, Vec<u8>)>, TransportError>;
 }
 
-impl<T: Transport + ?Sized> Transport for &T {
-    fn rank(&self) -> usize {
-        (**self).rank()
-    }
-    fn size(&self) -> usize {
-        (**self).size()
-    }
-    fn send(&self, to: usize, bytes: &[u8]) -> Result<(), TransportError> {
-        (**self).send(to, bytes)
-    }
-    fn recv(&self) -> Result<(usize, Vec<u8>), TransportError> {
-        (**self).recv()
-    }
-    fn try_recv(&self) -> Result<Option<(usize, Vec<u8>)>, TransportError> {
-        (**self).try_recv()
-    }
-}
-
 impl<T: Transport + ?Sized> Transport for Box<T> {
     fn rank(&self) -> usize {
         (**self).rank()

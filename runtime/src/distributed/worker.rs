@@ -49,7 +49,7 @@ impl WorkerScene for StillScene {
 
 /// Serves the master on rank 0 of `transport` until it says to stop: greets it (with `scene`'s
 /// failure if the scene could not be loaded), then renders each frame's tiles on `pool`.
-pub fn serve<T: Transport>(
+pub fn serve<T: Transport + ?Sized>(
     transport: &T,
     scene: Result<&mut dyn WorkerScene, String>,
     pool: &rayon::ThreadPool,
@@ -95,12 +95,12 @@ pub fn serve<T: Transport>(
 }
 
 /// The next message from the master.
-fn receive<T: Transport>(transport: &T) -> Result<Message, DistributedError> {
+fn receive<T: Transport + ?Sized>(transport: &T) -> Result<Message, DistributedError> {
     let (rank, bytes) = transport.recv()?;
     decode_from(transport, rank, &bytes)
 }
 
-fn decode_from<T: Transport>(transport: &T, rank: usize, bytes: &[u8]) -> Result<Message, DistributedError> {
+fn decode_from<T: Transport + ?Sized>(transport: &T, rank: usize, bytes: &[u8]) -> Result<Message, DistributedError> {
     let me = transport.rank();
     if rank != 0 {
         return Err(DistributedError::Protocol { rank: me, message: format!("a message from rank {rank}") });
@@ -108,7 +108,7 @@ fn decode_from<T: Transport>(transport: &T, rank: usize, bytes: &[u8]) -> Result
     Message::decode(bytes).map_err(|message| DistributedError::Protocol { rank: me, message })
 }
 
-fn out_of_place<T: Transport>(transport: &T) -> DistributedError {
+fn out_of_place<T: Transport + ?Sized>(transport: &T) -> DistributedError {
     DistributedError::Protocol { rank: transport.rank(), message: "a message out of place from the master".into() }
 }
 
@@ -120,7 +120,7 @@ fn out_of_place<T: Transport>(transport: &T) -> DistributedError {
 /// each keeping its scratch warm; this thread (the only one that talks to the master) passes
 /// finished tiles on and new tiles in. Handing the pool one tile at a time cost a thread wake-up
 /// per tile, as much as rendering a tile of a simple scene.
-fn render_share<T: Transport>(
+fn render_share<T: Transport + ?Sized>(
     transport: &T,
     world: &World,
     frame: u64,
