@@ -180,9 +180,23 @@ pub fn encode(c: &Compilation, options: &Options) -> Option<Vec<u8>> {
         return None;
     }
     let module = c.module.as_ref()?;
+    let warnings = if c.warnings() > 0 { c.render() } else { String::new() };
+    let source = c.files.first().and_then(|f| c.sources.get(*f).path.as_deref());
+    encode_module(module, &c.sources, warnings, options, source)
+}
+
+/// Encodes a checked module with the sources it was compiled from (`source`: its main file), the
+/// front end's rendered `warnings` and the `options` it was compiled with; `None` when the module
+/// defines no shader. [`encode`] of a compilation's parts.
+pub fn encode_module(
+    module: &Module,
+    sources: &SourceMap,
+    warnings: String,
+    options: &Options,
+    source: Option<&Path>,
+) -> Option<Vec<u8>> {
     module.shader.as_ref()?;
-    let files = c
-        .sources
+    let files = sources
         .files()
         .map(|(_, f)| StoredFile {
             name: f.name.clone(),
@@ -191,7 +205,6 @@ pub fn encode(c: &Compilation, options: &Options) -> Option<Vec<u8>> {
             text: f.text.to_string(),
         })
         .collect();
-    let warnings = if c.warnings() > 0 { c.render() } else { String::new() };
     let payload = PayloadRef {
         compiler_version: env!("CARGO_PKG_VERSION"),
         options: StoredOptions::from_options(options),
@@ -200,8 +213,7 @@ pub fn encode(c: &Compilation, options: &Options) -> Option<Vec<u8>> {
         module,
     };
     let body = postcard::to_stdvec(&payload).ok()?;
-    let source = c.files.first().and_then(|f| c.sources.get(*f).path.as_deref().map(absolute));
-    let source = source.map(|p| p.display().to_string()).unwrap_or_default();
+    let source = source.map(absolute).map(|p| p.display().to_string()).unwrap_or_default();
     let mut out = Vec::with_capacity(FIXED_HEADER + source.len() + 40 + body.len());
     out.extend_from_slice(MAGIC);
     out.extend_from_slice(&FORMAT_VERSION.to_le_bytes());

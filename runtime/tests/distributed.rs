@@ -1,11 +1,13 @@
-//! The master and its workers as threads of this process (`LocalTransport`): images bit for bit
-//! the single-process ones, each frame's update applied before its tiles, and failures reported
-//! by the master, named by rank, never a hang.
+//! The master and its workers as threads of this process (`LocalTransport`): workers that start
+//! empty and are sent the master's context ([`ReplicaScene`]) make images bit for bit the
+//! single-process ones, frame after frame of changes; failures are reported by the master, named
+//! by rank, never a hang; damaged updates are errors.
 
-use rtsl_runtime::api::Context;
-use rtsl_runtime::distributed::{serve, DistributedError, LocalTransport, Master, Message, Transport, WorkerScene};
-use rtsl_runtime::render::{render_frame, FilterKind, Framebuffer, PixelFilter, World};
-use rtsl_runtime::shading::ParamValue;
+use rtsl_runtime::api::{Context, Primitive, Replicator};
+use rtsl_runtime::distributed::{serve, DistributedError, LocalTransport, Master, Message, ReplicaScene, Transport};
+use rtsl_runtime::glam::{Affine3A, Vec3A};
+use rtsl_runtime::render::{render_frame, FilterKind, Framebuffer, PixelFilter};
+use rtsl_runtime::shading::{ParamValue, ShaderProgram};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
@@ -13,68 +15,38 @@ fn repo(path: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(path)
 }
 
-/// A scene as every rank makes it: the same calls give the same world.
-type MakeScene = fn() -> Result<Context, String>;
-
-/// Each frame's update is a time step that moves the first instance.
-struct Moving(Context);
-
-fn apply(rt: &mut Context, update: &[u8]) -> Result<(), String> {
-    if let [step] = update {
-        let id = *rt.world_instance_ids().first().ok_or("no instance")?;
-        let t = rt.instance_transform(id).map_err(|e| e.to_string())?;
-        let moved = rtsl_runtime::glam::Affine3A::from_translation([0.05 * f32::from(*step), 0.0, 0.0].into()) * t;
-        rt.set_instance_transform(id, moved).map_err(|e| e.to_string())?;
-    }
-    Ok(())
-}
-
-impl WorkerScene for Moving {
-    fn world(&mut self, update: &[u8]) -> Result<World, String> {
-        apply(&mut self.0, update)?;
-        self.0.build_world().map_err(|e| e.to_string())
-    }
-    fn finished(&mut self, world: World) {
-        self.0.return_scene(world);
-    }
-}
+/// A change the application makes to its context before a frame.
+type Change = fn(&mut Context) -> Result<(), String>;
 
 fn pool(threads: usize) -> rayon::ThreadPool {
     rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("a thread pool")
 }
 
-/// A worker rank: makes the scene, then serves the master.
-fn run_worker(transport: &LocalTransport, make: MakeScene, threads: usize) -> Result<(), DistributedError> {
-    match make() {
-        Ok(rt) => serve(transport, Ok(&mut Moving(rt)), &pool(threads)),
-        Err(e) => serve(transport, Err(e), &pool(threads)),
-    }
-}
-
-/// Renders the frames of `updates` with `workers` worker threads of `threads` threads each, and
-/// in this process alone; returns both images of each frame.
+/// Renders a frame after each change of `changes` (applied to the master's context `rt` only)
+/// with `workers` worker threads of `threads` threads each, and in this process alone; returns
+/// both images of each frame and the bytes of each frame's update.
 fn both_ways(
-    make: MakeScene,
+    mut rt: Context,
     workers: usize,
     threads: usize,
-    updates: &[&[u8]],
-) -> Result<Vec<(Framebuffer, Framebuffer)>, DistributedError> {
+    changes: &[Change],
+) -> Result<Vec<(Framebuffer, Framebuffer, u64)>, DistributedError> {
     let mut group = LocalTransport::group(workers + 1, Duration::from_secs(120)).into_iter();
     let master_end = group.next().expect("rank 0");
-    let handles: Vec<_> = group.map(|t| std::thread::spawn(move || run_worker(&t, make, threads))).collect();
+    let handles: Vec<_> =
+        group.map(|t| std::thread::spawn(move || serve(&t, Ok(&mut ReplicaScene::new()), &pool(threads)))).collect();
     let mut master = Master::connect(master_end)?;
     master.check_workers()?;
-    let mut here = make().expect("the scene loads");
     let mut out = Vec::new();
-    for update in updates {
-        apply(&mut here, update).expect("the update applies");
-        let world = here.build_world().expect("a world");
-        let (distributed, report) = master.render_frame(&world, update, None)?;
+    for change in changes {
+        change(&mut rt).expect("the change applies");
+        let world = rt.build_world().expect("a world");
+        let (distributed, report) = master.render_context(&rt, &world, None)?;
         assert_eq!(report.threads, workers * threads);
         assert!(report.primary_rays >= u64::from(world.options.width * world.options.height));
         let (alone, _) = pool(2).install(|| render_frame(&world, None));
-        here.return_scene(world);
-        out.push((distributed, alone));
+        rt.return_scene(world);
+        out.push((distributed, alone, master.traffic().updates));
     }
     master.shutdown()?;
     for h in handles {
@@ -83,8 +55,19 @@ fn both_ways(
     Ok(out)
 }
 
-fn assert_same(pairs: &[(Framebuffer, Framebuffer)], what: &str) {
-    for (k, (distributed, alone)) in pairs.iter().enumerate() {
+fn nothing(_: &mut Context) -> Result<(), String> {
+    Ok(())
+}
+
+/// Moves the first instance a step along x.
+fn move_first(rt: &mut Context) -> Result<(), String> {
+    let id = *rt.world_instance_ids().first().ok_or("no instance")?;
+    let t = rt.instance_transform(id).map_err(|e| e.to_string())?;
+    rt.set_instance_transform(id, Affine3A::from_translation([0.15, 0.0, 0.0].into()) * t).map_err(|e| e.to_string())
+}
+
+fn assert_same(frames: &[(Framebuffer, Framebuffer, u64)], what: &str) {
+    for (k, (distributed, alone, _)) in frames.iter().enumerate() {
         assert_eq!((distributed.width, distributed.height), (alone.width, alone.height));
         let differ = distributed.rgba.iter().zip(&alone.rgba).filter(|(a, b)| a.to_bits() != b.to_bits()).count();
         assert_eq!(differ, 0, "{what}, frame {k}: {differ} values differ");
@@ -120,45 +103,210 @@ fn library_with_camera_and_pixel_shader() -> Result<Context, String> {
 #[test]
 fn distributed_frames_are_bit_identical_to_single_process_frames() -> Result<(), DistributedError> {
     // Moving frames: each worker applies each frame's update before any of its tiles.
-    assert_same(&both_ways(office, 2, 1, &[&[], &[3], &[7]])?, "the office");
-    assert_same(&both_ways(library_with_camera_and_pixel_shader, 3, 2, &[&[]])?, "the library scene");
+    let office = office().expect("the office");
+    let frames = both_ways(office, 2, 1, &[nothing, move_first, nothing, move_first])?;
+    assert_same(&frames, "the office");
+    // The first update carries the scene; a move carries one instance; no change, nothing.
+    let updates: Vec<u64> = frames.iter().map(|f| f.2).collect();
+    assert!(updates[0] > 10_000, "{updates:?}");
+    assert!(updates[1] < updates[0] / 20, "{updates:?}");
+    assert!(updates[2] < updates[1], "{updates:?}");
+    let library = library_with_camera_and_pixel_shader().expect("the library scene");
+    assert_same(&both_ways(library, 3, 2, &[nothing])?, "the library scene");
     Ok(())
 }
 
 #[test]
-fn a_bart_frame_is_bit_identical() -> Result<(), DistributedError> {
+fn bart_frames_are_bit_identical() -> Result<(), DistributedError> {
     let robots = repo("../shared/scenes/bart/robot/aff/Robot.aff");
     if !robots.exists() {
         eprintln!("skipped: {} is absent", robots.display());
         return Ok(());
     }
-    fn robots_scene() -> Result<Context, String> {
-        let mut rt = Context::new();
-        let path = repo("../shared/scenes/bart/robot/aff/Robot.aff");
-        let mut scene = rtsl_runtime::bart::load_file(&mut rt, &path).map_err(|e| e.to_string())?;
-        rt.options.width = 64;
-        rt.options.height = 48;
-        let t = scene.frame_time(40);
-        scene.set_time(&mut rt, t).map_err(|e| e.to_string())?;
-        Ok(rt)
+    let mut rt = Context::new();
+    let mut scene = rtsl_runtime::bart::load_file(&mut rt, &robots).expect("the robots load");
+    rt.options.width = 64;
+    rt.options.height = 48;
+    let t = scene.frame_time(40);
+    scene.set_time(&mut rt, t).expect("frame 40");
+    // The animation's next frames, played on the master only: the workers are sent what moved.
+    thread_local! {
+        static SCENE: std::cell::RefCell<Option<rtsl_runtime::bart::BartScene>> = const { std::cell::RefCell::new(None) };
     }
-    assert_same(&both_ways(robots_scene, 2, 1, &[&[]])?, "a BART robots frame");
+    SCENE.with(|s| *s.borrow_mut() = Some(scene));
+    fn next_frame(rt: &mut Context) -> Result<(), String> {
+        SCENE.with(|s| {
+            let mut s = s.borrow_mut();
+            let scene = s.as_mut().ok_or("no scene")?;
+            let t = scene.frame_time(41);
+            scene.set_time(rt, t).map_err(|e| e.to_string())
+        })
+    }
+    assert_same(&both_ways(rt, 2, 1, &[nothing, next_frame])?, "BART robots frames");
+    Ok(())
+}
+
+/// A small scene of the application's own making: a floor, a box, a point light.
+fn little_scene() -> Result<Context, String> {
+    let e = |e: rtsl_runtime::api::ApiError| e.to_string();
+    let mut rt = Context::new();
+    rt.options.width = 48;
+    rt.options.height = 40;
+    rt.camera_look_at(Vec3A::new(0.0, 1.5, 4.0), Vec3A::new(0.0, 0.3, 0.0), Vec3A::Y, 45.0);
+    let plastic = rt.find_shader("plastic").map_err(e)?;
+    let floor = rt.begin_object().map_err(e)?;
+    rt.bind_shader(plastic).map_err(e)?;
+    rt.begin(Primitive::Quads).map_err(e)?;
+    for (x, z) in [(-2.0, -2.0), (2.0, -2.0), (2.0, 2.0), (-2.0, 2.0)] {
+        rt.vertex(x, 0.0, z).map_err(e)?;
+    }
+    rt.end().map_err(e)?;
+    rt.end_object().map_err(e)?;
+    rt.instantiate_object(floor).map_err(e)?;
+    let block = rt.begin_object().map_err(e)?;
+    rt.color(0.8, 0.3, 0.2);
+    rt.bind_shader(plastic).map_err(e)?;
+    rt.begin(Primitive::Triangles).map_err(e)?;
+    for p in [[-0.5, 0.0, 0.0], [0.5, 0.0, 0.0], [0.0, 1.0, 0.0]] {
+        rt.vertex(p[0], p[1], p[2]).map_err(e)?;
+    }
+    rt.end().map_err(e)?;
+    rt.end_object().map_err(e)?;
+    rt.instantiate_object(block).map_err(e)?;
+    let light = rt.find_shader("pointlight").map_err(e)?;
+    rt.translate(1.0, 3.0, 2.0);
+    rt.light_source(light, &[("intensity", ParamValue::Float(12.0))]).map_err(e)?;
+    rt.load_identity();
+    Ok(rt)
+}
+
+#[test]
+fn every_kind_of_change_reaches_the_workers_before_their_frame() -> Result<(), DistributedError> {
+    fn reload_plastic(rt: &mut Context) -> Result<(), String> {
+        // Hot reload: the program behind an id replaced by code the workers never saw.
+        let id = rt.find_shader("plastic").map_err(|e| e.to_string())?;
+        let source = "surface plastic(float Kd = 0.5; float Ks = 0.5) { Ci = Cs * Kd * (1 - v) + Ks * s; Oi = Os; }";
+        let program = ShaderProgram::from_source("plastic", source, &[]).map_err(|e| e.to_string())?;
+        rt.replace_shader(id, program).map_err(|e| e.to_string())
+    }
+    fn new_object_and_texture(rt: &mut Context) -> Result<(), String> {
+        let e = |e: rtsl_runtime::api::ApiError| e.to_string();
+        // A texture from memory, read by a shader compiled from a string.
+        let texels: Vec<f32> = (0..8 * 8 * 3).map(|i| ((i * 37) % 11) as f32 / 10.0).collect();
+        rt.tex_image_2d("checks", 8, 8, 3, &texels).map_err(e)?;
+        let shader = rt
+            .compile_shader("textured", "surface textured() { Ci = color texture(\"checks\", s, t); Oi = 1; }")
+            .map_err(e)?;
+        let quad = rt.begin_object().map_err(e)?;
+        rt.bind_shader(shader).map_err(e)?;
+        rt.begin(Primitive::Quads).map_err(e)?;
+        rt.tex_coord(0.0, 0.0);
+        rt.vertex(-1.5, 0.2, -1.0).map_err(e)?;
+        rt.tex_coord(1.0, 0.0);
+        rt.vertex(-0.6, 0.2, -1.0).map_err(e)?;
+        rt.tex_coord(1.0, 1.0);
+        rt.vertex(-0.6, 1.2, -1.0).map_err(e)?;
+        rt.tex_coord(0.0, 1.0);
+        rt.vertex(-1.5, 1.2, -1.0).map_err(e)?;
+        rt.end().map_err(e)?;
+        rt.end_object().map_err(e)?;
+        rt.instantiate_object(quad).map_err(e)?;
+        Ok(())
+    }
+    fn rebuild_and_delete(rt: &mut Context) -> Result<(), String> {
+        let e = |e: rtsl_runtime::api::ApiError| e.to_string();
+        // The triangle becomes a bigger one; the floor goes.
+        let block = rtsl_runtime::api::ObjectId(1);
+        rt.redefine_object(block).map_err(e)?;
+        rt.begin(Primitive::Triangles).map_err(e)?;
+        for p in [[-0.9, 0.0, 0.3], [0.9, 0.0, 0.3], [0.0, 1.4, 0.0]] {
+            rt.vertex(p[0], p[1], p[2]).map_err(e)?;
+        }
+        rt.end().map_err(e)?;
+        rt.end_object().map_err(e)?;
+        rt.delete_object(rtsl_runtime::api::ObjectId(0)).map_err(e)
+    }
+    fn settings(rt: &mut Context) -> Result<(), String> {
+        let e = |e: rtsl_runtime::api::ApiError| e.to_string();
+        // Lights, camera, options and a pixel shader: the frame's settings.
+        let light = rt.find_shader("distantlight").map_err(e)?;
+        rt.light_source(light, &[("intensity", ParamValue::Float(0.7))]).map_err(e)?;
+        rt.camera_look_at(Vec3A::new(1.0, 2.0, 3.5), Vec3A::new(0.0, 0.5, 0.0), Vec3A::Y, 50.0);
+        rt.options.width = 40;
+        rt.options.height = 52;
+        rt.options.background = [0.1, 0.2, 0.3];
+        let exposure = rt.find_shader("exposure").map_err(e)?;
+        rt.pixel_shader(Some(exposure), &[]).map_err(e)
+    }
+    let rt = little_scene().expect("the little scene");
+    let frames = both_ways(
+        rt,
+        2,
+        1,
+        &[nothing, reload_plastic, new_object_and_texture, move_first, rebuild_and_delete, settings, nothing],
+    )?;
+    assert_same(&frames, "frames of changes");
     Ok(())
 }
 
 #[test]
-fn a_worker_whose_scene_failed_is_named_by_the_master() {
-    fn broken() -> Result<Context, String> {
-        Err("scene.rib:3:1: no such shader \"nonesuch\"".into())
+fn damaged_updates_are_errors_never_panics() {
+    let mut rt = little_scene().expect("the little scene");
+    let mut replicator = Replicator::new();
+    let update = replicator.update(&rt).expect("an update");
+    // The update makes a copy that renders the same world.
+    let mut copy = Context::new();
+    assert_eq!(copy.apply_update(&update).ok(), Some(true));
+    let (a, _) = render_frame(&rt.build_world().expect("a world"), None);
+    let (b, _) = render_frame(&copy.build_world().expect("the copy's world"), None);
+    assert_eq!(a.rgba, b.rgba);
+    // Truncated or with a byte changed: an error, or a context that still builds a world.
+    let mut state = 0x9e3779b97f4a7c15u64;
+    let mut next = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        state
+    };
+    for cut in [0, 1, 7, update.len() / 3, update.len() - 1] {
+        assert!(Context::new().apply_update(&update[..cut.max(1)]).is_err(), "cut at {cut}");
     }
+    for _ in 0..400 {
+        let mut damaged = update.clone();
+        for _ in 0..1 + next() % 3 {
+            let at = (next() % damaged.len() as u64) as usize;
+            damaged[at] ^= 1 << (next() % 8);
+        }
+        let mut copy = Context::new();
+        if copy.apply_update(&damaged).is_ok() {
+            let _ = copy.build_world();
+        }
+    }
+    // Ids beyond what the copy holds, or new records missing, are refused.
+    let mut fresh = Context::new();
+    assert!(fresh.apply_update(&update).is_ok());
+    let mut moved = replicator.update(&rt).expect("no change");
+    assert!(moved.is_empty());
+    move_first(&mut rt).expect("moved");
+    moved = replicator.update(&rt).expect("a move");
+    assert!(!moved.is_empty() && moved.len() < update.len() / 20, "{} of {}", moved.len(), update.len());
+    let err = Context::new().apply_update(&moved).expect_err("an update that assumes an earlier one");
+    assert!(err.to_string().contains("missing"), "{err}");
+}
+
+#[test]
+fn a_worker_whose_scene_failed_is_named_by_the_master() {
     let mut group = LocalTransport::group(3, Duration::from_secs(30)).into_iter();
     let master_end = group.next().expect("rank 0");
     let workers: Vec<_> = group
         .enumerate()
         .map(|(i, t)| {
             std::thread::spawn(move || {
-                let make: MakeScene = if i == 1 { broken } else { office };
-                run_worker(&t, make, 1)
+                if i == 1 {
+                    serve(&t, Err("scene.rib:3:1: no such shader \"nonesuch\"".into()), &pool(1))
+                } else {
+                    serve(&t, Ok(&mut ReplicaScene::new()), &pool(1))
+                }
             })
         })
         .collect();
@@ -219,7 +367,7 @@ fn a_worker_that_goes_silent_is_an_error_not_a_hang() {
 #[test]
 fn a_tile_decodes_to_itself_and_damaged_tiles_are_errors() {
     use rtsl_runtime::render::{RenderedTile, TileRenderer};
-    for make in [office as MakeScene, library_with_camera_and_pixel_shader] {
+    for make in [office as fn() -> Result<Context, String>, library_with_camera_and_pixel_shader] {
         let mut rt = make().expect("the scene loads");
         let world = rt.build_world().expect("a world");
         let renderer = TileRenderer::new(&world);

@@ -5,8 +5,8 @@
 use anyhow::Context as _;
 use rtsl_runtime::api::Context;
 use rtsl_runtime::bart::{load_file, BartScene};
-use rtsl_runtime::distributed::{Master, Traffic, Transport, WorkerScene};
-use rtsl_runtime::render::{render_frame, World};
+use rtsl_runtime::distributed::{Master, Traffic, Transport};
+use rtsl_runtime::render::render_frame;
 use rtsl_runtime::{write_image, WriteOptions};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -39,27 +39,10 @@ pub struct BartArgs {
     #[arg(short, long)]
     pub quiet: bool,
     /// Render over the ranks of an `mpirun` job: rank 0 plays the animation and writes the frames,
-    /// the others render tiles, each frame's time sent to them as its update (docs/distributed.md).
+    /// the others render tiles of a copy of the scene, sent what moved before each frame
+    /// (docs/distributed.md).
     #[arg(long)]
     pub mpi: bool,
-}
-
-/// A worker rank's copy of the animation: each frame's update is its time.
-struct BartWorker {
-    rt: Context,
-    scene: BartScene,
-}
-
-impl WorkerScene for BartWorker {
-    fn world(&mut self, update: &[u8]) -> Result<World, String> {
-        let t = <[u8; 4]>::try_from(update).map(f32::from_le_bytes).map_err(|_| "an update that is no time")?;
-        self.scene.set_time(&mut self.rt, t).map_err(|e| e.to_string())?;
-        self.rt.build_world().map_err(|e| e.to_string())
-    }
-
-    fn finished(&mut self, world: World) {
-        self.rt.return_scene(world);
-    }
 }
 
 /// Loads the scene and applies the flags, as every rank does.
@@ -109,13 +92,7 @@ pub fn run(args: &BartArgs) -> anyhow::Result<ExitCode> {
 
     let transport = if args.mpi { Some(super::mpi::transport()?) } else { None };
     if let Some(t) = transport.as_ref().filter(|t| t.rank() != 0) {
-        let scene = load(args, &pool).and_then(|(mut rt, scene)| {
-            // Every object's BVH now, as the master builds them before the first frame.
-            let world = pool.install(|| rt.build_world())?;
-            rt.return_scene(world);
-            Ok(BartWorker { rt, scene })
-        });
-        return super::mpi::work(&**t, scene, &pool);
+        return super::mpi::work(&**t, &pool);
     }
     let mut master = transport.map(Master::connect).transpose()?;
     let started = Instant::now();
@@ -237,7 +214,7 @@ fn play_frame(
     let start = Instant::now();
     let (fb, report, traffic) = match master {
         Some(m) if m.workers() > 0 => {
-            let (fb, report) = m.render_frame(&world, &t.to_le_bytes(), None)?;
+            let (fb, report) = m.render_context(rt, &world, None)?;
             (fb, report, Some(m.traffic()))
         }
         _ => {

@@ -234,7 +234,7 @@ pub fn run_render(args: &BenchRenderArgs) -> anyhow::Result<()> {
         );
         let transport = super::mpi::transport()?;
         if transport.rank() != 0 {
-            super::mpi::work(&*transport, load().map(rtsl_runtime::distributed::StillScene::new), &pool)?;
+            super::mpi::work(&*transport, &pool)?;
             return Ok(());
         }
         let mut master = rtsl_runtime::distributed::Master::connect(transport)?;
@@ -245,7 +245,7 @@ pub fn run_render(args: &BenchRenderArgs) -> anyhow::Result<()> {
         let mut ms = Vec::new();
         let mut last = None;
         for frame in 0..=args.frames.max(1) {
-            let (_, report) = master.render_frame(&world, &[], None)?;
+            let (_, report) = master.render_context(&rt, &world, None)?;
             if frame > 0 {
                 ms.push(report.elapsed.as_secs_f64() * 1e3);
                 last = Some(report);

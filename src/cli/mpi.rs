@@ -1,8 +1,9 @@
 //! `--mpi`: the subcommands that render over the ranks of an `mpirun` job. Rank 0 is the master
-//! (it loads the scene, prints and writes what a single process would); every other rank loads
-//! the same scene quietly and serves the master as a worker (`rtsl_runtime::distributed`).
+//! (it loads the scene, prints and writes what a single process would); every other rank starts
+//! with an empty scene, is sent the master's, and serves it as a worker
+//! (`rtsl_runtime::distributed`).
 
-use rtsl_runtime::distributed::{serve, DistributedError, Traffic, Transport, WorkerScene};
+use rtsl_runtime::distributed::{serve, ReplicaScene, Traffic, Transport};
 
 /// This process's rank of the `mpirun` job.
 #[cfg(feature = "mpi")]
@@ -18,18 +19,9 @@ pub(crate) fn transport() -> anyhow::Result<Box<dyn Transport>> {
     )
 }
 
-/// Serves the master as a worker with the scene `scene` made (or the error that kept it from
-/// loading, which the master reports once).
-pub(crate) fn work<S: WorkerScene>(
-    transport: &dyn Transport,
-    scene: anyhow::Result<S>,
-    pool: &rayon::ThreadPool,
-) -> anyhow::Result<std::process::ExitCode> {
-    let result: Result<(), DistributedError> = match scene {
-        Ok(mut s) => serve(transport, Ok(&mut s), pool),
-        Err(e) => serve(transport, Err(format!("{e:#}")), pool),
-    };
-    result?;
+/// Serves the master as a worker: a copy of the master's scene, sent to it frame by frame.
+pub(crate) fn work(transport: &dyn Transport, pool: &rayon::ThreadPool) -> anyhow::Result<std::process::ExitCode> {
+    serve(transport, Ok(&mut ReplicaScene::new()), pool)?;
     Ok(std::process::ExitCode::SUCCESS)
 }
 

@@ -3,7 +3,7 @@
 
 use anyhow::Context as _;
 use rtsl_runtime::api::Context;
-use rtsl_runtime::distributed::{Master, StillScene};
+use rtsl_runtime::distributed::Master;
 use rtsl_runtime::reload::{ShaderEvent, ShaderReloader};
 use rtsl_runtime::render::{render_frame, Antialiasing, FrameReport, Framebuffer, World};
 use rtsl_runtime::scene_file::{add_model_file, frame_bounds};
@@ -121,29 +121,27 @@ pub(crate) fn samples_grid(n: u32) -> (u32, u32) {
     }
 }
 
-/// Renders the context's scene with `pool` and writes `output`; prints warnings (those of values
-/// a reloaded shader no longer takes only with `frame_warnings`: `--watch` prints them once per
-/// reload, from the reload's events).
-fn render_and_write(
-    rt: &mut Context,
-    pool: &rayon::ThreadPool,
-    output: &Path,
-    quiet: bool,
-    frame_warnings: bool,
-) -> anyhow::Result<FrameReport> {
-    render_and_write_with(rt, output, quiet, frame_warnings, |world, progress| {
-        Ok(pool.install(|| render_frame(world, Some(progress))))
-    })
+/// Told how many of a frame's tiles are done, of how many.
+type Progress<'a> = dyn Fn(usize, usize) + Sync + 'a;
+
+/// How a frame of a context's world is rendered: on a thread pool, or over MPI (called from this
+/// thread only).
+type FrameRender<'a> = dyn FnMut(&Context, &World, &Progress<'_>) -> anyhow::Result<(Framebuffer, FrameReport)> + 'a;
+
+/// Renders frames on `pool`.
+fn on_pool(pool: &rayon::ThreadPool) -> Box<FrameRender<'_>> {
+    Box::new(move |_, world, progress| Ok(pool.install(|| render_frame(world, Some(progress)))))
 }
 
-/// [`render_and_write`] with the frame rendered by `render` (on a thread pool, or over MPI, which
-/// is called from this thread only).
-fn render_and_write_with(
+/// Renders the context's scene with `render` and writes `output`; prints warnings (those of
+/// values a reloaded shader no longer takes only with `frame_warnings`: `--watch` prints them once
+/// per reload, from the reload's events).
+fn render_and_write(
     rt: &mut Context,
+    render: &mut FrameRender,
     output: &Path,
     quiet: bool,
     frame_warnings: bool,
-    render: impl FnOnce(&World, &(dyn Fn(usize, usize) + Sync)) -> anyhow::Result<(Framebuffer, FrameReport)>,
 ) -> anyhow::Result<FrameReport> {
     let world = rt.build_world()?;
     for w in rt.take_warnings() {
@@ -165,7 +163,7 @@ fn render_and_write_with(
             b.set_position(done as u64);
         }
     };
-    let rendered = render(&world, &progress);
+    let rendered = render(rt, &world, &progress);
     if let Some(b) = bar {
         b.finish_and_clear();
     }
@@ -186,7 +184,7 @@ fn render_and_write_with(
 /// ([`ShaderReloader`]); after each batch of reloads the image is rendered and rewritten, and each
 /// reload prints one line: the shader, its compile time and the frame time (or, for a change that
 /// does not compile, the diagnostics: the last good shader stays). Runs until interrupted.
-fn watch(rt: &mut Context, pool: &rayon::ThreadPool, output: &Path) -> anyhow::Result<()> {
+fn watch(rt: &mut Context, render: &mut FrameRender, output: &Path) -> anyhow::Result<()> {
     let mut reloader = ShaderReloader::new(rt)?;
     println!("watching {} shader file(s); Ctrl-C to stop", reloader.watched_files());
     loop {
@@ -207,7 +205,7 @@ fn watch(rt: &mut Context, pool: &rayon::ThreadPool, output: &Path) -> anyhow::R
         if compiled.is_empty() {
             continue;
         }
-        let report = render_and_write(rt, pool, output, true, false)?;
+        let report = render_and_write(rt, render, output, true, false)?;
         let frame_ms = report.elapsed.as_secs_f64() * 1e3;
         for (name, compile) in compiled {
             println!(
@@ -225,17 +223,6 @@ pub(crate) fn load_scene(
     scene: Option<&Path>,
     shader_path: &[PathBuf],
     include: &[PathBuf],
-) -> anyhow::Result<(Context, Option<PathBuf>)> {
-    load_scene_warning(scene, shader_path, include, true)
-}
-
-/// [`load_scene`], printing the scene file's warnings only if `warn` (a worker rank leaves them to
-/// the master).
-fn load_scene_warning(
-    scene: Option<&Path>,
-    shader_path: &[PathBuf],
-    include: &[PathBuf],
-    warn: bool,
 ) -> anyhow::Result<(Context, Option<PathBuf>)> {
     let mut rt = Context::new();
     let mut search: Vec<PathBuf> = shader_path.to_vec();
@@ -255,7 +242,7 @@ fn load_scene_warning(
             match ext.as_deref() {
                 Some("rib") => {
                     let loaded = rtsl_runtime::rib::load::load_file(&mut rt, path)?;
-                    for w in loaded.warnings.iter().filter(|_| warn) {
+                    for w in &loaded.warnings {
                         eprintln!("{w}");
                     }
                     output = loaded.display.map(|d| path.parent().unwrap_or(Path::new(".")).join(d));
@@ -272,8 +259,8 @@ fn load_scene_warning(
 }
 
 /// Loads the scene and applies the flags to it; returns it and the image to write.
-fn prepare(args: &RenderArgs, warn: bool) -> anyhow::Result<(Context, PathBuf)> {
-    let (mut rt, named) = load_scene_warning(args.scene.as_deref(), &args.shader_path, &args.include, warn)?;
+fn prepare(args: &RenderArgs) -> anyhow::Result<(Context, PathBuf)> {
+    let (mut rt, named) = load_scene(args.scene.as_deref(), &args.shader_path, &args.include)?;
     let output = args.output.clone().or(named);
     if let Some((w, h)) = args.size {
         rt.options.width = w;
@@ -295,14 +282,15 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
     if args.mpi {
         return run_mpi(args);
     }
-    let (mut rt, output) = prepare(args, true)?;
+    let (mut rt, output) = prepare(args)?;
     let (threads, pool) = super::worker_pool(args.threads)?;
-    let report = render_and_write(&mut rt, &pool, &output, args.quiet, true)?;
+    let mut render = on_pool(&pool);
+    let report = render_and_write(&mut rt, &mut render, &output, args.quiet, true)?;
     if !args.quiet {
         print_summary(&rt, &output, &format!("{threads} thread(s)"), &report);
     }
     if args.watch {
-        watch(&mut rt, &pool, &output)?;
+        watch(&mut rt, &mut render, &output)?;
     }
     Ok(ExitCode::SUCCESS)
 }
@@ -318,26 +306,32 @@ fn print_summary(rt: &Context, output: &Path, threads: &str, report: &FrameRepor
     println!("{report}");
 }
 
-/// `render --mpi`: rank 0 renders over the other ranks and writes the image; the others serve it.
+/// `render --mpi`: rank 0 loads the scene, renders it over the other ranks and writes the image
+/// (and with `--watch`, renders again after each reload: the reloaded shaders travel with the
+/// frame); the others start empty and are sent the scene.
 fn run_mpi(args: &RenderArgs) -> anyhow::Result<ExitCode> {
-    anyhow::ensure!(!args.watch, "--watch does not run over MPI yet: render without --mpi to watch shaders");
     let transport = super::mpi::transport()?;
     let (_, pool) = super::worker_pool(args.threads)?;
     if transport.rank() != 0 {
-        return super::mpi::work(&*transport, prepare(args, false).map(|(rt, _)| StillScene::new(rt)), &pool);
+        return super::mpi::work(&*transport, &pool);
     }
     let mut master = Master::connect(transport)?;
-    let (mut rt, output) = prepare(args, true)?;
+    let (mut rt, output) = prepare(args)?;
     master.check_workers()?;
     if master.workers() == 0 {
         eprintln!("warning: --mpi with no worker rank (run it with mpirun -n 2 or more): rendering on rank 0 alone");
     }
-    let report = render_and_write_with(&mut rt, &output, args.quiet, true, |world, progress| {
+    let mut local = on_pool(&pool);
+    let mut render = |rt: &Context, world: &World, progress: &Progress<'_>| {
         if master.workers() == 0 {
-            return Ok(pool.install(|| render_frame(world, Some(progress))));
+            return local(rt, world, progress);
         }
-        Ok(master.render_frame(world, &[], Some(progress))?)
-    })?;
+        Ok(master.render_context(rt, world, Some(progress))?)
+    };
+    let report = render_and_write(&mut rt, &mut render, &output, args.quiet, true)?;
+    if args.watch {
+        watch(&mut rt, &mut render, &output)?;
+    }
     if !args.quiet {
         let ranks = format!("{} worker rank(s), {} thread(s) in all", master.workers(), master.worker_threads());
         print_summary(&rt, &output, &ranks, &report);

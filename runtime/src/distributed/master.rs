@@ -5,6 +5,7 @@ use super::message::{build_fingerprint, greeting_version, FrameCounts, Message, 
 use super::schedule::Schedule;
 use super::transport::Transport;
 use super::DistributedError;
+use crate::api::{Context, Replicator};
 use crate::render::{FrameReport, Framebuffer, RenderedTile, TileRenderer, World};
 use std::time::Instant;
 
@@ -53,6 +54,8 @@ pub struct Master<T: Transport> {
     /// Whether the workers still wait for work (not yet told to quit).
     open: bool,
     traffic: Traffic,
+    /// What the workers' contexts were last sent ([`Master::render_context`]).
+    replicator: Replicator,
 }
 
 impl<T: Transport> Master<T> {
@@ -68,6 +71,7 @@ impl<T: Transport> Master<T> {
             last_owner: Vec::new(),
             open: true,
             traffic: Traffic::default(),
+            replicator: Replicator::new(),
         };
         let build = build_fingerprint();
         let mut hellos: Vec<Option<WorkerInfo>> = (1..n).map(|_| None).collect();
@@ -127,6 +131,21 @@ impl<T: Transport> Master<T> {
             Some((rank, message)) => Err(DistributedError::Worker { rank, message }),
             None => Ok(()),
         }
+    }
+
+    /// Renders a frame of the application's context `rt` on workers serving a
+    /// [`super::ReplicaScene`]: sends them what changed in `rt` since the last frame (all of it the
+    /// first time: see [`Replicator`]), then renders `world`, which `rt` built as it stands now,
+    /// as [`Master::render_frame`] does. An application renders distributed by calling this
+    /// where it would call [`crate::render::render_frame`]; nothing else changes.
+    pub fn render_context(
+        &mut self,
+        rt: &Context,
+        world: &World,
+        progress: Option<&dyn Fn(usize, usize)>,
+    ) -> Result<(Framebuffer, FrameReport), DistributedError> {
+        let update = if self.workers.is_empty() { Vec::new() } else { self.replicator.update(rt)? };
+        self.render_frame(world, &update, progress)
     }
 
     /// Renders a frame of `world` on the workers, which first apply `update` to their copy of the

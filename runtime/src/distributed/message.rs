@@ -6,7 +6,7 @@
 use rtsl_compiler::front::parse::ast::ShaderKind;
 
 /// The protocol's version: ranks that speak different versions refuse each other at start-up.
-pub const PROTOCOL_VERSION: u32 = 3;
+pub const PROTOCOL_VERSION: u32 = 4;
 
 /// What the master's counters add up from a worker's share of a frame.
 #[derive(Clone, Debug, Default, PartialEq)]

@@ -35,7 +35,7 @@ mod worker;
 pub use master::{Master, Traffic};
 pub use message::{FrameCounts, Message, PROTOCOL_VERSION};
 pub use transport::{LocalTransport, Transport, TransportError};
-pub use worker::{serve, StillScene, WorkerScene};
+pub use worker::{serve, ReplicaScene, WorkerScene};
 
 use crate::render::FrameReport;
 use std::time::Duration;
@@ -51,6 +51,8 @@ pub enum DistributedError {
     Worker { rank: usize, message: String },
     #[error("rank {rank} broke the protocol: {message}")]
     Protocol { rank: usize, message: String },
+    #[error(transparent)]
+    Replica(#[from] crate::api::ReplicaError),
 }
 
 /// Adds a worker's counts to the master's report of a frame.

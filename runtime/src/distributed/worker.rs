@@ -10,7 +10,7 @@ use std::sync::{Condvar, Mutex};
 use std::time::Instant;
 
 /// A worker's copy of the scene.
-pub trait WorkerScene {
+pub trait WorkerScene: Send {
     /// The world of the next frame, after applying the master's `update` for it (what an update
     /// holds is the application's business: a BART player sends the animation's time).
     fn world(&mut self, update: &[u8]) -> Result<World, String>;
@@ -18,28 +18,30 @@ pub trait WorkerScene {
     fn finished(&mut self, world: World);
 }
 
-/// A scene that stays as it was loaded: every frame's update is empty, and every frame renders
-/// the world built for the first.
-pub struct StillScene {
+/// A worker's copy of the master's [`crate::api::Context`], which starts empty and is brought to
+/// each frame's state by the updates [`super::Master::render_context`] sends: the worker loads
+/// nothing itself. A frame whose update is empty reuses the last frame's world.
+#[derive(Default)]
+pub struct ReplicaScene {
     context: crate::api::Context,
     world: Option<World>,
 }
 
-impl StillScene {
-    pub fn new(context: crate::api::Context) -> StillScene {
-        StillScene { context, world: None }
+impl ReplicaScene {
+    pub fn new() -> ReplicaScene {
+        ReplicaScene::default()
     }
 }
 
-impl WorkerScene for StillScene {
+impl WorkerScene for ReplicaScene {
     fn world(&mut self, update: &[u8]) -> Result<World, String> {
-        if !update.is_empty() {
-            return Err(format!("a scene that does not change was sent an update of {} bytes", update.len()));
-        }
+        let changed = self.context.apply_update(update).map_err(|e| e.to_string())?;
         match self.world.take() {
-            Some(world) => Ok(world),
-            None => self.context.build_world().map_err(|e| e.to_string()),
+            Some(world) if !changed => return Ok(world),
+            Some(world) => self.context.return_scene(world),
+            None => {}
         }
+        self.context.build_world().map_err(|e| e.to_string())
     }
 
     fn finished(&mut self, world: World) {
@@ -54,7 +56,7 @@ pub fn serve<T: Transport + ?Sized>(
     scene: Result<&mut dyn WorkerScene, String>,
     pool: &rayon::ThreadPool,
 ) -> Result<(), DistributedError> {
-    let (mut scene, failure) = match scene {
+    let (mut scene, mut failure) = match scene {
         Ok(s) => (Some(s), None),
         Err(e) => (None, Some(e)),
     };
@@ -70,25 +72,36 @@ pub fn serve<T: Transport + ?Sized>(
             Message::Quit => return Ok(()),
             Message::Frame { frame, update, tiles, last } => {
                 let world = match scene.as_deref_mut() {
-                    Some(s) => s.world(&update),
+                    // On the pool: building BVHs uses the worker's threads, not every core.
+                    Some(s) => pool.install(|| s.world(&update)),
                     None => Err(failure.clone().unwrap_or_default()),
                 };
-                match world {
+                let result = match world {
                     Ok(world) => {
-                        let quit = render_share(transport, &world, frame, tiles, last, pool)?;
+                        let rendered = render_share(transport, &world, frame, tiles, last, pool);
                         if let Some(s) = scene.as_deref_mut() {
                             s.finished(world);
                         }
-                        if quit {
-                            return Ok(());
+                        match rendered {
+                            Ok(true) => return Ok(()),
+                            Ok(false) => Ok(()),
+                            Err(e @ DistributedError::Transport(_)) => return Err(e),
+                            Err(e) => Err(e.to_string()),
                         }
                     }
-                    Err(message) => {
-                        let done = Message::FrameDone { frame, counts: Default::default(), failure: Some(message) };
-                        transport.send(0, &done.encode())?;
-                    }
+                    Err(message) => Err(message),
+                };
+                if let Err(message) = result {
+                    // The master reports it and ends the frame. This rank renders nothing more (its
+                    // copy of the scene may be half updated) and waits to be told to stop.
+                    let done = Message::FrameDone { frame, counts: Default::default(), failure: Some(message.clone()) };
+                    transport.send(0, &done.encode())?;
+                    scene = None;
+                    failure = Some(message);
                 }
             }
+            // More tiles of the frame this rank gave up.
+            Message::Assign { .. } if scene.is_none() => {}
             _ => return Err(out_of_place(transport)),
         }
     }

@@ -51,7 +51,7 @@ pub enum MeshError {
 }
 
 /// A named per-vertex attribute with `components` floats per vertex (e.g. a colour has 3).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Attribute {
     /// The attribute's name (e.g. `"Cs"`, `"confidence"`).
     pub name: String,
@@ -62,7 +62,7 @@ pub struct Attribute {
 }
 
 /// A triangle mesh.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Mesh {
     /// Vertex positions (object space).
     pub positions: Vec<Vec3>,

@@ -16,7 +16,7 @@
 use std::f32::consts::PI;
 
 /// A filter's shape (the `name` of `PixelFilter`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum FilterKind {
     Box,
     Triangle,
@@ -71,7 +71,7 @@ impl FilterKind {
 
 /// A pixel filter: its shape and its total support in pixels along x and y (both finite and
 /// positive; [`PixelFilter::new`] checks).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct PixelFilter {
     kind: FilterKind,
     xwidth: f32,

@@ -210,7 +210,7 @@ impl LightSource {
 
 /// A pinhole camera in RenderMan's terms: camera space has +x right, +y up and +z forward, and the
 /// field of view spans the shorter side of the image.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct CameraSetup {
     pub world_from_camera: Affine3A,
     pub fov_degrees: f32,
@@ -241,7 +241,7 @@ impl CameraSetup {
 }
 
 /// How pixels are sampled (OpenRT paper, 5.1.2).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum Antialiasing {
     /// The `samples` grid in every pixel, at the cells' centres or jittered within them.
     Grid { jitter: bool },
@@ -301,7 +301,7 @@ pub fn check_image_size(width: u64, height: u64) -> Result<(), String> {
 }
 
 /// Render settings (RenderMan's options).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct RenderOptions {
     pub width: u32,
     pub height: u32,

@@ -12,7 +12,7 @@ use glam::{Affine3A, Vec3A};
 use rtsl_compiler::ir::BaseType;
 
 /// A value given for a shader parameter.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum ParamValue {
     Float(f32),
     /// A float array (or the components of several floats).

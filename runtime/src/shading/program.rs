@@ -158,6 +158,18 @@ pub struct ShaderProgram {
     pub warnings: String,
     /// Every file the compilation read (the source and its includes), for hot reload.
     pub files: Vec<PathBuf>,
+    /// What the code was compiled from, to send the program elsewhere ([`ShaderProgram::artifact`]).
+    origin: Origin,
+}
+
+/// A program's checked IR and sources: what an artifact holds.
+struct Origin {
+    module: Module,
+    sources: SourceMap,
+    /// The front end's rendered warnings (without notes about how the program was loaded).
+    front_warnings: String,
+    options: Options,
+    source: Option<PathBuf>,
 }
 
 impl std::fmt::Debug for ShaderProgram {
@@ -180,9 +192,10 @@ impl ShaderProgram {
         let text =
             std::fs::read_to_string(path).map_err(|cause| ShaderError::Io { path: path.to_path_buf(), cause })?;
         let mut session = Session::new();
-        let c = session.compile_source_at(path, &text, &options(include_paths));
+        let options = options(include_paths);
+        let c = session.compile_source_at(path, &text, &options);
         let name = path.display().to_string();
-        Self::from_compilation(c, &name, Some(path.to_path_buf()), String::new())
+        Self::from_compilation(c, &name, Some(path.to_path_buf()), String::new(), options)
     }
 
     /// Loads a compiled artifact, skipping the front end. A stale artifact (its source or an include
@@ -193,15 +206,16 @@ impl ShaderProgram {
     pub fn from_artifact(path: &Path, include_paths: &[PathBuf]) -> Result<ShaderProgram, ShaderError> {
         match artifact::load(path, &options(include_paths))? {
             Loaded::Artifact(a) => {
+                let a = *a;
                 let files = a.files.iter().filter_map(|f| f.path.clone()).collect();
-                Self::build(
-                    &a.module,
-                    &a.sources,
-                    a.interface.clone(),
-                    a.warnings.clone(),
-                    files,
-                    Some(path.to_path_buf()),
-                )
+                let origin = Origin {
+                    module: a.module,
+                    sources: a.sources,
+                    front_warnings: a.warnings.clone(),
+                    options: a.options.to_options(),
+                    source: a.source,
+                };
+                Self::build(origin, a.interface, a.warnings, files, Some(path.to_path_buf()))
             }
             Loaded::Recompiled { compilation, reason } => {
                 let name = path.display().to_string();
@@ -210,6 +224,7 @@ impl ShaderProgram {
                     &name,
                     Some(path.to_path_buf()),
                     format!("note: {reason}; recompiled from source\n"),
+                    options(include_paths),
                 )
             }
         }
@@ -218,8 +233,9 @@ impl ShaderProgram {
     /// Compiles shader source given as a string; `name` names it in diagnostics.
     pub fn from_source(name: &str, text: &str, include_paths: &[PathBuf]) -> Result<ShaderProgram, ShaderError> {
         let mut session = Session::new();
-        let c = session.compile_source(name, text, &options(include_paths));
-        Self::from_compilation(c, name, None, String::new())
+        let options = options(include_paths);
+        let c = session.compile_source(name, text, &options);
+        Self::from_compilation(c, name, None, String::new(), options)
     }
 
     fn from_compilation(
@@ -227,26 +243,55 @@ impl ShaderProgram {
         name: &str,
         path: Option<PathBuf>,
         note: String,
+        options: Options,
     ) -> Result<ShaderProgram, ShaderError> {
         if !c.ok() {
             return Err(ShaderError::Compile { name: name.to_string(), diagnostics: format!("{note}{}", c.render()) });
         }
-        let warnings = if c.warnings() > 0 { format!("{note}{}", c.render()) } else { note };
-        let (Some(module), Some(interface)) = (c.module.as_ref(), c.interface.clone()) else {
+        let front_warnings = if c.warnings() > 0 { c.render() } else { String::new() };
+        let warnings = format!("{note}{front_warnings}");
+        let files = c.files.iter().filter_map(|f| c.sources.get(*f).path.clone()).collect();
+        let source = c.files.first().and_then(|f| c.sources.get(*f).path.clone());
+        let (Some(module), Some(interface)) = (c.module, c.interface) else {
             return Err(ShaderError::NoShader { name: name.to_string() });
         };
-        let files = c.files.iter().filter_map(|f| c.sources.get(*f).path.clone()).collect();
-        Self::build(module, &c.sources, interface, warnings, files, path)
+        let origin = Origin { module, sources: c.sources, front_warnings, options, source };
+        Self::build(origin, interface, warnings, files, path)
+    }
+
+    /// Loads a program from an artifact's bytes held in memory ([`ShaderProgram::artifact`] made
+    /// them, here or in another process of the same build); `label` names it in errors. Nothing is
+    /// read from disk: the bytes carry the IR and its sources.
+    pub fn from_artifact_bytes(label: &str, bytes: &[u8]) -> Result<ShaderProgram, ShaderError> {
+        let a = artifact::decode(Path::new(label), bytes)?;
+        let files = a.files.iter().filter_map(|f| f.path.clone()).collect();
+        let path = a.source.clone();
+        let origin = Origin {
+            module: a.module,
+            sources: a.sources,
+            front_warnings: a.warnings.clone(),
+            options: a.options.to_options(),
+            source: a.source,
+        };
+        Self::build(origin, a.interface, a.warnings, files, path)
+    }
+
+    /// The program as a compiled artifact's bytes (the format of `rtsl compile -o`): its IR and
+    /// the sources it came from, which [`ShaderProgram::from_artifact_bytes`] loads without the
+    /// front end. `None` only if the IR cannot be encoded.
+    pub fn artifact(&self) -> Option<Vec<u8>> {
+        let o = &self.origin;
+        artifact::encode_module(&o.module, &o.sources, o.front_warnings.clone(), &o.options, o.source.as_deref())
     }
 
     fn build(
-        module: &Module,
-        sources: &SourceMap,
+        origin: Origin,
         interface: ShaderInterface,
         warnings: String,
         files: Vec<PathBuf>,
         path: Option<PathBuf>,
     ) -> Result<ShaderProgram, ShaderError> {
+        let (module, sources) = (&origin.module, &origin.sources);
         let code = jit::compile_with(module, Some(sources), &jit::JitOptions::default())
             .map_err(|error| ShaderError::Jit { name: interface.name.clone(), error })?;
         Ok(ShaderProgram {
@@ -261,6 +306,7 @@ impl ShaderProgram {
             code,
             warnings,
             files,
+            origin,
         })
     }
 }

@@ -58,12 +58,15 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+mod replica;
+pub use replica::{ReplicaError, Replicator};
+
 /// A compiled shader known to a [`Context`].
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 pub struct ShaderId(pub u32);
 
 /// A retained object of a [`Context`].
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 pub struct ObjectId(pub u32);
 
 /// An instance of an object.
@@ -142,14 +145,14 @@ fn kind_name(k: ShaderKind) -> &'static str {
 
 /// A surface shader binding: a shader and its object-scope values (kept as given, resolved at frame
 /// time against whatever program the id names then).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 struct Binding {
     shader: ShaderId,
     params: Vec<(String, ParamValue, Affine3A)>,
     world_from_shader: Affine3A,
 }
 
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 struct Appearance {
     color: [f32; 3],
     opacity: [f32; 3],
@@ -190,12 +193,13 @@ struct ObjectRecord {
 }
 
 /// An object's parts: each part's appearance, and each triangle's part.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 struct ObjectParts {
     appearances: Vec<Appearance>,
     of_triangle: Arc<[u32]>,
 }
 
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 struct InstanceRecord {
     object: ObjectId,
     transform: Affine3A,
@@ -204,6 +208,7 @@ struct InstanceRecord {
     deleted: bool,
 }
 
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 struct LightRecord {
     shader: ShaderId,
     params: Vec<(String, ParamValue, Affine3A)>,
@@ -276,6 +281,9 @@ pub struct Context {
     textures: Arc<TextureCache>,
     memory_textures: Vec<(String, TexImage)>,
     memory_grids: Vec<(String, crate::texture::grid::Grid)>,
+    /// Counts the changes to `memory_textures` and `memory_grids` (a [`Replicator`] sends them
+    /// again when it moves).
+    memory_changes: u64,
     warnings: Vec<String>,
     /// Hot-reload events not yet taken ([`Context::take_shader_events`]).
     events: Vec<ShaderEvent>,
@@ -350,6 +358,7 @@ impl Context {
             textures: Arc::new(TextureCache::new()),
             memory_textures: Vec::new(),
             memory_grids: Vec::new(),
+            memory_changes: 0,
             warnings: Vec::new(),
             events: Vec::new(),
             built_materials: Vec::new(),
@@ -372,12 +381,7 @@ impl Context {
         if !self.texture_search_path.contains(&dir) {
             self.texture_search_path.push(dir);
             self.textures = Arc::new(TextureCache::with_search_paths(self.texture_search_path.clone()));
-            for (name, image) in &self.memory_textures {
-                self.textures.insert_texture(name, image.clone(), [Wrap::Periodic; 2]);
-            }
-            for (name, grid) in &self.memory_grids {
-                self.textures.insert_grid(name, grid.clone());
-            }
+            self.insert_memory_textures();
         }
     }
 
@@ -402,6 +406,7 @@ impl Context {
         self.textures.insert_texture(name, image.clone(), [Wrap::Periodic; 2]);
         self.memory_textures.retain(|(n, _)| n != name);
         self.memory_textures.push((name.to_string(), image));
+        self.memory_changes += 1;
         Ok(())
     }
 
@@ -414,6 +419,7 @@ impl Context {
         self.textures.insert_texture(name, loaded.image.clone(), [Wrap::Periodic; 2]);
         self.memory_textures.retain(|(n, _)| n != name);
         self.memory_textures.push((name.to_string(), loaded.image));
+        self.memory_changes += 1;
         Ok(())
     }
 
@@ -425,6 +431,7 @@ impl Context {
         self.textures.insert_grid(name, grid.clone());
         self.memory_grids.retain(|(n, _)| n != name);
         self.memory_grids.push((name.to_string(), grid));
+        self.memory_changes += 1;
         Ok(())
     }
 

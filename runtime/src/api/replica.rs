@@ -1,0 +1,423 @@
+//! A [`Context`]'s scene copied into contexts elsewhere: the workers of a distributed render
+//! (`crate::distributed`). A [`Replicator`] beside the application's context turns what changed
+//! since its last update into bytes; [`Context::apply_update`] brings another context to the same
+//! state, so that `build_world` there makes the world the application's context makes (the same
+//! objects in the same order, the same materials, lights and options) and frames render
+//! bit-identical.
+//!
+//! What travels:
+//! - shader programs as compiled artifacts (checked IR and sources: the receiver runs only the JIT),
+//!   when they first appear and whenever one is replaced (hot reload);
+//! - objects (mesh, appearance, parts) when they are built, rebuilt or deleted;
+//! - instances when they appear, move or go;
+//! - the frame's settings (lights, pixel, camera and atmosphere shaders, camera, options,
+//!   coordinate systems, texture search path) whenever any of them changes;
+//! - textures and grids given in memory. Textures named by file are read by each receiver from its
+//!   own file system, at the same paths.
+//!
+//! The building state (matrix and attribute stacks, the current appearance, an object being built)
+//! stays behind: it is not part of what a frame renders. An update of a context that did not change
+//! is empty.
+//!
+//! Contexts only grow (ids are never reused), so an update lists every record new since the last
+//! one: a receiver checks that, and every id an update names, before it changes anything an index
+//! could go wrong on. A damaged update is a [`ReplicaError`], never a panic.
+
+use super::{Appearance, Binding, Context, InstanceRecord, LightRecord, ObjectParts, ObjectRecord};
+use crate::geometry::Mesh;
+use crate::render::{CameraSetup, RenderOptions};
+use crate::shading::{Program, ShaderError, ShaderProgram};
+use crate::texture::{TexImage, TextureCache, Wrap};
+use glam::Affine3A;
+use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
+use std::sync::Arc;
+
+/// Why an update could not be applied.
+#[derive(Debug, thiserror::Error)]
+pub enum ReplicaError {
+    #[error("a scene update cannot be decoded: {0}")]
+    Undecodable(String),
+    #[error("a scene update is inconsistent: {0}")]
+    Inconsistent(String),
+    #[error("shader {id} of a scene update: {error}")]
+    Shader { id: u32, error: ShaderError },
+    #[error("shader {0} cannot be encoded to send it")]
+    Unencodable(String),
+    #[error("object {id} of a scene update: {error}")]
+    Mesh { id: u32, error: crate::geometry::MeshError },
+}
+
+/// Makes the updates of one context for the contexts that replicate it; keeps what it sent last
+/// (sharing the meshes and programs, not copying them) to tell what changed since.
+#[derive(Default)]
+pub struct Replicator {
+    programs: Vec<Option<Program>>,
+    objects: Vec<SentObject>,
+    instances: Vec<InstanceRecord>,
+    settings: Option<Vec<u8>>,
+    memory_changes: Option<u64>,
+}
+
+#[derive(Clone, PartialEq)]
+struct SentObject {
+    mesh: Option<Arc<Mesh>>,
+    appearance: Appearance,
+    parts: Option<ObjectParts>,
+    deleted: bool,
+}
+
+impl SentObject {
+    fn of(rec: &ObjectRecord) -> SentObject {
+        SentObject {
+            mesh: rec.mesh.clone(),
+            appearance: rec.appearance.clone(),
+            parts: rec.parts.clone(),
+            deleted: rec.deleted,
+        }
+    }
+
+    /// Whether `rec` is what was sent: the same mesh (by address: the kept `Arc` cannot be freed
+    /// and its address reused), appearance and parts.
+    fn is(&self, rec: &ObjectRecord) -> bool {
+        let same_mesh = match (&self.mesh, &rec.mesh) {
+            (Some(a), Some(b)) => Arc::ptr_eq(a, b),
+            (None, None) => true,
+            _ => false,
+        };
+        let same_parts = match (&self.parts, &rec.parts) {
+            (Some(a), Some(b)) => Arc::ptr_eq(&a.of_triangle, &b.of_triangle) && a.appearances == b.appearances,
+            (None, None) => true,
+            _ => false,
+        };
+        same_mesh && same_parts && self.deleted == rec.deleted && self.appearance == rec.appearance
+    }
+}
+
+#[derive(Serialize)]
+struct UpdateOut<'a> {
+    programs: Vec<(u32, Vec<u8>)>,
+    program_count: u32,
+    objects: Vec<(u32, ObjectOut<'a>)>,
+    object_count: u32,
+    instances: Vec<(u32, &'a InstanceRecord)>,
+    instance_count: u32,
+    settings: Option<&'a [u8]>,
+    memory: Option<Memory>,
+}
+
+#[derive(Deserialize)]
+struct UpdateIn {
+    programs: Vec<(u32, Vec<u8>)>,
+    program_count: u32,
+    objects: Vec<(u32, ObjectIn)>,
+    object_count: u32,
+    instances: Vec<(u32, InstanceRecord)>,
+    instance_count: u32,
+    settings: Option<Vec<u8>>,
+    memory: Option<Memory>,
+}
+
+#[derive(Serialize)]
+struct ObjectOut<'a> {
+    mesh: Option<&'a Mesh>,
+    appearance: &'a Appearance,
+    parts: Option<&'a ObjectParts>,
+    deleted: bool,
+}
+
+#[derive(Deserialize)]
+struct ObjectIn {
+    mesh: Option<Mesh>,
+    appearance: Appearance,
+    parts: Option<ObjectParts>,
+    deleted: bool,
+}
+
+#[derive(Serialize)]
+struct SettingsOut<'a> {
+    lights: &'a [LightRecord],
+    pixel: &'a Option<Binding>,
+    camera_shader: &'a Option<Binding>,
+    atmosphere: &'a Option<Binding>,
+    camera: &'a CameraSetup,
+    options: &'a RenderOptions,
+    spaces: Vec<(&'a String, &'a Affine3A)>,
+    texture_search_path: &'a [PathBuf],
+}
+
+#[derive(Deserialize)]
+struct SettingsIn {
+    lights: Vec<LightRecord>,
+    pixel: Option<Binding>,
+    camera_shader: Option<Binding>,
+    atmosphere: Option<Binding>,
+    camera: CameraSetup,
+    options: RenderOptions,
+    spaces: Vec<(String, Affine3A)>,
+    texture_search_path: Vec<PathBuf>,
+}
+
+/// Textures and grids given in memory: a texture as its size and values, a grid as its file's bytes.
+#[derive(Serialize, Deserialize)]
+struct Memory {
+    textures: Vec<(String, [u32; 3], Vec<f32>)>,
+    grids: Vec<(String, Vec<u8>)>,
+}
+
+fn encode<T: Serialize>(value: &T) -> Result<Vec<u8>, ReplicaError> {
+    postcard::to_stdvec(value).map_err(|e| ReplicaError::Undecodable(e.to_string()))
+}
+
+fn count(n: usize) -> u32 {
+    u32::try_from(n).unwrap_or(u32::MAX)
+}
+
+impl Replicator {
+    pub fn new() -> Replicator {
+        Replicator::default()
+    }
+
+    /// What changed in `rt` since the last update (everything, the first time), as bytes for
+    /// [`Context::apply_update`]; empty when nothing did.
+    pub fn update(&mut self, rt: &Context) -> Result<Vec<u8>, ReplicaError> {
+        let mut programs = Vec::new();
+        self.programs.resize(rt.programs.len(), None);
+        for (i, (sent, now)) in self.programs.iter_mut().zip(&rt.programs).enumerate() {
+            let same = match (sent.as_ref(), now.as_ref()) {
+                (Some(a), Some(b)) => Arc::ptr_eq(a, b),
+                (None, None) => true,
+                _ => false,
+            };
+            if same {
+                continue;
+            }
+            if let Some(p) = now {
+                let bytes = p.artifact().ok_or_else(|| ReplicaError::Unencodable(p.name.clone()))?;
+                programs.push((i as u32, bytes));
+            }
+            *sent = now.clone();
+        }
+        let mut objects = Vec::new();
+        for (i, rec) in rt.objects.iter().enumerate() {
+            if self.objects.get(i).is_some_and(|s| s.is(rec)) {
+                continue;
+            }
+            objects.push((
+                i as u32,
+                ObjectOut {
+                    mesh: rec.mesh.as_deref(),
+                    appearance: &rec.appearance,
+                    parts: rec.parts.as_ref(),
+                    deleted: rec.deleted,
+                },
+            ));
+            let sent = SentObject::of(rec);
+            match self.objects.get_mut(i) {
+                Some(s) => *s = sent,
+                None => self.objects.push(sent),
+            }
+        }
+        let mut instances = Vec::new();
+        for (i, rec) in rt.instances.iter().enumerate() {
+            if self.instances.get(i) == Some(rec) {
+                continue;
+            }
+            instances.push((i as u32, rec));
+            match self.instances.get_mut(i) {
+                Some(s) => *s = rec.clone(),
+                None => self.instances.push(rec.clone()),
+            }
+        }
+        let mut spaces: Vec<(&String, &Affine3A)> = rt.spaces.iter().collect();
+        spaces.sort_by(|a, b| a.0.cmp(b.0));
+        let settings = encode(&SettingsOut {
+            lights: &rt.lights,
+            pixel: &rt.pixel,
+            camera_shader: &rt.camera_shader,
+            atmosphere: &rt.atmosphere,
+            camera: &rt.camera,
+            options: &rt.options,
+            spaces,
+            texture_search_path: &rt.texture_search_path,
+        })?;
+        let settings_changed = self.settings.as_ref() != Some(&settings);
+        let memory = (self.memory_changes != Some(rt.memory_changes)).then(|| Memory {
+            textures: rt
+                .memory_textures
+                .iter()
+                .map(|(name, image)| {
+                    let size = [image.width(), image.height(), image.channels()].map(count);
+                    (name.clone(), size, image.data().to_vec())
+                })
+                .collect(),
+            grids: rt
+                .memory_grids
+                .iter()
+                .map(|(name, grid)| (name.clone(), grid.to_bytes(crate::texture::grid::GridType::F32)))
+                .collect(),
+        });
+        self.memory_changes = Some(rt.memory_changes);
+        if programs.is_empty() && objects.is_empty() && instances.is_empty() && !settings_changed && memory.is_none() {
+            return Ok(Vec::new());
+        }
+        let bytes = encode(&UpdateOut {
+            programs,
+            program_count: count(rt.programs.len()),
+            objects,
+            object_count: count(rt.objects.len()),
+            instances,
+            instance_count: count(rt.instances.len()),
+            settings: settings_changed.then_some(settings.as_slice()),
+            memory,
+        })?;
+        self.settings = Some(settings);
+        Ok(bytes)
+    }
+}
+
+/// Checks that an update's records cover every id new since the last (`old` of them) up to
+/// `count`, and name no id beyond it.
+fn check_ids(what: &str, old: usize, count: u32, ids: impl Iterator<Item = u32>) -> Result<(), ReplicaError> {
+    let count = count as usize;
+    if count < old {
+        return Err(ReplicaError::Inconsistent(format!("{what}: {count} after {old}")));
+    }
+    let mut new = vec![false; count - old.min(count)];
+    let mut listed = 0usize;
+    for id in ids {
+        let id = id as usize;
+        if id >= count {
+            return Err(ReplicaError::Inconsistent(format!("{what} {id} of {count}")));
+        }
+        listed += 1;
+        if id >= old {
+            new[id - old] = true;
+        }
+    }
+    // Bounds the allocation above by what the update holds, not by what it claims.
+    if count - old > listed || new.iter().any(|&seen| !seen) {
+        return Err(ReplicaError::Inconsistent(format!("{what}: a new one is missing")));
+    }
+    Ok(())
+}
+
+impl Context {
+    /// Brings this context's scene to the state of the context a [`Replicator`] made `update`
+    /// from (see the module's notes); returns whether anything changed (an empty update changes
+    /// nothing). On an error the context may hold part of the update; a replica that failed is
+    /// not used again.
+    pub fn apply_update(&mut self, update: &[u8]) -> Result<bool, ReplicaError> {
+        if update.is_empty() {
+            return Ok(false);
+        }
+        let u: UpdateIn = postcard::from_bytes(update).map_err(|e| ReplicaError::Undecodable(e.to_string()))?;
+        check_ids("shaders", self.programs.len(), u.program_count, u.programs.iter().map(|(i, _)| *i))?;
+        check_ids("objects", self.objects.len(), u.object_count, u.objects.iter().map(|(i, _)| *i))?;
+        check_ids("instances", self.instances.len(), u.instance_count, u.instances.iter().map(|(i, _)| *i))?;
+        let settings: Option<SettingsIn> = u
+            .settings
+            .as_deref()
+            .map(postcard::from_bytes)
+            .transpose()
+            .map_err(|e| ReplicaError::Undecodable(e.to_string()))?;
+        for (id, object) in &u.objects {
+            check_object(*id, object)?;
+        }
+        for (id, inst) in &u.instances {
+            if inst.object.0 >= u.object_count {
+                return Err(ReplicaError::Inconsistent(format!("instance {id} of object {}", inst.object.0)));
+            }
+        }
+
+        self.programs.resize(u.program_count as usize, None);
+        for (id, bytes) in u.programs {
+            let program = ShaderProgram::from_artifact_bytes(&format!("shader {id}"), &bytes)
+                .map_err(|error| ReplicaError::Shader { id, error })?;
+            self.programs[id as usize] = Some(Arc::new(program));
+        }
+        self.objects.resize_with(u.object_count as usize, || ObjectRecord {
+            mesh: None,
+            appearance: Appearance::default(),
+            parts: None,
+            scene_object: None,
+            dirty: true,
+            deleted: false,
+        });
+        for (id, o) in u.objects {
+            let rec = &mut self.objects[id as usize];
+            rec.mesh = o.mesh.map(Arc::new);
+            rec.appearance = o.appearance;
+            rec.parts = o.parts;
+            rec.deleted = o.deleted;
+            rec.dirty = true;
+        }
+        let mut instances = u.instances.into_iter().peekable();
+        let old = self.instances.len();
+        for id in 0..u.instance_count as usize {
+            match instances.next_if(|(i, _)| *i as usize == id) {
+                Some((_, inst)) if id < old => self.instances[id] = inst,
+                Some((_, inst)) => self.instances.push(inst),
+                None => {}
+            }
+        }
+        for (id, inst) in instances {
+            // Out of order: still checked above.
+            self.instances[id as usize] = inst;
+        }
+        if let Some(s) = settings {
+            self.lights = s.lights;
+            self.pixel = s.pixel;
+            self.camera_shader = s.camera_shader;
+            self.atmosphere = s.atmosphere;
+            self.camera = s.camera;
+            self.options = s.options;
+            self.spaces = s.spaces.into_iter().collect();
+            if s.texture_search_path != self.texture_search_path {
+                self.texture_search_path = s.texture_search_path;
+                self.textures = Arc::new(TextureCache::with_search_paths(self.texture_search_path.clone()));
+                self.insert_memory_textures();
+            }
+        }
+        if let Some(m) = u.memory {
+            self.memory_textures.clear();
+            for (name, [w, h, c], data) in m.textures {
+                let image = TexImage::new(w as usize, h as usize, c as usize, data)
+                    .ok_or_else(|| ReplicaError::Inconsistent(format!("texture {name}: its size and values differ")))?;
+                self.memory_textures.push((name, image));
+            }
+            self.memory_grids.clear();
+            for (name, bytes) in m.grids {
+                let grid = crate::texture::grid::Grid::parse(&bytes)
+                    .map_err(|e| ReplicaError::Inconsistent(format!("grid {name}: {e}")))?;
+                self.memory_grids.push((name, grid));
+            }
+            self.insert_memory_textures();
+        }
+        Ok(true)
+    }
+
+    pub(super) fn insert_memory_textures(&self) {
+        for (name, image) in &self.memory_textures {
+            self.textures.insert_texture(name, image.clone(), [Wrap::Periodic; 2]);
+        }
+        for (name, grid) in &self.memory_grids {
+            self.textures.insert_grid(name, grid.clone());
+        }
+    }
+}
+
+/// What the renderer indexes by in an object: its mesh's indices and its parts' map.
+fn check_object(id: u32, o: &ObjectIn) -> Result<(), ReplicaError> {
+    if let Some(mesh) = &o.mesh {
+        mesh.validate().map_err(|error| ReplicaError::Mesh { id, error })?;
+    }
+    if let Some(parts) = &o.parts {
+        let triangles = o.mesh.as_ref().map_or(0, |m| m.triangles.len());
+        let n = parts.appearances.len();
+        if parts.of_triangle.len() != triangles || parts.of_triangle.iter().any(|&p| p as usize >= n) {
+            return Err(ReplicaError::Inconsistent(format!("object {id}: its parts do not match its triangles")));
+        }
+    }
+    Ok(())
+}
