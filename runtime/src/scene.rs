@@ -9,7 +9,7 @@
 //! - Normals are transformed to world space with the inverse transpose of the instance transform.
 
 use crate::accel::bvh4::BuildQuality;
-use crate::accel::object::Object;
+use crate::accel::object::{MeshSource, MeshSummary, Object};
 use crate::accel::top::{InstanceData, TopLevel};
 use crate::accel::{packet, single};
 use crate::geometry::{AlphaMask, Mesh};
@@ -92,8 +92,48 @@ impl Scene {
         let quality = self.quality;
         let obj = self.objects.get_mut(id.0 as usize).ok_or(SceneError::NoSuchObject(id.0))?;
         let alpha = obj.alpha.take();
-        *obj = Object { alpha, ..Object::new(mesh.into(), quality) };
+        *obj = Object::new(mesh.into(), quality);
+        obj.alpha = alpha;
         Ok(())
+    }
+
+    /// Adds a demand-loaded object: `source` delivers its mesh (as `key`) when a ray first
+    /// reaches its bounds; its BVH is built then.
+    pub fn add_remote_object(&mut self, summary: MeshSummary, key: u32, source: Arc<dyn MeshSource>) -> ObjectId {
+        let id = self.objects.len() as u32;
+        self.objects.push(Object::remote(summary, key, source, self.quality));
+        ObjectId(id)
+    }
+
+    /// Makes an object demand-loaded with new contents (see [`Scene::add_remote_object`]).
+    pub fn set_object_remote(
+        &mut self,
+        id: ObjectId,
+        summary: MeshSummary,
+        key: u32,
+        source: Arc<dyn MeshSource>,
+    ) -> Result<(), SceneError> {
+        let quality = self.quality;
+        let obj = self.objects.get_mut(id.0 as usize).ok_or(SceneError::NoSuchObject(id.0))?;
+        let alpha = obj.alpha.take();
+        *obj = Object::remote(summary, key, source, quality);
+        obj.alpha = alpha;
+        Ok(())
+    }
+
+    /// The objects (to see which are resident, or evict them).
+    pub fn objects(&self) -> &[Object] {
+        &self.objects
+    }
+
+    pub fn objects_mut(&mut self) -> &mut [Object] {
+        &mut self.objects
+    }
+
+    /// The names and sizes of an object's per-vertex attributes (without fetching a
+    /// demand-loaded one).
+    pub fn attribute_names(&self, id: ObjectId) -> Vec<(String, usize)> {
+        self.objects.get(id.0 as usize).map(Object::attribute_names).unwrap_or_default()
     }
 
     /// Gives an object cut-outs (or takes them away with `None`); no BVH is rebuilt. Every query
@@ -104,9 +144,9 @@ impl Scene {
         Ok(())
     }
 
-    /// The mesh of an object.
+    /// The mesh of an object (fetched first, if it is demand-loaded and not here).
     pub fn mesh(&self, id: ObjectId) -> Option<&Arc<Mesh>> {
-        self.objects.get(id.0 as usize).map(|o| &o.mesh)
+        self.objects.get(id.0 as usize).map(|o| &o.data().mesh)
     }
 
     /// Number of objects.
@@ -174,12 +214,7 @@ impl Scene {
     /// Triangles of the committed instances, each instance counting its object's triangles (what
     /// the scene would hold without instancing).
     pub fn instanced_triangle_count(&self) -> usize {
-        self.top
-            .instances
-            .iter()
-            .filter_map(|i| self.objects.get(i.object as usize))
-            .map(|o| o.mesh.triangle_count())
-            .sum()
+        self.top.instances.iter().filter_map(|i| self.objects.get(i.object as usize)).map(Object::triangle_count).sum()
     }
 
     /// Rebuilds the top-level BVH from the instance list; call once per frame before tracing.
@@ -189,10 +224,7 @@ impl Scene {
 
     /// Bytes of heap memory of meshes and BVHs (objects counted once however often instanced).
     pub fn memory_bytes(&self) -> usize {
-        self.objects
-            .iter()
-            .map(|o| o.mesh.memory_bytes() + o.bvh.memory_bytes() + o.alpha.as_ref().map_or(0, |a| a.memory_bytes()))
-            .sum::<usize>()
+        self.objects.iter().map(Object::memory_bytes).sum::<usize>()
             + self.top.bvh.memory_bytes()
             + self.top.instances.len() * size_of::<InstanceData>()
     }
@@ -250,10 +282,11 @@ impl Scene {
     pub fn lanes_hitting_triangle(&self, packet: &RayPacket, lanes: u64, instance: u32, primitive: u32) -> u64 {
         let Some(inst) = self.top.instances.get(instance as usize) else { return 0 };
         let Some(obj) = self.objects.get(inst.object as usize) else { return 0 };
-        if inst.motion.is_some() || primitive as usize >= obj.mesh.triangle_count() {
+        let mesh = &obj.data().mesh;
+        if inst.motion.is_some() || primitive as usize >= mesh.triangle_count() {
             return 0;
         }
-        let [a, b, c] = obj.mesh.corners(primitive as usize);
+        let [a, b, c] = mesh.corners(primitive as usize);
         let tri = crate::geometry::triangle::PreTriangle::new(a, b, c);
         let mut hit = 0;
         let mut m = lanes & packet.active;
@@ -301,7 +334,7 @@ impl Scene {
     /// Surface details of a hit by a ray at `time` (where a moving instance then is).
     pub fn surface_at(&self, hit: &Hit, time: f32) -> Option<SurfaceHit> {
         let inst = self.top.instances.get(hit.instance as usize)?;
-        let mesh = &self.objects.get(inst.object as usize)?.mesh;
+        let mesh = &self.objects.get(inst.object as usize)?.data().mesh;
         let tri = *mesh.triangles.get(hit.primitive as usize)?;
         let [a, b, c] = tri.map(|i| i as usize);
         let (w0, w1, w2) = (1.0 - hit.u - hit.v, hit.u, hit.v);

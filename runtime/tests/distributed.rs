@@ -253,7 +253,7 @@ fn every_kind_of_change_reaches_the_workers_before_their_frame() -> Result<(), D
 fn damaged_updates_are_errors_never_panics() {
     let mut rt = little_scene().expect("the little scene");
     let mut replicator = Replicator::new();
-    let update = replicator.update(&rt).expect("an update");
+    let update = replicator.update(&rt, None).expect("an update");
     // The update makes a copy that renders the same world.
     let mut copy = Context::new();
     assert_eq!(copy.apply_update(&update).ok(), Some(true));
@@ -285,10 +285,10 @@ fn damaged_updates_are_errors_never_panics() {
     // Ids beyond what the copy holds, or new records missing, are refused.
     let mut fresh = Context::new();
     assert!(fresh.apply_update(&update).is_ok());
-    let mut moved = replicator.update(&rt).expect("no change");
+    let mut moved = replicator.update(&rt, None).expect("no change");
     assert!(moved.is_empty());
     move_first(&mut rt).expect("moved");
-    moved = replicator.update(&rt).expect("a move");
+    moved = replicator.update(&rt, None).expect("a move");
     assert!(!moved.is_empty() && moved.len() < update.len() / 20, "{} of {}", moved.len(), update.len());
     let err = Context::new().apply_update(&moved).expect_err("an update that assumes an earlier one");
     assert!(err.to_string().contains("missing"), "{err}");
@@ -390,4 +390,57 @@ fn a_tile_decodes_to_itself_and_damaged_tiles_are_errors() {
             assert!(RenderedTile::decode(&world, other, &bytes).is_err());
         }
     }
+}
+
+#[test]
+fn workers_fetch_only_the_objects_rays_reach_and_keep_them() -> Result<(), DistributedError> {
+    let e = |e: rtsl_runtime::api::ApiError| e.to_string();
+    let mut rt = little_scene().expect("the little scene");
+    // A large object behind the camera, which no ray reaches: never sent.
+    let hidden = rt.begin_object().map_err(e).expect("an object");
+    rt.begin(Primitive::Triangles).map_err(e).expect("triangles");
+    for k in 0..3000 {
+        let x = (k % 60) as f32 * 0.1;
+        let y = (k / 60) as f32 * 0.1;
+        for p in [[x, y, 9.0], [x + 0.1, y, 9.0], [x, y + 0.1, 9.0]] {
+            rt.vertex(p[0], p[1], p[2]).map_err(e).expect("a vertex");
+        }
+    }
+    rt.end().map_err(e).expect("end");
+    rt.end_object().map_err(e).expect("end_object");
+    rt.instantiate_object(hidden).map_err(e).expect("an instance");
+
+    let mut group = LocalTransport::group(3, Duration::from_secs(60)).into_iter();
+    let master_end = group.next().expect("rank 0");
+    let handles: Vec<_> =
+        group.map(|t| std::thread::spawn(move || serve(&t, Ok(&mut ReplicaScene::new()), &pool(1)))).collect();
+    let mut master = Master::connect(master_end)?;
+    let mut demands = Vec::new();
+    for frame in 0..3 {
+        if frame == 2 {
+            move_first(&mut rt).expect("moved");
+        }
+        let world = rt.build_world().expect("a world");
+        let (distributed, _) = master.render_context(&rt, &world, None)?;
+        let (alone, _) = render_frame(&world, None);
+        rt.return_scene(world);
+        assert_same(&[(distributed, alone, 0)], "a demand-loaded frame");
+        demands.push((master.demand(), master.traffic()));
+    }
+    master.shutdown()?;
+    for h in handles {
+        h.join().expect("a worker thread")?;
+    }
+    let (first, traffic) = demands[0];
+    // The floor and the triangle, by each of the two workers at most; never the hidden object.
+    assert!((2..=4).contains(&first.fetched_objects), "{first:?}");
+    assert!(first.most_resident_objects <= 2, "{first:?}");
+    assert!(traffic.fetches > 0 && first.fetched_bytes < 3000 * 36, "{first:?} {traffic:?}");
+    // Kept: later frames fetch nothing, even when an instance moves.
+    for (later, traffic) in &demands[1..] {
+        assert_eq!(later.fetched_objects, 0, "{later:?}");
+        assert_eq!(traffic.fetches, 0);
+        assert_eq!(later.resident_objects, first.resident_objects);
+    }
+    Ok(())
 }

@@ -5,7 +5,7 @@
 use anyhow::Context as _;
 use rtsl_runtime::api::Context;
 use rtsl_runtime::bart::{load_file, BartScene};
-use rtsl_runtime::distributed::{Master, Traffic, Transport};
+use rtsl_runtime::distributed::{Demand, Master, Traffic, Transport};
 use rtsl_runtime::render::render_frame;
 use rtsl_runtime::{write_image, WriteOptions};
 use std::path::{Path, PathBuf};
@@ -79,6 +79,8 @@ struct FrameTimes {
     accel: rtsl_runtime::render::AccelUpdate,
     /// What the frame moved between the ranks, when it was rendered over MPI.
     traffic: Option<Traffic>,
+    /// What the workers fetched for the frame, and the scene's objects and mesh bytes.
+    demand: Option<(Demand, (usize, usize), usize)>,
 }
 
 impl FrameTimes {
@@ -212,14 +214,14 @@ fn play_frame(
     let world = pool.install(|| rt.build_world())?;
     let build = start.elapsed();
     let start = Instant::now();
-    let (fb, report, traffic) = match master {
+    let (fb, report, traffic, demand) = match master {
         Some(m) if m.workers() > 0 => {
             let (fb, report) = m.render_context(rt, &world, None)?;
-            (fb, report, Some(m.traffic()))
+            (fb, report, Some(m.traffic()), Some((m.demand(), super::mpi::scene_meshes(&world), m.workers())))
         }
         _ => {
             let (fb, report) = pool.install(|| render_frame(&world, None));
-            (fb, report, None)
+            (fb, report, None, None)
         }
     };
     let render = start.elapsed();
@@ -235,7 +237,7 @@ fn play_frame(
             .with_context(|| format!("writing {}", path.display()))?;
     }
     let rays_by_kind = [report.primary_rays, report.shadow_rays, report.secondary_rays, report.transparency_rays];
-    Ok(FrameTimes { animation, build, render, rays_by_kind, accel: report.accel, traffic })
+    Ok(FrameTimes { animation, build, render, rays_by_kind, accel: report.accel, traffic, demand })
 }
 
 fn summarize(times: &[FrameTimes]) {
@@ -294,7 +296,20 @@ fn summarize(times: &[FrameTimes]) {
             control: mean(|t| t.control),
             pixels: mean(|t| t.pixels),
             counters: mean(|t| t.counters),
+            fetches: mean(|t| t.fetches),
         };
         println!("{}", super::mpi::traffic_line(&t));
+    }
+    let demands: Vec<_> = times.iter().filter_map(|t| t.demand).collect();
+    if let Some(&(first, meshes, workers)) = demands.first() {
+        let fetched = (first.fetched_objects, first.fetched_bytes);
+        println!("{}", super::mpi::demand_line("the first frame", fetched, meshes, &first, workers));
+        let rest = &demands[1..];
+        let later = rest.iter().fold((0, 0), |(o, b), (d, _, _)| (o + d.fetched_objects, b + d.fetched_bytes));
+        let (d, meshes, workers) = demands.last().copied().unwrap_or((first, meshes, workers));
+        println!(
+            "{}",
+            super::mpi::demand_line(&format!("the {} later frames", rest.len()), later, meshes, &d, workers)
+        );
     }
 }

@@ -244,8 +244,10 @@ pub fn run_render(args: &BenchRenderArgs) -> anyhow::Result<()> {
         let world = rt.build_world()?;
         let mut ms = Vec::new();
         let mut last = None;
+        let mut first_demand = None;
         for frame in 0..=args.frames.max(1) {
             let (_, report) = master.render_context(&rt, &world, None)?;
+            first_demand.get_or_insert(master.demand());
             if frame > 0 {
                 ms.push(report.elapsed.as_secs_f64() * 1e3);
                 last = Some(report);
@@ -254,6 +256,12 @@ pub fn run_render(args: &BenchRenderArgs) -> anyhow::Result<()> {
         let threads = format!("worker ranks: {}, threads: {}", master.workers(), master.worker_threads());
         print_rate(args, &world, &threads, median(ms), &last.unwrap_or_default());
         println!("{}", super::mpi::traffic_line(&master.traffic()));
+        let (first, d) = (first_demand.unwrap_or_default(), master.demand());
+        let meshes = super::mpi::scene_meshes(&world);
+        let fetched = (first.fetched_objects, first.fetched_bytes);
+        println!("{}", super::mpi::demand_line("the first frame", fetched, meshes, &first, master.workers()));
+        let later = (d.fetched_objects, d.fetched_bytes);
+        println!("{}", super::mpi::demand_line("the last frame", later, meshes, &d, master.workers()));
         master.shutdown()?;
         return Ok(());
     }

@@ -3,7 +3,8 @@
 //! with an empty scene, is sent the master's, and serves it as a worker
 //! (`rtsl_runtime::distributed`).
 
-use rtsl_runtime::distributed::{serve, ReplicaScene, Traffic, Transport};
+use rtsl_runtime::distributed::{serve, Demand, ReplicaScene, Traffic, Transport};
+use rtsl_runtime::render::World;
 
 /// This process's rank of the `mpirun` job.
 #[cfg(feature = "mpi")]
@@ -29,11 +30,43 @@ pub(crate) fn work(transport: &dyn Transport, pool: &rayon::ThreadPool) -> anyho
 pub(crate) fn traffic_line(t: &Traffic) -> String {
     let kb = |b: u64| b as f64 / 1e3;
     format!(
-        "MPI traffic per frame: {:.1} kB: pixels {:.1} kB, updates {:.2} kB, tile assignments {:.1} kB, counters {:.2} kB",
+        "MPI traffic per frame: {:.1} kB: pixels {:.1} kB, updates {:.2} kB, mesh fetches {:.1} kB, tile assignments {:.1} kB, counters {:.2} kB",
         kb(t.total()),
         kb(t.pixels),
         kb(t.updates),
+        kb(t.fetches),
         kb(t.control),
         kb(t.counters)
+    )
+}
+
+/// The objects of `world`'s scene and the bytes of their meshes (the master holds them all).
+pub(crate) fn scene_meshes(world: &World) -> (usize, usize) {
+    let scene = &world.scene;
+    let bytes = (0..scene.object_count() as u32)
+        .filter_map(|i| scene.mesh(rtsl_runtime::scene::ObjectId(i)))
+        .map(|m| m.memory_bytes())
+        .sum();
+    (scene.object_count(), bytes)
+}
+
+/// "demand loading: ..." of what the workers fetched (`fetched`: objects and bytes, over one or
+/// more frames) against the scene's objects and mesh bytes, and what they hold.
+pub(crate) fn demand_line(
+    what: &str,
+    fetched: (u64, u64),
+    scene: (usize, usize),
+    d: &Demand,
+    workers: usize,
+) -> String {
+    let mb = |b: f64| b / 1e6;
+    format!(
+        "demand loading, {what}: {} object(s), {:.2} MB fetched by {workers} worker(s) ({:.2} MB per worker) of the scene's {} object(s) and {:.2} MB of meshes; held now: at most {} object(s) per worker",
+        fetched.0,
+        mb(fetched.1 as f64),
+        mb(fetched.1 as f64 / workers.max(1) as f64),
+        scene.0,
+        mb(scene.1 as f64),
+        d.most_resident_objects
     )
 }

@@ -322,10 +322,12 @@ fn run_mpi(args: &RenderArgs) -> anyhow::Result<ExitCode> {
         eprintln!("warning: --mpi with no worker rank (run it with mpirun -n 2 or more): rendering on rank 0 alone");
     }
     let mut local = on_pool(&pool);
+    let mut meshes = (0, 0);
     let mut render = |rt: &Context, world: &World, progress: &Progress<'_>| {
         if master.workers() == 0 {
             return local(rt, world, progress);
         }
+        meshes = super::mpi::scene_meshes(world);
         Ok(master.render_context(rt, world, Some(progress))?)
     };
     let report = render_and_write(&mut rt, &mut render, &output, args.quiet, true)?;
@@ -337,6 +339,17 @@ fn run_mpi(args: &RenderArgs) -> anyhow::Result<ExitCode> {
         print_summary(&rt, &output, &ranks, &report);
         if master.workers() > 0 {
             println!("{}", super::mpi::traffic_line(&master.traffic()));
+            let d = master.demand();
+            println!(
+                "{}",
+                super::mpi::demand_line(
+                    "the frame",
+                    (d.fetched_objects, d.fetched_bytes),
+                    meshes,
+                    &d,
+                    master.workers()
+                )
+            );
         }
     }
     master.shutdown()?;

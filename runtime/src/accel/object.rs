@@ -10,7 +10,7 @@ use crate::geometry::{triangle::PreTriangle, AlphaMask, Mesh};
 use glam::Vec3A;
 use obvhs::aabb::Aabb;
 use rayon::prelude::*;
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 
 /// Largest leaf the object BVHs are built with (measured on s34k: 2 beats 1, 4 and 8 for packets and
 /// single rays alike; see `docs/tracer.md`).
@@ -59,13 +59,58 @@ impl ObjectBvh {
     }
 }
 
-/// A retained object: its mesh and BVH.
+/// What an object traces: its mesh and the BVH built from it.
 #[derive(Clone, Debug, Default)]
-pub struct Object {
+pub struct ObjectData {
     /// The geometry (shared, so that it can be handed out cheaply).
     pub mesh: Arc<Mesh>,
-    /// Its BVH.
     pub bvh: ObjectBvh,
+}
+
+/// Where the mesh of a demand-loaded object comes from (a distributed render's master).
+pub trait MeshSource: Send + Sync + std::fmt::Debug {
+    /// The mesh of the object the source knows as `key`; blocks until it is here. A source that
+    /// cannot deliver returns an empty mesh and reports why through its own channel (the frame
+    /// then fails): a traversal has no way to return an error.
+    fn fetch(&self, key: u32) -> Arc<Mesh>;
+}
+
+/// What is known of a demand-loaded object before its mesh is here: enough to place its
+/// instances in the top-level BVH and to bind its attributes to shader parameters.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct MeshSummary {
+    /// The root bounds of its BVH (as the master built it: the same top-level BVH follows).
+    pub bounds: Option<(Vec3A, Vec3A)>,
+    pub triangles: u32,
+    /// Its per-vertex attributes' names and sizes.
+    pub attributes: Vec<(String, u32)>,
+}
+
+impl MeshSummary {
+    /// The summary of `mesh`, whose BVH has root bounds `bounds`.
+    pub fn of(mesh: &Mesh, bounds: Option<(Vec3A, Vec3A)>) -> MeshSummary {
+        MeshSummary {
+            bounds,
+            triangles: mesh.triangle_count() as u32,
+            attributes: mesh.attributes.iter().map(|a| (a.name.clone(), a.components as u32)).collect(),
+        }
+    }
+}
+
+#[derive(Clone, Debug)]
+struct Remote {
+    summary: MeshSummary,
+    key: u32,
+    source: Arc<dyn MeshSource>,
+    quality: BuildQuality,
+}
+
+/// A retained object: its mesh and BVH, here from the start, or (demand loading) fetched from a
+/// [`MeshSource`] the first time a ray reaches its bounds and kept until [`Object::evict`].
+#[derive(Clone, Debug, Default)]
+pub struct Object {
+    data: OnceLock<ObjectData>,
+    remote: Option<Remote>,
     /// Cut-outs: where the mask is uncovered the object has no surface.
     pub alpha: Option<Arc<AlphaMask>>,
 }
@@ -74,7 +119,91 @@ impl Object {
     /// Builds an object from a mesh.
     pub fn new(mesh: Arc<Mesh>, quality: BuildQuality) -> Self {
         let bvh = ObjectBvh::build(&mesh, quality);
-        Object { mesh, bvh, alpha: None }
+        Object { data: OnceLock::from(ObjectData { mesh, bvh }), remote: None, alpha: None }
+    }
+
+    /// An object whose mesh `source` delivers when a ray first needs it (its BVH is then built at
+    /// `quality`).
+    pub fn remote(summary: MeshSummary, key: u32, source: Arc<dyn MeshSource>, quality: BuildQuality) -> Self {
+        Object { data: OnceLock::new(), remote: Some(Remote { summary, key, source, quality }), alpha: None }
+    }
+
+    /// The mesh and BVH, fetched and built first if the object is remote and not yet here.
+    #[inline(always)]
+    pub fn data(&self) -> &ObjectData {
+        match self.data.get() {
+            Some(d) => d,
+            None => self.load(),
+        }
+    }
+
+    #[cold]
+    #[inline(never)]
+    fn load(&self) -> &ObjectData {
+        // One thread fetches; others that need the object meanwhile wait for it.
+        self.data.get_or_init(|| match &self.remote {
+            Some(r) => {
+                let mesh = r.source.fetch(r.key);
+                // Built on a thread of its own: on this one (a rayon worker), the build's parallel
+                // loops could take a queued job that needs this very object, and wait for itself.
+                let bvh =
+                    std::thread::scope(|s| s.spawn(|| ObjectBvh::build(&mesh, r.quality)).join()).unwrap_or_default();
+                ObjectData { mesh, bvh }
+            }
+            None => ObjectData::default(),
+        })
+    }
+
+    /// Whether the mesh and BVH are here.
+    pub fn is_resident(&self) -> bool {
+        self.data.get().is_some()
+    }
+
+    /// Whether the object is demand-loaded.
+    pub fn is_remote(&self) -> bool {
+        self.remote.is_some()
+    }
+
+    /// Drops a demand-loaded object's mesh and BVH (fetched again when next needed); returns the
+    /// bytes freed. An object built here stays.
+    pub fn evict(&mut self) -> usize {
+        if self.remote.is_none() {
+            return 0;
+        }
+        self.data.take().map_or(0, |d| d.mesh.memory_bytes() + d.bvh.memory_bytes())
+    }
+
+    /// The root bounds of the object's BVH, without fetching it.
+    pub fn bounds(&self) -> Option<(Vec3A, Vec3A)> {
+        match (&self.remote, self.data.get()) {
+            (Some(r), _) => r.summary.bounds,
+            (None, Some(d)) => d.bvh.bvh.bounds,
+            (None, None) => None,
+        }
+    }
+
+    /// Triangles, without fetching.
+    pub fn triangle_count(&self) -> usize {
+        match (&self.remote, self.data.get()) {
+            (Some(r), _) => r.summary.triangles as usize,
+            (None, Some(d)) => d.mesh.triangle_count(),
+            (None, None) => 0,
+        }
+    }
+
+    /// The per-vertex attributes' names and sizes, without fetching.
+    pub fn attribute_names(&self) -> Vec<(String, usize)> {
+        match (&self.remote, self.data.get()) {
+            (Some(r), _) => r.summary.attributes.iter().map(|(n, c)| (n.clone(), *c as usize)).collect(),
+            (None, Some(d)) => d.mesh.attributes.iter().map(|a| (a.name.clone(), a.components)).collect(),
+            (None, None) => Vec::new(),
+        }
+    }
+
+    /// Heap bytes of what is here.
+    pub fn memory_bytes(&self) -> usize {
+        let data = self.data.get().map_or(0, |d| d.mesh.memory_bytes() + d.bvh.memory_bytes());
+        data + self.alpha.as_ref().map_or(0, |a| a.memory_bytes())
     }
 
     /// Whether a candidate hit of triangle `primitive` at barycentrics `(u, v)` is on the surface
@@ -83,7 +212,7 @@ impl Object {
     pub fn solid_at(&self, primitive: u32, u: f32, v: f32) -> bool {
         match &self.alpha {
             None => true,
-            Some(mask) => mask.covers(&self.mesh, primitive, u, v),
+            Some(mask) => mask.covers(&self.data().mesh, primitive, u, v),
         }
     }
 }

@@ -497,9 +497,10 @@ fn intersect_object_with<const SHARED: bool>(
     hi: usize,
     filter: HitFilter,
 ) {
-    let tris = &obj.bvh.tris;
-    let order = &obj.bvh.bvh.prim_order;
-    traverse::<SHARED, _>(&obj.bvh.bvh, g, s, lo, hi, |first, count, mask, s| {
+    let data = obj.data();
+    let tris = &data.bvh.tris;
+    let order = &data.bvh.bvh.prim_order;
+    traverse::<SHARED, _>(&data.bvh.bvh, g, s, lo, hi, |first, count, mask, s| {
         let mut any = false;
         for slot in first as usize..(first + count) as usize {
             let primitive = order[slot];
@@ -586,9 +587,10 @@ fn occluded_object_with<const SHARED: bool>(
     hi: usize,
     filter: HitFilter,
 ) -> bool {
-    let tris = &obj.bvh.tris;
-    let order = &obj.bvh.bvh.prim_order;
-    traverse::<SHARED, _>(&obj.bvh.bvh, g, s, lo, hi, |first, count, mask, s| {
+    let data = obj.data();
+    let tris = &data.bvh.tris;
+    let order = &data.bvh.bvh.prim_order;
+    traverse::<SHARED, _>(&data.bvh.bvh, g, s, lo, hi, |first, count, mask, s| {
         let mut any = false;
         for slot in first as usize..(first + count) as usize {
             let primitive = order[slot];

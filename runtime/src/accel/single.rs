@@ -313,10 +313,11 @@ pub(crate) fn intersect_object(
     filter: HitFilter,
     lane: u32,
 ) {
-    let tris = &obj.bvh.tris;
-    let order = &obj.bvh.bvh.prim_order;
+    let data = obj.data();
+    let tris = &data.bvh.tris;
+    let order = &data.bvh.bvh.prim_order;
     let pf = |first: u32| prefetch(tris.as_ptr().wrapping_add(first as usize), 2);
-    traverse::<true, _, _, _>(&obj.bvh.wide.nodes, 0, ray, pf, |first, count, ray| {
+    traverse::<true, _, _, _>(&data.bvh.wide.nodes, 0, ray, pf, |first, count, ray| {
         for s in first as usize..(first + count) as usize {
             if let Some((t, u, v)) = intersect_accept(ray.o, ray.d, &tris[s], ray.tmin, ray.tmax) {
                 let primitive = order[s];
@@ -347,10 +348,11 @@ pub(crate) fn occluded_object(
     filter: HitFilter,
     lane: u32,
 ) -> bool {
-    let tris = &obj.bvh.tris;
-    let order = &obj.bvh.bvh.prim_order;
+    let data = obj.data();
+    let tris = &data.bvh.tris;
+    let order = &data.bvh.bvh.prim_order;
     let pf = |first: u32| prefetch(tris.as_ptr().wrapping_add(first as usize), 2);
-    traverse::<false, _, _, _>(&obj.bvh.wide.nodes, 0, ray, pf, |first, count, ray| {
+    traverse::<false, _, _, _>(&data.bvh.wide.nodes, 0, ray, pf, |first, count, ray| {
         for s in first as usize..(first + count) as usize {
             if let Some((t, u, v)) = intersect_accept(ray.o, ray.d, &tris[s], ray.tmin, ray.tmax) {
                 if !obj.solid_at(order[s], u, v) {
@@ -451,10 +453,10 @@ pub(crate) fn intersect_brute_force(top: &TopLevel, objects: &[Object], ray: &Ra
             continue;
         };
         let r = RayPre::of(ray).in_object_space(inst);
-        for (s, tri) in obj.bvh.tris.iter().enumerate() {
+        for (s, tri) in obj.data().bvh.tris.iter().enumerate() {
             let (t, u, v) = intersect(r.o, r.d, tri);
             if accept(t, u, v, ray.tmin, tmax) {
-                let primitive = obj.bvh.bvh.prim_order[s];
+                let primitive = obj.data().bvh.bvh.prim_order[s];
                 if !obj.solid_at(primitive, u, v) {
                     continue;
                 }
@@ -479,9 +481,9 @@ pub(crate) fn occluded_brute_force(top: &TopLevel, objects: &[Object], ray: &Ray
             continue;
         };
         let r = RayPre::of(ray).in_object_space(inst);
-        for (s, tri) in obj.bvh.tris.iter().enumerate() {
+        for (s, tri) in obj.data().bvh.tris.iter().enumerate() {
             let (t, u, v) = intersect(r.o, r.d, tri);
-            if accept(t, u, v, ray.tmin, ray.tmax) && obj.solid_at(obj.bvh.bvh.prim_order[s], u, v) {
+            if accept(t, u, v, ray.tmin, ray.tmax) && obj.solid_at(obj.data().bvh.bvh.prim_order[s], u, v) {
                 let ok = filter.is_none_or(|f| {
                     f(&HitCandidate {
                         t,
@@ -489,7 +491,7 @@ pub(crate) fn occluded_brute_force(top: &TopLevel, objects: &[Object], ray: &Ray
                         v,
                         instance: i as u32,
                         object: inst.object,
-                        primitive: obj.bvh.bvh.prim_order[s],
+                        primitive: obj.data().bvh.bvh.prim_order[s],
                         lane: 0,
                     })
                 });

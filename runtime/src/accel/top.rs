@@ -119,7 +119,7 @@ impl TopLevel {
         let mut boxes = Vec::with_capacity(instances.len());
         let mut ids = Vec::with_capacity(instances.len());
         for (i, inst) in instances.iter().enumerate() {
-            let Some((lo, hi)) = objects.get(inst.object as usize).and_then(|o| o.bvh.bvh.bounds) else {
+            let Some((lo, hi)) = objects.get(inst.object as usize).and_then(Object::bounds) else {
                 continue;
             };
             let mut b = Aabb::empty();

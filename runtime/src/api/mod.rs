@@ -42,6 +42,7 @@
 //! - **Errors**: misuse (unbalanced begin/end, unknown ids, a parameter the bound shader does not
 //!   have or of the wrong type) returns an [`ApiError`]; nothing panics.
 
+use crate::accel::object::{MeshSource, MeshSummary};
 use crate::geometry::alpha::DEFAULT_CUTOFF as ALPHA_CUTOFF;
 use crate::geometry::{AlphaMask, Attribute, Mesh, MeshError};
 use crate::reload::ShaderEvent;
@@ -59,7 +60,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 mod replica;
-pub use replica::{ReplicaError, Replicator};
+pub use replica::{decode_mesh, encode_mesh, ReplicaError, Replicator};
 
 /// A compiled shader known to a [`Context`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
@@ -129,6 +130,8 @@ pub enum ApiError {
     BadTexture { name: String, width: usize, height: usize, channels: usize, given: usize },
     #[error("texture {name}: {message}")]
     BadTextureFile { name: String, message: String },
+    #[error("object {0} is demand-loaded and the context has no mesh source")]
+    NoMeshSource(u32),
 }
 
 fn kind_name(k: ShaderKind) -> &'static str {
@@ -183,6 +186,9 @@ impl Default for Appearance {
 
 struct ObjectRecord {
     mesh: Option<Arc<Mesh>>,
+    /// A demand-loaded object's summary, its mesh left with the context it replicates
+    /// ([`Context::apply_update`]); `mesh` is then `None`.
+    remote: Option<MeshSummary>,
     appearance: Appearance,
     /// The parts of an object built in parts ([`Context::end_part`]); `None`: one appearance.
     parts: Option<ObjectParts>,
@@ -190,6 +196,12 @@ struct ObjectRecord {
     /// The geometry changed since the scene last saw it.
     dirty: bool,
     deleted: bool,
+}
+
+impl ObjectRecord {
+    fn has_geometry(&self) -> bool {
+        self.mesh.is_some() || self.remote.is_some()
+    }
 }
 
 /// An object's parts: each part's appearance, and each triangle's part.
@@ -289,6 +301,8 @@ pub struct Context {
     events: Vec<ShaderEvent>,
     /// Each object's materials as the last frame built them (by object index).
     built_materials: Vec<Option<BuiltMaterials>>,
+    /// Where demand-loaded objects' meshes come from ([`Context::set_mesh_source`]).
+    mesh_source: Option<Arc<dyn MeshSource>>,
 }
 
 /// An object's materials as a frame built them, and what they were built from: reused by the next
@@ -359,6 +373,7 @@ impl Context {
             memory_textures: Vec::new(),
             memory_grids: Vec::new(),
             memory_changes: 0,
+            mesh_source: None,
             warnings: Vec::new(),
             events: Vec::new(),
             built_materials: Vec::new(),
@@ -963,6 +978,7 @@ impl Context {
         let id = ObjectId(self.objects.len() as u32);
         self.objects.push(ObjectRecord {
             mesh: None,
+            remote: None,
             appearance: Appearance::default(),
             parts: None,
             scene_object: None,
@@ -1045,10 +1061,22 @@ impl Context {
         };
         let rec = &mut self.objects[id.0 as usize];
         rec.mesh = mesh;
+        rec.remote = None;
         rec.appearance = appearance;
         rec.parts = parts;
         rec.dirty = true;
         Ok(id)
+    }
+
+    /// The mesh of object `id` as it stands (`None`: deleted, empty, or demand-loaded here).
+    pub fn object_mesh(&self, id: ObjectId) -> Option<&Arc<Mesh>> {
+        self.objects.get(id.0 as usize)?.mesh.as_ref()
+    }
+
+    /// Where the meshes of demand-loaded objects come from: a worker's link to its master
+    /// ([`Replicator::demand_loading`]). Objects built or replaced from now on use it.
+    pub fn set_mesh_source(&mut self, source: Arc<dyn MeshSource>) {
+        self.mesh_source = Some(source);
     }
 
     /// Deletes an object and its instances.
@@ -1056,6 +1084,7 @@ impl Context {
         let rec = self.objects.get_mut(id.0 as usize).filter(|o| !o.deleted).ok_or(ApiError::UnknownObject(id.0))?;
         rec.deleted = true;
         rec.mesh = None;
+        rec.remote = None;
         rec.dirty = true;
         for i in &mut self.instances {
             if i.object == id {
@@ -1109,7 +1138,7 @@ impl Context {
             .enumerate()
             .filter(|(_, inst)| {
                 let rec = &self.objects[inst.object.0 as usize];
-                !inst.deleted && !rec.deleted && rec.mesh.is_some() && (rec.scene_object.is_some() || rec.dirty)
+                !inst.deleted && !rec.deleted && rec.has_geometry() && (rec.scene_object.is_some() || rec.dirty)
             })
             .map(|(i, _)| InstanceId(i as u32))
             .collect()
@@ -1331,21 +1360,32 @@ impl Context {
         let bvh_start = std::time::Instant::now();
         let mut objects_rebuilt = 0;
         let mut masks: HashMap<(String, u32), Option<Arc<AlphaMask>>> = HashMap::new();
-        for rec in &mut self.objects {
+        for (index, rec) in self.objects.iter_mut().enumerate() {
             if !rec.dirty {
                 continue;
             }
             rec.dirty = false;
             objects_rebuilt += 1;
-            match (&rec.mesh, rec.scene_object) {
-                (Some(mesh), Some(id)) => scene.set_object_mesh(id, mesh.clone())?,
-                (Some(mesh), None) => rec.scene_object = Some(scene.add_object(mesh.clone())),
-                (None, Some(id)) => {
+            let remote = match (&rec.remote, &self.mesh_source) {
+                (Some(summary), Some(source)) => Some((summary.clone(), source.clone())),
+                (Some(_), None) => return Err(ApiError::NoMeshSource(index as u32)),
+                (None, _) => None,
+            };
+            match (&rec.mesh, remote, rec.scene_object) {
+                (Some(mesh), _, Some(id)) => scene.set_object_mesh(id, mesh.clone())?,
+                (Some(mesh), _, None) => rec.scene_object = Some(scene.add_object(mesh.clone())),
+                (None, Some((summary, source)), Some(id)) => {
+                    scene.set_object_remote(id, summary, index as u32, source)?
+                }
+                (None, Some((summary, source)), None) => {
+                    rec.scene_object = Some(scene.add_remote_object(summary, index as u32, source))
+                }
+                (None, None, Some(id)) => {
                     // An emptied or deleted object keeps its slot with no triangles.
                     let empty = Mesh::from_triangles(Vec::new(), Vec::new())?;
                     scene.set_object_mesh(id, empty)?;
                 }
-                (None, None) => {}
+                (None, None, None) => {}
             }
             if let Some(id) = rec.scene_object {
                 let mask = rec.appearance.alpha_mask.as_ref().and_then(|(name, cutoff)| {
@@ -1375,7 +1415,7 @@ impl Context {
         let mut built = std::mem::take(&mut self.built_materials);
         built.resize_with(self.objects.len(), || None);
         for (i, rec) in self.objects.iter().enumerate() {
-            if rec.deleted || rec.mesh.is_none() {
+            if rec.deleted || !rec.has_geometry() {
                 continue;
             }
             let appearances = match &rec.parts {
@@ -1425,7 +1465,7 @@ impl Context {
         let mut instances = Vec::new();
         for inst in &self.instances {
             let rec = &self.objects[inst.object.0 as usize];
-            let (Some(obj), false) = (rec.scene_object, inst.deleted || rec.deleted || rec.mesh.is_none()) else {
+            let (Some(obj), false) = (rec.scene_object, inst.deleted || rec.deleted || !rec.has_geometry()) else {
                 continue;
             };
             let (open, close) = self.options.shutter;

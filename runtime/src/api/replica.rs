@@ -8,7 +8,11 @@
 //! What travels:
 //! - shader programs as compiled artifacts (checked IR and sources: the receiver runs only the JIT),
 //!   when they first appear and whenever one is replaced (hot reload);
-//! - objects (mesh, appearance, parts) when they are built, rebuilt or deleted;
+//! - objects (mesh, appearance, parts) when they are built, rebuilt or deleted. With
+//!   [`Replicator::demand_loading`], an object's mesh stays behind: the update carries its summary
+//!   (bounds, triangle count, attribute names) and the receiver fetches the mesh from its
+//!   [`crate::accel::object::MeshSource`] when a ray first needs it (the paper's section 5.4:
+//!   geometry no ray reaches is never sent);
 //! - instances when they appear, move or go;
 //! - the frame's settings (lights, pixel, camera and atmosphere shaders, camera, options,
 //!   coordinate systems, texture search path) whenever any of them changes;
@@ -24,8 +28,11 @@
 //! could go wrong on. A damaged update is a [`ReplicaError`], never a panic.
 
 use super::{Appearance, Binding, Context, InstanceRecord, LightRecord, ObjectParts, ObjectRecord};
+use crate::accel::bvh4::BuildQuality;
+use crate::accel::object::{MeshSummary, ObjectBvh};
 use crate::geometry::Mesh;
 use crate::render::{CameraSetup, RenderOptions};
+use crate::scene::Scene;
 use crate::shading::{Program, ShaderError, ShaderProgram};
 use crate::texture::{TexImage, TextureCache, Wrap};
 use glam::Affine3A;
@@ -52,6 +59,8 @@ pub enum ReplicaError {
 /// (sharing the meshes and programs, not copying them) to tell what changed since.
 #[derive(Default)]
 pub struct Replicator {
+    /// Whether objects travel as summaries, their meshes fetched on demand.
+    demand: bool,
     programs: Vec<Option<Program>>,
     objects: Vec<SentObject>,
     instances: Vec<InstanceRecord>,
@@ -121,6 +130,7 @@ struct UpdateIn {
 #[derive(Serialize)]
 struct ObjectOut<'a> {
     mesh: Option<&'a Mesh>,
+    summary: Option<MeshSummary>,
     appearance: &'a Appearance,
     parts: Option<&'a ObjectParts>,
     deleted: bool,
@@ -129,6 +139,7 @@ struct ObjectOut<'a> {
 #[derive(Deserialize)]
 struct ObjectIn {
     mesh: Option<Mesh>,
+    summary: Option<MeshSummary>,
     appearance: Appearance,
     parts: Option<ObjectParts>,
     deleted: bool,
@@ -178,9 +189,17 @@ impl Replicator {
         Replicator::default()
     }
 
+    /// A replicator whose updates carry objects' summaries instead of their meshes: the receiver
+    /// fetches a mesh when a ray first needs it (see the module's notes).
+    pub fn demand_loading() -> Replicator {
+        Replicator { demand: true, ..Replicator::default() }
+    }
+
     /// What changed in `rt` since the last update (everything, the first time), as bytes for
-    /// [`Context::apply_update`]; empty when nothing did.
-    pub fn update(&mut self, rt: &Context) -> Result<Vec<u8>, ReplicaError> {
+    /// [`Context::apply_update`]; empty when nothing did. `scene`, the scene of the world `rt`
+    /// built last, gives demand-loaded objects the bounds of the BVHs built there, so that the
+    /// receiver's top-level BVH is the same.
+    pub fn update(&mut self, rt: &Context, scene: Option<&Scene>) -> Result<Vec<u8>, ReplicaError> {
         let mut programs = Vec::new();
         self.programs.resize(rt.programs.len(), None);
         for (i, (sent, now)) in self.programs.iter_mut().zip(&rt.programs).enumerate() {
@@ -203,10 +222,22 @@ impl Replicator {
             if self.objects.get(i).is_some_and(|s| s.is(rec)) {
                 continue;
             }
+            let summary = match (&rec.mesh, self.demand) {
+                (Some(mesh), true) => {
+                    let built = rec.scene_object.and_then(|id| scene?.objects().get(id.0 as usize));
+                    let bounds = match built {
+                        Some(object) => object.bounds(),
+                        None => ObjectBvh::build(mesh, BuildQuality::High).bvh.bounds,
+                    };
+                    Some(MeshSummary::of(mesh, bounds))
+                }
+                _ => None,
+            };
             objects.push((
                 i as u32,
                 ObjectOut {
-                    mesh: rec.mesh.as_deref(),
+                    mesh: if self.demand { None } else { rec.mesh.as_deref() },
+                    summary,
                     appearance: &rec.appearance,
                     parts: rec.parts.as_ref(),
                     deleted: rec.deleted,
@@ -338,6 +369,7 @@ impl Context {
         }
         self.objects.resize_with(u.object_count as usize, || ObjectRecord {
             mesh: None,
+            remote: None,
             appearance: Appearance::default(),
             parts: None,
             scene_object: None,
@@ -347,6 +379,7 @@ impl Context {
         for (id, o) in u.objects {
             let rec = &mut self.objects[id as usize];
             rec.mesh = o.mesh.map(Arc::new);
+            rec.remote = o.summary;
             rec.appearance = o.appearance;
             rec.parts = o.parts;
             rec.deleted = o.deleted;
@@ -412,12 +445,32 @@ fn check_object(id: u32, o: &ObjectIn) -> Result<(), ReplicaError> {
     if let Some(mesh) = &o.mesh {
         mesh.validate().map_err(|error| ReplicaError::Mesh { id, error })?;
     }
+    if o.mesh.is_some() && o.summary.is_some() {
+        return Err(ReplicaError::Inconsistent(format!("object {id} has both a mesh and a summary")));
+    }
     if let Some(parts) = &o.parts {
-        let triangles = o.mesh.as_ref().map_or(0, |m| m.triangles.len());
+        let triangles = match (&o.mesh, &o.summary) {
+            (Some(m), _) => m.triangles.len(),
+            (None, Some(s)) => s.triangles as usize,
+            (None, None) => 0,
+        };
         let n = parts.appearances.len();
         if parts.of_triangle.len() != triangles || parts.of_triangle.iter().any(|&p| p as usize >= n) {
             return Err(ReplicaError::Inconsistent(format!("object {id}: its parts do not match its triangles")));
         }
     }
     Ok(())
+}
+
+/// A mesh as a demand-loading master sends it.
+pub fn encode_mesh(mesh: &Mesh) -> Vec<u8> {
+    // Encoding a mesh into memory cannot fail: it holds nothing serde refuses.
+    postcard::to_stdvec(mesh).unwrap_or_default()
+}
+
+/// A mesh [`encode_mesh`] wrote, checked (indices in range, attribute sizes).
+pub fn decode_mesh(bytes: &[u8]) -> Result<Mesh, ReplicaError> {
+    let mesh: Mesh = postcard::from_bytes(bytes).map_err(|e| ReplicaError::Undecodable(e.to_string()))?;
+    mesh.validate().map_err(|error| ReplicaError::Mesh { id: u32::MAX, error })?;
+    Ok(mesh)
 }

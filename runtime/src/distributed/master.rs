@@ -5,8 +5,10 @@ use super::message::{build_fingerprint, greeting_version, FrameCounts, Message, 
 use super::schedule::Schedule;
 use super::transport::Transport;
 use super::DistributedError;
-use crate::api::{Context, Replicator};
+use crate::api::{encode_mesh, Context, Replicator};
 use crate::render::{FrameReport, Framebuffer, RenderedTile, TileRenderer, World};
+use std::collections::HashMap;
+use std::sync::Arc;
 use std::time::Instant;
 
 /// Tiles each worker has in flight per thread at first: while it renders one, the next ones are
@@ -35,11 +37,13 @@ pub struct Traffic {
     pub pixels: u64,
     /// The workers' end-of-frame counters.
     pub counters: u64,
+    /// Demand loading: the workers' requests and the meshes sent in answer.
+    pub fetches: u64,
 }
 
 impl Traffic {
     pub fn total(&self) -> u64 {
-        self.updates + self.control + self.pixels + self.counters
+        self.updates + self.control + self.pixels + self.counters + self.fetches
     }
 }
 
@@ -56,6 +60,20 @@ pub struct Master<T: Transport> {
     traffic: Traffic,
     /// What the workers' contexts were last sent ([`Master::render_context`]).
     replicator: Replicator,
+    demand: Demand,
+}
+
+/// Demand loading over the workers in the last frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Demand {
+    /// Objects the workers fetched, and the bytes of their meshes.
+    pub fetched_objects: u64,
+    pub fetched_bytes: u64,
+    /// Objects the workers evicted from their caches before the frame.
+    pub evicted_objects: u64,
+    /// Objects held after the frame: by all workers together, and by the one that holds most.
+    pub resident_objects: u64,
+    pub most_resident_objects: u64,
 }
 
 impl<T: Transport> Master<T> {
@@ -71,7 +89,8 @@ impl<T: Transport> Master<T> {
             last_owner: Vec::new(),
             open: true,
             traffic: Traffic::default(),
-            replicator: Replicator::new(),
+            replicator: Replicator::demand_loading(),
+            demand: Demand::default(),
         };
         let build = build_fingerprint();
         let mut hellos: Vec<Option<WorkerInfo>> = (1..n).map(|_| None).collect();
@@ -125,6 +144,17 @@ impl<T: Transport> Master<T> {
         self.traffic
     }
 
+    /// What demand loading fetched and held in the last distributed frame.
+    pub fn demand(&self) -> Demand {
+        self.demand
+    }
+
+    /// Sends workers whole meshes with the scene ([`Master::render_context`]) instead of letting
+    /// them fetch each when a ray first needs it. For comparisons; call before the first frame.
+    pub fn preload_meshes(&mut self) {
+        self.replicator = Replicator::new();
+    }
+
     /// The first worker that said it cannot render (its scene did not load), with its reason.
     pub fn check_workers(&self) -> Result<(), DistributedError> {
         match self.workers.iter().enumerate().find_map(|(w, info)| Some((w + 1, info.failure.clone()?))) {
@@ -144,8 +174,12 @@ impl<T: Transport> Master<T> {
         world: &World,
         progress: Option<&dyn Fn(usize, usize)>,
     ) -> Result<(Framebuffer, FrameReport), DistributedError> {
-        let update = if self.workers.is_empty() { Vec::new() } else { self.replicator.update(rt)? };
-        self.render_frame(world, &update, progress)
+        if self.workers.is_empty() {
+            return Ok(crate::render::render_frame(world, None));
+        }
+        let update = self.replicator.update(rt, Some(&world.scene))?;
+        let mesh = |id: u32| rt.object_mesh(crate::api::ObjectId(id)).map(|m| encode_mesh(m));
+        self.render(world, &update, progress, Some(&mesh))
     }
 
     /// Renders a frame of `world` on the workers, which first apply `update` to their copy of the
@@ -160,7 +194,21 @@ impl<T: Transport> Master<T> {
         if self.workers.is_empty() {
             return Ok(crate::render::render_frame(world, None));
         }
+        self.render(world, update, progress, None)
+    }
+
+    /// [`Master::render_frame`], answering the workers' requests for meshes with `meshes` (the
+    /// encoded mesh of an object, `None` for none).
+    fn render(
+        &mut self,
+        world: &World,
+        update: &[u8],
+        progress: Option<&dyn Fn(usize, usize)>,
+        meshes: Option<&dyn Fn(u32) -> Option<Vec<u8>>>,
+    ) -> Result<(Framebuffer, FrameReport), DistributedError> {
         let start = Instant::now();
+        // Each mesh encoded once a frame however many workers ask for it.
+        let mut encoded: HashMap<u32, Arc<Vec<u8>>> = HashMap::new();
         self.frame += 1;
         let frame = self.frame;
         let renderer = TileRenderer::new(world);
@@ -230,6 +278,20 @@ impl<T: Transport> Master<T> {
                         self.transport.send(rank, &m)?;
                     }
                 }
+                Message::Fetch { frame: f, objects } if f == frame => {
+                    traffic.fetches += bytes.len() as u64;
+                    let mut answer = Vec::with_capacity(objects.len());
+                    for id in objects {
+                        let mesh = encoded
+                            .entry(id)
+                            .or_insert_with(|| Arc::new(meshes.and_then(|m| m(id)).unwrap_or_default()))
+                            .clone();
+                        answer.push((id, mesh.as_ref().clone()));
+                    }
+                    let m = Message::Meshes { frame, meshes: answer }.encode();
+                    traffic.fetches += m.len() as u64;
+                    self.transport.send(rank, &m)?;
+                }
                 Message::FrameDone { frame: f, counts: c, failure: worker_failure } if f == frame && !done[w] => {
                     traffic.counters += bytes.len() as u64;
                     done[w] = true;
@@ -253,6 +315,13 @@ impl<T: Transport> Master<T> {
         }
         self.last_owner = given;
         self.traffic = traffic;
+        self.demand = Demand {
+            fetched_objects: counts.iter().map(|c| c.fetched_objects).sum(),
+            fetched_bytes: counts.iter().map(|c| c.fetched_bytes).sum(),
+            evicted_objects: counts.iter().map(|c| c.evicted_objects).sum(),
+            resident_objects: counts.iter().map(|c| c.resident_objects).sum(),
+            most_resident_objects: counts.iter().map(|c| c.resident_objects).max().unwrap_or(0),
+        };
         let (fb, mut report) = renderer.finish(rendered, start);
         for c in &counts {
             super::add_counts(&mut report, c);
@@ -302,5 +371,6 @@ pub(super) fn counts_of(report: &FrameReport) -> FrameCounts {
         kind_ns: report.by_kind.iter().map(|d| d.as_nanos() as u64).collect(),
         by_shader: report.by_shader.iter().map(|(n, k, d)| (n.clone(), kind_index(*k), d.as_nanos() as u64)).collect(),
         shader_messages: report.shader_messages.clone(),
+        ..FrameCounts::default()
     }
 }

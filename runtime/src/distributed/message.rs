@@ -6,7 +6,7 @@
 use rtsl_compiler::front::parse::ast::ShaderKind;
 
 /// The protocol's version: ranks that speak different versions refuse each other at start-up.
-pub const PROTOCOL_VERSION: u32 = 4;
+pub const PROTOCOL_VERSION: u32 = 5;
 
 /// What the master's counters add up from a worker's share of a frame.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -23,6 +23,12 @@ pub struct FrameCounts {
     pub by_shader: Vec<(String, u8, u64)>,
     /// What the shaders' runtime checks reported.
     pub shader_messages: Vec<String>,
+    /// Demand loading: objects fetched from the master this frame and their bytes, objects
+    /// evicted from the cache before the frame, and objects held after it.
+    pub fetched_objects: u64,
+    pub fetched_bytes: u64,
+    pub evicted_objects: u64,
+    pub resident_objects: u64,
 }
 
 /// A message of the protocol.
@@ -52,6 +58,11 @@ pub enum Message {
     FrameDone { frame: u64, counts: FrameCounts, failure: Option<String> },
     /// Master to worker: stop.
     Quit,
+    /// Worker to master: send the meshes of these objects (demand loading), for frame `frame`.
+    Fetch { frame: u64, objects: Vec<u32> },
+    /// Master to worker: the meshes asked for, each the object's id and its mesh as
+    /// [`crate::api::encode_mesh`] writes it (empty: the object has no mesh now).
+    Meshes { frame: u64, meshes: Vec<(u32, Vec<u8>)> },
 }
 
 const HELLO: u8 = 1;
@@ -60,6 +71,8 @@ const ASSIGN: u8 = 3;
 const TILES: u8 = 4;
 const FRAME_DONE: u8 = 5;
 const QUIT: u8 = 6;
+const FETCH: u8 = 7;
+const MESHES: u8 = 8;
 
 /// The protocol version a greeting states, read without decoding the rest: a greeting starts with
 /// its kind and the version in every version of the protocol, so that ranks of different versions
@@ -147,6 +160,10 @@ impl Message {
                 }
                 w.u64(counts.shaded_points);
                 w.u64(counts.light_evaluations);
+                w.u64(counts.fetched_objects);
+                w.u64(counts.fetched_bytes);
+                w.u64(counts.evicted_objects);
+                w.u64(counts.resident_objects);
                 w.u64(counts.shading_ns);
                 w.u32(counts.kind_ns.len() as u32);
                 for &n in &counts.kind_ns {
@@ -165,6 +182,20 @@ impl Message {
                 w.opt_str(failure.as_deref());
             }
             Message::Quit => w.u8(QUIT),
+            Message::Fetch { frame, objects } => {
+                w.u8(FETCH);
+                w.u64(*frame);
+                w.u32s(objects);
+            }
+            Message::Meshes { frame, meshes } => {
+                w.u8(MESHES);
+                w.u64(*frame);
+                w.u32(meshes.len() as u32);
+                for (object, mesh) in meshes {
+                    w.u32(*object);
+                    w.bytes(mesh);
+                }
+            }
         }
         w.0
     }
@@ -184,7 +215,10 @@ impl Message {
             FRAME_DONE => {
                 let frame = r.u64()?;
                 let rays = [r.u64()?, r.u64()?, r.u64()?, r.u64()?];
-                let (shaded_points, light_evaluations, shading_ns) = (r.u64()?, r.u64()?, r.u64()?);
+                let (shaded_points, light_evaluations) = (r.u64()?, r.u64()?);
+                let (fetched_objects, fetched_bytes, evicted_objects, resident_objects) =
+                    (r.u64()?, r.u64()?, r.u64()?, r.u64()?);
+                let shading_ns = r.u64()?;
                 let kinds = r.count(8)?;
                 let kind_ns = (0..kinds).map(|_| r.u64()).collect::<Result<_, _>>()?;
                 let shaders = r.count(13)?;
@@ -200,10 +234,21 @@ impl Message {
                     kind_ns,
                     by_shader,
                     shader_messages,
+                    fetched_objects,
+                    fetched_bytes,
+                    evicted_objects,
+                    resident_objects,
                 };
                 Message::FrameDone { frame, counts, failure: r.opt_str()? }
             }
             QUIT => Message::Quit,
+            FETCH => Message::Fetch { frame: r.u64()?, objects: r.u32s()? },
+            MESHES => {
+                let frame = r.u64()?;
+                let n = r.count(12)?;
+                let meshes = (0..n).map(|_| Ok((r.u32()?, r.bytes()?))).collect::<Result<_, String>>()?;
+                Message::Meshes { frame, meshes }
+            }
             tag => return Err(format!("unknown message kind {tag}")),
         };
         if r.at != bytes.len() {
@@ -336,10 +381,16 @@ mod tests {
                     kind_ns: vec![8, 9],
                     by_shader: vec![("plastic".into(), 0, 10)],
                     shader_messages: vec!["plastic: a loop stopped".into()],
+                    fetched_objects: 11,
+                    fetched_bytes: 12,
+                    evicted_objects: 13,
+                    resident_objects: 14,
                 },
                 failure: Some("cannot build".into()),
             },
             Message::Quit,
+            Message::Fetch { frame: 2, objects: vec![4, 1] },
+            Message::Meshes { frame: 2, meshes: vec![(4, vec![1, 2, 3]), (1, vec![])] },
         ]
     }
 

@@ -24,6 +24,7 @@
 //! - Ranks running another build or protocol version are refused at start-up
 //!   ([`Master::connect`]).
 
+pub mod fetch;
 mod master;
 pub mod message;
 #[cfg(feature = "mpi")]
@@ -32,7 +33,7 @@ pub mod schedule;
 pub mod transport;
 mod worker;
 
-pub use master::{Master, Traffic};
+pub use master::{Demand, Master, Traffic};
 pub use message::{FrameCounts, Message, PROTOCOL_VERSION};
 pub use transport::{LocalTransport, Transport, TransportError};
 pub use worker::{serve, ReplicaScene, WorkerScene};

@@ -2,7 +2,10 @@
 //! job, every message a byte string on the world communicator.
 //!
 //! Only the thread that made the transport calls MPI (`MPI_THREAD_FUNNELED`); rendering threads
-//! never do. Receives poll without blocking and sleep between polls once nothing has come for a
+//! never do. Sends are immediate (`MPI_Isend`): a large message goes out by rendezvous, which
+//! waits for the receiver, and a blocking send from each side of a pair at once would deadlock.
+//! The transport owns each message's bytes until its send completes, and completes sends as it
+//! is called (and all of them before MPI is finalised). Receives poll without blocking and sleep between polls once nothing has come for a
 //! while: a blocking MPI receive spins its core, which a worker on the same node would miss.
 //!
 //! Open MPI has no fault tolerance: a rank that dies ends the job (mpirun reports which rank).
@@ -11,7 +14,9 @@
 
 use super::transport::{Transport, TransportError};
 use mpi::point_to_point::{Destination, MatchedReceiveVec, Source};
+use mpi::request::{Request, StaticScope};
 use mpi::topology::{Communicator, SimpleCommunicator};
+use std::cell::RefCell;
 use std::time::{Duration, Instant};
 
 /// This process's place in an `mpirun` job. MPI is finalised when it is dropped.
@@ -19,6 +24,8 @@ pub struct MpiTransport {
     world: SimpleCommunicator,
     rank: usize,
     size: usize,
+    /// Sends under way.
+    sending: RefCell<Vec<Sending>>,
     // Declared last: MPI is finalised after everything above is gone.
     _universe: mpi::environment::Universe,
 }
@@ -42,7 +49,43 @@ impl MpiTransport {
             eprintln!("error: rank {rank} of {size} failed; ending the MPI job");
             SimpleCommunicator::world().abort(101);
         }));
-        Ok(MpiTransport { world, rank, size, _universe: universe })
+        Ok(MpiTransport { world, rank, size, sending: RefCell::new(Vec::new()), _universe: universe })
+    }
+
+    /// Completes the sends that have finished, freeing their bytes.
+    fn progress(&self) {
+        let mut sending = self.sending.borrow_mut();
+        let mut still = Vec::with_capacity(sending.len());
+        for s in sending.drain(..) {
+            match s.request.test() {
+                Ok(_) => free(s.bytes),
+                Err(request) => still.push(Sending { request, bytes: s.bytes }),
+            }
+        }
+        *sending = still;
+    }
+}
+
+/// A send under way, and the bytes it reads: leaked for the request's `'static` scope, and
+/// freed once the request has completed.
+struct Sending {
+    request: Request<'static, [u8], StaticScope>,
+    bytes: &'static [u8],
+}
+
+fn free(bytes: &'static [u8]) {
+    // SAFETY: `bytes` came from `Box::leak` in `send`, its request has completed, and nothing
+    // else refers to it.
+    drop(unsafe { Box::from_raw(bytes as *const [u8] as *mut [u8]) });
+}
+
+impl Drop for MpiTransport {
+    fn drop(&mut self) {
+        // Before MPI is finalised (the universe is the last field dropped).
+        for s in self.sending.get_mut().drain(..) {
+            s.request.wait();
+            free(s.bytes);
+        }
     }
 }
 
@@ -59,7 +102,10 @@ impl Transport for MpiTransport {
         if to >= self.size {
             return Err(TransportError(format!("there is no rank {to} in a job of {}", self.size)));
         }
-        self.world.process_at_rank(to as i32).send(bytes);
+        self.progress();
+        let bytes: &'static [u8] = Box::leak(bytes.to_vec().into_boxed_slice());
+        let request = self.world.process_at_rank(to as i32).immediate_send(StaticScope, bytes);
+        self.sending.borrow_mut().push(Sending { request, bytes });
         Ok(())
     }
 
@@ -78,6 +124,7 @@ impl Transport for MpiTransport {
     }
 
     fn try_recv(&self) -> Result<Option<(usize, Vec<u8>)>, TransportError> {
+        self.progress();
         Ok(self.world.any_process().immediate_matched_probe().map(|matched| {
             let (bytes, status) = matched.matched_receive_vec::<u8>();
             (status.source_rank() as usize, bytes)

@@ -20,7 +20,10 @@ pub trait Transport {
     fn rank(&self) -> usize;
     /// How many ranks the group has.
     fn size(&self) -> usize;
-    /// Sends `bytes` to rank `to`.
+    /// Sends `bytes` to rank `to`, without waiting for `to` to receive them: the master and a
+    /// worker may each send the other a large message at once (meshes one way, pixels the other),
+    /// and two sends that each waited for the other's receive would wait for ever. Messages
+    /// between two ranks arrive in the order they were sent.
     fn send(&self, to: usize, bytes: &[u8]) -> Result<(), TransportError>;
     /// The next message from any rank, and its sender, waiting for one.
     fn recv(&self) -> Result<(usize, Vec<u8>), TransportError>;

@@ -1,12 +1,13 @@
 //! A worker: a rank that renders the tiles the master hands it, on the threads of its own pool,
 //! from its own copy of the scene, brought to each frame's state before any of that frame's tiles.
 
+use super::fetch::{MeshLink, Pending};
 use super::message::{build_fingerprint, Message, PROTOCOL_VERSION};
 use super::transport::Transport;
 use super::DistributedError;
 use crate::render::{TileRenderer, World};
 use std::collections::VecDeque;
-use std::sync::{Condvar, Mutex};
+use std::sync::{Arc, Condvar, Mutex};
 use std::time::Instant;
 
 /// A worker's copy of the scene.
@@ -16,20 +17,34 @@ pub trait WorkerScene: Send {
     fn world(&mut self, update: &[u8]) -> Result<World, String>;
     /// Takes back a frame's world once its tiles are rendered (to keep its BVHs for the next).
     fn finished(&mut self, world: World);
+    /// Where the scene's demand-loaded objects wait for their meshes, if it has any.
+    fn mesh_link(&self) -> Option<Arc<MeshLink>> {
+        None
+    }
 }
 
 /// A worker's copy of the master's [`crate::api::Context`], which starts empty and is brought to
 /// each frame's state by the updates [`super::Master::render_context`] sends: the worker loads
-/// nothing itself. A frame whose update is empty reuses the last frame's world.
-#[derive(Default)]
+/// nothing itself, and fetches the mesh of an object from the master when a ray first reaches it
+/// ([`MeshLink`]). A frame whose update is empty reuses the last frame's world.
 pub struct ReplicaScene {
     context: crate::api::Context,
     world: Option<World>,
+    link: Arc<MeshLink>,
+}
+
+impl Default for ReplicaScene {
+    fn default() -> Self {
+        Self::new()
+    }
 }
 
 impl ReplicaScene {
     pub fn new() -> ReplicaScene {
-        ReplicaScene::default()
+        let link = MeshLink::new();
+        let mut context = crate::api::Context::new();
+        context.set_mesh_source(link.clone());
+        ReplicaScene { context, world: None, link }
     }
 }
 
@@ -46,6 +61,10 @@ impl WorkerScene for ReplicaScene {
 
     fn finished(&mut self, world: World) {
         self.world = Some(world);
+    }
+
+    fn mesh_link(&self) -> Option<Arc<MeshLink>> {
+        Some(self.link.clone())
     }
 }
 
@@ -78,7 +97,8 @@ pub fn serve<T: Transport + ?Sized>(
                 };
                 let result = match world {
                     Ok(world) => {
-                        let rendered = render_share(transport, &world, frame, tiles, last, pool);
+                        let link = scene.as_deref().and_then(|s| s.mesh_link());
+                        let rendered = render_share(transport, &world, frame, tiles, last, pool, link.as_deref());
                         if let Some(s) = scene.as_deref_mut() {
                             s.finished(world);
                         }
@@ -140,7 +160,9 @@ fn render_share<T: Transport + ?Sized>(
     first: Vec<u32>,
     mut last: bool,
     pool: &rayon::ThreadPool,
+    link: Option<&MeshLink>,
 ) -> Result<bool, DistributedError> {
+    let mut pending = Pending::default();
     let start = Instant::now();
     let renderer = TileRenderer::new(world);
     let tiles = renderer.tiles();
@@ -190,8 +212,15 @@ fn render_share<T: Transport + ?Sized>(
                         give(new, &mut outstanding)?;
                         last |= l;
                     }
+                    Message::Meshes { frame: f, meshes } if f == frame => pending.answer(meshes),
                     Message::Quit => return Ok(true),
                     _ => return Err(out_of_place(transport)),
+                }
+            }
+            if let Some(link) = link {
+                let objects = pending.take(link);
+                if !objects.is_empty() {
+                    transport.send(0, &Message::Fetch { frame, objects }.encode())?;
                 }
             }
             if last && outstanding == 0 {
@@ -208,8 +237,15 @@ fn render_share<T: Transport + ?Sized>(
     if quit {
         return Ok(true);
     }
-    let counts = super::master::counts_of(&renderer.report(start));
-    transport.send(0, &Message::FrameDone { frame, counts, failure: None }.encode())?;
+    let mut counts = super::master::counts_of(&renderer.report(start));
+    let mut failure = None;
+    if let Some(link) = link {
+        let (fetch_failure, objects, bytes) = link.take_frame();
+        (failure, counts.fetched_objects, counts.fetched_bytes) = (fetch_failure, objects, bytes);
+        counts.resident_objects =
+            world.scene.objects().iter().filter(|o| o.is_remote() && o.is_resident()).count() as u64;
+    }
+    transport.send(0, &Message::FrameDone { frame, counts, failure }.encode())?;
     Ok(false)
 }
 

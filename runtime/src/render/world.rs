@@ -493,8 +493,9 @@ impl World {
         self.accel.instanced_triangles = self.scene.instanced_triangle_count();
         let mut vertex_params = HashMap::new();
         for (index, inst) in self.instances.iter().enumerate() {
-            let Some(mesh) = self.scene.mesh(crate::scene::ObjectId(inst.object)) else { continue };
-            if mesh.attributes.is_empty() {
+            // By name, so that a demand-loaded object is not fetched.
+            let attributes = self.scene.attribute_names(crate::scene::ObjectId(inst.object));
+            if attributes.is_empty() {
                 continue;
             }
             for material in inst.materials() {
@@ -508,7 +509,7 @@ impl World {
                     .enumerate()
                     .filter(|(_, p)| p.varying && !p.string && !p.output)
                     .filter_map(|(i, p)| {
-                        let a = mesh.attributes.iter().position(|a| a.name == p.name && a.components == p.floats())?;
+                        let a = attributes.iter().position(|(name, n)| *name == p.name && *n == p.floats())?;
                         Some((i, a))
                     })
                     .collect();
