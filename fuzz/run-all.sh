@@ -22,6 +22,7 @@ seed obj
 seed ply
 seed gltf $(ls ../../shared/scenes/box_animated_gltf/*.gltf 2>/dev/null)
 seed artifact
+seed replica
 status=0
 for target in $(cargo +nightly fuzz list); do
     echo "== $target ($seconds s)"

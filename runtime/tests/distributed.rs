@@ -113,6 +113,12 @@ fn distributed_frames_are_bit_identical_to_single_process_frames() -> Result<(),
     assert!(updates[2] < updates[1], "{updates:?}");
     let library = library_with_camera_and_pixel_shader().expect("the library scene");
     assert_same(&both_ways(library, 3, 2, &[nothing])?, "the library scene");
+    // A volume shader reading a grid file, which each worker reads from the texture path.
+    let mut volume = Context::new();
+    rtsl_runtime::rib::load::load_file(&mut volume, &repo("examples/scenes/volume.rib")).expect("the volume scene");
+    volume.options.width = 64;
+    volume.options.height = 48;
+    assert_same(&both_ways(volume, 2, 1, &[nothing])?, "the volume scene");
     Ok(())
 }
 
@@ -441,6 +447,77 @@ fn workers_fetch_only_the_objects_rays_reach_and_keep_them() -> Result<(), Distr
         assert_eq!(later.fetched_objects, 0, "{later:?}");
         assert_eq!(traffic.fetches, 0);
         assert_eq!(later.resident_objects, first.resident_objects);
+    }
+    Ok(())
+}
+
+#[test]
+fn a_full_cache_evicts_the_least_recently_used_meshes_and_fetches_them_again() -> Result<(), DistributedError> {
+    let mut rt = little_scene().expect("the little scene");
+    let mut group = LocalTransport::group(2, Duration::from_secs(60)).into_iter();
+    let master_end = group.next().expect("rank 0");
+    let worker_end = group.next().expect("rank 1");
+    // Room for nothing: every frame starts with an empty cache.
+    let worker = std::thread::spawn(move || serve(&worker_end, Ok(&mut ReplicaScene::with_cache_limit(1)), &pool(2)));
+    let mut master = Master::connect(master_end)?;
+    let mut demands = Vec::new();
+    for frame in 0..3 {
+        if frame == 1 {
+            move_first(&mut rt).expect("moved");
+        }
+        let world = rt.build_world().expect("a world");
+        let (distributed, _) = master.render_context(&rt, &world, None)?;
+        let (alone, _) = render_frame(&world, None);
+        rt.return_scene(world);
+        assert_same(&[(distributed, alone, 0)], "a frame rendered from an evicted cache");
+        demands.push(master.demand());
+    }
+    master.shutdown()?;
+    worker.join().expect("the worker thread")?;
+    assert_eq!(demands[0].evicted_objects, 0, "{demands:?}");
+    for d in &demands[1..] {
+        // Both objects dropped before the frame, and fetched again by it.
+        assert_eq!((d.evicted_objects, d.fetched_objects), (2, 2), "{demands:?}");
+    }
+    Ok(())
+}
+
+#[test]
+fn a_texture_the_workers_cannot_load_is_reported_by_the_master_once() -> Result<(), DistributedError> {
+    let e = |e: rtsl_runtime::api::ApiError| e.to_string();
+    let mut rt = little_scene().expect("the little scene");
+    let shader = rt
+        .compile_shader("grainy", "surface grainy() { Ci = color texture(\"no-such-grain.tx\", s, t); Oi = 1; }")
+        .map_err(e)
+        .expect("a shader");
+    let floor = rtsl_runtime::api::ObjectId(0);
+    rt.redefine_object(floor).map_err(e).expect("redefined");
+    rt.bind_shader(shader).map_err(e).expect("bound");
+    rt.begin(Primitive::Quads).map_err(e).expect("quads");
+    for (x, z) in [(-2.0, -2.0), (2.0, -2.0), (2.0, 2.0), (-2.0, 2.0)] {
+        rt.vertex(x, 0.0, z).map_err(e).expect("a vertex");
+    }
+    rt.end().map_err(e).expect("end");
+    rt.end_object().map_err(e).expect("end_object");
+    let world = rt.build_world().expect("a world");
+    let (alone, _) = render_frame(&world, None);
+    let expected: Vec<String> = world.textures.take_warnings().iter().map(ToString::to_string).collect();
+    assert_eq!(expected.len(), 1, "{expected:?}");
+    rt.return_scene(world);
+
+    let mut group = LocalTransport::group(3, Duration::from_secs(60)).into_iter();
+    let master_end = group.next().expect("rank 0");
+    let handles: Vec<_> =
+        group.map(|t| std::thread::spawn(move || serve(&t, Ok(&mut ReplicaScene::new()), &pool(1)))).collect();
+    let mut master = Master::connect(master_end)?;
+    let world = rt.build_world().expect("a world");
+    let (distributed, _) = master.render_context(&rt, &world, None)?;
+    let reported: Vec<String> = world.textures.take_warnings().iter().map(ToString::to_string).collect();
+    assert_eq!(reported, expected);
+    assert_same(&[(distributed, alone, 0)], "a frame with a missing texture");
+    master.shutdown()?;
+    for h in handles {
+        h.join().expect("a worker thread")?;
     }
     Ok(())
 }

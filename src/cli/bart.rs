@@ -43,6 +43,8 @@ pub struct BartArgs {
     /// (docs/distributed.md).
     #[arg(long)]
     pub mpi: bool,
+    #[command(flatten)]
+    pub workers: super::mpi::WorkerArgs,
 }
 
 /// Loads the scene and applies the flags, as every rank does.
@@ -79,8 +81,8 @@ struct FrameTimes {
     accel: rtsl_runtime::render::AccelUpdate,
     /// What the frame moved between the ranks, when it was rendered over MPI.
     traffic: Option<Traffic>,
-    /// What the workers fetched for the frame, and the scene's objects and mesh bytes.
-    demand: Option<(Demand, (usize, usize), usize)>,
+    /// What the workers fetched for the frame, and how many workers there are.
+    demand: Option<(Demand, usize)>,
 }
 
 impl FrameTimes {
@@ -94,7 +96,7 @@ pub fn run(args: &BartArgs) -> anyhow::Result<ExitCode> {
 
     let transport = if args.mpi { Some(super::mpi::transport()?) } else { None };
     if let Some(t) = transport.as_ref().filter(|t| t.rank() != 0) {
-        return super::mpi::work(&**t, &pool);
+        return super::mpi::work(&**t, &pool, &args.workers);
     }
     let mut master = transport.map(Master::connect).transpose()?;
     let started = Instant::now();
@@ -110,8 +112,10 @@ pub fn run(args: &BartArgs) -> anyhow::Result<ExitCode> {
     // Every object's BVH, once; frames rebuild only what moves.
     let build_started = Instant::now();
     let world = pool.install(|| rt.build_world())?;
-    rt.return_scene(world);
     let first_build = build_started.elapsed();
+    // The scene's meshes as they would travel, to set what workers fetch against.
+    let meshes = master.as_ref().map(|_| super::mpi::scene_meshes(&world)).unwrap_or_default();
+    rt.return_scene(world);
 
     let total = a.frames.max(1);
     let count = args.frames.unwrap_or(total).clamp(1, total);
@@ -186,7 +190,7 @@ pub fn run(args: &BartArgs) -> anyhow::Result<ExitCode> {
         }
         times.push(f);
     }
-    summarize(&times);
+    summarize(&times, meshes);
     if let Some(m) = master {
         m.shutdown()?;
     }
@@ -217,7 +221,7 @@ fn play_frame(
     let (fb, report, traffic, demand) = match master {
         Some(m) if m.workers() > 0 => {
             let (fb, report) = m.render_context(rt, &world, None)?;
-            (fb, report, Some(m.traffic()), Some((m.demand(), super::mpi::scene_meshes(&world), m.workers())))
+            (fb, report, Some(m.traffic()), Some((m.demand(), m.workers())))
         }
         _ => {
             let (fb, report) = pool.install(|| render_frame(&world, None));
@@ -240,7 +244,7 @@ fn play_frame(
     Ok(FrameTimes { animation, build, render, rays_by_kind, accel: report.accel, traffic, demand })
 }
 
-fn summarize(times: &[FrameTimes]) {
+fn summarize(times: &[FrameTimes], meshes: (usize, usize)) {
     let n = times.len().max(1) as f64;
     let mean = |f: &dyn Fn(&FrameTimes) -> Duration| times.iter().map(|t| ms(f(t))).sum::<f64>() / n;
     let totals: Vec<f64> = times.iter().map(|t| ms(t.animation + t.build + t.render)).collect();
@@ -301,12 +305,12 @@ fn summarize(times: &[FrameTimes]) {
         println!("{}", super::mpi::traffic_line(&t));
     }
     let demands: Vec<_> = times.iter().filter_map(|t| t.demand).collect();
-    if let Some(&(first, meshes, workers)) = demands.first() {
+    if let Some(&(first, workers)) = demands.first() {
         let fetched = (first.fetched_objects, first.fetched_bytes);
         println!("{}", super::mpi::demand_line("the first frame", fetched, meshes, &first, workers));
         let rest = &demands[1..];
-        let later = rest.iter().fold((0, 0), |(o, b), (d, _, _)| (o + d.fetched_objects, b + d.fetched_bytes));
-        let (d, meshes, workers) = demands.last().copied().unwrap_or((first, meshes, workers));
+        let later = rest.iter().fold((0, 0), |(o, b), (d, _)| (o + d.fetched_objects, b + d.fetched_bytes));
+        let (d, workers) = demands.last().copied().unwrap_or((first, workers));
         println!(
             "{}",
             super::mpi::demand_line(&format!("the {} later frames", rest.len()), later, meshes, &d, workers)

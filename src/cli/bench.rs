@@ -186,6 +186,8 @@ pub struct BenchRenderArgs {
     /// (`--threads` each; docs/distributed.md).
     #[arg(long)]
     pub mpi: bool,
+    #[command(flatten)]
+    pub workers: super::mpi::WorkerArgs,
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -234,7 +236,7 @@ pub fn run_render(args: &BenchRenderArgs) -> anyhow::Result<()> {
         );
         let transport = super::mpi::transport()?;
         if transport.rank() != 0 {
-            super::mpi::work(&*transport, &pool)?;
+            super::mpi::work(&*transport, &pool, &args.workers)?;
             return Ok(());
         }
         let mut master = rtsl_runtime::distributed::Master::connect(transport)?;

@@ -3,7 +3,7 @@
 //! with an empty scene, is sent the master's, and serves it as a worker
 //! (`rtsl_runtime::distributed`).
 
-use rtsl_runtime::distributed::{serve, Demand, ReplicaScene, Traffic, Transport};
+use rtsl_runtime::distributed::{serve, Demand, ReplicaScene, Traffic, Transport, DEFAULT_MESH_CACHE_BYTES};
 use rtsl_runtime::render::World;
 
 /// This process's rank of the `mpirun` job.
@@ -20,9 +20,23 @@ pub(crate) fn transport() -> anyhow::Result<Box<dyn Transport>> {
     )
 }
 
+/// The worker ranks' settings of a subcommand run with `--mpi`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct WorkerArgs {
+    /// With --mpi: the most megabytes of fetched meshes and their BVHs a worker keeps between
+    /// frames; the meshes rays reached least recently go first, fetched again when next needed.
+    #[arg(long, value_name = "MB", default_value_t = DEFAULT_MESH_CACHE_BYTES >> 20)]
+    pub mesh_cache_mb: usize,
+}
+
 /// Serves the master as a worker: a copy of the master's scene, sent to it frame by frame.
-pub(crate) fn work(transport: &dyn Transport, pool: &rayon::ThreadPool) -> anyhow::Result<std::process::ExitCode> {
-    serve(transport, Ok(&mut ReplicaScene::new()), pool)?;
+pub(crate) fn work(
+    transport: &dyn Transport,
+    pool: &rayon::ThreadPool,
+    args: &WorkerArgs,
+) -> anyhow::Result<std::process::ExitCode> {
+    let limit = args.mesh_cache_mb.saturating_mul(1 << 20);
+    serve(transport, Ok(&mut ReplicaScene::with_cache_limit(limit)), pool)?;
     Ok(std::process::ExitCode::SUCCESS)
 }
 
@@ -40,12 +54,13 @@ pub(crate) fn traffic_line(t: &Traffic) -> String {
     )
 }
 
-/// The objects of `world`'s scene and the bytes of their meshes (the master holds them all).
+/// The objects of `world`'s scene and the bytes of their meshes as they travel (the master holds
+/// them all).
 pub(crate) fn scene_meshes(world: &World) -> (usize, usize) {
     let scene = &world.scene;
     let bytes = (0..scene.object_count() as u32)
         .filter_map(|i| scene.mesh(rtsl_runtime::scene::ObjectId(i)))
-        .map(|m| m.memory_bytes())
+        .map(|m| rtsl_runtime::api::encode_mesh(m).len())
         .sum();
     (scene.object_count(), bytes)
 }
@@ -61,12 +76,13 @@ pub(crate) fn demand_line(
 ) -> String {
     let mb = |b: f64| b / 1e6;
     format!(
-        "demand loading, {what}: {} object(s), {:.2} MB fetched by {workers} worker(s) ({:.2} MB per worker) of the scene's {} object(s) and {:.2} MB of meshes; held now: at most {} object(s) per worker",
+        "demand loading, {what}: {} object(s), {:.2} MB fetched by {workers} worker(s) ({:.2} MB per worker) of the scene's {} object(s) and {:.2} MB of meshes; held now: at most {} object(s) per worker ({} evicted before the last frame)",
         fetched.0,
         mb(fetched.1 as f64),
         mb(fetched.1 as f64 / workers.max(1) as f64),
         scene.0,
         mb(scene.1 as f64),
-        d.most_resident_objects
+        d.most_resident_objects,
+        d.evicted_objects
     )
 }

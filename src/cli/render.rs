@@ -57,6 +57,8 @@ pub struct RenderArgs {
     /// tiles (docs/distributed.md; needs a build with `--features mpi`).
     #[arg(long)]
     pub mpi: bool,
+    #[command(flatten)]
+    pub workers: super::mpi::WorkerArgs,
 }
 
 /// A camera shader and parameter values, written `NAME[:PARAM=VALUE]...`: a value that reads as a
@@ -313,7 +315,7 @@ fn run_mpi(args: &RenderArgs) -> anyhow::Result<ExitCode> {
     let transport = super::mpi::transport()?;
     let (_, pool) = super::worker_pool(args.threads)?;
     if transport.rank() != 0 {
-        return super::mpi::work(&*transport, &pool);
+        return super::mpi::work(&*transport, &pool, &args.workers);
     }
     let mut master = Master::connect(transport)?;
     let (mut rt, output) = prepare(args)?;
@@ -327,8 +329,11 @@ fn run_mpi(args: &RenderArgs) -> anyhow::Result<ExitCode> {
         if master.workers() == 0 {
             return local(rt, world, progress);
         }
-        meshes = super::mpi::scene_meshes(world);
-        Ok(master.render_context(rt, world, Some(progress))?)
+        let rendered = master.render_context(rt, world, Some(progress))?;
+        if meshes == (0, 0) {
+            meshes = super::mpi::scene_meshes(world);
+        }
+        Ok(rendered)
     };
     let report = render_and_write(&mut rt, &mut render, &output, args.quiet, true)?;
     if args.watch {

@@ -10,6 +10,7 @@ use crate::geometry::{triangle::PreTriangle, AlphaMask, Mesh};
 use glam::Vec3A;
 use obvhs::aabb::Aabb;
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::{Arc, OnceLock};
 
 /// Largest leaf the object BVHs are built with (measured on s34k: 2 beats 1, 4 and 8 for packets and
@@ -73,6 +74,9 @@ pub trait MeshSource: Send + Sync + std::fmt::Debug {
     /// cannot deliver returns an empty mesh and reports why through its own channel (the frame
     /// then fails): a traversal has no way to return an error.
     fn fetch(&self, key: u32) -> Arc<Mesh>;
+    /// The frame count the source's objects stamp themselves with when a ray reaches them (for
+    /// least-recently-used eviction, [`Object::last_used`]).
+    fn clock(&self) -> Arc<AtomicU32>;
 }
 
 /// What is known of a demand-loaded object before its mesh is here: enough to place its
@@ -97,12 +101,39 @@ impl MeshSummary {
     }
 }
 
-#[derive(Clone, Debug)]
+#[derive(Debug)]
 struct Remote {
     summary: MeshSummary,
     key: u32,
     source: Arc<dyn MeshSource>,
     quality: BuildQuality,
+    clock: Arc<AtomicU32>,
+    /// The clock when a ray last reached the object.
+    last_used: AtomicU32,
+}
+
+impl Clone for Remote {
+    fn clone(&self) -> Self {
+        Remote {
+            summary: self.summary.clone(),
+            key: self.key,
+            source: self.source.clone(),
+            quality: self.quality,
+            clock: self.clock.clone(),
+            last_used: AtomicU32::new(self.last_used.load(Ordering::Relaxed)),
+        }
+    }
+}
+
+impl Remote {
+    #[inline(always)]
+    fn touch(&self) {
+        // Written once a frame at most: the line stays shared between the threads that read it.
+        let now = self.clock.load(Ordering::Relaxed);
+        if self.last_used.load(Ordering::Relaxed) != now {
+            self.last_used.store(now, Ordering::Relaxed);
+        }
+    }
 }
 
 /// A retained object: its mesh and BVH, here from the start, or (demand loading) fetched from a
@@ -125,12 +156,18 @@ impl Object {
     /// An object whose mesh `source` delivers when a ray first needs it (its BVH is then built at
     /// `quality`).
     pub fn remote(summary: MeshSummary, key: u32, source: Arc<dyn MeshSource>, quality: BuildQuality) -> Self {
-        Object { data: OnceLock::new(), remote: Some(Remote { summary, key, source, quality }), alpha: None }
+        let clock = source.clock();
+        let last_used = AtomicU32::new(clock.load(Ordering::Relaxed));
+        let remote = Remote { summary, key, source, quality, clock, last_used };
+        Object { data: OnceLock::new(), remote: Some(remote), alpha: None }
     }
 
     /// The mesh and BVH, fetched and built first if the object is remote and not yet here.
     #[inline(always)]
     pub fn data(&self) -> &ObjectData {
+        if let Some(r) = &self.remote {
+            r.touch();
+        }
         match self.data.get() {
             Some(d) => d,
             None => self.load(),
@@ -162,6 +199,11 @@ impl Object {
     /// Whether the object is demand-loaded.
     pub fn is_remote(&self) -> bool {
         self.remote.is_some()
+    }
+
+    /// A demand-loaded object's [`MeshSource::clock`] when a ray last reached it.
+    pub fn last_used(&self) -> Option<u32> {
+        self.remote.as_ref().map(|r| r.last_used.load(Ordering::Relaxed))
     }
 
     /// Drops a demand-loaded object's mesh and BVH (fetched again when next needed); returns the

@@ -15,8 +15,9 @@
 use crate::accel::object::MeshSource;
 use crate::api::decode_mesh;
 use crate::geometry::Mesh;
+use crate::scene::Scene;
 use std::collections::HashMap;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
 use std::sync::mpsc::{channel, Receiver, Sender};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Duration;
@@ -33,6 +34,10 @@ pub struct MeshLink {
     failure: Mutex<Option<String>>,
     fetched_objects: AtomicU64,
     fetched_bytes: AtomicU64,
+    /// Objects evicted before this frame.
+    evicted: AtomicU64,
+    /// Frames since the start: what objects stamp themselves with when a ray reaches them.
+    clock: Arc<AtomicU32>,
 }
 
 impl MeshLink {
@@ -45,10 +50,13 @@ impl MeshLink {
         std::mem::take(&mut *self.queued.lock().unwrap_or_else(PoisonError::into_inner))
     }
 
-    /// This frame's failure, objects fetched and their bytes; resets them for the next frame.
-    pub(super) fn take_frame(&self) -> (Option<String>, u64, u64) {
+    /// This frame's failure, objects fetched and their bytes, and objects evicted before it;
+    /// resets them for the next frame.
+    pub(super) fn take_frame(&self) -> (Option<String>, u64, u64, u64) {
         let failure = self.failure.lock().unwrap_or_else(PoisonError::into_inner).take();
-        (failure, self.fetched_objects.swap(0, Ordering::Relaxed), self.fetched_bytes.swap(0, Ordering::Relaxed))
+        let fetched = self.fetched_objects.swap(0, Ordering::Relaxed);
+        let bytes = self.fetched_bytes.swap(0, Ordering::Relaxed);
+        (failure, fetched, bytes, self.evicted.swap(0, Ordering::Relaxed))
     }
 
     fn fail(&self, message: String) {
@@ -56,7 +64,49 @@ impl MeshLink {
     }
 }
 
+impl MeshLink {
+    /// Starts a frame: objects reached from now on are stamped with its number; `evicted`
+    /// objects were dropped before it.
+    pub(super) fn start_frame(&self, evicted: u64) {
+        self.clock.fetch_add(1, Ordering::Relaxed);
+        self.evicted.store(evicted, Ordering::Relaxed);
+    }
+}
+
+/// Drops the meshes of the demand-loaded objects of `scene` that rays reached least recently
+/// until those held take at most `limit` bytes; returns how many were dropped. Objects reached in
+/// the current frame go last, and go too if they alone exceed the limit (they are fetched again
+/// when next needed).
+pub fn evict_least_recently_used(scene: &mut Scene, limit: usize) -> u64 {
+    let mut held: Vec<(u32, usize, usize)> = scene
+        .objects()
+        .iter()
+        .enumerate()
+        .filter(|(_, o)| o.is_remote() && o.is_resident())
+        .map(|(i, o)| (o.last_used().unwrap_or(0), i, o.memory_bytes()))
+        .collect();
+    let mut total: usize = held.iter().map(|h| h.2).sum();
+    if total <= limit {
+        return 0;
+    }
+    held.sort_unstable();
+    let mut evicted = 0;
+    let objects = scene.objects_mut();
+    for (_, i, _) in held {
+        if total <= limit {
+            break;
+        }
+        total -= objects[i].evict().min(total);
+        evicted += 1;
+    }
+    evicted
+}
+
 impl MeshSource for MeshLink {
+    fn clock(&self) -> Arc<AtomicU32> {
+        self.clock.clone()
+    }
+
     fn fetch(&self, key: u32) -> Arc<Mesh> {
         let (tx, rx): (Sender<Vec<u8>>, Receiver<Vec<u8>>) = channel();
         self.queued.lock().unwrap_or_else(PoisonError::into_inner).push((key, tx));
@@ -110,5 +160,56 @@ impl Pending {
                 let _ = tx.send(bytes.clone());
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::accel::object::{MeshSummary, Object};
+
+    /// Hands out the same small mesh for every object.
+    #[derive(Debug, Default)]
+    struct Local {
+        clock: Arc<AtomicU32>,
+        fetches: AtomicU64,
+    }
+
+    impl MeshSource for Local {
+        fn fetch(&self, _key: u32) -> Arc<Mesh> {
+            self.fetches.fetch_add(1, Ordering::Relaxed);
+            let corners = vec![[0.0, 0.0, 0.0].into(), [1.0, 0.0, 0.0].into(), [0.0, 1.0, 0.0].into()];
+            Arc::new(Mesh::from_triangles(corners, vec![[0, 1, 2]]).expect("a triangle"))
+        }
+        fn clock(&self) -> Arc<AtomicU32> {
+            self.clock.clone()
+        }
+    }
+
+    #[test]
+    fn the_least_recently_reached_objects_go_first() {
+        let source = Arc::new(Local::default());
+        let mut scene = Scene::new();
+        let summary = MeshSummary { bounds: None, triangles: 1, attributes: Vec::new() };
+        for key in 0..3 {
+            scene.add_remote_object(summary.clone(), key, source.clone());
+        }
+        // Object 1 reached in frame 1, object 0 in frame 2, object 2 in frame 3.
+        for (frame, object) in [(1, 1), (2, 0), (3, 2)] {
+            source.clock.store(frame, Ordering::Relaxed);
+            let _ = scene.objects()[object].data();
+        }
+        assert_eq!(source.fetches.load(Ordering::Relaxed), 3);
+        let each = scene.objects()[0].memory_bytes();
+        assert_eq!(evict_least_recently_used(&mut scene, 3 * each), 0);
+        assert_eq!(evict_least_recently_used(&mut scene, 2 * each), 1);
+        let resident: Vec<bool> = scene.objects().iter().map(Object::is_resident).collect();
+        assert_eq!(resident, [true, false, true]);
+        assert_eq!(evict_least_recently_used(&mut scene, each), 1);
+        let resident: Vec<bool> = scene.objects().iter().map(Object::is_resident).collect();
+        assert_eq!(resident, [false, false, true]);
+        // An evicted object comes back when next reached.
+        let _ = scene.objects()[1].data();
+        assert_eq!(source.fetches.load(Ordering::Relaxed), 4);
     }
 }

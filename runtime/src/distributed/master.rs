@@ -322,6 +322,14 @@ impl<T: Transport> Master<T> {
             resident_objects: counts.iter().map(|c| c.resident_objects).sum(),
             most_resident_objects: counts.iter().map(|c| c.resident_objects).max().unwrap_or(0),
         };
+        // Textures load where they are sampled: the workers' failures are the frame's.
+        world.textures.add_warnings(counts.iter().flat_map(|c| &c.texture_warnings).map(|(name, path, reason)| {
+            crate::texture::TextureWarning {
+                name: name.clone(),
+                path: (!path.is_empty()).then(|| path.into()),
+                reason: reason.clone(),
+            }
+        }));
         let (fb, mut report) = renderer.finish(rendered, start);
         for c in &counts {
             super::add_counts(&mut report, c);

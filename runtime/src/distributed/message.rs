@@ -6,7 +6,7 @@
 use rtsl_compiler::front::parse::ast::ShaderKind;
 
 /// The protocol's version: ranks that speak different versions refuse each other at start-up.
-pub const PROTOCOL_VERSION: u32 = 5;
+pub const PROTOCOL_VERSION: u32 = 6;
 
 /// What the master's counters add up from a worker's share of a frame.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -23,6 +23,8 @@ pub struct FrameCounts {
     pub by_shader: Vec<(String, u8, u64)>,
     /// What the shaders' runtime checks reported.
     pub shader_messages: Vec<String>,
+    /// Textures the worker could not load: name, file (empty when none was found) and why.
+    pub texture_warnings: Vec<(String, String, String)>,
     /// Demand loading: objects fetched from the master this frame and their bytes, objects
     /// evicted from the cache before the frame, and objects held after it.
     pub fetched_objects: u64,
@@ -179,6 +181,12 @@ impl Message {
                 for m in &counts.shader_messages {
                     w.str(m);
                 }
+                w.u32(counts.texture_warnings.len() as u32);
+                for (name, path, reason) in &counts.texture_warnings {
+                    w.str(name);
+                    w.str(path);
+                    w.str(reason);
+                }
                 w.opt_str(failure.as_deref());
             }
             Message::Quit => w.u8(QUIT),
@@ -226,6 +234,9 @@ impl Message {
                     (0..shaders).map(|_| Ok((r.str()?, r.u8()?, r.u64()?))).collect::<Result<_, String>>()?;
                 let messages = r.count(4)?;
                 let shader_messages = (0..messages).map(|_| r.str()).collect::<Result<_, _>>()?;
+                let textures = r.count(24)?;
+                let texture_warnings =
+                    (0..textures).map(|_| Ok((r.str()?, r.str()?, r.str()?))).collect::<Result<_, String>>()?;
                 let counts = FrameCounts {
                     rays,
                     shaded_points,
@@ -234,6 +245,7 @@ impl Message {
                     kind_ns,
                     by_shader,
                     shader_messages,
+                    texture_warnings,
                     fetched_objects,
                     fetched_bytes,
                     evicted_objects,
@@ -381,6 +393,7 @@ mod tests {
                     kind_ns: vec![8, 9],
                     by_shader: vec![("plastic".into(), 0, 10)],
                     shader_messages: vec!["plastic: a loop stopped".into()],
+                    texture_warnings: vec![("grain".into(), String::new(), "not found".into())],
                     fetched_objects: 11,
                     fetched_bytes: 12,
                     evicted_objects: 13,

@@ -36,7 +36,7 @@ mod worker;
 pub use master::{Demand, Master, Traffic};
 pub use message::{FrameCounts, Message, PROTOCOL_VERSION};
 pub use transport::{LocalTransport, Transport, TransportError};
-pub use worker::{serve, ReplicaScene, WorkerScene};
+pub use worker::{serve, ReplicaScene, WorkerScene, DEFAULT_MESH_CACHE_BYTES};
 
 use crate::render::FrameReport;
 use std::time::Duration;

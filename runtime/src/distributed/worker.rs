@@ -31,7 +31,12 @@ pub struct ReplicaScene {
     context: crate::api::Context,
     world: Option<World>,
     link: Arc<MeshLink>,
+    /// The most bytes of fetched meshes and their BVHs held between frames.
+    cache_limit: usize,
 }
+
+/// [`ReplicaScene`]'s cache limit unless told otherwise.
+pub const DEFAULT_MESH_CACHE_BYTES: usize = 4 << 30;
 
 impl Default for ReplicaScene {
     fn default() -> Self {
@@ -44,19 +49,30 @@ impl ReplicaScene {
         let link = MeshLink::new();
         let mut context = crate::api::Context::new();
         context.set_mesh_source(link.clone());
-        ReplicaScene { context, world: None, link }
+        ReplicaScene { context, world: None, link, cache_limit: DEFAULT_MESH_CACHE_BYTES }
+    }
+
+    /// A replica that holds at most `bytes` of fetched meshes and their BVHs between frames,
+    /// dropping those that rays reached least recently first.
+    pub fn with_cache_limit(bytes: usize) -> ReplicaScene {
+        ReplicaScene { cache_limit: bytes, ..ReplicaScene::new() }
     }
 }
 
 impl WorkerScene for ReplicaScene {
     fn world(&mut self, update: &[u8]) -> Result<World, String> {
         let changed = self.context.apply_update(update).map_err(|e| e.to_string())?;
-        match self.world.take() {
-            Some(world) if !changed => return Ok(world),
-            Some(world) => self.context.return_scene(world),
-            None => {}
-        }
-        self.context.build_world().map_err(|e| e.to_string())
+        let mut world = match self.world.take() {
+            Some(world) if !changed => world,
+            Some(world) => {
+                self.context.return_scene(world);
+                self.context.build_world().map_err(|e| e.to_string())?
+            }
+            None => self.context.build_world().map_err(|e| e.to_string())?,
+        };
+        let evicted = super::fetch::evict_least_recently_used(&mut world.scene, self.cache_limit);
+        self.link.start_frame(evicted);
+        Ok(world)
     }
 
     fn finished(&mut self, world: World) {
@@ -238,10 +254,17 @@ fn render_share<T: Transport + ?Sized>(
         return Ok(true);
     }
     let mut counts = super::master::counts_of(&renderer.report(start));
+    counts.texture_warnings = world
+        .textures
+        .take_warnings()
+        .into_iter()
+        .map(|w| (w.name, w.path.map(|p| p.display().to_string()).unwrap_or_default(), w.reason))
+        .collect();
     let mut failure = None;
     if let Some(link) = link {
-        let (fetch_failure, objects, bytes) = link.take_frame();
+        let (fetch_failure, objects, bytes, evicted) = link.take_frame();
         (failure, counts.fetched_objects, counts.fetched_bytes) = (fetch_failure, objects, bytes);
+        counts.evicted_objects = evicted;
         counts.resident_objects =
             world.scene.objects().iter().filter(|o| o.is_remote() && o.is_resident()).count() as u64;
     }

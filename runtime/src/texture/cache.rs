@@ -190,6 +190,17 @@ impl TextureCache {
         std::mem::take(&mut *self.warnings.lock().unwrap_or_else(PoisonError::into_inner))
     }
 
+    /// Adds warnings raised elsewhere (a distributed render's workers, whose caches loaded the
+    /// textures), each once however often it comes.
+    pub fn add_warnings(&self, warnings: impl IntoIterator<Item = TextureWarning>) {
+        let mut held = self.warnings.lock().unwrap_or_else(PoisonError::into_inner);
+        for w in warnings {
+            if !held.contains(&w) {
+                held.push(w);
+            }
+        }
+    }
+
     /// A filtered texture lookup (RSL's `texture()`): `out[c]` gets channel `first_channel + c`
     /// at `(s, t)` over `footprint` (see `MipMap::filter`). Returns false, leaving `out` alone,
     /// when the texture cannot be loaded: the caller then uses the `fill` value.
