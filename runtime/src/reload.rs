@@ -19,6 +19,7 @@
 //! dropped (then `CompiledShader`'s drop frees its JIT memory; `rtsl_compiler::back::jit::
 //! live_modules` counts what is alive).
 
+pub use crate::api::ShaderEvent;
 use crate::api::{Context, ShaderId};
 use crate::shading::ShaderProgram;
 use notify::{RecursiveMode, Watcher};
@@ -66,34 +67,6 @@ impl Reload {
 impl std::fmt::Display for Reload {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         self.event().fmt(f)
-    }
-}
-
-/// What hot reload did, for an application to show: drained from [`Context::take_shader_events`].
-#[derive(Clone, Debug, PartialEq)]
-pub enum ShaderEvent {
-    /// Shader `shader` (named `name`, from `path`) was recompiled and the next frame uses it.
-    Reloaded { shader: ShaderId, name: String, path: PathBuf, compile_ms: f64 },
-    /// An edit did not compile (or the new shader is of another type); the last good code stays.
-    /// `diagnostics` is the compiler's rustc-style rendering.
-    Failed { shader: ShaderId, name: String, path: PathBuf, diagnostics: String },
-    /// A value bound to `parameter` does not fit the new parameter list of shader `shader` (the
-    /// parameter is gone or has another type, said by `reason`): frames leave it out (the
-    /// parameter takes its default) until a later version takes it again.
-    ParameterDropped { shader: ShaderId, name: String, parameter: String, reason: String },
-}
-
-impl std::fmt::Display for ShaderEvent {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            ShaderEvent::Reloaded { name, path, compile_ms, .. } => {
-                write!(f, "reloaded {name} ({}) in {compile_ms:.1} ms", path.display())
-            }
-            ShaderEvent::Failed { name, path, diagnostics, .. } => {
-                write!(f, "{name} ({}) did not compile; the last good version stays:\n{diagnostics}", path.display())
-            }
-            ShaderEvent::ParameterDropped { reason, .. } => write!(f, "{reason}; the value is not used"),
-        }
     }
 }
 

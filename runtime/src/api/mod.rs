@@ -45,7 +45,6 @@
 use crate::accel::object::{MeshSource, MeshSummary};
 use crate::geometry::alpha::DEFAULT_CUTOFF as ALPHA_CUTOFF;
 use crate::geometry::{AlphaMask, Attribute, Mesh, MeshError};
-use crate::reload::ShaderEvent;
 use crate::render::{
     render_frame, AreaLight, CameraSetup, FrameReport, Framebuffer, InstanceParts, InstanceShading, LightSource,
     Material, RenderOptions, World,
@@ -59,7 +58,9 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+mod events;
 mod replica;
+pub use events::ShaderEvent;
 pub use replica::{decode_mesh, encode_mesh, ReplicaError, Replicator};
 
 /// A compiled shader known to a [`Context`].
