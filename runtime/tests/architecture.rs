@@ -10,16 +10,7 @@ use std::path::Path;
 
 /// Import cycles that remain, each as its sorted modules.
 const CYCLES_TO_CUT: &[&[&str]] = &[
-    &[
-        "render::hit_geometry",
-        "render::host",
-        "render::lanes",
-        "render::lights",
-        "render::primary",
-        "render::shade",
-        "render::trace_ahead",
-        "render::volume",
-    ],
+    &["render::host", "render::lights", "render::primary", "render::shade", "render::trace_ahead", "render::volume"],
     &["rib::mesh", "rib::patch"],
 ];
 

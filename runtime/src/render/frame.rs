@@ -10,7 +10,9 @@ use super::film::{Film, TileFilm};
 use super::primary::{
     pinhole_ray, primary_rays, primary_rays_into, primary_rays_of_packets, CameraSample, PacketSamples, PrimaryRays,
 };
-use super::shade::{mix, shade_packet, shade_packets, shade_pixels, Frame, Sample, TilePixels};
+use super::sampling::{mix, radical_inverse};
+use super::shade::{shade_packet, shade_packets, shade_pixels, TilePixels};
+use super::work::{Frame, Sample};
 use super::world::{Antialiasing, World};
 use crate::camera::{packet_lane_offset, PACKET_LANE_OFFSETS, PACKET_SIDE};
 use crate::ray::{HitPacket, PACKET_SIZE};
@@ -202,17 +204,6 @@ fn lens_sample(x: u32, y: u32, k: u32) -> (f32, f32) {
     let (x0, y0) = (x - x % TILE_SIZE, y - y % TILE_SIZE);
     let (a, b) = hash2((u64::from(y0) << 40) ^ (u64::from(x0) << 16) ^ 0x1E25_0000);
     ((radical_inverse(k + 1, 2) + a).fract(), (radical_inverse(k + 1, 3) + b).fract())
-}
-
-/// The radical inverse of `i` in `base` (van der Corput), for Halton points.
-pub(super) fn radical_inverse(mut i: u32, base: u32) -> f32 {
-    let (mut inv, mut f) = (0.0f64, 1.0f64 / f64::from(base));
-    while i > 0 {
-        inv += f64::from(i % base) * f;
-        i /= base;
-        f /= f64::from(base);
-    }
-    inv as f32
 }
 
 /// The sub-pixel offset of sample `(i, j)` of pixel `(x, y)` under the frame's anti-aliasing mode

@@ -7,9 +7,11 @@
 
 use super::lights::epsilon;
 use super::lights::{eval_light, transmission_between, BatchLights};
-use super::shade::{gather_rays, mix, point_seed, trace_rays, unit, Frame, Sample};
+use super::sampling::{mix, point_seed, unit};
+use super::shade::{gather_rays, trace_rays};
 use super::stats::{tracing, Stats};
 use super::trace_ahead::RayLog;
+use super::work::{Frame, Sample};
 use crate::ray::Ray;
 use crate::shading::ShaderInstance;
 use crate::texture::{Grid, LookupLanes, LookupOptions, MipMap, TextureCache};

@@ -3,8 +3,7 @@
 //! `x86-64-v3` in `.cargo/config.toml` does). Every operation is the IEEE operation lane by lane,
 //! so a lane gets the same bits at either width.
 
-use super::hit_geometry::Lanes3;
-use glam::{BVec4A, Vec2, Vec3, Vec3A, Vec4};
+use glam::{BVec4A, Mat3A, Vec2, Vec3, Vec3A, Vec4};
 use std::ops::{Add, BitAnd, Div, Mul, Neg, Not, Sub};
 use wide::f32x8;
 
@@ -329,5 +328,144 @@ mod tests {
         }
         let [x, _] = Vec4::gather2(&[], |j| j);
         assert_eq!(x, Vec4::ZERO);
+    }
+}
+
+/// A 3-vector for each of several lanes (four: `Vec4`; eight: see [`Lanes`]), a vector per
+/// component. The operations are `Vec3A`'s, in the same order, so that each lane gets the bits a
+/// `Vec3A` would.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(super) struct Lanes3<V = Vec4> {
+    pub(super) x: V,
+    pub(super) y: V,
+    pub(super) z: V,
+}
+
+impl Lanes3 {
+    /// Element `index(j)` of `data` in lane `j` (zero where there is none). Loaded straight from
+    /// `data`: gathered through an array of vectors, the transposition read the array back with
+    /// loads across its stores, which stall.
+    #[inline(always)]
+    pub(super) fn gather(data: &[Vec3], index: impl Fn(usize) -> usize) -> Lanes3 {
+        let at = [index(0), index(1), index(2), index(3)];
+        #[cfg(target_arch = "x86_64")]
+        {
+            // Sixteen bytes from each element: its three values and the first of the next one,
+            // which the transposition drops. Element by element, each would take a bounds
+            // check and three loads and inserts.
+            if at[0].max(at[1]).max(at[2]).max(at[3]) < data.len().saturating_sub(1) {
+                let load = |i: usize| {
+                    // SAFETY: `i + 1 < data.len()`, checked above, so the 16 bytes from element `i`
+                    // (12 of its own, 4 of the next) lie inside `data`; `Vec3` is three `f32`s
+                    // (`repr(C)`), and `_mm_loadu_ps` needs no alignment.
+                    unsafe { std::arch::x86_64::_mm_loadu_ps(data.as_ptr().add(i).cast::<f32>()) }
+                };
+                return Lanes3::transposed([load(at[0]), load(at[1]), load(at[2]), load(at[3])]);
+            }
+        }
+        let at = |j: usize| data.get(at[j]).copied().unwrap_or(Vec3::ZERO);
+        let (a, b, c, d) = (at(0), at(1), at(2), at(3));
+        Lanes3 { x: Vec4::new(a.x, b.x, c.x, d.x), y: Vec4::new(a.y, b.y, c.y, d.y), z: Vec4::new(a.z, b.z, c.z, d.z) }
+    }
+
+    /// The first three values of each of four vectors, a vector a lane, transposed in registers
+    /// (`_MM_TRANSPOSE4_PS`, less the fourth row).
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    pub(super) fn transposed([a, b, c, d]: [std::arch::x86_64::__m128; 4]) -> Lanes3 {
+        use std::arch::x86_64::{_mm_movehl_ps, _mm_movelh_ps, _mm_unpackhi_ps, _mm_unpacklo_ps};
+        // SAFETY: SSE is part of x86-64, and these only shuffle registers.
+        let [x, y, z] = unsafe {
+            let (ab_low, cd_low) = (_mm_unpacklo_ps(a, b), _mm_unpacklo_ps(c, d));
+            let (ab_high, cd_high) = (_mm_unpackhi_ps(a, b), _mm_unpackhi_ps(c, d));
+            [_mm_movelh_ps(ab_low, cd_low), _mm_movehl_ps(cd_low, ab_low), _mm_movelh_ps(ab_high, cd_high)]
+        };
+        Lanes3 { x: x.into(), y: y.into(), z: z.into() }
+    }
+
+    #[inline(always)]
+    pub(super) fn lane(&self, j: usize) -> Vec3A {
+        Vec3A::new(self.x[j], self.y[j], self.z[j])
+    }
+
+    /// Four consecutive vectors, a vector a lane.
+    #[inline(always)]
+    pub(super) fn of_four(four: &[Vec3A; 4]) -> Lanes3 {
+        Lanes3::of([&four[0], &four[1], &four[2], &four[3]], |v| *v)
+    }
+
+    /// The vectors `f(items[j])`, one a lane: transposed in registers. (Built as an array of
+    /// vectors and read back a component at a time, the reads would straddle the array's
+    /// stores, which stalls them: store forwarding fails.)
+    #[inline(always)]
+    pub(super) fn of<T>(items: [&T; 4], f: impl Fn(&T) -> Vec3A) -> Lanes3 {
+        let [a, b, c, d] = [f(items[0]), f(items[1]), f(items[2]), f(items[3])];
+        #[cfg(target_arch = "x86_64")]
+        {
+            Lanes3::transposed([a.into(), b.into(), c.into(), d.into()])
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        Lanes3 { x: Vec4::new(a.x, b.x, c.x, d.x), y: Vec4::new(a.y, b.y, c.y, d.y), z: Vec4::new(a.z, b.z, c.z, d.z) }
+    }
+}
+
+impl<V: Lanes> Lanes3<V> {
+    pub(super) fn zero() -> Self {
+        Lanes3 { x: V::splat(0.0), y: V::splat(0.0), z: V::splat(0.0) }
+    }
+
+    pub(super) fn splat(v: Vec3A) -> Self {
+        Lanes3 { x: V::splat(v.x), y: V::splat(v.y), z: V::splat(v.z) }
+    }
+
+    pub(super) fn add(self, o: Self) -> Self {
+        Lanes3 { x: self.x + o.x, y: self.y + o.y, z: self.z + o.z }
+    }
+
+    pub(super) fn sub(self, o: Self) -> Self {
+        Lanes3 { x: self.x - o.x, y: self.y - o.y, z: self.z - o.z }
+    }
+
+    pub(super) fn scale(self, s: V) -> Self {
+        Lanes3 { x: self.x * s, y: self.y * s, z: self.z * s }
+    }
+
+    /// `Vec3A::dot`: `(x + y) + z`.
+    pub(super) fn dot(self, o: Self) -> V {
+        self.x * o.x + self.y * o.y + self.z * o.z
+    }
+
+    /// `Vec3A::cross`, whose second product is fused into the subtraction where the target has
+    /// FMA (`x86-64-v3`, `.cargo/config.toml`).
+    pub(super) fn cross(self, o: Self) -> Self {
+        #[cfg(target_feature = "fma")]
+        let minus_product = |a: V, b: V, from: V| (-a).mul_add(b, from);
+        #[cfg(not(target_feature = "fma"))]
+        let minus_product = |a: V, b: V, from: V| from - a * b;
+        Lanes3 {
+            x: minus_product(self.z, o.y, self.y * o.z),
+            y: minus_product(self.x, o.z, self.z * o.x),
+            z: minus_product(self.y, o.x, self.x * o.y),
+        }
+    }
+
+    /// `m * v` as `Mat3A * Vec3A` sums it: column by column.
+    pub(super) fn transformed(self, m: &Mat3A) -> Self {
+        let row = |a: f32, b: f32, c: f32| V::splat(a) * self.x + V::splat(b) * self.y + V::splat(c) * self.z;
+        Lanes3 {
+            x: row(m.x_axis.x, m.y_axis.x, m.z_axis.x),
+            y: row(m.x_axis.y, m.y_axis.y, m.z_axis.y),
+            z: row(m.x_axis.z, m.y_axis.z, m.z_axis.z),
+        }
+    }
+
+    pub(super) fn select(mask: V::Mask, a: Self, b: Self) -> Self {
+        Lanes3 { x: V::select(mask, a.x, b.x), y: V::select(mask, a.y, b.y), z: V::select(mask, a.z, b.z) }
+    }
+
+    /// `Vec3A::normalize_or`, per lane.
+    pub(super) fn normalize_or(self, fallback: Self) -> Self {
+        let rcp = V::splat(1.0) / self.dot(self).sqrt();
+        Lanes3::select(rcp.is_finite_mask() & rcp.cmpgt(V::splat(0.0)), self.scale(rcp), fallback)
     }
 }

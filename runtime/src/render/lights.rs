@@ -3,10 +3,12 @@
 //! the per-lane table the shader's light queries are served from.
 
 use super::differential::RayDifferential;
-use super::hit_geometry::Lanes3;
 use super::host::ShadeCall;
-use super::shade::{mix, point_seed, shade_in_groups, unit, Frame, Pending, Shaded};
+use super::lanes::Lanes3;
+use super::sampling::{mix, point_seed, unit};
+use super::shade::shade_in_groups;
 use super::stats::{tracing, Stats};
+use super::work::{Frame, Pending, Shaded};
 use super::world::{InstanceShadows, LightSource, Material, ShadowKind, World, DEFAULT_MATERIAL};
 use crate::ray::{HitCandidate, HitPacket, Ray, RayPacket, PACKET_SIZE};
 use crate::shading::{fill1, fill3, get_row, put3, put_row, varying_rows, with_filled_batch, LightKind};

@@ -18,11 +18,13 @@ mod lights;
 pub mod native;
 pub mod primary;
 pub mod progressive;
+mod sampling;
 mod scratch;
 pub mod shade;
 mod stats;
 mod trace_ahead;
 mod volume;
+mod work;
 pub mod world;
 
 pub use filter::{FilterKind, PixelFilter};
@@ -31,9 +33,9 @@ pub use frame::{
     trace_primary_rays, FrameReport, Framebuffer, RenderedTile, TileRenderer, TILE_SIZE,
 };
 pub use primary::{primary_rays, primary_rays_into, CameraSample, PrimaryRays};
-pub use shade::{Frame, Sample};
 pub(crate) use stats::ShaderKindTimer;
 pub use stats::Stats;
+pub use work::{Frame, Sample};
 pub use world::{
     check_image_size, AccelUpdate, Antialiasing, AreaLight, CameraSetup, InstanceParts, InstanceShading, LightSource,
     Material, RenderOptions, World, MAX_AREA_SAMPLES, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE,

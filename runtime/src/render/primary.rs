@@ -15,7 +15,7 @@
 
 use super::differential::{DifferentialRows, LaneRows3, RayDifferential};
 use super::host::ShadeCall;
-use super::shade::Frame;
+use super::work::Frame;
 use super::world::World;
 use crate::ray::{Ray, RayPacket, PACKET_SIZE};
 use crate::shading::{fill1, fill3, put_row_at, varying_rows, with_filled_batch, Slot};

@@ -25,9 +25,11 @@
 //! Invariant: as in [`super::render_frame`], a sample depends only on the world, the pixel and the
 //! pass number, never on threads or timing, so a given sequence of passes gives the same image.
 
-use super::frame::{radical_inverse, Framebuffer};
+use super::frame::Framebuffer;
 use super::primary::{primary_rays, CameraSample};
-use super::shade::{shade_packet, shade_pixels, Frame, Sample, TilePixels};
+use super::sampling::radical_inverse;
+use super::shade::{shade_packet, shade_pixels, TilePixels};
+use super::work::{Frame, Sample};
 use super::world::{Antialiasing, World};
 use crate::camera::packet_lane_offset;
 use crate::ray::{HitPacket, PACKET_SIZE};

@@ -14,82 +14,26 @@
 
 use super::differential::RayDifferential;
 use super::hit_geometry::{
-    derivs_four, hit_geometries, GeometryNeeds, GroupHits, HitGeometry, HitRows, HitSurface, InstanceGeometry, Lanes3,
+    derivs_four, hit_geometries, GeometryNeeds, GroupHits, HitGeometry, HitRows, HitSurface, InstanceGeometry,
 };
 use super::host::ShadeCall;
+use super::lanes::Lanes3;
 use super::lights::BatchLights;
 use super::native::{faced_against, LightSeen, NativeSurface};
 use super::primary::PrimaryRays;
+use super::sampling::point_seed;
 use super::stats::{tracing, ShadingTimer, Stats};
 use super::trace_ahead::RayLog;
-use super::world::{InstanceShadows, World, DEFAULT_MATERIAL};
+use super::work::{finite_or_zero, Pending, Shaded};
+use super::world::{World, DEFAULT_MATERIAL};
 use crate::ray::{offset_ray_origin, Hit, HitPacket, Ray, PACKET_SIZE};
 use crate::shading::{get3, get_row, put1, put3, varying_rows, with_batch, with_filled_batch, ShaderInstance, Slot};
 use glam::{Affine3A, BVec4A, Vec3A, Vec4};
 use rtsl_compiler::back::jit::RawBatch;
 use std::cell::RefCell;
 
-/// The frame being rendered: the world and the counters.
-pub struct Frame<'w> {
-    pub world: &'w World,
-    pub stats: Stats,
-    pub(super) transparent_shadows: bool,
-    /// Per instance: what shadow rays do at its triangles (empty without `transparent_shadows`).
-    /// A shadow ray's hit filter answers from these without finding the triangle's material.
-    pub(super) instance_shadows: Vec<InstanceShadows>,
-    /// [`World::has_volumes`], asked once a frame rather than for every packet: it scans every
-    /// material (thousands in an animation of many parts).
-    pub(super) volumes: bool,
-    pub(super) camera_from_world: Affine3A,
-    /// The camera's forward axis and how an unnormalised camera ray's direction changes per pixel.
-    pub(super) forward: Vec3A,
-    pub(super) pixel_dx: Vec3A,
-    pub(super) pixel_dy: Vec3A,
-    /// The angle one pixel spans (radians, small-angle), for the cones of secondary rays.
-    pub(super) pixel_spread: f32,
-    /// Per light: the row of a lane-invariant ambient light, worked out by the first batch that
-    /// asks (its value depends on the light's parameters alone, fixed for the frame).
-    pub(super) invariant_light_rows: Vec<std::sync::OnceLock<rtsl_compiler::back::jit::LightLanes>>,
-}
-
-impl<'w> Frame<'w> {
-    pub fn new(world: &'w World) -> Frame<'w> {
-        let cam = &world.camera;
-        let (w, h) = (world.options.width.max(1) as f32, world.options.height.max(1) as f32);
-        let tan = (cam.fov_degrees.to_radians() * 0.5).tan();
-        let (ax, ay) = world.options.screen_extent().half;
-        let m = &cam.world_from_camera.matrix3;
-        let transparent_shadows = world.has_transparent_shadows();
-        let instance_shadows = if transparent_shadows { world.instance_shadows() } else { Vec::new() };
-        Frame {
-            world,
-            stats: Stats { timed: world.options.time_shaders, ..Stats::default() },
-            transparent_shadows,
-            instance_shadows,
-            volumes: world.has_volumes(),
-            camera_from_world: cam.world_from_camera.inverse(),
-            forward: m.z_axis.normalize_or_zero(),
-            pixel_dx: m.x_axis * (2.0 * tan * ax / w),
-            pixel_dy: m.y_axis * (-2.0 * tan * ay / h),
-            pixel_spread: 2.0 * tan * ay / h,
-            invariant_light_rows: world.lights.iter().map(|_| std::sync::OnceLock::new()).collect(),
-        }
-    }
-}
-
-/// The colour seen along a ray and its coverage.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Sample {
-    pub color: Vec3A,
-    pub alpha: f32,
-    /// Distance to the first surface (infinite on a miss).
-    pub depth: f32,
-    /// Object id of the first surface hit (`u32::MAX` on a miss), for pixel shaders and adaptive
-    /// sampling.
-    pub object_id: u32,
-    /// Material (shader instance) of the first surface hit (`u32::MAX` on a miss).
-    pub shader_id: u32,
-}
+/// The work items shading takes and gives (defined in `work.rs`).
+pub use super::work::{Frame, Sample};
 
 /// Shades the rays of a primary packet (already intersected): lane `i`'s sample is its radiance
 /// times its camera weight.
@@ -181,26 +125,6 @@ pub(super) fn gather_rays(frame: &Frame, rays: &[Ray], depth: u32) -> Vec<Option
         }
     }
     out
-}
-
-pub(super) struct Pending {
-    pub(super) index: usize,
-    pub(super) ray: Ray,
-    pub(super) diff: RayDifferential,
-    pub(super) hit: Hit,
-}
-
-/// What shading one hit produced.
-#[derive(Clone, Copy, Debug, Default)]
-pub(super) struct Shaded {
-    pub(super) ci: Vec3A,
-    pub(super) oi: Vec3A,
-    pub(super) p: Vec3A,
-    pub(super) ng: Vec3A,
-    /// Whether a surface's geometry was found for the hit: its footprint (dP/dx, dP/dy) then
-    /// follows from the ray's differential and `ng`, computed only for the rays that go on
-    /// through it (`shade_pending`).
-    pub(super) on_surface: bool,
 }
 
 fn shade_hits(frame: &Frame, rays: &[Ray], diffs: &[RayDifferential], hits: &[Hit], depth: u32, out: &mut [Sample]) {
@@ -310,22 +234,6 @@ fn first_hit_ids(world: &World, pending: &[Pending], out: &mut [Sample]) {
             (s.object_id, s.shader_id) = (object_id, material);
         }
     }
-}
-
-/// A cheap well-mixed hash for deterministic sampling (SplitMix64's finaliser).
-pub(crate) fn mix(mut x: u64) -> u64 {
-    x = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    x = (x ^ (x >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    x = (x ^ (x >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    x ^ (x >> 31)
-}
-
-pub(super) fn point_seed(p: Vec3A) -> u64 {
-    mix(u64::from(p.x.to_bits()) ^ mix(u64::from(p.y.to_bits()) ^ mix(u64::from(p.z.to_bits()))))
-}
-
-pub(super) fn unit(h: u64) -> f32 {
-    (h >> 40) as f32 / (1u64 << 24) as f32
 }
 
 /// Sorts `pending` by (material, instance) and shades it in groups of one material and instance,
@@ -1136,17 +1044,10 @@ fn put1_rows(raw: &mut RawBatch<'_>, slot: Option<Slot>, hits: GroupHits, value:
     }
 }
 
-pub(super) fn finite_or_zero(v: Vec3A) -> Vec3A {
-    if v.is_finite() {
-        v
-    } else {
-        Vec3A::ZERO
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::render::sampling::mix;
 
     /// Bucketing a packet's group keys orders them exactly as a comparison sort: with one to eight
     /// distinct keys (bucketed) and with more (sorted), in any order.

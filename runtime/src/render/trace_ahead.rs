@@ -25,8 +25,9 @@
 //! shaded beside it. The cost is a second run of the shader itself, which for a reflecting or
 //! refracting surface is small beside the shading of what its rays meet.
 
-use super::shade::{trace_rays, Frame, Sample};
+use super::shade::trace_rays;
 use super::stats::Stats;
+use super::work::{Frame, Sample};
 use crate::ray::Ray;
 
 /// What a `trace` call does with its rays.

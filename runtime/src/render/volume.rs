@@ -18,8 +18,8 @@
 //! packet ABI), lanes grouped by shader, never one lane at a time.
 
 use super::host::ShadeCall;
-use super::shade::{finite_or_zero, Frame, Pending, Shaded};
 use super::stats::ShadingTimer;
+use super::work::{finite_or_zero, Frame, Pending, Shaded};
 use super::world::DEFAULT_MATERIAL;
 use crate::ray::PACKET_SIZE;
 use crate::shading::{get3, put1, put3, with_batch, ShaderInstance};
