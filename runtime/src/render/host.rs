@@ -5,13 +5,10 @@
 //! Invariant: callbacks never unwind into JIT code; they index only buffers whose sizes the packet
 //! ABI fixes, and nothing in them panics on user data.
 
-use super::lights::epsilon;
-use super::lights::{eval_light, transmission_between, BatchLights};
 use super::sampling::{mix, point_seed, unit};
-use super::shade::{gather_rays, trace_rays};
 use super::stats::{tracing, Stats};
 use super::trace_ahead::RayLog;
-use super::work::{Frame, Sample};
+use super::work::{epsilon, BatchLights, Frame, Sample};
 use crate::ray::Ray;
 use crate::shading::ShaderInstance;
 use crate::texture::{Grid, LookupLanes, LookupOptions, MipMap, TextureCache};
@@ -356,7 +353,7 @@ unsafe extern "C" fn host_lights(
         if !light.in_category(category) {
             continue;
         }
-        eval_light(c.frame, light, c.material, mask, &points, &times, c.depth, out, counts);
+        (c.frame.stages.eval_light)(c.frame, light, c.material, mask, &points, &times, c.depth, out, counts);
     }
     let used = counts.iter().copied().max().unwrap_or(0) as usize;
     c.light_cache = Some(LightQuery {
@@ -430,7 +427,7 @@ fn serve_from_batch(
     let chunk = c.chunk_cursor;
     if c.batch_lights.is_none() {
         let front = (c.batch_front.len() == c.batch_points.len()).then_some(&c.batch_front[..]);
-        c.batch_lights = Some(BatchLights::compute(
+        c.batch_lights = Some((c.frame.stages.batch_lights)(
             c.frame,
             c.material,
             &c.batch_points,
@@ -572,7 +569,7 @@ unsafe extern "C" fn host_texture(
                     // Ray-traced shadows (BMRT's convention): towards the light's own origin.
                     let to = c.instance.world_from_shader.translation;
                     let mut t = [Vec3A::ONE];
-                    transmission_between(c.frame, &[Some((p, to, c.lane_time(l)))], &mut t);
+                    (c.frame.stages.transmission_between)(c.frame, &[Some((p, to, c.lane_time(l)))], &mut t);
                     Some(1.0 - (t[0].x + t[0].y + t[0].z) / 3.0)
                 } else {
                     let opts = LookupOptions {
@@ -675,7 +672,7 @@ unsafe extern "C" fn host_rays(
                 return;
             }
             Stats::add(&frame.stats.secondary_rays, rays.len());
-            let seen = trace_rays(frame, &rays, c.depth + 1);
+            let seen = (frame.stages.trace_rays)(frame, &rays, c.depth + 1);
             for (s, l) in seen.iter().zip(lanes) {
                 answer(out, l, s);
             }
@@ -685,7 +682,7 @@ unsafe extern "C" fn host_rays(
             let segments: [Option<(Vec3A, Vec3A, f32)>; 4] =
                 std::array::from_fn(|l| (mask[l] != 0).then(|| (lane3(a, 0, l), lane3(b, 0, l), times[l])));
             let mut through = [Vec3A::ONE; 4];
-            transmission_between(frame, &segments, &mut through);
+            (frame.stages.transmission_between)(frame, &segments, &mut through);
             for (l, t) in through.iter().enumerate().filter(|(l, _)| mask[*l] != 0) {
                 for r in 0..3 {
                     out[4 * r + l] = t[r];
@@ -731,7 +728,7 @@ fn hemisphere(frame: &Frame, p: Vec3A, n: Vec3A, count: u32, shade: bool, depth:
     }
     Stats::add(&frame.stats.secondary_rays, rays.len());
     if shade && depth < frame.world.options.max_ray_depth {
-        let seen = trace_rays(frame, &rays, depth + 1);
+        let seen = (frame.stages.trace_rays)(frame, &rays, depth + 1);
         let blocked = seen.iter().filter(|s| s.depth.is_finite()).count() as f32 / count as f32;
         let sum = seen.iter().fold(Vec3A::ZERO, |acc, s| acc + s.color);
         (blocked, sum / count as f32)
@@ -790,7 +787,7 @@ unsafe extern "C" fn host_gather(
         return;
     }
     Stats::add(&frame.stats.secondary_rays, rays.len());
-    for (seen, l) in gather_rays(frame, &rays, c.depth + 1).into_iter().zip(lanes) {
+    for (seen, l) in (frame.stages.gather_rays)(frame, &rays, c.depth + 1).into_iter().zip(lanes) {
         let Some((t, s)) = seen else { continue };
         out[l] = 1.0;
         let rows = [t, s.ci.x, s.ci.y, s.ci.z, s.oi.x, s.oi.y, s.oi.z, s.p.x, s.p.y, s.p.z, s.ng.x, s.ng.y, s.ng.z];

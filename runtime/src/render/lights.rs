@@ -6,9 +6,8 @@ use super::differential::RayDifferential;
 use super::host::ShadeCall;
 use super::lanes::Lanes3;
 use super::sampling::{mix, point_seed, unit};
-use super::shade::shade_in_groups;
 use super::stats::{tracing, Stats};
-use super::work::{Frame, Pending, Shaded};
+use super::work::{epsilon, BatchLights, Frame, Pending, Shaded};
 use super::world::{InstanceShadows, LightSource, Material, ShadowKind, World, DEFAULT_MATERIAL};
 use crate::ray::{HitCandidate, HitPacket, Ray, RayPacket, PACKET_SIZE};
 use crate::shading::{fill1, fill3, get_row, put3, put_row, varying_rows, with_filled_batch, LightKind};
@@ -576,27 +575,6 @@ thread_local! {
     static BATCH_LIGHT_BUFFERS: std::cell::RefCell<Vec<BatchLightBuffers>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
-/// The lights of every point of a surface batch, computed once for the whole batch when the shader
-/// first asks (light shaders run over the batch, shadow rays go as packets): lane `l`'s light `k`
-/// in lane `l % 4` of `lights[(l / 4) * slots + k]`, so that a chunk's lights lie together as the
-/// host ABI hands them over (`LightLanes` rows).
-///
-/// Shadows are traced at once only for the lights in front of each point (see
-/// [`BatchLights::compute`]); the others are pending (bit `k` of lane `l`'s pending mask, their
-/// `cl` unshadowed) until a query whose cone takes them in resolves them.
-///
-/// Counts and pending masks are kept a chunk at a time (lane `l`'s in `[l / 4][l % 4]`), as the
-/// rows are: appending a light's row to a chunk updates them in place, where copying them in and
-/// out lane by lane was a fifth of this table's making (BART's robots).
-pub(super) struct BatchLights {
-    pub(super) n: usize,
-    /// Light rows per chunk.
-    pub(super) slots: usize,
-    counts: Vec<[u32; 4]>,
-    pub(super) lights: Vec<LightLanes>,
-    pending: Vec<[u32; 4]>,
-}
-
 impl Drop for BatchLights {
     fn drop(&mut self) {
         let buffers =
@@ -724,11 +702,6 @@ impl BatchLights {
             }
         }
     }
-}
-
-/// A start offset for rays leaving `p` (its scale grows with the coordinates' magnitude).
-pub(super) fn epsilon(p: Vec3A) -> f32 {
-    1e-4 * p.abs().max_element().max(1.0)
 }
 
 /// How much light gets along each segment `from -> to` at its time (white where nothing blocks, and
@@ -943,7 +916,7 @@ fn walk_transparent_layers(frame: &Frame, packet: &mut RayPacket, mut walking: u
         }
         if !shaded_by_shader.is_empty() {
             let mut shaded = vec![Shaded::default(); shaded_by_shader.len()];
-            shade_in_groups(frame, &mut shaded_by_shader, world.options.max_ray_depth, &mut shaded);
+            (frame.stages.shade_in_groups)(frame, &mut shaded_by_shader, world.options.max_ray_depth, &mut shaded);
             for (p, s) in shaded_by_shader.iter().zip(&shaded) {
                 through[p.index] *= Vec3A::ONE - s.oi.clamp(Vec3A::ZERO, Vec3A::ONE);
             }

@@ -18,13 +18,12 @@ use super::hit_geometry::{
 };
 use super::host::ShadeCall;
 use super::lanes::Lanes3;
-use super::lights::BatchLights;
 use super::native::{faced_against, LightSeen, NativeSurface};
 use super::primary::PrimaryRays;
 use super::sampling::point_seed;
 use super::stats::{tracing, ShadingTimer, Stats};
 use super::trace_ahead::RayLog;
-use super::work::{finite_or_zero, Pending, Shaded};
+use super::work::{finite_or_zero, BatchLights, Pending, Shaded, Stages};
 use super::world::{World, DEFAULT_MATERIAL};
 use crate::ray::{offset_ray_origin, Hit, HitPacket, Ray, PACKET_SIZE};
 use crate::shading::{get3, get_row, put1, put3, varying_rows, with_batch, with_filled_batch, ShaderInstance, Slot};
@@ -34,6 +33,23 @@ use std::cell::RefCell;
 
 /// The work items shading takes and gives (defined in `work.rs`).
 pub use super::work::{Frame, Sample};
+
+/// The stages as this module and `lights.rs` provide them.
+const STAGES: Stages = Stages {
+    trace_rays,
+    gather_rays,
+    shade_in_groups,
+    eval_light: super::lights::eval_light,
+    transmission_between: super::lights::transmission_between,
+    batch_lights: BatchLights::compute,
+};
+
+impl<'w> Frame<'w> {
+    /// The frame of a render of `world`.
+    pub fn new(world: &'w World) -> Frame<'w> {
+        Frame::with_stages(world, STAGES)
+    }
+}
 
 /// Shades the rays of a primary packet (already intersected): lane `i`'s sample is its radiance
 /// times its camera weight.

@@ -25,7 +25,6 @@
 //! shaded beside it. The cost is a second run of the shader itself, which for a reflecting or
 //! refracting surface is small beside the shading of what its rays meet.
 
-use super::shade::trace_rays;
 use super::stats::Stats;
 use super::work::{Frame, Sample};
 use crate::ray::Ray;
@@ -94,7 +93,7 @@ impl Recorded {
             Vec::new()
         } else {
             Stats::add(&frame.stats.secondary_rays, rays.len());
-            trace_rays(frame, &rays, depth)
+            (frame.stages.trace_rays)(frame, &rays, depth)
         };
         Replayed { calls, seen, next: 0 }
     }

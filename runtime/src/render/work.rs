@@ -5,9 +5,11 @@
 
 use super::differential::RayDifferential;
 use super::stats::Stats;
+use super::world::LightSource;
 use super::world::{InstanceShadows, World};
 use crate::ray::{Hit, Ray};
 use glam::{Affine3A, Vec3A};
+use rtsl_compiler::back::jit::LightLanes;
 
 /// The frame being rendered: the world and the counters.
 pub struct Frame<'w> {
@@ -30,10 +32,14 @@ pub struct Frame<'w> {
     /// Per light: the row of a lane-invariant ambient light, worked out by the first batch that
     /// asks (its value depends on the light's parameters alone, fixed for the frame).
     pub(crate) invariant_light_rows: Vec<std::sync::OnceLock<rtsl_compiler::back::jit::LightLanes>>,
+    /// The stages that shader callbacks reach back into.
+    pub(crate) stages: Stages,
 }
 
 impl<'w> Frame<'w> {
-    pub fn new(world: &'w World) -> Frame<'w> {
+    /// The frame of `world`, its stages reached through `stages` (`shade.rs` makes the frames
+    /// of renders: `Frame::new`).
+    pub(crate) fn with_stages(world: &'w World, stages: Stages) -> Frame<'w> {
         let cam = &world.camera;
         let (w, h) = (world.options.width.max(1) as f32, world.options.height.max(1) as f32);
         let tan = (cam.fov_degrees.to_radians() * 0.5).tan();
@@ -53,6 +59,7 @@ impl<'w> Frame<'w> {
             pixel_dy: m.y_axis * (-2.0 * tan * ay / h),
             pixel_spread: 2.0 * tan * ay / h,
             invariant_light_rows: world.lights.iter().map(|_| std::sync::OnceLock::new()).collect(),
+            stages,
         }
     }
 }
@@ -97,4 +104,54 @@ pub(crate) fn finite_or_zero(v: Vec3A) -> Vec3A {
     } else {
         Vec3A::ZERO
     }
+}
+
+/// The stages that a shader's callbacks reach back into: the host's `trace` and `gather` shade the
+/// hits of the rays they spawn, `illuminance` runs light shaders, a light's area samples shade
+/// what they see. Called through this table (which `shade.rs` fills) rather than by name, so that
+/// the callbacks (`host.rs`) and the light shaders (`lights.rs`) import neither `shade.rs` nor
+/// each other, while `shade.rs` runs them all.
+// The fields are the stages' own signatures.
+#[allow(clippy::type_complexity)]
+#[derive(Clone, Copy)]
+pub(crate) struct Stages {
+    /// Traces rays and shades what they hit: a sample each (`shade::trace_rays`).
+    pub(crate) trace_rays: fn(&Frame, &[Ray], u32) -> Vec<Sample>,
+    /// Traces rays and shades the first surface each hits, with its distance (`shade::gather_rays`).
+    pub(crate) gather_rays: fn(&Frame, &[Ray], u32) -> Vec<Option<(f32, Shaded)>>,
+    /// Shades hits grouped by material and instance (`shade::shade_in_groups`).
+    pub(crate) shade_in_groups: fn(&Frame, &mut [Pending], u32, &mut [Shaded]),
+    /// One light at four points (`lights::eval_light`).
+    pub(crate) eval_light:
+        fn(&Frame, &LightSource, Option<u32>, &[i32; 4], &[Vec3A; 4], &[f32; 4], u32, &mut [LightLanes], &mut [u32; 4]),
+    /// The light getting along segments (`lights::transmission_between`).
+    pub(crate) transmission_between: fn(&Frame, &[Option<(Vec3A, Vec3A, f32)>], &mut [Vec3A]),
+    /// The lights of a surface batch (`BatchLights::compute`).
+    pub(crate) batch_lights: fn(&Frame, Option<u32>, &[Vec3A], &[i32], &[f32], Option<&[Vec3A]>, u32) -> BatchLights,
+}
+
+/// The lights of every point of a surface batch, computed once for the whole batch when the shader
+/// first asks (light shaders run over the batch, shadow rays go as packets): lane `l`'s light `k`
+/// in lane `l % 4` of `lights[(l / 4) * slots + k]`, so that a chunk's lights lie together as the
+/// host ABI hands them over (`LightLanes` rows).
+///
+/// Shadows are traced at once only for the lights in front of each point (see
+/// [`BatchLights::compute`]); the others are pending (bit `k` of lane `l`'s pending mask, their
+/// `cl` unshadowed) until a query whose cone takes them in resolves them.
+///
+/// Counts and pending masks are kept a chunk at a time (lane `l`'s in `[l / 4][l % 4]`), as the
+/// rows are: appending a light's row to a chunk updates them in place, where copying them in and
+/// out lane by lane was a fifth of this table's making (BART's robots).
+pub(crate) struct BatchLights {
+    pub(crate) n: usize,
+    /// Light rows per chunk.
+    pub(crate) slots: usize,
+    pub(crate) counts: Vec<[u32; 4]>,
+    pub(crate) lights: Vec<LightLanes>,
+    pub(crate) pending: Vec<[u32; 4]>,
+}
+
+/// A start offset for rays leaving `p` (its scale grows with the coordinates' magnitude).
+pub(crate) fn epsilon(p: Vec3A) -> f32 {
+    1e-4 * p.abs().max_element().max(1.0)
 }
