@@ -25,7 +25,8 @@
 //! loading goes on; syntax errors stop the load with every error listed.
 
 use super::decl::{Class, Ty};
-use super::mesh::{mesh_from_request_with, MeshOptions};
+use super::mesh::MeshOptions;
+use super::primitive::mesh_from_request_with;
 use super::request::{Handle, Param, ParamValue as RibValue, Request, RequestKind};
 use super::{parse_file, parse_str, RibParse, Severity, MAX_RIB_TRIANGLES};
 use crate::api::{ApiError, Context, LightId, ObjectId};

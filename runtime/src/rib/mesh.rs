@@ -20,10 +20,7 @@
 use glam::{Vec2, Vec3};
 
 use super::decl::{Class, Ty};
-use super::patch::patch_mesh;
-pub use super::patch::DEFAULT_PATCH_SEGMENTS;
-use super::request::{find_param, Basis, Param, PatchType, Request, RequestKind, Wrap};
-use super::RibDiagnostic;
+use super::request::{find_param, Basis, Param};
 use crate::geometry::quadric::{Quadric, Tessellation};
 use crate::geometry::{Attribute, Mesh};
 
@@ -71,49 +68,6 @@ impl MeshOptions {
         let c = self.texture_coordinates;
         let corner = |k: usize| Vec2::new(c[2 * k], c[2 * k + 1]);
         bilerp([corner(0), corner(1), corner(2), corner(3)], uv.x, uv.y)
-    }
-}
-
-/// The mesh of a geometry request with default options, or `None` for requests that are not
-/// geometry or whose data is malformed (an error is pushed then). Warnings about dropped data are
-/// pushed too.
-pub fn mesh_from_request(request: &Request, diagnostics: &mut Vec<RibDiagnostic>) -> Option<Mesh> {
-    mesh_from_request_with(request, &MeshOptions::default(), diagnostics)
-}
-
-/// [`mesh_from_request`] under the graphics state's basis and a chosen tessellation.
-pub fn mesh_from_request_with(
-    request: &Request,
-    options: &MeshOptions,
-    diagnostics: &mut Vec<RibDiagnostic>,
-) -> Option<Mesh> {
-    let mut warnings = Vec::new();
-    let result = match &request.kind {
-        RequestKind::Polygon(params) => polygon_mesh(params, &mut warnings),
-        RequestKind::GeneralPolygon { nvertices, params } => general_polygon_mesh(nvertices, params, &mut warnings),
-        RequestKind::PointsPolygons { nvertices, vertices, params } => {
-            points_polygons_mesh(nvertices, vertices, params, &mut warnings)
-        }
-        RequestKind::PointsGeneralPolygons { nloops, nvertices, vertices, params } => {
-            points_general_polygons_mesh(nloops, nvertices, vertices, params, &mut warnings)
-        }
-        RequestKind::Patch { ty, params } => {
-            let n = if *ty == PatchType::Bilinear { 2 } else { 4 };
-            patch_mesh(*ty, n, Wrap::NonPeriodic, n, Wrap::NonPeriodic, params, options, &mut warnings)
-        }
-        RequestKind::PatchMesh { ty, nu, uwrap, nv, vwrap, params } => {
-            patch_mesh(*ty, *nu, *uwrap, *nv, *vwrap, params, options, &mut warnings)
-        }
-        RequestKind::Quadric { quadric, params } => quadric_mesh(quadric, params, options, &mut warnings),
-        _ => return None,
-    };
-    diagnostics.extend(warnings.into_iter().map(|w| RibDiagnostic::warning(&request.loc, w)));
-    match result {
-        Ok(mesh) => Some(mesh),
-        Err(message) => {
-            diagnostics.push(RibDiagnostic::error(&request.loc, message));
-            None
-        }
     }
 }
 
@@ -548,7 +502,9 @@ fn is_ear(ring: &[Vertex2], a: Vertex2, b: Vertex2, c: Vertex2) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::rib::{parse_str, RequestKind as K};
+    use crate::rib::{
+        mesh_from_request, mesh_from_request_with, parse_str, RequestKind as K, RibDiagnostic, DEFAULT_PATCH_SEGMENTS,
+    };
 
     fn only_mesh(text: &str) -> (Mesh, Vec<RibDiagnostic>) {
         let parse = parse_str(text, "test.rib");

@@ -21,6 +21,7 @@ pub mod load;
 pub mod mesh;
 mod parse;
 pub mod patch;
+mod primitive;
 pub mod request;
 
 use std::fmt;
@@ -28,7 +29,9 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 pub use decl::{Class, Decl, DeclTable, Ty};
-pub use mesh::{mesh_from_request, mesh_from_request_with, MeshOptions};
+pub use mesh::MeshOptions;
+pub use patch::DEFAULT_PATCH_SEGMENTS;
+pub use primitive::{mesh_from_request, mesh_from_request_with};
 pub use request::{
     find_param, Basis, Handle, Location, Orientation, Param, ParamValue, PatchType, Request, RequestKind, Shader, Wrap,
 };

@@ -1,0 +1,54 @@
+//! Geometry requests to triangle meshes: which of the builders (`mesh.rs` for polygons and
+//! quadrics, `patch.rs` for patches and patch meshes) a request goes to, and its warnings and
+//! errors as diagnostics at the request's location.
+
+use super::mesh::{
+    general_polygon_mesh, points_general_polygons_mesh, points_polygons_mesh, polygon_mesh, quadric_mesh, MeshOptions,
+};
+use super::patch::patch_mesh;
+use super::request::{PatchType, Request, RequestKind, Wrap};
+use super::RibDiagnostic;
+use crate::geometry::Mesh;
+
+/// The mesh of a geometry request with default options, or `None` for requests that are not
+/// geometry or whose data is malformed (an error is pushed then). Warnings about dropped data are
+/// pushed too.
+pub fn mesh_from_request(request: &Request, diagnostics: &mut Vec<RibDiagnostic>) -> Option<Mesh> {
+    mesh_from_request_with(request, &MeshOptions::default(), diagnostics)
+}
+
+/// [`mesh_from_request`] under the graphics state's basis and a chosen tessellation.
+pub fn mesh_from_request_with(
+    request: &Request,
+    options: &MeshOptions,
+    diagnostics: &mut Vec<RibDiagnostic>,
+) -> Option<Mesh> {
+    let mut warnings = Vec::new();
+    let result = match &request.kind {
+        RequestKind::Polygon(params) => polygon_mesh(params, &mut warnings),
+        RequestKind::GeneralPolygon { nvertices, params } => general_polygon_mesh(nvertices, params, &mut warnings),
+        RequestKind::PointsPolygons { nvertices, vertices, params } => {
+            points_polygons_mesh(nvertices, vertices, params, &mut warnings)
+        }
+        RequestKind::PointsGeneralPolygons { nloops, nvertices, vertices, params } => {
+            points_general_polygons_mesh(nloops, nvertices, vertices, params, &mut warnings)
+        }
+        RequestKind::Patch { ty, params } => {
+            let n = if *ty == PatchType::Bilinear { 2 } else { 4 };
+            patch_mesh(*ty, n, Wrap::NonPeriodic, n, Wrap::NonPeriodic, params, options, &mut warnings)
+        }
+        RequestKind::PatchMesh { ty, nu, uwrap, nv, vwrap, params } => {
+            patch_mesh(*ty, *nu, *uwrap, *nv, *vwrap, params, options, &mut warnings)
+        }
+        RequestKind::Quadric { quadric, params } => quadric_mesh(quadric, params, options, &mut warnings),
+        _ => return None,
+    };
+    diagnostics.extend(warnings.into_iter().map(|w| RibDiagnostic::warning(&request.loc, w)));
+    match result {
+        Ok(mesh) => Some(mesh),
+        Err(message) => {
+            diagnostics.push(RibDiagnostic::error(&request.loc, message));
+            None
+        }
+    }
+}
