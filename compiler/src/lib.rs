@@ -9,6 +9,7 @@
 //! The compiler knows nothing of scenes or the frame loop: the renderer reaches it only through this
 //! crate's public API, and shaders reach the renderer only through the services trait it defines.
 
+pub mod abi;
 pub mod artifact;
 pub mod back;
 pub mod bench;

@@ -13,7 +13,7 @@ use crate::ray::Ray;
 use crate::shading::ShaderInstance;
 use crate::texture::{Grid, LookupLanes, LookupOptions, MipMap, TextureCache};
 use glam::{Affine3A, Mat4, Vec3A, Vec4};
-use rtsl_compiler::back::jit::{
+use rtsl_compiler::abi::{
     same_category, shadow_query_of, HostTable, LightLanes, MessageOut, StrRef, CONE_ROWS, MAX_LIGHTS, SHADOW_ROWS,
 };
 use rtsl_compiler::builtins::Builtin;

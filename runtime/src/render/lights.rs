@@ -12,7 +12,7 @@ use super::world::{InstanceShadows, LightSource, Material, ShadowKind, World, DE
 use crate::ray::{HitCandidate, HitPacket, Ray, RayPacket, PACKET_SIZE};
 use crate::shading::{fill1, fill3, get_row, put3, put_row, varying_rows, with_filled_batch, LightKind};
 use glam::{IVec4, Vec3A, Vec4};
-use rtsl_compiler::back::jit::{light_in_cone, HostLight, LightLanes, MAX_LIGHTS};
+use rtsl_compiler::abi::{light_in_cone, HostLight, LightLanes, MAX_LIGHTS};
 use std::cell::{Cell, RefCell};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Mutex, PoisonError};

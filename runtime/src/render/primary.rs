@@ -20,7 +20,7 @@ use super::world::World;
 use crate::ray::{Ray, RayPacket, PACKET_SIZE};
 use crate::shading::{fill1, fill3, put_row_at, varying_rows, with_filled_batch, Slot};
 use glam::{BVec4A, Vec3A, Vec4, Vec4Swizzles};
-use rtsl_compiler::back::jit::RawBatch;
+use rtsl_compiler::abi::RawBatch;
 
 /// Where on the image, lens and shutter a primary ray starts.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]

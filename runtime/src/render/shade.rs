@@ -28,7 +28,7 @@ use super::world::{World, DEFAULT_MATERIAL};
 use crate::ray::{offset_ray_origin, Hit, HitPacket, Ray, PACKET_SIZE};
 use crate::shading::{get3, get_row, put1, put3, varying_rows, with_batch, with_filled_batch, ShaderInstance, Slot};
 use glam::{Affine3A, BVec4A, Vec3A, Vec4};
-use rtsl_compiler::back::jit::RawBatch;
+use rtsl_compiler::abi::RawBatch;
 use std::cell::RefCell;
 
 /// The work items shading takes and gives (defined in `work.rs`).
@@ -482,7 +482,7 @@ fn traces_ahead(frame: &Frame, program: &crate::shading::ShaderProgram, lanes: u
 fn run_tracing_ahead(
     frame: &Frame,
     program: &crate::shading::ShaderProgram,
-    batch: &mut rtsl_compiler::back::jit::BatchData,
+    batch: &mut rtsl_compiler::abi::BatchData,
     call: &mut ShadeCall,
     depth: u32,
 ) {
@@ -505,7 +505,7 @@ fn run_tracing_ahead(
 
 thread_local! {
     /// Batches' values kept for their second runs (`run_tracing_ahead`).
-    static SAVED_VALUES: RefCell<Vec<rtsl_compiler::back::jit::SavedValues>> = const { RefCell::new(Vec::new()) };
+    static SAVED_VALUES: RefCell<Vec<rtsl_compiler::abi::SavedValues>> = const { RefCell::new(Vec::new()) };
 }
 
 /// A group's hit geometry, hit by hit and (for most groups) by rows.

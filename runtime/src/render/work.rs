@@ -9,7 +9,7 @@ use super::world::LightSource;
 use super::world::{InstanceShadows, World};
 use crate::ray::{Hit, Ray};
 use glam::{Affine3A, Vec3A};
-use rtsl_compiler::back::jit::LightLanes;
+use rtsl_compiler::abi::LightLanes;
 
 /// The frame being rendered: the world and the counters.
 pub struct Frame<'w> {
@@ -31,7 +31,7 @@ pub struct Frame<'w> {
     pub(crate) pixel_spread: f32,
     /// Per light: the row of a lane-invariant ambient light, worked out by the first batch that
     /// asks (its value depends on the light's parameters alone, fixed for the frame).
-    pub(crate) invariant_light_rows: Vec<std::sync::OnceLock<rtsl_compiler::back::jit::LightLanes>>,
+    pub(crate) invariant_light_rows: Vec<std::sync::OnceLock<LightLanes>>,
     /// The stages that shader callbacks reach back into.
     pub(crate) stages: Stages,
 }

@@ -11,7 +11,7 @@ pub use params::{bind_param, BoundParam, ParamError, ParamValue};
 pub use program::{GlobalSlots, LightKind, Program, ShaderError, ShaderProgram, Slot};
 
 use glam::{Affine3A, Vec3A};
-use rtsl_compiler::back::jit::{BatchData, RawBatch};
+use rtsl_compiler::abi::{BatchData, RawBatch};
 use std::cell::RefCell;
 use std::sync::{Arc, Weak};
 

@@ -1,0 +1,13 @@
+//! The packet ABI: what a renderer needs from compiled shaders to call them and to answer their
+//! callbacks. `docs/packet-abi.md` is its specification: batches of lanes in structure-of-arrays
+//! form under a mask, the host table of callbacks, the light rows of illuminance loops, strings
+//! as references into a table, and the sizes these have.
+//!
+//! The JIT back end defines these types, which its generated code reads and writes at fixed
+//! offsets; a renderer names them here, and nothing else of the back end but the compile API
+//! ([`crate::back::jit::compile_with`] and the `CompiledShader` it returns).
+
+pub use crate::back::jit::{
+    light_in_cone, same_category, shadow_query_of, BatchData, HostLight, HostTable, LightLanes, MessageOut, RawBatch,
+    SavedValues, StrRef, CONE_ROWS, EVERY_LIGHT, MAX_LIGHTS, NO_LIGHT, SHADOW_ROWS,
+};
