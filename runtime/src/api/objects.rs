@@ -1,0 +1,361 @@
+//! `Context`'s retained objects and their instances, and the primitives and meshes that build
+//! them.
+
+use super::*;
+
+impl Context {
+    /// Starts a retained object; geometry calls until `end_object` go into it.
+    pub fn begin_object(&mut self) -> Result<ObjectId, ApiError> {
+        self.begin_object_in(self.matrix)
+    }
+
+    /// Starts a retained object whose own space is `frame`: its geometry is placed by the current
+    /// matrix relative to `frame` (with `begin_object`, `frame` is the current matrix).
+    pub fn begin_object_in(&mut self, frame: Affine3A) -> Result<ObjectId, ApiError> {
+        if self.building.is_some() {
+            return Err(ApiError::Nested("begin_object", "an object"));
+        }
+        let id = ObjectId(self.objects.len() as u32);
+        self.objects.push(ObjectRecord {
+            mesh: None,
+            remote: None,
+            appearance: Appearance::default(),
+            parts: None,
+            scene_object: None,
+            dirty: true,
+            deleted: false,
+        });
+        self.building = Some((id, frame, MeshBuilder::default()));
+        Ok(id)
+    }
+
+    /// Starts replacing the geometry of `id` (its appearance is taken from the state, as when it was
+    /// built).
+    pub fn redefine_object(&mut self, id: ObjectId) -> Result<(), ApiError> {
+        if self.building.is_some() {
+            return Err(ApiError::Nested("redefine_object", "an object"));
+        }
+        match self.objects.get(id.0 as usize) {
+            Some(o) if !o.deleted => {}
+            _ => return Err(ApiError::UnknownObject(id.0)),
+        }
+        self.building = Some((id, self.matrix, MeshBuilder::default()));
+        Ok(())
+    }
+
+    /// Ends a part of the object being built: the triangles added since the object began (or since
+    /// the last part) are shaded with the current appearance (colour, opacity, shaders), as
+    /// [`Context::end_object`] gives a whole object its appearance; later triangles make the next
+    /// part. One object of several materials is one BVH, where an object per material would make
+    /// rays enter every one of them that overlaps. Without `end_part` an object has one appearance.
+    /// A part without triangles is dropped. The alpha mask ([`Context::alpha_mask`]) stays the
+    /// object's: the one current at `end_object`.
+    pub fn end_part(&mut self) -> Result<(), ApiError> {
+        if self.primitive.is_some() {
+            return Err(ApiError::Nested("end_part", "begin/end"));
+        }
+        let (_, _, b) = self.building.as_mut().ok_or(ApiError::Unbalanced("end_part", "begin_object"))?;
+        b.close_part(&self.appearance);
+        Ok(())
+    }
+
+    /// Finishes the object: its geometry, and the current appearance (colour, opacity, shader
+    /// binding) as its material (that of its last part, when it was built in parts).
+    pub fn end_object(&mut self) -> Result<ObjectId, ApiError> {
+        if self.primitive.is_some() {
+            return Err(ApiError::Nested("end_object", "begin/end"));
+        }
+        let (id, _, mut b) = self.building.take().ok_or(ApiError::Unbalanced("end_object", "begin_object"))?;
+        if !b.parts.is_empty() {
+            b.close_part(&self.appearance);
+        }
+        // One part is an object of one appearance.
+        let parts = (b.parts.len() > 1).then(|| {
+            let mut of_triangle = Vec::with_capacity(b.triangles.len());
+            let mut from = 0;
+            for (k, (end, _)) in b.parts.iter().enumerate() {
+                of_triangle.resize(of_triangle.len() + (end - from), k as u32);
+                from = *end;
+            }
+            ObjectParts {
+                appearances: b.parts.iter().map(|(_, a)| a.clone()).collect(),
+                of_triangle: of_triangle.into(),
+            }
+        });
+        let appearance = match b.parts.as_slice() {
+            [(_, only)] => only.clone(),
+            _ => self.appearance.clone(),
+        };
+        let mesh = if b.triangles.is_empty() {
+            None
+        } else {
+            let mesh = Mesh {
+                positions: b.positions,
+                normals: b.has_normals.then_some(b.normals),
+                uvs: b.has_uvs.then_some(b.uvs),
+                attributes: b.attributes,
+                triangles: b.triangles,
+            };
+            mesh.validate()?;
+            Some(Arc::new(mesh))
+        };
+        let rec = &mut self.objects[id.0 as usize];
+        rec.mesh = mesh;
+        rec.remote = None;
+        rec.appearance = appearance;
+        rec.parts = parts;
+        rec.dirty = true;
+        Ok(id)
+    }
+
+    /// The mesh of object `id` as it stands (`None`: deleted, empty, or demand-loaded here).
+    pub fn object_mesh(&self, id: ObjectId) -> Option<&Arc<Mesh>> {
+        self.objects.get(id.0 as usize)?.mesh.as_ref()
+    }
+
+    /// Where the meshes of demand-loaded objects come from: a worker's link to its master
+    /// ([`Replicator::demand_loading`]). Objects built or replaced from now on use it.
+    pub fn set_mesh_source(&mut self, source: Arc<dyn MeshSource>) {
+        self.mesh_source = Some(source);
+    }
+
+    /// Deletes an object and its instances.
+    pub fn delete_object(&mut self, id: ObjectId) -> Result<(), ApiError> {
+        let rec = self.objects.get_mut(id.0 as usize).filter(|o| !o.deleted).ok_or(ApiError::UnknownObject(id.0))?;
+        rec.deleted = true;
+        rec.mesh = None;
+        rec.remote = None;
+        rec.dirty = true;
+        for i in &mut self.instances {
+            if i.object == id {
+                i.deleted = true;
+            }
+        }
+        Ok(())
+    }
+
+    /// Places an instance of `id` with the current matrix.
+    pub fn instantiate_object(&mut self, id: ObjectId) -> Result<InstanceId, ApiError> {
+        if self.building.is_some() {
+            return Err(ApiError::Nested("instantiate_object", "an object"));
+        }
+        match self.objects.get(id.0 as usize) {
+            Some(o) if !o.deleted => {}
+            _ => return Err(ApiError::UnknownObject(id.0)),
+        }
+        self.instances.push(InstanceRecord {
+            object: id,
+            transform: self.matrix,
+            close_transform: self.close_matrix,
+            deleted: false,
+        });
+        Ok(InstanceId(self.instances.len() as u32 - 1))
+    }
+
+    /// Moves an instance (per frame, for animation).
+    pub fn set_instance_transform(&mut self, id: InstanceId, transform: Affine3A) -> Result<(), ApiError> {
+        let rec =
+            self.instances.get_mut(id.0 as usize).filter(|i| !i.deleted).ok_or(ApiError::UnknownInstance(id.0))?;
+        rec.transform = transform;
+        rec.close_transform = None;
+        Ok(())
+    }
+
+    /// Where an instance is (its world-from-object transform).
+    pub fn instance_transform(&self, id: InstanceId) -> Result<Affine3A, ApiError> {
+        self.instances
+            .get(id.0 as usize)
+            .filter(|i| !i.deleted)
+            .map(|i| i.transform)
+            .ok_or(ApiError::UnknownInstance(id.0))
+    }
+
+    /// The instances a world built now holds, in its order: `World::instances[k]` and a hit's
+    /// `instance == k` are `world_instance_ids()[k]` (for picking).
+    pub fn world_instance_ids(&self) -> Vec<InstanceId> {
+        self.instances
+            .iter()
+            .enumerate()
+            .filter(|(_, inst)| {
+                let rec = &self.objects[inst.object.0 as usize];
+                !inst.deleted && !rec.deleted && rec.has_geometry() && (rec.scene_object.is_some() || rec.dirty)
+            })
+            .map(|(i, _)| InstanceId(i as u32))
+            .collect()
+    }
+
+    pub fn delete_instance(&mut self, id: InstanceId) -> Result<(), ApiError> {
+        let rec =
+            self.instances.get_mut(id.0 as usize).filter(|i| !i.deleted).ok_or(ApiError::UnknownInstance(id.0))?;
+        rec.deleted = true;
+        Ok(())
+    }
+
+    fn object_from_current(&self) -> Result<Affine3A, ApiError> {
+        let (_, start, _) = self.building.as_ref().ok_or(ApiError::NoObject("geometry"))?;
+        Ok(start.inverse() * self.matrix)
+    }
+
+    /// Starts a primitive; vertices follow.
+    pub fn begin(&mut self, kind: Primitive) -> Result<(), ApiError> {
+        if self.primitive.is_some() {
+            return Err(ApiError::Nested("begin", "begin/end"));
+        }
+        let (_, _, b) = self.building.as_ref().ok_or(ApiError::NoObject("begin"))?;
+        self.primitive = Some(OpenPrimitive { kind, first_vertex: b.positions.len() as u32 });
+        self.primitive_values.clear();
+        Ok(())
+    }
+
+    /// The normal of the following vertices (object space of the current matrix).
+    pub fn normal(&mut self, x: f32, y: f32, z: f32) {
+        self.current_normal = Vec3::new(x, y, z);
+        if let Some((_, _, b)) = self.building.as_mut() {
+            b.has_normals = true;
+        }
+    }
+
+    /// The texture coordinates (s, t) of the following vertices.
+    pub fn tex_coord(&mut self, s: f32, t: f32) {
+        self.current_uv = Vec2::new(s, t);
+        if let Some((_, _, b)) = self.building.as_mut() {
+            b.has_uvs = true;
+        }
+    }
+
+    /// Adds a vertex to the open primitive.
+    pub fn vertex(&mut self, x: f32, y: f32, z: f32) -> Result<(), ApiError> {
+        if self.primitive.is_none() {
+            return Err(ApiError::Unbalanced("vertex", "begin"));
+        }
+        let xf = self.object_from_current()?;
+        let normal_xf = xf.matrix3.inverse().transpose();
+        let p = xf.transform_point3(Vec3::new(x, y, z));
+        let n = Vec3::from(normal_xf * Vec3A::from(self.current_normal));
+        let uv = self.current_uv;
+        let values = self.vertex_values.iter().chain(self.primitive_values.iter());
+        let (_, _, b) = self.building.as_mut().ok_or(ApiError::NoObject("vertex"))?;
+        let index = b.positions.len();
+        b.positions.push(p);
+        b.normals.push(n);
+        b.uvs.push(uv);
+        for (name, v) in values {
+            let pos = match b.attributes.iter().position(|a| &a.name == name) {
+                Some(i) => i,
+                None => {
+                    b.attributes.push(Attribute {
+                        name: name.clone(),
+                        components: v.len(),
+                        data: vec![0.0; index * v.len()],
+                    });
+                    b.attributes.len() - 1
+                }
+            };
+            let a = &mut b.attributes[pos];
+            if a.components == v.len() {
+                a.data.truncate(index * a.components);
+                a.data.resize(index * a.components, 0.0);
+                a.data.extend_from_slice(v);
+            }
+        }
+        for a in &mut b.attributes {
+            a.data.resize((index + 1) * a.components, 0.0);
+        }
+        Ok(())
+    }
+
+    /// Ends the open primitive, triangulating it.
+    pub fn end(&mut self) -> Result<(), ApiError> {
+        let prim = self.primitive.take().ok_or(ApiError::Unbalanced("end", "begin"))?;
+        let (_, _, b) = self.building.as_mut().ok_or(ApiError::NoObject("end"))?;
+        let first = prim.first_vertex;
+        let n = b.positions.len() as u32 - first;
+        let v = |i: u32| first + i;
+        match prim.kind {
+            Primitive::Triangles => {
+                if n % 3 != 0 {
+                    return Err(ApiError::IncompletePrimitive(n as usize, "triangles"));
+                }
+                for t in 0..n / 3 {
+                    b.triangles.push([v(3 * t), v(3 * t + 1), v(3 * t + 2)]);
+                }
+            }
+            Primitive::Quads => {
+                if n % 4 != 0 {
+                    return Err(ApiError::IncompletePrimitive(n as usize, "quads"));
+                }
+                for q in 0..n / 4 {
+                    b.triangles.push([v(4 * q), v(4 * q + 1), v(4 * q + 2)]);
+                    b.triangles.push([v(4 * q), v(4 * q + 2), v(4 * q + 3)]);
+                }
+            }
+            Primitive::Polygon => {
+                if n < 3 {
+                    return Err(ApiError::IncompletePrimitive(n as usize, "a polygon"));
+                }
+                let poly: Vec<u32> = (0..n).map(v).collect();
+                crate::geometry::mesh::triangulate_into(b.triangles.len(), &poly, &mut b.triangles)?;
+            }
+            Primitive::TriangleStrip => {
+                for i in 2..n {
+                    if i % 2 == 0 {
+                        b.triangles.push([v(i - 2), v(i - 1), v(i)]);
+                    } else {
+                        b.triangles.push([v(i - 1), v(i - 2), v(i)]);
+                    }
+                }
+            }
+            Primitive::TriangleFan => {
+                for i in 2..n {
+                    b.triangles.push([v(0), v(i - 1), v(i)]);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Adds a whole mesh to the object being built (placed by the current matrix relative to the
+    /// object's).
+    pub fn mesh(&mut self, mesh: &Mesh) -> Result<(), ApiError> {
+        let xf = self.object_from_current()?;
+        let normal_xf = xf.matrix3.inverse().transpose();
+        let (_, _, b) = self.building.as_mut().ok_or(ApiError::NoObject("mesh"))?;
+        let base = b.positions.len() as u32;
+        let count = mesh.positions.len();
+        b.positions.extend(mesh.positions.iter().map(|p| xf.transform_point3(*p)));
+        match &mesh.normals {
+            Some(ns) => {
+                b.has_normals = true;
+                b.normals.extend(ns.iter().map(|n| Vec3::from(normal_xf * Vec3A::from(*n))));
+            }
+            None => b.normals.extend(std::iter::repeat_n(Vec3::ZERO, count)),
+        }
+        match &mesh.uvs {
+            Some(uvs) => {
+                b.has_uvs = true;
+                b.uvs.extend_from_slice(uvs);
+            }
+            None => b.uvs.extend(std::iter::repeat_n(Vec2::ZERO, count)),
+        }
+        for a in &mesh.attributes {
+            let pos = match b.attributes.iter().position(|x| x.name == a.name && x.components == a.components) {
+                Some(i) => i,
+                None => {
+                    b.attributes.push(Attribute {
+                        name: a.name.clone(),
+                        components: a.components,
+                        data: vec![0.0; base as usize * a.components],
+                    });
+                    b.attributes.len() - 1
+                }
+            };
+            b.attributes[pos].data.extend_from_slice(&a.data);
+        }
+        let total = b.positions.len();
+        for x in &mut b.attributes {
+            x.data.resize(total * x.components, 0.0);
+        }
+        b.triangles.extend(mesh.triangles.iter().map(|t| t.map(|i| i + base)));
+        Ok(())
+    }
+}

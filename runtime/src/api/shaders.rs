@@ -1,0 +1,431 @@
+//! `Context`'s shaders: search paths, compiling and loading, replacing (hot reload), binding
+//! surface, light, pixel, camera, atmosphere, displacement and interior shaders with their values.
+
+use super::*;
+
+impl Context {
+    /// Directories searched (in order, before the standard library) by [`Context::find_shader`].
+    pub fn set_shader_search_path(&mut self, dirs: Vec<PathBuf>) {
+        self.shader_search_path = dirs;
+    }
+
+    pub fn shader_search_path(&self) -> &[PathBuf] {
+        &self.shader_search_path
+    }
+
+    /// Adds a directory where textures named by relative paths are looked for.
+    pub fn add_texture_search_path(&mut self, dir: PathBuf) {
+        if !self.texture_search_path.contains(&dir) {
+            self.texture_search_path.push(dir);
+            self.textures = Arc::new(TextureCache::with_search_paths(self.texture_search_path.clone()));
+            self.insert_memory_textures();
+        }
+    }
+
+    /// Makes `name` a texture from memory (OpenGL's `glTexImage2D`): `width x height` texels of
+    /// `channels` linear floats each, rows top to bottom. Shaders look it up by that name, before
+    /// any file of the same name; it repeats (periodic wrap).
+    pub fn tex_image_2d(
+        &mut self,
+        name: &str,
+        width: usize,
+        height: usize,
+        channels: usize,
+        texels: &[f32],
+    ) -> Result<(), ApiError> {
+        let image = TexImage::new(width, height, channels, texels.to_vec()).ok_or(ApiError::BadTexture {
+            name: name.to_string(),
+            width,
+            height,
+            channels,
+            given: texels.len(),
+        })?;
+        self.textures.insert_texture(name, image.clone(), [Wrap::Periodic; 2]);
+        self.memory_textures.retain(|(n, _)| n != name);
+        self.memory_textures.push((name.to_string(), image));
+        self.memory_changes += 1;
+        Ok(())
+    }
+
+    /// Makes `name` a texture decoded from a texture file's bytes held in memory (PNG, JPEG, TGA
+    /// or PPM, 8-bit colour taken as sRGB like a file's): an application's embedded assets. Shaders
+    /// look it up by that name before any file of the same name; it repeats (periodic wrap).
+    pub fn texture_file_in_memory(&mut self, name: &str, bytes: &[u8]) -> Result<(), ApiError> {
+        let loaded = crate::texture::image::decode_texture_image(Path::new(name), bytes, false)
+            .map_err(|e| ApiError::BadTextureFile { name: name.to_string(), message: e.to_string() })?;
+        self.textures.insert_texture(name, loaded.image.clone(), [Wrap::Periodic; 2]);
+        self.memory_textures.retain(|(n, _)| n != name);
+        self.memory_textures.push((name.to_string(), loaded.image));
+        self.memory_changes += 1;
+        Ok(())
+    }
+
+    /// Makes `name` a 3-D grid for `texture3d` parsed from a grid file's bytes held in memory (the
+    /// RTSLGRID format of `docs/volumes.md`), looked up before any file of the same name.
+    pub fn grid_file_in_memory(&mut self, name: &str, bytes: &[u8]) -> Result<(), ApiError> {
+        let grid = crate::texture::grid::Grid::parse(bytes)
+            .map_err(|message| ApiError::BadTextureFile { name: name.to_string(), message })?;
+        self.textures.insert_grid(name, grid.clone());
+        self.memory_grids.retain(|(n, _)| n != name);
+        self.memory_grids.push((name.to_string(), grid));
+        self.memory_changes += 1;
+        Ok(())
+    }
+
+    /// The texture cache frames use (textures load once and stay loaded across frames).
+    pub fn textures(&self) -> &Arc<TextureCache> {
+        &self.textures
+    }
+
+    /// Directories searched by `#include`.
+    pub fn set_include_paths(&mut self, dirs: Vec<PathBuf>) {
+        self.include_paths = dirs;
+    }
+
+    /// Where shader `name` would be loaded from: `NAME.sl` in the search path, then in the standard
+    /// library's folders.
+    pub fn which_shader(&self, name: &str) -> Option<PathBuf> {
+        find_shader_file(name, &self.shader_search_path)
+    }
+
+    /// Compiles the shader file at `path`.
+    pub fn shader_file(&mut self, path: &Path) -> Result<ShaderId, ApiError> {
+        let program = ShaderProgram::from_file(path, &self.include_paths)?;
+        Ok(self.add_program(program))
+    }
+
+    /// Compiles shader source given as a string (`name` names it in diagnostics).
+    pub fn compile_shader(&mut self, name: &str, source: &str) -> Result<ShaderId, ApiError> {
+        let program = ShaderProgram::from_source(name, source, &self.include_paths)?;
+        Ok(self.add_program(program))
+    }
+
+    /// Finds shader `name` on the search path (see [`Context::which_shader`]) and compiles it, once:
+    /// later calls with the same name return the same id.
+    pub fn find_shader(&mut self, name: &str) -> Result<ShaderId, ApiError> {
+        if let Some(i) = self.programs.iter().position(|p| p.as_ref().is_some_and(|p| p.name == name)) {
+            return Ok(ShaderId(i as u32));
+        }
+        let path = self.which_shader(name).ok_or_else(|| ShaderError::NotFound { name: name.to_string() })?;
+        self.shader_file(&path)
+    }
+
+    /// Replaces the program behind `id` (hot reload): frames from now on use the new code. The
+    /// new program must be of the same shader type. Values bound by name stay bound where the new
+    /// shader still has a parameter of that name and type; the others are dropped with a warning
+    /// at the next frame ([`Context::take_warnings`]), and reported now as
+    /// [`ShaderEvent::ParameterDropped`] events ([`Context::take_shader_events`]).
+    pub fn replace_shader(&mut self, id: ShaderId, program: ShaderProgram) -> Result<(), ApiError> {
+        let dropped = self.swap_program(id, program)?;
+        self.events.extend(dropped);
+        Ok(())
+    }
+
+    /// [`Context::replace_shader`], returning the [`ShaderEvent::ParameterDropped`] events instead
+    /// of queueing them (hot reload queues them after its own event).
+    pub(crate) fn swap_program(&mut self, id: ShaderId, program: ShaderProgram) -> Result<Vec<ShaderEvent>, ApiError> {
+        let dropped = self.dropped_parameters(id, &program);
+        let slot = self.programs.get_mut(id.0 as usize).ok_or(ApiError::UnknownShader(id.0))?;
+        if let Some(old) = slot.as_ref() {
+            if old.kind != program.kind {
+                return Err(ApiError::WrongKind {
+                    name: program.name.clone(),
+                    expected: kind_name(old.kind),
+                    got: kind_name(program.kind),
+                });
+            }
+        }
+        *slot = Some(Arc::new(program));
+        Ok(dropped)
+    }
+
+    /// The values bound to shader `id` (surface bindings of objects and of the current and saved
+    /// state, lights, the pixel shader) that `program` would not take, once per (parameter, reason).
+    fn dropped_parameters(&self, id: ShaderId, program: &ShaderProgram) -> Vec<ShaderEvent> {
+        let surfaces =
+            std::iter::once(&self.appearance)
+                .chain(&self.appearance_stack)
+                .chain(self.objects.iter().filter(|o| !o.deleted).flat_map(|o| {
+                    std::iter::once(&o.appearance).chain(o.parts.iter().flat_map(|p| p.appearances.iter()))
+                }))
+                .flat_map(|a| a.surface.iter().chain(a.interior.iter()))
+                .chain(self.pixel.as_ref())
+                .chain(self.atmosphere.as_ref())
+                .filter(|b| b.shader == id)
+                .flat_map(|b| b.params.iter());
+        let lights = self.lights.iter().filter(|l| l.shader == id).flat_map(|l| l.params.iter());
+        let mut out = Vec::new();
+        for (parameter, value, m) in surfaces.chain(lights) {
+            if let Err(e) = crate::shading::bind_param(program, parameter, value, m) {
+                let event = ShaderEvent::ParameterDropped {
+                    shader: id,
+                    name: program.name.clone(),
+                    parameter: parameter.clone(),
+                    reason: e.to_string(),
+                };
+                if !out.contains(&event) {
+                    out.push(event);
+                }
+            }
+        }
+        out
+    }
+
+    /// The hot-reload events since the last call, oldest first: shaders reloaded or not
+    /// ([`crate::reload`]), and bound values a new parameter list no longer takes. The queue grows
+    /// until taken.
+    pub fn take_shader_events(&mut self) -> Vec<ShaderEvent> {
+        std::mem::take(&mut self.events)
+    }
+
+    pub(crate) fn push_shader_events(&mut self, events: impl IntoIterator<Item = ShaderEvent>) {
+        self.events.extend(events);
+    }
+
+    /// Every file the loaded shaders were compiled from (sources and included headers), for a
+    /// watcher.
+    pub fn shader_files(&self) -> Vec<PathBuf> {
+        let mut files: Vec<PathBuf> = self.programs.iter().flatten().flat_map(|p| p.files.iter().cloned()).collect();
+        files.sort();
+        files.dedup();
+        files
+    }
+
+    /// The loaded programs with their ids.
+    pub fn programs_by_id(&self) -> Vec<(ShaderId, Program)> {
+        self.programs.iter().enumerate().filter_map(|(i, p)| Some((ShaderId(i as u32), p.clone()?))).collect()
+    }
+
+    pub fn include_paths(&self) -> &[PathBuf] {
+        &self.include_paths
+    }
+
+    /// Warnings of the last frames (values that no longer fit a reloaded shader), drained.
+    pub fn take_warnings(&mut self) -> Vec<String> {
+        std::mem::take(&mut self.warnings)
+    }
+
+    pub fn program(&self, id: ShaderId) -> Result<&Program, ApiError> {
+        self.programs.get(id.0 as usize).and_then(Option::as_ref).ok_or(ApiError::UnknownShader(id.0))
+    }
+
+    fn add_program(&mut self, program: ShaderProgram) -> ShaderId {
+        self.programs.push(Some(Arc::new(program)));
+        ShaderId(self.programs.len() as u32 - 1)
+    }
+
+    fn expect_kind(&self, id: ShaderId, expected: ShaderKind) -> Result<Program, ApiError> {
+        let p = self.program(id)?.clone();
+        if p.kind != expected {
+            return Err(ApiError::WrongKind {
+                name: p.name.clone(),
+                expected: kind_name(expected),
+                got: kind_name(p.kind),
+            });
+        }
+        Ok(p)
+    }
+
+    /// Binds a surface (or lightfield) shader: the object being built (or, outside objects, the
+    /// objects built from now on) is shaded by it. Its "shader" space is the current matrix.
+    pub fn bind_shader(&mut self, id: ShaderId) -> Result<(), ApiError> {
+        // A lightfield shader is bound like a surface: it shades the rays that hit the object.
+        if self.program(id)?.kind != ShaderKind::Lightfield {
+            self.expect_kind(id, ShaderKind::Surface)?;
+        }
+        self.appearance.surface = Some(Binding { shader: id, params: Vec::new(), world_from_shader: self.matrix });
+        Ok(())
+    }
+
+    /// The surface shader bound now, if any.
+    pub fn bound_surface(&self) -> Option<ShaderId> {
+        self.appearance.surface.as_ref().map(|b| b.shader)
+    }
+
+    /// Sets a parameter of the bound surface shader (object scope). The value is checked against the
+    /// shader's declaration now; point-like values are in the current space.
+    pub fn parameter(&mut self, name: &str, value: ParamValue) -> Result<(), ApiError> {
+        let binding = self.appearance.surface.as_ref().ok_or_else(|| ApiError::NoShaderBound(name.to_string()))?;
+        let program = self.program(binding.shader)?.clone();
+        crate::shading::bind_param(&program, name, &value, &self.matrix)?;
+        let m = self.matrix;
+        if let Some(b) = self.appearance.surface.as_mut() {
+            b.params.retain(|(n, _, _)| n != name);
+            b.params.push((name.to_string(), value, m));
+        }
+        Ok(())
+    }
+
+    fn varying_param_floats(&self, name: &str, value: &ParamValue) -> Result<Vec<f32>, ApiError> {
+        let binding = self.appearance.surface.as_ref().ok_or_else(|| ApiError::NoShaderBound(name.to_string()))?;
+        let program = self.program(binding.shader)?.clone();
+        let bound = crate::shading::bind_param(&program, name, value, &self.matrix)?;
+        if !program.layout().params[bound.index].varying || bound.string.is_some() {
+            return Err(ApiError::NotVarying { shader: program.name.clone(), name: name.to_string() });
+        }
+        Ok(bound.floats)
+    }
+
+    /// Sets a varying parameter of the bound surface shader for the open primitive.
+    pub fn primitive_parameter(&mut self, name: &str, value: ParamValue) -> Result<(), ApiError> {
+        if self.primitive.is_none() {
+            return Err(ApiError::Unbalanced("primitive_parameter", "begin"));
+        }
+        let floats = self.varying_param_floats(name, &value)?;
+        self.primitive_values.retain(|(n, _)| n != name);
+        self.primitive_values.push((name.to_string(), floats));
+        Ok(())
+    }
+
+    /// Sets a varying parameter of the bound surface shader for the vertices that follow.
+    pub fn vertex_parameter(&mut self, name: &str, value: ParamValue) -> Result<(), ApiError> {
+        let floats = self.varying_param_floats(name, &value)?;
+        self.vertex_values.retain(|(n, _)| n != name);
+        self.vertex_values.push((name.to_string(), floats));
+        Ok(())
+    }
+
+    /// Adds a light source at the current matrix, with its parameter values.
+    pub fn light_source(&mut self, shader: ShaderId, params: &[(&str, ParamValue)]) -> Result<LightId, ApiError> {
+        let program = self.expect_kind(shader, ShaderKind::Light)?;
+        for (name, value) in params {
+            crate::shading::bind_param(&program, name, value, &self.matrix)?;
+        }
+        self.lights.push(LightRecord {
+            shader,
+            params: params.iter().map(|(n, v)| (n.to_string(), v.clone(), self.matrix)).collect(),
+            world_from_shader: self.matrix,
+            shadows: true,
+            area_triangles: Vec::new(),
+            area_samples: 16,
+            on: true,
+        });
+        Ok(LightId(self.lights.len() as u32 - 1))
+    }
+
+    /// Makes a light an area light (RenderMan's `AreaLightSource`) emitting from `mesh` too (in the
+    /// current space): its shader runs with `P` and `N` at samples on the geometry, each sample a
+    /// light of its own with a traced shadow (soft shadows).
+    pub fn area_light_geometry(&mut self, light: LightId, mesh: &Mesh) -> Result<(), ApiError> {
+        let m = self.matrix;
+        let rec = self.lights.get_mut(light.0 as usize).ok_or(ApiError::UnknownLight(light.0))?;
+        rec.area_triangles
+            .extend((0..mesh.triangle_count()).map(|i| mesh.corners(i).map(|c| m.transform_point3a(Vec3A::from(c)))));
+        Ok(())
+    }
+
+    /// Samples of an area light per shading point (16 by default).
+    pub fn set_area_light_samples(&mut self, light: LightId, samples: u32) {
+        if let Some(rec) = self.lights.get_mut(light.0 as usize) {
+            rec.area_samples = samples.clamp(1, crate::render::MAX_AREA_SAMPLES);
+        }
+    }
+
+    /// The pixel shader (RenderMan's imager, OpenRT's pixel shader) run on every finished tile, with
+    /// its parameter values; `None` removes it.
+    pub fn pixel_shader(&mut self, shader: Option<ShaderId>, params: &[(&str, ParamValue)]) -> Result<(), ApiError> {
+        let Some(id) = shader else {
+            self.pixel = None;
+            return Ok(());
+        };
+        let program = self.expect_kind(id, ShaderKind::Imager)?;
+        for (name, value) in params {
+            crate::shading::bind_param(&program, name, value, &self.matrix)?;
+        }
+        self.pixel = Some(Binding {
+            shader: id,
+            params: params.iter().map(|(n, v)| (n.to_string(), v.clone(), self.matrix)).collect(),
+            world_from_shader: self.matrix,
+        });
+        Ok(())
+    }
+
+    /// The camera shader that generates the primary rays (`None`: the built-in pinhole camera). Its
+    /// "shader" and "object" spaces are camera space, whatever the current matrix; the camera's
+    /// placement still comes from [`Context::camera_look_at`] / [`Context::set_camera`]. The globals it
+    /// reads and writes are specified in `docs/cameras.md`.
+    pub fn camera_shader(&mut self, shader: Option<ShaderId>, params: &[(&str, ParamValue)]) -> Result<(), ApiError> {
+        let Some(id) = shader else {
+            self.camera_shader = None;
+            return Ok(());
+        };
+        let program = self.expect_kind(id, ShaderKind::Camera)?;
+        for (name, value) in params {
+            crate::shading::bind_param(&program, name, value, &self.matrix)?;
+        }
+        self.camera_shader = Some(Binding {
+            shader: id,
+            params: params.iter().map(|(n, v)| (n.to_string(), v.clone(), self.matrix)).collect(),
+            world_from_shader: self.matrix,
+        });
+        Ok(())
+    }
+
+    /// The camera shader bound with [`Context::camera_shader`], if any.
+    pub fn camera_shader_id(&self) -> Option<ShaderId> {
+        self.camera_shader.as_ref().map(|b| b.shader)
+    }
+
+    /// The atmosphere (RenderMan's `Atmosphere`): a volume shader run on every ray segment that ends
+    /// on a surface outside objects with an interior shader (`docs/volumes.md`), with its parameter
+    /// values; `None` removes it.
+    pub fn atmosphere(&mut self, shader: Option<ShaderId>, params: &[(&str, ParamValue)]) -> Result<(), ApiError> {
+        self.atmosphere = self.volume_binding(shader, params)?;
+        Ok(())
+    }
+
+    /// The displacement shader (RenderMan's `Displacement`) of objects built from now on, an
+    /// attribute like the surface shader. It runs on every hit before the surface shader, and the
+    /// normal it leaves is the surface shader's `N`: displacement as bump mapping. The traced
+    /// geometry does not move (silhouettes and shadows keep the undisplaced shape) and `P` stays on
+    /// it (`docs/rendering.md`). `None` removes it.
+    pub fn displacement(&mut self, shader: Option<ShaderId>, params: &[(&str, ParamValue)]) -> Result<(), ApiError> {
+        self.appearance.displacement = self.kind_binding(ShaderKind::Displacement, shader, params)?;
+        Ok(())
+    }
+
+    /// The interior volume shader (RenderMan's `Interior`) of objects built from now on, an
+    /// attribute like the surface shader (saved by `push_attributes`): it runs on ray segments that
+    /// reach such an object's surface from behind, i.e. travel inside it (`docs/volumes.md`).
+    /// `None` removes it.
+    pub fn interior(&mut self, shader: Option<ShaderId>, params: &[(&str, ParamValue)]) -> Result<(), ApiError> {
+        self.appearance.interior = self.volume_binding(shader, params)?;
+        Ok(())
+    }
+
+    /// A volume shader's binding with its values checked now; `None` for `None`.
+    fn volume_binding(
+        &self,
+        shader: Option<ShaderId>,
+        params: &[(&str, ParamValue)],
+    ) -> Result<Option<Binding>, ApiError> {
+        self.kind_binding(ShaderKind::Volume, shader, params)
+    }
+
+    /// A binding of a shader of `kind` with its values checked now; `None` for `None`.
+    fn kind_binding(
+        &self,
+        kind: ShaderKind,
+        shader: Option<ShaderId>,
+        params: &[(&str, ParamValue)],
+    ) -> Result<Option<Binding>, ApiError> {
+        let Some(id) = shader else { return Ok(None) };
+        let program = self.expect_kind(id, kind)?;
+        for (name, value) in params {
+            crate::shading::bind_param(&program, name, value, &self.matrix)?;
+        }
+        Ok(Some(Binding {
+            shader: id,
+            params: params.iter().map(|(n, v)| (n.to_string(), v.clone(), self.matrix)).collect(),
+            world_from_shader: self.matrix,
+        }))
+    }
+
+    /// Switches a light on or off, and its ray-traced shadows.
+    pub fn set_light(&mut self, light: LightId, on: bool, shadows: bool) -> Result<(), ApiError> {
+        let rec = self.lights.get_mut(light.0 as usize).ok_or(ApiError::UnknownLight(light.0))?;
+        rec.on = on;
+        rec.shadows = shadows;
+        Ok(())
+    }
+}

@@ -1,0 +1,155 @@
+//! `Context`'s graphics state: attributes (colour, opacity, alpha masks) and their stack, the
+//! current matrix and its stack (with motion), named coordinate systems, the camera.
+
+use super::*;
+
+impl Context {
+    /// The current colour (`Cs`) for objects built from now on.
+    pub fn color(&mut self, r: f32, g: f32, b: f32) {
+        self.appearance.color = [r, g, b];
+    }
+
+    /// The current opacity (`Os`).
+    pub fn opacity(&mut self, r: f32, g: f32, b: f32) {
+        self.appearance.opacity = [r, g, b];
+    }
+
+    /// Shadow rays run the surface shader to find the opacity of objects built from now on.
+    pub fn shadows_from_shader(&mut self, on: bool) {
+        self.appearance.shadow_by_shader = on;
+    }
+
+    /// Cuts objects built from now on where the alpha of texture `name` (at their texture
+    /// coordinates) is below one half, for every ray: cut-outs such as leaves drawn on quads are
+    /// seen through and cast shaped shadows, with no shading. `None` makes them solid again. The
+    /// texture is found as shader textures are; one that cannot be read, or has no transparent
+    /// texel, leaves the object solid (a missing one with a warning).
+    pub fn alpha_mask(&mut self, name: Option<&str>) {
+        self.alpha_mask_with_cutoff(name, ALPHA_CUTOFF);
+    }
+
+    /// [`Context::alpha_mask`] with the alpha below which a texel is cut (glTF's `alphaCutoff`).
+    pub fn alpha_mask_with_cutoff(&mut self, name: Option<&str>, cutoff: f32) {
+        self.appearance.alpha_mask = name.map(|n| (n.to_string(), cutoff));
+    }
+
+    /// Saves the attribute state (colour, opacity, shader binding) and the matrix.
+    pub fn push_attributes(&mut self) {
+        self.appearance_stack.push(self.appearance.clone());
+        self.stack.push((self.matrix, self.close_matrix));
+    }
+
+    pub fn pop_attributes(&mut self) -> Result<(), ApiError> {
+        self.appearance =
+            self.appearance_stack.pop().ok_or(ApiError::Unbalanced("pop_attributes", "push_attributes"))?;
+        (self.matrix, self.close_matrix) = self.stack.pop().ok_or(ApiError::MatrixStackEmpty)?;
+        Ok(())
+    }
+
+    pub fn push_matrix(&mut self) {
+        self.stack.push((self.matrix, self.close_matrix));
+    }
+
+    pub fn pop_matrix(&mut self) -> Result<(), ApiError> {
+        (self.matrix, self.close_matrix) = self.stack.pop().ok_or(ApiError::MatrixStackEmpty)?;
+        Ok(())
+    }
+
+    pub fn load_identity(&mut self) {
+        self.matrix = Affine3A::IDENTITY;
+        self.close_matrix = None;
+    }
+
+    pub fn current_matrix(&self) -> Affine3A {
+        self.matrix
+    }
+
+    pub fn load_matrix(&mut self, m: Affine3A) {
+        self.matrix = m;
+        self.close_matrix = None;
+    }
+
+    /// Post-multiplies the current matrix (OpenGL's order: the last call applies first to points).
+    pub fn mult_matrix(&mut self, m: Affine3A) {
+        self.matrix *= m;
+        if let Some(close) = &mut self.close_matrix {
+            *close *= m;
+        }
+    }
+
+    /// A transform that moves during the shutter interval (RIB's `MotionBegin` around a
+    /// transform): post-multiplies the current matrix by `open` for the shutter's opening and by
+    /// `close` for its closing. Instances placed from now on (within the current matrix scope) move
+    /// between the two, so they are motion-blurred when the shutter interval
+    /// ([`crate::render::RenderOptions::shutter`]) is not empty.
+    pub fn motion_transform(&mut self, open: Affine3A, close: Affine3A) {
+        let before = self.matrix;
+        let close_before = self.close_matrix.unwrap_or(before);
+        self.matrix = before * open;
+        let close = close_before * close;
+        self.close_matrix = (close != self.matrix).then_some(close);
+    }
+
+    /// The current matrix at the shutter's close (the current matrix unless a motion transform
+    /// applies).
+    pub fn close_matrix(&self) -> Affine3A {
+        self.close_matrix.unwrap_or(self.matrix)
+    }
+
+    /// Places instance `id` at `open` when the shutter opens and at `close` when it closes (motion
+    /// blur; see [`Context::motion_transform`]).
+    pub fn set_instance_motion(&mut self, id: InstanceId, open: Affine3A, close: Affine3A) -> Result<(), ApiError> {
+        let rec =
+            self.instances.get_mut(id.0 as usize).filter(|i| !i.deleted).ok_or(ApiError::UnknownInstance(id.0))?;
+        rec.transform = open;
+        rec.close_transform = (close != open).then_some(close);
+        Ok(())
+    }
+
+    pub fn translate(&mut self, x: f32, y: f32, z: f32) {
+        self.mult_matrix(Affine3A::from_translation(Vec3::new(x, y, z)));
+    }
+
+    /// Rotation by `degrees` about the axis.
+    pub fn rotate(&mut self, degrees: f32, x: f32, y: f32, z: f32) {
+        let axis = Vec3::new(x, y, z).normalize_or_zero();
+        if axis != Vec3::ZERO {
+            self.mult_matrix(Affine3A::from_quat(Quat::from_axis_angle(axis, degrees.to_radians())));
+        }
+    }
+
+    pub fn scale(&mut self, x: f32, y: f32, z: f32) {
+        self.mult_matrix(Affine3A::from_mat3(glam::Mat3::from_diagonal(Vec3::new(x, y, z))));
+    }
+
+    /// Names the current space (RenderMan's `CoordinateSystem`), for shaders' space casts.
+    pub fn coordinate_system(&mut self, name: &str) {
+        self.spaces.insert(name.to_string(), self.matrix);
+    }
+
+    /// Makes a named space current (RenderMan's `CoordSysTransform`); false for an unknown name.
+    pub fn load_coordinate_system(&mut self, name: &str) -> bool {
+        match self.spaces.get(name) {
+            Some(m) => {
+                self.matrix = *m;
+                self.close_matrix = None;
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// A pinhole camera at `eye` looking at `target`; `fov_degrees` spans the image's shorter side.
+    pub fn camera_look_at(&mut self, eye: Vec3A, target: Vec3A, up: Vec3A, fov_degrees: f32) {
+        self.camera = CameraSetup::look_at(eye, target, up, fov_degrees);
+    }
+
+    /// Sets the camera directly (RenderMan's convention: camera space x right, y up, z forward).
+    pub fn set_camera(&mut self, camera: CameraSetup) {
+        self.camera = camera;
+    }
+
+    pub fn camera(&self) -> &CameraSetup {
+        &self.camera
+    }
+}
