@@ -233,7 +233,7 @@ fn render_office(rt: &mut Context) -> Vec<f32> {
     let warnings = world.textures.take_warnings();
     assert!(warnings.is_empty(), "{warnings:?}");
     // The frame's shading time is split by shader type and by shader.
-    use rtsl_compiler::front::parse::ast::ShaderKind;
+    use rtsl_compiler::interface::ShaderKind;
     for kind in [ShaderKind::Surface, ShaderKind::Light, ShaderKind::Lightfield] {
         assert!(report.shader_time(kind) > std::time::Duration::ZERO, "no time in {kind:?} shaders");
     }

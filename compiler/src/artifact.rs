@@ -443,7 +443,7 @@ fn recompile(source: &Path, options: &Options, reason: String) -> Result<Loaded,
 pub struct IndexEntry {
     pub name: String,
     #[serde(rename = "type")]
-    pub kind: crate::front::parse::ast::ShaderKind,
+    pub kind: crate::ir::ShaderKind,
     /// The artifact, relative to the index.
     pub artifact: String,
     pub source: Option<String>,

@@ -2,10 +2,11 @@
 
 use crate::diagnostic::{Diagnostic, Diagnostics, Severity};
 use crate::front::lex::Token;
-use crate::front::parse::ast::{self, ShaderKind};
+use crate::front::parse::ast;
 use crate::front::{check, parse, preprocess};
 use crate::interface::ShaderInterface;
 use crate::ir::Module;
+use crate::ir::ShaderKind;
 use crate::source::{FileId, SourceMap};
 use crate::symbol::Interner;
 use std::path::Path;

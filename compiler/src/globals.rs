@@ -8,8 +8,8 @@
 //! Access is `Read` or `Write` (read and write). `L`, `Cl` and `Ol` hold the current light's values:
 //! in surface, volume and lightfield shaders they may be read only inside `illuminance`.
 
-use crate::front::parse::ast::ShaderKind;
 use crate::ir::types::BaseType;
+use crate::ir::ShaderKind;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Access {

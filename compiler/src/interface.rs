@@ -7,7 +7,8 @@
 //! is bound. Other defaults (those calling renderer services) are shown as source text.
 
 use crate::builtins::Builtin;
-use crate::front::parse::ast::ShaderKind;
+/// The shader types, as an interface states them.
+pub use crate::ir::ShaderKind;
 use crate::ir::{self, BaseType, Constant, ExprId, ExprKind, Function, Module, Type};
 use crate::source::SourceMap;
 use serde::Serialize;

@@ -9,9 +9,9 @@
 //! uses `interp::TestHost` (an ambient light and a distant light from +z).
 
 use crate::back::jit::{self, BatchData, CompiledShader, JitError};
-use crate::front::parse::ast::ShaderKind;
 use crate::interp::Services;
 use crate::ir::Module;
+use crate::ir::ShaderKind;
 
 /// A value given on the command line for a parameter: `0.5`, `1,0,0` or text.
 #[derive(Clone, Debug, PartialEq)]

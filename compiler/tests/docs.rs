@@ -2,8 +2,8 @@
 //! tables. `RTSL_BLESS=1` rewrites them.
 
 use rtsl_compiler::builtins::{self, Builtin};
-use rtsl_compiler::front::parse::ast::ShaderKind;
 use rtsl_compiler::globals::{Access, GLOBALS};
+use rtsl_compiler::interface::ShaderKind;
 use std::path::Path;
 
 fn globals_table() -> String {

@@ -28,7 +28,7 @@ fn the_image_does_not_depend_on_the_thread_count() -> Result<(), ApiError> {
 
 #[test]
 fn shader_timing_can_be_turned_off_without_changing_the_image() -> Result<(), ApiError> {
-    use rtsl_compiler::front::parse::ast::ShaderKind;
+    use rtsl_compiler::interface::ShaderKind;
     let mut rt = context();
     shadow_scene(&mut rt)?;
     let (timed_image, timed) = rt.render_frame()?;

@@ -311,7 +311,7 @@ pub fn run_render(args: &BenchRenderArgs) -> anyhow::Result<()> {
     let ms = median(jit_ms);
     print_rate(args, &world, &format!("threads: {threads}"), ms, &report);
     println!("shading_share: {:.3}", report.shading_share());
-    for kind in rtsl_compiler::front::parse::ast::ShaderKind::ALL {
+    for kind in rtsl_compiler::interface::ShaderKind::ALL {
         let share = report.shader_share(kind);
         if share > 0.0 {
             println!("{}_shader_share: {share:.3}", kind.name());

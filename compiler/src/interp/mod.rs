@@ -36,8 +36,8 @@ pub mod value;
 pub use host::{LightSample, Services, ShadowQuery, TestHost, TextureFootprint};
 pub use value::Value;
 
-use crate::front::parse::ast::ShaderKind;
 use crate::globals::{Global, GLOBALS};
+use crate::ir::ShaderKind;
 use crate::ir::{self, Arg, BaseType, BinaryOp, Block, ExprId, ExprKind, Function, Module, Place, PlaceBase, StmtKind};
 use crate::shadeops::gather::{self, Output};
 use crate::shadeops::{color, geom, matrix, V3};

@@ -35,13 +35,14 @@
 //!   back ends may inline every call.
 
 pub mod deriv;
+mod kind;
 pub mod print;
 pub mod types;
 
 use crate::builtins::Builtin;
-use crate::front::parse::ast::ShaderKind;
 use crate::globals::Global;
 use crate::source::Span;
+pub use kind::ShaderKind;
 pub use types::{ArrayLen, BaseType, Type};
 
 /// The longest array the checker accepts (and the validator lets through).

@@ -53,7 +53,7 @@ use crate::scene::{ObjectId as SceneObject, Scene, SceneError};
 use crate::shading::{LightKind, ParamError, ParamValue, Program, ShaderError, ShaderInstance, ShaderProgram};
 use crate::texture::{TexImage, TextureCache, Wrap};
 use glam::{Affine3A, Quat, Vec2, Vec3, Vec3A};
-use rtsl_compiler::front::parse::ast::ShaderKind;
+use rtsl_compiler::interface::ShaderKind;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;

@@ -369,7 +369,7 @@ impl<T: Transport> Drop for Master<T> {
 
 /// What a worker reports of its share of a frame.
 pub(super) fn counts_of(report: &FrameReport) -> FrameCounts {
-    use rtsl_compiler::front::parse::ast::ShaderKind;
+    use rtsl_compiler::interface::ShaderKind;
     let kind_index = |k: ShaderKind| ShaderKind::ALL.iter().position(|&x| x == k).unwrap_or(0) as u8;
     FrameCounts {
         rays: [report.primary_rays, report.shadow_rays, report.secondary_rays, report.transparency_rays],

@@ -3,7 +3,7 @@
 //! checks every length against the bytes at hand, so a damaged message is an error, never a
 //! panic or an allocation larger than the message.
 
-use rtsl_compiler::front::parse::ast::ShaderKind;
+use rtsl_compiler::interface::ShaderKind;
 
 /// The protocol's version: ranks that speak different versions refuse each other at start-up.
 pub const PROTOCOL_VERSION: u32 = 6;

@@ -19,7 +19,7 @@ use crate::ray::{HitPacket, PACKET_SIZE};
 use crate::tiles::{render_tiles, Tile};
 use glam::Vec3A;
 use rayon::prelude::*;
-use rtsl_compiler::front::parse::ast::ShaderKind;
+use rtsl_compiler::interface::ShaderKind;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 

@@ -8,7 +8,7 @@
 //! only; the tracer and the volume shader get theirs.
 
 use crate::shading::Program;
-use rtsl_compiler::front::parse::ast::ShaderKind;
+use rtsl_compiler::interface::ShaderKind;
 use std::cell::RefCell;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};

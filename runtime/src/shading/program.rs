@@ -6,9 +6,9 @@
 
 use rtsl_compiler::artifact::{self, ArtifactError, Loaded};
 use rtsl_compiler::back::jit::{self, CompiledShader, JitError, Layout};
-use rtsl_compiler::front::parse::ast::ShaderKind;
 use rtsl_compiler::interface::ShaderInterface;
-use rtsl_compiler::ir::{Block, ExprKind, Module, StmtKind};
+use rtsl_compiler::interface::ShaderKind;
+use rtsl_compiler::ir::Module;
 use rtsl_compiler::source::SourceMap;
 use rtsl_compiler::{Options, Session};
 use std::path::{Path, PathBuf};
@@ -35,14 +35,7 @@ pub enum ShaderError {
     Artifact(#[from] ArtifactError),
 }
 
-/// How a light shader emits, read from its code: `illuminate` makes a local light (shadow rays end at
-/// the light), `solar` a distant one (shadow rays are unbounded), neither an ambient light.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum LightKind {
-    Ambient,
-    Local,
-    Distant,
-}
+pub use rtsl_compiler::back::jit::LightKind;
 
 /// Where one global lives in the batch of a program (see `docs/packet-abi.md`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -299,8 +292,8 @@ impl ShaderProgram {
             kind: interface.kind,
             path,
             slots: GlobalSlots::from_layout(code.layout()),
-            light_kind: light_kind(module),
-            lane_invariant: lane_invariant(module, code.layout()),
+            light_kind: code.light_kind(),
+            lane_invariant: code.lane_invariant(),
             light_flags: light_flags(code.layout()),
             interface,
             code,
@@ -317,44 +310,6 @@ fn options(include_paths: &[PathBuf]) -> Options {
     o
 }
 
-fn light_kind(m: &Module) -> LightKind {
-    fn scan(b: &Block, kind: &mut LightKind) {
-        for s in &b.stmts {
-            match &s.kind {
-                StmtKind::Illuminate { body, .. } => {
-                    *kind = LightKind::Local;
-                    scan(body, kind);
-                }
-                StmtKind::Solar { body, .. } => {
-                    if *kind == LightKind::Ambient {
-                        *kind = LightKind::Distant;
-                    }
-                    scan(body, kind);
-                }
-                StmtKind::If { then, otherwise, .. } => {
-                    scan(then, kind);
-                    scan(otherwise, kind);
-                }
-                StmtKind::Loop { body, step, .. } => {
-                    scan(body, kind);
-                    scan(step, kind);
-                }
-                StmtKind::Illuminance { body, .. } => scan(body, kind),
-                StmtKind::Gather { body, otherwise, .. } => {
-                    scan(body, kind);
-                    scan(otherwise, kind);
-                }
-                StmtKind::Expr(_) | StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return(_) => {}
-            }
-        }
-    }
-    let mut kind = LightKind::Ambient;
-    for f in &m.functions {
-        scan(&f.body, &mut kind);
-    }
-    kind
-}
-
 /// Where a light shader leaves one of its light flags: a float slot.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct FlagSlot {
@@ -369,24 +324,6 @@ fn light_flags(layout: &Layout) -> [Option<FlagSlot>; 2] {
         (slot.components == 1 && slot.len == 1 && !slot.string)
             .then_some(FlagSlot { offset: slot.offset, varying: slot.varying })
     })
-}
-
-/// See [`ShaderProgram::lane_invariant`].
-fn lane_invariant(m: &Module, layout: &Layout) -> bool {
-    fn plain(b: &Block) -> bool {
-        b.stmts.iter().all(|s| match &s.kind {
-            StmtKind::If { then, otherwise, .. } => plain(then) && plain(otherwise),
-            StmtKind::Loop { body, step, .. } => plain(body) && plain(step),
-            StmtKind::Expr(_) | StmtKind::Break(_) | StmtKind::Continue(_) | StmtKind::Return(_) => true,
-            _ => false,
-        })
-    }
-    let calls_nothing = m.functions.iter().all(|f| {
-        plain(&f.body)
-            && f.exprs.iter().all(|e| !matches!(e.kind, ExprKind::Call { .. } | ExprKind::CallBuiltin { .. }))
-    });
-    let reads_no_global = layout.globals.iter().all(|g| g.written && g.entry_unused);
-    calls_nothing && reads_no_global && layout.seed.is_none()
 }
 
 /// Shared handle to a program.

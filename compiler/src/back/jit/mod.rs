@@ -21,6 +21,7 @@
 //!   helper call per chunk), so results agree bit for bit except where noted in `math.rs`.
 //! - The Cranelift verifier runs in debug and test builds only.
 
+mod facts;
 mod hoist;
 mod host;
 mod invariants;
@@ -30,6 +31,7 @@ mod mask;
 mod math;
 mod profile;
 
+pub use facts::LightKind;
 pub use host::{
     light_in_cone, same_category, shadow_query_of, HostLight, HostTable, LightLanes, MessageOut, ServicesHost, StrRef,
     CONE_ROWS, EVERY_LIGHT, MAX_LIGHTS, NO_LIGHT, SHADOW_ROWS,
@@ -270,6 +272,8 @@ pub struct CompiledShader {
     code_bytes: usize,
     /// The built-ins that shoot rays which the code calls.
     ray_calls: RayCalls,
+    light_kind: LightKind,
+    lane_invariant: bool,
 }
 
 /// The built-ins that shoot rays which a compiled shader calls (see [`CompiledShader::ray_calls`]).
@@ -329,6 +333,20 @@ impl CompiledShader {
     /// Which of the built-ins that shoot rays the code calls.
     pub fn ray_calls(&self) -> RayCalls {
         self.ray_calls
+    }
+
+    /// For a light shader: how it emits, read from its code (`illuminate`: local, `solar`:
+    /// distant, neither: ambient).
+    pub fn light_kind(&self) -> LightKind {
+        self.light_kind
+    }
+
+    /// Every lane of a batch gets the same results: the code reads no global's value on entry,
+    /// calls no function or built-in (no lookups, messages, noise or `random()`) and has no
+    /// `illuminance`, `illuminate`, `solar` or `gather`. Its outputs are then functions of its
+    /// parameters alone, and one lane may be run for all (an `ambientlight`, for instance).
+    pub fn lane_invariant(&self) -> bool {
+        self.lane_invariant
     }
 
     /// Bytes of machine code this shader holds (its share of [`live_code_bytes`]).
@@ -790,6 +808,7 @@ pub fn compile_with(
         Ok(Defined { entry, ir_insts, invariant_loads, sites, code_bytes, helpers }) => {
             LIVE_MODULES.fetch_add(1, Ordering::SeqCst);
             LIVE_CODE_BYTES.fetch_add(code_bytes, Ordering::SeqCst);
+            let (light_kind, lane_invariant) = (facts::light_kind(m), facts::lane_invariant(m, &layout));
             Ok(CompiledShader {
                 module: Some(jit),
                 entry,
@@ -798,6 +817,8 @@ pub fn compile_with(
                 invariant_loads,
                 code_bytes,
                 ray_calls: RayCalls::of(&helpers),
+                light_kind,
+                lane_invariant,
                 sites,
                 errors: RuntimeErrors::default(),
                 options: options.clone(),
