@@ -204,6 +204,19 @@ struct ObjectRecord {
 }
 
 impl ObjectRecord {
+    /// An object with no geometry yet, which the next frame's scene takes in.
+    fn empty() -> ObjectRecord {
+        ObjectRecord {
+            mesh: None,
+            remote: None,
+            appearance: Appearance::default(),
+            parts: None,
+            scene_object: None,
+            dirty: true,
+            deleted: false,
+        }
+    }
+
     fn has_geometry(&self) -> bool {
         self.mesh.is_some() || self.remote.is_some()
     }

@@ -16,15 +16,7 @@ impl Context {
             return Err(ApiError::Nested("begin_object", "an object"));
         }
         let id = ObjectId(self.objects.len() as u32);
-        self.objects.push(ObjectRecord {
-            mesh: None,
-            remote: None,
-            appearance: Appearance::default(),
-            parts: None,
-            scene_object: None,
-            dirty: true,
-            deleted: false,
-        });
+        self.objects.push(ObjectRecord::empty());
         self.building = Some((id, frame, MeshBuilder::default()));
         Ok(id)
     }

@@ -367,15 +367,7 @@ impl Context {
                 .map_err(|error| ReplicaError::Shader { id, error })?;
             self.programs[id as usize] = Some(Arc::new(program));
         }
-        self.objects.resize_with(u.object_count as usize, || ObjectRecord {
-            mesh: None,
-            remote: None,
-            appearance: Appearance::default(),
-            parts: None,
-            scene_object: None,
-            dirty: true,
-            deleted: false,
-        });
+        self.objects.resize_with(u.object_count as usize, ObjectRecord::empty);
         for (id, o) in u.objects {
             let rec = &mut self.objects[id as usize];
             rec.mesh = o.mesh.map(Arc::new);

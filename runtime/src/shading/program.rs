@@ -4,7 +4,7 @@
 //! A [`ShaderProgram`] is immutable and shared (`Arc`) by every object, light and thread that uses it;
 //! parameter values live in [`super::ShaderInstance`]s.
 
-use rtsl_compiler::artifact::{self, ArtifactError, Loaded};
+use rtsl_compiler::artifact::{self, Artifact, ArtifactError, Loaded};
 use rtsl_compiler::back::jit::{self, CompiledShader, JitError, Layout};
 use rtsl_compiler::interface::ShaderInterface;
 use rtsl_compiler::interface::ShaderKind;
@@ -198,18 +198,7 @@ impl ShaderProgram {
     /// reload goes through the same checks; its `files` are the sources the artifact was made from.
     pub fn from_artifact(path: &Path, include_paths: &[PathBuf]) -> Result<ShaderProgram, ShaderError> {
         match artifact::load(path, &options(include_paths))? {
-            Loaded::Artifact(a) => {
-                let a = *a;
-                let files = a.files.iter().filter_map(|f| f.path.clone()).collect();
-                let origin = Origin {
-                    module: a.module,
-                    sources: a.sources,
-                    front_warnings: a.warnings.clone(),
-                    options: a.options.to_options(),
-                    source: a.source,
-                };
-                Self::build(origin, a.interface, a.warnings, files, Some(path.to_path_buf()))
-            }
+            Loaded::Artifact(a) => Self::from_decoded(*a, Some(path.to_path_buf())),
             Loaded::Recompiled { compilation, reason } => {
                 let name = path.display().to_string();
                 Self::from_compilation(
@@ -257,8 +246,13 @@ impl ShaderProgram {
     /// read from disk: the bytes carry the IR and its sources.
     pub fn from_artifact_bytes(label: &str, bytes: &[u8]) -> Result<ShaderProgram, ShaderError> {
         let a = artifact::decode(Path::new(label), bytes)?;
-        let files = a.files.iter().filter_map(|f| f.path.clone()).collect();
         let path = a.source.clone();
+        Self::from_decoded(a, path)
+    }
+
+    /// A program from a decoded artifact; `path` is the program's (see [`ShaderProgram::path`]).
+    fn from_decoded(a: Artifact, path: Option<PathBuf>) -> Result<ShaderProgram, ShaderError> {
+        let files = a.files.iter().filter_map(|f| f.path.clone()).collect();
         let origin = Origin {
             module: a.module,
             sources: a.sources,
