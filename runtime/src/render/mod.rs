@@ -11,6 +11,7 @@ pub mod differential;
 mod film;
 pub mod filter;
 pub mod frame;
+mod globals;
 mod hit_geometry;
 mod host;
 mod lanes;
