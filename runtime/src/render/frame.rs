@@ -7,11 +7,12 @@
 //! tiles are added up in tile order).
 
 use super::film::{Film, TileFilm};
+use super::pixel::{shade_pixels, TilePixels};
 use super::primary::{
     pinhole_ray, primary_rays, primary_rays_into, primary_rays_of_packets, CameraSample, PacketSamples, PrimaryRays,
 };
 use super::sampling::{mix, radical_inverse};
-use super::shade::{shade_packet, shade_packets, shade_pixels, TilePixels};
+use super::shade::{shade_packet, shade_packets};
 use super::work::{Frame, Sample};
 use super::world::{Antialiasing, World};
 use crate::camera::{packet_lane_offset, PACKET_LANE_OFFSETS, PACKET_SIDE};

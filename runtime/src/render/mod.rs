@@ -17,6 +17,7 @@ mod host;
 mod lanes;
 mod lights;
 pub mod native;
+mod pixel;
 pub mod primary;
 pub mod progressive;
 mod sampling;

@@ -26,9 +26,10 @@
 //! pass number, never on threads or timing, so a given sequence of passes gives the same image.
 
 use super::frame::Framebuffer;
+use super::pixel::{shade_pixels, TilePixels};
 use super::primary::{primary_rays, CameraSample};
 use super::sampling::radical_inverse;
-use super::shade::{shade_packet, shade_pixels, TilePixels};
+use super::shade::shade_packet;
 use super::work::{Frame, Sample};
 use super::world::{Antialiasing, World};
 use crate::camera::packet_lane_offset;
