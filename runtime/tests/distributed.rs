@@ -4,7 +4,9 @@
 //! by rank, never a hang; damaged updates are errors.
 
 use rtsl_runtime::api::{Context, Primitive, Replicator};
-use rtsl_runtime::distributed::{serve, DistributedError, LocalTransport, Master, Message, ReplicaScene, Transport};
+use rtsl_runtime::distributed::{
+    serve, Demand, DistributedError, LocalTransport, Master, Message, ReplicaScene, Traffic, Transport,
+};
 use rtsl_runtime::glam::{Affine3A, Vec3A};
 use rtsl_runtime::render::{render_frame, FilterKind, Framebuffer, PixelFilter};
 use rtsl_runtime::shading::{ParamValue, ShaderProgram};
@@ -398,6 +400,29 @@ fn a_tile_decodes_to_itself_and_damaged_tiles_are_errors() {
     }
 }
 
+/// Three frames of `rt` over `master`'s workers, the first instance moved before frame `moved_at`,
+/// each checked against this process's render; what each frame fetched and moved.
+fn frames_moving_once(
+    master: &mut Master<LocalTransport>,
+    rt: &mut Context,
+    moved_at: usize,
+    what: &str,
+) -> Result<Vec<(Demand, Traffic)>, DistributedError> {
+    let mut out = Vec::new();
+    for frame in 0..3 {
+        if frame == moved_at {
+            move_first(rt).expect("moved");
+        }
+        let world = rt.build_world().expect("a world");
+        let (distributed, _) = master.render_context(rt, &world, None)?;
+        let (alone, _) = render_frame(&world, None);
+        rt.return_scene(world);
+        assert_same(&[(distributed, alone, 0)], what);
+        out.push((master.demand(), master.traffic()));
+    }
+    Ok(out)
+}
+
 #[test]
 fn workers_fetch_only_the_objects_rays_reach_and_keep_them() -> Result<(), DistributedError> {
     let e = |e: rtsl_runtime::api::ApiError| e.to_string();
@@ -421,18 +446,7 @@ fn workers_fetch_only_the_objects_rays_reach_and_keep_them() -> Result<(), Distr
     let handles: Vec<_> =
         group.map(|t| std::thread::spawn(move || serve(&t, Ok(&mut ReplicaScene::new()), &pool(1)))).collect();
     let mut master = Master::connect(master_end)?;
-    let mut demands = Vec::new();
-    for frame in 0..3 {
-        if frame == 2 {
-            move_first(&mut rt).expect("moved");
-        }
-        let world = rt.build_world().expect("a world");
-        let (distributed, _) = master.render_context(&rt, &world, None)?;
-        let (alone, _) = render_frame(&world, None);
-        rt.return_scene(world);
-        assert_same(&[(distributed, alone, 0)], "a demand-loaded frame");
-        demands.push((master.demand(), master.traffic()));
-    }
+    let demands = frames_moving_once(&mut master, &mut rt, 2, "a demand-loaded frame")?;
     master.shutdown()?;
     for h in handles {
         h.join().expect("a worker thread")?;
@@ -460,18 +474,10 @@ fn a_full_cache_evicts_the_least_recently_used_meshes_and_fetches_them_again() -
     // Room for nothing: every frame starts with an empty cache.
     let worker = std::thread::spawn(move || serve(&worker_end, Ok(&mut ReplicaScene::with_cache_limit(1)), &pool(2)));
     let mut master = Master::connect(master_end)?;
-    let mut demands = Vec::new();
-    for frame in 0..3 {
-        if frame == 1 {
-            move_first(&mut rt).expect("moved");
-        }
-        let world = rt.build_world().expect("a world");
-        let (distributed, _) = master.render_context(&rt, &world, None)?;
-        let (alone, _) = render_frame(&world, None);
-        rt.return_scene(world);
-        assert_same(&[(distributed, alone, 0)], "a frame rendered from an evicted cache");
-        demands.push(master.demand());
-    }
+    let demands: Vec<Demand> = frames_moving_once(&mut master, &mut rt, 1, "a frame rendered from an evicted cache")?
+        .into_iter()
+        .map(|(demand, _)| demand)
+        .collect();
     master.shutdown()?;
     worker.join().expect("the worker thread")?;
     assert_eq!(demands[0].evicted_objects, 0, "{demands:?}");
