@@ -51,9 +51,14 @@ fn xvfb() -> Option<Xvfb> {
 
 /// Runs `rtsl view ARGS` on `display`, killed after two minutes.
 fn view(display: &str, dir: &Path, args: &[&str]) -> Output {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_rtsl"))
-        .arg("view")
-        .args(args)
+    let mut command = Command::new(env!("CARGO_BIN_EXE_rtsl"));
+    command.arg("view").args(args);
+    run_on(display, dir, command)
+}
+
+/// Runs `command` on `display`, killed after two minutes.
+fn run_on(display: &str, dir: &Path, mut command: Command) -> Output {
+    let mut child = command
         .current_dir(dir)
         .env("DISPLAY", display)
         .env_remove("WAYLAND_DISPLAY")
@@ -215,4 +220,40 @@ fn a_broken_scene_is_a_located_error_not_a_window() {
     let o = view(":99999", dir.path(), &["--events", "jump:1", "--frames", "1"]);
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("unknown step"));
+}
+
+/// `rtsl view --mpi` under `mpirun -n 3` on this machine: rank 0's window shows, pass for pass,
+/// what one process shows, while an object is dragged, with adaptive anti-aliasing, and in
+/// frameless mode (the workers trace the viewer's lattices; docs/distributed.md).
+#[cfg(feature = "mpi")]
+#[test]
+fn the_viewer_over_three_mpi_ranks_shows_what_one_process_shows() {
+    let found = Command::new("mpirun").arg("--version").output().is_ok_and(|o| o.status.success());
+    if !found {
+        eprintln!("SKIPPED: mpirun is not installed (apt-get install openmpi-bin libopenmpi-dev)");
+        return;
+    }
+    let Some(x) = xvfb() else { return };
+    let dir = tempfile::tempdir().expect("tempdir");
+    let common = ["--size", "96x72", "--frames", "3", "--no-watch", "--no-overlay", "--threads", "1"];
+    for extra in [&["--events", "shiftdrag:33,45,60,45"][..], &["--aa", "adaptive"], &["--frameless"]] {
+        let alone = view(&x.display, dir.path(), &[&common[..], extra, &["--screenshot", "alone.png"]].concat());
+        assert!(alone.status.success(), "{}", String::from_utf8_lossy(&alone.stderr));
+        let mut mpirun = Command::new("mpirun");
+        mpirun
+            .args(["-n", "3", "--oversubscribe", "--bind-to", "none", env!("CARGO_BIN_EXE_rtsl"), "view", "--mpi"])
+            .args([&common[..], extra, &["--screenshot", "ranks.png"]].concat())
+            .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+            .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1");
+        let ranks = run_on(&x.display, dir.path(), mpirun);
+        let out = String::from_utf8_lossy(&ranks.stdout);
+        assert!(ranks.status.success(), "{extra:?}: {out}{}", String::from_utf8_lossy(&ranks.stderr));
+        // Two workers of one thread each rendered.
+        assert!(out.contains("96x72, 2 thread(s): still:"), "{out}");
+        let (a, b) = (dir.path().join("alone.png"), dir.path().join("ranks.png"));
+        let (a, b) = (rtsl::runtime::read_image(&a).expect("a PNG"), rtsl::runtime::read_image(&b).expect("a PNG"));
+        let differ = a.pixels.iter().zip(&b.pixels).filter(|(p, q)| p.to_bits() != q.to_bits()).count();
+        assert_eq!(differ, 0, "{extra:?}: {differ} values differ");
+        assert!(a.pixels.iter().any(|&v| v > 0.05), "{extra:?}: the picture is not black");
+    }
 }

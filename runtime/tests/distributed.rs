@@ -527,3 +527,90 @@ fn a_texture_the_workers_cannot_load_is_reported_by_the_master_once() -> Result<
     }
     Ok(())
 }
+
+/// The bits of every traced lane of each lattice's samples, for exact comparison.
+fn lattice_bits(results: &[rtsl_runtime::render::progressive::LatticeSamples]) -> Vec<(u32, u32, u64, Vec<u32>)> {
+    results
+        .iter()
+        .map(|r| {
+            let mut bits = Vec::new();
+            for lane in (0..64).filter(|l| r.active >> l & 1 != 0) {
+                let s = &r.samples[lane];
+                bits.extend([s.color.x, s.color.y, s.color.z, s.alpha, s.depth, r.depth[lane]].map(f32::to_bits));
+                bits.extend([s.object_id, s.shader_id]);
+            }
+            (r.lattice.x0, r.lattice.y0, r.active, bits)
+        })
+        .collect()
+}
+
+#[test]
+fn lattices_traced_by_workers_are_the_samples_traced_here() -> Result<(), DistributedError> {
+    use rtsl_runtime::render::progressive::{frameless_order, pass_lattices, trace_lattices};
+    use rtsl_runtime::render::Antialiasing;
+    let mut rt = office().expect("the office");
+    let (w, h) = (rt.options.width, rt.options.height);
+    let mut group = LocalTransport::group(3, Duration::from_secs(120)).into_iter();
+    let master_end = group.next().expect("rank 0");
+    let handles: Vec<_> =
+        group.map(|t| std::thread::spawn(move || serve(&t, Ok(&mut ReplicaScene::new()), &pool(1)))).collect();
+    let mut master = Master::connect(master_end)?;
+    // What a viewer does: a preview while moving, a full pass in pieces, an adaptive pass over
+    // the lanes that need it after a change to the scene, and a piece of a frameless sweep.
+    let every = |_: u32, _: u32| true;
+    let some = |x: u32, y: u32| (x + 2 * y) % 3 != 0;
+    let full = pass_lattices(w, h, 1);
+    let frameless = frameless_order(w, h);
+    let pieces: Vec<(Vec<_>, u32, bool, bool)> = vec![
+        (pass_lattices(w, h, 4), 0, true, false),
+        (full[..13].to_vec(), 0, false, false),
+        (full[13..].to_vec(), 0, false, false),
+        (full.clone(), 1, false, true),
+        (frameless[..50].to_vec(), 2, false, false),
+    ];
+    for (k, (lattices, pass, preview, after_change)) in pieces.into_iter().enumerate() {
+        if after_change {
+            move_first(&mut rt).expect("moved");
+            rt.options.antialiasing = Antialiasing::Adaptive { threshold: 0.05 };
+        }
+        let world = rt.build_world().expect("a world");
+        let wanted: &(dyn Fn(u32, u32) -> bool + Sync) = if after_change { &some } else { &every };
+        let (there, report) = master.trace_lattices(&rt, &world, &lattices, pass, preview, wanted)?;
+        let (here, local) = pool(2).install(|| trace_lattices(&world, &lattices, pass, preview, wanted));
+        rt.return_scene(world);
+        assert_eq!(there.len(), lattices.len());
+        assert_eq!(report.primary_rays, local.primary_rays, "piece {k}");
+        assert!(report.primary_rays > 0, "piece {k} traced nothing");
+        assert!(lattice_bits(&there) == lattice_bits(&here), "piece {k}: the workers' samples differ");
+        assert!(master.traffic().pixels > 0);
+    }
+    master.shutdown()?;
+    for h in handles {
+        h.join().expect("a worker thread")?;
+    }
+    Ok(())
+}
+
+#[test]
+fn lattice_samples_decode_to_themselves_and_damaged_ones_are_errors() {
+    use rtsl_runtime::render::progressive::{pass_lattices, trace_lattices, LatticeSamples};
+    let rt = office().expect("the office");
+    let world = { rt }.build_world().expect("a world");
+    let lattices = pass_lattices(world.options.width, world.options.height, 1);
+    let wanted = |x: u32, _: u32| x % 2 == 0;
+    let (traced, _) = trace_lattices(&world, &lattices[..4], 0, false, &wanted);
+    for r in &traced {
+        let mut bytes = Vec::new();
+        r.encode(&mut bytes);
+        let back = LatticeSamples::decode(r.lattice, r.active, &bytes).expect("decodes");
+        assert!(lattice_bits(&[back]) == lattice_bits(std::slice::from_ref(r)));
+        for end in 0..bytes.len() {
+            assert!(LatticeSamples::decode(r.lattice, r.active, &bytes[..end]).is_err(), "cut at {end}");
+        }
+        // Lanes that were not asked for, or another lattice's samples, are refused.
+        assert!(LatticeSamples::decode(r.lattice, r.active >> 1, &bytes).is_err() || r.active == 0);
+        let mut other = r.lattice;
+        other.x0 += 8;
+        assert!(LatticeSamples::decode(other, r.active, &bytes).is_err());
+    }
+}

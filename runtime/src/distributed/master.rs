@@ -1,11 +1,12 @@
 //! The master: the rank that owns the scene and the output. It greets its workers, hands each
 //! frame's tiles out on demand ([`Schedule`]), and assembles the image from the tiles they send.
 
-use super::message::{build_fingerprint, greeting_version, FrameCounts, Message, PROTOCOL_VERSION};
+use super::message::{build_fingerprint, greeting_version, FrameCounts, Job, LatticeUnit, Message, PROTOCOL_VERSION};
 use super::schedule::Schedule;
 use super::transport::Transport;
 use super::DistributedError;
 use crate::api::{encode_mesh, Context, Replicator};
+use crate::render::progressive::{lattice_lanes, BatchReport, LatticeSamples, PixelLattice};
 use crate::render::{FrameReport, Framebuffer, RenderedTile, TileRenderer, World};
 use std::collections::HashMap;
 use std::sync::Arc;
@@ -16,6 +17,24 @@ use std::time::Instant;
 /// than a round trip through the master) has its window doubled, up to the most.
 const TILES_IN_FLIGHT_PER_THREAD: usize = 16;
 const MOST_TILES_IN_FLIGHT_PER_THREAD: usize = 256;
+
+/// The side of the square regions of the image whose lattices a worker keeps from one piece of
+/// a viewer's work to the next (see [`Master::trace_lattices`]).
+const REGION_SIDE: u32 = 64;
+
+/// A frame's work as the master hands it out: `units` units of `job`, for lattices each
+/// described by its entry of `lattices`; `owners[u]`, where known, the worker that rendered unit
+/// `u`'s part of the image last.
+struct Work<'a> {
+    job: Job,
+    units: usize,
+    lattices: &'a [LatticeUnit],
+    owners: &'a [Option<usize>],
+}
+
+/// Takes a unit's encoded pixels as they arrive, with the unit's index: an error is the sender's
+/// protocol error.
+type Accept<'a> = dyn FnMut(usize, &[u8]) -> Result<(), String> + 'a;
 
 /// A worker as it introduced itself.
 struct WorkerInfo {
@@ -55,6 +74,8 @@ pub struct Master<T: Transport> {
     frame: u64,
     /// Who rendered each tile of the last frame, so that each worker gets its own tiles again.
     last_owner: Vec<Option<usize>>,
+    /// Who last traced lattices in each [`REGION_SIDE`] square of the image, row by row.
+    region_owner: Vec<Option<usize>>,
     /// Whether the workers still wait for work (not yet told to quit).
     open: bool,
     traffic: Traffic,
@@ -87,6 +108,7 @@ impl<T: Transport> Master<T> {
             workers: Vec::new(),
             frame: 0,
             last_owner: Vec::new(),
+            region_owner: Vec::new(),
             open: true,
             traffic: Traffic::default(),
             replicator: Replicator::demand_loading(),
@@ -197,6 +219,64 @@ impl<T: Transport> Master<T> {
         self.render(world, update, progress, None)
     }
 
+    /// Traces `lattices` of pass `pass` on the workers, as
+    /// [`crate::render::progressive::trace_lattices`] traces them here, after sending them what
+    /// changed in `rt` since they were last sent it (see [`Master::render_context`]): the same
+    /// samples bit for bit, in list order. The lanes where `wanted(x, y)` is false are not
+    /// traced. With no worker, traces here. A viewer calls this for each piece of its work.
+    pub fn trace_lattices(
+        &mut self,
+        rt: &Context,
+        world: &World,
+        lattices: &[PixelLattice],
+        pass: u32,
+        preview: bool,
+        wanted: &(dyn Fn(u32, u32) -> bool + Sync),
+    ) -> Result<(Vec<LatticeSamples>, BatchReport), DistributedError> {
+        if self.workers.is_empty() {
+            return Ok(crate::render::progressive::trace_lattices(world, lattices, pass, preview, wanted));
+        }
+        let start = Instant::now();
+        let update = self.replicator.update(rt, Some(&world.scene))?;
+        let mesh = |id: u32| rt.object_mesh(crate::api::ObjectId(id)).map(|m| encode_mesh(m));
+        let (w, h) = (world.options.width, world.options.height);
+        let units: Vec<LatticeUnit> = lattices
+            .iter()
+            .map(|&lattice| LatticeUnit { lattice, lanes: lattice_lanes(lattice, w, h, wanted) })
+            .collect();
+        // Each worker keeps the regions of the image it traced before: their geometry is in its cache.
+        let region = |l: &PixelLattice| {
+            let cols = w.div_ceil(REGION_SIDE) as usize;
+            (l.y0 / REGION_SIDE) as usize * cols + (l.x0 / REGION_SIDE) as usize
+        };
+        self.region_owner.resize(w.div_ceil(REGION_SIDE) as usize * h.div_ceil(REGION_SIDE) as usize, None);
+        let owners: Vec<Option<usize>> =
+            lattices.iter().map(|l| self.region_owner.get(region(l)).copied().flatten()).collect();
+        let mut samples: Vec<Option<LatticeSamples>> = lattices.iter().map(|_| None).collect();
+        let job = Job::Lattices { pass, preview };
+        let work = Work { job, units: lattices.len(), lattices: &units, owners: &owners };
+        let mut accept = |u: usize, bytes: &[u8]| -> Result<(), String> {
+            samples[u] = Some(LatticeSamples::decode(units[u].lattice, units[u].lanes, bytes)?);
+            Ok(())
+        };
+        let (given, counts) = self.run(world, &update, work, None, Some(&mesh), &mut accept)?;
+        for (l, owner) in lattices.iter().zip(&given) {
+            if let (Some(slot), Some(w)) = (self.region_owner.get_mut(region(l)), owner) {
+                *slot = Some(*w);
+            }
+        }
+        let samples: Vec<LatticeSamples> = samples.into_iter().flatten().collect();
+        if samples.len() != lattices.len() {
+            return Err(DistributedError::Protocol {
+                rank: 0,
+                message: format!("the workers traced {} of {} lattices", samples.len(), lattices.len()),
+            });
+        }
+        let primary_rays = counts.iter().map(|c| c.rays[0]).sum();
+        let total_rays = counts.iter().flat_map(|c| c.rays).sum();
+        Ok((samples, BatchReport { primary_rays, total_rays, elapsed: start.elapsed() }))
+    }
+
     /// [`Master::render_frame`], answering the workers' requests for meshes with `meshes` (the
     /// encoded mesh of an object, `None` for none).
     fn render(
@@ -207,14 +287,65 @@ impl<T: Transport> Master<T> {
         meshes: Option<&dyn Fn(u32) -> Option<Vec<u8>>>,
     ) -> Result<(Framebuffer, FrameReport), DistributedError> {
         let start = Instant::now();
+        let renderer = TileRenderer::new(world);
+        let tiles = renderer.tiles();
+        let mut rendered: Vec<Option<RenderedTile>> = tiles.iter().map(|_| None).collect();
+        let owners = std::mem::take(&mut self.last_owner);
+        let work = Work { job: Job::Tiles, units: tiles.len(), lattices: &[], owners: &owners };
+        let mut accept = |t: usize, bytes: &[u8]| -> Result<(), String> {
+            rendered[t] = Some(RenderedTile::decode(world, tiles[t], bytes)?);
+            Ok(())
+        };
+        let (given, counts) = self.run(world, update, work, progress, meshes, &mut accept)?;
+        let rendered: Vec<RenderedTile> = rendered.into_iter().flatten().collect();
+        if rendered.len() != tiles.len() {
+            return Err(DistributedError::Protocol {
+                rank: 0,
+                message: format!(
+                    "the workers finished frame {} with {} of {} tiles",
+                    self.frame,
+                    rendered.len(),
+                    tiles.len()
+                ),
+            });
+        }
+        self.last_owner = given;
+        let (fb, mut report) = renderer.finish(rendered, start);
+        for c in &counts {
+            super::add_counts(&mut report, c);
+        }
+        report.threads = self.worker_threads();
+        report.elapsed = start.elapsed();
+        Ok((fb, report))
+    }
+
+    /// Runs a frame of `work` on the workers: sends each the frame's `update` and its first units,
+    /// hands out the rest as units come back (each to `accept`, with its index), answers requests
+    /// for meshes with `meshes`, and gathers the workers' counts. Returns who rendered each unit,
+    /// and the counts.
+    fn run(
+        &mut self,
+        world: &World,
+        update: &[u8],
+        work: Work,
+        progress: Option<&dyn Fn(usize, usize)>,
+        meshes: Option<&dyn Fn(u32) -> Option<Vec<u8>>>,
+        accept: &mut Accept,
+    ) -> Result<(Vec<Option<usize>>, Vec<FrameCounts>), DistributedError> {
         // Each mesh encoded once a frame however many workers ask for it.
         let mut encoded: HashMap<u32, Arc<Vec<u8>>> = HashMap::new();
         self.frame += 1;
         let frame = self.frame;
-        let renderer = TileRenderer::new(world);
-        let tiles = renderer.tiles();
-        let mut schedule = Schedule::new(tiles.len(), self.workers.len(), &self.last_owner);
-        let mut given: Vec<Option<usize>> = vec![None; tiles.len()];
+        let units = work.units;
+        let described = |list: &[u32]| -> Vec<LatticeUnit> {
+            match work.job {
+                Job::Tiles => Vec::new(),
+                Job::Lattices { .. } => list.iter().map(|&u| work.lattices[u as usize]).collect(),
+            }
+        };
+        let mut schedule = Schedule::new(units, self.workers.len(), work.owners);
+        let mut given: Vec<Option<usize>> = vec![None; units];
+        let mut received_unit = vec![false; units];
         let mut told_last = vec![false; self.workers.len()];
         let mut traffic = Traffic::default();
         for (w, info) in self.workers.iter().enumerate() {
@@ -223,12 +354,20 @@ impl<T: Transport> Master<T> {
                 given[t as usize] = Some(w);
             }
             told_last[w] = schedule.left() == 0;
-            let m = Message::Frame { frame, update: update.to_vec(), tiles: first, last: told_last[w] }.encode();
+            let lattices = described(&first);
+            let m = Message::Frame {
+                frame,
+                update: update.to_vec(),
+                job: work.job,
+                units: first,
+                lattices,
+                last: told_last[w],
+            }
+            .encode();
             traffic.updates += update.len() as u64;
             traffic.control += (m.len() - update.len()) as u64;
             self.transport.send(w + 1, &m)?;
         }
-        let mut rendered: Vec<Option<RenderedTile>> = tiles.iter().map(|_| None).collect();
         let (mut received, mut done) = (0, vec![false; self.workers.len()]);
         let mut counts = Vec::new();
         let mut failure = None;
@@ -239,7 +378,7 @@ impl<T: Transport> Master<T> {
                 return Err(protocol_error("a message from no worker".into()));
             };
             match Message::decode(&bytes).map_err(protocol_error)? {
-                Message::Tiles { frame: f, tiles: batch, starved } if f == frame => {
+                Message::Rendered { frame: f, units: batch, starved } if f == frame => {
                     traffic.pixels += bytes.len() as u64;
                     let mut wanted = batch.len();
                     if starved {
@@ -249,20 +388,21 @@ impl<T: Transport> Master<T> {
                         wanted += grown - info.window;
                         info.window = grown;
                     }
-                    for (tile, pixels) in batch {
-                        let t = tile as usize;
-                        if given.get(t) != Some(&Some(w)) || rendered[t].is_some() {
-                            return Err(protocol_error(format!("sent tile {tile}, which it was not given")));
+                    for (unit, pixels) in batch {
+                        let u = unit as usize;
+                        if given.get(u) != Some(&Some(w)) || received_unit[u] {
+                            return Err(protocol_error(format!("sent unit {unit}, which it was not given")));
                         }
-                        rendered[t] = Some(RenderedTile::decode(world, tiles[t], &pixels).map_err(protocol_error)?);
+                        accept(u, &pixels).map_err(protocol_error)?;
+                        received_unit[u] = true;
                         received += 1;
                         if let Some(p) = progress {
-                            p(received, tiles.len());
+                            p(received, units);
                         }
                     }
                     if !told_last[w] {
-                        // As many new tiles as arrived (and more if the window grew), keeping the
-                        // worker's tiles in flight. After a failure nothing more is handed out: the
+                        // As many new units as arrived (and more if the window grew), keeping the
+                        // worker's units in flight. After a failure nothing more is handed out: the
                         // frame ends as soon as every worker has sent what it holds.
                         let next: Vec<u32> = if failure.is_none() {
                             (0..wanted).map_while(|_| schedule.next(w)).collect()
@@ -273,7 +413,8 @@ impl<T: Transport> Master<T> {
                             given[t as usize] = Some(w);
                         }
                         told_last[w] = schedule.left() == 0 || next.len() < wanted;
-                        let m = Message::Assign { frame, tiles: next, last: told_last[w] }.encode();
+                        let lattices = described(&next);
+                        let m = Message::Assign { frame, units: next, lattices, last: told_last[w] }.encode();
                         traffic.control += m.len() as u64;
                         self.transport.send(rank, &m)?;
                     }
@@ -306,14 +447,6 @@ impl<T: Transport> Master<T> {
         if let Some(e) = failure {
             return Err(e);
         }
-        let rendered: Vec<RenderedTile> = rendered.into_iter().flatten().collect();
-        if rendered.len() != tiles.len() {
-            return Err(DistributedError::Protocol {
-                rank: 0,
-                message: format!("the workers finished frame {frame} with {} of {} tiles", rendered.len(), tiles.len()),
-            });
-        }
-        self.last_owner = given;
         self.traffic = traffic;
         self.demand = Demand {
             fetched_objects: counts.iter().map(|c| c.fetched_objects).sum(),
@@ -330,13 +463,7 @@ impl<T: Transport> Master<T> {
                 reason: reason.clone(),
             }
         }));
-        let (fb, mut report) = renderer.finish(rendered, start);
-        for c in &counts {
-            super::add_counts(&mut report, c);
-        }
-        report.threads = self.worker_threads();
-        report.elapsed = start.elapsed();
-        Ok((fb, report))
+        Ok((given, counts))
     }
 
     /// Tells the workers to stop (as dropping the master does).

@@ -3,10 +3,11 @@
 //! checks every length against the bytes at hand, so a damaged message is an error, never a
 //! panic or an allocation larger than the message.
 
+use crate::render::progressive::PixelLattice;
 use rtsl_compiler::interface::ShaderKind;
 
 /// The protocol's version: ranks that speak different versions refuse each other at start-up.
-pub const PROTOCOL_VERSION: u32 = 6;
+pub const PROTOCOL_VERSION: u32 = 7;
 
 /// What the master's counters add up from a worker's share of a frame.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -33,6 +34,26 @@ pub struct FrameCounts {
     pub resident_objects: u64,
 }
 
+/// What a frame's units of work are.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Job {
+    /// The image's tiles ([`crate::render::TileRenderer::tiles`]), each unit a tile's index; a tile
+    /// comes back as [`crate::render::RenderedTile::encode`] writes it.
+    Tiles,
+    /// Lattices of pixels ([`crate::render::progressive`]), as a viewer traces them: pass `pass`'s
+    /// sub-pixel offsets, previews or not. Each unit comes with its lattice and lanes
+    /// ([`LatticeUnit`]) and comes back as [`crate::render::progressive::LatticeSamples::encode`]
+    /// writes it.
+    Lattices { pass: u32, preview: bool },
+}
+
+/// A lattice handed out: the pixels, and the lanes of them to trace.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LatticeUnit {
+    pub lattice: PixelLattice,
+    pub lanes: u64,
+}
+
 /// A message of the protocol.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Message {
@@ -45,17 +66,17 @@ pub enum Message {
         /// Why the worker cannot render, if it cannot.
         failure: Option<String>,
     },
-    /// Master to worker: render frame `frame`, after applying `update` to the scene; these tiles
-    /// first. `last`: no more will come.
-    Frame { frame: u64, update: Vec<u8>, tiles: Vec<u32>, last: bool },
-    /// Master to worker: more tiles of the frame; `last`: no more will come.
-    Assign { frame: u64, tiles: Vec<u32>, last: bool },
-    /// Worker to master: finished tiles, each its index and its pixels
-    /// ([`crate::render::RenderedTile::encode`]): all that were ready when the worker sent, so
-    /// that a master slow to answer gets fewer, larger messages. `starved`: the worker ran out of
-    /// tiles while waiting for more since its last message.
-    Tiles { frame: u64, tiles: Vec<(u32, Vec<u8>)>, starved: bool },
-    /// Worker to master: the worker has sent every tile it was given, or could not render the
+    /// Master to worker: render frame `frame` (its `job`), after applying `update` to the scene;
+    /// these units first (for lattices, each with its [`LatticeUnit`]: `lattices` is as long as
+    /// `units`; for tiles it is empty). `last`: no more will come.
+    Frame { frame: u64, update: Vec<u8>, job: Job, units: Vec<u32>, lattices: Vec<LatticeUnit>, last: bool },
+    /// Master to worker: more units of the frame, as in `Frame`; `last`: no more will come.
+    Assign { frame: u64, units: Vec<u32>, lattices: Vec<LatticeUnit>, last: bool },
+    /// Worker to master: finished units, each its index and its pixels (see [`Job`]): all that were
+    /// ready when the worker sent, so that a master slow to answer gets fewer, larger messages.
+    /// `starved`: the worker ran out of units while waiting for more since its last message.
+    Rendered { frame: u64, units: Vec<(u32, Vec<u8>)>, starved: bool },
+    /// Worker to master: the worker has sent every unit it was given, or could not render the
     /// frame (`failure`).
     FrameDone { frame: u64, counts: FrameCounts, failure: Option<String> },
     /// Master to worker: stop.
@@ -70,7 +91,7 @@ pub enum Message {
 const HELLO: u8 = 1;
 const FRAME: u8 = 2;
 const ASSIGN: u8 = 3;
-const TILES: u8 = 4;
+const RENDERED: u8 = 4;
 const FRAME_DONE: u8 = 5;
 const QUIT: u8 = 6;
 const FETCH: u8 = 7;
@@ -131,25 +152,35 @@ impl Message {
                 w.u32(*threads);
                 w.opt_str(failure.as_deref());
             }
-            Message::Frame { frame, update, tiles, last } => {
+            Message::Frame { frame, update, job, units, lattices, last } => {
                 w.u8(FRAME);
                 w.u64(*frame);
                 w.bytes(update);
-                w.u32s(tiles);
+                match job {
+                    Job::Tiles => w.u8(0),
+                    Job::Lattices { pass, preview } => {
+                        w.u8(1);
+                        w.u32(*pass);
+                        w.u8(u8::from(*preview));
+                    }
+                }
+                w.u32s(units);
+                w.lattices(lattices);
                 w.u8(u8::from(*last));
             }
-            Message::Assign { frame, tiles, last } => {
+            Message::Assign { frame, units, lattices, last } => {
                 w.u8(ASSIGN);
                 w.u64(*frame);
-                w.u32s(tiles);
+                w.u32s(units);
+                w.lattices(lattices);
                 w.u8(u8::from(*last));
             }
-            Message::Tiles { frame, tiles, starved } => {
-                w.u8(TILES);
+            Message::Rendered { frame, units, starved } => {
+                w.u8(RENDERED);
                 w.u64(*frame);
                 w.u8(u8::from(*starved));
-                w.u32(tiles.len() as u32);
-                for (tile, pixels) in tiles {
+                w.u32(units.len() as u32);
+                for (tile, pixels) in units {
                     w.u32(*tile);
                     w.bytes(pixels);
                 }
@@ -212,13 +243,21 @@ impl Message {
         let mut r = Reader { bytes, at: 0 };
         let m = match r.u8()? {
             HELLO => Message::Hello { protocol: r.u32()?, build: r.bytes()?, threads: r.u32()?, failure: r.opt_str()? },
-            FRAME => Message::Frame { frame: r.u64()?, update: r.bytes()?, tiles: r.u32s()?, last: r.bool()? },
-            ASSIGN => Message::Assign { frame: r.u64()?, tiles: r.u32s()?, last: r.bool()? },
-            TILES => {
+            FRAME => {
+                let (frame, update) = (r.u64()?, r.bytes()?);
+                let job = match r.u8()? {
+                    0 => Job::Tiles,
+                    1 => Job::Lattices { pass: r.u32()?, preview: r.bool()? },
+                    v => return Err(format!("{v} is no kind of job")),
+                };
+                Message::Frame { frame, update, job, units: r.u32s()?, lattices: r.lattices()?, last: r.bool()? }
+            }
+            ASSIGN => Message::Assign { frame: r.u64()?, units: r.u32s()?, lattices: r.lattices()?, last: r.bool()? },
+            RENDERED => {
                 let (frame, starved) = (r.u64()?, r.bool()?);
                 let n = r.count(12)?;
-                let tiles = (0..n).map(|_| Ok((r.u32()?, r.bytes()?))).collect::<Result<_, String>>()?;
-                Message::Tiles { frame, tiles, starved }
+                let units = (0..n).map(|_| Ok((r.u32()?, r.bytes()?))).collect::<Result<_, String>>()?;
+                Message::Rendered { frame, units, starved }
             }
             FRAME_DONE => {
                 let frame = r.u64()?;
@@ -311,6 +350,15 @@ impl Writer {
             self.u32(x);
         }
     }
+    fn lattices(&mut self, v: &[LatticeUnit]) {
+        self.u32(v.len() as u32);
+        for u in v {
+            for x in [u.lattice.x0, u.lattice.y0, u.lattice.stride] {
+                self.u32(x);
+            }
+            self.u64(u.lanes);
+        }
+    }
 }
 
 struct Reader<'a> {
@@ -370,6 +418,15 @@ impl Reader<'_> {
         let n = self.count(4)?;
         (0..n).map(|_| self.u32()).collect()
     }
+    fn lattices(&mut self) -> Result<Vec<LatticeUnit>, String> {
+        let n = self.count(20)?;
+        (0..n)
+            .map(|_| {
+                let lattice = PixelLattice { x0: self.u32()?, y0: self.u32()?, stride: self.u32()? };
+                Ok(LatticeUnit { lattice, lanes: self.u64()? })
+            })
+            .collect()
+    }
 }
 
 #[cfg(test)]
@@ -380,9 +437,33 @@ mod tests {
         vec![
             Message::Hello { protocol: PROTOCOL_VERSION, build: vec![1, 2, 3], threads: 4, failure: None },
             Message::Hello { protocol: 7, build: vec![], threads: 1, failure: Some("no such file".into()) },
-            Message::Frame { frame: 3, update: vec![9; 10], tiles: vec![0, 5, 7], last: false },
-            Message::Assign { frame: 3, tiles: vec![], last: true },
-            Message::Tiles { frame: u64::MAX, tiles: vec![(12, vec![0xAB; 100]), (3, vec![])], starved: true },
+            Message::Frame {
+                frame: 3,
+                update: vec![9; 10],
+                job: Job::Tiles,
+                units: vec![0, 5, 7],
+                lattices: vec![],
+                last: false,
+            },
+            Message::Frame {
+                frame: 4,
+                update: vec![],
+                job: Job::Lattices { pass: 9, preview: true },
+                units: vec![1],
+                lattices: vec![LatticeUnit { lattice: PixelLattice { x0: 8, y0: 16, stride: 2 }, lanes: u64::MAX }],
+                last: true,
+            },
+            Message::Assign { frame: 3, units: vec![], lattices: vec![], last: true },
+            Message::Assign {
+                frame: 4,
+                units: vec![2, 3],
+                lattices: vec![
+                    LatticeUnit { lattice: PixelLattice { x0: 0, y0: 0, stride: 1 }, lanes: 5 },
+                    LatticeUnit { lattice: PixelLattice { x0: 3, y0: 1, stride: 4 }, lanes: 1 << 63 },
+                ],
+                last: false,
+            },
+            Message::Rendered { frame: u64::MAX, units: vec![(12, vec![0xAB; 100]), (3, vec![])], starved: true },
             Message::FrameDone {
                 frame: 1,
                 counts: FrameCounts {

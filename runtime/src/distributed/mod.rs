@@ -11,11 +11,14 @@
 //! the next one ([`schedule`]: the tiles it rendered last frame first, so that its caches stay
 //! warm), until the master says no more will come; the worker then reports its counters. The
 //! master assembles the image as a single process does ([`crate::render::TileRenderer::finish`]).
+//! A viewer's pieces of work travel the same way, their units pixel lattices instead of tiles
+//! ([`Job`], [`Master::trace_lattices`]).
 //!
 //! Invariants:
 //! - The image is bit for bit the single-process image of the same world: a tile's pixels depend
-//!   only on the world and the tile (all sampling is hashed from the pixel and the shading
-//!   point), and tiles and filter splats are put together in tile order whoever rendered them.
+//!   only on the world and the tile, a lattice's samples only on the world, the lattice and the
+//!   pass (all sampling is hashed from the pixel and the shading point), and tiles and filter
+//!   splats are put together in tile order whoever rendered them.
 //! - A worker renders no tile of a frame before it has applied that frame's update, and every
 //!   tile message names its frame: no image mixes two frames' states.
 //! - A rank never waits without end on a peer that has stopped: the master's drop tells the
@@ -34,7 +37,7 @@ pub mod transport;
 mod worker;
 
 pub use master::{Demand, Master, Traffic};
-pub use message::{FrameCounts, Message, PROTOCOL_VERSION};
+pub use message::{FrameCounts, Job, LatticeUnit, Message, PROTOCOL_VERSION};
 pub use transport::{LocalTransport, Transport, TransportError};
 pub use worker::{serve, ReplicaScene, WorkerScene, DEFAULT_MESH_CACHE_BYTES};
 

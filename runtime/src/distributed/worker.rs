@@ -1,11 +1,13 @@
-//! A worker: a rank that renders the tiles the master hands it, on the threads of its own pool,
+//! A worker: a rank that renders the tiles (or lattices) the master hands it, on the threads of its own pool,
 //! from its own copy of the scene, brought to each frame's state before any of that frame's tiles.
 
 use super::fetch::{MeshLink, Pending};
-use super::message::{build_fingerprint, Message, PROTOCOL_VERSION};
+use super::message::{build_fingerprint, Job, LatticeUnit, Message, PROTOCOL_VERSION};
 use super::transport::Transport;
 use super::DistributedError;
+use crate::render::progressive::LatticeTracer;
 use crate::render::{TileRenderer, World};
+use crate::tiles::Tile;
 use std::collections::VecDeque;
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::Instant;
@@ -105,7 +107,7 @@ pub fn serve<T: Transport + ?Sized>(
     loop {
         match receive(transport)? {
             Message::Quit => return Ok(()),
-            Message::Frame { frame, update, tiles, last } => {
+            Message::Frame { frame, update, job, units, lattices, last } => {
                 let world = match scene.as_deref_mut() {
                     // On the pool: building BVHs uses the worker's threads, not every core.
                     Some(s) => pool.install(|| s.world(&update)),
@@ -114,7 +116,8 @@ pub fn serve<T: Transport + ?Sized>(
                 let result = match world {
                     Ok(world) => {
                         let link = scene.as_deref().and_then(|s| s.mesh_link());
-                        let rendered = render_share(transport, &world, frame, tiles, last, pool, link.as_deref());
+                        let first = (units, lattices);
+                        let rendered = render_share(transport, &world, frame, job, first, last, pool, link.as_deref());
                         if let Some(s) = scene.as_deref_mut() {
                             s.finished(world);
                         }
@@ -161,36 +164,103 @@ fn out_of_place<T: Transport + ?Sized>(transport: &T) -> DistributedError {
     DistributedError::Protocol { rank: transport.rank(), message: "a message out of place from the master".into() }
 }
 
-/// Renders this worker's share of a frame: the tiles it was given first, then those it gets for
+/// A unit of work as the worker's renderers take it: its index in the frame, and for a lattice,
+/// the lattice.
+#[derive(Clone, Copy)]
+struct QueuedUnit {
+    index: u32,
+    lattice: Option<LatticeUnit>,
+}
+
+/// What renders a frame's units on this worker.
+enum Units<'w> {
+    Tiles { renderer: TileRenderer<'w>, tiles: Vec<Tile> },
+    Lattices(LatticeTracer<'w>),
+}
+
+impl<'w> Units<'w> {
+    fn new(world: &'w World, job: Job) -> Units<'w> {
+        match job {
+            Job::Tiles => {
+                let renderer = TileRenderer::new(world);
+                let tiles = renderer.tiles();
+                Units::Tiles { renderer, tiles }
+            }
+            Job::Lattices { pass, preview } => Units::Lattices(LatticeTracer::new(world, pass, preview)),
+        }
+    }
+
+    /// The units the master handed out, checked against the frame: tiles it has, lattices inside
+    /// its image.
+    fn check(&self, world: &World, units: Vec<u32>, lattices: Vec<LatticeUnit>) -> Result<Vec<QueuedUnit>, String> {
+        match self {
+            Units::Tiles { tiles, .. } => {
+                if let Some(&bad) = units.iter().find(|&&t| t as usize >= tiles.len()) {
+                    return Err(format!("the master handed out tile {bad} of a frame of {} tiles", tiles.len()));
+                }
+                if !lattices.is_empty() {
+                    return Err("the master handed out lattices in a frame of tiles".into());
+                }
+                Ok(units.into_iter().map(|index| QueuedUnit { index, lattice: None }).collect())
+            }
+            Units::Lattices(_) => {
+                if lattices.len() != units.len() {
+                    return Err(format!("the master handed out {} lattices for {} units", lattices.len(), units.len()));
+                }
+                let (w, h) = (world.options.width, world.options.height);
+                if let Some(bad) = lattices.iter().find(|l| !l.lattice.fits(w, h)) {
+                    return Err(format!("the master handed out lattice {:?}, outside the {w}x{h} image", bad.lattice));
+                }
+                Ok(units.into_iter().zip(lattices).map(|(index, l)| QueuedUnit { index, lattice: Some(l) }).collect())
+            }
+        }
+    }
+
+    fn render(&self, unit: QueuedUnit, out: &mut Vec<u8>) {
+        match (self, unit.lattice) {
+            (Units::Tiles { renderer, tiles }, _) => renderer.render_tile(&tiles[unit.index as usize]).encode(out),
+            (Units::Lattices(tracer), Some(l)) => tracer.trace(l.lattice, l.lanes).encode(out),
+            // `check` gives every unit of a lattice job its lattice.
+            (Units::Lattices(_), None) => {}
+        }
+    }
+
+    fn report(&self, start: Instant) -> crate::render::FrameReport {
+        match self {
+            Units::Tiles { renderer, .. } => renderer.report(start),
+            Units::Lattices(tracer) => tracer.frame_report(start),
+        }
+    }
+}
+
+/// Renders this worker's share of a frame: the units it was given first, then those it gets for
 /// each one it sends back, until the master says no more will come; then reports its counts.
 /// Returns whether the master said to stop meanwhile.
 ///
-/// The pool's threads take tiles from a queue and render them for as long as the frame lasts,
+/// The pool's threads take units from a queue and render them for as long as the frame lasts,
 /// each keeping its scratch warm; this thread (the only one that talks to the master) passes
-/// finished tiles on and new tiles in. Handing the pool one tile at a time cost a thread wake-up
+/// finished units on and new units in. Handing the pool one tile at a time cost a thread wake-up
 /// per tile, as much as rendering a tile of a simple scene.
+#[allow(clippy::too_many_arguments)]
 fn render_share<T: Transport + ?Sized>(
     transport: &T,
     world: &World,
     frame: u64,
-    first: Vec<u32>,
+    job: Job,
+    first: (Vec<u32>, Vec<LatticeUnit>),
     mut last: bool,
     pool: &rayon::ThreadPool,
     link: Option<&MeshLink>,
 ) -> Result<bool, DistributedError> {
     let mut pending = Pending::default();
     let start = Instant::now();
-    let renderer = TileRenderer::new(world);
-    let tiles = renderer.tiles();
-    let queue = TileQueue::default();
+    let renderer = Units::new(world, job);
+    let queue = UnitQueue::default();
     let mut outstanding = 0usize;
-    let give = |new: Vec<u32>, outstanding: &mut usize| -> Result<(), DistributedError> {
-        if let Some(&bad) = new.iter().find(|&&t| t as usize >= tiles.len()) {
-            return Err(DistributedError::Protocol {
-                rank: transport.rank(),
-                message: format!("the master handed out tile {bad} of a frame of {} tiles", tiles.len()),
-            });
-        }
+    let give = |units: Vec<u32>, lattices: Vec<LatticeUnit>, outstanding: &mut usize| -> Result<(), DistributedError> {
+        let new = renderer
+            .check(world, units, lattices)
+            .map_err(|message| DistributedError::Protocol { rank: transport.rank(), message })?;
         *outstanding += new.len();
         queue.push(new);
         Ok(())
@@ -200,32 +270,32 @@ fn render_share<T: Transport + ?Sized>(
         // However this thread leaves the scope, the renderers stop: the scope waits for them.
         let _close = CloseOnDrop(&queue);
         for _ in 0..pool.current_num_threads() {
-            let (queue, renderer, tiles, done_tx) = (&queue, &renderer, &tiles, done_tx.clone());
+            let (queue, renderer, done_tx) = (&queue, &renderer, done_tx.clone());
             scope.spawn(move |_| {
-                while let Some(t) = queue.pop() {
+                while let Some(unit) = queue.pop() {
                     let mut pixels = Vec::new();
-                    renderer.render_tile(&tiles[t as usize]).encode(&mut pixels);
-                    if done_tx.send((t, pixels)).is_err() {
+                    renderer.render(unit, &mut pixels);
+                    if done_tx.send((unit.index, pixels)).is_err() {
                         break;
                     }
                 }
             });
         }
-        give(first, &mut outstanding)?;
+        give(first.0, first.1, &mut outstanding)?;
         let mut finished = Vec::new();
         let mut starved = false;
         loop {
             finished.extend(done_rx.try_iter());
             if !finished.is_empty() {
                 outstanding -= finished.len();
-                let tiles = std::mem::take(&mut finished);
+                let units = std::mem::take(&mut finished);
                 let starved = std::mem::take(&mut starved);
-                transport.send(0, &Message::Tiles { frame, tiles, starved }.encode())?;
+                transport.send(0, &Message::Rendered { frame, units, starved }.encode())?;
             }
             while let Some((rank, bytes)) = transport.try_recv()? {
                 match decode_from(transport, rank, &bytes)? {
-                    Message::Assign { frame: f, tiles: new, last: l } if f == frame => {
-                        give(new, &mut outstanding)?;
+                    Message::Assign { frame: f, units, lattices, last: l } if f == frame => {
+                        give(units, lattices, &mut outstanding)?;
                         last |= l;
                     }
                     Message::Meshes { frame: f, meshes } if f == frame => pending.answer(meshes),
@@ -242,9 +312,9 @@ fn render_share<T: Transport + ?Sized>(
             if last && outstanding == 0 {
                 return Ok(false);
             }
-            // Every tile given is finished and sent back, and the master has not yet answered.
+            // Every unit given is finished and sent back, and the master has not yet answered.
             starved |= !last && outstanding == 0;
-            // Wakes at once for a finished tile; the master's messages wait for the next poll.
+            // Wakes at once for a finished unit; the master's messages wait for the next poll.
             if let Ok(done) = done_rx.recv_timeout(POLL) {
                 finished.push(done);
             }
@@ -272,29 +342,29 @@ fn render_share<T: Transport + ?Sized>(
     Ok(false)
 }
 
-/// How long the worker's talking thread waits for a finished tile before it looks for the
+/// How long the worker's talking thread waits for a finished unit before it looks for the
 /// master's messages again.
 const POLL: std::time::Duration = std::time::Duration::from_micros(100);
 
-/// The tiles a worker's renderers take, until it is closed.
+/// The units a worker's renderers take, until it is closed.
 #[derive(Default)]
-struct TileQueue {
-    state: Mutex<(VecDeque<u32>, bool)>,
+struct UnitQueue {
+    state: Mutex<(VecDeque<QueuedUnit>, bool)>,
     ready: Condvar,
 }
 
-impl TileQueue {
-    fn lock(&self) -> std::sync::MutexGuard<'_, (VecDeque<u32>, bool)> {
+impl UnitQueue {
+    fn lock(&self) -> std::sync::MutexGuard<'_, (VecDeque<QueuedUnit>, bool)> {
         self.state.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
     }
 
-    fn push(&self, tiles: Vec<u32>) {
-        self.lock().0.extend(tiles);
+    fn push(&self, units: Vec<QueuedUnit>) {
+        self.lock().0.extend(units);
         self.ready.notify_all();
     }
 
-    /// The next tile, waiting for one; `None` once the queue is closed.
-    fn pop(&self) -> Option<u32> {
+    /// The next unit, waiting for one; `None` once the queue is closed.
+    fn pop(&self) -> Option<QueuedUnit> {
         let mut state = self.lock();
         loop {
             if state.1 {
@@ -316,7 +386,7 @@ impl TileQueue {
     }
 }
 
-struct CloseOnDrop<'a>(&'a TileQueue);
+struct CloseOnDrop<'a>(&'a UnitQueue);
 
 impl Drop for CloseOnDrop<'_> {
     fn drop(&mut self) {

@@ -891,7 +891,7 @@ fn write_tiles(out: BandOut<'_>, tiles: Vec<(Tile, TileSamples)>, exposure: Opti
 }
 
 /// What the frame cost, from its counters.
-fn frame_report(frame: &Frame, start: Instant) -> FrameReport {
+pub(crate) fn frame_report(frame: &Frame, start: Instant) -> FrameReport {
     let world = frame.world;
     let s = &frame.stats;
     let load = |c: &super::stats::Counter| c.load();

@@ -141,16 +141,33 @@ pub struct LatticeSamples {
     pub depth: [f32; PACKET_SIZE],
 }
 
+/// The lanes of `lattice` inside a `width x height` image where `wanted(x, y)`, as a lane mask.
+pub fn lattice_lanes(
+    lattice: PixelLattice,
+    width: u32,
+    height: u32,
+    wanted: &(dyn Fn(u32, u32) -> bool + Sync),
+) -> u64 {
+    (0..PACKET_SIZE).fold(0u64, |mask, lane| {
+        let (x, y) = lattice.pixel(lane);
+        if x < width && y < height && wanted(x, y) {
+            mask | 1 << lane
+        } else {
+            mask
+        }
+    })
+}
+
 /// Traces and shades one lattice: lane `k` through its pixel at the sub-pixel offset `offset(x, y)`
 /// scaled by `block` (a preview sample stands for the `block x block` pixels it starts, and lands
-/// anywhere in them), for the lanes inside the image where `wanted(x, y)`. The only call into the
-/// frame renderer.
+/// anywhere in them), for the lanes of `lanes` inside the image. The only call into the frame
+/// renderer.
 pub fn trace_lattice(
     frame: &Frame,
     lattice: PixelLattice,
     block: u32,
     offset: &(dyn Fn(u32, u32) -> (f32, f32) + Sync),
-    wanted: &(dyn Fn(u32, u32) -> bool + Sync),
+    lanes: u64,
 ) -> LatticeSamples {
     let world = frame.world;
     let (w, h) = (world.options.width, world.options.height);
@@ -168,17 +185,15 @@ pub fn trace_lattice(
         let (jx, jy) = offset(x, y);
         let time = open + (close - open) * (jx + 0.754_877_7 * jy).fract();
         *cam = CameraSample { raster: (x as f32 + jx * scale, y as f32 + jy * scale), lens, time };
-        if x < w && y < h && wanted(x, y) {
+        if x < w && y < h && lanes >> lane & 1 != 0 {
             active |= 1 << lane;
         }
     }
     let primary = primary_rays(frame, &cams, active);
     let packet = &primary.packet;
     // Lanes the camera made no ray for (outside a fisheye's circle) are samples too: empty ones.
-    let empty =
-        Sample { color: glam::Vec3A::ZERO, alpha: 0.0, depth: f32::INFINITY, object_id: u32::MAX, shader_id: u32::MAX };
     let mut out =
-        LatticeSamples { lattice, active, samples: [empty; PACKET_SIZE], depth: [f32::INFINITY; PACKET_SIZE] };
+        LatticeSamples { lattice, active, samples: [EMPTY_SAMPLE; PACKET_SIZE], depth: [f32::INFINITY; PACKET_SIZE] };
     if packet.active == 0 {
         return out;
     }
@@ -192,6 +207,10 @@ pub fn trace_lattice(
     out
 }
 
+/// What a lane the camera made no ray for holds.
+const EMPTY_SAMPLE: Sample =
+    Sample { color: glam::Vec3A::ZERO, alpha: 0.0, depth: f32::INFINITY, object_id: u32::MAX, shader_id: u32::MAX };
+
 /// What a batch of lattices cost.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct BatchReport {
@@ -201,10 +220,45 @@ pub struct BatchReport {
     pub elapsed: std::time::Duration,
 }
 
-/// Traces `lattices` over the threads of the current rayon pool (see [`trace_lattice`]), with the
-/// offsets of pass `pass` under the world's anti-aliasing mode; `preview` spreads each sample over
-/// its lattice's `stride x stride` block (for [`Accumulator::add_lattices`] with `preview`).
-/// Results come back in list order.
+/// Traces lattices of one pass, each on its own (any thread, any order): the frame, the pass's
+/// sub-pixel offsets under the world's anti-aliasing mode, and whether the samples are previews
+/// (each spread over its lattice's `stride x stride` block, for [`Accumulator::add_lattices`]
+/// with `preview`). A distributed worker traces the lattices it is handed with one of these.
+pub struct LatticeTracer<'w> {
+    frame: Frame<'w>,
+    pass: u32,
+    preview: bool,
+}
+
+impl<'w> LatticeTracer<'w> {
+    pub fn new(world: &'w World, pass: u32, preview: bool) -> LatticeTracer<'w> {
+        LatticeTracer { frame: Frame::new(world), pass, preview }
+    }
+
+    /// Traces the lanes `lanes` of `lattice` (see [`trace_lattice`]).
+    pub fn trace(&self, lattice: PixelLattice, lanes: u64) -> LatticeSamples {
+        let (aa, pass) = (self.frame.world.options.antialiasing, self.pass);
+        let offset = move |x: u32, y: u32| pass_offset(aa, x, y, pass);
+        trace_lattice(&self.frame, lattice, if self.preview { lattice.stride } else { 1 }, &offset, lanes)
+    }
+
+    /// What the lattices traced so far cost since `start`.
+    pub fn report(&self, start: std::time::Instant) -> BatchReport {
+        let s = &self.frame.stats;
+        let load = |c: &super::stats::Counter| c.load();
+        let primary_rays = load(&s.primary_rays);
+        let total_rays = primary_rays + load(&s.shadow_rays) + load(&s.secondary_rays) + load(&s.transparency_rays);
+        BatchReport { primary_rays, total_rays, elapsed: start.elapsed() }
+    }
+
+    /// The same, in full (rays by kind, shading time by shader), as a frame reports it.
+    pub fn frame_report(&self, start: std::time::Instant) -> super::FrameReport {
+        super::frame::frame_report(&self.frame, start)
+    }
+}
+
+/// Traces `lattices` over the threads of the current rayon pool (see [`LatticeTracer`]), with the
+/// offsets of pass `pass`, the lanes where `wanted(x, y)`. Results come back in list order.
 pub fn trace_lattices(
     world: &World,
     lattices: &[PixelLattice],
@@ -213,18 +267,93 @@ pub fn trace_lattices(
     wanted: &(dyn Fn(u32, u32) -> bool + Sync),
 ) -> (Vec<LatticeSamples>, BatchReport) {
     let start = std::time::Instant::now();
-    let frame = Frame::new(world);
-    let aa = world.options.antialiasing;
-    let offset = move |x: u32, y: u32| pass_offset(aa, x, y, pass);
-    let out: Vec<LatticeSamples> = lattices
-        .par_iter()
-        .map(|l| trace_lattice(&frame, *l, if preview { l.stride } else { 1 }, &offset, wanted))
-        .collect();
-    let s = &frame.stats;
-    let load = |c: &super::stats::Counter| c.load();
-    let primary_rays = load(&s.primary_rays);
-    let total_rays = primary_rays + load(&s.shadow_rays) + load(&s.secondary_rays) + load(&s.transparency_rays);
-    (out, BatchReport { primary_rays, total_rays, elapsed: start.elapsed() })
+    let tracer = LatticeTracer::new(world, pass, preview);
+    let (w, h) = (world.options.width, world.options.height);
+    let out: Vec<LatticeSamples> =
+        lattices.par_iter().map(|l| tracer.trace(*l, lattice_lanes(*l, w, h, wanted))).collect();
+    (out, tracer.report(start))
+}
+
+impl PixelLattice {
+    /// Whether the lattice starts inside a `width x height` image and its pixels' coordinates fit
+    /// (what a lattice from elsewhere, such as another rank, is checked for).
+    pub fn fits(&self, width: u32, height: u32) -> bool {
+        self.x0 < width
+            && self.y0 < height
+            && self.stride >= 1
+            && self.stride.checked_mul(LATTICE_SIDE).and_then(|span| span.checked_add(self.x0.max(self.y0))).is_some()
+    }
+}
+
+/// Bytes of one traced lane in [`LatticeSamples::encode`]: colour, alpha, depth, object and
+/// shader ids, camera depth.
+const LANE_BYTES: usize = 32;
+
+impl LatticeSamples {
+    /// The samples as bytes, for another rank: the lattice, the lane mask, then the traced lanes'
+    /// samples (little-endian).
+    pub fn encode(&self, out: &mut Vec<u8>) {
+        for v in [self.lattice.x0, self.lattice.y0, self.lattice.stride] {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+        out.extend_from_slice(&self.active.to_le_bytes());
+        for lane in (0..PACKET_SIZE).filter(|l| self.active >> l & 1 != 0) {
+            let s = &self.samples[lane];
+            for v in [s.color.x, s.color.y, s.color.z, s.alpha, s.depth] {
+                out.extend_from_slice(&v.to_le_bytes());
+            }
+            out.extend_from_slice(&s.object_id.to_le_bytes());
+            out.extend_from_slice(&s.shader_id.to_le_bytes());
+            out.extend_from_slice(&self.depth[lane].to_le_bytes());
+        }
+    }
+
+    /// Reads what [`LatticeSamples::encode`] wrote, checking that it is the samples of `lattice`
+    /// and no lane outside `lanes` (the lanes asked for).
+    pub fn decode(lattice: PixelLattice, lanes: u64, bytes: &[u8]) -> Result<LatticeSamples, String> {
+        let word = |at: usize| -> [u8; 4] {
+            let mut b = [0; 4];
+            b.copy_from_slice(&bytes[at..at + 4]);
+            b
+        };
+        if bytes.len() < 20 {
+            return Err("a lattice's samples are cut short".into());
+        }
+        let header = [0, 4, 8].map(|at| u32::from_le_bytes(word(at)));
+        if header != [lattice.x0, lattice.y0, lattice.stride] {
+            return Err(format!("samples of lattice {header:?} where lattice {lattice:?} was asked for"));
+        }
+        let mut mask = [0; 8];
+        mask.copy_from_slice(&bytes[12..20]);
+        let active = u64::from_le_bytes(mask);
+        if active & !lanes != 0 {
+            return Err(format!("samples of lanes {:#x} of a lattice whose lanes {lanes:#x} were asked for", active));
+        }
+        if bytes.len() != 20 + LANE_BYTES * active.count_ones() as usize {
+            return Err("a lattice's samples do not match its lane mask".into());
+        }
+        let mut out = LatticeSamples {
+            lattice,
+            active,
+            samples: [EMPTY_SAMPLE; PACKET_SIZE],
+            depth: [f32::INFINITY; PACKET_SIZE],
+        };
+        let mut at = 20;
+        for lane in (0..PACKET_SIZE).filter(|l| active >> l & 1 != 0) {
+            let f = |k: usize| f32::from_le_bytes(word(at + 4 * k));
+            let u = |k: usize| u32::from_le_bytes(word(at + 4 * k));
+            out.samples[lane] = Sample {
+                color: glam::Vec3A::new(f(0), f(1), f(2)),
+                alpha: f(3),
+                depth: f(4),
+                object_id: u(5),
+                shader_id: u(6),
+            };
+            out.depth[lane] = f(7);
+            at += LANE_BYTES;
+        }
+        Ok(out)
+    }
 }
 
 /// A running mean per pixel, with what the pixel shader needs (depth, object and shader ids of

@@ -13,10 +13,12 @@ mod script;
 mod window;
 
 use anyhow::Context as _;
+use rtsl_runtime::distributed::{Master, Transport};
 use rtsl_runtime::render::Antialiasing;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::{mpsc, Arc, Mutex};
+use std::thread::JoinHandle;
 
 const AFTER_HELP: &str = "\
 Mouse: left drag orbits about the pivot (a point ahead on the view axis); right drag looks around;
@@ -69,9 +71,112 @@ pub struct ViewArgs {
     /// Directories searched for shaders by name, before the standard library.
     #[arg(short = 'S', long = "shader-path")]
     pub shader_path: Vec<PathBuf>,
+    /// Render over the ranks of an `mpirun` job: rank 0 opens the window and runs the viewer, the
+    /// others trace its pixels (docs/distributed.md; needs a build with `--features mpi`).
+    #[arg(long)]
+    pub mpi: bool,
+    #[command(flatten)]
+    pub workers: super::mpi::WorkerArgs,
+}
+
+/// What the render thread ends with: the session's frame rates, or nothing when it ended before
+/// it rendered (an MPI worker rank, or a viewer whose window did not open).
+type RenderOutcome = anyhow::Result<Option<renderer::Summary>>;
+
+/// The render loop, handed to the render thread once the window's side is set up, with the
+/// master of the MPI workers under `--mpi`.
+type RenderJob = Box<dyn FnOnce(Option<Master<Box<dyn Transport>>>) -> renderer::Summary + Send>;
+
+/// Starts the render thread. Under `--mpi` it starts MPI, and so is the only thread that may call
+/// it (MPI_THREAD_FUNNELED): the window's thread never does. Returns the thread and, unless this
+/// is a worker rank (whose thread serves the master until told to stop), where to send it the
+/// render loop.
+fn start_render_thread(
+    args: &ViewArgs,
+) -> anyhow::Result<(JoinHandle<RenderOutcome>, Option<mpsc::Sender<RenderJob>>)> {
+    let (role_tx, role_rx) = mpsc::channel::<anyhow::Result<bool>>();
+    let (jobs, job_rx) = mpsc::channel::<RenderJob>();
+    let (mpi, workers, threads) = (args.mpi, args.workers.clone(), args.threads);
+    let thread = std::thread::Builder::new()
+        .name("rtsl-view-render".into())
+        .spawn(move || -> RenderOutcome {
+            let master = if mpi {
+                let transport = match super::mpi::transport() {
+                    Ok(t) => t,
+                    Err(e) => {
+                        let _ = role_tx.send(Err(e));
+                        return Ok(None);
+                    }
+                };
+                if transport.rank() != 0 {
+                    let _ = role_tx.send(Ok(false));
+                    let (_, pool) = super::worker_pool(threads)?;
+                    super::mpi::work(&*transport, &pool, &workers)?;
+                    return Ok(None);
+                }
+                let master = Master::connect(transport).map_err(anyhow::Error::from).and_then(|m| {
+                    m.check_workers()?;
+                    Ok(m)
+                });
+                match master {
+                    Ok(m) if m.workers() == 0 => {
+                        eprintln!("warning: --mpi with no worker rank (run it with mpirun -n 2 or more): rendering on rank 0 alone");
+                        Some(m)
+                    }
+                    Ok(m) => Some(m),
+                    Err(e) => {
+                        let _ = role_tx.send(Err(e));
+                        return Ok(None);
+                    }
+                }
+            } else {
+                None
+            };
+            let _ = role_tx.send(Ok(true));
+            // No render loop comes when the window could not open; dropping the master then tells
+            // the workers to stop.
+            Ok(job_rx.recv().ok().map(|job| job(master)))
+        })
+        .context("starting the render thread")?;
+    match role_rx.recv() {
+        Ok(Ok(true)) => Ok((thread, Some(jobs))),
+        Ok(Ok(false)) => Ok((thread, None)),
+        Ok(Err(e)) => {
+            let _ = thread.join();
+            Err(e)
+        }
+        Err(_) => Err(finish(thread).err().unwrap_or_else(|| anyhow::anyhow!("the render thread ended at start-up"))),
+    }
+}
+
+/// Waits for the render thread.
+fn finish(thread: JoinHandle<RenderOutcome>) -> RenderOutcome {
+    thread.join().map_err(|_| anyhow::anyhow!("the render thread panicked"))?
 }
 
 pub fn run(args: &ViewArgs) -> anyhow::Result<ExitCode> {
+    let (thread, jobs) = start_render_thread(args)?;
+    let Some(jobs) = jobs else {
+        // A worker rank: it serves rank 0's viewer and opens no window.
+        finish(thread)?;
+        return Ok(ExitCode::SUCCESS);
+    };
+    // The render thread ends once the window closes, or at once if it never opened.
+    let shown = show(args, jobs);
+    let summary = finish(thread);
+    let (w, h, screenshot) = shown?;
+    if let Some(summary) = summary? {
+        println!("{w}x{h}, {} thread(s): {summary}", summary.threads);
+    }
+    if let Some(path) = screenshot {
+        println!("screenshot: {}", path.display());
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Opens the window and runs the viewer until it closes, its render loop sent to the render
+/// thread through `jobs`. Returns the window's size and the screenshot written, if any.
+fn show(args: &ViewArgs, jobs: mpsc::Sender<RenderJob>) -> anyhow::Result<(u32, u32, Option<PathBuf>)> {
     let script = match &args.events {
         Some(s) => script::parse(s).map_err(|e| anyhow::anyhow!("--events: {e}"))?,
         None => Vec::new(),
@@ -105,20 +210,19 @@ pub fn run(args: &ViewArgs) -> anyhow::Result<ExitCode> {
     let (tx, rx) = mpsc::channel();
     let latest = Arc::new(Mutex::new(None));
     let slot = latest.clone();
-    let render_thread = std::thread::Builder::new()
-        .name("rtsl-view-render".into())
-        .spawn(move || {
-            renderer.run(
-                rx,
-                slot,
-                move || {
-                    // The window may be gone already at exit; nothing to tell then.
-                    let _ = proxy.send_event(window::FrameReady);
-                },
-                &pool,
-            )
-        })
-        .context("starting the render thread")?;
+    let job: RenderJob = Box::new(move |workers| {
+        renderer.run(
+            rx,
+            slot,
+            move || {
+                // The window may be gone already at exit; nothing to tell then.
+                let _ = proxy.send_event(window::FrameReady);
+            },
+            &pool,
+            workers,
+        )
+    });
+    jobs.send(job).map_err(|_| anyhow::anyhow!("the render thread ended before the window opened"))?;
 
     let title = format!(
         "rtsl view {}",
@@ -142,14 +246,9 @@ pub fn run(args: &ViewArgs) -> anyhow::Result<ExitCode> {
     let wrote = app.screenshot_written;
     // Dropping the app closes the command channel, which ends the render thread.
     drop(app);
-    let summary = render_thread.join().map_err(|_| anyhow::anyhow!("the render thread panicked"))?;
     looped.context("running the window's event loop")?;
     if let Some(e) = error {
         return Err(e);
     }
-    println!("{w}x{h}, {threads} thread(s): {summary}");
-    if let (Some(path), true) = (&args.screenshot, wrote) {
-        println!("screenshot: {}", path.display());
-    }
-    Ok(ExitCode::SUCCESS)
+    Ok((w, h, args.screenshot.clone().filter(|_| wrote)))
 }

@@ -14,9 +14,10 @@
 use super::navigation::Navigation;
 use glam::{Affine3A, Vec3, Vec3A};
 use rtsl_runtime::api::{Context, InstanceId};
+use rtsl_runtime::distributed::{Master, Transport};
 use rtsl_runtime::reload::{ShaderEvent, ShaderReloader};
 use rtsl_runtime::render::progressive::{
-    frameless_order, pass_lattices, trace_lattices, Accumulator, BatchReport, PixelLattice,
+    frameless_order, pass_lattices, trace_lattices, Accumulator, BatchReport, LatticeSamples, PixelLattice,
 };
 use rtsl_runtime::render::{camera_ray, Antialiasing, World};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, TryRecvError};
@@ -106,6 +107,8 @@ pub struct Summary {
     pub full_passes: u64,
     pub rays: u64,
     pub render_time: Duration,
+    /// The threads that rendered: this process's, or all the MPI workers'.
+    pub threads: usize,
 }
 
 impl std::fmt::Display for Summary {
@@ -159,6 +162,44 @@ pub struct Renderer {
     last_publish: Instant,
     summary: Summary,
     threads: usize,
+}
+
+/// With `--mpi`, the master of the worker ranks that trace the lattices. It stays on the render
+/// thread, the one thread that calls MPI.
+type Workers = Option<Master<Box<dyn Transport>>>;
+
+/// The render thread's world: taken out only while it is rebuilt, in `Renderer::rebuild`.
+fn held(world: &Option<World>) -> &World {
+    world.as_ref().expect("the render thread always holds a world between rebuilds")
+}
+
+/// Traces `lattices` (see [`trace_lattices`]) on `master`'s workers where there are any, else
+/// here on `pool`. A distributed failure (a worker that cannot render) is reported once, in
+/// `diagnostics` and on stderr, and the viewer goes on rendering here.
+#[allow(clippy::too_many_arguments)]
+fn trace(
+    master: &mut Workers,
+    pool: &rayon::ThreadPool,
+    rt: &Context,
+    world: &World,
+    diagnostics: &mut Vec<String>,
+    lattices: &[PixelLattice],
+    pass: u32,
+    preview: bool,
+    wanted: &(dyn Fn(u32, u32) -> bool + Sync),
+) -> (Vec<LatticeSamples>, BatchReport) {
+    if let Some(m) = master.as_mut() {
+        match m.trace_lattices(rt, world, lattices, pass, preview, wanted) {
+            Ok(traced) => return traced,
+            Err(e) => {
+                let message = format!("distributed rendering stopped ({e}); rendering on rank 0");
+                eprintln!("error: {message}");
+                diagnostics.push(message);
+                *master = None;
+            }
+        }
+    }
+    pool.install(|| trace_lattices(world, lattices, pass, preview, wanted))
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -258,8 +299,7 @@ impl Renderer {
     }
 
     fn world(&self) -> &World {
-        // The world is only taken out while it is rebuilt, in `rebuild`.
-        self.world.as_ref().expect("the render thread always holds a world between rebuilds")
+        held(&self.world)
     }
 
     /// The camera ray through a window pixel, and what it hits: (world instance index, camera depth).
@@ -414,12 +454,12 @@ impl Renderer {
 
     /// Does one piece of work (at most about a frame budget); returns whether to publish, and
     /// whether the view was moving.
-    fn step(&mut self) -> Option<bool> {
+    fn step(&mut self, pool: &rayon::ThreadPool, workers: &mut Workers) -> Option<bool> {
         let (w, h) = self.size();
         let moving = self.changed_at.elapsed() < SETTLE;
         if self.frameless {
             // A completed sweep since the last change is a still image, however soon it came.
-            return self.step_frameless().then_some(moving && self.still_sweeps == 0);
+            return self.step_frameless(pool, workers).then_some(moving && self.still_sweeps == 0);
         }
         if moving {
             // The smallest stride whose pass fits the budget.
@@ -427,7 +467,9 @@ impl Renderer {
             let fit = self.rays_in(MOVING_BUDGET);
             let stride = [1u32, 2, 4, 8].into_iter().find(|s| pixels / (s * s) as usize <= fit).unwrap_or(8);
             let lattices = pass_lattices(w, h, stride);
-            let (results, report) = trace_lattices(self.world(), &lattices, 0, stride > 1, &|_, _| true);
+            let world = held(&self.world);
+            let (results, report) =
+                trace(workers, pool, &self.rt, world, &mut self.diagnostics, &lattices, 0, stride > 1, &|_, _| true);
             self.account(&report);
             // Previews replace, even at stride 1: counted as samples, the same pass-0 sample would
             // pile up once per preview frame and outweigh the still passes that follow.
@@ -456,7 +498,9 @@ impl Renderer {
         let lattices = &self.full_lattices[self.pass_cursor..end];
         let refine = self.refine.as_deref();
         let wanted = |x: u32, y: u32| refine.is_none_or(|r| r[(y * w + x) as usize]);
-        let (results, report) = trace_lattices(self.world(), lattices, self.pass, false, &wanted);
+        let world = held(&self.world);
+        let (results, report) =
+            trace(workers, pool, &self.rt, world, &mut self.diagnostics, lattices, self.pass, false, &wanted);
         self.account(&report);
         self.acc.add_lattices(&results, false);
         self.pass_cursor = end;
@@ -470,15 +514,17 @@ impl Renderer {
         (self.last_publish.elapsed() > Duration::from_millis(250)).then_some(false)
     }
 
-    fn step_frameless(&mut self) -> bool {
+    fn step_frameless(&mut self, pool: &rayon::ThreadPool, workers: &mut Workers) -> bool {
         if self.still_sweeps >= self.still_limit {
             return false;
         }
         // Half a refresh interval of work per step, so input is applied at least that often.
         let chunk = (self.rays_in(FRAMELESS_REFRESH / 2) / 64).max(self.threads * 2).max(1);
         let end = (self.order_cursor + chunk).min(self.order.len());
+        let world = held(&self.world);
+        let lattices = &self.order[self.order_cursor..end];
         let (results, report) =
-            trace_lattices(self.world(), &self.order[self.order_cursor..end], self.sweeps, false, &|_, _| true);
+            trace(workers, pool, &self.rt, world, &mut self.diagnostics, lattices, self.sweeps, false, &|_, _| true);
         self.account(&report);
         self.acc.add_lattices(&results, false);
         self.order_cursor = end;
@@ -550,15 +596,23 @@ impl Renderer {
         }
     }
 
-    /// Runs until the command channel closes: applies input, renders, publishes into `slot` and
-    /// calls `notify` after each image.
+    fn summary(&self) -> Summary {
+        Summary { threads: self.threads, ..self.summary }
+    }
+
+    /// Runs until the command channel closes: applies input, renders (on `workers` where there
+    /// are any, else on `pool`), publishes into `slot` and calls `notify` after each image.
     pub fn run(
         mut self,
         commands: Receiver<(u64, Command)>,
         slot: Arc<Mutex<Option<Published>>>,
         notify: impl Fn(),
         pool: &rayon::ThreadPool,
+        mut workers: Workers,
     ) -> Summary {
+        if let Some(m) = workers.as_ref().filter(|m| m.workers() > 0) {
+            self.threads = m.worker_threads();
+        }
         // The first image straight away, as a preview.
         self.changed_at = Instant::now();
         loop {
@@ -569,7 +623,7 @@ impl Renderer {
                 match commands.recv_timeout(Duration::from_millis(100)) {
                     Ok(c) => Some(c),
                     Err(RecvTimeoutError::Timeout) => None,
-                    Err(RecvTimeoutError::Disconnected) => return self.summary,
+                    Err(RecvTimeoutError::Disconnected) => return self.summary(),
                 }
             } else {
                 None
@@ -585,7 +639,7 @@ impl Renderer {
                         self.apply(c);
                     }
                     Err(TryRecvError::Empty) => break,
-                    Err(TryRecvError::Disconnected) => return self.summary,
+                    Err(TryRecvError::Disconnected) => return self.summary(),
                 }
             }
             self.reload();
@@ -596,7 +650,7 @@ impl Renderer {
                     self.scene_dirty = false;
                 }
             }
-            if let Some(moving) = pool.install(|| self.step()) {
+            if let Some(moving) = self.step(pool, &mut workers) {
                 let image = self.publish(moving);
                 if let Ok(mut s) = slot.lock() {
                     *s = Some(image);
