@@ -293,7 +293,46 @@ pub const MAX_EXR_VALUES: usize = 1 << 28;
 
 /// Reads the first layer of an EXR file, every channel converted to `f32`.
 pub fn read_exr(path: &Path) -> Result<ExrLayer, ImageError> {
-    check_exr_size(path)?;
+    read_exr_from(path, || std::fs::File::open(path).map(std::io::BufReader::new))
+}
+
+/// Reads the first layer of an EXR file's bytes held in memory, as [`read_exr`] reads the file;
+/// `name` is what errors call it.
+pub fn read_exr_bytes(name: &Path, bytes: &[u8]) -> Result<ExrLayer, ImageError> {
+    read_exr_from(name, || Ok(std::io::Cursor::new(bytes)))
+}
+
+/// Whether bytes held in memory are an OpenEXR file (its magic number).
+pub fn is_exr_bytes(bytes: &[u8]) -> bool {
+    bytes.starts_with(&[0x76, 0x2f, 0x31, 0x01])
+}
+
+/// [`read_exr`] over whatever `open` reads (opened twice: the header is checked first).
+fn read_exr_from<R: std::io::Read + std::io::Seek + Send>(
+    path: &Path,
+    open: impl Fn() -> std::io::Result<R> + std::panic::RefUnwindSafe,
+) -> Result<ExrLayer, ImageError> {
+    let failed = |e: exr::error::Error| match e {
+        exr::error::Error::Io(source) => ImageError::Io { path: path.into(), source },
+        e => ImageError::Decode { path: path.into(), message: e.to_string() },
+    };
+    let panicked = || ImageError::Decode { path: path.into(), message: "the decoder panicked".into() };
+    let meta = std::panic::catch_unwind(|| exr::meta::MetaData::read_from_buffered(open()?, false))
+        .map_err(|_| panicked())?
+        .map_err(failed)?;
+    for header in meta.headers.iter() {
+        let values = header
+            .layer_size
+            .0
+            .checked_mul(header.layer_size.1)
+            .and_then(|p| p.checked_mul(header.channels.list.len()));
+        if values.is_none_or(|v| v > MAX_EXR_VALUES) {
+            let (w, h) = (header.layer_size.0, header.layer_size.1);
+            let message =
+                format!("{w}x{h} pixels with {} channels is larger than rtsl reads", header.channels.list.len());
+            return Err(ImageError::Decode { path: path.into(), message });
+        }
+    }
     let read = || {
         exrp::read()
             .no_deep_data()
@@ -301,14 +340,9 @@ pub fn read_exr(path: &Path) -> Result<ExrLayer, ImageError> {
             .all_channels()
             .first_valid_layer()
             .all_attributes()
-            .from_file(path)
+            .from_buffered(open()?)
     };
-    let image = match std::panic::catch_unwind(read) {
-        Ok(Ok(image)) => image,
-        Ok(Err(exr::error::Error::Io(source))) => return Err(ImageError::Io { path: path.into(), source }),
-        Ok(Err(e)) => return Err(ImageError::Decode { path: path.into(), message: e.to_string() }),
-        Err(_) => return Err(ImageError::Decode { path: path.into(), message: "the decoder panicked".into() }),
-    };
+    let image = std::panic::catch_unwind(read).map_err(|_| panicked())?.map_err(failed)?;
     let layer = image.layer_data;
     let channels = layer
         .channel_data
@@ -325,29 +359,6 @@ pub fn read_exr(path: &Path) -> Result<ExrLayer, ImageError> {
         world_to_ndc: attrs.world_to_normalized_device,
         wrap_modes: attrs.wrap_mode_name.as_ref().map(|t| t.to_string()),
     })
-}
-
-fn check_exr_size(path: &Path) -> Result<(), ImageError> {
-    let meta = match std::panic::catch_unwind(|| exr::meta::MetaData::read_from_file(path, false)) {
-        Ok(Ok(meta)) => meta,
-        Ok(Err(exr::error::Error::Io(source))) => return Err(ImageError::Io { path: path.into(), source }),
-        Ok(Err(e)) => return Err(ImageError::Decode { path: path.into(), message: e.to_string() }),
-        Err(_) => return Err(ImageError::Decode { path: path.into(), message: "the decoder panicked".into() }),
-    };
-    for header in meta.headers.iter() {
-        let values = header
-            .layer_size
-            .0
-            .checked_mul(header.layer_size.1)
-            .and_then(|p| p.checked_mul(header.channels.list.len()));
-        if values.is_none_or(|v| v > MAX_EXR_VALUES) {
-            let (w, h) = (header.layer_size.0, header.layer_size.1);
-            let message =
-                format!("{w}x{h} pixels with {} channels is larger than rtsl reads", header.channels.list.len());
-            return Err(ImageError::Decode { path: path.into(), message });
-        }
-    }
-    Ok(())
 }
 
 /// Writes one EXR layer (ZIP-compressed, lossless), 32-bit floats or halves.

@@ -232,7 +232,8 @@ fn cycles_are_found() {
         graph.entry(b).or_default();
     }
     assert_eq!(cycles(&graph), vec![vec!["a".to_string(), "b".to_string(), "c".to_string()]]);
-    let code = "use super::{fetch::MeshLink, message::Message};\nlet x = crate::api::Context::new(); // crate::nothing";
+    let code =
+        "use super::{fetch::FetchLink, message::Message};\nlet x = crate::api::Context::new(); // crate::nothing";
     let found = paths(&code_only(code));
     assert!(found.contains(&vec!["super".to_string(), "fetch".to_string()]), "{found:?}");
     assert!(found.iter().any(|p| p.join("::") == "crate::api::Context::new"), "{found:?}");

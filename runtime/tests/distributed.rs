@@ -614,3 +614,78 @@ fn lattice_samples_decode_to_themselves_and_damaged_ones_are_errors() {
         assert!(LatticeSamples::decode(other, r.active, &bytes).is_err());
     }
 }
+
+#[test]
+fn workers_fetch_the_textures_shaders_look_up_and_only_those() -> Result<(), DistributedError> {
+    let e = |e: rtsl_runtime::api::ApiError| e.to_string();
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let checks = |size: u32| {
+        image::RgbImage::from_fn(size, size, |x, y| {
+            image::Rgb(if (x + y) % 2 == 0 { [230, 40, 20] } else { [20, 90, 200] })
+        })
+    };
+    checks(4).save(dir.path().join("seen.png")).expect("a PNG");
+    checks(256).save(dir.path().join("unseen.png")).expect("a PNG");
+    let unseen_bytes = std::fs::metadata(dir.path().join("unseen.png")).expect("written").len();
+
+    let mut rt = little_scene().expect("the little scene");
+    rt.add_texture_search_path(dir.path().to_path_buf());
+    let texels: Vec<f32> = (0..8 * 8 * 3).map(|i| ((i * 37) % 11) as f32 / 10.0).collect();
+    rt.tex_image_2d("in-memory", 8, 8, 3, &texels).map_err(e).expect("a memory texture");
+    let textured = |rt: &mut Context, name: &str| {
+        let source = format!("surface t_{n}() {{ Ci = color texture(\"{name}\", s, t); Oi = 1; }}", n = name.len());
+        rt.compile_shader(&format!("t_{}", name.len()), &source).map_err(e).expect("a shader")
+    };
+    let (seen, in_memory, unseen) =
+        (textured(&mut rt, "seen.png"), textured(&mut rt, "in-memory"), textured(&mut rt, "unseen.png"));
+    // The floor reads a file, the triangle a texture from memory; an object behind the camera
+    // reads another file, which no ray ever asks for.
+    for (object, shader) in [(0, seen), (1, in_memory)] {
+        let id = rtsl_runtime::api::ObjectId(object);
+        let corners: &[[f32; 3]] = if object == 0 {
+            &[[-2.0, 0.0, -2.0], [2.0, 0.0, -2.0], [2.0, 0.0, 2.0], [-2.0, 0.0, 2.0]]
+        } else {
+            &[[-0.5, 0.0, 0.0], [0.5, 0.0, 0.0], [0.5, 1.0, 0.0], [-0.5, 1.0, 0.0]]
+        };
+        rt.redefine_object(id).map_err(e).expect("redefined");
+        rt.bind_shader(shader).map_err(e).expect("bound");
+        rt.begin(Primitive::Quads).map_err(e).expect("quads");
+        for (k, p) in corners.iter().enumerate() {
+            rt.tex_coord([0.0, 1.0, 1.0, 0.0][k], [0.0, 0.0, 1.0, 1.0][k]);
+            rt.vertex(p[0], p[1], p[2]).map_err(e).expect("a vertex");
+        }
+        rt.end().map_err(e).expect("end");
+        rt.end_object().map_err(e).expect("end_object");
+    }
+    let hidden = rt.begin_object().map_err(e).expect("an object");
+    rt.bind_shader(unseen).map_err(e).expect("bound");
+    rt.begin(Primitive::Triangles).map_err(e).expect("triangles");
+    for p in [[0.0, 0.0, 9.0], [1.0, 0.0, 9.0], [0.0, 1.0, 9.0]] {
+        rt.vertex(p[0], p[1], p[2]).map_err(e).expect("a vertex");
+    }
+    rt.end().map_err(e).expect("end");
+    rt.end_object().map_err(e).expect("end_object");
+    rt.instantiate_object(hidden).map_err(e).expect("an instance");
+
+    let mut group = LocalTransport::group(3, Duration::from_secs(60)).into_iter();
+    let master_end = group.next().expect("rank 0");
+    let handles: Vec<_> =
+        group.map(|t| std::thread::spawn(move || serve(&t, Ok(&mut ReplicaScene::new()), &pool(1)))).collect();
+    let mut master = Master::connect(master_end)?;
+    let frames = frames_moving_once(&mut master, &mut rt, 1, "a frame of fetched textures")?;
+    master.shutdown()?;
+    for h in handles {
+        h.join().expect("a worker thread")?;
+    }
+    let (first, _) = frames[0];
+    // Two textures, fetched by each of the two workers at most: the memory texture's 192 floats
+    // (the first update said only that memory textures changed) and the small PNG, never the
+    // large one.
+    assert!((2..=4).contains(&first.fetched_textures), "{first:?}");
+    assert!(first.fetched_texture_bytes > 768 && first.fetched_texture_bytes < unseen_bytes, "{first:?}");
+    for (later, traffic) in &frames[1..] {
+        assert_eq!(later.fetched_textures, 0, "{later:?}");
+        assert_eq!(traffic.fetches, 0, "{traffic:?}");
+    }
+    Ok(())
+}

@@ -306,10 +306,9 @@ fn summarize(times: &[FrameTimes], meshes: (usize, usize)) {
     }
     let demands: Vec<_> = times.iter().filter_map(|t| t.demand).collect();
     if let Some(&(first, workers)) = demands.first() {
-        let fetched = (first.fetched_objects, first.fetched_bytes);
-        println!("{}", super::mpi::demand_line("the first frame", fetched, meshes, &first, workers));
+        println!("{}", super::mpi::demand_line("the first frame", (&first).into(), meshes, &first, workers));
         let rest = &demands[1..];
-        let later = rest.iter().fold((0, 0), |(o, b), (d, _)| (o + d.fetched_objects, b + d.fetched_bytes));
+        let later = rest.iter().map(|(d, _)| super::mpi::Fetched::from(d)).fold(Default::default(), |a, b| a + b);
         let (d, workers) = demands.last().copied().unwrap_or((first, workers));
         println!(
             "{}",

@@ -260,10 +260,8 @@ pub fn run_render(args: &BenchRenderArgs) -> anyhow::Result<()> {
         println!("{}", super::mpi::traffic_line(&master.traffic()));
         let (first, d) = (first_demand.unwrap_or_default(), master.demand());
         let meshes = super::mpi::scene_meshes(&world);
-        let fetched = (first.fetched_objects, first.fetched_bytes);
-        println!("{}", super::mpi::demand_line("the first frame", fetched, meshes, &first, master.workers()));
-        let later = (d.fetched_objects, d.fetched_bytes);
-        println!("{}", super::mpi::demand_line("the last frame", later, meshes, &d, master.workers()));
+        println!("{}", super::mpi::demand_line("the first frame", (&first).into(), meshes, &first, master.workers()));
+        println!("{}", super::mpi::demand_line("the last frame", (&d).into(), meshes, &d, master.workers()));
         master.shutdown()?;
         return Ok(());
     }

@@ -44,7 +44,7 @@ pub(crate) fn work(
 pub(crate) fn traffic_line(t: &Traffic) -> String {
     let kb = |b: u64| b as f64 / 1e3;
     format!(
-        "MPI traffic per frame: {:.1} kB: pixels {:.1} kB, updates {:.2} kB, mesh fetches {:.1} kB, tile assignments {:.1} kB, counters {:.2} kB",
+        "MPI traffic per frame: {:.1} kB: pixels {:.1} kB, updates {:.2} kB, fetches (meshes, textures) {:.1} kB, tile assignments {:.1} kB, counters {:.2} kB",
         kb(t.total()),
         kb(t.pixels),
         kb(t.updates),
@@ -65,24 +65,58 @@ pub(crate) fn scene_meshes(world: &World) -> (usize, usize) {
     (scene.object_count(), bytes)
 }
 
-/// "demand loading: ..." of what the workers fetched (`fetched`: objects and bytes, over one or
-/// more frames) against the scene's objects and mesh bytes, and what they hold.
+/// What the workers fetched over one or more frames.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Fetched {
+    objects: u64,
+    object_bytes: u64,
+    textures: u64,
+    texture_bytes: u64,
+}
+
+impl From<&Demand> for Fetched {
+    fn from(d: &Demand) -> Fetched {
+        Fetched {
+            objects: d.fetched_objects,
+            object_bytes: d.fetched_bytes,
+            textures: d.fetched_textures,
+            texture_bytes: d.fetched_texture_bytes,
+        }
+    }
+}
+
+impl std::ops::Add for Fetched {
+    type Output = Fetched;
+    fn add(self, o: Fetched) -> Fetched {
+        Fetched {
+            objects: self.objects + o.objects,
+            object_bytes: self.object_bytes + o.object_bytes,
+            textures: self.textures + o.textures,
+            texture_bytes: self.texture_bytes + o.texture_bytes,
+        }
+    }
+}
+
+/// "demand loading: ..." of what the workers fetched (over one or more frames) against the
+/// scene's objects and mesh bytes, and what they hold (`held`, the last frame's).
 pub(crate) fn demand_line(
     what: &str,
-    fetched: (u64, u64),
+    fetched: Fetched,
     scene: (usize, usize),
-    d: &Demand,
+    held: &Demand,
     workers: usize,
 ) -> String {
     let mb = |b: f64| b / 1e6;
     format!(
-        "demand loading, {what}: {} object(s), {:.2} MB fetched by {workers} worker(s) ({:.2} MB per worker) of the scene's {} object(s) and {:.2} MB of meshes; held now: at most {} object(s) per worker ({} evicted before the last frame)",
-        fetched.0,
-        mb(fetched.1 as f64),
-        mb(fetched.1 as f64 / workers.max(1) as f64),
+        "demand loading, {what}: {} object(s), {:.2} MB fetched by {workers} worker(s) ({:.2} MB per worker) of the scene's {} object(s) and {:.2} MB of meshes; {} texture(s), {:.2} MB; held now: at most {} object(s) per worker ({} evicted before the last frame)",
+        fetched.objects,
+        mb(fetched.object_bytes as f64),
+        mb(fetched.object_bytes as f64 / workers.max(1) as f64),
         scene.0,
         mb(scene.1 as f64),
-        d.most_resident_objects,
-        d.evicted_objects
+        fetched.textures,
+        mb(fetched.texture_bytes as f64),
+        held.most_resident_objects,
+        held.evicted_objects
     )
 }

@@ -345,16 +345,7 @@ fn run_mpi(args: &RenderArgs) -> anyhow::Result<ExitCode> {
         if master.workers() > 0 {
             println!("{}", super::mpi::traffic_line(&master.traffic()));
             let d = master.demand();
-            println!(
-                "{}",
-                super::mpi::demand_line(
-                    "the frame",
-                    (d.fetched_objects, d.fetched_bytes),
-                    meshes,
-                    &d,
-                    master.workers()
-                )
-            );
+            println!("{}", super::mpi::demand_line("the frame", (&d).into(), meshes, &d, master.workers()));
         }
     }
     master.shutdown()?;

@@ -321,6 +321,8 @@ pub struct Context {
     built_materials: Vec<Option<BuiltMaterials>>,
     /// Where demand-loaded objects' meshes come from ([`Context::set_mesh_source`]).
     mesh_source: Option<Arc<dyn MeshSource>>,
+    /// Where textures come from instead of files ([`Context::set_texture_source`]).
+    texture_source: Option<Arc<dyn crate::texture::TextureSource>>,
 }
 
 /// An object's materials as a frame built them, and what they were built from: reused by the next
@@ -392,6 +394,7 @@ impl Context {
             memory_grids: Vec::new(),
             memory_changes: 0,
             mesh_source: None,
+            texture_source: None,
             warnings: Vec::new(),
             events: Vec::new(),
             built_materials: Vec::new(),

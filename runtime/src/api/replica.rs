@@ -16,8 +16,11 @@
 //! - instances when they appear, move or go;
 //! - the frame's settings (lights, pixel, camera and atmosphere shaders, camera, options,
 //!   coordinate systems, texture search path) whenever any of them changes;
-//! - textures and grids given in memory. Textures named by file are read by each receiver from its
-//!   own file system, at the same paths.
+//! - textures and grids given in memory, whole; with [`Replicator::demand_loading`], only the news
+//!   that they changed. Textures named by file are read by a receiver from its own file system, at
+//!   the same paths, unless it has a [`crate::texture::TextureSource`]: a demand-loading receiver
+//!   fetches every texture, shadow map and grid it looks up, file or memory, from the context it
+//!   replicates ([`Context::deliver_texture`]).
 //!
 //! The building state (matrix and attribute stacks, the current appearance, an object being built)
 //! stays behind: it is not part of what a frame renders. An update of a context that did not change
@@ -34,7 +37,7 @@ use crate::geometry::Mesh;
 use crate::render::{CameraSetup, RenderOptions};
 use crate::scene::Scene;
 use crate::shading::{Program, ShaderError, ShaderProgram};
-use crate::texture::{TexImage, TextureCache, Wrap};
+use crate::texture::{Delivered, TexImage, TextureKind, Wrap};
 use glam::Affine3A;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
@@ -273,10 +276,14 @@ impl Replicator {
             texture_search_path: &rt.texture_search_path,
         })?;
         let settings_changed = self.settings.as_ref() != Some(&settings);
+        // With demand loading, memory textures and grids are fetched as files are: the update
+        // says only that they changed.
+        let sent_whole = !self.demand;
         let memory = (self.memory_changes != Some(rt.memory_changes)).then(|| Memory {
             textures: rt
                 .memory_textures
                 .iter()
+                .filter(|_| sent_whole)
                 .map(|(name, image)| {
                     let size = [image.width(), image.height(), image.channels()].map(count);
                     (name.clone(), size, image.data().to_vec())
@@ -285,6 +292,7 @@ impl Replicator {
             grids: rt
                 .memory_grids
                 .iter()
+                .filter(|_| sent_whole)
                 .map(|(name, grid)| (name.clone(), grid.to_bytes(crate::texture::grid::GridType::F32)))
                 .collect(),
         });
@@ -400,8 +408,7 @@ impl Context {
             self.spaces = s.spaces.into_iter().collect();
             if s.texture_search_path != self.texture_search_path {
                 self.texture_search_path = s.texture_search_path;
-                self.textures = Arc::new(TextureCache::with_search_paths(self.texture_search_path.clone()));
-                self.insert_memory_textures();
+                self.renew_texture_cache();
             }
         }
         if let Some(m) = u.memory {
@@ -417,7 +424,8 @@ impl Context {
                     .map_err(|e| ReplicaError::Inconsistent(format!("grid {name}: {e}")))?;
                 self.memory_grids.push((name, grid));
             }
-            self.insert_memory_textures();
+            // Names fetched from a source may stand for something else now.
+            self.renew_texture_cache();
         }
         Ok(true)
     }
@@ -466,3 +474,43 @@ pub fn decode_mesh(bytes: &[u8]) -> Result<Mesh, ReplicaError> {
     mesh.validate().map_err(|error| ReplicaError::Mesh { id: u32::MAX, error })?;
     Ok(mesh)
 }
+
+impl Context {
+    /// What `name` stands for as a `kind`, for a replica's [`crate::texture::TextureSource`] to
+    /// deliver: a texture or grid given in memory, else the bytes of the file the name resolves
+    /// to on this context's search path, else why there is none (the warning a lookup here would
+    /// give).
+    pub fn deliver_texture(&self, kind: TextureKind, name: &str) -> Delivered {
+        match kind {
+            TextureKind::Texture => {
+                if let Some((_, image)) = self.memory_textures.iter().find(|(n, _)| n == name) {
+                    return Delivered::image(image);
+                }
+            }
+            TextureKind::Grid => {
+                if let Some((_, grid)) = self.memory_grids.iter().find(|(n, _)| n == name) {
+                    let bytes = grid.to_bytes(crate::texture::grid::GridType::F32);
+                    return Delivered::File { path: PathBuf::from(name), bytes };
+                }
+            }
+            TextureKind::Shadow => {}
+        }
+        let path = match self.textures.locate(name) {
+            Ok(path) => path,
+            Err(reason) => return Delivered::Missing { path: None, reason },
+        };
+        let too_large = std::fs::metadata(&path).is_ok_and(|m| m.len() > MAX_DELIVERED_FILE_BYTES);
+        if too_large {
+            let reason = format!("larger than a worker fetches ({} MiB)", MAX_DELIVERED_FILE_BYTES >> 20);
+            return Delivered::Missing { path: Some(path), reason };
+        }
+        match std::fs::read(&path) {
+            Ok(bytes) => Delivered::File { path, bytes },
+            Err(e) => Delivered::Missing { reason: e.to_string(), path: Some(path) },
+        }
+    }
+}
+
+/// The largest file [`Context::deliver_texture`] sends: one message to one worker, and MPI counts
+/// a message's bytes in 32 bits.
+const MAX_DELIVERED_FILE_BYTES: u64 = 1 << 30;

@@ -17,8 +17,7 @@ impl Context {
     pub fn add_texture_search_path(&mut self, dir: PathBuf) {
         if !self.texture_search_path.contains(&dir) {
             self.texture_search_path.push(dir);
-            self.textures = Arc::new(TextureCache::with_search_paths(self.texture_search_path.clone()));
-            self.insert_memory_textures();
+            self.renew_texture_cache();
         }
     }
 
@@ -70,6 +69,22 @@ impl Context {
         self.memory_grids.push((name.to_string(), grid));
         self.memory_changes += 1;
         Ok(())
+    }
+
+    /// Where textures, shadow maps and grids come from instead of files: a worker's link to its
+    /// master ([`Replicator::demand_loading`]). Its cache starts afresh.
+    pub fn set_texture_source(&mut self, source: Arc<dyn crate::texture::TextureSource>) {
+        self.texture_source = Some(source);
+        self.renew_texture_cache();
+    }
+
+    /// Starts an empty texture cache over the search path (and source), holding the textures and
+    /// grids given in memory.
+    pub(super) fn renew_texture_cache(&mut self) {
+        let cache =
+            TextureCache::with_search_paths(self.texture_search_path.clone()).with_source(self.texture_source.clone());
+        self.textures = Arc::new(cache);
+        self.insert_memory_textures();
     }
 
     /// The texture cache frames use (textures load once and stay loaded across frames).

@@ -1,76 +1,118 @@
-//! Demand loading on a worker: the render threads' requests for the meshes of objects that rays
-//! reached and the worker does not hold, passed to the thread that talks to the master, and the
-//! master's answers passed back (the paper's section 5.4).
+//! Demand loading on a worker: the render threads' requests for what rays reached and the worker
+//! does not hold (the meshes of objects, textures, shadow maps and grids), passed to the thread
+//! that talks to the master, and the master's answers passed back (the paper's section 5.4).
 //!
 //! A render thread that needs an object's mesh ([`MeshSource::fetch`], from the object's first
-//! traversal) queues a request and waits; the worker's communication thread sends the queued
-//! requests as one `Fetch` message at its next poll and hands each mesh of the `Meshes` answer to
-//! the threads waiting for it. Other threads that reach the same object meanwhile wait on the
-//! object itself (`Object::data`), so each object is fetched once.
+//! traversal) or a texture ([`TextureSource::fetch`], from its first lookup) queues a request and
+//! waits; the worker's communication thread sends the queued requests as one `Fetch` message at
+//! its next poll and hands each item of the `Data` answer to the threads waiting for it. Other
+//! threads that reach the same object or texture meanwhile wait on the object (`Object::data`) or
+//! the cache's slot, so each is fetched once.
 //!
-//! A fetch that fails (the answer is damaged, or never comes) leaves the object empty and is
-//! recorded: the frame then ends with that failure, reported by the master, never a wrong image
-//! passed off as right.
+//! A fetch that fails (the answer is damaged, or never comes) leaves the object empty or the
+//! texture missing and is recorded: the frame then ends with that failure, reported by the
+//! master, never a wrong image passed off as right. A texture the master has no file for is no
+//! failure: it is the warning a single process gives.
 
 use crate::accel::object::MeshSource;
 use crate::api::decode_mesh;
 use crate::geometry::Mesh;
 use crate::scene::Scene;
+use crate::texture::{Delivered, TextureKind, TextureSource};
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
-use std::sync::mpsc::{channel, Receiver, Sender};
+use std::sync::mpsc::{channel, Sender};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Duration;
 
-/// How long a render thread waits for a mesh before it gives up on the master.
+/// How long a render thread waits for an answer before it gives up on the master.
 const FETCH_TIMEOUT: Duration = Duration::from_secs(300);
+
+/// What a render thread asks the master for.
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+pub(super) enum Want {
+    /// The mesh of an object, by its id.
+    Mesh(u32),
+    /// What a texture name stands for, looked up as `kind`.
+    Texture(TextureKind, String),
+}
 
 /// The link between a worker's render threads and its communication thread.
 #[derive(Debug, Default)]
-pub struct MeshLink {
-    /// Requests not yet sent: an object and where its mesh's bytes go.
-    queued: Mutex<Vec<(u32, Sender<Vec<u8>>)>>,
+pub struct FetchLink {
+    /// Requests not yet sent: what, and where its bytes go.
+    queued: Mutex<Vec<(Want, Sender<Vec<u8>>)>>,
     /// The first fetch of this frame that failed.
     failure: Mutex<Option<String>>,
     fetched_objects: AtomicU64,
     fetched_bytes: AtomicU64,
+    fetched_textures: AtomicU64,
+    fetched_texture_bytes: AtomicU64,
     /// Objects evicted before this frame.
     evicted: AtomicU64,
     /// Frames since the start: what objects stamp themselves with when a ray reaches them.
     clock: Arc<AtomicU32>,
 }
 
-impl MeshLink {
-    pub fn new() -> Arc<MeshLink> {
-        Arc::new(MeshLink::default())
+/// What a worker fetched in a frame.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub(super) struct Fetched {
+    /// The first fetch that failed.
+    pub failure: Option<String>,
+    pub objects: u64,
+    pub object_bytes: u64,
+    pub textures: u64,
+    pub texture_bytes: u64,
+    /// Objects evicted before the frame.
+    pub evicted: u64,
+}
+
+impl FetchLink {
+    pub fn new() -> Arc<FetchLink> {
+        Arc::new(FetchLink::default())
     }
 
     /// The requests queued since the last call (communication thread).
-    pub(super) fn take_requests(&self) -> Vec<(u32, Sender<Vec<u8>>)> {
+    pub(super) fn take_requests(&self) -> Vec<(Want, Sender<Vec<u8>>)> {
         std::mem::take(&mut *self.queued.lock().unwrap_or_else(PoisonError::into_inner))
     }
 
-    /// This frame's failure, objects fetched and their bytes, and objects evicted before it;
-    /// resets them for the next frame.
-    pub(super) fn take_frame(&self) -> (Option<String>, u64, u64, u64) {
-        let failure = self.failure.lock().unwrap_or_else(PoisonError::into_inner).take();
-        let fetched = self.fetched_objects.swap(0, Ordering::Relaxed);
-        let bytes = self.fetched_bytes.swap(0, Ordering::Relaxed);
-        (failure, fetched, bytes, self.evicted.swap(0, Ordering::Relaxed))
+    /// What this frame fetched; resets the counts for the next frame.
+    pub(super) fn take_frame(&self) -> Fetched {
+        let take = |n: &AtomicU64| n.swap(0, Ordering::Relaxed);
+        Fetched {
+            failure: self.failure.lock().unwrap_or_else(PoisonError::into_inner).take(),
+            objects: take(&self.fetched_objects),
+            object_bytes: take(&self.fetched_bytes),
+            textures: take(&self.fetched_textures),
+            texture_bytes: take(&self.fetched_texture_bytes),
+            evicted: take(&self.evicted),
+        }
     }
 
     fn fail(&self, message: String) {
         self.failure.lock().unwrap_or_else(PoisonError::into_inner).get_or_insert(message);
     }
-}
 
-impl MeshLink {
+    /// Asks the master for `want` and waits for the answer's bytes (`None`: it never came).
+    fn request(&self, want: Want) -> Option<Vec<u8>> {
+        let (tx, rx) = channel();
+        self.queued.lock().unwrap_or_else(PoisonError::into_inner).push((want, tx));
+        rx.recv_timeout(FETCH_TIMEOUT).ok()
+    }
+
     /// Starts a frame: objects reached from now on are stamped with its number; `evicted`
     /// objects were dropped before it.
     pub(super) fn start_frame(&self, evicted: u64) {
         self.clock.fetch_add(1, Ordering::Relaxed);
         self.evicted.store(evicted, Ordering::Relaxed);
     }
+}
+
+/// How [`Delivered`] travels: postcard.
+pub(super) fn encode_delivered(d: &Delivered) -> Vec<u8> {
+    // Plain data of vectors and strings: encoding it cannot fail.
+    postcard::to_allocvec(d).unwrap_or_default()
 }
 
 /// Drops the meshes of the demand-loaded objects of `scene` that rays reached least recently
@@ -102,20 +144,15 @@ pub fn evict_least_recently_used(scene: &mut Scene, limit: usize) -> u64 {
     evicted
 }
 
-impl MeshSource for MeshLink {
+impl MeshSource for FetchLink {
     fn clock(&self) -> Arc<AtomicU32> {
         self.clock.clone()
     }
 
     fn fetch(&self, key: u32) -> Arc<Mesh> {
-        let (tx, rx): (Sender<Vec<u8>>, Receiver<Vec<u8>>) = channel();
-        self.queued.lock().unwrap_or_else(PoisonError::into_inner).push((key, tx));
-        let bytes = match rx.recv_timeout(FETCH_TIMEOUT) {
-            Ok(bytes) => bytes,
-            Err(_) => {
-                self.fail(format!("the mesh of object {key} never came from the master"));
-                return Arc::default();
-            }
+        let Some(bytes) = self.request(Want::Mesh(key)) else {
+            self.fail(format!("the mesh of object {key} never came from the master"));
+            return Arc::default();
         };
         self.fetched_objects.fetch_add(1, Ordering::Relaxed);
         self.fetched_bytes.fetch_add(bytes.len() as u64, Ordering::Relaxed);
@@ -133,29 +170,54 @@ impl MeshSource for MeshLink {
     }
 }
 
+impl TextureSource for FetchLink {
+    fn fetch(&self, kind: TextureKind, name: &str) -> Delivered {
+        let failed = |reason: String| {
+            self.fail(format!("texture \"{name}\": {reason}"));
+            Delivered::Missing { path: None, reason }
+        };
+        let Some(bytes) = self.request(Want::Texture(kind, name.to_string())) else {
+            return failed("it never came from the master".into());
+        };
+        self.fetched_textures.fetch_add(1, Ordering::Relaxed);
+        self.fetched_texture_bytes.fetch_add(bytes.len() as u64, Ordering::Relaxed);
+        match postcard::from_bytes::<Delivered>(&bytes) {
+            Ok(delivered) => delivered,
+            Err(e) => failed(format!("the master's answer cannot be decoded: {e}")),
+        }
+    }
+}
+
 /// The communication thread's side: requests sent and not yet answered.
 #[derive(Default)]
-pub(super) struct Pending(HashMap<u32, Vec<Sender<Vec<u8>>>>);
+pub(super) struct Pending(HashMap<Want, Vec<Sender<Vec<u8>>>>);
 
 impl Pending {
-    /// Takes `link`'s queued requests; returns the objects to ask the master for (those not
-    /// already asked for).
-    pub(super) fn take(&mut self, link: &MeshLink) -> Vec<u32> {
-        let mut ask = Vec::new();
-        for (object, tx) in link.take_requests() {
-            let waiting = self.0.entry(object).or_default();
+    /// Takes `link`'s queued requests; returns what to ask the master for (what is not already
+    /// asked for): objects, and textures by kind and name.
+    pub(super) fn take(&mut self, link: &FetchLink) -> (Vec<u32>, Vec<(TextureKind, String)>) {
+        let (mut objects, mut textures) = (Vec::new(), Vec::new());
+        for (want, tx) in link.take_requests() {
+            let waiting = self.0.entry(want.clone()).or_default();
             if waiting.is_empty() {
-                ask.push(object);
+                match want {
+                    Want::Mesh(object) => objects.push(object),
+                    Want::Texture(kind, name) => textures.push((kind, name)),
+                }
             }
             waiting.push(tx);
         }
-        ask
+        (objects, textures)
     }
 
     /// Hands the master's answer to the threads waiting for it.
-    pub(super) fn answer(&mut self, meshes: Vec<(u32, Vec<u8>)>) {
-        for (object, bytes) in meshes {
-            for tx in self.0.remove(&object).unwrap_or_default() {
+    pub(super) fn answer(&mut self, meshes: Vec<(u32, Vec<u8>)>, textures: Vec<(TextureKind, String, Vec<u8>)>) {
+        let answers = meshes
+            .into_iter()
+            .map(|(object, bytes)| (Want::Mesh(object), bytes))
+            .chain(textures.into_iter().map(|(kind, name, bytes)| (Want::Texture(kind, name), bytes)));
+        for (want, bytes) in answers {
+            for tx in self.0.remove(&want).unwrap_or_default() {
                 // A thread that gave up waiting has dropped its receiver.
                 let _ = tx.send(bytes.clone());
             }

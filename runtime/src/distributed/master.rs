@@ -1,6 +1,7 @@
 //! The master: the rank that owns the scene and the output. It greets its workers, hands each
 //! frame's tiles out on demand ([`Schedule`]), and assembles the image from the tiles they send.
 
+use super::fetch::encode_delivered;
 use super::message::{build_fingerprint, greeting_version, FrameCounts, Job, LatticeUnit, Message, PROTOCOL_VERSION};
 use super::schedule::Schedule;
 use super::transport::Transport;
@@ -8,6 +9,7 @@ use super::DistributedError;
 use crate::api::{encode_mesh, Context, Replicator};
 use crate::render::progressive::{lattice_lanes, BatchReport, LatticeSamples, PixelLattice};
 use crate::render::{FrameReport, Framebuffer, RenderedTile, TileRenderer, World};
+use crate::texture::Delivered;
 use std::collections::HashMap;
 use std::sync::Arc;
 use std::time::Instant;
@@ -56,7 +58,7 @@ pub struct Traffic {
     pub pixels: u64,
     /// The workers' end-of-frame counters.
     pub counters: u64,
-    /// Demand loading: the workers' requests and the meshes sent in answer.
+    /// Demand loading: the workers' requests and the meshes and textures sent in answer.
     pub fetches: u64,
 }
 
@@ -90,6 +92,9 @@ pub struct Demand {
     /// Objects the workers fetched, and the bytes of their meshes.
     pub fetched_objects: u64,
     pub fetched_bytes: u64,
+    /// Textures, shadow maps and grids the workers fetched, and their bytes.
+    pub fetched_textures: u64,
+    pub fetched_texture_bytes: u64,
     /// Objects the workers evicted from their caches before the frame.
     pub evicted_objects: u64,
     /// Objects held after the frame: by all workers together, and by the one that holds most.
@@ -200,8 +205,7 @@ impl<T: Transport> Master<T> {
             return Ok(crate::render::render_frame(world, None));
         }
         let update = self.replicator.update(rt, Some(&world.scene))?;
-        let mesh = |id: u32| rt.object_mesh(crate::api::ObjectId(id)).map(|m| encode_mesh(m));
-        self.render(world, &update, progress, Some(&mesh))
+        self.render(world, &update, progress, Some(rt))
     }
 
     /// Renders a frame of `world` on the workers, which first apply `update` to their copy of the
@@ -238,7 +242,6 @@ impl<T: Transport> Master<T> {
         }
         let start = Instant::now();
         let update = self.replicator.update(rt, Some(&world.scene))?;
-        let mesh = |id: u32| rt.object_mesh(crate::api::ObjectId(id)).map(|m| encode_mesh(m));
         let (w, h) = (world.options.width, world.options.height);
         let units: Vec<LatticeUnit> = lattices
             .iter()
@@ -259,7 +262,7 @@ impl<T: Transport> Master<T> {
             samples[u] = Some(LatticeSamples::decode(units[u].lattice, units[u].lanes, bytes)?);
             Ok(())
         };
-        let (given, counts) = self.run(world, &update, work, None, Some(&mesh), &mut accept)?;
+        let (given, counts) = self.run(world, &update, work, None, Some(rt), &mut accept)?;
         for (l, owner) in lattices.iter().zip(&given) {
             if let (Some(slot), Some(w)) = (self.region_owner.get_mut(region(l)), owner) {
                 *slot = Some(*w);
@@ -277,14 +280,14 @@ impl<T: Transport> Master<T> {
         Ok((samples, BatchReport { primary_rays, total_rays, elapsed: start.elapsed() }))
     }
 
-    /// [`Master::render_frame`], answering the workers' requests for meshes with `meshes` (the
-    /// encoded mesh of an object, `None` for none).
+    /// [`Master::render_frame`], answering the workers' requests for meshes and textures from
+    /// `source`, the application's context (with none, every request is answered with nothing).
     fn render(
         &mut self,
         world: &World,
         update: &[u8],
         progress: Option<&dyn Fn(usize, usize)>,
-        meshes: Option<&dyn Fn(u32) -> Option<Vec<u8>>>,
+        source: Option<&Context>,
     ) -> Result<(Framebuffer, FrameReport), DistributedError> {
         let start = Instant::now();
         let renderer = TileRenderer::new(world);
@@ -296,7 +299,7 @@ impl<T: Transport> Master<T> {
             rendered[t] = Some(RenderedTile::decode(world, tiles[t], bytes)?);
             Ok(())
         };
-        let (given, counts) = self.run(world, update, work, progress, meshes, &mut accept)?;
+        let (given, counts) = self.run(world, update, work, progress, source, &mut accept)?;
         let rendered: Vec<RenderedTile> = rendered.into_iter().flatten().collect();
         if rendered.len() != tiles.len() {
             return Err(DistributedError::Protocol {
@@ -321,7 +324,7 @@ impl<T: Transport> Master<T> {
 
     /// Runs a frame of `work` on the workers: sends each the frame's `update` and its first units,
     /// hands out the rest as units come back (each to `accept`, with its index), answers requests
-    /// for meshes with `meshes`, and gathers the workers' counts. Returns who rendered each unit,
+    /// for meshes and textures from `source`, and gathers the workers' counts. Returns who rendered each unit,
     /// and the counts.
     fn run(
         &mut self,
@@ -329,7 +332,7 @@ impl<T: Transport> Master<T> {
         update: &[u8],
         work: Work,
         progress: Option<&dyn Fn(usize, usize)>,
-        meshes: Option<&dyn Fn(u32) -> Option<Vec<u8>>>,
+        source: Option<&Context>,
         accept: &mut Accept,
     ) -> Result<(Vec<Option<usize>>, Vec<FrameCounts>), DistributedError> {
         // Each mesh encoded once a frame however many workers ask for it.
@@ -419,17 +422,31 @@ impl<T: Transport> Master<T> {
                         self.transport.send(rank, &m)?;
                     }
                 }
-                Message::Fetch { frame: f, objects } if f == frame => {
+                Message::Fetch { frame: f, objects, textures } if f == frame => {
                     traffic.fetches += bytes.len() as u64;
-                    let mut answer = Vec::with_capacity(objects.len());
-                    for id in objects {
-                        let mesh = encoded
-                            .entry(id)
-                            .or_insert_with(|| Arc::new(meshes.and_then(|m| m(id)).unwrap_or_default()))
-                            .clone();
-                        answer.push((id, mesh.as_ref().clone()));
-                    }
-                    let m = Message::Meshes { frame, meshes: answer }.encode();
+                    let meshes = objects
+                        .into_iter()
+                        .map(|id| {
+                            let mesh = encoded.entry(id).or_insert_with(|| {
+                                let mesh = source.and_then(|rt| rt.object_mesh(crate::api::ObjectId(id)));
+                                Arc::new(mesh.map(|m| encode_mesh(m)).unwrap_or_default())
+                            });
+                            (id, mesh.as_ref().clone())
+                        })
+                        .collect();
+                    let textures = textures
+                        .into_iter()
+                        .map(|(kind, name)| {
+                            let delivered = match source {
+                                Some(rt) => rt.deliver_texture(kind, &name),
+                                None => {
+                                    Delivered::Missing { path: None, reason: "the master serves no textures".into() }
+                                }
+                            };
+                            (kind, name, encode_delivered(&delivered))
+                        })
+                        .collect();
+                    let m = Message::Data { frame, meshes, textures }.encode();
                     traffic.fetches += m.len() as u64;
                     self.transport.send(rank, &m)?;
                 }
@@ -451,6 +468,8 @@ impl<T: Transport> Master<T> {
         self.demand = Demand {
             fetched_objects: counts.iter().map(|c| c.fetched_objects).sum(),
             fetched_bytes: counts.iter().map(|c| c.fetched_bytes).sum(),
+            fetched_textures: counts.iter().map(|c| c.fetched_textures).sum(),
+            fetched_texture_bytes: counts.iter().map(|c| c.fetched_texture_bytes).sum(),
             evicted_objects: counts.iter().map(|c| c.evicted_objects).sum(),
             resident_objects: counts.iter().map(|c| c.resident_objects).sum(),
             most_resident_objects: counts.iter().map(|c| c.resident_objects).max().unwrap_or(0),

@@ -4,10 +4,11 @@
 //! panic or an allocation larger than the message.
 
 use crate::render::progressive::PixelLattice;
+use crate::texture::TextureKind;
 use rtsl_compiler::interface::ShaderKind;
 
 /// The protocol's version: ranks that speak different versions refuse each other at start-up.
-pub const PROTOCOL_VERSION: u32 = 7;
+pub const PROTOCOL_VERSION: u32 = 8;
 
 /// What the master's counters add up from a worker's share of a frame.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -26,10 +27,13 @@ pub struct FrameCounts {
     pub shader_messages: Vec<String>,
     /// Textures the worker could not load: name, file (empty when none was found) and why.
     pub texture_warnings: Vec<(String, String, String)>,
-    /// Demand loading: objects fetched from the master this frame and their bytes, objects
-    /// evicted from the cache before the frame, and objects held after it.
+    /// Demand loading: objects fetched from the master this frame and their bytes, textures
+    /// (shadow maps and grids included) and theirs, objects evicted from the cache before the
+    /// frame, and objects held after it.
     pub fetched_objects: u64,
     pub fetched_bytes: u64,
+    pub fetched_textures: u64,
+    pub fetched_texture_bytes: u64,
     pub evicted_objects: u64,
     pub resident_objects: u64,
 }
@@ -81,11 +85,13 @@ pub enum Message {
     FrameDone { frame: u64, counts: FrameCounts, failure: Option<String> },
     /// Master to worker: stop.
     Quit,
-    /// Worker to master: send the meshes of these objects (demand loading), for frame `frame`.
-    Fetch { frame: u64, objects: Vec<u32> },
-    /// Master to worker: the meshes asked for, each the object's id and its mesh as
-    /// [`crate::api::encode_mesh`] writes it (empty: the object has no mesh now).
-    Meshes { frame: u64, meshes: Vec<(u32, Vec<u8>)> },
+    /// Worker to master: send the meshes of these objects and what these texture names stand
+    /// for (demand loading), for frame `frame`.
+    Fetch { frame: u64, objects: Vec<u32>, textures: Vec<(TextureKind, String)> },
+    /// Master to worker: what was asked for: each object's id and its mesh as
+    /// [`crate::api::encode_mesh`] writes it (empty: the object has no mesh now), and each
+    /// texture's kind, name and [`crate::texture::Delivered`] (postcard).
+    Data { frame: u64, meshes: Vec<(u32, Vec<u8>)>, textures: Vec<(TextureKind, String, Vec<u8>)> },
 }
 
 const HELLO: u8 = 1;
@@ -95,7 +101,7 @@ const RENDERED: u8 = 4;
 const FRAME_DONE: u8 = 5;
 const QUIT: u8 = 6;
 const FETCH: u8 = 7;
-const MESHES: u8 = 8;
+const DATA: u8 = 8;
 
 /// The protocol version a greeting states, read without decoding the rest: a greeting starts with
 /// its kind and the version in every version of the protocol, so that ranks of different versions
@@ -195,6 +201,8 @@ impl Message {
                 w.u64(counts.light_evaluations);
                 w.u64(counts.fetched_objects);
                 w.u64(counts.fetched_bytes);
+                w.u64(counts.fetched_textures);
+                w.u64(counts.fetched_texture_bytes);
                 w.u64(counts.evicted_objects);
                 w.u64(counts.resident_objects);
                 w.u64(counts.shading_ns);
@@ -221,18 +229,29 @@ impl Message {
                 w.opt_str(failure.as_deref());
             }
             Message::Quit => w.u8(QUIT),
-            Message::Fetch { frame, objects } => {
+            Message::Fetch { frame, objects, textures } => {
                 w.u8(FETCH);
                 w.u64(*frame);
                 w.u32s(objects);
+                w.u32(textures.len() as u32);
+                for (kind, name) in textures {
+                    w.u8(kind_byte(*kind));
+                    w.str(name);
+                }
             }
-            Message::Meshes { frame, meshes } => {
-                w.u8(MESHES);
+            Message::Data { frame, meshes, textures } => {
+                w.u8(DATA);
                 w.u64(*frame);
                 w.u32(meshes.len() as u32);
                 for (object, mesh) in meshes {
                     w.u32(*object);
                     w.bytes(mesh);
+                }
+                w.u32(textures.len() as u32);
+                for (kind, name, bytes) in textures {
+                    w.u8(kind_byte(*kind));
+                    w.str(name);
+                    w.bytes(bytes);
                 }
             }
         }
@@ -263,8 +282,9 @@ impl Message {
                 let frame = r.u64()?;
                 let rays = [r.u64()?, r.u64()?, r.u64()?, r.u64()?];
                 let (shaded_points, light_evaluations) = (r.u64()?, r.u64()?);
-                let (fetched_objects, fetched_bytes, evicted_objects, resident_objects) =
-                    (r.u64()?, r.u64()?, r.u64()?, r.u64()?);
+                let (fetched_objects, fetched_bytes) = (r.u64()?, r.u64()?);
+                let (fetched_textures, fetched_texture_bytes) = (r.u64()?, r.u64()?);
+                let (evicted_objects, resident_objects) = (r.u64()?, r.u64()?);
                 let shading_ns = r.u64()?;
                 let kinds = r.count(8)?;
                 let kind_ns = (0..kinds).map(|_| r.u64()).collect::<Result<_, _>>()?;
@@ -287,18 +307,27 @@ impl Message {
                     texture_warnings,
                     fetched_objects,
                     fetched_bytes,
+                    fetched_textures,
+                    fetched_texture_bytes,
                     evicted_objects,
                     resident_objects,
                 };
                 Message::FrameDone { frame, counts, failure: r.opt_str()? }
             }
             QUIT => Message::Quit,
-            FETCH => Message::Fetch { frame: r.u64()?, objects: r.u32s()? },
-            MESHES => {
+            FETCH => {
+                let (frame, objects) = (r.u64()?, r.u32s()?);
+                let n = r.count(9)?;
+                let textures = (0..n).map(|_| Ok((r.kind()?, r.str()?))).collect::<Result<_, String>>()?;
+                Message::Fetch { frame, objects, textures }
+            }
+            DATA => {
                 let frame = r.u64()?;
                 let n = r.count(12)?;
                 let meshes = (0..n).map(|_| Ok((r.u32()?, r.bytes()?))).collect::<Result<_, String>>()?;
-                Message::Meshes { frame, meshes }
+                let n = r.count(17)?;
+                let textures = (0..n).map(|_| Ok((r.kind()?, r.str()?, r.bytes()?))).collect::<Result<_, String>>()?;
+                Message::Data { frame, meshes, textures }
             }
             tag => return Err(format!("unknown message kind {tag}")),
         };
@@ -361,6 +390,14 @@ impl Writer {
     }
 }
 
+fn kind_byte(kind: TextureKind) -> u8 {
+    match kind {
+        TextureKind::Texture => 0,
+        TextureKind::Shadow => 1,
+        TextureKind::Grid => 2,
+    }
+}
+
 struct Reader<'a> {
     bytes: &'a [u8],
     at: usize,
@@ -417,6 +454,14 @@ impl Reader<'_> {
     fn u32s(&mut self) -> Result<Vec<u32>, String> {
         let n = self.count(4)?;
         (0..n).map(|_| self.u32()).collect()
+    }
+    fn kind(&mut self) -> Result<TextureKind, String> {
+        match self.u8()? {
+            0 => Ok(TextureKind::Texture),
+            1 => Ok(TextureKind::Shadow),
+            2 => Ok(TextureKind::Grid),
+            v => Err(format!("{v} is no kind of texture")),
+        }
     }
     fn lattices(&mut self) -> Result<Vec<LatticeUnit>, String> {
         let n = self.count(20)?;
@@ -477,14 +522,26 @@ mod tests {
                     texture_warnings: vec![("grain".into(), String::new(), "not found".into())],
                     fetched_objects: 11,
                     fetched_bytes: 12,
+                    fetched_textures: 15,
+                    fetched_texture_bytes: 16,
                     evicted_objects: 13,
                     resident_objects: 14,
                 },
                 failure: Some("cannot build".into()),
             },
             Message::Quit,
-            Message::Fetch { frame: 2, objects: vec![4, 1] },
-            Message::Meshes { frame: 2, meshes: vec![(4, vec![1, 2, 3]), (1, vec![])] },
+            Message::Fetch { frame: 2, objects: vec![4, 1], textures: vec![] },
+            Message::Fetch {
+                frame: 2,
+                objects: vec![],
+                textures: vec![(TextureKind::Shadow, "key.shad".into()), (TextureKind::Grid, String::new())],
+            },
+            Message::Data { frame: 2, meshes: vec![(4, vec![1, 2, 3]), (1, vec![])], textures: vec![] },
+            Message::Data {
+                frame: 3,
+                meshes: vec![],
+                textures: vec![(TextureKind::Texture, "grain.png".into(), vec![7; 9])],
+            },
         ]
     }
 

@@ -1,7 +1,7 @@
 //! A worker: a rank that renders the tiles (or lattices) the master hands it, on the threads of its own pool,
 //! from its own copy of the scene, brought to each frame's state before any of that frame's tiles.
 
-use super::fetch::{MeshLink, Pending};
+use super::fetch::{FetchLink, Pending};
 use super::message::{build_fingerprint, Job, LatticeUnit, Message, PROTOCOL_VERSION};
 use super::transport::Transport;
 use super::DistributedError;
@@ -20,19 +20,19 @@ pub trait WorkerScene: Send {
     /// Takes back a frame's world once its tiles are rendered (to keep its BVHs for the next).
     fn finished(&mut self, world: World);
     /// Where the scene's demand-loaded objects wait for their meshes, if it has any.
-    fn mesh_link(&self) -> Option<Arc<MeshLink>> {
+    fn fetch_link(&self) -> Option<Arc<FetchLink>> {
         None
     }
 }
 
 /// A worker's copy of the master's [`crate::api::Context`], which starts empty and is brought to
 /// each frame's state by the updates [`super::Master::render_context`] sends: the worker loads
-/// nothing itself, and fetches the mesh of an object from the master when a ray first reaches it
-/// ([`MeshLink`]). A frame whose update is empty reuses the last frame's world.
+/// nothing itself, and fetches the mesh of an object from the master when a ray first reaches it,
+/// and a texture, shadow map or grid when a shader first looks it up ([`FetchLink`]). A frame whose update is empty reuses the last frame's world.
 pub struct ReplicaScene {
     context: crate::api::Context,
     world: Option<World>,
-    link: Arc<MeshLink>,
+    link: Arc<FetchLink>,
     /// The most bytes of fetched meshes and their BVHs held between frames.
     cache_limit: usize,
 }
@@ -48,9 +48,10 @@ impl Default for ReplicaScene {
 
 impl ReplicaScene {
     pub fn new() -> ReplicaScene {
-        let link = MeshLink::new();
+        let link = FetchLink::new();
         let mut context = crate::api::Context::new();
         context.set_mesh_source(link.clone());
+        context.set_texture_source(link.clone());
         ReplicaScene { context, world: None, link, cache_limit: DEFAULT_MESH_CACHE_BYTES }
     }
 
@@ -81,7 +82,7 @@ impl WorkerScene for ReplicaScene {
         self.world = Some(world);
     }
 
-    fn mesh_link(&self) -> Option<Arc<MeshLink>> {
+    fn fetch_link(&self) -> Option<Arc<FetchLink>> {
         Some(self.link.clone())
     }
 }
@@ -115,7 +116,7 @@ pub fn serve<T: Transport + ?Sized>(
                 };
                 let result = match world {
                     Ok(world) => {
-                        let link = scene.as_deref().and_then(|s| s.mesh_link());
+                        let link = scene.as_deref().and_then(|s| s.fetch_link());
                         let first = (units, lattices);
                         let rendered = render_share(transport, &world, frame, job, first, last, pool, link.as_deref());
                         if let Some(s) = scene.as_deref_mut() {
@@ -250,7 +251,7 @@ fn render_share<T: Transport + ?Sized>(
     first: (Vec<u32>, Vec<LatticeUnit>),
     mut last: bool,
     pool: &rayon::ThreadPool,
-    link: Option<&MeshLink>,
+    link: Option<&FetchLink>,
 ) -> Result<bool, DistributedError> {
     let mut pending = Pending::default();
     let start = Instant::now();
@@ -298,15 +299,15 @@ fn render_share<T: Transport + ?Sized>(
                         give(units, lattices, &mut outstanding)?;
                         last |= l;
                     }
-                    Message::Meshes { frame: f, meshes } if f == frame => pending.answer(meshes),
+                    Message::Data { frame: f, meshes, textures } if f == frame => pending.answer(meshes, textures),
                     Message::Quit => return Ok(true),
                     _ => return Err(out_of_place(transport)),
                 }
             }
             if let Some(link) = link {
-                let objects = pending.take(link);
-                if !objects.is_empty() {
-                    transport.send(0, &Message::Fetch { frame, objects }.encode())?;
+                let (objects, textures) = pending.take(link);
+                if !objects.is_empty() || !textures.is_empty() {
+                    transport.send(0, &Message::Fetch { frame, objects, textures }.encode())?;
                 }
             }
             if last && outstanding == 0 {
@@ -332,9 +333,11 @@ fn render_share<T: Transport + ?Sized>(
         .collect();
     let mut failure = None;
     if let Some(link) = link {
-        let (fetch_failure, objects, bytes, evicted) = link.take_frame();
-        (failure, counts.fetched_objects, counts.fetched_bytes) = (fetch_failure, objects, bytes);
-        counts.evicted_objects = evicted;
+        let fetched = link.take_frame();
+        failure = fetched.failure;
+        (counts.fetched_objects, counts.fetched_bytes) = (fetched.objects, fetched.object_bytes);
+        (counts.fetched_textures, counts.fetched_texture_bytes) = (fetched.textures, fetched.texture_bytes);
+        counts.evicted_objects = fetched.evicted;
         counts.resident_objects =
             world.scene.objects().iter().filter(|o| o.is_remote() && o.is_resident()).count() as u64;
     }

@@ -8,6 +8,10 @@
 //! Lookups take `&self`. The hot path is a read lock and a hash of the name; an engine that
 //! shades a batch with one texture can instead take the [`MipMap`] once with
 //! [`TextureCache::get_texture`] and call [`MipMap::filter`] per lane.
+//!
+//! A cache with a [`TextureSource`] reads no files: the first lookup of a name asks the source
+//! (a distributed worker's link to its master, which reads the file and sends its bytes) and
+//! decodes what comes back as the file would have been decoded here.
 
 use std::collections::HashMap;
 use std::fmt;
@@ -17,7 +21,7 @@ use std::sync::{Arc, Mutex, OnceLock, PoisonError, RwLock};
 
 use super::environment::latlong_footprint;
 use super::grid::Grid;
-use super::image::{load_texture_image, TexImage};
+use super::image::{decode_texture_file, load_texture_image, TexImage};
 use super::mip::MipMap;
 use super::shadow::ShadowMap;
 use super::{Footprint, LookupOptions, Wrap};
@@ -41,6 +45,62 @@ impl fmt::Display for TextureWarning {
             None => write!(f, "texture \"{}\": {}", self.name, self.reason),
         }
     }
+}
+
+/// What a name is looked up as: each has a cache of its own, and is decoded its own way.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+pub enum TextureKind {
+    /// `texture()` and `environment()`: an image, mip-mapped.
+    Texture,
+    /// `shadow()`: a depth map with its matrices.
+    Shadow,
+    /// `texture3d()`: a 3-D grid.
+    Grid,
+}
+
+/// What a [`TextureSource`] delivers for a name.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub enum Delivered {
+    /// A file's bytes, decoded here as the file would be; `path` is what warnings call it.
+    File { path: PathBuf, bytes: Vec<u8> },
+    /// An image built in memory (`Context::tex_image_2d`): its texels, rows top to bottom. It
+    /// repeats (periodic wrap).
+    Image { width: u32, height: u32, channels: u32, texels: Vec<f32> },
+    /// The same, when every texel value is a multiple of 1/255 (an 8-bit image taken as stored):
+    /// each value times 255, a quarter of the bytes.
+    Image8 { width: u32, height: u32, channels: u32, values: Vec<u8> },
+    /// Nothing: why, and the file when one was found (the warning a cache reading files itself
+    /// would give).
+    Missing { path: Option<PathBuf>, reason: String },
+}
+
+impl Delivered {
+    /// An image built in memory, as [`Delivered::Image8`] where that holds every value exactly.
+    pub fn image(image: &TexImage) -> Delivered {
+        let [width, height, channels] = [image.width(), image.height(), image.channels()].map(|n| n as u32);
+        let eight_bit = |v: f32| {
+            let b = (v * 255.0).round();
+            ((0.0..=255.0).contains(&b) && (b / 255.0).to_bits() == v.to_bits()).then_some(b as u8)
+        };
+        match image.data().iter().map(|&v| eight_bit(v)).collect::<Option<Vec<u8>>>() {
+            Some(values) => Delivered::Image8 { width, height, channels, values },
+            None => Delivered::Image { width, height, channels, texels: image.data().to_vec() },
+        }
+    }
+}
+
+/// Where a cache gets what names stand for instead of reading files (see the module doc).
+pub trait TextureSource: Send + Sync + fmt::Debug {
+    /// What `name` stands for as a `kind`; blocks until it is here. A source that cannot deliver
+    /// says why with [`Delivered::Missing`].
+    fn fetch(&self, kind: TextureKind, name: &str) -> Delivered;
+}
+
+/// What a name's loader is given.
+enum Input<'a> {
+    File(&'a Path),
+    Bytes(&'a Path, &'a [u8]),
+    Image(TexImage),
 }
 
 /// One lane of a batched texture lookup ([`TextureCache::texture_batch`]).
@@ -76,6 +136,8 @@ pub struct TextureCache {
     /// 3-D grids for `texture3d` (`docs/volumes.md`).
     grids: Slots<Grid>,
     warnings: Mutex<Vec<TextureWarning>>,
+    /// Where names are fetched from instead of files, if anywhere.
+    source: Option<Arc<dyn TextureSource>>,
 }
 
 impl Default for TextureCache {
@@ -87,6 +149,7 @@ impl Default for TextureCache {
             shadows: Default::default(),
             grids: Default::default(),
             warnings: Default::default(),
+            source: None,
         }
     }
 }
@@ -119,6 +182,11 @@ impl TextureCache {
         TextureCache { search_paths: dirs.into_iter().collect(), ..TextureCache::default() }
     }
 
+    /// The same cache fetching what names stand for from `source` instead of reading files.
+    pub fn with_source(self, source: Option<Arc<dyn TextureSource>>) -> TextureCache {
+        TextureCache { source, ..self }
+    }
+
     pub fn search_paths(&self) -> &[PathBuf] {
         &self.search_paths
     }
@@ -137,10 +205,17 @@ impl TextureCache {
     pub fn get_texture(&self, name: &str, raw: bool) -> Option<Arc<MipMap>> {
         let slot = slot(&self.textures[raw as usize], name);
         slot.get_or_init(|| {
-            self.load(name, |path| {
-                load_texture_image(path, raw).map(|l| {
-                    MipMap::with_wrap(l.image, l.wrap.unwrap_or([Wrap::Periodic; 2])).with_projection(l.projection)
-                })
+            self.load(name, TextureKind::Texture, |input| {
+                let loaded = match input {
+                    Input::File(path) => load_texture_image(path, raw),
+                    Input::Bytes(path, bytes) => decode_texture_file(path, bytes, raw),
+                    Input::Image(image) => return Ok(MipMap::with_wrap(image, [Wrap::Periodic; 2])),
+                };
+                loaded
+                    .map(|l| {
+                        MipMap::with_wrap(l.image, l.wrap.unwrap_or([Wrap::Periodic; 2])).with_projection(l.projection)
+                    })
+                    .map_err(|e| error_chain(&e))
             })
         })
         .clone()
@@ -148,12 +223,41 @@ impl TextureCache {
 
     /// The shadow map called `name`, loading it on first use; `None` when it cannot be loaded.
     pub fn get_shadow_map(&self, name: &str) -> Option<Arc<ShadowMap>> {
-        slot(&self.shadows, name).get_or_init(|| self.load(name, ShadowMap::load)).clone()
+        let load = |input: Input| match input {
+            Input::File(path) => ShadowMap::load(path).map_err(|e| error_chain(&e)),
+            Input::Bytes(path, bytes) => ShadowMap::decode(path, bytes).map_err(|e| error_chain(&e)),
+            Input::Image(_) => Err("an image built in memory is no shadow map".into()),
+        };
+        slot(&self.shadows, name).get_or_init(|| self.load(name, TextureKind::Shadow, load)).clone()
     }
 
     /// The 3-D grid called `name`, loading it on first use; `None` when it cannot be loaded.
     pub fn get_grid(&self, name: &str) -> Option<Arc<Grid>> {
-        slot(&self.grids, name).get_or_init(|| self.load(name, Grid::load)).clone()
+        let load = |input: Input| match input {
+            Input::File(path) => Grid::load(path).map_err(|e| error_chain(&e)),
+            Input::Bytes(_, bytes) => Grid::parse(bytes),
+            Input::Image(_) => Err("an image built in memory is no grid".into()),
+        };
+        slot(&self.grids, name).get_or_init(|| self.load(name, TextureKind::Grid, load)).clone()
+    }
+
+    /// The file `name` stands for, or the reason a lookup of it warns that there is none.
+    pub fn locate(&self, name: &str) -> Result<PathBuf, String> {
+        self.resolve(name).ok_or_else(|| {
+            // An empty search path (a scene file's folder given as a bare file name) is the
+            // current directory, which is searched anyway.
+            let dirs: Vec<String> = self
+                .search_paths
+                .iter()
+                .filter(|d| !d.as_os_str().is_empty())
+                .map(|d| d.display().to_string())
+                .collect();
+            if dirs.is_empty() {
+                "file not found".to_string()
+            } else {
+                format!("file not found (searched {} and the current directory)", dirs.join(", "))
+            }
+        })
     }
 
     /// Makes `name` stand for an image built in memory (the API's `tex_image_2d`), for both raw
@@ -289,31 +393,53 @@ impl TextureCache {
     }
 
     /// Resolves and loads `name` with `load`, turning a failure into one warning and `None`.
-    fn load<T, E: std::error::Error>(&self, name: &str, load: impl FnOnce(&Path) -> Result<T, E>) -> Option<Arc<T>> {
+    /// Loads what `name` stands for as a `kind` with `load`: from the file it resolves to, or from
+    /// what the cache's source delivers. A failure is one warning, and `None`.
+    fn load<T, E: fmt::Display>(
+        &self,
+        name: &str,
+        kind: TextureKind,
+        load: impl FnOnce(Input) -> Result<T, E>,
+    ) -> Option<Arc<T>> {
         let warn = |path: Option<PathBuf>, reason: String| {
             let warning = TextureWarning { name: name.to_string(), path, reason };
             self.warnings.lock().unwrap_or_else(PoisonError::into_inner).push(warning);
             None
         };
-        let Some(path) = self.resolve(name) else {
-            // An empty search path (a scene file's folder given as a bare file name) is the
-            // current directory, which is searched anyway.
-            let dirs: Vec<String> = self
-                .search_paths
-                .iter()
-                .filter(|d| !d.as_os_str().is_empty())
-                .map(|d| d.display().to_string())
-                .collect();
-            let reason = if dirs.is_empty() {
-                "file not found".to_string()
-            } else {
-                format!("file not found (searched {} and the current directory)", dirs.join(", "))
-            };
-            return warn(None, reason);
+        let (path, loaded) = match &self.source {
+            None => match self.locate(name) {
+                Ok(path) => {
+                    let loaded = load(Input::File(&path));
+                    (Some(path), loaded)
+                }
+                Err(reason) => return warn(None, reason),
+            },
+            Some(source) => match source.fetch(kind, name) {
+                Delivered::File { path, bytes } => {
+                    let loaded = load(Input::Bytes(&path, &bytes));
+                    (Some(path), loaded)
+                }
+                Delivered::Image { width, height, channels, texels } => {
+                    let [w, h, c] = [width, height, channels].map(|n| n as usize);
+                    match TexImage::new(w, h, c, texels) {
+                        Some(image) => (None, load(Input::Image(image))),
+                        None => return warn(None, "its size and its texels differ".into()),
+                    }
+                }
+                Delivered::Image8 { width, height, channels, values } => {
+                    let [w, h, c] = [width, height, channels].map(|n| n as usize);
+                    let texels = values.iter().map(|&v| f32::from(v) / 255.0).collect();
+                    match TexImage::new(w, h, c, texels) {
+                        Some(image) => (None, load(Input::Image(image))),
+                        None => return warn(None, "its size and its texels differ".into()),
+                    }
+                }
+                Delivered::Missing { path, reason } => return warn(path, reason),
+            },
         };
-        match load(&path) {
+        match loaded {
             Ok(value) => Some(Arc::new(value)),
-            Err(e) => warn(Some(path), error_chain(&e)),
+            Err(e) => warn(path, e.to_string()),
         }
     }
 }

@@ -144,8 +144,20 @@ fn exr_channel_rank(name: &str) -> (usize, &str) {
     (rank, name)
 }
 
+/// Decodes a texture file's bytes held in memory, whatever its format (EXR included), as
+/// [`load_texture_image`] would decode the file; `name` is what errors call it.
+pub fn decode_texture_file(name: &Path, bytes: &[u8], raw: bool) -> Result<LoadedImage, ImageError> {
+    if image_io::is_exr_bytes(bytes) {
+        return exr_texture(name, image_io::read_exr_bytes(name, bytes)?);
+    }
+    decode_texture_image(name, bytes, raw)
+}
+
 fn load_exr(path: &Path) -> Result<LoadedImage, ImageError> {
-    let layer = image_io::read_exr(path)?;
+    exr_texture(path, image_io::read_exr(path)?)
+}
+
+fn exr_texture(path: &Path, layer: image_io::ExrLayer) -> Result<LoadedImage, ImageError> {
     let mut channels: Vec<&(String, Vec<f32>)> = layer.channels.iter().collect();
     channels.sort_by(|a, b| exr_channel_rank(&a.0).cmp(&exr_channel_rank(&b.0)));
     let count = channels.len();

@@ -32,7 +32,7 @@ mod make;
 mod mip;
 mod shadow;
 
-pub use cache::{TextureCache, TextureInfo, TextureQuery, TextureWarning};
+pub use cache::{Delivered, TextureCache, TextureInfo, TextureKind, TextureQuery, TextureSource, TextureWarning};
 pub use environment::{direction_to_latlong, latlong_to_direction};
 pub use grid::{Grid, GridError, GridType};
 pub use image::{load_texture_image, LoadedImage, TexImage};

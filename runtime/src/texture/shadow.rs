@@ -52,7 +52,15 @@ impl ShadowMap {
 
     /// Reads a shadow map written by [`write_shadow_map`] (or any EXR with the two attributes).
     pub fn load(path: &Path) -> Result<ShadowMap, ImageError> {
-        let layer = image_io::read_exr(path)?;
+        ShadowMap::from_layer(path, image_io::read_exr(path)?)
+    }
+
+    /// Reads a shadow map file's bytes held in memory; `name` is what errors call it.
+    pub fn decode(name: &Path, bytes: &[u8]) -> Result<ShadowMap, ImageError> {
+        ShadowMap::from_layer(name, image_io::read_exr_bytes(name, bytes)?)
+    }
+
+    fn from_layer(path: &Path, layer: image_io::ExrLayer) -> Result<ShadowMap, ImageError> {
         let missing =
             |what: &str| ImageError::Decode { path: path.into(), message: format!("not a shadow map: no {what}") };
         let world_to_camera = layer.world_to_camera.ok_or_else(|| missing("worldToCamera attribute"))?;
