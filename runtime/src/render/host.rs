@@ -8,6 +8,7 @@
 use super::sampling::{mix, point_seed, unit};
 use super::stats::{tracing, Stats};
 use super::trace_ahead::RayLog;
+use super::virtual_lights;
 use super::work::{epsilon, BatchLights, Frame, Sample};
 use crate::ray::Ray;
 use crate::shading::ShaderInstance;
@@ -686,6 +687,21 @@ unsafe extern "C" fn host_rays(
             for (l, t) in through.iter().enumerate().filter(|(l, _)| mask[*l] != 0) {
                 for r in 0..3 {
                     out[4 * r + l] = t[r];
+                }
+            }
+        }
+        3 if frame.world.options.gi.virtual_lights > 0 => {
+            // Instant radiosity: the frame's virtual lights, this point's set of them.
+            let lights = frame.virtual_lights.get_or_init(|| virtual_lights::trace(frame));
+            for l in (0..4).filter(|&l| mask[l] != 0) {
+                let (p, n) = (lane3(a, 0, l), lane3(b, 0, l).normalize_or_zero());
+                if n == Vec3A::ZERO || !p.is_finite() {
+                    continue;
+                }
+                let light =
+                    virtual_lights::gather(lights, frame, virtual_lights::set_of(lights, frame, p), p, n, times[l]);
+                for r in 0..3 {
+                    out[4 * r + l] = light[r];
                 }
             }
         }

@@ -25,6 +25,7 @@ mod scratch;
 pub mod shade;
 mod stats;
 mod trace_ahead;
+mod virtual_lights;
 mod volume;
 mod work;
 pub mod world;

@@ -32,6 +32,9 @@ pub struct Frame<'w> {
     /// Per light: the row of a lane-invariant ambient light, worked out by the first batch that
     /// asks (its value depends on the light's parameters alone, fixed for the frame).
     pub(crate) invariant_light_rows: Vec<std::sync::OnceLock<LightLanes>>,
+    /// The frame's virtual point lights, traced when a shader first gathers them
+    /// (`virtual_lights.rs`).
+    pub(crate) virtual_lights: std::sync::OnceLock<VirtualLights>,
     /// The stages that shader callbacks reach back into.
     pub(crate) stages: Stages,
 }
@@ -59,9 +62,30 @@ impl<'w> Frame<'w> {
             pixel_dy: m.y_axis * (-2.0 * tan * ay / h),
             pixel_spread: 2.0 * tan * ay / h,
             invariant_light_rows: world.lights.iter().map(|_| std::sync::OnceLock::new()).collect(),
+            virtual_lights: std::sync::OnceLock::new(),
             stages,
         }
     }
+}
+
+/// A virtual point light: where a path landed, the surface's normal there (facing where the path
+/// came from), and its power: irradiance at distance 1 straight along `n`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct VirtualLight {
+    pub p: Vec3A,
+    pub n: Vec3A,
+    pub power: Vec3A,
+}
+
+/// A frame's virtual lights, dealt into sets.
+#[derive(Clone, Debug, Default)]
+pub struct VirtualLights {
+    /// The lights of set `s` are `lights[s]`.
+    pub sets: Vec<Vec<VirtualLight>>,
+    /// The side of the pixel blocks the sets are dealt over.
+    pub interleave: u32,
+    /// The least squared distance a light counts at.
+    pub clamp_squared: f32,
 }
 
 /// The colour seen along a ray and its coverage.

@@ -348,6 +348,9 @@ pub struct RenderOptions {
     /// images are the same either way; off, each chunk's rays are traced and shaded on their own
     /// (kept for comparisons).
     pub trace_ahead: bool,
+    /// Global illumination by virtual point lights (RIB `Option "gi"`): off unless
+    /// `gi.virtual_lights` is set.
+    pub gi: GiOptions,
 }
 
 /// The screen window as centre and half extents, the form the cameras use: screen `x` of raster
@@ -410,9 +413,40 @@ impl Default for RenderOptions {
             pixel_filter: PixelFilter::default(),
             time_shaders: true,
             trace_ahead: true,
+            gi: GiOptions::default(),
         }
     }
 }
+
+/// What the application sets for global illumination by virtual point lights (RIB `Option "gi"`,
+/// `render/virtual_lights.rs`, `docs/global_illumination.md`).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct GiOptions {
+    /// Light paths traced per frame, over all the lights; 0 turns virtual lights off
+    /// (`indirectdiffuse()` then samples the hemisphere with rays).
+    pub virtual_lights: u32,
+    /// Diffuse bounces a path makes: 1 leaves virtual lights where paths first land (one bounce
+    /// of indirect light), 2 where they land next too, and so on.
+    pub bounces: u32,
+    /// The side of the pixel blocks whose pixels use different sets of virtual lights (1: every
+    /// pixel uses every light).
+    pub interleave: u32,
+    /// The least distance a virtual light counts at, in world units; 0: 1% of the scene's diagonal.
+    pub clamp: f32,
+    /// Another seed gives another set of paths (a viewer accumulating frames changes it).
+    pub seed: u32,
+}
+
+impl Default for GiOptions {
+    fn default() -> Self {
+        GiOptions { virtual_lights: 0, bounces: 1, interleave: 3, clamp: 0.0, seed: 0 }
+    }
+}
+
+/// The most paths a frame traces, and the deepest they go: what any option is clamped to.
+pub const MAX_VIRTUAL_LIGHT_PATHS: u32 = 1 << 16;
+pub const MAX_BOUNCES: u32 = 8;
+pub const MAX_INTERLEAVE: u32 = 8;
 
 /// Everything a frame renders. Build one with [`crate::api::Context`] or the RIB reader.
 /// What bringing the acceleration structures up to date cost when the world was built: the

@@ -570,6 +570,21 @@ impl<'a> Loader<'a> {
                         self.rt.options.max_ray_depth = n.clamp(0.0, 64.0) as u32;
                     }
                 }
+                ("gi", setting @ ("virtuallights" | "bounces" | "interleave" | "clamp" | "seed")) => {
+                    use crate::render::world::{MAX_BOUNCES, MAX_INTERLEAVE, MAX_VIRTUAL_LIGHT_PATHS};
+                    let Some(v) = f.filter(|v| v.is_finite() && *v >= 0.0) else {
+                        self.warn(r, format_args!("option \"gi\" \"{setting}\" takes a number, at least 0"));
+                        continue;
+                    };
+                    let gi = &mut self.rt.options.gi;
+                    match setting {
+                        "virtuallights" => gi.virtual_lights = v.min(MAX_VIRTUAL_LIGHT_PATHS as f32) as u32,
+                        "bounces" => gi.bounces = v.clamp(1.0, MAX_BOUNCES as f32) as u32,
+                        "interleave" => gi.interleave = v.clamp(1.0, MAX_INTERLEAVE as f32) as u32,
+                        "clamp" => gi.clamp = v,
+                        _ => gi.seed = v.min(u32::MAX as f32) as u32,
+                    }
+                }
                 _ => self.warn(r, format_args!("option \"{name}\" \"{}\" is not supported", p.name)),
             }
         }

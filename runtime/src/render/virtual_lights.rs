@@ -1,0 +1,297 @@
+//! Instant radiosity (Keller 1997): each frame, paths traced from the light sources leave
+//! **virtual point lights** where they meet diffuse surfaces, and `indirectdiffuse()` gathers them
+//! with a shadow ray each instead of sampling the hemisphere. Interleaved sampling (Keller and
+//! Heidrich 2001): the virtual lights are dealt into `interleave x interleave` sets, and the pixels
+//! of each block of that many pixels use one set each, so that neighbouring pixels see different
+//! lights and a filter over the block (an imager) can average them.
+//!
+//! Conventions (`docs/global_illumination.md`):
+//! - Light paths see every surface as **matte** with reflectance `Cs` (its material's colour,
+//!   clamped below 1), as PRMan's and 3Delight's photon tracing do by default (`Attribute "photon"
+//!   "shadingmodel" "matte"`): a surface reflects `Cs / pi` of its irradiance as radiance.
+//! - A light's emission is found by running its shader where a path from it lands: a local light
+//!   (`illuminate`) at the position its `L` points back to, a distant one (`solar`) along its `L`.
+//!   Paths leave a local light uniformly over the sphere and a distant one uniformly over a disc
+//!   as wide as the scene. Ambient lights emit nothing; area lights emit from their sample point.
+//! - `indirectdiffuse()` answers the mean radiance arriving over the hemisphere (irradiance over
+//!   pi), as its hemisphere-sampling form does, so `Cs * indirectdiffuse()` is the radiance a matte
+//!   surface reflects.
+//! - Virtual lights closer than `clamp` to the gathering point count as if `clamp` away: the
+//!   `1 / r^2` of a point light would otherwise make bright splotches near corners (the bias is a
+//!   little missing light in corners).
+//!
+//! Invariant: the virtual lights depend only on the world (and its options' seed), never on
+//! threads or timing, so every tile, lattice and worker of a frame gathers the same lights.
+
+use super::sampling::{mix, point_seed, radical_inverse, unit};
+use super::stats::{tracing, Stats};
+use super::work::{epsilon, Frame, VirtualLight, VirtualLights};
+use super::world::{LightSource, MAX_BOUNCES, MAX_INTERLEAVE, MAX_VIRTUAL_LIGHT_PATHS};
+use crate::ray::Ray;
+use crate::shading::LightKind;
+use glam::Vec3A;
+use rtsl_compiler::abi::{LightLanes, MAX_LIGHTS};
+
+/// Traces the frame's light paths and leaves its virtual lights.
+pub(super) fn trace(frame: &Frame) -> VirtualLights {
+    let world = frame.world;
+    let gi = world.options.gi;
+    let interleave = gi.interleave.clamp(1, MAX_INTERLEAVE);
+    let set_count = (interleave * interleave) as usize;
+    let Some((lo, hi)) = world.scene.bounds() else {
+        return VirtualLights { sets: vec![Vec::new(); set_count], interleave, clamp_squared: 0.0 };
+    };
+    let diagonal = (hi - lo).length();
+    let clamp = if gi.clamp > 0.0 { gi.clamp } else { 0.01 * diagonal };
+    let emitters: Vec<(&LightSource, Emitter)> =
+        world.lights.iter().filter_map(|l| Some((l, emitter(frame, l, lo, hi)?))).collect();
+    let paths = gi.virtual_lights.min(MAX_VIRTUAL_LIGHT_PATHS);
+    let mut lights = Vec::new();
+    if !emitters.is_empty() && paths > 0 {
+        let per_light = paths.div_ceil(emitters.len() as u32);
+        let seed = mix(u64::from(gi.seed) ^ 0x5851_F42D_4C95_7F2D);
+        for (k, (light, emitter)) in emitters.iter().enumerate() {
+            let seed = mix(seed ^ k as u64);
+            trace_paths(frame, light, emitter, per_light, gi.bounces.clamp(1, MAX_BOUNCES), seed, &mut lights);
+        }
+    }
+    // Dealt round-robin: each set a stratified share of the paths.
+    let mut sets = vec![Vec::with_capacity(lights.len() / set_count + 1); set_count];
+    for (i, l) in lights.into_iter().enumerate() {
+        sets[i % set_count].push(l);
+    }
+    VirtualLights { sets, interleave, clamp_squared: clamp * clamp }
+}
+
+/// The set of `lights` a point uses: by the pixel it projects to (the interleaving block's cell),
+/// or where it projects to no pixel (behind the camera, or a camera shader's view), by a hash of it.
+pub(super) fn set_of(lights: &VirtualLights, frame: &Frame, p: Vec3A) -> usize {
+    let n = lights.interleave;
+    let cell = match raster_of(frame, p) {
+        Some((x, y)) => x.rem_euclid(n as i64) as u32 + n * y.rem_euclid(n as i64) as u32,
+        None => (point_seed(p) % u64::from(n * n)) as u32,
+    };
+    cell as usize
+}
+
+/// The mean radiance arriving at `p` around the unit normal `n` from set `set` of `all` (irradiance
+/// over pi), each light behind a shadow ray. The set stands for all of them: its share is scaled
+/// up by the number of sets.
+pub(super) fn gather(all: &VirtualLights, frame: &Frame, set: usize, p: Vec3A, n: Vec3A, time: f32) -> Vec3A {
+    let Some(lights) = all.sets.get(set) else { return Vec3A::ZERO };
+    let mut sum = Vec3A::ZERO;
+    let mut rays = 0;
+    for vl in lights {
+        let to = vl.p - p;
+        let r2 = to.length_squared();
+        if r2 <= 0.0 {
+            continue;
+        }
+        let w = to / r2.sqrt();
+        let (cos_here, cos_there) = (n.dot(w), -vl.n.dot(w));
+        if cos_here <= 0.0 || cos_there <= 0.0 {
+            continue;
+        }
+        let reach = r2.sqrt() * (1.0 - 1e-3) - epsilon(vl.p);
+        let ray = Ray::segment(p, w, epsilon(p), reach.max(0.0)).at_time(time);
+        rays += 1;
+        if tracing(|| frame.world.scene.occluded(&ray)) {
+            continue;
+        }
+        sum += vl.power * (cos_here * cos_there / r2.max(all.clamp_squared));
+    }
+    Stats::add(&frame.stats.shadow_rays, rays);
+    sum * (all.sets.len() as f32 / std::f32::consts::PI)
+}
+
+/// Where a light's paths start.
+enum Emitter {
+    /// A local light at a position: paths leave it over the whole sphere.
+    Point(Vec3A),
+    /// A distant light shining along a direction: paths start on a disc of `radius` about `centre`,
+    /// across the direction, outside the scene.
+    Distant { direction: Vec3A, centre: Vec3A, radius: f32 },
+}
+
+/// How `light` emits, found by running it at a point of the scene (its centre, else a corner of
+/// the scene's bounds its illumination reaches); `None` for an ambient light or one that lights
+/// none of those points.
+fn emitter(frame: &Frame, light: &LightSource, lo: Vec3A, hi: Vec3A) -> Option<Emitter> {
+    if light.kind == LightKind::Ambient {
+        return None;
+    }
+    let centre = (lo + hi) * 0.5;
+    let corners = (0..8).map(|k| Vec3A::new([lo.x, hi.x][k & 1], [lo.y, hi.y][k >> 1 & 1], [lo.z, hi.z][k >> 2 & 1]));
+    let probes: Vec<Vec3A> = std::iter::once(centre).chain(corners.map(|c| centre + (c - centre) * 0.9)).collect();
+    for four in probes.chunks(4) {
+        let points: [Vec3A; 4] = std::array::from_fn(|l| four.get(l).copied().unwrap_or(centre));
+        let mask: [i32; 4] = std::array::from_fn(|l| if l < four.len() { -1 } else { 0 });
+        let rows = eval(frame, light, &mask, &points);
+        for (l, &p) in points.iter().enumerate().take(four.len()) {
+            let Some(row) = rows.iter().find(|(lane, _)| *lane == l).map(|(_, r)| r) else { continue };
+            let to_light = Vec3A::from(row.lane_l(l));
+            if to_light.length_squared() <= 0.0 || !to_light.is_finite() {
+                continue;
+            }
+            return Some(match light.kind {
+                LightKind::Distant => {
+                    Emitter::Distant { direction: -to_light.normalize(), centre, radius: 0.5 * (hi - lo).length() }
+                }
+                _ => Emitter::Point(p + to_light),
+            });
+        }
+    }
+    None
+}
+
+/// The light of `light` at four points (no shadow rays matter here: the points are where paths
+/// from the light land): each lane's first row, for the lanes it reaches.
+fn eval(frame: &Frame, light: &LightSource, mask: &[i32; 4], points: &[Vec3A; 4]) -> Vec<(usize, LightLanes)> {
+    let mut rows = vec![LightLanes::default(); MAX_LIGHTS];
+    let mut counts = [0u32; 4];
+    (frame.stages.eval_light)(frame, light, None, mask, points, &[0.0; 4], 0, &mut rows, &mut counts);
+    (0..4).filter(|&l| counts[l] > 0 && mask[l] != 0).map(|l| (l, rows[0])).collect()
+}
+
+/// Traces `count` paths from `light` and appends a virtual light where each lands on a surface,
+/// for each of `bounces` bounces.
+fn trace_paths(
+    frame: &Frame,
+    light: &LightSource,
+    emitter: &Emitter,
+    count: u32,
+    bounces: u32,
+    seed: u64,
+    out: &mut Vec<VirtualLight>,
+) {
+    let world = frame.world;
+    // A Cranley-Patterson rotation of the Hammersley points: another seed, another stratified set.
+    let shift = (unit(seed), unit(mix(seed)));
+    let starts: Vec<(Ray, f32)> = (0..count)
+        .map(|i| {
+            let (u1, u2) =
+                (((i as f32 + 0.5) / count as f32 + shift.0).fract(), (radical_inverse(i, 2) + shift.1).fract());
+            match *emitter {
+                Emitter::Point(from) => {
+                    let z = 1.0 - 2.0 * u1;
+                    let r = (1.0 - z * z).max(0.0).sqrt();
+                    let phi = std::f32::consts::TAU * u2;
+                    let dir = Vec3A::new(r * phi.cos(), r * phi.sin(), z);
+                    // Point light power over paths: 4 pi steradians each path's share.
+                    (Ray::segment(from, dir, epsilon(from), f32::INFINITY), 4.0 * std::f32::consts::PI / count as f32)
+                }
+                Emitter::Distant { direction, centre, radius } => {
+                    let (t1, t2) = orthonormal(direction);
+                    let (r, phi) = (radius * u1.sqrt(), std::f32::consts::TAU * u2);
+                    let origin = centre - direction * (2.0 * radius) + t1 * (r * phi.cos()) + t2 * (r * phi.sin());
+                    let area = std::f32::consts::PI * radius * radius;
+                    (Ray::segment(origin, direction, 0.0, f32::INFINITY), area / count as f32)
+                }
+            }
+        })
+        .collect();
+    // The first landings, four at a time through the light's shader for their light.
+    let mut landings = Vec::with_capacity(starts.len());
+    for (ray, share) in &starts {
+        let hit = tracing(|| world.scene.intersect(ray));
+        let Some(surface) = hit.is_hit().then(|| world.scene.surface(&hit)).flatten() else { continue };
+        landings.push((*ray, *share, hit, surface));
+    }
+    Stats::add(&frame.stats.secondary_rays, starts.len());
+    for four in landings.chunks(4) {
+        let points: [Vec3A; 4] = std::array::from_fn(|l| four.get(l).map_or(Vec3A::ZERO, |x| x.3.p));
+        let mask: [i32; 4] = std::array::from_fn(|l| if l < four.len() { -1 } else { 0 });
+        let rows = eval(frame, light, &mask, &points);
+        for (l, row) in rows {
+            let (ray, share, hit, surface) = &four[l];
+            let cl = Vec3A::from(row.lane(l).cl);
+            // A point light's intensity toward the landing is Cl times the squared distance; a
+            // distant light's Cl is the irradiance across its direction.
+            let d2 = match emitter {
+                Emitter::Point(from) => (surface.p - *from).length_squared(),
+                Emitter::Distant { .. } => 1.0,
+            };
+            let carried = cl * (share * d2);
+            follow(frame, *ray, *hit, surface.clone(), carried, bounces, seed ^ (out.len() as u64), out);
+        }
+    }
+}
+
+/// Leaves a virtual light where `ray` landed (`hit`, on `surface`) carrying `carried` power, and
+/// bounces on, cosine-distributed, `bounces - 1` more times while power is left.
+#[allow(clippy::too_many_arguments)]
+fn follow(
+    frame: &Frame,
+    mut ray: Ray,
+    mut hit: crate::ray::Hit,
+    mut surface: crate::scene::SurfaceHit,
+    mut carried: Vec3A,
+    bounces: u32,
+    seed: u64,
+    out: &mut Vec<VirtualLight>,
+) {
+    let world = frame.world;
+    for bounce in 0..bounces {
+        let reflectance = reflectance(frame, &hit);
+        let n = if surface.ng.dot(ray.direction) > 0.0 { -surface.ng } else { surface.ng };
+        let power = carried * reflectance / std::f32::consts::PI;
+        if power.max_element() <= 0.0 || !power.is_finite() {
+            return;
+        }
+        out.push(VirtualLight { p: surface.p, n, power });
+        if bounce + 1 == bounces {
+            return;
+        }
+        // Cosine sampling cancels the matte BRDF's cosine over pi: the path carries reflectance.
+        carried *= reflectance;
+        let h = mix(seed ^ (u64::from(bounce) << 32) ^ point_seed(surface.p));
+        let (r1, r2) = (unit(h), unit(mix(h)));
+        let (t1, t2) = orthonormal(n);
+        let phi = std::f32::consts::TAU * r1;
+        let (s, c) = (r2.sqrt(), (1.0 - r2).sqrt());
+        let dir = t1 * (s * phi.cos()) + t2 * (s * phi.sin()) + n * c;
+        ray = Ray::segment(surface.p, dir, epsilon(surface.p), f32::INFINITY);
+        Stats::add(&frame.stats.secondary_rays, 1);
+        hit = tracing(|| world.scene.intersect(&ray));
+        match hit.is_hit().then(|| world.scene.surface(&hit)).flatten() {
+            Some(s) => surface = s,
+            None => return,
+        }
+    }
+}
+
+/// The matte reflectance light paths see at a hit: its material's colour, each channel clamped
+/// below 1 so that paths lose power at every bounce.
+fn reflectance(frame: &Frame, hit: &crate::ray::Hit) -> Vec3A {
+    let world = frame.world;
+    let material = world.instances.get(hit.instance as usize).map(|i| i.material_at(hit.primitive));
+    let color = material.and_then(|m| world.materials.get(m as usize)).map_or([1.0; 3], |m| m.color);
+    Vec3A::from(color).clamp(Vec3A::ZERO, Vec3A::splat(0.95))
+}
+
+fn orthonormal(n: Vec3A) -> (Vec3A, Vec3A) {
+    let a = if n.x.abs() > 0.9 { Vec3A::Y } else { Vec3A::X };
+    let t1 = n.cross(a).normalize();
+    (t1, n.cross(t1))
+}
+
+/// The pixel (raster x and y) that `p` projects to through the frame's pinhole camera; `None`
+/// behind it, or under a camera shader (whose view is not a projection).
+fn raster_of(frame: &Frame, p: Vec3A) -> Option<(i64, i64)> {
+    let world = frame.world;
+    if world.camera_shader.is_some() {
+        return None;
+    }
+    let c = frame.camera_from_world.transform_point3a(p);
+    if c.z <= 1e-6 {
+        return None;
+    }
+    let tan = (world.camera.fov_degrees.to_radians() * 0.5).tan();
+    let e = world.options.screen_extent();
+    let ((ax, ay), (cx, cy)) = (e.half, e.centre);
+    let (sx, sy) = (c.x / (c.z * tan), c.y / (c.z * tan));
+    let (w, h) = (world.options.width as f32, world.options.height as f32);
+    let x = ((sx - cx) / ax * 0.5 + 0.5) * w;
+    let y = (0.5 - (sy - cy) / ay * 0.5) * h;
+    (x.is_finite() && y.is_finite()).then(|| (x.floor() as i64, y.floor() as i64))
+}

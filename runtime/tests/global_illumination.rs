@@ -1,0 +1,123 @@
+//! Global illumination by virtual point lights (`render/virtual_lights.rs`,
+//! `docs/global_illumination.md`), checked against an independent estimate of the same light:
+//! `indirectdiffuse()` sampling the hemisphere with rays that shade what they hit.
+
+use rtsl_runtime::api::Context;
+use rtsl_runtime::render::{render_frame, Framebuffer};
+use std::path::Path;
+
+/// A closed box (white floor, ceiling and back, a red wall on the left, a green one on the right)
+/// under a point light, every surface matte with reflectance `Cs` and seen straight on. The
+/// camera's primary hits show the indirect light arriving (`indirectdiffuse()`, the mean radiance
+/// over the hemisphere); every other hit shows the direct light it reflects, `Cs E / pi`: so the
+/// picture is exactly one bounce of indirect light, by whichever estimate is on.
+fn box_scene(options: &str) -> (Context, Vec<String>) {
+    let rib = format!(
+        r#"
+        Format 32 24 1
+        Projection "perspective" "fov" 60
+        {options}
+        Translate 0 0 2.6
+        WorldBegin
+        LightSource "pointlight" 1 "intensity" 3 "from" [0 0.8 0]
+        Surface "onebounce"
+        Color [0.8 0.8 0.8]
+        Polygon "P" [-1 -1 -1  1 -1 -1  1 -1 1  -1 -1 1]
+        Polygon "P" [-1 1 -1  -1 1 1  1 1 1  1 1 -1]
+        Polygon "P" [-1 -1 1  1 -1 1  1 1 1  -1 1 1]
+        Color [0.85 0.15 0.1]
+        Polygon "P" [-1 -1 -1  -1 -1 1  -1 1 1  -1 1 -1]
+        Color [0.1 0.8 0.15]
+        Polygon "P" [1 -1 -1  1 1 -1  1 1 1  1 -1 1]
+        WorldEnd
+        "#
+    );
+    let mut rt = Context::new();
+    let shader = "surface onebounce() {
+        normal Nf = faceforward(normalize(N), I);
+        if (raydepth() == 0) {
+            Ci = indirectdiffuse(P, Nf, 192);
+        } else {
+            Ci = Cs * diffuse(Nf) / PI;
+        }
+        Oi = 1;
+    }";
+    rt.compile_shader("onebounce", shader).expect("the test shader compiles");
+    let loaded = rtsl_runtime::rib::load::load_str(&mut rt, &rib, Path::new("<box>")).expect("the box loads");
+    rt.options.max_ray_depth = 1;
+    (rt, loaded.warnings)
+}
+
+fn render(options: &str) -> Framebuffer {
+    let (mut rt, warnings) = box_scene(options);
+    assert!(warnings.is_empty(), "{warnings:?}");
+    let world = rt.build_world().expect("a world");
+    render_frame(&world, None).0
+}
+
+/// The mean of each colour channel over `rows` and `cols` of the image.
+fn mean(fb: &Framebuffer, cols: std::ops::Range<u32>, rows: std::ops::Range<u32>) -> [f32; 3] {
+    let mut sum = [0.0f32; 3];
+    let n = (cols.len() * rows.len()) as f32;
+    for y in rows {
+        for x in cols.clone() {
+            let i = 4 * (y * fb.width + x) as usize;
+            for (s, v) in sum.iter_mut().zip(&fb.rgba[i..i + 3]) {
+                *s += v / n;
+            }
+        }
+    }
+    sum
+}
+
+fn relative_error(a: [f32; 3], b: [f32; 3]) -> f32 {
+    let (num, den): (f32, f32) =
+        (0..3).map(|c| ((a[c] - b[c]).abs(), b[c])).fold((0.0, 0.0), |s, x| (s.0 + x.0, s.1 + x.1));
+    num / den.max(1e-6)
+}
+
+#[test]
+fn virtual_lights_agree_with_sampling_the_hemisphere() {
+    let sampled = render("");
+    let virtual_lights = render(r#"Option "gi" "integer virtuallights" [6000] "integer interleave" [1]"#);
+    let whole = (0..32, 0..24);
+    let (a, b) = (mean(&virtual_lights, whole.0.clone(), whole.1.clone()), mean(&sampled, whole.0, whole.1));
+    assert!(b.iter().all(|&v| v > 0.01), "the box has indirect light: {b:?}");
+    let e = relative_error(a, b);
+    eprintln!("image means: virtual lights {a:?}, hemisphere {b:?}, relative error {e}");
+    assert!(e < 0.03, "image means: virtual lights {a:?}, hemisphere {b:?} (relative error {e})");
+    // Region by region: the floor by the red wall is red, by the green wall green, in both.
+    for (cols, rows) in [(0..10, 16..24), (22..32, 16..24), (10..22, 0..8), (10..22, 8..16)] {
+        let (a, b) = (mean(&virtual_lights, cols.clone(), rows.clone()), mean(&sampled, cols.clone(), rows.clone()));
+        let e = relative_error(a, b);
+        assert!(e < 0.15, "columns {cols:?}, rows {rows:?}: virtual lights {a:?}, hemisphere {b:?} ({e})");
+    }
+    // The light arriving at the red wall (left) comes from the green wall across, and the other
+    // way round.
+    let (left, right) = (mean(&virtual_lights, 0..4, 6..18), mean(&virtual_lights, 28..32, 6..18));
+    assert!(left[1] > 1.1 * left[0] && right[0] > 1.1 * right[1], "colour bleeds: left {left:?}, right {right:?}");
+}
+
+#[test]
+fn interleaving_changes_which_lights_a_pixel_sees_not_how_much_light_there_is() {
+    let all = render(r#"Option "gi" "integer virtuallights" [4000] "integer interleave" [1]"#);
+    let interleaved = render(r#"Option "gi" "integer virtuallights" [4000] "integer interleave" [3]"#);
+    let (a, b) = (mean(&interleaved, 0..30, 0..24), mean(&all, 0..30, 0..24));
+    let e = relative_error(a, b);
+    assert!(e < 0.05, "interleaved {a:?}, every light {b:?} ({e})");
+    // Neighbours see different sets: the interleaved image differs pixel to pixel from the other.
+    let differing = interleaved.rgba.iter().zip(&all.rgba).filter(|(x, y)| (*x - *y).abs() > 1e-4).count();
+    assert!(differing > interleaved.rgba.len() / 4, "{differing} values differ");
+}
+
+#[test]
+fn bad_gi_options_are_warnings_and_counts_are_clamped() {
+    let (rt, warnings) =
+        box_scene(r#"Option "gi" "integer virtuallights" [-5] "integer interleave" [1000] "float clamp" [-1]"#);
+    assert_eq!(warnings.len(), 2, "{warnings:?}");
+    assert!(warnings.iter().all(|w| w.contains("\"gi\"")), "{warnings:?}");
+    assert_eq!(rt.options.gi.virtual_lights, 0);
+    assert_eq!(rt.options.gi.interleave, rtsl_runtime::render::world::MAX_INTERLEAVE);
+    let (rt, _) = box_scene(r#"Option "gi" "float virtuallights" [1e12]"#);
+    assert_eq!(rt.options.gi.virtual_lights, rtsl_runtime::render::world::MAX_VIRTUAL_LIGHT_PATHS);
+}

@@ -1,0 +1,21 @@
+/*
+ * gimatte.sl -- a diffuse surface lit directly and indirectly (global illumination).
+ *
+ * Reflectance Cs * Kd, physically normalised: the radiance it reflects is its reflectance over
+ * pi times the irradiance, direct (diffuse(), from the scene's lights) and indirect
+ * (indirectdiffuse(): the mean radiance arriving over the hemisphere, which is irradiance over
+ * pi already). With Option "gi" "virtuallights" set, the indirect light comes from the frame's
+ * virtual point lights (instant radiosity, docs/global_illumination.md); otherwise from
+ * `samples` rays over the hemisphere.
+ *
+ * Parameters:
+ *   Kd      -- scale applied to the reflectance Cs (1). Light paths see Cs alone.
+ *   samples -- hemisphere rays per point when virtual lights are off (16).
+ */
+surface gimatte(float Kd = 1; float samples = 16;)
+{
+    normal Nf = faceforward(normalize(N), I);
+
+    Oi = Os;
+    Ci = Os * Cs * Kd * (diffuse(Nf) / PI + indirectdiffuse(P, Nf, samples));
+}
