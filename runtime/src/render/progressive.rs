@@ -232,7 +232,10 @@ pub struct LatticeTracer<'w> {
 
 impl<'w> LatticeTracer<'w> {
     pub fn new(world: &'w World, pass: u32, preview: bool) -> LatticeTracer<'w> {
-        LatticeTracer { frame: Frame::new(world), pass, preview }
+        let mut frame = Frame::new(world);
+        // Each pass gathers virtual lights of its own, so that passes converge.
+        frame.gi_seed = world.options.gi.seed.wrapping_add(pass);
+        LatticeTracer { frame, pass, preview }
     }
 
     /// Traces the lanes `lanes` of `lattice` (see [`trace_lattice`]).

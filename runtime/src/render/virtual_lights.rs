@@ -20,8 +20,9 @@
 //!   `1 / r^2` of a point light would otherwise make bright splotches near corners (the bias is a
 //!   little missing light in corners).
 //!
-//! Invariant: the virtual lights depend only on the world (and its options' seed), never on
-//! threads or timing, so every tile, lattice and worker of a frame gathers the same lights.
+//! Invariant: the virtual lights depend only on the world and the frame's seed (the options', or
+//! per pass of progressive refinement another: `Frame::gi_seed`), never on threads or timing, so
+//! every tile, lattice and worker of a frame gathers the same lights.
 
 use super::sampling::{mix, point_seed, radical_inverse, unit};
 use super::stats::{tracing, Stats};
@@ -49,7 +50,7 @@ pub(super) fn trace(frame: &Frame) -> VirtualLights {
     let mut lights = Vec::new();
     if !emitters.is_empty() && paths > 0 {
         let per_light = paths.div_ceil(emitters.len() as u32);
-        let seed = mix(u64::from(gi.seed) ^ 0x5851_F42D_4C95_7F2D);
+        let seed = mix(u64::from(frame.gi_seed) ^ 0x5851_F42D_4C95_7F2D);
         for (k, (light, emitter)) in emitters.iter().enumerate() {
             let seed = mix(seed ^ k as u64);
             trace_paths(frame, light, emitter, per_light, gi.bounces.clamp(1, MAX_BOUNCES), seed, &mut lights);

@@ -35,6 +35,9 @@ pub struct Frame<'w> {
     /// The frame's virtual point lights, traced when a shader first gathers them
     /// (`virtual_lights.rs`).
     pub(crate) virtual_lights: std::sync::OnceLock<VirtualLights>,
+    /// The seed of the frame's light paths: the options' own, or per pass of progressive
+    /// refinement another, so that passes accumulate fresh virtual lights.
+    pub(crate) gi_seed: u32,
     /// The stages that shader callbacks reach back into.
     pub(crate) stages: Stages,
 }
@@ -63,6 +66,7 @@ impl<'w> Frame<'w> {
             pixel_spread: 2.0 * tan * ay / h,
             invariant_light_rows: world.lights.iter().map(|_| std::sync::OnceLock::new()).collect(),
             virtual_lights: std::sync::OnceLock::new(),
+            gi_seed: world.options.gi.seed,
             stages,
         }
     }
