@@ -97,6 +97,24 @@ fn texture3d_grid_lookups() {
 }
 
 #[test]
+fn pixel_shaders_read_other_pixels() {
+    // The test host's image is 8 x 6 pixels, each channel a function of the pixel; "missing" is no
+    // channel (0). A float context reads the first component; a colour cast reads all three.
+    check(
+        r#"
+        pixel t(output varying float a = 0;)
+        {
+            float x = xcomp(P), y = ycomp(P);
+            a = pixelvalue("z", x + 1, y - 1) + pixelvalue("objectid", x, y) * 100;
+            if (pixelvalue("objectid", x - 1, y) == pixelvalue("objectid", x, y) - 1 && x > 2)
+                a += pixelvalue("missing", x, y) + 1000;
+            Ci = color pixelvalue("Ci", x - 2, y + 3) + pixelvalue("alpha", x, y);
+        }
+        "#,
+    );
+}
+
+#[test]
 fn gather_samples_outputs_branches_and_loop_exits() {
     // The test host's ceiling (z = P.z + 10) is hit by rays with a positive z component: axes
     // along N (random) and cones from 0.3 to 2.3 radians give hits and misses in one chunk.

@@ -138,3 +138,77 @@ fn progressive_passes_gather_fresh_virtual_lights_and_converge() {
     // Each pass's own paths: the pattern of one pass's sets averages out.
     assert!(many < one / 2.5, "mean difference from the reference: 1 pass {one}, 24 passes {many}");
 }
+
+#[test]
+fn the_interleave_filter_removes_the_pattern_within_surfaces() {
+    // Few paths: each pixel's ninth of them is noisy, the noise the filter is for.
+    let every = r#"Option "gi" "integer virtuallights" [270] "integer interleave" [1]"#;
+    let interleaved = r#"Option "gi" "integer virtuallights" [270] "integer interleave" [3]"#;
+    let filtered = format!("{interleaved}\nImager \"interleavefilter\" \"size\" [3]");
+    let (all, raw, smooth) = (render(every), render(interleaved), render(&filtered));
+    let difference =
+        |a: &Framebuffer| a.rgba.iter().zip(&all.rgba).map(|(x, y)| (x - y).abs()).sum::<f32>() / a.rgba.len() as f32;
+    // The pattern: how much neighbouring pixels differ.
+    let roughness = |a: &Framebuffer| {
+        let w = 4 * a.width as usize;
+        let pairs = a.rgba.chunks(w).flat_map(|row| row.iter().zip(&row[4..]).map(|(x, y)| (x - y).abs()));
+        pairs.sum::<f32>() / a.rgba.len() as f32
+    };
+    let (before, after) = (difference(&raw), difference(&smooth));
+    let (rough_raw, rough_smooth, rough_all) = (roughness(&raw), roughness(&smooth), roughness(&all));
+    eprintln!("difference from every light: interleaved {before}, filtered {after}; neighbours differ by {rough_raw}, {rough_smooth} (every light {rough_all})");
+    assert!(after < 0.8 * before, "mean difference from every light: interleaved {before}, filtered {after}");
+    // Beyond the image's own gradients (every light's), the pattern is mostly gone.
+    let (pattern_raw, pattern_smooth) = (rough_raw - rough_all, rough_smooth - rough_all);
+    assert!(pattern_smooth < pattern_raw / 3.0, "the pattern: {pattern_raw} interleaved, {pattern_smooth} filtered");
+    // Pixel by pixel, what docs/shaders.md says: the mean over the 3x3 pixels around it (inside
+    // the image) that see its object at a depth within 5% of its own; the walls are objects of
+    // their own, so none is mixed with another.
+    let (w, h) = (raw.width as i64, raw.height as i64);
+    for y in 0..h {
+        for x in 0..w {
+            let i = (y * w + x) as usize;
+            let (z, id) = (raw.depth[i], raw.object_id[i]);
+            if id == u32::MAX {
+                // Nothing seen: left as it is.
+                assert_eq!(&smooth.rgba[4 * i..4 * i + 4], &raw.rgba[4 * i..4 * i + 4]);
+                continue;
+            }
+            let mut sum = [0.0f32; 3];
+            let mut n = 0.0;
+            for (dx, dy) in (-1..=1).flat_map(|dy| (-1..=1).map(move |dx| (dx, dy))) {
+                let (nx, ny) = (x + dx, y + dy);
+                if nx < 0 || ny < 0 || nx >= w || ny >= h {
+                    continue;
+                }
+                let j = (ny * w + nx) as usize;
+                if raw.object_id[j] == id && (raw.depth[j] - z).abs() <= 0.05 * z {
+                    for (s, v) in sum.iter_mut().zip(&raw.rgba[4 * j..4 * j + 3]) {
+                        *s += v;
+                    }
+                    n += 1.0;
+                }
+            }
+            for (c, total) in sum.iter().enumerate() {
+                let want = total / n;
+                let got = smooth.rgba[4 * i + c];
+                assert!((want - got).abs() < 1e-4 * want.max(1.0), "pixel {x}, {y}: {got}, the filter's {want}");
+            }
+        }
+    }
+}
+
+#[test]
+fn a_pixel_shader_reading_pixels_sees_the_same_image_tile_by_tile_and_accumulated() {
+    use rtsl_runtime::render::progressive::render_progressive;
+    let options =
+        "Option \"gi\" \"integer virtuallights\" [500] \"integer interleave\" [3]\nImager \"interleavefilter\"";
+    let (mut rt, warnings) = box_scene(options);
+    assert!(warnings.is_empty(), "{warnings:?}");
+    rt.options.antialiasing = rtsl_runtime::render::Antialiasing::Grid { jitter: false };
+    let world = rt.build_world().expect("a world");
+    let (frame, _) = render_frame(&world, None);
+    let accumulated = render_progressive(&world, 1).0.resolve(&world);
+    let worst = frame.rgba.iter().zip(&accumulated.rgba).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+    assert!(worst < 1e-5, "largest difference {worst}");
+}

@@ -578,6 +578,14 @@ impl Machine<'_> {
                 self.host.unsupported(b);
                 Value::Triple([0.0; 3])
             }
+            Builtin::Pixelvalue => {
+                let c = self.host.pixel_value(v(0).s(), v(1).f(), v(2).f()).unwrap_or([0.0; 3]);
+                if ty.base == BaseType::Float {
+                    Value::Float(c[0])
+                } else {
+                    Value::Triple(c)
+                }
+            }
             Builtin::Incident | Builtin::Opposite => {
                 let interior =
                     geom::asks_interior(self.global("I").v3(), self.global("Ng").v3(), b == Builtin::Opposite);

@@ -98,6 +98,14 @@ pub trait Services {
         let _ = (name, p);
         None
     }
+    /// Channel `name` of the pixel at raster `(x, y)` of the image a pixel shader is finishing
+    /// (`pixelvalue`): `"Ci"` a colour, `"alpha"`, `"z"`, `"objectid"`, `"shaderid"` a float in
+    /// the first component. `None` where there is no such image or channel (the caller answers
+    /// 0). The default has no image.
+    fn pixel_value(&mut self, name: &str, x: f32, y: f32) -> Option<V3> {
+        let _ = (name, x, y);
+        None
+    }
     /// An environment lookup by direction.
     fn environment(&mut self, name: &str, dir: V3) -> Option<V3>;
     /// The fraction of the query's region in shadow according to the shadow map `name`.
@@ -234,6 +242,17 @@ impl Services for TestHost {
 
     fn texture3d(&mut self, name: &str, p: V3) -> Option<f32> {
         (name != "missing").then(|| 0.25 * p[0] + 0.5 * p[1] + 0.125 * p[2])
+    }
+
+    /// An image of 8 x 6 pixels whose channels are functions of the pixel (the nearest inside);
+    /// no channel "missing".
+    fn pixel_value(&mut self, name: &str, x: f32, y: f32) -> Option<V3> {
+        let (px, py) = (x.floor().clamp(0.0, 7.0), y.floor().clamp(0.0, 5.0));
+        match name {
+            "Ci" => Some([px / 8.0, py / 6.0, (px + py) / 14.0]),
+            "missing" => None,
+            _ => Some([px + 10.0 * py + name.len() as f32, 0.0, 0.0]),
+        }
     }
 
     fn environment(&mut self, _name: &str, dir: V3) -> Option<V3> {

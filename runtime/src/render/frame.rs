@@ -7,13 +7,13 @@
 //! tiles are added up in tile order).
 
 use super::film::{Film, TileFilm};
-use super::pixel::{shade_pixels, TilePixels};
+use super::pixel::{reads_pixels, shade_pixels, TilePixels};
 use super::primary::{
     pinhole_ray, primary_rays, primary_rays_into, primary_rays_of_packets, CameraSample, PacketSamples, PrimaryRays,
 };
 use super::sampling::{mix, radical_inverse};
 use super::shade::{shade_packet, shade_packets};
-use super::work::{Frame, Sample};
+use super::work::{Frame, PixelImage, Sample};
 use super::world::{Antialiasing, World};
 use crate::camera::{packet_lane_offset, PACKET_LANE_OFFSETS, PACKET_SIDE};
 use crate::ray::{HitPacket, PACKET_SIZE};
@@ -619,8 +619,9 @@ fn sample_tile(
     px
 }
 
-/// Runs the pixel shader over a tile's finished colours.
-fn shade_tile_pixels(frame: &Frame, tile: &Tile, px: &mut TileSamples) {
+/// Runs the pixel shader over a tile's finished colours (`image`: the whole image, for a pixel
+/// shader that reads other pixels).
+fn shade_tile_pixels(frame: &Frame, tile: &Tile, px: &mut TileSamples, image: Option<&PixelImage>) {
     shade_pixels(
         frame,
         TilePixels {
@@ -632,7 +633,36 @@ fn shade_tile_pixels(frame: &Frame, tile: &Tile, px: &mut TileSamples) {
             object_id: &px.ids,
             shader_id: &px.shader_ids,
         },
+        image,
     );
+}
+
+/// The image of finished tiles before the pixel shader, for a pixel shader that reads it.
+fn pixel_image((w, h): (u32, u32), tiles: &[(Tile, TileSamples)]) -> PixelImage {
+    let n = w as usize * h as usize;
+    let mut image = PixelImage {
+        width: w,
+        height: h,
+        rgba: vec![[0.0; 4]; n],
+        depth: vec![f32::INFINITY; n],
+        object_id: vec![u32::MAX; n],
+        shader_id: vec![u32::MAX; n],
+    };
+    for (tile, px) in tiles {
+        for row in 0..tile.height {
+            let (y, from) = (tile.y0 + row, (row * tile.width) as usize);
+            let to = (y * w + tile.x0) as usize;
+            let k = tile.width as usize;
+            if y >= h || tile.x0 + tile.width > w || from + k > px.color.len() {
+                continue;
+            }
+            image.rgba[to..to + k].copy_from_slice(&px.color[from..from + k]);
+            image.depth[to..to + k].copy_from_slice(&px.depth[from..from + k]);
+            image.object_id[to..to + k].copy_from_slice(&px.ids[from..from + k]);
+            image.shader_id[to..to + k].copy_from_slice(&px.shader_ids[from..from + k]);
+        }
+    }
+    image
 }
 
 /// Renders a frame with the threads of the current rayon pool. `progress` is told how many tiles
@@ -657,6 +687,8 @@ pub fn render_frame(world: &World, progress: Option<&(dyn Fn(usize, usize) + Syn
 pub struct TileRenderer<'w> {
     frame: Frame<'w>,
     sampling: Sampling,
+    /// The pixel shader reads other pixels: it runs in `finish`, over the whole image.
+    pixels_later: bool,
 }
 
 /// A tile as rendered: its pixels (under the default box 1x1 filter finished, pixel shader
@@ -666,12 +698,15 @@ pub struct RenderedTile {
     pub tile: Tile,
     px: TileSamples,
     film: Option<TileFilm>,
+    /// The pixel shader has yet to run (over the whole image: it reads other pixels).
+    pixels_later: bool,
 }
 
 impl RenderedTile {
     /// Appends the tile's pixels (and film) to `out`: colours, depths, object ids, then a byte
-    /// that says whether the tile is unfinished (filtered on the master), and if it is, its shader
-    /// ids (for the pixel shader that runs after filtering) and its film's sums. Values are copied
+    /// that says whether the tile is unfinished (filtered on the master, or its pixel shader run
+    /// there over the whole image), and if it is, its shader ids (for the pixel shader) and its
+    /// film's sums. Values are copied
     /// as they lie in memory (the processes that exchange tiles run one build on one kind of
     /// machine: `crate::distributed` checks), so a tile costs a few copies of its bytes. The tile
     /// itself is not written: whoever decodes knows which tile it asked for.
@@ -682,8 +717,15 @@ impl RenderedTile {
         out.extend_from_slice(bytemuck::cast_slice(&px.color));
         out.extend_from_slice(bytemuck::cast_slice(&px.depth));
         out.extend_from_slice(bytemuck::cast_slice(&px.ids));
-        out.push(u8::from(self.film.is_some()));
-        if self.film.is_some() {
+        // 0: finished; 1: a film follows, and the shader ids the pixel shader reads after
+        // filtering; 2: the shader ids alone (the pixel shader runs over the whole image).
+        let kind = match (&self.film, self.pixels_later) {
+            (Some(_), _) => 1,
+            (None, true) => 2,
+            (None, false) => 0,
+        };
+        out.push(kind);
+        if kind != 0 {
             out.extend_from_slice(bytemuck::cast_slice(&px.shader_ids));
             out.extend_from_slice(bytemuck::cast_slice(film));
         }
@@ -707,8 +749,16 @@ impl RenderedTile {
         bytemuck::cast_slice_mut::<f32, u8>(&mut px.depth).copy_from_slice(values(n)?);
         bytemuck::cast_slice_mut::<u32, u8>(&mut px.ids).copy_from_slice(values(n)?);
         let options = &world.options;
+        let pixels_later = reads_pixels(world);
         let film = match (rest.split_first(), options.pixel_filter.is_unit_box()) {
-            (Some((0, [])), true) => None,
+            (Some((0, [])), true) if !pixels_later => None,
+            (Some((2, shader_ids)), true) if pixels_later => {
+                if shader_ids.len() != 4 * n {
+                    return Err(short());
+                }
+                bytemuck::cast_slice_mut::<u32, u8>(&mut px.shader_ids).copy_from_slice(shader_ids);
+                None
+            }
             (Some((1, unfinished)), false) => {
                 let (shader_ids, sums) = unfinished.split_at_checked(4 * n).ok_or_else(short)?;
                 bytemuck::cast_slice_mut::<u32, u8>(&mut px.shader_ids).copy_from_slice(shader_ids);
@@ -722,13 +772,13 @@ impl RenderedTile {
             }
             _ => return Err(format!("tile {}: its pixels do not match the frame's pixel filter", tile.index)),
         };
-        Ok(RenderedTile { tile, px, film })
+        Ok(RenderedTile { tile, px, film, pixels_later })
     }
 }
 
 impl<'w> TileRenderer<'w> {
     pub fn new(world: &'w World) -> TileRenderer<'w> {
-        TileRenderer { frame: Frame::new(world), sampling: Sampling::of(world) }
+        TileRenderer { frame: Frame::new(world), sampling: Sampling::of(world), pixels_later: reads_pixels(world) }
     }
 
     /// The frame being rendered (its world and its counters).
@@ -754,12 +804,14 @@ impl<'w> TileRenderer<'w> {
         let options = &self.frame.world.options;
         if options.pixel_filter.is_unit_box() {
             let mut px = sample_tile(&self.frame, tile, &self.sampling, |_, _| {});
-            shade_tile_pixels(&self.frame, tile, &mut px);
-            RenderedTile { tile: *tile, px, film: None }
+            if !self.pixels_later {
+                shade_tile_pixels(&self.frame, tile, &mut px, None);
+            }
+            RenderedTile { tile: *tile, px, film: None, pixels_later: self.pixels_later }
         } else {
             let mut film = TileFilm::new(options.pixel_filter, tile, options.pixel_range());
             let px = sample_tile(&self.frame, tile, &self.sampling, |raster, rgba| film.splat(raster, rgba));
-            RenderedTile { tile: *tile, px, film: Some(film) }
+            RenderedTile { tile: *tile, px, film: Some(film), pixels_later: self.pixels_later }
         }
     }
 
@@ -783,10 +835,17 @@ impl<'w> TileRenderer<'w> {
             let mut tiles: Vec<(Tile, TileSamples)> = tiles.into_iter().map(|t| (t.tile, t.px)).collect();
             tiles.par_iter_mut().for_each(|(tile, px)| {
                 resolve_tile(&film, tile, &mut px.color);
-                shade_tile_pixels(&self.frame, tile, px);
+                if !self.pixels_later {
+                    shade_tile_pixels(&self.frame, tile, px, None);
+                }
             });
             tiles
         };
+        let mut tiles = tiles;
+        if self.pixels_later {
+            let image = pixel_image((world.options.width, world.options.height), &tiles);
+            tiles.par_iter_mut().for_each(|(tile, px)| shade_tile_pixels(&self.frame, tile, px, Some(&image)));
+        }
         let fb = framebuffer(world, tiles);
         (fb, frame_report(&self.frame, start))
     }

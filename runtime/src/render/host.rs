@@ -9,7 +9,7 @@ use super::sampling::{mix, point_seed, unit};
 use super::stats::{tracing, Stats};
 use super::trace_ahead::RayLog;
 use super::virtual_lights;
-use super::work::{epsilon, BatchLights, Frame, Sample};
+use super::work::{epsilon, BatchLights, Frame, PixelImage, Sample};
 use crate::ray::Ray;
 use crate::shading::ShaderInstance;
 use crate::texture::{Grid, LookupLanes, LookupOptions, MipMap, TextureCache};
@@ -57,6 +57,8 @@ pub(crate) struct ShadeCall<'f, 'w> {
     /// What `trace` does with its rays: traces them, or (running a batch twice) notes them or
     /// answers them from the notes (`trace_ahead.rs`).
     pub(super) rays_log: RayLog,
+    /// For a pixel shader: the image it finishes, as it was before the shader ran (`pixelvalue`).
+    pub(super) pixels: Option<&'f PixelImage>,
 }
 
 /// The buffers of a [`ShadeCall`], reused from call to call: a call is made for every batch, and
@@ -161,6 +163,7 @@ impl<'f, 'w> ShadeCall<'f, 'w> {
             textures: TextureHandles::default(),
             material: None,
             rays_log: RayLog::Direct,
+            pixels: None,
         }
     }
 
@@ -497,7 +500,7 @@ unsafe extern "C" fn host_texture(
 ) {
     let values = match kind {
         0 => channels.min(64) as usize,
-        1 => 3,
+        1 | 4 => 3,
         // 2 shadow, 3 a texture3d grid: one value.
         _ => 1,
     };
@@ -550,6 +553,18 @@ unsafe extern "C" fn host_texture(
             for l in active() {
                 out[l] = grid.lookup(lane3(coords, 0, l).to_array());
                 ok[l] = 1;
+            }
+            return;
+        }
+        4 => {
+            let Some(image) = c.pixels else { return };
+            for l in active() {
+                if let Some(v) = image.value(name, coords[l], coords[4 + l]) {
+                    ok[l] = 1;
+                    for (k, x) in v.iter().enumerate() {
+                        out[4 * k + l] = *x;
+                    }
+                }
             }
             return;
         }

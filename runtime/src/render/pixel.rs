@@ -3,7 +3,7 @@
 
 use super::host::ShadeCall;
 use super::stats::ShadingTimer;
-use super::work::Frame;
+use super::work::{Frame, PixelImage};
 use crate::ray::PACKET_SIZE;
 use crate::shading::{get3, put1, put3, with_batch};
 use glam::Vec3A;
@@ -20,10 +20,17 @@ pub struct TilePixels<'a> {
     pub shader_id: &'a [u32],
 }
 
+/// Whether the world's pixel shader reads other pixels (`pixelvalue`): it then runs over the
+/// whole image at once, after every tile is in.
+pub fn reads_pixels(world: &super::World) -> bool {
+    world.pixel.as_ref().is_some_and(|p| p.program.code.reads_pixels())
+}
+
 /// Runs the world's pixel shader (RenderMan's imager) over a finished tile, 64 pixels a batch: `Ci`,
 /// `Oi` and `alpha` in, `P` the raster position of the pixel's centre, `zdepth`, `objectid` and
-/// `shaderid` (-1 for none); `Ci` and `alpha` out.
-pub fn shade_pixels(frame: &Frame, tile: TilePixels<'_>) {
+/// `shaderid` (-1 for none); `Ci` and `alpha` out. `image`, the whole image as it was, is what
+/// `pixelvalue` reads (without it, `pixelvalue` answers 0).
+pub fn shade_pixels(frame: &Frame, tile: TilePixels<'_>, image: Option<&PixelImage>) {
     let Some(imager) = &frame.world.pixel else { return };
     let _timer = ShadingTimer::start(&frame.stats);
     let program = &imager.program;
@@ -51,6 +58,7 @@ pub fn shade_pixels(frame: &Frame, tile: TilePixels<'_>) {
                 }
             }
             let mut call = ShadeCall::new(frame, imager, imager.world_from_shader, 0);
+            call.pixels = image;
             let table = call.table();
             program.code.shade_with_table(batch, &table);
             let raw = batch.raw_mut();

@@ -26,11 +26,11 @@
 //! pass number, never on threads or timing, so a given sequence of passes gives the same image.
 
 use super::frame::Framebuffer;
-use super::pixel::{shade_pixels, TilePixels};
+use super::pixel::{reads_pixels, shade_pixels, TilePixels};
 use super::primary::{primary_rays, CameraSample};
 use super::sampling::radical_inverse;
 use super::shade::shade_packet;
-use super::work::{Frame, Sample};
+use super::work::{Frame, PixelImage, Sample};
 use super::world::{Antialiasing, World};
 use crate::camera::packet_lane_offset;
 use crate::ray::{HitPacket, PACKET_SIZE};
@@ -507,6 +507,15 @@ impl Accumulator {
             (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).map(|(x, y)| self.mean(x, y)).collect();
         if world.pixel.is_some() && w > 0 {
             let frame = Frame::new(world);
+            // A pixel shader that reads other pixels reads them as they were.
+            let image = reads_pixels(world).then(|| PixelImage {
+                width: w,
+                height: h,
+                rgba: colors.clone(),
+                depth: self.depth.clone(),
+                object_id: self.object_id.clone(),
+                shader_id: self.shader_id.clone(),
+            });
             let band = 16 * w as usize;
             colors.par_chunks_mut(band).enumerate().for_each(|(b, rgba)| {
                 let start = b * band;
@@ -522,6 +531,7 @@ impl Accumulator {
                         object_id: &self.object_id[start..end],
                         shader_id: &self.shader_id[start..end],
                     },
+                    image.as_ref(),
                 );
             });
         }

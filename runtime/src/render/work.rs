@@ -92,6 +92,45 @@ pub struct VirtualLights {
     pub clamp_squared: f32,
 }
 
+/// The whole image a pixel shader finishes, as it was before the shader ran: what `pixelvalue`
+/// reads. Only for pixel shaders that read other pixels ([`reads_pixels`]); the others run tile
+/// by tile.
+pub struct PixelImage {
+    pub width: u32,
+    pub height: u32,
+    pub rgba: Vec<[f32; 4]>,
+    pub depth: Vec<f32>,
+    pub object_id: Vec<u32>,
+    pub shader_id: Vec<u32>,
+}
+
+impl PixelImage {
+    /// Channel `name` of the pixel at raster `(x, y)` (the nearest pixel inside the image): `Ci`,
+    /// or `alpha`, `z`, `objectid`, `shaderid` (-1 for none) in the first component; `None` for
+    /// an unknown channel or an empty image.
+    pub fn value(&self, name: &str, x: f32, y: f32) -> Option<[f32; 3]> {
+        if self.width == 0 || self.height == 0 || !x.is_finite() || !y.is_finite() {
+            return None;
+        }
+        let px = (x.floor().max(0.0) as u32).min(self.width - 1);
+        let py = (y.floor().max(0.0) as u32).min(self.height - 1);
+        let i = (py * self.width + px) as usize;
+        let id = |v: u32| if v == u32::MAX { -1.0 } else { v as f32 };
+        let one = |v: f32| [v, 0.0, 0.0];
+        Some(match name {
+            "Ci" => {
+                let c = self.rgba.get(i)?;
+                [c[0], c[1], c[2]]
+            }
+            "alpha" => one(self.rgba.get(i)?[3]),
+            "z" => one(*self.depth.get(i)?),
+            "objectid" => one(id(*self.object_id.get(i)?)),
+            "shaderid" => one(id(*self.shader_id.get(i)?)),
+            _ => return None,
+        })
+    }
+}
+
 /// The colour seen along a ray and its coverage.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Sample {

@@ -296,7 +296,8 @@ pub struct HostTable {
     /// (`coords` a direction; 3 values), 2 `shadow` (`coords` [`SHADOW_ROWS`] rows: the point, the
     /// four corners of the region its kernel covers, then samples, sblur, tblur, swidth, twidth
     /// and bias, as `interp::ShadowQuery`; 1 value), 3 `texture3d`'s
-    /// grid lookup (`coords` a point in the grid's coordinates; 1 value). Results in
+    /// grid lookup (`coords` a point in the grid's coordinates; 1 value), 4 `pixelvalue` (`name`
+    /// the channel, `coords` the raster x and y; 3 values). Results in
     /// `out[4c + l]`; `ok[l]` 0 where the map cannot be read.
     pub texture: unsafe extern "C" fn(
         ctx: *mut c_void,
@@ -489,6 +490,7 @@ unsafe extern "C" fn sv_texture(
                 }
                 1 => h.host.environment(name, c).map(|v| v.to_vec()),
                 3 => h.host.texture3d(name, c).map(|v| vec![v]),
+                4 => h.host.pixel_value(name, c[0], c[1]).map(|v| v.to_vec()),
                 _ => {
                     let rows = std::slice::from_raw_parts(coords, 4 * SHADOW_ROWS);
                     Some(vec![h.host.shadow(name, &shadow_query_of(rows, l))])
@@ -1265,6 +1267,15 @@ host_helpers! {
             cx.set(0, l, if ok[l] != 0 { vals[l] } else { 0.0 });
         }
     }
+    // [channel, x, y] -> 3 (0 without an image)
+    h_pixelvalue "rtsl_h_pixelvalue" 3 => 3 |cx| {
+        let (vals, ok) = texture_call(cx, 4, 3);
+        for l in cx.active() {
+            for j in 0..3 {
+                cx.set(j, l, if ok[l] != 0 { vals[4 * j + l] } else { 0.0 });
+            }
+        }
+    }
     // [from, dir] -> [colour, distance]
     h_trace "rtsl_h_trace" 6 => 4 |cx| { rays_call(cx, 0, 4) }
     h_transmission "rtsl_h_transmission" 6 => 3 |cx| { rays_call(cx, 1, 3) }
@@ -1493,6 +1504,7 @@ fn texture_call(cx: &Cx<'_>, kind: u32, channels: u32) -> ([f32; 4 * MAX_TEXTURE
             rows(&mut first, 3, 1);
         }
         2 => rows(&mut coords, 1, SHADOW_ROWS),
+        4 => rows(&mut coords[..8], 1, 2),
         _ => rows(&mut coords, 1, 3),
     }
     // SAFETY: the table's documented sizes.

@@ -2713,6 +2713,7 @@ impl<'m> Lower<'m, '_> {
             | Bi::Bump
             | Bi::Bake3d
             | Bi::Photonmap
+            | Bi::Pixelvalue
             | Bi::Trace
             | Bi::Transmission
             | Bi::Visibility
@@ -3110,6 +3111,14 @@ impl<'m> Lower<'m, '_> {
                 }
             }
             Bi::Transmission => helper(self, "rtsl_h_transmission", &[v(0), v(1)], true)?,
+            Bi::Pixelvalue => {
+                let c = helper(self, "rtsl_h_pixelvalue", &[v(0), v(1), v(2)], true)?;
+                if e.ty.base == BaseType::Float {
+                    Val { vary: true, c: vec![c.c[0]] }
+                } else {
+                    c
+                }
+            }
             Bi::Visibility => {
                 let t = helper(self, "rtsl_h_transmission", &[v(0), v(1)], true)?;
                 if e.ty.base == BaseType::Float {

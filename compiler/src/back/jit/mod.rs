@@ -272,6 +272,8 @@ pub struct CompiledShader {
     code_bytes: usize,
     /// The built-ins that shoot rays which the code calls.
     ray_calls: RayCalls,
+    /// Whether the code reads other pixels of the image (`pixelvalue`).
+    reads_pixels: bool,
     light_kind: LightKind,
     lane_invariant: bool,
 }
@@ -333,6 +335,12 @@ impl CompiledShader {
     /// Which of the built-ins that shoot rays the code calls.
     pub fn ray_calls(&self) -> RayCalls {
         self.ray_calls
+    }
+
+    /// Whether a pixel shader's code reads other pixels of the image (`pixelvalue`): the renderer
+    /// then runs it once the whole image is there, not tile by tile.
+    pub fn reads_pixels(&self) -> bool {
+        self.reads_pixels
     }
 
     /// For a light shader: how it emits, read from its code (`illuminate`: local, `solar`:
@@ -817,6 +825,7 @@ pub fn compile_with(
                 invariant_loads,
                 code_bytes,
                 ray_calls: RayCalls::of(&helpers),
+                reads_pixels: helpers.contains(&"rtsl_h_pixelvalue"),
                 light_kind,
                 lane_invariant,
                 sites,

@@ -1,0 +1,42 @@
+/*
+ * interleavefilter.sl -- rtsl's standard pixel shaders: "interleavefilter".
+ *
+ * The filter of interleaved sampling (Keller and Heidrich 2001): each pixel
+ * becomes the mean of the size x size pixels around it that see the same
+ * object at a similar depth (a discontinuity buffer), so the pattern of noise
+ * that interleaved virtual lights leave (Option "gi" "interleave",
+ * docs/global_illumination.md) is smoothed within surfaces, never across
+ * their edges.  Pixels that see nothing are left as they are.
+ *
+ * Parameters:
+ *   size           -- the side of the block averaged: the interleaving's (3).
+ *   depthtolerance -- neighbours whose depth differs from the pixel's by more
+ *                     than this fraction of it are left out (0.05).
+ */
+pixel interleavefilter(float size = 3; float depthtolerance = 0.05;)
+{
+    float x = xcomp(P), y = ycomp(P);
+    float z = zdepth, id = objectid;
+    float format[3];
+    option("Format", format);
+    if (id >= 0) {
+        color sum = 0;
+        float n = 0;
+        float r = floor(size / 2);
+        float dx, dy;
+        for (dy = -r; dy <= r; dy += 1) {
+            for (dx = -r; dx <= r; dx += 1) {
+                float nx = x + dx, ny = y + dy;
+                if (nx >= 0 && ny >= 0 && nx < format[0] && ny < format[1]) {
+                    float nz = pixelvalue("z", nx, ny);
+                    if (pixelvalue("objectid", nx, ny) == id && abs(nz - z) <= depthtolerance * z) {
+                        sum += color pixelvalue("Ci", nx, ny);
+                        n += 1;
+                    }
+                }
+            }
+        }
+        if (n > 0)
+            Ci = sum / n;
+    }
+}
