@@ -212,3 +212,102 @@ fn a_pixel_shader_reading_pixels_sees_the_same_image_tile_by_tile_and_accumulate
     let worst = frame.rgba.iter().zip(&accumulated.rgba).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
     assert!(worst < 1e-5, "largest difference {worst}");
 }
+
+/// A floor (matte) under a horizontal mirror (chrome, reflectance 0.8) with a point light between
+/// them: every photon that reaches the floor by the mirror comes from the light's mirror image,
+/// so the caustic irradiance on the floor is that of a point light of 0.8 times the intensity at
+/// the image: `E = 0.8 I h / d^3` (`h` the image's height over the floor, `d` the distance).
+#[test]
+fn caustic_photons_under_a_mirror_give_the_mirror_images_light() {
+    use rtsl_runtime::api::Primitive;
+    use rtsl_runtime::glam::Vec3A;
+    use rtsl_runtime::render::world::PhotonModel;
+    use rtsl_runtime::shading::ParamValue;
+    let e = |e: rtsl_runtime::api::ApiError| e.to_string();
+    let mut rt = Context::new();
+    rt.options.width = 24;
+    rt.options.height = 24;
+    rt.options.antialiasing = rtsl_runtime::render::Antialiasing::Grid { jitter: false };
+    rt.options.gi.caustic_photons = 300_000;
+    rt.camera_look_at(Vec3A::new(0.0, 2.5, 0.01), Vec3A::ZERO, Vec3A::Z, 50.0);
+    let caustics = "surface caustics() {
+        normal Nf = faceforward(normalize(N), I);
+        Ci = photonmap(\"caustic\", P, Nf, \"estimator\", 300);
+        Oi = 1;
+    }";
+    let shader = rt.compile_shader("caustics", caustics).map_err(e).expect("compiles");
+    let quad = |rt: &mut Context, y: f32, model: PhotonModel| {
+        rt.photon_shading_model(model);
+        let object = rt.begin_object().map_err(e).expect("an object");
+        rt.bind_shader(shader).map_err(e).expect("bound");
+        rt.begin(Primitive::Quads).map_err(e).expect("quads");
+        for (x, z) in [(-3.0, -3.0), (3.0, -3.0), (3.0, 3.0), (-3.0, 3.0)] {
+            rt.vertex(x, y, z).map_err(e).expect("a vertex");
+        }
+        rt.end().map_err(e).expect("end");
+        rt.end_object().map_err(e).expect("end_object");
+        rt.instantiate_object(object).map_err(e).expect("an instance");
+    };
+    rt.color(0.8, 0.8, 0.8);
+    quad(&mut rt, 0.0, PhotonModel::Matte);
+    quad(&mut rt, 3.0, PhotonModel::Chrome);
+    let light = rt.find_shader("pointlight").map_err(e).expect("pointlight");
+    rt.light_source(light, &[("intensity", ParamValue::Float(4.0)), ("from", ParamValue::Point([0.0, 2.0, 0.0]))])
+        .map_err(e)
+        .expect("a light");
+    let world = rt.build_world().expect("a world");
+    let (fb, _) = render_frame(&world, None);
+    let (mut got, mut want, mut worst) = (0.0f64, 0.0f64, 0.0f32);
+    for y in 4..20 {
+        for x in 4..20 {
+            let i = (y * 24 + x) as usize;
+            if fb.object_id[i] == u32::MAX {
+                continue;
+            }
+            // The floor point this pixel sees: along its camera ray to y = 0.
+            let ray = rtsl_runtime::render::camera_ray(&world, x, y, 0.5, 0.5);
+            let t = -ray.origin.y / ray.direction.y;
+            let p = ray.origin + ray.direction * t;
+            let d = (p - Vec3A::new(0.0, 4.0, 0.0)).length();
+            let analytic = 0.8 * 4.0 * 4.0 / (d * d * d);
+            let estimate = fb.rgba[4 * i];
+            got += f64::from(estimate);
+            want += f64::from(analytic);
+            worst = worst.max((estimate / analytic - 1.0).abs());
+        }
+    }
+    let relative = (got / want - 1.0).abs();
+    eprintln!("caustic irradiance: estimate {got}, analytic {want} (relative error {relative}, worst pixel {worst})");
+    assert!(want > 0.0 && relative < 0.02, "estimate {got}, analytic {want}");
+    assert!(worst < 0.1, "the worst pixel is off by {worst}");
+}
+
+#[test]
+fn photon_shading_models_are_read_from_rib_and_bad_ones_are_warnings() {
+    use rtsl_runtime::render::world::PhotonModel;
+    let rib = r#"
+        WorldBegin
+        Attribute "photon" "shadingmodel" "refractive:ior=1.2"
+        Polygon "P" [0 0 0  1 0 0  1 1 0]
+        Attribute "photon" "shadingmodel" "plasma"
+        Polygon "P" [0 0 1  1 0 1  1 1 1]
+        Attribute "photon" "shadingmodel" "water"
+        Polygon "P" [0 0 2  1 0 2  1 1 2]
+        WorldEnd
+    "#;
+    let mut rt = Context::new();
+    let loaded = rtsl_runtime::rib::load::load_str(&mut rt, rib, Path::new("<models>")).expect("loads");
+    assert_eq!(loaded.warnings.len(), 1, "{:?}", loaded.warnings);
+    assert!(
+        loaded.warnings[0].contains("<models>:5") && loaded.warnings[0].contains("\"plasma\""),
+        "{:?}",
+        loaded.warnings
+    );
+    let world = rt.build_world().expect("a world");
+    let mut models: Vec<PhotonModel> = world.materials.iter().map(|m| m.photon).collect();
+    models.dedup();
+    assert!(
+        models.contains(&PhotonModel::Glass { eta: 1.2 }) && models.contains(&PhotonModel::Glass { eta: 1.33 }),
+        "{models:?}"
+    );
+}

@@ -2,7 +2,8 @@
  * gimatte.sl -- a diffuse surface lit directly and indirectly (global illumination).
  *
  * Reflectance Cs * Kd, physically normalised: the radiance it reflects is its reflectance over
- * pi times the irradiance, direct (diffuse(), from the scene's lights) and indirect
+ * pi times the irradiance, direct (diffuse(), from the scene's lights), caustic (photonmap() of
+ * the frame's caustic photons, with Option "gi" "causticphotons") and indirect
  * (indirectdiffuse(): the mean radiance arriving over the hemisphere, which is irradiance over
  * pi already). With Option "gi" "virtuallights" set, the indirect light comes from the frame's
  * virtual point lights (instant radiosity, docs/global_illumination.md); otherwise from
@@ -17,5 +18,6 @@ surface gimatte(float Kd = 1; float samples = 16;)
     normal Nf = faceforward(normalize(N), I);
 
     Oi = Os;
-    Ci = Os * Cs * Kd * (diffuse(Nf) / PI + indirectdiffuse(P, Nf, samples));
+    color caustic = photonmap("caustic", P, Nf);
+    Ci = Os * Cs * Kd * ((diffuse(Nf) + caustic) / PI + indirectdiffuse(P, Nf, samples));
 }

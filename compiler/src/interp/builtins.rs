@@ -575,8 +575,9 @@ impl Machine<'_> {
                 Value::Float(0.0)
             }
             Builtin::Photonmap => {
-                self.host.unsupported(b);
-                Value::Triple([0.0; 3])
+                let n = if fixed == 3 { v(2).v3() } else { [0.0; 3] };
+                let estimator = param(vals, fixed, "estimator").map(Value::f).unwrap_or(50.0);
+                Value::Triple(self.host.photonmap(v(0).s(), v(1).v3(), n, estimator).unwrap_or([0.0; 3]))
             }
             Builtin::Pixelvalue => {
                 let c = self.host.pixel_value(v(0).s(), v(1).f(), v(2).f()).unwrap_or([0.0; 3]);

@@ -106,6 +106,13 @@ pub trait Services {
         let _ = (name, x, y);
         None
     }
+    /// The irradiance photon map `name` estimates at `p` facing `n` (zero: any way) from its
+    /// `estimator` nearest photons (`photonmap`); `None` for a map there is not (the caller
+    /// answers black). The default has no maps.
+    fn photonmap(&mut self, name: &str, p: V3, n: V3, estimator: f32) -> Option<V3> {
+        let _ = (name, p, n, estimator);
+        None
+    }
     /// An environment lookup by direction.
     fn environment(&mut self, name: &str, dir: V3) -> Option<V3>;
     /// The fraction of the query's region in shadow according to the shadow map `name`.
@@ -242,6 +249,11 @@ impl Services for TestHost {
 
     fn texture3d(&mut self, name: &str, p: V3) -> Option<f32> {
         (name != "missing").then(|| 0.25 * p[0] + 0.5 * p[1] + 0.125 * p[2])
+    }
+
+    /// A map "caustic" whose estimate is a function of every argument; no other.
+    fn photonmap(&mut self, name: &str, p: V3, n: V3, estimator: f32) -> Option<V3> {
+        (name == "caustic").then(|| [p[0] + estimator, p[1] * n[1], p[2] - n[0] + n[2]])
     }
 
     /// An image of 8 x 6 pixels whose channels are functions of the pixel (the nearest inside);

@@ -218,6 +218,7 @@ impl Context {
             displacement: shader(&a.displacement)?,
             color: a.color,
             opacity: a.opacity,
+            photon: a.photon,
             shadow_by_shader: a.shadow_by_shader,
             object_id,
             native: None,

@@ -170,6 +170,8 @@ struct Appearance {
     /// The displacement shader of objects built from now on (RIB `Displacement`).
     displacement: Option<Binding>,
     shadow_by_shader: bool,
+    /// How light paths meet objects built from now on (RIB `Attribute "photon" "shadingmodel"`).
+    photon: crate::render::world::PhotonModel,
     /// The texture whose alpha cuts objects built from now on, and the cut-off
     /// ([`Context::alpha_mask`]).
     alpha_mask: Option<(String, f32)>,
@@ -184,6 +186,7 @@ impl Default for Appearance {
             interior: None,
             displacement: None,
             shadow_by_shader: false,
+            photon: crate::render::world::PhotonModel::Matte,
             alpha_mask: None,
         }
     }

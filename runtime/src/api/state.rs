@@ -14,6 +14,12 @@ impl Context {
         self.appearance.opacity = [r, g, b];
     }
 
+    /// How light paths (virtual lights, caustic photons) meet objects built from now on: their
+    /// shaders are not run on them (`docs/global_illumination.md`).
+    pub fn photon_shading_model(&mut self, model: crate::render::world::PhotonModel) {
+        self.appearance.photon = model;
+    }
+
     /// Shadow rays run the surface shader to find the opacity of objects built from now on.
     pub fn shadows_from_shader(&mut self, on: bool) {
         self.appearance.shadow_by_shader = on;

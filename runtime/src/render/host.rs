@@ -500,12 +500,12 @@ unsafe extern "C" fn host_texture(
 ) {
     let values = match kind {
         0 => channels.min(64) as usize,
-        1 | 4 => 3,
+        1 | 4 | 5 => 3,
         // 2 shadow, 3 a texture3d grid: one value.
         _ => 1,
     };
     let rows = match kind {
-        0 => 7,
+        0 | 5 => 7,
         2 => SHADOW_ROWS,
         _ => 3,
     };
@@ -553,6 +553,26 @@ unsafe extern "C" fn host_texture(
             for l in active() {
                 out[l] = grid.lookup(lane3(coords, 0, l).to_array());
                 ok[l] = 1;
+            }
+            return;
+        }
+        5 => {
+            // The frame's own maps by name: "caustic" is the only one.
+            if name != "caustic" || c.frame.world.options.gi.caustic_photons == 0 {
+                return;
+            }
+            let frame = c.frame;
+            let map = frame.caustics.get_or_init(|| virtual_lights::trace_caustics(frame));
+            let radius = virtual_lights::photon_search_radius(frame);
+            for l in active() {
+                let (p, n) = (lane3(coords, 0, l), lane3(coords, 3, l).normalize_or_zero());
+                let estimator = coords[24 + l];
+                let k = if estimator.is_finite() && estimator >= 1.0 { estimator as usize } else { 50 };
+                let e = map.irradiance(p, n, k, radius);
+                ok[l] = 1;
+                for r in 0..3 {
+                    out[4 * r + l] = e[r];
+                }
             }
             return;
         }

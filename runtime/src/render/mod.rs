@@ -17,6 +17,7 @@ mod host;
 mod lanes;
 mod lights;
 pub mod native;
+mod photon_map;
 mod pixel;
 pub mod primary;
 pub mod progressive;

@@ -24,10 +24,11 @@
 //! per pass of progressive refinement another: `Frame::gi_seed`), never on threads or timing, so
 //! every tile, lattice and worker of a frame gathers the same lights.
 
+use super::photon_map::{Photon, PhotonMap};
 use super::sampling::{mix, point_seed, radical_inverse, unit};
 use super::stats::{tracing, Stats};
 use super::work::{epsilon, Frame, VirtualLight, VirtualLights};
-use super::world::{LightSource, MAX_BOUNCES, MAX_INTERLEAVE, MAX_VIRTUAL_LIGHT_PATHS};
+use super::world::{LightSource, PhotonModel, MAX_BOUNCES, MAX_INTERLEAVE, MAX_VIRTUAL_LIGHT_PATHS};
 use crate::ray::Ray;
 use crate::shading::LightKind;
 use glam::Vec3A;
@@ -44,24 +45,35 @@ pub(super) fn trace(frame: &Frame) -> VirtualLights {
     };
     let diagonal = (hi - lo).length();
     let clamp = if gi.clamp > 0.0 { gi.clamp } else { 0.01 * diagonal };
-    let emitters: Vec<(&LightSource, Emitter)> =
-        world.lights.iter().filter_map(|l| Some((l, emitter(frame, l, lo, hi)?))).collect();
-    let paths = gi.virtual_lights.min(MAX_VIRTUAL_LIGHT_PATHS);
     let mut lights = Vec::new();
-    if !emitters.is_empty() && paths > 0 {
-        let per_light = paths.div_ceil(emitters.len() as u32);
-        let seed = mix(u64::from(frame.gi_seed) ^ 0x5851_F42D_4C95_7F2D);
-        for (k, (light, emitter)) in emitters.iter().enumerate() {
-            let seed = mix(seed ^ k as u64);
-            trace_paths(frame, light, emitter, per_light, gi.bounces.clamp(1, MAX_BOUNCES), seed, &mut lights);
-        }
-    }
+    let bounces = gi.bounces.clamp(1, MAX_BOUNCES);
+    for_each_landing(frame, gi.virtual_lights, 0x5851_F42D_4C95_7F2D, |landing, seed| {
+        follow_to_virtual_lights(frame, landing, bounces, seed, &mut lights);
+    });
     // Dealt round-robin: each set a stratified share of the paths.
     let mut sets = vec![Vec::with_capacity(lights.len() / set_count + 1); set_count];
     for (i, l) in lights.into_iter().enumerate() {
         sets[i % set_count].push(l);
     }
     VirtualLights { sets, interleave, clamp_squared: clamp * clamp }
+}
+
+/// Traces the frame's caustic photons (`Option "gi" "causticphotons"`): paths from the lights
+/// whose first surface is specular (chrome, glass), followed through specular surfaces to the
+/// first diffuse one, where each leaves a photon (Jensen's caustic map, light paths L S+ D).
+pub(super) fn trace_caustics(frame: &Frame) -> PhotonMap {
+    let mut photons = Vec::new();
+    for_each_landing(frame, frame.world.options.gi.caustic_photons, 0x2545_F491_4F6C_DD1D, |landing, seed| {
+        if reflectance_of(frame, &landing.hit).1 != PhotonModel::Matte {
+            follow_to_photon(frame, landing, seed, &mut photons);
+        }
+    });
+    PhotonMap::new(photons)
+}
+
+/// The photon map's search radius: 5% of the scene's diagonal.
+pub(super) fn photon_search_radius(frame: &Frame) -> f32 {
+    frame.world.scene.bounds().map_or(0.0, |(lo, hi)| 0.05 * (hi - lo).length())
 }
 
 /// The set of `lights` a point uses: by the pixel it projects to (the interleaving block's cell),
@@ -154,17 +166,40 @@ fn eval(frame: &Frame, light: &LightSource, mask: &[i32; 4], points: &[Vec3A; 4]
     (0..4).filter(|&l| counts[l] > 0 && mask[l] != 0).map(|l| (l, rows[0])).collect()
 }
 
-/// Traces `count` paths from `light` and appends a virtual light where each lands on a surface,
-/// for each of `bounces` bounces.
-fn trace_paths(
-    frame: &Frame,
-    light: &LightSource,
-    emitter: &Emitter,
-    count: u32,
-    bounces: u32,
-    seed: u64,
-    out: &mut Vec<VirtualLight>,
-) {
+/// Where a path from a light first landed, and the power it carried there.
+struct Landing {
+    ray: Ray,
+    hit: crate::ray::Hit,
+    surface: crate::scene::SurfaceHit,
+    carried: Vec3A,
+}
+
+/// Traces `paths` paths from the frame's lights (shared out evenly) and hands `visit` each first
+/// landing with a seed of its own: the light's shader run where the path lands says how much
+/// power it carries.
+fn for_each_landing(frame: &Frame, paths: u32, salt: u64, mut visit: impl FnMut(Landing, u64)) {
+    let world = frame.world;
+    let paths = paths.min(MAX_VIRTUAL_LIGHT_PATHS);
+    let Some((lo, hi)) = world.scene.bounds() else { return };
+    let emitters: Vec<(&LightSource, Emitter)> =
+        world.lights.iter().filter_map(|l| Some((l, emitter(frame, l, lo, hi)?))).collect();
+    if emitters.is_empty() || paths == 0 {
+        return;
+    }
+    let per_light = paths.div_ceil(emitters.len() as u32);
+    let seed = mix(u64::from(frame.gi_seed) ^ salt);
+    let mut visited = 0u64;
+    for (k, (light, emitter)) in emitters.iter().enumerate() {
+        let seed = mix(seed ^ k as u64);
+        for landing in landings(frame, light, emitter, per_light, seed) {
+            visited += 1;
+            visit(landing, mix(seed ^ visited));
+        }
+    }
+}
+
+/// The first landings of `count` paths from `light`.
+fn landings(frame: &Frame, light: &LightSource, emitter: &Emitter, count: u32, seed: u64) -> Vec<Landing> {
     let world = frame.world;
     // A Cranley-Patterson rotation of the Hammersley points: another seed, another stratified set.
     let shift = (unit(seed), unit(mix(seed)));
@@ -191,19 +226,19 @@ fn trace_paths(
             }
         })
         .collect();
-    // The first landings, four at a time through the light's shader for their light.
-    let mut landings = Vec::with_capacity(starts.len());
+    let mut hits = Vec::with_capacity(starts.len());
     for (ray, share) in &starts {
         let hit = tracing(|| world.scene.intersect(ray));
         let Some(surface) = hit.is_hit().then(|| world.scene.surface(&hit)).flatten() else { continue };
-        landings.push((*ray, *share, hit, surface));
+        hits.push((*ray, *share, hit, surface));
     }
     Stats::add(&frame.stats.secondary_rays, starts.len());
-    for four in landings.chunks(4) {
+    // Their light, four at a time through the light's shader.
+    let mut out = Vec::with_capacity(hits.len());
+    for four in hits.chunks(4) {
         let points: [Vec3A; 4] = std::array::from_fn(|l| four.get(l).map_or(Vec3A::ZERO, |x| x.3.p));
         let mask: [i32; 4] = std::array::from_fn(|l| if l < four.len() { -1 } else { 0 });
-        let rows = eval(frame, light, &mask, &points);
-        for (l, row) in rows {
+        for (l, row) in eval(frame, light, &mask, &points) {
             let (ray, share, hit, surface) = &four[l];
             let cl = Vec3A::from(row.lane(l).cl);
             // A point light's intensity toward the landing is Cl times the squared distance; a
@@ -213,44 +248,60 @@ fn trace_paths(
                 Emitter::Distant { .. } => 1.0,
             };
             let carried = cl * (share * d2);
-            follow(frame, *ray, *hit, surface.clone(), carried, bounces, seed ^ (out.len() as u64), out);
+            if carried.max_element() > 0.0 && carried.is_finite() {
+                out.push(Landing { ray: *ray, hit: *hit, surface: surface.clone(), carried });
+            }
         }
     }
+    out
 }
 
-/// Leaves a virtual light where `ray` landed (`hit`, on `surface`) carrying `carried` power, and
-/// bounces on, cosine-distributed, `bounces - 1` more times while power is left.
-#[allow(clippy::too_many_arguments)]
-fn follow(
-    frame: &Frame,
-    mut ray: Ray,
-    mut hit: crate::ray::Hit,
-    mut surface: crate::scene::SurfaceHit,
-    mut carried: Vec3A,
-    bounces: u32,
-    seed: u64,
-    out: &mut Vec<VirtualLight>,
-) {
+/// The most specular surfaces a path goes through.
+const MAX_SPECULAR_DEPTH: u32 = 8;
+
+/// Leaves a virtual light where the path landed on a matte surface and bounces on, cosine
+/// distributed, `bounces - 1` more times while power is left. Through chrome and glass it goes on
+/// as they direct it, but leaves nothing on the next matte surface: light that reaches a diffuse
+/// surface through a specular one is a caustic, the photon map's.
+fn follow_to_virtual_lights(frame: &Frame, landing: Landing, bounces: u32, seed: u64, out: &mut Vec<VirtualLight>) {
+    let Landing { mut ray, mut hit, mut surface, mut carried } = landing;
     let world = frame.world;
-    for bounce in 0..bounces {
-        let reflectance = reflectance(frame, &hit);
+    let (mut diffuse, mut specular) = (0, 0);
+    loop {
+        let (reflectance, model) = reflectance_of(frame, &hit);
         let n = if surface.ng.dot(ray.direction) > 0.0 { -surface.ng } else { surface.ng };
-        let power = carried * reflectance / std::f32::consts::PI;
-        if power.max_element() <= 0.0 || !power.is_finite() {
-            return;
-        }
-        out.push(VirtualLight { p: surface.p, n, power });
-        if bounce + 1 == bounces {
-            return;
-        }
-        // Cosine sampling cancels the matte BRDF's cosine over pi: the path carries reflectance.
-        carried *= reflectance;
-        let h = mix(seed ^ (u64::from(bounce) << 32) ^ point_seed(surface.p));
-        let (r1, r2) = (unit(h), unit(mix(h)));
-        let (t1, t2) = orthonormal(n);
-        let phi = std::f32::consts::TAU * r1;
-        let (s, c) = (r2.sqrt(), (1.0 - r2).sqrt());
-        let dir = t1 * (s * phi.cos()) + t2 * (s * phi.sin()) + n * c;
+        let h = mix(seed ^ (u64::from(diffuse + specular) << 32) ^ point_seed(surface.p));
+        let dir = match model {
+            PhotonModel::Matte => {
+                if specular > 0 {
+                    return;
+                }
+                let power = carried * reflectance / std::f32::consts::PI;
+                if power.max_element() <= 0.0 || !power.is_finite() {
+                    return;
+                }
+                out.push(VirtualLight { p: surface.p, n, power });
+                diffuse += 1;
+                if diffuse == bounces {
+                    return;
+                }
+                // Cosine sampling cancels the matte BRDF's cosine over pi: the path carries
+                // reflectance.
+                carried *= reflectance;
+                cosine_direction(n, h)
+            }
+            _ => {
+                specular += 1;
+                if specular > MAX_SPECULAR_DEPTH {
+                    return;
+                }
+                let Some((dir, tint)) = scatter_specular(model, reflectance, ray.direction, surface.ng, h) else {
+                    return;
+                };
+                carried *= tint;
+                dir
+            }
+        };
         ray = Ray::segment(surface.p, dir, epsilon(surface.p), f32::INFINITY);
         Stats::add(&frame.stats.secondary_rays, 1);
         hit = tracing(|| world.scene.intersect(&ray));
@@ -261,13 +312,80 @@ fn follow(
     }
 }
 
-/// The matte reflectance light paths see at a hit: its material's colour, each channel clamped
-/// below 1 so that paths lose power at every bounce.
-fn reflectance(frame: &Frame, hit: &crate::ray::Hit) -> Vec3A {
+/// Follows a path that landed on a specular surface through specular surfaces to the first matte
+/// one, and leaves a photon there.
+fn follow_to_photon(frame: &Frame, landing: Landing, seed: u64, out: &mut Vec<Photon>) {
+    let Landing { mut ray, mut hit, mut surface, mut carried } = landing;
+    let world = frame.world;
+    for depth in 0..=MAX_SPECULAR_DEPTH {
+        let (reflectance, model) = reflectance_of(frame, &hit);
+        if model == PhotonModel::Matte {
+            out.push(Photon { p: surface.p, power: carried, direction: ray.direction.normalize_or_zero() });
+            return;
+        }
+        let h = mix(seed ^ (u64::from(depth) << 32) ^ point_seed(surface.p));
+        let Some((dir, tint)) = scatter_specular(model, reflectance, ray.direction, surface.ng, h) else { return };
+        carried *= tint;
+        ray = Ray::segment(surface.p, dir, epsilon(surface.p), f32::INFINITY);
+        Stats::add(&frame.stats.secondary_rays, 1);
+        hit = tracing(|| world.scene.intersect(&ray));
+        match hit.is_hit().then(|| world.scene.surface(&hit)).flatten() {
+            Some(s) => surface = s,
+            None => return,
+        }
+    }
+}
+
+/// A cosine-distributed direction about the unit normal `n`, from the hash `h`.
+fn cosine_direction(n: Vec3A, h: u64) -> Vec3A {
+    let (r1, r2) = (unit(h), unit(mix(h)));
+    let (t1, t2) = orthonormal(n);
+    let phi = std::f32::consts::TAU * r1;
+    let (s, c) = (r2.sqrt(), (1.0 - r2).sqrt());
+    t1 * (s * phi.cos()) + t2 * (s * phi.sin()) + n * c
+}
+
+/// Where a path arriving along `dir` goes on from a specular surface of geometric normal `ng` and
+/// colour `color`: its new direction and the tint it takes. Chrome reflects, tinted; glass
+/// reflects or refracts in Fresnel's proportions (chosen by the hash `h`), the refracted part
+/// tinted; a transparent surface lets it through.
+fn scatter_specular(model: PhotonModel, color: Vec3A, dir: Vec3A, ng: Vec3A, h: u64) -> Option<(Vec3A, Vec3A)> {
+    let d = dir.normalize_or_zero();
+    let entering = d.dot(ng) < 0.0;
+    let n = if entering { ng } else { -ng };
+    let reflect = d - n * (2.0 * d.dot(n));
+    match model {
+        PhotonModel::Matte => None,
+        PhotonModel::Transparent => Some((d, Vec3A::ONE)),
+        PhotonModel::Chrome => Some((reflect, color)),
+        PhotonModel::Glass { eta } => {
+            let ratio = if entering { 1.0 / eta } else { eta };
+            let cos_i = -d.dot(n);
+            let sin2_t = ratio * ratio * (1.0 - cos_i * cos_i);
+            if sin2_t >= 1.0 {
+                return Some((reflect, Vec3A::ONE));
+            }
+            let cos_t = (1.0 - sin2_t).sqrt();
+            let (n1, n2) = if entering { (1.0, eta) } else { (eta, 1.0) };
+            let rs = ((n1 * cos_i - n2 * cos_t) / (n1 * cos_i + n2 * cos_t)).powi(2);
+            let rp = ((n1 * cos_t - n2 * cos_i) / (n1 * cos_t + n2 * cos_i)).powi(2);
+            if unit(h) < 0.5 * (rs + rp) {
+                Some((reflect, Vec3A::ONE))
+            } else {
+                Some((d * ratio + n * (ratio * cos_i - cos_t), color))
+            }
+        }
+    }
+}
+
+/// What light paths see at a hit: its material's colour (each channel clamped below 1, so that
+/// paths lose power at every bounce) and its photon shading model.
+fn reflectance_of(frame: &Frame, hit: &crate::ray::Hit) -> (Vec3A, PhotonModel) {
     let world = frame.world;
     let material = world.instances.get(hit.instance as usize).map(|i| i.material_at(hit.primitive));
-    let color = material.and_then(|m| world.materials.get(m as usize)).map_or([1.0; 3], |m| m.color);
-    Vec3A::from(color).clamp(Vec3A::ZERO, Vec3A::splat(0.95))
+    let material = material.and_then(|m| world.materials.get(m as usize));
+    let (color, model) = material.map_or(([1.0; 3], PhotonModel::Matte), |m| (m.color, m.photon));
+    (Vec3A::from(color).clamp(Vec3A::ZERO, Vec3A::splat(0.95)), model)
 }
 
 fn orthonormal(n: Vec3A) -> (Vec3A, Vec3A) {

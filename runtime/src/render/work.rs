@@ -35,6 +35,9 @@ pub struct Frame<'w> {
     /// The frame's virtual point lights, traced when a shader first gathers them
     /// (`virtual_lights.rs`).
     pub(crate) virtual_lights: std::sync::OnceLock<VirtualLights>,
+    /// The frame's caustic photon map, traced when a shader first looks it up
+    /// (`virtual_lights::trace_caustics`).
+    pub(crate) caustics: std::sync::OnceLock<super::photon_map::PhotonMap>,
     /// The seed of the frame's light paths: the options' own, or per pass of progressive
     /// refinement another, so that passes accumulate fresh virtual lights.
     pub(crate) gi_seed: u32,
@@ -66,6 +69,7 @@ impl<'w> Frame<'w> {
             pixel_spread: 2.0 * tan * ay / h,
             invariant_light_rows: world.lights.iter().map(|_| std::sync::OnceLock::new()).collect(),
             virtual_lights: std::sync::OnceLock::new(),
+            caustics: std::sync::OnceLock::new(),
             gi_seed: world.options.gi.seed,
             stages,
         }

@@ -17,6 +17,9 @@ pub struct Material {
     pub surface: Option<Arc<ShaderInstance>>,
     pub color: [f32; 3],
     pub opacity: [f32; 3],
+    /// How light paths (virtual lights, photons) meet the surface: its shader is not run on them
+    /// (RIB `Attribute "photon" "shadingmodel"`).
+    pub photon: PhotonModel,
     /// Shadow rays run the surface shader at hits on this material to find their opacity (PRMan's
     /// `Attribute "shade" "transmissionhitmode" "shader"`); otherwise `opacity` is used.
     pub shadow_by_shader: bool,
@@ -32,6 +35,44 @@ pub struct Material {
     pub native: Option<super::native::NativeSurface>,
 }
 
+/// The simplified shading model light paths use at a surface instead of its shader (PRMan's and
+/// 3Delight's `Attribute "photon" "shadingmodel"`), its colour the material's `Color`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub enum PhotonModel {
+    /// Diffuse reflection: virtual lights and photons are left here.
+    #[default]
+    Matte,
+    /// A mirror: paths reflect, tinted by the colour.
+    Chrome,
+    /// A dielectric of refractive index `eta`: paths reflect or refract in Fresnel's proportions,
+    /// the refracted ones tinted by the colour.
+    Glass { eta: f32 },
+    /// Paths pass through unchanged.
+    Transparent,
+}
+
+impl PhotonModel {
+    /// The model a RIB names: `matte` (or `""`), `chrome`, `glass` (1.5), `water` (1.33),
+    /// `dielectric` (1.5), `refractive:ior=N`, `transparent`.
+    pub fn parse(name: &str) -> Result<PhotonModel, String> {
+        Ok(match name {
+            "" | "matte" => PhotonModel::Matte,
+            "chrome" => PhotonModel::Chrome,
+            "glass" | "dielectric" => PhotonModel::Glass { eta: 1.5 },
+            "water" => PhotonModel::Glass { eta: 1.33 },
+            "transparent" => PhotonModel::Transparent,
+            other => match other.strip_prefix("refractive:ior=").map(str::parse::<f32>) {
+                Some(Ok(eta)) if eta.is_finite() && eta >= 1.0 => PhotonModel::Glass { eta },
+                _ => {
+                    return Err(format!(
+                        "photon shading model \"{other}\" is none of matte, chrome, glass, water, dielectric, transparent, refractive:ior=N (N at least 1)"
+                    ))
+                }
+            },
+        })
+    }
+}
+
 /// The material of geometry with none (a stale id, or the default slot).
 pub static DEFAULT_MATERIAL: Material = Material::DEFAULT;
 
@@ -40,6 +81,7 @@ impl Material {
         surface: None,
         color: [1.0; 3],
         opacity: [1.0; 3],
+        photon: PhotonModel::Matte,
         shadow_by_shader: false,
         interior: None,
         displacement: None,
@@ -435,16 +477,20 @@ pub struct GiOptions {
     pub clamp: f32,
     /// Another seed gives another set of paths (a viewer accumulating frames changes it).
     pub seed: u32,
+    /// Paths traced per frame for the caustic photon map (`photonmap("caustic", ...)`): those
+    /// whose first surface is specular leave a photon on the first diffuse one; 0: no map.
+    pub caustic_photons: u32,
 }
 
 impl Default for GiOptions {
     fn default() -> Self {
-        GiOptions { virtual_lights: 0, bounces: 1, interleave: 3, clamp: 0.0, seed: 0 }
+        GiOptions { virtual_lights: 0, bounces: 1, interleave: 3, clamp: 0.0, seed: 0, caustic_photons: 0 }
     }
 }
 
-/// The most paths a frame traces, and the deepest they go: what any option is clamped to.
-pub const MAX_VIRTUAL_LIGHT_PATHS: u32 = 1 << 16;
+/// The most paths a frame traces (for virtual lights, and for caustic photons), and the deepest
+/// they go: what any option is clamped to.
+pub const MAX_VIRTUAL_LIGHT_PATHS: u32 = 1 << 20;
 pub const MAX_BOUNCES: u32 = 8;
 pub const MAX_INTERLEAVE: u32 = 8;
 

@@ -521,6 +521,10 @@ impl<'a> Loader<'a> {
             match (name, p.name.as_str()) {
                 ("light", "shadows") => self.shadows = s.map_or(f.unwrap_or(1.0) != 0.0, |s| s == "on"),
                 ("shade", "transmissionhitmode") => self.rt.shadows_from_shader(s == Some("shader")),
+                ("photon", "shadingmodel") => match crate::render::world::PhotonModel::parse(s.unwrap_or("")) {
+                    Ok(model) => self.rt.photon_shading_model(model),
+                    Err(e) => self.warn(r, e),
+                },
                 // rtsl's own: cut-outs by a texture's alpha ("" for none); see `Context::alpha_mask`.
                 ("trace", "alphamask") => self.rt.alpha_mask(s.filter(|s| !s.is_empty())),
                 ("identifier", _) | ("visibility", _) | ("displacementbound", _) => {}
@@ -570,7 +574,10 @@ impl<'a> Loader<'a> {
                         self.rt.options.max_ray_depth = n.clamp(0.0, 64.0) as u32;
                     }
                 }
-                ("gi", setting @ ("virtuallights" | "bounces" | "interleave" | "clamp" | "seed")) => {
+                (
+                    "gi",
+                    setting @ ("virtuallights" | "bounces" | "interleave" | "clamp" | "seed" | "causticphotons"),
+                ) => {
                     use crate::render::world::{MAX_BOUNCES, MAX_INTERLEAVE, MAX_VIRTUAL_LIGHT_PATHS};
                     let Some(v) = f.filter(|v| v.is_finite() && *v >= 0.0) else {
                         self.warn(r, format_args!("option \"gi\" \"{setting}\" takes a number, at least 0"));
@@ -582,6 +589,7 @@ impl<'a> Loader<'a> {
                         "bounces" => gi.bounces = v.clamp(1.0, MAX_BOUNCES as f32) as u32,
                         "interleave" => gi.interleave = v.clamp(1.0, MAX_INTERLEAVE as f32) as u32,
                         "clamp" => gi.clamp = v,
+                        "causticphotons" => gi.caustic_photons = v.min(MAX_VIRTUAL_LIGHT_PATHS as f32) as u32,
                         _ => gi.seed = v.min(u32::MAX as f32) as u32,
                     }
                 }

@@ -297,7 +297,8 @@ pub struct HostTable {
     /// four corners of the region its kernel covers, then samples, sblur, tblur, swidth, twidth
     /// and bias, as `interp::ShadowQuery`; 1 value), 3 `texture3d`'s
     /// grid lookup (`coords` a point in the grid's coordinates; 1 value), 4 `pixelvalue` (`name`
-    /// the channel, `coords` the raster x and y; 3 values). Results in
+    /// the channel, `coords` the raster x and y; 3 values), 5 `photonmap` (`name` the map, `coords`
+    /// the point, the normal and the estimator's photon count; 3 values). Results in
     /// `out[4c + l]`; `ok[l]` 0 where the map cannot be read.
     pub texture: unsafe extern "C" fn(
         ctx: *mut c_void,
@@ -491,6 +492,10 @@ unsafe extern "C" fn sv_texture(
                 1 => h.host.environment(name, c).map(|v| v.to_vec()),
                 3 => h.host.texture3d(name, c).map(|v| vec![v]),
                 4 => h.host.pixel_value(name, c[0], c[1]).map(|v| v.to_vec()),
+                5 => {
+                    let row = |k: usize| *coords.add(4 * k + l);
+                    h.host.photonmap(name, c, [row(3), row(4), row(5)], row(6)).map(|v| v.to_vec())
+                }
                 _ => {
                     let rows = std::slice::from_raw_parts(coords, 4 * SHADOW_ROWS);
                     Some(vec![h.host.shadow(name, &shadow_query_of(rows, l))])
@@ -1267,6 +1272,15 @@ host_helpers! {
             cx.set(0, l, if ok[l] != 0 { vals[l] } else { 0.0 });
         }
     }
+    // [name, p, n, estimator] -> 3 (black without the map)
+    h_photonmap "rtsl_h_photonmap" 8 => 3 |cx| {
+        let (vals, ok) = texture_call(cx, 5, 3);
+        for l in cx.active() {
+            for j in 0..3 {
+                cx.set(j, l, if ok[l] != 0 { vals[4 * j + l] } else { 0.0 });
+            }
+        }
+    }
     // [channel, x, y] -> 3 (0 without an image)
     h_pixelvalue "rtsl_h_pixelvalue" 3 => 3 |cx| {
         let (vals, ok) = texture_call(cx, 4, 3);
@@ -1505,6 +1519,7 @@ fn texture_call(cx: &Cx<'_>, kind: u32, channels: u32) -> ([f32; 4 * MAX_TEXTURE
         }
         2 => rows(&mut coords, 1, SHADOW_ROWS),
         4 => rows(&mut coords[..8], 1, 2),
+        5 => rows(&mut coords[..28], 1, 7),
         _ => rows(&mut coords, 1, 3),
     }
     // SAFETY: the table's documented sizes.

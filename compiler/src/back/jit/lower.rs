@@ -3080,9 +3080,23 @@ impl<'m> Lower<'m, '_> {
                 let (s, t) = (global(self, "s")?, global(self, "t")?);
                 helper(self, "rtsl_h_bump", &[v(0), s, t, v(1), v(2), v(3)], true)?
             }
-            // Point clouds and photon maps: reported once per call site when a lane runs the
+            // Point clouds: reported once per call site when a lane runs the
             // call, which returns its documented value (the built-in table) and writes nothing.
-            Bi::Bake3d | Bi::Photonmap | Bi::Texture3d if bi != Bi::Texture3d || fixed != 2 => {
+            Bi::Photonmap => {
+                let n = if fixed == 3 { v(2) } else { Val { vary: false, c: vec![self.fconst(0.0, false); 3] } };
+                let estimator = match param_arg(f, args, fixed, "estimator")? {
+                    Some(a) => {
+                        let i = args.iter().position(|x| std::ptr::eq(x, a)).unwrap_or(0);
+                        vals[i].clone()
+                    }
+                    None => Val { vary: false, c: vec![self.fconst(50.0, false)] },
+                };
+                if vals[0].vary {
+                    return unsupported("varying photon map names");
+                }
+                helper(self, "rtsl_h_photonmap", &[v(0), v(1), n, estimator], true)?
+            }
+            Bi::Bake3d | Bi::Texture3d if bi != Bi::Texture3d || fixed != 2 => {
                 self.report_unsupported(bi, e.span)?;
                 let n = components(e.ty).unwrap_or(1);
                 Val { vary: false, c: vec![self.fconst(0.0, false); n] }

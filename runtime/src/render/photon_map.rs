@@ -1,0 +1,185 @@
+//! A photon map (Jensen 1996): photons where light paths ended, in a balanced kd-tree, and the
+//! density estimate of the irradiance they carry to a point: the power of its `k` nearest photons
+//! over the disc they cover.
+//!
+//! The tree is implicit: the photons are reordered so that the photons of a subtree `[lo, hi)`
+//! have their splitting photon at `(lo + hi) / 2`, the lower half before it and the upper after;
+//! `axes[i]` is the axis photon `i` splits.
+
+use glam::Vec3A;
+use std::collections::BinaryHeap;
+
+/// Where a light path ended, the power it carried there, and the direction it arrived from.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Photon {
+    pub p: Vec3A,
+    pub power: Vec3A,
+    /// Unit direction of travel as it arrived.
+    pub direction: Vec3A,
+}
+
+/// Photons in a balanced kd-tree.
+#[derive(Clone, Debug, Default)]
+pub struct PhotonMap {
+    photons: Vec<Photon>,
+    axes: Vec<u8>,
+}
+
+/// The most photons one estimate gathers.
+pub const MAX_ESTIMATOR: usize = 1024;
+
+impl PhotonMap {
+    pub fn new(mut photons: Vec<Photon>) -> PhotonMap {
+        photons.retain(|p| p.p.is_finite() && p.power.is_finite());
+        let mut axes = vec![0u8; photons.len()];
+        build(&mut photons, &mut axes, 0);
+        PhotonMap { photons, axes }
+    }
+
+    /// The irradiance at `p` on a surface facing `n` (unit; zero: any way) from the `k` nearest
+    /// photons within `max_radius` that arrived from the side `n` faces: their power over the area of the disc
+    /// that holds them. Black where none are near.
+    pub fn irradiance(&self, p: Vec3A, n: Vec3A, k: usize, max_radius: f32) -> Vec3A {
+        let k = k.clamp(1, MAX_ESTIMATOR);
+        let mut nearest = BinaryHeap::with_capacity(k + 1);
+        let mut reach = max_radius * max_radius;
+        self.gather(0, self.photons.len(), p, n, k, &mut reach, &mut nearest);
+        if nearest.is_empty() {
+            return Vec3A::ZERO;
+        }
+        // With k found, the disc reaches the farthest of them; with fewer, the whole search disc.
+        let r2 = if nearest.len() == k { nearest.peek().map_or(reach, |n: &Near| n.distance2) } else { reach };
+        let power = nearest.iter().fold(Vec3A::ZERO, |sum, near| sum + self.photons[near.index].power);
+        power / (std::f32::consts::PI * r2.max(1e-12))
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn gather(
+        &self,
+        lo: usize,
+        hi: usize,
+        p: Vec3A,
+        n: Vec3A,
+        k: usize,
+        reach: &mut f32,
+        nearest: &mut BinaryHeap<Near>,
+    ) {
+        if lo >= hi {
+            return;
+        }
+        let mid = (lo + hi) / 2;
+        let photon = &self.photons[mid];
+        let axis = self.axes[mid] as usize;
+        let delta = p[axis] - photon.p[axis];
+        let (near_side, far_side) = if delta < 0.0 { ((lo, mid), (mid + 1, hi)) } else { ((mid + 1, hi), (lo, mid)) };
+        self.gather(near_side.0, near_side.1, p, n, k, reach, nearest);
+        let d2 = (photon.p - p).length_squared();
+        if d2 < *reach && (n == Vec3A::ZERO || n.dot(photon.direction) < 0.0) {
+            nearest.push(Near { distance2: d2, index: mid });
+            if nearest.len() > k {
+                nearest.pop();
+            }
+            if nearest.len() == k {
+                *reach = nearest.peek().map_or(*reach, |n| n.distance2);
+            }
+        }
+        if delta * delta < *reach {
+            self.gather(far_side.0, far_side.1, p, n, k, reach, nearest);
+        }
+    }
+}
+
+/// Orders `photons` into the implicit tree, splitting each subtree at its median along its widest
+/// axis.
+fn build(photons: &mut [Photon], axes: &mut [u8], depth: u32) {
+    if photons.len() <= 1 || depth > 64 {
+        return;
+    }
+    let (lo, hi) = photons
+        .iter()
+        .fold((Vec3A::splat(f32::INFINITY), Vec3A::splat(f32::NEG_INFINITY)), |(lo, hi), p| (lo.min(p.p), hi.max(p.p)));
+    let extent = hi - lo;
+    let axis = if extent.x >= extent.y && extent.x >= extent.z {
+        0
+    } else if extent.y >= extent.z {
+        1
+    } else {
+        2
+    };
+    let mid = photons.len() / 2;
+    photons.select_nth_unstable_by(mid, |a, b| a.p[axis].total_cmp(&b.p[axis]));
+    axes[mid] = axis as u8;
+    let (left, right) = photons.split_at_mut(mid);
+    let (left_axes, right_axes) = axes.split_at_mut(mid);
+    build(left, left_axes, depth + 1);
+    build(&mut right[1..], &mut right_axes[1..], depth + 1);
+}
+
+/// A photon found, by its squared distance (the heap keeps the farthest on top).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Near {
+    distance2: f32,
+    index: usize,
+}
+
+impl Eq for Near {}
+
+impl PartialOrd for Near {
+    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+impl Ord for Near {
+    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+        self.distance2.total_cmp(&other.distance2).then(self.index.cmp(&other.index))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn grid_photons(n: usize) -> Vec<Photon> {
+        // A square grid of photons on the plane y = 0, each of power 1, arriving from above.
+        (0..n * n)
+            .map(|i| Photon {
+                p: Vec3A::new((i % n) as f32 / n as f32, 0.0, (i / n) as f32 / n as f32),
+                power: Vec3A::ONE,
+                direction: -Vec3A::Y,
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_estimate_is_the_density_of_power() {
+        // n^2 photons of power 1 on the unit square: irradiance n^2 in the middle.
+        let map = PhotonMap::new(grid_photons(100));
+        let e = map.irradiance(Vec3A::new(0.5, 0.0, 0.5), Vec3A::Y, 200, 1.0);
+        assert!((e.x / 10_000.0 - 1.0).abs() < 0.1, "{e}");
+        // Photons arriving at the other side do not count.
+        assert_eq!(map.irradiance(Vec3A::new(0.5, 0.0, 0.5), -Vec3A::Y, 200, 1.0), Vec3A::ZERO);
+        // Nothing within reach: black.
+        assert_eq!(map.irradiance(Vec3A::new(5.0, 0.0, 5.0), Vec3A::Y, 10, 0.5), Vec3A::ZERO);
+    }
+
+    #[test]
+    fn the_tree_finds_the_same_neighbours_as_a_scan() {
+        let mut photons = grid_photons(37);
+        for (i, p) in photons.iter_mut().enumerate() {
+            p.p.y = ((i * 7919) % 101) as f32 / 300.0;
+            p.power = Vec3A::splat(1.0 + (i % 5) as f32);
+        }
+        let map = PhotonMap::new(photons.clone());
+        for q in [Vec3A::new(0.3, 0.1, 0.7), Vec3A::new(0.0, 0.0, 0.0), Vec3A::new(0.9, 0.3, 0.2)] {
+            let k = 25;
+            let mut by_distance: Vec<&Photon> = photons.iter().collect();
+            by_distance.sort_by(|a, b| (a.p - q).length_squared().total_cmp(&(b.p - q).length_squared()));
+            let r2 = (by_distance[k - 1].p - q).length_squared();
+            let power = by_distance[..k].iter().fold(Vec3A::ZERO, |s, p| s + p.power);
+            let want = power / (std::f32::consts::PI * r2);
+            let got = map.irradiance(q, Vec3A::Y, k, 10.0);
+            assert!((got - want).abs().max_element() < 1e-3 * want.max_element(), "{q}: {got} against {want}");
+        }
+    }
+}
