@@ -311,3 +311,78 @@ fn photon_shading_models_are_read_from_rib_and_bad_ones_are_warnings() {
         "{models:?}"
     );
 }
+
+/// The Cornell box of `../shared/scenes` lit by virtual lights (one bounce), frames with fresh
+/// lights averaged, against a converged path-traced reference from Mitsuba 3 stored at 32x24 (the
+/// 20x20-pixel block means of a 640x480, 1024-sample image: `benches/gi_against_mitsuba.py`
+/// renders it). Every surface is diffuse grey 0.7. Sixteen frames accumulated need no filter (which
+/// at this size would blur the direct light's shadow edges into the blocks).
+#[test]
+fn the_cornell_box_matches_mitsubas_path_traced_reference() {
+    let obj = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/scenes/cornell_box/cornell_box.obj");
+    let Ok(text) = std::fs::read_to_string(&obj) else {
+        eprintln!("SKIPPED: {} is not there (the shared scenes)", obj.display());
+        return;
+    };
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    // The box without its materials: grey everywhere, as in the reference.
+    let grey: String = text
+        .lines()
+        .filter(|l| !l.starts_with("mtllib") && !l.starts_with("usemtl"))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    let mesh = dir.path().join("box.obj");
+    std::fs::write(&mesh, grey).expect("written");
+    let (w, h, frames) = (160u32, 120u32, 16u32);
+    let mut sum = vec![0.0f32; (3 * w * h) as usize];
+    for seed in 0..frames {
+        let rib = format!(
+            r#"
+            Format {w} {h} 1
+            Projection "perspective" "fov" [39.3]
+            Option "gi" "integer virtuallights" [256] "integer bounces" [1] "integer interleave" [3] "integer seed" [{seed}]
+            Scale -1 1 1
+            Translate -278 -273 800
+            WorldBegin
+              LightSource "pointlight" 1 "intensity" [282743.34] "from" [278 540 279.5]
+              Color [0.7 0.7 0.7]
+              Surface "gimatte"
+              ReadArchive "{}"
+            WorldEnd
+            "#,
+            mesh.display()
+        );
+        let mut rt = Context::new();
+        let loaded =
+            rtsl_runtime::rib::load::load_str(&mut rt, &rib, &dir.path().join("box.rib")).expect("the box loads");
+        assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+        let world = rt.build_world().expect("a world");
+        let (fb, _) = render_frame(&world, None);
+        for (i, s) in sum.iter_mut().enumerate() {
+            *s += fb.rgba[4 * (i / 3) + i % 3] / frames as f32;
+        }
+    }
+    let reference =
+        rtsl_runtime::read_image(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/cornell_gi_reference.exr"))
+            .expect("the stored reference");
+    assert_eq!((reference.width, reference.height), (32, 24));
+    // rtsl's image in the reference's blocks: 5x5 pixels each.
+    let mut error = 0.0f32;
+    for by in 0..24 {
+        for bx in 0..32 {
+            for c in 0..3 {
+                let mut mean = 0.0;
+                for y in 5 * by..5 * by + 5 {
+                    for x in 5 * bx..5 * bx + 5 {
+                        mean += sum[(3 * (y * w + x) + c) as usize] / 25.0;
+                    }
+                }
+                let r = reference.pixels[4 * (by * 32 + bx) as usize + c as usize];
+                error += (mean - r).abs() / (r + 0.01);
+            }
+        }
+    }
+    let error = error / (32.0 * 24.0 * 3.0);
+    eprintln!("mean relative error of the 20x20-pixel blocks against Mitsuba: {error}");
+    assert!(error < 0.05, "mean relative error {error}");
+}
