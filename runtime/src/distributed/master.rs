@@ -523,6 +523,8 @@ pub(super) fn counts_of(report: &FrameReport) -> FrameCounts {
         light_evaluations: report.light_evaluations,
         shading_ns: report.shading.as_nanos() as u64,
         kind_ns: report.by_kind.iter().map(|d| d.as_nanos() as u64).collect(),
+        light_paths_ns: report.light_paths.as_nanos() as u64,
+        gathering_ns: report.gathering.as_nanos() as u64,
         by_shader: report.by_shader.iter().map(|(n, k, d)| (n.clone(), kind_index(*k), d.as_nanos() as u64)).collect(),
         shader_messages: report.shader_messages.clone(),
         ..FrameCounts::default()

@@ -8,7 +8,7 @@ use crate::texture::TextureKind;
 use rtsl_compiler::interface::ShaderKind;
 
 /// The protocol's version: ranks that speak different versions refuse each other at start-up.
-pub const PROTOCOL_VERSION: u32 = 8;
+pub const PROTOCOL_VERSION: u32 = 9;
 
 /// What the master's counters add up from a worker's share of a frame.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -21,6 +21,9 @@ pub struct FrameCounts {
     /// ([`ShaderKind::ALL`] order), in nanoseconds.
     pub shading_ns: u64,
     pub kind_ns: Vec<u64>,
+    /// Global illumination: tracing light paths, and gathering virtual lights (nanoseconds).
+    pub light_paths_ns: u64,
+    pub gathering_ns: u64,
     /// Per shader: name, type (its index in [`ShaderKind::ALL`]) and nanoseconds.
     pub by_shader: Vec<(String, u8, u64)>,
     /// What the shaders' runtime checks reported.
@@ -206,6 +209,8 @@ impl Message {
                 w.u64(counts.evicted_objects);
                 w.u64(counts.resident_objects);
                 w.u64(counts.shading_ns);
+                w.u64(counts.light_paths_ns);
+                w.u64(counts.gathering_ns);
                 w.u32(counts.kind_ns.len() as u32);
                 for &n in &counts.kind_ns {
                     w.u64(n);
@@ -286,6 +291,7 @@ impl Message {
                 let (fetched_textures, fetched_texture_bytes) = (r.u64()?, r.u64()?);
                 let (evicted_objects, resident_objects) = (r.u64()?, r.u64()?);
                 let shading_ns = r.u64()?;
+                let (light_paths_ns, gathering_ns) = (r.u64()?, r.u64()?);
                 let kinds = r.count(8)?;
                 let kind_ns = (0..kinds).map(|_| r.u64()).collect::<Result<_, _>>()?;
                 let shaders = r.count(13)?;
@@ -302,6 +308,8 @@ impl Message {
                     light_evaluations,
                     shading_ns,
                     kind_ns,
+                    light_paths_ns,
+                    gathering_ns,
                     by_shader,
                     shader_messages,
                     texture_warnings,
@@ -517,6 +525,8 @@ mod tests {
                     light_evaluations: 6,
                     shading_ns: 7,
                     kind_ns: vec![8, 9],
+                    light_paths_ns: 17,
+                    gathering_ns: 18,
                     by_shader: vec![("plastic".into(), 0, 10)],
                     shader_messages: vec!["plastic: a loop stopped".into()],
                     texture_warnings: vec![("grain".into(), String::new(), "not found".into())],

@@ -69,6 +69,8 @@ fn add_counts(report: &mut FrameReport, c: &FrameCounts) {
     report.shaded_points += c.shaded_points;
     report.light_evaluations += c.light_evaluations;
     report.shading += Duration::from_nanos(c.shading_ns);
+    report.light_paths += Duration::from_nanos(c.light_paths_ns);
+    report.gathering += Duration::from_nanos(c.gathering_ns);
     for (total, &ns) in report.by_kind.iter_mut().zip(&c.kind_ns) {
         *total += Duration::from_nanos(ns);
     }

@@ -80,6 +80,10 @@ pub struct FrameReport {
     pub shader_messages: Vec<String>,
     /// The acceleration-structure update made for this frame (before `elapsed` started).
     pub accel: super::world::AccelUpdate,
+    /// Global illumination: tracing the frame's light paths, and the threads' time gathering
+    /// virtual lights (both within `shading`; zero without them or untimed).
+    pub light_paths: Duration,
+    pub gathering: Duration,
 }
 
 impl FrameReport {
@@ -168,7 +172,16 @@ impl std::fmt::Display for FrameReport {
             self.accel.top_level.as_secs_f64() * 1e3,
             self.accel.memory_bytes as f64 / 1e6,
             m(self.accel.instanced_triangles as u64),
-        )
+        )?;
+        if !self.light_paths.is_zero() || !self.gathering.is_zero() {
+            write!(
+                f,
+                "; global illumination: light paths {:.1} ms, gathering virtual lights {:.1} ms of thread time",
+                self.light_paths.as_secs_f64() * 1e3,
+                self.gathering.as_secs_f64() * 1e3
+            )?;
+        }
+        Ok(())
     }
 }
 
@@ -974,6 +987,8 @@ pub(crate) fn frame_report(frame: &Frame, start: Instant) -> FrameReport {
         threads: rayon::current_num_threads(),
         shader_messages: world.shader_messages(),
         accel: world.accel,
+        light_paths: Duration::from_nanos(s.light_paths_ns.load(Ordering::Relaxed)),
+        gathering: Duration::from_nanos(s.gathering_ns.load(Ordering::Relaxed)),
     }
 }
 

@@ -562,7 +562,9 @@ unsafe extern "C" fn host_texture(
                 return;
             }
             let frame = c.frame;
-            let map = frame.caustics.get_or_init(|| virtual_lights::trace_caustics(frame));
+            let map = frame
+                .caustics
+                .get_or_init(|| timed(frame, &frame.stats.light_paths_ns, || virtual_lights::trace_caustics(frame)));
             let radius = virtual_lights::photon_search_radius(frame);
             for l in active() {
                 let (p, n) = (lane3(coords, 0, l), lane3(coords, 3, l).normalize_or_zero());
@@ -727,7 +729,10 @@ unsafe extern "C" fn host_rays(
         }
         3 if frame.world.options.gi.virtual_lights > 0 => {
             // Instant radiosity: the frame's virtual lights, this point's set of them.
-            let lights = frame.virtual_lights.get_or_init(|| virtual_lights::trace(frame));
+            let lights = frame
+                .virtual_lights
+                .get_or_init(|| timed(frame, &frame.stats.light_paths_ns, || virtual_lights::trace(frame)));
+            let start = frame.stats.timed.then(std::time::Instant::now);
             for l in (0..4).filter(|&l| mask[l] != 0) {
                 let (p, n) = (lane3(a, 0, l), lane3(b, 0, l).normalize_or_zero());
                 if n == Vec3A::ZERO || !p.is_finite() {
@@ -738,6 +743,10 @@ unsafe extern "C" fn host_rays(
                 for r in 0..3 {
                     out[4 * r + l] = light[r];
                 }
+            }
+            if let Some(start) = start {
+                let ns = start.elapsed().as_nanos() as u64;
+                frame.stats.gathering_ns.fetch_add(ns, std::sync::atomic::Ordering::Relaxed);
             }
         }
         _ => {
@@ -758,6 +767,16 @@ unsafe extern "C" fn host_rays(
             }
         }
     }
+}
+
+/// Runs `f`, adding its wall time to `total` when the frame is timed.
+fn timed<R>(frame: &Frame, total: &std::sync::atomic::AtomicU64, f: impl FnOnce() -> R) -> R {
+    let start = frame.stats.timed.then(std::time::Instant::now);
+    let r = f();
+    if let Some(start) = start {
+        total.fetch_add(start.elapsed().as_nanos() as u64, std::sync::atomic::Ordering::Relaxed);
+    }
+    r
 }
 
 /// Cosine-weighted rays over the hemisphere around `n`: the fraction blocked, and (when `shade`)

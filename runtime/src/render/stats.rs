@@ -169,6 +169,11 @@ pub struct Stats {
     pub kind_ns: [AtomicU64; ShaderKind::ALL.len()],
     /// The same time per shader program, in nanoseconds.
     pub program_ns: Mutex<Vec<(Program, u64)>>,
+    /// Global illumination: the time spent tracing the frame's light paths (virtual lights and
+    /// caustic photons, the photon map's tree included; threads that need them meanwhile wait),
+    /// and the threads' time gathering virtual lights (their shadow rays included).
+    pub light_paths_ns: AtomicU64,
+    pub gathering_ns: AtomicU64,
     /// Whether the shading times above are measured (`RenderOptions::time_shaders`; the frame
     /// sets it). Untimed, they stay zero and no clock is read.
     pub timed: bool,
