@@ -733,15 +733,21 @@ unsafe extern "C" fn host_rays(
                 .virtual_lights
                 .get_or_init(|| timed(frame, &frame.stats.light_paths_ns, || virtual_lights::trace(frame)));
             let start = frame.stats.timed.then(std::time::Instant::now);
+            let mut lanes = Vec::with_capacity(4);
+            let mut points = Vec::with_capacity(4);
             for l in (0..4).filter(|&l| mask[l] != 0) {
                 let (p, n) = (lane3(a, 0, l), lane3(b, 0, l).normalize_or_zero());
-                if n == Vec3A::ZERO || !p.is_finite() {
-                    continue;
+                if n != Vec3A::ZERO && p.is_finite() {
+                    let set = virtual_lights::set_of(lights, frame, p);
+                    points.push(virtual_lights::Gatherer { p, n, time: times[l], set });
+                    lanes.push(l);
                 }
-                let light =
-                    virtual_lights::gather(lights, frame, virtual_lights::set_of(lights, frame, p), p, n, times[l]);
+            }
+            let mut light = [Vec3A::ZERO; 4];
+            virtual_lights::gather(lights, frame, &points, &mut light);
+            for (k, &l) in lanes.iter().enumerate() {
                 for r in 0..3 {
-                    out[4 * r + l] = light[r];
+                    out[4 * r + l] = light[k][r];
                 }
             }
             if let Some(start) = start {

@@ -29,7 +29,7 @@ use super::sampling::{mix, point_seed, radical_inverse, unit};
 use super::stats::{tracing, Stats};
 use super::work::{epsilon, Frame, VirtualLight, VirtualLights};
 use super::world::{LightSource, PhotonModel, MAX_BOUNCES, MAX_INTERLEAVE, MAX_VIRTUAL_LIGHT_PATHS};
-use crate::ray::Ray;
+use crate::ray::{Ray, RayPacket, PACKET_SIZE};
 use crate::shading::LightKind;
 use glam::Vec3A;
 use rtsl_compiler::abi::{LightLanes, MAX_LIGHTS};
@@ -87,34 +87,65 @@ pub(super) fn set_of(lights: &VirtualLights, frame: &Frame, p: Vec3A) -> usize {
     cell as usize
 }
 
-/// The mean radiance arriving at `p` around the unit normal `n` from set `set` of `all` (irradiance
-/// over pi), each light behind a shadow ray. The set stands for all of them: its share is scaled
-/// up by the number of sets.
-pub(super) fn gather(all: &VirtualLights, frame: &Frame, set: usize, p: Vec3A, n: Vec3A, time: f32) -> Vec3A {
-    let Some(lights) = all.sets.get(set) else { return Vec3A::ZERO };
-    let mut sum = Vec3A::ZERO;
+/// A point gathering virtual lights: where it is, its unit normal, its ray time and its set.
+pub(super) struct Gatherer {
+    pub p: Vec3A,
+    pub n: Vec3A,
+    pub time: f32,
+    pub set: usize,
+}
+
+/// The mean radiance arriving at each point from its set of `all` (irradiance over pi), each
+/// light behind a shadow ray; the rays of all the points go as packets of up to 64 (a point's
+/// lights from one origin, its neighbours' from nearby ones). A set stands for all of them: its
+/// share is scaled up by the number of sets.
+pub(super) fn gather(all: &VirtualLights, frame: &Frame, points: &[Gatherer], out: &mut [Vec3A]) {
+    let mut packet = RayPacket::new();
+    // Each lane's point and the light it would get if nothing blocked it.
+    let mut pending: Vec<(usize, Vec3A)> = Vec::with_capacity(PACKET_SIZE);
     let mut rays = 0;
-    for vl in lights {
-        let to = vl.p - p;
-        let r2 = to.length_squared();
-        if r2 <= 0.0 {
-            continue;
+    let flush = |packet: &mut RayPacket, pending: &mut Vec<(usize, Vec3A)>, out: &mut [Vec3A]| {
+        if pending.is_empty() {
+            return;
         }
-        let w = to / r2.sqrt();
-        let (cos_here, cos_there) = (n.dot(w), -vl.n.dot(w));
-        if cos_here <= 0.0 || cos_there <= 0.0 {
-            continue;
+        let blocked = tracing(|| frame.world.scene.occluded_packet(packet));
+        for (lane, (point, light)) in pending.iter().enumerate() {
+            if blocked >> lane & 1 == 0 {
+                out[*point] += *light;
+            }
         }
-        let reach = r2.sqrt() * (1.0 - 1e-3) - epsilon(vl.p);
-        let ray = Ray::segment(p, w, epsilon(p), reach.max(0.0)).at_time(time);
-        rays += 1;
-        if tracing(|| frame.world.scene.occluded(&ray)) {
-            continue;
+        pending.clear();
+        *packet = RayPacket::new();
+    };
+    for (k, g) in points.iter().enumerate() {
+        let Some(lights) = all.sets.get(g.set) else { continue };
+        for vl in lights {
+            let to = vl.p - g.p;
+            let r2 = to.length_squared();
+            if r2 <= 0.0 {
+                continue;
+            }
+            let r = r2.sqrt();
+            let w = to / r;
+            let (cos_here, cos_there) = (g.n.dot(w), -vl.n.dot(w));
+            if cos_here <= 0.0 || cos_there <= 0.0 {
+                continue;
+            }
+            let reach = r * (1.0 - 1e-3) - epsilon(vl.p);
+            packet.set(pending.len(), &Ray::segment(g.p, w, epsilon(g.p), reach.max(0.0)).at_time(g.time));
+            pending.push((k, vl.power * (cos_here * cos_there / r2.max(all.clamp_squared))));
+            rays += 1;
+            if pending.len() == PACKET_SIZE {
+                flush(&mut packet, &mut pending, out);
+            }
         }
-        sum += vl.power * (cos_here * cos_there / r2.max(all.clamp_squared));
     }
+    flush(&mut packet, &mut pending, out);
     Stats::add(&frame.stats.shadow_rays, rays);
-    sum * (all.sets.len() as f32 / std::f32::consts::PI)
+    let scale = all.sets.len() as f32 / std::f32::consts::PI;
+    for o in out.iter_mut().take(points.len()) {
+        *o *= scale;
+    }
 }
 
 /// Where a light's paths start.
