@@ -223,8 +223,9 @@ fn a_broken_scene_is_a_located_error_not_a_window() {
 }
 
 /// `rtsl view --mpi` under `mpirun -n 3` on this machine: rank 0's window shows, pass for pass,
-/// what one process shows, while an object is dragged, with adaptive anti-aliasing, and in
-/// frameless mode (the workers trace the viewer's lattices; docs/distributed.md).
+/// what one process shows, while an object is dragged, with adaptive anti-aliasing, in frameless
+/// mode, and lit by virtual lights through the interleaving filter (the workers trace the
+/// viewer's lattices; docs/distributed.md).
 #[cfg(feature = "mpi")]
 #[test]
 fn the_viewer_over_three_mpi_ranks_shows_what_one_process_shows() {
@@ -236,7 +237,25 @@ fn the_viewer_over_three_mpi_ranks_shows_what_one_process_shows() {
     let Some(x) = xvfb() else { return };
     let dir = tempfile::tempdir().expect("tempdir");
     let common = ["--size", "96x72", "--frames", "3", "--no-watch", "--no-overlay", "--threads", "1"];
-    for extra in [&["--events", "shiftdrag:33,45,60,45"][..], &["--aa", "adaptive"], &["--frameless"]] {
+    // Global illumination: each pass's virtual lights, and a pixel shader that reads other pixels
+    // (run on rank 0 over the accumulated image).
+    let gi = r#"
+        Projection "perspective" "fov" 60
+        Option "gi" "integer virtuallights" [200] "integer interleave" [3]
+        Imager "interleavefilter"
+        Translate 0 0 2.6
+        WorldBegin
+        LightSource "pointlight" 1 "intensity" 3 "from" [0 0.8 0]
+        Surface "gimatte"
+        Color [0.8 0.8 0.8]
+        Polygon "P" [-1 -1 -1  1 -1 -1  1 -1 1  -1 -1 1]
+        Polygon "P" [-1 -1 1  1 -1 1  1 1 1  -1 1 1]
+        Color [0.85 0.15 0.1]
+        Polygon "P" [-1 -1 -1  -1 -1 1  -1 1 1  -1 1 -1]
+        WorldEnd
+    "#;
+    std::fs::write(dir.path().join("gi.rib"), gi).expect("written");
+    for extra in [&["--events", "shiftdrag:33,45,60,45"][..], &["--aa", "adaptive"], &["--frameless"], &["gi.rib"]] {
         let alone = view(&x.display, dir.path(), &[&common[..], extra, &["--screenshot", "alone.png"]].concat());
         assert!(alone.status.success(), "{}", String::from_utf8_lossy(&alone.stderr));
         let mut mpirun = Command::new("mpirun");
