@@ -12,6 +12,7 @@ mod film;
 pub mod filter;
 pub mod frame;
 mod globals;
+mod group;
 mod hit_geometry;
 mod host;
 mod lanes;

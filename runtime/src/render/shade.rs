@@ -1,5 +1,5 @@
-//! Shading on hits: hits are grouped by (material, instance) into batches, the globals and their
-//! derivatives are filled from the hits, and the surface shader's packet code runs; its calls into
+//! Shading on hits: hits grouped by (material, instance) into batches (`group.rs`), the globals
+//! and their derivatives are filled from the hits, and the surface shader's packet code runs; its calls into
 //! the renderer are answered by `host.rs`, lights by `lights.rs`. Also the pixel shader's pass over
 //! a finished tile, and the hand-written Rust path of benchmarks.
 //!
@@ -36,7 +36,8 @@ pub use super::work::{Frame, Sample};
 const STAGES: Stages = Stages {
     trace_rays,
     gather_rays,
-    shade_in_groups,
+    shade_in_groups: super::group::shade_in_groups,
+    shade_group,
     eval_light: super::lights::eval_light,
     transmission_between: super::lights::transmission_between,
     batch_lights: BatchLights::compute,
@@ -132,7 +133,7 @@ pub(super) fn gather_rays(frame: &Frame, rays: &[Ray], depth: u32) -> Vec<Option
     }
     if !pending.is_empty() {
         let mut results = vec![Shaded::default(); pending.len()];
-        shade_in_groups(frame, &mut pending, depth, &mut results);
+        super::group::shade_in_groups(frame, &mut pending, depth, &mut results);
         Stats::add(&frame.stats.shaded_points, pending.len());
         for (p, r) in pending.iter().zip(results) {
             out[p.index] = Some((p.hit.t, r));
@@ -191,7 +192,7 @@ fn shade_pending(frame: &Frame, mut current: Vec<Pending>, depth: u32, out: &mut
     while !current.is_empty() {
         results.clear();
         results.resize(current.len(), Shaded::default());
-        shade_in_groups(frame, &mut current, depth, &mut results);
+        super::group::shade_in_groups(frame, &mut current, depth, &mut results);
         if layer == 0 {
             first_hit_ids(world, &current, out);
         }
@@ -248,104 +249,6 @@ fn first_hit_ids(world: &World, pending: &[Pending], out: &mut [Sample]) {
             (s.object_id, s.shader_id) = (object_id, material);
         }
     }
-}
-
-/// Sorts `pending` by (material, instance) and shades it in groups of one material and instance,
-/// a packet at most each: `out[i]` is what the sorted `pending[i]` produced.
-pub(super) fn shade_in_groups(frame: &Frame, pending: &mut [Pending], depth: u32, out: &mut [Shaded]) {
-    let world = frame.world;
-    // Each key once: finding a hit's material reads its instance's per-primitive table, a cache
-    // miss, which comparisons would repeat.
-    let mut keys = super::scratch::take(&GROUP_KEYS);
-    keys.clear();
-    keys.extend(pending.iter().enumerate().map(|(i, p)| {
-        let inst = world.instances.get(p.hit.instance as usize);
-        ((inst.map_or(0, |i| i.material_at(p.hit.primitive)), p.hit.instance), i as u32)
-    }));
-    // Coherent rays mostly arrive in order already; sorting moves whole jobs, so it sorts their
-    // keys and then moves each job once.
-    if !keys.is_sorted() {
-        // The index breaks ties: the order of a stable sort.
-        let mut spare = super::scratch::take(&GROUP_KEYS);
-        sort_group_keys(&mut keys, &mut spare);
-        super::scratch::give(&GROUP_KEYS, spare);
-        permute(pending, &mut keys);
-    }
-    let mut start = 0;
-    while start < pending.len() {
-        let k = keys[start].0;
-        let mut end = start + 1;
-        while end < pending.len() && end - start < PACKET_SIZE && keys[end].0 == k {
-            end += 1;
-        }
-        shade_group(frame, &pending[start..end], depth, &mut out[start..end]);
-        start = end;
-    }
-    super::scratch::give(&GROUP_KEYS, keys);
-}
-
-/// Puts `items[order[i].1]` at `i`, for every `i` (`order` a permutation of the indices, its
-/// indices changed on the way).
-fn permute<K, T>(items: &mut [T], order: &mut [(K, u32)]) {
-    for i in 0..items.len().min(order.len()) {
-        // Where the item that belongs at `i` is now: earlier swaps moved it from `order[i].1`
-        // along the chain of places they put things.
-        let mut from = order[i].1 as usize;
-        while from < i {
-            from = order[from].1 as usize;
-        }
-        order[i].1 = from as u32;
-        items.swap(i, from);
-    }
-}
-
-type GroupKey = ((u32, u32), u32);
-
-/// The most distinct keys [`sort_group_keys`] buckets; with more it sorts.
-const MAX_BUCKETED_KEYS: usize = 8;
-
-/// Sorts `keys` (each index once) as `sort_unstable` would, `spare` a buffer to use. A packet's
-/// hits mostly have one to three distinct (material, instance) keys, so they are bucketed by key
-/// in two passes, cheaper than a comparison sort of the 64.
-fn sort_group_keys(keys: &mut Vec<GroupKey>, spare: &mut Vec<GroupKey>) {
-    let mut distinct = [(0u32, 0u32); MAX_BUCKETED_KEYS];
-    let mut count = 0;
-    for (k, _) in keys.iter() {
-        if distinct[..count].contains(k) {
-            continue;
-        }
-        if count == MAX_BUCKETED_KEYS {
-            keys.sort_unstable();
-            return;
-        }
-        distinct[count] = *k;
-        count += 1;
-    }
-    let distinct = &mut distinct[..count];
-    distinct.sort_unstable();
-    let bucket = |k: &(u32, u32)| distinct.iter().position(|d| d == k).unwrap_or(0);
-    // Where each bucket starts: the sizes of the buckets before it.
-    let mut starts = [0usize; MAX_BUCKETED_KEYS + 1];
-    for (k, _) in keys.iter() {
-        starts[bucket(k) + 1] += 1;
-    }
-    for b in 1..=MAX_BUCKETED_KEYS {
-        starts[b] += starts[b - 1];
-    }
-    // Scattered in index order, the indices ascend within each bucket.
-    spare.clear();
-    spare.resize(keys.len(), ((0, 0), 0));
-    for key in keys.iter() {
-        let b = bucket(&key.0);
-        spare[starts[b]] = *key;
-        starts[b] += 1;
-    }
-    std::mem::swap(keys, spare);
-}
-
-thread_local! {
-    /// The (material, instance) keys of the jobs `shade_in_groups` sorts, with their indices.
-    static GROUP_KEYS: RefCell<Vec<Vec<GroupKey>>> = const { RefCell::new(Vec::new()) };
 }
 
 /// Shades hits that share material and instance.
@@ -681,34 +584,9 @@ fn shade_native(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::render::sampling::mix;
 
     /// Bucketing a packet's group keys orders them exactly as a comparison sort: with one to eight
     /// distinct keys (bucketed) and with more (sorted), in any order.
-    #[test]
-    fn group_keys_bucket_into_the_order_of_a_sort() {
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = |n: u64| {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state % n) as u32
-        };
-        let mut spare = Vec::new();
-        for distinct in [1u64, 2, 3, 8, 9, 40] {
-            for len in [1usize, 2, 17, 64, 150] {
-                let mut keys: Vec<GroupKey> =
-                    (0..len).map(|i| ((next(distinct) * 7, next(2) * distinct as u32), i as u32)).collect();
-                let mut sorted = keys.clone();
-                sorted.sort_unstable();
-                sort_group_keys(&mut keys, &mut spare);
-                assert_eq!(keys, sorted, "{distinct} distinct keys, {len} hits");
-            }
-        }
-    }
-
-    /// The hit geometry works out `dPdu`, `dPdv` and the normal's derivatives only for shaders that
-    /// read them: a shader that does gets them (not zero, on a quad whose normals vary).
     #[test]
     fn shaders_that_read_dpdu_and_the_normals_derivatives_get_them() {
         let probe =
@@ -844,26 +722,5 @@ mod tests {
         let materials: std::collections::HashSet<u32> = alone.iter().flatten().map(|s| s.shader_id).collect();
         assert!(materials.len() >= 4, "materials seen: {materials:?}");
         assert_eq!(bits(&alone), bits(&together));
-    }
-
-    #[test]
-    fn permuting_by_sorted_keys_orders_the_items_as_a_stable_sort() {
-        let mut state = 7u64;
-        for n in [0usize, 1, 2, 5, 64, 200] {
-            // Few distinct keys, so ties are common and the order among them shows.
-            let keys: Vec<u32> = (0..n)
-                .map(|_| {
-                    state = mix(state);
-                    (state % 5) as u32
-                })
-                .collect();
-            let mut items: Vec<(u32, usize)> = keys.iter().copied().zip(0..).collect();
-            let mut expected = items.clone();
-            expected.sort_by_key(|&(k, _)| k);
-            let mut order: Vec<(u32, u32)> = keys.iter().copied().zip(0..).collect();
-            order.sort_unstable();
-            permute(&mut items, &mut order);
-            assert_eq!(items, expected, "{n} items");
-        }
     }
 }

@@ -190,8 +190,10 @@ pub(crate) struct Stages {
     pub(crate) trace_rays: fn(&Frame, &[Ray], u32) -> Vec<Sample>,
     /// Traces rays and shades the first surface each hits, with its distance (`shade::gather_rays`).
     pub(crate) gather_rays: fn(&Frame, &[Ray], u32) -> Vec<Option<(f32, Shaded)>>,
-    /// Shades hits grouped by material and instance (`shade::shade_in_groups`).
+    /// Shades hits grouped by material and instance (`group::shade_in_groups`).
     pub(crate) shade_in_groups: fn(&Frame, &mut [Pending], u32, &mut [Shaded]),
+    /// Shades hits that share material and instance (`shade::shade_group`).
+    pub(crate) shade_group: fn(&Frame, &[Pending], u32, &mut [Shaded]),
     /// One light at four points (`lights::eval_light`).
     pub(crate) eval_light:
         fn(&Frame, &LightSource, Option<u32>, &[i32; 4], &[Vec3A; 4], &[f32; 4], u32, &mut [LightLanes], &mut [u32; 4]),
