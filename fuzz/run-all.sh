@@ -23,6 +23,7 @@ seed ply
 seed gltf $(ls ../../shared/scenes/box_animated_gltf/*.gltf 2>/dev/null)
 seed artifact
 seed replica
+seed protocol
 status=0
 for target in $(cargo +nightly fuzz list); do
     echo "== $target ($seconds s)"
