@@ -183,6 +183,8 @@ impl<'w> Units<'w> {
     fn new(world: &'w World, job: Job) -> Units<'w> {
         match job {
             Job::Tiles => {
+                // The frame's light paths are traced by the first render thread that needs them,
+                // not here: their rays may reach meshes this thread must fetch.
                 let renderer = TileRenderer::new(world);
                 let tiles = renderer.tiles();
                 Units::Tiles { renderer, tiles }

@@ -683,6 +683,7 @@ fn pixel_image((w, h): (u32, u32), tiles: &[(Tile, TileSamples)]) -> PixelImage 
 pub fn render_frame(world: &World, progress: Option<&(dyn Fn(usize, usize) + Sync)>) -> (Framebuffer, FrameReport) {
     let start = Instant::now();
     let renderer = TileRenderer::new(world);
+    renderer.prepare_light_paths();
     let (w, h) = (world.options.width, world.options.height);
     let progress =
         Progress { report: progress, done: AtomicUsize::new(0), total: crate::tiles::tiles(w, h, TILE_SIZE).len() };
@@ -792,6 +793,16 @@ impl RenderedTile {
 impl<'w> TileRenderer<'w> {
     pub fn new(world: &'w World) -> TileRenderer<'w> {
         TileRenderer { frame: Frame::new(world), sampling: Sampling::of(world), pixels_later: reads_pixels(world) }
+    }
+
+    /// Traces the frame's light paths (virtual lights, caustic photons) on the current rayon
+    /// pool's threads, where its options ask for them: call it before rendering tiles, so that
+    /// no tile's thread waits while another traces them alone. Not on a thread that must answer
+    /// the render threads' requests meanwhile (a distributed worker's talking thread: the paths'
+    /// rays may reach meshes it has to fetch); without it, the first thread that needs the paths
+    /// traces them.
+    pub fn prepare_light_paths(&self) {
+        super::virtual_lights::prepare(&self.frame);
     }
 
     /// The frame being rendered (its world and its counters).

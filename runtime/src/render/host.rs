@@ -562,9 +562,8 @@ unsafe extern "C" fn host_texture(
                 return;
             }
             let frame = c.frame;
-            let map = frame
-                .caustics
-                .get_or_init(|| timed(frame, &frame.stats.light_paths_ns, || virtual_lights::trace_caustics(frame)));
+            let map =
+                frame.caustics.get_or_init(|| virtual_lights::timed(frame, || virtual_lights::trace_caustics(frame)));
             let radius = virtual_lights::photon_search_radius(frame);
             for l in active() {
                 let (p, n) = (lane3(coords, 0, l), lane3(coords, 3, l).normalize_or_zero());
@@ -729,9 +728,8 @@ unsafe extern "C" fn host_rays(
         }
         3 if frame.world.options.gi.virtual_lights > 0 => {
             // Instant radiosity: the frame's virtual lights, this point's set of them.
-            let lights = frame
-                .virtual_lights
-                .get_or_init(|| timed(frame, &frame.stats.light_paths_ns, || virtual_lights::trace(frame)));
+            let lights =
+                frame.virtual_lights.get_or_init(|| virtual_lights::timed(frame, || virtual_lights::trace(frame)));
             let start = frame.stats.timed.then(std::time::Instant::now);
             let mut lanes = Vec::with_capacity(4);
             let mut points = Vec::with_capacity(4);
@@ -773,16 +771,6 @@ unsafe extern "C" fn host_rays(
             }
         }
     }
-}
-
-/// Runs `f`, adding its wall time to `total` when the frame is timed.
-fn timed<R>(frame: &Frame, total: &std::sync::atomic::AtomicU64, f: impl FnOnce() -> R) -> R {
-    let start = frame.stats.timed.then(std::time::Instant::now);
-    let r = f();
-    if let Some(start) = start {
-        total.fetch_add(start.elapsed().as_nanos() as u64, std::sync::atomic::Ordering::Relaxed);
-    }
-    r
 }
 
 /// Cosine-weighted rays over the hemisphere around `n`: the fraction blocked, and (when `shade`)

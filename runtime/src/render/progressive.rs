@@ -238,6 +238,11 @@ impl<'w> LatticeTracer<'w> {
         LatticeTracer { frame, pass, preview }
     }
 
+    /// Traces the pass's light paths (as [`crate::render::TileRenderer::prepare_light_paths`]).
+    pub fn prepare_light_paths(&self) {
+        super::virtual_lights::prepare(&self.frame);
+    }
+
     /// Traces the lanes `lanes` of `lattice` (see [`trace_lattice`]).
     pub fn trace(&self, lattice: PixelLattice, lanes: u64) -> LatticeSamples {
         let (aa, pass) = (self.frame.world.options.antialiasing, self.pass);
@@ -271,6 +276,7 @@ pub fn trace_lattices(
 ) -> (Vec<LatticeSamples>, BatchReport) {
     let start = std::time::Instant::now();
     let tracer = LatticeTracer::new(world, pass, preview);
+    tracer.prepare_light_paths();
     let (w, h) = (world.options.width, world.options.height);
     let out: Vec<LatticeSamples> =
         lattices.par_iter().map(|l| tracer.trace(*l, lattice_lanes(*l, w, h, wanted))).collect();

@@ -45,10 +45,9 @@ pub(super) fn trace(frame: &Frame) -> VirtualLights {
     };
     let diagonal = (hi - lo).length();
     let clamp = if gi.clamp > 0.0 { gi.clamp } else { 0.01 * diagonal };
-    let mut lights = Vec::new();
     let bounces = gi.bounces.clamp(1, MAX_BOUNCES);
-    for_each_landing(frame, gi.virtual_lights, 0x5851_F42D_4C95_7F2D, |landing, seed| {
-        follow_to_virtual_lights(frame, landing, bounces, seed, &mut lights);
+    let lights = for_each_landing(frame, gi.virtual_lights, 0x5851_F42D_4C95_7F2D, |landing, seed, out| {
+        follow_to_virtual_lights(frame, landing, bounces, seed, out);
     });
     // Dealt round-robin: each set a stratified share of the paths.
     let mut sets = vec![Vec::with_capacity(lights.len() / set_count + 1); set_count];
@@ -62,13 +61,37 @@ pub(super) fn trace(frame: &Frame) -> VirtualLights {
 /// whose first surface is specular (chrome, glass), followed through specular surfaces to the
 /// first diffuse one, where each leaves a photon (Jensen's caustic map, light paths L S+ D).
 pub(super) fn trace_caustics(frame: &Frame) -> PhotonMap {
-    let mut photons = Vec::new();
-    for_each_landing(frame, frame.world.options.gi.caustic_photons, 0x2545_F491_4F6C_DD1D, |landing, seed| {
-        if reflectance_of(frame, &landing.hit).1 != PhotonModel::Matte {
-            follow_to_photon(frame, landing, seed, &mut photons);
-        }
-    });
+    let photons =
+        for_each_landing(frame, frame.world.options.gi.caustic_photons, 0x2545_F491_4F6C_DD1D, |landing, seed, out| {
+            if reflectance_of(frame, &landing.hit).1 != PhotonModel::Matte {
+                follow_to_photon(frame, landing, seed, out);
+            }
+        });
     PhotonMap::new(photons)
+}
+
+/// Traces the frame's light paths now, on the threads of the current rayon pool, where its options
+/// ask for them: a render calls this before shading, so that no shading thread waits while the
+/// first one to need them traces them alone.
+pub(super) fn prepare(frame: &Frame) {
+    let gi = frame.world.options.gi;
+    if gi.virtual_lights > 0 {
+        frame.virtual_lights.get_or_init(|| timed(frame, || trace(frame)));
+    }
+    if gi.caustic_photons > 0 {
+        frame.caustics.get_or_init(|| timed(frame, || trace_caustics(frame)));
+    }
+}
+
+/// Runs `f`, adding its wall time to the frame's light-path time when the frame is timed.
+pub(super) fn timed<R>(frame: &Frame, f: impl FnOnce() -> R) -> R {
+    let start = frame.stats.timed.then(std::time::Instant::now);
+    let r = f();
+    if let Some(start) = start {
+        let ns = start.elapsed().as_nanos() as u64;
+        frame.stats.light_paths_ns.fetch_add(ns, std::sync::atomic::Ordering::Relaxed);
+    }
+    r
 }
 
 /// The photon map's search radius: 5% of the scene's diagonal.
@@ -199,6 +222,8 @@ fn eval(frame: &Frame, light: &LightSource, mask: &[i32; 4], points: &[Vec3A; 4]
 
 /// Where a path from a light first landed, and the power it carried there.
 struct Landing {
+    /// The path's index among its light's.
+    index: u32,
     ray: Ray,
     hit: crate::ray::Hit,
     surface: crate::scene::SurfaceHit,
@@ -206,39 +231,68 @@ struct Landing {
 }
 
 /// Traces `paths` paths from the frame's lights (shared out evenly) and hands `visit` each first
-/// landing with a seed of its own: the light's shader run where the path lands says how much
-/// power it carries.
-fn for_each_landing(frame: &Frame, paths: u32, salt: u64, mut visit: impl FnMut(Landing, u64)) {
+/// landing with a seed of its own (the light's shader run where the path lands says how much power
+/// it carries), collecting what it leaves. The paths go in chunks over the threads of the current
+/// rayon pool; what they leave comes back in path order whoever traced them, so the result does not
+/// depend on the threads.
+fn for_each_landing<T: Send>(
+    frame: &Frame,
+    paths: u32,
+    salt: u64,
+    visit: impl Fn(Landing, u64, &mut Vec<T>) + Sync,
+) -> Vec<T> {
+    use rayon::prelude::*;
     let world = frame.world;
     let paths = paths.min(MAX_VIRTUAL_LIGHT_PATHS);
-    let Some((lo, hi)) = world.scene.bounds() else { return };
+    let Some((lo, hi)) = world.scene.bounds() else { return Vec::new() };
     let emitters: Vec<(&LightSource, Emitter)> =
         world.lights.iter().filter_map(|l| Some((l, emitter(frame, l, lo, hi)?))).collect();
     if emitters.is_empty() || paths == 0 {
-        return;
+        return Vec::new();
     }
     let per_light = paths.div_ceil(emitters.len() as u32);
     let seed = mix(u64::from(frame.gi_seed) ^ salt);
-    let mut visited = 0u64;
+    let mut out = Vec::new();
     for (k, (light, emitter)) in emitters.iter().enumerate() {
         let seed = mix(seed ^ k as u64);
-        for landing in landings(frame, light, emitter, per_light, seed) {
-            visited += 1;
-            visit(landing, mix(seed ^ visited));
-        }
+        let chunks: Vec<u32> = (0..per_light).step_by(PATHS_PER_TASK as usize).collect();
+        let left: Vec<Vec<T>> = chunks
+            .par_iter()
+            .map(|&first| {
+                let mut left = Vec::new();
+                let last = (first + PATHS_PER_TASK).min(per_light);
+                for landing in landings(frame, light, emitter, first..last, per_light, seed) {
+                    let path_seed = mix(seed ^ (u64::from(landing.index) + 1));
+                    visit(landing, path_seed, &mut left);
+                }
+                left
+            })
+            .collect();
+        out.extend(left.into_iter().flatten());
     }
+    out
 }
 
-/// The first landings of `count` paths from `light`.
-fn landings(frame: &Frame, light: &LightSource, emitter: &Emitter, count: u32, seed: u64) -> Vec<Landing> {
+/// Light paths a thread takes at a time.
+const PATHS_PER_TASK: u32 = 256;
+
+/// The first landings of paths `range` of `count` from `light`.
+fn landings(
+    frame: &Frame,
+    light: &LightSource,
+    emitter: &Emitter,
+    range: std::ops::Range<u32>,
+    count: u32,
+    seed: u64,
+) -> Vec<Landing> {
     let world = frame.world;
     // A Cranley-Patterson rotation of the Hammersley points: another seed, another stratified set.
     let shift = (unit(seed), unit(mix(seed)));
-    let starts: Vec<(Ray, f32)> = (0..count)
+    let starts: Vec<(u32, Ray, f32)> = range
         .map(|i| {
             let (u1, u2) =
                 (((i as f32 + 0.5) / count as f32 + shift.0).fract(), (radical_inverse(i, 2) + shift.1).fract());
-            match *emitter {
+            let (ray, share) = match *emitter {
                 Emitter::Point(from) => {
                     let z = 1.0 - 2.0 * u1;
                     let r = (1.0 - z * z).max(0.0).sqrt();
@@ -254,23 +308,24 @@ fn landings(frame: &Frame, light: &LightSource, emitter: &Emitter, count: u32, s
                     let area = std::f32::consts::PI * radius * radius;
                     (Ray::segment(origin, direction, 0.0, f32::INFINITY), area / count as f32)
                 }
-            }
+            };
+            (i, ray, share)
         })
         .collect();
     let mut hits = Vec::with_capacity(starts.len());
-    for (ray, share) in &starts {
+    for (index, ray, share) in &starts {
         let hit = tracing(|| world.scene.intersect(ray));
         let Some(surface) = hit.is_hit().then(|| world.scene.surface(&hit)).flatten() else { continue };
-        hits.push((*ray, *share, hit, surface));
+        hits.push((*index, *ray, *share, hit, surface));
     }
     Stats::add(&frame.stats.secondary_rays, starts.len());
     // Their light, four at a time through the light's shader.
     let mut out = Vec::with_capacity(hits.len());
     for four in hits.chunks(4) {
-        let points: [Vec3A; 4] = std::array::from_fn(|l| four.get(l).map_or(Vec3A::ZERO, |x| x.3.p));
+        let points: [Vec3A; 4] = std::array::from_fn(|l| four.get(l).map_or(Vec3A::ZERO, |x| x.4.p));
         let mask: [i32; 4] = std::array::from_fn(|l| if l < four.len() { -1 } else { 0 });
         for (l, row) in eval(frame, light, &mask, &points) {
-            let (ray, share, hit, surface) = &four[l];
+            let (index, ray, share, hit, surface) = &four[l];
             let cl = Vec3A::from(row.lane(l).cl);
             // A point light's intensity toward the landing is Cl times the squared distance; a
             // distant light's Cl is the irradiance across its direction.
@@ -280,7 +335,7 @@ fn landings(frame: &Frame, light: &LightSource, emitter: &Emitter, count: u32, s
             };
             let carried = cl * (share * d2);
             if carried.max_element() > 0.0 && carried.is_finite() {
-                out.push(Landing { ray: *ray, hit: *hit, surface: surface.clone(), carried });
+                out.push(Landing { index: *index, ray: *ray, hit: *hit, surface: surface.clone(), carried });
             }
         }
     }
@@ -295,7 +350,7 @@ const MAX_SPECULAR_DEPTH: u32 = 8;
 /// as they direct it, but leaves nothing on the next matte surface: light that reaches a diffuse
 /// surface through a specular one is a caustic, the photon map's.
 fn follow_to_virtual_lights(frame: &Frame, landing: Landing, bounces: u32, seed: u64, out: &mut Vec<VirtualLight>) {
-    let Landing { mut ray, mut hit, mut surface, mut carried } = landing;
+    let Landing { mut ray, mut hit, mut surface, mut carried, .. } = landing;
     let world = frame.world;
     let (mut diffuse, mut specular) = (0, 0);
     loop {
@@ -346,7 +401,7 @@ fn follow_to_virtual_lights(frame: &Frame, landing: Landing, bounces: u32, seed:
 /// Follows a path that landed on a specular surface through specular surfaces to the first matte
 /// one, and leaves a photon there.
 fn follow_to_photon(frame: &Frame, landing: Landing, seed: u64, out: &mut Vec<Photon>) {
-    let Landing { mut ray, mut hit, mut surface, mut carried } = landing;
+    let Landing { mut ray, mut hit, mut surface, mut carried, .. } = landing;
     let world = frame.world;
     for depth in 0..=MAX_SPECULAR_DEPTH {
         let (reflectance, model) = reflectance_of(frame, &hit);
