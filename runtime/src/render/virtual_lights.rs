@@ -351,7 +351,6 @@ const MAX_SPECULAR_DEPTH: u32 = 8;
 /// surface through a specular one is a caustic, the photon map's.
 fn follow_to_virtual_lights(frame: &Frame, landing: Landing, bounces: u32, seed: u64, out: &mut Vec<VirtualLight>) {
     let Landing { mut ray, mut hit, mut surface, mut carried, .. } = landing;
-    let world = frame.world;
     let (mut diffuse, mut specular) = (0, 0);
     loop {
         let (reflectance, model) = reflectance_of(frame, &hit);
@@ -388,13 +387,8 @@ fn follow_to_virtual_lights(frame: &Frame, landing: Landing, bounces: u32, seed:
                 dir
             }
         };
-        ray = Ray::segment(surface.p, dir, epsilon(surface.p), f32::INFINITY);
-        Stats::add(&frame.stats.secondary_rays, 1);
-        hit = tracing(|| world.scene.intersect(&ray));
-        match hit.is_hit().then(|| world.scene.surface(&hit)).flatten() {
-            Some(s) => surface = s,
-            None => return,
-        }
+        let Some(next) = bounce(frame, surface.p, dir) else { return };
+        (ray, hit, surface) = next;
     }
 }
 
@@ -402,7 +396,6 @@ fn follow_to_virtual_lights(frame: &Frame, landing: Landing, bounces: u32, seed:
 /// one, and leaves a photon there.
 fn follow_to_photon(frame: &Frame, landing: Landing, seed: u64, out: &mut Vec<Photon>) {
     let Landing { mut ray, mut hit, mut surface, mut carried, .. } = landing;
-    let world = frame.world;
     for depth in 0..=MAX_SPECULAR_DEPTH {
         let (reflectance, model) = reflectance_of(frame, &hit);
         if model == PhotonModel::Matte {
@@ -412,14 +405,20 @@ fn follow_to_photon(frame: &Frame, landing: Landing, seed: u64, out: &mut Vec<Ph
         let h = mix(seed ^ (u64::from(depth) << 32) ^ point_seed(surface.p));
         let Some((dir, tint)) = scatter_specular(model, reflectance, ray.direction, surface.ng, h) else { return };
         carried *= tint;
-        ray = Ray::segment(surface.p, dir, epsilon(surface.p), f32::INFINITY);
-        Stats::add(&frame.stats.secondary_rays, 1);
-        hit = tracing(|| world.scene.intersect(&ray));
-        match hit.is_hit().then(|| world.scene.surface(&hit)).flatten() {
-            Some(s) => surface = s,
-            None => return,
-        }
+        let Some(next) = bounce(frame, surface.p, dir) else { return };
+        (ray, hit, surface) = next;
     }
+}
+
+/// The path on from `from` along `dir`: its ray, and the hit and surface it lands on (`None` when
+/// it leaves the scene).
+fn bounce(frame: &Frame, from: Vec3A, dir: Vec3A) -> Option<(Ray, crate::ray::Hit, crate::scene::SurfaceHit)> {
+    let world = frame.world;
+    let ray = Ray::segment(from, dir, epsilon(from), f32::INFINITY);
+    Stats::add(&frame.stats.secondary_rays, 1);
+    let hit = tracing(|| world.scene.intersect(&ray));
+    let surface = hit.is_hit().then(|| world.scene.surface(&hit)).flatten()?;
+    Some((ray, hit, surface))
 }
 
 /// A cosine-distributed direction about the unit normal `n`, from the hash `h`.
