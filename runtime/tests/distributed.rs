@@ -57,6 +57,25 @@ fn both_ways(
     Ok(out)
 }
 
+/// Runs `f` with a master of two workers of one thread each, serving replicas that start empty
+/// (receives give up after `timeout`), then stops them.
+fn with_two_workers<R>(
+    timeout: Duration,
+    f: impl FnOnce(&mut Master<LocalTransport>) -> Result<R, DistributedError>,
+) -> Result<R, DistributedError> {
+    let mut group = LocalTransport::group(3, timeout).into_iter();
+    let master_end = group.next().expect("rank 0");
+    let handles: Vec<_> =
+        group.map(|t| std::thread::spawn(move || serve(&t, Ok(&mut ReplicaScene::new()), &pool(1)))).collect();
+    let mut master = Master::connect(master_end)?;
+    let result = f(&mut master);
+    master.shutdown()?;
+    for h in handles {
+        h.join().expect("a worker thread")?;
+    }
+    result
+}
+
 fn nothing(_: &mut Context) -> Result<(), String> {
     Ok(())
 }
@@ -441,16 +460,8 @@ fn workers_fetch_only_the_objects_rays_reach_and_keep_them() -> Result<(), Distr
     rt.end_object().map_err(e).expect("end_object");
     rt.instantiate_object(hidden).map_err(e).expect("an instance");
 
-    let mut group = LocalTransport::group(3, Duration::from_secs(60)).into_iter();
-    let master_end = group.next().expect("rank 0");
-    let handles: Vec<_> =
-        group.map(|t| std::thread::spawn(move || serve(&t, Ok(&mut ReplicaScene::new()), &pool(1)))).collect();
-    let mut master = Master::connect(master_end)?;
-    let demands = frames_moving_once(&mut master, &mut rt, 2, "a demand-loaded frame")?;
-    master.shutdown()?;
-    for h in handles {
-        h.join().expect("a worker thread")?;
-    }
+    let demands =
+        with_two_workers(Duration::from_secs(60), |m| frames_moving_once(m, &mut rt, 2, "a demand-loaded frame"))?;
     let (first, traffic) = demands[0];
     // The floor and the triangle, by each of the two workers at most; never the hidden object.
     assert!((2..=4).contains(&first.fetched_objects), "{first:?}");
@@ -511,20 +522,11 @@ fn a_texture_the_workers_cannot_load_is_reported_by_the_master_once() -> Result<
     assert_eq!(expected.len(), 1, "{expected:?}");
     rt.return_scene(world);
 
-    let mut group = LocalTransport::group(3, Duration::from_secs(60)).into_iter();
-    let master_end = group.next().expect("rank 0");
-    let handles: Vec<_> =
-        group.map(|t| std::thread::spawn(move || serve(&t, Ok(&mut ReplicaScene::new()), &pool(1)))).collect();
-    let mut master = Master::connect(master_end)?;
     let world = rt.build_world().expect("a world");
-    let (distributed, _) = master.render_context(&rt, &world, None)?;
+    let (distributed, _) = with_two_workers(Duration::from_secs(60), |m| m.render_context(&rt, &world, None))?;
     let reported: Vec<String> = world.textures.take_warnings().iter().map(ToString::to_string).collect();
     assert_eq!(reported, expected);
     assert_same(&[(distributed, alone, 0)], "a frame with a missing texture");
-    master.shutdown()?;
-    for h in handles {
-        h.join().expect("a worker thread")?;
-    }
     Ok(())
 }
 
@@ -667,16 +669,9 @@ fn workers_fetch_the_textures_shaders_look_up_and_only_those() -> Result<(), Dis
     rt.end_object().map_err(e).expect("end_object");
     rt.instantiate_object(hidden).map_err(e).expect("an instance");
 
-    let mut group = LocalTransport::group(3, Duration::from_secs(60)).into_iter();
-    let master_end = group.next().expect("rank 0");
-    let handles: Vec<_> =
-        group.map(|t| std::thread::spawn(move || serve(&t, Ok(&mut ReplicaScene::new()), &pool(1)))).collect();
-    let mut master = Master::connect(master_end)?;
-    let frames = frames_moving_once(&mut master, &mut rt, 1, "a frame of fetched textures")?;
-    master.shutdown()?;
-    for h in handles {
-        h.join().expect("a worker thread")?;
-    }
+    let frames = with_two_workers(Duration::from_secs(60), |m| {
+        frames_moving_once(m, &mut rt, 1, "a frame of fetched textures")
+    })?;
     let (first, _) = frames[0];
     // Two textures, fetched by each of the two workers at most: the memory texture's 192 floats
     // (the first update said only that memory textures changed) and the small PNG, never the
