@@ -239,23 +239,9 @@ fn the_viewer_over_three_mpi_ranks_shows_what_one_process_shows() {
     let common = ["--size", "96x72", "--frames", "3", "--no-watch", "--no-overlay", "--threads", "1"];
     // Global illumination: each pass's virtual lights, and a pixel shader that reads other pixels
     // (run on rank 0 over the accumulated image).
-    let gi = r#"
-        Projection "perspective" "fov" 60
-        Option "gi" "integer virtuallights" [200] "integer interleave" [3]
-        Imager "interleavefilter"
-        Translate 0 0 2.6
-        WorldBegin
-        LightSource "pointlight" 1 "intensity" 3 "from" [0 0.8 0]
-        Surface "gimatte"
-        Color [0.8 0.8 0.8]
-        Polygon "P" [-1 -1 -1  1 -1 -1  1 -1 1  -1 -1 1]
-        Polygon "P" [-1 -1 1  1 -1 1  1 1 1  -1 1 1]
-        Color [0.85 0.15 0.1]
-        Polygon "P" [-1 -1 -1  -1 -1 1  -1 1 1  -1 1 -1]
-        WorldEnd
-    "#;
-    std::fs::write(dir.path().join("gi.rib"), gi).expect("written");
-    for extra in [&["--events", "shiftdrag:33,45,60,45"][..], &["--aa", "adaptive"], &["--frameless"], &["gi.rib"]] {
+    let gi = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/scenes/gi_box.rib");
+    let gi = gi.to_str().expect("a UTF-8 path");
+    for extra in [&["--events", "shiftdrag:33,45,60,45"][..], &["--aa", "adaptive"], &["--frameless"], &[gi]] {
         let alone = view(&x.display, dir.path(), &[&common[..], extra, &["--screenshot", "alone.png"]].concat());
         assert!(alone.status.success(), "{}", String::from_utf8_lossy(&alone.stderr));
         let mut mpirun = Command::new("mpirun");

@@ -691,23 +691,8 @@ fn global_illumination_renders_the_same_on_workers() -> Result<(), DistributedEr
     // virtual lights, so the same image. The pixel shader reads other pixels: it runs on the
     // master over the whole image, the workers' tiles sent unfinished.
     let mut rt = Context::new();
-    let rib = r#"
-        Format 40 30 1
-        Projection "perspective" "fov" 60
-        Option "gi" "integer virtuallights" [300] "integer interleave" [3] "integer bounces" [2]
-        Imager "interleavefilter"
-        Translate 0 0 2.6
-        WorldBegin
-        LightSource "pointlight" 1 "intensity" 3 "from" [0 0.8 0]
-        Surface "gimatte"
-        Color [0.8 0.8 0.8]
-        Polygon "P" [-1 -1 -1  1 -1 -1  1 -1 1  -1 -1 1]
-        Polygon "P" [-1 -1 1  1 -1 1  1 1 1  -1 1 1]
-        Color [0.85 0.15 0.1]
-        Polygon "P" [-1 -1 -1  -1 -1 1  -1 1 1  -1 1 -1]
-        WorldEnd
-    "#;
-    rtsl_runtime::rib::load::load_str(&mut rt, rib, Path::new("<gi>")).expect("the scene loads");
+    rtsl_runtime::rib::load::load_file(&mut rt, &repo("examples/scenes/gi_box.rib")).expect("the scene loads");
+    (rt.options.width, rt.options.height) = (40, 30);
     assert_same(&both_ways(rt, 2, 2, &[nothing, move_first])?, "a frame lit by virtual lights");
     Ok(())
 }
