@@ -339,19 +339,7 @@ impl Context {
     /// The pixel shader (RenderMan's imager, OpenRT's pixel shader) run on every finished tile, with
     /// its parameter values; `None` removes it.
     pub fn pixel_shader(&mut self, shader: Option<ShaderId>, params: &[(&str, ParamValue)]) -> Result<(), ApiError> {
-        let Some(id) = shader else {
-            self.pixel = None;
-            return Ok(());
-        };
-        let program = self.expect_kind(id, ShaderKind::Imager)?;
-        for (name, value) in params {
-            crate::shading::bind_param(&program, name, value, &self.matrix)?;
-        }
-        self.pixel = Some(Binding {
-            shader: id,
-            params: params.iter().map(|(n, v)| (n.to_string(), v.clone(), self.matrix)).collect(),
-            world_from_shader: self.matrix,
-        });
+        self.pixel = self.kind_binding(ShaderKind::Imager, shader, params)?;
         Ok(())
     }
 
@@ -360,19 +348,7 @@ impl Context {
     /// placement still comes from [`Context::camera_look_at`] / [`Context::set_camera`]. The globals it
     /// reads and writes are specified in `docs/cameras.md`.
     pub fn camera_shader(&mut self, shader: Option<ShaderId>, params: &[(&str, ParamValue)]) -> Result<(), ApiError> {
-        let Some(id) = shader else {
-            self.camera_shader = None;
-            return Ok(());
-        };
-        let program = self.expect_kind(id, ShaderKind::Camera)?;
-        for (name, value) in params {
-            crate::shading::bind_param(&program, name, value, &self.matrix)?;
-        }
-        self.camera_shader = Some(Binding {
-            shader: id,
-            params: params.iter().map(|(n, v)| (n.to_string(), v.clone(), self.matrix)).collect(),
-            world_from_shader: self.matrix,
-        });
+        self.camera_shader = self.kind_binding(ShaderKind::Camera, shader, params)?;
         Ok(())
     }
 
