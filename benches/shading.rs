@@ -1,9 +1,9 @@
 //! Shading speed per point, with criterion: the JIT, the reference interpreter and hand-written Rust
-//! over the same SoA data (`rtsl_compiler::bench::ShadingCase`; `rtsl bench shade` prints the same
+//! over the same SoA data (`rtsl::bench::shading::ShadingCase`; `rtsl bench shade` prints the same
 //! comparison as ratios measured in one run).
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use rtsl_compiler::bench::ShadingCase;
+use rtsl::bench::shading::ShadingCase;
 
 fn shading(c: &mut Criterion) {
     for name in ["plastic", "noisy"] {

@@ -5,7 +5,7 @@
 //!
 //! The JIT back end defines these types, which its generated code reads and writes at fixed
 //! offsets; a renderer names them here, and nothing else of the back end but the compile API
-//! ([`crate::back::jit::compile_with`] and the `CompiledShader` it returns).
+//! ([`crate::jit`]).
 
 pub use crate::back::jit::{
     light_in_cone, same_category, shadow_query_of, BatchData, HostLight, HostTable, LightLanes, MessageOut, RawBatch,

@@ -7,9 +7,11 @@
 //! is bound. Other defaults (those calling renderer services) are shown as source text.
 
 use crate::builtins::Builtin;
+/// The base types of parameters, as an interface states them.
+pub use crate::ir::BaseType;
 /// The shader types, as an interface states them.
 pub use crate::ir::ShaderKind;
-use crate::ir::{self, BaseType, Constant, ExprId, ExprKind, Function, Module, Type};
+use crate::ir::{self, Constant, ExprId, ExprKind, Function, Module, Type};
 use crate::source::SourceMap;
 use serde::Serialize;
 

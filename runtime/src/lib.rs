@@ -14,7 +14,6 @@
 pub mod accel;
 pub mod api;
 pub mod bart;
-pub mod bench;
 pub mod camera;
 pub mod distributed;
 pub mod geometry;
@@ -32,7 +31,6 @@ pub mod texture;
 pub mod tiles;
 
 pub use accel::bvh4::BuildQuality;
-pub use bench::{run_bench, BenchError, BenchOptions, BenchReport};
 pub use camera::Camera;
 pub use geometry::{Attribute, Mesh, MeshError};
 /// The vector maths of the API (positions, directions, transforms).

@@ -16,7 +16,7 @@
 //! [`Context`] holds programs as `Arc`s and a frame's `World` holds its own clones, taken when the
 //! frame starts (`Context::build_world`): a frame runs one program per shader from start to end,
 //! whatever is swapped meanwhile, and the old code lives until the last frame that uses it is
-//! dropped (then `CompiledShader`'s drop frees its JIT memory; `rtsl_compiler::back::jit::
+//! dropped (then `CompiledShader`'s drop frees its JIT memory; `rtsl_compiler::jit::
 //! live_modules` counts what is alive).
 
 pub use crate::api::ShaderEvent;

@@ -92,8 +92,8 @@ fn is_ident(c: char) -> bool {
     c.is_alphanumeric() || c == '_'
 }
 
-/// The paths a module's code names: `crate::`, `super::` and `self::` paths, with `use` groups
-/// expanded one level.
+/// The paths a module's code names: `crate::`, `super::`, `self::` and `rtsl_compiler::` paths,
+/// with `use` groups expanded one level.
 fn paths(code: &str) -> Vec<Vec<String>> {
     let mut out = Vec::new();
     let chars: Vec<char> = code.chars().collect();
@@ -101,7 +101,7 @@ fn paths(code: &str) -> Vec<Vec<String>> {
     while i < chars.len() {
         let starts_word = i == 0 || !is_ident(chars[i - 1]) && chars[i - 1] != ':';
         let word: String = chars[i..].iter().take_while(|&&c| is_ident(c)).collect();
-        if starts_word && matches!(word.as_str(), "crate" | "super" | "self") {
+        if starts_word && matches!(word.as_str(), "crate" | "super" | "self" | "rtsl_compiler") {
             let mut parts = vec![word.clone()];
             let mut j = i + word.len();
             loop {
@@ -238,4 +238,32 @@ fn cycles_are_found() {
     assert!(found.contains(&vec!["super".to_string(), "fetch".to_string()]), "{found:?}");
     assert!(found.iter().any(|p| p.join("::") == "crate::api::Context::new"), "{found:?}");
     assert!(!found.iter().any(|p| p.join("::").contains("nothing")), "{found:?}");
+    let compiler = paths("use rtsl_compiler::{jit::Layout, ir};");
+    assert!(compiler.contains(&vec!["rtsl_compiler".to_string(), "ir".to_string()]), "{compiler:?}");
+}
+
+/// The runtime and the command line reach the compiler through its public API only (the compile
+/// API, the interface, artifacts, `jit` and `abi`): the front end, IR, validator and back ends are
+/// internals. Tests of the workspace build the compiler with its `internals` feature (its own tests
+/// need them), so the compiler's privacy alone would not catch a runtime naming them.
+#[test]
+fn the_compilers_internals_stay_inside_it() {
+    let workspace = Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("the workspace root").to_path_buf();
+    let mut offenders = Vec::new();
+    for dir in [workspace.join("runtime/src"), workspace.join("src")] {
+        let mut sources = BTreeMap::new();
+        modules(&dir, &dir, &mut sources);
+        assert!(!sources.is_empty(), "no sources under {}", dir.display());
+        for (module, code) in &sources {
+            for path in paths(code) {
+                let internal = path.len() > 1
+                    && path[0] == "rtsl_compiler"
+                    && ["front", "back", "ir", "valid"].contains(&path[1].as_str());
+                if internal {
+                    offenders.push(format!("{} {module}: {}", dir.display(), path.join("::")));
+                }
+            }
+        }
+    }
+    assert!(offenders.is_empty(), "compiler internals named outside the compiler: {offenders:#?}");
 }

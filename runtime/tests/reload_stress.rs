@@ -5,7 +5,7 @@
 //! The JIT counters are process-wide, so this file holds one test: nothing else compiles shaders
 //! in this process while it runs.
 
-use rtsl_compiler::back::jit::{live_code_bytes, live_modules};
+use rtsl_compiler::jit::{live_code_bytes, live_modules};
 use rtsl_runtime::api::{Context, Primitive};
 use rtsl_runtime::reload::{ShaderEvent, ShaderReloader};
 use std::path::Path;

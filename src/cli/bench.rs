@@ -1,11 +1,13 @@
 //! `rtsl bench trace`: the command-line side of the tracer benchmark. Parses the flags into
-//! [`rtsl_runtime::BenchOptions`], runs [`rtsl_runtime::run_bench`] and prints one `name: value`
+//! [`rtsl::bench::BenchOptions`], runs [`rtsl::bench::run_bench`] and prints one `name: value`
 //! line per figure.
 
 use super::render::CameraSpec;
 use anyhow::Context as _;
+use rtsl::bench::native_plastic::NativePlastic;
+use rtsl::bench::{run_bench, BenchOptions};
 use rtsl_runtime::render::FrameReport;
-use rtsl_runtime::{run_bench, BenchOptions, BuildQuality};
+use rtsl_runtime::BuildQuality;
 use std::path::PathBuf;
 
 /// Flags of `rtsl bench trace`.
@@ -269,7 +271,7 @@ pub fn run_render(args: &BenchRenderArgs) -> anyhow::Result<()> {
     let mut world = rt.build_world()?;
     let frames = args.frames.max(1);
     let jit_world = world.materials.clone();
-    let native_count = if args.native_plastic { world.use_native_plastic() } else { 0 };
+    let native_count = if args.native_plastic { world.use_native_surface("plastic", NativePlastic::shared) } else { 0 };
     let native_world = world.materials.clone();
     if args.native_plastic && native_count == 0 {
         anyhow::bail!("the scene has no plastic surface to compare");

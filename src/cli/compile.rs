@@ -214,7 +214,7 @@ pub fn run(args: &CompileArgs) -> anyhow::Result<ExitCode> {
             Ok(c) => {
                 warnings += c.warnings();
                 if let (true, Some(m)) = (args.emit_ir, &c.module) {
-                    writeln!(out, "// {}\n{}", o.path.display(), rtsl_compiler::ir::print::module(m))?;
+                    writeln!(out, "// {}\n{}", o.path.display(), m.to_text())?;
                 }
                 if args.json {
                     let record = serde_json::json!({

@@ -3,7 +3,7 @@
 //! hand-written Rust, and the compile cost of a shader library.
 
 use anyhow::Context as _;
-use rtsl_compiler::bench::{compile_benchmark, shading_benchmark};
+use rtsl::bench::shading::{compile_benchmark, shading_benchmark};
 use rtsl_compiler::interp::TestHost;
 use rtsl_compiler::testshade::{parse_param, Grid, ParamArg};
 use std::io::Write as _;

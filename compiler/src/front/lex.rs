@@ -258,10 +258,6 @@ pub struct Token {
 }
 
 impl Token {
-    pub fn is(&self, kind: TokenKind) -> bool {
-        self.kind == kind
-    }
-
     pub fn line_start(&self) -> bool {
         self.flags & LINE_START != 0
     }

@@ -73,6 +73,11 @@ impl Module {
     pub fn function(&self, id: FuncId) -> &Function {
         &self.functions[id.0 as usize]
     }
+
+    /// The IR as text (`rtsl compile --emit-ir`).
+    pub fn to_text(&self) -> String {
+        print::module(self)
+    }
 }
 
 /// The shader a file defines: its interface and the function holding its body.

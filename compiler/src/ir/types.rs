@@ -144,7 +144,3 @@ impl From<crate::front::parse::ast::TypeName> for BaseType {
 
 /// The colour spaces a `color "space" (...)` typecast or `ctransform` may name.
 pub const COLOR_SPACES: &[&str] = &["rgb", "hsv", "hsl", "xyz", "XYZ", "xyY", "YIQ"];
-
-/// The coordinate systems every renderer knows; shaders may also name any `CoordinateSystem` the
-/// scene declares, so other names are not errors.
-pub const STANDARD_SPACES: &[&str] = &["current", "object", "shader", "world", "camera", "screen", "raster", "NDC"];

@@ -939,9 +939,9 @@ fn param_message(shader: &ShaderInstance, name: &str, out: &mut MessageOut, text
     let Some((index, _)) = shader.program.layout().param(name) else { return 0 };
     let Some(info) = shader.program.interface.parameters.get(index) else { return 0 };
     let kind = match info.base {
-        rtsl_compiler::ir::BaseType::Float => 1,
-        rtsl_compiler::ir::BaseType::Matrix => 3,
-        rtsl_compiler::ir::BaseType::String => 4,
+        rtsl_compiler::interface::BaseType::Float => 1,
+        rtsl_compiler::interface::BaseType::Matrix => 3,
+        rtsl_compiler::interface::BaseType::String => 4,
         b if b.is_triple() => 2,
         _ => return 0,
     };

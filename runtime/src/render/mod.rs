@@ -2,7 +2,7 @@
 //! frame. `frame.rs` generates primary packets over tiles; `shade.rs` shades hits through the JIT
 //! code, from their geometry (`hit_geometry.rs`); `host.rs` answers the shaders' calls into the renderer (spaces, `trace`, textures,
 //! messages); `lights.rs` runs light shaders over a batch and traces their shadows; `stats.rs`
-//! counts; `volume.rs` runs atmosphere and interior shaders on ray segments; `differential.rs` carries ray differentials; `native.rs` is the hand-written baseline;
+//! counts; `volume.rs` runs atmosphere and interior shaders on ray segments; `differential.rs` carries ray differentials; `native.rs` lets Rust code shade a surface;
 //! `progressive.rs` renders chosen pixels pass by pass into an accumulator (interactive viewers);
 //! `primary.rs` makes primary rays (the built-in camera or the camera shader); `filter.rs` holds the
 //! pixel filters and `film.rs` splats samples through them.

@@ -295,7 +295,7 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
             rows = None;
         }
         if let Some(native) = &material.native {
-            shade_native(frame, native, group, geoms, color, opacity, depth, out);
+            shade_native(frame, native.as_ref(), group, geoms, color, opacity, depth, out);
             return;
         }
         let Some(surface) = &material.surface else {
@@ -543,12 +543,12 @@ fn displace(
     });
 }
 
-/// The hand-written Rust path: the same lights (shaders and shadows over the batch, as the JIT
+/// A surface shaded by Rust code: the same lights (shaders and shadows over the batch, as the JIT
 /// path computes them) and the same compositing, Rust for the surface.
 #[allow(clippy::too_many_arguments)]
 fn shade_native(
     frame: &Frame,
-    native: &NativeSurface,
+    native: &dyn NativeSurface,
     group: &[Pending],
     geoms: &[Option<HitGeometry>],
     color: Vec3A,

@@ -31,8 +31,8 @@ pub struct Material {
     pub displacement: Option<Arc<ShaderInstance>>,
     /// An id the pixel shader and adaptive sampling may read (`objectid`).
     pub object_id: u32,
-    /// Shade with hand-written Rust instead of `surface` (benchmarks of the JIT's cost only).
-    pub native: Option<super::native::NativeSurface>,
+    /// Shade with Rust code instead of `surface` (`render/native.rs`).
+    pub native: Option<Arc<dyn super::native::NativeSurface>>,
 }
 
 /// The simplified shading model light paths use at a surface instead of its shader (PRMan's and
@@ -601,24 +601,20 @@ impl World {
         self.vertex_params = vertex_params;
     }
 
-    /// Replaces every `plastic` surface by the hand-written Rust plastic with the same parameter
-    /// values (for `rtsl bench render --native-plastic`); returns how many materials changed.
-    pub fn use_native_plastic(&mut self) -> usize {
+    /// Shades every material whose surface shader is `shader` with the Rust surface `make` builds
+    /// from that shader's instance (its parameter values); returns how many materials changed.
+    pub fn use_native_surface(
+        &mut self,
+        shader: &str,
+        make: impl Fn(&ShaderInstance) -> Arc<dyn super::native::NativeSurface>,
+    ) -> usize {
         let mut changed = 0;
         for m in &mut self.materials {
             let Some(surface) = &m.surface else { continue };
-            if surface.program.name != "plastic" {
+            if surface.program.name != shader {
                 continue;
             }
-            let float = |name: &str, default: f32| surface.float_param(name).unwrap_or(default);
-            let color = surface.triple_param("specularcolor").unwrap_or([1.0; 3]);
-            m.native = Some(super::native::NativeSurface::Plastic {
-                ks: float("Ks", 0.5),
-                kd: float("Kd", 0.5),
-                ka: float("Ka", 1.0),
-                roughness: float("roughness", 0.1),
-                specular_color: Vec3A::from(color),
-            });
+            m.native = Some(make(surface));
             changed += 1;
         }
         changed

@@ -34,7 +34,7 @@ use crate::geometry::Mesh;
 use crate::scene_file::{add_model_file, add_model_file_placed, Placement, SceneFileError};
 use crate::shading::{ParamValue, ShaderProgram};
 use glam::{Affine3A, Mat4, Vec3};
-use rtsl_compiler::ir::BaseType;
+use rtsl_compiler::interface::BaseType;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 

@@ -9,7 +9,7 @@
 
 use super::program::ShaderProgram;
 use glam::{Affine3A, Vec3A};
-use rtsl_compiler::ir::BaseType;
+use rtsl_compiler::interface::BaseType;
 
 /// A value given for a shader parameter.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]

@@ -5,11 +5,11 @@
 //! parameter values live in [`super::ShaderInstance`]s.
 
 use rtsl_compiler::artifact::{self, Artifact, ArtifactError, Loaded};
-use rtsl_compiler::back::jit::{self, CompiledShader, JitError, Layout};
 use rtsl_compiler::interface::ShaderInterface;
 use rtsl_compiler::interface::ShaderKind;
-use rtsl_compiler::ir::Module;
+use rtsl_compiler::jit::{self, CompiledShader, JitError, Layout};
 use rtsl_compiler::source::SourceMap;
+use rtsl_compiler::Module;
 use rtsl_compiler::{Options, Session};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -35,7 +35,7 @@ pub enum ShaderError {
     Artifact(#[from] ArtifactError),
 }
 
-pub use rtsl_compiler::back::jit::LightKind;
+pub use rtsl_compiler::jit::LightKind;
 
 /// Where one global lives in the batch of a program (see `docs/packet-abi.md`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

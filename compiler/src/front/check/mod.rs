@@ -177,7 +177,6 @@ pub fn check(unit: &ast::TranslationUnit, interner: &Interner, diags: &mut Diagn
                 shader_seen = Some(s.name.span);
                 c.shader_def(s);
             }
-            ast::Item::Error(_) => {}
         }
     }
     c.check_recursion();

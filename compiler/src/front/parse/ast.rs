@@ -47,14 +47,11 @@ pub struct TranslationUnit<'a> {
 pub enum Item<'a> {
     Function(&'a FunctionDef<'a>),
     Shader(&'a ShaderDef<'a>),
-    /// Something that failed to parse at the top level.
-    Error(Span),
 }
 
 #[derive(Debug, Clone)]
 pub struct ShaderDef<'a> {
     pub kind: ShaderKind,
-    pub kind_span: Span,
     pub name: Ident,
     pub params: &'a [ParamDecl<'a>],
     pub body: Block<'a>,
@@ -99,7 +96,6 @@ pub struct ParamDecl<'a> {
 #[derive(Debug, Clone)]
 pub struct Block<'a> {
     pub stmts: &'a [Stmt<'a>],
-    pub span: Span,
 }
 
 #[derive(Debug, Clone)]
@@ -114,7 +110,6 @@ pub struct VarDecl<'a> {
     pub is_extern: bool,
     pub ty: TypeSpec,
     pub vars: &'a [Declarator<'a>],
-    pub span: Span,
 }
 
 #[derive(Debug, Clone)]

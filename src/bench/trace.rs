@@ -7,13 +7,13 @@
 //! hits: origin offset off the surface towards the light ([`offset_ray_origin`]), direction
 //! `light - origin`, interval `(0, 1)`.
 
-use crate::accel::bvh4::BuildQuality;
-use crate::camera::{packet_lane_offset, Camera, PACKET_SIDE};
-use crate::mesh_io::{load_mesh, MeshIoError};
-use crate::ray::{offset_ray_origin, Hit, HitPacket, Ray, RayPacket, PACKET_SIZE};
-use crate::scene::{scene_from_mesh, Scene};
-use crate::tiles::{render_tiles, Tile};
 use glam::Vec3A;
+use rtsl_runtime::accel::bvh4::BuildQuality;
+use rtsl_runtime::camera::{packet_lane_offset, Camera, PACKET_SIDE};
+use rtsl_runtime::mesh_io::{load_mesh, MeshIoError};
+use rtsl_runtime::ray::{offset_ray_origin, Hit, HitPacket, Ray, RayPacket, PACKET_SIZE};
+use rtsl_runtime::scene::{scene_from_mesh, Scene};
+use rtsl_runtime::tiles::{render_tiles, Tile};
 use std::path::PathBuf;
 use std::sync::Mutex;
 use std::time::Instant;
@@ -293,7 +293,7 @@ fn timed(repeats: usize, mut f: impl FnMut()) -> f64 {
 fn trace_all(opts: &BenchOptions, scene: &Scene, triangles: usize, load_ms: f64, build_ms: f64) -> BenchReport {
     let cam = Camera::look_at(opts.eye, opts.look, opts.up, opts.fov_deg, opts.width, opts.height);
     let (w, h) = (opts.width, opts.height);
-    let list = crate::tiles::tiles(w, h, TILE);
+    let list = rtsl_runtime::tiles::tiles(w, h, TILE);
     let [pp, ps, sp, ss] = opts.passes;
     let reps = |on: bool| if on { opts.repeats } else { 1 };
     let buffers = TileBuffers::new(list.len());

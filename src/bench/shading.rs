@@ -7,9 +7,12 @@
 //! light from +z (`interp::TestHost`'s lights; the JIT gets them through a minimal `HostTable`, the
 //! Rust code reads them from the same table once per chunk, as the JIT's helpers do).
 
-use crate::back::jit::{self, BatchData, HostLight, HostTable, LightLanes, MessageOut, StrRef};
-use crate::interp::{self, Limits, ShadingPoint, TestHost, Value};
-use crate::shadeops::{geom, noise, V3};
+use rtsl_compiler::abi::{
+    BatchData, HostLight, HostTable, LightLanes, MessageOut, StrRef, CONE_ROWS, EVERY_LIGHT, MAX_LIGHTS,
+};
+use rtsl_compiler::interp::{self, Limits, ShadingPoint, TestHost, Value};
+use rtsl_compiler::jit;
+use rtsl_compiler::shadeops::{geom, noise, V3};
 use std::ffi::c_void;
 use std::path::Path;
 use std::time::Instant;
@@ -193,8 +196,8 @@ fn inputs(count: usize) -> Inputs {
     inp
 }
 
-fn module(name: &str, src: &str) -> Result<crate::ir::Module, String> {
-    let c = crate::compile_source(name, src, &crate::Options::default());
+fn module(name: &str, src: &str) -> Result<rtsl_compiler::Module, String> {
+    let c = rtsl_compiler::compile_source(name, src, &rtsl_compiler::Options::default());
     let rendered = c.render();
     c.module.ok_or(rendered)
 }
@@ -219,11 +222,11 @@ fn batches(shader: &jit::CompiledShader, inp: &Inputs) -> Vec<BatchData> {
 
 /// The lights of one point from the table (what the Rust shaders read, once per chunk in `run`).
 fn lights_of_chunk(table: &HostTable, p: &[f32; 12]) -> ([HostLight; 8], [u32; 4]) {
-    let mut out = [LightLanes::default(); jit::MAX_LIGHTS];
+    let mut out = [LightLanes::default(); MAX_LIGHTS];
     let mut counts = [0u32; 4];
     let mask = [-1i32; 4];
-    let mut every = [0.0f32; 4 * jit::CONE_ROWS];
-    every[12..].fill(jit::EVERY_LIGHT);
+    let mut every = [0.0f32; 4 * CONE_ROWS];
+    every[12..].fill(EVERY_LIGHT);
     // SAFETY: the sizes the table's contract gives.
     unsafe {
         (table.lights)(
@@ -301,7 +304,7 @@ fn plastic_case(p: V3, n: V3, i: V3, l: &[HostLight], lane: usize, c: u32) -> V3
 /// `benches/shading.rs` and [`shading_benchmark`] both use it).
 pub struct ShadingCase {
     pub name: &'static str,
-    module: crate::ir::Module,
+    module: rtsl_compiler::Module,
     shader: jit::CompiledShader,
     batches: Vec<BatchData>,
     inp: Inputs,
@@ -447,7 +450,8 @@ pub fn compile_benchmark(dir: &Path) -> Result<Vec<CompileRow>, String> {
     let mut rows = Vec::new();
     for f in files {
         let start = Instant::now();
-        let c = crate::compile_file(&f, &crate::Options::default()).map_err(|e| format!("{}: {e}", f.display()))?;
+        let c = rtsl_compiler::compile_file(&f, &rtsl_compiler::Options::default())
+            .map_err(|e| format!("{}: {e}", f.display()))?;
         let rendered = if c.ok() { String::new() } else { c.render() };
         let m = c.module.ok_or(rendered)?;
         jit::compile(&m).map_err(|e| format!("{}: {e}", f.display()))?;
