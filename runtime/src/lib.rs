@@ -19,6 +19,7 @@ pub mod distributed;
 pub mod geometry;
 pub mod image_io;
 pub mod lightfield;
+pub mod load;
 pub mod mesh_io;
 pub mod ray;
 pub mod reload;
@@ -36,6 +37,7 @@ pub use geometry::{Attribute, Mesh, MeshError};
 /// The vector maths of the API (positions, directions, transforms).
 pub use glam;
 pub use image_io::{diff_image, read_image, write_image, ImageDiff, ImageError, RgbaImage, WriteOptions};
+pub use load::{load_scene, LoadedScene};
 pub use mesh_io::{load_mesh, MeshIoError};
 pub use ray::{offset_ray_origin, Hit, HitCandidate, HitFilter, HitPacket, Ray, RayPacket, INVALID_ID, PACKET_SIZE};
 pub use scene::{scene_from_mesh, InstanceId, ObjectId, Scene, SceneError, SurfaceHit};

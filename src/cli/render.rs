@@ -6,7 +6,6 @@ use rtsl_runtime::api::Context;
 use rtsl_runtime::distributed::Master;
 use rtsl_runtime::reload::{ShaderEvent, ShaderReloader};
 use rtsl_runtime::render::{render_frame, Antialiasing, FrameReport, Framebuffer, World};
-use rtsl_runtime::scene_file::{add_model_file, frame_bounds};
 use rtsl_runtime::shading::ParamValue;
 use rtsl_runtime::{write_image, WriteOptions};
 use std::io::IsTerminal;
@@ -233,30 +232,16 @@ pub(crate) fn load_scene(
     }
     rt.set_shader_search_path(search);
     rt.set_include_paths(include.to_vec());
-    let mut output = None;
-    match scene {
-        None => {
-            let loaded = rtsl::default_scene::load(&mut rt)?;
-            output = loaded.display;
-        }
+    let output = match scene {
+        None => rtsl::default_scene::load(&mut rt)?.display,
         Some(path) => {
-            let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-            match ext.as_deref() {
-                Some("rib") => {
-                    let loaded = rtsl_runtime::rib::load::load_file(&mut rt, path)?;
-                    for w in &loaded.warnings {
-                        eprintln!("{w}");
-                    }
-                    output = loaded.display.map(|d| path.parent().unwrap_or(Path::new(".")).join(d));
-                }
-                Some("obj" | "ply" | "gltf" | "glb") => {
-                    let bounds = add_model_file(&mut rt, path)?;
-                    frame_bounds(&mut rt, bounds)?;
-                }
-                _ => anyhow::bail!("{}: unknown scene type (expected .rib, .obj, .ply, .gltf or .glb)", path.display()),
+            let loaded = rtsl_runtime::load_scene(&mut rt, path)?;
+            for w in &loaded.warnings {
+                eprintln!("{w}");
             }
+            loaded.display
         }
-    }
+    };
     Ok((rt, output))
 }
 

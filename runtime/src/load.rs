@@ -1,0 +1,60 @@
+//! Any scene file, its loader chosen by its extension: a RIB file (`.rib`), or a model file
+//! (`.obj`, `.ply`, `.gltf`, `.glb`) that gets a camera framing it and the default light rig
+//! ([`crate::scene_file`]).
+
+use crate::api::Context;
+use crate::scene_file::{add_model_file, frame_bounds, SceneFileError};
+use std::path::{Path, PathBuf};
+
+/// What loading a scene file left besides the scene.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LoadedScene {
+    /// The image the scene names (a RIB `Display`), resolved against the scene file's directory.
+    pub display: Option<PathBuf>,
+    /// What was skipped, each naming where.
+    pub warnings: Vec<String>,
+}
+
+/// Loads the scene in `path` into `rt` by its extension (case-insensitive).
+pub fn load_scene(rt: &mut Context, path: &Path) -> Result<LoadedScene, SceneFileError> {
+    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    match ext.as_deref() {
+        Some("rib") => {
+            let loaded = crate::rib::load::load_file(rt, path)?;
+            let dir = path.parent().unwrap_or(Path::new("."));
+            Ok(LoadedScene { display: loaded.display.map(|d| dir.join(d)), warnings: loaded.warnings })
+        }
+        Some("obj" | "ply" | "gltf" | "glb") => {
+            let bounds = add_model_file(rt, path)?;
+            frame_bounds(rt, bounds)?;
+            Ok(LoadedScene::default())
+        }
+        _ => Err(SceneFileError::UnknownType { path: path.to_path_buf() }),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_extension_chooses_the_loader() {
+        let dir = tempfile::tempdir().expect("a temporary directory");
+        let rib = dir.path().join("Scene.RIB");
+        std::fs::write(&rib, "Display \"out.png\" \"file\" \"rgba\"\nWorldBegin\nSphere 1 -1 1 360\nWorldEnd\n")
+            .expect("written");
+        let loaded = load_scene(&mut Context::new(), &rib).expect("a RIB file loads");
+        assert_eq!(loaded.display, Some(dir.path().join("out.png")));
+
+        let obj = dir.path().join("tri.obj");
+        std::fs::write(&obj, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").expect("written");
+        let mut rt = Context::new();
+        assert_eq!(load_scene(&mut rt, &obj).expect("an OBJ file loads"), LoadedScene::default());
+        assert_eq!(rt.world_instance_ids().len(), 1);
+
+        let other = dir.path().join("scene.txt");
+        std::fs::write(&other, "nothing").expect("written");
+        let err = load_scene(&mut Context::new(), &other).expect_err("an unknown type is an error");
+        assert!(err.to_string().contains("scene.txt: unknown scene file type"), "{err}");
+    }
+}
