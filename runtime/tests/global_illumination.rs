@@ -386,3 +386,38 @@ fn the_cornell_box_matches_mitsubas_path_traced_reference() {
     eprintln!("mean relative error of the 20x20-pixel blocks against Mitsuba: {error}");
     assert!(error < 0.05, "mean relative error {error}");
 }
+
+/// A pass traced in pieces that share a `LightPathCache` (the viewer's slices, a worker's
+/// lattices) gets exactly the samples of the pass traced whole, with its light paths traced once:
+/// the cache lends them to the pass's later pieces, never to another pass or a changed world.
+#[test]
+fn the_pieces_of_a_pass_share_its_light_paths() {
+    use rtsl_runtime::render::progressive::{pass_lattices, trace_lattices, trace_lattices_keeping, LatticeTracer};
+    use rtsl_runtime::render::LightPathCache;
+    let (mut rt, _) = box_scene(
+        r#"Option "gi" "integer virtuallights" [300] "integer interleave" [3] "integer causticphotons" [2000]"#,
+    );
+    rt.options.antialiasing = rtsl_runtime::render::Antialiasing::Grid { jitter: false };
+    let mut world = rt.build_world().expect("a world");
+    let lattices = pass_lattices(32, 24, 1);
+    assert!(lattices.len() >= 4, "{} lattices", lattices.len());
+    let all = |_: u32, _: u32| true;
+    let colours = |traced: &[rtsl_runtime::render::progressive::LatticeSamples]| -> Vec<u32> {
+        traced.iter().flat_map(|l| l.samples.iter().flat_map(|s| s.color.to_array().map(f32::to_bits))).collect()
+    };
+    for pass in [0, 3] {
+        let whole = colours(&trace_lattices(&world, &lattices, pass, false, &all).0);
+        let cache = LightPathCache::default();
+        let mut pieces = Vec::new();
+        for piece in lattices.chunks(lattices.len().div_ceil(3)) {
+            pieces.extend(trace_lattices_keeping(&world, piece, pass, false, &all, &cache).0);
+        }
+        assert_eq!(colours(&pieces), whole, "pass {pass} in pieces");
+        assert!(LatticeTracer::new(&world, pass, false).reuse_light_paths(&cache), "pass {pass} kept");
+        assert!(!LatticeTracer::new(&world, pass + 1, false).reuse_light_paths(&cache), "another pass");
+    }
+    let cache = LightPathCache::default();
+    trace_lattices_keeping(&world, &lattices[..1], 0, false, &all, &cache);
+    world.prepare();
+    assert!(!LatticeTracer::new(&world, 0, false).reuse_light_paths(&cache), "a changed world");
+}

@@ -6,7 +6,7 @@ use super::message::{build_fingerprint, Job, LatticeUnit, Message, PROTOCOL_VERS
 use super::transport::Transport;
 use super::DistributedError;
 use crate::render::progressive::LatticeTracer;
-use crate::render::{TileRenderer, World};
+use crate::render::{LightPathCache, TileRenderer, World};
 use crate::tiles::Tile;
 use std::collections::VecDeque;
 use std::sync::{Arc, Condvar, Mutex};
@@ -105,6 +105,8 @@ pub fn serve<T: Transport + ?Sized>(
         failure: failure.clone(),
     };
     transport.send(0, &hello.encode())?;
+    // The light paths of the viewer's pass being traced: its pieces come as frames of one world.
+    let light_paths = LightPathCache::default();
     loop {
         match receive(transport)? {
             Message::Quit => return Ok(()),
@@ -118,7 +120,17 @@ pub fn serve<T: Transport + ?Sized>(
                     Ok(world) => {
                         let link = scene.as_deref().and_then(|s| s.fetch_link());
                         let first = (units, lattices);
-                        let rendered = render_share(transport, &world, frame, job, first, last, pool, link.as_deref());
+                        let rendered = render_share(
+                            transport,
+                            &world,
+                            frame,
+                            job,
+                            first,
+                            last,
+                            pool,
+                            link.as_deref(),
+                            &light_paths,
+                        );
                         if let Some(s) = scene.as_deref_mut() {
                             s.finished(world);
                         }
@@ -254,10 +266,14 @@ fn render_share<T: Transport + ?Sized>(
     mut last: bool,
     pool: &rayon::ThreadPool,
     link: Option<&FetchLink>,
+    light_paths: &LightPathCache,
 ) -> Result<bool, DistributedError> {
     let mut pending = Pending::default();
     let start = Instant::now();
     let renderer = Units::new(world, job);
+    if let Units::Lattices(tracer) = &renderer {
+        tracer.reuse_light_paths(light_paths);
+    }
     let queue = UnitQueue::default();
     let mut outstanding = 0usize;
     let give = |units: Vec<u32>, lattices: Vec<LatticeUnit>, outstanding: &mut usize| -> Result<(), DistributedError> {
@@ -325,6 +341,9 @@ fn render_share<T: Transport + ?Sized>(
     })?;
     if quit {
         return Ok(true);
+    }
+    if let Units::Lattices(tracer) = &renderer {
+        tracer.keep_light_paths(light_paths);
     }
     let mut counts = super::master::counts_of(&renderer.report(start));
     counts.texture_warnings = world

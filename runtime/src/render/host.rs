@@ -562,8 +562,9 @@ unsafe extern "C" fn host_texture(
                 return;
             }
             let frame = c.frame;
-            let map =
-                frame.caustics.get_or_init(|| virtual_lights::timed(frame, || virtual_lights::trace_caustics(frame)));
+            let map = frame
+                .caustics
+                .get_or_init(|| Arc::new(virtual_lights::timed(frame, || virtual_lights::trace_caustics(frame))));
             let radius = virtual_lights::photon_search_radius(frame);
             for l in active() {
                 let (p, n) = (lane3(coords, 0, l), lane3(coords, 3, l).normalize_or_zero());
@@ -728,8 +729,9 @@ unsafe extern "C" fn host_rays(
         }
         3 if frame.world.options.gi.virtual_lights > 0 => {
             // Instant radiosity: the frame's virtual lights, this point's set of them.
-            let lights =
-                frame.virtual_lights.get_or_init(|| virtual_lights::timed(frame, || virtual_lights::trace(frame)));
+            let lights = frame
+                .virtual_lights
+                .get_or_init(|| Arc::new(virtual_lights::timed(frame, || virtual_lights::trace(frame))));
             let start = frame.stats.timed.then(std::time::Instant::now);
             let mut lanes = Vec::with_capacity(4);
             let mut points = Vec::with_capacity(4);

@@ -30,7 +30,7 @@ use super::pixel::{reads_pixels, shade_pixels, TilePixels};
 use super::primary::{primary_rays, CameraSample};
 use super::sampling::radical_inverse;
 use super::shade::shade_packet;
-use super::work::{Frame, PixelImage, Sample};
+use super::work::{Frame, LightPathCache, PixelImage, Sample};
 use super::world::{Antialiasing, World};
 use crate::camera::packet_lane_offset;
 use crate::ray::{HitPacket, PACKET_SIZE};
@@ -243,6 +243,17 @@ impl<'w> LatticeTracer<'w> {
         super::virtual_lights::prepare(&self.frame);
     }
 
+    /// Takes the pass's light paths from `cache` where it holds them (traced for another piece of
+    /// the same pass of the same world); returns whether it did.
+    pub fn reuse_light_paths(&self, cache: &LightPathCache) -> bool {
+        cache.lend(&self.frame)
+    }
+
+    /// Leaves the light paths traced so far in `cache`, for the pass's next pieces.
+    pub fn keep_light_paths(&self, cache: &LightPathCache) {
+        cache.keep(&self.frame);
+    }
+
     /// Traces the lanes `lanes` of `lattice` (see [`trace_lattice`]).
     pub fn trace(&self, lattice: PixelLattice, lanes: u64) -> LatticeSamples {
         let (aa, pass) = (self.frame.world.options.antialiasing, self.pass);
@@ -274,9 +285,24 @@ pub fn trace_lattices(
     preview: bool,
     wanted: &(dyn Fn(u32, u32) -> bool + Sync),
 ) -> (Vec<LatticeSamples>, BatchReport) {
+    trace_lattices_keeping(world, lattices, pass, preview, wanted, &LightPathCache::default())
+}
+
+/// [`trace_lattices`] for a caller that traces a pass in pieces: the pass's light paths come from
+/// `cache` when an earlier piece traced them, and are left there for the next.
+pub fn trace_lattices_keeping(
+    world: &World,
+    lattices: &[PixelLattice],
+    pass: u32,
+    preview: bool,
+    wanted: &(dyn Fn(u32, u32) -> bool + Sync),
+    cache: &LightPathCache,
+) -> (Vec<LatticeSamples>, BatchReport) {
     let start = std::time::Instant::now();
     let tracer = LatticeTracer::new(world, pass, preview);
+    tracer.reuse_light_paths(cache);
     tracer.prepare_light_paths();
+    tracer.keep_light_paths(cache);
     let (w, h) = (world.options.width, world.options.height);
     let out: Vec<LatticeSamples> =
         lattices.par_iter().map(|l| tracer.trace(*l, lattice_lanes(*l, w, h, wanted))).collect();

@@ -33,6 +33,7 @@ use crate::ray::{Ray, RayPacket, PACKET_SIZE};
 use crate::shading::LightKind;
 use glam::Vec3A;
 use rtsl_compiler::abi::{LightLanes, MAX_LIGHTS};
+use std::sync::Arc;
 
 /// Traces the frame's light paths and leaves its virtual lights.
 pub(super) fn trace(frame: &Frame) -> VirtualLights {
@@ -76,10 +77,10 @@ pub(super) fn trace_caustics(frame: &Frame) -> PhotonMap {
 pub(super) fn prepare(frame: &Frame) {
     let gi = frame.world.options.gi;
     if gi.virtual_lights > 0 {
-        frame.virtual_lights.get_or_init(|| timed(frame, || trace(frame)));
+        frame.virtual_lights.get_or_init(|| Arc::new(timed(frame, || trace(frame))));
     }
     if gi.caustic_photons > 0 {
-        frame.caustics.get_or_init(|| timed(frame, || trace_caustics(frame)));
+        frame.caustics.get_or_init(|| Arc::new(timed(frame, || trace_caustics(frame))));
     }
 }
 

@@ -4,12 +4,14 @@
 //! pass these between them.
 
 use super::differential::RayDifferential;
+use super::photon_map::PhotonMap;
 use super::stats::Stats;
 use super::world::LightSource;
-use super::world::{InstanceShadows, World};
+use super::world::{GiOptions, InstanceShadows, World};
 use crate::ray::{Hit, Ray};
 use glam::{Affine3A, Vec3A};
 use rtsl_compiler::abi::LightLanes;
+use std::sync::{Arc, Mutex, PoisonError};
 
 /// The frame being rendered: the world and the counters.
 pub struct Frame<'w> {
@@ -34,10 +36,10 @@ pub struct Frame<'w> {
     pub(crate) invariant_light_rows: Vec<std::sync::OnceLock<LightLanes>>,
     /// The frame's virtual point lights, traced when a shader first gathers them
     /// (`virtual_lights.rs`).
-    pub(crate) virtual_lights: std::sync::OnceLock<VirtualLights>,
+    pub(crate) virtual_lights: std::sync::OnceLock<Arc<VirtualLights>>,
     /// The frame's caustic photon map, traced when a shader first looks it up
     /// (`virtual_lights::trace_caustics`).
-    pub(crate) caustics: std::sync::OnceLock<super::photon_map::PhotonMap>,
+    pub(crate) caustics: std::sync::OnceLock<Arc<PhotonMap>>,
     /// The seed of the frame's light paths: the options' own, or per pass of progressive
     /// refinement another, so that passes accumulate fresh virtual lights.
     pub(crate) gi_seed: u32,
@@ -73,6 +75,55 @@ impl<'w> Frame<'w> {
             gi_seed: world.options.gi.seed,
             stages,
         }
+    }
+}
+
+/// The light paths of the last pass traced from a world, kept by a caller that traces each pass in
+/// pieces (the viewer's slices of a pass, a worker's share of a frame's lattices), so that every
+/// piece uses them instead of tracing the same paths again. They are lent to a frame only when
+/// traced from the same world contents (`World::prepare` renews the world's version), seed and GI
+/// options.
+#[derive(Default)]
+pub struct LightPathCache(Mutex<Option<KeptLightPaths>>);
+
+struct KeptLightPaths {
+    key: (u64, u32, GiOptions),
+    virtual_lights: Option<Arc<VirtualLights>>,
+    caustics: Option<Arc<PhotonMap>>,
+}
+
+impl LightPathCache {
+    fn key(frame: &Frame) -> (u64, u32, GiOptions) {
+        (frame.world.version(), frame.gi_seed, frame.world.options.gi)
+    }
+
+    /// Gives `frame` the kept light paths that were traced for it (the same world, seed and
+    /// options); returns whether there were any.
+    pub(crate) fn lend(&self, frame: &Frame) -> bool {
+        let kept = self.0.lock().unwrap_or_else(PoisonError::into_inner);
+        let Some(k) = kept.as_ref().filter(|k| k.key == Self::key(frame)) else { return false };
+        let mut lent = false;
+        if let Some(v) = &k.virtual_lights {
+            lent |= frame.virtual_lights.set(v.clone()).is_ok();
+        }
+        if let Some(c) = &k.caustics {
+            lent |= frame.caustics.set(c.clone()).is_ok();
+        }
+        lent
+    }
+
+    /// Keeps the light paths `frame` has traced so far (with those kept for the same frame that it
+    /// has not traced), in place of any others.
+    pub(crate) fn keep(&self, frame: &Frame) {
+        let key = Self::key(frame);
+        let mut kept = self.0.lock().unwrap_or_else(PoisonError::into_inner);
+        let same = kept.take().filter(|k| k.key == key);
+        let (old_lights, old_caustics) = same.map_or((None, None), |k| (k.virtual_lights, k.caustics));
+        *kept = Some(KeptLightPaths {
+            key,
+            virtual_lights: frame.virtual_lights.get().cloned().or(old_lights),
+            caustics: frame.caustics.get().cloned().or(old_caustics),
+        });
     }
 }
 

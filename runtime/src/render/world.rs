@@ -541,6 +541,16 @@ pub struct World {
     /// Vertex-scope bindings by (instance, material): shader parameter index -> mesh attribute
     /// index, worked out by [`World::prepare`] (only where there is one).
     pub(crate) vertex_params: HashMap<(u32, u32), Vec<(usize, usize)>>,
+    /// Which contents the world has, for what is kept across frames traced from it
+    /// ([`super::work::LightPathCache`]): unique to each world, renewed by [`World::prepare`].
+    version: u64,
+}
+
+/// The next [`World::version`].
+static NEXT_WORLD_VERSION: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
+
+fn next_world_version() -> u64 {
+    NEXT_WORLD_VERSION.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
 }
 
 impl World {
@@ -559,12 +569,20 @@ impl World {
             spaces: HashMap::new(),
             textures: Arc::new(TextureCache::new()),
             vertex_params: HashMap::new(),
+            version: next_world_version(),
         }
+    }
+
+    /// Which contents the world has: another number for every world and after every
+    /// [`World::prepare`], so that what was traced from it before can be told apart.
+    pub fn version(&self) -> u64 {
+        self.version
     }
 
     /// Commits the scene and works out the bindings that depend on both meshes and shaders. Call
     /// after any change, before rendering.
     pub fn prepare(&mut self) {
+        self.version = next_world_version();
         let start = std::time::Instant::now();
         self.scene.commit();
         self.accel.top_level = start.elapsed();

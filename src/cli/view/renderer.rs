@@ -17,9 +17,9 @@ use rtsl_runtime::api::{Context, InstanceId};
 use rtsl_runtime::distributed::{Master, Transport};
 use rtsl_runtime::reload::{ShaderEvent, ShaderReloader};
 use rtsl_runtime::render::progressive::{
-    frameless_order, pass_lattices, trace_lattices, Accumulator, BatchReport, LatticeSamples, PixelLattice,
+    frameless_order, pass_lattices, trace_lattices_keeping, Accumulator, BatchReport, LatticeSamples, PixelLattice,
 };
-use rtsl_runtime::render::{camera_ray, Antialiasing, World};
+use rtsl_runtime::render::{camera_ray, Antialiasing, LightPathCache, World};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, TryRecvError};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -135,6 +135,8 @@ pub struct Renderer {
     nav: Navigation,
     home: Navigation,
     acc: Accumulator,
+    /// The light paths of the pass being traced, shared by its pieces.
+    light_paths: LightPathCache,
     frameless: bool,
     /// Full passes or sweeps after which a still view stops refining.
     still_limit: u32,
@@ -173,7 +175,7 @@ fn held(world: &Option<World>) -> &World {
     world.as_ref().expect("the render thread always holds a world between rebuilds")
 }
 
-/// Traces `lattices` (see [`trace_lattices`]) on `master`'s workers where there are any, else
+/// Traces `lattices` (see [`trace_lattices_keeping`]) on `master`'s workers where there are any, else
 /// here on `pool`. A distributed failure (a worker that cannot render) is reported once, in
 /// `diagnostics` and on stderr, and the viewer goes on rendering here.
 #[allow(clippy::too_many_arguments)]
@@ -183,6 +185,7 @@ fn trace(
     rt: &Context,
     world: &World,
     diagnostics: &mut Vec<String>,
+    light_paths: &LightPathCache,
     lattices: &[PixelLattice],
     pass: u32,
     preview: bool,
@@ -199,7 +202,7 @@ fn trace(
             }
         }
     }
-    pool.install(|| trace_lattices(world, lattices, pass, preview, wanted))
+    pool.install(|| trace_lattices_keeping(world, lattices, pass, preview, wanted, light_paths))
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -259,6 +262,7 @@ impl Renderer {
             nav,
             home: nav,
             acc: Accumulator::new(w, h),
+            light_paths: LightPathCache::default(),
             frameless,
             still_limit: still_limit.clamp(1, MAX_PASSES),
             changed_at: now,
@@ -468,8 +472,18 @@ impl Renderer {
             let stride = [1u32, 2, 4, 8].into_iter().find(|s| pixels / (s * s) as usize <= fit).unwrap_or(8);
             let lattices = pass_lattices(w, h, stride);
             let world = held(&self.world);
-            let (results, report) =
-                trace(workers, pool, &self.rt, world, &mut self.diagnostics, &lattices, 0, stride > 1, &|_, _| true);
+            let (results, report) = trace(
+                workers,
+                pool,
+                &self.rt,
+                world,
+                &mut self.diagnostics,
+                &self.light_paths,
+                &lattices,
+                0,
+                stride > 1,
+                &|_, _| true,
+            );
             self.account(&report);
             // Previews replace, even at stride 1: counted as samples, the same pass-0 sample would
             // pile up once per preview frame and outweigh the still passes that follow.
@@ -499,8 +513,18 @@ impl Renderer {
         let refine = self.refine.as_deref();
         let wanted = |x: u32, y: u32| refine.is_none_or(|r| r[(y * w + x) as usize]);
         let world = held(&self.world);
-        let (results, report) =
-            trace(workers, pool, &self.rt, world, &mut self.diagnostics, lattices, self.pass, false, &wanted);
+        let (results, report) = trace(
+            workers,
+            pool,
+            &self.rt,
+            world,
+            &mut self.diagnostics,
+            &self.light_paths,
+            lattices,
+            self.pass,
+            false,
+            &wanted,
+        );
         self.account(&report);
         self.acc.add_lattices(&results, false);
         self.pass_cursor = end;
@@ -523,8 +547,18 @@ impl Renderer {
         let end = (self.order_cursor + chunk).min(self.order.len());
         let world = held(&self.world);
         let lattices = &self.order[self.order_cursor..end];
-        let (results, report) =
-            trace(workers, pool, &self.rt, world, &mut self.diagnostics, lattices, self.sweeps, false, &|_, _| true);
+        let (results, report) = trace(
+            workers,
+            pool,
+            &self.rt,
+            world,
+            &mut self.diagnostics,
+            &self.light_paths,
+            lattices,
+            self.sweeps,
+            false,
+            &|_, _| true,
+        );
         self.account(&report);
         self.acc.add_lattices(&results, false);
         self.order_cursor = end;
