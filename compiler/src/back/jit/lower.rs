@@ -47,12 +47,13 @@
 //!   `illuminance` that varies, `bump`, point clouds, and built-ins not handled in `builtin` or
 //!   `builtin_ext`.
 
+use super::batch::{OFF_BOUND, OFF_CHUNK, OFF_DERIVS, OFF_MASK, OFF_STRIDE, OFF_UNIFORM, OFF_VARYING};
 use super::hoist::Prefix;
 use super::host;
 use super::layout::{components, Layout};
 use super::mask::{self, and, any, choose, fconst, is_vec, konst, merge, not, or, to_mask, widen};
 use super::math;
-use super::{unsupported, JitError, OFF_BOUND, OFF_CHUNK, OFF_MASK, OFF_STRIDE, OFF_UNIFORM, OFF_VARYING};
+use super::{unsupported, JitError};
 use crate::builtins::Builtin;
 use crate::globals::{Global, GLOBALS};
 use crate::ir::{
@@ -434,7 +435,7 @@ impl<'m> Lower<'m, '_> {
         let bound_p = self.b.ins().load(self.ptr, mem(), batch, OFF_BOUND);
         // Shaders that differentiate nothing never touch `derivs` (no extra instruction).
         let derivs_p = if self.info.any || self.info.globals.iter().any(|g| *g) {
-            let p = self.b.ins().load(self.ptr, mem(), batch, super::OFF_DERIVS);
+            let p = self.b.ins().load(self.ptr, mem(), batch, OFF_DERIVS);
             self.derivs_null = Some(self.b.ins().icmp_imm_u(IntCC::Equal, p, 0));
             Some(p)
         } else {
