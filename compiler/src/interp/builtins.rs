@@ -46,7 +46,7 @@ fn param<'v>(vals: &'v [Value], fixed: usize, name: &str) -> Option<&'v Value> {
 
 /// A `shadow()` call's query: the point and its region (the four points, or the point's pixel
 /// footprint from its derivatives `tx`/`ty`), and its options. The JIT computes the same values
-/// with the same operations in the same order (`back/jit/lower.rs`).
+/// with the same operations in the same order (`back/jit/lower/builtins/texture.rs`).
 fn shadow_query(vals: &[Value], tx: &[Value], ty: &[Value], fixed: usize) -> ShadowQuery {
     let arg = |k: usize| vals.get(k).map(Value::v3).unwrap_or([0.0; 3]);
     let (p, corners) = if fixed == 5 {

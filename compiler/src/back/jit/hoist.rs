@@ -4,8 +4,9 @@
 //! A typical camera or light shader starts with uniform set-up (`option("FieldOfView", f)`,
 //! `tan(radians(f) / 2)`, a space's matrix, a string); run per chunk of four lanes, it costs as
 //! much as the per-lane work. [`uniform_prefix`] finds the longest run of leading statements that
-//! is safe to hoist; `lower.rs` lowers them once, then starts each chunk with a fresh frame holding
-//! copies of what they wrote, so each chunk sees exactly the state it would have computed itself.
+//! is safe to hoist; `lower/mod.rs` lowers them once, then starts each chunk with a fresh frame
+//! holding copies of what they wrote, so each chunk sees exactly the state it would have computed
+//! itself.
 //!
 //! Safe means: every expression is uniform (in the IR and in the batch layout), control flow is
 //! only a uniform `if`, writes go only to uniform local variables (or shader parameters), and calls

@@ -8,7 +8,7 @@
 //!
 //! Invariants:
 //! - **Never panics on input IR**: anything outside the supported subset is
-//!   `Err(JitError::Unsupported(what))` (see `lower.rs` for the list).
+//!   `Err(JitError::Unsupported(what))` (see `lower/mod.rs` for the list).
 //! - **Memory safety**: generated code computes addresses only from the batch record, compile-time
 //!   slot numbers and the chunk counter, never from shader data; [`BatchData`] sizes every buffer from
 //!   the [`Layout`], and [`CompiledShader::shade`] refuses a batch made for another layout.

@@ -14,9 +14,10 @@
 //! - the renderer's derivatives are loaded once per chunk for the globals that keep tangents, plus
 //!   `u` and `v` whenever the module differentiates (`Du`/`Dv` need them).
 
-use super::mask::{choose, fconst, widen};
-use super::math;
 use super::{Lower, Store, Val, R};
+use crate::back::jit::layout::components;
+use crate::back::jit::mask::{choose, fconst, to_mask, widen};
+use crate::back::jit::{math, unsupported, JitError};
 use crate::builtins::Builtin;
 use crate::globals::Global;
 use crate::ir::{self, Arg, BaseType, BinaryOp, ExprId, ExprKind, PlaceBase, Type, UnaryOp};
@@ -228,7 +229,7 @@ impl<'m> Lower<'m, '_> {
             ExprKind::Index { base, index } => {
                 let bt = f.expr(*base).ty;
                 let bd = self.dual(*base)?;
-                let comps = if bt.is_array() { super::components(bt.element()).unwrap_or(1) } else { 1 };
+                let comps = if bt.is_array() { components(bt.element()).unwrap_or(1) } else { 1 };
                 let n = bd.v.c.len() / comps;
                 let idx = self.index(*index, n)?;
                 let v = self.select_elem(&bd.v, comps, idx)?;
@@ -368,7 +369,7 @@ impl<'m> Lower<'m, '_> {
         let f = self.func();
         let c = self.expr(cond)?;
         if c.vary || (f.expr(cond).varying && !self.frame().uniform) {
-            let cm = super::to_mask(&mut self.b, c.c[0]);
+            let cm = to_mask(&mut self.b, c.c[0]);
             let save = self.exec();
             self.div += 1;
             self.vdepth += 1;
@@ -399,7 +400,7 @@ impl<'m> Lower<'m, '_> {
         }
         // A uniform condition: branch, with the value and both tangents in variables.
         let vary = e.varying && !self.frame().uniform;
-        let n = super::components(e.ty).unwrap_or(1) * e.ty.array_len().unwrap_or(1) as usize;
+        let n = components(e.ty).unwrap_or(1) * e.ty.array_len().unwrap_or(1) as usize;
         let ty = if vary { types::F32X4 } else { types::F32 };
         let vars: Vec<_> = (0..n).map(|_| self.b.declare_var(ty)).collect();
         let dvars: Vec<_> = (0..2 * n).map(|_| self.b.declare_var(types::F32X4)).collect();
@@ -409,7 +410,7 @@ impl<'m> Lower<'m, '_> {
             self.b.switch_to_block(blk);
             let d = self.dual(side)?;
             if d.v.vary && !vary {
-                return super::unsupported("a varying side of a uniform select");
+                return unsupported("a varying side of a uniform select");
             }
             for (var, x) in vars.iter().zip(&d.v.c) {
                 let x = widen(&mut self.b, *x, vary);
@@ -592,7 +593,7 @@ impl<'m> Lower<'m, '_> {
     }
 
     fn arg_dual(&self, k: usize) -> R<Dual> {
-        self.arg_duals.get(k).cloned().flatten().ok_or_else(|| super::JitError::Codegen("a derivative argument".into()))
+        self.arg_duals.get(k).cloned().flatten().ok_or_else(|| JitError::Codegen("a derivative argument".into()))
     }
 
     fn ratio(&mut self, num: Value, den: Value) -> Value {
@@ -708,10 +709,9 @@ impl<'m> Lower<'m, '_> {
             let quarter = self.k(0.25);
             let mut centre = Vec::with_capacity(3);
             for i in 0..3 {
-                let mut sum =
-                    component(&vals[1], i).ok_or_else(|| super::JitError::Codegen("a shadow corner".into()))?;
+                let mut sum = component(&vals[1], i).ok_or_else(|| JitError::Codegen("a shadow corner".into()))?;
                 for corner in &vals[2..5] {
-                    let c = component(corner, i).ok_or_else(|| super::JitError::Codegen("a shadow corner".into()))?;
+                    let c = component(corner, i).ok_or_else(|| JitError::Codegen("a shadow corner".into()))?;
                     sum = self.add(sum, c);
                 }
                 centre.push(self.mul(sum, quarter));
@@ -732,7 +732,7 @@ impl<'m> Lower<'m, '_> {
         for (right, down) in [(false, false), (true, false), (false, true), (true, true)] {
             let mut c = Vec::with_capacity(3);
             for i in 0..3 {
-                let pi = component(&p.v, i).ok_or_else(|| super::JitError::Codegen("a shadow point".into()))?;
+                let pi = component(&p.v, i).ok_or_else(|| JitError::Codegen("a shadow point".into()))?;
                 let x = if right { self.add(pi, hx[i]) } else { self.sub(pi, hx[i]) };
                 c.push(if down { self.add(x, hy[i]) } else { self.sub(x, hy[i]) });
             }

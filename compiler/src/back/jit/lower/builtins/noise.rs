@@ -1,0 +1,80 @@
+//! Noise and random numbers: `noise`, `cellnoise` and `pnoise` (one chunk helper per dimension and
+//! result shape, the interpreter's scalar code per lane) and `random()` (each lane's seed and the
+//! number of calls it ran in the chunk).
+
+use super::Call;
+use crate::back::jit::lower::{Lower, Val, R};
+use crate::back::jit::{unsupported, JitError};
+use crate::builtins::Builtin;
+use crate::ir::{Arg, BaseType};
+use cranelift_codegen::ir::InstBuilder;
+
+impl<'m> Lower<'m, '_> {
+    /// `noise`, `cellnoise` and `pnoise` through the chunk helpers of their dimension and shape,
+    /// and `random()` from each lane's seed and call count.
+    pub(super) fn noise(&mut self, call: &mut Call<'m, '_>) -> R<Val> {
+        use Builtin as Bi;
+        let (bi, args, e, f) = (call.bi, call.args, call.e, call.f);
+        let vals = &call.vals;
+        let r = match bi {
+            Bi::Noise | Bi::Cellnoise => {
+                let first_triple = args.first().is_some_and(|a| match a {
+                    Arg::Value(x) => f.expr(*x).ty.base.is_triple(),
+                    Arg::Ref(p) => p.ty.base.is_triple(),
+                });
+                let dims = if first_triple { 2 + vals.len() } else { vals.len() };
+                let triple = e.ty.base != BaseType::Float;
+                let name: &'static str = match (bi == Bi::Noise, triple, dims) {
+                    (true, false, 1) => "rtsl_noise1",
+                    (true, false, 2) => "rtsl_noise2",
+                    (true, false, 3) => "rtsl_noise3",
+                    (true, false, _) => "rtsl_noise4",
+                    (true, true, 1) => "rtsl_vnoise1",
+                    (true, true, 2) => "rtsl_vnoise2",
+                    (true, true, 3) => "rtsl_vnoise3",
+                    (true, true, _) => "rtsl_vnoise4",
+                    (false, false, 1) => "rtsl_cellnoise1",
+                    (false, false, 2) => "rtsl_cellnoise2",
+                    (false, false, 3) => "rtsl_cellnoise3",
+                    (false, false, _) => "rtsl_cellnoise4",
+                    (false, true, 1) => "rtsl_vcellnoise1",
+                    (false, true, 2) => "rtsl_vcellnoise2",
+                    (false, true, 3) => "rtsl_vcellnoise3",
+                    (false, true, _) => "rtsl_vcellnoise4",
+                };
+                let all = self.concat(vals);
+                let c = self.call_helper(name, &all.c, all.vary)?;
+                Val { vary: all.vary, c }
+            }
+            Bi::Pnoise => {
+                let first_triple = vals[0].c.len() == 3;
+                let name: &'static str = match (e.ty.base != BaseType::Float, first_triple, vals.len()) {
+                    (false, false, 4) => "rtsl_pnoise2",
+                    (false, false, _) => "rtsl_pnoise1",
+                    (false, true, 4) => "rtsl_pnoise4",
+                    (false, true, _) => "rtsl_pnoise3",
+                    (true, false, 4) => "rtsl_vpnoise2",
+                    (true, false, _) => "rtsl_vpnoise1",
+                    (true, true, 4) => "rtsl_vpnoise4",
+                    (true, true, _) => "rtsl_vpnoise3",
+                };
+                self.call_helper_on(name, vals, false)?
+            }
+            Bi::Random => {
+                let slot = self.layout.seed.ok_or_else(|| JitError::Codegen("no seed slots".into()))?;
+                let lo = self.load_slot(true, slot);
+                let hi = self.load_slot(true, slot + 1);
+                let calls = self.b.use_var(self.random_calls);
+                let name = if e.ty.base == BaseType::Float { "rtsl_random" } else { "rtsl_vrandom" };
+                let c = self.call_helper(name, &[lo, hi, calls], true)?;
+                // Running lanes count the call (exec is -1 there).
+                let e = self.exec();
+                let next = self.b.ins().isub(calls, e);
+                self.b.def_var(self.random_calls, next);
+                Val { vary: true, c }
+            }
+            _ => return unsupported(format!("the built-in {}", bi.name())),
+        };
+        Ok(r)
+    }
+}
