@@ -44,7 +44,7 @@
 //!   masks as the value. Every other write to such storage (a built-in's output, a light loop's
 //!   globals) zeroes its tangents.
 //! - Unsupported here: `gather` options named by computed strings, a category of `gather` or
-//!   `illuminance` that varies, `bump`, point clouds, and built-ins not handled in `builtin` or
+//!   `illuminance` that varies, point clouds, and built-ins not handled in `builtin` or
 //!   `builtin_ext`.
 //!
 //! Files: this one holds the shared types and the driver (the chunk loop, the prologue, frames);

@@ -1,7 +1,8 @@
 //! Textures: `texture` (its footprint from the coordinates' derivatives, as the interpreter
 //! computes it), `environment`, `shadow` (the interpreter's query: region, then options),
-//! `texture3d` and `bump` through host helpers; `photonmap`, and `bake3d` and `texture3d` on point
-//! clouds, report that rtsl does not support them and return their documented value.
+//! `texture3d`, `bump` and `photonmap` (a uniform map name) through host helpers; `bake3d` and
+//! `texture3d` on point clouds report that rtsl does not support them and return their
+//! documented value.
 
 use super::{param_arg, Call};
 use crate::back::jit::layout::components;
