@@ -1,5 +1,6 @@
 //! What one rank of a distributed render reads from another, damaged or made up: a protocol
-//! message, a rendered tile, a viewer lattice's samples, a texture as the master delivers it. The
+//! message, a rendered tile, a viewer lattice's samples, a texture as the master delivers it, a
+//! frame's light paths as the master traced them. The
 //! first byte picks the reader; each refuses what it cannot read with an error, never a panic or
 //! an allocation larger than the input.
 #![no_main]
@@ -7,7 +8,7 @@
 use libfuzzer_sys::fuzz_target;
 use rtsl_runtime::distributed::Message;
 use rtsl_runtime::render::progressive::{LatticeSamples, PixelLattice};
-use rtsl_runtime::render::{RenderedTile, TileRenderer, World};
+use rtsl_runtime::render::{LightPaths, RenderedTile, TileRenderer, World};
 use std::sync::OnceLock;
 
 /// A 40x24 frame of an empty scene, for the tiles to belong to.
@@ -23,7 +24,7 @@ fn world() -> &'static World {
 
 fuzz_target!(|data: &[u8]| {
     let Some((&which, rest)) = data.split_first() else { return };
-    match which % 4 {
+    match which % 5 {
         0 => {
             if let Ok(m) = Message::decode(rest) {
                 // What decodes encodes to the same bytes.
@@ -41,8 +42,16 @@ fuzz_target!(|data: &[u8]| {
             let lanes = rest.iter().take(8).fold(0u64, |m, &b| m << 8 | u64::from(b));
             let _ = LatticeSamples::decode(lattice, lanes, rest);
         }
-        _ => {
+        3 => {
             let _ = postcard::from_bytes::<rtsl_runtime::texture::Delivered>(rest);
+        }
+        _ => {
+            if let Ok(paths) = LightPaths::decode(rest) {
+                // What decodes encodes to the same bytes (empty bytes are no paths, encoded as a flag).
+                let mut again = Vec::new();
+                paths.encode(&mut again);
+                assert!(rest.is_empty() || again == rest);
+            }
         }
     }
 });

@@ -696,3 +696,72 @@ fn global_illumination_renders_the_same_on_workers() -> Result<(), DistributedEr
     assert_same(&both_ways(rt, 2, 2, &[nothing, move_first])?, "a frame lit by virtual lights");
     Ok(())
 }
+
+/// The master traces a frame's light paths (virtual lights and caustic photons) once and sends
+/// them to every worker: a frame of tiles carries its own, a viewer's pass sends them with its
+/// first piece only, and the workers' samples are the ones traced here, bit for bit.
+#[test]
+fn the_master_traces_light_paths_once_and_sends_them() -> Result<(), DistributedError> {
+    use rtsl_runtime::render::progressive::{pass_lattices, trace_lattices};
+    let mut rt = Context::new();
+    rtsl_runtime::rib::load::load_file(&mut rt, &repo("examples/scenes/gi_box.rib")).expect("the scene loads");
+    (rt.options.width, rt.options.height) = (32, 24);
+    rt.options.gi.caustic_photons = 3000;
+    with_two_workers(Duration::from_secs(120), |master| {
+        let world = rt.build_world().expect("a world");
+        let (fb, _) = master.render_context(&rt, &world, None)?;
+        let sent = master.traffic().light_paths;
+        assert!(sent > 1000, "a frame of tiles sends its light paths: {sent} bytes");
+        let (alone, _) = pool(2).install(|| rtsl_runtime::render::render_frame(&world, None));
+        assert!(fb.rgba.iter().zip(&alone.rgba).all(|(a, b)| a.to_bits() == b.to_bits()), "the frame differs");
+
+        let lattices = pass_lattices(32, 24, 1);
+        let all = |_: u32, _: u32| true;
+        let (first, rest) = lattices.split_at(lattices.len() / 2);
+        let mut there = master.trace_lattices(&rt, &world, first, 2, false, &all)?.0;
+        assert!(master.traffic().light_paths > 0, "the pass's first piece carries its paths");
+        there.extend(master.trace_lattices(&rt, &world, rest, 2, false, &all)?.0);
+        assert_eq!(master.traffic().light_paths, 0, "the pass's next piece does not");
+        let (here, _) = pool(2).install(|| trace_lattices(&world, &lattices, 2, false, &all));
+        assert!(lattice_bits(&there) == lattice_bits(&here), "the pass traced in pieces differs");
+        master.trace_lattices(&rt, &world, first, 3, false, &all)?;
+        assert!(master.traffic().light_paths > 0, "the next pass carries its own paths");
+        rt.return_scene(world);
+        Ok(())
+    })
+}
+
+#[test]
+fn light_paths_decode_to_themselves_and_damaged_ones_are_errors() {
+    use rtsl_runtime::render::{LightPaths, TileRenderer};
+    let mut rt = Context::new();
+    rtsl_runtime::rib::load::load_file(&mut rt, &repo("examples/scenes/gi_box.rib")).expect("the scene loads");
+    rt.options.gi.caustic_photons = 2000;
+    let world = rt.build_world().expect("a world");
+    let renderer = TileRenderer::new(&world);
+    renderer.prepare_light_paths();
+    let paths = renderer.light_paths();
+    assert!(paths.virtual_lights.is_some() && paths.caustics.is_some());
+    let mut bytes = Vec::new();
+    paths.encode(&mut bytes);
+    let back = LightPaths::decode(&bytes).expect("decodes");
+    let mut again = Vec::new();
+    back.encode(&mut again);
+    assert!(again == bytes, "the paths decode to other paths");
+    assert!(LightPaths::decode(&[]).expect("no paths").is_empty());
+    for cut in [1, 5, 17, bytes.len() / 2, bytes.len() - 1] {
+        assert!(LightPaths::decode(&bytes[..cut]).is_err(), "cut at {cut}");
+    }
+    let mut longer = bytes.clone();
+    longer.push(0);
+    assert!(LightPaths::decode(&longer).is_err(), "a byte too many");
+    for at in [0, 3, 9, 20, bytes.len() - 2] {
+        let mut damaged = bytes.clone();
+        damaged[at] ^= 0xff;
+        let _ = LightPaths::decode(&damaged);
+    }
+    let mut huge = vec![1u8, 1, 0, 0, 0, 0, 0, 0, 0];
+    huge.extend_from_slice(&1u64.to_le_bytes());
+    huge.extend_from_slice(&u64::MAX.to_le_bytes());
+    assert!(LightPaths::decode(&huge).is_err(), "a count no bytes hold");
+}

@@ -301,6 +301,7 @@ fn summarize(times: &[FrameTimes], meshes: (usize, usize)) {
             pixels: mean(|t| t.pixels),
             counters: mean(|t| t.counters),
             fetches: mean(|t| t.fetches),
+            light_paths: mean(|t| t.light_paths),
         };
         println!("{}", super::mpi::traffic_line(&t));
     }

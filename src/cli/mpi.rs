@@ -44,11 +44,12 @@ pub(crate) fn work(
 pub(crate) fn traffic_line(t: &Traffic) -> String {
     let kb = |b: u64| b as f64 / 1e3;
     format!(
-        "MPI traffic per frame: {:.1} kB: pixels {:.1} kB, updates {:.2} kB, fetches (meshes, textures) {:.1} kB, tile assignments {:.1} kB, counters {:.2} kB",
+        "MPI traffic per frame: {:.1} kB: pixels {:.1} kB, updates {:.2} kB, fetches (meshes, textures) {:.1} kB, light paths {:.1} kB, tile assignments {:.1} kB, counters {:.2} kB",
         kb(t.total()),
         kb(t.pixels),
         kb(t.updates),
         kb(t.fetches),
+        kb(t.light_paths),
         kb(t.control),
         kb(t.counters)
     )

@@ -7,8 +7,8 @@ use super::schedule::Schedule;
 use super::transport::Transport;
 use super::DistributedError;
 use crate::api::{encode_mesh, Context, Replicator};
-use crate::render::progressive::{lattice_lanes, BatchReport, LatticeSamples, PixelLattice};
-use crate::render::{FrameReport, Framebuffer, RenderedTile, TileRenderer, World};
+use crate::render::progressive::{lattice_lanes, BatchReport, LatticeSamples, LatticeTracer, PixelLattice};
+use crate::render::{FrameReport, Framebuffer, LightPathCache, LightPaths, RenderedTile, TileRenderer, World};
 use crate::texture::Delivered;
 use std::collections::HashMap;
 use std::sync::Arc;
@@ -32,6 +32,8 @@ struct Work<'a> {
     units: usize,
     lattices: &'a [LatticeUnit],
     owners: &'a [Option<usize>],
+    /// The frame's light paths, encoded (empty: none to send).
+    light_paths: &'a [u8],
 }
 
 /// Takes a unit's encoded pixels as they arrive, with the unit's index: an error is the sender's
@@ -60,11 +62,13 @@ pub struct Traffic {
     pub counters: u64,
     /// Demand loading: the workers' requests and the meshes and textures sent in answer.
     pub fetches: u64,
+    /// The frame's light paths (virtual lights, photon maps), traced here, as sent to every worker.
+    pub light_paths: u64,
 }
 
 impl Traffic {
     pub fn total(&self) -> u64 {
-        self.updates + self.control + self.pixels + self.counters + self.fetches
+        self.updates + self.control + self.pixels + self.counters + self.fetches + self.light_paths
     }
 }
 
@@ -84,6 +88,10 @@ pub struct Master<T: Transport> {
     /// What the workers' contexts were last sent ([`Master::render_context`]).
     replicator: Replicator,
     demand: Demand,
+    /// The light paths of the viewer's pass being traced ([`Master::trace_lattices`]), and the
+    /// paths the workers were last sent (they keep them for the pass's next pieces).
+    light_paths: LightPathCache,
+    sent_light_paths: LightPaths,
 }
 
 /// Demand loading over the workers in the last frame.
@@ -118,6 +126,8 @@ impl<T: Transport> Master<T> {
             traffic: Traffic::default(),
             replicator: Replicator::demand_loading(),
             demand: Demand::default(),
+            light_paths: LightPathCache::default(),
+            sent_light_paths: LightPaths::default(),
         };
         let build = build_fingerprint();
         let mut hellos: Vec<Option<WorkerInfo>> = (1..n).map(|_| None).collect();
@@ -256,8 +266,20 @@ impl<T: Transport> Master<T> {
         let owners: Vec<Option<usize>> =
             lattices.iter().map(|l| self.region_owner.get(region(l)).copied().flatten()).collect();
         let mut samples: Vec<Option<LatticeSamples>> = lattices.iter().map(|_| None).collect();
+        // The pass's light paths, traced here once and sent with its first piece: a worker keeps
+        // them for the pieces after (unless its world changed, when it traces the same ones).
+        let tracer = LatticeTracer::new(world, pass, preview);
+        tracer.reuse_light_paths(&self.light_paths);
+        tracer.prepare_light_paths();
+        tracer.keep_light_paths(&self.light_paths);
+        let paths = tracer.light_paths();
+        let mut light_paths = Vec::new();
+        if !paths.same(&self.sent_light_paths) {
+            paths.encode(&mut light_paths);
+            self.sent_light_paths = paths;
+        }
         let job = Job::Lattices { pass, preview };
-        let work = Work { job, units: lattices.len(), lattices: &units, owners: &owners };
+        let work = Work { job, units: lattices.len(), lattices: &units, owners: &owners, light_paths: &light_paths };
         let mut accept = |u: usize, bytes: &[u8]| -> Result<(), String> {
             samples[u] = Some(LatticeSamples::decode(units[u].lattice, units[u].lanes, bytes)?);
             Ok(())
@@ -291,10 +313,18 @@ impl<T: Transport> Master<T> {
     ) -> Result<(Framebuffer, FrameReport), DistributedError> {
         let start = Instant::now();
         let renderer = TileRenderer::new(world);
+        // Traced once here and sent to every worker, as the paper's master did.
+        renderer.prepare_light_paths();
+        let paths = renderer.light_paths();
+        let mut light_paths = Vec::new();
+        if !paths.is_empty() {
+            paths.encode(&mut light_paths);
+        }
         let tiles = renderer.tiles();
         let mut rendered: Vec<Option<RenderedTile>> = tiles.iter().map(|_| None).collect();
         let owners = std::mem::take(&mut self.last_owner);
-        let work = Work { job: Job::Tiles, units: tiles.len(), lattices: &[], owners: &owners };
+        let work =
+            Work { job: Job::Tiles, units: tiles.len(), lattices: &[], owners: &owners, light_paths: &light_paths };
         let mut accept = |t: usize, bytes: &[u8]| -> Result<(), String> {
             rendered[t] = Some(RenderedTile::decode(world, tiles[t], bytes)?);
             Ok(())
@@ -361,6 +391,7 @@ impl<T: Transport> Master<T> {
             let m = Message::Frame {
                 frame,
                 update: update.to_vec(),
+                light_paths: work.light_paths.to_vec(),
                 job: work.job,
                 units: first,
                 lattices,
@@ -368,7 +399,8 @@ impl<T: Transport> Master<T> {
             }
             .encode();
             traffic.updates += update.len() as u64;
-            traffic.control += (m.len() - update.len()) as u64;
+            traffic.light_paths += work.light_paths.len() as u64;
+            traffic.control += (m.len() - update.len() - work.light_paths.len()) as u64;
             self.transport.send(w + 1, &m)?;
         }
         let (mut received, mut done) = (0, vec![false; self.workers.len()]);

@@ -8,7 +8,7 @@ use crate::texture::TextureKind;
 use rtsl_compiler::interface::ShaderKind;
 
 /// The protocol's version: ranks that speak different versions refuse each other at start-up.
-pub const PROTOCOL_VERSION: u32 = 9;
+pub const PROTOCOL_VERSION: u32 = 10;
 
 /// What the master's counters add up from a worker's share of a frame.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -76,7 +76,17 @@ pub enum Message {
     /// Master to worker: render frame `frame` (its `job`), after applying `update` to the scene;
     /// these units first (for lattices, each with its [`LatticeUnit`]: `lattices` is as long as
     /// `units`; for tiles it is empty). `last`: no more will come.
-    Frame { frame: u64, update: Vec<u8>, job: Job, units: Vec<u32>, lattices: Vec<LatticeUnit>, last: bool },
+    Frame {
+        frame: u64,
+        update: Vec<u8>,
+        /// The frame's light paths as the master traced them (`LightPaths::encode`); empty when
+        /// the frame has none or the worker keeps them from the frame before.
+        light_paths: Vec<u8>,
+        job: Job,
+        units: Vec<u32>,
+        lattices: Vec<LatticeUnit>,
+        last: bool,
+    },
     /// Master to worker: more units of the frame, as in `Frame`; `last`: no more will come.
     Assign { frame: u64, units: Vec<u32>, lattices: Vec<LatticeUnit>, last: bool },
     /// Worker to master: finished units, each its index and its pixels (see [`Job`]): all that were
@@ -161,10 +171,11 @@ impl Message {
                 w.u32(*threads);
                 w.opt_str(failure.as_deref());
             }
-            Message::Frame { frame, update, job, units, lattices, last } => {
+            Message::Frame { frame, update, light_paths, job, units, lattices, last } => {
                 w.u8(FRAME);
                 w.u64(*frame);
                 w.bytes(update);
+                w.bytes(light_paths);
                 match job {
                     Job::Tiles => w.u8(0),
                     Job::Lattices { pass, preview } => {
@@ -268,13 +279,14 @@ impl Message {
         let m = match r.u8()? {
             HELLO => Message::Hello { protocol: r.u32()?, build: r.bytes()?, threads: r.u32()?, failure: r.opt_str()? },
             FRAME => {
-                let (frame, update) = (r.u64()?, r.bytes()?);
+                let (frame, update, light_paths) = (r.u64()?, r.bytes()?, r.bytes()?);
                 let job = match r.u8()? {
                     0 => Job::Tiles,
                     1 => Job::Lattices { pass: r.u32()?, preview: r.bool()? },
                     v => return Err(format!("{v} is no kind of job")),
                 };
-                Message::Frame { frame, update, job, units: r.u32s()?, lattices: r.lattices()?, last: r.bool()? }
+                let (units, lattices, last) = (r.u32s()?, r.lattices()?, r.bool()?);
+                Message::Frame { frame, update, light_paths, job, units, lattices, last }
             }
             ASSIGN => Message::Assign { frame: r.u64()?, units: r.u32s()?, lattices: r.lattices()?, last: r.bool()? },
             RENDERED => {
@@ -493,6 +505,7 @@ mod tests {
             Message::Frame {
                 frame: 3,
                 update: vec![9; 10],
+                light_paths: vec![1, 2],
                 job: Job::Tiles,
                 units: vec![0, 5, 7],
                 lattices: vec![],
@@ -501,6 +514,7 @@ mod tests {
             Message::Frame {
                 frame: 4,
                 update: vec![],
+                light_paths: vec![],
                 job: Job::Lattices { pass: 9, preview: true },
                 units: vec![1],
                 lattices: vec![LatticeUnit { lattice: PixelLattice { x0: 8, y0: 16, stride: 2 }, lanes: u64::MAX }],

@@ -6,7 +6,7 @@ use super::message::{build_fingerprint, Job, LatticeUnit, Message, PROTOCOL_VERS
 use super::transport::Transport;
 use super::DistributedError;
 use crate::render::progressive::LatticeTracer;
-use crate::render::{LightPathCache, TileRenderer, World};
+use crate::render::{LightPaths, TileRenderer, World};
 use crate::tiles::Tile;
 use std::collections::VecDeque;
 use std::sync::{Arc, Condvar, Mutex};
@@ -105,12 +105,21 @@ pub fn serve<T: Transport + ?Sized>(
         failure: failure.clone(),
     };
     transport.send(0, &hello.encode())?;
-    // The light paths of the viewer's pass being traced: its pieces come as frames of one world.
-    let light_paths = LightPathCache::default();
+    // The light paths the master last sent: a viewer's pass sends them with its first piece only.
+    let mut kept_paths = LightPaths::default();
     loop {
         match receive(transport)? {
             Message::Quit => return Ok(()),
-            Message::Frame { frame, update, job, units, lattices, last } => {
+            Message::Frame { frame, update, light_paths, job, units, lattices, last } => {
+                if !light_paths.is_empty() {
+                    kept_paths = LightPaths::decode(&light_paths)
+                        .map_err(|message| DistributedError::Protocol { rank: transport.rank(), message })?;
+                }
+                // A frame of tiles comes with its own paths (or has none); a piece of a pass uses its pass's.
+                let paths = match job {
+                    Job::Tiles if light_paths.is_empty() => LightPaths::default(),
+                    _ => kept_paths.clone(),
+                };
                 let world = match scene.as_deref_mut() {
                     // On the pool: building BVHs uses the worker's threads, not every core.
                     Some(s) => pool.install(|| s.world(&update)),
@@ -120,17 +129,8 @@ pub fn serve<T: Transport + ?Sized>(
                     Ok(world) => {
                         let link = scene.as_deref().and_then(|s| s.fetch_link());
                         let first = (units, lattices);
-                        let rendered = render_share(
-                            transport,
-                            &world,
-                            frame,
-                            job,
-                            first,
-                            last,
-                            pool,
-                            link.as_deref(),
-                            &light_paths,
-                        );
+                        let rendered =
+                            render_share(transport, &world, frame, job, first, last, pool, link.as_deref(), &paths);
                         if let Some(s) = scene.as_deref_mut() {
                             s.finished(world);
                         }
@@ -266,14 +266,16 @@ fn render_share<T: Transport + ?Sized>(
     mut last: bool,
     pool: &rayon::ThreadPool,
     link: Option<&FetchLink>,
-    light_paths: &LightPathCache,
+    paths: &LightPaths,
 ) -> Result<bool, DistributedError> {
     let mut pending = Pending::default();
     let start = Instant::now();
     let renderer = Units::new(world, job);
-    if let Units::Lattices(tracer) = &renderer {
-        tracer.reuse_light_paths(light_paths);
-    }
+    // Before any render thread starts: without paths, the first that needs them traces them.
+    match &renderer {
+        Units::Tiles { renderer, .. } => renderer.use_light_paths(paths),
+        Units::Lattices(tracer) => tracer.use_light_paths(paths),
+    };
     let queue = UnitQueue::default();
     let mut outstanding = 0usize;
     let give = |units: Vec<u32>, lattices: Vec<LatticeUnit>, outstanding: &mut usize| -> Result<(), DistributedError> {
@@ -341,9 +343,6 @@ fn render_share<T: Transport + ?Sized>(
     })?;
     if quit {
         return Ok(true);
-    }
-    if let Units::Lattices(tracer) = &renderer {
-        tracer.keep_light_paths(light_paths);
     }
     let mut counts = super::master::counts_of(&renderer.report(start));
     counts.texture_warnings = world

@@ -13,7 +13,7 @@ use super::primary::{
 };
 use super::sampling::{mix, radical_inverse};
 use super::shade::{shade_packet, shade_packets};
-use super::work::{Frame, PixelImage, Sample};
+use super::work::{Frame, LightPaths, PixelImage, Sample};
 use super::world::{Antialiasing, World};
 use crate::camera::{packet_lane_offset, PACKET_LANE_OFFSETS, PACKET_SIDE};
 use crate::ray::{HitPacket, PACKET_SIZE};
@@ -803,6 +803,18 @@ impl<'w> TileRenderer<'w> {
     /// traces them.
     pub fn prepare_light_paths(&self) {
         super::virtual_lights::prepare(&self.frame);
+    }
+
+    /// The light paths the frame has traced so far (all of them after
+    /// [`TileRenderer::prepare_light_paths`]).
+    pub fn light_paths(&self) -> LightPaths {
+        LightPaths::of(&self.frame)
+    }
+
+    /// Gives the frame light paths traced elsewhere for the same world, seed and options (a
+    /// distributed master's), before any tile is rendered; returns whether it took any.
+    pub fn use_light_paths(&self, paths: &LightPaths) -> bool {
+        paths.lend(&self.frame)
     }
 
     /// The frame being rendered (its world and its counters).

@@ -40,7 +40,7 @@ pub use frame::{
 pub use primary::{primary_rays, primary_rays_into, CameraSample, PrimaryRays};
 pub(crate) use stats::ShaderKindTimer;
 pub use stats::Stats;
-pub use work::{Frame, LightPathCache, Sample};
+pub use work::{Frame, LightPathCache, LightPaths, Sample};
 pub use world::{
     check_image_size, AccelUpdate, Antialiasing, AreaLight, CameraSetup, InstanceParts, InstanceShading, LightSource,
     Material, RenderOptions, World, MAX_AREA_SAMPLES, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE,

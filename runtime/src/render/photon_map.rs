@@ -30,10 +30,61 @@ pub const MAX_ESTIMATOR: usize = 1024;
 
 impl PhotonMap {
     pub fn new(mut photons: Vec<Photon>) -> PhotonMap {
-        photons.retain(|p| p.p.is_finite() && p.power.is_finite());
+        photons.retain(|p| p.p.is_finite() && p.power.is_finite() && p.direction.is_finite());
         let mut axes = vec![0u8; photons.len()];
         build(&mut photons, &mut axes, 0);
         PhotonMap { photons, axes }
+    }
+
+    /// How many photons the map holds.
+    pub fn len(&self) -> usize {
+        self.photons.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.photons.is_empty()
+    }
+
+    /// Appends the map to `out` as it lies in memory, tree order kept: a count, then each photon's
+    /// position, power and direction (nine floats) and its splitting axis.
+    pub fn encode(&self, out: &mut Vec<u8>) {
+        out.extend_from_slice(&(self.photons.len() as u64).to_le_bytes());
+        for (photon, axis) in self.photons.iter().zip(&self.axes) {
+            for v in [photon.p, photon.power, photon.direction] {
+                for c in v.to_array() {
+                    out.extend_from_slice(&c.to_le_bytes());
+                }
+            }
+            out.push(*axis);
+        }
+    }
+
+    /// The map [`PhotonMap::encode`] wrote at the start of `bytes`, and the bytes after it; an
+    /// error for bytes that are short, a count they cannot hold, a value that is not finite or an
+    /// axis that is not 0, 1 or 2. (Any order of valid photons is a safe tree to search: a wrong
+    /// order finds the wrong photons, never reads outside the map.)
+    pub fn decode(bytes: &[u8]) -> Result<(PhotonMap, &[u8]), String> {
+        const PHOTON_BYTES: usize = 9 * 4 + 1;
+        let (count, rest) = bytes.split_first_chunk::<8>().ok_or("a photon map without its count")?;
+        let count = u64::from_le_bytes(*count);
+        let size = usize::try_from(count).ok().and_then(|n| n.checked_mul(PHOTON_BYTES));
+        let Some((body, rest)) = size.and_then(|size| rest.split_at_checked(size)) else {
+            return Err(format!("a photon map of {count} photons in {} bytes", rest.len()));
+        };
+        let mut photons = Vec::with_capacity(body.len() / PHOTON_BYTES);
+        let mut axes = Vec::with_capacity(body.len() / PHOTON_BYTES);
+        for chunk in body.chunks_exact(PHOTON_BYTES) {
+            let f = |i: usize| f32::from_le_bytes([chunk[4 * i], chunk[4 * i + 1], chunk[4 * i + 2], chunk[4 * i + 3]]);
+            let v = |i: usize| Vec3A::new(f(i), f(i + 1), f(i + 2));
+            let photon = Photon { p: v(0), power: v(3), direction: v(6) };
+            let axis = chunk[36];
+            if !(photon.p.is_finite() && photon.power.is_finite() && photon.direction.is_finite()) || axis > 2 {
+                return Err(format!("photon {} of the map is damaged", photons.len()));
+            }
+            photons.push(photon);
+            axes.push(axis);
+        }
+        Ok((PhotonMap { photons, axes }, rest))
     }
 
     /// The irradiance at `p` on a surface facing `n` (unit; zero: any way) from the `k` nearest

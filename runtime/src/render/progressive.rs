@@ -30,7 +30,7 @@ use super::pixel::{reads_pixels, shade_pixels, TilePixels};
 use super::primary::{primary_rays, CameraSample};
 use super::sampling::radical_inverse;
 use super::shade::shade_packet;
-use super::work::{Frame, LightPathCache, PixelImage, Sample};
+use super::work::{Frame, LightPathCache, LightPaths, PixelImage, Sample};
 use super::world::{Antialiasing, World};
 use crate::camera::packet_lane_offset;
 use crate::ray::{HitPacket, PACKET_SIZE};
@@ -252,6 +252,17 @@ impl<'w> LatticeTracer<'w> {
     /// Leaves the light paths traced so far in `cache`, for the pass's next pieces.
     pub fn keep_light_paths(&self, cache: &LightPathCache) {
         cache.keep(&self.frame);
+    }
+
+    /// The light paths the pass has traced so far.
+    pub fn light_paths(&self) -> LightPaths {
+        LightPaths::of(&self.frame)
+    }
+
+    /// Gives the pass light paths traced elsewhere for the same world and pass (a distributed
+    /// master's), before any lattice is traced; returns whether it took any.
+    pub fn use_light_paths(&self, paths: &LightPaths) -> bool {
+        paths.lend(&self.frame)
     }
 
     /// Traces the lanes `lanes` of `lattice` (see [`trace_lattice`]).

@@ -78,22 +78,152 @@ impl<'w> Frame<'w> {
     }
 }
 
+/// A frame's light paths as traced: its virtual lights and its caustic photon map, each where the
+/// frame's options ask for them. A distributed master traces them once and sends them to its
+/// workers ([`LightPaths::encode`]), as the paper's master did.
+#[derive(Clone, Debug, Default)]
+pub struct LightPaths {
+    pub virtual_lights: Option<Arc<VirtualLights>>,
+    pub caustics: Option<Arc<PhotonMap>>,
+}
+
+/// The most virtual lights or interleaving sets decoded light paths may hold (what the options
+/// can ask for, with room to spare).
+const MAX_DECODED_LIGHTS: u64 = 1 << 26;
+
+impl LightPaths {
+    /// The light paths `frame` has traced so far.
+    pub(crate) fn of(frame: &Frame) -> LightPaths {
+        LightPaths { virtual_lights: frame.virtual_lights.get().cloned(), caustics: frame.caustics.get().cloned() }
+    }
+
+    /// Gives `frame` these light paths where it has not traced its own; returns whether it took
+    /// any.
+    pub(crate) fn lend(&self, frame: &Frame) -> bool {
+        let mut lent = false;
+        if let Some(v) = &self.virtual_lights {
+            lent |= frame.virtual_lights.set(v.clone()).is_ok();
+        }
+        if let Some(c) = &self.caustics {
+            lent |= frame.caustics.set(c.clone()).is_ok();
+        }
+        lent
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.virtual_lights.is_none() && self.caustics.is_none()
+    }
+
+    /// Whether `self` and `other` are the same traced paths (not merely equal ones).
+    pub fn same(&self, other: &LightPaths) -> bool {
+        let same = |a: Option<&Arc<VirtualLights>>, b: Option<&Arc<VirtualLights>>| match (a, b) {
+            (Some(a), Some(b)) => Arc::ptr_eq(a, b),
+            (a, b) => a.is_none() && b.is_none(),
+        };
+        let same_map = |a: Option<&Arc<PhotonMap>>, b: Option<&Arc<PhotonMap>>| match (a, b) {
+            (Some(a), Some(b)) => Arc::ptr_eq(a, b),
+            (a, b) => a.is_none() && b.is_none(),
+        };
+        same(self.virtual_lights.as_ref(), other.virtual_lights.as_ref())
+            && same_map(self.caustics.as_ref(), other.caustics.as_ref())
+    }
+
+    /// Appends the paths to `out`: a flag byte (bit 0: virtual lights follow, bit 1: a photon
+    /// map), then the virtual lights (interleave, clamp, the number of sets and each set's lights,
+    /// nine floats a light) and the photon map ([`PhotonMap::encode`]), little-endian.
+    pub fn encode(&self, out: &mut Vec<u8>) {
+        out.push(u8::from(self.virtual_lights.is_some()) | u8::from(self.caustics.is_some()) << 1);
+        if let Some(v) = &self.virtual_lights {
+            out.extend_from_slice(&v.interleave.to_le_bytes());
+            out.extend_from_slice(&v.clamp_squared.to_le_bytes());
+            out.extend_from_slice(&(v.sets.len() as u64).to_le_bytes());
+            for set in &v.sets {
+                out.extend_from_slice(&(set.len() as u64).to_le_bytes());
+                for light in set {
+                    for c in [light.p, light.n, light.power].iter().flat_map(|v| v.to_array()) {
+                        out.extend_from_slice(&c.to_le_bytes());
+                    }
+                }
+            }
+        }
+        if let Some(c) = &self.caustics {
+            c.encode(out);
+        }
+    }
+
+    /// The paths [`LightPaths::encode`] wrote, all of `bytes`; empty bytes are no paths. An error
+    /// for anything else: short, too long, damaged values, counts beyond what options allow.
+    pub fn decode(bytes: &[u8]) -> Result<LightPaths, String> {
+        let Some((&flags, mut rest)) = bytes.split_first() else { return Ok(LightPaths::default()) };
+        if flags > 3 {
+            return Err(format!("light paths with flags {flags}"));
+        }
+        let mut take = |n: usize| -> Result<&[u8], String> {
+            let (head, tail) = rest.split_at_checked(n).ok_or("light paths cut short")?;
+            rest = tail;
+            Ok(head)
+        };
+        let u64_of = |b: &[u8]| u64::from_le_bytes(b.try_into().unwrap_or([0; 8]));
+        let f32_of = |b: &[u8]| f32::from_le_bytes(b.try_into().unwrap_or([0; 4]));
+        let mut paths = LightPaths::default();
+        if flags & 1 != 0 {
+            let interleave = u32::from_le_bytes(take(4)?.try_into().unwrap_or([0; 4]));
+            let clamp_squared = f32_of(take(4)?);
+            let set_count = u64_of(take(8)?);
+            if interleave == 0
+                || u64::from(interleave) * u64::from(interleave) != set_count
+                || !clamp_squared.is_finite()
+            {
+                return Err(format!("virtual lights in {set_count} sets of interleave {interleave}"));
+            }
+            let mut sets = Vec::new();
+            let mut total = 0u64;
+            for _ in 0..set_count {
+                let count = u64_of(take(8)?);
+                total = total.saturating_add(count);
+                if total > MAX_DECODED_LIGHTS {
+                    return Err(format!("more than {MAX_DECODED_LIGHTS} virtual lights"));
+                }
+                let body = take(count as usize * 36)?;
+                let mut set = Vec::with_capacity(count as usize);
+                for light in body.chunks_exact(36) {
+                    let f = |i: usize| f32_of(&light[4 * i..4 * i + 4]);
+                    let v = |i: usize| Vec3A::new(f(i), f(i + 1), f(i + 2));
+                    let light = VirtualLight { p: v(0), n: v(3), power: v(6) };
+                    if !(light.p.is_finite() && light.n.is_finite() && light.power.is_finite()) {
+                        return Err("a virtual light is damaged".into());
+                    }
+                    set.push(light);
+                }
+                sets.push(set);
+            }
+            paths.virtual_lights = Some(Arc::new(VirtualLights { sets, interleave, clamp_squared }));
+        }
+        if flags & 2 != 0 {
+            let (map, tail) = PhotonMap::decode(rest)?;
+            paths.caustics = Some(Arc::new(map));
+            rest = tail;
+        }
+        if !rest.is_empty() {
+            return Err(format!("{} bytes after the light paths", rest.len()));
+        }
+        Ok(paths)
+    }
+}
+
 /// The light paths of the last pass traced from a world, kept by a caller that traces each pass in
 /// pieces (the viewer's slices of a pass, a worker's share of a frame's lattices), so that every
 /// piece uses them instead of tracing the same paths again. They are lent to a frame only when
 /// traced from the same world contents (`World::prepare` renews the world's version), seed and GI
 /// options.
 #[derive(Default)]
-pub struct LightPathCache(Mutex<Option<KeptLightPaths>>);
+pub struct LightPathCache(Mutex<Option<(LightPathKey, LightPaths)>>);
 
-struct KeptLightPaths {
-    key: (u64, u32, GiOptions),
-    virtual_lights: Option<Arc<VirtualLights>>,
-    caustics: Option<Arc<PhotonMap>>,
-}
+/// What light paths are traced from: the world's version, the seed and the GI options.
+type LightPathKey = (u64, u32, GiOptions);
 
 impl LightPathCache {
-    fn key(frame: &Frame) -> (u64, u32, GiOptions) {
+    fn key(frame: &Frame) -> LightPathKey {
         (frame.world.version(), frame.gi_seed, frame.world.options.gi)
     }
 
@@ -101,15 +231,7 @@ impl LightPathCache {
     /// options); returns whether there were any.
     pub(crate) fn lend(&self, frame: &Frame) -> bool {
         let kept = self.0.lock().unwrap_or_else(PoisonError::into_inner);
-        let Some(k) = kept.as_ref().filter(|k| k.key == Self::key(frame)) else { return false };
-        let mut lent = false;
-        if let Some(v) = &k.virtual_lights {
-            lent |= frame.virtual_lights.set(v.clone()).is_ok();
-        }
-        if let Some(c) = &k.caustics {
-            lent |= frame.caustics.set(c.clone()).is_ok();
-        }
-        lent
+        kept.as_ref().filter(|(key, _)| *key == Self::key(frame)).is_some_and(|(_, paths)| paths.lend(frame))
     }
 
     /// Keeps the light paths `frame` has traced so far (with those kept for the same frame that it
@@ -117,13 +239,15 @@ impl LightPathCache {
     pub(crate) fn keep(&self, frame: &Frame) {
         let key = Self::key(frame);
         let mut kept = self.0.lock().unwrap_or_else(PoisonError::into_inner);
-        let same = kept.take().filter(|k| k.key == key);
-        let (old_lights, old_caustics) = same.map_or((None, None), |k| (k.virtual_lights, k.caustics));
-        *kept = Some(KeptLightPaths {
+        let old = kept.take().filter(|(k, _)| *k == key).map(|(_, paths)| paths).unwrap_or_default();
+        let new = LightPaths::of(frame);
+        *kept = Some((
             key,
-            virtual_lights: frame.virtual_lights.get().cloned().or(old_lights),
-            caustics: frame.caustics.get().cloned().or(old_caustics),
-        });
+            LightPaths {
+                virtual_lights: new.virtual_lights.or(old.virtual_lights),
+                caustics: new.caustics.or(old.caustics),
+            },
+        ));
     }
 }
 
