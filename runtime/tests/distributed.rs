@@ -765,3 +765,40 @@ fn light_paths_decode_to_themselves_and_damaged_ones_are_errors() {
     huge.extend_from_slice(&u64::MAX.to_le_bytes());
     assert!(LightPaths::decode(&huge).is_err(), "a count no bytes hold");
 }
+
+/// An alpha mask is read when the world is built: a worker fetches its texture from the master
+/// while it builds the frame's world, and cuts the object as one process does (a texture that
+/// is missing leaves the object solid, with the same warning, instead of a worker waiting for
+/// an answer no one sends).
+#[test]
+fn workers_fetch_alpha_masks_while_they_build_the_world() -> Result<(), DistributedError> {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    image::RgbaImage::from_fn(8, 8, |x, y| {
+        image::Rgba([200, 200, 200, if (x / 2 + y / 2) % 2 == 0 { 255 } else { 0 }])
+    })
+    .save(dir.path().join("holes.png"))
+    .expect("a PNG");
+    let mut rt = little_scene().expect("the little scene");
+    rt.add_texture_search_path(dir.path().to_path_buf());
+    let e = |e: rtsl_runtime::api::ApiError| e.to_string();
+    let cut = |rt: &mut Context, name: &str| -> Result<(), String> {
+        rt.alpha_mask(Some(name));
+        let plastic = rt.find_shader("plastic").map_err(e)?;
+        let quad = rt.begin_object().map_err(e)?;
+        rt.bind_shader(plastic).map_err(e)?;
+        rt.begin(Primitive::Quads).map_err(e)?;
+        for (x, y) in [(-1.0, 0.2), (1.0, 0.2), (1.0, 1.6), (-1.0, 1.6)] {
+            rt.vertex(x, y, 0.8).map_err(e)?;
+        }
+        rt.end().map_err(e)?;
+        rt.end_object().map_err(e)?;
+        rt.instantiate_object(quad).map_err(e)?;
+        rt.alpha_mask(None);
+        Ok(())
+    };
+    cut(&mut rt, "holes.png").expect("a cut-out quad");
+    cut(&mut rt, "missing.png").expect("a solid quad");
+    let frames = both_ways(rt, 2, 1, &[nothing])?;
+    assert_same(&frames, "a scene with alpha masks");
+    Ok(())
+}

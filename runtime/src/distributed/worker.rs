@@ -121,8 +121,7 @@ pub fn serve<T: Transport + ?Sized>(
                     _ => kept_paths.clone(),
                 };
                 let world = match scene.as_deref_mut() {
-                    // On the pool: building BVHs uses the worker's threads, not every core.
-                    Some(s) => pool.install(|| s.world(&update)),
+                    Some(s) => build_world(transport, frame, pool, s, &update)?,
                     None => Err(failure.clone().unwrap_or_default()),
                 };
                 let result = match world {
@@ -157,6 +156,49 @@ pub fn serve<T: Transport + ?Sized>(
             _ => return Err(out_of_place(transport)),
         }
     }
+}
+
+/// Builds the frame's world from `update` on the pool (building BVHs uses the worker's threads,
+/// not every core) while this thread answers what building it fetches: an object's alpha mask
+/// reads its texture, which a worker fetches from the master, and the master serves the frame's
+/// fetches from the moment it sends the frame.
+fn build_world<T: Transport + ?Sized>(
+    transport: &T,
+    frame: u64,
+    pool: &rayon::ThreadPool,
+    scene: &mut dyn WorkerScene,
+    update: &[u8],
+) -> Result<Result<World, String>, DistributedError> {
+    let Some(link) = scene.fetch_link() else { return Ok(pool.install(|| scene.world(update))) };
+    std::thread::scope(|s| {
+        let building = s.spawn(|| pool.install(|| scene.world(update)));
+        let mut pending = Pending::default();
+        let answered = (|| {
+            while !building.is_finished() {
+                let (objects, textures) = pending.take(&link);
+                if !objects.is_empty() || !textures.is_empty() {
+                    transport.send(0, &Message::Fetch { frame, objects, textures }.encode())?;
+                }
+                while let Some((rank, bytes)) = transport.try_recv()? {
+                    match decode_from(transport, rank, &bytes)? {
+                        Message::Data { frame: f, meshes, textures } if f == frame => pending.answer(meshes, textures),
+                        _ => return Err(out_of_place(transport)),
+                    }
+                }
+                std::thread::sleep(POLL);
+            }
+            Ok(())
+        })();
+        // Whatever happened, no fetch of the build waits any longer: their senders go, so their
+        // receivers give up at once (the build then reports what never came).
+        drop(pending);
+        while !building.is_finished() {
+            drop(link.take_requests());
+            std::thread::sleep(POLL);
+        }
+        let built = building.join().unwrap_or_else(|_| Err("building the frame's world panicked".into()));
+        answered.map(|()| built)
+    })
 }
 
 /// The next message from the master.
