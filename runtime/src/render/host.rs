@@ -15,10 +15,9 @@ use crate::shading::ShaderInstance;
 use crate::texture::{Grid, LookupLanes, LookupOptions, MipMap, TextureCache};
 use glam::{Affine3A, Mat4, Vec3A, Vec4};
 use rtsl_compiler::abi::{
-    same_category, shadow_query_of, HostTable, LightLanes, MessageOut, StrRef, CONE_ROWS, MAX_LIGHTS, SHADOW_ROWS,
+    same_category, shadow_query_of, Builtin, GatherHit, HostTable, LightLanes, MessageOut, StrRef, CONE_ROWS,
+    MAX_LIGHTS, SHADOW_ROWS,
 };
-use rtsl_compiler::builtins::Builtin;
-use rtsl_compiler::shadeops::gather::GatherHit;
 use std::cell::RefCell;
 use std::collections::HashMap;
 use std::ffi::c_void;
