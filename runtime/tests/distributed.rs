@@ -707,6 +707,7 @@ fn the_master_traces_light_paths_once_and_sends_them() -> Result<(), Distributed
     rtsl_runtime::rib::load::load_file(&mut rt, &repo("examples/scenes/gi_box.rib")).expect("the scene loads");
     (rt.options.width, rt.options.height) = (32, 24);
     rt.options.gi.caustic_photons = 3000;
+    rt.options.gi.global_photons = 1000;
     with_two_workers(Duration::from_secs(120), |master| {
         let world = rt.build_world().expect("a world");
         let (fb, _) = master.render_context(&rt, &world, None)?;
@@ -737,11 +738,12 @@ fn light_paths_decode_to_themselves_and_damaged_ones_are_errors() {
     let mut rt = Context::new();
     rtsl_runtime::rib::load::load_file(&mut rt, &repo("examples/scenes/gi_box.rib")).expect("the scene loads");
     rt.options.gi.caustic_photons = 2000;
+    rt.options.gi.global_photons = 500;
     let world = rt.build_world().expect("a world");
     let renderer = TileRenderer::new(&world);
     renderer.prepare_light_paths();
     let paths = renderer.light_paths();
-    assert!(paths.virtual_lights.is_some() && paths.caustics.is_some());
+    assert!(paths.virtual_lights.is_some() && paths.caustics.is_some() && paths.global_photons.is_some());
     let mut bytes = Vec::new();
     paths.encode(&mut bytes);
     let back = LightPaths::decode(&bytes).expect("decodes");

@@ -12,6 +12,20 @@ use std::path::Path;
 /// over the hemisphere); every other hit shows the direct light it reflects, `Cs E / pi`: so the
 /// picture is exactly one bounce of indirect light, by whichever estimate is on.
 fn box_scene(options: &str) -> (Context, Vec<String>) {
+    let shader = "surface onebounce() {
+        normal Nf = faceforward(normalize(N), I);
+        if (raydepth() == 0) {
+            Ci = indirectdiffuse(P, Nf, 192);
+        } else {
+            Ci = Cs * diffuse(Nf) / PI;
+        }
+        Oi = 1;
+    }";
+    box_scene_shaded(options, shader)
+}
+
+/// [`box_scene`] with every surface shaded by `shader` (a surface named `onebounce`).
+fn box_scene_shaded(options: &str, shader: &str) -> (Context, Vec<String>) {
     let rib = format!(
         r#"
         Format 32 24 1
@@ -33,15 +47,6 @@ fn box_scene(options: &str) -> (Context, Vec<String>) {
         "#
     );
     let mut rt = Context::new();
-    let shader = "surface onebounce() {
-        normal Nf = faceforward(normalize(N), I);
-        if (raydepth() == 0) {
-            Ci = indirectdiffuse(P, Nf, 192);
-        } else {
-            Ci = Cs * diffuse(Nf) / PI;
-        }
-        Oi = 1;
-    }";
     rt.compile_shader("onebounce", shader).expect("the test shader compiles");
     let loaded = rtsl_runtime::rib::load::load_str(&mut rt, &rib, Path::new("<box>")).expect("the box loads");
     rt.options.max_ray_depth = 1;
@@ -420,4 +425,91 @@ fn the_pieces_of_a_pass_share_its_light_paths() {
     trace_lattices_keeping(&world, &lattices[..1], 0, false, &all, &cache);
     world.prepare();
     assert!(!LatticeTracer::new(&world, 0, false).reuse_light_paths(&cache), "a changed world");
+}
+
+/// The global photon map's estimate on a floor lit by a point light alone (nothing to bounce
+/// light back) is the direct irradiance, `I h / d^3`; in a closed box it adds the light that
+/// arrives after bounces, as virtual lights count it.
+#[test]
+fn global_photons_give_the_irradiance_of_direct_and_bounced_light() {
+    use rtsl_runtime::api::Primitive;
+    use rtsl_runtime::glam::Vec3A;
+    use rtsl_runtime::shading::ParamValue;
+    let e = |e: rtsl_runtime::api::ApiError| e.to_string();
+    let mut rt = Context::new();
+    rt.options.width = 24;
+    rt.options.height = 24;
+    rt.options.antialiasing = rtsl_runtime::render::Antialiasing::Grid { jitter: false };
+    rt.options.gi.global_photons = 300_000;
+    rt.camera_look_at(Vec3A::new(0.0, 2.5, 0.01), Vec3A::ZERO, Vec3A::Z, 50.0);
+    let global = "surface global() {
+        normal Nf = faceforward(normalize(N), I);
+        Ci = photonmap(\"global\", P, Nf, \"estimator\", 300);
+        Oi = 1;
+    }";
+    let shader = rt.compile_shader("global", global).map_err(e).expect("compiles");
+    rt.color(0.8, 0.8, 0.8);
+    let floor = rt.begin_object().map_err(e).expect("an object");
+    rt.bind_shader(shader).map_err(e).expect("bound");
+    rt.begin(Primitive::Quads).map_err(e).expect("quads");
+    for (x, z) in [(-3.0, -3.0), (3.0, -3.0), (3.0, 3.0), (-3.0, 3.0)] {
+        rt.vertex(x, 0.0, z).map_err(e).expect("a vertex");
+    }
+    rt.end().map_err(e).expect("end");
+    rt.end_object().map_err(e).expect("end_object");
+    rt.instantiate_object(floor).map_err(e).expect("an instance");
+    let light = rt.find_shader("pointlight").map_err(e).expect("pointlight");
+    rt.light_source(light, &[("intensity", ParamValue::Float(4.0)), ("from", ParamValue::Point([0.0, 2.0, 0.0]))])
+        .map_err(e)
+        .expect("a light");
+    let world = rt.build_world().expect("a world");
+    let (fb, _) = render_frame(&world, None);
+    let (mut got, mut want, mut worst) = (0.0f64, 0.0f64, 0.0f32);
+    for y in 4..20 {
+        for x in 4..20 {
+            let i = (y * 24 + x) as usize;
+            let ray = rtsl_runtime::render::camera_ray(&world, x, y, 0.5, 0.5);
+            let t = -ray.origin.y / ray.direction.y;
+            let p = ray.origin + ray.direction * t;
+            let d = (p - Vec3A::new(0.0, 2.0, 0.0)).length();
+            let analytic = 4.0 * 2.0 / (d * d * d);
+            let estimate = fb.rgba[4 * i];
+            got += f64::from(estimate);
+            want += f64::from(analytic);
+            worst = worst.max((estimate / analytic - 1.0).abs());
+        }
+    }
+    let relative = (got / want - 1.0).abs();
+    eprintln!("global irradiance: estimate {got}, analytic {want} (relative error {relative}, worst pixel {worst})");
+    assert!(want > 0.0 && relative < 0.02, "estimate {got}, analytic {want}");
+    assert!(worst < 0.1, "the worst pixel is off by {worst}");
+
+    // In the closed box, the global map's irradiance less the direct part is the indirect light
+    // that virtual lights give: `indirectdiffuse()` is irradiance over pi.
+    let gathered = |options: &str, shader: &str| {
+        let (mut rt, warnings) = box_scene_shaded(options, shader);
+        assert!(warnings.is_empty(), "{warnings:?}");
+        let world = rt.build_world().expect("a world");
+        let fb = render_frame(&world, None).0;
+        mean(&fb, 4..28, 4..20)
+    };
+    let from_photons = gathered(
+        r#"Option "gi" "integer globalphotons" [400000]"#,
+        "surface onebounce() {
+            normal Nf = faceforward(normalize(N), I);
+            Ci = (photonmap(\"global\", P, Nf, \"estimator\", 200) - diffuse(Nf)) / PI;
+            Oi = 1;
+        }",
+    );
+    let from_lights = gathered(
+        r#"Option "gi" "integer virtuallights" [20000] "integer interleave" [1]"#,
+        "surface onebounce() {
+            normal Nf = faceforward(normalize(N), I);
+            Ci = indirectdiffuse(P, Nf, 1);
+            Oi = 1;
+        }",
+    );
+    let error = relative_error(from_photons, from_lights);
+    eprintln!("indirect light: global photons {from_photons:?}, virtual lights {from_lights:?} ({error})");
+    assert!(from_lights.iter().all(|&c| c > 0.0) && error < 0.08, "{from_photons:?} against {from_lights:?}");
 }

@@ -556,14 +556,17 @@ unsafe extern "C" fn host_texture(
             return;
         }
         5 => {
-            // The frame's own maps by name: "caustic" is the only one.
-            if name != "caustic" || c.frame.world.options.gi.caustic_photons == 0 {
-                return;
-            }
-            let frame = c.frame;
-            let map = frame
-                .caustics
-                .get_or_init(|| Arc::new(virtual_lights::timed(frame, || virtual_lights::trace_caustics(frame))));
+            // The frame's own maps by name: "caustic" and "global".
+            let (frame, gi) = (c.frame, c.frame.world.options.gi);
+            let map = match name {
+                "caustic" if gi.caustic_photons > 0 => frame
+                    .caustics
+                    .get_or_init(|| Arc::new(virtual_lights::timed(frame, || virtual_lights::trace_caustics(frame)))),
+                "global" if gi.global_photons > 0 => frame
+                    .global_photons
+                    .get_or_init(|| Arc::new(virtual_lights::timed(frame, || virtual_lights::trace_global(frame)))),
+                _ => return,
+            };
             let radius = virtual_lights::photon_search_radius(frame);
             for l in active() {
                 let (p, n) = (lane3(coords, 0, l), lane3(coords, 3, l).normalize_or_zero());

@@ -71,6 +71,19 @@ pub(super) fn trace_caustics(frame: &Frame) -> PhotonMap {
     PhotonMap::new(photons)
 }
 
+/// Traces the frame's global photons (`Option "gi" "globalphotons"`): paths from the lights that
+/// leave a photon, the power they carry as they arrive, on every matte surface they reach (the
+/// first one, and up to `bounces` more, cosine-distributed, through chrome and glass as these
+/// direct them): Jensen's global map, light paths L (S|D)* D.
+pub(super) fn trace_global(frame: &Frame) -> PhotonMap {
+    let bounces = frame.world.options.gi.bounces.clamp(1, MAX_BOUNCES);
+    let photons =
+        for_each_landing(frame, frame.world.options.gi.global_photons, 0x9E37_79B9_7F4A_7C15, |landing, seed, out| {
+            follow_to_global_photons(frame, landing, bounces + 1, seed, out);
+        });
+    PhotonMap::new(photons)
+}
+
 /// Traces the frame's light paths now, on the threads of the current rayon pool, where its options
 /// ask for them: a render calls this before shading, so that no shading thread waits while the
 /// first one to need them traces them alone.
@@ -81,6 +94,9 @@ pub(super) fn prepare(frame: &Frame) {
     }
     if gi.caustic_photons > 0 {
         frame.caustics.get_or_init(|| Arc::new(timed(frame, || trace_caustics(frame))));
+    }
+    if gi.global_photons > 0 {
+        frame.global_photons.get_or_init(|| Arc::new(timed(frame, || trace_global(frame))));
     }
 }
 
@@ -374,6 +390,47 @@ fn follow_to_virtual_lights(frame: &Frame, landing: Landing, bounces: u32, seed:
                 // Cosine sampling cancels the matte BRDF's cosine over pi: the path carries
                 // reflectance.
                 carried *= reflectance;
+                cosine_direction(n, h)
+            }
+            _ => {
+                specular += 1;
+                if specular > MAX_SPECULAR_DEPTH {
+                    return;
+                }
+                let Some((dir, tint)) = scatter_specular(model, reflectance, ray.direction, surface.ng, h) else {
+                    return;
+                };
+                carried *= tint;
+                dir
+            }
+        };
+        let Some(next) = bounce(frame, surface.p, dir) else { return };
+        (ray, hit, surface) = next;
+    }
+}
+
+/// Leaves a photon, the path's power as it arrives, on each of the first `stores` matte surfaces
+/// the path reaches, bouncing on from each cosine-distributed (its power then scaled by the
+/// surface's reflectance: cosine sampling cancels the matte BRDF's cosine over pi) and through
+/// chrome and glass as they direct it.
+fn follow_to_global_photons(frame: &Frame, landing: Landing, stores: u32, seed: u64, out: &mut Vec<Photon>) {
+    let Landing { mut ray, mut hit, mut surface, mut carried, .. } = landing;
+    let (mut stored, mut specular) = (0, 0);
+    loop {
+        let (reflectance, model) = reflectance_of(frame, &hit);
+        let h = mix(seed ^ (u64::from(stored + specular) << 32) ^ point_seed(surface.p));
+        let dir = match model {
+            PhotonModel::Matte => {
+                if carried.max_element() <= 0.0 || !carried.is_finite() {
+                    return;
+                }
+                out.push(Photon { p: surface.p, power: carried, direction: ray.direction.normalize_or_zero() });
+                stored += 1;
+                if stored == stores {
+                    return;
+                }
+                carried *= reflectance;
+                let n = if surface.ng.dot(ray.direction) > 0.0 { -surface.ng } else { surface.ng };
                 cosine_direction(n, h)
             }
             _ => {

@@ -40,6 +40,8 @@ pub struct Frame<'w> {
     /// The frame's caustic photon map, traced when a shader first looks it up
     /// (`virtual_lights::trace_caustics`).
     pub(crate) caustics: std::sync::OnceLock<Arc<PhotonMap>>,
+    /// The frame's global photon map (`virtual_lights::trace_global`).
+    pub(crate) global_photons: std::sync::OnceLock<Arc<PhotonMap>>,
     /// The seed of the frame's light paths: the options' own, or per pass of progressive
     /// refinement another, so that passes accumulate fresh virtual lights.
     pub(crate) gi_seed: u32,
@@ -72,6 +74,7 @@ impl<'w> Frame<'w> {
             invariant_light_rows: world.lights.iter().map(|_| std::sync::OnceLock::new()).collect(),
             virtual_lights: std::sync::OnceLock::new(),
             caustics: std::sync::OnceLock::new(),
+            global_photons: std::sync::OnceLock::new(),
             gi_seed: world.options.gi.seed,
             stages,
         }
@@ -85,6 +88,7 @@ impl<'w> Frame<'w> {
 pub struct LightPaths {
     pub virtual_lights: Option<Arc<VirtualLights>>,
     pub caustics: Option<Arc<PhotonMap>>,
+    pub global_photons: Option<Arc<PhotonMap>>,
 }
 
 /// The most virtual lights or interleaving sets decoded light paths may hold (what the options
@@ -94,7 +98,11 @@ const MAX_DECODED_LIGHTS: u64 = 1 << 26;
 impl LightPaths {
     /// The light paths `frame` has traced so far.
     pub(crate) fn of(frame: &Frame) -> LightPaths {
-        LightPaths { virtual_lights: frame.virtual_lights.get().cloned(), caustics: frame.caustics.get().cloned() }
+        LightPaths {
+            virtual_lights: frame.virtual_lights.get().cloned(),
+            caustics: frame.caustics.get().cloned(),
+            global_photons: frame.global_photons.get().cloned(),
+        }
     }
 
     /// Gives `frame` these light paths where it has not traced its own; returns whether it took
@@ -107,11 +115,14 @@ impl LightPaths {
         if let Some(c) = &self.caustics {
             lent |= frame.caustics.set(c.clone()).is_ok();
         }
+        if let Some(g) = &self.global_photons {
+            lent |= frame.global_photons.set(g.clone()).is_ok();
+        }
         lent
     }
 
     pub fn is_empty(&self) -> bool {
-        self.virtual_lights.is_none() && self.caustics.is_none()
+        self.virtual_lights.is_none() && self.caustics.is_none() && self.global_photons.is_none()
     }
 
     /// Whether `self` and `other` are the same traced paths (not merely equal ones).
@@ -126,13 +137,19 @@ impl LightPaths {
         };
         same(self.virtual_lights.as_ref(), other.virtual_lights.as_ref())
             && same_map(self.caustics.as_ref(), other.caustics.as_ref())
+            && same_map(self.global_photons.as_ref(), other.global_photons.as_ref())
     }
 
-    /// Appends the paths to `out`: a flag byte (bit 0: virtual lights follow, bit 1: a photon
-    /// map), then the virtual lights (interleave, clamp, the number of sets and each set's lights,
-    /// nine floats a light) and the photon map ([`PhotonMap::encode`]), little-endian.
+    /// Appends the paths to `out`: a flag byte (bit 0: virtual lights follow, bit 1: a caustic
+    /// photon map, bit 2: a global one), then the virtual lights (interleave, clamp, the number of
+    /// sets and each set's lights, nine floats a light) and the photon maps ([`PhotonMap::encode`]),
+    /// little-endian.
     pub fn encode(&self, out: &mut Vec<u8>) {
-        out.push(u8::from(self.virtual_lights.is_some()) | u8::from(self.caustics.is_some()) << 1);
+        out.push(
+            u8::from(self.virtual_lights.is_some())
+                | u8::from(self.caustics.is_some()) << 1
+                | u8::from(self.global_photons.is_some()) << 2,
+        );
         if let Some(v) = &self.virtual_lights {
             out.extend_from_slice(&v.interleave.to_le_bytes());
             out.extend_from_slice(&v.clamp_squared.to_le_bytes());
@@ -149,13 +166,16 @@ impl LightPaths {
         if let Some(c) = &self.caustics {
             c.encode(out);
         }
+        if let Some(g) = &self.global_photons {
+            g.encode(out);
+        }
     }
 
     /// The paths [`LightPaths::encode`] wrote, all of `bytes`; empty bytes are no paths. An error
     /// for anything else: short, too long, damaged values, counts beyond what options allow.
     pub fn decode(bytes: &[u8]) -> Result<LightPaths, String> {
         let Some((&flags, mut rest)) = bytes.split_first() else { return Ok(LightPaths::default()) };
-        if flags > 3 {
+        if flags > 7 {
             return Err(format!("light paths with flags {flags}"));
         }
         let mut take = |n: usize| -> Result<&[u8], String> {
@@ -204,6 +224,11 @@ impl LightPaths {
             paths.caustics = Some(Arc::new(map));
             rest = tail;
         }
+        if flags & 4 != 0 {
+            let (map, tail) = PhotonMap::decode(rest)?;
+            paths.global_photons = Some(Arc::new(map));
+            rest = tail;
+        }
         if !rest.is_empty() {
             return Err(format!("{} bytes after the light paths", rest.len()));
         }
@@ -246,6 +271,7 @@ impl LightPathCache {
             LightPaths {
                 virtual_lights: new.virtual_lights.or(old.virtual_lights),
                 caustics: new.caustics.or(old.caustics),
+                global_photons: new.global_photons.or(old.global_photons),
             },
         ));
     }

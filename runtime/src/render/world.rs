@@ -480,11 +480,23 @@ pub struct GiOptions {
     /// Paths traced per frame for the caustic photon map (`photonmap("caustic", ...)`): those
     /// whose first surface is specular leave a photon on the first diffuse one; 0: no map.
     pub caustic_photons: u32,
+    /// Paths traced per frame for the global photon map (`photonmap("global", ...)`): each leaves
+    /// a photon on every diffuse surface it reaches, directly or through others, up to `bounces`
+    /// + 1 of them; 0: no map.
+    pub global_photons: u32,
 }
 
 impl Default for GiOptions {
     fn default() -> Self {
-        GiOptions { virtual_lights: 0, bounces: 1, interleave: 3, clamp: 0.0, seed: 0, caustic_photons: 0 }
+        GiOptions {
+            virtual_lights: 0,
+            bounces: 1,
+            interleave: 3,
+            clamp: 0.0,
+            seed: 0,
+            caustic_photons: 0,
+            global_photons: 0,
+        }
     }
 }
 

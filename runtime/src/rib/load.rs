@@ -576,7 +576,8 @@ impl<'a> Loader<'a> {
                 }
                 (
                     "gi",
-                    setting @ ("virtuallights" | "bounces" | "interleave" | "clamp" | "seed" | "causticphotons"),
+                    setting @ ("virtuallights" | "bounces" | "interleave" | "clamp" | "seed" | "causticphotons"
+                    | "globalphotons"),
                 ) => {
                     use crate::render::world::{MAX_BOUNCES, MAX_INTERLEAVE, MAX_VIRTUAL_LIGHT_PATHS};
                     let Some(v) = f.filter(|v| v.is_finite() && *v >= 0.0) else {
@@ -590,6 +591,7 @@ impl<'a> Loader<'a> {
                         "interleave" => gi.interleave = v.clamp(1.0, MAX_INTERLEAVE as f32) as u32,
                         "clamp" => gi.clamp = v,
                         "causticphotons" => gi.caustic_photons = v.min(MAX_VIRTUAL_LIGHT_PATHS as f32) as u32,
+                        "globalphotons" => gi.global_photons = v.min(MAX_VIRTUAL_LIGHT_PATHS as f32) as u32,
                         _ => gi.seed = v.min(u32::MAX as f32) as u32,
                     }
                 }
