@@ -1,7 +1,7 @@
 //! Writes `examples/forest/forest.rib`: the mountain terrain of `../shared/scenes/mountain_terrain`
 //! under several hundred instances of the oak tree (`../shared/scenes/oak_tree`, alpha-masked
 //! leaves) and a few instances of the full Stanford dragon, lit by a low sun with sharp shadows.
-//! Instancing at scale for issue 8: two meshes of the tree and one dragon are stored once, and the
+//! Instancing at scale: two meshes of the tree and one dragon are stored once, and the
 //! instances add up to more than 8 million triangles.
 //!
 //! Trees and dragons stand where a ray cast straight down meets the terrain, on slopes gentle
@@ -102,7 +102,7 @@ fn main() -> anyhow::Result<()> {
     writeln!(
         rib,
         "##RenderMan RIB
-# The instanced forest (issue 8), written by `cargo run --release --example forest`
+# The instanced forest, written by `cargo run --release --example forest`
 # (examples/forest.rs); do not edit by hand. The mountain terrain under {} oaks (alpha-masked
 # leaves through the tracer's hit test) and {} full Stanford dragons: about {:.1} M triangles after
 # instancing, of which 0.9 M are stored. A low sun casts sharp shadows.
