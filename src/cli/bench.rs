@@ -575,7 +575,7 @@ pub struct BenchReloadArgs {
     /// Worker threads (0: one per core).
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
-    /// The scene, a RIB file whose surfaces use `plastic` (default: examples/scenes/cornell_box.rib).
+    /// The scene, a RIB file whose surfaces use `plastic` (default: plastic spheres on a plastic floor).
     #[arg(long)]
     pub scene: Option<PathBuf>,
     /// The reloader's debounce window in milliseconds (default: the library's).
@@ -583,19 +583,33 @@ pub struct BenchReloadArgs {
     pub quiet_ms: Option<u64>,
 }
 
-/// A directory removed when dropped.
-struct TempDir(PathBuf);
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
 /// The sum of a frame's pixels, to tell frames apart.
 fn frame_sum(fb: &rtsl_runtime::render::Framebuffer) -> f64 {
     fb.rgba.iter().map(|&v| f64::from(v)).sum()
 }
+
+/// `rtsl bench reload`'s scene when none is given.
+const RELOAD_SCENE: &str = r#"Format 320 240 1
+Projection "perspective" "fov" 40
+Translate 0 -0.5 6
+WorldBegin
+LightSource "ambientlight" 1 "intensity" 0.1
+LightSource "pointlight" 2 "from" [2 4 -3] "intensity" 40
+Color [0.8 0.8 0.8]
+Surface "plastic"
+Polygon "P" [-4 0 -4  4 0 -4  4 0 4  -4 0 4]
+Color [0.8 0.3 0.2]
+AttributeBegin
+Translate -1 1 0
+Sphere 1 -1 1 360
+AttributeEnd
+Color [0.2 0.4 0.8]
+AttributeBegin
+Translate 1.2 0.8 0.5
+Sphere 0.8 -0.8 0.8 360
+AttributeEnd
+WorldEnd
+"#;
 
 /// Runs `rtsl bench reload`: the latency of hot reload, from the moment an edit of `plastic.sl` is
 /// written to the first finished frame that uses the new code, through the watcher, the background
@@ -605,37 +619,29 @@ pub fn run_reload(args: &BenchReloadArgs) -> anyhow::Result<()> {
     use rtsl_runtime::reload::{ShaderReloader, DEFAULT_QUIET};
     use std::time::{Duration, Instant};
 
-    // plastic.sl and whatever it includes from the library, copied under a temporary directory
-    // with the library's layout (so relative includes still resolve).
-    let stdlib = rtsl_runtime::api::stdlib_dir().canonicalize().context("finding the shader library")?;
-    let original = stdlib.join("surface").join("plastic.sl");
-    let program = rtsl_runtime::shading::ShaderProgram::from_file(&original, &[])?;
-    let tmp = TempDir(std::env::temp_dir().join(format!("rtsl-bench-reload-{}", std::process::id())));
-    for f in &program.files {
-        let f = f.canonicalize().with_context(|| format!("finding {}", f.display()))?;
-        if let Ok(rel) = f.strip_prefix(&stdlib) {
-            let to = tmp.0.join(rel);
-            if let Some(d) = to.parent() {
-                std::fs::create_dir_all(d).with_context(|| format!("creating {}", d.display()))?;
-            }
-            std::fs::copy(&f, &to).with_context(|| format!("copying {} to {}", f.display(), to.display()))?;
-        }
-    }
-    drop(program);
+    // The library (as built into the binary) written under a temporary directory, where its
+    // plastic.sl is edited.
+    let tmp = super::ScratchDir::new("bench-reload")?;
+    rtsl_runtime::shading::library::write_to(&tmp.0).context("writing the shader library")?;
     let shader_dir = tmp.0.join("surface");
     let plastic = shader_dir.join("plastic.sl");
     let text = std::fs::read_to_string(&plastic).with_context(|| format!("reading {}", plastic.display()))?;
     let anchor = "Ci = Os * (";
     anyhow::ensure!(
         text.contains(anchor),
-        "{} no longer contains `{anchor}`, which the edits change",
-        original.display()
+        "the library's plastic.sl no longer contains `{anchor}`, which the edits change"
     );
 
-    let scene = args
-        .scene
-        .clone()
-        .unwrap_or_else(|| std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/scenes/cornell_box.rib"));
+    // The default scene: plastic spheres on a plastic floor under a point light, made here so that
+    // the benchmark needs no file of the source tree.
+    let scene = match &args.scene {
+        Some(scene) => scene.clone(),
+        None => {
+            let scene = tmp.0.join("reload.rib");
+            std::fs::write(&scene, RELOAD_SCENE).with_context(|| format!("writing {}", scene.display()))?;
+            scene
+        }
+    };
     let (mut rt, _) = super::render::load_scene(Some(&scene), std::slice::from_ref(&shader_dir), &[])?;
     (rt.options.width, rt.options.height) = args.size;
     let plastic_canon = plastic.canonicalize()?;

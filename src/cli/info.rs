@@ -5,6 +5,7 @@ use anyhow::Context as _;
 use rtsl_compiler::artifact::{self, Loaded};
 use rtsl_compiler::interface::ShaderInterface;
 use rtsl_compiler::{compile_file, Compilation, Options};
+use rtsl_runtime::api::ShaderLocation;
 use std::io::Write as _;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -28,20 +29,22 @@ pub struct InfoArgs {
     pub json: bool,
 }
 
-/// The file `arg` names: itself when it is a file (or looks like one), else the shader of that name
-/// on the search path.
-fn resolve(arg: &std::path::Path, shader_path: &[PathBuf]) -> anyhow::Result<PathBuf> {
+/// Where `arg` is: itself when it is a file (or looks like one), else the shader of that name on
+/// the search path or in the library.
+fn resolve(arg: &std::path::Path, shader_path: &[PathBuf]) -> anyhow::Result<ShaderLocation> {
     let looks_like_file = arg.is_file() || arg.extension().is_some() || arg.components().count() > 1;
     if looks_like_file {
-        return Ok(arg.to_path_buf());
+        return Ok(ShaderLocation::File(arg.to_path_buf()));
     }
     let mut search = shader_path.to_vec();
     if let Ok(env) = std::env::var("RTSL_SHADER_PATH") {
         search.extend(std::env::split_paths(&env));
     }
     let name = arg.display().to_string();
-    rtsl_runtime::api::find_shader_file(&name, &search).ok_or_else(|| {
-        anyhow::anyhow!("no shader named `{name}` on the search path (-S, RTSL_SHADER_PATH, the library)")
+    rtsl_runtime::api::locate_shader(&name, &search).ok_or_else(|| {
+        anyhow::anyhow!(
+            "no shader named `{name}` on the search path (-S, RTSL_SHADER_PATH, RTSL_STDLIB) or in the library"
+        )
     })
 }
 
@@ -71,13 +74,27 @@ fn interface_of(file: &std::path::Path, options: &Options) -> anyhow::Result<Opt
     Ok(from_compilation(&c))
 }
 
+/// The interface of a shader wherever it is: a file, or the library built into the binary.
+fn interface_at(location: &ShaderLocation, options: &Options) -> anyhow::Result<Option<ShaderInterface>> {
+    match location {
+        ShaderLocation::File(file) => interface_of(file, options),
+        ShaderLocation::Library(shader) => {
+            let c = rtsl_compiler::compile_source(&shader.label(), shader.source, options);
+            if !c.ok() {
+                eprint!("{}", c.render());
+            }
+            Ok(c.interface)
+        }
+    }
+}
+
 pub fn run(args: &InfoArgs) -> anyhow::Result<ExitCode> {
     let file = resolve(&args.file, &args.shader_path)?;
     if args.which {
-        println!("{}", file.display());
+        println!("{file}");
         return Ok(ExitCode::SUCCESS);
     }
-    let Some(iface) = interface_of(&file, &args.flags.options())? else {
+    let Some(iface) = interface_at(&file, &args.flags.options())? else {
         return Ok(ExitCode::from(1));
     };
     let iface = &iface;
@@ -85,7 +102,7 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<ExitCode> {
     let mut out = stdout.lock();
     if args.json {
         let mut value = serde_json::to_value(iface)?;
-        value["path"] = serde_json::Value::String(file.display().to_string());
+        value["path"] = serde_json::Value::String(file.to_string());
         writeln!(out, "{}", serde_json::to_string_pretty(&value)?)?;
         return Ok(ExitCode::SUCCESS);
     }

@@ -132,3 +132,22 @@ pub(crate) fn worker_pool(threads: usize) -> anyhow::Result<(usize, rayon::Threa
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().context("starting the worker threads")?;
     Ok((threads, pool))
 }
+
+/// A directory of its own under the system's temporary directory, removed when dropped.
+pub(crate) struct ScratchDir(pub std::path::PathBuf);
+
+impl ScratchDir {
+    /// `rtsl-PURPOSE-PID` under the temporary directory, made now.
+    pub(crate) fn new(purpose: &str) -> anyhow::Result<ScratchDir> {
+        use anyhow::Context as _;
+        let dir = std::env::temp_dir().join(format!("rtsl-{purpose}-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+        Ok(ScratchDir(dir))
+    }
+}
+
+impl Drop for ScratchDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}

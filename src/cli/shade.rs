@@ -82,9 +82,9 @@ pub struct BenchShadeArgs {
     /// Repeats for the JIT and the Rust code.
     #[arg(long, default_value_t = 20)]
     pub repeats: usize,
-    /// The library whose compile cost is measured.
-    #[arg(long, default_value = "stdlib_shaders")]
-    pub library: PathBuf,
+    /// The library whose compile cost is measured (default: the library built into the binary).
+    #[arg(long)]
+    pub library: Option<PathBuf>,
 }
 
 pub fn bench(args: &BenchShadeArgs) -> anyhow::Result<ExitCode> {
@@ -105,7 +105,15 @@ pub fn bench(args: &BenchShadeArgs) -> anyhow::Result<ExitCode> {
             r.max_difference
         )?;
     }
-    let mut compile = compile_benchmark(&args.library).map_err(anyhow::Error::msg)?;
+    let built_in = super::ScratchDir::new("bench-shade")?;
+    let library = match &args.library {
+        Some(dir) => dir.clone(),
+        None => {
+            rtsl_runtime::shading::library::write_to(&built_in.0).context("writing the shader library")?;
+            built_in.0.clone()
+        }
+    };
+    let mut compile = compile_benchmark(&library).map_err(anyhow::Error::msg)?;
     compile.sort_by(|a, b| a.micros.total_cmp(&b.micros));
     if let (Some(max), false) = (compile.last(), compile.is_empty()) {
         let median = compile[compile.len() / 2].micros;

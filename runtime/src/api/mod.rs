@@ -50,6 +50,7 @@ use crate::render::{
     Material, RenderOptions, World,
 };
 use crate::scene::{ObjectId as SceneObject, Scene, SceneError};
+use crate::shading::library::{self, LibraryShader};
 use crate::shading::{LightKind, ParamError, ParamValue, Program, ShaderError, ShaderInstance, ShaderProgram};
 use crate::texture::{TexImage, TextureCache, Wrap};
 use glam::{Affine3A, Quat, Vec2, Vec3, Vec3A};
@@ -347,21 +348,39 @@ impl Default for Context {
     }
 }
 
-/// Where shader `name` is found: in each directory of `search` (in order), then in the standard
-/// library's folders (`surface/`, `light/`, ...), the compiled artifact `NAME.rtso` (written by
-/// `rtsl compile -o`; it is checked against its sources when loaded) or else the source `NAME.sl`.
-/// A name found twice resolves to the first.
+/// Where shader `name` is found as a file: in each directory of `search` (in order), then in the
+/// folders (`surface/`, `light/`, ...) of the library directory `RTSL_STDLIB` names, the compiled
+/// artifact `NAME.rtso` (written by `rtsl compile -o`; it is checked against its sources when
+/// loaded) or else the source `NAME.sl`. A name found twice resolves to the first. Without a file,
+/// [`locate_shader`] looks in the library embedded in the binary.
 pub fn find_shader_file(name: &str, search: &[PathBuf]) -> Option<PathBuf> {
     let files = [format!("{name}.{}", rtsl_compiler::artifact::EXTENSION), format!("{name}.sl")];
-    let std = stdlib_dir();
-    let std_dirs =
-        ["surface", "light", "displacement", "volume", "imager", "camera", "pixel", "lightfield"].map(|d| std.join(d));
-    search.iter().chain(std_dirs.iter()).flat_map(|d| files.iter().map(move |f| d.join(f))).find(|p| p.is_file())
+    let library: Vec<PathBuf> =
+        library::override_dir().map(|dir| library::FOLDERS.iter().map(|f| dir.join(f)).collect()).unwrap_or_default();
+    search.iter().chain(library.iter()).flat_map(|d| files.iter().map(move |f| d.join(f))).find(|p| p.is_file())
 }
 
-/// The directory of the shader library shipped with rtsl (searched last).
-pub fn stdlib_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join("stdlib_shaders")
+/// Where a shader comes from: a file, or the library embedded in the binary.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum ShaderLocation {
+    File(PathBuf),
+    Library(LibraryShader),
+}
+
+impl std::fmt::Display for ShaderLocation {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ShaderLocation::File(path) => write!(f, "{}", path.display()),
+            ShaderLocation::Library(shader) => write!(f, "{} (built in)", shader.path),
+        }
+    }
+}
+
+/// Where shader `name` is loaded from: a file ([`find_shader_file`]), else the embedded library.
+pub fn locate_shader(name: &str, search: &[PathBuf]) -> Option<ShaderLocation> {
+    find_shader_file(name, search)
+        .map(ShaderLocation::File)
+        .or_else(|| library::find(name).map(ShaderLocation::Library))
 }
 
 impl Context {

@@ -97,10 +97,11 @@ impl Context {
         self.include_paths = dirs;
     }
 
-    /// Where shader `name` would be loaded from: `NAME.sl` in the search path, then in the standard
-    /// library's folders.
-    pub fn which_shader(&self, name: &str) -> Option<PathBuf> {
-        find_shader_file(name, &self.shader_search_path)
+    /// Where shader `name` would be loaded from: `NAME.rtso` or `NAME.sl` in the search path, then
+    /// in the library directory `RTSL_STDLIB` names, then the library embedded in the binary
+    /// ([`locate_shader`]).
+    pub fn which_shader(&self, name: &str) -> Option<ShaderLocation> {
+        locate_shader(name, &self.shader_search_path)
     }
 
     /// Compiles the shader file at `path`.
@@ -121,8 +122,13 @@ impl Context {
         if let Some(i) = self.programs.iter().position(|p| p.as_ref().is_some_and(|p| p.name == name)) {
             return Ok(ShaderId(i as u32));
         }
-        let path = self.which_shader(name).ok_or_else(|| ShaderError::NotFound { name: name.to_string() })?;
-        self.shader_file(&path)
+        match self.which_shader(name).ok_or_else(|| ShaderError::NotFound { name: name.to_string() })? {
+            ShaderLocation::File(path) => self.shader_file(&path),
+            ShaderLocation::Library(shader) => {
+                let program = ShaderProgram::from_source(&shader.label(), shader.source, &self.include_paths)?;
+                Ok(self.add_program(program))
+            }
+        }
     }
 
     /// Replaces the program behind `id` (hot reload): frames from now on use the new code. The

@@ -4,6 +4,7 @@
 //! Invariant: the runtime never parses shader source itself; [`program`] hands source to
 //! `rtsl-compiler` and keeps what comes back.
 
+pub mod library;
 pub mod params;
 pub mod program;
 
