@@ -40,7 +40,7 @@ fuzz_target!(|data: &[u8]| {
         2 => {
             let lattice = PixelLattice { x0: 8, y0: 0, stride: 2 };
             let lanes = rest.iter().take(8).fold(0u64, |m, &b| m << 8 | u64::from(b));
-            let _ = LatticeSamples::decode(lattice, lanes, rest);
+            let _ = LatticeSamples::decode(world(), lattice, lanes, rest);
         }
         3 => {
             let _ = postcard::from_bytes::<rtsl_runtime::texture::Delivered>(rest);

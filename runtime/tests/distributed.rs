@@ -20,6 +20,9 @@ fn repo(path: &str) -> PathBuf {
 /// A change the application makes to its context before a frame.
 type Change = fn(&mut Context) -> Result<(), String>;
 
+/// A scene a test starts from.
+type Scene = fn() -> Result<Context, String>;
+
 fn pool(threads: usize) -> rayon::ThreadPool {
     rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("a thread pool")
 }
@@ -391,10 +394,29 @@ fn a_worker_that_goes_silent_is_an_error_not_a_hang() {
     drop(worker_end);
 }
 
+/// The GI box of `examples/scenes/gi_box.rib` at 40x30, whose pixel shader (`interleavefilter`)
+/// reads other pixels, their normals among them: its tiles go to the master unfinished.
+fn gi_box() -> Result<Context, String> {
+    let mut rt = Context::new();
+    rtsl_runtime::rib::load::load_file(&mut rt, &repo("examples/scenes/gi_box.rib")).map_err(|e| e.to_string())?;
+    (rt.options.width, rt.options.height) = (40, 30);
+    Ok(rt)
+}
+
+/// [`gi_box`] splatted through a Gaussian filter: its tiles carry films and normals.
+fn gi_box_gaussian() -> Result<Context, String> {
+    let mut rt = gi_box()?;
+    rt.options.pixel_filter = PixelFilter::new(FilterKind::Gaussian, 2.0, 2.0)?;
+    Ok(rt)
+}
+
 #[test]
 fn a_tile_decodes_to_itself_and_damaged_tiles_are_errors() {
     use rtsl_runtime::render::{RenderedTile, TileRenderer};
-    for make in [office as fn() -> Result<Context, String>, library_with_camera_and_pixel_shader] {
+    // Which scenes' tiles carry normals: those whose pixel shader reads other pixels.
+    let scenes: [(Scene, bool); 4] =
+        [(office, false), (library_with_camera_and_pixel_shader, false), (gi_box, true), (gi_box_gaussian, true)];
+    for (make, normals) in scenes {
         let mut rt = make().expect("the scene loads");
         let world = rt.build_world().expect("a world");
         let renderer = TileRenderer::new(&world);
@@ -415,6 +437,22 @@ fn a_tile_decodes_to_itself_and_damaged_tiles_are_errors() {
         let other = renderer.tiles().last().copied().expect("tiles");
         if (other.width, other.height) != (tile.width, tile.height) {
             assert!(RenderedTile::decode(&world, other, &bytes).is_err());
+        }
+        let n = (tile.width * tile.height) as usize;
+        if normals {
+            // Colours, depths and ids (28 bytes a pixel), the kind, the shader ids (4), then the
+            // normals: the first normal's x made 2 is no normal.
+            let normals = 32 * n + 1;
+            let x = f32::from_ne_bytes(bytes[normals..normals + 4].try_into().expect("four bytes"));
+            assert!(x.abs() <= 1.0, "a normal's x is {x}");
+            let mut damaged = bytes.clone();
+            damaged[normals..normals + 4].copy_from_slice(&2.0f32.to_ne_bytes());
+            assert!(RenderedTile::decode(&world, tile, &damaged).is_err(), "a damaged normal");
+            // A frame whose pixel shader reads no pixels takes no normals.
+            let mut plain = make().expect("the scene loads");
+            plain.pixel_shader(None, &[]).expect("no pixel shader");
+            let plain = plain.build_world().expect("a world");
+            assert!(RenderedTile::decode(&plain, tile, &bytes).is_err(), "normals where none are read");
         }
     }
 }
@@ -540,6 +578,7 @@ fn lattice_bits(results: &[rtsl_runtime::render::progressive::LatticeSamples]) -
                 let s = &r.samples[lane];
                 bits.extend([s.color.x, s.color.y, s.color.z, s.alpha, s.depth, r.depth[lane]].map(f32::to_bits));
                 bits.extend([s.object_id, s.shader_id]);
+                bits.extend(s.normal.to_array().map(f32::to_bits));
             }
             (r.lattice.x0, r.lattice.y0, r.active, bits)
         })
@@ -596,24 +635,37 @@ fn lattices_traced_by_workers_are_the_samples_traced_here() -> Result<(), Distri
 #[test]
 fn lattice_samples_decode_to_themselves_and_damaged_ones_are_errors() {
     use rtsl_runtime::render::progressive::{pass_lattices, trace_lattices, LatticeSamples};
-    let rt = office().expect("the office");
-    let world = { rt }.build_world().expect("a world");
-    let lattices = pass_lattices(world.options.width, world.options.height, 1);
-    let wanted = |x: u32, _: u32| x % 2 == 0;
-    let (traced, _) = trace_lattices(&world, &lattices[..4], 0, false, &wanted);
-    for r in &traced {
-        let mut bytes = Vec::new();
-        r.encode(&mut bytes);
-        let back = LatticeSamples::decode(r.lattice, r.active, &bytes).expect("decodes");
-        assert!(lattice_bits(&[back]) == lattice_bits(std::slice::from_ref(r)));
-        for end in 0..bytes.len() {
-            assert!(LatticeSamples::decode(r.lattice, r.active, &bytes[..end]).is_err(), "cut at {end}");
+    // The office's samples carry no normals; the GI box's do (its pixel shader reads them).
+    let office = office().expect("the office").build_world().expect("a world");
+    let gi = gi_box().expect("the GI box").build_world().expect("a world");
+    for (world, other_world, normals) in [(&office, &gi, false), (&gi, &office, true)] {
+        let lattices = pass_lattices(world.options.width, world.options.height, 1);
+        let wanted = |x: u32, _: u32| x % 2 == 0;
+        let (traced, _) = trace_lattices(world, &lattices[..4], 0, false, &wanted);
+        let seen = traced.iter().flat_map(|r| r.samples.iter()).filter(|s| s.normal.length() > 0.999).count();
+        assert_eq!(seen > 0, normals, "samples with unit normals: {seen}");
+        for r in &traced {
+            let mut bytes = Vec::new();
+            r.encode(&mut bytes);
+            let back = LatticeSamples::decode(world, r.lattice, r.active, &bytes).expect("decodes");
+            assert!(lattice_bits(&[back]) == lattice_bits(std::slice::from_ref(r)));
+            for end in 0..bytes.len() {
+                assert!(LatticeSamples::decode(world, r.lattice, r.active, &bytes[..end]).is_err(), "cut at {end}");
+            }
+            // Lanes that were not asked for, or another lattice's samples, are refused.
+            assert!(LatticeSamples::decode(world, r.lattice, r.active >> 1, &bytes).is_err() || r.active == 0);
+            let mut other = r.lattice;
+            other.x0 += 8;
+            assert!(LatticeSamples::decode(world, other, r.active, &bytes).is_err());
+            // Samples with normals where none are read, or without where they are, are refused.
+            assert!(LatticeSamples::decode(other_world, r.lattice, r.active, &bytes).is_err() || r.active == 0);
+            if normals && r.active != 0 {
+                // The first lane's normal (after the 20-byte header and its 32 bytes) made long.
+                let mut damaged = bytes.clone();
+                damaged[52..56].copy_from_slice(&1.5f32.to_le_bytes());
+                assert!(LatticeSamples::decode(world, r.lattice, r.active, &damaged).is_err(), "a damaged normal");
+            }
         }
-        // Lanes that were not asked for, or another lattice's samples, are refused.
-        assert!(LatticeSamples::decode(r.lattice, r.active >> 1, &bytes).is_err() || r.active == 0);
-        let mut other = r.lattice;
-        other.x0 += 8;
-        assert!(LatticeSamples::decode(other, r.active, &bytes).is_err());
     }
 }
 

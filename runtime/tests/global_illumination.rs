@@ -218,6 +218,75 @@ fn a_pixel_shader_reading_pixels_sees_the_same_image_tile_by_tile_and_accumulate
     assert!(worst < 1e-5, "largest difference {worst}");
 }
 
+/// Loads `rib` (a whole scene) with the pixel shader `source` compiled as `name`.
+fn scene_with_pixel_shader(rib: &str, name: &str, source: &str) -> Context {
+    let mut rt = Context::new();
+    rt.compile_shader(name, source).expect("the test shader compiles");
+    let loaded = rtsl_runtime::rib::load::load_str(&mut rt, rib, Path::new("<test>")).expect("the scene loads");
+    assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+    rt
+}
+
+#[test]
+fn pixelvalue_n_is_the_normal_each_pixel_sees() {
+    // A floor (normal +y) and, on the right, a wall turned 37 degrees about y (its normal, facing
+    // the camera, (0.6, 0, -0.8)); the upper left sees nothing. Each pixel shows the normal
+    // `pixelvalue` gives for its mirror image across the middle column: another pixel's.
+    let rib = r#"
+        Format 32 24 1
+        Projection "perspective" "fov" 60
+        Imager "mirrornormal"
+        WorldBegin
+        Surface "matte"
+        AttributeBegin
+        Color [0.8 0.8 0.8]
+        Polygon "P" [-20 -1 0.5  20 -1 0.5  20 -1 20  -20 -1 20]
+        AttributeEnd
+        AttributeBegin
+        Color [0.8 0.3 0.2]
+        Polygon "P" [0 -1 5  12 -1 14  12 10 14  0 10 5]
+        AttributeEnd
+        WorldEnd
+    "#;
+    let shader = r#"pixel mirrornormal() {
+        float format[3];
+        option("Format", format);
+        Ci = color pixelvalue("N", format[0] - xcomp(P), ycomp(P));
+    }"#;
+    let mut rt = scene_with_pixel_shader(rib, "mirrornormal", shader);
+    rt.options.antialiasing = rtsl_runtime::render::Antialiasing::Grid { jitter: false };
+    let world = rt.build_world().expect("a world");
+    let (frame, _) = render_frame(&world, None);
+    // The viewer's way (an accumulated pass, resolved) gives the same normals.
+    let accumulated = rtsl_runtime::render::progressive::render_progressive(&world, 1).0.resolve(&world);
+    let (w, h) = (frame.width, frame.height);
+    let id = |x: u32, y: u32| frame.object_id[(y * w + x) as usize];
+    // The bottom left pixel sees the floor, the middle of the right edge the wall.
+    let (floor, wall) = (id(0, h - 1), id(w - 1, h / 2));
+    assert!(floor != u32::MAX && wall != u32::MAX && floor != wall, "floor {floor}, wall {wall}");
+    let mut seen = [0; 3];
+    for image in [&frame, &accumulated] {
+        seen = [0; 3];
+        for y in 0..h {
+            for x in 0..w {
+                let mirror = id(w - 1 - x, y);
+                let (want, k) = match mirror {
+                    m if m == floor => ([0.0, 1.0, 0.0], 0),
+                    m if m == wall => ([0.6, 0.0, -0.8], 1),
+                    u32::MAX => ([0.0; 3], 2),
+                    m => panic!("pixel {x}, {y}: object {m}"),
+                };
+                seen[k] += 1;
+                let got = image.pixel(x, y);
+                for c in 0..3 {
+                    assert!((got[c] - want[c]).abs() < 1e-3, "pixel {x}, {y} reads {got:?}, the normal {want:?}");
+                }
+            }
+        }
+    }
+    assert!(seen.iter().all(|&n| n > 20), "floor, wall and nothing: {seen:?} pixels");
+}
+
 /// A floor (matte) under a horizontal mirror (chrome, reflectance 0.8) with a point light between
 /// them: every photon that reaches the floor by the mirror comes from the light's mirror image,
 /// so the caustic irradiance on the floor is that of a point light of 0.8 times the intensity at

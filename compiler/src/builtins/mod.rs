@@ -191,7 +191,7 @@ builtins! {
     Rendererinfo "rendererinfo" ["f(s,&?)"] MESSAGE | SIDE_EFFECTS, Host, "information about the renderer";
     Rayinfo "rayinfo" ["f(s,&?)"] MESSAGE | SIDE_EFFECTS, Host, "information about the rays being shaded (uniform over a batch)";
     // ---- rtsl: the image a pixel shader finishes ----
-    Pixelvalue "pixelvalue" ["f(s,f,f)", "c(s,f,f)"] VARYING, Host, "a channel of the pixel at raster x, y of the image a pixel shader finishes (\"Ci\", \"alpha\", \"z\", \"objectid\", \"shaderid\"): the nearest pixel inside the image; 0 outside pixel shaders";
+    Pixelvalue "pixelvalue" ["f(s,f,f)", "c(s,f,f)"] VARYING, Host, "a channel of the pixel at raster x, y of the image a pixel shader finishes (\"Ci\", \"alpha\", \"z\", \"objectid\", \"shaderid\", \"N\": the unit geometric normal of the first surface seen, facing the camera, 0 where none): the nearest pixel inside the image; 0 outside pixel shaders";
 }
 
 /// One argument position of a signature.

@@ -99,9 +99,9 @@ pub trait Services {
         None
     }
     /// Channel `name` of the pixel at raster `(x, y)` of the image a pixel shader is finishing
-    /// (`pixelvalue`): `"Ci"` a colour, `"alpha"`, `"z"`, `"objectid"`, `"shaderid"` a float in
-    /// the first component. `None` where there is no such image or channel (the caller answers
-    /// 0). The default has no image.
+    /// (`pixelvalue`): `"Ci"` a colour, `"N"` a normal (zero where the pixel sees nothing),
+    /// `"alpha"`, `"z"`, `"objectid"`, `"shaderid"` a float in the first component. `None` where
+    /// there is no such image or channel (the caller answers 0). The default has no image.
     fn pixel_value(&mut self, name: &str, x: f32, y: f32) -> Option<V3> {
         let _ = (name, x, y);
         None

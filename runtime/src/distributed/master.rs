@@ -281,7 +281,7 @@ impl<T: Transport> Master<T> {
         let job = Job::Lattices { pass, preview };
         let work = Work { job, units: lattices.len(), lattices: &units, owners: &owners, light_paths: &light_paths };
         let mut accept = |u: usize, bytes: &[u8]| -> Result<(), String> {
-            samples[u] = Some(LatticeSamples::decode(units[u].lattice, units[u].lanes, bytes)?);
+            samples[u] = Some(LatticeSamples::decode(world, units[u].lattice, units[u].lanes, bytes)?);
             Ok(())
         };
         let (given, counts) = self.run(world, &update, work, None, Some(rt), &mut accept)?;

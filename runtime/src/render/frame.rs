@@ -511,6 +511,9 @@ struct Sampling {
     adaptive: Option<(f32, (u32, u32))>,
     /// The camera's view axis in world space, for camera-space depth.
     forward: Vec3A,
+    /// Whether pixels keep their first sample's normal: only for a pixel shader that reads other
+    /// pixels ([`reads_pixels`]), the one reader of the normals.
+    normals: bool,
 }
 
 impl Sampling {
@@ -524,27 +527,32 @@ impl Sampling {
             grid: if adaptive.is_some() { (1, 1) } else { grid },
             adaptive,
             forward: world.camera.world_from_camera.matrix3.z_axis.normalize_or_zero(),
+            normals: reads_pixels(world),
         }
     }
 }
 
 /// A tile's pixels once sampled (rows of the tile, top to bottom): the mean of each pixel's own
-/// samples, and the camera-space depth, object and shader of its first sample.
+/// samples, and the camera-space depth, object and shader of its first sample, and where the
+/// pixel shader reads other pixels its normal (`normals` empty otherwise).
 struct TileSamples {
     color: Vec<[f32; 4]>,
     depth: Vec<f32>,
     ids: Vec<u32>,
     shader_ids: Vec<u32>,
+    normals: Vec<[f32; 3]>,
 }
 
 impl TileSamples {
-    fn empty(tile: &Tile) -> TileSamples {
+    /// Empty pixels, with room for normals if `normals`.
+    fn empty(tile: &Tile, normals: bool) -> TileSamples {
         let n = (tile.width * tile.height) as usize;
         TileSamples {
             color: vec![[0.0; 4]; n],
             depth: vec![f32::INFINITY; n],
             ids: vec![u32::MAX; n],
             shader_ids: vec![u32::MAX; n],
+            normals: if normals { vec![[0.0; 3]; n] } else { Vec::new() },
         }
     }
 }
@@ -573,7 +581,7 @@ fn sample_tile(
     mut splat: impl FnMut((f32, f32), [f32; 4]),
 ) -> TileSamples {
     let world = frame.world;
-    let mut px = TileSamples::empty(tile);
+    let mut px = TileSamples::empty(tile, sampling.normals);
     let (sx, sy) = sampling.grid;
     TilePrimary::with(|primary| {
         for j in 0..sy {
@@ -614,6 +622,9 @@ fn sample_tile(
                             px.depth[k] = s.depth * packet.get(lane).direction.dot(sampling.forward);
                             px.ids[k] = s.object_id;
                             px.shader_ids[k] = s.shader_id;
+                            if let Some(n) = px.normals.get_mut(k) {
+                                *n = s.normal.to_array();
+                            }
                         }
                     }
                 }
@@ -660,6 +671,7 @@ fn pixel_image((w, h): (u32, u32), tiles: &[(Tile, TileSamples)]) -> PixelImage 
         depth: vec![f32::INFINITY; n],
         object_id: vec![u32::MAX; n],
         shader_id: vec![u32::MAX; n],
+        normal: vec![[0.0; 3]; n],
     };
     for (tile, px) in tiles {
         for row in 0..tile.height {
@@ -673,6 +685,9 @@ fn pixel_image((w, h): (u32, u32), tiles: &[(Tile, TileSamples)]) -> PixelImage 
             image.depth[to..to + k].copy_from_slice(&px.depth[from..from + k]);
             image.object_id[to..to + k].copy_from_slice(&px.ids[from..from + k]);
             image.shader_id[to..to + k].copy_from_slice(&px.shader_ids[from..from + k]);
+            if let Some(normals) = px.normals.get(from..from + k) {
+                image.normal[to..to + k].copy_from_slice(normals);
+            }
         }
     }
     image
@@ -719,15 +734,16 @@ pub struct RenderedTile {
 impl RenderedTile {
     /// Appends the tile's pixels (and film) to `out`: colours, depths, object ids, then a byte
     /// that says whether the tile is unfinished (filtered on the master, or its pixel shader run
-    /// there over the whole image), and if it is, its shader ids (for the pixel shader) and its
-    /// film's sums. Values are copied
+    /// there over the whole image), and if it is, its shader ids (for the pixel shader), its
+    /// normals where the pixel shader reads other pixels (three floats a pixel), and its film's
+    /// sums. Values are copied
     /// as they lie in memory (the processes that exchange tiles run one build on one kind of
     /// machine: `crate::distributed` checks), so a tile costs a few copies of its bytes. The tile
     /// itself is not written: whoever decodes knows which tile it asked for.
     pub fn encode(&self, out: &mut Vec<u8>) {
         let px = &self.px;
         let film: &[[f32; 5]] = self.film.as_ref().map_or(&[], |f| f.sums());
-        out.reserve(4 * (7 * px.depth.len() + 5 * film.len()) + 1);
+        out.reserve(4 * (7 * px.depth.len() + 3 * px.normals.len() + 5 * film.len()) + 1);
         out.extend_from_slice(bytemuck::cast_slice(&px.color));
         out.extend_from_slice(bytemuck::cast_slice(&px.depth));
         out.extend_from_slice(bytemuck::cast_slice(&px.ids));
@@ -741,6 +757,9 @@ impl RenderedTile {
         out.push(kind);
         if kind != 0 {
             out.extend_from_slice(bytemuck::cast_slice(&px.shader_ids));
+            if self.pixels_later {
+                out.extend_from_slice(bytemuck::cast_slice(&px.normals));
+            }
             out.extend_from_slice(bytemuck::cast_slice(film));
         }
     }
@@ -758,24 +777,41 @@ impl RenderedTile {
             rest = tail;
             Ok(head)
         };
-        let mut px = TileSamples::empty(&tile);
+        let options = &world.options;
+        let pixels_later = reads_pixels(world);
+        let mut px = TileSamples::empty(&tile, pixels_later);
         bytemuck::cast_slice_mut::<[f32; 4], u8>(&mut px.color).copy_from_slice(values(4 * n)?);
         bytemuck::cast_slice_mut::<f32, u8>(&mut px.depth).copy_from_slice(values(n)?);
         bytemuck::cast_slice_mut::<u32, u8>(&mut px.ids).copy_from_slice(values(n)?);
-        let options = &world.options;
-        let pixels_later = reads_pixels(world);
+        // The shader ids, and the normals where the pixel shader reads other pixels.
+        let mut unfinished = |rest: &[u8]| -> Result<usize, String> {
+            let normals = if pixels_later { 12 * n } else { 0 };
+            if rest.len() < 4 * n + normals {
+                return Err(short());
+            }
+            bytemuck::cast_slice_mut::<u32, u8>(&mut px.shader_ids).copy_from_slice(&rest[..4 * n]);
+            let into: &mut [u8] = bytemuck::cast_slice_mut(&mut px.normals);
+            into.copy_from_slice(&rest[4 * n..4 * n + normals]);
+            // Unit or zero: anything longer (or not a number) is damage.
+            let damaged = |v: &[f32; 3]| {
+                let length_squared = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+                length_squared.is_nan() || length_squared > 1.01
+            };
+            if px.normals.iter().any(damaged) {
+                return Err(format!("tile {}: its normals are damaged", tile.index));
+            }
+            Ok(4 * n + normals)
+        };
         let film = match (rest.split_first(), options.pixel_filter.is_unit_box()) {
             (Some((0, [])), true) if !pixels_later => None,
-            (Some((2, shader_ids)), true) if pixels_later => {
-                if shader_ids.len() != 4 * n {
+            (Some((2, ids)), true) if pixels_later => {
+                if unfinished(ids)? != ids.len() {
                     return Err(short());
                 }
-                bytemuck::cast_slice_mut::<u32, u8>(&mut px.shader_ids).copy_from_slice(shader_ids);
                 None
             }
-            (Some((1, unfinished)), false) => {
-                let (shader_ids, sums) = unfinished.split_at_checked(4 * n).ok_or_else(short)?;
-                bytemuck::cast_slice_mut::<u32, u8>(&mut px.shader_ids).copy_from_slice(shader_ids);
+            (Some((1, ids)), false) => {
+                let sums = &ids[unfinished(ids)?..];
                 let mut film = TileFilm::new(options.pixel_filter, &tile, options.pixel_range());
                 let into: &mut [u8] = bytemuck::cast_slice_mut(film.sums_mut());
                 if sums.len() != into.len() {
@@ -1025,7 +1061,7 @@ mod tests {
         for y0 in (0..h).step_by(th as usize) {
             for x0 in (0..w).step_by(tw as usize) {
                 let tile = Tile { index: tiles.len(), x0, y0, width: tw.min(w - x0), height: th.min(h - y0) };
-                let mut px = TileSamples::empty(&tile);
+                let mut px = TileSamples::empty(&tile, true);
                 for y in 0..tile.height {
                     for x in 0..tile.width {
                         let k = (y * tile.width + x) as usize;
@@ -1033,6 +1069,8 @@ mod tests {
                         px.color[k] = [gx as f32, gy as f32, 1.0, 0.5];
                         px.depth[k] = (gx + 1000 * gy) as f32;
                         px.ids[k] = gx + 1000 * gy;
+                        px.shader_ids[k] = gx + 2000 * gy;
+                        px.normals[k] = [gx as f32, gy as f32, -1.0];
                     }
                 }
                 tiles.push((tile, px));
@@ -1058,6 +1096,22 @@ mod tests {
         }
         let empty = assemble_framebuffer((0, 0), Vec::new(), None);
         assert!(empty.rgba.is_empty() && empty.depth.is_empty());
+    }
+
+    #[test]
+    fn the_pixel_image_holds_every_channel_of_every_tile() {
+        for (size, tile) in [((40, 37), (16, 16)), ((23, 50), (23, 3))] {
+            let image = pixel_image(size, &tiles_of(size, tile));
+            for y in 0..size.1 {
+                for x in 0..size.0 {
+                    let (fx, fy) = (x as f32 + 0.5, y as f32 + 0.5);
+                    assert_eq!(image.value("Ci", fx, fy), Some([x as f32, y as f32, 1.0]));
+                    assert_eq!(image.value("z", fx, fy), Some([(x + 1000 * y) as f32, 0.0, 0.0]));
+                    assert_eq!(image.value("shaderid", fx, fy), Some([(x + 2000 * y) as f32, 0.0, 0.0]));
+                    assert_eq!(image.value("N", fx, fy), Some([x as f32, y as f32, -1.0]), "{size:?} ({x}, {y})");
+                }
+            }
+        }
     }
 
     #[test]

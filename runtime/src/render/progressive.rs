@@ -139,6 +139,9 @@ pub struct LatticeSamples {
     pub samples: [Sample; PACKET_SIZE],
     /// Camera-space depth of each lane's first hit (infinite for none).
     pub depth: [f32; PACKET_SIZE],
+    /// Whether the samples keep their normals ([`Sample::normal`]): only where the world's pixel
+    /// shader reads other pixels, the one reader of them; every normal is zero otherwise.
+    pub normals: bool,
 }
 
 /// The lanes of `lattice` inside a `width x height` image where `wanted(x, y)`, as a lane mask.
@@ -192,8 +195,13 @@ pub fn trace_lattice(
     let primary = primary_rays(frame, &cams, active);
     let packet = &primary.packet;
     // Lanes the camera made no ray for (outside a fisheye's circle) are samples too: empty ones.
-    let mut out =
-        LatticeSamples { lattice, active, samples: [EMPTY_SAMPLE; PACKET_SIZE], depth: [f32::INFINITY; PACKET_SIZE] };
+    let mut out = LatticeSamples {
+        lattice,
+        active,
+        samples: [EMPTY_SAMPLE; PACKET_SIZE],
+        depth: [f32::INFINITY; PACKET_SIZE],
+        normals: reads_pixels(world),
+    };
     if packet.active == 0 {
         return out;
     }
@@ -203,13 +211,23 @@ pub fn trace_lattice(
     let forward = world.camera.world_from_camera.matrix3.z_axis.normalize_or_zero();
     for lane in (0..PACKET_SIZE).filter(|l| packet.active >> l & 1 != 0) {
         out.depth[lane] = out.samples[lane].depth * packet.get(lane).direction.dot(forward);
+        if !out.normals {
+            // As another rank's samples arrive without them.
+            out.samples[lane].normal = glam::Vec3A::ZERO;
+        }
     }
     out
 }
 
 /// What a lane the camera made no ray for holds.
-const EMPTY_SAMPLE: Sample =
-    Sample { color: glam::Vec3A::ZERO, alpha: 0.0, depth: f32::INFINITY, object_id: u32::MAX, shader_id: u32::MAX };
+const EMPTY_SAMPLE: Sample = Sample {
+    color: glam::Vec3A::ZERO,
+    alpha: 0.0,
+    depth: f32::INFINITY,
+    object_id: u32::MAX,
+    shader_id: u32::MAX,
+    normal: glam::Vec3A::ZERO,
+};
 
 /// What a batch of lattices cost.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -335,9 +353,13 @@ impl PixelLattice {
 /// shader ids, camera depth.
 const LANE_BYTES: usize = 32;
 
+/// Bytes a lane's normal adds where the samples keep their normals ([`LatticeSamples::normals`]).
+const NORMAL_BYTES: usize = 12;
+
 impl LatticeSamples {
     /// The samples as bytes, for another rank: the lattice, the lane mask, then the traced lanes'
-    /// samples (little-endian).
+    /// samples (little-endian), each followed by its normal where the samples keep them (whoever
+    /// decodes knows: the world's pixel shader reads other pixels).
     pub fn encode(&self, out: &mut Vec<u8>) {
         for v in [self.lattice.x0, self.lattice.y0, self.lattice.stride] {
             out.extend_from_slice(&v.to_le_bytes());
@@ -351,12 +373,20 @@ impl LatticeSamples {
             out.extend_from_slice(&s.object_id.to_le_bytes());
             out.extend_from_slice(&s.shader_id.to_le_bytes());
             out.extend_from_slice(&self.depth[lane].to_le_bytes());
+            if self.normals {
+                for v in s.normal.to_array() {
+                    out.extend_from_slice(&v.to_le_bytes());
+                }
+            }
         }
     }
 
-    /// Reads what [`LatticeSamples::encode`] wrote, checking that it is the samples of `lattice`
-    /// and no lane outside `lanes` (the lanes asked for).
-    pub fn decode(lattice: PixelLattice, lanes: u64, bytes: &[u8]) -> Result<LatticeSamples, String> {
+    /// Reads what [`LatticeSamples::encode`] wrote for a pass of `world`, checking that it is the
+    /// samples of `lattice` and no lane outside `lanes` (the lanes asked for), with normals (unit
+    /// or zero) exactly where the world's pixel shader reads other pixels.
+    pub fn decode(world: &World, lattice: PixelLattice, lanes: u64, bytes: &[u8]) -> Result<LatticeSamples, String> {
+        let normals = reads_pixels(world);
+        let lane_bytes = LANE_BYTES + if normals { NORMAL_BYTES } else { 0 };
         let word = |at: usize| -> [u8; 4] {
             let mut b = [0; 4];
             b.copy_from_slice(&bytes[at..at + 4]);
@@ -375,7 +405,7 @@ impl LatticeSamples {
         if active & !lanes != 0 {
             return Err(format!("samples of lanes {:#x} of a lattice whose lanes {lanes:#x} were asked for", active));
         }
-        if bytes.len() != 20 + LANE_BYTES * active.count_ones() as usize {
+        if bytes.len() != 20 + lane_bytes * active.count_ones() as usize {
             return Err("a lattice's samples do not match its lane mask".into());
         }
         let mut out = LatticeSamples {
@@ -383,6 +413,7 @@ impl LatticeSamples {
             active,
             samples: [EMPTY_SAMPLE; PACKET_SIZE],
             depth: [f32::INFINITY; PACKET_SIZE],
+            normals,
         };
         let mut at = 20;
         for lane in (0..PACKET_SIZE).filter(|l| active >> l & 1 != 0) {
@@ -394,9 +425,15 @@ impl LatticeSamples {
                 depth: f(4),
                 object_id: u(5),
                 shader_id: u(6),
+                normal: if normals { glam::Vec3A::new(f(8), f(9), f(10)) } else { glam::Vec3A::ZERO },
             };
             out.depth[lane] = f(7);
-            at += LANE_BYTES;
+            // Unit or zero: anything longer (or not a number) is damage.
+            let length_squared = out.samples[lane].normal.length_squared();
+            if length_squared.is_nan() || length_squared > 1.01 {
+                return Err(format!("lane {lane} of a lattice's samples has a damaged normal"));
+            }
+            at += lane_bytes;
         }
         Ok(out)
     }
@@ -417,6 +454,9 @@ pub struct Accumulator {
     depth: Vec<f32>,
     object_id: Vec<u32>,
     shader_id: Vec<u32>,
+    /// The normals of the samples the depths come from; empty until a sample brings one (samples
+    /// keep their normals only for a pixel shader that reads other pixels).
+    normal: Vec<[f32; 3]>,
     current: u32,
 }
 
@@ -433,6 +473,7 @@ impl Accumulator {
             depth: vec![f32::INFINITY; n],
             object_id: vec![u32::MAX; n],
             shader_id: vec![u32::MAX; n],
+            normal: Vec::new(),
             current: 1,
         }
     }
@@ -464,6 +505,17 @@ impl Accumulator {
         y as usize * self.width as usize + x as usize
     }
 
+    /// Pixel `i`'s normal becomes `n` (room for normals made when the first one comes).
+    fn set_normal(&mut self, i: usize, n: glam::Vec3A) {
+        if self.normal.is_empty() {
+            if n == glam::Vec3A::ZERO {
+                return;
+            }
+            self.normal = vec![[0.0; 3]; self.depth.len()];
+        }
+        self.normal[i] = n.to_array();
+    }
+
     /// Adds one sample to pixel `(x, y)`.
     pub fn add(&mut self, x: u32, y: u32, sample: &Sample, depth: f32) {
         let i = self.index(x, y);
@@ -475,6 +527,7 @@ impl Accumulator {
             self.depth[i] = depth;
             self.object_id[i] = sample.object_id;
             self.shader_id[i] = sample.shader_id;
+            self.set_normal(i, sample.normal);
         } else {
             for (s, v) in self.sum[i].iter_mut().zip(v) {
                 *s += v;
@@ -496,6 +549,7 @@ impl Accumulator {
                 self.depth[i] = depth;
                 self.object_id[i] = sample.object_id;
                 self.shader_id[i] = sample.shader_id;
+                self.set_normal(i, sample.normal);
             }
         }
     }
@@ -558,6 +612,7 @@ impl Accumulator {
                 depth: self.depth.clone(),
                 object_id: self.object_id.clone(),
                 shader_id: self.shader_id.clone(),
+                normal: if self.normal.is_empty() { vec![[0.0; 3]; self.depth.len()] } else { self.normal.clone() },
             });
             let band = 16 * w as usize;
             colors.par_chunks_mut(band).enumerate().for_each(|(b, rgba)| {

@@ -174,7 +174,14 @@ fn start_sample(
 /// nothing yet (`true`: the hit is to be shaded).
 #[inline(always)]
 fn begin_sample(frame: &Frame, hit: Hit, out: &mut Sample) -> bool {
-    *out = Sample { color: Vec3A::ZERO, alpha: 0.0, depth: hit.t, object_id: u32::MAX, shader_id: u32::MAX };
+    *out = Sample {
+        color: Vec3A::ZERO,
+        alpha: 0.0,
+        depth: hit.t,
+        object_id: u32::MAX,
+        shader_id: u32::MAX,
+        normal: Vec3A::ZERO,
+    };
     if !hit.is_hit() {
         out.color = Vec3A::from(frame.world.options.background);
         return false;
@@ -194,7 +201,7 @@ fn shade_pending(frame: &Frame, mut current: Vec<Pending>, depth: u32, out: &mut
         results.resize(current.len(), Shaded::default());
         super::group::shade_in_groups(frame, &mut current, depth, &mut results);
         if layer == 0 {
-            first_hit_ids(world, &current, out);
+            first_hit_ids(world, &current, &results, out);
         }
         // The atmosphere or interior between each ray's origin and its hit (`volume.rs`).
         super::volume::shade_segments(frame, &current, &mut results, depth);
@@ -232,12 +239,13 @@ fn shade_pending(frame: &Frame, mut current: Vec<Pending>, depth: u32, out: &mut
     }
 }
 
-/// The object and material ids of each first hit into its sample. `pending` comes sorted by
-/// material (`shade_in_groups`), so each run of one material reads the material once, and each
-/// hit's material is found again in the caches `shade_in_groups` just filled.
-fn first_hit_ids(world: &World, pending: &[Pending], out: &mut [Sample]) {
+/// The object and material ids of each first hit into its sample, and its geometric normal (from
+/// its shading, `shaded`) turned toward the ray's origin. `pending` comes sorted by material
+/// (`shade_in_groups`), so each run of one material reads the material once, and each hit's
+/// material is found again in the caches `shade_in_groups` just filled.
+fn first_hit_ids(world: &World, pending: &[Pending], shaded: &[Shaded], out: &mut [Sample]) {
     let mut last: Option<(u32, u32)> = None;
-    for p in pending {
+    for (p, r) in pending.iter().zip(shaded) {
         let Some(inst) = world.instances.get(p.hit.instance as usize) else { continue };
         let material = inst.material_at(p.hit.primitive);
         let object_id = match last {
@@ -247,6 +255,7 @@ fn first_hit_ids(world: &World, pending: &[Pending], out: &mut [Sample]) {
         last = Some((material, object_id));
         if let Some(s) = out.get_mut(p.index) {
             (s.object_id, s.shader_id) = (object_id, material);
+            s.normal = if r.ng.dot(p.ray.direction) > 0.0 { -r.ng } else { r.ng };
         }
     }
 }

@@ -307,12 +307,15 @@ pub struct PixelImage {
     pub depth: Vec<f32>,
     pub object_id: Vec<u32>,
     pub shader_id: Vec<u32>,
+    /// The unit geometric normal of the first surface each pixel sees, facing the camera (zero
+    /// where it sees none): [`Sample::normal`] of the sample its depth and ids come from.
+    pub normal: Vec<[f32; 3]>,
 }
 
 impl PixelImage {
-    /// Channel `name` of the pixel at raster `(x, y)` (the nearest pixel inside the image): `Ci`,
-    /// or `alpha`, `z`, `objectid`, `shaderid` (-1 for none) in the first component; `None` for
-    /// an unknown channel or an empty image.
+    /// Channel `name` of the pixel at raster `(x, y)` (the nearest pixel inside the image): `Ci`
+    /// or `N` (the normal), or `alpha`, `z`, `objectid`, `shaderid` (-1 for none) in the first
+    /// component; `None` for an unknown channel or an empty image.
     pub fn value(&self, name: &str, x: f32, y: f32) -> Option<[f32; 3]> {
         if self.width == 0 || self.height == 0 || !x.is_finite() || !y.is_finite() {
             return None;
@@ -331,6 +334,7 @@ impl PixelImage {
             "z" => one(*self.depth.get(i)?),
             "objectid" => one(id(*self.object_id.get(i)?)),
             "shaderid" => one(id(*self.shader_id.get(i)?)),
+            "N" => *self.normal.get(i)?,
             _ => return None,
         })
     }
@@ -348,6 +352,9 @@ pub struct Sample {
     pub object_id: u32,
     /// Material (shader instance) of the first surface hit (`u32::MAX` on a miss).
     pub shader_id: u32,
+    /// Unit geometric normal of the first surface hit, turned to face the ray's origin (zero on
+    /// a miss), for pixel shaders that read it (`pixelvalue("N", x, y)`).
+    pub normal: Vec3A,
 }
 
 pub(crate) struct Pending {
