@@ -167,8 +167,8 @@ fn the_interleave_filter_removes_the_pattern_within_surfaces() {
     let (pattern_raw, pattern_smooth) = (rough_raw - rough_all, rough_smooth - rough_all);
     assert!(pattern_smooth < pattern_raw / 3.0, "the pattern: {pattern_raw} interleaved, {pattern_smooth} filtered");
     // Pixel by pixel, what docs/shaders.md says: the mean over the 3x3 pixels around it (inside
-    // the image) that see its object at a depth within 5% of its own; the walls are objects of
-    // their own, so none is mixed with another.
+    // the image) that see its object at a depth within 5% of its own (and with its normal: each
+    // wall is flat); the walls are objects of their own, so none is mixed with another.
     let (w, h) = (raw.width as i64, raw.height as i64);
     for y in 0..h {
         for x in 0..w {
@@ -285,6 +285,70 @@ fn pixelvalue_n_is_the_normal_each_pixel_sees() {
         }
     }
     assert!(seen.iter().all(|&n| n > 20), "floor, wall and nothing: {seen:?} pixels");
+}
+
+#[test]
+fn the_interleave_filter_keeps_the_faces_of_a_crease_apart() {
+    // One object folded along a vertical crease that points at the camera: its faces meet at one
+    // depth, so object and depth alone do not tell them apart. A red light from the left lights
+    // the left face, a blue one from the right the right face: each face one flat colour.
+    let rib = |imager: &str| {
+        format!(
+            r#"
+            Format 32 24 1
+            Projection "perspective" "fov" 60
+            {imager}
+            WorldBegin
+            LightSource "distantlight" 1 "intensity" 1 "lightcolor" [1 0 0] "from" [0 0 0] "to" [1 0 0.3]
+            LightSource "distantlight" 2 "intensity" 1 "lightcolor" [0 0 1] "from" [0 0 0] "to" [-1 0 0.3]
+            Surface "matte"
+            PointsPolygons [4 4] [0 1 2 3  1 4 5 2]
+                "P" [-3 -3 7  0 -3 4  0 3 4  -3 3 7  3 -3 7  3 3 7]
+            WorldEnd
+            "#
+        )
+    };
+    let render = |imager: &str| {
+        let mut rt = Context::new();
+        let loaded =
+            rtsl_runtime::rib::load::load_str(&mut rt, &rib(imager), Path::new("<crease>")).expect("the scene loads");
+        assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+        render_frame(&rt.build_world().expect("a world"), None).0
+    };
+    let raw = render("");
+    let filtered = render(r#"Imager "interleavefilter""#);
+    let mixed = render(r#"Imager "interleavefilter" "normaltolerance" [-1]"#);
+    let (w, h) = (raw.width, raw.height);
+    // The crease: the pixels of each row where red gives way to blue, same object, same depth.
+    let mut crease = Vec::new();
+    for y in 0..h {
+        for x in 0..w - 1 {
+            let (a, b) = (raw.pixel(x, y), raw.pixel(x + 1, y));
+            if a[0] > 0.1 && a[2] == 0.0 && b[2] > 0.1 && b[0] == 0.0 {
+                let (i, j) = ((y * w + x) as usize, (y * w + x + 1) as usize);
+                assert_eq!(raw.object_id[i], raw.object_id[j], "row {y}: one object");
+                assert!((raw.depth[i] - raw.depth[j]).abs() < 0.05 * raw.depth[i], "row {y}: one depth");
+                crease.push((x, y));
+            }
+        }
+    }
+    assert!(crease.len() >= 10, "the crease is seen in {} rows", crease.len());
+    let largest = |a: &Framebuffer, b: &Framebuffer| {
+        a.rgba.iter().zip(&b.rgba).map(|(x, y)| (x - y).abs()).fold(0.0f32, f32::max)
+    };
+    // With the normal test each pixel's neighbours are its own face's, all of its colour: the
+    // filter leaves the image as it was.
+    let kept = largest(&filtered, &raw);
+    assert!(kept < 1e-5, "the filtered image differs from the unfiltered one by up to {kept}");
+    // Without it, the pixels beside the crease take in the other face's colour.
+    for &(x, y) in &crease {
+        let (left, right) = (mixed.pixel(x, y), mixed.pixel(x + 1, y));
+        assert!(left[2] > 0.05 && right[0] > 0.05, "row {y}: {left:?} and {right:?} should be mixed");
+    }
+    let mixed_pixels = (0..(w * h) as usize)
+        .filter(|&i| (0..3).any(|c| (mixed.rgba[4 * i + c] - raw.rgba[4 * i + c]).abs() > 0.05))
+        .count();
+    assert!(mixed_pixels >= 2 * crease.len(), "{mixed_pixels} pixels mixed without the normal test");
 }
 
 /// A floor (matte) under a horizontal mirror (chrome, reflectance 0.8) with a point light between

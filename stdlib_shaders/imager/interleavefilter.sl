@@ -3,20 +3,25 @@
  *
  * The filter of interleaved sampling (Keller and Heidrich 2001): each pixel
  * becomes the mean of the size x size pixels around it that see the same
- * object at a similar depth (a discontinuity buffer), so the pattern of noise
- * that interleaved virtual lights leave (Option "gi" "interleave",
- * docs/global_illumination.md) is smoothed within surfaces, never across
- * their edges.  Pixels that see nothing are left as they are.
+ * object at a similar depth and with a similar normal (a discontinuity
+ * buffer), so the pattern of noise that interleaved virtual lights leave
+ * (Option "gi" "interleave", docs/global_illumination.md) is smoothed within
+ * surfaces, never across their edges or creases.  Pixels that see nothing
+ * are left as they are.
  *
  * Parameters:
- *   size           -- the side of the block averaged: the interleaving's (3).
- *   depthtolerance -- neighbours whose depth differs from the pixel's by more
- *                     than this fraction of it are left out (0.05).
+ *   size            -- the side of the block averaged: the interleaving's (3).
+ *   depthtolerance  -- neighbours whose depth differs from the pixel's by more
+ *                      than this fraction of it are left out (0.05).
+ *   normaltolerance -- neighbours whose normal's dot product with the pixel's
+ *                      is below this are left out (0.9, about 25 degrees;
+ *                      -1 takes every normal).
  */
-pixel interleavefilter(float size = 3; float depthtolerance = 0.05;)
+pixel interleavefilter(float size = 3; float depthtolerance = 0.05; float normaltolerance = 0.9;)
 {
     float x = xcomp(P), y = ycomp(P);
     float z = zdepth, id = objectid;
+    color pn = color pixelvalue("N", x, y);
     float format[3];
     option("Format", format);
     if (id >= 0) {
@@ -30,8 +35,13 @@ pixel interleavefilter(float size = 3; float depthtolerance = 0.05;)
                 if (nx >= 0 && ny >= 0 && nx < format[0] && ny < format[1]) {
                     float nz = pixelvalue("z", nx, ny);
                     if (pixelvalue("objectid", nx, ny) == id && abs(nz - z) <= depthtolerance * z) {
-                        sum += color pixelvalue("Ci", nx, ny);
-                        n += 1;
+                        color nn = color pixelvalue("N", nx, ny);
+                        float facing = comp(pn, 0) * comp(nn, 0) + comp(pn, 1) * comp(nn, 1)
+                            + comp(pn, 2) * comp(nn, 2);
+                        if (facing >= normaltolerance) {
+                            sum += color pixelvalue("Ci", nx, ny);
+                            n += 1;
+                        }
                     }
                 }
             }
