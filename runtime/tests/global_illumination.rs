@@ -355,6 +355,35 @@ fn the_interleave_filter_keeps_the_faces_of_a_crease_apart() {
 /// them: every photon that reaches the floor by the mirror comes from the light's mirror image,
 /// so the caustic irradiance on the floor is that of a point light of 0.8 times the intensity at
 /// the image: `E = 0.8 I h / d^3` (`h` the image's height over the floor, `d` the distance).
+/// How the red channel of the central 16x16 pixels of a 24x24 image of the floor `y = 0` (seen
+/// from above) compares with the irradiance a point source of intensity `intensity` at `source`
+/// gives it, `I h / d^3`: the relative error of the sum, and of the worst pixel.
+fn against_a_point_source(
+    world: &rtsl_runtime::render::World,
+    fb: &Framebuffer,
+    source: rtsl_runtime::glam::Vec3A,
+    intensity: f32,
+) -> (f64, f32) {
+    let (mut got, mut want, mut worst) = (0.0f64, 0.0f64, 0.0f32);
+    for y in 4..20 {
+        for x in 4..20 {
+            let i = (y * 24 + x) as usize;
+            assert_ne!(fb.object_id[i], u32::MAX, "pixel {x}, {y} sees the floor");
+            // The floor point this pixel sees: along its camera ray to y = 0.
+            let ray = rtsl_runtime::render::camera_ray(world, x, y, 0.5, 0.5);
+            let p = ray.origin + ray.direction * (-ray.origin.y / ray.direction.y);
+            let d = (p - source).length();
+            let analytic = intensity * source.y / (d * d * d);
+            let estimate = fb.rgba[4 * i];
+            got += f64::from(estimate);
+            want += f64::from(analytic);
+            worst = worst.max((estimate / analytic - 1.0).abs());
+        }
+    }
+    assert!(want > 0.0, "no light arrives");
+    ((got / want - 1.0).abs(), worst)
+}
+
 #[test]
 fn caustic_photons_under_a_mirror_give_the_mirror_images_light() {
     use rtsl_runtime::api::Primitive;
@@ -395,28 +424,10 @@ fn caustic_photons_under_a_mirror_give_the_mirror_images_light() {
         .expect("a light");
     let world = rt.build_world().expect("a world");
     let (fb, _) = render_frame(&world, None);
-    let (mut got, mut want, mut worst) = (0.0f64, 0.0f64, 0.0f32);
-    for y in 4..20 {
-        for x in 4..20 {
-            let i = (y * 24 + x) as usize;
-            if fb.object_id[i] == u32::MAX {
-                continue;
-            }
-            // The floor point this pixel sees: along its camera ray to y = 0.
-            let ray = rtsl_runtime::render::camera_ray(&world, x, y, 0.5, 0.5);
-            let t = -ray.origin.y / ray.direction.y;
-            let p = ray.origin + ray.direction * t;
-            let d = (p - Vec3A::new(0.0, 4.0, 0.0)).length();
-            let analytic = 0.8 * 4.0 * 4.0 / (d * d * d);
-            let estimate = fb.rgba[4 * i];
-            got += f64::from(estimate);
-            want += f64::from(analytic);
-            worst = worst.max((estimate / analytic - 1.0).abs());
-        }
-    }
-    let relative = (got / want - 1.0).abs();
-    eprintln!("caustic irradiance: estimate {got}, analytic {want} (relative error {relative}, worst pixel {worst})");
-    assert!(want > 0.0 && relative < 0.02, "estimate {got}, analytic {want}");
+    // The mirror image of the light, at height 4, lights the floor through the mirror.
+    let (relative, worst) = against_a_point_source(&world, &fb, Vec3A::new(0.0, 4.0, 0.0), 0.8 * 4.0);
+    eprintln!("caustic irradiance: relative error {relative}, worst pixel {worst}");
+    assert!(relative < 0.02, "the estimate is off by {relative}");
     assert!(worst < 0.1, "the worst pixel is off by {worst}");
 }
 
@@ -597,24 +608,9 @@ fn global_photons_give_the_irradiance_of_direct_and_bounced_light() {
         .expect("a light");
     let world = rt.build_world().expect("a world");
     let (fb, _) = render_frame(&world, None);
-    let (mut got, mut want, mut worst) = (0.0f64, 0.0f64, 0.0f32);
-    for y in 4..20 {
-        for x in 4..20 {
-            let i = (y * 24 + x) as usize;
-            let ray = rtsl_runtime::render::camera_ray(&world, x, y, 0.5, 0.5);
-            let t = -ray.origin.y / ray.direction.y;
-            let p = ray.origin + ray.direction * t;
-            let d = (p - Vec3A::new(0.0, 2.0, 0.0)).length();
-            let analytic = 4.0 * 2.0 / (d * d * d);
-            let estimate = fb.rgba[4 * i];
-            got += f64::from(estimate);
-            want += f64::from(analytic);
-            worst = worst.max((estimate / analytic - 1.0).abs());
-        }
-    }
-    let relative = (got / want - 1.0).abs();
-    eprintln!("global irradiance: estimate {got}, analytic {want} (relative error {relative}, worst pixel {worst})");
-    assert!(want > 0.0 && relative < 0.02, "estimate {got}, analytic {want}");
+    let (relative, worst) = against_a_point_source(&world, &fb, Vec3A::new(0.0, 2.0, 0.0), 4.0);
+    eprintln!("global irradiance: relative error {relative}, worst pixel {worst}");
+    assert!(relative < 0.02, "the estimate is off by {relative}");
     assert!(worst < 0.1, "the worst pixel is off by {worst}");
 
     // In the closed box, the global map's irradiance less the direct part is the indirect light

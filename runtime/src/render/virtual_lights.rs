@@ -362,11 +362,24 @@ fn landings(
 /// The most specular surfaces a path goes through.
 const MAX_SPECULAR_DEPTH: u32 = 8;
 
-/// Leaves a virtual light where the path landed on a matte surface and bounces on, cosine
-/// distributed, `bounces - 1` more times while power is left. Through chrome and glass it goes on
-/// as they direct it, but leaves nothing on the next matte surface: light that reaches a diffuse
-/// surface through a specular one is a caustic, the photon map's.
-fn follow_to_virtual_lights(frame: &Frame, landing: Landing, bounces: u32, seed: u64, out: &mut Vec<VirtualLight>) {
+/// A light path at a matte surface: where, the normal facing where it came from, the power it
+/// carries as it arrives and its direction, the surface's reflectance, and how many matte and
+/// specular surfaces it met before.
+struct AtMatte {
+    p: Vec3A,
+    n: Vec3A,
+    carried: Vec3A,
+    direction: Vec3A,
+    reflectance: Vec3A,
+    diffuse: u32,
+    specular: u32,
+}
+
+/// Follows a light path from where it landed: at each matte surface `visit` leaves what it
+/// leaves there and says whether the path bounces on, cosine-distributed (cosine sampling cancels
+/// the matte BRDF's cosine over pi: the path then carries its power times the reflectance);
+/// through chrome and glass it goes as they direct it, at most [`MAX_SPECULAR_DEPTH`] of them.
+fn follow(frame: &Frame, landing: Landing, seed: u64, mut visit: impl FnMut(&AtMatte) -> bool) {
     let Landing { mut ray, mut hit, mut surface, mut carried, .. } = landing;
     let (mut diffuse, mut specular) = (0, 0);
     loop {
@@ -375,20 +388,11 @@ fn follow_to_virtual_lights(frame: &Frame, landing: Landing, bounces: u32, seed:
         let h = mix(seed ^ (u64::from(diffuse + specular) << 32) ^ point_seed(surface.p));
         let dir = match model {
             PhotonModel::Matte => {
-                if specular > 0 {
+                let at = AtMatte { p: surface.p, n, carried, direction: ray.direction, reflectance, diffuse, specular };
+                if !visit(&at) {
                     return;
                 }
-                let power = carried * reflectance / std::f32::consts::PI;
-                if power.max_element() <= 0.0 || !power.is_finite() {
-                    return;
-                }
-                out.push(VirtualLight { p: surface.p, n, power });
                 diffuse += 1;
-                if diffuse == bounces {
-                    return;
-                }
-                // Cosine sampling cancels the matte BRDF's cosine over pi: the path carries
-                // reflectance.
                 carried *= reflectance;
                 cosine_direction(n, h)
             }
@@ -409,45 +413,33 @@ fn follow_to_virtual_lights(frame: &Frame, landing: Landing, bounces: u32, seed:
     }
 }
 
+/// Leaves a virtual light where the path landed on a matte surface and on each of the next
+/// `bounces - 1` it reaches while power is left. Light that reaches a diffuse surface through a
+/// specular one is a caustic, the photon map's: the path leaves nothing there and ends.
+fn follow_to_virtual_lights(frame: &Frame, landing: Landing, bounces: u32, seed: u64, out: &mut Vec<VirtualLight>) {
+    follow(frame, landing, seed, |at| {
+        if at.specular > 0 {
+            return false;
+        }
+        let power = at.carried * at.reflectance / std::f32::consts::PI;
+        if power.max_element() <= 0.0 || !power.is_finite() {
+            return false;
+        }
+        out.push(VirtualLight { p: at.p, n: at.n, power });
+        at.diffuse + 1 < bounces
+    });
+}
+
 /// Leaves a photon, the path's power as it arrives, on each of the first `stores` matte surfaces
-/// the path reaches, bouncing on from each cosine-distributed (its power then scaled by the
-/// surface's reflectance: cosine sampling cancels the matte BRDF's cosine over pi) and through
-/// chrome and glass as they direct it.
+/// the path reaches.
 fn follow_to_global_photons(frame: &Frame, landing: Landing, stores: u32, seed: u64, out: &mut Vec<Photon>) {
-    let Landing { mut ray, mut hit, mut surface, mut carried, .. } = landing;
-    let (mut stored, mut specular) = (0, 0);
-    loop {
-        let (reflectance, model) = reflectance_of(frame, &hit);
-        let h = mix(seed ^ (u64::from(stored + specular) << 32) ^ point_seed(surface.p));
-        let dir = match model {
-            PhotonModel::Matte => {
-                if carried.max_element() <= 0.0 || !carried.is_finite() {
-                    return;
-                }
-                out.push(Photon { p: surface.p, power: carried, direction: ray.direction.normalize_or_zero() });
-                stored += 1;
-                if stored == stores {
-                    return;
-                }
-                carried *= reflectance;
-                let n = if surface.ng.dot(ray.direction) > 0.0 { -surface.ng } else { surface.ng };
-                cosine_direction(n, h)
-            }
-            _ => {
-                specular += 1;
-                if specular > MAX_SPECULAR_DEPTH {
-                    return;
-                }
-                let Some((dir, tint)) = scatter_specular(model, reflectance, ray.direction, surface.ng, h) else {
-                    return;
-                };
-                carried *= tint;
-                dir
-            }
-        };
-        let Some(next) = bounce(frame, surface.p, dir) else { return };
-        (ray, hit, surface) = next;
-    }
+    follow(frame, landing, seed, |at| {
+        if at.carried.max_element() <= 0.0 || !at.carried.is_finite() {
+            return false;
+        }
+        out.push(Photon { p: at.p, power: at.carried, direction: at.direction.normalize_or_zero() });
+        at.diffuse + 1 < stores
+    });
 }
 
 /// Follows a path that landed on a specular surface through specular surfaces to the first matte
