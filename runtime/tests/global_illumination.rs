@@ -384,8 +384,11 @@ fn against_a_point_source(
     ((got / want - 1.0).abs(), worst)
 }
 
-#[test]
-fn caustic_photons_under_a_mirror_give_the_mirror_images_light() {
+/// A 24x24 image, seen from above, of the floor `y = 0` (6 x 6, colour 0.8) showing the
+/// irradiance the frame's photon map `map` (`"caustic"` or `"global"`, 300000 paths) estimates
+/// from 300 photons, under a point light of intensity 4 at height 2, with a horizontal chrome
+/// mirror of the same size at height 3 when `mirror`.
+fn photons_on_a_floor(map: &str, mirror: bool) -> (rtsl_runtime::render::World, Framebuffer) {
     use rtsl_runtime::api::Primitive;
     use rtsl_runtime::glam::Vec3A;
     use rtsl_runtime::render::world::PhotonModel;
@@ -395,14 +398,15 @@ fn caustic_photons_under_a_mirror_give_the_mirror_images_light() {
     rt.options.width = 24;
     rt.options.height = 24;
     rt.options.antialiasing = rtsl_runtime::render::Antialiasing::Grid { jitter: false };
-    rt.options.gi.caustic_photons = 300_000;
+    match map {
+        "caustic" => rt.options.gi.caustic_photons = 300_000,
+        _ => rt.options.gi.global_photons = 300_000,
+    }
     rt.camera_look_at(Vec3A::new(0.0, 2.5, 0.01), Vec3A::ZERO, Vec3A::Z, 50.0);
-    let caustics = "surface caustics() {
-        normal Nf = faceforward(normalize(N), I);
-        Ci = photonmap(\"caustic\", P, Nf, \"estimator\", 300);
-        Oi = 1;
-    }";
-    let shader = rt.compile_shader("caustics", caustics).map_err(e).expect("compiles");
+    let probe = format!(
+        "surface probe() {{ normal Nf = faceforward(normalize(N), I); Ci = photonmap(\"{map}\", P, Nf, \"estimator\", 300); Oi = 1; }}"
+    );
+    let shader = rt.compile_shader("probe", &probe).map_err(e).expect("compiles");
     let quad = |rt: &mut Context, y: f32, model: PhotonModel| {
         rt.photon_shading_model(model);
         let object = rt.begin_object().map_err(e).expect("an object");
@@ -417,13 +421,22 @@ fn caustic_photons_under_a_mirror_give_the_mirror_images_light() {
     };
     rt.color(0.8, 0.8, 0.8);
     quad(&mut rt, 0.0, PhotonModel::Matte);
-    quad(&mut rt, 3.0, PhotonModel::Chrome);
+    if mirror {
+        quad(&mut rt, 3.0, PhotonModel::Chrome);
+    }
     let light = rt.find_shader("pointlight").map_err(e).expect("pointlight");
     rt.light_source(light, &[("intensity", ParamValue::Float(4.0)), ("from", ParamValue::Point([0.0, 2.0, 0.0]))])
         .map_err(e)
         .expect("a light");
     let world = rt.build_world().expect("a world");
-    let (fb, _) = render_frame(&world, None);
+    let fb = render_frame(&world, None).0;
+    (world, fb)
+}
+
+#[test]
+fn caustic_photons_under_a_mirror_give_the_mirror_images_light() {
+    use rtsl_runtime::glam::Vec3A;
+    let (world, fb) = photons_on_a_floor("caustic", true);
     // The mirror image of the light, at height 4, lights the floor through the mirror.
     let (relative, worst) = against_a_point_source(&world, &fb, Vec3A::new(0.0, 4.0, 0.0), 0.8 * 4.0);
     eprintln!("caustic irradiance: relative error {relative}, worst pixel {worst}");
@@ -576,38 +589,8 @@ fn the_pieces_of_a_pass_share_its_light_paths() {
 /// arrives after bounces, as virtual lights count it.
 #[test]
 fn global_photons_give_the_irradiance_of_direct_and_bounced_light() {
-    use rtsl_runtime::api::Primitive;
     use rtsl_runtime::glam::Vec3A;
-    use rtsl_runtime::shading::ParamValue;
-    let e = |e: rtsl_runtime::api::ApiError| e.to_string();
-    let mut rt = Context::new();
-    rt.options.width = 24;
-    rt.options.height = 24;
-    rt.options.antialiasing = rtsl_runtime::render::Antialiasing::Grid { jitter: false };
-    rt.options.gi.global_photons = 300_000;
-    rt.camera_look_at(Vec3A::new(0.0, 2.5, 0.01), Vec3A::ZERO, Vec3A::Z, 50.0);
-    let global = "surface global() {
-        normal Nf = faceforward(normalize(N), I);
-        Ci = photonmap(\"global\", P, Nf, \"estimator\", 300);
-        Oi = 1;
-    }";
-    let shader = rt.compile_shader("global", global).map_err(e).expect("compiles");
-    rt.color(0.8, 0.8, 0.8);
-    let floor = rt.begin_object().map_err(e).expect("an object");
-    rt.bind_shader(shader).map_err(e).expect("bound");
-    rt.begin(Primitive::Quads).map_err(e).expect("quads");
-    for (x, z) in [(-3.0, -3.0), (3.0, -3.0), (3.0, 3.0), (-3.0, 3.0)] {
-        rt.vertex(x, 0.0, z).map_err(e).expect("a vertex");
-    }
-    rt.end().map_err(e).expect("end");
-    rt.end_object().map_err(e).expect("end_object");
-    rt.instantiate_object(floor).map_err(e).expect("an instance");
-    let light = rt.find_shader("pointlight").map_err(e).expect("pointlight");
-    rt.light_source(light, &[("intensity", ParamValue::Float(4.0)), ("from", ParamValue::Point([0.0, 2.0, 0.0]))])
-        .map_err(e)
-        .expect("a light");
-    let world = rt.build_world().expect("a world");
-    let (fb, _) = render_frame(&world, None);
+    let (world, fb) = photons_on_a_floor("global", false);
     let (relative, worst) = against_a_point_source(&world, &fb, Vec3A::new(0.0, 2.0, 0.0), 4.0);
     eprintln!("global irradiance: relative error {relative}, worst pixel {worst}");
     assert!(relative < 0.02, "the estimate is off by {relative}");
