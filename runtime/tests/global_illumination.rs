@@ -125,6 +125,10 @@ fn bad_gi_options_are_warnings_and_counts_are_clamped() {
     assert_eq!(rt.options.gi.interleave, rtsl_runtime::render::world::MAX_INTERLEAVE);
     let (rt, _) = box_scene(r#"Option "gi" "float virtuallights" [1e12]"#);
     assert_eq!(rt.options.gi.virtual_lights, rtsl_runtime::render::world::MAX_VIRTUAL_LIGHT_PATHS);
+    let (rt, warnings) = box_scene(r#"Option "gi" "float globalphotons" [1e12] "string causticphotons" ["many"]"#);
+    assert_eq!(rt.options.gi.global_photons, rtsl_runtime::render::world::MAX_VIRTUAL_LIGHT_PATHS);
+    assert_eq!(rt.options.gi.caustic_photons, 0);
+    assert!(warnings.len() == 1 && warnings[0].contains("\"causticphotons\" takes a number"), "{warnings:?}");
 }
 
 #[test]
