@@ -136,11 +136,7 @@ impl<'m> Lower<'m, '_> {
         let e = self.b.ins().bor(e, ca);
         let e = self.b.ins().bor(e, sk);
         self.set_exec(e);
-        let kv = self.b.use_var(k);
-        let one = self.b.ins().f32const(1.0);
-        let k1 = self.b.ins().fadd(kv, one);
-        self.b.def_var(k, k1);
-        self.b.ins().jump(header, &[]);
+        self.next_iteration(k, header);
 
         self.b.switch_to_block(leave);
         let e = self.exec();
@@ -291,11 +287,7 @@ impl<'m> Lower<'m, '_> {
         let next = self.b.ins().bor(after_hit, after_miss);
         let next = self.b.ins().bor(next, ca);
         self.set_exec(next);
-        let kv = self.b.use_var(k);
-        let one = self.b.ins().f32const(1.0);
-        let k1 = self.b.ins().fadd(kv, one);
-        self.b.def_var(k, k1);
-        self.b.ins().jump(header, &[]);
+        self.next_iteration(k, header);
 
         self.b.switch_to_block(leave);
         self.b.ins().jump(exit_b, &[]);
@@ -305,5 +297,17 @@ impl<'m> Lower<'m, '_> {
         let after = self.b.use_var(exit_acc);
         self.set_exec(after);
         Ok(())
+    }
+}
+
+impl Lower<'_, '_> {
+    /// Ends an iteration of a light or gather loop: its counter `k` (a float variable) one up,
+    /// then back to the loop's `header`.
+    fn next_iteration(&mut self, k: cranelift_frontend::Variable, header: cranelift_codegen::ir::Block) {
+        let kv = self.b.use_var(k);
+        let one = self.b.ins().f32const(1.0);
+        let k1 = self.b.ins().fadd(kv, one);
+        self.b.def_var(k, k1);
+        self.b.ins().jump(header, &[]);
     }
 }
