@@ -611,11 +611,46 @@ fn messages_say_each_thing_once() {
         "tex.rib",
         &SPHERE_RIB.replace("Surface \"plastic\"", "Surface \"texmap\" \"string texturename\" \"nope.png\""),
     );
-    let o = rtsl(&["render", "tex.rib", "-o", "tex.png"], dir.path());
+    let o = rtsl(&["render", "tex.rib", "-o", "tex.png", "--keep-going"], dir.path());
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     let err = stderr(&o);
     assert!(err.contains("nope.png") && err.contains("file not found"), "{err}");
     assert!(!err.contains("searched  and"), "{err}");
+}
+
+#[test]
+fn a_render_missing_part_of_its_scene_fails_unless_told_to_keep_going() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let missing = [
+        ("shader", SPHERE_RIB.replace("\"plastic\"", "\"nosuchshader\""), "nosuchshader"),
+        (
+            "texture",
+            SPHERE_RIB.replace("Surface \"plastic\"", "Surface \"texmap\" \"string texturename\" \"nope.png\""),
+            "nope.png",
+        ),
+        ("archive", SPHERE_RIB.replace("Sphere", "ReadArchive \"gone.obj\"\nSphere"), "gone.obj"),
+        ("request", SPHERE_RIB.replace("Sphere", "Blobby 0 [] [] []\nSphere"), "Blobby"),
+    ];
+    for (what, rib, named) in missing {
+        write(dir.path(), "s.rib", &rib);
+        let _ = std::fs::remove_file(dir.path().join("out.png"));
+        let o = rtsl(&["render", "s.rib", "-o", "out.png", "--quiet"], dir.path());
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "a missing {what}: {err}");
+        assert!(err.contains(named), "a missing {what} is named: {err}");
+        assert!(err.contains("error: 1 part of the scene missing from the image"), "{what}: {err}");
+        assert!(dir.path().join("out.png").exists(), "the image is written all the same ({what})");
+        let o = rtsl(&["render", "s.rib", "-o", "out.png", "--quiet", "--keep-going"], dir.path());
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(0), "a missing {what} with --keep-going: {err}");
+        assert!(err.contains(named) && err.contains("warning: 1 part of the scene missing"), "{what}: {err}");
+    }
+    // What is only ignored or approximated warns and succeeds.
+    let approximated = SPHERE_RIB.replace("WorldBegin", "Option \"limits\" \"bucketsize\" [16 16]\nWorldBegin");
+    write(dir.path(), "s.rib", &approximated);
+    let o = rtsl(&["render", "s.rib", "-o", "out.png", "--quiet"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(stderr(&o).contains("\"limits\""), "{}", stderr(&o));
 }
 
 #[test]

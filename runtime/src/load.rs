@@ -11,8 +11,11 @@ use std::path::{Path, PathBuf};
 pub struct LoadedScene {
     /// The image the scene names (a RIB `Display`), resolved against the scene file's directory.
     pub display: Option<PathBuf>,
-    /// What was skipped, each naming where.
+    /// What was skipped, ignored or approximated, each naming where.
     pub warnings: Vec<String>,
+    /// How many of the warnings say that part of the scene is missing from the picture (a request
+    /// skipped; a shader, archive, model or texture not found).
+    pub omissions: usize,
 }
 
 /// Loads the scene in `path` into `rt` by its extension (case-insensitive).
@@ -22,7 +25,11 @@ pub fn load_scene(rt: &mut Context, path: &Path) -> Result<LoadedScene, SceneFil
         Some("rib") => {
             let loaded = crate::rib::load::load_file(rt, path)?;
             let dir = path.parent().unwrap_or(Path::new("."));
-            Ok(LoadedScene { display: loaded.display.map(|d| dir.join(d)), warnings: loaded.warnings })
+            Ok(LoadedScene {
+                display: loaded.display.map(|d| dir.join(d)),
+                warnings: loaded.warnings,
+                omissions: loaded.omissions,
+            })
         }
         Some("obj" | "ply" | "gltf" | "glb") => {
             let bounds = add_model_file(rt, path)?;

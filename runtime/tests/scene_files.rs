@@ -78,9 +78,36 @@ fn unknown_shaders_are_reported_not_fatal() {
     let mut rt = Context::new();
     let err = load_str(&mut rt, "WorldBegin\nSurface \"no_such_shader\"\nWorldEnd\n", Path::new("s.rib"));
     match err {
-        Ok(loaded) => assert!(loaded.warnings.iter().any(|w| w.contains("s.rib:2:1") && w.contains("no_such_shader"))),
+        Ok(loaded) => {
+            assert!(loaded.warnings.iter().any(|w| w.contains("s.rib:2:1") && w.contains("no_such_shader")));
+            assert_eq!(loaded.omissions, 1, "a missing shader is part of the scene missing");
+        }
         Err(e) => panic!("{e}"),
     }
+}
+
+#[test]
+fn omissions_count_what_is_missing_from_the_picture_and_not_what_is_approximated() {
+    let rib = r#"Option "limits" "bucketsize" [16 16]
+        Projection "stereographic"
+        WorldBegin
+          Attribute "dice" "binary" [1]
+          Surface "plastic" "nosuchparam" [1]
+          Blobby 0 [] [] []
+          ReadArchive "missing-model.obj"
+          ObjectInstance 7
+          Exterior "fog"
+          Sphere 1 -1 1 360
+        WorldEnd
+    "#;
+    let loaded = load_str(&mut Context::new(), rib, Path::new("s.rib")).expect("loads with warnings");
+    let text = loaded.warnings.join("\n");
+    for approximated in ["\"limits\"", "stereographic", "\"dice\"", "nosuchparam"] {
+        assert!(text.contains(approximated), "{approximated} is warned about: {text}");
+    }
+    // Blobby, the archive, the object instance and the exterior shader are not in the picture.
+    assert_eq!(loaded.omissions, 4, "{text}");
+    assert_eq!(loaded.warnings.len(), 8, "{text}");
 }
 
 #[test]

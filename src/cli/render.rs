@@ -7,7 +7,7 @@ use rtsl_runtime::distributed::Master;
 use rtsl_runtime::reload::{ShaderEvent, ShaderReloader};
 use rtsl_runtime::render::{render_frame, Antialiasing, FrameReport, Framebuffer, World};
 use rtsl_runtime::shading::ParamValue;
-use rtsl_runtime::{write_image, WriteOptions};
+use rtsl_runtime::{write_image, LoadedScene, WriteOptions};
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -49,6 +49,10 @@ pub struct RenderArgs {
     /// Print nothing but errors.
     #[arg(short, long)]
     pub quiet: bool,
+    /// Exit successfully even when part of the scene is missing from the image (a shader, texture,
+    /// archive or model not found, a RIB request skipped); the warnings are printed either way.
+    #[arg(long)]
+    pub keep_going: bool,
     /// Keep running: re-render and rewrite the image whenever a shader source or header changes.
     #[arg(long)]
     pub watch: bool,
@@ -136,14 +140,15 @@ fn on_pool(pool: &rayon::ThreadPool) -> Box<FrameRender<'_>> {
 
 /// Renders the context's scene with `render` and writes `output`; prints warnings (those of
 /// values a reloaded shader no longer takes only with `frame_warnings`: `--watch` prints them once
-/// per reload, from the reload's events).
+/// per reload, from the reload's events). Returns the frame's report and how many textures could
+/// not be read.
 fn render_and_write(
     rt: &mut Context,
     render: &mut FrameRender,
     output: &Path,
     quiet: bool,
     frame_warnings: bool,
-) -> anyhow::Result<FrameReport> {
+) -> anyhow::Result<(FrameReport, usize)> {
     let world = rt.build_world()?;
     for w in rt.take_warnings() {
         if frame_warnings {
@@ -169,7 +174,8 @@ fn render_and_write(
         b.finish_and_clear();
     }
     let (fb, report) = rendered?;
-    for w in world.textures.take_warnings() {
+    let missing_textures = world.textures.take_warnings();
+    for w in &missing_textures {
         eprintln!("warning: {w}");
     }
     for m in &report.shader_messages {
@@ -178,7 +184,26 @@ fn render_and_write(
     rt.return_scene(world);
     write_image(output, fb.width as usize, fb.height as usize, &fb.rgba, &WriteOptions::default())
         .with_context(|| format!("writing {}", output.display()))?;
-    Ok(report)
+    Ok((report, missing_textures.len()))
+}
+
+/// The exit status of a render that wrote its image with `omissions` parts of the scene missing
+/// (requests skipped, files not found): a failure unless `keep_going`, so that a pipeline notices.
+fn exit_status(omissions: usize, keep_going: bool) -> ExitCode {
+    if omissions == 0 {
+        return ExitCode::SUCCESS;
+    }
+    let parts = if omissions == 1 { "part" } else { "parts" };
+    if keep_going {
+        eprintln!("warning: {omissions} {parts} of the scene missing from the image (see the warnings above)");
+        ExitCode::SUCCESS
+    } else {
+        eprintln!(
+            "error: {omissions} {parts} of the scene missing from the image (see the warnings above); \
+             the image was written, and --keep-going accepts it"
+        );
+        ExitCode::FAILURE
+    }
 }
 
 /// `--watch`: shaders are recompiled off the render thread as their sources or headers change
@@ -206,7 +231,7 @@ fn watch(rt: &mut Context, render: &mut FrameRender, output: &Path) -> anyhow::R
         if compiled.is_empty() {
             continue;
         }
-        let report = render_and_write(rt, render, output, true, false)?;
+        let (report, _) = render_and_write(rt, render, output, true, false)?;
         let frame_ms = report.elapsed.as_secs_f64() * 1e3;
         for (name, compile) in compiled {
             println!(
@@ -219,12 +244,13 @@ fn watch(rt: &mut Context, render: &mut FrameRender, output: &Path) -> anyhow::R
 }
 
 /// Makes a context with the search paths of the flags and the environment, and loads the scene (or
-/// the default scene) into it; returns the output file the scene names.
+/// the default scene) into it, printing the loader's warnings; returns the context and what the
+/// load reported besides (the output file the scene names, how much of it is missing).
 pub(crate) fn load_scene(
     scene: Option<&Path>,
     shader_path: &[PathBuf],
     include: &[PathBuf],
-) -> anyhow::Result<(Context, Option<PathBuf>)> {
+) -> anyhow::Result<(Context, LoadedScene)> {
     let mut rt = Context::new();
     let mut search: Vec<PathBuf> = shader_path.to_vec();
     if let Ok(env) = std::env::var("RTSL_SHADER_PATH") {
@@ -232,23 +258,24 @@ pub(crate) fn load_scene(
     }
     rt.set_shader_search_path(search);
     rt.set_include_paths(include.to_vec());
-    let output = match scene {
-        None => rtsl::default_scene::load(&mut rt)?.display,
-        Some(path) => {
-            let loaded = rtsl_runtime::load_scene(&mut rt, path)?;
-            for w in &loaded.warnings {
-                eprintln!("{w}");
-            }
-            loaded.display
+    let loaded = match scene {
+        None => {
+            let rib = rtsl::default_scene::load(&mut rt)?;
+            LoadedScene { display: rib.display, warnings: rib.warnings, omissions: rib.omissions }
         }
+        Some(path) => rtsl_runtime::load_scene(&mut rt, path)?,
     };
-    Ok((rt, output))
+    for w in &loaded.warnings {
+        eprintln!("{w}");
+    }
+    Ok((rt, loaded))
 }
 
-/// Loads the scene and applies the flags to it; returns it and the image to write.
-fn prepare(args: &RenderArgs) -> anyhow::Result<(Context, PathBuf)> {
-    let (mut rt, named) = load_scene(args.scene.as_deref(), &args.shader_path, &args.include)?;
-    let output = args.output.clone().or(named);
+/// Loads the scene and applies the flags to it; returns it, the image to write and how many parts
+/// of the scene are missing.
+fn prepare(args: &RenderArgs) -> anyhow::Result<(Context, PathBuf, usize)> {
+    let (mut rt, loaded) = load_scene(args.scene.as_deref(), &args.shader_path, &args.include)?;
+    let output = args.output.clone().or(loaded.display);
     if let Some((w, h)) = args.size {
         rt.options.width = w;
         rt.options.height = h;
@@ -262,24 +289,26 @@ fn prepare(args: &RenderArgs) -> anyhow::Result<(Context, PathBuf)> {
     if let Some(camera) = &args.camera {
         camera.bind(&mut rt)?;
     }
-    Ok((rt, output.unwrap_or_else(|| PathBuf::from("render.png"))))
+    Ok((rt, output.unwrap_or_else(|| PathBuf::from("render.png")), loaded.omissions))
 }
 
 pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
     if args.mpi {
         return run_mpi(args);
     }
-    let (mut rt, output) = prepare(args)?;
+    let (mut rt, output, omissions) = prepare(args)?;
     let (threads, pool) = super::worker_pool(args.threads)?;
     let mut render = on_pool(&pool);
-    let report = render_and_write(&mut rt, &mut render, &output, args.quiet, true)?;
+    let (report, missing_textures) = render_and_write(&mut rt, &mut render, &output, args.quiet, true)?;
     if !args.quiet {
         print_summary(&rt, &output, &format!("{threads} thread(s)"), &report);
     }
+    // Watching is interactive: what is missing may be fixed by the next edit.
+    let status = exit_status(omissions + missing_textures, args.keep_going || args.watch);
     if args.watch {
         watch(&mut rt, &mut render, &output)?;
     }
-    Ok(ExitCode::SUCCESS)
+    Ok(status)
 }
 
 fn print_summary(rt: &Context, output: &Path, threads: &str, report: &FrameReport) {
@@ -303,7 +332,7 @@ fn run_mpi(args: &RenderArgs) -> anyhow::Result<ExitCode> {
         return super::mpi::work(&*transport, &pool, &args.workers);
     }
     let mut master = Master::connect(transport)?;
-    let (mut rt, output) = prepare(args)?;
+    let (mut rt, output, omissions) = prepare(args)?;
     master.check_workers()?;
     if master.workers() == 0 {
         eprintln!("warning: --mpi with no worker rank (run it with mpirun -n 2 or more): rendering on rank 0 alone");
@@ -320,7 +349,8 @@ fn run_mpi(args: &RenderArgs) -> anyhow::Result<ExitCode> {
         }
         Ok(rendered)
     };
-    let report = render_and_write(&mut rt, &mut render, &output, args.quiet, true)?;
+    let (report, missing_textures) = render_and_write(&mut rt, &mut render, &output, args.quiet, true)?;
+    let status = exit_status(omissions + missing_textures, args.keep_going || args.watch);
     if args.watch {
         watch(&mut rt, &mut render, &output)?;
     }
@@ -334,7 +364,7 @@ fn run_mpi(args: &RenderArgs) -> anyhow::Result<ExitCode> {
         }
     }
     master.shutdown()?;
-    Ok(ExitCode::SUCCESS)
+    Ok(status)
 }
 
 #[cfg(test)]

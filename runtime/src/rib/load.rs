@@ -43,8 +43,11 @@ use std::path::{Path, PathBuf};
 pub struct LoadedRib {
     /// The image file `Display` names (relative to the RIB file's directory).
     pub display: Option<PathBuf>,
-    /// Everything that was skipped, with its location.
+    /// Everything that was skipped, ignored or approximated, with its location.
     pub warnings: Vec<String>,
+    /// How many of the warnings say that part of the scene is missing from the picture: a request
+    /// skipped, or a shader, archive, model or texture that could not be found or read.
+    pub omissions: usize,
 }
 
 /// Loads a RIB file into `rt`.
@@ -65,15 +68,15 @@ fn load_parsed(rt: &mut Context, parse: RibParse, path: &Path) -> Result<LoadedR
     }
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let mut loader = Loader::new(rt, dir);
-    loader
-        .out
-        .warnings
-        .extend(parse.diagnostics.iter().filter(|d| d.severity == Severity::Warning).map(|d| d.to_string()));
+    for d in &parse.diagnostics {
+        loader.out.warnings.push(d.to_string());
+        loader.out.omissions += usize::from(d.severity == Severity::Omission);
+    }
     for r in &parse.requests {
         match loader.request(r) {
             Ok(()) => {}
             Err(e @ SceneFileError::TooLarge { .. }) => return Err(e),
-            Err(e) => loader.out.warnings.push(format!("{}: warning: {e}", r.loc)),
+            Err(e) => loader.omit(r, e),
         }
         if loader.frames_done > 0 {
             break;
@@ -152,6 +155,12 @@ impl<'a> Loader<'a> {
         self.out.warnings.push(format!("{}: warning: {message}", r.loc));
     }
 
+    /// A warning that what `r` asks for is missing from the picture.
+    fn omit(&mut self, r: &Request, message: impl std::fmt::Display) {
+        self.warn(r, message);
+        self.out.omissions += 1;
+    }
+
     /// Ends the object that gathers geometry, instancing it where it began.
     fn flush(&mut self) -> Result<(), ApiError> {
         if let Some((id, placed, close)) = self.pending.take() {
@@ -193,7 +202,7 @@ impl<'a> Loader<'a> {
             let id = self.rt.begin_object()?;
             self.pending = Some((id, self.rt.current_matrix(), self.rt.close_matrix()));
         }
-        self.rt.mesh(&mesh).inspect_err(|_| self.warn(r, "geometry skipped"))?;
+        self.rt.mesh(&mesh).inspect_err(|_| self.omit(r, "geometry skipped"))?;
         Ok(())
     }
 
@@ -391,7 +400,10 @@ impl<'a> Loader<'a> {
             | K::Quadric { .. } => {
                 let mut diags = Vec::new();
                 let mesh = mesh_from_request_with(r, &self.state.mesh_options, &mut diags);
-                self.out.warnings.extend(diags.iter().map(|d| d.to_string()));
+                for d in &diags {
+                    self.out.warnings.push(d.to_string());
+                    self.out.omissions += usize::from(d.severity != Severity::Warning);
+                }
                 if let Some(mesh) = mesh {
                     if !mesh.triangles.is_empty() {
                         self.geometry(r, mesh)?;
@@ -417,7 +429,7 @@ impl<'a> Loader<'a> {
                         rt.instantiate_object(*id)?;
                     }
                 }
-                None => self.warn(r, "ObjectInstance names no object"),
+                None => self.omit(r, "ObjectInstance names no object"),
             },
             K::MakeTexture { picture, texture, swrap, twrap, .. } => {
                 let wrap = |w: &str| match w {
@@ -427,7 +439,7 @@ impl<'a> Loader<'a> {
                 };
                 let opts = crate::texture::MakeTextureOptions { swrap: wrap(swrap), twrap: wrap(twrap), raw: false };
                 if let Err(e) = crate::texture::make_texture(self.dir.join(picture), self.dir.join(texture), &opts) {
-                    self.warn(r, e);
+                    self.omit(r, e);
                 }
             }
             K::Imager(s) | K::Pixel(s) => {
@@ -467,7 +479,7 @@ impl<'a> Loader<'a> {
                 }
             }
             K::Exterior(s) => self
-                .warn(r, format_args!("shader \"{}\": this shader type is not rendered yet, so it is ignored", s.name)),
+                .omit(r, format_args!("shader \"{}\": this shader type is not rendered yet, so it is ignored", s.name)),
             K::ScreenWindow(window) => rt.options.screen_window = Some(*window),
             K::FrameAspectRatio(a) => rt.options.frame_aspect_ratio = Some(*a),
             K::CropWindow(window) => rt.options.crop_window = Some(*window),

@@ -57,8 +57,11 @@ pub struct RibError {
 /// How bad a diagnostic is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum Severity {
-    /// Something was skipped, but the file is otherwise fine.
+    /// Something was ignored or approximated, but the file is otherwise fine.
     Warning,
+    /// A request was skipped: what it asks for is missing from the picture (an unknown or
+    /// unsupported request). Shown as a warning; `rtsl render` fails on it unless lenient.
+    Omission,
     /// Part of the file could not be read.
     Error,
 }
@@ -84,12 +87,17 @@ impl RibDiagnostic {
     pub fn warning(loc: &Location, message: impl Into<String>) -> Self {
         RibDiagnostic { severity: Severity::Warning, loc: loc.clone(), message: message.into() }
     }
+
+    /// A skipped request at `loc`.
+    pub fn omission(loc: &Location, message: impl Into<String>) -> Self {
+        RibDiagnostic { severity: Severity::Omission, loc: loc.clone(), message: message.into() }
+    }
 }
 
 impl fmt::Display for RibDiagnostic {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let level = match self.severity {
-            Severity::Warning => "warning",
+            Severity::Warning | Severity::Omission => "warning",
             Severity::Error => "error",
         };
         write!(f, "{}: {level}: {}", self.loc, self.message)

@@ -176,7 +176,7 @@ impl Parser {
                 } else {
                     format!("unknown request `{name}` skipped")
                 };
-                self.diagnostics.push(RibDiagnostic::warning(&loc, message));
+                self.diagnostics.push(RibDiagnostic::omission(&loc, message));
             }
             Err(diagnostic) => self.diagnostics.push(diagnostic),
         }
