@@ -13,7 +13,7 @@
 //! little between CPUs; an edit that changes a shader's look changes far more).
 
 use rtsl_runtime::api::Context;
-use rtsl_runtime::image_io::{diff_image, read_image, write_image, WriteOptions};
+use rtsl_runtime::image_io::{diff_image, read_image, write_image, Transfer, WriteOptions};
 use rtsl_runtime::render::render_frame;
 use rtsl_runtime::rib::load::load_str;
 use std::path::{Path, PathBuf};
@@ -47,7 +47,7 @@ fn check(name: &str, rgba: &[f32]) -> Result<(), String> {
         write_image(&reference, w, h, rgba, &WriteOptions::default()).map_err(|e| e.to_string())?;
         return Ok(());
     }
-    // Compare what would be written: 8-bit quantised.
+    // Compare what `rtsl render` would write: sRGB-encoded, 8-bit quantised.
     let actual_path = golden_dir().join(format!("{name}.actual.png"));
     let tmp = std::env::temp_dir().join(format!("rtsl-golden-{}-{name}.png", std::process::id()));
     write_image(&tmp, w, h, rgba, &WriteOptions::default()).map_err(|e| e.to_string())?;
@@ -58,7 +58,9 @@ fn check(name: &str, rgba: &[f32]) -> Result<(), String> {
     let d = diff_image(&expected, &actual).map_err(|e| e.to_string())?;
     let far = d.differing_pixels(0.1);
     if d.mean_abs > 0.02 || far > w * h / 100 {
-        let _ = write_image(&actual_path, w, h, &actual.pixels, &WriteOptions::default());
+        // `actual` holds the values stored, encoded already.
+        let stored = WriteOptions { transfer: Transfer::Linear, ..WriteOptions::default() };
+        let _ = write_image(&actual_path, w, h, &actual.pixels, &stored);
         let diff = d.difference_image(8.0);
         let _ =
             write_image(golden_dir().join(format!("{name}.diff.png")), w, h, &diff.pixels, &WriteOptions::default());

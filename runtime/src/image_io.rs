@@ -6,9 +6,10 @@
 //!   4, straight from the framebuffer, linear and not premultiplied by this module).
 //! - The format follows the file extension (case-insensitive): `.png`, `.tga`, `.ppm` (8-bit) and
 //!   `.exr` (32-bit or half float).
-//! - 8-bit files are written like RenderMan's default `Quantize "rgba" 255 0 255 0.5`: value times
-//!   255, plus 0.5 (or a dither in [0, 1) when asked), truncated and clamped to 0..=255. No transfer
-//!   curve is applied unless [`WriteOptions::srgb_encode`] says so, so a PNG holds the linear values.
+//! - 8-bit files are display-encoded: colour (not alpha) goes through the sRGB curve unless
+//!   [`WriteOptions::transfer`] says [`Transfer::Linear`], then is quantised like RenderMan's
+//!   default `Quantize "rgba" 255 0 255 0.5`: value times 255, plus 0.5 (or a dither in [0, 1)
+//!   when asked), truncated and clamped to 0..=255. Float files (EXR) hold the linear values.
 //!   `.ppm` has no alpha channel: alpha is dropped.
 //! - [`read_image`] gives back exactly what was stored: 8-bit values divided by 255 (no sRGB
 //!   decoding: that is a texture's business, see `crate::texture`), EXR values as they are.
@@ -68,9 +69,67 @@ pub struct WriteOptions {
     /// 8-bit only: add an ordered dither (a 4x4 Bayer matrix, deterministic) instead of rounding,
     /// RenderMan's `Quantize ... 0.5` dither amplitude. Breaks up banding in smooth gradients.
     pub dither: bool,
-    /// 8-bit only: encode colour (not alpha) with the sRGB curve before quantising. Off by
-    /// default: frames are written linear, as RenderMan does unless an imager applies gamma.
-    pub srgb_encode: bool,
+    /// 8-bit only: the curve colour (not alpha) goes through before quantising.
+    pub transfer: Transfer,
+}
+
+/// How the linear values of a frame become the values an 8-bit file stores.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Transfer {
+    /// The sRGB curve (IEC 61966-2-1), what displays and image viewers expect of an 8-bit file.
+    /// 8-bit textures are decoded with its inverse (`crate::texture`), so a written image read back
+    /// as a texture gives the values rendered.
+    #[default]
+    Srgb,
+    /// None: the values as rendered (for data, or when the scene applied its own gamma with RIB
+    /// `Exposure`).
+    Linear,
+}
+
+impl Transfer {
+    /// `srgb` or `linear` (case-insensitive), for flags.
+    pub fn parse(name: &str) -> Result<Transfer, String> {
+        match name.to_ascii_lowercase().as_str() {
+            "srgb" => Ok(Transfer::Srgb),
+            "linear" => Ok(Transfer::Linear),
+            _ => Err(format!("`{name}` is not a transfer: srgb or linear")),
+        }
+    }
+
+    /// A linear value encoded.
+    pub fn encode(self, v: f32) -> f32 {
+        match self {
+            Transfer::Srgb => crate::texture::linear_to_srgb(v),
+            Transfer::Linear => v,
+        }
+    }
+
+    /// A table for encoding whole frames to 8 bits fast (a viewer's every frame):
+    /// [`ByteTable::byte`] of a linear value is within one code of what [`write_image`] stores.
+    pub fn byte_table(self) -> ByteTable {
+        let last = (ByteTable::LEN - 1) as f32;
+        ByteTable(
+            (0..ByteTable::LEN)
+                .map(|i| (self.encode(i as f32 / last) * 255.0 + 0.5).floor().clamp(0.0, 255.0) as u8)
+                .collect(),
+        )
+    }
+}
+
+/// Linear values in [0, 1] to 8-bit codes by table ([`Transfer::byte_table`]).
+#[derive(Clone, Debug)]
+pub struct ByteTable(Vec<u8>);
+
+impl ByteTable {
+    /// Entries over [0, 1]: fine enough that the sRGB curve's steepest part (slope 12.92 near 0)
+    /// moves less than one code between neighbours.
+    const LEN: usize = 8192;
+
+    /// The 8-bit code of linear `v` (clamped to [0, 1]; NaN is 0).
+    pub fn byte(&self, v: f32) -> u8 {
+        let i = (v.clamp(0.0, 1.0) * (Self::LEN - 1) as f32 + 0.5) as usize;
+        self.0[i.min(Self::LEN - 1)]
+    }
 }
 
 /// A decoded image: `channels` floats per pixel, top row first.
@@ -199,7 +258,7 @@ fn quantize(width: usize, values: &[f32], channels: usize, opts: &WriteOptions) 
         .map(|(i, &v)| {
             let pixel = i / channels;
             let is_alpha = channels == 4 && i % channels == 3;
-            let v = if opts.srgb_encode && !is_alpha { crate::texture::linear_to_srgb(v) } else { v };
+            let v = if is_alpha { v } else { opts.transfer.encode(v) };
             let offset = if opts.dither { BAYER4[(pixel / width) % 4][(pixel % width) % 4] } else { 0.5 };
             // NaN becomes 0 (the `as` cast), infinities clamp.
             (v * 255.0 + offset).floor().clamp(0.0, 255.0) as u8
@@ -473,12 +532,15 @@ mod tests {
         (0..3 * 2 * 4).map(|i| (i * 10) as f32 / 255.0).collect()
     }
 
+    /// Written as rendered, no transfer curve: what the quantisation tests look at.
+    const LINEAR: WriteOptions = WriteOptions { exr_half: false, dither: false, transfer: Transfer::Linear };
+
     #[test]
     fn eight_bit_formats_round_trip_to_the_nearest_level() {
         let dir = tempfile::tempdir().unwrap();
         for ext in ["png", "tga"] {
             let path = dir.path().join(format!("frame.{ext}"));
-            write_image(&path, 3, 2, &frame(), &WriteOptions::default()).unwrap();
+            write_image(&path, 3, 2, &frame(), &LINEAR).unwrap();
             let back = read_image(&path).unwrap();
             assert_eq!((back.width, back.height), (3, 2));
             for (a, b) in back.pixels.iter().zip(frame()) {
@@ -491,7 +553,7 @@ mod tests {
     fn ppm_drops_alpha() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("frame.PPM");
-        write_image(&path, 3, 2, &frame(), &WriteOptions::default()).unwrap();
+        write_image(&path, 3, 2, &frame(), &LINEAR).unwrap();
         let back = read_image(&path).unwrap();
         let want = frame();
         for p in 0..6 {
@@ -508,10 +570,33 @@ mod tests {
         let path = dir.path().join("q.png");
         // 0.5/255 rounds up to 1; below it to 0; out of range and NaN clamp.
         let values = [0.49 / 255.0, 0.5 / 255.0, 2.0, -1.0, f32::NAN, f32::INFINITY, 1.0, 0.0];
-        write_image(&path, 2, 1, &values, &WriteOptions::default()).unwrap();
+        write_image(&path, 2, 1, &values, &LINEAR).unwrap();
         let back = read_image(&path).unwrap();
         let bytes: Vec<u8> = back.pixels.iter().map(|v| (v * 255.0).round() as u8).collect();
         assert_eq!(bytes, [0, 1, 255, 0, 0, 255, 255, 0]);
+    }
+
+    #[test]
+    fn eight_bit_colour_is_srgb_encoded_by_default_and_alpha_and_exr_are_not() {
+        let dir = tempfile::tempdir().unwrap();
+        // Linear 0.22 is sRGB 0.506 (code 129, where linear would be 56); 0.0031308 is where the
+        // curve's linear part ends (12.92 times it).
+        let values = [0.22, 0.0031308, 1.0, 0.22];
+        let path = dir.path().join("s.png");
+        write_image(&path, 1, 1, &values, &WriteOptions::default()).unwrap();
+        let back = read_image(&path).unwrap();
+        let bytes: Vec<u8> = back.pixels.iter().map(|v| (v * 255.0).round() as u8).collect();
+        assert_eq!(bytes, [129, 10, 255, 56], "colour encoded, alpha as it is");
+        let path = dir.path().join("s.exr");
+        write_image(&path, 1, 1, &values, &WriteOptions::default()).unwrap();
+        assert_eq!(read_image(&path).unwrap().pixels, values, "EXR stays linear");
+        // The viewer's table agrees with the file to within one code.
+        let table = Transfer::Srgb.byte_table();
+        for v in (0..=1000).map(|i| i as f32 / 1000.0) {
+            let file = (Transfer::Srgb.encode(v) * 255.0 + 0.5).floor();
+            assert!((f32::from(table.byte(v)) - file).abs() <= 1.0, "{v}: {} vs {file}", table.byte(v));
+        }
+        assert_eq!((table.byte(f32::NAN), table.byte(-1.0), table.byte(7.0)), (0, 0, 255));
     }
 
     #[test]
@@ -520,7 +605,7 @@ mod tests {
         let path = dir.path().join("d.png");
         let level = 100.3 / 255.0;
         let values = vec![level; 8 * 8 * 4];
-        write_image(&path, 8, 8, &values, &WriteOptions { dither: true, ..WriteOptions::default() }).unwrap();
+        write_image(&path, 8, 8, &values, &WriteOptions { dither: true, ..LINEAR }).unwrap();
         let back = read_image(&path).unwrap();
         let mean = back.pixels.iter().map(|v| v * 255.0).sum::<f32>() / back.pixels.len() as f32;
         assert!((mean - 100.3).abs() < 0.1, "mean {mean}");

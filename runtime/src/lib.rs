@@ -36,7 +36,8 @@ pub use camera::Camera;
 pub use geometry::{Attribute, Mesh, MeshError};
 /// The vector maths of the API (positions, directions, transforms).
 pub use glam;
-pub use image_io::{diff_image, read_image, write_image, ImageDiff, ImageError, RgbaImage, WriteOptions};
+pub use image_io::ByteTable;
+pub use image_io::{diff_image, read_image, write_image, ImageDiff, ImageError, RgbaImage, Transfer, WriteOptions};
 pub use load::{load_scene, LoadedScene};
 pub use mesh_io::{load_mesh, MeshIoError};
 pub use ray::{offset_ray_origin, Hit, HitCandidate, HitFilter, HitPacket, Ray, RayPacket, INVALID_ID, PACKET_SIZE};

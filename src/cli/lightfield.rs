@@ -76,8 +76,7 @@ pub fn run_capture(args: &CaptureArgs) -> anyhow::Result<ExitCode> {
     let start = std::time::Instant::now();
     let atlas = pool.install(|| capture(&mut rt, &spec, &mut |_, _| {}))?;
     let side = atlas.side as usize;
-    let srgb = args.output.extension().is_some_and(|e| e.eq_ignore_ascii_case("png"));
-    write_image(&args.output, side, side, &atlas.rgba, &WriteOptions { srgb_encode: srgb, ..WriteOptions::default() })
+    write_image(&args.output, side, side, &atlas.rgba, &WriteOptions::default())
         .with_context(|| format!("writing {}", args.output.display()))?;
     let m = spec.world_from_object();
     let c = |v: Vec3A| format!("{} {} {}", v.x, v.y, v.z);

@@ -7,7 +7,7 @@ use rtsl_runtime::distributed::Master;
 use rtsl_runtime::reload::{ShaderEvent, ShaderReloader};
 use rtsl_runtime::render::{render_frame, Antialiasing, FrameReport, Framebuffer, World};
 use rtsl_runtime::shading::ParamValue;
-use rtsl_runtime::{write_image, LoadedScene, WriteOptions};
+use rtsl_runtime::{write_image, LoadedScene, Transfer, WriteOptions};
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -46,6 +46,11 @@ pub struct RenderArgs {
     /// Directories searched for shaders by name, before the standard library.
     #[arg(short = 'S', long = "shader-path")]
     pub shader_path: Vec<PathBuf>,
+    /// How 8-bit images (PNG, TGA, PPM) encode colour: `srgb` for display, or `linear` (the values
+    /// as rendered). Without it, sRGB unless the scene's `Exposure` applies a gamma of its own. EXR
+    /// is always linear.
+    #[arg(long, value_parser = rtsl_runtime::Transfer::parse)]
+    pub transfer: Option<Transfer>,
     /// Print nothing but errors.
     #[arg(short, long)]
     pub quiet: bool,
@@ -138,6 +143,12 @@ fn on_pool(pool: &rayon::ThreadPool) -> Box<FrameRender<'_>> {
     Box::new(move |_, world, progress| Ok(pool.install(|| render_frame(world, Some(progress)))))
 }
 
+/// The image a render writes, and how (a `--transfer` given, or the scene's).
+struct Output {
+    path: PathBuf,
+    transfer: Option<Transfer>,
+}
+
 /// Renders the context's scene with `render` and writes `output`; prints warnings (those of
 /// values a reloaded shader no longer takes only with `frame_warnings`: `--watch` prints them once
 /// per reload, from the reload's events). Returns the frame's report and how many textures could
@@ -145,7 +156,7 @@ fn on_pool(pool: &rayon::ThreadPool) -> Box<FrameRender<'_>> {
 fn render_and_write(
     rt: &mut Context,
     render: &mut FrameRender,
-    output: &Path,
+    output: &Output,
     quiet: bool,
     frame_warnings: bool,
 ) -> anyhow::Result<(FrameReport, usize)> {
@@ -182,8 +193,10 @@ fn render_and_write(
         eprintln!("warning: {m}");
     }
     rt.return_scene(world);
-    write_image(output, fb.width as usize, fb.height as usize, &fb.rgba, &WriteOptions::default())
-        .with_context(|| format!("writing {}", output.display()))?;
+    let transfer = output.transfer.unwrap_or_else(|| rt.options.transfer());
+    let opts = WriteOptions { transfer, ..WriteOptions::default() };
+    write_image(&output.path, fb.width as usize, fb.height as usize, &fb.rgba, &opts)
+        .with_context(|| format!("writing {}", output.path.display()))?;
     Ok((report, missing_textures.len()))
 }
 
@@ -210,7 +223,7 @@ fn exit_status(omissions: usize, keep_going: bool) -> ExitCode {
 /// ([`ShaderReloader`]); after each batch of reloads the image is rendered and rewritten, and each
 /// reload prints one line: the shader, its compile time and the frame time (or, for a change that
 /// does not compile, the diagnostics: the last good shader stays). Runs until interrupted.
-fn watch(rt: &mut Context, render: &mut FrameRender, output: &Path) -> anyhow::Result<()> {
+fn watch(rt: &mut Context, render: &mut FrameRender, output: &Output) -> anyhow::Result<()> {
     let mut reloader = ShaderReloader::new(rt)?;
     println!("watching {} shader file(s); Ctrl-C to stop", reloader.watched_files());
     loop {
@@ -237,7 +250,7 @@ fn watch(rt: &mut Context, render: &mut FrameRender, output: &Path) -> anyhow::R
             println!(
                 "reloaded {name}: compile {:.1} ms, frame {frame_ms:.1} ms -> {}",
                 compile.as_secs_f64() * 1e3,
-                output.display()
+                output.path.display()
             );
         }
     }
@@ -273,7 +286,7 @@ pub(crate) fn load_scene(
 
 /// Loads the scene and applies the flags to it; returns it, the image to write and how many parts
 /// of the scene are missing.
-fn prepare(args: &RenderArgs) -> anyhow::Result<(Context, PathBuf, usize)> {
+fn prepare(args: &RenderArgs) -> anyhow::Result<(Context, Output, usize)> {
     let (mut rt, loaded) = load_scene(args.scene.as_deref(), &args.shader_path, &args.include)?;
     let output = args.output.clone().or(loaded.display);
     if let Some((w, h)) = args.size {
@@ -289,7 +302,8 @@ fn prepare(args: &RenderArgs) -> anyhow::Result<(Context, PathBuf, usize)> {
     if let Some(camera) = &args.camera {
         camera.bind(&mut rt)?;
     }
-    Ok((rt, output.unwrap_or_else(|| PathBuf::from("render.png")), loaded.omissions))
+    let path = output.unwrap_or_else(|| PathBuf::from("render.png"));
+    Ok((rt, Output { path, transfer: args.transfer }, loaded.omissions))
 }
 
 pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
@@ -301,7 +315,7 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
     let mut render = on_pool(&pool);
     let (report, missing_textures) = render_and_write(&mut rt, &mut render, &output, args.quiet, true)?;
     if !args.quiet {
-        print_summary(&rt, &output, &format!("{threads} thread(s)"), &report);
+        print_summary(&rt, &output.path, &format!("{threads} thread(s)"), &report);
     }
     // Watching is interactive: what is missing may be fixed by the next edit.
     let status = exit_status(omissions + missing_textures, args.keep_going || args.watch);
@@ -356,7 +370,7 @@ fn run_mpi(args: &RenderArgs) -> anyhow::Result<ExitCode> {
     }
     if !args.quiet {
         let ranks = format!("{} worker rank(s), {} thread(s) in all", master.workers(), master.worker_threads());
-        print_summary(&rt, &output, &ranks, &report);
+        print_summary(&rt, &output.path, &ranks, &report);
         if master.workers() > 0 {
             println!("{}", super::mpi::traffic_line(&master.traffic()));
             let d = master.demand();

@@ -5,7 +5,9 @@
  * applies the sRGB transfer curve (linear below 0.0031308, a 1/2.4 power
  * above), otherwise a plain power 1/gamma.  Negative values are clamped
  * to 0 first.  The curve is applied to Ci as it is (premultiplied), which
- * is right wherever alpha is 0 or 1.
+ * is right wherever alpha is 0 or 1.  rtsl's 8-bit images and viewer are
+ * sRGB-encoded already: this shader is for outputs written linear
+ * (rtsl render --transfer linear, or EXR meant for display as it is).
  *
  * Parameters:
  *   gamma -- display gamma when srgb is off (2.2).

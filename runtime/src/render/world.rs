@@ -423,6 +423,15 @@ impl RenderOptions {
         }
     }
 
+    /// The transfer of this frame's 8-bit images: sRGB, unless the scene applies a gamma of its own
+    /// (RIB `Exposure` with a gamma other than 1), which then takes its place.
+    pub fn transfer(&self) -> crate::image_io::Transfer {
+        match self.exposure {
+            Some((_, gamma)) if gamma != 1.0 => crate::image_io::Transfer::Linear,
+            _ => crate::image_io::Transfer::Srgb,
+        }
+    }
+
     /// The pixels rendered, `x0..x1` by `y0..y1`: the whole image, or the crop window's.
     pub fn pixel_range(&self) -> (u32, u32, u32, u32) {
         let (w, h) = (self.width, self.height);

@@ -17,7 +17,7 @@ use std::path::Path;
 
 use super::image::load_texture_image;
 use super::Wrap;
-use crate::image_io::{self, ExrLayer, ImageError, ImageFormat, WriteOptions};
+use crate::image_io::{self, ExrLayer, ImageError, ImageFormat, Transfer, WriteOptions};
 
 /// What `MakeTexture` says besides the file names.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -36,7 +36,8 @@ pub fn make_texture(src: impl AsRef<Path>, dst: impl AsRef<Path>, opts: &MakeTex
     match ImageFormat::from_path(dst) {
         Some(ImageFormat::Png | ImageFormat::Tga | ImageFormat::Ppm) => {
             let rgba: Vec<f32> = image.data().chunks_exact(channels).flat_map(expand_to_rgba).collect();
-            let write = WriteOptions { srgb_encode: !opts.raw, ..WriteOptions::default() };
+            let transfer = if opts.raw { Transfer::Linear } else { Transfer::Srgb };
+            let write = WriteOptions { transfer, ..WriteOptions::default() };
             image_io::write_image(dst, width, height, &rgba, &write)
         }
         _ => {

@@ -20,6 +20,7 @@ use rtsl_runtime::render::progressive::{
     frameless_order, pass_lattices, trace_lattices_keeping, Accumulator, BatchReport, LatticeSamples, PixelLattice,
 };
 use rtsl_runtime::render::{camera_ray, Antialiasing, LightPathCache, World};
+use rtsl_runtime::ByteTable;
 use std::sync::mpsc::{Receiver, RecvTimeoutError, TryRecvError};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -212,9 +213,10 @@ struct Selection {
     depth: f32,
 }
 
-fn pack(c: [f32; 4]) -> u32 {
-    // The same mapping as `rtsl render`'s 8-bit images: linear values clamped, no sRGB curve.
-    let q = |v: f32| (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u32;
+/// A pixel for the window, encoded as `rtsl render` encodes 8-bit images (`table` is the scene's
+/// transfer, `RenderOptions::transfer`).
+fn pack(table: &ByteTable, c: [f32; 4]) -> u32 {
+    let q = |v: f32| u32::from(table.byte(v));
     q(c[0]) << 16 | q(c[1]) << 8 | q(c[2])
 }
 
@@ -595,7 +597,8 @@ impl Renderer {
         }
         let world = self.world();
         let image = self.acc.resolve(world);
-        let pixels = image.rgba.chunks_exact(4).map(|c| pack([c[0], c[1], c[2], c[3]])).collect();
+        let table = world.options.transfer().byte_table();
+        let pixels = image.rgba.chunks_exact(4).map(|c| pack(&table, [c[0], c[1], c[2], c[3]])).collect();
         let (w, h) = self.size();
         let still_passes = if self.frameless { self.still_sweeps } else { self.pass };
         let mode = if self.frameless {

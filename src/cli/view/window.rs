@@ -305,7 +305,9 @@ impl App {
                 [(p >> 16 & 0xFF) as f32 / 255.0, (p >> 8 & 0xFF) as f32 / 255.0, (p & 0xFF) as f32 / 255.0, 1.0]
             })
             .collect();
-        rtsl_runtime::write_image(path, w as usize, h as usize, &rgba, &rtsl_runtime::WriteOptions::default())
+        // The window's pixels are display-encoded already.
+        let opts = rtsl_runtime::WriteOptions { transfer: rtsl_runtime::Transfer::Linear, ..Default::default() };
+        rtsl_runtime::write_image(path, w as usize, h as usize, &rgba, &opts)
             .map_err(|e| anyhow::anyhow!("writing the screenshot {}: {e}", path.display()))
     }
 
