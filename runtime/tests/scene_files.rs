@@ -89,6 +89,7 @@ fn unknown_shaders_are_reported_not_fatal() {
 #[test]
 fn omissions_count_what_is_missing_from_the_picture_and_not_what_is_approximated() {
     let rib = r#"Option "limits" "bucketsize" [16 16]
+        Quantize "rgba" 255 0 255 0.5
         Projection "stereographic"
         WorldBegin
           Attribute "dice" "binary" [1]
@@ -102,12 +103,12 @@ fn omissions_count_what_is_missing_from_the_picture_and_not_what_is_approximated
     "#;
     let loaded = load_str(&mut Context::new(), rib, Path::new("s.rib")).expect("loads with warnings");
     let text = loaded.warnings.join("\n");
-    for approximated in ["\"limits\"", "stereographic", "\"dice\"", "nosuchparam"] {
+    for approximated in ["\"limits\"", "Quantize", "stereographic", "\"dice\"", "nosuchparam"] {
         assert!(text.contains(approximated), "{approximated} is warned about: {text}");
     }
     // Blobby, the archive, the object instance and the exterior shader are not in the picture.
     assert_eq!(loaded.omissions, 4, "{text}");
-    assert_eq!(loaded.warnings.len(), 8, "{text}");
+    assert_eq!(loaded.warnings.len(), 9, "{text}");
 }
 
 #[test]

@@ -19,8 +19,14 @@ use glam::Vec3;
 
 type Result<T> = std::result::Result<T, RibDiagnostic>;
 
-/// RenderMan requests (RISpec 3.2 and the common later ones) that this reader skips: they get a
-/// warning that says so rather than the "unknown request" one a typo gets.
+/// RenderMan requests (RISpec 3.2 and the common later ones) that only tune how a renderer works or
+/// quantises, which rtsl does its own way: skipping them changes nothing in the picture, so they
+/// get a warning, not an omission.
+const IGNORED_REQUESTS: &[&str] = &["ErrorHandler", "GeometricApproximation", "PixelVariance", "Quantize"];
+
+/// RenderMan requests (RISpec 3.2 and the common later ones) that this reader skips: what they
+/// ask for is missing from the picture, which their warning says (rather than the "unknown
+/// request" one a typo gets).
 const UNSUPPORTED_REQUESTS: &[&str] = &[
     "ArchiveBegin",
     "ArchiveEnd",
@@ -32,8 +38,6 @@ const UNSUPPORTED_REQUESTS: &[&str] = &[
     "DetailRange",
     "Else",
     "ElseIf",
-    "ErrorHandler",
-    "GeometricApproximation",
     "Geometry",
     "IfBegin",
     "IfEnd",
@@ -42,10 +46,8 @@ const UNSUPPORTED_REQUESTS: &[&str] = &[
     "MakeLatLongEnvironment",
     "MakeShadow",
     "NuPatch",
-    "PixelVariance",
     "Points",
     "Procedural",
-    "Quantize",
     "RelativeDetail",
     "Resource",
     "ResourceBegin",
@@ -169,6 +171,10 @@ impl Parser {
                     self.decls.declare(name, *decl);
                 }
                 self.requests.push(Request { kind, loc });
+            }
+            Ok(None) if IGNORED_REQUESTS.contains(&name) => {
+                let message = format!("`{name}` has no effect in rtsl and is ignored");
+                self.diagnostics.push(RibDiagnostic::warning(&loc, message));
             }
             Ok(None) => {
                 let message = if UNSUPPORTED_REQUESTS.contains(&name) {
