@@ -280,9 +280,16 @@ fn render_watch_prints_one_line_per_reload_and_diagnostics_for_broken_edits() {
     write(dir.path(), "shaders/flat.sl", &flat("color(1, 0, 0)"));
     write(
         dir.path(),
-        "scene.rib",
-        "Format 32 24 1\nProjection \"perspective\" \"fov\" [60]\nTranslate 0 0 3\nWorldBegin\n  Surface \"flat\" \"k\" [0.5]\n  Polygon \"P\" [-5 -5 0  5 -5 0  5 5 0  -5 5 0]\nWorldEnd\n",
+        "shaders/tex.sl",
+        "surface tex(string name = \"\";) { Oi = 1; Ci = color texture(name, 0.5, 0.5); }\n",
     );
+    let scene = |surface: &str| {
+        format!(
+            "Format 32 24 1\nProjection \"perspective\" \"fov\" [60]\nTranslate 0 0 3\nWorldBegin\n  Surface {surface}\n  \
+             Polygon \"P\" [-5 -5 0  5 -5 0  5 5 0  -5 5 0]\nWorldEnd\n"
+        )
+    };
+    write(dir.path(), "scene.rib", &scene("\"flat\" \"k\" [0.5]"));
     let mut child = Command::new(env!("CARGO_BIN_EXE_rtsl"))
         .args(["render", "scene.rib", "-o", "out.exr", "-S", "shaders", "--watch"])
         .current_dir(dir.path())
@@ -305,10 +312,12 @@ fn render_watch_prints_one_line_per_reload_and_diagnostics_for_broken_edits() {
         rx.recv_timeout(Duration::from_secs(30)).unwrap_or_else(|_| panic!("no {what} within 30 s"))
     };
     // Saves by rename, as many editors do: one event per save.
-    let save = |text: &str| {
-        write(dir.path(), "shaders/flat.tmp", text);
-        std::fs::rename(dir.path().join("shaders/flat.tmp"), dir.path().join("shaders/flat.sl")).expect("rename");
+    let save_as = |name: &str, text: &str| {
+        write(dir.path(), "save.tmp", text);
+        std::fs::rename(dir.path().join("save.tmp"), dir.path().join(name)).expect("rename");
     };
+    let save = |text: &str| save_as("shaders/flat.sl", text);
+    let first_pixel = || rtsl_runtime::read_image(dir.path().join("out.exr")).expect("the image").pixels[..4].to_vec();
     while !next(&out, "start-up output").starts_with("watching 1 shader file") {}
 
     save(&flat("color(0, 1, 0)"));
@@ -332,6 +341,31 @@ fn render_watch_prints_one_line_per_reload_and_diagnostics_for_broken_edits() {
     assert!(line.starts_with("reloaded flat: compile "), "{line}");
     // Exactly one line per reload: nothing more came for the broken save or after.
     assert!(out.recv_timeout(Duration::from_millis(300)).is_err(), "one line per reload");
+
+    // The scene file is watched too: an edit loads it again, a broken one keeps the last good scene.
+    save_as("scene.rib", &scene("\"flat\" \"k\" [0.25]"));
+    let line = next(&out, "scene reload line");
+    assert!(line.starts_with("reloaded scene (") && line.contains("scene.rib), frame "), "{line}");
+    assert_eq!(first_pixel(), [0.0, 0.0, 0.25, 1.0], "the new scene is rendered");
+    save_as("scene.rib", "WorldBegin\nSphere 1 ]\nWorldEnd\n");
+    while !next(&err, "the scene's error").contains("the last good scene stays") {}
+    assert!(out.recv_timeout(Duration::from_millis(300)).is_err(), "a broken scene renders nothing");
+
+    // And so are the textures a frame read.
+    let texel = |v: f32| {
+        let path = dir.path().join("t.tmp.exr");
+        rtsl_runtime::write_image(&path, 2, 2, &[v, v, v, 1.0].repeat(4), &Default::default()).expect("written");
+        std::fs::rename(&path, dir.path().join("t.exr")).expect("rename");
+    };
+    texel(0.125);
+    save_as("scene.rib", &scene("\"tex\" \"string name\" \"t.exr\""));
+    let line = next(&out, "scene reload line");
+    assert!(line.starts_with("reloaded scene ("), "{line}");
+    assert_eq!(first_pixel(), [0.125, 0.125, 0.125, 1.0]);
+    texel(0.75);
+    let line = next(&out, "texture reload line");
+    assert!(line.starts_with("reloaded 1 texture(s), frame "), "{line}");
+    assert_eq!(first_pixel(), [0.75, 0.75, 0.75, 1.0], "the texture is read again");
     child.kill().expect("stop the watcher");
     let _ = child.wait();
 }

@@ -16,6 +16,9 @@ pub struct LoadedScene {
     /// How many of the warnings say that part of the scene is missing from the picture (a request
     /// skipped; a shader, archive, model or texture not found).
     pub omissions: usize,
+    /// The files the scene was read from: the scene file, its RIB archives and model files (not
+    /// textures, which load as rendering needs them: `TextureCache::files`).
+    pub files: Vec<PathBuf>,
 }
 
 /// Loads the scene in `path` into `rt` by its extension (case-insensitive).
@@ -29,12 +32,13 @@ pub fn load_scene(rt: &mut Context, path: &Path) -> Result<LoadedScene, SceneFil
                 display: loaded.display.map(|d| dir.join(d)),
                 warnings: loaded.warnings,
                 omissions: loaded.omissions,
+                files: std::iter::once(path.to_path_buf()).chain(loaded.files).collect(),
             })
         }
         Some("obj" | "ply" | "gltf" | "glb") => {
             let bounds = add_model_file(rt, path)?;
             frame_bounds(rt, bounds)?;
-            Ok(LoadedScene::default())
+            Ok(LoadedScene { files: vec![path.to_path_buf()], ..LoadedScene::default() })
         }
         _ => Err(SceneFileError::UnknownType { path: path.to_path_buf() }),
     }
@@ -56,8 +60,18 @@ mod tests {
         let obj = dir.path().join("tri.obj");
         std::fs::write(&obj, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").expect("written");
         let mut rt = Context::new();
-        assert_eq!(load_scene(&mut rt, &obj).expect("an OBJ file loads"), LoadedScene::default());
+        let loaded = load_scene(&mut rt, &obj).expect("an OBJ file loads");
+        assert_eq!(loaded, LoadedScene { files: vec![obj.clone()], ..LoadedScene::default() });
         assert_eq!(rt.world_instance_ids().len(), 1);
+
+        // The files read: the scene, its RIB archives and its model files.
+        std::fs::write(dir.path().join("inner.rib"), "ReadArchive \"tri.obj\"\n").expect("written");
+        let outer = dir.path().join("outer.rib");
+        std::fs::write(&outer, "WorldBegin\nReadArchive \"inner.rib\"\nWorldEnd\n").expect("written");
+        let loaded = load_scene(&mut Context::new(), &outer).expect("the archives load");
+        let canonical = |p: PathBuf| std::fs::canonicalize(p).expect("exists");
+        let files: Vec<PathBuf> = loaded.files.into_iter().map(canonical).collect();
+        assert_eq!(files, [outer, dir.path().join("inner.rib"), obj].map(canonical));
 
         let other = dir.path().join("scene.txt");
         std::fs::write(&other, "nothing").expect("written");

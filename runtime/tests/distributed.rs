@@ -279,6 +279,63 @@ fn every_kind_of_change_reaches_the_workers_before_their_frame() -> Result<(), D
     Ok(())
 }
 
+/// The texture file of [`textures_read_again_after_a_change_reach_the_workers`] (the changes it
+/// renders are plain functions).
+fn changing_texture() -> PathBuf {
+    std::env::temp_dir().join(format!("rtsl-reloaded-texture-{}.exr", std::process::id()))
+}
+
+fn write_texel(value: f32) -> Result<(), String> {
+    let texels = [value, value * 0.5, 0.25, 1.0].repeat(4);
+    rtsl_runtime::write_image(changing_texture(), 2, 2, &texels, &Default::default()).map_err(|e| e.to_string())
+}
+
+#[test]
+fn textures_read_again_after_a_change_reach_the_workers() -> Result<(), DistributedError> {
+    fn textured(rt: &mut Context) -> Result<(), String> {
+        let e = |e: rtsl_runtime::api::ApiError| e.to_string();
+        write_texel(0.2)?;
+        let tex = rt
+            .compile_shader("tex", "surface tex(string name = \"\";) { Oi = 1; Ci = color texture(name, s, t); }")
+            .map_err(e)?;
+        let quad = rt.begin_object().map_err(e)?;
+        rt.bind_shader(tex).map_err(e)?;
+        rt.parameter("name", ParamValue::String(changing_texture().display().to_string())).map_err(e)?;
+        rt.begin(Primitive::Quads).map_err(e)?;
+        for (x, y) in [(-3.0, -3.0), (3.0, -3.0), (3.0, 3.0), (-3.0, 3.0)] {
+            rt.vertex(x, y, -1.0).map_err(e)?;
+        }
+        rt.end().map_err(e)?;
+        rt.end_object().map_err(e)?;
+        rt.instantiate_object(quad).map_err(e).map(|_| ())
+    }
+    fn file_changed(_: &mut Context) -> Result<(), String> {
+        write_texel(0.9)
+    }
+    fn reloaded(rt: &mut Context) -> Result<(), String> {
+        rt.reload_textures();
+        Ok(())
+    }
+    let mut rt = Context::new();
+    rt.options.width = 24;
+    rt.options.height = 20;
+    rt.camera_look_at(Vec3A::new(0.0, 0.0, 4.0), Vec3A::ZERO, Vec3A::Y, 40.0);
+    let frames = both_ways(rt, 2, 1, &[textured, file_changed, reloaded]);
+    let _ = std::fs::remove_file(changing_texture());
+    let frames = frames?;
+    assert_same(&frames, "frames of a texture read again");
+    let centre = |fb: &Framebuffer| {
+        let i = ((fb.height / 2 * fb.width + fb.width / 2) * 4) as usize;
+        fb.rgba[i]
+    };
+    // Read once and kept until told to read it again, then the new file, on the workers too
+    // (`assert_same`).
+    let near = |a: f32, b: f32| (a - b).abs() < 1e-5;
+    assert!(near(centre(&frames[0].0), 0.2) && near(centre(&frames[1].0), 0.2), "kept until read again");
+    assert!(near(centre(&frames[2].0), 0.9), "read again: {}", centre(&frames[2].0));
+    Ok(())
+}
+
 #[test]
 fn damaged_updates_are_errors_never_panics() {
     let mut rt = little_scene().expect("the little scene");

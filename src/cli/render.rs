@@ -4,10 +4,11 @@
 use anyhow::Context as _;
 use rtsl_runtime::api::Context;
 use rtsl_runtime::distributed::Master;
-use rtsl_runtime::reload::{ShaderEvent, ShaderReloader};
+use rtsl_runtime::reload::{ShaderEvent, ShaderReloader, ShaderWatcher};
 use rtsl_runtime::render::{render_frame, Antialiasing, FrameReport, Framebuffer, World};
 use rtsl_runtime::shading::ParamValue;
 use rtsl_runtime::{write_image, LoadedScene, Transfer, WriteOptions};
+use std::collections::BTreeSet;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -58,7 +59,8 @@ pub struct RenderArgs {
     /// archive or model not found, a RIB request skipped); the warnings are printed either way.
     #[arg(long)]
     pub keep_going: bool,
-    /// Keep running: re-render and rewrite the image whenever a shader source or header changes.
+    /// Keep running: re-render and rewrite the image whenever a shader source or header, the scene
+    /// file, an archive, a model file or a texture changes.
     #[arg(long)]
     pub watch: bool,
     /// Render over the ranks of an `mpirun` job: rank 0 writes the image, the others render
@@ -149,17 +151,25 @@ struct Output {
     transfer: Option<Transfer>,
 }
 
+/// What rendering and writing a frame reported.
+struct Written {
+    report: FrameReport,
+    /// Textures that could not be read.
+    missing_textures: usize,
+    /// Every file the frame's textures were read from.
+    texture_files: Vec<PathBuf>,
+}
+
 /// Renders the context's scene with `render` and writes `output`; prints warnings (those of
 /// values a reloaded shader no longer takes only with `frame_warnings`: `--watch` prints them once
-/// per reload, from the reload's events). Returns the frame's report and how many textures could
-/// not be read.
+/// per reload, from the reload's events).
 fn render_and_write(
     rt: &mut Context,
     render: &mut FrameRender,
     output: &Output,
     quiet: bool,
     frame_warnings: bool,
-) -> anyhow::Result<(FrameReport, usize)> {
+) -> anyhow::Result<Written> {
     let world = rt.build_world()?;
     for w in rt.take_warnings() {
         if frame_warnings {
@@ -192,12 +202,13 @@ fn render_and_write(
     for m in &report.shader_messages {
         eprintln!("warning: {m}");
     }
+    let texture_files = world.textures.files();
     rt.return_scene(world);
     let transfer = output.transfer.unwrap_or_else(|| rt.options.transfer());
     let opts = WriteOptions { transfer, ..WriteOptions::default() };
     write_image(&output.path, fb.width as usize, fb.height as usize, &fb.rgba, &opts)
         .with_context(|| format!("writing {}", output.path.display()))?;
-    Ok((report, missing_textures.len()))
+    Ok(Written { report, missing_textures: missing_textures.len(), texture_files })
 }
 
 /// The exit status of a render that wrote its image with `omissions` parts of the scene missing
@@ -219,18 +230,78 @@ fn exit_status(omissions: usize, keep_going: bool) -> ExitCode {
     }
 }
 
+/// The files `--watch` watches besides shaders: the scene's own (the scene file, archives, model
+/// files and, beside an OBJ file, the material libraries it may name) and the textures read.
+fn scene_inputs(scene: &[PathBuf], textures: &[PathBuf]) -> (BTreeSet<PathBuf>, BTreeSet<PathBuf>) {
+    let mut files: BTreeSet<PathBuf> = scene.iter().cloned().collect();
+    for obj in scene.iter().filter(|f| f.extension().is_some_and(|e| e.eq_ignore_ascii_case("obj"))) {
+        let dir = obj.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        let Ok(entries) = std::fs::read_dir(dir) else { continue };
+        files.extend(
+            entries
+                .flatten()
+                .map(|e| e.path())
+                .filter(|p| p.extension().is_some_and(|e| e.eq_ignore_ascii_case("mtl"))),
+        );
+    }
+    let canonical = |p: &PathBuf| std::fs::canonicalize(p).unwrap_or_else(|_| p.clone());
+    (files.iter().map(canonical).collect(), textures.iter().map(canonical).collect())
+}
+
+/// How long `--watch` waits for more events of one save of a scene file or texture (editors and
+/// exporters write in bursts).
+const BURST: Duration = Duration::from_millis(100);
+
 /// `--watch`: shaders are recompiled off the render thread as their sources or headers change
-/// ([`ShaderReloader`]); after each batch of reloads the image is rendered and rewritten, and each
-/// reload prints one line: the shader, its compile time and the frame time (or, for a change that
-/// does not compile, the diagnostics: the last good shader stays). Runs until interrupted.
-fn watch(rt: &mut Context, render: &mut FrameRender, output: &Output) -> anyhow::Result<()> {
+/// ([`ShaderReloader`]); the scene is loaded again when its file, an archive or a model file
+/// changes, and textures are read again when theirs do. After each batch of changes the image is
+/// rendered and rewritten, and each prints one line: the shader and its compile time, or the
+/// scene, or the textures, and the frame time. A change that does not compile or load prints its
+/// diagnostics, and the last good shader or scene stays. Runs until interrupted.
+fn watch(
+    args: &RenderArgs,
+    rt: &mut Context,
+    render: &mut FrameRender,
+    output: &Output,
+    scene_files: &[PathBuf],
+    texture_files: &[PathBuf],
+) -> anyhow::Result<()> {
     let mut reloader = ShaderReloader::new(rt)?;
-    println!("watching {} shader file(s); Ctrl-C to stop", reloader.watched_files());
+    let (mut scene, mut textures) = scene_inputs(scene_files, texture_files);
+    let mut watcher = ShaderWatcher::for_files(scene.iter().chain(&textures).cloned())?;
+    println!(
+        "watching {} shader file(s), {} scene file(s) and {} texture(s); Ctrl-C to stop",
+        reloader.watched_files(),
+        scene.len(),
+        textures.len()
+    );
     loop {
-        let reloads = reloader.wait_apply(rt, Duration::from_secs(1));
-        if reloads.is_empty() {
+        let reloads = reloader.wait_apply(rt, Duration::from_millis(250));
+        let mut changed = watcher.poll();
+        if !changed.is_empty() {
+            changed.extend(watcher.wait(BURST, BURST));
+        }
+        if reloads.is_empty() && changed.is_empty() {
             anyhow::ensure!(reloader.is_running(), "the shader reload thread stopped");
             continue;
+        }
+        let mut done = Vec::new();
+        let scene_changed: Vec<&PathBuf> = changed.iter().filter(|f| scene.contains(*f)).collect();
+        if !scene_changed.is_empty() {
+            match prepare(args) {
+                Ok(prepared) => {
+                    *rt = prepared.rt;
+                    reloader = ShaderReloader::new(rt)?;
+                    scene = scene_inputs(&prepared.files, &[]).0;
+                    watcher = ShaderWatcher::for_files(scene.iter().chain(&textures).cloned())?;
+                    let names: Vec<String> = scene_changed.iter().map(|f| f.display().to_string()).collect();
+                    done.push(format!("scene ({})", names.join(", ")));
+                }
+                Err(e) => eprintln!("error: {e:#}\nthe last good scene stays"),
+            }
+        } else if changed.iter().any(|f| textures.contains(f)) {
+            rt.reload_textures();
+            done.push(format!("{} texture(s)", changed.len()));
         }
         for e in rt.take_shader_events() {
             if let ShaderEvent::ParameterDropped { .. } = e {
@@ -240,18 +311,25 @@ fn watch(rt: &mut Context, render: &mut FrameRender, output: &Output) -> anyhow:
         for r in reloads.iter().filter(|r| r.result.is_err()) {
             eprintln!("{r}");
         }
-        let compiled: Vec<_> = reloads.iter().filter_map(|r| Some((&r.name, r.result.as_ref().ok()?))).collect();
-        if compiled.is_empty() {
+        if scene_changed.is_empty() {
+            for r in &reloads {
+                if let Ok(compile) = &r.result {
+                    done.push(format!("{}: compile {:.1} ms", r.name, compile.as_secs_f64() * 1e3));
+                }
+            }
+        }
+        if done.is_empty() {
             continue;
         }
-        let (report, _) = render_and_write(rt, render, output, true, false)?;
-        let frame_ms = report.elapsed.as_secs_f64() * 1e3;
-        for (name, compile) in compiled {
-            println!(
-                "reloaded {name}: compile {:.1} ms, frame {frame_ms:.1} ms -> {}",
-                compile.as_secs_f64() * 1e3,
-                output.path.display()
-            );
+        let written = render_and_write(rt, render, output, true, false)?;
+        let frame_ms = written.report.elapsed.as_secs_f64() * 1e3;
+        for what in done {
+            println!("reloaded {what}, frame {frame_ms:.1} ms -> {}", output.path.display());
+        }
+        let (_, now) = scene_inputs(&[], &written.texture_files);
+        if !now.is_subset(&textures) {
+            textures.extend(now);
+            watcher.add_files(textures.iter().cloned())?;
         }
     }
 }
@@ -274,7 +352,7 @@ pub(crate) fn load_scene(
     let loaded = match scene {
         None => {
             let rib = rtsl::default_scene::load(&mut rt)?;
-            LoadedScene { display: rib.display, warnings: rib.warnings, omissions: rib.omissions }
+            LoadedScene { display: rib.display, warnings: rib.warnings, omissions: rib.omissions, files: Vec::new() }
         }
         Some(path) => rtsl_runtime::load_scene(&mut rt, path)?,
     };
@@ -284,9 +362,18 @@ pub(crate) fn load_scene(
     Ok((rt, loaded))
 }
 
-/// Loads the scene and applies the flags to it; returns it, the image to write and how many parts
-/// of the scene are missing.
-fn prepare(args: &RenderArgs) -> anyhow::Result<(Context, Output, usize)> {
+/// A scene loaded with the flags applied.
+struct Prepared {
+    rt: Context,
+    output: Output,
+    /// How many parts of the scene are missing (see [`LoadedScene::omissions`]).
+    omissions: usize,
+    /// The files it was read from.
+    files: Vec<PathBuf>,
+}
+
+/// Loads the scene and applies the flags to it.
+fn prepare(args: &RenderArgs) -> anyhow::Result<Prepared> {
     let (mut rt, loaded) = load_scene(args.scene.as_deref(), &args.shader_path, &args.include)?;
     let output = args.output.clone().or(loaded.display);
     if let Some((w, h)) = args.size {
@@ -303,24 +390,29 @@ fn prepare(args: &RenderArgs) -> anyhow::Result<(Context, Output, usize)> {
         camera.bind(&mut rt)?;
     }
     let path = output.unwrap_or_else(|| PathBuf::from("render.png"));
-    Ok((rt, Output { path, transfer: args.transfer }, loaded.omissions))
+    Ok(Prepared {
+        rt,
+        output: Output { path, transfer: args.transfer },
+        omissions: loaded.omissions,
+        files: loaded.files,
+    })
 }
 
 pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
     if args.mpi {
         return run_mpi(args);
     }
-    let (mut rt, output, omissions) = prepare(args)?;
+    let Prepared { mut rt, output, omissions, files } = prepare(args)?;
     let (threads, pool) = super::worker_pool(args.threads)?;
     let mut render = on_pool(&pool);
-    let (report, missing_textures) = render_and_write(&mut rt, &mut render, &output, args.quiet, true)?;
+    let written = render_and_write(&mut rt, &mut render, &output, args.quiet, true)?;
     if !args.quiet {
-        print_summary(&rt, &output.path, &format!("{threads} thread(s)"), &report);
+        print_summary(&rt, &output.path, &format!("{threads} thread(s)"), &written.report);
     }
     // Watching is interactive: what is missing may be fixed by the next edit.
-    let status = exit_status(omissions + missing_textures, args.keep_going || args.watch);
+    let status = exit_status(omissions + written.missing_textures, args.keep_going || args.watch);
     if args.watch {
-        watch(&mut rt, &mut render, &output)?;
+        watch(args, &mut rt, &mut render, &output, &files, &written.texture_files)?;
     }
     Ok(status)
 }
@@ -346,7 +438,7 @@ fn run_mpi(args: &RenderArgs) -> anyhow::Result<ExitCode> {
         return super::mpi::work(&*transport, &pool, &args.workers);
     }
     let mut master = Master::connect(transport)?;
-    let (mut rt, output, omissions) = prepare(args)?;
+    let Prepared { mut rt, output, omissions, files } = prepare(args)?;
     master.check_workers()?;
     if master.workers() == 0 {
         eprintln!("warning: --mpi with no worker rank (run it with mpirun -n 2 or more): rendering on rank 0 alone");
@@ -363,14 +455,14 @@ fn run_mpi(args: &RenderArgs) -> anyhow::Result<ExitCode> {
         }
         Ok(rendered)
     };
-    let (report, missing_textures) = render_and_write(&mut rt, &mut render, &output, args.quiet, true)?;
-    let status = exit_status(omissions + missing_textures, args.keep_going || args.watch);
+    let written = render_and_write(&mut rt, &mut render, &output, args.quiet, true)?;
+    let status = exit_status(omissions + written.missing_textures, args.keep_going || args.watch);
     if args.watch {
-        watch(&mut rt, &mut render, &output)?;
+        watch(args, &mut rt, &mut render, &output, &files, &written.texture_files)?;
     }
     if !args.quiet {
         let ranks = format!("{} worker rank(s), {} thread(s) in all", master.workers(), master.worker_threads());
-        print_summary(&rt, &output.path, &ranks, &report);
+        print_summary(&rt, &output.path, &ranks, &written.report);
         if master.workers() > 0 {
             println!("{}", super::mpi::traffic_line(&master.traffic()));
             let d = master.demand();

@@ -78,6 +78,15 @@ impl Context {
         self.renew_texture_cache();
     }
 
+    /// Forgets every texture, shadow map and grid read from a file, so that the next frame reads
+    /// them again (after the files changed), here and on the replicas the next update reaches.
+    /// What was given in memory stays.
+    pub fn reload_textures(&mut self) {
+        self.renew_texture_cache();
+        // Replicas renew their caches when this count moves (`Replicator::update`).
+        self.memory_changes += 1;
+    }
+
     /// Starts an empty texture cache over the search path (and source), holding the textures and
     /// grids given in memory.
     pub(super) fn renew_texture_cache(&mut self) {

@@ -48,6 +48,9 @@ pub struct LoadedRib {
     /// How many of the warnings say that part of the scene is missing from the picture: a request
     /// skipped, or a shader, archive, model or texture that could not be found or read.
     pub omissions: usize,
+    /// The files the scene was read from besides the RIB file itself: its RIB archives and the
+    /// model files `ReadArchive` named (not textures, which load as rendering needs them).
+    pub files: Vec<PathBuf>,
 }
 
 /// Loads a RIB file into `rt`.
@@ -68,6 +71,11 @@ fn load_parsed(rt: &mut Context, parse: RibParse, path: &Path) -> Result<LoadedR
     }
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let mut loader = Loader::new(rt, dir);
+    loader.out.files = parse.archives.clone();
+    loader.out.files.extend(parse.requests.iter().filter_map(|r| match &r.kind {
+        RequestKind::MeshArchive(path) => Some(path.clone()),
+        _ => None,
+    }));
     for d in &parse.diagnostics {
         loader.out.warnings.push(d.to_string());
         loader.out.omissions += usize::from(d.severity == Severity::Omission);

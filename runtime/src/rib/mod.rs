@@ -111,6 +111,9 @@ pub struct RibParse {
     pub requests: Vec<Request>,
     /// Errors and warnings, in the order they were found.
     pub diagnostics: Vec<RibDiagnostic>,
+    /// The RIB archives read (`ReadArchive` of RIB files, expanded in `requests`), canonical paths
+    /// in the order read.
+    pub archives: Vec<PathBuf>,
 }
 
 impl RibParse {

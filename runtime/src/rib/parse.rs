@@ -96,6 +96,8 @@ pub(super) struct Parser {
     decls: DeclTable,
     requests: Vec<Request>,
     diagnostics: Vec<RibDiagnostic>,
+    /// Canonical paths of the archives read, in order.
+    archives: Vec<PathBuf>,
 }
 
 fn location(file: &Arc<Path>, token: &Token) -> Location {
@@ -118,11 +120,12 @@ impl Parser {
             decls: DeclTable::new(),
             requests: Vec::new(),
             diagnostics: Vec::new(),
+            archives: Vec::new(),
         }
     }
 
     pub(super) fn finish(self) -> RibParse {
-        RibParse { requests: self.requests, diagnostics: self.diagnostics }
+        RibParse { requests: self.requests, diagnostics: self.diagnostics, archives: self.archives }
     }
 
     /// Reads one file's text, appending its requests.
@@ -461,6 +464,7 @@ impl Parser {
             return Err(error(loc, format!("archive \"{}\" includes itself (a ReadArchive cycle)", path.display())));
         }
         let bytes = std::fs::read(&canonical).map_err(unreadable)?;
+        self.archives.push(canonical.clone());
         self.include_stack.push(canonical);
         self.depth += 1;
         self.parse_file_text(&bytes, Arc::from(path.as_path()));

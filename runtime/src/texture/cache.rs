@@ -13,7 +13,7 @@
 //! (a distributed worker's link to its master, which reads the file and sends its bytes) and
 //! decodes what comes back as the file would have been decoded here.
 
-use std::collections::HashMap;
+use std::collections::{BTreeSet, HashMap};
 use std::fmt;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -136,6 +136,8 @@ pub struct TextureCache {
     /// 3-D grids for `texture3d` (`docs/volumes.md`).
     grids: Slots<Grid>,
     warnings: Mutex<Vec<TextureWarning>>,
+    /// The files loads have read (or tried to), for watching them.
+    files: Mutex<BTreeSet<PathBuf>>,
     /// Where names are fetched from instead of files, if anywhere.
     source: Option<Arc<dyn TextureSource>>,
 }
@@ -149,6 +151,7 @@ impl Default for TextureCache {
             shadows: Default::default(),
             grids: Default::default(),
             warnings: Default::default(),
+            files: Default::default(),
             source: None,
         }
     }
@@ -289,6 +292,12 @@ impl TextureCache {
         self.renew_generation();
     }
 
+    /// Every file a texture, shadow map or grid was read from (or failed to decode from) since the
+    /// cache was made, e.g. for watching them for changes.
+    pub fn files(&self) -> Vec<PathBuf> {
+        self.files.lock().unwrap_or_else(PoisonError::into_inner).iter().cloned().collect()
+    }
+
     /// The warnings since the last call, oldest first: one per name that failed to load.
     pub fn take_warnings(&self) -> Vec<TextureWarning> {
         std::mem::take(&mut *self.warnings.lock().unwrap_or_else(PoisonError::into_inner))
@@ -409,6 +418,7 @@ impl TextureCache {
         let (path, loaded) = match &self.source {
             None => match self.locate(name) {
                 Ok(path) => {
+                    self.files.lock().unwrap_or_else(PoisonError::into_inner).insert(path.clone());
                     let loaded = load(Input::File(&path));
                     (Some(path), loaded)
                 }
