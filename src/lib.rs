@@ -9,3 +9,4 @@ pub use rtsl_runtime as runtime;
 
 pub mod bench;
 pub mod default_scene;
+pub mod preview;

@@ -748,3 +748,28 @@ fn a_copied_binary_renders_with_its_built_in_library() {
     let o = run(&["info", "pointlight", "--which"], Some(&dir.path().join("lib")));
     assert_eq!(stdout(&o).trim_end(), "light/pointlight.sl (built in)");
 }
+
+#[test]
+fn preview_renders_a_shader_on_the_ball_and_refuses_what_does_not_fit() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    write(dir.path(), "mine.sl", "surface flatcolour(color c = 1;) { Oi = 1; Ci = c; }\n");
+    let o = rtsl(&["preview", "mine.sl", "--param", "c=0,1,0", "--size", "40x30", "--samples", "1"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(stdout(&o).contains("flatcolour (surface) on the preview ball"), "{}", stdout(&o));
+    let image = rtsl_runtime::read_image(dir.path().join("preview.png")).expect("the preview");
+    // The ball fills the middle of the image, in the colour given; above the floor is background.
+    assert_eq!(image.pixel(20, 12), [0.0, 1.0, 0.0, 1.0]);
+    assert_eq!(image.pixel(2, 1)[3], 0.0, "the background is transparent");
+    let o = rtsl(&["preview", "bumpy", "-o", "bumpy.exr", "--size", "40x30", "--samples", "1"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(stdout(&o).contains("bumpy (displacement)"), "{}", stdout(&o));
+
+    let o = rtsl(&["preview", "plastic", "--param", "nope=1", "--size", "8x8"], dir.path());
+    assert_ne!(o.status.code(), Some(0));
+    assert!(stderr(&o).contains("warning: shader plastic has no parameter nope"), "{}", stderr(&o));
+    let o = rtsl(&["preview", "pointlight", "--size", "8x8"], dir.path());
+    assert!(stderr(&o).contains("`pointlight` is a light shader"), "{}", stderr(&o));
+    let o = rtsl(&["preview", "nosuchshader", "--size", "8x8"], dir.path());
+    assert!(stderr(&o).contains("nosuchshader"), "{}", stderr(&o));
+    assert_ne!(o.status.code(), Some(0));
+}

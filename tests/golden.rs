@@ -74,32 +74,9 @@ fn check(name: &str, rgba: &[f32]) -> Result<(), String> {
 }
 
 /// A sphere with the shader under test on a plastic floor, lit by a shadowed point light and a dim
-/// ambient light.
+/// ambient light: `rtsl preview`'s scene.
 fn surface_scene(surface: &str) -> String {
-    format!(
-        r#"
-Format {W} {H} 1
-PixelSamples 2 2
-Projection "perspective" "fov" [30]
-Rotate -12 1 0 0
-Translate 0 -1.4 6
-WorldBegin
-  LightSource "ambientlight" 1 "intensity" [0.1]
-  LightSource "pointlight" 2 "intensity" [30] "from" [3 5 -4]
-  AttributeBegin
-    Surface "plastic"
-    Color [.6 .6 .6]
-    Polygon "P" [-6 0 -6  6 0 -6  6 0 6  -6 0 6]
-  AttributeEnd
-  AttributeBegin
-    Translate 0 1 0
-    Rotate -90 1 0 0
-    {surface}
-    Sphere 1 -1 1 360
-  AttributeEnd
-WorldEnd
-"#
-    )
+    rtsl::preview::scene(surface, W, H, 2)
 }
 
 fn light_scene(light: &str) -> String {

@@ -6,6 +6,7 @@ mod compile;
 mod info;
 mod lightfield;
 mod mpi;
+mod preview;
 mod render;
 mod shade;
 mod view;
@@ -27,6 +28,8 @@ enum Command {
     Render(render::RenderArgs),
     /// Run a surface shader over a grid of points with no scene and write Ci (like OSL's testshade).
     Shade(shade::ShadeArgs),
+    /// Render a surface or displacement shader on a ball on a floor (a shader-ball preview).
+    Preview(preview::PreviewArgs),
     /// Check shaders (files, or directories searched recursively for `.sl` files), and with `-o`
     /// write a compiled library: one artifact per shader and an `index.json`.
     Compile(compile::CompileArgs),
@@ -90,6 +93,7 @@ pub fn run() -> anyhow::Result<ExitCode> {
     match cli.command {
         Command::Render(args) => render::run(&args),
         Command::Shade(args) => shade::run(&args),
+        Command::Preview(args) => preview::run(&args),
         Command::Compile(args) => compile::run(&args),
         Command::Info(args) => info::run(&args),
         Command::Bart(args) => bart::run(&args),
