@@ -273,15 +273,29 @@ impl Context {
     }
 
     /// Sets a parameter of the bound surface shader (object scope). The value is checked against the
-    /// shader's declaration now; point-like values are in the current space.
-    pub fn parameter(&mut self, name: &str, value: ParamValue) -> Result<(), ApiError> {
-        let binding = self.appearance.surface.as_ref().ok_or_else(|| ApiError::NoShaderBound(name.to_string()))?;
+    /// shader's declaration now; point-like values are in the current space. `value` is a
+    /// [`ParamValue`] or anything that converts to one (`0.8`, `[1.0, 0.5, 0.2]`, a glam vector, a
+    /// string).
+    pub fn parameter(&mut self, name: &str, value: impl Into<ParamValue>) -> Result<(), ApiError> {
+        self.parameters(&[(name, value.into())])
+    }
+
+    /// Sets several parameters of the bound surface shader (object scope), as
+    /// [`Context::parameter`] does one: the list form that lights and the other shaders take
+    /// (written most easily with [`crate::params!`]). All are checked before any is set.
+    pub fn parameters(&mut self, params: &[(&str, ParamValue)]) -> Result<(), ApiError> {
+        let Some((first, _)) = params.first() else { return Ok(()) };
+        let binding = self.appearance.surface.as_ref().ok_or_else(|| ApiError::NoShaderBound(first.to_string()))?;
         let program = self.program(binding.shader)?.clone();
-        crate::shading::bind_param(&program, name, &value, &self.matrix)?;
+        for (name, value) in params {
+            crate::shading::bind_param(&program, name, value, &self.matrix)?;
+        }
         let m = self.matrix;
         if let Some(b) = self.appearance.surface.as_mut() {
-            b.params.retain(|(n, _, _)| n != name);
-            b.params.push((name.to_string(), value, m));
+            for (name, value) in params {
+                b.params.retain(|(n, _, _)| n != name);
+                b.params.push((name.to_string(), value.clone(), m));
+            }
         }
         Ok(())
     }
@@ -297,10 +311,11 @@ impl Context {
     }
 
     /// Sets a varying parameter of the bound surface shader for the open primitive.
-    pub fn primitive_parameter(&mut self, name: &str, value: ParamValue) -> Result<(), ApiError> {
+    pub fn primitive_parameter(&mut self, name: &str, value: impl Into<ParamValue>) -> Result<(), ApiError> {
         if self.primitive.is_none() {
             return Err(ApiError::Unbalanced("primitive_parameter", "begin"));
         }
+        let value = value.into();
         let floats = self.varying_param_floats(name, &value)?;
         self.primitive_values.retain(|(n, _)| n != name);
         self.primitive_values.push((name.to_string(), floats));
@@ -308,14 +323,16 @@ impl Context {
     }
 
     /// Sets a varying parameter of the bound surface shader for the vertices that follow.
-    pub fn vertex_parameter(&mut self, name: &str, value: ParamValue) -> Result<(), ApiError> {
+    pub fn vertex_parameter(&mut self, name: &str, value: impl Into<ParamValue>) -> Result<(), ApiError> {
+        let value = value.into();
         let floats = self.varying_param_floats(name, &value)?;
         self.vertex_values.retain(|(n, _)| n != name);
         self.vertex_values.push((name.to_string(), floats));
         Ok(())
     }
 
-    /// Adds a light source at the current matrix, with its parameter values.
+    /// Adds a light source at the current matrix, with its parameter values (written most easily
+    /// with [`crate::params!`]).
     pub fn light_source(&mut self, shader: ShaderId, params: &[(&str, ParamValue)]) -> Result<LightId, ApiError> {
         let program = self.expect_kind(shader, ShaderKind::Light)?;
         for (name, value) in params {

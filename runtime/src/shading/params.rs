@@ -8,7 +8,7 @@
 //! their starting value.
 
 use super::program::ShaderProgram;
-use glam::{Affine3A, Vec3A};
+use glam::{Affine3A, Mat4, Vec3, Vec3A};
 use rtsl_compiler::interface::BaseType;
 
 /// A value given for a shader parameter.
@@ -26,6 +26,113 @@ pub enum ParamValue {
     /// Row-major, RenderMan's convention (points are row vectors).
     Matrix([f32; 16]),
     String(String),
+}
+
+// Conversions for the API's `impl Into<ParamValue>` arguments and the `params!` macro. How a
+// triple is stored is decided by the parameter's declaration when it is bound (a point is moved
+// to world space, a vector is only turned, a colour is kept), never by the variant chosen here,
+// so one variant per Rust type is enough: glam vectors are points, bare arrays colours.
+
+impl From<f32> for ParamValue {
+    fn from(x: f32) -> Self {
+        ParamValue::Float(x)
+    }
+}
+
+impl From<[f32; 3]> for ParamValue {
+    fn from(c: [f32; 3]) -> Self {
+        ParamValue::Color(c)
+    }
+}
+
+impl From<Vec3> for ParamValue {
+    fn from(p: Vec3) -> Self {
+        ParamValue::Point(p.to_array())
+    }
+}
+
+impl From<Vec3A> for ParamValue {
+    fn from(p: Vec3A) -> Self {
+        ParamValue::Point(p.to_array())
+    }
+}
+
+impl From<Vec<f32>> for ParamValue {
+    fn from(v: Vec<f32>) -> Self {
+        ParamValue::Floats(v)
+    }
+}
+
+impl From<&[f32]> for ParamValue {
+    fn from(v: &[f32]) -> Self {
+        ParamValue::Floats(v.to_vec())
+    }
+}
+
+impl From<Vec<[f32; 3]>> for ParamValue {
+    fn from(v: Vec<[f32; 3]>) -> Self {
+        ParamValue::Triples(v)
+    }
+}
+
+impl From<Vec<Vec3>> for ParamValue {
+    fn from(v: Vec<Vec3>) -> Self {
+        ParamValue::Triples(v.iter().map(Vec3::to_array).collect())
+    }
+}
+
+/// Row-major as RenderMan writes it: glam's column-major array of a column-vector matrix is the
+/// same sixteen numbers.
+impl From<Mat4> for ParamValue {
+    fn from(m: Mat4) -> Self {
+        ParamValue::Matrix(m.to_cols_array())
+    }
+}
+
+impl From<Affine3A> for ParamValue {
+    fn from(m: Affine3A) -> Self {
+        ParamValue::Matrix(Mat4::from(m).to_cols_array())
+    }
+}
+
+impl From<&str> for ParamValue {
+    fn from(s: &str) -> Self {
+        ParamValue::String(s.to_string())
+    }
+}
+
+impl From<String> for ParamValue {
+    fn from(s: String) -> Self {
+        ParamValue::String(s)
+    }
+}
+
+impl From<&String> for ParamValue {
+    fn from(s: &String) -> Self {
+        ParamValue::String(s.clone())
+    }
+}
+
+/// A list of shader parameter values, `&[(&str, ParamValue)]`, for the calls that bind a shader
+/// with its values ([`crate::api::Context::light_source`], [`crate::api::Context::parameters`],
+/// [`crate::api::Context::pixel_shader`], ...): each value is anything with a
+/// `From` conversion to [`ParamValue`] (`f32`, `[f32; 3]`, glam vectors and matrices, strings,
+/// `Vec<f32>`), checked against the shader's declaration when bound.
+///
+/// ```
+/// use rtsl_runtime::glam::Vec3;
+/// use rtsl_runtime::params;
+/// use rtsl_runtime::shading::ParamValue;
+///
+/// let values = params!["intensity" => 20.0, "lightcolor" => [1.0, 0.9, 0.8], "from" => Vec3::Y];
+/// assert_eq!(values[0], ("intensity", ParamValue::Float(20.0)));
+/// assert_eq!(values[2].1, ParamValue::Point([0.0, 1.0, 0.0]));
+/// ```
+#[macro_export]
+macro_rules! params {
+    ($($name:expr => $value:expr),* $(,)?) => {
+        &[$(($name, $crate::shading::ParamValue::from($value))),*]
+    };
 }
 
 impl ParamValue {
