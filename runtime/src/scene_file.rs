@@ -52,9 +52,10 @@ pub enum SceneFileError {
 }
 
 /// Adds a mesh file of any supported kind (by extension: `.obj`, `.ply`, `.gltf`, `.glb`).
-pub fn add_model_file(rt: &mut Context, path: &Path) -> Result<(Vec3A, Vec3A), SceneFileError> {
+pub fn add_model_file(rt: &mut Context, path: impl AsRef<Path>) -> Result<(Vec3A, Vec3A), SceneFileError> {
+    let path = path.as_ref();
     match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
-        Some("gltf" | "glb") => add_gltf_file(rt, path),
+        Some("gltf" | "glb") => add_gltf(rt, path),
         Some("obj" | "ply") => add_mesh_file(rt, path),
         _ => Err(SceneFileError::UnknownType { path: path.to_path_buf() }),
     }
@@ -98,7 +99,7 @@ pub fn add_model_file_placed(
     placement: Placement,
 ) -> Result<(Vec3A, Vec3A), SceneFileError> {
     match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
-        Some("gltf" | "glb") if matches!(placement, Placement::Instanced) => add_gltf_file(rt, path),
+        Some("gltf" | "glb") if matches!(placement, Placement::Instanced) => add_gltf(rt, path),
         Some("gltf" | "glb") => Err(SceneFileError::NotRetainable { path: path.to_path_buf() }),
         Some("obj" | "ply") => add_mesh_file_placed(rt, path, placement),
         _ => Err(SceneFileError::UnknownType { path: path.to_path_buf() }),
@@ -107,7 +108,12 @@ pub fn add_model_file_placed(
 
 /// Adds the meshes of a glTF 2.0 file (`.gltf` with its buffers, or `.glb`) to the context, under
 /// the current matrix, and returns the world-space bounds of what was added.
-pub fn add_gltf_file(rt: &mut Context, path: &Path) -> Result<(Vec3A, Vec3A), SceneFileError> {
+pub fn add_gltf_file(rt: &mut Context, path: impl AsRef<Path>) -> Result<(Vec3A, Vec3A), SceneFileError> {
+    add_gltf(rt, path.as_ref())
+}
+
+// One copy of the reader whatever path type callers use.
+fn add_gltf(rt: &mut Context, path: &Path) -> Result<(Vec3A, Vec3A), SceneFileError> {
     let (doc, buffers, images) = import_gltf(path)?;
     // Images become in-memory textures named after the file, made when a material first uses one.
     let image_name = |i: usize| format!("{}#image{i}", path.display());
@@ -413,7 +419,8 @@ fn gltf_hierarchy(path: &Path, doc: &gltf::Document) -> Result<Vec<bool>, SceneF
 
 /// Adds the meshes of `path` (OBJ or PLY) to the context, each as an object instanced once at the
 /// current matrix, and returns the world-space bounds of what was added.
-pub fn add_mesh_file(rt: &mut Context, path: &Path) -> Result<(Vec3A, Vec3A), SceneFileError> {
+pub fn add_mesh_file(rt: &mut Context, path: impl AsRef<Path>) -> Result<(Vec3A, Vec3A), SceneFileError> {
+    let path = path.as_ref();
     add_mesh_file_placed(rt, path, Placement::Instanced)
 }
 

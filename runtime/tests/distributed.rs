@@ -740,7 +740,7 @@ fn workers_fetch_the_textures_shaders_look_up_and_only_those() -> Result<(), Dis
     let unseen_bytes = std::fs::metadata(dir.path().join("unseen.png")).expect("written").len();
 
     let mut rt = little_scene().expect("the little scene");
-    rt.add_texture_search_path(dir.path().to_path_buf());
+    rt.add_texture_search_path(dir.path());
     let texels: Vec<f32> = (0..8 * 8 * 3).map(|i| ((i * 37) % 11) as f32 / 10.0).collect();
     rt.tex_image_2d("in-memory", 8, 8, 3, &texels).map_err(e).expect("a memory texture");
     let textured = |rt: &mut Context, name: &str| {
@@ -890,7 +890,7 @@ fn workers_fetch_alpha_masks_while_they_build_the_world() -> Result<(), Distribu
     .save(dir.path().join("holes.png"))
     .expect("a PNG");
     let mut rt = little_scene().expect("the little scene");
-    rt.add_texture_search_path(dir.path().to_path_buf());
+    rt.add_texture_search_path(dir.path());
     let e = |e: rtsl_runtime::api::ApiError| e.to_string();
     let cut = |rt: &mut Context, name: &str| -> Result<(), String> {
         rt.alpha_mask(Some(name));

@@ -353,11 +353,16 @@ impl Default for Context {
 /// artifact `NAME.rtso` (written by `rtsl compile -o`; it is checked against its sources when
 /// loaded) or else the source `NAME.sl`. A name found twice resolves to the first. Without a file,
 /// [`locate_shader`] looks in the library embedded in the binary.
-pub fn find_shader_file(name: &str, search: &[PathBuf]) -> Option<PathBuf> {
+pub fn find_shader_file(name: &str, search: &[impl AsRef<Path>]) -> Option<PathBuf> {
     let files = [format!("{name}.{}", rtsl_compiler::artifact::EXTENSION), format!("{name}.sl")];
     let library: Vec<PathBuf> =
         library::override_dir().map(|dir| library::FOLDERS.iter().map(|f| dir.join(f)).collect()).unwrap_or_default();
-    search.iter().chain(library.iter()).flat_map(|d| files.iter().map(move |f| d.join(f))).find(|p| p.is_file())
+    search
+        .iter()
+        .map(AsRef::as_ref)
+        .chain(library.iter().map(PathBuf::as_path))
+        .flat_map(|d| files.iter().map(move |f| d.join(f)))
+        .find(|p| p.is_file())
 }
 
 /// Where a shader comes from: a file, or the library embedded in the binary.
@@ -377,7 +382,7 @@ impl std::fmt::Display for ShaderLocation {
 }
 
 /// Where shader `name` is loaded from: a file ([`find_shader_file`]), else the embedded library.
-pub fn locate_shader(name: &str, search: &[PathBuf]) -> Option<ShaderLocation> {
+pub fn locate_shader(name: &str, search: &[impl AsRef<Path>]) -> Option<ShaderLocation> {
     find_shader_file(name, search)
         .map(ShaderLocation::File)
         .or_else(|| library::find(name).map(ShaderLocation::Library))

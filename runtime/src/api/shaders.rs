@@ -5,8 +5,8 @@ use super::*;
 
 impl Context {
     /// Directories searched (in order, before the standard library) by [`Context::find_shader`].
-    pub fn set_shader_search_path(&mut self, dirs: Vec<PathBuf>) {
-        self.shader_search_path = dirs;
+    pub fn set_shader_search_path<P: AsRef<Path>>(&mut self, dirs: impl IntoIterator<Item = P>) {
+        self.shader_search_path = dirs.into_iter().map(|d| d.as_ref().to_path_buf()).collect();
     }
 
     pub fn shader_search_path(&self) -> &[PathBuf] {
@@ -14,7 +14,8 @@ impl Context {
     }
 
     /// Adds a directory where textures named by relative paths are looked for.
-    pub fn add_texture_search_path(&mut self, dir: PathBuf) {
+    pub fn add_texture_search_path(&mut self, dir: impl AsRef<Path>) {
+        let dir = dir.as_ref().to_path_buf();
         if !self.texture_search_path.contains(&dir) {
             self.texture_search_path.push(dir);
             self.renew_texture_cache();
@@ -102,8 +103,8 @@ impl Context {
     }
 
     /// Directories searched by `#include`.
-    pub fn set_include_paths(&mut self, dirs: Vec<PathBuf>) {
-        self.include_paths = dirs;
+    pub fn set_include_paths<P: AsRef<Path>>(&mut self, dirs: impl IntoIterator<Item = P>) {
+        self.include_paths = dirs.into_iter().map(|d| d.as_ref().to_path_buf()).collect();
     }
 
     /// Where shader `name` would be loaded from: `NAME.rtso` or `NAME.sl` in the search path, then
@@ -114,8 +115,8 @@ impl Context {
     }
 
     /// Compiles the shader file at `path`.
-    pub fn shader_file(&mut self, path: &Path) -> Result<ShaderId, ApiError> {
-        let program = ShaderProgram::from_file(path, &self.include_paths)?;
+    pub fn shader_file(&mut self, path: impl AsRef<Path>) -> Result<ShaderId, ApiError> {
+        let program = ShaderProgram::from_file(path.as_ref(), &self.include_paths)?;
         Ok(self.add_program(program))
     }
 
@@ -132,7 +133,7 @@ impl Context {
             return Ok(ShaderId(i as u32));
         }
         match self.which_shader(name).ok_or_else(|| ShaderError::NotFound { name: name.to_string() })? {
-            ShaderLocation::File(path) => self.shader_file(&path),
+            ShaderLocation::File(path) => self.shader_file(path),
             ShaderLocation::Library(shader) => {
                 let program = ShaderProgram::from_source(&shader.label(), shader.source, &self.include_paths)?;
                 Ok(self.add_program(program))
