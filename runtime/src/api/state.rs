@@ -146,8 +146,15 @@ impl Context {
     }
 
     /// A pinhole camera at `eye` looking at `target`; `fov_degrees` spans the image's shorter side.
-    pub fn camera_look_at(&mut self, eye: Vec3A, target: Vec3A, up: Vec3A, fov_degrees: f32) {
-        self.camera = CameraSetup::look_at(eye, target, up, fov_degrees);
+    /// Points and the up direction are glam vectors (`Vec3A`, `Vec3`) or `[f32; 3]` arrays.
+    pub fn camera_look_at(
+        &mut self,
+        eye: impl Into<Vec3A>,
+        target: impl Into<Vec3A>,
+        up: impl Into<Vec3A>,
+        fov_degrees: f32,
+    ) {
+        self.camera = CameraSetup::look_at(eye.into(), target.into(), up.into(), fov_degrees);
     }
 
     /// Sets the camera directly (RenderMan's convention: camera space x right, y up, z forward).
