@@ -16,11 +16,13 @@ use super::shade::{shade_packet, shade_packets};
 use super::work::{Frame, LightPaths, PixelImage, Sample};
 use super::world::{Antialiasing, World};
 use crate::camera::{packet_lane_offset, PACKET_LANE_OFFSETS, PACKET_SIDE};
+use crate::image_io::{ImageError, WriteOptions};
 use crate::ray::{HitPacket, PACKET_SIZE};
 use crate::tiles::{render_tiles, Tile};
 use glam::Vec3A;
 use rayon::prelude::*;
 use rtsl_compiler::interface::ShaderKind;
+use std::path::Path;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
@@ -53,6 +55,17 @@ impl Framebuffer {
     pub fn pixel(&self, x: u32, y: u32) -> [f32; 4] {
         let i = 4 * (y as usize * self.width as usize + x as usize);
         [self.rgba[i], self.rgba[i + 1], self.rgba[i + 2], self.rgba[i + 3]]
+    }
+
+    /// Writes the colour and alpha to an image file whose format follows the extension (`.png`,
+    /// `.tga`, `.ppm`: 8-bit, linear; `.exr`: 32-bit float), as [`crate::write_image`] does.
+    pub fn save(&self, path: impl AsRef<Path>) -> Result<(), ImageError> {
+        self.save_with(path, &WriteOptions::default())
+    }
+
+    /// [`Framebuffer::save`] with the encoding chosen (half-float EXR, dither, sRGB curve).
+    pub fn save_with(&self, path: impl AsRef<Path>, options: &WriteOptions) -> Result<(), ImageError> {
+        crate::write_image(path, self.width as usize, self.height as usize, &self.rgba, options)
     }
 }
 
