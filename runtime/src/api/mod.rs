@@ -44,14 +44,13 @@
 
 use crate::accel::object::{MeshSource, MeshSummary};
 use crate::geometry::alpha::DEFAULT_CUTOFF as ALPHA_CUTOFF;
-use crate::geometry::{AlphaMask, Attribute, Mesh, MeshError};
+use crate::geometry::{AlphaMask, Attribute, MeshError};
 use crate::render::{
-    render_frame, AreaLight, CameraSetup, FrameReport, Framebuffer, InstanceParts, InstanceShading, LightSource,
-    Material, RenderOptions, World,
+    render_frame, AreaLight, CameraSetup, InstanceParts, InstanceShading, LightSource, Material, RenderOptions, World,
 };
 use crate::scene::{ObjectId as SceneObject, Scene, SceneError};
 use crate::shading::library::{self, LibraryShader};
-use crate::shading::{LightKind, ParamError, ParamValue, Program, ShaderError, ShaderInstance, ShaderProgram};
+use crate::shading::{LightKind, ParamError, Program, ShaderError, ShaderInstance, ShaderProgram};
 use crate::texture::{TexImage, TextureCache, Wrap};
 use glam::{Affine3A, Quat, Vec2, Vec3, Vec3A};
 use rtsl_compiler::interface::ShaderKind;
@@ -67,6 +66,13 @@ mod shaders;
 mod state;
 pub use events::ShaderEvent;
 pub use replica::{decode_mesh, encode_mesh, ReplicaError, Replicator};
+// The types `Context`'s calls take and return, so that one `use rtsl_runtime::api::{...}` serves an
+// application (vector types: `rtsl_runtime::glam`).
+pub use crate::geometry::{Mesh, Quadric, Tessellation};
+pub use crate::image_io::WriteOptions;
+pub use crate::params;
+pub use crate::render::{FrameReport, Framebuffer};
+pub use crate::shading::ParamValue;
 
 /// A compiled shader known to a [`Context`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]

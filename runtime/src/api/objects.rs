@@ -309,6 +309,11 @@ impl Context {
     /// Adds a whole mesh to the object being built (placed by the current matrix relative to the
     /// object's).
     pub fn mesh(&mut self, mesh: &Mesh) -> Result<(), ApiError> {
+        // The open primitive counts its vertices from where it began; a mesh in between would
+        // become part of it.
+        if self.primitive.is_some() {
+            return Err(ApiError::Nested("mesh", "begin/end"));
+        }
         let xf = self.object_from_current()?;
         let normal_xf = xf.matrix3.inverse().transpose();
         let (_, _, b) = self.building.as_mut().ok_or(ApiError::NoObject("mesh"))?;
@@ -349,5 +354,60 @@ impl Context {
         }
         b.triangles.extend(mesh.triangles.iter().map(|t| t.map(|i| i + base)));
         Ok(())
+    }
+
+    /// Adds a RenderMan quadric (RISpec's `Sphere`, `Cylinder`, `Cone`, `Disk`, `Paraboloid`,
+    /// `Hyperboloid`, `Torus`: swept about the z axis, angles in degrees) to the object being built,
+    /// placed by the current matrix as [`Context::mesh`] places a mesh. It is tessellated as the RIB
+    /// reader tessellates it: [`Quadric::default_tessellation`], normals of the analytic surface,
+    /// and the surface parameters `(u, v)` as texture coordinates.
+    pub fn quadric(&mut self, quadric: &Quadric) -> Result<(), ApiError> {
+        self.quadric_tessellated(quadric, quadric.default_tessellation())
+    }
+
+    /// [`Context::quadric`] with a tessellation of the caller's choosing.
+    pub fn quadric_tessellated(&mut self, quadric: &Quadric, tessellation: Tessellation) -> Result<(), ApiError> {
+        // Misuse is reported before a fine tessellation is paid for.
+        self.object_from_current()?;
+        if self.primitive.is_some() {
+            return Err(ApiError::Nested("quadric", "begin/end"));
+        }
+        self.mesh(&quadric.tessellate(tessellation)?)
+    }
+
+    /// A whole sphere of `radius` about the origin (RIB `Sphere radius -radius radius 360`).
+    pub fn sphere(&mut self, radius: f32) -> Result<(), ApiError> {
+        self.quadric(&Quadric::Sphere { radius, zmin: -radius, zmax: radius, thetamax: 360.0 })
+    }
+
+    /// An open cylinder about the z axis from `zmin` to `zmax` (RIB `Cylinder radius zmin zmax 360`).
+    pub fn cylinder(&mut self, radius: f32, zmin: f32, zmax: f32) -> Result<(), ApiError> {
+        self.quadric(&Quadric::Cylinder { radius, zmin, zmax, thetamax: 360.0 })
+    }
+
+    /// A cone with its base of `radius` at z = 0 and its apex at z = `height` (RIB `Cone height
+    /// radius 360`), without a base: close it with [`Context::disk`].
+    pub fn cone(&mut self, height: f32, radius: f32) -> Result<(), ApiError> {
+        self.quadric(&Quadric::Cone { height, radius, thetamax: 360.0 })
+    }
+
+    /// A disk of `radius` in the plane z = `height`, facing +z (RIB `Disk height radius 360`).
+    pub fn disk(&mut self, height: f32, radius: f32) -> Result<(), ApiError> {
+        self.quadric(&Quadric::Disk { height, radius, thetamax: 360.0 })
+    }
+
+    /// A whole torus about the z axis (RIB `Torus major minor 0 360 360`).
+    pub fn torus(&mut self, major_radius: f32, minor_radius: f32) -> Result<(), ApiError> {
+        self.quadric(&Quadric::Torus { major_radius, minor_radius, phimin: 0.0, phimax: 360.0, thetamax: 360.0 })
+    }
+
+    /// A closed axis-aligned box between corners `a` and `b` (in the current space, placed by the
+    /// current matrix), with flat outward normals and each face's uvs over (0, 0) to (1, 1):
+    /// [`Mesh::cuboid`].
+    pub fn box_mesh(&mut self, a: impl Into<Vec3>, b: impl Into<Vec3>) -> Result<(), ApiError> {
+        let mesh = Mesh::cuboid(a.into(), b.into());
+        // Not-finite corners would otherwise only be refused at `end_object`, far from the call.
+        mesh.validate()?;
+        self.mesh(&mesh)
     }
 }

@@ -94,6 +94,41 @@ impl Mesh {
         Self::from_triangles(positions, triangles)
     }
 
+    /// The axis-aligned box between corners `a` and `b` (in either order): six faces of two
+    /// triangles, each face with its own four vertices so that its normals are its outward normal
+    /// (flat, not averaged at the corners) and its uvs run from (0, 0) to (1, 1). Triangles wind
+    /// counter-clockwise seen from outside, as a quadric's do.
+    pub fn cuboid(a: Vec3, b: Vec3) -> Mesh {
+        let centre = (a + b) * 0.5;
+        let half = (a - b).abs() * 0.5;
+        // (normal, u, v) with u x v = normal, so (0,0) (1,0) (1,1) (0,1) turn counter-clockwise.
+        let faces = [
+            (Vec3::X, Vec3::Y, Vec3::Z),
+            (Vec3::NEG_X, Vec3::Z, Vec3::Y),
+            (Vec3::Y, Vec3::Z, Vec3::X),
+            (Vec3::NEG_Y, Vec3::X, Vec3::Z),
+            (Vec3::Z, Vec3::X, Vec3::Y),
+            (Vec3::NEG_Z, Vec3::Y, Vec3::X),
+        ];
+        let corners = [Vec2::new(0.0, 0.0), Vec2::new(1.0, 0.0), Vec2::new(1.0, 1.0), Vec2::new(0.0, 1.0)];
+        let mut positions = Vec::with_capacity(24);
+        let mut normals = Vec::with_capacity(24);
+        let mut uvs = Vec::with_capacity(24);
+        let mut triangles = Vec::with_capacity(12);
+        for (n, u, v) in faces {
+            let base = positions.len() as u32;
+            for uv in corners {
+                let offset = n + (2.0 * uv.x - 1.0) * u + (2.0 * uv.y - 1.0) * v;
+                positions.push(centre + offset * half);
+                normals.push(n);
+                uvs.push(uv);
+            }
+            triangles.push([base, base + 1, base + 2]);
+            triangles.push([base, base + 2, base + 3]);
+        }
+        Mesh { positions, normals: Some(normals), uvs: Some(uvs), attributes: Vec::new(), triangles }
+    }
+
     /// Checks the invariants in the module documentation.
     pub fn validate(&self) -> Result<(), MeshError> {
         let count = self.positions.len();
@@ -207,5 +242,31 @@ mod tests {
         let p = vec![Vec3::ZERO, Vec3::X, Vec3::Y];
         let e = Mesh::from_polygons(p, &[vec![0u32, 1]]).unwrap_err();
         assert!(matches!(e, MeshError::DegeneratePolygon { count: 2, .. }));
+    }
+
+    #[test]
+    fn cuboid_faces_wind_around_their_outward_normals() {
+        // Corners given high first: the box is the same.
+        let (lo, hi) = (Vec3::new(-1.0, 0.0, 2.0), Vec3::new(3.0, 0.5, 4.0));
+        let m = Mesh::cuboid(hi, lo);
+        m.validate().unwrap();
+        assert_eq!((m.positions.len(), m.triangle_count()), (24, 12));
+        assert!(m.positions.iter().all(|p| p.cmpge(lo).all() && p.cmple(hi).all()));
+        let normals = m.normals.as_ref().unwrap();
+        let centre = (lo + hi) * 0.5;
+        let mut area = 0.0;
+        for t in &m.triangles {
+            let [a, b, c] = t.map(|i| m.positions[i as usize]);
+            let winding = (b - a).cross(c - a);
+            area += winding.length() * 0.5;
+            for &i in t {
+                let n = normals[i as usize];
+                assert!(winding.dot(n) > 0.0, "triangle {t:?} winds against its normal");
+                assert!((a - centre).dot(n) > 0.0, "normal {n} points into the box");
+            }
+        }
+        let size = hi - lo;
+        let surface = 2.0 * (size.x * size.y + size.y * size.z + size.z * size.x);
+        assert!((area - surface).abs() < 1e-4, "area {area}, expected {surface}");
     }
 }
