@@ -1,29 +1,33 @@
 //! The application API, modelled on OpenRT (OpenGL's names for geometry and matrices) and the
 //! Stanford real-time shading API (`shader_file`, `compile_shader`, `bind_shader`, `parameter`).
 //!
-//! ```no_run
-//! use rtsl_runtime::api::{Context, Primitive};
-//! use rtsl_runtime::shading::ParamValue;
-//! use glam::Vec3A;
+//! ```
+//! use rtsl_runtime::api::{params, Context, Primitive};
+//! use rtsl_runtime::glam::Vec3;
 //!
 //! let mut rt = Context::new();
+//! rt.options.width = 64;
+//! rt.options.height = 48;
 //! let plastic = rt.find_shader("plastic")?;
 //! let light = rt.find_shader("pointlight")?;
-//! rt.camera_look_at(Vec3A::new(0.0, 1.0, 4.0), Vec3A::ZERO, Vec3A::Y, 40.0);
+//! rt.camera_look_at(Vec3::new(0.0, 1.0, 4.0), Vec3::ZERO, Vec3::Y, 40.0);
 //! let quad = rt.begin_object()?;
 //! rt.bind_shader(plastic)?;
-//! rt.parameter("Kd", ParamValue::Float(0.8))?;
+//! rt.parameter("Kd", 0.8)?;
 //! rt.begin(Primitive::Quads)?;
-//! for (x, z) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
+//! for (x, z) in [(-1.0, 1.0), (1.0, 1.0), (1.0, -1.0), (-1.0, -1.0)] {
 //!     rt.vertex(x, 0.0, z)?;
 //! }
 //! rt.end()?;
 //! rt.end_object()?;
 //! rt.instantiate_object(quad)?;
-//! rt.light_source(light, &[("intensity", ParamValue::Float(10.0))])?;
+//! rt.light_source(light, params!["intensity" => 10.0, "from" => [0.0, 2.0, 1.0]])?;
 //! let (image, report) = rt.render_frame()?;
+//! assert!(image.pixel(32, 24)[0] > 0.0, "the lit quad fills the middle of the frame");
 //! # Ok::<(), rtsl_runtime::api::ApiError>(())
 //! ```
+//!
+//! `docs/api.md` is the guide: every call in tables, and how values, frames and hot reload work.
 //!
 //! Semantics:
 //! - **State** is OpenGL's: a current matrix with a stack, a current colour and opacity, a current
@@ -73,6 +77,11 @@ pub use crate::image_io::WriteOptions;
 pub use crate::params;
 pub use crate::render::{FrameReport, Framebuffer};
 pub use crate::shading::ParamValue;
+
+/// `docs/api.md`, compiled by `cargo test` so that the guide's example cannot drift from the API.
+#[cfg(doctest)]
+#[doc = include_str!("../../../docs/api.md")]
+pub struct ApiGuide;
 
 /// A compiled shader known to a [`Context`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
