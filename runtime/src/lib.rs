@@ -15,6 +15,7 @@ pub mod accel;
 pub mod api;
 pub mod bart;
 pub mod camera;
+pub mod cpu;
 pub mod distributed;
 pub mod geometry;
 pub mod image_io;

@@ -86,7 +86,8 @@ fn a_captured_light_field_looks_like_its_scene_from_a_new_eye_point() -> Result<
     shown.load_matrix(spec.world_from_object());
     shown.instantiate_object(id)?;
     let (seen, _) = shown.render_frame()?;
-    assert!(shown.take_warnings().is_empty());
+    // (A build for plain x86-64 on a newer CPU says so, in the process's first context.)
+    assert!(shown.take_warnings().iter().all(|w| Some(w.as_str()) == rtsl_runtime::cpu::build_note()));
 
     let covered = |fb: &Framebuffer| fb.rgba.chunks(4).filter(|p| p[3] > 0.5).count();
     assert!(covered(&truth) > 200, "the cards fill part of the view");

@@ -66,7 +66,9 @@ fn edits_are_swapped_in_and_broken_edits_keep_the_last_good_code() {
     let reloads = reload_changed(&mut rt, std::slice::from_ref(&shader));
     assert!(reloads[0].result.is_ok(), "{reloads:?}");
     assert_eq!(centre(&mut rt), [0.0, 0.0, 1.0, 1.0]);
-    let warnings = rt.take_warnings();
+    let mut warnings = rt.take_warnings();
+    // A build for plain x86-64 on a newer CPU also says so, in the process's first context.
+    warnings.retain(|w| Some(w.as_str()) != rtsl_runtime::cpu::build_note());
     assert!(warnings.len() == 1 && warnings[0].contains("parameter k of shader flat is string"), "{warnings:?}");
 
     // The same story as events, in order: each reload, then the value the last one dropped.

@@ -437,7 +437,7 @@ impl Context {
             memory_changes: 0,
             mesh_source: None,
             texture_source: None,
-            warnings: Vec::new(),
+            warnings: crate::cpu::build_note_once().map(str::to_string).into_iter().collect(),
             events: Vec::new(),
             built_materials: Vec::new(),
         }
