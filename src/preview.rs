@@ -1,5 +1,6 @@
-//! The shader preview scene of `rtsl preview`: a unit ball on a grey floor, seen a little from
-//! above, lit by a shadowed point light from the upper right and a dim ambient light. The golden
+//! The shader preview scene of `rtsl preview`: a unit ball on a grey floor before a grey wall (for
+//! reflections and refractions to show), seen a little from above, lit by a shadowed point light
+//! from the upper right and a dim ambient light. The golden
 //! images of the library's surface shaders are rendered in it too.
 
 use rtsl_compiler::testshade::ParamArg;
@@ -22,6 +23,7 @@ WorldBegin
     Surface "plastic"
     Color [.6 .6 .6]
     Polygon "P" [-20 0 -20  20 0 -20  20 0 20  -20 0 20]
+    Polygon "P" [-20 0 12  -20 14 12  20 14 12  20 0 12]
   AttributeEnd
   AttributeBegin
     Translate 0 1 0
