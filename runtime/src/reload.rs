@@ -138,6 +138,10 @@ impl ShaderWatcher {
 
     /// Waits up to `timeout` for a change to a watched file, then keeps collecting until no event
     /// came for `quiet` (editors save in bursts); returns the changed files (empty on timeout).
+    ///
+    /// notify's debouncer crates are not used for this: they deliver on a timer tick of their own
+    /// (a change waits for the next tick after the quiet time), while hot reload's latency is the
+    /// quiet time alone, and the reloader already tolerates a save caught half-written.
     pub fn wait(&self, timeout: Duration, quiet: Duration) -> Vec<PathBuf> {
         let mut changed = BTreeSet::new();
         let deadline = Instant::now() + timeout;

@@ -17,6 +17,10 @@
 //! Unknown names give `None`; the caller (the checker for constant names, the interpreter otherwise)
 //! decides what to report. The conversions are computed in `f64` and rounded to `f32` once; nothing
 //! panics, and NaN components propagate except where a function documents otherwise.
+//!
+//! They are written here rather than taken from a colour crate (`palette`): RenderMan's hue as a
+//! fraction of a turn, YIQ, and these rules for greys, NaN and rounding are RSL's, and the JIT
+//! calls these same functions so that it and the interpreter agree bit for bit.
 
 use super::V3;
 

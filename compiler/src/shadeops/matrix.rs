@@ -43,73 +43,34 @@ pub fn transpose(m: &M4) -> M4 {
     r
 }
 
-/// The 2x2 minors of the top two rows (`s`) and the bottom two rows (`c`) in `f64`, shared by the
-/// determinant and the inverse (Laplace expansion by complementary minors).
-fn minors(m: &M4) -> ([f64; 16], [f64; 6], [f64; 6]) {
-    let a: [f64; 16] = std::array::from_fn(|i| f64::from(m[i]));
-    let s = [
-        a[0] * a[5] - a[4] * a[1],
-        a[0] * a[6] - a[4] * a[2],
-        a[0] * a[7] - a[4] * a[3],
-        a[1] * a[6] - a[5] * a[2],
-        a[1] * a[7] - a[5] * a[3],
-        a[2] * a[7] - a[6] * a[3],
-    ];
-    let c = [
-        a[8] * a[13] - a[12] * a[9],
-        a[8] * a[14] - a[12] * a[10],
-        a[8] * a[15] - a[12] * a[11],
-        a[9] * a[14] - a[13] * a[10],
-        a[9] * a[15] - a[13] * a[11],
-        a[10] * a[15] - a[14] * a[11],
-    ];
-    (a, s, c)
-}
-
-fn det_from_minors(s: &[f64; 6], c: &[f64; 6]) -> f64 {
-    s[0] * c[5] - s[1] * c[4] + s[2] * c[3] + s[3] * c[2] - s[4] * c[1] + s[5] * c[0]
+/// `m` in `f64` for glam. glam's matrices are column-major, so this is `m` transposed; the
+/// determinant does not change under transposition, and the inverse of the transpose is the
+/// transpose of the inverse, so reading the result back row-major undoes it.
+fn transposed_f64(m: &M4) -> glam::DMat4 {
+    glam::DMat4::from_cols_array(&m.map(f64::from))
 }
 
 /// The determinant (RSL's `determinant`), computed in `f64` and rounded once. NaN elements give NaN.
 pub fn determinant(m: &M4) -> f32 {
-    let (_, s, c) = minors(m);
-    det_from_minors(&s, &c) as f32
+    transposed_f64(m).determinant() as f32
 }
 
 /// The inverse, or `None` when `m` is singular: when any element is not finite, when
 /// `|det| <= 1e-12 * (the product of the rows' Euclidean lengths)` (a relative test: that product is
 /// the largest determinant rows of those lengths can have, Hadamard's bound), or when an element of the
-/// inverse does not fit in an `f32`.
+/// inverse does not fit in an `f32`. glam's inverse does not test for singularity itself.
 pub fn inverse(m: &M4) -> Option<M4> {
     if m.iter().any(|x| !x.is_finite()) {
         return None;
     }
-    let (a, s, c) = minors(m);
-    let det = det_from_minors(&s, &c);
-    let bound: f64 = (0..4).map(|r| (0..4).map(|k| a[r * 4 + k] * a[r * 4 + k]).sum::<f64>().sqrt()).product();
+    let t = transposed_f64(m);
+    let det = t.determinant();
+    // The rows of `m` are the columns of `t`.
+    let bound: f64 = (0..4).map(|c| t.col(c).length()).product();
     if !(det.is_finite() && det.abs() > 1e-12 * bound) {
         return None;
     }
-    let inv = 1.0 / det;
-    let b = [
-        a[5] * c[5] - a[6] * c[4] + a[7] * c[3],
-        -a[1] * c[5] + a[2] * c[4] - a[3] * c[3],
-        a[13] * s[5] - a[14] * s[4] + a[15] * s[3],
-        -a[9] * s[5] + a[10] * s[4] - a[11] * s[3],
-        -a[4] * c[5] + a[6] * c[2] - a[7] * c[1],
-        a[0] * c[5] - a[2] * c[2] + a[3] * c[1],
-        -a[12] * s[5] + a[14] * s[2] - a[15] * s[1],
-        a[8] * s[5] - a[10] * s[2] + a[11] * s[1],
-        a[4] * c[4] - a[5] * c[2] + a[7] * c[0],
-        -a[0] * c[4] + a[1] * c[2] - a[3] * c[0],
-        a[12] * s[4] - a[13] * s[2] + a[15] * s[0],
-        -a[8] * s[4] + a[9] * s[2] - a[11] * s[0],
-        -a[4] * c[3] + a[5] * c[1] - a[6] * c[0],
-        a[0] * c[3] - a[1] * c[1] + a[2] * c[0],
-        -a[12] * s[3] + a[13] * s[1] - a[14] * s[0],
-        a[8] * s[3] - a[9] * s[1] + a[10] * s[0],
-    ];
-    let r: M4 = std::array::from_fn(|i| (b[i] * inv) as f32);
+    let r: M4 = t.inverse().to_cols_array().map(|x| x as f32);
     r.iter().all(|x| x.is_finite()).then_some(r)
 }
 
