@@ -774,3 +774,26 @@ fn preview_renders_a_shader_on_the_ball_and_refuses_what_does_not_fit() {
     assert!(stderr(&o).contains("nosuchshader"), "{}", stderr(&o));
     assert_ne!(o.status.code(), Some(0));
 }
+
+#[test]
+fn diagnostics_are_coloured_when_asked_and_plain_in_a_pipe() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    write(dir.path(), "bad.sl", "surface bad() { Ci = nope; }\n");
+    write(dir.path(), "s.rib", &SPHERE_RIB.replace("Sphere", "Frobnicate 3\nSphere"));
+    let escape = "\u{1b}[";
+    // Piped (as here), `auto` is plain; `always` colours the compiler's and the RIB reader's.
+    let o = rtsl(&["compile", "bad.sl"], dir.path());
+    assert!(stdout(&o).contains("error[E0100]") && !stdout(&o).contains(escape), "{}", stdout(&o));
+    let o = rtsl(&["--color", "always", "compile", "bad.sl"], dir.path());
+    assert!(stdout(&o).contains(escape) && stdout(&o).contains("E0100"), "{}", stdout(&o));
+    let o = rtsl(&["render", "s.rib", "-o", "out.png", "-q", "--keep-going"], dir.path());
+    let err = stderr(&o);
+    assert!(!err.contains(escape), "{err}");
+    // A RIB warning shows its line with the request underlined.
+    assert!(err.contains("warning: unknown request `Frobnicate` skipped\n"), "{err}");
+    assert!(err.contains("┌─ s.rib:6:1") && err.contains("6 │ Frobnicate 3\n  │ ^^^^^^^^^^"), "{err}");
+    let o = rtsl(&["render", "s.rib", "-o", "out.png", "-q", "--keep-going", "--color", "always"], dir.path());
+    assert!(stderr(&o).contains(escape), "{}", stderr(&o));
+    let o = rtsl(&["--color", "sometimes", "compile", "bad.sl"], dir.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+}

@@ -3,6 +3,7 @@
 //! ([`crate::scene_file`]).
 
 use crate::api::Context;
+use crate::rib::{RibDiagnostic, Severity};
 use crate::scene_file::{add_model_file, frame_bounds, SceneFileError};
 use std::path::{Path, PathBuf};
 
@@ -11,14 +12,20 @@ use std::path::{Path, PathBuf};
 pub struct LoadedScene {
     /// The image the scene names (a RIB `Display`), resolved against the scene file's directory.
     pub display: Option<PathBuf>,
-    /// What was skipped, ignored or approximated, each naming where.
-    pub warnings: Vec<String>,
-    /// How many of the warnings say that part of the scene is missing from the picture (a request
-    /// skipped; a shader, archive, model or texture not found).
-    pub omissions: usize,
+    /// What was skipped, ignored or approximated, each naming where (see
+    /// [`crate::rib::load::LoadedRib::warnings`]).
+    pub warnings: Vec<RibDiagnostic>,
     /// The files the scene was read from: the scene file, its RIB archives and model files (not
     /// textures, which load as rendering needs them: `TextureCache::files`).
     pub files: Vec<PathBuf>,
+}
+
+impl LoadedScene {
+    /// How many of the warnings say that part of the scene is missing from the picture (a request
+    /// skipped; a shader, archive or model not found).
+    pub fn omissions(&self) -> usize {
+        self.warnings.iter().filter(|d| d.severity == Severity::Omission).count()
+    }
 }
 
 /// Loads the scene in `path` into `rt` by its extension (case-insensitive).
@@ -31,7 +38,6 @@ pub fn load_scene(rt: &mut Context, path: &Path) -> Result<LoadedScene, SceneFil
             Ok(LoadedScene {
                 display: loaded.display.map(|d| dir.join(d)),
                 warnings: loaded.warnings,
-                omissions: loaded.omissions,
                 files: std::iter::once(path.to_path_buf()).chain(loaded.files).collect(),
             })
         }

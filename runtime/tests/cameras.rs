@@ -480,7 +480,7 @@ fn rib_binds_cameras_depth_of_field_and_motion_blocks() -> Result<(), Box<dyn st
     "#;
     let mut rt = Context::new();
     let loaded = rtsl_runtime::rib::load::load_str(&mut rt, rib, std::path::Path::new("."))?;
-    assert!(loaded.warnings.iter().all(|w| !w.contains("not rendered")), "{:?}", loaded.warnings);
+    assert!(loaded.warnings.iter().all(|w| !w.message.contains("not rendered")), "{:?}", loaded.warnings);
     assert!(rt.camera_shader_id().is_some());
     assert_eq!(rt.options.shutter, (0.0, 1.0));
     let world = rt.build_world()?;

@@ -50,7 +50,7 @@ fn box_scene_shaded(options: &str, shader: &str) -> (Context, Vec<String>) {
     rt.compile_shader("onebounce", shader).expect("the test shader compiles");
     let loaded = rtsl_runtime::rib::load::load_str(&mut rt, &rib, Path::new("<box>")).expect("the box loads");
     rt.options.max_ray_depth = 1;
-    (rt, loaded.warnings)
+    (rt, loaded.warnings.iter().map(ToString::to_string).collect())
 }
 
 fn render(options: &str) -> Framebuffer {
@@ -465,7 +465,7 @@ fn photon_shading_models_are_read_from_rib_and_bad_ones_are_warnings() {
     let loaded = rtsl_runtime::rib::load::load_str(&mut rt, rib, Path::new("<models>")).expect("loads");
     assert_eq!(loaded.warnings.len(), 1, "{:?}", loaded.warnings);
     assert!(
-        loaded.warnings[0].contains("<models>:5") && loaded.warnings[0].contains("\"plasma\""),
+        loaded.warnings[0].to_string().contains("<models>:5") && loaded.warnings[0].message.contains("\"plasma\""),
         "{:?}",
         loaded.warnings
     );

@@ -29,7 +29,11 @@ fn a_short_colour_line_in_a_material_library_is_an_error_with_its_file_and_line(
         let loaded = load_str(&mut rt, "WorldBegin\nReadArchive \"model.obj\"\nWorldEnd\n", &dir.path().join("s.rib"))
             .expect("the RIB loads");
         assert!(
-            loaded.warnings.iter().any(|w| w.contains("s.rib:2:") && w.contains(&format!("m.mtl:{line}:"))),
+            loaded
+                .warnings
+                .iter()
+                .map(ToString::to_string)
+                .any(|w| w.contains("s.rib:2:") && w.contains(&format!("m.mtl:{line}:"))),
             "{:?}",
             loaded.warnings
         );

@@ -79,8 +79,11 @@ fn unknown_shaders_are_reported_not_fatal() {
     let err = load_str(&mut rt, "WorldBegin\nSurface \"no_such_shader\"\nWorldEnd\n", Path::new("s.rib"));
     match err {
         Ok(loaded) => {
-            assert!(loaded.warnings.iter().any(|w| w.contains("s.rib:2:1") && w.contains("no_such_shader")));
-            assert_eq!(loaded.omissions, 1, "a missing shader is part of the scene missing");
+            assert!(loaded
+                .warnings
+                .iter()
+                .any(|w| w.to_string().contains("s.rib:2:1") && w.message.contains("no_such_shader")));
+            assert_eq!(loaded.omissions(), 1, "a missing shader is part of the scene missing");
         }
         Err(e) => panic!("{e}"),
     }
@@ -102,12 +105,12 @@ fn omissions_count_what_is_missing_from_the_picture_and_not_what_is_approximated
         WorldEnd
     "#;
     let loaded = load_str(&mut Context::new(), rib, Path::new("s.rib")).expect("loads with warnings");
-    let text = loaded.warnings.join("\n");
+    let text = loaded.warnings.iter().map(ToString::to_string).collect::<Vec<_>>().join("\n");
     for approximated in ["\"limits\"", "Quantize", "stereographic", "\"dice\"", "nosuchparam"] {
         assert!(text.contains(approximated), "{approximated} is warned about: {text}");
     }
     // Blobby, the archive, the object instance and the exterior shader are not in the picture.
-    assert_eq!(loaded.omissions, 4, "{text}");
+    assert_eq!(loaded.omissions(), 4, "{text}");
     assert_eq!(loaded.warnings.len(), 9, "{text}");
 }
 

@@ -22,7 +22,7 @@ fn render(rib: &str, setup: impl FnOnce(&mut Context)) -> (Vec<f32>, Vec<String>
     rt.options.antialiasing = Antialiasing::Grid { jitter: false };
     let world = rt.build_world().expect("the world builds");
     let (fb, _) = render_frame(&world, None);
-    let mut warnings = loaded.warnings;
+    let mut warnings: Vec<String> = loaded.warnings.iter().map(ToString::to_string).collect();
     warnings.extend(world.textures.take_warnings().iter().map(ToString::to_string));
     (fb.rgba, warnings)
 }
@@ -170,8 +170,8 @@ fn rib_volume_statements_need_volume_shaders() {
     let loaded = load_str(&mut rt, "WorldBegin\nAtmosphere \"plastic\"\nWorldEnd\n", Path::new("v.rib")).unwrap();
     assert!(
         loaded.warnings.len() == 1
-            && loaded.warnings[0].contains("v.rib:2:1")
-            && loaded.warnings[0].contains("not a volume shader"),
+            && loaded.warnings[0].to_string().contains("v.rib:2:1")
+            && loaded.warnings[0].message.contains("not a volume shader"),
         "{:?}",
         loaded.warnings
     );

@@ -181,7 +181,7 @@ pub fn run(args: &CompileArgs) -> anyhow::Result<ExitCode> {
     let pool = rayon::ThreadPoolBuilder::new().num_threads(super::thread_count(args.threads.unwrap_or(0))?).build()?;
     let start = Instant::now();
     let outcomes = pool.install(|| compile_all(&files, &options, args.output.is_some()));
-    let stdout = std::io::stdout();
+    let stdout = super::color::stdout();
     let mut out = stdout.lock();
     let full = args.verbose || (files.len() == 1 && !args.json);
     let (mut ok, mut failed, mut warnings, mut no_shader) = (0usize, 0usize, 0usize, 0usize);
@@ -229,7 +229,7 @@ pub fn run(args: &CompileArgs) -> anyhow::Result<ExitCode> {
                     writeln!(out, "{record}")?;
                 } else if full {
                     if !c.diagnostics.is_empty() {
-                        write!(out, "{}", c.render())?;
+                        rtsl_compiler::diagnostic::render_to(&c.sources, &c.diagnostics, &mut out);
                     }
                     if shaderless {
                         writeln!(out, "{}: defines no shader", o.path.display())?;

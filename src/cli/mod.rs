@@ -2,6 +2,7 @@
 
 mod bart;
 mod bench;
+mod color;
 mod compile;
 mod info;
 mod lightfield;
@@ -18,6 +19,10 @@ use std::process::ExitCode;
 #[derive(Parser, Debug)]
 #[command(name = "rtsl", version, about = "A RenderMan-like shading language and interactive ray tracer")]
 struct Cli {
+    /// When diagnostics are coloured: `auto` (on a terminal, unless NO_COLOR is set), `always` or
+    /// `never`.
+    #[arg(long, global = true, value_enum, default_value_t = color::When::Auto)]
+    color: color::When,
     #[command(subcommand)]
     command: Command,
 }
@@ -90,6 +95,7 @@ enum BenchCommand {
 /// Runs the command line; the exit code says whether everything succeeded.
 pub fn run() -> anyhow::Result<ExitCode> {
     let cli = Cli::parse();
+    color::set(cli.color);
     match cli.command {
         Command::Render(args) => render::run(&args),
         Command::Shade(args) => shade::run(&args),

@@ -69,7 +69,7 @@ pub fn run(args: &PreviewArgs) -> anyhow::Result<ExitCode> {
     // The scene is ours: anything it warns about comes from the flags (a parameter the shader
     // lacks, a value of the wrong type).
     for w in &loaded.warnings {
-        eprintln!("warning: {}", w.split_once(": warning: ").map_or(w.as_str(), |(_, message)| message));
+        eprintln!("warning: {}", w.message);
     }
     anyhow::ensure!(loaded.warnings.is_empty(), "the parameters do not fit `{}`", program.name);
     let (_, pool) = super::worker_pool(args.threads)?;

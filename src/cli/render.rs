@@ -352,13 +352,11 @@ pub(crate) fn load_scene(
     let loaded = match scene {
         None => {
             let rib = rtsl::default_scene::load(&mut rt)?;
-            LoadedScene { display: rib.display, warnings: rib.warnings, omissions: rib.omissions, files: Vec::new() }
+            LoadedScene { display: rib.display, warnings: rib.warnings, files: Vec::new() }
         }
         Some(path) => rtsl_runtime::load_scene(&mut rt, path)?,
     };
-    for w in &loaded.warnings {
-        eprintln!("{w}");
-    }
+    rtsl_runtime::rib::report::write_diagnostics(&loaded.warnings, &mut super::color::stderr())?;
     Ok((rt, loaded))
 }
 
@@ -375,7 +373,7 @@ struct Prepared {
 /// Loads the scene and applies the flags to it.
 fn prepare(args: &RenderArgs) -> anyhow::Result<Prepared> {
     let (mut rt, loaded) = load_scene(args.scene.as_deref(), &args.shader_path, &args.include)?;
-    let output = args.output.clone().or(loaded.display);
+    let output = args.output.clone().or(loaded.display.clone());
     if let Some((w, h)) = args.size {
         rt.options.width = w;
         rt.options.height = h;
@@ -393,7 +391,7 @@ fn prepare(args: &RenderArgs) -> anyhow::Result<Prepared> {
     Ok(Prepared {
         rt,
         output: Output { path, transfer: args.transfer },
-        omissions: loaded.omissions,
+        omissions: loaded.omissions(),
         files: loaded.files,
     })
 }

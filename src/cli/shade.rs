@@ -38,9 +38,7 @@ pub fn run(args: &ShadeArgs) -> anyhow::Result<ExitCode> {
     options.preprocessor.include_paths = args.include.clone();
     let c = rtsl_compiler::compile_file(&args.file, &options)
         .with_context(|| format!("reading {}", args.file.display()))?;
-    if !c.diagnostics.is_empty() {
-        eprint!("{}", c.render());
-    }
+    rtsl_compiler::diagnostic::render_to(&c.sources, &c.diagnostics, &mut super::color::stderr());
     let Some(module) = c.module.as_ref() else { return Ok(ExitCode::from(1)) };
     let (w, h) = (args.grid[0].max(1), args.grid[1].max(1));
     let mut grid = Grid::with_sources(module, Some(&c.sources), w, h, &args.params)

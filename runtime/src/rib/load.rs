@@ -28,7 +28,7 @@ use super::decl::{Class, Ty};
 use super::mesh::MeshOptions;
 use super::primitive::mesh_from_request_with;
 use super::request::{Handle, Param, ParamValue as RibValue, Request, RequestKind};
-use super::{parse_file, parse_str, RibParse, Severity, MAX_RIB_TRIANGLES};
+use super::{parse_file, parse_str, RibDiagnostic, RibParse, Severity, MAX_RIB_TRIANGLES};
 use crate::api::{ApiError, Context, LightId, ObjectId};
 use crate::geometry::Mesh;
 use crate::scene_file::{add_model_file, add_model_file_placed, Placement, SceneFileError};
@@ -43,14 +43,20 @@ use std::path::{Path, PathBuf};
 pub struct LoadedRib {
     /// The image file `Display` names (relative to the RIB file's directory).
     pub display: Option<PathBuf>,
-    /// Everything that was skipped, ignored or approximated, with its location.
-    pub warnings: Vec<String>,
-    /// How many of the warnings say that part of the scene is missing from the picture: a request
-    /// skipped, or a shader, archive, model or texture that could not be found or read.
-    pub omissions: usize,
+    /// Everything that was skipped, ignored or approximated, with its location: a
+    /// [`Severity::Omission`] where part of the scene is missing from the picture (a request
+    /// skipped, a shader, archive or model not found), a [`Severity::Warning`] otherwise.
+    pub warnings: Vec<RibDiagnostic>,
     /// The files the scene was read from besides the RIB file itself: its RIB archives and the
     /// model files `ReadArchive` named (not textures, which load as rendering needs them).
     pub files: Vec<PathBuf>,
+}
+
+impl LoadedRib {
+    /// How many of the warnings say that part of the scene is missing from the picture.
+    pub fn omissions(&self) -> usize {
+        self.warnings.iter().filter(|d| d.severity == Severity::Omission).count()
+    }
 }
 
 /// Loads a RIB file into `rt`.
@@ -76,10 +82,7 @@ fn load_parsed(rt: &mut Context, parse: RibParse, path: &Path) -> Result<LoadedR
         RequestKind::MeshArchive(path) => Some(path.clone()),
         _ => None,
     }));
-    for d in &parse.diagnostics {
-        loader.out.warnings.push(d.to_string());
-        loader.out.omissions += usize::from(d.severity == Severity::Omission);
-    }
+    loader.out.warnings.extend(parse.diagnostics.iter().cloned());
     for r in &parse.requests {
         match loader.request(r) {
             Ok(()) => {}
@@ -160,13 +163,12 @@ impl<'a> Loader<'a> {
     }
 
     fn warn(&mut self, r: &Request, message: impl std::fmt::Display) {
-        self.out.warnings.push(format!("{}: warning: {message}", r.loc));
+        self.out.warnings.push(RibDiagnostic::warning(&r.loc, message.to_string()));
     }
 
     /// A warning that what `r` asks for is missing from the picture.
     fn omit(&mut self, r: &Request, message: impl std::fmt::Display) {
-        self.warn(r, message);
-        self.out.omissions += 1;
+        self.out.warnings.push(RibDiagnostic::omission(&r.loc, message.to_string()));
     }
 
     /// Ends the object that gathers geometry, instancing it where it began.
@@ -358,11 +360,12 @@ impl<'a> Loader<'a> {
                     match shader_value(p, &program) {
                         Some(v) => {
                             if let Err(e) = rt.parameter(&p.name, v) {
-                                self.out.warnings.push(format!("{}: warning: {e}", p.loc));
+                                self.out.warnings.push(RibDiagnostic::warning(&p.loc, e.to_string()));
                             }
                         }
                         None => {
-                            self.out.warnings.push(format!("{}: warning: cannot pass {} to a shader", p.loc, p.name))
+                            let message = format!("cannot pass {} to a shader", p.name);
+                            self.out.warnings.push(RibDiagnostic::warning(&p.loc, message))
                         }
                     }
                 }
@@ -408,10 +411,11 @@ impl<'a> Loader<'a> {
             | K::Quadric { .. } => {
                 let mut diags = Vec::new();
                 let mesh = mesh_from_request_with(r, &self.state.mesh_options, &mut diags);
-                for d in &diags {
-                    self.out.warnings.push(d.to_string());
-                    self.out.omissions += usize::from(d.severity != Severity::Warning);
-                }
+                // A primitive that could not be built is missing from the picture.
+                self.out.warnings.extend(diags.into_iter().map(|d| match d.severity {
+                    Severity::Error => RibDiagnostic { severity: Severity::Omission, ..d },
+                    _ => d,
+                }));
                 if let Some(mesh) = mesh {
                     if !mesh.triangles.is_empty() {
                         self.geometry(r, mesh)?;
@@ -642,16 +646,16 @@ fn typed_params<'p>(
     program: &ShaderProgram,
     params: &'p [Param],
     bind_loc: impl Fn(&'p Param) -> &'p super::request::Location,
-    warnings: &mut Vec<String>,
+    warnings: &mut Vec<RibDiagnostic>,
 ) -> Vec<(&'p str, ParamValue)> {
     let mut kept = Vec::new();
     for p in params {
         match shader_value(p, program) {
             Some(v) => match crate::shading::bind_param(program, &p.name, &v, &Affine3A::IDENTITY) {
                 Ok(_) => kept.push((p.name.as_str(), v)),
-                Err(e) => warnings.push(format!("{}: warning: {e}", bind_loc(p))),
+                Err(e) => warnings.push(RibDiagnostic::warning(bind_loc(p), e.to_string())),
             },
-            None => warnings.push(format!("{}: warning: cannot pass {} to a shader", p.loc, p.name)),
+            None => warnings.push(RibDiagnostic::warning(&p.loc, format!("cannot pass {} to a shader", p.name))),
         }
     }
     kept

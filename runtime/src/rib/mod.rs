@@ -22,6 +22,7 @@ pub mod mesh;
 mod parse;
 pub mod patch;
 mod primitive;
+pub mod report;
 pub mod request;
 
 use std::fmt;

@@ -88,7 +88,7 @@ pub const FLAT: &str = "surface flat(color c = 1;) { Oi = Os; Ci = Os * c; }";
 pub fn load(rib: &str) -> (Context, Vec<String>) {
     let mut rt = Context::new();
     let loaded = load_str(&mut rt, rib, Path::new("test.rib")).unwrap_or_else(|e| panic!("{e}"));
-    (rt, loaded.warnings)
+    (rt, loaded.warnings.iter().map(ToString::to_string).collect())
 }
 
 /// Builds the context's world, renders one frame and hands the scene back.
