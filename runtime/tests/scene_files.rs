@@ -539,3 +539,28 @@ fn obj_groups_of_one_material_become_one_object() {
     // it has normals.
     assert_eq!(triangles, [(2, false), (2, true), (4, false), (4, false)], "{triangles:?}");
 }
+
+#[test]
+fn the_null_shader_stands_for_no_shader_and_defaultsurface_shades_by_facing() {
+    let scene = |surface: &str, extra: &str| {
+        format!(
+            "{CAMERA}{extra}\n  Color [0.5 1 0.25]\n  Surface \"{surface}\"\n  \
+             Polygon \"P\" [-1 -1 0  1 -1 0  1 1 0  -1 1 0]\nWorldEnd\n"
+        )
+    };
+    // Every shader type's null: nothing to warn about, nothing added.
+    let nulls = "Imager \"null\"\nLightSource \"null\" 1\nDisplacement \"null\"\nAtmosphere \"null\"\n\
+                 Interior \"null\"\nExterior \"null\"";
+    let (mut rt, warnings) = load(&scene("null", nulls));
+    assert!(warnings.is_empty(), "{warnings:?}");
+    assert_eq!(rt.world_instance_ids().len(), 1);
+    let fb = render(&mut rt);
+    assert_eq!(fb.pixel(32, 24), [0.0, 0.0, 0.0, 1.0], "a null surface sets nothing: black and opaque");
+    // Facing the eye squarely, defaultsurface is Cs * (Ka + Kd) = Cs.
+    let (mut rt, warnings) = load(&scene("defaultsurface", ""));
+    assert!(warnings.is_empty(), "{warnings:?}");
+    let p = render(&mut rt).pixel(32, 24);
+    for (got, want) in p.iter().zip([0.5, 1.0, 0.25, 1.0]) {
+        assert!((got - want).abs() < 1e-3, "{p:?}");
+    }
+}

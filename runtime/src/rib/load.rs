@@ -59,6 +59,13 @@ impl LoadedRib {
     }
 }
 
+/// Whether a shader statement names no shader: an empty name, or RISpec's null shader ("a
+/// placeholder if no action is to be performed"), which exists for every shader type. (As a
+/// surface it is a shader of the library, `null.sl`, since a surface is always shaded.)
+fn is_null(name: &str) -> bool {
+    name.is_empty() || name == "null"
+}
+
 /// Loads a RIB file into `rt`.
 pub fn load_file(rt: &mut Context, path: &Path) -> Result<LoadedRib, SceneFileError> {
     let parse = parse_file(path).map_err(|e| SceneFileError::Rib { path: path.to_path_buf(), message: e.message })?;
@@ -370,6 +377,8 @@ impl<'a> Loader<'a> {
                     }
                 }
             }
+            // The null light adds nothing; `Illuminate` of its handle then names no light.
+            K::LightSource { shader, .. } | K::AreaLightSource { shader, .. } if is_null(&shader.name) => {}
             K::LightSource { shader, handle } | K::AreaLightSource { shader, handle } => {
                 let area = matches!(r.kind, K::AreaLightSource { .. });
                 let id = rt.find_shader(&shader.name)?;
@@ -454,6 +463,7 @@ impl<'a> Loader<'a> {
                     self.omit(r, e);
                 }
             }
+            K::Imager(s) | K::Pixel(s) if is_null(&s.name) => rt.pixel_shader(None, &[])?,
             K::Imager(s) | K::Pixel(s) => {
                 let id = rt.find_shader(&s.name)?;
                 let program = rt.program(id)?.clone();
@@ -476,8 +486,8 @@ impl<'a> Loader<'a> {
             }
             K::Shutter([open, close]) => rt.options.shutter = (*open, *close),
             K::Atmosphere(s) | K::Interior(s) | K::Displacement(s) => {
-                // An empty name removes the binding.
-                let (id, params) = if s.name.is_empty() {
+                // An empty name, or RenderMan's null shader, removes the binding.
+                let (id, params) = if is_null(&s.name) {
                     (None, Vec::new())
                 } else {
                     let id = rt.find_shader(&s.name)?;
@@ -490,6 +500,7 @@ impl<'a> Loader<'a> {
                     _ => rt.displacement(id, &params)?,
                 }
             }
+            K::Exterior(s) if is_null(&s.name) => {}
             K::Exterior(s) => self
                 .omit(r, format_args!("shader \"{}\": this shader type is not rendered yet, so it is ignored", s.name)),
             K::ScreenWindow(window) => rt.options.screen_window = Some(*window),
