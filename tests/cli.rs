@@ -653,6 +653,22 @@ fn messages_say_each_thing_once() {
 }
 
 #[test]
+fn an_unsupported_output_format_is_refused_before_rendering() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    write(
+        dir.path(),
+        "s.rib",
+        &SPHERE_RIB.replace("Format 32 32 1", "Format 32 32 1\nDisplay \"out.bmp\" \"file\" \"rgba\""),
+    );
+    for args in [&["render", "s.rib"][..], &["render", "s.rib", "-o", "x.gif"][..]] {
+        let o = rtsl(args, dir.path());
+        assert_ne!(o.status.code(), Some(0));
+        let err = stderr(&o);
+        assert!(err.contains("unsupported image format") && !err.contains("writing"), "{err}");
+    }
+}
+
+#[test]
 fn a_render_missing_part_of_its_scene_fails_unless_told_to_keep_going() {
     let dir = tempfile::tempdir().expect("tempdir");
     let missing = [

@@ -388,6 +388,10 @@ fn prepare(args: &RenderArgs) -> anyhow::Result<Prepared> {
         camera.bind(&mut rt)?;
     }
     let path = output.unwrap_or_else(|| PathBuf::from("render.png"));
+    // Refused before rendering, not after.
+    if rtsl_runtime::image_io::ImageFormat::from_path(&path).is_none() {
+        anyhow::bail!("{}: unsupported image format (known: .png .tga .ppm .exr)", path.display());
+    }
     Ok(Prepared {
         rt,
         output: Output { path, transfer: args.transfer },
