@@ -502,3 +502,38 @@ fn rib_binds_cameras_depth_of_field_and_motion_blocks() -> Result<(), Box<dyn st
     assert_eq!(rt.options.depth_of_field, Some([2.8, 0.1, 4.0]));
     Ok(())
 }
+
+#[test]
+fn an_orthographic_projection_keeps_sizes_at_every_distance() {
+    // Two squares of side 1, one twice as far as the other, side by side: seen orthographically
+    // they cover the same number of pixels; in perspective the far one covers about a quarter.
+    let scene = |projection: &str| {
+        format!(
+            r#"Format 64 64 1
+            {projection}
+            ScreenWindow -2 2 -2 2
+            Translate 0 0 2
+            WorldBegin
+              Surface "constant"
+              Polygon "P" [-1.5 -0.5 0  -0.5 -0.5 0  -0.5 0.5 0  -1.5 0.5 0]
+              Polygon "P" [0.5 -0.5 2  1.5 -0.5 2  1.5 0.5 2  0.5 0.5 2]
+            WorldEnd"#
+        )
+    };
+    let covered = |projection: &str| {
+        let mut rt = Context::new();
+        let loaded = rtsl_runtime::rib::load::load_str(&mut rt, &scene(projection), std::path::Path::new("o.rib"))
+            .expect("loads");
+        assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+        let world = rt.build_world().expect("a world");
+        let (fb, _) = rtsl_runtime::render::render_frame(&world, None);
+        let lit = |x0: u32, x1: u32| {
+            (0..64).flat_map(|y| (x0..x1).map(move |x| (x, y))).filter(|&(x, y)| fb.pixel(x, y)[3] > 0.5).count()
+        };
+        (lit(0, 32), lit(32, 64))
+    };
+    // 1 unit of a 4-unit window over 64 pixels: 16 x 16.
+    assert_eq!(covered(r#"Projection "orthographic""#), (256, 256));
+    let (near, far) = covered(r#"Projection "perspective" "fov" [90]"#);
+    assert!(far * 3 < near, "perspective shrinks the far square: {near} {far}");
+}

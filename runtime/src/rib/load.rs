@@ -2,7 +2,8 @@
 //!
 //! RenderMan semantics kept:
 //! - The transform current at `WorldBegin` is the camera's (world to camera, camera space x right,
-//!   y up, z forward); `Projection "perspective" "fov"` spans the shorter image side.
+//!   y up, z forward); `Projection "perspective" "fov"` spans the shorter image side;
+//!   `Projection "orthographic"` binds the library's `orthographic` camera shader.
 //! - Transforms post-multiply the current transform (RenderMan's `Translate` applies to what follows,
 //!   as OpenGL's); `Transform`/`ConcatTransform` take RenderMan's row-major matrices.
 //! - `AttributeBegin/End` save and restore the colour, opacity, surface shader, the area light and
@@ -306,6 +307,11 @@ impl<'a> Loader<'a> {
                     let mut cam = *rt.camera();
                     cam.fov_degrees = fov.unwrap_or(90.0).clamp(0.01, 179.0);
                     rt.set_camera(cam);
+                }
+                // The library's camera shader, as `DepthOfField` binds `thinlens`.
+                "orthographic" => {
+                    let id = rt.find_shader("orthographic")?;
+                    rt.camera_shader(Some(id), &[])?;
                 }
                 other => self.warn(r, format_args!("projection \"{other}\" is not supported; perspective is used")),
             },
