@@ -490,12 +490,19 @@ fn bad_cut_outs_windows_and_displacements_are_warnings_not_failures() {
     assert!(fb.rgba == plain.rgba, "a missing mask cuts nothing");
     let context_warnings = rt.take_warnings();
     assert!(context_warnings.iter().any(|w| w.contains("nosuch.png")), "{context_warnings:?}");
-    // A window of zero width is the default window; an inverted crop renders nothing.
+    // A window of zero width is the default window; an empty or inverted crop is refused (the
+    // whole image renders) rather than rendering nothing.
     let (mut rt, warnings) = load(&format!("ScreenWindow 1 1 0 0\n{CAMERA} {square} WorldEnd"));
     assert!(warnings.is_empty(), "{warnings:?}");
     assert!(render(&mut rt).rgba == plain.rgba);
-    let (mut rt, _) = load(&format!("CropWindow 0.8 0.2 0 1\n{CAMERA} {square} WorldEnd"));
-    assert!(render(&mut rt).rgba.iter().all(|&v| v == 0.0));
+    for crop in ["0.8 0.2 0 1", "0 1 0.5 0.5", "2 3 0 1", "0 1 1 1"] {
+        let (mut rt, warnings) = load(&format!("CropWindow {crop}\n{CAMERA} {square} WorldEnd"));
+        assert!(
+            warnings.len() == 1 && warnings[0].contains("test.rib:1:1") && warnings[0].contains("covers no part"),
+            "{crop}: {warnings:?}"
+        );
+        assert!(render(&mut rt).rgba == plain.rgba, "{crop}");
+    }
     // A surface shader named as a displacement: a located warning, and the square still renders.
     let (mut rt, warnings) = load(&format!(r#"{CAMERA} Displacement "plastic" {square} WorldEnd"#));
     assert!(warnings.iter().any(|w| w.contains("test.rib:") && w.contains("plastic")), "{warnings:?}");

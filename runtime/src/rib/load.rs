@@ -511,7 +511,16 @@ impl<'a> Loader<'a> {
                 .omit(r, format_args!("shader \"{}\": this shader type is not rendered yet, so it is ignored", s.name)),
             K::ScreenWindow(window) => rt.options.screen_window = Some(*window),
             K::FrameAspectRatio(a) => rt.options.frame_aspect_ratio = Some(*a),
-            K::CropWindow(window) => rt.options.crop_window = Some(*window),
+            K::CropWindow(window) => {
+                let [x0, x1, y0, y1] = window.map(|v| v.clamp(0.0, 1.0));
+                // Not a finite, non-empty part of the image: an empty render would pass unnoticed.
+                if x0 < x1 && y0 < y1 {
+                    rt.options.crop_window = Some(*window);
+                } else {
+                    let [a, b, c, d] = window;
+                    self.omit(r, format_args!("CropWindow {a} {b} {c} {d} covers no part of the image; it is ignored"));
+                }
+            }
             K::PixelFilter { filter, xwidth, ywidth } => self.pixel_filter(r, filter, *xwidth, *ywidth),
             K::MeshArchive(path) => match self.retained.clone() {
                 None => {
