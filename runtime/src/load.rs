@@ -29,7 +29,8 @@ impl LoadedScene {
 }
 
 /// Loads the scene in `path` into `rt` by its extension (case-insensitive).
-pub fn load_scene(rt: &mut Context, path: &Path) -> Result<LoadedScene, SceneFileError> {
+pub fn load_scene(rt: &mut Context, path: impl AsRef<Path>) -> Result<LoadedScene, SceneFileError> {
+    let path = path.as_ref();
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     match ext.as_deref() {
         Some("rib") => {

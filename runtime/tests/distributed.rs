@@ -103,7 +103,7 @@ fn assert_same(frames: &[(Framebuffer, Framebuffer, u64)], what: &str) {
 
 fn office() -> Result<Context, String> {
     let mut rt = Context::new();
-    rtsl_runtime::rib::load::load_file(&mut rt, &repo("examples/office/office.rib")).map_err(|e| e.to_string())?;
+    rtsl_runtime::rib::load::load_file(&mut rt, repo("examples/office/office.rib")).map_err(|e| e.to_string())?;
     rt.options.width = 96;
     rt.options.height = 72;
     Ok(rt)
@@ -113,7 +113,7 @@ fn office() -> Result<Context, String> {
 /// splatted through a Gaussian filter (whose films the master adds up).
 fn library_with_camera_and_pixel_shader() -> Result<Context, String> {
     let mut rt = Context::new();
-    rtsl_runtime::rib::load::load_file(&mut rt, &repo("examples/scenes/library.rib")).map_err(|e| e.to_string())?;
+    rtsl_runtime::rib::load::load_file(&mut rt, repo("examples/scenes/library.rib")).map_err(|e| e.to_string())?;
     rt.options.width = 80;
     rt.options.height = 56;
     rt.options.pixel_filter = PixelFilter::new(FilterKind::Gaussian, 2.0, 2.0)?;
@@ -139,7 +139,7 @@ fn distributed_frames_are_bit_identical_to_single_process_frames() -> Result<(),
     assert_same(&both_ways(library, 3, 2, &[nothing])?, "the library scene");
     // A volume shader reading a grid file, which each worker reads from the texture path.
     let mut volume = Context::new();
-    rtsl_runtime::rib::load::load_file(&mut volume, &repo("examples/scenes/volume.rib")).expect("the volume scene");
+    rtsl_runtime::rib::load::load_file(&mut volume, repo("examples/scenes/volume.rib")).expect("the volume scene");
     volume.options.width = 64;
     volume.options.height = 48;
     assert_same(&both_ways(volume, 2, 1, &[nothing])?, "the volume scene");
@@ -455,7 +455,7 @@ fn a_worker_that_goes_silent_is_an_error_not_a_hang() {
 /// reads other pixels, their normals among them: its tiles go to the master unfinished.
 fn gi_box() -> Result<Context, String> {
     let mut rt = Context::new();
-    rtsl_runtime::rib::load::load_file(&mut rt, &repo("examples/scenes/gi_box.rib")).map_err(|e| e.to_string())?;
+    rtsl_runtime::rib::load::load_file(&mut rt, repo("examples/scenes/gi_box.rib")).map_err(|e| e.to_string())?;
     (rt.options.width, rt.options.height) = (40, 30);
     Ok(rt)
 }
@@ -800,7 +800,7 @@ fn global_illumination_renders_the_same_on_workers() -> Result<(), DistributedEr
     // virtual lights, so the same image. The pixel shader reads other pixels: it runs on the
     // master over the whole image, the workers' tiles sent unfinished.
     let mut rt = Context::new();
-    rtsl_runtime::rib::load::load_file(&mut rt, &repo("examples/scenes/gi_box.rib")).expect("the scene loads");
+    rtsl_runtime::rib::load::load_file(&mut rt, repo("examples/scenes/gi_box.rib")).expect("the scene loads");
     (rt.options.width, rt.options.height) = (40, 30);
     assert_same(&both_ways(rt, 2, 2, &[nothing, move_first])?, "a frame lit by virtual lights");
     Ok(())
@@ -813,7 +813,7 @@ fn global_illumination_renders_the_same_on_workers() -> Result<(), DistributedEr
 fn the_master_traces_light_paths_once_and_sends_them() -> Result<(), DistributedError> {
     use rtsl_runtime::render::progressive::{pass_lattices, trace_lattices};
     let mut rt = Context::new();
-    rtsl_runtime::rib::load::load_file(&mut rt, &repo("examples/scenes/gi_box.rib")).expect("the scene loads");
+    rtsl_runtime::rib::load::load_file(&mut rt, repo("examples/scenes/gi_box.rib")).expect("the scene loads");
     (rt.options.width, rt.options.height) = (32, 24);
     rt.options.gi.caustic_photons = 3000;
     rt.options.gi.global_photons = 1000;
@@ -845,7 +845,7 @@ fn the_master_traces_light_paths_once_and_sends_them() -> Result<(), Distributed
 fn light_paths_decode_to_themselves_and_damaged_ones_are_errors() {
     use rtsl_runtime::render::{LightPaths, TileRenderer};
     let mut rt = Context::new();
-    rtsl_runtime::rib::load::load_file(&mut rt, &repo("examples/scenes/gi_box.rib")).expect("the scene loads");
+    rtsl_runtime::rib::load::load_file(&mut rt, repo("examples/scenes/gi_box.rib")).expect("the scene loads");
     rt.options.gi.caustic_photons = 2000;
     rt.options.gi.global_photons = 500;
     let world = rt.build_world().expect("a world");

@@ -520,7 +520,7 @@ fn the_cornell_box_matches_mitsubas_path_traced_reference() {
         );
         let mut rt = Context::new();
         let loaded =
-            rtsl_runtime::rib::load::load_str(&mut rt, &rib, &dir.path().join("box.rib")).expect("the box loads");
+            rtsl_runtime::rib::load::load_str(&mut rt, &rib, dir.path().join("box.rib")).expect("the box loads");
         assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
         let world = rt.build_world().expect("a world");
         let (fb, _) = render_frame(&world, None);

@@ -26,7 +26,7 @@ fn a_short_colour_line_in_a_material_library_is_an_error_with_its_file_and_line(
         assert_eq!(load_mesh(&obj).expect("the mesh").triangle_count(), 1);
         // Through a RIB archive the model is skipped with a warning at the request.
         let mut rt = Context::new();
-        let loaded = load_str(&mut rt, "WorldBegin\nReadArchive \"model.obj\"\nWorldEnd\n", &dir.path().join("s.rib"))
+        let loaded = load_str(&mut rt, "WorldBegin\nReadArchive \"model.obj\"\nWorldEnd\n", dir.path().join("s.rib"))
             .expect("the RIB loads");
         assert!(
             loaded

@@ -289,7 +289,7 @@ fn a_retained_object_holds_every_material_of_a_mesh_file_and_its_cut_outs() {
         WorldEnd"#
     );
     let mut rt = Context::new();
-    let loaded = load_str(&mut rt, &rib, &dir.path().join("scene.rib")).unwrap_or_else(|e| panic!("{e}"));
+    let loaded = load_str(&mut rt, &rib, dir.path().join("scene.rib")).unwrap_or_else(|e| panic!("{e}"));
     assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
     let world = rt.build_world().expect("a world");
     assert_eq!(world.scene.instance_count(), 2, "one ObjectInstance places the leaf and the bark objects");
@@ -316,7 +316,7 @@ fn the_alphamask_attribute_cuts_rib_geometry_until_its_block_ends() {
         WorldEnd"#
     );
     let mut rt = Context::new();
-    let loaded = load_str(&mut rt, &rib, &dir.path().join("scene.rib")).unwrap_or_else(|e| panic!("{e}"));
+    let loaded = load_str(&mut rt, &rib, dir.path().join("scene.rib")).unwrap_or_else(|e| panic!("{e}"));
     assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
     let fb = render(&mut rt);
     assert_eq!(fb.pixel(26, 14)[3], 1.0, "s < 0.5 of the masked square");
@@ -345,7 +345,7 @@ fn a_displacement_shader_bumps_the_normal_the_surface_shader_sees() {
     let row = |displacement: &str| {
         let mut rt = Context::new();
         let loaded =
-            load_str(&mut rt, &scene(displacement), &dir.path().join("scene.rib")).unwrap_or_else(|e| panic!("{e}"));
+            load_str(&mut rt, &scene(displacement), dir.path().join("scene.rib")).unwrap_or_else(|e| panic!("{e}"));
         assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
         let fb = render(&mut rt);
         (14..50).map(|x| fb.pixel(x, 24)[0]).collect::<Vec<f32>>()
@@ -363,12 +363,12 @@ fn a_displacement_shader_bumps_the_normal_the_surface_shader_sees() {
     load_str(
         &mut rt,
         &scene(r#"Displacement "bumpy" "amplitude" [0.5] "texturename" ["ridges.png"]"#),
-        &dir.path().join("s.rib"),
+        dir.path().join("s.rib"),
     )
     .unwrap_or_else(|e| panic!("{e}"));
     let covered = render(&mut rt).rgba.chunks(4).filter(|p| p[3] > 0.5).count();
     let mut rt = Context::new();
-    load_str(&mut rt, &scene(""), &dir.path().join("s.rib")).unwrap_or_else(|e| panic!("{e}"));
+    load_str(&mut rt, &scene(""), dir.path().join("s.rib")).unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(covered, render(&mut rt).rgba.chunks(4).filter(|p| p[3] > 0.5).count());
 }
 
@@ -406,7 +406,7 @@ fn gltf_base_colour_textures_are_mapped_and_mask_mode_cuts() {
         std::fs::write(dir.path().join("card.gltf"), gltf(mode)).expect("write the glTF");
         let rib = format!(r#"{CAMERA} LightSource "ambientlight" 1 "intensity" [5] ReadArchive "card.gltf" WorldEnd"#);
         let mut rt = Context::new();
-        let loaded = load_str(&mut rt, &rib, &dir.path().join("scene.rib")).unwrap_or_else(|e| panic!("{e}"));
+        let loaded = load_str(&mut rt, &rib, dir.path().join("scene.rib")).unwrap_or_else(|e| panic!("{e}"));
         assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
         render(&mut rt)
     };

@@ -68,13 +68,15 @@ fn is_null(name: &str) -> bool {
 }
 
 /// Loads a RIB file into `rt`.
-pub fn load_file(rt: &mut Context, path: &Path) -> Result<LoadedRib, SceneFileError> {
+pub fn load_file(rt: &mut Context, path: impl AsRef<Path>) -> Result<LoadedRib, SceneFileError> {
+    let path = path.as_ref();
     let parse = parse_file(path).map_err(|e| SceneFileError::Rib { path: path.to_path_buf(), message: e.message })?;
     load_parsed(rt, parse, path)
 }
 
 /// Loads RIB text into `rt`; `name` names it in messages and its directory resolves relative paths.
-pub fn load_str(rt: &mut Context, text: &str, name: &Path) -> Result<LoadedRib, SceneFileError> {
+pub fn load_str(rt: &mut Context, text: &str, name: impl AsRef<Path>) -> Result<LoadedRib, SceneFileError> {
+    let name = name.as_ref();
     load_parsed(rt, parse_str(text, name), name)
 }
 
