@@ -7,6 +7,7 @@ mod common;
 use common::{context, cube, quad, FLAT, H, W};
 use glam::Vec3A;
 use rtsl_runtime::api::{ApiError, Context, ShaderId};
+use rtsl_runtime::render::RAY_TREE_BUDGET;
 use rtsl_runtime::shading::ParamValue;
 
 /// A quad at z = 0 facing the camera, shaded by `surface`, and a green wall `2 * half` wide at
@@ -204,6 +205,72 @@ fn gather_samples_a_cone_of_shaded_rays() -> Result<(), ApiError> {
         assert!((p[0] - 1.0).abs() < 1e-5, "every reflected ray sees the green wall: {p:?}");
         assert!(p[1] >= 0.08 - 1e-4 && p[1] <= 0.08 / 0.2f32.cos() * 1.1, "mean length / 100: {p:?}");
         assert_eq!(p[2], 1.0, "every ray behind the quad misses: {p:?}");
+    }
+    Ok(())
+}
+
+/// Two rays a hit, each a little off the reflection: between two facing mirrors, a tree of
+/// 2^depth rays per camera ray.
+const SPLIT: &str = r#"
+surface split()
+{
+    vector R = reflect(I, normalize(N));
+    Oi = 1;
+    Ci = 0.25 + 0.375 * trace(P, R + vector(0.001, 0, 0)) + 0.375 * trace(P, R - vector(0, 0.001, 0));
+}
+"#;
+
+/// A `w` x `h` context, the camera between two facing mirrors shaded with `SPLIT`, rays `depth`
+/// deep at most.
+fn between_splitting_mirrors(w: u32, h: u32, depth: u32) -> Result<Context, ApiError> {
+    let mut rt = context();
+    (rt.options.width, rt.options.height, rt.options.max_ray_depth) = (w, h, depth);
+    let split = rt.compile_shader("split.sl", SPLIT)?;
+    rt.camera_look_at(Vec3A::new(0.0, 0.0, 5.0), Vec3A::ZERO, Vec3A::Y, 10.0);
+    let m = rt.begin_object()?;
+    rt.bind_shader(split)?;
+    quad(&mut rt, [[-50.0, -50.0, 0.0], [50.0, -50.0, 0.0], [50.0, 50.0, 0.0], [-50.0, 50.0, 0.0]])?;
+    quad(&mut rt, [[-50.0, 50.0, 8.0], [50.0, 50.0, 8.0], [50.0, -50.0, 8.0], [-50.0, -50.0, 8.0]])?;
+    rt.end_object()?;
+    rt.instantiate_object(m)?;
+    Ok(rt)
+}
+
+/// The ray depth bounds how deep rays nest, not how many there are: at the deepest ray depth a
+/// frame of a shader that traces twice a hit ends, each camera sample spawning at most its budget,
+/// the rays past it counted and warned of.
+#[test]
+fn a_camera_samples_ray_tree_stops_at_its_budget() -> Result<(), ApiError> {
+    let (w, h) = (2, 1);
+    let mut rt = between_splitting_mirrors(w, h, 64)?;
+    let (fb, report) = rt.render_frame()?;
+    let samples = u64::from(w * h);
+    let budget = u64::from(RAY_TREE_BUDGET);
+    assert!(report.secondary_rays <= samples * budget, "{report}");
+    assert!(report.secondary_rays >= samples * (budget - 64), "the budget is spent: {report}");
+    assert!(report.rays_cut > 0);
+    let warning = report.ray_budget_warning().expect("a warning");
+    assert!(warning.contains(&RAY_TREE_BUDGET.to_string()), "{warning}");
+    let p = fb.pixel(0, 0);
+    assert!(p[0] > 0.25 && p[0] < 1.0, "{p:?}");
+    Ok(())
+}
+
+/// Within its budget a sample's tree is traced whole, with and without tracing ahead; past it,
+/// only the samples that pass it change.
+#[test]
+fn a_tree_within_its_budget_is_traced_whole() -> Result<(), ApiError> {
+    // 2 + 4 + ... + 2^10 rays per camera sample.
+    let (w, h, depth) = (8, 4, 10);
+    let mut rt = between_splitting_mirrors(w, h, depth)?;
+    let (ahead, ahead_report) = rt.render_frame()?;
+    rt.options.trace_ahead = false;
+    let (chunked, chunked_report) = rt.render_frame()?;
+    assert!(ahead == chunked);
+    for report in [&ahead_report, &chunked_report] {
+        assert_eq!(report.secondary_rays, u64::from(w * h) * ((2 << depth) - 2), "{report}");
+        assert_eq!(report.rays_cut, 0);
+        assert_eq!(report.ray_budget_warning(), None);
     }
     Ok(())
 }

@@ -121,6 +121,7 @@ unsafe extern "C" fn no_texture(
 unsafe extern "C" fn no_rays(
     _: *mut c_void,
     _: u32,
+    _: u32,
     _: *const i32,
     _: *const f32,
     _: *const f32,
@@ -131,6 +132,7 @@ unsafe extern "C" fn no_rays(
 unsafe extern "C" fn no_gather(
     _: *mut c_void,
     _: StrRef,
+    _: u32,
     _: *const i32,
     _: *const f32,
     _: *const f32,

@@ -235,6 +235,9 @@ fn play_frame(
     for m in &report.shader_messages {
         eprintln!("warning: {m}");
     }
+    if let Some(w) = report.ray_budget_warning() {
+        eprintln!("warning: {w}");
+    }
     rt.return_scene(world);
     if let Some(path) = output {
         write_image(&path, fb.width as usize, fb.height as usize, &fb.rgba, &WriteOptions::default())

@@ -202,6 +202,9 @@ fn render_and_write(
     for m in &report.shader_messages {
         eprintln!("warning: {m}");
     }
+    if let Some(w) = report.ray_budget_warning() {
+        eprintln!("warning: {w}");
+    }
     let texture_files = world.textures.files();
     rt.return_scene(world);
     let transfer = output.transfer.unwrap_or_else(|| rt.options.transfer());

@@ -553,6 +553,7 @@ pub(super) fn counts_of(report: &FrameReport) -> FrameCounts {
         rays: [report.primary_rays, report.shadow_rays, report.secondary_rays, report.transparency_rays],
         shaded_points: report.shaded_points,
         light_evaluations: report.light_evaluations,
+        rays_cut: report.rays_cut,
         shading_ns: report.shading.as_nanos() as u64,
         kind_ns: report.by_kind.iter().map(|d| d.as_nanos() as u64).collect(),
         light_paths_ns: report.light_paths.as_nanos() as u64,

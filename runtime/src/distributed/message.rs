@@ -8,7 +8,7 @@ use crate::texture::TextureKind;
 use rtsl_compiler::interface::ShaderKind;
 
 /// The protocol's version: ranks that speak different versions refuse each other at start-up.
-pub const PROTOCOL_VERSION: u32 = 10;
+pub const PROTOCOL_VERSION: u32 = 11;
 
 /// What the master's counters add up from a worker's share of a frame.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -17,6 +17,8 @@ pub struct FrameCounts {
     pub rays: [u64; 4],
     pub shaded_points: u64,
     pub light_evaluations: u64,
+    /// Rays cut by their ray trees' budget.
+    pub rays_cut: u64,
     /// Thread time spent shading, and of it the time in each type of shader
     /// ([`ShaderKind::ALL`] order), in nanoseconds.
     pub shading_ns: u64,
@@ -213,6 +215,7 @@ impl Message {
                 }
                 w.u64(counts.shaded_points);
                 w.u64(counts.light_evaluations);
+                w.u64(counts.rays_cut);
                 w.u64(counts.fetched_objects);
                 w.u64(counts.fetched_bytes);
                 w.u64(counts.fetched_textures);
@@ -298,7 +301,7 @@ impl Message {
             FRAME_DONE => {
                 let frame = r.u64()?;
                 let rays = [r.u64()?, r.u64()?, r.u64()?, r.u64()?];
-                let (shaded_points, light_evaluations) = (r.u64()?, r.u64()?);
+                let (shaded_points, light_evaluations, rays_cut) = (r.u64()?, r.u64()?, r.u64()?);
                 let (fetched_objects, fetched_bytes) = (r.u64()?, r.u64()?);
                 let (fetched_textures, fetched_texture_bytes) = (r.u64()?, r.u64()?);
                 let (evicted_objects, resident_objects) = (r.u64()?, r.u64()?);
@@ -318,6 +321,7 @@ impl Message {
                     rays,
                     shaded_points,
                     light_evaluations,
+                    rays_cut,
                     shading_ns,
                     kind_ns,
                     light_paths_ns,
@@ -537,6 +541,7 @@ mod tests {
                     rays: [1, 2, 3, 4],
                     shaded_points: 5,
                     light_evaluations: 6,
+                    rays_cut: 7,
                     shading_ns: 7,
                     kind_ns: vec![8, 9],
                     light_paths_ns: 17,

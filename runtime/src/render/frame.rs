@@ -79,6 +79,10 @@ pub struct FrameReport {
     pub transparency_rays: u64,
     pub shaded_points: u64,
     pub light_evaluations: u64,
+    /// Rays the shaders asked for past their camera sample's ray budget
+    /// ([`super::RAY_TREE_BUDGET`]), answered as past the ray depth: the frame is not what the
+    /// scene asks for where this is not zero ([`FrameReport::ray_budget_warning`]).
+    pub rays_cut: u64,
     /// Thread time spent shading (tracing excluded), summed over threads.
     pub shading: Duration,
     /// Of that, the time in each type of shader (in [`ShaderKind::ALL`] order; see
@@ -100,6 +104,20 @@ pub struct FrameReport {
 }
 
 impl FrameReport {
+    /// The warning to give when rays were cut ([`FrameReport::rays_cut`]).
+    pub fn ray_budget_warning(&self) -> Option<String> {
+        (self.rays_cut > 0).then(|| {
+            format!(
+                "{} ray{} cut: a camera sample's shaders may spawn {} rays (`trace`, `gather`, `indirectdiffuse`), \
+                 and past that `trace` returned black, `gather` missed and `indirectdiffuse` went unshaded; \
+                 lower Option \"trace\" \"maxdepth\" or the rays the shaders send",
+                self.rays_cut,
+                if self.rays_cut == 1 { " was" } else { "s were" },
+                super::RAY_TREE_BUDGET
+            )
+        })
+    }
+
     pub fn total_rays(&self) -> u64 {
         self.primary_rays + self.shadow_rays + self.secondary_rays + self.transparency_rays
     }
@@ -1047,6 +1065,7 @@ pub(crate) fn frame_report(frame: &Frame, start: Instant) -> FrameReport {
         transparency_rays: load(&s.transparency_rays),
         shaded_points: load(&s.shaded_points),
         light_evaluations: load(&s.light_evaluations),
+        rays_cut: load(&s.rays_cut),
         shading: Duration::from_nanos(s.shading_ns.load(Ordering::Relaxed)),
         by_kind: std::array::from_fn(|i| Duration::from_nanos(s.kind_ns[i].load(Ordering::Relaxed))),
         by_shader: {

@@ -824,7 +824,8 @@ mod tests {
                     };
                     let hit = Hit { t: 1.0 + 4.0 * (r() + 1.0), ..hit };
                     let diff = RayDifferential { dodx, dody, dddx, dddy };
-                    Pending { index: k, ray: Ray::new(Vec3A::ZERO, direction), diff, hit }
+                    let budget = crate::render::ray_budget::RayBudget::NONE;
+                    Pending { index: k, ray: Ray::new(Vec3A::ZERO, direction), diff, hit, budget }
                 })
                 .collect();
             let mut four: Vec<Option<HitGeometry>> = (0..lanes).map(|_| None).collect();

@@ -5,6 +5,7 @@
 //! Invariant: callbacks never unwind into JIT code; they index only buffers whose sizes the packet
 //! ABI fixes, and nothing in them panics on user data.
 
+use super::ray_budget::RayBudget;
 use super::sampling::{mix, point_seed, unit};
 use super::stats::{tracing, Stats};
 use super::trace_ahead::RayLog;
@@ -58,6 +59,9 @@ pub(crate) struct ShadeCall<'f, 'w> {
     pub(super) rays_log: RayLog,
     /// For a pixel shader: the image it finishes, as it was before the shader ran (`pixelvalue`).
     pub(super) pixels: Option<&'f PixelImage>,
+    /// What each lane's ray tree may still spawn (`ray_budget.rs`); a lane past its end may
+    /// spawn nothing.
+    pub(super) budgets: &'f mut [RayBudget],
 }
 
 /// The buffers of a [`ShadeCall`], reused from call to call: a call is made for every batch, and
@@ -143,8 +147,10 @@ impl<'f, 'w> ShadeCall<'f, 'w> {
         instance: &'f ShaderInstance,
         world_from_object: Affine3A,
         depth: u32,
+        budgets: &'f mut [RayBudget],
     ) -> Self {
         ShadeCall {
+            budgets,
             frame,
             instance,
             world_from_object,
@@ -177,6 +183,38 @@ impl<'f, 'w> ShadeCall<'f, 'w> {
         front.clear();
         (self.batch_points, self.batch_mask, self.batch_times, self.batch_front) = (points, mask, times, front);
         self.textures = textures;
+    }
+
+    /// The budget of lane `l` of chunk `chunk` (`None` past the batch's lanes).
+    fn budget(&mut self, chunk: u32, l: usize) -> Option<&mut RayBudget> {
+        let lane = (chunk as usize).checked_mul(4)?.checked_add(l)?;
+        self.budgets.get_mut(lane)
+    }
+
+    /// Takes a ray from the budget of lane `l` of chunk `chunk`: what the ray is lent, or `None`
+    /// (a ray cut, counted) when the lane has nothing left.
+    fn spawn(&mut self, chunk: u32, l: usize) -> Option<RayBudget> {
+        let frame = self.frame;
+        if let Some(budget) = self.budget(chunk, l) {
+            if budget.take(1) {
+                return Some(budget.lend());
+            }
+        }
+        Stats::add(&frame.stats.rays_cut, 1);
+        None
+    }
+
+    /// The budgets of chunk `chunk`'s lanes (nothing to spend past the batch's).
+    fn chunk_budgets(&mut self, chunk: u32) -> [RayBudget; 4] {
+        std::array::from_fn(|l| self.budget(chunk, l).map_or(RayBudget::NONE, |b| *b))
+    }
+
+    fn set_chunk_budgets(&mut self, chunk: u32, budgets: [RayBudget; 4]) {
+        for (l, b) in budgets.into_iter().enumerate() {
+            if let Some(lane) = self.budget(chunk, l) {
+                *lane = b;
+            }
+        }
     }
 
     fn grid(&mut self, name: &str) -> Option<&Grid> {
@@ -352,12 +390,15 @@ unsafe extern "C" fn host_lights(
     let points: [Vec3A; 4] = std::array::from_fn(|l| lane3(p, 0, l));
     locate_chunk(c, mask, p);
     let times: [f32; 4] = std::array::from_fn(|l| c.lane_time(l));
+    let mut budgets = c.chunk_budgets(chunk);
     for light in &c.frame.world.lights {
         if !light.in_category(category) {
             continue;
         }
-        (c.frame.stages.eval_light)(c.frame, light, c.material, mask, &points, &times, c.depth, out, counts);
+        let stages = &c.frame.stages;
+        (stages.eval_light)(c.frame, light, c.material, mask, &points, &times, c.depth, &mut budgets, out, counts);
     }
+    c.set_chunk_budgets(chunk, budgets);
     let used = counts.iter().copied().max().unwrap_or(0) as usize;
     c.light_cache = Some(LightQuery {
         category: category.to_string(),
@@ -438,6 +479,7 @@ fn serve_from_batch(
             &c.batch_times,
             front,
             c.depth,
+            c.budgets,
         ));
     }
     let Some(table) = &mut c.batch_lights else { return false };
@@ -642,6 +684,7 @@ unsafe extern "C" fn host_texture(
 unsafe extern "C" fn host_rays(
     ctx: *mut c_void,
     kind: u32,
+    chunk: u32,
     mask: *const i32,
     a: *const f32,
     b: *const f32,
@@ -682,6 +725,23 @@ unsafe extern "C" fn host_rays(
                 }
                 requested[l] = Some(Ray::segment(from, dir, epsilon(from), f32::INFINITY).at_time(times[l]));
             }
+            if let RayLog::Record(noted) = &mut c.rays_log {
+                // Answered as if nothing were hit, until the second run; nothing is spent yet.
+                noted.note(chunk, requested);
+                return;
+            }
+            // Each ray costs its lane one and is lent what the lane has left; past the budget it
+            // is answered as past the ray depth.
+            let mut lent = [RayBudget::NONE; 4];
+            for l in 0..4 {
+                if requested[l].is_none() {
+                    continue;
+                }
+                match c.spawn(chunk, l) {
+                    Some(budget) => lent[l] = budget,
+                    None => requested[l] = None,
+                }
+            }
             let answer = |out: &mut [f32], l: usize, s: &Sample| {
                 for r in 0..3 {
                     out[4 * r + l] = s.color[r];
@@ -690,18 +750,13 @@ unsafe extern "C" fn host_rays(
             };
             // Lanes answered from a first run's notes need no ray now.
             let mut left = requested;
-            match &mut c.rays_log {
-                RayLog::Direct => {}
-                RayLog::Record(noted) => {
-                    // Answered as if nothing were hit, until the second run.
-                    noted.note(requested);
-                    return;
-                }
-                RayLog::Replay(replayed) => {
-                    for (l, seen) in replayed.answers(&requested).iter().enumerate() {
-                        if let Some(s) = seen {
-                            answer(out, l, s);
-                            left[l] = None;
+            if let RayLog::Replay(replayed) = &mut c.rays_log {
+                for (l, seen) in replayed.answers(&requested, &lent).into_iter().enumerate() {
+                    if let Some((s, spent, cut)) = seen {
+                        answer(out, l, &s);
+                        left[l] = None;
+                        if let Some(budget) = c.budget(chunk, l) {
+                            budget.charge(spent, cut);
                         }
                     }
                 }
@@ -712,9 +767,13 @@ unsafe extern "C" fn host_rays(
                 return;
             }
             Stats::add(&frame.stats.secondary_rays, rays.len());
-            let seen = (frame.stages.trace_rays)(frame, &rays, c.depth + 1);
-            for (s, l) in seen.iter().zip(lanes) {
+            let mut budgets: Vec<RayBudget> = lanes.iter().map(|&l| lent[l]).collect();
+            let seen = (frame.stages.trace_rays)(frame, &rays, &mut budgets, c.depth + 1);
+            for ((s, l), after) in seen.iter().zip(lanes).zip(budgets) {
                 answer(out, l, s);
+                if let Some(budget) = c.budget(chunk, l) {
+                    budget.settle(lent[l], after);
+                }
             }
         }
         1 => {
@@ -764,7 +823,9 @@ unsafe extern "C" fn host_rays(
                 }
                 let (p, n) = (lane3(a, 0, l), lane3(b, 0, l).normalize_or_zero());
                 let count = (samples[l].max(1.0) as u32).min(256);
-                let (blocked, light) = hemisphere(frame, p, n, count, kind == 3, c.depth, times[l]);
+                let depth = c.depth;
+                let budget = if kind == 3 { c.budget(chunk, l) } else { None };
+                let (blocked, light) = hemisphere(frame, p, n, count, budget, depth, times[l]);
                 if kind == 3 {
                     for r in 0..3 {
                         out[4 * r + l] = light[r];
@@ -777,9 +838,18 @@ unsafe extern "C" fn host_rays(
     }
 }
 
-/// Cosine-weighted rays over the hemisphere around `n`: the fraction blocked, and (when `shade`)
-/// the mean colour seen.
-fn hemisphere(frame: &Frame, p: Vec3A, n: Vec3A, count: u32, shade: bool, depth: u32, time: f32) -> (f32, Vec3A) {
+/// Cosine-weighted rays over the hemisphere around `n`: the fraction blocked, and (when `shade`
+/// gives the lane's budget) the mean colour seen. Shaded, the rays cost the lane one each and
+/// share what it has left; past the budget they go unshaded, as past the ray depth.
+fn hemisphere(
+    frame: &Frame,
+    p: Vec3A,
+    n: Vec3A,
+    count: u32,
+    shade: Option<&mut RayBudget>,
+    depth: u32,
+    time: f32,
+) -> (f32, Vec3A) {
     if n == Vec3A::ZERO {
         return (0.0, Vec3A::ZERO);
     }
@@ -795,8 +865,22 @@ fn hemisphere(frame: &Frame, p: Vec3A, n: Vec3A, count: u32, shade: bool, depth:
         rays.push(Ray::segment(p, dir, epsilon(p), f32::INFINITY).at_time(time));
     }
     Stats::add(&frame.stats.secondary_rays, rays.len());
-    if shade && depth < frame.world.options.max_ray_depth {
-        let seen = (frame.stages.trace_rays)(frame, &rays, depth + 1);
+    let shade = shade.filter(|_| depth < frame.world.options.max_ray_depth);
+    let paid = shade.and_then(|budget| {
+        if budget.take(count) {
+            Some(budget)
+        } else {
+            Stats::add(&frame.stats.rays_cut, count as usize);
+            None
+        }
+    });
+    if let Some(budget) = paid {
+        let share = budget.share(count);
+        let mut budgets = vec![share; rays.len()];
+        let seen = (frame.stages.trace_rays)(frame, &rays, &mut budgets, depth + 1);
+        for after in budgets {
+            budget.settle(share, after);
+        }
         let blocked = seen.iter().filter(|s| s.depth.is_finite()).count() as f32 / count as f32;
         let sum = seen.iter().fold(Vec3A::ZERO, |acc, s| acc + s.color);
         (blocked, sum / count as f32)
@@ -815,6 +899,7 @@ fn orthonormal(n: Vec3A) -> (Vec3A, Vec3A) {
 unsafe extern "C" fn host_gather(
     ctx: *mut c_void,
     _category: StrRef,
+    chunk: u32,
     mask: *const i32,
     from: *const f32,
     dir: *const f32,
@@ -836,8 +921,11 @@ unsafe extern "C" fn host_gather(
     let frame = c.frame;
     locate_chunk(c, mask, from);
     let times: [f32; 4] = std::array::from_fn(|l| c.lane_time(l));
+    // Rays past the ray depth are reported unshaded: they spawn nothing, and cost nothing.
+    let shaded = c.depth < frame.world.options.max_ray_depth;
     let mut rays = Vec::with_capacity(4);
     let mut lanes = Vec::with_capacity(4);
+    let mut lent = Vec::with_capacity(4);
     for l in 0..4 {
         if mask[l] == 0 {
             continue;
@@ -847,15 +935,32 @@ unsafe extern "C" fn host_gather(
         if !o.is_finite() || !d.is_finite() || d == Vec3A::ZERO {
             continue;
         }
+        let budget = if shaded {
+            // Past the budget the ray misses.
+            match c.spawn(chunk, l) {
+                Some(budget) => budget,
+                None => continue,
+            }
+        } else {
+            RayBudget::NONE
+        };
         let far = if maxdist[l] > 0.0 { maxdist[l] } else { f32::INFINITY };
         rays.push(Ray::segment(o, d, epsilon(o), far).at_time(times[l]));
         lanes.push(l);
+        lent.push(budget);
     }
     if rays.is_empty() {
         return;
     }
     Stats::add(&frame.stats.secondary_rays, rays.len());
-    for (seen, l) in (frame.stages.gather_rays)(frame, &rays, c.depth + 1).into_iter().zip(lanes) {
+    let mut budgets = lent.clone();
+    let seen = (frame.stages.gather_rays)(frame, &rays, &mut budgets, c.depth + 1);
+    for (((seen, l), lent), after) in seen.into_iter().zip(lanes).zip(lent).zip(budgets) {
+        if shaded {
+            if let Some(budget) = c.budget(chunk, l) {
+                budget.settle(lent, after);
+            }
+        }
         let Some((t, s)) = seen else { continue };
         out[l] = 1.0;
         let rows = [t, s.ci.x, s.ci.y, s.ci.z, s.oi.x, s.oi.y, s.oi.z, s.p.x, s.p.y, s.p.z, s.ng.x, s.ng.y, s.ng.z];

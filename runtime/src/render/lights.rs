@@ -5,6 +5,7 @@
 use super::differential::RayDifferential;
 use super::host::ShadeCall;
 use super::lanes::Lanes3;
+use super::ray_budget::RayBudget;
 use super::sampling::{mix, point_seed, unit};
 use super::stats::{tracing, Stats};
 use super::work::{epsilon, BatchLights, Frame, Pending, Shaded};
@@ -28,12 +29,25 @@ pub(super) fn eval_light(
     points: &[Vec3A; 4],
     times: &[f32; 4],
     depth: u32,
+    budgets: &mut [RayBudget; 4],
     out: &mut [LightLanes],
     counts: &mut [u32; 4],
 ) {
-    eval_light_lanes(frame, light, material, mask, points, times, depth, None, |_, fill, lanes, _| {
+    let lanes = LightLanesIn { mask, points, times, front: None, budgets };
+    eval_light_lanes(frame, light, material, depth, lanes, |_, fill, lanes, _| {
         append_row(out, counts, fill, lanes);
     });
+}
+
+/// The lanes a light shader runs over: `mask` nonzero where a point asks, each point's ray time,
+/// its front normal when known, and what its ray tree may still spawn (the rays the light's
+/// shader spawns at a point are charged to it).
+struct LightLanesIn<'a> {
+    mask: &'a [i32],
+    points: &'a [Vec3A],
+    times: &'a [f32],
+    front: Option<&'a [Vec3A]>,
+    budgets: &'a mut [RayBudget],
 }
 
 /// Appends lane `l`'s light in the row `fill` writes to `lights` (lane `l`'s `counts[l]`-th, while
@@ -76,16 +90,12 @@ fn append_row(lights: &mut [LightLanes], counts: &mut [u32; 4], fill: &dyn Fn(&m
 /// With `front`, a lane's shadow ray is traced now only toward a light within 90 degrees of its
 /// `front` normal ([`traced_lanes`]); elsewhere the light is unshadowed and its bit set in
 /// `pending` (see [`BatchLights::resolve`]).
-#[allow(clippy::too_many_arguments)]
 fn eval_light_lanes(
     frame: &Frame,
     light: &LightSource,
     material: Option<u32>,
-    mask: &[i32],
-    points: &[Vec3A],
-    times: &[f32],
     depth: u32,
-    front: Option<&[Vec3A]>,
+    LightLanesIn { mask, points, times, front, budgets }: LightLanesIn,
     mut sink: impl FnMut(usize, &dyn Fn(&mut LightLanes), u32, u32),
 ) {
     let n = points.len().min(PACKET_SIZE);
@@ -163,7 +173,7 @@ fn eval_light_lanes(
                 }
                 put_row(&mut raw, slots.time, 0, &lane_times[..n]);
             }
-            let mut call = ShadeCall::new(frame, instance, instance.world_from_shader, depth);
+            let mut call = ShadeCall::new(frame, instance, instance.world_from_shader, depth, &mut *budgets);
             call.material = material;
             let table = call.table();
             program.code.shade_with_table(batch, &table);
@@ -310,7 +320,9 @@ fn invariant_light_row(
             fill3(&mut raw, slots.ps, points.first().copied().unwrap_or(Vec3A::ZERO));
             fill1(&mut raw, slots.time, time_of(times, 0));
         }
-        let mut call = ShadeCall::new(frame, instance, instance.world_from_shader, depth);
+        // Run once a frame for every point that asks: its rays are a tree of their own.
+        let mut budget = [RayBudget::FULL];
+        let mut call = ShadeCall::new(frame, instance, instance.world_from_shader, depth, &mut budget);
         call.material = material;
         let table = call.table();
         program.code.shade_with_table(batch, &table);
@@ -596,6 +608,7 @@ impl BatchLights {
         times: &[f32],
         front: Option<&[Vec3A]>,
         depth: u32,
+        budgets: &mut [RayBudget],
     ) -> BatchLights {
         let n = points.len();
         let slots: usize = frame.world.lights.iter().map(|l| l.area.as_ref().map_or(1, |a| a.samples as usize)).sum();
@@ -612,7 +625,8 @@ impl BatchLights {
         pending.resize(chunks, [0; 4]);
         for light in &frame.world.lights {
             if light.in_category("") {
-                eval_light_lanes(frame, light, material, mask, points, times, depth, front, |c, fill, lanes, later| {
+                let lanes = LightLanesIn { mask, points, times, front, budgets: &mut *budgets };
+                eval_light_lanes(frame, light, material, depth, lanes, |c, fill, lanes, later| {
                     let (Some(chunk_counts), Some(chunk_pending), Some(chunk_lights)) =
                         (counts.get_mut(c), pending.get_mut(c), lights.get_mut(c * slots..(c + 1) * slots))
                     else {
@@ -909,7 +923,8 @@ fn walk_transparent_layers(frame: &Frame, packet: &mut RayPacket, mut walking: u
             } else if material.shadow_by_shader {
                 let ray = packet.get(l);
                 let diff = RayDifferential::cone(ray.direction, 0.0, frame.pixel_spread);
-                shaded_by_shader.push(Pending { index: l, ray, diff, hit });
+                // Shaded at the ray depth, where shaders spawn no rays.
+                shaded_by_shader.push(Pending { index: l, ray, diff, hit, budget: RayBudget::NONE });
             } else {
                 through[l] *= Vec3A::ONE - Vec3A::from(material.opacity).clamp(Vec3A::ZERO, Vec3A::ONE);
             }

@@ -22,6 +22,7 @@ mod photon_map;
 mod pixel;
 pub mod primary;
 pub mod progressive;
+mod ray_budget;
 mod sampling;
 mod scratch;
 pub mod shade;
@@ -38,6 +39,7 @@ pub use frame::{
     trace_primary_rays, FrameReport, Framebuffer, RenderedTile, TileRenderer, TILE_SIZE,
 };
 pub use primary::{primary_rays, primary_rays_into, CameraSample, PrimaryRays};
+pub use ray_budget::RAY_TREE_BUDGET;
 pub(crate) use stats::ShaderKindTimer;
 pub use stats::Stats;
 pub use work::{Frame, LightPathCache, LightPaths, Sample};

@@ -2,6 +2,7 @@
 //! the film has been filtered.
 
 use super::host::ShadeCall;
+use super::ray_budget::RayBudget;
 use super::stats::ShadingTimer;
 use super::work::{Frame, PixelImage};
 use crate::ray::PACKET_SIZE;
@@ -57,7 +58,9 @@ pub fn shade_pixels(frame: &Frame, tile: TilePixels<'_>, image: Option<&PixelIma
                     put1(&mut raw, slots.ncomps, lane, 3.0);
                 }
             }
-            let mut call = ShadeCall::new(frame, imager, imager.world_from_shader, 0);
+            // Each pixel the root of the rays its shader spawns.
+            let mut budgets = vec![RayBudget::FULL; lanes];
+            let mut call = ShadeCall::new(frame, imager, imager.world_from_shader, 0, &mut budgets);
             call.pixels = image;
             let table = call.table();
             program.code.shade_with_table(batch, &table);

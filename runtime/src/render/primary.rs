@@ -15,6 +15,7 @@
 
 use super::differential::{DifferentialRows, LaneRows3, RayDifferential};
 use super::host::ShadeCall;
+use super::ray_budget::RayBudget;
 use super::work::Frame;
 use super::world::World;
 use crate::ray::{Ray, RayPacket, PACKET_SIZE};
@@ -415,7 +416,9 @@ fn camera_call(
                 }
             }
         }
-        let mut call = ShadeCall::new(frame, camera, world.camera.world_from_camera, 0);
+        // Each lane a camera sample: the rays the camera shader spawns are a tree of their own.
+        let mut budgets = vec![RayBudget::FULL; n * PACKET_SIZE];
+        let mut call = ShadeCall::new(frame, camera, world.camera.world_from_camera, 0, &mut budgets);
         let table = call.table();
         program.code.shade_with_table(batch, &table);
         // The rays are read straight from the batch (the renderer's side of the call, so within

@@ -8,6 +8,8 @@
 //!   premultiplied by `Oi`), continuing through surfaces while `w` is above 1/256 and fewer than
 //!   `max_transparent_layers` were crossed; what is left of `w` sees the background.
 //! - `trace` recursion stops at `RenderOptions::max_ray_depth`: deeper rays return black (RISpec).
+//! - A camera sample's tree of rays spawns at most `RAY_TREE_BUDGET` (`ray_budget.rs`): each hit
+//!   carries what its tree may still spend, and gives back what it did not.
 //! - Everything here is deterministic per ray: random numbers (area light samples, occlusion rays,
 //!   `random()` seeds) are hashes of the shading point, never of the thread or the order of work.
 //! - Only the outermost shading of a thread is timed (`stats.rs`), tracing excluded.
@@ -18,10 +20,11 @@ use super::hit_geometry::{hit_geometries, GeometryNeeds, GroupHits, HitGeometry,
 use super::host::ShadeCall;
 use super::native::{faced_against, LightSeen, NativeSurface};
 use super::primary::PrimaryRays;
+use super::ray_budget::RayBudget;
 use super::stats::{tracing, ShadingTimer, Stats};
 use super::trace_ahead::RayLog;
 use super::work::{finite_or_zero, BatchLights, Pending, Shaded, Stages};
-use super::world::{World, DEFAULT_MATERIAL};
+use super::world::{InstanceShading, Material, World, DEFAULT_MATERIAL};
 use crate::ray::{offset_ray_origin, Hit, HitPacket, Ray, PACKET_SIZE};
 use crate::shading::{get3, get_row, with_filled_batch, ShaderInstance};
 use glam::{Affine3A, Vec3A};
@@ -34,7 +37,7 @@ pub use super::work::{Frame, Sample};
 
 /// The stages as this module and `lights.rs` provide them.
 const STAGES: Stages = Stages {
-    trace_rays,
+    trace_rays: trace_budgeted,
     gather_rays,
     shade_in_groups: super::group::shade_in_groups,
     shade_group,
@@ -76,13 +79,16 @@ pub fn shade_packets(frame: &Frame, packets: &[(&PrimaryRays, &HitPacket)], out:
             let hit = hits.get(i);
             if begin_sample(frame, hit, &mut out[i]) {
                 let index = k * PACKET_SIZE + i;
-                pending.push(Pending { index, ray: packet.get(i), diff: primary.diffs.lane(i), hit });
+                let (ray, diff) = (packet.get(i), primary.diffs.lane(i));
+                pending.push(Pending { index, ray, diff, hit, budget: RayBudget::FULL });
             }
         }
     }
     let out = &mut out[..packets.len()];
     let mut weight = vec![Vec3A::ONE; PACKET_SIZE * packets.len()];
-    shade_pending(frame, pending, 0, out.as_flattened_mut(), &mut weight);
+    // Each camera sample's tree its own budget (what is left of it is not needed here).
+    let mut budgets = vec![RayBudget::FULL; PACKET_SIZE * packets.len()];
+    shade_pending(frame, pending, 0, out.as_flattened_mut(), &mut weight, &mut budgets);
     for (k, ((primary, _), out)) in packets.iter().zip(out.iter_mut()).enumerate() {
         let packet = &primary.packet;
         for i in (0..PACKET_SIZE).filter(|i| packet.active >> i & 1 != 0) {
@@ -95,8 +101,14 @@ pub fn shade_packets(frame: &Frame, packets: &[(&PrimaryRays, &HitPacket)], out:
     }
 }
 
-/// Traces and shades single rays (secondary rays: incoherent, traced one by one).
+/// Traces and shades single rays (secondary rays: incoherent, traced one by one), each the root of
+/// a tree of its own budget ([`super::RAY_TREE_BUDGET`]).
 pub fn trace_rays(frame: &Frame, rays: &[Ray], depth: u32) -> Vec<Sample> {
+    trace_budgeted(frame, rays, &mut vec![RayBudget::FULL; rays.len()], depth)
+}
+
+/// [`trace_rays`], ray `i`'s tree spending from `budgets[i]`.
+fn trace_budgeted(frame: &Frame, rays: &[Ray], budgets: &mut [RayBudget], depth: u32) -> Vec<Sample> {
     let hits: Vec<Hit> = tracing(|| rays.iter().map(|r| frame.world.scene.intersect(r)).collect());
     let eye = frame.world.camera.eye();
     let diffs: Vec<RayDifferential> = rays
@@ -107,14 +119,20 @@ pub fn trace_rays(frame: &Frame, rays: &[Ray], depth: u32) -> Vec<Sample> {
         })
         .collect();
     let mut out = vec![Sample::default(); rays.len()];
-    shade_hits(frame, rays, &diffs, &hits, depth, &mut out);
+    shade_hits(frame, rays, &diffs, &hits, depth, &mut out, budgets);
     out
 }
 
 /// What `gather` rays meet (`shadeops::gather`): for each ray that hits a surface, the distance
 /// and that surface's own shading (its shader's Ci and Oi, not composited with what lies behind
 /// it, no atmosphere). Beyond the ray-depth limit a hit is reported unshaded (black, transparent).
-pub(super) fn gather_rays(frame: &Frame, rays: &[Ray], depth: u32) -> Vec<Option<(f32, Shaded)>> {
+/// Ray `i`'s shading spends from `budgets[i]`.
+pub(super) fn gather_rays(
+    frame: &Frame,
+    rays: &[Ray],
+    budgets: &mut [RayBudget],
+    depth: u32,
+) -> Vec<Option<(f32, Shaded)>> {
     let hits: Vec<Hit> = tracing(|| rays.iter().map(|r| frame.world.scene.intersect(r)).collect());
     let eye = frame.world.camera.eye();
     let mut out = vec![None; rays.len()];
@@ -128,7 +146,8 @@ pub(super) fn gather_rays(frame: &Frame, rays: &[Ray], depth: u32) -> Vec<Option
         if depth <= frame.world.options.max_ray_depth {
             let width = frame.pixel_spread * (ray.origin - eye).length();
             let diff = RayDifferential::cone(ray.direction, width, frame.pixel_spread);
-            pending.push(Pending { index: i, ray: *ray, diff, hit: *hit });
+            let budget = budgets.get(i).copied().unwrap_or(RayBudget::NONE);
+            pending.push(Pending { index: i, ray: *ray, diff, hit: *hit, budget });
         }
     }
     if !pending.is_empty() {
@@ -136,13 +155,24 @@ pub(super) fn gather_rays(frame: &Frame, rays: &[Ray], depth: u32) -> Vec<Option
         super::group::shade_in_groups(frame, &mut pending, depth, &mut results);
         Stats::add(&frame.stats.shaded_points, pending.len());
         for (p, r) in pending.iter().zip(results) {
+            if let Some(budget) = budgets.get_mut(p.index) {
+                budget.charge(r.spent, r.cut);
+            }
             out[p.index] = Some((p.hit.t, r));
         }
     }
     out
 }
 
-fn shade_hits(frame: &Frame, rays: &[Ray], diffs: &[RayDifferential], hits: &[Hit], depth: u32, out: &mut [Sample]) {
+fn shade_hits(
+    frame: &Frame,
+    rays: &[Ray],
+    diffs: &[RayDifferential],
+    hits: &[Hit],
+    depth: u32,
+    out: &mut [Sample],
+    budgets: &mut [RayBudget],
+) {
     let mut pending = Vec::with_capacity(rays.len());
     for (i, ((ray, hit), diff)) in rays.iter().zip(hits).zip(diffs).enumerate() {
         if let Some(p) = start_sample(frame, i, *ray, *diff, *hit, &mut out[i]) {
@@ -150,7 +180,7 @@ fn shade_hits(frame: &Frame, rays: &[Ray], diffs: &[RayDifferential], hits: &[Hi
         }
     }
     let mut weight = vec![Vec3A::ONE; rays.len()];
-    shade_pending(frame, pending, depth, out, &mut weight);
+    shade_pending(frame, pending, depth, out, &mut weight, budgets);
     for (s, w) in out.iter_mut().zip(&weight) {
         s.alpha = 1.0 - (w.x + w.y + w.z) / 3.0;
     }
@@ -166,8 +196,9 @@ fn start_sample(
     hit: Hit,
     out: &mut Sample,
 ) -> Option<Pending> {
-    // The hit's ids are written by `shade_pending`, once its hits are sorted by material.
-    begin_sample(frame, hit, out).then_some(Pending { index, ray, diff, hit })
+    // The hit's ids are written by `shade_pending`, once its hits are sorted by material; its
+    // budget by `shade_pending` too, from the ray's.
+    begin_sample(frame, hit, out).then_some(Pending { index, ray, diff, hit, budget: RayBudget::NONE })
 }
 
 /// Starts the sample of a ray with `hit` in `out`: the background on a miss (`false`), else
@@ -190,13 +221,24 @@ fn begin_sample(frame: &Frame, hit: Hit, out: &mut Sample) -> bool {
 }
 
 /// Shades the pending hits and composites them into `out[p.index]`, following rays through
-/// transparent surfaces; `weight[p.index]` is left with what the surfaces let through.
-fn shade_pending(frame: &Frame, mut current: Vec<Pending>, depth: u32, out: &mut [Sample], weight: &mut [Vec3A]) {
+/// transparent surfaces; `weight[p.index]` is left with what the surfaces let through. The
+/// shading of each layer of ray `p.index`'s hits spends from `budgets[p.index]`.
+fn shade_pending(
+    frame: &Frame,
+    mut current: Vec<Pending>,
+    depth: u32,
+    out: &mut [Sample],
+    weight: &mut [Vec3A],
+    budgets: &mut [RayBudget],
+) {
     let world = frame.world;
     let background = Vec3A::from(world.options.background);
     let mut layer = 0;
     let mut results = Vec::new();
     while !current.is_empty() {
+        for p in &mut current {
+            p.budget = budgets.get(p.index).map_or(RayBudget::NONE, |b| b.lend());
+        }
         results.clear();
         results.resize(current.len(), Shaded::default());
         super::group::shade_in_groups(frame, &mut current, depth, &mut results);
@@ -209,6 +251,9 @@ fn shade_pending(frame: &Frame, mut current: Vec<Pending>, depth: u32, out: &mut
         layer += 1;
         let mut next = Vec::new();
         for (p, r) in current.iter().zip(&results) {
+            if let Some(budget) = budgets.get_mut(p.index) {
+                budget.charge(r.spent, r.cut);
+            }
             let w = weight[p.index];
             out[p.index].color += w * r.ci;
             let left = w * (Vec3A::ONE - r.oi.clamp(Vec3A::ZERO, Vec3A::ONE));
@@ -229,7 +274,7 @@ fn shade_pending(frame: &Frame, mut current: Vec<Pending>, depth: u32, out: &mut
                         (Vec3A::ZERO, Vec3A::ZERO)
                     };
                     let diff = RayDifferential { dodx, dody, ..p.diff };
-                    next.push(Pending { index: p.index, ray, diff, hit });
+                    next.push(Pending { index: p.index, ray, diff, hit, budget: RayBudget::NONE });
                 } else {
                     out[p.index].color += left * background;
                 }
@@ -279,6 +324,29 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
         normal_derivs: shaders().any(|s| deriv_row(s.program.slots.n, 3, s.program.layout().deriv_slots).is_some()),
     };
     let Some(ig) = InstanceGeometry::new(world, inst, group[0].hit.instance, needs) else { return };
+    // Each lane's budget, spent by its displacement, light and surface shaders in turn.
+    let mut budgets = super::scratch::take(&LANE_BUDGETS);
+    budgets.clear();
+    budgets.extend(group.iter().map(|p| p.budget));
+    shade_group_lanes(frame, group, depth, out, (inst, material_id, material), &ig, &mut budgets);
+    for ((o, p), b) in out.iter_mut().zip(group).zip(budgets.iter()) {
+        (o.spent, o.cut) = (p.budget.left.saturating_sub(b.left), b.cut);
+    }
+    super::scratch::give(&LANE_BUDGETS, budgets);
+}
+
+/// [`shade_group`] once the group's geometry is known, each lane's shaders spending from
+/// `budgets`.
+fn shade_group_lanes(
+    frame: &Frame,
+    group: &[Pending],
+    depth: u32,
+    out: &mut [Shaded],
+    (inst, material_id, material): (&InstanceShading, u32, &Material),
+    ig: &InstanceGeometry,
+    budgets: &mut [RayBudget],
+) {
+    let world = frame.world;
     with_hit_geometry(|HitBuffers { geoms, rows }| {
         // The slots of earlier groups are written over in place (`hit_geometry_into`). The buffer
         // only grows: slots cut off and made again were each a `HitGeometry::default()` built on
@@ -293,18 +361,18 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
             || material.native.is_some()
             || material.surface.is_none()
             || vertex_params.is_some();
-        let by_rows = hit_geometries(&ig, group, geoms, rows, each);
+        let by_rows = hit_geometries(ig, group, geoms, rows, each);
         let mut rows = by_rows.then_some(&**rows);
         let color = Vec3A::from(material.color);
         let opacity = Vec3A::from(material.opacity);
         if let Some(displacement) = &material.displacement {
             let at = (material_id, inst.world_from_object);
-            displace(frame, displacement, at, group, geoms, (color, opacity), depth);
+            displace(frame, displacement, at, group, geoms, (color, opacity), depth, budgets);
             // The hits' normals (and points) are the displaced ones now, not the rows'.
             rows = None;
         }
         if let Some(native) = &material.native {
-            shade_native(frame, native.as_ref(), group, geoms, color, opacity, depth, out);
+            shade_native(frame, native.as_ref(), group, geoms, (color, opacity), depth, out, budgets);
             return;
         }
         let Some(surface) = &material.surface else {
@@ -314,7 +382,7 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
                 let cs = g.cs.unwrap_or(color);
                 let os = g.os.unwrap_or(opacity);
                 let facing = g.n.dot(-p.ray.direction.normalize_or_zero()).abs();
-                *o = Shaded { ci: os * cs * (0.2 + 0.8 * facing), oi: os, p: g.p, ng: g.ng, on_surface: true };
+                *o = Shaded { ci: os * cs * (0.2 + 0.8 * facing), oi: os, p: g.p, ng: g.ng, on_surface: true, ..*o };
             }
             return;
         };
@@ -345,7 +413,8 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
                     }
                 }
             }
-            let mut call = batch_call(frame, surface, (material_id, inst.world_from_object), group, hits, depth);
+            let at = (material_id, inst.world_from_object);
+            let mut call = batch_call(frame, surface, at, group, hits, depth, &mut *budgets);
             if traces_ahead(frame, program, group.len(), depth) {
                 run_tracing_ahead(frame, program, batch, &mut call, depth);
             } else {
@@ -366,7 +435,8 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
                     Some(_) => Vec3A::new(rows[3][lane], rows[4][lane], rows[5][lane]),
                     None => g.os.unwrap_or(opacity),
                 };
-                *o = Shaded { ci: finite_or_zero(ci), oi: finite_or_zero(oi), p: g.p, ng: g.ng, on_surface: true };
+                *o =
+                    Shaded { ci: finite_or_zero(ci), oi: finite_or_zero(oi), p: g.p, ng: g.ng, on_surface: true, ..*o };
             }
         });
     })
@@ -403,7 +473,7 @@ fn run_tracing_ahead(
     program.code.shade_with_table(batch, &table);
     if let RayLog::Record(noted) = std::mem::take(&mut call.rays_log) {
         if noted.needs_replay() {
-            call.rays_log = RayLog::Replay(noted.trace(frame, depth + 1));
+            call.rays_log = RayLog::Replay(noted.trace(frame, depth + 1, call.budgets));
             batch.restore_values(&saved);
             let table = call.table();
             program.code.shade_with_table(batch, &table);
@@ -414,6 +484,8 @@ fn run_tracing_ahead(
 }
 
 thread_local! {
+    /// Groups' lane budgets (`shade_group`).
+    static LANE_BUDGETS: RefCell<Vec<Vec<RayBudget>>> = const { RefCell::new(Vec::new()) };
     /// Batches' values kept for their second runs (`run_tracing_ahead`).
     static SAVED_VALUES: RefCell<Vec<rtsl_compiler::abi::SavedValues>> = const { RefCell::new(Vec::new()) };
 }
@@ -478,8 +550,9 @@ fn batch_call<'f, 'w>(
     group: &[Pending],
     hits: GroupHits,
     depth: u32,
+    budgets: &'f mut [RayBudget],
 ) -> ShadeCall<'f, 'w> {
-    let mut call = ShadeCall::new(frame, shader, world_from_object, depth);
+    let mut call = ShadeCall::new(frame, shader, world_from_object, depth, budgets);
     call.material = Some(material);
     // Into reused buffers.
     call.take_buffers();
@@ -521,6 +594,7 @@ fn front_normals<'a>(group: &'a [Pending], hits: GroupHits<'a>) -> impl Iterator
 /// Runs a displacement shader over a group of hits as bump mapping: the `N` it leaves (when
 /// finite and not zero) replaces each hit's shading normal; `P` and the geometry stay where the
 /// ray met them. Vertex-scope parameters are bound for the surface shader only.
+#[allow(clippy::too_many_arguments)]
 fn displace(
     frame: &Frame,
     displacement: &ShaderInstance,
@@ -529,6 +603,7 @@ fn displace(
     geoms: &mut [Option<HitGeometry>],
     appearance: (Vec3A, Vec3A),
     depth: u32,
+    budgets: &mut [RayBudget],
 ) {
     let program = &displacement.program;
     with_filled_batch(program, group.len(), &hit_global_rows(program), |batch| {
@@ -538,7 +613,8 @@ fn displace(
             fill_hit_globals(&mut raw, program, group, GroupHits::Each(geoms, None), appearance);
         }
         let hits = GroupHits::Each(geoms, None);
-        let mut call = batch_call(frame, displacement, (material, world_from_object), group, hits, depth);
+        let at = (material, world_from_object);
+        let mut call = batch_call(frame, displacement, at, group, hits, depth, &mut *budgets);
         let table = call.table();
         program.code.shade_with_table(batch, &table);
         let raw = batch.raw_mut();
@@ -560,16 +636,16 @@ fn shade_native(
     native: &dyn NativeSurface,
     group: &[Pending],
     geoms: &[Option<HitGeometry>],
-    color: Vec3A,
-    opacity: Vec3A,
+    (color, opacity): (Vec3A, Vec3A),
     depth: u32,
     out: &mut [Shaded],
+    budgets: &mut [RayBudget],
 ) {
     let (mut points, mut mask, mut times) = (Vec::new(), Vec::new(), Vec::new());
     let hits = GroupHits::Each(geoms, None);
     extend_batch_lanes(group, hits, (&mut points, &mut mask, &mut times));
     let front: Vec<Vec3A> = front_normals(group, hits).collect();
-    let mut table = BatchLights::compute(frame, None, &points, &mask, &times, Some(&front), depth);
+    let mut table = BatchLights::compute(frame, None, &points, &mask, &times, Some(&front), depth, budgets);
     // The hand-written plastic sums the lights in front of its normal faced forward by itself.
     let faced = |(k, g): (usize, &Option<HitGeometry>)| {
         let g = g.as_ref()?;
@@ -586,7 +662,7 @@ fn shade_native(
         }));
         let i = g.p - group[k].ray.origin;
         let (ci, oi) = native.shade(g.n, i, g.cs.unwrap_or(color), g.os.unwrap_or(opacity), &seen);
-        out[k] = Shaded { ci, oi, p: g.p, ng: g.ng, on_surface: true };
+        out[k] = Shaded { ci, oi, p: g.p, ng: g.ng, on_surface: true, ..out[k] };
     }
 }
 

@@ -160,6 +160,9 @@ pub struct Stats {
     pub transparency_rays: Counter,
     pub shaded_points: Counter,
     pub light_evaluations: Counter,
+    /// Rays refused because their camera sample's tree had spent its budget
+    /// ([`super::RAY_TREE_BUDGET`]).
+    pub rays_cut: Counter,
     /// Time spent shading (surface and light shaders and the renderer's side of their calls),
     /// tracing excluded, summed over threads.
     pub shading_ns: AtomicU64,

@@ -16,6 +16,10 @@
 //!    noted, bit for bit, gets that ray's answer ([`RayLog::Replay`]). Any other lane (a ray that
 //!    depended on an earlier placeholder answer) is traced there and then, as without this.
 //!
+//! A lane's noted rays share what its ray tree has left (`ray_budget.rs`) equally; a replayed
+//! answer whose tree was lent more than the lane has left when the second run asks for it is
+//! traced again there, with what is left.
+//!
 //! A first run notes at most [`MAX_NOTED_CALLS`] calls: a shader that calls `trace` in a long
 //! loop would otherwise hold every call's rays, and then all their answers, at once. The calls
 //! past it answer black in the first run, as noted calls do, and are traced call by call in the
@@ -25,6 +29,7 @@
 //! shaded beside it. The cost is a second run of the shader itself, which for a reflecting or
 //! refracting surface is small beside the shading of what its rays meet.
 
+use super::ray_budget::RayBudget;
 use super::stats::Stats;
 use super::work::{Frame, Sample};
 use crate::ray::Ray;
@@ -46,67 +51,99 @@ pub(super) enum RayLog {
 /// however many times a shader's loop calls `trace`.
 pub(super) const MAX_NOTED_CALLS: usize = 4096;
 
-/// The rays of a first run's `trace` calls, call by call.
+/// The rays of a first run's `trace` calls, call by call, with the chunk that made each.
 #[derive(Default)]
 pub(super) struct Recorded {
-    calls: Vec<[Option<Ray>; 4]>,
+    calls: Vec<(u32, [Option<Ray>; 4])>,
     /// Whether the run had output it did not write (`printf`).
     pub(super) silenced: bool,
 }
 
 /// The answers to a first run's rays.
 pub(super) struct Replayed {
+    /// Each noted ray, and where its answer is in `seen` and `budgets`.
     calls: Vec<[Option<(Ray, usize)>; 4]>,
     seen: Vec<Sample>,
+    /// What each ray's tree was lent, and what it left.
+    lent: Vec<RayBudget>,
+    budgets: Vec<RayBudget>,
     next: usize,
 }
 
 impl Recorded {
-    /// Notes one call's rays (by lane), unless [`MAX_NOTED_CALLS`] are noted already.
-    pub(super) fn note(&mut self, rays: [Option<Ray>; 4]) {
+    /// Notes one call's rays (by lane of chunk `chunk`), unless [`MAX_NOTED_CALLS`] are noted
+    /// already.
+    pub(super) fn note(&mut self, chunk: u32, rays: [Option<Ray>; 4]) {
         if self.calls.len() < MAX_NOTED_CALLS {
-            self.calls.push(rays);
+            self.calls.push((chunk, rays));
         }
     }
 
     /// Whether the run must be made again: it traced, or kept output back.
     pub(super) fn needs_replay(&self) -> bool {
-        self.silenced || self.calls.iter().any(|c| c.iter().any(Option::is_some))
+        self.silenced || self.calls.iter().any(|(_, c)| c.iter().any(Option::is_some))
     }
 
-    /// Traces and shades every noted ray together, `depth` deep.
-    pub(super) fn trace(self, frame: &Frame, depth: u32) -> Replayed {
-        let mut rays = Vec::new();
+    /// Traces and shades every noted ray together, `depth` deep: each costs its lane one, and a
+    /// lane's rays share what it has left, as `budgets` (the batch's lanes') has it. A lane with
+    /// fewer left than it noted rays has none traced here.
+    pub(super) fn trace(self, frame: &Frame, depth: u32, budgets: &[RayBudget]) -> Replayed {
+        let lane_of = |chunk: u32, l: usize| (chunk as usize).checked_mul(4).and_then(|c| c.checked_add(l));
+        let mut noted = vec![0u32; budgets.len()];
+        for (chunk, call) in &self.calls {
+            for l in (0..4).filter(|&l| call[l].is_some()) {
+                if let Some(n) = lane_of(*chunk, l).and_then(|k| noted.get_mut(k)) {
+                    *n += 1;
+                }
+            }
+        }
+        let share = |lane: usize| {
+            let (budget, n) = (budgets.get(lane)?, *noted.get(lane)?);
+            let mut share = budget.share(n);
+            share.take(1).then_some(share)
+        };
+        let (mut rays, mut lent) = (Vec::new(), Vec::new());
         let calls = self
             .calls
             .into_iter()
-            .map(|call| {
-                call.map(|ray| {
-                    ray.map(|r| {
-                        rays.push(r);
-                        (r, rays.len() - 1)
-                    })
+            .map(|(chunk, call)| {
+                std::array::from_fn(|l| {
+                    let r = call[l]?;
+                    lent.push(share(lane_of(chunk, l)?)?);
+                    rays.push(r);
+                    Some((r, rays.len() - 1))
                 })
             })
             .collect();
+        let mut budgets = lent.clone();
         let seen = if rays.is_empty() {
             Vec::new()
         } else {
             Stats::add(&frame.stats.secondary_rays, rays.len());
-            (frame.stages.trace_rays)(frame, &rays, depth)
+            (frame.stages.trace_rays)(frame, &rays, &mut budgets, depth)
         };
-        Replayed { calls, seen, next: 0 }
+        Replayed { calls, seen, lent, budgets, next: 0 }
     }
 }
 
 impl Replayed {
-    /// The answers noted for the next call's rays, lane by lane: `None` for a lane whose ray is not
-    /// the one noted in its place (bit for bit), to be traced anew.
-    pub(super) fn answers(&mut self, rays: &[Option<Ray>; 4]) -> [Option<Sample>; 4] {
+    /// The answers noted for the next call's rays, lane by lane, with the rays their trees spent
+    /// and whether they refused one: `None` for a lane whose ray is not the one noted in its place
+    /// (bit for bit), or whose tree was lent more than `lent` (what the lane has for it now), to
+    /// be traced anew.
+    pub(super) fn answers(
+        &mut self,
+        rays: &[Option<Ray>; 4],
+        lent: &[RayBudget; 4],
+    ) -> [Option<(Sample, u32, bool)>; 4] {
         let noted = self.calls.get(self.next).copied().unwrap_or([None; 4]);
         self.next += 1;
         std::array::from_fn(|l| match (rays[l], noted[l]) {
-            (Some(ray), Some((was, k))) if same_ray(&ray, &was) => self.seen.get(k).copied(),
+            (Some(ray), Some((was, k))) if same_ray(&ray, &was) => {
+                let (given, after) = (self.lent.get(k)?, self.budgets.get(k)?);
+                (given.left <= lent[l].left)
+                    .then(|| Some((*self.seen.get(k)?, given.left - after.left.min(given.left), after.cut)))?
+            }
             _ => None,
         })
     }
@@ -132,7 +169,7 @@ mod tests {
         let ray = Ray::segment(Vec3A::ZERO, Vec3A::Z, 1e-4, f32::INFINITY);
         let mut noted = Recorded::default();
         for _ in 0..3 * MAX_NOTED_CALLS {
-            noted.note([Some(ray); 4]);
+            noted.note(0, [Some(ray); 4]);
         }
         assert_eq!(noted.calls.len(), MAX_NOTED_CALLS);
         assert!(noted.needs_replay());

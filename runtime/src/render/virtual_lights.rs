@@ -25,6 +25,7 @@
 //! every tile, lattice and worker of a frame gathers the same lights.
 
 use super::photon_map::{Photon, PhotonMap};
+use super::ray_budget::RayBudget;
 use super::sampling::{mix, point_seed, radical_inverse, unit};
 use super::stats::{tracing, Stats};
 use super::work::{epsilon, Frame, VirtualLight, VirtualLights};
@@ -233,7 +234,9 @@ fn emitter(frame: &Frame, light: &LightSource, lo: Vec3A, hi: Vec3A) -> Option<E
 fn eval(frame: &Frame, light: &LightSource, mask: &[i32; 4], points: &[Vec3A; 4]) -> Vec<(usize, LightLanes)> {
     let mut rows = vec![LightLanes::default(); MAX_LIGHTS];
     let mut counts = [0u32; 4];
-    (frame.stages.eval_light)(frame, light, None, mask, points, &[0.0; 4], 0, &mut rows, &mut counts);
+    // A path's start: the rays a light's shader spawns here are trees of their own.
+    let mut budgets = [RayBudget::FULL; 4];
+    (frame.stages.eval_light)(frame, light, None, mask, points, &[0.0; 4], 0, &mut budgets, &mut rows, &mut counts);
     (0..4).filter(|&l| counts[l] > 0 && mask[l] != 0).map(|l| (l, rows[0])).collect()
 }
 

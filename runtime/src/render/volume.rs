@@ -18,6 +18,7 @@
 //! packet ABI), lanes grouped by shader, never one lane at a time.
 
 use super::host::ShadeCall;
+use super::ray_budget::RayBudget;
 use super::stats::ShadingTimer;
 use super::work::{finite_or_zero, Frame, Pending, Shaded};
 use super::world::DEFAULT_MATERIAL;
@@ -103,17 +104,29 @@ fn shade_batch(
                 put1(&mut raw, slots.ncomps, lane, 3.0);
             }
         }
-        let mut call = ShadeCall::new(frame, volume, Affine3A::IDENTITY, depth);
+        // What each segment's ray has left once its surface is shaded.
+        let mut budgets: Vec<RayBudget> = members
+            .iter()
+            .map(|&k| {
+                let (p, r) = (&current[k], &results[k]);
+                RayBudget { left: p.budget.left.saturating_sub(r.spent), cut: false }
+            })
+            .collect();
+        let before = budgets.clone();
+        let mut call = ShadeCall::new(frame, volume, Affine3A::IDENTITY, depth, &mut budgets);
         // Light loops in the volume shader are served for the whole batch at once.
         call.batch_points = members.iter().map(|&k| results[k].p).collect();
         call.batch_mask = vec![-1; members.len()];
         let table = call.table();
         program.code.shade_with_table(batch, &table);
+        drop(call);
         let raw = batch.raw_mut();
         for (lane, &k) in members.iter().enumerate() {
             let r = &mut results[k];
             r.ci = finite_or_zero(get3(&raw, slots.ci, lane, r.ci));
             r.oi = finite_or_zero(get3(&raw, slots.oi, lane, r.oi));
+            r.spent += before[lane].left.saturating_sub(budgets[lane].left);
+            r.cut |= budgets[lane].cut;
         }
     });
 }

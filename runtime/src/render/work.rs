@@ -5,6 +5,7 @@
 
 use super::differential::RayDifferential;
 use super::photon_map::PhotonMap;
+use super::ray_budget::RayBudget;
 use super::stats::Stats;
 use super::world::LightSource;
 use super::world::{GiOptions, InstanceShadows, World};
@@ -362,6 +363,8 @@ pub(crate) struct Pending {
     pub(crate) ray: Ray,
     pub(crate) diff: RayDifferential,
     pub(crate) hit: Hit,
+    /// What the ray's tree may still spawn (`ray_budget.rs`).
+    pub(crate) budget: RayBudget,
 }
 
 /// What shading one hit produced.
@@ -375,6 +378,10 @@ pub(crate) struct Shaded {
     /// follows from the ray's differential and `ng`, computed only for the rays that go on
     /// through it (`shade_pending`).
     pub(crate) on_surface: bool,
+    /// The rays shading the hit spawned (their trees included), of the hit's [`Pending::budget`],
+    /// and whether it refused one.
+    pub(crate) spent: u32,
+    pub(crate) cut: bool,
 }
 
 pub(crate) fn finite_or_zero(v: Vec3A) -> Vec3A {
@@ -394,21 +401,35 @@ pub(crate) fn finite_or_zero(v: Vec3A) -> Vec3A {
 #[allow(clippy::type_complexity)]
 #[derive(Clone, Copy)]
 pub(crate) struct Stages {
-    /// Traces rays and shades what they hit: a sample each (`shade::trace_rays`).
-    pub(crate) trace_rays: fn(&Frame, &[Ray], u32) -> Vec<Sample>,
-    /// Traces rays and shades the first surface each hits, with its distance (`shade::gather_rays`).
-    pub(crate) gather_rays: fn(&Frame, &[Ray], u32) -> Vec<Option<(f32, Shaded)>>,
+    /// Traces rays and shades what they hit: a sample each (`shade::trace_budgeted`). Each ray's
+    /// budget is what its tree may spend, and is left with what it did not.
+    pub(crate) trace_rays: fn(&Frame, &[Ray], &mut [RayBudget], u32) -> Vec<Sample>,
+    /// Traces rays and shades the first surface each hits, with its distance (`shade::gather_rays`);
+    /// budgets as for `trace_rays`.
+    pub(crate) gather_rays: fn(&Frame, &[Ray], &mut [RayBudget], u32) -> Vec<Option<(f32, Shaded)>>,
     /// Shades hits grouped by material and instance (`group::shade_in_groups`).
     pub(crate) shade_in_groups: fn(&Frame, &mut [Pending], u32, &mut [Shaded]),
     /// Shades hits that share material and instance (`shade::shade_group`).
     pub(crate) shade_group: fn(&Frame, &[Pending], u32, &mut [Shaded]),
-    /// One light at four points (`lights::eval_light`).
-    pub(crate) eval_light:
-        fn(&Frame, &LightSource, Option<u32>, &[i32; 4], &[Vec3A; 4], &[f32; 4], u32, &mut [LightLanes], &mut [u32; 4]),
+    /// One light at four points (`lights::eval_light`), the rays its shader spawns charged to the
+    /// points' budgets.
+    pub(crate) eval_light: fn(
+        &Frame,
+        &LightSource,
+        Option<u32>,
+        &[i32; 4],
+        &[Vec3A; 4],
+        &[f32; 4],
+        u32,
+        &mut [RayBudget; 4],
+        &mut [LightLanes],
+        &mut [u32; 4],
+    ),
     /// The light getting along segments (`lights::transmission_between`).
     pub(crate) transmission_between: fn(&Frame, &[Option<(Vec3A, Vec3A, f32)>], &mut [Vec3A]),
-    /// The lights of a surface batch (`BatchLights::compute`).
-    pub(crate) batch_lights: fn(&Frame, Option<u32>, &[Vec3A], &[i32], &[f32], Option<&[Vec3A]>, u32) -> BatchLights,
+    /// The lights of a surface batch (`BatchLights::compute`), charged to the lanes' budgets.
+    pub(crate) batch_lights:
+        fn(&Frame, Option<u32>, &[Vec3A], &[i32], &[f32], Option<&[Vec3A]>, u32, &mut [RayBudget]) -> BatchLights,
 }
 
 /// The lights of every point of a surface batch, computed once for the whole batch when the shader

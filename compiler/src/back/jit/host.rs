@@ -313,10 +313,12 @@ pub struct HostTable {
     ),
     /// Rays: `kind` 0 `trace` (`a` origin, `b` direction; colour and distance: 4 results),
     /// 1 `transmission` (`a` from, `b` to; 3), 2 `occlusion` (`a` point, `b` normal, `samples`; 1),
-    /// 3 `indirectdiffuse` (as occlusion; 3).
+    /// 3 `indirectdiffuse` (as occlusion; 3). `chunk` as for `lights`: the renderer charges each
+    /// lane's rays to the ray tree the lane belongs to.
     pub rays: unsafe extern "C" fn(
         ctx: *mut c_void,
         kind: u32,
+        chunk: u32,
         mask: *const i32,
         a: *const f32,
         b: *const f32,
@@ -326,10 +328,11 @@ pub struct HostTable {
     /// `gather` rays of `category` (`shadeops::gather`): from `from` along the unit `dir` (3 x 4
     /// floats each) up to `maxdist` (4); for each active lane, `out` row 0 is 1 where the ray hit a
     /// surface and 0 where it missed, and rows 1 to 13 the hit's [`GatherHit`] rows (length, the
-    /// hit shader's Ci and Oi, the point, the geometric normal).
+    /// hit shader's Ci and Oi, the point, the geometric normal). `chunk` as for `rays`.
     pub gather: unsafe extern "C" fn(
         ctx: *mut c_void,
         category: StrRef,
+        chunk: u32,
         mask: *const i32,
         from: *const f32,
         dir: *const f32,
@@ -529,6 +532,7 @@ pub fn shadow_query_of(coords: &[f32], l: usize) -> ShadowQuery {
 unsafe extern "C" fn sv_rays(
     ctx: *mut c_void,
     kind: u32,
+    _chunk: u32,
     mask: *const i32,
     a: *const f32,
     b: *const f32,
@@ -563,6 +567,7 @@ unsafe extern "C" fn sv_rays(
 unsafe extern "C" fn sv_gather(
     ctx: *mut c_void,
     category: StrRef,
+    _chunk: u32,
     mask: *const i32,
     from: *const f32,
     dir: *const f32,
@@ -1602,6 +1607,7 @@ fn gather_call(cx: &mut Cx<'_>) {
             (t.gather)(
                 t.ctx,
                 category,
+                cx.chunk,
                 trace_mask.as_ptr(),
                 from.as_ptr(),
                 dir.as_ptr(),
@@ -1646,6 +1652,7 @@ fn rays_call(cx: &mut Cx<'_>, kind: u32, outs: usize) {
             (t.rays)(
                 t.ctx,
                 kind,
+                cx.chunk,
                 mask.as_ptr(),
                 cx.input.as_ptr(),
                 cx.input[12..].as_ptr(),
