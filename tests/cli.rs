@@ -584,6 +584,33 @@ fn image_sizes_beyond_the_limits_are_clear_errors() {
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
 }
 
+/// `--samples` takes what RIB's `PixelSamples` does, at most 64 a side, in every command that has
+/// it; refused when the command line is read, before the scene is.
+#[test]
+fn sample_counts_beyond_the_cap_are_refused_in_every_command() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    write(dir.path(), "s.rib", SPHERE_RIB);
+    let refused: [&[&str]; 6] = [
+        &["render", "s.rib", "-o", "out.png", "--samples", "4225"],
+        &["render", "s.rib", "-o", "out.png", "--samples", "65"],
+        &["render", "s.rib", "-o", "out.png", "--samples", "4294967295"],
+        &["bart", "missing.aff", "--samples", "100000"],
+        &["bench", "render", "s.rib", "--samples", "5000"],
+        &["lightfield", "capture", "s.rib", "-o", "lf.png", "--samples", "65"],
+    ];
+    for args in refused {
+        let o = rtsl(args, dir.path());
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        assert!(stderr(&o).contains("64"), "{args:?}: {}", stderr(&o));
+        assert!(!dir.path().join("out.png").exists() && !dir.path().join("lf.png").exists());
+    }
+    let o = rtsl(&["render", "s.rib", "-o", "out.png", "--samples", "4225"], dir.path());
+    assert!(stderr(&o).contains("a square number up to 4096 (64x64)"), "{}", stderr(&o));
+    // The largest grid renders.
+    let o = rtsl(&["render", "s.rib", "-o", "out.png", "--size", "2x2", "--samples", "4096", "--quiet"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+}
+
 #[test]
 fn a_full_disk_is_an_error_for_every_image_format() {
     let dev_full = Path::new("/dev/full");

@@ -29,8 +29,9 @@ pub struct BartArgs {
     /// Image size, `WxH` (default: the scene's `resolution`).
     #[arg(long, value_parser = super::bench::parse_size)]
     pub size: Option<(u32, u32)>,
-    /// Samples per pixel (a square number is spread on a grid: 4 is 2x2).
-    #[arg(long)]
+    /// Samples per pixel (as `rtsl render --samples`: a square number is spread on a grid, 4 is
+    /// 2x2; at most 64 a side).
+    #[arg(long, value_parser = super::render::parse_samples)]
     pub samples: Option<u32>,
     /// Worker threads (0: one per core).
     #[arg(long, default_value_t = 0)]

@@ -166,8 +166,8 @@ pub struct BenchRenderArgs {
     /// Image size, `WxH` (overrides the scene's).
     #[arg(long, value_parser = parse_size)]
     pub size: Option<(u32, u32)>,
-    /// Samples per pixel (overrides the scene's).
-    #[arg(long, default_value_t = 1)]
+    /// Samples per pixel (overrides the scene's; as `rtsl render --samples`).
+    #[arg(long, value_parser = super::render::parse_samples, default_value_t = 1)]
     pub samples: u32,
     /// Anti-aliasing mode (as `rtsl render --aa`).
     #[arg(long, value_parser = rtsl_runtime::render::Antialiasing::parse)]
@@ -448,11 +448,13 @@ pub struct BenchAaArgs {
     /// Image size, `WxH` (the reference takes many samples a pixel, so smaller than the scene's).
     #[arg(long, value_parser = parse_size, default_value = "320x240")]
     pub size: (u32, u32),
-    /// Samples per pixel of the reference image (a jittered grid; a square number).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..), default_value_t = 64)]
+    /// Samples per pixel of the reference image (a jittered grid; a square number, as `rtsl render
+    /// --samples`).
+    #[arg(long, value_parser = super::render::parse_samples, default_value_t = 64)]
     pub reference: u32,
-    /// The ray budget: samples per pixel of each fixed-rate mode (a square number).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..), default_value_t = 4)]
+    /// The ray budget: samples per pixel of each fixed-rate mode (a square number, as `rtsl render
+    /// --samples`).
+    #[arg(long, value_parser = super::render::parse_samples, default_value_t = 4)]
     pub samples: u32,
     /// Thresholds of adaptive oversampling to try (it spends as many rays as its threshold asks).
     #[arg(long, value_delimiter = ',', default_value = "0.4,0.2,0.1,0.05,0.02")]

@@ -6,6 +6,7 @@ use super::bench::parse_vec3;
 use anyhow::Context as _;
 use rtsl_runtime::glam::Vec3A;
 use rtsl_runtime::lightfield::{capture, LightfieldSpec};
+use rtsl_runtime::render::MAX_PIXEL_SAMPLES;
 use rtsl_runtime::{write_image, WriteOptions};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -24,8 +25,8 @@ pub struct CaptureArgs {
     /// Pixels along each side of a view.
     #[arg(long, default_value_t = 32)]
     pub view_size: u32,
-    /// Samples per pixel of each view, on a square grid of this side.
-    #[arg(long, default_value_t = 2)]
+    /// Samples per pixel of each view, on a square grid of this side (1 to 64, as `PixelSamples`).
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u32).range(1..=i64::from(MAX_PIXEL_SAMPLES)))]
     pub samples: u32,
     /// Centre of the uv square, `X,Y,Z` (default: the centre of the scene's bounds).
     #[arg(long, value_parser = parse_vec3)]

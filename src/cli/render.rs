@@ -5,7 +5,7 @@ use anyhow::Context as _;
 use rtsl_runtime::api::Context;
 use rtsl_runtime::distributed::Master;
 use rtsl_runtime::reload::{ShaderEvent, ShaderReloader, ShaderWatcher};
-use rtsl_runtime::render::{render_frame, Antialiasing, FrameReport, Framebuffer, World};
+use rtsl_runtime::render::{render_frame, Antialiasing, FrameReport, Framebuffer, World, MAX_PIXEL_SAMPLES};
 use rtsl_runtime::shading::ParamValue;
 use rtsl_runtime::{write_image, LoadedScene, Transfer, WriteOptions};
 use std::collections::BTreeSet;
@@ -25,8 +25,9 @@ pub struct RenderArgs {
     /// Image size, `WxH` (overrides the scene's `Format`).
     #[arg(long, value_parser = super::bench::parse_size)]
     pub size: Option<(u32, u32)>,
-    /// Samples per pixel (a square number is spread on a grid: 4 is 2x2; overrides `PixelSamples`).
-    #[arg(long)]
+    /// Samples per pixel (a square number is spread on a grid: 4 is 2x2; another number is one
+    /// row; at most 64 a side, as `PixelSamples`; overrides `PixelSamples`).
+    #[arg(long, value_parser = parse_samples)]
     pub samples: Option<u32>,
     /// Worker threads (0: one per core).
     #[arg(long, default_value_t = 0)]
@@ -123,10 +124,25 @@ impl CameraSpec {
     }
 }
 
+/// Parses `--samples`: a count whose grid ([`samples_grid`]) has at most `MAX_PIXEL_SAMPLES` a
+/// side, as RIB's `PixelSamples` has.
+pub(crate) fn parse_samples(s: &str) -> Result<u32, String> {
+    let n: u32 = s.trim().parse().map_err(|_| format!("`{s}` is not a count of samples"))?;
+    let (sx, sy) = samples_grid(n);
+    if n == 0 || sx > MAX_PIXEL_SAMPLES || sy > MAX_PIXEL_SAMPLES {
+        let most = MAX_PIXEL_SAMPLES;
+        return Err(format!(
+            "{n} samples per pixel: at least 1, and a square number up to {} ({most}x{most}) or another number up to {most} (one row); RIB's PixelSamples takes at most {most} a side",
+            most * most
+        ));
+    }
+    Ok(n)
+}
+
 pub(crate) fn samples_grid(n: u32) -> (u32, u32) {
     let n = n.max(1);
     let side = (n as f64).sqrt().round() as u32;
-    if side * side == n {
+    if u64::from(side) * u64::from(side) == u64::from(n) {
         (side, side)
     } else {
         (n, 1)
@@ -423,13 +439,10 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
 }
 
 fn print_summary(rt: &Context, output: &Path, threads: &str, report: &FrameReport) {
-    println!(
-        "{}: {}x{}, {} sample(s) per pixel, {threads}",
-        output.display(),
-        rt.options.width,
-        rt.options.height,
-        rt.options.samples.0 * rt.options.samples.1,
-    );
+    println!("{}: {}x{}, {} sample(s) per pixel, {threads}", output.display(), rt.options.width, rt.options.height, {
+        let (sx, sy) = rt.options.pixel_samples();
+        sx * sy
+    },);
     println!("{report}");
 }
 

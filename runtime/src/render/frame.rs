@@ -237,7 +237,7 @@ fn time_sample(world: &World, x: u32, y: u32, k: u32) -> f32 {
         return open;
     }
     let shift = hash2((u64::from(y) << 40) ^ (u64::from(x) << 16) ^ 0x7111_0000).0;
-    let r = (radical_inverse(k + 1, 5) + shift).fract();
+    let r = (radical_inverse(k.saturating_add(1), 5) + shift).fract();
     open + (close - open) * r
 }
 
@@ -248,15 +248,21 @@ fn time_sample(world: &World, x: u32, y: u32, k: u32) -> f32 {
 fn lens_sample(x: u32, y: u32, k: u32) -> (f32, f32) {
     let (x0, y0) = (x - x % TILE_SIZE, y - y % TILE_SIZE);
     let (a, b) = hash2((u64::from(y0) << 40) ^ (u64::from(x0) << 16) ^ 0x1E25_0000);
-    ((radical_inverse(k + 1, 2) + a).fract(), (radical_inverse(k + 1, 3) + b).fract())
+    ((radical_inverse(k.saturating_add(1), 2) + a).fract(), (radical_inverse(k.saturating_add(1), 3) + b).fract())
+}
+
+/// The index of sample `(i, j)` in a pixel's grid `sx` wide (saturating: the API may ask for a
+/// sample past the grid).
+fn sample_index(sample: (u32, u32), sx: u32) -> u32 {
+    sample.1.saturating_mul(sx).saturating_add(sample.0)
 }
 
 /// The sub-pixel offset of sample `(i, j)` of pixel `(x, y)` under the frame's anti-aliasing mode
 /// (for the fixed-pattern modes; adaptive sampling's extra samples use the jittered grid).
 pub fn sample_offset(world: &World, x: u32, y: u32, sample: (u32, u32)) -> (f32, f32) {
-    let (sx, sy) = (world.options.samples.0.max(1), world.options.samples.1.max(1));
+    let (sx, sy) = world.options.pixel_samples();
     let n = sx * sy;
-    let k = sample.1 * sx + sample.0;
+    let k = sample_index(sample, sx);
     match world.options.antialiasing {
         // Adaptive sampling's first sample is the pixel's centre.
         Antialiasing::Adaptive { .. } => (0.5, 0.5),
@@ -267,7 +273,10 @@ pub fn sample_offset(world: &World, x: u32, y: u32, sample: (u32, u32)) -> (f32,
             // Keller & Heidrich: the pixels of a 4x4 block take successive runs of one Halton
             // sequence, so neighbours sample different points of one low-discrepancy set.
             let class = (x % 4) + 4 * (y % 4);
-            let i = class * n + k + 1;
+            // Within `u32` for every sample of a pixel (`MAX_PIXEL_SAMPLES`); a sample index
+            // past them (the API's) takes the sequence's last point rather than overflowing.
+            let i = u64::from(class) * u64::from(n) + u64::from(k) + 1;
+            let i = u32::try_from(i).unwrap_or(u32::MAX);
             (radical_inverse(i, 2), radical_inverse(i, 3))
         }
         _ if n == 1 => (0.5, 0.5),
@@ -290,11 +299,11 @@ pub fn camera_samples(world: &World, x0: u32, y0: u32, sample: (u32, u32)) -> ([
 /// [`camera_samples`] into `out` (a tile's packets are made in place).
 fn camera_samples_into(world: &World, x0: u32, y0: u32, sample: (u32, u32), out: &mut PacketSamples) {
     let (cx0, cx1, cy0, cy1) = world.options.pixel_range();
-    let k = sample.1 * world.options.samples.0.max(1) + sample.0;
+    let (sx, sy) = world.options.pixel_samples();
+    let k = sample_index(sample, sx);
     let lens = lens_sample(x0, y0, k);
     // The sub-pixel offset is the same for every pixel unless it is jittered or interleaved: worked
     // out once per packet then.
-    let (sx, sy) = (world.options.samples.0.max(1), world.options.samples.1.max(1));
     let same_offset = match world.options.antialiasing {
         Antialiasing::Adaptive { .. } | Antialiasing::Grid { jitter: false } => true,
         Antialiasing::Interleaved => false,
@@ -549,7 +558,7 @@ struct Sampling {
 
 impl Sampling {
     fn of(world: &World) -> Sampling {
-        let grid = (world.options.samples.0.max(1), world.options.samples.1.max(1));
+        let grid = world.options.pixel_samples();
         let adaptive = match world.options.antialiasing {
             Antialiasing::Adaptive { threshold } => Some((threshold, if grid == (1, 1) { (2, 2) } else { grid })),
             _ => None,
@@ -1143,6 +1152,25 @@ mod tests {
                     assert_eq!(image.value("N", fx, fy), Some([x as f32, y as f32, -1.0]), "{size:?} ({x}, {y})");
                 }
             }
+        }
+    }
+
+    /// Samples per pixel past `MAX_PIXEL_SAMPLES` (the API's `RenderOptions::samples` is a plain
+    /// field) are taken as the cap, and a sample index past a pixel's grid overflows nothing.
+    #[test]
+    fn sample_counts_past_the_cap_are_the_cap() {
+        let rib = "Format 4 4 1\nTranslate 0 0 5\nWorldBegin\nSphere 1 -1 1 360\nWorldEnd\n";
+        let mut rt = crate::api::Context::new();
+        crate::rib::load::load_str(&mut rt, rib, std::path::Path::new("<test>")).expect("the test scene loads");
+        rt.options.samples = (u32::MAX, u32::MAX);
+        rt.options.antialiasing = Antialiasing::Interleaved;
+        let world = rt.build_world().expect("the test scene builds");
+        assert_eq!(world.options.pixel_samples(), (64, 64));
+        for sample in [(0, 0), (63, 63), (u32::MAX, u32::MAX)] {
+            let (jx, jy) = sample_offset(&world, 3, 3, sample);
+            assert!((0.0..=1.0).contains(&jx) && (0.0..=1.0).contains(&jy), "{sample:?}: {jx} {jy}");
+            let (lanes, _) = camera_samples(&world, 0, 0, sample);
+            assert!(lanes.iter().all(|s| s.raster.0.is_finite() && s.raster.1.is_finite()));
         }
     }
 

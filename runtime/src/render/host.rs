@@ -1001,7 +1001,10 @@ unsafe extern "C" fn host_message(ctx: *mut c_void, which: u32, name: StrRef, ou
     };
     match (b, name) {
         (Builtin::Option, "Format") => floats(out, &[options.width as f32, options.height as f32, 1.0]),
-        (Builtin::Option, "PixelSamples") => floats(out, &[options.samples.0 as f32, options.samples.1 as f32]),
+        (Builtin::Option, "PixelSamples") => {
+            let (sx, sy) = options.pixel_samples();
+            floats(out, &[sx as f32, sy as f32])
+        }
         (Builtin::Option, "FieldOfView") => floats(out, &[c.frame.world.camera.fov_degrees]),
         (Builtin::Option, "Clipping") => floats(out, &[c.frame.world.camera.near, c.frame.world.camera.far]),
         (Builtin::Option, "Shutter") => floats(out, &[options.shutter.0, options.shutter.1]),

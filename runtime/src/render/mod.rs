@@ -45,5 +45,5 @@ pub use stats::Stats;
 pub use work::{Frame, LightPathCache, LightPaths, Sample};
 pub use world::{
     check_image_size, AccelUpdate, Antialiasing, AreaLight, CameraSetup, InstanceParts, InstanceShading, LightSource,
-    Material, RenderOptions, World, MAX_AREA_SAMPLES, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE,
+    Material, RenderOptions, World, MAX_AREA_SAMPLES, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_PIXEL_SAMPLES,
 };

@@ -342,12 +342,18 @@ pub fn check_image_size(width: u64, height: u64) -> Result<(), String> {
     Ok(())
 }
 
+/// Samples per pixel along each axis: what RIB's `PixelSamples` and the command line's `--samples`
+/// may ask for, and what a frame takes of [`RenderOptions::samples`] (64x64 is more than any image
+/// needs; it keeps a pixel's sample indices far inside `u32`).
+pub const MAX_PIXEL_SAMPLES: u32 = 64;
+
 /// Render settings (RenderMan's options).
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct RenderOptions {
     pub width: u32,
     pub height: u32,
-    /// Samples per pixel along x and y (RIB `PixelSamples`), on a jittered grid.
+    /// Samples per pixel along x and y (RIB `PixelSamples`), on a jittered grid; a frame takes
+    /// each as 1 to [`MAX_PIXEL_SAMPLES`] ([`RenderOptions::pixel_samples`]).
     pub samples: (u32, u32),
     /// The deepest `trace` recursion (primary rays are depth 0).
     pub max_ray_depth: u32,
@@ -404,6 +410,11 @@ pub struct ScreenExtent {
 }
 
 impl RenderOptions {
+    /// [`RenderOptions::samples`] as a frame takes them: each 1 to [`MAX_PIXEL_SAMPLES`].
+    pub fn pixel_samples(&self) -> (u32, u32) {
+        (self.samples.0.clamp(1, MAX_PIXEL_SAMPLES), self.samples.1.clamp(1, MAX_PIXEL_SAMPLES))
+    }
+
     /// The screen window in use (see [`RenderOptions::screen_window`]).
     pub fn screen_extent(&self) -> ScreenExtent {
         let (w, h) = (self.width.max(1) as f32, self.height.max(1) as f32);

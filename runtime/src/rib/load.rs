@@ -32,6 +32,7 @@ use super::request::{Handle, Param, ParamValue as RibValue, Request, RequestKind
 use super::{parse_file, parse_str, RibDiagnostic, RibParse, Severity, MAX_RIB_TRIANGLES};
 use crate::api::{ApiError, Context, LightId, ObjectId};
 use crate::geometry::Mesh;
+use crate::render::MAX_PIXEL_SAMPLES;
 use crate::scene_file::{add_model_file, add_model_file_placed, Placement, SceneFileError};
 use crate::shading::{ParamValue, ShaderProgram};
 use glam::{Affine3A, Mat4, Vec3};
@@ -301,7 +302,8 @@ impl<'a> Loader<'a> {
                 rt.options.height = (*yres).max(1) as u32;
             }
             K::PixelSamples { x, y } => {
-                rt.options.samples = (x.round().clamp(1.0, 64.0) as u32, y.round().clamp(1.0, 64.0) as u32);
+                let most = MAX_PIXEL_SAMPLES as f32;
+                rt.options.samples = (x.round().clamp(1.0, most) as u32, y.round().clamp(1.0, most) as u32);
             }
             K::Projection(p) => match p.name.as_str() {
                 "perspective" => {
