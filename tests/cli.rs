@@ -203,6 +203,23 @@ fn shade_runs_a_surface_shader_over_a_grid() {
     assert!(stderr(&o).contains("no parameter `nosuch`"), "{}", stderr(&o));
 }
 
+/// A grid is refused past the renderer's image limits, before its points are allocated.
+#[test]
+fn shade_refuses_a_grid_past_the_image_limits() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    write(dir.path(), "st.sl", "surface st() { Oi = 1; Ci = color(s, t, 0); }\n");
+    for (grid, says) in [
+        (["100000", "100000"], "at most 32768 pixels a side"),
+        (["8192", "8192"], "at most 33554432"),
+        (["18446744073709551615", "2"], "at most 32768 pixels a side"),
+    ] {
+        let o = rtsl(&["shade", "st.sl", "-g", grid[0], grid[1]], dir.path());
+        assert_eq!(o.status.code(), Some(2), "{grid:?}: {}", stderr(&o));
+        assert!(stderr(&o).contains(&format!("-g {} {}", grid[0], grid[1])), "{}", stderr(&o));
+        assert!(stderr(&o).contains(says), "{grid:?}: {}", stderr(&o));
+    }
+}
+
 #[test]
 fn info_finds_shaders_by_name_on_the_search_path() {
     let dir = tempfile::tempdir().expect("tempdir");

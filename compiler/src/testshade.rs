@@ -44,7 +44,14 @@ pub enum GridError {
     NoParameter(String),
     #[error("parameter `{name}` takes {expected} number(s), {given} given")]
     WrongCount { name: String, expected: usize, given: usize },
+    #[error("a grid of {width}x{height} points is too large: at most {MAX_GRID_POINTS}")]
+    TooLarge { width: usize, height: usize },
 }
+
+/// The most points a grid may have: the renderer's image pixel cap
+/// (`rtsl_runtime::render::world::MAX_IMAGE_PIXELS`), as the grid is written as an image and
+/// holds some 200 bytes a point.
+pub const MAX_GRID_POINTS: usize = 1 << 25;
 
 /// The most lanes per batch.
 pub const BATCH: usize = 64;
@@ -70,13 +77,13 @@ impl Grid {
         height: usize,
         params: &[(String, ParamArg)],
     ) -> Result<Grid, GridError> {
+        let (w, h) = (width.max(1), height.max(1));
+        let total = w.checked_mul(h).filter(|&n| n <= MAX_GRID_POINTS).ok_or(GridError::TooLarge { width, height })?;
         let kind = module.shader.as_ref().map(|s| s.kind).ok_or(JitError::NoShader)?;
         if kind != ShaderKind::Surface {
             return Err(GridError::NotSurface(kind));
         }
         let shader = jit::compile_with(module, sources, &jit::JitOptions::default())?;
-        let (w, h) = (width.max(1), height.max(1));
-        let total = w * h;
         let mut batches = Vec::new();
         let (fw, fh) = (w as f32, h as f32);
         for start in (0..total).step_by(BATCH) {
@@ -197,6 +204,19 @@ mod tests {
         assert_eq!(parse_param("map=\"a.png\""), Ok(("map".into(), ParamArg::String("a.png".into()))));
         assert!(parse_param("nothing").is_err());
         assert!(parse_param("=1").is_err());
+    }
+
+    /// A grid past `MAX_GRID_POINTS`, or one whose point count overflows, is refused before
+    /// anything is allocated.
+    #[test]
+    fn grids_past_the_cap_are_refused() {
+        let m = module("surface g() { Oi = 1; Ci = color(s, t, 0); }");
+        for (w, h) in [(MAX_GRID_POINTS, 2), (usize::MAX, usize::MAX), (1 << 13, 1 << 13)] {
+            let e = Grid::new(&m, w, h, &[]).err().expect("refused");
+            assert!(matches!(e, GridError::TooLarge { .. }), "{e}");
+            assert!(e.to_string().contains(&MAX_GRID_POINTS.to_string()), "{e}");
+        }
+        assert!(Grid::new(&m, 64, 2, &[]).is_ok_and(|g| g.points() == 128));
     }
 
     #[test]

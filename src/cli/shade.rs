@@ -34,13 +34,15 @@ pub struct ShadeArgs {
 }
 
 pub fn run(args: &ShadeArgs) -> anyhow::Result<ExitCode> {
+    let (w, h) = (args.grid[0].max(1), args.grid[1].max(1));
+    // The grid is written as an image: the renderer's image limits, before anything is allocated.
+    rtsl_runtime::render::check_image_size(w as u64, h as u64).map_err(|e| anyhow::anyhow!("-g {w} {h}: {e}"))?;
     let mut options = rtsl_compiler::Options::default();
     options.preprocessor.include_paths = args.include.clone();
     let c = rtsl_compiler::compile_file(&args.file, &options)
         .with_context(|| format!("reading {}", args.file.display()))?;
     rtsl_compiler::diagnostic::render_to(&c.sources, &c.diagnostics, &mut super::color::stderr());
     let Some(module) = c.module.as_ref() else { return Ok(ExitCode::from(1)) };
-    let (w, h) = (args.grid[0].max(1), args.grid[1].max(1));
     let mut grid = Grid::with_sources(module, Some(&c.sources), w, h, &args.params)
         .with_context(|| format!("{}", args.file.display()))?;
     let mut host = TestHost::default();
