@@ -566,6 +566,17 @@ fn bad_camera_and_lightfield_flags_are_clear_errors() {
         assert!(!stderr(&o).contains("panicked"));
     }
     assert!(!dir.path().join("lf.png").exists());
+    // Each in range, but an atlas past the image limits: refused before the scene is read.
+    for (views, size, says) in [("64", "1024", "at most 32768 pixels a side"), ("64", "128", "at most 33554432")] {
+        let o = rtsl(
+            &["lightfield", "capture", "missing.rib", "-o", "lf.png", "--views", views, "--view-size", size],
+            dir.path(),
+        );
+        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        assert!(stderr(&o).contains(&format!("--views {views} --view-size {size}")), "{}", stderr(&o));
+        assert!(stderr(&o).contains(says), "{}", stderr(&o));
+        assert!(!stderr(&o).contains("missing.rib"), "{}", stderr(&o));
+    }
 }
 
 /// A small RIB scene: a plastic sphere in front of the camera.

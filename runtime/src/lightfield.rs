@@ -75,6 +75,16 @@ impl LightfieldSpec {
         Affine3A::from_cols(self.axis_s, self.axis_t, away, self.center)
     }
 
+    /// The atlas's side in pixels (`views * view_size`, each at least its least), or why it is
+    /// past the image limits ([`crate::render::check_image_size`]).
+    pub fn atlas_side(&self) -> Result<u32, String> {
+        let (n, size) = (self.views.max(2), self.view_size.max(1));
+        let side = u64::from(n) * u64::from(size);
+        let too_large = |e: String| format!("{n}x{n} views of {size}x{size} pixels: the atlas's {e}");
+        crate::render::check_image_size(side, side).map_err(too_large)?;
+        u32::try_from(side).map_err(|e| too_large(e.to_string()))
+    }
+
     /// The world position of camera (i, j).
     pub fn camera(&self, i: u32, j: u32) -> Vec3A {
         let n = self.views.max(2) as f32;
@@ -97,10 +107,11 @@ pub fn capture(
     spec: &LightfieldSpec,
     progress: &mut dyn FnMut(u32, u32),
 ) -> Result<LightfieldAtlas, ApiError> {
+    // Refused before the atlas is allocated.
+    let side = spec.atlas_side().map_err(ApiError::ImageSize)?;
     let camera = rt.compile_shader("lightfield_view", CAPTURE_CAMERA)?;
     let (saved_options, saved_camera, saved_matrix) = (rt.options.clone(), rt.camera_shader_id(), rt.current_matrix());
     let (n, size) = (spec.views.max(2), spec.view_size.max(1));
-    let side = n * size;
     let mut rgba = vec![0.0f32; 4 * side as usize * side as usize];
     rt.options.width = size;
     rt.options.height = size;

@@ -102,6 +102,22 @@ fn a_captured_light_field_looks_like_its_scene_from_a_new_eye_point() -> Result<
     Ok(())
 }
 
+/// The API checks the atlas too, however many views it is asked for (their product overflows
+/// `u32` here), before anything is allocated.
+#[test]
+fn an_atlas_past_the_image_limits_is_an_error() {
+    let mut rt = context(Vec3A::new(0.0, 0.0, 3.0));
+    let mut spec = LightfieldSpec::facing(Vec3A::ZERO, 1.0, Vec3A::Z, Vec3A::Y);
+    (spec.views, spec.view_size) = (1 << 20, 1 << 20);
+    let e = capture(&mut rt, &spec, &mut |_, _| {}).err().expect("refused");
+    assert!(matches!(e, ApiError::ImageSize(_)), "{e}");
+    assert!(e.to_string().contains("at most 32768 pixels a side"), "{e}");
+    (spec.views, spec.view_size) = (64, 128);
+    assert!(spec.atlas_side().is_err_and(|e| e.contains("at most 33554432")));
+    (spec.views, spec.view_size) = (8, 32);
+    assert_eq!(spec.atlas_side(), Ok(256));
+}
+
 #[test]
 fn a_light_field_seen_from_behind_or_without_an_image_is_transparent() -> Result<(), ApiError> {
     let mut rt = context(Vec3A::new(0.0, 0.0, 3.0));

@@ -55,6 +55,12 @@ pub fn run_capture(args: &CaptureArgs) -> anyhow::Result<ExitCode> {
     if !(args.distance.is_finite() && args.distance > 0.0) {
         anyhow::bail!("--distance must be a positive number");
     }
+    let sized = LightfieldSpec {
+        views: args.views,
+        view_size: args.view_size,
+        ..LightfieldSpec::facing(Vec3A::ZERO, 1.0, Vec3A::Z, Vec3A::Y)
+    };
+    sized.atlas_side().map_err(|e| anyhow::anyhow!("--views {} --view-size {}: {e}", args.views, args.view_size))?;
     let (mut rt, _) = super::render::load_scene(args.scene.as_deref(), &args.shader_path, &[])?;
     let world = rt.build_world()?;
     let bounds = world.scene.bounds();
