@@ -51,6 +51,23 @@ pub enum SceneFileError {
     NotRetainable { path: PathBuf },
 }
 
+/// The most triangles one model file (OBJ, PLY, glTF) may hold, its objects together: each
+/// triangle takes the bytes of the file's data, so the file bounds them too, but loading one
+/// costs far more than its bytes (its BVH above all). Four times a RIB load's
+/// ([`crate::rib::MAX_RIB_TRIANGLES`]), whose text can ask for thousands a line.
+pub const MAX_MODEL_TRIANGLES: usize = 1 << 26;
+
+/// Whether a model file's `count` triangles are within [`MAX_MODEL_TRIANGLES`].
+pub fn check_model_triangles(path: &Path, count: usize) -> Result<(), SceneFileError> {
+    if count > MAX_MODEL_TRIANGLES {
+        return Err(SceneFileError::TooLarge {
+            at: path.display().to_string(),
+            message: format!("{count} triangles: a model file may hold at most {MAX_MODEL_TRIANGLES}"),
+        });
+    }
+    Ok(())
+}
+
 /// Adds a mesh file of any supported kind (by extension: `.obj`, `.ply`, `.gltf`, `.glb`).
 pub fn add_model_file(rt: &mut Context, path: impl AsRef<Path>) -> Result<(Vec3A, Vec3A), SceneFileError> {
     let path = path.as_ref();
@@ -124,6 +141,14 @@ fn add_gltf(rt: &mut Context, path: &Path) -> Result<(Vec3A, Vec3A), SceneFileEr
         Some(s) => s,
         None => rt.find_shader("material")?,
     };
+    // Counted from the accessors (checked against their buffers), before any is read.
+    let triangles = doc
+        .meshes()
+        .flat_map(|m| m.primitives())
+        .filter(|p| p.mode() == gltf::mesh::Mode::Triangles)
+        .map(|p| p.indices().or_else(|| p.get(&gltf::Semantic::Positions)).map_or(0, |a| a.count() / 3))
+        .fold(0, usize::saturating_add);
+    check_model_triangles(path, triangles)?;
     // Objects per (mesh, primitive), made once.
     let mut objects: Vec<Vec<Option<crate::api::ObjectId>>> = Vec::new();
     for mesh in doc.meshes() {
@@ -442,6 +467,7 @@ fn add_mesh_file_placed(
     let bound = rt.bound_surface();
     if !is_obj {
         let mesh = load_mesh(path)?;
+        check_model_triangles(path, mesh.triangles.len())?;
         grow(rt, &mesh);
         let shader = match bound {
             Some(s) => s,
@@ -460,6 +486,7 @@ fn add_mesh_file_placed(
     }
     // A missing .mtl file leaves the objects without materials (plastic); a malformed one is an error.
     let (models, materials) = read_obj(path, true)?;
+    check_model_triangles(path, models.iter().map(|m| m.mesh.indices.len() / 3).fold(0, usize::saturating_add))?;
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let plastic = rt.find_shader("plastic")?;
     let material_shader = if materials.is_empty() || bound.is_some() { None } else { rt.find_shader("material").ok() };

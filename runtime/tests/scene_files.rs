@@ -7,7 +7,7 @@ use common::{load, render};
 use rtsl_runtime::api::{ApiError, Context};
 use rtsl_runtime::render::render_frame;
 use rtsl_runtime::rib::load::load_str;
-use rtsl_runtime::scene_file::{add_model_file, SceneFileError};
+use rtsl_runtime::scene_file::{add_model_file, SceneFileError, MAX_MODEL_TRIANGLES};
 use std::path::Path;
 
 const CAMERA: &str = r#"
@@ -258,6 +258,42 @@ fn broken_model_files_are_errors_naming_the_file() {
             Ok(_) => panic!("{name} loaded"),
         }
     }
+}
+
+/// A model file past `MAX_MODEL_TRIANGLES` is refused, naming the file, from its counts alone:
+/// here a glTF file's many primitives share one accessor of indices, so that the file is small
+/// and what it asks for is not.
+#[test]
+fn a_model_file_past_the_triangle_limit_is_refused_before_it_is_read() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let per_primitive = 1usize << 17;
+    let primitives = MAX_MODEL_TRIANGLES / per_primitive + 1;
+    let indices = 3 * per_primitive;
+    std::fs::write(dir.path().join("many.bin"), vec![0u8; 12 + indices]).expect("write");
+    let primitive = r#"{ "attributes": { "POSITION": 0 }, "indices": 1 }"#;
+    let gltf = format!(
+        r#"{{ "asset": {{ "version": "2.0" }},
+            "buffers": [ {{ "uri": "many.bin", "byteLength": {total} }} ],
+            "bufferViews": [ {{ "buffer": 0, "byteLength": 12 }}, {{ "buffer": 0, "byteOffset": 12, "byteLength": {indices} }} ],
+            "accessors": [
+                {{ "bufferView": 0, "componentType": 5126, "count": 1, "type": "VEC3", "min": [0, 0, 0], "max": [0, 0, 0] }},
+                {{ "bufferView": 1, "componentType": 5121, "count": {indices}, "type": "SCALAR" }}
+            ],
+            "meshes": [ {{ "primitives": [ {prims} ] }} ],
+            "nodes": [ {{ "mesh": 0 }} ],
+            "scenes": [ {{ "nodes": [0] }} ]
+        }}"#,
+        total = 12 + indices,
+        prims = vec![primitive; primitives].join(", ")
+    );
+    let path = dir.path().join("many.gltf");
+    std::fs::write(&path, gltf).expect("write");
+    let mut rt = Context::new();
+    let e = add_model_file(&mut rt, &path).expect_err("refused");
+    assert!(matches!(e, SceneFileError::TooLarge { .. }), "{e}");
+    let message = e.to_string();
+    assert!(message.contains("many.gltf") && message.contains(&MAX_MODEL_TRIANGLES.to_string()), "{message}");
+    assert!(rt.world_instance_ids().is_empty(), "nothing was added");
 }
 
 /// An 8x8 RGBA picture whose left half (s < 0.5) is opaque white and right half transparent.

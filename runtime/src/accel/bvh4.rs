@@ -325,6 +325,10 @@ pub struct Bvh4 {
     pub depth: usize,
 }
 
+/// The most primitives one BVH holds: a leaf's reference keeps its first primitive's slot in 27
+/// bits.
+pub const MAX_PRIMITIVES: usize = (1 << 27) - 1;
+
 impl Bvh4 {
     /// Builds the BVH over `boxes` (one per primitive) with leaves of at most `max_leaf` primitives.
     pub fn build(boxes: &[Aabb], quality: BuildQuality, max_leaf: u32) -> Bvh4 {
@@ -344,7 +348,9 @@ impl Bvh4 {
             }
             return Bvh4 { nodes: vec![node], prim_order: (0..n as u32).collect(), bounds, depth: 1 };
         }
-        assert!(n < (1 << 27), "too many primitives in one BVH ({n})");
+        // Meshes and top levels are refused past it before they get here (`Mesh::validate`,
+        // `Context::instantiate_object`).
+        assert!(n <= MAX_PRIMITIVES, "too many primitives in one BVH ({n})");
         // `High` builds small inputs like `Best`: their build is cheap and the better tree traces
         // faster; large inputs at `Best` would miss the build-time target.
         let quality =

@@ -153,6 +153,8 @@ pub enum ApiError {
     BadTextureFile { name: String, message: String },
     #[error("object {0} is demand-loaded and the context has no mesh source")]
     NoMeshSource(u32),
+    #[error("more than {} instances: the scene's top-level BVH holds no more", crate::accel::bvh4::MAX_PRIMITIVES)]
+    TooManyInstances,
 }
 
 fn kind_name(k: ShaderKind) -> &'static str {

@@ -135,6 +135,10 @@ impl Context {
             Some(o) if !o.deleted => {}
             _ => return Err(ApiError::UnknownObject(id.0)),
         }
+        // Deleted instances keep their ids: counted too.
+        if self.instances.len() >= crate::accel::bvh4::MAX_PRIMITIVES {
+            return Err(ApiError::TooManyInstances);
+        }
         self.instances.push(InstanceRecord {
             object: id,
             transform: self.matrix,

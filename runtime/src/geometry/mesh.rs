@@ -5,10 +5,12 @@
 //! - every triangle index is `< positions.len()`;
 //! - `normals` and `uvs`, when present, have one entry per position;
 //! - each attribute has `components * positions.len()` values;
-//! - positions are finite.
+//! - positions are finite;
+//! - there are at most [`MAX_PRIMITIVES`] triangles, what one BVH holds.
 //!
 //! Triangle `i` of the mesh is primitive `i` in hit records, whatever the BVH's internal order.
 
+use crate::accel::bvh4::MAX_PRIMITIVES;
 use glam::{Vec2, Vec3};
 
 /// A problem with mesh data handed to the tracer.
@@ -48,6 +50,20 @@ pub enum MeshError {
         /// The vertex.
         index: usize,
     },
+    /// More triangles than one object's BVH holds ([`MAX_PRIMITIVES`]).
+    #[error("{count} triangles in one mesh: at most {MAX_PRIMITIVES}, what one object's BVH holds")]
+    TooManyTriangles {
+        /// The triangles.
+        count: usize,
+    },
+}
+
+/// Whether `count` triangles fit in one mesh, and so in one object's BVH.
+pub fn check_triangle_count(count: usize) -> Result<(), MeshError> {
+    if count > MAX_PRIMITIVES {
+        return Err(MeshError::TooManyTriangles { count });
+    }
+    Ok(())
 }
 
 /// A named per-vertex attribute with `components` floats per vertex (e.g. a colour has 3).
@@ -131,6 +147,7 @@ impl Mesh {
 
     /// Checks the invariants in the module documentation.
     pub fn validate(&self) -> Result<(), MeshError> {
+        check_triangle_count(self.triangles.len())?;
         let count = self.positions.len();
         for (index, p) in self.positions.iter().enumerate() {
             if !p.is_finite() {
@@ -228,6 +245,19 @@ mod tests {
         let p = vec![Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y];
         let m = Mesh::from_polygons(p, &[[0u32, 1, 2, 3]]).unwrap();
         assert_eq!(m.triangles, vec![[0, 1, 2], [0, 2, 3]]);
+    }
+
+    /// A mesh is refused past what one BVH holds, by its count alone (a mesh that large would
+    /// take gigabytes to make here).
+    #[test]
+    fn meshes_past_the_bvh_limit_are_errors() {
+        assert!(check_triangle_count(MAX_PRIMITIVES).is_ok());
+        let e = check_triangle_count(MAX_PRIMITIVES + 1).unwrap_err();
+        assert!(matches!(e, MeshError::TooManyTriangles { count } if count == MAX_PRIMITIVES + 1));
+        assert!(e.to_string().contains(&MAX_PRIMITIVES.to_string()), "{e}");
+        // The largest slot a leaf of a BVH of MAX_PRIMITIVES refers to is encoded whole.
+        let last = MAX_PRIMITIVES as u32 - 1;
+        assert_eq!(crate::accel::bvh4::leaf_range(crate::accel::bvh4::leaf_ref(last, 3)), (last, 3));
     }
 
     #[test]
