@@ -191,6 +191,29 @@ fn a_rib_tessellating_past_the_triangle_budget_stops_with_an_error() {
     assert!(err.starts_with("many.rib:") && err.contains(&format!("passes {MAX_RIB_TRIANGLES} triangles")), "{err}");
 }
 
+/// One request that alone makes more triangles than a RIB load may: refused at the request from
+/// its count, before it is tessellated (a bilinear patch mesh of saddle-shaped patches, 128
+/// triangles each).
+#[test]
+fn a_patch_mesh_past_the_triangle_budget_is_refused_before_it_is_tessellated() {
+    let side = 364usize;
+    let patches = (side - 1) * (side - 1);
+    assert!(128 * patches > MAX_RIB_TRIANGLES);
+    let heights: Vec<&str> = (0..side * side).map(|k| if (k % side + k / side) % 2 == 0 { "0" } else { "1" }).collect();
+    let rib = format!(
+        "WorldBegin\nPatchMesh \"bilinear\" {side} \"nonperiodic\" {side} \"nonperiodic\" \"Pz\" [{}]\nWorldEnd\n",
+        heights.join(" ")
+    );
+    let start = std::time::Instant::now();
+    let err = load_str(&mut Context::new(), &rib, Path::new("patches.rib")).expect_err("past the budget").to_string();
+    assert!(err.starts_with("patches.rib:2:"), "{err}");
+    assert!(
+        err.contains(&format!("passes {MAX_RIB_TRIANGLES} triangles with this request's {}", 128 * patches)),
+        "{err}"
+    );
+    assert!(start.elapsed() < std::time::Duration::from_secs(20), "{:?}", start.elapsed());
+}
+
 /// A mesh of 100,000 copies of one triangle (and one triangle in front of part of them) builds its
 /// BVH in n log n, and rays still find the nearest triangle.
 #[test]

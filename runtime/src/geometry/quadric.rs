@@ -278,6 +278,14 @@ impl Quadric {
     /// The mesh of `(u_segments + 1) * (v_segments + 1)` vertices over the parameter grid, with
     /// uvs `(u, v)` and unit normals. Fails for parameters that are not finite or whose surface
     /// overflows `f32`.
+    /// At most the triangles [`Quadric::tessellate`] makes at `tessellation`: two a grid cell
+    /// (fewer where a row collapses to a point).
+    pub fn triangle_count(tessellation: Tessellation) -> usize {
+        let nu = tessellation.u_segments.clamp(1, MAX_SEGMENTS) as usize;
+        let nv = tessellation.v_segments.clamp(1, MAX_SEGMENTS) as usize;
+        2 * nu * nv
+    }
+
     pub fn tessellate(&self, tessellation: Tessellation) -> Result<Mesh, MeshError> {
         if !self.is_finite() {
             return Err(MeshError::NonFinite { index: 0 });

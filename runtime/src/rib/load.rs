@@ -27,7 +27,7 @@
 
 use super::decl::{Class, Ty};
 use super::mesh::MeshOptions;
-use super::primitive::mesh_from_request_with;
+use super::primitive::{mesh_from_request_with, request_triangles};
 use super::request::{Handle, Param, ParamValue as RibValue, Request, RequestKind};
 use super::{parse_file, parse_str, RibDiagnostic, RibParse, Severity, MAX_RIB_TRIANGLES};
 use crate::api::{ApiError, Context, LightId, ObjectId};
@@ -200,17 +200,23 @@ impl<'a> Loader<'a> {
         Ok(())
     }
 
-    fn geometry(&mut self, r: &Request, mesh: Mesh) -> Result<(), SceneFileError> {
-        self.triangles = self.triangles.saturating_add(mesh.triangles.len());
-        if self.triangles > MAX_RIB_TRIANGLES {
+    /// An error at `r` when `more` triangles would take the load's past [`MAX_RIB_TRIANGLES`].
+    fn check_triangles(&self, r: &Request, more: usize) -> Result<(), SceneFileError> {
+        if self.triangles.saturating_add(more) > MAX_RIB_TRIANGLES {
             return Err(SceneFileError::TooLarge {
                 at: r.loc.to_string(),
                 message: format!(
-                    "the scene's geometry passes {MAX_RIB_TRIANGLES} triangles (quadrics and patches \
-                     count as tessellated); rtsl loads no more from one RIB file"
+                    "the scene's geometry passes {MAX_RIB_TRIANGLES} triangles with this request's {more} \
+                     (quadrics and patches count as tessellated); rtsl loads no more from one RIB file"
                 ),
             });
         }
+        Ok(())
+    }
+
+    fn geometry(&mut self, r: &Request, mesh: Mesh) -> Result<(), SceneFileError> {
+        self.check_triangles(r, mesh.triangles.len())?;
+        self.triangles += mesh.triangles.len();
         if let Some(light) = self.state.area_light {
             let m = self.rt.current_matrix();
             let mut world = mesh.clone();
@@ -428,6 +434,8 @@ impl<'a> Loader<'a> {
             | K::Patch { .. }
             | K::PatchMesh { .. }
             | K::Quadric { .. } => {
+                // Refused before it is tessellated: one patch mesh can ask for more than the limit.
+                self.check_triangles(r, request_triangles(r, &self.state.mesh_options))?;
                 let mut diags = Vec::new();
                 let mesh = mesh_from_request_with(r, &self.state.mesh_options, &mut diags);
                 // A primitive that could not be built is missing from the picture.

@@ -690,6 +690,43 @@ mod tests {
         );
     }
 
+    /// What a patch or a quadric is counted as before it is tessellated is what it makes: exactly
+    /// for patches (flat bilinear ones one quad, others a grid each), at least for quadrics (whose
+    /// rows at a pole collapse), and nothing for the requests their own data bound.
+    #[test]
+    fn requests_are_counted_as_they_tessellate() {
+        let saddle = "0 0 0  1 0 1  0 1 1  1 1 0";
+        let flat = "0 0 0  1 0 0  0 1 0  1 1 0";
+        let ring: Vec<String> = (0..16).map(|k| format!("{} {} {}", k % 4, k / 4, (k % 3) as f32 * 0.5)).collect();
+        let texts = [
+            format!(r#"Patch "bilinear" "P" [{saddle}]"#),
+            format!(r#"Patch "bilinear" "P" [{flat}]"#),
+            format!(r#"PatchMesh "bilinear" 2 "nonperiodic" 4 "nonperiodic" "P" [{flat}  {saddle}]"#),
+            format!(r#"Patch "bicubic" "P" [{}]"#, ring.join(" ")),
+            "Sphere 1 -0.5 1 270".to_string(),
+            "Torus 1 0.25 0 360 180".to_string(),
+            "Disk 0 1 360".to_string(),
+        ];
+        for options in [
+            MeshOptions::default(),
+            MeshOptions { tessellation: Some(Tessellation { u_segments: 5, v_segments: 3 }), ..Default::default() },
+        ] {
+            for text in &texts {
+                let parse = parse_str(text, "t.rib");
+                let request = &parse.requests[0];
+                let counted = crate::rib::request_triangles(request, &options);
+                let made = mesh_from_request_with(request, &options, &mut Vec::new()).expect(text).triangle_count();
+                if matches!(request.kind, K::Quadric { .. }) {
+                    assert!(counted >= made && counted <= 2 * made, "{text}: {counted} for {made}");
+                } else {
+                    assert_eq!(counted, made, "{text}");
+                }
+            }
+        }
+        let polygon = parse_str("Polygon \"P\" [0 0 0  1 0 0  0 1 0]", "t.rib");
+        assert_eq!(crate::rib::request_triangles(&polygon.requests[0], &MeshOptions::default()), 0);
+    }
+
     #[test]
     fn quadric_with_varying_colour() {
         let (mesh, _) = only_mesh(r#"Sphere 1 -1 1 360 "Cs" [1 0 0  0 1 0  0 0 1  1 1 1] "uniform float Kd" 1"#);

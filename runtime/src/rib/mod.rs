@@ -32,7 +32,7 @@ use std::sync::Arc;
 pub use decl::{Class, Decl, DeclTable, Ty};
 pub use mesh::MeshOptions;
 pub use patch::DEFAULT_PATCH_SEGMENTS;
-pub use primitive::{mesh_from_request, mesh_from_request_with};
+pub use primitive::{mesh_from_request, mesh_from_request_with, request_triangles};
 pub use request::{
     find_param, Basis, Handle, Location, Orientation, Param, ParamValue, PatchType, Request, RequestKind, Shader, Wrap,
 };
@@ -43,6 +43,7 @@ pub const MAX_ARCHIVE_DEPTH: usize = 32;
 /// The most triangles the geometry requests of one RIB load may make, quadrics and patches counted
 /// as tessellated: a line of text can ask for thousands, and memory runs out long before a file
 /// does (`docs/rendering.md`, "Limits"). Meshes read from OBJ, PLY or glTF files are not counted.
+/// Patches and quadrics are counted before they are tessellated ([`request_triangles`]).
 pub const MAX_RIB_TRIANGLES: usize = 1 << 24;
 
 /// An error at a place in a RIB file.

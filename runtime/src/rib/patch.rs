@@ -101,6 +101,96 @@ impl PatchCurve {
     }
 }
 
+/// A patch mesh's control points and how they make patches, before anything is tessellated.
+struct PatchGrid {
+    ucurve: PatchCurve,
+    vcurve: PatchCurve,
+    nu: usize,
+    nv: usize,
+    nu_patches: usize,
+    nv_patches: usize,
+    points: Vec<Vec3>,
+}
+
+impl PatchGrid {
+    fn new(
+        ty: PatchType,
+        (nu, uwrap): (i32, Wrap),
+        (nv, vwrap): (i32, Wrap),
+        params: &[Param],
+        options: &MeshOptions,
+    ) -> Result<PatchGrid, String> {
+        let (ucurve, vcurve) = match ty {
+            PatchType::Bilinear => (PatchCurve::bilinear(), PatchCurve::bilinear()),
+            PatchType::Bicubic => (
+                PatchCurve::bicubic(&options.u_basis, options.u_step)?,
+                PatchCurve::bicubic(&options.v_basis, options.v_step)?,
+            ),
+        };
+        let size = |n: i32, curve: &PatchCurve, wrap: Wrap, axis: &str| {
+            usize::try_from(n).ok().and_then(|n| Some((n, curve.patches(n, wrap)?))).ok_or_else(|| {
+                format!(
+                    "{n} control points along {axis} do not make whole patches ({} points per patch, step {}, {})",
+                    curve.order,
+                    curve.step,
+                    if wrap == Wrap::Periodic { "periodic" } else { "nonperiodic" }
+                )
+            })
+        };
+        let (nu, nu_patches) = size(nu, &ucurve, uwrap, "u")?;
+        let (nv, nv_patches) = size(nv, &vcurve, vwrap, "v")?;
+        let points = patch_points(params, nu, nv)?;
+        if Some(points.len()) != nu.checked_mul(nv) {
+            return Err(format!(
+                "a {nu} x {nv} patch mesh needs {} control points, but P has {}",
+                nu.saturating_mul(nv),
+                points.len()
+            ));
+        }
+        Ok(PatchGrid { ucurve, vcurve, nu, nv, nu_patches, nv_patches, points })
+    }
+
+    /// Control point `(a, b)` of patch `(pi, pj)`, `a` along u.
+    fn control(&self, (pi, pj): (usize, usize), a: usize, b: usize) -> usize {
+        (pi * self.ucurve.step + a) % self.nu + self.nu * ((pj * self.vcurve.step + b) % self.nv)
+    }
+
+    /// The segments patch `(pi, pj)` is cut into along u and v.
+    fn segments(&self, ty: PatchType, options: &MeshOptions, patch: (usize, usize)) -> (u32, u32) {
+        let flat =
+            ty == PatchType::Bilinear && is_flat([0, 1, 2, 3].map(|k| self.points[self.control(patch, k % 2, k / 2)]));
+        let t = options.tessellation.unwrap_or(if flat {
+            Tessellation { u_segments: 1, v_segments: 1 }
+        } else {
+            Tessellation { u_segments: DEFAULT_PATCH_SEGMENTS, v_segments: DEFAULT_PATCH_SEGMENTS }
+        });
+        (t.u_segments.clamp(1, MAX_PATCH_SEGMENTS), t.v_segments.clamp(1, MAX_PATCH_SEGMENTS))
+    }
+
+    /// The triangles the patches are cut into: two a grid cell (fewer where a row collapses).
+    fn triangles(&self, ty: PatchType, options: &MeshOptions) -> usize {
+        (0..self.nv_patches)
+            .flat_map(|pj| (0..self.nu_patches).map(move |pi| (pi, pj)))
+            .map(|patch| {
+                let (su, sv) = self.segments(ty, options, patch);
+                2 * su as usize * sv as usize
+            })
+            .fold(0, usize::saturating_add)
+    }
+}
+
+/// At most the triangles [`patch_mesh`] makes of the same request, worked out without tessellating
+/// (0 for a request it refuses).
+pub fn patch_mesh_triangles(
+    ty: PatchType,
+    (nu, uwrap): (i32, Wrap),
+    (nv, vwrap): (i32, Wrap),
+    params: &[Param],
+    options: &MeshOptions,
+) -> usize {
+    PatchGrid::new(ty, (nu, uwrap), (nv, vwrap), params, options).map_or(0, |g| g.triangles(ty, options))
+}
+
 /// `Patch` (`nu = nv = 2` or `4`) and `PatchMesh` of either type. Bicubic patches use the
 /// basis in `options`.
 #[allow(clippy::too_many_arguments)]
@@ -114,29 +204,9 @@ pub fn patch_mesh(
     options: &MeshOptions,
     warnings: &mut Vec<String>,
 ) -> Result<Mesh, String> {
-    let (ucurve, vcurve) = match ty {
-        PatchType::Bilinear => (PatchCurve::bilinear(), PatchCurve::bilinear()),
-        PatchType::Bicubic => (
-            PatchCurve::bicubic(&options.u_basis, options.u_step)?,
-            PatchCurve::bicubic(&options.v_basis, options.v_step)?,
-        ),
-    };
-    let size = |n: i32, curve: &PatchCurve, wrap: Wrap, axis: &str| {
-        usize::try_from(n).ok().and_then(|n| Some((n, curve.patches(n, wrap)?))).ok_or_else(|| {
-            format!(
-                "{n} control points along {axis} do not make whole patches ({} points per patch, step {}, {})",
-                curve.order,
-                curve.step,
-                if wrap == Wrap::Periodic { "periodic" } else { "nonperiodic" }
-            )
-        })
-    };
-    let (nu, nu_patches) = size(nu, &ucurve, uwrap, "u")?;
-    let (nv, nv_patches) = size(nv, &vcurve, vwrap, "v")?;
-    let points = patch_points(params, nu, nv)?;
-    if points.len() != nu * nv {
-        return Err(format!("a {nu} x {nv} patch mesh needs {} control points, but P has {}", nu * nv, points.len()));
-    }
+    let grid = PatchGrid::new(ty, (nu, uwrap), (nv, vwrap), params, options)?;
+    let PatchGrid { ucurve, vcurve, nu, nv, nu_patches, nv_patches, .. } = grid;
+    let points = &grid.points;
     // Varying values sit at patch corners: one more than the patches along an open direction.
     let varying_along = |patches: usize, wrap: Wrap| if wrap == Wrap::Periodic { patches } else { patches + 1 };
     let (nu_varying, nv_varying) = (varying_along(nu_patches, uwrap), varying_along(nv_patches, vwrap));
@@ -149,8 +219,7 @@ pub fn patch_mesh(
         data.iter().map(|d| Attribute { name: d.name.clone(), components: d.components, data: Vec::new() }).collect();
     for pj in 0..nv_patches {
         for pi in 0..nu_patches {
-            // Control point (a, b) of this patch, a along u.
-            let control = |a: usize, b: usize| (pi * ucurve.step + a) % nu + nu * ((pj * vcurve.step + b) % nv);
+            let control = |a: usize, b: usize| grid.control((pi, pj), a, b);
             let surface = |u: f32, v: f32| {
                 let (wu, dwu) = ucurve.weights(u);
                 let (wv, dwv) = vcurve.weights(v);
@@ -165,26 +234,17 @@ pub fn patch_mesh(
                 }
                 (p, dpdu.cross(dpdv))
             };
-            let flat = ty == PatchType::Bilinear && is_flat([0, 1, 2, 3].map(|k| points[control(k % 2, k / 2)]));
-            let t = options.tessellation.unwrap_or(if flat {
-                Tessellation { u_segments: 1, v_segments: 1 }
-            } else {
-                Tessellation { u_segments: DEFAULT_PATCH_SEGMENTS, v_segments: DEFAULT_PATCH_SEGMENTS }
+            let (su, sv) = grid.segments(ty, options, (pi, pj));
+            let patch = tessellate_grid(su, sv, |u, v| {
+                let (p, n) = surface(u, v);
+                // Where dP/du x dP/dv vanishes (a collapsed edge), look a little inside.
+                let n = if n.length_squared() > 1e-20 {
+                    n
+                } else {
+                    surface(0.5 + 0.99 * (u - 0.5), 0.5 + 0.99 * (v - 0.5)).1
+                };
+                (p, n.normalize_or(Vec3::Z))
             });
-            let patch = tessellate_grid(
-                t.u_segments.clamp(1, MAX_PATCH_SEGMENTS),
-                t.v_segments.clamp(1, MAX_PATCH_SEGMENTS),
-                |u, v| {
-                    let (p, n) = surface(u, v);
-                    // Where dP/du x dP/dv vanishes (a collapsed edge), look a little inside.
-                    let n = if n.length_squared() > 1e-20 {
-                        n
-                    } else {
-                        surface(0.5 + 0.99 * (u - 0.5), 0.5 + 0.99 * (v - 0.5)).1
-                    };
-                    (p, n.normalize_or(Vec3::Z))
-                },
-            );
             let local_uvs = patch.uvs.clone().unwrap_or_default();
             let face = pi + nu_patches * pj;
             let varying_corner = |du: usize, dv: usize| (pi + du) % nu_varying + nu_varying * ((pj + dv) % nv_varying);

@@ -5,16 +5,34 @@
 use super::mesh::{
     general_polygon_mesh, points_general_polygons_mesh, points_polygons_mesh, polygon_mesh, quadric_mesh, MeshOptions,
 };
-use super::patch::patch_mesh;
+use super::patch::{patch_mesh, patch_mesh_triangles};
 use super::request::{PatchType, Request, RequestKind, Wrap};
 use super::RibDiagnostic;
-use crate::geometry::Mesh;
+use crate::geometry::{Mesh, Quadric};
 
 /// The mesh of a geometry request with default options, or `None` for requests that are not
 /// geometry or whose data is malformed (an error is pushed then). Warnings about dropped data are
 /// pushed too.
 pub fn mesh_from_request(request: &Request, diagnostics: &mut Vec<RibDiagnostic>) -> Option<Mesh> {
     mesh_from_request_with(request, &MeshOptions::default(), diagnostics)
+}
+
+/// At most the triangles [`mesh_from_request_with`] makes of a patch or a quadric, worked out
+/// without tessellating it (0 for other requests, whose triangles their own data bound).
+pub fn request_triangles(request: &Request, options: &MeshOptions) -> usize {
+    match &request.kind {
+        RequestKind::Patch { ty, params } => {
+            let n = if *ty == PatchType::Bilinear { 2 } else { 4 };
+            patch_mesh_triangles(*ty, (n, Wrap::NonPeriodic), (n, Wrap::NonPeriodic), params, options)
+        }
+        RequestKind::PatchMesh { ty, nu, uwrap, nv, vwrap, params } => {
+            patch_mesh_triangles(*ty, (*nu, *uwrap), (*nv, *vwrap), params, options)
+        }
+        RequestKind::Quadric { quadric, .. } => {
+            Quadric::triangle_count(options.tessellation.unwrap_or_else(|| quadric.default_tessellation()))
+        }
+        _ => 0,
+    }
 }
 
 /// [`mesh_from_request`] under the graphics state's basis and a chosen tessellation.
