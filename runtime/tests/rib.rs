@@ -569,3 +569,37 @@ fn argument_errors_name_the_request_and_the_argument() {
     let kinds: Vec<&K> = parsed.requests.iter().map(|r| &r.kind).collect();
     assert_eq!(kinds, vec![&K::Color([1.0, 0.0, 0.0]), &K::FrameBegin(None)]);
 }
+
+/// A polygon too large to ear-clip is cut into a fan, with a warning at its request saying so,
+/// and that its holes are left out.
+#[test]
+fn a_polygon_too_large_to_ear_clip_is_fanned_with_a_warning() {
+    let n = 5000;
+    let ring = |r: f32, count: usize| -> Vec<String> {
+        (0..count)
+            .map(|k| {
+                let a = std::f32::consts::TAU * k as f32 / count as f32;
+                format!("{} {} 0", r * a.cos(), r * a.sin())
+            })
+            .collect()
+    };
+    let (outline, hole) = (ring(1.0, n), ring(0.5, 4));
+    let text = format!("\nGeneralPolygon [{n} 4] \"P\" [{} {}]\n", outline.join(" "), hole.join(" "));
+    let parsed = parse(&text);
+    assert!(!parsed.has_errors(), "{:?}", messages(&parsed));
+    let mut diagnostics = Vec::new();
+    let mesh = mesh_from_request(&parsed.requests[0], &mut diagnostics).expect("a mesh");
+    assert_eq!(mesh.triangle_count(), n - 2, "a fan of the outline");
+    let warnings: Vec<String> = diagnostics.iter().map(ToString::to_string).collect();
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    let w = &warnings[0];
+    assert!(w.starts_with("scene.rib:2:1: warning: 1 polygon of more than 4096 vertices"), "{w}");
+    assert!(w.contains("the holes of 1 are not cut out"), "{w}");
+    // Below the limit: ear-clipped, the hole cut out, nothing to say.
+    let small = format!("GeneralPolygon [64 4] \"P\" [{} {}]\n", ring(1.0, 64).join(" "), hole.join(" "));
+    let parsed = parse(&small);
+    let mut diagnostics = Vec::new();
+    let mesh = mesh_from_request(&parsed.requests[0], &mut diagnostics).expect("a mesh");
+    assert_eq!(mesh.triangle_count(), 64 + 4, "the ring around its hole");
+    assert!(diagnostics.is_empty(), "{diagnostics:?}");
+}

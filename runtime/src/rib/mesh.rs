@@ -172,6 +172,8 @@ pub fn points_general_polygons_mesh(
     let mut triangles = Vec::with_capacity(vertices.len());
     let mut corner = 0usize;
     let mut loop_sizes = nvertices.iter();
+    // Polygons too large to ear-clip, and of them those whose holes were left out.
+    let (mut fanned, mut holes_lost) = (0usize, 0usize);
     for &loops in &nloops {
         let mut polygon_loops = Vec::with_capacity(loops);
         for &size in loop_sizes.by_ref().take(loops) {
@@ -183,7 +185,18 @@ pub fn points_general_polygons_mesh(
             polygon_loops.push(ids);
             corner += size;
         }
-        triangulate_polygon(&polygon_loops, &mesh_positions, &mut triangles);
+        if !triangulate_polygon(&polygon_loops, &mesh_positions, &mut triangles) {
+            fanned += 1;
+            holes_lost += usize::from(polygon_loops.len() > 1);
+        }
+    }
+    if fanned > 0 {
+        warnings.push(format!(
+            "{fanned} polygon{} of more than {MAX_EAR_CLIP_VERTICES} vertices (outline and holes together) cut into a fan \
+             from the first vertex instead of ear-clipped: a concave outline is not followed{}",
+            if fanned == 1 { "" } else { "s" },
+            if holes_lost > 0 { format!(", and the holes of {holes_lost} are not cut out") } else { String::new() }
+        ));
     }
     let mut mesh = Mesh { positions: mesh_positions, triangles, ..Default::default() };
     route_attributes(&mut mesh, attributes);
@@ -354,13 +367,14 @@ fn interpolate_corners(d: &PerVertex, corner_index: [usize; 4], face: usize, uvs
 }
 
 /// Triangulates one polygon given as loops of vertex ids (the first the outline, the rest holes)
-/// into `out`, keeping the outline's winding.
-fn triangulate_polygon(loops: &[Vec<u32>], positions: &[Vec3], out: &mut Vec<[u32; 3]>) {
-    let Some(outline) = loops.first() else { return };
+/// into `out`, keeping the outline's winding; false when it has more than
+/// [`MAX_EAR_CLIP_VERTICES`] and was fanned from its first vertex instead, its holes left out.
+fn triangulate_polygon(loops: &[Vec<u32>], positions: &[Vec3], out: &mut Vec<[u32; 3]>) -> bool {
+    let Some(outline) = loops.first() else { return true };
     let position = |id: u32| positions[id as usize];
     if loops.len() == 1 && outline.len() == 3 {
         out.push([outline[0], outline[1], outline[2]]);
-        return;
+        return true;
     }
     let fan = |ids: &[u32], out: &mut Vec<[u32; 3]>| {
         for k in 1..ids.len().saturating_sub(1) {
@@ -376,9 +390,13 @@ fn triangulate_polygon(loops: &[Vec<u32>], positions: &[Vec3], out: &mut Vec<[u3
         normal += a.cross(b);
     }
     let total: usize = loops.iter().map(Vec::len).sum();
-    if !normal.is_finite() || normal.length_squared() < 1e-30 || total > MAX_EAR_CLIP_VERTICES {
+    if total > MAX_EAR_CLIP_VERTICES {
         fan(outline, out);
-        return;
+        return false;
+    }
+    if !normal.is_finite() || normal.length_squared() < 1e-30 {
+        fan(outline, out);
+        return true;
     }
     let normal = normal.normalize();
     let tangent = normal.any_orthonormal_vector();
@@ -406,6 +424,7 @@ fn triangulate_polygon(loops: &[Vec<u32>], positions: &[Vec3], out: &mut Vec<[u3
         bridge(&mut ring, &bridged[k], rest);
     }
     ear_clip(ring, out);
+    true
 }
 
 #[derive(Clone, Copy, Debug)]
