@@ -6,6 +6,7 @@ mod common;
 
 use common::{context, quad, H, W};
 use glam::Vec3A;
+use rtsl_compiler::abi::MAX_LIGHTS;
 use rtsl_runtime::api::{ApiError, Primitive};
 use rtsl_runtime::render::Framebuffer;
 use rtsl_runtime::shading::{ParamValue, ShaderProgram};
@@ -160,5 +161,38 @@ fn a_lane_invariant_ambient_light_lights_as_one_run_on_every_lane() -> Result<()
     }
     assert!(lit > 100 && lit < W * H / 2, "the triangle covers part of the image: {lit} pixels");
     assert_eq!(a.pixel(W / 3, H / 2)[..3], [1.5, 0.75, 1.25], "both ambient lights, doubled, and the sun");
+    Ok(())
+}
+
+/// Past `MAX_LIGHTS` lights at a shading point (an area light's samples each one), the lights
+/// left out are counted and the frame warns, naming the limit; within it, nothing is said.
+#[test]
+fn lights_past_the_per_point_limit_are_counted_and_warned_of() -> Result<(), ApiError> {
+    let render = |lights: usize| -> Result<rtsl_runtime::render::FrameReport, ApiError> {
+        let mut rt = context();
+        (rt.options.width, rt.options.height) = (8, 8);
+        let matte = rt.find_shader("matte")?;
+        let point = rt.find_shader("pointlight")?;
+        rt.camera_look_at(Vec3A::new(0.0, 0.0, 5.0), Vec3A::ZERO, Vec3A::Y, 30.0);
+        for k in 0..lights {
+            let from = ParamValue::Point([k as f32 * 0.1 - 2.0, 1.0, 3.0]);
+            rt.light_source(point, &[("from", from), ("intensity", ParamValue::Float(1.0))])?;
+        }
+        let o = rt.begin_object()?;
+        rt.bind_shader(matte)?;
+        quad(&mut rt, [[-5.0, -5.0, 0.0], [5.0, -5.0, 0.0], [5.0, 5.0, 0.0], [-5.0, 5.0, 0.0]])?;
+        rt.end_object()?;
+        rt.instantiate_object(o)?;
+        Ok(rt.render_frame()?.1)
+    };
+    let within = render(MAX_LIGHTS)?;
+    assert_eq!(within.lights_dropped, 0);
+    assert!(within.warnings().is_empty(), "{:?}", within.warnings());
+    let past = render(MAX_LIGHTS + 3)?;
+    // Every pixel sees the quad, and every light reaches it.
+    assert_eq!(past.lights_dropped, 3 * 64, "{past}");
+    let warnings = past.warnings();
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    assert!(warnings[0].contains(&format!("more than {MAX_LIGHTS} lights")), "{warnings:?}");
     Ok(())
 }

@@ -236,7 +236,7 @@ fn play_frame(
     for m in &report.shader_messages {
         eprintln!("warning: {m}");
     }
-    if let Some(w) = report.ray_budget_warning() {
+    for w in report.warnings() {
         eprintln!("warning: {w}");
     }
     rt.return_scene(world);

@@ -218,7 +218,7 @@ fn render_and_write(
     for m in &report.shader_messages {
         eprintln!("warning: {m}");
     }
-    if let Some(w) = report.ray_budget_warning() {
+    for w in report.warnings() {
         eprintln!("warning: {w}");
     }
     let texture_files = world.textures.files();

@@ -554,6 +554,7 @@ pub(super) fn counts_of(report: &FrameReport) -> FrameCounts {
         shaded_points: report.shaded_points,
         light_evaluations: report.light_evaluations,
         rays_cut: report.rays_cut,
+        lights_dropped: report.lights_dropped,
         shading_ns: report.shading.as_nanos() as u64,
         kind_ns: report.by_kind.iter().map(|d| d.as_nanos() as u64).collect(),
         light_paths_ns: report.light_paths.as_nanos() as u64,

@@ -17,8 +17,9 @@ pub struct FrameCounts {
     pub rays: [u64; 4],
     pub shaded_points: u64,
     pub light_evaluations: u64,
-    /// Rays cut by their ray trees' budget.
+    /// Rays cut by their ray trees' budget, and lights left out past `MAX_LIGHTS`.
     pub rays_cut: u64,
+    pub lights_dropped: u64,
     /// Thread time spent shading, and of it the time in each type of shader
     /// ([`ShaderKind::ALL`] order), in nanoseconds.
     pub shading_ns: u64,
@@ -216,6 +217,7 @@ impl Message {
                 w.u64(counts.shaded_points);
                 w.u64(counts.light_evaluations);
                 w.u64(counts.rays_cut);
+                w.u64(counts.lights_dropped);
                 w.u64(counts.fetched_objects);
                 w.u64(counts.fetched_bytes);
                 w.u64(counts.fetched_textures);
@@ -301,7 +303,8 @@ impl Message {
             FRAME_DONE => {
                 let frame = r.u64()?;
                 let rays = [r.u64()?, r.u64()?, r.u64()?, r.u64()?];
-                let (shaded_points, light_evaluations, rays_cut) = (r.u64()?, r.u64()?, r.u64()?);
+                let (shaded_points, light_evaluations) = (r.u64()?, r.u64()?);
+                let (rays_cut, lights_dropped) = (r.u64()?, r.u64()?);
                 let (fetched_objects, fetched_bytes) = (r.u64()?, r.u64()?);
                 let (fetched_textures, fetched_texture_bytes) = (r.u64()?, r.u64()?);
                 let (evicted_objects, resident_objects) = (r.u64()?, r.u64()?);
@@ -322,6 +325,7 @@ impl Message {
                     shaded_points,
                     light_evaluations,
                     rays_cut,
+                    lights_dropped,
                     shading_ns,
                     kind_ns,
                     light_paths_ns,
@@ -542,6 +546,7 @@ mod tests {
                     shaded_points: 5,
                     light_evaluations: 6,
                     rays_cut: 7,
+                    lights_dropped: 8,
                     shading_ns: 7,
                     kind_ns: vec![8, 9],
                     light_paths_ns: 17,

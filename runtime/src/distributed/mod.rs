@@ -69,6 +69,7 @@ fn add_counts(report: &mut FrameReport, c: &FrameCounts) {
     report.shaded_points += c.shaded_points;
     report.light_evaluations += c.light_evaluations;
     report.rays_cut += c.rays_cut;
+    report.lights_dropped += c.lights_dropped;
     report.shading += Duration::from_nanos(c.shading_ns);
     report.light_paths += Duration::from_nanos(c.light_paths_ns);
     report.gathering += Duration::from_nanos(c.gathering_ns);

@@ -81,8 +81,11 @@ pub struct FrameReport {
     pub light_evaluations: u64,
     /// Rays the shaders asked for past their camera sample's ray budget
     /// ([`super::RAY_TREE_BUDGET`]), answered as past the ray depth: the frame is not what the
-    /// scene asks for where this is not zero ([`FrameReport::ray_budget_warning`]).
+    /// scene asks for where this is not zero ([`FrameReport::warnings`]).
     pub rays_cut: u64,
+    /// Lights left out at shading points that more than `MAX_LIGHTS` (32) reached, each area-light
+    /// sample counted as a light ([`FrameReport::warnings`]).
+    pub lights_dropped: u64,
     /// Thread time spent shading (tracing excluded), summed over threads.
     pub shading: Duration,
     /// Of that, the time in each type of shader (in [`ShaderKind::ALL`] order; see
@@ -104,18 +107,30 @@ pub struct FrameReport {
 }
 
 impl FrameReport {
-    /// The warning to give when rays were cut ([`FrameReport::rays_cut`]).
-    pub fn ray_budget_warning(&self) -> Option<String> {
-        (self.rays_cut > 0).then(|| {
-            format!(
+    /// What the renderer left out of the frame because a limit was passed, a warning for each
+    /// limit: rays cut ([`FrameReport::rays_cut`]) and lights dropped
+    /// ([`FrameReport::lights_dropped`]). Empty when the frame is all the scene asks for.
+    pub fn warnings(&self) -> Vec<String> {
+        let mut out = Vec::new();
+        if self.rays_cut > 0 {
+            out.push(format!(
                 "{} ray{} cut: a camera sample's shaders may spawn {} rays (`trace`, `gather`, `indirectdiffuse`), \
                  and past that `trace` returned black, `gather` missed and `indirectdiffuse` went unshaded; \
                  lower Option \"trace\" \"maxdepth\" or the rays the shaders send",
                 self.rays_cut,
                 if self.rays_cut == 1 { " was" } else { "s were" },
                 super::RAY_TREE_BUDGET
-            )
-        })
+            ));
+        }
+        if self.lights_dropped > 0 {
+            let (n, most) = (self.lights_dropped, rtsl_compiler::abi::MAX_LIGHTS);
+            out.push(format!(
+                "{n} light{} left out at shading points that more than {most} lights reached (each area-light \
+                 sample counts as a light): `illuminance`, `diffuse` and `specular` see the first {most}",
+                if n == 1 { " was" } else { "s were" },
+            ));
+        }
+        out
     }
 
     pub fn total_rays(&self) -> u64 {
@@ -1075,6 +1090,7 @@ pub(crate) fn frame_report(frame: &Frame, start: Instant) -> FrameReport {
         shaded_points: load(&s.shaded_points),
         light_evaluations: load(&s.light_evaluations),
         rays_cut: load(&s.rays_cut),
+        lights_dropped: load(&s.lights_dropped),
         shading: Duration::from_nanos(s.shading_ns.load(Ordering::Relaxed)),
         by_kind: std::array::from_fn(|i| Duration::from_nanos(s.kind_ns[i].load(Ordering::Relaxed))),
         by_shader: {

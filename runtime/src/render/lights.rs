@@ -35,7 +35,8 @@ pub(super) fn eval_light(
 ) {
     let lanes = LightLanesIn { mask, points, times, front: None, budgets };
     eval_light_lanes(frame, light, material, depth, lanes, |_, fill, lanes, _| {
-        append_row(out, counts, fill, lanes);
+        let appended = append_row(out, counts, fill, lanes);
+        count_dropped(frame, lanes & !appended);
     });
 }
 
@@ -48,6 +49,14 @@ struct LightLanesIn<'a> {
     times: &'a [f32],
     front: Option<&'a [Vec3A]>,
     budgets: &'a mut [RayBudget],
+}
+
+/// Counts the lights of the lanes in `dropped` that found no room ([`MAX_LIGHTS`] reached them
+/// already), for the frame's warning.
+fn count_dropped(frame: &Frame, dropped: u32) {
+    if dropped != 0 {
+        Stats::add(&frame.stats.lights_dropped, dropped.count_ones() as usize);
+    }
 }
 
 /// Appends lane `l`'s light in the row `fill` writes to `lights` (lane `l`'s `counts[l]`-th, while
@@ -634,6 +643,7 @@ impl BatchLights {
                     };
                     let before = *chunk_counts;
                     let appended = append_row(chunk_lights, chunk_counts, fill, lanes);
+                    count_dropped(frame, lanes & !appended);
                     for j in 0..4 {
                         if appended >> j & 1 != 0 {
                             chunk_pending[j] |= (later >> j & 1) << before[j];

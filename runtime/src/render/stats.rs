@@ -163,6 +163,9 @@ pub struct Stats {
     /// Rays refused because their camera sample's tree had spent its budget
     /// ([`super::RAY_TREE_BUDGET`]).
     pub rays_cut: Counter,
+    /// Lights left out at shading points that more than `MAX_LIGHTS` reached (each area-light
+    /// sample counts as a light).
+    pub lights_dropped: Counter,
     /// Time spent shading (surface and light shaders and the renderer's side of their calls),
     /// tracing excluded, summed over threads.
     pub shading_ns: AtomicU64,
