@@ -360,6 +360,12 @@ impl Checker<'_> {
                 Some(v) if v >= 1.0 && v.fract() == 0.0 && v <= f64::from(ir::MAX_ARRAY_LEN) => {
                     Some(Some(ir::ArrayLen::Fixed(v as u32)))
                 }
+                Some(v) if v > f64::from(ir::MAX_ARRAY_LEN) => {
+                    let max = ir::MAX_ARRAY_LEN;
+                    self.error(Code::ArraySize, e.span, format!("array length {v} is over the limit of {max} elements"))
+                        .label = Some("too long".into());
+                    None
+                }
                 Some(v) => {
                     self.error(Code::ArraySize, e.span, format!("array length must be a positive integer, not {v}"))
                         .label = Some("invalid length".into());
