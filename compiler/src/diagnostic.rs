@@ -102,7 +102,8 @@ codes! {
     ShaderGlobalRedeclared = "E0134", Error, "a shader parameter or function named like a shader global it would hide";
     MessagePassing = "E0135", Error, "a message-passing call whose name is not a constant string";
     DefaultNotUniform = "E0136", Error, "a default value that depends on varying data";
-    InlineBudget = "E0137", Error, "a shader too large once its user function calls are inlined (calls that nest multiply its size)";
+    InlineBudget = "E0137", Error, "a shader too large once its user function calls are inlined (calls that nest multiply its size; arrays count by their floats)";
+    StorageBudget = "E0138", Error, "a shader whose variables hold too many floats (large arrays), every inlined call's included";
     InternalError = "E0999", Error, "an internal compiler error: the compiler produced invalid IR (please report it)";
     // Warnings.
     UnusedVariable = "W0001", Warning, "a local variable that is never read";

@@ -491,3 +491,35 @@ fn forged_handles_and_sizes_are_refused_before_any_back_end_sees_them() {
         }
     }
 }
+
+/// An array within `MAX_ARRAY_LEN` whose floats take the shader past `ir::STORAGE_BUDGET` is
+/// refused by the validator, naming the variable, as the checker refuses it in source; the JIT and
+/// the interpreter refuse such a module too, rather than running out of memory.
+#[test]
+fn a_forged_array_past_the_storage_budget_is_refused_by_name() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let shader = dir.path().join("wide.sl");
+    std::fs::write(&shader, "surface wide() { float ramp[3]; ramp[1] = s; Ci = ramp[floor(t * 3)]; }\n")
+        .expect("write");
+    let (path, bytes) = compiled_artifact(&shader, &Options::default());
+    let a = artifact::decode(&path, &bytes).expect("the real artifact decodes");
+    let mut forged = a.module.clone();
+    visit_slots(&mut forged, &mut |slot| {
+        if let Slot::ArrayLen(n) = slot {
+            *n = ir::MAX_ARRAY_LEN;
+        }
+    });
+    match artifact::decode(&path, &forge(&bytes, &a, &forged)) {
+        Err(ArtifactError::Invalid { detail, .. }) => {
+            assert!(detail.contains("`ramp`") && detail.contains(&ir::STORAGE_BUDGET.to_string()), "{detail}")
+        }
+        Err(e) => panic!("unexpected error {e}"),
+        Ok(_) => panic!("an array of {} floats passed validation", ir::MAX_ARRAY_LEN),
+    }
+    let jit = rtsl_compiler::back::jit::compile(&forged);
+    assert!(matches!(jit, Err(rtsl_compiler::back::jit::JitError::OverBudget(_))), "{jit:?}");
+    let mut point = rtsl_compiler::interp::ShadingPoint::new(ir::ShaderKind::Surface);
+    let mut host = rtsl_compiler::interp::TestHost::default();
+    let run = rtsl_compiler::interp::run(&forged, &[], &mut point, &mut host, Default::default());
+    assert!(matches!(run, Err(rtsl_compiler::interp::InterpError::OverBudget(_))), "{run:?}");
+}

@@ -133,3 +133,40 @@ fn every_shader_is_far_within_the_inlining_budget() {
         rtsl_compiler::ir::INLINE_BUDGET
     );
 }
+
+/// Every library and corpus shader stays far within the storage budget (`ir::STORAGE_BUDGET`)
+/// and, with its arrays counted by their floats, within the inlining budget, so the budgets refuse
+/// only runaway arrays, never a real shader.
+#[test]
+fn every_shader_is_far_within_the_storage_budget() {
+    let (files, options) = common::library_and_corpora();
+    let (mut floats, mut nodes) = ((0, PathBuf::new()), (0, PathBuf::new()));
+    for f in files {
+        let c = compile_file(&f, &options).expect("readable");
+        let Some(m) = &c.module else { continue };
+        let measure = rtsl_compiler::ir::storage::measure(m);
+        if measure.floats > floats.0 {
+            floats = (measure.floats, f.clone());
+        }
+        if measure.nodes > nodes.0 {
+            nodes = (measure.nodes, f);
+        }
+    }
+    println!("most storage: {} ({} floats)", floats.1.display(), floats.0);
+    println!("largest with arrays counted: {} ({} IR nodes)", nodes.1.display(), nodes.0);
+    assert!(floats.0 > 0 && nodes.0 > 0);
+    let budget = rtsl_compiler::ir::STORAGE_BUDGET;
+    assert!(
+        floats.0 * 8 <= budget,
+        "{} holds {} floats: within 8x of the budget of {budget}",
+        floats.1.display(),
+        floats.0
+    );
+    let budget = rtsl_compiler::ir::INLINE_BUDGET;
+    assert!(
+        nodes.0 * 8 <= budget,
+        "{} counts {} IR nodes: within 8x of the budget of {budget}",
+        nodes.1.display(),
+        nodes.0
+    );
+}

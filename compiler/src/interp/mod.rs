@@ -52,6 +52,9 @@ pub enum InterpError {
     Unsupported(&'static str),
     /// The call budget ran out.
     Budget,
+    /// The shader is over `ir::INLINE_BUDGET` or `ir::STORAGE_BUDGET` (the checker refuses such
+    /// source): why, in words.
+    OverBudget(String),
 }
 
 impl std::fmt::Display for InterpError {
@@ -60,6 +63,7 @@ impl std::fmt::Display for InterpError {
             InterpError::NoShader => write!(f, "the module defines no shader"),
             InterpError::Unsupported(what) => write!(f, "the interpreter does not support {what} yet"),
             InterpError::Budget => write!(f, "the shader ran past its call budget"),
+            InterpError::OverBudget(why) => write!(f, "{why}"),
         }
     }
 }
@@ -163,6 +167,9 @@ pub fn run(
     limits: Limits,
 ) -> Result<RunResult, InterpError> {
     let shader = module.shader.as_ref().ok_or(InterpError::NoShader)?;
+    // Frames hold every variable: a module that did not go through the checker could ask for any
+    // amount of memory.
+    ir::within_budgets(module).map_err(InterpError::OverBudget)?;
     let body = module.function(shader.body);
     let info = ir::deriv::analyse(module);
     let mut m = Machine {

@@ -37,12 +37,14 @@
 pub mod deriv;
 mod kind;
 pub mod print;
+pub mod storage;
 pub mod types;
 
 use crate::builtins::Builtin;
 use crate::globals::Global;
 use crate::source::Span;
 pub use kind::ShaderKind;
+pub use storage::STORAGE_BUDGET;
 pub use types::{ArrayLen, BaseType, Type};
 
 /// The longest array the checker accepts (and the validator lets through).
@@ -370,6 +372,23 @@ pub enum StmtKind {
 /// checker refuses the shader (E0137) instead of letting the JIT run out of memory. The largest
 /// library and corpus shaders stay far below it (`compiler/tests/corpus.rs` checks the margin).
 pub const INLINE_BUDGET: u64 = 20_000;
+
+/// Whether a module's shader is within [`INLINE_BUDGET`] (its size once inlined, then with its
+/// arrays counted by their floats) and [`STORAGE_BUDGET`]; why not, in words, when it is not. For
+/// back ends given a module that may not have been checked; the checker says the same with
+/// positions.
+pub fn within_budgets(m: &Module) -> Result<(), String> {
+    let Some(shader) = &m.shader else { return Ok(()) };
+    let sizes = inlined_sizes(m);
+    if let Some(size) = sizes.get(shader.body.0 as usize).filter(|n| **n > INLINE_BUDGET) {
+        return Err(format!("the shader inlines to {size} IR nodes, over the budget of {INLINE_BUDGET}"));
+    }
+    let measure = storage::measure(m);
+    match storage::describe(m, &measure) {
+        Some(why) => Err(why),
+        None => Ok(()),
+    }
+}
 
 /// Each function's size once every call in it is inlined: its own expressions and statements plus,
 /// at each call site, the callee's inlined size. Memoised over the call graph, so it costs linear

@@ -6,7 +6,8 @@
 //!    parameter it is (`VarKind::ShaderParam`), and only those do; function parameters are
 //!    parameters (`VarKind::Param` or `Capture`);
 //! 2. sizes: array lengths are between 1 and [`ir::MAX_ARRAY_LEN`], unsized only for function
-//!    parameters; the shader's size once calls are inlined is within [`ir::INLINE_BUDGET`];
+//!    parameters; the shader's size once calls are inlined is within [`ir::INLINE_BUDGET`] (also
+//!    with its arrays counted by their floats) and its variables within [`ir::STORAGE_BUDGET`];
 //! 3. trees: every expression is used exactly once (by an expression, a statement, or a shader
 //!    parameter's default), so back ends may evaluate each where it appears;
 //! 4. types: operands of every operator, conversion, constructor, select, assignment, call and
@@ -40,7 +41,7 @@ pub fn validate(m: &Module) -> Result<(), Vec<String>> {
     v.recursion();
     if v.errors.is_empty() {
         // Sizes are computed over an acyclic call graph with every handle in range.
-        v.inline_budget();
+        v.budgets();
     }
     if v.errors.is_empty() {
         Ok(())
@@ -102,12 +103,9 @@ impl<'a> Validator<'a> {
         }
     }
 
-    fn inline_budget(&mut self) {
-        let Some(s) = &self.m.shader else { return };
-        let sizes = ir::inlined_sizes(self.m);
-        if let Some(size) = sizes.get(s.body.0 as usize).filter(|n| **n > ir::INLINE_BUDGET) {
-            self.errors
-                .push(format!("the shader inlines to {size} IR nodes, over the budget of {}", ir::INLINE_BUDGET));
+    fn budgets(&mut self) {
+        if let Err(why) = ir::within_budgets(self.m) {
+            self.errors.push(why);
         }
     }
 

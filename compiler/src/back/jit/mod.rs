@@ -78,6 +78,9 @@ pub enum JitError {
     NoShader,
     /// Cranelift rejected the generated code (a JIT bug).
     Codegen(String),
+    /// The shader is over `ir::INLINE_BUDGET` or `ir::STORAGE_BUDGET` (the checker refuses such
+    /// source, the validator such artifacts): why, in words.
+    OverBudget(String),
 }
 
 impl std::fmt::Display for JitError {
@@ -86,6 +89,7 @@ impl std::fmt::Display for JitError {
             JitError::Unsupported(what) => write!(f, "the JIT does not support {what} yet"),
             JitError::NoShader => write!(f, "the module defines no shader"),
             JitError::Codegen(e) => write!(f, "code generation failed: {e}"),
+            JitError::OverBudget(why) => write!(f, "{why}"),
         }
     }
 }
@@ -326,6 +330,9 @@ pub fn compile_with(
     options: &JitOptions,
 ) -> Result<CompiledShader, JitError> {
     let shader = m.shader.as_ref().ok_or(JitError::NoShader)?;
+    // Code and memory grow with these measures: past them Cranelift runs out of memory or of
+    // the values a block may take.
+    ir::within_budgets(m).map_err(JitError::OverBudget)?;
     let mut layout = layout::layout(m).map_err(|w| JitError::Unsupported(w.to_string()))?;
 
     let mut flags = settings::builder();

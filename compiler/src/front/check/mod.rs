@@ -195,7 +195,7 @@ pub fn check(unit: &ast::TranslationUnit, interner: &Interner, diags: &mut Diagn
     // the rest.
     let functions = prune(functions, &needed, shader.as_mut());
     let module = Module { shader, functions };
-    if !within_inline_budget(&module, c.diags) {
+    if !within_inline_budget(&module, c.diags) || !within_measured_budgets(&module, c.diags) {
         return Checked { module: None };
     }
     Checked { module: Some(module) }
@@ -245,6 +245,82 @@ fn within_inline_budget(m: &Module, diags: &mut Diagnostics) -> bool {
         format!("the shader is larger than the limit of {} IR nodes", ir::INLINE_BUDGET),
     ));
     false
+}
+
+/// A shader within the inlining budget can still hold or handle arrays the JIT cannot afford: its
+/// variables' floats are held to [`ir::STORAGE_BUDGET`] (E0138, at the variable that takes it
+/// over) and its size with arrays counted by their floats to [`ir::INLINE_BUDGET`] (E0137, at the
+/// expression). A variable or expression of a function the body calls is shown with that call.
+fn within_measured_budgets(m: &Module, diags: &mut Diagnostics) -> bool {
+    use ir::storage::Culprit;
+    let measure = ir::storage::measure(m);
+    let Some(shader) = &m.shader else { return true };
+    let function = |o: &ir::storage::Over| m.functions.get(o.func.0 as usize);
+    let inlined_by = |d: Diagnostic, o: &ir::storage::Over| match (o.call, function(o)) {
+        (Some(call), Some(f)) => d.with_secondary(call, format!("`{}` is inlined by this call", f.name)),
+        _ => d,
+    };
+    if let Some(o) = &measure.storage_over {
+        let var = match o.what {
+            Culprit::Var(v) => function(o).and_then(|f| f.vars.get(v.0 as usize)),
+            _ => None,
+        };
+        let (span, what) = match var {
+            Some(v) => (v.span, format!("`{}` ({}) holds {} floats", v.name, v.ty, o.amount)),
+            None => (shader.span, format!("a variable holds {} floats", o.amount)),
+        };
+        let d = Diagnostic::new(
+            Code::StorageBudget,
+            span,
+            format!(
+                "{what}, taking the shader's variables past the limit of {} floats per shading point",
+                ir::STORAGE_BUDGET
+            ),
+        )
+        .with_label("takes the shader over the limit")
+        .with_note(
+            "every component of every variable counts (a triple three floats, a matrix sixteen, an array its \
+             length times that), in every call of a function, as each call is compiled as a copy; use smaller \
+             arrays",
+        );
+        diags.push(inlined_by(d, o));
+        return false;
+    }
+    if let Some(o) = &measure.nodes_over {
+        let expr = match o.what {
+            Culprit::Expr(e) => function(o).and_then(|f| f.exprs.get(e.0 as usize)),
+            _ => None,
+        };
+        let d = match expr {
+            Some(e) => Diagnostic::new(
+                Code::InlineBudget,
+                e.span,
+                format!(
+                    "the shader is too large once its function calls are inlined: this use of an array counts {} \
+                     IR nodes, one per float of the array, taking the shader past the limit of {}",
+                    o.amount,
+                    ir::INLINE_BUDGET
+                ),
+            )
+            .with_label("takes the shader over the limit")
+            .with_note(
+                "an array value, or an element read or written at an index computed at run time, is compiled \
+                 as code for each float of the array; use smaller arrays, or index them in fewer places",
+            ),
+            None => Diagnostic::new(
+                Code::InlineBudget,
+                o.call.unwrap_or(shader.span),
+                format!(
+                    "the shader is larger than the limit of {} IR nodes once its function calls are inlined and \
+                     every use of an array is counted by the array's floats",
+                    ir::INLINE_BUDGET
+                ),
+            ),
+        };
+        diags.push(inlined_by(d, o));
+        return false;
+    }
+    true
 }
 
 /// Which functions a shader can reach through calls (all of them in a file without a shader).
