@@ -21,8 +21,11 @@
 //! ## What loading guarantees
 //! - A file that is not an artifact, is truncated, or whose payload does not match its checksum is
 //!   an [`ArtifactError`], never a crash and never a wrong shader.
-//! - Decoded IR is validated like freshly compiled IR (handles, types, spans), so back ends may rely
-//!   on it. The checksum detects damage, not tampering: artifacts are not signed.
+//! - Decoded IR is validated like freshly compiled IR (handles, types, spans, budgets), so back ends
+//!   may rely on it. The checksum detects damage, not tampering: artifacts are not signed.
+//! - IR whose blocks nest deeper than `ir::MAX_DECODED_NESTING` is refused while it is decoded, on a
+//!   thread whose stack holds the decoder and the validator at that depth: a forged artifact cannot
+//!   overflow the stack of the thread that loads it.
 //! - [`load`] compares the content hash of every file the shader read with the file on disk now. An
 //!   artifact whose sources changed, or that another compiler version wrote, is recompiled from source
 //!   when the source is at hand, and refused with an error naming the file when it is not.
@@ -296,16 +299,7 @@ pub fn decode(path: &Path, bytes: &[u8]) -> Result<Artifact, ArtifactError> {
     if body_end != bytes.len() || checksum(&bytes[..at + 8], body) != checksum_stored {
         return Err(ArtifactError::Corrupt { path: path.to_path_buf() });
     }
-    let payload: Payload = postcard::from_bytes(body)
-        .map_err(|e| ArtifactError::Undecodable { path: path.to_path_buf(), detail: e.to_string() })?;
-    let mut sources = SourceMap::new();
-    for f in &payload.files {
-        sources.add(f.name.clone(), f.path.clone(), f.text.as_str());
-    }
-    let invalid = |detail: String| ArtifactError::Invalid { path: path.to_path_buf(), detail };
-    check_module(&payload.module, &sources).map_err(invalid)?;
-    let interface =
-        ShaderInterface::from_module(&payload.module, &sources).ok_or_else(|| invalid("it holds no shader".into()))?;
+    let (payload, sources, interface) = on_decoding_stack(|| decode_payload(path, body))?;
     Ok(Artifact {
         compiler_version: payload.compiler_version,
         source: header.source,
@@ -316,6 +310,55 @@ pub fn decode(path: &Path, bytes: &[u8]) -> Result<Artifact, ArtifactError> {
         sources,
         interface,
     })
+}
+
+/// The stack an artifact is decoded and validated on: both recurse over blocks, as deep as
+/// `ir::MAX_DECODED_NESTING`, and an unoptimised build takes some kilobytes a level. Its own thread,
+/// so that any thread may load an artifact; the memory is reserved, and used only as deep as the IR
+/// goes.
+const DECODING_STACK: usize = 64 << 20;
+
+/// Runs `f` on a thread with [`DECODING_STACK`] (on this one when no thread can be started).
+fn on_decoding_stack<T: Send>(f: impl FnOnce() -> T + Send) -> T {
+    let slot = std::sync::Mutex::new(Some(f));
+    let take = || slot.lock().unwrap_or_else(std::sync::PoisonError::into_inner).take();
+    let ran = std::thread::scope(|scope| {
+        let thread = std::thread::Builder::new().stack_size(DECODING_STACK).spawn_scoped(scope, || take().map(|f| f()));
+        match thread.map(|t| t.join()) {
+            Ok(Ok(out)) => out,
+            Ok(Err(panic)) => std::panic::resume_unwind(panic),
+            Err(_) => None,
+        }
+    });
+    match ran {
+        Some(out) => out,
+        None => match take() {
+            Some(f) => f(),
+            None => unreachable!("`f` ran on the thread, which returned its result"),
+        },
+    }
+}
+
+/// Decodes an artifact's payload and checks its IR (see [`decode`]).
+fn decode_payload(path: &Path, body: &[u8]) -> Result<(Payload, SourceMap, ShaderInterface), ArtifactError> {
+    let (payload, too_deep) = crate::ir::decode_nested(|| postcard::from_bytes::<Payload>(body));
+    let payload = payload.map_err(|e| ArtifactError::Undecodable {
+        path: path.to_path_buf(),
+        detail: if too_deep {
+            format!("its statements nest more than {} levels deep", crate::ir::MAX_DECODED_NESTING)
+        } else {
+            e.to_string()
+        },
+    })?;
+    let mut sources = SourceMap::new();
+    for f in &payload.files {
+        sources.add(f.name.clone(), f.path.clone(), f.text.as_str());
+    }
+    let invalid = |detail: String| ArtifactError::Invalid { path: path.to_path_buf(), detail };
+    check_module(&payload.module, &sources).map_err(invalid)?;
+    let interface =
+        ShaderInterface::from_module(&payload.module, &sources).ok_or_else(|| invalid("it holds no shader".into()))?;
+    Ok((payload, sources, interface))
 }
 
 /// What decoded IR must satisfy beyond the validator's rules: a shader whose handles are in range,

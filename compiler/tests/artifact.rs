@@ -523,3 +523,89 @@ fn a_forged_array_past_the_storage_budget_is_refused_by_name() {
     let run = rtsl_compiler::interp::run(&forged, &[], &mut point, &mut host, Default::default());
     assert!(matches!(run, Err(rtsl_compiler::interp::InterpError::OverBudget(_))), "{run:?}");
 }
+
+/// The artifact of `surface deep() { if (s > 0.5) { Ci = 1; } }` forged with its `if` inside
+/// `blocks - 2` more (the shader's body is a block too), each with a condition of its own. Built,
+/// encoded and dropped on a thread with a large stack: the IR's derived code recurses.
+fn nested_artifact(blocks: u32) -> (tempfile::TempDir, PathBuf, Vec<u8>) {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let shader = dir.path().join("deep.sl");
+    std::fs::write(&shader, "surface deep() { if (s > 0.5) { Ci = 1; } }\n").expect("write");
+    let (path, bytes) = compiled_artifact(&shader, &Options::default());
+    let forged = std::thread::Builder::new()
+        .stack_size(1 << 30)
+        .spawn(move || {
+            let a = artifact::decode(&path, &bytes).expect("the real artifact decodes");
+            let mut m = a.module.clone();
+            let body = m.shader.as_ref().expect("a shader").body.0 as usize;
+            let f = &mut m.functions[body];
+            let mut stmt = f.body.stmts.remove(0);
+            let ir::StmtKind::If { cond, .. } = stmt.kind else { panic!("the body starts with its `if`") };
+            let span = stmt.span;
+            for _ in 2..blocks {
+                // `s > 0.5` again: every expression is used once.
+                let mut copy = f.exprs[cond.0 as usize].clone();
+                if let ir::ExprKind::Binary { lhs, rhs, .. } = &mut copy.kind {
+                    for side in [lhs, rhs] {
+                        let operand = f.exprs[side.0 as usize].clone();
+                        f.exprs.push(operand);
+                        *side = ir::ExprId(f.exprs.len() as u32 - 1);
+                    }
+                }
+                f.exprs.push(copy);
+                let cond = ir::ExprId(f.exprs.len() as u32 - 1);
+                let then = ir::Block { stmts: vec![stmt] };
+                stmt = ir::Stmt { kind: ir::StmtKind::If { cond, then, otherwise: ir::Block::default() }, span };
+            }
+            f.body.stmts.insert(0, stmt);
+            (path.clone(), forge(&bytes, &a, &m))
+        })
+        .expect("a thread")
+        .join()
+        .expect("forged");
+    (dir, forged.0, forged.1)
+}
+
+/// A forged artifact whose statements nest 20,000 levels deep is refused as it is decoded, naming
+/// the limit, instead of overflowing the stack of the thread that loads it.
+#[test]
+fn statements_nested_past_the_limit_are_refused_as_they_are_decoded() {
+    for blocks in [ir::MAX_DECODED_NESTING + 1, 20_000] {
+        let (_dir, path, forged) = nested_artifact(blocks);
+        match artifact::decode(&path, &forged) {
+            Err(ArtifactError::Undecodable { detail, .. }) => {
+                let limit = format!("nest more than {} levels deep", ir::MAX_DECODED_NESTING);
+                assert!(detail.contains(&limit), "{blocks} blocks: {detail}");
+            }
+            Err(e) => panic!("{blocks} blocks: unexpected error {e}"),
+            Ok(_) => panic!("{blocks} blocks decoded"),
+        }
+    }
+}
+
+/// At the limit an artifact decodes and validates, and both back ends run it (on a large stack:
+/// they recurse over blocks, and an unoptimised build takes kilobytes a level).
+#[test]
+fn statements_nested_to_the_limit_decode_and_run() {
+    let (_dir, path, forged) = nested_artifact(ir::MAX_DECODED_NESTING);
+    let a = artifact::decode(&path, &forged).expect("nested to the limit");
+    std::thread::Builder::new()
+        .stack_size(256 << 20)
+        .spawn(move || {
+            let m = &a.module;
+            let shader = rtsl_compiler::back::jit::compile(m).expect("compiles");
+            let mut batch = shader.batch(4);
+            batch.set_global("s", 0, &[1.0]);
+            shader.shade(&mut batch);
+            assert_eq!(batch.global("Ci", 0), Some(vec![1.0; 3]));
+            assert_eq!(batch.global("Ci", 1), Some(vec![0.0; 3]));
+            let mut point = rtsl_compiler::interp::ShadingPoint::new(ir::ShaderKind::Surface);
+            point.set("s", rtsl_compiler::interp::Value::Float(1.0));
+            let mut host = rtsl_compiler::interp::TestHost::default();
+            rtsl_compiler::interp::run(m, &[], &mut point, &mut host, Default::default()).expect("runs");
+            assert_eq!(point.get("Ci"), Some(&rtsl_compiler::interp::Value::Triple([1.0; 3])));
+        })
+        .expect("a thread")
+        .join()
+        .expect("both back ends ran the shader");
+}

@@ -303,9 +303,63 @@ pub enum ExprKind {
     },
 }
 
-#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
+/// Statements run in order. Decoding one counts its nesting (see [`MAX_DECODED_NESTING`]).
+#[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct Block {
     pub stmts: Vec<Stmt>,
+}
+
+/// The most levels blocks may nest in IR decoded from outside (a compiled artifact), a function's
+/// body counting as one. Source nests at most 400 levels (`front::check::MAX_NESTING`), so checked
+/// IR nests at most 401. Deeper IR is refused as it is decoded, before the decoder's recursion, or
+/// any later pass that recurses over blocks (validator, JIT, interpreter), can overflow the stack.
+pub const MAX_DECODED_NESTING: u32 = 512;
+
+thread_local! {
+    /// Blocks being decoded on this thread, inside each other, and whether one was refused for
+    /// nesting too deep since [`decode_nested`] began.
+    static DECODING: std::cell::Cell<(u32, bool)> = const { std::cell::Cell::new((0, false)) };
+}
+
+/// Runs `decode`, which deserializes IR on this thread, and says whether blocks nested deeper
+/// than [`MAX_DECODED_NESTING`] in it: the decoder's own error may not say so (postcard drops the
+/// messages of such errors).
+pub fn decode_nested<T>(decode: impl FnOnce() -> T) -> (T, bool) {
+    let outer = DECODING.with(|d| d.replace((d.get().0, false)));
+    let result = decode();
+    let too_deep = DECODING.with(|d| d.replace((d.get().0, outer.1 || d.get().1)).1);
+    (result, too_deep)
+}
+
+impl<'de> serde::Deserialize<'de> for Block {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Block, D::Error> {
+        /// The derived encoding, whose recursion this impl counts.
+        #[derive(serde::Deserialize)]
+        #[serde(rename = "Block")]
+        struct Plain {
+            stmts: Vec<Stmt>,
+        }
+        /// Leaves the level on every way out, errors and unwinding included.
+        struct Level;
+        impl Drop for Level {
+            fn drop(&mut self) {
+                DECODING.with(|d| d.set((d.get().0.saturating_sub(1), d.get().1)));
+            }
+        }
+        let depth = DECODING.with(|d| {
+            let (depth, refused) = d.get();
+            d.set((depth + 1, refused));
+            depth + 1
+        });
+        let _level = Level;
+        if depth > MAX_DECODED_NESTING {
+            DECODING.with(|d| d.set((d.get().0, true)));
+            return Err(serde::de::Error::custom(format!(
+                "statements nest more than {MAX_DECODED_NESTING} levels deep"
+            )));
+        }
+        Plain::deserialize(d).map(|p| Block { stmts: p.stmts })
+    }
 }
 
 #[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
