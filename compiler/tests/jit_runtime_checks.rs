@@ -98,3 +98,65 @@ fn an_index_out_of_range_is_clamped_and_reported() {
     shader.shade(&mut batch);
     assert!(shader.runtime_errors().is_empty());
 }
+
+/// Runs `src` in both back ends over `lanes` lanes (agreeing lane by lane, `common::differential`)
+/// and once more in each; returns the JIT's batch, its runtime errors (of both runs, each place
+/// once) and the interpreter's result.
+fn strings_in_both(src: &str, lanes: usize) -> (jit::BatchData, Vec<String>, interp::RunResult) {
+    let shader = compiled_with_sources(src, 1 << 20);
+    let m = module(src);
+    common::differential(&m, &shader, lanes, 1, 0.0);
+    let mut batch = shader.batch(lanes);
+    shader.shade_with(&mut batch, &mut TestHost::default());
+    let mut point = ShadingPoint::new(m.shader.as_ref().expect("shader").kind);
+    let r = interp::run(&m, &[], &mut point, &mut TestHost::default(), Limits::default()).expect("runs");
+    (batch, shader.runtime_errors(), r)
+}
+
+/// A string that doubles 40 times stops at `MAX_STRING_LEN` bytes, cut in both back ends (by
+/// `concat`, by `format` and in the text `printf` prints), each place reported once.
+#[test]
+fn strings_longer_than_the_limit_are_cut_and_reported() {
+    use rtsl_compiler::shadeops::format::MAX_STRING_LEN;
+    let src = "surface doubling(output string w = \"\"; output string f = \"\";) {\n  float i;\n  w = \"ab\";\n  \
+               for (i = 0; i < 40; i += 1) w = concat(w, w);\n  f = format(\"%s!\", w);\n  printf(\"%s%s\", w, w);\n}\n";
+    let (batch, errors, r) = strings_in_both(src, 5);
+    let w = batch.string_param("w").expect("w");
+    assert_eq!(w.len(), MAX_STRING_LEN);
+    assert!(w.bytes().enumerate().all(|(i, b)| b == if i % 2 == 0 { b'a' } else { b'b' }));
+    assert_eq!(batch.string_param("f"), Some(w));
+    assert_eq!(r.params.iter().map(|(_, v)| v.s().len()).collect::<Vec<_>>(), vec![MAX_STRING_LEN; 2]);
+    let mut errors = errors;
+    errors.sort();
+    let cut = |at: &str| format!("a string made at checks.sl:{at} was longer than {MAX_STRING_LEN} bytes and was cut");
+    assert_eq!(errors, vec![cut("4:35"), cut("5:7"), cut("6:3")]);
+    let limits: Vec<_> = r.string_limits.iter().map(|(l, s)| (*l, s.start)).collect();
+    let starts =
+        [src.find("concat").expect("concat"), src.find("format").expect("format"), src.find("printf").expect("printf")];
+    assert_eq!(limits, starts.map(|s| (interp::StringLimit::Cut, s as u32)).to_vec());
+}
+
+/// Past `STRING_BYTES_BUDGET` of strings made in a batch (a run of the interpreter), new strings
+/// are empty, in both back ends alike, and the place is reported once.
+#[test]
+fn strings_past_the_batch_budget_are_empty_and_reported() {
+    use rtsl_compiler::shadeops::format::{MAX_STRING_LEN, STRING_BYTES_BUDGET, STRING_OVERHEAD};
+    // `big` is exactly `MAX_STRING_LEN` bytes; each `x` is a different string of that length.
+    let src =
+        "surface many(output varying float n = 0; output string last = \"\";) {\n  string big = \"abcdefgh\";\n  \
+               float i;\n  for (i = 0; i < 13; i += 1) big = concat(big, big);\n  for (i = 0; i < 300; i += 1) {\n    \
+               string x = concat(format(\"%d \", i), big);\n    if (x != \"\") n += 1;\n    last = x;\n  }\n}\n";
+    let (batch, errors, r) = strings_in_both(src, 5);
+    let n = batch.param("n", 0).expect("n")[0];
+    let fit = (STRING_BYTES_BUDGET / (MAX_STRING_LEN + STRING_OVERHEAD)) as f32;
+    assert!(n < fit && n > fit - 5.0, "{n} strings made, {fit} fit in the budget");
+    assert_eq!(batch.string_param("last"), Some(""));
+    assert_eq!(r.params[0].1, Value::Float(n), "the interpreter stops at the same string");
+    assert!(
+        errors.contains(&format!(
+        "a string made at checks.sl:6:16 was left empty: the batch's strings took more than {STRING_BYTES_BUDGET} bytes"
+    )),
+        "{errors:?}"
+    );
+    assert!(r.string_limits.iter().any(|(l, _)| *l == interp::StringLimit::Dropped));
+}

@@ -96,6 +96,8 @@ pub(super) struct CallArgs<'a> {
 }
 
 impl Machine<'_> {
+    /// Evaluates a built-in call's arguments, then the call; the caller sets `call_site` to the
+    /// call's span.
     pub(super) fn builtin(
         &mut self,
         f: &Function,
@@ -105,6 +107,8 @@ impl Machine<'_> {
         args: &[Arg],
         ty: Type,
     ) -> R<Dual> {
+        // The caller set the call's place; the arguments' own calls set theirs.
+        let site = self.call_site;
         // Evaluate every argument left to right (places too: their current value); the arguments
         // `ir::deriv` marks with their tangents.
         let mut vals = Vec::with_capacity(args.len());
@@ -126,6 +130,7 @@ impl Machine<'_> {
         let fixed = if sig.repeat_last { vals.len() } else { sig.params.len().min(vals.len()) };
         let mut writes: Vec<(usize, Value)> = Vec::new();
         let call = CallArgs { vals: &vals, tx: &tx, ty_: &ty_, fixed, ty };
+        self.call_site = site;
         let result = self.eval_builtin(b, call, &mut writes)?;
         for (i, value) in writes {
             if let Some(Arg::Ref(p)) = args.get(i) {
@@ -429,7 +434,11 @@ impl Machine<'_> {
                 };
                 Value::Matrix(space.map(|s| matrix::mul(&m, &s)).unwrap_or(m))
             }
-            Builtin::Concat => Value::String(Rc::from(vals.iter().map(|x| x.s()).collect::<String>())),
+            Builtin::Concat if vals.len() < 2 => Value::String(Rc::from(v(0).s())),
+            Builtin::Concat => {
+                let (text, cut) = format::concat(vals.iter().map(|x| x.s()));
+                self.made_string(text, cut)
+            }
             Builtin::Format | Builtin::Printf => {
                 let fmt_args: Vec<format::FormatArg> = vals[1..]
                     .iter()
@@ -442,12 +451,15 @@ impl Machine<'_> {
                         _ => format::FormatArg::Str(""),
                     })
                     .collect();
-                let text = format::format(v(0).s(), &fmt_args);
+                let (text, cut) = format::format_cut(v(0).s(), &fmt_args);
                 if b == Builtin::Printf {
+                    if cut {
+                        self.note(super::StringLimit::Cut);
+                    }
                     self.host.print(&text);
                     Value::Void
                 } else {
-                    Value::String(Rc::from(text))
+                    self.made_string(text, cut)
                 }
             }
             Builtin::Match => Value::Float(f32::from(u8::from(format::regex_match(v(0).s(), v(1).s())))),

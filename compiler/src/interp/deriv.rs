@@ -396,6 +396,7 @@ impl Machine<'_> {
                 }
             }
             ExprKind::CallBuiltin { builtin, overload, args } => {
+                self.call_site = e.span;
                 self.builtin(f, frame, *builtin, *overload, args, e.ty)?
             }
             ExprKind::Call { func, args } => {

@@ -18,6 +18,10 @@
 //!   later stops at once, and the run goes on ([`RunResult::stopped_loops`]);
 //! - calls, lights and `gather` samples are budgeted too ([`Limits::steps`]): a shader that runs
 //!   away there stops with an error instead of hanging the test;
+//! - a string `concat` or `format` makes, and the text `printf` prints, is cut to
+//!   `shadeops::format::MAX_STRING_LEN` bytes, and once the distinct strings made in a run pass
+//!   `STRING_BYTES_BUDGET` new ones are empty, as in a JIT batch of one point
+//!   ([`RunResult::string_limits`]);
 //! - derivatives come from the renderer's screen-space derivatives of the globals
 //!   ([`ShadingPoint::derivs`]): the values `ir::deriv` marks are evaluated as duals (`deriv.rs`).
 //!
@@ -156,6 +160,18 @@ pub struct RunResult {
     pub params: Vec<(String, Value)>,
     /// Where the loop budget stopped a loop, each place once, in the order they stopped.
     pub stopped_loops: Vec<crate::source::Span>,
+    /// Where a string `concat`, `format` or `printf` made passed a limit, each (limit, place) once,
+    /// in the order they did.
+    pub string_limits: Vec<(StringLimit, crate::source::Span)>,
+}
+
+/// What became of a string the shader made that passed a limit (the JIT reports the same).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StringLimit {
+    /// Longer than `shadeops::format::MAX_STRING_LEN`: cut to it.
+    Cut,
+    /// The run's strings passed `shadeops::format::STRING_BYTES_BUDGET`: left empty.
+    Dropped,
 }
 
 /// Runs a module's shader on one shading point. `bound` overrides parameter defaults by name.
@@ -184,6 +200,10 @@ pub fn run(
         random_calls: 0,
         info: &info,
         ret_d: None,
+        call_site: shader.span,
+        strings: made_strings_seed(module, bound),
+        string_bytes: 0,
+        string_limits: Vec::new(),
     };
     let mut frame = Frame::new(shader.body, body);
     for p in &shader.params {
@@ -201,7 +221,28 @@ pub fn run(
     Ok(RunResult {
         params: shader.params.iter().map(|p| (p.name.clone(), frame.vars[p.var.0 as usize].clone())).collect(),
         stopped_loops: m.stopped_loops,
+        string_limits: m.string_limits,
     })
+}
+
+/// The strings a JIT batch holds before its shader makes any, which cost nothing when made again:
+/// the empty string, the module's string constants and the bound string parameters.
+fn made_strings_seed(module: &Module, bound: &[(&str, Value)]) -> rustc_hash::FxHashSet<Rc<str>> {
+    let mut seed = rustc_hash::FxHashSet::default();
+    seed.insert(Rc::from(""));
+    for f in &module.functions {
+        for e in &f.exprs {
+            if let ExprKind::Const(ir::Constant::String(s)) = &e.kind {
+                seed.insert(Rc::from(s.as_str()));
+            }
+        }
+    }
+    for (_, v) in bound {
+        if let Value::String(s) = v {
+            seed.insert(s.clone());
+        }
+    }
+    seed
 }
 
 struct Frame {
@@ -241,6 +282,15 @@ struct Machine<'a> {
     info: &'a ir::deriv::DerivInfo,
     /// The tangents of the value a function whose result is differentiated returned last.
     ret_d: Option<(Value, Value)>,
+    /// The built-in call being evaluated, for reports: set by its caller, and again by
+    /// `builtin` once the arguments, which may call built-ins too, are evaluated.
+    call_site: crate::source::Span,
+    /// The strings held as a JIT batch of one lane would hold them: what a string made again
+    /// costs nothing against `STRING_BYTES_BUDGET`.
+    strings: rustc_hash::FxHashSet<Rc<str>>,
+    /// What the strings made in this run take (see `StringTable::intern_made`).
+    string_bytes: usize,
+    string_limits: Vec<(StringLimit, crate::source::Span)>,
 }
 
 type R<T> = Result<T, InterpError>;
@@ -267,6 +317,36 @@ fn angle_between(a: V3, b: V3) -> f32 {
 }
 
 impl Machine<'_> {
+    /// Notes that a string made at the current call passed a limit (each place once).
+    fn note(&mut self, limit: StringLimit) {
+        let entry = (limit, self.call_site);
+        if !self.string_limits.contains(&entry) {
+            self.string_limits.push(entry);
+        }
+    }
+
+    /// A string the shader made at the current call, `cut` when it was longer than
+    /// `MAX_STRING_LEN`; the empty string once the run's strings pass `STRING_BYTES_BUDGET`, as a
+    /// JIT batch of one lane does.
+    fn made_string(&mut self, text: String, cut: bool) -> Value {
+        use crate::shadeops::format::{STRING_BYTES_BUDGET, STRING_OVERHEAD};
+        if cut {
+            self.note(StringLimit::Cut);
+        }
+        if let Some(s) = self.strings.get(text.as_str()) {
+            return Value::String(s.clone());
+        }
+        let cost = text.len().saturating_add(STRING_OVERHEAD);
+        if self.string_bytes.saturating_add(cost) > STRING_BYTES_BUDGET {
+            self.note(StringLimit::Dropped);
+            return Value::String(Rc::from(""));
+        }
+        self.string_bytes += cost;
+        let s: Rc<str> = Rc::from(text);
+        self.strings.insert(s.clone());
+        Value::String(s)
+    }
+
     fn step(&mut self) -> R<()> {
         if self.steps == 0 {
             return Err(InterpError::Budget);
@@ -620,6 +700,7 @@ impl Machine<'_> {
                 }
             }
             ExprKind::CallBuiltin { builtin, overload, args } => {
+                self.call_site = e.span;
                 self.builtin(f, frame, *builtin, *overload, args, e.ty)?.0
             }
             ExprKind::Call { func, args } => self.call(f, frame, *func, args)?.0,

@@ -51,14 +51,77 @@ struct Spec {
     precision: Option<usize>,
 }
 
+/// The longest string, in bytes, that `concat` and `format` make and `printf` prints: a longer
+/// one is cut to its first `MAX_STRING_LEN` bytes (at a character boundary), and the back end
+/// reports the place once. A loop that doubles a string stops growing there.
+pub const MAX_STRING_LEN: usize = 65_536;
+
+/// The bytes of strings the shader makes (`concat`, `format`) that one batch of the JIT may hold,
+/// or one run of the interpreter (a batch of one point): each distinct string counts its length
+/// and [`STRING_OVERHEAD`]. Past it a new string is the empty string, and the back end reports the
+/// place once. A batch keeps every string it made until it is reset.
+pub const STRING_BYTES_BUDGET: usize = 16 << 20;
+
+/// What a string counts against [`STRING_BYTES_BUDGET`] besides its bytes: what keeping it takes
+/// (the table's entries), so that many short strings are bounded too.
+pub const STRING_OVERHEAD: usize = 64;
+
+/// Cuts `s` to at most [`MAX_STRING_LEN`] bytes, at a character boundary; whether it was longer.
+pub fn cut(s: &mut String) -> bool {
+    if s.len() <= MAX_STRING_LEN {
+        return false;
+    }
+    let mut end = MAX_STRING_LEN;
+    while !s.is_char_boundary(end) {
+        end -= 1;
+    }
+    s.truncate(end);
+    true
+}
+
+/// RSL's `concat(parts...)`, cut as [`cut`] does (without building more than the cut string);
+/// whether it was cut.
+pub fn concat<'a>(parts: impl IntoIterator<Item = &'a str>) -> (String, bool) {
+    let mut out = String::new();
+    for p in parts {
+        if out.len() + p.len() > MAX_STRING_LEN {
+            let room = MAX_STRING_LEN - out.len();
+            let mut end = room.min(p.len());
+            while !p.is_char_boundary(end) {
+                end -= 1;
+            }
+            out.push_str(&p[..end]);
+            return (out, true);
+        }
+        out.push_str(p);
+    }
+    (out, false)
+}
+
 /// RSL's `format(fmt, args...)` (and the text `printf` prints): `fmt` with each directive replaced by
 /// its argument formatted as the module documentation describes. Never panics: malformed directives
 /// print literally, missing arguments print as `<missing>` after the directive, extra ones are ignored.
+/// Not cut: see [`format_cut`].
 pub fn format(fmt: &str, args: &[FormatArg]) -> String {
-    let mut out = String::with_capacity(fmt.len() + 16 * args.len());
+    format_up_to(fmt, args, usize::MAX)
+}
+
+/// [`format`] cut as [`cut`] does, without formatting far past the cut; whether it was cut.
+pub fn format_cut(fmt: &str, args: &[FormatArg]) -> (String, bool) {
+    let mut out = format_up_to(fmt, args, MAX_STRING_LEN);
+    let was_cut = cut(&mut out);
+    (out, was_cut)
+}
+
+/// [`format`], stopping at the first directive that ends past `limit` bytes.
+fn format_up_to(fmt: &str, args: &[FormatArg], limit: usize) -> String {
+    let mut out = String::with_capacity(fmt.len().min(limit) + 16 * args.len().min(64));
     let mut args = args.iter();
     let mut rest = fmt;
     while let Some(pos) = rest.find('%') {
+        if out.len() > limit {
+            return out;
+        }
         out.push_str(&rest[..pos]);
         let directive = &rest[pos..];
         let (len, spec, conv) = parse_directive(directive);

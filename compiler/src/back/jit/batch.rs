@@ -7,6 +7,7 @@
 
 use super::host;
 use super::layout::Layout;
+use crate::shadeops::format;
 use std::sync::Arc;
 
 /// The batch record the compiled function reads (`docs/packet-abi.md`). All pointers must be valid
@@ -56,6 +57,8 @@ pub struct StringTable {
     /// reset for every call, and a renderer's calls intern their string parameters again each
     /// time (two allocations a string, thousands a frame).
     spare: Vec<String>,
+    /// What the strings the shader made take, against `shadeops::format::STRING_BYTES_BUDGET`.
+    made_bytes: usize,
 }
 
 /// Spare string buffers kept by a table.
@@ -74,6 +77,7 @@ impl StringTable {
     /// Back to the constants alone, as [`StringTable::new`] made it (same handles), without
     /// building it again: a batch is reset for every call, and most calls add no string.
     pub fn reset(&mut self) {
+        self.made_bytes = 0;
         while self.strings.len() > self.constants {
             if let Some(s) = self.strings.pop() {
                 if let Some((key, _)) = self.index.remove_entry(&s) {
@@ -108,6 +112,21 @@ impl StringTable {
         self.strings.push(value);
         self.index.insert(key, h);
         h
+    }
+
+    /// The handle of a string the shader made (`concat`, `format`), added when new unless the
+    /// strings made since the last reset would then take more than
+    /// `shadeops::format::STRING_BYTES_BUDGET`: `None`, and the caller uses the empty string.
+    pub fn intern_made(&mut self, s: &str) -> Option<u32> {
+        if let Some(h) = self.index.get(s) {
+            return Some(*h);
+        }
+        let cost = s.len().saturating_add(format::STRING_OVERHEAD);
+        if self.made_bytes.saturating_add(cost) > format::STRING_BYTES_BUDGET {
+            return None;
+        }
+        self.made_bytes += cost;
+        Some(self.intern(s))
     }
 
     /// The string of a handle; "" for a handle out of range.

@@ -849,6 +849,27 @@ impl Cx<'_> {
         let m = self.mask;
         (0..4).filter(move |l| m[*l])
     }
+    /// Records that a runtime check of `kind` failed at `site` (once each: see `RuntimeErrors`).
+    fn report(&self, kind: u32, site: u32) {
+        // SAFETY: `errors` is null or points to the compiled shader's log, alive while it runs.
+        if let Some(errors) = unsafe { self.ctx.errors.as_ref() } {
+            errors.record(kind, site);
+        }
+    }
+    /// Lane `l`'s handle of a string the shader made at `site`, `cut` when it was longer than
+    /// `MAX_STRING_LEN`; the empty string past the batch's `STRING_BYTES_BUDGET`. Both reported.
+    fn made_string(&mut self, text: &str, cut: bool, site: u32) -> u32 {
+        if cut {
+            self.report(super::lower::RUNTIME_STRING_CUT, site);
+        }
+        match self.strings.intern_made(text) {
+            Some(h) => h,
+            None => {
+                self.report(super::lower::RUNTIME_STRINGS_FULL, site);
+                self.strings.intern("")
+            }
+        }
+    }
     /// The matrix from space `from` to `to`, asked of the renderer once per batch (the answers are
     /// kept in the batch's `HostCtx`: spaces do not change while a batch is shaded).
     fn matrix(&mut self, from: u32, to: u32) -> Option<M4> {
@@ -1399,12 +1420,13 @@ host_helpers! {
             }
         }
     }
-    // [a, b] -> handle of a + b
-    h_concat "rtsl_h_concat" 2 => 1 |cx| {
+    // [site, inputs, strings...] -> handle of the strings one after the other
+    h_concat "rtsl_h_concat" VARIADIC => 1 |cx| {
+        let (site, n) = (cx.f(0, 0) as u32, cx.input.len() / 4);
         let active: Vec<usize> = cx.active().collect();
         for l in active {
-            let s = cx.str_lane(0, l).to_string() + cx.str_lane(1, l);
-            let h = cx.strings.intern(&s);
+            let (text, cut) = format::concat((2..n).map(|k| cx.str_lane(k, l)));
+            let h = cx.made_string(&text, cut, site);
             cx.set(0, l, f32::from_bits(h));
         }
     }
@@ -1417,26 +1439,27 @@ host_helpers! {
     }
     // [fmt, inputs, n, kinds; n, values...] -> each running lane's handle
     h_format "rtsl_h_format" VARIADIC => 1 |cx| {
+        let site = format_site(cx);
         let active: Vec<usize> = cx.active().collect();
         for l in active {
-            let text = format_lane(cx, l);
-            let h = cx.strings.intern(&text);
+            let (text, cut) = format_lane(cx, l);
+            let h = cx.made_string(&text, cut, site);
             cx.set(0, l, f32::from_bits(h));
         }
     }
     // As `format`; prints each active lane's text, in lane order.
     // [kind, site] -> nothing: a runtime check failed (recorded once per site, see `RuntimeErrors`)
     h_runtime_error "rtsl_h_runtime_error" 2 => 1 |cx| {
-        let (kind, site) = (cx.f(0, 0) as u32, cx.f(1, 0) as u32);
-        // SAFETY: `errors` is null or points to the compiled shader's log, alive while it runs.
-        if let Some(errors) = unsafe { cx.ctx.errors.as_ref() } {
-            errors.record(kind, site);
-        }
+        cx.report(cx.f(0, 0) as u32, cx.f(1, 0) as u32);
     }
     h_printf "rtsl_h_printf" VARIADIC => 1 |cx| {
+        let site = format_site(cx);
         let active: Vec<usize> = cx.active().collect();
         for l in active {
-            let text = format_lane(cx, l);
+            let (text, cut) = format_lane(cx, l);
+            if cut {
+                cx.report(super::lower::RUNTIME_STRING_CUT, site);
+            }
             if let Some(t) = cx.table {
                 // SAFETY: the runtime's table; the text outlives the call.
                 unsafe { (t.print)(t.ctx, StrRef::new(&text)) };
@@ -1452,10 +1475,16 @@ pub(super) const FMT_MATRIX: u32 = 3;
 pub(super) const FMT_STRING: u32 = 4;
 pub(super) const FMT_BOOL: u32 = 5;
 
-/// The text of `format(fmt, args...)` in lane `l`: input 0 the format, 2 the argument count `n`,
-/// `3..3+n` their kinds (`FMT_*`), then their values (a bool as a lane mask, a string a handle), as
-/// the interpreter passes them to `shadeops::format` (a bool is the float 0 or 1).
-fn format_lane(cx: &Cx<'_>, l: usize) -> String {
+/// The site of a `format` or `printf` call: its last input.
+fn format_site(cx: &Cx<'_>) -> u32 {
+    (cx.input.len() / 4).checked_sub(1).map_or(0, |k| cx.f(k, 0) as u32)
+}
+
+/// The text of `format(fmt, args...)` in lane `l`, and whether it was cut to `MAX_STRING_LEN`:
+/// input 0 the format, 2 the argument count `n`, `3..3+n` their kinds (`FMT_*`), then their values
+/// (a bool as a lane mask, a string a handle), as the interpreter passes them to `shadeops::format`
+/// (a bool is the float 0 or 1), then the call's site.
+fn format_lane(cx: &Cx<'_>, l: usize) -> (String, bool) {
     enum A {
         F(f32),
         T(V3),
@@ -1485,7 +1514,7 @@ fn format_lane(cx: &Cx<'_>, l: usize) -> String {
             A::S(s) => FormatArg::Str(s),
         })
         .collect();
-    format::format(cx.str_lane(0, l), &args)
+    format::format_cut(cx.str_lane(0, l), &args)
 }
 
 /// The most channels one texture lookup returns (a colour and its alpha).

@@ -41,6 +41,7 @@ pub use host::{
 pub use layout::{GlobalSlot, Layout, ParamSlot};
 
 use crate::ir;
+use crate::shadeops::format;
 use cranelift_codegen::ir::{AbiParam, UserFuncName};
 use cranelift_codegen::settings::{self, Configurable};
 use cranelift_jit::{JITBuilder, JITModule};
@@ -260,6 +261,13 @@ impl CompiledShader {
                     )
                 } else if kind == lower::RUNTIME_UNSUPPORTED {
                     format!("{at} is not supported by rtsl (no point clouds or photon maps): it returned 0")
+                } else if kind == lower::RUNTIME_STRING_CUT {
+                    format!("a string made at {at} was longer than {} bytes and was cut", format::MAX_STRING_LEN)
+                } else if kind == lower::RUNTIME_STRINGS_FULL {
+                    format!(
+                        "a string made at {at} was left empty: the batch's strings took more than {} bytes",
+                        format::STRING_BYTES_BUDGET
+                    )
                 } else {
                     format!("an array index at {at} was out of range and was clamped")
                 }

@@ -150,6 +150,10 @@ struct Targets {
 pub(super) const RUNTIME_LOOP_BUDGET: u32 = 0;
 pub(super) const RUNTIME_INDEX: u32 = 1;
 pub(super) const RUNTIME_UNSUPPORTED: u32 = 2;
+/// A string `concat`, `format` or `printf` made was cut to `shadeops::format::MAX_STRING_LEN`.
+pub(super) const RUNTIME_STRING_CUT: u32 = 3;
+/// A string was left empty: the batch's strings passed `shadeops::format::STRING_BYTES_BUDGET`.
+pub(super) const RUNTIME_STRINGS_FULL: u32 = 4;
 
 fn mem() -> MemFlagsData {
     MemFlagsData::trusted()

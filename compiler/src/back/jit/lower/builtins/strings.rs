@@ -138,13 +138,15 @@ impl<'m> Lower<'m, '_> {
         let vals = &call.vals;
         let v = |i: usize| vals[i].clone();
         let r = match bi {
+            Bi::Concat if vals.len() < 2 => v(0),
             Bi::Concat => {
-                // Each lane's strings (a varying call interns a result per lane).
-                let mut acc = v(0);
-                for x in &vals[1..] {
-                    acc = self.call_helper_on("rtsl_h_concat", &[acc, x.clone()], false)?;
-                }
-                acc
+                // Each lane's strings at once (a varying call interns a result per lane), so that
+                // only the whole is cut and counted, as in the interpreter.
+                let site = self.site(call.e.span) as f32;
+                let mut parts = vec![self.fconst(site, false), self.fconst((2 + vals.len()) as f32, false)];
+                parts.extend(vals.iter().map(|x| x.c[0]));
+                let vary = vals.iter().any(|x| x.vary);
+                Val { vary, c: self.call_helper("rtsl_h_concat", &parts, vary)? }
             }
             Bi::Match => self.call_helper_on("rtsl_h_match", &[v(0), v(1)], false)?,
             Bi::Format | Bi::Printf => {
@@ -169,7 +171,7 @@ impl<'m> Lower<'m, '_> {
                 }
                 let data: usize = vals[1..].iter().map(|x| x.c.len()).sum();
                 let mut header = vec![v(0).c[0]];
-                header.push(self.fconst((3 + kinds.len() + data) as f32, false));
+                header.push(self.fconst((3 + kinds.len() + data + 1) as f32, false));
                 header.push(self.fconst(kinds.len() as f32, false));
                 for k in &kinds {
                     header.push(self.fconst(*k as f32, false));
@@ -178,6 +180,8 @@ impl<'m> Lower<'m, '_> {
                 for x in &vals[1..] {
                     inputs.extend(x.c.iter().copied());
                 }
+                let site = self.site(call.e.span) as f32;
+                inputs.push(self.fconst(site, false));
                 if printf {
                     self.call_helper("rtsl_h_printf", &inputs, true)?;
                     Val { vary: false, c: Vec::new() }
