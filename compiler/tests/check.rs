@@ -90,3 +90,29 @@ fn every_diagnostic_code_is_documented() {
     let docs = std::fs::read_to_string(&path).unwrap_or_default();
     assert_eq!(docs, text, "docs/diagnostics.md is out of date: run with RTSL_BLESS=1");
 }
+
+/// Six functions, each nesting 390 levels deep and calling the next at its innermost level: each
+/// is within the checker's nesting limit, but inlined they nest 2,340 levels, which overflowed the
+/// stack of the back ends that recurse over blocks. The checker refuses it at the call.
+#[test]
+fn nesting_that_adds_up_along_a_chain_of_calls_is_refused() {
+    let depth = 390;
+    let mut src = String::from("float f0(float x) { return x; }\n");
+    for i in 1..6 {
+        src += &format!("float f{i}(float x) {{ float r = x;\n");
+        src += &"if (x > 0) {\n".repeat(depth);
+        src += &format!("r = f{}(x);\n", i - 1);
+        src += &"}\n".repeat(depth);
+        src += "return r; }\n";
+    }
+    src += "surface s() { Ci = f5(s); }\n";
+    let c = rtsl_compiler::compile_source("chain.sl", &src, &Options::default());
+    assert!(c.module.is_none(), "refused");
+    let e = c.diagnostics.iter().find(|d| d.code == Code::InlineBudget).expect("E0137");
+    let shown = e.one_line(&c.sources);
+    assert!(shown.contains("`f5`") && shown.contains("past the limit of 512"), "{shown}");
+    // A short chain of the same functions is fine.
+    let short = src.replace("Ci = f5(s)", "Ci = f1(s)");
+    let c = rtsl_compiler::compile_source("short.sl", &short, &Options::default());
+    assert!(c.module.is_some(), "{}", c.render());
+}

@@ -437,6 +437,12 @@ pub fn within_budgets(m: &Module) -> Result<(), String> {
     if let Some(size) = sizes.get(shader.body.0 as usize).filter(|n| **n > INLINE_BUDGET) {
         return Err(format!("the shader inlines to {size} IR nodes, over the budget of {INLINE_BUDGET}"));
     }
+    if let Some(depth) = inlined_nesting(m).get(shader.body.0 as usize).filter(|d| **d > MAX_INLINED_NESTING) {
+        return Err(format!(
+            "the shader's blocks nest {depth} levels deep once calls are inlined, over the limit of \
+             {MAX_INLINED_NESTING}"
+        ));
+    }
     let measure = storage::measure(m);
     match storage::describe(m, &measure) {
         Some(why) => Err(why),
@@ -444,15 +450,63 @@ pub fn within_budgets(m: &Module) -> Result<(), String> {
     }
 }
 
+/// The most levels a shader's blocks may nest once every call is inlined, counted as if each call
+/// sat at its caller's deepest level (an upper bound, so that no walk over the call graph's
+/// nesting is needed). Each function nests at most 400 levels (`front::check::MAX_NESTING`), but
+/// a call inside a deeply nested block inlines another deeply nested body there, and the JIT and
+/// the interpreter recurse over the nesting they are given; this keeps them within the stack
+/// [`MAX_DECODED_NESTING`] is chosen for. Real shaders nest a few levels a function.
+pub const MAX_INLINED_NESTING: u32 = MAX_DECODED_NESTING;
+
+/// How deep a block of `b` nests, `b` counting as one.
+pub fn block_depth(b: &Block) -> u32 {
+    1 + b
+        .stmts
+        .iter()
+        .map(|s| match &s.kind {
+            StmtKind::If { then: x, otherwise: y, .. }
+            | StmtKind::Loop { body: x, step: y, .. }
+            | StmtKind::Gather { body: x, otherwise: y, .. } => block_depth(x).max(block_depth(y)),
+            StmtKind::Illuminance { body, .. } | StmtKind::Illuminate { body, .. } | StmtKind::Solar { body, .. } => {
+                block_depth(body)
+            }
+            _ => 0,
+        })
+        .max()
+        .unwrap_or(0)
+}
+
+/// Each function's block nesting once every call in it is inlined, as [`MAX_INLINED_NESTING`]
+/// counts it: its own depth plus its deepest callee's (saturating).
+pub fn inlined_nesting(m: &Module) -> Vec<u32> {
+    over_call_graph(m, |f| u64::from(block_depth(&f.body)), |total, callee| total.max(callee), |own, callees| {
+        own.saturating_add(callees)
+    })
+    .into_iter()
+    .map(|d| u32::try_from(d).unwrap_or(u32::MAX))
+    .collect()
+}
+
 /// Each function's size once every call in it is inlined: its own expressions and statements plus,
-/// at each call site, the callee's inlined size. Memoised over the call graph, so it costs linear
-/// time however large the sizes are; sizes saturate rather than overflow, and a call cycle (which
-/// valid IR never has) or a call to a missing function counts nothing for the call.
+/// at each call site, the callee's inlined size (saturating).
 pub fn inlined_sizes(m: &Module) -> Vec<u64> {
+    over_call_graph(m, own_size, u64::saturating_add, u64::saturating_add)
+}
+
+/// A value per function folded over the call graph: `own` of the function, joined by `with` to
+/// the fold (by `each`, from 0) of its callees' values at every call site. Memoised, so it costs
+/// linear time however large the values are; a call cycle (which valid IR never has) or a call to
+/// a missing function counts nothing for the call.
+fn over_call_graph(
+    m: &Module,
+    own: impl Fn(&Function) -> u64,
+    each: impl Fn(u64, u64) -> u64,
+    with: impl Fn(u64, u64) -> u64,
+) -> Vec<u64> {
     let n = m.functions.len();
     // 0: not started, 1: in progress, 2: done.
     let mut state = vec![0u8; n];
-    let mut size = vec![0u64; n];
+    let mut value = vec![0u64; n];
     for root in 0..n {
         if state[root] != 0 {
             continue;
@@ -476,20 +530,20 @@ pub fn inlined_sizes(m: &Module) -> Vec<u64> {
                 continue;
             }
             let func = &m.functions[f];
-            let mut total = own_size(func);
+            let mut callees = 0u64;
             for e in &func.exprs {
                 if let ExprKind::Call { func: callee, .. } = e.kind {
                     if state.get(callee.0 as usize) == Some(&2) {
-                        total = total.saturating_add(size[callee.0 as usize]);
+                        callees = each(callees, value[callee.0 as usize]);
                     }
                 }
             }
-            size[f] = total;
+            value[f] = with(own(func), callees);
             state[f] = 2;
             stack.pop();
         }
     }
-    size
+    value
 }
 
 /// A function's own expressions and statements, calls not inlined.

@@ -195,7 +195,10 @@ pub fn check(unit: &ast::TranslationUnit, interner: &Interner, diags: &mut Diagn
     // the rest.
     let functions = prune(functions, &needed, shader.as_mut());
     let module = Module { shader, functions };
-    if !within_inline_budget(&module, c.diags) || !within_measured_budgets(&module, c.diags) {
+    if !within_inline_budget(&module, c.diags)
+        || !within_inlined_nesting(&module, c.diags)
+        || !within_measured_budgets(&module, c.diags)
+    {
         return Checked { module: None };
     }
     Checked { module: Some(module) }
@@ -244,6 +247,53 @@ fn within_inline_budget(m: &Module, diags: &mut Diagnostics) -> bool {
         shader.span,
         format!("the shader is larger than the limit of {} IR nodes", ir::INLINE_BUDGET),
     ));
+    false
+}
+
+/// Calls inline their callees' blocks inside the caller's, so nesting adds up along a call chain;
+/// past [`ir::MAX_INLINED_NESTING`] the shader is refused (E0137) at the body's first call that
+/// takes it over, rather than overflowing the stack of the back ends that recurse over blocks.
+fn within_inlined_nesting(m: &Module, diags: &mut Diagnostics) -> bool {
+    let Some(shader) = &m.shader else { return true };
+    let depths = ir::inlined_nesting(m);
+    let body_id = shader.body.0 as usize;
+    if depths.get(body_id).is_none_or(|d| *d <= ir::MAX_INLINED_NESTING) {
+        return true;
+    }
+    let body = &m.functions[body_id];
+    let own = ir::block_depth(&body.body);
+    let over = body.exprs.iter().find_map(|e| match e.kind {
+        ir::ExprKind::Call { func, .. } => {
+            let callee = depths.get(func.0 as usize).copied().unwrap_or(0);
+            (own.saturating_add(callee) > ir::MAX_INLINED_NESTING).then_some((e.span, func, callee))
+        }
+        _ => None,
+    });
+    let limit = ir::MAX_INLINED_NESTING;
+    let d = match over {
+        Some((span, func, callee)) => {
+            let name = m.functions.get(func.0 as usize).map_or("?", |f| f.name.as_str());
+            Diagnostic::new(
+                Code::InlineBudget,
+                span,
+                format!(
+                    "the shader nests too deeply once its function calls are inlined: `{name}` and what it \
+                     calls nest {callee} levels, inside a body {own} deep, past the limit of {limit}"
+                ),
+            )
+            .with_label("takes the shader over the limit")
+            .with_note(
+                "a call is compiled as a copy of the callee's body where the call is, so nesting adds up \
+                 along a chain of calls",
+            )
+        }
+        None => Diagnostic::new(
+            Code::InlineBudget,
+            shader.span,
+            format!("the shader nests deeper than the limit of {limit} levels once its calls are inlined"),
+        ),
+    };
+    diags.push(d);
     false
 }
 
