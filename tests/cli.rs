@@ -724,6 +724,24 @@ fn an_unsupported_output_format_is_refused_before_rendering() {
 }
 
 #[test]
+fn transfer_chooses_how_8_bit_images_encode_colour() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    write(dir.path(), "s.rib", &SPHERE_RIB.replace("Surface \"plastic\"", "Color [0.2 0.2 0.2] Surface \"constant\""));
+    let centre = |args: &[&str]| {
+        let o = rtsl(&[&["render", "s.rib", "-o", "out.png", "-q"], args].concat(), dir.path());
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        rtsl_runtime::read_image(dir.path().join("out.png")).expect("the image").pixel(16, 16)[0]
+    };
+    // Linear 0.2 is stored as 51/255; sRGB-encoded, 124/255.
+    assert_eq!((centre(&[]) * 255.0).round(), 124.0);
+    assert_eq!((centre(&["--transfer", "srgb"]) * 255.0).round(), 124.0);
+    assert_eq!((centre(&["--transfer", "linear"]) * 255.0).round(), 51.0);
+    let o = rtsl(&["render", "s.rib", "--transfer", "gamma"], dir.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("is not a transfer: srgb or linear"), "{}", stderr(&o));
+}
+
+#[test]
 fn a_render_missing_part_of_its_scene_fails_unless_told_to_keep_going() {
     let dir = tempfile::tempdir().expect("tempdir");
     let missing = [
