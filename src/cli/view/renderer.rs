@@ -20,7 +20,7 @@ use rtsl_runtime::render::progressive::{
     frameless_order, pass_lattices, trace_lattices_keeping, Accumulator, BatchReport, LatticeSamples, PixelLattice,
 };
 use rtsl_runtime::render::{camera_ray, Antialiasing, LightPathCache, World};
-use rtsl_runtime::ByteTable;
+use rtsl_runtime::{ByteTable, Transfer};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, TryRecvError};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -130,6 +130,8 @@ impl std::fmt::Display for Summary {
 
 /// The render thread's state.
 pub struct Renderer {
+    /// The window's encoding table and the transfer it is for, made once rather than per frame.
+    display: Option<(Transfer, ByteTable)>,
     rt: Context,
     world: Option<World>,
     reloader: Option<ShaderReloader>,
@@ -264,6 +266,7 @@ impl Renderer {
             nav,
             home: nav,
             acc: Accumulator::new(w, h),
+            display: None,
             light_paths: LightPathCache::default(),
             frameless,
             still_limit: still_limit.clamp(1, MAX_PASSES),
@@ -595,10 +598,14 @@ impl Renderer {
             self.rate = (f64::from(self.window.2) / secs, self.window.1 as f64 / secs / 1e6);
             self.window = (now, 0, 0);
         }
+        let transfer = self.world().options.transfer();
+        if self.display.as_ref().is_none_or(|(t, _)| *t != transfer) {
+            self.display = Some((transfer, transfer.byte_table()));
+        }
         let world = self.world();
         let image = self.acc.resolve(world);
-        let table = world.options.transfer().byte_table();
-        let pixels = image.rgba.chunks_exact(4).map(|c| pack(&table, [c[0], c[1], c[2], c[3]])).collect();
+        let table = self.display.as_ref().map(|(_, table)| table).expect("made above");
+        let pixels = image.rgba.chunks_exact(4).map(|c| pack(table, [c[0], c[1], c[2], c[3]])).collect();
         let (w, h) = self.size();
         let still_passes = if self.frameless { self.still_sweeps } else { self.pass };
         let mode = if self.frameless {
