@@ -603,3 +603,251 @@ fn a_polygon_too_large_to_ear_clip_is_fanned_with_a_warning() {
     assert_eq!(mesh.triangle_count(), 64 + 4, "the ring around its hole");
     assert!(diagnostics.is_empty(), "{diagnostics:?}");
 }
+
+/// The requests of a parse without their locations, for comparing two encodings of one scene.
+fn kinds_of(parsed: &RibParse) -> Vec<String> {
+    let without_locations = |text: String| {
+        text.split("loc: Location {")
+            .enumerate()
+            .map(|(i, part)| if i == 0 { part } else { part.split_once('}').map_or(part, |(_, rest)| rest) })
+            .collect::<String>()
+    };
+    parsed.requests.iter().map(|r| without_locations(format!("{:?}", r.kind))).collect()
+}
+
+/// A small binary RIB writer (RISpec 3.2 appendix C.2), written from the specification's table.
+#[derive(Default)]
+struct BinaryRib {
+    bytes: Vec<u8>,
+    requests: Vec<String>,
+}
+
+impl BinaryRib {
+    fn request(&mut self, name: &str) -> &mut Self {
+        let code = match self.requests.iter().position(|r| r == name) {
+            Some(code) => code,
+            None => {
+                self.requests.push(name.to_string());
+                let code = self.requests.len() - 1;
+                self.bytes.extend([0o314, code as u8]);
+                self.string(name);
+                code
+            }
+        };
+        self.bytes.extend([0o246, code as u8]);
+        self
+    }
+
+    fn string(&mut self, s: &str) -> &mut Self {
+        if s.len() < 16 {
+            self.bytes.push(0o220 + s.len() as u8);
+        } else {
+            self.bytes.extend([0o240 + 1, (s.len() >> 8) as u8, s.len() as u8]);
+        }
+        self.bytes.extend(s.as_bytes());
+        self
+    }
+
+    fn int(&mut self, v: i32) -> &mut Self {
+        if (0..256).contains(&v) {
+            self.bytes.extend([0o200, v as u8]);
+        } else {
+            self.bytes.push(0o203);
+            self.bytes.extend(v.to_be_bytes());
+        }
+        self
+    }
+
+    fn float(&mut self, v: f32) -> &mut Self {
+        self.bytes.push(0o244);
+        self.bytes.extend(v.to_be_bytes());
+        self
+    }
+
+    fn double(&mut self, v: f64) -> &mut Self {
+        self.bytes.push(0o245);
+        self.bytes.extend(v.to_be_bytes());
+        self
+    }
+
+    /// `bytes` of fixed point with the radix point `d` bytes from the right.
+    fn fixed(&mut self, d: u8, bytes: &[u8]) -> &mut Self {
+        self.bytes.push(0o200 + 4 * d + (bytes.len() as u8 - 1));
+        self.bytes.extend(bytes);
+        self
+    }
+
+    fn floats(&mut self, v: &[f32]) -> &mut Self {
+        self.bytes.extend([0o311, (v.len() >> 8) as u8, v.len() as u8]);
+        for x in v {
+            self.bytes.extend(x.to_be_bytes());
+        }
+        self
+    }
+
+    fn define_string(&mut self, code: u8, s: &str) -> &mut Self {
+        self.bytes.extend([0o315, code]);
+        self.string(s)
+    }
+
+    fn defined_string(&mut self, code: u8) -> &mut Self {
+        self.bytes.extend([0o317, code]);
+        self
+    }
+
+    fn ascii(&mut self, text: &str) -> &mut Self {
+        self.bytes.extend(text.as_bytes());
+        self
+    }
+}
+
+#[test]
+fn binary_rib_reads_as_its_ascii_equivalent() {
+    let ascii = "Format 320 240 1\n\
+                 Projection \"perspective\" \"fov\" [45]\n\
+                 Translate 0 -1.5 5.25\n\
+                 WorldBegin\n\
+                 Surface \"plastic\" \"Kd\" [0.5]\n\
+                 Polygon \"P\" [0 0 0 1 0 0 1 1 0]\n\
+                 Sphere 1 -1 1 360\n\
+                 PointsPolygons [3] [0 1 2] \"P\" [0 0 0 1 0 0 1 1 0]\n\
+                 Attribute \"identifier\" \"name\" [\"a rather long object name\"]\n\
+                 WorldEnd\n";
+    let mut b = BinaryRib::default();
+    b.request("Format").int(320).int(240).int(1);
+    b.request("Projection").string("perspective").string("fov").floats(&[45.0]);
+    // 0 as a 1-byte integer, -1.5 as a float, 5.25 as fixed point 5 + 64/256.
+    b.request("Translate").int(0).float(-1.5).fixed(1, &[5, 64]);
+    b.request("WorldBegin");
+    // The shader name by a defined string, its parameter as a double in an ASCII array.
+    b.define_string(7, "plastic").request("Surface").defined_string(7).string("Kd").ascii("[").double(0.5).ascii("]");
+    b.request("Polygon").string("P").floats(&[0., 0., 0., 1., 0., 0., 1., 1., 0.]);
+    // ASCII and binary tokens mix in one stream.
+    b.ascii("\nSphere 1 -1 1 360\n");
+    b.request("PointsPolygons").ascii("[").int(3).ascii("]").ascii("[0 1 2]");
+    b.string("P").floats(&[0., 0., 0., 1., 0., 0., 1., 1., 0.]);
+    b.request("Attribute").string("identifier").string("name").ascii("[").string("a rather long object name");
+    b.ascii("]").request("WorldEnd");
+    let binary = rib::parse_bytes(&b.bytes, Path::new("scene.rib"));
+    let text = parse(ascii);
+    assert!(binary.diagnostics.is_empty(), "{:?}", binary.diagnostics);
+    assert!(text.diagnostics.is_empty(), "{:?}", text.diagnostics);
+    assert_eq!(kinds_of(&binary), kinds_of(&text));
+
+    // A negative 4-byte integer is two's complement; an empty float array is `[]`.
+    let mut b = BinaryRib::default();
+    b.request("Sides").int(-2).request("Polygon").string("P").floats(&[]);
+    let parsed = rib::parse_bytes(&b.bytes, Path::new("scene.rib"));
+    assert!(matches!(parsed.requests[0].kind, K::Sides(-2)), "{:?}", parsed.requests);
+}
+
+#[test]
+fn bad_binary_rib_is_reported_not_trusted() {
+    let parse_binary = |bytes: &[u8]| rib::parse_bytes(bytes, Path::new("scene.rib"));
+    // An undefined request code, a reserved byte, a truncated float, an array longer than the file.
+    for (bytes, message) in [
+        (&[0o246u8, 9][..], "undefined request"),
+        (&[0o250u8][..], "reserved binary RIB byte 0xa8"),
+        (&[0o244u8, 1, 2][..], "ends inside a token"),
+        (&[0o313u8, 0xFF, 0xFF, 0xFF, 0xFF][..], "longer than the rest of the file"),
+        (&[0o317u8, 3][..], "undefined string"),
+    ] {
+        let parsed = parse_binary(bytes);
+        assert!(parsed.requests.is_empty());
+        assert!(parsed.diagnostics.iter().any(|d| d.message.contains(message)), "{message}: {:?}", parsed.diagnostics);
+    }
+    // References to a long defined string cannot expand past the budget.
+    let mut b = BinaryRib::default();
+    let long = "x".repeat(60_000);
+    b.define_string(1, &long).request("Surface");
+    for _ in 0..(rib::lex::MAX_ENCODED_EXPANSION / long.len() + 2) {
+        b.defined_string(1);
+    }
+    let parsed = parse_binary(&b.bytes);
+    assert!(parsed.diagnostics.iter().any(|d| d.message.contains("expand to more than")), "{:?}", parsed.diagnostics);
+}
+
+#[test]
+fn gzip_rib_is_read_by_its_content() {
+    use std::io::Write;
+    let text = "WorldBegin\nSphere 1 -1 1 360\nBogus\nWorldEnd\n";
+    let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
+    gz.write_all(text.as_bytes()).unwrap();
+    let bytes = gz.finish().unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    // No `.gz` name needed, and an archive may be compressed too.
+    std::fs::write(dir.path().join("part.rib"), &bytes).unwrap();
+    std::fs::write(dir.path().join("main.rib"), "ReadArchive \"part.rib\"\n").unwrap();
+    let parsed = rib::parse_file(dir.path().join("main.rib")).unwrap();
+    assert_eq!(kinds_of(&parsed), kinds_of(&parse(text)));
+    // Locations are lines of the inflated text.
+    assert_eq!(parsed.diagnostics.len(), 1);
+    assert!(parsed.diagnostics[0].to_string().ends_with("part.rib:3:1: warning: unknown request `Bogus` skipped"));
+
+    let mut truncated = bytes.clone();
+    truncated.truncate(bytes.len() / 2);
+    let parsed = rib::parse_bytes(&truncated, Path::new("cut.rib"));
+    assert!(parsed.requests.is_empty());
+    assert!(parsed.diagnostics[0].to_string().starts_with("cut.rib:1:1: error: cannot decompress gzip RIB"));
+}
+
+#[test]
+fn inline_archives_are_kept_by_name_and_read_where_asked() {
+    let parsed = parse(
+        "ArchiveBegin \"ball\" \"string note\" \"unused\"\n\
+         Sphere 1 -1 1 360\n\
+         ArchiveEnd\n\
+         WorldBegin\n\
+         ReadArchive \"ball\"\n\
+         Translate 1 0 0\n\
+         ReadArchive \"ball\"\n\
+         WorldEnd\n",
+    );
+    assert!(parsed.diagnostics.is_empty(), "{:?}", parsed.diagnostics);
+    let kinds: Vec<&K> = parsed.requests.iter().map(|r| &r.kind).collect();
+    assert!(matches!(kinds[..], [K::WorldBegin, K::Quadric { .. }, K::Translate(_), K::Quadric { .. }, K::WorldEnd]));
+    // A copy keeps the location of the definition.
+    assert_eq!(parsed.requests[3].loc.line, 2);
+
+    let stray = parse("ArchiveEnd\nArchiveBegin \"open\"\nSphere 1 -1 1 360\nReadArchive \"open\"\n");
+    assert_eq!(messages(&stray)[0], "scene.rib:1:1: error: `ArchiveEnd` without `ArchiveBegin`");
+    // Read before its end, the archive was not yet defined: it is looked for as a file.
+    assert!(messages(&stray)[1].contains("cannot read archive \"open\""), "{:?}", messages(&stray));
+    assert!(messages(&stray)[2].contains("has no `ArchiveEnd`"), "{:?}", messages(&stray));
+}
+
+#[test]
+fn inline_archives_cannot_expand_exponentially() {
+    let mut text = String::from("ArchiveBegin \"a0\"\nPolygon \"P\" [0 0 0 1 0 0 1 1 0]\nArchiveEnd\n");
+    for k in 1..48 {
+        text += &format!("ArchiveBegin \"a{k}\"\nReadArchive \"a{0}\"\nReadArchive \"a{0}\"\nArchiveEnd\n", k - 1);
+    }
+    text += "ReadArchive \"a47\"\n";
+    let parsed = parse(&text);
+    assert!(parsed.requests.len() < rib::INLINE_ARCHIVE_BUDGET, "{}", parsed.requests.len());
+    assert!(messages(&parsed).iter().any(|m| m.contains("inline archives expand past their budget")));
+}
+
+#[test]
+fn relative_archives_follow_the_archive_search_path_first() {
+    let dir = tempfile::tempdir().unwrap();
+    for sub in ["lib", "scene"] {
+        std::fs::create_dir(dir.path().join(sub)).unwrap();
+    }
+    std::fs::write(dir.path().join("lib/part.rib"), "Sphere 1 -1 1 360\n").unwrap();
+    std::fs::write(dir.path().join("scene/part.rib"), "Disk 0 1 360\n").unwrap();
+    let main = dir.path().join("scene/main.rib");
+    std::fs::write(
+        &main,
+        "ReadArchive \"part.rib\"\nOption \"searchpath\" \"archive\" \"../lib:&\"\nReadArchive \"part.rib\"\n",
+    )
+    .unwrap();
+    let parsed = rib::parse_file(&main).unwrap();
+    assert!(parsed.diagnostics.is_empty(), "{:?}", parsed.diagnostics);
+    let quadrics: Vec<&Quadric> = parsed
+        .requests
+        .iter()
+        .filter_map(|r| if let K::Quadric { quadric, .. } = &r.kind { Some(quadric) } else { None })
+        .collect();
+    assert!(matches!(quadrics[..], [Quadric::Disk { .. }, Quadric::Sphere { .. }]), "{quadrics:?}");
+}

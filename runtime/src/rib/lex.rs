@@ -1,10 +1,17 @@
-//! The ASCII RIB tokenizer: request names, numbers, strings, `[` and `]`, with `#` comments
-//! skipped.
+//! The RIB tokenizer: request names, numbers, strings, `[` and `]`, with `#` comments skipped,
+//! in ASCII and in the binary encoding of RISpec 3.2 appendix C.2, which may be mixed in one
+//! stream (every byte from 0x80 up starts a binary token).
 //!
 //! Invariants: tokenizing never fails and never panics, whatever the bytes. Text that is not a
-//! token becomes one [`TokenKind::Error`] token (a run of bad bytes is one token, so binary RIB
-//! or a stray byte does not flood the diagnostics). Every token carries the 1-based line and
-//! column (in characters) of its first byte. Numbers are finite as `f32`.
+//! token becomes one [`TokenKind::Error`] token (a run of bad bytes is one token, so a stray byte
+//! does not flood the diagnostics). Every token carries the 1-based line and column (in
+//! characters) of its first byte; the bytes of a binary token's payload advance the column only,
+//! never the line. Numbers are finite as `f32`. Binary tokens expand to no more than their input
+//! allows: a float array's length is checked against the bytes left, and the text that encoded
+//! string and request references expand to is bounded by [`MAX_ENCODED_EXPANSION`].
+//!
+//! Binary integers follow the writers that produce them (Aqsis's RIB writer, for one): 1 to 3
+//! bytes are unsigned, 4 bytes are a two's-complement `int32`; fixed-point numbers are unsigned.
 //!
 //! Hand-written rather than logos: string escapes, the error tokens and line/column tracking are
 //! simpler to state directly than as a generated automaton with callbacks.
@@ -37,9 +44,27 @@ pub struct Token {
     pub column: u32,
 }
 
+/// The most bytes of text that references to encoded strings and requests (binary RIB) may
+/// expand to in one stream, beyond the stream's own length: a three-byte reference can name a
+/// long string, and a file of references would otherwise ask for far more memory than it holds.
+pub const MAX_ENCODED_EXPANSION: usize = 1 << 26;
+
+/// The longest request name a binary stream may define (the longest RISpec name is 24 bytes).
+const MAX_ENCODED_REQUEST_NAME: usize = 64;
+
 /// Splits RIB text into tokens.
 pub fn tokenize(text: &[u8]) -> Vec<Token> {
-    let mut lexer = Lexer { text, pos: 0, line: 1, column: 1 };
+    let mut lexer = Lexer {
+        text,
+        pos: 0,
+        line: 1,
+        column: 1,
+        requests: vec![None; 256],
+        strings: std::collections::HashMap::new(),
+        expansion_left: MAX_ENCODED_EXPANSION,
+        floats_left: 0,
+        array_open: false,
+    };
     let mut tokens = Vec::new();
     while let Some(token) = lexer.next_token() {
         tokens.push(token);
@@ -52,6 +77,16 @@ struct Lexer<'a> {
     pos: usize,
     line: u32,
     column: u32,
+    /// Binary RIB: request names defined by `0314 code name`.
+    requests: Vec<Option<String>>,
+    /// Binary RIB: strings defined by `0315+w code string`.
+    strings: std::collections::HashMap<u32, String>,
+    /// Bytes that references to defined strings and requests may still expand to.
+    expansion_left: usize,
+    /// Elements of a binary float array (`0310+l`) still to read.
+    floats_left: usize,
+    /// Whether a binary float array's `]` is still to come (after `floats_left` elements).
+    array_open: bool,
 }
 
 fn is_name_start(b: u8) -> bool {
@@ -65,10 +100,11 @@ fn is_name_continue(b: u8) -> bool {
 /// Bytes that can never start a token: anything other than whitespace, `#`, `"`, brackets,
 /// names and numbers.
 fn is_junk(b: u8) -> bool {
-    !(b.is_ascii_whitespace()
-        || matches!(b, b'#' | b'"' | b'[' | b']' | b'-' | b'+' | b'.')
-        || b.is_ascii_digit()
-        || is_name_start(b))
+    b < 0x80
+        && !(b.is_ascii_whitespace()
+            || matches!(b, b'#' | b'"' | b'[' | b']' | b'-' | b'+' | b'.')
+            || b.is_ascii_digit()
+            || is_name_start(b))
 }
 
 impl Lexer<'_> {
@@ -113,10 +149,29 @@ impl Lexer<'_> {
     }
 
     fn next_token(&mut self) -> Option<Token> {
+        if self.floats_left > 0 {
+            self.floats_left -= 1;
+            let (line, column) = (self.line, self.column);
+            let kind = match self.binary_bytes(4) {
+                Some(v) => finite(f64::from(f32::from_bits(v as u32))),
+                None => TokenKind::Error("binary float array ends early".into()),
+            };
+            return Some(Token { kind, line, column });
+        }
+        if self.array_open {
+            // A binary float array's `]` comes after its last element.
+            self.array_open = false;
+            return Some(Token { kind: TokenKind::CloseBracket, line: self.line, column: self.column });
+        }
         self.skip_trivia();
         let (line, column) = (self.line, self.column);
         let b = self.peek()?;
         let kind = match b {
+            0x80..=0xFF => match self.binary_token() {
+                Some(kind) => kind,
+                // A definition: it makes no token of its own.
+                None => return self.next_token_after_definition(),
+            },
             b'[' => {
                 self.bump();
                 TokenKind::OpenBracket
@@ -141,13 +196,191 @@ impl Lexer<'_> {
                 let message = if b.is_ascii_graphic() {
                     format!("unexpected character `{}`", b as char)
                 } else {
-                    // Bytes outside printable ASCII: binary RIB or a corrupt file.
-                    format!("unexpected byte 0x{b:02x} (only ASCII RIB is read)")
+                    format!("unexpected byte 0x{b:02x}")
                 };
                 TokenKind::Error(message)
             }
         };
         Some(Token { kind, line, column })
+    }
+
+    /// The token after a binary definition (`0314`, `0315`, `0316`), iteratively: a file of
+    /// definitions must not recurse once per definition.
+    fn next_token_after_definition(&mut self) -> Option<Token> {
+        loop {
+            self.skip_trivia();
+            let (line, column) = (self.line, self.column);
+            let b = self.peek()?;
+            if b < 0x80 {
+                return self.next_token();
+            }
+            if let Some(kind) = self.binary_token() {
+                return Some(Token { kind, line, column });
+            }
+        }
+    }
+
+    /// `n` (1 to 8) payload bytes of a binary token, most significant first; `None` (and the rest of
+    /// the input consumed) when fewer are left.
+    fn binary_bytes(&mut self, n: usize) -> Option<u64> {
+        let Some(bytes) = self.text.get(self.pos..self.pos + n) else {
+            self.column = self.column.saturating_add((self.text.len() - self.pos) as u32);
+            self.pos = self.text.len();
+            return None;
+        };
+        self.pos += n;
+        self.column = self.column.saturating_add(n as u32);
+        Some(bytes.iter().fold(0u64, |v, &b| (v << 8) | u64::from(b)))
+    }
+
+    /// `n` payload bytes as text (binary strings carry no escapes).
+    fn binary_text(&mut self, n: usize) -> Option<String> {
+        let bytes = self.text.get(self.pos..self.pos.checked_add(n)?)?;
+        self.pos += n;
+        self.column = self.column.saturating_add(n as u32);
+        Some(String::from_utf8_lossy(bytes).into_owned())
+    }
+
+    /// Expands a reference to defined text, within the stream's expansion budget.
+    fn expand(&mut self, text: Option<String>, what: &str) -> TokenKind {
+        match text {
+            None => TokenKind::Error(format!("binary RIB refers to an undefined {what}")),
+            Some(text) if text.len() > self.expansion_left => TokenKind::Error(format!(
+                "binary RIB references expand to more than {MAX_ENCODED_EXPANSION} bytes of text"
+            )),
+            Some(text) => {
+                self.expansion_left -= text.len();
+                if what == "request" {
+                    TokenKind::Name(text)
+                } else {
+                    TokenKind::Str(text)
+                }
+            }
+        }
+    }
+
+    /// One binary token (RISpec 3.2 appendix C.2); its first byte, 0x80 or above, is next.
+    /// `None` for a definition, which makes no token.
+    fn binary_token(&mut self) -> Option<TokenKind> {
+        let ends_early = || Some(TokenKind::Error("binary RIB ends inside a token".into()));
+        let code = self.peek()?;
+        self.pos += 1;
+        self.column = self.column.saturating_add(1);
+        let kind = match code {
+            // Integers: 0200 + w, then w + 1 bytes.
+            0x80..=0x83 => {
+                let width = usize::from(code - 0x80) + 1;
+                let Some(v) = self.binary_bytes(width) else { return ends_early() };
+                let v = if width == 4 { f64::from(v as u32 as i32) } else { v as f64 };
+                TokenKind::Number(v)
+            }
+            // Fixed point: 0200 + 4d + w, then w + 1 bytes with the radix point d bytes from the
+            // right.
+            0x84..=0x8F => {
+                let width = usize::from(code & 3) + 1;
+                let radix = u32::from((code >> 2) & 3);
+                let Some(v) = self.binary_bytes(width) else { return ends_early() };
+                TokenKind::Number(v as f64 / f64::from(1u32 << (8 * radix)))
+            }
+            // Short strings: 0220 + w, then w bytes.
+            0x90..=0x9F => match self.binary_text(usize::from(code - 0x90)) {
+                Some(text) => TokenKind::Str(text),
+                None => return self.binary_end(),
+            },
+            // Strings: 0240 + l, an l + 1 byte length, the bytes.
+            0xA0..=0xA3 => {
+                let Some(len) = self.binary_bytes(usize::from(code - 0xA0) + 1) else { return ends_early() };
+                match self.binary_text(len as usize) {
+                    Some(text) => TokenKind::Str(text),
+                    None => return self.binary_end(),
+                }
+            }
+            0xA4 => match self.binary_bytes(4) {
+                Some(v) => finite(f64::from(f32::from_bits(v as u32))),
+                None => return ends_early(),
+            },
+            0xA5 => match self.binary_bytes(8) {
+                Some(v) => finite(f64::from_bits(v)),
+                None => return ends_early(),
+            },
+            // A request by its defined code: 0246, the code byte.
+            0xA6 => {
+                let Some(index) = self.binary_bytes(1) else { return ends_early() };
+                let name = self.requests.get(index as usize).cloned().flatten();
+                self.expand(name, "request")
+            }
+            // Float arrays: 0310 + l, an l + 1 byte count, that many IEEE floats.
+            0xC8..=0xCB => {
+                let Some(count) = self.binary_bytes(usize::from(code - 0xC8) + 1) else { return ends_early() };
+                let count = count as usize;
+                if count.saturating_mul(4) > self.text.len() - self.pos {
+                    self.pos = self.text.len();
+                    return Some(TokenKind::Error(format!(
+                        "binary float array of {count} elements is longer than the rest of the file"
+                    )));
+                }
+                self.floats_left = count;
+                self.array_open = true;
+                TokenKind::OpenBracket
+            }
+            // Request definition: 0314, the code byte, a string.
+            0xCC => {
+                let Some(index) = self.binary_bytes(1) else { return ends_early() };
+                match self.definition_text() {
+                    Ok(name) if !name.is_empty() && name.len() <= MAX_ENCODED_REQUEST_NAME => {
+                        self.requests[index as usize] = Some(name);
+                        return None;
+                    }
+                    Ok(_) => TokenKind::Error("binary RIB defines a request with an empty or overlong name".into()),
+                    Err(kind) => kind,
+                }
+            }
+            // String definition: 0315 + w, a w + 1 byte code, a string.
+            0xCD | 0xCE => {
+                let Some(index) = self.binary_bytes(usize::from(code - 0xCD) + 1) else { return ends_early() };
+                match self.definition_text() {
+                    Ok(text) => {
+                        self.strings.insert(index as u32, text);
+                        return None;
+                    }
+                    Err(kind) => kind,
+                }
+            }
+            // A defined string: 0317 + w, a w + 1 byte code.
+            0xCF | 0xD0 => {
+                let Some(index) = self.binary_bytes(usize::from(code - 0xCF) + 1) else { return ends_early() };
+                let text = self.strings.get(&(index as u32)).cloned();
+                self.expand(text, "string")
+            }
+            // 0377 ends a RunProgram's output; in a file it is the end.
+            0xFF => {
+                self.pos = self.text.len();
+                return None;
+            }
+            reserved => TokenKind::Error(format!("reserved binary RIB byte 0x{reserved:02x}")),
+        };
+        Some(kind)
+    }
+
+    /// The string operand of a binary definition: a binary or ASCII string token.
+    fn definition_text(&mut self) -> Result<String, TokenKind> {
+        self.skip_trivia();
+        let token = match self.peek() {
+            Some(b'"') => self.string(),
+            Some(0x90..=0xA3) => self.binary_token().unwrap_or(TokenKind::Error(String::new())),
+            _ => TokenKind::Error(String::new()),
+        };
+        match token {
+            TokenKind::Str(text) => Ok(text),
+            TokenKind::Error(m) if !m.is_empty() => Err(TokenKind::Error(m)),
+            _ => Err(TokenKind::Error("a binary RIB definition is missing its string".into())),
+        }
+    }
+
+    /// The error for a binary token whose payload runs past the end of the input.
+    fn binary_end(&mut self) -> Option<TokenKind> {
+        self.pos = self.text.len();
+        Some(TokenKind::Error("binary RIB ends inside a token".into()))
     }
 
     /// A string literal; the opening quote is next. A raw newline or the end of the file ends an
@@ -249,6 +482,15 @@ impl Lexer<'_> {
             Ok(value) if (value as f32).is_finite() => TokenKind::Number(value),
             _ => TokenKind::Error(format!("number `{text}` is out of range")),
         }
+    }
+}
+
+/// A decoded binary float, refused when it is not finite as `f32`.
+fn finite(value: f64) -> TokenKind {
+    if (value as f32).is_finite() {
+        TokenKind::Number(value)
+    } else {
+        TokenKind::Error(format!("binary number {value} is out of range"))
     }
 }
 

@@ -9,8 +9,14 @@
 //!   a diagnostic for everything it could not. A syntax error drops the request it is in, and
 //!   reading resumes at the next request name, so one run reports every error;
 //! - unknown requests and parameters of unknown type are warnings, and are skipped;
-//! - `ReadArchive` is expanded in place (paths relative to the including file), so the request list
-//!   never contains it; cycles and nesting deeper than [`MAX_ARCHIVE_DEPTH`] are errors;
+//! - `ReadArchive` is expanded in place, so the request list never contains it: an inline archive
+//!   (`ArchiveBegin`/`ArchiveEnd`, whose requests are kept by name rather than listed where they
+//!   stand) or a file, a relative path looked up along the `archive` search path, in the current
+//!   directory, then beside the including file; cycles and nesting deeper than
+//!   [`MAX_ARCHIVE_DEPTH`] are errors, and inline-archive copies are bounded by
+//!   [`INLINE_ARCHIVE_BUDGET`];
+//! - a stream is ASCII or binary RIB (RISpec 3.2 appendix C, the two may mix) and may be
+//!   gzip-compressed, told apart by content, never by file name;
 //! - `Declare` is global, as in RenderMan: a declaration holds for the rest of the stream, archives
 //!   included;
 //! - every parameter's value count is checked against its declaration (see [`request`]).
@@ -31,6 +37,7 @@ use std::sync::Arc;
 
 pub use decl::{Class, Decl, DeclTable, Ty};
 pub use mesh::MeshOptions;
+pub use parse::{INLINE_ARCHIVE_BUDGET, MAX_INFLATED_RIB};
 pub use patch::DEFAULT_PATCH_SEGMENTS;
 pub use primitive::{mesh_from_request, mesh_from_request_with, request_triangles};
 pub use request::{

@@ -5,6 +5,7 @@
 //! always a safe place to resume. An error inside a request drops that request (and reports only
 //! its first error); an error in one parameter drops only that parameter.
 
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -28,8 +29,6 @@ const IGNORED_REQUESTS: &[&str] = &["ErrorHandler", "GeometricApproximation", "P
 /// ask for is missing from the picture, which their warning says (rather than the "unknown
 /// request" one a typo gets).
 const UNSUPPORTED_REQUESTS: &[&str] = &[
-    "ArchiveBegin",
-    "ArchiveEnd",
     "Blobby",
     "ClippingPlane",
     "ColorSamples",
@@ -98,7 +97,26 @@ pub(super) struct Parser {
     diagnostics: Vec<RibDiagnostic>,
     /// Canonical paths of the archives read, in order.
     archives: Vec<PathBuf>,
+    /// Inline archives (`ArchiveBegin "name"` ... `ArchiveEnd`) by name, with their weights.
+    inline_archives: HashMap<String, (Arc<[Request]>, usize)>,
+    /// Inline archives being defined: name, index of their first request, weight so far, where.
+    open_archives: Vec<(String, usize, usize, Location)>,
+    /// The weight (arguments and array elements) of the requests read so far, expansions included.
+    weight: usize,
+    /// What inline-archive expansions may still add to `weight`.
+    expansion_left: usize,
+    /// `Option "searchpath" "archive"`: where relative `ReadArchive` paths are looked up first.
+    archive_path: Vec<PathBuf>,
 }
+
+/// How much reading inline archives may copy into one stream, weighed as [`REQUEST_WEIGHT`] a
+/// request plus one per argument and array element: an archive read twice by an archive read
+/// twice, and so on, doubles at every level.
+pub const INLINE_ARCHIVE_BUDGET: usize = 1 << 24;
+
+/// A request's own weight in [`INLINE_ARCHIVE_BUDGET`], beyond its values: what holding it costs
+/// counted in values.
+const REQUEST_WEIGHT: usize = 16;
 
 fn location(file: &Arc<Path>, token: &Token) -> Location {
     Location { file: file.clone(), line: token.line, column: token.column }
@@ -121,6 +139,11 @@ impl Parser {
             requests: Vec::new(),
             diagnostics: Vec::new(),
             archives: Vec::new(),
+            inline_archives: HashMap::new(),
+            open_archives: Vec::new(),
+            weight: 0,
+            expansion_left: INLINE_ARCHIVE_BUDGET,
+            archive_path: Vec::new(),
         }
     }
 
@@ -128,8 +151,26 @@ impl Parser {
         RibParse { requests: self.requests, diagnostics: self.diagnostics, archives: self.archives }
     }
 
-    /// Reads one file's text, appending its requests.
+    /// Reads one file's bytes (ASCII or binary RIB, gzip-compressed or not), appending its
+    /// requests.
     pub(super) fn parse_file_text(&mut self, bytes: &[u8], file: Arc<Path>) {
+        let inflated;
+        let bytes = if bytes.starts_with(&GZIP_MAGIC) {
+            match inflate(bytes) {
+                Ok(text) => {
+                    inflated = text;
+                    &inflated[..]
+                }
+                Err(message) => {
+                    let loc = Location { file, line: 1, column: 1 };
+                    self.diagnostics.push(error(&loc, message));
+                    return;
+                }
+            }
+        } else {
+            bytes
+        };
+        let archives_open_before = self.open_archives.len();
         let tokens = tokenize(bytes);
         let mut pos = 0;
         while let Some(token) = tokens.get(pos) {
@@ -154,15 +195,37 @@ impl Parser {
                 Err(diagnostic) => self.diagnostics.push(diagnostic),
             }
         }
+        // An inline archive still open at the end of its file ends there.
+        while self.open_archives.len() > archives_open_before {
+            if let Some((name, _, _, loc)) = self.open_archives.last() {
+                let message = format!("`ArchiveBegin \"{name}\"` has no `ArchiveEnd`; the archive ends with the file");
+                self.diagnostics.push(RibDiagnostic::warning(loc, message));
+            }
+            self.end_archive();
+        }
     }
 
     fn request(&mut self, name: &str, loc: Location, args: &[Arg]) {
-        if name == "ReadArchive" {
-            if let Err(diagnostic) = self.read_archive(&loc, args) {
-                self.diagnostics.push(diagnostic);
+        let result = match name {
+            "ReadArchive" => self.read_archive(&loc, args),
+            "ArchiveBegin" => self.begin_archive(&loc, args),
+            "ArchiveEnd" if self.open_archives.is_empty() => Err(error(&loc, "`ArchiveEnd` without `ArchiveBegin`")),
+            "ArchiveEnd" => {
+                self.end_archive();
+                Ok(())
             }
-            return;
+            _ => {
+                self.build_request(name, loc, args);
+                return;
+            }
+        };
+        if let Err(diagnostic) = result {
+            self.diagnostics.push(diagnostic);
         }
+    }
+
+    fn build_request(&mut self, name: &str, loc: Location, args: &[Arg]) {
+        self.weight = self.weight.saturating_add(args_weight(args));
         let mut args = Args { request: name, loc: &loc, items: args, pos: 0 };
         let kind = match self.build(name, &mut args) {
             Ok(Some(kind)) => args.finish().map(|()| Some(kind)),
@@ -172,6 +235,9 @@ impl Parser {
             Ok(Some(kind)) => {
                 if let K::Declare { name, decl } = &kind {
                     self.decls.declare(name, *decl);
+                }
+                if let K::Option(option) = &kind {
+                    self.archive_search_path(option);
                 }
                 self.requests.push(Request { kind, loc });
             }
@@ -443,15 +509,90 @@ impl Parser {
         }
     }
 
-    /// Expands `ReadArchive "file"` in place.
+    /// `Option "searchpath" "archive" "dirs"`: `:`-separated, `&` for the previous path, relative
+    /// directories against the directory of the file that sets it.
+    fn archive_search_path(&mut self, option: &Shader) {
+        if option.name != "searchpath" {
+            return;
+        }
+        for p in option.params.iter().filter(|p| p.name == "archive") {
+            let Some(spec) = p.strings().and_then(|s| s.first()) else { continue };
+            let base = base_dir(&p.loc.file);
+            let mut path = Vec::new();
+            for part in spec.split(':').filter(|part| !part.is_empty()) {
+                if part == "&" {
+                    path.extend(self.archive_path.iter().cloned());
+                } else {
+                    path.push(base.join(part));
+                }
+            }
+            self.archive_path = path;
+        }
+    }
+
+    /// `ArchiveBegin "name" params`: the requests up to the matching `ArchiveEnd` are kept under
+    /// `name` for `ReadArchive "name"`, not rendered where they stand.
+    fn begin_archive(&mut self, loc: &Location, args: &[Arg]) -> Result<()> {
+        let mut a = Args { request: "ArchiveBegin", loc, items: args, pos: 0 };
+        let name = a.string("archive name")?;
+        // Its parameters are hints for a RIB writer; nothing here reads them.
+        let _ = self.params(&mut a);
+        if self.open_archives.len() >= MAX_ARCHIVE_DEPTH {
+            return Err(error(loc, format!("inline archives nest deeper than {MAX_ARCHIVE_DEPTH}")));
+        }
+        self.open_archives.push((name, self.requests.len(), self.weight, loc.clone()));
+        Ok(())
+    }
+
+    fn end_archive(&mut self) {
+        if let Some((name, start, weight_before, _)) = self.open_archives.pop() {
+            let requests: Arc<[Request]> = self.requests.drain(start..).collect();
+            self.inline_archives.insert(name, (requests, self.weight.saturating_sub(weight_before)));
+        }
+    }
+
+    /// Where a relative archive path is found: the `archive` search path, the current directory
+    /// (RenderMan's default), then the directory of the file that reads it (so that a scene and
+    /// its archives render from any directory). The first that exists wins; `None` if none does.
+    fn find_archive(&self, name: &str, including_file: &Path) -> Option<PathBuf> {
+        let path = Path::new(name);
+        if path.is_absolute() {
+            return Some(path.to_path_buf());
+        }
+        let cwd = Path::new(".");
+        let fallback = base_dir(including_file);
+        let found = self
+            .archive_path
+            .iter()
+            .map(PathBuf::as_path)
+            .chain([cwd, fallback.as_path()])
+            .map(|dir| dir.join(path))
+            .find(|p| p.is_file());
+        found
+    }
+
+    /// Expands `ReadArchive "name"` in place: an inline archive of that name, or a file.
     fn read_archive(&mut self, loc: &Location, args: &[Arg]) -> Result<()> {
         let mut a = Args { request: "ReadArchive", loc, items: args, pos: 0 };
         let name = a.string("archive file name")?;
         a.finish()?;
+        if let Some((requests, weight)) = self.inline_archives.get(&name).cloned() {
+            if weight > self.expansion_left {
+                return Err(error(
+                    loc,
+                    format!("inline archives expand past their budget of {INLINE_ARCHIVE_BUDGET} (at \"{name}\")"),
+                ));
+            }
+            self.expansion_left -= weight;
+            self.weight = self.weight.saturating_add(weight);
+            self.requests.extend(requests.iter().cloned());
+            return Ok(());
+        }
         if self.depth >= MAX_ARCHIVE_DEPTH {
             return Err(error(loc, format!("archives nest deeper than {MAX_ARCHIVE_DEPTH} (at \"{name}\")")));
         }
-        let path = base_dir(&loc.file).join(&name);
+        // An archive found nowhere is reported at the including file's directory.
+        let path = self.find_archive(&name, &loc.file).unwrap_or_else(|| base_dir(&loc.file).join(&name));
         // A mesh file named as an archive is geometry for the engine to load, not RIB to read.
         let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
         if matches!(ext.as_deref(), Some("obj" | "ply" | "gltf" | "glb")) {
@@ -472,6 +613,37 @@ impl Parser {
         self.include_stack.pop();
         Ok(())
     }
+}
+
+/// The first bytes of a gzip stream.
+const GZIP_MAGIC: [u8; 2] = [0x1f, 0x8b];
+
+/// The most bytes a gzip-compressed RIB file may inflate to.
+pub const MAX_INFLATED_RIB: u64 = 1 << 30;
+
+/// Inflates a gzip-compressed RIB stream, refusing one that inflates past [`MAX_INFLATED_RIB`].
+fn inflate(bytes: &[u8]) -> std::result::Result<Vec<u8>, String> {
+    use std::io::Read;
+    let mut text = Vec::new();
+    let mut decoder = flate2::read::MultiGzDecoder::new(bytes).take(MAX_INFLATED_RIB + 1);
+    decoder.read_to_end(&mut text).map_err(|e| format!("cannot decompress gzip RIB: {e}"))?;
+    if text.len() as u64 > MAX_INFLATED_RIB {
+        return Err(format!("gzip RIB inflates to more than {MAX_INFLATED_RIB} bytes"));
+    }
+    Ok(text)
+}
+
+/// A request's weight as read: [`REQUEST_WEIGHT`] and its arguments, arrays counted by their
+/// elements.
+fn args_weight(args: &[Arg]) -> usize {
+    args.iter()
+        .map(|a| match &a.value {
+            ArgValue::Numbers(v) => v.len() + 1,
+            ArgValue::Strings(v) => v.len() + 1,
+            _ => 1,
+        })
+        .sum::<usize>()
+        + REQUEST_WEIGHT
 }
 
 /// Collects the arguments after a request name, up to the next name. On error the rest of the
