@@ -886,3 +886,51 @@ fn diagnostics_are_coloured_when_asked_and_plain_in_a_pipe() {
     let o = rtsl(&["--color", "sometimes", "compile", "bad.sl"], dir.path());
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
 }
+
+#[test]
+fn every_frame_renders_its_own_image() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    // Options outside the frames hold for both; each frame has its own world, colour and Display.
+    let frame = |n: i32, grey: f32| {
+        format!(
+            "FrameBegin {n}\nDisplay \"frame.#3f.png\" \"file\" \"rgb\"\nTranslate 0 0 5\nWorldBegin\n\
+             Color [{grey} {grey} {grey}]\nSurface \"constant\"\nSphere 1 -1 1 360\nWorldEnd\nFrameEnd\n"
+        )
+    };
+    write(dir.path(), "anim.rib", &format!("Format 16 16 1\n{}{}", frame(7, 0.2), frame(9, 1.0)));
+    let centre =
+        |name: &str| rtsl_runtime::read_image(dir.path().join(name)).expect("the frame's image").pixel(8, 8)[0];
+    let o = rtsl(&["render", "anim.rib", "-q"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert_eq!((centre("frame.007.png") * 255.0).round(), 124.0);
+    assert_eq!(centre("frame.009.png"), 1.0);
+
+    // One frame by its number, named by -o with the same patterns.
+    let o = rtsl(&["render", "anim.rib", "--frame", "9", "-o", "only.#f.png", "-q"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert_eq!(centre("only.9.png"), 1.0);
+    assert!(!dir.path().join("only.7.png").exists());
+
+    let o = rtsl(&["render", "anim.rib", "--frame", "8"], dir.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("there is no frame 8; the scene's frames are 7, 9"), "{}", stderr(&o));
+    // Two frames into one file is refused before the second overwrites the first.
+    let o = rtsl(&["render", "anim.rib", "-o", "same.png", "-q"], dir.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("would overwrite same.png of an earlier frame"), "{}", stderr(&o));
+    let o = rtsl(&["render", "anim.rib", "--watch"], dir.path());
+    assert!(stderr(&o).contains("the scene has 2 frames and --watch renders one"), "{}", stderr(&o));
+
+    // World blocks outside frames are frames too, numbered by their place.
+    write(
+        dir.path(),
+        "worlds.rib",
+        &format!(
+            "Format 16 16 1\nTranslate 0 0 5\n{0}{0}",
+            "WorldBegin\nSurface \"constant\"\nSphere 1 -1 1 360\nWorldEnd\n"
+        ),
+    );
+    let o = rtsl(&["render", "worlds.rib", "-o", "w#f.png", "-q"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(dir.path().join("w1.png").exists() && dir.path().join("w2.png").exists());
+}

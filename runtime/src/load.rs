@@ -18,6 +18,11 @@ pub struct LoadedScene {
     /// The files the scene was read from: the scene file, its RIB archives and model files (not
     /// textures, which load as rendering needs them: `TextureCache::files`).
     pub files: Vec<PathBuf>,
+    /// How many images the scene file asks for (a RIB file's frames; 1 for a model file, and
+    /// 0 when unknown, as for a [`LoadedScene::default`]).
+    pub frames: usize,
+    /// The number of the image loaded (see [`crate::rib::load::LoadedRib::frame_number`]).
+    pub frame_number: i32,
 }
 
 impl LoadedScene {
@@ -28,25 +33,37 @@ impl LoadedScene {
     }
 }
 
-/// Loads the scene in `path` into `rt` by its extension (case-insensitive).
+/// Loads the scene in `path` into `rt` by its extension (case-insensitive); of a RIB file with
+/// several frames, the first.
 pub fn load_scene(rt: &mut Context, path: impl AsRef<Path>) -> Result<LoadedScene, SceneFileError> {
+    load_scene_frame(rt, path, 0)
+}
+
+/// [`load_scene`] of the image at `index` (counting from 0) of a file with several.
+pub fn load_scene_frame(rt: &mut Context, path: impl AsRef<Path>, index: usize) -> Result<LoadedScene, SceneFileError> {
     let path = path.as_ref();
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     match ext.as_deref() {
         Some("rib") => {
-            let loaded = crate::rib::load::load_file(rt, path)?;
+            let loaded = crate::rib::load::load_file_frame(rt, path, index)?;
             let dir = path.parent().unwrap_or(Path::new("."));
             Ok(LoadedScene {
                 display: loaded.display.map(|d| dir.join(d)),
                 warnings: loaded.warnings,
                 files: std::iter::once(path.to_path_buf()).chain(loaded.files).collect(),
+                frames: loaded.frames,
+                frame_number: loaded.frame_number,
             })
         }
-        Some("obj" | "ply" | "gltf" | "glb") => {
+        Some("obj" | "ply" | "gltf" | "glb") if index == 0 => {
             let bounds = add_model_file(rt, path)?;
             frame_bounds(rt, bounds)?;
-            Ok(LoadedScene { files: vec![path.to_path_buf()], ..LoadedScene::default() })
+            Ok(LoadedScene { files: vec![path.to_path_buf()], frames: 1, frame_number: 1, ..LoadedScene::default() })
         }
+        Some("obj" | "ply" | "gltf" | "glb") => Err(SceneFileError::Rib {
+            path: path.to_path_buf(),
+            message: format!("a model file is one image; there is no image {}", index + 1),
+        }),
         _ => Err(SceneFileError::UnknownType { path: path.to_path_buf() }),
     }
 }
@@ -68,7 +85,10 @@ mod tests {
         std::fs::write(&obj, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").expect("written");
         let mut rt = Context::new();
         let loaded = load_scene(&mut rt, &obj).expect("an OBJ file loads");
-        assert_eq!(loaded, LoadedScene { files: vec![obj.clone()], ..LoadedScene::default() });
+        assert_eq!(
+            loaded,
+            LoadedScene { files: vec![obj.clone()], frames: 1, frame_number: 1, ..LoadedScene::default() }
+        );
         assert_eq!(rt.world_instance_ids().len(), 1);
 
         // The files read: the scene, its RIB archives and its model files.

@@ -19,9 +19,16 @@ use std::time::Duration;
 pub struct RenderArgs {
     /// The scene: a RIB file, or a model (OBJ, PLY, glTF). Without one, the embedded default scene.
     pub scene: Option<PathBuf>,
-    /// The image to write (.png, .exr, .tga, .ppm); a RIB's `Display` names it otherwise.
+    /// The image to write (.png, .exr, .tga, .ppm); a RIB's `Display` names it otherwise. Of a file
+    /// with several frames, `#f` in the name stands for the frame number (`#4f` padded to 4
+    /// digits), as in `Display`.
     #[arg(short, long)]
     pub output: Option<PathBuf>,
+    /// Of a RIB file with several frames (`FrameBegin` blocks, or world blocks outside them), render
+    /// only the one with this number (its `FrameBegin` number, or its place counting from 1).
+    /// Without it, every frame is rendered in turn.
+    #[arg(long)]
+    pub frame: Option<i32>,
     /// Image size, `WxH` (overrides the scene's `Format`).
     #[arg(long, value_parser = super::bench::parse_size)]
     pub size: Option<(u32, u32)>,
@@ -277,8 +284,10 @@ const BURST: Duration = Duration::from_millis(100);
 /// rendered and rewritten, and each prints one line: the shader and its compile time, or the
 /// scene, or the textures, and the frame time. A change that does not compile or load prints its
 /// diagnostics, and the last good shader or scene stays. Runs until interrupted.
+#[allow(clippy::too_many_arguments)]
 fn watch(
     args: &RenderArgs,
+    frame_index: usize,
     rt: &mut Context,
     render: &mut FrameRender,
     output: &Output,
@@ -307,7 +316,7 @@ fn watch(
         let mut done = Vec::new();
         let scene_changed: Vec<&PathBuf> = changed.iter().filter(|f| scene.contains(*f)).collect();
         if !scene_changed.is_empty() {
-            match prepare(args) {
+            match prepare(args, frame_index) {
                 Ok(prepared) => {
                     *rt = prepared.rt;
                     reloader = ShaderReloader::new(rt)?;
@@ -361,6 +370,16 @@ pub(crate) fn load_scene(
     shader_path: &[PathBuf],
     include: &[PathBuf],
 ) -> anyhow::Result<(Context, LoadedScene)> {
+    load_scene_frame(scene, shader_path, include, 0)
+}
+
+/// [`load_scene`] of the image at `frame_index` (counting from 0) of a scene with several.
+pub(crate) fn load_scene_frame(
+    scene: Option<&Path>,
+    shader_path: &[PathBuf],
+    include: &[PathBuf],
+    frame_index: usize,
+) -> anyhow::Result<(Context, LoadedScene)> {
     let mut rt = Context::new();
     let mut search: Vec<PathBuf> = shader_path.to_vec();
     if let Ok(env) = std::env::var("RTSL_SHADER_PATH") {
@@ -371,9 +390,15 @@ pub(crate) fn load_scene(
     let loaded = match scene {
         None => {
             let rib = rtsl::default_scene::load(&mut rt)?;
-            LoadedScene { display: rib.display, warnings: rib.warnings, files: Vec::new() }
+            LoadedScene {
+                display: rib.display,
+                warnings: rib.warnings,
+                files: Vec::new(),
+                frames: rib.frames,
+                frame_number: rib.frame_number,
+            }
         }
-        Some(path) => rtsl_runtime::load_scene(&mut rt, path)?,
+        Some(path) => rtsl_runtime::load_scene_frame(&mut rt, path, frame_index)?,
     };
     rtsl_runtime::rib::report::write_diagnostics(&loaded.warnings, &mut super::color::stderr())?;
     Ok((rt, loaded))
@@ -389,10 +414,31 @@ struct Prepared {
     files: Vec<PathBuf>,
 }
 
-/// Loads the scene and applies the flags to it.
-fn prepare(args: &RenderArgs) -> anyhow::Result<Prepared> {
-    let (mut rt, loaded) = load_scene(args.scene.as_deref(), &args.shader_path, &args.include)?;
-    let output = args.output.clone().or(loaded.display.clone());
+/// The frames to render, as indices into the scene's frames: the one `--frame` names, or all.
+fn frame_indices(args: &RenderArgs) -> anyhow::Result<Vec<usize>> {
+    let numbers = match &args.scene {
+        Some(path) if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("rib")) => {
+            rtsl_runtime::rib::load::frame_numbers(path)?
+        }
+        _ => vec![1],
+    };
+    let Some(wanted) = args.frame else { return Ok((0..numbers.len()).collect()) };
+    match numbers.iter().position(|&n| n == wanted) {
+        Some(index) => Ok(vec![index]),
+        None => {
+            let known: Vec<String> = numbers.iter().map(i32::to_string).collect();
+            anyhow::bail!("there is no frame {wanted}; the scene's frames are {}", known.join(", "))
+        }
+    }
+}
+
+/// Loads the image at `frame_index` of the scene and applies the flags to it.
+fn prepare(args: &RenderArgs, frame_index: usize) -> anyhow::Result<Prepared> {
+    let (mut rt, loaded) = load_scene_frame(args.scene.as_deref(), &args.shader_path, &args.include, frame_index)?;
+    let expanded = |p: &PathBuf| {
+        PathBuf::from(rtsl_runtime::rib::load::expand_display_name(&p.to_string_lossy(), loaded.frame_number))
+    };
+    let output = args.output.as_ref().map(expanded).or(loaded.display.clone());
     if let Some((w, h)) = args.size {
         rt.options.width = w;
         rt.options.height = h;
@@ -420,22 +466,41 @@ fn prepare(args: &RenderArgs) -> anyhow::Result<Prepared> {
 }
 
 pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
-    if args.mpi {
-        return run_mpi(args);
+    let frames = frame_indices(args)?;
+    if frames.len() > 1 && (args.watch || args.mpi) {
+        let flag = if args.watch { "--watch" } else { "--mpi" };
+        anyhow::bail!("the scene has {} frames and {flag} renders one: choose it with --frame", frames.len());
     }
-    let Prepared { mut rt, output, omissions, files } = prepare(args)?;
+    if args.mpi {
+        return run_mpi(args, frames[0]);
+    }
     let (threads, pool) = super::worker_pool(args.threads)?;
     let mut render = on_pool(&pool);
-    let written = render_and_write(&mut rt, &mut render, &output, args.quiet, true)?;
-    if !args.quiet {
-        print_summary(&rt, &output.path, &format!("{threads} thread(s)"), &written.report);
+    let mut missing = 0;
+    let mut written_paths = BTreeSet::new();
+    for &index in &frames {
+        let Prepared { mut rt, output, omissions, files } = prepare(args, index)?;
+        if !written_paths.insert(output.path.clone()) {
+            anyhow::bail!(
+                "frame {} would overwrite {} of an earlier frame: name the images with #f (as in \
+                 `-o frame.#4f.png`) or choose one frame with --frame",
+                index + 1,
+                output.path.display()
+            );
+        }
+        let written = render_and_write(&mut rt, &mut render, &output, args.quiet, true)?;
+        if !args.quiet {
+            print_summary(&rt, &output.path, &format!("{threads} thread(s)"), &written.report);
+        }
+        missing += omissions + written.missing_textures;
+        if args.watch {
+            // Watching is interactive: what is missing may be fixed by the next edit.
+            let status = exit_status(missing, true);
+            watch(args, index, &mut rt, &mut render, &output, &files, &written.texture_files)?;
+            return Ok(status);
+        }
     }
-    // Watching is interactive: what is missing may be fixed by the next edit.
-    let status = exit_status(omissions + written.missing_textures, args.keep_going || args.watch);
-    if args.watch {
-        watch(args, &mut rt, &mut render, &output, &files, &written.texture_files)?;
-    }
-    Ok(status)
+    Ok(exit_status(missing, args.keep_going))
 }
 
 fn print_summary(rt: &Context, output: &Path, threads: &str, report: &FrameReport) {
@@ -449,14 +514,14 @@ fn print_summary(rt: &Context, output: &Path, threads: &str, report: &FrameRepor
 /// `render --mpi`: rank 0 loads the scene, renders it over the other ranks and writes the image
 /// (and with `--watch`, renders again after each reload: the reloaded shaders travel with the
 /// frame); the others start empty and are sent the scene.
-fn run_mpi(args: &RenderArgs) -> anyhow::Result<ExitCode> {
+fn run_mpi(args: &RenderArgs, frame_index: usize) -> anyhow::Result<ExitCode> {
     let transport = super::mpi::transport()?;
     let (_, pool) = super::worker_pool(args.threads)?;
     if transport.rank() != 0 {
         return super::mpi::work(&*transport, &pool, &args.workers);
     }
     let mut master = Master::connect(transport)?;
-    let Prepared { mut rt, output, omissions, files } = prepare(args)?;
+    let Prepared { mut rt, output, omissions, files } = prepare(args, frame_index)?;
     master.check_workers()?;
     if master.workers() == 0 {
         eprintln!("warning: --mpi with no worker rank (run it with mpirun -n 2 or more): rendering on rank 0 alone");
@@ -476,7 +541,7 @@ fn run_mpi(args: &RenderArgs) -> anyhow::Result<ExitCode> {
     let written = render_and_write(&mut rt, &mut render, &output, args.quiet, true)?;
     let status = exit_status(omissions + written.missing_textures, args.keep_going || args.watch);
     if args.watch {
-        watch(args, &mut rt, &mut render, &output, &files, &written.texture_files)?;
+        watch(args, frame_index, &mut rt, &mut render, &output, &files, &written.texture_files)?;
     }
     if !args.quiet {
         let ranks = format!("{} worker rank(s), {} thread(s) in all", master.workers(), master.worker_threads());

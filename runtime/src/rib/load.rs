@@ -52,6 +52,11 @@ pub struct LoadedRib {
     /// The files the scene was read from besides the RIB file itself: its RIB archives and the
     /// model files `ReadArchive` named (not textures, which load as rendering needs them).
     pub files: Vec<PathBuf>,
+    /// How many images the stream asks for (see [`frames`]); at least one.
+    pub frames: usize,
+    /// The number of the frame loaded: its `FrameBegin` number, or its place among the frames
+    /// counting from 1 when it has none.
+    pub frame_number: i32,
 }
 
 impl LoadedRib {
@@ -68,20 +73,108 @@ fn is_null(name: &str) -> bool {
     name.is_empty() || name == "null"
 }
 
-/// Loads a RIB file into `rt`.
+/// Loads a RIB file's first image into `rt`.
 pub fn load_file(rt: &mut Context, path: impl AsRef<Path>) -> Result<LoadedRib, SceneFileError> {
+    load_file_frame(rt, path, 0)
+}
+
+/// Loads the image at `index` (counting from 0, see [`frames`]) of a RIB file into `rt`.
+pub fn load_file_frame(rt: &mut Context, path: impl AsRef<Path>, index: usize) -> Result<LoadedRib, SceneFileError> {
     let path = path.as_ref();
     let parse = parse_file(path).map_err(|e| SceneFileError::Rib { path: path.to_path_buf(), message: e.message })?;
-    load_parsed(rt, parse, path)
+    load_parsed(rt, parse, path, index)
 }
 
-/// Loads RIB text into `rt`; `name` names it in messages and its directory resolves relative paths.
+/// The numbers of the images a RIB file asks for, in order (see [`Frames::number`]).
+pub fn frame_numbers(path: impl AsRef<Path>) -> Result<Vec<i32>, SceneFileError> {
+    let path = path.as_ref();
+    let parse = parse_file(path).map_err(|e| SceneFileError::Rib { path: path.to_path_buf(), message: e.message })?;
+    let frames = Frames::of(&parse.requests);
+    Ok((0..frames.count()).map(|i| frames.number(i)).collect())
+}
+
+/// Loads RIB text's first image into `rt`; `name` names it in messages and its directory resolves
+/// relative paths.
 pub fn load_str(rt: &mut Context, text: &str, name: impl AsRef<Path>) -> Result<LoadedRib, SceneFileError> {
     let name = name.as_ref();
-    load_parsed(rt, parse_str(text, name), name)
+    load_parsed(rt, parse_str(text, name), name, 0)
 }
 
-fn load_parsed(rt: &mut Context, parse: RibParse, path: &Path) -> Result<LoadedRib, SceneFileError> {
+/// The images a RIB stream asks for, in order, by the frame each request belongs to: every
+/// `FrameBegin`/`FrameEnd` block is one, and so is every `WorldBegin`/`WorldEnd` block outside a
+/// frame (RISpec 3.2: `WorldEnd` renders the image). Requests outside both belong to no frame: they
+/// set options and the camera for every image after them.
+pub struct Frames {
+    /// Per request, the index of the image it belongs to.
+    owner: Vec<Option<usize>>,
+    /// Per image, its `FrameBegin` number.
+    numbers: Vec<Option<i32>>,
+}
+
+impl Frames {
+    /// Splits `requests` into images.
+    pub fn of(requests: &[Request]) -> Frames {
+        let (mut owner, mut numbers) = (Vec::with_capacity(requests.len()), Vec::new());
+        let (mut in_frame, mut in_world) = (false, false);
+        for r in requests {
+            match &r.kind {
+                RequestKind::FrameBegin(number) if !in_frame => {
+                    in_frame = true;
+                    numbers.push(*number);
+                }
+                RequestKind::WorldBegin if !in_frame && !in_world => {
+                    in_world = true;
+                    numbers.push(None);
+                }
+                _ => {}
+            }
+            owner.push((in_frame || in_world).then(|| numbers.len() - 1));
+            match &r.kind {
+                RequestKind::FrameEnd => in_frame = false,
+                RequestKind::WorldEnd if !in_frame => in_world = false,
+                _ => {}
+            }
+        }
+        Frames { owner, numbers }
+    }
+
+    /// How many images: at least one (a stream with no world block is one empty image).
+    pub fn count(&self) -> usize {
+        self.numbers.len().max(1)
+    }
+
+    /// The number of the image at `index`: its `FrameBegin` number, or `index + 1`.
+    pub fn number(&self, index: usize) -> i32 {
+        self.numbers.get(index).copied().flatten().unwrap_or(index as i32 + 1)
+    }
+}
+
+/// A `Display` name with RenderMan's frame patterns replaced: `#f` by the frame number, `#Nf` by
+/// it padded with zeros to N digits, `##` by `#`. Any other `#` stays as written.
+pub fn expand_display_name(name: &str, frame: i32) -> String {
+    let mut out = String::with_capacity(name.len());
+    let mut rest = name;
+    while let Some(at) = rest.find('#') {
+        out.push_str(&rest[..at]);
+        let after = &rest[at + 1..];
+        let digits = after.bytes().take_while(u8::is_ascii_digit).count();
+        if let Some(after_hash) = after.strip_prefix('#') {
+            out.push('#');
+            rest = after_hash;
+        } else if after[digits..].starts_with('f') && digits <= 2 {
+            let width = after[..digits].parse::<usize>().unwrap_or(0);
+            out.push_str(&format!("{frame:0width$}"));
+            rest = &after[digits + 1..];
+        } else {
+            out.push('#');
+            rest = after;
+        }
+    }
+    out.push_str(rest);
+    out
+}
+
+fn load_parsed(rt: &mut Context, parse: RibParse, path: &Path, index: usize) -> Result<LoadedRib, SceneFileError> {
     if parse.has_errors() {
         let errors = parse.errors().map(|d| format!("{}: {}", d.loc, d.message)).collect::<Vec<_>>().join("\n");
         return Err(SceneFileError::RibSyntax { errors });
@@ -94,17 +187,31 @@ fn load_parsed(rt: &mut Context, parse: RibParse, path: &Path) -> Result<LoadedR
         _ => None,
     }));
     loader.out.warnings.extend(parse.diagnostics.iter().cloned());
-    for r in &parse.requests {
+    let frames = Frames::of(&parse.requests);
+    if index >= frames.count() {
+        return Err(SceneFileError::Rib {
+            path: path.to_path_buf(),
+            message: format!("there is no image {} (the file has {})", index + 1, frames.count()),
+        });
+    }
+    loader.out.frames = frames.count();
+    loader.out.frame_number = frames.number(index);
+    for (r, owner) in parse.requests.iter().zip(&frames.owner) {
+        match owner {
+            Some(frame) if *frame > index => break,
+            Some(frame) if *frame < index => continue,
+            _ => {}
+        }
         match loader.request(r) {
             Ok(()) => {}
             Err(e @ SceneFileError::TooLarge { .. }) => return Err(e),
             Err(e) => loader.omit(r, e),
         }
-        if loader.frames_done > 0 {
-            break;
-        }
     }
     loader.flush()?;
+    let number = loader.out.frame_number;
+    loader.out.display =
+        loader.out.display.take().map(|d| PathBuf::from(expand_display_name(&d.to_string_lossy(), number)));
     // Area lights emit from the geometry that followed them (gathered in world space).
     let area_meshes = std::mem::take(&mut loader.area_meshes);
     loader.rt.push_matrix();
@@ -141,7 +248,6 @@ struct Loader<'a> {
     area_meshes: HashMap<u32, Vec<Mesh>>,
     shadows: bool,
     in_world: bool,
-    frames_done: u32,
     /// Inside `MotionBegin`: how many samples were seen.
     motion: Option<u32>,
     /// Inside `MotionBegin`: the matrices of its transform samples (applied at `MotionEnd`).
@@ -166,7 +272,6 @@ impl<'a> Loader<'a> {
             area_meshes: HashMap::new(),
             shadows: true,
             in_world: false,
-            frames_done: 0,
             motion: None,
             motion_transforms: Vec::new(),
             triangles: 0,
@@ -333,8 +438,7 @@ impl<'a> Loader<'a> {
             }
             K::Display { name, .. } => self.out.display = Some(PathBuf::from(name)),
             K::Exposure { gain, gamma } => rt.options.exposure = Some((*gain, *gamma)),
-            K::FrameBegin(_) => {}
-            K::FrameEnd => self.frames_done += 1,
+            K::FrameBegin(_) | K::FrameEnd => {}
             K::WorldBegin => {
                 // The transform now is world-to-camera.
                 let m = rt.current_matrix();
@@ -789,5 +893,39 @@ fn typed_value(value: &RibValue, ty: Ty, many: bool) -> Option<ParamValue> {
             Some(ParamValue::Matrix(m))
         }
         _ => None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn display_names_take_renderman_frame_patterns() {
+        assert_eq!(expand_display_name("out.#f.tif", 12), "out.12.tif");
+        assert_eq!(expand_display_name("out.#4f.exr", 12), "out.0012.exr");
+        assert_eq!(expand_display_name("a##b#f", 3), "a#b3");
+        // Anything else keeps its `#`; a width past two digits is not a pattern.
+        assert_eq!(expand_display_name("#x#123f#", 3), "#x#123f#");
+        assert_eq!(expand_display_name("plain.png", 3), "plain.png");
+    }
+
+    #[test]
+    fn frames_are_frame_blocks_and_world_blocks_outside_them() {
+        let parse = parse_str(
+            "Format 8 8 1\nFrameBegin 4\nWorldBegin\nWorldEnd\nFrameEnd\nTranslate 0 0 1\n\
+             WorldBegin\nWorldEnd\nFrameBegin\nWorldBegin\nWorldEnd\nFrameEnd\n",
+            "f.rib",
+        );
+        let frames = Frames::of(&parse.requests);
+        assert_eq!(frames.count(), 3);
+        assert_eq!((frames.number(0), frames.number(1), frames.number(2)), (4, 2, 3));
+        // Format and the Translate between frames belong to none: they hold for the frames after them.
+        let owners: Vec<Option<usize>> = frames.owner.clone();
+        assert_eq!(
+            owners,
+            vec![None, Some(0), Some(0), Some(0), Some(0), None, Some(1), Some(1), Some(2), Some(2), Some(2), Some(2)]
+        );
+        assert_eq!(Frames::of(&[]).count(), 1);
     }
 }
