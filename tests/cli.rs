@@ -934,3 +934,19 @@ fn every_frame_renders_its_own_image() {
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     assert!(dir.path().join("w1.png").exists() && dir.path().join("w2.png").exists());
 }
+
+#[test]
+fn without_a_projection_the_camera_is_orthographic() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let white = SPHERE_RIB.replace("Surface \"plastic\"", "Color [1 1 1] Surface \"constant\"");
+    // The unit sphere five units away: orthographic, it fills the screen window [-1, 1]^2; seen
+    // through a 90-degree perspective, it covers a fifth of it.
+    let near_the_edge = |rib: &str| {
+        write(dir.path(), "s.rib", rib);
+        let o = rtsl(&["render", "s.rib", "-o", "out.png", "-q"], dir.path());
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        rtsl_runtime::read_image(dir.path().join("out.png")).expect("the image").pixel(4, 16)[0]
+    };
+    assert_eq!(near_the_edge(&white), 1.0);
+    assert_eq!(near_the_edge(&white.replace("Translate", "Projection \"perspective\" \"fov\" 90\nTranslate")), 0.0);
+}

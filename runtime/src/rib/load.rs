@@ -248,6 +248,8 @@ struct Loader<'a> {
     area_meshes: HashMap<u32, Vec<Mesh>>,
     shadows: bool,
     in_world: bool,
+    /// Whether a `Projection` request was read (RenderMan's default is orthographic).
+    projection_given: bool,
     /// Inside `MotionBegin`: how many samples were seen.
     motion: Option<u32>,
     /// Inside `MotionBegin`: the matrices of its transform samples (applied at `MotionEnd`).
@@ -272,6 +274,7 @@ impl<'a> Loader<'a> {
             area_meshes: HashMap::new(),
             shadows: true,
             in_world: false,
+            projection_given: false,
             motion: None,
             motion_transforms: Vec::new(),
             triangles: 0,
@@ -416,20 +419,23 @@ impl<'a> Loader<'a> {
                 let most = MAX_PIXEL_SAMPLES as f32;
                 rt.options.samples = (x.round().clamp(1.0, most) as u32, y.round().clamp(1.0, most) as u32);
             }
-            K::Projection(p) => match p.name.as_str() {
-                "perspective" => {
-                    let fov = p.params.iter().find(|q| q.name == "fov").and_then(|q| q.floats()?.first().copied());
-                    let mut cam = *rt.camera();
-                    cam.fov_degrees = fov.unwrap_or(90.0).clamp(0.01, 179.0);
-                    rt.set_camera(cam);
+            K::Projection(p) => {
+                self.projection_given = true;
+                match p.name.as_str() {
+                    "perspective" => {
+                        let fov = p.params.iter().find(|q| q.name == "fov").and_then(|q| q.floats()?.first().copied());
+                        let mut cam = *rt.camera();
+                        cam.fov_degrees = fov.unwrap_or(90.0).clamp(0.01, 179.0);
+                        rt.set_camera(cam);
+                    }
+                    // The library's camera shader, as `DepthOfField` binds `thinlens`.
+                    "orthographic" => {
+                        let id = rt.find_shader("orthographic")?;
+                        rt.camera_shader(Some(id), &[])?;
+                    }
+                    other => self.warn(r, format_args!("projection \"{other}\" is not supported; perspective is used")),
                 }
-                // The library's camera shader, as `DepthOfField` binds `thinlens`.
-                "orthographic" => {
-                    let id = rt.find_shader("orthographic")?;
-                    rt.camera_shader(Some(id), &[])?;
-                }
-                other => self.warn(r, format_args!("projection \"{other}\" is not supported; perspective is used")),
-            },
+            }
             K::Clipping { near, far } => {
                 let mut cam = *rt.camera();
                 cam.near = *near;
@@ -440,6 +446,11 @@ impl<'a> Loader<'a> {
             K::Exposure { gain, gamma } => rt.options.exposure = Some((*gain, *gamma)),
             K::FrameBegin(_) | K::FrameEnd => {}
             K::WorldBegin => {
+                // RenderMan's projection when none is given is orthographic (RISpec 3.2, 4.1.2).
+                if !self.projection_given && rt.camera_shader_id().is_none() {
+                    let id = rt.find_shader("orthographic")?;
+                    rt.camera_shader(Some(id), &[])?;
+                }
                 // The transform now is world-to-camera.
                 let m = rt.current_matrix();
                 let mut cam = *rt.camera();
