@@ -26,10 +26,15 @@ pub struct LoadedScene {
 }
 
 impl LoadedScene {
-    /// How many of the warnings say that part of the scene is missing from the picture (a request
-    /// skipped; a shader, archive or model not found).
+    /// How many of the diagnostics say that part of the scene is missing from the picture (a request
+    /// skipped or unreadable; a shader, archive or model not found).
     pub fn omissions(&self) -> usize {
-        self.warnings.iter().filter(|d| d.severity == Severity::Omission).count()
+        self.warnings.iter().filter(|d| d.severity >= Severity::Omission).count()
+    }
+
+    /// How many requests could not be read (syntax errors in a RIB file), each skipped.
+    pub fn errors(&self) -> usize {
+        self.warnings.iter().filter(|d| d.severity == Severity::Error).count()
     }
 }
 

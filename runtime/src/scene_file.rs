@@ -44,9 +44,6 @@ pub enum SceneFileError {
     UnknownType { path: PathBuf },
     #[error("{path}: {message}")]
     Rib { path: PathBuf, message: String },
-    /// Syntax errors, one a line, each already naming its file, line and column.
-    #[error("{errors}")]
-    RibSyntax { errors: String },
     #[error("{path}: a glTF file places its own instances, so it cannot be read into a retained object (ObjectBegin)")]
     NotRetainable { path: PathBuf },
 }

@@ -65,12 +65,18 @@ fn shader_parameters_need_no_declaration_and_bad_ones_warn_with_their_location()
 }
 
 #[test]
-fn syntax_errors_stop_the_load_and_name_every_place() {
+fn requests_with_syntax_errors_are_skipped_and_named_and_the_rest_loads() {
     let mut rt = Context::new();
-    let err = load_str(&mut rt, "WorldBegin\nTranslate 1 2\nSphere 1 ]\nWorldEnd\n", Path::new("bad.rib"))
-        .expect_err("syntax errors");
-    let text = err.to_string();
-    assert!(text.contains("bad.rib:2:") && text.contains("bad.rib:3:"), "{text}");
+    let loaded = load_str(
+        &mut rt,
+        "WorldBegin\nTranslate 1 2\nSphere 1 ]\nPolygon \"P\" [0 0 0 1 0 0 1 1 0]\nWorldEnd\n",
+        Path::new("bad.rib"),
+    )
+    .expect("the readable requests load");
+    let text: Vec<String> = loaded.warnings.iter().map(ToString::to_string).collect();
+    assert!(text[0].starts_with("bad.rib:2:1: error:") && text[1].starts_with("bad.rib:3:10: error:"), "{text:?}");
+    assert_eq!((loaded.errors(), loaded.omissions()), (2, 2));
+    assert_eq!(rt.world_instance_ids().len(), 1, "the polygon after them");
 }
 
 #[test]

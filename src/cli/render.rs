@@ -317,6 +317,10 @@ fn watch(
         let scene_changed: Vec<&PathBuf> = changed.iter().filter(|f| scene.contains(*f)).collect();
         if !scene_changed.is_empty() {
             match prepare(args, frame_index) {
+                // A half-typed edit is not a scene to show.
+                Ok(prepared) if prepared.errors > 0 => {
+                    eprintln!("error: the scene has syntax errors (above); the last good scene stays")
+                }
                 Ok(prepared) => {
                     *rt = prepared.rt;
                     reloader = ShaderReloader::new(rt)?;
@@ -410,6 +414,8 @@ struct Prepared {
     output: Output,
     /// How many parts of the scene are missing (see [`LoadedScene::omissions`]).
     omissions: usize,
+    /// How many requests of the scene could not be read (see [`LoadedScene::errors`]).
+    errors: usize,
     /// The files it was read from.
     files: Vec<PathBuf>,
 }
@@ -461,6 +467,7 @@ fn prepare(args: &RenderArgs, frame_index: usize) -> anyhow::Result<Prepared> {
         rt,
         output: Output { path, transfer: args.transfer },
         omissions: loaded.omissions(),
+        errors: loaded.errors(),
         files: loaded.files,
     })
 }
@@ -479,7 +486,7 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
     let mut missing = 0;
     let mut written_paths = BTreeSet::new();
     for &index in &frames {
-        let Prepared { mut rt, output, omissions, files } = prepare(args, index)?;
+        let Prepared { mut rt, output, omissions, files, .. } = prepare(args, index)?;
         if !written_paths.insert(output.path.clone()) {
             anyhow::bail!(
                 "frame {} would overwrite {} of an earlier frame: name the images with #f (as in \
@@ -521,7 +528,7 @@ fn run_mpi(args: &RenderArgs, frame_index: usize) -> anyhow::Result<ExitCode> {
         return super::mpi::work(&*transport, &pool, &args.workers);
     }
     let mut master = Master::connect(transport)?;
-    let Prepared { mut rt, output, omissions, files } = prepare(args, frame_index)?;
+    let Prepared { mut rt, output, omissions, files, .. } = prepare(args, frame_index)?;
     master.check_workers()?;
     if master.workers() == 0 {
         eprintln!("warning: --mpi with no worker rank (run it with mpirun -n 2 or more): rendering on rank 0 alone");

@@ -23,7 +23,8 @@
 //!
 //! What cannot be honoured (a shader not found, a parameter the shader lacks or of the wrong type, a
 //! request the engine does not support yet) is a warning with the file, line and column, and
-//! loading goes on; syntax errors stop the load with every error listed.
+//! loading goes on; so does it past a request with a syntax error, which is skipped (RenderMan's
+//! behaviour) and reported as an error.
 
 use super::decl::{Class, Ty};
 use super::mesh::MeshOptions;
@@ -60,9 +61,15 @@ pub struct LoadedRib {
 }
 
 impl LoadedRib {
-    /// How many of the warnings say that part of the scene is missing from the picture.
+    /// How many of the diagnostics say that part of the scene is missing from the picture: the
+    /// omissions, and the errors (a request that could not be read is skipped).
     pub fn omissions(&self) -> usize {
-        self.warnings.iter().filter(|d| d.severity == Severity::Omission).count()
+        self.warnings.iter().filter(|d| d.severity >= Severity::Omission).count()
+    }
+
+    /// How many requests could not be read (syntax errors).
+    pub fn errors(&self) -> usize {
+        self.warnings.iter().filter(|d| d.severity == Severity::Error).count()
     }
 }
 
@@ -174,11 +181,10 @@ pub fn expand_display_name(name: &str, frame: i32) -> String {
     out
 }
 
+/// A stream with syntax errors loads what it could read, as RenderMan renders the rest of a file
+/// whose request could not be read: the errors are in [`LoadedRib::warnings`] (as
+/// [`Severity::Error`]) and counted by [`LoadedRib::omissions`].
 fn load_parsed(rt: &mut Context, parse: RibParse, path: &Path, index: usize) -> Result<LoadedRib, SceneFileError> {
-    if parse.has_errors() {
-        let errors = parse.errors().map(|d| format!("{}: {}", d.loc, d.message)).collect::<Vec<_>>().join("\n");
-        return Err(SceneFileError::RibSyntax { errors });
-    }
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let mut loader = Loader::new(rt, dir);
     loader.out.files = parse.archives.clone();
