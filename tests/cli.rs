@@ -953,3 +953,50 @@ fn without_a_projection_the_camera_is_orthographic() {
     assert_eq!(near_the_edge(&white), 1.0);
     assert_eq!(near_the_edge(&white.replace("Translate", "Projection \"perspective\" \"fov\" 90\nTranslate")), 0.0);
 }
+
+#[test]
+fn displays_write_their_modes_depths_and_additional_images() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = |displays: &str| {
+        SPHERE_RIB
+            .replace("Format 32 32 1", &format!("Format 32 32 1\nProjection \"perspective\" \"fov\" 30\n{displays}"))
+    };
+    write(
+        dir.path(),
+        "s.rib",
+        &scene(
+            "Quantize \"rgba\" 65535 0 65535 0\nDisplay \"colour.tif\" \"tiff\" \"rgb\"\n\
+             Display \"+depth.exr\" \"file\" \"z\"\nDisplay \"+alpha.png\" \"file\" \"a\"\n\
+             Display \"+depth.tif\" \"zfile\" \"z\"",
+        ),
+    );
+    let o = rtsl(&["render", "s.rib", "-q"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let read = |name: &str| rtsl_runtime::read_image(dir.path().join(name)).expect(name);
+    // 16-bit colour: a shade between two 8-bit codes survives.
+    let colour = read("colour.tif").pixel(16, 16);
+    assert!(colour[0] > 0.0 && ((colour[0] * 255.0) - (colour[0] * 255.0).round()).abs() > 1e-3, "{colour:?}");
+    // The front of the unit sphere five units away is four units deep; the background is infinitely far.
+    for name in ["depth.exr", "depth.tif"] {
+        let depth = read(name);
+        assert!((depth.pixel(16, 16)[0] - 4.0).abs() < 0.01, "{name}: {:?}", depth.pixel(16, 16));
+        assert_eq!(depth.pixel(0, 0)[0], f32::INFINITY, "{name}");
+    }
+    let alpha = read("alpha.png");
+    assert_eq!((alpha.pixel(16, 16)[0], alpha.pixel(0, 0)[0]), (1.0, 0.0));
+
+    // A window display writes render.png, with a note; depth in an 8-bit file is refused before rendering.
+    write(dir.path(), "w.rib", &scene("Display \"view\" \"framebuffer\" \"rgba\""));
+    let o = rtsl(&["render", "w.rib", "-q"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(stderr(&o).contains("is a window") && dir.path().join("render.png").exists(), "{}", stderr(&o));
+    write(dir.path(), "z.rib", &scene("Display \"z.png\" \"file\" \"z\""));
+    let o = rtsl(&["render", "z.rib", "-q"], dir.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("z.png: depth needs a float image"), "{}", stderr(&o));
+    // An output variable is a display rtsl cannot make: a part missing.
+    write(dir.path(), "aov.rib", &scene("Display \"n.exr\" \"file\" \"N\""));
+    let o = rtsl(&["render", "aov.rib", "-q"], dir.path());
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("output variables are not supported"), "{}", stderr(&o));
+}

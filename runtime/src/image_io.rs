@@ -4,16 +4,20 @@
 //! Conventions, for every function here:
 //! - Pixels are `f32`, row-major, **top row first**, `channels` values per pixel (RGBA frames:
 //!   4, straight from the framebuffer, linear and not premultiplied by this module).
-//! - The format follows the file extension (case-insensitive): `.png`, `.tga`, `.ppm` (8-bit) and
-//!   `.exr` (32-bit or half float).
-//! - 8-bit files are display-encoded: colour (not alpha) goes through the sRGB curve unless
-//!   [`WriteOptions::transfer`] says [`Transfer::Linear`], then is quantised like RenderMan's
-//!   default `Quantize "rgba" 255 0 255 0.5`: value times 255, plus 0.5 (or a dither in [0, 1)
-//!   when asked), truncated and clamped to 0..=255. Float files (EXR) hold the linear values.
+//! - The format follows the file extension (case-insensitive): `.png`, `.tga`, `.ppm`, `.tif`
+//!   (`.tiff`) and `.exr`. Integer files are 8-bit unless a [`Quantize`] asks for 16 bits (PNG,
+//!   TIFF) or for floats (TIFF); EXR is always float (32-bit or half).
+//! - Integer files are display-encoded: colour (not alpha, not depth) goes through the sRGB curve
+//!   unless [`WriteOptions::transfer`] says [`Transfer::Linear`], then is quantised as RenderMan's
+//!   `Quantize "rgba" one min max ditheramplitude` says: value times `one`, plus 0.5 (or plus a
+//!   dither of the amplitude around it), truncated and clamped to `min..=max`. Without a
+//!   `Quantize` that is `255 0 255` and no dither (RenderMan's default dithers by 0.5;
+//!   [`WriteOptions::dither`] asks for it). Float files hold the linear values.
 //!   `.ppm` has no alpha channel: alpha is dropped.
 //! - [`read_image`] gives back exactly what was stored: 8-bit values divided by 255 (no sRGB
 //!   decoding: that is a texture's business, see `crate::texture`), EXR values as they are.
-//!   Missing channels read as 0, a missing alpha as 1; a luminance-only file (`Y`/grey) fills R, G, B.
+//!   Missing channels read as 0, a missing alpha as 1; a luminance-only file (`Y`/grey, or an EXR
+//!   of one channel such as depth `Z`) fills R, G, B.
 //!
 //! Every error names the file it is about.
 
@@ -30,8 +34,10 @@ pub enum ImageError {
     Decode { path: PathBuf, message: String },
     #[error("{path}: cannot encode: {message}")]
     Encode { path: PathBuf, message: String },
-    #[error("{path}: unsupported image format (known: .png .tga .ppm .exr, and .jpg for reading)")]
+    #[error("{path}: unsupported image format (known: .png .tga .ppm .tif .exr, and .jpg for reading)")]
     UnsupportedFormat { path: PathBuf },
+    #[error("{path}: this format cannot store {what}")]
+    UnsupportedSamples { path: PathBuf, what: String },
     #[error("{path}: {width}x{height} pixels with {channels} channels need {expected} values, got {got}")]
     BufferSize { path: PathBuf, width: usize, height: usize, channels: usize, expected: usize, got: usize },
     #[error("images differ in size: {a_width}x{a_height} and {b_width}x{b_height}")]
@@ -44,6 +50,7 @@ pub enum ImageFormat {
     Png,
     Tga,
     Ppm,
+    Tiff,
     Exr,
 }
 
@@ -55,6 +62,7 @@ impl ImageFormat {
             "png" => Some(ImageFormat::Png),
             "tga" => Some(ImageFormat::Tga),
             "ppm" => Some(ImageFormat::Ppm),
+            "tif" | "tiff" => Some(ImageFormat::Tiff),
             "exr" => Some(ImageFormat::Exr),
             _ => None,
         }
@@ -69,8 +77,55 @@ pub struct WriteOptions {
     /// 8-bit only: add an ordered dither (a 4x4 Bayer matrix, deterministic) instead of rounding,
     /// RenderMan's `Quantize ... 0.5` dither amplitude. Breaks up banding in smooth gradients.
     pub dither: bool,
-    /// 8-bit only: the curve colour (not alpha) goes through before quantising.
+    /// Integer files only: the curve colour (not alpha) goes through before quantising.
     pub transfer: Transfer,
+    /// How values become what the file stores; `None` for 8 bits, rounded (or dithered by
+    /// [`WriteOptions::dither`]).
+    pub quantize: Option<Quantize>,
+}
+
+/// RenderMan's `Quantize`: a value becomes `floor(one * value + 0.5 + dither * d)` clamped to
+/// `[min, max]`, `d` in [-1, 1) from an ordered (4x4 Bayer) dither, deterministic. `one` of 0 asks
+/// for floats.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Quantize {
+    pub one: f32,
+    pub min: f32,
+    pub max: f32,
+    pub dither: f32,
+}
+
+/// What a file's samples are.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SampleType {
+    U8,
+    U16,
+    F32,
+}
+
+impl Quantize {
+    /// 8 bits, rounded.
+    pub const EIGHT_BIT: Quantize = Quantize { one: 255.0, min: 0.0, max: 255.0, dither: 0.0 };
+
+    /// The samples it asks for: floats for `one` of 0 (or less), 8 bits up to a `max` of 255, 16
+    /// bits above.
+    pub fn samples(&self) -> SampleType {
+        if self.one <= 0.0 || !self.one.is_finite() {
+            SampleType::F32
+        } else if self.max <= 255.0 {
+            SampleType::U8
+        } else {
+            SampleType::U16
+        }
+    }
+
+    /// The integer `v` (already display-encoded) becomes at pixel `(x, y)`.
+    fn apply(&self, v: f32, x: usize, y: usize) -> f32 {
+        let d = if self.dither > 0.0 { self.dither * (2.0 * BAYER4[y % 4][x % 4] - 1.0) } else { 0.0 };
+        let top = if self.samples() == SampleType::U8 { 255.0 } else { 65535.0 };
+        // NaN becomes 0 (the casts after), infinities clamp.
+        (v * self.one + 0.5 + d).floor().clamp(self.min.max(0.0), self.max.min(top))
+    }
 }
 
 /// How the linear values of a frame become the values an 8-bit file stores.
@@ -158,21 +213,112 @@ pub fn write_image(
     rgba: &[f32],
     opts: &WriteOptions,
 ) -> Result<(), ImageError> {
+    write_channels(path, width, height, &["R", "G", "B", "A"], rgba, opts)
+}
+
+/// Writes an image of the named channels (`values` interleaved, `names.len()` a pixel, top row
+/// first): one (a grey image: alpha `A`, depth `Z` or any other), three (`R G B`) or four
+/// (`R G B A`); any number in EXR. Colour channels are display-encoded in integer files; the others are stored as
+/// they are. Depth (`Z`) is refused in integer files: it is not a value in [0, 1].
+pub fn write_channels(
+    path: impl AsRef<Path>,
+    width: usize,
+    height: usize,
+    names: &[&str],
+    values: &[f32],
+    opts: &WriteOptions,
+) -> Result<(), ImageError> {
+    use ::image::ExtendedColorType as C;
     let path = path.as_ref();
-    check_buffer(path, width, height, 4, rgba.len())?;
+    let channels = names.len();
+    check_buffer(path, width, height, channels, values.len())?;
     let format = ImageFormat::from_path(path).ok_or_else(|| ImageError::UnsupportedFormat { path: path.into() })?;
-    match format {
-        ImageFormat::Exr => write_exr_rgba(path, width, height, rgba, opts.exr_half),
-        ImageFormat::Png | ImageFormat::Tga => {
-            let bytes = quantize(width, rgba, 4, opts);
-            save_8bit(path, &bytes, width, height, ::image::ExtendedColorType::Rgba8)
-        }
-        ImageFormat::Ppm => {
-            let rgb: Vec<f32> = rgba.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect();
-            let bytes = quantize(width, &rgb, 3, opts);
-            save_8bit(path, &bytes, width, height, ::image::ExtendedColorType::Rgb8)
-        }
+    let unsupported = |what: &str| ImageError::UnsupportedSamples { path: path.into(), what: what.into() };
+    if format == ImageFormat::Exr {
+        let channel = |c: usize| -> Vec<f32> { values.iter().skip(c).step_by(channels).copied().collect() };
+        let layer = ExrLayer {
+            width,
+            height,
+            channels: names.iter().enumerate().map(|(c, name)| (name.to_string(), channel(c))).collect(),
+            ..ExrLayer::default()
+        };
+        return write_exr(path, &layer, opts.exr_half);
     }
+    if !matches!(channels, 1 | 3 | 4) {
+        return Err(unsupported(&format!("{channels} channels (use .exr)")));
+    }
+    let samples = opts.quantize.map_or(SampleType::U8, |q| q.samples());
+    if names.contains(&"Z") && samples != SampleType::F32 {
+        return Err(unsupported("depth as integers (write it to .exr or .tif with floats)"));
+    }
+    // PPM stores RGB: alpha is dropped, grey is repeated.
+    let (names, values): (Vec<&str>, std::borrow::Cow<[f32]>) = match (format, channels) {
+        (ImageFormat::Ppm, 4) => {
+            (vec!["R", "G", "B"], values.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect::<Vec<_>>().into())
+        }
+        (ImageFormat::Ppm, 1) => {
+            (vec!["R", "G", "B"], values.iter().flat_map(|&v| [v, v, v]).collect::<Vec<_>>().into())
+        }
+        _ => (names.to_vec(), values.into()),
+    };
+    let channels = names.len();
+    let color = |bytes: u8| match (channels, bytes) {
+        (1, 1) => C::L8,
+        (3, 1) => C::Rgb8,
+        (4, 1) => C::Rgba8,
+        (1, 2) => C::L16,
+        (3, 2) => C::Rgb16,
+        (4, 2) => C::Rgba16,
+        (1 | 3, _) => C::Rgb32F,
+        _ => C::Rgba32F,
+    };
+    match (samples, format) {
+        (SampleType::F32, ImageFormat::Tiff) => {
+            // The encoder has no one-channel float layout: grey is stored as RGB.
+            let rgb: std::borrow::Cow<[f32]> =
+                if channels == 1 { values.iter().flat_map(|&v| [v, v, v]).collect::<Vec<_>>().into() } else { values };
+            save_encoded(path, bytemuck::cast_slice(&rgb[..]), width, height, color(4))
+        }
+        (SampleType::U16, ImageFormat::Png | ImageFormat::Tiff) => {
+            let q = opts.quantize.unwrap_or(Quantize::EIGHT_BIT);
+            let words: Vec<u16> =
+                encode_integers(width, &names, &values, opts, |v, x, y| q.apply(v, x, y)).map(|v| v as u16).collect();
+            save_encoded(path, bytemuck::cast_slice(&words), width, height, color(2))
+        }
+        (SampleType::U8, _) => {
+            let bytes: Vec<u8> = match opts.quantize {
+                Some(q) => {
+                    encode_integers(width, &names, &values, opts, |v, x, y| q.apply(v, x, y)).map(|v| v as u8).collect()
+                }
+                None => quantize(width, &values, &names, opts),
+            };
+            save_encoded(path, &bytes, width, height, color(1))
+        }
+        (SampleType::F32, _) => Err(unsupported("floats (use .tif or .exr)")),
+        (SampleType::U16, _) => Err(unsupported("16-bit samples (use .png or .tif)")),
+    }
+}
+
+/// The values of an integer file before the cast: colour display-encoded, then quantised by
+/// `apply(value, x, y)`.
+fn encode_integers<'a>(
+    width: usize,
+    names: &'a [&str],
+    values: &'a [f32],
+    opts: &'a WriteOptions,
+    apply: impl Fn(f32, usize, usize) -> f32 + 'a,
+) -> impl Iterator<Item = f32> + 'a {
+    let channels = names.len();
+    values.iter().enumerate().map(move |(i, &v)| {
+        let pixel = i / channels;
+        let v = if is_colour(names[i % channels]) { opts.transfer.encode(v) } else { v };
+        apply(v, pixel % width, pixel / width)
+    })
+}
+
+/// Whether a channel holds colour, which integer files display-encode.
+fn is_colour(name: &str) -> bool {
+    matches!(name, "R" | "G" | "B")
 }
 
 /// Reads an image as RGBA floats (see the module doc for what the values mean).
@@ -182,7 +328,9 @@ pub fn read_image(path: impl AsRef<Path>) -> Result<RgbaImage, ImageError> {
         let layer = read_exr(path)?;
         let (width, height) = (layer.width, layer.height);
         let get = |names: &[&str]| names.iter().find_map(|n| layer.channel(n));
-        let luminance = get(&["Y", "y"]);
+        // Grey: `Y`, or a file's only channel (depth `Z`, say).
+        let only = (layer.channels.len() == 1).then(|| layer.channels[0].1.as_slice());
+        let luminance = get(&["Y", "y"]).or(only);
         let red = get(&["R", "r"]).or(luminance);
         let green = get(&["G", "g"]).or(luminance);
         let blue = get(&["B", "b"]).or(luminance);
@@ -251,14 +399,14 @@ const BAYER4: [[f32; 4]; 4] = [
 
 /// Quantises `channels`-wide pixels to bytes (see the module doc). The last channel of a
 /// 4-channel pixel is alpha, never sRGB-encoded.
-fn quantize(width: usize, values: &[f32], channels: usize, opts: &WriteOptions) -> Vec<u8> {
+fn quantize(width: usize, values: &[f32], names: &[&str], opts: &WriteOptions) -> Vec<u8> {
+    let channels = names.len();
     values
         .iter()
         .enumerate()
         .map(|(i, &v)| {
             let pixel = i / channels;
-            let is_alpha = channels == 4 && i % channels == 3;
-            let v = if is_alpha { v } else { opts.transfer.encode(v) };
+            let v = if is_colour(names[i % channels]) { opts.transfer.encode(v) } else { v };
             let offset = if opts.dither { BAYER4[(pixel / width) % 4][(pixel % width) % 4] } else { 0.5 };
             // NaN becomes 0 (the `as` cast), infinities clamp.
             (v * 255.0 + offset).floor().clamp(0.0, 255.0) as u8
@@ -266,7 +414,7 @@ fn quantize(width: usize, values: &[f32], channels: usize, opts: &WriteOptions) 
         .collect()
 }
 
-fn save_8bit(
+fn save_encoded(
     path: &Path,
     bytes: &[u8],
     width: usize,
@@ -314,12 +462,6 @@ pub(crate) fn write_file(path: &Path, bytes: &[u8]) -> Result<(), ImageError> {
         return Err(io(e));
     }
     Ok(())
-}
-
-fn write_exr_rgba(path: &Path, width: usize, height: usize, rgba: &[f32], half: bool) -> Result<(), ImageError> {
-    let channel = |c: usize| -> Vec<f32> { rgba.iter().skip(c).step_by(4).copied().collect() };
-    let channels = ["R", "G", "B", "A"].iter().enumerate().map(|(c, name)| (name.to_string(), channel(c))).collect();
-    write_exr(path, &ExrLayer { width, height, channels, ..ExrLayer::default() }, half)
 }
 
 /// One layer of an EXR file as plain floats, with the header attributes rtsl uses.
@@ -533,7 +675,63 @@ mod tests {
     }
 
     /// Written as rendered, no transfer curve: what the quantisation tests look at.
-    const LINEAR: WriteOptions = WriteOptions { exr_half: false, dither: false, transfer: Transfer::Linear };
+    const LINEAR: WriteOptions =
+        WriteOptions { exr_half: false, dither: false, transfer: Transfer::Linear, quantize: None };
+
+    #[test]
+    fn tiff_stores_8_bit_16_bit_and_float_samples() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("f.tif");
+        let values: Vec<f32> = vec![0.0, 0.25, 0.5, 1.0, 2.5, -1.0, 0.125, 0.75];
+        let write = |q: Option<Quantize>| {
+            write_image(&path, 2, 1, &values, &WriteOptions { quantize: q, ..LINEAR }).unwrap();
+            read_image(&path).unwrap().pixels
+        };
+        // 8 bits: rounded, clamped.
+        let eight = write(None);
+        assert_eq!(
+            eight.iter().map(|v| (v * 255.0).round() as i32).collect::<Vec<_>>(),
+            [0, 64, 128, 255, 255, 0, 32, 191]
+        );
+        // 16 bits: `Quantize "rgba" 65535 0 65535 0`.
+        let sixteen = write(Some(Quantize { one: 65535.0, min: 0.0, max: 65535.0, dither: 0.0 }));
+        assert!((sixteen[1] - 0.25).abs() < 1.0 / 65535.0 && sixteen[4] == 1.0, "{sixteen:?}");
+        // Floats: `Quantize "rgba" 0 0 0 0` keeps every value, out of [0, 1] too.
+        let float = write(Some(Quantize { one: 0.0, min: 0.0, max: 0.0, dither: 0.0 }));
+        assert_eq!(float, values);
+    }
+
+    #[test]
+    fn quantize_follows_renderman() {
+        let q = Quantize { one: 100.0, min: 10.0, max: 90.0, dither: 0.0 };
+        assert_eq!((q.apply(0.5, 0, 0), q.apply(0.0, 0, 0), q.apply(1.0, 0, 0)), (50.0, 10.0, 90.0));
+        // A dither of amplitude 0.5 spreads one value over neighbouring codes, averaging it.
+        let dithered = Quantize { one: 255.0, min: 0.0, max: 255.0, dither: 0.5 };
+        let v = 100.3 / 255.0;
+        let codes: Vec<f32> = (0..16).map(|i| dithered.apply(v, i % 4, i / 4)).collect();
+        assert!(codes.iter().all(|&c| c == 100.0 || c == 101.0), "{codes:?}");
+        assert!((codes.iter().sum::<f32>() / 16.0 - 100.3).abs() < 0.07, "{codes:?}");
+        assert_eq!(Quantize::EIGHT_BIT.samples(), SampleType::U8);
+    }
+
+    #[test]
+    fn one_channel_images_and_depth() {
+        let dir = tempfile::tempdir().unwrap();
+        let alpha = dir.path().join("a.png");
+        write_channels(&alpha, 2, 1, &["A"], &[0.5, 1.0], &WriteOptions::default()).unwrap();
+        // Alpha is not display-encoded.
+        assert_eq!(read_image(&alpha).unwrap().pixel(0, 0)[0], 128.0 / 255.0);
+        let float = WriteOptions { quantize: Some(Quantize { one: 0.0, min: 0.0, max: 0.0, dither: 0.0 }), ..LINEAR };
+        for name in ["z.exr", "z.tif"] {
+            let path = dir.path().join(name);
+            write_channels(&path, 2, 1, &["Z"], &[3.5, 7.0], &float).unwrap();
+            assert_eq!(read_image(&path).unwrap().pixel(1, 0)[0], 7.0, "{name}");
+        }
+        let err = write_channels(dir.path().join("z.png"), 2, 1, &["Z"], &[3.5, 7.0], &WriteOptions::default());
+        assert!(err.unwrap_err().to_string().contains("cannot store depth as integers"));
+        let err = write_image(dir.path().join("f.png"), 1, 1, &[0.0; 4], &float);
+        assert!(err.unwrap_err().to_string().contains("cannot store floats"));
+    }
 
     #[test]
     fn eight_bit_formats_round_trip_to_the_nearest_level() {

@@ -12,6 +12,9 @@ use std::path::{Path, PathBuf};
 pub struct LoadedScene {
     /// The image the scene names (a RIB `Display`), resolved against the scene file's directory.
     pub display: Option<PathBuf>,
+    /// Every image the scene asks for (RIB `Display` and `+name` displays), names resolved
+    /// against the scene file's directory.
+    pub displays: Vec<crate::rib::load::RibDisplay>,
     /// What was skipped, ignored or approximated, each naming where (see
     /// [`crate::rib::load::LoadedRib::warnings`]).
     pub warnings: Vec<RibDiagnostic>,
@@ -52,8 +55,14 @@ pub fn load_scene_frame(rt: &mut Context, path: impl AsRef<Path>, index: usize) 
         Some("rib") => {
             let loaded = crate::rib::load::load_file_frame(rt, path, index)?;
             let dir = path.parent().unwrap_or(Path::new("."));
+            let displays = loaded
+                .displays
+                .into_iter()
+                .map(|d| crate::rib::load::RibDisplay { name: dir.join(&d.name), ..d })
+                .collect();
             Ok(LoadedScene {
                 display: loaded.display.map(|d| dir.join(d)),
+                displays,
                 warnings: loaded.warnings,
                 files: std::iter::once(path.to_path_buf()).chain(loaded.files).collect(),
                 frames: loaded.frames,

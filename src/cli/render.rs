@@ -4,10 +4,13 @@
 use anyhow::Context as _;
 use rtsl_runtime::api::Context;
 use rtsl_runtime::distributed::Master;
+use rtsl_runtime::image_io::{write_channels, Quantize};
 use rtsl_runtime::reload::{ShaderEvent, ShaderReloader, ShaderWatcher};
-use rtsl_runtime::render::{render_frame, Antialiasing, FrameReport, Framebuffer, World, MAX_PIXEL_SAMPLES};
+use rtsl_runtime::render::{
+    render_frame, Antialiasing, DisplayMode, FrameReport, Framebuffer, World, MAX_PIXEL_SAMPLES,
+};
 use rtsl_runtime::shading::ParamValue;
-use rtsl_runtime::{write_image, LoadedScene, Transfer, WriteOptions};
+use rtsl_runtime::{LoadedScene, Transfer, WriteOptions};
 use std::collections::BTreeSet;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -19,7 +22,8 @@ use std::time::Duration;
 pub struct RenderArgs {
     /// The scene: a RIB file, or a model (OBJ, PLY, glTF). Without one, the embedded default scene.
     pub scene: Option<PathBuf>,
-    /// The image to write (.png, .exr, .tga, .ppm); a RIB's `Display` names it otherwise. Of a file
+    /// The image to write (.png, .tif, .exr, .tga, .ppm); a RIB's `Display` names it otherwise
+    /// (with its mode and `+name` displays). Of a file
     /// with several frames, `#f` in the name stands for the frame number (`#4f` padded to 4
     /// digits), as in `Display`.
     #[arg(short, long)]
@@ -171,7 +175,32 @@ fn on_pool(pool: &rayon::ThreadPool) -> Box<FrameRender<'_>> {
 /// The image a render writes, and how (a `--transfer` given, or the scene's).
 struct Output {
     path: PathBuf,
+    /// The channels it holds.
+    mode: DisplayMode,
     transfer: Option<Transfer>,
+    /// More images of the frame (RIB `+name` displays).
+    extra: Vec<(PathBuf, DisplayMode)>,
+}
+
+impl Output {
+    fn images(&self) -> impl Iterator<Item = (&PathBuf, DisplayMode)> {
+        std::iter::once((&self.path, self.mode)).chain(self.extra.iter().map(|(p, m)| (p, *m)))
+    }
+}
+
+/// Refuses, before rendering, an image that cannot be written: an unknown format, or depth in a
+/// format that stores no floats.
+fn check_image(path: &Path, mode: DisplayMode) -> anyhow::Result<()> {
+    use rtsl_runtime::image_io::ImageFormat;
+    match ImageFormat::from_path(path) {
+        None => anyhow::bail!("{}: unsupported image format (known: .png .tga .ppm .tif .exr)", path.display()),
+        Some(ImageFormat::Exr) => Ok(()),
+        Some(ImageFormat::Tiff) if mode == DisplayMode::Z => Ok(()),
+        Some(_) if mode.has_depth() => {
+            anyhow::bail!("{}: depth needs a float image (.exr, or .tif for depth alone)", path.display())
+        }
+        Some(_) => Ok(()),
+    }
 }
 
 /// What rendering and writing a frame reported.
@@ -231,9 +260,14 @@ fn render_and_write(
     let texture_files = world.textures.files();
     rt.return_scene(world);
     let transfer = output.transfer.unwrap_or_else(|| rt.options.transfer());
-    let opts = WriteOptions { transfer, ..WriteOptions::default() };
-    write_image(&output.path, fb.width as usize, fb.height as usize, &fb.rgba, &opts)
-        .with_context(|| format!("writing {}", output.path.display()))?;
+    for (path, mode) in output.images() {
+        let float = Quantize { one: 0.0, min: 0.0, max: 0.0, dither: 0.0 };
+        let quantize = if mode.has_depth() { Some(float) } else { rt.options.quantize };
+        let opts = WriteOptions { transfer, quantize, ..WriteOptions::default() };
+        let (names, values) = fb.channels(mode);
+        write_channels(path, fb.width as usize, fb.height as usize, names, &values, &opts)
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
     Ok(Written { report, missing_textures: missing_textures.len(), texture_files })
 }
 
@@ -396,6 +430,7 @@ pub(crate) fn load_scene_frame(
             let rib = rtsl::default_scene::load(&mut rt)?;
             LoadedScene {
                 display: rib.display,
+                displays: rib.displays,
                 warnings: rib.warnings,
                 files: Vec::new(),
                 frames: rib.frames,
@@ -444,7 +479,21 @@ fn prepare(args: &RenderArgs, frame_index: usize) -> anyhow::Result<Prepared> {
     let expanded = |p: &PathBuf| {
         PathBuf::from(rtsl_runtime::rib::load::expand_display_name(&p.to_string_lossy(), loaded.frame_number))
     };
-    let output = args.output.as_ref().map(expanded).or(loaded.display.clone());
+    let mut files = loaded.displays.iter().filter(|d| !d.window).map(|d| (d.name.clone(), d.mode));
+    let (path, mode) = match args.output.as_ref().map(expanded) {
+        Some(path) => (path, DisplayMode::Rgba),
+        None => files.next().unwrap_or_else(|| {
+            if let Some(window) = loaded.displays.iter().find(|d| d.window) {
+                eprintln!(
+                    "note: `Display \"{}\"` is a window, which rtsl render does not open (rtsl view does); \
+                     the image goes to render.png",
+                    window.name.display()
+                );
+            }
+            (PathBuf::from("render.png"), DisplayMode::Rgba)
+        }),
+    };
+    let extra: Vec<(PathBuf, DisplayMode)> = files.collect();
     if let Some((w, h)) = args.size {
         rt.options.width = w;
         rt.options.height = h;
@@ -458,18 +507,12 @@ fn prepare(args: &RenderArgs, frame_index: usize) -> anyhow::Result<Prepared> {
     if let Some(camera) = &args.camera {
         camera.bind(&mut rt)?;
     }
-    let path = output.unwrap_or_else(|| PathBuf::from("render.png"));
+    let output = Output { path, mode, transfer: args.transfer, extra };
     // Refused before rendering, not after.
-    if rtsl_runtime::image_io::ImageFormat::from_path(&path).is_none() {
-        anyhow::bail!("{}: unsupported image format (known: .png .tga .ppm .exr)", path.display());
+    for (path, mode) in output.images() {
+        check_image(path, mode)?;
     }
-    Ok(Prepared {
-        rt,
-        output: Output { path, transfer: args.transfer },
-        omissions: loaded.omissions(),
-        errors: loaded.errors(),
-        files: loaded.files,
-    })
+    Ok(Prepared { rt, output, omissions: loaded.omissions(), errors: loaded.errors(), files: loaded.files })
 }
 
 pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
@@ -487,13 +530,15 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
     let mut written_paths = BTreeSet::new();
     for &index in &frames {
         let Prepared { mut rt, output, omissions, files, .. } = prepare(args, index)?;
-        if !written_paths.insert(output.path.clone()) {
-            anyhow::bail!(
-                "frame {} would overwrite {} of an earlier frame: name the images with #f (as in \
-                 `-o frame.#4f.png`) or choose one frame with --frame",
-                index + 1,
-                output.path.display()
-            );
+        for (path, _) in output.images() {
+            if !written_paths.insert(path.clone()) {
+                anyhow::bail!(
+                    "frame {} would overwrite {} of an earlier frame: name the images with #f (as in \
+                     `-o frame.#4f.png`) or choose one frame with --frame",
+                    index + 1,
+                    path.display()
+                );
+            }
         }
         let written = render_and_write(&mut rt, &mut render, &output, args.quiet, true)?;
         if !args.quiet {

@@ -57,8 +57,23 @@ impl Framebuffer {
         [self.rgba[i], self.rgba[i + 1], self.rgba[i + 2], self.rgba[i + 3]]
     }
 
+    /// The channels `mode` asks for, named as [`crate::image_io::write_channels`] takes them,
+    /// interleaved. Depth is camera-space z, infinite where no surface was hit.
+    pub fn channels(&self, mode: DisplayMode) -> (&'static [&'static str], Vec<f32>) {
+        let pixels = self.rgba.chunks_exact(4).zip(&self.depth);
+        match mode {
+            DisplayMode::Rgba => (&["R", "G", "B", "A"], self.rgba.clone()),
+            DisplayMode::Rgb => (&["R", "G", "B"], pixels.flat_map(|(p, _)| [p[0], p[1], p[2]]).collect()),
+            DisplayMode::A => (&["A"], pixels.map(|(p, _)| p[3]).collect()),
+            DisplayMode::Z => (&["Z"], self.depth.clone()),
+            DisplayMode::Rgbaz => {
+                (&["R", "G", "B", "A", "Z"], pixels.flat_map(|(p, &z)| [p[0], p[1], p[2], p[3], z]).collect())
+            }
+        }
+    }
+
     /// Writes the colour and alpha to an image file whose format follows the extension (`.png`,
-    /// `.tga`, `.ppm`: 8-bit, linear; `.exr`: 32-bit float), as [`crate::write_image`] does.
+    /// `.tga`, `.ppm`, `.tif`: 8-bit; `.exr`: 32-bit float), as [`crate::write_image`] does.
     pub fn save(&self, path: impl AsRef<Path>) -> Result<(), ImageError> {
         self.save_with(path, &WriteOptions::default())
     }
@@ -66,6 +81,40 @@ impl Framebuffer {
     /// [`Framebuffer::save`] with the encoding chosen (half-float EXR, dither, sRGB curve).
     pub fn save_with(&self, path: impl AsRef<Path>, options: &WriteOptions) -> Result<(), ImageError> {
         crate::write_image(path, self.width as usize, self.height as usize, &self.rgba, options)
+    }
+}
+
+/// Which of a frame's channels an image holds: RIB `Display` modes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum DisplayMode {
+    #[default]
+    Rgba,
+    Rgb,
+    /// Alpha alone.
+    A,
+    /// Camera-space depth alone (float files only).
+    Z,
+    /// Colour, alpha and depth (EXR only).
+    Rgbaz,
+}
+
+impl DisplayMode {
+    /// A RIB `Display` mode (`"rgb"`, `"rgba"`, `"a"`, `"z"`, `"rgbaz"`; `"rgbz"` as `"rgbaz"`);
+    /// `None` for others (output variables).
+    pub fn parse(mode: &str) -> Option<DisplayMode> {
+        Some(match mode {
+            "rgba" => DisplayMode::Rgba,
+            "rgb" => DisplayMode::Rgb,
+            "a" => DisplayMode::A,
+            "z" => DisplayMode::Z,
+            "rgbaz" | "rgbz" => DisplayMode::Rgbaz,
+            _ => return None,
+        })
+    }
+
+    /// Whether its values are floats whatever the file (depth).
+    pub fn has_depth(self) -> bool {
+        matches!(self, DisplayMode::Z | DisplayMode::Rgbaz)
     }
 }
 

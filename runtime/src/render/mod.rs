@@ -36,7 +36,7 @@ pub mod world;
 pub use filter::{FilterKind, PixelFilter};
 pub use frame::{
     camera_ray, camera_samples, make_primary_rays, primary_packet, primary_packet_into, render_frame, sample_offset,
-    trace_primary_rays, FrameReport, Framebuffer, RenderedTile, TileRenderer, TILE_SIZE,
+    trace_primary_rays, DisplayMode, FrameReport, Framebuffer, RenderedTile, TileRenderer, TILE_SIZE,
 };
 pub use primary::{primary_rays, primary_rays_into, CameraSample, PrimaryRays};
 pub use ray_budget::RAY_TREE_BUDGET;

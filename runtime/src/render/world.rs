@@ -363,6 +363,9 @@ pub struct RenderOptions {
     pub max_transparent_layers: u32,
     /// RIB's `Exposure gain gamma`, applied to the finished colours: `(gain * c) ^ (1 / gamma)`.
     pub exposure: Option<(f32, f32)>,
+    /// RIB's `Quantize "rgba"`: how colour and alpha are stored in the images written (`None`:
+    /// 8 bits, rounded; see [`crate::image_io::Quantize`]).
+    pub quantize: Option<crate::image_io::Quantize>,
     pub antialiasing: Antialiasing,
     /// The shutter interval (RIB `Shutter open close`): each primary ray gets a time in it, and
     /// moving instances are where they are at that time. `(0, 0)`: no motion blur.
@@ -466,6 +469,7 @@ impl Default for RenderOptions {
             background: [0.0; 3],
             max_transparent_layers: 16,
             exposure: None,
+            quantize: None,
             antialiasing: Antialiasing::Grid { jitter: true },
             shutter: (0.0, 0.0),
             depth_of_field: None,

@@ -33,7 +33,7 @@ use super::request::{Handle, Param, ParamValue as RibValue, Request, RequestKind
 use super::{parse_file, parse_str, RibDiagnostic, RibParse, Severity, MAX_RIB_TRIANGLES};
 use crate::api::{ApiError, Context, LightId, ObjectId};
 use crate::geometry::Mesh;
-use crate::render::MAX_PIXEL_SAMPLES;
+use crate::render::{DisplayMode, MAX_PIXEL_SAMPLES};
 use crate::scene_file::{add_model_file, add_model_file_placed, Placement, SceneFileError};
 use crate::shading::{ParamValue, ShaderProgram};
 use glam::{Affine3A, Mat4, Vec3};
@@ -41,11 +41,26 @@ use rtsl_compiler::interface::BaseType;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
+/// An image a `Display` request asks for.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RibDisplay {
+    /// The file, frame patterns expanded (relative to the RIB file's directory as written).
+    pub name: PathBuf,
+    /// The channels it holds.
+    pub mode: DisplayMode,
+    /// A window rather than a file (driver `framebuffer` or `it`): `rtsl view` is the window;
+    /// `rtsl render` writes no file for it.
+    pub window: bool,
+}
+
 /// What loading a RIB stream produced besides the scene in the context.
 #[derive(Debug, Default)]
 pub struct LoadedRib {
-    /// The image file `Display` names (relative to the RIB file's directory).
+    /// The image file the first file `Display` names (relative to the RIB file's directory).
     pub display: Option<PathBuf>,
+    /// Every image the `Display` requests ask for, the first one and those named `+name`, in
+    /// order.
+    pub displays: Vec<RibDisplay>,
     /// Everything that was skipped, ignored or approximated, with its location: a
     /// [`Severity::Omission`] where part of the scene is missing from the picture (a request
     /// skipped, a shader, archive or model not found), a [`Severity::Warning`] otherwise.
@@ -448,7 +463,16 @@ impl<'a> Loader<'a> {
                 cam.far = *far;
                 rt.set_camera(cam);
             }
-            K::Display { name, .. } => self.out.display = Some(PathBuf::from(name)),
+            K::Display { name, driver, mode, .. } => self.display(r, name, driver, mode),
+            K::Quantize { ty, one, min, max, dither } => match ty.as_str() {
+                "rgba" => {
+                    rt.options.quantize =
+                        Some(crate::image_io::Quantize { one: *one, min: *min, max: *max, dither: *dither })
+                }
+                // Depth is always stored as floats.
+                "z" => {}
+                other => self.warn(r, format_args!("Quantize \"{other}\": the type is \"rgba\" or \"z\"")),
+            },
             K::Exposure { gain, gamma } => rt.options.exposure = Some((*gain, *gamma)),
             K::FrameBegin(_) | K::FrameEnd => {}
             K::WorldBegin => {
@@ -677,6 +701,25 @@ impl<'a> Loader<'a> {
 
     /// `PixelFilter`: an unknown name is warned about and falls back to the default filter; widths
     /// that are not positive and at most 16 pixels are warned about and leave the filter as it was.
+    /// `Display "name" "type" "mode"`: a name starting with `+` adds an image, any other replaces
+    /// the list (RISpec 3.2, 4.1.2).
+    fn display(&mut self, r: &Request, name: &str, driver: &str, mode: &str) {
+        let (additional, name) = match name.strip_prefix('+') {
+            Some(rest) => (true, rest),
+            None => (false, name),
+        };
+        let depth_map = matches!(driver, "zfile" | "shadow");
+        let Some(mode) = (if depth_map { Some(DisplayMode::Z) } else { DisplayMode::parse(mode) }) else {
+            self.omit(r, format_args!("Display mode \"{mode}\": output variables are not supported; no image is made"));
+            return;
+        };
+        if !additional {
+            self.out.displays.clear();
+        }
+        let window = matches!(driver, "framebuffer" | "it");
+        self.out.displays.push(RibDisplay { name: PathBuf::from(name), mode, window });
+    }
+
     fn pixel_filter(&mut self, r: &Request, name: &str, xwidth: f32, ywidth: f32) {
         use crate::render::{FilterKind, PixelFilter};
         let Some(kind) = FilterKind::parse(name) else {

@@ -23,7 +23,7 @@ type Result<T> = std::result::Result<T, RibDiagnostic>;
 /// RenderMan requests (RISpec 3.2 and the common later ones) that only tune how a renderer works or
 /// quantises, which rtsl does its own way: skipping them changes nothing in the picture, so they
 /// get a warning, not an omission.
-const IGNORED_REQUESTS: &[&str] = &["ErrorHandler", "GeometricApproximation", "PixelVariance", "Quantize"];
+const IGNORED_REQUESTS: &[&str] = &["ErrorHandler", "GeometricApproximation", "PixelVariance"];
 
 /// RenderMan requests (RISpec 3.2 and the common later ones) that this reader skips: what they
 /// ask for is missing from the picture, which their warning says (rather than the "unknown
@@ -286,6 +286,13 @@ impl Parser {
                 ywidth: a.float("y width")?,
             },
             "Exposure" => K::Exposure { gain: a.float("gain")?, gamma: a.float("gamma")? },
+            "Quantize" => K::Quantize {
+                ty: a.string("type")?,
+                one: a.float("one")?,
+                min: a.float("min")?,
+                max: a.float("max")?,
+                dither: a.float("dither amplitude")?,
+            },
             "ShadingRate" => K::ShadingRate(a.float("shading rate")?),
             "Option" => K::Option(self.shader(a)?),
             "Attribute" => K::Attribute(self.shader(a)?),

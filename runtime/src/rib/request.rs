@@ -217,6 +217,15 @@ pub enum RequestKind {
     DepthOfField([f32; 3]),
     /// `Shutter open close`
     Shutter([f32; 2]),
+    /// `Quantize "type" one min max ditheramplitude`
+    Quantize {
+        /// `"rgba"` or `"z"`.
+        ty: String,
+        one: f32,
+        min: f32,
+        max: f32,
+        dither: f32,
+    },
     /// `Display "name" "type" "mode" params`
     Display {
         /// Output name (file name).
