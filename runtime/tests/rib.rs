@@ -81,6 +81,10 @@ AttributeBegin
   PointsGeneralPolygons [1] [3] [0 1 2] "P" [0 0 0 1 0 0 1 1 0]
   Patch "bilinear" "P" [0 0 0 1 0 0 0 1 0 1 1 0]
   PatchMesh "bilinear" 2 "nonperiodic" 3 "periodic" "P" [0 0 0 1 0 0 0 1 0 1 1 0 0 2 0 1 2 0]
+  SubdivisionMesh "catmull-clark" [4 4 4 4 4 4] [0 3 2 1 4 5 6 7 0 1 5 4 1 2 6 5 2 3 7 6 3 0 4 7]
+    ["crease" "corner" "hole" "interpolateboundary"] [5 1 1 1 1 0 0 0] [4 5 6 7 4 0 2] [2.5 3]
+    "P" [-1 -1 -1 1 -1 -1 1 1 -1 -1 1 -1 -1 -1 1 1 -1 1 1 1 1 -1 1 1] "facevarying float[2] st" [0 0 1 0 1 1 0 1
+    0 0 1 0 1 1 0 1 0 0 1 0 1 1 0 1 0 0 1 0 1 1 0 1 0 0 1 0 1 1 0 1 0 0 1 0 1 1 0 1]
   Sphere 1 -1 1 360
   Cylinder 1 0 2 180
   Cone 2 1 360
@@ -183,6 +187,7 @@ fn every_request_parses() {
         "PointsGeneralPolygons",
         "Patch",
         "PatchMesh",
+        "SubdivisionMesh",
         "Quadric",
         "AttributeEnd",
         "ObjectBegin",
@@ -241,7 +246,7 @@ fn every_request_parses() {
     let mut diagnostics = Vec::new();
     let meshes: Vec<_> = parsed.requests.iter().filter_map(|r| mesh_from_request(r, &mut diagnostics)).collect();
     assert!(diagnostics.is_empty(), "{diagnostics:?}");
-    assert_eq!(meshes.len(), 14);
+    assert_eq!(meshes.len(), 15);
     for mesh in &meshes {
         mesh.validate().unwrap();
         assert!(mesh.triangle_count() > 0);
@@ -517,6 +522,8 @@ proptest! {
         Just("\"bilinear\"".to_string()), Just("\"periodic\"".to_string()), Just("[".to_string()), Just("]".to_string()),
         Just("Torus".to_string()), Just("Basis".to_string()), Just("\"bicubic\"".to_string()),
         Just("\"b-spline\"".to_string()), Just("PointsPolygons".to_string()), Just("LightSource".to_string()),
+        Just("SubdivisionMesh".to_string()), Just("\"catmull-clark\"".to_string()), Just("\"crease\"".to_string()),
+        Just("\"hole\"".to_string()), Just("\"interpolateboundary\"".to_string()), Just("[]".to_string()),
         Just("ReadArchive".to_string()), Just("\"scene.rib\"".to_string()), Just("Declare".to_string()),
         (-3i32..8).prop_map(|n| n.to_string()), (-1_000_000i32..1_000_000).prop_map(|k| (k as f32 / 1e3).to_string()),
         Just("1e38".to_string()), Just("-0".to_string()), Just("NaN".to_string()),

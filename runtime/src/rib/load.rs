@@ -336,7 +336,8 @@ impl<'a> Loader<'a> {
                 at: r.loc.to_string(),
                 message: format!(
                     "the scene's geometry passes {MAX_RIB_TRIANGLES} triangles with this request's {more} \
-                     (quadrics and patches count as tessellated); rtsl loads no more from one RIB file"
+                     (quadrics, patches and subdivision meshes count as tessellated); rtsl loads no more \
+                     from one RIB file"
                 ),
             });
         }
@@ -578,7 +579,8 @@ impl<'a> Loader<'a> {
             | K::PointsGeneralPolygons { .. }
             | K::Patch { .. }
             | K::PatchMesh { .. }
-            | K::Quadric { .. } => {
+            | K::Quadric { .. }
+            | K::SubdivisionMesh { .. } => {
                 // Refused before it is tessellated: one patch mesh can ask for more than the limit.
                 self.check_triangles(r, request_triangles(r, &self.state.mesh_options))?;
                 let mut diags = Vec::new();
@@ -839,6 +841,7 @@ fn is_geometry(kind: &RequestKind) -> bool {
             | K::Patch { .. }
             | K::PatchMesh { .. }
             | K::Quadric { .. }
+            | K::SubdivisionMesh { .. }
     )
 }
 

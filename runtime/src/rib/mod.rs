@@ -30,6 +30,7 @@ pub mod patch;
 mod primitive;
 pub mod report;
 pub mod request;
+pub mod subdiv;
 
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -47,10 +48,11 @@ pub use request::{
 /// How deeply `ReadArchive` may nest.
 pub const MAX_ARCHIVE_DEPTH: usize = 32;
 
-/// The most triangles the geometry requests of one RIB load may make, quadrics and patches counted
-/// as tessellated: a line of text can ask for thousands, and memory runs out long before a file
-/// does (`docs/rendering.md`, "Limits"). Meshes read from OBJ, PLY or glTF files are not counted.
-/// Patches and quadrics are counted before they are tessellated ([`request_triangles`]).
+/// The most triangles the geometry requests of one RIB load may make, quadrics, patches and
+/// subdivision meshes counted as tessellated: a line of text can ask for thousands, and memory runs
+/// out long before a file does (`docs/rendering.md`, "Limits"). Meshes read from OBJ, PLY or glTF
+/// files are not counted. Patches, quadrics and subdivision meshes are counted before they are
+/// tessellated ([`request_triangles`]).
 pub const MAX_RIB_TRIANGLES: usize = 1 << 24;
 
 /// An error at a place in a RIB file.

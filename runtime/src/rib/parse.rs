@@ -53,7 +53,6 @@ const UNSUPPORTED_REQUESTS: &[&str] = &[
     "ResourceEnd",
     "ScopedCoordinateSystem",
     "Shader",
-    "SubdivisionMesh",
     "System",
     "TrimCurve",
 ];
@@ -384,6 +383,31 @@ impl Parser {
                 vertices: a.ints("vertex indices")?,
                 params: self.params(a),
             },
+            "SubdivisionMesh" => {
+                let scheme = a.string("subdivision scheme")?;
+                let nvertices = a.ints("vertices per face")?;
+                let vertices = a.ints("vertex indices")?;
+                // The tag arrays come together or not at all: a string here is a parameter name.
+                let (tags, nargs, intargs, floatargs) = match a.peek() {
+                    Some(ArgValue::Strings(_) | ArgValue::Numbers(_)) => (
+                        a.strings("tags")?,
+                        a.ints("tag argument counts")?,
+                        a.ints("tag integer arguments")?,
+                        a.numbers("tag float arguments")?,
+                    ),
+                    _ => Default::default(),
+                };
+                K::SubdivisionMesh {
+                    scheme,
+                    nvertices,
+                    vertices,
+                    tags,
+                    nargs,
+                    intargs,
+                    floatargs,
+                    params: self.params(a),
+                }
+            }
             "Patch" => K::Patch { ty: a.patch_type()?, params: self.params(a) },
             "PatchMesh" => K::PatchMesh {
                 ty: a.patch_type()?,
@@ -853,6 +877,20 @@ impl<'a> Args<'a> {
             .map(|&x| to_int(x))
             .collect::<std::result::Result<_, _>>()
             .map_err(|m| error(&arg.loc, format!("`{}` expects integers ({what}): {m}", self.request)))
+    }
+
+    /// An array of strings (a single string, and the empty array `[]`, are accepted too).
+    fn strings(&mut self, what: &str) -> Result<Vec<String>> {
+        let arg = self.next(what)?;
+        match &arg.value {
+            ArgValue::Str(s) => Ok(vec![s.clone()]),
+            ArgValue::Strings(v) => Ok(v.clone()),
+            ArgValue::Numbers(xs) if xs.is_empty() => Ok(Vec::new()),
+            other => Err(error(
+                &arg.loc,
+                format!("`{}` expects an array of strings ({what}), found {}", self.request, other.describe()),
+            )),
+        }
     }
 
     /// A string and where it was written (a one-element string array is accepted too).

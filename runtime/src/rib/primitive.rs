@@ -1,12 +1,13 @@
 //! Geometry requests to triangle meshes: which of the builders (`mesh.rs` for polygons and
-//! quadrics, `patch.rs` for patches and patch meshes) a request goes to, and its warnings and
-//! errors as diagnostics at the request's location.
+//! quadrics, `patch.rs` for patches and patch meshes, `subdiv.rs` for subdivision meshes) a request
+//! goes to, and its warnings and errors as diagnostics at the request's location.
 
 use super::mesh::{
     general_polygon_mesh, points_general_polygons_mesh, points_polygons_mesh, polygon_mesh, quadric_mesh, MeshOptions,
 };
 use super::patch::{patch_mesh, patch_mesh_triangles};
 use super::request::{PatchType, Request, RequestKind, Wrap};
+use super::subdiv::{subdivision_mesh, subdivision_mesh_triangles, SubdivisionInput};
 use super::RibDiagnostic;
 use crate::geometry::{Mesh, Quadric};
 
@@ -17,8 +18,9 @@ pub fn mesh_from_request(request: &Request, diagnostics: &mut Vec<RibDiagnostic>
     mesh_from_request_with(request, &MeshOptions::default(), diagnostics)
 }
 
-/// At most the triangles [`mesh_from_request_with`] makes of a patch or a quadric, worked out
-/// without tessellating it (0 for other requests, whose triangles their own data bound).
+/// At most the triangles [`mesh_from_request_with`] makes of a patch, a quadric or a subdivision
+/// mesh, worked out without tessellating it (exactly for patches and subdivision meshes; 0 for
+/// other requests, whose triangles their own data bound, and for a request the builder refuses).
 pub fn request_triangles(request: &Request, options: &MeshOptions) -> usize {
     match &request.kind {
         RequestKind::Patch { ty, params } => {
@@ -31,6 +33,7 @@ pub fn request_triangles(request: &Request, options: &MeshOptions) -> usize {
         RequestKind::Quadric { quadric, .. } => {
             Quadric::triangle_count(options.tessellation.unwrap_or_else(|| quadric.default_tessellation()))
         }
+        RequestKind::SubdivisionMesh { .. } => subdivision_input(&request.kind).map_or(0, subdivision_mesh_triangles),
         _ => 0,
     }
 }
@@ -59,6 +62,10 @@ pub fn mesh_from_request_with(
             patch_mesh(*ty, *nu, *uwrap, *nv, *vwrap, params, options, &mut warnings)
         }
         RequestKind::Quadric { quadric, params } => quadric_mesh(quadric, params, options, &mut warnings),
+        RequestKind::SubdivisionMesh { .. } => match subdivision_input(&request.kind) {
+            Some(input) => subdivision_mesh(input, &mut warnings),
+            None => return None,
+        },
         _ => return None,
     };
     diagnostics.extend(warnings.into_iter().map(|w| RibDiagnostic::warning(&request.loc, w)));
@@ -68,5 +75,15 @@ pub fn mesh_from_request_with(
             diagnostics.push(RibDiagnostic::error(&request.loc, message));
             None
         }
+    }
+}
+
+/// A `SubdivisionMesh` request's arguments, borrowed.
+fn subdivision_input(kind: &RequestKind) -> Option<SubdivisionInput<'_>> {
+    match kind {
+        RequestKind::SubdivisionMesh { scheme, nvertices, vertices, tags, nargs, intargs, floatargs, params } => {
+            Some(SubdivisionInput { scheme, nvertices, vertices, tags, nargs, intargs, floatargs, params })
+        }
+        _ => None,
     }
 }

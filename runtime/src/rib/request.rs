@@ -434,6 +434,26 @@ pub enum RequestKind {
         /// Vertex data.
         params: Vec<Param>,
     },
+    /// `SubdivisionMesh scheme [nvertices] [vertices] [tags] [nargs] [intargs] [floatargs] params`
+    /// (RISpec 3.2, section 5.5); the four tag arrays may be left out together.
+    SubdivisionMesh {
+        /// The subdivision scheme (`"catmull-clark"`, `"bilinear"`...), as written.
+        scheme: String,
+        /// Vertices per face.
+        nvertices: Vec<i32>,
+        /// Vertex indices, face after face.
+        vertices: Vec<i32>,
+        /// Tag names (`"crease"`, `"corner"`, `"hole"`, `"interpolateboundary"`...).
+        tags: Vec<String>,
+        /// Two counts per tag: its integer arguments, then its float arguments.
+        nargs: Vec<i32>,
+        /// The tags' integer arguments, tag after tag.
+        intargs: Vec<i32>,
+        /// The tags' float arguments, tag after tag.
+        floatargs: Vec<f32>,
+        /// Vertex data.
+        params: Vec<Param>,
+    },
     /// `Patch "bilinear"|"bicubic" params`
     Patch {
         /// Patch type.
