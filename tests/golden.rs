@@ -372,3 +372,53 @@ fn the_lightfield_shader_matches_its_reference() {
     );
     check("lightfield_twoplane", &render_rib("lightfield", &rib)).unwrap_or_else(|e| panic!("{e}"));
 }
+
+#[test]
+fn subdivision_meshes_match_their_reference() {
+    // The same cube twice as a Catmull-Clark subdivision mesh: on the left smooth (a rounded
+    // blob), on the right with its top edges infinitely sharp, its upright edges semi-sharp (1.5)
+    // and one bottom corner sharp.
+    let cube = |tags: &str| {
+        format!(
+            r#"SubdivisionMesh "catmull-clark" [4 4 4 4 4 4] [0 3 2 1  4 5 6 7  0 1 5 4  1 2 6 5  2 3 7 6  3 0 4 7]
+      {tags}
+      "P" [-1 -1 -1  1 -1 -1  1 1 -1  -1 1 -1  -1 -1 1  1 -1 1  1 1 1  -1 1 1]"#
+        )
+    };
+    let rib = format!(
+        r#"
+Format {W} {H} 1
+PixelSamples 2 2
+Projection "perspective" "fov" [30]
+Rotate -20 1 0 0
+Translate 0 -2.8 6.5
+WorldBegin
+  LightSource "ambientlight" 1 "intensity" [0.15]
+  LightSource "pointlight" 2 "intensity" [25] "from" [2 4 -3]
+  Surface "plastic"
+  Polygon "P" [-6 0 -6  6 0 -6  6 0 6  -6 0 6]
+  AttributeBegin
+    Color [.8 .3 .2]
+    Translate -1.2 0.76 0
+    Rotate 30 0 1 0
+    Scale 0.9 0.9 0.9
+    {}
+  AttributeEnd
+  AttributeBegin
+    Color [.2 .45 .8]
+    Translate 1.2 0.85 0
+    Rotate -30 0 1 0
+    Scale 0.9 0.9 0.9
+    Rotate -90 1 0 0
+    {}
+  AttributeEnd
+WorldEnd
+"#,
+        cube(""),
+        cube(
+            r#"["crease" "crease" "crease" "crease" "crease" "corner"] [5 1 2 1 2 1 2 1 2 1 1 1]
+      [4 5 6 7 4  0 4  1 5  2 6  3 7  1] [10 1.5 1.5 1.5 1.5 10]"#
+        )
+    );
+    check("subdivision_mesh", &render_rib("subdivision_mesh", &rib)).unwrap_or_else(|e| panic!("{e}"));
+}
