@@ -555,17 +555,17 @@ fn fan_meetings(level: &Level, uses: &[(u32, bool, bool)]) -> Vec<usize> {
         }
     }
     let mut root_of = vec![NONE; level.vertices];
-    let mut out = Vec::new();
+    let mut meeting = vec![false; level.vertices];
     for c in 0..corners {
         let v = level.face_verts[c] as usize;
         let root = sets.find(c) as u32;
         if root_of[v] == NONE {
             root_of[v] = root;
-        } else if root_of[v] != root && !out.contains(&v) {
-            out.push(v);
+        } else if root_of[v] != root {
+            meeting[v] = true;
         }
     }
-    out
+    (0..level.vertices).filter(|&v| meeting[v]).collect()
 }
 
 /// The face of corner `c`.
@@ -1292,6 +1292,20 @@ mod tests {
         assert!(reaches.windows(2).all(|w| w[1] > w[0] + 1e-4), "{reaches:?}");
         // Sharpness past the levels refined is as sharp as can be.
         assert!((measure(10.0).1 - measure(1000.0).1).abs() < 1e-6);
+    }
+
+    #[test]
+    fn corners_stay_where_they_are_sharp() {
+        let corner = |s: f32| {
+            let (mesh, _, _) = build(&cube(&format!(r#"["corner"] [1 1] [6] [{s}]"#), ""));
+            mesh.positions[nearest(&mesh, Vec3::ONE).0]
+        };
+        // The smooth limit of the corner is (1/2, 1/2, 1/2); a sharp corner stays at (1, 1, 1).
+        assert!((corner(0.0) - Vec3::splat(0.5)).length() < 1e-5);
+        assert!((corner(10.0) - Vec3::ONE).length() < 1e-5);
+        let (half, one) = (corner(0.5), corner(1.0));
+        assert!(half.x > 0.5 + 1e-3 && half.x < one.x - 1e-3 && one.x < 1.0 - 1e-3, "{half} {one}");
+        assert!((half.x - half.y).abs() < 1e-6 && (half.x - half.z).abs() < 1e-6);
     }
 
     /// A flat 4 x 4 grid of points (3 x 3 quads), wound counter-clockwise seen from +z.
