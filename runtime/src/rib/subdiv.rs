@@ -260,6 +260,13 @@ impl Cage {
                 input.vertices.len()
             ));
         }
+        let all = quad_triangles(total, levels(total));
+        if all > MAX_RIB_TRIANGLES {
+            return Err(format!(
+                "the subdivision mesh makes {all} triangles refined once, more than the {MAX_RIB_TRIANGLES} one RIB \
+                 load may make"
+            ));
+        }
         let points = positions(input.params)?;
         if points.len() >= (u32::MAX / 4) as usize || total >= (u32::MAX / 4) as usize {
             return Err("the subdivision mesh has too many vertices".into());
@@ -496,11 +503,6 @@ impl Cage {
         }
         let levels = levels(level.face_verts.len());
         Ok(Cage { scheme, level, corner_origin, drawn, points, levels })
-    }
-
-    /// The triangles all faces make after [`Cage::levels`] levels, hidden ones included.
-    fn all_triangles(&self) -> usize {
-        quad_triangles(self.level.face_verts.len(), self.levels)
     }
 
     /// The triangles drawn.
@@ -937,22 +939,21 @@ fn limit_normal(level: &Level, adj: &Adjacency, position: impl Fn(usize) -> Vec3
     (normal.is_finite() && normal.length_squared() > 1e-30).then(|| normal.normalize())
 }
 
-/// At most the triangles [`subdivision_mesh`] makes of `input`, exactly, worked out without
-/// refining it (0 for a request it refuses).
+/// The triangles [`subdivision_mesh`] makes of `input`, worked out without refining it: exactly
+/// the triangles it draws; for a request whose faces make more than [`MAX_RIB_TRIANGLES`] at one
+/// level, which it refuses, all of those (counted from the face sizes alone); 0 for a request it
+/// refuses otherwise.
 pub fn subdivision_mesh_triangles(input: SubdivisionInput) -> usize {
+    let corners = input.nvertices.iter().try_fold(0usize, |sum, &n| Some(sum.saturating_add(usize::try_from(n).ok()?)));
+    if let Some(all) = corners.map(|c| quad_triangles(c, levels(c))).filter(|&all| all > MAX_RIB_TRIANGLES) {
+        return all;
+    }
     Cage::new(&input, &mut Vec::new()).map_or(0, |cage| cage.drawn_triangles())
 }
 
 /// `SubdivisionMesh`: the faces refined and pushed to the limit surface, as triangles.
 pub fn subdivision_mesh(input: SubdivisionInput, warnings: &mut Vec<String>) -> Result<Mesh, String> {
     let cage = Cage::new(&input, warnings)?;
-    let all = cage.all_triangles();
-    if all > MAX_RIB_TRIANGLES {
-        return Err(format!(
-            "the subdivision mesh makes {all} triangles refined once, more than the {MAX_RIB_TRIANGLES} one RIB load \
-             may make"
-        ));
-    }
     let counts = ClassCounts {
         vertex: cage.points.len(),
         varying: cage.points.len(),
