@@ -225,7 +225,7 @@ struct Cage {
     levels: u32,
 }
 
-/// How a tag's arguments are counted, for its error messages.
+/// `n what`, with an `s` unless `n` is 1 (for messages).
 fn plural(n: usize, what: &str) -> String {
     format!("{n} {what}{}", if n == 1 { "" } else { "s" })
 }
@@ -1133,8 +1133,8 @@ mod tests {
     use crate::rib::{mesh_from_request, parse_str, request_triangles, MeshOptions, RibDiagnostic, Severity};
     use glam::Vec2;
 
-    /// The cube -1..1: vertex `i` has x, y, z from bits 0, 1, 2 of the Gray-coded corner order
-    /// below; faces counter-clockwise seen from outside (bottom, top, front, right, back, left).
+    /// The cube -1..1: the square at z = -1, then the one at z = 1, each counter-clockwise seen
+    /// from +z; faces counter-clockwise seen from outside (bottom, top, front, right, back, left).
     const CUBE_POINTS: &str = "-1 -1 -1  1 -1 -1  1 1 -1  -1 1 -1  -1 -1 1  1 -1 1  1 1 1  -1 1 1";
     const CUBE_FACES: &str = "[4 4 4 4 4 4] [0 3 2 1  4 5 6 7  0 1 5 4  1 2 6 5  2 3 7 6  3 0 4 7]";
     /// Every edge of the cube, as crease chains (top loop, bottom loop, four verticals).
