@@ -98,7 +98,7 @@ fn unknown_shaders_are_reported_not_fatal() {
 #[test]
 fn omissions_count_what_is_missing_from_the_picture_and_not_what_is_approximated() {
     let rib = r#"Option "limits" "bucketsize" [16 16]
-        Quantize "rgba" 255 0 255 0.5
+        PixelVariance 0.01
         Projection "stereographic"
         WorldBegin
           Attribute "dice" "binary" [1]
@@ -112,7 +112,7 @@ fn omissions_count_what_is_missing_from_the_picture_and_not_what_is_approximated
     "#;
     let loaded = load_str(&mut Context::new(), rib, Path::new("s.rib")).expect("loads with warnings");
     let text = loaded.warnings.iter().map(ToString::to_string).collect::<Vec<_>>().join("\n");
-    for approximated in ["\"limits\"", "Quantize", "stereographic", "\"dice\"", "nosuchparam"] {
+    for approximated in ["\"limits\"", "PixelVariance", "stereographic", "\"dice\"", "nosuchparam"] {
         assert!(text.contains(approximated), "{approximated} is warned about: {text}");
     }
     // Blobby, the archive, the object instance and the exterior shader are not in the picture.

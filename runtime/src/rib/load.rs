@@ -231,8 +231,10 @@ fn load_parsed(rt: &mut Context, parse: RibParse, path: &Path, index: usize) -> 
     }
     loader.flush()?;
     let number = loader.out.frame_number;
-    loader.out.display =
-        loader.out.display.take().map(|d| PathBuf::from(expand_display_name(&d.to_string_lossy(), number)));
+    for d in &mut loader.out.displays {
+        d.name = PathBuf::from(expand_display_name(&d.name.to_string_lossy(), number));
+    }
+    loader.out.display = loader.out.displays.iter().find(|d| !d.window).map(|d| d.name.clone());
     // Area lights emit from the geometry that followed them (gathered in world space).
     let area_meshes = std::mem::take(&mut loader.area_meshes);
     loader.rt.push_matrix();
