@@ -8,6 +8,8 @@
 //!   as OpenGL's); `Transform`/`ConcatTransform` take RenderMan's row-major matrices.
 //! - `AttributeBegin/End` save and restore the colour, opacity, surface shader, the area light and
 //!   the transform; `TransformBegin/End` the transform only.
+//! - `TrimCurve` and `Attribute "trimcurve" "sense"` are attribute state, kept with the basis and
+//!   `TextureCoordinates` (`MeshOptions`): they hold for the `NuPatch`es that follow in the block.
 //! - Point-like shader parameters are in the space current at the shader statement.
 //! - Consecutive geometry under one set of attributes becomes one object (one BVH), instanced once;
 //!   `ObjectBegin/End` make a retained object placed by each `ObjectInstance`. The shader of a
@@ -582,7 +584,8 @@ impl<'a> Loader<'a> {
             | K::Patch { .. }
             | K::PatchMesh { .. }
             | K::Quadric { .. }
-            | K::SubdivisionMesh { .. } => {
+            | K::SubdivisionMesh { .. }
+            | K::NuPatch { .. } => {
                 // Refused before it is tessellated: one patch mesh can ask for more than the limit.
                 self.check_triangles(r, request_triangles(r, &self.state.mesh_options))?;
                 let mut diags = Vec::new();
@@ -598,6 +601,11 @@ impl<'a> Loader<'a> {
                     }
                 }
             }
+            // Attribute state: it trims the NuPatches that follow in the block.
+            K::TrimCurve(t) => match super::trim::trim_from_request(t) {
+                Ok(trim) => self.state.mesh_options.trim = trim.map(std::sync::Arc::new),
+                Err(e) => self.omit(r, format_args!("TrimCurve skipped: {e}")),
+            },
             K::ObjectBegin(h) => {
                 let frame = rt.current_matrix();
                 let id = rt.begin_object()?;
@@ -757,6 +765,11 @@ impl<'a> Loader<'a> {
                 },
                 // rtsl's own: cut-outs by a texture's alpha ("" for none); see `Context::alpha_mask`.
                 ("trace", "alphamask") => self.rt.alpha_mask(s.filter(|s| !s.is_empty())),
+                ("trimcurve", "sense") => match s {
+                    Some("inside") => self.state.mesh_options.trim_sense = super::trim::TrimSense::Inside,
+                    Some("outside") => self.state.mesh_options.trim_sense = super::trim::TrimSense::Outside,
+                    _ => self.warn(r, "attribute \"trimcurve\" \"sense\" takes \"inside\" or \"outside\""),
+                },
                 ("identifier", _) | ("visibility", _) | ("displacementbound", _) => {}
                 ("trace", "maxdiffusedepth" | "maxspeculardepth") => {}
                 ("light", "nsamples") | ("light", "samples") => {
@@ -844,6 +857,7 @@ fn is_geometry(kind: &RequestKind) -> bool {
             | K::PatchMesh { .. }
             | K::Quadric { .. }
             | K::SubdivisionMesh { .. }
+            | K::NuPatch { .. }
     )
 }
 

@@ -17,10 +17,13 @@
 //! (holes run either way). Malformed data (counts, indices) is an `Err` with a message, never a
 //! panic.
 
+use std::sync::Arc;
+
 use glam::{Vec2, Vec3};
 
 use super::decl::{Class, Ty};
 use super::request::{find_param, Basis, Param};
+use super::trim::{Trim, TrimSense};
 use crate::geometry::quadric::{Quadric, Tessellation};
 use crate::geometry::{Attribute, Mesh};
 
@@ -47,6 +50,11 @@ pub struct MeshOptions {
     /// (0, 1) (1, 1)` that patches and quadrics without `st` get as uvs, bilinearly (RISpec's
     /// default maps `s = u`, `t = v`).
     pub texture_coordinates: [f32; 8],
+    /// The current `TrimCurve`: the loops that trim the `NuPatch`es that follow (attribute
+    /// state, like the rest).
+    pub trim: Option<Arc<Trim>>,
+    /// `Attribute "trimcurve" "sense"`: which side of the trim loops is removed.
+    pub trim_sense: TrimSense,
 }
 
 impl Default for MeshOptions {
@@ -58,6 +66,8 @@ impl Default for MeshOptions {
             v_basis: Basis::Named("bezier".into()),
             v_step: 3,
             texture_coordinates: [0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 1.0, 1.0],
+            trim: None,
+            trim_sense: TrimSense::Inside,
         }
     }
 }

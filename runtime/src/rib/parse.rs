@@ -12,7 +12,8 @@ use std::sync::Arc;
 use super::decl::{self, Class, Decl, DeclTable, Ty};
 use super::lex::{tokenize, Token, TokenKind};
 use super::request::{
-    Basis, Handle, Location, Orientation, Param, ParamValue, PatchType, Request, RequestKind as K, Shader, Wrap,
+    Basis, Handle, Location, NuDirection, Orientation, Param, ParamValue, PatchType, Request, RequestKind as K, Shader,
+    TrimCurve, Wrap,
 };
 use super::{base_dir, RibDiagnostic, RibParse, MAX_ARCHIVE_DEPTH};
 use crate::geometry::quadric::Quadric;
@@ -44,7 +45,6 @@ const UNSUPPORTED_REQUESTS: &[&str] = &[
     "MakeCubeFaceEnvironment",
     "MakeLatLongEnvironment",
     "MakeShadow",
-    "NuPatch",
     "Points",
     "Procedural",
     "RelativeDetail",
@@ -54,7 +54,6 @@ const UNSUPPORTED_REQUESTS: &[&str] = &[
     "ScopedCoordinateSystem",
     "Shader",
     "System",
-    "TrimCurve",
 ];
 
 /// One argument of a request, as written.
@@ -417,6 +416,32 @@ impl Parser {
                 vwrap: a.wrap()?,
                 params: self.params(a),
             },
+            "NuPatch" => K::NuPatch { u: a.nu_direction("u")?, v: a.nu_direction("v")?, params: self.params(a) },
+            "TrimCurve" => {
+                // RIB leaves out C's `nloops` (the length of `ncurves`); a file that writes it is read too.
+                let nloops = match (a.peek(), a.remaining()) {
+                    (Some(ArgValue::Number(_)), 10) => Some(a.int("number of loops")?),
+                    _ => None,
+                };
+                let (ncurves, loc) = (a.ints("curves per loop")?, a.loc.clone());
+                if let Some(nloops) = nloops.filter(|&n| usize::try_from(n).ok() != Some(ncurves.len())) {
+                    return Err(error(
+                        &loc,
+                        format!("`TrimCurve` has {nloops} loops but {} curve counts", ncurves.len()),
+                    ));
+                }
+                K::TrimCurve(TrimCurve {
+                    ncurves,
+                    order: a.ints("curve orders")?,
+                    knot: a.numbers("knot vectors")?,
+                    min: a.numbers("parameter range starts")?,
+                    max: a.numbers("parameter range ends")?,
+                    n: a.ints("control points per curve")?,
+                    u: a.numbers("control point u")?,
+                    v: a.numbers("control point v")?,
+                    w: a.numbers("control point w")?,
+                })
+            }
             "Sphere" => {
                 let [radius, zmin, zmax, thetamax] = a.floats("radius zmin zmax thetamax")?;
                 self.quadric(a, Quadric::Sphere { radius, zmin, zmax, thetamax })
@@ -942,6 +967,17 @@ impl<'a> Args<'a> {
             Some(ArgValue::Str(_) | ArgValue::Strings(_)) => Ok(Basis::Named(self.string("basis name")?)),
             _ => Ok(Basis::Matrix(self.floats("basis matrix")?)),
         }
+    }
+
+    /// One direction of a `NuPatch`: `n order [knots] min max`.
+    fn nu_direction(&mut self, axis: &str) -> Result<NuDirection> {
+        Ok(NuDirection {
+            n: self.int(&format!("n{axis} (control points along {axis})"))?,
+            order: self.int(&format!("{axis} order"))?,
+            knots: self.numbers(&format!("{axis} knot vector"))?,
+            min: self.float(&format!("{axis}min"))?,
+            max: self.float(&format!("{axis}max"))?,
+        })
     }
 
     /// Checks that every argument was used.

@@ -1,10 +1,12 @@
 //! Geometry requests to triangle meshes: which of the builders (`mesh.rs` for polygons and
-//! quadrics, `patch.rs` for patches and patch meshes, `subdiv.rs` for subdivision meshes) a request
+//! quadrics, `patch.rs` for patches and patch meshes, `nurbs.rs` for NURBS patches, `subdiv.rs` for
+//! subdivision meshes) a request
 //! goes to, and its warnings and errors as diagnostics at the request's location.
 
 use super::mesh::{
     general_polygon_mesh, points_general_polygons_mesh, points_polygons_mesh, polygon_mesh, quadric_mesh, MeshOptions,
 };
+use super::nurbs::{nupatch_mesh, nupatch_triangles};
 use super::patch::{patch_mesh, patch_mesh_triangles};
 use super::request::{PatchType, Request, RequestKind, Wrap};
 use super::subdiv::{subdivision_mesh, subdivision_mesh_triangles, SubdivisionInput};
@@ -18,9 +20,10 @@ pub fn mesh_from_request(request: &Request, diagnostics: &mut Vec<RibDiagnostic>
     mesh_from_request_with(request, &MeshOptions::default(), diagnostics)
 }
 
-/// At most the triangles [`mesh_from_request_with`] makes of a patch, a quadric or a subdivision
-/// mesh, worked out without tessellating it (exactly for patches and subdivision meshes; 0 for
-/// other requests, whose triangles their own data bound, and for a request the builder refuses).
+/// At most the triangles [`mesh_from_request_with`] makes of a patch, a NURBS patch, a quadric or
+/// a subdivision mesh, worked out without tessellating it (exactly for patches and subdivision
+/// meshes; 0 for other requests, whose triangles their own data bound, and for a request the
+/// builder refuses).
 pub fn request_triangles(request: &Request, options: &MeshOptions) -> usize {
     match &request.kind {
         RequestKind::Patch { ty, params } => {
@@ -34,6 +37,7 @@ pub fn request_triangles(request: &Request, options: &MeshOptions) -> usize {
             Quadric::triangle_count(options.tessellation.unwrap_or_else(|| quadric.default_tessellation()))
         }
         RequestKind::SubdivisionMesh { .. } => subdivision_input(&request.kind).map_or(0, subdivision_mesh_triangles),
+        RequestKind::NuPatch { u, v, params } => nupatch_triangles(u, v, params, options),
         _ => 0,
     }
 }
@@ -66,6 +70,7 @@ pub fn mesh_from_request_with(
             Some(input) => subdivision_mesh(input, &mut warnings),
             None => return None,
         },
+        RequestKind::NuPatch { u, v, params } => nupatch_mesh(u, v, params, options, &mut warnings),
         _ => return None,
     };
     diagnostics.extend(warnings.into_iter().map(|w| RibDiagnostic::warning(&request.loc, w)));

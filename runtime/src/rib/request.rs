@@ -174,6 +174,45 @@ pub enum Basis {
     Matrix([f32; 16]),
 }
 
+/// One parametric direction of a `NuPatch`, as written.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NuDirection {
+    /// Control points along the direction (`nu` or `nv`).
+    pub n: i32,
+    /// The order: the degree plus one.
+    pub order: i32,
+    /// The knot vector (`n + order` values, non-decreasing).
+    pub knots: Vec<f32>,
+    /// Where the rendered part of the parameter range starts.
+    pub min: f32,
+    /// Where it ends.
+    pub max: f32,
+}
+
+/// `TrimCurve`'s arrays, as written: loops of rational B-spline curves in the `(u, v)` parameter
+/// space of the `NuPatch`es that follow, each curve's data concatenated after the previous one's.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TrimCurve {
+    /// Curves per loop (the number of loops is its length).
+    pub ncurves: Vec<i32>,
+    /// Each curve's order.
+    pub order: Vec<i32>,
+    /// Each curve's knot vector (`n + order` values), one after the other.
+    pub knot: Vec<f32>,
+    /// Each curve's parameter range start.
+    pub min: Vec<f32>,
+    /// Each curve's parameter range end.
+    pub max: Vec<f32>,
+    /// Each curve's number of control points.
+    pub n: Vec<i32>,
+    /// The control points' homogeneous `u` (already multiplied by `w`).
+    pub u: Vec<f32>,
+    /// Their homogeneous `v`.
+    pub v: Vec<f32>,
+    /// Their weights.
+    pub w: Vec<f32>,
+}
+
 /// A parsed request and where it was written.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Request {
@@ -476,6 +515,19 @@ pub enum RequestKind {
         /// Control points and other data.
         params: Vec<Param>,
     },
+    /// `NuPatch nu uorder uknot umin umax nv vorder vknot vmin vmax params`: a non-uniform rational
+    /// B-spline patch (`P` or `Pw` gives the `nu` x `nv` control points, u varying fastest).
+    NuPatch {
+        /// The u direction.
+        u: NuDirection,
+        /// The v direction.
+        v: NuDirection,
+        /// Control points and other data.
+        params: Vec<Param>,
+    },
+    /// `TrimCurve ncurves order knot min max n u v w`: the trim loops of the `NuPatch`es that follow
+    /// in the attribute block.
+    TrimCurve(TrimCurve),
     /// `Sphere`, `Cylinder`, `Cone`, `Disk`, `Torus`, `Paraboloid`, `Hyperboloid`.
     Quadric {
         /// The shape and its parameters.
