@@ -585,7 +585,8 @@ impl<'a> Loader<'a> {
             | K::PatchMesh { .. }
             | K::Quadric { .. }
             | K::SubdivisionMesh { .. }
-            | K::NuPatch { .. } => {
+            | K::NuPatch { .. }
+            | K::Geometry { .. } => {
                 // Refused before it is tessellated: one patch mesh can ask for more than the limit.
                 self.check_triangles(r, request_triangles(r, &self.state.mesh_options))?;
                 let mut diags = Vec::new();
@@ -858,6 +859,7 @@ fn is_geometry(kind: &RequestKind) -> bool {
             | K::Quadric { .. }
             | K::SubdivisionMesh { .. }
             | K::NuPatch { .. }
+            | K::Geometry { .. }
     )
 }
 

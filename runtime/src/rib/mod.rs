@@ -33,6 +33,7 @@ pub mod report;
 pub mod request;
 pub mod subdiv;
 pub mod spline;
+pub mod teapot;
 pub mod trim;
 
 use std::fmt;
@@ -53,9 +54,10 @@ pub use request::{
 pub const MAX_ARCHIVE_DEPTH: usize = 32;
 
 /// The most triangles the geometry requests of one RIB load may make, quadrics, patches, NURBS
-/// patches and subdivision meshes counted as tessellated: a line of text can ask for thousands, and
-/// memory runs out long before a file does (`docs/rendering.md`, "Limits"). Meshes read from OBJ,
-/// PLY or glTF files are not counted. Those requests are counted before they are tessellated
+/// patches, subdivision meshes and the teapot counted as tessellated: a line of text can ask for
+/// thousands, and memory runs out long before a file does (`docs/rendering.md`, "Limits"). Meshes
+/// read from OBJ, PLY or glTF files are not counted. Those requests are counted before they are
+/// tessellated
 /// ([`request_triangles`]).
 pub const MAX_RIB_TRIANGLES: usize = 1 << 24;
 

@@ -38,7 +38,6 @@ const UNSUPPORTED_REQUESTS: &[&str] = &[
     "DetailRange",
     "Else",
     "ElseIf",
-    "Geometry",
     "IfBegin",
     "IfEnd",
     "MakeBump",
@@ -442,6 +441,7 @@ impl Parser {
                     w: a.numbers("control point w")?,
                 })
             }
+            "Geometry" => K::Geometry { name: a.string("geometry name")?, params: self.params(a) },
             "Sphere" => {
                 let [radius, zmin, zmax, thetamax] = a.floats("radius zmin zmax thetamax")?;
                 self.quadric(a, Quadric::Sphere { radius, zmin, zmax, thetamax })

@@ -528,6 +528,13 @@ pub enum RequestKind {
     /// `TrimCurve ncurves order knot min max n u v w`: the trim loops of the `NuPatch`es that follow
     /// in the attribute block.
     TrimCurve(TrimCurve),
+    /// `Geometry "name" params`: a primitive the renderer provides (`"teapot"`).
+    Geometry {
+        /// Its name.
+        name: String,
+        /// Further data.
+        params: Vec<Param>,
+    },
     /// `Sphere`, `Cylinder`, `Cone`, `Disk`, `Torus`, `Paraboloid`, `Hyperboloid`.
     Quadric {
         /// The shape and its parameters.
