@@ -6,8 +6,8 @@ use std::path::Path;
 use proptest::prelude::*;
 use rtsl_runtime::geometry::Quadric;
 use rtsl_runtime::rib::{
-    self, mesh_from_request, Basis, Class, Decl, Handle, Orientation, ParamValue, PatchType, RequestKind as K,
-    RibParse, Severity, Ty, Wrap,
+    self, mesh_from_request, mesh_from_request_with, Basis, Class, Decl, Handle, Orientation, ParamValue, PatchType,
+    RequestKind as K, RibParse, Severity, Ty, Wrap,
 };
 
 /// A scene using every request the reader knows.
@@ -495,8 +495,19 @@ fn example_ribs_parse_and_every_mesh_file_they_name_exists() {
 fn parse_and_mesh(bytes: &[u8]) {
     let parsed = rib::parse_bytes(bytes, Path::new("fuzz.rib"));
     let mut diagnostics = Vec::new();
+    // Trim curves trim the NuPatches after them, as when a scene loads.
+    let mut options = rib::MeshOptions::default();
     for request in &parsed.requests {
-        if let Some(mesh) = mesh_from_request(request, &mut diagnostics) {
+        if let K::TrimCurve(t) = &request.kind {
+            if let Ok(trim) = rib::trim::trim_from_request(t) {
+                options.trim = trim.map(std::sync::Arc::new);
+            }
+        }
+        // What a load would refuse as too large is not built (the count itself must not panic).
+        if rib::request_triangles(request, &options) > 100_000 {
+            continue;
+        }
+        if let Some(mesh) = mesh_from_request_with(request, &options, &mut diagnostics) {
             assert!(mesh.validate().is_ok());
         }
     }
@@ -527,8 +538,62 @@ proptest! {
         Just("ReadArchive".to_string()), Just("\"scene.rib\"".to_string()), Just("Declare".to_string()),
         (-3i32..8).prop_map(|n| n.to_string()), (-1_000_000i32..1_000_000).prop_map(|k| (k as f32 / 1e3).to_string()),
         Just("1e38".to_string()), Just("-0".to_string()), Just("NaN".to_string()),
+        Just("NuPatch".to_string()), Just("TrimCurve".to_string()), Just("Geometry \"teapot\"".to_string()),
     ], 0..60)) {
         parse_and_mesh(tokens.join(" ").as_bytes());
+    }
+
+    /// NURBS patches and trim curves of random sizes, orders, knots (most of them sorted), ranges,
+    /// weights and points: built or refused, never a panic.
+    #[test]
+    fn random_nurbs_never_panic(
+        orders in (2i32..6, 2i32..6, 2i32..6),
+        extra in (0i32..5, 0i32..5, 0i32..9),
+        numbers in proptest::collection::vec(-2.0f32..3.0, 256),
+        shuffled in any::<u8>(),
+        fractions in proptest::collection::vec(0.0f32..0.6, 6),
+        sense in any::<bool>(),
+    ) {
+        // Now and then an order of 1, which is refused.
+        let (uorder, vorder, order) = if shuffled % 13 == 0 { (1, orders.1, orders.2) } else { orders };
+        let (nu, nv, n) = (uorder + extra.0, vorder + extra.1, order + extra.2);
+        let mut at = 0usize;
+        let mut take = |count: i32| -> Vec<f32> {
+            let out = (0..count.max(0) as usize).map(|k| numbers[(at + k) % numbers.len()]).collect();
+            at += count.max(0) as usize;
+            out
+        };
+        // Knots sorted unless the dice say otherwise, and a range from fractions of their span (now
+        // and then past its end).
+        let mut direction = |count: i32, order: i32, sort: bool, (a, b): (f32, f32)| {
+            let mut k = take(count + order);
+            if sort {
+                k.sort_by(f32::total_cmp);
+            }
+            let p = (order - 1).max(0) as usize;
+            let (lo, hi) = (k.get(p).copied().unwrap_or(0.0), k.get(count.max(0) as usize).copied().unwrap_or(1.0));
+            let text = k.iter().map(ToString::to_string).collect::<Vec<_>>().join(" ");
+            (text, lo + a * (hi - lo), lo + (a + b + 0.02) * (hi - lo))
+        };
+        let (uknots, umin, umax) = direction(nu, uorder, shuffled % 8 != 0, (fractions[0], fractions[1]));
+        let (vknots, vmin, vmax) = direction(nv, vorder, shuffled % 7 != 0, (fractions[2], fractions[3]));
+        let (tknots, tmin, tmax) = direction(n, order, shuffled % 5 != 0, (fractions[4], fractions[5]));
+        let join = |v: Vec<f32>| v.iter().map(ToString::to_string).collect::<Vec<_>>().join(" ");
+        // Trim points about the patch's range, weights mostly positive.
+        let spread = |v: Vec<f32>, lo: f32, hi: f32| v.into_iter().map(|x| lo + (x + 2.0) / 5.0 * (hi - lo)).collect();
+        let (tu, tv, tw) = (spread(take(n), umin, umax), spread(take(n), vmin, vmax), take(n).into_iter().map(|w| w + 1.5).collect());
+        let points: Vec<f32> = take(4 * nu * nv).chunks(4).flat_map(|c| [c[0], c[1], c[2], c[3].abs() + 0.05 - 0.1 * f32::from(shuffled % 11 == 0)]).collect();
+        let text = format!(
+            "Attribute \"trimcurve\" \"sense\" \"{}\"\nTrimCurve [1] [{order}] [{tknots}] [{tmin}] [{tmax}] [{n}] [{}] [{}] [{}]\n\
+             NuPatch {nu} {uorder} [{uknots}] {umin} {umax} {nv} {vorder} [{vknots}] {vmin} {vmax} \"Pw\" [{}] \"varying float q\" [{}]",
+            if sense { "inside" } else { "outside" },
+            join(tu),
+            join(tv),
+            join(tw),
+            join(points),
+            join(take((2 + nu - uorder).max(1) * (2 + nv - vorder).max(1))),
+        );
+        parse_and_mesh(text.as_bytes());
     }
 
     #[test]

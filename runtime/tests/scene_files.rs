@@ -366,6 +366,61 @@ fn the_alphamask_attribute_cuts_rib_geometry_until_its_block_ends() {
     assert_eq!(fb.pixel(38, 34)[3], 1.0, "the square after the block is whole");
 }
 
+/// `TrimCurve` is attribute state: a circular hole trims the `NuPatch`es of its block (and
+/// `"sense" "outside"` keeps only the disk), not the one after `AttributeEnd`.
+#[test]
+fn trim_curves_hold_until_their_attribute_block_ends() {
+    let s = std::f32::consts::FRAC_1_SQRT_2;
+    let circle = [
+        (1., 0., 1.),
+        (1., 1., s),
+        (0., 1., 1.),
+        (-1., 1., s),
+        (-1., 0., 1.),
+        (-1., -1., s),
+        (0., -1., 1.),
+        (1., -1., s),
+        (1., 0., 1.),
+    ];
+    let list = |f: &dyn Fn((f32, f32, f32)) -> f32| circle.map(f).map(|x| x.to_string()).join(" ");
+    let trim = format!(
+        "TrimCurve [1] [3] [0 0 0 .25 .25 .5 .5 .75 .75 1 1 1] [0] [1] [9] [{}] [{}] [{}]",
+        list(&|(x, _, w)| (0.5 + 0.3 * x) * w),
+        list(&|(_, y, w)| (0.5 + 0.3 * y) * w),
+        list(&|(_, _, w)| w)
+    );
+    // The unit square about the origin, u along x and v along y.
+    let patch = r#"NuPatch 2 2 [0 0 1 1] 0 1 2 2 [0 0 1 1] 0 1 "P" [-.5 -.5 0  .5 -.5 0  -.5 .5 0  .5 .5 0]"#;
+    let (mut rt, warnings) = load(&format!(
+        r#"{CAMERA}
+        Surface "constant"
+        AttributeBegin
+          {trim}
+          Translate -1.5 0 0 {patch}
+          Attribute "trimcurve" "sense" ["outside"]
+          Translate 1.5 0 0 {patch}
+        AttributeEnd
+        Translate 1.5 0 0 {patch}
+        WorldEnd"#
+    ));
+    assert!(warnings.is_empty(), "{warnings:?}");
+    let fb = render(&mut rt);
+    // 12 pixels a unit about the image's middle (32, 24); the squares' corners are 0.4 from their middles.
+    assert_eq!(fb.pixel(14, 24)[3], 0.0, "the hole in the first square");
+    assert_eq!(fb.pixel(9, 19)[3], 1.0, "the first square's corner");
+    assert_eq!(fb.pixel(32, 24)[3], 1.0, "the disk the second square keeps");
+    assert_eq!(fb.pixel(37, 19)[3], 0.0, "the second square's corner, trimmed away");
+    assert_eq!(fb.pixel(50, 24)[3], 1.0, "the square after the block is whole");
+
+    // A trim curve that cannot be read, and a `Geometry` rtsl lacks, are omissions.
+    let (_, warnings) = load(&format!(
+        "{CAMERA} TrimCurve [1] [2] [0 1 0 1] [0] [1] [2] [0 1] [0 0] [1 1]\nGeometry \"bunny\"\nWorldEnd"
+    ));
+    assert_eq!(warnings.len(), 2, "{warnings:?}");
+    assert!(warnings[0].contains("warning: TrimCurve skipped: trim curve 0: the knots decrease"), "{warnings:?}");
+    assert!(warnings[1].contains("warning: unknown Geometry name \"bunny\""), "{warnings:?}");
+}
+
 #[test]
 fn a_displacement_shader_bumps_the_normal_the_surface_shader_sees() {
     let dir = tempfile::tempdir().expect("a temporary directory");
