@@ -288,6 +288,81 @@ WorldEnd
     check("motion_blur", &render_rib("motion_blur", &rib)).unwrap_or_else(|e| panic!("{e}"));
 }
 
+/// A rational NURBS wall (a third of a cylinder, one rational quadratic span) with an elliptical
+/// hole trimmed out of it, beside RenderMan's teapot (z up, so turned to stand on the y-up floor).
+#[test]
+fn nurbs_and_the_teapot_match_their_reference() {
+    // The arc from 30 to 150 degrees about (-1.1, 0.3) in the floor's plane: its middle control
+    // point where the ends' tangents meet (twice the radius out), of weight cos 60 = 0.5; it
+    // rises from y = 0 to 1.6.
+    let (cx, cz, r) = (-1.1, 0.3, 1.2);
+    let at = |degrees: f64, distance: f64| {
+        let a = degrees.to_radians();
+        (cx + distance * a.cos(), cz + distance * a.sin())
+    };
+    let arc = [(at(30.0, r), 1.0), (at(90.0, 2.0 * r), 0.5), (at(150.0, r), 1.0)];
+    let mut pw = Vec::new();
+    for y in [0.0, 1.6] {
+        for ((x, z), w) in arc {
+            pw.extend([x * w, y * w, z * w, w]);
+        }
+    }
+    // An ellipse in parameter space, about as wide as high on the wall: the unit circle's rational
+    // quadratic (9 points, weights 1 and cos 45) scaled.
+    let s = std::f64::consts::FRAC_1_SQRT_2;
+    let circle = [
+        (1.0, 0.0, 1.0),
+        (1.0, 1.0, s),
+        (0.0, 1.0, 1.0),
+        (-1.0, 1.0, s),
+        (-1.0, 0.0, 1.0),
+        (-1.0, -1.0, s),
+        (0.0, -1.0, 1.0),
+        (1.0, -1.0, s),
+        (1.0, 0.0, 1.0),
+    ];
+    let (mut u, mut v, mut w) = (Vec::new(), Vec::new(), Vec::new());
+    for (x, y, weight) in circle {
+        u.push((0.5 + 0.17 * x) * weight);
+        v.push((0.55 + 0.3 * y) * weight);
+        w.push(weight);
+    }
+    let list = |xs: &[f64]| xs.iter().map(|x| format!("{x}")).collect::<Vec<_>>().join(" ");
+    let rib = format!(
+        r#"
+Format {W} {H} 1
+PixelSamples 2 2
+Projection "perspective" "fov" [34]
+Rotate -14 1 0 0
+Translate 0 -2.2 6
+WorldBegin
+  LightSource "pointlight" 1 "intensity" [25] "from" [2 4 -3]
+  LightSource "ambientlight" 2 "intensity" [0.1]
+  Surface "plastic"
+  Polygon "P" [-6 0 -6  6 0 -6  6 0 6  -6 0 6]
+  AttributeBegin
+    Color [.3 .5 .9]
+    TrimCurve [1] [3] [0 0 0 .25 .25 .5 .5 .75 .75 1 1 1] [0] [1] [9] [{}] [{}] [{}]
+    NuPatch 3 3 [0 0 0 1 1 1] 0 1 2 2 [0 0 1 1] 0 1 "Pw" [{}]
+  AttributeEnd
+  AttributeBegin
+    Color [.8 .3 .2]
+    Translate 1 0 -0.3
+    Rotate -90 1 0 0
+    Rotate 20 0 0 1
+    Scale .4 .4 .4
+    Geometry "teapot"
+  AttributeEnd
+WorldEnd
+"#,
+        list(&u),
+        list(&v),
+        list(&w),
+        list(&pw)
+    );
+    check("nupatch_teapot", &render_rib("nupatch_teapot", &rib)).unwrap_or_else(|e| panic!("{e}"));
+}
+
 /// The data set shipped with the examples (`docs/volumes.md`).
 fn neghip_grid() -> String {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/office/data/neghip32.grid").display().to_string()
