@@ -31,8 +31,8 @@ pub mod patch;
 mod primitive;
 pub mod report;
 pub mod request;
-pub mod subdiv;
 pub mod spline;
+pub mod subdiv;
 pub mod teapot;
 pub mod trim;
 
