@@ -923,3 +923,24 @@ fn relative_archives_follow_the_archive_search_path_first() {
         .collect();
     assert!(matches!(quadrics[..], [Quadric::Disk { .. }, Quadric::Sphere { .. }]), "{quadrics:?}");
 }
+
+#[test]
+fn delayed_read_archive_reads_the_archive_and_programs_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("part.rib"), "Sphere 1 -1 1 360\n").unwrap();
+    let main = dir.path().join("main.rib");
+    std::fs::write(
+        &main,
+        "WorldBegin\nProcedural \"DelayedReadArchive\" [\"part.rib\"] [-1 1 -1 1 -1 1]\n\
+         Procedural \"RunProgram\" [\"make-geometry\" \"\"] [-1 1 -1 1 -1 1]\n\
+         Procedural \"Other\" [] [-1 1 -1 1 -1 1]\nWorldEnd\n",
+    )
+    .unwrap();
+    let parsed = rib::parse_file(&main).unwrap();
+    let kinds: Vec<&K> = parsed.requests.iter().map(|r| &r.kind).collect();
+    assert!(matches!(kinds[..], [K::WorldBegin, K::Quadric { .. }, K::WorldEnd]), "{kinds:?}");
+    let messages = messages(&parsed);
+    assert!(messages[0].contains("main.rib:3:1: warning: `Procedural \"RunProgram\"` runs code"), "{messages:?}");
+    assert!(messages[1].contains("main.rib:4:1: error: unknown procedural \"Other\""), "{messages:?}");
+    assert_eq!(parsed.diagnostics[0].severity, Severity::Omission);
+}

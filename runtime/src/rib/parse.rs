@@ -45,7 +45,6 @@ const UNSUPPORTED_REQUESTS: &[&str] = &[
     "MakeLatLongEnvironment",
     "MakeShadow",
     "Points",
-    "Procedural",
     "RelativeDetail",
     "Resource",
     "ResourceBegin",
@@ -205,6 +204,7 @@ impl Parser {
     fn request(&mut self, name: &str, loc: Location, args: &[Arg]) {
         let result = match name {
             "ReadArchive" => self.read_archive(&loc, args),
+            "Procedural" => self.procedural(&loc, args),
             "ArchiveBegin" => self.begin_archive(&loc, args),
             "ArchiveEnd" if self.open_archives.is_empty() => Err(error(&loc, "`ArchiveEnd` without `ArchiveBegin`")),
             "ArchiveEnd" => {
@@ -632,6 +632,40 @@ impl Parser {
         let mut a = Args { request: "ReadArchive", loc, items: args, pos: 0 };
         let name = a.string("archive file name")?;
         a.finish()?;
+        self.expand_archive(loc, name)
+    }
+
+    /// `Procedural "DelayedReadArchive" ["file"] [bound]` reads the archive where it stands (a ray
+    /// tracer cannot wait for a bound to be reached); `RunProgram` and `DynamicLoad`, which run
+    /// code a scene file names, are refused.
+    fn procedural(&mut self, loc: &Location, args: &[Arg]) -> Result<()> {
+        let mut a = Args { request: "Procedural", loc, items: args, pos: 0 };
+        let kind = a.string("procedural name")?;
+        let data = a.strings("procedural arguments")?;
+        let _bound: [f32; 6] = a.floats("bound")?;
+        a.finish()?;
+        match kind.as_str() {
+            "DelayedReadArchive" => match data.first() {
+                Some(file) => self.expand_archive(loc, file.clone()),
+                None => Err(error(loc, "`Procedural \"DelayedReadArchive\"` names no archive")),
+            },
+            "RunProgram" | "DynamicLoad" => {
+                let message = format!(
+                    "`Procedural \"{kind}\"` runs code the scene names, which rtsl does not do; what it would make \
+                     is missing"
+                );
+                self.diagnostics.push(RibDiagnostic::omission(loc, message));
+                Ok(())
+            }
+            other => Err(error(
+                loc,
+                format!("unknown procedural \"{other}\" (RISpec's are DelayedReadArchive, RunProgram and DynamicLoad)"),
+            )),
+        }
+    }
+
+    /// Reads the inline archive or the file `name` into the requests.
+    fn expand_archive(&mut self, loc: &Location, name: String) -> Result<()> {
         if let Some((requests, weight)) = self.inline_archives.get(&name).cloned() {
             if weight > self.expansion_left {
                 return Err(error(
