@@ -1000,3 +1000,61 @@ fn displays_write_their_modes_depths_and_additional_images() {
     assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("output variables are not supported"), "{}", stderr(&o));
 }
+
+#[test]
+fn a_shadow_map_pass_feeds_the_frame_after_it() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    // A floor at y = 0 and a square occluder over the origin at y = 2; the light 5 above, looking
+    // down. Frame 1 renders its depth map from the light; frame 2 makes it a shadow map and lights
+    // the floor with it, ray-traced shadows off so that only the map shadows.
+    let world = "Surface \"matte\"\n\
+                 Polygon \"P\" [-4 0 -4  4 0 -4  4 0 4  -4 0 4]\n\
+                 Polygon \"P\" [-0.5 2 -0.5  0.5 2 -0.5  0.5 2 0.5  -0.5 2 0.5]\n";
+    let light_camera = "Projection \"perspective\" \"fov\" 60\nRotate -90 1 0 0\nTranslate 0 -5 0\n";
+    // The beauty camera looks down from beside the light, so the shadow is not behind the occluder.
+    let camera = "Projection \"perspective\" \"fov\" 60\nRotate -90 1 0 0\nTranslate -2 -5 0\n";
+    let beauty = |shadowname: &str| {
+        format!(
+            "FrameBegin 2\nMakeShadow \"light.z\" \"light.shd\"\nDisplay \"beauty.exr\" \"file\" \"rgba\"\n\
+             {camera}WorldBegin\nAttribute \"light\" \"shadows\" \"off\"\n\
+             LightSource \"shadowspot\" 1 \"from\" [0 5 0] \"to\" [0 0 0] \"coneangle\" [0.9] \"intensity\" [25] \
+             \"shadowname\" [\"{shadowname}\"]\n{world}WorldEnd\nFrameEnd\n"
+        )
+    };
+    let depth_pass = format!(
+        "Format 64 64 1\nFrameBegin 1\nDisplay \"light.z\" \"zfile\" \"z\"\n{light_camera}WorldBegin\n{world}WorldEnd\nFrameEnd\n"
+    );
+    write(dir.path(), "shadows.rib", &format!("{depth_pass}{}", beauty("light.shd")));
+    let o = rtsl(&["render", "shadows.rib", "-q"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+
+    // The map projects the world as the light's camera saw it: the floor under the occluder is in
+    // shadow, the floor beside it is not.
+    let map = rtsl_runtime::texture::ShadowMap::load(&dir.path().join("light.shd")).expect("a shadow map");
+    let opts = rtsl_runtime::texture::LookupOptions { bias: 0.05, ..Default::default() };
+    assert_eq!(map.shadow([0.0, 0.0, 0.0], &opts), 1.0);
+    assert_eq!(map.shadow([1.5, 0.0, 0.3], &opts), 0.0);
+    assert_eq!(map.shadow([0.0, 2.5, 0.0], &opts), 0.0, "above the occluder");
+
+    // The floor's shadow darkens a good part of the frame, against one lit without the map.
+    let mean = |name: &str| {
+        let image = rtsl_runtime::read_image(dir.path().join(name)).expect(name);
+        image.pixels.chunks_exact(4).map(|p| p[0]).sum::<f32>()
+    };
+    let with_map = mean("beauty.exr");
+    write(dir.path(), "lit.rib", &format!("Format 64 64 1\n{}", beauty("")));
+    let o = rtsl(&["render", "lit.rib", "-q"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let without = mean("beauty.exr");
+    assert!(with_map < 0.9 * without, "the map darkens the frame: {with_map} against {without}");
+
+    // A shadow map through a camera shader has no matrix: refused before rendering.
+    write(
+        dir.path(),
+        "fish.rib",
+        "Format 8 8 1\nCamera \"fisheye\"\nDisplay \"f.z\" \"zfile\" \"z\"\nWorldBegin\nWorldEnd\n",
+    );
+    let o = rtsl(&["render", "fish.rib", "-q"], dir.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("a shadow map needs the built-in perspective camera"), "{}", stderr(&o));
+}

@@ -179,19 +179,40 @@ struct Output {
     mode: DisplayMode,
     transfer: Option<Transfer>,
     /// More images of the frame (RIB `+name` displays).
-    extra: Vec<(PathBuf, DisplayMode)>,
+    extra: Vec<Image>,
+    /// Whether the first image is a shadow map (RIB `zfile` and `shadow` displays).
+    depth_map: bool,
+}
+
+/// One image of a frame.
+struct Image {
+    path: PathBuf,
+    mode: DisplayMode,
+    /// A shadow map: depth and the camera's projection, as EXR whatever the name.
+    depth_map: bool,
 }
 
 impl Output {
-    fn images(&self) -> impl Iterator<Item = (&PathBuf, DisplayMode)> {
-        std::iter::once((&self.path, self.mode)).chain(self.extra.iter().map(|(p, m)| (p, *m)))
+    fn images(&self) -> impl Iterator<Item = (&PathBuf, DisplayMode, bool)> {
+        std::iter::once((&self.path, self.mode, self.depth_map))
+            .chain(self.extra.iter().map(|i| (&i.path, i.mode, i.depth_map)))
     }
 }
 
-/// Refuses, before rendering, an image that cannot be written: an unknown format, or depth in a
-/// format that stores no floats.
-fn check_image(path: &Path, mode: DisplayMode) -> anyhow::Result<()> {
+/// Refuses, before rendering, an image that cannot be written: an unknown format, depth in a
+/// format that stores no floats, a shadow map from a camera no matrix describes.
+fn check_image(rt: &Context, path: &Path, mode: DisplayMode, depth_map: bool) -> anyhow::Result<()> {
     use rtsl_runtime::image_io::ImageFormat;
+    if depth_map {
+        if rt.depth_map_projection().is_none() {
+            anyhow::bail!(
+                "{}: a shadow map needs the built-in perspective camera or Projection \"orthographic\", not a \
+                 camera shader",
+                path.display()
+            );
+        }
+        return Ok(());
+    }
     match ImageFormat::from_path(path) {
         None => anyhow::bail!("{}: unsupported image format (known: .png .tga .ppm .tif .exr)", path.display()),
         Some(ImageFormat::Exr) => Ok(()),
@@ -260,7 +281,15 @@ fn render_and_write(
     let texture_files = world.textures.files();
     rt.return_scene(world);
     let transfer = output.transfer.unwrap_or_else(|| rt.options.transfer());
-    for (path, mode) in output.images() {
+    for (path, mode, depth_map) in output.images() {
+        if depth_map {
+            let (world_to_camera, world_to_ndc) =
+                rt.depth_map_projection().context("a shadow map needs a camera a matrix describes")?;
+            let (w, h) = (fb.width as usize, fb.height as usize);
+            rtsl_runtime::texture::write_shadow_map(path, &fb.depth, w, h, world_to_camera, world_to_ndc)
+                .with_context(|| format!("writing {}", path.display()))?;
+            continue;
+        }
         let float = Quantize { one: 0.0, min: 0.0, max: 0.0, dither: 0.0 };
         let quantize = if mode.has_depth() { Some(float) } else { rt.options.quantize };
         let opts = WriteOptions { transfer, quantize, ..WriteOptions::default() };
@@ -479,9 +508,13 @@ fn prepare(args: &RenderArgs, frame_index: usize) -> anyhow::Result<Prepared> {
     let expanded = |p: &PathBuf| {
         PathBuf::from(rtsl_runtime::rib::load::expand_display_name(&p.to_string_lossy(), loaded.frame_number))
     };
-    let mut files = loaded.displays.iter().filter(|d| !d.window).map(|d| (d.name.clone(), d.mode));
-    let (path, mode) = match args.output.as_ref().map(expanded) {
-        Some(path) => (path, DisplayMode::Rgba),
+    let mut files = loaded.displays.iter().filter(|d| !d.window).map(|d| Image {
+        path: d.name.clone(),
+        mode: d.mode,
+        depth_map: d.depth_map,
+    });
+    let first = match args.output.as_ref().map(expanded) {
+        Some(path) => Image { path, mode: DisplayMode::Rgba, depth_map: false },
         None => files.next().unwrap_or_else(|| {
             if let Some(window) = loaded.displays.iter().find(|d| d.window) {
                 eprintln!(
@@ -490,10 +523,10 @@ fn prepare(args: &RenderArgs, frame_index: usize) -> anyhow::Result<Prepared> {
                     window.name.display()
                 );
             }
-            (PathBuf::from("render.png"), DisplayMode::Rgba)
+            Image { path: PathBuf::from("render.png"), mode: DisplayMode::Rgba, depth_map: false }
         }),
     };
-    let extra: Vec<(PathBuf, DisplayMode)> = files.collect();
+    let extra: Vec<Image> = files.collect();
     if let Some((w, h)) = args.size {
         rt.options.width = w;
         rt.options.height = h;
@@ -507,10 +540,11 @@ fn prepare(args: &RenderArgs, frame_index: usize) -> anyhow::Result<Prepared> {
     if let Some(camera) = &args.camera {
         camera.bind(&mut rt)?;
     }
-    let output = Output { path, mode, transfer: args.transfer, extra };
+    let output =
+        Output { path: first.path, mode: first.mode, transfer: args.transfer, extra, depth_map: first.depth_map };
     // Refused before rendering, not after.
-    for (path, mode) in output.images() {
-        check_image(path, mode)?;
+    for (path, mode, depth_map) in output.images() {
+        check_image(&rt, path, mode, depth_map)?;
     }
     Ok(Prepared { rt, output, omissions: loaded.omissions(), errors: loaded.errors(), files: loaded.files })
 }
@@ -530,7 +564,7 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
     let mut written_paths = BTreeSet::new();
     for &index in &frames {
         let Prepared { mut rt, output, omissions, files, .. } = prepare(args, index)?;
-        for (path, _) in output.images() {
+        for (path, ..) in output.images() {
             if !written_paths.insert(path.clone()) {
                 anyhow::bail!(
                     "frame {} would overwrite {} of an earlier frame: name the images with #f (as in \

@@ -165,4 +165,44 @@ impl Context {
     pub fn camera(&self) -> &CameraSetup {
         &self.camera
     }
+
+    /// How a depth map rendered from this context's camera projects the world: `worldToCamera`
+    /// and `worldToNDC` as [`crate::texture::write_shadow_map`] stores them (row vectors, NDC
+    /// with (0, 0) the top-left pixel), for the built-in pinhole camera (`fov_degrees`) or the
+    /// library's `orthographic` camera shader, over the options' screen window. `None` for any
+    /// other camera shader, whose rays no matrix describes.
+    pub fn depth_map_projection(&self) -> Option<([f32; 16], [f32; 16])> {
+        let orthographic = match self.camera_shader_id() {
+            None => false,
+            Some(id) => match self.program(id) {
+                Ok(p) if p.name == "orthographic" => true,
+                _ => return None,
+            },
+        };
+        let e = self.options.screen_extent();
+        let ((ax, ay), (cx, cy)) = (e.half, e.centre);
+        // Column vectors here: screen x runs from cx - ax (NDC 0) to cx + ax (NDC 1), screen y from
+        // cy + ay (NDC 0, the top row) to cy - ay.
+        let to_ndc = if orthographic {
+            glam::Mat4::from_cols_array_2d(&[
+                [0.5 / ax, 0.0, 0.0, 0.0],
+                [0.0, -0.5 / ay, 0.0, 0.0],
+                [0.0, 0.0, 1.0, 0.0],
+                [-(cx - ax) * 0.5 / ax, (cy + ay) * 0.5 / ay, 0.0, 1.0],
+            ])
+        } else {
+            // Screen position is camera (x, y) / (z tan(fov / 2)); w is z.
+            let tan = (self.camera.fov_degrees.to_radians() * 0.5).tan();
+            glam::Mat4::from_cols_array_2d(&[
+                [0.5 / (ax * tan), 0.0, 0.0, 0.0],
+                [0.0, -0.5 / (ay * tan), 0.0, 0.0],
+                [-(cx - ax) * 0.5 / ax, (cy + ay) * 0.5 / ay, 1.0, 1.0],
+                [0.0, 0.0, 0.0, 0.0],
+            ])
+        };
+        let world_to_camera = glam::Mat4::from(self.camera.world_from_camera.inverse());
+        let finite = |m: glam::Mat4| m.is_finite().then(|| m.to_cols_array());
+        // A column-vector matrix's columns are the row-vector matrix's rows.
+        Some((finite(world_to_camera)?, finite(to_ndc * world_to_camera)?))
+    }
 }

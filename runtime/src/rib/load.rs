@@ -53,6 +53,9 @@ pub struct RibDisplay {
     /// A window rather than a file (driver `framebuffer` or `it`): `rtsl view` is the window;
     /// `rtsl render` writes no file for it.
     pub window: bool,
+    /// A depth map for shadows (driver `zfile` or `shadow`): depth written as a shadow map, an EXR
+    /// file with the camera's projection ([`crate::texture::write_shadow_map`]) whatever its name.
+    pub depth_map: bool,
 }
 
 /// What loading a RIB stream produced besides the scene in the context.
@@ -628,6 +631,12 @@ impl<'a> Loader<'a> {
                 }
                 None => self.omit(r, "ObjectInstance names no object"),
             },
+            K::MakeShadow { picture, shadow } => {
+                let (from, to) = (self.dir.join(picture), self.dir.join(shadow));
+                if let Err(e) = crate::texture::make_shadow(&from, &to) {
+                    self.omit(r, format_args!("MakeShadow: {e}"));
+                }
+            }
             K::MakeTexture { picture, texture, swrap, twrap, .. } => {
                 let wrap = |w: &str| match w {
                     "black" => crate::texture::Wrap::Black,
@@ -730,7 +739,7 @@ impl<'a> Loader<'a> {
             self.out.displays.clear();
         }
         let window = matches!(driver, "framebuffer" | "it");
-        self.out.displays.push(RibDisplay { name: PathBuf::from(name), mode, window });
+        self.out.displays.push(RibDisplay { name: PathBuf::from(name), mode, window, depth_map });
     }
 
     fn pixel_filter(&mut self, r: &Request, name: &str, xwidth: f32, ywidth: f32) {

@@ -43,7 +43,6 @@ const UNSUPPORTED_REQUESTS: &[&str] = &[
     "MakeBump",
     "MakeCubeFaceEnvironment",
     "MakeLatLongEnvironment",
-    "MakeShadow",
     "Points",
     "RelativeDetail",
     "Resource",
@@ -471,6 +470,14 @@ impl Parser {
                 let [x1, y1, z1, x2, y2, z2, thetamax] = a.floats("x1 y1 z1 x2 y2 z2 thetamax")?;
                 let (point1, point2) = (Vec3::new(x1, y1, z1), Vec3::new(x2, y2, z2));
                 self.quadric(a, Quadric::Hyperboloid { point1, point2, thetamax })
+            }
+            "MakeShadow" => {
+                let picture = a.string("picture file")?;
+                let shadow = a.string("shadow file")?;
+                // Its parameters tune a renderer's own map format; a shadow map here is the depth
+                // map itself.
+                let _ = self.params(a);
+                K::MakeShadow { picture, shadow }
             }
             "MakeTexture" => K::MakeTexture {
                 picture: a.string("picture file")?,

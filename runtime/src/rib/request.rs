@@ -542,6 +542,13 @@ pub enum RequestKind {
         /// Further data (`Cs`, shader parameters...).
         params: Vec<Param>,
     },
+    /// `MakeShadow "picture" "texture" params`: a depth map into a shadow map.
+    MakeShadow {
+        /// The depth map (a `zfile` or `shadow` display).
+        picture: String,
+        /// The shadow map to write.
+        shadow: String,
+    },
     /// `MakeTexture "picture" "texture" swrap twrap "filter" swidth twidth params`
     MakeTexture {
         /// Source image.

@@ -38,7 +38,7 @@ pub use grid::{Grid, GridError, GridType};
 pub use image::{load_texture_image, LoadedImage, TexImage};
 pub use make::{make_texture, MakeTextureOptions};
 pub use mip::{LookupLanes, MipMap, MAX_ANISOTROPY};
-pub use shadow::{write_shadow_map, ShadowMap};
+pub use shadow::{make_shadow, write_shadow_map, ShadowMap};
 
 /// What a lookup outside `[0, 1]` sees, per axis (RenderMan's `swrap`/`twrap` names).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]

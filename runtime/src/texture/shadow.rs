@@ -177,6 +177,15 @@ pub fn write_shadow_map(
     image_io::write_exr(path.as_ref(), &layer, false)
 }
 
+/// RIB `MakeShadow`: the depth map at `from` (a `zfile` or `shadow` display, or any EXR with the
+/// two projection attributes) made into the shadow map at `to`, which is the same map: rtsl's
+/// shadow maps are depth maps. Its depths and matrices are checked by loading it first.
+pub fn make_shadow(from: &Path, to: &Path) -> Result<(), ImageError> {
+    let layer = image_io::read_exr(from)?;
+    ShadowMap::from_layer(from, layer.clone())?;
+    image_io::write_exr(to, &layer, false)
+}
+
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;

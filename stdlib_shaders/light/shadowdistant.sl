@@ -1,0 +1,33 @@
+/*
+ * shadowdistant.sl -- the distantlight of RISpec 3.2 Appendix A with a
+ * depth shadow map, as PRMan's and Aqsis's libraries ship it:
+ * "shadowdistant".
+ *
+ * Light arriving along from -> to, times 1 - shadow(shadowname, Ps): the
+ * map is a depth render from the light (usually Projection
+ * "orthographic"; RIB Display "zfile" or "shadow", then MakeShadow).
+ * With no map named it is distantlight.sl.
+ *
+ * Parameters: those of distantlight.sl, and
+ *   shadowname -- the shadow map ("": none).
+ *   samples    -- percentage-closer samples per lookup (16).
+ *   width      -- widens the filter kernel (1).
+ *   blur       -- blurs it by this fraction of the map (0).
+ *   bias       -- depth offset against self-shadowing (0.01).
+ */
+light shadowdistant(float intensity = 1; color lightcolor = 1;
+                    point from = point "shader" (0, 0, 0);
+                    point to = point "shader" (0, 0, 1);
+                    string shadowname = "";
+                    float samples = 16;
+                    float width = 1;
+                    float blur = 0;
+                    float bias = 0.01;)
+{
+    solar(to - from, 0) {
+        Cl = intensity * lightcolor;
+        if (shadowname != "")
+            Cl *= 1 - shadow(shadowname, Ps, "samples", samples, "width", width,
+                             "blur", blur, "bias", bias);
+    }
+}
