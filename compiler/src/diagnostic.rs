@@ -50,7 +50,6 @@ codes! {
     // Preprocessor.
     IncludeNotFound = "E0001", Error, "an `#include`d file was not found on the include path";
     IncludeDepth = "E0002", Error, "`#include` nested too deeply (usually a file that includes itself)";
-    UnterminatedConditional = "E0003", Error, "an `#if`/`#ifdef`/`#ifndef` without its `#endif`";
     StrayConditional = "E0004", Error, "`#else`, `#elif` or `#endif` without a matching `#if`";
     MalformedDirective = "E0005", Error, "a preprocessor directive that cannot be read";
     BadIfExpression = "E0006", Error, "an `#if` expression that is not a valid integer expression";
@@ -116,6 +115,7 @@ codes! {
     WarningDirective = "W0008", Warning, "a `#warning` directive was reached";
     ImplicitColorConversion = "W0009", Warning, "a colour used as a point, vector or normal, or the reverse, without a typecast";
     ShadowedVariable = "W0010", Warning, "a local variable that hides a shader parameter or global of the same name";
+    UnterminatedConditional = "W0011", Warning, "a file that ends inside an `#if`/`#ifdef`/`#ifndef`: the conditional ends with the file, as C preprocessors take it";
 }
 
 /// One message to the user.

@@ -283,3 +283,28 @@ fn bump_perturbs_the_normal_across_a_height_step() {
     // h_s = -1 / step: N + h_s (n x dPdt) = (0, 0, 1) - (1/step) * (-1, 0, 0).
     assert!((n[0] - 1.0 / geom::BUMP_STEP).abs() < 1.0 && n[1] == 0.0 && n[2] == 1.0, "{n:?}");
 }
+
+#[test]
+fn the_standard_pattern_headers_filter_by_the_box() {
+    // Each filtered function is the average of its unfiltered one over [x - dx/2, x + dx/2].
+    let src = "#include \"patterns.h\"\n\
+               surface s(output float train = 0, train_half = 0, pulse_in = 0, pulse_edge = 0, absolute = 0, \
+               stepped = 0) {\n\
+                 train = filteredpulsetrain(0.25, 1, 0.3, 1);\n\
+                 train_half = filteredpulsetrain(0.5, 1, 0.25, 0.5);\n\
+                 pulse_in = filteredpulse(0.2, 0.8, 0.5, 0.2);\n\
+                 pulse_edge = filteredpulse(0.2, 0.8, 0.8, 0.2);\n\
+                 absolute = filteredabs(0, 1);\n\
+                 stepped = filteredstep(0.5, 0.5, 0.4);\n\
+               }\n";
+    let (_, r, _) = run_src(src, &[]);
+    let get = |name: &str| r.params.iter().find(|(n, _)| n == name).map(|(_, v)| v.f()).expect(name);
+    // A whole period holds a quarter of pulse; [0, 0.5] lies inside the first half of the period.
+    assert!((get("train") - 0.25).abs() < 1e-5, "{}", get("train"));
+    assert!((get("train_half") - 1.0).abs() < 1e-5, "{}", get("train_half"));
+    assert!((get("pulse_in") - 1.0).abs() < 1e-5);
+    assert!((get("pulse_edge") - 0.5).abs() < 1e-5);
+    // The mean of |x| over [-1/2, 1/2] is 1/4; a step averaged across its edge is 1/2.
+    assert!((get("absolute") - 0.25).abs() < 1e-5, "{}", get("absolute"));
+    assert!((get("stepped") - 0.5).abs() < 1e-5);
+}

@@ -12,6 +12,7 @@
 //! - the preprocessor never fails: problems become diagnostics and it goes on.
 
 mod expr;
+pub mod standard_headers;
 
 use crate::diagnostic::{Code, Diagnostic, Diagnostics};
 use crate::front::lex::{self, Token, TokenKind, LINE_START, NO_EXPAND, SPACE_BEFORE};
@@ -406,7 +407,7 @@ impl Preprocessor<'_> {
                         self.error(
                             Code::UnterminatedConditional,
                             c.span,
-                            "this conditional has no `#endif` before the end of its file",
+                            "this conditional has no `#endif` before the end of its file; it ends there",
                             "opened here",
                         );
                     }
@@ -798,7 +799,14 @@ impl Preprocessor<'_> {
             );
             return;
         }
-        let Some(path) = self.resolve_include(&name, angled) else {
+        let resolved = self.resolve_include(&name, angled);
+        if resolved.is_none() {
+            if let Some(text) = standard_headers::standard_header(&name) {
+                self.include_standard(&name, text);
+                return;
+            }
+        }
+        let Some(path) = resolved else {
             let mut d = Diagnostic::new(Code::IncludeNotFound, span, format!("cannot find include file `{name}`"))
                 .with_label("included here");
             let searched = self.search_dirs(angled);
@@ -818,6 +826,26 @@ impl Preprocessor<'_> {
             Some((file, tokens)) => (*file, tokens.clone()),
             None => {
                 let Some((file, tokens)) = self.load_header(&path, span) else { return };
+                self.read_files.push(file);
+                self.file_cache.insert(key, (file, tokens.clone()));
+                (file, tokens)
+            }
+        };
+        if self.pragma_once.contains(&file) {
+            return;
+        }
+        self.files.push(FileFrame { file, tokens, pos: 0, cond_base: self.conds.len() });
+    }
+
+    /// Enters a standard header (see [`standard_headers`]), lexed once per compilation.
+    fn include_standard(&mut self, name: &str, text: &'static str) {
+        let label = standard_headers::label(name);
+        let key = PathBuf::from(&label);
+        let (file, tokens) = match self.file_cache.get(&key) {
+            Some((file, tokens)) => (*file, tokens.clone()),
+            None => {
+                let file = self.sources.add_virtual(label, text);
+                let tokens = self.tokens_of(file);
                 self.read_files.push(file);
                 self.file_cache.insert(key, (file, tokens.clone()));
                 (file, tokens)

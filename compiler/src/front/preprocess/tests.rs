@@ -113,7 +113,8 @@ fn include_errors() {
 
 #[test]
 fn directive_errors() {
-    assert_eq!(run("#if 1\nx").1, vec!["E0003"]);
+    // A conditional open at the end of its file ends there, with a warning; the shader is kept.
+    assert_eq!(run("#if 1\nx"), ("x".to_string(), vec!["W0011"]));
     assert_eq!(run("#endif\n").1, vec!["E0004"]);
     assert_eq!(run("#define\n").1, vec!["E0005"]);
     assert_eq!(run("#if 1 +\n#endif\n").1, vec!["E0006"]);
@@ -149,4 +150,42 @@ fn runaway_expansion_is_stopped() {
 fn multiline_macro_call_and_continuation() {
     let (out, _) = run("#define ADD(a, b) \\\n  (a + b)\nADD(1,\n 2)");
     assert_eq!(out, "( 1 + 2 )");
+}
+
+#[test]
+fn standard_headers_are_found_last_on_the_include_path() {
+    let (out, codes) = run_with("#include \"filterwidth.h\"\nMINFILTWIDTH\n", &[], Options::default());
+    assert!(codes.is_empty(), "{codes:?}");
+    assert_eq!(out, "1.0e-6");
+    // A header of the same name beside the shader wins.
+    let (out, codes) =
+        run_with("#include <filterwidth.h>\nMINFILTWIDTH\n", &[("filterwidth.h", "#define MINFILTWIDTH 7\n")], Options::default());
+    assert!(codes.is_empty(), "{codes:?}");
+    assert_eq!(out, "7");
+}
+
+#[test]
+fn every_standard_header_compiles_in_a_shader_that_uses_it() {
+    let src = "#include \"noises.h\"\n#include \"patterns.h\"\n\
+               surface s(float freq = 4) {\n\
+                 point p = transform(\"shader\", P) * freq;\n\
+                 float fw = filterwidthp(p);\n\
+                 float n = fBm(p, fw, 6, 2, 0.5) + turbulence(p, fw, 4, 2, 0.5);\n\
+                 vector vn = vfBm(p, fw, 3, 2, 0.5);\n\
+                 float f1; point pos1;\n\
+                 voronoi_f1_3d(p, 1, f1, pos1);\n\
+                 float stripes = filteredpulsetrain(0.5, 1, s * 10, filterwidth(s * 10));\n\
+                 float edges = filteredpulse(0.2, 0.8, t, filterwidth(t)) * smoothpulse(0, .1, .9, 1, s);\n\
+                 float a = filteredabs(s - 0.5, filterwidth(s)) + filteredstep(0.5, t, filterwidth(t))\n\
+                           + filteredsmoothstep(0, 1, s, filterwidth(s)) + pulsetrain(0.5, 1, s)\n\
+                           + smoothpulsetrain(0, .1, .4, .5, 1, t) + pulse(0, 1, s);\n\
+                 Ci = color(n, stripes * edges, f1) + (color vn) + fadeout(a, 0.5, 1, fw) + distance(pos1, p);\n\
+               }\n";
+    let c = crate::compile_source("uses.sl", src, &crate::Options::default());
+    let errors: Vec<String> = c.diagnostics.iter().map(|d| d.message.clone()).collect();
+    assert!(c.ok(), "{errors:?}");
+    // No warnings either: `--werror` builds include these too.
+    assert!(c.diagnostics.is_empty(), "{errors:?}");
+    let module = c.module.expect("a module");
+    crate::back::jit::compile(&module).expect("the JIT compiles it");
 }
