@@ -668,3 +668,32 @@ fn the_null_shader_stands_for_no_shader_and_defaultsurface_shades_by_facing() {
         assert!((got - want).abs() < 1e-3, "{p:?}");
     }
 }
+
+#[test]
+fn detail_ranges_pick_one_level_by_the_bound_s_size_on_screen() {
+    // Three levels of one unit box, red coarse, green medium, blue fine, by its raster area.
+    let levels = |translate_z: f32| {
+        format!(
+            "Format 100 100 1\nProjection \"perspective\" \"fov\" [90]\nTranslate 0 0 {translate_z}\nWorldBegin\n\
+             Surface \"constant\"\nAttributeBegin\nDetail [-1 1 -1 1 -1 1]\n\
+             AttributeBegin DetailRange [0 0 100 200] Color [1 0 0] Sphere 1 -1 1 360 AttributeEnd\n\
+             AttributeBegin DetailRange [100 200 1000 2000] Color [0 1 0] Sphere 1 -1 1 360 AttributeEnd\n\
+             AttributeBegin DetailRange [1000 2000 1e30 1e30] Color [0 0 1] Sphere 1 -1 1 360 AttributeEnd\n\
+             AttributeEnd\nWorldEnd"
+        )
+    };
+    let centre = |z: f32| {
+        let (mut rt, warnings) = load(&levels(z));
+        assert!(warnings.is_empty(), "{warnings:?}");
+        assert_eq!(rt.world_instance_ids().len(), 1, "one level at {z}");
+        let p = render(&mut rt).pixel(50, 50);
+        [p[0], p[1], p[2]]
+    };
+    // Near: the box covers more than 2,000 pixels; five units away, about 25 x 25; far, a few.
+    assert_eq!(centre(2.5), [0.0, 0.0, 1.0]);
+    assert_eq!(centre(5.0), [0.0, 1.0, 0.0]);
+    assert_eq!(centre(40.0), [1.0, 0.0, 0.0]);
+    // Without Detail, every level is drawn.
+    let (rt, _) = load(&levels(5.0).replace("Detail [-1 1 -1 1 -1 1]\n", ""));
+    assert_eq!(rt.world_instance_ids().len(), 3);
+}

@@ -253,10 +253,14 @@ fn load_parsed(rt: &mut Context, parse: RibParse, path: &Path, index: usize) -> 
     Ok(loader.out)
 }
 
-#[derive(Clone)]
+#[derive(Clone, Default)]
 struct State {
     area_light: Option<LightId>,
     mesh_options: MeshOptions,
+    /// `Detail`: the raster area of the bound it gave (scaled by `RelativeDetail`).
+    detail: Option<f32>,
+    /// `DetailRange`: minvisible, lowertransition, uppertransition, maxvisible.
+    detail_range: Option<[f32; 4]>,
 }
 
 struct Loader<'a> {
@@ -278,6 +282,8 @@ struct Loader<'a> {
     in_world: bool,
     /// Whether a `Projection` request was read (RenderMan's default is orthographic).
     projection_given: bool,
+    /// `RelativeDetail`.
+    relative_detail: f32,
     /// Inside `MotionBegin`: how many samples were seen.
     motion: Option<u32>,
     /// Inside `MotionBegin`: the matrices of its transform samples (applied at `MotionEnd`).
@@ -293,7 +299,7 @@ impl<'a> Loader<'a> {
             rt,
             dir,
             out: LoadedRib::default(),
-            state: State { area_light: None, mesh_options: MeshOptions::default() },
+            state: State::default(),
             stack: Vec::new(),
             pending: None,
             retained: None,
@@ -303,6 +309,7 @@ impl<'a> Loader<'a> {
             shadows: true,
             in_world: false,
             projection_given: false,
+            relative_detail: 1.0,
             motion: None,
             motion_transforms: Vec::new(),
             triangles: 0,
@@ -372,6 +379,10 @@ impl<'a> Loader<'a> {
 
     fn request(&mut self, r: &Request) -> Result<(), SceneFileError> {
         use RequestKind as K;
+        let placed = is_geometry(&r.kind) || matches!(r.kind, K::ObjectInstance(_) | K::MeshArchive(_));
+        if placed && !self.detail_chosen() {
+            return Ok(());
+        }
         // Motion blocks: transforms become a motion transform at `MotionEnd` (the first and last
         // samples: rtsl's motion is linear); of other requests only the first sample is used.
         if self.motion.is_some() {
@@ -472,6 +483,9 @@ impl<'a> Loader<'a> {
                 rt.set_camera(cam);
             }
             K::Display { name, driver, mode, .. } => self.display(r, name, driver, mode),
+            K::Detail(bound) => self.state.detail = Some(self.raster_area(bound) * self.relative_detail),
+            K::DetailRange(range) => self.state.detail_range = Some(*range),
+            K::RelativeDetail(scale) => self.relative_detail = scale.max(0.0),
             K::Quantize { ty, one, min, max, dither } => match ty.as_str() {
                 "rgba" => {
                     rt.options.quantize =
@@ -504,8 +518,7 @@ impl<'a> Loader<'a> {
             }
             K::AttributeEnd => {
                 rt.pop_attributes()?;
-                self.state =
-                    self.stack.pop().unwrap_or(State { area_light: None, mesh_options: MeshOptions::default() });
+                self.state = self.stack.pop().unwrap_or_default();
             }
             K::TransformBegin => rt.push_matrix(),
             K::TransformEnd => rt.pop_matrix()?,
@@ -723,6 +736,58 @@ impl<'a> Loader<'a> {
 
     /// `PixelFilter`: an unknown name is warned about and falls back to the default filter; widths
     /// that are not positive and at most 16 pixels are warned about and leave the filter as it was.
+    /// The raster area (pixels) of the box around an object-space bound's projection, as RISpec's
+    /// level of detail measures it; infinite where no matrix describes the camera or the bound
+    /// reaches behind it.
+    fn raster_area(&self, b: &[f32; 6]) -> f32 {
+        let Some((_, to_ndc)) = self.rt.depth_map_projection() else { return f32::INFINITY };
+        // The row-vector array of a column-vector matrix is its column-major array.
+        let to_ndc = Mat4::from_cols_array(&to_ndc);
+        let object_to_world = self.rt.current_matrix();
+        let (mut lo, mut hi) = (glam::Vec2::splat(f32::INFINITY), glam::Vec2::splat(f32::NEG_INFINITY));
+        for corner in 0..8 {
+            let p = Vec3::new(b[corner & 1], b[2 + ((corner >> 1) & 1)], b[4 + ((corner >> 2) & 1)]);
+            let h = to_ndc * object_to_world.transform_point3(p).extend(1.0);
+            if h.w <= 1e-6 {
+                return f32::INFINITY;
+            }
+            let ndc = glam::Vec2::new(h.x, h.y) / h.w;
+            (lo, hi) = (lo.min(ndc), hi.max(ndc));
+        }
+        let size = (hi - lo) * glam::Vec2::new(self.rt.options.width as f32, self.rt.options.height as f32);
+        size.x * size.y
+    }
+
+    /// Whether geometry here is the level of detail its `Detail` picks: RISpec's importance of the
+    /// `DetailRange` (ramping up from minvisible to lowertransition, down from uppertransition to
+    /// maxvisible) at least one half, so of ranges that tile the detail axis exactly one level is
+    /// drawn where a renderer would blend two.
+    fn detail_chosen(&self) -> bool {
+        let (Some(detail), Some([min, low, high, max])) = (self.state.detail, self.state.detail_range) else {
+            return true;
+        };
+        let importance = if detail < low {
+            if low > min {
+                (detail - min) / (low - min)
+            } else if detail >= min {
+                1.0
+            } else {
+                0.0
+            }
+        } else if detail > high {
+            if max > high {
+                (max - detail) / (max - high)
+            } else if detail <= max {
+                1.0
+            } else {
+                0.0
+            }
+        } else {
+            1.0
+        };
+        importance >= 0.5
+    }
+
     /// `Display "name" "type" "mode"`: a name starting with `+` adds an image, any other replaces
     /// the list (RISpec 3.2, 4.1.2).
     fn display(&mut self, r: &Request, name: &str, driver: &str, mode: &str) {

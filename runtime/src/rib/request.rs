@@ -256,6 +256,13 @@ pub enum RequestKind {
     DepthOfField([f32; 3]),
     /// `Shutter open close`
     Shutter([f32; 2]),
+    /// `Detail [xmin xmax ymin ymax zmin zmax]`: the bound in object space that `DetailRange`
+    /// measures.
+    Detail([f32; 6]),
+    /// `DetailRange minvisible lowertransition uppertransition maxvisible`
+    DetailRange([f32; 4]),
+    /// `RelativeDetail scale`
+    RelativeDetail(f32),
     /// `Quantize "type" one min max ditheramplitude`
     Quantize {
         /// `"rgba"` or `"z"`.
