@@ -534,7 +534,16 @@ impl<'a> Loader<'a> {
                     rt.scale(s[0], s[1], s[2]);
                 }
             }
-            K::Perspective(_) | K::Skew(_) => self.warn(r, "this transform is not supported and is ignored"),
+            K::Skew(s) => match skew(s) {
+                Some(m) => rt.mult_matrix(m),
+                None => self.warn(
+                    r,
+                    "Skew needs two axes that are not parallel and an angle less than the one between them; ignored",
+                ),
+            },
+            K::Perspective(_) => {
+                self.warn(r, "Perspective (a projective transform) cannot place geometry in rtsl and is ignored")
+            }
             K::CoordinateSystem(name) => rt.coordinate_system(name),
             K::CoordSysTransform(name) => {
                 if !rt.load_coordinate_system(name) {
@@ -971,6 +980,28 @@ fn search_path(spec: &str, base: &Path, previous: &[PathBuf]) -> Vec<PathBuf> {
     out
 }
 
+/// RISpec's `Skew angle dx1 dy1 dz1 dx2 dy2 dz2`: a shear along the second axis that turns the
+/// first axis by `angle` degrees towards it, in the plane of the two. Points move along the second
+/// axis by `k` times their distance along `n`, the part of the first axis perpendicular to the
+/// second; `k` turns the first axis from its angle `phi` off `n` to `phi + angle`. `None` when the
+/// axes are parallel or the turn reaches the second axis.
+fn skew(s: &[f32; 7]) -> Option<Affine3A> {
+    let (v1, v2) = (Vec3::new(s[1], s[2], s[3]), Vec3::new(s[4], s[5], s[6]));
+    let d2 = v2.try_normalize()?;
+    let a1 = v1.dot(d2);
+    let perpendicular = v1 - a1 * d2;
+    let b1 = perpendicular.length();
+    let n = perpendicular.try_normalize()?;
+    let phi = a1.atan2(b1);
+    let turned = phi + s[0].to_radians();
+    if turned.is_nan() || turned.abs() >= std::f32::consts::FRAC_PI_2 {
+        return None;
+    }
+    let k = turned.tan() - a1 / b1;
+    let shear = glam::Mat3::from_cols(Vec3::X + k * d2 * n.x, Vec3::Y + k * d2 * n.y, Vec3::Z + k * d2 * n.z);
+    shear.is_finite().then(|| Affine3A::from_mat3(shear))
+}
+
 /// A RenderMan matrix as written (row-major, row vectors) as an affine transform; the projective
 /// column is dropped.
 fn affine(m: &[f32; 16]) -> Affine3A {
@@ -1054,6 +1085,22 @@ fn typed_value(value: &RibValue, ty: Ty, many: bool) -> Option<ParamValue> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn skew_turns_the_first_axis_towards_the_second() {
+        let m = skew(&[45.0, 0.0, 1.0, 0.0, 1.0, 0.0, 0.0]).expect("a skew");
+        assert!(m.transform_vector3(Vec3::Y).abs_diff_eq(Vec3::new(1.0, 1.0, 0.0), 1e-6));
+        // Along the second axis and across the plane nothing moves.
+        assert!(m.transform_vector3(Vec3::X).abs_diff_eq(Vec3::X, 1e-6));
+        assert!(m.transform_vector3(Vec3::Z).abs_diff_eq(Vec3::Z, 1e-6));
+        // Axes 45 degrees apart: turned by 30, the first is 15 degrees off the second.
+        let m = skew(&[30.0, 1.0, 1.0, 0.0, 1.0, 0.0, 0.0]).expect("a skew");
+        let turned = m.transform_vector3(Vec3::new(1.0, 1.0, 0.0));
+        assert!((turned.angle_between(Vec3::X).to_degrees() - 15.0).abs() < 1e-3, "{turned}");
+        // Parallel axes, or a turn that reaches the second axis, are refused.
+        assert!(skew(&[10.0, 1.0, 0.0, 0.0, 2.0, 0.0, 0.0]).is_none());
+        assert!(skew(&[45.0, 1.0, 1.0, 0.0, 1.0, 0.0, 0.0]).is_none());
+    }
 
     #[test]
     fn display_names_take_renderman_frame_patterns() {
