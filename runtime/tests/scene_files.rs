@@ -697,3 +697,18 @@ fn detail_ranges_pick_one_level_by_the_bound_s_size_on_screen() {
     let (rt, _) = load(&levels(5.0).replace("Detail [-1 1 -1 1 -1 1]\n", ""));
     assert_eq!(rt.world_instance_ids().len(), 3);
 }
+
+#[test]
+fn make_lat_long_environment_writes_a_map_that_wraps_around_and_stops_at_the_poles() {
+    let dir = tempfile::tempdir().unwrap();
+    let pixels: Vec<f32> = (0..8 * 4).flat_map(|i| [i as f32 / 32.0, 0.5, 0.25, 1.0]).collect();
+    rtsl_runtime::write_image(dir.path().join("sky.png"), 8, 4, &pixels, &Default::default()).unwrap();
+    let rib = dir.path().join("env.rib");
+    std::fs::write(&rib, "MakeLatLongEnvironment \"sky.png\" \"sky.tex\" \"gaussian\" 2 2\nWorldBegin\nWorldEnd\n")
+        .unwrap();
+    let loaded = rtsl_runtime::rib::load::load_file(&mut Context::new(), &rib).unwrap();
+    assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+    let layer = rtsl_runtime::image_io::read_exr(&dir.path().join("sky.tex")).expect("an environment map");
+    assert_eq!((layer.width, layer.height), (8, 4));
+    assert_eq!(layer.wrap_modes.as_deref(), Some("periodic,clamp"));
+}

@@ -40,7 +40,6 @@ const UNSUPPORTED_REQUESTS: &[&str] = &[
     "IfEnd",
     "MakeBump",
     "MakeCubeFaceEnvironment",
-    "MakeLatLongEnvironment",
     "Points",
     "Resource",
     "ResourceBegin",
@@ -479,6 +478,18 @@ impl Parser {
                 let _ = self.params(a);
                 K::MakeShadow { picture, shadow }
             }
+            // A latitude-longitude environment map is a texture that wraps around in s and stops at
+            // the poles in t.
+            "MakeLatLongEnvironment" => K::MakeTexture {
+                picture: a.string("picture file")?,
+                texture: a.string("texture file")?,
+                swrap: "periodic".into(),
+                twrap: "clamp".into(),
+                filter: a.string("filter name")?,
+                swidth: a.float("s filter width")?,
+                twidth: a.float("t filter width")?,
+                params: self.params(a),
+            },
             "MakeTexture" => K::MakeTexture {
                 picture: a.string("picture file")?,
                 texture: a.string("texture file")?,

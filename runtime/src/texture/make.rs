@@ -3,7 +3,7 @@
 //! The input is any file [`load_texture_image`] reads (8-bit inputs decoded from sRGB unless
 //! `raw`). The output's extension picks its form:
 //!
-//! - `.png`, `.tga`, `.ppm`: 8-bit, colour re-encoded with the sRGB curve (unless `raw`) so that
+//! - `.png`, `.tga`, `.ppm`, `.tif`: 8-bit, colour re-encoded with the sRGB curve (unless `raw`) so that
 //!   loading it again gives the same linear values up to 8-bit rounding. These formats have no
 //!   place for wrap modes: lookups of such a texture wrap periodically unless they say otherwise.
 //! - anything else (`.exr`, and RenderMan's usual `.tex`/`.tx`): a 32-bit float OpenEXR file in
@@ -34,7 +34,7 @@ pub fn make_texture(src: impl AsRef<Path>, dst: impl AsRef<Path>, opts: &MakeTex
     let image = load_texture_image(src, opts.raw)?.image;
     let (width, height, channels) = (image.width(), image.height(), image.channels());
     match ImageFormat::from_path(dst) {
-        Some(ImageFormat::Png | ImageFormat::Tga | ImageFormat::Ppm) => {
+        Some(ImageFormat::Png | ImageFormat::Tga | ImageFormat::Ppm | ImageFormat::Tiff) => {
             let rgba: Vec<f32> = image.data().chunks_exact(channels).flat_map(expand_to_rgba).collect();
             let transfer = if opts.raw { Transfer::Linear } else { Transfer::Srgb };
             let write = WriteOptions { transfer, ..WriteOptions::default() };
