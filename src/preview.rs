@@ -17,6 +17,7 @@ Projection "perspective" "fov" [30]
 Rotate -10 1 0 0
 Translate 0 -1.6 7.5
 WorldBegin
+  Attribute "light" "shadows" "on"
   LightSource "ambientlight" 1 "intensity" [0.1]
   LightSource "pointlight" 2 "intensity" [30] "from" [3 5 -4]
   AttributeBegin

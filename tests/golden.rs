@@ -88,6 +88,7 @@ Projection "perspective" "fov" [30]
 Rotate -20 1 0 0
 Translate 0 -1.8 6
 WorldBegin
+  Attribute "light" "shadows" "on"
   {light}
   Surface "plastic"
   Polygon "P" [-6 0 -6  6 0 -6  6 0 6  -6 0 6]
@@ -271,6 +272,7 @@ Projection "perspective" "fov" [35]
 Rotate -15 1 0 0
 Translate 0 -1 5
 WorldBegin
+  Attribute "light" "shadows" "on"
   LightSource "pointlight" 1 "intensity" [25] "from" [2 4 -3]
   Surface "plastic"
   Polygon "P" [-6 0 -6  6 0 -6  6 0 6  -6 0 6]
@@ -336,6 +338,7 @@ Projection "perspective" "fov" [34]
 Rotate -14 1 0 0
 Translate 0 -2.2 6
 WorldBegin
+  Attribute "light" "shadows" "on"
   LightSource "pointlight" 1 "intensity" [25] "from" [2 4 -3]
   LightSource "ambientlight" 2 "intensity" [0.1]
   Surface "plastic"
@@ -406,6 +409,7 @@ Projection "perspective" "fov" [40]
 Rotate -15 1 0 0
 Translate 0 -1.6 7
 WorldBegin
+  Attribute "light" "shadows" "on"
   LightSource "ambientlight" 1 "intensity" [0.1]
   LightSource "pointlight" 2 "intensity" [30] "from" [1 6 -1]
   AttributeBegin
@@ -468,6 +472,7 @@ Projection "perspective" "fov" [30]
 Rotate -20 1 0 0
 Translate 0 -2.8 6.5
 WorldBegin
+  Attribute "light" "shadows" "on"
   LightSource "ambientlight" 1 "intensity" [0.15]
   LightSource "pointlight" 2 "intensity" [25] "from" [2 4 -3]
   Surface "plastic"

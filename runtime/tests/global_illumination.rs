@@ -33,6 +33,7 @@ fn box_scene_shaded(options: &str, shader: &str) -> (Context, Vec<String>) {
         {options}
         Translate 0 0 2.6
         WorldBegin
+          Attribute "light" "shadows" "on"
         LightSource "pointlight" 1 "intensity" 3 "from" [0 0.8 0]
         Surface "onebounce"
         Color [0.8 0.8 0.8]
@@ -241,6 +242,7 @@ fn pixelvalue_n_is_the_normal_each_pixel_sees() {
         Projection "perspective" "fov" 60
         Imager "mirrornormal"
         WorldBegin
+          Attribute "light" "shadows" "on"
         Surface "matte"
         AttributeBegin
         Color [0.8 0.8 0.8]
@@ -303,6 +305,7 @@ fn the_interleave_filter_keeps_the_faces_of_a_crease_apart() {
             Projection "perspective" "fov" 60
             {imager}
             WorldBegin
+              Attribute "light" "shadows" "on"
             LightSource "distantlight" 1 "intensity" 1 "lightcolor" [1 0 0] "from" [0 0 0] "to" [1 0 0.3]
             LightSource "distantlight" 2 "intensity" 1 "lightcolor" [0 0 1] "from" [0 0 0] "to" [-1 0 0.3]
             Surface "matte"
@@ -510,6 +513,7 @@ fn the_cornell_box_matches_mitsubas_path_traced_reference() {
             Scale -1 1 1
             Translate -278 -273 800
             WorldBegin
+              Attribute "light" "shadows" "on"
               LightSource "pointlight" 1 "intensity" [282743.34] "from" [278 540 279.5]
               Color [0.7 0.7 0.7]
               Surface "gimatte"

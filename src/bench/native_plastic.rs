@@ -78,6 +78,7 @@ mod tests {
             Projection "perspective" "fov" 40
             Translate 0 0 5
             WorldBegin
+            Attribute "light" "shadows" "on"
             LightSource "ambientlight" 1 "intensity" 0.1
             LightSource "distantlight" 2 "from" [1 2 -3] "to" [0 0 0] "intensity" 0.9
             LightSource "pointlight" 3 "from" [-2 1 -2] "intensity" 6 "lightcolor" [1 0.8 0.6]

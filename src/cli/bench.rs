@@ -595,6 +595,7 @@ const RELOAD_SCENE: &str = r#"Format 320 240 1
 Projection "perspective" "fov" 40
 Translate 0 -0.5 6
 WorldBegin
+Attribute "light" "shadows" "on"
 LightSource "ambientlight" 1 "intensity" 0.1
 LightSource "pointlight" 2 "from" [2 4 -3] "intensity" 40
 Color [0.8 0.8 0.8]

@@ -261,6 +261,10 @@ struct State {
     detail: Option<f32>,
     /// `DetailRange`: minvisible, lowertransition, uppertransition, maxvisible.
     detail_range: Option<[f32; 4]>,
+    /// `Attribute "light" "shadows"`: whether the lights declared from here trace shadow rays. Off
+    /// by default, as in RenderMan, where a light shadows only through its shader (`shadow()`,
+    /// `transmission()`) or this attribute (BMRT's and PRMan's ray-traced shadows).
+    shadows: bool,
 }
 
 struct Loader<'a> {
@@ -275,10 +279,10 @@ struct Loader<'a> {
     retained: Option<(Handle, Affine3A)>,
     /// The API objects of each retained object (more than one when it read a mesh file).
     objects: HashMap<Handle, Vec<ObjectId>>,
-    lights: HashMap<Handle, LightId>,
+    /// Lights by handle, with whether they trace shadows.
+    lights: HashMap<Handle, (LightId, bool)>,
     /// World-space emitting triangles per area light.
     area_meshes: HashMap<u32, Vec<Mesh>>,
-    shadows: bool,
     in_world: bool,
     /// Whether a `Projection` request was read (RenderMan's default is orthographic).
     projection_given: bool,
@@ -306,7 +310,6 @@ impl<'a> Loader<'a> {
             objects: HashMap::new(),
             lights: HashMap::new(),
             area_meshes: HashMap::new(),
-            shadows: true,
             in_world: false,
             projection_given: false,
             relative_detail: 1.0,
@@ -577,19 +580,16 @@ impl<'a> Loader<'a> {
                 // A parameter the light lacks, or of the wrong type, is skipped with a warning.
                 let kept = typed_params(&program, &shader.params, |_| &r.loc, &mut self.out.warnings);
                 let light = rt.light_source(id, &kept)?;
-                rt.set_light(light, true, self.shadows)?;
+                rt.set_light(light, true, self.state.shadows)?;
                 if let Some(h) = handle {
-                    self.lights.insert(h.clone(), light);
+                    self.lights.insert(h.clone(), (light, self.state.shadows));
                 }
                 if area {
                     self.state.area_light = Some(light);
                 }
             }
             K::Illuminate { light, on } => match self.lights.get(light) {
-                Some(id) => {
-                    let shadows = self.shadows;
-                    self.rt.set_light(*id, *on, shadows)?;
-                }
+                Some(&(id, shadows)) => self.rt.set_light(id, *on, shadows)?,
                 None => self.warn(r, "Illuminate names no light"),
             },
             K::Color(c) => rt.color(c[0], c[1], c[2]),
@@ -841,7 +841,7 @@ impl<'a> Loader<'a> {
                 .copied()
                 .or_else(|| p.ints().and_then(|i| i.first()).map(|i| *i as f32));
             match (name, p.name.as_str()) {
-                ("light", "shadows") => self.shadows = s.map_or(f.unwrap_or(1.0) != 0.0, |s| s == "on"),
+                ("light", "shadows") => self.state.shadows = s.map_or(f.unwrap_or(1.0) != 0.0, |s| s == "on"),
                 ("shade", "transmissionhitmode") => self.rt.shadows_from_shader(s == Some("shader")),
                 ("photon", "shadingmodel") => match crate::render::world::PhotonModel::parse(s.unwrap_or("")) {
                     Ok(model) => self.rt.photon_shading_model(model),
