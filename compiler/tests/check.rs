@@ -116,3 +116,36 @@ fn nesting_that_adds_up_along_a_chain_of_calls_is_refused() {
     let c = rtsl_compiler::compile_source("short.sl", &short, &Options::default());
     assert!(c.module.is_some(), "{}", c.render());
 }
+
+/// Context rules (which globals a shader type has, where light loops run) apply where a function
+/// is used, as in PRMan and Aqsis: a header's helpers for other shader types do not fail a shader
+/// that does not call them.
+#[test]
+fn context_rules_apply_to_the_functions_a_shader_calls() {
+    let helpers = "color lighting(normal Nn) {\n\
+                     extern point P;\n\
+                     color C = 0;\n\
+                     illuminance(P, Nn, PI/2) { C += Cl; }\n\
+                     return C;\n\
+                   }\n\
+                   float facing() { extern vector I; extern normal N; return normalize(N) . normalize(I); }\n";
+    let uncalled =
+        format!("{helpers}displacement d(float Km = 0.1) {{ P += Km * normalize(N); N = calculatenormal(P); }}\n");
+    let c = rtsl_compiler::compile_source("uncalled.sl", &uncalled, &Options::default());
+    assert!(c.ok() && c.diagnostics.is_empty(), "{}", c.render());
+    let light = format!("{helpers}light l(float intensity = 1) {{ illuminate(Ps) {{ Cl = intensity; }} }}\n");
+    let c = rtsl_compiler::compile_source("light.sl", &light, &Options::default());
+    assert!(c.ok(), "{}", c.render());
+
+    // Called, the same helpers fail the shader, each error where the helper breaks the rule.
+    let called = format!(
+        "{helpers}displacement d(float Km = 0.1) {{ P += Km * normalize(N) * comp(lighting(N), 0); N = calculatenormal(P); }}\n"
+    );
+    let c = rtsl_compiler::compile_source("called.sl", &called, &Options::default());
+    let codes: Vec<&str> = c.diagnostics.iter().map(|d| d.code.as_str()).collect();
+    assert!(!c.ok() && codes.contains(&"E0111") && codes.contains(&"E0100"), "{}", c.render());
+    assert!(c.render().contains("in a function this shader calls"), "{}", c.render());
+    let called = format!("{helpers}light l() {{ illuminate(Ps) {{ Cl = facing(); }} }}\n");
+    let c = rtsl_compiler::compile_source("called_light.sl", &called, &Options::default());
+    assert!(!c.ok() && c.render().contains("`I` is not available in light shaders"), "{}", c.render());
+}

@@ -80,7 +80,9 @@ impl Checker<'_> {
         let def = g.def();
         if let Some(kind) = self.kind {
             if def.access(kind) == Access::None {
-                self.error(
+                let owner = self.current_function();
+                self.context_error(
+                    owner,
                     Code::UndefinedVariable,
                     span,
                     format!("`{}` is not available in {} shaders", def.name, kind.name()),
@@ -521,7 +523,9 @@ impl Checker<'_> {
                             }
                             Access::None => {
                                 let kind = self.kind.map(|k| k.name()).unwrap_or("");
-                                self.error(
+                                let owner = self.current_function();
+                                self.context_error(
+                                    owner,
                                     Code::UndefinedVariable,
                                     e.span,
                                     format!("`{}` is not available in {kind} shaders", def.name),

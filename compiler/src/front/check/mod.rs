@@ -126,6 +126,11 @@ pub struct Checker<'a> {
     call_graph: Vec<(Option<usize>, usize, Span)>,
     /// Which function index each builder lowers (`None` for the shader body).
     builder_funcs: Vec<Option<usize>>,
+    /// Errors against the shader type's context rules (a global it lacks, a light loop it cannot
+    /// run) found in a function, by the function's index: reported only for functions the shader
+    /// calls, so that a header's helpers for other shader types do not fail it (PRMan and Aqsis
+    /// check context where a function is used).
+    deferred: Vec<(usize, Diagnostic)>,
     /// The parser dropped statements: usage counts are incomplete, so unused warnings are off.
     incomplete: bool,
     /// How deeply expressions and statements nest at the point being checked.
@@ -156,6 +161,7 @@ pub fn check(unit: &ast::TranslationUnit, interner: &Interner, diags: &mut Diagn
         shader: None,
         call_graph: Vec::new(),
         builder_funcs: Vec::new(),
+        deferred: Vec::new(),
         incomplete,
         depth: 0,
         depth_reported: false,
@@ -179,6 +185,7 @@ pub fn check(unit: &ast::TranslationUnit, interner: &Interner, diags: &mut Diagn
             }
         }
     }
+    c.report_context_errors_of_called_functions();
     c.check_recursion();
     let had_errors = c.diags.has_errors();
     if had_errors {
@@ -463,6 +470,42 @@ impl Checker<'_> {
         self.diags.list.last_mut().expect("just pushed")
     }
 
+    /// An error against the shader type's context rules: in the shader's body at once, in a
+    /// function only if the shader calls it (see [`Checker::deferred`]).
+    fn context_error(&mut self, owner: Option<usize>, code: Code, span: Span, message: impl Into<String>) -> &mut Diagnostic {
+        match owner {
+            Some(index) => {
+                self.deferred.push((index, Diagnostic::new(code, span, message)));
+                &mut self.deferred.last_mut().expect("just pushed").1
+            }
+            None => self.error(code, span, message),
+        }
+    }
+
+    /// The function whose body is being checked; `None` in the shader's.
+    fn current_function(&self) -> Option<usize> {
+        self.builder_funcs.last().copied().flatten()
+    }
+
+    /// Reports the deferred context errors of the functions the shader calls, directly or not.
+    fn report_context_errors_of_called_functions(&mut self) {
+        let n = self.sigs.len();
+        let mut called = vec![false; n];
+        let mut work: Vec<usize> =
+            self.call_graph.iter().filter(|(caller, ..)| caller.is_none()).map(|(_, callee, _)| *callee).collect();
+        while let Some(f) = work.pop() {
+            if f < n && !called[f] {
+                called[f] = true;
+                work.extend(self.call_graph.iter().filter(|(caller, ..)| *caller == Some(f)).map(|(_, c, _)| *c));
+            }
+        }
+        for (index, d) in std::mem::take(&mut self.deferred) {
+            if called.get(index).copied().unwrap_or(false) {
+                self.diags.push(d.with_note("in a function this shader calls"));
+            }
+        }
+    }
+
     // ---- Items ----------------------------------------------------------------------------------
 
     fn resolve_type(&mut self, spec: &ast::TypeSpec) -> ir::BaseType {
@@ -610,7 +653,7 @@ impl Checker<'_> {
             self.call_graph.push((Some(index), *callee, *span));
         }
         if let Some(span) = b.uses_light_loop {
-            self.check_light_loop_context(span);
+            self.check_light_loop_context(Some(index), span);
         }
         self.functions[index] = Some(b.func);
     }
@@ -637,10 +680,11 @@ impl Checker<'_> {
         }
     }
 
-    fn check_light_loop_context(&mut self, span: Span) {
+    fn check_light_loop_context(&mut self, owner: Option<usize>, span: Span) {
         if let Some(kind) = self.kind {
             if !matches!(kind, ShaderKind::Surface | ShaderKind::Volume | ShaderKind::Lightfield) {
-                self.error(
+                self.context_error(
+                    owner,
                     Code::IlluminanceContext,
                     span,
                     format!("`illuminance` and `gather` are not available in {} shaders", kind.name()),
@@ -681,7 +725,7 @@ impl Checker<'_> {
             self.call_graph.push((None, callee, span));
         }
         if let Some(span) = b.uses_light_loop {
-            self.check_light_loop_context(span);
+            self.check_light_loop_context(None, span);
         }
         let b = self.builders.pop().expect("shader builder");
         self.builder_funcs.pop();

@@ -265,6 +265,20 @@ impl Checker<'_> {
                 Some(g) if self.kind.is_none_or(|k| g.def().access(k) != crate::globals::Access::None) => {
                     self.b().scopes.last_mut().expect("scope").vars.insert(decl.name.sym, Binding::Global(g));
                 }
+                // A global of another shader type: an error only where the shader calls this
+                // function (a header's helpers serve several types).
+                Some(_) if self.current_function().is_some() => {
+                    let kind = self.kind.map(|k| k.name()).unwrap_or("");
+                    let owner = self.current_function();
+                    self.context_error(
+                        owner,
+                        Code::UndefinedVariable,
+                        decl.name.span,
+                        format!("`{text}` is not available in {kind} shaders"),
+                    )
+                    .label = Some("not a global of this shader type".into());
+                    let _ = self.declare_var(decl.name, ty, VarKind::Local, None);
+                }
                 _ => {
                     let mut d = Diagnostic::new(
                         Code::ExternNotFound,
