@@ -183,3 +183,29 @@ fn random_per_lane_and_per_call() {
         "#,
     );
 }
+
+/// `random()` assigned to a uniform variable is one number for the batch's chunk (RenderMan's grid),
+/// the first running lane's; assigned to a varying one it is each lane's own. (The interpreter runs
+/// one point at a time, so the differential harness cannot compare the uniform case.)
+#[test]
+fn random_in_uniform_context_is_one_number_a_chunk() {
+    let run = |src: &str| {
+        let m = common::module(src);
+        let shader = rtsl_compiler::back::jit::compile(&m).expect("the JIT compiles it");
+        let mut batch = shader.batch(8);
+        for l in 0..8 {
+            batch.set_active(l, l != 0);
+            assert!(batch.set_seed(l, 0x9e37_79b9 * (l as u64 + 1)));
+        }
+        let mut host = common::lit_host();
+        shader.shade_with(&mut batch, &mut host);
+        (0..8).map(|l| batch.param("o", l).expect("an output")[0]).collect::<Vec<f32>>()
+    };
+    let shared = run("surface t(output varying float o = 0;) { uniform float r = random(); o = r; Ci = o; }\n");
+    let own = run("surface t(output varying float o = 0;) { o = random(); Ci = o; }\n");
+    // Lanes 1 to 3 share lane 1's number (lane 0 does not run); lanes 4 to 7 share lane 4's.
+    for chunk in [1..4, 4..8] {
+        assert!(chunk.clone().all(|l| shared[l] == own[chunk.start]), "{shared:?} {own:?}");
+    }
+    assert_ne!(own[1], own[2], "varying, each lane has its own");
+}

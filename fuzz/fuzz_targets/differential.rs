@@ -2,7 +2,8 @@
 //! ends over random inputs and masks, and every active lane must agree (the compiler tests'
 //! differential harness, `compiler/tests/common`), with inactive lanes untouched. A finding is
 //! either a back-end bug or a documented difference (e.g. the loop budget, counted per chunk of
-//! four lanes in the JIT and per point in the interpreter) to triage.
+//! four lanes in the JIT and per point in the interpreter, or `random()` assigned to a uniform
+//! variable, one number a chunk in the JIT) to triage.
 #![no_main]
 
 #[path = "../../compiler/tests/common/mod.rs"]

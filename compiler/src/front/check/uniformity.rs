@@ -151,6 +151,8 @@ struct Analysis<'a> {
     defaults: Vec<(VarId, ExprId, bool)>,
     /// The module's shader type, which decides whether some globals are varying.
     kind: Option<ShaderKind>,
+    /// Walking the value assigned to a uniform variable, where `random()` is uniform.
+    random_uniform: bool,
 }
 
 /// How a statement left control flow: some lanes may have left the loop, or the function.
@@ -198,6 +200,7 @@ impl<'a> Analysis<'a> {
             ret_varying: false,
             defaults: Vec::new(),
             kind,
+            random_uniform: false,
         }
     }
 
@@ -424,7 +427,8 @@ impl<'a> Analysis<'a> {
                 let fl = builtin.flags();
                 // `incident()`/`opposite()` answer from the volume on each lane's side of its
                 // surface, so even whether they find the name varies.
-                let mut v = fl & flags::VARYING != 0 || matches!(builtin, Builtin::Incident | Builtin::Opposite);
+                let mut v = (fl & flags::VARYING != 0 && !(*builtin == Builtin::Random && self.random_uniform))
+                    || matches!(builtin, Builtin::Incident | Builtin::Opposite);
                 for a in args {
                     if let Arg::Value(x) = a {
                         v |= self.walk(f, *x, ctl);
@@ -472,7 +476,13 @@ impl<'a> Analysis<'a> {
                 v
             }
             ExprKind::Assign { place, op, value } => {
+                // `random()` assigned to a variable declared uniform is one number for the batch,
+                // as in RenderMan (a uniform `random()`), not a varying value.
+                let to_uniform = matches!(place.base, PlaceBase::Var(var)
+                    if self.fixed[var.0 as usize] && !self.var_varying[var.0 as usize]);
+                let outer = std::mem::replace(&mut self.random_uniform, to_uniform);
                 let mut v = self.walk(f, *value, ctl);
+                self.random_uniform = outer;
                 if op.is_some() {
                     if let PlaceBase::Var(var) = place.base {
                         v |= self.read_var(var);

@@ -10,6 +10,23 @@ use crate::ir::{Arg, BaseType};
 use cranelift_codegen::ir::InstBuilder;
 
 impl<'m> Lower<'m, '_> {
+    /// Lane `x` (an `f32x4`) holds in the first lane that `exec` runs (lane 0 when none runs).
+    fn first_running_lane(&mut self, x: cranelift_codegen::ir::Value, exec: cranelift_codegen::ir::Value) -> cranelift_codegen::ir::Value {
+        use cranelift_codegen::ir::{condcodes::IntCC, types};
+        let running = self.b.ins().vhigh_bits(types::I32, exec);
+        // Bit 4 set: no running lane reads as lane 4, which the selects below leave at lane 3;
+        // nothing reads the value then.
+        let running = self.b.ins().bor_imm_u(running, 0x10);
+        let first = self.b.ins().ctz(running);
+        let mut value = self.b.ins().extractlane(x, 3);
+        for lane in (0..3u8).rev() {
+            let here = self.b.ins().extractlane(x, lane);
+            let is = self.b.ins().icmp_imm_u(IntCC::Equal, first, i64::from(lane));
+            value = self.b.ins().select(is, here, value);
+        }
+        value
+    }
+
     /// `noise`, `cellnoise` and `pnoise` through the chunk helpers of their dimension and shape,
     /// and `random()` from each lane's seed and call count.
     pub(super) fn noise(&mut self, call: &mut Call<'m, '_>) -> R<Val> {
@@ -68,10 +85,17 @@ impl<'m> Lower<'m, '_> {
                 let name = if e.ty.base == BaseType::Float { "rtsl_random" } else { "rtsl_vrandom" };
                 let c = self.call_helper(name, &[lo, hi, calls], true)?;
                 // Running lanes count the call (exec is -1 there).
-                let e = self.exec();
-                let next = self.b.ins().isub(calls, e);
+                let exec = self.exec();
+                let next = self.b.ins().isub(calls, exec);
                 self.b.def_var(self.random_calls, next);
-                Val { vary: true, c }
+                if e.varying {
+                    Val { vary: true, c }
+                } else {
+                    // In uniform context (assigned to a uniform variable) one number serves the
+                    // chunk, as one serves a grid in RenderMan: the first running lane's.
+                    let c = c.into_iter().map(|x| self.first_running_lane(x, exec)).collect();
+                    Val { vary: false, c }
+                }
             }
             _ => return unsupported(format!("the built-in {}", bi.name())),
         };
