@@ -643,13 +643,13 @@ fn parse3(s: &str) -> Option<[f32; 3]> {
     (v.len() == 3).then(|| [v[0], v[1], v[2]])
 }
 
-/// A camera looking at the box `bounds` from the front (+z) and a little above, and a light rig: a
-/// shadowed key light above and to the right of the camera, and a dim ambient light. (Interiors,
-/// which such a rig cannot light, come as RIB files with their own lights.)
-pub fn frame_bounds(rt: &mut Context, bounds: (Vec3A, Vec3A)) -> Result<(), ApiError> {
+/// Points the camera at the box `bounds` from the front (+z) and a little above, far enough back
+/// for the box to fill the view; returns the box's centre and the camera's distance from it
+/// (`None`, the camera unchanged, for an empty or infinite box).
+pub fn frame_camera(rt: &mut Context, bounds: (Vec3A, Vec3A)) -> Option<(Vec3A, f32)> {
     let (lo, hi) = bounds;
     if !(lo.is_finite() && hi.is_finite()) {
-        return Ok(());
+        return None;
     }
     let center = (lo + hi) * 0.5;
     let size = hi - lo;
@@ -658,6 +658,14 @@ pub fn frame_bounds(rt: &mut Context, bounds: (Vec3A, Vec3A)) -> Result<(), ApiE
     let distance = radius / (fov.to_radians() * 0.5).sin();
     let eye = center + Vec3A::new(0.0, 0.15, 1.0).normalize() * distance;
     rt.camera_look_at(eye, center, Vec3A::Y, fov);
+    Some((center, distance))
+}
+
+/// A camera looking at the box `bounds` from the front (+z) and a little above, and a light rig: a
+/// shadowed key light above and to the right of the camera, and a dim ambient light. (Interiors,
+/// which such a rig cannot light, come as RIB files with their own lights.)
+pub fn frame_bounds(rt: &mut Context, bounds: (Vec3A, Vec3A)) -> Result<(), ApiError> {
+    let Some((center, distance)) = frame_camera(rt, bounds) else { return Ok(()) };
     let point = rt.find_shader("pointlight")?;
     let ambient = rt.find_shader("ambientlight")?;
     let from = center + Vec3A::new(0.5, 1.2, 0.9) * distance;

@@ -29,7 +29,7 @@ use crate::geometry::{Attribute, Mesh};
 
 /// Polygons with more vertices than this are fanned instead of ear-clipped (ear clipping is
 /// quadratic; RIB polygons this large are in practice convex).
-const MAX_EAR_CLIP_VERTICES: usize = 4096;
+pub const MAX_EAR_CLIP_VERTICES: usize = 4096;
 
 /// What the graphics state contributes to a primitive's mesh.
 #[derive(Clone, Debug, PartialEq)]
@@ -379,7 +379,7 @@ fn interpolate_corners(d: &PerVertex, corner_index: [usize; 4], face: usize, uvs
 /// Triangulates one polygon given as loops of vertex ids (the first the outline, the rest holes)
 /// into `out`, keeping the outline's winding; false when it has more than
 /// [`MAX_EAR_CLIP_VERTICES`] and was fanned from its first vertex instead, its holes left out.
-fn triangulate_polygon(loops: &[Vec<u32>], positions: &[Vec3], out: &mut Vec<[u32; 3]>) -> bool {
+pub fn triangulate_polygon(loops: &[Vec<u32>], positions: &[Vec3], out: &mut Vec<[u32; 3]>) -> bool {
     let Some(outline) = loops.first() else { return true };
     let position = |id: u32| positions[id as usize];
     if loops.len() == 1 && outline.len() == 3 {
