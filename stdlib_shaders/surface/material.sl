@@ -21,24 +21,38 @@
  *   emissivecolor    -- colour emitted regardless of lights (0, black).
  *   ambientintensity -- scale applied to the ambient light (.2).
  *   texturename      -- file name of the diffuse texture; "" means none ("").
+ *   repeats, repeatt -- 1: the texture repeats along s (t); 0: the coordinate
+ *                       is clamped to [0, 1], VRML's repeatS/repeatT FALSE (1).
+ *   lit              -- 0: no lighting, the colour is the diffuse colour (VRML
+ *                       draws a Shape without a Material so) (1).
  */
 surface material(color diffusecolor = .8; color specularcolor = 0;
                  float shininess = .2; float transparency = 0;
                  color emissivecolor = 0; float ambientintensity = .2;
-                 string texturename = "";)
+                 string texturename = ""; float repeats = 1;
+                 float repeatt = 1; float lit = 1;)
 {
     normal Nf = faceforward(normalize(N), I);
     vector V = -normalize(I);
     color Cd = diffusecolor * Cs;
     color Cspec = 0;
+    float ss = s;
+    float tt = t;
 
+    if (repeats == 0)
+        ss = clamp(s, 0, 1);
+    if (repeatt == 0)
+        tt = clamp(t, 0, 1);
     if (texturename != "")
-        Cd *= color texture(texturename, s, t, "fill", 1);
-    if (comp(specularcolor, 0) + comp(specularcolor, 1) + comp(specularcolor, 2) > 0)
-        Cspec = specularcolor * phong(Nf, V, max(128 * shininess, 1));
-
+        Cd *= color texture(texturename, ss, tt, "fill", 1);
     Oi = 1 - transparency;
-    Ci = Oi * (emissivecolor
-               + Cd * (ambientintensity * ambient() + diffuse(Nf))
-               + Cspec);
+    if (lit == 0) {
+        Ci = Oi * Cd;
+    } else {
+        if (comp(specularcolor, 0) + comp(specularcolor, 1) + comp(specularcolor, 2) > 0)
+            Cspec = specularcolor * phong(Nf, V, max(128 * shininess, 1));
+        Ci = Oi * (emissivecolor
+                   + Cd * (ambientintensity * ambient() + diffuse(Nf))
+                   + Cspec);
+    }
 }
