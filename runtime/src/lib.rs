@@ -31,6 +31,7 @@ pub mod scene_file;
 pub mod shading;
 pub mod texture;
 pub mod tiles;
+pub mod vrml;
 
 pub use accel::bvh4::BuildQuality;
 pub use camera::Camera;

@@ -1,5 +1,6 @@
-//! Any scene file, its loader chosen by its extension: a RIB file (`.rib`), or a model file
-//! (`.obj`, `.ply`, `.gltf`, `.glb`) that gets a camera framing it and the default light rig
+//! Any scene file, its loader chosen by its extension: a RIB file (`.rib`), a VRML 97 file
+//! (`.wrl`, gzip-compressed `.wrz` or `.wrl.gz`: [`crate::vrml`]), or a model file (`.obj`, `.ply`,
+//! `.gltf`, `.glb`) that gets a camera framing it and the default light rig
 //! ([`crate::scene_file`]).
 
 use crate::api::Context;
@@ -51,6 +52,22 @@ pub fn load_scene(rt: &mut Context, path: impl AsRef<Path>) -> Result<LoadedScen
 pub fn load_scene_frame(rt: &mut Context, path: impl AsRef<Path>, index: usize) -> Result<LoadedScene, SceneFileError> {
     let path = path.as_ref();
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    if crate::vrml::is_vrml_path(path) {
+        if index > 0 {
+            return Err(SceneFileError::Rib {
+                path: path.to_path_buf(),
+                message: format!("a VRML file is one image; there is no image {}", index + 1),
+            });
+        }
+        let scene = crate::vrml::load_file(rt, path)?;
+        return Ok(LoadedScene {
+            files: scene.files(),
+            warnings: scene.warnings,
+            frames: 1,
+            frame_number: 1,
+            ..LoadedScene::default()
+        });
+    }
     match ext.as_deref() {
         Some("rib") => {
             let loaded = crate::rib::load::load_file_frame(rt, path, index)?;

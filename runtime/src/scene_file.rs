@@ -40,7 +40,10 @@ pub enum SceneFileError {
     TooLarge { at: String, message: String },
     #[error("{path}: {message}")]
     InvalidGltf { path: PathBuf, message: String },
-    #[error("{path}: unknown scene file type (expected .rib, .obj, .ply, .gltf or .glb)")]
+    /// A VRML file that could not be read, with its file, line and column.
+    #[error(transparent)]
+    Vrml(#[from] crate::vrml::VrmlError),
+    #[error("{path}: unknown scene file type (expected .rib, .obj, .ply, .gltf, .glb or .wrl)")]
     UnknownType { path: PathBuf },
     #[error("{path}: {message}")]
     Rib { path: PathBuf, message: String },

@@ -1,0 +1,1368 @@
+//! The scene graph of a VRML 97 file walked into a [`Context`]: Shapes become objects (one per
+//! geometry and appearance, instanced wherever the graph reaches them), lights become light
+//! shaders, the first Viewpoint the camera, the first Background the image's background.
+//!
+//! The walk is depth-first from the file's top-level nodes, in file order, with the world matrix
+//! of the Transforms above; grouping nodes (`Group`, `Transform`, `Switch`'s choice, `LOD`'s first
+//! level, `Billboard`, `Anchor`, `Collision`, `Inline`) lead further. `docs/vrml.md` lists how each
+//! node maps onto rtsl.
+
+use super::mesh::{self, FaceSet, Indexed};
+use super::nodes::{knows_field, node_type, Support};
+use super::parse::{Document, Value};
+use super::{
+    check_header, location, read_text, Loc, NodeRef, Placed, Viewpoint, VrmlError, VrmlScene, MAX_INLINE_DEPTH,
+    MAX_PROTO_DEPTH, MAX_VRML_NESTING, VRML_TRAVERSAL_BUDGET,
+};
+use crate::api::{Context, ObjectId, ShaderId};
+use crate::geometry::Mesh;
+use crate::rib::{RibDiagnostic, Severity};
+use crate::scene_file::{SceneFileError, MAX_MODEL_TRIANGLES};
+use crate::shading::ParamValue;
+use crate::texture::srgb_to_linear;
+use glam::{Affine3A, Quat, Vec2, Vec3, Vec3A};
+use std::collections::{HashMap, HashSet};
+use std::path::{Component, Path, PathBuf};
+use std::sync::Arc;
+
+/// Reads the VRML file at `path` (and its Inline files) into `rt`.
+pub fn build(rt: &mut Context, path: &Path) -> Result<VrmlScene> {
+    let text = read_text(path)?;
+    build_str(rt, &text, path)
+}
+
+/// Reads VRML text into `rt`; `path` names it in messages, and Inline URLs are resolved against
+/// its folder.
+pub fn build_str(rt: &mut Context, text: &str, path: &Path) -> Result<VrmlScene> {
+    let mut b = Builder {
+        rt,
+        scene: VrmlScene { bounds: (Vec3A::INFINITY, Vec3A::NEG_INFINITY), ..VrmlScene::default() },
+        files: Vec::new(),
+        canonical: Vec::new(),
+        inlines: Vec::new(),
+        warned: HashSet::new(),
+        visits: 0,
+        meshes: HashMap::new(),
+        objects: HashMap::new(),
+        shaders: HashMap::new(),
+        textures: HashMap::new(),
+        camera_bound: false,
+        headlight: None,
+        background_bound: false,
+        fog_bound: false,
+        pixel_textures: 0,
+    };
+    let doc = b.add_document(path, text)?;
+    let main_canonical = b.canonical[doc].clone();
+    b.inlines.extend(main_canonical);
+    let roots = b.doc(doc).roots.clone();
+    let mut trail = Vec::new();
+    for root in roots {
+        b.visit(NodeRef { doc, node: root }, Affine3A::IDENTITY, &mut trail, 0)?;
+    }
+    b.finish()?;
+    Ok(b.scene)
+}
+
+/// How VRML's colours (display values, as browsers light them) become linear rtsl colours.
+fn linear(c: Vec3) -> [f32; 3] {
+    c.to_array().map(|v| srgb_to_linear(v.clamp(0.0, 1.0)))
+}
+
+/// A texture an appearance names: its name for the shader, whether its colour replaces the
+/// diffuse colour (RGB) or modulates it (intensity), and whether it has alpha.
+#[derive(Clone, Debug)]
+struct Texture {
+    name: String,
+    rgb: bool,
+    alpha: bool,
+    repeat: (bool, bool),
+}
+
+struct Builder<'a> {
+    rt: &'a mut Context,
+    scene: VrmlScene,
+    /// Each document's file as messages name it.
+    files: Vec<Arc<Path>>,
+    /// Each document's canonical path, when it has one (an Inline of the same file is read once).
+    canonical: Vec<Option<PathBuf>>,
+    /// The files being walked, outermost first (cycles are errors).
+    inlines: Vec<PathBuf>,
+    warned: HashSet<String>,
+    visits: usize,
+    /// Each geometry node's mesh (its own coordinates, rtsl texture coordinates), or none.
+    meshes: HashMap<NodeRef, Option<Arc<Mesh>>>,
+    /// Each geometry-and-appearance pair's object and its own bounds, or none (nothing to draw).
+    objects: HashMap<(NodeRef, Option<NodeRef>), Option<Made>>,
+    shaders: HashMap<&'static str, ShaderId>,
+    /// Each texture node's texture, or none (missing, or not read).
+    textures: HashMap<NodeRef, Option<Texture>>,
+    camera_bound: bool,
+    /// NavigationInfo's headlight, once the first was read.
+    headlight: Option<bool>,
+    background_bound: bool,
+    fog_bound: bool,
+    pixel_textures: usize,
+}
+
+type Result<T> = std::result::Result<T, SceneFileError>;
+
+/// An object and the bounds of its mesh in its own space.
+type Made = (ObjectId, (Vec3, Vec3));
+
+impl Builder<'_> {
+    fn doc(&self, doc: usize) -> &Document {
+        &self.scene.documents[doc].1
+    }
+
+    fn type_of(&self, r: NodeRef) -> &str {
+        &self.doc(r.doc).node(r.node).type_name
+    }
+
+    fn loc_of(&self, r: NodeRef) -> Loc {
+        self.doc(r.doc).node(r.node).loc
+    }
+
+    fn error(&self, doc: usize, loc: Loc, message: impl Into<String>) -> SceneFileError {
+        SceneFileError::Vrml(VrmlError::at(&self.files[doc], loc, message))
+    }
+
+    /// Parses `text` as the document of `path` and adds it.
+    fn add_document(&mut self, path: &Path, text: &str) -> Result<usize> {
+        let file: Arc<Path> = Arc::from(path);
+        if let Some(w) = check_header(&file, text)? {
+            self.scene.warnings.push(w);
+        }
+        let doc =
+            super::parse::parse(text).map_err(|e| SceneFileError::Vrml(VrmlError::at(&file, e.loc, e.message)))?;
+        for (loc, message) in &doc.warnings {
+            self.scene.warnings.push(RibDiagnostic::warning(&location(&file, *loc), message.clone()));
+        }
+        self.files.push(file);
+        self.canonical.push(std::fs::canonicalize(path).ok());
+        self.scene.documents.push((path.to_path_buf(), doc));
+        Ok(self.scene.documents.len() - 1)
+    }
+
+    /// A warning, once per `key`.
+    fn warn_once(&mut self, key: String, doc: usize, loc: Loc, severity: Severity, message: impl Into<String>) {
+        if self.warned.insert(key) {
+            let loc = location(&self.files[doc], loc);
+            self.scene.warnings.push(RibDiagnostic { severity, loc, message: message.into() });
+        }
+    }
+
+    fn shader(&mut self, name: &'static str) -> Result<ShaderId> {
+        if let Some(&id) = self.shaders.get(name) {
+            return Ok(id);
+        }
+        let id = self.rt.find_shader(name)?;
+        self.shaders.insert(name, id);
+        Ok(id)
+    }
+
+    /// What node `r` stands for: itself, or the first node of a PROTO instance's body. `None` for
+    /// an empty PROTO and an EXTERNPROTO's instance (warned once).
+    fn resolve(&mut self, r: NodeRef) -> Option<NodeRef> {
+        let mut r = r;
+        for _ in 0..=MAX_PROTO_DEPTH + 1 {
+            let node = self.doc(r.doc).node(r.node);
+            if let Some(at) = node.extern_proto {
+                let name = node.type_name.clone();
+                let loc = node.loc;
+                self.warn_once(
+                    format!("extern:{name}"),
+                    r.doc,
+                    loc,
+                    Severity::Omission,
+                    format!(
+                        "{name} is an EXTERNPROTO (declared at {}:{}), which is not read; its instances are skipped",
+                        at.line, at.column
+                    ),
+                );
+                return None;
+            }
+            match &node.expansion {
+                Some(body) => r = NodeRef { doc: r.doc, node: *body.first()? },
+                None => return Some(r),
+            }
+        }
+        None
+    }
+
+    /// Warns once about each field of `r` its (standard) type does not have.
+    fn check_fields(&mut self, r: NodeRef) {
+        let node = self.doc(r.doc).node(r.node);
+        let Some((_, known)) = node_type(&node.type_name) else { return };
+        if node.type_name == "Script" {
+            return;
+        }
+        let unknown: Vec<(String, Loc)> =
+            node.fields.iter().filter(|f| !knows_field(known, &f.name)).map(|f| (f.name.clone(), f.loc)).collect();
+        let type_name = node.type_name.clone();
+        for (name, loc) in unknown {
+            self.warn_once(
+                format!("field:{type_name}.{name}"),
+                r.doc,
+                loc,
+                Severity::Warning,
+                format!("{type_name} has no field `{name}`; it is ignored"),
+            );
+        }
+    }
+
+    // ---- Field values ----
+
+    /// Field `name` of `r` converted by `convert`; `None` when absent or empty, and when the value
+    /// does not convert (a warning, once per node type and field, naming `expects`).
+    fn get<T>(&mut self, r: NodeRef, name: &str, expects: &str, convert: impl Fn(&Value) -> Option<T>) -> Option<T> {
+        let node = self.doc(r.doc).node(r.node);
+        let field = node.field(name)?;
+        if matches!(field.value, Value::Empty) {
+            return None;
+        }
+        let loc = field.loc;
+        match convert(&field.value) {
+            Some(v) => Some(v),
+            None => {
+                let type_name = node.type_name.clone();
+                self.warn_once(
+                    format!("value:{type_name}.{name}"),
+                    r.doc,
+                    loc,
+                    Severity::Warning,
+                    format!("{type_name}.{name} expects {expects}; the value is ignored"),
+                );
+                None
+            }
+        }
+    }
+
+    fn numbers(&mut self, r: NodeRef, name: &str, count: usize, expects: &str) -> Option<Vec<f32>> {
+        self.get(r, name, expects, |v| match v {
+            Value::Numbers(n) if n.len() == count || (count == 0 && !n.is_empty()) => {
+                let f: Vec<f32> = n.iter().map(|&x| x as f32).collect();
+                f.iter().all(|x| x.is_finite()).then_some(f)
+            }
+            _ => None,
+        })
+    }
+
+    fn float(&mut self, r: NodeRef, name: &str, default: f32) -> f32 {
+        self.numbers(r, name, 1, "one number").map_or(default, |v| v[0])
+    }
+
+    fn int(&mut self, r: NodeRef, name: &str, default: i32) -> i32 {
+        self.get(r, name, "an integer", |v| match v {
+            Value::Numbers(n) if n.len() == 1 && n[0].fract() == 0.0 && n[0].abs() <= i32::MAX as f64 => {
+                Some(n[0] as i32)
+            }
+            _ => None,
+        })
+        .unwrap_or(default)
+    }
+
+    fn boolean(&mut self, r: NodeRef, name: &str, default: bool) -> bool {
+        self.get(r, name, "TRUE or FALSE", |v| match v {
+            Value::Bools(b) if b.len() == 1 => Some(b[0]),
+            _ => None,
+        })
+        .unwrap_or(default)
+    }
+
+    fn vec3(&mut self, r: NodeRef, name: &str, default: Vec3) -> Vec3 {
+        self.numbers(r, name, 3, "three numbers").map_or(default, |v| Vec3::new(v[0], v[1], v[2]))
+    }
+
+    fn vec2(&mut self, r: NodeRef, name: &str, default: Vec2) -> Vec2 {
+        self.numbers(r, name, 2, "two numbers").map_or(default, |v| Vec2::new(v[0], v[1]))
+    }
+
+    /// An `SFRotation` (axis and angle) as a quaternion.
+    fn rotation(&mut self, r: NodeRef, name: &str) -> Quat {
+        self.numbers(r, name, 4, "an axis and an angle (four numbers)").map_or(Quat::IDENTITY, |v| rotation(&v))
+    }
+
+    fn vec3s(&mut self, r: NodeRef, name: &str) -> Vec<Vec3> {
+        self.get(r, name, "triples of numbers", |v| match v {
+            Value::Numbers(n) if n.len() % 3 == 0 => {
+                let out: Vec<Vec3> =
+                    n.chunks_exact(3).map(|c| Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32)).collect();
+                out.iter().all(|p| p.is_finite()).then_some(out)
+            }
+            _ => None,
+        })
+        .unwrap_or_default()
+    }
+
+    fn vec2s(&mut self, r: NodeRef, name: &str) -> Vec<Vec2> {
+        self.get(r, name, "pairs of numbers", |v| match v {
+            Value::Numbers(n) if n.len() % 2 == 0 => {
+                let out: Vec<Vec2> = n.chunks_exact(2).map(|c| Vec2::new(c[0] as f32, c[1] as f32)).collect();
+                out.iter().all(|p| p.is_finite()).then_some(out)
+            }
+            _ => None,
+        })
+        .unwrap_or_default()
+    }
+
+    fn floats(&mut self, r: NodeRef, name: &str) -> Vec<f32> {
+        self.numbers(r, name, 0, "numbers").unwrap_or_default()
+    }
+
+    fn rotations(&mut self, r: NodeRef, name: &str) -> Vec<Quat> {
+        self.get(r, name, "rotations (four numbers each)", |v| match v {
+            Value::Numbers(n) if n.len() % 4 == 0 => {
+                let f: Vec<f32> = n.iter().map(|&x| x as f32).collect();
+                f.iter().all(|x| x.is_finite()).then(|| f.chunks_exact(4).map(rotation).collect())
+            }
+            _ => None,
+        })
+        .unwrap_or_default()
+    }
+
+    fn ints(&mut self, r: NodeRef, name: &str) -> Vec<i32> {
+        self.get(r, name, "integers", |v| match v {
+            Value::Numbers(n) => n
+                .iter()
+                .map(|&x| (x.fract() == 0.0 && x >= i32::MIN as f64 && x <= i32::MAX as f64).then_some(x as i32))
+                .collect(),
+            _ => None,
+        })
+        .unwrap_or_default()
+    }
+
+    fn strings(&mut self, r: NodeRef, name: &str) -> Vec<String> {
+        self.get(r, name, "strings", |v| match v {
+            Value::Strings(s) => Some(s.clone()),
+            _ => None,
+        })
+        .unwrap_or_default()
+    }
+
+    /// An `SFNode` field (what it stands for, PROTO instances resolved).
+    fn node(&mut self, r: NodeRef, name: &str) -> Option<NodeRef> {
+        let found = self.get(r, name, "a node", |v| match v {
+            Value::Node(n) => Some(*n),
+            Value::Nodes(v) if v.len() <= 1 => Some(v.first().copied()),
+            _ => None,
+        })??;
+        self.resolve(NodeRef { doc: r.doc, node: found })
+    }
+
+    /// An `MFNode` field, as written (PROTO instances not resolved).
+    fn nodes(&mut self, r: NodeRef, name: &str) -> Vec<NodeRef> {
+        let found = self
+            .get(r, name, "nodes", |v| match v {
+                Value::Nodes(v) => Some(v.clone()),
+                Value::Node(n) => Some(n.iter().copied().collect()),
+                _ => None,
+            })
+            .unwrap_or_default();
+        found.into_iter().map(|node| NodeRef { doc: r.doc, node }).collect()
+    }
+
+    // ---- The walk ----
+
+    fn visit(&mut self, r: NodeRef, world: Affine3A, trail: &mut Vec<NodeRef>, depth: usize) -> Result<()> {
+        self.visits += 1;
+        if self.visits > VRML_TRAVERSAL_BUDGET {
+            let loc = self.loc_of(r);
+            return Err(self.error(
+                r.doc,
+                loc,
+                format!("the scene graph has more than {VRML_TRAVERSAL_BUDGET} nodes once every USE is followed"),
+            ));
+        }
+        if depth >= MAX_VRML_NESTING {
+            let loc = self.loc_of(r);
+            return Err(self.error(r.doc, loc, format!("nodes nest deeper than {MAX_VRML_NESTING} levels")));
+        }
+        // A PROTO instance is its body's first node, reached through the instance.
+        if self.doc(r.doc).node(r.node).expansion.is_some() || self.doc(r.doc).node(r.node).extern_proto.is_some() {
+            let Some(target) = self.resolve(r) else { return Ok(()) };
+            trail.push(r);
+            let result = self.visit(target, world, trail, depth + 1);
+            trail.pop();
+            return result;
+        }
+        let type_name = self.type_of(r).to_string();
+        let loc = self.loc_of(r);
+        let Some((support, _)) = node_type(&type_name) else {
+            self.warn_once(
+                format!("node:{type_name}"),
+                r.doc,
+                loc,
+                Severity::Omission,
+                format!("unknown node type {type_name}; it is skipped"),
+            );
+            return Ok(());
+        };
+        self.check_fields(r);
+        let children = |b: &mut Self, fields: &[&str], world: Affine3A, trail: &mut Vec<NodeRef>| -> Result<()> {
+            trail.push(r);
+            for field in fields {
+                for child in b.nodes(r, field) {
+                    b.visit(child, world, trail, depth + 1)?;
+                }
+            }
+            trail.pop();
+            Ok(())
+        };
+        match type_name.as_str() {
+            "Group" | "Anchor" | "Collision" => children(self, &["children"], world, trail),
+            "Billboard" => {
+                self.warn_once(
+                    "node:Billboard".into(),
+                    r.doc,
+                    loc,
+                    Severity::Warning,
+                    "Billboard is drawn as a Group (it does not turn to face the viewer)",
+                );
+                children(self, &["children"], world, trail)
+            }
+            "Transform" => {
+                let m = world * self.transform(r);
+                children(self, &["children"], m, trail)
+            }
+            "Switch" => {
+                let which = self.int(r, "whichChoice", -1);
+                let choices = self.nodes(r, "choice");
+                if let Some(&chosen) = usize::try_from(which).ok().and_then(|i| choices.get(i)) {
+                    trail.push(r);
+                    let result = self.visit(chosen, world, trail, depth + 1);
+                    trail.pop();
+                    result?;
+                }
+                Ok(())
+            }
+            "LOD" => {
+                let levels = self.nodes(r, "level");
+                if levels.len() > 1 {
+                    self.warn_once(
+                        "node:LOD".into(),
+                        r.doc,
+                        loc,
+                        Severity::Warning,
+                        "LOD draws its first (most detailed) level at every distance",
+                    );
+                }
+                if let Some(&first) = levels.first() {
+                    trail.push(r);
+                    let result = self.visit(first, world, trail, depth + 1);
+                    trail.pop();
+                    result?;
+                }
+                Ok(())
+            }
+            "Inline" => self.inline(r, world, trail, depth),
+            "Shape" => self.shape(r, world, trail),
+            "PointLight" | "SpotLight" | "DirectionalLight" => self.light(r, &type_name, world, trail),
+            "Viewpoint" => {
+                self.viewpoint(r, world, trail);
+                Ok(())
+            }
+            "NavigationInfo" => {
+                if self.headlight.is_none() && r.doc == 0 {
+                    self.headlight = Some(self.boolean(r, "headlight", true));
+                }
+                Ok(())
+            }
+            "Background" => self.background(r),
+            "Fog" => self.fog(r),
+            _ => {
+                match support {
+                    Support::Read => self.warn_once(
+                        format!("child:{type_name}"),
+                        r.doc,
+                        loc,
+                        Severity::Warning,
+                        format!("{type_name} is not a child node (it belongs in a field of another node); it is skipped"),
+                    ),
+                    Support::Omitted => self.warn_once(
+                        format!("node:{type_name}"),
+                        r.doc,
+                        loc,
+                        Severity::Omission,
+                        format!("{type_name} is not drawn; it is skipped"),
+                    ),
+                    Support::Static => self.warn_once(
+                        format!("node:{type_name}"),
+                        r.doc,
+                        loc,
+                        Severity::Warning,
+                        format!("{type_name} is skipped: the scene is read as a still (no animation, sensors, scripts or sound)"),
+                    ),
+                    Support::Silent => {}
+                }
+                Ok(())
+            }
+        }
+    }
+
+    /// A Transform's matrix: `T C R SR S -SR -C` (ISO/IEC 14772-1, 6.52).
+    fn transform(&mut self, r: NodeRef) -> Affine3A {
+        let t = self.vec3(r, "translation", Vec3::ZERO);
+        let c = self.vec3(r, "center", Vec3::ZERO);
+        let rot = self.rotation(r, "rotation");
+        let s = self.vec3(r, "scale", Vec3::ONE);
+        let so = self.rotation(r, "scaleOrientation");
+        Affine3A::from_translation(t + c)
+            * Affine3A::from_quat(rot)
+            * Affine3A::from_quat(so)
+            * Affine3A::from_scale(s)
+            * Affine3A::from_quat(so.inverse())
+            * Affine3A::from_translation(-c)
+    }
+
+    fn inline(&mut self, r: NodeRef, world: Affine3A, trail: &mut Vec<NodeRef>, depth: usize) -> Result<()> {
+        let urls = self.strings(r, "url");
+        let loc = self.doc(r.doc).node(r.node).field("url").map_or(self.loc_of(r), |f| f.loc);
+        let dir = self.scene.documents[r.doc].0.parent().map(Path::to_path_buf).unwrap_or_default();
+        let mut refused = None;
+        let mut chosen = None;
+        for url in &urls {
+            match relative_path(url) {
+                Ok(rel) => {
+                    chosen = Some((url.clone(), dir.join(rel)));
+                    break;
+                }
+                Err(why) => refused = refused.or(Some(format!("Inline URL \"{url}\" {why}"))),
+            }
+        }
+        let Some((url, path)) = chosen else {
+            return match refused {
+                Some(message) => Err(self.error(r.doc, loc, message)),
+                None => Ok(()),
+            };
+        };
+        let Ok(canonical) = std::fs::canonicalize(&path) else {
+            self.warn_once(
+                format!("inline:{}", path.display()),
+                r.doc,
+                loc,
+                Severity::Omission,
+                format!("Inline \"{url}\": {} not found; it is skipped", path.display()),
+            );
+            return Ok(());
+        };
+        if self.inlines.contains(&canonical) {
+            return Err(self.error(r.doc, loc, format!("Inline \"{url}\" includes a file that includes it (a cycle)")));
+        }
+        if self.inlines.len() > MAX_INLINE_DEPTH {
+            return Err(self.error(r.doc, loc, format!("Inline files nest deeper than {MAX_INLINE_DEPTH} levels")));
+        }
+        let doc = match self.canonical.iter().position(|c| c.as_ref() == Some(&canonical)) {
+            Some(doc) => doc,
+            None => {
+                let text = read_text(&path)?;
+                self.add_document(&path, &text)?
+            }
+        };
+        self.inlines.push(canonical);
+        trail.push(r);
+        let roots = self.doc(doc).roots.clone();
+        let mut result = Ok(());
+        for root in roots {
+            result = self.visit(NodeRef { doc, node: root }, world, trail, depth + 1);
+            if result.is_err() {
+                break;
+            }
+        }
+        trail.pop();
+        self.inlines.pop();
+        result
+    }
+
+    fn viewpoint(&mut self, r: NodeRef, world: Affine3A, trail: &[NodeRef]) {
+        let position = self.vec3(r, "position", Vec3::new(0.0, 0.0, 10.0));
+        let orientation = self.rotation(r, "orientation");
+        let field_of_view = self.float(r, "fieldOfView", std::f32::consts::FRAC_PI_4);
+        let description = self.strings(r, "description").into_iter().next().unwrap_or_default();
+        let eye = world.transform_point3a(Vec3A::from(position));
+        let forward = world.transform_vector3a(Vec3A::from(orientation * Vec3::NEG_Z)).normalize_or(Vec3A::NEG_Z);
+        let up = world.transform_vector3a(Vec3A::from(orientation * Vec3::Y)).normalize_or(Vec3A::Y);
+        let field_of_view = if field_of_view > 0.0 && field_of_view < std::f32::consts::PI {
+            field_of_view
+        } else {
+            std::f32::consts::FRAC_PI_4
+        };
+        let view = Viewpoint { description, eye, forward, up, field_of_view };
+        // The first Viewpoint of the scene file is bound; Inline files bind none.
+        if !self.camera_bound && r.doc == 0 {
+            self.camera_bound = true;
+            self.rt.camera_look_at(eye, eye + forward, up, field_of_view.to_degrees());
+        }
+        self.scene.viewpoints.push(Placed { made: view, node: r, path: trail.to_vec(), world });
+    }
+
+    fn background(&mut self, r: NodeRef) -> Result<()> {
+        if self.background_bound || r.doc != 0 {
+            return Ok(());
+        }
+        self.background_bound = true;
+        let sky = self.vec3s(r, "skyColor");
+        let ground = self.vec3s(r, "groundColor");
+        let panorama = ["backUrl", "bottomUrl", "frontUrl", "leftUrl", "rightUrl", "topUrl"]
+            .iter()
+            .any(|f| !self.strings(r, f).is_empty());
+        if sky.len() > 1 || !ground.is_empty() || panorama {
+            let loc = self.loc_of(r);
+            self.warn_once(
+                "background".into(),
+                r.doc,
+                loc,
+                Severity::Warning,
+                "Background: the first sky colour is the background; sky and ground gradients and panorama images are not drawn",
+            );
+        }
+        let color = sky.first().copied().unwrap_or(Vec3::ZERO);
+        let id = self.shader("background")?;
+        self.rt.pixel_shader(Some(id), &[("background", ParamValue::Color(linear(color)))])?;
+        Ok(())
+    }
+
+    fn fog(&mut self, r: NodeRef) -> Result<()> {
+        if self.fog_bound || r.doc != 0 {
+            return Ok(());
+        }
+        self.fog_bound = true;
+        let range = self.float(r, "visibilityRange", 0.0);
+        if range <= 0.0 {
+            return Ok(());
+        }
+        let color = linear(self.vec3(r, "color", Vec3::ONE));
+        let kind = self.strings(r, "fogType").into_iter().next().unwrap_or_else(|| "LINEAR".into());
+        let loc = self.loc_of(r);
+        self.warn_once(
+            "fog".into(),
+            r.doc,
+            loc,
+            Severity::Warning,
+            "Fog is approximated by the depthcue (LINEAR) or fog (EXPONENTIAL) atmosphere shader",
+        );
+        if kind == "EXPONENTIAL" {
+            let id = self.shader("fog")?;
+            self.rt.atmosphere(
+                Some(id),
+                &[("distance", ParamValue::Float(range * 0.5)), ("background", ParamValue::Color(color))],
+            )?;
+        } else {
+            let id = self.shader("depthcue")?;
+            self.rt.atmosphere(
+                Some(id),
+                &[
+                    ("mindistance", ParamValue::Float(0.0)),
+                    ("maxdistance", ParamValue::Float(range)),
+                    ("background", ParamValue::Color(color)),
+                ],
+            )?;
+        }
+        Ok(())
+    }
+
+    fn light(&mut self, r: NodeRef, kind: &str, world: Affine3A, trail: &[NodeRef]) -> Result<()> {
+        let on = self.boolean(r, "on", true);
+        let intensity = self.float(r, "intensity", 1.0).max(0.0);
+        let ambient = self.float(r, "ambientIntensity", 0.0).max(0.0);
+        let color = linear(self.vec3(r, "color", Vec3::ONE));
+        let base = [("intensity", ParamValue::Float(intensity)), ("lightcolor", ParamValue::Color(color))];
+        // The scale of the light's space: attenuation and radius are in its units.
+        let scale = world.matrix3.determinant().abs().cbrt().max(1e-12);
+        let mut made = Vec::new();
+        self.rt.push_matrix();
+        self.rt.load_identity();
+        let result = (|| -> Result<()> {
+            match kind {
+                "DirectionalLight" => {
+                    let loc = self.loc_of(r);
+                    self.warn_once(
+                        "DirectionalLight".into(),
+                        r.doc,
+                        loc,
+                        Severity::Warning,
+                        "DirectionalLight lights the whole scene, not only its group's nodes",
+                    );
+                    let direction = world.transform_vector3(self.vec3(r, "direction", Vec3::NEG_Z));
+                    let id = self.shader("distantlight")?;
+                    let mut params = base.to_vec();
+                    params.push(("from", ParamValue::Point([0.0; 3])));
+                    params.push(("to", ParamValue::Point(direction.normalize_or(Vec3::NEG_Z).to_array())));
+                    made.push(self.rt.light_source(id, &params)?);
+                }
+                _ => {
+                    let location = world.transform_point3(self.vec3(r, "location", Vec3::ZERO));
+                    let attenuation = self.numbers(r, "attenuation", 3, "three numbers").unwrap_or(vec![1.0, 0.0, 0.0]);
+                    let radius = self.float(r, "radius", 100.0).max(0.0);
+                    let mut params = base.to_vec();
+                    params.push(("from", ParamValue::Point(location.to_array())));
+                    params.push(("constantattenuation", ParamValue::Float(attenuation[0].max(0.0))));
+                    params.push(("linearattenuation", ParamValue::Float(attenuation[1].max(0.0) / scale)));
+                    params.push(("quadraticattenuation", ParamValue::Float(attenuation[2].max(0.0) / (scale * scale))));
+                    params.push(("radius", ParamValue::Float(radius * scale)));
+                    let shader = if kind == "SpotLight" {
+                        let direction = world.transform_vector3(self.vec3(r, "direction", Vec3::NEG_Z));
+                        let to = location + direction.normalize_or(Vec3::NEG_Z);
+                        let half = std::f32::consts::FRAC_PI_2;
+                        params.push(("to", ParamValue::Point(to.to_array())));
+                        params
+                            .push(("beamwidth", ParamValue::Float(self.float(r, "beamWidth", half).clamp(0.0, half))));
+                        let cut_off = self.float(r, "cutOffAngle", std::f32::consts::FRAC_PI_4).clamp(0.0, half);
+                        params.push(("cutoffangle", ParamValue::Float(cut_off)));
+                        "vrmlspotlight"
+                    } else {
+                        "vrmlpointlight"
+                    };
+                    let id = self.shader(shader)?;
+                    made.push(self.rt.light_source(id, &params)?);
+                }
+            }
+            // VRML's ambient term of a light: an ambient light of its own (without attenuation).
+            if ambient > 0.0 {
+                let id = self.shader("ambientlight")?;
+                made.push(self.rt.light_source(
+                    id,
+                    &[("intensity", ParamValue::Float(intensity * ambient)), ("lightcolor", ParamValue::Color(color))],
+                )?);
+            }
+            Ok(())
+        })();
+        self.rt.pop_matrix()?;
+        result?;
+        for id in made {
+            if !on {
+                self.rt.set_light(id, false, true)?;
+            }
+            self.scene.lights.push(Placed { made: id, node: r, path: trail.to_vec(), world });
+        }
+        Ok(())
+    }
+
+    // ---- Shapes ----
+
+    fn shape(&mut self, r: NodeRef, world: Affine3A, trail: &[NodeRef]) -> Result<()> {
+        let Some(geometry) = self.node(r, "geometry") else { return Ok(()) };
+        let appearance = self.node(r, "appearance");
+        let key = (geometry, appearance);
+        let object = match self.objects.get(&key) {
+            Some(done) => *done,
+            None => {
+                let made = self.make_object(geometry, appearance)?;
+                self.objects.insert(key, made);
+                if let Some((id, _)) = made {
+                    self.scene.objects.push((geometry, appearance, id));
+                }
+                made
+            }
+        };
+        let Some((id, (lo, hi))) = object else { return Ok(()) };
+        self.rt.push_matrix();
+        self.rt.load_matrix(world);
+        let instance = self.rt.instantiate_object(id);
+        self.rt.pop_matrix()?;
+        let instance = instance?;
+        for k in 0..8 {
+            let corner = Vec3::new(
+                if k & 1 == 0 { lo.x } else { hi.x },
+                if k & 2 == 0 { lo.y } else { hi.y },
+                if k & 4 == 0 { lo.z } else { hi.z },
+            );
+            let w = world.transform_point3a(Vec3A::from(corner));
+            self.scene.bounds.0 = self.scene.bounds.0.min(w);
+            self.scene.bounds.1 = self.scene.bounds.1.max(w);
+        }
+        self.scene.shapes.push(Placed { made: instance, node: r, path: trail.to_vec(), world });
+        Ok(())
+    }
+
+    /// The object of `geometry` drawn with `appearance`, with its own bounds; `None` when there is
+    /// nothing to draw.
+    fn make_object(
+        &mut self,
+        geometry: NodeRef,
+        appearance: Option<NodeRef>,
+    ) -> Result<Option<Made>> {
+        let Some(mesh) = self.geometry(geometry)? else { return Ok(None) };
+        if let Some(a) = appearance {
+            self.check_fields(a);
+        }
+        let material = appearance.and_then(|a| self.node(a, "material"));
+        let texture = match appearance.and_then(|a| self.node(a, "texture")) {
+            Some(t) => self.texture(t)?,
+            None => None,
+        };
+        let transform = appearance.and_then(|a| self.node(a, "textureTransform"));
+        // The mesh as this appearance draws it: texture coordinates transformed, colours dropped
+        // where an RGB texture replaces them.
+        let mut mesh = mesh;
+        let drop_colours = texture.as_ref().is_some_and(|t| t.rgb) && !mesh.attributes.is_empty();
+        if transform.is_some() || drop_colours {
+            let mut m = (*mesh).clone();
+            if let (Some(t), Some(uvs)) = (transform, m.uvs.as_mut()) {
+                let f = self.texture_transform(t);
+                for uv in uvs.iter_mut() {
+                    let vrml = f(Vec2::new(uv.x, 1.0 - uv.y));
+                    *uv = Vec2::new(vrml.x, 1.0 - vrml.y);
+                }
+            }
+            if drop_colours {
+                m.attributes.clear();
+            }
+            mesh = Arc::new(m);
+        }
+        let (lo, hi) =
+            mesh.positions.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+
+        let shader = self.shader("material")?;
+        self.rt.push_attributes();
+        self.rt.load_identity();
+        let result = (|| -> Result<ObjectId> {
+            self.rt.bind_shader(shader)?;
+            let mut params: Vec<(&str, ParamValue)> = Vec::new();
+            let mut transparency = 0.0;
+            match material {
+                Some(m) => {
+                    self.check_fields(m);
+                    let diffuse = linear(self.vec3(m, "diffuseColor", Vec3::splat(0.8)));
+                    params.push(("diffusecolor", ParamValue::Color(diffuse)));
+                    params
+                        .push(("specularcolor", ParamValue::Color(linear(self.vec3(m, "specularColor", Vec3::ZERO)))));
+                    params
+                        .push(("emissivecolor", ParamValue::Color(linear(self.vec3(m, "emissiveColor", Vec3::ZERO)))));
+                    params.push(("shininess", ParamValue::Float(self.float(m, "shininess", 0.2).clamp(0.0, 1.0))));
+                    params.push((
+                        "ambientintensity",
+                        ParamValue::Float(self.float(m, "ambientIntensity", 0.2).clamp(0.0, 1.0)),
+                    ));
+                    transparency = self.float(m, "transparency", 0.0).clamp(0.0, 1.0);
+                    params.push(("transparency", ParamValue::Float(transparency)));
+                }
+                // No Material: unlit, the colour of the texture, the colours or white.
+                None => {
+                    params.push(("diffusecolor", ParamValue::Color([1.0; 3])));
+                    params.push(("lit", ParamValue::Float(0.0)));
+                }
+            }
+            if let Some(t) = &texture {
+                // An RGB texture replaces the diffuse colour; an intensity texture modulates it.
+                if t.rgb {
+                    params.retain(|(n, _)| *n != "diffusecolor");
+                    params.push(("diffusecolor", ParamValue::Color([1.0; 3])));
+                }
+                params.push(("texturename", ParamValue::String(t.name.clone())));
+                params.push(("repeats", ParamValue::Float(if t.repeat.0 { 1.0 } else { 0.0 })));
+                params.push(("repeatt", ParamValue::Float(if t.repeat.1 { 1.0 } else { 0.0 })));
+                if t.alpha {
+                    self.rt.alpha_mask(Some(&t.name));
+                }
+            }
+            self.rt.parameters(&params)?;
+            if transparency > 0.0 {
+                self.rt.shadows_from_shader(true);
+            }
+            let id = self.rt.begin_object()?;
+            self.rt.mesh(&mesh)?;
+            self.rt.end_object()?;
+            Ok(id)
+        })();
+        self.rt.pop_attributes()?;
+        Ok(Some((result?, (lo, hi))))
+    }
+
+    /// TextureTransform as a function of VRML texture coordinates: `-C S R C T` (6.53).
+    fn texture_transform(&mut self, t: NodeRef) -> impl Fn(Vec2) -> Vec2 {
+        self.check_fields(t);
+        let center = self.vec2(t, "center", Vec2::ZERO);
+        let angle = self.float(t, "rotation", 0.0);
+        let scale = self.vec2(t, "scale", Vec2::ONE);
+        let translation = self.vec2(t, "translation", Vec2::ZERO);
+        let (sin, cos) = angle.sin_cos();
+        move |p: Vec2| {
+            let p = p + translation + center;
+            let p = Vec2::new(cos * p.x - sin * p.y, sin * p.x + cos * p.y);
+            p * scale - center
+        }
+    }
+
+    /// The texture of a texture node, made once.
+    fn texture(&mut self, t: NodeRef) -> Result<Option<Texture>> {
+        if let Some(done) = self.textures.get(&t) {
+            return Ok(done.clone());
+        }
+        self.check_fields(t);
+        let repeat = (self.boolean(t, "repeatS", true), self.boolean(t, "repeatT", true));
+        let loc = self.loc_of(t);
+        let made = match self.type_of(t) {
+            "ImageTexture" => self.image_texture(t, repeat)?,
+            "PixelTexture" => self.pixel_texture(t, repeat)?,
+            other => {
+                let other = other.to_string();
+                self.warn_once(
+                    format!("texture:{other}"),
+                    t.doc,
+                    loc,
+                    Severity::Omission,
+                    format!("{other} is not read as a texture; the shape is drawn untextured"),
+                );
+                None
+            }
+        };
+        self.textures.insert(t, made.clone());
+        Ok(made)
+    }
+
+    fn image_texture(&mut self, t: NodeRef, repeat: (bool, bool)) -> Result<Option<Texture>> {
+        let urls = self.strings(t, "url");
+        let loc = self.doc(t.doc).node(t.node).field("url").map_or(self.loc_of(t), |f| f.loc);
+        let dir = self.scene.documents[t.doc].0.parent().map(Path::to_path_buf).unwrap_or_default();
+        let mut why = None;
+        let mut found = None;
+        for url in &urls {
+            match relative_path(url) {
+                Ok(rel) if dir.join(&rel).is_file() => {
+                    found = Some(dir.join(rel));
+                    break;
+                }
+                Ok(rel) => why = why.or(Some(format!("\"{url}\": {} not found", dir.join(rel).display()))),
+                Err(e) => why = why.or(Some(format!("\"{url}\" {e}"))),
+            }
+        }
+        let Some(path) = found else {
+            if let Some(why) = why {
+                self.warn_once(
+                    format!("texture:{}:{}:{}", t.doc, loc.line, loc.column),
+                    t.doc,
+                    loc,
+                    Severity::Omission,
+                    format!("ImageTexture {why}; the shape is drawn untextured"),
+                );
+            }
+            return Ok(None);
+        };
+        let name = path.display().to_string();
+        // The channels, from the file's header: colour or intensity, alpha or not.
+        let channels = image::ImageReader::open(&path)
+            .ok()
+            .and_then(|r| r.with_guessed_format().ok())
+            .and_then(|r| r.into_decoder().ok())
+            .map(|d| image::ImageDecoder::color_type(&d).channel_count());
+        let Some(channels) = channels else {
+            self.warn_once(
+                format!("texture:{name}"),
+                t.doc,
+                loc,
+                Severity::Omission,
+                format!("ImageTexture {name}: not an image this reader decodes; the shape is drawn untextured"),
+            );
+            return Ok(None);
+        };
+        if channels >= 3 {
+            return Ok(Some(Texture { name, rgb: true, alpha: channels == 4, repeat }));
+        }
+        // An intensity texture, as grey RGB (a colour lookup of a one-channel texture reads only
+        // its first channel).
+        match crate::texture::load_texture_image(&path, false) {
+            Ok(loaded) => {
+                let image = loaded.image;
+                let (w, h, c) = (image.width(), image.height(), image.channels());
+                let mut texels = Vec::with_capacity(w * h * (c + 2));
+                for px in image.data().chunks_exact(c.max(1)) {
+                    texels.extend_from_slice(&[px[0], px[0], px[0]]);
+                    if c == 2 {
+                        texels.push(px[1]);
+                    }
+                }
+                let memory = format!("{name}#grey");
+                self.rt.tex_image_2d(&memory, w, h, if c == 2 { 4 } else { 3 }, &texels)?;
+                Ok(Some(Texture { name: memory, rgb: false, alpha: c == 2, repeat }))
+            }
+            Err(e) => {
+                self.warn_once(
+                    format!("texture:{name}"),
+                    t.doc,
+                    loc,
+                    Severity::Omission,
+                    format!("ImageTexture {name}: {e}; the shape is drawn untextured"),
+                );
+                Ok(None)
+            }
+        }
+    }
+
+    fn pixel_texture(&mut self, t: NodeRef, repeat: (bool, bool)) -> Result<Option<Texture>> {
+        let loc = self.loc_of(t);
+        let values = self.get(t, "image", "an SFImage (width, height, components, pixels)", |v| match v {
+            Value::Numbers(n) => Some(n.clone()),
+            _ => None,
+        });
+        let Some(values) = values else { return Ok(None) };
+        let header = |i: usize| values.get(i).copied().filter(|x| x.fract() == 0.0 && *x >= 0.0).map(|x| x as usize);
+        let (Some(w), Some(h), Some(c)) = (header(0), header(1), header(2)) else {
+            self.warn_once(
+                format!("pixeltexture:{}:{}", loc.line, loc.column),
+                t.doc,
+                loc,
+                Severity::Omission,
+                "PixelTexture's image has no width, height and components",
+            );
+            return Ok(None);
+        };
+        let count = w.checked_mul(h);
+        if w == 0 || h == 0 || !(1..=4).contains(&c) || count != Some(values.len() - 3) {
+            if w > 0 && h > 0 {
+                self.warn_once(
+                    format!("pixeltexture:{}:{}", loc.line, loc.column),
+                    t.doc,
+                    loc,
+                    Severity::Omission,
+                    format!("PixelTexture's image of {w}x{h} pixels of {c} components has {} pixels", values.len() - 3),
+                );
+            }
+            return Ok(None);
+        }
+        // Pixels are packed integers, rows from the bottom up; texels rows from the top down.
+        let out_channels = if c <= 2 { c + 2 } else { c };
+        let mut texels = vec![0.0f32; w * h * out_channels];
+        for (k, &v) in values[3..].iter().enumerate() {
+            let v = v as i64 as u32;
+            let bytes: Vec<f32> = (0..c).rev().map(|i| ((v >> (8 * i)) & 0xff) as f32 / 255.0).collect();
+            let (x, y) = (k % w, h - 1 - k / w);
+            let at = (y * w + x) * out_channels;
+            let texel = &mut texels[at..at + out_channels];
+            let colour = |b: f32| srgb_to_linear(b);
+            match c {
+                1 | 2 => {
+                    texel[..3].fill(colour(bytes[0]));
+                    if c == 2 {
+                        texel[3] = bytes[1];
+                    }
+                }
+                _ => {
+                    for i in 0..3 {
+                        texel[i] = colour(bytes[i]);
+                    }
+                    if c == 4 {
+                        texel[3] = bytes[3];
+                    }
+                }
+            }
+        }
+        self.pixel_textures += 1;
+        let name = format!("{}#PixelTexture{}", self.files[t.doc].display(), self.pixel_textures);
+        self.rt.tex_image_2d(&name, w, h, out_channels, &texels)?;
+        Ok(Some(Texture { name, rgb: c >= 3, alpha: c == 2 || c == 4, repeat }))
+    }
+
+    /// The mesh of a geometry node, made once (`None`: nothing to draw).
+    fn geometry(&mut self, g: NodeRef) -> Result<Option<Arc<Mesh>>> {
+        if let Some(done) = self.meshes.get(&g) {
+            return Ok(done.clone());
+        }
+        self.check_fields(g);
+        let type_name = self.type_of(g).to_string();
+        let loc = self.loc_of(g);
+        let made = match type_name.as_str() {
+            "Box" => {
+                let size = self.vec3(g, "size", Vec3::splat(2.0)).max(Vec3::ZERO);
+                Some(mesh::box_mesh(size))
+            }
+            "Sphere" => Some(mesh::sphere(self.float(g, "radius", 1.0).max(0.0))),
+            "Cylinder" => {
+                let radius = self.float(g, "radius", 1.0).max(0.0);
+                let height = self.float(g, "height", 2.0).max(0.0);
+                let (side, top, bottom) =
+                    (self.boolean(g, "side", true), self.boolean(g, "top", true), self.boolean(g, "bottom", true));
+                Some(mesh::cylinder(radius, height, side, top, bottom))
+            }
+            "Cone" => {
+                let radius = self.float(g, "bottomRadius", 1.0).max(0.0);
+                let height = self.float(g, "height", 2.0).max(0.0);
+                let (side, bottom) = (self.boolean(g, "side", true), self.boolean(g, "bottom", true));
+                Some(mesh::cone(radius, height, side, bottom))
+            }
+            "IndexedFaceSet" => Some(self.face_set(g)?),
+            "ElevationGrid" => self.elevation_grid(g)?,
+            "Extrusion" => self.extrusion(g)?,
+            other => {
+                let (severity, message) = match node_type(other) {
+                    Some((Support::Omitted, _)) => (Severity::Omission, format!("{other} is not drawn; it is skipped")),
+                    Some(_) => (Severity::Omission, format!("{other} is not a geometry node; the Shape is skipped")),
+                    None => (Severity::Omission, format!("unknown node type {other}; it is skipped")),
+                };
+                self.warn_once(format!("node:{other}"), g.doc, loc, severity, message);
+                None
+            }
+        };
+        let made = match made {
+            Some(m) if m.triangle_count() > 0 => {
+                self.count_triangles(g, m.triangle_count())?;
+                if let Err(e) = m.validate() {
+                    self.warn_once(
+                        format!("mesh:{}:{}:{}", g.doc, loc.line, loc.column),
+                        g.doc,
+                        loc,
+                        Severity::Omission,
+                        format!("{type_name}: {e}; it is skipped"),
+                    );
+                    None
+                } else {
+                    Some(Arc::new(to_rtsl_uvs(m)))
+                }
+            }
+            _ => None,
+        };
+        self.meshes.insert(g, made.clone());
+        Ok(made)
+    }
+
+    /// Counts `count` more triangles against [`MAX_MODEL_TRIANGLES`].
+    fn count_triangles(&mut self, g: NodeRef, count: usize) -> Result<()> {
+        let total = self.scene.triangles.saturating_add(count);
+        if total > MAX_MODEL_TRIANGLES {
+            let loc = self.loc_of(g);
+            return Err(self.error(
+                g.doc,
+                loc,
+                format!("{total} triangles: a VRML scene may hold at most {MAX_MODEL_TRIANGLES}"),
+            ));
+        }
+        self.scene.triangles = total;
+        Ok(())
+    }
+
+    /// Warns about a geometry node's problems, once each.
+    fn problems(&mut self, g: NodeRef, problems: Vec<String>) {
+        let loc = self.loc_of(g);
+        let type_name = self.type_of(g).to_string();
+        for p in problems {
+            self.warn_once(
+                format!("problem:{}:{}:{}:{p}", g.doc, loc.line, loc.column),
+                g.doc,
+                loc,
+                Severity::Warning,
+                format!("{type_name}: {p}"),
+            );
+        }
+    }
+
+    /// Point lists of a coordinate-like node (`Coordinate.point`, `Color.color`, ...).
+    fn points3(&mut self, owner: NodeRef, field: &str, inner: &str) -> Option<Vec<Vec3>> {
+        let n = self.node(owner, field)?;
+        self.check_fields(n);
+        Some(self.vec3s(n, inner))
+    }
+
+    fn face_set(&mut self, g: NodeRef) -> Result<Mesh> {
+        let points = self.points3(g, "coord", "point").unwrap_or_default();
+        let coord_index = self.ints(g, "coordIndex");
+        let normals = self.points3(g, "normal", "vector");
+        let normal_index = self.ints(g, "normalIndex");
+        let colors =
+            self.points3(g, "color", "color").map(|c| c.into_iter().map(|c| Vec3::from(linear(c))).collect::<Vec<_>>());
+        let color_index = self.ints(g, "colorIndex");
+        let tex = self.node(g, "texCoord").map(|t| {
+            self.check_fields(t);
+            self.vec2s(t, "point")
+        });
+        let tex_index = self.ints(g, "texCoordIndex");
+        let ccw = self.boolean(g, "ccw", true);
+        let crease_angle = self.float(g, "creaseAngle", 0.0);
+        let normal_per_vertex = self.boolean(g, "normalPerVertex", true);
+        let color_per_vertex = self.boolean(g, "colorPerVertex", true);
+        let made = mesh::face_set(&FaceSet {
+            points: &points,
+            coord_index: &coord_index,
+            ccw,
+            crease_angle,
+            normals: normals.as_deref().map(|values| Indexed {
+                values,
+                index: &normal_index,
+                per_vertex: normal_per_vertex,
+            }),
+            colors: colors.as_deref().map(|values| Indexed {
+                values,
+                index: &color_index,
+                per_vertex: color_per_vertex,
+            }),
+            tex_coords: tex.as_deref().map(|values| (values, &tex_index[..])),
+            default_tex_coords: true,
+        });
+        self.problems(g, made.problems);
+        Ok(made.mesh)
+    }
+
+    fn elevation_grid(&mut self, g: NodeRef) -> Result<Option<Mesh>> {
+        let nx = usize::try_from(self.int(g, "xDimension", 0)).unwrap_or(0);
+        let nz = usize::try_from(self.int(g, "zDimension", 0)).unwrap_or(0);
+        let height = self.floats(g, "height");
+        if nx < 2 || nz < 2 {
+            return Ok(None);
+        }
+        if nx.checked_mul(nz).is_none_or(|n| n > height.len()) {
+            self.problems(
+                g,
+                vec![format!("{nx}x{nz} points need as many heights; there are {}; it is skipped", height.len())],
+            );
+            return Ok(None);
+        }
+        let colors =
+            self.points3(g, "color", "color").map(|c| c.into_iter().map(|c| Vec3::from(linear(c))).collect::<Vec<_>>());
+        let normals = self.points3(g, "normal", "vector");
+        let tex = self.node(g, "texCoord").map(|t| self.vec2s(t, "point"));
+        let grid = mesh::Grid {
+            x_dimension: nx,
+            z_dimension: nz,
+            x_spacing: self.float(g, "xSpacing", 1.0),
+            z_spacing: self.float(g, "zSpacing", 1.0),
+            height: &height,
+            ccw: self.boolean(g, "ccw", true),
+            crease_angle: self.float(g, "creaseAngle", 0.0),
+            colors: colors.as_deref().map(|c| (c, self.boolean(g, "colorPerVertex", true))),
+            normals: normals.as_deref().map(|n| (n, self.boolean(g, "normalPerVertex", true))),
+            tex_coords: tex.as_deref(),
+        };
+        let made = mesh::elevation_grid(&grid);
+        self.problems(g, made.problems);
+        Ok(Some(made.mesh))
+    }
+
+    fn extrusion(&mut self, g: NodeRef) -> Result<Option<Mesh>> {
+        let spine = self.get(g, "spine", "triples of numbers", |v| match v {
+            Value::Numbers(n) if n.len() % 3 == 0 => Some(n.clone()),
+            _ => None,
+        });
+        let spine: Vec<Vec3> = match spine {
+            Some(n) => n.chunks_exact(3).map(|c| Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32)).collect(),
+            None => vec![Vec3::ZERO, Vec3::Y],
+        };
+        let section = {
+            let s = self.vec2s(g, "crossSection");
+            if s.is_empty() && self.doc(g.doc).node(g.node).field("crossSection").is_none() {
+                vec![
+                    Vec2::new(1.0, 1.0),
+                    Vec2::new(1.0, -1.0),
+                    Vec2::new(-1.0, -1.0),
+                    Vec2::new(-1.0, 1.0),
+                    Vec2::new(1.0, 1.0),
+                ]
+            } else {
+                s
+            }
+        };
+        if !spine.iter().all(|p| p.is_finite()) {
+            self.problems(g, vec!["its spine has a number that is not finite; it is skipped".into()]);
+            return Ok(None);
+        }
+        self.count_triangles(g, 0)?;
+        let most = mesh::extrusion_triangles(spine.len(), section.len());
+        if most > MAX_MODEL_TRIANGLES.saturating_sub(self.scene.triangles) {
+            return self.count_triangles(g, most).map(|_| None);
+        }
+        let scale = self.vec2s(g, "scale");
+        let orientation = self.rotations(g, "orientation");
+        let e = mesh::Extrusion {
+            spine: &spine,
+            cross_section: &section,
+            scale: if scale.is_empty() { &[Vec2::ONE] } else { &scale },
+            orientation: &orientation,
+            begin_cap: self.boolean(g, "beginCap", true),
+            end_cap: self.boolean(g, "endCap", true),
+            ccw: self.boolean(g, "ccw", true),
+            crease_angle: self.float(g, "creaseAngle", 0.0),
+        };
+        let made = mesh::extrusion(&e);
+        self.problems(g, made.problems);
+        Ok(Some(made.mesh))
+    }
+
+    /// After the walk: a camera framing the scene when no Viewpoint was bound, and the headlight.
+    fn finish(&mut self) -> Result<()> {
+        if !self.camera_bound {
+            crate::scene_file::frame_camera(self.rt, self.scene.bounds);
+        }
+        if self.headlight.unwrap_or(true) {
+            // VRML's headlight: a directional light of intensity 1 along the view, at the camera
+            // the scene starts with.
+            let camera = self.rt.camera().world_from_camera;
+            let (eye, forward) = (camera.translation, camera.matrix3 * Vec3A::Z);
+            let id = self.shader("distantlight")?;
+            self.rt.push_matrix();
+            self.rt.load_identity();
+            let light = self.rt.light_source(
+                id,
+                &[("from", ParamValue::Point(eye.to_array())), ("to", ParamValue::Point((eye + forward).to_array()))],
+            );
+            self.rt.pop_matrix()?;
+            // Its shadows would hide behind what casts them.
+            self.rt.set_light(light?, true, false)?;
+        }
+        Ok(())
+    }
+}
+
+/// An `SFRotation`'s axis and angle as a quaternion (a zero axis is no rotation).
+fn rotation(v: &[f32]) -> Quat {
+    let axis = Vec3::new(v[0], v[1], v[2]);
+    if axis.length_squared() < 1e-20 || !v[3].is_finite() {
+        return Quat::IDENTITY;
+    }
+    Quat::from_axis_angle(axis.normalize(), v[3])
+}
+
+/// The mesh with its texture coordinates turned from VRML's (`t` up) into rtsl's (`t` down).
+fn to_rtsl_uvs(mut m: Mesh) -> Mesh {
+    if let Some(uvs) = m.uvs.as_mut() {
+        for uv in uvs {
+            uv.y = 1.0 - uv.y;
+        }
+    }
+    m
+}
+
+/// A URL as a path relative to the including file's folder, or why it is refused: one with a
+/// scheme, an absolute path, or one that climbs out of the folder with `..`. A fragment (`#...`)
+/// is dropped, `%XX` escapes decoded.
+pub fn relative_path(url: &str) -> std::result::Result<PathBuf, &'static str> {
+    let url = url.split('#').next().unwrap_or("");
+    if url.is_empty() {
+        return Err("is empty");
+    }
+    // A scheme: letters, digits, `+`, `-`, `.` before a colon (a drive letter too).
+    if let Some((scheme, _)) = url.split_once(':') {
+        if !scheme.is_empty() && scheme.chars().all(|c| c.is_ascii_alphanumeric() || matches!(c, '+' | '-' | '.')) {
+            return Err("has a scheme; only relative file paths are read");
+        }
+    }
+    let mut bytes = Vec::with_capacity(url.len());
+    let mut rest = url.as_bytes();
+    while let Some((&b, tail)) = rest.split_first() {
+        if b == b'%' && tail.len() >= 2 {
+            let hex = std::str::from_utf8(&tail[..2]).ok().and_then(|h| u8::from_str_radix(h, 16).ok());
+            let Some(value) = hex else { return Err("has a malformed %-escape") };
+            bytes.push(value);
+            rest = &tail[2..];
+        } else {
+            bytes.push(b);
+            rest = tail;
+        }
+    }
+    let decoded = String::from_utf8(bytes).map_err(|_| "does not decode to UTF-8")?;
+    let path = PathBuf::from(&decoded);
+    let mut depth = 0usize;
+    for part in path.components() {
+        match part {
+            Component::Normal(_) => depth += 1,
+            Component::CurDir => {}
+            Component::ParentDir => {
+                depth = depth.checked_sub(1).ok_or("climbs out of the including file's folder with `..`")?;
+            }
+            Component::RootDir | Component::Prefix(_) => {
+                return Err("is an absolute path; only paths relative to the including file are read")
+            }
+        }
+    }
+    Ok(path)
+}
+
+#[cfg(test)]
+mod tests;

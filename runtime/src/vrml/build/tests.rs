@@ -1,0 +1,367 @@
+use super::*;
+use crate::api::Context;
+use crate::vrml::VrmlScene;
+
+fn load(text: &str) -> (Context, VrmlScene) {
+    let mut rt = Context::new();
+    let scene = build_str(&mut rt, &format!("#VRML V2.0 utf8\n{text}"), Path::new("test.wrl"))
+        .unwrap_or_else(|e| panic!("{e}"));
+    (rt, scene)
+}
+
+fn load_err(text: &str) -> String {
+    let mut rt = Context::new();
+    match build_str(&mut rt, &format!("#VRML V2.0 utf8\n{text}"), Path::new("test.wrl")) {
+        Ok(_) => panic!("loaded: {text}"),
+        Err(e) => e.to_string(),
+    }
+}
+
+fn close(a: Vec3A, b: Vec3) -> bool {
+    a.abs_diff_eq(Vec3A::from(b), 1e-4)
+}
+
+#[test]
+fn a_transformed_box_has_its_world_bounds() {
+    // Box 2x2x6, scaled 2 along x, turned 90 degrees about z, moved by (1, 2, 3).
+    let (rt, scene) = load(
+        "Transform { translation 1 2 3 rotation 0 0 1 1.5707963 scale 2 1 1
+           children Shape { geometry Box { size 2 2 6 } } }",
+    );
+    assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
+    let (lo, hi) = scene.bounds;
+    assert!(close(lo, Vec3::new(0.0, 0.0, 0.0)) && close(hi, Vec3::new(2.0, 4.0, 6.0)), "{lo} {hi}");
+    assert_eq!(scene.shapes.len(), 1);
+    assert_eq!(rt.world_instance_ids().len(), 1);
+    // center and scaleOrientation: a half turn about y around x = 1 moves the unit box to x 1..3.
+    let (_, scene) = load(
+        "Transform { center 1 0 0 rotation 0 1 0 3.14159265 scaleOrientation 0 0 1 0.7853982 scale 1 1 1
+           children Shape { geometry Box {} } }",
+    );
+    let (lo, hi) = scene.bounds;
+    assert!(close(lo, Vec3::new(1.0, -1.0, -1.0)) && close(hi, Vec3::new(3.0, 1.0, 1.0)), "{lo} {hi}");
+    // A scale along a turned axis shears the box: its bounds grow along both turned axes.
+    let (_, scene) =
+        load("Transform { scaleOrientation 0 0 1 0.7853982 scale 2 1 1 children Shape { geometry Box {} } }");
+    let (lo, hi) = scene.bounds;
+    assert!(hi.x > 1.5 && hi.y > 1.5 && lo.z < -0.99 && hi.z < 1.01, "{lo} {hi}");
+}
+
+#[test]
+fn an_indexed_face_set_with_a_concave_face_and_separators() {
+    let (rt, scene) = load(
+        "Shape { appearance Appearance { material Material { diffuseColor 1 0 0 } }
+           geometry IndexedFaceSet {
+             coord Coordinate { point [ 0 0 0, 2 0 0, 2 1 0, 1 1 0, 1 2 0, 0 2 0, 5 0 0 ] }
+             coordIndex [ 0 1 2 3 4 5 -1 1 6 2 -1 ]
+           } }",
+    );
+    assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
+    let (_, _, id) = scene.objects[0];
+    let mesh = rt.object_mesh(id).expect("a mesh");
+    assert_eq!(mesh.triangle_count(), 5);
+    let area: f32 = (0..mesh.triangle_count())
+        .map(|t| {
+            let [a, b, c] = mesh.corners(t);
+            0.5 * (b - a).cross(c - a).z
+        })
+        .sum();
+    assert!((area - 4.5).abs() < 1e-5, "the L is cut into ears, not fanned over its notch: {area}");
+    assert_eq!(scene.triangles, 5);
+}
+
+#[test]
+fn crease_angle_shares_smoothed_normals() {
+    // A gently folded strip: with a crease angle above the fold, the fold's points are shared.
+    let strip = |crease: f32| {
+        format!(
+            "Shape {{ geometry IndexedFaceSet {{ creaseAngle {crease}
+               coord Coordinate {{ point [ 0 0 0, 0 0 1, 1 0.1 0, 1 0.1 1, 2 0 0, 2 0 1 ] }}
+               coordIndex [ 0 1 3 2 -1 2 3 5 4 -1 ] }} }}"
+        )
+    };
+    let (rt, scene) = load(&strip(0.5));
+    let mesh = rt.object_mesh(scene.objects[0].2).expect("a mesh");
+    assert_eq!(mesh.positions.len(), 6);
+    let normals = mesh.normals.as_ref().expect("smooth normals");
+    let fold = mesh.positions.iter().position(|p| *p == Vec3::new(1.0, 0.1, 0.0)).expect("the fold");
+    assert!(normals[fold].abs_diff_eq(Vec3::Y, 1e-5), "{}", normals[fold]);
+    let (rt, scene) = load(&strip(0.0));
+    let mesh = rt.object_mesh(scene.objects[0].2).expect("a mesh");
+    assert_eq!(mesh.positions.len(), 6, "flat faces share points too: they carry no normals");
+    assert!(mesh.normals.is_none());
+    let (rt, scene) = load(&strip(0.05));
+    let mesh = rt.object_mesh(scene.objects[0].2).expect("a mesh");
+    assert_eq!(mesh.positions.len(), 8, "below the fold's angle the fold's points split");
+}
+
+#[test]
+fn use_instances_one_object_and_protos_take_their_fields() {
+    let (rt, scene) = load(
+        "DEF G Group { children DEF S Shape { geometry Box {} } }
+         Transform { translation 5 0 0 children [ USE G USE S ] }
+         PROTO Pillar [ field SFFloat h 2 field SFNode look NULL ] {
+           Shape { appearance IS look geometry Cylinder { height IS h } }
+         }
+         Transform { translation 0 0 -10 children Pillar { h 10 } }",
+    );
+    assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
+    assert_eq!(scene.objects.len(), 2, "the box once, the pillar once");
+    assert_eq!(rt.world_instance_ids().len(), 4);
+    let boxes: Vec<_> = scene.shapes.iter().filter(|s| s.world.translation.z > -5.0).collect();
+    assert_eq!(boxes.len(), 3);
+    // Each placed shape keeps the nodes it was reached through.
+    let doc = &scene.documents[0].1;
+    let used = boxes.iter().find(|s| s.path.len() == 2).expect("USE G inside the Transform");
+    assert_eq!(doc.node(used.path[0].node).type_name, "Transform");
+    assert_eq!(doc.node(used.path[1].node).def.as_deref(), Some("G"));
+    assert!(close(scene.bounds.0, Vec3::new(-1.0, -5.0, -11.0)), "{}", scene.bounds.0);
+    assert!(close(scene.bounds.1, Vec3::new(6.0, 5.0, 1.0)), "{}", scene.bounds.1);
+}
+
+#[test]
+fn switch_lod_and_billboard_choose_their_children() {
+    let (rt, scene) = load(
+        "Switch { whichChoice 1 choice [ Shape { geometry Box {} } Shape { geometry Sphere {} } ] }
+         Switch { choice Shape { geometry Box {} } }
+         LOD { level [ Shape { geometry Cone {} } Shape { geometry Box {} } ] }
+         Billboard { children Shape { geometry Sphere { radius 2 } } }",
+    );
+    assert_eq!(rt.world_instance_ids().len(), 3);
+    let kinds: Vec<&str> =
+        scene.objects.iter().map(|(g, _, _)| scene.documents[0].1.node(g.node).type_name.as_str()).collect();
+    assert_eq!(kinds, ["Sphere", "Cone", "Sphere"]);
+    let messages: Vec<&str> = scene.warnings.iter().map(|w| w.message.as_str()).collect();
+    assert!(messages.iter().any(|m| m.contains("Billboard")), "{messages:?}");
+    assert!(messages.iter().any(|m| m.contains("LOD")), "{messages:?}");
+}
+
+#[test]
+fn unknown_nodes_and_fields_warn_once_with_their_place() {
+    let (_, scene) = load(
+        "Group { children [
+           Frob { a 1 }
+           Frob { }
+           Shape { geometry Box { size 1 1 1 sise 2 } }
+           Shape { geometry Box { sise 3 } }
+           IndexedLineSet { }
+           PointSet { }
+           TimeSensor { loop TRUE }
+           Shape { geometry Sphere { radius \"big\" } }
+         ] }",
+    );
+    let shown: Vec<String> = scene.warnings.iter().map(|w| w.to_string()).collect();
+    assert_eq!(shown.len(), 6, "{shown:#?}");
+    assert!(shown[0].starts_with("test.wrl:3:12: warning: unknown node type Frob"), "{shown:#?}");
+    assert!(shown[1].starts_with("test.wrl:5:46: warning: Box has no field `sise`"), "{shown:#?}");
+    assert!(shown.iter().any(|s| s.contains("IndexedLineSet is not drawn")), "{shown:#?}");
+    assert!(shown.iter().any(|s| s.contains("PointSet is not drawn")), "{shown:#?}");
+    assert!(shown.iter().any(|s| s.contains("TimeSensor is skipped")), "{shown:#?}");
+    assert!(shown.iter().any(|s| s.contains("Sphere.radius expects one number")), "{shown:#?}");
+    let omissions = scene.warnings.iter().filter(|w| w.severity == Severity::Omission).count();
+    assert_eq!(omissions, 3, "unknown and undrawn nodes are missing from the picture");
+}
+
+#[test]
+fn lights_viewpoints_and_the_headlight() {
+    let (rt, scene) = load(
+        "Transform { translation 0 5 0 children [
+           PointLight { location 1 0 0 ambientIntensity 0.5 }
+           SpotLight { direction 0 -1 0 }
+           DirectionalLight { on FALSE }
+         ] }
+         Transform { translation 0 1 0 children DEF Cam Viewpoint { position 0 0 4 fieldOfView 0.5 description \"near\" } }
+         Viewpoint { position 9 9 9 }",
+    );
+    // Point, its ambient part, spot, directional; and the headlight (no NavigationInfo says no).
+    assert_eq!(scene.lights.len(), 4);
+    assert_eq!(scene.viewpoints.len(), 2);
+    assert_eq!(scene.viewpoints[0].made.description, "near");
+    let camera = rt.camera();
+    assert!(close(camera.eye(), Vec3::new(0.0, 1.0, 4.0)), "{}", camera.eye());
+    assert!((camera.fov_degrees - 0.5f32.to_degrees()).abs() < 1e-3);
+    assert!(close(camera.world_from_camera.matrix3 * Vec3A::Z, Vec3::NEG_Z), "looks along -z");
+    let world = {
+        let mut rt = rt;
+        rt.build_world().expect("a world")
+    };
+    assert_eq!(world.lights.len(), 4, "the lights that are on, and the headlight");
+    let (rt, _) = load("NavigationInfo { headlight FALSE } Shape { geometry Box {} }");
+    let mut rt = rt;
+    assert_eq!(rt.build_world().expect("a world").lights.len(), 0);
+}
+
+#[test]
+fn without_a_viewpoint_the_scene_is_framed() {
+    let (rt, _) = load("Transform { translation 100 0 0 children Shape { geometry Sphere {} } }");
+    let camera = rt.camera();
+    let forward = camera.world_from_camera.matrix3 * Vec3A::Z;
+    let to_centre = (Vec3A::new(100.0, 0.0, 0.0) - camera.eye()).normalize();
+    assert!(forward.dot(to_centre) > 0.999, "the camera looks at the sphere");
+}
+
+#[test]
+fn a_background_colours_what_rays_miss() {
+    let (mut rt, _) = load("Background { skyColor 0.2 0.4 0.6 } NavigationInfo { headlight FALSE }");
+    rt.options.width = 4;
+    rt.options.height = 4;
+    let (fb, _) = rt.render_frame().expect("rendered");
+    let p = fb.pixel(1, 1);
+    let want = linear(Vec3::new(0.2, 0.4, 0.6));
+    assert!((0..3).all(|i| (p[i] - want[i]).abs() < 1e-3) && p[3] == 1.0, "{p:?}");
+}
+
+#[test]
+fn inline_files_are_read_relative_and_refused_outside() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let sub = dir.path().join("parts");
+    std::fs::create_dir(&sub).expect("made");
+    std::fs::write(sub.join("box.wrl"), "#VRML V2.0 utf8\nShape { geometry Box {} }\n").expect("written");
+    let main = dir.path().join("main.wrl");
+    let write = |text: &str| std::fs::write(&main, format!("#VRML V2.0 utf8\n{text}\n")).expect("written");
+    write(
+        "Inline { url \"parts/box.wrl\" }
+         Transform { translation 4 0 0 children Inline { url [ \"http://example.com/x.wrl\" \"parts/box.wrl\" ] } }",
+    );
+    let mut rt = Context::new();
+    let scene = build(&mut rt, &main).expect("loads");
+    assert_eq!(scene.documents.len(), 2, "the inlined file is read once");
+    assert_eq!(scene.objects.len(), 1, "and its box is one object");
+    assert_eq!(rt.world_instance_ids().len(), 2);
+    assert_eq!(scene.files(), vec![main.clone(), dir.path().join("parts/box.wrl")]);
+
+    for (url, says) in [
+        ("/etc/x.wrl", "absolute"),
+        ("../x.wrl", "climbs out"),
+        ("parts/../../x.wrl", "climbs out"),
+        ("file:parts/box.wrl", "scheme"),
+    ] {
+        write(&format!("Group {{ children Inline {{ url \"{url}\" }} }}"));
+        let e = build(&mut Context::new(), &main).expect_err(url).to_string();
+        assert!(e.contains("main.wrl:2:") && e.contains(says), "{url}: {e}");
+    }
+    // A cycle.
+    std::fs::write(sub.join("loop.wrl"), "#VRML V2.0 utf8\nInline { url \"loop.wrl\" }\n").expect("written");
+    write("Inline { url \"parts/loop.wrl\" }");
+    let e = build(&mut Context::new(), &main).expect_err("a cycle").to_string();
+    assert!(e.contains("loop.wrl:2:10") && e.contains("cycle"), "{e}");
+    // A missing file is left out with a warning.
+    write("Inline { url \"parts/none.wrl\" }");
+    let scene = build(&mut Context::new(), &main).expect("loads");
+    assert_eq!(scene.warnings[0].severity, Severity::Omission);
+    assert!(scene.warnings[0].message.contains("not found"), "{:?}", scene.warnings);
+}
+
+#[test]
+fn textures_materials_and_pixel_textures() {
+    let (rt, scene) = load(
+        "Shape {
+           appearance Appearance {
+             material Material { diffuseColor 0.5 0.5 0.5 transparency 0.25 }
+             texture PixelTexture { image 2 2 3 0xFF0000 0x00FF00 0x0000FF 0xFFFFFF repeatS FALSE }
+             textureTransform TextureTransform { scale 2 2 }
+           }
+           geometry IndexedFaceSet {
+             coord Coordinate { point [ 0 0 0, 1 0 0, 1 1 0, 0 1 0 ] }
+             coordIndex [ 0 1 2 3 ]
+             texCoord TextureCoordinate { point [ 0 0, 1 0, 1 1, 0 1 ] }
+           } }
+         Shape { geometry Box {} }",
+    );
+    assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
+    let mesh = rt.object_mesh(scene.objects[0].2).expect("a mesh");
+    let uvs = mesh.uvs.as_ref().expect("texture coordinates");
+    // VRML (1, 1) scaled by 2 is (2, 2); rtsl's t runs down: 1 - 2.
+    let corner = mesh.positions.iter().position(|p| *p == Vec3::new(1.0, 1.0, 0.0)).expect("corner");
+    assert_eq!(uvs[corner], Vec2::new(2.0, -1.0));
+    let origin = mesh.positions.iter().position(|p| *p == Vec3::ZERO).expect("origin");
+    assert_eq!(uvs[origin], Vec2::new(0.0, 1.0));
+    let mut rt = rt;
+    rt.options.width = 8;
+    rt.options.height = 8;
+    rt.render_frame().expect("renders");
+}
+
+#[test]
+fn syntax_errors_name_file_line_and_column() {
+    let e = load_err("Group {\n  children [ Shape { geometry Box { size 1 2 } ]\n}");
+    assert!(e.starts_with("test.wrl:3:48: expected a field name or `}`"), "{e}");
+    let mut rt = Context::new();
+    let e = build_str(&mut rt, "#VRML V1.0 ascii\nSeparator {}", Path::new("old.wrl")).expect_err("1.0").to_string();
+    assert!(e.starts_with("old.wrl:1:1: VRML 1.0"), "{e}");
+}
+
+#[test]
+fn bounds_on_what_the_graph_makes() {
+    // USE doubling at every level: 2^40 paths to the box.
+    let mut text = String::from("DEF L0 Group { children Shape { geometry Box {} } }\n");
+    for k in 1..40 {
+        text.push_str(&format!("DEF L{k} Group {{ children [ USE L{} USE L{} ] }}\n", k - 1, k - 1));
+    }
+    let e = load_err(&text);
+    assert!(e.contains(&VRML_TRAVERSAL_BUDGET.to_string()), "{e}");
+    // A short extrusion that asks for too many triangles.
+    let e = load_err(&format!(
+        "Shape {{ geometry Extrusion {{ spine [ {} ] crossSection [ {} ] }} }}",
+        "0 0 0 ".repeat(10_000),
+        "0 0 ".repeat(10_000)
+    ));
+    assert!(e.contains(&MAX_MODEL_TRIANGLES.to_string()), "{e}");
+    // An elevation grid whose dimensions its heights do not fill is skipped.
+    let (_, scene) = load("Shape { geometry ElevationGrid { xDimension 100000 zDimension 100000 height [ 1 2 ] } }");
+    assert!(scene.warnings[0].message.contains("heights"), "{:?}", scene.warnings);
+    assert_eq!(scene.triangles, 0);
+}
+
+#[test]
+fn relative_paths() {
+    assert_eq!(relative_path("a/b%20c.png#x"), Ok(PathBuf::from("a/b c.png")));
+    assert_eq!(relative_path("a/../b.png"), Ok(PathBuf::from("a/../b.png")));
+    assert!(relative_path("../b.png").is_err());
+    assert!(relative_path("/b.png").is_err());
+    assert!(relative_path("http://x/b.png").is_err());
+    assert!(relative_path("C:/b.png").is_err());
+    assert!(relative_path("%zz").is_err());
+}
+
+mod robustness {
+    use super::*;
+    use proptest::prelude::*;
+
+    const SAMPLE: &str = r#"#VRML V2.0 utf8
+PROTO P [ field SFFloat r 1 exposedField SFColor c 1 0 0 ] { Shape { appearance Appearance { material Material { diffuseColor IS c } } geometry Sphere { radius IS r } } }
+DEF T Transform { translation 1 2 3 rotation 0 1 0 0.5 children [
+  Shape { geometry IndexedFaceSet { coord Coordinate { point [ 0 0 0, 1 0 0, 1 1 0, 0 1 0 ] } coordIndex [ 0 1 2 3 -1 0 2 1 ] creaseAngle 1 } }
+  P { r 2 }
+  Switch { whichChoice 0 choice [ Shape { geometry ElevationGrid { xDimension 2 zDimension 2 height [ 0 1 2 3 ] } } ] }
+  Shape { geometry Extrusion { spine [ 0 0 0, 0 1 0, 1 2 0 ] } }
+  SpotLight { location 0 4 0 } Viewpoint { position 0 0 5 }
+] }
+Transform { children USE T }
+ROUTE T.translation_changed TO T.set_translation
+"#;
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
+
+        #[test]
+        fn random_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..512)) {
+            let text = String::from_utf8_lossy(&bytes);
+            let mut rt = Context::new();
+            let _ = build_str(&mut rt, &text, Path::new("random.wrl"));
+        }
+
+        #[test]
+        fn mutated_scenes_never_panic(cuts in proptest::collection::vec((0usize..SAMPLE.len(), 0usize..8, any::<u8>()), 1..6)) {
+            let mut bytes = SAMPLE.as_bytes().to_vec();
+            for (at, len, byte) in cuts {
+                let at = at.min(bytes.len());
+                let end = (at + len).min(bytes.len());
+                bytes.splice(at..end, std::iter::once(byte));
+            }
+            let text = String::from_utf8_lossy(&bytes);
+            let mut rt = Context::new();
+            let _ = build_str(&mut rt, &text, Path::new("mutated.wrl"));
+        }
+    }
+}
