@@ -166,6 +166,14 @@ fn every_library_light_shader_matches_its_reference() {
         ),
         ("ambientlight", "LightSource \"ambientlight\" 1 \"intensity\" [0.6]"),
         (
+            "vrmlpointlight",
+            "LightSource \"vrmlpointlight\" 1 \"intensity\" [.9] \"from\" [2 4 -3] \"linearattenuation\" [.1]",
+        ),
+        (
+            "vrmlspotlight",
+            "LightSource \"vrmlspotlight\" 1 \"from\" [0 5 -1] \"to\" [0 0 0] \"beamwidth\" [.2] \"cutoffangle\" [.45]",
+        ),
+        (
             "arealight",
             "AttributeBegin AreaLightSource \"arealight\" 1 \"intensity\" [12] \
              Translate 0 3.5 0 Rotate 90 1 0 0 Disk 0 1 360 AttributeEnd",
@@ -501,4 +509,63 @@ WorldEnd
         )
     );
     check("subdivision_mesh", &render_rib("subdivision_mesh", &rib)).unwrap_or_else(|e| panic!("{e}"));
+/// A VRML 97 scene: the four primitives, an extrusion and a face set with per-vertex colours,
+/// a PixelTexture repeated by a TextureTransform, a point, a spot and a directional light (one
+/// with an ambient part), a Viewpoint and a Background (`docs/vrml.md`).
+const VRML_SHAPES: &str = r#"#VRML V2.0 utf8
+NavigationInfo { headlight FALSE }
+Background { skyColor 0.15 0.2 0.35 }
+Viewpoint { position 0 1.6 7 orientation 1 0 0 -0.22 fieldOfView 0.7 }
+PointLight { location 3 4 4 intensity 0.8 ambientIntensity 0.25 }
+SpotLight { location -3 5 3 direction 0.5 -1 -0.6 cutOffAngle 0.6 beamWidth 0.35 color 1 0.9 0.7 }
+DirectionalLight { direction 0.2 -1 -0.4 intensity 0.25 }
+DEF Floor Transform { translation 0 -1.1 0 children Shape {
+  appearance Appearance { material Material { diffuseColor 0.7 0.7 0.7 } }
+  geometry Box { size 9 0.2 6 } } }
+Transform { translation -2.4 0 0 children Shape {
+  appearance Appearance { material Material { diffuseColor 0.9 0.2 0.1 specularColor 0.6 0.6 0.6 shininess 0.4 } }
+  geometry Sphere { radius 0.9 } } }
+Transform { translation -0.6 -0.1 0 rotation 0 1 0 0.6 children Shape {
+  appearance Appearance {
+    material Material { }
+    texture PixelTexture { image 2 2 3 0xF0F0F0 0x3050A0 0x3050A0 0xF0F0F0 }
+    textureTransform TextureTransform { scale 6 3 } }
+  geometry Cylinder { radius 0.6 height 1.8 } } }
+Transform { translation 1.1 -0.2 0.2 children Shape {
+  appearance Appearance { material Material { diffuseColor 0.2 0.8 0.3 emissiveColor 0.05 0.1 0.05 } }
+  geometry Cone { bottomRadius 0.7 height 1.6 } } }
+Transform { translation 2.6 -1 -0.5 children Shape {
+  appearance Appearance { material Material { diffuseColor 0.9 0.7 0.2 specularColor 0.3 0.3 0.3 } }
+  geometry Extrusion {
+    crossSection [ 0.3 0, 0.21 0.21, 0 0.3, -0.21 0.21, -0.3 0, -0.21 -0.21, 0 -0.3, 0.21 -0.21, 0.3 0 ]
+    spine [ 0 0 0, 0 0.6 0, 0.3 1.2 0, 0.9 1.5 0 ]
+    scale [ 1 1, 0.9 0.9, 0.7 0.7, 0.5 0.5 ]
+    creaseAngle 1.6 } } }
+Transform { translation 0 -0.99 2 children Shape {
+  geometry IndexedFaceSet {
+    coord Coordinate { point [ -1 0 0, 0 0 -0.8, 1 0 0, 0.3 0 0.2, 0 0 0.9, -0.3 0 0.2 ] }
+    coordIndex [ 0 5 4 3 2 1 -1 ]
+    color Color { color [ 1 0 0, 1 1 0, 0 1 0, 0 1 1, 0 0 1, 1 0 1 ] } } } }
+"#;
+
+#[test]
+fn vrml_shapes_match_their_reference() {
+    let mut rt = Context::new();
+    let file = golden_dir().join("vrml_shapes.wrl");
+    let scene = rtsl_runtime::vrml::build_str(&mut rt, VRML_SHAPES, &file).unwrap_or_else(|e| panic!("{e}"));
+    let omitted: Vec<String> = scene
+        .warnings
+        .iter()
+        .filter(|w| w.severity != rtsl_runtime::rib::Severity::Warning)
+        .map(|w| w.to_string())
+        .collect();
+    assert!(omitted.is_empty(), "{omitted:?}");
+    rt.options.width = W;
+    rt.options.height = H;
+    rt.options.samples = (2, 2);
+    let world = rt.build_world().unwrap_or_else(|e| panic!("{e}"));
+    let (fb, _) = render_frame(&world, None);
+    let warnings = world.textures.take_warnings();
+    assert!(warnings.is_empty(), "{warnings:?}");
+    check("vrml_shapes", &fb.rgba).unwrap_or_else(|e| panic!("{e}"));
 }
