@@ -756,6 +756,20 @@ impl Builder<'_> {
             }
         };
         let Some((id, (lo, hi))) = object else { return Ok(()) };
+        // A matrix without an inverse (a scale of 0, which files use to hide shapes) places nothing
+        // the tracer can take.
+        let det = world.matrix3.determinant();
+        if !(world.is_finite() && det != 0.0 && det.is_finite() && world.inverse().is_finite()) {
+            let loc = self.loc_of(r);
+            self.warn_once(
+                format!("singular:{}:{}:{}", r.doc, loc.line, loc.column),
+                r.doc,
+                loc,
+                Severity::Warning,
+                "this Shape's Transforms scale it to nothing (or to infinity); it is not drawn",
+            );
+            return Ok(());
+        }
         self.rt.push_matrix();
         self.rt.load_matrix(world);
         let instance = self.rt.instantiate_object(id);
@@ -777,11 +791,7 @@ impl Builder<'_> {
 
     /// The object of `geometry` drawn with `appearance`, with its own bounds; `None` when there is
     /// nothing to draw.
-    fn make_object(
-        &mut self,
-        geometry: NodeRef,
-        appearance: Option<NodeRef>,
-    ) -> Result<Option<Made>> {
+    fn make_object(&mut self, geometry: NodeRef, appearance: Option<NodeRef>) -> Result<Option<Made>> {
         let Some(mesh) = self.geometry(geometry)? else { return Ok(None) };
         if let Some(a) = appearance {
             self.check_fields(a);

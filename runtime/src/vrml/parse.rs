@@ -483,13 +483,15 @@ impl Parser<'_> {
                 Tok::Ident(k) if matches!(k.as_str(), "field" | "exposedField" | "eventIn" | "eventOut") => {
                     interface.push(self.declaration(&k, t.loc, depth, true)?);
                 }
-                other => return Err(ParseError {
-                    loc: t.loc,
-                    message: format!(
+                other => {
+                    return Err(ParseError {
+                        loc: t.loc,
+                        message: format!(
                         "expected field, exposedField, eventIn, eventOut or `]` in PROTO {name}'s interface, found {}",
                         describe(&other)
                     ),
-                }),
+                    })
+                }
             }
         }
         self.expect(Tok::LBrace, "`{` and the PROTO's body")?;

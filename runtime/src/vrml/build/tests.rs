@@ -45,6 +45,14 @@ fn a_transformed_box_has_its_world_bounds() {
         load("Transform { scaleOrientation 0 0 1 0.7853982 scale 2 1 1 children Shape { geometry Box {} } }");
     let (lo, hi) = scene.bounds;
     assert!(hi.x > 1.5 && hi.y > 1.5 && lo.z < -0.99 && hi.z < 1.01, "{lo} {hi}");
+    // A scale of 0 hides a shape: nothing is placed, and the scene still renders.
+    let (mut rt, scene) =
+        load("Transform { scale 0 1 1 children Shape { geometry Box {} } } Shape { geometry Sphere {} }");
+    assert_eq!(scene.shapes.len(), 1);
+    assert!(scene.warnings[0].message.contains("scale it to nothing"), "{:?}", scene.warnings);
+    rt.options.width = 4;
+    rt.options.height = 4;
+    rt.render_frame().expect("renders");
 }
 
 #[test]
@@ -300,6 +308,15 @@ fn bounds_on_what_the_graph_makes() {
     }
     let e = load_err(&text);
     assert!(e.contains(&VRML_TRAVERSAL_BUDGET.to_string()), "{e}");
+    // Nesting to the limit loads (on a test thread's small stack); past it is an error.
+    let nest = |levels: usize| {
+        "Transform { translation 0 1 0 children [ ".repeat(levels)
+            + "Shape { geometry Box {} }"
+            + &" ] }".repeat(levels)
+    };
+    let (_, scene) = load(&nest(MAX_VRML_NESTING - 2));
+    assert!(close(scene.bounds.1, Vec3::new(1.0, MAX_VRML_NESTING as f32 - 1.0, 1.0)), "{}", scene.bounds.1);
+    assert!(load_err(&nest(MAX_VRML_NESTING)).contains("nest deeper"));
     // A short extrusion that asks for too many triangles.
     let e = load_err(&format!(
         "Shape {{ geometry Extrusion {{ spine [ {} ] crossSection [ {} ] }} }}",
