@@ -40,9 +40,9 @@ pub enum SceneFileError {
     TooLarge { at: String, message: String },
     #[error("{path}: {message}")]
     InvalidGltf { path: PathBuf, message: String },
-    /// A VRML file that could not be read, with its file, line and column.
-    #[error(transparent)]
-    Vrml(#[from] crate::vrml::VrmlError),
+    /// A VRML file that could not be read, with its file, line and column (`crate::vrml`).
+    #[error("{loc}: {message}")]
+    Vrml { loc: crate::rib::Location, message: String },
     #[error("{path}: unknown scene file type (expected .rib, .obj, .ply, .gltf, .glb or .wrl)")]
     UnknownType { path: PathBuf },
     #[error("{path}: {message}")]

@@ -12,7 +12,7 @@ use super::nodes::{knows_field, node_type, Support};
 use super::parse::{Document, Value};
 use super::{
     check_header, location, read_text, Loc, NodeRef, Placed, Viewpoint, VrmlError, VrmlScene, MAX_INLINE_DEPTH,
-    MAX_PROTO_DEPTH, MAX_VRML_NESTING, VRML_TRAVERSAL_BUDGET,
+    MAX_PROTO_DEPTH, MAX_VRML_NESTING, VRML_EAR_CLIP_BUDGET, VRML_TRAVERSAL_BUDGET,
 };
 use crate::api::{Context, ObjectId, ShaderId};
 use crate::geometry::Mesh;
@@ -51,6 +51,7 @@ pub fn build_str(rt: &mut Context, text: &str, path: &Path) -> Result<VrmlScene>
         background_bound: false,
         fog_bound: false,
         pixel_textures: 0,
+        ear_clip_budget: VRML_EAR_CLIP_BUDGET,
     };
     let doc = b.add_document(path, text)?;
     let main_canonical = b.canonical[doc].clone();
@@ -103,6 +104,8 @@ struct Builder<'a> {
     background_bound: bool,
     fog_bound: bool,
     pixel_textures: usize,
+    /// What is left of [`VRML_EAR_CLIP_BUDGET`].
+    ear_clip_budget: usize,
 }
 
 type Result<T> = std::result::Result<T, SceneFileError>;
@@ -124,7 +127,7 @@ impl Builder<'_> {
     }
 
     fn error(&self, doc: usize, loc: Loc, message: impl Into<String>) -> SceneFileError {
-        SceneFileError::Vrml(VrmlError::at(&self.files[doc], loc, message))
+        VrmlError::at(&self.files[doc], loc, message).into()
     }
 
     /// Parses `text` as the document of `path` and adds it.
@@ -134,7 +137,7 @@ impl Builder<'_> {
             self.scene.warnings.push(w);
         }
         let doc =
-            super::parse::parse(text).map_err(|e| SceneFileError::Vrml(VrmlError::at(&file, e.loc, e.message)))?;
+            super::parse::parse(text).map_err(|e| SceneFileError::from(VrmlError::at(&file, e.loc, e.message)))?;
         for (loc, message) in &doc.warnings {
             self.scene.warnings.push(RibDiagnostic::warning(&location(&file, *loc), message.clone()));
         }
@@ -1179,24 +1182,27 @@ impl Builder<'_> {
         let crease_angle = self.float(g, "creaseAngle", 0.0);
         let normal_per_vertex = self.boolean(g, "normalPerVertex", true);
         let color_per_vertex = self.boolean(g, "colorPerVertex", true);
-        let made = mesh::face_set(&FaceSet {
-            points: &points,
-            coord_index: &coord_index,
-            ccw,
-            crease_angle,
-            normals: normals.as_deref().map(|values| Indexed {
-                values,
-                index: &normal_index,
-                per_vertex: normal_per_vertex,
-            }),
-            colors: colors.as_deref().map(|values| Indexed {
-                values,
-                index: &color_index,
-                per_vertex: color_per_vertex,
-            }),
-            tex_coords: tex.as_deref().map(|values| (values, &tex_index[..])),
-            default_tex_coords: true,
-        });
+        let made = mesh::face_set(
+            &FaceSet {
+                points: &points,
+                coord_index: &coord_index,
+                ccw,
+                crease_angle,
+                normals: normals.as_deref().map(|values| Indexed {
+                    values,
+                    index: &normal_index,
+                    per_vertex: normal_per_vertex,
+                }),
+                colors: colors.as_deref().map(|values| Indexed {
+                    values,
+                    index: &color_index,
+                    per_vertex: color_per_vertex,
+                }),
+                tex_coords: tex.as_deref().map(|values| (values, &tex_index[..])),
+                default_tex_coords: true,
+            },
+            &mut self.ear_clip_budget,
+        );
         self.problems(g, made.problems);
         Ok(made.mesh)
     }
@@ -1231,7 +1237,7 @@ impl Builder<'_> {
             normals: normals.as_deref().map(|n| (n, self.boolean(g, "normalPerVertex", true))),
             tex_coords: tex.as_deref(),
         };
-        let made = mesh::elevation_grid(&grid);
+        let made = mesh::elevation_grid(&grid, &mut self.ear_clip_budget);
         self.problems(g, made.problems);
         Ok(Some(made.mesh))
     }
@@ -1263,7 +1269,6 @@ impl Builder<'_> {
             self.problems(g, vec!["its spine has a number that is not finite; it is skipped".into()]);
             return Ok(None);
         }
-        self.count_triangles(g, 0)?;
         let most = mesh::extrusion_triangles(spine.len(), section.len());
         if most > MAX_MODEL_TRIANGLES.saturating_sub(self.scene.triangles) {
             return self.count_triangles(g, most).map(|_| None);
@@ -1280,7 +1285,7 @@ impl Builder<'_> {
             ccw: self.boolean(g, "ccw", true),
             crease_angle: self.float(g, "creaseAngle", 0.0),
         };
-        let made = mesh::extrusion(&e);
+        let made = mesh::extrusion(&e, &mut self.ear_clip_budget);
         self.problems(g, made.problems);
         Ok(Some(made.mesh))
     }
@@ -1333,7 +1338,8 @@ fn to_rtsl_uvs(mut m: Mesh) -> Mesh {
 /// scheme, an absolute path, or one that climbs out of the folder with `..`. A fragment (`#...`)
 /// is dropped, `%XX` escapes decoded.
 pub fn relative_path(url: &str) -> std::result::Result<PathBuf, &'static str> {
-    let url = url.split('#').next().unwrap_or("");
+    let url = url.split('#').next().unwrap_or("").replace('\\', "/");
+    let url = url.as_str();
     if url.is_empty() {
         return Err("is empty");
     }

@@ -90,8 +90,9 @@ pub fn default_tex_coords(points: &[Vec3]) -> Vec<Vec2> {
 /// angle, or none for flat faces), colours (`Cs`) and texture coordinates per vertex. Vertices are
 /// shared between faces wherever all of their values agree. Faces with fewer than three vertices
 /// or an index out of range are left out; an attribute whose indices do not fit is ignored; each is
-/// a problem reported.
-pub fn face_set(input: &FaceSet) -> Made {
+/// a problem reported. Ear clipping a face of `n` vertices costs `n * n` of `budget` (about what it
+/// takes); faces past the budget are fanned from their first vertex, a problem reported.
+pub fn face_set(input: &FaceSet, budget: &mut usize) -> Made {
     let mut problems = Vec::new();
     let points = input.points;
     // Faces: (face number, the positions k in coord_index of its corners).
@@ -190,7 +191,7 @@ pub fn face_set(input: &FaceSet) -> Made {
     let mut mesh_colors = Vec::new();
     let mut mesh_uvs = Vec::new();
     let mut vertices: HashMap<(u32, [u32; 3], u32, u32), u32> = HashMap::new();
-    let mut fanned = 0usize;
+    let (mut fanned, mut over_budget) = (0usize, 0usize);
     let mut local = Vec::new();
     let mut ids = Vec::new();
     let mut triangles = Vec::new();
@@ -245,8 +246,17 @@ pub fn face_set(input: &FaceSet) -> Made {
         local.extend(corners.iter().map(|&k| position(k)));
         triangles.clear();
         let outline: Vec<u32> = (0..corners.len() as u32).collect();
-        if !triangulate_polygon(&[outline], &local, &mut triangles) {
-            fanned += 1;
+        let cost = if corners.len() > 3 { corners.len().saturating_mul(corners.len()) } else { 0 };
+        if cost > *budget {
+            over_budget += 1;
+            for k in 1..outline.len() - 1 {
+                triangles.push([0, k as u32, k as u32 + 1]);
+            }
+        } else {
+            *budget -= cost;
+            if !triangulate_polygon(&[outline], &local, &mut triangles) {
+                fanned += 1;
+            }
         }
         for t in &triangles {
             let [a, b, c] = t.map(|i| ids[i as usize]);
@@ -255,6 +265,12 @@ pub fn face_set(input: &FaceSet) -> Made {
             }
             mesh.triangles.push(if input.ccw { [a, b, c] } else { [a, c, b] });
         }
+    }
+    if over_budget > 0 {
+        problems.push(format!(
+            "{over_budget} face(s) cut into a fan from their first vertex: the scene's ear-clipping budget ({}) is spent",
+            super::VRML_EAR_CLIP_BUDGET
+        ));
     }
     if fanned > 0 {
         problems.push(format!(
@@ -292,7 +308,7 @@ pub struct Grid<'a> {
 
 /// An ElevationGrid: a face set of quads between its points, `x` then `z`, the heights in `y`.
 /// The caller checks that `height` has `x_dimension * z_dimension` values.
-pub fn elevation_grid<'a>(g: &Grid<'a>) -> Made {
+pub fn elevation_grid<'a>(g: &Grid<'a>, budget: &mut usize) -> Made {
     let (nx, nz) = (g.x_dimension, g.z_dimension);
     let mut points = Vec::with_capacity(nx * nz);
     let mut uvs = Vec::with_capacity(nx * nz);
@@ -313,16 +329,19 @@ pub fn elevation_grid<'a>(g: &Grid<'a>) -> Made {
         }
     }
     let indexed = |(values, per_vertex): (&'a [Vec3], bool)| Indexed { values, index: &[], per_vertex };
-    face_set(&FaceSet {
-        points: &points,
-        coord_index: &index,
-        ccw: g.ccw,
-        crease_angle: g.crease_angle,
-        normals: g.normals.map(indexed),
-        colors: g.colors.map(indexed),
-        tex_coords: Some((g.tex_coords.unwrap_or(&uvs), &[])),
-        default_tex_coords: false,
-    })
+    face_set(
+        &FaceSet {
+            points: &points,
+            coord_index: &index,
+            ccw: g.ccw,
+            crease_angle: g.crease_angle,
+            normals: g.normals.map(indexed),
+            colors: g.colors.map(indexed),
+            tex_coords: Some((g.tex_coords.unwrap_or(&uvs), &[])),
+            default_tex_coords: false,
+        },
+        budget,
+    )
 }
 
 /// An Extrusion's fields.
@@ -403,7 +422,7 @@ fn spine_frames(spine: &[Vec3]) -> Vec<[Vec3; 3]> {
 
 /// An Extrusion as a face set: the cross-section scaled, rotated and placed at every spine point,
 /// joined by quads, and the caps.
-pub fn extrusion(e: &Extrusion) -> Made {
+pub fn extrusion(e: &Extrusion, budget: &mut usize) -> Made {
     let (n, m) = (e.spine.len(), e.cross_section.len());
     if n < 2 || m < 2 {
         return Made {
@@ -492,16 +511,19 @@ pub fn extrusion(e: &Extrusion) -> Made {
     if e.end_cap && cap_count >= 3 {
         cap(n - 1, false, &mut index, &mut uv_index);
     }
-    face_set(&FaceSet {
-        points: &points,
-        coord_index: &index,
-        ccw: e.ccw,
-        crease_angle: e.crease_angle,
-        normals: None,
-        colors: None,
-        tex_coords: Some((&uvs, &uv_index)),
-        default_tex_coords: false,
-    })
+    face_set(
+        &FaceSet {
+            points: &points,
+            coord_index: &index,
+            ccw: e.ccw,
+            crease_angle: e.crease_angle,
+            normals: None,
+            colors: None,
+            tex_coords: Some((&uvs, &uv_index)),
+            default_tex_coords: false,
+        },
+        budget,
+    )
 }
 
 /// A mesh from per-vertex arrays.
@@ -665,6 +687,14 @@ pub fn cone(bottom_radius: f32, height: f32, side: bool, bottom: bool) -> Mesh {
 mod tests {
     use super::*;
 
+    fn fs(input: &FaceSet) -> Made {
+        face_set(input, &mut usize::MAX)
+    }
+
+    fn ext(input: &Extrusion) -> Made {
+        extrusion(input, &mut usize::MAX)
+    }
+
     /// The signed volume a closed mesh encloses: positive when its triangles face out.
     fn outward(mesh: &Mesh) -> f32 {
         let mut flux = 0.0;
@@ -712,7 +742,7 @@ mod tests {
             Vec3::new(5.0, 0.0, 0.0),
         ];
         let index = [0, 1, 2, 3, 4, 5, -1, 1, 6, 2, -1];
-        let made = face_set(&FaceSet { points: &points, coord_index: &index, ccw: true, ..FaceSet::default() });
+        let made = fs(&FaceSet { points: &points, coord_index: &index, ccw: true, ..FaceSet::default() });
         assert!(made.problems.is_empty(), "{:?}", made.problems);
         let m = made.mesh;
         assert_eq!(m.triangle_count(), 4 + 1);
@@ -727,8 +757,7 @@ mod tests {
         assert!((area - 4.5).abs() < 1e-5, "{area}");
         assert!(m.normals.is_none(), "flat faces need no normals");
         // ccw FALSE turns the triangles around.
-        let flipped =
-            face_set(&FaceSet { points: &points, coord_index: &index, ccw: false, ..FaceSet::default() }).mesh;
+        let flipped = fs(&FaceSet { points: &points, coord_index: &index, ccw: false, ..FaceSet::default() }).mesh;
         let [a, b, c] = flipped.corners(0);
         assert!((b - a).cross(c - a).z < 0.0);
     }
@@ -736,7 +765,7 @@ mod tests {
     #[test]
     fn bad_indices_are_problems_not_panics() {
         let points = [Vec3::ZERO, Vec3::X, Vec3::Y];
-        let made = face_set(&FaceSet {
+        let made = fs(&FaceSet {
             points: &points,
             coord_index: &[0, 1, 7, -1, 0, 1, -1, 0, 1, 2],
             ccw: true,
@@ -745,7 +774,7 @@ mod tests {
         assert_eq!(made.mesh.triangle_count(), 1);
         assert_eq!(made.problems.len(), 2, "{:?}", made.problems);
         let colors = [Vec3::ONE];
-        let made = face_set(&FaceSet {
+        let made = fs(&FaceSet {
             points: &points,
             coord_index: &[0, 1, 2],
             ccw: true,
@@ -773,14 +802,9 @@ mod tests {
                 index.extend_from_slice(&[at(i, j), at(i, j + 1), at(i + 1, j + 1), at(i + 1, j), -1]);
             }
         }
-        let smooth = face_set(&FaceSet {
-            points: &points,
-            coord_index: &index,
-            ccw: true,
-            crease_angle: 0.5,
-            ..FaceSet::default()
-        })
-        .mesh;
+        let smooth =
+            fs(&FaceSet { points: &points, coord_index: &index, ccw: true, crease_angle: 0.5, ..FaceSet::default() })
+                .mesh;
         // One vertex a point, each with the mean of the normals around it.
         assert_eq!(smooth.positions.len(), 9);
         let normals = smooth.normals.as_ref().expect("smoothed");
@@ -788,14 +812,9 @@ mod tests {
         assert!(normals[centre].abs_diff_eq(Vec3::Y, 1e-5), "{}", normals[centre]);
         assert!(normals.iter().all(|n| n.y > 0.9));
         // Below the bend's angle the faces keep their own normals: points are split.
-        let creased = face_set(&FaceSet {
-            points: &points,
-            coord_index: &index,
-            ccw: true,
-            crease_angle: 0.05,
-            ..FaceSet::default()
-        })
-        .mesh;
+        let creased =
+            fs(&FaceSet { points: &points, coord_index: &index, ccw: true, crease_angle: 0.05, ..FaceSet::default() })
+                .mesh;
         assert!(creased.positions.len() > 9, "{}", creased.positions.len());
     }
 
@@ -804,7 +823,7 @@ mod tests {
         let points = [Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y];
         let colors = [Vec3::X, Vec3::Y];
         let normals = [Vec3::Z];
-        let made = face_set(&FaceSet {
+        let made = fs(&FaceSet {
             points: &points,
             coord_index: &[0, 1, 2, -1, 0, 2, 3, -1],
             ccw: true,
@@ -833,18 +852,21 @@ mod tests {
     #[test]
     fn grids_and_extrusions() {
         let heights = [0.0; 6];
-        let g = elevation_grid(&Grid {
-            x_dimension: 3,
-            z_dimension: 2,
-            x_spacing: 1.0,
-            z_spacing: 2.0,
-            height: &heights,
-            ccw: true,
-            crease_angle: 0.0,
-            colors: None,
-            normals: None,
-            tex_coords: None,
-        });
+        let g = elevation_grid(
+            &Grid {
+                x_dimension: 3,
+                z_dimension: 2,
+                x_spacing: 1.0,
+                z_spacing: 2.0,
+                height: &heights,
+                ccw: true,
+                crease_angle: 0.0,
+                colors: None,
+                normals: None,
+                tex_coords: None,
+            },
+            &mut usize::MAX,
+        );
         assert_eq!(g.mesh.triangle_count(), 4);
         let [a, b, c] = g.mesh.corners(0);
         assert!((b - a).cross(c - a).y > 0.0, "a grid faces +y");
@@ -856,7 +878,7 @@ mod tests {
             Vec2::new(-1.0, 1.0),
             Vec2::new(1.0, 1.0),
         ];
-        let e = extrusion(&Extrusion {
+        let e = ext(&Extrusion {
             spine: &[Vec3::ZERO, Vec3::Y],
             cross_section: &section,
             scale: &[Vec2::ONE],
@@ -872,7 +894,7 @@ mod tests {
         // Volume 4 (2 x 1 x 2).
         assert!((flux - 4.0).abs() < 1e-4, "{flux}");
         // A bent spine keeps the sections perpendicular to it.
-        let e = extrusion(&Extrusion {
+        let e = ext(&Extrusion {
             spine: &[Vec3::ZERO, Vec3::Y, Vec3::new(1.0, 2.0, 0.0)],
             cross_section: &section,
             scale: &[Vec2::splat(0.1)],

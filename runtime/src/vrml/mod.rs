@@ -14,7 +14,8 @@
 //!   ([`MAX_PROTO_DEPTH`], [`MAX_VRML_NODES`]), Inline nesting ([`MAX_INLINE_DEPTH`]), the walk over
 //!   a graph that `USE` makes exponential ([`VRML_TRAVERSAL_BUDGET`]), the triangles made
 //!   ([`crate::scene_file::MAX_MODEL_TRIANGLES`]) and gzip inflation ([`MAX_INFLATED_VRML`]) are
-//!   bounded; a bound passed is an error naming it;
+//!   bounded, a bound passed is an error naming it; ear clipping is bounded by
+//!   [`VRML_EAR_CLIP_BUDGET`], past which faces are fanned with a warning;
 //! - a node or field the reader does not support is skipped with one warning per node type or field
 //!   name, at its first place (`file:line:column`); a value of the wrong type is a warning and the
 //!   field keeps its default;
@@ -60,6 +61,10 @@ pub const MAX_INLINE_DEPTH: usize = 16;
 /// in a group `USE`d twice ... is visited once per path, so a short file could ask for any amount.
 pub const VRML_TRAVERSAL_BUDGET: usize = 1 << 20;
 
+/// How much ear clipping one scene may do, all faces together, a face of `n` vertices costing
+/// `n * n` (ear clipping is quadratic in the vertices); faces past it are fanned instead.
+pub const VRML_EAR_CLIP_BUDGET: usize = 1 << 28;
+
 /// The most bytes a gzip-compressed VRML file may inflate to.
 pub const MAX_INFLATED_VRML: u64 = 1 << 30;
 
@@ -86,6 +91,12 @@ impl VrmlError {
     /// An error about a file as a whole.
     pub fn file(file: &Path, message: impl Into<String>) -> VrmlError {
         VrmlError { loc: Location { file: Arc::from(file), line: 0, column: 0 }, message: message.into() }
+    }
+}
+
+impl From<VrmlError> for crate::scene_file::SceneFileError {
+    fn from(e: VrmlError) -> Self {
+        crate::scene_file::SceneFileError::Vrml { loc: e.loc, message: e.message }
     }
 }
 
