@@ -688,11 +688,13 @@ mod tests {
     use super::*;
 
     fn fs(input: &FaceSet) -> Made {
-        face_set(input, &mut usize::MAX)
+        let mut budget = usize::MAX;
+        face_set(input, &mut budget)
     }
 
     fn ext(input: &Extrusion) -> Made {
-        extrusion(input, &mut usize::MAX)
+        let mut budget = usize::MAX;
+        extrusion(input, &mut budget)
     }
 
     /// The signed volume a closed mesh encloses: positive when its triangles face out.
@@ -756,6 +758,12 @@ mod tests {
         // The L is 3 units, the triangle 1.5: fanning the L from its first vertex would cover 4.
         assert!((area - 4.5).abs() < 1e-5, "{area}");
         assert!(m.normals.is_none(), "flat faces need no normals");
+        // Past the ear-clipping budget faces are fanned: the L's fan covers its notch.
+        let mut budget = 35;
+        let fanned =
+            face_set(&FaceSet { points: &points, coord_index: &index, ccw: true, ..FaceSet::default() }, &mut budget);
+        assert!(fanned.problems[0].contains("budget"), "{:?}", fanned.problems);
+        assert_eq!(budget, 35, "nothing was spent: the L costs 36");
         // ccw FALSE turns the triangles around.
         let flipped = fs(&FaceSet { points: &points, coord_index: &index, ccw: false, ..FaceSet::default() }).mesh;
         let [a, b, c] = flipped.corners(0);
@@ -865,7 +873,7 @@ mod tests {
                 normals: None,
                 tex_coords: None,
             },
-            &mut usize::MAX,
+            &mut 1000,
         );
         assert_eq!(g.mesh.triangle_count(), 4);
         let [a, b, c] = g.mesh.corners(0);
