@@ -509,6 +509,8 @@ WorldEnd
         )
     );
     check("subdivision_mesh", &render_rib("subdivision_mesh", &rib)).unwrap_or_else(|e| panic!("{e}"));
+}
+
 /// A VRML 97 scene: the four primitives, an extrusion and a face set with per-vertex colours,
 /// a PixelTexture repeated by a TextureTransform, a point, a spot and a directional light (one
 /// with an ambient part), a Viewpoint and a Background (`docs/vrml.md`).
