@@ -32,6 +32,7 @@ use super::decl::{Class, Ty};
 use super::mesh::MeshOptions;
 use super::primitive::{mesh_from_request_with, request_triangles};
 use super::request::{Handle, Param, ParamValue as RibValue, Request, RequestKind};
+use super::view::{Projection, View};
 use super::{parse_file, parse_str, RibDiagnostic, RibParse, Severity, MAX_RIB_TRIANGLES};
 use crate::api::{ApiError, Context, LightId, ObjectId};
 use crate::geometry::Mesh;
@@ -288,6 +289,8 @@ struct Loader<'a> {
     projection_given: bool,
     /// `RelativeDetail`.
     relative_detail: f32,
+    /// Whether the camera projects orthographically (what camera-facing primitives face).
+    orthographic: bool,
     /// Inside `MotionBegin`: how many samples were seen.
     motion: Option<u32>,
     /// Inside `MotionBegin`: the matrices of its transform samples (applied at `MotionEnd`).
@@ -313,6 +316,7 @@ impl<'a> Loader<'a> {
             in_world: false,
             projection_given: false,
             relative_detail: 1.0,
+            orthographic: false,
             motion: None,
             motion_transforms: Vec::new(),
             triangles: 0,
@@ -359,6 +363,24 @@ impl<'a> Loader<'a> {
             });
         }
         Ok(())
+    }
+
+    /// The camera as the geometry request about to be built sees it: the current transform, and the
+    /// camera set at `WorldBegin` with the projection and screen window now in force.
+    fn view(&self) -> View {
+        let camera = self.rt.camera();
+        let world_from_camera = camera.world_from_camera;
+        let half = self.rt.options.screen_extent().half;
+        // The shorter side of the screen window, in screen units (1 by default).
+        let shorter = half.0.abs().min(half.1.abs());
+        let projection = if self.orthographic {
+            let unit = world_from_camera.matrix3.y_axis.length();
+            Projection::Orthographic { forward: world_from_camera.matrix3.z_axis.into(), across: 2.0 * shorter * unit }
+        } else {
+            let tan = (0.5 * camera.fov_degrees.to_radians()).tan();
+            Projection::Perspective { eye: world_from_camera.translation.into(), across: 2.0 * (tan * shorter).atan() }
+        };
+        View { world_from_object: self.rt.current_matrix(), projection }
     }
 
     fn geometry(&mut self, r: &Request, mesh: Mesh) -> Result<(), SceneFileError> {
@@ -464,6 +486,7 @@ impl<'a> Loader<'a> {
             }
             K::Projection(p) => {
                 self.projection_given = true;
+                self.orthographic = p.name == "orthographic";
                 match p.name.as_str() {
                     "perspective" => {
                         let fov = p.params.iter().find(|q| q.name == "fov").and_then(|q| q.floats()?.first().copied());
@@ -505,6 +528,7 @@ impl<'a> Loader<'a> {
                 if !self.projection_given && rt.camera_shader_id().is_none() {
                     let id = rt.find_shader("orthographic")?;
                     rt.camera_shader(Some(id), &[])?;
+                    self.orthographic = true;
                 }
                 // The transform now is world-to-camera.
                 let m = rt.current_matrix();
@@ -612,6 +636,7 @@ impl<'a> Loader<'a> {
             | K::SubdivisionMesh { .. }
             | K::NuPatch { .. }
             | K::Geometry { .. } => {
+                self.state.mesh_options.view = self.view();
                 // Refused before it is tessellated: one patch mesh can ask for more than the limit.
                 self.check_triangles(r, request_triangles(r, &self.state.mesh_options))?;
                 let mut diags = Vec::new();
@@ -678,6 +703,7 @@ impl<'a> Loader<'a> {
                 rt.pixel_shader(Some(id), &params)?;
             }
             K::Camera(s) => {
+                self.orthographic = s.name == "orthographic";
                 let id = rt.find_shader(&s.name)?;
                 let program = rt.program(id)?.clone();
                 let params = typed_params(&program, &s.params, |p| &p.loc, &mut self.out.warnings);

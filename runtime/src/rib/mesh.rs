@@ -24,6 +24,7 @@ use glam::{Vec2, Vec3};
 use super::decl::{Class, Ty};
 use super::request::{find_param, Basis, Param};
 use super::trim::{Trim, TrimSense};
+use super::view::View;
 use crate::geometry::quadric::{Quadric, Tessellation};
 use crate::geometry::{Attribute, Mesh};
 
@@ -55,6 +56,9 @@ pub struct MeshOptions {
     pub trim: Option<Arc<Trim>>,
     /// `Attribute "trimcurve" "sense"`: which side of the trim loops is removed.
     pub trim_sense: TrimSense,
+    /// The camera seen from the request (its transform and the projection): what camera-facing
+    /// primitives face, and how large they look. The loader sets it for each geometry request.
+    pub view: View,
 }
 
 impl Default for MeshOptions {
@@ -68,6 +72,7 @@ impl Default for MeshOptions {
             texture_coordinates: [0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 1.0, 1.0],
             trim: None,
             trim_sense: TrimSense::Inside,
+            view: View::default(),
         }
     }
 }

@@ -35,6 +35,7 @@ pub mod spline;
 pub mod subdiv;
 pub mod teapot;
 pub mod trim;
+pub mod view;
 
 use std::fmt;
 use std::path::{Path, PathBuf};
