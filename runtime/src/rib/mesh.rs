@@ -335,6 +335,28 @@ pub(super) fn route_attributes(mesh: &mut Mesh, attributes: Vec<Attribute>) {
     }
 }
 
+/// [`route_attributes`] for primitives whose uvs are their own `(u, v)` parameters (points and
+/// curves): `st` (or `s` and `t` together) stays a two-float `st` attribute, which shaders read as
+/// `s t` while `u v` stay the parameters; the rest become attributes.
+pub(super) fn route_attributes_keeping_uv(mesh: &mut Mesh, attributes: Vec<Attribute>) {
+    let mut s = None;
+    let mut t = None;
+    for attribute in attributes {
+        match (attribute.name.as_str(), attribute.components) {
+            ("s", 1) => s = Some(attribute),
+            ("t", 1) => t = Some(attribute),
+            _ => mesh.attributes.push(attribute),
+        }
+    }
+    match (s, t) {
+        (Some(s), Some(t)) => {
+            let data = s.data.iter().zip(&t.data).flat_map(|(&s, &t)| [s, t]).collect();
+            mesh.attributes.push(Attribute { name: "st".into(), components: 2, data });
+        }
+        (s, t) => mesh.attributes.extend(s.into_iter().chain(t)),
+    }
+}
+
 fn counts(values: &[i32], min: usize, what: &str) -> Result<Vec<usize>, String> {
     values
         .iter()

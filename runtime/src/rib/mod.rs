@@ -28,6 +28,7 @@ pub mod mesh;
 pub mod nurbs;
 mod parse;
 pub mod patch;
+pub mod points;
 mod primitive;
 pub mod report;
 pub mod request;
@@ -55,11 +56,10 @@ pub use request::{
 pub const MAX_ARCHIVE_DEPTH: usize = 32;
 
 /// The most triangles the geometry requests of one RIB load may make, quadrics, patches, NURBS
-/// patches, subdivision meshes and the teapot counted as tessellated: a line of text can ask for
-/// thousands, and memory runs out long before a file does (`docs/rendering.md`, "Limits"). Meshes
-/// read from OBJ, PLY or glTF files are not counted. Those requests are counted before they are
-/// tessellated
-/// ([`request_triangles`]).
+/// patches, subdivision meshes, the teapot and points counted as tessellated: a line of text can
+/// ask for thousands, and memory runs out long before a file does (`docs/rendering.md`, "Limits").
+/// Meshes read from OBJ, PLY or glTF files are not counted. Those requests are counted before they
+/// are tessellated ([`request_triangles`]).
 pub const MAX_RIB_TRIANGLES: usize = 1 << 24;
 
 /// An error at a place in a RIB file.

@@ -40,7 +40,6 @@ const UNSUPPORTED_REQUESTS: &[&str] = &[
     "IfEnd",
     "MakeBump",
     "MakeCubeFaceEnvironment",
-    "Points",
     "Resource",
     "ResourceBegin",
     "ResourceEnd",
@@ -439,6 +438,7 @@ impl Parser {
                     w: a.numbers("control point w")?,
                 })
             }
+            "Points" => K::Points(self.params(a)),
             "Geometry" => K::Geometry { name: a.string("geometry name")?, params: self.params(a) },
             "Sphere" => {
                 let [radius, zmin, zmax, thetamax] = a.floats("radius zmin zmax thetamax")?;

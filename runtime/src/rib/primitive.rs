@@ -1,13 +1,14 @@
 //! Geometry requests to triangle meshes: which of the builders (`mesh.rs` for polygons and
 //! quadrics, `patch.rs` for patches and patch meshes, `nurbs.rs` for NURBS patches, `subdiv.rs` for
-//! subdivision meshes, `teapot.rs` for `Geometry`) a request goes to, and its warnings and errors as
-//! diagnostics at the request's location.
+//! subdivision meshes, `teapot.rs` for `Geometry`, `points.rs` for points) a request goes to, and
+//! its warnings and errors as diagnostics at the request's location.
 
 use super::mesh::{
     general_polygon_mesh, points_general_polygons_mesh, points_polygons_mesh, polygon_mesh, quadric_mesh, MeshOptions,
 };
 use super::nurbs::{nupatch_mesh, nupatch_triangles};
 use super::patch::{patch_mesh, patch_mesh_triangles};
+use super::points::{points_mesh, points_triangles};
 use super::request::{PatchType, Request, RequestKind, Wrap};
 use super::subdiv::{subdivision_mesh, subdivision_mesh_triangles, SubdivisionInput};
 use super::teapot::{geometry_mesh, geometry_triangles};
@@ -21,10 +22,10 @@ pub fn mesh_from_request(request: &Request, diagnostics: &mut Vec<RibDiagnostic>
     mesh_from_request_with(request, &MeshOptions::default(), diagnostics)
 }
 
-/// At most the triangles [`mesh_from_request_with`] makes of a patch, a NURBS patch, a quadric or
-/// a subdivision mesh or a `Geometry`, worked out without tessellating it (exactly for patches and
-/// subdivision meshes; 0 for other requests, whose triangles their own data bound, and for a
-/// request the builder refuses).
+/// At most the triangles [`mesh_from_request_with`] makes of a patch, a NURBS patch, a quadric, a
+/// subdivision mesh, a `Geometry` or `Points`, worked out without tessellating it (exactly for
+/// patches, subdivision meshes and points; 0 for other requests, whose triangles their own data
+/// bound, and for a request the builder refuses).
 pub fn request_triangles(request: &Request, options: &MeshOptions) -> usize {
     match &request.kind {
         RequestKind::Patch { ty, params } => {
@@ -40,6 +41,7 @@ pub fn request_triangles(request: &Request, options: &MeshOptions) -> usize {
         RequestKind::SubdivisionMesh { .. } => subdivision_input(&request.kind).map_or(0, subdivision_mesh_triangles),
         RequestKind::NuPatch { u, v, params } => nupatch_triangles(u, v, params, options),
         RequestKind::Geometry { name, .. } => geometry_triangles(name, options),
+        RequestKind::Points(params) => points_triangles(params, options),
         _ => 0,
     }
 }
@@ -74,6 +76,7 @@ pub fn mesh_from_request_with(
         },
         RequestKind::NuPatch { u, v, params } => nupatch_mesh(u, v, params, options, &mut warnings),
         RequestKind::Geometry { name, params } => geometry_mesh(name, params, options, &mut warnings),
+        RequestKind::Points(params) => points_mesh(params, options, &mut warnings),
         _ => return None,
     };
     diagnostics.extend(warnings.into_iter().map(|w| RibDiagnostic::warning(&request.loc, w)));

@@ -542,6 +542,8 @@ pub enum RequestKind {
         /// Further data.
         params: Vec<Param>,
     },
+    /// `Points params` (RISpec 3.2, section 5.6): one particle per `P` value.
+    Points(Vec<Param>),
     /// `Sphere`, `Cylinder`, `Cone`, `Disk`, `Torus`, `Paraboloid`, `Hyperboloid`.
     Quadric {
         /// The shape and its parameters.
