@@ -11,9 +11,9 @@
 //! - `TrimCurve` and `Attribute "trimcurve" "sense"` are attribute state, kept with the basis and
 //!   `TextureCoordinates` (`MeshOptions`): they hold for the `NuPatch`es that follow in the block.
 //! - Point-like shader parameters are in the space current at the shader statement.
-//! - `Points` disks without `N` face the camera as it is at `WorldBegin`, seen from the transform
-//!   current at the request (`MeshOptions::view`): a retained object's face the camera from where
-//!   `ObjectBegin` defines them, wherever `ObjectInstance` places them.
+//! - `Points` disks and `Curves` ribbons without `N` face the camera as it is at `WorldBegin`, seen
+//!   from the transform current at the request (`MeshOptions::view`): a retained object's face
+//!   the camera from where `ObjectBegin` defines them, wherever `ObjectInstance` places them.
 //! - Consecutive geometry under one set of attributes becomes one object (one BVH), instanced once;
 //!   `ObjectBegin/End` make a retained object placed by each `ObjectInstance`. The shader of a
 //!   retained object is the one current at `ObjectEnd`; a mesh file read inside the block
@@ -360,8 +360,8 @@ impl<'a> Loader<'a> {
                 at: r.loc.to_string(),
                 message: format!(
                     "the scene's geometry passes {MAX_RIB_TRIANGLES} triangles with this request's {more} \
-                     (quadrics, patches, subdivision meshes and points count as tessellated); rtsl loads \
-                     no more from one RIB file"
+                     (quadrics, patches, subdivision meshes, points and curves count as tessellated); rtsl \
+                     loads no more from one RIB file"
                 ),
             });
         }
@@ -639,7 +639,8 @@ impl<'a> Loader<'a> {
             | K::SubdivisionMesh { .. }
             | K::NuPatch { .. }
             | K::Geometry { .. }
-            | K::Points(_) => {
+            | K::Points(_)
+            | K::Curves { .. } => {
                 self.state.mesh_options.view = self.view();
                 // Refused before it is tessellated: one patch mesh can ask for more than the limit.
                 self.check_triangles(r, request_triangles(r, &self.state.mesh_options))?;
@@ -974,6 +975,7 @@ fn is_geometry(kind: &RequestKind) -> bool {
             | K::NuPatch { .. }
             | K::Geometry { .. }
             | K::Points(_)
+            | K::Curves { .. }
     )
 }
 

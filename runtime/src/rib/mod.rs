@@ -21,6 +21,7 @@
 //!   included;
 //! - every parameter's value count is checked against its declaration (see [`request`]).
 
+pub mod curves;
 pub mod decl;
 pub mod lex;
 pub mod load;
@@ -48,18 +49,18 @@ pub use parse::{INLINE_ARCHIVE_BUDGET, MAX_INFLATED_RIB};
 pub use patch::DEFAULT_PATCH_SEGMENTS;
 pub use primitive::{mesh_from_request, mesh_from_request_with, request_triangles};
 pub use request::{
-    find_param, Basis, Handle, Location, NuDirection, Orientation, Param, ParamValue, PatchType, Request, RequestKind,
-    Shader, TrimCurve, Wrap,
+    find_param, Basis, CurveType, Handle, Location, NuDirection, Orientation, Param, ParamValue, PatchType, Request,
+    RequestKind, Shader, TrimCurve, Wrap,
 };
 
 /// How deeply `ReadArchive` may nest.
 pub const MAX_ARCHIVE_DEPTH: usize = 32;
 
 /// The most triangles the geometry requests of one RIB load may make, quadrics, patches, NURBS
-/// patches, subdivision meshes, the teapot and points counted as tessellated: a line of text can
-/// ask for thousands, and memory runs out long before a file does (`docs/rendering.md`, "Limits").
-/// Meshes read from OBJ, PLY or glTF files are not counted. Those requests are counted before they
-/// are tessellated ([`request_triangles`]).
+/// patches, subdivision meshes, the teapot, points and curves counted as tessellated: a line of
+/// text can ask for thousands, and memory runs out long before a file does (`docs/rendering.md`,
+/// "Limits"). Meshes read from OBJ, PLY or glTF files are not counted. Those requests are counted
+/// before they are tessellated ([`request_triangles`]).
 pub const MAX_RIB_TRIANGLES: usize = 1 << 24;
 
 /// An error at a place in a RIB file.

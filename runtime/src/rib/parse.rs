@@ -12,8 +12,8 @@ use std::sync::Arc;
 use super::decl::{self, Class, Decl, DeclTable, Ty};
 use super::lex::{tokenize, Token, TokenKind};
 use super::request::{
-    Basis, Handle, Location, NuDirection, Orientation, Param, ParamValue, PatchType, Request, RequestKind as K, Shader,
-    TrimCurve, Wrap,
+    Basis, CurveType, Handle, Location, NuDirection, Orientation, Param, ParamValue, PatchType, Request,
+    RequestKind as K, Shader, TrimCurve, Wrap,
 };
 use super::{base_dir, RibDiagnostic, RibParse, MAX_ARCHIVE_DEPTH};
 use crate::geometry::quadric::Quadric;
@@ -33,7 +33,6 @@ const UNSUPPORTED_REQUESTS: &[&str] = &[
     "Blobby",
     "ClippingPlane",
     "ColorSamples",
-    "Curves",
     "Else",
     "ElseIf",
     "IfBegin",
@@ -439,6 +438,12 @@ impl Parser {
                 })
             }
             "Points" => K::Points(self.params(a)),
+            "Curves" => K::Curves {
+                ty: a.curve_type()?,
+                nvertices: a.ints("vertices per curve")?,
+                wrap: a.wrap()?,
+                params: self.params(a),
+            },
             "Geometry" => K::Geometry { name: a.string("geometry name")?, params: self.params(a) },
             "Sphere" => {
                 let [radius, zmin, zmax, thetamax] = a.floats("radius zmin zmax thetamax")?;
@@ -1000,6 +1005,15 @@ impl<'a> Args<'a> {
             "bilinear" => Ok(PatchType::Bilinear),
             "bicubic" => Ok(PatchType::Bicubic),
             other => Err(error(&loc, format!("unknown patch type \"{other}\" (expected \"bilinear\" or \"bicubic\")"))),
+        }
+    }
+
+    fn curve_type(&mut self) -> Result<CurveType> {
+        let (text, loc) = self.string_at("curve type")?;
+        match text.as_str() {
+            "linear" => Ok(CurveType::Linear),
+            "cubic" => Ok(CurveType::Cubic),
+            other => Err(error(&loc, format!("unknown curve type \"{other}\" (expected \"linear\" or \"cubic\")"))),
         }
     }
 

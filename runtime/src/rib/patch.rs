@@ -71,8 +71,18 @@ impl PatchCurve {
         Ok(PatchCurve { order: 4, matrix: [row(0), row(1), row(2), row(3)], step })
     }
 
+    /// Control points per patch (or curve segment): 2 or 4.
+    pub(super) fn order(&self) -> usize {
+        self.order
+    }
+
+    /// Control points from one patch (or curve segment) to the next.
+    pub(super) fn step(&self) -> usize {
+        self.step
+    }
+
     /// The weights of the patch's control points at `t`, and their derivatives.
-    fn weights(&self, t: f32) -> ([f32; 4], [f32; 4]) {
+    pub(super) fn weights(&self, t: f32) -> ([f32; 4], [f32; 4]) {
         if self.order == 2 {
             return ([1.0 - t, t, 0.0, 0.0], [-1.0, 1.0, 0.0, 0.0]);
         }
@@ -89,8 +99,9 @@ impl PatchCurve {
         (w, dw)
     }
 
-    /// Patches along a direction of `n` control points.
-    fn patches(&self, n: usize, wrap: Wrap) -> Option<usize> {
+    /// Patches along a direction of `n` control points (`None` where they do not make whole
+    /// patches).
+    pub(super) fn patches(&self, n: usize, wrap: Wrap) -> Option<usize> {
         match wrap {
             Wrap::Periodic if n >= self.order && n % self.step == 0 => Some(n / self.step),
             Wrap::NonPeriodic if n >= self.order && (n - self.order) % self.step == 0 => {

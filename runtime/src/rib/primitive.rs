@@ -1,8 +1,9 @@
 //! Geometry requests to triangle meshes: which of the builders (`mesh.rs` for polygons and
 //! quadrics, `patch.rs` for patches and patch meshes, `nurbs.rs` for NURBS patches, `subdiv.rs` for
-//! subdivision meshes, `teapot.rs` for `Geometry`, `points.rs` for points) a request goes to, and
-//! its warnings and errors as diagnostics at the request's location.
+//! subdivision meshes, `teapot.rs` for `Geometry`, `points.rs` for points, `curves.rs` for curves)
+//! a request goes to, and its warnings and errors as diagnostics at the request's location.
 
+use super::curves::{curves_mesh, curves_triangles};
 use super::mesh::{
     general_polygon_mesh, points_general_polygons_mesh, points_polygons_mesh, polygon_mesh, quadric_mesh, MeshOptions,
 };
@@ -23,9 +24,9 @@ pub fn mesh_from_request(request: &Request, diagnostics: &mut Vec<RibDiagnostic>
 }
 
 /// At most the triangles [`mesh_from_request_with`] makes of a patch, a NURBS patch, a quadric, a
-/// subdivision mesh, a `Geometry` or `Points`, worked out without tessellating it (exactly for
-/// patches, subdivision meshes and points; 0 for other requests, whose triangles their own data
-/// bound, and for a request the builder refuses).
+/// subdivision mesh, a `Geometry`, `Points` or `Curves`, worked out without tessellating it
+/// (exactly for patches, subdivision meshes, points and curves; 0 for other requests, whose
+/// triangles their own data bound, and for a request the builder refuses).
 pub fn request_triangles(request: &Request, options: &MeshOptions) -> usize {
     match &request.kind {
         RequestKind::Patch { ty, params } => {
@@ -42,6 +43,7 @@ pub fn request_triangles(request: &Request, options: &MeshOptions) -> usize {
         RequestKind::NuPatch { u, v, params } => nupatch_triangles(u, v, params, options),
         RequestKind::Geometry { name, .. } => geometry_triangles(name, options),
         RequestKind::Points(params) => points_triangles(params, options),
+        RequestKind::Curves { ty, nvertices, wrap, params } => curves_triangles(*ty, nvertices, *wrap, params, options),
         _ => 0,
     }
 }
@@ -77,6 +79,9 @@ pub fn mesh_from_request_with(
         RequestKind::NuPatch { u, v, params } => nupatch_mesh(u, v, params, options, &mut warnings),
         RequestKind::Geometry { name, params } => geometry_mesh(name, params, options, &mut warnings),
         RequestKind::Points(params) => points_mesh(params, options, &mut warnings),
+        RequestKind::Curves { ty, nvertices, wrap, params } => {
+            curves_mesh(*ty, nvertices, *wrap, params, options, &mut warnings)
+        }
         _ => return None,
     };
     diagnostics.extend(warnings.into_iter().map(|w| RibDiagnostic::warning(&request.loc, w)));

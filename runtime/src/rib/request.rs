@@ -164,6 +164,15 @@ pub enum Wrap {
     NonPeriodic,
 }
 
+/// How `Curves` interpolate their control points.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CurveType {
+    /// Polylines through the points.
+    Linear,
+    /// Piecewise cubic curves under the current `Basis` (its v basis and step).
+    Cubic,
+}
+
 /// A spline basis, for `Basis`.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Basis {
@@ -544,6 +553,18 @@ pub enum RequestKind {
     },
     /// `Points params` (RISpec 3.2, section 5.6): one particle per `P` value.
     Points(Vec<Param>),
+    /// `Curves type [nvertices] wrap params` (RISpec 3.2, section 5.7): ribbons through control
+    /// points, one curve per `nvertices` entry.
+    Curves {
+        /// Linear or cubic.
+        ty: CurveType,
+        /// Control points per curve.
+        nvertices: Vec<i32>,
+        /// Whether each curve closes on itself.
+        wrap: Wrap,
+        /// Control points, widths and other data.
+        params: Vec<Param>,
+    },
     /// `Sphere`, `Cylinder`, `Cone`, `Disk`, `Torus`, `Paraboloid`, `Hyperboloid`.
     Quadric {
         /// The shape and its parameters.
