@@ -92,6 +92,8 @@ AttributeBegin
   Torus 2 0.5 0 360 360
   Paraboloid 1 0 2 360
   Hyperboloid 1 0 0 0 1 1 360
+  Points "P" [0 0 2 1 0 2] "width" [0.1 0.2] "Cs" [1 0 0 0 1 0] "uniform string type" "disk"
+  Curves "cubic" [4] "nonperiodic" "P" [0 0 2 1 1 2 2 1 2 3 0 2] "width" [0.1 0.05] "N" [0 0 1 0 0 1]
 AttributeEnd
 ObjectBegin 1
   Sphere 0.5 -0.5 0.5 360
@@ -189,6 +191,8 @@ fn every_request_parses() {
         "PatchMesh",
         "SubdivisionMesh",
         "Quadric",
+        "Points",
+        "Curves",
         "AttributeEnd",
         "ObjectBegin",
         "ObjectEnd",
@@ -246,7 +250,7 @@ fn every_request_parses() {
     let mut diagnostics = Vec::new();
     let meshes: Vec<_> = parsed.requests.iter().filter_map(|r| mesh_from_request(r, &mut diagnostics)).collect();
     assert!(diagnostics.is_empty(), "{diagnostics:?}");
-    assert_eq!(meshes.len(), 15);
+    assert_eq!(meshes.len(), 17);
     for mesh in &meshes {
         mesh.validate().unwrap();
         assert!(mesh.triangle_count() > 0);
@@ -493,22 +497,35 @@ fn example_ribs_parse_and_every_mesh_file_they_name_exists() {
 
 /// Parses, then converts every request's geometry: neither may panic.
 fn parse_and_mesh(bytes: &[u8]) {
+    parse_and_mesh_with(bytes, rib::MeshOptions::default());
+}
+
+/// [`parse_and_mesh`] from `options`, which the stream's `TrimCurve`s and `Basis` change as a load
+/// would. Points and curves make the triangles they were counted at.
+fn parse_and_mesh_with(bytes: &[u8], mut options: rib::MeshOptions) {
     let parsed = rib::parse_bytes(bytes, Path::new("fuzz.rib"));
     let mut diagnostics = Vec::new();
-    // Trim curves trim the NuPatches after them, as when a scene loads.
-    let mut options = rib::MeshOptions::default();
     for request in &parsed.requests {
+        // Trim curves trim the NuPatches after them, as when a scene loads.
         if let K::TrimCurve(t) = &request.kind {
             if let Ok(trim) = rib::trim::trim_from_request(t) {
                 options.trim = trim.map(std::sync::Arc::new);
             }
         }
+        if let K::Basis { u, ustep, v, vstep } = &request.kind {
+            (options.u_basis, options.u_step, options.v_basis, options.v_step) = (u.clone(), *ustep, v.clone(), *vstep);
+        }
         // What a load would refuse as too large is not built (the count itself must not panic).
-        if rib::request_triangles(request, &options) > 100_000 {
+        let counted = rib::request_triangles(request, &options);
+        if counted > 100_000 {
             continue;
         }
-        if let Some(mesh) = mesh_from_request_with(request, &options, &mut diagnostics) {
+        let mesh = mesh_from_request_with(request, &options, &mut diagnostics);
+        if let Some(mesh) = &mesh {
             assert!(mesh.validate().is_ok());
+        }
+        if matches!(request.kind, K::Points(_) | K::Curves { .. }) {
+            assert_eq!(counted, mesh.map_or(0, |m| m.triangle_count()), "{:?}", request.kind);
         }
     }
     for d in parsed.diagnostics.iter().chain(&diagnostics) {
@@ -539,6 +556,9 @@ proptest! {
         (-3i32..8).prop_map(|n| n.to_string()), (-1_000_000i32..1_000_000).prop_map(|k| (k as f32 / 1e3).to_string()),
         Just("1e38".to_string()), Just("-0".to_string()), Just("NaN".to_string()),
         Just("NuPatch".to_string()), Just("TrimCurve".to_string()), Just("Geometry \"teapot\"".to_string()),
+        Just("Points".to_string()), Just("Curves".to_string()), Just("\"linear\"".to_string()),
+        Just("\"cubic\"".to_string()), Just("\"nonperiodic\"".to_string()), Just("\"width\"".to_string()),
+        Just("\"constantwidth\"".to_string()), Just("\"uniform string type\" \"sphere\"".to_string()),
     ], 0..60)) {
         parse_and_mesh(tokens.join(" ").as_bytes());
     }
@@ -594,6 +614,68 @@ proptest! {
             join(take((2 + nu - uorder).max(1) * (2 + nv - vorder).max(1))),
         );
         parse_and_mesh(text.as_bytes());
+    }
+
+    /// Points and curves of random types, wraps, bases, counts (right or a little off), widths of
+    /// every class and sign, normals and colours, seen from random cameras through random
+    /// transforms: built at the count they were counted at, or refused, never a panic.
+    #[test]
+    fn random_points_and_curves_never_panic(
+        shape in (any::<bool>(), any::<bool>(), 0usize..5, 1i32..5),
+        nvertices in proptest::collection::vec(-1i32..9, 0..5),
+        off in (-1i32..2, 0usize..4, 0usize..4, 0usize..3),
+        numbers in proptest::collection::vec(-3.0f32..3.0, 96),
+        view in (any::<bool>(), -4.0f32..4.0, -4.0f32..4.0, proptest::collection::vec(-2.0f32..2.0, 9)),
+    ) {
+        let (cubic, periodic, basis, step) = shape;
+        let (p_off, width_class, normal_class, colour_class) = off;
+        let basis = ["bezier", "b-spline", "catmull-rom", "hermite", "power"][basis];
+        let list = |n: usize, from: usize| {
+            (0..n).map(|k| numbers[(from + k) % numbers.len()].to_string()).collect::<Vec<_>>().join(" ")
+        };
+        let total: i32 = nvertices.iter().map(|n| (*n).max(0)).sum();
+        let points = (total + p_off).max(0) as usize;
+        // Rough counts of each class: right for linear nonperiodic curves, near for the rest.
+        let class_count = |class: usize| match class {
+            0 => (1, "constant"),
+            1 => (nvertices.len(), "uniform"),
+            2 => (points, "vertex"),
+            _ => (points.saturating_sub(1), "varying"),
+        };
+        let (wn, wc) = class_count(width_class);
+        let (nn, nc) = class_count(normal_class);
+        let (cn, cc) = class_count(colour_class);
+        let counts = nvertices.iter().map(ToString::to_string).collect::<Vec<_>>().join(" ");
+        let text = format!(
+            "Basis \"{basis}\" {step} \"{basis}\" {step}\n\
+             Curves \"{}\" [{counts}] \"{}\" \"P\" [{}] \"{wc} float width\" [{}] \"{nc} normal N\" [{}] \"{cc} color Cs\" [{}]\n\
+             Points \"P\" [{}] \"{wc} float width\" [{}] \"{nc} normal N\" [{}] \"uniform string type\" \"{}\"\n",
+            if cubic { "cubic" } else { "linear" },
+            if periodic { "periodic" } else { "nonperiodic" },
+            list(3 * points, 0),
+            list(wn.max(1), 5),
+            list(3 * nn.max(1), 11),
+            list(3 * cn.max(1), 17),
+            list(3 * points, 23),
+            list(wn.max(1), 29),
+            list(3 * nn.max(1), 31),
+            if periodic { "sphere" } else { "disk" },
+        );
+        let (orthographic, x, y, m) = view;
+        let transform = glam::Affine3A::from_mat3_translation(
+            glam::Mat3::from_cols_slice(&m),
+            glam::Vec3::new(x, y, 1.0),
+        );
+        let projection = if orthographic {
+            rib::view::Projection::Orthographic { forward: glam::Vec3::new(x, 1.0, y), across: 2.0 }
+        } else {
+            rib::view::Projection::Perspective { eye: glam::Vec3::new(y, x, -3.0), across: 0.7 }
+        };
+        let options = rib::MeshOptions {
+            view: rib::view::View { world_from_object: transform, projection },
+            ..rib::MeshOptions::default()
+        };
+        parse_and_mesh_with(text.as_bytes(), options);
     }
 
     #[test]
@@ -943,4 +1025,49 @@ fn delayed_read_archive_reads_the_archive_and_programs_are_refused() {
     assert!(messages[0].contains("main.rib:3:1: warning: `Procedural \"RunProgram\"` runs code"), "{messages:?}");
     assert!(messages[1].contains("main.rib:4:1: error: unknown procedural \"Other\""), "{messages:?}");
     assert_eq!(parsed.diagnostics[0].severity, Severity::Omission);
+}
+
+/// Loaded through a camera, disks face the eye and ribbons its side of them, in world space, under
+/// a perspective, an orthographic and RenderMan's default (orthographic) projection, and through
+/// a rotation and a non-uniform scale.
+#[test]
+fn loaded_points_and_curves_face_the_camera() {
+    use rtsl_runtime::api::Context;
+    let geometry = [
+        r#"Points "P" [0 0 0  1 1 0  -1 0 1  0.5 -0.5 -1] "constantwidth" 0.3"#,
+        r#"Curves "cubic" [4] "nonperiodic" "P" [0 0 0  0.5 1 0  1 1 0.5  1.5 0 1] "constantwidth" 0.1"#,
+    ];
+    for projection in [r#"Projection "perspective" "fov" [40]"#, r#"Projection "orthographic""#, ""] {
+        for (k, primitive) in geometry.iter().enumerate() {
+            let text = format!(
+                "Format 64 48 1\n{projection}\nRotate -30 1 0 0\nTranslate 0 -1 8\nWorldBegin\n\
+                 Translate 1 0.5 0\nRotate 40 0 1 0\nScale 1 2 1\n{primitive}\nWorldEnd\n"
+            );
+            let mut rt = Context::new();
+            let loaded = rtsl_runtime::rib::load::load_str(&mut rt, &text, "facing.rib").expect("loads");
+            assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+            let world = rt.build_world().expect("a world");
+            let camera = world.camera.world_from_camera;
+            let mut faced = 0;
+            for inst in &world.instances {
+                let mesh = world.scene.mesh(rtsl_runtime::ObjectId(inst.object)).expect("a mesh");
+                for t in 0..mesh.triangle_count() {
+                    let [a, b, c] = mesh.corners(t).map(|p| inst.world_from_object.transform_point3(p));
+                    let Some(n) = (b - a).cross(c - a).try_normalize() else { continue };
+                    // A disk's triangles fan out from its centre, their first corner.
+                    let from = if k == 0 { a } else { (a + b + c) / 3.0 };
+                    let towards = if projection.contains("perspective") {
+                        glam::Vec3::from(camera.translation) - from
+                    } else {
+                        -glam::Vec3::from(camera.matrix3.z_axis)
+                    };
+                    let cosine = n.dot(towards.normalize());
+                    // A disk exactly; a ribbon turns only about its curve.
+                    assert!(if k == 0 { cosine > 0.9999 } else { cosine > 0.2 }, "{projection} {primitive}: {cosine}");
+                    faced += 1;
+                }
+            }
+            assert!(faced > 0, "{projection} {primitive}");
+        }
+    }
 }
