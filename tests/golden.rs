@@ -571,3 +571,80 @@ fn vrml_shapes_match_their_reference() {
     assert!(warnings.is_empty(), "{warnings:?}");
     check("vrml_shapes", &fb.rgba).unwrap_or_else(|e| panic!("{e}"));
 }
+
+/// Points and curves (RISpec 3.2, sections 5.6 and 5.7): an arc of coloured disks facing the
+/// camera above a row of sphere points, a tuft of tapering cubic B-spline hairs shaded from root to
+/// tip, and a flat Bezier ribbon lying on the floor (oriented by `N`).
+#[test]
+fn points_and_curves_match_their_reference() {
+    let list = |xs: &[f64]| xs.iter().map(|x| format!("{x:.3}")).collect::<Vec<_>>().join(" ");
+    // The disks: twelve along an arc, growing, hue turning from red through green to blue.
+    let (mut disks, mut disk_widths, mut disk_colours) = (Vec::new(), Vec::new(), Vec::new());
+    for k in 0..12 {
+        let f = f64::from(k) / 11.0;
+        let a = std::f64::consts::PI * (0.15 + 0.7 * f);
+        disks.extend([0.8 + 1.0 * a.cos(), 0.45 + 0.8 * a.sin(), 0.4]);
+        disk_widths.push(0.1 + 0.12 * f);
+        disk_colours.extend([(1.0 - 2.0 * f).max(0.0), 1.0 - (2.0 * f - 1.0).abs(), (2.0 * f - 1.0).max(0.0)]);
+    }
+    // The hairs: 40 around a small circle, 6 B-spline control points each (3 segments, so 4
+    // varying widths and colours), rising and bending outwards.
+    let (mut hairs, mut hair_widths, mut hair_colours) = (Vec::new(), Vec::new(), Vec::new());
+    let n = 40;
+    for i in 0..n {
+        let a = std::f64::consts::TAU * f64::from(i) / f64::from(n) + 0.3 * (f64::from(i) * 2.7).sin();
+        let r0 = 0.12 + 0.05 * (f64::from(i) * 1.3).cos();
+        let height = 1.0 + 0.25 * (f64::from(i) * 0.9).sin();
+        for k in 0..6 {
+            let s = f64::from(k) / 5.0;
+            let r = r0 + 0.55 * s * s;
+            hairs.extend([-1.3 + r * a.cos(), height * (s - 0.08), 0.2 + r * a.sin()]);
+        }
+        hair_widths.extend([0.035, 0.025, 0.014, 0.004]);
+        for s in [0.0, 0.33, 0.67, 1.0] {
+            hair_colours.extend([0.25 + 0.7 * s, 0.12 + 0.55 * s, 0.05 + 0.15 * s]);
+        }
+    }
+    let rib = format!(
+        r#"
+Format {W} {H} 1
+PixelSamples 2 2
+Projection "perspective" "fov" [36]
+Rotate -10 1 0 0
+Translate 0 -1.2 5.5
+WorldBegin
+  Attribute "light" "shadows" "on"
+  LightSource "ambientlight" 1 "intensity" [0.2]
+  LightSource "pointlight" 2 "intensity" [25] "from" [2 4 -3]
+  Surface "plastic"
+  Polygon "P" [-6 0 -6  6 0 -6  6 0 6  -6 0 6]
+  AttributeBegin
+    Points "P" [{}] "width" [{}] "Cs" [{}]
+  AttributeEnd
+  AttributeBegin
+    Points "P" [0.3 0.15 -0.3  0.75 0.15 -0.3  1.2 0.15 -0.3  1.65 0.15 -0.3]
+      "constantwidth" [0.3] "uniform string type" "sphere"
+      "Cs" [0.9 0.85 0.2  0.2 0.7 0.8  0.85 0.3 0.6  0.9 0.9 0.9]
+  AttributeEnd
+  AttributeBegin
+    Basis "catmull-rom" 1 "b-spline" 1
+    Curves "cubic" [{}] "nonperiodic" "P" [{}] "width" [{}] "Cs" [{}]
+  AttributeEnd
+  AttributeBegin
+    Color [.3 .5 .9]
+    Curves "cubic" [7] "nonperiodic" "P" [-1.7 0.01 -0.9  -1 0.01 -1.6  -0.2 0.01 -0.1  0.3 0.01 -0.9
+      0.8 0.01 -1.7  1.5 0.01 -1.2  1.9 0.01 -0.8]
+      "constant normal N" [0 1 0] "width" [0.12 0.2 0.12]
+  AttributeEnd
+WorldEnd
+"#,
+        list(&disks),
+        list(&disk_widths),
+        list(&disk_colours),
+        vec!["6"; n as usize].join(" "),
+        list(&hairs),
+        list(&hair_widths),
+        list(&hair_colours),
+    );
+    check("points_and_curves", &render_rib("points_and_curves", &rib)).unwrap_or_else(|e| panic!("{e}"));
+}
