@@ -149,3 +149,15 @@ fn context_rules_apply_to_the_functions_a_shader_calls() {
     let c = rtsl_compiler::compile_source("called_light.sl", &called, &Options::default());
     assert!(!c.ok() && c.render().contains("`I` is not available in light shaders"), "{}", c.render());
 }
+
+/// Another renderer's name for a built-in is read as rtsl's with W0012; a function the shader
+/// defines under that name is its own.
+#[test]
+fn vendor_names_are_read_as_rtsl_s_built_ins_unless_defined() {
+    let c = rtsl_compiler::compile_source("v.sl", "surface v() { Ci = raylevel(); }\n", &Options::default());
+    let codes: Vec<&str> = c.diagnostics.iter().map(|d| d.code.as_str()).collect();
+    assert!(c.ok() && codes == ["W0012"], "{}", c.render());
+    let own = "float raylevel() { return 7; }\nsurface v() { Ci = raylevel(); }\n";
+    let c = rtsl_compiler::compile_source("own.sl", own, &Options::default());
+    assert!(c.ok() && c.diagnostics.is_empty(), "{}", c.render());
+}

@@ -320,6 +320,16 @@ pub fn signatures(b: Builtin) -> &'static [Signature] {
     &table[b as usize]
 }
 
+/// Built-ins other renderers define under their own names, each with rtsl's equivalent and the
+/// renderer: a call is read as the equivalent, with warning W0012 (a user function of the name
+/// wins).
+pub const VENDOR_EQUIVALENTS: &[(&str, &str, &str)] = &[("raylevel", "raydepth", "BMRT")];
+
+/// rtsl's equivalent of another renderer's built-in `name`, and the renderer.
+pub fn vendor_equivalent(name: &str) -> Option<(&'static str, &'static str)> {
+    VENDOR_EQUIVALENTS.iter().find(|(n, ..)| *n == name).map(|&(_, equivalent, renderer)| (equivalent, renderer))
+}
+
 /// Looks a built-in up by name.
 pub fn lookup(name: &str) -> Option<Builtin> {
     static MAP: OnceLock<rustc_hash::FxHashMap<&'static str, Builtin>> = OnceLock::new();

@@ -142,7 +142,20 @@ impl Checker<'_> {
         let interner = self.interner;
         let text: &str = interner.resolve(name.sym);
         let user = self.lookup_funcs(name.sym);
-        let builtin = builtins::lookup(text);
+        let mut builtin = builtins::lookup(text);
+        if user.is_empty() && builtin.is_none() {
+            if let Some((equivalent, renderer)) = builtins::vendor_equivalent(text) {
+                builtin = builtins::lookup(equivalent);
+                self.diags.push(
+                    Diagnostic::new(
+                        Code::VendorExtension,
+                        name.span,
+                        format!("`{text}` is {renderer}'s name for `{equivalent}`, which rtsl calls instead"),
+                    )
+                    .with_label(format!("read as `{equivalent}`")),
+                );
+            }
+        }
         if user.is_empty() && builtin.is_none() {
             if let Some(Binding::Var(v)) = self.lookup_var(name.sym) {
                 self.b().used[v.0 as usize] = true;
