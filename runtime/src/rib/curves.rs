@@ -50,12 +50,14 @@
 use glam::{Vec2, Vec3};
 
 use super::decl::Class;
-use super::mesh::{per_vertex_params, positions, route_attributes_keeping_uv, ClassCounts, MeshOptions, PerVertex};
+use super::mesh::{
+    per_vertex_params, positions, reserve_mesh, route_attributes_keeping_uv, ClassCounts, MeshOptions, PerVertex,
+};
 use super::patch::PatchCurve;
 use super::request::{find_param, CurveType, Param, Wrap};
 use super::spline::{segments_for_turn, turning};
 use super::view::View;
-use crate::geometry::{Attribute, Mesh};
+use crate::geometry::Mesh;
 
 /// The most pieces a segment (span) of a cubic curve is cut into.
 pub const MAX_CURVE_SPAN_SEGMENTS: u32 = 64;
@@ -368,21 +370,7 @@ pub fn curves_mesh(
         .filter(|d| !matches!(d.name.as_str(), "N" | "width"))
         .collect();
     let vertices = plan.vertices();
-    let mut mesh = Mesh {
-        positions: Vec::with_capacity(vertices),
-        normals: Some(Vec::with_capacity(vertices)),
-        uvs: Some(Vec::with_capacity(vertices)),
-        triangles: Vec::with_capacity(plan.triangles()),
-        ..Default::default()
-    };
-    let mut attributes: Vec<Attribute> = data
-        .iter()
-        .map(|d| Attribute {
-            name: d.name.clone(),
-            components: d.components,
-            data: Vec::with_capacity(vertices * d.components),
-        })
-        .collect();
+    let (mut mesh, mut attributes) = reserve_mesh(vertices, plan.triangles(), &data);
     let view: &View = &options.view;
     let mut scratch = Vec::new();
     for (index, curve) in plan.curves.iter().enumerate().filter(|(_, c)| c.drawn) {

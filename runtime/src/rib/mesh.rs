@@ -267,6 +267,28 @@ pub(super) struct PerVertex<'a> {
     pub(super) values: &'a [f32],
 }
 
+/// An empty mesh with room for `vertices` vertices (positions, normals, uvs) and `triangles`
+/// triangles, and an empty attribute for each of `data`: what the builders that make their own
+/// vertices (points, curves) fill.
+pub(super) fn reserve_mesh(vertices: usize, triangles: usize, data: &[PerVertex<'_>]) -> (Mesh, Vec<Attribute>) {
+    let mesh = Mesh {
+        positions: Vec::with_capacity(vertices),
+        normals: Some(Vec::with_capacity(vertices)),
+        uvs: Some(Vec::with_capacity(vertices)),
+        triangles: Vec::with_capacity(triangles),
+        ..Default::default()
+    };
+    let attributes = data
+        .iter()
+        .map(|d| Attribute {
+            name: d.name.clone(),
+            components: d.components,
+            data: Vec::with_capacity(vertices * d.components),
+        })
+        .collect();
+    (mesh, attributes)
+}
+
 /// The float parameters that are data over the surface (not positions), with counts checked: a
 /// parameter with the wrong count, or unsupported facevarying data, is dropped with a warning.
 pub(super) fn per_vertex_params<'a>(

@@ -28,10 +28,10 @@
 use glam::{Vec2, Vec3};
 
 use super::decl::Class;
-use super::mesh::{per_vertex_params, positions, route_attributes_keeping_uv, ClassCounts, MeshOptions};
+use super::mesh::{per_vertex_params, positions, reserve_mesh, route_attributes_keeping_uv, ClassCounts, MeshOptions};
 use super::request::{find_param, Param};
 use super::view::View;
-use crate::geometry::{Attribute, Mesh};
+use crate::geometry::Mesh;
 
 /// The most segments around a point's disk (or sphere).
 pub const MAX_POINT_SEGMENTS: u32 = 64;
@@ -195,21 +195,7 @@ pub fn points_mesh(params: &[Param], options: &MeshOptions, warnings: &mut Vec<S
         .collect();
 
     let vertices = plan.segments.iter().map(|&s| plan.point_vertices(s)).fold(0, usize::saturating_add);
-    let mut mesh = Mesh {
-        positions: Vec::with_capacity(vertices),
-        normals: Some(Vec::with_capacity(vertices)),
-        uvs: Some(Vec::with_capacity(vertices)),
-        triangles: Vec::with_capacity(plan.triangles()),
-        ..Default::default()
-    };
-    let mut attributes: Vec<Attribute> = data
-        .iter()
-        .map(|d| Attribute {
-            name: d.name.clone(),
-            components: d.components,
-            data: Vec::with_capacity(vertices * d.components),
-        })
-        .collect();
+    let (mut mesh, mut attributes) = reserve_mesh(vertices, plan.triangles(), &data);
     for (k, (&centre, &segments)) in plan.points.iter().zip(&plan.segments).enumerate() {
         if segments == 0 {
             continue;
