@@ -821,31 +821,25 @@ impl Preprocessor<'_> {
         };
         // Keyed by the path as resolved (not canonicalised: that costs several system calls, and a
         // header reached by two spellings is merely lexed twice).
-        let key = path.clone();
-        let (file, tokens) = match self.file_cache.get(&key) {
-            Some((file, tokens)) => (*file, tokens.clone()),
-            None => {
-                let Some((file, tokens)) = self.load_header(&path, span) else { return };
-                self.read_files.push(file);
-                self.file_cache.insert(key, (file, tokens.clone()));
-                (file, tokens)
-            }
-        };
-        if self.pragma_once.contains(&file) {
-            return;
-        }
-        self.files.push(FileFrame { file, tokens, pos: 0, cond_base: self.conds.len() });
+        self.enter_header(path.clone(), |pp| pp.load_header(&path, span));
     }
 
-    /// Enters a standard header (see [`standard_headers`]), lexed once per compilation.
+    /// Enters a standard header (see [`standard_headers`]).
     fn include_standard(&mut self, name: &str, text: &'static str) {
         let label = standard_headers::label(name);
-        let key = PathBuf::from(&label);
+        self.enter_header(PathBuf::from(&label), |pp| {
+            let file = pp.sources.add_virtual(label, text);
+            Some((file, pp.tokens_of(file)))
+        });
+    }
+
+    /// Enters the header cached under `key`, or the one `load` registers (lexed once per
+    /// compilation), unless `#pragma once` has already seen it.
+    fn enter_header(&mut self, key: PathBuf, load: impl FnOnce(&mut Self) -> Option<(FileId, Rc<[Token]>)>) {
         let (file, tokens) = match self.file_cache.get(&key) {
             Some((file, tokens)) => (*file, tokens.clone()),
             None => {
-                let file = self.sources.add_virtual(label, text);
-                let tokens = self.tokens_of(file);
+                let Some((file, tokens)) = load(self) else { return };
                 self.read_files.push(file);
                 self.file_cache.insert(key, (file, tokens.clone()));
                 (file, tokens)
