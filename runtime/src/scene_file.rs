@@ -301,14 +301,40 @@ fn check_gltf_uri(uri: &str) -> Result<(), &'static str> {
     if uri.contains(':') {
         return Err("is not a data URI or a relative path");
     }
-    let mut bytes = Vec::with_capacity(uri.len());
-    let mut rest = uri.as_bytes();
+    match decode_relative_path(uri) {
+        Ok(_) => {}
+        Err(PathRefusal::MalformedEscape) => return Err("has a malformed percent-escape"),
+        Err(PathRefusal::NotUtf8) => return Err("does not decode to UTF-8"),
+        Err(PathRefusal::LeavesFolder) => return Err("leads out of the model's folder"),
+        Err(PathRefusal::Absolute) => {
+            return Err("is an absolute path; only paths relative to the model's folder are read")
+        }
+    }
+    Ok(())
+}
+
+/// Why a path named inside a scene file (a glTF `uri`, a VRML `url`) is refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum PathRefusal {
+    /// A `%` not followed by two hexadecimal digits.
+    MalformedEscape,
+    /// The decoded bytes are not UTF-8.
+    NotUtf8,
+    /// Its `..`s climb above the folder it is relative to.
+    LeavesFolder,
+    /// It starts at a root or a drive.
+    Absolute,
+}
+
+/// A URL-style path with its `%XX` escapes decoded, refused unless it stays inside the folder it
+/// is relative to.
+pub(crate) fn decode_relative_path(encoded: &str) -> Result<PathBuf, PathRefusal> {
+    let mut bytes = Vec::with_capacity(encoded.len());
+    let mut rest = encoded.as_bytes();
     while let Some((&b, tail)) = rest.split_first() {
         if b == b'%' {
             let hex = tail.get(..2).and_then(|h| std::str::from_utf8(h).ok());
-            let Some(value) = hex.and_then(|h| u8::from_str_radix(h, 16).ok()) else {
-                return Err("has a malformed percent-escape");
-            };
+            let value = hex.and_then(|h| u8::from_str_radix(h, 16).ok()).ok_or(PathRefusal::MalformedEscape)?;
             bytes.push(value);
             rest = &tail[2..];
         } else {
@@ -316,21 +342,17 @@ fn check_gltf_uri(uri: &str) -> Result<(), &'static str> {
             rest = tail;
         }
     }
-    let decoded = String::from_utf8(bytes).map_err(|_| "does not decode to UTF-8")?;
+    let path = PathBuf::from(String::from_utf8(bytes).map_err(|_| PathRefusal::NotUtf8)?);
     let mut depth = 0usize;
-    for part in Path::new(&decoded).components() {
+    for part in path.components() {
         match part {
             std::path::Component::Normal(_) => depth += 1,
             std::path::Component::CurDir => {}
-            std::path::Component::ParentDir => {
-                depth = depth.checked_sub(1).ok_or("leads out of the model's folder")?;
-            }
-            std::path::Component::RootDir | std::path::Component::Prefix(_) => {
-                return Err("is an absolute path; only paths relative to the model's folder are read")
-            }
+            std::path::Component::ParentDir => depth = depth.checked_sub(1).ok_or(PathRefusal::LeavesFolder)?,
+            std::path::Component::RootDir | std::path::Component::Prefix(_) => return Err(PathRefusal::Absolute),
         }
     }
-    Ok(())
+    Ok(path)
 }
 
 /// Checks that every accessor's elements lie inside its buffer view, and the view inside its

@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{load, render};
+use common::{load, render, shared};
 use rtsl_runtime::api::{ApiError, Context};
 use rtsl_runtime::render::render_frame;
 use rtsl_runtime::rib::load::load_str;
@@ -206,16 +206,6 @@ fn textures_from_memory_are_looked_up_by_name() -> Result<(), ApiError> {
     assert!(left[0] > 0.9 && left[2] < 0.1, "{left:?}");
     assert!(right[2] > 0.9 && right[0] < 0.1, "{right:?}");
     Ok(())
-}
-
-fn shared(path: &str) -> Option<std::path::PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/scenes").join(path);
-    if p.exists() {
-        Some(p)
-    } else {
-        eprintln!("skipped: {} is absent (the shared test scenes are not here)", p.display());
-        None
-    }
 }
 
 #[test]

@@ -1,20 +1,12 @@
 //! VRML 97 scenes through `load_scene`: the real castle scene of `../shared/scenes` (skipped when
 //! absent) loads, frames and renders, and a gzip-compressed file loads like a plain one.
 
+mod common;
+
+use common::shared;
 use rtsl_runtime::api::Context;
 use rtsl_runtime::load_scene;
 use rtsl_runtime::rib::Severity;
-use std::path::{Path, PathBuf};
-
-fn shared(path: &str) -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/scenes").join(path);
-    if p.exists() {
-        Some(p)
-    } else {
-        eprintln!("skipped: {} is absent (the shared test scenes are not here)", p.display());
-        None
-    }
-}
 
 #[test]
 fn the_castle_loads_and_renders() {

@@ -22,7 +22,7 @@ use crate::shading::ParamValue;
 use crate::texture::srgb_to_linear;
 use glam::{Affine3A, Quat, Vec2, Vec3, Vec3A};
 use std::collections::{HashMap, HashSet};
-use std::path::{Component, Path, PathBuf};
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 /// Reads the VRML file at `path` (and its Inline files) into `rt`.
@@ -1349,35 +1349,14 @@ pub fn relative_path(url: &str) -> std::result::Result<PathBuf, &'static str> {
             return Err("has a scheme; only relative file paths are read");
         }
     }
-    let mut bytes = Vec::with_capacity(url.len());
-    let mut rest = url.as_bytes();
-    while let Some((&b, tail)) = rest.split_first() {
-        if b == b'%' && tail.len() >= 2 {
-            let hex = std::str::from_utf8(&tail[..2]).ok().and_then(|h| u8::from_str_radix(h, 16).ok());
-            let Some(value) = hex else { return Err("has a malformed %-escape") };
-            bytes.push(value);
-            rest = &tail[2..];
-        } else {
-            bytes.push(b);
-            rest = tail;
-        }
+    use crate::scene_file::{decode_relative_path, PathRefusal};
+    match decode_relative_path(url) {
+        Ok(path) => Ok(path),
+        Err(PathRefusal::MalformedEscape) => Err("has a malformed %-escape"),
+        Err(PathRefusal::NotUtf8) => Err("does not decode to UTF-8"),
+        Err(PathRefusal::LeavesFolder) => Err("climbs out of the including file's folder with `..`"),
+        Err(PathRefusal::Absolute) => Err("is an absolute path; only paths relative to the including file are read"),
     }
-    let decoded = String::from_utf8(bytes).map_err(|_| "does not decode to UTF-8")?;
-    let path = PathBuf::from(&decoded);
-    let mut depth = 0usize;
-    for part in path.components() {
-        match part {
-            Component::Normal(_) => depth += 1,
-            Component::CurDir => {}
-            Component::ParentDir => {
-                depth = depth.checked_sub(1).ok_or("climbs out of the including file's folder with `..`")?;
-            }
-            Component::RootDir | Component::Prefix(_) => {
-                return Err("is an absolute path; only paths relative to the including file are read")
-            }
-        }
-    }
-    Ok(path)
 }
 
 #[cfg(test)]

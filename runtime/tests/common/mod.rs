@@ -105,3 +105,14 @@ pub fn write(dir: &Path, name: &str, text: impl AsRef<[u8]>) -> PathBuf {
     std::fs::write(&path, text).expect("write");
     path
 }
+
+/// A scene of `../shared/scenes`, or `None` (with a message) where the shared test data is absent.
+pub fn shared(path: &str) -> Option<PathBuf> {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/scenes").join(path);
+    if p.exists() {
+        Some(p)
+    } else {
+        eprintln!("skipped: {} is absent (the shared test scenes are not here)", p.display());
+        None
+    }
+}
