@@ -702,3 +702,19 @@ fn make_lat_long_environment_writes_a_map_that_wraps_around_and_stops_at_the_pol
     assert_eq!((layer.width, layer.height), (8, 4));
     assert_eq!(layer.wrap_modes.as_deref(), Some("periodic,clamp"));
 }
+
+#[test]
+fn make_shadow_of_a_file_that_is_not_a_depth_map_is_a_part_missing() {
+    let dir = tempfile::tempdir().unwrap();
+    rtsl_runtime::write_image(dir.path().join("photo.png"), 2, 2, &[0.5; 16], &Default::default()).unwrap();
+    let rib = dir.path().join("s.rib");
+    std::fs::write(
+        &rib,
+        "MakeShadow \"photo.png\" \"s.shd\"\nMakeShadow \"absent.z\" \"t.shd\"\nWorldBegin\nWorldEnd\n",
+    )
+    .unwrap();
+    let loaded = rtsl_runtime::rib::load::load_file(&mut Context::new(), &rib).expect("the rest loads");
+    assert_eq!(loaded.omissions(), 2, "{:?}", loaded.warnings);
+    assert!(loaded.warnings.iter().all(|w| w.message.starts_with("MakeShadow: ")), "{:?}", loaded.warnings);
+    assert!(!dir.path().join("s.shd").exists() && !dir.path().join("t.shd").exists());
+}
