@@ -48,8 +48,26 @@ pub fn load_scene(rt: &mut Context, path: impl AsRef<Path>) -> Result<LoadedScen
     load_scene_frame(rt, path, 0)
 }
 
+/// How a scene file is read, beyond its own content.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LoadOptions {
+    /// VRML: the library surface shader every shape gets instead of `material`, VRML's lighting
+    /// model, as the paper's browser swapped it (`crate::vrml::VrmlOptions`).
+    pub vrml_surface: Option<String>,
+}
+
 /// [`load_scene`] of the image at `index` (counting from 0) of a file with several.
 pub fn load_scene_frame(rt: &mut Context, path: impl AsRef<Path>, index: usize) -> Result<LoadedScene, SceneFileError> {
+    load_scene_with(rt, path, index, &LoadOptions::default())
+}
+
+/// [`load_scene_frame`] with [`LoadOptions`].
+pub fn load_scene_with(
+    rt: &mut Context,
+    path: impl AsRef<Path>,
+    index: usize,
+    options: &LoadOptions,
+) -> Result<LoadedScene, SceneFileError> {
     let path = path.as_ref();
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     if crate::vrml::is_vrml_path(path) {
@@ -59,7 +77,8 @@ pub fn load_scene_frame(rt: &mut Context, path: impl AsRef<Path>, index: usize) 
                 message: format!("a VRML file is one image; there is no image {}", index + 1),
             });
         }
-        let scene = crate::vrml::load_file(rt, path)?;
+        let vrml = crate::vrml::VrmlOptions { surface: options.vrml_surface.clone() };
+        let scene = crate::vrml::load_file_with(rt, path, &vrml)?;
         return Ok(LoadedScene {
             files: scene.files(),
             warnings: scene.warnings,

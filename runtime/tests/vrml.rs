@@ -64,3 +64,34 @@ fn gzip_compressed_files_load_by_content() {
     let e = load_scene(&mut Context::new(), &broken).expect_err("a syntax error").to_string();
     assert!(e.contains("broken.wrl:3:1") && e.contains("ends"), "{e}");
 }
+
+/// The paper's browser swapped VRML's lighting model for other shaders: `VrmlOptions::surface`
+/// gives every shape that shader, its diffuse colour as `Cs`.
+#[test]
+fn a_swapped_surface_shader_gets_the_diffuse_colour_as_cs() {
+    use rtsl_runtime::vrml::{build_str_with, VrmlOptions};
+    let scene = "#VRML V2.0 utf8\nViewpoint { position 0 0 5 }\n\
+                 Shape { appearance Appearance { material Material { diffuseColor 0.2 0.4 0.6 } } geometry Sphere { } }\n";
+    let render = |surface: Option<&str>| {
+        let mut rt = Context::new();
+        let options = VrmlOptions { surface: surface.map(str::to_string) };
+        build_str_with(&mut rt, scene, std::path::Path::new("s.wrl"), &options).expect("the scene builds");
+        rt.options.width = 16;
+        rt.options.height = 16;
+        let world = rt.build_world().expect("a world");
+        let (fb, _) = rtsl_runtime::render::render_frame(&world, None);
+        (fb.pixel(8, 8), fb.pixel(5, 8))
+    };
+    let linear = |c: f32| rtsl_runtime::texture::srgb_to_linear(c);
+    let (centre, edge) = render(Some("constant"));
+    for (got, want) in centre.iter().zip([linear(0.2), linear(0.4), linear(0.6)]) {
+        assert!((got - want).abs() < 1e-4, "{centre:?}");
+    }
+    assert_eq!(centre, edge, "constant is flat");
+    // VRML's own model lights it by the headlight: darker towards the rim.
+    let (centre, edge) = render(None);
+    assert!(edge[2] < 0.9 * centre[2], "{centre:?} {edge:?}");
+    let mut rt = Context::new();
+    let options = VrmlOptions { surface: Some("no_such_shader".into()) };
+    assert!(build_str_with(&mut rt, scene, std::path::Path::new("s.wrl"), &options).is_err());
+}

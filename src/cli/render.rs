@@ -33,6 +33,10 @@ pub struct RenderArgs {
     /// Without it, every frame is rendered in turn.
     #[arg(long)]
     pub frame: Option<i32>,
+    /// Of a VRML scene, the library surface shader every shape gets instead of `material` (VRML's
+    /// lighting model): e.g. `plastic`, `mirror`, `gimatte` (docs/vrml.md).
+    #[arg(long, value_name = "SHADER")]
+    pub vrml_surface: Option<String>,
     /// Image size, `WxH` (overrides the scene's `Format`).
     #[arg(long, value_parser = super::bench::parse_size)]
     pub size: Option<(u32, u32)>,
@@ -437,7 +441,7 @@ pub(crate) fn load_scene(
     shader_path: &[PathBuf],
     include: &[PathBuf],
 ) -> anyhow::Result<(Context, LoadedScene)> {
-    load_scene_frame(scene, shader_path, include, 0)
+    load_scene_frame(scene, shader_path, include, 0, &rtsl_runtime::LoadOptions::default())
 }
 
 /// [`load_scene`] of the image at `frame_index` (counting from 0) of a scene with several.
@@ -446,6 +450,7 @@ pub(crate) fn load_scene_frame(
     shader_path: &[PathBuf],
     include: &[PathBuf],
     frame_index: usize,
+    options: &rtsl_runtime::LoadOptions,
 ) -> anyhow::Result<(Context, LoadedScene)> {
     let mut rt = Context::new();
     let mut search: Vec<PathBuf> = shader_path.to_vec();
@@ -466,7 +471,7 @@ pub(crate) fn load_scene_frame(
                 frame_number: rib.frame_number,
             }
         }
-        Some(path) => rtsl_runtime::load_scene_frame(&mut rt, path, frame_index)?,
+        Some(path) => rtsl_runtime::load_scene_with(&mut rt, path, frame_index, options)?,
     };
     rtsl_runtime::rib::report::write_diagnostics(&loaded.warnings, &mut super::color::stderr())?;
     Ok((rt, loaded))
@@ -504,7 +509,9 @@ fn frame_indices(args: &RenderArgs) -> anyhow::Result<Vec<usize>> {
 
 /// Loads the image at `frame_index` of the scene and applies the flags to it.
 fn prepare(args: &RenderArgs, frame_index: usize) -> anyhow::Result<Prepared> {
-    let (mut rt, loaded) = load_scene_frame(args.scene.as_deref(), &args.shader_path, &args.include, frame_index)?;
+    let options = rtsl_runtime::LoadOptions { vrml_surface: args.vrml_surface.clone() };
+    let (mut rt, loaded) =
+        load_scene_frame(args.scene.as_deref(), &args.shader_path, &args.include, frame_index, &options)?;
     let expanded = |p: &PathBuf| {
         PathBuf::from(rtsl_runtime::rib::load::expand_display_name(&p.to_string_lossy(), loaded.frame_number))
     };

@@ -11,8 +11,8 @@ use super::mesh::{self, FaceSet, Indexed};
 use super::nodes::{knows_field, node_type, Support};
 use super::parse::{Document, Value};
 use super::{
-    check_header, location, read_text, Loc, NodeRef, Placed, Viewpoint, VrmlError, VrmlScene, MAX_INLINE_DEPTH,
-    MAX_PROTO_DEPTH, MAX_VRML_NESTING, VRML_EAR_CLIP_BUDGET, VRML_TRAVERSAL_BUDGET,
+    check_header, location, read_text, Loc, NodeRef, Placed, Viewpoint, VrmlError, VrmlOptions, VrmlScene,
+    MAX_INLINE_DEPTH, MAX_PROTO_DEPTH, MAX_VRML_NESTING, VRML_EAR_CLIP_BUDGET, VRML_TRAVERSAL_BUDGET,
 };
 use crate::api::{Context, ObjectId, ShaderId};
 use crate::geometry::Mesh;
@@ -27,14 +27,25 @@ use std::sync::Arc;
 
 /// Reads the VRML file at `path` (and its Inline files) into `rt`.
 pub fn build(rt: &mut Context, path: &Path) -> Result<VrmlScene> {
+    build_with(rt, path, &VrmlOptions::default())
+}
+
+/// [`build`] with [`VrmlOptions`].
+pub fn build_with(rt: &mut Context, path: &Path, options: &VrmlOptions) -> Result<VrmlScene> {
     let text = read_text(path)?;
-    build_str(rt, &text, path)
+    build_str_with(rt, &text, path, options)
 }
 
 /// Reads VRML text into `rt`; `path` names it in messages, and Inline URLs are resolved against
 /// its folder.
 pub fn build_str(rt: &mut Context, text: &str, path: &Path) -> Result<VrmlScene> {
+    build_str_with(rt, text, path, &VrmlOptions::default())
+}
+
+/// [`build_str`] with [`VrmlOptions`].
+pub fn build_str_with(rt: &mut Context, text: &str, path: &Path, options: &VrmlOptions) -> Result<VrmlScene> {
     let mut b = Builder {
+        surface: options.surface.clone(),
         rt,
         scene: VrmlScene { bounds: (Vec3A::INFINITY, Vec3A::NEG_INFINITY), ..VrmlScene::default() },
         files: Vec::new(),
@@ -95,7 +106,9 @@ struct Builder<'a> {
     meshes: HashMap<NodeRef, Option<Arc<Mesh>>>,
     /// Each geometry-and-appearance pair's object and its own bounds, or none (nothing to draw).
     objects: HashMap<(NodeRef, Option<NodeRef>), Option<Made>>,
-    shaders: HashMap<&'static str, ShaderId>,
+    shaders: HashMap<String, ShaderId>,
+    /// The surface shader that replaces `material` ([`VrmlOptions::surface`]).
+    surface: Option<String>,
     /// Each texture node's texture, or none (missing, or not read).
     textures: HashMap<NodeRef, Option<Texture>>,
     camera_bound: bool,
@@ -155,12 +168,12 @@ impl Builder<'_> {
         }
     }
 
-    fn shader(&mut self, name: &'static str) -> Result<ShaderId> {
+    fn shader(&mut self, name: &str) -> Result<ShaderId> {
         if let Some(&id) = self.shaders.get(name) {
             return Ok(id);
         }
         let id = self.rt.find_shader(name)?;
-        self.shaders.insert(name, id);
+        self.shaders.insert(name.to_string(), id);
         Ok(id)
     }
 
@@ -826,7 +839,17 @@ impl Builder<'_> {
         let (lo, hi) =
             mesh.positions.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
 
-        let shader = self.shader("material")?;
+        let swapped = self.surface.clone();
+        let shader = self.shader(swapped.as_deref().unwrap_or("material"))?;
+        // A swapped-in shader takes the VRML parameters it declares; RenderMan shaders read the
+        // diffuse colour and the opacity as Cs and Os.
+        let declared: Option<HashSet<String>> = match &swapped {
+            Some(_) => {
+                let program = self.rt.program(shader)?;
+                Some(program.interface.parameters.iter().map(|p| p.name.clone()).collect())
+            }
+            None => None,
+        };
         self.rt.push_attributes();
         self.rt.load_identity();
         let result = (|| -> Result<ObjectId> {
@@ -868,6 +891,14 @@ impl Builder<'_> {
                 if t.alpha {
                     self.rt.alpha_mask(Some(&t.name));
                 }
+            }
+            if let Some(declared) = &declared {
+                if let Some((_, ParamValue::Color([r, g, b]))) = params.iter().find(|(n, _)| *n == "diffusecolor") {
+                    self.rt.color(*r, *g, *b);
+                }
+                let opacity = 1.0 - transparency;
+                self.rt.opacity(opacity, opacity, opacity);
+                params.retain(|(n, _)| declared.contains(*n));
             }
             self.rt.parameters(&params)?;
             if transparency > 0.0 {

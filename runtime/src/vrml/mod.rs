@@ -40,7 +40,7 @@ use glam::{Affine3A, Vec3A};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-pub use build::{build, build_str};
+pub use build::{build, build_str, build_str_with, build_with};
 pub use parse::{Document, NodeId};
 
 /// How deep nodes may nest: in a file, in a PROTO's expansion, and along the walk of the scene
@@ -169,6 +169,25 @@ impl VrmlScene {
 /// Inline files into `rt`.
 pub fn load_file(rt: &mut Context, path: impl AsRef<Path>) -> Result<VrmlScene, crate::scene_file::SceneFileError> {
     build(rt, path.as_ref())
+}
+
+/// How a VRML scene is built, beyond the file.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct VrmlOptions {
+    /// The surface shader every shape gets instead of `material` (the paper's browser swapped
+    /// VRML's lighting model for shaders that add shadows, reflections or global illumination).
+    /// It gets the VRML parameters it declares (`diffusecolor`, `texturename`...), the diffuse
+    /// colour as `Cs` and one minus the transparency as `Os`.
+    pub surface: Option<String>,
+}
+
+/// [`load_file`] with [`VrmlOptions`].
+pub fn load_file_with(
+    rt: &mut Context,
+    path: impl AsRef<Path>,
+    options: &VrmlOptions,
+) -> Result<VrmlScene, crate::scene_file::SceneFileError> {
+    build_with(rt, path.as_ref(), options)
 }
 
 /// The text of a VRML file: its bytes, inflated when gzip-compressed, decoded as UTF-8 (invalid

@@ -46,6 +46,10 @@ pub struct ViewArgs {
     /// Anti-aliasing to start with: `regular`, `jittered`, `interleaved` or `adaptive[:THRESHOLD]`.
     #[arg(long, value_parser = Antialiasing::parse)]
     pub aa: Option<Antialiasing>,
+    /// Of a VRML scene, the library surface shader every shape gets instead of `material` (VRML's
+    /// lighting model): e.g. `plastic`, `mirror`, `gimatte` (docs/vrml.md).
+    #[arg(long, value_name = "SHADER")]
+    pub vrml_surface: Option<String>,
     /// Start in frameless mode.
     #[arg(long)]
     pub frameless: bool,
@@ -181,7 +185,9 @@ fn show(args: &ViewArgs, jobs: mpsc::Sender<RenderJob>) -> anyhow::Result<(u32, 
         Some(s) => script::parse(s).map_err(|e| anyhow::anyhow!("--events: {e}"))?,
         None => Vec::new(),
     };
-    let (mut rt, _) = super::render::load_scene(args.scene.as_deref(), &args.shader_path, &args.include)?;
+    let options = rtsl_runtime::LoadOptions { vrml_surface: args.vrml_surface.clone() };
+    let (mut rt, _) =
+        super::render::load_scene_frame(args.scene.as_deref(), &args.shader_path, &args.include, 0, &options)?;
     let (w, h) = match args.size {
         Some(size) => size,
         None if rt.options.width <= 1280 && rt.options.height <= 960 => (rt.options.width, rt.options.height),
