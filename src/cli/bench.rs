@@ -155,8 +155,12 @@ mod tests {
 /// Flags of `rtsl bench render`.
 #[derive(clap::Args, Debug, Clone)]
 pub struct BenchRenderArgs {
-    /// The scene (RIB or mesh; none: the default scene).
+    /// The scene (RIB, VRML or mesh; none: the default scene).
     pub scene: Option<PathBuf>,
+    /// Of a VRML scene, the surface shader every shape gets instead of `material` (as `rtsl
+    /// render --vrml-surface`).
+    #[arg(long, value_name = "SHADER")]
+    pub vrml_surface: Option<String>,
     /// Timed frames (after one untimed warm-up frame); the median is reported.
     #[arg(long, default_value_t = 10)]
     pub frames: usize,
@@ -219,7 +223,8 @@ fn print_rate(args: &BenchRenderArgs, world: &rtsl_runtime::render::World, who: 
 /// `--native-plastic` the JIT frame time over the hand-written one, measured in one run.
 pub fn run_render(args: &BenchRenderArgs) -> anyhow::Result<()> {
     let load = || -> anyhow::Result<rtsl_runtime::api::Context> {
-        let (mut rt, _) = super::render::load_scene(args.scene.as_deref(), &args.shader_path, &[])?;
+        let options = rtsl_runtime::LoadOptions { vrml_surface: args.vrml_surface.clone() };
+        let (mut rt, _) = super::render::load_scene_frame(args.scene.as_deref(), &args.shader_path, &[], 0, &options)?;
         if let Some((w, h)) = args.size {
             rt.options.width = w;
             rt.options.height = h;
