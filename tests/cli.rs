@@ -206,6 +206,52 @@ fn shade_runs_a_surface_shader_over_a_grid() {
     assert!(stderr(&o).contains("no parameter `nosuch`"), "{}", stderr(&o));
 }
 
+#[test]
+fn ray_parameters_reach_rayinfo_from_the_command_line() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let src =
+        "surface rp() { float q = -1; color c = 0; rayinfo(\"q\", q); rayinfo(\"user:c\", c); Oi = 1; Ci = c + q; }\n";
+    write(dir.path(), "rp.sl", src);
+    // The shader test harness (the JIT, through the interpreter's host).
+    let o = rtsl(
+        &["shade", "rp.sl", "-g", "2", "2", "--ray-param", "q=0.25", "--ray-param", "c=0,0.5,0", "-o", "rp.exr"],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let image = rtsl_runtime::read_image(dir.path().join("rp.exr")).expect("an EXR");
+    assert_eq!(&image.pixels[..4], &[0.25, 0.75, 0.25, 1.0]);
+    // A scene: the rays of a render carry them, and a gaze lowers the samples away from it.
+    write(
+        dir.path(),
+        "scene.rib",
+        "Format 32 24 1\nTranslate 0 0 5\nWorldBegin\nSurface \"rp\"\nPolygon \"P\" [-9 -9 0 9 -9 0 9 9 0 -9 9 0]\nWorldEnd\n",
+    );
+    let render = |extra: &[&str]| {
+        let mut args = vec!["render", "scene.rib", "-S", ".", "-o", "out.exr", "--samples", "16", "--threads", "1"];
+        args.extend_from_slice(extra);
+        let o = rtsl(&args, dir.path());
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        (stdout(&o), rtsl_runtime::read_image(dir.path().join("out.exr")).expect("an EXR"))
+    };
+    let (_, image) = render(&["--ray-param", "q=0.5", "--ray-param", "c=0.1,0.2,0.3"]);
+    let p = &image.pixels[4 * (12 * 32 + 16)..4 * (12 * 32 + 16) + 3];
+    assert!((p[0] - 0.6).abs() < 1e-5 && (p[2] - 0.8).abs() < 1e-5, "{p:?}");
+    // `--gaze`: relevance 1 around the point, 0 beyond the falloff.
+    write(dir.path(), "rel.rib", &std::fs::read_to_string(dir.path().join("scene.rib")).unwrap().replace("rp", "rel"));
+    write(dir.path(), "rel.sl", "surface rel() { float r = -1; rayinfo(\"relevance\", r); Oi = 1; Ci = r; }\n");
+    let o =
+        rtsl(&["render", "rel.rib", "-S", ".", "-o", "rel.exr", "--gaze", "16,12,4,2", "--threads", "1"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let image = rtsl_runtime::read_image(dir.path().join("rel.exr")).expect("an EXR");
+    assert_eq!(image.pixels[4 * (12 * 32 + 16)], 1.0);
+    assert_eq!(image.pixels[0], 0.0);
+    for bad in [&["--gaze", "1,2"][..], &["--ray-param", "q"], &["--refine-on", "depth"]] {
+        let mut args = vec!["render", "scene.rib", "-S", "."];
+        args.extend_from_slice(bad);
+        assert_eq!(rtsl(&args, dir.path()).status.code(), Some(2), "{bad:?} is a usage error");
+    }
+}
+
 /// A grid is refused past the renderer's image limits, before its points are allocated.
 #[test]
 fn shade_refuses_a_grid_past_the_image_limits() {

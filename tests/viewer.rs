@@ -180,6 +180,27 @@ fn scripted_input_changes_what_the_window_shows() {
     let overlay = screenshot(&x, dir.path(), "overlay.png", &[]);
     assert!(overlay.white_in_corner() > 20, "the overlay's text is visible");
     assert_eq!(still.white_in_corner(), 0);
+
+    // G puts full quality under the cursor (here the centre) and lowers it away from it: within
+    // the gaze's radius (12 pixels of 72) the picture is the full-quality one; beyond its falloff
+    // pixels stop refining after one of the two passes, and the picture differs.
+    let gaze = screenshot(&x, dir.path(), "gaze.png", &["--no-overlay", "--events", "move:48,36;key:g"]);
+    let (mut near, mut far, mut far_n) = (0.0f32, 0.0f32, 0);
+    for y in 0..72usize {
+        for x in 0..96usize {
+            let d = ((x as f32 + 0.5 - 48.0).powi(2) + (y as f32 + 0.5 - 36.0).powi(2)).sqrt();
+            let i = 4 * (y * 96 + x);
+            let diff: f32 = (0..3).map(|c| (gaze.rgba[i + c] - still.rgba[i + c]).abs()).sum();
+            if d < 11.0 {
+                near = near.max(diff);
+            } else if d > 25.0 {
+                far += diff;
+                far_n += 1;
+            }
+        }
+    }
+    assert!(near < 1e-3, "the gaze region is at full quality (largest difference {near})");
+    assert!(far / far_n as f32 > 1e-3, "beyond the falloff quality is lower (mean difference {})", far / far_n as f32);
 }
 
 #[test]

@@ -34,6 +34,28 @@ fn textures_rays_and_messages() {
 }
 
 #[test]
+fn rayinfo_reads_the_ray_parameters() {
+    // Into varying and uniform variables, through the `user:` namespace, of each type; an unknown
+    // name leaves its variable alone, and "relevance" reads 1 unless set.
+    check(
+        r#"
+        surface t(output varying float o = 0; output varying float found = 0;)
+        {
+            float q = -1, d = -1, r = -1, missing = 7;
+            uniform float uq = -1;
+            color tint = 0;
+            string label = "";
+            found = rayinfo("q", q) + 2 * rayinfo("user:tint", tint) + 4 * rayinfo("label", label);
+            found += 8 * rayinfo("depth", d) + 16 * rayinfo("relevance", r) + 32 * rayinfo("nope", missing);
+            found += 64 * rayinfo("q", uq) + 128 * rayinfo("q", tint[1]);
+            o = q + d + r + missing + uq + (label == "hero" ? 100 : 0);
+            Ci = tint;
+        }
+        "#,
+    );
+}
+
+#[test]
 fn shadow_lookups_pass_their_region_and_options() {
     // The test host's shadow() is a function of every field of the query (the point, the four
     // corners, each option), so the JIT and the interpreter agree only when both pass the same.

@@ -160,6 +160,43 @@ fn adaptive_sampling_adds_rays_only_where_neighbours_differ() -> Result<(), ApiE
 }
 
 #[test]
+fn adaptive_sampling_refines_on_what_the_application_names() -> Result<(), ApiError> {
+    use rtsl_runtime::render::{Antialiasing, RefineOn};
+    // Two quads of one colour side by side (two objects, two materials), shaded by a shader with
+    // an output that steps across the left quad. (Neither edge is on a tile's border: a pixel is
+    // compared with its neighbours in its tile.)
+    let mut rt = context();
+    let src = "surface stepped(output varying float mask = 0;) { mask = xcomp(P) < -1 ? 1 : 0; Oi = 1; Ci = 0.5; }";
+    let stepped = rt.compile_shader("stepped.sl", src)?;
+    rt.camera_look_at(Vec3A::new(0.0, 0.0, 5.0), Vec3A::ZERO, Vec3A::Y, 30.0);
+    for (x0, x1) in [(-10.0, 0.3), (0.3, 10.0)] {
+        let o = rt.begin_object()?;
+        rt.bind_shader(stepped)?;
+        quad(&mut rt, [[x0, -10.0, 0.0], [x1, -10.0, 0.0], [x1, 10.0, 0.0], [x0, 10.0, 0.0]])?;
+        rt.end_object()?;
+        rt.instantiate_object(o)?;
+    }
+    rt.options.antialiasing = Antialiasing::Adaptive { threshold: 0.05 };
+    let mut rays = |on: &str| -> Result<u64, ApiError> {
+        rt.options.refine_on = RefineOn::parse(on).expect("a list");
+        Ok(rt.render_frame()?.1.primary_rays)
+    };
+    let one = u64::from(W * H);
+    // One colour everywhere: colour alone refines nothing.
+    assert_eq!(rays("color")?, one);
+    // The seam between the objects (and their materials) is a column of pixels each side.
+    let (object, shader) = (rays("object")?, rays("shader")?);
+    assert!(object > one && object == shader, "{object} {shader}");
+    assert_eq!(object - one, 2 * u64::from(H) * 4, "two columns of 2x2 extra samples");
+    // The output's step is another column, on the left quad only.
+    let output = rays("output:mask")?;
+    assert_eq!(output - one, 2 * u64::from(H) * 4, "{output}");
+    assert_eq!(rays("object,output:mask")?, one + 4 * u64::from(H) * 4);
+    assert!(RefineOn::parse("").is_err() && RefineOn::parse("depth").is_err() && RefineOn::parse("output:").is_err());
+    Ok(())
+}
+
+#[test]
 fn a_moved_instance_costs_only_the_top_level_and_an_edited_object_only_its_own_bvh() -> Result<(), ApiError> {
     let mut rt = context();
     rt.camera_look_at(Vec3A::new(0.0, 2.0, 8.0), Vec3A::ZERO, Vec3A::Y, 45.0);

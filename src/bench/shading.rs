@@ -146,7 +146,11 @@ unsafe extern "C" fn no_depth(_: *mut c_void, _: *const i32, _: *const f32, _: *
 unsafe extern "C" fn no_ray_depth(_: *mut c_void) -> f32 {
     0.0
 }
-unsafe extern "C" fn no_message(_: *mut c_void, _: u32, _: StrRef, _: *mut MessageOut) -> u32 {
+unsafe extern "C" fn no_message(_: *mut c_void, _: u32, _: u32, _: u32, _: StrRef, _: *mut MessageOut) -> u32 {
+    0
+}
+
+unsafe extern "C" fn no_other_message(_: *mut c_void, _: u32, _: StrRef, _: *mut MessageOut) -> u32 {
     0
 }
 unsafe extern "C" fn no_name(_: *mut c_void, _: u32, _: StrRef) -> StrRef {
@@ -165,8 +169,8 @@ fn fixed_table() -> HostTable {
         depth: no_depth,
         ray_depth: no_ray_depth,
         message: no_message,
-        light_message: no_message,
-        volume_message: no_message,
+        light_message: no_other_message,
+        volume_message: no_other_message,
         shader_name: no_name,
         print: no_print,
     }

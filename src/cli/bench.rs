@@ -6,7 +6,7 @@ use super::render::CameraSpec;
 use anyhow::Context as _;
 use rtsl::bench::native_plastic::NativePlastic;
 use rtsl::bench::{run_bench, BenchOptions};
-use rtsl_runtime::render::FrameReport;
+use rtsl_runtime::render::{FrameReport, Framebuffer};
 use rtsl_runtime::BuildQuality;
 use std::path::PathBuf;
 
@@ -185,6 +185,11 @@ pub struct BenchRenderArgs {
     /// ratio.
     #[arg(long)]
     pub compare_trace_ahead: bool,
+    /// With `--gaze`: also render at uniform full quality (no relevance), alternating frame by
+    /// frame, and print both frame rates and the image error inside the gaze radius and beyond its
+    /// falloff against the uniform frame.
+    #[arg(long, requires = "gaze")]
+    pub compare_uniform: bool,
     /// Directories searched for shaders by name.
     #[arg(short = 'S', long = "shader-path")]
     pub shader_path: Vec<PathBuf>,
@@ -194,6 +199,8 @@ pub struct BenchRenderArgs {
     pub mpi: bool,
     #[command(flatten)]
     pub workers: super::mpi::WorkerArgs,
+    #[command(flatten)]
+    pub rays: super::ray_params::RayParamArgs,
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -233,13 +240,15 @@ pub fn run_render(args: &BenchRenderArgs) -> anyhow::Result<()> {
         if let Some(aa) = args.aa {
             rt.options.antialiasing = aa;
         }
+        args.rays.apply(&mut rt)?;
         Ok(rt)
     };
     let (threads, pool) = super::worker_pool(args.threads)?;
     if args.mpi {
         anyhow::ensure!(
-            !args.native_plastic && !args.compare_trace_ahead,
-            "--native-plastic and --compare-trace-ahead change the world on rank 0 only: run them without --mpi"
+            !args.native_plastic && !args.compare_trace_ahead && !args.compare_uniform,
+            "--native-plastic, --compare-trace-ahead and --compare-uniform change the world on rank 0 only: run them \
+             without --mpi"
         );
         let transport = super::mpi::transport()?;
         if transport.rank() != 0 {
@@ -281,32 +290,45 @@ pub fn run_render(args: &BenchRenderArgs) -> anyhow::Result<()> {
     if args.native_plastic && native_count == 0 {
         anyhow::bail!("the scene has no plastic surface to compare");
     }
-    let (mut jit_ms, mut native_ms, mut chunked_ms) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut jit_ms, mut native_ms, mut chunked_ms, mut uniform_ms) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     let mut last = None;
+    let relevance = world.options.ray_parameters.clone();
+    let (mut adapted_image, mut uniform_image) = (None, None);
     #[derive(PartialEq)]
     enum Variant {
         Jit,
         Native,
         Chunked,
+        Uniform,
     }
     for frame in 0..=frames {
-        for variant in [Variant::Jit, Variant::Native, Variant::Chunked] {
+        for variant in [Variant::Jit, Variant::Native, Variant::Chunked, Variant::Uniform] {
             if (variant == Variant::Native && !args.native_plastic)
                 || (variant == Variant::Chunked && !args.compare_trace_ahead)
+                || (variant == Variant::Uniform && !args.compare_uniform)
             {
                 continue;
             }
             world.materials = if variant == Variant::Native { native_world.clone() } else { jit_world.clone() };
             world.options.trace_ahead = variant != Variant::Chunked;
-            let (_, report) = pool.install(|| rtsl_runtime::render::render_frame(&world, None));
+            world.options.ray_parameters = relevance.clone();
+            if variant == Variant::Uniform {
+                world.options.ray_parameters.remove(rtsl_runtime::render::RELEVANCE);
+            }
+            let (image, report) = pool.install(|| rtsl_runtime::render::render_frame(&world, None));
             if frame > 0 {
                 let ms = report.elapsed.as_secs_f64() * 1e3;
                 match variant {
                     Variant::Native => native_ms.push(ms),
                     Variant::Chunked => chunked_ms.push(ms),
+                    Variant::Uniform => {
+                        uniform_ms.push(ms);
+                        uniform_image = Some(image);
+                    }
                     Variant::Jit => {
                         jit_ms.push(ms);
                         last = Some(report);
+                        adapted_image = Some(image);
                     }
                 }
             }
@@ -334,7 +356,39 @@ pub fn run_render(args: &BenchRenderArgs) -> anyhow::Result<()> {
         println!("chunk_by_chunk_trace_frame_ms: {cms:.2}");
         println!("trace_ahead_over_chunk_by_chunk: {:.3}", ms / cms.max(1e-9));
     }
+    if let (Some(gaze), Some(adapted), Some(uniform)) = (&args.rays.gaze, &adapted_image, &uniform_image) {
+        let ums = median(uniform_ms);
+        println!("uniform_frame_ms: {ums:.2}");
+        println!("uniform_fps: {:.2}", 1e3 / ums.max(1e-9));
+        println!("relevance_speedup: {:.3}", ums / ms.max(1e-9));
+        let (inside, outside) = gaze_errors(gaze, adapted, uniform);
+        println!("rmse_inside_radius: {inside:.5}");
+        println!("rmse_beyond_falloff: {outside:.5}");
+    }
     Ok(())
+}
+
+/// The root-mean-square difference of the colours of two frames (over the channels), within the
+/// gaze's radius and beyond its falloff.
+fn gaze_errors(gaze: &super::ray_params::Gaze, a: &Framebuffer, b: &Framebuffer) -> (f64, f64) {
+    let (mut inside, mut outside) = ((0.0f64, 0usize), (0.0f64, 0usize));
+    for y in 0..a.height.min(b.height) {
+        for x in 0..a.width.min(b.width) {
+            let (p, q) = (a.pixel(x, y), b.pixel(x, y));
+            let d: f64 = (0..3).map(|c| f64::from(p[c] - q[c]).powi(2)).sum::<f64>() / 3.0;
+            let sum = if gaze.inside(x, y) {
+                &mut inside
+            } else if gaze.outside(x, y) {
+                &mut outside
+            } else {
+                continue;
+            };
+            sum.0 += d;
+            sum.1 += 1;
+        }
+    }
+    let rms = |(s, n): (f64, usize)| if n == 0 { 0.0 } else { (s / n as f64).sqrt() };
+    (rms(inside), rms(outside))
 }
 
 /// Flags of `rtsl bench camera`.

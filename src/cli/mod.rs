@@ -8,6 +8,7 @@ mod info;
 mod lightfield;
 mod mpi;
 mod preview;
+mod ray_params;
 mod render;
 mod shade;
 mod view;

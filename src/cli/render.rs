@@ -52,6 +52,11 @@ pub struct RenderArgs {
     /// neighbours differ; default threshold 0.05).
     #[arg(long, value_parser = Antialiasing::parse)]
     pub aa: Option<Antialiasing>,
+    /// What adaptive anti-aliasing refines on, a comma-separated list of `color`, `object`,
+    /// `shader` and `output:NAME` (an output variable of the surface shaders; default
+    /// `color,object,shader`).
+    #[arg(long, value_parser = rtsl_runtime::render::RefineOn::parse)]
+    pub refine_on: Option<rtsl_runtime::render::RefineOn>,
     /// A camera shader by name (e.g. `fisheye`, `cylindrical`, `parabolic`, `thinlens`; see
     /// docs/cameras.md), with parameters after colons (`fisheye:fit=diagonal:fov=200`), replacing
     /// the scene's camera shader; the camera's placement stays.
@@ -85,6 +90,8 @@ pub struct RenderArgs {
     pub mpi: bool,
     #[command(flatten)]
     pub workers: super::mpi::WorkerArgs,
+    #[command(flatten)]
+    pub rays: super::ray_params::RayParamArgs,
 }
 
 /// A camera shader and parameter values, written `NAME[:PARAM=VALUE]...`: a value that reads as a
@@ -544,9 +551,13 @@ fn prepare(args: &RenderArgs, frame_index: usize) -> anyhow::Result<Prepared> {
     if let Some(aa) = args.aa {
         rt.options.antialiasing = aa;
     }
+    if let Some(on) = &args.refine_on {
+        rt.options.refine_on = on.clone();
+    }
     if let Some(camera) = &args.camera {
         camera.bind(&mut rt)?;
     }
+    args.rays.apply(&mut rt)?;
     let output =
         Output { path: first.path, mode: first.mode, transfer: args.transfer, extra, depth_map: first.depth_map };
     // Refused before rendering, not after.

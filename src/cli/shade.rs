@@ -4,7 +4,7 @@
 
 use anyhow::Context as _;
 use rtsl::bench::shading::{compile_benchmark, shading_benchmark};
-use rtsl_compiler::interp::TestHost;
+use rtsl_compiler::interp::{TestHost, Value};
 use rtsl_compiler::testshade::{parse_param, Grid, ParamArg};
 use std::io::Write as _;
 use std::path::PathBuf;
@@ -22,6 +22,10 @@ pub struct ShadeArgs {
     /// A parameter value, `NAME=VALUE` (`0.5`, `1,0,0`, or text for strings); repeatable.
     #[arg(long = "param", value_parser = parse_param)]
     pub params: Vec<(String, ParamArg)>,
+    /// A ray parameter that `rayinfo` reads, `NAME=VALUE` (`0.5`, `1,0,0` for a colour or point,
+    /// or text); repeatable (`docs/ray_parameters.md`).
+    #[arg(long = "ray-param", value_parser = parse_ray_param)]
+    pub ray_params: Vec<(String, ParamArg)>,
     /// Write `Ci` (and the mean of `Oi` as alpha) to this image (.png, .exr, .tga, .ppm).
     #[arg(short, long)]
     pub output: Option<PathBuf>,
@@ -31,6 +35,17 @@ pub struct ShadeArgs {
     /// Directories searched for `#include`.
     #[arg(short = 'I', long = "include")]
     pub include: Vec<PathBuf>,
+}
+
+/// `NAME=VALUE` of `--ray-param`: a float, a triple or a string.
+fn parse_ray_param(arg: &str) -> Result<(String, ParamArg), String> {
+    let (name, value) = parse_param(arg)?;
+    match &value {
+        ParamArg::Floats(f) if f.len() != 1 && f.len() != 3 => {
+            Err(format!("`{arg}`: a ray parameter is a float or three (a colour or point), not {}", f.len()))
+        }
+        _ => Ok((name, value)),
+    }
 }
 
 pub fn run(args: &ShadeArgs) -> anyhow::Result<ExitCode> {
@@ -45,7 +60,19 @@ pub fn run(args: &ShadeArgs) -> anyhow::Result<ExitCode> {
     let Some(module) = c.module.as_ref() else { return Ok(ExitCode::from(1)) };
     let mut grid = Grid::with_sources(module, Some(&c.sources), w, h, &args.params)
         .with_context(|| format!("{}", args.file.display()))?;
-    let mut host = TestHost::default();
+    let ray_parameters = args
+        .ray_params
+        .iter()
+        .map(|(name, v)| {
+            let value = match v {
+                ParamArg::Floats(f) if f.len() == 1 => Value::Float(f[0]),
+                ParamArg::Floats(f) => Value::Triple([f[0], f[1], f[2]]),
+                ParamArg::String(s) => Value::String(s.as_str().into()),
+            };
+            (name.strip_prefix("user:").unwrap_or(name).to_string(), value)
+        })
+        .collect();
+    let mut host = TestHost { ray_parameters, ..TestHost::default() };
     let start = Instant::now();
     for _ in 0..args.iters.max(1) {
         grid.shade(&mut host);

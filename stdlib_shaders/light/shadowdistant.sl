@@ -10,7 +10,9 @@
  *
  * Parameters: those of distantlight.sl, and
  *   shadowname -- the shadow map ("": none).
- *   samples    -- percentage-closer samples per lookup (16).
+ *   samples    -- percentage-closer samples per lookup (16); where the
+ *                 application lowers the ray parameter "relevance" below 1
+ *                 (docs/ray_parameters.md), samples * relevance (at least 1).
  *   width      -- widens the filter kernel (1).
  *   blur       -- blurs it by this fraction of the map (0).
  *   bias       -- depth offset against self-shadowing (0.01).
@@ -24,10 +26,13 @@ light shadowdistant(float intensity = 1; color lightcolor = 1;
                     float blur = 0;
                     float bias = 0.01;)
 {
+    uniform float relevance = 1;
+
+    rayinfo("relevance", relevance);
     solar(to - from, 0) {
         Cl = intensity * lightcolor;
         if (shadowname != "")
-            Cl *= 1 - shadow(shadowname, Ps, "samples", samples, "width", width,
+            Cl *= 1 - shadow(shadowname, Ps, "samples", max(1, ceil(samples * relevance)), "width", width,
                              "blur", blur, "bias", bias);
     }
 }

@@ -12,7 +12,9 @@
  *
  * Parameters: those of spotlight.sl, and
  *   shadowname -- the shadow map ("": none).
- *   samples    -- percentage-closer samples per lookup (16).
+ *   samples    -- percentage-closer samples per lookup (16); where the
+ *                 application lowers the ray parameter "relevance" below 1
+ *                 (docs/ray_parameters.md), samples * relevance (at least 1).
  *   width      -- widens the filter kernel (1).
  *   blur       -- blurs it by this fraction of the map (0).
  *   bias       -- depth offset against self-shadowing (0.01).
@@ -32,15 +34,17 @@ light shadowspot(float intensity = 1; color lightcolor = 1;
     uniform vector A = (to - from) / length(to - from);
     uniform float cosoutside = cos(coneangle);
     uniform float cosinside = cos(coneangle - conedeltaangle);
+    uniform float relevance = 1;
     float atten, cosangle;
 
+    rayinfo("relevance", relevance);
     illuminate(from, A, coneangle) {
         cosangle = (L . A) / length(L);
         atten = pow(cosangle, beamdistribution) / (L . L);
         atten *= smoothstep(cosoutside, cosinside, cosangle);
         Cl = atten * intensity * lightcolor;
         if (shadowname != "")
-            Cl *= 1 - shadow(shadowname, Ps, "samples", samples, "width", width,
+            Cl *= 1 - shadow(shadowname, Ps, "samples", max(1, ceil(samples * relevance)), "width", width,
                              "blur", blur, "bias", bias);
     }
 }

@@ -8,7 +8,9 @@
  * recomputed with calculatenormal() (bump mapping: P itself is not
  * changed), and the scene is reflected with trace() along the mirror
  * direction of that normal, plus "plastic"-like highlights.  The bump
- * height is given in shader-space units.
+ * height is given in shader-space units.  Where the application lowers the
+ * ray parameter "relevance" below 1 (docs/ray_parameters.md), reflections
+ * are traced only while raydepth() is below 4 * relevance.
  *
  * calculatenormal() differentiates Pb with respect to the screen: the
  * renderer's ray differentials, carried through noise() by a central
@@ -33,6 +35,7 @@ surface bumpymirror(float Ks = 1; float Kr = 1; float roughness = .05;
     normal Nb, Nf;
     vector V = -normalize(I), R;
     color Crefl = 0;
+    float relevance = 1;
 
     /* Two octaves of signed noise. */
     h = (float noise(PP) - .5) + .5 * (float noise(2 * PP) - .5);
@@ -48,7 +51,8 @@ surface bumpymirror(float Ks = 1; float Kr = 1; float roughness = .05;
         Nb = -Nb;
     Nf = faceforward(Nb, I);
     R = reflect(normalize(I), Nf);
-    if (Kr > 0)
+    rayinfo("relevance", relevance);
+    if (Kr > 0 && (relevance >= 1 || raydepth() < 4 * relevance))
         Crefl = Kr * color trace(P, R);
 
     Oi = Os;

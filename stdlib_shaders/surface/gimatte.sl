@@ -11,13 +11,19 @@
  *
  * Parameters:
  *   Kd      -- scale applied to the reflectance Cs (1). Light paths see Cs alone.
- *   samples -- hemisphere rays per point when virtual lights are off (16).
+ *   samples -- hemisphere rays per point when virtual lights are off (16);
+ *              where the application lowers the ray parameter "relevance"
+ *              below 1 (docs/ray_parameters.md), samples * relevance (at
+ *              least 1).
  */
 surface gimatte(float Kd = 1; float samples = 16;)
 {
     normal Nf = faceforward(normalize(N), I);
+    uniform float relevance = 1;
+
+    rayinfo("relevance", relevance);
 
     Oi = Os;
     color caustic = photonmap("caustic", P, Nf);
-    Ci = Os * Cs * Kd * ((diffuse(Nf) + caustic) / PI + indirectdiffuse(P, Nf, samples));
+    Ci = Os * Cs * Kd * ((diffuse(Nf) + caustic) / PI + indirectdiffuse(P, Nf, max(1, ceil(samples * relevance))));
 }

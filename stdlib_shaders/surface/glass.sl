@@ -15,7 +15,9 @@
  * Highlights from the light sources are added on the outside.  The glass
  * is opaque to the renderer (Oi = 1): everything behind it arrives through
  * the refracted ray.  The renderer bounds the recursion: beyond its ray
- * depth trace() is black.
+ * depth trace() is black.  Where the application lowers the ray parameter
+ * "relevance" below 1 (docs/ray_parameters.md), rays are traced only while
+ * raydepth() is below 4 * relevance (the highlights stay).
  *
  * Parameters:
  *   Ks            -- scale applied to the specular highlight (.5).
@@ -41,6 +43,7 @@ surface glass(float Ks = .5; float Kr = 1; float Kt = 1;
     float entering = 1, ior, kr, kt;
     vector T;
     color Crefl = 0, Crefr = 0, Cspec = 0;
+    float relevance = 1, traced;
 
     if (In . Nn > 0)
         entering = 0;
@@ -54,9 +57,11 @@ surface glass(float Ks = .5; float Kr = 1; float Kt = 1;
         kt = 0;
     }
 
-    if (Kr * kr > 0)
+    rayinfo("relevance", relevance);
+    traced = relevance >= 1 || raydepth() < 4 * relevance;
+    if (traced && Kr * kr > 0)
         Crefl = Kr * kr * color trace(P, reflect(In, Nf));
-    if (Kt * kt > 0)
+    if (traced && Kt * kt > 0)
         Crefr = Kt * kt * transmitcolor * color trace(P, T);
     if (entering > 0)
         Cspec = Ks * specular(Nf, V, roughness);

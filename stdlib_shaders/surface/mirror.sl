@@ -7,6 +7,9 @@
  * and tinted by specularcolor, and adds "plastic"-like highlights from the
  * light sources and an optional diffuse base (off by default).  The
  * renderer bounds the recursion: beyond its ray depth trace() is black.
+ * Where the application lowers the ray parameter "relevance" below 1
+ * (docs/ray_parameters.md), reflections are traced only while raydepth()
+ * is below 4 * relevance: none at relevance 0.
  *
  * Parameters:
  *   Ka            -- scale applied to the ambient light (0).
@@ -23,8 +26,10 @@ surface mirror(float Ka = 0; float Kd = 0; float Ks = 1; float Kr = 1;
     vector V = -normalize(I);
     vector R = reflect(normalize(I), Nf);
     color Crefl = 0;
+    float relevance = 1;
 
-    if (Kr > 0)
+    rayinfo("relevance", relevance);
+    if (Kr > 0 && (relevance >= 1 || raydepth() < 4 * relevance))
         Crefl = Kr * color trace(P, R);
 
     Oi = Os;

@@ -189,7 +189,7 @@ builtins! {
     Attribute "attribute" ["f(s,&?)"] MESSAGE | SIDE_EFFECTS, Host, "an attribute of the primitive being shaded";
     Option "option" ["f(s,&?)"] MESSAGE | SIDE_EFFECTS, Host, "a rendering option";
     Rendererinfo "rendererinfo" ["f(s,&?)"] MESSAGE | SIDE_EFFECTS, Host, "information about the renderer";
-    Rayinfo "rayinfo" ["f(s,&?)"] MESSAGE | SIDE_EFFECTS, Host, "information about the rays being shaded (uniform over a batch)";
+    Rayinfo "rayinfo" ["f(s,&?)"] MESSAGE | SIDE_EFFECTS, Host, "information about the ray being shaded: its depth, and the application's ray parameters (`docs/ray_parameters.md`)";
     // ---- rtsl: the image a pixel shader finishes ----
     Pixelvalue "pixelvalue" ["f(s,f,f)", "c(s,f,f)"] VARYING, Host, "a channel of the pixel at raster x, y of the image a pixel shader finishes (\"Ci\", \"alpha\", \"z\", \"objectid\", \"shaderid\", \"N\": the unit geometric normal of the first surface seen, facing the camera, 0 where none): the nearest pixel inside the image; 0 outside pixel shaders";
 }

@@ -166,7 +166,9 @@ pub trait Services {
 ///   hits it (length `10 / dir.z`, unless beyond `maxdist`) with Ci the environment colour of the
 ///   direction, Oi white, P on the ceiling and N (0, 0, -1); other rays miss;
 /// - messages: `option("Format")` is [640 480 1], `rendererinfo("renderer")` is "rtsl", `attribute`
-///   and other shaders' parameters are unknown (`None`);
+///   and other shaders' parameters are unknown (`None`); `rayinfo("depth")` is 0, and
+///   `rayinfo(name)` (or `"user:name"`) one of [`TestHost::ray_parameters`], `"relevance"` 1 when
+///   they do not hold it;
 /// - `printf` output is collected in [`TestHost::printed`]; depth is `p.z / 100`; ray depth 0.
 #[derive(Debug, Default)]
 pub struct TestHost {
@@ -176,6 +178,8 @@ pub struct TestHost {
     /// lit point and which sets `__nondiffuse` 0.25 and `__nonspecular` 0.5: lanes then differ in
     /// their lights' directions, colours and sides.
     pub point_light: Option<V3>,
+    /// The ray parameters `rayinfo` reads, by name.
+    pub ray_parameters: Vec<(String, Value)>,
 }
 
 fn space(name: &str) -> Option<M4> {
@@ -320,6 +324,12 @@ impl Services for TestHost {
         match (which, name) {
             (Builtin::Option, "Format") => Some(Value::Triple([640.0, 480.0, 1.0])),
             (Builtin::Rendererinfo, "renderer") => Some(Value::String("rtsl".into())),
+            (Builtin::Rayinfo, "depth") => Some(Value::Float(0.0)),
+            (Builtin::Rayinfo, name) => {
+                let name = name.strip_prefix("user:").unwrap_or(name);
+                let given = self.ray_parameters.iter().find(|(n, _)| n == name).map(|(_, v)| v.clone());
+                given.or_else(|| (name == "relevance").then_some(Value::Float(1.0)))
+            }
             _ => None,
         }
     }

@@ -139,7 +139,15 @@ pub fn random_derivs(rng: &mut Rng, name: &str, comps: usize) -> (Vec<f32>, Vec<
 /// The test host with a point light among the random points, so that lanes differ in their
 /// lights (direction, colour, which side of the surface).
 pub fn lit_host() -> TestHost {
-    TestHost { point_light: Some([0.5, 2.0, 1.0]), ..TestHost::default() }
+    TestHost {
+        point_light: Some([0.5, 2.0, 1.0]),
+        ray_parameters: vec![
+            ("q".into(), Value::Float(0.375)),
+            ("tint".into(), Value::Triple([0.1, 0.2, 0.3])),
+            ("label".into(), Value::String("hero".into())),
+        ],
+        ..TestHost::default()
+    }
 }
 
 /// Shades `lanes` random lanes with both back ends and compares. Returns how many lanes ran.

@@ -196,6 +196,7 @@ impl Context {
             None => None,
         };
         world.options = self.options.clone();
+        world.ray_parameter_misses = self.ray_parameter_misses.clone();
         world.spaces = self.spaces.clone();
         world.textures = self.textures.clone();
         world.prepare();
@@ -222,6 +223,7 @@ impl Context {
             shadow_by_shader: a.shadow_by_shader,
             object_id,
             native: None,
+            ray_values: a.ray_values.clone(),
         })
     }
 

@@ -65,6 +65,7 @@ use std::sync::Arc;
 mod events;
 mod frames;
 mod objects;
+mod ray_params;
 mod replica;
 mod shaders;
 mod state;
@@ -155,6 +156,8 @@ pub enum ApiError {
     NoMeshSource(u32),
     #[error("more than {} instances: the scene's top-level BVH holds no more", crate::accel::bvh4::MAX_PRIMITIVES)]
     TooManyInstances,
+    #[error(transparent)]
+    RayParameter(#[from] crate::render::RayParameterError),
 }
 
 fn kind_name(k: ShaderKind) -> &'static str {
@@ -193,6 +196,8 @@ struct Appearance {
     /// The texture whose alpha cuts objects built from now on, and the cut-off
     /// ([`Context::alpha_mask`]).
     alpha_mask: Option<(String, f32)>,
+    /// The ray parameter values of objects built from now on ([`Context::ray_attribute`]).
+    ray_values: Vec<(String, crate::render::RayValue)>,
 }
 
 impl Default for Appearance {
@@ -206,6 +211,7 @@ impl Default for Appearance {
             shadow_by_shader: false,
             photon: crate::render::world::PhotonModel::Matte,
             alpha_mask: None,
+            ray_values: Vec::new(),
         }
     }
 }
@@ -344,6 +350,9 @@ pub struct Context {
     mesh_source: Option<Arc<dyn MeshSource>>,
     /// Where textures come from instead of files ([`Context::set_texture_source`]).
     texture_source: Option<Arc<dyn crate::texture::TextureSource>>,
+    /// The ray parameter names shaders asked for and nothing set, shared with the worlds built,
+    /// so that each is reported once across frames.
+    ray_parameter_misses: Arc<crate::render::ray_params::RayParameterMisses>,
 }
 
 /// An object's materials as a frame built them, and what they were built from: reused by the next
@@ -439,6 +448,7 @@ impl Context {
             memory_changes: 0,
             mesh_source: None,
             texture_source: None,
+            ray_parameter_misses: Default::default(),
             warnings: crate::cpu::build_note_once().map(str::to_string).into_iter().collect(),
             events: Vec::new(),
             built_materials: Vec::new(),

@@ -11,6 +11,7 @@ use super::pixel::{reads_pixels, shade_pixels, TilePixels};
 use super::primary::{
     pinhole_ray, primary_rays, primary_rays_into, primary_rays_of_packets, CameraSample, PacketSamples, PrimaryRays,
 };
+use super::ray_params::{RayValue, RELEVANCE};
 use super::sampling::{mix, radical_inverse};
 use super::shade::{shade_packet, shade_packets};
 use super::work::{Frame, LightPaths, PixelImage, Sample};
@@ -459,19 +460,23 @@ impl TilePrimary {
 }
 
 /// Adaptive oversampling of one tile (OpenRT's, paper 5.1.2): a pixel that differs from a
-/// neighbour in the tile by more than `threshold` in any colour channel, or in the object or shader
-/// hit, gets a jittered `ex x ey` grid of extra samples, averaged with its first one into `px`'s
+/// neighbour in the tile by more than `threshold` in any colour channel, in the object or shader
+/// hit, or in an output variable, as the options' [`super::RefineOn`] chooses, gets a jittered `ex x ey` grid of extra samples, averaged with its first one into `px`'s
 /// colour. `splat` sees each extra sample too (raster position, colour and alpha), for a filter.
 fn refine_tile(
     frame: &Frame,
     tile: &Tile,
-    threshold: f32,
+    (threshold, relevance): (f32, &[f32]),
     extra: (u32, u32),
     px: &mut TileSamples,
     splat: &mut impl FnMut((f32, f32), [f32; 4]),
 ) {
     let world = frame.world;
-    let refine = pixels_to_refine(world, tile, threshold, px);
+    let mut refine = pixels_to_refine(world, tile, threshold, px);
+    // Under relevance, a pixel of relevance below one half is not refined.
+    for (r, &relevance) in refine.iter_mut().zip(relevance) {
+        *r &= relevance >= 0.5;
+    }
     let rays = extra_samples(world, tile, extra, &refine);
     let color = &mut px.color;
     let mut sums = vec![[0.0f32; 4]; color.len()];
@@ -509,12 +514,14 @@ fn refine_tile(
 /// Which pixels of a tile adaptive sampling refines (see [`refine_tile`]), judged on their first
 /// samples.
 fn pixels_to_refine(world: &World, tile: &Tile, threshold: f32, px: &TileSamples) -> Vec<bool> {
-    let (color, ids, shader_ids) = (&px.color, &px.ids, &px.shader_ids);
+    let (color, ids, shader_ids, outputs) = (&px.color, &px.ids, &px.shader_ids, &px.outputs);
     let (tw, th) = (tile.width as usize, tile.height as usize);
+    let on = &world.options.refine_on;
     let differs = |a: usize, b: usize| {
-        ids[a] != ids[b]
-            || shader_ids[a] != shader_ids[b]
-            || (0..4).any(|c| (color[a][c] - color[b][c]).abs() > threshold)
+        (on.object && ids[a] != ids[b])
+            || (on.shader && shader_ids[a] != shader_ids[b])
+            || (on.color && (0..4).any(|c| (color[a][c] - color[b][c]).abs() > threshold))
+            || (!outputs.is_empty() && (0..3).any(|c| (outputs[a][c] - outputs[b][c]).abs() > threshold))
     };
     // Pixels outside the crop window are not rendered: they stay empty, and an edge between one and
     // a rendered pixel is no reason to refine either.
@@ -618,6 +625,31 @@ struct Sampling {
     /// Whether pixels keep their first sample's normal: only for a pixel shader that reads other
     /// pixels ([`reads_pixels`]), the one reader of the normals.
     normals: bool,
+    /// Whether the ray parameter [`RELEVANCE`] sets how many of the grid's samples each pixel
+    /// takes ([`samples_for_relevance`]): where it is set and the grid has more than one.
+    by_relevance: bool,
+}
+
+/// How many of a grid of `n` samples a pixel of relevance `r` takes: `ceil(n r)`, at least one.
+pub fn samples_for_relevance(n: u32, r: f32) -> u32 {
+    ((n as f32 * r.clamp(0.0, 1.0)).ceil() as u32).clamp(1, n.max(1))
+}
+
+/// The place of cell `(i, j)` of a `sx x sy` sample grid in the order a pixel takes its samples
+/// when it takes fewer than the grid ([`samples_for_relevance`]): the bits of `(i ^ j, j)`
+/// interleaved and reversed, so that any first few cells spread over the pixel (a 2x2 grid takes
+/// its corners diagonally first).
+fn sample_rank((i, j): (u32, u32), (sx, sy): (u32, u32)) -> u32 {
+    let bits = 32 - sx.max(sy).saturating_sub(1).leading_zeros();
+    let (a, b) = (i ^ j, j);
+    let mut code = 0u64;
+    for k in 0..bits {
+        code |= u64::from(a >> k & 1) << (2 * k) | u64::from(b >> k & 1) << (2 * k + 1);
+    }
+    if bits == 0 {
+        return 0;
+    }
+    (code.reverse_bits() >> (64 - 2 * bits)) as u32
 }
 
 impl Sampling {
@@ -627,7 +659,9 @@ impl Sampling {
             Antialiasing::Adaptive { threshold } => Some((threshold, if grid == (1, 1) { (2, 2) } else { grid })),
             _ => None,
         };
+        let by_relevance = world.options.ray_parameters.get(RELEVANCE).is_some();
         Sampling {
+            by_relevance: by_relevance && (adaptive.is_some() || grid.0 * grid.1 > 1),
             grid: if adaptive.is_some() { (1, 1) } else { grid },
             adaptive,
             forward: world.camera.world_from_camera.matrix3.z_axis.normalize_or_zero(),
@@ -645,6 +679,9 @@ struct TileSamples {
     ids: Vec<u32>,
     shader_ids: Vec<u32>,
     normals: Vec<[f32; 3]>,
+    /// The output variable adaptive sampling refines on, of each pixel's first sample (empty
+    /// without one).
+    outputs: Vec<[f32; 3]>,
 }
 
 impl TileSamples {
@@ -657,6 +694,7 @@ impl TileSamples {
             ids: vec![u32::MAX; n],
             shader_ids: vec![u32::MAX; n],
             normals: if normals { vec![[0.0; 3]; n] } else { Vec::new() },
+            outputs: Vec::new(),
         }
     }
 }
@@ -686,12 +724,33 @@ fn sample_tile(
 ) -> TileSamples {
     let world = frame.world;
     let mut px = TileSamples::empty(tile, sampling.normals);
+    if sampling.adaptive.is_some() && world.options.refine_on.output.is_some() {
+        px.outputs = vec![[0.0; 3]; px.color.len()];
+    }
     let (sx, sy) = sampling.grid;
+    // Under relevance, how many of its samples each pixel of the tile takes.
+    let takes: Vec<u32> = match sampling.by_relevance {
+        true => tile_relevance(world, tile).into_iter().map(|r| samples_for_relevance(sx * sy, r)).collect(),
+        false => Vec::new(),
+    };
     TilePrimary::with(|primary| {
         for j in 0..sy {
             for i in 0..sx {
                 primary.make(frame, tile, (i, j));
                 let TilePrimary { corners, samples: cameras, rays, hits, shaded } = primary;
+                if !takes.is_empty() {
+                    let rank = sample_rank((i, j), (sx, sy));
+                    for (&(x0, y0), rays) in corners.iter().zip(rays.iter_mut()) {
+                        for lane in 0..PACKET_SIZE {
+                            let (dx, dy) = packet_lane_offset(lane);
+                            let (x, y) = (x0 + dx - tile.x0, y0 + dy - tile.y0);
+                            let k = (y * tile.width + x) as usize;
+                            if x >= tile.width || takes.get(k).is_some_and(|&m| rank >= m) {
+                                rays.packet.active &= !(1u64 << lane);
+                            }
+                        }
+                    }
+                }
                 let n = corners.len();
                 hits.resize_with(n, HitPacket::default);
                 shaded.resize(n, [Sample::default(); PACKET_SIZE]);
@@ -720,6 +779,7 @@ fn sample_tile(
                         }
                         sum[3] += s.alpha;
                         splat(cams.samples[lane].raster, rgba(s));
+                        // The first sample a pixel takes (rank 0: cell (0, 0)).
                         if i == 0 && j == 0 {
                             // Camera-space depth: the distance along the ray times its cosine
                             // with the view axis.
@@ -729,22 +789,40 @@ fn sample_tile(
                             if let Some(n) = px.normals.get_mut(k) {
                                 *n = s.normal.to_array();
                             }
+                            if let Some(o) = px.outputs.get_mut(k) {
+                                *o = s.output;
+                            }
                         }
                     }
                 }
             }
         }
     });
-    let scale = 1.0 / (sx * sy) as f32;
-    for c in &mut px.color {
+    for (k, c) in px.color.iter_mut().enumerate() {
+        let scale = 1.0 / takes.get(k).copied().unwrap_or(sx * sy) as f32;
         for v in c.iter_mut() {
             *v *= scale;
         }
     }
     if let Some((threshold, extra)) = sampling.adaptive {
-        refine_tile(frame, tile, threshold, extra, &mut px, &mut splat);
+        let relevance = if sampling.by_relevance { tile_relevance(world, tile) } else { Vec::new() };
+        refine_tile(frame, tile, (threshold, &relevance), extra, &mut px, &mut splat);
     }
     px
+}
+
+/// The relevance ([`RELEVANCE`], clamped to [0, 1]) of each pixel of a tile, rows from the top.
+fn tile_relevance(world: &World, tile: &Tile) -> Vec<f32> {
+    let params = &world.options.ray_parameters;
+    let size = (world.options.width, world.options.height);
+    let mut out = Vec::with_capacity((tile.width * tile.height) as usize);
+    for y in tile.y0..tile.y0 + tile.height {
+        for x in tile.x0..tile.x0 + tile.width {
+            let r = params.float_at(RELEVANCE, Some((x, y)), size);
+            out.push(super::ray_params::relevance(r.map(RayValue::Float).as_ref()));
+        }
+    }
+    out
 }
 
 /// Runs the pixel shader over a tile's finished colours (`image`: the whole image, for a pixel

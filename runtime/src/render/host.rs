@@ -5,7 +5,8 @@
 //! Invariant: callbacks never unwind into JIT code; they index only buffers whose sizes the packet
 //! ABI fixes, and nothing in them panics on user data.
 
-use super::ray_budget::RayBudget;
+use super::ray_budget::{RayBudget, RayOrigin};
+use super::ray_params::{object_value, strip_user, RayValue, RELEVANCE};
 use super::sampling::{mix, point_seed, unit};
 use super::stats::{tracing, Stats};
 use super::trace_ahead::RayLog;
@@ -988,7 +989,14 @@ unsafe extern "C" fn host_ray_depth(ctx: *mut c_void) -> f32 {
     unsafe { call(ctx) }.depth as f32
 }
 
-unsafe extern "C" fn host_message(ctx: *mut c_void, which: u32, name: StrRef, out: *mut MessageOut) -> u32 {
+unsafe extern "C" fn host_message(
+    ctx: *mut c_void,
+    which: u32,
+    chunk: u32,
+    lane: u32,
+    name: StrRef,
+    out: *mut MessageOut,
+) -> u32 {
     // SAFETY: the table's contract.
     let (c, name, out) = unsafe { (call(ctx), name.as_str(), &mut *out) };
     let Some(b) = Builtin::ALL.get(which as usize) else { return 0 };
@@ -1020,6 +1028,8 @@ unsafe extern "C" fn host_message(ctx: *mut c_void, which: u32, name: StrRef, ou
             1
         }
         (Builtin::Rendererinfo, "version") => floats(out, &[0.0, 1.0, 0.0, 0.0]),
+        (Builtin::Rayinfo, "depth") => floats(out, &[c.depth as f32]),
+        (Builtin::Rayinfo, _) => ray_parameter(c, chunk, lane, name, out),
         // Message passing: the parameters of the shaders bound with the one running, as bound
         // (or their constant defaults). Outputs a shader computes are not seen.
         (Builtin::Surface | Builtin::Displacement, _) => {
@@ -1042,6 +1052,56 @@ unsafe extern "C" fn host_message(ctx: *mut c_void, which: u32, name: StrRef, ou
             1
         }
         _ => 0,
+    }
+}
+
+/// `rayinfo(name)` of lane `lane` of chunk `chunk`: the ray parameter as its ray reads it
+/// (`ray_params.rs` says in which order the sources are asked). 0 when nothing sets it (noted for
+/// the frame's report), except [`RELEVANCE`], which reads 1.
+fn ray_parameter(c: &mut ShadeCall, chunk: u32, lane: u32, name: &str, out: &mut MessageOut) -> u32 {
+    let world = c.frame.world;
+    let origin = c.budget(chunk, lane as usize).map_or(RayOrigin::NONE, |b| b.origin);
+    let options = &world.options;
+    let object = world.materials.get(origin.material as usize).and_then(|m| object_value(&m.ray_values, name));
+    let value = match object {
+        Some(v) => Some(v.clone()),
+        None => {
+            let (w, h) = (options.width.max(1), options.height.max(1));
+            let pixel = (origin.pixel != RayOrigin::NO_PIXEL).then(|| (origin.pixel % w, origin.pixel / w));
+            options.ray_parameters.value_at(name, pixel, (w, h))
+        }
+    };
+    let triple = |out: &mut MessageOut, v: [f32; 3]| {
+        out.kind = 2;
+        out.len = 0;
+        out.floats[..3].copy_from_slice(&v);
+        1
+    };
+    match value {
+        Some(RayValue::Float(x)) => {
+            out.kind = 1;
+            out.len = 0;
+            out.floats[0] = x;
+            1
+        }
+        Some(RayValue::Color(v) | RayValue::Point(v)) => triple(out, v),
+        Some(RayValue::String(s)) => {
+            c.text = s;
+            out.kind = 4;
+            out.len = 0;
+            out.string = StrRef::new(&c.text);
+            1
+        }
+        None if strip_user(name) == RELEVANCE => {
+            out.kind = 1;
+            out.len = 0;
+            out.floats[0] = 1.0;
+            1
+        }
+        None => {
+            world.ray_parameter_misses.note(strip_user(name));
+            0
+        }
     }
 }
 

@@ -23,6 +23,7 @@ mod pixel;
 pub mod primary;
 pub mod progressive;
 mod ray_budget;
+pub mod ray_params;
 mod sampling;
 mod scratch;
 pub mod shade;
@@ -40,10 +41,11 @@ pub use frame::{
 };
 pub use primary::{primary_rays, primary_rays_into, CameraSample, PrimaryRays};
 pub use ray_budget::RAY_TREE_BUDGET;
+pub use ray_params::{RayField, RayParameterError, RayParameters, RayValue, RELEVANCE};
 pub(crate) use stats::ShaderKindTimer;
 pub use stats::Stats;
 pub use work::{Frame, LightPathCache, LightPaths, Sample};
 pub use world::{
     check_image_size, AccelUpdate, Antialiasing, AreaLight, CameraSetup, InstanceParts, InstanceShading, LightSource,
-    Material, RenderOptions, World, MAX_AREA_SAMPLES, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_PIXEL_SAMPLES,
+    Material, RefineOn, RenderOptions, World, MAX_AREA_SAMPLES, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_PIXEL_SAMPLES,
 };

@@ -59,7 +59,13 @@ pub fn shade_pixels(frame: &Frame, tile: TilePixels<'_>, image: Option<&PixelIma
                 }
             }
             // Each pixel the root of the rays its shader spawns.
-            let mut budgets = vec![RayBudget::FULL; lanes];
+            let width = frame.world.options.width;
+            let mut budgets: Vec<RayBudget> = (start..start + lanes)
+                .map(|k| {
+                    let (x, y) = (tile.x0 + k as u32 % tile.width, tile.y0 + k as u32 / tile.width);
+                    RayBudget::from_pixel(y.saturating_mul(width).saturating_add(x))
+                })
+                .collect();
             let mut call = ShadeCall::new(frame, imager, imager.world_from_shader, 0, &mut budgets);
             call.pixels = image;
             let table = call.table();

@@ -42,11 +42,32 @@ pub struct PrimaryRays {
     pub packet: RayPacket,
     pub diffs: DifferentialRows,
     pub weights: LaneRows3,
+    /// Each lane's pixel, `y * width + x` (`u32::MAX` off the image): the pixel whose ray
+    /// parameters the lane's tree of rays reads (`ray_params.rs`).
+    pub pixels: [u32; PACKET_SIZE],
 }
 
 impl Default for PrimaryRays {
     fn default() -> Self {
-        PrimaryRays { packet: RayPacket::new(), diffs: DifferentialRows::default(), weights: [[1.0; PACKET_SIZE]; 3] }
+        PrimaryRays {
+            packet: RayPacket::new(),
+            diffs: DifferentialRows::default(),
+            weights: [[1.0; PACKET_SIZE]; 3],
+            pixels: [u32::MAX; PACKET_SIZE],
+        }
+    }
+}
+
+/// Notes the pixel of each of a packet's samples in `out`.
+fn note_pixels(frame: &Frame, samples: &[CameraSample; PACKET_SIZE], out: &mut PrimaryRays) {
+    let (w, h) = (frame.world.options.width, frame.world.options.height);
+    for (p, s) in out.pixels.iter_mut().zip(samples) {
+        let (x, y) = (s.raster.0.floor(), s.raster.1.floor());
+        *p = if x >= 0.0 && y >= 0.0 && (x as u32) < w && (y as u32) < h {
+            (y as u32).saturating_mul(w).saturating_add(x as u32)
+        } else {
+            u32::MAX
+        };
     }
 }
 
@@ -137,6 +158,7 @@ pub fn primary_rays(frame: &Frame, samples: &[CameraSample; PACKET_SIZE], active
 /// kilobytes: making a fresh one per packet was a measurable share of making the rays). Only the
 /// active lanes are defined: the others hold whatever `out` held or the camera left.
 pub fn primary_rays_into(frame: &Frame, samples: &[CameraSample; PACKET_SIZE], active: u64, out: &mut PrimaryRays) {
+    note_pixels(frame, samples, out);
     match &frame.world.camera_shader {
         None => pinhole_rays(frame, samples, active, out),
         Some(camera) => {
@@ -245,6 +267,9 @@ fn same_lens(a: (f32, f32), b: (f32, f32)) -> bool {
 /// shader's uniform prologue: `option()` queries, the camera space matrix) are paid once for
 /// all of them. A frame passes the packets of a tile.
 pub fn primary_rays_of_packets(frame: &Frame, packets: &[PacketSamples], out: &mut [PrimaryRays]) {
+    for (p, o) in packets.iter().zip(out.iter_mut()) {
+        note_pixels(frame, &p.samples, o);
+    }
     match &frame.world.camera_shader {
         None => {
             for (p, o) in packets.iter().zip(out.iter_mut()) {
@@ -417,7 +442,8 @@ fn camera_call(
             }
         }
         // Each lane a camera sample: the rays the camera shader spawns are a tree of their own.
-        let mut budgets = vec![RayBudget::FULL; n * PACKET_SIZE];
+        let mut budgets: Vec<RayBudget> = out.iter().flat_map(|o| o.pixels.map(RayBudget::from_pixel)).collect();
+        budgets.resize(n * PACKET_SIZE, RayBudget::FULL);
         let mut call = ShadeCall::new(frame, camera, world.camera.world_from_camera, 0, &mut budgets);
         let table = call.table();
         program.code.shade_with_table(batch, &table);
@@ -538,7 +564,7 @@ fn finish_shader_rays(
     made: &MadeRays,
     out: &mut PrimaryRays,
 ) {
-    let PrimaryRays { packet, diffs, weights } = out;
+    let PrimaryRays { packet, diffs, weights, .. } = out;
     // Most cameras give every ray of a packet one origin (a thin lens samples one lens position
     // per packet): then it is checked and written once, and the origins do not change from lane to
     // lane. Bit for bit, without an early exit per lane, so that it compiles to vector code.

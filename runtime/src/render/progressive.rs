@@ -227,6 +227,7 @@ const EMPTY_SAMPLE: Sample = Sample {
     object_id: u32::MAX,
     shader_id: u32::MAX,
     normal: glam::Vec3A::ZERO,
+    output: [0.0; 3],
 };
 
 /// What a batch of lattices cost.
@@ -426,6 +427,8 @@ impl LatticeSamples {
                 object_id: u(5),
                 shader_id: u(6),
                 normal: if normals { glam::Vec3A::new(f(8), f(9), f(10)) } else { glam::Vec3A::ZERO },
+                // The viewer refines on colour and ids; outputs stay where they were shaded.
+                output: [0.0; 3],
             };
             out.depth[lane] = f(7);
             // Unit or zero: anything longer (or not a number) is damage.
@@ -576,8 +579,9 @@ impl Accumulator {
     }
 
     /// Adaptive sampling's test: the pixel differs from a neighbour by more than `threshold` in a
-    /// channel of its mean, or in the object or shader it sees.
-    pub fn needs_refinement(&self, x: u32, y: u32, threshold: f32) -> bool {
+    /// channel of its mean, or in the object or shader it sees, each as `on` chooses (an output
+    /// variable is not kept here: `on.output` alone refines nothing).
+    pub fn needs_refinement(&self, x: u32, y: u32, threshold: f32, on: &super::RefineOn) -> bool {
         let i = self.index(x, y);
         let m = self.mean(x, y);
         let neighbours = [
@@ -589,9 +593,9 @@ impl Accumulator {
         neighbours.into_iter().flatten().any(|(nx, ny)| {
             let j = self.index(nx, ny);
             let n = self.mean(nx, ny);
-            self.object_id[i] != self.object_id[j]
-                || self.shader_id[i] != self.shader_id[j]
-                || m.iter().zip(n).any(|(a, b)| (a - b).abs() > threshold)
+            (on.object && self.object_id[i] != self.object_id[j])
+                || (on.shader && self.shader_id[i] != self.shader_id[j])
+                || (on.color && m.iter().zip(n).any(|(a, b)| (a - b).abs() > threshold))
         })
     }
 
@@ -659,8 +663,10 @@ pub fn render_progressive(world: &World, passes: u32) -> (Accumulator, BatchRepo
     for pass in 0..passes {
         let results = match world.options.antialiasing {
             Antialiasing::Adaptive { threshold } if pass > 0 => {
-                let snapshot = acc.clone();
-                trace_lattices(world, &lattices, pass, false, &move |x, y| snapshot.needs_refinement(x, y, threshold))
+                let (snapshot, on) = (acc.clone(), &world.options.refine_on);
+                trace_lattices(world, &lattices, pass, false, &move |x, y| {
+                    snapshot.needs_refinement(x, y, threshold, on)
+                })
             }
             _ => trace_lattices(world, &lattices, pass, false, &|_, _| true),
         };

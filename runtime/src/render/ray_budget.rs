@@ -19,6 +19,10 @@
 //! frame's rays were batched. A tree none of whose rays is refused is shaded exactly as without a
 //! budget, so a frame that cuts nothing is the image it was before there was one.
 //!
+//! The budget also carries where its tree comes from ([`RayOrigin`]): the pixel of its camera
+//! sample and the nearest object on its path that sets ray parameters, which every ray of the tree
+//! inherits (`ray_params.rs`).
+//!
 //! Only rays that are shaded count (and `gather` rays that could be): shadow, `transmission` and
 //! `occlusion` rays end where they hit, and are bounded by the loop budget of the shader that
 //! sends them.
@@ -28,18 +32,51 @@
 /// largest sample count 32 times over.
 pub const RAY_TREE_BUDGET: u32 = 1 << 17;
 
-/// What a ray's tree may still spawn, and whether a ray of it was refused.
+/// Where a tree of rays comes from, for its rays' parameters (`ray_params.rs`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct RayOrigin {
+    /// The camera sample's pixel, `y * width + x` ([`RayOrigin::NO_PIXEL`] for rays of no
+    /// pixel: light paths, rays an application traces).
+    pub(crate) pixel: u32,
+    /// The material of the nearest surface on the path that sets ray parameters
+    /// ([`RayOrigin::NO_MATERIAL`]: none).
+    pub(crate) material: u32,
+}
+
+impl RayOrigin {
+    pub(crate) const NO_PIXEL: u32 = u32::MAX;
+    pub(crate) const NO_MATERIAL: u32 = u32::MAX;
+    pub(crate) const NONE: RayOrigin = RayOrigin { pixel: Self::NO_PIXEL, material: Self::NO_MATERIAL };
+}
+
+/// What a ray's tree may still spawn, whether a ray of it was refused, and where it comes from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) struct RayBudget {
     pub(crate) left: u32,
     pub(crate) cut: bool,
+    pub(crate) origin: RayOrigin,
 }
 
 impl RayBudget {
-    /// A camera sample's.
-    pub(crate) const FULL: RayBudget = RayBudget { left: RAY_TREE_BUDGET, cut: false };
+    /// A camera sample's (of no pixel: [`RayBudget::from_pixel`] gives it one).
+    pub(crate) const FULL: RayBudget = RayBudget { left: RAY_TREE_BUDGET, cut: false, origin: RayOrigin::NONE };
     /// Nothing to spend: for rays that cannot spawn any (at the ray depth).
-    pub(crate) const NONE: RayBudget = RayBudget { left: 0, cut: false };
+    pub(crate) const NONE: RayBudget = RayBudget { left: 0, cut: false, origin: RayOrigin::NONE };
+
+    /// The full budget of the camera sample of pixel `pixel` (`y * width + x`).
+    pub(crate) const fn from_pixel(pixel: u32) -> RayBudget {
+        RayBudget { origin: RayOrigin { pixel, material: RayOrigin::NO_MATERIAL }, ..RayBudget::FULL }
+    }
+
+    /// This budget where a ray reaches a surface of material `material`: its rays inherit the
+    /// material's ray parameters if it sets any (`sets_parameters`).
+    pub(crate) fn through(self, material: u32, sets_parameters: bool) -> RayBudget {
+        if sets_parameters {
+            RayBudget { origin: RayOrigin { material, ..self.origin }, ..self }
+        } else {
+            self
+        }
+    }
 
     /// Takes `rays` from what is left; false, with nothing taken and the tree marked cut, when
     /// fewer are left.
@@ -54,12 +91,12 @@ impl RayBudget {
 
     /// What a spawned ray is lent: all that is left.
     pub(crate) fn lend(self) -> RayBudget {
-        RayBudget { left: self.left, cut: false }
+        RayBudget { left: self.left, cut: false, origin: self.origin }
     }
 
     /// A share of what is left, for one of `n` rays spawned together.
     pub(crate) fn share(self, n: u32) -> RayBudget {
-        RayBudget { left: self.left / n.max(1), cut: false }
+        RayBudget { left: self.left / n.max(1), cut: false, origin: self.origin }
     }
 
     /// Takes back what a spawned ray's tree spent of `lent`, ending with `after`.
@@ -80,7 +117,7 @@ mod tests {
 
     #[test]
     fn a_tree_spends_what_it_was_lent_and_no_more() {
-        let mut lane = RayBudget { left: 10, cut: false };
+        let mut lane = RayBudget { left: 10, cut: false, origin: RayOrigin { pixel: 7, material: 2 } };
         assert!(lane.take(1));
         let lent = lane.lend();
         assert_eq!(lent.left, 9);
@@ -89,8 +126,12 @@ mod tests {
         assert!(!child.take(6), "5 left");
         assert!(child.cut);
         lane.settle(lent, child);
-        assert_eq!(lane, RayBudget { left: 5, cut: true });
+        assert_eq!(lane, RayBudget { left: 5, cut: true, origin: RayOrigin { pixel: 7, material: 2 } });
         assert_eq!(lane.share(2).left, 2);
+        assert_eq!(lane.share(2).origin, lane.origin, "the rays of a tree keep its origin");
+        assert_eq!(lent.origin, lane.origin);
+        assert_eq!(lane.through(5, false).origin.material, 2);
+        assert_eq!(lane.through(5, true).origin, RayOrigin { pixel: 7, material: 5 });
         assert_eq!(lane.share(0).left, 5);
     }
 }

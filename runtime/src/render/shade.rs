@@ -80,14 +80,16 @@ pub fn shade_packets(frame: &Frame, packets: &[(&PrimaryRays, &HitPacket)], out:
             if begin_sample(frame, hit, &mut out[i]) {
                 let index = k * PACKET_SIZE + i;
                 let (ray, diff) = (packet.get(i), primary.diffs.lane(i));
-                pending.push(Pending { index, ray, diff, hit, budget: RayBudget::FULL });
+                let budget = RayBudget::from_pixel(primary.pixels[i]);
+                pending.push(Pending { index, ray, diff, hit, budget });
             }
         }
     }
     let out = &mut out[..packets.len()];
     let mut weight = vec![Vec3A::ONE; PACKET_SIZE * packets.len()];
     // Each camera sample's tree its own budget (what is left of it is not needed here).
-    let mut budgets = vec![RayBudget::FULL; PACKET_SIZE * packets.len()];
+    let mut budgets: Vec<RayBudget> =
+        packets.iter().flat_map(|(primary, _)| primary.pixels.map(RayBudget::from_pixel)).collect();
     shade_pending(frame, pending, 0, out.as_flattened_mut(), &mut weight, &mut budgets);
     for (k, ((primary, _), out)) in packets.iter().zip(out.iter_mut()).enumerate() {
         let packet = &primary.packet;
@@ -212,6 +214,7 @@ fn begin_sample(frame: &Frame, hit: Hit, out: &mut Sample) -> bool {
         object_id: u32::MAX,
         shader_id: u32::MAX,
         normal: Vec3A::ZERO,
+        output: [0.0; 3],
     };
     if !hit.is_hit() {
         out.color = Vec3A::from(frame.world.options.background);
@@ -301,6 +304,7 @@ fn first_hit_ids(world: &World, pending: &[Pending], shaded: &[Shaded], out: &mu
         if let Some(s) = out.get_mut(p.index) {
             (s.object_id, s.shader_id) = (object_id, material);
             s.normal = if r.ng.dot(p.ray.direction) > 0.0 { -r.ng } else { r.ng };
+            s.output = r.output;
         }
     }
 }
@@ -327,7 +331,8 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
     // Each lane's budget, spent by its displacement, light and surface shaders in turn.
     let mut budgets = super::scratch::take(&LANE_BUDGETS);
     budgets.clear();
-    budgets.extend(group.iter().map(|p| p.budget));
+    let sets_parameters = !material.ray_values.is_empty();
+    budgets.extend(group.iter().map(|p| p.budget.through(material_id, sets_parameters)));
     shade_group_lanes(frame, group, depth, out, (inst, material_id, material), &ig, &mut budgets);
     for ((o, p), b) in out.iter_mut().zip(group).zip(budgets.iter()) {
         (o.spent, o.cut) = (p.budget.left.saturating_sub(b.left), b.cut);
@@ -437,6 +442,23 @@ fn shade_group_lanes(
                 };
                 *o =
                     Shaded { ci: finite_or_zero(ci), oi: finite_or_zero(oi), p: g.p, ng: g.ng, on_surface: true, ..*o };
+            }
+            // The output adaptive anti-aliasing compares, of primary hits.
+            let watched = frame.world.options.refine_on.output.as_deref().filter(|_| depth == 0);
+            if let Some((_, slot)) = watched.and_then(|name| program.layout().param(name)) {
+                let n = slot.components.min(3);
+                if slot.output && !slot.string && slot.len == 1 {
+                    for (lane, o) in out.iter_mut().enumerate().take(lanes) {
+                        for k in 0..n {
+                            let v = if slot.varying {
+                                raw.varying.get((slot.offset + k) * raw.stride + lane)
+                            } else {
+                                raw.uniform.get(slot.offset + k)
+                            };
+                            o.output[k] = v.copied().filter(|v| v.is_finite()).unwrap_or(0.0);
+                        }
+                    }
+                }
             }
         });
     })

@@ -356,6 +356,9 @@ pub struct Sample {
     /// Unit geometric normal of the first surface hit, turned to face the ray's origin (zero on
     /// a miss), for pixel shaders that read it (`pixelvalue("N", x, y)`).
     pub normal: Vec3A,
+    /// The output variable adaptive anti-aliasing refines on ([`super::RefineOn::output`]) as the
+    /// first surface's shader left it (a float in the first component; zero without one).
+    pub output: [f32; 3],
 }
 
 pub(crate) struct Pending {
@@ -378,6 +381,9 @@ pub(crate) struct Shaded {
     /// follows from the ray's differential and `ng`, computed only for the rays that go on
     /// through it (`shade_pending`).
     pub(crate) on_surface: bool,
+    /// The output variable adaptive anti-aliasing refines on, as the shader left it (primary
+    /// hits only; see [`Sample::output`]).
+    pub(crate) output: [f32; 3],
     /// The rays shading the hit spawned (their trees included), of the hit's [`Pending::budget`],
     /// and whether it refused one.
     pub(crate) spent: u32,

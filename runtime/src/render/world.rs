@@ -33,6 +33,9 @@ pub struct Material {
     pub object_id: u32,
     /// Shade with Rust code instead of `surface` (`render/native.rs`).
     pub native: Option<Arc<dyn super::native::NativeSurface>>,
+    /// The object's own ray parameter values, which rays reaching it and the rays its shading
+    /// spawns read (`render/ray_params.rs`).
+    pub ray_values: Vec<(String, super::RayValue)>,
 }
 
 /// The simplified shading model light paths use at a surface instead of its shader (PRMan's and
@@ -87,6 +90,7 @@ impl Material {
         displacement: None,
         object_id: 0,
         native: None,
+        ray_values: Vec::new(),
     };
 
     /// Whether light passes through this material without running its shader.
@@ -291,7 +295,8 @@ pub enum Antialiasing {
     /// block take successive runs of one Halton sequence.
     Interleaved,
     /// One sample per pixel, then a jittered grid of extra samples (`samples`, or 2x2) where a pixel
-    /// differs from a neighbour by more than `threshold` in a colour channel or in what it hit.
+    /// differs from a neighbour by more than `threshold` in a colour channel or in what it hit
+    /// (what is compared: [`RenderOptions::refine_on`]).
     Adaptive { threshold: f32 },
 }
 
@@ -312,6 +317,49 @@ impl Antialiasing {
                 .ok_or_else(|| format!("`{t}` is not a threshold (a number, at least 0)")),
             _ => Err(format!("unknown anti-aliasing mode `{s}` (regular, jittered, interleaved, adaptive[:T])")),
         }
+    }
+}
+
+/// What adaptive anti-aliasing compares between neighbouring pixels' first samples
+/// ([`Antialiasing::Adaptive`]): a pixel is refined where any chosen criterion differs.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct RefineOn {
+    /// A colour or alpha channel differing by more than the threshold.
+    pub color: bool,
+    /// Another object hit (its `objectid`), or a hit beside a miss.
+    pub object: bool,
+    /// Another material (shader binding) hit.
+    pub shader: bool,
+    /// An output variable of the surface shader of the first hit (a float or a triple: a mask, a
+    /// normal, a material parameter), a component differing by more than the threshold. Where
+    /// the shader has no such output (or a miss) it reads 0.
+    pub output: Option<String>,
+}
+
+impl Default for RefineOn {
+    fn default() -> RefineOn {
+        RefineOn { color: true, object: true, shader: true, output: None }
+    }
+}
+
+impl RefineOn {
+    /// Parses a comma-separated list of `color`, `object`, `shader` and `output:NAME` (at least
+    /// one).
+    pub fn parse(s: &str) -> Result<RefineOn, String> {
+        let mut on = RefineOn { color: false, object: false, shader: false, output: None };
+        for item in s.split(',').map(str::trim) {
+            match item.split_once(':') {
+                None if item == "color" || item == "colour" => on.color = true,
+                None if item == "object" => on.object = true,
+                None if item == "shader" => on.shader = true,
+                Some(("output", name)) if !name.trim().is_empty() => on.output = Some(name.trim().to_string()),
+                _ => return Err(format!("`{item}` is not color, object, shader or output:NAME")),
+            }
+        }
+        if !(on.color || on.object || on.shader || on.output.is_some()) {
+            return Err(format!("`{s}` names nothing to refine on"));
+        }
+        Ok(on)
     }
 }
 
@@ -402,6 +450,12 @@ pub struct RenderOptions {
     /// Global illumination by virtual point lights (RIB `Option "gi"`): off unless
     /// `gi.virtual_lights` is set.
     pub gi: GiOptions,
+    /// What adaptive anti-aliasing refines on (colour, object and shader by default).
+    pub refine_on: RefineOn,
+    /// Named values the frame's rays carry, which shaders read with `rayinfo`
+    /// (`render/ray_params.rs`); the float parameter [`super::RELEVANCE`] also sets how many
+    /// samples each pixel takes.
+    pub ray_parameters: super::RayParameters,
 }
 
 /// The screen window as centre and half extents, the form the cameras use: screen `x` of raster
@@ -480,6 +534,8 @@ impl Default for RenderOptions {
             time_shaders: true,
             trace_ahead: true,
             gi: GiOptions::default(),
+            refine_on: RefineOn::default(),
+            ray_parameters: super::RayParameters::default(),
         }
     }
 }
@@ -580,6 +636,9 @@ pub struct World {
     /// Which contents the world has, for what is kept across frames traced from it
     /// ([`super::work::LightPathCache`]): unique to each world, renewed by [`World::prepare`].
     version: u64,
+    /// Ray parameter names shaders asked for that nothing sets ([`World::shader_messages`]
+    /// reports each once; a context shares its own with the worlds it builds).
+    pub ray_parameter_misses: Arc<super::ray_params::RayParameterMisses>,
 }
 
 /// The next [`World::version`].
@@ -606,6 +665,7 @@ impl World {
             textures: Arc::new(TextureCache::new()),
             vertex_params: HashMap::new(),
             version: next_world_version(),
+            ray_parameter_misses: Default::default(),
         }
     }
 
@@ -695,6 +755,12 @@ impl World {
             }
             seen.push(ptr);
             out.extend(p.code.runtime_errors().into_iter().map(|e| format!("shader {}: {e}", p.name)));
+        }
+        for name in self.ray_parameter_misses.take_new() {
+            out.push(format!(
+                "rayinfo(\"{name}\"): no ray parameter of that name is set; rayinfo returned 0 and left its variable \
+                 as it was"
+            ));
         }
         out
     }

@@ -26,10 +26,10 @@ wheel dollies towards the pivot; left click selects the object under the cursor 
 to deselect); shift + left drag grabs the object under the cursor and moves it in the view plane.
 Keys: W/S forward/back, A/D left/right, Q/E down/up (fly, held); X cycles anti-aliasing (jittered,
 interleaved, adaptive, regular); C cycles the camera (built-in pinhole, fisheye, cylindrical,
-parabolic, thinlens); F toggles frameless rendering; H toggles the overlay; R resets the
-view; Escape quits.
+parabolic, thinlens); F toggles frameless rendering; G makes quality follow the cursor (gaze);
+H toggles the overlay; R resets the view; Escape quits.
 Scripted input (--events): steps separated by ';': drag:X0,Y0,X1,Y1  rdrag:...  shiftdrag:...
-click:X,Y  scroll:STEPS  key:NAME  hold:KEY,SECONDS  wait:FRAMES (one step per displayed frame).";
+click:X,Y  move:X,Y  scroll:STEPS  key:NAME  hold:KEY,SECONDS  wait:FRAMES (one step per displayed frame).";
 
 /// Flags of `rtsl view`.
 #[derive(clap::Args, Debug, Clone)]
@@ -81,6 +81,8 @@ pub struct ViewArgs {
     pub mpi: bool,
     #[command(flatten)]
     pub workers: super::mpi::WorkerArgs,
+    #[command(flatten)]
+    pub rays: super::ray_params::RayParamArgs,
 }
 
 /// What the render thread ends with: the session's frame rates, or nothing when it ended before
@@ -199,6 +201,7 @@ fn show(args: &ViewArgs, jobs: mpsc::Sender<RenderJob>) -> anyhow::Result<(u32, 
     if let Some(aa) = args.aa {
         rt.options.antialiasing = aa;
     }
+    args.rays.apply(&mut rt)?;
     let threads = super::thread_count(args.threads)?;
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().context("starting the worker threads")?;
     let renderer = renderer::Renderer::new(

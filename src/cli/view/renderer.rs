@@ -16,10 +16,11 @@ use glam::{Affine3A, Vec3, Vec3A};
 use rtsl_runtime::api::{Context, InstanceId};
 use rtsl_runtime::distributed::{Master, Transport};
 use rtsl_runtime::reload::{ShaderEvent, ShaderReloader};
+use rtsl_runtime::render::frame::samples_for_relevance;
 use rtsl_runtime::render::progressive::{
     frameless_order, pass_lattices, trace_lattices_keeping, Accumulator, BatchReport, LatticeSamples, PixelLattice,
 };
-use rtsl_runtime::render::{camera_ray, Antialiasing, LightPathCache, World};
+use rtsl_runtime::render::{camera_ray, Antialiasing, LightPathCache, RayField, RayParameters, World, RELEVANCE};
 use rtsl_runtime::{ByteTable, Transfer};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, TryRecvError};
 use std::sync::{Arc, Mutex};
@@ -69,6 +70,11 @@ pub enum Command {
     MoveSelected {
         dx: f32,
         dy: f32,
+    },
+    /// Relevance follows this window pixel (the gaze); `None`: back to the scene's own ray
+    /// parameters.
+    Gaze {
+        at: Option<(f32, f32)>,
     },
     CycleAntialiasing,
     /// The next camera: the built-in pinhole, then the library's camera shaders.
@@ -167,6 +173,8 @@ pub struct Renderer {
     last_publish: Instant,
     summary: Summary,
     threads: usize,
+    /// The scene's own ray parameters while relevance follows the cursor (`Command::Gaze`).
+    before_gaze: Option<RayParameters>,
 }
 
 /// With `--mpi`, the master of the worker ranks that trace the lattices. It stays on the render
@@ -289,6 +297,7 @@ impl Renderer {
             last_publish: now,
             summary: Summary::default(),
             threads,
+            before_gaze: None,
             rt,
         })
     }
@@ -366,6 +375,10 @@ impl Renderer {
                 }
                 self.view_changed();
             }
+            Command::Gaze { at } => {
+                self.follow_gaze(at);
+                self.view_changed();
+            }
             Command::ToggleFrameless => {
                 self.frameless = !self.frameless;
                 self.view_changed();
@@ -391,6 +404,35 @@ impl Renderer {
                 world.camera = self.nav.camera;
             }
             self.view_changed();
+        }
+    }
+
+    /// Sets relevance to follow window pixel `at`: 1 within a sixth of the shorter side of the
+    /// image around it, falling to 0 over as much again (`None`: the scene's own parameters).
+    fn follow_gaze(&mut self, at: Option<(f32, f32)>) {
+        let params = &mut self.rt.options.ray_parameters;
+        match at {
+            Some((x, y)) => {
+                let before = self.before_gaze.get_or_insert_with(|| params.clone());
+                *params = before.clone();
+                params.remove(RELEVANCE);
+                let (w, h) = (self.rt.options.width, self.rt.options.height);
+                let radius = w.min(h) as f32 / 6.0;
+                let field = RayField::Gaze { centre: [x, y], radius, falloff: radius, inside: 1.0.into() };
+                let set = params.set(RELEVANCE, 0.0.into()).and_then(|()| params.set_field(RELEVANCE, Some(field)));
+                if let Err(e) = set {
+                    self.diagnostics.push(format!("gaze: {e}"));
+                }
+            }
+            None => {
+                if let Some(before) = self.before_gaze.take() {
+                    *params = before;
+                }
+            }
+        }
+        let params = self.rt.options.ray_parameters.clone();
+        if let Some(world) = self.world.as_mut() {
+            world.options.ray_parameters = params;
         }
     }
 
@@ -506,7 +548,7 @@ impl Renderer {
                 Antialiasing::Adaptive { threshold } if self.pass > 0 => Some(
                     (0..h)
                         .flat_map(|y| (0..w).map(move |x| (x, y)))
-                        .map(|(x, y)| self.acc.needs_refinement(x, y, threshold))
+                        .map(|(x, y)| self.acc.needs_refinement(x, y, threshold, &self.world().options.refine_on))
                         .collect(),
                 ),
                 _ => None,
@@ -516,8 +558,18 @@ impl Renderer {
         let end = (self.pass_cursor + chunk).min(self.full_lattices.len());
         let lattices = &self.full_lattices[self.pass_cursor..end];
         let refine = self.refine.as_deref();
-        let wanted = |x: u32, y: u32| refine.is_none_or(|r| r[(y * w + x) as usize]);
         let world = held(&self.world);
+        // Under relevance, a pixel takes its share of the passes (as a frame's pixels take their
+        // share of its samples), at least one.
+        let (params, pass, limit) = (&world.options.ray_parameters, self.pass, self.still_limit);
+        let by_relevance = params.get(RELEVANCE).is_some();
+        let wanted = |x: u32, y: u32| {
+            refine.is_none_or(|r| r[(y * w + x) as usize])
+                && (!by_relevance || {
+                    let r = params.float_at(RELEVANCE, Some((x, y)), (w, h)).unwrap_or(1.0);
+                    pass < samples_for_relevance(limit, r)
+                })
+        };
         let (results, report) = trace(
             workers,
             pool,
@@ -621,6 +673,9 @@ impl Renderer {
         ];
         if let Some(sel) = self.selected {
             status.push(format!("selected instance {} (shift-drag moves it)", sel.instance.0));
+        }
+        if self.before_gaze.is_some() {
+            status.push("gaze: quality follows the cursor (G turns it off)".to_string());
         }
         for m in world.textures.take_warnings() {
             self.diagnostics.push(m.to_string());

@@ -5,7 +5,7 @@
 //! Syntax: steps separated by `;`, each `NAME:ARGS` with comma-separated numbers:
 //! `drag:X0,Y0,X1,Y1` (left button: orbit), `rdrag:X0,Y0,X1,Y1` (right button: look),
 //! `shiftdrag:X0,Y0,X1,Y1` (shift + left: select and move the object under X0,Y0),
-//! `click:X,Y` (select), `scroll:STEPS` (positive: towards the pivot), `key:NAME` (press and
+//! `click:X,Y` (select), `move:X,Y` (the cursor moves there, no button held), `scroll:STEPS` (positive: towards the pivot), `key:NAME` (press and
 //! release a key: a letter, a digit, `tab`, `space`, `escape`, `f1`), `hold:KEY,SECONDS` (a flying
 //! key held for that long, as if at the fly speed), `wait:FRAMES`.
 
@@ -14,6 +14,7 @@
 pub enum Step {
     Drag { button: DragButton, from: (f32, f32), to: (f32, f32) },
     Click { at: (f32, f32) },
+    Move { to: (f32, f32) },
     Scroll { steps: f32 },
     Key { name: String },
     Hold { key: char, seconds: f32 },
@@ -61,6 +62,10 @@ pub fn parse(script: &str) -> Result<Vec<Step>, String> {
                 let v = numbers(raw, args, 2)?;
                 Step::Click { at: (v[0], v[1]) }
             }
+            "move" => {
+                let v = numbers(raw, args, 2)?;
+                Step::Move { to: (v[0], v[1]) }
+            }
             "scroll" => Step::Scroll { steps: numbers(raw, args, 1)?[0] },
             "key" => {
                 let key = args.trim().to_ascii_lowercase();
@@ -92,7 +97,7 @@ pub fn parse(script: &str) -> Result<Vec<Step>, String> {
             }
             other => {
                 return Err(format!(
-                    "`{raw}`: unknown step `{other}` (drag, rdrag, shiftdrag, click, scroll, key, hold, wait)"
+                    "`{raw}`: unknown step `{other}` (drag, rdrag, shiftdrag, click, move, scroll, key, hold, wait)"
                 ))
             }
         };

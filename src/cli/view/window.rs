@@ -78,6 +78,8 @@ pub struct App {
     held: Vec<char>,
     last_fly: Instant,
     overlay: bool,
+    /// Whether relevance follows the cursor (key `G`).
+    gaze: bool,
     script: VecDeque<Step>,
     waiting_frames: u32,
     /// The last error, reported after the event loop ends.
@@ -98,6 +100,7 @@ impl App {
             window: None,
             surface: None,
             cursor: (0.0, 0.0),
+            gaze: false,
             pressed: None,
             drag: None,
             shift: false,
@@ -119,6 +122,9 @@ impl App {
     fn cursor_moved(&mut self, x: f32, y: f32) {
         let (dx, dy) = (x - self.cursor.0, y - self.cursor.1);
         self.cursor = (x, y);
+        if self.gaze && self.pressed.is_none() && (dx != 0.0 || dy != 0.0) {
+            self.send(Command::Gaze { at: Some((x, y)) });
+        }
         let Some((button, start, _)) = self.pressed else { return };
         if self.drag.is_none() && ((x - start.0).abs() > CLICK_SLOP || (y - start.1).abs() > CLICK_SLOP) {
             self.drag = Some(match (button, self.shift) {
@@ -186,6 +192,10 @@ impl App {
             ViewKey::Char('c') => self.send(Command::CycleCamera),
             ViewKey::Char('f') => self.send(Command::ToggleFrameless),
             ViewKey::Char('r') => self.send(Command::ResetView),
+            ViewKey::Char('g') => {
+                self.gaze = !self.gaze;
+                self.send(Command::Gaze { at: self.gaze.then_some(self.cursor) });
+            }
             ViewKey::Char('h') => {
                 self.overlay = !self.overlay;
                 self.request_redraw();
@@ -246,6 +256,7 @@ impl App {
                 self.mouse_button(MouseButton::Left, true);
                 self.mouse_button(MouseButton::Left, false);
             }
+            Step::Move { to } => self.cursor_moved(to.0, to.1),
             Step::Scroll { steps } => self.send(Command::Dolly { steps }),
             Step::Key { name } => {
                 let key = match name.as_str() {

@@ -343,9 +343,11 @@ pub struct HostTable {
     pub depth: unsafe extern "C" fn(ctx: *mut c_void, mask: *const i32, p: *const f32, out: *mut f32),
     /// How many bounces led to this batch's rays.
     pub ray_depth: unsafe extern "C" fn(ctx: *mut c_void) -> f32,
-    /// Message passing and queries: `which` is the built-in's index in `Builtin::ALL`. Returns 0 when
-    /// unknown.
-    pub message: unsafe extern "C" fn(ctx: *mut c_void, which: u32, name: StrRef, out: *mut MessageOut) -> u32,
+    /// Message passing and queries: `which` is the built-in's index in `Builtin::ALL`, asked for
+    /// lane `lane` of chunk `chunk` (a renderer answers `rayinfo` from that lane's ray; `chunk` as
+    /// for `rays`). Returns 0 when unknown.
+    pub message:
+        unsafe extern "C" fn(ctx: *mut c_void, which: u32, chunk: u32, lane: u32, name: StrRef, out: *mut MessageOut) -> u32,
     /// `lightsource(name)` inside an `illuminance` loop: a parameter of light `light` (a
     /// [`HostLight::id`]). Returns 0 when unknown.
     pub light_message: unsafe extern "C" fn(ctx: *mut c_void, light: u32, name: StrRef, out: *mut MessageOut) -> u32,
@@ -617,10 +619,17 @@ unsafe extern "C" fn sv_ray_depth(ctx: *mut c_void) -> f32 {
 /// A `Services` host has one answer for `lightsource()` whichever the light (the interpreter's).
 unsafe extern "C" fn sv_light_message(ctx: *mut c_void, _light: u32, name: StrRef, out: *mut MessageOut) -> u32 {
     // SAFETY: the caller's contract, passed on.
-    unsafe { sv_message(ctx, Builtin::Lightsource as u32, name, out) }
+    unsafe { sv_message(ctx, Builtin::Lightsource as u32, 0, 0, name, out) }
 }
 
-unsafe extern "C" fn sv_message(ctx: *mut c_void, which: u32, name: StrRef, out: *mut MessageOut) -> u32 {
+unsafe extern "C" fn sv_message(
+    ctx: *mut c_void,
+    which: u32,
+    _chunk: u32,
+    _lane: u32,
+    name: StrRef,
+    out: *mut MessageOut,
+) -> u32 {
     // SAFETY: the table's contract.
     let (h, name, out) = unsafe { (sv(ctx), name.as_str(), &mut *out) };
     let Some(b) = Builtin::ALL.get(which as usize) else { return 0 };
@@ -1353,7 +1362,7 @@ host_helpers! {
             let mut out = MessageOut { kind: 0, len: 0, floats: [0.0; MESSAGE_FLOATS], string: StrRef::new("") };
             let found = match cx.table {
                 // SAFETY: the runtime's table.
-                Some(t) => unsafe { (t.message)(t.ctx, which, StrRef::new(&name), &mut out) },
+                Some(t) => unsafe { (t.message)(t.ctx, which, cx.chunk, l as u32, StrRef::new(&name), &mut out) },
                 None => 0,
             };
             put_message(cx, l, found, &out, class, len, textureinfo);

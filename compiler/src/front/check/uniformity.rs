@@ -429,6 +429,16 @@ impl<'a> Analysis<'a> {
                 // surface, so even whether they find the name varies.
                 let mut v = (fl & flags::VARYING != 0 && !(*builtin == Builtin::Random && self.random_uniform))
                     || matches!(builtin, Builtin::Incident | Builtin::Opposite);
+                // `rayinfo()` answers from each lane's ray (the ray parameters of its pixel and of
+                // the objects on its path), unless its destination is declared uniform: that takes
+                // one lane's answer, as a uniform `random()` does.
+                if *builtin == Builtin::Rayinfo {
+                    v |= args.iter().any(|a| match a {
+                        Arg::Ref(p) => !matches!(p.base, PlaceBase::Var(var)
+                            if self.fixed[var.0 as usize] && !self.var_varying[var.0 as usize]),
+                        Arg::Value(_) => false,
+                    });
+                }
                 for a in args {
                     if let Arg::Value(x) = a {
                         v |= self.walk(f, *x, ctl);
