@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{context, quad, H, W};
+use common::{context, load, quad, FLAT, H, W};
 use glam::Vec3A;
 use rtsl_runtime::api::{ApiError, Context, ShaderId};
 use rtsl_runtime::render::{RayField, RayValue};
@@ -191,5 +191,70 @@ fn relevance_sets_how_many_samples_a_pixel_takes() -> Result<(), ApiError> {
     rt.set_ray_parameter("relevance", 0.25)?;
     let (_, report) = rt.render_frame()?;
     assert_eq!(report.primary_rays, 4 * u64::from(W * H));
+    Ok(())
+}
+
+#[test]
+fn relevance_sets_how_many_samples_an_area_light_takes() -> Result<(), ApiError> {
+    // A square area light (16 samples) over a floor, a sphere casting a soft shadow between.
+    let rib =
+        "Format 64 48 1\nProjection \"perspective\" \"fov\" 50\nTranslate 0 -0.5 4\nRotate -30 1 0 0\nWorldBegin\n\
+        AttributeBegin\nAttribute \"light\" \"shadows\" \"on\"\nAreaLightSource \"arealight\" 1 \"intensity\" [6]\n\
+        Polygon \"P\" [-0.6 2 -0.6  0.6 2 -0.6  0.6 2 0.6  -0.6 2 0.6]\nAttributeEnd\nIlluminate 1 1\n\
+        Surface \"matte\"\nPolygon \"P\" [-4 0 -4  4 0 -4  4 0 4  -4 0 4]\n\
+        AttributeBegin\nTranslate 0 0.8 0\nSphere 0.4 -0.4 0.4 360\nAttributeEnd\nWorldEnd\n";
+    let (mut rt, warnings) = load(rib);
+    assert!(warnings.is_empty(), "{warnings:?}");
+    let (full, full_report) = rt.render_frame()?;
+    rt.set_ray_parameter("relevance", 0.125)?;
+    rt.set_ray_field("relevance", Some(RayField::Regions(vec![([0, 0, W / 2, H], 1.0.into())])))?;
+    let (adapted, report) = rt.render_frame()?;
+    assert!(report.shadow_rays < full_report.shadow_rays, "{} {}", report.shadow_rays, full_report.shadow_rays);
+    let (mut same, mut changed, mut sum_full, mut sum_adapted) = (true, 0, 0.0f32, 0.0f32);
+    for y in 0..H {
+        for x in 0..W {
+            let (a, b) = (full.pixel(x, y), adapted.pixel(x, y));
+            if x < W / 2 {
+                same &= a == b;
+            } else {
+                changed += usize::from(a != b);
+                sum_full += a[0];
+                sum_adapted += b[0];
+            }
+        }
+    }
+    assert!(same, "where relevance is 1 the frame is the full-quality one");
+    assert!(changed > 0, "two samples of sixteen change the soft shadow");
+    let ratio = sum_adapted / sum_full;
+    assert!((ratio - 1.0).abs() < 0.1, "fewer samples weigh more: the light is as bright ({ratio})");
+    Ok(())
+}
+
+#[test]
+fn the_library_reflectors_trace_less_where_relevance_is_low() -> Result<(), ApiError> {
+    for name in ["mirror", "glossy", "glass"] {
+        let mut rt = context();
+        let surface = rt.find_shader(name)?;
+        let flat = rt.compile_shader("flat.sl", FLAT)?;
+        rt.camera_look_at(Vec3A::new(0.0, 0.0, 5.0), Vec3A::ZERO, Vec3A::Y, 30.0);
+        let m = rt.begin_object()?;
+        rt.bind_shader(surface)?;
+        quad(&mut rt, [[-10.0, -10.0, 0.0], [10.0, -10.0, 0.0], [10.0, 10.0, 0.0], [-10.0, 10.0, 0.0]])?;
+        rt.end_object()?;
+        // A green wall behind the camera, which the reflector shows.
+        let wall = rt.begin_object()?;
+        rt.bind_shader(flat)?;
+        rt.parameter("c", rtsl_runtime::shading::ParamValue::Color([0.0, 1.0, 0.0]))?;
+        quad(&mut rt, [[-30.0, 30.0, 8.0], [30.0, 30.0, 8.0], [30.0, -30.0, 8.0], [-30.0, -30.0, 8.0]])?;
+        rt.end_object()?;
+        rt.instantiate_object(m)?;
+        rt.instantiate_object(wall)?;
+        let (fb, full) = rt.render_frame()?;
+        assert!(fb.pixel(W / 2, H / 2)[1] > 0.02, "{name} reflects the wall: {:?}", fb.pixel(W / 2, H / 2));
+        rt.set_ray_parameter("relevance", 0.0)?;
+        let (fb, low) = rt.render_frame()?;
+        assert!(fb.pixel(W / 2, H / 2)[1] < 1e-6, "{name} at relevance 0 traces nothing: {:?}", fb.pixel(W / 2, H / 2));
+        assert_eq!(low.secondary_rays, 0, "{name}: {} rays of {}", low.secondary_rays, full.secondary_rays);
+    }
     Ok(())
 }

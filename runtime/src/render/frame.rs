@@ -11,7 +11,7 @@ use super::pixel::{reads_pixels, shade_pixels, TilePixels};
 use super::primary::{
     pinhole_ray, primary_rays, primary_rays_into, primary_rays_of_packets, CameraSample, PacketSamples, PrimaryRays,
 };
-use super::ray_params::{RayValue, RELEVANCE};
+use super::ray_params::{samples_for_relevance, RayValue, RELEVANCE};
 use super::sampling::{mix, radical_inverse};
 use super::shade::{shade_packet, shade_packets};
 use super::work::{Frame, LightPaths, PixelImage, Sample};
@@ -628,11 +628,6 @@ struct Sampling {
     /// Whether the ray parameter [`RELEVANCE`] sets how many of the grid's samples each pixel
     /// takes ([`samples_for_relevance`]): where it is set and the grid has more than one.
     by_relevance: bool,
-}
-
-/// How many of a grid of `n` samples a pixel of relevance `r` takes: `ceil(n r)`, at least one.
-pub fn samples_for_relevance(n: u32, r: f32) -> u32 {
-    ((n as f32 * r.clamp(0.0, 1.0)).ceil() as u32).clamp(1, n.max(1))
 }
 
 /// The place of cell `(i, j)` of a `sx x sy` sample grid in the order a pixel takes its samples

@@ -1061,16 +1061,7 @@ unsafe extern "C" fn host_message(
 fn ray_parameter(c: &mut ShadeCall, chunk: u32, lane: u32, name: &str, out: &mut MessageOut) -> u32 {
     let world = c.frame.world;
     let origin = c.budget(chunk, lane as usize).map_or(RayOrigin::NONE, |b| b.origin);
-    let options = &world.options;
-    let object = world.materials.get(origin.material as usize).and_then(|m| object_value(&m.ray_values, name));
-    let value = match object {
-        Some(v) => Some(v.clone()),
-        None => {
-            let (w, h) = (options.width.max(1), options.height.max(1));
-            let pixel = (origin.pixel != RayOrigin::NO_PIXEL).then(|| (origin.pixel % w, origin.pixel / w));
-            options.ray_parameters.value_at(name, pixel, (w, h))
-        }
-    };
+    let value = ray_value(c.frame, origin, name);
     let triple = |out: &mut MessageOut, v: [f32; 3]| {
         out.kind = 2;
         out.len = 0;
@@ -1103,6 +1094,24 @@ fn ray_parameter(c: &mut ShadeCall, chunk: u32, lane: u32, name: &str, out: &mut
             0
         }
     }
+}
+
+/// Ray parameter `name` of a ray from `origin` (`ray_params.rs` gives the order of lookup), `None`
+/// where nothing sets it (`relevance` included).
+pub(super) fn ray_value(frame: &Frame, origin: RayOrigin, name: &str) -> Option<RayValue> {
+    let world = frame.world;
+    let options = &world.options;
+    if let Some(v) = world.materials.get(origin.material as usize).and_then(|m| object_value(&m.ray_values, name)) {
+        return Some(v.clone());
+    }
+    let (w, h) = (options.width.max(1), options.height.max(1));
+    let pixel = (origin.pixel != RayOrigin::NO_PIXEL).then(|| (origin.pixel % w, origin.pixel / w));
+    options.ray_parameters.value_at(name, pixel, (w, h))
+}
+
+/// The relevance of a ray from `origin`, in [0, 1] (1 where nothing sets it).
+pub(super) fn ray_relevance(frame: &Frame, origin: RayOrigin) -> f32 {
+    super::ray_params::relevance(ray_value(frame, origin, RELEVANCE).as_ref())
 }
 
 /// Parameter `name` of `shader` (bound, or its constant default) as a message answer: 1 when found.

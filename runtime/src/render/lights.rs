@@ -3,9 +3,10 @@
 //! the per-lane table the shader's light queries are served from.
 
 use super::differential::RayDifferential;
-use super::host::ShadeCall;
+use super::host::{ray_relevance, ShadeCall};
 use super::lanes::Lanes3;
 use super::ray_budget::RayBudget;
+use super::ray_params::samples_for_relevance;
 use super::sampling::{mix, point_seed, unit};
 use super::stats::{tracing, Stats};
 use super::work::{epsilon, BatchLights, Frame, Pending, Shaded};
@@ -119,7 +120,14 @@ fn eval_light_lanes(
         eval_invariant_light_lanes(frame, (id, light), material, mask, points, times, depth, sink);
         return;
     }
-    let scale = 1.0 / samples as f32;
+    // Under relevance (`ray_params.rs`), each lane takes its share of an area light's samples, at
+    // least one, each weighed by one over the lane's own count.
+    let takes: [u32; PACKET_SIZE] = std::array::from_fn(|l| match budgets.get(l) {
+        Some(b) if samples > 1 && l < n => samples_for_relevance(samples, ray_relevance(frame, b.origin)),
+        _ => samples,
+    });
+    let scales: [f32; PACKET_SIZE] = std::array::from_fn(|l| 1.0 / takes[l].max(1) as f32);
+    let mut sample_mask = [0i32; PACKET_SIZE];
     let mut scratch = super::scratch::take(&LIGHT_LANE_ROWS);
     let LightLaneRows { ps, lane_times, rows, flags, attenuation, packet, .. } = scratch.fresh(n);
     // The lanes' points and times as rows, written into each batch a row at a time; the points
@@ -151,12 +159,19 @@ fn eval_light_lanes(
     let filled =
         varying_rows([(slots.e, 3), (slots.ncomps, 1), (slots.p, 3), (slots.n, 3), (slots.ps, 3), (slots.time, 1)]);
     for sample in 0..samples {
+        for (l, m) in sample_mask.iter_mut().enumerate().take(n) {
+            *m = if sample < takes[l] { mask[l] } else { 0 };
+        }
+        let mask = &sample_mask[..n];
+        if mask.iter().all(|&m| m == 0) {
+            continue;
+        }
         Stats::add(&frame.stats.light_evaluations, 1);
         with_filled_batch(program, n, &filled, |batch| {
             {
                 let mut raw = batch.raw_mut();
                 instance.write_params(&mut raw);
-                raw.mask[..n].copy_from_slice(&mask[..n]);
+                raw.mask[..n].copy_from_slice(mask);
                 // What every lane shares is written a row at a time.
                 fill3(&mut raw, slots.e, eye);
                 fill1(&mut raw, slots.ncomps, 3.0);
@@ -241,6 +256,7 @@ fn eval_light_lanes(
             if lanes == 0 {
                 continue;
             }
+            let scale = Vec4::from_slice(&scales[at.clone()]);
             let fill = |row: &mut LightLanes| {
                 for k in 0..3 {
                     row.l[k] = if ambient { [0.0; 4] } else { (-to_surface[k]).to_array() };

@@ -356,6 +356,11 @@ impl RayParameterMisses {
     }
 }
 
+/// How many of `n` samples a ray or pixel of relevance `r` takes: `ceil(n r)`, at least one.
+pub fn samples_for_relevance(n: u32, r: f32) -> u32 {
+    ((n as f32 * r.clamp(0.0, 1.0)).ceil() as u32).clamp(1, n.max(1))
+}
+
 /// An object's own ray parameter values (see the module's order of lookup).
 pub fn object_value<'a>(values: &'a [(String, RayValue)], name: &str) -> Option<&'a RayValue> {
     let name = strip_user(name);

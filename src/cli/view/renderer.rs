@@ -16,10 +16,10 @@ use glam::{Affine3A, Vec3, Vec3A};
 use rtsl_runtime::api::{Context, InstanceId};
 use rtsl_runtime::distributed::{Master, Transport};
 use rtsl_runtime::reload::{ShaderEvent, ShaderReloader};
-use rtsl_runtime::render::frame::samples_for_relevance;
 use rtsl_runtime::render::progressive::{
     frameless_order, pass_lattices, trace_lattices_keeping, Accumulator, BatchReport, LatticeSamples, PixelLattice,
 };
+use rtsl_runtime::render::ray_params::samples_for_relevance;
 use rtsl_runtime::render::{camera_ray, Antialiasing, LightPathCache, RayField, RayParameters, World, RELEVANCE};
 use rtsl_runtime::{ByteTable, Transfer};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, TryRecvError};
