@@ -8,7 +8,7 @@ use rtsl_runtime::distributed::{
     serve, Demand, DistributedError, LocalTransport, Master, Message, ReplicaScene, Traffic, Transport,
 };
 use rtsl_runtime::glam::{Affine3A, Vec3A};
-use rtsl_runtime::render::{render_frame, FilterKind, Framebuffer, PixelFilter};
+use rtsl_runtime::render::{render_frame, FilterKind, Framebuffer, PixelFilter, RayField};
 use rtsl_runtime::shading::{ParamValue, ShaderProgram};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -127,8 +127,8 @@ fn library_with_camera_and_pixel_shader() -> Result<Context, String> {
 #[test]
 fn distributed_frames_are_bit_identical_to_single_process_frames() -> Result<(), DistributedError> {
     // Moving frames: each worker applies each frame's update before any of its tiles.
-    let office = office().expect("the office");
-    let frames = both_ways(office, 2, 1, &[nothing, move_first, nothing, move_first])?;
+    let scene = office().expect("the office");
+    let frames = both_ways(scene, 2, 1, &[nothing, move_first, nothing, move_first])?;
     assert_same(&frames, "the office");
     // The first update carries the scene; a move carries one instance; no change, nothing.
     let updates: Vec<u64> = frames.iter().map(|f| f.2).collect();
@@ -143,6 +143,18 @@ fn distributed_frames_are_bit_identical_to_single_process_frames() -> Result<(),
     volume.options.width = 64;
     volume.options.height = 48;
     assert_same(&both_ways(volume, 2, 1, &[nothing])?, "the volume scene");
+    // Ray parameters travel with the options: relevance around a gaze point lowers samples and
+    // the mirror's reflections on the workers as here, and moving the gaze reaches them.
+    let mut gazed = office().expect("the office");
+    gazed.options.samples = (2, 2);
+    gazed.set_ray_parameter("relevance", 0.0).expect("a value");
+    let gaze = |x: f32| RayField::Gaze { centre: [x, 36.0], radius: 12.0, falloff: 12.0, inside: 1.0.into() };
+    gazed.set_ray_field("relevance", Some(gaze(30.0))).expect("a field");
+    fn look_right(rt: &mut Context) -> Result<(), String> {
+        let gaze = RayField::Gaze { centre: [70.0, 36.0], radius: 12.0, falloff: 12.0, inside: 1.0.into() };
+        rt.set_ray_field("relevance", Some(gaze)).map_err(|e| e.to_string())
+    }
+    assert_same(&both_ways(gazed, 2, 1, &[nothing, look_right])?, "the office under a moving gaze");
     Ok(())
 }
 
