@@ -54,7 +54,7 @@ impl NativeSurface for NativePlastic {
             }
             diffuse += light.cl * ln.dot(nf);
             let h = (ln + v).normalize_or_zero();
-            specular += light.cl * nf.dot(h).max(0.0).powf(1.0 / r);
+            specular += light.cl * nf.dot(h).max(0.0).powf(8.0 / r);
         }
         let ci = os * (cs * (self.ka * ambient + self.kd * diffuse) + self.specular_color * self.ks * specular);
         (ci, os)

@@ -479,9 +479,9 @@ impl Machine<'_> {
             }
             Builtin::Specular => {
                 let (n, view, rough) = (normalize(v(0).v3()), normalize(v(1).v3()), v(2).f());
-                Value::Triple(
-                    self.sum_lights(n, |l, _| specular_brdf(normalize(l.l), n, view, rough) * (1.0 - l.nonspecular)),
-                )
+                Value::Triple(self.sum_lights(n, |l, _| {
+                    geom::specular_weight(normalize(l.l), n, view, rough) * (1.0 - l.nonspecular)
+                }))
             }
             Builtin::Specularbrdf => Value::Triple(
                 [specular_brdf(normalize(v(0).v3()), normalize(v(1).v3()), normalize(v(2).v3()), v(3).f()); 3],

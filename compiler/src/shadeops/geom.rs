@@ -249,9 +249,6 @@ pub fn sign(x: f32) -> f32 {
     }
 }
 
-/// RenderMan's specular weight of one light (`specularbrdf`, and the per-light term of `specular`):
-/// `pow(max(0, N . H), 1 / roughness)` with the half vector `H = normalize(L + V)`. The inputs are
-/// normalised here; a roughness at or below zero is taken as 1e-4 (a very sharp highlight).
 /// Whether a light from direction `l` is within 90 degrees of `n` (the `illuminance(P, N, PI/2)`
 /// of RISpec's `diffuse`, `specular` and `phong`): the cosine of the angle is not negative. (Both
 /// back ends use this one test; comparing `acos` of the cosine with PI/2 costs a libm call per light
@@ -283,11 +280,27 @@ pub fn bump(n: V3, dpds: V3, dpdt: V3, h: f32, h_s: f32, h_t: f32) -> V3 {
     [n[0] + hs * a[0] + ht * b[0], n[1] + hs * a[1] + ht * b[1], n[2] + hs * a[2] + ht * b[2]]
 }
 
+/// The exponent of the specular highlight of `roughness`: `1 / (roughness / 8)`, as PRMan, BMRT
+/// and Aqsis compute it (RISpec 3.2's printed `specular` has `1 / roughness`, but the renderers'
+/// `plastic` highlights are those of `8 / roughness`; Aqsis notes it emulates BMRT's
+/// `prmanspecular`). A roughness at or below zero is taken as 1e-4 (a very sharp highlight).
+pub fn specular_exponent(roughness: f32) -> f32 {
+    8.0 / if roughness > 0.0 { roughness } else { 1e-4 }
+}
+
+/// RenderMan's specular weight of one light (`specularbrdf`): [`specular_weight`] of the inputs
+/// normalised.
 pub fn specular_brdf(l: V3, n: V3, v: V3, roughness: f32) -> f32 {
-    let (l, n, v) = (normalize(l), normalize(n), normalize(v));
+    specular_weight(normalize(l), normalize(n), normalize(v), roughness)
+}
+
+/// The per-light term of `specular` for unit `l`, `n` and `v`: `pow(max(0, N . H),
+/// specular_exponent(roughness))` with the half vector `H = normalize(L + V)`. (Both back ends
+/// compute it with these operations: at the exponents of sharp highlights, normalising a unit
+/// vector again would move the result by more than they may differ.)
+pub fn specular_weight(l: V3, n: V3, v: V3, roughness: f32) -> f32 {
     let h = normalize([l[0] + v[0], l[1] + v[1], l[2] + v[2]]);
-    let r = if roughness > 0.0 { roughness } else { 1e-4 };
-    super::transcendental::pow(dot(n, h).max(0.0), 1.0 / r)
+    super::transcendental::pow(dot(n, h).max(0.0), specular_exponent(roughness))
 }
 
 #[cfg(test)]

@@ -1042,8 +1042,7 @@ pub(super) fn angle_between(a: V3, b: V3) -> f32 {
 #[cfg(test)]
 fn specular_brdf(l: V3, n: V3, v: V3, roughness: f32) -> f32 {
     let h = geom::normalize(add(l, v));
-    let r = if roughness > 0.0 { roughness } else { 1e-4 };
-    transcendental::pow(dot(n, h).max(0.0), 1.0 / r)
+    transcendental::pow(dot(n, h).max(0.0), geom::specular_exponent(roughness))
 }
 
 /// `sum_lights` of the interpreter over one lane's lights; `weight` gets each light and its unit

@@ -212,7 +212,8 @@ pub(super) fn specular(
     view: &Lanes3,
     roughness: Vec4,
 ) -> Lanes3 {
-    let exponent = Vec4::ONE / Vec4::select(roughness.cmpgt(Vec4::ZERO), roughness, Vec4::splat(1e-4));
+    // `geom::specular_exponent` of each lane.
+    let exponent = Vec4::splat(8.0) / Vec4::select(roughness.cmpgt(Vec4::ZERO), roughness, Vec4::splat(1e-4));
     sum_lights(buffer, counts, mask, n, |row, unit_l, counted| {
         let h = unit_l.add(view).normalized();
         highlight(n.dot(&h).max(Vec4::ZERO), exponent, counted, row.nonspecular)
