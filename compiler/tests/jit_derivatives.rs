@@ -134,6 +134,37 @@ fn derivatives_of_an_analytic_surface() {
 }
 
 #[test]
+fn setting_a_component_carries_its_derivatives() {
+    // q = (u, v, 0) with z set to uv: calculatenormal(q) = (-v, -u, 1), as for point(u, v, uv);
+    // by setzcomp, setcomp and on an element of an array of points, in both back ends.
+    let src = "surface t(output varying normal a = 0, b = 0, c = 0; output varying vector d = 0;)
+         { point q = point(u, v, 0); setzcomp(q, u * v); a = calculatenormal(q);
+           point r = point(u, 0, 0); setcomp(r, 1, v); setcomp(r, 2, u * v); b = calculatenormal(r);
+           point ps[2]; ps[1] = point(u, v, 0); setzcomp(ps[1], u * v); c = calculatenormal(ps[1]);
+           vector w = 0; setxcomp(w, u); setycomp(w, 2 * v); d = Du(w); }";
+    let m = module(src);
+    let shader = jit::compile(&m).expect("compiles");
+    let mut batch = shader.batch(3);
+    for l in 0..3 {
+        let (u, v) = (0.2 * l as f32 + 0.1, 0.7 - 0.2 * l as f32);
+        assert!(batch.set_global("u", l, &[u]) && batch.set_global("v", l, &[v]));
+        assert!(batch.set_global_derivs("u", l, &[1.0], &[0.0]));
+        assert!(batch.set_global_derivs("v", l, &[0.0], &[1.0]));
+    }
+    shader.shade(&mut batch);
+    let near = |a: &[f32], b: &[f32]| a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-5);
+    for l in 0..3 {
+        let (u, v) = (0.2 * l as f32 + 0.1, 0.7 - 0.2 * l as f32);
+        for name in ["a", "b", "c"] {
+            let n = batch.param(name, l).unwrap();
+            assert!(near(&n, &[-v, -u, 1.0]), "lane {l}: {name} = {n:?}");
+        }
+        assert!(near(&batch.param("d", l).unwrap(), &[1.0, 0.0, 0.0]), "lane {l}: {:?}", batch.param("d", l));
+    }
+    check(src);
+}
+
+#[test]
 fn texture_footprints_from_derivatives() {
     // The test host averages a lookup whose footprint exceeds a checker cell, so the outputs depend
     // on the footprint both back ends pass: every form, with the width and blur options.

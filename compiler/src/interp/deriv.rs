@@ -15,7 +15,8 @@
 //! `xcomp ycomp zcomp comp` (of triples), `abs sqrt sin cos exp`, `min max clamp` (the chosen
 //! argument's), `mix`, `length normalize`; `noise`, the space transforms and a few other smooth built-ins by a
 //! central difference (`ir::deriv::has_difference_rule`). Every other built-in, and the outputs a
-//! built-in writes, have zero derivatives, as do the derivative built-ins' own results (no second
+//! built-in writes, have zero derivatives (setting a component of a triple is not a built-in call by
+//! then: the checker makes it an assignment to the component), as do the derivative built-ins' own results (no second
 //! derivatives).
 
 use super::builtins::CallArgs;

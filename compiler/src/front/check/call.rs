@@ -275,11 +275,46 @@ impl Checker<'_> {
                         .with_note(format!("at run time it reports this once and {}", unsupported_result(b))),
                     );
                 }
+                // Setting a component of a triple is an assignment to the component (`P[2] = z`
+                // in the IR), so that what follows sees the component's derivatives as well as
+                // its value (`calculatenormal` after `setzcomp(P, ...)`), in both back ends.
+                if let Some(assign) = self.component_assignment(b, &out_args, span) {
+                    return Some(assign);
+                }
                 // Built-in candidates are the expanded signatures in table order.
                 let overload = chosen as u16;
                 Some(self.add_expr(ExprKind::CallBuiltin { builtin: b, overload, args: out_args }, ret, span))
             }
         }
+    }
+
+    /// `setxcomp(t, v)`, `setycomp`, `setzcomp` and `setcomp(t, i, v)` of a triple `t` as the
+    /// assignment of `v` to component `i` of `t` (`None` for other calls, and for a place that is
+    /// already a component).
+    fn component_assignment(&mut self, b: Builtin, args: &[Arg], span: Span) -> Option<ExprId> {
+        let (place, index, value) = match (b, args) {
+            (Builtin::SetXcomp | Builtin::SetYcomp | Builtin::SetZcomp, [Arg::Ref(p), Arg::Value(v)]) => {
+                let k = match b {
+                    Builtin::SetXcomp => 0.0,
+                    Builtin::SetYcomp => 1.0,
+                    _ => 2.0,
+                };
+                (p, self.add_expr(ExprKind::Const(Constant::Float(k)), Type::FLOAT, span), *v)
+            }
+            (Builtin::SetComp, [Arg::Ref(p), Arg::Value(i), Arg::Value(v)]) if p.ty.base.is_triple() => (p, *i, *v),
+            _ => return None,
+        };
+        if !place.ty.base.is_triple() || place.ty.is_array() || place.component.is_some() {
+            return None;
+        }
+        let mut target = place.clone();
+        target.ty = Type::FLOAT;
+        match target.index {
+            // An element of an array of triples: its component.
+            Some(_) => target.component = Some(index),
+            None => target.index = Some(index),
+        }
+        Some(self.add_expr(ExprKind::Assign { place: target, op: None, value }, Type::FLOAT, span))
     }
 
     fn user_candidate(&self, index: usize, name: crate::symbol::Symbol) -> Candidate {
