@@ -470,6 +470,8 @@ impl<'a> Loader<'a> {
         match &r.kind {
             K::Version(_) | K::ShadingRate(_) | K::Declare { .. } | K::Sides(_) | K::Matte(_) => {}
             K::ShadingInterpolation(_) | K::Hider(_) | K::Bound(_) => {}
+            // The reader evaluates conditionals; a list built by hand may still hold them.
+            K::IfBegin(_) | K::ElseIf(_) | K::Else | K::IfEnd => {}
             K::TextureCoordinates(st) => self.state.mesh_options.texture_coordinates = *st,
             K::MotionBegin(_) => self.motion = Some(0),
             K::MotionEnd => self.motion = None,

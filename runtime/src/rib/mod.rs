@@ -19,8 +19,13 @@
 //!   gzip-compressed, told apart by content, never by file name;
 //! - `Declare` is global, as in RenderMan: a declaration holds for the rest of the stream, archives
 //!   included;
-//! - every parameter's value count is checked against its declaration (see [`request`]).
+//! - every parameter's value count is checked against its declaration (see [`request`]);
+//! - conditional RIB (`IfBegin`, `ElseIf`, `Else`, `IfEnd`) is evaluated as the stream is read
+//!   ([`cond`]): the requests of branches not taken are never read further (their archives are not
+//!   opened, their declarations not made), so the request list holds none of them, nor the
+//!   conditionals, except inside an inline archive, whose conditions are evaluated where it is read.
 
+pub mod cond;
 pub mod curves;
 pub mod decl;
 pub mod lex;

@@ -9,6 +9,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use super::cond::{self, CondError, Value, MAX_IF_DEPTH};
 use super::decl::{self, Class, Decl, DeclTable, Ty};
 use super::lex::{tokenize, Token, TokenKind};
 use super::request::{
@@ -33,10 +34,6 @@ const UNSUPPORTED_REQUESTS: &[&str] = &[
     "Blobby",
     "ClippingPlane",
     "ColorSamples",
-    "Else",
-    "ElseIf",
-    "IfBegin",
-    "IfEnd",
     "MakeBump",
     "MakeCubeFaceEnvironment",
     "Resource",
@@ -96,6 +93,109 @@ pub(super) struct Parser {
     expansion_left: usize,
     /// `Option "searchpath" "archive"`: where relative `ReadArchive` paths are looked up first.
     archive_path: Vec<PathBuf>,
+    /// The open `IfBegin` blocks, outermost first.
+    branches: Vec<Branch>,
+    /// `IfBegin` blocks opened past [`MAX_IF_DEPTH`]: skipped whole, counted but not kept.
+    branches_too_deep: usize,
+    /// How many of `branches` belong to the files and inline archives around the one being read:
+    /// an `ElseIf`, `Else` or `IfEnd` cannot reach them.
+    branches_floor: usize,
+    /// What conditions read: the frame number, options and attributes.
+    vars: CondVars,
+}
+
+/// An open `IfBegin` block.
+struct Branch {
+    /// Whether the requests read now are kept.
+    active: bool,
+    /// Whether a branch of the block was (or is being) taken, or the whole block is skipped.
+    done: bool,
+    /// Whether `Else` was read.
+    had_else: bool,
+    /// Where the block began.
+    loc: Location,
+}
+
+/// The state conditional expressions read, kept as the requests are read in stream order: the
+/// frame being read (numbered as [`super::load::Frames`] numbers them), and the `Option` and
+/// `Attribute` parameters in force, options scoped by frames and attributes by attribute blocks
+/// (frames and world blocks included), as RenderMan scopes them.
+#[derive(Default)]
+struct CondVars {
+    frame: f64,
+    images: usize,
+    in_frame: bool,
+    in_world: bool,
+    options: Vec<HashMap<String, Value>>,
+    attributes: Vec<HashMap<String, Value>>,
+}
+
+impl CondVars {
+    fn track(&mut self, kind: &K) {
+        fn set(layers: &mut Vec<HashMap<String, Value>>, shader: &Shader) {
+            if layers.is_empty() {
+                layers.push(HashMap::new());
+            }
+            let Some(top) = layers.last_mut() else { return };
+            for p in &shader.params {
+                let value = match &p.value {
+                    ParamValue::Floats(v) => v.first().map(|&x| Value::Num(f64::from(x))),
+                    ParamValue::Ints(v) => v.first().map(|&x| Value::Num(f64::from(x))),
+                    ParamValue::Strings(v) => v.first().map(|x| Value::Str(x.clone())),
+                };
+                if let Some(value) = value {
+                    top.insert(format!("{}:{}", shader.name, p.name), value);
+                }
+            }
+        }
+        match kind {
+            K::FrameBegin(number) if !self.in_frame => {
+                self.in_frame = true;
+                self.images += 1;
+                self.frame = number.map_or(self.images as f64, f64::from);
+                self.options.push(HashMap::new());
+                self.attributes.push(HashMap::new());
+            }
+            K::FrameEnd if self.in_frame => {
+                self.in_frame = false;
+                self.options.pop();
+                self.attributes.pop();
+            }
+            K::WorldBegin => {
+                if !self.in_frame && !self.in_world {
+                    self.images += 1;
+                    self.frame = self.images as f64;
+                }
+                self.in_world = true;
+                self.attributes.push(HashMap::new());
+            }
+            K::WorldEnd => {
+                self.in_world = false;
+                self.attributes.pop();
+            }
+            K::AttributeBegin => self.attributes.push(HashMap::new()),
+            K::AttributeEnd => {
+                self.attributes.pop();
+            }
+            K::Option(o) => set(&mut self.options, o),
+            K::Attribute(a) => set(&mut self.attributes, a),
+            _ => {}
+        }
+    }
+
+    /// The value of `$name`.
+    fn lookup(&self, name: &str) -> Option<Value> {
+        let find = |layers: &[HashMap<String, Value>], key: &str| layers.iter().rev().find_map(|l| l.get(key)).cloned();
+        if name == "Frame" {
+            Some(Value::Num(self.frame))
+        } else if let Some(key) = name.strip_prefix("Option:") {
+            find(&self.options, key)
+        } else if let Some(key) = name.strip_prefix("Attribute:") {
+            find(&self.attributes, key)
+        } else {
+            find(&self.options, name).or_else(|| find(&self.attributes, name))
+        }
+    }
 }
 
 /// How much reading inline archives may copy into one stream, weighed as [`REQUEST_WEIGHT`] a
@@ -133,6 +233,10 @@ impl Parser {
             weight: 0,
             expansion_left: INLINE_ARCHIVE_BUDGET,
             archive_path: Vec::new(),
+            branches: Vec::new(),
+            branches_too_deep: 0,
+            branches_floor: 0,
+            vars: CondVars::default(),
         }
     }
 
@@ -160,6 +264,8 @@ impl Parser {
             bytes
         };
         let archives_open_before = self.open_archives.len();
+        let floor = std::mem::replace(&mut self.branches_floor, self.branches.len());
+        let too_deep = std::mem::take(&mut self.branches_too_deep);
         let tokens = tokenize(bytes);
         let mut pos = 0;
         while let Some(token) = tokens.get(pos) {
@@ -192,9 +298,16 @@ impl Parser {
             }
             self.end_archive();
         }
+        self.close_branches("the file");
+        self.branches_floor = floor;
+        self.branches_too_deep = too_deep;
     }
 
     fn request(&mut self, name: &str, loc: Location, args: &[Arg]) {
+        // In a branch not taken only the conditionals are read, to find where it ends.
+        if self.skipping() && !matches!(name, "IfBegin" | "ElseIf" | "Else" | "IfEnd") {
+            return;
+        }
         let result = match name {
             "ReadArchive" => self.read_archive(&loc, args),
             "Procedural" => self.procedural(&loc, args),
@@ -229,7 +342,7 @@ impl Parser {
                 if let K::Option(option) = &kind {
                     self.archive_search_path(option);
                 }
-                self.requests.push(Request { kind, loc });
+                self.push(Request { kind, loc });
             }
             Ok(None) if IGNORED_REQUESTS.contains(&name) => {
                 let message = format!("`{name}` has no effect in rtsl and is ignored");
@@ -505,9 +618,136 @@ impl Parser {
                 twidth: a.float("t filter width")?,
                 params: self.params(a),
             },
+            "IfBegin" => K::IfBegin(a.string("condition")?),
+            "ElseIf" => K::ElseIf(a.string("condition")?),
+            "Else" => K::Else,
+            "IfEnd" => K::IfEnd,
             _ => return Ok(None),
         };
         Ok(Some(kind))
+    }
+
+    /// Adds a request read (or copied from an inline archive): kept as it is inside an inline
+    /// archive being defined; otherwise conditionals are evaluated, and other requests kept unless
+    /// they are in a branch not taken.
+    fn push(&mut self, r: Request) {
+        if !self.open_archives.is_empty() {
+            self.requests.push(r);
+            return;
+        }
+        match &r.kind {
+            K::IfBegin(expr) => self.if_begin(expr, &r.loc),
+            K::ElseIf(expr) => self.else_if(expr, &r.loc),
+            K::Else => self.else_branch(&r.loc),
+            K::IfEnd => self.if_end(&r.loc),
+            _ if self.skipping() => {}
+            kind => {
+                self.vars.track(kind);
+                self.requests.push(r);
+            }
+        }
+    }
+
+    /// Whether requests read now are in a branch not taken.
+    fn skipping(&self) -> bool {
+        self.branches_too_deep > 0 || self.branches.last().is_some_and(|b| !b.active)
+    }
+
+    /// The value of a condition; one that cannot be evaluated is false, with a diagnostic.
+    fn condition(&mut self, expr: &str, loc: &Location) -> bool {
+        match cond::evaluate(expr, &|name| self.vars.lookup(name)) {
+            Ok(value) => value,
+            Err(e @ CondError::Undefined(_)) => {
+                self.diagnostics.push(RibDiagnostic::warning(loc, format!("condition \"{expr}\": {e}; it is false")));
+                false
+            }
+            Err(e) => {
+                self.diagnostics.push(error(loc, format!("condition \"{expr}\": {e}; it is false")));
+                false
+            }
+        }
+    }
+
+    fn if_begin(&mut self, expr: &str, loc: &Location) {
+        if self.skipping() {
+            if self.branches_too_deep > 0 {
+                self.branches_too_deep += 1;
+            } else {
+                self.branches.push(Branch { active: false, done: true, had_else: false, loc: loc.clone() });
+            }
+            return;
+        }
+        if self.branches.len() >= MAX_IF_DEPTH {
+            let message = format!("`IfBegin` blocks nest deeper than {MAX_IF_DEPTH}; this block is skipped");
+            self.diagnostics.push(error(loc, message));
+            self.branches_too_deep = 1;
+            return;
+        }
+        let active = self.condition(expr, loc);
+        self.branches.push(Branch { active, done: active, had_else: false, loc: loc.clone() });
+    }
+
+    /// The innermost open block of the file being read, or an error at `loc` naming `request`.
+    fn open_branch(&mut self, request: &str, loc: &Location) -> Option<usize> {
+        if self.branches.len() > self.branches_floor {
+            Some(self.branches.len() - 1)
+        } else {
+            self.diagnostics.push(error(loc, format!("`{request}` without `IfBegin`")));
+            None
+        }
+    }
+
+    fn else_if(&mut self, expr: &str, loc: &Location) {
+        if self.branches_too_deep > 0 {
+            return;
+        }
+        let Some(i) = self.open_branch("ElseIf", loc) else { return };
+        if self.branches[i].had_else {
+            self.diagnostics.push(error(loc, "`ElseIf` after `Else`; its branch is skipped"));
+            self.branches[i].active = false;
+        } else if self.branches[i].done {
+            self.branches[i].active = false;
+        } else {
+            let active = self.condition(expr, loc);
+            self.branches[i].active = active;
+            self.branches[i].done = active;
+        }
+    }
+
+    fn else_branch(&mut self, loc: &Location) {
+        if self.branches_too_deep > 0 {
+            return;
+        }
+        let Some(i) = self.open_branch("Else", loc) else { return };
+        let branch = &mut self.branches[i];
+        if branch.had_else {
+            self.diagnostics.push(error(loc, "a second `Else` in one `IfBegin` block; its branch is skipped"));
+            self.branches[i].active = false;
+            return;
+        }
+        branch.had_else = true;
+        branch.active = !branch.done;
+        branch.done = true;
+    }
+
+    fn if_end(&mut self, loc: &Location) {
+        if self.branches_too_deep > 0 {
+            self.branches_too_deep -= 1;
+        } else if self.open_branch("IfEnd", loc).is_some() {
+            self.branches.pop();
+        }
+    }
+
+    /// Ends the blocks still open at the end of a file or inline archive (`what`), with a
+    /// warning at each `IfBegin`.
+    fn close_branches(&mut self, what: &str) {
+        self.branches_too_deep = 0;
+        while self.branches.len() > self.branches_floor {
+            if let Some(b) = self.branches.pop() {
+                let message = format!("`IfBegin` has no `IfEnd`; the block ends with {what}");
+                self.diagnostics.push(RibDiagnostic::warning(&b.loc, message));
+            }
+        }
     }
 
     fn quadric(&mut self, a: &mut Args, quadric: Quadric) -> K {
@@ -698,7 +938,14 @@ impl Parser {
             }
             self.expansion_left -= weight;
             self.weight = self.weight.saturating_add(weight);
-            self.requests.extend(requests.iter().cloned());
+            let floor = std::mem::replace(&mut self.branches_floor, self.branches.len());
+            let too_deep = std::mem::take(&mut self.branches_too_deep);
+            for r in requests.iter() {
+                self.push(r.clone());
+            }
+            self.close_branches(&format!("the inline archive \"{name}\""));
+            self.branches_floor = floor;
+            self.branches_too_deep = too_deep;
             return Ok(());
         }
         if self.depth >= MAX_ARCHIVE_DEPTH {
@@ -709,7 +956,7 @@ impl Parser {
         // A mesh file named as an archive is geometry for the engine to load, not RIB to read.
         let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
         if matches!(ext.as_deref(), Some("obj" | "ply" | "gltf" | "glb")) {
-            self.requests.push(Request { kind: crate::rib::RequestKind::MeshArchive(path), loc: loc.clone() });
+            self.push(Request { kind: crate::rib::RequestKind::MeshArchive(path), loc: loc.clone() });
             return Ok(());
         }
         let unreadable = |e: std::io::Error| error(loc, format!("cannot read archive \"{}\": {e}", path.display()));

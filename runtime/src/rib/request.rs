@@ -598,4 +598,15 @@ pub enum RequestKind {
         /// Further parameters.
         params: Vec<Param>,
     },
+    // --- Conditional RIB. The reader evaluates these as it reads, keeping only the requests of
+    // the branches taken; they appear in a request list only inside an inline archive, whose
+    // conditions are evaluated where it is read.
+    /// `IfBegin "expression"`
+    IfBegin(String),
+    /// `ElseIf "expression"`
+    ElseIf(String),
+    /// `Else`
+    Else,
+    /// `IfEnd`
+    IfEnd,
 }
