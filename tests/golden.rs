@@ -648,3 +648,45 @@ WorldEnd
     );
     check("points_and_curves", &render_rib("points_and_curves", &rib)).unwrap_or_else(|e| panic!("{e}"));
 }
+
+/// Three boxes open towards the camera (the box above without its front face): two-sided, `Sides
+/// 1` (the inside walls are backs, so the floor shows through them), and `Sides 1` after
+/// `ReverseOrientation` (now the outside walls are backs: the top is gone and the inside shows).
+#[test]
+fn one_sided_boxes_match_their_reference() {
+    let open_box = BOX.lines().filter(|l| !l.contains("[-1 -1 -1  -1 1 -1  1 1 -1  1 -1 -1]")).collect::<Vec<_>>();
+    let open_box = open_box.join("\n");
+    let rib = format!(
+        r#"
+Format {W} {H} 1
+PixelSamples 2 2
+Projection "perspective" "fov" [40]
+Rotate -15 1 0 0
+Translate 0 -3.5 12
+WorldBegin
+  Attribute "light" "shadows" "on"
+  LightSource "pointlight" 1 "intensity" [40] "from" [1 6 -5]
+  LightSource "ambientlight" 2 "intensity" [0.15]
+  Surface "plastic"
+  Polygon "P" [-6 0 -6  6 0 -6  6 0 6  -6 0 6]
+  Color [.3 .6 .9]
+  AttributeBegin
+    Translate -3.2 1.02 0 Rotate 30 0 1 0
+    {open_box}
+  AttributeEnd
+  AttributeBegin
+    Sides 1
+    Translate 0 1.02 0 Rotate 30 0 1 0
+    {open_box}
+  AttributeEnd
+  AttributeBegin
+    Sides 1
+    ReverseOrientation
+    Translate 3.2 1.02 0 Rotate 30 0 1 0
+    {open_box}
+  AttributeEnd
+WorldEnd
+"#
+    );
+    check("sides_one_sided_boxes", &render_rib("sides", &rib)).unwrap_or_else(|e| panic!("{e}"));
+}

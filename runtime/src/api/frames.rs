@@ -221,6 +221,7 @@ impl Context {
             opacity: a.opacity,
             photon: a.photon,
             shadow_by_shader: a.shadow_by_shader,
+            one_sided: a.one_sided,
             object_id,
             native: None,
             ray_values: a.ray_values.clone(),

@@ -198,6 +198,10 @@ struct Appearance {
     alpha_mask: Option<(String, f32)>,
     /// The ray parameter values of objects built from now on ([`Context::ray_attribute`]).
     ray_values: Vec<(String, crate::render::RayValue)>,
+    /// Whether objects built from now on are one-sided (RIB `Sides 1`): camera rays do not see
+    /// the back of their triangles.
+    #[serde(default)]
+    one_sided: bool,
 }
 
 impl Default for Appearance {
@@ -212,6 +216,7 @@ impl Default for Appearance {
             photon: crate::render::world::PhotonModel::Matte,
             alpha_mask: None,
             ray_values: Vec::new(),
+            one_sided: false,
         }
     }
 }

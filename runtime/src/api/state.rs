@@ -39,6 +39,13 @@ impl Context {
         self.appearance.alpha_mask = name.map(|n| (n.to_string(), cutoff));
     }
 
+    /// Makes objects built from now on one-sided (RenderMan's `Sides 1`) or two-sided (`Sides
+    /// 2`, the default): camera rays do not see the back of a one-sided object's triangles, the
+    /// side their winding's normal `(b - a) x (c - a)` points away from. Other rays see both sides.
+    pub fn one_sided(&mut self, one_sided: bool) {
+        self.appearance.one_sided = one_sided;
+    }
+
     /// Saves the attribute state (colour, opacity, shader binding) and the matrix.
     pub fn push_attributes(&mut self) {
         self.appearance_stack.push(self.appearance.clone());

@@ -3,6 +3,7 @@
 //! build a [`World`]; the frame loop only reads it.
 
 use super::filter::PixelFilter;
+use crate::ray::{HitCandidate, HitPacket, RayPacket, PACKET_SIZE};
 use crate::scene::Scene;
 use crate::shading::{LightKind, ShaderInstance};
 use crate::texture::TextureCache;
@@ -29,6 +30,9 @@ pub struct Material {
     /// The displacement shader, run before the surface shader as bump mapping (its `N` becomes
     /// the surface shader's; the geometry does not move).
     pub displacement: Option<Arc<ShaderInstance>>,
+    /// Camera rays do not see the back of its triangles (RIB `Sides 1`): the side their winding's
+    /// normal `(b - a) x (c - a)` points away from ([`World::intersect_camera`]).
+    pub one_sided: bool,
     /// An id the pixel shader and adaptive sampling may read (`objectid`).
     pub object_id: u32,
     /// Shade with Rust code instead of `surface` (`render/native.rs`).
@@ -88,6 +92,7 @@ impl Material {
         shadow_by_shader: false,
         interior: None,
         displacement: None,
+        one_sided: false,
         object_id: 0,
         native: None,
         ray_values: Vec::new(),
@@ -639,6 +644,9 @@ pub struct World {
     /// Ray parameter names shaders asked for that nothing sets ([`World::shader_messages`]
     /// reports each once; a context shares its own with the worlds it builds).
     pub ray_parameter_misses: Arc<super::ray_params::RayParameterMisses>,
+    /// Whether camera rays filter their hits ([`World::intersect_camera`]): some material is
+    /// one-sided. Worked out by [`World::prepare`].
+    camera_filters: bool,
 }
 
 /// The next [`World::version`].
@@ -666,6 +674,7 @@ impl World {
             vertex_params: HashMap::new(),
             version: next_world_version(),
             ray_parameter_misses: Default::default(),
+            camera_filters: false,
         }
     }
 
@@ -713,6 +722,43 @@ impl World {
             }
         }
         self.vertex_params = vertex_params;
+        self.camera_filters = self.materials.iter().any(|m| m.one_sided);
+    }
+
+    /// Closest hits of a packet of camera rays: [`Scene::intersect_packet`], except that the back
+    /// of a one-sided material's triangles is not seen. The test runs only for scenes that have
+    /// such a material (a hit filter), so other scenes trace exactly as before.
+    pub fn intersect_camera(&self, packet: &RayPacket, out: &mut HitPacket) {
+        if !self.camera_filters {
+            return self.scene.intersect_packet(packet, out);
+        }
+        let sees = |c: &HitCandidate| self.camera_sees(packet, c);
+        self.scene.intersect_packet_filtered(packet, out, Some(&sees));
+    }
+
+    /// Whether a camera ray of `packet` sees candidate hit `c`: not the back of a one-sided
+    /// triangle. The test is made in object space, where it means what it means in world space
+    /// (a direction and a normal moved by a matrix and its inverse transpose keep their dot
+    /// product), so that a mirroring instance keeps its outside.
+    fn camera_sees(&self, packet: &RayPacket, c: &HitCandidate) -> bool {
+        let Some(inst) = self.instances.get(c.instance as usize) else { return true };
+        let one_sided = self.materials.get(inst.material_at(c.primitive) as usize).is_some_and(|m| m.one_sided);
+        if !one_sided {
+            return true;
+        }
+        let Some(data) = self.scene.instance_data(c.instance) else { return true };
+        let Some(mesh) = self.scene.mesh(crate::scene::ObjectId(c.object)) else { return true };
+        if c.primitive as usize >= mesh.triangle_count() || c.lane as usize >= PACKET_SIZE {
+            return true;
+        }
+        let [a, b, p] = mesh.corners(c.primitive as usize);
+        let ray = packet.get(c.lane as usize);
+        let object_from_world = match data.motion {
+            None => data.object_from_world,
+            Some(_) => data.world_from_object_at(ray.time).inverse(),
+        };
+        let d = glam::Vec3::from(object_from_world.transform_vector3a(ray.direction));
+        (b - a).cross(p - a).dot(d) <= 0.0
     }
 
     /// Shades every material whose surface shader is `shader` with the Rust surface `make` builds

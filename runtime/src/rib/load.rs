@@ -34,7 +34,7 @@
 use super::decl::{Class, Ty};
 use super::mesh::MeshOptions;
 use super::primitive::{mesh_from_request_with, request_triangles};
-use super::request::{Handle, Param, ParamValue as RibValue, Request, RequestKind};
+use super::request::{Handle, Orientation, Param, ParamValue as RibValue, Request, RequestKind};
 use super::view::{Projection, View};
 use super::{parse_file, parse_str, RibDiagnostic, RibParse, Severity, MAX_RIB_TRIANGLES};
 use crate::api::{ApiError, Context, LightId, ObjectId};
@@ -269,6 +269,10 @@ struct State {
     /// by default, as in RenderMan, where a light shadows only through its shader (`shadow()`,
     /// `transmission()`) or this attribute (BMRT's and PRMan's ray-traced shadows).
     shadows: bool,
+    /// The current orientation is "inside" (RISpec `Orientation`; Aqsis's `System` `Orientation` 1): the
+    /// outside of the geometry that follows is the side `dPdu x dPdv` (a polygon's `(P1 - P0) x
+    /// (P2 - P0)`) points away from in its own space, not the side it points to.
+    inside: bool,
 }
 
 struct Loader<'a> {
@@ -386,7 +390,17 @@ impl<'a> Loader<'a> {
         View { world_from_object: self.rt.current_matrix(), projection }
     }
 
-    fn geometry(&mut self, r: &Request, mesh: Mesh) -> Result<(), SceneFileError> {
+    /// Whether the current transform, from the current space to camera space, mirrors (its
+    /// determinant is negative): camera space is left-handed, so the current space is then
+    /// right-handed.
+    fn mirrors_camera_space(&self) -> bool {
+        let current = self.rt.current_matrix().matrix3.determinant();
+        // Before `WorldBegin` the current transform is camera from current space.
+        let camera = if self.in_world { self.rt.camera().world_from_camera.matrix3.determinant() } else { 1.0 };
+        current * camera < 0.0
+    }
+
+    fn geometry(&mut self, r: &Request, mut mesh: Mesh) -> Result<(), SceneFileError> {
         self.check_triangles(r, mesh.triangles.len())?;
         self.triangles += mesh.triangles.len();
         if let Some(light) = self.state.area_light {
@@ -400,6 +414,20 @@ impl<'a> Loader<'a> {
         if self.retained.is_none() && self.pending.is_none() {
             let id = self.rt.begin_object()?;
             self.pending = Some((id, self.rt.current_matrix(), self.rt.close_matrix()));
+        }
+        // The object's triangles wind so that their normal points outside in its own space, as
+        // one-sided culling and interior volumes read them: reversed where the orientation is
+        // "inside", or where the geometry is mirrored into the object's space.
+        let base = match (&self.pending, &self.retained) {
+            (Some((_, placed, _)), _) => *placed,
+            (None, Some((_, frame))) => *frame,
+            (None, None) => self.rt.current_matrix(),
+        };
+        let mirrored = base.matrix3.determinant() * self.rt.current_matrix().matrix3.determinant() < 0.0;
+        if self.state.inside != mirrored {
+            for t in &mut mesh.triangles {
+                t.swap(1, 2);
+            }
         }
         self.rt.mesh(&mesh).inspect_err(|_| self.omit(r, "geometry skipped"))?;
         Ok(())
@@ -468,7 +496,10 @@ impl<'a> Loader<'a> {
         }
         let rt = &mut *self.rt;
         match &r.kind {
-            K::Version(_) | K::ShadingRate(_) | K::Declare { .. } | K::Sides(_) | K::Matte(_) => {}
+            K::Version(_) | K::ShadingRate(_) | K::Declare { .. } | K::Matte(_) => {}
+            K::Sides(1) => rt.one_sided(true),
+            K::Sides(2) => rt.one_sided(false),
+            K::Sides(n) => self.warn(r, format_args!("Sides {n}: a surface has 1 or 2 sides; ignored")),
             K::ShadingInterpolation(_) | K::Hider(_) | K::Bound(_) => {}
             // The reader evaluates conditionals; a list built by hand may still hold them.
             K::IfBegin(_) | K::ElseIf(_) | K::Else | K::IfEnd => {}
@@ -478,7 +509,17 @@ impl<'a> Loader<'a> {
             K::SolidBegin(_) | K::SolidEnd => {
                 self.warn(r, "solid modelling (CSG) is not supported: the parts render as they are")
             }
-            K::Orientation(_) | K::ReverseOrientation => {}
+            // As Aqsis keeps it: "rh" and "lh" are "outside" or "inside" by the handedness of the
+            // current transform when they are given.
+            K::Orientation(o) => {
+                self.state.inside = match o {
+                    Orientation::Outside => false,
+                    Orientation::Inside => true,
+                    Orientation::RightHanded => !self.mirrors_camera_space(),
+                    Orientation::LeftHanded => self.mirrors_camera_space(),
+                }
+            }
+            K::ReverseOrientation => self.state.inside = !self.state.inside,
             K::Format { xres, yres, .. } => {
                 // Kept as given (a size too large is refused when the frame is built, unless
                 // `--size` replaces it).
@@ -1164,5 +1205,76 @@ mod tests {
             vec![None, Some(0), Some(0), Some(0), Some(0), None, Some(1), Some(1), Some(2), Some(2), Some(2), Some(2)]
         );
         assert_eq!(Frames::of(&[]).count(), 1);
+    }
+
+    /// Whether a camera ray from `(x, y, z)` along `dz` (±1) hits the geometry of `world` (the
+    /// body of a world block).
+    fn camera_hits(before_world: &str, world: &str, rays: &[([f32; 3], f32)]) -> Vec<bool> {
+        use crate::ray::{HitPacket, Ray, RayPacket, INVALID_ID};
+        let rib = format!("Projection \"perspective\"\n{before_world}\nWorldBegin\n{world}\nWorldEnd\n");
+        let mut rt = Context::new();
+        let loaded = load_str(&mut rt, &rib, "sides.rib").expect("loads");
+        assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+        let world = rt.build_world().expect("a world");
+        let mut packet = RayPacket::new();
+        for (i, (o, dz)) in rays.iter().enumerate() {
+            packet.set(i, &Ray::new(glam::Vec3A::from_array(*o), glam::Vec3A::new(0.0, 0.0, *dz)));
+        }
+        let mut hits = HitPacket::default();
+        world.intersect_camera(&packet, &mut hits);
+        (0..rays.len()).map(|i| hits.instance.0[i] != INVALID_ID).collect()
+    }
+
+    /// A triangle at z = 0 whose `(P1 - P0) x (P2 - P0)` is +z, seen from behind (from -z) and
+    /// from the front (from +z).
+    const TRIANGLE: &str = "Polygon \"P\" [0 0 0  1 0 0  0 1 0]";
+    const BEHIND_AND_FRONT: [([f32; 3], f32); 2] = [([0.2, 0.2, -5.0], 1.0), ([0.2, 0.2, 5.0], -1.0)];
+
+    #[test]
+    fn rib_sides_one_hides_the_back_from_camera_rays() {
+        let sees = |world: &str| camera_hits("", world, &BEHIND_AND_FRONT);
+        assert_eq!(sees(TRIANGLE), [true, true]);
+        assert_eq!(sees(&format!("Sides 2 {TRIANGLE}")), [true, true]);
+        assert_eq!(sees(&format!("Sides 1 {TRIANGLE}")), [false, true]);
+        assert_eq!(sees(&format!("Sides 1 ReverseOrientation {TRIANGLE}")), [true, false]);
+        assert_eq!(sees(&format!("Sides 1 Orientation \"inside\" {TRIANGLE}")), [true, false]);
+        // Scoped by attribute blocks.
+        assert_eq!(sees(&format!("AttributeBegin Sides 1 AttributeEnd {TRIANGLE}")), [true, true]);
+        // "outside" follows the current space: mirrored, the outside turns with it.
+        assert_eq!(sees(&format!("Sides 1 Scale 1 1 -1 {TRIANGLE}")), [true, false]);
+        // A retained object keeps the side it was defined with; an instance placed mirrored
+        // turns it as well.
+        let object = format!("AttributeBegin ObjectBegin 1 Sides 1 {TRIANGLE} ObjectEnd AttributeEnd");
+        assert_eq!(sees(&format!("{object} ObjectInstance 1")), [false, true]);
+        assert_eq!(sees(&format!("{object} Scale 1 1 -1 ObjectInstance 1")), [true, false]);
+    }
+
+    #[test]
+    fn rib_orientation_rh_and_lh_depend_on_the_handedness_when_given() {
+        let sees = |before: &str, world: &str| camera_hits(before, world, &BEHIND_AND_FRONT);
+        // Camera space is left-handed: with no mirror, "lh" is "outside" and "rh" "inside".
+        assert_eq!(sees("", &format!("Sides 1 Orientation \"lh\" {TRIANGLE}")), [false, true]);
+        assert_eq!(sees("", &format!("Sides 1 Orientation \"rh\" {TRIANGLE}")), [true, false]);
+        // A mirroring camera transform makes the world right-handed.
+        assert_eq!(sees("Scale 1 1 -1", &format!("Sides 1 Orientation \"rh\" {TRIANGLE}")), [false, true]);
+        assert_eq!(sees("Scale 1 1 -1", &format!("Sides 1 Orientation \"lh\" {TRIANGLE}")), [true, false]);
+        // Given before a mirror, the orientation stays what it was decided to be.
+        assert_eq!(sees("", &format!("Sides 1 Orientation \"rh\" Scale 1 1 -1 {TRIANGLE}")), [false, true]);
+    }
+
+    #[test]
+    fn rib_mirrored_geometry_within_one_object_keeps_its_outside() {
+        // Two triangles gathered into one object, the second mirrored into it.
+        let world = format!("Sides 1 {TRIANGLE} Translate 2 0 0 Scale 1 1 -1 {TRIANGLE}");
+        let rays = [([0.2, 0.2, 5.0], -1.0), ([2.2, 0.2, 5.0], -1.0), ([2.2, 0.2, -5.0], 1.0)];
+        assert_eq!(camera_hits("", &world, &rays), [true, false, true]);
+    }
+
+    #[test]
+    fn rib_sides_other_than_one_or_two_warn() {
+        let mut rt = Context::new();
+        let loaded = load_str(&mut rt, "Sides 3\n", "sides.rib").expect("loads");
+        assert_eq!(loaded.warnings.len(), 1);
+        assert_eq!(loaded.warnings[0].severity, Severity::Warning);
     }
 }
