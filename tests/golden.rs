@@ -690,3 +690,35 @@ WorldEnd
     );
     check("sides_one_sided_boxes", &render_rib("sides", &rib)).unwrap_or_else(|e| panic!("{e}"));
 }
+
+/// Two clipping planes: one through the ball's centre facing the camera and up, so camera rays
+/// see into the ball (its inside lit only through the opening: other rays still meet the part cut
+/// away), one cutting the floor right of x = 1.5 (the background shows there).
+#[test]
+fn clipping_planes_match_their_reference() {
+    let rib = format!(
+        r#"
+Format {W} {H} 1
+PixelSamples 2 2
+Projection "perspective" "fov" [30]
+Rotate -20 1 0 0
+Translate 0 -2.6 7
+WorldBegin
+  ClippingPlane 0 1.2 0  0 1 -0.4
+  ClippingPlane 1.5 0 0  1 0 0
+  Attribute "light" "shadows" "on"
+  LightSource "pointlight" 1 "intensity" [25] "from" [1 4 -4]
+  LightSource "ambientlight" 2 "intensity" [0.2]
+  Surface "plastic"
+  Polygon "P" [-6 0 -6  6 0 -6  6 0 6  -6 0 6]
+  AttributeBegin
+    Translate 0 1 0
+    Rotate -90 1 0 0
+    Color [.8 .3 .2]
+    Sphere 1 -1 1 360
+  AttributeEnd
+WorldEnd
+"#
+    );
+    check("clipping_planes", &render_rib("clipping_planes", &rib)).unwrap_or_else(|e| panic!("{e}"));
+}

@@ -436,6 +436,10 @@ pub struct RenderOptions {
     /// to `ceil(width * xmax) - 1` (and likewise in y) are rendered; the rest stay empty (black,
     /// alpha 0). `None`: the whole image.
     pub crop_window: Option<[f32; 4]>,
+    /// User clipping planes (RIB `ClippingPlane`), each a point on the plane and its normal in
+    /// world space: camera rays do not see what lies on the side the normal points to.
+    #[serde(default)]
+    pub clipping_planes: Vec<[f32; 6]>,
     /// RIB's `PixelFilter "name" xwidth ywidth`: how samples are weighted into pixels. The default
     /// is box 1x1, each pixel the plain mean of its own samples (RenderMan's default is gaussian
     /// 2x2; box 1x1 keeps images as they were and one sample per pixel sharp). Any other filter
@@ -535,6 +539,7 @@ impl Default for RenderOptions {
             screen_window: None,
             frame_aspect_ratio: None,
             crop_window: None,
+            clipping_planes: Vec::new(),
             pixel_filter: PixelFilter::default(),
             time_shaders: true,
             trace_ahead: true,
@@ -722,12 +727,13 @@ impl World {
             }
         }
         self.vertex_params = vertex_params;
-        self.camera_filters = self.materials.iter().any(|m| m.one_sided);
+        self.camera_filters = self.materials.iter().any(|m| m.one_sided) || !self.options.clipping_planes.is_empty();
     }
 
     /// Closest hits of a packet of camera rays: [`Scene::intersect_packet`], except that the back
-    /// of a one-sided material's triangles is not seen. The test runs only for scenes that have
-    /// such a material (a hit filter), so other scenes trace exactly as before.
+    /// of a one-sided material's triangles is not seen, nor what a clipping plane
+    /// ([`RenderOptions::clipping_planes`]) cuts away. The tests run only for scenes that have such
+    /// a material or plane (a hit filter), so other scenes trace exactly as before.
     pub fn intersect_camera(&self, packet: &RayPacket, out: &mut HitPacket) {
         if !self.camera_filters {
             return self.scene.intersect_packet(packet, out);
@@ -741,6 +747,19 @@ impl World {
     /// (a direction and a normal moved by a matrix and its inverse transpose keep their dot
     /// product), so that a mirroring instance keeps its outside.
     fn camera_sees(&self, packet: &RayPacket, c: &HitCandidate) -> bool {
+        if c.lane as usize >= PACKET_SIZE {
+            return true;
+        }
+        let ray = packet.get(c.lane as usize);
+        let at = ray.at(c.t);
+        let clipped = self
+            .options
+            .clipping_planes
+            .iter()
+            .any(|&[x, y, z, nx, ny, nz]| (at - Vec3A::new(x, y, z)).dot(Vec3A::new(nx, ny, nz)) > 0.0);
+        if clipped {
+            return false;
+        }
         let Some(inst) = self.instances.get(c.instance as usize) else { return true };
         let one_sided = self.materials.get(inst.material_at(c.primitive) as usize).is_some_and(|m| m.one_sided);
         if !one_sided {
@@ -748,11 +767,10 @@ impl World {
         }
         let Some(data) = self.scene.instance_data(c.instance) else { return true };
         let Some(mesh) = self.scene.mesh(crate::scene::ObjectId(c.object)) else { return true };
-        if c.primitive as usize >= mesh.triangle_count() || c.lane as usize >= PACKET_SIZE {
+        if c.primitive as usize >= mesh.triangle_count() {
             return true;
         }
         let [a, b, p] = mesh.corners(c.primitive as usize);
-        let ray = packet.get(c.lane as usize);
         let object_from_world = match data.motion {
             None => data.object_from_world,
             Some(_) => data.world_from_object_at(ray.time).inverse(),

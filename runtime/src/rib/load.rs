@@ -304,6 +304,9 @@ struct Loader<'a> {
     motion_transforms: Vec<(bool, Affine3A)>,
     /// Triangles of the geometry requests so far, against [`MAX_RIB_TRIANGLES`].
     triangles: usize,
+    /// `ClippingPlane`s given before `WorldBegin`, in camera space (point and normal), moved into
+    /// world space there.
+    camera_clipping_planes: Vec<(Vec3, Vec3)>,
 }
 
 impl<'a> Loader<'a> {
@@ -327,6 +330,7 @@ impl<'a> Loader<'a> {
             motion: None,
             motion_transforms: Vec::new(),
             triangles: 0,
+            camera_clipping_planes: Vec::new(),
         }
     }
 
@@ -548,6 +552,20 @@ impl<'a> Loader<'a> {
                     other => self.warn(r, format_args!("projection \"{other}\" is not supported; perspective is used")),
                 }
             }
+            // RISpec: what lies on the side the normal points to is clipped from the scene.
+            K::ClippingPlane(v) => {
+                let (p, n) = (Vec3::new(v[0], v[1], v[2]), Vec3::new(v[3], v[4], v[5]));
+                if n == Vec3::ZERO || !p.is_finite() || !n.is_finite() {
+                    self.warn(r, "ClippingPlane needs a finite point and a normal that is not zero; ignored");
+                } else {
+                    let (p, n) = place_plane(rt.current_matrix(), p, n);
+                    if self.in_world {
+                        rt.options.clipping_planes.push([p.x, p.y, p.z, n.x, n.y, n.z]);
+                    } else {
+                        self.camera_clipping_planes.push((p, n));
+                    }
+                }
+            }
             K::Clipping { near, far } => {
                 let mut cam = *rt.camera();
                 cam.near = *near;
@@ -581,6 +599,10 @@ impl<'a> Loader<'a> {
                 let mut cam = *rt.camera();
                 cam.world_from_camera = m.inverse();
                 rt.set_camera(cam);
+                for (p, n) in std::mem::take(&mut self.camera_clipping_planes) {
+                    let (p, n) = place_plane(cam.world_from_camera, p, n);
+                    rt.options.clipping_planes.push([p.x, p.y, p.z, n.x, n.y, n.z]);
+                }
                 rt.load_identity();
                 self.in_world = true;
             }
@@ -1078,6 +1100,11 @@ fn skew(s: &[f32; 7]) -> Option<Affine3A> {
     shear.is_finite().then(|| Affine3A::from_mat3(shear))
 }
 
+/// A plane (a point and a normal) moved by `m`: the point as a point, the normal as a normal.
+fn place_plane(m: Affine3A, p: Vec3, n: Vec3) -> (Vec3, Vec3) {
+    (m.transform_point3(p), Vec3::from(m.matrix3.inverse().transpose() * glam::Vec3A::from(n)))
+}
+
 /// A RenderMan matrix as written (row-major, row vectors) as an affine transform; the projective
 /// column is dropped.
 fn affine(m: &[f32; 16]) -> Affine3A {
@@ -1210,6 +1237,11 @@ mod tests {
     /// Whether a camera ray from `(x, y, z)` along `dz` (±1) hits the geometry of `world` (the
     /// body of a world block).
     fn camera_hits(before_world: &str, world: &str, rays: &[([f32; 3], f32)]) -> Vec<bool> {
+        camera_hit_distances(before_world, world, rays).iter().map(|t| t.is_finite()).collect()
+    }
+
+    /// How far camera rays as [`camera_hits`] takes them go to their hits (infinite for none).
+    fn camera_hit_distances(before_world: &str, world: &str, rays: &[([f32; 3], f32)]) -> Vec<f32> {
         use crate::ray::{HitPacket, Ray, RayPacket, INVALID_ID};
         let rib = format!("Projection \"perspective\"\n{before_world}\nWorldBegin\n{world}\nWorldEnd\n");
         let mut rt = Context::new();
@@ -1222,7 +1254,7 @@ mod tests {
         }
         let mut hits = HitPacket::default();
         world.intersect_camera(&packet, &mut hits);
-        (0..rays.len()).map(|i| hits.instance.0[i] != INVALID_ID).collect()
+        (0..rays.len()).map(|i| if hits.instance.0[i] == INVALID_ID { f32::INFINITY } else { hits.t.0[i] }).collect()
     }
 
     /// A triangle at z = 0 whose `(P1 - P0) x (P2 - P0)` is +z, seen from behind (from -z) and
@@ -1276,5 +1308,46 @@ mod tests {
         let loaded = load_str(&mut rt, "Sides 3\n", "sides.rib").expect("loads");
         assert_eq!(loaded.warnings.len(), 1);
         assert_eq!(loaded.warnings[0].severity, Severity::Warning);
+    }
+
+    /// A square at z = 0 and another at z = -1, both from -1 to 1 in x and y.
+    const TWO_SQUARES: &str = "Polygon \"P\" [-1 -1 0  1 -1 0  1 1 0  -1 1 0] \
+                               Polygon \"P\" [-1 -1 -1  1 -1 -1  1 1 -1  -1 1 -1]";
+
+    #[test]
+    fn rib_clipping_planes_cut_what_their_normal_points_to() {
+        let from_front = [([-0.5, 0.0, 5.0], -1.0), ([0.5, 0.0, 5.0], -1.0)];
+        let t = |before: &str, world: &str| camera_hit_distances(before, world, &from_front);
+        assert_eq!(t("", TWO_SQUARES), [5.0, 5.0]);
+        // x > 0 is cut away, both squares.
+        assert_eq!(t("", &format!("ClippingPlane 0 0 0 1 0 0 {TWO_SQUARES}")), [5.0, f32::INFINITY]);
+        // z > -0.5 is cut: the rays go on to the square behind.
+        assert_eq!(t("", &format!("ClippingPlane 0 0 -0.5 0 0 1 {TWO_SQUARES}")), [6.0, 6.0]);
+        // In the current space: moved by the transform, which the geometry after it does not see.
+        let moved = format!("TransformBegin Translate 0 0 -1.5 ClippingPlane 0 0 1 0 0 1 TransformEnd {TWO_SQUARES}");
+        assert_eq!(t("", &moved), [6.0, 6.0]);
+        // Two planes: each cuts.
+        let both = format!("ClippingPlane 0 0 0 1 0 0 ClippingPlane 0 0 -0.5 0 0 1 {TWO_SQUARES}");
+        assert_eq!(t("", &both), [6.0, f32::INFINITY]);
+    }
+
+    #[test]
+    fn rib_clipping_planes_before_world_begin_are_in_camera_space() {
+        // The plane 5.5 in front of the camera, cutting what is nearer; the world 5 in front.
+        let before = "ClippingPlane 0 0 5.5 0 0 -1 Translate 0 0 5";
+        let rays = [([0.5, 0.0, -10.0], 1.0)];
+        let mirrored_squares = "Scale 1 1 -1 ".to_string() + TWO_SQUARES;
+        // The squares at world z = 0 (camera 5, cut) and z = 1 (camera 6, kept).
+        assert_eq!(camera_hit_distances(before, &mirrored_squares, &rays), [11.0]);
+        assert_eq!(camera_hit_distances("Translate 0 0 5", &mirrored_squares, &rays), [10.0]);
+    }
+
+    #[test]
+    fn rib_clipping_plane_with_no_normal_warns() {
+        let mut rt = Context::new();
+        let loaded = load_str(&mut rt, "ClippingPlane 0 0 0 0 0 0\n", "clip.rib").expect("loads");
+        assert_eq!(loaded.warnings.len(), 1);
+        assert_eq!(loaded.warnings[0].loc.line, 1);
+        assert!(rt.options.clipping_planes.is_empty());
     }
 }

@@ -32,7 +32,6 @@ const IGNORED_REQUESTS: &[&str] = &["ErrorHandler", "GeometricApproximation", "P
 /// request" one a typo gets).
 const UNSUPPORTED_REQUESTS: &[&str] = &[
     "Blobby",
-    "ClippingPlane",
     "ColorSamples",
     "MakeBump",
     "MakeCubeFaceEnvironment",
@@ -374,6 +373,7 @@ impl Parser {
             "CropWindow" => K::CropWindow(a.floats("xmin xmax ymin ymax")?),
             "Projection" => K::Projection(self.shader(a)?),
             "Clipping" => K::Clipping { near: a.float("near distance")?, far: a.float("far distance")? },
+            "ClippingPlane" => K::ClippingPlane(a.floats("x y z nx ny nz")?),
             "DepthOfField" => K::DepthOfField(a.floats("fstop focallength focaldistance")?),
             "Shutter" => K::Shutter(a.floats("open and close times")?),
             "Display" => K::Display {

@@ -254,6 +254,8 @@ pub enum RequestKind {
     CropWindow([f32; 4]),
     /// `Projection "name" params` (`"perspective"`, `"orthographic"`).
     Projection(Shader),
+    /// `ClippingPlane x y z nx ny nz`: a point on the plane and its normal, in the current space.
+    ClippingPlane([f32; 6]),
     /// `Clipping near far`
     Clipping {
         /// Near plane distance.
