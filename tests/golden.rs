@@ -722,3 +722,38 @@ WorldEnd
     );
     check("clipping_planes", &render_rib("clipping_planes", &rib)).unwrap_or_else(|e| panic!("{e}"));
 }
+
+/// A mirror ball (`shinymetal`) reflecting a map made by `MakeCubeFaceEnvironment` from six faces
+/// of one colour each, each with a white corner up and to the right: +x red, -x cyan, +y pale
+/// blue (the sky), -y dark green (the ground), +z blue, -z yellow.
+#[test]
+fn cube_face_environment_matches_its_reference() {
+    let dir = tempfile::tempdir().expect("a directory");
+    let colours: [[f32; 3]; 6] = [
+        [0.7, 0.03, 0.02],
+        [0.02, 0.55, 0.6],
+        [0.4, 0.55, 0.9],
+        [0.01, 0.1, 0.02],
+        [0.02, 0.05, 0.7],
+        [0.8, 0.65, 0.03],
+    ];
+    let mut faces = Vec::new();
+    for (k, [r, g, b]) in colours.into_iter().enumerate() {
+        let n = 16;
+        let rgba: Vec<f32> = (0..n * n)
+            .flat_map(|i| if i / n < n / 4 && i % n >= 3 * n / 4 { [1.0; 4] } else { [r, g, b, 1.0] })
+            .collect();
+        let path = dir.path().join(format!("face{k}.png"));
+        write_image(&path, n, n, &rgba, &WriteOptions::default()).expect("a face");
+        faces.push(format!("\"{}\"", path.display()));
+    }
+    let map = dir.path().join("env.tex").display().to_string();
+    let rib = light_scene("LightSource \"ambientlight\" 1 \"intensity\" [0.3]")
+        .replacen(
+            "WorldBegin",
+            &format!("MakeCubeFaceEnvironment {} \"{map}\" 90 \"gaussian\" 2 2\nWorldBegin", faces.join(" ")),
+            1,
+        )
+        .replacen("Color [.8 .3 .2]", &format!("Color [1 1 1] Surface \"shinymetal\" \"texturename\" \"{map}\""), 1);
+    check("cube_face_environment", &render_rib("cube_face_environment", &rib)).unwrap_or_else(|e| panic!("{e}"));
+}

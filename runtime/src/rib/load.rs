@@ -754,6 +754,14 @@ impl<'a> Loader<'a> {
                     self.omit(r, format_args!("MakeShadow: {e}"));
                 }
             }
+            // Resampled into the latitude-longitude map `environment()` reads.
+            K::MakeCubeFaceEnvironment { faces, texture, fov, .. } => {
+                let paths = faces.clone().map(|f| self.dir.join(f));
+                let faces = paths.each_ref().map(|p| p.as_path());
+                if let Err(e) = crate::texture::make_cube_face_environment(faces, &self.dir.join(texture), *fov) {
+                    self.omit(r, format_args!("MakeCubeFaceEnvironment: {e}"));
+                }
+            }
             K::MakeTexture { picture, texture, swrap, twrap, .. } => {
                 let wrap = |w: &str| match w {
                     "black" => crate::texture::Wrap::Black,
@@ -1349,5 +1357,34 @@ mod tests {
         assert_eq!(loaded.warnings.len(), 1);
         assert_eq!(loaded.warnings[0].loc.line, 1);
         assert!(rt.options.clipping_planes.is_empty());
+    }
+
+    #[test]
+    fn rib_make_cube_face_environment_writes_a_latlong_map() {
+        let dir = tempfile::tempdir().expect("a directory");
+        for (k, face) in ["px", "nx", "py", "ny", "pz", "nz"].iter().enumerate() {
+            let bytes: Vec<u8> = (0..16).flat_map(|_| [40 * k as u8, 0, 0]).collect();
+            ::image::save_buffer(
+                dir.path().join(format!("{face}.png")),
+                &bytes,
+                4,
+                4,
+                ::image::ExtendedColorType::Rgb8,
+            )
+            .expect("a face");
+        }
+        let rib = "MakeCubeFaceEnvironment \"px.png\" \"nx.png\" \"py.png\" \"ny.png\" \"pz.png\" \"nz.png\" \
+                   \"env.tex\" 95 \"gaussian\" 2 2\n";
+        let mut rt = Context::new();
+        let loaded = load_str(&mut rt, rib, dir.path().join("env.rib")).expect("loads");
+        assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+        let map = crate::texture::load_texture_image(&dir.path().join("env.tex"), false).expect("a map").image;
+        assert_eq!((map.width(), map.height()), (16, 8));
+        // A missing face: nothing is written, and the map is missing from the picture.
+        let rib = rib.replace("nz.png", "absent.png").replace("env.tex", "other.tex");
+        let loaded = load_str(&mut rt, &rib, dir.path().join("env.rib")).expect("loads");
+        assert_eq!(loaded.omissions(), 1, "{:?}", loaded.warnings);
+        assert!(loaded.warnings[0].message.contains("absent.png"), "{:?}", loaded.warnings);
+        assert!(!dir.path().join("other.tex").exists());
     }
 }

@@ -600,6 +600,23 @@ pub enum RequestKind {
         /// Further parameters.
         params: Vec<Param>,
     },
+    /// `MakeCubeFaceEnvironment px nx py ny pz nz texture fov filter swidth twidth params`
+    MakeCubeFaceEnvironment {
+        /// The face images along +x, -x, +y, -y, +z, -z.
+        faces: [String; 6],
+        /// The environment map to write.
+        texture: String,
+        /// Each face's field of view, in degrees.
+        fov: f32,
+        /// Filter name.
+        filter: String,
+        /// Filter width in s.
+        swidth: f32,
+        /// Filter width in t.
+        twidth: f32,
+        /// Further parameters.
+        params: Vec<Param>,
+    },
     // --- Conditional RIB. The reader evaluates these as it reads, keeping only the requests of
     // the branches taken; they appear in a request list only inside an inline archive, whose
     // conditions are evaluated where it is read.

@@ -12,10 +12,15 @@
 //!
 //! Mip levels are not stored: they are rebuilt at load, which costs less than reading them.
 //! RIB's filter arguments (`filterfunc`, `swidth`, `twidth`) do not apply for that reason.
+//!
+//! RIB's `MakeCubeFaceEnvironment` ([`make_cube_face_environment`]): the texture system has one
+//! kind of environment map, the latitude-longitude one `environment()` reads
+//! (`super::environment`), so the six faces are resampled into one when the map is made.
 
 use std::path::Path;
 
-use super::image::load_texture_image;
+use super::environment::latlong_to_direction;
+use super::image::{load_texture_image, TexImage};
 use super::Wrap;
 use crate::image_io::{self, ExrLayer, ImageError, ImageFormat, Transfer, WriteOptions};
 
@@ -32,6 +37,93 @@ pub struct MakeTextureOptions {
 pub fn make_texture(src: impl AsRef<Path>, dst: impl AsRef<Path>, opts: &MakeTextureOptions) -> Result<(), ImageError> {
     let (src, dst) = (src.as_ref(), dst.as_ref());
     let image = load_texture_image(src, opts.raw)?.image;
+    write_texture(&image, dst, opts)
+}
+
+/// The widest latitude-longitude map [`make_cube_face_environment`] makes (its height is half
+/// that): four faces across, each at most a quarter of it.
+pub const MAX_CUBE_LATLONG_WIDTH: usize = 8192;
+
+/// Makes the latitude-longitude environment map `dst` of six cube faces (RISpec's
+/// `MakeCubeFaceEnvironment`: `faces` seen from the cube's centre along +x, -x, +y, -y, +z, -z, in
+/// RenderMan's left-handed space, each `fov_degrees` across, oriented as Aqsis's cube sampler
+/// reads them: up is +y for the four side faces (right -z, +z, +x, -x for +x, -x, +z, -z), -z
+/// for +y and +z for -y (right +x for both)). Each texel of the map, `4 n` by `2 n` for faces of
+/// `n` texels across (at most [`MAX_CUBE_LATLONG_WIDTH`] wide), takes the bilinear value of its
+/// direction on the face it points to. Faces may differ in size; their channels are made RGBA.
+pub fn make_cube_face_environment(faces: [&Path; 6], dst: &Path, fov_degrees: f32) -> Result<(), ImageError> {
+    if !(fov_degrees > 0.0 && fov_degrees < 180.0) {
+        let message = format!("a cube face's field of view is between 0 and 180 degrees, not {fov_degrees}");
+        return Err(ImageError::Encode { path: dst.to_path_buf(), message });
+    }
+    let mut images = Vec::with_capacity(6);
+    for face in faces {
+        images.push(load_texture_image(face, false)?.image);
+    }
+    let across = images.iter().map(TexImage::width).max().unwrap_or(1);
+    let width = (4 * across).clamp(4, MAX_CUBE_LATLONG_WIDTH);
+    let height = (width / 2).max(1);
+    let cot = 1.0 / (0.5 * fov_degrees.to_radians()).tan();
+    let mut rgba = Vec::with_capacity(width * height * 4);
+    for j in 0..height {
+        for i in 0..width {
+            let d = latlong_to_direction((i as f32 + 0.5) / width as f32, (j as f32 + 0.5) / height as f32);
+            let (face, u, v) = cube_face_at(d, cot);
+            rgba.extend(bilinear_rgba(&images[face], u, v));
+        }
+    }
+    let image = TexImage::new(width, height, 4, rgba)
+        .ok_or_else(|| ImageError::Encode { path: dst.to_path_buf(), message: "an empty map".into() })?;
+    write_texture(&image, dst, &MakeTextureOptions { swrap: Wrap::Periodic, twrap: Wrap::Clamp, raw: false })
+}
+
+/// The face (0 to 5: +x, -x, +y, -y, +z, -z) direction `d` points to and where on it, `(u, v)`
+/// with u to the right and v down, 0 to 1 across a face of the field of view whose half-angle's
+/// cotangent is `cot`.
+fn cube_face_at([x, y, z]: [f32; 3], cot: f32) -> (usize, f32, f32) {
+    let (ax, ay, az) = (x.abs(), y.abs(), z.abs());
+    // (face, right, up) over the major axis' length.
+    let (face, right, up, major) = if ax >= ay && ax >= az {
+        if x > 0.0 {
+            (0, -z, y, ax)
+        } else {
+            (1, z, y, ax)
+        }
+    } else if ay >= az {
+        if y > 0.0 {
+            (2, x, -z, ay)
+        } else {
+            (3, x, z, ay)
+        }
+    } else if z > 0.0 {
+        (4, x, y, az)
+    } else {
+        (5, -x, y, az)
+    };
+    let major = major.max(f32::MIN_POSITIVE);
+    (face, 0.5 + 0.5 * cot * right / major, 0.5 - 0.5 * cot * up / major)
+}
+
+/// The bilinear RGBA value of `image` at `(u, v)` (0 to 1 across, texel centres at half steps),
+/// clamped to its edges.
+fn bilinear_rgba(image: &TexImage, u: f32, v: f32) -> [f32; 4] {
+    let (w, h) = (image.width(), image.height());
+    let fx = (u * w as f32 - 0.5).clamp(0.0, (w - 1) as f32);
+    let fy = (v * h as f32 - 0.5).clamp(0.0, (h - 1) as f32);
+    let (x0, y0) = (fx.floor() as usize, fy.floor() as usize);
+    let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
+    let (tx, ty) = (fx - x0 as f32, fy - y0 as f32);
+    let at = |x, y| expand_to_rgba(image.texel(x, y));
+    let (a, b, c, d) = (at(x0, y0), at(x1, y0), at(x0, y1), at(x1, y1));
+    std::array::from_fn(|k| {
+        let top = a[k] + (b[k] - a[k]) * tx;
+        let bottom = c[k] + (d[k] - c[k]) * tx;
+        top + (bottom - top) * ty
+    })
+}
+
+/// Writes `image` as the texture file `dst` (see the module doc).
+fn write_texture(image: &TexImage, dst: &Path, opts: &MakeTextureOptions) -> Result<(), ImageError> {
     let (width, height, channels) = (image.width(), image.height(), image.channels());
     match ImageFormat::from_path(dst) {
         Some(ImageFormat::Png | ImageFormat::Tga | ImageFormat::Ppm | ImageFormat::Tiff) => {
@@ -137,5 +229,75 @@ mod tests {
         let err = make_texture(dir.path().join("absent.png"), dir.path().join("x.exr"), &MakeTextureOptions::default())
             .unwrap_err();
         assert!(err.to_string().contains("absent.png"), "{err}");
+    }
+
+    /// Six 2x2 faces: red marks the face (`40 k` for face k), green the column, blue the row.
+    fn write_faces(dir: &Path, across: u32) -> Vec<std::path::PathBuf> {
+        (0..6u8)
+            .map(|k| {
+                let path = dir.join(format!("face{k}.png"));
+                let mut bytes = Vec::new();
+                for y in 0..across {
+                    for x in 0..across {
+                        let (g, b) = (if 2 * x >= across { 255 } else { 0 }, if 2 * y >= across { 255 } else { 0 });
+                        bytes.extend([40 * k, g, b]);
+                    }
+                }
+                ::image::save_buffer(&path, &bytes, across, across, ::image::ExtendedColorType::Rgb8).unwrap();
+                path
+            })
+            .collect()
+    }
+
+    #[test]
+    fn cube_faces_become_a_latlong_map_oriented_as_aqsis_reads_them() {
+        let dir = tempfile::tempdir().unwrap();
+        let faces = write_faces(dir.path(), 2);
+        let dst = dir.path().join("env.tex");
+        let f: Vec<&Path> = faces.iter().map(|p| p.as_path()).collect();
+        make_cube_face_environment([f[0], f[1], f[2], f[3], f[4], f[5]], &dst, 90.0).unwrap();
+        let loaded = load_texture_image(&dst, false).unwrap();
+        let image = &loaded.image;
+        assert_eq!((image.width(), image.height(), image.channels()), (8, 4, 4));
+        assert_eq!(loaded.wrap, Some([Wrap::Periodic, Wrap::Clamp]));
+        // Each face seen up and to the right of its centre, then one down and to the left.
+        let cases: [([f32; 3], usize, [f32; 2]); 7] = [
+            ([1.0, 0.5, -0.5], 0, [1.0, 0.0]),
+            ([-1.0, 0.5, 0.5], 1, [1.0, 0.0]),
+            ([0.5, 1.0, -0.5], 2, [1.0, 0.0]),
+            ([0.5, -1.0, 0.5], 3, [1.0, 0.0]),
+            ([0.5, 0.5, 1.0], 4, [1.0, 0.0]),
+            ([-0.5, 0.5, -1.0], 5, [1.0, 0.0]),
+            ([-0.5, -0.5, 1.0], 4, [0.0, 1.0]),
+        ];
+        // A finer map, so the texel a direction lands in is near it.
+        let faces = write_faces(dir.path(), 16);
+        let f: Vec<&Path> = faces.iter().map(|p| p.as_path()).collect();
+        make_cube_face_environment([f[0], f[1], f[2], f[3], f[4], f[5]], &dst, 90.0).unwrap();
+        let image = load_texture_image(&dst, false).unwrap().image;
+        for (d, face, [column, row]) in cases {
+            let (s, t) = crate::texture::environment::direction_to_latlong(d).unwrap();
+            let x = ((s * image.width() as f32) as usize).min(image.width() - 1);
+            let y = ((t * image.height() as f32) as usize).min(image.height() - 1);
+            let texel = image.texel(x, y);
+            let marker = crate::texture::srgb_to_linear(40.0 * face as f32 / 255.0);
+            assert!((texel[0] - marker).abs() < 1e-3, "{d:?}: face {face}, got {texel:?}");
+            assert!((texel[1] - column).abs() < 1e-3 && (texel[2] - row).abs() < 1e-3, "{d:?}: got {texel:?}");
+        }
+    }
+
+    #[test]
+    fn cube_faces_refuse_a_bad_field_of_view_and_missing_faces() {
+        let dir = tempfile::tempdir().unwrap();
+        let faces = write_faces(dir.path(), 2);
+        let f: Vec<&Path> = faces.iter().map(|p| p.as_path()).collect();
+        let dst = dir.path().join("env.tex");
+        for fov in [0.0, 180.0, f32::NAN, -5.0] {
+            assert!(make_cube_face_environment([f[0], f[1], f[2], f[3], f[4], f[5]], &dst, fov).is_err());
+        }
+        let absent = dir.path().join("absent.png");
+        let err = make_cube_face_environment([f[0], f[1], f[2], f[3], f[4], &absent], &dst, 95.0).unwrap_err();
+        assert!(err.to_string().contains("absent.png"), "{err}");
+        assert!(!dst.exists());
     }
 }

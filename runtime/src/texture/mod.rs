@@ -36,7 +36,7 @@ pub use cache::{Delivered, TextureCache, TextureInfo, TextureKind, TextureQuery,
 pub use environment::{direction_to_latlong, latlong_to_direction};
 pub use grid::{Grid, GridError, GridType};
 pub use image::{load_texture_image, LoadedImage, TexImage};
-pub use make::{make_texture, MakeTextureOptions};
+pub use make::{make_cube_face_environment, make_texture, MakeTextureOptions, MAX_CUBE_LATLONG_WIDTH};
 pub use mip::{LookupLanes, MipMap, MAX_ANISOTROPY};
 pub use shadow::{make_shadow, write_shadow_map, ShadowMap};
 
