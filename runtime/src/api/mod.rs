@@ -71,6 +71,7 @@ mod shaders;
 mod state;
 pub use events::ShaderEvent;
 pub use replica::{decode_mesh, encode_mesh, ReplicaError, Replicator};
+pub use state::{AttributeParts, SavedAttributes};
 // The types `Context`'s calls take and return, so that one `use rtsl_runtime::api::{...}` serves an
 // application (vector types: `rtsl_runtime::glam`).
 pub use crate::geometry::{Mesh, Quadric, Tessellation};

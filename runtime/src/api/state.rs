@@ -46,6 +46,49 @@ impl Context {
         self.appearance.one_sided = one_sided;
     }
 
+    /// A copy of the attribute state and the matrix, to restore later in part or whole
+    /// ([`Context::restore_attributes`]; PRMan's `Resource "name" "attributes"`).
+    pub fn saved_attributes(&self) -> SavedAttributes {
+        SavedAttributes { appearance: self.appearance.clone(), matrix: self.matrix, close_matrix: self.close_matrix }
+    }
+
+    /// Restores the parts of a saved state that `parts` names: the shading (colour, opacity,
+    /// surface, displacement and interior shaders, how shadows and light paths meet the surface,
+    /// the alpha mask), the geometry's sidedness, the matrix.
+    pub fn restore_attributes(&mut self, saved: &SavedAttributes, parts: AttributeParts) {
+        let (a, s) = (&mut self.appearance, &saved.appearance);
+        if parts.shading {
+            a.color = s.color;
+            a.opacity = s.opacity;
+            a.surface = s.surface.clone();
+            a.interior = s.interior.clone();
+            a.displacement = s.displacement.clone();
+            a.shadow_by_shader = s.shadow_by_shader;
+            a.photon = s.photon;
+            a.alpha_mask = s.alpha_mask.clone();
+        }
+        if parts.sides {
+            a.one_sided = s.one_sided;
+        }
+        if parts.transform {
+            self.matrix = saved.matrix;
+            self.close_matrix = saved.close_matrix;
+        }
+    }
+
+    /// The matrix a named space was given ([`Context::coordinate_system`]), if any.
+    pub fn coordinate_system_matrix(&self, name: &str) -> Option<Affine3A> {
+        self.spaces.get(name).copied()
+    }
+
+    /// Gives a named space a matrix, or (with `None`) removes the name.
+    pub fn set_coordinate_system(&mut self, name: &str, matrix: Option<Affine3A>) {
+        match matrix {
+            Some(m) => self.spaces.insert(name.to_string(), m),
+            None => self.spaces.remove(name),
+        };
+    }
+
     /// Saves the attribute state (colour, opacity, shader binding) and the matrix.
     pub fn push_attributes(&mut self) {
         self.appearance_stack.push(self.appearance.clone());
@@ -212,4 +255,28 @@ impl Context {
         // A column-vector matrix's columns are the row-vector matrix's rows.
         Some((finite(world_to_camera)?, finite(to_ndc * world_to_camera)?))
     }
+}
+
+/// An attribute state and matrix saved by [`Context::saved_attributes`].
+#[derive(Clone, Debug)]
+pub struct SavedAttributes {
+    appearance: super::Appearance,
+    matrix: Affine3A,
+    close_matrix: Option<Affine3A>,
+}
+
+/// Which parts of a [`SavedAttributes`] [`Context::restore_attributes`] restores.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct AttributeParts {
+    /// Colour, opacity, shaders, shadow and light-path behaviour, alpha mask.
+    pub shading: bool,
+    /// One- or two-sidedness.
+    pub sides: bool,
+    /// The matrix.
+    pub transform: bool,
+}
+
+impl AttributeParts {
+    /// Every part.
+    pub const ALL: AttributeParts = AttributeParts { shading: true, sides: true, transform: true };
 }

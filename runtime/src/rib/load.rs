@@ -37,7 +37,7 @@ use super::primitive::{mesh_from_request_with, request_triangles};
 use super::request::{Handle, Orientation, Param, ParamValue as RibValue, Request, RequestKind};
 use super::view::{Projection, View};
 use super::{parse_file, parse_str, RibDiagnostic, RibParse, Severity, MAX_RIB_TRIANGLES};
-use crate::api::{ApiError, Context, LightId, ObjectId};
+use crate::api::{ApiError, AttributeParts, Context, LightId, ObjectId, SavedAttributes};
 use crate::geometry::Mesh;
 use crate::render::{DisplayMode, MAX_PIXEL_SAMPLES};
 use crate::scene_file::{add_model_file, add_model_file_placed, Placement, SceneFileError};
@@ -307,6 +307,12 @@ struct Loader<'a> {
     /// `ClippingPlane`s given before `WorldBegin`, in camera space (point and normal), moved into
     /// world space there.
     camera_clipping_planes: Vec<(Vec3, Vec3)>,
+    /// `Resource "name" "attributes"` saves, by name, in `ResourceBegin` scopes (innermost
+    /// last): the context's attributes and the loader's.
+    resources: Vec<HashMap<String, (SavedAttributes, State)>>,
+    /// `ScopedCoordinateSystem`s of the open attribute blocks: the block depth, the name, and the
+    /// matrix the name had before (restored when the block ends).
+    scoped_spaces: Vec<(usize, String, Option<Affine3A>)>,
 }
 
 impl<'a> Loader<'a> {
@@ -331,6 +337,8 @@ impl<'a> Loader<'a> {
             motion_transforms: Vec::new(),
             triangles: 0,
             camera_clipping_planes: Vec::new(),
+            resources: vec![HashMap::new()],
+            scoped_spaces: Vec::new(),
         }
     }
 
@@ -614,6 +622,15 @@ impl<'a> Loader<'a> {
             K::AttributeEnd => {
                 rt.pop_attributes()?;
                 self.state = self.stack.pop().unwrap_or_default();
+                while let Some((depth, name, outer)) = self.scoped_spaces.pop() {
+                    if depth <= self.stack.len() {
+                        self.scoped_spaces.push((depth, name, outer));
+                        break;
+                    }
+                    if outer.is_some() {
+                        self.rt.set_coordinate_system(&name, outer);
+                    }
+                }
             }
             K::TransformBegin => rt.push_matrix(),
             K::TransformEnd => rt.pop_matrix()?,
@@ -640,6 +657,35 @@ impl<'a> Loader<'a> {
                 self.warn(r, "Perspective (a projective transform) cannot place geometry in rtsl and is ignored")
             }
             K::CoordinateSystem(name) => rt.coordinate_system(name),
+            // Named spaces are looked up as the frame renders, one matrix a name: the scoped one
+            // is kept after its block unless the name meant another space before it, which is
+            // then restored (and this block's shaders see that one).
+            K::ScopedCoordinateSystem(name) => {
+                let outer = rt.coordinate_system_matrix(name);
+                rt.coordinate_system(name);
+                // Outside any attribute block it is `CoordinateSystem`.
+                if !self.stack.is_empty() {
+                    if outer.is_some() {
+                        self.warn(
+                            r,
+                            format_args!(
+                                "\"{name}\" already names a space, which is back when this block ends: shaders look \
+                                 named spaces up as the frame renders, so this block's see that one"
+                            ),
+                        );
+                    }
+                    self.scoped_spaces.push((self.stack.len(), name.clone(), outer));
+                }
+            }
+            K::ResourceBegin => self.resources.push(HashMap::new()),
+            K::ResourceEnd => {
+                if self.resources.len() > 1 {
+                    self.resources.pop();
+                } else {
+                    self.warn(r, "ResourceEnd without ResourceBegin");
+                }
+            }
+            K::Resource { name, ty, params } => self.resource(r, name, ty, params),
             K::CoordSysTransform(name) => {
                 if !rt.load_coordinate_system(name) {
                     self.warn(r, format_args!("no coordinate system named \"{name}\""));
@@ -845,6 +891,63 @@ impl<'a> Loader<'a> {
             },
         }
         Ok(())
+    }
+
+    /// `Resource "name" "attributes" "operation" "save"|"restore" ["subset" "..."]`: PRMan's saved
+    /// attribute states; the subsets, comma-separated, are Pixie's: `shading`, `geometrymodification`,
+    /// `geometrydefinition`, `hiding`, `transform`, `all` (the default).
+    fn resource(&mut self, r: &Request, name: &str, ty: &str, params: &[Param]) {
+        if ty != "attributes" {
+            return self.omit(r, format_args!("Resource type \"{ty}\" is not supported (rtsl's is \"attributes\")"));
+        }
+        let string = |key: &str| params.iter().find(|p| p.name == key).and_then(|p| p.strings()?.first().cloned());
+        match string("operation").as_deref() {
+            Some("save") => {
+                let saved = (self.rt.saved_attributes(), self.state.clone());
+                if let Some(scope) = self.resources.last_mut() {
+                    scope.insert(name.to_string(), saved);
+                }
+            }
+            Some("restore") => {
+                let Some((api, state)) = self.resources.iter().rev().find_map(|s| s.get(name)).cloned() else {
+                    return self.omit(r, format_args!("no attributes were saved as \"{name}\""));
+                };
+                let subset = string("subset").unwrap_or_else(|| "all".into());
+                let (mut parts, mut definition) = (AttributeParts::default(), false);
+                for part in subset.split(',').map(str::trim) {
+                    match part {
+                        "shading" => parts.shading = true,
+                        "geometrymodification" => parts.sides = true,
+                        "geometrydefinition" => definition = true,
+                        "transform" => parts.transform = true,
+                        "hiding" => {}
+                        "all" => (parts, definition) = (AttributeParts::ALL, true),
+                        other => self.warn(
+                            r,
+                            format_args!(
+                                "unknown Resource subset \"{other}\" (\"shading\", \"geometrymodification\", \
+                                 \"geometrydefinition\", \"hiding\", \"transform\" or \"all\")"
+                            ),
+                        ),
+                    }
+                }
+                self.rt.restore_attributes(&api, parts);
+                if parts.shading {
+                    self.state.area_light = state.area_light;
+                    self.state.shadows = state.shadows;
+                }
+                if parts.sides {
+                    self.state.inside = state.inside;
+                    self.state.detail = state.detail;
+                    self.state.detail_range = state.detail_range;
+                }
+                if definition {
+                    self.state.mesh_options = state.mesh_options;
+                }
+            }
+            Some(other) => self.warn(r, format_args!("Resource operation \"{other}\": it is \"save\" or \"restore\"")),
+            None => self.warn(r, "Resource \"attributes\" needs \"operation\" \"save\" or \"restore\""),
+        }
     }
 
     /// `PixelFilter`: an unknown name is warned about and falls back to the default filter; widths
@@ -1386,5 +1489,111 @@ mod tests {
         assert_eq!(loaded.omissions(), 1, "{:?}", loaded.warnings);
         assert!(loaded.warnings[0].message.contains("absent.png"), "{:?}", loaded.warnings);
         assert!(!dir.path().join("other.tex").exists());
+    }
+
+    const SAVE: &str = "Resource \"a\" \"attributes\" \"string operation\" \"save\"";
+    const RESTORE: &str = "Resource \"a\" \"attributes\" \"string operation\" \"restore\"";
+
+    #[test]
+    fn rib_resources_save_and_restore_attribute_subsets() {
+        let sees = |world: &str| camera_hits("", world, &BEHIND_AND_FRONT);
+        assert_eq!(sees(&format!("Sides 1 {SAVE} Sides 2 {RESTORE} {TRIANGLE}")), [false, true]);
+        let only = |subset: &str| format!("Sides 1 {SAVE} Sides 2 {RESTORE} \"string subset\" \"{subset}\" {TRIANGLE}");
+        assert_eq!(sees(&only("geometrymodification")), [false, true]);
+        assert_eq!(sees(&only("shading")), [true, true]);
+        assert_eq!(sees(&only("shading,geometrymodification")), [false, true]);
+        // The transform, restored or not.
+        let moved = |subset: &str| {
+            let world = format!("Translate 0 0 3 {SAVE} Identity {RESTORE} \"string subset\" \"{subset}\" {TRIANGLE}");
+            camera_hit_distances("", &world, &[([0.2, 0.2, 5.0], -1.0)])[0]
+        };
+        assert_eq!(moved("transform"), 2.0);
+        assert_eq!(moved("shading"), 5.0);
+        // Orientation is a geometry modification too.
+        assert_eq!(sees(&format!("Sides 1 {SAVE} ReverseOrientation {RESTORE} {TRIANGLE}")), [false, true]);
+    }
+
+    /// The colour of the material of the first instance of the world `rib` makes.
+    fn first_colour(rib: &str) -> [f32; 3] {
+        let mut rt = Context::new();
+        let loaded = load_str(&mut rt, &format!("Projection \"perspective\" WorldBegin {rib} WorldEnd"), "r.rib")
+            .expect("loads");
+        assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+        let world = rt.build_world().expect("a world");
+        world.materials[world.instances[0].material as usize].color
+    }
+
+    #[test]
+    fn rib_resources_restore_shading_and_follow_resource_blocks() {
+        let colour = |rest: &str| first_colour(&format!("Color 1 0 0 {SAVE} Color 0 1 0 {rest} {TRIANGLE}"));
+        assert_eq!(colour(RESTORE), [1.0, 0.0, 0.0]);
+        assert_eq!(colour(&format!("{RESTORE} \"string subset\" \"transform\"")), [0.0, 1.0, 0.0]);
+        // A name saved in an inner block hides the outer one there, and is forgotten at its end.
+        let rib =
+            format!("Color 1 0 0 {SAVE} ResourceBegin Color 0 0 1 {SAVE} Color 0 1 0 {RESTORE} ResourceEnd {TRIANGLE}");
+        assert_eq!(first_colour(&rib), [0.0, 0.0, 1.0]);
+        let rib = format!("Color 0 0 1 ResourceBegin Color 1 0 0 {SAVE} ResourceEnd {RESTORE} {TRIANGLE}");
+        let mut rt = Context::new();
+        let loaded = load_str(&mut rt, &format!("WorldBegin {rib} WorldEnd"), "r.rib").expect("loads");
+        assert_eq!(loaded.omissions(), 1, "{:?}", loaded.warnings);
+        assert!(loaded.warnings[0].message.contains("no attributes were saved as \"a\""));
+    }
+
+    #[test]
+    fn rib_resource_mistakes_warn() {
+        let mut rt = Context::new();
+        let rib = "ResourceEnd\nResource \"a\" \"texture\"\nResource \"a\" \"attributes\"\n\
+                   Resource \"a\" \"attributes\" \"string operation\" \"load\"\n\
+                   Resource \"a\" \"attributes\" \"string operation\" \"save\"\n\
+                   Resource \"a\" \"attributes\" \"string operation\" \"restore\" \"string subset\" \"colour\"\n";
+        let loaded = load_str(&mut rt, rib, "r.rib").expect("loads");
+        let lines: Vec<(u32, Severity)> = loaded.warnings.iter().map(|w| (w.loc.line, w.severity)).collect();
+        assert_eq!(
+            lines,
+            [
+                (1, Severity::Warning),
+                (2, Severity::Omission),
+                (3, Severity::Warning),
+                (4, Severity::Warning),
+                (6, Severity::Warning)
+            ]
+        );
+    }
+
+    #[test]
+    fn rib_scoped_coordinate_systems_end_with_their_block() {
+        let spaces = |rib: &str| {
+            let mut rt = Context::new();
+            let loaded = load_str(&mut rt, rib, "s.rib").expect("loads");
+            let x = rt.coordinate_system_matrix("a").map(|m| m.translation.x);
+            (x, loaded.warnings.len())
+        };
+        // Not named before: kept, so the block's shaders find it as the frame renders.
+        assert_eq!(spaces("AttributeBegin Translate 1 0 0 ScopedCoordinateSystem \"a\" AttributeEnd"), (Some(1.0), 0));
+        // Named before: that one is back after the block, with a warning.
+        let rib = "Translate 2 0 0 CoordinateSystem \"a\" \
+                   AttributeBegin Translate 1 0 0 ScopedCoordinateSystem \"a\" AttributeEnd";
+        assert_eq!(spaces(rib), (Some(2.0), 1));
+        // Nested blocks restore in turn.
+        let rib = "Translate 2 0 0 CoordinateSystem \"a\" AttributeBegin Translate 1 0 0 ScopedCoordinateSystem \"a\" \
+                   AttributeBegin Translate 1 0 0 ScopedCoordinateSystem \"a\" AttributeEnd";
+        assert_eq!(spaces(rib).0, Some(3.0));
+        // Outside any block it is `CoordinateSystem`.
+        assert_eq!(spaces("Translate 4 0 0 ScopedCoordinateSystem \"a\""), (Some(4.0), 0));
+    }
+
+    #[test]
+    fn rib_system_is_refused_and_make_bump_makes_a_texture() {
+        let dir = tempfile::tempdir().expect("a directory");
+        ::image::save_buffer(dir.path().join("b.png"), &[10, 20, 30, 40], 2, 2, ::image::ExtendedColorType::L8)
+            .expect("a picture");
+        let rib = "System \"make all\"\nMakeBump \"b.png\" \"b.tex\" \"periodic\" \"periodic\" \"box\" 1 1\n";
+        let mut rt = Context::new();
+        let loaded = load_str(&mut rt, rib, dir.path().join("s.rib")).expect("loads");
+        let found: Vec<(u32, Severity)> = loaded.warnings.iter().map(|w| (w.loc.line, w.severity)).collect();
+        assert_eq!(found, [(1, Severity::Omission), (2, Severity::Warning)], "{:?}", loaded.warnings);
+        assert!(loaded.warnings[0].message.contains("runs a program"));
+        assert!(loaded.warnings[1].message.contains("texture()"));
+        assert!(dir.path().join("b.tex").is_file());
     }
 }

@@ -30,17 +30,7 @@ const IGNORED_REQUESTS: &[&str] = &["ErrorHandler", "GeometricApproximation", "P
 /// RenderMan requests (RISpec 3.2 and the common later ones) that this reader skips: what they
 /// ask for is missing from the picture, which their warning says (rather than the "unknown
 /// request" one a typo gets).
-const UNSUPPORTED_REQUESTS: &[&str] = &[
-    "Blobby",
-    "ColorSamples",
-    "MakeBump",
-    "Resource",
-    "ResourceBegin",
-    "ResourceEnd",
-    "ScopedCoordinateSystem",
-    "Shader",
-    "System",
-];
+const UNSUPPORTED_REQUESTS: &[&str] = &["Blobby", "ColorSamples", "Shader"];
 
 /// One argument of a request, as written.
 #[derive(Clone, Debug)]
@@ -309,6 +299,12 @@ impl Parser {
         let result = match name {
             "ReadArchive" => self.read_archive(&loc, args),
             "Procedural" => self.procedural(&loc, args),
+            "System" => {
+                let message = "`System` runs a program the scene names, which rtsl does not do; what it would \
+                               make is missing";
+                self.diagnostics.push(RibDiagnostic::omission(&loc, message));
+                Ok(())
+            }
             "ArchiveBegin" => self.begin_archive(&loc, args),
             "ArchiveEnd" if self.open_archives.is_empty() => Err(error(&loc, "`ArchiveEnd` without `ArchiveBegin`")),
             "ArchiveEnd" => {
@@ -430,6 +426,12 @@ impl Parser {
             "Skew" => K::Skew(a.floats("angle dx1 dy1 dz1 dx2 dy2 dz2")?),
             "CoordinateSystem" => K::CoordinateSystem(a.string("coordinate system name")?),
             "CoordSysTransform" => K::CoordSysTransform(a.string("coordinate system name")?),
+            "ScopedCoordinateSystem" => K::ScopedCoordinateSystem(a.string("coordinate system name")?),
+            "Resource" => {
+                K::Resource { name: a.string("resource name")?, ty: a.string("resource type")?, params: self.params(a) }
+            }
+            "ResourceBegin" => K::ResourceBegin,
+            "ResourceEnd" => K::ResourceEnd,
             "LightSource" => {
                 let (shader, handle) = self.light(a)?;
                 K::LightSource { shader, handle }
@@ -623,6 +625,24 @@ impl Parser {
                 twidth: a.float("t filter width")?,
                 params: self.params(a),
             },
+            // RISpec 3.2's bump maps have no reader in its shading language: the map is made as a
+            // texture, which a displacement shader reads with `texture()`.
+            "MakeBump" => {
+                let kind = K::MakeTexture {
+                    picture: a.string("picture file")?,
+                    texture: a.string("bump file")?,
+                    swrap: a.string("s wrap mode")?,
+                    twrap: a.string("t wrap mode")?,
+                    filter: a.string("filter name")?,
+                    swidth: a.float("s filter width")?,
+                    twidth: a.float("t filter width")?,
+                    params: self.params(a),
+                };
+                let message = "`MakeBump` is obsolete (RISpec 3.2's shading language reads no bump map): the \
+                               map is made as a texture, which a displacement shader reads with `texture()`";
+                self.diagnostics.push(RibDiagnostic::warning(a.loc, message));
+                kind
+            }
             "MakeTexture" => K::MakeTexture {
                 picture: a.string("picture file")?,
                 texture: a.string("texture file")?,

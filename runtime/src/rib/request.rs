@@ -374,6 +374,22 @@ pub enum RequestKind {
     Skew([f32; 7]),
     /// `CoordinateSystem "name"`
     CoordinateSystem(String),
+    /// `ScopedCoordinateSystem "name"`: `CoordinateSystem` until the attribute block ends.
+    ScopedCoordinateSystem(String),
+    /// `Resource "name" "type" params`: PRMan's named resources (`"attributes"`: a saved
+    /// attribute state).
+    Resource {
+        /// The resource's name.
+        name: String,
+        /// Its type.
+        ty: String,
+        /// `"operation"`, `"subset"`.
+        params: Vec<Param>,
+    },
+    /// `ResourceBegin`: resources saved from here are forgotten at the matching `ResourceEnd`.
+    ResourceBegin,
+    /// `ResourceEnd`
+    ResourceEnd,
     /// `CoordSysTransform "name"`
     CoordSysTransform(String),
     // --- Attributes and shaders.
