@@ -311,10 +311,7 @@ impl Eval<'_> {
         match token {
             Tok::Num(n) => Ok(Value::Num(n)),
             Tok::Str(s) => Ok(Value::Str(s)),
-            Tok::Var(name) if !live => {
-                let _ = name;
-                Ok(Value::Num(0.0))
-            }
+            Tok::Var(_) if !live => Ok(Value::Num(0.0)),
             Tok::Var(name) => (self.lookup)(&name).ok_or(CondError::Undefined(name)),
             Tok::Op("(") => {
                 let v = self.nested(|p| p.or(live))?;
