@@ -1104,3 +1104,41 @@ fn a_shadow_map_pass_feeds_the_frame_after_it() {
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("a shadow map needs the built-in perspective camera"), "{}", stderr(&o));
 }
+
+#[test]
+fn rib_conditionals_choose_each_frames_branch_in_a_shared_archive() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    // One archive read by both frames: its colour depends on the frame and on the pass option.
+    write(
+        dir.path(),
+        "ball.rib",
+        "IfBegin \"$user:pass == 'key'\"\n  Color [0 0 0]\nElseIf \"$Frame >= 9\"\n  Color [1 1 1]\nElse\n  \
+         Color [0.2 0.2 0.2]\nIfEnd\nSurface \"constant\"\nSphere 1 -1 1 360\n",
+    );
+    let frame = |n: i32| {
+        format!(
+            "FrameBegin {n}\nDisplay \"cond.#f.png\" \"file\" \"rgb\"\nTranslate 0 0 5\nWorldBegin\n\
+             ReadArchive \"ball.rib\"\nWorldEnd\nFrameEnd\n"
+        )
+    };
+    write(
+        dir.path(),
+        "anim.rib",
+        &format!("Format 16 16 1\nOption \"user\" \"string pass\" \"beauty\"\n{}{}", frame(7), frame(9)),
+    );
+    let centre =
+        |name: &str| rtsl_runtime::read_image(dir.path().join(name)).expect("the frame's image").pixel(8, 8)[0];
+    let o = rtsl(&["render", "anim.rib", "-q"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert_eq!((centre("cond.7.png") * 255.0).round(), 124.0);
+    assert_eq!(centre("cond.9.png"), 1.0);
+    // One frame on its own takes the same branch.
+    let o = rtsl(&["render", "anim.rib", "--frame", "9", "-o", "only.png", "-q"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert_eq!(centre("only.png"), 1.0);
+    // A malformed condition is an error with its place, and the render counts a part missing.
+    write(dir.path(), "bad.rib", "Format 16 16 1\nWorldBegin\nIfBegin \"$Frame ==\"\nIfEnd\nWorldEnd\n");
+    let o = rtsl(&["render", "bad.rib", "-o", "bad.png", "--color", "never"], dir.path());
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("bad.rib:3:1"), "{}", stderr(&o));
+}
