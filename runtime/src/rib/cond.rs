@@ -23,6 +23,12 @@ pub const MAX_EXPR_DEPTH: usize = 64;
 /// How deeply `IfBegin` blocks may nest.
 pub const MAX_IF_DEPTH: usize = 256;
 
+/// The work the conditions of one RIB stream may do, counted in characters: of the expressions,
+/// of the values they compare, match or join, and the steps of glob matching. An inline archive
+/// read many times evaluates its conditions each time, and a glob match costs up to the product
+/// of its strings' lengths.
+pub const CONDITION_BUDGET: usize = 1 << 26;
+
 /// A value in an expression.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Value {
@@ -56,6 +62,8 @@ pub enum CondError {
     Syntax(String),
     /// It reads a variable that is not set.
     Undefined(String),
+    /// The stream's conditions have done [`CONDITION_BUDGET`]'s work.
+    OverBudget,
 }
 
 impl std::fmt::Display for CondError {
@@ -63,14 +71,19 @@ impl std::fmt::Display for CondError {
         match self {
             CondError::Syntax(m) => write!(f, "{m}"),
             CondError::Undefined(name) => write!(f, "no option or attribute `{name}` is set"),
+            CondError::OverBudget => {
+                write!(f, "the conditions of this stream have done their work (budget {CONDITION_BUDGET})")
+            }
         }
     }
 }
 
-/// Evaluates `expr`, reading variables through `lookup` (given the name after `$`).
-pub fn evaluate(expr: &str, lookup: &dyn Fn(&str) -> Option<Value>) -> Result<bool, CondError> {
+/// Evaluates `expr`, reading variables through `lookup` (given the name after `$`), its work taken
+/// from `budget` (see [`CONDITION_BUDGET`]).
+pub fn evaluate(expr: &str, lookup: &dyn Fn(&str) -> Option<Value>, budget: &mut usize) -> Result<bool, CondError> {
+    *budget = budget.checked_sub(expr.len()).ok_or(CondError::OverBudget)?;
     let tokens = tokenize(expr)?;
-    let mut p = Eval { tokens, pos: 0, depth: 0, lookup };
+    let mut p = Eval { tokens, pos: 0, depth: 0, lookup, budget };
     let v = p.or(true)?;
     match p.tokens.get(p.pos) {
         None => Ok(v.truth()),
@@ -167,6 +180,7 @@ struct Eval<'a> {
     pos: usize,
     depth: usize,
     lookup: &'a dyn Fn(&str) -> Option<Value>,
+    budget: &'a mut usize,
 }
 
 type R = Result<Value, CondError>;
@@ -183,6 +197,13 @@ fn bool_value(b: bool) -> Value {
 }
 
 impl Eval<'_> {
+    /// The text of two values, their lengths taken from the budget.
+    fn texts(&mut self, a: &Value, b: &Value) -> Result<(String, String), CondError> {
+        let (a, b) = (a.text(), b.text());
+        *self.budget = self.budget.checked_sub(a.len() + b.len()).ok_or(CondError::OverBudget)?;
+        Ok((a, b))
+    }
+
     fn peek_op(&self, ops: &[&str]) -> Option<&'static str> {
         match self.tokens.get(self.pos) {
             Some(Tok::Op(o)) if ops.contains(o) => Some(o),
@@ -230,14 +251,15 @@ impl Eval<'_> {
         while let Some(op) = self.peek_op(&["==", "!=", "=~"]) {
             self.pos += 1;
             let right = self.ordering(live)?;
-            v = bool_value(match op {
-                "=~" => glob(&right.text(), &v.text()),
+            v = bool_value(match (op, &v, &right) {
+                ("=~", _, _) => {
+                    let (text, pattern) = self.texts(&v, &right)?;
+                    glob(&pattern, &text, self.budget).ok_or(CondError::OverBudget)?
+                }
+                (_, Value::Num(a), Value::Num(b)) => (a == b) == (op == "=="),
                 _ => {
-                    let equal = match (&v, &right) {
-                        (Value::Num(a), Value::Num(b)) => a == b,
-                        _ => v.text() == right.text(),
-                    };
-                    equal == (op == "==")
+                    let (a, b) = self.texts(&v, &right)?;
+                    (a == b) == (op == "==")
                 }
             });
         }
@@ -251,7 +273,10 @@ impl Eval<'_> {
             let right = self.sum(live)?;
             let order = match (&v, &right) {
                 (Value::Num(a), Value::Num(b)) => a.partial_cmp(b),
-                _ => Some(v.text().cmp(&right.text())),
+                _ => {
+                    let (a, b) = self.texts(&v, &right)?;
+                    Some(a.cmp(&b))
+                }
             };
             use std::cmp::Ordering::*;
             v = bool_value(matches!(
@@ -336,7 +361,8 @@ impl Eval<'_> {
                 self.expect(",")?;
                 let b = self.nested(|p| p.or(live))?;
                 self.expect(")")?;
-                Ok(Value::Str(a.text() + &b.text()))
+                let (a, b) = self.texts(&a, &b)?;
+                Ok(Value::Str(a + &b))
             }
             Tok::Ident(word) => Err(CondError::Syntax(format!(
                 "unexpected word `{word}` (a variable is written `${word}`, a string '{word}')"
@@ -347,13 +373,15 @@ impl Eval<'_> {
 }
 
 /// Whether `text` matches the glob `pattern`: `*` any run of characters, `?` any one, `[...]` one
-/// of a set (ranges `a-z`, negated by a leading `!` or `^`); anything else itself. Linear in
-/// `text` times `pattern`: a `*` is retried from where the last one matched, never nested.
-pub fn glob(pattern: &str, text: &str) -> bool {
+/// of a set (ranges `a-z`, negated by a leading `!` or `^`); anything else itself. At most
+/// `text` times `pattern` steps (a `*` is retried from where the last one matched, never nested),
+/// each taken from `budget`: `None` when it runs out.
+pub fn glob(pattern: &str, text: &str, budget: &mut usize) -> Option<bool> {
     let (p, t): (Vec<char>, Vec<char>) = (pattern.chars().collect(), text.chars().collect());
     let (mut pi, mut ti) = (0, 0);
     let mut star: Option<(usize, usize)> = None;
     while ti < t.len() {
+        *budget = budget.checked_sub(1)?;
         let step = match p.get(pi) {
             Some('*') => {
                 star = Some((pi, ti));
@@ -375,10 +403,10 @@ pub fn glob(pattern: &str, text: &str) -> bool {
                 ti = st + 1;
                 star = Some((sp, st + 1));
             }
-            (None, None) => return false,
+            (None, None) => return Some(false),
         }
     }
-    p[pi..].iter().all(|&c| c == '*')
+    Some(p[pi..].iter().all(|&c| c == '*'))
 }
 
 /// The pattern position after the class at `p[at] == '['` if it matches `c`; a `[` with no `]`
@@ -425,7 +453,11 @@ mod tests {
     }
 
     fn eval(e: &str) -> Result<bool, CondError> {
-        evaluate(e, &vars)
+        evaluate(e, &vars, &mut CONDITION_BUDGET.clone())
+    }
+
+    fn matches(pattern: &str, text: &str) -> bool {
+        glob(pattern, text, &mut CONDITION_BUDGET.clone()).expect("within the budget")
     }
 
     #[test]
@@ -453,16 +485,20 @@ mod tests {
         assert_eq!(eval("$user:pass =~ '*dow'"), Ok(true));
         assert_eq!(eval("$user:pass =~ 's?adow'"), Ok(true));
         assert_eq!(eval("$user:pass =~ 'beauty*'"), Ok(false));
-        assert!(glob("[a-c]x", "bx"));
-        assert!(!glob("[!a-c]x", "bx"));
-        assert!(glob("*a*b*c*", "xxaxxbxxcxx"));
-        assert!(!glob("*a*b*c*d", "xxaxxbxxcxx"));
-        assert!(glob("", ""));
-        assert!(!glob("", "a"));
-        assert!(glob("a[", "a["));
+        assert!(matches("[a-c]x", "bx"));
+        assert!(!matches("[!a-c]x", "bx"));
+        assert!(matches("*a*b*c*", "xxaxxbxxcxx"));
+        assert!(!matches("*a*b*c*d", "xxaxxbxxcxx"));
+        assert!(matches("", ""));
+        assert!(!matches("", "a"));
+        assert!(matches("a[", "a["));
         // Many stars against a long text stay fast (no backtracking blow-up).
         let long = "a".repeat(10_000);
-        assert!(!glob(&"*a".repeat(50).replace("*a*a", "*a*b"), &long));
+        assert!(!matches(&"*a".repeat(50).replace("*a*a", "*a*b"), &long));
+        // A match past the budget stops.
+        let mut budget = 1000;
+        assert_eq!(glob(&"*a".repeat(50).replace("*a*a", "*a*b"), &long, &mut budget), None);
+        assert_eq!(budget, 0);
     }
 
     #[test]
@@ -625,6 +661,22 @@ ReadArchive "part"
         assert_eq!(colors(&parse), [2.0, 4.0]);
         let unclosed = parse.diagnostics.iter().find(|d| d.message.contains("no `IfEnd`")).expect("a warning");
         assert_eq!((unclosed.severity, unclosed.loc.line), (Severity::Warning, 10));
+    }
+
+    #[test]
+    fn rib_conditions_share_a_budget() {
+        // An inline archive whose condition is read many times: past the budget, false.
+        // One star before many letters: each retry of the star matches them again.
+        let pattern = format!("*{}", "a".repeat(2000));
+        let text = format!(
+            "Option \"user\" \"string s\" \"{}\"\nArchiveBegin \"x\"\nIfBegin \"$user:s =~ '{pattern}b'\"\nIfEnd\n\
+             ArchiveEnd\n{}",
+            "a".repeat(4000),
+            "ReadArchive \"x\"\n".repeat(20)
+        );
+        let parse = parse_str(&text, "cond.rib");
+        let errors = errors(&parse);
+        assert!(!errors.is_empty() && errors.iter().all(|e| e.contains("budget")), "{errors:?}");
     }
 
     #[test]

@@ -9,7 +9,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use super::cond::{self, CondError, Value, MAX_IF_DEPTH};
+use super::cond::{self, CondError, Value, CONDITION_BUDGET, MAX_IF_DEPTH};
 use super::decl::{self, Class, Decl, DeclTable, Ty};
 use super::lex::{tokenize, Token, TokenKind};
 use super::request::{
@@ -90,6 +90,8 @@ pub(super) struct Parser {
     branches_floor: usize,
     /// What conditions read: the frame number, options and attributes.
     vars: CondVars,
+    /// What is left of [`CONDITION_BUDGET`].
+    condition_work: usize,
 }
 
 /// An open `IfBegin` block.
@@ -225,6 +227,7 @@ impl Parser {
             branches_too_deep: 0,
             branches_floor: 0,
             vars: CondVars::default(),
+            condition_work: CONDITION_BUDGET,
         }
     }
 
@@ -690,7 +693,8 @@ impl Parser {
 
     /// The value of a condition; one that cannot be evaluated is false, with a diagnostic.
     fn condition(&mut self, expr: &str, loc: &Location) -> bool {
-        match cond::evaluate(expr, &|name| self.vars.lookup(name)) {
+        let vars = &self.vars;
+        match cond::evaluate(expr, &|name| vars.lookup(name), &mut self.condition_work) {
             Ok(value) => value,
             Err(e @ CondError::Undefined(_)) => {
                 self.diagnostics.push(RibDiagnostic::warning(loc, format!("condition \"{expr}\": {e}; it is false")));

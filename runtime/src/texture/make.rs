@@ -42,34 +42,39 @@ pub fn make_texture(src: impl AsRef<Path>, dst: impl AsRef<Path>, opts: &MakeTex
 
 /// The widest latitude-longitude map [`make_cube_face_environment`] makes (its height is half
 /// that): four faces across, each at most a quarter of it.
-pub const MAX_CUBE_LATLONG_WIDTH: usize = 8192;
+pub const MAX_CUBE_LATLONG_WIDTH: usize = 4096;
 
 /// Makes the latitude-longitude environment map `dst` of six cube faces (RISpec's
 /// `MakeCubeFaceEnvironment`: `faces` seen from the cube's centre along +x, -x, +y, -y, +z, -z, in
 /// RenderMan's left-handed space, each `fov_degrees` across, oriented as Aqsis's cube sampler
 /// reads them: up is +y for the four side faces (right -z, +z, +x, -x for +x, -x, +z, -z), -z
-/// for +y and +z for -y (right +x for both)). Each texel of the map, `4 n` by `2 n` for faces of
-/// `n` texels across (at most [`MAX_CUBE_LATLONG_WIDTH`] wide), takes the bilinear value of its
-/// direction on the face it points to. Faces may differ in size; their channels are made RGBA.
+/// for +y and +z for -y (right +x for both)). Each texel of the map, `4 n` by `2 n` for a +x face
+/// of `n` texels across (at most [`MAX_CUBE_LATLONG_WIDTH`] wide), takes the bilinear value of
+/// its direction on the face it points to. Faces may differ in size; their channels are made
+/// RGBA. The faces are read one at a time.
 pub fn make_cube_face_environment(faces: [&Path; 6], dst: &Path, fov_degrees: f32) -> Result<(), ImageError> {
     if !(fov_degrees > 0.0 && fov_degrees < 180.0) {
         let message = format!("a cube face's field of view is between 0 and 180 degrees, not {fov_degrees}");
         return Err(ImageError::Encode { path: dst.to_path_buf(), message });
     }
-    let mut images = Vec::with_capacity(6);
-    for face in faces {
-        images.push(load_texture_image(face, false)?.image);
-    }
-    let across = images.iter().map(TexImage::width).max().unwrap_or(1);
-    let width = (4 * across).clamp(4, MAX_CUBE_LATLONG_WIDTH);
-    let height = (width / 2).max(1);
+    // One face in memory at a time: each fills the texels that look at it.
     let cot = 1.0 / (0.5 * fov_degrees.to_radians()).tan();
-    let mut rgba = Vec::with_capacity(width * height * 4);
-    for j in 0..height {
-        for i in 0..width {
-            let d = latlong_to_direction((i as f32 + 0.5) / width as f32, (j as f32 + 0.5) / height as f32);
-            let (face, u, v) = cube_face_at(d, cot);
-            rgba.extend(bilinear_rgba(&images[face], u, v));
+    let (mut rgba, mut width, mut height) = (Vec::new(), 0, 0);
+    for (k, face) in faces.into_iter().enumerate() {
+        let image = load_texture_image(face, false)?.image;
+        if k == 0 {
+            width = (4 * image.width()).clamp(4, MAX_CUBE_LATLONG_WIDTH);
+            height = width / 2;
+            rgba = vec![0.0; width * height * 4];
+        }
+        for (j, row) in rgba.chunks_exact_mut(width * 4).enumerate() {
+            for (i, texel) in row.chunks_exact_mut(4).enumerate() {
+                let d = latlong_to_direction((i as f32 + 0.5) / width as f32, (j as f32 + 0.5) / height as f32);
+                let (on, u, v) = cube_face_at(d, cot);
+                if on == k {
+                    texel.copy_from_slice(&bilinear_rgba(&image, u, v));
+                }
+            }
         }
     }
     let image = TexImage::new(width, height, 4, rgba)
