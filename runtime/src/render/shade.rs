@@ -268,7 +268,9 @@ fn shade_pending(
                 let side = if r.ng.dot(p.ray.direction) > 0.0 { r.ng } else { -r.ng };
                 let ray = Ray::new(offset_ray_origin(r.p, side), p.ray.direction).at_time(p.ray.time);
                 Stats::add(&frame.stats.transparency_rays, 1);
-                let hit = tracing(|| world.scene.intersect(&ray));
+                // A camera ray going on is still one (`Sides 1`, clipping planes).
+                let hit =
+                    tracing(|| if depth == 0 { world.intersect_camera_ray(&ray) } else { world.scene.intersect(&ray) });
                 if hit.is_hit() {
                     // The ray goes on unbent: its footprint starts where the surface's ended.
                     let (dodx, dody) = if r.on_surface {

@@ -3,7 +3,7 @@
 //! build a [`World`]; the frame loop only reads it.
 
 use super::filter::PixelFilter;
-use crate::ray::{HitCandidate, HitPacket, RayPacket, PACKET_SIZE};
+use crate::ray::{Hit, HitCandidate, HitPacket, Ray, RayPacket, PACKET_SIZE};
 use crate::scene::Scene;
 use crate::shading::{LightKind, ShaderInstance};
 use crate::texture::TextureCache;
@@ -738,19 +738,26 @@ impl World {
         if !self.camera_filters {
             return self.scene.intersect_packet(packet, out);
         }
-        let sees = |c: &HitCandidate| self.camera_sees(packet, c);
+        let sees =
+            |c: &HitCandidate| c.lane as usize >= PACKET_SIZE || self.camera_sees(&packet.get(c.lane as usize), c);
         self.scene.intersect_packet_filtered(packet, out, Some(&sees));
     }
 
-    /// Whether a camera ray of `packet` sees candidate hit `c`: not the back of a one-sided
-    /// triangle. The test is made in object space, where it means what it means in world space
-    /// (a direction and a normal moved by a matrix and its inverse transpose keep their dot
-    /// product), so that a mirroring instance keeps its outside.
-    fn camera_sees(&self, packet: &RayPacket, c: &HitCandidate) -> bool {
-        if c.lane as usize >= PACKET_SIZE {
-            return true;
+    /// The closest hit of one camera ray (one going on through a transparent surface), as
+    /// [`World::intersect_camera`] finds those of a packet.
+    pub fn intersect_camera_ray(&self, ray: &Ray) -> Hit {
+        if !self.camera_filters {
+            return self.scene.intersect(ray);
         }
-        let ray = packet.get(c.lane as usize);
+        let sees = |c: &HitCandidate| self.camera_sees(ray, c);
+        self.scene.intersect_filtered(ray, Some(&sees))
+    }
+
+    /// Whether camera ray `ray` sees candidate hit `c`: not the back of a one-sided triangle, nor a
+    /// point a clipping plane cuts away. The side is tested in object space, where it means what it
+    /// means in world space (a direction and a normal moved by a matrix and its inverse transpose
+    /// keep their dot product), so that a mirroring instance keeps its outside.
+    fn camera_sees(&self, ray: &Ray, c: &HitCandidate) -> bool {
         let at = ray.at(c.t);
         let clipped = self
             .options

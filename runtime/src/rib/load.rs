@@ -1596,4 +1596,21 @@ mod tests {
         assert!(loaded.warnings[1].message.contains("texture()"));
         assert!(dir.path().join("b.tex").is_file());
     }
+
+    #[test]
+    fn rib_camera_rays_through_transparent_surfaces_still_skip_backs_and_clipped_parts() {
+        use crate::ray::Ray;
+        // Half-transparent glass at z = 1, and behind it a triangle whose back faces the camera.
+        let rib = format!(
+            "Projection \"perspective\" WorldBegin AttributeBegin Opacity [.5 .5 .5] \
+             Polygon \"P\" [-5 -5 1  5 -5 1  5 5 1  -5 5 1] AttributeEnd \
+             Translate 0 0 3 Sides 1 {TRIANGLE} WorldEnd"
+        );
+        let mut rt = Context::new();
+        load_str(&mut rt, &rib, "t.rib").expect("loads");
+        let world = rt.build_world().expect("a world");
+        let from_camera = Ray::new(glam::Vec3A::new(0.2, 0.2, 2.0), glam::Vec3A::Z);
+        assert!(!world.intersect_camera_ray(&from_camera).is_hit());
+        assert!(world.scene.intersect(&from_camera).is_hit());
+    }
 }
