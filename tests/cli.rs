@@ -252,6 +252,36 @@ fn ray_parameters_reach_rayinfo_from_the_command_line() {
     }
 }
 
+#[test]
+fn display_writes_arbitrary_output_variables() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    write(
+        dir.path(),
+        "aov.sl",
+        "surface aov(output varying color base = 0;) { base = color(0.25, 0.5, 1); Oi = 1; Ci = 0.1; }\n",
+    );
+    write(
+        dir.path(),
+        "scene.rib",
+        "Format 32 24 1\nDisplay \"beauty.exr\" \"file\" \"rgba\"\nDisplay \"+base.exr\" \"file\" \"varying color base\"\n\
+         Display \"+missing.exr\" \"file\" \"nosuch\"\nTranslate 0 0 5\nWorldBegin\nSurface \"aov\"\n\
+         Polygon \"P\" [-9 -9 0 9 -9 0 9 9 0 -9 9 0]\nWorldEnd\n",
+    );
+    let o = rtsl(&["render", "scene.rib", "-S", ".", "-q"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let beauty = rtsl_runtime::read_image(dir.path().join("beauty.exr")).expect("the beauty image");
+    assert!((beauty.pixels[4 * (12 * 32 + 16)] - 0.1).abs() < 1e-6);
+    let base = rtsl_runtime::read_image(dir.path().join("base.exr")).expect("the output variable's image");
+    assert_eq!(&base.pixels[4 * (12 * 32 + 16)..4 * (12 * 32 + 16) + 3], &[0.25, 0.5, 1.0]);
+    let missing = rtsl_runtime::read_image(dir.path().join("missing.exr")).expect("a variable no shader has");
+    assert!(missing.pixels.chunks(4).all(|p| p[..3] == [0.0; 3]));
+    // A mode that is neither channels nor a variable name is skipped, a part missing.
+    write(dir.path(), "bad.rib", "Display \"x.exr\" \"file\" \"float 3x\"\nWorldBegin\nWorldEnd\n");
+    let o = rtsl(&["render", "bad.rib", "-q"], dir.path());
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("bad.rib:1:"), "{}", stderr(&o));
+}
+
 /// A grid is refused past the renderer's image limits, before its points are allocated.
 #[test]
 fn shade_refuses_a_grid_past_the_image_limits() {

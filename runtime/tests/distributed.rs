@@ -483,8 +483,20 @@ fn gi_box_gaussian() -> Result<Context, String> {
 fn a_tile_decodes_to_itself_and_damaged_tiles_are_errors() {
     use rtsl_runtime::render::{RenderedTile, TileRenderer};
     // Which scenes' tiles carry normals: those whose pixel shader reads other pixels.
-    let scenes: [(Scene, bool); 4] =
-        [(office, false), (library_with_camera_and_pixel_shader, false), (gi_box, true), (gi_box_gaussian, true)];
+    /// The office keeping two output variables per pixel (arbitrary output variables travel with
+    /// the tile).
+    fn office_keeping_outputs() -> Result<Context, String> {
+        let mut rt = office()?;
+        rt.options.outputs = vec!["Kd".into(), "__nondiffuse".into()];
+        Ok(rt)
+    }
+    let scenes: [(Scene, bool); 5] = [
+        (office, false),
+        (office_keeping_outputs, false),
+        (library_with_camera_and_pixel_shader, false),
+        (gi_box, true),
+        (gi_box_gaussian, true),
+    ];
     for (make, normals) in scenes {
         let mut rt = make().expect("the scene loads");
         let world = rt.build_world().expect("a world");

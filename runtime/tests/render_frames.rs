@@ -197,6 +197,35 @@ fn adaptive_sampling_refines_on_what_the_application_names() -> Result<(), ApiEr
 }
 
 #[test]
+fn a_frame_keeps_the_output_variables_it_names_as_pixel_means() -> Result<(), ApiError> {
+    // An output that is 1 on the left of x = 0.3 and a colour that is u: each pixel's mean.
+    let mut rt = context();
+    let src = "surface aov(output varying float mask = 0; output varying color tint = 0;) \
+               { mask = xcomp(P) < 0.3 ? 1 : 0; tint = color(u, v, 0.25); Oi = 1; Ci = 0.5; }";
+    let aov = rt.compile_shader("aov.sl", src)?;
+    rt.camera_look_at(Vec3A::new(0.0, 0.0, 5.0), Vec3A::ZERO, Vec3A::Y, 30.0);
+    let o = rt.begin_object()?;
+    rt.bind_shader(aov)?;
+    quad(&mut rt, [[-1.0, -10.0, 0.0], [10.0, -10.0, 0.0], [10.0, 10.0, 0.0], [-1.0, 10.0, 0.0]])?;
+    rt.end_object()?;
+    rt.instantiate_object(o)?;
+    rt.options.outputs = vec!["mask".into(), "tint".into(), "nosuch".into()];
+    rt.options.samples = (4, 4);
+    let (fb, _) = rt.render_frame()?;
+    let (mask, tint) = (fb.output("mask").expect("kept"), fb.output("tint").expect("kept"));
+    let at = |x: u32, y: u32| (y * W + x) as usize;
+    assert_eq!(mask[at(2, H / 2)], [0.0; 3], "nothing hit on the far left");
+    assert_eq!(mask[at(20, H / 2)], [1.0, 0.0, 0.0], "a float in the first component");
+    assert_eq!(mask[at(W - 2, H / 2)], [0.0; 3]);
+    let edge: Vec<f32> = (0..W).map(|x| mask[at(x, H / 2)][0]).filter(|m| *m > 0.0 && *m < 1.0).collect();
+    assert!(!edge.is_empty(), "pixels on the step average their samples");
+    assert!((tint[at(W - 2, H / 2)][2] - 0.25).abs() < 1e-6, "{:?}", tint[at(W - 2, H / 2)]);
+    assert_eq!(fb.output("nosuch").expect("kept")[at(W - 2, H / 2)], [0.0; 3], "no such output reads 0");
+    assert!(fb.output("Ci").is_none(), "only what the options name");
+    Ok(())
+}
+
+#[test]
 fn a_moved_instance_costs_only_the_top_level_and_an_edited_object_only_its_own_bvh() -> Result<(), ApiError> {
     let mut rt = context();
     rt.camera_look_at(Vec3A::new(0.0, 2.0, 8.0), Vec3A::ZERO, Vec3A::Y, 45.0);

@@ -188,6 +188,8 @@ struct Output {
     path: PathBuf,
     /// The channels it holds.
     mode: DisplayMode,
+    /// An output variable it holds instead of colour (a RIB arbitrary output variable).
+    output: Option<String>,
     transfer: Option<Transfer>,
     /// More images of the frame (RIB `+name` displays).
     extra: Vec<Image>,
@@ -199,14 +201,20 @@ struct Output {
 struct Image {
     path: PathBuf,
     mode: DisplayMode,
+    output: Option<String>,
     /// A shadow map: depth and the camera's projection, as EXR whatever the name.
     depth_map: bool,
 }
 
 impl Output {
     fn images(&self) -> impl Iterator<Item = (&PathBuf, DisplayMode, bool)> {
-        std::iter::once((&self.path, self.mode, self.depth_map))
-            .chain(self.extra.iter().map(|i| (&i.path, i.mode, i.depth_map)))
+        self.images_with_outputs().map(|(p, m, d, _)| (p, m, d))
+    }
+
+    /// [`Output::images`] with the output variable each holds instead of colour.
+    fn images_with_outputs(&self) -> impl Iterator<Item = (&PathBuf, DisplayMode, bool, Option<&str>)> {
+        std::iter::once((&self.path, self.mode, self.depth_map, self.output.as_deref()))
+            .chain(self.extra.iter().map(|i| (&i.path, i.mode, i.depth_map, i.output.as_deref())))
     }
 }
 
@@ -292,7 +300,7 @@ fn render_and_write(
     let texture_files = world.textures.files();
     rt.return_scene(world);
     let transfer = output.transfer.unwrap_or_else(|| rt.options.transfer());
-    for (path, mode, depth_map) in output.images() {
+    for (path, mode, depth_map, variable) in output.images_with_outputs() {
         if depth_map {
             let (world_to_camera, world_to_ndc) =
                 rt.depth_map_projection().context("a shadow map needs a camera a matrix describes")?;
@@ -304,7 +312,14 @@ fn render_and_write(
         let float = Quantize { one: 0.0, min: 0.0, max: 0.0, dither: 0.0 };
         let quantize = if mode.has_depth() { Some(float) } else { rt.options.quantize };
         let opts = WriteOptions { transfer, quantize, ..WriteOptions::default() };
-        let (names, values) = fb.channels(mode);
+        let (names, values) = match variable {
+            Some(name) => {
+                let values =
+                    fb.output(name).map_or_else(|| vec![0.0; 3 * fb.depth.len()], |v| v.as_flattened().to_vec());
+                (&["R", "G", "B"][..], values)
+            }
+            None => fb.channels(mode),
+        };
         write_channels(path, fb.width as usize, fb.height as usize, names, &values, &opts)
             .with_context(|| format!("writing {}", path.display()))?;
     }
@@ -526,9 +541,10 @@ fn prepare(args: &RenderArgs, frame_index: usize) -> anyhow::Result<Prepared> {
         path: d.name.clone(),
         mode: d.mode,
         depth_map: d.depth_map,
+        output: d.output.clone(),
     });
     let first = match args.output.as_ref().map(expanded) {
-        Some(path) => Image { path, mode: DisplayMode::Rgba, depth_map: false },
+        Some(path) => Image { path, mode: DisplayMode::Rgba, depth_map: false, output: None },
         None => files.next().unwrap_or_else(|| {
             if let Some(window) = loaded.displays.iter().find(|d| d.window) {
                 eprintln!(
@@ -537,7 +553,7 @@ fn prepare(args: &RenderArgs, frame_index: usize) -> anyhow::Result<Prepared> {
                     window.name.display()
                 );
             }
-            Image { path: PathBuf::from("render.png"), mode: DisplayMode::Rgba, depth_map: false }
+            Image { path: PathBuf::from("render.png"), mode: DisplayMode::Rgba, depth_map: false, output: None }
         }),
     };
     let extra: Vec<Image> = files.collect();
@@ -558,8 +574,14 @@ fn prepare(args: &RenderArgs, frame_index: usize) -> anyhow::Result<Prepared> {
         camera.bind(&mut rt)?;
     }
     args.rays.apply(&mut rt)?;
-    let output =
-        Output { path: first.path, mode: first.mode, transfer: args.transfer, extra, depth_map: first.depth_map };
+    let output = Output {
+        path: first.path,
+        mode: first.mode,
+        output: first.output,
+        transfer: args.transfer,
+        extra,
+        depth_map: first.depth_map,
+    };
     // Refused before rendering, not after.
     for (path, mode, depth_map) in output.images() {
         check_image(&rt, path, mode, depth_map)?;

@@ -14,8 +14,9 @@ use super::primary::{
 use super::ray_params::{samples_for_relevance, RayValue, RELEVANCE};
 use super::sampling::{mix, radical_inverse};
 use super::shade::{shade_packet, shade_packets};
+use super::work::captured_outputs;
 use super::work::{Frame, LightPaths, PixelImage, Sample};
-use super::world::{Antialiasing, World};
+use super::world::{Antialiasing, World, MAX_FRAME_OUTPUTS};
 use crate::camera::{packet_lane_offset, PACKET_LANE_OFFSETS, PACKET_SIDE};
 use crate::image_io::{ImageError, WriteOptions};
 use crate::ray::{HitPacket, PACKET_SIZE};
@@ -39,6 +40,9 @@ pub struct Framebuffer {
     pub rgba: Vec<f32>,
     pub depth: Vec<f32>,
     pub object_id: Vec<u32>,
+    /// The output variables the frame kept ([`super::RenderOptions::outputs`]), by name: each
+    /// pixel's mean of its samples' values (three components; a float in the first).
+    pub outputs: Vec<(String, Vec<[f32; 3]>)>,
 }
 
 impl Framebuffer {
@@ -50,7 +54,14 @@ impl Framebuffer {
             rgba: vec![0.0; 4 * n],
             depth: vec![f32::INFINITY; n],
             object_id: vec![u32::MAX; n],
+            outputs: Vec::new(),
         }
+    }
+
+    /// Output variable `name` ([`Framebuffer::outputs`]) as a three-channel image, rows from the
+    /// top; `None` when the frame did not keep it.
+    pub fn output(&self, name: &str) -> Option<&[[f32; 3]]> {
+        self.outputs.iter().find(|(n, _)| n == name).map(|(_, v)| v.as_slice())
     }
 
     pub fn pixel(&self, x: u32, y: u32) -> [f32; 4] {
@@ -480,6 +491,7 @@ fn refine_tile(
     let rays = extra_samples(world, tile, extra, &refine);
     let color = &mut px.color;
     let mut sums = vec![[0.0f32; 4]; color.len()];
+    let mut output_sums = vec![[[0.0f32; 3]; MAX_FRAME_OUTPUTS]; px.outputs.len()];
     let mut samples = [Sample::default(); PACKET_SIZE];
     let mut hits = HitPacket::default();
     for chunk in rays.chunks(PACKET_SIZE) {
@@ -501,6 +513,9 @@ fn refine_tile(
             }
             sum[3] += s.alpha;
             splat(cam.raster, rgba(s));
+            if let Some(o) = output_sums.get_mut(*k) {
+                add_outputs(o, &s.outputs);
+            }
         }
     }
     let n = (extra.0 * extra.1) as f32;
@@ -508,15 +523,26 @@ fn refine_tile(
         for c in 0..4 {
             color[k][c] = (color[k][c] + sum[c]) / (1.0 + n);
         }
+        if let (Some(o), Some(s)) = (px.outputs.get_mut(k), output_sums.get(k)) {
+            for (a, b) in o.iter_mut().flatten().zip(s.iter().flatten()) {
+                *a = (*a + b) / (1.0 + n);
+            }
+        }
     }
 }
 
 /// Which pixels of a tile adaptive sampling refines (see [`refine_tile`]), judged on their first
 /// samples.
 fn pixels_to_refine(world: &World, tile: &Tile, threshold: f32, px: &TileSamples) -> Vec<bool> {
-    let (color, ids, shader_ids, outputs) = (&px.color, &px.ids, &px.shader_ids, &px.outputs);
+    let (color, ids, shader_ids) = (&px.color, &px.ids, &px.shader_ids);
     let (tw, th) = (tile.width as usize, tile.height as usize);
     let on = &world.options.refine_on;
+    // The refined-on output's place among those kept, and each pixel's value of it.
+    let watched = on.output.as_ref().and_then(|name| captured_outputs(&world.options).iter().position(|n| n == name));
+    let outputs: Vec<[f32; 3]> = match watched {
+        Some(i) => px.outputs.iter().map(|o| o[i]).collect(),
+        None => Vec::new(),
+    };
     let differs = |a: usize, b: usize| {
         (on.object && ids[a] != ids[b])
             || (on.shader && shader_ids[a] != shader_ids[b])
@@ -674,9 +700,9 @@ struct TileSamples {
     ids: Vec<u32>,
     shader_ids: Vec<u32>,
     normals: Vec<[f32; 3]>,
-    /// The output variable adaptive sampling refines on, of each pixel's first sample (empty
-    /// without one).
-    outputs: Vec<[f32; 3]>,
+    /// The output variables the frame keeps ([`Frame::captured`]), each pixel's mean over its
+    /// samples (empty when it keeps none).
+    outputs: Vec<Outputs>,
 }
 
 impl TileSamples {
@@ -690,6 +716,18 @@ impl TileSamples {
             shader_ids: vec![u32::MAX; n],
             normals: if normals { vec![[0.0; 3]; n] } else { Vec::new() },
             outputs: Vec::new(),
+        }
+    }
+}
+
+/// A pixel's or a sample's kept output variables ([`Frame::captured`]).
+type Outputs = [[f32; 3]; MAX_FRAME_OUTPUTS];
+
+/// Adds the outputs of a sample to a pixel's sums.
+fn add_outputs(sum: &mut Outputs, s: &Outputs) {
+    for (a, b) in sum.iter_mut().zip(s) {
+        for (x, y) in a.iter_mut().zip(b) {
+            *x += y;
         }
     }
 }
@@ -719,8 +757,8 @@ fn sample_tile(
 ) -> TileSamples {
     let world = frame.world;
     let mut px = TileSamples::empty(tile, sampling.normals);
-    if sampling.adaptive.is_some() && world.options.refine_on.output.is_some() {
-        px.outputs = vec![[0.0; 3]; px.color.len()];
+    if !frame.captured.is_empty() {
+        px.outputs = vec![[[0.0; 3]; MAX_FRAME_OUTPUTS]; px.color.len()];
     }
     let (sx, sy) = sampling.grid;
     // Under relevance, how many of its samples each pixel of the tile takes.
@@ -774,6 +812,9 @@ fn sample_tile(
                         }
                         sum[3] += s.alpha;
                         splat(cams.samples[lane].raster, rgba(s));
+                        if let Some(o) = px.outputs.get_mut(k) {
+                            add_outputs(o, &s.outputs);
+                        }
                         // The first sample a pixel takes (rank 0: cell (0, 0)).
                         if i == 0 && j == 0 {
                             // Camera-space depth: the distance along the ray times its cosine
@@ -784,9 +825,6 @@ fn sample_tile(
                             if let Some(n) = px.normals.get_mut(k) {
                                 *n = s.normal.to_array();
                             }
-                            if let Some(o) = px.outputs.get_mut(k) {
-                                *o = s.output;
-                            }
                         }
                     }
                 }
@@ -796,6 +834,9 @@ fn sample_tile(
     for (k, c) in px.color.iter_mut().enumerate() {
         let scale = 1.0 / takes.get(k).copied().unwrap_or(sx * sy) as f32;
         for v in c.iter_mut() {
+            *v *= scale;
+        }
+        for v in px.outputs.get_mut(k).into_iter().flatten().flatten() {
             *v *= scale;
         }
     }
@@ -924,6 +965,8 @@ impl RenderedTile {
         out.extend_from_slice(bytemuck::cast_slice(&px.color));
         out.extend_from_slice(bytemuck::cast_slice(&px.depth));
         out.extend_from_slice(bytemuck::cast_slice(&px.ids));
+        // The kept outputs, where the frame keeps any (both sides know from the world).
+        out.extend_from_slice(bytemuck::cast_slice(&px.outputs));
         // 0: finished; 1: a film follows, and the shader ids the pixel shader reads after
         // filtering; 2: the shader ids alone (the pixel shader runs over the whole image).
         let kind = match (&self.film, self.pixels_later) {
@@ -960,6 +1003,11 @@ impl RenderedTile {
         bytemuck::cast_slice_mut::<[f32; 4], u8>(&mut px.color).copy_from_slice(values(4 * n)?);
         bytemuck::cast_slice_mut::<f32, u8>(&mut px.depth).copy_from_slice(values(n)?);
         bytemuck::cast_slice_mut::<u32, u8>(&mut px.ids).copy_from_slice(values(n)?);
+        if !captured_outputs(options).is_empty() {
+            px.outputs = vec![[[0.0; 3]; MAX_FRAME_OUTPUTS]; n];
+            bytemuck::cast_slice_mut::<Outputs, u8>(&mut px.outputs)
+                .copy_from_slice(values(3 * MAX_FRAME_OUTPUTS * n)?);
+        }
         // The shader ids, and the normals where the pixel shader reads other pixels.
         let mut unfinished = |rest: &[u8]| -> Result<usize, String> {
             let normals = if pixels_later { 12 * n } else { 0 };
@@ -1115,7 +1163,28 @@ fn resolve_tile(film: &Film, tile: &Tile, color: &mut [[f32; 4]]) {
 /// in its fresh pages) would be serial time in every frame.
 fn framebuffer(world: &World, tiles: Vec<(Tile, TileSamples)>) -> Framebuffer {
     let exposure = world.options.exposure.filter(|&(gain, gamma)| gain.is_finite() && gamma > 0.0);
-    assemble_framebuffer((world.options.width, world.options.height), tiles, exposure)
+    let (w, h) = (world.options.width, world.options.height);
+    // The kept outputs the options name (not the one adaptive sampling alone refines on).
+    let names: Vec<String> =
+        captured_outputs(&world.options).into_iter().filter(|n| world.options.outputs.contains(n)).collect();
+    let mut outputs: Vec<(String, Vec<[f32; 3]>)> =
+        names.into_iter().map(|n| (n, vec![[0.0; 3]; w as usize * h as usize])).collect();
+    if !outputs.is_empty() {
+        for (tile, px) in &tiles {
+            for (k, o) in px.outputs.iter().enumerate() {
+                let (x, y) = (tile.x0 + k as u32 % tile.width.max(1), tile.y0 + k as u32 / tile.width.max(1));
+                if x >= w || y >= h {
+                    continue;
+                }
+                for (i, (_, image)) in outputs.iter_mut().enumerate() {
+                    image[(y * w + x) as usize] = o[i];
+                }
+            }
+        }
+    }
+    let mut fb = assemble_framebuffer((w, h), tiles, exposure);
+    fb.outputs = outputs;
+    fb
 }
 
 /// [`framebuffer`] of a `w x h` image.
@@ -1134,6 +1203,7 @@ fn assemble_framebuffer(
         rgba: (0..4 * n).into_par_iter().map(|_| 0.0).collect(),
         depth: (0..n).into_par_iter().map(|_| f32::INFINITY).collect(),
         object_id: (0..n).into_par_iter().map(|_| u32::MAX).collect(),
+        outputs: Vec::new(),
     };
     let bands = (h as usize).div_ceil(band).max(1);
     let mut by_band: Vec<Vec<(Tile, TileSamples)>> = (0..bands).map(|_| Vec::new()).collect();

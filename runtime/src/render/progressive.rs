@@ -227,7 +227,7 @@ const EMPTY_SAMPLE: Sample = Sample {
     object_id: u32::MAX,
     shader_id: u32::MAX,
     normal: glam::Vec3A::ZERO,
-    output: [0.0; 3],
+    outputs: [[0.0; 3]; super::world::MAX_FRAME_OUTPUTS],
 };
 
 /// What a batch of lattices cost.
@@ -428,7 +428,7 @@ impl LatticeSamples {
                 shader_id: u(6),
                 normal: if normals { glam::Vec3A::new(f(8), f(9), f(10)) } else { glam::Vec3A::ZERO },
                 // The viewer refines on colour and ids; outputs stay where they were shaded.
-                output: [0.0; 3],
+                outputs: [[0.0; 3]; super::world::MAX_FRAME_OUTPUTS],
             };
             out.depth[lane] = f(7);
             // Unit or zero: anything longer (or not a number) is damage.

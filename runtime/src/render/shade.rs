@@ -24,7 +24,7 @@ use super::ray_budget::RayBudget;
 use super::stats::{tracing, ShadingTimer, Stats};
 use super::trace_ahead::RayLog;
 use super::work::{finite_or_zero, BatchLights, Pending, Shaded, Stages};
-use super::world::{InstanceShading, Material, World, DEFAULT_MATERIAL};
+use super::world::{InstanceShading, Material, World, DEFAULT_MATERIAL, MAX_FRAME_OUTPUTS};
 use crate::ray::{offset_ray_origin, Hit, HitPacket, Ray, PACKET_SIZE};
 use crate::shading::{get3, get_row, with_filled_batch, ShaderInstance};
 use glam::{Affine3A, Vec3A};
@@ -214,7 +214,7 @@ fn begin_sample(frame: &Frame, hit: Hit, out: &mut Sample) -> bool {
         object_id: u32::MAX,
         shader_id: u32::MAX,
         normal: Vec3A::ZERO,
-        output: [0.0; 3],
+        outputs: [[0.0; 3]; MAX_FRAME_OUTPUTS],
     };
     if !hit.is_hit() {
         out.color = Vec3A::from(frame.world.options.background);
@@ -306,7 +306,7 @@ fn first_hit_ids(world: &World, pending: &[Pending], shaded: &[Shaded], out: &mu
         if let Some(s) = out.get_mut(p.index) {
             (s.object_id, s.shader_id) = (object_id, material);
             s.normal = if r.ng.dot(p.ray.direction) > 0.0 { -r.ng } else { r.ng };
-            s.output = r.output;
+            s.outputs = r.outputs;
         }
     }
 }
@@ -445,20 +445,21 @@ fn shade_group_lanes(
                 *o =
                     Shaded { ci: finite_or_zero(ci), oi: finite_or_zero(oi), p: g.p, ng: g.ng, on_surface: true, ..*o };
             }
-            // The output adaptive anti-aliasing compares, of primary hits.
-            let watched = frame.world.options.refine_on.output.as_deref().filter(|_| depth == 0);
-            if let Some((_, slot)) = watched.and_then(|name| program.layout().param(name)) {
-                let n = slot.components.min(3);
-                if slot.output && !slot.string && slot.len == 1 {
-                    for (lane, o) in out.iter_mut().enumerate().take(lanes) {
-                        for k in 0..n {
-                            let v = if slot.varying {
-                                raw.varying.get((slot.offset + k) * raw.stride + lane)
-                            } else {
-                                raw.uniform.get(slot.offset + k)
-                            };
-                            o.output[k] = v.copied().filter(|v| v.is_finite()).unwrap_or(0.0);
-                        }
+            // The output variables the frame keeps, of primary hits.
+            let captured = if depth == 0 { &frame.captured[..] } else { &[] };
+            for (i, name) in captured.iter().enumerate() {
+                let Some((_, slot)) = program.layout().param(name) else { continue };
+                if !slot.output || slot.string || slot.len != 1 {
+                    continue;
+                }
+                for (lane, o) in out.iter_mut().enumerate().take(lanes) {
+                    for k in 0..slot.components.min(3) {
+                        let v = if slot.varying {
+                            raw.varying.get((slot.offset + k) * raw.stride + lane)
+                        } else {
+                            raw.uniform.get(slot.offset + k)
+                        };
+                        o.outputs[i][k] = v.copied().filter(|v| v.is_finite()).unwrap_or(0.0);
                     }
                 }
             }

@@ -8,7 +8,7 @@ use super::photon_map::PhotonMap;
 use super::ray_budget::RayBudget;
 use super::stats::Stats;
 use super::world::LightSource;
-use super::world::{GiOptions, InstanceShadows, World};
+use super::world::{GiOptions, InstanceShadows, World, MAX_FRAME_OUTPUTS};
 use crate::ray::{Hit, Ray};
 use glam::{Affine3A, Vec3A};
 use rtsl_compiler::abi::LightLanes;
@@ -46,6 +46,10 @@ pub struct Frame<'w> {
     /// The seed of the frame's light paths: the options' own, or per pass of progressive
     /// refinement another, so that passes accumulate fresh virtual lights.
     pub(crate) gi_seed: u32,
+    /// The output variables primary hits keep ([`Sample::outputs`]): the options' outputs, then
+    /// the one adaptive sampling refines on where it is not among them, at most
+    /// [`MAX_FRAME_OUTPUTS`].
+    pub(crate) captured: Vec<String>,
     /// The stages that shader callbacks reach back into.
     pub(crate) stages: Stages,
 }
@@ -77,9 +81,21 @@ impl<'w> Frame<'w> {
             caustics: std::sync::OnceLock::new(),
             global_photons: std::sync::OnceLock::new(),
             gi_seed: world.options.gi.seed,
+            captured: captured_outputs(&world.options),
             stages,
         }
     }
+}
+
+/// The output variables a frame of `options` keeps per sample (see [`Frame::captured`]).
+pub(crate) fn captured_outputs(options: &super::RenderOptions) -> Vec<String> {
+    let mut names: Vec<String> = Vec::new();
+    for name in options.outputs.iter().chain(options.refine_on.output.iter()) {
+        if names.len() < MAX_FRAME_OUTPUTS && !names.contains(name) {
+            names.push(name.clone());
+        }
+    }
+    names
 }
 
 /// A frame's light paths as traced: its virtual lights and its caustic photon map, each where the
@@ -356,9 +372,10 @@ pub struct Sample {
     /// Unit geometric normal of the first surface hit, turned to face the ray's origin (zero on
     /// a miss), for pixel shaders that read it (`pixelvalue("N", x, y)`).
     pub normal: Vec3A,
-    /// The output variable adaptive anti-aliasing refines on ([`super::RefineOn::output`]) as the
-    /// first surface's shader left it (a float in the first component; zero without one).
-    pub output: [f32; 3],
+    /// The output variables the frame keeps ([`Frame::captured`]: the options' outputs, then the
+    /// one adaptive anti-aliasing refines on) as the first surface's shader left them (a float in
+    /// the first component; zero without one).
+    pub outputs: [[f32; 3]; MAX_FRAME_OUTPUTS],
 }
 
 pub(crate) struct Pending {
@@ -381,9 +398,9 @@ pub(crate) struct Shaded {
     /// follows from the ray's differential and `ng`, computed only for the rays that go on
     /// through it (`shade_pending`).
     pub(crate) on_surface: bool,
-    /// The output variable adaptive anti-aliasing refines on, as the shader left it (primary
-    /// hits only; see [`Sample::output`]).
-    pub(crate) output: [f32; 3],
+    /// The output variables the frame keeps, as the shader left them (primary hits only; see
+    /// [`Sample::outputs`]).
+    pub(crate) outputs: [[f32; 3]; MAX_FRAME_OUTPUTS],
     /// The rays shading the hit spawned (their trees included), of the hit's [`Pending::budget`],
     /// and whether it refused one.
     pub(crate) spent: u32,

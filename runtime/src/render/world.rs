@@ -368,6 +368,10 @@ impl RefineOn {
     }
 }
 
+/// The most output variables a frame keeps per pixel ([`RenderOptions::outputs`], and the one
+/// adaptive sampling may refine on).
+pub const MAX_FRAME_OUTPUTS: usize = 4;
+
 /// The most pixels a side of an image may have.
 pub const MAX_IMAGE_SIDE: u32 = 32768;
 
@@ -461,6 +465,13 @@ pub struct RenderOptions {
     pub gi: GiOptions,
     /// What adaptive anti-aliasing refines on (colour, object and shader by default).
     pub refine_on: RefineOn,
+    /// Output variables of the surface shaders a frame keeps per pixel (arbitrary output
+    /// variables: RIB `Display` modes that name one): each pixel's mean over its samples of the
+    /// value the shader of the first surface hit left (a float in the first of three components;
+    /// zero where nothing was hit or the shader has no such output), in
+    /// [`super::Framebuffer::outputs`]. At most [`MAX_FRAME_OUTPUTS`] are kept.
+    #[serde(default)]
+    pub outputs: Vec<String>,
     /// Named values the frame's rays carry, which shaders read with `rayinfo`
     /// (`render/ray_params.rs`); the float parameter [`super::RELEVANCE`] also sets how many
     /// samples each pixel takes.
@@ -545,6 +556,7 @@ impl Default for RenderOptions {
             trace_ahead: true,
             gi: GiOptions::default(),
             refine_on: RefineOn::default(),
+            outputs: Vec::new(),
             ray_parameters: super::RayParameters::default(),
         }
     }

@@ -60,6 +60,27 @@ pub struct RibDisplay {
     /// A depth map for shadows (driver `zfile` or `shadow`): depth written as a shadow map, an EXR
     /// file with the camera's projection ([`crate::texture::write_shadow_map`]) whatever its name.
     pub depth_map: bool,
+    /// An output variable of the surface shaders (the mode names one: an arbitrary output
+    /// variable), kept by the frame ([`crate::render::RenderOptions::outputs`]) and written as
+    /// RGB (a float in red); `mode` is then [`DisplayMode::Rgb`].
+    pub output: Option<String>,
+}
+
+/// The output variable a `Display` mode names: `name`, `type name` or `varying type name`
+/// (PRMan's inline declaration), `None` for anything else.
+fn output_variable(mode: &str) -> Option<&str> {
+    let words: Vec<&str> = mode.split_whitespace().collect();
+    let (name, decl) = words.split_last()?;
+    let types = ["float", "color", "point", "vector", "normal"];
+    let declared = match decl {
+        [] => true,
+        [ty] => types.contains(ty),
+        [class, ty] => matches!(*class, "varying" | "vertex" | "uniform") && types.contains(ty),
+        _ => false,
+    };
+    let identifier = name.chars().next().is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+        && name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
+    (declared && identifier).then_some(*name)
 }
 
 /// What loading a RIB stream produced besides the scene in the context.
@@ -1012,15 +1033,34 @@ impl<'a> Loader<'a> {
             None => (false, name),
         };
         let depth_map = matches!(driver, "zfile" | "shadow");
-        let Some(mode) = (if depth_map { Some(DisplayMode::Z) } else { DisplayMode::parse(mode) }) else {
-            self.omit(r, format_args!("Display mode \"{mode}\": output variables are not supported; no image is made"));
-            return;
+        let parsed = if depth_map { Some(DisplayMode::Z) } else { DisplayMode::parse(mode) };
+        let (mode, output) = match (parsed, output_variable(mode)) {
+            (Some(m), _) => (m, None),
+            (None, Some(variable)) => {
+                let outputs = &mut self.rt.options.outputs;
+                if !outputs.iter().any(|o| o == variable) {
+                    if outputs.len() >= crate::render::world::MAX_FRAME_OUTPUTS {
+                        let most = crate::render::world::MAX_FRAME_OUTPUTS;
+                        self.omit(
+                            r,
+                            format_args!("Display \"{variable}\": a frame keeps at most {most} output variables"),
+                        );
+                        return;
+                    }
+                    outputs.push(variable.to_string());
+                }
+                (DisplayMode::Rgb, Some(variable.to_string()))
+            }
+            (None, None) => {
+                self.omit(r, format_args!("Display mode \"{mode}\" is neither a channel set nor an output variable"));
+                return;
+            }
         };
         if !additional {
             self.out.displays.clear();
         }
         let window = matches!(driver, "framebuffer" | "it");
-        self.out.displays.push(RibDisplay { name: PathBuf::from(name), mode, window, depth_map });
+        self.out.displays.push(RibDisplay { name: PathBuf::from(name), mode, window, depth_map, output });
     }
 
     fn pixel_filter(&mut self, r: &Request, name: &str, xwidth: f32, ywidth: f32) {
