@@ -448,16 +448,22 @@ fn shade_group_lanes(
             // The output variables the frame keeps, of primary hits.
             let captured = if depth == 0 { &frame.captured[..] } else { &[] };
             for (i, name) in captured.iter().enumerate() {
-                let Some((_, slot)) = program.layout().param(name) else { continue };
-                if !slot.output || slot.string || slot.len != 1 {
-                    continue;
-                }
+                // An output parameter, else a global the shader uses (`N`, `Ci`, `s`...).
+                let layout = program.layout();
+                let (varying, offset, components) = match layout.param(name) {
+                    Some((_, p)) if p.output && !p.string && p.len == 1 => (p.varying, p.offset, p.components),
+                    Some(_) => continue,
+                    None => match layout.global(name) {
+                        Some(g) if g.components <= 3 => (g.varying, g.offset, g.components),
+                        _ => continue,
+                    },
+                };
                 for (lane, o) in out.iter_mut().enumerate().take(lanes) {
-                    for k in 0..slot.components.min(3) {
-                        let v = if slot.varying {
-                            raw.varying.get((slot.offset + k) * raw.stride + lane)
+                    for k in 0..components.min(3) {
+                        let v = if varying {
+                            raw.varying.get((offset + k) * raw.stride + lane)
                         } else {
-                            raw.uniform.get(slot.offset + k)
+                            raw.uniform.get(offset + k)
                         };
                         o.outputs[i][k] = v.copied().filter(|v| v.is_finite()).unwrap_or(0.0);
                     }
