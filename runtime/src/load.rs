@@ -27,6 +27,9 @@ pub struct LoadedScene {
     pub frames: usize,
     /// The number of the image loaded (see [`crate::rib::load::LoadedRib::frame_number`]).
     pub frame_number: i32,
+    /// A VRML scene's graph, routes and sensors, to animate it
+    /// ([`crate::vrml::VrmlScene::advance_to`]); its warnings are in `warnings`.
+    pub vrml: Option<Box<crate::vrml::VrmlScene>>,
 }
 
 impl LoadedScene {
@@ -78,12 +81,13 @@ pub fn load_scene_with(
             });
         }
         let vrml = crate::vrml::VrmlOptions { surface: options.vrml_surface.clone() };
-        let scene = crate::vrml::load_file_with(rt, path, &vrml)?;
+        let mut scene = crate::vrml::load_file_with(rt, path, &vrml)?;
         return Ok(LoadedScene {
             files: scene.files(),
-            warnings: scene.warnings,
+            warnings: std::mem::take(&mut scene.warnings),
             frames: 1,
             frame_number: 1,
+            vrml: Some(Box::new(scene)),
             ..LoadedScene::default()
         });
     }
@@ -103,6 +107,7 @@ pub fn load_scene_with(
                 files: std::iter::once(path.to_path_buf()).chain(loaded.files).collect(),
                 frames: loaded.frames,
                 frame_number: loaded.frame_number,
+                vrml: None,
             })
         }
         Some("obj" | "ply" | "gltf" | "glb") if index == 0 => {

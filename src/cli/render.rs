@@ -491,6 +491,7 @@ pub(crate) fn load_scene_frame(
                 files: Vec::new(),
                 frames: rib.frames,
                 frame_number: rib.frame_number,
+                vrml: None,
             }
         }
         Some(path) => rtsl_runtime::load_scene_with(&mut rt, path, frame_index, options)?,

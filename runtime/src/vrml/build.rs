@@ -44,26 +44,9 @@ pub fn build_str(rt: &mut Context, text: &str, path: &Path) -> Result<VrmlScene>
 
 /// [`build_str`] with [`VrmlOptions`].
 pub fn build_str_with(rt: &mut Context, text: &str, path: &Path, options: &VrmlOptions) -> Result<VrmlScene> {
-    let mut b = Builder {
-        surface: options.surface.clone(),
-        rt,
-        scene: VrmlScene { bounds: (Vec3A::INFINITY, Vec3A::NEG_INFINITY), ..VrmlScene::default() },
-        files: Vec::new(),
-        canonical: Vec::new(),
-        inlines: Vec::new(),
-        warned: HashSet::new(),
-        visits: 0,
-        meshes: HashMap::new(),
-        objects: HashMap::new(),
-        shaders: HashMap::new(),
-        textures: HashMap::new(),
-        camera_bound: false,
-        headlight: None,
-        background_bound: false,
-        fog_bound: false,
-        pixel_textures: 0,
-        ear_clip_budget: VRML_EAR_CLIP_BUDGET,
-    };
+    let scene = VrmlScene { bounds: (Vec3A::INFINITY, Vec3A::NEG_INFINITY), ..VrmlScene::default() };
+    let kept = Kept { surface: options.surface.clone(), ..Kept::default() };
+    let mut b = Builder::new(rt, scene, kept);
     let doc = b.add_document(path, text)?;
     let main_canonical = b.canonical[doc].clone();
     b.inlines.extend(main_canonical);
@@ -73,7 +56,73 @@ pub fn build_str_with(rt: &mut Context, text: &str, path: &Path, options: &VrmlO
         b.visit(NodeRef { doc, node: root }, Affine3A::IDENTITY, &mut trail, 0)?;
     }
     b.finish()?;
+    let mut events = super::events::Events::new(&b.scene.documents, &b.files);
+    b.scene.warnings.append(&mut events.warnings);
+    b.scene.events = events;
+    b.scene.kept = Kept {
+        surface: b.surface.clone(),
+        files: b.files.clone(),
+        shaders: b.shaders.clone(),
+        textures: b.textures.clone(),
+        pixel_textures: b.pixel_textures,
+    };
     Ok(b.scene)
+}
+
+/// What the walk made that a later rebuild of an object (as animation changes its fields) uses
+/// again: the files' names, the shaders found and the textures made.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Kept {
+    surface: Option<String>,
+    files: Vec<Arc<Path>>,
+    shaders: HashMap<String, ShaderId>,
+    textures: HashMap<NodeRef, Option<Texture>>,
+    pixel_textures: usize,
+}
+
+/// The world-from-local matrix of what lies under `path` (its Transforms' fields as they stand).
+pub(super) fn world_of(rt: &mut Context, scene: &mut VrmlScene, path: &[NodeRef]) -> Affine3A {
+    with_builder(rt, scene, |b| {
+        let mut world = Affine3A::IDENTITY;
+        for &r in path {
+            if b.type_of(r) == "Transform" {
+                world *= b.transform(r);
+            }
+        }
+        Ok(world)
+    })
+    .unwrap_or(Affine3A::IDENTITY)
+}
+
+/// Builds object `id` again from `geometry` and `appearance` as their fields stand (animation
+/// changed a Material, a Coordinate...). Warnings about the new values are not repeated.
+pub(super) fn remake_object(
+    rt: &mut Context,
+    scene: &mut VrmlScene,
+    geometry: NodeRef,
+    appearance: Option<NodeRef>,
+    id: ObjectId,
+) -> Result<()> {
+    with_builder(rt, scene, |b| b.make_object(geometry, appearance, Some(id)).map(|_| ()))
+}
+
+/// Runs `f` with a builder over `scene` as the walk left it.
+fn with_builder<T>(rt: &mut Context, scene: &mut VrmlScene, f: impl FnOnce(&mut Builder) -> Result<T>) -> Result<T> {
+    let kept = std::mem::take(&mut scene.kept);
+    let mut b = Builder::new(rt, std::mem::take(scene), kept);
+    let (warnings, triangles) = (b.scene.warnings.len(), b.scene.triangles);
+    let result = f(&mut b);
+    b.scene.warnings.truncate(warnings);
+    b.scene.triangles = triangles;
+    b.scene.kept = Kept {
+        surface: b.surface.take(),
+        files: std::mem::take(&mut b.files),
+        shaders: std::mem::take(&mut b.shaders),
+        textures: std::mem::take(&mut b.textures),
+        pixel_textures: b.pixel_textures,
+    };
+    *scene = std::mem::take(&mut b.scene);
+    result
 }
 
 /// How VRML's colours (display values, as browsers light them) become linear rtsl colours.
@@ -83,7 +132,7 @@ fn linear(c: Vec3) -> [f32; 3] {
 
 /// A texture an appearance names: its name for the shader, whether its colour replaces the
 /// diffuse colour (RGB) or modulates it (intensity), and whether it has alpha.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 struct Texture {
     name: String,
     rgb: bool,
@@ -126,7 +175,31 @@ type Result<T> = std::result::Result<T, SceneFileError>;
 /// An object and the bounds of its mesh in its own space.
 type Made = (ObjectId, (Vec3, Vec3));
 
-impl Builder<'_> {
+impl<'a> Builder<'a> {
+    fn new(rt: &'a mut Context, scene: VrmlScene, kept: Kept) -> Builder<'a> {
+        let canonical = vec![None; kept.files.len()];
+        Builder {
+            surface: kept.surface,
+            rt,
+            scene,
+            files: kept.files,
+            canonical,
+            inlines: Vec::new(),
+            warned: HashSet::new(),
+            visits: 0,
+            meshes: HashMap::new(),
+            objects: HashMap::new(),
+            shaders: kept.shaders,
+            textures: kept.textures,
+            camera_bound: false,
+            headlight: None,
+            background_bound: false,
+            fog_bound: false,
+            pixel_textures: kept.pixel_textures,
+            ear_clip_budget: VRML_EAR_CLIP_BUDGET,
+        }
+    }
+
     fn doc(&self, doc: usize) -> &Document {
         &self.scene.documents[doc].1
     }
@@ -509,7 +582,7 @@ impl Builder<'_> {
                         Severity::Warning,
                         format!("{type_name} is skipped: the scene is read as a still (no animation, sensors, scripts or sound)"),
                     ),
-                    Support::Silent => {}
+                    Support::Silent | Support::Runs => {}
                 }
                 Ok(())
             }
@@ -763,7 +836,7 @@ impl Builder<'_> {
         let object = match self.objects.get(&key) {
             Some(done) => *done,
             None => {
-                let made = self.make_object(geometry, appearance)?;
+                let made = self.make_object(geometry, appearance, None)?;
                 self.objects.insert(key, made);
                 if let Some((id, _)) = made {
                     self.scene.objects.push((geometry, appearance, id));
@@ -802,13 +875,26 @@ impl Builder<'_> {
             self.scene.bounds.1 = self.scene.bounds.1.max(w);
         }
         self.scene.shapes.push(Placed { made: instance, node: r, path: trail.to_vec(), world });
+        self.scene.shape_objects.push(id);
         Ok(())
     }
 
     /// The object of `geometry` drawn with `appearance`, with its own bounds; `None` when there is
-    /// nothing to draw.
-    fn make_object(&mut self, geometry: NodeRef, appearance: Option<NodeRef>) -> Result<Option<Made>> {
-        let Some(mesh) = self.geometry(geometry)? else { return Ok(None) };
+    /// nothing to draw. With `into`, that object is built again (left empty when there is nothing
+    /// to draw).
+    fn make_object(
+        &mut self,
+        geometry: NodeRef,
+        appearance: Option<NodeRef>,
+        into: Option<ObjectId>,
+    ) -> Result<Option<Made>> {
+        let Some(mesh) = self.geometry(geometry)? else {
+            if let Some(id) = into {
+                self.rt.redefine_object(id)?;
+                self.rt.end_object()?;
+            }
+            return Ok(None);
+        };
         if let Some(a) = appearance {
             self.check_fields(a);
         }
@@ -904,7 +990,13 @@ impl Builder<'_> {
             if transparency > 0.0 {
                 self.rt.shadows_from_shader(true);
             }
-            let id = self.rt.begin_object()?;
+            let id = match into {
+                Some(id) => {
+                    self.rt.redefine_object(id)?;
+                    id
+                }
+                None => self.rt.begin_object()?,
+            };
             self.rt.mesh(&mesh)?;
             self.rt.end_object()?;
             Ok(id)

@@ -28,7 +28,9 @@
 //! - Inline URLs are relative paths inside the including file's folder; absolute ones, ones that
 //!   climb out with `..`, URLs with a scheme and cycles are errors.
 
+pub mod animate;
 pub mod build;
+pub mod events;
 pub mod lex;
 pub mod mesh;
 pub mod nodes;
@@ -139,7 +141,7 @@ pub struct Viewpoint {
 }
 
 /// What a VRML load made and kept.
-#[derive(Debug, Default)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct VrmlScene {
     /// The files read: `[0]` the scene file, then each Inline file once.
     pub documents: Vec<(PathBuf, Document)>,
@@ -156,6 +158,15 @@ pub struct VrmlScene {
     pub triangles: usize,
     /// Warnings: what was skipped or approximated, each once, with its place.
     pub warnings: Vec<RibDiagnostic>,
+    /// The object of each of `shapes`, in its order.
+    pub shape_objects: Vec<ObjectId>,
+    /// The routes and the sensors' state ([`animate`] runs them).
+    pub events: events::Events,
+    /// The shapes (indices into `shapes`) whose Transforms now scale them to nothing: their
+    /// instances are deleted until a Transform makes them visible again.
+    pub hidden_shapes: std::collections::BTreeSet<usize>,
+    /// What rebuilding an object as animation changes it needs.
+    pub(crate) kept: build::Kept,
 }
 
 impl VrmlScene {

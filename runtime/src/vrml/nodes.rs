@@ -12,6 +12,9 @@ pub enum Support {
     Static,
     /// Left out silently: it has no effect on an image (WorldInfo).
     Silent,
+    /// Run by animation (`super::events`: TimeSensor, TouchSensor, the interpolators); nothing
+    /// to draw.
+    Runs,
 }
 
 /// Each standard node type: its fields, exposed fields and events (without the implicit
@@ -58,10 +61,10 @@ pub const NODE_TYPES: &[(&str, Support, &[&str])] = &[
         &["children", "collide", "bboxCenter", "bboxSize", "proxy", "collideTime", "addChildren", "removeChildren"],
     ),
     ("Color", Support::Read, &["color"]),
-    ("ColorInterpolator", Support::Static, &["key", "keyValue", "set_fraction", "value_changed"]),
+    ("ColorInterpolator", Support::Runs, &["key", "keyValue", "set_fraction", "value_changed"]),
     ("Cone", Support::Read, &["bottomRadius", "height", "side", "bottom"]),
     ("Coordinate", Support::Read, &["point"]),
-    ("CoordinateInterpolator", Support::Static, &["key", "keyValue", "set_fraction", "value_changed"]),
+    ("CoordinateInterpolator", Support::Runs, &["key", "keyValue", "set_fraction", "value_changed"]),
     ("Cylinder", Support::Read, &["bottom", "height", "radius", "side", "top"]),
     (
         "CylinderSensor",
@@ -174,8 +177,8 @@ pub const NODE_TYPES: &[(&str, Support, &[&str])] = &[
         &["avatarSize", "headlight", "speed", "type", "visibilityLimit", "set_bind", "isBound"],
     ),
     ("Normal", Support::Read, &["vector"]),
-    ("NormalInterpolator", Support::Static, &["key", "keyValue", "set_fraction", "value_changed"]),
-    ("OrientationInterpolator", Support::Static, &["key", "keyValue", "set_fraction", "value_changed"]),
+    ("NormalInterpolator", Support::Runs, &["key", "keyValue", "set_fraction", "value_changed"]),
+    ("OrientationInterpolator", Support::Runs, &["key", "keyValue", "set_fraction", "value_changed"]),
     ("PixelTexture", Support::Read, &["image", "repeatS", "repeatT"]),
     (
         "PlaneSensor",
@@ -197,13 +200,13 @@ pub const NODE_TYPES: &[(&str, Support, &[&str])] = &[
         &["ambientIntensity", "attenuation", "color", "intensity", "location", "on", "radius"],
     ),
     ("PointSet", Support::Omitted, &["color", "coord"]),
-    ("PositionInterpolator", Support::Static, &["key", "keyValue", "set_fraction", "value_changed"]),
+    ("PositionInterpolator", Support::Runs, &["key", "keyValue", "set_fraction", "value_changed"]),
     (
         "ProximitySensor",
         Support::Static,
         &["center", "size", "enabled", "isActive", "position_changed", "orientation_changed", "enterTime", "exitTime"],
     ),
-    ("ScalarInterpolator", Support::Static, &["key", "keyValue", "set_fraction", "value_changed"]),
+    ("ScalarInterpolator", Support::Runs, &["key", "keyValue", "set_fraction", "value_changed"]),
     ("Script", Support::Static, &["url", "directOutput", "mustEvaluate"]),
     ("Shape", Support::Read, &["appearance", "geometry"]),
     (
@@ -250,7 +253,7 @@ pub const NODE_TYPES: &[(&str, Support, &[&str])] = &[
     ("TextureTransform", Support::Read, &["center", "rotation", "scale", "translation"]),
     (
         "TimeSensor",
-        Support::Static,
+        Support::Runs,
         &[
             "cycleInterval",
             "enabled",
@@ -265,7 +268,7 @@ pub const NODE_TYPES: &[(&str, Support, &[&str])] = &[
     ),
     (
         "TouchSensor",
-        Support::Static,
+        Support::Runs,
         &["enabled", "hitNormal_changed", "hitPoint_changed", "hitTexCoord_changed", "isActive", "isOver", "touchTime"],
     ),
     (

@@ -1,0 +1,309 @@
+//! VRML 97 animation shown through the [`Context`]: [`VrmlScene::advance_to`] runs the scene's
+//! events ([`super::events`]) up to a time and changes what they changed.
+//!
+//! - a Transform's new fields move the instances of every Shape under it
+//!   ([`Context::set_instance_transform`]); one that scales a shape to nothing deletes its
+//!   instance, and a later one that makes it visible places a new one;
+//! - a Material's, Coordinate's, Normal's or Color's new fields build the objects that use them
+//!   again ([`Context::redefine_object`]), with the shader parameters and mesh they now give;
+//! - a light's `on` switches it ([`Context::set_light`]).
+//!
+//! Lights and Viewpoints under a moving Transform stay where they were placed (a warning).
+//! [`VrmlScene::touch`] is a click on a shape: the TouchSensors of the innermost group above it
+//! that has any send `touchTime`.
+
+use super::events::EventValue;
+use super::parse::Value;
+use super::{build, NodeRef, VrmlScene};
+use crate::api::{Context, InstanceId};
+use crate::rib::RibDiagnostic;
+use crate::scene_file::SceneFileError;
+use glam::Affine3A;
+use std::collections::BTreeSet;
+
+impl VrmlScene {
+    /// Whether anything in the scene runs with time (a TimeSensor routed somewhere).
+    pub fn is_animated(&self) -> bool {
+        self.events.is_animated()
+    }
+
+    /// Runs the scene's events up to `time` (seconds; the scene loads at 0) and shows what they
+    /// changed in `rt`. A time before the last one starts again from the file's values. Returns
+    /// whether `rt`'s scene changed.
+    pub fn advance_to(&mut self, time: f64, rt: &mut Context) -> Result<bool, SceneFileError> {
+        if self.events.now().is_some_and(|last| time < last) {
+            self.events.reset(&mut self.documents);
+        }
+        self.events.advance(&mut self.documents, time);
+        self.apply(rt)
+    }
+
+    /// A click at `time` on `instance`: the enabled TouchSensors of the innermost group above its
+    /// Shape that has any (the file's top level counting as a group) send `touchTime`, and what
+    /// that starts is shown. Returns whether `rt`'s scene changed.
+    pub fn touch(&mut self, instance: InstanceId, time: f64, rt: &mut Context) -> Result<bool, SceneFileError> {
+        let Some(shape) = self.shapes.iter().position(|p| p.made == instance) else { return Ok(false) };
+        let placed = &self.shapes[shape];
+        let doc_of_shape = placed.node.doc;
+        let mut groups: Vec<Vec<NodeRef>> =
+            placed.path.iter().rev().map(|g| children(&self.documents[g.doc].1, *g, "children").collect()).collect();
+        groups.push(
+            self.documents[doc_of_shape].1.roots.iter().map(|&node| NodeRef { doc: doc_of_shape, node }).collect(),
+        );
+        let time = self.events.now().map_or(time, |now| time.max(now));
+        for group in groups {
+            let sensors: Vec<NodeRef> = group
+                .into_iter()
+                .filter(|r| {
+                    let node = self.documents[r.doc].1.node(r.node);
+                    let enabled =
+                        !matches!(node.field("enabled").map(|f| &f.value), Some(Value::Bools(b)) if b == &[false]);
+                    node.type_name == "TouchSensor" && enabled
+                })
+                .collect();
+            if sensors.is_empty() {
+                continue;
+            }
+            for s in sensors {
+                self.events.send(&mut self.documents, s, vec![("touchTime", EventValue::Time(time))], time);
+            }
+            return self.apply(rt);
+        }
+        Ok(false)
+    }
+
+    /// The messages of animation so far (routes that are not run, events dropped), each once.
+    pub fn take_warnings(&mut self) -> Vec<RibDiagnostic> {
+        let mut out = std::mem::take(&mut self.warnings);
+        out.append(&mut self.events.warnings);
+        out
+    }
+
+    /// Shows the nodes the events changed.
+    fn apply(&mut self, rt: &mut Context) -> Result<bool, SceneFileError> {
+        let dirty = std::mem::take(&mut self.events.dirty);
+        if dirty.is_empty() {
+            return Ok(false);
+        }
+        let is_type = |scene: &VrmlScene, r: &NodeRef, t: &str| scene.documents[r.doc].1.node(r.node).type_name == t;
+        let moved: BTreeSet<NodeRef> = dirty.iter().filter(|r| is_type(self, r, "Transform")).copied().collect();
+        let mut changed = false;
+        if !moved.is_empty() {
+            for i in 0..self.shapes.len() {
+                if !self.shapes[i].path.iter().any(|g| moved.contains(g)) {
+                    continue;
+                }
+                let path = self.shapes[i].path.clone();
+                let world = build::world_of(rt, self, &path);
+                changed |= self.place(rt, i, world)?;
+            }
+            for k in 0..self.lights.len().max(self.viewpoints.len()) {
+                let paths =
+                    [self.lights.get(k).map(|l| (&l.path, l.node)), self.viewpoints.get(k).map(|v| (&v.path, v.node))];
+                for (path, node) in paths.into_iter().flatten() {
+                    if path.iter().any(|g| moved.contains(g)) {
+                        let loc = self.documents[node.doc].1.node(node.node).loc;
+                        let type_name = self.documents[node.doc].1.node(node.node).type_name.clone();
+                        self.events.warn(
+                            node.doc,
+                            loc,
+                            &format!("unmoved:{}:{}", node.doc, node.node.0),
+                            format!("{type_name} under an animated Transform stays where it was placed"),
+                        );
+                    }
+                }
+            }
+        }
+        // Objects whose geometry or appearance reads a changed node.
+        let remade: Vec<usize> = (0..self.objects.len())
+            .filter(|&k| {
+                let (geometry, appearance, _) = self.objects[k];
+                let mut uses = vec![geometry];
+                uses.extend(
+                    ["coord", "normal", "color", "texCoord"].iter().filter_map(|f| field_node(self, geometry, f)),
+                );
+                if let Some(a) = appearance {
+                    uses.push(a);
+                    uses.extend(
+                        ["material", "texture", "textureTransform"].iter().filter_map(|f| field_node(self, a, f)),
+                    );
+                }
+                uses.iter().any(|u| dirty.contains(u))
+            })
+            .collect();
+        for k in remade {
+            let (geometry, appearance, id) = self.objects[k];
+            build::remake_object(rt, self, geometry, appearance, id)?;
+            changed = true;
+        }
+        for k in 0..self.lights.len() {
+            let light = &self.lights[k];
+            if dirty.contains(&light.node) {
+                let node = self.documents[light.node.doc].1.node(light.node.node);
+                let on = !matches!(node.field("on").map(|f| &f.value), Some(Value::Bools(b)) if b == &[false]);
+                rt.set_light(light.made, on, true)?;
+                changed = true;
+            }
+        }
+        Ok(changed)
+    }
+
+    /// Places shape `i` with `world`: moves its instance, deletes it when `world` scales it to
+    /// nothing, places a new one when it was deleted so. Returns whether anything changed.
+    fn place(&mut self, rt: &mut Context, i: usize, world: Affine3A) -> Result<bool, SceneFileError> {
+        if world == self.shapes[i].world && !self.hidden_shapes.contains(&i) {
+            return Ok(false);
+        }
+        self.shapes[i].world = world;
+        let det = world.matrix3.determinant();
+        let drawable = world.is_finite() && det != 0.0 && det.is_finite() && world.inverse().is_finite();
+        let hidden = self.hidden_shapes.contains(&i);
+        match (drawable, hidden) {
+            (true, false) => rt.set_instance_transform(self.shapes[i].made, world)?,
+            (false, false) => {
+                rt.delete_instance(self.shapes[i].made)?;
+                self.hidden_shapes.insert(i);
+            }
+            (true, true) => {
+                let Some(&object) = self.shape_objects.get(i) else { return Ok(false) };
+                rt.push_matrix();
+                rt.load_matrix(world);
+                let made = rt.instantiate_object(object);
+                rt.pop_matrix()?;
+                self.shapes[i].made = made?;
+                self.hidden_shapes.remove(&i);
+            }
+            (false, true) => return Ok(false),
+        }
+        Ok(true)
+    }
+}
+
+/// The node an `SFNode` field of `r` holds, if any.
+fn field_node(scene: &VrmlScene, r: NodeRef, field: &str) -> Option<NodeRef> {
+    match scene.documents[r.doc].1.node(r.node).field(field).map(|f| &f.value) {
+        Some(Value::Node(Some(n))) => Some(NodeRef { doc: r.doc, node: *n }),
+        Some(Value::Nodes(v)) if v.len() == 1 => Some(NodeRef { doc: r.doc, node: v[0] }),
+        _ => None,
+    }
+}
+
+/// The nodes of an `MFNode` field of `r`.
+fn children(doc: &super::Document, r: NodeRef, field: &str) -> impl Iterator<Item = NodeRef> {
+    let nodes: Vec<NodeRef> = match doc.node(r.node).field(field).map(|f| &f.value) {
+        Some(Value::Nodes(v)) => v.iter().map(|&node| NodeRef { doc: r.doc, node }).collect(),
+        Some(Value::Node(Some(n))) => vec![NodeRef { doc: r.doc, node: *n }],
+        _ => Vec::new(),
+    };
+    nodes.into_iter()
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::api::Context;
+    use crate::vrml::{build_str, VrmlScene};
+    use glam::Vec3;
+    use std::path::Path;
+
+    fn load(text: &str) -> (Context, VrmlScene) {
+        let mut rt = Context::new();
+        let scene = build_str(&mut rt, &format!("#VRML V2.0 utf8\n{text}"), Path::new("test.wrl"))
+            .unwrap_or_else(|e| panic!("{e}"));
+        (rt, scene)
+    }
+
+    const MOVER: &str = "
+        Viewpoint { position 0 0 10 }
+        NavigationInfo { headlight TRUE }
+        DEF T Transform { children Shape { appearance Appearance { material DEF M Material { diffuseColor 1 0 0 } }
+                                          geometry Box {} } }
+        DEF P PositionInterpolator { key [0 1] keyValue [-2 0 0, 2 0 0] }
+        DEF C TimeSensor { cycleInterval 4 loop TRUE }
+        ROUTE C.fraction_changed TO P.set_fraction
+        ROUTE P.value_changed TO T.set_translation";
+
+    #[test]
+    fn a_transform_moves_its_instances_with_time() {
+        let (mut rt, mut scene) = load(MOVER);
+        assert!(scene.is_animated());
+        let instance = scene.shapes[0].made;
+        assert!(scene.advance_to(1.0, &mut rt).expect("runs"));
+        let m = rt.instance_transform(instance).expect("placed");
+        assert!(m.translation.abs_diff_eq(glam::Vec3A::new(-1.0, 0.0, 0.0), 1e-5), "{m:?}");
+        scene.advance_to(3.0, &mut rt).expect("runs");
+        assert!(rt.instance_transform(instance).expect("placed").translation.x > 0.99);
+        // Back in time starts over from the file.
+        scene.advance_to(0.0, &mut rt).expect("runs");
+        assert!((rt.instance_transform(instance).expect("placed").translation.x + 2.0).abs() < 1e-5);
+        assert!(scene.take_warnings().is_empty());
+    }
+
+    #[test]
+    fn a_material_colour_and_coordinates_change_the_object() {
+        let (mut rt, mut scene) = load(&format!(
+            "{}
+             DEF K ColorInterpolator {{ key [0 1] keyValue [1 0 0, 0 0 1] }}
+             ROUTE C.fraction_changed TO K.set_fraction
+             ROUTE K.value_changed TO M.set_diffuseColor
+             Transform {{ translation 0 -3 0 children Shape {{ geometry IndexedFaceSet {{
+                coord DEF Pts Coordinate {{ point [0 0 0, 1 0 0, 0 1 0] }} coordIndex [0 1 2 -1] }} }} }}
+             DEF CI CoordinateInterpolator {{ key [0 1] keyValue [0 0 0, 1 0 0, 0 1 0,  0 0 0, 2 0 0, 0 2 0] }}
+             ROUTE C.fraction_changed TO CI.set_fraction
+             ROUTE CI.value_changed TO Pts.set_point",
+            MOVER.replace("ROUTE P.value_changed TO T.set_translation", "")
+        ));
+        rt.options.width = 16;
+        rt.options.height = 16;
+        scene.advance_to(0.0, &mut rt).expect("runs");
+        let (red, _) = rt.render_frame().expect("renders");
+        let triangle =
+            scene.objects.iter().find(|(g, _, _)| scene.documents[0].1.node(g.node).type_name == "IndexedFaceSet");
+        let id = triangle.expect("the face set").2;
+        let before = rt.object_mesh(id).expect("a mesh").positions.clone();
+        scene.advance_to(2.0, &mut rt).expect("runs");
+        let (mixed, _) = rt.render_frame().expect("renders");
+        let after = rt.object_mesh(id).expect("a mesh").positions.clone();
+        assert!(before.contains(&Vec3::new(1.0, 0.0, 0.0)) && after.contains(&Vec3::new(1.5, 0.0, 0.0)), "{after:?}");
+        // The box at the middle of the image turned from red to purple.
+        let (a, b) = (red.pixel(8, 8), mixed.pixel(8, 8));
+        assert!(a[0] > 0.1 && a[2] < 0.01, "{a:?}");
+        assert!(b[2] > 0.05 && b[0] < a[0], "{a:?} {b:?}");
+    }
+
+    #[test]
+    fn a_scale_to_nothing_hides_and_a_later_one_shows_again() {
+        let (mut rt, mut scene) = load(
+            "DEF T Transform { children Shape { geometry Box {} } }
+             DEF P PositionInterpolator { key [0 0.5 1] keyValue [1 1 1, 0 0 0, 1 1 1] }
+             DEF C TimeSensor { loop TRUE }
+             ROUTE C.fraction_changed TO P.set_fraction
+             ROUTE P.value_changed TO T.scale",
+        );
+        scene.advance_to(0.5, &mut rt).expect("runs");
+        assert!(rt.world_instance_ids().is_empty());
+        scene.advance_to(0.75, &mut rt).expect("runs");
+        assert_eq!(rt.world_instance_ids(), vec![scene.shapes[0].made]);
+        rt.render_frame().expect("renders");
+    }
+
+    #[test]
+    fn a_click_under_a_touch_sensor_starts_its_animation() {
+        let (mut rt, mut scene) = load(
+            "DEF T Transform { children [ DEF Touch TouchSensor {} Shape { geometry Box {} } ] }
+             Shape { geometry Sphere {} }
+             DEF P PositionInterpolator { key [0 1] keyValue [0 0 0, 0 4 0] }
+             DEF C TimeSensor { cycleInterval 2 }
+             ROUTE Touch.touchTime TO C.startTime
+             ROUTE C.fraction_changed TO P.set_fraction
+             ROUTE P.value_changed TO T.translation",
+        );
+        let (boxed, sphere) = (scene.shapes[0].made, scene.shapes[1].made);
+        scene.advance_to(1.0, &mut rt).expect("runs");
+        assert!(!scene.touch(sphere, 1.0, &mut rt).expect("runs"), "nothing senses the sphere");
+        scene.advance_to(2.0, &mut rt).expect("runs");
+        assert_eq!(rt.instance_transform(boxed).expect("placed").translation.y, 0.0);
+        scene.touch(boxed, 2.0, &mut rt).expect("runs");
+        scene.advance_to(3.0, &mut rt).expect("runs");
+        assert!((rt.instance_transform(boxed).expect("placed").translation.y - 2.0).abs() < 1e-5);
+    }
+}
