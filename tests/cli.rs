@@ -1172,4 +1172,56 @@ fn rib_conditionals_choose_each_frames_branch_in_a_shared_archive() {
     let o = rtsl(&["render", "bad.rib", "-o", "bad.png", "--color", "never"], dir.path());
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert!(stderr(&o).contains("bad.rib:3:1"), "{}", stderr(&o));
+/// A box that slides and turns, and a route of the wrong type.
+const VRML_MOVING_BOX: &str = "#VRML V2.0 utf8
+Viewpoint { position 0 0 10 }
+DEF T Transform { children Shape { appearance Appearance { material Material { diffuseColor 1 0.2 0.1 } } geometry Box {} } }
+DEF P PositionInterpolator { key [0 1] keyValue [-3 0 0, 3 0 0] }
+DEF R OrientationInterpolator { key [0 1] keyValue [0 1 0 0, 0 1 0 3.14] }
+DEF C TimeSensor { cycleInterval 2 loop TRUE }
+ROUTE C.fraction_changed TO P.set_fraction
+ROUTE C.fraction_changed TO R.set_fraction
+ROUTE P.value_changed TO T.set_translation
+ROUTE R.value_changed TO T.set_rotation
+ROUTE C.fraction_changed TO T.set_scale
+";
+
+#[test]
+fn vrml_animation_renders_times_and_frame_ranges() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    write(dir.path(), "move.wrl", VRML_MOVING_BOX);
+    let render = |extra: &[&str]| {
+        let mut args = vec!["render", "move.wrl", "--size", "32x24", "-q"];
+        args.extend_from_slice(extra);
+        let o = rtsl(&args, dir.path());
+        assert_eq!(o.status.code(), Some(0), "{args:?}: {}", stderr(&o));
+        o
+    };
+    let o = render(&["--time", "0.25", "-o", "early.png"]);
+    // The bad route is a warning with its place; the others run.
+    let err = stderr(&o);
+    assert!(err.contains("warning: ROUTE C.fraction_changed TO T.set_scale: it joins an SFFloat"), "{err}");
+    assert!(err.contains("move.wrl:11:1"), "{err}");
+    render(&["--time", "1", "-o", "later.png"]);
+    let read = |name: &str| std::fs::read(dir.path().join(name)).expect("written");
+    assert_ne!(read("early.png"), read("later.png"), "the box moved");
+    // Frames 1 to 3 at 4 per second show times 0, 0.25 and 0.5; #f numbers them.
+    render(&["--frames", "1..3", "--fps", "4", "-o", "f.#2f.png"]);
+    for n in ["01", "02", "03"] {
+        assert!(dir.path().join(format!("f.{n}.png")).is_file(), "frame {n}");
+    }
+    assert_eq!(read("f.02.png"), read("early.png"));
+    assert_ne!(read("f.01.png"), read("f.02.png"));
+    render(&["--frame", "5", "--fps", "4", "-o", "one.#f.png"]);
+    assert_eq!(read("one.5.png"), read("later.png"));
+    // Frames must be named apart, and --time is for VRML scenes.
+    let o = rtsl(&["render", "move.wrl", "--size", "8x8", "--frames", "1..2", "-o", "same.png"], dir.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("would overwrite same.png"), "{}", stderr(&o));
+    write(dir.path(), "s.rib", "WorldBegin\nSphere 1 -1 1 360\nWorldEnd\n");
+    let o = rtsl(&["render", "s.rib", "--size", "8x8", "--time", "1"], dir.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("--time and --frames animate VRML scenes"), "{}", stderr(&o));
+    let o = rtsl(&["render", "move.wrl", "--frames", "3..1"], dir.path());
+    assert_eq!(o.status.code(), Some(2));
 }

@@ -37,6 +37,18 @@ pub struct RenderArgs {
     /// lighting model): e.g. `plastic`, `mirror`, `gimatte` (docs/vrml.md).
     #[arg(long, value_name = "SHADER")]
     pub vrml_surface: Option<String>,
+    /// Of a VRML scene, the time its animation shows, in seconds from the load (with `--frame` or
+    /// `--frames`, the time of frame 1).
+    #[arg(long, value_name = "SECONDS", default_value_t = 0.0, value_parser = parse_time)]
+    pub time: f64,
+    /// Of a VRML scene, the frames to render, `A..B` (both included): frame N shows the time
+    /// `--time + (N - 1) / --fps`, and `#f` in the image's name stands for N (`#4f` padded to 4
+    /// digits). `--frame N` renders one.
+    #[arg(long, value_name = "A..B", value_parser = parse_frame_range)]
+    pub frames: Option<(i32, i32)>,
+    /// Frames per second of a VRML animation's `--frame` and `--frames`.
+    #[arg(long, default_value_t = 24.0, value_parser = parse_fps)]
+    pub fps: f64,
     /// Image size, `WxH` (overrides the scene's `Format`).
     #[arg(long, value_parser = super::bench::parse_size)]
     pub size: Option<(u32, u32)>,
@@ -144,6 +156,37 @@ impl CameraSpec {
         rt.camera_shader(Some(id), &params).with_context(|| format!("camera shader `{}`", self.name))?;
         Ok(())
     }
+}
+
+/// Parses `--time`: a finite number of seconds.
+pub(crate) fn parse_time(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(t) if t.is_finite() => Ok(t),
+        _ => Err(format!("`{s}` is not a time in seconds")),
+    }
+}
+
+fn parse_fps(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(f) if f.is_finite() && f > 0.0 => Ok(f),
+        _ => Err(format!("`{s}` is not a frame rate above 0")),
+    }
+}
+
+/// Parses `--frames A..B`: the first and last frame numbers, the first not after the last.
+fn parse_frame_range(s: &str) -> Result<(i32, i32), String> {
+    let (a, b) = s.split_once("..").ok_or_else(|| format!("`{s}` is not a range of frames A..B"))?;
+    let number = |x: &str| x.trim().parse::<i32>().map_err(|_| format!("`{x}` in `{s}` is not a frame number"));
+    let (a, b) = (number(a)?, number(b.trim_start_matches('='))?);
+    if a > b {
+        return Err(format!("`{s}`: the first frame comes after the last"));
+    }
+    Ok((a, b))
+}
+
+/// The time of a VRML scene's frame `number` (none: `--time` itself).
+fn vrml_time(args: &RenderArgs, number: Option<i32>) -> f64 {
+    args.time + number.map_or(0.0, |n| f64::from(n - 1) / args.fps)
 }
 
 /// Parses `--samples`: a count whose grid ([`samples_grid`]) has at most `MAX_PIXEL_SAMPLES` a
@@ -510,10 +553,20 @@ struct Prepared {
     errors: usize,
     /// The files it was read from.
     files: Vec<PathBuf>,
+    /// A VRML scene's graph and events, advanced to the time asked for.
+    vrml: Option<Box<rtsl_runtime::vrml::VrmlScene>>,
 }
 
 /// The frames to render, as indices into the scene's frames: the one `--frame` names, or all.
 fn frame_indices(args: &RenderArgs) -> anyhow::Result<Vec<usize>> {
+    let vrml = args.scene.as_deref().is_some_and(rtsl_runtime::vrml::is_vrml_path);
+    if !vrml && (args.frames.is_some() || args.time != 0.0) {
+        anyhow::bail!("--time and --frames animate VRML scenes; a RIB file's frames are chosen with --frame");
+    }
+    if vrml {
+        // One load; the frames are times of its animation (`run_vrml`).
+        return Ok(vec![0]);
+    }
     let numbers = match &args.scene {
         Some(path) if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("rib")) => {
             rtsl_runtime::rib::load::frame_numbers(path)?
@@ -533,8 +586,13 @@ fn frame_indices(args: &RenderArgs) -> anyhow::Result<Vec<usize>> {
 /// Loads the image at `frame_index` of the scene and applies the flags to it.
 fn prepare(args: &RenderArgs, frame_index: usize) -> anyhow::Result<Prepared> {
     let options = rtsl_runtime::LoadOptions { vrml_surface: args.vrml_surface.clone() };
-    let (mut rt, loaded) =
+    let (mut rt, mut loaded) =
         load_scene_frame(args.scene.as_deref(), &args.shader_path, &args.include, frame_index, &options)?;
+    let mut vrml = loaded.vrml.take();
+    if let Some(scene) = vrml.as_mut() {
+        scene.advance_to(vrml_time(args, args.frame.or(args.frames.map(|(first, _)| first))), &mut rt)?;
+        print_animation_warnings(scene);
+    }
     let expanded = |p: &PathBuf| {
         PathBuf::from(rtsl_runtime::rib::load::expand_display_name(&p.to_string_lossy(), loaded.frame_number))
     };
@@ -587,7 +645,48 @@ fn prepare(args: &RenderArgs, frame_index: usize) -> anyhow::Result<Prepared> {
     for (path, mode, depth_map) in output.images() {
         check_image(&rt, path, mode, depth_map)?;
     }
-    Ok(Prepared { rt, output, omissions: loaded.omissions(), errors: loaded.errors(), files: loaded.files })
+    Ok(Prepared { rt, output, omissions: loaded.omissions(), errors: loaded.errors(), files: loaded.files, vrml })
+}
+
+fn print_animation_warnings(scene: &mut rtsl_runtime::vrml::VrmlScene) {
+    for w in scene.take_warnings() {
+        eprintln!("warning: {w}");
+    }
+}
+
+/// `render` of a VRML scene's `--frames` (or `--frame`): loaded once, its animation advanced to
+/// each frame's time, each image named with the frame's number.
+fn run_vrml(args: &RenderArgs) -> anyhow::Result<ExitCode> {
+    let numbers: Vec<i32> = match (args.frames, args.frame) {
+        (Some(_), Some(_)) => anyhow::bail!("--frame and --frames: choose one"),
+        (Some((a, b)), None) => (a..=b).collect(),
+        (None, Some(n)) => vec![n],
+        (None, None) => unreachable!("run_vrml renders frames"),
+    };
+    let (threads, pool) = super::worker_pool(args.threads)?;
+    let mut render = on_pool(&pool);
+    let Prepared { mut rt, mut output, omissions, vrml, .. } = prepare(args, 0)?;
+    let mut vrml = vrml.context("not a VRML scene")?;
+    let pattern = args.output.clone().unwrap_or_else(|| PathBuf::from("render.png"));
+    let mut missing = omissions;
+    let mut written_paths = BTreeSet::new();
+    for n in numbers {
+        output.path = PathBuf::from(rtsl_runtime::rib::load::expand_display_name(&pattern.to_string_lossy(), n));
+        if !written_paths.insert(output.path.clone()) {
+            anyhow::bail!(
+                "frame {n} would overwrite {} of an earlier frame: name the images with #f (as in `-o frame.#4f.png`)",
+                output.path.display()
+            );
+        }
+        vrml.advance_to(vrml_time(args, Some(n)), &mut rt)?;
+        print_animation_warnings(&mut vrml);
+        let written = render_and_write(&mut rt, &mut render, &output, args.quiet, true)?;
+        if !args.quiet {
+            print_summary(&rt, &output.path, &format!("{threads} thread(s)"), &written.report);
+        }
+        missing += written.missing_textures;
+    }
+    Ok(exit_status(missing, args.keep_going))
 }
 
 pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
@@ -596,8 +695,16 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
         let flag = if args.watch { "--watch" } else { "--mpi" };
         anyhow::bail!("the scene has {} frames and {flag} renders one: choose it with --frame", frames.len());
     }
+    if args.frames.is_some_and(|(a, b)| a != b) && (args.watch || args.mpi) {
+        let flag = if args.watch { "--watch" } else { "--mpi" };
+        anyhow::bail!("{flag} renders one frame: choose it with --frame");
+    }
     if args.mpi {
         return run_mpi(args, frames[0]);
+    }
+    let vrml = args.scene.as_deref().is_some_and(rtsl_runtime::vrml::is_vrml_path);
+    if vrml && (args.frames.is_some() || args.frame.is_some()) && !args.watch {
+        return run_vrml(args);
     }
     let (threads, pool) = super::worker_pool(args.threads)?;
     let mut render = on_pool(&pool);
