@@ -283,3 +283,37 @@ fn the_viewer_over_three_mpi_ranks_shows_what_one_process_shows() {
         assert!(a.pixels.iter().any(|&v| v > 0.05), "{extra:?}: the picture is not black");
     }
 }
+
+/// A VRML scene's animation held at a time (`--time`): the box is where that time puts it.
+#[test]
+fn a_vrml_animation_is_shown_at_the_time_asked() {
+    let Some(x) = xvfb() else { return };
+    let dir = tempfile::tempdir().expect("tempdir");
+    std::fs::write(
+        dir.path().join("move.wrl"),
+        "#VRML V2.0 utf8
+Viewpoint { position 0 0 10 }
+DEF T Transform { children Shape { appearance Appearance { material Material { diffuseColor 1 0.2 0.1 } } geometry Box {} } }
+DEF P PositionInterpolator { key [0 1] keyValue [-3 0 0, 3 0 0] }
+DEF C TimeSensor { cycleInterval 2 loop TRUE }
+ROUTE C.fraction_changed TO P.set_fraction
+ROUTE P.value_changed TO T.set_translation
+",
+    )
+    .expect("write");
+    let shot = |name: &str, extra: &[&str]| {
+        let mut args = vec!["move.wrl", "--size", "48x36", "--frames", "1", "--no-watch", "--no-overlay"];
+        args.extend_from_slice(&["--screenshot", name]);
+        args.extend_from_slice(extra);
+        let o = view(&x.display, dir.path(), &args);
+        assert!(o.status.success(), "rtsl view {args:?}: {}", String::from_utf8_lossy(&o.stderr));
+        let img = rtsl::runtime::read_image(&dir.path().join(name)).expect("the screenshot is a PNG");
+        Shot { width: img.width, height: img.height, rgba: img.pixels }
+    };
+    let start = shot("start.png", &[]);
+    let held = shot("zero.png", &["--time", "0"]);
+    let later = shot("later.png", &["--time", "1"]);
+    assert!(start.mean_difference(&held) < 1e-3, "a scripted run holds the animation at 0");
+    assert!(start.mean_difference(&later) > 1e-3, "at time 1 the box has moved");
+    assert_eq!((later.width, later.height), (48, 36));
+}

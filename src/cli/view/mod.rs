@@ -50,6 +50,11 @@ pub struct ViewArgs {
     /// lighting model): e.g. `plastic`, `mirror`, `gimatte` (docs/vrml.md).
     #[arg(long, value_name = "SHADER")]
     pub vrml_surface: Option<String>,
+    /// Of a VRML scene, hold its animation at this time (seconds from the load) instead of playing
+    /// it at wall-clock time. With `--frames` and without it, the animation is held at 0 (a
+    /// scripted run waits for the view to be still).
+    #[arg(long, value_name = "SECONDS", value_parser = super::render::parse_time)]
+    pub time: Option<f64>,
     /// Start in frameless mode.
     #[arg(long)]
     pub frameless: bool,
@@ -188,8 +193,17 @@ fn show(args: &ViewArgs, jobs: mpsc::Sender<RenderJob>) -> anyhow::Result<(u32, 
         None => Vec::new(),
     };
     let options = rtsl_runtime::LoadOptions { vrml_surface: args.vrml_surface.clone() };
-    let (mut rt, _) =
+    let (mut rt, mut loaded) =
         super::render::load_scene_frame(args.scene.as_deref(), &args.shader_path, &args.include, 0, &options)?;
+    let mut playing = None;
+    if let Some(mut scene) = loaded.vrml.take() {
+        let held = args.time.or(args.frames.map(|_| 0.0));
+        // The first image shows the animation's start.
+        scene.advance_to(held.unwrap_or(0.0), &mut rt)?;
+        if scene.is_animated() || held.is_none() {
+            playing = Some(renderer::Playing::new(scene, held));
+        }
+    }
     let (w, h) = match args.size {
         Some(size) => size,
         None if rt.options.width <= 1280 && rt.options.height <= 960 => (rt.options.width, rt.options.height),
@@ -204,13 +218,16 @@ fn show(args: &ViewArgs, jobs: mpsc::Sender<RenderJob>) -> anyhow::Result<(u32, 
     args.rays.apply(&mut rt)?;
     let threads = super::thread_count(args.threads)?;
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().context("starting the worker threads")?;
-    let renderer = renderer::Renderer::new(
+    let mut renderer = renderer::Renderer::new(
         rt,
         !args.no_watch,
         args.frameless,
         threads,
         args.frames.unwrap_or(renderer::MAX_PASSES),
     )?;
+    if let Some(playing) = playing {
+        renderer.play(playing);
+    }
 
     let event_loop = winit::event_loop::EventLoop::<window::FrameReady>::with_user_event()
         .build()

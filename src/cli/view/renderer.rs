@@ -175,6 +175,36 @@ pub struct Renderer {
     threads: usize,
     /// The scene's own ray parameters while relevance follows the cursor (`Command::Gaze`).
     before_gaze: Option<RayParameters>,
+    /// A VRML scene's animation and its clock.
+    playing: Option<Playing>,
+}
+
+/// A VRML scene's animation, played at wall-clock time from when the viewer started, or held at
+/// one time.
+pub struct Playing {
+    scene: Box<rtsl_runtime::vrml::VrmlScene>,
+    clock: Clock,
+}
+
+enum Clock {
+    /// Playing: time 0 was then.
+    Playing(Instant),
+    /// Held at this time.
+    Held(f64),
+}
+
+impl Playing {
+    /// Plays `scene` from time 0 now, or holds it at `held`.
+    pub fn new(scene: Box<rtsl_runtime::vrml::VrmlScene>, held: Option<f64>) -> Playing {
+        Playing { scene, clock: held.map_or_else(|| Clock::Playing(Instant::now()), Clock::Held) }
+    }
+
+    fn time(&self) -> f64 {
+        match self.clock {
+            Clock::Playing(start) => start.elapsed().as_secs_f64(),
+            Clock::Held(t) => t,
+        }
+    }
 }
 
 /// With `--mpi`, the master of the worker ranks that trace the lattices. It stays on the render
@@ -299,7 +329,27 @@ impl Renderer {
             threads,
             before_gaze: None,
             rt,
+            playing: None,
         })
+    }
+
+    /// Plays a VRML scene's animation (its events drive `rt`'s scene).
+    pub fn play(&mut self, playing: Playing) {
+        self.playing = Some(playing);
+    }
+
+    /// Advances the animation to the clock's time; the scene is rebuilt when it changed.
+    fn animate(&mut self) {
+        let Some(playing) = self.playing.as_mut() else { return };
+        let t = playing.time();
+        match playing.scene.advance_to(t, &mut self.rt) {
+            Ok(changed) => self.scene_dirty |= changed,
+            Err(e) => self.diagnostics.push(format!("animation: {e}")),
+        }
+        for w in playing.scene.take_warnings() {
+            eprintln!("warning: {w}");
+            self.diagnostics.push(w.to_string());
+        }
     }
 
     fn size(&self) -> (u32, u32) {
@@ -350,6 +400,14 @@ impl Renderer {
                     let instance = *self.rt.world_instance_ids().get(index)?;
                     Some(Selection { instance, depth })
                 });
+                // A click on a shape under a TouchSensor sends its touchTime.
+                if let (Some(sel), Some(playing)) = (self.selected, self.playing.as_mut()) {
+                    let t = playing.time();
+                    match playing.scene.touch(sel.instance, t, &mut self.rt) {
+                        Ok(changed) => self.scene_dirty |= changed,
+                        Err(e) => self.diagnostics.push(format!("animation: {e}")),
+                    }
+                }
             }
             Command::MoveSelected { dx, dy } => {
                 let Some(sel) = self.selected else { return };
@@ -742,6 +800,7 @@ impl Renderer {
                 }
             }
             self.reload();
+            self.animate();
             if self.scene_dirty {
                 if let Err(e) = self.rebuild() {
                     // The API refused the change (it never should for a move); say so, keep going.
