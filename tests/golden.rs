@@ -756,4 +756,57 @@ fn cube_face_environment_matches_its_reference() {
         )
         .replacen("Color [.8 .3 .2]", &format!("Color [1 1 1] Surface \"shinymetal\" \"texturename\" \"{map}\""), 1);
     check("cube_face_environment", &render_rib("cube_face_environment", &rib)).unwrap_or_else(|e| panic!("{e}"));
+/// A VRML 97 animation at one time: a box slid and turned by Position and Orientation
+/// interpolators, its colour mixed by a ColorInterpolator, a face set bent by a
+/// CoordinateInterpolator and a blue light switched on by the TimeSensor's isActive, all through
+/// ROUTEs from one looping TimeSensor (`docs/vrml.md`, *Animation*), shown at time 1.25.
+const VRML_ANIMATED: &str = r#"#VRML V2.0 utf8
+NavigationInfo { headlight FALSE }
+Background { skyColor 0.1 0.12 0.2 }
+Viewpoint { position 0 1 7 orientation 1 0 0 -0.12 }
+PointLight { location 2 4 4 intensity 0.9 }
+DEF Lamp PointLight { location -3 2 2 color 0.3 0.5 1 on FALSE }
+Transform { translation 0 -1.1 0 children Shape {
+  appearance Appearance { material Material { diffuseColor 0.7 0.7 0.7 } }
+  geometry Box { size 8 0.2 5 } } }
+DEF Mover Transform { children Shape {
+  appearance Appearance { material DEF Paint Material { diffuseColor 1 0 0 specularColor 0.4 0.4 0.4 } }
+  geometry Box { size 1.2 1.2 1.2 } } }
+Transform { translation 0 -1 1.5 children Shape {
+  appearance Appearance { material Material { diffuseColor 0.9 0.8 0.2 } }
+  geometry IndexedFaceSet { solid FALSE
+    coord DEF Sheet Coordinate { point [ -1 0 0, 1 0 0, 1 0.1 -1, -1 0.1 -1 ] }
+    coordIndex [ 0 1 2 3 -1 ] } } }
+DEF Clock TimeSensor { cycleInterval 4 loop TRUE }
+DEF Slide PositionInterpolator { key [0 0.5 1] keyValue [-2 0 0, 2 0.5 0, -2 0 0] }
+DEF Turn OrientationInterpolator { key [0 1] keyValue [0 1 0 0, 0 1 0 6.2] }
+DEF Tint ColorInterpolator { key [0 1] keyValue [1 0 0, 0 0.4 1] }
+DEF Bend CoordinateInterpolator { key [0 1] keyValue [
+  -1 0 0, 1 0 0, 1 0.1 -1, -1 0.1 -1,
+  -1 0 0, 1 0.8 0, 1 1.2 -1, -1 0.1 -1 ] }
+ROUTE Clock.fraction_changed TO Slide.set_fraction
+ROUTE Clock.fraction_changed TO Turn.set_fraction
+ROUTE Clock.fraction_changed TO Tint.set_fraction
+ROUTE Clock.fraction_changed TO Bend.set_fraction
+ROUTE Slide.value_changed TO Mover.set_translation
+ROUTE Turn.value_changed TO Mover.set_rotation
+ROUTE Tint.value_changed TO Paint.set_diffuseColor
+ROUTE Bend.value_changed TO Sheet.set_point
+ROUTE Clock.isActive TO Lamp.set_on
+"#;
+
+#[test]
+fn vrml_animated_frame_matches_its_reference() {
+    let mut rt = Context::new();
+    let file = golden_dir().join("vrml_animated.wrl");
+    let mut scene = rtsl_runtime::vrml::build_str(&mut rt, VRML_ANIMATED, &file).unwrap_or_else(|e| panic!("{e}"));
+    assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
+    assert!(scene.advance_to(1.25, &mut rt).unwrap_or_else(|e| panic!("{e}")));
+    assert!(scene.take_warnings().is_empty());
+    rt.options.width = W;
+    rt.options.height = H;
+    rt.options.samples = (2, 2);
+    let world = rt.build_world().unwrap_or_else(|e| panic!("{e}"));
+    let (fb, _) = render_frame(&world, None);
+    check("vrml_animated", &fb.rgba).unwrap_or_else(|e| panic!("{e}"));
 }
