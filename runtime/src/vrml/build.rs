@@ -126,7 +126,7 @@ fn with_builder<T>(rt: &mut Context, scene: &mut VrmlScene, f: impl FnOnce(&mut 
 }
 
 /// How VRML's colours (display values, as browsers light them) become linear rtsl colours.
-fn linear(c: Vec3) -> [f32; 3] {
+pub(super) fn linear(c: Vec3) -> [f32; 3] {
     c.to_array().map(|v| srgb_to_linear(v.clamp(0.0, 1.0)))
 }
 

@@ -229,7 +229,8 @@ impl EventValue {
 /// last's; at keys that repeat (a jump), the later one's.
 pub fn key_segment(keys: &[f32], fraction: f32) -> Option<(usize, usize, f32)> {
     let last = keys.len().checked_sub(1)?;
-    if !(fraction > keys[0]) {
+    // A NaN fraction takes the first value too.
+    if fraction.is_nan() || fraction <= keys[0] {
         return Some((0, 0, 0.0));
     }
     if fraction >= keys[last] {
@@ -278,7 +279,7 @@ pub fn slerp(a: Quat, b: Quat, t: f32) -> Quat {
 fn slerp_direction(a: Vec3, b: Vec3, t: f32) -> Vec3 {
     let (a, b) = (a.normalize_or_zero(), b.normalize_or_zero());
     let cos = a.dot(b).clamp(-1.0, 1.0);
-    if cos > 0.9995 || cos < -0.9995 {
+    if !(-0.9995..=0.9995).contains(&cos) {
         return a.lerp(b, t).normalize_or(a);
     }
     let theta = cos.acos();

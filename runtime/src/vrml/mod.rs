@@ -35,6 +35,7 @@ pub mod lex;
 pub mod mesh;
 pub mod nodes;
 pub mod parse;
+pub mod v1;
 
 use crate::api::{Context, InstanceId, LightId, ObjectId};
 use crate::rib::{Location, RibDiagnostic};
@@ -198,7 +199,17 @@ pub fn load_file_with(
     path: impl AsRef<Path>,
     options: &VrmlOptions,
 ) -> Result<VrmlScene, crate::scene_file::SceneFileError> {
-    build_with(rt, path.as_ref(), options)
+    let path = path.as_ref();
+    let text = read_text(path)?;
+    if is_vrml1(&text) {
+        return v1::build_str_with(rt, &text, path, options);
+    }
+    build_str_with(rt, &text, path, options)
+}
+
+/// Whether the text is a VRML 1.0 file (its header line says so).
+pub fn is_vrml1(text: &str) -> bool {
+    text.trim_start_matches('\u{feff}').starts_with("#VRML V1.0")
 }
 
 /// The text of a VRML file: its bytes, inflated when gzip-compressed, decoded as UTF-8 (invalid
@@ -239,7 +250,7 @@ pub fn check_header(file: &Arc<Path>, text: &str) -> Result<Option<RibDiagnostic
     }
     let at = Loc { line: 1, column: 1 };
     if first.starts_with("#VRML V1.0") {
-        return Err(VrmlError::at(file, at, "VRML 1.0 files are not read (only VRML 97, `#VRML V2.0 utf8`)"));
+        return Err(VrmlError::at(file, at, "a VRML 1.0 file is read by `vrml::v1` (`vrml::load_file` chooses it)"));
     }
     if first.starts_with("#X3D") {
         return Err(VrmlError::at(file, at, "X3D files are not read (only VRML 97, `#VRML V2.0 utf8`)"));
