@@ -85,7 +85,13 @@ impl VrmlScene {
         if dirty.is_empty() {
             return Ok(false);
         }
-        let is_type = |scene: &VrmlScene, r: &NodeRef, t: &str| scene.documents[r.doc].1.node(r.node).type_name == t;
+        let is_type = |scene: &VrmlScene, r: &NodeRef, t: &str| {
+            scene
+                .documents
+                .get(r.doc)
+                .and_then(|(_, d)| d.nodes.get(r.node.0 as usize))
+                .is_some_and(|n| n.type_name == t)
+        };
         let moved: BTreeSet<NodeRef> = dirty.iter().filter(|r| is_type(self, r, "Transform")).copied().collect();
         let mut changed = false;
         if !moved.is_empty() {
@@ -94,16 +100,19 @@ impl VrmlScene {
                     continue;
                 }
                 let path = self.shapes[i].path.clone();
-                let world = build::world_of(rt, self, &path);
+                let world = build::world_of(rt, self, &path) * self.shapes[i].local;
                 changed |= self.place(rt, i, world)?;
             }
             for k in 0..self.lights.len().max(self.viewpoints.len()) {
                 let paths =
                     [self.lights.get(k).map(|l| (&l.path, l.node)), self.viewpoints.get(k).map(|v| (&v.path, v.node))];
                 for (path, node) in paths.into_iter().flatten() {
+                    let Some(found) = self.documents.get(node.doc).and_then(|(_, d)| d.nodes.get(node.node.0 as usize))
+                    else {
+                        continue;
+                    };
                     if path.iter().any(|g| moved.contains(g)) {
-                        let loc = self.documents[node.doc].1.node(node.node).loc;
-                        let type_name = self.documents[node.doc].1.node(node.node).type_name.clone();
+                        let (loc, type_name) = (found.loc, found.type_name.clone());
                         self.events.warn(
                             node.doc,
                             loc,
@@ -138,8 +147,12 @@ impl VrmlScene {
         }
         for k in 0..self.lights.len() {
             let light = &self.lights[k];
+            let Some(node) =
+                self.documents.get(light.node.doc).and_then(|(_, d)| d.nodes.get(light.node.node.0 as usize))
+            else {
+                continue;
+            };
             if dirty.contains(&light.node) {
-                let node = self.documents[light.node.doc].1.node(light.node.node);
                 let on = !matches!(node.field("on").map(|f| &f.value), Some(Value::Bools(b)) if b == &[false]);
                 rt.set_light(light.made, on, true)?;
                 changed = true;

@@ -7,9 +7,11 @@
 //! level, `Billboard`, `Anchor`, `Collision`, `Inline`) lead further. `docs/vrml.md` lists how each
 //! node maps onto rtsl.
 
+use super::linear;
 use super::mesh::{self, FaceSet, Indexed};
 use super::nodes::{knows_field, node_type, Support};
 use super::parse::{Document, Value};
+pub use super::relative_path;
 use super::{
     check_header, location, read_text, Loc, NodeRef, Placed, Viewpoint, VrmlError, VrmlOptions, VrmlScene,
     MAX_INLINE_DEPTH, MAX_PROTO_DEPTH, MAX_VRML_NESTING, VRML_EAR_CLIP_BUDGET, VRML_TRAVERSAL_BUDGET,
@@ -125,11 +127,6 @@ fn with_builder<T>(rt: &mut Context, scene: &mut VrmlScene, f: impl FnOnce(&mut 
     result
 }
 
-/// How VRML's colours (display values, as browsers light them) become linear rtsl colours.
-pub(super) fn linear(c: Vec3) -> [f32; 3] {
-    c.to_array().map(|v| srgb_to_linear(v.clamp(0.0, 1.0)))
-}
-
 /// A texture an appearance names: its name for the shader, whether its colour replaces the
 /// diffuse colour (RGB) or modulates it (intensity), and whether it has alpha.
 #[derive(Clone, Debug, PartialEq)]
@@ -168,6 +165,8 @@ struct Builder<'a> {
     pixel_textures: usize,
     /// What is left of [`VRML_EAR_CLIP_BUDGET`].
     ear_clip_budget: usize,
+    /// The Inline files that are VRML 1.0 (read by `super::v1` each time they are inlined).
+    v1_files: HashSet<PathBuf>,
 }
 
 type Result<T> = std::result::Result<T, SceneFileError>;
@@ -197,6 +196,7 @@ impl<'a> Builder<'a> {
             fog_bound: false,
             pixel_textures: kept.pixel_textures,
             ear_clip_budget: VRML_EAR_CLIP_BUDGET,
+            v1_files: HashSet::new(),
         }
     }
 
@@ -641,10 +641,34 @@ impl<'a> Builder<'a> {
         if self.inlines.len() > MAX_INLINE_DEPTH {
             return Err(self.error(r.doc, loc, format!("Inline files nest deeper than {MAX_INLINE_DEPTH} levels")));
         }
-        let doc = match self.canonical.iter().position(|c| c.as_ref() == Some(&canonical)) {
-            Some(doc) => doc,
-            None => {
+        let known = self.canonical.iter().position(|c| c.as_ref() == Some(&canonical));
+        let doc = match known {
+            Some(doc) if !self.v1_files.contains(&canonical) => doc,
+            _ => {
                 let text = read_text(&path)?;
+                if super::is_vrml1(&text) {
+                    // A VRML 1.0 file: built by its own reader under this Inline's matrix.
+                    self.v1_files.insert(canonical.clone());
+                    self.inlines.push(canonical);
+                    trail.push(r);
+                    let scene = std::mem::take(&mut self.scene);
+                    let mut inlined = super::v1::Inlined {
+                        scene,
+                        world,
+                        path: trail.clone(),
+                        depth: depth + 1,
+                        visits: self.visits,
+                        ear_clip_budget: self.ear_clip_budget,
+                    };
+                    let result = super::v1::build_into(self.rt, &text, &path, self.surface.as_deref(), &mut inlined);
+                    self.scene = inlined.scene;
+                    (self.visits, self.ear_clip_budget) = (inlined.visits, inlined.ear_clip_budget);
+                    self.files.push(Arc::from(path.as_path()));
+                    self.canonical.push(None);
+                    trail.pop();
+                    self.inlines.pop();
+                    return result;
+                }
                 self.add_document(&path, &text)?
             }
         };
@@ -682,7 +706,13 @@ impl<'a> Builder<'a> {
             self.camera_bound = true;
             self.rt.camera_look_at(eye, eye + forward, up, field_of_view.to_degrees());
         }
-        self.scene.viewpoints.push(Placed { made: view, node: r, path: trail.to_vec(), world });
+        self.scene.viewpoints.push(Placed {
+            made: view,
+            node: r,
+            path: trail.to_vec(),
+            world,
+            local: Affine3A::IDENTITY,
+        });
     }
 
     fn background(&mut self, r: NodeRef) -> Result<()> {
@@ -822,7 +852,13 @@ impl<'a> Builder<'a> {
             if !on {
                 self.rt.set_light(id, false, true)?;
             }
-            self.scene.lights.push(Placed { made: id, node: r, path: trail.to_vec(), world });
+            self.scene.lights.push(Placed {
+                made: id,
+                node: r,
+                path: trail.to_vec(),
+                world,
+                local: Affine3A::IDENTITY,
+            });
         }
         Ok(())
     }
@@ -874,7 +910,13 @@ impl<'a> Builder<'a> {
             self.scene.bounds.0 = self.scene.bounds.0.min(w);
             self.scene.bounds.1 = self.scene.bounds.1.max(w);
         }
-        self.scene.shapes.push(Placed { made: instance, node: r, path: trail.to_vec(), world });
+        self.scene.shapes.push(Placed {
+            made: instance,
+            node: r,
+            path: trail.to_vec(),
+            world,
+            local: Affine3A::IDENTITY,
+        });
         self.scene.shape_objects.push(id);
         Ok(())
     }
@@ -1455,31 +1497,6 @@ fn to_rtsl_uvs(mut m: Mesh) -> Mesh {
         }
     }
     m
-}
-
-/// A URL as a path relative to the including file's folder, or why it is refused: one with a
-/// scheme, an absolute path, or one that climbs out of the folder with `..`. A fragment (`#...`)
-/// is dropped, `%XX` escapes decoded.
-pub fn relative_path(url: &str) -> std::result::Result<PathBuf, &'static str> {
-    let url = url.split('#').next().unwrap_or("").replace('\\', "/");
-    let url = url.as_str();
-    if url.is_empty() {
-        return Err("is empty");
-    }
-    // A scheme: letters, digits, `+`, `-`, `.` before a colon (a drive letter too).
-    if let Some((scheme, _)) = url.split_once(':') {
-        if !scheme.is_empty() && scheme.chars().all(|c| c.is_ascii_alphanumeric() || matches!(c, '+' | '-' | '.')) {
-            return Err("has a scheme; only relative file paths are read");
-        }
-    }
-    use crate::scene_file::{decode_relative_path, PathRefusal};
-    match decode_relative_path(url) {
-        Ok(path) => Ok(path),
-        Err(PathRefusal::MalformedEscape) => Err("has a malformed %-escape"),
-        Err(PathRefusal::NotUtf8) => Err("does not decode to UTF-8"),
-        Err(PathRefusal::LeavesFolder) => Err("climbs out of the including file's folder with `..`"),
-        Err(PathRefusal::Absolute) => Err("is an absolute path; only paths relative to the including file are read"),
-    }
 }
 
 #[cfg(test)]

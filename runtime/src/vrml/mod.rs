@@ -124,8 +124,12 @@ pub struct Placed<T> {
     /// The grouping nodes from a file's top to it (Transforms, Groups, Inlines, ...): a Transform's
     /// change moves what lies under it.
     pub path: Vec<NodeRef>,
-    /// The world-from-local matrix it was placed with (the Transforms along `path` multiplied).
+    /// The world-from-local matrix it was placed with: the Transforms along `path` multiplied,
+    /// then `local`.
     pub world: Affine3A,
+    /// The matrix below `path`'s Transforms: a VRML 1.0 file's own transforms (identity for a
+    /// VRML 97 node).
+    pub local: Affine3A,
 }
 
 /// A Viewpoint as read.
@@ -259,6 +263,36 @@ pub fn check_header(file: &Arc<Path>, text: &str) -> Result<Option<RibDiagnostic
         &location(file, at),
         "no `#VRML V2.0 utf8` header line; the file is read as VRML 97",
     )))
+}
+
+/// How VRML's colours (display values, as browsers light them) become linear rtsl colours.
+pub(crate) fn linear(c: glam::Vec3) -> [f32; 3] {
+    c.to_array().map(|v| crate::texture::srgb_to_linear(v.clamp(0.0, 1.0)))
+}
+
+/// A URL as a path relative to the including file's folder, or why it is refused: one with a
+/// scheme, an absolute path, or one that climbs out of the folder with `..`. A fragment (`#...`)
+/// is dropped, `%XX` escapes decoded.
+pub fn relative_path(url: &str) -> std::result::Result<PathBuf, &'static str> {
+    let url = url.split('#').next().unwrap_or("").replace('\\', "/");
+    let url = url.as_str();
+    if url.is_empty() {
+        return Err("is empty");
+    }
+    // A scheme: letters, digits, `+`, `-`, `.` before a colon (a drive letter too).
+    if let Some((scheme, _)) = url.split_once(':') {
+        if !scheme.is_empty() && scheme.chars().all(|c| c.is_ascii_alphanumeric() || matches!(c, '+' | '-' | '.')) {
+            return Err("has a scheme; only relative file paths are read");
+        }
+    }
+    use crate::scene_file::{decode_relative_path, PathRefusal};
+    match decode_relative_path(url) {
+        Ok(path) => Ok(path),
+        Err(PathRefusal::MalformedEscape) => Err("has a malformed %-escape"),
+        Err(PathRefusal::NotUtf8) => Err("does not decode to UTF-8"),
+        Err(PathRefusal::LeavesFolder) => Err("climbs out of the including file's folder with `..`"),
+        Err(PathRefusal::Absolute) => Err("is an absolute path; only paths relative to the including file are read"),
+    }
 }
 
 /// Whether `path` names a VRML file by its extension: `.wrl`, `.wrz`, `.wrl.gz` (any case).

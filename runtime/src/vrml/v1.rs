@@ -13,13 +13,12 @@
 //! is a [`VrmlError`] with file, line and column, a node or field not read is one warning per type
 //! or field.
 
-use super::build::{linear, relative_path};
 use super::lex::{Lexer, Tok, Token};
 use super::mesh::{self, FaceSet, Indexed};
 use super::parse::NodeId;
 use super::{
-    location, Loc, NodeRef, Placed, Viewpoint, VrmlError, VrmlOptions, VrmlScene, MAX_VRML_NESTING, MAX_VRML_NODES,
-    VRML_EAR_CLIP_BUDGET, VRML_TRAVERSAL_BUDGET,
+    linear, location, relative_path, Loc, NodeRef, Placed, Viewpoint, VrmlError, VrmlOptions, VrmlScene,
+    MAX_VRML_NESTING, MAX_VRML_NODES, VRML_EAR_CLIP_BUDGET, VRML_TRAVERSAL_BUDGET,
 };
 use crate::api::{Context, ShaderId};
 use crate::geometry::Mesh;
@@ -310,37 +309,82 @@ type Result<T> = std::result::Result<T, SceneFileError>;
 /// Reads VRML 1.0 text into `rt`; `path` names it in messages, and texture file names are
 /// resolved against its folder.
 pub fn build_str_with(rt: &mut Context, text: &str, path: &Path, options: &VrmlOptions) -> Result<VrmlScene> {
+    let scene = VrmlScene { bounds: (Vec3A::INFINITY, Vec3A::NEG_INFINITY), ..VrmlScene::default() };
+    let mut top = Inlined {
+        scene,
+        world: Affine3A::IDENTITY,
+        path: Vec::new(),
+        depth: 0,
+        visits: 0,
+        ear_clip_budget: VRML_EAR_CLIP_BUDGET,
+    };
+    build_into(rt, text, path, options.surface.as_deref(), &mut top)?;
+    Ok(top.scene)
+}
+
+/// Where a VRML 1.0 file is read into: a scene (its own, or the VRML 97 scene that inlines it)
+/// under a matrix, and what is left of the walk's budgets.
+pub struct Inlined {
+    pub scene: VrmlScene,
+    /// The matrix of the Transforms above the file.
+    pub world: Affine3A,
+    /// The VRML 97 nodes above it (its Inline among them): its shapes move with their Transforms.
+    pub path: Vec<NodeRef>,
+    pub depth: usize,
+    pub visits: usize,
+    pub ear_clip_budget: usize,
+}
+
+/// Reads VRML 1.0 text into `rt` and `into`: at the top (an empty path), with the camera and
+/// headlight of a scene on its own; inlined, without them (the including file binds those).
+pub fn build_into(rt: &mut Context, text: &str, path: &Path, surface: Option<&str>, into: &mut Inlined) -> Result<()> {
     let file: Arc<Path> = Arc::from(path);
     let doc = parse(text).map_err(|(loc, message)| SceneFileError::from(VrmlError::at(&file, loc, message)))?;
+    let top = into.path.is_empty();
+    into.scene.documents.push((path.to_path_buf(), super::parse::Document::default()));
     let mut b = Builder {
         rt,
         doc: &doc,
+        doc_index: into.scene.documents.len() - 1,
         file: file.clone(),
-        scene: VrmlScene { bounds: (Vec3A::INFINITY, Vec3A::NEG_INFINITY), ..VrmlScene::default() },
+        scene: std::mem::take(&mut into.scene),
         warned: HashSet::new(),
         shaders: HashMap::new(),
-        surface: options.surface.clone(),
-        visits: 0,
-        ear_clip_budget: VRML_EAR_CLIP_BUDGET,
-        camera_bound: false,
+        surface: surface.map(str::to_string),
+        visits: into.visits,
+        ear_clip_budget: into.ear_clip_budget,
+        camera_bound: !top,
         lights: 0,
+        world: into.world,
+        path: into.path.clone(),
     };
     for (loc, message) in &doc.warnings {
         b.scene.warnings.push(RibDiagnostic::warning(&location(&file, *loc), message.clone()));
     }
     let mut state = State::default();
+    let mut result = Ok(());
     for &root in &doc.roots {
-        b.visit(root, &mut state, 0)?;
+        result = b.visit(root, &mut state, into.depth);
+        if result.is_err() {
+            break;
+        }
     }
-    b.finish()?;
-    let mut scene = b.scene;
-    scene.documents.push((path.to_path_buf(), super::parse::Document::default()));
-    Ok(scene)
+    if result.is_ok() && top {
+        result = b.finish();
+    }
+    (into.visits, into.ear_clip_budget) = (b.visits, b.ear_clip_budget);
+    into.scene = b.scene;
+    result
 }
 
 struct Builder<'a> {
     rt: &'a mut Context,
     doc: &'a Document,
+    /// This file's entry in the scene's documents.
+    doc_index: usize,
+    /// The matrix above the file, and the VRML 97 nodes above it.
+    world: Affine3A,
+    path: Vec<NodeRef>,
     file: Arc<Path>,
     scene: VrmlScene,
     warned: HashSet<String>,
@@ -819,7 +863,7 @@ impl Builder<'_> {
             );
             return Ok(());
         }
-        let world = state.matrix;
+        let world = self.world * state.matrix;
         let det = world.matrix3.determinant();
         if !(world.is_finite() && det != 0.0 && det.is_finite() && world.inverse().is_finite()) {
             self.warn_once(
@@ -895,8 +939,9 @@ impl Builder<'_> {
             self.scene.bounds.0 = self.scene.bounds.0.min(w);
             self.scene.bounds.1 = self.scene.bounds.1.max(w);
         }
-        let node = NodeRef { doc: 0, node: n };
-        self.scene.shapes.push(Placed { made: instance, node, path: Vec::new(), world });
+        let node = NodeRef { doc: self.doc_index, node: n };
+        let path = self.path.clone();
+        self.scene.shapes.push(Placed { made: instance, node, path, world, local: state.matrix });
         self.scene.shape_objects.push(id);
         Ok(())
     }
@@ -905,7 +950,7 @@ impl Builder<'_> {
         let on = self.boolean(n, "on", true);
         let intensity = self.float(n, "intensity", 1.0).max(0.0);
         let color = linear(self.vec3(n, "color", Vec3::ONE));
-        let world = state.matrix;
+        let world = self.world * state.matrix;
         let mut params = vec![("intensity", ParamValue::Float(intensity)), ("lightcolor", ParamValue::Color(color))];
         let shader = match kind {
             "DirectionalLight" => {
@@ -952,14 +997,15 @@ impl Builder<'_> {
             self.rt.set_light(light, false, true)?;
         }
         self.lights += 1;
-        self.scene.lights.push(Placed { made: light, node: NodeRef { doc: 0, node: n }, path: Vec::new(), world });
+        let (node, path) = (NodeRef { doc: self.doc_index, node: n }, self.path.clone());
+        self.scene.lights.push(Placed { made: light, node, path, world, local: state.matrix });
         Ok(())
     }
 
     fn camera(&mut self, n: NodeId, kind: &str, state: &State) {
         let position = self.vec3(n, "position", Vec3::new(0.0, 0.0, 1.0));
         let orientation = self.rotation(n, "orientation");
-        let world = state.matrix;
+        let world = self.world * state.matrix;
         let eye = world.transform_point3a(Vec3A::from(position));
         let forward = world.transform_vector3a(Vec3A::from(orientation * Vec3::NEG_Z)).normalize_or(Vec3A::NEG_Z);
         let up = world.transform_vector3a(Vec3A::from(orientation * Vec3::Y)).normalize_or(Vec3A::Y);
@@ -982,7 +1028,8 @@ impl Builder<'_> {
             self.rt.camera_look_at(eye, eye + forward, up, fov.to_degrees());
         }
         let view = Viewpoint { description: String::new(), eye, forward, up, field_of_view: fov };
-        self.scene.viewpoints.push(Placed { made: view, node: NodeRef { doc: 0, node: n }, path: Vec::new(), world });
+        let (node, path) = (NodeRef { doc: self.doc_index, node: n }, self.path.clone());
+        self.scene.viewpoints.push(Placed { made: view, node, path, world, local: state.matrix });
     }
 
     /// A camera framing the scene when the file has none, and a headlight when it has no light
@@ -1085,6 +1132,40 @@ mod tests {
         let shown: Vec<String> = scene.warnings.iter().map(ToString::to_string).collect();
         assert_eq!(shown.len(), 1, "{shown:?}");
         assert!(shown[0].starts_with("v1.wrl:10:14: warning: IndexedLineSet is not drawn"), "{shown:?}");
+    }
+
+    #[test]
+    fn a_vrml97_file_inlines_a_vrml1_file_and_moves_it() {
+        let dir = tempfile::tempdir().expect("a temporary directory");
+        std::fs::write(
+            dir.path().join("old.wrl"),
+            "#VRML V1.0 ascii\nSeparator { Translation { translation 0 2 0 } Cube { } }",
+        )
+        .expect("written");
+        let main = dir.path().join("main.wrl");
+        std::fs::write(
+            &main,
+            "#VRML V2.0 utf8
+             DEF T Transform { translation 5 0 0 children Inline { url \"old.wrl\" } }
+             DEF P PositionInterpolator { key [0 1] keyValue [0 0 0, 0 0 10] }
+             DEF C TimeSensor { loop TRUE }
+             ROUTE C.fraction_changed TO P.set_fraction
+             ROUTE P.value_changed TO T.set_translation",
+        )
+        .expect("written");
+        let mut rt = Context::new();
+        let mut scene = crate::vrml::load_file(&mut rt, &main).unwrap_or_else(|e| panic!("{e}"));
+        assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
+        assert_eq!(scene.files().len(), 2);
+        assert_eq!(scene.shapes.len(), 1);
+        assert_eq!(scene.shapes[0].world.translation, Vec3A::new(5.0, 2.0, 0.0));
+        // The Transform above the Inline moves the VRML 1.0 shape, its own translation kept.
+        scene.advance_to(0.5, &mut rt).expect("runs");
+        let m = rt.instance_transform(scene.shapes[0].made).expect("placed");
+        assert_eq!(m.translation, Vec3A::new(0.0, 2.0, 5.0));
+        rt.options.width = 8;
+        rt.options.height = 8;
+        rt.render_frame().expect("renders");
     }
 
     #[test]
