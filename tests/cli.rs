@@ -1225,3 +1225,40 @@ fn vrml_animation_renders_times_and_frame_ranges() {
     let o = rtsl(&["render", "move.wrl", "--frames", "3..1"], dir.path());
     assert_eq!(o.status.code(), Some(2));
 }
+
+/// The MGF office of `../shared/scenes/office_mgf_vrml1/` (VRML 1.0: 301 Separators, a
+/// MatrixTransform, per-vertex normals, clockwise faces): on its own, framed, and inlined by a
+/// VRML 97 file that gives it the reference screenshot's viewpoint and lights.
+#[test]
+fn the_vrml1_office_renders_on_its_own_and_inlined() {
+    let office = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes/office_mgf_vrml1/office.wrl");
+    if !office.is_file() {
+        eprintln!("SKIPPED: {} is not here (the shared scenes are not checked out)", office.display());
+        return;
+    }
+    let dir = tempfile::tempdir().expect("tempdir");
+    let o = rtsl(&["render", &office.to_string_lossy(), "--size", "48x27", "-o", "alone.png"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(stdout(&o).contains("299 instances"), "{}", stdout(&o));
+    std::fs::copy(&office, dir.path().join("office.wrl")).expect("copied");
+    write(
+        dir.path(),
+        "final.wrl",
+        "#VRML V2.0 utf8
+NavigationInfo { headlight FALSE }
+PointLight { location 0.136 2.596 6.522 }
+PointLight { location -1.848 2.173 0.326 color 1 1 0 intensity 0.5 }
+Viewpoint { position 2.194 2.534 0.678 orientation 0 1 0 1.786 }
+Inline { url \"office.wrl\" }
+",
+    );
+    let o = rtsl(&["render", "final.wrl", "--size", "48x27", "-o", "final.png"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let image = rtsl::runtime::read_image(&dir.path().join("final.png")).expect("a PNG");
+    // The room from inside: walls, desk and chairs fill the view but for the window on the left,
+    // and the lights light them.
+    let opaque = image.pixels.chunks_exact(4).filter(|p| p[3] > 0.99).count();
+    assert!(opaque > 48 * 27 * 7 / 10 && opaque < 48 * 27, "{opaque} pixels see the room");
+    let lit = image.pixels.chunks_exact(4).filter(|p| p[0] + p[1] + p[2] > 0.3).count();
+    assert!(lit > 48 * 27 / 4, "{lit} lit pixels");
+}

@@ -810,3 +810,71 @@ fn vrml_animated_frame_matches_its_reference() {
     let (fb, _) = render_frame(&world, None);
     check("vrml_animated", &fb.rgba).unwrap_or_else(|e| panic!("{e}"));
 }
+
+/// A VRML 1.0 scene (`docs/vrml.md`, *VRML 1.0*): Separators keeping their state, a
+/// PerspectiveCamera, a PointLight and a DirectionalLight, a Material of three values bound per
+/// face to a face set, one bound per vertex to another, the four primitives (a Cylinder without its
+/// top), a MatrixTransform, clockwise faces and a USE of a Separator.
+const VRML1_SHAPES: &str = r#"#VRML V1.0 ascii
+Separator {
+  PerspectiveCamera { position 0 1.4 7 orientation 1 0 0 -0.2 heightAngle 0.7 }
+  PointLight { location 3 4 4 intensity 0.8 }
+  DirectionalLight { direction -0.3 -1 -0.5 intensity 0.4 }
+  Separator {
+    Material { diffuseColor 0.7 0.7 0.7 }
+    Translation { translation 0 -1.1 0 }
+    Cube { width 9 height 0.2 depth 6 }
+  }
+  DEF Ball Separator {
+    Translation { translation -2.4 0 0 }
+    Material { diffuseColor 0.9 0.2 0.1 specularColor 0.5 0.5 0.5 shininess 0.4 }
+    Sphere { radius 0.8 }
+  }
+  Separator {
+    Translation { translation -0.8 0 0 }
+    Rotation { rotation 0 1 0 0.5 }
+    Material { diffuseColor 0.2 0.5 0.9 }
+    Cylinder { parts (SIDES | BOTTOM) radius 0.5 height 1.6 }
+  }
+  Separator {
+    MatrixTransform { matrix 1 0 0 0  0 1 0 0  0 0 1 0  0.8 -0.2 0.3 1 }
+    Material { diffuseColor 0.2 0.8 0.3 }
+    Cone { bottomRadius 0.6 height 1.4 }
+  }
+  Separator {
+    Translation { translation 2.4 -0.5 0 }
+    Material { diffuseColor [ 1 0.2 0.2, 0.2 1 0.2, 0.2 0.2 1 ] }
+    MaterialBinding { value PER_FACE_INDEXED }
+    ShapeHints { vertexOrdering CLOCKWISE creaseAngle 0 }
+    Coordinate3 { point [ -0.6 0 0.6, 0.6 0 0.6, 0.6 0 -0.6, -0.6 0 -0.6, 0 1.2 0 ] }
+    IndexedFaceSet { coordIndex [ 0 4 1 -1  1 4 2 -1  2 4 3 -1  3 4 0 -1 ] materialIndex [ 0 1 2 1 ] }
+  }
+  Separator {
+    Translation { translation 0 -0.99 2 }
+    Material { diffuseColor [ 1 0 0, 1 1 0, 0 1 0, 0 0 1 ] }
+    MaterialBinding { value PER_VERTEX_INDEXED }
+    Coordinate3 { point [ -1 0 0, 0 0 -0.8, 1 0 0, 0 0 0.8 ] }
+    IndexedFaceSet { coordIndex [ 0 3 2 1 -1 ] materialIndex [ 0 3 2 1 -1 ] }
+  }
+  Translation { translation 4.4 1.6 -1 }
+  USE Ball
+}
+"#;
+
+#[test]
+fn vrml1_shapes_match_their_reference() {
+    let mut rt = Context::new();
+    let file = golden_dir().join("vrml1_shapes.wrl");
+    let scene = rtsl_runtime::vrml::v1::build_str_with(&mut rt, VRML1_SHAPES, &file, &Default::default())
+        .unwrap_or_else(|e| panic!("{e}"));
+    let shown: Vec<String> = scene.warnings.iter().map(|w| w.to_string()).collect();
+    assert_eq!(shown.len(), 1, "{shown:?}");
+    assert!(shown[0].contains("lights the whole scene"), "{shown:?}");
+    assert_eq!(scene.shapes.len(), 7);
+    rt.options.width = W;
+    rt.options.height = H;
+    rt.options.samples = (2, 2);
+    let world = rt.build_world().unwrap_or_else(|e| panic!("{e}"));
+    let (fb, _) = render_frame(&world, None);
+    check("vrml1_shapes", &fb.rgba).unwrap_or_else(|e| panic!("{e}"));
+}

@@ -282,7 +282,8 @@ struct State {
     normal_binding: Binding,
     coords: Arc<Vec<Vec3>>,
     tex_coords: Arc<Vec<Vec2>>,
-    texture: Option<String>,
+    /// The texture's name and whether it repeats along s and t.
+    texture: Option<(String, bool, bool)>,
     ccw: bool,
     crease_angle: f32,
 }
@@ -396,44 +397,44 @@ struct Builder<'a> {
     lights: usize,
 }
 
-/// The node types this reader knows: read, or skipped with a warning saying so.
-const KNOWN: &[&str] = &[
-    "AsciiText",
-    "Cone",
-    "Coordinate3",
-    "Cube",
-    "Cylinder",
-    "DirectionalLight",
-    "FontStyle",
-    "Group",
-    "IndexedFaceSet",
-    "IndexedLineSet",
-    "Info",
-    "LOD",
-    "Material",
-    "MaterialBinding",
-    "MatrixTransform",
-    "Normal",
-    "NormalBinding",
-    "OrthographicCamera",
-    "PerspectiveCamera",
-    "PointLight",
-    "PointSet",
-    "Rotation",
-    "Scale",
-    "Separator",
-    "ShapeHints",
-    "Sphere",
-    "SpotLight",
-    "Switch",
-    "Texture2",
-    "Texture2Transform",
-    "TextureCoordinate2",
-    "Transform",
-    "TransformSeparator",
-    "Translation",
-    "WWWAnchor",
-    "WWWInline",
+/// The VRML 1.0 node types and their fields: read, or skipped with a warning saying so.
+const NODE_TYPES: &[(&str, &[&str])] = &[
+    ("AsciiText", &["string", "spacing", "justification", "width"]),
+    ("Cone", &["parts", "bottomRadius", "height"]),
+    ("Coordinate3", &["point"]),
+    ("Cube", &["width", "height", "depth"]),
+    ("Cylinder", &["parts", "radius", "height"]),
+    ("DirectionalLight", &["on", "intensity", "color", "direction"]),
+    ("FontStyle", &["size", "family", "style"]),
+    ("Group", &[]),
+    ("IndexedFaceSet", &["coordIndex", "materialIndex", "normalIndex", "textureCoordIndex"]),
+    ("IndexedLineSet", &["coordIndex", "materialIndex", "normalIndex", "textureCoordIndex"]),
+    ("Info", &["string"]),
+    ("LOD", &["range", "center"]),
+    ("Material", &["ambientColor", "diffuseColor", "specularColor", "emissiveColor", "shininess", "transparency"]),
+    ("MaterialBinding", &["value"]),
+    ("MatrixTransform", &["matrix"]),
+    ("Normal", &["vector"]),
+    ("NormalBinding", &["value"]),
+    ("OrthographicCamera", &["position", "orientation", "focalDistance", "height"]),
+    ("PerspectiveCamera", &["position", "orientation", "focalDistance", "heightAngle"]),
+    ("PointLight", &["on", "intensity", "color", "location"]),
+    ("PointSet", &["startIndex", "numPoints"]),
+    ("Rotation", &["rotation"]),
+    ("Scale", &["scaleFactor"]),
+    ("Separator", &["renderCulling"]),
+    ("ShapeHints", &["vertexOrdering", "shapeType", "faceType", "creaseAngle"]),
+    ("Sphere", &["radius"]),
+    ("SpotLight", &["on", "intensity", "color", "location", "direction", "dropOffRate", "cutOffAngle"]),
+    ("Switch", &["whichChild"]),
+    ("Texture2", &["filename", "image", "wrapS", "wrapT"]),
+    ("Texture2Transform", &["translation", "rotation", "scaleFactor", "center"]),
+    ("TextureCoordinate2", &["point"]),
+    ("Transform", &["translation", "rotation", "scaleFactor", "scaleOrientation", "center"]),
+    ("TransformSeparator", &[]),
+    ("Translation", &["translation"]),
+    ("WWWAnchor", &["name", "description", "map"]),
+    ("WWWInline", &["name", "bboxSize", "bboxCenter"]),
 ];
 
 impl Builder<'_> {
@@ -556,6 +557,23 @@ impl Builder<'_> {
         }
         let type_name = node.type_name.clone();
         let children = node.children.clone();
+        // Fields the type does not have (`fields` declares an extension node's own).
+        if let Some((_, known)) = NODE_TYPES.iter().find(|(t, _)| *t == type_name) {
+            let unknown: Vec<(String, Loc)> = node
+                .fields
+                .iter()
+                .filter(|(f, _, _)| !known.contains(&f.as_str()) && f != "fields")
+                .map(|(f, at, _)| (f.clone(), *at))
+                .collect();
+            for (field, at) in unknown {
+                self.warn_once(
+                    format!("field:{type_name}.{field}"),
+                    at,
+                    Severity::Warning,
+                    format!("{type_name} has no field `{field}`; it is ignored"),
+                );
+            }
+        }
         match type_name.as_str() {
             "Separator" => {
                 let mut inner = state.clone();
@@ -637,7 +655,10 @@ impl Builder<'_> {
                 let v = self.numbers(n, "point").unwrap_or_default();
                 state.tex_coords = Arc::new(v.chunks_exact(2).map(|c| Vec2::new(c[0], c[1])).collect());
             }
-            "Texture2" => state.texture = self.texture(n),
+            "Texture2" => {
+                let repeat = |b: &Self, f: &str| b.word(n, f).as_deref() != Some("CLAMP");
+                state.texture = self.texture(n).map(|t| (t, repeat(self, "wrapS"), repeat(self, "wrapT")));
+            }
             "ShapeHints" => {
                 if let Some(order) = self.word(n, "vertexOrdering") {
                     state.ccw = order != "CLOCKWISE";
@@ -681,7 +702,7 @@ impl Builder<'_> {
                 format!("{type_name} is not drawn; it is skipped"),
             ),
             other => {
-                let known = KNOWN.contains(&other);
+                let known = NODE_TYPES.iter().any(|(t, _)| *t == other);
                 self.warn_once(
                     format!("node:{other}"),
                     loc,
@@ -898,8 +919,10 @@ impl Builder<'_> {
             ("ambientintensity", ParamValue::Float(ambient_intensity(material))),
             ("transparency", ParamValue::Float(material.transparency)),
         ];
-        if let Some(t) = &state.texture {
+        if let Some((t, s, tt)) = &state.texture {
             params.push(("texturename", ParamValue::String(t.clone())));
+            params.push(("repeats", ParamValue::Float(if *s { 1.0 } else { 0.0 })));
+            params.push(("repeatt", ParamValue::Float(if *tt { 1.0 } else { 0.0 })));
         }
         let (lo, hi) =
             mesh.positions.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
@@ -1181,8 +1204,11 @@ mod tests {
         let deep = "Separator { ".repeat(200);
         assert!(err(&deep).contains("nest deeper"));
         // Unknown nodes are skipped with their children, warned once.
-        let (_, scene) = load("Frob { a 1 Cube { } } Frob { }");
-        assert_eq!(scene.shapes.len(), 0);
-        assert_eq!(scene.warnings.len(), 1);
+        let (_, scene) = load("Frob { a 1 Cube { } } Frob { }\nCube { wdth 3 } Cube { wdth 4 }");
+        assert_eq!(scene.shapes.len(), 2);
+        let shown: Vec<String> = scene.warnings.iter().map(ToString::to_string).collect();
+        assert_eq!(shown.len(), 2, "{shown:?}");
+        assert!(shown[0].starts_with("v1.wrl:2:1: warning: unknown node type Frob"), "{shown:?}");
+        assert!(shown[1].starts_with("v1.wrl:3:8: warning: Cube has no field `wdth`"), "{shown:?}");
     }
 }
