@@ -1,4 +1,4 @@
-//! Any scene file, its loader chosen by its extension: a RIB file (`.rib`), a VRML 97 file
+//! Any scene file, its loader chosen by its extension: a RIB file (`.rib`), a VRML 97 or 1.0 file
 //! (`.wrl`, gzip-compressed `.wrz` or `.wrl.gz`: [`crate::vrml`]), or a model file (`.obj`, `.ply`,
 //! `.gltf`, `.glb`) that gets a camera framing it and the default light rig
 //! ([`crate::scene_file`]).

@@ -1,12 +1,15 @@
-//! VRML 97 scenes (ISO/IEC 14772-1, `#VRML V2.0 utf8`): read into a [`Context`] as a still scene.
+//! VRML 97 scenes (ISO/IEC 14772-1, `#VRML V2.0 utf8`): read into a [`Context`], and animated
+//! through it; VRML 1.0 scenes ([`v1`]) too.
 //!
 //! The reader is ours: no maintained Rust crate reads VRML 97 (crates.io has none that parses the
 //! whole grammar: PROTO, IS, EXTERNPROTO, ROUTE), and the grammar is small. [`lex`] splits the
 //! text into tokens, [`parse`] builds a [`parse::Document`] (an arena of nodes with their file
 //! locations, `DEF`/`USE` sharing one node, PROTO instances expanded in place), and [`build`]
 //! walks the scene graph from the file's top-level nodes and makes objects, instances, lights,
-//! the camera and the background through the [`Context`] API. `docs/vrml.md` says what is read
-//! and how VRML maps onto rtsl.
+//! the camera and the background through the [`Context`] API. [`events`] runs the ROUTEs,
+//! TimeSensors and interpolators on the documents, and [`animate`] shows what they change
+//! ([`VrmlScene::advance_to`]). [`load_file`] reads a VRML 1.0 file with [`v1`], chosen by its
+//! header. `docs/vrml.md` says what is read and how VRML maps onto rtsl.
 //!
 //! Invariants:
 //! - bad input never panics, hangs or exhausts memory: a syntax error is a [`VrmlError`] with file,
@@ -19,10 +22,11 @@
 //! - a node or field the reader does not support is skipped with one warning per node type or field
 //!   name, at its first place (`file:line:column`); a value of the wrong type is a warning and the
 //!   field keeps its default;
-//! - the scene graph stays addressable for animation to come: [`VrmlScene`] keeps the parsed
-//!   documents (`DEF` names, every node's fields), and each placed shape, light and viewpoint
-//!   records the nodes it was reached through ([`Placed::path`]), so that a changed Transform can
-//!   move the instances under it ([`Context::set_instance_transform`]);
+//! - the scene graph stays addressable for animation: [`VrmlScene`] keeps the parsed documents
+//!   (`DEF` names, every node's fields), and each placed shape, light and viewpoint records the
+//!   nodes it was reached through ([`Placed::path`]), so that a changed Transform moves the
+//!   instances under it ([`Context::set_instance_transform`]); an eventOut sends at most once per
+//!   timestamp and a timestamp's cascade is bounded ([`events::VRML_EVENT_BUDGET`]);
 //! - a geometry node reached again (`USE`, or a group used twice) with the same appearance is one
 //!   object, instanced again, never a copy;
 //! - Inline URLs are relative paths inside the including file's folder; absolute ones, ones that
