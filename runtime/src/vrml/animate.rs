@@ -6,7 +6,9 @@
 //!   instance, and a later one that makes it visible places a new one;
 //! - a Material's, Coordinate's, Normal's or Color's new fields build the objects that use them
 //!   again ([`Context::redefine_object`]), with the shader parameters and mesh they now give;
-//! - a light's `on` switches it ([`Context::set_light`]).
+//! - a light's `on` switches it ([`Context::set_light`]);
+//! - a Switch's `whichChoice` shows the shapes of the choice it names and hides the others' (a
+//!   Switch that a ROUTE reaches has every choice placed at load, those not chosen hidden).
 //!
 //! Lights and Viewpoints under a moving Transform stay where they were placed (a warning).
 //! [`VrmlScene::touch`] is a click on a shape: the TouchSensors of the innermost group above it
@@ -93,15 +95,24 @@ impl VrmlScene {
                 .is_some_and(|n| n.type_name == t)
         };
         let moved: BTreeSet<NodeRef> = dirty.iter().filter(|r| is_type(self, r, "Transform")).copied().collect();
+        let switched: BTreeSet<NodeRef> = dirty.iter().filter(|r| is_type(self, r, "Switch")).copied().collect();
         let mut changed = false;
-        if !moved.is_empty() {
+        if !moved.is_empty() || !switched.is_empty() {
             for i in 0..self.shapes.len() {
-                if !self.shapes[i].path.iter().any(|g| moved.contains(g)) {
+                let path = &self.shapes[i].path;
+                let (is_moved, is_switched) =
+                    (path.iter().any(|g| moved.contains(g)), path.iter().any(|g| switched.contains(g)));
+                if !is_moved && !is_switched {
                     continue;
                 }
-                let path = self.shapes[i].path.clone();
-                let world = build::world_of(rt, self, &path) * self.shapes[i].local;
-                changed |= self.place(rt, i, world)?;
+                let world = if is_moved {
+                    let path = path.clone();
+                    build::world_of(rt, self, &path) * self.shapes[i].local
+                } else {
+                    self.shapes[i].world
+                };
+                let visible = self.chosen(i);
+                changed |= self.place(rt, i, world, visible)?;
             }
             for k in 0..self.lights.len().max(self.viewpoints.len()) {
                 let paths =
@@ -161,16 +172,40 @@ impl VrmlScene {
         Ok(changed)
     }
 
-    /// Places shape `i` with `world`: moves its instance, deletes it when `world` scales it to
-    /// nothing, places a new one when it was deleted so. Returns whether anything changed.
-    fn place(&mut self, rt: &mut Context, i: usize, world: Affine3A) -> Result<bool, SceneFileError> {
-        if world == self.shapes[i].world && !self.hidden_shapes.contains(&i) {
+    /// Whether the Switches above shape `i` choose the way to it.
+    fn chosen(&self, i: usize) -> bool {
+        let placed = &self.shapes[i];
+        for (k, g) in placed.path.iter().enumerate() {
+            let Some(node) = self.documents.get(g.doc).and_then(|(_, d)| d.nodes.get(g.node.0 as usize)) else {
+                continue;
+            };
+            if node.type_name != "Switch" {
+                continue;
+            }
+            let next = placed.path.get(k + 1).copied().unwrap_or(placed.node);
+            let which = match node.field("whichChoice").map(|f| &f.value) {
+                Some(Value::Numbers(n)) if n.len() == 1 => n[0],
+                _ => -1.0,
+            };
+            let position = children(&self.documents[g.doc].1, *g, "choice").position(|c| c == next);
+            if position.map(|p| p as f64) != Some(which) {
+                return false;
+            }
+        }
+        true
+    }
+
+    /// Places shape `i` with `world` when `visible`: moves its instance, deletes it when `world`
+    /// scales it to nothing or it is not visible, places a new one when it was deleted so.
+    /// Returns whether anything changed.
+    fn place(&mut self, rt: &mut Context, i: usize, world: Affine3A, visible: bool) -> Result<bool, SceneFileError> {
+        let hidden = self.hidden_shapes.contains(&i);
+        let det = world.matrix3.determinant();
+        let drawable = visible && world.is_finite() && det != 0.0 && det.is_finite() && world.inverse().is_finite();
+        if world == self.shapes[i].world && drawable != hidden {
             return Ok(false);
         }
         self.shapes[i].world = world;
-        let det = world.matrix3.determinant();
-        let drawable = world.is_finite() && det != 0.0 && det.is_finite() && world.inverse().is_finite();
-        let hidden = self.hidden_shapes.contains(&i);
         match (drawable, hidden) {
             (true, false) => rt.set_instance_transform(self.shapes[i].made, world)?,
             (false, false) => {
@@ -296,6 +331,27 @@ mod tests {
         assert!(rt.world_instance_ids().is_empty());
         scene.advance_to(0.75, &mut rt).expect("runs");
         assert_eq!(rt.world_instance_ids(), vec![scene.shapes[0].made]);
+        rt.render_frame().expect("renders");
+    }
+
+    #[test]
+    fn a_switch_that_routes_reach_shows_the_choice_it_names() {
+        // VRML 97's nodes send no SFInt32 event (only a Script would): the Switch's field is set
+        // here as a delivered event sets it.
+        let (mut rt, mut scene) = load(
+            "DEF Sw Switch { whichChoice 1 choice [ Shape { geometry Box {} } Shape { geometry Sphere {} } ] }
+             DEF S Script { eventOut SFInt32 choice }
+             ROUTE S.choice TO Sw.set_whichChoice",
+        );
+        assert_eq!(scene.shapes.len(), 2, "both choices are placed");
+        assert_eq!(rt.world_instance_ids(), vec![scene.shapes[1].made], "the sphere is chosen");
+        let switch = crate::vrml::NodeRef { doc: 0, node: scene.documents[0].1.defs["Sw"] };
+        let node = &mut scene.documents[0].1.nodes[switch.node.0 as usize];
+        node.fields.iter_mut().find(|f| f.name == "whichChoice").expect("written").value =
+            crate::vrml::parse::Value::Numbers(vec![0.0]);
+        scene.events.dirty.insert(switch);
+        assert!(scene.advance_to(0.0, &mut rt).expect("runs"));
+        assert_eq!(rt.world_instance_ids(), vec![scene.shapes[0].made], "the box is chosen");
         rt.render_frame().expect("renders");
     }
 

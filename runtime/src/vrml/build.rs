@@ -167,6 +167,9 @@ struct Builder<'a> {
     ear_clip_budget: usize,
     /// The Inline files that are VRML 1.0 (read by `super::v1` each time they are inlined).
     v1_files: HashSet<PathBuf>,
+    /// How many routed Switches above the node being walked do not choose it (its shapes are
+    /// placed hidden).
+    unchosen: usize,
 }
 
 type Result<T> = std::result::Result<T, SceneFileError>;
@@ -197,6 +200,7 @@ impl<'a> Builder<'a> {
             pixel_textures: kept.pixel_textures,
             ear_clip_budget: VRML_EAR_CLIP_BUDGET,
             v1_files: HashSet::new(),
+            unchosen: 0,
         }
     }
 
@@ -517,6 +521,23 @@ impl<'a> Builder<'a> {
             "Switch" => {
                 let which = self.int(r, "whichChoice", -1);
                 let choices = self.nodes(r, "choice");
+                // A Switch that a ROUTE can change has every choice placed, those not chosen
+                // hidden (their instances deleted) until it chooses them.
+                if self.is_routed_switch(r) {
+                    trail.push(r);
+                    for (k, choice) in choices.into_iter().enumerate() {
+                        let unchosen = usize::try_from(which).ok() != Some(k);
+                        self.unchosen += usize::from(unchosen);
+                        let result = self.visit(choice, world, trail, depth + 1);
+                        self.unchosen -= usize::from(unchosen);
+                        if result.is_err() {
+                            trail.pop();
+                            return result;
+                        }
+                    }
+                    trail.pop();
+                    return Ok(());
+                }
                 if let Some(&chosen) = usize::try_from(which).ok().and_then(|i| choices.get(i)) {
                     trail.push(r);
                     let result = self.visit(chosen, world, trail, depth + 1);
@@ -587,6 +608,16 @@ impl<'a> Builder<'a> {
                 Ok(())
             }
         }
+    }
+
+    /// Whether a ROUTE of `r`'s file sends `whichChoice` to the Switch `r`.
+    fn is_routed_switch(&self, r: NodeRef) -> bool {
+        let doc = self.doc(r.doc);
+        doc.routes.iter().any(|route| {
+            !route.in_proto
+                && doc.defs.get(&route.to.0) == Some(&r.node)
+                && matches!(route.to.1.as_str(), "whichChoice" | "set_whichChoice")
+        })
     }
 
     /// A Transform's matrix: `T C R SR S -SR -C` (ISO/IEC 14772-1, 6.52).
@@ -660,8 +691,15 @@ impl<'a> Builder<'a> {
                         visits: self.visits,
                         ear_clip_budget: self.ear_clip_budget,
                     };
+                    let before = inlined.scene.shapes.len();
                     let result = super::v1::build_into(self.rt, &text, &path, self.surface.as_deref(), &mut inlined);
                     self.scene = inlined.scene;
+                    if self.unchosen > 0 {
+                        for i in before..self.scene.shapes.len() {
+                            self.rt.delete_instance(self.scene.shapes[i].made)?;
+                            self.scene.hidden_shapes.insert(i);
+                        }
+                    }
                     (self.visits, self.ear_clip_budget) = (inlined.visits, inlined.ear_clip_budget);
                     self.files.push(Arc::from(path.as_path()));
                     self.canonical.push(None);
@@ -918,6 +956,10 @@ impl<'a> Builder<'a> {
             local: Affine3A::IDENTITY,
         });
         self.scene.shape_objects.push(id);
+        if self.unchosen > 0 {
+            self.rt.delete_instance(instance)?;
+            self.scene.hidden_shapes.insert(self.scene.shapes.len() - 1);
+        }
         Ok(())
     }
 

@@ -60,7 +60,7 @@ type Interface = &'static [(&'static str, Access, EventType)];
 const INTERPOLATOR_FRACTION: (&str, Access, EventType) = ("set_fraction", EventIn, SFFloat);
 
 /// The events of the node types this module runs: the animated fields of nodes the scene shows
-/// (Transform, Material, Coordinate, Normal, Color, the lights' `on`), the sensors and the
+/// (Transform, Material, Coordinate, Normal, Color, Switch, the lights' `on`), the sensors and the
 /// interpolators.
 fn interface(type_name: &str) -> Option<Interface> {
     Some(match type_name {
@@ -132,6 +132,7 @@ fn interface(type_name: &str) -> Option<Interface> {
         "Normal" => &[("vector", ExposedField, MFVec3f)],
         "Color" => &[("color", ExposedField, MFColor)],
         "PointLight" | "SpotLight" | "DirectionalLight" => &[("on", ExposedField, SFBool)],
+        "Switch" => &[("whichChoice", ExposedField, SFInt32)],
         _ => return None,
     })
 }
@@ -409,6 +410,11 @@ impl Events {
         let mut events = Events { files: files.to_vec(), ..Events::default() };
         for (d, (_, doc)) in documents.iter().enumerate() {
             for route in &doc.routes {
+                if route.in_proto {
+                    let key = format!("route:{d}:{}:{}", route.loc.line, route.loc.column);
+                    events.warn(d, route.loc, &key, "a ROUTE inside a PROTO body is not run".into());
+                    continue;
+                }
                 // A name no node has was warned about by the parser.
                 let (Some((from, from_node)), Some((to, to_node))) =
                     (def_type(doc, &route.from.0), def_type(doc, &route.to.0))
@@ -420,6 +426,11 @@ impl Events {
                 for (node, name) in [(from_node, &route.from.0), (to_node, &route.to.0)] {
                     if node.expansion.is_some() || node.extern_proto.is_some() {
                         problem = problem.or(Some(format!("{name} is a PROTO instance, whose events are not run")));
+                    }
+                }
+                for node in [from_node, to_node] {
+                    if node.type_name == "Script" {
+                        problem = problem.or(Some("Scripts are not run".to_string()));
                     }
                 }
                 let out = event_out(&from_node.type_name, &route.from.1);

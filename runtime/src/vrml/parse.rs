@@ -105,6 +105,8 @@ pub struct Route {
     pub from: (String, String),
     pub to: (String, String),
     pub loc: Loc,
+    /// Written inside a PROTO body (its names are the body's).
+    pub in_proto: bool,
 }
 
 /// A parsed file.
@@ -574,7 +576,8 @@ impl Parser<'_> {
                 self.doc.warnings.push((loc, format!("ROUTE names {name}, which no node is DEFined as before it")));
             }
         }
-        self.doc.routes.push(Route { from: (from_node, from_field), to: (to_node, to_field), loc });
+        let in_proto = self.scopes.len() > 1;
+        self.doc.routes.push(Route { from: (from_node, from_field), to: (to_node, to_field), loc, in_proto });
         Ok(())
     }
 
