@@ -1254,7 +1254,7 @@ Inline { url \"office.wrl\" }
     );
     let o = rtsl(&["render", "final.wrl", "--size", "48x27", "-o", "final.png"], dir.path());
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-    let image = rtsl::runtime::read_image(&dir.path().join("final.png")).expect("a PNG");
+    let image = rtsl::runtime::read_image(dir.path().join("final.png")).expect("a PNG");
     // The room from inside: walls, desk and chairs fill the view but for the window on the left,
     // and the lights light them.
     let opaque = image.pixels.chunks_exact(4).filter(|p| p[3] > 0.99).count();

@@ -307,7 +307,7 @@ ROUTE P.value_changed TO T.set_translation
         args.extend_from_slice(extra);
         let o = view(&x.display, dir.path(), &args);
         assert!(o.status.success(), "rtsl view {args:?}: {}", String::from_utf8_lossy(&o.stderr));
-        let img = rtsl::runtime::read_image(&dir.path().join(name)).expect("the screenshot is a PNG");
+        let img = rtsl::runtime::read_image(dir.path().join(name)).expect("the screenshot is a PNG");
         Shot { width: img.width, height: img.height, rgba: img.pixels }
     };
     let start = shot("start.png", &[]);
