@@ -12,7 +12,7 @@
 //!
 //! Lights and Viewpoints under a moving Transform stay where they were placed (a warning).
 //! [`VrmlScene::touch`] is a click on a shape: the TouchSensors of the innermost group above it
-//! that has any send `touchTime`.
+//! that has any send `isActive` (TRUE, then FALSE) and `touchTime`.
 
 use super::events::EventValue;
 use super::parse::Value;
@@ -41,8 +41,8 @@ impl VrmlScene {
     }
 
     /// A click at `time` on `instance`: the enabled TouchSensors of the innermost group above its
-    /// Shape that has any (the file's top level counting as a group) send `touchTime`, and what
-    /// that starts is shown. Returns whether `rt`'s scene changed.
+    /// Shape that has any (the file's top level counting as a group) send `isActive` TRUE (the
+    /// press), then `isActive` FALSE and `touchTime` (the release), and what that starts is shown. Returns whether `rt`'s scene changed.
     pub fn touch(&mut self, instance: InstanceId, time: f64, rt: &mut Context) -> Result<bool, SceneFileError> {
         let Some(shape) = self.shapes.iter().position(|p| p.made == instance) else { return Ok(false) };
         let placed = &self.shapes[shape];
@@ -66,8 +66,14 @@ impl VrmlScene {
             if sensors.is_empty() {
                 continue;
             }
+            // The press, then the release over the shape (6.48): isActive TRUE, then isActive FALSE
+            // with touchTime, each press and release its own cascade.
+            for &s in &sensors {
+                self.events.send(&mut self.documents, s, vec![("isActive", EventValue::Bool(true))], time);
+            }
             for s in sensors {
-                self.events.send(&mut self.documents, s, vec![("touchTime", EventValue::Time(time))], time);
+                let release = vec![("isActive", EventValue::Bool(false)), ("touchTime", EventValue::Time(time))];
+                self.events.send(&mut self.documents, s, release, time);
             }
             return self.apply(rt);
         }
@@ -364,7 +370,9 @@ mod tests {
              DEF C TimeSensor { cycleInterval 2 }
              ROUTE Touch.touchTime TO C.startTime
              ROUTE C.fraction_changed TO P.set_fraction
-             ROUTE P.value_changed TO T.translation",
+             ROUTE P.value_changed TO T.translation
+             DEF L PointLight { on FALSE }
+             ROUTE Touch.isActive TO L.on",
         );
         let (boxed, sphere) = (scene.shapes[0].made, scene.shapes[1].made);
         scene.advance_to(1.0, &mut rt).expect("runs");
@@ -372,6 +380,10 @@ mod tests {
         scene.advance_to(2.0, &mut rt).expect("runs");
         assert_eq!(rt.instance_transform(boxed).expect("placed").translation.y, 0.0);
         scene.touch(boxed, 2.0, &mut rt).expect("runs");
+        // The press switched the light on, the release off again.
+        let lamp = &scene.documents[0].1.nodes[scene.documents[0].1.defs["L"].0 as usize];
+        assert_eq!(lamp.field("on").map(|f| &f.value), Some(&crate::vrml::parse::Value::Bools(vec![false])));
+        assert!(scene.events.dirty.is_empty(), "shown");
         scene.advance_to(3.0, &mut rt).expect("runs");
         assert!((rt.instance_transform(boxed).expect("placed").translation.y - 2.0).abs() < 1e-5);
     }
