@@ -164,6 +164,11 @@ pub struct BenchRenderArgs {
     /// Timed frames (after one untimed warm-up frame); the median is reported.
     #[arg(long, default_value_t = 10)]
     pub frames: usize,
+    /// Of a VRML scene, play its animation at this many frames per second of its time: each frame
+    /// advances it (`VrmlScene::advance_to`) and rebuilds the world before rendering, and the
+    /// update's time is reported apart.
+    #[arg(long, value_name = "FPS")]
+    pub animate: Option<f64>,
     /// Worker threads (0: one per core).
     #[arg(long, default_value_t = 2)]
     pub threads: usize,
@@ -229,6 +234,9 @@ fn print_rate(args: &BenchRenderArgs, world: &rtsl_runtime::render::World, who: 
 /// Runs `rtsl bench render`: frames per second and rays per second of a scene, and with
 /// `--native-plastic` the JIT frame time over the hand-written one, measured in one run.
 pub fn run_render(args: &BenchRenderArgs) -> anyhow::Result<()> {
+    if let Some(fps) = args.animate {
+        return run_render_animated(args, fps);
+    }
     let load = || -> anyhow::Result<rtsl_runtime::api::Context> {
         let options = rtsl_runtime::LoadOptions { vrml_surface: args.vrml_surface.clone() };
         let (mut rt, _) = super::render::load_scene_frame(args.scene.as_deref(), &args.shader_path, &[], 0, &options)?;
@@ -389,6 +397,51 @@ fn gaze_errors(gaze: &super::ray_params::Gaze, a: &Framebuffer, b: &Framebuffer)
     }
     let rms = |(s, n): (f64, usize)| if n == 0 { 0.0 } else { (s / n as f64).sqrt() };
     (rms(inside), rms(outside))
+}
+
+/// `rtsl bench render --animate FPS`: a VRML scene's animation played frame by frame, each frame's
+/// update (the events run, instances moved, objects rebuilt, the world built again) timed apart
+/// from its render.
+fn run_render_animated(args: &BenchRenderArgs, fps: f64) -> anyhow::Result<()> {
+    anyhow::ensure!(fps.is_finite() && fps > 0.0, "--animate takes frames per second above 0");
+    anyhow::ensure!(
+        !args.mpi && !args.native_plastic && !args.compare_trace_ahead,
+        "--animate runs on its own (without --mpi, --native-plastic, --compare-trace-ahead)"
+    );
+    let options = rtsl_runtime::LoadOptions { vrml_surface: args.vrml_surface.clone() };
+    let (mut rt, mut loaded) =
+        super::render::load_scene_frame(args.scene.as_deref(), &args.shader_path, &[], 0, &options)?;
+    let mut scene = loaded.vrml.take().context("--animate plays a VRML scene's animation")?;
+    anyhow::ensure!(scene.is_animated(), "the scene has no animation (no TimeSensor routed anywhere)");
+    if let Some((w, h)) = args.size {
+        rt.options.width = w;
+        rt.options.height = h;
+    }
+    rt.options.samples = super::render::samples_grid(args.samples);
+    if let Some(aa) = args.aa {
+        rt.options.antialiasing = aa;
+    }
+    let (threads, pool) = super::worker_pool(args.threads)?;
+    let (mut update_ms, mut frame_ms) = (Vec::new(), Vec::new());
+    let mut world = rt.build_world()?;
+    let mut last = None;
+    for frame in 0..=args.frames.max(1) {
+        let start = std::time::Instant::now();
+        scene.advance_to(frame as f64 / fps, &mut rt)?;
+        rt.return_scene(world);
+        world = rt.build_world()?;
+        let update = start.elapsed().as_secs_f64() * 1e3;
+        let (_, report) = pool.install(|| rtsl_runtime::render::render_frame(&world, None));
+        if frame > 0 {
+            update_ms.push(update);
+            frame_ms.push(update + report.elapsed.as_secs_f64() * 1e3);
+            last = Some(report);
+        }
+    }
+    rtsl_runtime::rib::report::write_diagnostics(&scene.take_warnings(), &mut super::color::stderr())?;
+    print_rate(args, &world, &format!("threads: {threads}"), median(frame_ms), &last.unwrap_or_default());
+    println!("update_ms: {:.2}", median(update_ms));
+    Ok(())
 }
 
 /// Flags of `rtsl bench camera`.

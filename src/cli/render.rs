@@ -591,7 +591,7 @@ fn prepare(args: &RenderArgs, frame_index: usize) -> anyhow::Result<Prepared> {
     let mut vrml = loaded.vrml.take();
     if let Some(scene) = vrml.as_mut() {
         scene.advance_to(vrml_time(args, args.frame.or(args.frames.map(|(first, _)| first))), &mut rt)?;
-        print_animation_warnings(scene);
+        print_animation_warnings(scene)?;
     }
     let expanded = |p: &PathBuf| {
         PathBuf::from(rtsl_runtime::rib::load::expand_display_name(&p.to_string_lossy(), loaded.frame_number))
@@ -648,10 +648,11 @@ fn prepare(args: &RenderArgs, frame_index: usize) -> anyhow::Result<Prepared> {
     Ok(Prepared { rt, output, omissions: loaded.omissions(), errors: loaded.errors(), files: loaded.files, vrml })
 }
 
-fn print_animation_warnings(scene: &mut rtsl_runtime::vrml::VrmlScene) {
-    for w in scene.take_warnings() {
-        eprintln!("warning: {w}");
-    }
+/// Prints what running a VRML scene's animation found (routes' events dropped, lights that stay),
+/// as the loader's warnings are printed.
+fn print_animation_warnings(scene: &mut rtsl_runtime::vrml::VrmlScene) -> anyhow::Result<()> {
+    rtsl_runtime::rib::report::write_diagnostics(&scene.take_warnings(), &mut super::color::stderr())?;
+    Ok(())
 }
 
 /// `render` of a VRML scene's `--frames` (or `--frame`): loaded once, its animation advanced to
@@ -679,7 +680,7 @@ fn run_vrml(args: &RenderArgs) -> anyhow::Result<ExitCode> {
             );
         }
         vrml.advance_to(vrml_time(args, Some(n)), &mut rt)?;
-        print_animation_warnings(&mut vrml);
+        print_animation_warnings(&mut vrml)?;
         let written = render_and_write(&mut rt, &mut render, &output, args.quiet, true)?;
         if !args.quiet {
             print_summary(&rt, &output.path, &format!("{threads} thread(s)"), &written.report);

@@ -347,7 +347,7 @@ impl Renderer {
             Err(e) => self.diagnostics.push(format!("animation: {e}")),
         }
         for w in playing.scene.take_warnings() {
-            eprintln!("warning: {w}");
+            eprintln!("{w}");
             self.diagnostics.push(w.to_string());
         }
     }
