@@ -196,6 +196,10 @@ fn show(args: &ViewArgs, jobs: mpsc::Sender<RenderJob>) -> anyhow::Result<(u32, 
     let (mut rt, mut loaded) =
         super::render::load_scene_frame(args.scene.as_deref(), &args.shader_path, &args.include, 0, &options)?;
     let mut playing = None;
+    anyhow::ensure!(
+        args.time.is_none() || loaded.vrml.is_some(),
+        "--time holds a VRML scene's animation; this is not one"
+    );
     if let Some(mut scene) = loaded.vrml.take() {
         let held = args.time.or(args.frames.map(|_| 0.0));
         // The first image shows the animation's start.
