@@ -694,7 +694,13 @@ impl Builder<'_> {
             }
             "PointLight" | "SpotLight" | "DirectionalLight" => self.light(n, &type_name, state)?,
             "PerspectiveCamera" | "OrthographicCamera" => self.camera(n, &type_name, state),
-            "Info" | "FontStyle" | "Texture2Transform" => {}
+            "Info" | "FontStyle" => {}
+            "Texture2Transform" => self.warn_once(
+                "node:Texture2Transform".into(),
+                loc,
+                Severity::Warning,
+                "Texture2Transform is not applied; textures keep their coordinates",
+            ),
             "IndexedLineSet" | "PointSet" | "AsciiText" | "WWWInline" => self.warn_once(
                 format!("node:{type_name}"),
                 loc,
