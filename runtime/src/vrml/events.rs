@@ -680,6 +680,12 @@ impl Events {
             }
         }
         self.set_field(documents, to, field, value);
+        // A startTime set anew starts a run, even at the time of one that ended.
+        if type_name == "TimeSensor" && field == "startTime" {
+            if let Some(state) = self.state.get_mut(&to) {
+                state.ended = None;
+            }
+        }
         let mut out = vec![(field, value.clone())];
         // A running TimeSensor disabled stops at once.
         if type_name == "TimeSensor" && field == "enabled" && *value == EventValue::Bool(false) {
@@ -917,5 +923,15 @@ mod tests {
         assert_eq!(vec3(field(&docs, "T", "translation", SFVec3f)), Vec3::new(3.0, 0.0, 0.0));
         events.advance(&mut docs, 9.0);
         assert_eq!(vec3(field(&docs, "T", "translation", SFVec3f)), Vec3::new(4.0, 0.0, 0.0));
+        // A touch at time 0, the startTime of the run that ended before the load, starts one.
+        let (mut docs, mut events) = load(&format!(
+            "{}\nDEF Touch TouchSensor {{}}\nROUTE Touch.touchTime TO C.set_startTime",
+            MOVER.replace("loop TRUE", "")
+        ));
+        let touch = NodeRef { doc: 0, node: docs[0].1.defs["Touch"] };
+        events.advance(&mut docs, 0.0);
+        events.send(&mut docs, touch, vec![("touchTime", EventValue::Time(0.0))], 0.0);
+        events.advance(&mut docs, 0.5);
+        assert_eq!(vec3(field(&docs, "T", "translation", SFVec3f)), Vec3::new(1.0, 0.0, 0.0));
     }
 }
