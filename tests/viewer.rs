@@ -317,3 +317,38 @@ ROUTE P.value_changed TO T.set_translation
     assert!(start.mean_difference(&later) > 1e-3, "at time 1 the box has moved");
     assert_eq!((later.width, later.height), (48, 36));
 }
+
+/// A click on a shape under a TouchSensor: its touchTime starts a TimeSensor whose isActive
+/// switches a light on (the animation held at time 0 in a scripted run, the light shows at once).
+#[test]
+fn a_click_on_a_touch_sensor_switches_the_light_it_starts() {
+    let Some(x) = xvfb() else { return };
+    let dir = tempfile::tempdir().expect("tempdir");
+    std::fs::write(
+        dir.path().join("touch.wrl"),
+        "#VRML V2.0 utf8
+NavigationInfo { headlight FALSE }
+Viewpoint { position 0 0 6 }
+DEF L PointLight { location 0 0 4 on FALSE }
+Group { children [ DEF Touch TouchSensor {} Shape { appearance Appearance { material Material { } } geometry Box { size 3 3 1 } } ] }
+DEF C TimeSensor { cycleInterval 10 }
+ROUTE Touch.touchTime TO C.startTime
+ROUTE C.isActive TO L.on
+",
+    )
+    .expect("write");
+    let shot = |name: &str, extra: &[&str]| {
+        let mut args = vec!["touch.wrl", "--size", "48x36", "--frames", "1", "--no-watch", "--no-overlay"];
+        args.extend_from_slice(&["--screenshot", name]);
+        args.extend_from_slice(extra);
+        let o = view(&x.display, dir.path(), &args);
+        assert!(o.status.success(), "rtsl view {args:?}: {}", String::from_utf8_lossy(&o.stderr));
+        let img = rtsl::runtime::read_image(dir.path().join(name)).expect("the screenshot is a PNG");
+        Shot { width: img.width, height: img.height, rgba: img.pixels }
+    };
+    let dark = shot("dark.png", &[]);
+    let lit = shot("lit.png", &["--events", "click:24,18"]);
+    let (d, l) = (dark.mean(), lit.mean());
+    assert!(d.iter().all(|c| *c < 0.01), "unlit before the click: {d:?}");
+    assert!(l[0] > 0.05, "the light is on after it: {l:?}");
+}

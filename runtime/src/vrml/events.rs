@@ -385,6 +385,8 @@ pub struct Events {
     state: HashMap<NodeRef, SensorState>,
     /// The last timestamp run (`None`: none yet).
     now: Option<f64>,
+    /// Whether events were sent ([`Events::send`]) since that timestamp ran.
+    sent_since: bool,
     /// Each changed node's fields as the file had them.
     originals: HashMap<NodeRef, Vec<Field>>,
     /// The nodes whose fields changed since the caller last took them.
@@ -527,9 +529,14 @@ impl Events {
 
     /// Runs the timestamp `now`: the TimeSensors that send events are evaluated, and their events
     /// cascade. A time before the last one run is an error of the caller's (see `reset`): nothing
-    /// is sent for it.
+    /// is sent for it; the last one again runs only when events were sent since (a click may have
+    /// started a sensor).
     pub fn advance(&mut self, documents: &mut [(std::path::PathBuf, Document)], now: f64) {
         if !now.is_finite() || self.now.is_some_and(|last| now < last) {
+            return;
+        }
+        // The same timestamp again sends nothing new, unless events were sent at it since.
+        if self.now == Some(now) && !std::mem::take(&mut self.sent_since) {
             return;
         }
         let previous = self.now.unwrap_or(0.0);
@@ -590,6 +597,7 @@ impl Events {
     ) {
         let sent = events.into_iter().map(|(name, v)| ((node, name), v)).collect();
         self.cascade(documents, sent, now);
+        self.sent_since = true;
     }
 
     /// Delivers `sent` along the routes, and what the deliveries send, until nothing is left or
