@@ -279,7 +279,8 @@ struct State {
     materials: Arc<Vec<Material>>,
     material_binding: Binding,
     normals: Arc<Vec<Vec3>>,
-    normal_binding: Binding,
+    /// None: DEFAULT (per vertex, indexed, for a face set).
+    normal_binding: Option<Binding>,
     coords: Arc<Vec<Vec3>>,
     tex_coords: Arc<Vec<Vec2>>,
     /// The texture's name and whether it repeats along s and t.
@@ -295,7 +296,7 @@ impl Default for State {
             materials: Arc::new(vec![Material::default()]),
             material_binding: Binding::Overall,
             normals: Arc::default(),
-            normal_binding: Binding::Overall,
+            normal_binding: None,
             coords: Arc::default(),
             tex_coords: Arc::default(),
             texture: None,
@@ -648,7 +649,12 @@ impl Builder<'_> {
             "Scale" => state.matrix *= Affine3A::from_scale(self.vec3(n, "scaleFactor", Vec3::ONE)),
             "Material" => state.materials = Arc::new(self.material(n)),
             "MaterialBinding" => state.material_binding = self.binding(n),
-            "NormalBinding" => state.normal_binding = self.binding(n),
+            "NormalBinding" => {
+                state.normal_binding = match self.word(n, "value").as_deref() {
+                    None | Some("DEFAULT") => None,
+                    _ => Some(self.binding(n)),
+                }
+            }
             "Coordinate3" => state.coords = Arc::new(self.vec3s(n, "point").unwrap_or_default()),
             "Normal" => state.normals = Arc::new(self.vec3s(n, "vector").unwrap_or_default()),
             "TextureCoordinate2" => {
@@ -824,21 +830,25 @@ impl Builder<'_> {
                 })
                 .collect()
         };
-        let indexed = |binding: Binding, values: &'_ [Vec3], index: &'_ [i32]| -> Option<(bool, Vec<i32>, usize)> {
-            let _ = values;
+        // Whether values go per vertex, and their index (empty: in order, or by the coordinates).
+        let indexed = |binding: Binding, index: &[i32]| -> Option<(bool, Vec<i32>)> {
             match binding {
                 Binding::Overall => None,
-                Binding::PerFace => Some((false, Vec::new(), 0)),
-                Binding::PerFaceIndexed => Some((false, index.to_vec(), 0)),
-                Binding::PerVertex => Some((true, running.clone(), 0)),
-                Binding::PerVertexIndexed => Some((true, index.to_vec(), 0)),
+                Binding::PerFace => Some((false, Vec::new())),
+                Binding::PerFaceIndexed => Some((false, index.to_vec())),
+                Binding::PerVertex => Some((true, running.clone())),
+                Binding::PerVertexIndexed => Some((true, index.to_vec())),
             }
         };
         let colors: Vec<Vec3> = state.materials.iter().map(|m| Vec3::from(linear(m.diffuse))).collect();
         let color_binding =
-            if state.materials.len() > 1 { indexed(state.material_binding, &colors, &material_index) } else { None };
-        let normal_binding =
-            if state.normals.is_empty() { None } else { indexed(state.normal_binding, &state.normals, &normal_index) };
+            if state.materials.len() > 1 { indexed(state.material_binding, &material_index) } else { None };
+        // A face set's DEFAULT normal binding is PER_VERTEX_INDEXED.
+        let normal_binding = match state.normal_binding {
+            _ if state.normals.is_empty() => None,
+            None => indexed(Binding::PerVertexIndexed, &normal_index),
+            Some(binding) => indexed(binding, &normal_index),
+        };
         let tex =
             (!state.tex_coords.is_empty() && state.texture.is_some()).then(|| (&state.tex_coords[..], &tex_index[..]));
         let made = mesh::face_set(
@@ -847,12 +857,12 @@ impl Builder<'_> {
                 coord_index: &coord_index,
                 ccw: state.ccw,
                 crease_angle: state.crease_angle,
-                normals: normal_binding.as_ref().map(|(per_vertex, index, _)| Indexed {
+                normals: normal_binding.as_ref().map(|(per_vertex, index)| Indexed {
                     values: &state.normals,
                     index,
                     per_vertex: *per_vertex,
                 }),
-                colors: color_binding.as_ref().map(|(per_vertex, index, _)| Indexed {
+                colors: color_binding.as_ref().map(|(per_vertex, index)| Indexed {
                     values: &colors,
                     index,
                     per_vertex: *per_vertex,
