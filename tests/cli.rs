@@ -1172,6 +1172,8 @@ fn rib_conditionals_choose_each_frames_branch_in_a_shared_archive() {
     let o = rtsl(&["render", "bad.rib", "-o", "bad.png", "--color", "never"], dir.path());
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert!(stderr(&o).contains("bad.rib:3:1"), "{}", stderr(&o));
+}
+
 /// A box that slides and turns, and a route of the wrong type.
 const VRML_MOVING_BOX: &str = "#VRML V2.0 utf8
 Viewpoint { position 0 0 10 }

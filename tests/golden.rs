@@ -756,6 +756,8 @@ fn cube_face_environment_matches_its_reference() {
         )
         .replacen("Color [.8 .3 .2]", &format!("Color [1 1 1] Surface \"shinymetal\" \"texturename\" \"{map}\""), 1);
     check("cube_face_environment", &render_rib("cube_face_environment", &rib)).unwrap_or_else(|e| panic!("{e}"));
+}
+
 /// A VRML 97 animation at one time: a box slid and turned by Position and Orientation
 /// interpolators, its colour mixed by a ColorInterpolator, a face set bent by a
 /// CoordinateInterpolator and a blue light switched on by the TimeSensor's isActive, all through
