@@ -226,6 +226,29 @@ fn a_frame_keeps_the_output_variables_it_names_as_pixel_means() -> Result<(), Ap
 }
 
 #[test]
+fn displacement_shaders_report_their_runtime_messages_like_the_others() -> Result<(), ApiError> {
+    // An index past the end of an array is clamped at run time and reported once, by shader name.
+    let mut rt = context();
+    let src = "displacement past() { float a[2] = {1, 2}; float i = 5 + u; N = N * a[i]; }";
+    let past = rt.compile_shader("past.sl", src)?;
+    let surface = rt.compile_shader("flat.sl", FLAT)?;
+    rt.camera_look_at(Vec3A::new(0.0, 0.0, 5.0), Vec3A::ZERO, Vec3A::Y, 30.0);
+    rt.displacement(Some(past), &[])?;
+    let o = rt.begin_object()?;
+    rt.bind_shader(surface)?;
+    quad(&mut rt, [[-10.0, -10.0, 0.0], [10.0, -10.0, 0.0], [10.0, 10.0, 0.0], [-10.0, 10.0, 0.0]])?;
+    rt.end_object()?;
+    rt.instantiate_object(o)?;
+    let (_, report) = rt.render_frame()?;
+    assert!(
+        report.shader_messages.iter().any(|m| m.starts_with("shader past:")),
+        "the displacement shader's message: {:?}",
+        report.shader_messages
+    );
+    Ok(())
+}
+
+#[test]
 fn a_moved_instance_costs_only_the_top_level_and_an_edited_object_only_its_own_bvh() -> Result<(), ApiError> {
     let mut rt = context();
     rt.camera_look_at(Vec3A::new(0.0, 2.0, 8.0), Vec3A::ZERO, Vec3A::Y, 45.0);

@@ -827,6 +827,7 @@ impl World {
             .filter_map(|m| m.surface.as_ref())
             .chain(self.lights.iter().map(|l| &l.shader))
             .chain(self.materials.iter().filter_map(|m| m.interior.as_ref()))
+            .chain(self.materials.iter().filter_map(|m| m.displacement.as_ref()))
             .chain(self.pixel.iter())
             .chain(self.camera_shader.iter())
             .chain(self.atmosphere.iter())
