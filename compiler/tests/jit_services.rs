@@ -231,3 +231,23 @@ fn point_clouds_return_zero_and_are_reported_once() {
     shader.shade_with(&mut batch, &mut TestHost::default());
     assert!(shader.runtime_errors().is_empty(), "reported once");
 }
+
+#[test]
+fn prmans_bake_is_accepted_returns_zero_and_is_reported_once() {
+    let src = r#"
+        surface t(output varying float o = 0;)
+        {
+            color c = color(s, t, 1);
+            o = bake("out.bake", s, t, c) + bake("f.bake", s, t, 0.5) + 1;
+            Ci = c;
+        }
+    "#;
+    check(src);
+    let shader = jit::compile(&module(src)).expect("compiles");
+    let mut batch = shader.batch(4);
+    shader.shade_with(&mut batch, &mut TestHost::default());
+    assert_eq!(batch.param("o", 2), Some(vec![1.0]));
+    let errors = shader.runtime_errors();
+    assert_eq!(errors.len(), 2, "each call site once: {errors:?}");
+    assert!(errors.iter().all(|e| e.contains("`bake` at") && e.contains("not supported")), "{errors:?}");
+}

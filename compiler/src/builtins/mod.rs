@@ -177,6 +177,7 @@ builtins! {
     Bump "bump" ["p(s,n,v,v,...)"] VARYING | DERIVS | TEXTURE, Host, "the normal of the surface bumped by a height map (channel 0) at (s, t) (RISpec 3.0; options ignored)";
     Texture3d "texture3d" ["f(s,p,n,...)", "R(s,p,...)"] VARYING, Host, "trilinear lookup in a 3-D grid file at a point (OSL's form); PRMan's point-cloud form (with a normal) is unsupported: returns 0 and leaves outputs unchanged";
     Bake3d "bake3d" ["f(s,s,p,n,...)"] VARYING | SIDE_EFFECTS | UNSUPPORTED, Host, "point-cloud baking; unsupported: returns 0 and writes nothing";
+    Bake "bake" ["f(s,f,f,f)", "f(s,f,f,c)", "f(s,f,f,p)", "f(s,f,f,v)", "f(s,f,f,n)"] VARYING | SIDE_EFFECTS | UNSUPPORTED, Host, "PRMan's texture baking (a value at (s, t) into a bake file); unsupported: returns 0 and writes nothing";
     Photonmap "photonmap" ["c(s,p,...)", "c(s,p,n,...)"] VARYING, Host, "the irradiance a photon map estimates at a point (facing the normal): \"caustic\" and \"global\", the frame's caustic and global photon maps (docs/global_illumination.md); other names black; option \"estimator\" (50), the photons gathered";
     Textureinfo "textureinfo" ["f(s,s,&?)"] SIDE_EFFECTS, Host, "information about a texture file";
     // ---- Message passing and renderer information (15.8) ----

@@ -582,7 +582,7 @@ impl Machine<'_> {
                     Value::Triple([x; 3])
                 }
             }
-            Builtin::Texture3d | Builtin::Bake3d => {
+            Builtin::Texture3d | Builtin::Bake3d | Builtin::Bake => {
                 self.host.unsupported(b);
                 Value::Float(0.0)
             }

@@ -260,7 +260,7 @@ impl CompiledShader {
                         self.options.loop_budget
                     )
                 } else if kind == lower::RUNTIME_UNSUPPORTED {
-                    format!("{at} is not supported by rtsl (no point clouds or photon maps): it returned 0")
+                    format!("{at} is not supported by rtsl (no point clouds or bake files): it returned 0")
                 } else if kind == lower::RUNTIME_STRING_CUT {
                     format!("a string made at {at} was longer than {} bytes and was cut", format::MAX_STRING_LEN)
                 } else if kind == lower::RUNTIME_STRINGS_FULL {

@@ -193,7 +193,14 @@ impl<'m> Lower<'m, '_> {
             | Bi::Ctransform => Self::transform,
             Bi::Refract | Bi::Fresnel => Self::geometry,
             Bi::Ambient | Bi::Diffuse | Bi::Specular | Bi::Phong => Self::shading,
-            Bi::Texture | Bi::Environment | Bi::Shadow | Bi::Texture3d | Bi::Bump | Bi::Bake3d | Bi::Photonmap => {
+            Bi::Texture
+            | Bi::Environment
+            | Bi::Shadow
+            | Bi::Texture3d
+            | Bi::Bump
+            | Bi::Bake3d
+            | Bi::Bake
+            | Bi::Photonmap => {
                 Self::texture
             }
             Bi::Depth

@@ -134,7 +134,7 @@ impl<'m> Lower<'m, '_> {
                 }
                 self.call_helper_on("rtsl_h_photonmap", &[v(0), v(1), n, estimator], true)?
             }
-            Bi::Bake3d | Bi::Texture3d if bi != Bi::Texture3d || fixed != 2 => {
+            Bi::Bake3d | Bi::Bake | Bi::Texture3d if bi != Bi::Texture3d || fixed != 2 => {
                 self.report_unsupported(bi, e.span)?;
                 let n = components(e.ty).unwrap_or(1);
                 Val { vary: false, c: vec![self.fconst(0.0, false); n] }
