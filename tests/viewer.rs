@@ -352,3 +352,40 @@ ROUTE C.isActive TO L.on
     assert!(d.iter().all(|c| *c < 0.01), "unlit before the click: {d:?}");
     assert!(l[0] > 0.05, "the light is on after it: {l:?}");
 }
+
+/// `V` moves the view to the scene's next Viewpoint: from the red box's to the green one's.
+#[test]
+fn v_steps_through_a_vrml_scenes_viewpoints() {
+    let Some(x) = xvfb() else { return };
+    let dir = tempfile::tempdir().expect("tempdir");
+    std::fs::write(
+        dir.path().join("two.wrl"),
+        "#VRML V2.0 utf8
+NavigationInfo { headlight TRUE }
+Viewpoint { position -20 0 4 description \"red\" }
+Viewpoint { position 20 0 4 description \"green\" }
+Transform { translation -20 0 0 children Shape { appearance Appearance { material Material { diffuseColor 1 0 0 } } geometry Box { size 6 6 1 } } }
+Transform { translation 20 0 0 children Shape { appearance Appearance { material Material { diffuseColor 0 1 0 } } geometry Box { size 6 6 1 } } }
+",
+    )
+    .expect("write");
+    let shot = |name: &str, extra: &[&str]| {
+        let mut args = vec!["two.wrl", "--size", "32x24", "--frames", "1", "--no-watch", "--no-overlay"];
+        args.extend_from_slice(&["--screenshot", name]);
+        args.extend_from_slice(extra);
+        let o = view(&x.display, dir.path(), &args);
+        assert!(o.status.success(), "rtsl view {args:?}: {}", String::from_utf8_lossy(&o.stderr));
+        let img = rtsl::runtime::read_image(dir.path().join(name)).expect("the screenshot is a PNG");
+        Shot { width: img.width, height: img.height, rgba: img.pixels }
+    };
+    let centre = |s: &Shot| {
+        let i = 4 * (12 * s.width + 16);
+        [s.rgba[i], s.rgba[i + 1], s.rgba[i + 2]]
+    };
+    let first = centre(&shot("first.png", &[]));
+    assert!(first[0] > 0.2 && first[1] < 0.05, "the first viewpoint looks at the red box: {first:?}");
+    let second = centre(&shot("second.png", &["--events", "key:v"]));
+    assert!(second[1] > 0.2 && second[0] < 0.05, "V moves to the green box's viewpoint: {second:?}");
+    let again = centre(&shot("again.png", &["--events", "key:v;key:v"]));
+    assert!(again[0] > 0.2 && again[1] < 0.05, "and round to the first: {again:?}");
+}

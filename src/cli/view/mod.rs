@@ -27,6 +27,7 @@ to deselect); shift + left drag grabs the object under the cursor and moves it i
 Keys: W/S forward/back, A/D left/right, Q/E down/up (fly, held); X cycles anti-aliasing (jittered,
 interleaved, adaptive, regular); C cycles the camera (built-in pinhole, fisheye, cylindrical,
 parabolic, thinlens); F toggles frameless rendering; G makes quality follow the cursor (gaze);
+V steps through a VRML scene's Viewpoints;
 H toggles the overlay; R resets the view; Escape quits.
 Scripted input (--events): steps separated by ';': drag:X0,Y0,X1,Y1  rdrag:...  shiftdrag:...
 click:X,Y  move:X,Y  scroll:STEPS  key:NAME  hold:KEY,SECONDS  wait:FRAMES (one step per displayed frame).";
@@ -196,11 +197,23 @@ fn show(args: &ViewArgs, jobs: mpsc::Sender<RenderJob>) -> anyhow::Result<(u32, 
     let (mut rt, mut loaded) =
         super::render::load_scene_frame(args.scene.as_deref(), &args.shader_path, &args.include, 0, &options)?;
     let mut playing = None;
+    let mut viewpoints = Vec::new();
     anyhow::ensure!(
         args.time.is_none() || loaded.vrml.is_some(),
         "--time holds a VRML scene's animation; this is not one"
     );
     if let Some(mut scene) = loaded.vrml.take() {
+        // The scene file's Viewpoints, in the order read (the first is where the view starts).
+        let first_file = scene.viewpoints.iter().filter(|v| v.node.doc == 0);
+        viewpoints = first_file
+            .map(|v| renderer::Viewpoint {
+                name: v.made.description.clone(),
+                eye: v.made.eye,
+                forward: v.made.forward,
+                up: v.made.up,
+                fov_degrees: v.made.field_of_view.to_degrees(),
+            })
+            .collect();
         let held = args.time.or(args.frames.map(|_| 0.0));
         // The first image shows the animation's start.
         scene.advance_to(held.unwrap_or(0.0), &mut rt)?;
@@ -232,6 +245,7 @@ fn show(args: &ViewArgs, jobs: mpsc::Sender<RenderJob>) -> anyhow::Result<(u32, 
     if let Some(playing) = playing {
         renderer.play(playing);
     }
+    renderer.set_viewpoints(viewpoints);
 
     let event_loop = winit::event_loop::EventLoop::<window::FrameReady>::with_user_event()
         .build()

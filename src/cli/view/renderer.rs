@@ -71,6 +71,8 @@ pub enum Command {
         dx: f32,
         dy: f32,
     },
+    /// The next of the scene's viewpoints (a VRML scene's Viewpoints), in the order read.
+    NextViewpoint,
     /// Relevance follows this window pixel (the gaze); `None`: back to the scene's own ray
     /// parameters.
     Gaze {
@@ -177,6 +179,21 @@ pub struct Renderer {
     before_gaze: Option<RayParameters>,
     /// A VRML scene's animation and its clock.
     playing: Option<Playing>,
+    /// The scene's viewpoints (name, eye, forward, up, field of view in degrees) and the one
+    /// shown last.
+    viewpoints: Vec<Viewpoint>,
+    viewpoint: usize,
+}
+
+/// A named view the viewer can jump to (a VRML Viewpoint).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Viewpoint {
+    pub name: String,
+    pub eye: Vec3A,
+    pub forward: Vec3A,
+    pub up: Vec3A,
+    /// The field of view of the image's shorter side, in degrees.
+    pub fov_degrees: f32,
 }
 
 /// A VRML scene's animation, played at wall-clock time from when the viewer started, or held at
@@ -330,7 +347,15 @@ impl Renderer {
             before_gaze: None,
             rt,
             playing: None,
+            viewpoints: Vec::new(),
+            viewpoint: 0,
         })
+    }
+
+    /// The viewpoints `V` cycles through, the first being the one the scene starts at.
+    pub fn set_viewpoints(&mut self, viewpoints: Vec<Viewpoint>) {
+        self.viewpoints = viewpoints;
+        self.viewpoint = 0;
     }
 
     /// Plays a VRML scene's animation (its events drive `rt`'s scene).
@@ -432,6 +457,17 @@ impl Renderer {
                     world.options.antialiasing = aa;
                 }
                 self.view_changed();
+            }
+            Command::NextViewpoint => {
+                if self.viewpoints.is_empty() {
+                    self.diagnostics.push("V: the scene has no viewpoints".to_string());
+                } else {
+                    self.viewpoint = (self.viewpoint + 1) % self.viewpoints.len();
+                    let v = self.viewpoints[self.viewpoint].clone();
+                    self.rt.camera_look_at(v.eye, v.eye + v.forward, v.up, v.fov_degrees);
+                    self.nav = Navigation::new(*self.rt.camera(), self.world().scene.bounds());
+                    eprintln!("viewpoint {} of {}: {}", self.viewpoint + 1, self.viewpoints.len(), v.name);
+                }
             }
             Command::Gaze { at } => {
                 self.follow_gaze(at);
@@ -731,6 +767,10 @@ impl Renderer {
         ];
         if let Some(sel) = self.selected {
             status.push(format!("selected instance {} (shift-drag moves it)", sel.instance.0));
+        }
+        if let Some(v) = self.viewpoints.get(self.viewpoint).filter(|_| self.viewpoints.len() > 1) {
+            let name = if v.name.is_empty() { "(no description)" } else { v.name.as_str() };
+            status.push(format!("viewpoint {} of {}: {name} (V: next)", self.viewpoint + 1, self.viewpoints.len()));
         }
         if self.before_gaze.is_some() {
             status.push("gaze: quality follows the cursor (G turns it off)".to_string());

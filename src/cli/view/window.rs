@@ -192,6 +192,7 @@ impl App {
             ViewKey::Char('c') => self.send(Command::CycleCamera),
             ViewKey::Char('f') => self.send(Command::ToggleFrameless),
             ViewKey::Char('r') => self.send(Command::ResetView),
+            ViewKey::Char('v') => self.send(Command::NextViewpoint),
             ViewKey::Char('g') => {
                 self.gaze = !self.gaze;
                 self.send(Command::Gaze { at: self.gaze.then_some(self.cursor) });
