@@ -115,7 +115,7 @@ codes! {
     WarningDirective = "W0008", Warning, "a `#warning` directive was reached";
     ImplicitColorConversion = "W0009", Warning, "a colour used as a point, vector or normal, or the reverse, without a typecast";
     ShadowedVariable = "W0010", Warning, "a local variable that hides a shader parameter or global of the same name";
-    VendorExtension = "W0012", Warning, "a built-in another renderer defines under its own name, read as rtsl's equivalent";
+    VendorExtension = "W0012", Warning, "another renderer's extension: a built-in under its own name (read as rtsl's equivalent), or a global a shader type has only there";
     UnterminatedConditional = "W0011", Warning, "a file that ends inside an `#if`/`#ifdef`/`#ifndef`: the conditional ends with the file, as C preprocessors take it";
 }
 

@@ -92,7 +92,62 @@ pub const GLOBALS: &[GlobalDef] = &[
     GlobalDef { name: "ncomps", ty: Float, varying: false, access: [R, R, R, R, R, R, R], doc: "number of colour components (3)" },
     GlobalDef { name: "time", ty: Float, varying: true, access: [R, R, R, R, R, R, R], doc: "the time of the ray being shaded within the shutter interval (each primary ray has its own time sample; the rays it spawns inherit it)" },
     GlobalDef { name: "dtime", ty: Float, varying: false, access: [R, R, R, R, R, R, R], doc: "the length of the shutter interval" },
+    GlobalDef { name: "Ns", ty: Normal, varying: true, access: [N, N, N, N, N, N, N], doc: "the normal of the surface being illuminated, faced toward the viewer (light shaders; Pixie's)" },
 ];
+
+/// Globals that other renderers give shader types RISpec does not (or let them write where RISpec
+/// only lets them read): accepted with warning W0012 naming the renderer, as `(shader type, name,
+/// access, renderer, what rtsl gives)`.
+pub const VENDOR_GLOBALS: &[(ShaderKind, &str, Access, &str, &str)] = &[
+    (
+        ShaderKind::Light,
+        "I",
+        Access::Read,
+        "Pixie",
+        "the direction from the ray's origin `E` to the lit point `Ps` (`Ps - E`)",
+    ),
+    (
+        ShaderKind::Light,
+        "Ns",
+        Access::Read,
+        "Pixie",
+        "the lit surface's normal, faced toward the viewer (zero where no surface is lit)",
+    ),
+    (
+        ShaderKind::Light,
+        "N",
+        Access::Write,
+        "Pixie",
+        "a copy the light shader may change; the renderer does not read it back",
+    ),
+    (
+        ShaderKind::Surface,
+        "I",
+        Access::Write,
+        "Pixie",
+        "a copy the shader may change; the renderer does not read it back",
+    ),
+    (
+        ShaderKind::Imager,
+        "s",
+        Access::Read,
+        "Pixie",
+        "the pixel's horizontal position over the image, 0 to 1 from the left",
+    ),
+    (
+        ShaderKind::Imager,
+        "t",
+        Access::Read,
+        "Pixie",
+        "the pixel's vertical position over the image, 0 to 1 from the top",
+    ),
+];
+
+/// The access another renderer gives `name` in shaders of `kind` beyond RISpec's, with the renderer
+/// and what rtsl gives ([`VENDOR_GLOBALS`]).
+pub fn vendor_access(kind: ShaderKind, name: &str) -> Option<(Access, &'static str, &'static str)> {
+    VENDOR_GLOBALS.iter().find(|(k, n, ..)| *k == kind && *n == name).map(|&(_, _, a, r, m)| (a, r, m))
+}
 
 /// Index of a global in [`GLOBALS`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize)]

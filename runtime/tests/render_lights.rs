@@ -196,3 +196,38 @@ fn lights_past_the_per_point_limit_are_counted_and_warned_of() -> Result<(), Api
     assert!(warnings[0].contains(&format!("more than {MAX_LIGHTS} lights")), "{warnings:?}");
     Ok(())
 }
+
+/// Pixie's globals (warning W0012 at compile time): a light shader's `I` (from the eye to the lit
+/// point) and `Ns` (the lit surface's normal, faced toward the eye), an imager's `s` and `t` (the
+/// pixel's place over the image), and a light's `N` and a surface's `I` written.
+#[test]
+fn pixies_globals_have_their_documented_values() -> Result<(), ApiError> {
+    let mut rt = context();
+    let light = rt.compile_shader(
+        "facing.sl",
+        "light facing() { N = normal(0, 1, 0); illuminate(point(0, 0, 0)) { Cl = Ns . normalize(-I); } }",
+    )?;
+    let surface = rt.compile_shader(
+        "showcl.sl",
+        "surface showcl() { color c = 0; illuminance(P) { c += Cl; } I = -I; Ci = c; Oi = 1; }",
+    )?;
+    rt.camera_look_at(Vec3A::new(0.0, 0.0, 5.0), Vec3A::ZERO, Vec3A::Y, 30.0);
+    let o = rt.begin_object()?;
+    rt.bind_shader(surface)?;
+    quad(&mut rt, [[-10.0, -10.0, 0.0], [10.0, -10.0, 0.0], [10.0, 10.0, 0.0], [-10.0, 10.0, 0.0]])?;
+    rt.end_object()?;
+    rt.instantiate_object(o)?;
+    rt.light_source(light, &[])?;
+    let (fb, _) = rt.render_frame()?;
+    let (centre, corner) = (fb.pixel(W / 2, H / 2)[0], fb.pixel(0, 0)[0]);
+    assert!((centre - 1.0).abs() < 0.01, "the eye looks straight at the lit point: {centre}");
+    assert!(corner > 0.8 && corner < centre, "obliquely, the cosine between Ns and -I: {corner}");
+    // An imager reading s and t.
+    let imager = rt.compile_shader("st.sl", "imager st() { Ci = color(s, t, 0); }")?;
+    rt.pixel_shader(Some(imager), &[])?;
+    let (fb, _) = rt.render_frame()?;
+    let p = fb.pixel(W / 4, H / 2);
+    assert!((p[0] - (W as f32 / 4.0 + 0.5) / W as f32).abs() < 1e-6, "{p:?}");
+    assert!((p[1] - (H as f32 / 2.0 + 0.5) / H as f32).abs() < 1e-6, "{p:?}");
+    Ok(())
+}

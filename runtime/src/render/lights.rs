@@ -158,6 +158,9 @@ fn eval_light_lanes(
     // Every lane of these is written below, for every sample.
     let filled =
         varying_rows([(slots.e, 3), (slots.ncomps, 1), (slots.p, 3), (slots.n, 3), (slots.ps, 3), (slots.time, 1)]);
+    // Pixie's `I` and `Ns` of light shaders, where one reads them: the lit point seen from the
+    // eye, and the lit surface's normal faced toward it (zero where no normal is known).
+    let pixie = slots.i.is_some() || slots.ns.is_some();
     for sample in 0..samples {
         for (l, m) in sample_mask.iter_mut().enumerate().take(n) {
             *m = if sample < takes[l] { mask[l] } else { 0 };
@@ -196,6 +199,13 @@ fn eval_light_lanes(
                     put_row(&mut raw, slots.ps, k, &row[..n]);
                 }
                 put_row(&mut raw, slots.time, 0, &lane_times[..n]);
+                if pixie {
+                    for (l, &point) in points.iter().enumerate().take(n) {
+                        put3(&mut raw, slots.i, l, point - eye);
+                        let normal = front.and_then(|f| f.get(l)).copied().unwrap_or(Vec3A::ZERO);
+                        put3(&mut raw, slots.ns, l, normal);
+                    }
+                }
             }
             let mut call = ShadeCall::new(frame, instance, instance.world_from_shader, depth, &mut *budgets);
             call.material = material;

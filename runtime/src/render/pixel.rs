@@ -52,6 +52,10 @@ pub fn shade_pixels(frame: &Frame, tile: TilePixels<'_>, image: Option<&PixelIma
                     put3(&mut raw, slots.oi, lane, Vec3A::splat(c[3]));
                     put1(&mut raw, slots.alpha, lane, c[3]);
                     put3(&mut raw, slots.p, lane, Vec3A::new(x as f32 + 0.5, y as f32 + 0.5, 0.0));
+                    // Pixie's `s` and `t` of imagers: the pixel's centre over the image, 0 to 1.
+                    let (w, h) = (frame.world.options.width.max(1) as f32, frame.world.options.height.max(1) as f32);
+                    put1(&mut raw, slots.s, lane, (x as f32 + 0.5) / w);
+                    put1(&mut raw, slots.t, lane, (y as f32 + 0.5) / h);
                     put1(&mut raw, slots.zdepth, lane, tile.depth[k]);
                     put1(&mut raw, slots.objectid, lane, id(tile.object_id[k]));
                     put1(&mut raw, slots.shaderid, lane, id(tile.shader_id[k]));

@@ -82,6 +82,8 @@ pub struct GlobalSlots {
     pub zdepth: Option<Slot>,
     pub objectid: Option<Slot>,
     pub shaderid: Option<Slot>,
+    /// Pixie's `Ns` of light shaders (`rtsl_compiler::globals::VENDOR_GLOBALS`).
+    pub ns: Option<Slot>,
 }
 
 impl GlobalSlots {
@@ -124,6 +126,7 @@ impl GlobalSlots {
             zdepth: g("zdepth"),
             objectid: g("objectid"),
             shaderid: g("shaderid"),
+            ns: g("Ns"),
         }
     }
 }

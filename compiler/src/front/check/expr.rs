@@ -79,6 +79,9 @@ impl Checker<'_> {
     fn global_read(&mut self, g: Global, span: Span) -> Option<ExprId> {
         let def = g.def();
         if let Some(kind) = self.kind {
+            if def.access(kind) == Access::None && self.vendor_global(kind, def.name, Access::Read, span) {
+                return Some(self.add_expr(ExprKind::Global(g), Type::scalar(def.ty), span));
+            }
             if def.access(kind) == Access::None {
                 let owner = self.current_function();
                 self.context_error(
@@ -109,6 +112,26 @@ impl Checker<'_> {
             }
         }
         Some(self.add_expr(ExprKind::Global(g), Type::scalar(def.ty), span))
+    }
+
+    /// Whether `name` is another renderer's global for `kind` giving `wanted` access
+    /// ([`crate::globals::VENDOR_GLOBALS`]): then warning W0012 says whose and what rtsl gives.
+    pub(super) fn vendor_global(&mut self, kind: ShaderKind, name: &str, wanted: Access, span: Span) -> bool {
+        let Some((access, renderer, meaning)) = crate::globals::vendor_access(kind, name) else { return false };
+        if wanted == Access::Write && access != Access::Write {
+            return false;
+        }
+        let what = if wanted == Access::Write { "writing" } else { "reading" };
+        self.diags.push(
+            Diagnostic::new(
+                Code::VendorExtension,
+                span,
+                format!("{what} `{name}` in {} shaders is {renderer}'s extension", kind.name()),
+            )
+            .with_label(format!("accepted, as {renderer} accepts it"))
+            .with_note(format!("rtsl gives {meaning}")),
+        );
+        true
     }
 
     pub(super) fn undefined_name(&mut self, text: &str, span: Span) {
@@ -513,6 +536,16 @@ impl Checker<'_> {
                                 component: None,
                                 ty: Type::scalar(def.ty),
                             }),
+                            Access::Read | Access::None
+                                if self.kind.is_some_and(|k| self.vendor_global(k, def.name, Access::Write, e.span)) =>
+                            {
+                                Some(Place {
+                                    base: PlaceBase::Global(g),
+                                    index: None,
+                                    component: None,
+                                    ty: Type::scalar(def.ty),
+                                })
+                            }
                             Access::Read => {
                                 let kind = self.kind.map(|k| k.name()).unwrap_or("");
                                 self.error(code, e.span, format!("`{}` is read-only in {kind} shaders", def.name))
