@@ -275,6 +275,18 @@ fn display_writes_arbitrary_output_variables() {
     assert_eq!(&base.pixels[4 * (12 * 32 + 16)..4 * (12 * 32 + 16) + 3], &[0.25, 0.5, 1.0]);
     let missing = rtsl_runtime::read_image(dir.path().join("missing.exr")).expect("a variable no shader has");
     assert!(missing.pixels.chunks(4).all(|p| p[..3] == [0.0; 3]));
+    // Displays naming one EXR file are layers of it: the beauty's channels, then `base.R`...
+    let layered = std::fs::read_to_string(dir.path().join("scene.rib"))
+        .expect("the scene")
+        .replace("\"+base.exr\"", "\"+beauty.exr\"");
+    write(dir.path(), "layers.rib", &layered);
+    let o = rtsl(&["render", "layers.rib", "-S", ".", "-q"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let exr = rtsl_runtime::image_io::read_exr(&dir.path().join("beauty.exr")).expect("one EXR");
+    let centre = 12 * 32 + 16;
+    assert!((exr.channel("R").expect("the beauty")[centre] - 0.1).abs() < 1e-6);
+    assert_eq!(exr.channel("base.G").expect("the base layer")[centre], 0.5);
+    assert_eq!(exr.channels.len(), 7, "{:?}", exr.channels.iter().map(|c| &c.0).collect::<Vec<_>>());
     // A mode that is neither channels nor a variable name is skipped, a part missing.
     write(dir.path(), "bad.rib", "Display \"x.exr\" \"file\" \"float 3x\"\nWorldBegin\nWorldEnd\n");
     let o = rtsl(&["render", "bad.rib", "-q"], dir.path());

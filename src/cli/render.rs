@@ -343,7 +343,13 @@ fn render_and_write(
     let texture_files = world.textures.files();
     rt.return_scene(world);
     let transfer = output.transfer.unwrap_or_else(|| rt.options.transfer());
-    for (path, mode, depth_map, variable) in output.images_with_outputs() {
+    let images: Vec<_> = output.images_with_outputs().collect();
+    // Displays that name one EXR file are layers of it, written once with the first.
+    let mut layered: Vec<&PathBuf> = Vec::new();
+    for (i, &(path, mode, depth_map, variable)) in images.iter().enumerate() {
+        if layered.contains(&path) {
+            continue;
+        }
         if depth_map {
             let (world_to_camera, world_to_ndc) =
                 rt.depth_map_projection().context("a shadow map needs a camera a matrix describes")?;
@@ -355,18 +361,45 @@ fn render_and_write(
         let float = Quantize { one: 0.0, min: 0.0, max: 0.0, dither: 0.0 };
         let quantize = if mode.has_depth() { Some(float) } else { rt.options.quantize };
         let opts = WriteOptions { transfer, quantize, ..WriteOptions::default() };
-        let (names, values) = match variable {
-            Some(name) => {
-                let values =
-                    fb.output(name).map_or_else(|| vec![0.0; 3 * fb.depth.len()], |v| v.as_flattened().to_vec());
-                (&["R", "G", "B"][..], values)
+        let (mut names, mut values) = display_channels(&fb, mode, variable);
+        if rtsl_runtime::image_io::ImageFormat::from_path(path) == Some(rtsl_runtime::image_io::ImageFormat::Exr) {
+            for &(other, mode, depth_map, variable) in &images[i + 1..] {
+                if other != path || depth_map {
+                    continue;
+                }
+                let (more, more_values) = display_channels(&fb, mode, variable);
+                let layer = variable.unwrap_or(mode.name());
+                values = interleave(&values, names.len(), &more_values, more.len());
+                names.extend(more.iter().map(|c| format!("{layer}.{c}")));
             }
-            None => fb.channels(mode),
-        };
-        write_channels(path, fb.width as usize, fb.height as usize, names, &values, &opts)
+            layered.push(path);
+        }
+        let names: Vec<&str> = names.iter().map(String::as_str).collect();
+        write_channels(path, fb.width as usize, fb.height as usize, &names, &values, &opts)
             .with_context(|| format!("writing {}", path.display()))?;
     }
     Ok(Written { report, missing_textures: missing_textures.len(), texture_files })
+}
+
+/// The channels of a display: `mode`'s, or an output variable's as RGB.
+fn display_channels(
+    fb: &rtsl_runtime::render::Framebuffer,
+    mode: DisplayMode,
+    variable: Option<&str>,
+) -> (Vec<String>, Vec<f32>) {
+    let (names, values) = match variable {
+        Some(name) => {
+            let values = fb.output(name).map_or_else(|| vec![0.0; 3 * fb.depth.len()], |v| v.as_flattened().to_vec());
+            (&["R", "G", "B"][..], values)
+        }
+        None => fb.channels(mode),
+    };
+    (names.iter().map(|n| n.to_string()).collect(), values)
+}
+
+/// Two images' interleaved channels, `a` of `na` a pixel and `b` of `nb`, as one of `na + nb`.
+fn interleave(a: &[f32], na: usize, b: &[f32], nb: usize) -> Vec<f32> {
+    a.chunks_exact(na.max(1)).zip(b.chunks_exact(nb.max(1))).flat_map(|(x, y)| x.iter().chain(y).copied()).collect()
 }
 
 /// The exit status of a render that wrote its image with `omissions` parts of the scene missing
@@ -713,7 +746,9 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
     let mut written_paths = BTreeSet::new();
     for &index in &frames {
         let Prepared { mut rt, output, omissions, files, .. } = prepare(args, index)?;
-        for (path, ..) in output.images() {
+        // A frame's displays may share a file (EXR layers); another frame's may not.
+        let this_frame: BTreeSet<PathBuf> = output.images().map(|(path, ..)| path.clone()).collect();
+        for path in &this_frame {
             if !written_paths.insert(path.clone()) {
                 anyhow::bail!(
                     "frame {} would overwrite {} of an earlier frame: name the images with #f (as in \

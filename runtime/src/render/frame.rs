@@ -124,6 +124,17 @@ impl DisplayMode {
         })
     }
 
+    /// The RIB name of the mode (`rgba`, `rgb`, `a`, `z`, `rgbaz`).
+    pub fn name(self) -> &'static str {
+        match self {
+            DisplayMode::Rgba => "rgba",
+            DisplayMode::Rgb => "rgb",
+            DisplayMode::A => "a",
+            DisplayMode::Z => "z",
+            DisplayMode::Rgbaz => "rgbaz",
+        }
+    }
+
     /// Whether its values are floats whatever the file (depth).
     pub fn has_depth(self) -> bool {
         matches!(self, DisplayMode::Z | DisplayMode::Rgbaz)
