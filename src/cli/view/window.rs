@@ -345,7 +345,7 @@ impl App {
                 if !img.status.is_empty() {
                     lines.push(("drag orbit, rdrag look, WASDQE fly, wheel dolly".into(), overlay::YELLOW));
                     lines.push((
-                        "click select, shift-drag move, X aa, F frameless, H overlay, R reset".into(),
+                        "click select, shift-drag move, X aa, F frameless, G gaze, V view, H overlay, R reset".into(),
                         overlay::YELLOW,
                     ));
                 }
