@@ -294,6 +294,144 @@ fn display_writes_arbitrary_output_variables() {
     assert!(stderr(&o).contains("bad.rib:1:"), "{}", stderr(&o));
 }
 
+/// Pixel `(x, y)` of an image as RGBA.
+fn pixel(image: &rtsl_runtime::RgbaImage, x: usize, y: usize) -> [f32; 4] {
+    let k = 4 * (y * image.width + x);
+    [image.pixels[k], image.pixels[k + 1], image.pixels[k + 2], image.pixels[k + 3]]
+}
+
+fn assert_close(got: [f32; 4], want: [f32; 4], what: &str) {
+    assert!(got.iter().zip(want).all(|(g, w)| (g - w).abs() < 1e-5), "{what}: got {got:?}, want {want:?}");
+}
+
+/// Runs `rtsl shade` in `dir` and reads back the images `-o` named.
+fn shade(dir: &Path, args: &[&str], images: &[&str]) -> Vec<rtsl_runtime::RgbaImage> {
+    let mut all = vec!["shade"];
+    all.extend_from_slice(args);
+    let o = rtsl(&all, dir);
+    assert_eq!(o.status.code(), Some(0), "{args:?}: {}", stderr(&o));
+    images.iter().map(|f| rtsl_runtime::read_image(dir.join(f)).expect("an image")).collect()
+}
+
+/// `-o VAR FILE` writes any global or output parameter; `-o FILE` the shader type's main result.
+#[test]
+fn shade_writes_globals_and_output_parameters() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let src = "surface o(output varying float mask = 0; output string label = \"\";)\n{ mask = s; Oi = 0.5; Ci = color(t, 0, 1); }\n";
+    write(dir.path(), "o.sl", src);
+    let images = shade(
+        dir.path(),
+        &[
+            "o.sl",
+            "-g",
+            "4",
+            "2",
+            "-o",
+            "Ci",
+            "ci.exr",
+            "-o",
+            "mask",
+            "mask.exr",
+            "-o",
+            "N",
+            "n.exr",
+            "-o",
+            "plain.exr",
+        ],
+        &["ci.exr", "mask.exr", "n.exr", "plain.exr"],
+    );
+    // Point (1, 1): s = 1.5 / 4, t = 1.5 / 2; Ci's alpha is the mean of Oi.
+    assert_close(pixel(&images[0], 1, 1), [0.75, 0.0, 1.0, 0.5], "Ci");
+    assert_close(pixel(&images[1], 1, 1), [0.375, 0.375, 0.375, 1.0], "mask as grey");
+    assert_close(pixel(&images[2], 1, 1), [0.0, 0.0, 1.0, 1.0], "N, untouched: its entry value");
+    assert_eq!(images[3].pixels, images[0].pixels, "-o FILE is Ci for a surface");
+    // Unknown names and outputs that are not images are usage errors naming what can be written.
+    let o = rtsl(&["shade", "o.sl", "-o", "Cout", "x.exr"], dir.path());
+    assert_eq!(o.status.code(), Some(2));
+    let err = stderr(&o);
+    assert!(err.contains("no global or output parameter `Cout`") && err.contains("P, N, Ci, Oi, mask, label"), "{err}");
+    let o = rtsl(&["shade", "o.sl", "-o", "label", "x.exr"], dir.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("`label` is not a float or a triple"), "{}", stderr(&o));
+    assert!(!dir.path().join("x.exr").exists(), "nothing is written after a usage error");
+}
+
+/// A displacement shader moves `P` and `N`; `-o FILE` is the displaced `P`.
+#[test]
+fn shade_runs_a_displacement_shader() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    write(
+        dir.path(),
+        "d.sl",
+        "displacement d(float h = 0.5;) { P += h * s * N; N = normalize(calculatenormal(P)); }\n",
+    );
+    let images = shade(dir.path(), &["d.sl", "-g", "4", "2", "-o", "p.exr", "-o", "N", "n.exr"], &["p.exr", "n.exr"]);
+    // Point (3, 0): s = 0.875, t = 0.25; P moved up by h s; the surface z = h s tilts N against +x.
+    assert_close(pixel(&images[0], 3, 0), [0.875, 0.25, 0.4375, 1.0], "P");
+    let len = (0.25f32 + 1.0).sqrt();
+    assert_close(pixel(&images[1], 3, 0), [-0.5 / len, 0.0, 1.0 / len, 1.0], "N");
+}
+
+/// A light shader lights every grid point: `Ps` is the point, `Cl` and `L` what it leaves.
+#[test]
+fn shade_runs_a_light_shader_at_each_grid_point() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let src = "light pl(float intensity = 1; point from = point \"shader\" (0, 0, 0);)\n{ illuminate(from) { Cl = intensity / (L . L); } }\n";
+    write(dir.path(), "pl.sl", src);
+    // The default `from`: the origin of the test host's "shader" space, (1, 2, 3).
+    let images =
+        shade(dir.path(), &["pl.sl", "-g", "4", "2", "-o", "cl.exr", "-o", "L", "l.exr"], &["cl.exr", "l.exr"]);
+    // Point (1, 0): Ps = (0.375, 0.25, 0), so L = Ps - from = (-0.625, -1.75, -3).
+    let cl = 1.0 / (0.625f32 * 0.625 + 1.75 * 1.75 + 9.0);
+    assert_close(pixel(&images[0], 1, 0), [cl, cl, cl, 1.0], "Cl");
+    assert_close(pixel(&images[1], 1, 0), [-0.625, -1.75, -3.0, 1.0], "L");
+    // A light above the grid's centre: brightest under it.
+    let images = shade(
+        dir.path(),
+        &["pl.sl", "-g", "4", "2", "--param", "from=0.5,0.5,1", "--param", "intensity=2", "-o", "cl.exr"],
+        &["cl.exr"],
+    );
+    let cl = 2.0 / (0.125f32 * 0.125 + 0.25 * 0.25 + 1.0);
+    assert_close(pixel(&images[0], 1, 0), [cl, cl, cl, 1.0], "Cl from (0.5, 0.5, 1)");
+    assert_close(pixel(&images[0], 2, 1), [cl, cl, cl, 1.0], "the mirror image point");
+}
+
+/// A volume shader changes the colour arriving along the eye ray `I` to each grid point.
+#[test]
+fn shade_runs_a_volume_shader_along_the_eye_rays() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let src = "volume fog(float distance = 1; color background = color(0, 0, 1);)\n{ float d = 1 - exp(-length(I) / distance); Ci = mix(Ci, background, d); Oi = mix(Oi, color(1, 1, 1), d); }\n";
+    write(dir.path(), "fog.sl", src);
+    let images = shade(dir.path(), &["fog.sl", "-g", "4", "2", "--param", "distance=2", "-o", "ci.exr"], &["ci.exr"]);
+    // Point (0, 1): the surface's colour (s, t, 0) = (0.125, 0.75, 0), seen from (0.5, 0.5, 1).
+    let length = (0.375f32 * 0.375 + 0.25 * 0.25 + 1.0).sqrt();
+    let d = 1.0 - (-length / 2.0).exp();
+    assert_close(pixel(&images[0], 0, 1), [0.125 * (1.0 - d), 0.75 * (1.0 - d), d, 1.0], "fogged Ci");
+}
+
+/// An imager (pixel) shader runs over an image whose pixels are the grid's colours.
+#[test]
+fn shade_runs_an_imager_shader_over_a_grid_image() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    write(dir.path(), "ex.sl", "imager ex(float gain = 2;) { Ci *= gain; alpha = xcomp(P) / 4 + zdepth; }\n");
+    let images = shade(dir.path(), &["ex.sl", "-g", "4", "2", "-o", "ex.exr"], &["ex.exr"]);
+    // Pixel (1, 0): Ci = (0.375, 0.25, 0) in; P = (1.5, 0.5, 0), zdepth 1; alpha is the alpha channel.
+    assert_close(pixel(&images[0], 1, 0), [0.75, 0.5, 0.0, 1.375], "Ci and alpha");
+}
+
+/// A camera shader makes a ray per pixel: `-o FILE` is its direction `I`, `-o E` its origin.
+#[test]
+fn shade_runs_a_camera_shader_per_pixel() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let src = "camera c(float fov = 90;)\n{ float hw = tan(radians(fov) / 2); E = point \"camera\" (0, 0, 0); I = vector \"camera\" (s * hw, t * hw, 1); Ci = 1; }\n";
+    write(dir.path(), "c.sl", src);
+    let images = shade(dir.path(), &["c.sl", "-g", "4", "2", "-o", "i.exr", "-o", "E", "e.exr"], &["i.exr", "e.exr"]);
+    // Pixel (1, 0) of 4x2: the shorter side spans [-1, 1], so s = -0.5 and t = 0.5 (up).
+    assert_close(pixel(&images[0], 1, 0), [-0.5, 0.5, 1.0, 1.0], "I");
+    // The test host's camera space is translated by (0, 0, 5).
+    assert_close(pixel(&images[1], 1, 0), [0.0, 0.0, 5.0, 1.0], "E");
+}
+
 /// A grid is refused past the renderer's image limits, before its points are allocated.
 #[test]
 fn shade_refuses_a_grid_past_the_image_limits() {
@@ -883,12 +1021,16 @@ fn a_file_without_a_shader_is_not_counted_as_one() {
 }
 
 #[test]
-fn shading_a_grid_with_an_imager_names_its_type_with_the_right_article() {
+fn shade_names_the_shader_type_with_the_right_article() {
     let dir = tempfile::tempdir().expect("tempdir");
     write(dir.path(), "img.sl", "imager img() { Ci = Ci * 0.5; }\n");
-    let o = rtsl(&["shade", "img.sl"], dir.path());
-    assert_ne!(o.status.code(), Some(0));
-    assert!(stderr(&o).contains("the shader is an imager shader"), "{}", stderr(&o));
+    let o = rtsl(&["shade", "img.sl", "-o", "Cl", "cl.exr"], dir.path());
+    assert_eq!(o.status.code(), Some(2));
+    let err = stderr(&o);
+    assert!(
+        err.contains("an imager shader has no global or output parameter `Cl`: it can write Ci, Oi, alpha"),
+        "{err}"
+    );
 }
 
 /// A copied binary carries its shader library: run from a directory far from the source tree, it

@@ -32,7 +32,8 @@ struct Cli {
 enum Command {
     /// Render a scene (a RIB file or a mesh; with none, the embedded default scene) to an image.
     Render(render::RenderArgs),
-    /// Run a surface shader over a grid of points with no scene and write Ci (like OSL's testshade).
+    /// Run a shader of any type over a grid of points with no scene and write its results as images
+    /// (like OSL's testshade).
     Shade(shade::ShadeArgs),
     /// Render a surface or displacement shader on a ball on a floor (a shader-ball preview).
     Preview(preview::PreviewArgs),

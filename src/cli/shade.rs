@@ -1,5 +1,5 @@
-//! `rtsl shade`: runs a surface shader over a grid of points with no scene and writes `Ci` as an
-//! image (like OSL's `testshade`); `rtsl bench shade`: the JIT against the interpreter and
+//! `rtsl shade`: runs a shader of any type over a grid of points with no scene and writes its
+//! results as images (like OSL's `testshade`); `rtsl bench shade`: the JIT against the interpreter and
 //! hand-written Rust, and the compile cost of a shader library.
 
 use anyhow::Context as _;
@@ -14,8 +14,9 @@ use std::time::Instant;
 /// Flags of `rtsl shade`.
 #[derive(clap::Args, Debug, Clone)]
 pub struct ShadeArgs {
-    /// The surface shader.
-    pub file: PathBuf,
+    /// The shader, of any type (`docs/shaders.md`, "Testing shaders"); required.
+    #[arg(value_name = "FILE")]
+    pub file: Option<PathBuf>,
     /// Grid size: width and height in points.
     #[arg(short = 'g', long = "grid", num_args = 2, value_names = ["W", "H"], default_values_t = [256, 256])]
     pub grid: Vec<usize>,
@@ -26,15 +27,53 @@ pub struct ShadeArgs {
     /// or text); repeatable (`docs/ray_parameters.md`).
     #[arg(long = "ray-param", value_parser = parse_ray_param)]
     pub ray_params: Vec<(String, ParamArg)>,
-    /// Write `Ci` (and the mean of `Oi` as alpha) to this image (.png, .exr, .tga, .ppm).
-    #[arg(short, long)]
-    pub output: Option<PathBuf>,
+    #[command(flatten)]
+    pub outputs: Outputs,
     /// Shade the grid this many times and print shaded points per second.
     #[arg(long, default_value_t = 1)]
     pub iters: usize,
     /// Directories searched for `#include`.
     #[arg(short = 'I', long = "include")]
     pub include: Vec<PathBuf>,
+}
+
+/// The `-o` flags of `rtsl shade`, each one or two values: clap's derive has no type for groups
+/// of values per occurrence, so this one is built by hand.
+#[derive(Debug, Clone, Default)]
+pub struct Outputs(pub Vec<Vec<String>>);
+
+impl clap::FromArgMatches for Outputs {
+    fn from_arg_matches(matches: &clap::ArgMatches) -> Result<Self, clap::Error> {
+        let groups = matches.get_occurrences::<String>("output").map(|o| o.map(|g| g.cloned().collect()).collect());
+        Ok(Outputs(groups.unwrap_or_default()))
+    }
+
+    fn update_from_arg_matches(&mut self, matches: &clap::ArgMatches) -> Result<(), clap::Error> {
+        *self = Self::from_arg_matches(matches)?;
+        Ok(())
+    }
+}
+
+impl clap::Args for Outputs {
+    fn augment_args(cmd: clap::Command) -> clap::Command {
+        cmd.arg(
+            clap::Arg::new("output")
+                .short('o')
+                .long("output")
+                .num_args(1..=2)
+                .value_names(["VAR", "FILE"])
+                .action(clap::ArgAction::Append)
+                .help(
+                    "`-o VAR FILE`: write a global or output parameter to an image (.png, .exr, .tga, .ppm), a float \
+                     as grey, a triple as RGB; repeatable. `-o FILE`: the shader type's main result (`Ci` of a \
+                     surface, `P` of a displacement, `Cl` of a light, `I` of a camera)",
+                ),
+        )
+    }
+
+    fn augment_args_for_update(cmd: clap::Command) -> clap::Command {
+        Self::augment_args(cmd)
+    }
 }
 
 /// `NAME=VALUE` of `--ray-param`: a float, a triple or a string.
@@ -49,17 +88,41 @@ fn parse_ray_param(arg: &str) -> Result<(String, ParamArg), String> {
 }
 
 pub fn run(args: &ShadeArgs) -> anyhow::Result<ExitCode> {
+    // Optional for clap only, so that `-o out.exr shader.sl` (read as `-o VAR FILE`) gets a hint.
+    let Some(file) = &args.file else {
+        match args.outputs.0.iter().find(|o| o.len() == 2) {
+            Some(o) => anyhow::bail!(
+                "no shader file: `-o {} {}` reads as `-o VAR FILE`; put `-o FILE` after the shader's file name",
+                o[0],
+                o[1]
+            ),
+            None => anyhow::bail!("no shader file: rtsl shade FILE.sl [-o [VAR] FILE]..."),
+        }
+    };
     let (w, h) = (args.grid[0].max(1), args.grid[1].max(1));
     // The grid is written as an image: the renderer's image limits, before anything is allocated.
     rtsl_runtime::render::check_image_size(w as u64, h as u64).map_err(|e| anyhow::anyhow!("-g {w} {h}: {e}"))?;
     let mut options = rtsl_compiler::Options::default();
     options.preprocessor.include_paths = args.include.clone();
-    let c = rtsl_compiler::compile_file(&args.file, &options)
-        .with_context(|| format!("reading {}", args.file.display()))?;
+    let c = rtsl_compiler::compile_file(file, &options).with_context(|| format!("reading {}", file.display()))?;
     rtsl_compiler::diagnostic::render_to(&c.sources, &c.diagnostics, &mut super::color::stderr());
     let Some(module) = c.module.as_ref() else { return Ok(ExitCode::from(1)) };
     let mut grid = Grid::with_sources(module, Some(&c.sources), w, h, &args.params)
-        .with_context(|| format!("{}", args.file.display()))?;
+        .with_context(|| format!("{}", file.display()))?;
+    // Every `-o` is checked before anything is shaded.
+    let outputs: Vec<(String, PathBuf)> = args
+        .outputs
+        .0
+        .iter()
+        .filter_map(|o| match o.as_slice() {
+            [file] => Some((grid.default_output().to_string(), PathBuf::from(file))),
+            [var, file, ..] => Some((var.clone(), PathBuf::from(file))),
+            [] => None,
+        })
+        .collect();
+    for (var, _) in &outputs {
+        grid.check_output(var).with_context(|| format!("-o {var}: {}", file.display()))?;
+    }
     let ray_parameters = args
         .ray_params
         .iter()
@@ -93,9 +156,10 @@ pub fn run(args: &ShadeArgs) -> anyhow::Result<ExitCode> {
             args.iters
         );
     }
-    if let Some(out) = &args.output {
-        rtsl_runtime::write_image(out, w, h, &grid.image(), &rtsl_runtime::WriteOptions::default())
-            .with_context(|| format!("writing {}", out.display()))?;
+    for (var, out) in &outputs {
+        let image = grid.image_of(var)?;
+        rtsl_runtime::write_image(out, w, h, &image, &rtsl_runtime::WriteOptions::default())
+            .with_context(|| format!("writing {} to {}", var, out.display()))?;
     }
     Ok(ExitCode::SUCCESS)
 }
