@@ -449,6 +449,40 @@ fn shade_refuses_a_grid_past_the_image_limits() {
     }
 }
 
+/// Several files and directories: each interface under its file's name; a broken file reports its
+/// diagnostics, the others still print, and the status is 1.
+#[test]
+fn info_prints_every_shader_of_files_and_directories() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    write(dir.path(), "lib/good.sl", GOOD);
+    write(dir.path(), "lib/light/pl.sl", "light pl(float intensity = 1;) { Cl = intensity; }\n");
+    write(dir.path(), "lib/readme.txt", "not a shader");
+    write(dir.path(), "bad.sl", BAD);
+    write(dir.path(), "warn.sl", WARN);
+    let o = rtsl(&["info", "lib", "bad.sl", "warn.sl"], dir.path());
+    assert_eq!(o.status.code(), Some(1), "bad.sl failed");
+    assert!(stderr(&o).contains("error[E0101]") && stderr(&o).contains("bad.sl:3:"), "{}", stderr(&o));
+    assert_eq!(
+        stdout(&o),
+        "lib/good.sl:\nsurface \"good\"\n    uniform float Kd = 0.8\n    uniform color tint = \"hsv\" [0 1 1]\n    uniform float knots[3] = {0, 0.5, 1}\n    output varying float mask = 0\n\nlib/light/pl.sl:\nlight \"pl\"\n    uniform float intensity = 1\n\nwarn.sl:\nsurface \"warn\"\n"
+    );
+    // Two files, one broken, as JSON: one record per line.
+    let o = rtsl(&["info", "--json", "bad.sl", "lib/good.sl"], dir.path());
+    assert_eq!(o.status.code(), Some(1));
+    let records: Vec<serde_json::Value> =
+        stdout(&o).lines().map(|l| serde_json::from_str(l).expect("each line is JSON")).collect();
+    assert_eq!(records.len(), 2);
+    assert_eq!((&records[0]["path"], &records[0]["ok"]), (&"bad.sl".into(), &false.into()));
+    assert_eq!(records[0]["diagnostics"][0]["code"], "E0101");
+    assert_eq!((&records[1]["path"], &records[1]["ok"]), (&"lib/good.sl".into(), &true.into()));
+    assert_eq!(records[1]["name"], "good");
+    assert_eq!(records[1]["parameters"][0]["name"], "Kd");
+    // Every file good: status 0; a directory alone gets headers too.
+    let o = rtsl(&["info", "lib/light"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert_eq!(stdout(&o), "lib/light/pl.sl:\nlight \"pl\"\n    uniform float intensity = 1\n");
+}
+
 #[test]
 fn info_finds_shaders_by_name_on_the_search_path() {
     let dir = tempfile::tempdir().expect("tempdir");

@@ -1,4 +1,4 @@
-//! `rtsl info`: a shader's interface, in the spirit of `oslinfo` and `sloinfo`.
+//! `rtsl info`: shaders' interfaces, in the spirit of `oslinfo` and `sloinfo`.
 
 use super::compile::CompilerFlags;
 use anyhow::Context as _;
@@ -7,31 +7,32 @@ use rtsl_compiler::interface::ShaderInterface;
 use rtsl_compiler::{compile_file, Compilation, Options};
 use rtsl_runtime::api::ShaderLocation;
 use std::io::Write as _;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 #[derive(clap::Args, Debug)]
 pub struct InfoArgs {
-    /// The shader: a source file, or a name found on the shader search path (`-S` directories, then
+    /// The shaders: source files or artifacts (`.sl`, `.rtso`), directories (searched recursively
+    /// for both), or names found on the shader search path (`-S` directories, then
     /// `RTSL_SHADER_PATH`, then the library).
-    #[arg(value_name = "FILE|NAME")]
-    pub file: PathBuf,
+    #[arg(value_name = "FILE|DIR|NAME", required = true)]
+    pub files: Vec<PathBuf>,
     /// Directories searched for shaders by name, before the standard library.
     #[arg(short = 'S', long = "shader-path")]
     pub shader_path: Vec<PathBuf>,
-    /// Print only the file the name resolves to.
+    /// Print only the file each name resolves to.
     #[arg(long)]
     pub which: bool,
     #[command(flatten)]
     pub flags: CompilerFlags,
-    /// Print the interface as JSON.
+    /// Print one JSON record per shader, one per line (JSON Lines).
     #[arg(long)]
     pub json: bool,
 }
 
 /// Where `arg` is: itself when it is a file (or looks like one), else the shader of that name on
 /// the search path or in the library.
-fn resolve(arg: &std::path::Path, shader_path: &[PathBuf]) -> anyhow::Result<ShaderLocation> {
+fn resolve(arg: &Path, shader_path: &[PathBuf]) -> anyhow::Result<ShaderLocation> {
     let looks_like_file = arg.is_file() || arg.extension().is_some() || arg.components().count() > 1;
     if looks_like_file {
         return Ok(ShaderLocation::File(arg.to_path_buf()));
@@ -48,64 +49,96 @@ fn resolve(arg: &std::path::Path, shader_path: &[PathBuf]) -> anyhow::Result<Sha
     })
 }
 
+/// The `.sl` and `.rtso` files below `dir`, in path order.
+fn walk(dir: &Path, out: &mut Vec<PathBuf>) -> std::io::Result<()> {
+    let mut entries: Vec<PathBuf> = std::fs::read_dir(dir)?.filter_map(|e| e.ok().map(|e| e.path())).collect();
+    entries.sort();
+    for path in entries {
+        if path.is_dir() {
+            walk(&path, out)?;
+        } else if path.extension().is_some_and(|e| e == "sl" || e == artifact::EXTENSION) {
+            out.push(path);
+        }
+    }
+    Ok(())
+}
+
+/// Every shader the arguments name: directories expanded, names resolved.
+fn locations(args: &InfoArgs) -> anyhow::Result<Vec<ShaderLocation>> {
+    let mut out = Vec::new();
+    for arg in &args.files {
+        if arg.is_dir() {
+            let mut files = Vec::new();
+            walk(arg, &mut files).with_context(|| format!("cannot list `{}`", arg.display()))?;
+            out.extend(files.into_iter().map(ShaderLocation::File));
+        } else {
+            let location = resolve(arg, &args.shader_path)?;
+            if let ShaderLocation::File(file) = &location {
+                std::fs::metadata(file).with_context(|| format!("cannot read `{}`", file.display()))?;
+            }
+            out.push(location);
+        }
+    }
+    Ok(out)
+}
+
+/// Why a shader has no interface to print: its diagnostics (already rendered as text) or an error.
+struct Failure {
+    text: String,
+    diagnostics: Vec<serde_json::Value>,
+}
+
+impl Failure {
+    fn of(c: &Compilation) -> Failure {
+        Failure {
+            text: c.render(),
+            diagnostics: c.diagnostics.iter().map(|d| serde_json::json!(d.to_json(&c.sources))).collect(),
+        }
+    }
+}
+
 /// The interface of a source file or of a compiled artifact (checked against its sources, and
-/// recompiled from them when stale, with a note). `None` after printing why there is none.
-fn interface_of(file: &std::path::Path, options: &Options) -> anyhow::Result<Option<ShaderInterface>> {
+/// recompiled from them when stale, with a note on stderr).
+fn interface_of(file: &Path, options: &Options) -> Result<ShaderInterface, Failure> {
     let from_compilation = |c: &Compilation| {
         if !c.ok() {
-            eprint!("{}", c.render());
-            return None;
+            return Err(Failure::of(c));
         }
-        if c.interface.is_none() {
-            eprintln!("{}: defines no shader (only functions or macros)", file.display());
-        }
-        c.interface.clone()
+        c.interface.clone().ok_or_else(|| Failure {
+            text: format!("{}: defines no shader (only functions or macros)\n", file.display()),
+            diagnostics: Vec::new(),
+        })
     };
+    let error = |e: anyhow::Error| Failure { text: format!("error: {e:#}\n"), diagnostics: Vec::new() };
     if file.extension().is_some_and(|e| e == artifact::EXTENSION) {
-        return Ok(match artifact::load(file, options)? {
-            Loaded::Artifact(a) => Some(a.interface),
+        return match artifact::load(file, options).map_err(|e| error(e.into()))? {
+            Loaded::Artifact(a) => Ok(a.interface),
             Loaded::Recompiled { compilation, reason } => {
                 eprintln!("note: {reason}; showing the source as it is now");
                 from_compilation(&compilation)
             }
-        });
+        };
     }
-    let c = compile_file(file, options).with_context(|| format!("cannot read `{}`", file.display()))?;
-    Ok(from_compilation(&c))
+    let c = compile_file(file, options).with_context(|| format!("cannot read `{}`", file.display())).map_err(error)?;
+    from_compilation(&c)
 }
 
 /// The interface of a shader wherever it is: a file, or the library built into the binary.
-fn interface_at(location: &ShaderLocation, options: &Options) -> anyhow::Result<Option<ShaderInterface>> {
+fn interface_at(location: &ShaderLocation, options: &Options) -> Result<ShaderInterface, Failure> {
     match location {
         ShaderLocation::File(file) => interface_of(file, options),
         ShaderLocation::Library(shader) => {
             let c = rtsl_compiler::compile_source(&shader.label(), shader.source, options);
-            if !c.ok() {
-                eprint!("{}", c.render());
+            match c.interface.clone() {
+                Some(i) if c.ok() => Ok(i),
+                _ => Err(Failure::of(&c)),
             }
-            Ok(c.interface)
         }
     }
 }
 
-pub fn run(args: &InfoArgs) -> anyhow::Result<ExitCode> {
-    let file = resolve(&args.file, &args.shader_path)?;
-    if args.which {
-        println!("{file}");
-        return Ok(ExitCode::SUCCESS);
-    }
-    let Some(iface) = interface_at(&file, &args.flags.options())? else {
-        return Ok(ExitCode::from(1));
-    };
-    let iface = &iface;
-    let stdout = std::io::stdout();
-    let mut out = stdout.lock();
-    if args.json {
-        let mut value = serde_json::to_value(iface)?;
-        value["path"] = serde_json::Value::String(file.to_string());
-        writeln!(out, "{}", serde_json::to_string_pretty(&value)?)?;
-        return Ok(ExitCode::SUCCESS);
-    }
+/// The interface as `sloinfo` prints it: the type and name, then a parameter a line.
+fn write_interface(out: &mut impl std::io::Write, iface: &ShaderInterface) -> std::io::Result<()> {
     writeln!(out, "{} \"{}\"", iface.kind.name(), iface.name)?;
     for p in &iface.parameters {
         let output = if p.output { "output " } else { "" };
@@ -116,5 +149,55 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<ExitCode> {
         };
         writeln!(out, "    {output}{} {} {}{array} = {default}", p.storage, p.base, p.name)?;
     }
-    Ok(ExitCode::SUCCESS)
+    Ok(())
+}
+
+pub fn run(args: &InfoArgs) -> anyhow::Result<ExitCode> {
+    let locations = locations(args)?;
+    let stdout = std::io::stdout();
+    let mut out = stdout.lock();
+    if args.which {
+        for location in &locations {
+            writeln!(out, "{location}")?;
+        }
+        return Ok(ExitCode::SUCCESS);
+    }
+    // One shader named as such prints as `sloinfo` does; several (or a directory) get a header each.
+    let headers = locations.len() > 1 || args.files.iter().any(|f| f.is_dir());
+    let options = args.flags.options();
+    let mut failed = 0usize;
+    for (k, location) in locations.iter().enumerate() {
+        match interface_at(location, &options) {
+            Ok(iface) => {
+                if args.json {
+                    let mut value = serde_json::to_value(&iface)?;
+                    value["path"] = serde_json::Value::String(location.to_string());
+                    value["ok"] = serde_json::Value::Bool(true);
+                    writeln!(out, "{value}")?;
+                    continue;
+                }
+                if headers {
+                    if k > 0 {
+                        writeln!(out)?;
+                    }
+                    writeln!(out, "{location}:")?;
+                }
+                write_interface(&mut out, &iface)?;
+            }
+            Err(failure) => {
+                failed += 1;
+                out.flush()?;
+                eprint!("{}", failure.text);
+                if args.json {
+                    let record = serde_json::json!({
+                        "path": location.to_string(),
+                        "ok": false,
+                        "diagnostics": failure.diagnostics,
+                    });
+                    writeln!(out, "{record}")?;
+                }
+            }
+        }
+    }
+    Ok(if failed > 0 { ExitCode::from(1) } else { ExitCode::SUCCESS })
 }

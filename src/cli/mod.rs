@@ -40,7 +40,7 @@ enum Command {
     /// Check shaders (files, or directories searched recursively for `.sl` files), and with `-o`
     /// write a compiled library: one artifact per shader and an `index.json`.
     Compile(compile::CompileArgs),
-    /// Show a shader's type, name and parameters.
+    /// Show the type, name and parameters of shaders (files, directories or names), like sloinfo.
     Info(info::InfoArgs),
     /// Play a BART animated scene (an AFF file) at its own timing: write the frames, print per-frame times.
     Bart(bart::BartArgs),
