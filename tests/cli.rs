@@ -459,6 +459,9 @@ fn info_prints_every_shader_of_files_and_directories() {
     write(dir.path(), "lib/readme.txt", "not a shader");
     write(dir.path(), "bad.sl", BAD);
     write(dir.path(), "warn.sl", WARN);
+    // A link back up the tree is not followed.
+    #[cfg(unix)]
+    std::os::unix::fs::symlink(dir.path().join("lib"), dir.path().join("lib/light/loop")).expect("a symlink");
     let o = rtsl(&["info", "lib", "bad.sl", "warn.sl"], dir.path());
     assert_eq!(o.status.code(), Some(1), "bad.sl failed");
     assert!(stderr(&o).contains("error[E0101]") && stderr(&o).contains("bad.sl:3:"), "{}", stderr(&o));
@@ -477,6 +480,11 @@ fn info_prints_every_shader_of_files_and_directories() {
     assert_eq!((&records[1]["path"], &records[1]["ok"]), (&"lib/good.sl".into(), &true.into()));
     assert_eq!(records[1]["name"], "good");
     assert_eq!(records[1]["parameters"][0]["name"], "Kd");
+    write(dir.path(), "lib.sl", "float twice(float x) { return 2 * x; }\n");
+    let o = rtsl(&["info", "--json", "lib.sl"], dir.path());
+    assert_eq!(o.status.code(), Some(1));
+    let record: serde_json::Value = serde_json::from_str(&stdout(&o)).expect("JSON");
+    assert!(record["error"].as_str().is_some_and(|e| e.contains("defines no shader")), "{record}");
     // Every file good: status 0; a directory alone gets headers too.
     let o = rtsl(&["info", "lib/light"], dir.path());
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));

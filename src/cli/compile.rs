@@ -79,7 +79,7 @@ pub fn collect_shaders(paths: &[PathBuf]) -> anyhow::Result<Vec<PathBuf>> {
     for p in paths {
         let meta = std::fs::metadata(p).with_context(|| format!("cannot read `{}`", p.display()))?;
         if meta.is_dir() {
-            walk(p, &mut out).with_context(|| format!("cannot list `{}`", p.display()))?;
+            walk(p, &["sl"], &mut out).with_context(|| format!("cannot list `{}`", p.display()))?;
         } else {
             out.push(p.clone());
         }
@@ -87,13 +87,18 @@ pub fn collect_shaders(paths: &[PathBuf]) -> anyhow::Result<Vec<PathBuf>> {
     Ok(out)
 }
 
-fn walk(dir: &Path, out: &mut Vec<PathBuf>) -> std::io::Result<()> {
+/// The files below `dir` whose extension is one of `extensions`, in path order. Links to directories
+/// are not followed (as `find` does), so a link loop cannot make the walk endless.
+pub(crate) fn walk(dir: &Path, extensions: &[&str], out: &mut Vec<PathBuf>) -> std::io::Result<()> {
     let mut entries: Vec<PathBuf> = std::fs::read_dir(dir)?.filter_map(|e| e.ok().map(|e| e.path())).collect();
     entries.sort();
     for path in entries {
+        let link = path.symlink_metadata().is_ok_and(|m| m.file_type().is_symlink());
         if path.is_dir() {
-            walk(&path, out)?;
-        } else if path.extension().is_some_and(|e| e == "sl") {
+            if !link {
+                walk(&path, extensions, out)?;
+            }
+        } else if path.extension().is_some_and(|e| extensions.iter().any(|x| e == *x)) {
             out.push(path);
         }
     }

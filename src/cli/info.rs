@@ -49,27 +49,17 @@ fn resolve(arg: &Path, shader_path: &[PathBuf]) -> anyhow::Result<ShaderLocation
     })
 }
 
-/// The `.sl` and `.rtso` files below `dir`, in path order.
-fn walk(dir: &Path, out: &mut Vec<PathBuf>) -> std::io::Result<()> {
-    let mut entries: Vec<PathBuf> = std::fs::read_dir(dir)?.filter_map(|e| e.ok().map(|e| e.path())).collect();
-    entries.sort();
-    for path in entries {
-        if path.is_dir() {
-            walk(&path, out)?;
-        } else if path.extension().is_some_and(|e| e == "sl" || e == artifact::EXTENSION) {
-            out.push(path);
-        }
-    }
-    Ok(())
-}
-
 /// Every shader the arguments name: directories expanded, names resolved.
 fn locations(args: &InfoArgs) -> anyhow::Result<Vec<ShaderLocation>> {
     let mut out = Vec::new();
     for arg in &args.files {
         if arg.is_dir() {
             let mut files = Vec::new();
-            walk(arg, &mut files).with_context(|| format!("cannot list `{}`", arg.display()))?;
+            super::compile::walk(arg, &["sl", artifact::EXTENSION], &mut files)
+                .with_context(|| format!("cannot list `{}`", arg.display()))?;
+            if files.is_empty() {
+                eprintln!("note: no .sl or .{} files below `{}`", artifact::EXTENSION, arg.display());
+            }
             out.extend(files.into_iter().map(ShaderLocation::File));
         } else {
             let location = resolve(arg, &args.shader_path)?;
@@ -189,11 +179,15 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<ExitCode> {
                 out.flush()?;
                 eprint!("{}", failure.text);
                 if args.json {
-                    let record = serde_json::json!({
+                    let mut record = serde_json::json!({
                         "path": location.to_string(),
                         "ok": false,
                         "diagnostics": failure.diagnostics,
                     });
+                    // What no diagnostic says: an unreadable file, no shader in it.
+                    if failure.diagnostics.is_empty() {
+                        record["error"] = failure.text.trim_end().into();
+                    }
                     writeln!(out, "{record}")?;
                 }
             }
