@@ -430,6 +430,11 @@ fn shade_runs_a_camera_shader_per_pixel() {
     assert_close(pixel(&images[0], 1, 0), [-0.5, 0.5, 1.0, 1.0], "I");
     // The test host's camera space is translated by (0, 0, 5).
     assert_close(pixel(&images[1], 1, 0), [0.0, 0.0, 5.0, 1.0], "E");
+    // The library's pinhole takes the test host's field of view, 90 degrees: the same rays.
+    let pinhole = Path::new(env!("CARGO_MANIFEST_DIR")).join("stdlib_shaders/camera/pinhole.sl");
+    let pinhole = pinhole.to_str().expect("a UTF-8 path");
+    let library = shade(dir.path(), &[pinhole, "-g", "4", "2", "-o", "pinhole.exr"], &["pinhole.exr"]);
+    assert_eq!(library[0].pixels, images[0].pixels);
 }
 
 /// A grid is refused past the renderer's image limits, before its points are allocated.

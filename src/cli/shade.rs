@@ -115,8 +115,8 @@ pub fn run(args: &ShadeArgs) -> anyhow::Result<ExitCode> {
         .0
         .iter()
         .filter_map(|o| match o.as_slice() {
-            [file] => Some((grid.default_output().to_string(), PathBuf::from(file))),
-            [var, file, ..] => Some((var.clone(), PathBuf::from(file))),
+            [image] => Some((grid.default_output().to_string(), PathBuf::from(image))),
+            [var, image, ..] => Some((var.clone(), PathBuf::from(image))),
             [] => None,
         })
         .collect();

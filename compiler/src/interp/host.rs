@@ -165,7 +165,9 @@ pub trait Services {
 /// - gather rays: a ceiling 10 above every point, facing down: a ray with a positive z component
 ///   hits it (length `10 / dir.z`, unless beyond `maxdist`) with Ci the environment colour of the
 ///   direction, Oi white, P on the ceiling and N (0, 0, -1); other rays miss;
-/// - messages: `option("Format")` is [640 480 1], `rendererinfo("renderer")` is "rtsl", `attribute`
+/// - messages: `option("Format")` is [640 480 1], `option("FieldOfView")` 90 (degrees: the rays a
+///   pinhole camera shader then makes are those `testshade` gives a camera shader on entry),
+///   `rendererinfo("renderer")` is "rtsl", `attribute`
 ///   and other shaders' parameters are unknown (`None`); `rayinfo("depth")` is 0, and
 ///   `rayinfo(name)` (or `"user:name"`) one of [`TestHost::ray_parameters`], `"relevance"` 1 when
 ///   they do not hold it;
@@ -323,6 +325,7 @@ impl Services for TestHost {
     fn message(&mut self, which: Builtin, name: &str) -> Option<Value> {
         match (which, name) {
             (Builtin::Option, "Format") => Some(Value::Triple([640.0, 480.0, 1.0])),
+            (Builtin::Option, "FieldOfView") => Some(Value::Float(90.0)),
             (Builtin::Rendererinfo, "renderer") => Some(Value::String("rtsl".into())),
             (Builtin::Rayinfo, "depth") => Some(Value::Float(0.0)),
             (Builtin::Rayinfo, name) => {
