@@ -772,12 +772,21 @@ impl<'a> Loader<'a> {
             | K::NuPatch { .. }
             | K::Geometry { .. }
             | K::Points(_)
-            | K::Curves { .. } => {
+            | K::Curves { .. }
+            | K::Blobby { .. } => {
                 self.state.mesh_options.view = self.view();
                 // Refused before it is tessellated: one patch mesh can ask for more than the limit.
-                self.check_triangles(r, request_triangles(r, &self.state.mesh_options))?;
+                // A blobby's own limits bound its mesh, whose size only sampling its field tells:
+                // it is counted once built.
+                let blobby = matches!(r.kind, K::Blobby { .. });
+                if !blobby {
+                    self.check_triangles(r, request_triangles(r, &self.state.mesh_options))?;
+                }
                 let mut diags = Vec::new();
                 let mesh = mesh_from_request_with(r, &self.state.mesh_options, &mut diags);
+                if let Some(mesh) = mesh.as_ref().filter(|_| blobby) {
+                    self.check_triangles(r, mesh.triangle_count())?;
+                }
                 // A primitive that could not be built is missing from the picture.
                 self.out.warnings.extend(diags.into_iter().map(|d| match d.severity {
                     Severity::Error => RibDiagnostic { severity: Severity::Omission, ..d },
@@ -1192,6 +1201,7 @@ fn is_geometry(kind: &RequestKind) -> bool {
             | K::Geometry { .. }
             | K::Points(_)
             | K::Curves { .. }
+            | K::Blobby { .. }
     )
 }
 

@@ -25,6 +25,7 @@
 //!   opened, their declarations not made), so the request list holds none of them, nor the
 //!   conditionals, except inside an inline archive, whose conditions are evaluated where it is read.
 
+pub mod blobby;
 pub mod cond;
 pub mod curves;
 pub mod decl;

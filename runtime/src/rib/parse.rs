@@ -30,7 +30,7 @@ const IGNORED_REQUESTS: &[&str] = &["ErrorHandler", "GeometricApproximation", "P
 /// RenderMan requests (RISpec 3.2 and the common later ones) that this reader skips: what they
 /// ask for is missing from the picture, which their warning says (rather than the "unknown
 /// request" one a typo gets).
-const UNSUPPORTED_REQUESTS: &[&str] = &["Blobby", "ColorSamples", "Shader"];
+const UNSUPPORTED_REQUESTS: &[&str] = &["ColorSamples", "Shader"];
 
 /// One argument of a request, as written.
 #[derive(Clone, Debug)]
@@ -559,6 +559,18 @@ impl Parser {
                 ty: a.curve_type()?,
                 nvertices: a.ints("vertices per curve")?,
                 wrap: a.wrap()?,
+                params: self.params(a),
+            },
+            "Blobby" => K::Blobby {
+                nleaf: a.int("number of leaves")?,
+                code: a.ints("code")?,
+                floats: a.numbers("float operands")?,
+                // The strings come as an array; a bare string is a parameter name (a file that
+                // leaves out an empty string array is read too).
+                strings: match a.peek() {
+                    Some(ArgValue::Strings(_) | ArgValue::Numbers(_)) => a.strings("string operands")?,
+                    _ => Vec::new(),
+                },
                 params: self.params(a),
             },
             "Geometry" => K::Geometry { name: a.string("geometry name")?, params: self.params(a) },

@@ -3,6 +3,7 @@
 //! subdivision meshes, `teapot.rs` for `Geometry`, `points.rs` for points, `curves.rs` for curves)
 //! a request goes to, and its warnings and errors as diagnostics at the request's location.
 
+use super::blobby::{blobby_mesh, blobby_triangles, BlobbyInput};
 use super::curves::{curves_mesh, curves_triangles};
 use super::mesh::{
     general_polygon_mesh, points_general_polygons_mesh, points_polygons_mesh, polygon_mesh, quadric_mesh, MeshOptions,
@@ -44,6 +45,7 @@ pub fn request_triangles(request: &Request, options: &MeshOptions) -> usize {
         RequestKind::Geometry { name, .. } => geometry_triangles(name, options),
         RequestKind::Points(params) => points_triangles(params, options),
         RequestKind::Curves { ty, nvertices, wrap, params } => curves_triangles(*ty, nvertices, *wrap, params, options),
+        RequestKind::Blobby { .. } => blobby_input(&request.kind).map_or(0, |input| blobby_triangles(&input, options)),
         _ => 0,
     }
 }
@@ -82,6 +84,10 @@ pub fn mesh_from_request_with(
         RequestKind::Curves { ty, nvertices, wrap, params } => {
             curves_mesh(*ty, nvertices, *wrap, params, options, &mut warnings)
         }
+        RequestKind::Blobby { .. } => match blobby_input(&request.kind) {
+            Some(input) => blobby_mesh(&input, options, &mut warnings),
+            None => return None,
+        },
         _ => return None,
     };
     diagnostics.extend(warnings.into_iter().map(|w| RibDiagnostic::warning(&request.loc, w)));
@@ -99,6 +105,16 @@ fn subdivision_input(kind: &RequestKind) -> Option<SubdivisionInput<'_>> {
     match kind {
         RequestKind::SubdivisionMesh { scheme, nvertices, vertices, tags, nargs, intargs, floatargs, params } => {
             Some(SubdivisionInput { scheme, nvertices, vertices, tags, nargs, intargs, floatargs, params })
+        }
+        _ => None,
+    }
+}
+
+/// A `Blobby` request's arguments, borrowed.
+fn blobby_input(kind: &RequestKind) -> Option<BlobbyInput<'_>> {
+    match kind {
+        RequestKind::Blobby { nleaf, code, floats, strings, params } => {
+            Some(BlobbyInput { nleaf: *nleaf, code, floats, strings, params })
         }
         _ => None,
     }

@@ -583,6 +583,20 @@ pub enum RequestKind {
         /// Control points, widths and other data.
         params: Vec<Param>,
     },
+    /// `Blobby nleaf [code] [floats] [strings] params` (RISpec 3.2, section 5.6): an implicit
+    /// surface, the isosurface of primitive fields combined by a program.
+    Blobby {
+        /// The leaves (primitive fields) the code has, as the request counts them.
+        nleaf: i32,
+        /// The program: opcodes and their operands.
+        code: Vec<i32>,
+        /// The leaves' numbers (matrices, ends, radii).
+        floats: Vec<f32>,
+        /// The leaves' names.
+        strings: Vec<String>,
+        /// Primitive variables (one `vertex` or `varying` value per leaf).
+        params: Vec<Param>,
+    },
     /// `Sphere`, `Cylinder`, `Cone`, `Disk`, `Torus`, `Paraboloid`, `Hyperboloid`.
     Quadric {
         /// The shape and its parameters.
