@@ -649,6 +649,50 @@ WorldEnd
     check("points_and_curves", &render_rib("points_and_curves", &rib)).unwrap_or_else(|e| panic!("{e}"));
 }
 
+/// Implicit surfaces (RISpec 3.2, section 5.6): a red and a blue ellipsoid added so that they
+/// melt into one, their colours blending across the join, a segment blob less a sphere that bites
+/// it, and two spheres kept apart by `maximum` (a union without blending), on plastic under a
+/// light.
+#[test]
+fn blobby_matches_its_reference() {
+    let rib = r#"
+Format 128 96 1
+PixelSamples 2 2
+Projection "perspective" "fov" [36]
+Rotate -4 1 0 0
+Translate 0 -0.8 6
+WorldBegin
+  Attribute "light" "shadows" "on"
+  LightSource "ambientlight" 1 "intensity" [0.2]
+  LightSource "pointlight" 2 "intensity" [25] "from" [2 4 -3]
+  Surface "plastic"
+  Polygon "P" [-6 0 -6  6 0 -6  6 0 6  -6 0 6]
+  AttributeBegin
+    Translate -1.6 0.55 0
+    Blobby 2 [1001 0 1001 16 0 2 0 1]
+      [1.2 0 0 0  0 1.1 0 0  0 0 1.1 0  -0.3 0 0 1
+       1 0 0 0  0 1.3 0 0  0 0 1 0  0.35 0.1 0 1] []
+      "Cs" [0.9 0.2 0.15  0.2 0.35 0.9]
+  AttributeEnd
+  AttributeBegin
+    Translate 0.1 0.35 -0.2
+    Color [0.9 0.8 0.3]
+    Blobby 2 [1002 0 1001 23 4 0 1]
+      [-0.6 0 0  0.6 0 0.3  0.8  1 0 0 0  0 1 0 0  0 0 1 0  0 0 0 1
+       0.9 0 0 0  0 0.9 0 0  0 0 0.9 0  0.1 0.3 -0.25 1] []
+  AttributeEnd
+  AttributeBegin
+    Translate 1.6 0.4 0.3
+    Color [0.3 0.8 0.4]
+    Blobby 2 [1001 0 1001 16 2 2 0 1]
+      [1.2 0 0 0  0 1.2 0 0  0 0 1.2 0  -0.3 0 0 1
+       1 0 0 0  0 1 0 0  0 0 1 0  0.25 0.3 0 1] []
+  AttributeEnd
+WorldEnd
+"#;
+    check("blobby", &render_rib("blobby", rib)).unwrap_or_else(|e| panic!("{e}"));
+}
+
 /// Three boxes open towards the camera (the box above without its front face): two-sided, `Sides
 /// 1` (the inside walls are backs, so the floor shows through them), and `Sides 1` after
 /// `ReverseOrientation` (now the outside walls are backs: the top is gone and the inside shows).

@@ -31,7 +31,8 @@
 //! outermost samples count as outside, so every surface is closed. The longest side has
 //! [`BLOBBY_CELLS_PER_VIEW`] cells for each image's shorter side the box spans ([`View::fraction`]),
 //! at least [`MIN_BLOBBY_CELLS`], at most [`MAX_BLOBBY_CELLS`], and fewer where sampling would pass
-//! half of [`BLOBBY_EVALUATION_BUDGET`] (a warning says so). Each cell is cut into six tetrahedra
+//! half of [`BLOBBY_EVALUATION_BUDGET`] or placing the vertices what is left of it (a warning says
+//! so). Each cell is cut into six tetrahedra
 //! along its diagonal, and each tetrahedron the surface crosses gives one or two triangles (marching
 //! tetrahedra): vertices shared along the edges, placed on the surface by a few steps of regula
 //! falsi on the field along their edge, with the field's analytic gradient as the normal, wound so

@@ -63,10 +63,11 @@ pub use request::{
 pub const MAX_ARCHIVE_DEPTH: usize = 32;
 
 /// The most triangles the geometry requests of one RIB load may make, quadrics, patches, NURBS
-/// patches, subdivision meshes, the teapot, points and curves counted as tessellated: a line of
+/// patches, subdivision meshes, the teapot, points, curves and blobbies counted as tessellated: a line of
 /// text can ask for thousands, and memory runs out long before a file does (`docs/rendering.md`,
 /// "Limits"). Meshes read from OBJ, PLY or glTF files are not counted. Those requests are counted
-/// before they are tessellated ([`request_triangles`]).
+/// before they are tessellated ([`request_triangles`]); a `Blobby`, whose size only sampling its
+/// field tells, once built (its own grid bounds it: [`blobby::MAX_BLOBBY_CELLS`]).
 pub const MAX_RIB_TRIANGLES: usize = 1 << 24;
 
 /// An error at a place in a RIB file.

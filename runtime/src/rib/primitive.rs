@@ -1,7 +1,8 @@
 //! Geometry requests to triangle meshes: which of the builders (`mesh.rs` for polygons and
 //! quadrics, `patch.rs` for patches and patch meshes, `nurbs.rs` for NURBS patches, `subdiv.rs` for
-//! subdivision meshes, `teapot.rs` for `Geometry`, `points.rs` for points, `curves.rs` for curves)
-//! a request goes to, and its warnings and errors as diagnostics at the request's location.
+//! subdivision meshes, `teapot.rs` for `Geometry`, `points.rs` for points, `curves.rs` for curves,
+//! `blobby.rs` for implicit surfaces) a request goes to, and its warnings and errors as diagnostics
+//! at the request's location.
 
 use super::blobby::{blobby_mesh, blobby_triangles, BlobbyInput};
 use super::curves::{curves_mesh, curves_triangles};
@@ -25,8 +26,9 @@ pub fn mesh_from_request(request: &Request, diagnostics: &mut Vec<RibDiagnostic>
 }
 
 /// At most the triangles [`mesh_from_request_with`] makes of a patch, a NURBS patch, a quadric, a
-/// subdivision mesh, a `Geometry`, `Points` or `Curves`, worked out without tessellating it
-/// (exactly for patches, subdivision meshes, points and curves; 0 for other requests, whose
+/// subdivision mesh, a `Geometry`, `Points`, `Curves` or a `Blobby`, worked out without
+/// tessellating it (exactly for patches, subdivision meshes, points and curves; for a blobby
+/// twelve a cell of its grid, a loose bound the loader does not use; 0 for other requests, whose
 /// triangles their own data bound, and for a request the builder refuses).
 pub fn request_triangles(request: &Request, options: &MeshOptions) -> usize {
     match &request.kind {
