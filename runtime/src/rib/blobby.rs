@@ -277,7 +277,7 @@ impl Program {
                     let f = floats_at(operand(0)?, 23)?;
                     c += 1;
                     let (start, end, radius) = (Vec3::from_slice(&f[0..3]), Vec3::from_slice(&f[3..6]), f[6]);
-                    if !start.is_finite() || !end.is_finite() || !(radius > 0.0 && radius.is_finite()) {
+                    if !(start.is_finite() && end.is_finite() && radius > 0.0 && radius.is_finite()) {
                         return Err(format!("{what}: a segment blob needs finite ends and a positive radius"));
                     }
                     let (placed, inverse) = matrix(&f[7..23], warnings, &what)?;
