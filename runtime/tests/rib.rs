@@ -341,7 +341,7 @@ fn syntax_errors_are_located_and_reading_recovers() {
                 Scale 1 1 1 1\n\
                 Rotate 90 [0 0 1\n\
                 Surface \"x\" 0.5\n\
-                Frobnicate 1 2 3 Blobby\n\
+                Frobnicate 1 2 3 ColorSamples\n\
                 Polygon \"P\" [0 0 0 1 0 0 1 1 0] \"Cs\"\n\
                 Disk 0 1 360 12abc\n\
                 Cone 1 1 360\n\
@@ -358,7 +358,7 @@ fn syntax_errors_are_located_and_reading_recovers() {
             "scene.rib:7:11: error: `[` is never closed",
             "scene.rib:8:13: error: expected a parameter name (a string) in `Surface`'s parameter list, found a number",
             "scene.rib:9:1: warning: unknown request `Frobnicate` skipped",
-            "scene.rib:9:18: warning: `Blobby` is not supported yet and is skipped",
+            "scene.rib:9:18: warning: `ColorSamples` is not supported yet and is skipped",
             "scene.rib:10:33: error: parameter \"Cs\" has no value",
             "scene.rib:11:14: error: malformed number `12abc`",
         ]

@@ -115,7 +115,8 @@ fn omissions_count_what_is_missing_from_the_picture_and_not_what_is_approximated
     for approximated in ["\"limits\"", "PixelVariance", "stereographic", "\"dice\"", "nosuchparam"] {
         assert!(text.contains(approximated), "{approximated} is warned about: {text}");
     }
-    // Blobby, the archive, the object instance and the exterior shader are not in the picture.
+    // The Blobby without code (an error at the request), the archive, the object instance and the
+    // exterior shader are not in the picture.
     assert_eq!(loaded.omissions(), 4, "{text}");
     assert_eq!(loaded.warnings.len(), 9, "{text}");
 }
