@@ -30,11 +30,12 @@
 //! ellipsoid's and segment blob's support (where its field is not 0), padded by a cell, whose
 //! outermost samples count as outside, so every surface is closed. The longest side has
 //! [`BLOBBY_CELLS_PER_VIEW`] cells for each image's shorter side the box spans ([`View::fraction`]),
-//! at least [`MIN_BLOBBY_CELLS`], at most [`MAX_BLOBBY_CELLS`], and fewer where sampling would pass
-//! half of [`BLOBBY_EVALUATION_BUDGET`] or placing the vertices what is left of it (a warning says
-//! so). Each cell is cut into six tetrahedra
-//! along its diagonal, and each tetrahedron the surface crosses gives one or two triangles (marching
-//! tetrahedra): vertices shared along the edges, placed on the surface by a few steps of regula
+//! at least [`MIN_BLOBBY_CELLS`], at most [`MAX_BLOBBY_CELLS`], and fewer where the work would pass
+//! [`BLOBBY_EVALUATION_BUDGET`] (a warning says so). The grid is sampled in blocks of [`BLOCK`]
+//! samples a side, each with the program specialised to it ([`Program::compile`]: the leaves that
+//! do not reach the block, and what only they make, left out), so a sample costs what reaches it,
+//! not the whole program. Each cell is cut into six tetrahedra along its diagonal, and each
+//! tetrahedron the surface crosses gives one or two triangles (marching tetrahedra): vertices shared along the edges, placed on the surface by a few steps of regula
 //! falsi on the field along their edge, with the field's analytic gradient as the normal, wound so
 //! `(P1 - P0) x (P2 - P0)` points outside.
 //!
@@ -47,16 +48,16 @@
 //! Invariants: bad code (an unknown opcode, operands past the end of `code`, an index past the end
 //! of `floats` or `strings`, an operand that is not an earlier instruction, a singular or non-finite
 //! matrix, a radius that is not positive, `nleaf` that counts neither way) is an `Err` naming the
-//! instruction, never a panic. The grid has at most `(MAX_BLOBBY_CELLS + 2)^3` cells; field
-//! evaluations times the program's length are bounded by [`BLOBBY_EVALUATION_BUDGET`]; nothing
-//! recurses.
+//! instruction, never a panic. The grid has at most `(MAX_BLOBBY_CELLS + 2)^3` cells; the work
+//! (specialisations, and evaluations times the length of the program evaluated) is bounded by
+//! [`BLOBBY_EVALUATION_BUDGET`], the grids tried and given up included; nothing recurses.
 
 use std::collections::HashMap;
 
 use glam::{Affine3A, Mat3, Vec3};
 
 use super::decl::Class;
-use super::mesh::{per_vertex_params, reserve_mesh, route_attributes, ClassCounts, MeshOptions};
+use super::mesh::{per_vertex_params, reserve_mesh, route_attributes, ClassCounts, MeshOptions, PerVertex};
 use super::request::Param;
 use crate::geometry::Mesh;
 
@@ -72,10 +73,12 @@ pub const MIN_BLOBBY_CELLS: u32 = 16;
 /// Grid cells along the longest side of a `Blobby`'s box for each image's shorter side it spans.
 pub const BLOBBY_CELLS_PER_VIEW: f32 = 128.0;
 
-/// The work of tessellating one `Blobby`: field evaluations times the instructions of its program
-/// (an evaluation with the gradient counts four). Sampling the grid takes at most half; placing
-/// and shading the vertices the rest.
-pub const BLOBBY_EVALUATION_BUDGET: usize = 1 << 26;
+/// The work of tessellating one `Blobby`: each specialisation of its program to a block of the grid
+/// counts the program's instructions and operands, each evaluation those of the specialised program
+/// (four times that with the gradient). A grid is sampled only where that takes at most a quarter
+/// of the work left, and its vertices placed only where they fit in the rest; a coarser grid is
+/// tried otherwise (the work of the grids given up counts).
+pub const BLOBBY_EVALUATION_BUDGET: usize = 1 << 28;
 
 /// Regula falsi steps that move a vertex onto the surface along its edge.
 const REFINE_STEPS: usize = 3;
@@ -378,19 +381,104 @@ impl Program {
         Ok(Program { instructions, operands, leaves: leaf_instructions.len(), leaf_instructions, bound, cost })
     }
 
-    /// The field at `p`; `values` holds every instruction's result afterwards.
-    fn eval(&self, p: Vec3, values: &mut Vec<f32>) -> f32 {
-        values.clear();
-        for instruction in &self.instructions {
-            let v = match instruction {
+    /// The program specialised to the box `lo..hi`: the instructions whose value is not 0 all over
+    /// it (a leaf whose support misses the box is 0 there, and so are a sum, maximum or minimum of
+    /// zeros, a product or quotient with a zero, the difference of two zeros), each with the
+    /// operands that are not 0. A maximum or minimum that had a zero operand keeps one (the slot
+    /// that always holds 0).
+    fn compile(&self, lo: Vec3, hi: Vec3) -> Compiled<'_> {
+        let n = self.instructions.len();
+        let mut active = vec![false; n];
+        let mut out = Compiled { steps: Vec::new(), operands: Vec::new(), zero: n };
+        for (index, instruction) in self.instructions.iter().enumerate() {
+            let step = match instruction {
                 Instruction::Leaf { field, support, .. } => {
+                    let reaches = support.as_ref().is_none_or(|(a, b)| a.cmple(hi).all() && b.cmpge(lo).all());
+                    match field {
+                        Field::Zero | Field::Constant(0.0) => None,
+                        _ if !reaches => None,
+                        _ => Some(Step::Leaf(field, *support)),
+                    }
+                }
+                Instruction::Many(op, range) => {
+                    let all = &self.operands[range.clone()];
+                    let first = out.operands.len();
+                    out.operands.extend(all.iter().copied().filter(|&i| active[i]));
+                    let kept = out.operands.len() - first;
+                    let on = match op {
+                        1 => kept == all.len(),
+                        _ => kept > 0,
+                    };
+                    if !on {
+                        out.operands.truncate(first);
+                        None
+                    } else {
+                        if *op >= 2 && kept < all.len() {
+                            out.operands.push(out.zero);
+                        }
+                        Some(Step::Many(*op, first..out.operands.len()))
+                    }
+                }
+                Instruction::Subtract(a, b) => (active[*a] || active[*b]).then_some(Step::Subtract(*a, *b)),
+                Instruction::Divide(a, b) => (active[*a] && active[*b]).then_some(Step::Divide(*a, *b)),
+                Instruction::Negate(a) => active[*a].then_some(Step::Negate(*a)),
+                Instruction::Identity(a) => active[*a].then_some(Step::Identity(*a)),
+            };
+            if let Some(step) = step {
+                active[index] = true;
+                out.steps.push((index, step));
+            }
+        }
+        out
+    }
+}
+
+/// One instruction of a [`Compiled`] program.
+#[derive(Clone, Debug)]
+enum Step<'a> {
+    Leaf(&'a Field, Option<(Vec3, Vec3)>),
+    Many(u8, std::ops::Range<usize>),
+    Subtract(usize, usize),
+    Divide(usize, usize),
+    Negate(usize),
+    Identity(usize),
+}
+
+/// A program specialised to a box ([`Program::compile`]): its values are read from a vector of
+/// one slot an instruction and one more, all 0 but those the steps write.
+#[derive(Debug)]
+struct Compiled<'a> {
+    /// The instructions not 0 all over the box, with their numbers, in order.
+    steps: Vec<(usize, Step<'a>)>,
+    operands: Vec<usize>,
+    /// The slot that holds 0: the instructions' count.
+    zero: usize,
+}
+
+impl Compiled<'_> {
+    /// The work of one evaluation.
+    fn cost(&self) -> usize {
+        self.steps.len() + self.operands.len() + 1
+    }
+
+    /// Values to evaluate with: all 0.
+    fn fresh<T: Default + Clone>(&self, values: &mut Vec<T>) {
+        values.clear();
+        values.resize(self.zero + 1, T::default());
+    }
+
+    /// The field at `p` (`values` made by [`Compiled::fresh`] for this program).
+    fn eval(&self, p: Vec3, values: &mut [f32]) -> f32 {
+        for (index, step) in &self.steps {
+            values[*index] = match step {
+                Step::Leaf(field, support) => {
                     if support.as_ref().is_some_and(|b| !contains(b, p)) {
                         0.0
                     } else {
                         field.eval(p, false).0
                     }
                 }
-                Instruction::Many(op, range) => {
+                Step::Many(op, range) => {
                     let args = self.operands[range.clone()].iter().map(|&i| values[i]);
                     match op {
                         0 => args.sum(),
@@ -399,35 +487,33 @@ impl Program {
                         _ => args.fold(f32::INFINITY, f32::min),
                     }
                 }
-                Instruction::Subtract(a, b) => values[*a] - values[*b],
-                Instruction::Divide(a, b) => {
+                Step::Subtract(a, b) => values[*a] - values[*b],
+                Step::Divide(a, b) => {
                     if values[*b] == 0.0 {
                         0.0
                     } else {
                         values[*a] / values[*b]
                     }
                 }
-                Instruction::Negate(a) => -values[*a],
-                Instruction::Identity(a) => values[*a],
+                Step::Negate(a) => -values[*a],
+                Step::Identity(a) => values[*a],
             };
-            values.push(v);
         }
-        values.last().copied().unwrap_or(0.0)
+        values[self.zero - 1]
     }
 
-    /// The field and its gradient at `p`; `values` holds every instruction's afterwards.
-    fn eval_gradient(&self, p: Vec3, values: &mut Vec<Dual>) -> Dual {
-        values.clear();
-        for instruction in &self.instructions {
-            let v = match instruction {
-                Instruction::Leaf { field, support, .. } => {
+    /// The field and its gradient at `p` (`values` made by [`Compiled::fresh`] for this program).
+    fn eval_gradient(&self, p: Vec3, values: &mut [Dual]) -> Dual {
+        for (index, step) in &self.steps {
+            values[*index] = match step {
+                Step::Leaf(field, support) => {
                     if support.as_ref().is_some_and(|b| !contains(b, p)) {
                         (0.0, Vec3::ZERO)
                     } else {
                         field.eval(p, true)
                     }
                 }
-                Instruction::Many(op, range) => {
+                Step::Many(op, range) => {
                     let mut args = self.operands[range.clone()].iter().map(|&i| values[i]);
                     let first = args.next().unwrap_or((0.0, Vec3::ZERO));
                     args.fold(first, |(a, ga), (b, gb)| match op {
@@ -438,8 +524,8 @@ impl Program {
                         _ => (a, ga),
                     })
                 }
-                Instruction::Subtract(a, b) => (values[*a].0 - values[*b].0, values[*a].1 - values[*b].1),
-                Instruction::Divide(a, b) => {
+                Step::Subtract(a, b) => (values[*a].0 - values[*b].0, values[*a].1 - values[*b].1),
+                Step::Divide(a, b) => {
                     let ((x, gx), (y, gy)) = (values[*a], values[*b]);
                     if y == 0.0 {
                         (0.0, Vec3::ZERO)
@@ -447,12 +533,11 @@ impl Program {
                         (x / y, (gx * y - gy * x) / (y * y))
                     }
                 }
-                Instruction::Negate(a) => (-values[*a].0, -values[*a].1),
-                Instruction::Identity(a) => values[*a],
+                Step::Negate(a) => (-values[*a].0, -values[*a].1),
+                Step::Identity(a) => values[*a],
             };
-            values.push(v);
         }
-        values.last().copied().unwrap_or((0.0, Vec3::ZERO))
+        values[self.zero - 1]
     }
 }
 
@@ -462,7 +547,7 @@ struct Plan {
     /// The box around the leaves' supports: its first corner and size.
     lo: Vec3,
     size: Vec3,
-    /// Cells along the longest side the view asks for, and the most the sampling budget allows.
+    /// Cells along the longest side the view asks for, and those of the grid being tried.
     wanted: u32,
     cells: u32,
 }
@@ -482,8 +567,31 @@ impl Grid {
         self.origin + self.cell * Vec3::new(i as f32, j as f32, k as f32)
     }
 
-    fn samples(&self) -> usize {
-        self.cells.iter().map(|c| c + 1).product()
+    /// The blocks of [`BLOCK`] samples a side the grid is sampled in: the box of each one's
+    /// samples and the ranges of its samples inside the grid's outermost layer.
+    fn blocks(&self) -> impl Iterator<Item = (Vec3, Vec3, [std::ops::Range<usize>; 3])> + '_ {
+        let n = self.cells.map(|c| c + 1);
+        let count = n.map(|n| n.div_ceil(BLOCK));
+        (0..count[0] * count[1] * count[2]).map(move |b| {
+            let index = [b % count[0], (b / count[0]) % count[1], b / (count[0] * count[1])];
+            let first = Vec3::new(index[0] as f32, index[1] as f32, index[2] as f32) * BLOCK as f32;
+            let lo = self.origin + self.cell * first;
+            let hi = lo + self.cell * (BLOCK - 1) as f32;
+            let range = |axis: usize| (index[axis] * BLOCK).max(1)..((index[axis] + 1) * BLOCK).min(n[axis] - 1);
+            (lo, hi, [range(0), range(1), range(2)])
+        })
+    }
+
+    /// The work of sampling the field on the grid ([`tessellate`]), or `None` when working it out
+    /// would take more than `work` (it takes a specialisation a block).
+    fn sampling_work(&self, program: &Program, work: &mut usize) -> Option<usize> {
+        let mut total = 0usize;
+        for (lo, hi, [ri, rj, rk]) in self.blocks() {
+            spend(work, program.cost)?;
+            let compiled = program.compile(lo, hi);
+            total = total.saturating_add(program.cost + ri.len() * rj.len() * rk.len() * compiled.cost());
+        }
+        Some(total)
     }
 }
 
@@ -502,16 +610,7 @@ impl Plan {
         let wanted = (BLOBBY_CELLS_PER_VIEW * fraction).ceil();
         let wanted = if wanted.is_finite() { wanted.min(MAX_BLOBBY_CELLS as f32) as u32 } else { MIN_BLOBBY_CELLS };
         let wanted = wanted.clamp(MIN_BLOBBY_CELLS, MAX_BLOBBY_CELLS);
-        let mut plan = Plan { program, lo, size, wanted, cells: wanted };
-        while plan.grid(plan.cells).samples().saturating_mul(plan.program.cost) > BLOBBY_EVALUATION_BUDGET / 2 {
-            plan.cells = plan.coarser().ok_or_else(|| {
-                format!(
-                    "its code ({} instructions and operands) is too long to sample on any grid within the budget",
-                    plan.program.cost
-                )
-            })?;
-        }
-        Ok(plan)
+        Ok(Plan { program, lo, size, wanted, cells: wanted })
     }
 
     /// The grid of `n` cells along the longest side, padded by a cell all round.
@@ -543,31 +642,56 @@ pub fn blobby_triangles(input: &BlobbyInput, options: &MeshOptions) -> usize {
 const TETRAHEDRA: [[usize; 4]; 6] =
     [[0, 1, 3, 7], [0, 1, 5, 7], [0, 2, 3, 7], [0, 2, 6, 7], [0, 4, 5, 7], [0, 4, 6, 7]];
 
-/// The field sampled on `grid` (the outermost samples outside), the edges the surface crosses
-/// (inside sample first) and the triangles of their vertices, wound outwards.
-/// Each triangle comes with a direction outwards across it (from the inside corners of its
-/// tetrahedron to the outside ones), to wind it by once its vertices are placed.
-#[allow(clippy::type_complexity)]
-fn march(program: &Program, grid: &Grid) -> (Vec<f32>, Vec<(usize, usize)>, Vec<([u32; 3], Vec3)>) {
+/// Samples along each side of the blocks the grid is sampled in, each block with the program
+/// specialised to it ([`Program::compile`]).
+const BLOCK: usize = 8;
+
+/// Takes `n` from the work left, or says that there is not that much.
+fn spend(work: &mut usize, n: usize) -> Option<()> {
+    *work = work.checked_sub(n)?;
+    Some(())
+}
+
+/// The mesh of the isosurface on `grid`, or `None` when it would take more than `work`.
+///
+/// The field is sampled (the outermost samples count as outside, so that every surface closes),
+/// each cell cut into six tetrahedra and each tetrahedron the surface crosses gives one or two
+/// triangles, their vertices on the edges it crosses (shared between cells), moved onto the
+/// surface along their edge, with the gradient's normal and the leaves' values blended by field.
+fn tessellate(program: &Program, grid: &Grid, data: &[PerVertex<'_>], work: &mut usize) -> Option<Mesh> {
     let [nx, ny, nz] = grid.cells;
-    let (sx, sy) = (nx + 1, ny + 1);
+    let (sx, sy, sz) = (nx + 1, ny + 1, nz + 1);
     let at = |i: usize, j: usize, k: usize| i + sx * (j + sy * k);
     let point = |s: usize| grid.point(s);
+    let block_of = |s: usize| ((s % sx) / BLOCK, ((s / sx) % sy) / BLOCK, (s / (sx * sy)) / BLOCK);
+    // The box of a block's samples, grown by `pad` cells.
+    let block_box = |(bi, bj, bk): (usize, usize, usize), pad: f32| {
+        let first = Vec3::new((bi * BLOCK) as f32, (bj * BLOCK) as f32, (bk * BLOCK) as f32);
+        let lo = grid.origin + grid.cell * (first - pad);
+        (lo, lo + grid.cell * Vec3::splat((BLOCK - 1) as f32 + 2.0 * pad))
+    };
 
-    // Sample the field; the outermost samples are outside, so that every surface closes.
-    let mut scratch = Vec::with_capacity(program.instructions.len());
-    let mut samples = vec![0.0f32; sx * sy * (nz + 1)];
-    for k in 1..nz {
-        for j in 1..ny {
-            for i in 1..nx {
-                let s = at(i, j, k);
-                samples[s] = program.eval(point(s), &mut scratch);
+    let mut scratch: Vec<f32> = Vec::new();
+    let mut samples = vec![0.0f32; sx * sy * sz];
+    for (lo, hi, [ri, rj, rk]) in grid.blocks() {
+        spend(work, program.cost)?;
+        let compiled = program.compile(lo, hi);
+        compiled.fresh(&mut scratch);
+        spend(work, ri.len() * rj.len() * rk.len() * compiled.cost())?;
+        for k in rk {
+            for j in rj.clone() {
+                for i in ri.clone() {
+                    let s = at(i, j, k);
+                    samples[s] = compiled.eval(point(s), &mut scratch);
+                }
             }
         }
     }
     let inside = |v: f32| v > BLOBBY_THRESHOLD;
 
-    // March: a vertex for each edge the surface crosses, two or one triangle a tetrahedron crossed.
+    // March: a vertex for each edge the surface crosses, two or one triangle a tetrahedron crossed,
+    // each with a direction outwards across it (from its tetrahedron's inside corners to the
+    // outside ones) to wind it by once its vertices are placed.
     let mut vertex_of: HashMap<(u32, u32), u32> = HashMap::new();
     let mut edges: Vec<(usize, usize)> = Vec::new();
     let mut triangles: Vec<([u32; 3], Vec3)> = Vec::new();
@@ -606,113 +730,96 @@ fn march(program: &Program, grid: &Grid) -> (Vec<f32>, Vec<(usize, usize)>, Vec<
                     let from_inside = ins.iter().map(|&s| point(s)).sum::<Vec3>() / ins.len() as f32;
                     let to_outside = outs.iter().map(|&s| point(s)).sum::<Vec3>() / outs.len() as f32;
                     let outward = to_outside - from_inside;
-                    let mut push = |t: [u32; 3]| triangles.push((t, outward));
-                    push([made[0], made[1], made[2]]);
+                    triangles.push(([made[0], made[1], made[2]], outward));
                     if made.len() == 4 {
-                        push([made[0], made[2], made[3]]);
+                        triangles.push(([made[0], made[2], made[3]], outward));
                     }
                 }
             }
         }
     }
 
-    (samples, edges, triangles)
-}
-
-/// `Blobby`: the isosurface of its field.
-pub fn blobby_mesh(input: &BlobbyInput, options: &MeshOptions, warnings: &mut Vec<String>) -> Result<Mesh, String> {
-    let mut plan = Plan::new(input, options, warnings)?;
-    let mut work_left = BLOBBY_EVALUATION_BUDGET;
-    // Coarser grids until the vertices can be placed too (fewer cells, fewer vertices).
-    let (grid, samples, edges, triangles, steps) = loop {
-        let grid = plan.grid(plan.cells);
-        let cost = plan.program.cost;
-        work_left = work_left.saturating_sub(grid.samples() * cost);
-        let (samples, edges, triangles) = march(&plan.program, &grid);
-        let per_vertex = |steps: usize| (steps + 4) * cost;
-        let fits = |steps: usize| edges.len().saturating_mul(per_vertex(steps)) <= work_left;
-        if let Some(steps) = [REFINE_STEPS, 0].into_iter().find(|&s| fits(s)) {
-            break (grid, samples, edges, triangles, steps);
-        }
-        match plan.coarser() {
-            Some(n) if plan.grid(n).samples().saturating_mul(cost) <= work_left => plan.cells = n,
-            _ => {
-                return Err(format!(
-                    "its surface has {} vertices, too many to place within the tessellation budget",
-                    edges.len()
-                ))
-            }
-        }
-    };
-    if plan.cells < plan.wanted {
-        warnings.push(format!(
-            "tessellated on {} cells along its longest side rather than {}: its code is long ({} instructions \
-             and operands)",
-            plan.cells, plan.wanted, plan.program.cost
-        ));
-    }
-    let program = &plan.program;
-    let point = |s: usize| grid.point(s);
-    let mut scratch = Vec::with_capacity(program.instructions.len());
-
-    let counts = ClassCounts { vertex: program.leaves, varying: program.leaves, face: 1, corner: None };
-    let data: Vec<_> =
-        per_vertex_params(input.params, &counts, warnings).into_iter().filter(|d| d.name != "N").collect();
-    let (mut mesh, mut attributes) = reserve_mesh(edges.len(), triangles.len(), &data);
+    // Place and shade the vertices, block by block of their inside sample, with the program
+    // specialised to the block grown by a cell (an edge reaches one cell out of it).
+    let (mut mesh, mut attributes) = reserve_mesh(edges.len(), triangles.len(), data);
     mesh.uvs = None;
-    let mut duals = Vec::with_capacity(program.instructions.len());
+    mesh.positions.resize(edges.len(), Vec3::ZERO);
+    let mut normals = vec![Vec3::Z; edges.len()];
+    let mut values: Vec<Vec<f32>> = attributes.iter().map(|a| vec![0.0; a.components * edges.len()]).collect();
+    let mut order: Vec<usize> = (0..edges.len()).collect();
+    order.sort_by_key(|&v| block_of(edges[v].0));
+    let mut duals: Vec<Dual> = Vec::new();
     let mut weights = vec![0.0f32; program.leaves];
-    for &(a, b) in &edges {
-        let (pa, pb) = (point(a), point(b));
-        let (mut fa, mut fb) = (samples[a] - BLOBBY_THRESHOLD, samples[b] - BLOBBY_THRESHOLD);
-        let (mut lo, mut hi) = (0.0f32, 1.0f32);
-        let crossing = |fa: f32, fb: f32, lo: f32, hi: f32| {
-            let t = fa / (fa - fb);
-            if t.is_finite() {
-                lo + (hi - lo) * t.clamp(0.0, 1.0)
-            } else {
-                0.5 * (lo + hi)
-            }
-        };
-        let mut t = crossing(fa, fb, lo, hi);
-        for _ in 0..steps {
-            let f = program.eval(pa.lerp(pb, t), &mut scratch) - BLOBBY_THRESHOLD;
-            if f > 0.0 {
-                (lo, fa) = (t, f);
-            } else {
-                (hi, fb) = (t, f);
-            }
-            t = crossing(fa, fb, lo, hi);
-        }
-        // Off the samples, so that no two vertices coincide where the surface passes through one.
-        let p = pa.lerp(pb, t.clamp(1e-3, 1.0 - 1e-3));
-        let (_, gradient) = program.eval_gradient(p, &mut duals);
-        // The field falls outwards; where its gradient vanishes the edge points out.
-        let normal = (-gradient).try_normalize().or((pb - pa).try_normalize()).unwrap_or(Vec3::Z);
-        mesh.positions.push(p);
-        if let Some(normals) = mesh.normals.as_mut() {
-            normals.push(normal);
-        }
-        for (w, &instruction) in weights.iter_mut().zip(&program.leaf_instructions) {
-            let v = duals[instruction].0.abs();
-            *w = if v.is_finite() { v } else { 0.0 };
-        }
-        let total: f32 = weights.iter().sum();
-        for (attribute, d) in attributes.iter_mut().zip(&data) {
-            let n = d.components;
-            if d.class == Class::Uniform || program.leaves == 0 {
-                attribute.data.extend_from_slice(&d.values[..n]);
-                continue;
-            }
-            for component in 0..n {
-                let value = if total > 0.0 {
-                    weights.iter().enumerate().map(|(l, w)| w * d.values[l * n + component]).sum::<f32>() / total
+    let groups = || order.chunk_by(|&x, &y| block_of(edges[x].0) == block_of(edges[y].0));
+    // What placing them takes, worked out before any is placed.
+    let mut placing = 0usize;
+    for group in groups() {
+        let (lo, hi) = block_box(block_of(edges[group[0]].0), 1.0);
+        spend(work, program.cost)?;
+        placing = placing.saturating_add(group.len() * (REFINE_STEPS + 4) * program.compile(lo, hi).cost());
+    }
+    spend(work, placing)?;
+    for group in groups() {
+        let (lo, hi) = block_box(block_of(edges[group[0]].0), 1.0);
+        spend(work, program.cost)?;
+        let compiled = program.compile(lo, hi);
+        compiled.fresh(&mut scratch);
+        compiled.fresh(&mut duals);
+        for &v in group {
+            let (a, b) = edges[v];
+            let (pa, pb) = (point(a), point(b));
+            let (mut fa, mut fb) = (samples[a] - BLOBBY_THRESHOLD, samples[b] - BLOBBY_THRESHOLD);
+            let (mut lo, mut hi) = (0.0f32, 1.0f32);
+            let crossing = |fa: f32, fb: f32, lo: f32, hi: f32| {
+                let t = fa / (fa - fb);
+                if t.is_finite() {
+                    lo + (hi - lo) * t.clamp(0.0, 1.0)
                 } else {
-                    (0..program.leaves).map(|l| d.values[l * n + component]).sum::<f32>() / program.leaves as f32
-                };
-                attribute.data.push(value);
+                    0.5 * (lo + hi)
+                }
+            };
+            let mut t = crossing(fa, fb, lo, hi);
+            for _ in 0..REFINE_STEPS {
+                let f = compiled.eval(pa.lerp(pb, t), &mut scratch) - BLOBBY_THRESHOLD;
+                if f > 0.0 {
+                    (lo, fa) = (t, f);
+                } else {
+                    (hi, fb) = (t, f);
+                }
+                t = crossing(fa, fb, lo, hi);
+            }
+            // Off the samples, so that no two vertices coincide where the surface passes through one.
+            let p = pa.lerp(pb, t.clamp(1e-3, 1.0 - 1e-3));
+            let (_, gradient) = compiled.eval_gradient(p, &mut duals);
+            mesh.positions[v] = p;
+            // The field falls outwards; where its gradient vanishes the edge points out.
+            normals[v] = (-gradient).try_normalize().or((pb - pa).try_normalize()).unwrap_or(Vec3::Z);
+            for (w, &instruction) in weights.iter_mut().zip(&program.leaf_instructions) {
+                let f = duals[instruction].0.abs();
+                *w = if f.is_finite() { f } else { 0.0 };
+            }
+            let total: f32 = weights.iter().sum();
+            for (out, d) in values.iter_mut().zip(data) {
+                let n = d.components;
+                let out = &mut out[v * n..(v + 1) * n];
+                if d.class == Class::Uniform || program.leaves == 0 {
+                    out.copy_from_slice(&d.values[..n]);
+                    continue;
+                }
+                for (component, o) in out.iter_mut().enumerate() {
+                    let value = |l: usize| d.values[l * n + component];
+                    *o = if total > 0.0 {
+                        weights.iter().enumerate().map(|(l, w)| w * value(l)).sum::<f32>() / total
+                    } else {
+                        (0..program.leaves).map(value).sum::<f32>() / program.leaves as f32
+                    };
+                }
             }
         }
+    }
+    mesh.normals = Some(normals);
+    for (attribute, v) in attributes.iter_mut().zip(values) {
+        attribute.data = v;
     }
     // Wound outwards; a triangle collapsed to a line or a point is left out.
     mesh.triangles = triangles
@@ -724,6 +831,53 @@ pub fn blobby_mesh(input: &BlobbyInput, options: &MeshOptions, warnings: &mut Ve
         })
         .collect();
     route_attributes(&mut mesh, attributes);
+    Some(mesh)
+}
+
+/// `Blobby`: the isosurface of its field.
+pub fn blobby_mesh(input: &BlobbyInput, options: &MeshOptions, warnings: &mut Vec<String>) -> Result<Mesh, String> {
+    blobby_mesh_within(input, options, BLOBBY_EVALUATION_BUDGET, warnings)
+}
+
+/// [`blobby_mesh`] within `budget` ([`BLOBBY_EVALUATION_BUDGET`] says how it is spent).
+fn blobby_mesh_within(
+    input: &BlobbyInput,
+    options: &MeshOptions,
+    budget: usize,
+    warnings: &mut Vec<String>,
+) -> Result<Mesh, String> {
+    let mut plan = Plan::new(input, options, warnings)?;
+    let counts = ClassCounts { vertex: plan.program.leaves, varying: plan.program.leaves, face: 1, corner: None };
+    let data: Vec<_> =
+        per_vertex_params(input.params, &counts, warnings).into_iter().filter(|d| d.name != "N").collect();
+    let mut work_left = budget;
+    let too_long = |plan: &Plan| {
+        format!(
+            "its code ({} instructions and operands) is too long to tessellate on any grid within the budget",
+            plan.program.cost
+        )
+    };
+    let mesh = loop {
+        let grid = plan.grid(plan.cells);
+        // A grid whose sampling would take more than a quarter of the work left gives way to a
+        // coarser one; so does one whose vertices would take more than the rest.
+        let sampling = grid.sampling_work(&plan.program, &mut work_left).ok_or_else(|| too_long(&plan))?;
+        if sampling <= work_left / 4 {
+            let mut work = work_left;
+            if let Some(mesh) = tessellate(&plan.program, &grid, &data, &mut work) {
+                break mesh;
+            }
+            work_left = work;
+        }
+        plan.cells = plan.coarser().ok_or_else(|| too_long(&plan))?;
+    };
+    if plan.cells < plan.wanted {
+        warnings.push(format!(
+            "tessellated on {} cells along its longest side rather than {}: its code is long ({} instructions \
+             and operands)",
+            plan.cells, plan.wanted, plan.program.cost
+        ));
+    }
     mesh.validate().map_err(|e| e.to_string())?;
     Ok(mesh)
 }
@@ -966,25 +1120,68 @@ mod tests {
 
     #[test]
     fn long_code_coarsens_the_grid_within_the_budget() {
-        // 4000 blobs along a line, each tiny: the budget cuts the grid, with a warning.
-        let n = 4000;
+        // 400 blobs along a line, each reaching 200 others: a small budget cuts the grid, with a
+        // warning, and a smaller one refuses the request.
+        let n = 400;
         let mut code = String::new();
         let mut floats = String::new();
         for k in 0..n {
             code.push_str(&format!("1001 {} ", 16 * k));
-            floats.push_str(&sphere(0.5, [k as f32 * 0.001, 0.0, 0.0]));
+            floats.push_str(&sphere(0.5, [k as f32 * 0.005, 0.0, 0.0]));
             floats.push(' ');
         }
         code.push_str(&format!("0 {n} "));
         for k in 0..n {
             code.push_str(&format!("{k} "));
         }
-        let (m, diagnostics) = build(&format!("Blobby {n} [{code}] [{floats}] []"));
-        assert!(m.is_some(), "{diagnostics:?}");
-        assert!(diagnostics.iter().any(|d| d.message.contains("rather than")), "{diagnostics:?}");
+        let parse = parse_str(&format!("Blobby {n} [{code}] [{floats}] []"), "long.rib");
+        let crate::rib::RequestKind::Blobby { nleaf, code, floats, strings, params } = &parse.requests[0].kind else {
+            panic!("{:?}", parse.diagnostics)
+        };
+        let input = BlobbyInput { nleaf: *nleaf, code, floats, strings, params };
+        let options = MeshOptions::default();
+        let mut warnings = Vec::new();
+        let full = blobby_mesh_within(&input, &options, BLOBBY_EVALUATION_BUDGET, &mut warnings).expect("a mesh");
+        warnings.clear();
+        let coarse = blobby_mesh_within(&input, &options, 1 << 24, &mut warnings).expect("a mesh");
+        assert!(warnings.iter().any(|w| w.contains("rather than")), "{warnings:?}");
+        assert!(coarse.triangle_count() < full.triangle_count());
+        assert!(blobby_mesh_within(&input, &options, 1 << 12, &mut Vec::new()).unwrap_err().contains("too long"));
         // A long chain of operators evaluates in one pass, whatever its depth.
         let chain: String = (1..=20000).map(|k| format!("7 {} ", k - 1)).collect();
         let (m, diagnostics) = build(&format!("Blobby 1 [1001 0 {chain}] [{}] []", sphere(1.0, [0.0; 3])));
         assert!(m.is_some(), "{diagnostics:?}");
+    }
+
+    #[test]
+    fn a_program_specialised_to_a_box_keeps_what_reaches_it() {
+        let s = |x: f32| sphere(1.0, [x, 0.0, 0.0]);
+        // max(a, b) - (c * d): only a reaches the box around the origin.
+        let text = format!(
+            "Blobby 4 [1001 0 1001 16 1001 32 1001 48 2 2 0 1 1 2 2 3 4 4 5] [{} {} {} {}] []",
+            s(0.0),
+            s(5.0),
+            s(5.5),
+            s(-0.5)
+        );
+        let parse = parse_str(&text, "c.rib");
+        let crate::rib::RequestKind::Blobby { nleaf, code, floats, strings, params } = &parse.requests[0].kind else {
+            panic!()
+        };
+        let program = Program::new(&BlobbyInput { nleaf: *nleaf, code, floats, strings, params }, &mut Vec::new())
+            .expect("a program");
+        let compiled = program.compile(Vec3::splat(-0.2), Vec3::splat(0.2));
+        let kept: Vec<usize> = compiled.steps.iter().map(|(i, _)| *i).collect();
+        // a, d (reaches to -1.5..0.5), the maximum (with a zero for b), not the product (c is 0),
+        // the difference.
+        assert_eq!(kept, [0, 3, 4, 6]);
+        let mut values = Vec::new();
+        compiled.fresh(&mut values);
+        let whole = program.compile(Vec3::splat(-10.0), Vec3::splat(10.0));
+        let mut all = Vec::new();
+        whole.fresh(&mut all);
+        for p in [Vec3::ZERO, Vec3::new(0.1, -0.15, 0.2), Vec3::new(-0.2, 0.2, 0.0)] {
+            assert_eq!(compiled.eval(p, &mut values), whole.eval(p, &mut all), "{p}");
+        }
     }
 }
