@@ -122,6 +122,27 @@ fn omissions_count_what_is_missing_from_the_picture_and_not_what_is_approximated
 }
 
 #[test]
+fn blobbies_load_as_meshes_and_their_problems_are_located() {
+    let rib = r#"WorldBegin
+  Surface "plastic"
+  Blobby 2 [1001 0 1003 0 16 0 2 0 1]
+    [1 0 0 0  0 1 0 0  0 0 1 0  0 0 3 1  0.1 0.2 0.3 0.4] ["ground.z"] "Cs" [1 0 0  0 0 1]
+  Blobby 1 [1001 40] [1 0 0 0  0 1 0 0  0 0 1 0  0 0 3 1] []
+WorldEnd
+"#;
+    let loaded = load_str(&mut Context::new(), rib, Path::new("s.rib")).expect("loads with warnings");
+    let text = loaded.warnings.iter().map(ToString::to_string).collect::<Vec<_>>();
+    assert_eq!(text.len(), 2, "{text:?}");
+    assert!(text[0].starts_with("s.rib:3:3: warning: repelling ground planes (1003) are not supported"), "{text:?}");
+    assert!(
+        text[1].starts_with("s.rib:5:3: warning: instruction 0 (opcode 1001 at code[0]) reads 16 floats from 40"),
+        "{text:?}"
+    );
+    // The second is missing from the picture; the first is there, approximated.
+    assert_eq!(loaded.omissions(), 1, "{text:?}");
+}
+
+#[test]
 fn illuminate_switches_lights_and_area_lights_cast_soft_shadows() {
     let scene = |extra: &str| {
         format!(
