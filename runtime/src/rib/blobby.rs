@@ -17,8 +17,8 @@
 //! which must be lower than the operator's own): 0 add, 1 multiply, 2 maximum, 3 minimum (a count,
 //! then that many operands, at least one), 4 subtract (the first less the second), 5 divide (the
 //! first over the second; 0 where the second is 0), 6 negate, 7 identity. The last instruction is
-//! the field. The program runs in order, each instruction once, so evaluating it costs its length
-//! and cannot recurse or loop.
+//! the field. The program runs in order, each instruction once, so evaluating it costs at most its
+//! length and cannot recurse or loop.
 //!
 //! RISpec leaves the primitive fields' falloff to the renderer; rtsl follows Aqsis (after K-3D):
 //! a leaf's field is `(1 - r^2)^3` where `r` is the distance from the centre (from the segment, over
@@ -29,15 +29,17 @@
 //! Tessellation: the field is sampled on a grid of cubic cells over the box around every
 //! ellipsoid's and segment blob's support (where its field is not 0), padded by a cell, whose
 //! outermost samples count as outside, so every surface is closed. The longest side has
-//! [`BLOBBY_CELLS_PER_VIEW`] cells for each image's shorter side the box spans ([`View::fraction`]),
+//! [`BLOBBY_CELLS_PER_VIEW`] cells for each image's shorter side the box spans
+//! ([`View::fraction`](super::view::View::fraction)),
 //! at least [`MIN_BLOBBY_CELLS`], at most [`MAX_BLOBBY_CELLS`], and fewer where the work would pass
-//! [`BLOBBY_EVALUATION_BUDGET`] (a warning says so). The grid is sampled in blocks of [`BLOCK`]
-//! samples a side, each with the program specialised to it ([`Program::compile`]: the leaves that
-//! do not reach the block, and what only they make, left out), so a sample costs what reaches it,
-//! not the whole program. Each cell is cut into six tetrahedra along its diagonal, and each
-//! tetrahedron the surface crosses gives one or two triangles (marching tetrahedra): vertices shared along the edges, placed on the surface by a few steps of regula
-//! falsi on the field along their edge, with the field's analytic gradient as the normal, wound so
-//! `(P1 - P0) x (P2 - P0)` points outside.
+//! [`BLOBBY_EVALUATION_BUDGET`] (a warning says so). The grid is sampled in blocks of `BLOCK`
+//! samples a side, each with the program specialised to it (`Program::compile`: the leaves that do
+//! not reach the block, and what only they make, left out), so a sample costs what reaches it, not
+//! the whole program. Each cell is cut into six tetrahedra along its diagonal, and each
+//! tetrahedron the surface crosses gives one or two triangles (marching tetrahedra): vertices
+//! shared along the edges, placed on the surface by a few steps of regula falsi on the field along
+//! their edge, with the field's analytic gradient as the normal, wound so `(P1 - P0) x (P2 - P0)`
+//! points outside.
 //!
 //! Primitive variables: `vertex` and `varying` data have one value per leaf (`nleaf`), `uniform`
 //! and `constant` data one for all. At each vertex a leaf's value weighs by the size of its field
