@@ -1089,6 +1089,25 @@ mod tests {
     }
 
     #[test]
+    fn the_grid_follows_the_size_on_screen() {
+        let parse = parse_str(&format!("Blobby 1 [1001 0] [{}] []", sphere(2.0, [0.0; 3])), "view.rib");
+        let at = |z: f32| {
+            let view = crate::rib::view::View {
+                world_from_object: glam::Affine3A::from_translation(Vec3::new(0.0, 0.0, z)),
+                ..Default::default()
+            };
+            let options = MeshOptions { view, ..MeshOptions::default() };
+            let mesh = mesh_from_request_with(&parse.requests[0], &options, &mut Vec::new()).expect("a mesh");
+            (mesh.triangle_count(), request_triangles(&parse.requests[0], &options))
+        };
+        // Near: the box spans the whole view, 128 cells; far: a speck, 16.
+        let ((near, near_bound), (far, far_bound)) = (at(2.0), at(1000.0));
+        assert_eq!(near_bound, 12 * 130 * 130 * 130);
+        assert_eq!(far_bound, 12 * 18 * 18 * 18);
+        assert!(far < near / 16 && far > 100, "{near} {far}");
+    }
+
+    #[test]
     fn bad_code_is_an_error_at_the_request() {
         let s = sphere(1.0, [0.0; 3]);
         assert!(error(&format!("Blobby 1 [1001 4] [{s}] []")).contains("past the 16 given"));
