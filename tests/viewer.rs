@@ -284,6 +284,16 @@ fn the_viewer_over_three_mpi_ranks_shows_what_one_process_shows() {
     }
 }
 
+/// One still frame of `scene` at `size` after the `extra` arguments, saved as `name` and read back.
+fn still_shot(x: &Xvfb, dir: &Path, (scene, size): (&str, &str), name: &str, extra: &[&str]) -> Shot {
+    let mut args = vec![scene, "--size", size, "--frames", "1", "--no-watch", "--no-overlay", "--screenshot", name];
+    args.extend_from_slice(extra);
+    let o = view(&x.display, dir, &args);
+    assert!(o.status.success(), "rtsl view {args:?}: {}", String::from_utf8_lossy(&o.stderr));
+    let img = rtsl::runtime::read_image(dir.join(name)).expect("the screenshot is a PNG");
+    Shot { width: img.width, height: img.height, rgba: img.pixels }
+}
+
 /// A VRML scene's animation held at a time (`--time`): the box is where that time puts it.
 #[test]
 fn a_vrml_animation_is_shown_at_the_time_asked() {
@@ -301,15 +311,7 @@ ROUTE P.value_changed TO T.set_translation
 ",
     )
     .expect("write");
-    let shot = |name: &str, extra: &[&str]| {
-        let mut args = vec!["move.wrl", "--size", "48x36", "--frames", "1", "--no-watch", "--no-overlay"];
-        args.extend_from_slice(&["--screenshot", name]);
-        args.extend_from_slice(extra);
-        let o = view(&x.display, dir.path(), &args);
-        assert!(o.status.success(), "rtsl view {args:?}: {}", String::from_utf8_lossy(&o.stderr));
-        let img = rtsl::runtime::read_image(dir.path().join(name)).expect("the screenshot is a PNG");
-        Shot { width: img.width, height: img.height, rgba: img.pixels }
-    };
+    let shot = |name: &str, extra: &[&str]| still_shot(&x, dir.path(), ("move.wrl", "48x36"), name, extra);
     let start = shot("start.png", &[]);
     let held = shot("zero.png", &["--time", "0"]);
     let later = shot("later.png", &["--time", "1"]);
@@ -337,15 +339,7 @@ ROUTE C.isActive TO L.on
 ",
     )
     .expect("write");
-    let shot = |name: &str, extra: &[&str]| {
-        let mut args = vec!["touch.wrl", "--size", "48x36", "--frames", "1", "--no-watch", "--no-overlay"];
-        args.extend_from_slice(&["--screenshot", name]);
-        args.extend_from_slice(extra);
-        let o = view(&x.display, dir.path(), &args);
-        assert!(o.status.success(), "rtsl view {args:?}: {}", String::from_utf8_lossy(&o.stderr));
-        let img = rtsl::runtime::read_image(dir.path().join(name)).expect("the screenshot is a PNG");
-        Shot { width: img.width, height: img.height, rgba: img.pixels }
-    };
+    let shot = |name: &str, extra: &[&str]| still_shot(&x, dir.path(), ("touch.wrl", "48x36"), name, extra);
     let dark = shot("dark.png", &[]);
     let lit = shot("lit.png", &["--events", "click:24,18"]);
     let (d, l) = (dark.mean(), lit.mean());
@@ -369,15 +363,7 @@ Transform { translation 20 0 0 children Shape { appearance Appearance { material
 ",
     )
     .expect("write");
-    let shot = |name: &str, extra: &[&str]| {
-        let mut args = vec!["two.wrl", "--size", "32x24", "--frames", "1", "--no-watch", "--no-overlay"];
-        args.extend_from_slice(&["--screenshot", name]);
-        args.extend_from_slice(extra);
-        let o = view(&x.display, dir.path(), &args);
-        assert!(o.status.success(), "rtsl view {args:?}: {}", String::from_utf8_lossy(&o.stderr));
-        let img = rtsl::runtime::read_image(dir.path().join(name)).expect("the screenshot is a PNG");
-        Shot { width: img.width, height: img.height, rgba: img.pixels }
-    };
+    let shot = |name: &str, extra: &[&str]| still_shot(&x, dir.path(), ("two.wrl", "32x24"), name, extra);
     let centre = |s: &Shot| {
         let i = 4 * (12 * s.width + 16);
         [s.rgba[i], s.rgba[i + 1], s.rgba[i + 2]]

@@ -933,21 +933,7 @@ impl<'a> Builder<'a> {
             );
             return Ok(());
         }
-        self.rt.push_matrix();
-        self.rt.load_matrix(world);
-        let instance = self.rt.instantiate_object(id);
-        self.rt.pop_matrix()?;
-        let instance = instance?;
-        for k in 0..8 {
-            let corner = Vec3::new(
-                if k & 1 == 0 { lo.x } else { hi.x },
-                if k & 2 == 0 { lo.y } else { hi.y },
-                if k & 4 == 0 { lo.z } else { hi.z },
-            );
-            let w = world.transform_point3a(Vec3A::from(corner));
-            self.scene.bounds.0 = self.scene.bounds.0.min(w);
-            self.scene.bounds.1 = self.scene.bounds.1.max(w);
-        }
+        let instance = super::place_instance(self.rt, &mut self.scene, id, world, (lo, hi))?;
         self.scene.shapes.push(Placed {
             made: instance,
             node: r,

@@ -111,6 +111,33 @@ fn location(file: &Arc<Path>, loc: Loc) -> Location {
     Location { file: file.clone(), line: loc.line, column: loc.column }
 }
 
+/// Places an instance of object `id` at `world` and grows the scene's bounds by its box `lo..hi`
+/// (in the object's space) carried there.
+pub(crate) fn place_instance(
+    rt: &mut Context,
+    scene: &mut VrmlScene,
+    id: ObjectId,
+    world: Affine3A,
+    (lo, hi): (glam::Vec3, glam::Vec3),
+) -> std::result::Result<InstanceId, crate::api::ApiError> {
+    rt.push_matrix();
+    rt.load_matrix(world);
+    let instance = rt.instantiate_object(id);
+    rt.pop_matrix()?;
+    let instance = instance?;
+    for k in 0..8 {
+        let corner = glam::Vec3::new(
+            if k & 1 == 0 { lo.x } else { hi.x },
+            if k & 2 == 0 { lo.y } else { hi.y },
+            if k & 4 == 0 { lo.z } else { hi.z },
+        );
+        let w = world.transform_point3a(Vec3A::from(corner));
+        scene.bounds.0 = scene.bounds.0.min(w);
+        scene.bounds.1 = scene.bounds.1.max(w);
+    }
+    Ok(instance)
+}
+
 /// A node of one of the scene's files: `docs[doc]`'s node `node`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct NodeRef {
