@@ -1491,18 +1491,8 @@ impl<'a> Builder<'a> {
         if self.headlight.unwrap_or(true) {
             // VRML's headlight: a directional light of intensity 1 along the view, at the camera
             // the scene starts with.
-            let camera = self.rt.camera().world_from_camera;
-            let (eye, forward) = (camera.translation, camera.matrix3 * Vec3A::Z);
             let id = self.shader("distantlight")?;
-            self.rt.push_matrix();
-            self.rt.load_identity();
-            let light = self.rt.light_source(
-                id,
-                &[("from", ParamValue::Point(eye.to_array())), ("to", ParamValue::Point((eye + forward).to_array()))],
-            );
-            self.rt.pop_matrix()?;
-            // Its shadows would hide behind what casts them.
-            self.rt.set_light(light?, true, false)?;
+            super::add_headlight(self.rt, id)?;
         }
         Ok(())
     }

@@ -138,6 +138,26 @@ pub(crate) fn place_instance(
     Ok(instance)
 }
 
+/// Adds a headlight: `distantlight` (shader `id`) shining along the view of the camera the scene
+/// starts with, from the eye, casting no shadows (they would hide behind what casts them).
+pub(crate) fn add_headlight(
+    rt: &mut Context,
+    id: crate::api::ShaderId,
+) -> std::result::Result<(), crate::api::ApiError> {
+    use crate::shading::ParamValue;
+    let camera = rt.camera().world_from_camera;
+    let (eye, forward) = (camera.translation, camera.matrix3 * Vec3A::Z);
+    rt.push_matrix();
+    rt.load_identity();
+    let light = rt.light_source(
+        id,
+        &[("from", ParamValue::Point(eye.to_array())), ("to", ParamValue::Point((eye + forward).to_array()))],
+    );
+    rt.pop_matrix()?;
+    rt.set_light(light?, true, false)?;
+    Ok(())
+}
+
 /// A node of one of the scene's files: `docs[doc]`'s node `node`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct NodeRef {

@@ -1064,17 +1064,8 @@ impl Builder<'_> {
             crate::scene_file::frame_camera(self.rt, self.scene.bounds);
         }
         if self.lights == 0 {
-            let camera = self.rt.camera().world_from_camera;
-            let (eye, forward) = (camera.translation, camera.matrix3 * Vec3A::Z);
             let id = self.shader("distantlight")?;
-            self.rt.push_matrix();
-            self.rt.load_identity();
-            let light = self.rt.light_source(
-                id,
-                &[("from", ParamValue::Point(eye.to_array())), ("to", ParamValue::Point((eye + forward).to_array()))],
-            );
-            self.rt.pop_matrix()?;
-            self.rt.set_light(light?, true, false)?;
+            super::add_headlight(self.rt, id)?;
             let ambient = self.shader("ambientlight")?;
             self.rt.light_source(ambient, &[("intensity", ParamValue::Float(0.3))])?;
         }
