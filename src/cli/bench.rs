@@ -231,6 +231,18 @@ fn print_rate(args: &BenchRenderArgs, world: &rtsl_runtime::render::World, who: 
     println!("mrays_per_second: {:.2}", report.total_rays() as f64 / ms.max(1e-9) / 1e3);
 }
 
+/// Applies `rtsl bench render`'s image flags (size, samples per pixel, anti-aliasing) to `rt`.
+fn apply_image_flags(args: &BenchRenderArgs, rt: &mut rtsl_runtime::api::Context) {
+    if let Some((w, h)) = args.size {
+        rt.options.width = w;
+        rt.options.height = h;
+    }
+    rt.options.samples = super::render::samples_grid(args.samples);
+    if let Some(aa) = args.aa {
+        rt.options.antialiasing = aa;
+    }
+}
+
 /// Runs `rtsl bench render`: frames per second and rays per second of a scene, and with
 /// `--native-plastic` the JIT frame time over the hand-written one, measured in one run.
 pub fn run_render(args: &BenchRenderArgs) -> anyhow::Result<()> {
@@ -240,14 +252,7 @@ pub fn run_render(args: &BenchRenderArgs) -> anyhow::Result<()> {
     let load = || -> anyhow::Result<rtsl_runtime::api::Context> {
         let options = rtsl_runtime::LoadOptions { vrml_surface: args.vrml_surface.clone() };
         let (mut rt, _) = super::render::load_scene_frame(args.scene.as_deref(), &args.shader_path, &[], 0, &options)?;
-        if let Some((w, h)) = args.size {
-            rt.options.width = w;
-            rt.options.height = h;
-        }
-        rt.options.samples = super::render::samples_grid(args.samples);
-        if let Some(aa) = args.aa {
-            rt.options.antialiasing = aa;
-        }
+        apply_image_flags(args, &mut rt);
         args.rays.apply(&mut rt)?;
         Ok(rt)
     };
@@ -413,14 +418,7 @@ fn run_render_animated(args: &BenchRenderArgs, fps: f64) -> anyhow::Result<()> {
         super::render::load_scene_frame(args.scene.as_deref(), &args.shader_path, &[], 0, &options)?;
     let mut scene = loaded.vrml.take().context("--animate plays a VRML scene's animation")?;
     anyhow::ensure!(scene.is_animated(), "the scene has no animation (no TimeSensor routed anywhere)");
-    if let Some((w, h)) = args.size {
-        rt.options.width = w;
-        rt.options.height = h;
-    }
-    rt.options.samples = super::render::samples_grid(args.samples);
-    if let Some(aa) = args.aa {
-        rt.options.antialiasing = aa;
-    }
+    apply_image_flags(args, &mut rt);
     let (threads, pool) = super::worker_pool(args.threads)?;
     let (mut update_ms, mut frame_ms) = (Vec::new(), Vec::new());
     let mut world = rt.build_world()?;
