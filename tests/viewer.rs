@@ -24,7 +24,9 @@ impl Drop for Xvfb {
 /// not and returns `None`.
 fn xvfb() -> Option<Xvfb> {
     let spawned = Command::new("Xvfb")
-        .args(["-displayfd", "1", "-screen", "0", "320x240x24", "-nolisten", "tcp"])
+        // Without -noreset the server resets when its last client leaves, and a viewer connecting
+        // during that reset is refused.
+        .args(["-displayfd", "1", "-noreset", "-screen", "0", "320x240x24", "-nolisten", "tcp"])
         .stdout(Stdio::piped())
         .stderr(Stdio::null())
         .spawn();
@@ -49,11 +51,21 @@ fn xvfb() -> Option<Xvfb> {
     Some(Xvfb { display: format!(":{number}"), child })
 }
 
-/// Runs `rtsl view ARGS` on `display`, killed after two minutes.
+/// Runs `rtsl view ARGS` on `display`, killed after two minutes. A refused X connection is the
+/// test machine's trouble, not the viewer's, so it is tried again a few times.
 fn view(display: &str, dir: &Path, args: &[&str]) -> Output {
-    let mut command = Command::new(env!("CARGO_BIN_EXE_rtsl"));
-    command.arg("view").args(args);
-    run_on(display, dir, command)
+    let mut attempt = 0;
+    loop {
+        let mut command = Command::new(env!("CARGO_BIN_EXE_rtsl"));
+        command.arg("view").args(args);
+        let o = run_on(display, dir, command);
+        let refused = String::from_utf8_lossy(&o.stderr).contains("connecting to the display");
+        attempt += 1;
+        if !refused || attempt == 3 {
+            return o;
+        }
+        std::thread::sleep(Duration::from_millis(500));
+    }
 }
 
 /// Runs `command` on `display`, killed after two minutes.
