@@ -18,7 +18,7 @@ fn lights_loops_and_shading_models() {
                 cnt += 1;
                 c += Cl * (normalize(L) . Nf);
             }
-            illuminance("specular", P) {
+            illuminance("-ambient", P) {
                 if (s > 0.5) break;
                 cnt += 10;
             }
@@ -45,7 +45,7 @@ fn light_loops_in_loops_and_nested_read_their_own_lights() {
                 illuminance(P + vector(i * 0.01, 0, 0)) {
                     c += Cl * (1 + i);
                     vector outer = L;
-                    illuminance("specular", P - vector(0, i * 0.02, 0)) {
+                    illuminance("-ambient", P - vector(0, i * 0.02, 0)) {
                         cnt += 1;
                         c += Cl * length(L - outer);
                     }
@@ -107,6 +107,31 @@ fn imager_and_volume_shaders() {
             float d = 1 - exp(-length(I) / distance);
             Ci = mix(Ci, background, d);
             Oi = mix(Oi, color(1, 1, 1), d);
+        }
+        "#,
+    );
+}
+
+/// A light category that differs between lanes (a string chosen per point) runs the loop once per
+/// distinct category, each under the lanes that asked for it, as the interpreter does per point;
+/// `break` and a `return` inside leave only their own lanes.
+#[test]
+fn illuminance_with_a_category_per_lane() {
+    check(
+        r#"
+        float firstlight(string cat) { illuminance(cat, P) { return comp(Cl, 1); } return -1; }
+        surface t(output varying float cnt = 0; output varying float first = 0;)
+        {
+            string cat = s < 0.3 ? "key" : (s < 0.6 ? "-key" : "fill");
+            if (t > 0.8) cat = "";
+            color c = 0;
+            illuminance(cat, P, N, 1.2) {
+                cnt += 1;
+                if (u > 0.9) break;
+                c += Cl;
+            }
+            first = firstlight(t < 0.5 ? "fill" : "-fill");
+            Ci = c;
         }
         "#,
     );

@@ -205,6 +205,35 @@ fn gather_samples_outputs_branches_and_loop_exits() {
     );
 }
 
+/// `gather` parameter names computed when the shader runs (per lane) and a category and
+/// distribution that differ between lanes: each option and output applies under the lanes whose
+/// name is its own, as the interpreter decides per point.
+#[test]
+fn gather_with_computed_names_and_strings_per_lane() {
+    check(
+        r#"
+        surface t(string far = "maxdist"; output varying float o = 0; output varying vector ov = 0;
+                  output varying color oc = 0;)
+        {
+            string out = s < 0.5 ? "surface:N" : "ray:direction";
+            string opt = t < 0.5 ? far : "bias";
+            string cname = u < 0.5 ? "surface:Ci" : "surface:Oi";
+            string dist = v < 0.5 ? "cosine" : "uniform";
+            string cat = s < 0.25 ? "samplepattern" : "illuminance";
+            vector d = 0; color c = 0; float len = 0;
+            gather(cat, P, N, 0.3 + 2 * t, 4, out, d, opt, 5 + 20 * u, cname, c, "ray:length", len,
+                   "distribution", dist) {
+                o += len;
+                ov += d;
+                oc += c;
+            } else {
+                o -= 1;
+            }
+        }
+        "#,
+    );
+}
+
 #[test]
 fn point_clouds_return_zero_and_are_reported_once() {
     let src = r#"

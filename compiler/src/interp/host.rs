@@ -160,6 +160,9 @@ pub trait Services {
 /// - 3-D grids (`texture3d`): any name but "missing" is the linear ramp `x/4 + y/2 + z/8` of the
 ///   point; "missing" cannot be read;
 /// - environment: the direction mapped to a colour, `0.5 + 0.5 * normalize(dir)`;
+/// - lights: an ambient light (category "ambient"), a distant "key" light along +z and, when
+///   [`TestHost::point_light`] is set, a "fill" point light; a category `"name"` selects that
+///   category's lights, `"-name"` all the others;
 /// - shadow: 0 (nothing in shadow); transmission: white; occlusion: 0.25; indirect: 0.05 grey;
 /// - trace: the environment colour of the direction, distance 10;
 /// - gather rays: a ceiling 10 above every point, facing down: a ray with a positive z component
@@ -202,7 +205,16 @@ impl Services for TestHost {
         Some(matrix::mul(&a, &matrix::inverse(&b)?))
     }
 
-    fn lights(&mut self, _category: &str, p: V3) -> Vec<LightSample> {
+    fn lights(&mut self, category: &str, p: V3) -> Vec<LightSample> {
+        // The fixed non-ambient light is a "key" light, the point light a "fill" light; a
+        // category "-name" leaves that category's lights out (RISpec's `__category`).
+        let wanted = |of: &str| match category {
+            "" => true,
+            c => match c.strip_prefix('-') {
+                Some(not) => not != of,
+                None => c == of,
+            },
+        };
         let point = self.point_light.map(|from| LightSample {
             l: [from[0] - p[0], from[1] - p[1], from[2] - p[2]],
             cl: [0.8, 0.25 + 0.5 * p[0].abs().min(1.0), 0.4],
@@ -222,7 +234,13 @@ impl Services for TestHost {
                 nonspecular: 0.0,
             },
         ];
-        fixed.into_iter().chain(point).collect()
+        let [ambient, key] = fixed;
+        Some(ambient)
+            .filter(|_| wanted("ambient"))
+            .into_iter()
+            .chain(Some(key).filter(|_| wanted("key")))
+            .chain(point.filter(|_| wanted("fill")))
+            .collect()
     }
 
     fn texture(&mut self, name: &str, s: f32, t: f32, first_channel: usize, channels: usize) -> Option<Vec<f32>> {

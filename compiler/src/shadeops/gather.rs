@@ -61,6 +61,29 @@ pub enum Output {
 }
 
 impl Output {
+    pub const ALL: [Output; 7] = [
+        Output::RayOrigin,
+        Output::RayDirection,
+        Output::RayLength,
+        Output::SurfaceCi,
+        Output::SurfaceOi,
+        Output::SurfaceP,
+        Output::SurfaceN,
+    ];
+
+    /// The parameter names that ask for this output (what [`Output::parse`] reads).
+    pub fn names(self) -> &'static [&'static str] {
+        match self {
+            Output::RayOrigin => &["ray:origin"],
+            Output::RayDirection => &["ray:direction"],
+            Output::RayLength => &["ray:length"],
+            Output::SurfaceCi => &["surface:Ci"],
+            Output::SurfaceOi => &["surface:Oi"],
+            Output::SurfaceP => &["surface:P"],
+            Output::SurfaceN => &["surface:N", "surface:Ng"],
+        }
+    }
+
     pub fn parse(name: &str) -> Option<Output> {
         Some(match name {
             "ray:origin" => Output::RayOrigin,

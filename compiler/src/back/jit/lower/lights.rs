@@ -5,11 +5,11 @@
 use super::deriv::Dual;
 use super::{LoopCx, Lower, Val, R};
 use crate::back::jit::mask::{self, any, choose, widen};
-use crate::back::jit::{unsupported, JitError};
+use crate::back::jit::JitError;
 use crate::globals::Global;
 use crate::ir::{self, Arg, Constant, ExprId, ExprKind, Place, PlaceBase, Type};
-use cranelift_codegen::ir::condcodes::FloatCC;
-use cranelift_codegen::ir::{types, InstBuilder, MemFlagsData};
+use cranelift_codegen::ir::condcodes::{FloatCC, IntCC};
+use cranelift_codegen::ir::{types, InstBuilder, MemFlagsData, Value};
 
 impl<'m> Lower<'m, '_> {
     pub(super) fn global_val(&mut self, name: &str) -> R<Val> {
@@ -46,8 +46,19 @@ impl<'m> Lower<'m, '_> {
             None => self.const_string(""),
         };
         if cat.vary {
-            return unsupported("varying strings");
+            return self.per_string(&cat, |s, one| s.illuminance_of(one, position, cone, body));
         }
+        self.illuminance_of(cat, position, cone, body)
+    }
+
+    /// [`Self::illuminance`] for a uniform category.
+    fn illuminance_of(
+        &mut self,
+        cat: Val,
+        position: ExprId,
+        cone: Option<(ExprId, ExprId)>,
+        body: &'m ir::Block,
+    ) -> R<()> {
         let p = self.expr(position)?;
         let (axis, angle, has) = match cone {
             Some((a, b)) => (self.expr(a)?, self.expr(b)?, 1.0),
@@ -180,10 +191,34 @@ impl<'m> Lower<'m, '_> {
         let mut maxdist = Val { vary: false, c: vec![self.fconst(f32::INFINITY, false)] };
         let mut bias = Val { vary: false, c: vec![self.fconst(0.0, false)] };
         let mut distribution = self.const_string("");
-        let mut outputs: Vec<(Output, &'m Place)> = Vec::new();
+        let mut outputs: Vec<(Output, &'m Place, Option<Value>)> = Vec::new();
         for (name, arg) in params {
             let ExprKind::Const(Constant::String(name)) = &f.expr(*name).kind else {
-                return unsupported("a gather parameter named by a computed string");
+                // A name known only when the shader runs: each option and output applies under
+                // the lanes whose name is its own, as the interpreter decides per point.
+                let name = self.expr(*name)?;
+                match arg {
+                    Arg::Value(x) => {
+                        let ty = f.expr(*x).ty;
+                        let v = self.expr(*x)?;
+                        if ty == Type::FLOAT {
+                            let is = self.names_equal(&name, &["maxdist"])?;
+                            maxdist = self.choose_val(is, &v, &maxdist);
+                            let is = self.names_equal(&name, &["bias"])?;
+                            bias = self.choose_val(is, &v, &bias);
+                        } else if ty == Type::STRING {
+                            let is = self.names_equal(&name, &["distribution"])?;
+                            distribution = self.choose_val(is, &v, &distribution);
+                        }
+                    }
+                    Arg::Ref(place) => {
+                        for o in Output::ALL.into_iter().filter(|o| o.fits(place.ty)) {
+                            let is = self.names_equal(&name, o.names())?;
+                            outputs.push((o, place, Some(is)));
+                        }
+                    }
+                }
+                continue;
             };
             match arg {
                 Arg::Value(x) => {
@@ -198,14 +233,36 @@ impl<'m> Lower<'m, '_> {
                 }
                 Arg::Ref(place) => {
                     if let Some(o) = Output::parse(name).filter(|o| o.fits(place.ty)) {
-                        outputs.push((o, place));
+                        outputs.push((o, place, None));
                     }
                 }
             }
         }
-        if cat.vary || distribution.vary {
-            return unsupported("varying strings");
+        let run = GatherRun { p, axis, ang, count, maxdist, bias, outputs };
+        match (cat.vary, distribution.vary) {
+            (false, false) => self.gather_of(cat, distribution, &run, body, otherwise),
+            (true, false) => self.per_string(&cat, |s, c| s.gather_of(c, distribution.clone(), &run, body, otherwise)),
+            (_, true) => self.per_string(&distribution, |s, d| {
+                if cat.vary {
+                    s.per_string(&cat, |s, c| s.gather_of(c, d.clone(), &run, body, otherwise))
+                } else {
+                    s.gather_of(cat.clone(), d, &run, body, otherwise)
+                }
+            }),
         }
+    }
+
+    /// [`Self::gather`] for a uniform category and distribution.
+    fn gather_of(
+        &mut self,
+        cat: Val,
+        distribution: Val,
+        run: &GatherRun<'m>,
+        body: &'m ir::Block,
+        otherwise: &'m ir::Block,
+    ) -> R<()> {
+        use crate::shadeops::gather as g;
+        let GatherRun { p, axis, ang, count, maxdist, bias, outputs } = run;
         // The sample count, `gather::sample_count` per lane: NaN and negatives give 0.
         let n = {
             let x = widen(&mut self.b, count.c[0], true);
@@ -269,8 +326,13 @@ impl<'m> Lower<'m, '_> {
         let ran = self.b.ins().band(e, ran);
         let surf = self.b.ins().fcmp(FloatCC::Equal, rec[0], hit);
         let surf = self.b.ins().band(e, surf);
-        for (o, place) in &outputs {
-            self.set_exec(if o.on_miss() { e } else { surf });
+        for (o, place, named) in outputs {
+            let under = if o.on_miss() { e } else { surf };
+            let under = match named {
+                Some(is) => mask::and(&mut self.b, under, *is),
+                None => under,
+            };
+            self.set_exec(under);
             let t = self.place_targets(place)?;
             let row = o.row();
             self.write_targets(&t, &Val { vary: true, c: rec[row..row + o.components()].to_vec() })?;
@@ -297,6 +359,92 @@ impl<'m> Lower<'m, '_> {
         let after = self.b.use_var(exit_acc);
         self.set_exec(after);
         Ok(())
+    }
+}
+
+/// What a `gather` computes once, before it splits on a varying category or distribution.
+struct GatherRun<'m> {
+    p: Val,
+    axis: Val,
+    ang: Val,
+    count: Val,
+    maxdist: Val,
+    bias: Val,
+    /// Each output, its place, and for a computed name the lanes whose name is the output's.
+    outputs: Vec<(crate::shadeops::gather::Output, &'m Place, Option<Value>)>,
+}
+
+impl<'m> Lower<'m, '_> {
+    /// Runs `run` once per distinct string among the running lanes of the varying `names`, under
+    /// the lanes holding it and with it as a uniform value (a light category, a gather
+    /// distribution), as `split_strings` does for built-ins. The lanes running afterwards are
+    /// those each round left running.
+    fn per_string(&mut self, names: &Val, mut run: impl FnMut(&mut Self, Val) -> R<()>) -> R<()> {
+        let save = self.exec();
+        self.div += 1;
+        self.vdepth += 1;
+        let pending = self.b.declare_var(types::I32X4);
+        self.b.def_var(pending, save);
+        let out = self.b.declare_var(types::I32X4);
+        let zm = mask::zero_mask(&mut self.b);
+        self.b.def_var(out, zm);
+        let (header, body, done) = (self.b.create_block(), self.b.create_block(), self.b.create_block());
+        self.b.ins().jump(header, &[]);
+        self.b.switch_to_block(header);
+        let p = self.b.use_var(pending);
+        let live = any(&mut self.b, p);
+        self.b.ins().brif(live, body, &[], done, &[]);
+
+        self.b.switch_to_block(body);
+        let flags = MemFlagsData::new().with_endianness(cranelift_codegen::ir::Endianness::Little);
+        let handles = self.b.ins().bitcast(types::I32X4, flags, names.c[0]);
+        // The handle of the first pending lane.
+        let mut h = self.b.ins().extractlane(handles, 3);
+        for l in (0..3u8).rev() {
+            let on = self.b.ins().extractlane(p, l);
+            let hl = self.b.ins().extractlane(handles, l);
+            h = self.b.ins().select(on, hl, h);
+        }
+        let hs = self.b.ins().splat(types::I32X4, h);
+        let same = self.b.ins().icmp(IntCC::Equal, handles, hs);
+        let m = self.b.ins().band(p, same);
+        self.set_exec(m);
+        let one = self.b.ins().bitcast(types::F32, flags, h);
+        run(self, Val { vary: false, c: vec![one] })?;
+        let left = self.exec();
+        let acc = self.b.use_var(out);
+        let acc = self.b.ins().bor(acc, left);
+        self.b.def_var(out, acc);
+        let rest = self.b.ins().band_not(p, m);
+        self.b.def_var(pending, rest);
+        self.b.ins().jump(header, &[]);
+
+        self.b.switch_to_block(done);
+        self.div -= 1;
+        self.vdepth -= 1;
+        let after = self.b.use_var(out);
+        self.set_exec(after);
+        Ok(())
+    }
+
+    /// Whether the string `name` is one of `names` (a uniform bool or a lane mask).
+    fn names_equal(&mut self, name: &Val, names: &[&str]) -> R<Value> {
+        let mut is = None;
+        for n in names {
+            let c = self.const_string(n);
+            let eq = self.binary(ir::BinaryOp::Eq, Type::STRING, name, &c)?.c[0];
+            is = Some(match is {
+                Some(x) => mask::or(&mut self.b, x, eq),
+                None => eq,
+            });
+        }
+        is.ok_or_else(|| JitError::Codegen("no names to compare".into()))
+    }
+
+    /// `is ? a : b` for one-component values.
+    fn choose_val(&mut self, is: Value, a: &Val, b: &Val) -> Val {
+        let c = choose(&mut self.b, is, a.c[0], b.c[0]);
+        Val { vary: mask::is_vec(&self.b, c), c: vec![c] }
     }
 }
 
