@@ -234,6 +234,23 @@ fn gather_with_computed_names_and_strings_per_lane() {
     );
 }
 
+/// Aqsis's `occlusion(map, P, N, samples, ...)` traces like `occlusion(P, N, ...)`: its map and
+/// positional sample count are not read, its "samples" option is.
+#[test]
+fn aqsis_occlusion_with_a_map_name_traces() {
+    check(
+        r#"
+        light envlight(string filename = "occlmap.sm"; float samples = 8;
+                       output varying float o = 0; output varying float same = 0;)
+        {
+            o = occlusion(filename, Ps, Ns, 0, "samples", samples, "bias", 0.01);
+            same = o - occlusion(Ps, Ns, "samples", samples);
+            Cl = 1 - o;
+        }
+        "#,
+    );
+}
+
 #[test]
 fn point_clouds_return_zero_and_are_reported_once() {
     let src = r#"

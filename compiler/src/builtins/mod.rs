@@ -167,7 +167,7 @@ builtins! {
     Trace "trace" ["c(p,v,...)", "f(p,v,...)"] VARYING | RAYS, Host, "colour (or hit distance) seen along a ray";
     Transmission "transmission" ["c(p,p,...)"] VARYING | RAYS, Host, "how much light passes between two points (coloured shadows)";
     Visibility "visibility" ["c(p,p)", "f(p,p)"] VARYING | RAYS, Host, "1 if nothing blocks the segment between two points";
-    Occlusion "occlusion" ["f(p,n,f,...)", "f(p,n,...)"] VARYING | RAYS, Host, "fraction of the hemisphere that is blocked";
+    Occlusion "occlusion" ["f(p,n,f,...)", "f(p,n,...)", "f(s,p,n,f,...)"] VARYING | RAYS, Host, "fraction of the hemisphere that is blocked; Aqsis's form with an occlusion map's name first is traced the same way (the map and the positional sample count are not read: the \"samples\" option is, as Aqsis reads it)";
     Indirectdiffuse "indirectdiffuse" ["c(p,n,f,...)", "c(p,n,...)"] VARYING | RAYS, Host, "diffuse light arriving from other surfaces";
     Raydepth "raydepth" ["f()"] 0, Host, "how many bounces led to this ray (uniform: a batch holds rays of one depth)";
     // ---- Texture (15.7) ----

@@ -513,7 +513,9 @@ impl Machine<'_> {
             Builtin::Occlusion => {
                 let samples =
                     if fixed == 3 { v(2).f() } else { param(vals, fixed, "samples").map(Value::f).unwrap_or(16.0) };
-                Value::Float(self.host.occlusion(v(0).v3(), v(1).v3(), samples))
+                // Aqsis's form: an occlusion map's name, then P and N.
+                let at = usize::from(fixed == 4);
+                Value::Float(self.host.occlusion(v(at).v3(), v(at + 1).v3(), samples))
             }
             Builtin::Indirectdiffuse => {
                 let samples =

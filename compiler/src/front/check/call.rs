@@ -275,6 +275,17 @@ impl Checker<'_> {
                         .with_note(format!("at run time it reports this once and {}", unsupported_result(b))),
                     );
                 }
+                if b == Builtin::Occlusion && cand.params.first().and_then(|p| p.ty) == Some(Type::STRING) {
+                    self.diags.push(
+                        Diagnostic::new(
+                            Code::VendorExtension,
+                            name.span,
+                            "`occlusion` with an occlusion map's name first is Aqsis's form; rtsl traces the occlusion instead of reading the map",
+                        )
+                        .with_label("the map and the sample count before the options are not read")
+                        .with_note("the \"samples\" option sets the rays per point (16 when absent), as Aqsis reads it"),
+                    );
+                }
                 // Setting a component of a triple is an assignment to the component (`P[2] = z`
                 // in the IR), so that what follows sees the component's derivatives as well as
                 // its value (`calculatenormal` after `setzcomp(P, ...)`), in both back ends.

@@ -79,7 +79,9 @@ impl<'m> Lower<'m, '_> {
                     }
                 };
                 let name = if bi == Bi::Occlusion { "rtsl_h_occlusion" } else { "rtsl_h_indirectdiffuse" };
-                self.call_helper_on(name, &[v(0), v(1), samples], true)?
+                // Aqsis's occlusion: an occlusion map's name, then P and N.
+                let at = usize::from(fixed == 4);
+                self.call_helper_on(name, &[v(at), v(at + 1), samples], true)?
             }
             _ => return unsupported(format!("the built-in {}", bi.name())),
         };
