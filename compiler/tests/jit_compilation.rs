@@ -219,6 +219,27 @@ fn uniform_calls_into_uniform_storage() {
     );
 }
 
+/// A built-in the checker proves uniform (`depth` of a uniform point) that the JIT lowers through a
+/// per-lane host call still initialises and assigns uniform variables, in the body and in a helper
+/// whose result is uniform: the running lanes agree, so the first one's value is taken.
+#[test]
+fn uniform_built_ins_lowered_per_lane_into_uniform_storage() {
+    check(
+        r#"
+        float depthof(point p) { float a = depth(p); return a; }
+        surface t(output varying float o = 0;)
+        {
+            uniform float k = 0;
+            float a = depth(point(0, 0, 3));
+            k = a;
+            uniform float d = depthof(point(0, 0, 1));
+            if (s > 0.5) { o = k + d; } else { o = depthof(P); }
+            Ci = color(o);
+        }
+        "#,
+    );
+}
+
 /// A global is marked as needing no value on entry only when the shader assigns the whole of it in
 /// a top-level statement that every lane reaches, before any statement that might read it (reads
 /// after that see the shader's own value).

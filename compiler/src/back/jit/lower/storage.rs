@@ -34,11 +34,21 @@ impl<'m> Lower<'m, '_> {
         Val { vary: s.vary, c: s.vars.iter().map(|v| self.b.use_var(*v)).collect() }
     }
 
+    /// A value the IR holds uniform that the JIT computed per lane (a built-in of uniform
+    /// arguments lowered through a per-lane host call, as `depth(point(0, 0, 1))`), as a uniform
+    /// value: the checker proved the running lanes equal, so the first running lane's is it.
+    fn uniform_from_running(&mut self, v: &Val) -> Val {
+        if !v.vary {
+            return v.clone();
+        }
+        let e = self.exec();
+        let c = v.c.iter().map(|&x| self.first_running_lane(x, e)).collect();
+        Val { vary: false, c }
+    }
+
     /// Initialises storage (no mask: the storage is fresh or being loaded).
     pub(super) fn init_store(&mut self, s: &Store, v: &Val) -> R<()> {
-        if v.vary && !s.vary {
-            return unsupported("a varying value stored in uniform storage");
-        }
+        let v = &if v.vary && !s.vary { self.uniform_from_running(v) } else { v.clone() };
         if v.c.len() != s.vars.len() {
             return unsupported("a value of unexpected size");
         }
@@ -52,9 +62,6 @@ impl<'m> Lower<'m, '_> {
     /// Writes a whole value into storage: masked by `exec` when varying.
     pub(super) fn write_store(&mut self, s: &Store, v: &Val) -> R<()> {
         if !s.vary {
-            if v.vary {
-                return unsupported("a varying value stored in uniform storage");
-            }
             if self.div != s.div {
                 return unsupported("a uniform variable assigned under varying control flow");
             }
@@ -208,8 +215,15 @@ impl<'m> Lower<'m, '_> {
 
     fn write_targets_in(&mut self, store: &Store, t: &Targets, v: &Val) -> R<()> {
         let store = store.clone();
+        let uniform_value;
+        let v = if !store.vary && v.vary {
+            uniform_value = self.uniform_from_running(v);
+            &uniform_value
+        } else {
+            v
+        };
         if !store.vary {
-            if v.vary || t.list.iter().any(|(_, _, c)| c.is_some_and(|c| is_vec(&self.b, c))) {
+            if t.list.iter().any(|(_, _, c)| c.is_some_and(|c| is_vec(&self.b, c))) {
                 return unsupported("a varying value stored in uniform storage");
             }
             if self.div != store.div {

@@ -11,7 +11,7 @@ use cranelift_codegen::ir::InstBuilder;
 
 impl<'m> Lower<'m, '_> {
     /// Lane `x` (an `f32x4`) holds in the first lane that `exec` runs (lane 0 when none runs).
-    fn first_running_lane(&mut self, x: cranelift_codegen::ir::Value, exec: cranelift_codegen::ir::Value) -> cranelift_codegen::ir::Value {
+    pub(in crate::back::jit::lower) fn first_running_lane(&mut self, x: cranelift_codegen::ir::Value, exec: cranelift_codegen::ir::Value) -> cranelift_codegen::ir::Value {
         use cranelift_codegen::ir::{condcodes::IntCC, types};
         let running = self.b.ins().vhigh_bits(types::I32, exec);
         // Bit 4 set: no running lane reads as lane 4, which the selects below leave at lane 3;
