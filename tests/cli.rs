@@ -419,6 +419,43 @@ fn shade_runs_an_imager_shader_over_a_grid_image() {
     assert_close(pixel(&images[0], 1, 0), [0.75, 0.5, 0.0, 1.375], "Ci and alpha");
 }
 
+/// `--input` gives an imager or a volume its incoming image, `--global` any global a value or an
+/// image on entry; each image is read at the nearest pixel to each grid point's (s, t).
+#[test]
+fn shade_takes_an_incoming_image_and_globals_on_entry() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    // Two pixels: the left half of the grid reads the first, the right half the second.
+    let pixels = [0.2, 0.4, 0.6, 0.25, 1.0, 0.0, 0.0, 0.5];
+    rtsl_runtime::write_image(dir.path().join("in.exr"), 2, 1, &pixels, &rtsl_runtime::WriteOptions::default())
+        .expect("writes");
+    write(dir.path(), "half.sl", "imager half() { Ci *= 0.5; alpha *= 2; }\n");
+    let images = shade(dir.path(), &["half.sl", "-g", "4", "2", "--input", "in.exr", "-o", "out.exr"], &["out.exr"]);
+    assert_close(pixel(&images[0], 0, 0), [0.1, 0.2, 0.3, 0.5], "the left pixel, halved, its alpha doubled");
+    assert_close(pixel(&images[0], 3, 1), [0.5, 0.0, 0.0, 1.0], "the right pixel");
+
+    write(dir.path(), "thin.sl", "volume thin() { Ci *= Oi; }\n");
+    let images = shade(dir.path(), &["thin.sl", "-g", "2", "1", "--input", "in.exr", "-o", "out.exr"], &["out.exr"]);
+    assert_close(pixel(&images[0], 1, 0), [0.5, 0.0, 0.0, 0.5], "a volume's Oi is the alpha");
+
+    write(dir.path(), "n.sl", "surface n() { Ci = color(N) + Cs; }\n");
+    let args = ["n.sl", "-g", "2", "1", "--global", "N=0,1,0", "--global", "Cs=in.exr", "-o", "out.exr"];
+    let images = shade(dir.path(), &args, &["out.exr"]);
+    assert_close(pixel(&images[0], 0, 0), [0.2, 1.4, 0.6, 1.0], "N given, Cs from the image");
+
+    for (args, says) in [
+        (&["n.sl", "--global", "nosuch=1"][..], "no float or triple global `nosuch`"),
+        (&["n.sl", "--global", "N=1,2"][..], "takes 3 numbers, 2 given"),
+        (&["n.sl", "--input", "in.exr"][..], "not a surface shader"),
+        (&["half.sl", "--input", "missing.exr"][..], "missing.exr"),
+    ] {
+        let mut all = vec!["shade"];
+        all.extend_from_slice(args);
+        let o = rtsl(&all, dir.path());
+        assert_ne!(o.status.code(), Some(0), "{args:?}");
+        assert!(stderr(&o).contains(says), "{args:?}: {}", stderr(&o));
+    }
+}
+
 /// A camera shader makes a ray per pixel: `-o FILE` is its direction `I`, `-o E` its origin.
 #[test]
 fn shade_runs_a_camera_shader_per_pixel() {

@@ -73,6 +73,19 @@ pub enum GridError {
     NoVariable { name: String, kind: String, writable: String },
     #[error("`{0}` is not a float or a triple (a colour, point, vector or normal), so it cannot be an image")]
     NotAnImage(String),
+    #[error("{kind} shader reads no float or triple global `{name}` on entry")]
+    NoEntryGlobal { name: String, kind: String },
+    #[error("global `{name}` takes {expected} numbers, {given} given")]
+    WrongEntryCount { name: String, expected: usize, given: usize },
+}
+
+/// A global's value on entry that replaces the type's own (`rtsl shade --global`, `--input`).
+#[derive(Clone, Debug, PartialEq)]
+pub enum EntryValue {
+    /// The same value at every point (1 float, or 3 for a triple).
+    Constant(Vec<f32>),
+    /// One value a point, in grid order (row by row from the top), each of the global's floats.
+    PerPoint(Vec<f32>),
 }
 
 /// The most points a grid may have: the renderer's image pixel cap
@@ -111,6 +124,8 @@ pub struct Grid {
     /// Each batch as it was before its first shading (globals, parameters), once the host placed it.
     initial: Vec<SavedValues>,
     placement: Option<Placement>,
+    /// Entry values given in place of the type's own, in the order given.
+    entries: Vec<(&'static str, EntryValue)>,
     width: usize,
     height: usize,
 }
@@ -144,7 +159,63 @@ impl Grid {
             }
             batches.push(b);
         }
-        Ok(Grid { kind, shader, batches, initial: Vec::new(), placement: None, width: w, height: h })
+        Ok(Grid {
+            kind,
+            shader,
+            batches,
+            initial: Vec::new(),
+            placement: None,
+            entries: Vec::new(),
+            width: w,
+            height: h,
+        })
+    }
+
+    /// Gives global `name` this value on entry at every later [`Grid::shade`], in place of the
+    /// type's own (a volume's or imager's incoming image, a surface's `Cs` from a texture, a
+    /// normal): any float or triple global the shader type reads.
+    pub fn set_entry(&mut self, name: &str, value: EntryValue) -> Result<(), GridError> {
+        let g = GLOBALS
+            .iter()
+            .find(|g| {
+                g.name == name
+                    && g.access(self.kind) != Access::None
+                    && (g.ty.is_triple() || g.ty == crate::ir::BaseType::Float)
+            })
+            .ok_or_else(|| GridError::NoEntryGlobal { name: name.to_string(), kind: self.kind.with_article() })?;
+        let comps = if g.ty.is_triple() { 3 } else { 1 };
+        let (given, expected) = match &value {
+            EntryValue::Constant(v) => (v.len(), comps),
+            EntryValue::PerPoint(v) => (v.len(), comps * self.points()),
+        };
+        if given != expected {
+            return Err(GridError::WrongEntryCount { name: name.to_string(), expected, given });
+        }
+        self.entries.retain(|(n, _)| *n != g.name);
+        self.entries.push((g.name, value));
+        // The batches are set up again from the new entry values at the next shading.
+        self.placement = None;
+        self.initial.clear();
+        Ok(())
+    }
+
+    /// The globals of point `k` on entry: the type's own, then those given by `set_entry`.
+    fn entry_of(&self, placement: &Placement, k: usize) -> Vec<(&'static str, Vec<f32>)> {
+        let mut v = entry_values(self.kind, placement, self.width, self.height, k);
+        for (name, value) in &self.entries {
+            let x = match value {
+                EntryValue::Constant(c) => c.clone(),
+                EntryValue::PerPoint(all) => {
+                    let n = all.len() / self.points().max(1);
+                    all[k * n..(k + 1) * n].to_vec()
+                }
+            };
+            match v.iter_mut().find(|(g, _)| g == name) {
+                Some(slot) => slot.1 = x,
+                None => v.push((name, x)),
+            }
+        }
+        v
     }
 
     /// The type of the shader.
@@ -157,10 +228,11 @@ impl Grid {
         if self.placement.is_none() {
             let placement = Placement::of(host);
             self.placement = Some(placement);
-            for (i, b) in self.batches.iter_mut().enumerate() {
+            let mut batches = std::mem::take(&mut self.batches);
+            for (i, b) in batches.iter_mut().enumerate() {
                 for lane in 0..b.lanes() {
                     let k = i * BATCH + lane;
-                    for (name, value) in entry_values(self.kind, &placement, self.width, self.height, k) {
+                    for (name, value) in self.entry_of(&placement, k) {
                         b.set_global(name, lane, &value);
                     }
                     for (name, dx, dy) in entry_derivatives(self.kind, self.width, self.height) {
@@ -171,6 +243,7 @@ impl Grid {
                 b.save_values(&mut saved);
                 self.initial.push(saved);
             }
+            self.batches = batches;
         } else {
             for (b, saved) in self.batches.iter_mut().zip(&self.initial) {
                 b.restore_values(saved);
@@ -247,12 +320,9 @@ impl Grid {
         let n = self.check_output(name)?;
         let placement = self.placement.unwrap_or(Placement { shader_origin: [0.0; 3], camera: matrix::identity() });
         let value = |b: &BatchData, name: &str, k: usize, lane: usize| -> Option<Vec<f32>> {
-            b.global(name, lane).or_else(|| b.param(name, lane)).or_else(|| {
-                entry_values(self.kind, &placement, self.width, self.height, k)
-                    .into_iter()
-                    .find(|(g, _)| *g == name)
-                    .map(|(_, v)| v)
-            })
+            b.global(name, lane)
+                .or_else(|| b.param(name, lane))
+                .or_else(|| self.entry_of(&placement, k).into_iter().find(|(g, _)| *g == name).map(|(_, v)| v))
         };
         let alpha_of = |b: &BatchData, k: usize, lane: usize| -> f32 {
             match (name, self.kind) {

@@ -4,8 +4,9 @@
 
 use anyhow::Context as _;
 use rtsl::bench::shading::{compile_benchmark, shading_benchmark};
+use rtsl_compiler::interface::ShaderKind;
 use rtsl_compiler::interp::{TestHost, Value};
-use rtsl_compiler::testshade::{parse_param, Grid, ParamArg};
+use rtsl_compiler::testshade::{parse_param, EntryValue, Grid, ParamArg};
 use std::io::Write as _;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -27,6 +28,15 @@ pub struct ShadeArgs {
     /// or text); repeatable (`docs/ray_parameters.md`).
     #[arg(long = "ray-param", value_parser = parse_ray_param)]
     pub ray_params: Vec<(String, ParamArg)>,
+    /// A global's value on entry in place of the type's own, `NAME=VALUE`: numbers (`0.5`,
+    /// `0,1,0`) at every point, or an image file read at each point's `(s, t)` (a triple global
+    /// takes its RGB, a float its first channel); repeatable.
+    #[arg(long = "global", value_parser = parse_param)]
+    pub globals: Vec<(String, ParamArg)>,
+    /// The image arriving at an imager (its `Ci` and `alpha`) or at a volume (`Ci`, and `Oi` from
+    /// the alpha), read at each point's `(s, t)`.
+    #[arg(long = "input", value_name = "IMAGE")]
+    pub input: Option<PathBuf>,
     #[command(flatten)]
     pub outputs: Outputs,
     /// Shade the grid this many times and print shaded points per second.
@@ -109,6 +119,7 @@ pub fn run(args: &ShadeArgs) -> anyhow::Result<ExitCode> {
     let Some(module) = c.module.as_ref() else { return Ok(ExitCode::from(1)) };
     let mut grid = Grid::with_sources(module, Some(&c.sources), w, h, &args.params)
         .with_context(|| format!("{}", file.display()))?;
+    set_entries(&mut grid, args).with_context(|| format!("{}", file.display()))?;
     // Every `-o` is checked before anything is shaded.
     let outputs: Vec<(String, PathBuf)> = args
         .outputs
@@ -162,6 +173,51 @@ pub fn run(args: &ShadeArgs) -> anyhow::Result<ExitCode> {
             .with_context(|| format!("writing {} to {}", var, out.display()))?;
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// The `--global` and `--input` values, given to the grid.
+fn set_entries(grid: &mut Grid, args: &ShadeArgs) -> anyhow::Result<()> {
+    let (w, h) = grid.size();
+    // An image's channels at each grid point, the nearest pixel to its (s, t).
+    let sampled = |path: &PathBuf, channels: &[usize]| -> anyhow::Result<Vec<f32>> {
+        let img = rtsl_runtime::read_image(path).with_context(|| format!("reading {}", path.display()))?;
+        anyhow::ensure!(img.width > 0 && img.height > 0, "{} is an empty image", path.display());
+        let mut out = Vec::with_capacity(w * h * channels.len());
+        for y in 0..h {
+            let py = ((y as f64 + 0.5) / h as f64 * img.height as f64) as usize;
+            for x in 0..w {
+                let px = ((x as f64 + 0.5) / w as f64 * img.width as f64) as usize;
+                let at = 4 * (py.min(img.height - 1) * img.width + px.min(img.width - 1));
+                out.extend(channels.iter().map(|c| img.pixels[at + c]));
+            }
+        }
+        Ok(out)
+    };
+    if let Some(path) = &args.input {
+        let (colour, alpha) = match grid.kind() {
+            ShaderKind::Imager => ("Ci", "alpha"),
+            ShaderKind::Volume => ("Ci", "Oi"),
+            other => anyhow::bail!(
+                "--input gives an imager or a volume its incoming image, not {} shader (use --global NAME=IMAGE)",
+                other.with_article()
+            ),
+        };
+        grid.set_entry(colour, EntryValue::PerPoint(sampled(path, &[0, 1, 2])?))?;
+        let a = if alpha == "Oi" { sampled(path, &[3, 3, 3])? } else { sampled(path, &[3])? };
+        grid.set_entry(alpha, EntryValue::PerPoint(a))?;
+    }
+    for (name, value) in &args.globals {
+        let entry = match value {
+            ParamArg::Floats(f) => EntryValue::Constant(f.clone()),
+            ParamArg::String(path) => {
+                let comps = grid.check_output(name).unwrap_or(3);
+                let channels: &[usize] = if comps == 1 { &[0] } else { &[0, 1, 2] };
+                EntryValue::PerPoint(sampled(&PathBuf::from(path), channels)?)
+            }
+        };
+        grid.set_entry(name, entry).with_context(|| format!("--global {name}"))?;
+    }
+    Ok(())
 }
 
 /// Flags of `rtsl bench shade`.
