@@ -160,4 +160,8 @@ fn vendor_names_are_read_as_rtsl_s_built_ins_unless_defined() {
     let own = "float raylevel() { return 7; }\nsurface v() { Ci = raylevel(); }\n";
     let c = rtsl_compiler::compile_source("own.sl", own, &Options::default());
     assert!(c.ok() && c.diagnostics.is_empty(), "{}", c.render());
+    // lucille's `turb` likewise: a library's own `turb` (often a float of one point) is used.
+    let own = "float turb(point p) { return xcomp(p); }\nsurface v() { Ci = turb(P); }\n";
+    let c = rtsl_compiler::compile_source("own.sl", own, &Options::default());
+    assert!(c.ok() && c.diagnostics.is_empty(), "{}", c.render());
 }

@@ -115,6 +115,7 @@ builtins! {
     Filterstep "filterstep" ["f(f,f,...)", "f(f,f,f,...)"] DERIVS, Lane, "step antialiased over the filter width of its argument";
     Spline "spline" ["T(f,T,T,T,T,T*)", "T(s,f,T,T,T,T,T*)", "T(f,T[])", "T(s,f,T[])"] 0, Lane, "spline through control values (catmull-rom by default)";
     Noise "noise" ["R(f)", "R(f,f)", "R(p)", "R(p,f)"] 0, Lane, "Perlin noise in [0,1], 1 to 4 dimensions";
+    Turb "turb" ["R(p)"] 0, Lane, "lucille's fractal noise: the sum over 15 octaves (scale 2 down to 1/8192) of scale * (2 noise(p / scale) - 1); a triple is that value in each component";
     Pnoise "pnoise" ["R(f,f)", "R(f,f,f,f)", "R(p,p)", "R(p,f,p,f)"] 0, Lane, "periodic noise";
     Cellnoise "cellnoise" ["R(f)", "R(f,f)", "R(p)", "R(p,f)"] 0, Lane, "a random value constant over each unit cell";
     Random "random" ["R()"] VARYING, Lane, "a random value in [0,1) per lane";

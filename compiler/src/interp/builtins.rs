@@ -221,6 +221,14 @@ impl Machine<'_> {
                     Value::Triple(spline::spline3(&basis, x, &k))
                 }
             }
+            Builtin::Turb => {
+                let n = noise::lucille_turb(v(0).v3());
+                if ty.base == BaseType::Float {
+                    Value::Float(n)
+                } else {
+                    Value::Triple([n; 3])
+                }
+            }
             Builtin::Noise => {
                 let triple = ty.base != BaseType::Float;
                 let r = match (&v(0), vals.len()) {

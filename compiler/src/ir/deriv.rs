@@ -110,6 +110,7 @@ pub fn has_difference_rule(b: Builtin) -> bool {
         b,
         Builtin::Noise
             | Builtin::Pnoise
+            | Builtin::Turb
             | Builtin::Transform
             | Builtin::Vtransform
             | Builtin::Ntransform

@@ -515,6 +515,24 @@ pub fn vrandom(seed: u64) -> V3 {
     [0u64, 1, 2].map(|k| unit64(mix64(base.wrapping_add(k.wrapping_mul(GOLDEN_GAMMA)))))
 }
 
+/// Octaves of lucille's `turb`: scales 2, 1, 1/2, ... down to the last above 1e-4.
+pub const LUCILLE_TURB_OCTAVES: usize = 15;
+
+/// lucille's `turb(p)` (its shader engine's `turb_cp`): the sum over scales 2, 1, 1/2, ... (the
+/// [`LUCILLE_TURB_OCTAVES`] above 1e-4) of `scale * snoise(p / scale)`, with `snoise` signed noise
+/// (`2 noise - 1`): fractal noise whose amplitude falls with frequency, not the absolute-value
+/// turbulence of RISpec's examples. [`x4::lucille_turb`] computes the same, bit for bit.
+pub fn lucille_turb(p: V3) -> f32 {
+    let mut sum = 0.0f32;
+    let mut scale = 2.0f32;
+    for _ in 0..LUCILLE_TURB_OCTAVES {
+        let n = noise3([p[0] / scale, p[1] / scale, p[2] / scale]);
+        sum += scale * (2.0 * n - 1.0);
+        scale *= 0.5;
+    }
+    sum
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -380,6 +380,7 @@ chunk_helpers! {
     h_noise2 "rtsl_noise2" 2 -> 1 |p| [noise::x4::noise::<2>(p)];
     h_noise3 "rtsl_noise3" 3 -> 1 |p| [noise::x4::noise::<3>(p)];
     h_noise4 "rtsl_noise4" 4 -> 1 |p| [noise::x4::noise::<4>(p)];
+    h_lucille_turb "rtsl_lucille_turb" 3 -> 1 |p| [noise::x4::lucille_turb(p)];
     h_vnoise1 "rtsl_vnoise1" 1 -> 3 noise::x4::vnoise::<1>;
     h_vnoise2 "rtsl_vnoise2" 2 -> 3 noise::x4::vnoise::<2>;
     h_vnoise3 "rtsl_vnoise3" 3 -> 3 noise::x4::vnoise::<3>;

@@ -275,6 +275,13 @@ impl Checker<'_> {
                         .with_note(format!("at run time it reports this once and {}", unsupported_result(b))),
                     );
                 }
+                if b == Builtin::Turb {
+                    self.diags.push(
+                        Diagnostic::new(Code::VendorExtension, name.span, "`turb` is lucille's extension")
+                            .with_label("accepted, as lucille defines it")
+                            .with_note("rtsl gives lucille's sum over 15 octaves of scale * (2 noise(p / scale) - 1), scale 2 down to 1/8192 (a function of the name in the file is used instead)"),
+                    );
+                }
                 if b == Builtin::Occlusion && cand.params.first().and_then(|p| p.ty) == Some(Type::STRING) {
                     self.diags.push(
                         Diagnostic::new(

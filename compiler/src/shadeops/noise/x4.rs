@@ -123,6 +123,21 @@ pub fn vnoise<const N: usize>(p: [X4; N]) -> [X4; 3] {
     r
 }
 
+/// [`super::lucille_turb`] of four points, with the same operations lane by lane.
+pub fn lucille_turb(p: [X4; 3]) -> X4 {
+    let mut sum = [0.0f32; 4];
+    let mut scale = 2.0f32;
+    for _ in 0..super::LUCILLE_TURB_OCTAVES {
+        let q: [X4; 3] = std::array::from_fn(|k| std::array::from_fn(|l| p[k][l] / scale));
+        let n = noise::<3>(q);
+        for l in 0..4 {
+            sum[l] += scale * (2.0 * n[l] - 1.0);
+        }
+        scale *= 0.5;
+    }
+    sum
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

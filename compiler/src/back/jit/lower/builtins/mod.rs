@@ -214,7 +214,7 @@ impl<'m> Lower<'m, '_> {
             | Bi::Indirectdiffuse => Self::renderer,
             Bi::Spline => Self::spline,
             Bi::Filterstep => Self::math,
-            Bi::Pnoise | Bi::Random => Self::noise,
+            Bi::Pnoise | Bi::Random | Bi::Turb => Self::noise,
             Bi::Concat | Bi::Format | Bi::Printf | Bi::Match => Self::strings,
             // Message passing evaluates the name, then reads nothing else before the call.
             Bi::Atmosphere

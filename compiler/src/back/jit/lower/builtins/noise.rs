@@ -63,6 +63,11 @@ impl<'m> Lower<'m, '_> {
                 let c = self.call_helper(name, &all.c, all.vary)?;
                 Val { vary: all.vary, c }
             }
+            Bi::Turb => {
+                let n = self.call_helper_on("rtsl_lucille_turb", &[vals[0].clone()], false)?;
+                let comps = if e.ty.base == BaseType::Float { 1 } else { 3 };
+                Val { vary: n.vary, c: vec![n.c[0]; comps] }
+            }
             Bi::Pnoise => {
                 let first_triple = vals[0].c.len() == 3;
                 let name: &'static str = match (e.ty.base != BaseType::Float, first_triple, vals.len()) {
