@@ -22,7 +22,9 @@ fn a_loop_that_never_ends_is_stopped_and_reported_once() {
         1000,
     );
     let mut batch = shader.batch(7);
+    assert!(!shader.stopped_a_loop());
     shader.shade(&mut batch);
+    assert!(shader.stopped_a_loop(), "read before the report, and not marking it read");
     // The loop body ran the budget's worth of times, then the shader went on.
     assert_eq!(batch.global("Ci", 6), Some(vec![1000.0; 3]));
     let errors = shader.runtime_errors();

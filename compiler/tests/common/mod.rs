@@ -152,6 +152,22 @@ pub fn lit_host() -> TestHost {
 
 /// Shades `lanes` random lanes with both back ends and compares. Returns how many lanes ran.
 pub fn differential(m: &Module, shader: &CompiledShader, lanes: usize, seed: u64, bind_prob: f32) -> usize {
+    differential_with(m, shader, lanes, seed, bind_prob, Limits::default())
+}
+
+/// [`differential`] with the interpreter under `limits` (the JIT compiled with the same loop
+/// budget). The budgets count differently by design (the JIT's loop budget per chunk of four
+/// lanes, the interpreter's per point, and only the interpreter counts calls), so a run that met a
+/// budget on either side is run to the end in both but not compared: the fuzz target runs with
+/// small budgets, to spend its time on many shaders rather than on one long loop.
+pub fn differential_with(
+    m: &Module,
+    shader: &CompiledShader,
+    lanes: usize,
+    seed: u64,
+    bind_prob: f32,
+    limits: Limits,
+) -> usize {
     let mut rng = Rng(seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1);
     let layout = shader.layout().clone();
     let mut batch: BatchData = shader.batch(lanes);
@@ -221,6 +237,7 @@ pub fn differential(m: &Module, shader: &CompiledShader, lanes: usize, seed: u64
     let mut jit_host = lit_host();
     shader.shade_with(&mut batch, &mut jit_host);
     let mut printed = Vec::new();
+    let mut budget_met = shader.stopped_a_loop();
 
     let kind = m.shader.as_ref().expect("shader").kind;
     let mut ran = 0;
@@ -250,7 +267,17 @@ pub fn differential(m: &Module, shader: &CompiledShader, lanes: usize, seed: u64
             bound.push((name.as_str(), Value::String(s.as_str().into())));
         }
         let mut host = lit_host();
-        let r = interp::run(m, &bound, &mut point, &mut host, Limits::default()).expect("the interpreter runs");
+        let r = match interp::run(m, &bound, &mut point, &mut host, limits) {
+            Err(interp::InterpError::Budget) => {
+                budget_met = true;
+                continue;
+            }
+            r => r.expect("the interpreter runs"),
+        };
+        budget_met |= !r.stopped_loops.is_empty();
+        if budget_met {
+            continue;
+        }
         printed.extend(host.printed);
         for g in layout.globals.iter().filter(|g| g.written) {
             let want = floats_of(point.get(g.name).expect("global"));
@@ -276,6 +303,9 @@ pub fn differential(m: &Module, shader: &CompiledShader, lanes: usize, seed: u64
     }
     // The same lines printed (the JIT prints statement by statement over a chunk's lanes, the
     // interpreter lane by lane: compared as multisets).
+    if budget_met {
+        return ran;
+    }
     let mut jit_printed = jit_host.printed;
     jit_printed.sort();
     printed.sort();

@@ -239,6 +239,13 @@ impl CompiledShader {
         self.code_bytes
     }
 
+    /// Whether the loop budget has stopped a loop in any run so far (reported by
+    /// [`CompiledShader::runtime_errors`] too; this reads without marking anything reported).
+    pub fn stopped_a_loop(&self) -> bool {
+        let seen = self.errors.seen.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        seen.iter().any(|(kind, _)| *kind == lower::RUNTIME_LOOP_BUDGET)
+    }
+
     /// The runtime checks that failed since the last call, once each, as messages naming the place
     /// in the source ("the loop at shader.sl:12:5 was stopped: the shader ran more than 1048576 loop
     /// iterations",
