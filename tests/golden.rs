@@ -693,6 +693,68 @@ WorldEnd
     check("blobby", &render_rib("blobby", rib)).unwrap_or_else(|e| panic!("{e}"));
 }
 
+/// Solids (`SolidBegin`/`SolidEnd`), ray traced: a ball with a bite taken out of it (the bite
+/// is the red ball's inside, lit through the opening), a lens (the intersection of two balls,
+/// green and yellow halves) and a union of two balls with a cube cut out of their middle, all
+/// casting their shapes' shadows on the floor.
+#[test]
+fn solids_match_their_reference() {
+    let rib = r#"
+Format 128 96 1
+PixelSamples 2 2
+Projection "perspective" "fov" [38]
+Rotate -15 1 0 0
+Translate 0 -2.9 7.5
+WorldBegin
+  Attribute "light" "shadows" "on"
+  LightSource "ambientlight" 1 "intensity" [0.2]
+  LightSource "pointlight" 2 "intensity" [30] "from" [2 5 -4]
+  Surface "plastic"
+  Polygon "P" [-7 0 -7  7 0 -7  7 0 7  -7 0 7]
+  AttributeBegin
+    Translate -2.3 1 0
+    Rotate 50 0 1 0
+    Color [0.9 0.85 0.7]
+    SolidBegin "difference"
+      SolidBegin "primitive" Sphere 1 -1 1 360 SolidEnd
+      SolidBegin "primitive"
+        Color [0.9 0.2 0.15] Translate 0 0.5 -0.8 Sphere 0.7 -0.7 0.7 360
+      SolidEnd
+    SolidEnd
+  AttributeEnd
+  AttributeBegin
+    Translate 0 1 0
+    Rotate -35 0 1 0
+    SolidBegin "intersection"
+      SolidBegin "primitive" Color [0.3 0.8 0.4] Translate -0.4 0 0 Sphere 1 -1 1 360 SolidEnd
+      SolidBegin "primitive" Color [0.9 0.8 0.3] Translate 0.8 0 0 Sphere 1 -1 1 360 SolidEnd
+    SolidEnd
+  AttributeEnd
+  AttributeBegin
+    Translate 2.3 1 0.3
+    Color [0.3 0.5 0.9]
+    SolidBegin "difference"
+      SolidBegin "union"
+        SolidBegin "primitive" TransformBegin Translate 0 0.2 0 Sphere 0.8 -0.8 0.8 360 TransformEnd SolidEnd
+        SolidBegin "primitive" TransformBegin Translate 0 -0.4 0 Sphere 0.6 -0.6 0.6 360 TransformEnd SolidEnd
+      SolidEnd
+      SolidBegin "primitive"
+        Color [0.95 0.95 0.95]
+        Translate 0 0.1 -0.9 Rotate 45 0 1 0 Rotate 30 1 0 0
+        Polygon "P" [-0.5 -0.5 -0.5  -0.5 0.5 -0.5  0.5 0.5 -0.5  0.5 -0.5 -0.5]
+        Polygon "P" [-0.5 -0.5 0.5  0.5 -0.5 0.5  0.5 0.5 0.5  -0.5 0.5 0.5]
+        Polygon "P" [-0.5 -0.5 -0.5  0.5 -0.5 -0.5  0.5 -0.5 0.5  -0.5 -0.5 0.5]
+        Polygon "P" [-0.5 0.5 -0.5  -0.5 0.5 0.5  0.5 0.5 0.5  0.5 0.5 -0.5]
+        Polygon "P" [-0.5 -0.5 -0.5  -0.5 -0.5 0.5  -0.5 0.5 0.5  -0.5 0.5 -0.5]
+        Polygon "P" [0.5 -0.5 -0.5  0.5 0.5 -0.5  0.5 0.5 0.5  0.5 -0.5 0.5]
+      SolidEnd
+    SolidEnd
+  AttributeEnd
+WorldEnd
+"#;
+    check("solids", &render_rib("solids", rib)).unwrap_or_else(|e| panic!("{e}"));
+}
+
 /// Three boxes open towards the camera (the box above without its front face): two-sided, `Sides
 /// 1` (the inside walls are backs, so the floor shows through them), and `Sides 1` after
 /// `ReverseOrientation` (now the outside walls are backs: the top is gone and the inside shows).

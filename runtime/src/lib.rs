@@ -16,6 +16,7 @@ pub mod api;
 pub mod bart;
 pub mod camera;
 pub mod cpu;
+pub mod csg;
 pub mod distributed;
 pub mod geometry;
 pub mod image_io;

@@ -7,13 +7,17 @@
 //! - Queries see the instance list as of the last [`Scene::commit`], which rebuilds the top-level
 //!   BVH; objects replaced since are seen at once (instances refer to objects by id).
 //! - Normals are transformed to world space with the inverse transpose of the instance transform.
+//! - Every query sees the solids ([`Scene::set_solids`], `crate::csg`) as of the last commit:
+//!   a hit on a primitive solid's surface counts only where it bounds the whole solid, for closest
+//!   hits and occlusion alike, before any filter of the caller's is asked.
 
 use crate::accel::bvh4::BuildQuality;
 use crate::accel::object::{MeshSource, MeshSummary, Object};
 use crate::accel::top::{InstanceData, TopLevel};
 use crate::accel::{packet, single};
+use crate::csg::{Csg, Solid};
 use crate::geometry::{AlphaMask, Mesh};
-use crate::ray::{Hit, HitFilter, HitPacket, Ray, RayPacket};
+use crate::ray::{Hit, HitCandidate, HitFilter, HitPacket, Ray, RayPacket, PACKET_SIZE};
 use glam::{Affine3A, Vec2, Vec3, Vec3A};
 use std::sync::Arc;
 
@@ -61,6 +65,10 @@ pub struct Scene {
     instances: Vec<InstanceData>,
     top: TopLevel,
     quality: BuildQuality,
+    /// The solids over the instance list being edited, by instance index.
+    solids: Vec<Solid<u32>>,
+    /// The solids as committed.
+    csg: Csg,
 }
 
 impl Default for Scene {
@@ -77,7 +85,14 @@ impl Scene {
 
     /// An empty scene whose object BVHs are built at `quality`.
     pub fn with_quality(quality: BuildQuality) -> Self {
-        Scene { objects: Vec::new(), instances: Vec::new(), top: TopLevel::default(), quality }
+        Scene {
+            objects: Vec::new(),
+            instances: Vec::new(),
+            top: TopLevel::default(),
+            quality,
+            solids: Vec::new(),
+            csg: Csg::default(),
+        }
     }
 
     /// Adds an object and builds its BVH.
@@ -201,9 +216,17 @@ impl Scene {
         self.top.instances.get(id as usize)
     }
 
-    /// Removes every instance (objects stay).
+    /// Removes every instance (objects stay), and the solids made of them.
     pub fn clear_instances(&mut self) {
         self.instances.clear();
+        self.solids.clear();
+    }
+
+    /// The solids (RIB `SolidBegin`/`SolidEnd`) over the instance list, by instance index, seen by
+    /// queries from the next [`Scene::commit`]. A solid that fails [`Solid::check`] is left out,
+    /// and so is an instance out of range or already in another solid: they are plain surfaces.
+    pub fn set_solids(&mut self, solids: Vec<Solid<u32>>) {
+        self.solids = solids;
     }
 
     /// Number of instances in the list being edited.
@@ -220,6 +243,27 @@ impl Scene {
     /// Rebuilds the top-level BVH from the instance list; call once per frame before tracing.
     pub fn commit(&mut self) {
         self.top = TopLevel::build(self.instances.clone(), &self.objects);
+        self.csg = Csg::build(&self.solids, &self.top.instances, &self.objects);
+    }
+
+    /// Runs `query` with `filter` joined to the solids' test of each candidate of the ray `ray_of`
+    /// gives for a lane; `filter` as it is when the scene has no solid.
+    #[inline]
+    fn with_solids<R>(
+        &self,
+        filter: HitFilter,
+        ray_of: impl Fn(u32) -> Option<Ray> + Sync,
+        query: impl FnOnce(HitFilter) -> R,
+    ) -> R {
+        if self.csg.is_empty() {
+            return query(filter);
+        }
+        let joined = |c: &HitCandidate| {
+            let solid = !self.csg.is_member(c.instance)
+                || ray_of(c.lane).is_some_and(|ray| self.csg.accepts(&self.objects, &ray, c));
+            solid && filter.is_none_or(|f| f(c))
+        };
+        query(Some(&joined))
     }
 
     /// Bytes of heap memory of meshes and BVHs (objects counted once however often instanced).
@@ -231,43 +275,45 @@ impl Scene {
 
     /// Closest hit along `ray`, single-ray traversal.
     pub fn intersect(&self, ray: &Ray) -> Hit {
-        single::intersect_scene(&self.top, &self.objects, ray, None, 0)
+        self.intersect_filtered(ray, None)
     }
 
     /// Closest hit accepted by `filter`, single-ray traversal.
     pub fn intersect_filtered(&self, ray: &Ray, filter: HitFilter) -> Hit {
-        single::intersect_scene(&self.top, &self.objects, ray, filter, 0)
+        self.with_solids(filter, |_| Some(*ray), |f| single::intersect_scene(&self.top, &self.objects, ray, f, 0))
     }
 
     /// Whether anything lies on `ray` within `(tmin, tmax)`, single-ray traversal.
     pub fn occluded(&self, ray: &Ray) -> bool {
-        single::occluded_scene(&self.top, &self.objects, ray, None, 0)
+        self.occluded_filtered(ray, None)
     }
 
     /// Occlusion by hits accepted by `filter`, single-ray traversal.
     pub fn occluded_filtered(&self, ray: &Ray, filter: HitFilter) -> bool {
-        single::occluded_scene(&self.top, &self.objects, ray, filter, 0)
+        self.with_solids(filter, |_| Some(*ray), |f| single::occluded_scene(&self.top, &self.objects, ray, f, 0))
     }
 
     /// Closest hits of the active lanes of `packet` (packet traversal); other lanes of `out` are
     /// left untouched.
     pub fn intersect_packet(&self, packet: &RayPacket, out: &mut HitPacket) {
-        packet::intersect_packet(&self.top, &self.objects, packet, out, None)
+        self.intersect_packet_filtered(packet, out, None)
     }
 
     /// Closest hits accepted by `filter`, packet traversal.
     pub fn intersect_packet_filtered(&self, packet: &RayPacket, out: &mut HitPacket, filter: HitFilter) {
-        packet::intersect_packet(&self.top, &self.objects, packet, out, filter)
+        let lane = |i: u32| ((i as usize) < PACKET_SIZE).then(|| packet.get(i as usize));
+        self.with_solids(filter, lane, |f| packet::intersect_packet(&self.top, &self.objects, packet, out, f))
     }
 
     /// Occlusion of the active lanes of `packet`: the mask of lanes that hit something.
     pub fn occluded_packet(&self, packet: &RayPacket) -> u64 {
-        packet::occluded_packet(&self.top, &self.objects, packet, None)
+        self.occluded_packet_filtered(packet, None)
     }
 
     /// Occlusion by hits accepted by `filter`, packet traversal.
     pub fn occluded_packet_filtered(&self, packet: &RayPacket, filter: HitFilter) -> u64 {
-        packet::occluded_packet(&self.top, &self.objects, packet, filter)
+        let lane = |i: u32| ((i as usize) < PACKET_SIZE).then(|| packet.get(i as usize));
+        self.with_solids(filter, lane, |f| packet::occluded_packet(&self.top, &self.objects, packet, f))
     }
 
     /// Whether instance `instance` moves over the shutter interval (false for ids out of range).
@@ -278,8 +324,12 @@ impl Scene {
     /// The lanes of `lanes` (active in `packet`) whose ray hits triangle `primitive` of instance
     /// `instance` within its interval, on a solid part: by the traversals' own arithmetic (the
     /// ray moved into object space as they move it, the same triangle test), so that a lane this
-    /// finds blocked is one they find blocked too. 0 for a moving instance or ids out of range.
+    /// finds blocked is one they find blocked too. 0 for a moving instance, one in a solid (whose
+    /// triangles block only where they bound it), or ids out of range.
     pub fn lanes_hitting_triangle(&self, packet: &RayPacket, lanes: u64, instance: u32, primitive: u32) -> u64 {
+        if self.csg.is_member(instance) {
+            return 0;
+        }
         let Some(inst) = self.top.instances.get(instance as usize) else { return 0 };
         let Some(obj) = self.objects.get(inst.object as usize) else { return 0 };
         let mesh = &obj.data().mesh;
@@ -311,12 +361,12 @@ impl Scene {
 
     /// The closest hit by testing every triangle (the reference for tests; slow).
     pub fn intersect_brute_force(&self, ray: &Ray, filter: HitFilter) -> Hit {
-        single::intersect_brute_force(&self.top, &self.objects, ray, filter)
+        self.with_solids(filter, |_| Some(*ray), |f| single::intersect_brute_force(&self.top, &self.objects, ray, f))
     }
 
     /// Occlusion by testing every triangle (the reference for tests; slow).
     pub fn occluded_brute_force(&self, ray: &Ray, filter: HitFilter) -> bool {
-        single::occluded_brute_force(&self.top, &self.objects, ray, filter)
+        self.with_solids(filter, |_| Some(*ray), |f| single::occluded_brute_force(&self.top, &self.objects, ray, f))
     }
 
     /// World bounds of the committed instances, if any.

@@ -146,7 +146,9 @@ impl Context {
         self.built_materials = built;
         scene.clear_instances();
         let mut instances = Vec::new();
-        for inst in &self.instances {
+        // Each context instance's index in the world's list, for the solids.
+        let mut in_world = vec![None; self.instances.len()];
+        for (index, inst) in self.instances.iter().enumerate() {
             let rec = &self.objects[inst.object.0 as usize];
             let (Some(obj), false) = (rec.scene_object, inst.deleted || rec.deleted || !rec.has_geometry()) else {
                 continue;
@@ -156,6 +158,7 @@ impl Context {
                 Some(end) if close > open => scene.add_moving_instance(obj, inst.transform, end, (open, close))?,
                 _ => scene.add_instance(obj, inst.transform)?,
             };
+            in_world[index] = Some(instances.len() as u32);
             instances.push(InstanceShading {
                 material: object_material[inst.object.0 as usize],
                 object: obj.0,
@@ -163,6 +166,9 @@ impl Context {
                 parts: object_parts[inst.object.0 as usize].clone(),
             });
         }
+        scene.set_solids(
+            self.solids.iter().map(|s| s.filter_map(|id| in_world.get(id.0 as usize).copied().flatten())).collect(),
+        );
         let mut lights = Vec::new();
         for l in self.lights.iter().filter(|l| l.on) {
             let program = self.program(l.shader)?.clone();

@@ -94,7 +94,7 @@ pub struct ShaderId(pub u32);
 pub struct ObjectId(pub u32);
 
 /// An instance of an object.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 pub struct InstanceId(pub u32);
 
 /// A light source.
@@ -159,6 +159,8 @@ pub enum ApiError {
     TooManyInstances,
     #[error(transparent)]
     RayParameter(#[from] crate::render::RayParameterError),
+    #[error(transparent)]
+    Solid(#[from] crate::csg::SolidError),
 }
 
 fn kind_name(k: ShaderKind) -> &'static str {
@@ -332,6 +334,8 @@ pub struct Context {
     vertex_values: Vec<(String, Vec<f32>)>,
     primitive_values: Vec<(String, Vec<f32>)>,
     instances: Vec<InstanceRecord>,
+    /// Solids over the instances ([`Context::add_solid`]).
+    solids: Vec<crate::csg::Solid<InstanceId>>,
     lights: Vec<LightRecord>,
     pixel: Option<Binding>,
     camera_shader: Option<Binding>,
@@ -439,6 +443,7 @@ impl Context {
             vertex_values: Vec::new(),
             primitive_values: Vec::new(),
             instances: Vec::new(),
+            solids: Vec::new(),
             lights: Vec::new(),
             pixel: None,
             camera_shader: None,

@@ -180,6 +180,25 @@ impl Context {
             .collect()
     }
 
+    /// Adds a solid (RISpec's solids and spatial set operations) over instances placed before:
+    /// from the next frame, rays see its boundary only, each part of it shaded as its own instance
+    /// is. Each primitive's instances must close a volume, their triangles facing out of it (or
+    /// into it where [`crate::csg::SolidPart::inward`] says so). An instance in an earlier solid
+    /// stays there; a deleted one drops out.
+    pub fn add_solid(&mut self, solid: crate::csg::Solid<InstanceId>) -> Result<(), ApiError> {
+        solid.check()?;
+        if let Some(bad) = solid.instances().find(|id| id.0 as usize >= self.instances.len()) {
+            return Err(ApiError::UnknownInstance(bad.0));
+        }
+        self.solids.push(solid);
+        Ok(())
+    }
+
+    /// How many instances were placed (deleted ones included): the next instance's id.
+    pub fn instance_count(&self) -> usize {
+        self.instances.len()
+    }
+
     pub fn delete_instance(&mut self, id: InstanceId) -> Result<(), ApiError> {
         let rec =
             self.instances.get_mut(id.0 as usize).filter(|i| !i.deleted).ok_or(ApiError::UnknownInstance(id.0))?;

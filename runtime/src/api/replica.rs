@@ -13,7 +13,7 @@
 //!   (bounds, triangle count, attribute names) and the receiver fetches the mesh from its
 //!   [`crate::accel::object::MeshSource`] when a ray first needs it (the paper's section 5.4:
 //!   geometry no ray reaches is never sent);
-//! - instances when they appear, move or go;
+//! - instances when they appear, move or go; the solids made of them with the frame's settings;
 //! - the frame's settings (lights, pixel, camera and atmosphere shaders, camera, options,
 //!   coordinate systems, texture search path) whenever any of them changes;
 //! - textures and grids given in memory, whole; with [`Replicator::demand_loading`], only the news
@@ -30,9 +30,10 @@
 //! one: a receiver checks that, and every id an update names, before it changes anything an index
 //! could go wrong on. A damaged update is a [`ReplicaError`], never a panic.
 
-use super::{Appearance, Binding, Context, InstanceRecord, LightRecord, ObjectParts, ObjectRecord};
+use super::{Appearance, Binding, Context, InstanceId, InstanceRecord, LightRecord, ObjectParts, ObjectRecord};
 use crate::accel::bvh4::BuildQuality;
 use crate::accel::object::{MeshSummary, ObjectBvh};
+use crate::csg::Solid;
 use crate::geometry::Mesh;
 use crate::render::{CameraSetup, RenderOptions};
 use crate::scene::Scene;
@@ -158,6 +159,7 @@ struct SettingsOut<'a> {
     options: &'a RenderOptions,
     spaces: Vec<(&'a String, &'a Affine3A)>,
     texture_search_path: &'a [PathBuf],
+    solids: &'a [Solid<InstanceId>],
 }
 
 #[derive(Deserialize)]
@@ -170,6 +172,7 @@ struct SettingsIn {
     options: RenderOptions,
     spaces: Vec<(String, Affine3A)>,
     texture_search_path: Vec<PathBuf>,
+    solids: Vec<Solid<InstanceId>>,
 }
 
 /// Textures and grids given in memory: a texture as its size and values, a grid as its file's bytes.
@@ -274,6 +277,7 @@ impl Replicator {
             options: &rt.options,
             spaces,
             texture_search_path: &rt.texture_search_path,
+            solids: &rt.solids,
         })?;
         let settings_changed = self.settings.as_ref() != Some(&settings);
         // With demand loading, memory textures and grids are fetched as files are: the update
@@ -363,6 +367,12 @@ impl Context {
         for (id, object) in &u.objects {
             check_object(*id, object)?;
         }
+        for solid in settings.iter().flat_map(|s| &s.solids) {
+            solid.check().map_err(|e| ReplicaError::Inconsistent(e.to_string()))?;
+            if let Some(bad) = solid.instances().find(|id| id.0 >= u.instance_count) {
+                return Err(ReplicaError::Inconsistent(format!("a solid of instance {}", bad.0)));
+            }
+        }
         for (id, inst) in &u.instances {
             if inst.object.0 >= u.object_count {
                 return Err(ReplicaError::Inconsistent(format!("instance {id} of object {}", inst.object.0)));
@@ -406,6 +416,7 @@ impl Context {
             self.camera = s.camera;
             self.options = s.options;
             self.spaces = s.spaces.into_iter().collect();
+            self.solids = s.solids;
             if s.texture_search_path != self.texture_search_path {
                 self.texture_search_path = s.texture_search_path;
                 self.renew_texture_cache();

@@ -37,7 +37,8 @@ use super::primitive::{mesh_from_request_with, request_triangles};
 use super::request::{Handle, Orientation, Param, ParamValue as RibValue, Request, RequestKind};
 use super::view::{Projection, View};
 use super::{parse_file, parse_str, RibDiagnostic, RibParse, Severity, MAX_RIB_TRIANGLES};
-use crate::api::{ApiError, AttributeParts, Context, LightId, ObjectId, SavedAttributes};
+use crate::api::{ApiError, AttributeParts, Context, InstanceId, LightId, ObjectId, SavedAttributes};
+use crate::csg::{Solid, SolidNode, SolidOp, SolidPart};
 use crate::geometry::Mesh;
 use crate::render::{DisplayMode, MAX_PIXEL_SAMPLES};
 use crate::scene_file::{add_model_file, add_model_file_placed, Placement, SceneFileError};
@@ -247,12 +248,14 @@ fn load_parsed(rt: &mut Context, parse: RibParse, path: &Path, index: usize) -> 
     }
     loader.out.frames = frames.count();
     loader.out.frame_number = frames.number(index);
+    let mut last = None;
     for (r, owner) in parse.requests.iter().zip(&frames.owner) {
         match owner {
             Some(frame) if *frame > index => break,
             Some(frame) if *frame < index => continue,
             _ => {}
         }
+        last = Some(r);
         match loader.request(r) {
             Ok(()) => {}
             Err(e @ SceneFileError::TooLarge { .. }) => return Err(e),
@@ -260,6 +263,9 @@ fn load_parsed(rt: &mut Context, parse: RibParse, path: &Path, index: usize) -> 
         }
     }
     loader.flush()?;
+    if let Some(r) = last {
+        loader.end_solids(r)?;
+    }
     let number = loader.out.frame_number;
     for d in &mut loader.out.displays {
         d.name = PathBuf::from(expand_display_name(&d.name.to_string_lossy(), number));
@@ -334,6 +340,30 @@ struct Loader<'a> {
     /// `ScopedCoordinateSystem`s of the open attribute blocks: the block depth, the name, and the
     /// matrix the name had before (restored when the block ends).
     scoped_spaces: Vec<(usize, String, Option<Affine3A>)>,
+    /// The open `SolidBegin` blocks, innermost last.
+    solids: Vec<OpenSolid>,
+}
+
+/// An open `SolidBegin` block.
+struct OpenSolid {
+    /// `None` for `"primitive"`.
+    op: Option<SolidOp>,
+    /// A block rtsl does not model (a `SolidBegin` inside a primitive or a retained object): its
+    /// `SolidEnd` only closes it.
+    ignored: bool,
+    /// The geometry of this block faces into it: it is subtracted from something, an odd number
+    /// of times.
+    inward: bool,
+    /// An operation's operands so far, their nodes in postfix order.
+    nodes: Vec<SolidNode<InstanceId>>,
+    operands: u32,
+    /// The instances placed since this count belong to the block itself (for a primitive, all of
+    /// its instances; for an operation, geometry outside any primitive).
+    mark: usize,
+    /// The instances of the block's own geometry, built reversed.
+    reversed: Vec<InstanceId>,
+    /// The `SolidBegin`, for the warning when the stream ends before its `SolidEnd`.
+    begin: super::request::Location,
 }
 
 impl<'a> Loader<'a> {
@@ -360,6 +390,7 @@ impl<'a> Loader<'a> {
             camera_clipping_planes: Vec::new(),
             resources: vec![HashMap::new()],
             scoped_spaces: Vec::new(),
+            solids: Vec::new(),
         }
     }
 
@@ -379,6 +410,11 @@ impl<'a> Loader<'a> {
             let (now, now_close) = (self.rt.current_matrix(), self.rt.close_matrix());
             self.rt.load_matrix(placed);
             let inst = self.rt.instantiate_object(id)?;
+            if self.builds_reversed() {
+                if let Some(solid) = self.solids.last_mut() {
+                    solid.reversed.push(inst);
+                }
+            }
             if close != placed {
                 self.rt.set_instance_motion(inst, placed, close)?;
             }
@@ -457,9 +493,18 @@ impl<'a> Loader<'a> {
             (None, None) => self.rt.current_matrix(),
         };
         let mirrored = base.matrix3.determinant() * self.rt.current_matrix().matrix3.determinant() < 0.0;
-        if self.state.inside != mirrored {
+        // A subtracted part of a solid faces into the part it is subtracted from (RISpec: "the
+        // sense of the orientation of the surfaces being subtracted is automatically reversed"),
+        // its shading normals too.
+        let subtracted = self.retained.is_none() && self.builds_reversed();
+        if (self.state.inside != mirrored) != subtracted {
             for t in &mut mesh.triangles {
                 t.swap(1, 2);
+            }
+        }
+        if subtracted {
+            for n in mesh.normals.iter_mut().flatten() {
+                *n = -*n;
             }
         }
         self.rt.mesh(&mesh).inspect_err(|_| self.omit(r, "geometry skipped"))?;
@@ -539,9 +584,8 @@ impl<'a> Loader<'a> {
             K::TextureCoordinates(st) => self.state.mesh_options.texture_coordinates = *st,
             K::MotionBegin(_) => self.motion = Some(0),
             K::MotionEnd => self.motion = None,
-            K::SolidBegin(_) | K::SolidEnd => {
-                self.warn(r, "solid modelling (CSG) is not supported: the parts render as they are")
-            }
+            K::SolidBegin(operation) => self.solid_begin(r, operation),
+            K::SolidEnd => self.solid_end(r)?,
             // As Aqsis keeps it: "rh" and "lh" are "outside" or "inside" by the handedness of the
             // current transform when they are given.
             K::Orientation(o) => {
@@ -635,7 +679,7 @@ impl<'a> Loader<'a> {
                 rt.load_identity();
                 self.in_world = true;
             }
-            K::WorldEnd => {}
+            K::WorldEnd => self.end_solids(r)?,
             K::AttributeBegin => {
                 rt.push_attributes();
                 self.stack.push(self.state.clone());
@@ -919,6 +963,129 @@ impl<'a> Loader<'a> {
                     added?;
                 }
             },
+        }
+        Ok(())
+    }
+
+    /// Whether geometry built now is a subtracted part of a solid: the innermost solid block is a
+    /// primitive that faces inward.
+    fn builds_reversed(&self) -> bool {
+        self.solids.last().is_some_and(|s| s.op.is_none() && !s.ignored && s.inward)
+    }
+
+    /// `SolidBegin`: a primitive solid, whose geometry closes a volume, or a set operation on the
+    /// solids of the blocks it holds.
+    fn solid_begin(&mut self, r: &Request, operation: &str) {
+        let op = match operation {
+            "primitive" => None,
+            other => Some(SolidOp::from_name(other).unwrap_or_else(|| {
+                self.warn(
+                    r,
+                    format_args!(
+                        "SolidBegin \"{other}\": the operations are \"primitive\", \"union\", \"intersection\" \
+                         and \"difference\"; taken as \"union\""
+                    ),
+                );
+                SolidOp::Union
+            })),
+        };
+        let ignored = if self.retained.is_some() {
+            self.warn(r, "a solid inside ObjectBegin is not modelled: its parts are plain surfaces");
+            true
+        } else if self.solids.last().is_some_and(|s| s.ignored || s.op.is_none()) {
+            self.warn(r, "SolidBegin inside a \"primitive\" block (RISpec allows none): ignored with its SolidEnd");
+            true
+        } else {
+            false
+        };
+        self.take_loose_geometry(r);
+        let inward = match self.solids.last() {
+            Some(parent) if !ignored => {
+                parent.inward != (parent.op == Some(SolidOp::Difference) && parent.operands > 0)
+            }
+            Some(parent) => parent.inward,
+            None => false,
+        };
+        self.solids.push(OpenSolid {
+            op,
+            ignored,
+            inward,
+            nodes: Vec::new(),
+            operands: 0,
+            mark: self.rt.instance_count(),
+            reversed: Vec::new(),
+            begin: r.loc.clone(),
+        });
+    }
+
+    /// Instances placed directly in the innermost operation block, outside any primitive (RISpec
+    /// allows none there): a primitive of their own, with a warning.
+    fn take_loose_geometry(&mut self, r: &Request) {
+        let count = self.rt.instance_count();
+        let Some(solid) = self.solids.last_mut().filter(|s| s.op.is_some() && !s.ignored) else { return };
+        if count > solid.mark {
+            let parts = (solid.mark..count).map(|i| SolidPart { instance: InstanceId(i as u32), inward: false });
+            solid.nodes.push(SolidNode::Primitive(parts.collect()));
+            solid.operands += 1;
+            solid.mark = count;
+            self.warn(
+                r,
+                "geometry in a solid's operation block, outside any \"primitive\" block, is taken as a primitive",
+            );
+        }
+    }
+
+    /// `SolidEnd`: the block's solid becomes an operand of the block around it, or a solid of the
+    /// scene.
+    fn solid_end(&mut self, r: &Request) -> Result<(), ApiError> {
+        self.take_loose_geometry(r);
+        let Some(solid) = self.solids.pop() else {
+            self.warn(r, "SolidEnd without SolidBegin");
+            return Ok(());
+        };
+        if solid.ignored {
+            return Ok(());
+        }
+        let count = self.rt.instance_count();
+        let nodes = match solid.op {
+            None => {
+                let parts = (solid.mark..count).map(|i| {
+                    let instance = InstanceId(i as u32);
+                    SolidPart { instance, inward: solid.reversed.contains(&instance) }
+                });
+                vec![SolidNode::Primitive(parts.collect())]
+            }
+            Some(_) if solid.operands == 0 => Vec::new(),
+            Some(op) => {
+                let mut nodes = solid.nodes;
+                nodes.push(SolidNode::Op(op, solid.operands));
+                nodes
+            }
+        };
+        if nodes.is_empty() {
+            return Ok(());
+        }
+        match self.solids.last_mut() {
+            Some(parent) => {
+                parent.nodes.extend(nodes);
+                parent.operands += 1;
+                parent.mark = count;
+            }
+            None => {
+                if let Err(e) = self.rt.add_solid(Solid { nodes }) {
+                    self.warn(r, format_args!("{e}: its parts render as plain surfaces"));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Ends the solid blocks still open where the world ends (`at`), with a warning.
+    fn end_solids(&mut self, at: &Request) -> Result<(), ApiError> {
+        while let Some(open) = self.solids.last() {
+            let begin = Request { loc: open.begin.clone(), kind: RequestKind::SolidEnd };
+            self.warn(&begin, "SolidBegin without SolidEnd: the solid ends with the world");
+            self.solid_end(at)?;
         }
         Ok(())
     }
