@@ -797,9 +797,9 @@ WorldEnd
     check("sides_one_sided_boxes", &render_rib("sides", &rib)).unwrap_or_else(|e| panic!("{e}"));
 }
 
-/// Two clipping planes: one through the ball's centre facing the camera and up, so camera rays
-/// see into the ball (its inside lit only through the opening: other rays still meet the part cut
-/// away), one cutting the floor right of x = 1.5 (the background shows there).
+/// Two clipping planes: one through the ball's centre facing the camera and up, so rays see into
+/// the ball (the light falls in through the opening: the part cut away casts no shadow), one
+/// cutting the floor right of x = 1.5 (the background shows there).
 #[test]
 fn clipping_planes_match_their_reference() {
     let rib = format!(

@@ -201,8 +201,8 @@ struct Appearance {
     alpha_mask: Option<(String, f32)>,
     /// The ray parameter values of objects built from now on ([`Context::ray_attribute`]).
     ray_values: Vec<(String, crate::render::RayValue)>,
-    /// Whether objects built from now on are one-sided (RIB `Sides 1`): camera rays do not see
-    /// the back of their triangles.
+    /// Whether objects built from now on are one-sided (RIB `Sides 1`): rays do not see the back
+    /// of their triangles.
     #[serde(default)]
     one_sided: bool,
 }

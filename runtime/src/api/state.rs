@@ -40,8 +40,9 @@ impl Context {
     }
 
     /// Makes objects built from now on one-sided (RenderMan's `Sides 1`) or two-sided (`Sides
-    /// 2`, the default): camera rays do not see the back of a one-sided object's triangles, the
-    /// side their winding's normal `(b - a) x (c - a)` points away from. Other rays see both sides.
+    /// 2`, the default): no ray (camera, reflection, refraction, shadow) sees the back of a
+    /// one-sided object's triangles, the side their winding's normal `(b - a) x (c - a)` points
+    /// away from.
     pub fn one_sided(&mut self, one_sided: bool) {
         self.appearance.one_sided = one_sided;
     }

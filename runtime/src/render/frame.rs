@@ -512,7 +512,7 @@ fn refine_tile(
         }
         let active = if chunk.len() == PACKET_SIZE { u64::MAX } else { (1u64 << chunk.len()) - 1 };
         let primary = primary_rays(frame, &cams, active);
-        world.intersect_camera(&primary.packet, &mut hits);
+        world.intersect_packet(&primary.packet, &mut hits);
         shade_packet(frame, &primary, &hits, &mut samples);
         for (lane, ((k, cam), s)) in chunk.iter().zip(&samples).enumerate() {
             if primary.packet.active >> lane & 1 == 0 {
@@ -639,7 +639,7 @@ fn primary_rays_of_frame(world: &World, trace: bool) -> (u64, u64) {
                 if !trace {
                     continue;
                 }
-                world.intersect_camera(&rays_of_packet.packet, &mut hits);
+                world.intersect_packet(&rays_of_packet.packet, &mut hits);
                 hit +=
                     (0..PACKET_SIZE).filter(|&i| active >> i & 1 != 0 && hits.instance.0[i] != u32::MAX).count() as u64;
             }
@@ -799,7 +799,7 @@ fn sample_tile(
                 hits.resize_with(n, HitPacket::default);
                 shaded.resize(n, [Sample::default(); PACKET_SIZE]);
                 for (rays, hits) in rays.iter().zip(hits.iter_mut()) {
-                    world.intersect_camera(&rays.packet, hits);
+                    world.intersect_packet(&rays.packet, hits);
                 }
                 let packets: Vec<(&PrimaryRays, &HitPacket)> = rays.iter().zip(hits.iter()).collect();
                 shade_packets(frame, &packets, shaded);

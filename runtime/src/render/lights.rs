@@ -787,10 +787,9 @@ fn transmission_packet(frame: &Frame, packet: &mut RayPacket, through: &mut [Vec
     }
     Stats::add(&frame.stats.shadow_rays, active.count_ones() as usize);
     let world = frame.world;
-    let scene = &world.scene;
     packet.active = active;
     if !frame.transparent_shadows {
-        let blocked = tracing(|| scene.occluded_packet(packet));
+        let blocked = tracing(|| world.occluded_packet(packet));
         clear_lanes(through, blocked);
         return;
     }
@@ -842,9 +841,9 @@ fn transmission_packet(frame: &Frame, packet: &mut RayPacket, through: &mut [Vec
     let known = LAST_BLOCKER
         .with(Cell::get)
         .filter(|&(instance, primitive)| kind_of(instance, primitive) == ShadowKind::Blocked)
-        .map_or(0, |(instance, primitive)| scene.lanes_hitting_triangle(packet, active, instance, primitive));
+        .map_or(0, |(instance, primitive)| world.lanes_hitting_triangle(packet, active, instance, primitive));
     packet.active = active & !known;
-    let traced = if packet.active != 0 { tracing(|| scene.occluded_packet_filtered(packet, Some(&opaque))) } else { 0 };
+    let traced = if packet.active != 0 { tracing(|| world.occluded_packet_filtered(packet, Some(&opaque))) } else { 0 };
     packet.active = active;
     let blocked = traced | known;
     clear_lanes(through, blocked);
@@ -937,7 +936,6 @@ fn resolve_crossings<'c>(
 /// `max_transparent_layers`.
 fn walk_transparent_layers(frame: &Frame, packet: &mut RayPacket, mut walking: u64, through: &mut [Vec3A]) {
     let world = frame.world;
-    let scene = &world.scene;
     let material_of = |instance: u32, primitive: u32| material_at(world, instance, primitive);
     let mut hits = HitPacket::default();
     for _ in 0..world.options.max_transparent_layers {
@@ -945,7 +943,7 @@ fn walk_transparent_layers(frame: &Frame, packet: &mut RayPacket, mut walking: u
             return;
         }
         packet.active = walking;
-        tracing(|| scene.intersect_packet(packet, &mut hits));
+        tracing(|| world.intersect_packet(packet, &mut hits));
         let mut shaded_by_shader = Vec::new();
         for l in lanes(walking) {
             let hit = hits.get(l);

@@ -111,7 +111,7 @@ pub fn trace_rays(frame: &Frame, rays: &[Ray], depth: u32) -> Vec<Sample> {
 
 /// [`trace_rays`], ray `i`'s tree spending from `budgets[i]`.
 fn trace_budgeted(frame: &Frame, rays: &[Ray], budgets: &mut [RayBudget], depth: u32) -> Vec<Sample> {
-    let hits: Vec<Hit> = tracing(|| rays.iter().map(|r| frame.world.scene.intersect(r)).collect());
+    let hits: Vec<Hit> = tracing(|| rays.iter().map(|r| frame.world.intersect(r)).collect());
     let eye = frame.world.camera.eye();
     let diffs: Vec<RayDifferential> = rays
         .iter()
@@ -135,7 +135,7 @@ pub(super) fn gather_rays(
     budgets: &mut [RayBudget],
     depth: u32,
 ) -> Vec<Option<(f32, Shaded)>> {
-    let hits: Vec<Hit> = tracing(|| rays.iter().map(|r| frame.world.scene.intersect(r)).collect());
+    let hits: Vec<Hit> = tracing(|| rays.iter().map(|r| frame.world.intersect(r)).collect());
     let eye = frame.world.camera.eye();
     let mut out = vec![None; rays.len()];
     let mut pending = Vec::new();
@@ -268,9 +268,7 @@ fn shade_pending(
                 let side = if r.ng.dot(p.ray.direction) > 0.0 { r.ng } else { -r.ng };
                 let ray = Ray::new(offset_ray_origin(r.p, side), p.ray.direction).at_time(p.ray.time);
                 Stats::add(&frame.stats.transparency_rays, 1);
-                // A camera ray going on is still one (`Sides 1`, clipping planes).
-                let hit =
-                    tracing(|| if depth == 0 { world.intersect_camera_ray(&ray) } else { world.scene.intersect(&ray) });
+                let hit = tracing(|| world.intersect(&ray));
                 if hit.is_hit() {
                     // The ray goes on unbent: its footprint starts where the surface's ended.
                     let (dodx, dody) = if r.on_surface {

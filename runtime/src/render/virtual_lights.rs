@@ -149,7 +149,7 @@ pub(super) fn gather(all: &VirtualLights, frame: &Frame, points: &[Gatherer], ou
         if pending.is_empty() {
             return;
         }
-        let blocked = tracing(|| frame.world.scene.occluded_packet(packet));
+        let blocked = tracing(|| frame.world.occluded_packet(packet));
         for (lane, (point, light)) in pending.iter().enumerate() {
             if blocked >> lane & 1 == 0 {
                 out[*point] += *light;
@@ -334,7 +334,7 @@ fn landings(
         .collect();
     let mut hits = Vec::with_capacity(starts.len());
     for (index, ray, share) in &starts {
-        let hit = tracing(|| world.scene.intersect(ray));
+        let hit = tracing(|| world.intersect(ray));
         let Some(surface) = hit.is_hit().then(|| world.scene.surface(&hit)).flatten() else { continue };
         hits.push((*index, *ray, *share, hit, surface));
     }
@@ -469,7 +469,7 @@ fn bounce(frame: &Frame, from: Vec3A, dir: Vec3A) -> Option<(Ray, crate::ray::Hi
     let world = frame.world;
     let ray = Ray::segment(from, dir, epsilon(from), f32::INFINITY);
     Stats::add(&frame.stats.secondary_rays, 1);
-    let hit = tracing(|| world.scene.intersect(&ray));
+    let hit = tracing(|| world.intersect(&ray));
     let surface = hit.is_hit().then(|| world.scene.surface(&hit)).flatten()?;
     Some((ray, hit, surface))
 }

@@ -30,8 +30,8 @@ pub struct Material {
     /// The displacement shader, run before the surface shader as bump mapping (its `N` becomes
     /// the surface shader's; the geometry does not move).
     pub displacement: Option<Arc<ShaderInstance>>,
-    /// Camera rays do not see the back of its triangles (RIB `Sides 1`): the side their winding's
-    /// normal `(b - a) x (c - a)` points away from ([`World::intersect_camera`]).
+    /// Rays do not see the back of its triangles (RIB `Sides 1`): the side their winding's normal
+    /// `(b - a) x (c - a)` points away from ([`World::intersect_packet`]).
     pub one_sided: bool,
     /// An id the pixel shader and adaptive sampling may read (`objectid`).
     pub object_id: u32,
@@ -441,7 +441,7 @@ pub struct RenderOptions {
     /// alpha 0). `None`: the whole image.
     pub crop_window: Option<[f32; 4]>,
     /// User clipping planes (RIB `ClippingPlane`), each a point on the plane and its normal in
-    /// world space: camera rays do not see what lies on the side the normal points to.
+    /// world space: no ray sees what lies on the side the normal points to.
     #[serde(default)]
     pub clipping_planes: Vec<[f32; 6]>,
     /// RIB's `PixelFilter "name" xwidth ywidth`: how samples are weighted into pixels. The default
@@ -661,9 +661,9 @@ pub struct World {
     /// Ray parameter names shaders asked for that nothing sets ([`World::shader_messages`]
     /// reports each once; a context shares its own with the worlds it builds).
     pub ray_parameter_misses: Arc<super::ray_params::RayParameterMisses>,
-    /// Whether camera rays filter their hits ([`World::intersect_camera`]): some material is
-    /// one-sided. Worked out by [`World::prepare`].
-    camera_filters: bool,
+    /// Whether rays filter their hits ([`World::intersect_packet`]): some material is one-sided
+    /// or a clipping plane is set. Worked out by [`World::prepare`].
+    filters: bool,
 }
 
 /// The next [`World::version`].
@@ -691,7 +691,7 @@ impl World {
             vertex_params: HashMap::new(),
             version: next_world_version(),
             ray_parameter_misses: Default::default(),
-            camera_filters: false,
+            filters: false,
         }
     }
 
@@ -739,37 +739,74 @@ impl World {
             }
         }
         self.vertex_params = vertex_params;
-        self.camera_filters = self.materials.iter().any(|m| m.one_sided) || !self.options.clipping_planes.is_empty();
+        self.filters = self.materials.iter().any(|m| m.one_sided) || !self.options.clipping_planes.is_empty();
     }
 
-    /// Closest hits of a packet of camera rays: [`Scene::intersect_packet`], except that the back
-    /// of a one-sided material's triangles is not seen, nor what a clipping plane
-    /// ([`RenderOptions::clipping_planes`]) cuts away. The tests run only for scenes that have such
-    /// a material or plane (a hit filter), so other scenes trace exactly as before.
-    pub fn intersect_camera(&self, packet: &RayPacket, out: &mut HitPacket) {
-        if !self.camera_filters {
+    /// Closest hits of a packet of rays, camera, secondary or shadow alike:
+    /// [`Scene::intersect_packet`], except that the back of a one-sided material's triangles is
+    /// not seen, nor what a clipping plane ([`RenderOptions::clipping_planes`]) cuts away. RISpec
+    /// clips geometry from the scene, and PRMan's ray tracing honours `Sides` for every ray, so no
+    /// ray meets what the camera cannot see. The tests run only for scenes that have such a
+    /// material or plane (a hit filter), so other scenes trace exactly as before.
+    pub fn intersect_packet(&self, packet: &RayPacket, out: &mut HitPacket) {
+        if !self.filters {
             return self.scene.intersect_packet(packet, out);
         }
-        let sees =
-            |c: &HitCandidate| c.lane as usize >= PACKET_SIZE || self.camera_sees(&packet.get(c.lane as usize), c);
+        let sees = |c: &HitCandidate| c.lane as usize >= PACKET_SIZE || self.sees(&packet.get(c.lane as usize), c);
         self.scene.intersect_packet_filtered(packet, out, Some(&sees));
     }
 
-    /// The closest hit of one camera ray (one going on through a transparent surface), as
-    /// [`World::intersect_camera`] finds those of a packet.
-    pub fn intersect_camera_ray(&self, ray: &Ray) -> Hit {
-        if !self.camera_filters {
+    /// The closest hit of one ray, as [`World::intersect_packet`] finds those of a packet.
+    pub fn intersect(&self, ray: &Ray) -> Hit {
+        if !self.filters {
             return self.scene.intersect(ray);
         }
-        let sees = |c: &HitCandidate| self.camera_sees(ray, c);
+        let sees = |c: &HitCandidate| self.sees(ray, c);
         self.scene.intersect_filtered(ray, Some(&sees))
     }
 
-    /// Whether camera ray `ray` sees candidate hit `c`: not the back of a one-sided triangle, nor a
-    /// point a clipping plane cuts away. The side is tested in object space, where it means what it
+    /// Whether anything the world's rays see ([`World::intersect_packet`]) lies on `ray`.
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        if !self.filters {
+            return self.scene.occluded(ray);
+        }
+        let sees = |c: &HitCandidate| self.sees(ray, c);
+        self.scene.occluded_filtered(ray, Some(&sees))
+    }
+
+    /// The lanes of a packet blocked by what the world's rays see ([`World::intersect_packet`]).
+    pub fn occluded_packet(&self, packet: &RayPacket) -> u64 {
+        self.occluded_packet_filtered(packet, None)
+    }
+
+    /// [`World::occluded_packet`] by the hits `filter` accepts too (asked only of hits the world's
+    /// rays see).
+    pub fn occluded_packet_filtered(&self, packet: &RayPacket, filter: crate::ray::HitFilter) -> u64 {
+        if !self.filters {
+            return self.scene.occluded_packet_filtered(packet, filter);
+        }
+        let sees = |c: &HitCandidate| {
+            (c.lane as usize >= PACKET_SIZE || self.sees(&packet.get(c.lane as usize), c))
+                && filter.is_none_or(|f| f(c))
+        };
+        self.scene.occluded_packet_filtered(packet, Some(&sees))
+    }
+
+    /// [`Scene::lanes_hitting_triangle`] for a world whose rays see every hit; none where some
+    /// are not seen (a one-sided triangle from behind, a point clipped away), which depends on
+    /// each ray.
+    pub fn lanes_hitting_triangle(&self, packet: &RayPacket, lanes: u64, instance: u32, primitive: u32) -> u64 {
+        if self.filters {
+            return 0;
+        }
+        self.scene.lanes_hitting_triangle(packet, lanes, instance, primitive)
+    }
+
+    /// Whether ray `ray` sees candidate hit `c`: not the back of a one-sided triangle, nor a point
+    /// a clipping plane cuts away. The side is tested in object space, where it means what it
     /// means in world space (a direction and a normal moved by a matrix and its inverse transpose
     /// keep their dot product), so that a mirroring instance keeps its outside.
-    fn camera_sees(&self, ray: &Ray, c: &HitCandidate) -> bool {
+    fn sees(&self, ray: &Ray, c: &HitCandidate) -> bool {
         let at = ray.at(c.t);
         let clipped = self
             .options

@@ -1581,7 +1581,7 @@ mod tests {
             packet.set(i, &Ray::new(glam::Vec3A::from_array(*o), glam::Vec3A::new(0.0, 0.0, *dz)));
         }
         let mut hits = HitPacket::default();
-        world.intersect_camera(&packet, &mut hits);
+        world.intersect_packet(&packet, &mut hits);
         (0..rays.len()).map(|i| if hits.instance.0[i] == INVALID_ID { f32::INFINITY } else { hits.t.0[i] }).collect()
     }
 
@@ -1815,6 +1815,35 @@ mod tests {
     }
 
     #[test]
+    fn rib_sides_one_and_clipping_planes_hold_for_secondary_and_shadow_rays() {
+        use crate::ray::{Ray, RayPacket};
+        let world_of = |body: &str| {
+            let mut rt = Context::new();
+            let rib = format!("Projection \"perspective\" WorldBegin {body} WorldEnd");
+            load_str(&mut rt, &rib, "t.rib").expect("loads");
+            rt.build_world().expect("a world")
+        };
+        // Rays from points off the camera's axis, as a reflection or a shadow ray starts.
+        let behind = Ray::segment(glam::Vec3A::new(0.2, 0.2, -3.0), glam::Vec3A::Z, 0.0, 10.0);
+        let front = Ray::segment(glam::Vec3A::new(0.2, 0.2, 3.0), -glam::Vec3A::Z, 0.0, 10.0);
+        let world = world_of(&format!("Sides 1 {TRIANGLE}"));
+        assert!(!world.intersect(&behind).is_hit() && !world.occluded(&behind));
+        assert!(world.intersect(&front).is_hit() && world.occluded(&front));
+        let mut packet = RayPacket::new();
+        packet.set(0, &behind);
+        packet.set(1, &front);
+        assert_eq!(world.occluded_packet(&packet), 0b10);
+        assert_eq!(world.lanes_hitting_triangle(&packet, 0b11, 0, 0), 0, "no shortcut past the filter");
+        // Two-sided, both are blocked.
+        let world = world_of(TRIANGLE);
+        assert!(world.occluded(&behind) && world.occluded(&front));
+        // What a clipping plane cuts away blocks nothing: x > 0 here.
+        let world = world_of(&format!("ClippingPlane 0 0 0 1 0 0 {TRIANGLE}"));
+        assert!(!world.occluded(&front) && !world.intersect(&behind).is_hit());
+        assert_eq!(world.occluded_packet(&packet), 0);
+    }
+
+    #[test]
     fn rib_camera_rays_through_transparent_surfaces_still_skip_backs_and_clipped_parts() {
         use crate::ray::Ray;
         // Half-transparent glass at z = 1, and behind it a triangle whose back faces the camera.
@@ -1827,7 +1856,7 @@ mod tests {
         load_str(&mut rt, &rib, "t.rib").expect("loads");
         let world = rt.build_world().expect("a world");
         let from_camera = Ray::new(glam::Vec3A::new(0.2, 0.2, 2.0), glam::Vec3A::Z);
-        assert!(!world.intersect_camera_ray(&from_camera).is_hit());
+        assert!(!world.intersect(&from_camera).is_hit());
         assert!(world.scene.intersect(&from_camera).is_hit());
     }
 }

@@ -404,7 +404,7 @@ impl Renderer {
         }
         let (px, py) = (x as u32, y as u32);
         let ray = camera_ray(world, px, py, 0.5, 0.5);
-        let hit = world.scene.intersect(&ray);
+        let hit = world.intersect(&ray);
         if !hit.is_hit() {
             return None;
         }
