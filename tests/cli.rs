@@ -1065,7 +1065,7 @@ fn a_render_missing_part_of_its_scene_fails_unless_told_to_keep_going() {
             "nope.png",
         ),
         ("archive", SPHERE_RIB.replace("Sphere", "ReadArchive \"gone.obj\"\nSphere"), "gone.obj"),
-        ("request", SPHERE_RIB.replace("Sphere", "ColorSamples [1 0 0] [1 0 0]\nSphere"), "ColorSamples"),
+        ("request", SPHERE_RIB.replace("Sphere", "Shader \"coshader\" \"h\"\nSphere"), "Shader"),
     ];
     for (what, rib, named) in missing {
         write(dir.path(), "s.rib", &rib);

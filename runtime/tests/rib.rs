@@ -341,7 +341,7 @@ fn syntax_errors_are_located_and_reading_recovers() {
                 Scale 1 1 1 1\n\
                 Rotate 90 [0 0 1\n\
                 Surface \"x\" 0.5\n\
-                Frobnicate 1 2 3 ColorSamples\n\
+                Frobnicate 1 2 3 Shader\n\
                 Polygon \"P\" [0 0 0 1 0 0 1 1 0] \"Cs\"\n\
                 Disk 0 1 360 12abc\n\
                 Cone 1 1 360\n\
@@ -358,7 +358,7 @@ fn syntax_errors_are_located_and_reading_recovers() {
             "scene.rib:7:11: error: `[` is never closed",
             "scene.rib:8:13: error: expected a parameter name (a string) in `Surface`'s parameter list, found a number",
             "scene.rib:9:1: warning: unknown request `Frobnicate` skipped",
-            "scene.rib:9:18: warning: `ColorSamples` is not supported yet and is skipped",
+            "scene.rib:9:18: warning: `Shader` is not supported yet and is skipped",
             "scene.rib:10:33: error: parameter \"Cs\" has no value",
             "scene.rib:11:14: error: malformed number `12abc`",
         ]
@@ -1070,4 +1070,70 @@ fn loaded_points_and_curves_face_the_camera() {
             assert!(faced > 0, "{projection} {primitive}");
         }
     }
+}
+
+/// The colours of a parse's `Color`, `Opacity` and `Cs` values, in order.
+fn colours(parsed: &RibParse) -> Vec<Vec<f32>> {
+    let mut out = Vec::new();
+    for r in &parsed.requests {
+        match &r.kind {
+            K::Color(c) | K::Opacity(c) => out.push(c.to_vec()),
+            K::Polygon(params) => {
+                out.extend(params.iter().filter(|p| p.name == "Cs").filter_map(|p| p.floats().map(<[f32]>::to_vec)))
+            }
+            _ => {}
+        }
+    }
+    out
+}
+
+#[test]
+fn color_samples_turn_colours_into_rgb_as_they_are_read() {
+    let close = |a: &[f32], b: &[f32]| a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-6);
+    // One sample a colour, which nRGB spreads into RGB; a colour parameter's values one sample each.
+    let parsed = parse(
+        "ColorSamples 1 [0.2 0.5 0.8] [1 1 1]\n\
+         Color [0.5] Opacity 1\n\
+         Polygon \"P\" [0 0 0 1 0 0 0 1 0] \"varying color Cs\" [1 0.5 0.25]\n",
+    );
+    assert!(parsed.diagnostics.is_empty(), "{:?}", messages(&parsed));
+    let got = colours(&parsed);
+    let want: [&[f32]; 3] = [&[0.1, 0.25, 0.4], &[0.2, 0.5, 0.8], &[0.2, 0.5, 0.8, 0.1, 0.25, 0.4, 0.05, 0.125, 0.2]];
+    assert_eq!(got.len(), 3, "{got:?}");
+    for (g, w) in got.iter().zip(want) {
+        assert!(close(g, w), "{got:?}");
+    }
+    // Four samples: the spectrum's halves, red and blue; a ColorSamples in a frame holds there.
+    let parsed = parse(
+        "FrameBegin 1 ColorSamples 4 [1 0 0  1 0 0  0 0 1  0 0 1] [1 1 0 0  0 0 0 0  0 0 1 1]\n\
+         Color 0.25 0.25 [0.5 0.5] FrameEnd Color [0.1 0.2 0.3]\n",
+    );
+    assert!(parsed.diagnostics.is_empty(), "{:?}", messages(&parsed));
+    let got = colours(&parsed);
+    assert!(close(&got[0], &[0.5, 0.0, 1.0]) && close(&got[1], &[0.1, 0.2, 0.3]), "{got:?}");
+    // RGB written as three samples with identity matrices is RGB.
+    let parsed = parse("ColorSamples 3 [1 0 0 0 1 0 0 0 1] [1 0 0 0 1 0 0 0 1] Color [0.1 0.2 0.3]");
+    assert!(close(&colours(&parsed)[0], &[0.1, 0.2, 0.3]));
+}
+
+#[test]
+fn malformed_color_samples_are_errors_and_change_nothing() {
+    let parsed = parse(
+        "ColorSamples 2 [1 0 0] [1 1 1 1 1 1]\n\
+         ColorSamples 0 [] []\n\
+         ColorSamples 2 [1 0 0 0 1 0] [1 1 1 1 1 1]\n\
+         Color [0.5 0.25]\n\
+         Polygon \"P\" [0 0 0 1 0 0 0 1 0] \"Cs\" [1 0 0]\n",
+    );
+    assert_eq!(
+        messages(&parsed),
+        vec![
+            "scene.rib:1:1: error: `ColorSamples 2` needs a nRGB matrix of 6 numbers, not 3; colours stay as they were",
+            "scene.rib:2:1: error: `ColorSamples` needs at least 1 sample, not 0; colours stay as they were",
+            "scene.rib:5:38: error: parameter \"Cs\" (varying color): 3 numbers given, which is not a multiple of 2 \
+             (numbers per value: `ColorSamples` 2 a colour)",
+        ]
+    );
+    // The third took: two samples, the first red, the second green.
+    assert_eq!(colours(&parsed), vec![vec![0.5, 0.25, 0.0]]);
 }

@@ -30,7 +30,7 @@ const IGNORED_REQUESTS: &[&str] = &["ErrorHandler", "GeometricApproximation", "P
 /// RenderMan requests (RISpec 3.2 and the common later ones) that this reader skips: what they
 /// ask for is missing from the picture, which their warning says (rather than the "unknown
 /// request" one a typo gets).
-const UNSUPPORTED_REQUESTS: &[&str] = &["ColorSamples", "Shader"];
+const UNSUPPORTED_REQUESTS: &[&str] = &["Shader"];
 
 /// One argument of a request, as written.
 #[derive(Clone, Debug)]
@@ -92,6 +92,38 @@ pub(super) struct Parser {
     vars: CondVars,
     /// What is left of [`CONDITION_BUDGET`].
     condition_work: usize,
+    /// `ColorSamples`: the colours written from here on, `None` for RGB.
+    colors: Option<ColorSamples>,
+    /// The colour samples around each open `FrameBegin` block (an option set in a frame holds for
+    /// that frame).
+    frame_colors: Vec<Option<ColorSamples>>,
+}
+
+/// `ColorSamples n nRGB RGBn`: colours are written with `n` samples each, which `nRGB` (`n` rows
+/// of 3) turns into RGB as the stream is read: a colour `c` is `c nRGB`. (`RGBn` turns RGB into
+/// samples, which nothing in rtsl needs: shaders compute in RGB.)
+#[derive(Clone, Debug)]
+struct ColorSamples {
+    n: usize,
+    to_rgb: Vec<f32>,
+}
+
+impl ColorSamples {
+    /// The RGB colours of `values`, `n` samples each (a whole number of colours).
+    fn to_rgb(&self, values: &[f32]) -> Vec<f32> {
+        values
+            .chunks_exact(self.n)
+            .flat_map(|c| {
+                let mut rgb = [0.0f32; 3];
+                for (i, sample) in c.iter().enumerate() {
+                    for (j, out) in rgb.iter_mut().enumerate() {
+                        *out += sample * self.to_rgb[3 * i + j];
+                    }
+                }
+                rgb
+            })
+            .collect()
+    }
 }
 
 /// An open `IfBegin` block.
@@ -228,6 +260,8 @@ impl Parser {
             branches_floor: 0,
             vars: CondVars::default(),
             condition_work: CONDITION_BUDGET,
+            colors: None,
+            frame_colors: Vec::new(),
         }
     }
 
@@ -309,6 +343,7 @@ impl Parser {
                 Ok(())
             }
             "ArchiveBegin" => self.begin_archive(&loc, args),
+            "ColorSamples" => self.color_samples(&loc, args),
             "ArchiveEnd" if self.open_archives.is_empty() => Err(error(&loc, "`ArchiveEnd` without `ArchiveBegin`")),
             "ArchiveEnd" => {
                 self.end_archive();
@@ -335,6 +370,15 @@ impl Parser {
             Ok(Some(kind)) => {
                 if let K::Declare { name, decl } = &kind {
                     self.decls.declare(name, *decl);
+                }
+                match kind {
+                    K::FrameBegin(_) => self.frame_colors.push(self.colors.clone()),
+                    K::FrameEnd => {
+                        if let Some(outer) = self.frame_colors.pop() {
+                            self.colors = outer;
+                        }
+                    }
+                    _ => {}
                 }
                 if let K::Option(option) = &kind {
                     self.archive_search_path(option);
@@ -444,8 +488,8 @@ impl Parser {
                 K::AreaLightSource { shader, handle }
             }
             "Illuminate" => K::Illuminate { light: a.handle("light handle")?, on: a.int("on/off flag")? != 0 },
-            "Color" => K::Color(a.floats("r g b")?),
-            "Opacity" => K::Opacity(a.floats("r g b")?),
+            "Color" => K::Color(self.color(a)?),
+            "Opacity" => K::Opacity(self.color(a)?),
             "Declare" => {
                 let name = a.string("declared name")?;
                 let (text, loc) = a.string_at("declaration")?;
@@ -822,6 +866,43 @@ impl Parser {
         Ok((Shader { name, params: self.params(a) }, handle))
     }
 
+    /// `ColorSamples n [nRGB] [RGBn]`: how many numbers a colour is written with from here on,
+    /// and how they become RGB. Three samples with identity matrices is RGB again.
+    fn color_samples(&mut self, loc: &Location, args: &[Arg]) -> Result<()> {
+        let mut a = Args { request: "ColorSamples", loc, items: args, pos: 0 };
+        let n = a.int("number of samples")?;
+        let to_rgb = a.numbers("nRGB matrix")?;
+        let from_rgb = a.numbers("RGBn matrix")?;
+        a.finish()?;
+        let n = usize::try_from(n).ok().filter(|&n| n >= 1).ok_or_else(|| {
+            error(loc, format!("`ColorSamples` needs at least 1 sample, not {n}; colours stay as they were"))
+        })?;
+        for (what, matrix) in [("nRGB", &to_rgb), ("RGBn", &from_rgb)] {
+            if matrix.len() != 3 * n {
+                let message = format!(
+                    "`ColorSamples {n}` needs a {what} matrix of {} numbers, not {}; colours stay as they were",
+                    3 * n,
+                    matrix.len()
+                );
+                return Err(error(loc, message));
+            }
+        }
+        if !to_rgb.iter().all(|x| x.is_finite()) {
+            return Err(error(loc, "`ColorSamples`'s nRGB matrix is not finite; colours stay as they were"));
+        }
+        let identity = n == 3 && to_rgb.iter().enumerate().all(|(i, &x)| x == if i % 4 == 0 { 1.0 } else { 0.0 });
+        self.colors = (!identity).then_some(ColorSamples { n, to_rgb });
+        Ok(())
+    }
+
+    /// A `Color` or `Opacity` argument: as many numbers as `ColorSamples` says, as RGB.
+    fn color(&self, a: &mut Args) -> Result<[f32; 3]> {
+        let Some(samples) = &self.colors else { return a.floats("r g b") };
+        let values = a.float_list(samples.n, "one number a colour sample")?;
+        let rgb = samples.to_rgb(&values);
+        Ok([rgb[0], rgb[1], rgb[2]])
+    }
+
     /// The rest of the arguments as a parameter list.
     fn params(&mut self, a: &mut Args) -> Vec<Param> {
         let mut params = Vec::new();
@@ -870,7 +951,11 @@ impl Parser {
             };
             (Decl { class: Class::Implicit, ty, array_len: None }, written.to_string())
         };
-        match convert_value(&decl, &value.value) {
+        let converted = match (&self.colors, decl.ty) {
+            (Some(samples), Ty::Color) => colors_to_rgb(samples, &decl, &value.value),
+            _ => convert_value(&decl, &value.value),
+        };
+        match converted {
             Ok(value) => Some(Param { name, decl, value, loc: loc.clone() }),
             Err(message) => {
                 self.diagnostics.push(error(&value.loc, format!("parameter \"{name}\" ({decl}): {message}")));
@@ -1118,6 +1203,27 @@ fn to_int(x: f64) -> std::result::Result<i32, String> {
     }
 }
 
+/// A colour parameter's values written with `samples.n` numbers a colour, as RGB.
+fn colors_to_rgb(samples: &ColorSamples, decl: &Decl, value: &ArgValue) -> std::result::Result<ParamValue, String> {
+    let values: Vec<f32> = match value {
+        ArgValue::Number(x) => vec![*x as f32],
+        ArgValue::Numbers(v) => v.iter().map(|&x| x as f32).collect(),
+        other => return Err(format!("expected numbers, found {}", other.describe())),
+    };
+    let per_value = samples.n * decl.array_len.unwrap_or(1);
+    if values.is_empty() {
+        Err("no values given".to_string())
+    } else if values.len() % per_value != 0 {
+        Err(format!(
+            "{} numbers given, which is not a multiple of {per_value} (numbers per value: `ColorSamples` {} a colour)",
+            values.len(),
+            samples.n
+        ))
+    } else {
+        Ok(ParamValue::Floats(samples.to_rgb(&values)))
+    }
+}
+
 /// Types a parameter's value by its declaration and checks the count.
 fn convert_value(decl: &Decl, value: &ArgValue) -> std::result::Result<ParamValue, String> {
     use ArgValue as A;
@@ -1196,6 +1302,32 @@ impl<'a> Args<'a> {
                 ArgValue::Numbers(xs) => {
                     let message =
                         format!("`{}` needs {N} numbers ({what}) but this array has {}", self.request, xs.len());
+                    return Err(error(&arg.loc, message));
+                }
+                other => {
+                    let message = format!("`{}` expects numbers ({what}), found {}", self.request, other.describe());
+                    return Err(error(&arg.loc, message));
+                }
+            }
+            self.pos += 1;
+        }
+        Ok(out)
+    }
+
+    /// `n` numbers, written singly or in arrays, as [`Args::floats`] reads a fixed count.
+    fn float_list(&mut self, n: usize, what: &str) -> Result<Vec<f32>> {
+        let mut out = Vec::with_capacity(n.min(self.remaining().max(1) * 16));
+        while out.len() < n {
+            let Some(arg) = self.items.get(self.pos) else {
+                let message = format!("`{}` needs {n} numbers ({what}) but has {}", self.request, out.len());
+                return Err(error(self.loc, message));
+            };
+            match &arg.value {
+                ArgValue::Number(x) => out.push(*x as f32),
+                ArgValue::Numbers(xs) if out.len() + xs.len() <= n => out.extend(xs.iter().map(|&x| x as f32)),
+                ArgValue::Numbers(xs) => {
+                    let message =
+                        format!("`{}` needs {n} numbers ({what}) but this array has {}", self.request, xs.len());
                     return Err(error(&arg.loc, message));
                 }
                 other => {
