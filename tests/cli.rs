@@ -1304,6 +1304,14 @@ fn displays_write_their_modes_depths_and_additional_images() {
     let o = rtsl(&["render", "w.rib", "-q"], dir.path());
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     assert!(stderr(&o).contains("is a window") && dir.path().join("render.png").exists(), "{}", stderr(&o));
+    // Beside a file, the window is left out, with one note.
+    let both = "Display \"both.png\" \"file\" \"rgba\" Display \"+view\" \"framebuffer\" \"rgba\" \
+                Display \"+it\" \"it\" \"rgba\"";
+    write(dir.path(), "wf.rib", &scene(both));
+    let o = rtsl(&["render", "wf.rib", "-q"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert_eq!(stderr(&o).matches("is a window").count(), 1, "{}", stderr(&o));
+    assert!(stderr(&o).contains("it is left out") && dir.path().join("both.png").exists(), "{}", stderr(&o));
     write(dir.path(), "z.rib", &scene("Display \"z.png\" \"file\" \"z\""));
     let o = rtsl(&["render", "z.rib", "-q"], dir.path());
     assert_eq!(o.status.code(), Some(2));

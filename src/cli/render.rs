@@ -635,19 +635,23 @@ fn prepare(args: &RenderArgs, frame_index: usize) -> anyhow::Result<Prepared> {
         depth_map: d.depth_map,
         output: d.output.clone(),
     });
+    let mut to_default = false;
     let first = match args.output.as_ref().map(expanded) {
         Some(path) => Image { path, mode: DisplayMode::Rgba, depth_map: false, output: None },
         None => files.next().unwrap_or_else(|| {
-            if let Some(window) = loaded.displays.iter().find(|d| d.window) {
-                eprintln!(
-                    "note: `Display \"{}\"` is a window, which rtsl render does not open (rtsl view does); \
-                     the image goes to render.png",
-                    window.name.display()
-                );
-            }
+            to_default = true;
             Image { path: PathBuf::from("render.png"), mode: DisplayMode::Rgba, depth_map: false, output: None }
         }),
     };
+    // A batch render never opens a window (it would wait for the window to close, in a script or
+    // a farm as anywhere): one note for the frame's window displays, whatever else it writes.
+    if let Some(window) = loaded.displays.iter().find(|d| d.window) {
+        let rest = if to_default { "the image goes to render.png" } else { "it is left out" };
+        eprintln!(
+            "note: `Display \"{}\"` is a window, which rtsl render does not open (rtsl view does); {rest}",
+            window.name.display()
+        );
+    }
     let extra: Vec<Image> = files.collect();
     if let Some((w, h)) = args.size {
         rt.options.width = w;
