@@ -294,3 +294,41 @@ fn shadows_pass_through_the_transparent_part_of_an_object_only() -> Result<(), A
     }
     Ok(())
 }
+
+/// A floor seen from straight above, lit from low on one side past a square at y = 1, whose
+/// shadow falls on the other side: the floor's brightness there (x = -2.6, beside the square), over
+/// what it is with no square.
+fn shadow_beside_a_square(square: &str) -> f32 {
+    let floor = |square: &str| {
+        let rib = format!(
+            "Format 32 32 1 Projection \"perspective\" \"fov\" 60
+         Rotate -90 1 0 0 Translate 0 -6 0
+         WorldBegin
+           Attribute \"light\" \"shadows\" \"on\"
+           LightSource \"pointlight\" 1 \"intensity\" [30] \"from\" [3 2 0]
+           Surface \"matte\"
+           Polygon \"P\" [-5 0 -5  5 0 -5  5 0 5  -5 0 5]
+           {square}
+         WorldEnd"
+        );
+        let (mut rt, warnings) = common::load(&rib);
+        assert!(warnings.is_empty(), "{warnings:?}");
+        let fb = common::render(&mut rt);
+        common::luminance(&fb, 4, 16)
+    };
+    let open = floor("");
+    assert!(open > 0.0, "the floor is lit");
+    floor(square) / open
+}
+
+#[test]
+fn one_sided_surfaces_and_clipped_parts_cast_no_shadow_from_behind() {
+    // Wound so that its outside faces up: shadow rays from the floor meet its back.
+    let facing_up = "Polygon \"P\" [-1.5 1 -1.5  -1.5 1 1.5  1.5 1 1.5  1.5 1 -1.5]";
+    let two_sided = shadow_beside_a_square(facing_up);
+    let one_sided = shadow_beside_a_square(&format!("AttributeBegin Sides 1 {facing_up} AttributeEnd"));
+    let clipped = shadow_beside_a_square(&format!("ClippingPlane 0 0.5 0  0 1 0 {facing_up}"));
+    assert!(two_sided < 0.1, "a two-sided square shadows the floor: {two_sided}");
+    assert!(one_sided > 0.5, "a one-sided square seen from behind casts no shadow: {one_sided}");
+    assert!(clipped > 0.5, "a clipped square casts no shadow: {clipped}");
+}
