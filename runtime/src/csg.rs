@@ -212,7 +212,10 @@ impl Csg {
                         program.push(Step::Leaf(leaf_index as u8));
                         leaves.push(Leaf { top: TopLevel::build(data, objects), inward });
                     }
-                    // At most 64 operands: an operation's operands are on the stack of at most 64.
+                    // An operation of one operand is that operand: left out, so that a chain of
+                    // them costs nothing, and a program holds at most 64 leaves and 63
+                    // operations. At most 64 operands: they are on a stack of at most 64.
+                    SolidNode::Op(_, 1) => {}
                     SolidNode::Op(op, n) => program.push(Step::Op(*op, (*n).min(64) as u8)),
                 }
             }
@@ -337,6 +340,14 @@ mod tests {
         let nested =
             tree(&[p(), p(), p(), SolidNode::Op(SolidOp::Difference, 2), SolidNode::Op(SolidOp::Difference, 2)]);
         assert!(nested.eval(0b111) && !nested.eval(0b011) && nested.eval(0b001));
+    }
+
+    #[test]
+    fn operations_of_one_operand_are_left_out() {
+        let chain: Vec<_> = [p()].into_iter().chain((0..1000).map(|_| SolidNode::Op(SolidOp::Difference, 1))).collect();
+        let t = tree(&chain);
+        assert_eq!(t.program.len(), 1);
+        assert!(t.eval(1) && !t.eval(0));
     }
 
     #[test]

@@ -178,3 +178,21 @@ fn a_replica_sees_the_solids() {
     assert_eq!(down(&here), down(&there));
     assert!(close(down(&there).expect("the bite's floor"), 4.6, 0.01));
 }
+
+#[test]
+fn deep_nesting_loads_in_linear_time() {
+    // A hundred thousand blocks around one sphere: each block's node is appended once, and the
+    // chain of one-operand operations costs a hit nothing.
+    let depth = 100_000;
+    let body = format!(
+        "{}SolidBegin \"primitive\" Sphere 1 -1 1 360 SolidEnd{}",
+        "SolidBegin \"union\" ".repeat(depth),
+        " SolidEnd".repeat(depth)
+    );
+    let start = std::time::Instant::now();
+    let (w, warnings) = world(&body);
+    assert!(warnings.is_empty(), "{warnings:?}");
+    assert!(start.elapsed().as_secs() < 60, "{:?}", start.elapsed());
+    let (t, _) = first_hit(&w, [0.0, 0.0, 5.0], [0.0, 0.0, -1.0]).expect("the sphere");
+    assert!(close(t, 4.0, 0.01));
+}

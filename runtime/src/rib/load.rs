@@ -342,6 +342,9 @@ struct Loader<'a> {
     scoped_spaces: Vec<(usize, String, Option<Affine3A>)>,
     /// The open `SolidBegin` blocks, innermost last.
     solids: Vec<OpenSolid>,
+    /// The nodes of the outermost open solid so far, in postfix order: a block's node follows its
+    /// operands' as it ends, so one list serves every level, however deep, with no copying.
+    solid_nodes: Vec<SolidNode<InstanceId>>,
 }
 
 /// An open `SolidBegin` block.
@@ -354,8 +357,7 @@ struct OpenSolid {
     /// The geometry of this block faces into it: it is subtracted from something, an odd number
     /// of times.
     inward: bool,
-    /// An operation's operands so far, their nodes in postfix order.
-    nodes: Vec<SolidNode<InstanceId>>,
+    /// An operation's operands so far (their nodes are in [`Loader::solid_nodes`]).
     operands: u32,
     /// The instances placed since this count belong to the block itself (for a primitive, all of
     /// its instances; for an operation, geometry outside any primitive).
@@ -391,6 +393,7 @@ impl<'a> Loader<'a> {
             resources: vec![HashMap::new()],
             scoped_spaces: Vec::new(),
             solids: Vec::new(),
+            solid_nodes: Vec::new(),
         }
     }
 
@@ -1010,7 +1013,6 @@ impl<'a> Loader<'a> {
             op,
             ignored,
             inward,
-            nodes: Vec::new(),
             operands: 0,
             mark: self.rt.instance_count(),
             reversed: Vec::new(),
@@ -1025,7 +1027,7 @@ impl<'a> Loader<'a> {
         let Some(solid) = self.solids.last_mut().filter(|s| s.op.is_some() && !s.ignored) else { return };
         if count > solid.mark {
             let parts = (solid.mark..count).map(|i| SolidPart { instance: InstanceId(i as u32), inward: false });
-            solid.nodes.push(SolidNode::Primitive(parts.collect()));
+            self.solid_nodes.push(SolidNode::Primitive(parts.collect()));
             solid.operands += 1;
             solid.mark = count;
             self.warn(
@@ -1047,31 +1049,29 @@ impl<'a> Loader<'a> {
             return Ok(());
         }
         let count = self.rt.instance_count();
-        let nodes = match solid.op {
+        let node = match solid.op {
             None => {
+                // Instances are placed in increasing order, so `reversed` is sorted.
                 let parts = (solid.mark..count).map(|i| {
                     let instance = InstanceId(i as u32);
-                    SolidPart { instance, inward: solid.reversed.contains(&instance) }
+                    SolidPart { instance, inward: solid.reversed.binary_search_by_key(&instance.0, |r| r.0).is_ok() }
                 });
-                vec![SolidNode::Primitive(parts.collect())]
+                Some(SolidNode::Primitive(parts.collect()))
             }
-            Some(_) if solid.operands == 0 => Vec::new(),
-            Some(op) => {
-                let mut nodes = solid.nodes;
-                nodes.push(SolidNode::Op(op, solid.operands));
-                nodes
-            }
+            Some(_) if solid.operands == 0 => None,
+            Some(op) => Some(SolidNode::Op(op, solid.operands)),
         };
-        if nodes.is_empty() {
-            return Ok(());
-        }
-        match self.solids.last_mut() {
-            Some(parent) => {
-                parent.nodes.extend(nodes);
+        if let Some(node) = node {
+            self.solid_nodes.push(node);
+            if let Some(parent) = self.solids.last_mut() {
                 parent.operands += 1;
-                parent.mark = count;
             }
-            None => {
+        }
+        if let Some(parent) = self.solids.last_mut() {
+            parent.mark = count;
+        } else {
+            let nodes = std::mem::take(&mut self.solid_nodes);
+            if !nodes.is_empty() {
                 if let Err(e) = self.rt.add_solid(Solid { nodes }) {
                     self.warn(r, format_args!("{e}: its parts render as plain surfaces"));
                 }
