@@ -196,3 +196,18 @@ fn deep_nesting_loads_in_linear_time() {
     let (t, _) = first_hit(&w, [0.0, 0.0, 5.0], [0.0, 0.0, -1.0]).expect("the sphere");
     assert!(close(t, 4.0, 0.01));
 }
+
+#[test]
+fn a_block_ignored_inside_a_subtracted_primitive_is_part_of_it() {
+    let body = "SolidBegin \"difference\"
+  SolidBegin \"primitive\" Sphere 1 -1 1 360 SolidEnd
+  SolidBegin \"primitive\"
+    SolidBegin \"primitive\" TransformBegin Translate 0 0 1 Sphere 0.6 -0.6 0.6 360 TransformEnd SolidEnd
+  SolidEnd
+SolidEnd";
+    let (w, warnings) = world(body);
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    // The bite as ever, its floor reversed with the rest of the subtracted part.
+    let (t, ng) = first_hit(&w, [0.0, 0.0, 5.0], [0.0, 0.0, -1.0]).expect("the bite's floor");
+    assert!(close(t, 4.6, 0.01) && ng.z > 0.99, "t = {t}, ng = {ng}");
+}

@@ -414,7 +414,7 @@ impl<'a> Loader<'a> {
             self.rt.load_matrix(placed);
             let inst = self.rt.instantiate_object(id)?;
             if self.builds_reversed() {
-                if let Some(solid) = self.solids.last_mut() {
+                if let Some(solid) = self.solids.iter_mut().rev().find(|s| !s.ignored) {
                     solid.reversed.push(inst);
                 }
             }
@@ -970,10 +970,10 @@ impl<'a> Loader<'a> {
         Ok(())
     }
 
-    /// Whether geometry built now is a subtracted part of a solid: the innermost solid block is a
-    /// primitive that faces inward.
+    /// Whether geometry built now is a subtracted part of a solid: the innermost solid block that
+    /// counts (blocks ignored inside a primitive are part of it) is a primitive that faces inward.
     fn builds_reversed(&self) -> bool {
-        self.solids.last().is_some_and(|s| s.op.is_none() && !s.ignored && s.inward)
+        self.solids.iter().rev().find(|s| !s.ignored).is_some_and(|s| s.op.is_none() && s.inward)
     }
 
     /// `SolidBegin`: a primitive solid, whose geometry closes a volume, or a set operation on the
