@@ -281,3 +281,60 @@ fn paths_are_taken_as_any_as_ref_path() {
     rt.add_texture_search_path(dir_str);
     assert!(rtsl_runtime::api::find_shader_file("flat", &[dir_str]).is_some());
 }
+
+/// The mean brightness of the left and right halves of a frame.
+fn halves(rt: &mut Context) -> (f32, f32) {
+    let (fb, _) = rt.render_frame().expect("renders");
+    let (mut left, mut right) = (0.0, 0.0);
+    for y in 0..fb.height {
+        for x in 0..fb.width {
+            let p = fb.pixel(x, y);
+            let v = p[0] + p[1] + p[2];
+            if x < fb.width / 2 {
+                left += v;
+            } else {
+                right += v;
+            }
+        }
+    }
+    (left, right)
+}
+
+#[test]
+fn a_light_moves_and_changes_between_frames() {
+    let mut rt = context();
+    let matte = rt.find_shader("matte").expect("the library's matte");
+    let floor = rt.begin_object().expect("an object");
+    rt.bind_shader(matte).expect("binds");
+    quad(&mut rt, [[-4.0, 0.0, -3.0], [-4.0, 0.0, 3.0], [4.0, 0.0, 3.0], [4.0, 0.0, -3.0]]).expect("a quad");
+    rt.end_object().expect("made");
+    rt.instantiate_object(floor).expect("placed");
+    rt.camera_look_at(Vec3A::new(0.0, 6.0, 0.01), Vec3A::ZERO, Vec3A::NEG_Z, 70.0);
+    let point = rt.find_shader("pointlight").expect("the library's pointlight");
+    // A light given at (0, 1, 0) of a space moved 2 to the left.
+    rt.translate(-2.0, 0.0, 0.0);
+    let light =
+        rt.light_source(point, params!["intensity" => 4.0, "from" => Vec3::new(0.0, 1.0, 0.0)]).expect("a light");
+    rt.load_identity();
+    assert_eq!(rt.light_transform(light).expect("placed"), Affine3A::from_translation(Vec3::new(-2.0, 0.0, 0.0)));
+    let (left, right) = halves(&mut rt);
+    assert!(left > 2.0 * right, "the light is on the left: {left} {right}");
+    // Its space moved 2 to the right: `from` moves with it.
+    rt.set_light_transform(light, Affine3A::from_translation(Vec3::new(2.0, 0.0, 0.0))).expect("moved");
+    let (moved_left, moved_right) = halves(&mut rt);
+    assert!(moved_right > 2.0 * moved_left, "the light is on the right: {moved_left} {moved_right}");
+    assert!((moved_right - left).abs() < 0.01 * left, "the same light, mirrored: {left} {moved_right}");
+    // New values are read in the light's own space, whatever the current matrix.
+    rt.translate(100.0, 0.0, 0.0);
+    rt.set_light_parameters(light, params!["from" => Vec3::new(-4.0, 1.0, 0.0), "intensity" => 8.0]).expect("changed");
+    let (back_left, back_right) = halves(&mut rt);
+    assert!(back_left > 2.0 * back_right, "back on the left: {back_left} {back_right}");
+    assert!((back_left - 2.0 * left).abs() < 0.01 * left, "twice as bright: {left} {back_left}");
+    // Refused values change nothing; an unknown light is an error.
+    assert!(rt.set_light_parameters(light, params!["intensity" => 0.0, "nosuch" => 1.0]).is_err());
+    assert_eq!(halves(&mut rt), (back_left, back_right));
+    assert!(matches!(
+        rt.set_light_transform(rtsl_runtime::api::LightId(9), Affine3A::IDENTITY),
+        Err(ApiError::UnknownLight(9))
+    ));
+}

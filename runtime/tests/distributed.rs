@@ -7,7 +7,7 @@ use rtsl_runtime::api::{Context, Primitive, Replicator};
 use rtsl_runtime::distributed::{
     serve, Demand, DistributedError, LocalTransport, Master, Message, ReplicaScene, Traffic, Transport,
 };
-use rtsl_runtime::glam::{Affine3A, Vec3A};
+use rtsl_runtime::glam::{Affine3A, Vec3, Vec3A};
 use rtsl_runtime::render::{render_frame, FilterKind, Framebuffer, PixelFilter, RayField};
 use rtsl_runtime::shading::{ParamValue, ShaderProgram};
 use std::path::{Path, PathBuf};
@@ -280,14 +280,32 @@ fn every_kind_of_change_reaches_the_workers_before_their_frame() -> Result<(), D
         let exposure = rt.find_shader("exposure").map_err(e)?;
         rt.pixel_shader(Some(exposure), &[]).map_err(e)
     }
+    fn move_light(rt: &mut Context) -> Result<(), String> {
+        let e = |e: rtsl_runtime::api::ApiError| e.to_string();
+        // The point light's space moved and its values changed, as an animated VRML light does.
+        let light = rtsl_runtime::api::LightId(0);
+        let at = rt.light_transform(light).map_err(e)?;
+        rt.set_light_transform(light, Affine3A::from_translation(Vec3::new(1.5, 0.5, 0.0)) * at).map_err(e)?;
+        rt.set_light_parameters(light, &[("intensity", ParamValue::Float(20.0))]).map_err(e)
+    }
     let rt = little_scene().expect("the little scene");
     let frames = both_ways(
         rt,
         2,
         1,
-        &[nothing, reload_plastic, new_object_and_texture, move_first, rebuild_and_delete, settings, nothing],
+        &[
+            nothing,
+            move_light,
+            reload_plastic,
+            new_object_and_texture,
+            move_first,
+            rebuild_and_delete,
+            settings,
+            nothing,
+        ],
     )?;
     assert_same(&frames, "frames of changes");
+    assert!(frames[0].1.rgba != frames[1].1.rgba, "the moved light lights the frame differently");
     Ok(())
 }
 

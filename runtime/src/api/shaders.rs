@@ -452,4 +452,53 @@ impl Context {
         rec.shadows = shadows;
         Ok(())
     }
+
+    /// Moves a light between frames: its "shader" space becomes `world_from_light`, and the
+    /// values it was given (points such as `from` and `to`, vectors) are read in that space from
+    /// now on, so they move with it. An area light's geometry moves along.
+    pub fn set_light_transform(&mut self, light: LightId, world_from_light: Affine3A) -> Result<(), ApiError> {
+        let rec = self.lights.get_mut(light.0 as usize).ok_or(ApiError::UnknownLight(light.0))?;
+        // A value given in the light's space (every value of `light_source`) is read in the new
+        // one; any other keeps where it stands relative to the light, as its geometry does. A
+        // light squashed flat before has no such relation: then everything takes the new space.
+        let before = rec.world_from_shader;
+        let moved = Some(world_from_light * before.inverse()).filter(|m| m.is_finite());
+        for (_, _, m) in &mut rec.params {
+            *m = match moved {
+                Some(moved) if *m != before => moved * *m,
+                _ => world_from_light,
+            };
+        }
+        if let Some(moved) = moved {
+            for t in &mut rec.area_triangles {
+                *t = t.map(|p| moved.transform_point3a(p));
+            }
+        }
+        rec.world_from_shader = world_from_light;
+        Ok(())
+    }
+
+    /// A light's "shader" space: where [`Context::light_source`] placed it, or
+    /// [`Context::set_light_transform`] moved it.
+    pub fn light_transform(&self, light: LightId) -> Result<Affine3A, ApiError> {
+        self.lights.get(light.0 as usize).map(|l| l.world_from_shader).ok_or(ApiError::UnknownLight(light.0))
+    }
+
+    /// Changes values of a light's parameters between frames (its intensity, colour, position...),
+    /// given in the light's own "shader" space, whatever the current matrix; the others keep
+    /// theirs. Checked as [`Context::light_source`] checks them: none is set if one is refused.
+    pub fn set_light_parameters(&mut self, light: LightId, params: &[(&str, ParamValue)]) -> Result<(), ApiError> {
+        let rec = self.lights.get(light.0 as usize).ok_or(ApiError::UnknownLight(light.0))?;
+        let (shader, space) = (rec.shader, rec.world_from_shader);
+        let program = self.expect_kind(shader, ShaderKind::Light)?;
+        for (name, value) in params {
+            crate::shading::bind_param(&program, name, value, &space)?;
+        }
+        let rec = self.lights.get_mut(light.0 as usize).ok_or(ApiError::UnknownLight(light.0))?;
+        for (name, value) in params {
+            rec.params.retain(|(n, _, _)| n != name);
+            rec.params.push((name.to_string(), value.clone(), space));
+        }
+        Ok(())
+    }
 }
