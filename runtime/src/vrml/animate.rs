@@ -6,11 +6,14 @@
 //!   instance, and a later one that makes it visible places a new one;
 //! - a Material's, Coordinate's, Normal's or Color's new fields build the objects that use them
 //!   again ([`Context::redefine_object`]), with the shader parameters and mesh they now give;
-//! - a light's `on` switches it ([`Context::set_light`]);
+//! - a light's fields give its values again ([`Context::set_light_parameters`], `on` through
+//!   [`Context::set_light`]);
 //! - a Switch's `whichChoice` shows the shapes of the choice it names and hides the others' (a
-//!   Switch that a ROUTE reaches has every choice placed at load, those not chosen hidden).
+//!   Switch that a ROUTE reaches has every choice placed at load, those not chosen hidden);
+//! - lights under a moving Transform move with it ([`Context::set_light_transform`]: a light's
+//!   space is the matrix of the Transforms above it), and Viewpoints are placed again, the bound
+//!   one ([`VrmlScene::bind_viewpoint`]) moving the camera.
 //!
-//! Lights and Viewpoints under a moving Transform stay where they were placed (a warning).
 //! [`VrmlScene::touch`] is a click on a shape: the TouchSensors of the innermost group above it
 //! that has any send `isActive` (TRUE, then FALSE) and `touchTime`.
 
@@ -80,6 +83,15 @@ impl VrmlScene {
         Ok(false)
     }
 
+    /// Binds viewpoint `k` of [`VrmlScene::viewpoints`] (a browser's viewpoint list): the camera
+    /// goes to it, and follows it as animation moves it. Out of range, nothing changes.
+    pub fn bind_viewpoint(&mut self, k: usize, rt: &mut Context) {
+        if let Some(view) = self.viewpoints.get(k) {
+            view.made.look(rt);
+            self.bound_viewpoint = Some(k);
+        }
+    }
+
     /// The messages of animation so far (routes that are not run, events dropped), each once.
     pub fn take_warnings(&mut self) -> Vec<RibDiagnostic> {
         let mut out = std::mem::take(&mut self.warnings);
@@ -120,25 +132,38 @@ impl VrmlScene {
                 let visible = self.chosen(i);
                 changed |= self.place(rt, i, world, visible)?;
             }
-            for k in 0..self.lights.len().max(self.viewpoints.len()) {
-                let paths =
-                    [self.lights.get(k).map(|l| (&l.path, l.node)), self.viewpoints.get(k).map(|v| (&v.path, v.node))];
-                for (path, node) in paths.into_iter().flatten() {
-                    let Some(found) = self.documents.get(node.doc).and_then(|(_, d)| d.nodes.get(node.node.0 as usize))
-                    else {
-                        continue;
-                    };
-                    if path.iter().any(|g| moved.contains(g)) {
-                        let (loc, type_name) = (found.loc, found.type_name.clone());
-                        self.events.warn(
-                            node.doc,
-                            loc,
-                            &format!("unmoved:{}:{}", node.doc, node.node.0),
-                            format!("{type_name} under an animated Transform stays where it was placed"),
-                        );
-                    }
-                }
+        }
+        // Lights and Viewpoints under a moved Transform, or whose own fields changed, are placed
+        // again with their fields as they stand.
+        for k in 0..self.lights.len() {
+            let light = &self.lights[k];
+            let (is_moved, is_changed) = (light.path.iter().any(|g| moved.contains(g)), dirty.contains(&light.node));
+            if !is_moved && !is_changed {
+                continue;
             }
+            let world = if is_moved {
+                let (path, local) = (light.path.clone(), light.local);
+                build::world_of(rt, self, &path) * local
+            } else {
+                light.world
+            };
+            build::relight(rt, self, k, world)?;
+            changed = true;
+        }
+        for k in 0..self.viewpoints.len() {
+            let view = &self.viewpoints[k];
+            let (is_moved, is_changed) = (view.path.iter().any(|g| moved.contains(g)), dirty.contains(&view.node));
+            if !is_moved && !is_changed {
+                continue;
+            }
+            let world = if is_moved {
+                let (path, local) = (view.path.clone(), view.local);
+                build::world_of(rt, self, &path) * local
+            } else {
+                view.world
+            };
+            build::replace_viewpoint(rt, self, k, world)?;
+            changed |= self.bound_viewpoint == Some(k);
         }
         // Objects whose geometry or appearance reads a changed node.
         let remade: Vec<usize> = (0..self.objects.len())
@@ -161,19 +186,6 @@ impl VrmlScene {
             let (geometry, appearance, id) = self.objects[k];
             build::remake_object(rt, self, geometry, appearance, id)?;
             changed = true;
-        }
-        for k in 0..self.lights.len() {
-            let light = &self.lights[k];
-            let Some(node) =
-                self.documents.get(light.node.doc).and_then(|(_, d)| d.nodes.get(light.node.node.0 as usize))
-            else {
-                continue;
-            };
-            if dirty.contains(&light.node) {
-                let on = !matches!(node.field("on").map(|f| &f.value), Some(Value::Bools(b)) if b == &[false]);
-                rt.set_light(light.made, on, true)?;
-                changed = true;
-            }
         }
         Ok(changed)
     }
@@ -322,6 +334,135 @@ mod tests {
         let (a, b) = (red.pixel(8, 8), mixed.pixel(8, 8));
         assert!(a[0] > 0.1 && a[2] < 0.01, "{a:?}");
         assert!(b[2] > 0.05 && b[0] < a[0], "{a:?} {b:?}");
+    }
+
+    /// The summed brightness of the left and right halves of a frame.
+    fn halves(rt: &mut Context) -> (f32, f32) {
+        let (fb, _) = rt.render_frame().expect("renders");
+        let (mut left, mut right) = (0.0, 0.0);
+        for y in 0..fb.height {
+            for x in 0..fb.width {
+                let p = fb.pixel(x, y);
+                if x < fb.width / 2 {
+                    left += p[0] + p[1] + p[2];
+                } else {
+                    right += p[0] + p[1] + p[2];
+                }
+            }
+        }
+        (left, right)
+    }
+
+    /// A grey floor seen from above, no headlight, and what `lights` adds.
+    fn lit_floor(lights: &str) -> (Context, VrmlScene) {
+        let (mut rt, scene) = load(&format!(
+            "NavigationInfo {{ headlight FALSE }}
+             Viewpoint {{ position 0 6 0 orientation 1 0 0 -1.5707963 fieldOfView 1.2 }}
+             Shape {{ appearance Appearance {{ material Material {{}} }} geometry Box {{ size 8 0.1 6 }} }}
+             {lights}"
+        ));
+        rt.options.width = 32;
+        rt.options.height = 24;
+        (rt, scene)
+    }
+
+    #[test]
+    fn a_light_under_an_animated_transform_moves_with_it() {
+        for light in [
+            "PointLight { location 0 1 0 attenuation 0 0 1 }",
+            "SpotLight { location 0 1 0 direction 0 -1 0 cutOffAngle 1.2 attenuation 0 0 1 }",
+        ] {
+            let (mut rt, mut scene) = lit_floor(&format!(
+                "DEF T Transform {{ translation -2 0 0 children {light} }}
+                 DEF P PositionInterpolator {{ key [0 1] keyValue [-2 0 0, 2 0 0] }}
+                 DEF C TimeSensor {{ cycleInterval 4 loop TRUE }}
+                 ROUTE C.fraction_changed TO P.set_fraction
+                 ROUTE P.value_changed TO T.set_translation"
+            ));
+            scene.advance_to(0.0, &mut rt).expect("runs");
+            let (left, right) = halves(&mut rt);
+            assert!(left > 2.0 * right, "{light}: lit on the left at first: {left} {right}");
+            assert!(scene.advance_to(3.9, &mut rt).expect("runs"), "the scene changed");
+            let (left_after, right_after) = halves(&mut rt);
+            assert!(right_after > 2.0 * left_after, "{light}: then on the right: {left_after} {right_after}");
+            assert!(scene.take_warnings().is_empty());
+            // Back at the start, lit as at first.
+            scene.advance_to(0.0, &mut rt).expect("runs");
+            let again = halves(&mut rt);
+            assert!((again.0 - left).abs() <= 1e-3 * left, "{again:?} {left}");
+        }
+    }
+
+    #[test]
+    fn routed_light_fields_change_the_light() {
+        let (mut rt, mut scene) = lit_floor(
+            "DEF L PointLight { location -2 1 0 attenuation 0 0 1 }
+             DEF D DirectionalLight { direction 0 -1 0 intensity 0.1 }
+             DEF P PositionInterpolator { key [0 1] keyValue [-2 1 0, 2 1 0] }
+             DEF S ScalarInterpolator { key [0 1] keyValue [1 3] }
+             DEF K ColorInterpolator { key [0 1] keyValue [1 1 1, 1 0 0] }
+             DEF C TimeSensor { cycleInterval 4 loop TRUE }
+             ROUTE C.fraction_changed TO P.set_fraction
+             ROUTE C.fraction_changed TO S.set_fraction
+             ROUTE C.fraction_changed TO K.set_fraction
+             ROUTE P.value_changed TO L.set_location
+             ROUTE S.value_changed TO L.set_intensity
+             ROUTE K.value_changed TO L.set_color
+             ROUTE S.value_changed TO D.set_ambientIntensity",
+        );
+        let warnings = scene.take_warnings();
+        assert!(warnings.iter().all(|w| w.message.contains("DirectionalLight lights the whole scene")), "{warnings:?}");
+        // A routed ambientIntensity has its ambient light made at load, off while it is 0.
+        assert_eq!(scene.ambient_lights.len(), 1);
+        let lights_on = |rt: &mut Context| {
+            let world = rt.build_world().expect("a world");
+            let n = world.lights.len();
+            rt.return_scene(world);
+            n
+        };
+        let dark = lights_on(&mut rt);
+        scene.advance_to(0.0, &mut rt).expect("runs");
+        let (left, right) = halves(&mut rt);
+        assert!(left > 2.0 * right, "{left} {right}");
+        // Half way: the light is at x = 0, twice as bright and reddened, and the directional
+        // light's ambient part is on.
+        scene.advance_to(2.0, &mut rt).expect("runs");
+        assert_eq!(lights_on(&mut rt), dark + 1);
+        let (fb, _) = rt.render_frame().expect("renders");
+        let centre = fb.pixel(16, 12);
+        assert!(centre[0] > centre[1] * 1.5, "reddened: {centre:?}");
+        let (left_after, right_after) = halves(&mut rt);
+        assert!(
+            left_after > 0.0 && (left_after - right_after).abs() < 0.2 * right_after,
+            "centred: {left_after} {right_after}"
+        );
+        assert!(scene.take_warnings().is_empty());
+    }
+
+    #[test]
+    fn the_bound_viewpoint_moves_the_camera_and_the_others_move_alone() {
+        let (mut rt, mut scene) = load(
+            "DEF T Transform { children [ DEF V Viewpoint { position 0 0 10 } Viewpoint { position 0 0 20 } ] }
+             DEF P PositionInterpolator { key [0 1] keyValue [0 0 0, 4 0 0] }
+             DEF F ScalarInterpolator { key [0 1] keyValue [0.5 1.0] }
+             DEF C TimeSensor { cycleInterval 4 loop TRUE }
+             ROUTE C.fraction_changed TO P.set_fraction
+             ROUTE C.fraction_changed TO F.set_fraction
+             ROUTE P.value_changed TO T.set_translation
+             ROUTE F.value_changed TO V.set_fieldOfView",
+        );
+        assert_eq!(scene.bound_viewpoint, Some(0));
+        assert!(scene.advance_to(2.0, &mut rt).expect("runs"));
+        let camera = rt.camera();
+        assert!(camera.eye().abs_diff_eq(glam::Vec3A::new(2.0, 0.0, 10.0), 1e-5), "{}", camera.eye());
+        assert!((camera.fov_degrees - 0.75f32.to_degrees()).abs() < 1e-3, "{}", camera.fov_degrees);
+        assert!(scene.viewpoints[1].made.eye.abs_diff_eq(glam::Vec3A::new(2.0, 0.0, 20.0), 1e-5));
+        // Another one bound: the camera goes there and follows it.
+        scene.bind_viewpoint(1, &mut rt);
+        scene.advance_to(3.0, &mut rt).expect("runs");
+        assert!(rt.camera().eye().abs_diff_eq(glam::Vec3A::new(3.0, 0.0, 20.0), 1e-5), "{}", rt.camera().eye());
+        assert!(scene.viewpoints[0].made.eye.abs_diff_eq(glam::Vec3A::new(3.0, 0.0, 10.0), 1e-5));
+        assert!(scene.take_warnings().is_empty());
     }
 
     #[test]

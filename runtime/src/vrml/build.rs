@@ -108,6 +108,65 @@ pub(super) fn remake_object(
     with_builder(rt, scene, |b| b.make_object(geometry, appearance, Some(id)).map(|_| ()))
 }
 
+/// Places light `k` of `scene.lights` by `world` again, with its node's fields as they stand (an
+/// animated Transform above it moved, or events changed its fields). A VRML 1.0 light (its fields
+/// do not change) only moves.
+pub(super) fn relight(rt: &mut Context, scene: &mut VrmlScene, k: usize, world: Affine3A) -> Result<()> {
+    let Some(placed) = scene.lights.get_mut(k) else { return Ok(()) };
+    placed.world = world;
+    let (id, r) = (placed.made, placed.node);
+    rt.set_light_transform(id, world)?;
+    let type_name =
+        scene.documents.get(r.doc).and_then(|(_, d)| d.nodes.get(r.node.0 as usize)).map(|n| n.type_name.clone());
+    let Some(kind) = type_name.filter(|t| matches!(t.as_str(), "PointLight" | "SpotLight" | "DirectionalLight")) else {
+        return Ok(());
+    };
+    let ambient = scene.ambient_lights.contains(&id);
+    with_builder(rt, scene, |b| {
+        let values = b.light_values(r, &kind, world)?;
+        if ambient {
+            b.rt.set_light_parameters(id, &values.ambient.0)?;
+            b.rt.set_light(id, values.on && values.ambient.1 > 0.0, true)?;
+        } else {
+            b.rt.set_light_parameters(id, &values.params)?;
+            b.rt.set_light(id, values.on, true)?;
+        }
+        Ok(())
+    })
+}
+
+/// Places viewpoint `k` of `scene.viewpoints` by `world` again, with its node's fields as they
+/// stand; the camera follows it when it is the bound one. A VRML 1.0 camera only moves.
+pub(super) fn replace_viewpoint(rt: &mut Context, scene: &mut VrmlScene, k: usize, world: Affine3A) -> Result<()> {
+    let Some(placed) = scene.viewpoints.get(k) else { return Ok(()) };
+    let r = placed.node;
+    let is_97 = scene.documents.get(r.doc).and_then(|(_, d)| d.nodes.get(r.node.0 as usize)).is_some();
+    let view = if is_97 {
+        with_builder(rt, scene, |b| Ok(b.viewpoint_values(r, world)))?
+    } else {
+        // The view as placed, carried from where it was to `world`.
+        let placed = &scene.viewpoints[k];
+        let to = world * placed.world.inverse();
+        if !to.is_finite() {
+            return Ok(());
+        }
+        let v = &placed.made;
+        Viewpoint {
+            eye: to.transform_point3a(v.eye),
+            forward: to.transform_vector3a(v.forward).normalize_or(v.forward),
+            up: to.transform_vector3a(v.up).normalize_or(v.up),
+            ..v.clone()
+        }
+    };
+    if scene.bound_viewpoint == Some(k) {
+        view.look(rt);
+    }
+    let placed = &mut scene.viewpoints[k];
+    placed.world = world;
+    placed.made = view;
+    Ok(())
+}
+
 /// Runs `f` with a builder over `scene` as the walk left it.
 fn with_builder<T>(rt: &mut Context, scene: &mut VrmlScene, f: impl FnOnce(&mut Builder) -> Result<T>) -> Result<T> {
     let kept = std::mem::take(&mut scene.kept);
@@ -176,6 +235,15 @@ type Result<T> = std::result::Result<T, SceneFileError>;
 
 /// An object and the bounds of its mesh in its own space.
 type Made = (ObjectId, (Vec3, Vec3));
+
+/// A VRML 97 light's shader and values in its own space, whether it is on, and its ambient part's
+/// values and `ambientIntensity`.
+struct LightValues {
+    shader: ShaderId,
+    params: Vec<(&'static str, ParamValue)>,
+    on: bool,
+    ambient: (Vec<(&'static str, ParamValue)>, f32),
+}
 
 impl<'a> Builder<'a> {
     fn new(rt: &'a mut Context, scene: VrmlScene, kept: Kept) -> Builder<'a> {
@@ -726,6 +794,24 @@ impl<'a> Builder<'a> {
     }
 
     fn viewpoint(&mut self, r: NodeRef, world: Affine3A, trail: &[NodeRef]) {
+        let view = self.viewpoint_values(r, world);
+        // The first Viewpoint of the scene file is bound; Inline files bind none.
+        if !self.camera_bound && r.doc == 0 {
+            self.camera_bound = true;
+            self.scene.bound_viewpoint = Some(self.scene.viewpoints.len());
+            view.look(self.rt);
+        }
+        self.scene.viewpoints.push(Placed {
+            made: view,
+            node: r,
+            path: trail.to_vec(),
+            world,
+            local: Affine3A::IDENTITY,
+        });
+    }
+
+    /// A Viewpoint's view in the world, placed by `world`.
+    fn viewpoint_values(&mut self, r: NodeRef, world: Affine3A) -> Viewpoint {
         let position = self.vec3(r, "position", Vec3::new(0.0, 0.0, 10.0));
         let orientation = self.rotation(r, "orientation");
         let field_of_view = self.float(r, "fieldOfView", std::f32::consts::FRAC_PI_4);
@@ -738,19 +824,7 @@ impl<'a> Builder<'a> {
         } else {
             std::f32::consts::FRAC_PI_4
         };
-        let view = Viewpoint { description, eye, forward, up, field_of_view };
-        // The first Viewpoint of the scene file is bound; Inline files bind none.
-        if !self.camera_bound && r.doc == 0 {
-            self.camera_bound = true;
-            self.rt.camera_look_at(eye, eye + forward, up, field_of_view.to_degrees());
-        }
-        self.scene.viewpoints.push(Placed {
-            made: view,
-            node: r,
-            path: trail.to_vec(),
-            world,
-            local: Affine3A::IDENTITY,
-        });
+        Viewpoint { description, eye, forward, up, field_of_view }
     }
 
     fn background(&mut self, r: NodeRef) -> Result<()> {
@@ -819,76 +893,40 @@ impl<'a> Builder<'a> {
     }
 
     fn light(&mut self, r: NodeRef, kind: &str, world: Affine3A, trail: &[NodeRef]) -> Result<()> {
-        let on = self.boolean(r, "on", true);
-        let intensity = self.float(r, "intensity", 1.0).max(0.0);
-        let ambient = self.float(r, "ambientIntensity", 0.0).max(0.0);
-        let color = linear(self.vec3(r, "color", Vec3::ONE));
-        let base = [("intensity", ParamValue::Float(intensity)), ("lightcolor", ParamValue::Color(color))];
-        // The scale of the light's space: attenuation and radius are in its units.
-        let scale = world.matrix3.determinant().abs().cbrt().max(1e-12);
+        if kind == "DirectionalLight" {
+            let loc = self.loc_of(r);
+            self.warn_once(
+                "DirectionalLight".into(),
+                r.doc,
+                loc,
+                Severity::Warning,
+                "DirectionalLight lights the whole scene, not only its group's nodes",
+            );
+        }
+        let values = self.light_values(r, kind, world)?;
+        // VRML's ambient term of a light is an ambient light of its own (without attenuation),
+        // made when the file gives one or a ROUTE may.
+        let with_ambient = values.ambient.1 > 0.0 || self.is_routed(r, &["ambientIntensity", "set_ambientIntensity"]);
         let mut made = Vec::new();
         self.rt.push_matrix();
-        self.rt.load_identity();
+        self.rt.load_matrix(world);
         let result = (|| -> Result<()> {
-            match kind {
-                "DirectionalLight" => {
-                    let loc = self.loc_of(r);
-                    self.warn_once(
-                        "DirectionalLight".into(),
-                        r.doc,
-                        loc,
-                        Severity::Warning,
-                        "DirectionalLight lights the whole scene, not only its group's nodes",
-                    );
-                    let direction = world.transform_vector3(self.vec3(r, "direction", Vec3::NEG_Z));
-                    let id = self.shader("distantlight")?;
-                    let mut params = base.to_vec();
-                    params.push(("from", ParamValue::Point([0.0; 3])));
-                    params.push(("to", ParamValue::Point(direction.normalize_or(Vec3::NEG_Z).to_array())));
-                    made.push(self.rt.light_source(id, &params)?);
-                }
-                _ => {
-                    let location = world.transform_point3(self.vec3(r, "location", Vec3::ZERO));
-                    let attenuation = self.numbers(r, "attenuation", 3, "three numbers").unwrap_or(vec![1.0, 0.0, 0.0]);
-                    let radius = self.float(r, "radius", 100.0).max(0.0);
-                    let mut params = base.to_vec();
-                    params.push(("from", ParamValue::Point(location.to_array())));
-                    params.push(("constantattenuation", ParamValue::Float(attenuation[0].max(0.0))));
-                    params.push(("linearattenuation", ParamValue::Float(attenuation[1].max(0.0) / scale)));
-                    params.push(("quadraticattenuation", ParamValue::Float(attenuation[2].max(0.0) / (scale * scale))));
-                    params.push(("radius", ParamValue::Float(radius * scale)));
-                    let shader = if kind == "SpotLight" {
-                        let direction = world.transform_vector3(self.vec3(r, "direction", Vec3::NEG_Z));
-                        let to = location + direction.normalize_or(Vec3::NEG_Z);
-                        let half = std::f32::consts::FRAC_PI_2;
-                        params.push(("to", ParamValue::Point(to.to_array())));
-                        params
-                            .push(("beamwidth", ParamValue::Float(self.float(r, "beamWidth", half).clamp(0.0, half))));
-                        let cut_off = self.float(r, "cutOffAngle", std::f32::consts::FRAC_PI_4).clamp(0.0, half);
-                        params.push(("cutoffangle", ParamValue::Float(cut_off)));
-                        "vrmlspotlight"
-                    } else {
-                        "vrmlpointlight"
-                    };
-                    let id = self.shader(shader)?;
-                    made.push(self.rt.light_source(id, &params)?);
-                }
-            }
-            // VRML's ambient term of a light: an ambient light of its own (without attenuation).
-            if ambient > 0.0 {
+            made.push((self.rt.light_source(values.shader, &values.params)?, values.on));
+            if with_ambient {
                 let id = self.shader("ambientlight")?;
-                made.push(self.rt.light_source(
-                    id,
-                    &[("intensity", ParamValue::Float(intensity * ambient)), ("lightcolor", ParamValue::Color(color))],
-                )?);
+                let light = self.rt.light_source(id, &values.ambient.0)?;
+                made.push((light, values.on && values.ambient.1 > 0.0));
             }
             Ok(())
         })();
         self.rt.pop_matrix()?;
         result?;
-        for id in made {
+        for (k, (id, on)) in made.into_iter().enumerate() {
             if !on {
                 self.rt.set_light(id, false, true)?;
+            }
+            if k == 1 {
+                self.scene.ambient_lights.push(id);
             }
             self.scene.lights.push(Placed {
                 made: id,
@@ -899,6 +937,57 @@ impl<'a> Builder<'a> {
             });
         }
         Ok(())
+    }
+
+    /// Whether a ROUTE of `r`'s file sends one of `events` to `r`.
+    fn is_routed(&self, r: NodeRef, events: &[&str]) -> bool {
+        let doc = self.doc(r.doc);
+        doc.routes.iter().any(|route| {
+            !route.in_proto && doc.defs.get(&route.to.0) == Some(&r.node) && events.contains(&route.to.1.as_str())
+        })
+    }
+
+    /// A VRML 97 light's shader and values in its own space, placed by `world` (the light's
+    /// attenuation and radius are in that space's units, so they are rescaled by its scale).
+    fn light_values(&mut self, r: NodeRef, kind: &str, world: Affine3A) -> Result<LightValues> {
+        let on = self.boolean(r, "on", true);
+        let intensity = self.float(r, "intensity", 1.0).max(0.0);
+        let ambient = self.float(r, "ambientIntensity", 0.0).max(0.0);
+        let color = linear(self.vec3(r, "color", Vec3::ONE));
+        let mut params = vec![("intensity", ParamValue::Float(intensity)), ("lightcolor", ParamValue::Color(color))];
+        let scale = world.matrix3.determinant().abs().cbrt().max(1e-12);
+        let shader = match kind {
+            "DirectionalLight" => {
+                let direction = self.vec3(r, "direction", Vec3::NEG_Z).normalize_or(Vec3::NEG_Z);
+                params.push(("from", ParamValue::Point([0.0; 3])));
+                params.push(("to", ParamValue::Point(direction.to_array())));
+                "distantlight"
+            }
+            _ => {
+                let location = self.vec3(r, "location", Vec3::ZERO);
+                let attenuation = self.numbers(r, "attenuation", 3, "three numbers").unwrap_or(vec![1.0, 0.0, 0.0]);
+                let radius = self.float(r, "radius", 100.0).max(0.0);
+                params.push(("from", ParamValue::Point(location.to_array())));
+                params.push(("constantattenuation", ParamValue::Float(attenuation[0].max(0.0))));
+                params.push(("linearattenuation", ParamValue::Float(attenuation[1].max(0.0) / scale)));
+                params.push(("quadraticattenuation", ParamValue::Float(attenuation[2].max(0.0) / (scale * scale))));
+                params.push(("radius", ParamValue::Float(radius * scale)));
+                if kind == "SpotLight" {
+                    let direction = self.vec3(r, "direction", Vec3::NEG_Z).normalize_or(Vec3::NEG_Z);
+                    let half = std::f32::consts::FRAC_PI_2;
+                    params.push(("to", ParamValue::Point((location + direction).to_array())));
+                    params.push(("beamwidth", ParamValue::Float(self.float(r, "beamWidth", half).clamp(0.0, half))));
+                    let cut_off = self.float(r, "cutOffAngle", std::f32::consts::FRAC_PI_4).clamp(0.0, half);
+                    params.push(("cutoffangle", ParamValue::Float(cut_off)));
+                    "vrmlspotlight"
+                } else {
+                    "vrmlpointlight"
+                }
+            }
+        };
+        let ambient_params =
+            vec![("intensity", ParamValue::Float(intensity * ambient)), ("lightcolor", ParamValue::Color(color))];
+        Ok(LightValues { shader: self.shader(shader)?, params, on, ambient: (ambient_params, ambient) })
     }
 
     // ---- Shapes ----

@@ -60,8 +60,8 @@ type Interface = &'static [(&'static str, Access, EventType)];
 const INTERPOLATOR_FRACTION: (&str, Access, EventType) = ("set_fraction", EventIn, SFFloat);
 
 /// The events of the node types this module runs: the animated fields of nodes the scene shows
-/// (Transform, Material, Coordinate, Normal, Color, Switch, the lights' `on`), the sensors and the
-/// interpolators.
+/// (Transform, Material, Coordinate, Normal, Color, Switch, the lights, Viewpoint), the sensors
+/// and the interpolators.
 fn interface(type_name: &str) -> Option<Interface> {
     Some(match type_name {
         "TimeSensor" => &[
@@ -131,7 +131,39 @@ fn interface(type_name: &str) -> Option<Interface> {
         "Coordinate" => &[("point", ExposedField, MFVec3f)],
         "Normal" => &[("vector", ExposedField, MFVec3f)],
         "Color" => &[("color", ExposedField, MFColor)],
-        "PointLight" | "SpotLight" | "DirectionalLight" => &[("on", ExposedField, SFBool)],
+        "PointLight" => &[
+            ("ambientIntensity", ExposedField, SFFloat),
+            ("attenuation", ExposedField, SFVec3f),
+            ("color", ExposedField, SFColor),
+            ("intensity", ExposedField, SFFloat),
+            ("location", ExposedField, SFVec3f),
+            ("on", ExposedField, SFBool),
+            ("radius", ExposedField, SFFloat),
+        ],
+        "SpotLight" => &[
+            ("ambientIntensity", ExposedField, SFFloat),
+            ("attenuation", ExposedField, SFVec3f),
+            ("beamWidth", ExposedField, SFFloat),
+            ("color", ExposedField, SFColor),
+            ("cutOffAngle", ExposedField, SFFloat),
+            ("direction", ExposedField, SFVec3f),
+            ("intensity", ExposedField, SFFloat),
+            ("location", ExposedField, SFVec3f),
+            ("on", ExposedField, SFBool),
+            ("radius", ExposedField, SFFloat),
+        ],
+        "DirectionalLight" => &[
+            ("ambientIntensity", ExposedField, SFFloat),
+            ("color", ExposedField, SFColor),
+            ("direction", ExposedField, SFVec3f),
+            ("intensity", ExposedField, SFFloat),
+            ("on", ExposedField, SFBool),
+        ],
+        "Viewpoint" => &[
+            ("fieldOfView", ExposedField, SFFloat),
+            ("orientation", ExposedField, SFRotation),
+            ("position", ExposedField, SFVec3f),
+        ],
         "Switch" => &[("whichChoice", ExposedField, SFInt32)],
         _ => return None,
     })

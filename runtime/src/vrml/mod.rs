@@ -196,6 +196,13 @@ pub struct Viewpoint {
     pub field_of_view: f32,
 }
 
+impl Viewpoint {
+    /// Puts `rt`'s camera at this view.
+    pub fn look(&self, rt: &mut Context) {
+        rt.camera_look_at(self.eye, self.eye + self.forward, self.up, self.field_of_view.to_degrees());
+    }
+}
+
 /// What a VRML load made and kept.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct VrmlScene {
@@ -223,6 +230,10 @@ pub struct VrmlScene {
     pub hidden_shapes: std::collections::BTreeSet<usize>,
     /// What rebuilding an object as animation changes it needs.
     pub(crate) kept: build::Kept,
+    /// The lights of `lights` made for a VRML 97 light's `ambientIntensity` (each after its light).
+    pub ambient_lights: Vec<LightId>,
+    /// The Viewpoint of `viewpoints` that is the camera, if one is.
+    pub bound_viewpoint: Option<usize>,
 }
 
 impl VrmlScene {

@@ -979,18 +979,16 @@ impl Builder<'_> {
         let mut params = vec![("intensity", ParamValue::Float(intensity)), ("lightcolor", ParamValue::Color(color))];
         let shader = match kind {
             "DirectionalLight" => {
-                let direction =
-                    world.transform_vector3(self.vec3(n, "direction", Vec3::NEG_Z)).normalize_or(Vec3::NEG_Z);
+                let direction = self.vec3(n, "direction", Vec3::NEG_Z).normalize_or(Vec3::NEG_Z);
                 params.push(("from", ParamValue::Point([0.0; 3])));
                 params.push(("to", ParamValue::Point(direction.to_array())));
                 "distantlight"
             }
             _ => {
-                let location = world.transform_point3(self.vec3(n, "location", Vec3::new(0.0, 0.0, 1.0)));
+                let location = self.vec3(n, "location", Vec3::new(0.0, 0.0, 1.0));
                 params.push(("from", ParamValue::Point(location.to_array())));
                 if kind == "SpotLight" {
-                    let direction =
-                        world.transform_vector3(self.vec3(n, "direction", Vec3::NEG_Z)).normalize_or(Vec3::NEG_Z);
+                    let direction = self.vec3(n, "direction", Vec3::NEG_Z).normalize_or(Vec3::NEG_Z);
                     let cut_off = self
                         .float(n, "cutOffAngle", std::f32::consts::FRAC_PI_4)
                         .clamp(0.0, std::f32::consts::FRAC_PI_2);
@@ -1013,8 +1011,10 @@ impl Builder<'_> {
             "VRML 1.0 lights light what follows them in their Separator; here each lights the whole scene",
         );
         let id = self.shader(shader)?;
+        // The light's own space is where it stands, so that a Transform above the file that
+        // moves carries it (`Context::set_light_transform`).
         self.rt.push_matrix();
-        self.rt.load_identity();
+        self.rt.load_matrix(world);
         let light = self.rt.light_source(id, &params);
         self.rt.pop_matrix()?;
         let light = light?;
@@ -1050,6 +1050,7 @@ impl Builder<'_> {
         }
         if !self.camera_bound {
             self.camera_bound = true;
+            self.scene.bound_viewpoint = Some(self.scene.viewpoints.len());
             self.rt.camera_look_at(eye, eye + forward, up, fov.to_degrees());
         }
         let view = Viewpoint { description: String::new(), eye, forward, up, field_of_view: fov };

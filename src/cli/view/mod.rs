@@ -204,9 +204,10 @@ fn show(args: &ViewArgs, jobs: mpsc::Sender<RenderJob>) -> anyhow::Result<(u32, 
     );
     if let Some(mut scene) = loaded.vrml.take() {
         // The scene file's Viewpoints, in the order read (the first is where the view starts).
-        let first_file = scene.viewpoints.iter().filter(|v| v.node.doc == 0);
+        let first_file = scene.viewpoints.iter().enumerate().filter(|(_, v)| v.node.doc == 0);
         viewpoints = first_file
-            .map(|v| renderer::Viewpoint {
+            .map(|(index, v)| renderer::Viewpoint {
+                index,
                 name: v.made.description.clone(),
                 eye: v.made.eye,
                 forward: v.made.forward,

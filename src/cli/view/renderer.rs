@@ -188,6 +188,8 @@ pub struct Renderer {
 /// A named view the viewer can jump to (a VRML Viewpoint).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Viewpoint {
+    /// Its place in the VRML scene's list (`VrmlScene::viewpoints`).
+    pub index: usize,
     pub name: String,
     pub eye: Vec3A,
     pub forward: Vec3A,
@@ -367,13 +369,32 @@ impl Renderer {
     fn animate(&mut self) {
         let Some(playing) = self.playing.as_mut() else { return };
         let t = playing.time();
+        let camera = *self.rt.camera();
         match playing.scene.advance_to(t, &mut self.rt) {
             Ok(changed) => self.scene_dirty |= changed,
             Err(e) => self.diagnostics.push(format!("animation: {e}")),
         }
+        // The bound Viewpoint moved: the view moves with it, keeping where the user has taken
+        // it relative to the Viewpoint.
+        let after = *self.rt.camera();
+        if after != camera {
+            let moved = after.world_from_camera * camera.world_from_camera.inverse();
+            if moved.is_finite() {
+                self.nav.camera.world_from_camera = moved * self.nav.camera.world_from_camera;
+                self.nav.camera.fov_degrees = after.fov_degrees;
+                self.nav.pivot = moved.transform_point3a(self.nav.pivot);
+            }
+            self.rt.set_camera(self.nav.camera);
+            if let Some(world) = self.world.as_mut() {
+                world.camera = self.nav.camera;
+            }
+        }
         for w in playing.scene.take_warnings() {
             eprintln!("{w}");
             self.diagnostics.push(w.to_string());
+        }
+        if after != camera {
+            self.view_changed();
         }
     }
 
@@ -464,7 +485,11 @@ impl Renderer {
                 } else {
                     self.viewpoint = (self.viewpoint + 1) % self.viewpoints.len();
                     let v = self.viewpoints[self.viewpoint].clone();
-                    self.rt.camera_look_at(v.eye, v.eye + v.forward, v.up, v.fov_degrees);
+                    match self.playing.as_mut() {
+                        // Bound in the scene, which moves the camera as animation moves it.
+                        Some(playing) => playing.scene.bind_viewpoint(v.index, &mut self.rt),
+                        None => self.rt.camera_look_at(v.eye, v.eye + v.forward, v.up, v.fov_degrees),
+                    }
                     self.nav = Navigation::new(*self.rt.camera(), self.world().scene.bounds());
                     eprintln!("viewpoint {} of {}: {}", self.viewpoint + 1, self.viewpoints.len(), v.name);
                 }
