@@ -11,10 +11,12 @@
  *   lightcolor -- colour of the light (1, white).
  *   from       -- a point the light direction starts from (shader origin).
  *   to         -- a point the light shines towards (shader (0,0,1)).
+ *   __category -- the categories it belongs to, comma separated ("").
  */
 light distantlight(float intensity = 1; color lightcolor = 1;
                    point from = point "shader" (0, 0, 0);
-                   point to = point "shader" (0, 0, 1);)
+                   point to = point "shader" (0, 0, 1);
+                   string __category = "";)
 {
     solar(to - from, 0.0)
         Cl = intensity * lightcolor;

@@ -15,13 +15,16 @@
  *   linearattenuation    -- c1 (0).
  *   quadraticattenuation -- c2 (0).
  *   radius               -- the farthest point lit (100).
+ *   __category           -- the categories it belongs to, comma separated
+ *                           (""; the VRML 1.0 reader scopes lights so).
  */
 light vrmlpointlight(float intensity = 1; color lightcolor = 1;
                      point from = point "shader" (0, 0, 0);
                      float constantattenuation = 1;
                      float linearattenuation = 0;
                      float quadraticattenuation = 0;
-                     float radius = 100;)
+                     float radius = 100;
+                     string __category = "";)
 {
     float d, atten;
 

@@ -19,6 +19,8 @@
  *   linearattenuation    -- c1 (0).
  *   quadraticattenuation -- c2 (0).
  *   radius               -- the farthest point lit (100).
+ *   __category           -- the categories it belongs to, comma separated
+ *                           (""; the VRML 1.0 reader scopes lights so).
  */
 light vrmlspotlight(float intensity = 1; color lightcolor = 1;
                     point from = point "shader" (0, 0, 0);
@@ -28,7 +30,8 @@ light vrmlspotlight(float intensity = 1; color lightcolor = 1;
                     float constantattenuation = 1;
                     float linearattenuation = 0;
                     float quadraticattenuation = 0;
-                    float radius = 100;)
+                    float radius = 100;
+                    string __category = "";)
 {
     uniform vector A = (to - from) / length(to - from);
     float d, angle, spot, atten;

@@ -25,12 +25,17 @@
  *                       is clamped to [0, 1], VRML's repeatS/repeatT FALSE (1).
  *   lit              -- 0: no lighting, the colour is the diffuse colour (VRML
  *                       draws a Shape without a Material so) (1).
+ *   lightcategory    -- the lights that light it, as an illuminance
+ *                       category ("-name": all but those of category name;
+ *                       VRML 1.0's lights light only what follows them in
+ *                       their Separator); "" means every light ("").
  */
 surface material(color diffusecolor = .8; color specularcolor = 0;
                  float shininess = .2; float transparency = 0;
                  color emissivecolor = 0; float ambientintensity = .2;
                  string texturename = ""; float repeats = 1;
-                 float repeatt = 1; float lit = 1;)
+                 float repeatt = 1; float lit = 1;
+                 string lightcategory = "";)
 {
     normal Nf = faceforward(normalize(N), I);
     vector V = -normalize(I);
@@ -48,6 +53,21 @@ surface material(color diffusecolor = .8; color specularcolor = 0;
     Oi = 1 - transparency;
     if (lit == 0) {
         Ci = Oi * Cd;
+    } else if (lightcategory != "") {
+        /* diffuse() and phong() over the category's lights only. */
+        color Cdiff = 0;
+        float lit_specular = comp(specularcolor, 0) + comp(specularcolor, 1) + comp(specularcolor, 2);
+        float size = max(128 * shininess, 1);
+        vector R = reflect(-V, Nf);
+        illuminance(lightcategory, P, Nf, PI / 2) {
+            vector Ln = normalize(L);
+            Cdiff += Cl * (Ln . Nf);
+            if (lit_specular > 0)
+                Cspec += Cl * pow(max(0, R . Ln), size);
+        }
+        Ci = Oi * (emissivecolor
+                   + Cd * (ambientintensity * ambient() + Cdiff)
+                   + specularcolor * Cspec);
     } else {
         if (comp(specularcolor, 0) + comp(specularcolor, 1) + comp(specularcolor, 2) > 0)
             Cspec = specularcolor * phong(Nf, V, max(128 * shininess, 1));

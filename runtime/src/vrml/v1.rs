@@ -20,7 +20,7 @@ use super::{
     linear, location, relative_path, Loc, NodeRef, Placed, Viewpoint, VrmlError, VrmlOptions, VrmlScene,
     MAX_VRML_NESTING, MAX_VRML_NODES, VRML_EAR_CLIP_BUDGET, VRML_TRAVERSAL_BUDGET,
 };
-use crate::api::{Context, ShaderId};
+use crate::api::{Context, LightId, ShaderId};
 use crate::geometry::Mesh;
 use crate::rib::{RibDiagnostic, Severity};
 use crate::scene_file::{SceneFileError, MAX_MODEL_TRIANGLES};
@@ -287,6 +287,9 @@ struct State {
     texture: Option<(String, bool, bool)>,
     ccw: bool,
     crease_angle: f32,
+    /// The lights that light what follows (indices into the builder's `own_lights`): a light
+    /// lights what comes after it in its Separator.
+    lights: Arc<Vec<usize>>,
 }
 
 impl Default for State {
@@ -302,6 +305,7 @@ impl Default for State {
             texture: None,
             ccw: true,
             crease_angle: 0.5,
+            lights: Arc::default(),
         }
     }
 }
@@ -357,6 +361,12 @@ pub fn build_into(rt: &mut Context, text: &str, path: &Path, surface: Option<&st
         ear_clip_budget: into.ear_clip_budget,
         camera_bound: !top,
         lights: 0,
+        own_lights: Vec::new(),
+        light_sets: Vec::new(),
+        scoped: doc
+            .nodes
+            .iter()
+            .any(|n| matches!(n.type_name.as_str(), "PointLight" | "SpotLight" | "DirectionalLight")),
         world: into.world,
         path: into.path.clone(),
     };
@@ -370,6 +380,9 @@ pub fn build_into(rt: &mut Context, text: &str, path: &Path, surface: Option<&st
         if result.is_err() {
             break;
         }
+    }
+    if result.is_ok() {
+        result = b.scope_lights();
     }
     if result.is_ok() && top {
         result = b.finish();
@@ -396,6 +409,12 @@ struct Builder<'a> {
     ear_clip_budget: usize,
     camera_bound: bool,
     lights: usize,
+    /// The lights this file made, in the order made.
+    own_lights: Vec<LightId>,
+    /// Each set of lights that lights a shape (indices into `own_lights`), its place its number.
+    light_sets: Vec<Vec<usize>>,
+    /// Whether the file has lights: its shapes then say which of them light them.
+    scoped: bool,
 }
 
 /// The VRML 1.0 node types and their fields: read, or skipped with a warning saying so.
@@ -935,6 +954,9 @@ impl Builder<'_> {
             ("ambientintensity", ParamValue::Float(ambient_intensity(material))),
             ("transparency", ParamValue::Float(material.transparency)),
         ];
+        if self.scoped {
+            params.push(("lightcategory", ParamValue::String(format!("-{}", self.light_set(&state.lights)))));
+        }
         if let Some((t, s, tt)) = &state.texture {
             params.push(("texturename", ParamValue::String(t.clone())));
             params.push(("repeats", ParamValue::Float(if *s { 1.0 } else { 0.0 })));
@@ -971,7 +993,7 @@ impl Builder<'_> {
         Ok(())
     }
 
-    fn light(&mut self, n: NodeId, kind: &str, state: &State) -> Result<()> {
+    fn light(&mut self, n: NodeId, kind: &str, state: &mut State) -> Result<()> {
         let on = self.boolean(n, "on", true);
         let intensity = self.float(n, "intensity", 1.0).max(0.0);
         let color = linear(self.vec3(n, "color", Vec3::ONE));
@@ -1003,13 +1025,6 @@ impl Builder<'_> {
                 }
             }
         };
-        let loc = self.doc.nodes[n.0 as usize].loc;
-        self.warn_once(
-            "light-scope".into(),
-            loc,
-            Severity::Warning,
-            "VRML 1.0 lights light what follows them in their Separator; here each lights the whole scene",
-        );
         let id = self.shader(shader)?;
         // The light's own space is where it stands, so that a Transform above the file that
         // moves carries it (`Context::set_light_transform`).
@@ -1022,6 +1037,8 @@ impl Builder<'_> {
             self.rt.set_light(light, false, true)?;
         }
         self.lights += 1;
+        Arc::make_mut(&mut state.lights).push(self.own_lights.len());
+        self.own_lights.push(light);
         let (node, path) = (NodeRef { doc: self.doc_index, node: n }, self.path.clone());
         self.scene.lights.push(Placed { made: light, node, path, world, local: state.matrix });
         Ok(())
@@ -1056,6 +1073,35 @@ impl Builder<'_> {
         let view = Viewpoint { description: String::new(), eye, forward, up, field_of_view: fov };
         let (node, path) = (NodeRef { doc: self.doc_index, node: n }, self.path.clone());
         self.scene.viewpoints.push(Placed { made: view, node, path, world, local: state.matrix });
+    }
+
+    /// The category of the shapes lit by the lights `set` of this file (and by lights of no
+    /// category: the including VRML 97 file's, the headlight).
+    fn light_set(&mut self, set: &[usize]) -> String {
+        let k = match self.light_sets.iter().position(|s| s == set) {
+            Some(k) => k,
+            None => {
+                self.light_sets.push(set.to_vec());
+                self.light_sets.len() - 1
+            }
+        };
+        format!("vrml1:{}:{k}", self.doc_index)
+    }
+
+    /// Scopes the file's lights, once every shape is made: each is put in the category of every
+    /// set of lights it is not in, which the shapes lit by that set leave out (their `material`
+    /// shader's `lightcategory` is `-` that category).
+    fn scope_lights(&mut self) -> Result<()> {
+        for (k, &light) in self.own_lights.iter().enumerate() {
+            let unlit: Vec<String> = (0..self.light_sets.len())
+                .filter(|&s| !self.light_sets[s].contains(&k))
+                .map(|s| format!("vrml1:{}:{s}", self.doc_index))
+                .collect();
+            if !unlit.is_empty() {
+                self.rt.set_light_parameters(light, &[("__category", ParamValue::String(unlit.join(",")))])?;
+            }
+        }
+        Ok(())
     }
 
     /// A camera framing the scene when the file has none, and a headlight when it has no light
@@ -1119,6 +1165,55 @@ mod tests {
     }
 
     #[test]
+    fn a_light_lights_what_follows_it_in_its_separator() {
+        // Four cubes in a row, left to right: one before the light in its Separator, one after
+        // it there, one after that Separator, one after a light that comes last but for it in a
+        // Separator of its own.
+        let (mut rt, scene) = load(
+            "PerspectiveCamera { position 0 0 12 heightAngle 0.9 }
+             Separator {
+               Translation { translation -4.5 0 0 } Cube { }
+               PointLight { location 1.5 0 4 }
+               Translation { translation 3 0 0 } Cube { }
+             }
+             Translation { translation 1.5 0 0 } Cube { }
+             Separator { Translation { translation 3 0 0 } Cube { } }
+             DirectionalLight { direction 0 0 -1 }",
+        );
+        assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
+        assert_eq!((scene.shapes.len(), scene.lights.len()), (4, 2));
+        rt.options.width = 80;
+        rt.options.height = 20;
+        let (fb, _) = rt.render_frame().expect("renders");
+        let at = |x: f32| {
+            let p = rt.camera().world_from_camera.inverse().transform_point3a(Vec3A::new(x, 0.0, 1.0));
+            let tan = (rt.camera().fov_degrees.to_radians() * 0.5).tan();
+            // The image is wider than high: the field of view spans its height.
+            let px = 40.0 + p.x / p.z / tan * 10.0;
+            let c = fb.pixel(px.round() as u32, 10);
+            c[0] + c[1] + c[2]
+        };
+        let lit = at(-1.5);
+        assert!(lit > 0.3, "the cube after the light: {lit}");
+        for x in [-4.5, 1.5, 4.5] {
+            assert!(at(x) < 0.02, "the cube at {x} is not lit: {} against {lit}", at(x));
+        }
+        // The same file without the Separators: the point light lights the three after it.
+        let (mut rt, _) = load(
+            "PerspectiveCamera { position 0 0 12 heightAngle 0.9 }
+             Translation { translation -4.5 0 0 } Cube { }
+             PointLight { location 1.5 0 4 }
+             Translation { translation 3 0 0 } Cube { }
+             Translation { translation 3 0 0 } Cube { }",
+        );
+        rt.options.width = 80;
+        rt.options.height = 20;
+        let (fb, _) = rt.render_frame().expect("renders");
+        let c = fb.pixel(40 + (1.5f32 / 12.0 / (0.45f32).tan() * 10.0).round() as u32, 10);
+        assert!(c[0] + c[1] + c[2] > 0.3, "{c:?}");
+    }
+
+    #[test]
     fn a_matrix_transform_is_read_in_row_vector_order() {
         let (_, scene) = load("MatrixTransform { matrix 2 0 0 0  0 2 0 0  0 0 2 0  1 2 3 1 } Cube { }");
         let w = scene.shapes[0].world;
@@ -1156,7 +1251,7 @@ mod tests {
         let dir = tempfile::tempdir().expect("a temporary directory");
         std::fs::write(
             dir.path().join("old.wrl"),
-            "#VRML V1.0 ascii\nSeparator { Translation { translation 0 2 0 } Cube { } }",
+            "#VRML V1.0 ascii\nSeparator { PointLight { location 0 1 0 } Translation { translation 0 2 0 } Cube { } }",
         )
         .expect("written");
         let main = dir.path().join("main.wrl");
@@ -1180,6 +1275,9 @@ mod tests {
         scene.advance_to(0.5, &mut rt).expect("runs");
         let m = rt.instance_transform(scene.shapes[0].made).expect("placed");
         assert_eq!(m.translation, Vec3A::new(0.0, 2.0, 5.0));
+        // Its light too.
+        let light = rt.light_transform(scene.lights[0].made).expect("a light");
+        assert_eq!(light.translation, Vec3A::new(0.0, 0.0, 5.0));
         rt.options.width = 8;
         rt.options.height = 8;
         rt.render_frame().expect("renders");
