@@ -387,3 +387,68 @@ Transform { translation 20 0 0 children Shape { appearance Appearance { material
     let again = centre(&shot("again.png", &["--events", "key:v;key:v"]));
     assert!(again[0] > 0.2 && again[1] < 0.05, "and round to the first: {again:?}");
 }
+
+/// The mean column of the pixels brighter than `threshold` (the image's bright shape).
+fn bright_column(s: &Shot, threshold: f32) -> f32 {
+    let (mut sum, mut n) = (0.0, 0.0);
+    for y in 0..s.height {
+        for x in 0..s.width {
+            let i = 4 * (y * s.width + x);
+            if s.rgba[i] + s.rgba[i + 1] + s.rgba[i + 2] > threshold {
+                sum += x as f32;
+                n += 1.0;
+            }
+        }
+    }
+    assert!(n > 0.0, "no bright pixels");
+    sum / n
+}
+
+/// A drag on a box under a PlaneSensor moves it with the pointer; a drag beside it orbits.
+#[test]
+fn a_drag_on_a_plane_sensor_moves_its_shape() {
+    let Some(x) = xvfb() else { return };
+    let dir = tempfile::tempdir().expect("tempdir");
+    std::fs::write(
+        dir.path().join("drag.wrl"),
+        "#VRML V2.0 utf8
+Viewpoint { position 0 0 10 }
+Group { children [
+  DEF Drag PlaneSensor { }
+  DEF T Transform { children Shape { appearance Appearance { material Material { diffuseColor 1 1 1 } } geometry Box { size 2 2 2 } } }
+] }
+ROUTE Drag.translation_changed TO T.set_translation
+",
+    )
+    .expect("write");
+    let shot = |name: &str, extra: &[&str]| still_shot(&x, dir.path(), ("drag.wrl", "64x48"), name, extra);
+    let still = bright_column(&shot("still.png", &[]), 0.5);
+    assert!((still - 31.5).abs() < 1.5, "the box is in the middle: {still}");
+    let dragged = bright_column(&shot("dragged.png", &["--events", "drag:32,24,48,24"]), 0.5);
+    assert!((dragged - still - 16.0).abs() < 3.0, "the box follows the pointer 16 pixels right: {still} {dragged}");
+}
+
+/// The pointer over a shape under a TouchSensor: its isOver switches a light on.
+#[test]
+fn hovering_over_a_touch_sensor_sends_is_over() {
+    let Some(x) = xvfb() else { return };
+    let dir = tempfile::tempdir().expect("tempdir");
+    std::fs::write(
+        dir.path().join("hover.wrl"),
+        "#VRML V2.0 utf8
+NavigationInfo { headlight FALSE }
+Viewpoint { position 0 0 6 }
+DEF L PointLight { location 0 0 4 on FALSE }
+Group { children [ DEF Touch TouchSensor {} Shape { appearance Appearance { material Material { } } geometry Box { size 3 3 1 } } ] }
+ROUTE Touch.isOver TO L.on
+",
+    )
+    .expect("write");
+    let shot = |name: &str, extra: &[&str]| still_shot(&x, dir.path(), ("hover.wrl", "48x36"), name, extra);
+    let away = shot("away.png", &["--events", "move:2,2"]).mean();
+    let over = shot("over.png", &["--events", "move:24,18"]).mean();
+    let left = shot("left.png", &["--events", "move:24,18;wait:1;move:2,2"]).mean();
+    assert!(away.iter().all(|c| *c < 0.01), "unlit with the pointer beside it: {away:?}");
+    assert!(over[0] > 0.05, "lit with the pointer over it: {over:?}");
+    assert!(left.iter().all(|c| *c < 0.01), "unlit again once the pointer left: {left:?}");
+}

@@ -32,12 +32,29 @@ impl VrmlScene {
         self.events.is_animated()
     }
 
+    /// Whether the user's input can change the scene: a pointing-device, proximity or visibility
+    /// sensor is routed somewhere.
+    pub fn senses(&self) -> bool {
+        const SENSORS: [&str; 6] =
+            ["TouchSensor", "PlaneSensor", "SphereSensor", "CylinderSensor", "ProximitySensor", "VisibilitySensor"];
+        self.events.sources().any(|r| {
+            self.documents
+                .get(r.doc)
+                .and_then(|(_, d)| d.nodes.get(r.node.0 as usize))
+                .is_some_and(|n| SENSORS.contains(&n.type_name.as_str()))
+        })
+    }
+
     /// Runs the scene's events up to `time` (seconds; the scene loads at 0) and shows what they
     /// changed in `rt`. A time before the last one starts again from the file's values. Returns
     /// whether `rt`'s scene changed.
     pub fn advance_to(&mut self, time: f64, rt: &mut Context) -> Result<bool, SceneFileError> {
         if self.events.now().is_some_and(|last| time < last) {
             self.events.reset(&mut self.documents);
+            self.reset_sensing();
+        }
+        if time.is_finite() {
+            self.sense_camera(time, rt);
         }
         self.events.advance(&mut self.documents, time);
         self.apply(rt)
@@ -69,7 +86,7 @@ impl VrmlScene {
             if sensors.is_empty() {
                 continue;
             }
-            // The press, then the release over the shape (6.48): isActive TRUE, then isActive FALSE
+            // The press, then the release over the shape (6.51): isActive TRUE, then isActive FALSE
             // with touchTime, each press and release its own cascade.
             for &s in &sensors {
                 self.events.send(&mut self.documents, s, vec![("isActive", EventValue::Bool(true))], time);
@@ -100,7 +117,7 @@ impl VrmlScene {
     }
 
     /// Shows the nodes the events changed.
-    fn apply(&mut self, rt: &mut Context) -> Result<bool, SceneFileError> {
+    pub(super) fn apply(&mut self, rt: &mut Context) -> Result<bool, SceneFileError> {
         let dirty = std::mem::take(&mut self.events.dirty);
         if dirty.is_empty() {
             return Ok(false);

@@ -640,6 +640,18 @@ impl<'a> Builder<'a> {
                 self.viewpoint(r, world, trail);
                 Ok(())
             }
+            "ProximitySensor" | "VisibilitySensor" => {
+                // Sensed against the camera at each timestamp, in the space of the Transforms
+                // above them.
+                self.scene.sensors.push(Placed {
+                    made: (),
+                    node: r,
+                    path: trail.to_vec(),
+                    world,
+                    local: Affine3A::IDENTITY,
+                });
+                Ok(())
+            }
             "NavigationInfo" => {
                 if self.headlight.is_none() && r.doc == 0 {
                     self.headlight = Some(self.boolean(r, "headlight", true));
@@ -655,7 +667,9 @@ impl<'a> Builder<'a> {
                         r.doc,
                         loc,
                         Severity::Warning,
-                        format!("{type_name} is not a child node (it belongs in a field of another node); it is skipped"),
+                        format!(
+                            "{type_name} is not a child node (it belongs in a field of another node); it is skipped"
+                        ),
                     ),
                     Support::Omitted => self.warn_once(
                         format!("node:{type_name}"),
@@ -669,7 +683,7 @@ impl<'a> Builder<'a> {
                         r.doc,
                         loc,
                         Severity::Warning,
-                        format!("{type_name} is skipped: the scene is read as a still (no animation, sensors, scripts or sound)"),
+                        format!("{type_name} is skipped: scripts and sound are not run"),
                     ),
                     Support::Silent | Support::Runs => {}
                 }

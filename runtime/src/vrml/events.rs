@@ -35,6 +35,7 @@ pub enum EventType {
     SFInt32,
     SFFloat,
     SFTime,
+    SFVec2f,
     SFVec3f,
     SFColor,
     SFRotation,
@@ -82,6 +83,54 @@ fn interface(type_name: &str) -> Option<Interface> {
             ("touchTime", EventOut, SFTime),
             ("hitPoint_changed", EventOut, SFVec3f),
             ("hitNormal_changed", EventOut, SFVec3f),
+            ("hitTexCoord_changed", EventOut, SFVec2f),
+        ],
+        "PlaneSensor" => &[
+            ("autoOffset", ExposedField, SFBool),
+            ("enabled", ExposedField, SFBool),
+            ("maxPosition", ExposedField, SFVec2f),
+            ("minPosition", ExposedField, SFVec2f),
+            ("offset", ExposedField, SFVec3f),
+            ("isActive", EventOut, SFBool),
+            ("trackPoint_changed", EventOut, SFVec3f),
+            ("translation_changed", EventOut, SFVec3f),
+        ],
+        "SphereSensor" => &[
+            ("autoOffset", ExposedField, SFBool),
+            ("enabled", ExposedField, SFBool),
+            ("offset", ExposedField, SFRotation),
+            ("isActive", EventOut, SFBool),
+            ("rotation_changed", EventOut, SFRotation),
+            ("trackPoint_changed", EventOut, SFVec3f),
+        ],
+        "CylinderSensor" => &[
+            ("autoOffset", ExposedField, SFBool),
+            ("diskAngle", ExposedField, SFFloat),
+            ("enabled", ExposedField, SFBool),
+            ("maxAngle", ExposedField, SFFloat),
+            ("minAngle", ExposedField, SFFloat),
+            ("offset", ExposedField, SFFloat),
+            ("isActive", EventOut, SFBool),
+            ("rotation_changed", EventOut, SFRotation),
+            ("trackPoint_changed", EventOut, SFVec3f),
+        ],
+        "ProximitySensor" => &[
+            ("center", ExposedField, SFVec3f),
+            ("size", ExposedField, SFVec3f),
+            ("enabled", ExposedField, SFBool),
+            ("isActive", EventOut, SFBool),
+            ("position_changed", EventOut, SFVec3f),
+            ("orientation_changed", EventOut, SFRotation),
+            ("enterTime", EventOut, SFTime),
+            ("exitTime", EventOut, SFTime),
+        ],
+        "VisibilitySensor" => &[
+            ("center", ExposedField, SFVec3f),
+            ("enabled", ExposedField, SFBool),
+            ("size", ExposedField, SFVec3f),
+            ("enterTime", EventOut, SFTime),
+            ("exitTime", EventOut, SFTime),
+            ("isActive", EventOut, SFBool),
         ],
         "PositionInterpolator" => &[
             INTERPOLATOR_FRACTION,
@@ -200,6 +249,7 @@ pub enum EventValue {
     Int(i32),
     Float(f32),
     Time(f64),
+    Vec2(glam::Vec2),
     /// `SFVec3f` and `SFColor`.
     Vec3(Vec3),
     /// An `SFRotation`: axis and angle.
@@ -219,6 +269,7 @@ impl EventValue {
             EventValue::Int(i) => Value::Numbers(vec![f64::from(*i)]),
             EventValue::Float(f) => Value::Numbers(vec![f64::from(*f)]),
             EventValue::Time(t) => Value::Numbers(vec![*t]),
+            EventValue::Vec2(v) => Value::Numbers(v.to_array().map(f64::from).to_vec()),
             EventValue::Vec3(v) => Value::Numbers(v.to_array().map(f64::from).to_vec()),
             EventValue::Rotation(r) => Value::Numbers(r.map(f64::from).to_vec()),
             EventValue::Floats(v) => numbers(v.iter().map(|&x| f64::from(x)).collect()),
@@ -247,6 +298,7 @@ impl EventValue {
             }
             (SFFloat, 1) => Some(EventValue::Float(f(numbers[0]))),
             (SFTime, 1) => Some(EventValue::Time(numbers[0])),
+            (SFVec2f, 2) => Some(EventValue::Vec2(glam::Vec2::new(f(numbers[0]), f(numbers[1])))),
             (SFVec3f | SFColor, 3) => Some(EventValue::Vec3(v3(numbers))),
             (SFRotation, 4) => Some(EventValue::Rotation(r4(numbers))),
             (MFFloat, _) => Some(EventValue::Floats(numbers.iter().map(|&x| f(x)).collect())),
@@ -370,7 +422,7 @@ impl Default for TimeSensor {
 }
 
 impl TimeSensor {
-    /// When it runs, from `startTime` (6.49): a looping sensor until `stopTime` (for ever when that
+    /// When it runs, from `startTime` (6.50): a looping sensor until `stopTime` (for ever when that
     /// is not after `startTime`), a non-looping one for one cycle or until an earlier `stopTime`.
     pub fn interval(&self) -> (f64, f64) {
         let stop = if self.stop > self.start { self.stop } else { f64::INFINITY };
@@ -514,6 +566,11 @@ impl Events {
     /// Whether anything runs with time: a TimeSensor sends events along a route.
     pub fn is_animated(&self) -> bool {
         !self.sensors.is_empty()
+    }
+
+    /// The nodes routes leave from.
+    pub fn sources(&self) -> impl Iterator<Item = NodeRef> + '_ {
+        self.routes.keys().map(|(n, _)| *n)
     }
 
     /// Whether any route leaves a node of `r`'s (a TouchSensor's events go somewhere).
@@ -699,7 +756,7 @@ impl Events {
             };
         }
         if type_name == "TimeSensor" {
-            // 6.49: startTime and cycleInterval do not change while it runs, nor stopTime when
+            // 6.50: startTime and cycleInterval do not change while it runs, nor stopTime when
             // that is not after startTime.
             let state = self.state.get(&to).copied().unwrap_or_default();
             if state.active {
@@ -738,8 +795,9 @@ impl Events {
         out
     }
 
-    /// Writes an exposed field's new value into its node (keeping the file's fields once).
-    fn set_field(
+    /// Writes an exposed field's new value into its node (keeping the file's fields once), as a
+    /// sensor does to its own `offset`.
+    pub(super) fn set_field(
         &mut self,
         documents: &mut [(std::path::PathBuf, Document)],
         to: NodeRef,

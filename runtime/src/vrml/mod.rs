@@ -7,8 +7,8 @@
 //! locations, `DEF`/`USE` sharing one node, PROTO instances expanded in place), and [`build`]
 //! walks the scene graph from the file's top-level nodes and makes objects, instances, lights,
 //! the camera and the background through the [`Context`] API. [`events`] runs the ROUTEs,
-//! TimeSensors and interpolators on the documents, and [`animate`] shows what they change
-//! ([`VrmlScene::advance_to`]). [`load_file`] reads a VRML 1.0 file with [`v1`], chosen by its
+//! TimeSensors and interpolators on the documents, [`sensors`] runs the sensors of the user (the
+//! pointer, the camera), and [`animate`] shows what they change ([`VrmlScene::advance_to`]). [`load_file`] reads a VRML 1.0 file with [`v1`], chosen by its
 //! header. `docs/vrml.md` says what is read and how VRML maps onto rtsl.
 //!
 //! Invariants:
@@ -39,6 +39,7 @@ pub mod lex;
 pub mod mesh;
 pub mod nodes;
 pub mod parse;
+pub mod sensors;
 pub mod v1;
 
 use crate::api::{Context, InstanceId, LightId, ObjectId};
@@ -234,6 +235,10 @@ pub struct VrmlScene {
     pub ambient_lights: Vec<LightId>,
     /// The Viewpoint of `viewpoints` that is the camera, if one is.
     pub bound_viewpoint: Option<usize>,
+    /// Every ProximitySensor and VisibilitySensor reached, with its path.
+    pub sensors: Vec<Placed<()>>,
+    /// The pointing-device, proximity and visibility sensors' state between events.
+    pub(crate) sensing: sensors::Sensing,
 }
 
 impl VrmlScene {

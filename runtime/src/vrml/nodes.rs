@@ -8,12 +8,12 @@ pub enum Support {
     Read,
     /// Left out with a warning: what it draws is missing from the image.
     Omitted,
-    /// Left out with a warning: it animates, senses or sounds, which a still image does not show.
+    /// Left out with a warning: a Script or sound, which this reader does not run.
     Static,
     /// Left out silently: it has no effect on an image (WorldInfo).
     Silent,
-    /// Run by animation (`super::events`: TimeSensor, TouchSensor, the interpolators); nothing
-    /// to draw.
+    /// Run by animation (`super::events`: TimeSensor, the pointing-device, proximity and
+    /// visibility sensors, the interpolators); nothing to draw.
     Runs,
 }
 
@@ -68,7 +68,7 @@ pub const NODE_TYPES: &[(&str, Support, &[&str])] = &[
     ("Cylinder", Support::Read, &["bottom", "height", "radius", "side", "top"]),
     (
         "CylinderSensor",
-        Support::Static,
+        Support::Runs,
         &[
             "autoOffset",
             "diskAngle",
@@ -182,7 +182,7 @@ pub const NODE_TYPES: &[(&str, Support, &[&str])] = &[
     ("PixelTexture", Support::Read, &["image", "repeatS", "repeatT"]),
     (
         "PlaneSensor",
-        Support::Static,
+        Support::Runs,
         &[
             "autoOffset",
             "enabled",
@@ -203,7 +203,7 @@ pub const NODE_TYPES: &[(&str, Support, &[&str])] = &[
     ("PositionInterpolator", Support::Runs, &["key", "keyValue", "set_fraction", "value_changed"]),
     (
         "ProximitySensor",
-        Support::Static,
+        Support::Runs,
         &["center", "size", "enabled", "isActive", "position_changed", "orientation_changed", "enterTime", "exitTime"],
     ),
     ("ScalarInterpolator", Support::Runs, &["key", "keyValue", "set_fraction", "value_changed"]),
@@ -228,7 +228,7 @@ pub const NODE_TYPES: &[(&str, Support, &[&str])] = &[
     ("Sphere", Support::Read, &["radius"]),
     (
         "SphereSensor",
-        Support::Static,
+        Support::Runs,
         &["autoOffset", "enabled", "offset", "isActive", "rotation_changed", "trackPoint_changed"],
     ),
     (
@@ -292,7 +292,7 @@ pub const NODE_TYPES: &[(&str, Support, &[&str])] = &[
         Support::Read,
         &["fieldOfView", "jump", "orientation", "position", "description", "set_bind", "bindTime", "isBound"],
     ),
-    ("VisibilitySensor", Support::Static, &["center", "enabled", "size", "enterTime", "exitTime", "isActive"]),
+    ("VisibilitySensor", Support::Runs, &["center", "enabled", "size", "enterTime", "exitTime", "isActive"]),
     ("WorldInfo", Support::Silent, &["info", "title"]),
 ];
 

@@ -218,7 +218,7 @@ fn show(args: &ViewArgs, jobs: mpsc::Sender<RenderJob>) -> anyhow::Result<(u32, 
         let held = args.time.or(args.frames.map(|_| 0.0));
         // The first image shows the animation's start.
         scene.advance_to(held.unwrap_or(0.0), &mut rt)?;
-        if scene.is_animated() || held.is_none() {
+        if scene.is_animated() || scene.senses() || held.is_none() {
             playing = Some(renderer::Playing::new(scene, held));
         }
     }

@@ -21,6 +21,7 @@ use rtsl_runtime::render::progressive::{
 };
 use rtsl_runtime::render::ray_params::samples_for_relevance;
 use rtsl_runtime::render::{camera_ray, Antialiasing, LightPathCache, RayField, RayParameters, World, RELEVANCE};
+use rtsl_runtime::vrml::sensors::{PointerHit, PointerRay};
 use rtsl_runtime::{ByteTable, Transfer};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, TryRecvError};
 use std::sync::{Arc, Mutex};
@@ -63,6 +64,22 @@ pub enum Command {
     },
     /// Select the instance under a window pixel (none: deselect).
     Select {
+        x: f32,
+        y: f32,
+    },
+    /// The cursor moved to a window pixel with no button held (a VRML TouchSensor's `isOver`).
+    Hover {
+        x: f32,
+        y: f32,
+    },
+    /// The left button pressed (no shift) at a window pixel: a VRML pointing-device sensor under
+    /// it becomes active, and a drag sensor takes the drags that follow (`Orbit`) until release.
+    Press {
+        x: f32,
+        y: f32,
+    },
+    /// The left button released at a window pixel.
+    Release {
         x: f32,
         y: f32,
     },
@@ -183,6 +200,8 @@ pub struct Renderer {
     /// shown last.
     viewpoints: Vec<Viewpoint>,
     viewpoint: usize,
+    /// Where the cursor is while a VRML drag sensor holds the pointer (from a `Press`).
+    grab: Option<(f32, f32)>,
 }
 
 /// A named view the viewer can jump to (a VRML Viewpoint).
@@ -351,6 +370,7 @@ impl Renderer {
             playing: None,
             viewpoints: Vec::new(),
             viewpoint: 0,
+            grab: None,
         })
     }
 
@@ -433,9 +453,86 @@ impl Renderer {
         Some((hit.instance as usize, hit.t * ray.direction.dot(forward)))
     }
 
+    /// The camera ray through a window pixel, and where it meets a shape of the VRML scene.
+    fn pointer(&self, x: f32, y: f32) -> Option<(PointerRay, Option<PointerHit>)> {
+        let world = self.world();
+        let (w, h) = self.size();
+        if !(x.is_finite() && y.is_finite()) {
+            return None;
+        }
+        let (px, py) = (x.clamp(0.0, w as f32 - 1.0) as u32, y.clamp(0.0, h as f32 - 1.0) as u32);
+        let ray = camera_ray(world, px, py, 0.5, 0.5);
+        let pointer = PointerRay { origin: ray.origin, direction: ray.direction };
+        let inside = x >= 0.0 && y >= 0.0 && x < w as f32 && y < h as f32;
+        let hit = world.scene.intersect(&ray);
+        if !inside || !hit.is_hit() {
+            return Some((pointer, None));
+        }
+        let instance = self.rt.world_instance_ids().get(hit.instance as usize).copied();
+        let playing = self.playing.as_ref()?;
+        let found = instance.and_then(|i| playing.scene.pointer_hit(&self.rt, i, hit.primitive, (hit.u, hit.v)));
+        Some((pointer, found))
+    }
+
+    /// The VRML scene's pointing-device sensors told of a hover, press, drag or release at a
+    /// window pixel. Returns whether a drag sensor took the pointer (for a press).
+    fn sense_pointer(&mut self, command: &Command) -> bool {
+        let (x, y) = match *command {
+            Command::Hover { x, y } | Command::Press { x, y } | Command::Release { x, y } => (x, y),
+            _ => return false,
+        };
+        let Some((ray, hit)) = self.pointer(x, y) else { return false };
+        let Some(playing) = self.playing.as_mut() else { return false };
+        let t = playing.time();
+        let (grabbed, changed) = match command {
+            Command::Hover { .. } => (false, playing.scene.pointer_move(hit.as_ref(), t, &mut self.rt)),
+            Command::Press { .. } => match hit {
+                Some(hit) => match playing.scene.pointer_press(&hit, ray, t, &mut self.rt) {
+                    Ok((grabbed, changed)) => (grabbed, Ok(changed)),
+                    Err(e) => (false, Err(e)),
+                },
+                None => (false, Ok(false)),
+            },
+            _ => (false, playing.scene.pointer_release(hit.as_ref(), t, &mut self.rt)),
+        };
+        match changed {
+            Ok(changed) => self.scene_dirty |= changed,
+            Err(e) => self.diagnostics.push(format!("animation: {e}")),
+        }
+        grabbed
+    }
+
+    /// A drag sensor holding the pointer follows the cursor, moved by `(dx, dy)` pixels.
+    fn drag_sensor(&mut self, dx: f32, dy: f32) {
+        let Some((x, y)) = self.grab else { return };
+        let (x, y) = (x + dx, y + dy);
+        self.grab = Some((x, y));
+        let Some((ray, _)) = self.pointer(x, y) else { return };
+        let Some(playing) = self.playing.as_mut() else { return };
+        let t = playing.time();
+        match playing.scene.pointer_drag(ray, t, &mut self.rt) {
+            Ok(changed) => self.scene_dirty |= changed,
+            Err(e) => self.diagnostics.push(format!("animation: {e}")),
+        }
+    }
+
     fn apply(&mut self, command: Command) {
         let camera_before = self.nav.camera;
         match command {
+            Command::Orbit { dx, dy } if self.grab.is_some() => self.drag_sensor(dx, dy),
+            Command::Hover { .. } => {
+                self.sense_pointer(&command);
+            }
+            Command::Press { x, y } => {
+                self.grab = None;
+                if self.sense_pointer(&command) {
+                    self.grab = Some((x, y));
+                }
+            }
+            Command::Release { .. } => {
+                self.grab = None;
+                self.sense_pointer(&command);
+            }
             Command::Orbit { dx, dy } => self.nav.orbit(dx, dy),
             Command::Look { dx, dy } => self.nav.look(dx, dy),
             Command::Fly { direction, seconds } => self.nav.fly(Vec3A::from_array(direction), seconds),
@@ -446,14 +543,6 @@ impl Renderer {
                     let instance = *self.rt.world_instance_ids().get(index)?;
                     Some(Selection { instance, depth })
                 });
-                // A click on a shape under a TouchSensor sends its touchTime.
-                if let (Some(sel), Some(playing)) = (self.selected, self.playing.as_mut()) {
-                    let t = playing.time();
-                    match playing.scene.touch(sel.instance, t, &mut self.rt) {
-                        Ok(changed) => self.scene_dirty |= changed,
-                        Err(e) => self.diagnostics.push(format!("animation: {e}")),
-                    }
-                }
             }
             Command::MoveSelected { dx, dy } => {
                 let Some(sel) = self.selected else { return };

@@ -125,6 +125,9 @@ impl App {
         if self.gaze && self.pressed.is_none() && (dx != 0.0 || dy != 0.0) {
             self.send(Command::Gaze { at: Some((x, y)) });
         }
+        if self.pressed.is_none() && (dx != 0.0 || dy != 0.0) {
+            self.send(Command::Hover { x, y });
+        }
         let Some((button, start, _)) = self.pressed else { return };
         if self.drag.is_none() && ((x - start.0).abs() > CLICK_SLOP || (y - start.1).abs() > CLICK_SLOP) {
             self.drag = Some(match (button, self.shift) {
@@ -159,13 +162,19 @@ impl App {
             if self.pressed.is_none() {
                 self.pressed = Some((button, self.cursor, self.shift));
                 self.drag = None;
+                if button == MouseButton::Left && !self.shift {
+                    self.send(Command::Press { x: self.cursor.0, y: self.cursor.1 });
+                }
             }
             return;
         }
-        if let Some((b, at, _)) = self.pressed {
+        if let Some((b, at, shift)) = self.pressed {
             if b == button {
                 if self.drag.is_none() && button == MouseButton::Left {
                     self.send(Command::Select { x: at.0, y: at.1 });
+                }
+                if button == MouseButton::Left && !shift {
+                    self.send(Command::Release { x: self.cursor.0, y: self.cursor.1 });
                 }
                 self.pressed = None;
                 self.drag = None;
