@@ -366,6 +366,13 @@ impl VrmlScene {
     /// the limits, as the standard says). Returns whether `rt`'s scene changed.
     pub fn pointer_drag(&mut self, ray: PointerRay, time: f64, rt: &mut Context) -> Result<bool, SceneFileError> {
         let time = self.event_time(time);
+        // A sensor disabled while active stops (isActive FALSE) and tracks no more.
+        let (on, off): (Vec<_>, Vec<_>) =
+            std::mem::take(&mut self.sensing.active).into_iter().partition(|(r, _)| self.flag(*r, "enabled", true));
+        self.sensing.active = on;
+        for (r, _) in off {
+            self.send(r, vec![("isActive", EventValue::Bool(false))], time);
+        }
         for k in 0..self.sensing.active.len() {
             let (r, drag) = self.sensing.active[k];
             let (drag, events) = self.track(r, drag, ray);
@@ -675,6 +682,13 @@ mod tests {
         let hit = front(&scene, 0, 0.0, 0.0, 1.0);
         scene.pointer_press(&hit, ray([0.0, 0.0, 10.0], [0.0, 0.0, -1.0]), 0.0, &mut rt).expect("runs");
         scene.pointer_drag(ray([0.0, 0.0, 10.0], [3.0, 2.0, -9.0]), 0.1, &mut rt).expect("runs");
+        let m = rt.instance_transform(scene.shapes[0].made).expect("placed");
+        assert!(m.translation.abs_diff_eq(Vec3A::new(1.0, 0.0, 0.0), 1e-5), "{m:?}");
+        // Disabled while active: it stops, and the drag moves nothing more.
+        let drag = NodeRef { doc: 0, node: scene.documents[0].1.defs["Drag"] };
+        scene.events.set_field(&mut scene.documents, drag, "enabled", &EventValue::Bool(false));
+        scene.pointer_drag(ray([0.0, 0.0, 10.0], [-3.0, 0.0, -9.0]), 0.2, &mut rt).expect("runs");
+        assert!(scene.sensing.active.is_empty());
         let m = rt.instance_transform(scene.shapes[0].made).expect("placed");
         assert!(m.translation.abs_diff_eq(Vec3A::new(1.0, 0.0, 0.0), 1e-5), "{m:?}");
     }

@@ -455,6 +455,7 @@ impl Renderer {
 
     /// The camera ray through a window pixel, and where it meets a shape of the VRML scene.
     fn pointer(&self, x: f32, y: f32) -> Option<(PointerRay, Option<PointerHit>)> {
+        let playing = self.playing.as_ref()?;
         let world = self.world();
         let (w, h) = self.size();
         if !(x.is_finite() && y.is_finite()) {
@@ -469,7 +470,6 @@ impl Renderer {
             return Some((pointer, None));
         }
         let instance = self.rt.world_instance_ids().get(hit.instance as usize).copied();
-        let playing = self.playing.as_ref()?;
         let found = instance.and_then(|i| playing.scene.pointer_hit(&self.rt, i, hit.primitive, (hit.u, hit.v)));
         Some((pointer, found))
     }

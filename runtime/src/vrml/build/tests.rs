@@ -360,8 +360,69 @@ Transform { children USE T }
 ROUTE T.translation_changed TO T.set_translation
 "#;
 
+    const SENSORS: &str = r#"#VRML V2.0 utf8
+Viewpoint { position 0 0 10 }
+DEF G Transform { children [
+  DEF Touch TouchSensor { } DEF Plane PlaneSensor { minPosition -1 -1 maxPosition 1 1 }
+  DEF Ball SphereSensor { } DEF Knob CylinderSensor { diskAngle 0.5 maxAngle 1 }
+  Shape { geometry Box { } }
+  DEF L SpotLight { location 0 4 0 ambientIntensity 0.2 }
+] }
+DEF Near ProximitySensor { size 30 30 30 }
+DEF Seen VisibilitySensor { size 1 1 1 }
+ROUTE Plane.translation_changed TO G.set_translation
+ROUTE Ball.rotation_changed TO G.set_rotation
+ROUTE Knob.rotation_changed TO G.set_rotation
+ROUTE Touch.hitPoint_changed TO L.set_location
+ROUTE Near.position_changed TO L.set_direction
+ROUTE Seen.isActive TO L.on
+"#;
+
+    /// The sensors' pointer and camera events of a scene, as the viewer sends them.
+    fn sense(rt: &mut Context, scene: &mut VrmlScene) {
+        use crate::vrml::sensors::PointerRay;
+        let _ = scene.advance_to(0.0, rt);
+        let ray = |x: f32| PointerRay { origin: Vec3A::new(x, 0.0, 10.0), direction: Vec3A::new(0.0, 0.0, -1.0) };
+        if let Some(first) = scene.shapes.first().map(|s| s.made) {
+            if let Some(hit) = scene.pointer_hit(rt, first, 0, (0.3, 0.3)) {
+                let _ = scene.pointer_move(Some(&hit), 0.1, rt);
+                let _ = scene.pointer_press(&hit, ray(0.0), 0.2, rt);
+                let _ = scene.pointer_drag(ray(0.5), 0.3, rt);
+                let _ = scene.pointer_drag(ray(f32::NAN), 0.35, rt);
+                let _ = scene.pointer_release(Some(&hit), 0.4, rt);
+                let _ = scene.pointer_move(None, 0.5, rt);
+            }
+        }
+        rt.camera_look_at(Vec3A::new(0.0, 0.0, 100.0), Vec3A::ZERO, Vec3A::Y, 40.0);
+        let _ = scene.advance_to(1.0, rt);
+    }
+
+    #[test]
+    fn the_sensor_sample_runs_without_warnings() {
+        let mut rt = Context::new();
+        let mut scene = build_str(&mut rt, SENSORS, Path::new("sensors.wrl")).unwrap_or_else(|e| panic!("{e}"));
+        sense(&mut rt, &mut scene);
+        assert!(scene.take_warnings().is_empty());
+        assert!(scene.events.dirty.is_empty());
+    }
+
     proptest! {
         #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
+
+        #[test]
+        fn mutated_sensor_scenes_never_panic(cuts in proptest::collection::vec((0usize..SENSORS.len(), 0usize..8, any::<u8>()), 1..6)) {
+            let mut bytes = SENSORS.as_bytes().to_vec();
+            for (at, len, byte) in cuts {
+                let at = at.min(bytes.len());
+                let end = (at + len).min(bytes.len());
+                bytes.splice(at..end, std::iter::once(byte));
+            }
+            let text = String::from_utf8_lossy(&bytes);
+            let mut rt = Context::new();
+            if let Ok(mut scene) = build_str(&mut rt, &text, Path::new("mutated.wrl")) {
+                sense(&mut rt, &mut scene);
+            }
+        }
 
         #[test]
         fn random_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..512)) {
