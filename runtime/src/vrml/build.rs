@@ -14,7 +14,8 @@ use super::parse::{Document, Value};
 pub use super::relative_path;
 use super::{
     check_header, location, read_text, Loc, NodeRef, Placed, Viewpoint, VrmlError, VrmlOptions, VrmlScene,
-    MAX_INLINE_DEPTH, MAX_PROTO_DEPTH, MAX_VRML_NESTING, VRML_EAR_CLIP_BUDGET, VRML_TRAVERSAL_BUDGET,
+    MAX_INLINE_DEPTH, MAX_PROTO_DEPTH, MAX_VRML_NESTING, VRML_EAR_CLIP_BUDGET, VRML_LIGHT_SCOPE_BUDGET,
+    VRML_TRAVERSAL_BUDGET,
 };
 use crate::api::{Context, ObjectId, ShaderId};
 use crate::geometry::Mesh;
@@ -105,7 +106,8 @@ pub(super) fn remake_object(
     appearance: Option<NodeRef>,
     id: ObjectId,
 ) -> Result<()> {
-    with_builder(rt, scene, |b| b.make_object(geometry, appearance, Some(id)).map(|_| ()))
+    let lights = scene.object_lights.get(&id).cloned();
+    with_builder(rt, scene, |b| b.make_object(geometry, appearance, Some(id), lights.as_deref()).map(|_| ()))
 }
 
 /// Places light `k` of `scene.lights` by `world` again, with its node's fields as they stand (an
@@ -209,8 +211,9 @@ struct Builder<'a> {
     visits: usize,
     /// Each geometry node's mesh (its own coordinates, rtsl texture coordinates), or none.
     meshes: HashMap<NodeRef, Option<Arc<Mesh>>>,
-    /// Each geometry-and-appearance pair's object and its own bounds, or none (nothing to draw).
-    objects: HashMap<(NodeRef, Option<NodeRef>), Option<Made>>,
+    /// Each geometry-and-appearance pair's object, for each set of scoped DirectionalLights
+    /// lighting it, and its own bounds, or none (nothing to draw).
+    objects: HashMap<(NodeRef, Option<NodeRef>, usize), Option<Made>>,
     shaders: HashMap<String, ShaderId>,
     /// The surface shader that replaces `material` ([`VrmlOptions::surface`]).
     surface: Option<String>,
@@ -229,6 +232,18 @@ struct Builder<'a> {
     /// How many routed Switches above the node being walked do not choose it (its shapes are
     /// placed hidden).
     unchosen: usize,
+    /// DirectionalLights light their group's nodes only (see `scope_directional_lights`): the
+    /// placements (the light and the path to its group) whose group is being walked,
+    dir_scope: Vec<usize>,
+    /// each placement's number,
+    dir_placements: HashMap<(NodeRef, Vec<NodeRef>), usize>,
+    /// the lights made for each,
+    dir_lights: Vec<Vec<crate::api::LightId>>,
+    /// each set of placements that lights a shape (its place its number) and each set's number,
+    dir_sets: Vec<Vec<usize>>,
+    dir_set_numbers: HashMap<Vec<usize>, usize>,
+    /// and the objects made before the first scoped DirectionalLight was met, with their set.
+    unscoped_objects: Vec<(NodeRef, Option<NodeRef>, ObjectId, usize)>,
 }
 
 type Result<T> = std::result::Result<T, SceneFileError>;
@@ -269,6 +284,12 @@ impl<'a> Builder<'a> {
             ear_clip_budget: VRML_EAR_CLIP_BUDGET,
             v1_files: HashSet::new(),
             unchosen: 0,
+            dir_scope: Vec::new(),
+            dir_placements: HashMap::new(),
+            dir_lights: Vec::new(),
+            dir_sets: Vec::new(),
+            dir_set_numbers: HashMap::new(),
+            unscoped_objects: Vec::new(),
         }
     }
 
@@ -562,11 +583,12 @@ impl<'a> Builder<'a> {
         self.check_fields(r);
         let children = |b: &mut Self, fields: &[&str], world: Affine3A, trail: &mut Vec<NodeRef>| -> Result<()> {
             trail.push(r);
-            for field in fields {
-                for child in b.nodes(r, field) {
-                    b.visit(child, world, trail, depth + 1)?;
-                }
+            let kids: Vec<NodeRef> = fields.iter().flat_map(|field| b.nodes(r, field)).collect();
+            let scope = b.enter_scope(&kids, trail);
+            for child in kids {
+                b.visit(child, world, trail, depth + 1)?;
             }
+            b.dir_scope.truncate(scope);
             trail.pop();
             Ok(())
         };
@@ -794,17 +816,55 @@ impl<'a> Builder<'a> {
         };
         self.inlines.push(canonical);
         trail.push(r);
-        let roots = self.doc(doc).roots.clone();
+        let roots: Vec<NodeRef> = self.doc(doc).roots.iter().map(|&node| NodeRef { doc, node }).collect();
+        let scope = self.enter_scope(&roots, trail);
         let mut result = Ok(());
         for root in roots {
-            result = self.visit(NodeRef { doc, node: root }, world, trail, depth + 1);
+            result = self.visit(root, world, trail, depth + 1);
             if result.is_err() {
                 break;
             }
         }
+        self.dir_scope.truncate(scope);
         trail.pop();
         self.inlines.pop();
         result
+    }
+
+    /// Puts the DirectionalLights among a group's `kids` (`trail` ending with the group) in
+    /// scope for the walk of them; returns the scope's length before, to cut it back to after.
+    /// The scene file's top-level ones light everything and are not scoped.
+    fn enter_scope(&mut self, kids: &[NodeRef], trail: &[NodeRef]) -> usize {
+        let before = self.dir_scope.len();
+        if trail.is_empty() {
+            return before;
+        }
+        for &c in kids {
+            let node = self.doc(c.doc).node(c.node);
+            if node.type_name != "DirectionalLight" || node.expansion.is_some() || node.extern_proto.is_some() {
+                continue;
+            }
+            let next = self.dir_placements.len();
+            let k = *self.dir_placements.entry((c, trail.to_vec())).or_insert(next);
+            if k == next {
+                self.dir_lights.push(Vec::new());
+            }
+            self.dir_scope.push(k);
+        }
+        before
+    }
+
+    /// The number of the set of scoped DirectionalLights lighting what is walked now.
+    fn light_set(&mut self) -> usize {
+        let mut set = self.dir_scope.clone();
+        set.sort_unstable();
+        set.dedup();
+        if let Some(&k) = self.dir_set_numbers.get(&set) {
+            return k;
+        }
+        self.dir_sets.push(set.clone());
+        self.dir_set_numbers.insert(set, self.dir_sets.len() - 1);
+        self.dir_sets.len() - 1
     }
 
     fn viewpoint(&mut self, r: NodeRef, world: Affine3A, trail: &[NodeRef]) {
@@ -907,16 +967,6 @@ impl<'a> Builder<'a> {
     }
 
     fn light(&mut self, r: NodeRef, kind: &str, world: Affine3A, trail: &[NodeRef]) -> Result<()> {
-        if kind == "DirectionalLight" {
-            let loc = self.loc_of(r);
-            self.warn_once(
-                "DirectionalLight".into(),
-                r.doc,
-                loc,
-                Severity::Warning,
-                "DirectionalLight lights the whole scene, not only its group's nodes",
-            );
-        }
         let values = self.light_values(r, kind, world)?;
         // VRML's ambient term of a light is an ambient light of its own (without attenuation),
         // made when the file gives one or a ROUTE may.
@@ -935,6 +985,9 @@ impl<'a> Builder<'a> {
         })();
         self.rt.pop_matrix()?;
         result?;
+        if let (Some(&k), Some((main, _))) = (self.dir_placements.get(&(r, trail.to_vec())), made.first()) {
+            self.dir_lights[k].push(*main);
+        }
         for (k, (id, on)) in made.into_iter().enumerate() {
             if !on {
                 self.rt.set_light(id, false, true)?;
@@ -1009,14 +1062,23 @@ impl<'a> Builder<'a> {
     fn shape(&mut self, r: NodeRef, world: Affine3A, trail: &[NodeRef]) -> Result<()> {
         let Some(geometry) = self.node(r, "geometry") else { return Ok(()) };
         let appearance = self.node(r, "appearance");
-        let key = (geometry, appearance);
+        // One object per set of scoped DirectionalLights lighting it too.
+        let set = self.light_set();
+        let key = (geometry, appearance, set);
         let object = match self.objects.get(&key) {
             Some(done) => *done,
             None => {
-                let made = self.make_object(geometry, appearance, None)?;
+                let lights = (!self.dir_placements.is_empty()).then(|| format!("-vrml97dir:{set}"));
+                let made = self.make_object(geometry, appearance, None, lights.as_deref())?;
                 self.objects.insert(key, made);
                 if let Some((id, _)) = made {
                     self.scene.objects.push((geometry, appearance, id));
+                    match lights {
+                        Some(lights) => {
+                            self.scene.object_lights.insert(id, lights);
+                        }
+                        None => self.unscoped_objects.push((geometry, appearance, id, set)),
+                    }
                 }
                 made
             }
@@ -1060,6 +1122,7 @@ impl<'a> Builder<'a> {
         geometry: NodeRef,
         appearance: Option<NodeRef>,
         into: Option<ObjectId>,
+        lights: Option<&str>,
     ) -> Result<Option<Made>> {
         let Some(mesh) = self.geometry(geometry)? else {
             if let Some(id) = into {
@@ -1150,6 +1213,9 @@ impl<'a> Builder<'a> {
                 if t.alpha {
                     self.rt.alpha_mask(Some(&t.name));
                 }
+            }
+            if let Some(lights) = lights {
+                params.push(("lightcategory", ParamValue::String(lights.to_string())));
             }
             if let Some(declared) = &declared {
                 if let Some((_, ParamValue::Color([r, g, b]))) = params.iter().find(|(n, _)| *n == "diffusecolor") {
@@ -1586,8 +1652,56 @@ impl<'a> Builder<'a> {
         Ok(Some(made.mesh))
     }
 
+    /// A DirectionalLight lights only its group's nodes (6.16): each set of the scoped ones (all
+    /// but the scene file's top-level ones) that lights a shape is a light category; a light is
+    /// put in the categories of the sets it is not in, which the shapes of those sets leave out
+    /// (the `material` shader's `lightcategory`). Objects made before the first scoped light was
+    /// met are made again with their category. Past [`VRML_LIGHT_SCOPE_BUDGET`] categories the
+    /// lights light the whole scene (a warning).
+    fn scope_directional_lights(&mut self) -> Result<()> {
+        if self.dir_placements.is_empty() {
+            return Ok(());
+        }
+        for (geometry, appearance, id, set) in std::mem::take(&mut self.unscoped_objects) {
+            let lights = format!("-vrml97dir:{set}");
+            self.make_object(geometry, appearance, Some(id), Some(&lights))?;
+            self.scene.object_lights.insert(id, lights);
+        }
+        let cost = self.dir_lights.iter().map(Vec::len).sum::<usize>().saturating_mul(self.dir_sets.len());
+        if cost > VRML_LIGHT_SCOPE_BUDGET {
+            let loc = self.doc(0).roots.first().map_or(Loc::default(), |&n| self.doc(0).node(n).loc);
+            self.warn_once(
+                "light-scope".into(),
+                0,
+                loc,
+                Severity::Warning,
+                format!(
+                    "{} DirectionalLights in {} scopes pass the scoping budget ({VRML_LIGHT_SCOPE_BUDGET}); each lights the whole scene",
+                    self.dir_lights.len(),
+                    self.dir_sets.len()
+                ),
+            );
+            return Ok(());
+        }
+        for k in 0..self.dir_lights.len() {
+            let unlit: Vec<String> = (0..self.dir_sets.len())
+                .filter(|&s| self.dir_sets[s].binary_search(&k).is_err())
+                .map(|s| format!("vrml97dir:{s}"))
+                .collect();
+            if unlit.is_empty() {
+                continue;
+            }
+            let category = ParamValue::String(unlit.join(","));
+            for &light in &self.dir_lights[k] {
+                self.rt.set_light_parameters(light, &[("__category", category.clone())])?;
+            }
+        }
+        Ok(())
+    }
+
     /// After the walk: a camera framing the scene when no Viewpoint was bound, and the headlight.
     fn finish(&mut self) -> Result<()> {
+        self.scope_directional_lights()?;
         if !self.camera_bound {
             crate::scene_file::frame_camera(self.rt, self.scene.bounds);
         }

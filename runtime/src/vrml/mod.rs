@@ -73,6 +73,12 @@ pub const VRML_TRAVERSAL_BUDGET: usize = 1 << 20;
 /// `n * n` (ear clipping is quadratic in the vertices); faces past it are fanned instead.
 pub const VRML_EAR_CLIP_BUDGET: usize = 1 << 28;
 
+/// How many light categories scoped lights may be given, all lights together (a light's count is
+/// the sets of lights that light a shape and not it): a DirectionalLight in VRML 97, any light in
+/// VRML 1.0, lights only part of the scene, and a file with many lights in many groups would
+/// otherwise ask for a product of the two. Past it, the lights light the whole scene.
+pub const VRML_LIGHT_SCOPE_BUDGET: usize = 1 << 18;
+
 /// The most bytes a gzip-compressed VRML file may inflate to.
 pub const MAX_INFLATED_VRML: u64 = 1 << 30;
 
@@ -237,6 +243,9 @@ pub struct VrmlScene {
     pub bound_viewpoint: Option<usize>,
     /// Every ProximitySensor and VisibilitySensor reached, with its path.
     pub sensors: Vec<Placed<()>>,
+    /// The light category (`material`'s `lightcategory`) each object is made with, where scoped
+    /// lights leave some out.
+    pub(crate) object_lights: std::collections::HashMap<ObjectId, String>,
     /// The pointing-device, proximity and visibility sensors' state between events.
     pub(crate) sensing: sensors::Sensing,
 }

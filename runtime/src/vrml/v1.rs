@@ -363,6 +363,7 @@ pub fn build_into(rt: &mut Context, text: &str, path: &Path, surface: Option<&st
         lights: 0,
         own_lights: Vec::new(),
         light_sets: Vec::new(),
+        light_set_numbers: HashMap::new(),
         scoped: doc
             .nodes
             .iter()
@@ -411,8 +412,10 @@ struct Builder<'a> {
     lights: usize,
     /// The lights this file made, in the order made.
     own_lights: Vec<LightId>,
-    /// Each set of lights that lights a shape (indices into `own_lights`), its place its number.
+    /// Each set of lights that lights a shape (indices into `own_lights`), its place its number,
+    /// and each set's number.
     light_sets: Vec<Vec<usize>>,
+    light_set_numbers: HashMap<Vec<usize>, usize>,
     /// Whether the file has lights: its shapes then say which of them light them.
     scoped: bool,
 }
@@ -1078,10 +1081,11 @@ impl Builder<'_> {
     /// The category of the shapes lit by the lights `set` of this file (and by lights of no
     /// category: the including VRML 97 file's, the headlight).
     fn light_set(&mut self, set: &[usize]) -> String {
-        let k = match self.light_sets.iter().position(|s| s == set) {
-            Some(k) => k,
+        let k = match self.light_set_numbers.get(set) {
+            Some(&k) => k,
             None => {
                 self.light_sets.push(set.to_vec());
+                self.light_set_numbers.insert(set.to_vec(), self.light_sets.len() - 1);
                 self.light_sets.len() - 1
             }
         };
@@ -1090,11 +1094,27 @@ impl Builder<'_> {
 
     /// Scopes the file's lights, once every shape is made: each is put in the category of every
     /// set of lights it is not in, which the shapes lit by that set leave out (their `material`
-    /// shader's `lightcategory` is `-` that category).
+    /// shader's `lightcategory` is `-` that category). Past [`super::VRML_LIGHT_SCOPE_BUDGET`]
+    /// categories the lights light the whole scene (a warning).
     fn scope_lights(&mut self) -> Result<()> {
+        if self.own_lights.len().saturating_mul(self.light_sets.len()) > super::VRML_LIGHT_SCOPE_BUDGET {
+            self.warn_once(
+                "light-scope".into(),
+                Loc::default(),
+                Severity::Warning,
+                format!(
+                    "{} lights in {} scopes pass the scoping budget ({}); each lights the whole scene",
+                    self.own_lights.len(),
+                    self.light_sets.len(),
+                    super::VRML_LIGHT_SCOPE_BUDGET
+                ),
+            );
+            return Ok(());
+        }
         for (k, &light) in self.own_lights.iter().enumerate() {
             let unlit: Vec<String> = (0..self.light_sets.len())
-                .filter(|&s| !self.light_sets[s].contains(&k))
+                // A set is in increasing order: lights join the state in the order they are made.
+                .filter(|&s| self.light_sets[s].binary_search(&k).is_err())
                 .map(|s| format!("vrml1:{}:{s}", self.doc_index))
                 .collect();
             if !unlit.is_empty() {

@@ -354,7 +354,7 @@ DEF T Transform { translation 1 2 3 rotation 0 1 0 0.5 children [
   P { r 2 }
   Switch { whichChoice 0 choice [ Shape { geometry ElevationGrid { xDimension 2 zDimension 2 height [ 0 1 2 3 ] } } ] }
   Shape { geometry Extrusion { spine [ 0 0 0, 0 1 0, 1 2 0 ] } }
-  SpotLight { location 0 4 0 } Viewpoint { position 0 0 5 }
+  SpotLight { location 0 4 0 } Viewpoint { position 0 0 5 } DirectionalLight { direction 0 -1 0 }
 ] }
 Transform { children USE T }
 ROUTE T.translation_changed TO T.set_translation
@@ -444,4 +444,49 @@ ROUTE Seen.isActive TO L.on
             let _ = build_str(&mut rt, &text, Path::new("mutated.wrl"));
         }
     }
+}
+
+#[test]
+fn a_directional_light_lights_only_its_group() {
+    // One box, USEd in the group with the light and beside it; a sphere in a group with a light
+    // of its own, which lights the sphere alone.
+    let (mut rt, scene) = load(
+        "NavigationInfo { headlight FALSE }
+         Viewpoint { position 0 0 12 fieldOfView 0.9 }
+         Transform { translation -3 0 0 children [
+           DEF B Shape { appearance Appearance { material Material { } } geometry Box { } }
+           DirectionalLight { direction 0 0 -1 }
+         ] }
+         Transform { translation 0 0 0 children USE B }
+         Transform { translation 3 0 0 children [
+           Shape { appearance Appearance { material Material { } } geometry Sphere { } }
+           DirectionalLight { direction 0 0 -1 color 1 0 0 }
+         ] }",
+    );
+    assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
+    assert_eq!(scene.objects.len(), 3, "the box in and out of the light's group are two objects");
+    rt.options.width = 120;
+    rt.options.height = 40;
+    let (fb, _) = rt.render_frame().expect("renders");
+    let at = |x: u32| {
+        let p = fb.pixel(x, 20);
+        [p[0], p[1], p[2]]
+    };
+    // 3 units at the boxes' front faces are 11 pixels.
+    let (left, middle, right) = (at(60 - 11), at(60), at(60 + 11));
+    assert!(left[0] > 0.2 && (left[0] - left[1]).abs() < 1e-3, "the lit box, white: {left:?}");
+    assert!(middle.iter().all(|&c| c < 0.01), "the box outside the group is unlit: {middle:?}");
+    assert!(right[0] > 0.2 && right[1] < 0.01, "the sphere, lit red by its own light only: {right:?}");
+    // A DirectionalLight at the scene file's top level lights everything, scoped or not.
+    let (mut rt, scene) = load(
+        "NavigationInfo { headlight FALSE }
+         Viewpoint { position 0 0 12 fieldOfView 0.9 }
+         DirectionalLight { direction 0 0 -1 }
+         Shape { appearance Appearance { material Material { } } geometry Box { } }",
+    );
+    assert_eq!(scene.objects.len(), 1);
+    rt.options.width = 120;
+    rt.options.height = 40;
+    let (fb, _) = rt.render_frame().expect("renders");
+    assert!(fb.pixel(60, 20)[0] > 0.2);
 }
