@@ -680,7 +680,7 @@ impl<'a> Builder<'a> {
                 }
                 Ok(())
             }
-            "Background" => self.background(r),
+            "Background" => self.background(r, world),
             "Fog" => self.fog(r),
             _ => {
                 match support {
@@ -901,29 +901,70 @@ impl<'a> Builder<'a> {
         Viewpoint { description, eye, forward, up, field_of_view }
     }
 
-    fn background(&mut self, r: NodeRef) -> Result<()> {
+    /// The first Background of the scene file: one sky colour alone is the `background` imager's
+    /// colour; gradients or panorama images become an environment map (`vrml::background`) that
+    /// the `envbackground` imager shows along each camera ray.
+    fn background(&mut self, r: NodeRef, world: Affine3A) -> Result<()> {
         if self.background_bound || r.doc != 0 {
             return Ok(());
         }
         self.background_bound = true;
-        let sky = self.vec3s(r, "skyColor");
-        let ground = self.vec3s(r, "groundColor");
-        let panorama = ["backUrl", "bottomUrl", "frontUrl", "leftUrl", "rightUrl", "topUrl"]
-            .iter()
-            .any(|f| !self.strings(r, f).is_empty());
-        if sky.len() > 1 || !ground.is_empty() || panorama {
-            let loc = self.loc_of(r);
-            self.warn_once(
-                "background".into(),
-                r.doc,
-                loc,
-                Severity::Warning,
-                "Background: the first sky colour is the background; sky and ground gradients and panorama images are not drawn",
-            );
+        let sky: Vec<[f32; 3]> = self.vec3s(r, "skyColor").into_iter().map(linear).collect();
+        let ground: Vec<[f32; 3]> = self.vec3s(r, "groundColor").into_iter().map(linear).collect();
+        let dir = self.scene.documents[r.doc].0.parent().map(Path::to_path_buf).unwrap_or_default();
+        let mut faces = Vec::new();
+        for (field, axis, right, up) in super::background::FACES {
+            let urls = self.strings(r, field);
+            if urls.is_empty() {
+                continue;
+            }
+            let loc = self.doc(r.doc).node(r.node).field(field).map_or(self.loc_of(r), |f| f.loc);
+            let found =
+                urls.iter().find_map(|u| relative_path(u).ok().map(|rel| dir.join(rel)).filter(|p| p.is_file()));
+            let loaded = found.as_deref().map(|path| crate::texture::load_texture_image(path, false));
+            match loaded {
+                Some(Ok(image)) => faces.push(super::background::Face { image: image.image, axis, right, up }),
+                Some(Err(e)) => self.warn_once(
+                    format!("background:{field}"),
+                    r.doc,
+                    loc,
+                    Severity::Omission,
+                    format!("Background {field}: {e}; that face of the panorama is not drawn"),
+                ),
+                None => self.warn_once(
+                    format!("background:{field}"),
+                    r.doc,
+                    loc,
+                    Severity::Omission,
+                    format!(
+                        "Background {field}: no URL names a file inside the scene's folder ({}); that face of the panorama is not drawn",
+                        urls.join(", ")
+                    ),
+                ),
+            }
         }
-        let color = sky.first().copied().unwrap_or(Vec3::ZERO);
-        let id = self.shader("background")?;
-        self.rt.pixel_shader(Some(id), &[("background", ParamValue::Color(linear(color)))])?;
+        let color = sky.first().copied().unwrap_or([0.0; 3]);
+        if sky.len() <= 1 && ground.len() <= 1 && faces.is_empty() {
+            let id = self.shader("background")?;
+            self.rt.pixel_shader(Some(id), &[("background", ParamValue::Color(color))])?;
+            return Ok(());
+        }
+        let backdrop = super::background::Backdrop {
+            sky,
+            sky_angles: self.floats(r, "skyAngle"),
+            ground,
+            ground_angles: self.floats(r, "groundAngle"),
+            faces,
+            rotation: world.to_scale_rotation_translation().1,
+        };
+        let (w, h, texels) = backdrop.map();
+        let name = format!("{}#background", self.files[r.doc].display());
+        self.rt.tex_image_2d(&name, w, h, 3, &texels)?;
+        let id = self.shader("envbackground")?;
+        self.rt.pixel_shader(
+            Some(id),
+            &[("envname", ParamValue::String(name)), ("background", ParamValue::Color(color))],
+        )?;
         Ok(())
     }
 

@@ -33,6 +33,7 @@
 //!   climb out with `..`, URLs with a scheme and cycles are errors.
 
 pub mod animate;
+pub mod background;
 pub mod build;
 pub mod events;
 pub mod lex;

@@ -221,6 +221,48 @@ fn a_background_colours_what_rays_miss() {
     assert!((0..3).all(|i| (p[i] - want[i]).abs() < 1e-3) && p[3] == 1.0, "{p:?}");
 }
 
+/// Sky and ground gradients and panorama images are seen along the camera rays that miss: up is
+/// sky, down ground, and the front image (at -z, where the default Viewpoint looks) upright and
+/// not mirrored.
+#[test]
+fn a_background_shows_its_gradients_and_panorama_along_the_camera_rays() {
+    let (mut rt, scene) = load(
+        "Background { skyColor [ 0 0 1, 0 0 1 ] skyAngle [ 1.6 ] groundColor [ 0 1 0, 0 1 0 ] groundAngle [ 1.5 ] }
+         Viewpoint { position 0 0 0 orientation 1 0 0 1.2 fieldOfView 0.3 }
+         NavigationInfo { headlight FALSE }",
+    );
+    assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
+    rt.options.width = 8;
+    rt.options.height = 8;
+    let (fb, _) = rt.render_frame().expect("rendered");
+    let p = fb.pixel(4, 4);
+    assert!(p[2] > 0.9 && p[1] < 0.1, "looking up: sky {p:?}");
+
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    // The front image: red on its left half, green on its right.
+    let mut front = image::RgbImage::new(8, 8);
+    for (x, _, px) in front.enumerate_pixels_mut() {
+        *px = if x < 4 { image::Rgb([255, 0, 0]) } else { image::Rgb([0, 255, 0]) };
+    }
+    front.save(dir.path().join("front.png")).expect("saved");
+    let main = dir.path().join("bg.wrl");
+    std::fs::write(
+        &main,
+        "#VRML V2.0 utf8\nBackground { skyColor 0 0 1 frontUrl \"front.png\" groundColor [ 0 1 0, 0 1 0 ] groundAngle [ 1.5 ] }\n\
+         Viewpoint { position 0 0 0 fieldOfView 0.5 }\nNavigationInfo { headlight FALSE }\n",
+    )
+    .expect("written");
+    let mut rt = Context::new();
+    let scene = build(&mut rt, &main).expect("loads");
+    assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
+    rt.options.width = 16;
+    rt.options.height = 8;
+    let (fb, _) = rt.render_frame().expect("rendered");
+    let (left, right) = (fb.pixel(3, 4), fb.pixel(12, 4));
+    assert!(left[0] > 0.9 && left[1] < 0.1, "the image's left half on the left: {left:?}");
+    assert!(right[1] > 0.9 && right[0] < 0.1, "its right half on the right: {right:?}");
+}
+
 #[test]
 fn inline_files_are_read_relative_and_refused_outside() {
     let dir = tempfile::tempdir().expect("a temporary directory");
