@@ -37,12 +37,42 @@ impl VrmlScene {
     pub fn senses(&self) -> bool {
         const SENSORS: [&str; 6] =
             ["TouchSensor", "PlaneSensor", "SphereSensor", "CylinderSensor", "ProximitySensor", "VisibilitySensor"];
-        self.events.sources().any(|r| {
-            self.documents
-                .get(r.doc)
-                .and_then(|(_, d)| d.nodes.get(r.node.0 as usize))
-                .is_some_and(|n| SENSORS.contains(&n.type_name.as_str()))
-        })
+        !self.view_nodes.is_empty()
+            || self.events.sources().any(|r| {
+                self.documents
+                    .get(r.doc)
+                    .and_then(|(_, d)| d.nodes.get(r.node.0 as usize))
+                    .is_some_and(|n| SENSORS.contains(&n.type_name.as_str()))
+            })
+    }
+
+    /// Marks the Billboards, and the LODs whose level changes, for the animation pass when the
+    /// camera has moved since they were last placed.
+    pub(super) fn follow_camera(&mut self, rt: &mut Context) {
+        let camera = rt.camera().world_from_camera;
+        if self.view_nodes.is_empty() || self.placed_for_camera == Some(camera) {
+            return;
+        }
+        self.placed_for_camera = Some(camera);
+        for r in self.view_nodes.clone() {
+            let Some((_, doc)) = self.documents.get(r.doc) else { continue };
+            if doc.node(r.node).type_name != "LOD" {
+                self.events.dirty.insert(r);
+                continue;
+            }
+            // The LOD's frame: the path of anything under it, up to it.
+            let above = self
+                .shapes
+                .iter()
+                .map(|p| &p.path)
+                .chain(self.lights.iter().map(|p| &p.path))
+                .find_map(|path| path.iter().position(|g| *g == r).map(|at| path[..at].to_vec()));
+            let Some(above) = above else { continue };
+            let level = build::lod_level_of(rt, self, r, &above);
+            if self.lod_levels.insert(r, level) != Some(level) {
+                self.events.dirty.insert(r);
+            }
+        }
     }
 
     /// Runs the scene's events up to `time` (seconds; the scene loads at 0) and shows what they
@@ -56,6 +86,7 @@ impl VrmlScene {
         if time.is_finite() {
             self.sense_camera(time, rt);
         }
+        self.follow_camera(rt);
         self.events.advance(&mut self.documents, time);
         self.apply(rt)
     }
@@ -129,8 +160,10 @@ impl VrmlScene {
                 .and_then(|(_, d)| d.nodes.get(r.node.0 as usize))
                 .is_some_and(|n| n.type_name == t)
         };
-        let moved: BTreeSet<NodeRef> = dirty.iter().filter(|r| is_type(self, r, "Transform")).copied().collect();
-        let switched: BTreeSet<NodeRef> = dirty.iter().filter(|r| is_type(self, r, "Switch")).copied().collect();
+        let moved: BTreeSet<NodeRef> =
+            dirty.iter().filter(|r| is_type(self, r, "Transform") || is_type(self, r, "Billboard")).copied().collect();
+        let switched: BTreeSet<NodeRef> =
+            dirty.iter().filter(|r| is_type(self, r, "Switch") || is_type(self, r, "LOD")).copied().collect();
         let mut changed = false;
         if !moved.is_empty() || !switched.is_empty() {
             for i in 0..self.shapes.len() {
@@ -214,10 +247,17 @@ impl VrmlScene {
             let Some(node) = self.documents.get(g.doc).and_then(|(_, d)| d.nodes.get(g.node.0 as usize)) else {
                 continue;
             };
+            let next = placed.path.get(k + 1).copied().unwrap_or(placed.node);
+            if node.type_name == "LOD" {
+                let level = self.lod_levels.get(g).copied().unwrap_or(0);
+                if children(&self.documents[g.doc].1, *g, "level").position(|c| c == next) != Some(level) {
+                    return false;
+                }
+                continue;
+            }
             if node.type_name != "Switch" {
                 continue;
             }
-            let next = placed.path.get(k + 1).copied().unwrap_or(placed.node);
             let which = match node.field("whichChoice").map(|f| &f.value) {
                 Some(Value::Numbers(n)) if n.len() == 1 => n[0],
                 _ => -1.0,

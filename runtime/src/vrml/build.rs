@@ -69,7 +69,12 @@ pub fn build_str_with(rt: &mut Context, text: &str, path: &Path, options: &VrmlO
         textures: b.textures.clone(),
         pixel_textures: b.pixel_textures,
     };
-    Ok(b.scene)
+    let mut scene = b.scene;
+    // Billboards and LODs were placed for the camera as the walk found it; the Viewpoint bound
+    // after them may have moved it.
+    scene.follow_camera(rt);
+    scene.apply(rt)?;
+    Ok(scene)
 }
 
 /// What the walk made that a later rebuild of an object (as animation changes its fields) uses
@@ -88,13 +93,25 @@ pub(super) fn world_of(rt: &mut Context, scene: &mut VrmlScene, path: &[NodeRef]
     with_builder(rt, scene, |b| {
         let mut world = Affine3A::IDENTITY;
         for &r in path {
-            if b.type_of(r) == "Transform" {
-                world *= b.transform(r);
+            match b.type_of(r) {
+                "Transform" => world *= b.transform(r),
+                "Billboard" => world *= b.billboard(r, world),
+                _ => {}
             }
         }
         Ok(world)
     })
     .unwrap_or(Affine3A::IDENTITY)
+}
+
+/// The level LOD `r` (reached along `path`) shows for the camera as it stands.
+pub(super) fn lod_level_of(rt: &mut Context, scene: &mut VrmlScene, r: NodeRef, path: &[NodeRef]) -> usize {
+    let world = world_of(rt, scene, path);
+    with_builder(rt, scene, |b| {
+        let levels = b.nodes(r, "level").len();
+        Ok(b.lod_level(r, world, levels))
+    })
+    .unwrap_or(0)
 }
 
 /// Builds object `id` again from `geometry` and `appearance` as their fields stand (animation
@@ -595,14 +612,11 @@ impl<'a> Builder<'a> {
         match type_name.as_str() {
             "Group" | "Anchor" | "Collision" => children(self, &["children"], world, trail),
             "Billboard" => {
-                self.warn_once(
-                    "node:Billboard".into(),
-                    r.doc,
-                    loc,
-                    Severity::Warning,
-                    "Billboard is drawn as a Group (it does not turn to face the viewer)",
-                );
-                children(self, &["children"], world, trail)
+                // Turned to the camera as it stands now; the animation pass turns it again as the
+                // camera moves (a Viewpoint bound later, the viewer's navigation).
+                self.scene.view_nodes.push(r);
+                let turned = world * self.billboard(r, world);
+                children(self, &["children"], turned, trail)
             }
             "Transform" => {
                 let m = world * self.transform(r);
@@ -637,22 +651,24 @@ impl<'a> Builder<'a> {
                 Ok(())
             }
             "LOD" => {
+                // Every level is placed, those not chosen for the camera as it stands hidden; the
+                // animation pass chooses again as the camera moves.
+                self.scene.view_nodes.push(r);
                 let levels = self.nodes(r, "level");
-                if levels.len() > 1 {
-                    self.warn_once(
-                        "node:LOD".into(),
-                        r.doc,
-                        loc,
-                        Severity::Warning,
-                        "LOD draws its first (most detailed) level at every distance",
-                    );
+                let chosen = self.lod_level(r, world, levels.len());
+                self.scene.lod_levels.insert(r, chosen);
+                trail.push(r);
+                for (k, level) in levels.into_iter().enumerate() {
+                    let unchosen = k != chosen;
+                    self.unchosen += usize::from(unchosen);
+                    let result = self.visit(level, world, trail, depth + 1);
+                    self.unchosen -= usize::from(unchosen);
+                    if result.is_err() {
+                        trail.pop();
+                        return result;
+                    }
                 }
-                if let Some(&first) = levels.first() {
-                    trail.push(r);
-                    let result = self.visit(first, world, trail, depth + 1);
-                    trail.pop();
-                    result?;
-                }
+                trail.pop();
                 Ok(())
             }
             "Inline" => self.inline(r, world, trail, depth),
@@ -899,6 +915,55 @@ impl<'a> Builder<'a> {
             std::f32::consts::FRAC_PI_4
         };
         Viewpoint { description, eye, forward, up, field_of_view }
+    }
+
+    /// A Billboard's rotation (ISO/IEC 14772-1, 6.6) in its parent's frame `world`, toward the
+    /// camera as it stands: about `axisOfRotation` so that the local +z axis points at the viewer
+    /// as nearly as the axis allows, or, for a zero axis, with +z at the viewer and +y along the
+    /// camera's up. Identity where the viewer is on the axis (or the frame is degenerate).
+    fn billboard(&mut self, r: NodeRef, world: Affine3A) -> Affine3A {
+        let axis = self.vec3(r, "axisOfRotation", Vec3::Y);
+        let camera = *self.rt.camera();
+        let local_from_world = world.inverse();
+        if !local_from_world.is_finite() {
+            return Affine3A::IDENTITY;
+        }
+        let eye = Vec3::from(local_from_world.transform_point3a(camera.eye()));
+        let turn = if axis.length_squared() < 1e-12 {
+            let up = Vec3::from(local_from_world.transform_vector3a(camera.world_from_camera.matrix3.y_axis));
+            let z = eye.normalize_or_zero();
+            let x = up.cross(z).normalize_or_zero();
+            if z == Vec3::ZERO || x == Vec3::ZERO {
+                return Affine3A::IDENTITY;
+            }
+            Quat::from_mat3(&glam::Mat3::from_cols(x, z.cross(x), z))
+        } else {
+            let a = axis.normalize();
+            let to_eye = eye - a * a.dot(eye);
+            let z = Vec3::Z - a * a.z;
+            if to_eye.length_squared() < 1e-12 || z.length_squared() < 1e-12 {
+                return Affine3A::IDENTITY;
+            }
+            let (to_eye, z) = (to_eye.normalize(), z.normalize());
+            Quat::from_axis_angle(a, z.cross(to_eye).dot(a).atan2(z.dot(to_eye)))
+        };
+        Affine3A::from_quat(turn)
+    }
+
+    /// The level an LOD shows (6.26) for the camera as it stands: the first whose `range` entry
+    /// is beyond the viewer's distance from `center` in the LOD's frame `world`, the last past
+    /// them all; the first without ranges.
+    fn lod_level(&mut self, r: NodeRef, world: Affine3A, levels: usize) -> usize {
+        let ranges = self.floats(r, "range");
+        let center = self.vec3(r, "center", Vec3::ZERO);
+        let eye = Vec3::from(world.inverse().transform_point3a(self.rt.camera().eye()));
+        let distance = eye.distance(center);
+        let k = if ranges.is_empty() || !distance.is_finite() {
+            0
+        } else {
+            ranges.iter().position(|&x| distance < x).unwrap_or(ranges.len())
+        };
+        k.min(levels.saturating_sub(1))
     }
 
     /// The first Background of the scene file: one sky colour alone is the `background` imager's

@@ -249,6 +249,13 @@ pub struct VrmlScene {
     pub(crate) object_lights: std::collections::HashMap<ObjectId, String>,
     /// The pointing-device, proximity and visibility sensors' state between events.
     pub(crate) sensing: sensors::Sensing,
+    /// Every Billboard and LOD reached: they follow the camera, so the animation pass places what
+    /// is under them again when it moves.
+    pub view_nodes: Vec<NodeRef>,
+    /// The level each LOD shows, as the camera last stood.
+    pub(crate) lod_levels: std::collections::HashMap<NodeRef, usize>,
+    /// The camera the view nodes were last placed for.
+    pub(crate) placed_for_camera: Option<glam::Affine3A>,
 }
 
 impl VrmlScene {

@@ -138,10 +138,10 @@ fn switch_lod_and_billboard_choose_their_children() {
     assert_eq!(rt.world_instance_ids().len(), 3);
     let kinds: Vec<&str> =
         scene.objects.iter().map(|(g, _, _)| scene.documents[0].1.node(g.node).type_name.as_str()).collect();
-    assert_eq!(kinds, ["Sphere", "Cone", "Sphere"]);
-    let messages: Vec<&str> = scene.warnings.iter().map(|w| w.message.as_str()).collect();
-    assert!(messages.iter().any(|m| m.contains("Billboard")), "{messages:?}");
-    assert!(messages.iter().any(|m| m.contains("LOD")), "{messages:?}");
+    // Every LOD level is made (the camera chooses among them as it moves), only the chosen one
+    // (the first: no ranges) drawn.
+    assert_eq!(kinds, ["Sphere", "Cone", "Box", "Sphere"]);
+    assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
 }
 
 #[test]
@@ -261,6 +261,30 @@ fn a_background_shows_its_gradients_and_panorama_along_the_camera_rays() {
     let (left, right) = (fb.pixel(3, 4), fb.pixel(12, 4));
     assert!(left[0] > 0.9 && left[1] < 0.1, "the image's left half on the left: {left:?}");
     assert!(right[1] > 0.9 && right[0] < 0.1, "its right half on the right: {right:?}");
+}
+
+/// A Billboard turns its children's +z toward the viewer about its axis, and turns again as the
+/// camera moves; an LOD shows the level its ranges choose for the viewer's distance, and changes
+/// level as the viewer moves (ISO/IEC 14772-1, 6.6 and 6.26).
+#[test]
+fn billboards_and_lods_follow_the_camera() {
+    let (mut rt, mut scene) = load(
+        "Billboard { children Transform { translation 0 0 1 children Shape { geometry Box { size 0.2 0.2 0.2 } } } }
+         LOD { range [ 10 ] level [ Shape { geometry Box { size 0.1 0.1 0.1 } } Shape { geometry Sphere { radius 0.1 } } ] }
+         Viewpoint { position 5 0 0 orientation 0 1 0 1.5707963 }",
+    );
+    assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
+    let at = |scene: &VrmlScene| Vec3::from(scene.shapes[0].world.translation);
+    // The viewer on +x: the child at local +z swings round to +x.
+    assert!(at(&scene).abs_diff_eq(Vec3::X, 1e-4), "{}", at(&scene));
+    assert!(scene.hidden_shapes.contains(&2) && !scene.hidden_shapes.contains(&1), "near: the first level");
+    rt.camera_look_at(Vec3::new(0.0, 3.0, -50.0), Vec3::ZERO, Vec3::Y, 40.0);
+    scene.advance_to(0.0, &mut rt).expect("advanced");
+    // About the y axis only: the viewer's height does not tilt it.
+    assert!(at(&scene).abs_diff_eq(Vec3::new(0.0, 0.0, -1.0), 1e-3), "{}", at(&scene));
+    assert!(scene.hidden_shapes.contains(&1) && !scene.hidden_shapes.contains(&2), "far: the second level");
+    let (fb, _) = rt.render_frame().expect("renders");
+    assert_eq!(fb.width, rt.options.width);
 }
 
 #[test]
