@@ -1139,7 +1139,18 @@ fn a_copied_binary_renders_with_its_built_in_library() {
         if let Some(library) = library {
             c.env("RTSL_STDLIB", library);
         }
-        c.output().expect("the copied binary runs")
+        // A binary just written may be busy for a moment (ETXTBSY): another test thread forking
+        // then holds the copy's write descriptor until its child execs.
+        let mut attempts = 0;
+        loop {
+            match c.output() {
+                Err(e) if e.raw_os_error() == Some(26) && attempts < 50 => {
+                    attempts += 1;
+                    std::thread::sleep(std::time::Duration::from_millis(20));
+                }
+                r => break r.expect("the copied binary runs"),
+            }
+        }
     };
     let o = run(&["render", "scene.rib", "-o", "out.png", "-q"], None);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
