@@ -697,7 +697,7 @@ impl<'a> Builder<'a> {
                 Ok(())
             }
             "Background" => self.background(r, world),
-            "Fog" => self.fog(r),
+            "Fog" => self.fog(r, world),
             _ => {
                 match support {
                     Support::Read => self.warn_once(
@@ -1033,42 +1033,30 @@ impl<'a> Builder<'a> {
         Ok(())
     }
 
-    fn fog(&mut self, r: NodeRef) -> Result<()> {
+    /// The first Fog of the scene file, through the `vrmlfog` atmosphere: VRML's LINEAR or
+    /// EXPONENTIAL blend by the distance from the eye, its `visibilityRange` scaled by the
+    /// Transforms above it (6.19).
+    fn fog(&mut self, r: NodeRef, world: Affine3A) -> Result<()> {
         if self.fog_bound || r.doc != 0 {
             return Ok(());
         }
         self.fog_bound = true;
-        let range = self.float(r, "visibilityRange", 0.0);
-        if range <= 0.0 {
+        let scale = world.matrix3.determinant().abs().cbrt();
+        let range = self.float(r, "visibilityRange", 0.0) * if scale.is_finite() { scale } else { 1.0 };
+        if range <= 0.0 || !range.is_finite() {
             return Ok(());
         }
         let color = linear(self.vec3(r, "color", Vec3::ONE));
         let kind = self.strings(r, "fogType").into_iter().next().unwrap_or_else(|| "LINEAR".into());
-        let loc = self.loc_of(r);
-        self.warn_once(
-            "fog".into(),
-            r.doc,
-            loc,
-            Severity::Warning,
-            "Fog is approximated by the depthcue (LINEAR) or fog (EXPONENTIAL) atmosphere shader",
-        );
-        if kind == "EXPONENTIAL" {
-            let id = self.shader("fog")?;
-            self.rt.atmosphere(
-                Some(id),
-                &[("distance", ParamValue::Float(range * 0.5)), ("background", ParamValue::Color(color))],
-            )?;
-        } else {
-            let id = self.shader("depthcue")?;
-            self.rt.atmosphere(
-                Some(id),
-                &[
-                    ("mindistance", ParamValue::Float(0.0)),
-                    ("maxdistance", ParamValue::Float(range)),
-                    ("background", ParamValue::Color(color)),
-                ],
-            )?;
-        }
+        let id = self.shader("vrmlfog")?;
+        self.rt.atmosphere(
+            Some(id),
+            &[
+                ("fogcolor", ParamValue::Color(color)),
+                ("visibilityrange", ParamValue::Float(range)),
+                ("exponential", ParamValue::Float(if kind == "EXPONENTIAL" { 1.0 } else { 0.0 })),
+            ],
+        )?;
         Ok(())
     }
 

@@ -287,6 +287,28 @@ fn billboards_and_lods_follow_the_camera() {
     assert_eq!(fb.width, rt.options.width);
 }
 
+/// Fog blends toward its colour by the distance from the eye as 6.19 says: LINEAR keeps
+/// (range - d) / range of the surface's colour, EXPONENTIAL exp(-d / (range - d)).
+#[test]
+fn fog_blends_by_distance_as_vrml_says() {
+    for (kind, kept) in [("LINEAR", 0.5f32), ("EXPONENTIAL", (-1.0f32).exp())] {
+        let (mut rt, scene) = load(&format!(
+            "Fog {{ color 1 0 0 visibilityRange 8 fogType \"{kind}\" }}
+             Viewpoint {{ position 0 0 5 }}
+             NavigationInfo {{ headlight FALSE }}
+             Shape {{ appearance Appearance {{ material Material {{ diffuseColor 0 0 0 emissiveColor 0 0 1 }} }}
+                      geometry Box {{ size 2 2 2 }} }}"
+        ));
+        assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
+        rt.options.width = 9;
+        rt.options.height = 9;
+        let (fb, _) = rt.render_frame().expect("rendered");
+        // The centre ray meets the box's front face 4 from the eye.
+        let p = fb.pixel(4, 4);
+        assert!((p[2] - kept).abs() < 2e-3 && (p[0] - (1.0 - kept)).abs() < 2e-3, "{kind}: {p:?}");
+    }
+}
+
 #[test]
 fn inline_files_are_read_relative_and_refused_outside() {
     let dir = tempfile::tempdir().expect("a temporary directory");
