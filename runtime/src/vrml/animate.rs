@@ -46,14 +46,23 @@ impl VrmlScene {
             })
     }
 
-    /// Marks the Billboards, and the LODs whose level changes, for the animation pass when the
-    /// camera has moved since they were last placed.
-    pub(super) fn follow_camera(&mut self, rt: &mut Context) {
+    /// When the camera has moved since the last call: turns the headlight with it (VRML's
+    /// headlight points where the user looks) and marks the Billboards, and the LODs whose level
+    /// changes, for the animation pass. Returns whether the headlight moved.
+    pub(super) fn follow_camera(&mut self, rt: &mut Context) -> Result<bool, SceneFileError> {
         let camera = rt.camera().world_from_camera;
-        if self.view_nodes.is_empty() || self.placed_for_camera == Some(camera) {
-            return;
+        if self.placed_for_camera == Some(camera) {
+            return Ok(false);
         }
         self.placed_for_camera = Some(camera);
+        let mut moved = false;
+        if let Some((light, made_for)) = self.headlight {
+            let turn = camera * made_for.inverse();
+            if turn.is_finite() {
+                rt.set_light_transform(light, turn)?;
+                moved = true;
+            }
+        }
         for r in self.view_nodes.clone() {
             let Some((_, doc)) = self.documents.get(r.doc) else { continue };
             if doc.node(r.node).type_name != "LOD" {
@@ -73,6 +82,7 @@ impl VrmlScene {
                 self.events.dirty.insert(r);
             }
         }
+        Ok(moved)
     }
 
     /// Runs the scene's events up to `time` (seconds; the scene loads at 0) and shows what they
@@ -86,9 +96,9 @@ impl VrmlScene {
         if time.is_finite() {
             self.sense_camera(time, rt);
         }
-        self.follow_camera(rt);
+        let turned = self.follow_camera(rt)?;
         self.events.advance(&mut self.documents, time);
-        self.apply(rt)
+        Ok(self.apply(rt)? | turned)
     }
 
     /// A click at `time` on `instance`: the enabled TouchSensors of the innermost group above its

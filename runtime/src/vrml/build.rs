@@ -72,7 +72,7 @@ pub fn build_str_with(rt: &mut Context, text: &str, path: &Path, options: &VrmlO
     let mut scene = b.scene;
     // Billboards and LODs were placed for the camera as the walk found it; the Viewpoint bound
     // after them may have moved it.
-    scene.follow_camera(rt);
+    scene.follow_camera(rt)?;
     scene.apply(rt)?;
     Ok(scene)
 }
@@ -1803,7 +1803,8 @@ impl<'a> Builder<'a> {
             // VRML's headlight: a directional light of intensity 1 along the view, at the camera
             // the scene starts with.
             let id = self.shader("distantlight")?;
-            super::add_headlight(self.rt, id)?;
+            let light = super::add_headlight(self.rt, id)?;
+            self.scene.headlight = Some((light, self.rt.camera().world_from_camera));
         }
         Ok(())
     }

@@ -151,7 +151,7 @@ pub(crate) fn place_instance(
 pub(crate) fn add_headlight(
     rt: &mut Context,
     id: crate::api::ShaderId,
-) -> std::result::Result<(), crate::api::ApiError> {
+) -> std::result::Result<LightId, crate::api::ApiError> {
     use crate::shading::ParamValue;
     let camera = rt.camera().world_from_camera;
     let (eye, forward) = (camera.translation, camera.matrix3 * Vec3A::Z);
@@ -162,8 +162,9 @@ pub(crate) fn add_headlight(
         &[("from", ParamValue::Point(eye.to_array())), ("to", ParamValue::Point((eye + forward).to_array()))],
     );
     rt.pop_matrix()?;
-    rt.set_light(light?, true, false)?;
-    Ok(())
+    let light = light?;
+    rt.set_light(light, true, false)?;
+    Ok(light)
 }
 
 /// A node of one of the scene's files: `docs[doc]`'s node `node`.
@@ -254,8 +255,10 @@ pub struct VrmlScene {
     pub view_nodes: Vec<NodeRef>,
     /// The level each LOD shows, as the camera last stood.
     pub(crate) lod_levels: std::collections::HashMap<NodeRef, usize>,
-    /// The camera the view nodes were last placed for.
+    /// The camera the view nodes and the headlight were last placed for.
     pub(crate) placed_for_camera: Option<glam::Affine3A>,
+    /// The headlight and the camera it was made for: it turns with the camera (`follow_camera`).
+    pub(crate) headlight: Option<(LightId, glam::Affine3A)>,
 }
 
 impl VrmlScene {

@@ -1132,7 +1132,8 @@ impl Builder<'_> {
         }
         if self.lights == 0 {
             let id = self.shader("distantlight")?;
-            super::add_headlight(self.rt, id)?;
+            let light = super::add_headlight(self.rt, id)?;
+            self.scene.headlight = Some((light, self.rt.camera().world_from_camera));
             let ambient = self.shader("ambientlight")?;
             self.rt.light_source(ambient, &[("intensity", ParamValue::Float(0.3))])?;
         }

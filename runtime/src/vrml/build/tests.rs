@@ -287,6 +287,21 @@ fn billboards_and_lods_follow_the_camera() {
     assert_eq!(fb.width, rt.options.width);
 }
 
+/// The headlight points where the user looks: it turns with the camera.
+#[test]
+fn the_headlight_turns_with_the_camera() {
+    let (mut rt, mut scene) = load("Viewpoint { position 0 0 5 } Shape { geometry Box {} }");
+    let (light, made_for) = scene.headlight.expect("a headlight");
+    assert!(rt.light_transform(light).expect("a light").abs_diff_eq(Affine3A::IDENTITY, 1e-5));
+    rt.camera_look_at(Vec3::new(5.0, 0.0, 0.0), Vec3::ZERO, Vec3::Y, 45.0);
+    assert!(scene.advance_to(0.0, &mut rt).expect("advanced"), "the scene changed");
+    let now = rt.camera().world_from_camera;
+    let turned = rt.light_transform(light).expect("a light");
+    assert!(turned.abs_diff_eq(now * made_for.inverse(), 1e-4), "{turned:?}");
+    // Its direction is now the camera's: from +x toward the origin.
+    assert!(turned.transform_vector3(Vec3::NEG_Z).abs_diff_eq(Vec3::NEG_X, 1e-4));
+}
+
 /// Fog blends toward its colour by the distance from the eye as 6.19 says: LINEAR keeps
 /// (range - d) / range of the surface's colour, EXPONENTIAL exp(-d / (range - d)).
 #[test]
