@@ -277,6 +277,24 @@ fn read_header(path: &Path, bytes: &[u8]) -> Result<Header, ArtifactError> {
     Ok(Header { version, fingerprint, source, rest: FIXED_HEADER + source_len })
 }
 
+/// `bytes` with its header's version and fingerprint made this compiler's, its payload length
+/// made the length of what follows the checksum, and the checksum recomputed: what a forger (or a
+/// fuzzer) changing the payload would write. `None` when the header itself is unreadable. Loading
+/// such bytes must still never crash: the payload is validated, not trusted.
+pub fn reframe(bytes: &[u8]) -> Option<Vec<u8>> {
+    let header = read_header(Path::new(""), bytes).ok()?;
+    let at = header.rest;
+    let body = bytes.get(at + 40..)?;
+    let mut out = bytes.get(..at)?.to_vec();
+    out[8..12].copy_from_slice(&FORMAT_VERSION.to_le_bytes());
+    out[12..44].copy_from_slice(&fingerprint());
+    out.extend_from_slice(&(body.len() as u64).to_le_bytes());
+    let sum = checksum(&out, body);
+    out.extend_from_slice(&sum);
+    out.extend_from_slice(body);
+    Some(out)
+}
+
 /// Decodes and validates an artifact's bytes (no look at the files on disk). `path` names it in errors.
 pub fn decode(path: &Path, bytes: &[u8]) -> Result<Artifact, ArtifactError> {
     let header = read_header(path, bytes)?;

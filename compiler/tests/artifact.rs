@@ -609,3 +609,33 @@ fn statements_nested_to_the_limit_decode_and_run() {
         .join()
         .expect("both back ends ran the shader");
 }
+
+/// `reframe` writes what a forger changing the payload would: a damaged payload, refused for its
+/// checksum, then decodes as far as its bytes allow, and an intact artifact stays byte for byte
+/// the same. Every byte of the payload flipped in turn must then decode or be refused, never
+/// crash, and what decodes must compile.
+#[test]
+fn reframed_artifacts_reach_the_validator_and_never_crash() {
+    let (dir, shader, _) = shader_with_header("color(1, 0.5, 0)");
+    let (_, bytes) = compiled_artifact(&shader, &Options::default());
+    assert_eq!(artifact::reframe(&bytes).as_deref(), Some(&bytes[..]), "an intact artifact is unchanged");
+    assert_eq!(artifact::reframe(b"not an artifact"), None);
+    let mut decoded = 0;
+    let mut refused_for_checksum = 0;
+    let tail = bytes.len().min(600);
+    for k in bytes.len() - tail..bytes.len() {
+        let mut damaged = bytes.clone();
+        damaged[k] ^= 0x5a;
+        if matches!(artifact::decode(&shader, &damaged), Err(ArtifactError::Corrupt { .. })) {
+            refused_for_checksum += 1;
+        }
+        let Some(forged) = artifact::reframe(&damaged) else { continue };
+        if let Ok(a) = artifact::decode(&shader, &forged) {
+            decoded += 1;
+            let _ = rtsl_compiler::back::jit::compile(&a.module);
+        }
+    }
+    assert!(refused_for_checksum > tail / 2, "{refused_for_checksum} of {tail} damaged artifacts refused");
+    assert!(decoded > 0, "some forged payloads decode");
+    drop(dir);
+}
