@@ -22,6 +22,13 @@ seed obj
 seed ply
 seed gltf $(ls ../../shared/scenes/box_animated_gltf/*.gltf 2>/dev/null)
 seed artifact
+# Real artifacts, so that mutations start from payloads the decoder reads (the target frames each
+# input again with a correct checksum).
+if [ -z "$(ls -A corpus/artifact)" ]; then
+    cargo run -q --release --manifest-path ../Cargo.toml --bin rtsl -- compile -o corpus/artifact \
+        ../stdlib_shaders/surface/*.sl ../stdlib_shaders/light/*.sl >/dev/null 2>&1 || true
+    rm -f corpus/artifact/index.json
+fi
 seed replica
 seed protocol
 status=0
