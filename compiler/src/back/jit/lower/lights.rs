@@ -8,7 +8,7 @@ use crate::back::jit::mask::{self, any, choose, widen};
 use crate::back::jit::JitError;
 use crate::globals::Global;
 use crate::ir::{self, Arg, Constant, ExprId, ExprKind, Place, PlaceBase, Type};
-use cranelift_codegen::ir::condcodes::{FloatCC, IntCC};
+use cranelift_codegen::ir::condcodes::FloatCC;
 use cranelift_codegen::ir::{types, InstBuilder, MemFlagsData, Value};
 
 impl<'m> Lower<'m, '_> {
@@ -396,21 +396,9 @@ impl<'m> Lower<'m, '_> {
         self.b.ins().brif(live, body, &[], done, &[]);
 
         self.b.switch_to_block(body);
-        let flags = MemFlagsData::new().with_endianness(cranelift_codegen::ir::Endianness::Little);
-        let handles = self.b.ins().bitcast(types::I32X4, flags, names.c[0]);
-        // The handle of the first pending lane.
-        let mut h = self.b.ins().extractlane(handles, 3);
-        for l in (0..3u8).rev() {
-            let on = self.b.ins().extractlane(p, l);
-            let hl = self.b.ins().extractlane(handles, l);
-            h = self.b.ins().select(on, hl, h);
-        }
-        let hs = self.b.ins().splat(types::I32X4, h);
-        let same = self.b.ins().icmp(IntCC::Equal, handles, hs);
-        let m = self.b.ins().band(p, same);
+        let (m, one) = self.first_pending_string(names, p);
         self.set_exec(m);
-        let one = self.b.ins().bitcast(types::F32, flags, h);
-        run(self, Val { vary: false, c: vec![one] })?;
+        run(self, one)?;
         let left = self.exec();
         let acc = self.b.use_var(out);
         let acc = self.b.ins().bor(acc, left);

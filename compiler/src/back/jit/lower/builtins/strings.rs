@@ -95,21 +95,9 @@ impl<'m> Lower<'m, '_> {
         self.b.ins().brif(live, body, &[], done, &[]);
 
         self.b.switch_to_block(body);
-        let flags = MemFlagsData::new().with_endianness(cranelift_codegen::ir::Endianness::Little);
-        let handles = self.b.ins().bitcast(types::I32X4, flags, names.c[0]);
-        // The handle of the first pending lane.
-        let mut h = self.b.ins().extractlane(handles, 3);
-        for l in (0..3u8).rev() {
-            let on = self.b.ins().extractlane(p, l);
-            let hl = self.b.ins().extractlane(handles, l);
-            h = self.b.ins().select(on, hl, h);
-        }
-        let hs = self.b.ins().splat(types::I32X4, h);
-        let same = self.b.ins().icmp(IntCC::Equal, handles, hs);
-        let m = self.b.ins().band(p, same);
+        let (m, one) = self.first_pending_string(&names, p);
         self.set_exec(m);
-        let one = self.b.ins().bitcast(types::F32, flags, h);
-        self.cache.insert((depth, x.0), Val { vary: false, c: vec![one] });
+        self.cache.insert((depth, x.0), one);
         let r = self.builtin(bi, overload, args, e);
         self.cache.insert((depth, x.0), names);
         let r = r?;
@@ -128,6 +116,24 @@ impl<'m> Lower<'m, '_> {
         self.set_exec(save);
         let c = acc.iter().map(|a| self.b.use_var(*a)).collect();
         Ok(Some(Val { vary: true, c }))
+    }
+
+    /// Of the varying strings `names`, the string of the first lane in `pending` (as a uniform
+    /// value) and the pending lanes that hold it (a mask): one round of a split over strings.
+    pub(in crate::back::jit::lower) fn first_pending_string(&mut self, names: &Val, pending: cranelift_codegen::ir::Value) -> (cranelift_codegen::ir::Value, Val) {
+        let flags = MemFlagsData::new().with_endianness(cranelift_codegen::ir::Endianness::Little);
+        let handles = self.b.ins().bitcast(types::I32X4, flags, names.c[0]);
+        let mut h = self.b.ins().extractlane(handles, 3);
+        for l in (0..3u8).rev() {
+            let on = self.b.ins().extractlane(pending, l);
+            let hl = self.b.ins().extractlane(handles, l);
+            h = self.b.ins().select(on, hl, h);
+        }
+        let hs = self.b.ins().splat(types::I32X4, h);
+        let same = self.b.ins().icmp(IntCC::Equal, handles, hs);
+        let m = self.b.ins().band(pending, same);
+        let one = self.b.ins().bitcast(types::F32, flags, h);
+        (m, Val { vary: false, c: vec![one] })
     }
 
     /// The string built-ins, whose host helpers read every running lane's strings: `concat`,
