@@ -259,6 +259,24 @@ fn a_background_shows_its_gradients_and_panorama_along_the_camera_rays() {
     rt.options.height = 8;
     let (fb, _) = rt.render_frame().expect("rendered");
     let (left, right) = (fb.pixel(3, 4), fb.pixel(12, 4));
+    // A panorama face that is not an image, or not there, is a warning naming the field; the
+    // rest of the Background is drawn.
+    std::fs::write(dir.path().join("bad.png"), b"not an image").expect("written");
+    std::fs::write(
+        &main,
+        "#VRML V2.0 utf8\nBackground { skyColor [0 0 1, 1 1 1] skyAngle [1] backUrl \"bad.png\" topUrl \"gone.png\" }\n",
+    )
+    .expect("written");
+    let mut bad = Context::new();
+    let scene = build(&mut bad, &main).expect("loads");
+    let messages: Vec<&str> = scene.warnings.iter().map(|w| w.message.as_str()).collect();
+    assert!(
+        messages.iter().any(|m| m.contains("backUrl")) && messages.iter().any(|m| m.contains("topUrl")),
+        "{messages:?}"
+    );
+    bad.options.width = 4;
+    bad.options.height = 4;
+    bad.render_frame().expect("renders");
     assert!(left[0] > 0.9 && left[1] < 0.1, "the image's left half on the left: {left:?}");
     assert!(right[1] > 0.9 && right[0] < 0.1, "its right half on the right: {right:?}");
 }
