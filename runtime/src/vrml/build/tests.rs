@@ -527,17 +527,23 @@ ROUTE Seen.isActive TO L.on
         assert!(scene.events.dirty.is_empty());
     }
 
+    /// `text` with each cut's bytes (at most `len` from `at`) replaced by its one byte.
+    fn mutated(text: &str, cuts: &[(usize, usize, u8)]) -> Vec<u8> {
+        let mut bytes = text.as_bytes().to_vec();
+        for &(at, len, byte) in cuts {
+            let at = at.min(bytes.len());
+            let end = (at + len).min(bytes.len());
+            bytes.splice(at..end, std::iter::once(byte));
+        }
+        bytes
+    }
+
     proptest! {
         #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
 
         #[test]
         fn mutated_sensor_scenes_never_panic(cuts in proptest::collection::vec((0usize..SENSORS.len(), 0usize..8, any::<u8>()), 1..6)) {
-            let mut bytes = SENSORS.as_bytes().to_vec();
-            for (at, len, byte) in cuts {
-                let at = at.min(bytes.len());
-                let end = (at + len).min(bytes.len());
-                bytes.splice(at..end, std::iter::once(byte));
-            }
+            let bytes = mutated(SENSORS, &cuts);
             let text = String::from_utf8_lossy(&bytes);
             let mut rt = Context::new();
             if let Ok(mut scene) = build_str(&mut rt, &text, Path::new("mutated.wrl")) {
@@ -554,12 +560,7 @@ ROUTE Seen.isActive TO L.on
 
         #[test]
         fn mutated_scenes_never_panic(cuts in proptest::collection::vec((0usize..SAMPLE.len(), 0usize..8, any::<u8>()), 1..6)) {
-            let mut bytes = SAMPLE.as_bytes().to_vec();
-            for (at, len, byte) in cuts {
-                let at = at.min(bytes.len());
-                let end = (at + len).min(bytes.len());
-                bytes.splice(at..end, std::iter::once(byte));
-            }
+            let bytes = mutated(SAMPLE, &cuts);
             let text = String::from_utf8_lossy(&bytes);
             let mut rt = Context::new();
             let _ = build_str(&mut rt, &text, Path::new("mutated.wrl"));
