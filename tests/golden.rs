@@ -755,6 +755,59 @@ WorldEnd
     check("solids", &render_rib("solids", rib)).unwrap_or_else(|e| panic!("{e}"));
 }
 
+/// Deformation blur (`MotionBegin` around geometry) over a shutter of 0 to 1: a sphere closing
+/// from a full turn to half of one while it shrinks, a square whose corner folds to its middle, a
+/// cubic curve bending down and points drifting apart as they grow, over a still floor.
+#[test]
+fn deformation_blur_matches_its_reference() {
+    let rib = r#"
+Format 128 96 1
+PixelSamples 4 4
+Shutter 0 1
+Projection "perspective" "fov" [40]
+Translate 0 -0.2 6
+WorldBegin
+  LightSource "ambientlight" 1 "intensity" [0.25]
+  LightSource "distantlight" 2 "intensity" [1] "from" [1 2 -3] "to" [0 0 0]
+  Surface "matte"
+  Color [0.6 0.6 0.6]
+  Polygon "P" [-5 -1.5 -3  5 -1.5 -3  5 -1.5 5  -5 -1.5 5]
+  AttributeBegin
+    Translate -1.4 0.4 0
+    Rotate -60 0 1 0
+    Color [0.9 0.35 0.2]
+    MotionBegin [0 1]
+      Sphere 1 -1 1 360
+      Sphere 0.7 -0.7 0.7 180
+    MotionEnd
+  AttributeEnd
+  AttributeBegin
+    Translate 1.3 0.6 0
+    Color [0.2 0.5 0.9]
+    MotionBegin [0 1]
+      PointsPolygons [3 3] [0 1 2  0 2 3] "P" [-0.8 -0.8 0  -0.8 0.8 0  0.8 0.8 0  0.8 -0.8 0]
+      PointsPolygons [3 3] [0 1 2  0 2 3] "P" [0 0 0  -0.8 0.8 0  0.8 0.8 0  0.8 -0.8 0]
+    MotionEnd
+  AttributeEnd
+  AttributeBegin
+    Translate -0.6 -0.9 -0.5
+    Color [0.3 0.8 0.3]
+    MotionBegin [0 1]
+      Curves "cubic" [4] "nonperiodic" "P" [0 0 0  0.5 0 0  1 0 0  1.5 0 0] "constantwidth" [0.12]
+      Curves "cubic" [4] "nonperiodic" "P" [0 0 0  0.5 -0.4 0  1 -0.4 0  1.5 0.3 0] "constantwidth" [0.12]
+    MotionEnd
+    Translate 1.8 0 0
+    Color [0.95 0.85 0.2]
+    MotionBegin [0 1]
+      Points "P" [0 0 0  0.3 0 0  0.6 0 0] "width" [0.1 0.1 0.1]
+      Points "P" [-0.2 0.3 0  0.3 -0.2 0  0.8 0.3 0] "width" [0.3 0.3 0.3]
+    MotionEnd
+  AttributeEnd
+WorldEnd
+"#;
+    check("deformation_blur", &render_rib("deformation_blur", rib)).unwrap_or_else(|e| panic!("{e}"));
+}
+
 /// Three boxes open towards the camera (the box above without its front face): two-sided, `Sides
 /// 1` (the inside walls are backs, so the floor shows through them), and `Sides 1` after
 /// `ReverseOrientation` (now the outside walls are backs: the top is gone and the inside shows).

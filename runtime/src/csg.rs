@@ -301,7 +301,7 @@ impl Leaf {
         if hit.primitive as usize >= mesh.triangle_count() {
             return false;
         }
-        let [a, b, c] = mesh.corners(hit.primitive as usize);
+        let [a, b, c] = mesh.corners_at(hit.primitive as usize, ray.time);
         // In object space: a direction and a normal moved by a matrix and its inverse transpose
         // keep their dot product, so a mirroring instance keeps its outside.
         let d = Vec3::from(inst.object_from_world_at(ray.time).transform_vector3a(ray.direction));

@@ -316,9 +316,13 @@ impl Scene {
         self.with_solids(filter, lane, |f| packet::occluded_packet(&self.top, &self.objects, packet, f))
     }
 
-    /// Whether instance `instance` moves over the shutter interval (false for ids out of range).
+    /// Whether the surface of instance `instance` moves over the shutter interval: the instance
+    /// moves, or its object's mesh deforms (false for ids out of range).
     pub fn instance_moves(&self, instance: u32) -> bool {
-        self.top.instances.get(instance as usize).is_some_and(|i| i.motion.is_some())
+        self.top
+            .instances
+            .get(instance as usize)
+            .is_some_and(|i| i.motion.is_some() || self.objects.get(i.object as usize).is_some_and(|o| o.deforms()))
     }
 
     /// The lanes of `lanes` (active in `packet`) whose ray hits triangle `primitive` of instance
@@ -333,7 +337,7 @@ impl Scene {
         let Some(inst) = self.top.instances.get(instance as usize) else { return 0 };
         let Some(obj) = self.objects.get(inst.object as usize) else { return 0 };
         let mesh = &obj.data().mesh;
-        if inst.motion.is_some() || primitive as usize >= mesh.triangle_count() {
+        if inst.motion.is_some() || mesh.deformation.is_some() || primitive as usize >= mesh.triangle_count() {
             return 0;
         }
         let [a, b, c] = mesh.corners(primitive as usize);
@@ -375,10 +379,12 @@ impl Scene {
     }
 
     /// Surface details of a hit from this scene; `None` for a miss or stale ids. A moving instance
-    /// is taken where it is at the shutter's opening: see [`Scene::surface_at`].
+    /// is taken where it is at the shutter's opening, a deforming mesh where it is at its own
+    /// opening: see [`Scene::surface_at`].
     pub fn surface(&self, hit: &Hit) -> Option<SurfaceHit> {
         let inst = self.top.instances.get(hit.instance as usize)?;
-        self.surface_at(hit, inst.motion.map_or(0.0, |m| m.open))
+        let deformation = || self.objects.get(inst.object as usize)?.data().mesh.deformation.as_ref().map(|d| d.open);
+        self.surface_at(hit, inst.motion.map(|m| m.open).or_else(deformation).unwrap_or(0.0))
     }
 
     /// Surface details of a hit by a ray at `time` (where a moving instance then is).
@@ -388,14 +394,14 @@ impl Scene {
         let tri = *mesh.triangles.get(hit.primitive as usize)?;
         let [a, b, c] = tri.map(|i| i as usize);
         let (w0, w1, w2) = (1.0 - hit.u - hit.v, hit.u, hit.v);
-        let pa = Vec3A::from(mesh.positions[a]);
-        let pb = Vec3A::from(mesh.positions[b]);
-        let pc = Vec3A::from(mesh.positions[c]);
+        let pa = Vec3A::from(mesh.position_at(a, time));
+        let pb = Vec3A::from(mesh.position_at(b, time));
+        let pc = Vec3A::from(mesh.position_at(c, time));
         let p_obj = pa * w0 + pb * w1 + pc * w2;
         let xf = &inst.world_from_object_at(time);
         let normal_xf = inst.object_from_world_at(time).matrix3.transpose();
         let ng = (normal_xf * (pb - pa).cross(pc - pa)).normalize_or_zero();
-        let n = match mesh.interpolate_normal([a, b, c], [w0, w1, w2]) {
+        let n = match mesh.interpolate_normal_at([a, b, c], [w0, w1, w2], time) {
             Some(ni) => (normal_xf * Vec3A::from(ni)).normalize_or(ng),
             None => ng,
         };

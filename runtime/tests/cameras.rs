@@ -8,7 +8,7 @@ mod common;
 use common::luminance as sum;
 use common::{quad, H, W};
 use glam::{Affine3A, Vec3, Vec3A};
-use rtsl_runtime::api::{ApiError, Context, ObjectId};
+use rtsl_runtime::api::{ApiError, Context, Deformation, Mesh, ObjectId};
 use rtsl_runtime::render::{Antialiasing, FrameReport, Framebuffer};
 use rtsl_runtime::shading::ParamValue;
 
@@ -458,6 +458,98 @@ fn a_moving_instance_is_smeared_over_the_shutter_interval() -> Result<(), ApiErr
     Ok(())
 }
 
+/// The card of [`moving_card`], its motion given as a deforming mesh instead of a moving
+/// transform: a `constant` square whose corners go from x - 2 to x + 2 over the shutter.
+fn deforming_card(rt: &mut Context) -> Result<(), ApiError> {
+    rt.camera_look_at(Vec3A::new(0.0, 0.0, -6.0), Vec3A::ZERO, Vec3A::Y, 60.0);
+    let constant = rt.find_shader("constant")?;
+    let id = rt.begin_object()?;
+    rt.bind_shader(constant)?;
+    rt.color(1.0, 1.0, 1.0);
+    let corners =
+        [Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 0.0), Vec3::new(-1.0, 1.0, 0.0)];
+    let at = |dx: f32| corners.iter().map(|c| (*c + Vec3::new(dx, 0.0, 0.0)) * 0.5).collect::<Vec<_>>();
+    let mut mesh = Mesh::from_polygons(at(-4.0), &[[0u32, 1, 2, 3]])?;
+    mesh.deformation = Some(Deformation { positions: at(4.0), normals: None, open: 0.0, close: 1.0 });
+    rt.mesh(&mesh)?;
+    rt.end_object()?;
+    rt.instantiate_object(id)?;
+    Ok(())
+}
+
+/// Deformation blur: a mesh whose vertices move is smeared as an instance moved the same way
+/// is, ray time by ray time (the same rays meet the same squares, up to rounding at edges).
+#[test]
+fn a_deforming_mesh_is_smeared_as_the_same_motion_of_its_transform() -> Result<(), ApiError> {
+    let render = |make: fn(&mut Context) -> Result<(), ApiError>, shutter| -> Result<Framebuffer, ApiError> {
+        let mut rt = context();
+        rt.options.samples = (4, 4);
+        rt.options.shutter = shutter;
+        make(&mut rt)?;
+        Ok(rt.render_frame()?.0)
+    };
+    let (moved, deformed) = (render(moving_card, (0.0, 1.0))?, render(deforming_card, (0.0, 1.0))?);
+    let cols = coverage_columns(&deformed);
+    assert!(cols.iter().filter(|&&c| c > 0.0).count() > W as usize / 2, "smeared across the image: {cols:?}");
+    let mut differing = 0;
+    for y in 0..H {
+        for x in 0..W {
+            let (a, b) = (moved.pixel(x, y)[3], deformed.pixel(x, y)[3]);
+            // A pixel differs by a sample at most (a sample on an edge, rounded either way).
+            assert!((a - b).abs() <= 1.0 / 16.0 + 1e-4, "{x},{y}: {a} vs {b}");
+            differing += usize::from(a != b);
+        }
+    }
+    assert!(differing <= (W * H / 50) as usize, "{differing} pixels differ");
+    // No shutter: rays at time 0 see the first sample, where the moving card's opening is.
+    let (moved, deformed) = (render(moving_card, (0.0, 0.0))?, render(deforming_card, (0.0, 0.0))?);
+    assert_eq!(coverage_columns(&moved), coverage_columns(&deformed));
+    Ok(())
+}
+
+/// Meshes that deform over different intervals cannot share an object; still meshes can join a
+/// deforming one, and a bad deformation is refused with the object left as it was.
+#[test]
+fn deformations_in_one_object_share_their_interval() -> Result<(), ApiError> {
+    let mut rt = context();
+    let square = |dx: f32| {
+        Mesh::from_polygons(
+            vec![
+                Vec3::new(dx, 0.0, 0.0),
+                Vec3::new(dx + 1.0, 0.0, 0.0),
+                Vec3::new(dx + 1.0, 1.0, 0.0),
+                Vec3::new(dx, 1.0, 0.0),
+            ],
+            &[[0u32, 1, 2, 3]],
+        )
+    };
+    let deforming = |dx: f32, open: f32, close: f32| -> Result<Mesh, ApiError> {
+        let mut m = square(dx)?;
+        let up = m.positions.iter().map(|p| *p + Vec3::Z).collect();
+        m.deformation = Some(Deformation { positions: up, normals: None, open, close });
+        Ok(m)
+    };
+    let id = rt.begin_object()?;
+    rt.mesh(&square(-3.0)?)?;
+    rt.mesh(&deforming(0.0, 0.0, 1.0)?)?;
+    let other = rt.mesh(&deforming(2.0, 0.0, 0.5)?);
+    assert!(matches!(other, Err(ApiError::DeformationTimes { .. })), "{other:?}");
+    let mut short = deforming(2.0, 0.0, 1.0)?;
+    short.deformation.as_mut().map(|d| d.positions.pop());
+    assert!(matches!(rt.mesh(&short), Err(ApiError::Mesh(_))));
+    rt.mesh(&square(5.0)?)?;
+    rt.end_object()?;
+    let mesh = rt.object_mesh(id).expect("built").clone();
+    let d = mesh.deformation.as_ref().expect("deforms");
+    assert_eq!((mesh.positions.len(), d.positions.len(), d.open, d.close), (12, 12, 0.0, 1.0));
+    // The still squares stay where they are; the deforming one rises by one.
+    for k in 0..12 {
+        let rise = if (4..8).contains(&k) { Vec3::Z } else { Vec3::ZERO };
+        assert_eq!(d.positions[k], mesh.positions[k] + rise, "vertex {k}");
+    }
+    Ok(())
+}
+
 #[test]
 fn rib_binds_cameras_depth_of_field_and_motion_blocks() -> Result<(), Box<dyn std::error::Error>> {
     let rib = r#"
@@ -500,6 +592,79 @@ fn rib_binds_cameras_depth_of_field_and_motion_blocks() -> Result<(), Box<dyn st
     let id = rt.camera_shader_id().ok_or("thinlens bound")?;
     assert_eq!(rt.program(id)?.name, "thinlens");
     assert_eq!(rt.options.depth_of_field, Some([2.8, 0.1, 4.0]));
+    Ok(())
+}
+
+/// RIB `MotionBegin` around geometry: the first sample deforms into the last over the block's
+/// times; samples that are not one primitive changing shape are a part missing.
+#[test]
+fn rib_motion_blocks_around_geometry_deform_it() -> Result<(), Box<dyn std::error::Error>> {
+    let rib = r#"
+        Format 48 32 1
+        Shutter 0 1
+        Projection "perspective" "fov" 60
+        Translate 0 0 6
+        WorldBegin
+          Surface "constant"
+          MotionBegin [0 1]
+            Polygon "P" [-2.5 -0.5 0  -1.5 -0.5 0  -1.5 0.5 0  -2.5 0.5 0]
+            Polygon "P" [1.5 -0.5 0  2.5 -0.5 0  2.5 0.5 0  1.5 0.5 0]
+          MotionEnd
+          MotionBegin [0.25 0.5]
+            Sphere 0.5 -0.5 0.5 360
+            Sphere 1 -1 1 360
+          MotionEnd
+          MotionBegin [0 1]
+            Sphere 1 -1 1 360
+            Polygon "P" [0 0 0  1 0 0  1 1 0]
+          MotionEnd
+          # As in Aqsis's deformation example: samples whose own tessellations would differ.
+          MotionBegin [0 1]
+            Sphere 1 -1 1 360
+            Sphere 0.8 -0.8 0.8 270
+          MotionEnd
+          MotionBegin [0 1]
+            Points "P" [0 0 0  1 0 0] "width" [0.01 0.01]
+            Points "P" [0 1 0  1 1 0] "width" [0.8 0.8]
+          MotionEnd
+        WorldEnd
+    "#;
+    let mut rt = Context::new();
+    let loaded = rtsl_runtime::rib::load::load_str(&mut rt, rib, std::path::Path::new("."))?;
+    let mismatch: Vec<_> = loaded.warnings.iter().filter(|w| w.message.contains("not one primitive")).collect();
+    assert_eq!(mismatch.len(), 1, "{:?}", loaded.warnings);
+    assert_eq!(loaded.omissions(), 1);
+    let meshes: Vec<_> = (0..8).filter_map(|k| rt.object_mesh(ObjectId(k)).cloned()).collect();
+    assert_eq!(meshes.len(), 5, "four deforming samples and the mismatched block's first sample");
+    let square = meshes[0].deformation.as_ref().ok_or("the square deforms")?;
+    assert_eq!((square.open, square.close), (0.0, 1.0));
+    for (open, close) in meshes[0].positions.iter().zip(&square.positions) {
+        assert!((*close - *open - Vec3::new(4.0, 0.0, 0.0)).length() < 1e-5, "{open} -> {close}");
+    }
+    let sphere = meshes[1].deformation.as_ref().ok_or("the sphere deforms")?;
+    assert_eq!((sphere.open, sphere.close), (0.25, 0.5));
+    for (open, close) in meshes[1].positions.iter().zip(&sphere.positions) {
+        assert!((*close - *open * 2.0).length() < 1e-4, "the sphere doubles: {open} -> {close}");
+    }
+    let normals = (meshes[1].normals.as_ref(), sphere.normals.as_ref());
+    assert!(matches!(normals, (Some(a), Some(b)) if a.len() == b.len()), "normals at both ends");
+    assert!(meshes[2].deformation.is_none());
+    // The sphere's sweep closes from a full turn to three quarters: the vertex at each (u, v)
+    // moves to where the smaller sphere has it.
+    let swept = meshes[3].deformation.as_ref().ok_or("the sweep changes")?;
+    let longitude = |p: Vec3| p.y.atan2(p.x).rem_euclid(std::f32::consts::TAU);
+    for (open, close) in meshes[3].positions.iter().zip(&swept.positions) {
+        assert!((close.length() - 0.8).abs() < 1e-4, "{close}");
+        assert!(longitude(*close) <= 1.5 * std::f32::consts::PI + 1e-4 || close.x.hypot(close.y) < 1e-4, "{close}");
+        let (a, b) = (longitude(*open), longitude(*close));
+        // (The seam at a full turn reads as longitude 0.)
+        let three_quarters = |a: f32| (b - 0.75 * a).abs() < 1e-3;
+        let pole = open.x.hypot(open.y) < 1e-4;
+        assert!(pole || three_quarters(a) || three_quarters(a + std::f32::consts::TAU), "{open} -> {close}");
+    }
+    // The points grow and rise; each keeps its disk's vertices.
+    let points = meshes[4].deformation.as_ref().ok_or("the points move")?;
+    assert_eq!(points.positions.len(), meshes[4].positions.len());
     Ok(())
 }
 

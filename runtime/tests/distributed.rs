@@ -579,6 +579,37 @@ fn frames_moving_once(
     Ok(out)
 }
 
+/// Deformation blur on workers: a deforming mesh travels (fetched on demand) with its second
+/// set of positions and normals, and the frame is the one rendered here, bit for bit.
+#[test]
+fn deforming_meshes_render_the_same_on_workers() -> Result<(), DistributedError> {
+    let rib = r#"
+        Format 64 48 1
+        PixelSamples 2 2
+        Shutter 0 1
+        Projection "perspective" "fov" 50
+        Translate 0 0 6
+        WorldBegin
+          LightSource "distantlight" 1 "from" [0 0 -1] "to" [0 0 0]
+          Surface "plastic"
+          MotionBegin [0 1]
+            Sphere 0.6 -0.6 0.6 360
+            Sphere 1.4 -1.4 1.4 360
+          MotionEnd
+          Surface "matte"
+          MotionBegin [0 1]
+            Polygon "P" [-3 -1 1  -1 -1 1  -1 1 1  -3 1 1]
+            Polygon "P" [1 -1 1  3 -1 1  3 1 1  1 1 1]
+          MotionEnd
+        WorldEnd
+    "#;
+    let mut rt = Context::new();
+    rtsl_runtime::rib::load::load_str(&mut rt, rib, std::path::Path::new(".")).expect("the scene loads");
+    let frames = both_ways(rt, 2, 1, &[nothing, move_first])?;
+    assert_same(&frames, "a deforming scene");
+    Ok(())
+}
+
 #[test]
 fn workers_fetch_only_the_objects_rays_reach_and_keep_them() -> Result<(), DistributedError> {
     let e = |e: rtsl_runtime::api::ApiError| e.to_string();

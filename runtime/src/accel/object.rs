@@ -2,7 +2,9 @@
 //! changes. Many instances share one object.
 //!
 //! Invariant: `tris[s]` is the prepared form of mesh triangle `bvh.prim_order[s]`, so a leaf slot
-//! gives both the triangle to test and the primitive id to report.
+//! gives both the triangle to test and the primitive id to report; for a deforming mesh,
+//! `deformed.close[s]` is the same triangle at the deformation's close, and the BVH's boxes bound
+//! both ends (so every time between, a prepared triangle being linear in its corners).
 
 use super::bvh4::{BuildQuality, Bvh4};
 use super::bvh8::Bvh8;
@@ -26,18 +28,45 @@ pub struct ObjectBvh {
     pub wide: Bvh8,
     /// Prepared triangles in leaf-slot order.
     pub tris: Vec<PreTriangle>,
+    /// A deforming mesh's triangles at its close (`None`: the mesh stands still).
+    pub deformed: Option<DeformedTriangles>,
+}
+
+/// The other end of a deforming object's triangles: a ray at time `t` meets the blend of
+/// `tris[s]` and `close[s]` by [`Deformation::blend`](crate::geometry::Deformation::blend).
+#[derive(Clone, Debug, Default)]
+pub struct DeformedTriangles {
+    /// Prepared triangles at the close, in leaf-slot order.
+    pub close: Vec<PreTriangle>,
+    pub open_time: f32,
+    pub close_time: f32,
+}
+
+impl DeformedTriangles {
+    /// Leaf slot `s`'s triangle at `time`.
+    #[inline(always)]
+    pub fn at(&self, tris: &[PreTriangle], s: usize, time: f32) -> PreTriangle {
+        let w = ((time - self.open_time) / (self.close_time - self.open_time)).clamp(0.0, 1.0);
+        tris[s].lerp(&self.close[s], w)
+    }
 }
 
 impl ObjectBvh {
     /// Builds the BVH of `mesh`.
     pub fn build(mesh: &Mesh, quality: BuildQuality) -> Self {
+        let close_corners = |i: usize| {
+            let d = mesh.deformation.as_ref()?;
+            Some(mesh.triangles[i].map(|k| d.positions[k as usize]))
+        };
         let boxes: Vec<Aabb> = (0..mesh.triangle_count())
             .into_par_iter()
             .with_min_len(4096)
             .map(|i| {
-                let [a, b, c] = mesh.corners(i);
-                let (a, b, c) = (Vec3A::from(a), Vec3A::from(b), Vec3A::from(c));
-                Aabb::new(a.min(b).min(c), a.max(b).max(c))
+                let corners = mesh.corners(i).into_iter().chain(close_corners(i).into_iter().flatten());
+                let (lo, hi) = corners.fold((Vec3A::INFINITY, Vec3A::NEG_INFINITY), |(lo, hi), p| {
+                    (lo.min(Vec3A::from(p)), hi.max(Vec3A::from(p)))
+                });
+                Aabb::new(lo, hi)
             })
             .collect();
         let bvh = Bvh4::build(&boxes, quality, OBJECT_LEAF_SIZE);
@@ -50,13 +79,27 @@ impl ObjectBvh {
                 PreTriangle::new(a, b, c)
             })
             .collect_into_vec(&mut tris);
+        let deformed = mesh.deformation.as_ref().map(|d| DeformedTriangles {
+            close: bvh
+                .prim_order
+                .par_iter()
+                .with_min_len(4096)
+                .map(|&p| {
+                    let [a, b, c] = mesh.triangles[p as usize].map(|k| d.positions[k as usize]);
+                    PreTriangle::new(a, b, c)
+                })
+                .collect(),
+            open_time: d.open,
+            close_time: d.close,
+        });
         let wide = Bvh8::from_bvh4(&bvh);
-        ObjectBvh { bvh, wide, tris }
+        ObjectBvh { bvh, wide, tris, deformed }
     }
 
     /// Heap bytes of the BVH and the prepared triangles.
     pub fn memory_bytes(&self) -> usize {
-        self.bvh.memory_bytes() + self.wide.memory_bytes() + self.tris.len() * size_of::<PreTriangle>()
+        let triangles = self.tris.len() + self.deformed.as_ref().map_or(0, |d| d.close.len());
+        self.bvh.memory_bytes() + self.wide.memory_bytes() + triangles * size_of::<PreTriangle>()
     }
 }
 
@@ -189,6 +232,12 @@ impl Object {
             }
             None => ObjectData::default(),
         })
+    }
+
+    /// Whether the object's mesh deforms over the shutter interval (fetched first if remote).
+    #[inline(always)]
+    pub fn deforms(&self) -> bool {
+        self.data().bvh.deformed.is_some()
     }
 
     /// Whether the mesh and BVH are here.

@@ -684,9 +684,9 @@ fn lanes_of(mask: u8, s: &State) -> u64 {
     lanes & s.active & !s.done
 }
 
-/// Lane `i` in the object space of `inst`: from the packet's object-space geometry `og` when the
-/// instance does not move, else from the world-space geometry `g` moved by where the instance is at
-/// the lane's time.
+/// Lane `i` in the object space of `inst`: from the packet's object-space geometry `og` when there
+/// is one (the instance stands still and its object does not deform), else from the world-space
+/// geometry `g` moved by where the instance is at the lane's time, and at that time.
 #[inline(always)]
 fn lane_in_object(
     g: &Geom,
@@ -758,12 +758,13 @@ fn intersect_lanes(
         let inst: &InstanceData = &top.instances[inst_id as usize];
         let obj = &objects[inst.object as usize];
         let (clo, chi) = mask_range(mask);
-        if inst.identity {
+        let deforms = obj.deforms();
+        if inst.identity && !deforms {
             intersect_object(obj, inst_id, inst.object, &g, s, clo, chi, filter);
             return;
         }
         let og = match inst.motion {
-            None => {
+            None if !deforms => {
                 let mut og = g.transformed(&inst.object_from_world, clo, chi);
                 if og.finish(clo, chi) {
                     intersect_object(obj, inst_id, inst.object, &og, s, clo, chi, filter);
@@ -771,10 +772,10 @@ fn intersect_lanes(
                 }
                 Some(og)
             }
-            Some(_) => None,
+            _ => None,
         };
-        // Incoherent in this object's space, or moving (each lane at its own time): one ray at
-        // a time.
+        // Incoherent in this object's space, or moving or deforming (each lane at its own time):
+        // one ray at a time.
         let mut m = lanes_of(mask, s);
         while m != 0 {
             let i = m.trailing_zeros() as usize;
@@ -882,18 +883,19 @@ fn occluded_lanes(
         let inst: &InstanceData = &top.instances[inst_id as usize];
         let obj = &objects[inst.object as usize];
         let (clo, chi) = mask_range(mask);
-        if inst.identity {
+        let deforms = obj.deforms();
+        if inst.identity && !deforms {
             return occluded_object(obj, inst_id, inst.object, &g, s, clo, chi, filter);
         }
         let og = match inst.motion {
-            None => {
+            None if !deforms => {
                 let mut og = g.transformed(&inst.object_from_world, clo, chi);
                 if og.finish(clo, chi) {
                     return occluded_object(obj, inst_id, inst.object, &og, s, clo, chi, filter);
                 }
                 Some(og)
             }
-            Some(_) => None,
+            _ => None,
         };
         let mut m = lanes_of(mask, s);
         while m != 0 {

@@ -17,7 +17,7 @@ use super::object::Object;
 use super::stack::Stack;
 use super::top::{InstanceData, TopLevel};
 use super::{prefetch, safe_inv, ROBUST};
-use crate::geometry::triangle::{accept, intersect, intersect_accept};
+use crate::geometry::triangle::{accept, intersect, intersect_accept, PreTriangle};
 use crate::ray::{Hit, HitCandidate, HitFilter, Ray, INVALID_ID};
 use glam::{Vec3A, Vec4};
 use wide::f32x8;
@@ -314,13 +314,35 @@ pub(crate) fn intersect_object(
     lane: u32,
 ) {
     let data = obj.data();
+    match &data.bvh.deformed {
+        None => intersect_triangles(obj, inst_id, object_id, ray, hit, filter, lane, |s, _| data.bvh.tris[s]),
+        Some(d) => {
+            intersect_triangles(obj, inst_id, object_id, ray, hit, filter, lane, |s, t| d.at(&data.bvh.tris, s, t))
+        }
+    }
+}
+
+/// [`intersect_object`] with leaf slot `s`'s triangle at time `t` as `triangle(s, t)` makes it.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn intersect_triangles(
+    obj: &Object,
+    inst_id: u32,
+    object_id: u32,
+    ray: &mut RayPre,
+    hit: &mut HitState,
+    filter: HitFilter,
+    lane: u32,
+    triangle: impl Fn(usize, f32) -> PreTriangle,
+) {
+    let data = obj.data();
     let tris = &data.bvh.tris;
     let order = &data.bvh.bvh.prim_order;
     let pf = |first: u32| prefetch(tris.as_ptr().wrapping_add(first as usize), 2);
     traverse::<true, _, _, _>(&data.bvh.wide.nodes, 0, ray, pf, |first, count, ray| {
-        for s in first as usize..(first + count) as usize {
-            if let Some((t, u, v)) = intersect_accept(ray.o, ray.d, &tris[s], ray.tmin, ray.tmax) {
-                let primitive = order[s];
+        let slots = first as usize..(first + count) as usize;
+        for (s, &primitive) in slots.clone().zip(&order[slots]) {
+            if let Some((t, u, v)) = intersect_accept(ray.o, ray.d, &triangle(s, ray.time), ray.tmin, ray.tmax) {
                 if !obj.solid_at(primitive, u, v) {
                     continue;
                 }
@@ -349,20 +371,38 @@ pub(crate) fn occluded_object(
     lane: u32,
 ) -> bool {
     let data = obj.data();
+    match &data.bvh.deformed {
+        None => occluded_triangles(obj, inst_id, object_id, ray, filter, lane, |s, _| data.bvh.tris[s]),
+        Some(d) => occluded_triangles(obj, inst_id, object_id, ray, filter, lane, |s, t| d.at(&data.bvh.tris, s, t)),
+    }
+}
+
+/// [`occluded_object`] with leaf slot `s`'s triangle at time `t` as `triangle(s, t)` makes it.
+#[inline(always)]
+fn occluded_triangles(
+    obj: &Object,
+    inst_id: u32,
+    object_id: u32,
+    ray: &mut RayPre,
+    filter: HitFilter,
+    lane: u32,
+    triangle: impl Fn(usize, f32) -> PreTriangle,
+) -> bool {
+    let data = obj.data();
     let tris = &data.bvh.tris;
     let order = &data.bvh.bvh.prim_order;
     let pf = |first: u32| prefetch(tris.as_ptr().wrapping_add(first as usize), 2);
     traverse::<false, _, _, _>(&data.bvh.wide.nodes, 0, ray, pf, |first, count, ray| {
-        for s in first as usize..(first + count) as usize {
-            if let Some((t, u, v)) = intersect_accept(ray.o, ray.d, &tris[s], ray.tmin, ray.tmax) {
-                if !obj.solid_at(order[s], u, v) {
+        let slots = first as usize..(first + count) as usize;
+        for (s, &primitive) in slots.clone().zip(&order[slots]) {
+            if let Some((t, u, v)) = intersect_accept(ray.o, ray.d, &triangle(s, ray.time), ray.tmin, ray.tmax) {
+                if !obj.solid_at(primitive, u, v) {
                     continue;
                 }
                 match filter {
                     None => return true,
                     Some(f) => {
-                        let c =
-                            HitCandidate { t, u, v, instance: inst_id, object: object_id, primitive: order[s], lane };
+                        let c = HitCandidate { t, u, v, instance: inst_id, object: object_id, primitive, lane };
                         if f(&c) {
                             return true;
                         }
@@ -453,8 +493,8 @@ pub(crate) fn intersect_brute_force(top: &TopLevel, objects: &[Object], ray: &Ra
             continue;
         };
         let r = RayPre::of(ray).in_object_space(inst);
-        for (s, tri) in obj.data().bvh.tris.iter().enumerate() {
-            let (t, u, v) = intersect(r.o, r.d, tri);
+        for s in 0..obj.data().bvh.tris.len() {
+            let (t, u, v) = intersect(r.o, r.d, &triangle_at(obj, s, ray.time));
             if accept(t, u, v, ray.tmin, tmax) {
                 let primitive = obj.data().bvh.bvh.prim_order[s];
                 if !obj.solid_at(primitive, u, v) {
@@ -474,6 +514,15 @@ pub(crate) fn intersect_brute_force(top: &TopLevel, objects: &[Object], ray: &Ra
     best
 }
 
+/// Leaf slot `s`'s triangle of `obj` at `time`.
+fn triangle_at(obj: &Object, s: usize, time: f32) -> PreTriangle {
+    let data = obj.data();
+    match &data.bvh.deformed {
+        None => data.bvh.tris[s],
+        Some(d) => d.at(&data.bvh.tris, s, time),
+    }
+}
+
 /// The brute-force occlusion reference.
 pub(crate) fn occluded_brute_force(top: &TopLevel, objects: &[Object], ray: &Ray, filter: HitFilter) -> bool {
     for (i, inst) in top.instances.iter().enumerate() {
@@ -481,8 +530,8 @@ pub(crate) fn occluded_brute_force(top: &TopLevel, objects: &[Object], ray: &Ray
             continue;
         };
         let r = RayPre::of(ray).in_object_space(inst);
-        for (s, tri) in obj.data().bvh.tris.iter().enumerate() {
-            let (t, u, v) = intersect(r.o, r.d, tri);
+        for s in 0..obj.data().bvh.tris.len() {
+            let (t, u, v) = intersect(r.o, r.d, &triangle_at(obj, s, ray.time));
             if accept(t, u, v, ray.tmin, ray.tmax) && obj.solid_at(obj.data().bvh.bvh.prim_order[s], u, v) {
                 let ok = filter.is_none_or(|f| {
                     f(&HitCandidate {

@@ -74,7 +74,7 @@ pub use replica::{decode_mesh, encode_mesh, ReplicaError, Replicator};
 pub use state::{AttributeParts, SavedAttributes};
 // The types `Context`'s calls take and return, so that one `use rtsl_runtime::api::{...}` serves an
 // application (vector types: `rtsl_runtime::glam`).
-pub use crate::geometry::{Mesh, Quadric, Tessellation};
+pub use crate::geometry::{Deformation, Mesh, Quadric, Tessellation};
 pub use crate::image_io::WriteOptions;
 pub use crate::params;
 pub use crate::render::{FrameReport, Framebuffer};
@@ -157,6 +157,11 @@ pub enum ApiError {
     NoMeshSource(u32),
     #[error("more than {} instances: the scene's top-level BVH holds no more", crate::accel::bvh4::MAX_PRIMITIVES)]
     TooManyInstances,
+    #[error(
+        "a mesh deforming from time {open} to {close} in an object that deforms from {was_open} to {was_close}: \
+         one object deforms over one interval"
+    )]
+    DeformationTimes { open: f32, close: f32, was_open: f32, was_close: f32 },
     #[error(transparent)]
     RayParameter(#[from] crate::render::RayParameterError),
     #[error(transparent)]
@@ -298,6 +303,9 @@ struct MeshBuilder {
     /// The parts ended so far ([`Context::end_part`]): where each ends (a triangle count) and its
     /// appearance.
     parts: Vec<(usize, Appearance)>,
+    /// Once a deforming mesh is added: where the vertices are at the deformation's close
+    /// (positions and normals, up to the vertices added since, which stand still), and its times.
+    deformation: Option<Deformation>,
 }
 
 impl MeshBuilder {
@@ -307,6 +315,43 @@ impl MeshBuilder {
         if self.triangles.len() > start {
             self.parts.push((self.triangles.len(), appearance.clone()));
         }
+    }
+
+    /// Brings the deformation up to the vertices added so far (those standing still: at the
+    /// close where they are at the open).
+    fn catch_up_deformation(&mut self) {
+        if let Some(d) = &mut self.deformation {
+            d.positions.extend_from_slice(&self.positions[d.positions.len()..]);
+            let normals = d.normals.get_or_insert_with(Vec::new);
+            normals.extend_from_slice(&self.normals[normals.len()..]);
+        }
+    }
+
+    /// Makes the object deform from `open` to `close` (an error when it already deforms over
+    /// another interval).
+    fn deform(&mut self, open: f32, close: f32) -> Result<&mut Deformation, ApiError> {
+        self.catch_up_deformation();
+        let d = self.deformation.get_or_insert_with(|| Deformation {
+            positions: self.positions.clone(),
+            normals: Some(self.normals.clone()),
+            open,
+            close,
+        });
+        if (d.open, d.close) != (open, close) {
+            return Err(ApiError::DeformationTimes { open, close, was_open: d.open, was_close: d.close });
+        }
+        Ok(d)
+    }
+
+    /// The deformation of the finished object: every vertex's, normals only where the object has
+    /// normals.
+    fn finish_deformation(&mut self) -> Option<Deformation> {
+        self.catch_up_deformation();
+        let mut d = self.deformation.take()?;
+        if !self.has_normals {
+            d.normals = None;
+        }
+        Some(d)
     }
 }
 

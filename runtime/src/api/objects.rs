@@ -81,10 +81,12 @@ impl Context {
         let mesh = if b.triangles.is_empty() {
             None
         } else {
+            let deformation = b.finish_deformation();
             let mesh = Mesh {
                 positions: b.positions,
                 normals: b.has_normals.then_some(b.normals),
                 uvs: b.has_uvs.then_some(b.uvs),
+                deformation,
                 attributes: b.attributes,
                 triangles: b.triangles,
             };
@@ -340,6 +342,18 @@ impl Context {
         let xf = self.object_from_current()?;
         let normal_xf = xf.matrix3.inverse().transpose();
         let (_, _, b) = self.building.as_mut().ok_or(ApiError::NoObject("mesh"))?;
+        if let Some(d) = &mesh.deformation {
+            // Checked before anything is added: a mesh refused leaves the object as it was.
+            mesh.validate()?;
+            let close = b.deform(d.open, d.close)?;
+            close.positions.extend(d.positions.iter().map(|p| xf.transform_point3(*p)));
+            let normals = d.normals.as_ref().or(mesh.normals.as_ref());
+            let close_normals = close.normals.get_or_insert_with(Vec::new);
+            match normals {
+                Some(ns) => close_normals.extend(ns.iter().map(|n| Vec3::from(normal_xf * Vec3A::from(*n)))),
+                None => close_normals.extend(std::iter::repeat_n(Vec3::ZERO, mesh.positions.len())),
+            }
+        }
         let base = b.positions.len() as u32;
         let count = mesh.positions.len();
         b.positions.extend(mesh.positions.iter().map(|p| xf.transform_point3(*p)));

@@ -662,7 +662,7 @@ fn morph_mesh(triangles: &[Morphing], t: f32) -> Mesh {
         }
     }
     let triangles = (0..positions.len() as u32 / 3).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect();
-    Mesh { positions, normals: Some(normals), uvs: None, attributes: Vec::new(), triangles }
+    Mesh { positions, normals: Some(normals), uvs: None, triangles, ..Default::default() }
 }
 
 impl BartScene {
@@ -794,8 +794,8 @@ impl MeshBuilder {
             positions: self.positions,
             normals: self.has_normals.then_some(self.normals),
             uvs: self.has_uvs.then_some(self.uvs),
-            attributes: Vec::new(),
             triangles: self.triangles,
+            ..Default::default()
         }
     }
 }

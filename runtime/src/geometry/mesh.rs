@@ -6,7 +6,9 @@
 //! - `normals` and `uvs`, when present, have one entry per position;
 //! - each attribute has `components * positions.len()` values;
 //! - positions are finite;
-//! - there are at most [`MAX_PRIMITIVES`] triangles, what one BVH holds.
+//! - there are at most [`MAX_PRIMITIVES`] triangles, what one BVH holds;
+//! - a [`Deformation`] has one position (and one normal, when the mesh has normals) per position,
+//!   finite, and times `open < close`, both finite.
 //!
 //! Triangle `i` of the mesh is primitive `i` in hit records, whatever the BVH's internal order.
 
@@ -50,6 +52,14 @@ pub enum MeshError {
         /// The vertex.
         index: usize,
     },
+    /// A deformation's times are not two finite numbers, the first the smaller.
+    #[error("a deformation's times must be finite and increasing, not {open} and {close}")]
+    DeformationTimes {
+        /// The time of the mesh's own positions.
+        open: f32,
+        /// The time of the deformation's positions.
+        close: f32,
+    },
     /// More triangles than one object's BVH holds ([`MAX_PRIMITIVES`]).
     #[error("{count} triangles in one mesh: at most {MAX_PRIMITIVES}, what one object's BVH holds")]
     TooManyTriangles {
@@ -90,6 +100,34 @@ pub struct Mesh {
     pub attributes: Vec<Attribute>,
     /// Triangles as vertex index triples.
     pub triangles: Vec<[u32; 3]>,
+    /// Deformation blur: where the vertices are at a second time (`None`: the mesh stands still).
+    pub deformation: Option<Deformation>,
+}
+
+/// A mesh's vertices at a second time. At `open` they are the mesh's own positions, at `close`
+/// these; in between each moves on a straight line, and before `open` or after `close` it stands
+/// at the nearer end (RIB `MotionBegin` around geometry: its first and last samples). A triangle
+/// in between is the linear blend of its two ends, so the union of its two boxes bounds its whole
+/// motion.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Deformation {
+    /// The positions at `close`, one per mesh position.
+    pub positions: Vec<Vec3>,
+    /// The shading normals at `close` (only with the mesh's own normals; `None`: they do not
+    /// change).
+    pub normals: Option<Vec<Vec3>>,
+    /// The times of the two ends, in the shutter's units ([`crate::render::RenderOptions::shutter`]).
+    pub open: f32,
+    pub close: f32,
+}
+
+impl Deformation {
+    /// How far between the two ends the mesh is at `time`: 0 at `open` (and before), 1 at `close`
+    /// (and after).
+    #[inline(always)]
+    pub fn blend(&self, time: f32) -> f32 {
+        ((time - self.open) / (self.close - self.open)).clamp(0.0, 1.0)
+    }
 }
 
 impl Mesh {
@@ -142,7 +180,7 @@ impl Mesh {
             triangles.push([base, base + 1, base + 2]);
             triangles.push([base, base + 2, base + 3]);
         }
-        Mesh { positions, normals: Some(normals), uvs: Some(uvs), attributes: Vec::new(), triangles }
+        Mesh { positions, normals: Some(normals), uvs: Some(uvs), triangles, ..Default::default() }
     }
 
     /// Checks the invariants in the module documentation.
@@ -177,6 +215,20 @@ impl Mesh {
         for a in &self.attributes {
             check(&a.name, a.data.len(), a.components * count)?;
         }
+        if let Some(d) = &self.deformation {
+            if !(d.open.is_finite() && d.close.is_finite() && d.open < d.close) {
+                return Err(MeshError::DeformationTimes { open: d.open, close: d.close });
+            }
+            check("deformation positions", d.positions.len(), count)?;
+            if let Some(index) = d.positions.iter().position(|p| !p.is_finite()) {
+                return Err(MeshError::NonFinite { index });
+            }
+            match (&d.normals, &self.normals) {
+                (Some(n), Some(_)) => check("deformation normals", n.len(), count)?,
+                (Some(n), None) => check("deformation normals", n.len(), 0)?,
+                (None, _) => {}
+            }
+        }
         Ok(())
     }
 
@@ -191,11 +243,35 @@ impl Mesh {
         [self.positions[a as usize], self.positions[b as usize], self.positions[c as usize]]
     }
 
+    /// The three corner positions of triangle `i` at `time` (where a deforming mesh then is).
+    pub fn corners_at(&self, i: usize, time: f32) -> [Vec3; 3] {
+        let [a, b, c] = self.triangles[i].map(|k| k as usize);
+        [a, b, c].map(|k| self.position_at(k, time))
+    }
+
+    /// Vertex `k`'s position at `time`.
+    #[inline]
+    pub fn position_at(&self, k: usize, time: f32) -> Vec3 {
+        match &self.deformation {
+            None => self.positions[k],
+            Some(d) => self.positions[k].lerp(d.positions[k], d.blend(time)),
+        }
+    }
+
     /// The vertex normal interpolated at barycentric weights `w` of the triangle with vertices
     /// `[a, b, c]` (object space, not normalised), when the mesh has normals.
     pub fn interpolate_normal(&self, [a, b, c]: [usize; 3], w: [f32; 3]) -> Option<Vec3> {
         let ns = self.normals.as_ref()?;
         Some(ns[a] * w[0] + ns[b] * w[1] + ns[c] * w[2])
+    }
+
+    /// [`Mesh::interpolate_normal`] at `time` (where a deforming mesh's normals then are).
+    pub fn interpolate_normal_at(&self, [a, b, c]: [usize; 3], w: [f32; 3], time: f32) -> Option<Vec3> {
+        let at_open = self.interpolate_normal([a, b, c], w)?;
+        match self.deformation.as_ref().and_then(|d| Some((d, d.normals.as_ref()?))) {
+            None => Some(at_open),
+            Some((d, ns)) => Some(at_open.lerp(ns[a] * w[0] + ns[b] * w[1] + ns[c] * w[2], d.blend(time))),
+        }
     }
 
     /// Every per-vertex attribute interpolated at barycentric weights `w` of the triangle with
@@ -222,6 +298,10 @@ impl Mesh {
             + self.uvs.as_ref().map_or(0, |n| n.len() * size_of::<Vec2>())
             + self.attributes.iter().map(|a| a.data.len() * 4).sum::<usize>()
             + self.triangles.len() * 12
+            + self
+                .deformation
+                .as_ref()
+                .map_or(0, |d| (d.positions.len() + d.normals.as_ref().map_or(0, Vec::len)) * size_of::<Vec3>())
     }
 }
 

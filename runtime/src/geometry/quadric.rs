@@ -359,7 +359,7 @@ pub(crate) fn tessellate_grid(nu: u32, nv: u32, surface: impl Fn(f32, f32) -> (V
             }
         }
     }
-    Mesh { positions, normals: Some(normals), uvs: Some(uvs), attributes: Vec::new(), triangles }
+    Mesh { positions, normals: Some(normals), uvs: Some(uvs), triangles, ..Default::default() }
 }
 
 #[cfg(test)]

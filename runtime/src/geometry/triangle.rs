@@ -58,6 +58,14 @@ impl PreTriangle {
         PreTriangle { v0: a.to_array(), e1: (b - a).to_array(), e2: (c - a).to_array() }
     }
 
+    /// The triangle `w` of the way from `self` to `other` (corner by corner, which is field by
+    /// field: each is linear in the corners).
+    #[inline(always)]
+    pub fn lerp(&self, other: &PreTriangle, w: f32) -> PreTriangle {
+        let mix = |a: [f32; 3], b: [f32; 3]| std::array::from_fn(|k| a[k] + (b[k] - a[k]) * w);
+        PreTriangle { v0: mix(self.v0, other.v0), e1: mix(self.e1, other.e1), e2: mix(self.e2, other.e2) }
+    }
+
     /// The unnormalised geometric normal `e1 x e2`.
     pub fn normal(&self) -> Vec3A {
         Vec3A::from(self.e1).cross(Vec3A::from(self.e2))

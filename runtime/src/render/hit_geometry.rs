@@ -200,7 +200,7 @@ pub(super) fn hit_geometries(
     rows: &mut HitRows,
     each: bool,
 ) -> bool {
-    if ig.moving.is_some() || !ig.mesh.attributes.is_empty() {
+    if ig.moving.is_some() || ig.mesh.deformation.is_some() || !ig.mesh.attributes.is_empty() {
         for (slot, p) in geoms.iter_mut().zip(group) {
             hit_geometry_into(ig, &p.hit, p.ray.time, slot);
         }
@@ -525,10 +525,10 @@ impl<V: Lanes> SurfaceLanes<V> {
     }
 }
 
-/// [`hit_geometry_into`] for four hits of an instance that stands still, with a mesh without
-/// further attributes, into `slots` (up to four: lanes past them are computed and dropped) where
-/// `each`, and into chunk `k` of `rows` (lanes past `slots`, and those without geometry, zero),
-/// with the hits' screen-space derivatives when the shaders want them.
+/// [`hit_geometry_into`] for four hits of an instance that stands still, with a mesh that does not
+/// deform and has no further attributes, into `slots` (up to four: lanes past them are computed
+/// and dropped) where `each`, and into chunk `k` of `rows` (lanes past `slots`, and those without
+/// geometry, zero), with the hits' screen-space derivatives when the shaders want them.
 fn hit_geometry_four(
     ig: &InstanceGeometry,
     pending: [&Pending; 4],
@@ -603,7 +603,10 @@ pub(super) fn hit_geometry_into(ig: &InstanceGeometry, hit: &Hit, time: f32, slo
 pub(super) fn hit_geometry(ig: &InstanceGeometry, hit: &Hit, time: f32, g: &mut HitGeometry) -> Option<()> {
     let mesh = ig.mesh;
     let [a, b, c] = (*mesh.triangles.get(hit.primitive as usize)?).map(|i| i as usize);
-    let (pa, pb, pc) = (*mesh.positions.get(a)?, *mesh.positions.get(b)?, *mesh.positions.get(c)?);
+    if [a, b, c].iter().any(|&k| k >= mesh.positions.len()) {
+        return None;
+    }
+    let (pa, pb, pc) = (mesh.position_at(a, time), mesh.position_at(b, time), mesh.position_at(c, time));
     let (xf, normal_xf) = match ig.moving {
         None => (ig.world_from_object, ig.normal_xf),
         Some(d) => {
@@ -615,7 +618,7 @@ pub(super) fn hit_geometry(ig: &InstanceGeometry, hit: &Hit, time: f32, g: &mut 
     let (w0, w1, w2) = (1.0 - hit.u - hit.v, hit.u, hit.v);
     let p_obj = Vec3A::from(pa) * w0 + Vec3A::from(pb) * w1 + Vec3A::from(pc) * w2;
     let ng = (normal_xf * e1.cross(e2)).normalize_or_zero();
-    let n = match mesh.interpolate_normal([a, b, c], [w0, w1, w2]) {
+    let n = match mesh.interpolate_normal_at([a, b, c], [w0, w1, w2], time) {
         Some(ni) => (normal_xf * Vec3A::from(ni)).normalize_or(ng),
         None => ng,
     };
@@ -783,7 +786,7 @@ mod tests {
                 _ => Vec::new(),
             };
             let st = (!attributes.is_empty()).then_some(0);
-            let mesh = Mesh { positions, normals, uvs, attributes, triangles };
+            let mesh = Mesh { positions, normals, uvs, attributes, triangles, deformation: None };
             let m = Mat3A::from_cols(
                 Vec3A::new(r() * 2.0, r(), r()),
                 Vec3A::new(r(), r() * 2.0, r()),

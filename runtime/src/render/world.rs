@@ -826,7 +826,7 @@ impl World {
         if c.primitive as usize >= mesh.triangle_count() {
             return true;
         }
-        let [a, b, p] = mesh.corners(c.primitive as usize);
+        let [a, b, p] = mesh.corners_at(c.primitive as usize, ray.time);
         let object_from_world = match data.motion {
             None => data.object_from_world,
             Some(_) => data.world_from_object_at(ray.time).inverse(),

@@ -242,6 +242,9 @@ impl<'a> CurvesPlan<'a> {
                 plan.segments.push(pieces);
             }
         }
+        if let Some(fixed) = options.segments.as_deref().filter(|s| s.len() == plan.segments.len()) {
+            plan.segments = fixed.to_vec();
+        }
         Ok(plan)
     }
 
@@ -325,6 +328,18 @@ pub fn curves_triangles(
     options: &MeshOptions,
 ) -> usize {
     CurvesPlan::new(ty, nvertices, wrap, params, options).map_or(0, |plan| plan.triangles())
+}
+
+/// The segments of each span [`curves_mesh`] makes of the same request (`None` when it refuses
+/// it).
+pub fn curves_segments(
+    ty: CurveType,
+    nvertices: &[i32],
+    wrap: Wrap,
+    params: &[Param],
+    options: &MeshOptions,
+) -> Option<Vec<u32>> {
+    CurvesPlan::new(ty, nvertices, wrap, params, options).ok().map(|plan| plan.segments)
 }
 
 /// The ribbon's direction across a curve at one sample, and its normal.

@@ -33,13 +33,13 @@
 
 use super::decl::{Class, Ty};
 use super::mesh::MeshOptions;
-use super::primitive::{mesh_from_request_with, request_triangles};
+use super::primitive::{mesh_from_request_with, request_segments, request_triangles};
 use super::request::{Handle, Orientation, Param, ParamValue as RibValue, Request, RequestKind};
 use super::view::{Projection, View};
 use super::{parse_file, parse_str, RibDiagnostic, RibParse, Severity, MAX_RIB_TRIANGLES};
 use crate::api::{ApiError, AttributeParts, Context, InstanceId, LightId, ObjectId, SavedAttributes};
 use crate::csg::{Solid, SolidNode, SolidOp, SolidPart};
-use crate::geometry::Mesh;
+use crate::geometry::{Deformation, Mesh};
 use crate::render::{DisplayMode, MAX_PIXEL_SAMPLES};
 use crate::scene_file::{add_model_file, add_model_file_placed, Placement, SceneFileError};
 use crate::shading::{ParamValue, ShaderProgram};
@@ -329,6 +329,12 @@ struct Loader<'a> {
     motion: Option<u32>,
     /// Inside `MotionBegin`: the matrices of its transform samples (applied at `MotionEnd`).
     motion_transforms: Vec<(bool, Affine3A)>,
+    /// Inside `MotionBegin`: its times, and the meshes of its geometry samples (added at
+    /// `MotionEnd`, deforming).
+    motion_times: Vec<f32>,
+    motion_geometry: Vec<(Request, Mesh)>,
+    /// The segments of the block's first `Points` or `Curves` sample, which the later ones take.
+    motion_segments: Option<std::sync::Arc<[u32]>>,
     /// Triangles of the geometry requests so far, against [`MAX_RIB_TRIANGLES`].
     triangles: usize,
     /// `ClippingPlane`s given before `WorldBegin`, in camera space (point and normal), moved into
@@ -388,6 +394,9 @@ impl<'a> Loader<'a> {
             orthographic: false,
             motion: None,
             motion_transforms: Vec::new(),
+            motion_times: Vec::new(),
+            motion_geometry: Vec::new(),
+            motion_segments: None,
             triangles: 0,
             camera_clipping_planes: Vec::new(),
             resources: vec![HashMap::new()],
@@ -472,6 +481,69 @@ impl<'a> Loader<'a> {
         current * camera < 0.0
     }
 
+    /// The mesh of geometry request `r` (`None`: nothing to add, its diagnostics reported).
+    fn tessellate(&mut self, r: &Request) -> Result<Option<Mesh>, SceneFileError> {
+        self.state.mesh_options.view = self.view();
+        // Refused before it is tessellated: one patch mesh can ask for more than the limit. A
+        // blobby's own limits bound its mesh, whose size only sampling its field tells: it is
+        // counted once built.
+        let blobby = matches!(r.kind, RequestKind::Blobby { .. });
+        if !blobby {
+            self.check_triangles(r, request_triangles(r, &self.state.mesh_options))?;
+        }
+        let mut diags = Vec::new();
+        let mesh = mesh_from_request_with(r, &self.state.mesh_options, &mut diags);
+        if let Some(mesh) = mesh.as_ref().filter(|_| blobby) {
+            self.check_triangles(r, mesh.triangle_count())?;
+        }
+        // A primitive that could not be built is missing from the picture.
+        self.out.warnings.extend(diags.into_iter().map(|d| match d.severity {
+            Severity::Error => RibDiagnostic { severity: Severity::Omission, ..d },
+            _ => d,
+        }));
+        Ok(mesh.filter(|m| !m.triangles.is_empty()))
+    }
+
+    /// `MotionEnd` of a block of geometry samples: the first sample deforming into the last
+    /// (rtsl's motion is linear, as for transforms), given the block's times.
+    fn deforming_geometry(&mut self, samples: Vec<(Request, Mesh)>, times: &[f32]) -> Result<(), SceneFileError> {
+        let mut samples = samples.into_iter();
+        let Some((r, mut first)) = samples.next() else { return Ok(()) };
+        let Some((last_r, last)) = samples.last() else { return self.geometry(&r, first) };
+        let (open, close) = (times.first().copied().unwrap_or(0.0), times.last().copied().unwrap_or(1.0));
+        let same_kind = match (&r.kind, &last_r.kind) {
+            (RequestKind::Quadric { quadric: a, .. }, RequestKind::Quadric { quadric: b, .. }) => {
+                std::mem::discriminant(a) == std::mem::discriminant(b)
+            }
+            (a, b) => std::mem::discriminant(a) == std::mem::discriminant(b),
+        };
+        let same_topology = first.triangles == last.triangles
+            && first.positions.len() == last.positions.len()
+            && first.normals.is_some() == last.normals.is_some();
+        if !(same_kind && same_topology) {
+            self.omit(
+                &last_r,
+                "the samples of this motion block are not one primitive changing shape (another request, or \
+                 another number of vertices or faces once tessellated): no deformation blur, the first sample \
+                 is rendered",
+            );
+            return self.geometry(&r, first);
+        }
+        if open.partial_cmp(&close) != Some(std::cmp::Ordering::Less) {
+            self.warn(
+                &r,
+                format_args!("MotionBegin times {open} and {close} do not increase: the first sample is rendered"),
+            );
+            return self.geometry(&r, first);
+        }
+        first.deformation = Some(Deformation { positions: last.positions, normals: last.normals, open, close });
+        // An object of its own, so that deformations of other intervals never share one.
+        self.flush()?;
+        self.geometry(&r, first)?;
+        self.flush()?;
+        Ok(())
+    }
+
     fn geometry(&mut self, r: &Request, mut mesh: Mesh) -> Result<(), SceneFileError> {
         self.check_triangles(r, mesh.triangles.len())?;
         self.triangles += mesh.triangles.len();
@@ -506,12 +578,28 @@ impl<'a> Loader<'a> {
             }
         }
         if subtracted {
-            for n in mesh.normals.iter_mut().flatten() {
+            let close = mesh.deformation.as_mut().and_then(|d| d.normals.as_mut());
+            for n in mesh.normals.iter_mut().flatten().chain(close.into_iter().flatten()) {
                 *n = -*n;
             }
         }
-        self.rt.mesh(&mesh).inspect_err(|_| self.omit(r, "geometry skipped"))?;
-        Ok(())
+        match self.rt.mesh(&mesh) {
+            Ok(()) => Ok(()),
+            Err(ApiError::DeformationTimes { .. }) => {
+                // Only a retained object gathers deformations of several motion blocks.
+                self.warn(
+                    r,
+                    "this retained object already deforms over other MotionBegin times: this geometry stands still",
+                );
+                mesh.deformation = None;
+                self.rt.mesh(&mesh).inspect_err(|_| self.omit(r, "geometry skipped"))?;
+                Ok(())
+            }
+            Err(e) => {
+                self.omit(r, "geometry skipped");
+                Err(e.into())
+            }
+        }
     }
 
     fn request(&mut self, r: &Request) -> Result<(), SceneFileError> {
@@ -521,7 +609,36 @@ impl<'a> Loader<'a> {
             return Ok(());
         }
         // Motion blocks: transforms become a motion transform at `MotionEnd` (the first and last
-        // samples: rtsl's motion is linear); of other requests only the first sample is used.
+        // samples: rtsl's motion is linear), geometry a deforming mesh; of other requests only the
+        // first sample is used.
+        if self.motion.is_some() && is_geometry(&r.kind) {
+            // Later samples take the first's tessellation, so that every vertex has its counterpart:
+            // a quadric's at equal (u, v) whatever the sweep (the surface blends point by point
+            // between the samples' parametric surfaces), points' and curves' whatever their size on
+            // screen.
+            let chosen = self.state.mesh_options.tessellation;
+            match (self.motion_geometry.first().map(|(first, _)| &first.kind), &r.kind) {
+                (Some(K::Quadric { quadric, .. }), K::Quadric { .. }) => {
+                    self.state.mesh_options.tessellation =
+                        Some(chosen.unwrap_or_else(|| quadric.default_tessellation()))
+                }
+                (Some(_), K::Points(_) | K::Curves { .. }) => {
+                    self.state.mesh_options.segments = self.motion_segments.clone()
+                }
+                (None, K::Points(_) | K::Curves { .. }) => {
+                    self.state.mesh_options.view = self.view();
+                    self.motion_segments = request_segments(r, &self.state.mesh_options);
+                }
+                _ => {}
+            }
+            let mesh = self.tessellate(r);
+            self.state.mesh_options.tessellation = chosen;
+            self.state.mesh_options.segments = None;
+            if let Some(mesh) = mesh? {
+                self.motion_geometry.push((r.clone(), mesh));
+            }
+            return Ok(());
+        }
         if self.motion.is_some() {
             let sample = match &r.kind {
                 K::Translate(t) => Some((false, Affine3A::from_translation(Vec3::new(t[0], t[1], t[2])))),
@@ -540,6 +657,9 @@ impl<'a> Loader<'a> {
             }
         }
         if let (K::MotionEnd, Some(_)) = (&r.kind, self.motion) {
+            let (geometry, times) = (std::mem::take(&mut self.motion_geometry), std::mem::take(&mut self.motion_times));
+            self.motion_segments = None;
+            self.deforming_geometry(geometry, &times)?;
             let samples = std::mem::take(&mut self.motion_transforms);
             if let (Some(&(absolute, open)), Some(&(_, close))) = (samples.first(), samples.last()) {
                 self.flush()?;
@@ -585,7 +705,10 @@ impl<'a> Loader<'a> {
             // The reader evaluates conditionals; a list built by hand may still hold them.
             K::IfBegin(_) | K::ElseIf(_) | K::Else | K::IfEnd => {}
             K::TextureCoordinates(st) => self.state.mesh_options.texture_coordinates = *st,
-            K::MotionBegin(_) => self.motion = Some(0),
+            K::MotionBegin(times) => {
+                self.motion = Some(0);
+                self.motion_times = times.clone();
+            }
             K::MotionEnd => self.motion = None,
             K::SolidBegin(operation) => self.solid_begin(r, operation),
             K::SolidEnd => self.solid_end(r)?,
@@ -821,28 +944,8 @@ impl<'a> Loader<'a> {
             | K::Points(_)
             | K::Curves { .. }
             | K::Blobby { .. } => {
-                self.state.mesh_options.view = self.view();
-                // Refused before it is tessellated: one patch mesh can ask for more than the limit.
-                // A blobby's own limits bound its mesh, whose size only sampling its field tells:
-                // it is counted once built.
-                let blobby = matches!(r.kind, K::Blobby { .. });
-                if !blobby {
-                    self.check_triangles(r, request_triangles(r, &self.state.mesh_options))?;
-                }
-                let mut diags = Vec::new();
-                let mesh = mesh_from_request_with(r, &self.state.mesh_options, &mut diags);
-                if let Some(mesh) = mesh.as_ref().filter(|_| blobby) {
-                    self.check_triangles(r, mesh.triangle_count())?;
-                }
-                // A primitive that could not be built is missing from the picture.
-                self.out.warnings.extend(diags.into_iter().map(|d| match d.severity {
-                    Severity::Error => RibDiagnostic { severity: Severity::Omission, ..d },
-                    _ => d,
-                }));
-                if let Some(mesh) = mesh {
-                    if !mesh.triangles.is_empty() {
-                        self.geometry(r, mesh)?;
-                    }
+                if let Some(mesh) = self.tessellate(r)? {
+                    self.geometry(r, mesh)?;
                 }
             }
             // Attribute state: it trims the NuPatches that follow in the block.

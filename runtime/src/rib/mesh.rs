@@ -59,6 +59,11 @@ pub struct MeshOptions {
     /// The camera seen from the request (its transform and the projection): what camera-facing
     /// primitives face, and how large they look. The loader sets it for each geometry request.
     pub view: View,
+    /// Segments per point (`Points`) or per span (`Curves`) chosen by the caller instead of by
+    /// their size on screen: a motion block's later samples take its first's, so that their meshes
+    /// correspond vertex by vertex. Ignored where the request has another number of points or
+    /// spans.
+    pub segments: Option<Arc<[u32]>>,
 }
 
 impl Default for MeshOptions {
@@ -73,6 +78,7 @@ impl Default for MeshOptions {
             trim: None,
             trim_sense: TrimSense::Inside,
             view: View::default(),
+            segments: None,
         }
     }
 }

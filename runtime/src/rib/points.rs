@@ -181,12 +181,27 @@ impl PointsPlan {
 /// The triangles [`points_mesh`] makes of the same request, worked out without tessellating (0 for
 /// a request it refuses).
 pub fn points_triangles(params: &[Param], options: &MeshOptions) -> usize {
-    PointsPlan::new(params, &options.view, &mut Vec::new()).map_or(0, |plan| plan.triangles())
+    plan(params, options, &mut Vec::new()).map_or(0, |plan| plan.triangles())
+}
+
+/// The segments of each point [`points_mesh`] makes of the same request (`None` when it refuses
+/// it).
+pub fn points_segments(params: &[Param], options: &MeshOptions) -> Option<Vec<u32>> {
+    plan(params, options, &mut Vec::new()).ok().map(|plan| plan.segments)
+}
+
+/// The plan of a `Points` request, with the segments `options` fixes where it fixes them.
+fn plan(params: &[Param], options: &MeshOptions, warnings: &mut Vec<String>) -> Result<PointsPlan, String> {
+    let mut plan = PointsPlan::new(params, &options.view, warnings)?;
+    if let Some(fixed) = options.segments.as_deref().filter(|s| s.len() == plan.segments.len()) {
+        plan.segments = fixed.to_vec();
+    }
+    Ok(plan)
 }
 
 /// `Points`: a disk (or sphere) per point of `P`.
 pub fn points_mesh(params: &[Param], options: &MeshOptions, warnings: &mut Vec<String>) -> Result<Mesh, String> {
-    let plan = PointsPlan::new(params, &options.view, warnings)?;
+    let plan = plan(params, options, warnings)?;
     let n = plan.points.len();
     let counts = ClassCounts { vertex: n, varying: n, face: 1, corner: Some(n) };
     let data: Vec<_> = per_vertex_params(params, &counts, warnings)

@@ -5,13 +5,13 @@
 //! at the request's location.
 
 use super::blobby::{blobby_mesh, blobby_triangles, BlobbyInput};
-use super::curves::{curves_mesh, curves_triangles};
+use super::curves::{curves_mesh, curves_segments, curves_triangles};
 use super::mesh::{
     general_polygon_mesh, points_general_polygons_mesh, points_polygons_mesh, polygon_mesh, quadric_mesh, MeshOptions,
 };
 use super::nurbs::{nupatch_mesh, nupatch_triangles};
 use super::patch::{patch_mesh, patch_mesh_triangles};
-use super::points::{points_mesh, points_triangles};
+use super::points::{points_mesh, points_segments, points_triangles};
 use super::request::{PatchType, Request, RequestKind, Wrap};
 use super::subdiv::{subdivision_mesh, subdivision_mesh_triangles, SubdivisionInput};
 use super::teapot::{geometry_mesh, geometry_triangles};
@@ -50,6 +50,18 @@ pub fn request_triangles(request: &Request, options: &MeshOptions) -> usize {
         RequestKind::Blobby { .. } => blobby_input(&request.kind).map_or(0, |input| blobby_triangles(&input, options)),
         _ => 0,
     }
+}
+
+/// The segments per point of a `Points` request, or per span of a `Curves` request, that
+/// [`mesh_from_request_with`] would choose (what [`MeshOptions::segments`] fixes); `None` for
+/// other requests and for one the builder refuses.
+pub fn request_segments(request: &Request, options: &MeshOptions) -> Option<std::sync::Arc<[u32]>> {
+    let segments = match &request.kind {
+        RequestKind::Points(params) => points_segments(params, options),
+        RequestKind::Curves { ty, nvertices, wrap, params } => curves_segments(*ty, nvertices, *wrap, params, options),
+        _ => None,
+    };
+    segments.map(Into::into)
 }
 
 /// [`mesh_from_request`] under the graphics state's basis and a chosen tessellation.

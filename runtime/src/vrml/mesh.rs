@@ -528,7 +528,7 @@ pub fn extrusion(e: &Extrusion, budget: &mut usize) -> Made {
 
 /// A mesh from per-vertex arrays.
 fn mesh_of(positions: Vec<Vec3>, normals: Vec<Vec3>, uvs: Vec<Vec2>, triangles: Vec<[u32; 3]>) -> Mesh {
-    Mesh { positions, normals: Some(normals), uvs: Some(uvs), attributes: Vec::new(), triangles }
+    Mesh { positions, normals: Some(normals), uvs: Some(uvs), triangles, ..Default::default() }
 }
 
 /// A Box of `size` about the origin, each face textured whole, upright as VRML says.
