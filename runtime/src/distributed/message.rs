@@ -8,7 +8,7 @@ use crate::texture::TextureKind;
 use rtsl_compiler::interface::ShaderKind;
 
 /// The protocol's version: ranks that speak different versions refuse each other at start-up.
-pub const PROTOCOL_VERSION: u32 = 14;
+pub const PROTOCOL_VERSION: u32 = 15;
 
 /// What the master's counters add up from a worker's share of a frame.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -108,6 +108,11 @@ pub enum Message {
     /// [`crate::api::encode_mesh`] writes it (empty: the object has no mesh now), and each
     /// texture's kind, name and [`crate::texture::Delivered`] (postcard).
     Data { frame: u64, meshes: Vec<(u32, Vec<u8>)>, textures: Vec<(TextureKind, String, Vec<u8>)> },
+    /// Master to worker, between frames: another scene replaces the one being replicated. The
+    /// worker drops its copy and everything it kept of it (the world and its BVHs, fetched meshes
+    /// and textures, programs, light paths) and starts again from an empty scene, which the next
+    /// frame's update fills whole.
+    NewScene,
 }
 
 const HELLO: u8 = 1;
@@ -118,6 +123,7 @@ const FRAME_DONE: u8 = 5;
 const QUIT: u8 = 6;
 const FETCH: u8 = 7;
 const DATA: u8 = 8;
+const NEW_SCENE: u8 = 9;
 
 /// The protocol version a greeting states, read without decoding the rest: a greeting starts with
 /// its kind and the version in every version of the protocol, so that ranks of different versions
@@ -250,6 +256,7 @@ impl Message {
                 w.opt_str(failure.as_deref());
             }
             Message::Quit => w.u8(QUIT),
+            Message::NewScene => w.u8(NEW_SCENE),
             Message::Fetch { frame, objects, textures } => {
                 w.u8(FETCH);
                 w.u64(*frame);
@@ -343,6 +350,7 @@ impl Message {
                 Message::FrameDone { frame, counts, failure: r.opt_str()? }
             }
             QUIT => Message::Quit,
+            NEW_SCENE => Message::NewScene,
             FETCH => {
                 let (frame, objects) = (r.u64()?, r.u32s()?);
                 let n = r.count(9)?;
@@ -564,6 +572,7 @@ mod tests {
                 failure: Some("cannot build".into()),
             },
             Message::Quit,
+            Message::NewScene,
             Message::Fetch { frame: 2, objects: vec![4, 1], textures: vec![] },
             Message::Fetch {
                 frame: 2,

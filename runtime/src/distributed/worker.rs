@@ -19,6 +19,9 @@ pub trait WorkerScene: Send {
     fn world(&mut self, update: &[u8]) -> Result<World, String>;
     /// Takes back a frame's world once its tiles are rendered (to keep its BVHs for the next).
     fn finished(&mut self, world: World);
+    /// Drops the scene and everything kept of it, for another scene that the next update brings
+    /// whole (see [`Message::NewScene`]).
+    fn start_again(&mut self);
     /// Where the scene's demand-loaded objects wait for their meshes, if it has any.
     fn fetch_link(&self) -> Option<Arc<FetchLink>> {
         None
@@ -82,13 +85,21 @@ impl WorkerScene for ReplicaScene {
         self.world = Some(world);
     }
 
+    /// A fresh replica with the same cache limit: the world with its BVHs, the fetched meshes,
+    /// the texture cache, the programs and the fetch link's frame clock all go with the old one.
+    fn start_again(&mut self) {
+        *self = ReplicaScene::with_cache_limit(self.cache_limit);
+    }
+
     fn fetch_link(&self) -> Option<Arc<FetchLink>> {
         Some(self.link.clone())
     }
 }
 
 /// Serves the master on rank 0 of `transport` until it says to stop: greets it (with `scene`'s
-/// failure if the scene could not be loaded), then renders each frame's tiles on `pool`.
+/// failure if the scene could not be loaded), then renders each frame's tiles on `pool`. A frame
+/// that fails here is reported to the master, and this rank renders nothing more until the master
+/// starts a new scene ([`Message::NewScene`]), which it renders from empty.
 pub fn serve<T: Transport + ?Sized>(
     transport: &T,
     scene: Result<&mut dyn WorkerScene, String>,
@@ -110,6 +121,13 @@ pub fn serve<T: Transport + ?Sized>(
     loop {
         match receive(transport)? {
             Message::Quit => return Ok(()),
+            Message::NewScene => {
+                kept_paths = LightPaths::default();
+                if let Some(s) = scene.as_deref_mut() {
+                    s.start_again();
+                    failure = None;
+                }
+            }
             Message::Frame { frame, update, light_paths, job, units, lattices, last } => {
                 if !light_paths.is_empty() {
                     kept_paths = LightPaths::decode(&light_paths)
@@ -120,9 +138,9 @@ pub fn serve<T: Transport + ?Sized>(
                     Job::Tiles if light_paths.is_empty() => LightPaths::default(),
                     _ => kept_paths.clone(),
                 };
-                let world = match scene.as_deref_mut() {
-                    Some(s) => build_world(transport, frame, pool, s, &update)?,
-                    None => Err(failure.clone().unwrap_or_default()),
+                let world = match (scene.as_deref_mut(), &failure) {
+                    (Some(s), None) => build_world(transport, frame, pool, s, &update)?,
+                    (_, failure) => Err(failure.clone().unwrap_or_default()),
                 };
                 let result = match world {
                     Ok(world) => {
@@ -143,16 +161,16 @@ pub fn serve<T: Transport + ?Sized>(
                     Err(message) => Err(message),
                 };
                 if let Err(message) = result {
-                    // The master reports it and ends the frame. This rank renders nothing more (its
-                    // copy of the scene may be half updated) and waits to be told to stop.
+                    // The master reports it and ends the frame. This rank renders nothing more of
+                    // this scene (its copy may be half updated): until a new scene, every frame
+                    // it is sent ends at once with the same failure.
                     let done = Message::FrameDone { frame, counts: Default::default(), failure: Some(message.clone()) };
                     transport.send(0, &done.encode())?;
-                    scene = None;
                     failure = Some(message);
                 }
             }
-            // More tiles of the frame this rank gave up.
-            Message::Assign { .. } if scene.is_none() => {}
+            // More tiles of the frame this rank gave up, or answers to what it fetched for it.
+            Message::Assign { .. } | Message::Data { .. } if failure.is_some() => {}
             _ => return Err(out_of_place(transport)),
         }
     }
