@@ -309,6 +309,156 @@ fn every_kind_of_change_reaches_the_workers_before_their_frame() -> Result<(), D
     Ok(())
 }
 
+/// A quad from `corners` (counter-clockwise, seen from the camera) with texture coordinates over
+/// it, bound to `shader`, instanced once.
+fn textured_quad(rt: &mut Context, shader: rtsl_runtime::api::ShaderId, corners: [[f32; 3]; 4]) -> Result<(), String> {
+    let e = |e: rtsl_runtime::api::ApiError| e.to_string();
+    let quad = rt.begin_object().map_err(e)?;
+    rt.bind_shader(shader).map_err(e)?;
+    rt.begin(Primitive::Quads).map_err(e)?;
+    for (k, p) in corners.iter().enumerate() {
+        rt.tex_coord([0.0, 1.0, 1.0, 0.0][k], [0.0, 0.0, 1.0, 1.0][k]);
+        rt.vertex(p[0], p[1], p[2]).map_err(e)?;
+    }
+    rt.end().map_err(e)?;
+    rt.end_object().map_err(e)?;
+    rt.instantiate_object(quad).map_err(e).map(|_| ())
+}
+
+/// The memory texture "checks", `side` texels square, their values made from `seed`.
+fn checks(rt: &mut Context, side: usize, seed: usize) -> Result<(), String> {
+    let texels: Vec<f32> = (0..side * side * 3).map(|i| ((i * seed) % 11) as f32 / 10.0).collect();
+    rt.tex_image_2d("checks", side, side, 3, &texels).map_err(|e| e.to_string())
+}
+
+/// [`little_scene`] and more: four shaders, three objects and their instances, two lights, and a
+/// quad showing the memory texture "checks".
+fn busy_scene() -> Result<Context, String> {
+    let e = |e: rtsl_runtime::api::ApiError| e.to_string();
+    let mut rt = little_scene()?;
+    checks(&mut rt, 8, 37)?;
+    let shader = rt
+        .compile_shader("textured", "surface textured() { Ci = color texture(\"checks\", s, t); Oi = 1; }")
+        .map_err(e)?;
+    textured_quad(&mut rt, shader, [[-1.5, 0.2, -1.0], [-0.6, 0.2, -1.0], [-0.6, 1.2, -1.0], [-1.5, 1.2, -1.0]])?;
+    let distant = rt.find_shader("distantlight").map_err(e)?;
+    rt.light_source(distant, &[("intensity", ParamValue::Float(0.6))]).map_err(e)?;
+    Ok(rt)
+}
+
+/// Another scene, smaller than [`busy_scene`] in every count: one shader of another name
+/// (`paintedplastic`) reading another "checks" texture over a quad filling most of the view,
+/// and one light of another kind.
+fn sparse_scene() -> Result<Context, String> {
+    let e = |e: rtsl_runtime::api::ApiError| e.to_string();
+    let mut rt = Context::new();
+    rt.options.width = 40;
+    rt.options.height = 32;
+    rt.camera_look_at(Vec3A::new(0.0, 0.0, 4.0), Vec3A::ZERO, Vec3A::Y, 45.0);
+    checks(&mut rt, 4, 53)?;
+    let painted = rt.find_shader("paintedplastic").map_err(e)?;
+    let quad = rt.begin_object().map_err(e)?;
+    rt.bind_shader(painted).map_err(e)?;
+    rt.parameter("texturename", ParamValue::String("checks".into())).map_err(e)?;
+    rt.begin(Primitive::Quads).map_err(e)?;
+    for (k, p) in [[-1.5, -1.2, 0.0], [1.5, -1.2, 0.0], [1.5, 1.2, 0.0], [-1.5, 1.2, 0.0]].iter().enumerate() {
+        rt.tex_coord([0.0, 1.0, 1.0, 0.0][k], [0.0, 0.0, 1.0, 1.0][k]);
+        rt.vertex(p[0], p[1], p[2]).map_err(e)?;
+    }
+    rt.end().map_err(e)?;
+    rt.end_object().map_err(e)?;
+    rt.instantiate_object(quad).map_err(e)?;
+    let spot = rt.find_shader("spotlight").map_err(e)?;
+    let params = [
+        ("intensity", ParamValue::Float(14.0)),
+        ("from", ParamValue::Point([0.5, 0.5, 3.0])),
+        ("to", ParamValue::Point([0.0, 0.0, 0.0])),
+        ("coneangle", ParamValue::Float(0.5)),
+    ];
+    rt.light_source(spot, &params).map_err(e)?;
+    Ok(rt)
+}
+
+/// A frame of `rt` over `master`'s workers, and here; with the frame's update's bytes, and what
+/// the workers fetched.
+fn frame_both_ways(
+    master: &mut Master<LocalTransport>,
+    rt: &mut Context,
+) -> Result<((Framebuffer, Framebuffer, u64), Demand), DistributedError> {
+    let world = rt.build_world().expect("a world");
+    let (distributed, _) = master.render_context(rt, &world, None)?;
+    let (alone, _) = render_frame(&world, None);
+    rt.return_scene(world);
+    Ok(((distributed, alone, master.traffic().updates), master.demand()))
+}
+
+/// A context other than the last frame's is another scene (a RIB file's next frame): the workers
+/// drop their copy, its ids, programs, meshes and textures, and are sent the new one whole, even
+/// when it has fewer of everything, and a texture of the same name stands for other texels.
+#[test]
+fn each_new_context_is_a_scene_the_workers_start_again_from() -> Result<(), DistributedError> {
+    let (frames, demands) = with_two_workers(Duration::from_secs(120), |master| {
+        let mut busy = busy_scene().expect("the busy scene");
+        let mut sparse = sparse_scene().expect("the sparse scene");
+        let mut busy_again = busy_scene().expect("the busy scene");
+        let mut frames = Vec::new();
+        let mut demands = Vec::new();
+        for rt in [&mut busy, &mut sparse, &mut busy_again] {
+            let (frame, demand) = frame_both_ways(master, rt)?;
+            frames.push(frame);
+            demands.push(demand);
+            if frames.len() == 2 {
+                // Within a scene, frames send what changed, as ever.
+                move_first(rt).expect("moved");
+                let (frame, demand) = frame_both_ways(master, rt)?;
+                frames.push(frame);
+                demands.push(demand);
+            }
+        }
+        // A viewer's pieces of work follow the same way.
+        let mut viewed = sparse_scene().expect("the sparse scene");
+        let world = viewed.build_world().expect("a world");
+        let lattices = rtsl_runtime::render::progressive::pass_lattices(40, 32, 1);
+        let every = |_: u32, _: u32| true;
+        let (there, _) = master.trace_lattices(&viewed, &world, &lattices, 0, false, &every)?;
+        let (here, _) = rtsl_runtime::render::progressive::trace_lattices(&world, &lattices, 0, false, &every);
+        assert!(lattice_bits(&there) == lattice_bits(&here), "the new scene's samples differ");
+        viewed.return_scene(world);
+        Ok((frames, demands))
+    })?;
+    assert_same(&frames, "frames of scenes one after another");
+    assert!(frames[0].1.rgba != frames[1].1.rgba && frames[1].1.rgba != frames[2].1.rgba, "the scenes differ");
+    let updates: Vec<u64> = frames.iter().map(|f| f.2).collect();
+    // A new scene is sent whole; a move within it is one instance.
+    assert!(updates[1] > 10_000 && updates[3] > 10_000, "{updates:?}");
+    assert!(updates[2] < updates[1] / 20, "{updates:?}");
+    // The texture of the same name, fetched again by each scene from the master.
+    for (k, d) in demands.iter().enumerate().filter(|(k, _)| *k != 2) {
+        assert!(d.fetched_textures > 0, "frame {k}: {d:?}");
+    }
+    Ok(())
+}
+
+/// A worker whose frame failed (here, an update it cannot decode) renders none of that scene's
+/// later frames, each reported as failed, and renders again once the master starts a new scene.
+#[test]
+fn a_worker_that_failed_renders_again_from_a_new_scene() -> Result<(), DistributedError> {
+    with_two_workers(Duration::from_secs(60), |master| {
+        let mut rt = little_scene().expect("the little scene");
+        let world = rt.build_world().expect("a world");
+        master.render_context(&rt, &world, None)?;
+        let err = master.render_frame(&world, b"no update", None).expect_err("an update no worker can apply");
+        assert!(err.to_string().contains("cannot be decoded"), "{err}");
+        let again = master.render_context(&rt, &world, None).expect_err("the scene's next frame").to_string();
+        assert!(again.contains("cannot be decoded"), "the same failure: {again}");
+        rt.return_scene(world);
+        let mut next = busy_scene().expect("the busy scene");
+        let (frame, _) = frame_both_ways(master, &mut next)?;
+        assert_same(&[frame], "the first frame of a new scene after a failure");
+        Ok(())
+    })
+}
+
 /// The texture file of [`textures_read_again_after_a_change_reach_the_workers`] (the changes it
 /// renders are plain functions).
 fn changing_texture() -> PathBuf {

@@ -408,6 +408,9 @@ pub struct Context {
     /// The ray parameter names shaders asked for and nothing set, shared with the worlds built,
     /// so that each is reported once across frames.
     ray_parameter_misses: Arc<crate::render::ray_params::RayParameterMisses>,
+    /// Tells this context from every other made in the process: a [`Replicator`] follows one
+    /// context, and starts its replicas again from empty when given another.
+    identity: u64,
 }
 
 /// An object's materials as a frame built them, and what they were built from: reused by the next
@@ -427,6 +430,12 @@ impl Default for Context {
     fn default() -> Self {
         Self::new()
     }
+}
+
+/// The `identity` of the next [`Context`] made.
+fn next_context_identity() -> u64 {
+    static NEXT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
+    NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
 }
 
 /// Where shader `name` is found as a file: in each directory of `search` (in order), then in the
@@ -505,6 +514,7 @@ impl Context {
             mesh_source: None,
             texture_source: None,
             ray_parameter_misses: Default::default(),
+            identity: next_context_identity(),
             warnings: crate::cpu::build_note_once().map(str::to_string).into_iter().collect(),
             events: Vec::new(),
             built_materials: Vec::new(),

@@ -29,6 +29,11 @@
 //! Contexts only grow (ids are never reused), so an update lists every record new since the last
 //! one: a receiver checks that, and every id an update names, before it changes anything an index
 //! could go wrong on. A damaged update is a [`ReplicaError`], never a panic.
+//!
+//! A replicator follows one context. Another context is another scene (a RIB file's next frame,
+//! a scene loaded again), whose ids start from 0 again: its replicas start again from an empty
+//! context, and the replicator with them ([`Replicator::restart`]), so that the next update
+//! carries the new scene whole.
 
 use super::{Appearance, Binding, Context, InstanceId, InstanceRecord, LightRecord, ObjectParts, ObjectRecord};
 use crate::accel::bvh4::BuildQuality;
@@ -65,6 +70,8 @@ pub enum ReplicaError {
 pub struct Replicator {
     /// Whether objects travel as summaries, their meshes fetched on demand.
     demand: bool,
+    /// The context the updates so far were made of (none: no update yet).
+    source: Option<u64>,
     programs: Vec<Option<Program>>,
     objects: Vec<SentObject>,
     instances: Vec<InstanceRecord>,
@@ -201,11 +208,33 @@ impl Replicator {
         Replicator { demand: true, ..Replicator::default() }
     }
 
+    /// Whether the updates so far are of `rt` (or there were none): the next update of `rt` is
+    /// then what changed since. Another context is another scene, whose records reuse the ids of
+    /// this one's: its replicas start again from empty ([`Replicator::restart`]).
+    pub fn follows(&self, rt: &Context) -> bool {
+        self.source.is_none_or(|s| s == rt.identity)
+    }
+
+    /// Forgets what was sent, for replicas that start again from an empty context: the next
+    /// update carries the whole of its context, whichever it is.
+    pub fn restart(&mut self) {
+        *self = Replicator { demand: self.demand, ..Replicator::default() };
+    }
+
     /// What changed in `rt` since the last update (everything, the first time), as bytes for
     /// [`Context::apply_update`]; empty when nothing did. `scene`, the scene of the world `rt`
     /// built last, gives demand-loaded objects the bounds of the BVHs built there, so that the
     /// receiver's top-level BVH is the same.
+    ///
+    /// The updates of one replicator are of one context: an update of another is an error until
+    /// [`Replicator::restart`] (see [`Replicator::follows`]).
     pub fn update(&mut self, rt: &Context, scene: Option<&Scene>) -> Result<Vec<u8>, ReplicaError> {
+        if !self.follows(rt) {
+            return Err(ReplicaError::Inconsistent(
+                "an update of another context than the replicas follow (restart them first)".into(),
+            ));
+        }
+        self.source = Some(rt.identity);
         let mut programs = Vec::new();
         self.programs.resize(rt.programs.len(), None);
         for (i, (sent, now)) in self.programs.iter_mut().zip(&rt.programs).enumerate() {

@@ -205,6 +205,10 @@ impl<T: Transport> Master<T> {
     /// first time: see [`Replicator`]), then renders `world`, which `rt` built as it stands now,
     /// as [`Master::render_frame`] does. An application renders distributed by calling this
     /// where it would call [`crate::render::render_frame`]; nothing else changes.
+    ///
+    /// A context other than the last frame's is another scene (a RIB file's next frame, a scene
+    /// loaded again): the workers are told to start again from empty ([`Message::NewScene`]) and
+    /// sent it whole.
     pub fn render_context(
         &mut self,
         rt: &Context,
@@ -214,8 +218,34 @@ impl<T: Transport> Master<T> {
         if self.workers.is_empty() {
             return Ok(crate::render::render_frame(world, None));
         }
-        let update = self.replicator.update(rt, Some(&world.scene))?;
+        let update = self.update(rt, world)?;
         self.render(world, &update, progress, Some(rt))
+    }
+
+    /// What the workers are sent of `rt` before a frame of `world`: what changed since the last
+    /// frame, or, when `rt` is another context than the last frame's, all of it after telling
+    /// them to start again from empty.
+    fn update(&mut self, rt: &Context, world: &World) -> Result<Vec<u8>, DistributedError> {
+        if !self.replicator.follows(rt) {
+            self.new_scene()?;
+        }
+        Ok(self.replicator.update(rt, Some(&world.scene))?)
+    }
+
+    /// Tells the workers to drop their copies of the scene and everything kept of it, and forgets
+    /// what they were sent and what their caches held: the next frame starts from empty, as the
+    /// first did.
+    fn new_scene(&mut self) -> Result<(), DistributedError> {
+        self.replicator.restart();
+        self.last_owner.clear();
+        self.region_owner.clear();
+        self.light_paths = LightPathCache::default();
+        self.sent_light_paths = LightPaths::default();
+        let message = Message::NewScene.encode();
+        for rank in 1..=self.workers.len() {
+            self.transport.send(rank, &message)?;
+        }
+        Ok(())
     }
 
     /// Renders a frame of `world` on the workers, which first apply `update` to their copy of the
@@ -251,7 +281,7 @@ impl<T: Transport> Master<T> {
             return Ok(crate::render::progressive::trace_lattices(world, lattices, pass, preview, wanted));
         }
         let start = Instant::now();
-        let update = self.replicator.update(rt, Some(&world.scene))?;
+        let update = self.update(rt, world)?;
         let (w, h) = (world.options.width, world.options.height);
         let units: Vec<LatticeUnit> = lattices
             .iter()
