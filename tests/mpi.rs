@@ -85,6 +85,76 @@ fn a_camera_shader_a_pixel_shader_and_a_filter_render_the_same_over_three_ranks(
     assert_same_image(&dir.path().join("alone.exr"), &dir.path().join("mpi.exr"));
 }
 
+/// Two frames, each a scene of its own: the second has fewer objects, lights and shaders than the
+/// first, and its `MakeTexture` writes another image to the texture file the first read.
+const TWO_SCENES: &str = "Format 64 48 1\nPixelSamples 2 2\nProjection \"perspective\" \"fov\" 45\nTranslate 0 0 5\n\
+    FrameBegin 1\nMakeTexture \"a.exr\" \"tex.tx\" \"periodic\" \"periodic\" \"box\" 1 1\nWorldBegin\n\
+    LightSource \"pointlight\" 1 \"intensity\" 20 \"from\" [2 2 -3]\nLightSource \"distantlight\" 2 \"intensity\" 0.4\n\
+    AttributeBegin\nTranslate -1.2 0 0\nSurface \"paintedplastic\" \"texturename\" \"tex.tx\"\nSphere 0.9 -0.9 0.9 360\nAttributeEnd\n\
+    AttributeBegin\nTranslate 1.2 0 0\nSurface \"marble\"\nSphere 0.9 -0.9 0.9 360\nAttributeEnd\n\
+    Translate 0 -1 0\nSurface \"checker\"\nPolygon \"P\" [-4 0 -4  4 0 -4  4 0 4  -4 0 4]\nWorldEnd\nFrameEnd\n\
+    FrameBegin 2\nMakeTexture \"b.exr\" \"tex.tx\" \"periodic\" \"periodic\" \"box\" 1 1\nWorldBegin\n\
+    LightSource \"pointlight\" 1 \"intensity\" 12 \"from\" [-2 1 -3]\n\
+    Surface \"paintedplastic\" \"texturename\" \"tex.tx\"\nSphere 1.2 -1.2 1.2 360\nWorldEnd\nFrameEnd\n";
+
+/// A VRML box moving and turning over two seconds.
+const VRML_MOVING_BOX: &str = "#VRML V2.0 utf8
+Viewpoint { position 0 0 10 }
+DEF T Transform { children Shape { appearance Appearance { material Material { diffuseColor 1 0.2 0.1 } } geometry Box {} } }
+DEF P PositionInterpolator { key [0 1] keyValue [-3 0 0, 3 0 0] }
+DEF R OrientationInterpolator { key [0 1] keyValue [0 1 0 0, 0 1 0 3.14] }
+DEF C TimeSensor { cycleInterval 2 loop TRUE }
+ROUTE C.fraction_changed TO P.set_fraction
+ROUTE C.fraction_changed TO R.set_fraction
+ROUTE P.value_changed TO T.set_translation
+ROUTE R.value_changed TO T.set_rotation
+";
+
+#[test]
+fn every_frame_of_a_file_renders_the_same_over_three_ranks() {
+    if !mpirun_present() {
+        return;
+    }
+    let dir = tempfile::tempdir().expect("tempdir");
+    let texture = |name: &str, rgb: [f32; 3]| {
+        let texels: Vec<f32> = (0..16)
+            .flat_map(|i| if i % 3 == 0 { [rgb[0], rgb[1], rgb[2], 1.0] } else { [0.1, 0.1, 0.1, 1.0] })
+            .collect();
+        rtsl_runtime::write_image(dir.path().join(name), 4, 4, &texels, &Default::default()).expect("a texture");
+    };
+    texture("a.exr", [0.9, 0.2, 0.1]);
+    texture("b.exr", [0.1, 0.3, 0.9]);
+    std::fs::write(dir.path().join("frames.rib"), TWO_SCENES).expect("write");
+    let alone = rtsl(&["render", "frames.rib", "-o", "alone.#f.exr", "-q"], dir.path());
+    assert!(alone.status.success(), "{}", text(&alone));
+    let ranks = mpirun(3, &["render", "frames.rib", "-o", "mpi.#f.exr"], dir.path());
+    let out = text(&ranks);
+    assert!(ranks.status.success(), "{out}");
+    // Each frame's summary, as one process prints it, with what travelled.
+    for frame in ["1", "2"] {
+        assert!(out.contains(&format!("mpi.{frame}.exr: 64x48, 4 sample(s) per pixel, 2 worker rank(s)")), "{out}");
+        assert_same_image(&dir.path().join(format!("alone.{frame}.exr")), &dir.path().join(format!("mpi.{frame}.exr")));
+    }
+    assert_eq!(out.matches("demand loading, the frame").count(), 2, "{out}");
+    let read = |name: &str| rtsl_runtime::read_image(dir.path().join(name)).expect("an image").pixels;
+    assert!(read("mpi.1.exr") != read("mpi.2.exr"));
+    // Frames whose images would overwrite each other are refused as in one process.
+    let same = mpirun(3, &["render", "frames.rib", "-o", "same.exr", "-q"], dir.path());
+    assert!(!same.status.success());
+    assert!(text(&same).contains("frame 2 would overwrite same.exr"), "{}", text(&same));
+    // A VRML animation's frames: one scene advanced from frame to frame.
+    std::fs::write(dir.path().join("move.wrl"), VRML_MOVING_BOX).expect("write");
+    let args = ["render", "move.wrl", "--size", "32x24", "--frames", "1..3", "--fps", "4", "-q", "-o"];
+    let alone = rtsl(&[&args[..], &["alone.#f.png"]].concat(), dir.path());
+    assert!(alone.status.success(), "{}", text(&alone));
+    let ranks = mpirun(3, &[&args[..], &["mpi.#f.png"]].concat(), dir.path());
+    assert!(ranks.status.success(), "{}", text(&ranks));
+    for n in 1..=3 {
+        let (a, b) = (dir.path().join(format!("alone.{n}.png")), dir.path().join(format!("mpi.{n}.png")));
+        assert_eq!(std::fs::read(&a).expect("a frame"), std::fs::read(&b).expect("a frame"), "frame {n}");
+    }
+}
+
 /// Renders `frames` frames of a BART scene alone and over `ranks` ranks; checks they are the same.
 fn bart_alone_and_over_ranks(scene: &str, frames: usize, size: &str, ranks: usize) {
     let path = repo(scene);

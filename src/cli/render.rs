@@ -3,7 +3,7 @@
 
 use anyhow::Context as _;
 use rtsl_runtime::api::Context;
-use rtsl_runtime::distributed::Master;
+use rtsl_runtime::distributed::{Master, Transport};
 use rtsl_runtime::image_io::{write_channels, Quantize};
 use rtsl_runtime::reload::{ShaderEvent, ShaderReloader, ShaderWatcher};
 use rtsl_runtime::render::{
@@ -217,13 +217,90 @@ pub(crate) fn samples_grid(n: u32) -> (u32, u32) {
 /// Told how many of a frame's tiles are done, of how many.
 type Progress<'a> = dyn Fn(usize, usize) + Sync + 'a;
 
-/// How a frame of a context's world is rendered: on a thread pool, or over MPI (called from this
-/// thread only).
-type FrameRender<'a> = dyn FnMut(&Context, &World, &Progress<'_>) -> anyhow::Result<(Framebuffer, FrameReport)> + 'a;
+/// Where `render` renders its frames: on this process's threads, or (`--mpi`, on rank 0) over the
+/// worker ranks of an MPI job, which are sent each frame's scene.
+struct Renderer {
+    threads: usize,
+    pool: rayon::ThreadPool,
+    master: Option<Master<Box<dyn Transport>>>,
+    /// The objects and mesh bytes of the scene last rendered over MPI, against which the summary
+    /// sets what the workers fetched; measured once per scene ([`Renderer::next_scene`]).
+    meshes: Option<(usize, usize)>,
+    /// Whether the workers have been checked (after the first scene loads, so that a scene that
+    /// fails to load is the first error).
+    checked: bool,
+}
 
-/// Renders frames on `pool`.
-fn on_pool(pool: &rayon::ThreadPool) -> Box<FrameRender<'_>> {
-    Box::new(move |_, world, progress| Ok(pool.install(|| render_frame(world, Some(progress)))))
+impl Renderer {
+    fn local(threads: usize, pool: rayon::ThreadPool) -> Renderer {
+        Renderer { threads, pool, master: None, meshes: None, checked: true }
+    }
+
+    /// Rank 0's side of `--mpi`: greets the workers.
+    fn over_mpi(transport: Box<dyn Transport>, threads: usize, pool: rayon::ThreadPool) -> anyhow::Result<Renderer> {
+        let master = Master::connect(transport)?;
+        Ok(Renderer { threads, pool, master: Some(master), meshes: None, checked: false })
+    }
+
+    /// Checks, once, that the workers can render, and warns when there are none.
+    fn check_workers(&mut self) -> anyhow::Result<()> {
+        let Some(master) = self.master.as_ref().filter(|_| !self.checked) else { return Ok(()) };
+        master.check_workers()?;
+        if master.workers() == 0 {
+            eprintln!(
+                "warning: --mpi with no worker rank (run it with mpirun -n 2 or more): rendering on rank 0 alone"
+            );
+        }
+        self.checked = true;
+        Ok(())
+    }
+
+    /// Another scene comes (a RIB file's next frame): its meshes are measured with its first frame.
+    fn next_scene(&mut self) {
+        self.meshes = None;
+    }
+
+    /// Renders a frame of `world`, which `rt` built; over MPI, the workers are first sent what
+    /// changed in `rt` (all of it when `rt` is another context than the last frame's).
+    fn render(
+        &mut self,
+        rt: &Context,
+        world: &World,
+        progress: &Progress<'_>,
+    ) -> anyhow::Result<(Framebuffer, FrameReport)> {
+        match self.master.as_mut().filter(|m| m.workers() > 0) {
+            None => Ok(self.pool.install(|| render_frame(world, Some(progress)))),
+            Some(master) => {
+                let rendered = master.render_context(rt, world, Some(progress))?;
+                self.meshes.get_or_insert_with(|| super::mpi::scene_meshes(world));
+                Ok(rendered)
+            }
+        }
+    }
+
+    /// Prints a frame's summary: the image, its size and samples, who rendered it and the
+    /// frame's report; over MPI, what travelled and what the workers fetched.
+    fn summary(&self, rt: &Context, output: &Path, report: &FrameReport) {
+        let Some(master) = &self.master else {
+            return print_summary(rt, output, &format!("{} thread(s)", self.threads), report);
+        };
+        let ranks = format!("{} worker rank(s), {} thread(s) in all", master.workers(), master.worker_threads());
+        print_summary(rt, output, &ranks, report);
+        if master.workers() > 0 {
+            println!("{}", super::mpi::traffic_line(&master.traffic()));
+            let d = master.demand();
+            let meshes = self.meshes.unwrap_or_default();
+            println!("{}", super::mpi::demand_line("the frame", (&d).into(), meshes, &d, master.workers()));
+        }
+    }
+
+    /// Tells the workers to stop.
+    fn finish(self) -> anyhow::Result<()> {
+        if let Some(master) = self.master {
+            master.shutdown()?;
+        }
+        Ok(())
+    }
 }
 
 /// The image a render writes, and how (a `--transfer` given, or the scene's).
@@ -295,12 +372,12 @@ struct Written {
     texture_files: Vec<PathBuf>,
 }
 
-/// Renders the context's scene with `render` and writes `output`; prints warnings (those of
+/// Renders the context's scene with `renderer` and writes `output`; prints warnings (those of
 /// values a reloaded shader no longer takes only with `frame_warnings`: `--watch` prints them once
 /// per reload, from the reload's events).
 fn render_and_write(
     rt: &mut Context,
-    render: &mut FrameRender,
+    renderer: &mut Renderer,
     output: &Output,
     quiet: bool,
     frame_warnings: bool,
@@ -325,7 +402,7 @@ fn render_and_write(
             b.set_position(done as u64);
         }
     };
-    let rendered = render(rt, &world, &progress);
+    let rendered = renderer.render(rt, &world, &progress);
     if let Some(b) = bar {
         b.finish_and_clear();
     }
@@ -454,7 +531,7 @@ fn watch(
     args: &RenderArgs,
     frame_index: usize,
     rt: &mut Context,
-    render: &mut FrameRender,
+    renderer: &mut Renderer,
     output: &Output,
     scene_files: &[PathBuf],
     texture_files: &[PathBuf],
@@ -518,7 +595,7 @@ fn watch(
         if done.is_empty() {
             continue;
         }
-        let written = render_and_write(rt, render, output, true, false)?;
+        let written = render_and_write(rt, renderer, output, true, false)?;
         let frame_ms = written.report.elapsed.as_secs_f64() * 1e3;
         for what in done {
             println!("reloaded {what}, frame {frame_ms:.1} ms -> {}", output.path.display());
@@ -693,17 +770,17 @@ fn print_animation_warnings(scene: &mut rtsl_runtime::vrml::VrmlScene) -> anyhow
 }
 
 /// `render` of a VRML scene's `--frames` (or `--frame`): loaded once, its animation advanced to
-/// each frame's time, each image named with the frame's number.
-fn run_vrml(args: &RenderArgs) -> anyhow::Result<ExitCode> {
+/// each frame's time, each image named with the frame's number. Over MPI the workers follow the
+/// one context from frame to frame (they are sent what the animation changed).
+fn run_vrml(args: &RenderArgs, renderer: &mut Renderer) -> anyhow::Result<ExitCode> {
     let numbers: Vec<i32> = match (args.frames, args.frame) {
         (Some(_), Some(_)) => anyhow::bail!("--frame and --frames: choose one"),
         (Some((a, b)), None) => (a..=b).collect(),
         (None, Some(n)) => vec![n],
         (None, None) => unreachable!("run_vrml renders frames"),
     };
-    let (threads, pool) = super::worker_pool(args.threads)?;
-    let mut render = on_pool(&pool);
     let Prepared { mut rt, mut output, omissions, vrml, .. } = prepare(args, 0)?;
+    renderer.check_workers()?;
     let mut vrml = vrml.context("not a VRML scene")?;
     let pattern = args.output.clone().unwrap_or_else(|| PathBuf::from("render.png"));
     let mut missing = omissions;
@@ -718,38 +795,59 @@ fn run_vrml(args: &RenderArgs) -> anyhow::Result<ExitCode> {
         }
         vrml.advance_to(vrml_time(args, Some(n)), &mut rt)?;
         print_animation_warnings(&mut vrml)?;
-        let written = render_and_write(&mut rt, &mut render, &output, args.quiet, true)?;
+        let written = render_and_write(&mut rt, renderer, &output, args.quiet, true)?;
         if !args.quiet {
-            print_summary(&rt, &output.path, &format!("{threads} thread(s)"), &written.report);
+            renderer.summary(&rt, &output.path, &written.report);
         }
         missing += written.missing_textures;
     }
     Ok(exit_status(missing, args.keep_going))
 }
 
+/// `rtsl render`. With `--mpi`, rank 0 loads each frame's scene, renders it over the other ranks
+/// and writes its images as one process would; the other ranks start empty, are sent each
+/// frame's scene (a RIB file's next frame is another scene: they start again from empty for it)
+/// and render tiles (docs/distributed.md). With `--watch`, the frame is rendered again after each
+/// reload (over MPI, reloaded shaders and scenes travel with the frame).
 pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
+    let (threads, pool) = super::worker_pool(args.threads)?;
+    let mut renderer = if args.mpi {
+        // A worker reads nothing of the scene, not even its list of frames.
+        let transport = super::mpi::transport()?;
+        if transport.rank() != 0 {
+            return super::mpi::work(&*transport, &pool, &args.workers);
+        }
+        Renderer::over_mpi(transport, threads, pool)?
+    } else {
+        Renderer::local(threads, pool)
+    };
     let frames = frame_indices(args)?;
-    if frames.len() > 1 && (args.watch || args.mpi) {
-        let flag = if args.watch { "--watch" } else { "--mpi" };
-        anyhow::bail!("the scene has {} frames and {flag} renders one: choose it with --frame", frames.len());
+    if args.watch && frames.len() > 1 {
+        anyhow::bail!("the scene has {} frames and --watch renders one: choose it with --frame", frames.len());
     }
-    if args.frames.is_some_and(|(a, b)| a != b) && (args.watch || args.mpi) {
-        let flag = if args.watch { "--watch" } else { "--mpi" };
-        anyhow::bail!("{flag} renders one frame: choose it with --frame");
-    }
-    if args.mpi {
-        return run_mpi(args, frames[0]);
+    if args.watch && args.frames.is_some_and(|(a, b)| a != b) {
+        anyhow::bail!("--watch renders one frame: choose it with --frame");
     }
     let vrml = args.scene.as_deref().is_some_and(rtsl_runtime::vrml::is_vrml_path);
-    if vrml && (args.frames.is_some() || args.frame.is_some()) && !args.watch {
-        return run_vrml(args);
-    }
-    let (threads, pool) = super::worker_pool(args.threads)?;
-    let mut render = on_pool(&pool);
+    let status = if vrml && (args.frames.is_some() || args.frame.is_some()) && !args.watch {
+        run_vrml(args, &mut renderer)?
+    } else {
+        run_frames(args, &frames, &mut renderer)?
+    };
+    renderer.finish()?;
+    Ok(status)
+}
+
+/// Renders the scene's frames at `frames` (indices into its frames) in turn, each loaded into a
+/// context of its own just before it renders, and writes each frame's images; with `--watch`,
+/// then watches the one frame.
+fn run_frames(args: &RenderArgs, frames: &[usize], renderer: &mut Renderer) -> anyhow::Result<ExitCode> {
     let mut missing = 0;
     let mut written_paths = BTreeSet::new();
-    for &index in &frames {
+    for &index in frames {
         let Prepared { mut rt, output, omissions, files, .. } = prepare(args, index)?;
+        renderer.check_workers()?;
+        renderer.next_scene();
         // A frame's displays may share a file (EXR layers); another frame's may not.
         let this_frame: BTreeSet<PathBuf> = output.images().map(|(path, ..)| path.clone()).collect();
         for path in &this_frame {
@@ -762,15 +860,15 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
                 );
             }
         }
-        let written = render_and_write(&mut rt, &mut render, &output, args.quiet, true)?;
+        let written = render_and_write(&mut rt, renderer, &output, args.quiet, true)?;
         if !args.quiet {
-            print_summary(&rt, &output.path, &format!("{threads} thread(s)"), &written.report);
+            renderer.summary(&rt, &output.path, &written.report);
         }
         missing += omissions + written.missing_textures;
         if args.watch {
             // Watching is interactive: what is missing may be fixed by the next edit.
             let status = exit_status(missing, true);
-            watch(args, index, &mut rt, &mut render, &output, &files, &written.texture_files)?;
+            watch(args, index, &mut rt, renderer, &output, &files, &written.texture_files)?;
             return Ok(status);
         }
     }
@@ -783,51 +881,6 @@ fn print_summary(rt: &Context, output: &Path, threads: &str, report: &FrameRepor
         sx * sy
     },);
     println!("{report}");
-}
-
-/// `render --mpi`: rank 0 loads the scene, renders it over the other ranks and writes the image
-/// (and with `--watch`, renders again after each reload: the reloaded shaders travel with the
-/// frame); the others start empty and are sent the scene.
-fn run_mpi(args: &RenderArgs, frame_index: usize) -> anyhow::Result<ExitCode> {
-    let transport = super::mpi::transport()?;
-    let (_, pool) = super::worker_pool(args.threads)?;
-    if transport.rank() != 0 {
-        return super::mpi::work(&*transport, &pool, &args.workers);
-    }
-    let mut master = Master::connect(transport)?;
-    let Prepared { mut rt, output, omissions, files, .. } = prepare(args, frame_index)?;
-    master.check_workers()?;
-    if master.workers() == 0 {
-        eprintln!("warning: --mpi with no worker rank (run it with mpirun -n 2 or more): rendering on rank 0 alone");
-    }
-    let mut local = on_pool(&pool);
-    let mut meshes = (0, 0);
-    let mut render = |rt: &Context, world: &World, progress: &Progress<'_>| {
-        if master.workers() == 0 {
-            return local(rt, world, progress);
-        }
-        let rendered = master.render_context(rt, world, Some(progress))?;
-        if meshes == (0, 0) {
-            meshes = super::mpi::scene_meshes(world);
-        }
-        Ok(rendered)
-    };
-    let written = render_and_write(&mut rt, &mut render, &output, args.quiet, true)?;
-    let status = exit_status(omissions + written.missing_textures, args.keep_going || args.watch);
-    if args.watch {
-        watch(args, frame_index, &mut rt, &mut render, &output, &files, &written.texture_files)?;
-    }
-    if !args.quiet {
-        let ranks = format!("{} worker rank(s), {} thread(s) in all", master.workers(), master.worker_threads());
-        print_summary(&rt, &output.path, &ranks, &written.report);
-        if master.workers() > 0 {
-            println!("{}", super::mpi::traffic_line(&master.traffic()));
-            let d = master.demand();
-            println!("{}", super::mpi::demand_line("the frame", (&d).into(), meshes, &d, master.workers()));
-        }
-    }
-    master.shutdown()?;
-    Ok(status)
 }
 
 #[cfg(test)]
