@@ -268,7 +268,13 @@ type GltfImport = (gltf::Document, Vec<gltf::buffer::Data>, Vec<gltf::image::Dat
 fn import_gltf(path: &Path) -> Result<GltfImport, SceneFileError> {
     let gltf_err = |source| SceneFileError::Gltf { path: path.to_path_buf(), source };
     let invalid = |message: String| SceneFileError::InvalidGltf { path: path.to_path_buf(), message };
-    let gltf::Gltf { document, blob } = gltf::Gltf::open(path).map_err(gltf_err)?;
+    let file = std::fs::File::open(path).map_err(|e| gltf_err(gltf::Error::Io(e)))?;
+    let gltf::Gltf { document, blob } =
+        gltf::Gltf::from_reader_without_validation(std::io::BufReader::new(file)).map_err(gltf_err)?;
+    // gltf-json's validation reads a primitive's POSITION accessor before it checks that the
+    // accessor exists, and panics on an index past the list: checked here first.
+    check_gltf_position_accessors(document.as_json()).map_err(invalid)?;
+    let document = gltf::Document::from_json(document.into_json()).map_err(gltf_err)?;
     let uris = document
         .buffers()
         .filter_map(|b| match b.source() {
@@ -289,6 +295,23 @@ fn import_gltf(path: &Path) -> Result<GltfImport, SceneFileError> {
     check_gltf_accessors(&document, &buffers).map_err(invalid)?;
     let images = gltf::import_images(&document, Some(&base), &buffers).map_err(gltf_err)?;
     Ok((document, buffers, images))
+}
+
+/// An error naming the first mesh primitive whose POSITION names an accessor the file lacks.
+fn check_gltf_position_accessors(root: &gltf::json::Root) -> Result<(), String> {
+    let accessors = root.accessors.len();
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            let position = gltf::json::validation::Checked::Valid(gltf::Semantic::Positions);
+            if let Some(index) = primitive.attributes.get(&position).filter(|i| i.value() >= accessors) {
+                return Err(format!(
+                    "mesh {m}, primitive {p}: POSITION is accessor {}, but the file has {accessors} accessors",
+                    index.value()
+                ));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Why a glTF file's `uri` is not read: only data URIs and relative paths that stay inside the

@@ -160,6 +160,21 @@ fn gltf_accessors_claiming_more_than_their_buffer_are_refused() {
     }
 }
 
+/// A primitive whose POSITION names an accessor the file lacks is an error naming it (the glTF
+/// library's own validation panicked on it).
+#[test]
+fn gltf_positions_from_a_missing_accessor_are_refused() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let good = write_gltf(dir.path(), r#"[{"mesh":0}]"#, "tri.bin", 3);
+    let text = std::fs::read_to_string(&good).expect("read");
+    for index in [1, 5, 4_000_000_000u64] {
+        let bad = text.replace(r#""POSITION":0"#, &format!(r#""POSITION":{index}"#));
+        let path = write(dir.path(), "missing.gltf", &bad);
+        let err = gltf_error(&path);
+        assert!(err.contains(&format!("POSITION is accessor {index}, but the file has 1 accessors")), "{err}");
+    }
+}
+
 #[test]
 fn image_sizes_beyond_the_limits_are_refused_before_anything_is_allocated() {
     assert!(check_image_size(1920, 1080).is_ok());
