@@ -383,14 +383,27 @@ impl Lexer<'_> {
         Some(TokenKind::Error("binary RIB ends inside a token".into()))
     }
 
-    /// A string literal; the opening quote is next. A raw newline or the end of the file ends an
-    /// unterminated string (as an error), so one missing quote does not swallow the file.
+    /// A string literal; the opening quote is next. A string may span lines, as Aqsis's and
+    /// PRMan's readers take it (a procedural's argument text, say). One that the file ends inside
+    /// is an error, and reading goes on after the line it began on, so that one missing quote
+    /// does not swallow the file.
     fn string(&mut self) -> TokenKind {
         self.bump();
         let mut bytes = Vec::new();
+        let mut first_line_end = None;
         loop {
             match self.peek() {
-                None | Some(b'\n') => return TokenKind::Error("unterminated string".into()),
+                None => {
+                    if let Some((pos, line, column)) = first_line_end {
+                        (self.pos, self.line, self.column) = (pos, line, column);
+                    }
+                    return TokenKind::Error("unterminated string".into());
+                }
+                Some(b'\n') if first_line_end.is_none() => {
+                    first_line_end = Some((self.pos, self.line, self.column));
+                    self.bump();
+                    bytes.push(b'\n');
+                }
                 Some(b'"') => {
                     self.bump();
                     break;
@@ -398,7 +411,7 @@ impl Lexer<'_> {
                 Some(b'\\') => {
                     self.bump();
                     match self.peek() {
-                        None => return TokenKind::Error("unterminated string".into()),
+                        None => continue,
                         Some(d @ b'0'..=b'7') => {
                             let mut value = u32::from(d - b'0');
                             self.bump();
@@ -535,6 +548,19 @@ mod tests {
         assert_eq!(tokens.len(), 2);
         assert_eq!((tokens[0].line, tokens[0].column), (3, 3));
         assert_eq!((tokens[1].line, tokens[1].column), (4, 2));
+    }
+
+    /// Strings may span lines, as Aqsis reads them; one the file ends inside is an error, and
+    /// reading goes on after the line it began on.
+    #[test]
+    fn strings_span_lines_and_an_unclosed_one_ends_at_its_line() {
+        let k = kinds("Procedural \"DynamicLoad\" [\"menger\" \"4 -1 1\n\n  Other patterns to try:\n\"] [0 1]");
+        assert_eq!(k[4], TokenKind::Str("4 -1 1\n\n  Other patterns to try:\n".into()));
+        assert_eq!((&k[5], &k[6], k.len()), (&TokenKind::CloseBracket, &TokenKind::OpenBracket, 10), "{k:?}");
+        let k = kinds("Surface \"open\nSphere 1 -1 1 360\nWorldEnd\n");
+        assert!(matches!(&k[1], TokenKind::Error(m) if m.contains("unterminated string")), "{k:?}");
+        assert_eq!(k[2], TokenKind::Name("Sphere".into()));
+        assert_eq!(k.last(), Some(&TokenKind::Name("WorldEnd".into())));
     }
 
     #[test]

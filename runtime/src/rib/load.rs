@@ -249,11 +249,17 @@ fn load_parsed(rt: &mut Context, parse: RibParse, path: &Path, index: usize) -> 
     loader.out.frames = frames.count();
     loader.out.frame_number = frames.number(index);
     let mut last = None;
+    let mut began = false;
     for (r, owner) in parse.requests.iter().zip(&frames.owner) {
+        // Requests between frames set up the frames that follow them: none after this frame's end
+        // applies to it (a later `Display`, `Format` or `MakeShadow` of its output is the next
+        // frame's).
         match owner {
             Some(frame) if *frame > index => break,
             Some(frame) if *frame < index => continue,
-            _ => {}
+            Some(_) => began = true,
+            None if began => break,
+            None => {}
         }
         last = Some(r);
         match loader.request(r) {
@@ -377,6 +383,14 @@ struct OpenSolid {
 impl<'a> Loader<'a> {
     fn new(rt: &'a mut Context, dir: PathBuf) -> Loader<'a> {
         rt.add_texture_search_path(dir.clone());
+        // Shaders beside the file are found, as Aqsis's default search path begins with "." (the
+        // directory a scene is rendered from): after the directories the application gave, before
+        // the library. A RIB `Option "searchpath" "shader"` without `&` replaces it.
+        if !rt.shader_search_path().contains(&dir) {
+            let mut shaders = rt.shader_search_path().to_vec();
+            shaders.push(dir.clone());
+            rt.set_shader_search_path(shaders);
+        }
         Loader {
             rt,
             dir,
@@ -577,7 +591,12 @@ impl<'a> Loader<'a> {
                 t.swap(1, 2);
             }
         }
-        if subtracted {
+        // Normals the surface defines (a patch's, a quadric's: dPdu x dPdv) point to the outside the
+        // orientation names, as in RenderMan, where "inside" reverses N; normals the request gives
+        // with "N" are kept as given. (A mirroring transform moves normals by its inverse
+        // transpose, which keeps their side: it changes only the triangles' winding.)
+        let given = geometry_params(&r.kind).iter().any(|p| p.name == "N");
+        if (self.state.inside && !given) != subtracted {
             let close = mesh.deformation.as_mut().and_then(|d| d.normals.as_mut());
             for n in mesh.normals.iter_mut().flatten().chain(close.into_iter().flatten()) {
                 *n = -*n;
@@ -1455,6 +1474,26 @@ impl<'a> Loader<'a> {
 }
 
 /// Whether a request is geometry (it becomes part of the object being gathered).
+/// The parameter list of a geometry request (empty for other requests).
+fn geometry_params(kind: &RequestKind) -> &[Param] {
+    use RequestKind as K;
+    match kind {
+        K::Polygon(params) | K::Points(params) => params,
+        K::GeneralPolygon { params, .. }
+        | K::PointsPolygons { params, .. }
+        | K::PointsGeneralPolygons { params, .. }
+        | K::Patch { params, .. }
+        | K::PatchMesh { params, .. }
+        | K::Quadric { params, .. }
+        | K::SubdivisionMesh { params, .. }
+        | K::NuPatch { params, .. }
+        | K::Geometry { params, .. }
+        | K::Curves { params, .. }
+        | K::Blobby { params, .. } => params,
+        _ => &[],
+    }
+}
+
 fn is_geometry(kind: &RequestKind) -> bool {
     use RequestKind as K;
     matches!(
@@ -1619,6 +1658,69 @@ fn typed_value(value: &RibValue, ty: Ty, many: bool) -> Option<ParamValue> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Requests between frames set up the frames after them: a `Display` and a `MakeShadow` of
+    /// the depth pass's output that follow its `FrameEnd` belong to the beauty frame.
+    #[test]
+    fn requests_after_a_frames_end_are_the_next_frames() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let rib = "Display \"depth.zfile\" \"zfile\" \"z\"\nFrameBegin 1\nWorldBegin\nSphere 1 -1 1 360\nWorldEnd\n\
+                   FrameEnd\nMakeShadow \"depth.zfile\" \"depth.shad\"\nDisplay \"beauty.tif\" \"file\" \"rgba\"\n\
+                   FrameBegin 2\nWorldBegin\nSphere 1 -1 1 360\nWorldEnd\nFrameEnd\n";
+        let path = dir.path().join("passes.rib");
+        std::fs::write(&path, rib).expect("write");
+        let names = |loaded: &LoadedRib| loaded.displays.iter().map(|d| d.name.clone()).collect::<Vec<_>>();
+        let first = load_file_frame(&mut Context::new(), &path, 0).expect("frame 1");
+        assert_eq!(names(&first), vec![PathBuf::from("depth.zfile")]);
+        assert!(first.warnings.iter().all(|w| !w.message.contains("MakeShadow")), "{:?}", first.warnings);
+        let second = load_file_frame(&mut Context::new(), &path, 1).expect("frame 2");
+        assert_eq!(names(&second), vec![PathBuf::from("beauty.tif")]);
+    }
+
+    /// Shaders kept beside a RIB file are found, as Aqsis's default search path begins with ".".
+    #[test]
+    fn shaders_beside_the_file_are_found() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        std::fs::write(dir.path().join("beside.sl"), "surface beside() { Ci = color(1, 0, 0); }").expect("write");
+        let path = dir.path().join("scene.rib");
+        std::fs::write(&path, "WorldBegin\nSurface \"beside\"\nSphere 1 -1 1 360\nWorldEnd\n").expect("write");
+        let mut rt = Context::new();
+        let loaded = load_file(&mut rt, &path).expect("loads");
+        assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+        assert!(rt.find_shader("beside").is_ok());
+        // A search path without `&` replaces it.
+        let replaced = "Option \"searchpath\" \"shader\" [\"elsewhere\"]\n";
+        std::fs::write(&path, format!("{replaced}WorldBegin\nSurface \"beside\"\nSphere 1 -1 1 360\nWorldEnd\n"))
+            .expect("write");
+        let loaded = load_file(&mut Context::new(), &path).expect("loads");
+        assert!(loaded.warnings.iter().any(|w| w.message.contains("no shader named beside")), "{:?}", loaded.warnings);
+    }
+
+    /// "inside" reverses the normals a surface defines, as RenderMan reverses `N`; normals given
+    /// with "N" stay as given. (The floor of Aqsis's soft-shadow example faces up by `Orientation
+    /// "rh"`: its dPdu x dPdv points down.)
+    #[test]
+    fn inside_orientation_reverses_the_normals_a_surface_defines() {
+        let floor = "Patch \"bilinear\" \"P\" [-10 -1 -10  10 -1 -10  -10 -1 10  10 -1 10]";
+        let given = "Polygon \"P\" [0 0 0  1 0 0  1 0 1] \"N\" [0 1 0  0 1 0  0 1 0]";
+        let normals_y = |orientation: &str, geometry: &str| {
+            let mut rt = Context::new();
+            load_str(&mut rt, &format!("WorldBegin\n{orientation}\n{geometry}\nWorldEnd\n"), Path::new("o.rib"))
+                .expect("loads");
+            let mesh = rt.object_mesh(ObjectId(0)).expect("a mesh").clone();
+            mesh.normals
+                .as_ref()
+                .expect("normals")
+                .iter()
+                .map(|n| n.y.signum() as i32)
+                .collect::<std::collections::BTreeSet<_>>()
+        };
+        let one = |s: i32| std::iter::once(s).collect::<std::collections::BTreeSet<_>>();
+        assert_eq!(normals_y("", floor), one(-1));
+        assert_eq!(normals_y("Orientation \"rh\"", floor), one(1));
+        assert_eq!(normals_y("ReverseOrientation", floor), one(1));
+        assert_eq!(normals_y("Orientation \"inside\"", given), one(1));
+    }
 
     #[test]
     fn skew_turns_the_first_axis_towards_the_second() {
