@@ -850,8 +850,20 @@ fn blobby_mesh_within(
 ) -> Result<Mesh, String> {
     let mut plan = Plan::new(input, options, warnings)?;
     let counts = ClassCounts { vertex: plan.program.leaves, varying: plan.program.leaves, face: 1, corner: None };
-    let data: Vec<_> =
+    let mut data: Vec<_> =
         per_vertex_params(input.params, &counts, warnings).into_iter().filter(|d| d.name != "N").collect();
+    // PRMan's `vertex mpoint` data (read as matrices): a leaf's reference frame, from which a
+    // renderer would work out a reference position per point; not modelled, so not set.
+    data.retain(|d| {
+        let frame = d.components == 16;
+        if frame {
+            warnings.push(format!(
+                "\"{}\": a frame of 16 values per leaf (PRMan's mpoint) is not modelled; shaders do not get it",
+                d.name
+            ));
+        }
+        !frame
+    });
     let mut work_left = budget;
     let too_long = |plan: &Plan| {
         format!(
@@ -888,6 +900,16 @@ fn blobby_mesh_within(
 mod tests {
     use super::*;
     use crate::rib::{mesh_from_request_with, parse_str, request_triangles, RibDiagnostic, Severity};
+
+    /// PRMan's `vertex mpoint Pref` (a reference frame per leaf) is read, and left out with a
+    /// warning: the blobby itself renders.
+    #[test]
+    fn mpoint_frames_are_read_and_left_out_with_a_warning() {
+        let m = sphere(1.0, [0.0, 0.0, 0.0]);
+        let (mesh, diags) = build(&format!("Blobby 1 [1001 0] [{m}] [] \"vertex mpoint Pref\" [{m}]"));
+        assert!(mesh.is_some_and(|m| m.triangle_count() > 0));
+        assert!(diags.iter().any(|d| d.message.contains("\"Pref\"") && d.message.contains("mpoint")), "{diags:?}");
+    }
 
     /// A unit sphere matrix scaled by `s` and moved to `at`, as RIB writes it.
     fn sphere(s: f32, at: [f32; 3]) -> String {

@@ -234,7 +234,9 @@ fn type_keyword(word: &str) -> Option<Ty> {
         "normal" => Ty::Normal,
         "hpoint" => Ty::HPoint,
         "string" => Ty::String,
-        "matrix" => Ty::Matrix,
+        // PRMan's `mpoint`: a point given as the 4x4 matrix of a coordinate system (a Blobby
+        // leaf's reference frame, as `vertex mpoint Pref`), 16 floats a value.
+        "matrix" | "mpoint" => Ty::Matrix,
         _ => return None,
     })
 }
