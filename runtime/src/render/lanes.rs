@@ -25,6 +25,8 @@ pub(super) trait Lanes:
     /// `a` where `mask` is set, else `b`.
     fn select(mask: Self::Mask, a: Self, b: Self) -> Self;
     /// `self * a + b`, rounded once where the target has FMA (as glam and wide both do), else twice.
+    /// (Only FMA targets use it outside the tests: see [`Lanes3::cross`].)
+    #[cfg_attr(not(target_feature = "fma"), allow(dead_code))]
     fn mul_add(self, a: Self, b: Self) -> Self;
     /// The mask whose lane `j` is `f(j)`.
     fn mask_from_fn(f: impl Fn(usize) -> bool) -> Self::Mask;
