@@ -537,6 +537,16 @@ fn deformations_in_one_object_share_their_interval() -> Result<(), ApiError> {
     let mut short = deforming(2.0, 0.0, 1.0)?;
     short.deformation.as_mut().map(|d| d.positions.pop());
     assert!(matches!(rt.mesh(&short), Err(ApiError::Mesh(_))));
+    for (open, close) in [(1.0, 0.0), (0.0, 0.0), (f32::NAN, 1.0), (0.0, f32::INFINITY)] {
+        let bad = deforming(2.0, open, close)?;
+        let e = rt.mesh(&bad).expect_err("times must increase");
+        assert!(e.to_string().contains("finite and increasing"), "{e}");
+    }
+    let mut far = deforming(2.0, 0.0, 1.0)?;
+    if let Some(d) = far.deformation.as_mut() {
+        d.positions[0].x = f32::NAN;
+    }
+    assert!(matches!(rt.mesh(&far), Err(ApiError::Mesh(_))));
     rt.mesh(&square(5.0)?)?;
     rt.end_object()?;
     let mesh = rt.object_mesh(id).expect("built").clone();
@@ -627,15 +637,25 @@ fn rib_motion_blocks_around_geometry_deform_it() -> Result<(), Box<dyn std::erro
             Points "P" [0 0 0  1 0 0] "width" [0.01 0.01]
             Points "P" [0 1 0  1 1 0] "width" [0.8 0.8]
           MotionEnd
+          MotionBegin [1 0]
+            Sphere 1 -1 1 360
+            Sphere 2 -2 2 360
+          MotionEnd
         WorldEnd
     "#;
     let mut rt = Context::new();
     let loaded = rtsl_runtime::rib::load::load_str(&mut rt, rib, std::path::Path::new("."))?;
     let mismatch: Vec<_> = loaded.warnings.iter().filter(|w| w.message.contains("not one primitive")).collect();
     assert_eq!(mismatch.len(), 1, "{:?}", loaded.warnings);
+    assert!(
+        loaded.warnings.iter().any(|w| w.message.contains("times 1 and 0 do not increase")),
+        "{:?}",
+        loaded.warnings
+    );
     assert_eq!(loaded.omissions(), 1);
     let meshes: Vec<_> = (0..8).filter_map(|k| rt.object_mesh(ObjectId(k)).cloned()).collect();
-    assert_eq!(meshes.len(), 5, "four deforming samples and the mismatched block's first sample");
+    assert_eq!(meshes.len(), 6, "four deforming samples, the mismatched block's first sample, a still sphere");
+    assert!(meshes[5].deformation.is_none(), "times that do not increase render the first sample");
     let square = meshes[0].deformation.as_ref().ok_or("the square deforms")?;
     assert_eq!((square.open, square.close), (0.0, 1.0));
     for (open, close) in meshes[0].positions.iter().zip(&square.positions) {
