@@ -46,8 +46,7 @@ impl DeformedTriangles {
     /// Leaf slot `s`'s triangle at `time`.
     #[inline(always)]
     pub fn at(&self, tris: &[PreTriangle], s: usize, time: f32) -> PreTriangle {
-        let w = ((time - self.open_time) / (self.close_time - self.open_time)).clamp(0.0, 1.0);
-        tris[s].lerp(&self.close[s], w)
+        tris[s].lerp(&self.close[s], crate::geometry::mesh::blend_between(self.open_time, self.close_time, time))
     }
 }
 

@@ -126,8 +126,15 @@ impl Deformation {
     /// (and after).
     #[inline(always)]
     pub fn blend(&self, time: f32) -> f32 {
-        ((time - self.open) / (self.close - self.open)).clamp(0.0, 1.0)
+        blend_between(self.open, self.close, time)
     }
+}
+
+/// How far `time` is from `open` to `close`, clamped to `[0, 1]`: the weight of the close end of
+/// a linear motion (a deforming mesh's and its prepared triangles' alike).
+#[inline(always)]
+pub fn blend_between(open: f32, close: f32, time: f32) -> f32 {
+    ((time - open) / (close - open)).clamp(0.0, 1.0)
 }
 
 impl Mesh {
