@@ -410,9 +410,13 @@ impl<T: Transport> Master<T> {
         let mut given: Vec<Option<usize>> = vec![None; units];
         let mut received_unit = vec![false; units];
         let mut told_last = vec![false; self.workers.len()];
+        let mut in_flight = vec![0usize; self.workers.len()];
         let mut traffic = Traffic::default();
+        let all_threads = self.worker_threads();
         for (w, info) in self.workers.iter().enumerate() {
-            let first: Vec<u32> = (0..info.window).map_while(|_| schedule.next(w)).collect();
+            let target = in_flight_target(info, schedule.left(), all_threads);
+            let first: Vec<u32> = (0..target).map_while(|_| schedule.next(w)).collect();
+            in_flight[w] = first.len();
             for &t in &first {
                 given[t as usize] = Some(w);
             }
@@ -445,14 +449,12 @@ impl<T: Transport> Master<T> {
             match Message::decode(&bytes).map_err(protocol_error)? {
                 Message::Rendered { frame: f, units: batch, starved } if f == frame => {
                     traffic.pixels += bytes.len() as u64;
-                    let mut wanted = batch.len();
                     if starved {
                         let info = &mut self.workers[w];
                         let most = MOST_TILES_IN_FLIGHT_PER_THREAD * (info.threads as usize).max(1);
-                        let grown = (2 * info.window).min(most);
-                        wanted += grown - info.window;
-                        info.window = grown;
+                        info.window = (2 * info.window).min(most);
                     }
+                    in_flight[w] = in_flight[w].saturating_sub(batch.len());
                     for (unit, pixels) in batch {
                         let u = unit as usize;
                         if given.get(u) != Some(&Some(w)) || received_unit[u] {
@@ -465,10 +467,12 @@ impl<T: Transport> Master<T> {
                             p(received, units);
                         }
                     }
-                    if !told_last[w] {
-                        // As many new units as arrived (and more if the window grew), keeping the
-                        // worker's units in flight. After a failure nothing more is handed out: the
-                        // frame ends as soon as every worker has sent what it holds.
+                    let wanted =
+                        in_flight_target(&self.workers[w], schedule.left(), all_threads).saturating_sub(in_flight[w]);
+                    if !told_last[w] && (wanted > 0 || in_flight[w] == 0 || failure.is_some()) {
+                        // Enough new units to bring the worker's units in flight back to its
+                        // target. After a failure nothing more is handed out: the frame ends as
+                        // soon as every worker has sent what it holds.
                         let next: Vec<u32> = if failure.is_none() {
                             (0..wanted).map_while(|_| schedule.next(w)).collect()
                         } else {
@@ -477,6 +481,7 @@ impl<T: Transport> Master<T> {
                         for &t in &next {
                             given[t as usize] = Some(w);
                         }
+                        in_flight[w] += next.len();
                         told_last[w] = schedule.left() == 0 || next.len() < wanted;
                         let lattices = described(&next);
                         let m = Message::Assign { frame, units: next, lattices, last: told_last[w] }.encode();
@@ -576,6 +581,16 @@ impl<T: Transport> Drop for Master<T> {
 }
 
 /// What a worker reports of its share of a frame.
+/// How many units a worker should have in flight: its window (enough to hide a round trip
+/// through the master), but no more than its threads' share of the units not yet handed out, and
+/// at least two a thread. Handing out shares of what is left (guided self-scheduling) keeps the
+/// end of a frame balanced: no worker holds a long queue of expensive tiles while others idle.
+fn in_flight_target(worker: &WorkerInfo, left: usize, all_threads: usize) -> usize {
+    let threads = (worker.threads as usize).max(1);
+    let share = (left * threads).div_ceil(all_threads.max(threads));
+    worker.window.min(share.max(2 * threads))
+}
+
 pub(super) fn counts_of(report: &FrameReport) -> FrameCounts {
     use rtsl_compiler::interface::ShaderKind;
     let kind_index = |k: ShaderKind| ShaderKind::ALL.iter().position(|&x| x == k).unwrap_or(0) as u8;
@@ -592,5 +607,29 @@ pub(super) fn counts_of(report: &FrameReport) -> FrameCounts {
         by_shader: report.by_shader.iter().map(|(n, k, d)| (n.clone(), kind_index(*k), d.as_nanos() as u64)).collect(),
         shader_messages: report.shader_messages.clone(),
         ..FrameCounts::default()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn worker(threads: u32, window: usize) -> WorkerInfo {
+        WorkerInfo { threads, window, failure: None }
+    }
+
+    #[test]
+    fn a_worker_holds_at_most_its_share_of_what_is_left() {
+        // Early in a frame the window bounds it.
+        assert_eq!(in_flight_target(&worker(1, 16), 1200, 15), 16);
+        // A grown window does not take more than the worker's share: 1200 over 15 threads.
+        assert_eq!(in_flight_target(&worker(1, 256), 1200, 15), 80);
+        // A worker of 4 threads among 16 takes a quarter of what is left.
+        assert_eq!(in_flight_target(&worker(4, 1024), 100, 16), 25);
+        // Near the end, two units a thread, so that a round trip does not leave it idle.
+        assert_eq!(in_flight_target(&worker(1, 256), 10, 15), 2);
+        assert_eq!(in_flight_target(&worker(3, 256), 0, 15), 6);
+        // Never more than the window, and no division by zero for a lone worker.
+        assert_eq!(in_flight_target(&worker(1, 1), 1200, 0), 1);
     }
 }
