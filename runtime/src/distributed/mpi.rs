@@ -35,6 +35,9 @@ pub struct MpiTransport {
 /// (a master that spun while its workers shared its cores slowed them by a third).
 const SPIN: Duration = Duration::from_micros(0);
 const NAP: Duration = Duration::from_micros(50);
+/// While sends are under way, how long a receive keeps polling (yielding the core in between)
+/// before it naps: a peer may be waiting for this side to move a large send along.
+const SPIN_WHILE_SENDING: Duration = Duration::from_micros(50);
 
 impl MpiTransport {
     /// Initialises MPI (once per process) and installs the panic hook that ends the job.
@@ -117,10 +120,18 @@ impl Transport for MpiTransport {
             }
             if start.elapsed() < SPIN {
                 std::hint::spin_loop();
+            } else if !self.sending.borrow().is_empty() && start.elapsed() < SPIN_WHILE_SENDING {
+                // A peer may be waiting for this side to move a send along.
+                std::thread::yield_now();
             } else {
                 std::thread::sleep(NAP);
             }
         }
+    }
+
+    fn sending(&self) -> bool {
+        self.progress();
+        !self.sending.borrow().is_empty()
     }
 
     fn try_recv(&self) -> Result<Option<(usize, Vec<u8>)>, TransportError> {

@@ -365,6 +365,7 @@ fn render_share<T: Transport + ?Sized>(
         give(first.0, first.1, &mut outstanding)?;
         let mut finished = Vec::new();
         let mut starved = false;
+        let mut last_send = Instant::now();
         loop {
             finished.extend(done_rx.try_iter());
             if !finished.is_empty() {
@@ -372,6 +373,7 @@ fn render_share<T: Transport + ?Sized>(
                 let units = std::mem::take(&mut finished);
                 let starved = std::mem::take(&mut starved);
                 transport.send(0, &Message::Rendered { frame, units, starved }.encode())?;
+                last_send = Instant::now();
             }
             while let Some((rank, bytes)) = transport.try_recv()? {
                 match decode_from(transport, rank, &bytes)? {
@@ -396,7 +398,13 @@ fn render_share<T: Transport + ?Sized>(
             // Every unit given is finished and sent back, and the master has not yet answered.
             starved |= !last && outstanding == 0;
             // Wakes at once for a finished unit; the master's messages wait for the next poll.
-            if let Ok(done) = done_rx.recv_timeout(POLL) {
+            // Just after a send the master may be waiting on this side to move it along (MPI's
+            // large messages) and its answer is on its way, so for a moment the poll comes again
+            // at once, giving the core to the renderers in between; then it naps.
+            if last_send.elapsed() < SPIN_AFTER_SEND && transport.sending() {
+                std::thread::yield_now();
+                finished.extend(done_rx.try_recv());
+            } else if let Ok(done) = done_rx.recv_timeout(POLL) {
                 finished.push(done);
             }
         }
@@ -428,6 +436,8 @@ fn render_share<T: Transport + ?Sized>(
 /// How long the worker's talking thread waits for a finished unit before it looks for the
 /// master's messages again.
 const POLL: std::time::Duration = std::time::Duration::from_micros(100);
+/// How long after sending finished units the talking thread keeps polling instead of napping.
+const SPIN_AFTER_SEND: std::time::Duration = std::time::Duration::from_micros(50);
 
 /// The units a worker's renderers take, until it is closed.
 #[derive(Default)]
