@@ -633,3 +633,24 @@ fn global_photons_give_the_irradiance_of_direct_and_bounced_light() {
     eprintln!("indirect light: global photons {from_photons:?}, virtual lights {from_lights:?} ({error})");
     assert!(from_lights.iter().all(|&c| c > 0.0) && error < 0.08, "{from_photons:?} against {from_lights:?}");
 }
+
+/// The office of `examples/office/office_gi.rib` (the paper's GI figure, measured for speed in
+/// `docs/global_illumination.md`): it loads whole, and its virtual lights give the walls about
+/// the indirect light that sampling the hemisphere with rays gives them.
+#[test]
+fn the_office_in_gi_loads_whole_and_its_virtual_lights_agree_with_hemisphere_rays() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/office/office_gi.rib");
+    let mut rt = Context::new();
+    let loaded = rtsl_runtime::rib::load::load_file(&mut rt, &path).expect("the office loads");
+    assert_eq!(loaded.omissions(), 0, "{:?}", loaded.warnings);
+    assert_eq!(rt.options.gi.virtual_lights, 256);
+    (rt.options.width, rt.options.height) = (80, 60);
+    let with_virtual_lights = render_frame(&rt.build_world().expect("a world"), None).0;
+    rt.options.gi.virtual_lights = 0;
+    let with_rays = render_frame(&rt.build_world().expect("a world"), None).0;
+    // The back wall, above the desk (the top fifth of the picture's middle).
+    let (cols, rows) = (20..60, 2..12);
+    let (a, b) = (mean(&with_virtual_lights, cols.clone(), rows.clone()), mean(&with_rays, cols, rows));
+    assert!(a.iter().all(|c| c.is_finite() && *c > 0.0), "{a:?}");
+    assert!(relative_error(a, b) < 0.3, "virtual lights {a:?}, hemisphere rays {b:?}");
+}

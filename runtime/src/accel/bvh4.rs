@@ -101,8 +101,7 @@ pub enum BuildQuality {
     Fast,
     /// PLOC search radius 1 and reinsertion of 1% of the nodes.
     Medium,
-    /// The default: PLOC search radius 2 and reinsertion of 1% of the nodes, which builds s1500k in
-    /// less time than Embree's default build on this machine kind; inputs of at most
+    /// The default: PLOC search radius 2 and reinsertion of 1% of the nodes; inputs of at most
     /// [`HIGH_AS_BEST_UP_TO`] primitives are built as at `Best`.
     High,
     /// Slow, best traversal, for static geometry: PLOC search radius 14 and reinsertion of 2%.

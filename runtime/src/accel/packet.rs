@@ -476,7 +476,7 @@ fn intersect_object(
     filter: HitFilter,
 ) {
     // Two copies of the traversal, each its own function: one inlined into the other's body slowed
-    // both (primary packets on s34k, 1 thread: 17.9 against 19.1 Mrays/s).
+    // both (as `rtsl bench trace` measures primary packets).
     if g.shared_origin {
         intersect_object_with::<true>(obj, inst_id, object_id, g, s, lo, hi, filter)
     } else {
