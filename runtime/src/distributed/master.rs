@@ -580,7 +580,6 @@ impl<T: Transport> Drop for Master<T> {
     }
 }
 
-/// What a worker reports of its share of a frame.
 /// How many units a worker should have in flight: its window (enough to hide a round trip
 /// through the master), but no more than its threads' share of the units not yet handed out, and
 /// at least two a thread. Handing out shares of what is left (guided self-scheduling) keeps the
@@ -591,6 +590,7 @@ fn in_flight_target(worker: &WorkerInfo, left: usize, all_threads: usize) -> usi
     worker.window.min(share.max(2 * threads))
 }
 
+/// What a worker reports of its share of a frame.
 pub(super) fn counts_of(report: &FrameReport) -> FrameCounts {
     use rtsl_compiler::interface::ShaderKind;
     let kind_index = |k: ShaderKind| ShaderKind::ALL.iter().position(|&x| x == k).unwrap_or(0) as u8;
