@@ -1,0 +1,110 @@
+#!/usr/bin/env bash
+# Thread and MPI scaling on a many-core machine (the figures of docs/distributed.md, the thread
+# scaling and Embree tables of docs/tracer.md, and the GI rates of docs/global_illumination.md).
+#
+#   benches/scaling.sh pack          # here: a stripped release build with MPI, the scenes and
+#                                    # Embree's benchmark, into .scaling/ (keep it out of git)
+#   benches/scaling.sh run [PARTS]   # there: PARTS of "mpi threads bandwidth gi embree"
+#                                    # (default: all but threads, which mpi's runs include)
+#
+# `run` needs only what `pack` made and an `mpirun` on the machine (Open MPI 4.x: the binary links
+# libmpi.so.40); it prints what each command reports and keeps going past failures. `mpi` runs
+# master + N workers of one thread, then one process of N threads, for each N of WORKERS (default
+# "1 2 4 8 15"), then one process on every core; `threads` runs one process over THREADS (default
+# "1 2 4 8 16"); `embree` runs ../shared/bench/embree/side-by-side.sh on 1 thread and every core
+# (EMBREE_SCENES: its scenes). DEADLINE: seconds after which no new command starts (default 500).
+set -u
+HERE=$(cd "$(dirname "$0")/.." && pwd)
+PACK=$HERE/.scaling
+
+pack() {
+  set -e
+  cd "$HERE"
+  cargo build --release --features mpi
+  mkdir -p "$PACK"
+  strip -o "$PACK/rtsl" target/release/rtsl
+  tar -C "$HERE/.." -cJf "$PACK/scenes.tar.xz" shared/scenes/bart/robot shared/scenes/bart/kitchen \
+    shared/scenes/sponza_dabrovic shared/scenes/cornell_box
+  if [ -f /usr/include/embree3/rtcore.h ]; then
+    local e; e=$(mktemp -d)
+    mkdir -p "$e/embree/lib"
+    g++ -O3 -march=x86-64-v3 -ffp-contract=off -std=c++17 "$HERE/../shared/bench/embree/embree_bench.cpp" \
+      -o "$e/embree/embree_bench" -lembree3 -lpthread
+    rustc -O -o "$e/embree/gen_scene" "$HERE/../shared/bench/gen_scene.rs"
+    cp -L "$(ldconfig -p | awk '/libembree3.so.3 /{print $NF; exit}')" \
+      "$(ldconfig -p | awk '/libtbb.so.12 /{print $NF; exit}')" "$e/embree/lib/"
+    # The side-by-side script without its build steps: it runs the binaries made here.
+    sed -e '/^if \[ ! -f \/usr\/include/,/^fi$/d' -e '/^g++ /d' -e '/^rustc /d' \
+      "$HERE/../shared/bench/embree/side-by-side.sh" > "$e/embree/side.sh"
+    tar -C "$e" -cJf "$PACK/embree.tar.xz" embree
+    rm -rf "$e"
+  else
+    echo "no Embree headers (apt-get install libembree-dev): the embree part will be skipped"
+  fi
+  du -sh "$PACK"
+}
+
+run() {
+  local parts=${*:-mpi bandwidth gi embree}
+  local r=$PACK/rtsl b=/tmp/rtsl-scaling
+  mkdir -p "$b"
+  tar -C "$b" -xJf "$PACK/scenes.tar.xz"
+  [ -f "$PACK/embree.tar.xz" ] && tar -C "$b" -xJf "$PACK/embree.tar.xz"
+  [ -e "$HERE/../shared" ] || ln -s "$b/shared" "$HERE/../shared"
+  cd "$HERE"
+  export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+  local m="mpirun --bind-to none --oversubscribe"
+  local workers=${WORKERS:-1 2 4 8 15} threads=${THREADS:-1 2 4 8 16}
+  local robot=../shared/scenes/bart/robot/aff/Robot.aff kitchen=../shared/scenes/bart/kitchen/aff/kitchen.aff
+  local t0; t0=$(date +%s)
+  echo "machine: $(nproc) cpus,$(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2), $(mpirun --version 2>&1 | head -1)"
+  one() {
+    if [ $(($(date +%s) - t0)) -gt "${DEADLINE:-500}" ]; then echo "skipped (deadline): $*"; return; fi
+    echo "### $*"
+    timeout 120 "$@" > /tmp/rtsl-scaling.log 2>&1
+    local rc=$?
+    grep -E "^fps|frames: |MPI traffic|demand loading|worker ranks" /tmp/rtsl-scaling.log | sed -E 's/ update .*//' | cut -c1-300
+    [ $rc -ne 0 ] && { echo "exit status $rc"; tail -4 /tmp/rtsl-scaling.log; }
+  }
+  scenes() {  # $1: threads, then any prefix (mpirun) and flags
+    local n=$1; shift; local pre=$1; shift
+    one $pre $r bench render --threads "$n" --size 640x480 --frames 10 "$@"
+    one $pre $r bart $robot --frames 20 --size 640x480 --threads "$n" -q "$@"
+    one $pre $r bench render examples/scenes/sponza.rib --threads "$n" --frames 10 "$@"
+    one $pre $r bart $kitchen --frames 10 --size 640x480 --threads "$n" -q "$@"
+  }
+  for part in $parts; do
+    echo "==== $part"
+    case $part in
+      threads) for n in $threads; do scenes "$n" ""; done ;;
+      mpi)
+        for n in $workers; do scenes 1 "$m -n $((n + 1))" --mpi; scenes "$n" ""; done
+        scenes "$(nproc)" "" ;;
+      bandwidth)
+        printf 'Format 640 480 1\nProjection "perspective" "fov" 40\nTranslate 0 0 5\nWorldBegin\nSurface "constant"\nPolygon "P" [-1 -1 0  1 -1 0  1 1 0  -1 1 0]\nWorldEnd\n' > /tmp/trivial.rib
+        one $r bench render /tmp/trivial.rib --threads "$(nproc)" --frames 20
+        one $m -n "$(nproc)" $r bench render /tmp/trivial.rib --threads 1 --frames 20 --mpi ;;
+      gi)
+        for n in 2 "$(nproc)"; do
+          one $r bench render examples/office/office_gi.rib --threads "$n" --frames 10
+          one $r bench render examples/scenes/cornell_gi.rib --threads "$n" --frames 10
+        done
+        one $m -n "$(nproc)" $r bench render examples/office/office_gi.rib --threads 1 --frames 10 --mpi ;;
+      embree)
+        if [ -f "$b/embree/side.sh" ]; then
+          (cd "$b/embree" && LD_LIBRARY_PATH=$b/embree/lib WORK=$b/embree PAIRS=1 REPS=3 \
+            THREADS="1,$(nproc)" bash ./side.sh "$r" ${EMBREE_SCENES:+"$EMBREE_SCENES"})
+        else
+          echo "not packed"
+        fi ;;
+      *) echo "unknown part $part" ;;
+    esac
+  done
+  echo "done in $(($(date +%s) - t0)) s"
+}
+
+case ${1:-} in
+  pack) pack ;;
+  run) shift; run "$@" ;;
+  *) sed -n '2,15p' "$0"; exit 2 ;;
+esac
