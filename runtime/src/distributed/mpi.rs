@@ -5,15 +5,20 @@
 //! never do. Sends are immediate (`MPI_Isend`): a large message goes out by rendezvous, which
 //! waits for the receiver, and a blocking send from each side of a pair at once would deadlock.
 //! The transport owns each message's bytes until its send completes, and completes sends as it
-//! is called (and all of them before MPI is finalised). Receives poll without blocking and sleep between polls once nothing has come for a
-//! while: a blocking MPI receive spins its core, which a worker on the same node would miss.
+//! is called (and all of them before MPI is finalised). Receives are immediate too: a message is
+//! matched as soon as it is announced and its bytes arrive while this rank goes on with others,
+//! so a sender slow to move its large message along (its talking thread waiting for a core)
+//! holds up only its own messages, never the master's answers to every other worker. Receives
+//! poll without blocking and sleep between polls once nothing has come for a while: a blocking
+//! MPI receive spins its core, which a worker on the same node would miss.
 //!
 //! Open MPI has no fault tolerance: a rank that dies ends the job (mpirun reports which rank).
 //! A rank that panics calls `MPI_Abort` after the panic message, so the job ends with the rank
 //! named instead of its peers waiting for it.
 
 use super::transport::{Transport, TransportError};
-use mpi::point_to_point::{Destination, MatchedReceiveVec, Source};
+use mpi::datatype::Equivalence;
+use mpi::point_to_point::{Destination, Source};
 use mpi::request::{Request, StaticScope};
 use mpi::topology::{Communicator, SimpleCommunicator};
 use std::cell::RefCell;
@@ -26,6 +31,8 @@ pub struct MpiTransport {
     size: usize,
     /// Sends under way.
     sending: RefCell<Vec<Sending>>,
+    /// Messages matched and being received, in the order they were matched.
+    receiving: RefCell<Vec<Receiving>>,
     // Declared last: MPI is finalised after everything above is gone.
     _universe: mpi::environment::Universe,
 }
@@ -52,7 +59,59 @@ impl MpiTransport {
             eprintln!("error: rank {rank} of {size} failed; ending the MPI job");
             SimpleCommunicator::world().abort(101);
         }));
-        Ok(MpiTransport { world, rank, size, sending: RefCell::new(Vec::new()), _universe: universe })
+        Ok(MpiTransport {
+            world,
+            rank,
+            size,
+            sending: RefCell::new(Vec::new()),
+            receiving: RefCell::new(Vec::new()),
+            _universe: universe,
+        })
+    }
+
+    /// Starts receiving every message that has been announced, each into its own buffer.
+    fn match_announced(&self) {
+        let mut receiving = self.receiving.borrow_mut();
+        while let Some((message, status)) = self.world.any_process().immediate_matched_probe() {
+            let length = usize::try_from(status.count(u8::equivalent_datatype())).unwrap_or(0);
+            let bytes: *mut [u8] = Box::into_raw(vec![0u8; length].into_boxed_slice());
+            // SAFETY: `bytes` is freed only once the request has completed (`take_received`,
+            // or `drop`), and nothing else refers to it meanwhile.
+            let request = message.immediate_matched_receive_into(StaticScope, unsafe { &mut *bytes });
+            let from = status.source_rank() as usize;
+            receiving.push(Receiving { from, state: Received::Arriving(request), bytes });
+        }
+    }
+
+    /// The first whole message of a sender none of whose earlier messages is still arriving.
+    fn take_received(&self) -> Option<(usize, Vec<u8>)> {
+        let mut receiving = self.receiving.borrow_mut();
+        let mut waiting_for: Vec<usize> = Vec::new();
+        let mut found = None;
+        for (k, r) in receiving.iter_mut().enumerate() {
+            if let Received::Arriving(request) = std::mem::replace(&mut r.state, Received::Whole) {
+                if let Err(request) = request.test() {
+                    r.state = Received::Arriving(request);
+                }
+            }
+            match r.state {
+                Received::Arriving(_) => waiting_for.push(r.from),
+                Received::Whole if !waiting_for.contains(&r.from) => {
+                    found = Some(k);
+                    break;
+                }
+                Received::Whole => {}
+            }
+        }
+        let r = receiving.remove(found?);
+        // SAFETY: the receive into `r.bytes` has completed; its box is taken back once.
+        let bytes = unsafe { Box::from_raw(r.bytes) };
+        Some((r.from, bytes.into_vec()))
+    }
+
+    /// Whether messages are moving either way.
+    fn moving(&self) -> bool {
+        !self.sending.borrow().is_empty() || !self.receiving.borrow().is_empty()
     }
 
     /// Completes the sends that have finished, freeing their bytes.
@@ -76,6 +135,19 @@ struct Sending {
     bytes: &'static [u8],
 }
 
+/// A message being received: its sender, whether it has all arrived, and the buffer it arrives
+/// in (owned here; the request writes to it until it completes).
+struct Receiving {
+    from: usize,
+    state: Received,
+    bytes: *mut [u8],
+}
+
+enum Received {
+    Arriving(Request<'static, [u8], StaticScope>),
+    Whole,
+}
+
 fn free(bytes: &'static [u8]) {
     // SAFETY: `bytes` came from `Box::leak` in `send`, its request has completed, and nothing
     // else refers to it.
@@ -88,6 +160,13 @@ impl Drop for MpiTransport {
         for s in self.sending.get_mut().drain(..) {
             s.request.wait();
             free(s.bytes);
+        }
+        for r in self.receiving.get_mut().drain(..) {
+            if let Received::Arriving(request) = r.state {
+                request.wait();
+            }
+            // SAFETY: the receive has completed.
+            drop(unsafe { Box::from_raw(r.bytes) });
         }
     }
 }
@@ -120,8 +199,9 @@ impl Transport for MpiTransport {
             }
             if start.elapsed() < SPIN {
                 std::hint::spin_loop();
-            } else if !self.sending.borrow().is_empty() && start.elapsed() < SPIN_WHILE_SENDING {
-                // A peer may be waiting for this side to move a send along.
+            } else if self.moving() && start.elapsed() < SPIN_WHILE_SENDING {
+                // A peer may be waiting for this side to move a send along, or a message on its
+                // way in moves as this side calls MPI.
                 std::thread::yield_now();
             } else {
                 std::thread::sleep(NAP);
@@ -131,14 +211,12 @@ impl Transport for MpiTransport {
 
     fn sending(&self) -> bool {
         self.progress();
-        !self.sending.borrow().is_empty()
+        self.moving()
     }
 
     fn try_recv(&self) -> Result<Option<(usize, Vec<u8>)>, TransportError> {
         self.progress();
-        Ok(self.world.any_process().immediate_matched_probe().map(|matched| {
-            let (bytes, status) = matched.matched_receive_vec::<u8>();
-            (status.source_rank() as usize, bytes)
-        }))
+        self.match_announced();
+        Ok(self.take_received())
     }
 }

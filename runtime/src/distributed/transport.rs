@@ -29,9 +29,10 @@ pub trait Transport {
     fn recv(&self) -> Result<(usize, Vec<u8>), TransportError>;
     /// The next message from any rank if one has arrived, without waiting.
     fn try_recv(&self) -> Result<Option<(usize, Vec<u8>)>, TransportError>;
-    /// Whether sends are still under way that move only while this rank calls the transport
-    /// (MPI's large messages go by rendezvous: the receiver waits until the sender's side
-    /// progresses). A rank with such sends calls again soon instead of napping.
+    /// Whether messages are still under way, either way, that move only while this rank calls
+    /// the transport (MPI's large messages go by rendezvous: the receiver waits until the
+    /// sender's side progresses, and the other way round). A rank with such messages calls again
+    /// soon instead of napping.
     fn sending(&self) -> bool {
         false
     }
