@@ -138,35 +138,30 @@ pub fn greeting_version(bytes: &[u8]) -> Option<u32> {
 /// Identifies the program a rank runs: the protocol version, the target and a hash of the
 /// executable file itself, so that ranks running different builds refuse each other at start-up.
 pub fn build_fingerprint() -> Vec<u8> {
-    let mut hasher = Fnv64::default();
+    use std::hash::Hasher;
+    use std::io::Read;
+    // Every `DefaultHasher::new()` of one build hashes alike.
+    let mut hasher = std::hash::DefaultHasher::new();
     hasher.write(&PROTOCOL_VERSION.to_le_bytes());
     for part in [env!("CARGO_PKG_VERSION"), std::env::consts::ARCH, std::env::consts::OS] {
         hasher.write(part.as_bytes());
     }
     hasher.write(if cfg!(target_endian = "little") { b"le" } else { b"be" });
-    // Reading the executable costs a few milliseconds once per run; where it cannot be read, the
-    // version and target above are all that is compared.
-    if let Ok(bytes) = std::env::current_exe().and_then(std::fs::read) {
-        hasher.write(&bytes);
-    }
-    hasher.0.to_le_bytes().to_vec()
-}
-
-/// FNV-1a, 64 bits: enough to tell two builds apart, with no dependency.
-struct Fnv64(u64);
-
-impl Default for Fnv64 {
-    fn default() -> Self {
-        Fnv64(0xcbf2_9ce4_8422_2325)
-    }
-}
-
-impl Fnv64 {
-    fn write(&mut self, bytes: &[u8]) {
-        for &b in bytes {
-            self.0 = (self.0 ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3);
+    // The executable is read a piece at a time (a build with debug information is hundreds of
+    // megabytes, which every rank would otherwise allocate at once); where it cannot be read,
+    // the version and target above are all that is compared.
+    if let Ok(mut file) = std::env::current_exe().and_then(std::fs::File::open) {
+        let mut piece = vec![0u8; 1 << 20];
+        loop {
+            match file.read(&mut piece) {
+                Ok(0) => break,
+                Ok(n) => hasher.write(&piece[..n]),
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                Err(_) => break,
+            }
         }
     }
+    hasher.finish().to_le_bytes().to_vec()
 }
 
 impl Message {
