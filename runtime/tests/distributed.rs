@@ -49,6 +49,11 @@ fn both_ways(
         let (distributed, report) = master.render_context(&rt, &world, None)?;
         assert_eq!(report.threads, workers * threads);
         assert!(report.primary_rays >= u64::from(world.options.width * world.options.height));
+        // The workers' time is accounted within the master's frame, and they did render.
+        let time = master.worker_time();
+        assert_eq!(time.frame, report.elapsed);
+        assert!(time.rendering > Duration::ZERO && time.rendering <= time.share, "{time:?}");
+        assert!(time.world + time.share <= time.frame, "{time:?}");
         let (alone, _) = pool(2).install(|| render_frame(&world, None));
         rt.return_scene(world);
         out.push((distributed, alone, master.traffic().updates));

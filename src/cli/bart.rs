@@ -5,7 +5,7 @@
 use anyhow::Context as _;
 use rtsl_runtime::api::Context;
 use rtsl_runtime::bart::{load_file, BartScene};
-use rtsl_runtime::distributed::{Demand, Master, Traffic, Transport};
+use rtsl_runtime::distributed::{Demand, Master, Traffic, Transport, WorkerTime};
 use rtsl_runtime::render::render_frame;
 use rtsl_runtime::{write_image, WriteOptions};
 use std::path::{Path, PathBuf};
@@ -84,6 +84,8 @@ struct FrameTimes {
     traffic: Option<Traffic>,
     /// What the workers fetched for the frame, and how many workers there are.
     demand: Option<(Demand, usize)>,
+    /// Where the workers' time went.
+    worker_time: Option<WorkerTime>,
 }
 
 impl FrameTimes {
@@ -219,14 +221,14 @@ fn play_frame(
     let world = pool.install(|| rt.build_world())?;
     let build = start.elapsed();
     let start = Instant::now();
-    let (fb, report, traffic, demand) = match master {
+    let (fb, report, traffic, demand, worker_time) = match master {
         Some(m) if m.workers() > 0 => {
             let (fb, report) = m.render_context(rt, &world, None)?;
-            (fb, report, Some(m.traffic()), Some((m.demand(), m.workers())))
+            (fb, report, Some(m.traffic()), Some((m.demand(), m.workers())), Some(m.worker_time()))
         }
         _ => {
             let (fb, report) = pool.install(|| render_frame(&world, None));
-            (fb, report, None, None)
+            (fb, report, None, None, None)
         }
     };
     let render = start.elapsed();
@@ -245,7 +247,7 @@ fn play_frame(
             .with_context(|| format!("writing {}", path.display()))?;
     }
     let rays_by_kind = [report.primary_rays, report.shadow_rays, report.secondary_rays, report.transparency_rays];
-    Ok(FrameTimes { animation, build, render, rays_by_kind, accel: report.accel, traffic, demand })
+    Ok(FrameTimes { animation, build, render, rays_by_kind, accel: report.accel, traffic, demand, worker_time })
 }
 
 fn summarize(times: &[FrameTimes], meshes: (usize, usize)) {
@@ -308,6 +310,8 @@ fn summarize(times: &[FrameTimes], meshes: (usize, usize)) {
             light_paths: mean(|t| t.light_paths),
         };
         println!("{}", super::mpi::traffic_line(&t));
+        let worker_times: Vec<WorkerTime> = times.iter().filter_map(|t| t.worker_time).collect();
+        println!("{}", super::mpi::worker_time_line(&worker_times));
     }
     let demands: Vec<_> = times.iter().filter_map(|t| t.demand).collect();
     if let Some(&(first, workers)) = demands.first() {

@@ -276,17 +276,20 @@ pub fn run_render(args: &BenchRenderArgs) -> anyhow::Result<()> {
         let mut ms = Vec::new();
         let mut last = None;
         let mut first_demand = None;
+        let mut worker_times = Vec::new();
         for frame in 0..=args.frames.max(1) {
             let (_, report) = master.render_context(&rt, &world, None)?;
             first_demand.get_or_insert(master.demand());
             if frame > 0 {
                 ms.push(report.elapsed.as_secs_f64() * 1e3);
+                worker_times.push(master.worker_time());
                 last = Some(report);
             }
         }
         let threads = format!("worker ranks: {}, threads: {}", master.workers(), master.worker_threads());
         print_rate(args, &world, &threads, median(ms), &last.unwrap_or_default());
         println!("{}", super::mpi::traffic_line(&master.traffic()));
+        println!("{}", super::mpi::worker_time_line(&worker_times));
         let (first, d) = (first_demand.unwrap_or_default(), master.demand());
         let meshes = super::mpi::scene_meshes(&world);
         println!("{}", super::mpi::demand_line("the first frame", (&first).into(), meshes, &first, master.workers()));

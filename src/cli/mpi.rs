@@ -3,7 +3,9 @@
 //! with an empty scene, is sent the master's, and serves it as a worker
 //! (`rtsl_runtime::distributed`).
 
-use rtsl_runtime::distributed::{serve, Demand, ReplicaScene, Traffic, Transport, DEFAULT_MESH_CACHE_BYTES};
+use rtsl_runtime::distributed::{
+    serve, Demand, ReplicaScene, Traffic, Transport, WorkerTime, DEFAULT_MESH_CACHE_BYTES,
+};
 use rtsl_runtime::render::World;
 
 /// This process's rank of the `mpirun` job.
@@ -52,6 +54,22 @@ pub(crate) fn traffic_line(t: &Traffic) -> String {
         kb(t.light_paths),
         kb(t.control),
         kb(t.counters)
+    )
+}
+
+/// "worker time per frame: ..." of the mean of `times` (one a frame): where a frame's time went
+/// on the workers, on average over them.
+pub(crate) fn worker_time_line(times: &[WorkerTime]) -> String {
+    let n = times.len().max(1) as f64;
+    let ms =
+        |f: fn(&WorkerTime) -> std::time::Duration| times.iter().map(|t| f(t).as_secs_f64()).sum::<f64>() * 1e3 / n;
+    format!(
+        "worker time per frame (mean over workers): world {:.2} ms, rendering {:.1} ms, waiting {:.1} ms (for tiles, fetches, a core), outside their share {:.1} ms (the master preparing the frame and assembling the image), of a {:.1} ms frame",
+        ms(|t| t.world),
+        ms(|t| t.rendering),
+        ms(|t| t.waiting),
+        ms(|t| t.outside),
+        ms(|t| t.frame),
     )
 }
 

@@ -38,7 +38,7 @@ pub(super) enum Want {
 }
 
 /// The link between a worker's render threads and its communication thread.
-#[derive(Debug, Default)]
+#[derive(Default)]
 pub struct FetchLink {
     /// Requests not yet sent: what, and where its bytes go.
     queued: Mutex<Vec<(Want, Sender<Vec<u8>>)>>,
@@ -52,7 +52,12 @@ pub struct FetchLink {
     evicted: AtomicU64,
     /// Frames since the start: what objects stamp themselves with when a ray reaches them.
     clock: Arc<AtomicU32>,
+    /// Wakes the communication thread when a request is queued (it may be waiting long).
+    waker: Mutex<Option<Waker>>,
 }
+
+/// What a request queued on a [`FetchLink`] calls to wake the thread that sends it.
+pub(super) type Waker = Box<dyn Fn() + Send + Sync>;
 
 /// What a worker fetched in a frame.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
@@ -67,6 +72,12 @@ pub(super) struct Fetched {
     pub evicted: u64,
 }
 
+impl std::fmt::Debug for FetchLink {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("FetchLink").field("clock", &self.clock).finish_non_exhaustive()
+    }
+}
+
 impl FetchLink {
     pub fn new() -> Arc<FetchLink> {
         Arc::new(FetchLink::default())
@@ -75,6 +86,11 @@ impl FetchLink {
     /// The requests queued since the last call (communication thread).
     pub(super) fn take_requests(&self) -> Vec<(Want, Sender<Vec<u8>>)> {
         std::mem::take(&mut *self.queued.lock().unwrap_or_else(PoisonError::into_inner))
+    }
+
+    /// Whether requests are queued, not yet taken.
+    pub(super) fn has_requests(&self) -> bool {
+        !self.queued.lock().unwrap_or_else(PoisonError::into_inner).is_empty()
     }
 
     /// What this frame fetched; resets the counts for the next frame.
@@ -98,7 +114,16 @@ impl FetchLink {
     fn request(&self, want: Want) -> Option<Vec<u8>> {
         let (tx, rx) = channel();
         self.queued.lock().unwrap_or_else(PoisonError::into_inner).push((want, tx));
+        if let Some(wake) = &*self.waker.lock().unwrap_or_else(PoisonError::into_inner) {
+            wake();
+        }
         rx.recv_timeout(FETCH_TIMEOUT).ok()
+    }
+
+    /// Sets what wakes the communication thread when a request is queued (`None`: nothing; it
+    /// polls).
+    pub(super) fn set_waker(&self, waker: Option<Waker>) {
+        *self.waker.lock().unwrap_or_else(PoisonError::into_inner) = waker;
     }
 
     /// Starts a frame: objects reached from now on are stamped with its number; `evicted`
@@ -208,6 +233,11 @@ impl Pending {
             waiting.push(tx);
         }
         (objects, textures)
+    }
+
+    /// Whether requests sent are still unanswered.
+    pub(super) fn is_empty(&self) -> bool {
+        self.0.is_empty()
     }
 
     /// Hands the master's answer to the threads waiting for it.

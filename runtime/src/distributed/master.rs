@@ -12,7 +12,7 @@ use crate::render::{FrameReport, Framebuffer, LightPathCache, LightPaths, Render
 use crate::texture::Delivered;
 use std::collections::HashMap;
 use std::sync::Arc;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 /// Tiles each worker has in flight per thread at first: while it renders one, the next ones are
 /// on their way. A worker that runs out of tiles while waiting for more (its tiles take less time
@@ -88,10 +88,53 @@ pub struct Master<T: Transport> {
     /// What the workers' contexts were last sent ([`Master::render_context`]).
     replicator: Replicator,
     demand: Demand,
+    /// The workers' times in the last frame (their shares' times; the frame's own is set once
+    /// the image is assembled).
+    worker_time: WorkerTime,
+    worker_times: Vec<(Duration, Duration, Duration)>,
     /// The light paths of the viewer's pass being traced ([`Master::trace_lattices`]), and the
     /// paths the workers were last sent (they keep them for the pass's next pieces).
     light_paths: LightPathCache,
     sent_light_paths: LightPaths,
+}
+
+/// Where a worker's time went in the last frame, on average over the workers. A frame's time on
+/// the master is each worker's `world + share + outside`; `share` is `rendering + waiting`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct WorkerTime {
+    /// The frame on the master, from its start to the image assembled.
+    pub frame: Duration,
+    /// Bringing the worker's world to the frame's state: applying the update, building BVHs.
+    pub world: Duration,
+    /// From the world being ready to the worker reporting its part of the frame done.
+    pub share: Duration,
+    /// Of `share`, a render thread's time rendering units (the mean over its threads).
+    pub rendering: Duration,
+    /// Of `share`, a render thread's time not rendering: waiting for units from the master (or
+    /// for meshes and textures it fetches), and the talking thread's turns on its core.
+    pub waiting: Duration,
+    /// Outside the worker's part of the frame: the master preparing it (tracing light paths,
+    /// encoding the update), the frame's first message on its way, and the master assembling
+    /// the image after the last tile.
+    pub outside: Duration,
+}
+
+impl WorkerTime {
+    /// The mean of the workers' times, each `(world, share, rendering per thread)`, in a frame
+    /// that took `frame` on the master.
+    fn of(frame: Duration, workers: &[(Duration, Duration, Duration)]) -> WorkerTime {
+        let n = workers.len().max(1) as u32;
+        let mean = |f: fn(&(Duration, Duration, Duration)) -> Duration| workers.iter().map(f).sum::<Duration>() / n;
+        let (world, share, rendering) = (mean(|w| w.0), mean(|w| w.1), mean(|w| w.2));
+        WorkerTime {
+            frame,
+            world,
+            share,
+            rendering,
+            waiting: share.saturating_sub(rendering),
+            outside: frame.saturating_sub(world + share),
+        }
+    }
 }
 
 /// Demand loading over the workers in the last frame.
@@ -126,6 +169,8 @@ impl<T: Transport> Master<T> {
             traffic: Traffic::default(),
             replicator: Replicator::demand_loading(),
             demand: Demand::default(),
+            worker_time: WorkerTime::default(),
+            worker_times: Vec::new(),
             light_paths: LightPathCache::default(),
             sent_light_paths: LightPaths::default(),
         };
@@ -184,6 +229,11 @@ impl<T: Transport> Master<T> {
     /// What demand loading fetched and held in the last distributed frame.
     pub fn demand(&self) -> Demand {
         self.demand
+    }
+
+    /// Where the workers' time went in the last distributed frame.
+    pub fn worker_time(&self) -> WorkerTime {
+        self.worker_time
     }
 
     /// Sends workers whole meshes with the scene ([`Master::render_context`]) instead of letting
@@ -329,7 +379,9 @@ impl<T: Transport> Master<T> {
         }
         let primary_rays = counts.iter().map(|c| c.rays[0]).sum();
         let total_rays = counts.iter().flat_map(|c| c.rays).sum();
-        Ok((samples, BatchReport { primary_rays, total_rays, elapsed: start.elapsed() }))
+        let elapsed = start.elapsed();
+        self.worker_time = WorkerTime::of(elapsed, &self.worker_times);
+        Ok((samples, BatchReport { primary_rays, total_rays, elapsed }))
     }
 
     /// [`Master::render_frame`], answering the workers' requests for meshes and textures from
@@ -379,6 +431,7 @@ impl<T: Transport> Master<T> {
         }
         report.threads = self.worker_threads();
         report.elapsed = start.elapsed();
+        self.worker_time = WorkerTime::of(report.elapsed, &self.worker_times);
         Ok((fb, report))
     }
 
@@ -439,6 +492,7 @@ impl<T: Transport> Master<T> {
         }
         let (mut received, mut done) = (0, vec![false; self.workers.len()]);
         let mut counts = Vec::new();
+        self.worker_times.clear();
         let mut failure = None;
         while done.contains(&false) {
             let (rank, bytes) = self.transport.recv()?;
@@ -520,6 +574,9 @@ impl<T: Transport> Master<T> {
                 Message::FrameDone { frame: f, counts: c, failure: worker_failure } if f == frame && !done[w] => {
                     traffic.counters += bytes.len() as u64;
                     done[w] = true;
+                    let threads = self.workers[w].threads.max(1);
+                    let ns = Duration::from_nanos;
+                    self.worker_times.push((ns(c.world_ns), ns(c.share_ns), ns(c.rendering_ns) / threads));
                     counts.push(c);
                     if let Some(message) = worker_failure {
                         failure.get_or_insert(DistributedError::Worker { rank, message });
@@ -616,6 +673,18 @@ mod tests {
 
     fn worker(threads: u32, window: usize) -> WorkerInfo {
         WorkerInfo { threads, window, failure: None }
+    }
+
+    #[test]
+    fn worker_time_splits_the_frame() {
+        let ms = Duration::from_millis;
+        // Two workers: one of a single thread, one whose rendering is already per thread.
+        let time = WorkerTime::of(ms(100), &[(ms(2), ms(80), ms(70)), (ms(4), ms(90), ms(60))]);
+        assert_eq!((time.world, time.share, time.rendering), (ms(3), ms(85), ms(65)));
+        assert_eq!((time.waiting, time.outside), (ms(20), ms(12)));
+        assert_eq!(time.world + time.rendering + time.waiting + time.outside, time.frame);
+        // No worker reported: nothing is made up.
+        assert_eq!(WorkerTime::of(ms(5), &[]).outside, ms(5));
     }
 
     #[test]

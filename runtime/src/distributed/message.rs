@@ -8,7 +8,7 @@ use crate::texture::TextureKind;
 use rtsl_compiler::interface::ShaderKind;
 
 /// The protocol's version: ranks that speak different versions refuse each other at start-up.
-pub const PROTOCOL_VERSION: u32 = 15;
+pub const PROTOCOL_VERSION: u32 = 16;
 
 /// What the master's counters add up from a worker's share of a frame.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -42,6 +42,12 @@ pub struct FrameCounts {
     pub fetched_texture_bytes: u64,
     pub evicted_objects: u64,
     pub resident_objects: u64,
+    /// Where the worker's time went (nanoseconds): bringing its world to the frame's state
+    /// (updates, BVHs), the time from then until it reported the frame done, and of that, its
+    /// render threads' time spent rendering units (summed over threads).
+    pub world_ns: u64,
+    pub share_ns: u64,
+    pub rendering_ns: u64,
 }
 
 /// What a frame's units of work are.
@@ -225,6 +231,9 @@ impl Message {
                 w.u64(counts.fetched_texture_bytes);
                 w.u64(counts.evicted_objects);
                 w.u64(counts.resident_objects);
+                w.u64(counts.world_ns);
+                w.u64(counts.share_ns);
+                w.u64(counts.rendering_ns);
                 w.u64(counts.shading_ns);
                 w.u64(counts.light_paths_ns);
                 w.u64(counts.gathering_ns);
@@ -310,6 +319,7 @@ impl Message {
                 let (fetched_objects, fetched_bytes) = (r.u64()?, r.u64()?);
                 let (fetched_textures, fetched_texture_bytes) = (r.u64()?, r.u64()?);
                 let (evicted_objects, resident_objects) = (r.u64()?, r.u64()?);
+                let (world_ns, share_ns, rendering_ns) = (r.u64()?, r.u64()?, r.u64()?);
                 let shading_ns = r.u64()?;
                 let (light_paths_ns, gathering_ns) = (r.u64()?, r.u64()?);
                 let kinds = r.count(8)?;
@@ -341,6 +351,9 @@ impl Message {
                     fetched_texture_bytes,
                     evicted_objects,
                     resident_objects,
+                    world_ns,
+                    share_ns,
+                    rendering_ns,
                 };
                 Message::FrameDone { frame, counts, failure: r.opt_str()? }
             }
@@ -563,6 +576,9 @@ mod tests {
                     fetched_texture_bytes: 16,
                     evicted_objects: 13,
                     resident_objects: 14,
+                    world_ns: 19,
+                    share_ns: 20,
+                    rendering_ns: 21,
                 },
                 failure: Some("cannot build".into()),
             },

@@ -9,6 +9,7 @@ use crate::render::progressive::LatticeTracer;
 use crate::render::{LightPaths, TileRenderer, World};
 use crate::tiles::Tile;
 use std::collections::VecDeque;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::Instant;
 
@@ -138,6 +139,7 @@ pub fn serve<T: Transport + ?Sized>(
                     Job::Tiles if light_paths.is_empty() => LightPaths::default(),
                     _ => kept_paths.clone(),
                 };
+                let building = Instant::now();
                 let world = match (scene.as_deref_mut(), &failure) {
                     (Some(s), None) => build_world(transport, frame, pool, s, &update)?,
                     (_, failure) => Err(failure.clone().unwrap_or_default()),
@@ -146,8 +148,8 @@ pub fn serve<T: Transport + ?Sized>(
                     Ok(world) => {
                         let link = scene.as_deref().and_then(|s| s.fetch_link());
                         let first = (units, lattices);
-                        let rendered =
-                            render_share(transport, &world, frame, job, first, last, pool, link.as_deref(), &paths);
+                        let share = Share { frame, job, first, last, built_in: building.elapsed() };
+                        let rendered = render_share(transport, &world, share, pool, link.as_deref(), &paths);
                         if let Some(s) = scene.as_deref_mut() {
                             s.finished(world);
                         }
@@ -316,18 +318,21 @@ impl<'w> Units<'w> {
 /// each keeping its scratch warm; this thread (the only one that talks to the master) passes
 /// finished units on and new units in. Handing the pool one tile at a time cost a thread wake-up
 /// per tile, as much as rendering a tile of a simple scene.
-#[allow(clippy::too_many_arguments)]
+///
+/// Every wake-up of this thread takes a core from a renderer when the worker has one core a
+/// thread, so it sleeps as long as nothing is urgent: while every render thread has a unit
+/// waiting behind the one it renders and no fetch waits for an answer, finished units gather and
+/// go out together at the next poll ([`BUSY_POLL`]). A render thread wakes it at once when it
+/// leaves fewer units waiting than there are threads, or queues a fetch.
 fn render_share<T: Transport + ?Sized>(
     transport: &T,
     world: &World,
-    frame: u64,
-    job: Job,
-    first: (Vec<u32>, Vec<LatticeUnit>),
-    mut last: bool,
+    share: Share,
     pool: &rayon::ThreadPool,
     link: Option<&FetchLink>,
     paths: &LightPaths,
 ) -> Result<bool, DistributedError> {
+    let Share { frame, job, first, mut last, built_in } = share;
     let mut pending = Pending::default();
     let start = Instant::now();
     let renderer = Units::new(world, job);
@@ -336,7 +341,9 @@ fn render_share<T: Transport + ?Sized>(
         Units::Tiles { renderer, .. } => renderer.use_light_paths(paths),
         Units::Lattices(tracer) => tracer.use_light_paths(paths),
     };
-    let queue = UnitQueue::default();
+    let threads = pool.current_num_threads();
+    let queue = UnitQueue::new(threads);
+    let rendering_ns = AtomicU64::new(0);
     let mut outstanding = 0usize;
     let give = |units: Vec<u32>, lattices: Vec<LatticeUnit>, outstanding: &mut usize| -> Result<(), DistributedError> {
         let new = renderer
@@ -346,31 +353,39 @@ fn render_share<T: Transport + ?Sized>(
         queue.push(new);
         Ok(())
     };
-    let (done_tx, done_rx) = std::sync::mpsc::channel::<(u32, Vec<u8>)>();
+    let (wake_tx, wake_rx) = std::sync::mpsc::channel::<()>();
+    // A render thread that queues a fetch wakes this thread, however long it means to wait.
+    let _waker = link.map(|link| {
+        let wake = wake_tx.clone();
+        link.set_waker(Some(Box::new(move || {
+            let _ = wake.send(());
+        })));
+        ClearWakerOnDrop(link)
+    });
     let quit = pool.in_place_scope(|scope| -> Result<bool, DistributedError> {
         // However this thread leaves the scope, the renderers stop: the scope waits for them.
         let _close = CloseOnDrop(&queue);
-        for _ in 0..pool.current_num_threads() {
-            let (queue, renderer, done_tx) = (&queue, &renderer, done_tx.clone());
+        for _ in 0..threads {
+            let (queue, renderer, wake_tx, rendering_ns) = (&queue, &renderer, wake_tx.clone(), &rendering_ns);
             scope.spawn(move |_| {
                 while let Some(unit) = queue.pop() {
                     let mut pixels = Vec::new();
+                    let started = Instant::now();
                     renderer.render(unit, &mut pixels);
-                    if done_tx.send((unit.index, pixels)).is_err() {
+                    rendering_ns.fetch_add(started.elapsed().as_nanos() as u64, Ordering::Relaxed);
+                    if queue.finish(unit.index, pixels) && wake_tx.send(()).is_err() {
                         break;
                     }
                 }
             });
         }
         give(first.0, first.1, &mut outstanding)?;
-        let mut finished = Vec::new();
         let mut starved = false;
         let mut last_send = Instant::now();
         loop {
-            finished.extend(done_rx.try_iter());
-            if !finished.is_empty() {
-                outstanding -= finished.len();
-                let units = std::mem::take(&mut finished);
+            let units = queue.take_finished();
+            if !units.is_empty() {
+                outstanding -= units.len();
                 let starved = std::mem::take(&mut starved);
                 transport.send(0, &Message::Rendered { frame, units, starved }.encode())?;
                 last_send = Instant::now();
@@ -397,15 +412,19 @@ fn render_share<T: Transport + ?Sized>(
             }
             // Every unit given is finished and sent back, and the master has not yet answered.
             starved |= !last && outstanding == 0;
-            // Wakes at once for a finished unit; the master's messages wait for the next poll.
-            // Just after a send the master may be waiting on this side to move it along (MPI's
-            // large messages) and its answer is on its way, so for a moment the poll comes again
-            // at once, giving the core to the renderers in between; then it naps.
-            if last_send.elapsed() < SPIN_AFTER_SEND && transport.sending() {
+            let busy = pending.is_empty() && !queue.running_low();
+            if !busy && last_send.elapsed() < SPIN_AFTER_SEND && transport.sending() {
+                // Just after a send the master may be waiting on this side to move it along
+                // (MPI's large messages) and its answer is on its way, so for a moment the poll
+                // comes again at once, giving the core to the renderers in between.
                 std::thread::yield_now();
-                finished.extend(done_rx.try_recv());
-            } else if let Ok(done) = done_rx.recv_timeout(POLL) {
-                finished.push(done);
+            } else {
+                // Drained first: wake-ups that came while this thread was awake are for what it
+                // takes next, which the checks below see.
+                while wake_rx.try_recv().is_ok() {}
+                if queue.is_unchanged_since_taken() && !link.is_some_and(FetchLink::has_requests) {
+                    let _ = wake_rx.recv_timeout(if busy { BUSY_POLL } else { POLL });
+                }
             }
         }
     })?;
@@ -429,30 +448,77 @@ fn render_share<T: Transport + ?Sized>(
         counts.resident_objects =
             world.scene.objects().iter().filter(|o| o.is_remote() && o.is_resident()).count() as u64;
     }
+    counts.world_ns = built_in.as_nanos() as u64;
+    counts.rendering_ns = rendering_ns.into_inner();
+    counts.share_ns = start.elapsed().as_nanos() as u64;
     transport.send(0, &Message::FrameDone { frame, counts, failure }.encode())?;
     Ok(false)
 }
 
-/// How long the worker's talking thread waits for a finished unit before it looks for the
-/// master's messages again.
+/// A worker's share of a frame as the frame's message starts it: the frame, its job, the units
+/// it was given first, whether they are the last, and how long bringing the world to the frame
+/// took.
+struct Share {
+    frame: u64,
+    job: Job,
+    first: (Vec<u32>, Vec<LatticeUnit>),
+    last: bool,
+    built_in: std::time::Duration,
+}
+
+/// How long the worker's talking thread naps between polls when something is urgent (a renderer
+/// runs low on units or waits for a fetch).
 const POLL: std::time::Duration = std::time::Duration::from_micros(100);
-/// How long after sending finished units the talking thread keeps polling instead of napping.
+/// How long it naps otherwise: a bound on how late finished units go out and the master's
+/// messages are read when every renderer has work waiting.
+const BUSY_POLL: std::time::Duration = std::time::Duration::from_millis(1);
+/// How long after sending finished units the talking thread keeps polling instead of napping,
+/// when something is urgent.
 const SPIN_AFTER_SEND: std::time::Duration = std::time::Duration::from_micros(50);
 
-/// The units a worker's renderers take, until it is closed.
-#[derive(Default)]
+/// Stops a fetch link waking a frame's talking thread once the frame is over.
+struct ClearWakerOnDrop<'a>(&'a FetchLink);
+
+impl Drop for ClearWakerOnDrop<'_> {
+    fn drop(&mut self) {
+        self.0.set_waker(None);
+    }
+}
+
+/// The units a worker's renderers take, until it is closed, and the units they have finished.
 struct UnitQueue {
-    state: Mutex<(VecDeque<QueuedUnit>, bool)>,
+    state: Mutex<QueueState>,
     ready: Condvar,
+    /// The renderers: fewer units waiting than this is running low.
+    threads: usize,
+}
+
+#[derive(Default)]
+struct QueueState {
+    waiting: VecDeque<QueuedUnit>,
+    closed: bool,
+    /// Finished units, with their encoded pixels, not yet taken to be sent.
+    finished: Vec<(u32, Vec<u8>)>,
+    /// Whether units were finished since the talking thread last took them.
+    changed: bool,
 }
 
 impl UnitQueue {
-    fn lock(&self) -> std::sync::MutexGuard<'_, (VecDeque<QueuedUnit>, bool)> {
+    fn new(threads: usize) -> UnitQueue {
+        UnitQueue { state: Mutex::default(), ready: Condvar::new(), threads: threads.max(1) }
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, QueueState> {
         self.state.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
     }
 
+    /// Whether fewer units wait than there are renderers: some may soon have nothing to do.
+    fn running_low(&self) -> bool {
+        self.lock().waiting.len() < self.threads
+    }
+
     fn push(&self, units: Vec<QueuedUnit>) {
-        self.lock().0.extend(units);
+        self.lock().waiting.extend(units);
         self.ready.notify_all();
     }
 
@@ -460,20 +526,42 @@ impl UnitQueue {
     fn pop(&self) -> Option<QueuedUnit> {
         let mut state = self.lock();
         loop {
-            if state.1 {
+            if state.closed {
                 return None;
             }
-            if let Some(t) = state.0.pop_front() {
+            if let Some(t) = state.waiting.pop_front() {
                 return Some(t);
             }
             state = self.ready.wait(state).unwrap_or_else(std::sync::PoisonError::into_inner);
         }
     }
 
+    /// Hands in a finished unit; returns whether the talking thread should wake for it now
+    /// (the renderers are running low).
+    fn finish(&self, unit: u32, pixels: Vec<u8>) -> bool {
+        let mut state = self.lock();
+        state.finished.push((unit, pixels));
+        state.changed = true;
+        state.waiting.len() < self.threads
+    }
+
+    /// The finished units not yet taken.
+    fn take_finished(&self) -> Vec<(u32, Vec<u8>)> {
+        let mut state = self.lock();
+        state.changed = false;
+        std::mem::take(&mut state.finished)
+    }
+
+    /// Whether no unit was finished since [`UnitQueue::take_finished`]: a wake-up drained before
+    /// may have been for one.
+    fn is_unchanged_since_taken(&self) -> bool {
+        !self.lock().changed
+    }
+
     fn close(&self) {
         let mut state = self.lock();
-        state.0.clear();
-        state.1 = true;
+        state.waiting.clear();
+        state.closed = true;
         drop(state);
         self.ready.notify_all();
     }
