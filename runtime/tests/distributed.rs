@@ -711,6 +711,40 @@ fn a_tile_decodes_to_itself_and_damaged_tiles_are_errors() {
     }
 }
 
+#[test]
+fn tiles_assembled_as_they_arrive_make_the_finished_image() {
+    use rtsl_runtime::render::{RenderedTile, TileRenderer};
+    let mut rt = office().expect("the office loads");
+    rt.options.exposure = Some((1.7, 2.2));
+    let world = rt.build_world().expect("a world");
+    let renderer = TileRenderer::new(&world);
+    let mut assembly = renderer.start_assembly().expect("the office's tiles are final where rendered");
+    let tiles = renderer.tiles();
+    let rendered: Vec<RenderedTile> = tiles.iter().map(|t| renderer.render_tile(t)).collect();
+    // Last tile first, each from an odd offset in its buffer (unaligned for its floats).
+    for (tile, r) in tiles.iter().zip(&rendered).rev() {
+        let mut bytes = vec![0u8];
+        r.encode(&mut bytes);
+        let bytes = &bytes[1..];
+        assert!(assembly.add(*tile, &bytes[..bytes.len() - 1]).is_err(), "a short tile");
+        let mut unfinished = bytes.to_vec();
+        *unfinished.last_mut().expect("a byte") = 1;
+        assert!(assembly.add(*tile, &unfinished).is_err(), "a tile said to be unfinished");
+        assembly.add(*tile, bytes).expect("a whole tile");
+    }
+    let start = std::time::Instant::now();
+    let (assembled, _) = assembly.finish(renderer, start);
+    let (finished, _) = TileRenderer::new(&world).finish(rendered, start);
+    let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&assembled.rgba), bits(&finished.rgba));
+    assert_eq!(bits(&assembled.depth), bits(&finished.depth));
+    assert_eq!(assembled.object_id, finished.object_id);
+    assert!(finished.rgba.iter().any(|&v| v > 0.0 && v < 1.0), "the exposure was applied to something");
+    // Tiles that are not final where rendered are kept for the frame's filter.
+    let gaussian = gi_box_gaussian().expect("the scene loads").build_world().expect("a world");
+    assert!(TileRenderer::new(&gaussian).start_assembly().is_none());
+}
+
 /// Three frames of `rt` over `master`'s workers, the first instance moved before frame `moved_at`,
 /// each checked against this process's render; what each frame fetched and moved.
 fn frames_moving_once(

@@ -403,29 +403,37 @@ impl<T: Transport> Master<T> {
             paths.encode(&mut light_paths);
         }
         let tiles = renderer.tiles();
-        let mut rendered: Vec<Option<RenderedTile>> = tiles.iter().map(|_| None).collect();
+        // Tiles that are final as they arrive go straight into the image, which is then whole
+        // when the last one is in; the others are kept for the frame's filter or pixel shader.
+        let mut assembly = renderer.start_assembly();
+        let mut rendered: Vec<Option<RenderedTile>> = Vec::new();
+        if assembly.is_none() {
+            rendered = tiles.iter().map(|_| None).collect();
+        }
+        let mut arrived = 0;
         let owners = std::mem::take(&mut self.last_owner);
         let work =
             Work { job: Job::Tiles, units: tiles.len(), lattices: &[], owners: &owners, light_paths: &light_paths };
         let mut accept = |t: usize, bytes: &[u8]| -> Result<(), String> {
-            rendered[t] = Some(RenderedTile::decode(world, tiles[t], bytes)?);
+            match &mut assembly {
+                Some(assembly) => assembly.add(tiles[t], bytes)?,
+                None => rendered[t] = Some(RenderedTile::decode(world, tiles[t], bytes)?),
+            }
+            arrived += 1;
             Ok(())
         };
         let (given, counts) = self.run(world, update, work, progress, source, &mut accept)?;
-        let rendered: Vec<RenderedTile> = rendered.into_iter().flatten().collect();
-        if rendered.len() != tiles.len() {
+        if arrived != tiles.len() {
             return Err(DistributedError::Protocol {
                 rank: 0,
-                message: format!(
-                    "the workers finished frame {} with {} of {} tiles",
-                    self.frame,
-                    rendered.len(),
-                    tiles.len()
-                ),
+                message: format!("the workers finished frame {} with {arrived} of {} tiles", self.frame, tiles.len()),
             });
         }
         self.last_owner = given;
-        let (fb, mut report) = renderer.finish(rendered, start);
+        let (fb, mut report) = match assembly {
+            Some(assembly) => assembly.finish(renderer, start),
+            None => renderer.finish(rendered.into_iter().flatten().collect(), start),
+        };
         for c in &counts {
             super::add_counts(&mut report, c);
         }

@@ -1062,6 +1062,75 @@ impl RenderedTile {
     }
 }
 
+/// `bytes` as values of `T`: borrowed where they lie aligned for it, else copied.
+fn values<T: bytemuck::AnyBitPattern>(bytes: &[u8]) -> std::borrow::Cow<'_, [T]> {
+    match bytemuck::try_cast_slice(bytes) {
+        Ok(values) => std::borrow::Cow::Borrowed(values),
+        Err(_) => bytes.chunks_exact(std::mem::size_of::<T>()).map(bytemuck::pod_read_unaligned).collect(),
+    }
+}
+
+/// A frame's image put together as its tiles arrive, encoded ([`RenderedTile::encode`]), from
+/// renderers elsewhere (a distributed master's workers): each tile goes straight into the
+/// framebuffer, so no tile is kept and nothing is left to assemble after the last one. Only for
+/// frames whose tiles are final where they are rendered ([`TileRenderer::assembles_as_tiles_arrive`]);
+/// the image is bit for bit [`TileRenderer::finish`]'s.
+pub struct TileAssembly {
+    /// Made when the first tile arrives, not before: the renderers elsewhere have started by then.
+    fb: Option<Framebuffer>,
+    size: (u32, u32),
+    exposure: Option<(f32, f32)>,
+}
+
+impl TileAssembly {
+    /// Writes the tile `tile` that `bytes` encodes into the image; an error unless the bytes hold
+    /// exactly a finished tile of that size.
+    pub fn add(&mut self, tile: Tile, bytes: &[u8]) -> Result<(), String> {
+        let n = tile.width as usize * tile.height as usize;
+        let expected = 4 * 6 * n + 1;
+        if bytes.len() != expected || bytes.last() != Some(&0) {
+            return Err(format!(
+                "tile {}: {} bytes where a finished tile of {n} pixels takes {expected}",
+                tile.index,
+                bytes.len()
+            ));
+        }
+        let (w, h) = (self.size.0 as usize, self.size.1 as usize);
+        let (x0, tw) = (tile.x0 as usize, tile.width as usize);
+        if x0 + tw > w || tile.y0 as usize + tile.height as usize > h {
+            return Err(format!("tile {} lies outside the {w}x{h} image", tile.index));
+        }
+        let (size, exposure) = (self.size, self.exposure);
+        let fb = self.fb.get_or_insert_with(|| assemble_framebuffer(size, Vec::new(), exposure));
+        let (colors, rest) = bytes.split_at(16 * n);
+        let (depths, rest) = rest.split_at(4 * n);
+        let (colors, depths, ids) = (values::<[f32; 4]>(colors), values::<f32>(depths), values::<u32>(&rest[..4 * n]));
+        for y in 0..tile.height as usize {
+            let (from, to) = (y * tw, (tile.y0 as usize + y) * w + x0);
+            let rgba = &mut fb.rgba[4 * to..4 * (to + tw)];
+            for (c, out) in colors[from..from + tw].iter().zip(rgba.chunks_exact_mut(4)) {
+                let mut c = *c;
+                // As `write_tiles` does it, so that the image is the same bit for bit.
+                if let Some((gain, gamma)) = exposure {
+                    for v in &mut c[..3] {
+                        *v = (gain * *v).max(0.0).powf(1.0 / gamma);
+                    }
+                }
+                out.copy_from_slice(&c);
+            }
+            fb.depth[to..to + tw].copy_from_slice(&depths[from..from + tw]);
+            fb.object_id[to..to + tw].copy_from_slice(&ids[from..from + tw]);
+        }
+        Ok(())
+    }
+
+    /// The image, and what the frame cost since `start` by `renderer`'s counters.
+    pub fn finish(self, renderer: TileRenderer, start: Instant) -> (Framebuffer, FrameReport) {
+        let fb = self.fb.unwrap_or_else(|| assemble_framebuffer(self.size, Vec::new(), self.exposure));
+        (fb, frame_report(&renderer.frame, start))
+    }
+}
+
 impl<'w> TileRenderer<'w> {
     pub fn new(world: &'w World) -> TileRenderer<'w> {
         TileRenderer { frame: Frame::new(world), sampling: Sampling::of(world), pixels_later: reads_pixels(world) }
@@ -1087,6 +1156,25 @@ impl<'w> TileRenderer<'w> {
     /// distributed master's), before any tile is rendered; returns whether it took any.
     pub fn use_light_paths(&self, paths: &LightPaths) -> bool {
         paths.lend(&self.frame)
+    }
+
+    /// Whether the frame's tiles are final where they are rendered (the box filter, no pixel
+    /// shader reading other pixels, no kept outputs), so that a [`TileAssembly`] can put the image
+    /// together as they arrive.
+    pub fn assembles_as_tiles_arrive(&self) -> bool {
+        let options = &self.frame.world.options;
+        options.pixel_filter.is_unit_box() && !self.pixels_later && captured_outputs(options).is_empty()
+    }
+
+    /// An empty image to put this frame's tiles into as they arrive, where
+    /// [`TileRenderer::assembles_as_tiles_arrive`].
+    pub fn start_assembly(&self) -> Option<TileAssembly> {
+        if !self.assembles_as_tiles_arrive() {
+            return None;
+        }
+        let world = self.frame.world;
+        let exposure = world.options.exposure.filter(|&(gain, gamma)| gain.is_finite() && gamma > 0.0);
+        Some(TileAssembly { fb: None, size: (world.options.width, world.options.height), exposure })
     }
 
     /// The frame being rendered (its world and its counters).
