@@ -138,9 +138,16 @@ pub(crate) fn thread_count(threads: usize) -> anyhow::Result<usize> {
 }
 
 /// The rayon pool of `--threads` workers (0: one per core) and its size.
+///
+/// Rayon's global pool gets the same size (the first time): work begun outside the pool runs
+/// there, such as the BVH of a mesh a distributed worker fetched, built on a thread of its own.
+/// Left at one thread per core, every rank of an `mpirun` job with a rank per core would wake a
+/// core's worth of threads for each such build, on cores its peers render on.
 pub(crate) fn worker_pool(threads: usize) -> anyhow::Result<(usize, rayon::ThreadPool)> {
     use anyhow::Context as _;
     let threads = thread_count(threads)?;
+    // Fails only when the global pool exists already (a second call), which then stays as it is.
+    let _ = rayon::ThreadPoolBuilder::new().num_threads(threads).build_global();
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().context("starting the worker threads")?;
     Ok((threads, pool))
 }
