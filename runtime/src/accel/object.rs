@@ -116,6 +116,8 @@ pub trait MeshSource: Send + Sync + std::fmt::Debug {
     /// cannot deliver returns an empty mesh and reports why through its own channel (the frame
     /// then fails): a traversal has no way to return an error.
     fn fetch(&self, key: u32) -> Arc<Mesh>;
+    /// Told how long building the BVH of a mesh it delivered took (a worker reports it).
+    fn built(&self, _took: std::time::Duration) {}
     /// The frame count the source's objects stamp themselves with when a ray reaches them (for
     /// least-recently-used eviction, [`Object::last_used`]).
     fn clock(&self) -> Arc<AtomicU32>;
@@ -225,8 +227,10 @@ impl Object {
                 let mesh = r.source.fetch(r.key);
                 // Built on a thread of its own: on this one (a rayon worker), the build's parallel
                 // loops could take a queued job that needs this very object, and wait for itself.
+                let building = std::time::Instant::now();
                 let bvh =
                     std::thread::scope(|s| s.spawn(|| ObjectBvh::build(&mesh, r.quality)).join()).unwrap_or_default();
+                r.source.built(building.elapsed());
                 ObjectData { mesh, bvh }
             }
             None => ObjectData::default(),

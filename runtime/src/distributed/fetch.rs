@@ -23,7 +23,7 @@ use std::collections::HashMap;
 use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
 use std::sync::mpsc::{channel, Sender};
 use std::sync::{Arc, Mutex, PoisonError};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 /// How long a render thread waits for an answer before it gives up on the master.
 const FETCH_TIMEOUT: Duration = Duration::from_secs(300);
@@ -48,6 +48,10 @@ pub struct FetchLink {
     fetched_bytes: AtomicU64,
     fetched_textures: AtomicU64,
     fetched_texture_bytes: AtomicU64,
+    /// Render threads' time waiting for the master's answers, and making fetched meshes ready
+    /// (decoding them, building their BVHs), this frame (nanoseconds).
+    waiting_ns: AtomicU64,
+    building_ns: AtomicU64,
     /// Objects evicted before this frame.
     evicted: AtomicU64,
     /// Frames since the start: what objects stamp themselves with when a ray reaches them.
@@ -70,6 +74,9 @@ pub(super) struct Fetched {
     pub texture_bytes: u64,
     /// Objects evicted before the frame.
     pub evicted: u64,
+    /// Render threads' time waiting for answers, and making fetched meshes ready.
+    pub waiting: Duration,
+    pub building: Duration,
 }
 
 impl std::fmt::Debug for FetchLink {
@@ -103,7 +110,13 @@ impl FetchLink {
             textures: take(&self.fetched_textures),
             texture_bytes: take(&self.fetched_texture_bytes),
             evicted: take(&self.evicted),
+            waiting: Duration::from_nanos(take(&self.waiting_ns)),
+            building: Duration::from_nanos(take(&self.building_ns)),
         }
+    }
+
+    fn add_time(counter: &AtomicU64, since: Instant) {
+        counter.fetch_add(since.elapsed().as_nanos() as u64, Ordering::Relaxed);
     }
 
     fn fail(&self, message: String) {
@@ -112,6 +125,8 @@ impl FetchLink {
 
     /// Asks the master for `want` and waits for the answer's bytes (`None`: it never came).
     fn request(&self, want: Want) -> Option<Vec<u8>> {
+        let asked = Instant::now();
+        let _waited = defer(|| FetchLink::add_time(&self.waiting_ns, asked));
         let (tx, rx) = channel();
         self.queued.lock().unwrap_or_else(PoisonError::into_inner).push((want, tx));
         if let Some(wake) = &*self.waker.lock().unwrap_or_else(PoisonError::into_inner) {
@@ -132,6 +147,19 @@ impl FetchLink {
         self.clock.fetch_add(1, Ordering::Relaxed);
         self.evicted.store(evicted, Ordering::Relaxed);
     }
+}
+
+/// Runs `f` when dropped: a time is counted however its scope is left.
+fn defer<F: FnOnce()>(f: F) -> impl Drop {
+    struct Defer<F: FnOnce()>(Option<F>);
+    impl<F: FnOnce()> Drop for Defer<F> {
+        fn drop(&mut self) {
+            if let Some(f) = self.0.take() {
+                f();
+            }
+        }
+    }
+    Defer(Some(f))
 }
 
 /// How [`Delivered`] travels: postcard.
@@ -174,6 +202,10 @@ impl MeshSource for FetchLink {
         self.clock.clone()
     }
 
+    fn built(&self, took: Duration) {
+        self.building_ns.fetch_add(took.as_nanos() as u64, Ordering::Relaxed);
+    }
+
     fn fetch(&self, key: u32) -> Arc<Mesh> {
         let Some(bytes) = self.request(Want::Mesh(key)) else {
             self.fail(format!("the mesh of object {key} never came from the master"));
@@ -181,6 +213,8 @@ impl MeshSource for FetchLink {
         };
         self.fetched_objects.fetch_add(1, Ordering::Relaxed);
         self.fetched_bytes.fetch_add(bytes.len() as u64, Ordering::Relaxed);
+        let decoding = Instant::now();
+        let _decoded = defer(|| FetchLink::add_time(&self.building_ns, decoding));
         if bytes.is_empty() {
             self.fail(format!("the master has no mesh for object {key}"));
             return Arc::default();

@@ -91,7 +91,7 @@ pub struct Master<T: Transport> {
     /// The workers' times in the last frame (their shares' times; the frame's own is set once
     /// the image is assembled).
     worker_time: WorkerTime,
-    worker_times: Vec<(Duration, Duration, Duration)>,
+    worker_times: Vec<WorkerShare>,
     /// The light paths of the viewer's pass being traced ([`Master::trace_lattices`]), and the
     /// paths the workers were last sent (they keep them for the pass's next pieces).
     light_paths: LightPathCache,
@@ -110,8 +110,12 @@ pub struct WorkerTime {
     pub share: Duration,
     /// Of `share`, a render thread's time rendering units (the mean over its threads).
     pub rendering: Duration,
-    /// Of `share`, a render thread's time not rendering: waiting for units from the master (or
-    /// for meshes and textures it fetches), and the talking thread's turns on its core.
+    /// Of `rendering`, the time it waited for meshes and textures fetched from the master, and
+    /// the time it spent decoding fetched meshes and building their BVHs.
+    pub fetching: Duration,
+    pub loading: Duration,
+    /// Of `share`, a render thread's time not rendering: waiting for units from the master, and
+    /// the talking thread's turns on its core.
     pub waiting: Duration,
     /// Outside the worker's part of the frame: the master preparing it (tracing light paths,
     /// encoding the update), the frame's first message on its way, and the master assembling
@@ -119,18 +123,44 @@ pub struct WorkerTime {
     pub outside: Duration,
 }
 
+/// One worker's times in a frame, its render threads' as their mean.
+#[derive(Clone, Copy, Debug, Default)]
+struct WorkerShare {
+    world: Duration,
+    share: Duration,
+    rendering: Duration,
+    fetching: Duration,
+    loading: Duration,
+}
+
+impl WorkerShare {
+    fn of(counts: &FrameCounts, threads: u32) -> WorkerShare {
+        let per_thread = |ns: u64| Duration::from_nanos(ns) / threads.max(1);
+        let rendering = per_thread(counts.rendering_ns);
+        WorkerShare {
+            world: Duration::from_nanos(counts.world_ns),
+            share: Duration::from_nanos(counts.share_ns),
+            rendering,
+            // Fetches made while the world was built are waited for outside any unit.
+            fetching: per_thread(counts.fetch_wait_ns).min(rendering),
+            loading: per_thread(counts.fetch_build_ns).min(rendering),
+        }
+    }
+}
+
 impl WorkerTime {
-    /// The mean of the workers' times, each `(world, share, rendering per thread)`, in a frame
-    /// that took `frame` on the master.
-    fn of(frame: Duration, workers: &[(Duration, Duration, Duration)]) -> WorkerTime {
+    /// The mean of the workers' times in a frame that took `frame` on the master.
+    fn of(frame: Duration, workers: &[WorkerShare]) -> WorkerTime {
         let n = workers.len().max(1) as u32;
-        let mean = |f: fn(&(Duration, Duration, Duration)) -> Duration| workers.iter().map(f).sum::<Duration>() / n;
-        let (world, share, rendering) = (mean(|w| w.0), mean(|w| w.1), mean(|w| w.2));
+        let mean = |f: fn(&WorkerShare) -> Duration| workers.iter().map(f).sum::<Duration>() / n;
+        let (world, share, rendering) = (mean(|w| w.world), mean(|w| w.share), mean(|w| w.rendering));
         WorkerTime {
             frame,
             world,
             share,
             rendering,
+            fetching: mean(|w| w.fetching),
+            loading: mean(|w| w.loading),
             waiting: share.saturating_sub(rendering),
             outside: frame.saturating_sub(world + share),
         }
@@ -582,9 +612,7 @@ impl<T: Transport> Master<T> {
                 Message::FrameDone { frame: f, counts: c, failure: worker_failure } if f == frame && !done[w] => {
                     traffic.counters += bytes.len() as u64;
                     done[w] = true;
-                    let threads = self.workers[w].threads.max(1);
-                    let ns = Duration::from_nanos;
-                    self.worker_times.push((ns(c.world_ns), ns(c.share_ns), ns(c.rendering_ns) / threads));
+                    self.worker_times.push(WorkerShare::of(&c, self.workers[w].threads));
                     counts.push(c);
                     if let Some(message) = worker_failure {
                         failure.get_or_insert(DistributedError::Worker { rank, message });
@@ -686,9 +714,20 @@ mod tests {
     #[test]
     fn worker_time_splits_the_frame() {
         let ms = Duration::from_millis;
-        // Two workers: one of a single thread, one whose rendering is already per thread.
-        let time = WorkerTime::of(ms(100), &[(ms(2), ms(80), ms(70)), (ms(4), ms(90), ms(60))]);
+        let counts = |world: u64, share: u64, rendering: u64, fetch_wait: u64| FrameCounts {
+            world_ns: world * 1_000_000,
+            share_ns: share * 1_000_000,
+            rendering_ns: rendering * 1_000_000,
+            fetch_wait_ns: fetch_wait * 1_000_000,
+            fetch_build_ns: 4_000_000,
+            ..FrameCounts::default()
+        };
+        // A worker of one thread, and one of two whose threads rendered 120 ms between them.
+        let shares = [WorkerShare::of(&counts(2, 80, 70, 10), 1), WorkerShare::of(&counts(4, 90, 120, 200), 2)];
+        let time = WorkerTime::of(ms(100), &shares);
         assert_eq!((time.world, time.share, time.rendering), (ms(3), ms(85), ms(65)));
+        // Fetch waits are per thread too, and never more than the rendering they are part of.
+        assert_eq!((time.fetching, time.loading), (ms(35), ms(3)));
         assert_eq!((time.waiting, time.outside), (ms(20), ms(12)));
         assert_eq!(time.world + time.rendering + time.waiting + time.outside, time.frame);
         // No worker reported: nothing is made up.

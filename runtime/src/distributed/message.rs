@@ -48,6 +48,10 @@ pub struct FrameCounts {
     pub world_ns: u64,
     pub share_ns: u64,
     pub rendering_ns: u64,
+    /// Of `rendering_ns`, the render threads' time waiting for fetched meshes and textures, and
+    /// decoding fetched meshes and building their BVHs.
+    pub fetch_wait_ns: u64,
+    pub fetch_build_ns: u64,
 }
 
 /// What a frame's units of work are.
@@ -234,6 +238,8 @@ impl Message {
                 w.u64(counts.world_ns);
                 w.u64(counts.share_ns);
                 w.u64(counts.rendering_ns);
+                w.u64(counts.fetch_wait_ns);
+                w.u64(counts.fetch_build_ns);
                 w.u64(counts.shading_ns);
                 w.u64(counts.light_paths_ns);
                 w.u64(counts.gathering_ns);
@@ -320,6 +326,7 @@ impl Message {
                 let (fetched_textures, fetched_texture_bytes) = (r.u64()?, r.u64()?);
                 let (evicted_objects, resident_objects) = (r.u64()?, r.u64()?);
                 let (world_ns, share_ns, rendering_ns) = (r.u64()?, r.u64()?, r.u64()?);
+                let (fetch_wait_ns, fetch_build_ns) = (r.u64()?, r.u64()?);
                 let shading_ns = r.u64()?;
                 let (light_paths_ns, gathering_ns) = (r.u64()?, r.u64()?);
                 let kinds = r.count(8)?;
@@ -354,6 +361,8 @@ impl Message {
                     world_ns,
                     share_ns,
                     rendering_ns,
+                    fetch_wait_ns,
+                    fetch_build_ns,
                 };
                 Message::FrameDone { frame, counts, failure: r.opt_str()? }
             }
@@ -579,6 +588,8 @@ mod tests {
                     world_ns: 19,
                     share_ns: 20,
                     rendering_ns: 21,
+                    fetch_wait_ns: 22,
+                    fetch_build_ns: 23,
                 },
                 failure: Some("cannot build".into()),
             },

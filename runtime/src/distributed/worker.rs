@@ -445,6 +445,8 @@ fn render_share<T: Transport + ?Sized>(
         (counts.fetched_objects, counts.fetched_bytes) = (fetched.objects, fetched.object_bytes);
         (counts.fetched_textures, counts.fetched_texture_bytes) = (fetched.textures, fetched.texture_bytes);
         counts.evicted_objects = fetched.evicted;
+        counts.fetch_wait_ns = fetched.waiting.as_nanos() as u64;
+        counts.fetch_build_ns = fetched.building.as_nanos() as u64;
         counts.resident_objects =
             world.scene.objects().iter().filter(|o| o.is_remote() && o.is_resident()).count() as u64;
     }
