@@ -800,6 +800,37 @@ fn deforming_meshes_render_the_same_on_workers() -> Result<(), DistributedError>
 }
 
 #[test]
+fn the_master_sends_the_bvh_it_built_for_the_mesh_it_sends() {
+    use rtsl_runtime::api::ObjectId;
+    use rtsl_runtime::geometry::Mesh;
+    let mut rt = office().expect("the office loads");
+    let world = rt.build_world().expect("a world");
+    let ids: Vec<ObjectId> = (0..).map(ObjectId).take_while(|&id| rt.object_mesh(id).is_some()).collect();
+    assert!(ids.len() > 3, "the office has objects");
+    for &id in &ids {
+        let mesh = rt.object_mesh(id).expect("a mesh");
+        let bvh = rt.object_bvh(id, &world).expect("the world's BVH of the mesh");
+        assert_eq!(bvh.prim_order.len(), mesh.triangle_count());
+    }
+    rt.return_scene(world);
+    // A mesh replaced since the world was built: the world's BVH is not for it.
+    let first = ids[0];
+    let world = rt.build_world().expect("a world");
+    rt.redefine_object(first).expect("an object to redefine");
+    rt.mesh(
+        &Mesh::from_triangles(
+            vec![[0.0, 0.0, 0.0].into(), [1.0, 0.0, 0.0].into(), [0.0, 1.0, 0.0].into()],
+            vec![[0, 1, 2]],
+        )
+        .expect("a triangle"),
+    )
+    .expect("the new mesh");
+    rt.end_object().expect("the object ends");
+    assert!(rt.object_bvh(first, &world).is_none());
+    assert!(rt.object_bvh(ObjectId(ids.len() as u32 + 10), &world).is_none());
+}
+
+#[test]
 fn workers_fetch_only_the_objects_rays_reach_and_keep_them() -> Result<(), DistributedError> {
     let e = |e: rtsl_runtime::api::ApiError| e.to_string();
     let mut rt = little_scene().expect("the little scene");

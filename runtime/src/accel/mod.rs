@@ -4,6 +4,7 @@
 //! - [`bvh8`]: the 8-wide form of an object's BVH that single rays traverse (same leaves).
 //! - [`object`]: an object's own BVH over its triangles (built once per geometry change).
 //! - [`top`]: the top-level BVH over instances (rebuilt every frame from the instance list).
+//! - [`wire`]: an object's BVH as it travels between processes, checked on arrival.
 //! - [`single`]: single-ray traversal (SSE node tests, 8-wide in objects), for incoherent rays.
 //! - [`packet`]: packet traversal for coherent packets of 64 rays (interval-arithmetic culling,
 //!   ranged first/last-active-chunk traversal, per-lane masks), falling back to [`single`].
@@ -20,6 +21,7 @@ pub mod packet;
 pub mod single;
 mod stack;
 pub mod top;
+pub mod wire;
 
 /// Scales the far distance of slab tests so that rounding never culls a box the ray touches
 /// (`1 + 2 gamma(3)`, Ize 2013, "Robust BVH Ray Traversal").

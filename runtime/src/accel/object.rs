@@ -68,7 +68,13 @@ impl ObjectBvh {
                 Aabb::new(lo, hi)
             })
             .collect();
-        let bvh = Bvh4::build(&boxes, quality, OBJECT_LEAF_SIZE);
+        ObjectBvh::from_bvh4(mesh, Bvh4::build(&boxes, quality, OBJECT_LEAF_SIZE))
+    }
+
+    /// The object BVH of `mesh` around `bvh`, a 4-wide BVH over its triangles (built here, or
+    /// built elsewhere and checked: [`super::wire::decode_bvh4`]): its prepared triangles and its
+    /// 8-wide form.
+    pub fn from_bvh4(mesh: &Mesh, bvh: Bvh4) -> Self {
         let mut tris = Vec::with_capacity(bvh.prim_order.len());
         bvh.prim_order
             .par_iter()
@@ -115,12 +121,21 @@ pub trait MeshSource: Send + Sync + std::fmt::Debug {
     /// The mesh of the object the source knows as `key`; blocks until it is here. A source that
     /// cannot deliver returns an empty mesh and reports why through its own channel (the frame
     /// then fails): a traversal has no way to return an error.
-    fn fetch(&self, key: u32) -> Arc<Mesh>;
+    fn fetch(&self, key: u32) -> FetchedMesh;
     /// Told how long building the BVH of a mesh it delivered took (a worker reports it).
     fn built(&self, _took: std::time::Duration) {}
     /// The frame count the source's objects stamp themselves with when a ray reaches them (for
     /// least-recently-used eviction, [`Object::last_used`]).
     fn clock(&self) -> Arc<AtomicU32>;
+}
+
+/// A demand-loaded object's geometry as its source delivers it.
+#[derive(Clone, Debug, Default)]
+pub struct FetchedMesh {
+    pub mesh: Arc<Mesh>,
+    /// The 4-wide BVH over the mesh's triangles, where the source has it built (checked against
+    /// the mesh); without it the object builds its own.
+    pub bvh: Option<Bvh4>,
 }
 
 /// What is known of a demand-loaded object before its mesh is here: enough to place its
@@ -224,12 +239,15 @@ impl Object {
         // One thread fetches; others that need the object meanwhile wait for it.
         self.data.get_or_init(|| match &self.remote {
             Some(r) => {
-                let mesh = r.source.fetch(r.key);
+                let FetchedMesh { mesh, bvh } = r.source.fetch(r.key);
                 // Built on a thread of its own: on this one (a rayon worker), the build's parallel
                 // loops could take a queued job that needs this very object, and wait for itself.
                 let building = std::time::Instant::now();
-                let bvh =
-                    std::thread::scope(|s| s.spawn(|| ObjectBvh::build(&mesh, r.quality)).join()).unwrap_or_default();
+                let build = || match bvh {
+                    Some(bvh) => ObjectBvh::from_bvh4(&mesh, bvh),
+                    None => ObjectBvh::build(&mesh, r.quality),
+                };
+                let bvh = std::thread::scope(|s| s.spawn(build).join()).unwrap_or_default();
                 r.source.built(building.elapsed());
                 ObjectData { mesh, bvh }
             }
@@ -241,6 +259,11 @@ impl Object {
     #[inline(always)]
     pub fn deforms(&self) -> bool {
         self.data().bvh.deformed.is_some()
+    }
+
+    /// The mesh and BVH, if they are here (never fetches).
+    pub fn resident_data(&self) -> Option<&ObjectData> {
+        self.data.get()
     }
 
     /// Whether the mesh and BVH are here.

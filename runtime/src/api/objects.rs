@@ -107,6 +107,20 @@ impl Context {
         self.objects.get(id.0 as usize)?.mesh.as_ref()
     }
 
+    /// The 4-wide BVH `world` (built from this context) holds for object `id`, where it is built
+    /// here (not a demand-loaded object still waiting for its mesh) and built from the mesh
+    /// [`Context::object_mesh`] gives.
+    pub fn object_bvh<'w>(
+        &self,
+        id: ObjectId,
+        world: &'w crate::render::World,
+    ) -> Option<&'w crate::accel::bvh4::Bvh4> {
+        let rec = self.objects.get(id.0 as usize)?;
+        let object = world.scene.objects().get(rec.scene_object?.0 as usize)?;
+        let data = object.resident_data()?;
+        Arc::ptr_eq(&data.mesh, rec.mesh.as_ref()?).then_some(&data.bvh.bvh)
+    }
+
     /// Where the meshes of demand-loaded objects come from: a worker's link to its master
     /// ([`Replicator::demand_loading`]). Objects built or replaced from now on use it.
     pub fn set_mesh_source(&mut self, source: Arc<dyn MeshSource>) {

@@ -14,9 +14,9 @@
 //! master, never a wrong image passed off as right. A texture the master has no file for is no
 //! failure: it is the warning a single process gives.
 
-use crate::accel::object::MeshSource;
+use crate::accel::object::{FetchedMesh, MeshSource};
+use crate::accel::wire::decode_bvh4;
 use crate::api::decode_mesh;
-use crate::geometry::Mesh;
 use crate::scene::Scene;
 use crate::texture::{Delivered, TextureKind, TextureSource};
 use std::collections::HashMap;
@@ -149,6 +149,24 @@ impl FetchLink {
     }
 }
 
+/// An object as the master sends it: its mesh ([`crate::api::encode_mesh`]) and the 4-wide BVH it
+/// built over it ([`crate::accel::wire::encode_bvh4`]; empty when it has none), the mesh's length
+/// first.
+pub(super) fn encode_object(mesh: &[u8], bvh: &[u8]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(8 + mesh.len() + bvh.len());
+    out.extend_from_slice(&(mesh.len() as u64).to_le_bytes());
+    out.extend_from_slice(mesh);
+    out.extend_from_slice(bvh);
+    out
+}
+
+/// The mesh's and the BVH's bytes of an object [`encode_object`] wrote.
+fn split_object(bytes: &[u8]) -> Result<(&[u8], &[u8]), String> {
+    let (length, rest) = bytes.split_first_chunk::<8>().ok_or("an object shorter than its header")?;
+    let length = usize::try_from(u64::from_le_bytes(*length)).unwrap_or(usize::MAX);
+    rest.split_at_checked(length).ok_or_else(|| format!("an object of {} bytes with a mesh of {length}", bytes.len()))
+}
+
 /// Runs `f` when dropped: a time is counted however its scope is left.
 fn defer<F: FnOnce()>(f: F) -> impl Drop {
     struct Defer<F: FnOnce()>(Option<F>);
@@ -206,10 +224,10 @@ impl MeshSource for FetchLink {
         self.building_ns.fetch_add(took.as_nanos() as u64, Ordering::Relaxed);
     }
 
-    fn fetch(&self, key: u32) -> Arc<Mesh> {
+    fn fetch(&self, key: u32) -> FetchedMesh {
         let Some(bytes) = self.request(Want::Mesh(key)) else {
             self.fail(format!("the mesh of object {key} never came from the master"));
-            return Arc::default();
+            return FetchedMesh::default();
         };
         self.fetched_objects.fetch_add(1, Ordering::Relaxed);
         self.fetched_bytes.fetch_add(bytes.len() as u64, Ordering::Relaxed);
@@ -217,15 +235,18 @@ impl MeshSource for FetchLink {
         let _decoded = defer(|| FetchLink::add_time(&self.building_ns, decoding));
         if bytes.is_empty() {
             self.fail(format!("the master has no mesh for object {key}"));
-            return Arc::default();
+            return FetchedMesh::default();
         }
-        match decode_mesh(&bytes) {
-            Ok(mesh) => Arc::new(mesh),
-            Err(e) => {
-                self.fail(format!("the mesh of object {key}: {e}"));
-                Arc::default()
-            }
-        }
+        let decoded = split_object(&bytes).and_then(|(mesh, bvh)| {
+            let mesh = decode_mesh(mesh).map_err(|e| e.to_string())?;
+            // No BVH (the master had none built) is no failure: this side builds it.
+            let bvh = if bvh.is_empty() { None } else { Some(decode_bvh4(bvh, &mesh)?) };
+            Ok(FetchedMesh { mesh: Arc::new(mesh), bvh })
+        });
+        decoded.unwrap_or_else(|e| {
+            self.fail(format!("the mesh of object {key}: {e}"));
+            FetchedMesh::default()
+        })
     }
 }
 
@@ -292,7 +313,8 @@ impl Pending {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::accel::object::{MeshSummary, Object};
+    use crate::accel::object::{MeshSummary, Object, ObjectBvh};
+    use crate::geometry::Mesh;
 
     /// Hands out the same small mesh for every object.
     #[derive(Debug, Default)]
@@ -302,13 +324,66 @@ mod tests {
     }
 
     impl MeshSource for Local {
-        fn fetch(&self, _key: u32) -> Arc<Mesh> {
+        fn fetch(&self, _key: u32) -> FetchedMesh {
             self.fetches.fetch_add(1, Ordering::Relaxed);
             let corners = vec![[0.0, 0.0, 0.0].into(), [1.0, 0.0, 0.0].into(), [0.0, 1.0, 0.0].into()];
-            Arc::new(Mesh::from_triangles(corners, vec![[0, 1, 2]]).expect("a triangle"))
+            let mesh = Mesh::from_triangles(corners, vec![[0, 1, 2]]).expect("a triangle");
+            FetchedMesh { mesh: Arc::new(mesh), bvh: None }
         }
         fn clock(&self) -> Arc<AtomicU32> {
             self.clock.clone()
+        }
+    }
+
+    /// A ribbon of `n` triangles.
+    fn ribbon(n: u32) -> Mesh {
+        let positions = (0..n + 2).map(|k| [k as f32, (k % 2) as f32, 0.0].into()).collect();
+        Mesh::from_triangles(positions, (0..n).map(|k| [k, k + 1, k + 2]).collect()).expect("a ribbon")
+    }
+
+    /// What a render thread's fetch of an object gets when the master answers with `answer`.
+    fn fetched_with(answer: Vec<u8>) -> (FetchedMesh, Fetched) {
+        let link = FetchLink::new();
+        let fetching = {
+            let link = link.clone();
+            std::thread::spawn(move || MeshSource::fetch(&*link, 7))
+        };
+        let mut pending = Pending::default();
+        while !link.has_requests() {
+            std::thread::yield_now();
+        }
+        assert_eq!(pending.take(&link), (vec![7], vec![]));
+        pending.answer(vec![(7, answer)], vec![]);
+        let fetched = fetching.join().expect("the render thread");
+        (fetched, link.take_frame())
+    }
+
+    #[test]
+    fn a_mesh_arrives_with_the_bvh_built_for_it_and_a_damaged_bvh_is_a_failure() {
+        let mesh = ribbon(300);
+        let built = ObjectBvh::build(&mesh, crate::accel::bvh4::BuildQuality::High).bvh;
+        let mut bvh = Vec::new();
+        crate::accel::wire::encode_bvh4(&built, &mut bvh);
+        let encoded = crate::api::encode_mesh(&mesh);
+        let (fetched, frame) = fetched_with(encode_object(&encoded, &bvh));
+        assert_eq!(frame.failure, None);
+        assert_eq!(fetched.mesh.triangle_count(), 300);
+        let arrived = fetched.bvh.expect("the master's BVH");
+        assert_eq!((arrived.nodes, arrived.prim_order), (built.nodes.clone(), built.prim_order.clone()));
+        // Without a BVH the mesh alone arrives (the object builds its own).
+        let (fetched, frame) = fetched_with(encode_object(&encoded, &[]));
+        assert!(fetched.bvh.is_none() && frame.failure.is_none());
+        assert_eq!(fetched.mesh.triangle_count(), 300);
+        // A BVH for another mesh, or a cut object, fails the frame and leaves the object empty.
+        let mut other = Vec::new();
+        crate::accel::wire::encode_bvh4(
+            &ObjectBvh::build(&ribbon(299), crate::accel::bvh4::BuildQuality::High).bvh,
+            &mut other,
+        );
+        for damaged in [encode_object(&encoded, &other), encode_object(&encoded, &bvh)[..100].to_vec()] {
+            let (fetched, frame) = fetched_with(damaged);
+            assert_eq!(fetched.mesh.triangle_count(), 0);
+            assert!(frame.failure.is_some_and(|f| f.contains("object 7")));
         }
     }
 

@@ -1,11 +1,12 @@
 //! The master: the rank that owns the scene and the output. It greets its workers, hands each
 //! frame's tiles out on demand ([`Schedule`]), and assembles the image from the tiles they send.
 
-use super::fetch::encode_delivered;
+use super::fetch::{encode_delivered, encode_object};
 use super::message::{build_fingerprint, greeting_version, FrameCounts, Job, LatticeUnit, Message, PROTOCOL_VERSION};
 use super::schedule::Schedule;
 use super::transport::Transport;
 use super::DistributedError;
+use crate::accel::wire::encode_bvh4;
 use crate::api::{encode_mesh, Context, Replicator};
 use crate::render::progressive::{lattice_lanes, BatchReport, LatticeSamples, LatticeTracer, PixelLattice};
 use crate::render::{FrameReport, Framebuffer, LightPathCache, LightPaths, RenderedTile, TileRenderer, World};
@@ -586,11 +587,20 @@ impl<T: Transport> Master<T> {
                     let meshes = objects
                         .into_iter()
                         .map(|id| {
-                            let mesh = encoded.entry(id).or_insert_with(|| {
-                                let mesh = source.and_then(|rt| rt.object_mesh(crate::api::ObjectId(id)));
-                                Arc::new(mesh.map(|m| encode_mesh(m)).unwrap_or_default())
+                            let object = encoded.entry(id).or_insert_with(|| {
+                                let id = crate::api::ObjectId(id);
+                                let Some(mesh) = source.and_then(|rt| rt.object_mesh(id)) else {
+                                    return Arc::default();
+                                };
+                                // The BVH built here goes with the mesh: the worker need not
+                                // build it again.
+                                let mut bvh = Vec::new();
+                                if let Some(built) = source.and_then(|rt| rt.object_bvh(id, world)) {
+                                    encode_bvh4(built, &mut bvh);
+                                }
+                                Arc::new(encode_object(&encode_mesh(mesh), &bvh))
                             });
-                            (id, mesh.as_ref().clone())
+                            (id, object.as_ref().clone())
                         })
                         .collect();
                     let textures = textures

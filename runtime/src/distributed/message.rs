@@ -8,7 +8,7 @@ use crate::texture::TextureKind;
 use rtsl_compiler::interface::ShaderKind;
 
 /// The protocol's version: ranks that speak different versions refuse each other at start-up.
-pub const PROTOCOL_VERSION: u32 = 16;
+pub const PROTOCOL_VERSION: u32 = 17;
 
 /// What the master's counters add up from a worker's share of a frame.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -114,8 +114,9 @@ pub enum Message {
     /// Worker to master: send the meshes of these objects and what these texture names stand
     /// for (demand loading), for frame `frame`.
     Fetch { frame: u64, objects: Vec<u32>, textures: Vec<(TextureKind, String)> },
-    /// Master to worker: what was asked for: each object's id and its mesh as
-    /// [`crate::api::encode_mesh`] writes it (empty: the object has no mesh now), and each
+    /// Master to worker: what was asked for: each object's id and its mesh with the BVH the
+    /// master built over it, as `fetch::encode_object` writes them (empty: the object has no mesh
+    /// now), and each
     /// texture's kind, name and [`crate::texture::Delivered`] (postcard).
     Data { frame: u64, meshes: Vec<(u32, Vec<u8>)>, textures: Vec<(TextureKind, String, Vec<u8>)> },
     /// Master to worker, between frames: another scene replaces the one being replicated. The
