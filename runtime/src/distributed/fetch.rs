@@ -295,6 +295,11 @@ impl Pending {
         self.0.is_empty()
     }
 
+    /// How many render threads wait for an answer (each waits for one).
+    pub(super) fn waiting(&self) -> usize {
+        self.0.values().map(Vec::len).sum()
+    }
+
     /// Hands the master's answer to the threads waiting for it.
     pub(super) fn answer(&mut self, meshes: Vec<(u32, Vec<u8>)>, textures: Vec<(TextureKind, String, Vec<u8>)>) {
         let answers = meshes

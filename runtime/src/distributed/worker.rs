@@ -413,10 +413,12 @@ fn render_share<T: Transport + ?Sized>(
             // Every unit given is finished and sent back, and the master has not yet answered.
             starved |= !last && outstanding == 0;
             let busy = pending.is_empty() && !queue.running_low();
-            if !busy && last_send.elapsed() < SPIN_AFTER_SEND && transport.sending() {
-                // Just after a send the master may be waiting on this side to move it along
-                // (MPI's large messages) and its answer is on its way, so for a moment the poll
-                // comes again at once, giving the core to the renderers in between.
+            let all_fetching = pending.waiting() >= threads;
+            if all_fetching || (!busy && last_send.elapsed() < SPIN_AFTER_SEND && transport.sending()) {
+                // Every render thread waits for a fetch: a nap would add to their wait, and the
+                // cores they leave idle have nothing else to do. Just after a send the master may
+                // be waiting on this side to move it along (MPI's large messages) and its answer
+                // is on its way. Either way the poll comes again at once, yielding in between.
                 std::thread::yield_now();
             } else {
                 // Drained first: wake-ups that came while this thread was awake are for what it
