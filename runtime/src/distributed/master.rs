@@ -21,6 +21,10 @@ use std::time::{Duration, Instant};
 const TILES_IN_FLIGHT_PER_THREAD: usize = 16;
 const MOST_TILES_IN_FLIGHT_PER_THREAD: usize = 256;
 
+/// The most bytes of encoded objects the master keeps for fetches to come; past it, it starts
+/// again from none (each object is encoded again when next fetched).
+const ENCODED_OBJECTS_KEPT: usize = 1 << 30;
+
 /// The side of the square regions of the image whose lattices a worker keeps from one piece of
 /// a viewer's work to the next (see [`Master::trace_lattices`]).
 const REGION_SIDE: u32 = 64;
@@ -93,6 +97,11 @@ pub struct Master<T: Transport> {
     /// the image is assembled).
     worker_time: WorkerTime,
     worker_times: Vec<WorkerShare>,
+    /// Objects as last encoded for a fetch, each with the mesh it was encoded from, and their
+    /// bytes together: an object fetched again (by another worker, in a later frame) is not
+    /// encoded again while its mesh stands.
+    encoded_objects: HashMap<u32, (Arc<crate::geometry::Mesh>, Arc<Vec<u8>>)>,
+    encoded_bytes: usize,
     /// The light paths of the viewer's pass being traced ([`Master::trace_lattices`]), and the
     /// paths the workers were last sent (they keep them for the pass's next pieces).
     light_paths: LightPathCache,
@@ -202,6 +211,8 @@ impl<T: Transport> Master<T> {
             demand: Demand::default(),
             worker_time: WorkerTime::default(),
             worker_times: Vec::new(),
+            encoded_objects: HashMap::new(),
+            encoded_bytes: 0,
             light_paths: LightPathCache::default(),
             sent_light_paths: LightPaths::default(),
         };
@@ -318,6 +329,8 @@ impl<T: Transport> Master<T> {
     /// first did.
     fn new_scene(&mut self) -> Result<(), DistributedError> {
         self.replicator.restart();
+        self.encoded_objects.clear();
+        self.encoded_bytes = 0;
         self.last_owner.clear();
         self.region_owner.clear();
         self.light_paths = LightPathCache::default();
@@ -487,8 +500,6 @@ impl<T: Transport> Master<T> {
         source: Option<&Context>,
         accept: &mut Accept,
     ) -> Result<(Vec<Option<usize>>, Vec<FrameCounts>), DistributedError> {
-        // Each mesh encoded once a frame however many workers ask for it.
-        let mut encoded: HashMap<u32, Arc<Vec<u8>>> = HashMap::new();
         self.frame += 1;
         let frame = self.frame;
         let units = work.units;
@@ -584,25 +595,7 @@ impl<T: Transport> Master<T> {
                 }
                 Message::Fetch { frame: f, objects, textures } if f == frame => {
                     traffic.fetches += bytes.len() as u64;
-                    let meshes = objects
-                        .into_iter()
-                        .map(|id| {
-                            let object = encoded.entry(id).or_insert_with(|| {
-                                let id = crate::api::ObjectId(id);
-                                let Some(mesh) = source.and_then(|rt| rt.object_mesh(id)) else {
-                                    return Arc::default();
-                                };
-                                // The BVH built here goes with the mesh: the worker need not
-                                // build it again.
-                                let mut bvh = Vec::new();
-                                if let Some(built) = source.and_then(|rt| rt.object_bvh(id, world)) {
-                                    encode_bvh4(built, &mut bvh);
-                                }
-                                Arc::new(encode_object(&encode_mesh(mesh), &bvh))
-                            });
-                            (id, object.as_ref().clone())
-                        })
-                        .collect();
+                    let meshes = objects.into_iter().map(|id| (id, self.encoded_object(id, source, world))).collect();
                     let textures = textures
                         .into_iter()
                         .map(|(kind, name)| {
@@ -653,6 +646,35 @@ impl<T: Transport> Master<T> {
             }
         }));
         Ok((given, counts))
+    }
+
+    /// Object `id` of `source` as a worker fetches it: its mesh and the BVH `world` holds for it
+    /// ([`encode_object`]; empty when it has no mesh), encoded once for as long as its mesh stands.
+    fn encoded_object(&mut self, id: u32, source: Option<&Context>, world: &World) -> Vec<u8> {
+        let object = crate::api::ObjectId(id);
+        let Some(mesh) = source.and_then(|rt| rt.object_mesh(object)) else {
+            return Vec::new();
+        };
+        if let Some((encoded_from, bytes)) = self.encoded_objects.get(&id) {
+            if Arc::ptr_eq(encoded_from, mesh) {
+                return bytes.as_ref().clone();
+            }
+        }
+        // The BVH built here goes with the mesh: the worker need not build it again.
+        let mut bvh = Vec::new();
+        if let Some(built) = source.and_then(|rt| rt.object_bvh(object, world)) {
+            encode_bvh4(built, &mut bvh);
+        }
+        let bytes = Arc::new(encode_object(&encode_mesh(mesh), &bvh));
+        if self.encoded_bytes + bytes.len() > ENCODED_OBJECTS_KEPT {
+            self.encoded_objects.clear();
+            self.encoded_bytes = 0;
+        }
+        self.encoded_bytes += bytes.len();
+        if let Some((_, old)) = self.encoded_objects.insert(id, (mesh.clone(), bytes.clone())) {
+            self.encoded_bytes -= old.len();
+        }
+        bytes.as_ref().clone()
     }
 
     /// Tells the workers to stop (as dropping the master does).
