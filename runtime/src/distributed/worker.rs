@@ -424,7 +424,7 @@ fn render_share<T: Transport + ?Sized>(
                 // Drained first: wake-ups that came while this thread was awake are for what it
                 // takes next, which the checks below see.
                 while wake_rx.try_recv().is_ok() {}
-                if queue.is_unchanged_since_taken() && !link.is_some_and(FetchLink::has_requests) {
+                if queue.has_none_finished() && !link.is_some_and(FetchLink::has_requests) {
                     let _ = wake_rx.recv_timeout(if busy { BUSY_POLL } else { POLL });
                 }
             }
@@ -503,8 +503,6 @@ struct QueueState {
     closed: bool,
     /// Finished units, with their encoded pixels, not yet taken to be sent.
     finished: Vec<(u32, Vec<u8>)>,
-    /// Whether units were finished since the talking thread last took them.
-    changed: bool,
 }
 
 impl UnitQueue {
@@ -545,21 +543,18 @@ impl UnitQueue {
     fn finish(&self, unit: u32, pixels: Vec<u8>) -> bool {
         let mut state = self.lock();
         state.finished.push((unit, pixels));
-        state.changed = true;
         state.waiting.len() < self.threads
     }
 
     /// The finished units not yet taken.
     fn take_finished(&self) -> Vec<(u32, Vec<u8>)> {
-        let mut state = self.lock();
-        state.changed = false;
-        std::mem::take(&mut state.finished)
+        std::mem::take(&mut self.lock().finished)
     }
 
-    /// Whether no unit was finished since [`UnitQueue::take_finished`]: a wake-up drained before
-    /// may have been for one.
-    fn is_unchanged_since_taken(&self) -> bool {
-        !self.lock().changed
+    /// Whether no finished unit waits to be taken: a wake-up drained before may have been for
+    /// one.
+    fn has_none_finished(&self) -> bool {
+        self.lock().finished.is_empty()
     }
 
     fn close(&self) {
