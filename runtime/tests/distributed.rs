@@ -597,7 +597,7 @@ fn another_protocol_version_is_refused_at_start_up() {
     let mut group = LocalTransport::group(2, Duration::from_secs(10)).into_iter();
     let (master_end, worker_end) = (group.next().expect("rank 0"), group.next().expect("rank 1"));
     let hello = Message::Hello { protocol: 999, build: vec![], threads: 1, failure: None };
-    worker_end.send(0, &hello.encode()).expect("sent");
+    worker_end.send(0, hello.encode()).expect("sent");
     let err = Master::connect(master_end).err().expect("refused").to_string();
     assert!(err.starts_with("rank 1 runs protocol version 999"), "{err}");
     // The refused worker is told to stop.
@@ -612,7 +612,7 @@ fn another_protocol_version_is_refused_at_start_up() {
         threads: 1,
         failure: None,
     };
-    worker_end.send(0, &hello.encode()).expect("sent");
+    worker_end.send(0, hello.encode()).expect("sent");
     let err = Master::connect(master_end).err().expect("refused").to_string();
     assert!(err.contains("another build"), "{err}");
 }
@@ -627,7 +627,7 @@ fn a_worker_that_goes_silent_is_an_error_not_a_hang() {
         threads: 1,
         failure: None,
     };
-    worker_end.send(0, &hello.encode()).expect("sent");
+    worker_end.send(0, hello.encode()).expect("sent");
     let mut master = Master::connect(master_end).expect("greeted");
     let mut rt = office().expect("the office");
     let world = rt.build_world().expect("a world");
@@ -714,32 +714,35 @@ fn a_tile_decodes_to_itself_and_damaged_tiles_are_errors() {
 #[test]
 fn tiles_assembled_as_they_arrive_make_the_finished_image() {
     use rtsl_runtime::render::{RenderedTile, TileRenderer};
-    let mut rt = office().expect("the office loads");
-    rt.options.exposure = Some((1.7, 2.2));
-    let world = rt.build_world().expect("a world");
-    let renderer = TileRenderer::new(&world);
-    let mut assembly = renderer.start_assembly().expect("the office's tiles are final where rendered");
-    let tiles = renderer.tiles();
-    let rendered: Vec<RenderedTile> = tiles.iter().map(|t| renderer.render_tile(t)).collect();
-    // Last tile first, each from an odd offset in its buffer (unaligned for its floats).
-    for (tile, r) in tiles.iter().zip(&rendered).rev() {
-        let mut bytes = vec![0u8];
-        r.encode(&mut bytes);
-        let bytes = &bytes[1..];
-        assert!(assembly.add(*tile, &bytes[..bytes.len() - 1]).is_err(), "a short tile");
-        let mut unfinished = bytes.to_vec();
-        *unfinished.last_mut().expect("a byte") = 1;
-        assert!(assembly.add(*tile, &unfinished).is_err(), "a tile said to be unfinished");
-        assembly.add(*tile, bytes).expect("a whole tile");
+    // Rows copied as they lie, and pixels put through the exposure one by one.
+    for exposure in [None, Some((1.7, 2.2))] {
+        let mut rt = office().expect("the office loads");
+        rt.options.exposure = exposure;
+        let world = rt.build_world().expect("a world");
+        let renderer = TileRenderer::new(&world);
+        let mut assembly = renderer.start_assembly().expect("the office's tiles are final where rendered");
+        let tiles = renderer.tiles();
+        let rendered: Vec<RenderedTile> = tiles.iter().map(|t| renderer.render_tile(t)).collect();
+        // Last tile first, each from an odd offset in its buffer (unaligned for its floats).
+        for (tile, r) in tiles.iter().zip(&rendered).rev() {
+            let mut bytes = vec![0u8];
+            r.encode(&mut bytes);
+            let bytes = &bytes[1..];
+            assert!(assembly.add(*tile, &bytes[..bytes.len() - 1]).is_err(), "a short tile");
+            let mut unfinished = bytes.to_vec();
+            *unfinished.last_mut().expect("a byte") = 1;
+            assert!(assembly.add(*tile, &unfinished).is_err(), "a tile said to be unfinished");
+            assembly.add(*tile, bytes).expect("a whole tile");
+        }
+        let start = std::time::Instant::now();
+        let (assembled, _) = assembly.finish(renderer, start);
+        let (finished, _) = TileRenderer::new(&world).finish(rendered, start);
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&assembled.rgba), bits(&finished.rgba));
+        assert_eq!(bits(&assembled.depth), bits(&finished.depth));
+        assert_eq!(assembled.object_id, finished.object_id);
+        assert!(finished.rgba.iter().any(|&v| v > 0.0 && v < 1.0), "something was rendered");
     }
-    let start = std::time::Instant::now();
-    let (assembled, _) = assembly.finish(renderer, start);
-    let (finished, _) = TileRenderer::new(&world).finish(rendered, start);
-    let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-    assert_eq!(bits(&assembled.rgba), bits(&finished.rgba));
-    assert_eq!(bits(&assembled.depth), bits(&finished.depth));
-    assert_eq!(assembled.object_id, finished.object_id);
-    assert!(finished.rgba.iter().any(|&v| v > 0.0 && v < 1.0), "the exposure was applied to something");
     // Tiles that are not final where rendered are kept for the frame's filter.
     let gaussian = gi_box_gaussian().expect("the scene loads").build_world().expect("a world");
     assert!(TileRenderer::new(&gaussian).start_assembly().is_none());

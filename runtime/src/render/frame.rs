@@ -1062,14 +1062,6 @@ impl RenderedTile {
     }
 }
 
-/// `bytes` as values of `T`: borrowed where they lie aligned for it, else copied.
-fn values<T: bytemuck::AnyBitPattern>(bytes: &[u8]) -> std::borrow::Cow<'_, [T]> {
-    match bytemuck::try_cast_slice(bytes) {
-        Ok(values) => std::borrow::Cow::Borrowed(values),
-        Err(_) => bytes.chunks_exact(std::mem::size_of::<T>()).map(bytemuck::pod_read_unaligned).collect(),
-    }
-}
-
 /// A frame's image put together as its tiles arrive, encoded ([`RenderedTile::encode`]), from
 /// renderers elsewhere (a distributed master's workers): each tile goes straight into the
 /// framebuffer, so no tile is kept and nothing is left to assemble after the last one. Only for
@@ -1100,33 +1092,40 @@ impl TileAssembly {
         if x0 + tw > w || tile.y0 as usize + tile.height as usize > h {
             return Err(format!("tile {} lies outside the {w}x{h} image", tile.index));
         }
-        let (size, exposure) = (self.size, self.exposure);
-        let fb = self.fb.get_or_insert_with(|| assemble_framebuffer(size, Vec::new(), exposure));
+        let exposure = self.exposure;
+        let fb = self.fb.get_or_insert_with(|| Framebuffer::new(w as u32, h as u32));
+        // Rows go in as the bytes lie: they need not be aligned for `f32`s where they sit in a
+        // message, and a plain copy of a row is what the framebuffer takes.
         let (colors, rest) = bytes.split_at(16 * n);
-        let (depths, rest) = rest.split_at(4 * n);
-        let (colors, depths, ids) = (values::<[f32; 4]>(colors), values::<f32>(depths), values::<u32>(&rest[..4 * n]));
+        let (depths, ids) = rest.split_at(4 * n);
         for y in 0..tile.height as usize {
             let (from, to) = (y * tw, (tile.y0 as usize + y) * w + x0);
             let rgba = &mut fb.rgba[4 * to..4 * (to + tw)];
-            for (c, out) in colors[from..from + tw].iter().zip(rgba.chunks_exact_mut(4)) {
-                let mut c = *c;
-                // As `write_tiles` does it, so that the image is the same bit for bit.
-                if let Some((gain, gamma)) = exposure {
-                    for v in &mut c[..3] {
-                        *v = (gain * *v).max(0.0).powf(1.0 / gamma);
+            let row = &colors[16 * from..16 * (from + tw)];
+            match exposure {
+                None => bytemuck::cast_slice_mut::<f32, u8>(rgba).copy_from_slice(row),
+                Some((gain, gamma)) => {
+                    for (c, out) in row.chunks_exact(16).zip(rgba.chunks_exact_mut(4)) {
+                        let mut c: [f32; 4] = bytemuck::pod_read_unaligned(c);
+                        // As `write_tiles` does it, so that the image is the same bit for bit.
+                        for v in &mut c[..3] {
+                            *v = (gain * *v).max(0.0).powf(1.0 / gamma);
+                        }
+                        out.copy_from_slice(&c);
                     }
                 }
-                out.copy_from_slice(&c);
             }
-            fb.depth[to..to + tw].copy_from_slice(&depths[from..from + tw]);
-            fb.object_id[to..to + tw].copy_from_slice(&ids[from..from + tw]);
+            let depth = bytemuck::cast_slice_mut::<f32, u8>(&mut fb.depth[to..to + tw]);
+            depth.copy_from_slice(&depths[4 * from..4 * (from + tw)]);
+            let id = bytemuck::cast_slice_mut::<u32, u8>(&mut fb.object_id[to..to + tw]);
+            id.copy_from_slice(&ids[4 * from..4 * (from + tw)]);
         }
         Ok(())
     }
 
     /// The image, and what the frame cost since `start` by `renderer`'s counters.
     pub fn finish(self, renderer: TileRenderer, start: Instant) -> (Framebuffer, FrameReport) {
-        let fb = self.fb.unwrap_or_else(|| assemble_framebuffer(self.size, Vec::new(), self.exposure));
+        let fb = self.fb.unwrap_or_else(|| Framebuffer::new(self.size.0, self.size.1));
         (fb, frame_report(&renderer.frame, start))
     }
 }
