@@ -2,7 +2,9 @@
 //! frame's tiles out on demand ([`Schedule`]), and assembles the image from the tiles they send.
 
 use super::fetch::{encode_delivered, encode_object};
-use super::message::{build_fingerprint, greeting_version, FrameCounts, Job, LatticeUnit, Message, PROTOCOL_VERSION};
+use super::message::{
+    build_fingerprint, greeting_version, FrameCounts, Job, LatticeUnit, Message, RenderedUnits, PROTOCOL_VERSION,
+};
 use super::schedule::Schedule;
 use super::transport::Transport;
 use super::DistributedError;
@@ -337,7 +339,7 @@ impl<T: Transport> Master<T> {
         self.sent_light_paths = LightPaths::default();
         let message = Message::NewScene.encode();
         for rank in 1..=self.workers.len() {
-            self.transport.send(rank, &message)?;
+            self.transport.send(rank, message.clone())?;
         }
         Ok(())
     }
@@ -538,7 +540,7 @@ impl<T: Transport> Master<T> {
             traffic.updates += update.len() as u64;
             traffic.light_paths += work.light_paths.len() as u64;
             traffic.control += (m.len() - update.len() - work.light_paths.len()) as u64;
-            self.transport.send(w + 1, &m)?;
+            self.transport.send(w + 1, m)?;
         }
         let (mut received, mut done) = (0, vec![false; self.workers.len()]);
         let mut counts = Vec::new();
@@ -550,49 +552,56 @@ impl<T: Transport> Master<T> {
             let Some(w) = rank.checked_sub(1).filter(|&w| w < self.workers.len()) else {
                 return Err(protocol_error("a message from no worker".into()));
             };
-            match Message::decode(&bytes).map_err(protocol_error)? {
-                Message::Rendered { frame: f, units: batch, starved } if f == frame => {
-                    traffic.pixels += bytes.len() as u64;
-                    if starved {
-                        let info = &mut self.workers[w];
-                        let most = MOST_TILES_IN_FLIGHT_PER_THREAD * (info.threads as usize).max(1);
-                        info.window = (2 * info.window).min(most);
+            // Finished tiles, by far the most bytes, are read where they lie in the message.
+            if let Some(rendered) = RenderedUnits::decode(&bytes) {
+                let RenderedUnits { frame: f, units: batch, starved } = rendered.map_err(protocol_error)?;
+                if f != frame {
+                    return Err(protocol_error(format!("a message out of place in frame {frame}")));
+                }
+                traffic.pixels += bytes.len() as u64;
+                if starved {
+                    let info = &mut self.workers[w];
+                    let most = MOST_TILES_IN_FLIGHT_PER_THREAD * (info.threads as usize).max(1);
+                    info.window = (2 * info.window).min(most);
+                }
+                in_flight[w] = in_flight[w].saturating_sub(batch.len());
+                for (unit, pixels) in batch {
+                    let u = unit as usize;
+                    if given.get(u) != Some(&Some(w)) || received_unit[u] {
+                        return Err(protocol_error(format!("sent unit {unit}, which it was not given")));
                     }
-                    in_flight[w] = in_flight[w].saturating_sub(batch.len());
-                    for (unit, pixels) in batch {
-                        let u = unit as usize;
-                        if given.get(u) != Some(&Some(w)) || received_unit[u] {
-                            return Err(protocol_error(format!("sent unit {unit}, which it was not given")));
-                        }
-                        accept(u, &pixels).map_err(protocol_error)?;
-                        received_unit[u] = true;
-                        received += 1;
-                        if let Some(p) = progress {
-                            p(received, units);
-                        }
-                    }
-                    let wanted =
-                        in_flight_target(&self.workers[w], schedule.left(), all_threads).saturating_sub(in_flight[w]);
-                    if !told_last[w] && (wanted > 0 || in_flight[w] == 0 || failure.is_some()) {
-                        // Enough new units to bring the worker's units in flight back to its
-                        // target. After a failure nothing more is handed out: the frame ends as
-                        // soon as every worker has sent what it holds.
-                        let next: Vec<u32> = if failure.is_none() {
-                            (0..wanted).map_while(|_| schedule.next(w)).collect()
-                        } else {
-                            Vec::new()
-                        };
-                        for &t in &next {
-                            given[t as usize] = Some(w);
-                        }
-                        in_flight[w] += next.len();
-                        told_last[w] = schedule.left() == 0 || next.len() < wanted;
-                        let lattices = described(&next);
-                        let m = Message::Assign { frame, units: next, lattices, last: told_last[w] }.encode();
-                        traffic.control += m.len() as u64;
-                        self.transport.send(rank, &m)?;
+                    accept(u, pixels).map_err(protocol_error)?;
+                    received_unit[u] = true;
+                    received += 1;
+                    if let Some(p) = progress {
+                        p(received, units);
                     }
                 }
+                let wanted =
+                    in_flight_target(&self.workers[w], schedule.left(), all_threads).saturating_sub(in_flight[w]);
+                if !told_last[w] && (wanted > 0 || in_flight[w] == 0 || failure.is_some()) {
+                    // Enough new units to bring the worker's units in flight back to its
+                    // target. After a failure nothing more is handed out: the frame ends as
+                    // soon as every worker has sent what it holds.
+                    let next: Vec<u32> = if failure.is_none() {
+                        (0..wanted).map_while(|_| schedule.next(w)).collect()
+                    } else {
+                        Vec::new()
+                    };
+                    for &t in &next {
+                        given[t as usize] = Some(w);
+                    }
+                    in_flight[w] += next.len();
+                    told_last[w] = schedule.left() == 0 || next.len() < wanted;
+                    let lattices = described(&next);
+                    let m = Message::Assign { frame, units: next, lattices, last: told_last[w] }.encode();
+                    traffic.control += m.len() as u64;
+                    self.transport.send(rank, m)?;
+                }
+                self.transport.recycle(bytes);
+                continue;
+            }
+            match Message::decode(&bytes).map_err(protocol_error)? {
                 Message::Fetch { frame: f, objects, textures } if f == frame => {
                     traffic.fetches += bytes.len() as u64;
                     let meshes = objects.into_iter().map(|id| (id, self.encoded_object(id, source, world))).collect();
@@ -610,7 +619,7 @@ impl<T: Transport> Master<T> {
                         .collect();
                     let m = Message::Data { frame, meshes, textures }.encode();
                     traffic.fetches += m.len() as u64;
-                    self.transport.send(rank, &m)?;
+                    self.transport.send(rank, m)?;
                 }
                 Message::FrameDone { frame: f, counts: c, failure: worker_failure } if f == frame && !done[w] => {
                     traffic.counters += bytes.len() as u64;
@@ -623,6 +632,7 @@ impl<T: Transport> Master<T> {
                 }
                 _ => return Err(protocol_error(format!("a message out of place in frame {frame}"))),
             }
+            self.transport.recycle(bytes);
         }
         if let Some(e) = failure {
             return Err(e);
@@ -689,7 +699,7 @@ impl<T: Transport> Master<T> {
         let quit = Message::Quit.encode();
         let mut first_error = None;
         for rank in 1..self.transport.size() {
-            if let Err(e) = self.transport.send(rank, &quit) {
+            if let Err(e) = self.transport.send(rank, quit.clone()) {
                 first_error.get_or_insert(e);
             }
         }

@@ -313,9 +313,8 @@ impl Message {
             }
             ASSIGN => Message::Assign { frame: r.u64()?, units: r.u32s()?, lattices: r.lattices()?, last: r.bool()? },
             RENDERED => {
-                let (frame, starved) = (r.u64()?, r.bool()?);
-                let n = r.count(12)?;
-                let units = (0..n).map(|_| Ok((r.u32()?, r.bytes()?))).collect::<Result<_, String>>()?;
+                let RenderedUnits { frame, units, starved } = RenderedUnits::read(&mut r)?;
+                let units = units.into_iter().map(|(unit, pixels)| (unit, pixels.to_vec())).collect();
                 Message::Rendered { frame, units, starved }
             }
             FRAME_DONE => {
@@ -452,12 +451,53 @@ fn kind_byte(kind: TextureKind) -> u8 {
     }
 }
 
+/// A [`Message::Rendered`] as it lies in its bytes: each unit's pixels borrowed, not copied. The
+/// master reads every batch of finished tiles this way, and copies each tile's pixels once, into
+/// the image.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RenderedUnits<'a> {
+    pub frame: u64,
+    pub units: Vec<(u32, &'a [u8])>,
+    pub starved: bool,
+}
+
+impl<'a> RenderedUnits<'a> {
+    /// The finished units `bytes` hold; `None` when they hold another kind of message, an error
+    /// when a `Rendered` message is damaged.
+    pub fn decode(bytes: &'a [u8]) -> Option<Result<RenderedUnits<'a>, String>> {
+        let mut r = Reader { bytes, at: 0 };
+        if r.u8().ok()? != RENDERED {
+            return None;
+        }
+        Some(RenderedUnits::read(&mut r).and_then(|m| match r.at == bytes.len() {
+            true => Ok(m),
+            false => Err(format!("{} bytes after the end of a message", bytes.len() - r.at)),
+        }))
+    }
+
+    /// The message after its kind.
+    fn read(r: &mut Reader<'a>) -> Result<RenderedUnits<'a>, String> {
+        let (frame, starved) = (r.u64()?, r.bool()?);
+        let n = r.count(12)?;
+        let units = (0..n).map(|_| Ok((r.u32()?, r.slice()?))).collect::<Result<_, String>>()?;
+        Ok(RenderedUnits { frame, units, starved })
+    }
+}
+
 struct Reader<'a> {
     bytes: &'a [u8],
     at: usize,
 }
 
-impl Reader<'_> {
+impl<'a> Reader<'a> {
+    /// A length-prefixed byte string, where it lies.
+    fn slice(&mut self) -> Result<&'a [u8], String> {
+        let n = usize::try_from(self.u64()?).map_err(|_| "a length past the address space".to_string())?;
+        let end = self.at.checked_add(n).filter(|&e| e <= self.bytes.len()).ok_or("a message ended early")?;
+        let s = &self.bytes[self.at..end];
+        self.at = end;
+        Ok(s)
+    }
     fn take(&mut self, n: usize) -> Result<&[u8], String> {
         let end = self.at.checked_add(n).filter(|&e| e <= self.bytes.len()).ok_or("a message ended early")?;
         let s = &self.bytes[self.at..end];
@@ -492,8 +532,7 @@ impl Reader<'_> {
         Ok(n)
     }
     fn bytes(&mut self) -> Result<Vec<u8>, String> {
-        let n = usize::try_from(self.u64()?).map_err(|_| "a length past the address space".to_string())?;
-        Ok(self.take(n)?.to_vec())
+        Ok(self.slice()?.to_vec())
     }
     fn str(&mut self) -> Result<String, String> {
         String::from_utf8(self.bytes()?).map_err(|_| "a string that is not UTF-8".to_string())
@@ -636,6 +675,31 @@ mod tests {
         huge.extend_from_slice(&u32::MAX.to_le_bytes());
         assert!(Message::decode(&huge).unwrap_err().contains("claims"));
         assert!(Message::decode(&[99]).is_err());
+    }
+
+    /// Finished units read where they lie are the units the whole decoding copies out, damaged
+    /// `Rendered` messages are errors either way, and other messages are not read as units.
+    #[test]
+    fn rendered_units_are_read_in_place() {
+        for m in examples() {
+            let bytes = m.encode();
+            match (&m, RenderedUnits::decode(&bytes)) {
+                (Message::Rendered { frame, units, starved }, Some(Ok(view))) => {
+                    assert_eq!((view.frame, view.starved), (*frame, *starved));
+                    let copied: Vec<(u32, Vec<u8>)> = view.units.iter().map(|(u, p)| (*u, p.to_vec())).collect();
+                    assert_eq!(&copied, units);
+                    for end in 0..bytes.len() {
+                        assert!(!matches!(RenderedUnits::decode(&bytes[..end]), Some(Ok(_))), "cut at {end}");
+                    }
+                    let mut longer = bytes.clone();
+                    longer.push(0);
+                    assert!(matches!(RenderedUnits::decode(&longer), Some(Err(_))));
+                }
+                (Message::Rendered { .. }, other) => panic!("{other:?}"),
+                (_, view) => assert!(view.is_none(), "{m:?}"),
+            }
+        }
+        assert!(RenderedUnits::decode(&[]).is_none());
     }
 
     #[test]

@@ -33,6 +33,10 @@ pub struct MpiTransport {
     sending: RefCell<Vec<Sending>>,
     /// Messages matched and being received, in the order they were matched.
     receiving: RefCell<Vec<Receiving>>,
+    /// Buffers of messages read and given back ([`Transport::recycle`]), for later messages to
+    /// arrive in: a fresh buffer for each message was zeroed first, and a master zeroed as many
+    /// bytes a frame as the frame has pixel bytes.
+    spare: RefCell<Vec<Vec<u8>>>,
     // Declared last: MPI is finalised after everything above is gone.
     _universe: mpi::environment::Universe,
 }
@@ -45,6 +49,13 @@ const NAP: Duration = Duration::from_micros(50);
 /// While sends are under way, how long a receive keeps polling (yielding the core in between)
 /// before it naps: a peer may be waiting for this side to move a large send along.
 const SPIN_WHILE_SENDING: Duration = Duration::from_micros(50);
+
+/// Buffers given back are kept for later messages (at most this many): those of at least
+/// `SPARE_BUFFER_MIN_BYTES` (a smaller message is zeroed at little cost) and at most
+/// `SPARE_BUFFER_MAX_BYTES` (a mesh or a texture file now and then is not worth holding on to).
+const SPARE_BUFFERS_KEPT: usize = 16;
+const SPARE_BUFFER_MIN_BYTES: usize = 4 << 10;
+const SPARE_BUFFER_MAX_BYTES: usize = 16 << 20;
 
 impl MpiTransport {
     /// Initialises MPI (once per process) and installs the panic hook that ends the job.
@@ -65,6 +76,7 @@ impl MpiTransport {
             size,
             sending: RefCell::new(Vec::new()),
             receiving: RefCell::new(Vec::new()),
+            spare: RefCell::new(Vec::new()),
             _universe: universe,
         })
     }
@@ -74,10 +86,10 @@ impl MpiTransport {
         let mut receiving = self.receiving.borrow_mut();
         while let Some((message, status)) = self.world.any_process().immediate_matched_probe() {
             let length = usize::try_from(status.count(u8::equivalent_datatype())).unwrap_or(0);
-            let bytes: *mut [u8] = Box::into_raw(vec![0u8; length].into_boxed_slice());
-            // SAFETY: `bytes` is freed only once the request has completed (`take_received`,
-            // or `drop`), and nothing else refers to it meanwhile.
-            let request = message.immediate_matched_receive_into(StaticScope, unsafe { &mut *bytes });
+            let bytes = RawBuffer::from(self.buffer_for(length));
+            // SAFETY: the buffer is taken back only once the request has completed
+            // (`take_received`, or `drop`), and nothing else refers to it meanwhile.
+            let request = message.immediate_matched_receive_into(StaticScope, unsafe { bytes.slice() });
             let from = status.source_rank() as usize;
             receiving.push(Receiving { from, state: Received::Arriving(request), bytes });
         }
@@ -104,9 +116,23 @@ impl MpiTransport {
             }
         }
         let r = receiving.remove(found?);
-        // SAFETY: the receive into `r.bytes` has completed; its box is taken back once.
-        let bytes = unsafe { Box::from_raw(r.bytes) };
-        Some((r.from, bytes.into_vec()))
+        // SAFETY: the receive into `r.bytes` has completed; its buffer is taken back once.
+        Some((r.from, unsafe { r.bytes.into_vec() }))
+    }
+
+    /// A buffer of `length` bytes for a message to arrive in: a spare one where one is long
+    /// enough (the shortest such), else a new one.
+    fn buffer_for(&self, length: usize) -> Vec<u8> {
+        let mut spare = self.spare.borrow_mut();
+        let fitting = spare.iter().enumerate().filter(|(_, b)| b.len() >= length).min_by_key(|(_, b)| b.len());
+        match fitting {
+            Some((k, _)) if length >= SPARE_BUFFER_MIN_BYTES => {
+                let mut buffer = spare.swap_remove(k);
+                buffer.truncate(length);
+                buffer
+            }
+            _ => vec![0u8; length],
+        }
     }
 
     /// Whether messages are moving either way.
@@ -120,7 +146,8 @@ impl MpiTransport {
         let mut still = Vec::with_capacity(sending.len());
         for s in sending.drain(..) {
             match s.request.test() {
-                Ok(_) => free(s.bytes),
+                // SAFETY: the send has completed.
+                Ok(_) => drop(unsafe { s.bytes.into_vec() }),
                 Err(request) => still.push(Sending { request, bytes: s.bytes }),
             }
         }
@@ -128,11 +155,11 @@ impl MpiTransport {
     }
 }
 
-/// A send under way, and the bytes it reads: leaked for the request's `'static` scope, and
+/// A send under way, and the bytes it reads: taken apart for the request's `'static` scope, and
 /// freed once the request has completed.
 struct Sending {
     request: Request<'static, [u8], StaticScope>,
-    bytes: &'static [u8],
+    bytes: RawBuffer,
 }
 
 /// A message being received: its sender, whether it has all arrived, and the buffer it arrives
@@ -140,7 +167,43 @@ struct Sending {
 struct Receiving {
     from: usize,
     state: Received,
-    bytes: *mut [u8],
+    bytes: RawBuffer,
+}
+
+/// A `Vec<u8>` taken apart while a send reads or a receive writes its bytes, so that nothing
+/// holds it (or a reference to its bytes) that MPI's use of them would alias.
+struct RawBuffer {
+    ptr: *mut u8,
+    len: usize,
+    capacity: usize,
+}
+
+impl From<Vec<u8>> for RawBuffer {
+    fn from(v: Vec<u8>) -> RawBuffer {
+        let mut v = std::mem::ManuallyDrop::new(v);
+        RawBuffer { ptr: v.as_mut_ptr(), len: v.len(), capacity: v.capacity() }
+    }
+}
+
+impl RawBuffer {
+    /// The bytes, for a send to read or a receive to write into.
+    ///
+    /// # Safety
+    /// The buffer must outlive every use of the slice: it is put together again only once the
+    /// receive has completed.
+    unsafe fn slice(&self) -> &'static mut [u8] {
+        // SAFETY: `ptr` and `len` are a live `Vec<u8>`'s, whose bytes are initialised.
+        unsafe { std::slice::from_raw_parts_mut(self.ptr, self.len) }
+    }
+
+    /// The `Vec<u8>` again.
+    ///
+    /// # Safety
+    /// Once, after the send or the receive has completed.
+    unsafe fn into_vec(self) -> Vec<u8> {
+        // SAFETY: the parts of a `Vec<u8>` taken apart once (`from`).
+        unsafe { Vec::from_raw_parts(self.ptr, self.len, self.capacity) }
+    }
 }
 
 enum Received {
@@ -148,25 +211,20 @@ enum Received {
     Whole,
 }
 
-fn free(bytes: &'static [u8]) {
-    // SAFETY: `bytes` came from `Box::leak` in `send`, its request has completed, and nothing
-    // else refers to it.
-    drop(unsafe { Box::from_raw(bytes as *const [u8] as *mut [u8]) });
-}
-
 impl Drop for MpiTransport {
     fn drop(&mut self) {
         // Before MPI is finalised (the universe is the last field dropped).
         for s in self.sending.get_mut().drain(..) {
             s.request.wait();
-            free(s.bytes);
+            // SAFETY: the send has completed.
+            drop(unsafe { s.bytes.into_vec() });
         }
         for r in self.receiving.get_mut().drain(..) {
             if let Received::Arriving(request) = r.state {
                 request.wait();
             }
             // SAFETY: the receive has completed.
-            drop(unsafe { Box::from_raw(r.bytes) });
+            drop(unsafe { r.bytes.into_vec() });
         }
     }
 }
@@ -180,13 +238,15 @@ impl Transport for MpiTransport {
         self.size
     }
 
-    fn send(&self, to: usize, bytes: &[u8]) -> Result<(), TransportError> {
+    fn send(&self, to: usize, bytes: Vec<u8>) -> Result<(), TransportError> {
         if to >= self.size {
             return Err(TransportError(format!("there is no rank {to} in a job of {}", self.size)));
         }
         self.progress();
-        let bytes: &'static [u8] = Box::leak(bytes.to_vec().into_boxed_slice());
-        let request = self.world.process_at_rank(to as i32).immediate_send(StaticScope, bytes);
+        let bytes = RawBuffer::from(bytes);
+        // SAFETY: the buffer is put together again only once the send has completed (`progress`,
+        // or `drop`), and nothing else refers to it meanwhile.
+        let request = self.world.process_at_rank(to as i32).immediate_send(StaticScope, &*unsafe { bytes.slice() });
         self.sending.borrow_mut().push(Sending { request, bytes });
         Ok(())
     }
@@ -218,5 +278,19 @@ impl Transport for MpiTransport {
         self.progress();
         self.match_announced();
         Ok(self.take_received())
+    }
+
+    fn recycle(&self, bytes: Vec<u8>) {
+        if bytes.len() < SPARE_BUFFER_MIN_BYTES || bytes.capacity() > SPARE_BUFFER_MAX_BYTES {
+            return;
+        }
+        let mut spare = self.spare.borrow_mut();
+        spare.push(bytes);
+        if spare.len() > SPARE_BUFFERS_KEPT {
+            // The shortest goes: the longer ones take more messages.
+            if let Some((k, _)) = spare.iter().enumerate().min_by_key(|(_, b)| b.len()) {
+                spare.swap_remove(k);
+            }
+        }
     }
 }

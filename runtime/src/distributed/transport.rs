@@ -23,8 +23,9 @@ pub trait Transport {
     /// Sends `bytes` to rank `to`, without waiting for `to` to receive them: the master and a
     /// worker may each send the other a large message at once (meshes one way, pixels the other),
     /// and two sends that each waited for the other's receive would wait for ever. Messages
-    /// between two ranks arrive in the order they were sent.
-    fn send(&self, to: usize, bytes: &[u8]) -> Result<(), TransportError>;
+    /// between two ranks arrive in the order they were sent. The transport keeps `bytes` until
+    /// they are sent: a message is never copied on its way out.
+    fn send(&self, to: usize, bytes: Vec<u8>) -> Result<(), TransportError>;
     /// The next message from any rank, and its sender, waiting for one.
     fn recv(&self) -> Result<(usize, Vec<u8>), TransportError>;
     /// The next message from any rank if one has arrived, without waiting.
@@ -36,6 +37,11 @@ pub trait Transport {
     fn sending(&self) -> bool {
         false
     }
+    /// Gives back the bytes of a message [`Transport::recv`] returned, once read, for a later
+    /// message to arrive in (a transport that keeps none drops them).
+    fn recycle(&self, bytes: Vec<u8>) {
+        drop(bytes);
+    }
 }
 
 impl<T: Transport + ?Sized> Transport for Box<T> {
@@ -45,7 +51,7 @@ impl<T: Transport + ?Sized> Transport for Box<T> {
     fn size(&self) -> usize {
         (**self).size()
     }
-    fn send(&self, to: usize, bytes: &[u8]) -> Result<(), TransportError> {
+    fn send(&self, to: usize, bytes: Vec<u8>) -> Result<(), TransportError> {
         (**self).send(to, bytes)
     }
     fn recv(&self) -> Result<(usize, Vec<u8>), TransportError> {
@@ -56,6 +62,9 @@ impl<T: Transport + ?Sized> Transport for Box<T> {
     }
     fn sending(&self) -> bool {
         (**self).sending()
+    }
+    fn recycle(&self, bytes: Vec<u8>) {
+        (**self).recycle(bytes)
     }
 }
 
@@ -90,9 +99,9 @@ impl Transport for LocalTransport {
         self.peers.len()
     }
 
-    fn send(&self, to: usize, bytes: &[u8]) -> Result<(), TransportError> {
+    fn send(&self, to: usize, bytes: Vec<u8>) -> Result<(), TransportError> {
         let peer = self.peers.get(to).ok_or_else(|| TransportError(format!("there is no rank {to}")))?;
-        peer.send((self.rank, bytes.to_vec())).map_err(|_| TransportError(format!("rank {to} has stopped")))
+        peer.send((self.rank, bytes)).map_err(|_| TransportError(format!("rank {to} has stopped")))
     }
 
     fn recv(&self) -> Result<(usize, Vec<u8>), TransportError> {
@@ -125,8 +134,8 @@ mod tests {
     fn messages_arrive_in_order_with_their_sender() {
         let group = LocalTransport::group(3, Duration::from_secs(5));
         for k in 0..3u8 {
-            group[1].send(0, &[1, k]).unwrap();
-            group[2].send(0, &[2, k]).unwrap();
+            group[1].send(0, vec![1, k]).unwrap();
+            group[2].send(0, vec![2, k]).unwrap();
         }
         let mut from = [Vec::new(), Vec::new(), Vec::new()];
         for _ in 0..6 {
@@ -143,6 +152,6 @@ mod tests {
     fn a_silent_group_is_an_error_not_a_hang() {
         let group = LocalTransport::group(2, Duration::from_millis(20));
         assert!(group[0].recv().is_err());
-        assert!(group[0].send(5, &[]).is_err());
+        assert!(group[0].send(5, vec![]).is_err());
     }
 }

@@ -116,7 +116,7 @@ pub fn serve<T: Transport + ?Sized>(
         threads: pool.current_num_threads() as u32,
         failure: failure.clone(),
     };
-    transport.send(0, &hello.encode())?;
+    transport.send(0, hello.encode())?;
     // The light paths the master last sent: a viewer's pass sends them with its first piece only.
     let mut kept_paths = LightPaths::default();
     loop {
@@ -167,7 +167,7 @@ pub fn serve<T: Transport + ?Sized>(
                     // this scene (its copy may be half updated): until a new scene, every frame
                     // it is sent ends at once with the same failure.
                     let done = Message::FrameDone { frame, counts: Default::default(), failure: Some(message.clone()) };
-                    transport.send(0, &done.encode())?;
+                    transport.send(0, done.encode())?;
                     failure = Some(message);
                 }
             }
@@ -197,7 +197,7 @@ fn build_world<T: Transport + ?Sized>(
             while !building.is_finished() {
                 let (objects, textures) = pending.take(&link);
                 if !objects.is_empty() || !textures.is_empty() {
-                    transport.send(0, &Message::Fetch { frame, objects, textures }.encode())?;
+                    transport.send(0, Message::Fetch { frame, objects, textures }.encode())?;
                 }
                 while let Some((rank, bytes)) = transport.try_recv()? {
                     match decode_from(transport, rank, &bytes)? {
@@ -387,7 +387,7 @@ fn render_share<T: Transport + ?Sized>(
             if !units.is_empty() {
                 outstanding -= units.len();
                 let starved = std::mem::take(&mut starved);
-                transport.send(0, &Message::Rendered { frame, units, starved }.encode())?;
+                transport.send(0, Message::Rendered { frame, units, starved }.encode())?;
                 last_send = Instant::now();
             }
             while let Some((rank, bytes)) = transport.try_recv()? {
@@ -404,7 +404,7 @@ fn render_share<T: Transport + ?Sized>(
             if let Some(link) = link {
                 let (objects, textures) = pending.take(link);
                 if !objects.is_empty() || !textures.is_empty() {
-                    transport.send(0, &Message::Fetch { frame, objects, textures }.encode())?;
+                    transport.send(0, Message::Fetch { frame, objects, textures }.encode())?;
                 }
             }
             if last && outstanding == 0 {
@@ -455,7 +455,7 @@ fn render_share<T: Transport + ?Sized>(
     counts.world_ns = built_in.as_nanos() as u64;
     counts.rendering_ns = rendering_ns.into_inner();
     counts.share_ns = start.elapsed().as_nanos() as u64;
-    transport.send(0, &Message::FrameDone { frame, counts, failure }.encode())?;
+    transport.send(0, Message::FrameDone { frame, counts, failure }.encode())?;
     Ok(false)
 }
 
