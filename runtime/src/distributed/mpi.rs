@@ -50,10 +50,12 @@ const NAP: Duration = Duration::from_micros(50);
 /// before it naps: a peer may be waiting for this side to move a large send along.
 const SPIN_WHILE_SENDING: Duration = Duration::from_micros(50);
 
-/// Buffers given back are kept for later messages (at most this many): those of at least
-/// `SPARE_BUFFER_MIN_BYTES` (a smaller message is zeroed at little cost) and at most
-/// `SPARE_BUFFER_MAX_BYTES` (a mesh or a texture file now and then is not worth holding on to).
+/// Buffers given back are kept for later messages (at most this many, of at most this many bytes
+/// together): those of at least `SPARE_BUFFER_MIN_BYTES` (a smaller message is zeroed at little
+/// cost) and at most `SPARE_BUFFER_MAX_BYTES` (a mesh or a texture file now and then is not worth
+/// holding on to).
 const SPARE_BUFFERS_KEPT: usize = 16;
+const SPARE_BYTES_KEPT: usize = 64 << 20;
 const SPARE_BUFFER_MIN_BYTES: usize = 4 << 10;
 const SPARE_BUFFER_MAX_BYTES: usize = 16 << 20;
 
@@ -286,11 +288,11 @@ impl Transport for MpiTransport {
         }
         let mut spare = self.spare.borrow_mut();
         spare.push(bytes);
-        if spare.len() > SPARE_BUFFERS_KEPT {
+        let held = |spare: &[Vec<u8>]| spare.iter().map(Vec::capacity).sum::<usize>();
+        while spare.len() > SPARE_BUFFERS_KEPT || held(&spare) > SPARE_BYTES_KEPT {
             // The shortest goes: the longer ones take more messages.
-            if let Some((k, _)) = spare.iter().enumerate().min_by_key(|(_, b)| b.len()) {
-                spare.swap_remove(k);
-            }
+            let Some((k, _)) = spare.iter().enumerate().min_by_key(|(_, b)| b.len()) else { break };
+            spare.swap_remove(k);
         }
     }
 }

@@ -200,7 +200,7 @@ fn build_world<T: Transport + ?Sized>(
                     transport.send(0, Message::Fetch { frame, objects, textures }.encode())?;
                 }
                 while let Some((rank, bytes)) = transport.try_recv()? {
-                    match decode_from(transport, rank, &bytes)? {
+                    match decode_given_back(transport, rank, bytes)? {
                         Message::Data { frame: f, meshes, textures } if f == frame => pending.answer(meshes, textures),
                         _ => return Err(out_of_place(transport)),
                     }
@@ -224,7 +224,18 @@ fn build_world<T: Transport + ?Sized>(
 /// The next message from the master.
 fn receive<T: Transport + ?Sized>(transport: &T) -> Result<Message, DistributedError> {
     let (rank, bytes) = transport.recv()?;
-    decode_from(transport, rank, &bytes)
+    decode_given_back(transport, rank, bytes)
+}
+
+/// [`decode_from`], the message's buffer given back to the transport once read.
+fn decode_given_back<T: Transport + ?Sized>(
+    transport: &T,
+    rank: usize,
+    bytes: Vec<u8>,
+) -> Result<Message, DistributedError> {
+    let message = decode_from(transport, rank, &bytes);
+    transport.recycle(bytes);
+    message
 }
 
 fn decode_from<T: Transport + ?Sized>(transport: &T, rank: usize, bytes: &[u8]) -> Result<Message, DistributedError> {
@@ -391,7 +402,7 @@ fn render_share<T: Transport + ?Sized>(
                 last_send = Instant::now();
             }
             while let Some((rank, bytes)) = transport.try_recv()? {
-                match decode_from(transport, rank, &bytes)? {
+                match decode_given_back(transport, rank, bytes)? {
                     Message::Assign { frame: f, units, lattices, last: l } if f == frame => {
                         give(units, lattices, &mut outstanding)?;
                         last |= l;
