@@ -310,8 +310,14 @@ fn summarize(times: &[FrameTimes], meshes: (usize, usize)) {
             light_paths: mean(|t| t.light_paths),
         };
         println!("{}", super::mpi::traffic_line(&t));
+        // The first frame apart: it compiles the shaders and fetches what the view first reaches.
         let worker_times: Vec<WorkerTime> = times.iter().filter_map(|t| t.worker_time).collect();
-        println!("{}", super::mpi::worker_time_line(&worker_times));
+        if let Some((first, later)) = worker_times.split_first() {
+            println!("{}", super::mpi::worker_time_line("the first frame", std::slice::from_ref(first)));
+            if !later.is_empty() {
+                println!("{}", super::mpi::worker_time_line("the later frames", later));
+            }
+        }
     }
     let demands: Vec<_> = times.iter().filter_map(|t| t.demand).collect();
     if let Some(&(first, workers)) = demands.first() {

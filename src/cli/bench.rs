@@ -289,7 +289,7 @@ pub fn run_render(args: &BenchRenderArgs) -> anyhow::Result<()> {
         let threads = format!("worker ranks: {}, threads: {}", master.workers(), master.worker_threads());
         print_rate(args, &world, &threads, median(ms), &last.unwrap_or_default());
         println!("{}", super::mpi::traffic_line(&master.traffic()));
-        println!("{}", super::mpi::worker_time_line(&worker_times));
+        println!("{}", super::mpi::worker_time_line("the timed frames", &worker_times));
         let (first, d) = (first_demand.unwrap_or_default(), master.demand());
         let meshes = super::mpi::scene_meshes(&world);
         println!("{}", super::mpi::demand_line("the first frame", (&first).into(), meshes, &first, master.workers()));

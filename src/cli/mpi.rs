@@ -57,14 +57,14 @@ pub(crate) fn traffic_line(t: &Traffic) -> String {
     )
 }
 
-/// "worker time per frame: ..." of the mean of `times` (one a frame): where a frame's time went
-/// on the workers, on average over them.
-pub(crate) fn worker_time_line(times: &[WorkerTime]) -> String {
+/// "worker time per frame of `frames`: ..." of the mean of `times` (one a frame): where a frame's
+/// time went on the workers, on average over them.
+pub(crate) fn worker_time_line(frames: &str, times: &[WorkerTime]) -> String {
     let n = times.len().max(1) as f64;
     let ms =
         |f: fn(&WorkerTime) -> std::time::Duration| times.iter().map(|t| f(t).as_secs_f64()).sum::<f64>() * 1e3 / n;
     format!(
-        "worker time per frame (mean over workers): world {:.2} ms, rendering {:.1} ms (of which waiting for fetches {:.1}, decoding fetched meshes and building their BVHs {:.1}), waiting {:.1} ms (for tiles, a core), outside their share {:.1} ms (the master preparing the frame and assembling the image), of a {:.1} ms frame",
+        "worker time per frame of {frames} (mean over workers): world {:.2} ms, rendering {:.1} ms (of which waiting for fetches {:.1}, decoding fetched meshes and building their BVHs {:.1}), waiting {:.1} ms (for tiles, a core), outside their share {:.1} ms (the master preparing the frame and assembling the image), of a {:.1} ms frame",
         ms(|t| t.world),
         ms(|t| t.rendering),
         ms(|t| t.fetching),

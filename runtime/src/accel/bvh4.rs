@@ -187,18 +187,21 @@ fn box_bits(b: &Aabb) -> [u32; 6] {
 /// every input to find runs that are almost never there cost a good share of a large build;
 /// counting into a table that fits in cache costs little, and with at least one bucket for every
 /// box a bucket fills past the limit by chance only for inputs of millions of times its size.
+/// The table has one bucket for every box, up to 2^20: a top level of a few hundred instances,
+/// built every frame, zeroed a megabyte (fresh pages, faulted in) each time with a table of the
+/// largest size.
 fn may_share_boxes(boxes: &[Aabb]) -> bool {
     use rayon::prelude::*;
-    const BUCKET_BITS: u32 = 20;
+    let bucket_bits = boxes.len().next_power_of_two().trailing_zeros().clamp(6, 20);
     let bucket = |b: &Aabb| {
         let h = box_bits(b).iter().fold(0u64, |h, &v| (h ^ u64::from(v)).wrapping_mul(0x9E37_79B9_7F4A_7C15));
-        (h >> (64 - BUCKET_BITS)) as usize
+        (h >> (64 - bucket_bits)) as usize
     };
     let chunk = boxes.len().div_ceil(rayon::current_num_threads().max(1)).max(1 << 16);
     let counts = boxes
         .par_chunks(chunk)
         .map(|part| {
-            let mut counts = vec![0u8; 1 << BUCKET_BITS];
+            let mut counts = vec![0u8; 1 << bucket_bits];
             for b in part {
                 let c = &mut counts[bucket(b)];
                 *c = c.saturating_add(1);
@@ -824,6 +827,11 @@ mod tests {
         let runs = same_box_runs(&boxes).expect("a run");
         assert_eq!(runs.boxes.len(), 1000 - SAME_BOX_RUN);
         assert_eq!(runs.members.len(), 1000);
+        // A small input counts into a small table, and finds its run all the same.
+        let mut few = test_boxes(40);
+        let first = few[0];
+        few[..=SAME_BOX_RUN].fill(first);
+        assert_eq!(same_box_runs(&few).expect("a run").boxes.len(), 40 - SAME_BOX_RUN);
     }
 
     #[test]
