@@ -4,14 +4,16 @@
 #
 #   benches/scaling.sh pack          # here: a stripped release build with MPI, the scenes and
 #                                    # Embree's benchmark, into .scaling/ (keep it out of git)
-#   benches/scaling.sh run [PARTS]   # there: PARTS of "mpi threads bandwidth gi embree"
+#   benches/scaling.sh run [PARTS]   # there: PARTS of "mpi threads bandwidth latency gi embree"
 #                                    # (default: all but threads, which mpi's runs include)
 #
 # `run` needs only what `pack` made and an `mpirun` on the machine (Open MPI 4.x: the binary links
 # libmpi.so.40); it prints what each command reports and keeps going past failures. `mpi` runs
 # master + N workers of one thread, then one process of N threads, for each N of WORKERS (default
 # "1 2 4 8 15"), then one process on every core; `threads` runs one process over THREADS (default
-# "1 2 4 8 16"); `embree` runs ../shared/bench/embree/side-by-side.sh on 1 thread and every core
+# "1 2 4 8 16"); `latency` runs the BART animations over a worker rank per core but the master's,
+# each with one and then two render threads (the second renders while the first waits for a
+# fetch); `embree` runs ../shared/bench/embree/side-by-side.sh on 1 thread and every core
 # (EMBREE_SCENES: its scenes). DEADLINE: seconds after which no new command starts (default 500).
 set -u
 HERE=$(cd "$(dirname "$0")/.." && pwd)
@@ -45,7 +47,7 @@ pack() {
 }
 
 run() {
-  local parts=${*:-mpi bandwidth gi embree}
+  local parts=${*:-mpi bandwidth latency gi embree}
   local r=$PACK/rtsl b=/tmp/rtsl-scaling
   mkdir -p "$b"
   tar -C "$b" -xJf "$PACK/scenes.tar.xz"
@@ -84,6 +86,11 @@ run() {
         printf 'Format 640 480 1\nProjection "perspective" "fov" 40\nTranslate 0 0 5\nWorldBegin\nSurface "constant"\nPolygon "P" [-1 -1 0  1 -1 0  1 1 0  -1 1 0]\nWorldEnd\n' > /tmp/trivial.rib
         one $r bench render /tmp/trivial.rib --threads "$(nproc)" --frames 20
         one $m -n "$(nproc)" $r bench render /tmp/trivial.rib --threads 1 --frames 20 --mpi ;;
+      latency)
+        for t in 1 2; do
+          one $m -n "$(nproc)" $r bart $robot --frames 20 --size 640x480 --threads "$t" -q --mpi
+          one $m -n "$(nproc)" $r bart $kitchen --frames 10 --size 640x480 --threads "$t" -q --mpi
+        done ;;
       gi)
         for n in 2 "$(nproc)"; do
           one $r bench render examples/office/office_gi.rib --threads "$n" --frames 10
