@@ -931,12 +931,75 @@ pub fn render_frame(world: &World, progress: Option<&(dyn Fn(usize, usize) + Syn
     let (w, h) = (world.options.width, world.options.height);
     let progress =
         Progress { report: progress, done: AtomicUsize::new(0), total: crate::tiles::tiles(w, h, TILE_SIZE).len() };
+    if renderer.assembles_as_tiles_arrive() {
+        // Each tile goes into the image on the thread that rendered it, while its pixels are in
+        // that core's cache: no tile is kept, and no pass over the image follows the last one.
+        let exposure = frame_exposure(world);
+        let mut fb = blank_framebuffer((w, h));
+        let bands = Bands::of(&mut fb);
+        render_tiles(w, h, TILE_SIZE, |tile| {
+            let rendered = renderer.render_tile(tile);
+            bands.write(rendered.tile, &rendered.px, exposure);
+            progress.tile_done();
+        });
+        return (fb, frame_report(&renderer.frame, start));
+    }
     let tiles = render_tiles(w, h, TILE_SIZE, |tile| {
         let rendered = renderer.render_tile(tile);
         progress.tile_done();
         rendered
     });
     renderer.finish(tiles, start)
+}
+
+/// The frame's exposure (gain and gamma), where it has a valid one.
+fn frame_exposure(world: &World) -> Option<(f32, f32)> {
+    world.options.exposure.filter(|&(gain, gamma)| gain.is_finite() && gamma > 0.0)
+}
+
+/// A framebuffer's bands of `TILE_SIZE` rows, each behind a lock, for the threads that render its
+/// tiles to write them in as they finish: tiles of the renderer's tiling lie in one band each, so
+/// two threads wait for each other only when both finish a tile of one band at once.
+struct Bands<'a> {
+    bands: Vec<std::sync::Mutex<BandOut<'a>>>,
+}
+
+impl<'a> Bands<'a> {
+    fn of(fb: &'a mut Framebuffer) -> Bands<'a> {
+        let (width, band) = (fb.width as usize, TILE_SIZE as usize);
+        let chunk = (width * band).max(1);
+        let rgba = fb.rgba.chunks_mut(4 * chunk);
+        let depth = fb.depth.chunks_mut(chunk);
+        let ids = fb.object_id.chunks_mut(chunk);
+        let bands = rgba
+            .zip(depth)
+            .zip(ids)
+            .enumerate()
+            .map(|(b, ((rgba, depth), ids))| std::sync::Mutex::new(BandOut { rgba, depth, ids, width, y0: b * band }))
+            .collect();
+        Bands { bands }
+    }
+
+    /// Writes the finished pixels of `tile` into its band.
+    fn write(&self, tile: Tile, px: &TileSamples, exposure: Option<(f32, f32)>) {
+        let band = TILE_SIZE as usize;
+        let (first, last) = (tile.y0 as usize / band, (tile.y0 + tile.height).max(1) as usize - 1);
+        if last / band != first {
+            // Band by band, each taking the rows it holds (`write_tile` skips the others).
+            for b in first..=(last / band).min(self.bands.len().saturating_sub(1)) {
+                self.write_into(b, tile, px, exposure);
+            }
+            return;
+        }
+        self.write_into(first, tile, px, exposure);
+    }
+
+    fn write_into(&self, b: usize, tile: Tile, px: &TileSamples, exposure: Option<(f32, f32)>) {
+        let Some(band) = self.bands.get(b) else { return };
+        // A poisoned lock means a thread panicked while writing; the render re-raises that panic.
+        let mut out = band.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        write_tile(&mut out, &tile, px, exposure);
+    }
 }
 
 /// A frame cut into tiles that are rendered one by one, wherever they are rendered (this
@@ -1260,7 +1323,7 @@ fn resolve_tile(film: &Film, tile: &Tile, color: &mut [[f32; 4]]) {
 /// `TILE_SIZE` rows, in parallel, since by one thread after the tiles, filling the frame (and faulting
 /// in its fresh pages) would be serial time in every frame.
 fn framebuffer(world: &World, tiles: Vec<(Tile, TileSamples)>) -> Framebuffer {
-    let exposure = world.options.exposure.filter(|&(gain, gamma)| gain.is_finite() && gamma > 0.0);
+    let exposure = frame_exposure(world);
     let (w, h) = (world.options.width, world.options.height);
     // The kept outputs the options name (not the one adaptive sampling alone refines on).
     let names: Vec<String> =
@@ -1294,15 +1357,7 @@ fn assemble_framebuffer(
     // `par_chunks_mut` panics on chunks of 0 elements (an image 0 pixels wide).
     let (width, band) = (w as usize, TILE_SIZE as usize);
     let chunk = (width * band).max(1);
-    let n = width * h as usize;
-    let mut fb = Framebuffer {
-        width: w,
-        height: h,
-        rgba: (0..4 * n).into_par_iter().map(|_| 0.0).collect(),
-        depth: (0..n).into_par_iter().map(|_| f32::INFINITY).collect(),
-        object_id: (0..n).into_par_iter().map(|_| u32::MAX).collect(),
-        outputs: Vec::new(),
-    };
+    let mut fb = blank_framebuffer((w, h));
     let bands = (h as usize).div_ceil(band).max(1);
     let mut by_band: Vec<Vec<(Tile, TileSamples)>> = (0..bands).map(|_| Vec::new()).collect();
     let mut others = Vec::new();
@@ -1325,6 +1380,20 @@ fn assemble_framebuffer(
     fb
 }
 
+/// A `w x h` framebuffer with no pixel written yet, filled on the current pool's threads (by one
+/// thread, filling the image and faulting in its fresh pages would be serial time in every frame).
+fn blank_framebuffer((w, h): (u32, u32)) -> Framebuffer {
+    let n = w as usize * h as usize;
+    Framebuffer {
+        width: w,
+        height: h,
+        rgba: (0..4 * n).into_par_iter().map(|_| 0.0).collect(),
+        depth: (0..n).into_par_iter().map(|_| f32::INFINITY).collect(),
+        object_id: (0..n).into_par_iter().map(|_| u32::MAX).collect(),
+        outputs: Vec::new(),
+    }
+}
+
 /// Rows of the framebuffer from row `y0` on.
 struct BandOut<'a> {
     rgba: &'a mut [f32],
@@ -1335,33 +1404,38 @@ struct BandOut<'a> {
 }
 
 /// Writes finished tiles into `out`, which holds their rows.
-fn write_tiles(out: BandOut<'_>, tiles: Vec<(Tile, TileSamples)>, exposure: Option<(f32, f32)>) {
+fn write_tiles(mut out: BandOut<'_>, tiles: Vec<(Tile, TileSamples)>, exposure: Option<(f32, f32)>) {
     for (tile, px) in tiles {
-        let tw = tile.width as usize;
-        for y in 0..tile.height as usize {
-            let Some(row) = (tile.y0 as usize + y).checked_sub(out.y0) else { continue };
-            // A row of the tile at a time, as slices, not pixel by pixel with a bounds check per
-            // pixel and buffer.
-            let (from, to) = (y * tw, row * out.width + tile.x0 as usize);
-            let (Some(colors), Some(rgba)) = (px.color.get(from..from + tw), out.rgba.get_mut(4 * to..4 * (to + tw)))
-            else {
-                continue;
-            };
-            for (c, rgba) in colors.iter().zip(rgba.chunks_exact_mut(4)) {
-                let mut c = *c;
-                if let Some((gain, gamma)) = exposure {
-                    for v in &mut c[..3] {
-                        *v = (gain * *v).max(0.0).powf(1.0 / gamma);
-                    }
+        write_tile(&mut out, &tile, &px, exposure);
+    }
+}
+
+/// Writes the rows of a finished tile that `out` holds.
+fn write_tile(out: &mut BandOut<'_>, tile: &Tile, px: &TileSamples, exposure: Option<(f32, f32)>) {
+    let tw = tile.width as usize;
+    for y in 0..tile.height as usize {
+        let Some(row) = (tile.y0 as usize + y).checked_sub(out.y0) else { continue };
+        // A row of the tile at a time, as slices, not pixel by pixel with a bounds check per
+        // pixel and buffer.
+        let (from, to) = (y * tw, row * out.width + tile.x0 as usize);
+        let (Some(colors), Some(rgba)) = (px.color.get(from..from + tw), out.rgba.get_mut(4 * to..4 * (to + tw)))
+        else {
+            continue;
+        };
+        for (c, rgba) in colors.iter().zip(rgba.chunks_exact_mut(4)) {
+            let mut c = *c;
+            if let Some((gain, gamma)) = exposure {
+                for v in &mut c[..3] {
+                    *v = (gain * *v).max(0.0).powf(1.0 / gamma);
                 }
-                rgba.copy_from_slice(&c);
             }
-            if let (Some(d), Some(v)) = (out.depth.get_mut(to..to + tw), px.depth.get(from..from + tw)) {
-                d.copy_from_slice(v);
-            }
-            if let (Some(d), Some(v)) = (out.ids.get_mut(to..to + tw), px.ids.get(from..from + tw)) {
-                d.copy_from_slice(v);
-            }
+            rgba.copy_from_slice(&c);
+        }
+        if let (Some(d), Some(v)) = (out.depth.get_mut(to..to + tw), px.depth.get(from..from + tw)) {
+            d.copy_from_slice(v);
+        }
+        if let (Some(d), Some(v)) = (out.ids.get_mut(to..to + tw), px.ids.get(from..from + tw)) {
+            d.copy_from_slice(v);
         }
     }
 }
@@ -1443,6 +1517,45 @@ mod tests {
         }
         let empty = assemble_framebuffer((0, 0), Vec::new(), None);
         assert!(empty.rgba.is_empty() && empty.depth.is_empty());
+    }
+
+    /// Tiles written into bands as they finish, from several threads and in any order (those that
+    /// straddle bands too), make the image the assembly after the last tile makes.
+    #[test]
+    fn tiles_written_as_they_finish_make_the_assembled_image() {
+        use rayon::prelude::*;
+        for (size, tile) in [((40, 37), (16, 16)), ((40, 37), (7, 10)), ((23, 50), (23, 3)), ((5, 16), (16, 16))] {
+            for exposure in [None, Some((2.0, 0.5))] {
+                let mut fb = blank_framebuffer(size);
+                {
+                    let bands = Bands::of(&mut fb);
+                    tiles_of(size, tile).par_iter().rev().for_each(|(t, px)| bands.write(*t, px, exposure));
+                }
+                let assembled = assemble_framebuffer(size, tiles_of(size, tile), exposure);
+                assert_eq!(fb, assembled, "{size:?} {tile:?} {exposure:?}");
+            }
+        }
+    }
+
+    /// A frame rendered with its tiles going into the image as they finish is bit for bit the one
+    /// put together after the last tile, for an image whose sides are no multiple of the tile's
+    /// and under an exposure.
+    #[test]
+    fn a_frame_assembled_as_its_tiles_finish_is_the_assembled_frame() {
+        let rib = "Format 37 21 1\nExposure 1.5 2.2\nProjection \"perspective\" \"fov\" 50\nTranslate 0 0 4\nWorldBegin\nLightSource \"distantlight\" 1\nSurface \"plastic\"\nSphere 1 -1 1 360\nWorldEnd\n";
+        let mut rt = crate::api::Context::new();
+        crate::rib::load::load_str(&mut rt, rib, std::path::Path::new("<test>")).expect("the test scene loads");
+        let world = rt.build_world().expect("the test scene builds");
+        let renderer = TileRenderer::new(&world);
+        assert!(renderer.assembles_as_tiles_arrive());
+        let (fb, _) = render_frame(&world, None);
+        let tiles: Vec<RenderedTile> = renderer.tiles().iter().map(|t| renderer.render_tile(t)).collect();
+        let (assembled, _) = renderer.finish(tiles, Instant::now());
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&fb.rgba), bits(&assembled.rgba));
+        assert_eq!(bits(&fb.depth), bits(&assembled.depth));
+        assert_eq!(fb.object_id, assembled.object_id);
+        assert!(fb.rgba.chunks_exact(4).any(|p| p[0] > 0.0 && p[0] < 1.0), "the sphere was lit and exposed");
     }
 
     #[test]
