@@ -1310,6 +1310,16 @@ fn displays_write_their_modes_depths_and_additional_images() {
     let alpha = read("alpha.png");
     assert_eq!((alpha.pixel(16, 16)[0], alpha.pixel(0, 0)[0]), (1.0, 0.0));
 
+    // `-o` replaces the first display's file, and the additional displays are still written.
+    for name in ["colour.tif", "alpha.png"] {
+        std::fs::remove_file(dir.path().join(name)).expect("written by the render above");
+    }
+    let o = rtsl(&["render", "s.rib", "-q", "-o", "instead.png"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(dir.path().join("instead.png").exists());
+    assert!(!dir.path().join("colour.tif").exists(), "-o replaces the scene's own image");
+    assert!(dir.path().join("alpha.png").exists(), "the + displays are still written");
+
     // A window display writes render.png, with a note; depth in an 8-bit file is refused before rendering.
     write(dir.path(), "w.rib", &scene("Display \"view\" \"framebuffer\" \"rgba\""));
     let o = rtsl(&["render", "w.rib", "-q"], dir.path());

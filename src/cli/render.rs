@@ -22,8 +22,8 @@ use std::time::Duration;
 pub struct RenderArgs {
     /// The scene: a RIB file, or a model (OBJ, PLY, glTF). Without one, the embedded default scene.
     pub scene: Option<PathBuf>,
-    /// The image to write (.png, .tif, .exr, .tga, .ppm); a RIB's `Display` names it otherwise
-    /// (with its mode and `+name` displays). Of a file
+    /// The image to write (.png, .tif, .exr, .tga, .ppm), in place of the one a RIB's first
+    /// `Display` names (its `+name` displays are written too). Of a file
     /// with several frames, `#f` in the name stands for the frame number (`#4f` padded to 4
     /// digits), as in `Display`.
     #[arg(short, long)]
@@ -714,7 +714,14 @@ fn prepare(args: &RenderArgs, frame_index: usize) -> anyhow::Result<Prepared> {
     });
     let mut to_default = false;
     let first = match args.output.as_ref().map(expanded) {
-        Some(path) => Image { path, mode: DisplayMode::Rgba, depth_map: false, output: None },
+        Some(path) => {
+            // `-o` names the scene's own image instead of its first display, not beside it; its
+            // `+name` displays are written as well.
+            if loaded.displays.first().is_some_and(|d| !d.window) {
+                files.next();
+            }
+            Image { path, mode: DisplayMode::Rgba, depth_map: false, output: None }
+        }
         None => files.next().unwrap_or_else(|| {
             to_default = true;
             Image { path: PathBuf::from("render.png"), mode: DisplayMode::Rgba, depth_map: false, output: None }
