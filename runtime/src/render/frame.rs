@@ -953,8 +953,17 @@ pub fn render_frame(world: &World, progress: Option<&(dyn Fn(usize, usize) + Syn
 }
 
 /// The frame's exposure (gain and gamma), where it has a valid one.
-fn frame_exposure(world: &World) -> Option<(f32, f32)> {
+pub(super) fn frame_exposure(world: &World) -> Option<(f32, f32)> {
     world.options.exposure.filter(|&(gain, gamma)| gain.is_finite() && gamma > 0.0)
+}
+
+/// A finished pixel's colour under the exposure `(gain, gamma)` (alpha untouched): every path that
+/// writes a framebuffer applies it here, so that their images are the same bit for bit.
+#[inline]
+pub(super) fn expose(c: &mut [f32; 4], (gain, gamma): (f32, f32)) {
+    for v in &mut c[..3] {
+        *v = (gain * *v).max(0.0).powf(1.0 / gamma);
+    }
 }
 
 /// A framebuffer's bands of `TILE_SIZE` rows, each behind a lock, for the threads that render its
@@ -1167,13 +1176,10 @@ impl TileAssembly {
             let row = &colors[16 * from..16 * (from + tw)];
             match exposure {
                 None => bytemuck::cast_slice_mut::<f32, u8>(rgba).copy_from_slice(row),
-                Some((gain, gamma)) => {
+                Some(exposure) => {
                     for (c, out) in row.chunks_exact(16).zip(rgba.chunks_exact_mut(4)) {
                         let mut c: [f32; 4] = bytemuck::pod_read_unaligned(c);
-                        // As `write_tiles` does it, so that the image is the same bit for bit.
-                        for v in &mut c[..3] {
-                            *v = (gain * *v).max(0.0).powf(1.0 / gamma);
-                        }
+                        expose(&mut c, exposure);
                         out.copy_from_slice(&c);
                     }
                 }
@@ -1424,10 +1430,8 @@ fn write_tile(out: &mut BandOut<'_>, tile: &Tile, px: &TileSamples, exposure: Op
         };
         for (c, rgba) in colors.iter().zip(rgba.chunks_exact_mut(4)) {
             let mut c = *c;
-            if let Some((gain, gamma)) = exposure {
-                for v in &mut c[..3] {
-                    *v = (gain * *v).max(0.0).powf(1.0 / gamma);
-                }
+            if let Some(exposure) = exposure {
+                expose(&mut c, exposure);
             }
             rgba.copy_from_slice(&c);
         }

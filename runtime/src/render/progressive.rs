@@ -637,12 +637,10 @@ impl Accumulator {
                 );
             });
         }
-        let exposure = world.options.exposure.filter(|&(gain, gamma)| gain.is_finite() && gamma > 0.0);
+        let exposure = super::frame::frame_exposure(world);
         for (i, mut c) in colors.into_iter().enumerate() {
-            if let Some((gain, gamma)) = exposure {
-                for v in &mut c[..3] {
-                    *v = (gain * *v).max(0.0).powf(1.0 / gamma);
-                }
+            if let Some(exposure) = exposure {
+                super::frame::expose(&mut c, exposure);
             }
             fb.rgba[4 * i..4 * i + 4].copy_from_slice(&c);
         }
