@@ -857,12 +857,18 @@ fn workers_fetch_only_the_objects_rays_reach_and_keep_them() -> Result<(), Distr
     // The floor and the triangle, by each of the two workers at most; never the hidden object.
     assert!((2..=4).contains(&first.fetched_objects), "{first:?}");
     assert!(first.most_resident_objects <= 2, "{first:?}");
+    // Every object the first frame's rays reached was a miss: fetched.
+    assert_eq!(first.reached_objects, first.fetched_objects, "{first:?}");
+    assert_eq!(first.hit_rate(), Some(0.0));
     assert!(traffic.fetches > 0 && first.fetched_bytes < 3000 * 36, "{first:?} {traffic:?}");
     // Kept: later frames fetch nothing, even when an instance moves.
     for (later, traffic) in &demands[1..] {
         assert_eq!(later.fetched_objects, 0, "{later:?}");
         assert_eq!(traffic.fetches, 0);
         assert_eq!(later.resident_objects, first.resident_objects);
+        // Every object reached was a hit.
+        assert!(later.reached_objects >= 2, "{later:?}");
+        assert_eq!(later.hit_rate(), Some(1.0));
     }
     Ok(())
 }
@@ -886,6 +892,7 @@ fn a_full_cache_evicts_the_least_recently_used_meshes_and_fetches_them_again() -
     for d in &demands[1..] {
         // Both objects dropped before the frame, and fetched again by it.
         assert_eq!((d.evicted_objects, d.fetched_objects), (2, 2), "{demands:?}");
+        assert_eq!((d.reached_objects, d.hit_rate()), (2, Some(0.0)), "{demands:?}");
     }
     Ok(())
 }

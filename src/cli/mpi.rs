@@ -93,6 +93,8 @@ pub(crate) struct Fetched {
     object_bytes: u64,
     textures: u64,
     texture_bytes: u64,
+    /// Objects the workers' rays reached, each counted by every worker and frame that reached it.
+    reached: u64,
 }
 
 impl From<&Demand> for Fetched {
@@ -102,6 +104,7 @@ impl From<&Demand> for Fetched {
             object_bytes: d.fetched_bytes,
             textures: d.fetched_textures,
             texture_bytes: d.fetched_texture_bytes,
+            reached: d.reached_objects,
         }
     }
 }
@@ -114,6 +117,7 @@ impl std::ops::Add for Fetched {
             object_bytes: self.object_bytes + o.object_bytes,
             textures: self.textures + o.textures,
             texture_bytes: self.texture_bytes + o.texture_bytes,
+            reached: self.reached + o.reached,
         }
     }
 }
@@ -128,8 +132,16 @@ pub(crate) fn demand_line(
     workers: usize,
 ) -> String {
     let mb = |b: f64| b / 1e6;
+    // Of the objects rays reached (per worker and frame), those a worker held already.
+    let hits = fetched.reached.saturating_sub(fetched.objects);
+    let hit_rate = match fetched.reached {
+        0 => "no object reached".to_string(),
+        reached => {
+            format!("{:.1}% of the {reached} objects rays reached were held", 100.0 * hits as f64 / reached as f64)
+        }
+    };
     format!(
-        "demand loading, {what}: {} object(s), {:.2} MB fetched by {workers} worker(s) ({:.2} MB per worker) of the scene's {} object(s) and {:.2} MB of meshes; {} texture(s), {:.2} MB; held now: at most {} object(s) per worker ({} evicted before the last frame)",
+        "demand loading, {what}: {} object(s), {:.2} MB fetched by {workers} worker(s) ({:.2} MB per worker) of the scene's {} object(s) and {:.2} MB of meshes; {} texture(s), {:.2} MB; cache hits: {hit_rate}; held now: at most {} object(s) per worker ({} evicted before the last frame)",
         fetched.objects,
         mb(fetched.object_bytes as f64),
         mb(fetched.object_bytes as f64 / workers.max(1) as f64),

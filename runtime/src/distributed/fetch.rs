@@ -141,6 +141,12 @@ impl FetchLink {
         *self.waker.lock().unwrap_or_else(PoisonError::into_inner) = waker;
     }
 
+    /// The number of the frame under way: what the objects rays reach in it are stamped with
+    /// ([`crate::accel::object::Object::last_used`]).
+    pub(super) fn frame_number(&self) -> u32 {
+        self.clock.load(Ordering::Relaxed)
+    }
+
     /// Starts a frame: objects reached from now on are stamped with its number; `evicted`
     /// objects were dropped before it.
     pub(super) fn start_frame(&self, evicted: u64) {

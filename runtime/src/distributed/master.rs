@@ -193,6 +193,19 @@ pub struct Demand {
     /// Objects held after the frame: by all workers together, and by the one that holds most.
     pub resident_objects: u64,
     pub most_resident_objects: u64,
+    /// Objects the workers' rays reached in the frame, each counted by every worker that reached
+    /// it: those held before the frame are the cache's hits, those fetched ([`Demand::fetched_objects`])
+    /// its misses.
+    pub reached_objects: u64,
+}
+
+impl Demand {
+    /// The share of the objects the workers' rays reached that they already held (`None` when
+    /// they reached none).
+    pub fn hit_rate(&self) -> Option<f64> {
+        let hits = self.reached_objects.saturating_sub(self.fetched_objects);
+        (self.reached_objects > 0).then(|| hits as f64 / self.reached_objects as f64)
+    }
 }
 
 impl<T: Transport> Master<T> {
@@ -646,6 +659,7 @@ impl<T: Transport> Master<T> {
             evicted_objects: counts.iter().map(|c| c.evicted_objects).sum(),
             resident_objects: counts.iter().map(|c| c.resident_objects).sum(),
             most_resident_objects: counts.iter().map(|c| c.resident_objects).max().unwrap_or(0),
+            reached_objects: counts.iter().map(|c| c.reached_objects).sum(),
         };
         // Textures load where they are sampled: the workers' failures are the frame's.
         world.textures.add_warnings(counts.iter().flat_map(|c| &c.texture_warnings).map(|(name, path, reason)| {

@@ -8,7 +8,7 @@ use crate::texture::TextureKind;
 use rtsl_compiler::interface::ShaderKind;
 
 /// The protocol's version: ranks that speak different versions refuse each other at start-up.
-pub const PROTOCOL_VERSION: u32 = 17;
+pub const PROTOCOL_VERSION: u32 = 18;
 
 /// What the master's counters add up from a worker's share of a frame.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -35,13 +35,15 @@ pub struct FrameCounts {
     pub texture_warnings: Vec<(String, String, String)>,
     /// Demand loading: objects fetched from the master this frame and their bytes, textures
     /// (shadow maps and grids included) and theirs, objects evicted from the cache before the
-    /// frame, and objects held after it.
+    /// frame, objects held after it, and objects rays reached in the frame (held before it or
+    /// fetched by it: the fetched ones are the cache's misses).
     pub fetched_objects: u64,
     pub fetched_bytes: u64,
     pub fetched_textures: u64,
     pub fetched_texture_bytes: u64,
     pub evicted_objects: u64,
     pub resident_objects: u64,
+    pub reached_objects: u64,
     /// Where the worker's time went (nanoseconds): bringing its world to the frame's state
     /// (updates, BVHs), the time from then until it reported the frame done, and of that, its
     /// render threads' time spent rendering units (summed over threads).
@@ -236,6 +238,7 @@ impl Message {
                 w.u64(counts.fetched_texture_bytes);
                 w.u64(counts.evicted_objects);
                 w.u64(counts.resident_objects);
+                w.u64(counts.reached_objects);
                 w.u64(counts.world_ns);
                 w.u64(counts.share_ns);
                 w.u64(counts.rendering_ns);
@@ -324,7 +327,7 @@ impl Message {
                 let (rays_cut, lights_dropped) = (r.u64()?, r.u64()?);
                 let (fetched_objects, fetched_bytes) = (r.u64()?, r.u64()?);
                 let (fetched_textures, fetched_texture_bytes) = (r.u64()?, r.u64()?);
-                let (evicted_objects, resident_objects) = (r.u64()?, r.u64()?);
+                let (evicted_objects, resident_objects, reached_objects) = (r.u64()?, r.u64()?, r.u64()?);
                 let (world_ns, share_ns, rendering_ns) = (r.u64()?, r.u64()?, r.u64()?);
                 let (fetch_wait_ns, fetch_build_ns) = (r.u64()?, r.u64()?);
                 let shading_ns = r.u64()?;
@@ -358,6 +361,7 @@ impl Message {
                     fetched_texture_bytes,
                     evicted_objects,
                     resident_objects,
+                    reached_objects,
                     world_ns,
                     share_ns,
                     rendering_ns,
@@ -625,6 +629,7 @@ mod tests {
                     fetched_texture_bytes: 16,
                     evicted_objects: 13,
                     resident_objects: 14,
+                    reached_objects: 24,
                     world_ns: 19,
                     share_ns: 20,
                     rendering_ns: 21,

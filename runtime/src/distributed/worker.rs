@@ -460,8 +460,10 @@ fn render_share<T: Transport + ?Sized>(
         counts.evicted_objects = fetched.evicted;
         counts.fetch_wait_ns = fetched.waiting.as_nanos() as u64;
         counts.fetch_build_ns = fetched.building.as_nanos() as u64;
-        counts.resident_objects =
-            world.scene.objects().iter().filter(|o| o.is_remote() && o.is_resident()).count() as u64;
+        let remote = || world.scene.objects().iter().filter(|o| o.is_remote());
+        counts.resident_objects = remote().filter(|o| o.is_resident()).count() as u64;
+        let this_frame = Some(link.frame_number());
+        counts.reached_objects = remote().filter(|o| o.last_used() == this_frame).count() as u64;
     }
     counts.world_ns = built_in.as_nanos() as u64;
     counts.rendering_ns = rendering_ns.into_inner();
