@@ -107,9 +107,11 @@ impl Context {
             };
             let first = materials.len() as u32;
             let bindings = || appearances.iter().flat_map(|a| [&a.surface, &a.interior, &a.displacement]).flatten();
-            // Equal appearances name the same shaders, so the programs line up one for one.
+            // The same version has the same appearances, which name the same shaders, so the
+            // programs line up one for one.
             let reusable = built[i].as_ref().is_some_and(|b| {
-                b.appearances == appearances
+                debug_assert!(b.version != rec.version || b.appearances == appearances, "object {i} changed");
+                b.version == rec.version
                     && b.programs
                         .iter()
                         .zip(bindings())
@@ -123,6 +125,7 @@ impl Context {
                     .map(|a| self.material_of(a, i as u32 + 1, &mut object_warnings))
                     .collect::<Result<Vec<_>, _>>()?;
                 built[i] = Some(BuiltMaterials {
+                    version: rec.version,
                     appearances: appearances.to_vec(),
                     programs,
                     materials: built_now,

@@ -241,6 +241,11 @@ struct ObjectRecord {
     /// The geometry changed since the scene last saw it.
     dirty: bool,
     deleted: bool,
+    /// Changes whenever the mesh, appearance, parts or deletion do ([`Context::next_object_version`]):
+    /// what was built or sent of the record is still right while its version is the same, which
+    /// costs a comparison of two numbers a frame instead of one of appearances and their shader
+    /// parameters.
+    version: u64,
 }
 
 impl ObjectRecord {
@@ -254,6 +259,7 @@ impl ObjectRecord {
             scene_object: None,
             dirty: true,
             deleted: false,
+            version: 0,
         }
     }
 
@@ -401,6 +407,8 @@ pub struct Context {
     events: Vec<ShaderEvent>,
     /// Each object's materials as the last frame built them (by object index).
     built_materials: Vec<Option<BuiltMaterials>>,
+    /// The last [`ObjectRecord::version`] given.
+    object_versions: u64,
     /// Where demand-loaded objects' meshes come from ([`Context::set_mesh_source`]).
     mesh_source: Option<Arc<dyn MeshSource>>,
     /// Where textures come from instead of files ([`Context::set_texture_source`]).
@@ -418,6 +426,8 @@ pub struct Context {
 /// shader instances of every material again each frame would be most of the serial world update
 /// of an animation with many materials.
 struct BuiltMaterials {
+    /// The [`ObjectRecord::version`] built from, and its appearances.
+    version: u64,
     appearances: Vec<Appearance>,
     /// The program of each binding of `appearances` (surface, interior, displacement), kept so
     /// that comparing addresses cannot mistake a new program for a freed one.
@@ -518,6 +528,16 @@ impl Context {
             warnings: crate::cpu::build_note_once().map(str::to_string).into_iter().collect(),
             events: Vec::new(),
             built_materials: Vec::new(),
+            object_versions: 0,
         }
+    }
+}
+
+impl Context {
+    /// A version no object record of this context had: for a record whose mesh, appearance,
+    /// parts or deletion change.
+    fn next_object_version(&mut self) -> u64 {
+        self.object_versions += 1;
+        self.object_versions
     }
 }

@@ -93,12 +93,14 @@ impl Context {
             mesh.validate()?;
             Some(Arc::new(mesh))
         };
+        let version = self.next_object_version();
         let rec = &mut self.objects[id.0 as usize];
         rec.mesh = mesh;
         rec.remote = None;
         rec.appearance = appearance;
         rec.parts = parts;
         rec.dirty = true;
+        rec.version = version;
         Ok(id)
     }
 
@@ -129,11 +131,13 @@ impl Context {
 
     /// Deletes an object and its instances.
     pub fn delete_object(&mut self, id: ObjectId) -> Result<(), ApiError> {
+        let version = self.next_object_version();
         let rec = self.objects.get_mut(id.0 as usize).filter(|o| !o.deleted).ok_or(ApiError::UnknownObject(id.0))?;
         rec.deleted = true;
         rec.mesh = None;
         rec.remote = None;
         rec.dirty = true;
+        rec.version = version;
         for i in &mut self.instances {
             if i.object == id {
                 i.deleted = true;

@@ -81,6 +81,8 @@ pub struct Replicator {
 
 #[derive(Clone, PartialEq)]
 struct SentObject {
+    /// The record's [`ObjectRecord::version`] when sent.
+    version: u64,
     mesh: Option<Arc<Mesh>>,
     appearance: Appearance,
     parts: Option<ObjectParts>,
@@ -90,6 +92,7 @@ struct SentObject {
 impl SentObject {
     fn of(rec: &ObjectRecord) -> SentObject {
         SentObject {
+            version: rec.version,
             mesh: rec.mesh.clone(),
             appearance: rec.appearance.clone(),
             parts: rec.parts.clone(),
@@ -97,9 +100,16 @@ impl SentObject {
         }
     }
 
-    /// Whether `rec` is what was sent: the same mesh (by address: the kept `Arc` cannot be freed
-    /// and its address reused), appearance and parts.
+    /// Whether `rec` is what was sent: the same version (the same mesh, appearance and parts).
     fn is(&self, rec: &ObjectRecord) -> bool {
+        let same = self.version == rec.version;
+        debug_assert!(!same || self.same_contents(rec), "an object changed without a new version");
+        same
+    }
+
+    /// Whether `rec` has the contents that were sent: the same mesh (by address: the kept `Arc`
+    /// cannot be freed and its address reused), appearance and parts.
+    fn same_contents(&self, rec: &ObjectRecord) -> bool {
         let same_mesh = match (&self.mesh, &rec.mesh) {
             (Some(a), Some(b)) => Arc::ptr_eq(a, b),
             (None, None) => true,
@@ -416,6 +426,7 @@ impl Context {
         }
         self.objects.resize_with(u.object_count as usize, ObjectRecord::empty);
         for (id, o) in u.objects {
+            let version = self.next_object_version();
             let rec = &mut self.objects[id as usize];
             rec.mesh = o.mesh.map(Arc::new);
             rec.remote = o.summary;
@@ -423,6 +434,7 @@ impl Context {
             rec.parts = o.parts;
             rec.deleted = o.deleted;
             rec.dirty = true;
+            rec.version = version;
         }
         let mut instances = u.instances.into_iter().peekable();
         let old = self.instances.len();
