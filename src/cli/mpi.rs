@@ -133,12 +133,11 @@ pub(crate) fn demand_line(
 ) -> String {
     let mb = |b: f64| b / 1e6;
     // Of the objects rays reached (per worker and frame), those a worker held already.
-    let hits = fetched.reached.saturating_sub(fetched.objects);
-    let hit_rate = match fetched.reached {
-        0 => "no object reached".to_string(),
-        reached => {
-            format!("{:.1}% of the {reached} objects rays reached were held", 100.0 * hits as f64 / reached as f64)
-        }
+    let over_frames =
+        Demand { fetched_objects: fetched.objects, reached_objects: fetched.reached, ..Demand::default() };
+    let hit_rate = match over_frames.hit_rate() {
+        None => "no object reached".to_string(),
+        Some(rate) => format!("{:.1}% of the {} objects rays reached were held", 100.0 * rate, fetched.reached),
     };
     format!(
         "demand loading, {what}: {} object(s), {:.2} MB fetched by {workers} worker(s) ({:.2} MB per worker) of the scene's {} object(s) and {:.2} MB of meshes; {} texture(s), {:.2} MB; cache hits: {hit_rate}; held now: at most {} object(s) per worker ({} evicted before the last frame)",
