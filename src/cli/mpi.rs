@@ -92,6 +92,7 @@ pub(crate) struct Fetched {
     objects: u64,
     object_bytes: u64,
     textures: u64,
+    texture_levels: u64,
     texture_bytes: u64,
     /// Objects the workers' rays reached, each counted by every worker and frame that reached it.
     reached: u64,
@@ -103,6 +104,7 @@ impl From<&Demand> for Fetched {
             objects: d.fetched_objects,
             object_bytes: d.fetched_bytes,
             textures: d.fetched_textures,
+            texture_levels: d.fetched_texture_levels,
             texture_bytes: d.fetched_texture_bytes,
             reached: d.reached_objects,
         }
@@ -116,6 +118,7 @@ impl std::ops::Add for Fetched {
             objects: self.objects + o.objects,
             object_bytes: self.object_bytes + o.object_bytes,
             textures: self.textures + o.textures,
+            texture_levels: self.texture_levels + o.texture_levels,
             texture_bytes: self.texture_bytes + o.texture_bytes,
             reached: self.reached + o.reached,
         }
@@ -140,13 +143,14 @@ pub(crate) fn demand_line(
         Some(rate) => format!("{:.1}% of the {} objects rays reached were held", 100.0 * rate, fetched.reached),
     };
     format!(
-        "demand loading, {what}: {} object(s), {:.2} MB fetched by {workers} worker(s) ({:.2} MB per worker) of the scene's {} object(s) and {:.2} MB of meshes; {} texture(s), {:.2} MB; cache hits: {hit_rate}; held now: at most {} object(s) per worker ({} evicted before the last frame)",
+        "demand loading, {what}: {} object(s), {:.2} MB fetched by {workers} worker(s) ({:.2} MB per worker) of the scene's {} object(s) and {:.2} MB of meshes; {} texture(s) and {} mip level(s), {:.2} MB; cache hits: {hit_rate}; held now: at most {} object(s) per worker ({} evicted before the last frame)",
         fetched.objects,
         mb(fetched.object_bytes as f64),
         mb(fetched.object_bytes as f64 / workers.max(1) as f64),
         scene.0,
         mb(scene.1 as f64),
         fetched.textures,
+        fetched.texture_levels,
         mb(fetched.texture_bytes as f64),
         held.most_resident_objects,
         held.evicted_objects

@@ -77,9 +77,7 @@ impl Context {
                     masks
                         .entry((name.clone(), cutoff.to_bits()))
                         .or_insert_with(|| match textures.get_texture(name, false) {
-                            Some(mip) => {
-                                mip.levels().first().and_then(|l| AlphaMask::from_image(l, *cutoff)).map(Arc::new)
-                            }
+                            Some(mip) => AlphaMask::from_image(mip.level(0), *cutoff).map(Arc::new),
                             None => {
                                 warnings.push(format!("alpha mask \"{name}\": texture not found; the object is solid"));
                                 None

@@ -18,7 +18,7 @@ use crate::accel::object::{FetchedMesh, MeshSource};
 use crate::accel::wire::decode_bvh4;
 use crate::api::decode_mesh;
 use crate::scene::Scene;
-use crate::texture::{Delivered, TextureKind, TextureSource};
+use crate::texture::{decode_answer, Delivered, TextureAnswer, TexturePart, TextureSource};
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
 use std::sync::mpsc::{channel, Sender};
@@ -33,8 +33,8 @@ const FETCH_TIMEOUT: Duration = Duration::from_secs(300);
 pub(super) enum Want {
     /// The mesh of an object, by its id.
     Mesh(u32),
-    /// What a texture name stands for, looked up as `kind`.
-    Texture(TextureKind, String),
+    /// Part of what a texture name stands for.
+    Texture(TexturePart, String),
 }
 
 /// The link between a worker's render threads and its communication thread.
@@ -47,6 +47,7 @@ pub struct FetchLink {
     fetched_objects: AtomicU64,
     fetched_bytes: AtomicU64,
     fetched_textures: AtomicU64,
+    fetched_texture_levels: AtomicU64,
     fetched_texture_bytes: AtomicU64,
     /// Render threads' time waiting for the master's answers, and making fetched meshes ready
     /// (decoding them, building their BVHs), this frame (nanoseconds).
@@ -70,7 +71,10 @@ pub(super) struct Fetched {
     pub failure: Option<String>,
     pub objects: u64,
     pub object_bytes: u64,
+    /// Textures, shadow maps and grids (a texture's first answer), and the mip levels fetched
+    /// after it, with the bytes of both.
     pub textures: u64,
+    pub texture_levels: u64,
     pub texture_bytes: u64,
     /// Objects evicted before the frame.
     pub evicted: u64,
@@ -108,6 +112,7 @@ impl FetchLink {
             objects: take(&self.fetched_objects),
             object_bytes: take(&self.fetched_bytes),
             textures: take(&self.fetched_textures),
+            texture_levels: take(&self.fetched_texture_levels),
             texture_bytes: take(&self.fetched_texture_bytes),
             evicted: take(&self.evicted),
             waiting: Duration::from_nanos(take(&self.waiting_ns)),
@@ -186,12 +191,6 @@ fn defer<F: FnOnce()>(f: F) -> impl Drop {
     Defer(Some(f))
 }
 
-/// How [`Delivered`] travels: postcard.
-pub(super) fn encode_delivered(d: &Delivered) -> Vec<u8> {
-    // Plain data of vectors and strings: encoding it cannot fail.
-    postcard::to_allocvec(d).unwrap_or_default()
-}
-
 /// Drops the meshes of the demand-loaded objects of `scene` that rays reached least recently
 /// until those held take at most `limit` bytes; returns how many were dropped. Objects reached in
 /// the current frame go last, and go too if they alone exceed the limit (they are fetched again
@@ -257,20 +256,25 @@ impl MeshSource for FetchLink {
 }
 
 impl TextureSource for FetchLink {
-    fn fetch(&self, kind: TextureKind, name: &str) -> Delivered {
+    fn fetch(&self, part: TexturePart, name: &str) -> TextureAnswer {
         let failed = |reason: String| {
             self.fail(format!("texture \"{name}\": {reason}"));
-            Delivered::Missing { path: None, reason }
+            TextureAnswer::Whole(Delivered::Missing { path: None, reason })
         };
-        let Some(bytes) = self.request(Want::Texture(kind, name.to_string())) else {
+        let Some(bytes) = self.request(Want::Texture(part, name.to_string())) else {
             return failed("it never came from the master".into());
         };
-        self.fetched_textures.fetch_add(1, Ordering::Relaxed);
+        let counter = match part {
+            TexturePart::Level { .. } => &self.fetched_texture_levels,
+            TexturePart::Whole(_) | TexturePart::Pyramid { .. } => &self.fetched_textures,
+        };
+        counter.fetch_add(1, Ordering::Relaxed);
         self.fetched_texture_bytes.fetch_add(bytes.len() as u64, Ordering::Relaxed);
-        match postcard::from_bytes::<Delivered>(&bytes) {
-            Ok(delivered) => delivered,
-            Err(e) => failed(format!("the master's answer cannot be decoded: {e}")),
-        }
+        decode_answer(&bytes).unwrap_or_else(failed)
+    }
+
+    fn failed(&self, message: String) {
+        self.fail(message);
     }
 }
 
@@ -281,14 +285,14 @@ pub(super) struct Pending(HashMap<Want, Vec<Sender<Vec<u8>>>>);
 impl Pending {
     /// Takes `link`'s queued requests; returns what to ask the master for (what is not already
     /// asked for): objects, and textures by kind and name.
-    pub(super) fn take(&mut self, link: &FetchLink) -> (Vec<u32>, Vec<(TextureKind, String)>) {
+    pub(super) fn take(&mut self, link: &FetchLink) -> (Vec<u32>, Vec<(TexturePart, String)>) {
         let (mut objects, mut textures) = (Vec::new(), Vec::new());
         for (want, tx) in link.take_requests() {
             let waiting = self.0.entry(want.clone()).or_default();
             if waiting.is_empty() {
                 match want {
                     Want::Mesh(object) => objects.push(object),
-                    Want::Texture(kind, name) => textures.push((kind, name)),
+                    Want::Texture(part, name) => textures.push((part, name)),
                 }
             }
             waiting.push(tx);
@@ -307,11 +311,11 @@ impl Pending {
     }
 
     /// Hands the master's answer to the threads waiting for it.
-    pub(super) fn answer(&mut self, meshes: Vec<(u32, Vec<u8>)>, textures: Vec<(TextureKind, String, Vec<u8>)>) {
+    pub(super) fn answer(&mut self, meshes: Vec<(u32, Vec<u8>)>, textures: Vec<(TexturePart, String, Vec<u8>)>) {
         let answers = meshes
             .into_iter()
             .map(|(object, bytes)| (Want::Mesh(object), bytes))
-            .chain(textures.into_iter().map(|(kind, name, bytes)| (Want::Texture(kind, name), bytes)));
+            .chain(textures.into_iter().map(|(part, name, bytes)| (Want::Texture(part, name), bytes)));
         for (want, bytes) in answers {
             for tx in self.0.remove(&want).unwrap_or_default() {
                 // A thread that gave up waiting has dropped its receiver.

@@ -1,7 +1,7 @@
 //! The master: the rank that owns the scene and the output. It greets its workers, hands each
 //! frame's tiles out on demand ([`Schedule`]), and assembles the image from the tiles they send.
 
-use super::fetch::{encode_delivered, encode_object};
+use super::fetch::encode_object;
 use super::message::{
     build_fingerprint, greeting_version, FrameCounts, Job, LatticeUnit, Message, RenderedUnits, PROTOCOL_VERSION,
 };
@@ -12,7 +12,7 @@ use crate::accel::wire::encode_bvh4;
 use crate::api::{encode_mesh, Context, Replicator};
 use crate::render::progressive::{lattice_lanes, BatchReport, LatticeSamples, LatticeTracer, PixelLattice};
 use crate::render::{FrameReport, Framebuffer, LightPathCache, LightPaths, RenderedTile, TileRenderer, World};
-use crate::texture::Delivered;
+use crate::texture::{encode_answer, Delivered, TextureAnswer, TextureServer};
 use std::collections::HashMap;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -104,6 +104,8 @@ pub struct Master<T: Transport> {
     /// encoded again while its mesh stands.
     encoded_objects: HashMap<u32, (Arc<crate::geometry::Mesh>, Arc<Vec<u8>>)>,
     encoded_bytes: usize,
+    /// The textures the workers fetched, each decoded and mip-mapped once.
+    texture_server: TextureServer,
     /// The light paths of the viewer's pass being traced ([`Master::trace_lattices`]), and the
     /// paths the workers were last sent (they keep them for the pass's next pieces).
     light_paths: LightPathCache,
@@ -185,8 +187,10 @@ pub struct Demand {
     /// Objects the workers fetched, and the bytes of their meshes.
     pub fetched_objects: u64,
     pub fetched_bytes: u64,
-    /// Textures, shadow maps and grids the workers fetched, and their bytes.
+    /// Textures, shadow maps and grids the workers fetched, the mip levels they fetched after a
+    /// texture's first answer, and the bytes of both.
     pub fetched_textures: u64,
+    pub fetched_texture_levels: u64,
     pub fetched_texture_bytes: u64,
     /// Objects the workers evicted from their caches before the frame.
     pub evicted_objects: u64,
@@ -228,6 +232,7 @@ impl<T: Transport> Master<T> {
             worker_times: Vec::new(),
             encoded_objects: HashMap::new(),
             encoded_bytes: 0,
+            texture_server: TextureServer::new(),
             light_paths: LightPathCache::default(),
             sent_light_paths: LightPaths::default(),
         };
@@ -620,14 +625,19 @@ impl<T: Transport> Master<T> {
                     let meshes = objects.into_iter().map(|id| (id, self.encoded_object(id, source, world))).collect();
                     let textures = textures
                         .into_iter()
-                        .map(|(kind, name)| {
-                            let delivered = match source {
-                                Some(rt) => rt.deliver_texture(kind, &name),
-                                None => {
-                                    Delivered::Missing { path: None, reason: "the master serves no textures".into() }
+                        .map(|(part, name)| {
+                            let answer = match source {
+                                Some(rt) => {
+                                    let generation = rt.textures().generation();
+                                    let deliver = |kind| rt.deliver_texture(kind, &name);
+                                    self.texture_server.answer(generation, part, &name, deliver).to_vec()
                                 }
+                                None => encode_answer(&TextureAnswer::Whole(Delivered::Missing {
+                                    path: None,
+                                    reason: "the master serves no textures".into(),
+                                })),
                             };
-                            (kind, name, encode_delivered(&delivered))
+                            (part, name, answer)
                         })
                         .collect();
                     let m = Message::Data { frame, meshes, textures }.encode();
@@ -655,6 +665,7 @@ impl<T: Transport> Master<T> {
             fetched_objects: counts.iter().map(|c| c.fetched_objects).sum(),
             fetched_bytes: counts.iter().map(|c| c.fetched_bytes).sum(),
             fetched_textures: counts.iter().map(|c| c.fetched_textures).sum(),
+            fetched_texture_levels: counts.iter().map(|c| c.fetched_texture_levels).sum(),
             fetched_texture_bytes: counts.iter().map(|c| c.fetched_texture_bytes).sum(),
             evicted_objects: counts.iter().map(|c| c.evicted_objects).sum(),
             resident_objects: counts.iter().map(|c| c.resident_objects).sum(),

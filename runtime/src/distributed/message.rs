@@ -4,11 +4,11 @@
 //! panic or an allocation larger than the message.
 
 use crate::render::progressive::PixelLattice;
-use crate::texture::TextureKind;
+use crate::texture::{TextureKind, TexturePart};
 use rtsl_compiler::interface::ShaderKind;
 
 /// The protocol's version: ranks that speak different versions refuse each other at start-up.
-pub const PROTOCOL_VERSION: u32 = 18;
+pub const PROTOCOL_VERSION: u32 = 19;
 
 /// What the master's counters add up from a worker's share of a frame.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -34,12 +34,14 @@ pub struct FrameCounts {
     /// Textures the worker could not load: name, file (empty when none was found) and why.
     pub texture_warnings: Vec<(String, String, String)>,
     /// Demand loading: objects fetched from the master this frame and their bytes, textures
-    /// (shadow maps and grids included) and theirs, objects evicted from the cache before the
+    /// (shadow maps and grids included), the mip levels fetched after a texture's first answer,
+    /// and the bytes of both, objects evicted from the cache before the
     /// frame, objects held after it, and objects rays reached in the frame (held before it or
     /// fetched by it: the fetched ones are the cache's misses).
     pub fetched_objects: u64,
     pub fetched_bytes: u64,
     pub fetched_textures: u64,
+    pub fetched_texture_levels: u64,
     pub fetched_texture_bytes: u64,
     pub evicted_objects: u64,
     pub resident_objects: u64,
@@ -78,6 +80,9 @@ pub struct LatticeUnit {
 
 /// A message of the protocol.
 #[derive(Clone, Debug, PartialEq)]
+// A message is held one at a time, between its bytes and what they stand for: a frame's counts
+// kept inline cost nothing, boxed they would cost an allocation.
+#[allow(clippy::large_enum_variant)]
 pub enum Message {
     /// Worker to master, once, first: who it is and whether its scene loaded.
     Hello {
@@ -115,12 +120,12 @@ pub enum Message {
     Quit,
     /// Worker to master: send the meshes of these objects and what these texture names stand
     /// for (demand loading), for frame `frame`.
-    Fetch { frame: u64, objects: Vec<u32>, textures: Vec<(TextureKind, String)> },
+    Fetch { frame: u64, objects: Vec<u32>, textures: Vec<(TexturePart, String)> },
     /// Master to worker: what was asked for: each object's id and its mesh with the BVH the
     /// master built over it, as `fetch::encode_object` writes them (empty: the object has no mesh
     /// now), and each
-    /// texture's kind, name and [`crate::texture::Delivered`] (postcard).
-    Data { frame: u64, meshes: Vec<(u32, Vec<u8>)>, textures: Vec<(TextureKind, String, Vec<u8>)> },
+    /// texture part asked for, its name and the [`crate::texture::TextureAnswer`] (postcard).
+    Data { frame: u64, meshes: Vec<(u32, Vec<u8>)>, textures: Vec<(TexturePart, String, Vec<u8>)> },
     /// Master to worker, between frames: another scene replaces the one being replicated. The
     /// worker drops its copy and everything it kept of it (the world and its BVHs, fetched meshes
     /// and textures, programs, light paths) and starts again from an empty scene, which the next
@@ -235,6 +240,7 @@ impl Message {
                 w.u64(counts.fetched_objects);
                 w.u64(counts.fetched_bytes);
                 w.u64(counts.fetched_textures);
+                w.u64(counts.fetched_texture_levels);
                 w.u64(counts.fetched_texture_bytes);
                 w.u64(counts.evicted_objects);
                 w.u64(counts.resident_objects);
@@ -276,8 +282,8 @@ impl Message {
                 w.u64(*frame);
                 w.u32s(objects);
                 w.u32(textures.len() as u32);
-                for (kind, name) in textures {
-                    w.u8(kind_byte(*kind));
+                for (part, name) in textures {
+                    w.part(*part);
                     w.str(name);
                 }
             }
@@ -290,8 +296,8 @@ impl Message {
                     w.bytes(mesh);
                 }
                 w.u32(textures.len() as u32);
-                for (kind, name, bytes) in textures {
-                    w.u8(kind_byte(*kind));
+                for (part, name, bytes) in textures {
+                    w.part(*part);
                     w.str(name);
                     w.bytes(bytes);
                 }
@@ -326,7 +332,7 @@ impl Message {
                 let (shaded_points, light_evaluations) = (r.u64()?, r.u64()?);
                 let (rays_cut, lights_dropped) = (r.u64()?, r.u64()?);
                 let (fetched_objects, fetched_bytes) = (r.u64()?, r.u64()?);
-                let (fetched_textures, fetched_texture_bytes) = (r.u64()?, r.u64()?);
+                let (fetched_textures, fetched_texture_levels, fetched_texture_bytes) = (r.u64()?, r.u64()?, r.u64()?);
                 let (evicted_objects, resident_objects, reached_objects) = (r.u64()?, r.u64()?, r.u64()?);
                 let (world_ns, share_ns, rendering_ns) = (r.u64()?, r.u64()?, r.u64()?);
                 let (fetch_wait_ns, fetch_build_ns) = (r.u64()?, r.u64()?);
@@ -358,6 +364,7 @@ impl Message {
                     fetched_objects,
                     fetched_bytes,
                     fetched_textures,
+                    fetched_texture_levels,
                     fetched_texture_bytes,
                     evicted_objects,
                     resident_objects,
@@ -375,7 +382,7 @@ impl Message {
             FETCH => {
                 let (frame, objects) = (r.u64()?, r.u32s()?);
                 let n = r.count(9)?;
-                let textures = (0..n).map(|_| Ok((r.kind()?, r.str()?))).collect::<Result<_, String>>()?;
+                let textures = (0..n).map(|_| Ok((r.part()?, r.str()?))).collect::<Result<_, String>>()?;
                 Message::Fetch { frame, objects, textures }
             }
             DATA => {
@@ -383,7 +390,7 @@ impl Message {
                 let n = r.count(12)?;
                 let meshes = (0..n).map(|_| Ok((r.u32()?, r.bytes()?))).collect::<Result<_, String>>()?;
                 let n = r.count(17)?;
-                let textures = (0..n).map(|_| Ok((r.kind()?, r.str()?, r.bytes()?))).collect::<Result<_, String>>()?;
+                let textures = (0..n).map(|_| Ok((r.part()?, r.str()?, r.bytes()?))).collect::<Result<_, String>>()?;
                 Message::Data { frame, meshes, textures }
             }
             tag => return Err(format!("unknown message kind {tag}")),
@@ -421,6 +428,23 @@ impl Writer {
     fn str(&mut self, v: &str) {
         self.bytes(v.as_bytes());
     }
+    /// See `Reader::part`.
+    fn part(&mut self, part: TexturePart) {
+        match part {
+            TexturePart::Whole(TextureKind::Texture) => self.u8(0),
+            TexturePart::Whole(TextureKind::Shadow) => self.u8(1),
+            TexturePart::Whole(TextureKind::Grid) => self.u8(2),
+            TexturePart::Pyramid { raw } => {
+                self.u8(3);
+                self.u8(u8::from(raw));
+            }
+            TexturePart::Level { raw, level } => {
+                self.u8(4);
+                self.u8(u8::from(raw));
+                self.u32(level);
+            }
+        }
+    }
     fn opt_str(&mut self, v: Option<&str>) {
         match v {
             None => self.u8(0),
@@ -444,14 +468,6 @@ impl Writer {
             }
             self.u64(u.lanes);
         }
-    }
-}
-
-fn kind_byte(kind: TextureKind) -> u8 {
-    match kind {
-        TextureKind::Texture => 0,
-        TextureKind::Shadow => 1,
-        TextureKind::Grid => 2,
     }
 }
 
@@ -552,13 +568,26 @@ impl<'a> Reader<'a> {
         let n = self.count(4)?;
         (0..n).map(|_| self.u32()).collect()
     }
-    fn kind(&mut self) -> Result<TextureKind, String> {
-        match self.u8()? {
-            0 => Ok(TextureKind::Texture),
-            1 => Ok(TextureKind::Shadow),
-            2 => Ok(TextureKind::Grid),
-            v => Err(format!("{v} is no kind of texture")),
-        }
+    /// A [`TexturePart`]: a byte (0 to 2 the whole as a texture, shadow map or grid, 3 a
+    /// pyramid, 4 a level), then for a pyramid or level whether raw (a byte), and a level's index.
+    fn part(&mut self) -> Result<TexturePart, String> {
+        let tag = self.u8()?;
+        let mut raw = || match self.u8()? {
+            0 => Ok(false),
+            1 => Ok(true),
+            v => Err(format!("{v} is not a flag")),
+        };
+        Ok(match tag {
+            0 => TexturePart::Whole(TextureKind::Texture),
+            1 => TexturePart::Whole(TextureKind::Shadow),
+            2 => TexturePart::Whole(TextureKind::Grid),
+            3 => TexturePart::Pyramid { raw: raw()? },
+            4 => {
+                let raw = raw()?;
+                TexturePart::Level { raw, level: self.u32()? }
+            }
+            v => Err(format!("{v} is no part of a texture"))?,
+        })
     }
     fn lattices(&mut self) -> Result<Vec<LatticeUnit>, String> {
         let n = self.count(20)?;
@@ -626,6 +655,7 @@ mod tests {
                     fetched_objects: 11,
                     fetched_bytes: 12,
                     fetched_textures: 15,
+                    fetched_texture_levels: 25,
                     fetched_texture_bytes: 16,
                     evicted_objects: 13,
                     resident_objects: 14,
@@ -644,13 +674,21 @@ mod tests {
             Message::Fetch {
                 frame: 2,
                 objects: vec![],
-                textures: vec![(TextureKind::Shadow, "key.shad".into()), (TextureKind::Grid, String::new())],
+                textures: vec![
+                    (TexturePart::Whole(TextureKind::Shadow), "key.shad".into()),
+                    (TexturePart::Whole(TextureKind::Grid), String::new()),
+                    (TexturePart::Pyramid { raw: true }, "wood.ppm".into()),
+                    (TexturePart::Level { raw: false, level: 3 }, "wood.ppm".into()),
+                ],
             },
             Message::Data { frame: 2, meshes: vec![(4, vec![1, 2, 3]), (1, vec![])], textures: vec![] },
             Message::Data {
                 frame: 3,
                 meshes: vec![],
-                textures: vec![(TextureKind::Texture, "grain.png".into(), vec![7; 9])],
+                textures: vec![
+                    (TexturePart::Whole(TextureKind::Texture), "grain.png".into(), vec![7; 9]),
+                    (TexturePart::Level { raw: true, level: u32::MAX }, "grain.png".into(), vec![]),
+                ],
             },
         ]
     }

@@ -456,7 +456,8 @@ fn render_share<T: Transport + ?Sized>(
         let fetched = link.take_frame();
         failure = fetched.failure;
         (counts.fetched_objects, counts.fetched_bytes) = (fetched.objects, fetched.object_bytes);
-        (counts.fetched_textures, counts.fetched_texture_bytes) = (fetched.textures, fetched.texture_bytes);
+        (counts.fetched_textures, counts.fetched_texture_levels, counts.fetched_texture_bytes) =
+            (fetched.textures, fetched.texture_levels, fetched.texture_bytes);
         counts.evicted_objects = fetched.evicted;
         counts.fetch_wait_ns = fetched.waiting.as_nanos() as u64;
         counts.fetch_build_ns = fetched.building.as_nanos() as u64;

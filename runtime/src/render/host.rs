@@ -1239,7 +1239,7 @@ mod tests {
     }
 
     fn value(handles: &mut TextureHandles, cache: &TextureCache, name: &str) -> Option<f32> {
-        handles.get(cache, name).map(|m| m.levels()[0].data()[0])
+        handles.get(cache, name).map(|m| m.level(0).data()[0])
     }
 
     /// Handles kept from call to call give what the cache gives, and follow it when a name comes

@@ -23,7 +23,11 @@ use super::environment::latlong_footprint;
 use super::grid::Grid;
 use super::image::{decode_texture_file, load_texture_image, TexImage};
 use super::mip::MipMap;
+use super::remote::remote_map;
 use super::shadow::ShadowMap;
+use super::source::{
+    error_chain, image_from_delivered, Delivered, TextureAnswer, TextureKind, TexturePart, TextureSource,
+};
 use super::{Footprint, LookupOptions, Wrap};
 
 type Slot<T> = Arc<OnceLock<Option<Arc<T>>>>;
@@ -47,60 +51,10 @@ impl fmt::Display for TextureWarning {
     }
 }
 
-/// What a name is looked up as: each has a cache of its own, and is decoded its own way.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
-pub enum TextureKind {
-    /// `texture()` and `environment()`: an image, mip-mapped.
-    Texture,
-    /// `shadow()`: a depth map with its matrices.
-    Shadow,
-    /// `texture3d()`: a 3-D grid.
-    Grid,
-}
-
-/// What a [`TextureSource`] delivers for a name.
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-pub enum Delivered {
-    /// A file's bytes, decoded here as the file would be; `path` is what warnings call it.
-    File { path: PathBuf, bytes: Vec<u8> },
-    /// An image built in memory (`Context::tex_image_2d`): its texels, rows top to bottom. It
-    /// repeats (periodic wrap).
-    Image { width: u32, height: u32, channels: u32, texels: Vec<f32> },
-    /// The same, when every texel value is a multiple of 1/255 (an 8-bit image taken as stored):
-    /// each value times 255, a quarter of the bytes.
-    Image8 { width: u32, height: u32, channels: u32, values: Vec<u8> },
-    /// Nothing: why, and the file when one was found (the warning a cache reading files itself
-    /// would give).
-    Missing { path: Option<PathBuf>, reason: String },
-}
-
-impl Delivered {
-    /// An image built in memory, as [`Delivered::Image8`] where that holds every value exactly.
-    pub fn image(image: &TexImage) -> Delivered {
-        let [width, height, channels] = [image.width(), image.height(), image.channels()].map(|n| n as u32);
-        let eight_bit = |v: f32| {
-            let b = (v * 255.0).round();
-            ((0.0..=255.0).contains(&b) && (b / 255.0).to_bits() == v.to_bits()).then_some(b as u8)
-        };
-        match image.data().iter().map(|&v| eight_bit(v)).collect::<Option<Vec<u8>>>() {
-            Some(values) => Delivered::Image8 { width, height, channels, values },
-            None => Delivered::Image { width, height, channels, texels: image.data().to_vec() },
-        }
-    }
-}
-
-/// Where a cache gets what names stand for instead of reading files (see the module doc).
-pub trait TextureSource: Send + Sync + fmt::Debug {
-    /// What `name` stands for as a `kind`; blocks until it is here. A source that cannot deliver
-    /// says why with [`Delivered::Missing`].
-    fn fetch(&self, kind: TextureKind, name: &str) -> Delivered;
-}
-
 /// What a name's loader is given.
 enum Input<'a> {
     File(&'a Path),
     Bytes(&'a Path, &'a [u8]),
-    Image(TexImage),
 }
 
 /// One lane of a batched texture lookup ([`TextureCache::texture_batch`]).
@@ -207,21 +161,53 @@ impl TextureCache {
     /// The texture called `name`, loading it on first use; `None` when it cannot be loaded.
     pub fn get_texture(&self, name: &str, raw: bool) -> Option<Arc<MipMap>> {
         let slot = slot(&self.textures[raw as usize], name);
-        slot.get_or_init(|| {
-            self.load(name, TextureKind::Texture, |input| {
+        slot.get_or_init(|| match &self.source {
+            Some(source) => self.fetch_texture(source, name, raw),
+            None => self.load(name, TextureKind::Texture, |input| {
                 let loaded = match input {
                     Input::File(path) => load_texture_image(path, raw),
                     Input::Bytes(path, bytes) => decode_texture_file(path, bytes, raw),
-                    Input::Image(image) => return Ok(MipMap::with_wrap(image, [Wrap::Periodic; 2])),
                 };
                 loaded
                     .map(|l| {
                         MipMap::with_wrap(l.image, l.wrap.unwrap_or([Wrap::Periodic; 2])).with_projection(l.projection)
                     })
                     .map_err(|e| error_chain(&e))
-            })
+            }),
         })
         .clone()
+    }
+
+    /// Texture `name` from the cache's source: its pyramid, whose finer levels come when lookups
+    /// first read them (`texture/remote.rs`), or the whole texture.
+    fn fetch_texture(&self, source: &Arc<dyn TextureSource>, name: &str, raw: bool) -> Option<Arc<MipMap>> {
+        match source.fetch(TexturePart::Pyramid { raw }, name) {
+            TextureAnswer::Whole(delivered) => match image_from_delivered(delivered, raw) {
+                Ok(l) => {
+                    let map = MipMap::with_wrap(l.image, l.wrap.unwrap_or([Wrap::Periodic; 2]));
+                    Some(Arc::new(map.with_projection(l.projection)))
+                }
+                Err((path, reason)) => self.warn(name, path, reason),
+            },
+            TextureAnswer::Pyramid(header) => match remote_map(header, source.clone(), name, raw) {
+                Some(map) => Some(Arc::new(map)),
+                None => {
+                    source.failed(format!("texture \"{name}\": the description of its pyramid does not hold"));
+                    None
+                }
+            },
+            TextureAnswer::Level(_) => {
+                source.failed(format!("texture \"{name}\": a level came where its pyramid was asked for"));
+                None
+            }
+        }
+    }
+
+    /// Records the warning that `name` cannot be loaded, and gives what its lookups get.
+    fn warn<T>(&self, name: &str, path: Option<PathBuf>, reason: String) -> Option<T> {
+        let warning = TextureWarning { name: name.to_string(), path, reason };
+        self.warnings.lock().unwrap_or_else(PoisonError::into_inner).push(warning);
+        None
     }
 
     /// The shadow map called `name`, loading it on first use; `None` when it cannot be loaded.
@@ -229,7 +215,6 @@ impl TextureCache {
         let load = |input: Input| match input {
             Input::File(path) => ShadowMap::load(path).map_err(|e| error_chain(&e)),
             Input::Bytes(path, bytes) => ShadowMap::decode(path, bytes).map_err(|e| error_chain(&e)),
-            Input::Image(_) => Err("an image built in memory is no shadow map".into()),
         };
         slot(&self.shadows, name).get_or_init(|| self.load(name, TextureKind::Shadow, load)).clone()
     }
@@ -239,7 +224,6 @@ impl TextureCache {
         let load = |input: Input| match input {
             Input::File(path) => Grid::load(path).map_err(|e| error_chain(&e)),
             Input::Bytes(_, bytes) => Grid::parse(bytes),
-            Input::Image(_) => Err("an image built in memory is no grid".into()),
         };
         slot(&self.grids, name).get_or_init(|| self.load(name, TextureKind::Grid, load)).clone()
     }
@@ -410,11 +394,7 @@ impl TextureCache {
         kind: TextureKind,
         load: impl FnOnce(Input) -> Result<T, E>,
     ) -> Option<Arc<T>> {
-        let warn = |path: Option<PathBuf>, reason: String| {
-            let warning = TextureWarning { name: name.to_string(), path, reason };
-            self.warnings.lock().unwrap_or_else(PoisonError::into_inner).push(warning);
-            None
-        };
+        let warn = |path: Option<PathBuf>, reason: String| self.warn(name, path, reason);
         let (path, loaded) = match &self.source {
             None => match self.locate(name) {
                 Ok(path) => {
@@ -424,27 +404,19 @@ impl TextureCache {
                 }
                 Err(reason) => return warn(None, reason),
             },
-            Some(source) => match source.fetch(kind, name) {
-                Delivered::File { path, bytes } => {
+            Some(source) => match source.fetch(TexturePart::Whole(kind), name) {
+                TextureAnswer::Whole(Delivered::File { path, bytes }) => {
                     let loaded = load(Input::Bytes(&path, &bytes));
                     (Some(path), loaded)
                 }
-                Delivered::Image { width, height, channels, texels } => {
-                    let [w, h, c] = [width, height, channels].map(|n| n as usize);
-                    match TexImage::new(w, h, c, texels) {
-                        Some(image) => (None, load(Input::Image(image))),
-                        None => return warn(None, "its size and its texels differ".into()),
-                    }
+                TextureAnswer::Whole(Delivered::Missing { path, reason }) => return warn(path, reason),
+                TextureAnswer::Whole(Delivered::Image { .. } | Delivered::Image8 { .. }) => {
+                    return warn(None, "an image built in memory is no shadow map or grid".into())
                 }
-                Delivered::Image8 { width, height, channels, values } => {
-                    let [w, h, c] = [width, height, channels].map(|n| n as usize);
-                    let texels = values.iter().map(|&v| f32::from(v) / 255.0).collect();
-                    match TexImage::new(w, h, c, texels) {
-                        Some(image) => (None, load(Input::Image(image))),
-                        None => return warn(None, "its size and its texels differ".into()),
-                    }
+                TextureAnswer::Pyramid(_) | TextureAnswer::Level(_) => {
+                    source.failed(format!("\"{name}\": part of a texture came where the whole was asked for"));
+                    return None;
                 }
-                Delivered::Missing { path, reason } => return warn(path, reason),
             },
         };
         match loaded {
@@ -452,17 +424,6 @@ impl TextureCache {
             Err(e) => warn(path, e.to_string()),
         }
     }
-}
-
-/// An error's message followed by its causes', as anyhow's `{:#}` writes them.
-fn error_chain(e: &dyn std::error::Error) -> String {
-    let mut text = e.to_string();
-    let mut cause = e.source();
-    while let Some(c) = cause {
-        text = format!("{text}: {c}");
-        cause = c.source();
-    }
-    text
 }
 
 /// The slot for `name`, made empty if it is new. The read lock covers the common case.

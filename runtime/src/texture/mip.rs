@@ -22,6 +22,8 @@
 use super::image::{TexImage, TEXEL_PADDING};
 use super::{Footprint, LookupOptions, Wrap};
 use glam::{BVec4A, IVec4, Mat4, UVec4, Vec4};
+use std::fmt;
+use std::sync::{Arc, Mutex, OnceLock, PoisonError};
 
 /// The most probes along a footprint's major axis; longer footprints are blurred across.
 pub const MAX_ANISOTROPY: usize = 16;
@@ -34,9 +36,17 @@ pub const MAX_ANISOTROPY: usize = 16;
 const ANISOTROPY_SLACK: f32 = 0.25;
 
 /// A texture with its pre-filtered levels, immutable once built (so it is shared freely).
-#[derive(Clone, Debug)]
+///
+/// A map built here ([`MipMap::with_wrap`]) holds every level. A map a distributed worker
+/// fetches ([`MipMap::remote`]) starts with its coarsest levels and gets each finer one the
+/// first time a lookup reads it: computed from a finer level it holds, else fetched
+/// (`texture/remote.rs`). Either way a level, once here, is the one the whole image would
+/// have made, bit for bit, and stays.
 pub struct MipMap {
-    levels: Vec<TexImage>,
+    /// Finest (the image itself) first; set once each.
+    levels: Box<[OnceLock<TexImage>]>,
+    /// Where the levels not yet here come from (a map built here has none missing).
+    remote: Option<RemoteLevels>,
     /// The wrap modes of the file (s, t); a lookup may override them.
     wrap: [Wrap; 2],
     /// `worldToCamera` and `worldToNDC` from the file's header, if it had them.
@@ -51,6 +61,79 @@ pub struct MipMap {
     /// No level has an infinite or NaN value, so [`MipMap::filter_lanes_periodic`] may add taps
     /// of zero weight.
     finite: bool,
+    /// Level 0's width, height and channels.
+    size: [usize; 3],
+}
+
+/// A pyramid as [`MipMap::remote`] takes it: level 0's sizes, the map's properties, and its
+/// coarsest levels.
+pub(crate) struct RemotePyramid {
+    pub width: usize,
+    pub height: usize,
+    pub channels: usize,
+    pub wrap: [Wrap; 2],
+    pub projection: Option<[[f32; 16]; 2]>,
+    pub finite: bool,
+    pub coarsest: Vec<TexImage>,
+}
+
+/// Where a remote [`MipMap`] gets the levels it does not hold.
+pub(crate) trait LevelFetch: Send + Sync {
+    /// Level `level` of the map whose level 0 is `size` (width, height, channels), or the image
+    /// itself; `None` when neither came (the source has recorded why).
+    fn fetch_level(&self, level: usize, size: [usize; 3]) -> Option<FetchedLevel>;
+}
+
+/// What a [`LevelFetch`] delivers.
+pub(crate) enum FetchedLevel {
+    /// The level asked for.
+    Level(TexImage),
+    /// Level 0, the image, from which the map computes the rest.
+    Image(TexImage),
+}
+
+/// What a remote map needs to fill in the levels it lacks.
+#[derive(Clone)]
+struct RemoteLevels {
+    fetch: Arc<dyn LevelFetch>,
+    /// Held while a level is filled in.
+    busy: Arc<Mutex<()>>,
+    /// Zeros of each level's size, made for a level whose fetch failed.
+    stand_ins: Arc<[OnceLock<TexImage>]>,
+}
+
+impl Clone for MipMap {
+    /// The levels held now; a remote map's copy fetches the others from the same place.
+    fn clone(&self) -> MipMap {
+        MipMap {
+            levels: self.levels.iter().map(|l| l.get().cloned().map(OnceLock::from).unwrap_or_default()).collect(),
+            remote: self.remote.clone(),
+            shapes: self.shapes.clone(),
+            ..*self
+        }
+    }
+}
+
+impl fmt::Debug for MipMap {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let held: Vec<usize> = (0..self.levels.len()).filter(|&i| self.levels[i].get().is_some()).collect();
+        f.debug_struct("MipMap")
+            .field("size", &self.size)
+            .field("levels", &self.levels.len())
+            .field("held", &held)
+            .field("wrap", &self.wrap)
+            .field("remote", &self.remote.is_some())
+            .finish_non_exhaustive()
+    }
+}
+
+/// The sizes of the levels of an image `width x height` (see the module doc), finest first.
+pub fn level_sizes(width: usize, height: usize) -> Vec<[usize; 2]> {
+    let mut sizes = vec![[width.max(1), height.max(1)]];
+    while let Some(&[w, h]) = sizes.last().filter(|s| **s != [1, 1]) {
+        sizes.push([(w / 2).max(1), (h / 2).max(1)]);
+    }
+    sizes
 }
 
 impl MipMap {
@@ -70,32 +153,143 @@ impl MipMap {
             let next = downsample(last);
             levels.push(next);
         }
-        // The periodic way's offsets are 32-bit: a level 0 of under 2^32 values (16 GiB) keeps
-        // every offset and the four values after it in range.
-        let periodic_lanes = levels[0].data().len() < (u32::MAX - 8) as usize
-            && levels.iter().all(|l| i32::try_from(l.width().max(l.height())).is_ok());
-        let power_of_two_levels = periodic_lanes
-            && levels.iter().all(|l| periodic_masks([l.width(), l.height()], [Wrap::Periodic; 2]).is_some());
-        let shapes = levels.iter().map(LevelShape::of).collect();
         let finite = levels.iter().all(|l| l.data().iter().all(|v| v.is_finite()));
-        MipMap { levels, wrap, projection: None, periodic_lanes, power_of_two_levels, shapes, finite }
+        let size = [levels[0].width(), levels[0].height(), levels[0].channels()];
+        MipMap::assemble(size, levels.into_iter().map(OnceLock::from).collect(), None, wrap, finite)
     }
 
-    /// The levels, finest (the image itself) first.
-    pub fn levels(&self) -> &[TexImage] {
-        &self.levels
+    /// A map of which only the coarsest levels are here: `pyramid` describes the whole, and
+    /// `fetch` delivers the finer levels (or the image) when lookups first read them. `None`
+    /// when `pyramid` does not hold (a size of zero, a coarse level of another size or length).
+    pub(crate) fn remote(pyramid: RemotePyramid, fetch: Arc<dyn LevelFetch>) -> Option<MipMap> {
+        let RemotePyramid { width, height, channels, wrap, projection, finite, coarsest } = pyramid;
+        if width == 0 || height == 0 || channels == 0 || width.checked_mul(height)?.checked_mul(channels).is_none() {
+            return None;
+        }
+        let sizes = level_sizes(width, height);
+        let first = sizes.len().checked_sub(coarsest.len())?;
+        let mut levels: Vec<OnceLock<TexImage>> = sizes.iter().map(|_| OnceLock::new()).collect();
+        for (k, level) in coarsest.into_iter().enumerate() {
+            let [w, h] = sizes[first + k];
+            if [level.width(), level.height(), level.channels()] != [w, h, channels] {
+                return None;
+            }
+            levels[first + k] = OnceLock::from(level);
+        }
+        let stand_ins = sizes.iter().map(|_| OnceLock::new()).collect();
+        let remote = RemoteLevels { fetch, busy: Arc::new(Mutex::new(())), stand_ins };
+        let map = MipMap::assemble([width, height, channels], levels.into(), Some(remote), wrap, finite);
+        Some(map.with_projection(projection))
+    }
+
+    fn assemble(
+        size: [usize; 3],
+        levels: Box<[OnceLock<TexImage>]>,
+        remote: Option<RemoteLevels>,
+        wrap: [Wrap; 2],
+        finite: bool,
+    ) -> MipMap {
+        let sizes = level_sizes(size[0], size[1]);
+        // The periodic way's offsets are 32-bit: a level 0 of under 2^32 values (16 GiB) keeps
+        // every offset and the four values after it in range.
+        let periodic_lanes =
+            size.iter().try_fold(1usize, |n, &k| n.checked_mul(k)).is_some_and(|n| n < (u32::MAX - 8) as usize)
+                && sizes.iter().all(|&[w, h]| i32::try_from(w.max(h)).is_ok());
+        let power_of_two_levels =
+            periodic_lanes && sizes.iter().all(|&[w, h]| periodic_masks([w, h], [Wrap::Periodic; 2]).is_some());
+        let shapes = sizes.iter().map(|&[w, h]| LevelShape::of(w, h, size[2])).collect();
+        MipMap { levels, remote, wrap, projection: None, periodic_lanes, power_of_two_levels, shapes, finite, size }
+    }
+
+    /// How many levels the pyramid has (each halving the last, down to 1x1).
+    pub fn level_count(&self) -> usize {
+        self.levels.len()
+    }
+
+    /// Level `i` (0 the image itself; past the last, the last), fetched or computed first when a
+    /// remote map does not hold it yet.
+    pub fn level(&self, i: usize) -> &TexImage {
+        self.level_at(i.min(self.levels.len() - 1))
+    }
+
+    /// [`MipMap::level`] of a level that exists (lookups' own).
+    #[inline(always)]
+    fn level_at(&self, i: usize) -> &TexImage {
+        match self.levels.get(i).and_then(OnceLock::get) {
+            Some(level) => level,
+            None => self.missing_level(i),
+        }
+    }
+
+    /// Whether level `i` is here (always, for a map built here).
+    pub fn holds_level(&self, i: usize) -> bool {
+        self.levels.get(i).is_some_and(|l| l.get().is_some())
+    }
+
+    /// A remote map's level `i`, which it does not hold yet: computed from the nearest finer
+    /// level it holds, else fetched; a level whose fetch failed reads as zeros (the frame fails,
+    /// and the level is fetched again when next read).
+    #[cold]
+    #[inline(never)]
+    fn missing_level(&self, i: usize) -> &TexImage {
+        let i = i.min(self.levels.len() - 1);
+        if let Some(level) = self.levels[i].get() {
+            return level;
+        }
+        let sizes = level_sizes(self.size[0], self.size[1]);
+        let channels = self.size[2];
+        fn stand_in(remote: &RemoteLevels, [w, h]: [usize; 2], channels: usize, i: usize) -> &TexImage {
+            remote.stand_ins[i].get_or_init(|| {
+                TexImage::new(w, h, channels, vec![0.0; w * h * channels]).expect("the pyramid's sizes hold")
+            })
+        }
+        let Some(remote) = &self.remote else { unreachable!("a map built here holds every level") };
+        // One thread at a time fills a map's levels: another thread that wanted the same one
+        // finds it here when its turn comes.
+        let _busy = remote.busy.lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some(level) = self.levels[i].get() {
+            return level;
+        }
+        let finer = (0..i).rev().find(|&j| self.levels[j].get().is_some());
+        let from = match finer {
+            Some(j) => j,
+            None => match remote.fetch.fetch_level(i, self.size) {
+                Some(FetchedLevel::Level(level)) => {
+                    let _ = self.levels[i].set(level);
+                    i
+                }
+                Some(FetchedLevel::Image(image)) => {
+                    let _ = self.levels[0].set(image);
+                    0
+                }
+                None => return stand_in(remote, sizes[i], channels, i),
+            },
+        };
+        for k in from..i {
+            let Some(coarser) = self.levels[k].get().map(downsample) else { break };
+            let _ = self.levels[k + 1].set(coarser);
+        }
+        match self.levels[i].get() {
+            Some(level) => level,
+            None => stand_in(remote, sizes[i], channels, i),
+        }
     }
 
     pub fn width(&self) -> usize {
-        self.levels[0].width()
+        self.size[0]
     }
 
     pub fn height(&self) -> usize {
-        self.levels[0].height()
+        self.size[1]
     }
 
     pub fn channels(&self) -> usize {
-        self.levels[0].channels()
+        self.size[2]
+    }
+
+    /// No level has an infinite or NaN value.
+    pub fn is_finite(&self) -> bool {
+        self.finite
     }
 
     /// The file's wrap modes (s, t).
@@ -123,7 +317,7 @@ impl MipMap {
     /// Channels the texture lacks are 0. A `level` past the last means the last.
     pub fn bilinear(&self, level: usize, s: f32, t: f32, wrap: [Wrap; 2], first_channel: usize, out: &mut [f32]) {
         out.fill(0.0);
-        let level = &self.levels[level.min(self.levels.len() - 1)];
+        let level = self.level(level);
         accumulate_bilinear(level, s, t, wrap, first_channel, 1.0, out);
     }
 
@@ -392,9 +586,9 @@ impl MipMap {
     fn trilinear(&self, lod: f32, weight: f32, wrap: [Wrap; 2]) -> Trilinear<'_> {
         let ([a, b], weights, two) = self.blended_levels(lod, weight);
         if two {
-            Trilinear::Two(LevelPair::new([&self.levels[a], &self.levels[b]], weights, wrap))
+            Trilinear::Two(LevelPair::new([self.level_at(a), self.level_at(b)], weights, wrap))
         } else {
-            Trilinear::One(&self.levels[a], weights[0])
+            Trilinear::One(self.level_at(a), weights[0])
         }
     }
 
@@ -531,7 +725,9 @@ impl<'a> LanePlan<'a> {
         let top = Vec4::splat((map.levels.len() - 1) as f32);
         let lod = plans.lod;
         let positive = lod.cmpgt(Vec4::ZERO);
-        let below = Vec4::select(positive, lod.min(top).floor(), Vec4::ZERO);
+        // A lane not summed reads the coarsest level (it takes no taps): a remote map holds that
+        // one, and fetches nothing for it.
+        let below = Vec4::select(summing, Vec4::select(positive, lod.min(top).floor(), Vec4::ZERO), top);
         let two = positive & below.cmplt(top) & summing;
         let frac = lod - below;
         let weights =
@@ -579,11 +775,8 @@ impl<'a> LevelLanes<'a> {
     #[inline(always)]
     fn of(map: &'a MipMap, levels: [usize; 4], weight: Vec4, first: [usize; 4]) -> LevelLanes<'a> {
         let first = UVec4::from_array(first.map(|f| f as u32));
-        // Both cut to one length, so one bounds check covers a lane's image and shape.
-        let n = map.levels.len().min(map.shapes.len());
-        let (images, shapes) = (&map.levels[..n], &map.shapes[..n]);
-        let data = levels.map(|l| images[l].padded_data());
-        let shapes = levels.map(|l| &shapes[l]);
+        let data = levels.map(|l| map.level_at(l).padded_data());
+        let shapes = levels.map(|l| &map.shapes[l.min(map.shapes.len() - 1)]);
         // `periodic_lanes` keeps every count and offset of these under 2^32.
         let limit = data.map(|d| (d.len() - TEXEL_PADDING) as u32);
         LevelLanes {
@@ -893,8 +1086,7 @@ struct LevelShape {
 }
 
 impl LevelShape {
-    fn of(img: &TexImage) -> LevelShape {
-        let (w, h, ch) = (img.width(), img.height(), img.channels());
+    fn of(w: usize, h: usize, ch: usize) -> LevelShape {
         LevelShape {
             size: [w as f32, h as f32],
             mask: [w, h].map(|n| n.min(i32::MAX as usize) as i32 - 1),
@@ -1451,7 +1643,7 @@ mod tests {
         for channels in 1..=5 {
             for (w, h) in [(8, 8), (5, 3), (1, 2), (16, 4)] {
                 let m = MipMap::new(image(w, h, channels, |x, y, c| (x * 7 + y * 13 + c * 29) as f32 * 0.37 - 1.0));
-                let levels = [&m.levels()[0], &m.levels()[1]];
+                let levels = [m.level(0), m.level(1)];
                 for first in 0..=channels {
                     for width in [1, 3, 4, 5] {
                         for (i, &s) in coords.iter().enumerate() {
@@ -1488,7 +1680,7 @@ mod tests {
                 let mut m = MipMap::new(image(w, h, channels, |x, y, c| (x * 7 + y * 13 + c * 29) as f32 * 0.37 - 1.0));
                 if channels == 2 {
                     // An infinite texel: texel centres beside it must still read exactly.
-                    let mut data = m.levels()[0].data().to_vec();
+                    let mut data = m.level(0).data().to_vec();
                     data[channels] = f32::INFINITY;
                     m = MipMap::new(TexImage::new(w, h, channels, data).unwrap());
                 }
@@ -1563,7 +1755,7 @@ mod tests {
             .map(|(w, h, ch)| MipMap::new(image(w, h, ch, |x, y, c| ((x * 5 + y * 11 + c * 3) % 17) as f32 / 17.0)));
         // An infinite texel: the periodic way adds zero-weight taps, which only finite texels
         // allow, so this one goes lane by lane.
-        let mut data = maps[5].levels()[0].data().to_vec();
+        let mut data = maps[5].level(0).data().to_vec();
         data[2 * (16 * 3 + 5)] = f32::INFINITY;
         maps[5] = MipMap::new(TexImage::new(16, 8, 2, data).unwrap());
         assert!(maps.iter().map(|m| m.finite).eq([true, true, true, true, true, false]));
@@ -1791,7 +1983,10 @@ mod tests {
     #[test]
     fn level_sizes_halve_down_to_one_including_odd_and_oblong() {
         let sizes = |w, h| -> Vec<(usize, usize)> {
-            MipMap::new(image(w, h, 1, |_, _, _| 0.0)).levels().iter().map(|l| (l.width(), l.height())).collect()
+            {
+                let m = MipMap::new(image(w, h, 1, |_, _, _| 0.0));
+                (0..m.level_count()).map(|i| (m.level(i).width(), m.level(i).height())).collect()
+            }
         };
         assert_eq!(sizes(8, 8), [(8, 8), (4, 4), (2, 2), (1, 1)]);
         assert_eq!(sizes(5, 3), [(5, 3), (2, 1), (1, 1)]);
@@ -1803,13 +1998,13 @@ mod tests {
     fn levels_average_exactly() {
         // Even: each texel of level 1 is the mean of its 2x2 block.
         let m = MipMap::new(image(4, 4, 2, |x, y, c| (x + 4 * y + 100 * c) as f32));
-        let l1 = &m.levels()[1];
+        let l1 = m.level(1);
         assert_eq!(l1.texel(0, 0), &[(0.0 + 1.0 + 4.0 + 5.0) / 4.0, 102.5]);
         assert_eq!(l1.texel(1, 1), &[(10.0 + 11.0 + 14.0 + 15.0) / 4.0, 112.5]);
         // Odd sizes keep the mean at every level.
         let m = MipMap::new(image(7, 5, 1, |x, y, _| (x * x + 3 * y) as f32));
-        let want = mean(&m.levels()[0]);
-        for l in m.levels() {
+        let want = mean(m.level(0));
+        for l in (0..m.level_count()).map(|i| m.level(i)) {
             assert!((mean(l) - want).abs() < 1e-4, "{} vs {want}", mean(l));
         }
     }
@@ -1855,7 +2050,7 @@ mod tests {
         let opts = LookupOptions { swrap: Some(Wrap::Black), ..LookupOptions::default() };
         assert!((lookup(&m, 0.0, 0.5, Footprint::POINT, &opts) - 0.5).abs() < 1e-6);
         // The file's own modes apply when the lookup does not say.
-        let clamped = MipMap::with_wrap(m.levels()[0].clone(), [Wrap::Clamp, Wrap::Clamp]);
+        let clamped = MipMap::with_wrap(m.level(0).clone(), [Wrap::Clamp, Wrap::Clamp]);
         assert_eq!(lookup(&clamped, -0.25, 0.5, Footprint::POINT, &LookupOptions::default()), 1.0);
         // Far away and non-finite coordinates stay in range.
         assert!(lookup(&m, 1e30, -1e30, Footprint::POINT, &LookupOptions::default()).is_finite());

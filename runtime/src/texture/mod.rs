@@ -30,15 +30,22 @@ pub mod grid_data;
 pub(crate) mod image;
 mod make;
 mod mip;
+mod remote;
 mod shadow;
+mod source;
 
-pub use cache::{Delivered, TextureCache, TextureInfo, TextureKind, TextureQuery, TextureSource, TextureWarning};
+pub use cache::{TextureCache, TextureInfo, TextureQuery, TextureWarning};
 pub use environment::{direction_to_latlong, latlong_to_direction};
 pub use grid::{Grid, GridError, GridType};
 pub use image::{load_texture_image, LoadedImage, TexImage};
 pub use make::{make_cube_face_environment, make_texture, MakeTextureOptions, MAX_CUBE_LATLONG_WIDTH};
-pub use mip::{LookupLanes, MipMap, MAX_ANISOTROPY};
+pub use mip::{level_sizes, LookupLanes, MipMap, MAX_ANISOTROPY};
+pub use remote::TextureServer;
 pub use shadow::{make_shadow, write_shadow_map, ShadowMap};
+pub use source::{
+    decode_answer, encode_answer, Delivered, LevelValues, PyramidHeader, TextureAnswer, TextureKind, TexturePart,
+    TextureSource,
+};
 
 /// What a lookup outside `[0, 1]` sees, per axis (RenderMan's `swrap`/`twrap` names).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]

@@ -1,0 +1,476 @@
+//! Textures a distributed worker fetches a mip level at a time (the paper's section 5.4 at a
+//! finer grain than the texture).
+//!
+//! The master decodes a texture and builds its pyramid once ([`TextureServer`]). A worker's
+//! first lookup of the name gets a description of the pyramid (sizes, wrap modes, projection)
+//! with its coarsest levels, a few kilobytes ([`TextureAnswer::Pyramid`]); each finer level comes
+//! the first time a lookup reads it ([`MipMap::level`]): computed from a finer level the worker
+//! holds, else fetched. So a surface that is only ever seen far away never pulls the image
+//! itself.
+//!
+//! A level travels as its values (bytes when every value is an 8-bit one exactly, else floats),
+//! unless the texture as it was given (the file's bytes, or the image given in memory) is less
+//! than twice as large: then that comes instead, and the worker decodes the image from it and
+//! computes the levels it needs (the whole gives every level, for little more). So a worker
+//! fetches at most about twice the whole texture, even when its lookups ask for the coarse levels
+//! first and the fine ones later. Computed or fetched, a level
+//! is bit for bit the master's: the same code makes it from the same image.
+
+use std::collections::HashMap;
+use std::sync::{Arc, OnceLock};
+
+use super::image::TexImage;
+use super::mip::{level_sizes, FetchedLevel, LevelFetch, MipMap, RemotePyramid};
+use super::source::{
+    encode_answer, image_from_delivered, Delivered, LevelValues, PyramidHeader, TextureAnswer, TextureKind,
+    TexturePart, TextureSource,
+};
+use super::Wrap;
+
+/// At most this many bytes of a texture's coarsest levels travel with its description (the
+/// 1x1 level always does).
+const COARSEST_BYTES: usize = 16 << 10;
+
+/// The most values of a level the master sends as a level (a quarter of a GiB, 1 GiB of floats:
+/// MPI counts a message's bytes in 32 bits, and a worker inflates an answer to at most
+/// `MAX_INFLATED_ANSWER`); the whole texture comes instead of a larger one.
+const MAX_LEVEL_VALUES: usize = 1 << 28;
+
+fn wrap_code(wrap: Wrap) -> u8 {
+    match wrap {
+        Wrap::Periodic => 0,
+        Wrap::Clamp => 1,
+        Wrap::Black => 2,
+    }
+}
+
+fn wrap_of(code: u8) -> Option<Wrap> {
+    [Wrap::Periodic, Wrap::Clamp, Wrap::Black].get(usize::from(code)).copied()
+}
+
+/// The remote map `header` describes, its levels fetched from `source` as texture `name`
+/// (decoded `raw` or not). `None` when the header does not hold.
+pub(crate) fn remote_map(
+    header: PyramidHeader,
+    source: Arc<dyn TextureSource>,
+    name: &str,
+    raw: bool,
+) -> Option<MipMap> {
+    let [width, height, channels] = [header.width, header.height, header.channels].map(|n| n as usize);
+    let sizes = level_sizes(width, height);
+    let first = sizes.len().checked_sub(header.coarsest.len())?;
+    let coarsest = header
+        .coarsest
+        .into_iter()
+        .zip(&sizes[first..])
+        .map(|(values, &[w, h])| values.into_image(w, h, channels))
+        .collect::<Option<Vec<TexImage>>>()?;
+    let pyramid = RemotePyramid {
+        width,
+        height,
+        channels,
+        wrap: [wrap_of(header.wrap[0])?, wrap_of(header.wrap[1])?],
+        projection: header.projection,
+        finite: header.finite,
+        coarsest,
+    };
+    MipMap::remote(pyramid, Arc::new(SourceLevels { source, name: name.to_string(), raw }))
+}
+
+/// The levels of texture `name` from a cache's source.
+struct SourceLevels {
+    source: Arc<dyn TextureSource>,
+    name: String,
+    raw: bool,
+}
+
+impl LevelFetch for SourceLevels {
+    fn fetch_level(&self, level: usize, [width, height, channels]: [usize; 3]) -> Option<FetchedLevel> {
+        let failed = |why: String| {
+            self.source.failed(format!("texture \"{}\", mip level {level}: {why}", self.name));
+            None
+        };
+        let [w, h] = *level_sizes(width, height).get(level)?;
+        let part = TexturePart::Level { raw: self.raw, level: u32::try_from(level).ok()? };
+        match self.source.fetch(part, &self.name) {
+            TextureAnswer::Level(values) => match values.into_image(w, h, channels) {
+                Some(image) => Some(FetchedLevel::Level(image)),
+                None => failed(format!("its values are not {w}x{h}x{channels}")),
+            },
+            TextureAnswer::Whole(delivered) => match image_from_delivered(delivered, self.raw) {
+                Ok(loaded)
+                    if [loaded.image.width(), loaded.image.height(), loaded.image.channels()]
+                        == [width, height, channels] =>
+                {
+                    Some(FetchedLevel::Image(loaded.image))
+                }
+                Ok(_) => failed("the image is not the size its pyramid was".into()),
+                Err((_, reason)) => failed(reason),
+            },
+            TextureAnswer::Pyramid(_) => failed("the answer is a pyramid, not a level".into()),
+        }
+    }
+}
+
+/// The master's side: each texture a worker asked for, decoded and mip-mapped once, and its
+/// answers encoded once.
+#[derive(Default)]
+pub struct TextureServer {
+    /// The generation of the texture cache the textures below were read under: when the
+    /// master's cache is renewed, so are the workers', and what names stand for is read again.
+    generation: u64,
+    served: HashMap<(String, bool), Served>,
+}
+
+struct Served {
+    /// The texture as given, encoded as a [`TextureAnswer::Whole`].
+    whole: Arc<Vec<u8>>,
+    /// Its pyramid (`None` when it is no texture: the worker decodes the whole and warns as the
+    /// master would).
+    map: Option<MipMap>,
+    /// The description with the coarsest levels, when less than half the whole.
+    pyramid: Option<Arc<Vec<u8>>>,
+    /// Each level's answer, encoded when first asked for (`None`: the whole is less than twice as
+    /// large).
+    levels: Vec<OnceLock<Option<Arc<Vec<u8>>>>>,
+}
+
+impl std::fmt::Debug for TextureServer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("TextureServer").field("textures", &self.served.len()).finish_non_exhaustive()
+    }
+}
+
+impl TextureServer {
+    pub fn new() -> TextureServer {
+        TextureServer::default()
+    }
+
+    /// The encoded answer to a request for `part` of `name`, where `generation` is the master's
+    /// texture cache's and `deliver` gives what a name stands for as a kind
+    /// (`Context::deliver_texture`).
+    pub fn answer(
+        &mut self,
+        generation: u64,
+        part: TexturePart,
+        name: &str,
+        deliver: impl FnOnce(TextureKind) -> Delivered,
+    ) -> Arc<Vec<u8>> {
+        if generation != self.generation {
+            self.served.clear();
+            self.generation = generation;
+        }
+        let raw = match part {
+            TexturePart::Whole(kind) => return Arc::new(encode_answer(&TextureAnswer::Whole(deliver(kind)))),
+            TexturePart::Pyramid { raw } | TexturePart::Level { raw, .. } => raw,
+        };
+        let served = self
+            .served
+            .entry((name.to_string(), raw))
+            .or_insert_with(|| Served::of(deliver(TextureKind::Texture), raw));
+        match part {
+            TexturePart::Level { level, .. } => served.level(level as usize),
+            _ => served.pyramid.clone().unwrap_or_else(|| served.whole.clone()),
+        }
+    }
+}
+
+impl Served {
+    fn of(delivered: Delivered, raw: bool) -> Served {
+        let map = image_from_delivered(delivered.clone(), raw).ok().map(|loaded| {
+            MipMap::with_wrap(loaded.image, loaded.wrap.unwrap_or([Wrap::Periodic; 2]))
+                .with_projection(loaded.projection)
+        });
+        let whole = Arc::new(encode_answer(&TextureAnswer::Whole(delivered)));
+        let pyramid = map.as_ref().map(describe).filter(|p| worth_sending(p, &whole)).map(Arc::new);
+        let levels = (0..map.as_ref().map_or(0, MipMap::level_count)).map(|_| OnceLock::new()).collect();
+        Served { whole, map, pyramid, levels }
+    }
+
+    fn level(&self, level: usize) -> Arc<Vec<u8>> {
+        let (Some(map), Some(slot)) = (&self.map, self.levels.get(level)) else { return self.whole.clone() };
+        let encoded = slot.get_or_init(|| {
+            let image = map.level(level);
+            if image.data().len() > MAX_LEVEL_VALUES {
+                return None;
+            }
+            let encoded = encode_answer(&TextureAnswer::Level(LevelValues::of(image)));
+            worth_sending(&encoded, &self.whole).then(|| Arc::new(encoded))
+        });
+        encoded.clone().unwrap_or_else(|| self.whole.clone())
+    }
+}
+
+/// Whether `part` of a texture is worth sending rather than `whole`, which gives every part.
+fn worth_sending(part: &[u8], whole: &[u8]) -> bool {
+    2 * part.len() < whole.len()
+}
+
+/// `map`'s description with as many of its coarsest levels as fit [`COARSEST_BYTES`], encoded.
+fn describe(map: &MipMap) -> Vec<u8> {
+    let mut coarsest = Vec::new();
+    let mut bytes = 0;
+    for level in (0..map.level_count()).rev() {
+        let values = LevelValues::of(map.level(level));
+        bytes += match &values {
+            LevelValues::Floats(v) => 4 * v.len(),
+            LevelValues::Bytes(v) => v.len(),
+        };
+        if !coarsest.is_empty() && bytes > COARSEST_BYTES {
+            break;
+        }
+        coarsest.push(values);
+    }
+    coarsest.reverse();
+    let count = |n: usize| u32::try_from(n).unwrap_or(u32::MAX);
+    encode_answer(&TextureAnswer::Pyramid(PyramidHeader {
+        width: count(map.width()),
+        height: count(map.height()),
+        channels: count(map.channels()),
+        wrap: map.wrap().map(wrap_code),
+        projection: map.projection(),
+        finite: map.is_finite(),
+        coarsest,
+    }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::texture::{decode_answer, Footprint, LookupOptions, TextureCache};
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::Mutex;
+
+    /// A worker's link to its master in one process: a [`TextureServer`] answering every request
+    /// through the encoding they travel in, with what was asked and what failed recorded.
+    #[derive(Debug)]
+    struct Loopback {
+        server: Mutex<TextureServer>,
+        /// What the texture's name stands for.
+        delivered: Delivered,
+        asked: Mutex<Vec<TexturePart>>,
+        bytes: Mutex<usize>,
+        failures: Mutex<Vec<String>>,
+        /// Answers levels with one value too few.
+        damaged: AtomicBool,
+    }
+
+    impl Loopback {
+        fn new(delivered: Delivered) -> Arc<Loopback> {
+            Arc::new(Loopback {
+                server: Mutex::new(TextureServer::new()),
+                delivered,
+                asked: Mutex::default(),
+                bytes: Mutex::default(),
+                failures: Mutex::default(),
+                damaged: AtomicBool::new(false),
+            })
+        }
+
+        fn asked(&self) -> Vec<TexturePart> {
+            self.asked.lock().unwrap().clone()
+        }
+    }
+
+    impl TextureSource for Loopback {
+        fn fetch(&self, part: TexturePart, name: &str) -> TextureAnswer {
+            self.asked.lock().unwrap().push(part);
+            let bytes = self.server.lock().unwrap().answer(1, part, name, |_| self.delivered.clone());
+            *self.bytes.lock().unwrap() += bytes.len();
+            match decode_answer(&bytes).unwrap() {
+                TextureAnswer::Level(LevelValues::Floats(mut v)) if self.damaged.load(Ordering::Relaxed) => {
+                    v.pop();
+                    TextureAnswer::Level(LevelValues::Floats(v))
+                }
+                answer => answer,
+            }
+        }
+
+        fn failed(&self, message: String) {
+            self.failures.lock().unwrap().push(message);
+        }
+    }
+
+    /// Noise: a hash of `i` (SplitMix64's finaliser), which deflating hardly shrinks, so that the
+    /// sizes the master weighs are about those of the values.
+    fn noise(i: usize) -> u64 {
+        let mut z = (i as u64).wrapping_add(0x9E37_79B9_7F4A_7C15);
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    /// A square RGB image of noisy floats no byte holds.
+    fn floats(side: usize) -> TexImage {
+        let values = (0..side * side * 3).map(|i| (noise(i) >> 40) as f32 / (1u64 << 24) as f32 + 0.25).collect();
+        TexImage::new(side, side, 3, values).unwrap()
+    }
+
+    /// A footprint `texels` texels of level 0 wide, of a texture `side` texels square.
+    fn wide(texels: f32, side: usize) -> Footprint {
+        let d = texels / side as f32;
+        Footprint { dsdx: d, dtdx: 0.0, dsdy: 0.0, dtdy: d }
+    }
+
+    /// Lookups at 64 places over a footprint, through the cache and straight from `reference`,
+    /// compared bit for bit.
+    fn same_lookups(cache: &TextureCache, reference: &MipMap, raw: bool, footprint: Footprint) {
+        let opts = LookupOptions { raw, ..LookupOptions::default() };
+        for k in 0..64 {
+            let (s, t) = ((k % 8) as f32 / 8.0 + 0.03, (k / 8) as f32 / 8.0 + 0.07);
+            let (mut here, mut there) = ([0.0; 3], [0.0; 3]);
+            assert!(cache.texture("t", s, t, footprint, 0, &mut here, &opts));
+            reference.filter(s, t, footprint, 0, &mut there, &opts);
+            assert_eq!(here.map(f32::to_bits), there.map(f32::to_bits), "({s}, {t}) over {footprint:?}");
+        }
+    }
+
+    #[test]
+    fn a_worker_fetches_only_the_levels_its_lookups_read_and_sees_what_the_whole_gives() {
+        let image = floats(256);
+        let reference = MipMap::new(image.clone());
+        let source = Loopback::new(Delivered::image(&image));
+        let cache = TextureCache::new().with_source(Some(source.clone()));
+        let map = cache.get_texture("t", false).unwrap();
+        // The pyramid came with its coarsest levels, the 32x32 one and those below it.
+        assert_eq!(source.asked(), [TexturePart::Pyramid { raw: false }]);
+        let held = |from: usize| (0..map.level_count()).map(|i| map.holds_level(i)).skip(from).collect::<Vec<_>>();
+        assert_eq!(held(0), [false, false, false, true, true, true, true, true, true]);
+        // Far away: read from what came, nothing more fetched.
+        same_lookups(&cache, &reference, false, wide(20.0, 256));
+        assert_eq!(source.asked().len(), 1);
+        // Nearer: the 64x64 level, fetched alone.
+        same_lookups(&cache, &reference, false, wide(5.0, 256));
+        assert_eq!(source.asked()[1..], [TexturePart::Level { raw: false, level: 2 }]);
+        assert_eq!(held(0)[..3], [false, false, true]);
+        // Close: level 0, fetched, and level 1 made from it here.
+        same_lookups(&cache, &reference, false, wide(0.7, 256));
+        same_lookups(&cache, &reference, false, wide(1.5, 256));
+        assert_eq!(source.asked()[2..], [TexturePart::Level { raw: false, level: 0 }]);
+        assert!(held(0).iter().all(|&h| h));
+        // Four lanes at once, as shaders look up, give the same values.
+        let lanes = crate::texture::LookupLanes::splat(0.4, 0.6, wide(3.0, 256), [0.0; 2]);
+        let (mut here, mut there) = ([0.0; 12], [0.0; 12]);
+        map.filter_lanes(&lanes, [true; 4], [0; 4], &mut here, &LookupOptions::default());
+        reference.filter_lanes(&lanes, [true; 4], [0; 4], &mut there, &LookupOptions::default());
+        assert_eq!(here.map(f32::to_bits), there.map(f32::to_bits));
+        assert!(source.failures.lock().unwrap().is_empty());
+        // Less than the whole texture travelled: its level 1 never did.
+        let whole = encode_answer(&TextureAnswer::Whole(Delivered::image(&image))).len();
+        assert!(*source.bytes.lock().unwrap() < whole + whole / 8, "{} of {whole}", source.bytes.lock().unwrap());
+    }
+
+    /// An 8-bit file (a PPM) comes whole wherever a level would be more than half as large, and
+    /// is decoded here as the master decoded it, raw or as sRGB.
+    #[test]
+    fn a_level_about_as_large_as_the_file_comes_as_the_file() {
+        let side = 256;
+        let mut ppm = format!("P6\n{side} {side}\n255\n").into_bytes();
+        ppm.extend((0..side * side * 3).map(|i| noise(i) as u8));
+        let delivered = Delivered::File { path: "wood.ppm".into(), bytes: ppm };
+        for raw in [false, true] {
+            let source = Loopback::new(delivered.clone());
+            let cache = TextureCache::new().with_source(Some(source.clone()));
+            let loaded = image_from_delivered(delivered.clone(), raw).unwrap();
+            let reference = MipMap::new(loaded.image);
+            // Level 2 is a sixteenth of the file's texels: as floats, a quarter of its bytes.
+            same_lookups(&cache, &reference, raw, wide(4.5, side));
+            assert_eq!(source.asked()[1..], [TexturePart::Level { raw, level: 2 }]);
+            // Level 1 as floats is as large as the file: the file comes, and gives level 0.
+            same_lookups(&cache, &reference, raw, wide(2.5, side));
+            same_lookups(&cache, &reference, raw, wide(0.5, side));
+            assert_eq!(source.asked()[2..], [TexturePart::Level { raw, level: 1 }], "raw {raw}");
+            let map = cache.get_texture("t", raw).unwrap();
+            assert!(map.holds_level(0));
+            assert!(source.failures.lock().unwrap().is_empty());
+        }
+    }
+
+    #[test]
+    fn a_damaged_level_fails_the_frame_and_is_fetched_again_when_next_read() {
+        let image = floats(128);
+        let reference = MipMap::new(image.clone());
+        let source = Loopback::new(Delivered::image(&image));
+        let cache = TextureCache::new().with_source(Some(source.clone()));
+        source.damaged.store(true, Ordering::Relaxed);
+        let (mut here, mut there) = ([0.0; 3], [0.0; 3]);
+        let opts = LookupOptions::default();
+        assert!(cache.texture("t", 0.5, 0.5, wide(2.0, 128), 0, &mut here, &opts));
+        reference.filter(0.5, 0.5, wide(2.0, 128), 0, &mut there, &opts);
+        assert_ne!(here, there, "zeros stand in for the level");
+        let failures = source.failures.lock().unwrap().clone();
+        assert!(failures.len() == 1 && failures[0].contains("mip level 1"), "{failures:?}");
+        source.damaged.store(false, Ordering::Relaxed);
+        same_lookups(&cache, &reference, false, wide(2.0, 128));
+        let level_one = TexturePart::Level { raw: false, level: 1 };
+        assert_eq!(source.asked()[1..], [level_one, level_one]);
+    }
+
+    #[test]
+    fn a_pyramid_that_does_not_hold_is_refused() {
+        let image = floats(64);
+        let source = Loopback::new(Delivered::image(&image));
+        let good = match decode_answer(&encode_answer(&TextureAnswer::Pyramid(PyramidHeader {
+            width: 64,
+            height: 64,
+            channels: 3,
+            wrap: [0, 1],
+            projection: None,
+            finite: true,
+            coarsest: vec![LevelValues::Floats(vec![0.5; 3])],
+        })))
+        .unwrap()
+        {
+            TextureAnswer::Pyramid(p) => p,
+            _ => unreachable!(),
+        };
+        let map = remote_map(good.clone(), source.clone(), "t", false).unwrap();
+        assert_eq!((map.width(), map.level_count(), map.wrap()), (64, 7, [Wrap::Periodic, Wrap::Clamp]));
+        let damaged = [
+            PyramidHeader { width: 0, ..good.clone() },
+            PyramidHeader { channels: 0, ..good.clone() },
+            PyramidHeader { width: u32::MAX, height: u32::MAX, channels: u32::MAX, ..good.clone() },
+            PyramidHeader { wrap: [0, 3], ..good.clone() },
+            PyramidHeader { coarsest: vec![LevelValues::Floats(vec![0.5; 4])], ..good.clone() },
+            PyramidHeader { coarsest: vec![LevelValues::Bytes(vec![1; 3]); 8], ..good.clone() },
+        ];
+        for header in damaged {
+            assert!(remote_map(header.clone(), source.clone(), "t", false).is_none(), "{header:?}");
+        }
+    }
+
+    #[test]
+    fn damaged_answers_are_errors() {
+        let answer = encode_answer(&TextureAnswer::Level(LevelValues::of(&floats(16))));
+        assert!(decode_answer(&answer).is_ok());
+        for damaged in [&b"not deflated"[..], &answer[..answer.len() / 2], &[]] {
+            assert!(decode_answer(damaged).is_err());
+        }
+    }
+
+    /// What names stand for is read again when the master's cache is renewed, and only then.
+    #[test]
+    fn the_server_reads_a_texture_once_per_generation() {
+        let image = floats(64);
+        let mut server = TextureServer::new();
+        let reads = std::cell::Cell::new(0);
+        let deliver = |_| {
+            reads.set(reads.get() + 1);
+            Delivered::image(&image)
+        };
+        let pyramid = TexturePart::Pyramid { raw: false };
+        for (generation, part) in [(1, pyramid), (1, TexturePart::Level { raw: false, level: 0 }), (1, pyramid)] {
+            server.answer(generation, part, "t", deliver);
+        }
+        assert_eq!(reads.get(), 1);
+        server.answer(2, pyramid, "t", deliver);
+        server.answer(2, TexturePart::Pyramid { raw: true }, "t", deliver);
+        assert_eq!(reads.get(), 3, "a new generation, and the raw pyramid");
+        // A level past the last, or of a name that is no texture, is the whole.
+        let whole = encode_answer(&TextureAnswer::Whole(Delivered::image(&image)));
+        assert_eq!(*server.answer(2, TexturePart::Level { raw: false, level: 99 }, "t", deliver), whole);
+        let missing = |_| Delivered::Missing { path: None, reason: "file not found".into() };
+        let answer = server.answer(2, TexturePart::Level { raw: false, level: 0 }, "gone", missing);
+        assert!(matches!(decode_answer(&answer), Ok(TextureAnswer::Whole(Delivered::Missing { .. }))));
+    }
+}
