@@ -20,6 +20,7 @@ use crate::api::decode_mesh;
 use crate::scene::Scene;
 use crate::texture::{decode_answer, Delivered, TextureAnswer, TexturePart, TextureSource};
 use std::collections::HashMap;
+use std::io::{Read, Write};
 use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
 use std::sync::mpsc::{channel, Sender};
 use std::sync::{Arc, Mutex, PoisonError};
@@ -160,18 +161,36 @@ impl FetchLink {
     }
 }
 
+/// The most bytes an object the master sends inflates to on a worker: a mesh and its BVH in one
+/// message, which MPI counts in 32 bits even deflated.
+pub const MAX_INFLATED_OBJECT: u64 = 1 << 32;
+
 /// An object as the master sends it: its mesh ([`crate::api::encode_mesh`]) and the 4-wide BVH it
 /// built over it ([`crate::accel::wire::encode_bvh4`]; empty when it has none), the mesh's length
-/// first.
+/// first, deflated (the fastest level: the master encodes each object once).
 pub(super) fn encode_object(mesh: &[u8], bvh: &[u8]) -> Vec<u8> {
-    let mut out = Vec::with_capacity(8 + mesh.len() + bvh.len());
-    out.extend_from_slice(&(mesh.len() as u64).to_le_bytes());
-    out.extend_from_slice(mesh);
-    out.extend_from_slice(bvh);
-    out
+    let mut deflated = flate2::write::DeflateEncoder::new(Vec::new(), flate2::Compression::fast());
+    // Writing to a vector cannot fail.
+    let _ = deflated.write_all(&(mesh.len() as u64).to_le_bytes());
+    let _ = deflated.write_all(mesh);
+    let _ = deflated.write_all(bvh);
+    deflated.finish().unwrap_or_default()
 }
 
-/// The mesh's and the BVH's bytes of an object [`encode_object`] wrote.
+/// An object [`encode_object`] wrote, inflated: at most [`MAX_INFLATED_OBJECT`] bytes.
+fn inflate_object(bytes: &[u8]) -> Result<Vec<u8>, String> {
+    let mut plain = Vec::new();
+    flate2::read::DeflateDecoder::new(bytes)
+        .take(MAX_INFLATED_OBJECT + 1)
+        .read_to_end(&mut plain)
+        .map_err(|e| format!("the object cannot be inflated: {e}"))?;
+    if plain.len() as u64 > MAX_INFLATED_OBJECT {
+        return Err(format!("the object inflates past {} GiB", MAX_INFLATED_OBJECT >> 30));
+    }
+    Ok(plain)
+}
+
+/// The mesh's and the BVH's bytes of an inflated object.
 fn split_object(bytes: &[u8]) -> Result<(&[u8], &[u8]), String> {
     let (length, rest) = bytes.split_first_chunk::<8>().ok_or("an object shorter than its header")?;
     let length = usize::try_from(u64::from_le_bytes(*length)).unwrap_or(usize::MAX);
@@ -242,7 +261,8 @@ impl MeshSource for FetchLink {
             self.fail(format!("the master has no mesh for object {key}"));
             return FetchedMesh::default();
         }
-        let decoded = split_object(&bytes).and_then(|(mesh, bvh)| {
+        let decoded = inflate_object(&bytes).and_then(|plain| {
+            let (mesh, bvh) = split_object(&plain)?;
             let mesh = decode_mesh(mesh).map_err(|e| e.to_string())?;
             // No BVH (the master had none built) is no failure: this side builds it.
             let bvh = if bvh.is_empty() { None } else { Some(decode_bvh4(bvh, &mesh)?) };
