@@ -623,23 +623,21 @@ impl<T: Transport> Master<T> {
                 Message::Fetch { frame: f, objects, textures } if f == frame => {
                     traffic.fetches += bytes.len() as u64;
                     let meshes = objects.into_iter().map(|id| (id, self.encoded_object(id, source, world))).collect();
-                    let textures = textures
-                        .into_iter()
-                        .map(|(part, name)| {
-                            let answer = match source {
-                                Some(rt) => {
-                                    let generation = rt.textures().generation();
-                                    let deliver = |kind| rt.deliver_texture(kind, &name);
-                                    self.texture_server.answer(generation, part, &name, deliver).to_vec()
-                                }
-                                None => encode_answer(&TextureAnswer::Whole(Delivered::Missing {
-                                    path: None,
-                                    reason: "the master serves no textures".into(),
-                                })),
-                            };
-                            (part, name, answer)
-                        })
-                        .collect();
+                    let answers: Vec<Vec<u8>> = match source {
+                        Some(rt) => {
+                            let generation = rt.textures().generation();
+                            let deliver = |kind, name: &str| rt.deliver_texture(kind, name);
+                            let answers = self.texture_server.answer_all(generation, &textures, deliver);
+                            answers.iter().map(|a| a.to_vec()).collect()
+                        }
+                        None => {
+                            let none =
+                                Delivered::Missing { path: None, reason: "the master serves no textures".into() };
+                            vec![encode_answer(&TextureAnswer::Whole(none)); textures.len()]
+                        }
+                    };
+                    let textures =
+                        textures.into_iter().zip(answers).map(|((part, name), answer)| (part, name, answer)).collect();
                     let m = Message::Data { frame, meshes, textures }.encode();
                     traffic.fetches += m.len() as u64;
                     self.transport.send(rank, m)?;

@@ -19,6 +19,8 @@
 use std::collections::HashMap;
 use std::sync::{Arc, OnceLock};
 
+use rayon::prelude::*;
+
 use super::image::TexImage;
 use super::mip::{level_sizes, FetchedLevel, LevelFetch, MipMap, RemotePyramid};
 use super::source::{
@@ -146,32 +148,71 @@ impl TextureServer {
         TextureServer::default()
     }
 
-    /// The encoded answer to a request for `part` of `name`, where `generation` is the master's
-    /// texture cache's and `deliver` gives what a name stands for as a kind
-    /// (`Context::deliver_texture`).
+    /// The encoded answers to `requests` (parts of names), in order, where `generation` is the
+    /// master's texture cache's and `deliver` gives what a name stands for as a kind
+    /// (`Context::deliver_texture`). The textures not served yet are decoded and mip-mapped, and
+    /// the answers encoded, on the caller's thread pool: a worker's first frame asks for many at
+    /// once, and waits for them.
+    pub fn answer_all(
+        &mut self,
+        generation: u64,
+        requests: &[(TexturePart, String)],
+        deliver: impl Fn(TextureKind, &str) -> Delivered + Sync,
+    ) -> Vec<Arc<Vec<u8>>> {
+        if generation != self.generation {
+            self.served.clear();
+            self.generation = generation;
+        }
+        let mut new: Vec<(String, bool)> = requests
+            .iter()
+            .filter_map(|(part, name)| match *part {
+                TexturePart::Pyramid { raw } | TexturePart::Level { raw, .. } => Some((name.clone(), raw)),
+                TexturePart::Whole(_) => None,
+            })
+            .filter(|key| !self.served.contains_key(key))
+            .collect();
+        new.sort_unstable();
+        new.dedup();
+        let built: Vec<((String, bool), Served)> = new
+            .into_par_iter()
+            .map(|(name, raw)| {
+                let served = Served::of(deliver(TextureKind::Texture, &name), raw);
+                ((name, raw), served)
+            })
+            .collect();
+        self.served.extend(built);
+        let served = &self.served;
+        requests
+            .par_iter()
+            .map(|(part, name)| {
+                let raw = match *part {
+                    TexturePart::Whole(kind) => {
+                        return Arc::new(encode_answer(&TextureAnswer::Whole(deliver(kind, name))));
+                    }
+                    TexturePart::Pyramid { raw } | TexturePart::Level { raw, .. } => raw,
+                };
+                // Every texture asked for was served above.
+                let Some(served) = served.get(&(name.clone(), raw)) else {
+                    return Arc::new(encode_answer(&TextureAnswer::Whole(deliver(TextureKind::Texture, name))));
+                };
+                match *part {
+                    TexturePart::Level { level, .. } => served.level(level as usize),
+                    _ => served.pyramid.clone().unwrap_or_else(|| served.whole.clone()),
+                }
+            })
+            .collect()
+    }
+
+    /// The encoded answer to one request ([`TextureServer::answer_all`]).
     pub fn answer(
         &mut self,
         generation: u64,
         part: TexturePart,
         name: &str,
-        deliver: impl FnOnce(TextureKind) -> Delivered,
+        deliver: impl Fn(TextureKind, &str) -> Delivered + Sync,
     ) -> Arc<Vec<u8>> {
-        if generation != self.generation {
-            self.served.clear();
-            self.generation = generation;
-        }
-        let raw = match part {
-            TexturePart::Whole(kind) => return Arc::new(encode_answer(&TextureAnswer::Whole(deliver(kind)))),
-            TexturePart::Pyramid { raw } | TexturePart::Level { raw, .. } => raw,
-        };
-        let served = self
-            .served
-            .entry((name.to_string(), raw))
-            .or_insert_with(|| Served::of(deliver(TextureKind::Texture), raw));
-        match part {
-            TexturePart::Level { level, .. } => served.level(level as usize),
-            _ => served.pyramid.clone().unwrap_or_else(|| served.whole.clone()),
-        }
+        let mut answers = self.answer_all(generation, &[(part, name.to_string())], deliver);
+        answers.pop().unwrap_or_default()
     }
 }
 
@@ -275,7 +316,7 @@ mod tests {
     impl TextureSource for Loopback {
         fn fetch(&self, part: TexturePart, name: &str) -> TextureAnswer {
             self.asked.lock().unwrap().push(part);
-            let bytes = self.server.lock().unwrap().answer(1, part, name, |_| self.delivered.clone());
+            let bytes = self.server.lock().unwrap().answer(1, part, name, |_, _| self.delivered.clone());
             *self.bytes.lock().unwrap() += bytes.len();
             match decode_answer(&bytes).unwrap() {
                 TextureAnswer::Level(LevelValues::Floats(mut v)) if self.damaged.load(Ordering::Relaxed) => {
@@ -453,23 +494,34 @@ mod tests {
     fn the_server_reads_a_texture_once_per_generation() {
         let image = floats(64);
         let mut server = TextureServer::new();
-        let reads = std::cell::Cell::new(0);
-        let deliver = |_| {
-            reads.set(reads.get() + 1);
+        let reads = std::sync::atomic::AtomicUsize::new(0);
+        let deliver = |_, _: &str| {
+            reads.fetch_add(1, Ordering::Relaxed);
             Delivered::image(&image)
         };
         let pyramid = TexturePart::Pyramid { raw: false };
         for (generation, part) in [(1, pyramid), (1, TexturePart::Level { raw: false, level: 0 }), (1, pyramid)] {
             server.answer(generation, part, "t", deliver);
         }
-        assert_eq!(reads.get(), 1);
+        assert_eq!(reads.load(Ordering::Relaxed), 1);
         server.answer(2, pyramid, "t", deliver);
         server.answer(2, TexturePart::Pyramid { raw: true }, "t", deliver);
-        assert_eq!(reads.get(), 3, "a new generation, and the raw pyramid");
+        assert_eq!(reads.load(Ordering::Relaxed), 3, "a new generation, and the raw pyramid");
+        // Several at once: each texture read once, the answers in the order asked.
+        let parts = [
+            (TexturePart::Level { raw: false, level: 1 }, "u".to_string()),
+            (pyramid, "u".to_string()),
+            (TexturePart::Level { raw: false, level: 2 }, "t".to_string()),
+        ];
+        let answers = server.answer_all(2, &parts, deliver);
+        assert_eq!(reads.load(Ordering::Relaxed), 4);
+        for ((part, name), answer) in parts.iter().zip(&answers) {
+            assert_eq!(answer, &server.answer(2, *part, name, deliver), "{part:?} {name}");
+        }
         // A level past the last, or of a name that is no texture, is the whole.
         let whole = encode_answer(&TextureAnswer::Whole(Delivered::image(&image)));
         assert_eq!(*server.answer(2, TexturePart::Level { raw: false, level: 99 }, "t", deliver), whole);
-        let missing = |_| Delivered::Missing { path: None, reason: "file not found".into() };
+        let missing = |_, _: &str| Delivered::Missing { path: None, reason: "file not found".into() };
         let answer = server.answer(2, TexturePart::Level { raw: false, level: 0 }, "gone", missing);
         assert!(matches!(decode_answer(&answer), Ok(TextureAnswer::Whole(Delivered::Missing { .. }))));
     }
