@@ -98,8 +98,10 @@ struct RemoteLevels {
     fetch: Arc<dyn LevelFetch>,
     /// Held while a level is filled in.
     busy: Arc<Mutex<()>>,
-    /// Zeros of each level's size, made for a level whose fetch failed.
-    stand_ins: Arc<[OnceLock<TexImage>]>,
+    /// What a level whose fetch failed reads as: one texel of zeros. Lookups read it safely in
+    /// place of a larger level: every tap is checked against the image it reads, not against the
+    /// level's shape.
+    stand_in: Arc<TexImage>,
 }
 
 impl Clone for MipMap {
@@ -176,8 +178,8 @@ impl MipMap {
             }
             levels[first + k] = OnceLock::from(level);
         }
-        let stand_ins = sizes.iter().map(|_| OnceLock::new()).collect();
-        let remote = RemoteLevels { fetch, busy: Arc::new(Mutex::new(())), stand_ins };
+        let stand_in = Arc::new(TexImage::new(1, 1, channels, vec![0.0; channels])?);
+        let remote = RemoteLevels { fetch, busy: Arc::new(Mutex::new(())), stand_in };
         let map = MipMap::assemble([width, height, channels], levels.into(), Some(remote), wrap, finite);
         Some(map.with_projection(projection))
     }
@@ -236,13 +238,6 @@ impl MipMap {
         if let Some(level) = self.levels[i].get() {
             return level;
         }
-        let sizes = level_sizes(self.size[0], self.size[1]);
-        let channels = self.size[2];
-        fn stand_in(remote: &RemoteLevels, [w, h]: [usize; 2], channels: usize, i: usize) -> &TexImage {
-            remote.stand_ins[i].get_or_init(|| {
-                TexImage::new(w, h, channels, vec![0.0; w * h * channels]).expect("the pyramid's sizes hold")
-            })
-        }
         let Some(remote) = &self.remote else { unreachable!("a map built here holds every level") };
         // One thread at a time fills a map's levels: another thread that wanted the same one
         // finds it here when its turn comes.
@@ -262,7 +257,7 @@ impl MipMap {
                     let _ = self.levels[0].set(image);
                     0
                 }
-                None => return stand_in(remote, sizes[i], channels, i),
+                None => return &remote.stand_in,
             },
         };
         for k in from..i {
@@ -271,7 +266,7 @@ impl MipMap {
         }
         match self.levels[i].get() {
             Some(level) => level,
-            None => stand_in(remote, sizes[i], channels, i),
+            None => &remote.stand_in,
         }
     }
 

@@ -489,6 +489,72 @@ mod tests {
         }
     }
 
+    /// A source answering every request for a pyramid and every request for a level with bytes
+    /// given, as a worker would get them from a master that sent them.
+    #[derive(Debug)]
+    struct Scripted {
+        pyramid: Vec<u8>,
+        level: Vec<u8>,
+    }
+
+    impl TextureSource for Scripted {
+        fn fetch(&self, part: TexturePart, _name: &str) -> TextureAnswer {
+            let bytes = if matches!(part, TexturePart::Level { .. }) { &self.level } else { &self.pyramid };
+            decode_answer(bytes)
+                .unwrap_or_else(|reason| TextureAnswer::Whole(Delivered::Missing { path: None, reason }))
+        }
+    }
+
+    /// Pyramids and levels damaged before they were deflated (so that they inflate, and most
+    /// decode) are refused, or give a map whose lookups answer without panicking, at every level.
+    #[test]
+    fn damaged_pyramids_and_levels_never_panic_a_lookup() {
+        let image = floats(64);
+        let plain = |answer: &TextureAnswer| postcard::to_allocvec(answer).unwrap();
+        let deflate = |bytes: &[u8]| {
+            let mut z = flate2::write::DeflateEncoder::new(Vec::new(), flate2::Compression::fast());
+            std::io::Write::write_all(&mut z, bytes).unwrap();
+            z.finish().unwrap()
+        };
+        let map = MipMap::new(image.clone());
+        let pyramid = decode_answer(&describe(&map)).unwrap();
+        let level = TextureAnswer::Level(LevelValues::of(map.level(0)));
+        let (pyramid, level) = (plain(&pyramid), plain(&level));
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        let mut maps = 0;
+        for round in 0..300 {
+            let (mut p, mut l) = (pyramid.clone(), level.clone());
+            for bytes in [&mut p, &mut l] {
+                for _ in 0..1 + next() % 3 {
+                    let at = (next() % bytes.len() as u64) as usize;
+                    bytes[at] ^= 1 << (next() % 8);
+                }
+                if round % 7 == 0 {
+                    let cut = (next() % bytes.len() as u64) as usize;
+                    bytes.truncate(cut);
+                }
+            }
+            let source = Arc::new(Scripted { pyramid: deflate(&p), level: deflate(&l) });
+            let cache = TextureCache::new().with_source(Some(source));
+            let Some(map) = cache.get_texture("t", false) else { continue };
+            maps += 1;
+            let mut out = [0.0; 4];
+            for texels in [0.3, 1.0, 3.0, 9.0, 40.0] {
+                cache.texture("t", 0.3, 0.7, wide(texels, 64), 0, &mut out, &LookupOptions::default());
+                let lanes = crate::texture::LookupLanes::splat(0.6, 0.2, wide(texels, 64), [0.0; 2]);
+                let mut four = [0.0; 16];
+                map.filter_lanes(&lanes, [true, false, true, true], [0, 1, 2, 0], &mut four, &LookupOptions::default());
+            }
+        }
+        assert!(maps > 10, "{maps} of 300 damaged pyramids made a map");
+    }
+
     /// What names stand for is read again when the master's cache is renewed, and only then.
     #[test]
     fn the_server_reads_a_texture_once_per_generation() {
