@@ -13,8 +13,8 @@
 //! than twice as large: then that comes instead, and the worker decodes the image from it and
 //! computes the levels it needs (the whole gives every level, for little more). So a worker
 //! fetches at most about twice the whole texture, even when its lookups ask for the coarse levels
-//! first and the fine ones later. Computed or fetched, a level
-//! is bit for bit the master's: the same code makes it from the same image.
+//! first and the fine ones later. Computed or fetched, a level is bit for bit the master's: the
+//! same code makes it from the same image.
 
 use std::collections::HashMap;
 use std::sync::{Arc, OnceLock};
@@ -32,6 +32,10 @@ use super::Wrap;
 /// At most this many bytes of a texture's coarsest levels travel with its description (the
 /// 1x1 level always does).
 const COARSEST_BYTES: usize = 16 << 10;
+
+/// The most bytes of decoded pyramids and encoded answers the master keeps for the workers; past
+/// it, the textures asked for least recently are dropped, and decoded again when asked for again.
+pub const MAX_SERVED_BYTES: usize = 2 << 30;
 
 /// The most values of a level the master sends as a level (a quarter of a GiB, 1 GiB of floats:
 /// MPI counts a message's bytes in 32 bits, and a worker inflates an answer to at most
@@ -122,13 +126,18 @@ pub struct TextureServer {
     /// master's cache is renewed, so are the workers', and what names stand for is read again.
     generation: u64,
     served: HashMap<(String, bool), Served>,
+    /// Batches of requests answered: when each texture was last asked for.
+    batches: u64,
 }
 
 struct Served {
+    /// The [`TextureServer`]'s count of batches answered when this texture was last asked for.
+    last_used: u64,
     /// The texture as given, encoded as a [`TextureAnswer::Whole`].
     whole: Arc<Vec<u8>>,
-    /// Its pyramid (`None` when it is no texture: the worker decodes the whole and warns as the
-    /// master would).
+    /// Its pyramid, kept while levels may be asked for (`None` when it is no texture, and the
+    /// worker decodes the whole and warns as the master would, or when the whole goes instead of
+    /// any level).
     map: Option<MipMap>,
     /// The description with the coarsest levels, when less than half the whole.
     pyramid: Option<Arc<Vec<u8>>>,
@@ -181,8 +190,16 @@ impl TextureServer {
             })
             .collect();
         self.served.extend(built);
+        self.batches += 1;
+        for (part, name) in requests {
+            if let TexturePart::Pyramid { raw } | TexturePart::Level { raw, .. } = *part {
+                if let Some(served) = self.served.get_mut(&(name.clone(), raw)) {
+                    served.last_used = self.batches;
+                }
+            }
+        }
         let served = &self.served;
-        requests
+        let answers = requests
             .par_iter()
             .map(|(part, name)| {
                 let raw = match *part {
@@ -200,7 +217,28 @@ impl TextureServer {
                     _ => served.pyramid.clone().unwrap_or_else(|| served.whole.clone()),
                 }
             })
-            .collect()
+            .collect();
+        self.evict(MAX_SERVED_BYTES);
+        answers
+    }
+
+    /// Drops the textures asked for least recently until those held take at most `limit` bytes
+    /// (they are decoded again if asked for again).
+    fn evict(&mut self, limit: usize) {
+        let mut held: Vec<(u64, usize, (String, bool))> =
+            self.served.iter().map(|(key, s)| (s.last_used, s.memory_bytes(), key.clone())).collect();
+        let mut total: usize = held.iter().map(|h| h.1).sum();
+        if total <= limit {
+            return;
+        }
+        held.sort_unstable();
+        for (_, bytes, key) in held {
+            if total <= limit {
+                break;
+            }
+            self.served.remove(&key);
+            total -= bytes;
+        }
     }
 
     /// The encoded answer to one request ([`TextureServer::answer_all`]).
@@ -224,8 +262,16 @@ impl Served {
         });
         let whole = Arc::new(encode_answer(&TextureAnswer::Whole(delivered)));
         let pyramid = map.as_ref().map(describe).filter(|p| worth_sending(p, &whole)).map(Arc::new);
+        let map = map.filter(|_| pyramid.is_some());
         let levels = (0..map.as_ref().map_or(0, MipMap::level_count)).map(|_| OnceLock::new()).collect();
-        Served { whole, map, pyramid, levels }
+        Served { last_used: 0, whole, map, pyramid, levels }
+    }
+
+    /// What it holds, in bytes.
+    fn memory_bytes(&self) -> usize {
+        let map = self.map.as_ref().map_or(0, |m| (0..m.level_count()).map(|i| 4 * m.level(i).data().len()).sum());
+        let answers = self.levels.iter().filter_map(|l| l.get().cloned().flatten()).map(|a| a.len()).sum::<usize>();
+        map + answers + self.whole.len() + self.pyramid.as_ref().map_or(0, |p| p.len())
     }
 
     fn level(&self, level: usize) -> Arc<Vec<u8>> {
@@ -587,6 +633,11 @@ mod tests {
         // A level past the last, or of a name that is no texture, is the whole.
         let whole = encode_answer(&TextureAnswer::Whole(Delivered::image(&image)));
         assert_eq!(*server.answer(2, TexturePart::Level { raw: false, level: 99 }, "t", deliver), whole);
+        // Past the limit, the least recently asked for go first.
+        server.evict(1);
+        assert!(server.served.is_empty());
+        server.answer(2, pyramid, "t", deliver);
+        assert_eq!(reads.load(Ordering::Relaxed), 5, "read again after it went");
         let missing = |_, _: &str| Delivered::Missing { path: None, reason: "file not found".into() };
         let answer = server.answer(2, TexturePart::Level { raw: false, level: 0 }, "gone", missing);
         assert!(matches!(decode_answer(&answer), Ok(TextureAnswer::Whole(Delivered::Missing { .. }))));
