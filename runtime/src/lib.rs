@@ -17,6 +17,7 @@ pub mod bart;
 pub mod camera;
 pub mod cpu;
 pub mod csg;
+pub(crate) mod deflate;
 pub mod distributed;
 pub mod geometry;
 pub mod image_io;

@@ -20,7 +20,6 @@ use crate::api::decode_mesh;
 use crate::scene::Scene;
 use crate::texture::{decode_answer, Delivered, TextureAnswer, TexturePart, TextureSource};
 use std::collections::HashMap;
-use std::io::{Read, Write};
 use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
 use std::sync::mpsc::{channel, Sender};
 use std::sync::{Arc, Mutex, PoisonError};
@@ -169,25 +168,12 @@ pub const MAX_INFLATED_OBJECT: u64 = 1 << 32;
 /// built over it ([`crate::accel::wire::encode_bvh4`]; empty when it has none), the mesh's length
 /// first, deflated (the fastest level: the master encodes each object once).
 pub(super) fn encode_object(mesh: &[u8], bvh: &[u8]) -> Vec<u8> {
-    let mut deflated = flate2::write::DeflateEncoder::new(Vec::new(), flate2::Compression::fast());
-    // Writing to a vector cannot fail.
-    let _ = deflated.write_all(&(mesh.len() as u64).to_le_bytes());
-    let _ = deflated.write_all(mesh);
-    let _ = deflated.write_all(bvh);
-    deflated.finish().unwrap_or_default()
+    crate::deflate::deflate(&[&(mesh.len() as u64).to_le_bytes(), mesh, bvh])
 }
 
 /// An object [`encode_object`] wrote, inflated: at most [`MAX_INFLATED_OBJECT`] bytes.
 fn inflate_object(bytes: &[u8]) -> Result<Vec<u8>, String> {
-    let mut plain = Vec::new();
-    flate2::read::DeflateDecoder::new(bytes)
-        .take(MAX_INFLATED_OBJECT + 1)
-        .read_to_end(&mut plain)
-        .map_err(|e| format!("the object cannot be inflated: {e}"))?;
-    if plain.len() as u64 > MAX_INFLATED_OBJECT {
-        return Err(format!("the object inflates past {} GiB", MAX_INFLATED_OBJECT >> 30));
-    }
-    Ok(plain)
+    crate::deflate::inflate_at_most(bytes, MAX_INFLATED_OBJECT).map_err(|e| format!("the object {e}"))
 }
 
 /// The mesh's and the BVH's bytes of an inflated object.

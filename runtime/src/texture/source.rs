@@ -3,7 +3,6 @@
 //! (`remote.rs`); and how those travel.
 
 use std::fmt;
-use std::io::{Read, Write};
 use std::path::PathBuf;
 
 use super::image::{decode_texture_file, LoadedImage, TexImage};
@@ -165,24 +164,15 @@ pub const MAX_INFLATED_ANSWER: u64 = (1 << 30) + (1 << 20);
 /// nineteen twentieths: bytes the master's link does not carry. The fastest level: the master
 /// compresses each texture once, but while a worker waits.
 pub fn encode_answer(answer: &TextureAnswer) -> Vec<u8> {
-    // Plain data of vectors and strings: encoding it cannot fail, nor writing it to a vector.
-    let plain = postcard::to_allocvec(answer).unwrap_or_default();
-    let mut deflated = flate2::write::DeflateEncoder::new(Vec::new(), flate2::Compression::fast());
-    let _ = deflated.write_all(&plain);
-    deflated.finish().unwrap_or_default()
+    // Plain data of vectors and strings: encoding it cannot fail.
+    crate::deflate::deflate(&[&postcard::to_allocvec(answer).unwrap_or_default()])
 }
 
 /// An answer [`encode_answer`] wrote; an error for anything else, or one that would inflate past
 /// [`MAX_INFLATED_ANSWER`].
 pub fn decode_answer(bytes: &[u8]) -> Result<TextureAnswer, String> {
-    let mut plain = Vec::new();
-    flate2::read::DeflateDecoder::new(bytes)
-        .take(MAX_INFLATED_ANSWER + 1)
-        .read_to_end(&mut plain)
-        .map_err(|e| format!("the master's answer cannot be inflated: {e}"))?;
-    if plain.len() as u64 > MAX_INFLATED_ANSWER {
-        return Err(format!("the master's answer inflates past {} MiB", MAX_INFLATED_ANSWER >> 20));
-    }
+    let plain =
+        crate::deflate::inflate_at_most(bytes, MAX_INFLATED_ANSWER).map_err(|e| format!("the master's answer {e}"))?;
     postcard::from_bytes(&plain).map_err(|e| format!("the master's answer cannot be decoded: {e}"))
 }
 
