@@ -1,52 +1,67 @@
 //! An object: a mesh plus its own BVH, built once and rebuilt only when the object's geometry
 //! changes. Many instances share one object.
 //!
-//! Invariant: `tris[s]` is the prepared form of mesh triangle `bvh.prim_order[s]`, so a leaf slot
-//! gives both the triangle to test and the primitive id to report; for a deforming mesh,
-//! `deformed.close[s]` is the same triangle at the deformation's close, and the BVH's boxes bound
-//! both ends (so every time between, a prepared triangle being linear in its corners).
+//! Invariant: an object BVH's leaves are **blocks** of up to [`BLOCK_WIDTH`] triangles. The first-slot
+//! field of a leaf reference holds the leaf's block `b` (see [`leaf_range`]): its triangles are leaf
+//! slots `4 b .. 4 b + count`, lanes `0 .. count` of `blocks[b]`, mesh triangles
+//! `bvh.prim_order[4 b + j]`; the block's other lanes hold zeros and the slots [`NO_TRIANGLE`].
+//! Every block belongs to one leaf. For a deforming mesh, `deformed.close[b]` is the same block at
+//! the deformation's close, and the BVH's boxes bound both ends (so every time between, a prepared
+//! triangle being linear in its corners).
 
-use super::bvh4::{BuildQuality, Bvh4};
+use super::bvh4::{leaf_range, leaf_ref, BuildQuality, Bvh4, EMPTY_CHILD, LEAF_BIT};
 use super::bvh8::Bvh8;
-use crate::geometry::{triangle::PreTriangle, AlphaMask, Mesh};
+use crate::geometry::triangle::{PreTriangle, TriangleBlock, BLOCK_WIDTH};
+use crate::geometry::{AlphaMask, Mesh};
 use glam::Vec3A;
 use obvhs::aabb::Aabb;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::{Arc, OnceLock};
 
-/// Largest leaf the object BVHs are built with (measured on s34k: 2 beats 1, 4 and 8 for packets and
-/// single rays alike; see `docs/tracer.md`).
-pub const OBJECT_LEAF_SIZE: u32 = 2;
+/// Largest leaf the object BVHs are built with: a block, tested at once by single rays (see
+/// `docs/tracer.md`).
+pub const OBJECT_LEAF_SIZE: u32 = BLOCK_WIDTH as u32;
 
-/// An object's BVH with its triangles in leaf order.
+/// The leaf slots of a block's lanes that hold no triangle.
+pub const NO_TRIANGLE: u32 = u32::MAX;
+
+/// An object's BVH with its triangles in blocks, in leaf order (see the module documentation).
 #[derive(Clone, Debug, Default)]
 pub struct ObjectBvh {
-    /// The BVH over the triangles (read by packets).
+    /// The BVH over the triangles (read by packets), its leaves blocks.
     pub bvh: Bvh4,
     /// Its 8-wide form (read by single rays; same leaves).
     pub wide: Bvh8,
-    /// Prepared triangles in leaf-slot order.
-    pub tris: Vec<PreTriangle>,
+    /// Prepared triangles, [`BLOCK_WIDTH`] to a block, one block a leaf.
+    pub blocks: Vec<TriangleBlock>,
     /// A deforming mesh's triangles at its close (`None`: the mesh stands still).
     pub deformed: Option<DeformedTriangles>,
 }
 
 /// The other end of a deforming object's triangles: a ray at time `t` meets the blend of
-/// `tris[s]` and `close[s]` by [`Deformation::blend`](crate::geometry::Deformation::blend).
+/// `blocks[b]` and `close[b]` by [`Deformation::blend`](crate::geometry::Deformation::blend).
 #[derive(Clone, Debug, Default)]
 pub struct DeformedTriangles {
-    /// Prepared triangles at the close, in leaf-slot order.
-    pub close: Vec<PreTriangle>,
+    /// Prepared triangles at the close, in the blocks of the open ones.
+    pub close: Vec<TriangleBlock>,
     pub open_time: f32,
     pub close_time: f32,
 }
 
 impl DeformedTriangles {
-    /// Leaf slot `s`'s triangle at `time`.
+    /// Block `b` at `time`.
     #[inline(always)]
-    pub fn at(&self, tris: &[PreTriangle], s: usize, time: f32) -> PreTriangle {
-        tris[s].lerp(&self.close[s], crate::geometry::mesh::blend_between(self.open_time, self.close_time, time))
+    pub fn block_at(&self, blocks: &[TriangleBlock], b: usize, time: f32) -> TriangleBlock {
+        blocks[b].lerp(&self.close[b], crate::geometry::mesh::blend_between(self.open_time, self.close_time, time))
+    }
+
+    /// Leaf slot `s`'s triangle at `time` (the same values as its lane of [`Self::block_at`]).
+    #[inline(always)]
+    pub fn at(&self, blocks: &[TriangleBlock], s: usize, time: f32) -> PreTriangle {
+        let (b, j) = (s / BLOCK_WIDTH, s % BLOCK_WIDTH);
+        let w = crate::geometry::mesh::blend_between(self.open_time, self.close_time, time);
+        blocks[b].triangle(j).lerp(&self.close[b].triangle(j), w)
     }
 }
 
@@ -68,44 +83,80 @@ impl ObjectBvh {
                 Aabb::new(lo, hi)
             })
             .collect();
-        ObjectBvh::from_bvh4(mesh, Bvh4::build(&boxes, quality, OBJECT_LEAF_SIZE))
+        ObjectBvh::from_bvh4(mesh, leaves_in_blocks(Bvh4::build(&boxes, quality, OBJECT_LEAF_SIZE)))
     }
 
-    /// The object BVH of `mesh` around `bvh`, a 4-wide BVH over its triangles (built here, or
-    /// built elsewhere and checked: [`super::wire::decode_bvh4`]): its prepared triangles and its
-    /// 8-wide form.
+    /// The object BVH of `mesh` around `bvh`, a 4-wide BVH over its triangles whose leaves are
+    /// blocks (built here, or built elsewhere and checked: [`super::wire::decode_bvh4`]): its
+    /// prepared triangles and its 8-wide form.
     pub fn from_bvh4(mesh: &Mesh, bvh: Bvh4) -> Self {
-        let mut tris = Vec::with_capacity(bvh.prim_order.len());
+        let block_of = |positions: &[glam::Vec3], lanes: &[u32]| {
+            let mut tris = [PreTriangle::default(); BLOCK_WIDTH];
+            let mut n = 0;
+            for &p in lanes.iter().take_while(|&&p| p != NO_TRIANGLE) {
+                let [a, b, c] = mesh.triangles[p as usize].map(|k| positions[k as usize]);
+                tris[n] = PreTriangle::new(a, b, c);
+                n += 1;
+            }
+            TriangleBlock::new(&tris[..n])
+        };
+        let mut blocks = Vec::with_capacity(bvh.prim_order.len() / BLOCK_WIDTH);
         bvh.prim_order
-            .par_iter()
-            .with_min_len(4096)
-            .map(|&p| {
-                let [a, b, c] = mesh.corners(p as usize);
-                PreTriangle::new(a, b, c)
-            })
-            .collect_into_vec(&mut tris);
+            .par_chunks(BLOCK_WIDTH)
+            .with_min_len(1024)
+            .map(|lanes| block_of(&mesh.positions, lanes))
+            .collect_into_vec(&mut blocks);
         let deformed = mesh.deformation.as_ref().map(|d| DeformedTriangles {
             close: bvh
                 .prim_order
-                .par_iter()
-                .with_min_len(4096)
-                .map(|&p| {
-                    let [a, b, c] = mesh.triangles[p as usize].map(|k| d.positions[k as usize]);
-                    PreTriangle::new(a, b, c)
-                })
+                .par_chunks(BLOCK_WIDTH)
+                .with_min_len(1024)
+                .map(|lanes| block_of(&d.positions, lanes))
                 .collect(),
             open_time: d.open,
             close_time: d.close,
         });
         let wide = Bvh8::from_bvh4(&bvh);
-        ObjectBvh { bvh, wide, tris, deformed }
+        ObjectBvh { bvh, wide, blocks, deformed }
+    }
+
+    /// Leaf slot `s`'s triangle (at the deformation's open).
+    #[inline(always)]
+    pub fn triangle(&self, s: usize) -> PreTriangle {
+        self.blocks[s / BLOCK_WIDTH].triangle(s % BLOCK_WIDTH)
     }
 
     /// Heap bytes of the BVH and the prepared triangles.
     pub fn memory_bytes(&self) -> usize {
-        let triangles = self.tris.len() + self.deformed.as_ref().map_or(0, |d| d.close.len());
-        self.bvh.memory_bytes() + self.wide.memory_bytes() + triangles * size_of::<PreTriangle>()
+        let blocks = self.blocks.len() + self.deformed.as_ref().map_or(0, |d| d.close.len());
+        self.bvh.memory_bytes() + self.wide.memory_bytes() + blocks * size_of::<TriangleBlock>()
     }
+}
+
+/// `bvh` (leaf references holding first slots, leaves of at most [`BLOCK_WIDTH`] primitives) with
+/// its leaves made blocks: leaf `i` in slot order becomes block `i`, its slots `4 i ..`, the
+/// block's unused slots [`NO_TRIANGLE`].
+pub fn leaves_in_blocks(mut bvh: Bvh4) -> Bvh4 {
+    let mut leaves: Vec<(u32, usize)> = bvh
+        .nodes
+        .iter()
+        .enumerate()
+        .flat_map(|(i, n)| n.child.iter().enumerate().map(move |(k, &r)| (r, 4 * i + k)))
+        .filter(|&(r, _)| r & LEAF_BIT != 0 && r != EMPTY_CHILD)
+        .map(|(r, at)| (leaf_range(r).0, at))
+        .collect();
+    leaves.sort_unstable();
+    let mut order = vec![NO_TRIANGLE; BLOCK_WIDTH * leaves.len()];
+    for (b, &(first, at)) in leaves.iter().enumerate() {
+        let child = &mut bvh.nodes[at / 4].child[at % 4];
+        let count = leaf_range(*child).1;
+        assert!(count as usize <= BLOCK_WIDTH, "a leaf of {count} primitives does not fit a block");
+        let slots = first as usize..(first + count) as usize;
+        order[BLOCK_WIDTH * b..BLOCK_WIDTH * b + slots.len()].copy_from_slice(&bvh.prim_order[slots]);
+        *child = leaf_ref(b as u32, count);
+    }
+    bvh.prim_order = order;
+    bvh
 }
 
 /// What an object traces: its mesh and the BVH built from it.

@@ -36,7 +36,7 @@ use super::single::{self, HitState, RayPre, STACK};
 use super::stack::Stack;
 use super::top::{InstanceData, TopLevel};
 use super::ROBUST;
-use crate::geometry::triangle::{intersect, intersect_shared, PreTriangle, SharedOrigin};
+use crate::geometry::triangle::{intersect, intersect_shared, PreTriangle, SharedOrigin, BLOCK_WIDTH};
 use crate::ray::{HitCandidate, HitFilter, HitPacket, RayPacket, INVALID_ID, PACKET_SIZE};
 use glam::{Vec3A, Vec4};
 use wide::{f32x8, i32x8};
@@ -498,13 +498,14 @@ fn intersect_object_with<const SHARED: bool>(
     filter: HitFilter,
 ) {
     let data = obj.data();
-    let tris = &data.bvh.tris;
+    let blocks = &data.bvh.blocks;
     let order = &data.bvh.bvh.prim_order;
-    traverse::<SHARED, _>(&data.bvh.bvh, g, s, lo, hi, |first, count, mask, s| {
+    traverse::<SHARED, _>(&data.bvh.bvh, g, s, lo, hi, |b, count, mask, s| {
         let mut any = false;
-        for slot in first as usize..(first + count) as usize {
-            let primitive = order[slot];
-            leaf_triangle(g, s, &tris[slot], mask, |c, mut bits, t, u, v, s| {
+        let block = &blocks[b as usize];
+        for j in 0..count as usize {
+            let primitive = order[BLOCK_WIDTH * b as usize + j];
+            leaf_triangle(g, s, &block.triangle(j), mask, |c, mut bits, t, u, v, s| {
                 if filter.is_some() || obj.alpha.is_some() {
                     let mut b = bits;
                     while b != 0 {
@@ -588,13 +589,14 @@ fn occluded_object_with<const SHARED: bool>(
     filter: HitFilter,
 ) -> bool {
     let data = obj.data();
-    let tris = &data.bvh.tris;
+    let blocks = &data.bvh.blocks;
     let order = &data.bvh.bvh.prim_order;
-    traverse::<SHARED, _>(&data.bvh.bvh, g, s, lo, hi, |first, count, mask, s| {
+    traverse::<SHARED, _>(&data.bvh.bvh, g, s, lo, hi, |b, count, mask, s| {
         let mut any = false;
-        for slot in first as usize..(first + count) as usize {
-            let primitive = order[slot];
-            leaf_triangle(g, s, &tris[slot], mask, |c, mut bits, t, u, v, s| {
+        let block = &blocks[b as usize];
+        for j in 0..count as usize {
+            let primitive = order[BLOCK_WIDTH * b as usize + j];
+            leaf_triangle(g, s, &block.triangle(j), mask, |c, mut bits, t, u, v, s| {
                 if filter.is_some() || obj.alpha.is_some() {
                     let mut b = bits;
                     while b != 0 {

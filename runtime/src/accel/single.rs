@@ -13,11 +13,11 @@
 
 use super::bvh4::{leaf_range, Node4, EMPTY_CHILD, LEAF_BIT};
 use super::bvh8::Node8;
-use super::object::Object;
+use super::object::{Object, NO_TRIANGLE};
 use super::stack::Stack;
 use super::top::{InstanceData, TopLevel};
 use super::{prefetch, safe_inv, ROBUST};
-use crate::geometry::triangle::{accept, intersect, intersect_accept, PreTriangle};
+use crate::geometry::triangle::{accept, intersect, PreTriangle, TriangleBlock, BLOCK_WIDTH};
 use crate::ray::{Hit, HitCandidate, HitFilter, Ray, INVALID_ID};
 use glam::{Vec3A, Vec4};
 use wide::f32x8;
@@ -314,18 +314,19 @@ pub(crate) fn intersect_object(
     lane: u32,
 ) {
     let data = obj.data();
+    let blocks = &data.bvh.blocks;
     match &data.bvh.deformed {
-        None => intersect_triangles(obj, inst_id, object_id, ray, hit, filter, lane, |s, _| data.bvh.tris[s]),
-        Some(d) => {
-            intersect_triangles(obj, inst_id, object_id, ray, hit, filter, lane, |s, t| d.at(&data.bvh.tris, s, t))
-        }
+        None => intersect_blocks(obj, inst_id, object_id, ray, hit, filter, lane, |b, _| blocks[b]),
+        Some(d) => intersect_blocks(obj, inst_id, object_id, ray, hit, filter, lane, |b, t| d.block_at(blocks, b, t)),
     }
 }
 
-/// [`intersect_object`] with leaf slot `s`'s triangle at time `t` as `triangle(s, t)` makes it.
+/// [`intersect_object`] with leaf block `b` at time `t` as `block(b, t)` makes it. A leaf's
+/// triangles are tested at once; the hits are then taken in lane order, each while it is nearer
+/// than the closest hit so far: the answer of testing them one by one.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-fn intersect_triangles(
+fn intersect_blocks(
     obj: &Object,
     inst_id: u32,
     object_id: u32,
@@ -333,28 +334,35 @@ fn intersect_triangles(
     hit: &mut HitState,
     filter: HitFilter,
     lane: u32,
-    triangle: impl Fn(usize, f32) -> PreTriangle,
+    block: impl Fn(usize, f32) -> TriangleBlock,
 ) {
     let data = obj.data();
-    let tris = &data.bvh.tris;
+    let blocks = &data.bvh.blocks;
     let order = &data.bvh.bvh.prim_order;
-    let pf = |first: u32| prefetch(tris.as_ptr().wrapping_add(first as usize), 2);
-    traverse::<true, _, _, _>(&data.bvh.wide.nodes, 0, ray, pf, |first, count, ray| {
-        let slots = first as usize..(first + count) as usize;
-        for (s, &primitive) in slots.clone().zip(&order[slots]) {
-            if let Some((t, u, v)) = intersect_accept(ray.o, ray.d, &triangle(s, ray.time), ray.tmin, ray.tmax) {
-                if !obj.solid_at(primitive, u, v) {
+    let pf = |b: u32| prefetch(blocks.as_ptr().wrapping_add(b as usize), 3);
+    traverse::<true, _, _, _>(&data.bvh.wide.nodes, 0, ray, pf, |b, count, ray| {
+        let (mask, t, u, v) = block(b as usize, ray.time).intersect(ray.o, ray.d, ray.tmin, ray.tmax);
+        let mut bits = mask & ((1 << count) - 1);
+        while bits != 0 {
+            let j = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            let (t, u, v) = (t[j], u[j], v[j]);
+            // Accepted at the leaf's `tmax` (so not NaN); a nearer lane of the leaf may have come first.
+            if t >= ray.tmax {
+                continue;
+            }
+            let primitive = order[BLOCK_WIDTH * b as usize + j];
+            if !obj.solid_at(primitive, u, v) {
+                continue;
+            }
+            if let Some(f) = filter {
+                let c = HitCandidate { t, u, v, instance: inst_id, object: object_id, primitive, lane };
+                if !f(&c) {
                     continue;
                 }
-                if let Some(f) = filter {
-                    let c = HitCandidate { t, u, v, instance: inst_id, object: object_id, primitive, lane };
-                    if !f(&c) {
-                        continue;
-                    }
-                }
-                ray.tmax = t;
-                *hit = HitState { u, v, instance: inst_id, primitive };
             }
+            ray.tmax = t;
+            *hit = HitState { u, v, instance: inst_id, primitive };
         }
         false
     });
@@ -371,41 +379,52 @@ pub(crate) fn occluded_object(
     lane: u32,
 ) -> bool {
     let data = obj.data();
+    let blocks = &data.bvh.blocks;
     match &data.bvh.deformed {
-        None => occluded_triangles(obj, inst_id, object_id, ray, filter, lane, |s, _| data.bvh.tris[s]),
-        Some(d) => occluded_triangles(obj, inst_id, object_id, ray, filter, lane, |s, t| d.at(&data.bvh.tris, s, t)),
+        None => occluded_blocks(obj, inst_id, object_id, ray, filter, lane, |b, _| blocks[b]),
+        Some(d) => occluded_blocks(obj, inst_id, object_id, ray, filter, lane, |b, t| d.block_at(blocks, b, t)),
     }
 }
 
-/// [`occluded_object`] with leaf slot `s`'s triangle at time `t` as `triangle(s, t)` makes it.
+/// [`occluded_object`] with leaf block `b` at time `t` as `block(b, t)` makes it.
 #[inline(always)]
-fn occluded_triangles(
+fn occluded_blocks(
     obj: &Object,
     inst_id: u32,
     object_id: u32,
     ray: &mut RayPre,
     filter: HitFilter,
     lane: u32,
-    triangle: impl Fn(usize, f32) -> PreTriangle,
+    block: impl Fn(usize, f32) -> TriangleBlock,
 ) -> bool {
     let data = obj.data();
-    let tris = &data.bvh.tris;
+    let blocks = &data.bvh.blocks;
     let order = &data.bvh.bvh.prim_order;
-    let pf = |first: u32| prefetch(tris.as_ptr().wrapping_add(first as usize), 2);
-    traverse::<false, _, _, _>(&data.bvh.wide.nodes, 0, ray, pf, |first, count, ray| {
-        let slots = first as usize..(first + count) as usize;
-        for (s, &primitive) in slots.clone().zip(&order[slots]) {
-            if let Some((t, u, v)) = intersect_accept(ray.o, ray.d, &triangle(s, ray.time), ray.tmin, ray.tmax) {
-                if !obj.solid_at(primitive, u, v) {
-                    continue;
-                }
-                match filter {
-                    None => return true,
-                    Some(f) => {
-                        let c = HitCandidate { t, u, v, instance: inst_id, object: object_id, primitive, lane };
-                        if f(&c) {
-                            return true;
-                        }
+    let pf = |b: u32| prefetch(blocks.as_ptr().wrapping_add(b as usize), 3);
+    traverse::<false, _, _, _>(&data.bvh.wide.nodes, 0, ray, pf, |b, count, ray| {
+        let (mask, t, u, v) = block(b as usize, ray.time).intersect(ray.o, ray.d, ray.tmin, ray.tmax);
+        let mut bits = mask & ((1 << count) - 1);
+        while bits != 0 {
+            let j = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            let primitive = order[BLOCK_WIDTH * b as usize + j];
+            if !obj.solid_at(primitive, u[j], v[j]) {
+                continue;
+            }
+            match filter {
+                None => return true,
+                Some(f) => {
+                    let c = HitCandidate {
+                        t: t[j],
+                        u: u[j],
+                        v: v[j],
+                        instance: inst_id,
+                        object: object_id,
+                        primitive,
+                        lane,
+                    };
+                    if f(&c) {
+                        return true;
                     }
                 }
             }
@@ -493,7 +512,7 @@ pub(crate) fn intersect_brute_force(top: &TopLevel, objects: &[Object], ray: &Ra
             continue;
         };
         let r = RayPre::of(ray).in_object_space(inst);
-        for s in 0..obj.data().bvh.tris.len() {
+        for s in live_slots(obj) {
             let (t, u, v) = intersect(r.o, r.d, &triangle_at(obj, s, ray.time));
             if accept(t, u, v, ray.tmin, tmax) {
                 let primitive = obj.data().bvh.bvh.prim_order[s];
@@ -518,9 +537,15 @@ pub(crate) fn intersect_brute_force(top: &TopLevel, objects: &[Object], ray: &Ra
 fn triangle_at(obj: &Object, s: usize, time: f32) -> PreTriangle {
     let data = obj.data();
     match &data.bvh.deformed {
-        None => data.bvh.tris[s],
-        Some(d) => d.at(&data.bvh.tris, s, time),
+        None => data.bvh.triangle(s),
+        Some(d) => d.at(&data.bvh.blocks, s, time),
     }
+}
+
+/// The leaf slots of `obj` that hold a triangle.
+fn live_slots(obj: &Object) -> impl Iterator<Item = usize> + '_ {
+    let order = &obj.data().bvh.bvh.prim_order;
+    (0..order.len()).filter(|&s| order[s] != NO_TRIANGLE)
 }
 
 /// The brute-force occlusion reference.
@@ -530,7 +555,7 @@ pub(crate) fn occluded_brute_force(top: &TopLevel, objects: &[Object], ray: &Ray
             continue;
         };
         let r = RayPre::of(ray).in_object_space(inst);
-        for s in 0..obj.data().bvh.tris.len() {
+        for s in live_slots(obj) {
             let (t, u, v) = intersect(r.o, r.d, &triangle_at(obj, s, ray.time));
             if accept(t, u, v, ray.tmin, ray.tmax) && obj.solid_at(obj.data().bvh.bvh.prim_order[s], u, v) {
                 let ok = filter.is_none_or(|f| {

@@ -3,16 +3,21 @@
 //! prepares the triangles and the 8-wide form, which take a fraction of the build).
 //!
 //! Layout: the node count and the leaf-slot count (`u32` each), then each node's six box rows and
-//! four child references (28 little-endian 32-bit values), then the leaf order (`u32` each).
+//! four child references (28 little-endian 32-bit values), then the leaf order (`u32` each). The
+//! leaves are blocks, as in [`ObjectBvh`](super::object::ObjectBvh): a leaf reference names its
+//! block, and the leaf order has four slots a block, the unused ones [`NO_TRIANGLE`].
 //!
 //! Decoding checks the tree against the mesh it is for, so that damaged bytes are an error and
 //! never a traversal out of bounds, a loop, or a triangle no ray can reach: every inner reference
-//! points past its parent (pre-order) and is reached once, every leaf slot lies in one leaf, the
-//! leaf order is a permutation of the mesh's triangles, each child box contains its subtree (a
-//! leaf's triangles, at both ends of a deformation; an inner node's child boxes), and the tree is
-//! at most [`MAX_WIRE_DEPTH`] levels deep (the 8-wide conversion recurses over it).
+//! points past its parent (pre-order) and is reached once, every block lies in one leaf, which
+//! holds its used slots and no other, the leaf order names each of the mesh's triangles once, each
+//! child box contains its subtree (a leaf's triangles, at both ends of a deformation; an inner
+//! node's child boxes), and the tree is at most [`MAX_WIRE_DEPTH`] levels deep (the 8-wide
+//! conversion recurses over it).
 
-use super::bvh4::{leaf_range, Bvh4, Node4, LEAF_BIT, MAX_LEAF_SIZE};
+use super::bvh4::{leaf_range, Bvh4, Node4, LEAF_BIT};
+use super::object::NO_TRIANGLE;
+use crate::geometry::triangle::BLOCK_WIDTH;
 use crate::geometry::Mesh;
 use glam::{Vec3, Vec3A};
 
@@ -59,8 +64,9 @@ pub fn decode_bvh4(bytes: &[u8], mesh: &Mesh) -> Result<Bvh4, String> {
         return Err(format!("a BVH of {} bytes for {node_count} nodes and {slot_count} leaf slots", bytes.len()));
     }
     let triangles = mesh.triangle_count();
-    if slot_count != triangles {
-        return Err(format!("a BVH over {slot_count} triangles for a mesh of {triangles}"));
+    // Every block holds a triangle at least.
+    if slot_count % BLOCK_WIDTH != 0 || slot_count / BLOCK_WIDTH > triangles || slot_count < triangles {
+        return Err(format!("a BVH of {slot_count} leaf slots for a mesh of {triangles} triangles"));
     }
     if (node_count == 0) != (triangles == 0) {
         return Err(format!("a BVH of {node_count} nodes for a mesh of {triangles} triangles"));
@@ -82,11 +88,14 @@ pub fn decode_bvh4(bytes: &[u8], mesh: &Mesh) -> Result<Bvh4, String> {
         .collect();
     let prim_order: Vec<u32> = (0..slot_count).map(|s| word(2 + NODE_VALUES * node_count + s).unwrap_or(0)).collect();
     let mut placed = vec![false; triangles];
-    for &p in &prim_order {
+    for &p in prim_order.iter().filter(|&&p| p != NO_TRIANGLE) {
         match placed.get_mut(p as usize) {
             Some(seen @ false) => *seen = true,
             _ => return Err(format!("the BVH's leaf order names triangle {p} twice or out of range")),
         }
+    }
+    if let Some(t) = placed.iter().position(|&p| !p) {
+        return Err(format!("the BVH's leaf order leaves out triangle {t}"));
     }
     if nodes.is_empty() {
         return Ok(Bvh4::default());
@@ -121,7 +130,7 @@ fn inside((lo, hi): Bounds, p: Vec3) -> bool {
 /// levels, as [`Bvh4::depth`] counts them.
 fn check_tree(nodes: &[Node4], prim_order: &[u32], mesh: &Mesh) -> Result<usize, String> {
     let mut reached = vec![false; nodes.len()];
-    let mut slot_taken = vec![false; prim_order.len()];
+    let mut block_taken = vec![false; prim_order.len() / BLOCK_WIDTH];
     let mut deepest = 0;
     // Inner nodes to check: index, level (the root's is 1), and the box its parent gives it.
     let mut stack: Vec<(usize, usize, Option<Bounds>)> = vec![(0, 1, None)];
@@ -144,19 +153,26 @@ fn check_tree(nodes: &[Node4], prim_order: &[u32], mesh: &Mesh) -> Result<usize,
                 reached[j] = true;
                 stack.push((j, level + 1, Some(child)));
             } else {
-                let (first, count) = leaf_range(r);
+                let (block, count) = leaf_range(r);
                 if count == 0 {
                     continue;
                 }
-                let slots = first as usize..first as usize + count as usize;
-                if count > MAX_LEAF_SIZE || slots.end > prim_order.len() {
-                    return Err(format!("BVH node {i} has a leaf of slots {slots:?} of {}", prim_order.len()));
+                let (block, count) = (block as usize, count as usize);
+                if count > BLOCK_WIDTH || block >= block_taken.len() {
+                    return Err(format!(
+                        "BVH node {i} has a leaf of {count} in block {block} of {}",
+                        block_taken.len()
+                    ));
                 }
-                for s in slots {
-                    if std::mem::replace(&mut slot_taken[s], true) {
-                        return Err(format!("leaf slot {s} lies in two leaves of the BVH"));
-                    }
-                    let t = prim_order[s] as usize;
+                if std::mem::replace(&mut block_taken[block], true) {
+                    return Err(format!("block {block} lies in two leaves of the BVH"));
+                }
+                let lanes = &prim_order[BLOCK_WIDTH * block..BLOCK_WIDTH * (block + 1)];
+                if lanes.iter().enumerate().any(|(j, &p)| (j < count) == (p == NO_TRIANGLE)) {
+                    return Err(format!("block {block} of the BVH holds other slots than its leaf's {count}"));
+                }
+                for &t in &lanes[..count] {
+                    let t = t as usize;
                     let [a, b, c] = mesh.corners(t);
                     let close = mesh.deformation.as_ref().map(|d| mesh.triangles[t].map(|v| d.positions[v as usize]));
                     if ![a, b, c].into_iter().chain(close.into_iter().flatten()).all(|p| inside(child, p)) {
@@ -175,8 +191,8 @@ fn check_tree(nodes: &[Node4], prim_order: &[u32], mesh: &Mesh) -> Result<usize,
     if let Some(i) = reached.iter().position(|&r| !r) {
         return Err(format!("BVH node {i} is in no tree"));
     }
-    if let Some(s) = slot_taken.iter().position(|&t| !t) {
-        return Err(format!("leaf slot {s} of the BVH is in no leaf"));
+    if let Some(b) = block_taken.iter().position(|&t| !t) {
+        return Err(format!("block {b} of the BVH is in no leaf"));
     }
     Ok(deepest)
 }
@@ -257,6 +273,19 @@ mod tests {
         // A leaf order that names a triangle twice.
         let order = 4 * (2 + NODE_VALUES * built.nodes.len());
         assert!(damage(order, built.prim_order[1]).is_err());
+        // A leaf slot emptied (its triangle then in no leaf), a leaf that claims its block's empty
+        // lane or a block it does not own, or that does not fit a block.
+        let (at, leaf) = (0..built.nodes.len())
+            .flat_map(|i| (0..4).map(move |k| (i, k)))
+            .map(|(i, k)| ((i, k), built.nodes[i].child[k]))
+            .find(|&(_, r)| r & LEAF_BIT != 0 && (1..4).contains(&leaf_range(r).1))
+            .expect("a leaf that does not fill its block");
+        let (block, count) = leaf_range(leaf);
+        assert!(damage(order + 16 * block as usize, NO_TRIANGLE).is_err());
+        assert!(damage(node(at.0, 24 + at.1), leaf + 1).is_err());
+        let other = crate::accel::bvh4::leaf_ref((block + 1) % (built.prim_order.len() / 4) as u32, count);
+        assert!(damage(node(at.0, 24 + at.1), other).is_err());
+        assert!(damage(node(at.0, 24 + at.1), crate::accel::bvh4::leaf_ref(block, 5)).is_err());
         // The same bytes decode again: nothing above changed them.
         assert!(decode_bvh4(&bytes, &mesh).is_ok());
     }

@@ -10,7 +10,7 @@
 //! floating-point cases, neither. Self-intersection is handled by offsetting secondary ray origins
 //! (see [`crate::ray::offset_ray_origin`]).
 
-use glam::{Vec3, Vec3A};
+use glam::{Vec3, Vec3A, Vec4};
 use std::ops::{Add, Div, Mul, Sub};
 
 /// Arithmetic on one lane or several.
@@ -86,9 +86,13 @@ fn dot<L: Arith>(a: [L; 3], b: [L; 3]) -> L {
 /// produce NaN or infinities, which fail the acceptance comparisons.
 #[inline(always)]
 pub fn intersect<L: Arith>(o: [L; 3], d: [L; 3], tri: &PreTriangle) -> (L, L, L) {
-    let v0 = tri.v0.map(L::splat);
-    let e1 = tri.e1.map(L::splat);
-    let e2 = tri.e2.map(L::splat);
+    intersect_lanes(o, d, tri.v0.map(L::splat), tri.e1.map(L::splat), tri.e2.map(L::splat))
+}
+
+/// [`intersect`] with a triangle a lane (a ray against each of a block's triangles, or rays
+/// against one): the same operations.
+#[inline(always)]
+fn intersect_lanes<L: Arith>(o: [L; 3], d: [L; 3], v0: [L; 3], e1: [L; 3], e2: [L; 3]) -> (L, L, L) {
     let pvec = cross(d, e2);
     let det = dot(e1, pvec);
     let inv_det = L::splat(1.0) / det;
@@ -162,6 +166,73 @@ pub fn intersect_accept(o: [f32; 3], d: [f32; 3], tri: &PreTriangle, tmin: f32, 
     }
     let t = dot(tri.e2, qvec) * inv_det;
     (t > tmin && t < tmax).then_some((t, u, v))
+}
+
+/// Triangles in a block: the lanes of a [`TriangleBlock`].
+pub const BLOCK_WIDTH: usize = 4;
+
+/// Four prepared triangles in structure-of-arrays form (144 bytes): coordinate `k` of the first
+/// vertex of lane `j` is `v0[k][j]`, and so on. A single ray tests a leaf's triangles at once with
+/// nine vector loads; unused lanes hold zeros (a degenerate triangle, which nothing hits).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[repr(C, align(16))]
+pub struct TriangleBlock {
+    pub v0: [[f32; 4]; 3],
+    pub e1: [[f32; 4]; 3],
+    pub e2: [[f32; 4]; 3],
+}
+
+impl TriangleBlock {
+    /// The block of `tris` (at most [`BLOCK_WIDTH`]) in lane order.
+    pub fn new(tris: &[PreTriangle]) -> TriangleBlock {
+        let mut b = TriangleBlock::default();
+        for (j, t) in tris.iter().take(BLOCK_WIDTH).enumerate() {
+            for k in 0..3 {
+                b.v0[k][j] = t.v0[k];
+                b.e1[k][j] = t.e1[k];
+                b.e2[k][j] = t.e2[k];
+            }
+        }
+        b
+    }
+
+    /// Lane `j`'s triangle.
+    #[inline(always)]
+    pub fn triangle(&self, j: usize) -> PreTriangle {
+        PreTriangle {
+            v0: [0, 1, 2].map(|k| self.v0[k][j]),
+            e1: [0, 1, 2].map(|k| self.e1[k][j]),
+            e2: [0, 1, 2].map(|k| self.e2[k][j]),
+        }
+    }
+
+    /// [`PreTriangle::lerp`] of every lane (the same operations).
+    #[inline(always)]
+    pub fn lerp(&self, other: &TriangleBlock, w: f32) -> TriangleBlock {
+        let w = Vec4::splat(w);
+        let mix = |a: [[f32; 4]; 3], b: [[f32; 4]; 3]| {
+            std::array::from_fn(|k| {
+                let (a, b) = (Vec4::from_array(a[k]), Vec4::from_array(b[k]));
+                (a + (b - a) * w).to_array()
+            })
+        };
+        TriangleBlock { v0: mix(self.v0, other.v0), e1: mix(self.e1, other.e1), e2: mix(self.e2, other.e2) }
+    }
+
+    /// [`intersect`] of one ray with each lane's triangle, and the lanes where [`accept`] holds
+    /// (bit `j` for lane `j`): the same values bit for bit, the same answers.
+    #[inline(always)]
+    pub fn intersect(&self, o: [f32; 3], d: [f32; 3], tmin: f32, tmax: f32) -> (u32, [f32; 4], [f32; 4], [f32; 4]) {
+        let rows = |r: &[[f32; 4]; 3]| r.map(Vec4::from_array);
+        let (t, u, v) =
+            intersect_lanes(o.map(Vec4::splat), d.map(Vec4::splat), rows(&self.v0), rows(&self.e1), rows(&self.e2));
+        let hit = u.cmpge(Vec4::ZERO)
+            & v.cmpge(Vec4::ZERO)
+            & (u + v).cmple(Vec4::ONE)
+            & t.cmpgt(Vec4::splat(tmin))
+            & t.cmplt(Vec4::splat(tmax));
+        (hit.bitmask(), t.to_array(), u.to_array(), v.to_array())
+    }
 }
 
 /// Scalar convenience wrapper: the hit `(t, u, v)` of a ray with a triangle, if any.
@@ -250,5 +321,51 @@ mod tests {
                 assert_eq!(got, [s.0.to_bits(), s.1.to_bits(), s.2.to_bits()], "lane {j}");
             }
         }
+    }
+
+    #[test]
+    fn blocks_match_scalar_bit_for_bit() {
+        let mut x = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            let f = (x >> 40) as f32 / (1u64 << 24) as f32 * 4.0 - 2.0;
+            if x & 63 == 0 {
+                0.0
+            } else {
+                f
+            }
+        };
+        let mut hits = 0;
+        for round in 0..50_000 {
+            let p = |n: &mut dyn FnMut() -> f32| Vec3::new(n(), n(), n());
+            let lanes = 1 + round % BLOCK_WIDTH;
+            let tris: Vec<PreTriangle> =
+                (0..lanes).map(|_| PreTriangle::new(p(&mut next), p(&mut next), p(&mut next))).collect();
+            let close: Vec<PreTriangle> =
+                (0..lanes).map(|_| PreTriangle::new(p(&mut next), p(&mut next), p(&mut next))).collect();
+            let (o, d) = ([next(), next(), next()], [next(), next(), next()]);
+            let (tmin, tmax) = (next().min(0.0), next().abs() * 4.0);
+            let w = next().abs() * 0.5;
+            let (block, close_block) = (TriangleBlock::new(&tris), TriangleBlock::new(&close));
+            let blended = block.lerp(&close_block, w);
+            for (at_close, b) in [(false, block), (true, blended)] {
+                let (mask, t4, u4, v4) = b.intersect(o, d, tmin, tmax);
+                for j in 0..BLOCK_WIDTH {
+                    let Some(tri) = tris.get(j) else {
+                        assert_eq!(mask >> j & 1, 0, "an empty lane hit");
+                        continue;
+                    };
+                    let tri = if at_close { tri.lerp(&close[j], w) } else { *tri };
+                    assert_eq!(b.triangle(j), tri);
+                    let (t, u, v) = intersect(o, d, &tri);
+                    assert_eq!(mask >> j & 1 == 1, accept(t, u, v, tmin, tmax), "lane {j}");
+                    assert_eq!([t4[j], u4[j], v4[j]].map(f32::to_bits), [t, u, v].map(f32::to_bits));
+                    hits += mask >> j & 1;
+                }
+            }
+        }
+        assert!(hits > 1000, "{hits}");
     }
 }
