@@ -137,19 +137,22 @@ impl ObjectBvh {
 /// its leaves made blocks: leaf `i` in slot order becomes block `i`, its slots `4 i ..`, the
 /// block's unused slots [`NO_TRIANGLE`].
 pub fn leaves_in_blocks(mut bvh: Bvh4) -> Bvh4 {
-    let mut leaves: Vec<(u32, usize)> = bvh
-        .nodes
-        .iter()
-        .enumerate()
-        .flat_map(|(i, n)| n.child.iter().enumerate().map(move |(k, &r)| (r, 4 * i + k)))
-        .filter(|&(r, _)| r & LEAF_BIT != 0 && r != EMPTY_CHILD)
-        .map(|(r, at)| (leaf_range(r).0, at))
-        .collect();
-    leaves.sort_unstable();
-    let mut order = vec![NO_TRIANGLE; BLOCK_WIDTH * leaves.len()];
-    for (b, &(first, at)) in leaves.iter().enumerate() {
-        let child = &mut bvh.nodes[at / 4].child[at % 4];
-        let count = leaf_range(*child).1;
+    // Each leaf's place in the node array, at its first slot: read in slot order, no sort.
+    const NONE: u32 = u32::MAX;
+    let mut leaf_at = vec![NONE; bvh.prim_order.len()];
+    let mut leaves = 0;
+    for (i, node) in bvh.nodes.iter().enumerate() {
+        for (k, &r) in node.child.iter().enumerate() {
+            if r & LEAF_BIT != 0 && r != EMPTY_CHILD {
+                leaf_at[leaf_range(r).0 as usize] = (4 * i + k) as u32;
+                leaves += 1;
+            }
+        }
+    }
+    let mut order = vec![NO_TRIANGLE; BLOCK_WIDTH * leaves];
+    for (b, at) in leaf_at.into_iter().filter(|&at| at != NONE).enumerate() {
+        let child = &mut bvh.nodes[at as usize / 4].child[at as usize % 4];
+        let (first, count) = leaf_range(*child);
         assert!(count as usize <= BLOCK_WIDTH, "a leaf of {count} primitives does not fit a block");
         let slots = first as usize..(first + count) as usize;
         order[BLOCK_WIDTH * b..BLOCK_WIDTH * b + slots.len()].copy_from_slice(&bvh.prim_order[slots]);
