@@ -64,9 +64,10 @@ pub(crate) fn worker_time_line(frames: &str, times: &[WorkerTime]) -> String {
     let ms =
         |f: fn(&WorkerTime) -> std::time::Duration| times.iter().map(|t| f(t).as_secs_f64()).sum::<f64>() * 1e3 / n;
     format!(
-        "worker time per frame of {frames} (mean over workers): world {:.2} ms, rendering {:.1} ms (of which waiting for fetches {:.1}, decoding fetched meshes and building their BVHs {:.1}), waiting {:.1} ms (for tiles, a core), outside their share {:.1} ms (the master preparing the frame and assembling the image), of a {:.1} ms frame",
+        "worker time per frame of {frames} (mean over workers): world {:.2} ms, rendering {:.1} ms (of which off the core {:.1}, waiting for fetches {:.1}, decoding fetched meshes and building their BVHs {:.1}), waiting {:.1} ms (for tiles, a core), outside their share {:.1} ms (the master preparing the frame and assembling the image), of a {:.1} ms frame",
         ms(|t| t.world),
         ms(|t| t.rendering),
+        ms(|t| t.off_core),
         ms(|t| t.fetching),
         ms(|t| t.loading),
         ms(|t| t.waiting),

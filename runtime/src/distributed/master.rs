@@ -128,6 +128,10 @@ pub struct WorkerTime {
     /// the time it spent decoding fetched meshes and building their BVHs.
     pub fetching: Duration,
     pub loading: Duration,
+    /// Of `rendering`, the time it was ready to run but off its core (its wall time in units less
+    /// its CPU time and its waits for fetches): the cores were held by other threads or
+    /// processes. Zero where the system does not tell a thread's CPU time.
+    pub off_core: Duration,
     /// Of `share`, a render thread's time not rendering: waiting for units from the master, and
     /// the talking thread's turns on its core.
     pub waiting: Duration,
@@ -145,19 +149,26 @@ struct WorkerShare {
     rendering: Duration,
     fetching: Duration,
     loading: Duration,
+    off_core: Duration,
 }
 
 impl WorkerShare {
     fn of(counts: &FrameCounts, threads: u32) -> WorkerShare {
         let per_thread = |ns: u64| Duration::from_nanos(ns) / threads.max(1);
         let rendering = per_thread(counts.rendering_ns);
+        // Fetches made while the world was built are waited for outside any unit.
+        let fetching = per_thread(counts.fetch_wait_ns).min(rendering);
+        let off_core = match counts.rendering_cpu_ns {
+            0 => Duration::ZERO,
+            cpu => rendering.saturating_sub(per_thread(cpu) + fetching),
+        };
         WorkerShare {
             world: Duration::from_nanos(counts.world_ns),
             share: Duration::from_nanos(counts.share_ns),
             rendering,
-            // Fetches made while the world was built are waited for outside any unit.
-            fetching: per_thread(counts.fetch_wait_ns).min(rendering),
+            fetching,
             loading: per_thread(counts.fetch_build_ns).min(rendering),
+            off_core,
         }
     }
 }
@@ -175,6 +186,7 @@ impl WorkerTime {
             rendering,
             fetching: mean(|w| w.fetching),
             loading: mean(|w| w.loading),
+            off_core: mean(|w| w.off_core),
             waiting: share.saturating_sub(rendering),
             outside: frame.saturating_sub(world + share),
         }
@@ -795,6 +807,16 @@ mod tests {
         assert_eq!((time.fetching, time.loading), (ms(35), ms(3)));
         assert_eq!((time.waiting, time.outside), (ms(20), ms(12)));
         assert_eq!(time.world + time.rendering + time.waiting + time.outside, time.frame);
+        // No CPU time reported: nothing off the core.
+        assert_eq!(time.off_core, ms(0));
+        // One thread: 70 ms in units, 10 of them waiting for fetches, 45 on its core: 15 off it.
+        // Two threads: 60 ms each in units, 20 waiting, 30 on the core: 10 off it.
+        let with_cpu = |c: FrameCounts, cpu: u64| FrameCounts { rendering_cpu_ns: cpu * 1_000_000, ..c };
+        let shares = [
+            WorkerShare::of(&with_cpu(counts(2, 80, 70, 10), 45), 1),
+            WorkerShare::of(&with_cpu(counts(4, 90, 120, 40), 60), 2),
+        ];
+        assert_eq!(WorkerTime::of(ms(100), &shares).off_core, ms(12) + Duration::from_micros(500));
         // No worker reported: nothing is made up.
         assert_eq!(WorkerTime::of(ms(5), &[]).outside, ms(5));
     }

@@ -8,7 +8,7 @@ use crate::texture::{TextureKind, TexturePart};
 use rtsl_compiler::interface::ShaderKind;
 
 /// The protocol's version: ranks that speak different versions refuse each other at start-up.
-pub const PROTOCOL_VERSION: u32 = 20;
+pub const PROTOCOL_VERSION: u32 = 21;
 
 /// What the master's counters add up from a worker's share of a frame.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -52,6 +52,9 @@ pub struct FrameCounts {
     pub world_ns: u64,
     pub share_ns: u64,
     pub rendering_ns: u64,
+    /// Of `rendering_ns`, the render threads' CPU time (0 where the system does not tell): the
+    /// rest is time they waited (for fetches) or were ready to run but off their cores.
+    pub rendering_cpu_ns: u64,
     /// Of `rendering_ns`, the render threads' time waiting for fetched meshes and textures, and
     /// decoding fetched meshes and building their BVHs.
     pub fetch_wait_ns: u64,
@@ -248,6 +251,7 @@ impl Message {
                 w.u64(counts.world_ns);
                 w.u64(counts.share_ns);
                 w.u64(counts.rendering_ns);
+                w.u64(counts.rendering_cpu_ns);
                 w.u64(counts.fetch_wait_ns);
                 w.u64(counts.fetch_build_ns);
                 w.u64(counts.shading_ns);
@@ -334,7 +338,7 @@ impl Message {
                 let (fetched_objects, fetched_bytes) = (r.u64()?, r.u64()?);
                 let (fetched_textures, fetched_texture_levels, fetched_texture_bytes) = (r.u64()?, r.u64()?, r.u64()?);
                 let (evicted_objects, resident_objects, reached_objects) = (r.u64()?, r.u64()?, r.u64()?);
-                let (world_ns, share_ns, rendering_ns) = (r.u64()?, r.u64()?, r.u64()?);
+                let (world_ns, share_ns, rendering_ns, rendering_cpu_ns) = (r.u64()?, r.u64()?, r.u64()?, r.u64()?);
                 let (fetch_wait_ns, fetch_build_ns) = (r.u64()?, r.u64()?);
                 let shading_ns = r.u64()?;
                 let (light_paths_ns, gathering_ns) = (r.u64()?, r.u64()?);
@@ -372,6 +376,7 @@ impl Message {
                     world_ns,
                     share_ns,
                     rendering_ns,
+                    rendering_cpu_ns,
                     fetch_wait_ns,
                     fetch_build_ns,
                 };
@@ -663,6 +668,7 @@ mod tests {
                     world_ns: 19,
                     share_ns: 20,
                     rendering_ns: 21,
+                    rendering_cpu_ns: 26,
                     fetch_wait_ns: 22,
                     fetch_build_ns: 23,
                 },

@@ -354,7 +354,7 @@ fn render_share<T: Transport + ?Sized>(
     };
     let threads = pool.current_num_threads();
     let queue = UnitQueue::new(threads);
-    let rendering_ns = AtomicU64::new(0);
+    let (rendering_ns, rendering_cpu_ns) = (AtomicU64::new(0), AtomicU64::new(0));
     let mut outstanding = 0usize;
     let give = |units: Vec<u32>, lattices: Vec<LatticeUnit>, outstanding: &mut usize| -> Result<(), DistributedError> {
         let new = renderer
@@ -377,13 +377,17 @@ fn render_share<T: Transport + ?Sized>(
         // However this thread leaves the scope, the renderers stop: the scope waits for them.
         let _close = CloseOnDrop(&queue);
         for _ in 0..threads {
-            let (queue, renderer, wake_tx, rendering_ns) = (&queue, &renderer, wake_tx.clone(), &rendering_ns);
+            let (queue, renderer, wake_tx) = (&queue, &renderer, wake_tx.clone());
+            let (rendering_ns, rendering_cpu_ns) = (&rendering_ns, &rendering_cpu_ns);
             scope.spawn(move |_| {
                 while let Some(unit) = queue.pop() {
                     let mut pixels = Vec::new();
-                    let started = Instant::now();
+                    let (started, cpu_started) = (Instant::now(), thread_cpu_time());
                     renderer.render(unit, &mut pixels);
                     rendering_ns.fetch_add(started.elapsed().as_nanos() as u64, Ordering::Relaxed);
+                    if let (Some(from), Some(to)) = (cpu_started, thread_cpu_time()) {
+                        rendering_cpu_ns.fetch_add(to.saturating_sub(from).as_nanos() as u64, Ordering::Relaxed);
+                    }
                     if queue.finish(unit.index, pixels) && wake_tx.send(()).is_err() {
                         break;
                     }
@@ -468,9 +472,24 @@ fn render_share<T: Transport + ?Sized>(
     }
     counts.world_ns = built_in.as_nanos() as u64;
     counts.rendering_ns = rendering_ns.into_inner();
+    counts.rendering_cpu_ns = rendering_cpu_ns.into_inner();
     counts.share_ns = start.elapsed().as_nanos() as u64;
     transport.send(0, Message::FrameDone { frame, counts, failure }.encode())?;
     Ok(false)
+}
+
+/// The CPU time of the calling thread, where the system tells it (a unit's wall time less its CPU
+/// time is time its thread waited: for a fetch, or for a core another thread or process held).
+fn thread_cpu_time() -> Option<std::time::Duration> {
+    #[cfg(unix)]
+    {
+        let mut t = libc::timespec { tv_sec: 0, tv_nsec: 0 };
+        // SAFETY: `t` is a valid `timespec` for the call to write.
+        let ok = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut t) } == 0;
+        ok.then(|| std::time::Duration::new(t.tv_sec as u64, t.tv_nsec as u32))
+    }
+    #[cfg(not(unix))]
+    None
 }
 
 /// A worker's share of a frame as the frame's message starts it: the frame, its job, the units
@@ -585,5 +604,29 @@ struct CloseOnDrop<'a>(&'a UnitQueue);
 impl Drop for CloseOnDrop<'_> {
     fn drop(&mut self) {
         self.0.close();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::time::Duration;
+
+    /// A thread's CPU clock runs while it computes and stands while it sleeps.
+    #[test]
+    #[cfg(unix)]
+    fn the_thread_cpu_clock_counts_computing_not_sleeping() {
+        let Some(start) = thread_cpu_time() else { panic!("no thread CPU clock on a unix system") };
+        std::thread::sleep(Duration::from_millis(60));
+        let slept = thread_cpu_time().expect("a clock").saturating_sub(start);
+        let busy_from = (Instant::now(), thread_cpu_time().expect("a clock"));
+        let mut x = 1u64;
+        while busy_from.0.elapsed() < Duration::from_millis(60) {
+            x = std::hint::black_box(x.wrapping_mul(6364136223846793005).wrapping_add(1));
+        }
+        let busy = thread_cpu_time().expect("a clock").saturating_sub(busy_from.1);
+        assert!(slept < Duration::from_millis(20), "asleep for 60 ms, the clock moved {slept:?}");
+        // Even on a loaded machine a thread that spins for 60 ms gets some of it.
+        assert!(busy > Duration::from_millis(5) && busy > 3 * slept, "busy {busy:?}, asleep {slept:?}");
     }
 }
