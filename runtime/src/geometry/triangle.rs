@@ -245,6 +245,23 @@ pub fn intersect_ray(origin: Vec3A, dir: Vec3A, tmin: f32, tmax: f32, tri: &PreT
 mod tests {
     use super::*;
 
+    /// A deterministic spread of coordinates in `[-2, 2)` from `seed`, one in 64 exactly zero (for
+    /// rays, triangles and intervals, degenerate ones included).
+    fn spread(seed: u64) -> impl FnMut() -> f32 {
+        let mut x = seed;
+        move || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            let f = (x >> 40) as f32 / (1u64 << 24) as f32 * 4.0 - 2.0;
+            if x & 63 == 0 {
+                0.0
+            } else {
+                f
+            }
+        }
+    }
+
     #[test]
     fn hits_the_middle() {
         let tri = PreTriangle::new(Vec3::ZERO, Vec3::X, Vec3::Y);
@@ -262,19 +279,7 @@ mod tests {
 
     #[test]
     fn early_exits_agree_with_intersect_and_accept() {
-        // A deterministic spread of rays, triangles and intervals, degenerate ones included.
-        let mut x = 0x2545_f491_4f6c_dd1du64;
-        let mut next = || {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            let f = (x >> 40) as f32 / (1u64 << 24) as f32 * 4.0 - 2.0;
-            if x & 63 == 0 {
-                0.0
-            } else {
-                f
-            }
-        };
+        let mut next = spread(0x2545_f491_4f6c_dd1d);
         let mut hits = 0;
         for _ in 0..200_000 {
             let p = |n: &mut dyn FnMut() -> f32| Vec3::new(n(), n(), n());
@@ -325,18 +330,7 @@ mod tests {
 
     #[test]
     fn blocks_match_scalar_bit_for_bit() {
-        let mut x = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = || {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            let f = (x >> 40) as f32 / (1u64 << 24) as f32 * 4.0 - 2.0;
-            if x & 63 == 0 {
-                0.0
-            } else {
-                f
-            }
-        };
+        let mut next = spread(0x9e37_79b9_7f4a_7c15);
         let mut hits = 0;
         for round in 0..50_000 {
             let p = |n: &mut dyn FnMut() -> f32| Vec3::new(n(), n(), n());
