@@ -1,5 +1,5 @@
 //! Times the phases of an object BVH build: `build_phases MESH [THREADS] [REPEATS]`.
-//! Prints obvhs's phases (PLOC, reinsertion, collapse), the 8-wide copy, for each build-quality preset, then the
+//! Prints the phases (binary build: PLOC or binned SAH; reinsertion; collapse), the 8-wide copy, for each build-quality preset, then the
 //! whole `ObjectBvh::build` (which adds boxes, the 4-wide conversion, the 8-wide copy and triangle
 //! preparation).
 
@@ -55,13 +55,17 @@ fn main() {
             for _ in 0..repeats {
                 let p = q.params(OBJECT_LEAF_SIZE);
                 let t = Instant::now();
-                let mut bvh2 = PlocBuilder::with_capacity(boxes.len()).build(
-                    p.ploc_search_distance,
-                    &boxes,
-                    (0..boxes.len() as u32).collect::<Vec<_>>(),
-                    p.sort_precision,
-                    p.search_depth_threshold,
-                );
+                let mut bvh2 = if q.is_binned() {
+                    rtsl_runtime::accel::binned::build_binned(&boxes)
+                } else {
+                    PlocBuilder::with_capacity(boxes.len()).build(
+                        p.ploc_search_distance,
+                        &boxes,
+                        (0..boxes.len() as u32).collect::<Vec<_>>(),
+                        p.sort_precision,
+                        p.search_depth_threshold,
+                    )
+                };
                 let t_ploc = ms(t);
                 let t = Instant::now();
                 if p.reinsertion_batch_ratio > 0.0 {
@@ -83,7 +87,8 @@ fn main() {
                 let full = ObjectBvh::build(&mesh, q);
                 let t_full = ms(t);
                 println!(
-                    "{q:?}: ploc {t_ploc:.1} reinsert {t_re1:.1} collapse+to4 {t_conv:.1} to8 {t_wide:.1} | full ObjectBvh::build {t_full:.1} ms ({} 4-wide nodes, {} 8-wide, sah {:.2})",
+                    "{q:?}: binary ({}) {t_ploc:.1} reinsert {t_re1:.1} collapse+to4 {t_conv:.1} to8 {t_wide:.1} | full ObjectBvh::build {t_full:.1} ms ({} 4-wide nodes, {} 8-wide, sah {:.2})",
+                    if q.is_binned() { "binned SAH" } else { "PLOC" },
                     b4.nodes.len(),
                     b8.nodes.len(),
                     full.bvh.sah_cost()
@@ -96,6 +101,31 @@ fn main() {
 /// `SWEEP=1`: obvhs parameter combinations, build time and SAH cost of the 4-wide result.
 pub fn sweep(boxes: &[Aabb]) {
     use obvhs::ploc::PlocSearchDistance as D;
+    for ratio in [0.0f32, 0.01, 0.02, 0.08] {
+        let p = BuildQuality::Medium.params(OBJECT_LEAF_SIZE);
+        let (mut best, mut best_cpu, mut sah, mut t_re) = (f64::INFINITY, f64::INFINITY, 0.0, 0.0);
+        let mut bins = Vec::new();
+        for _ in 0..3 {
+            let c = cpu_ms();
+            let t = Instant::now();
+            let mut bvh2 = rtsl_runtime::accel::binned::build_binned(boxes);
+            let t_bin = ms(t);
+            let t1 = Instant::now();
+            if ratio > 0.0 {
+                ReinsertionOptimizer::default().run(&mut bvh2, ratio, None);
+            }
+            t_re = ms(t1);
+            let b4 = Bvh4::from_bvh2(&mut bvh2, p.max_prims_per_leaf, p.collapse_traversal_cost);
+            best = best.min(ms(t));
+            best_cpu = best_cpu.min(cpu_ms() - c);
+            sah = b4.sah_cost();
+            bins.push(t_bin);
+        }
+        println!("binned reinsert {ratio}: {best:.1} ms (cpu {best_cpu:.1} ms, binned {bins:.1?}, reinsertion {t_re:.1}), sah {sah:.2}");
+    }
+    if std::env::var("SWEEP").as_deref() == Ok("binned") {
+        return;
+    }
     for (dist, thr) in [(D::Minimum, 0), (D::VeryLow, 0), (D::Low, 0), (D::Medium, 3), (D::Medium, 0)] {
         for ratio in [0.0f32, 0.01, 0.02] {
             let mut p = BuildQuality::Medium.params(OBJECT_LEAF_SIZE);

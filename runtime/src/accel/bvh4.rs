@@ -1,7 +1,9 @@
-//! The 4-wide BVH node layout that both traversal paths read, and its construction from obvhs.
+//! The 4-wide BVH node layout that both traversal paths read, and its construction from a binary
+//! BVH.
 //!
-//! obvhs builds a binary BVH (PLOC, optional reinsertion, leaf collapsing); [`Bvh4::build`] then
-//! collapses it into 4-wide nodes by repeatedly opening the child with the largest surface area, and
+//! A binary BVH is built by binned SAH ([`super::binned`]) or obvhs's PLOC (the fastest qualities),
+//! optionally improved by obvhs's reinsertion; [`Bvh4::build`] then collapses it (obvhs's leaf
+//! collapse rule) into 4-wide nodes by repeatedly opening the child with the largest surface area, and
 //! lays the nodes out in depth-first pre-order.
 //!
 //! Node layout ([`Node4`], 128 bytes, one pair of cache lines): the four children's boxes in SoA form
@@ -92,32 +94,38 @@ pub fn leaf_range(r: u32) -> (u32, u32) {
     ((r & !LEAF_BIT) >> 4, r & 15)
 }
 
-/// How much effort to spend on BVH quality. All levels build obvhs's PLOC binary BVH (no spatial
-/// pre-splits: leaves must own their primitives), optionally improve it by reinsertion, and collapse
-/// it in [`Bvh4::from_bvh2`]. Measured on s1500k (1.52M triangles, 2 threads, `docs/tracer.md`).
+/// How much effort to spend on BVH quality. Every level builds a binary BVH with leaves of one
+/// primitive (no spatial pre-splits: leaves must own their primitives) and collapses it in
+/// [`Bvh4::from_bvh2`]. Measured in `docs/tracer.md`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum BuildQuality {
-    /// Fastest build (per-frame top-level BVHs): PLOC search radius 1, no reinsertion.
+    /// Fastest build (large per-frame top-level BVHs): obvhs's PLOC, search radius 1, no
+    /// reinsertion.
     Fast,
     /// PLOC search radius 1 and reinsertion of 1% of the nodes.
     Medium,
-    /// The default: PLOC search radius 2 and reinsertion of 1% of the nodes; inputs of at most
-    /// [`HIGH_AS_BEST_UP_TO`] primitives are built as at `Best`.
+    /// The default: top-down binned SAH ([`super::binned`]), whose trees cost less to traverse than
+    /// PLOC's at any search radius, built in about the time of PLOC at radius 2.
     High,
-    /// Slow, best traversal, for static geometry: PLOC search radius 6 and reinsertion of 8% of
-    /// the nodes. A wider search (radius 14 with 2%) makes trees of the same SAH cost in a fifth
-    /// more time on the inputs `High` builds at this quality.
+    /// For static geometry: binned SAH, then reinsertion of 8% of the nodes (a little better
+    /// trees for several times `High`'s build time on large inputs).
     Best,
 }
 
 impl BuildQuality {
-    /// The obvhs parameters of this quality for leaves of at most `max_leaf` primitives.
+    /// Whether this quality builds by binned SAH ([`super::binned`]) rather than PLOC.
+    pub fn is_binned(self) -> bool {
+        matches!(self, BuildQuality::High | BuildQuality::Best)
+    }
+
+    /// The obvhs parameters of this quality for leaves of at most `max_leaf` primitives (the
+    /// search radius is PLOC's, which the binned qualities do not use).
     pub fn params(self, max_leaf: u32) -> BvhBuildParams {
         let (distance, reinsertion) = match self {
             BuildQuality::Fast => (PlocSearchDistance::Minimum, 0.0),
             BuildQuality::Medium => (PlocSearchDistance::Minimum, 0.01),
-            BuildQuality::High => (PlocSearchDistance::VeryLow, 0.01),
-            BuildQuality::Best => (PlocSearchDistance::Low, 0.08),
+            BuildQuality::High => (PlocSearchDistance::VeryLow, 0.0),
+            BuildQuality::Best => (PlocSearchDistance::VeryLow, 0.08),
         };
         BvhBuildParams {
             pre_split: false,
@@ -133,10 +141,8 @@ impl BuildQuality {
     }
 }
 
-/// [`BuildQuality::High`] builds inputs of at most this many primitives at [`BuildQuality::Best`].
-pub const HIGH_AS_BEST_UP_TO: usize = 400_000;
-
-/// obvhs's binary BVH of `boxes` with leaves of one primitive: PLOC, then reinsertion. The leaf
+/// obvhs's binary BVH of `boxes` with leaves of one primitive (the `Fast` and `Medium` qualities):
+/// PLOC, then reinsertion. The leaf
 /// collapse (`p.max_prims_per_leaf`, `p.collapse_traversal_cost`) is left to [`Bvh4::from_bvh2`],
 /// which does it in the same pass as the 4-wide conversion; `p.pre_split` and
 /// `p.post_collapse_reinsertion_batch_ratio_multiplier` are not used.
@@ -355,12 +361,16 @@ impl Bvh4 {
         // Meshes and top levels are refused past it before they get here (`Mesh::validate`,
         // `Context::instantiate_object`).
         assert!(n <= MAX_PRIMITIVES, "too many primitives in one BVH ({n})");
-        // `High` builds small inputs like `Best`: their build is cheap and the better tree traces
-        // faster; large inputs at `Best` would miss the build-time target.
-        let quality =
-            if quality == BuildQuality::High && n <= HIGH_AS_BEST_UP_TO { BuildQuality::Best } else { quality };
         let p = quality.params(max_leaf);
-        let mut bvh2 = build_binary(boxes, &p);
+        let mut bvh2 = if quality.is_binned() {
+            let mut bvh2 = super::binned::build_binned(boxes);
+            if p.reinsertion_batch_ratio > 0.0 {
+                ReinsertionOptimizer::default().run(&mut bvh2, p.reinsertion_batch_ratio, None);
+            }
+            bvh2
+        } else {
+            build_binary(boxes, &p)
+        };
         Bvh4::from_bvh2(&mut bvh2, p.max_prims_per_leaf, p.collapse_traversal_cost)
     }
 

@@ -1,6 +1,8 @@
 //! Acceleration structures and their traversal: a two-level BVH.
 //!
-//! - [`bvh4`]: the 4-wide node layout shared by both levels, built from obvhs's binary BVH.
+//! - [`binned`]: the default builder of binary BVHs, top-down binned SAH.
+//! - [`bvh4`]: the 4-wide node layout shared by both levels, collapsed from a binary BVH (binned
+//!   SAH, or obvhs's PLOC for the fastest qualities).
 //! - [`bvh8`]: the 8-wide form of an object's BVH that single rays traverse (same leaves).
 //! - [`object`]: an object's own BVH over its triangles (built once per geometry change).
 //! - [`top`]: the top-level BVH over instances (rebuilt every frame from the instance list).
@@ -14,6 +16,7 @@
 //! (Ize's robust slab test, with the far distance scaled by `1 + 2 gamma(3)`), so they find the same
 //! closest primitive (up to ties at equal `t`) and the same occlusion answers.
 
+pub mod binned;
 pub mod bvh4;
 pub mod bvh8;
 pub mod object;

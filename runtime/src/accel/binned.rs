@@ -1,0 +1,672 @@
+//! Top-down binned SAH construction of a binary BVH (Wald 2007, "On fast construction of SAH-based
+//! bounding volume hierarchies"): each node's primitives are sorted into bins by centroid along
+//! each axis (up to [`BINS`], fewer for fewer primitives), the split between two bins of least
+//! surface-area cost is taken, and the two halves are built in parallel while they are large.
+//! Nodes of at most [`SMALL`] primitives try every split of their sorted centroids instead, and
+//! nodes of at most [`TINY`] are halved along their widest axis.
+//!
+//! The tree has leaves of one primitive, as PLOC's has: the leaf collapse is left to
+//! [`super::bvh4::Bvh4::from_bvh2`], which decides it with the same cost model for every builder.
+//!
+//! Invariants:
+//! - A tree over `n` primitives has exactly `2n - 1` nodes, so each subtree's place in the node
+//!   array is known before it is built: a node's children are the pair at the start of its
+//!   descendants' range, followed by the left child's descendants and then the right's. The
+//!   layout is a function of the input alone, whatever the threads did first.
+//! - Depth is bounded whatever the input: below [`SAH_DEPTH`] levels a node is split at its
+//!   median, which halves it, so no tree is deeper than `SAH_DEPTH + 28` (at most 2^27
+//!   primitives, [`super::bvh4::MAX_PRIMITIVES`]).
+
+use glam::{Vec3A, Vec4};
+use obvhs::aabb::Aabb;
+use obvhs::bvh2::node::Bvh2Node;
+use obvhs::bvh2::Bvh2;
+use rayon::prelude::*;
+use std::mem::MaybeUninit;
+
+/// Bins per axis.
+const BINS: usize = 32;
+
+/// Nodes of more primitives than this build their two halves in parallel.
+const PARALLEL_SPLIT: usize = 4096;
+
+/// Nodes of more primitives than this sort them into bins on several threads.
+const PARALLEL_BINNING: usize = 1 << 16;
+
+/// Below this many levels, nodes are split at their median rather than by cost (see the module's
+/// invariants).
+const SAH_DEPTH: u32 = 64;
+
+/// A primitive as the build moves it about: its box, with its input index in the fourth lane of
+/// the lower corner (32 bytes: two to a cache line, where the partitions move them).
+#[derive(Clone, Copy, Debug)]
+struct PrimRef {
+    lo: Vec4,
+    hi: Vec4,
+}
+
+impl PrimRef {
+    fn new(b: &Aabb, id: u32) -> PrimRef {
+        PrimRef { lo: b.min.extend(f32::from_bits(id)), hi: b.max.extend(0.0) }
+    }
+
+    #[inline(always)]
+    fn lo(&self) -> Vec3A {
+        Vec3A::from_vec4(self.lo)
+    }
+
+    #[inline(always)]
+    fn hi(&self) -> Vec3A {
+        Vec3A::from_vec4(self.hi)
+    }
+
+    #[inline(always)]
+    fn id(&self) -> u32 {
+        self.lo.w.to_bits()
+    }
+
+    /// Twice the centroid (the bins are laid over doubled centroids: one addition a primitive).
+    #[inline(always)]
+    fn centroid2(&self) -> Vec3A {
+        Vec3A::from_vec4(self.lo + self.hi)
+    }
+}
+
+/// A box and the box of the doubled centroids inside it.
+#[derive(Clone, Copy, Debug)]
+struct Bounds {
+    geometry: Aabb,
+    centroids: Aabb,
+}
+
+impl Bounds {
+    const EMPTY: Bounds = Bounds {
+        geometry: Aabb { min: Vec3A::splat(f32::MAX), max: Vec3A::splat(f32::MIN) },
+        centroids: Aabb { min: Vec3A::splat(f32::MAX), max: Vec3A::splat(f32::MIN) },
+    };
+
+    #[inline(always)]
+    fn add(&mut self, p: &PrimRef) {
+        self.geometry.min = self.geometry.min.min(p.lo());
+        self.geometry.max = self.geometry.max.max(p.hi());
+        let c = p.centroid2();
+        self.centroids.min = self.centroids.min.min(c);
+        self.centroids.max = self.centroids.max.max(c);
+    }
+
+    fn union(&self, o: &Bounds) -> Bounds {
+        Bounds { geometry: self.geometry.union(&o.geometry), centroids: self.centroids.union(&o.centroids) }
+    }
+
+    fn of(refs: &[PrimRef]) -> Bounds {
+        let mut b = Bounds::EMPTY;
+        for p in refs {
+            b.add(p);
+        }
+        b
+    }
+}
+
+/// How a node's primitives are sorted into bins: bin `k` on axis `a` holds the centroids with
+/// `(c[a] - origin[a]) * scale[a]` in `[k, k + 1)` (the last bin also those at the top).
+#[derive(Clone, Copy, Debug)]
+struct Binning {
+    origin: Vec3A,
+    scale: Vec3A,
+    /// Bins in use: fewer for fewer primitives (as Embree: `4 + m / 20`, at most [`BINS`]), where
+    /// more bins would cost more to sweep than their finer splits save.
+    count: usize,
+}
+
+impl Binning {
+    /// The binning of `m` centroids in `centroids`; axes without extent get scale 0 (one bin).
+    fn of(centroids: &Aabb, m: usize) -> Binning {
+        let count = (4 + m / 20).min(BINS);
+        let extent = centroids.max - centroids.min;
+        // Just under `count` so that the top centroid lands in the last bin, not past it.
+        let k = count as f32 * (1.0 - 1e-6);
+        let scale = Vec3A::select(extent.cmpgt(Vec3A::ZERO), k / extent, Vec3A::ZERO);
+        Binning { origin: centroids.min, scale, count }
+    }
+
+    /// Whether centroid `c` falls into a bin before bin `k` on `axis`: [`Binning::bins`] on one
+    /// axis, compared before the conversion (for `v` in `[0, count - 1]`, `trunc(v) < k` exactly
+    /// when `v < k`; `f32::max` also takes NaN to 0).
+    #[inline(always)]
+    fn left_of(&self, c: Vec3A, axis: usize, k: usize) -> bool {
+        ((c[axis] - self.origin[axis]) * self.scale[axis]).max(0.0) < k as f32
+    }
+
+    /// The bins of a centroid on the three axes.
+    #[inline(always)]
+    fn bins(&self, c: Vec3A) -> [u32; 3] {
+        // Clamped before the conversion (NaN to 0: `maxps` returns its second operand then), so
+        // that the conversion needs no range checks.
+        let top = Vec3A::splat(self.count as f32 - 1.0);
+        let k = ((c - self.origin) * self.scale).max(Vec3A::ZERO).min(top);
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::x86_64::{__m128, _mm_cvttps_epi32};
+            // SAFETY: SSE2 is part of x86-64.
+            let v = unsafe { _mm_cvttps_epi32(__m128::from(k)) };
+            let [x, y, z, _]: [u32; 4] = bytemuck::cast(v);
+            [x, y, z]
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            let k = k.as_uvec3();
+            [k.x, k.y, k.z]
+        }
+    }
+}
+
+/// Per axis and bin, the box of the primitives and their number; `N` bins at most (fewer
+/// primitives use fewer bins, [`Binning::count`], and a smaller set is cheaper to clear and copy).
+#[derive(Clone, Copy)]
+struct Bins<const N: usize> {
+    boxes: [[Aabb; N]; 3],
+    counts: [[u32; N]; 3],
+}
+
+impl<const N: usize> Bins<N> {
+    fn new() -> Bins<N> {
+        Bins { boxes: [[Aabb::empty(); N]; 3], counts: [[0; N]; 3] }
+    }
+
+    fn fill(binning: &Binning, refs: &[PrimRef]) -> Bins<N> {
+        debug_assert!(binning.count <= N);
+        if refs.len() < 64 {
+            let mut bins = Bins::new();
+            refs.iter().for_each(|p| bins.add(binning, p));
+            return bins;
+        }
+        // Two sets of bins, for alternate primitives: neighbours in the input tend to fall into the
+        // same bins, and each update would wait for the last one's store.
+        let (mut even, mut odd) = (Bins::new(), Bins::new());
+        let mut pairs = refs.chunks_exact(2);
+        for pair in &mut pairs {
+            even.add(binning, &pair[0]);
+            odd.add(binning, &pair[1]);
+        }
+        pairs.remainder().iter().for_each(|p| even.add(binning, p));
+        even.merge_bins(&odd, binning.count)
+    }
+
+    #[inline(always)]
+    fn add(&mut self, binning: &Binning, p: &PrimRef) {
+        let k = binning.bins(p.centroid2());
+        for (a, k) in k.into_iter().enumerate() {
+            let (b, n) = (&mut self.boxes[a][k as usize], &mut self.counts[a][k as usize]);
+            b.min = b.min.min(p.lo());
+            b.max = b.max.max(p.hi());
+            *n += 1;
+        }
+    }
+
+    fn merge_bins(mut self, o: &Bins<N>, count: usize) -> Bins<N> {
+        for a in 0..3 {
+            for k in 0..count {
+                self.boxes[a][k] = self.boxes[a][k].union(&o.boxes[a][k]);
+                self.counts[a][k] += o.counts[a][k];
+            }
+        }
+        self
+    }
+
+    /// The split of least cost `area(left) * count(left) + area(right) * count(right)`: its axis
+    /// and its first bin on the right. `None` when every axis has all primitives in one bin.
+    fn best_split(&self, bins: usize) -> Option<(usize, usize)> {
+        let mut best: Option<(f32, usize, usize)> = None;
+        for a in 0..3 {
+            // Right-hand costs: `right[k]` for bins `k..`.
+            let mut right = [0.0f32; N];
+            let mut acc = Aabb::empty();
+            let mut n = 0u32;
+            for k in (1..bins).rev() {
+                acc = acc.union(&self.boxes[a][k]);
+                n += self.counts[a][k];
+                right[k] = if n == 0 { f32::INFINITY } else { acc.half_area() * n as f32 };
+            }
+            let mut acc = Aabb::empty();
+            let mut n = 0u32;
+            for (k, &right) in right.iter().enumerate().take(bins).skip(1) {
+                acc = acc.union(&self.boxes[a][k - 1]);
+                n += self.counts[a][k - 1];
+                if n == 0 || right.is_infinite() {
+                    continue;
+                }
+                let cost = acc.half_area() * n as f32 + right;
+                if best.is_none_or(|(c, _, _)| cost < c) {
+                    best = Some((cost, a, k));
+                }
+            }
+        }
+        best.map(|(_, a, k)| (a, k))
+    }
+}
+
+/// The binary BVH of `boxes` (one per primitive), leaves of one primitive each, built by binned SAH.
+pub fn build_binned(boxes: &[Aabb]) -> Bvh2 {
+    let n = boxes.len();
+    if n == 0 {
+        return Bvh2 { nodes: Vec::new(), primitive_indices: Vec::new(), max_depth: 1, ..Bvh2::default() };
+    }
+    let mut refs: Vec<PrimRef> = boxes.par_iter().enumerate().map(|(i, b)| PrimRef::new(b, i as u32)).collect();
+    let bounds = if n > PARALLEL_BINNING {
+        refs.par_chunks(PARALLEL_BINNING).map(Bounds::of).reduce(|| Bounds::EMPTY, |a, b| a.union(&b))
+    } else {
+        Bounds::of(&refs)
+    };
+    let mut nodes: Vec<MaybeUninit<Bvh2Node>> = Vec::with_capacity(2 * n - 1);
+    // SAFETY: `MaybeUninit` needs no initialisation.
+    unsafe { nodes.set_len(2 * n - 1) };
+    let (root, descendants) = nodes.split_at_mut(1);
+    let mut spare = refs.clone();
+    let mut primitive_indices = vec![0u32; n];
+    let at = Place { first: 0, base: 1 };
+    let depth = build([&mut refs, &mut spare], &mut primitive_indices, at, &mut root[0], descendants, bounds, 0);
+    // SAFETY: `build` wrote its node and every node of its descendants' range, which with the
+    // root are all `2n - 1` (the module's first invariant: each call writes `me`, and its range
+    // is exactly its children's pair and their own ranges).
+    let nodes = unsafe {
+        let mut nodes = std::mem::ManuallyDrop::new(nodes);
+        Vec::from_raw_parts(nodes.as_mut_ptr() as *mut Bvh2Node, nodes.len(), nodes.capacity())
+    };
+    Bvh2 {
+        nodes,
+        primitive_indices,
+        max_depth: (depth as usize + 1).max(obvhs::bvh2::DEFAULT_MAX_STACK_DEPTH),
+        ..Bvh2::default()
+    }
+}
+
+/// Where a subtree goes: its first slot, and the index of the first node of its descendants.
+#[derive(Clone, Copy, Debug)]
+struct Place {
+    first: u32,
+    base: u32,
+}
+
+/// Builds the subtree of `refs[0]` with its root in `me` and the rest in `descendants`
+/// (`2 * m - 2` nodes, the first at index `at.base`), writing its primitives' input indices to
+/// `ids` (its slots, from `at.first`); returns its depth. `refs[1]` is as long, scratch space that
+/// partitions move the primitives into (the children then swap the two).
+fn build(
+    [refs, spare]: [&mut [PrimRef]; 2],
+    ids: &mut [u32],
+    at: Place,
+    me: &mut MaybeUninit<Bvh2Node>,
+    descendants: &mut [MaybeUninit<Bvh2Node>],
+    bounds: Bounds,
+    depth: u32,
+) -> u32 {
+    let m = refs.len();
+    if m == 1 {
+        ids[0] = refs[0].id();
+        me.write(Bvh2Node::new(bounds.geometry, 1, at.first));
+        return 1;
+    }
+    let (left_count, left, right, moved) = split(refs, spare, &bounds, depth);
+    let (refs, spare) = if moved { (spare, refs) } else { (refs, spare) };
+    me.write(Bvh2Node::new(bounds.geometry, 0, at.base));
+    let (pair, rest) = descendants.split_at_mut(2);
+    let (lnode, rnode) = pair.split_at_mut(1);
+    let (ldesc, rdesc) = rest.split_at_mut(2 * left_count - 2);
+    let (lrefs, rrefs) = refs.split_at_mut(left_count);
+    let (lspare, rspare) = spare.split_at_mut(left_count);
+    let (lids, rids) = ids.split_at_mut(left_count);
+    let lat = Place { first: at.first, base: at.base + 2 };
+    let rat = Place { first: at.first + left_count as u32, base: lat.base + ldesc.len() as u32 };
+    let (dl, dr) = if m > PARALLEL_SPLIT {
+        rayon::join(
+            || build([lrefs, lspare], lids, lat, &mut lnode[0], ldesc, left, depth + 1),
+            || build([rrefs, rspare], rids, rat, &mut rnode[0], rdesc, right, depth + 1),
+        )
+    } else {
+        (
+            build([lrefs, lspare], lids, lat, &mut lnode[0], ldesc, left, depth + 1),
+            build([rrefs, rspare], rids, rat, &mut rnode[0], rdesc, right, depth + 1),
+        )
+    };
+    1 + dl.max(dr)
+}
+
+/// Splits `refs` (2 or more) into a left and a right part, both non-empty: returns the left one's
+/// size, both parts' bounds, and whether the parts are in `spare` (else in `refs`).
+#[inline(never)]
+fn split(refs: &mut [PrimRef], spare: &mut [PrimRef], bounds: &Bounds, depth: u32) -> (usize, Bounds, Bounds, bool) {
+    let m = refs.len();
+    if m == 2 {
+        return (1, Bounds::of(&refs[..1]), Bounds::of(&refs[1..]), false);
+    }
+    if m <= TINY {
+        // The leaf collapse merges any subtree of three and most of four (`Bvh4::from_bvh2`):
+        // their shape hardly matters, and sorting along the widest axis does.
+        let extent = bounds.centroids.max - bounds.centroids.min;
+        let axis = if extent.x >= extent.y && extent.x >= extent.z {
+            0
+        } else if extent.y >= extent.z {
+            1
+        } else {
+            2
+        };
+        for i in 1..m {
+            let mut j = i;
+            while j > 0 && refs[j - 1].centroid2()[axis] > refs[j].centroid2()[axis] {
+                refs.swap(j - 1, j);
+                j -= 1;
+            }
+        }
+        let left = m / 2;
+        return (left, Bounds::of(&refs[..left]), Bounds::of(&refs[left..]), false);
+    }
+    if m <= SMALL {
+        let left = small_split(refs);
+        return (left, Bounds::of(&refs[..left]), Bounds::of(&refs[left..]), false);
+    }
+    if depth < SAH_DEPTH {
+        let binning = Binning::of(&bounds.centroids, m);
+        let found = if binning.count <= SMALL_BINS {
+            binned_split::<SMALL_BINS>(refs, spare, &binning)
+        } else {
+            binned_split::<BINS>(refs, spare, &binning)
+        };
+        if let Some(found) = found {
+            return found;
+        }
+    }
+    // All centroids in one bin on every axis (or too deep): the median along the widest axis of the
+    // centroids, ties broken by input index so that the result depends on the input alone.
+    let extent = bounds.centroids.max - bounds.centroids.min;
+    let axis = if extent.x >= extent.y && extent.x >= extent.z {
+        0
+    } else if extent.y >= extent.z {
+        1
+    } else {
+        2
+    };
+    let half = m / 2;
+    refs.select_nth_unstable_by(half, |a, b| {
+        a.centroid2()[axis].total_cmp(&b.centroid2()[axis]).then(a.id().cmp(&b.id()))
+    });
+    (half, Bounds::of(&refs[..half]), Bounds::of(&refs[half..]), false)
+}
+
+/// The bins of [`binned_split`] for fewer primitives (`Binning::count` at most this).
+const SMALL_BINS: usize = 8;
+
+/// [`split`] by binning into sets of `N` bins: the parts are in `spare`. `None` when every axis has
+/// all primitives in one bin.
+fn binned_split<const N: usize>(
+    refs: &mut [PrimRef],
+    spare: &mut [PrimRef],
+    binning: &Binning,
+) -> Option<(usize, Bounds, Bounds, bool)> {
+    let m = refs.len();
+    if m > PARALLEL_BINNING {
+        return parallel_binned_split::<N>(refs, spare, binning);
+    }
+    let bins = Bins::<N>::fill(binning, refs);
+    let (axis, k) = bins.best_split(binning.count)?;
+    let (left_count, lc, rc) = partition(refs, spare, |c| binning.left_of(c, axis, k));
+    // `best_split` only splits between two non-empty sides, counted by the same test.
+    debug_assert!(left_count > 0 && left_count < m);
+    if left_count == 0 || left_count == m {
+        return None;
+    }
+    let (lb, rb) = bins.sides(binning.count, axis, k, [lc, rc]);
+    Some((left_count, lb, rb, true))
+}
+
+/// [`binned_split`] of many primitives, in chunks of [`PARALLEL_BINNING`] on the pool's threads:
+/// each chunk is binned, and then moved to its places on both sides (the chunks' own bins say how
+/// many of each go left, so each has its ranges of `spare` before any moves). The chunks are the
+/// same whatever the number of threads, so the result is too.
+fn parallel_binned_split<const N: usize>(
+    refs: &mut [PrimRef],
+    spare: &mut [PrimRef],
+    binning: &Binning,
+) -> Option<(usize, Bounds, Bounds, bool)> {
+    let m = refs.len();
+    let chunk_bins: Vec<Bins<N>> = refs.par_chunks(PARALLEL_BINNING).map(|c| Bins::<N>::fill(binning, c)).collect();
+    let bins = chunk_bins.iter().fold(Bins::<N>::new(), |a, b| a.merge_bins(b, binning.count));
+    let (axis, k) = bins.best_split(binning.count)?;
+    let lefts: Vec<usize> = chunk_bins.iter().map(|b| b.counts[axis][..k].iter().map(|&c| c as usize).sum()).collect();
+    let left_count: usize = lefts.iter().sum();
+    if left_count == 0 || left_count == m {
+        return None;
+    }
+    // Each chunk's ranges on the left and on the right, in chunk order.
+    let (mut left_rest, mut right_rest) = spare.split_at_mut(left_count);
+    let mut places = Vec::with_capacity(lefts.len());
+    for (chunk, &l) in refs.chunks(PARALLEL_BINNING).zip(&lefts) {
+        let r = chunk.len().checked_sub(l)?;
+        if l > left_rest.len() || r > right_rest.len() {
+            return None;
+        }
+        let (lp, lr) = std::mem::take(&mut left_rest).split_at_mut(l);
+        let (rp, rr) = std::mem::take(&mut right_rest).split_at_mut(r);
+        (left_rest, right_rest) = (lr, rr);
+        places.push((chunk, lp, rp));
+    }
+    let moved: Vec<Option<(Aabb, Aabb)>> = places
+        .into_par_iter()
+        .map(|(chunk, lp, rp)| {
+            let (mut li, mut ri) = (0, 0);
+            let (mut lc, mut rc) = (Aabb::empty(), Aabb::empty());
+            for p in chunk {
+                let c = p.centroid2();
+                let (out, i, bounds) = if binning.left_of(c, axis, k) {
+                    (&mut *lp, &mut li, &mut lc)
+                } else {
+                    (&mut *rp, &mut ri, &mut rc)
+                };
+                // The chunk's bins counted its sides with the same test, so the ranges fit; a
+                // mismatch would leave the parts unfinished, and the caller falls back.
+                *out.get_mut(*i)? = *p;
+                *i += 1;
+                (bounds.min, bounds.max) = (bounds.min.min(c), bounds.max.max(c));
+            }
+            (li == lp.len() && ri == rp.len()).then_some((lc, rc))
+        })
+        .collect();
+    let mut centroids = (Aabb::empty(), Aabb::empty());
+    for sides in moved {
+        let (lc, rc) = sides?;
+        centroids = (centroids.0.union(&lc), centroids.1.union(&rc));
+    }
+    let (lb, rb) = bins.sides(binning.count, axis, k, [centroids.0, centroids.1]);
+    Some((left_count, lb, rb, true))
+}
+
+impl<const N: usize> Bins<N> {
+    /// The bounds of both sides of a split before bin `k` on `axis` (of `count` bins): their boxes
+    /// are those of their bins, their centroids' boxes `[left, right]` are given.
+    fn sides(&self, count: usize, axis: usize, k: usize, [lc, rc]: [Aabb; 2]) -> (Bounds, Bounds) {
+        let side = |bins_of: &[Aabb]| bins_of.iter().fold(Aabb::empty(), |a, b| a.union(b));
+        let (lg, rg) = (side(&self.boxes[axis][..k]), side(&self.boxes[axis][k..count]));
+        (Bounds { geometry: lg, centroids: lc }, Bounds { geometry: rg, centroids: rc })
+    }
+}
+
+/// Nodes of at most this many primitives are split by sorting them along each axis and trying
+/// every split of the sorted order (exact, and cheaper than bins for a few primitives).
+const SMALL: usize = 8;
+
+/// Nodes of at most this many primitives are split in half along the widest axis of their
+/// centroids.
+const TINY: usize = 4;
+
+/// Splits `refs` (3 to [`SMALL`]) by sorted centroids: the split of least cost over the three axes'
+/// orders. Reorders `refs` into the chosen order; returns the left side's size.
+fn small_split(refs: &mut [PrimRef]) -> usize {
+    let m = refs.len().min(SMALL);
+    let mut items = [refs[0]; SMALL];
+    items[..m].copy_from_slice(&refs[..m]);
+    let centroids: [Vec3A; SMALL] = std::array::from_fn(|i| items[i].centroid2());
+    let mut best = (f32::INFINITY, 0usize, 1usize);
+    let mut orders = [[0u8; SMALL]; 3];
+    for (axis, order) in orders.iter_mut().enumerate() {
+        let keys: [f32; SMALL] = std::array::from_fn(|i| centroids[i][axis]);
+        *order = std::array::from_fn(|i| i as u8);
+        // Insertion sort (stable: ties keep input order).
+        for i in 1..m {
+            let k = order[i];
+            let key = keys[usize::from(k)];
+            let mut j = i;
+            while j > 0 && keys[usize::from(order[j - 1])] > key {
+                order[j] = order[j - 1];
+                j -= 1;
+            }
+            order[j] = k;
+        }
+        let mut right = [0.0f32; SMALL];
+        let (mut lo, mut hi) = (Vec3A::splat(f32::MAX), Vec3A::splat(f32::MIN));
+        for i in (1..m).rev() {
+            let p = &items[usize::from(order[i])];
+            (lo, hi) = (lo.min(p.lo()), hi.max(p.hi()));
+            right[i] = half_area(hi - lo) * (m - i) as f32;
+        }
+        let (mut lo, mut hi) = (Vec3A::splat(f32::MAX), Vec3A::splat(f32::MIN));
+        for i in 1..m {
+            let p = &items[usize::from(order[i - 1])];
+            (lo, hi) = (lo.min(p.lo()), hi.max(p.hi()));
+            let cost = half_area(hi - lo) * i as f32 + right[i];
+            if cost < best.0 {
+                best = (cost, axis, i);
+            }
+        }
+    }
+    let (_, axis, left) = best;
+    for (r, &k) in refs.iter_mut().zip(&orders[axis][..m]) {
+        *r = items[usize::from(k)];
+    }
+    left
+}
+
+/// Half the surface area of a box of extent `d` (as [`Aabb::half_area`]).
+#[inline(always)]
+fn half_area(d: Vec3A) -> f32 {
+    (d.x + d.y) * d.z + d.x * d.y
+}
+
+/// Moves `refs` into `out`, those whose doubled centroid `left` accepts to the front, keeping
+/// their order, the others to the back, in reverse order: returns how many went to the front and
+/// the bounds of both sides' doubled centroids. Without branches on `left` (its answers are as
+/// good as random to the branch predictor): each primitive is written both at the front cursor
+/// and at the back one, and only the cursor of its side moves.
+fn partition(refs: &[PrimRef], out: &mut [PrimRef], left: impl Fn(Vec3A) -> bool) -> (usize, Aabb, Aabb) {
+    debug_assert_eq!(refs.len(), out.len());
+    let (mut front, mut back) = (0usize, out.len());
+    let (mut lmin, mut lmax) = (Vec3A::splat(f32::MAX), Vec3A::splat(f32::MIN));
+    let (mut rmin, mut rmax) = (lmin, lmax);
+    for p in refs {
+        let c = p.centroid2();
+        let go = left(c);
+        // `front <= back - 1` while primitives remain: each one moves exactly one cursor.
+        out[front] = *p;
+        out[back - 1] = *p;
+        front += usize::from(go);
+        back -= usize::from(!go);
+        let mask = glam::BVec3A::splat(go);
+        lmin = Vec3A::select(mask, lmin.min(c), lmin);
+        lmax = Vec3A::select(mask, lmax.max(c), lmax);
+        rmin = Vec3A::select(mask, rmin, rmin.min(c));
+        rmax = Vec3A::select(mask, rmax, rmax.max(c));
+    }
+    (front, Aabb { min: lmin, max: lmax }, Aabb { min: rmin, max: rmax })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn random_boxes(n: usize, seed: u64) -> Vec<Aabb> {
+        let mut s = seed;
+        let mut next = move || {
+            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((s >> 40) as f32) / (1u64 << 24) as f32
+        };
+        (0..n)
+            .map(|_| {
+                let c = Vec3A::new(next(), next(), next()) * 100.0;
+                let e = Vec3A::new(next(), next(), next());
+                Aabb::new(c - e, c + e)
+            })
+            .collect()
+    }
+
+    /// Checks the tree's structure: every node written, children inside their parent, every
+    /// primitive in exactly one leaf whose box holds it; returns the depth.
+    fn check(bvh: &Bvh2, boxes: &[Aabb]) -> usize {
+        assert_eq!(bvh.nodes.len(), 2 * boxes.len() - 1);
+        let mut seen = vec![0u32; boxes.len()];
+        let mut stack = vec![(0usize, 1usize)];
+        let mut deepest = 0;
+        while let Some((i, d)) = stack.pop() {
+            deepest = deepest.max(d);
+            let node = &bvh.nodes[i];
+            if node.is_leaf() {
+                assert_eq!(node.prim_count, 1);
+                let p = bvh.primitive_indices[node.first_index as usize] as usize;
+                seen[p] += 1;
+                assert!(node.aabb.min.cmple(boxes[p].min).all() && node.aabb.max.cmpge(boxes[p].max).all());
+                continue;
+            }
+            for c in [node.first_index as usize, node.first_index as usize + 1] {
+                let child = &bvh.nodes[c];
+                assert!(node.aabb.min.cmple(child.aabb.min).all() && node.aabb.max.cmpge(child.aabb.max).all());
+                stack.push((c, d + 1));
+            }
+        }
+        assert!(seen.iter().all(|&s| s == 1));
+        deepest
+    }
+
+    #[test]
+    fn every_primitive_lands_in_one_leaf_inside_its_ancestors() {
+        for n in [1, 2, 3, 5, 17, 100, 5000, 70_000] {
+            let boxes = random_boxes(n, n as u64);
+            let bvh = build_binned(&boxes);
+            check(&bvh, &boxes);
+        }
+    }
+
+    #[test]
+    fn the_layout_depends_on_the_input_alone() {
+        // More than one chunk of `PARALLEL_BINNING`: the root is split chunk by chunk.
+        let boxes = random_boxes(2 * PARALLEL_BINNING + 5000, 7);
+        let a = build_binned(&boxes);
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(3).build().unwrap();
+        let b = pool.install(|| build_binned(&boxes));
+        assert_eq!(a.primitive_indices, b.primitive_indices);
+        assert!(a.nodes.iter().zip(&b.nodes).all(|(x, y)| bytemuck::bytes_of(x) == bytemuck::bytes_of(y)));
+    }
+
+    #[test]
+    fn coincident_and_degenerate_inputs_stay_shallow() {
+        // All in one place: median splits only.
+        let same = vec![Aabb::new(Vec3A::ONE, Vec3A::splat(2.0)); 10_000];
+        assert!(check(&build_binned(&same), &same) <= 16);
+        // Centroids at powers of two, where every cheapest split cuts off one primitive: the cost
+        // splits stop at `SAH_DEPTH`, the median splits below halve.
+        let spread: Vec<Aabb> = (0..3000)
+            .map(|i| {
+                let x = 1.001f32.powi(i * 20);
+                Aabb::new(Vec3A::new(x, 0.0, 0.0), Vec3A::new(x, 1.0, 1.0))
+            })
+            .collect();
+        assert!(check(&build_binned(&spread), &spread) <= SAH_DEPTH as usize + 14);
+    }
+
+    #[test]
+    fn separated_clusters_split_between_them() {
+        // Two clusters far apart: the root's children are the clusters.
+        let mut boxes = random_boxes(500, 1);
+        boxes.extend(random_boxes(300, 2).iter().map(|b| Aabb::new(b.min + 1000.0, b.max + 1000.0)));
+        let bvh = build_binned(&boxes);
+        let root = &bvh.nodes[0];
+        let sizes: Vec<f32> = (0..2).map(|k| bvh.nodes[root.first_index as usize + k].aabb.diagonal().x).collect();
+        assert!(sizes.iter().all(|&s| s < 110.0), "children {sizes:?}");
+    }
+}
