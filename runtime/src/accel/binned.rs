@@ -331,10 +331,14 @@ fn build(
     1 + dl.max(dr)
 }
 
+/// A split of a node's primitives: the left part's size, both parts' bounds, and whether the parts
+/// were moved into the scratch buffer (else they are in place).
+type Parts = (usize, Bounds, Bounds, bool);
+
 /// Splits `refs` (2 or more) into a left and a right part, both non-empty: returns the left one's
 /// size, both parts' bounds, and whether the parts are in `spare` (else in `refs`).
 #[inline(never)]
-fn split(refs: &mut [PrimRef], spare: &mut [PrimRef], bounds: &Bounds, depth: u32) -> (usize, Bounds, Bounds, bool) {
+fn split(refs: &mut [PrimRef], spare: &mut [PrimRef], bounds: &Bounds, depth: u32) -> Parts {
     let m = refs.len();
     if m == 2 {
         return (1, Bounds::of(&refs[..1]), Bounds::of(&refs[1..]), false);
@@ -397,11 +401,7 @@ const SMALL_BINS: usize = 8;
 
 /// [`split`] by binning into sets of `N` bins: the parts are in `spare`. `None` when every axis has
 /// all primitives in one bin.
-fn binned_split<const N: usize>(
-    refs: &mut [PrimRef],
-    spare: &mut [PrimRef],
-    binning: &Binning,
-) -> Option<(usize, Bounds, Bounds, bool)> {
+fn binned_split<const N: usize>(refs: &mut [PrimRef], spare: &mut [PrimRef], binning: &Binning) -> Option<Parts> {
     let m = refs.len();
     if m > PARALLEL_BINNING {
         return parallel_binned_split::<N>(refs, spare, binning);
@@ -426,7 +426,7 @@ fn parallel_binned_split<const N: usize>(
     refs: &mut [PrimRef],
     spare: &mut [PrimRef],
     binning: &Binning,
-) -> Option<(usize, Bounds, Bounds, bool)> {
+) -> Option<Parts> {
     let m = refs.len();
     let chunk_bins: Vec<Bins<N>> = refs.par_chunks(PARALLEL_BINNING).map(|c| Bins::<N>::fill(binning, c)).collect();
     let bins = chunk_bins.iter().fold(Bins::<N>::new(), |a, b| a.merge_bins(b, binning.count));
