@@ -657,6 +657,15 @@ mod tests {
             })
             .collect();
         assert!(check(&build_binned(&spread), &spread) <= SAH_DEPTH as usize + 14);
+        // Extreme magnitudes side by side (the centroid box's extent overflows to infinity): every
+        // primitive still lands in one leaf.
+        let extreme: Vec<Aabb> = (0..5000)
+            .map(|i| {
+                let x = [3e38f32, -3e38, 1e-30, 0.0, 1e20][i % 5] * if i % 2 == 0 { 1.0 } else { 0.5 };
+                Aabb::new(Vec3A::new(x, i as f32, 0.0), Vec3A::new(x, i as f32 + 1.0, 1.0))
+            })
+            .collect();
+        check(&build_binned(&extreme), &extreme);
     }
 
     #[test]
