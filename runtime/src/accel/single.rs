@@ -30,17 +30,10 @@ pub(crate) const STACK: usize = 96;
 pub(crate) struct RayPre {
     pub o: [f32; 3],
     pub d: [f32; 3],
-    /// The origin and inverse direction splatted, eight lanes (the first four for 4-wide nodes).
-    ox: f32x8,
-    oy: f32x8,
-    oz: f32x8,
-    idx: f32x8,
-    idy: f32x8,
-    idz: f32x8,
+    /// The inverse direction.
+    id: [f32; 3],
     /// The inverse direction times [`ROBUST`], for the far planes (see [`slab4`]).
-    fidx: f32x8,
-    fidy: f32x8,
-    fidz: f32x8,
+    fid: [f32; 3],
     neg: [bool; 3],
     pub tmin: f32,
     pub tmax: f32,
@@ -55,15 +48,8 @@ impl RayPre {
         RayPre {
             o: o.to_array(),
             d: d.to_array(),
-            ox: f32x8::splat(o.x),
-            oy: f32x8::splat(o.y),
-            oz: f32x8::splat(o.z),
-            idx: f32x8::splat(id[0]),
-            idy: f32x8::splat(id[1]),
-            idz: f32x8::splat(id[2]),
-            fidx: f32x8::splat(id[0] * ROBUST),
-            fidy: f32x8::splat(id[1] * ROBUST),
-            fidz: f32x8::splat(id[2] * ROBUST),
+            id,
+            fid: id.map(|i| i * ROBUST),
             neg: [id[0] < 0.0, id[1] < 0.0, id[2] < 0.0],
             tmin,
             tmax,
@@ -160,12 +146,13 @@ fn slab4(b: [&[f32; 4]; 6], r: &RayPre) -> (u32, Vec4) {
     let (nx, fx) = if r.neg[0] { (b[1], b[0]) } else { (b[0], b[1]) };
     let (ny, fy) = if r.neg[1] { (b[3], b[2]) } else { (b[2], b[3]) };
     let (nz, fz) = if r.neg[2] { (b[5], b[4]) } else { (b[4], b[5]) };
-    let tnx = (Vec4::from_array(*nx) - low(r.ox)) * low(r.idx);
-    let tny = (Vec4::from_array(*ny) - low(r.oy)) * low(r.idy);
-    let tnz = (Vec4::from_array(*nz) - low(r.oz)) * low(r.idz);
-    let tfx = (Vec4::from_array(*fx) - low(r.ox)) * low(r.fidx);
-    let tfy = (Vec4::from_array(*fy) - low(r.oy)) * low(r.fidy);
-    let tfz = (Vec4::from_array(*fz) - low(r.oz)) * low(r.fidz);
+    let s = Vec4::splat;
+    let tnx = (Vec4::from_array(*nx) - s(r.o[0])) * s(r.id[0]);
+    let tny = (Vec4::from_array(*ny) - s(r.o[1])) * s(r.id[1]);
+    let tnz = (Vec4::from_array(*nz) - s(r.o[2])) * s(r.id[2]);
+    let tfx = (Vec4::from_array(*fx) - s(r.o[0])) * s(r.fid[0]);
+    let tfy = (Vec4::from_array(*fy) - s(r.o[1])) * s(r.fid[1]);
+    let tfz = (Vec4::from_array(*fz) - s(r.o[2])) * s(r.fid[2]);
     let tnear = tnx.max(tny).max(tnz.max(Vec4::splat(r.tmin)));
     let tfar = tfx.min(tfy).min(tfz.min(Vec4::splat(r.tmax * ROBUST)));
     (tnear.cmple(tfar).bitmask(), tnear)
@@ -180,31 +167,16 @@ fn slab8(b: [&[[f32; 4]; 2]; 6], r: &RayPre) -> (u32, f32x8) {
     let (nx, fx) = if r.neg[0] { (b[1], b[0]) } else { (b[0], b[1]) };
     let (ny, fy) = if r.neg[1] { (b[3], b[2]) } else { (b[2], b[3]) };
     let (nz, fz) = if r.neg[2] { (b[5], b[4]) } else { (b[4], b[5]) };
-    let tnx = (row(nx) - r.ox) * r.idx;
-    let tny = (row(ny) - r.oy) * r.idy;
-    let tnz = (row(nz) - r.oz) * r.idz;
-    let tfx = (row(fx) - r.ox) * r.fidx;
-    let tfy = (row(fy) - r.oy) * r.fidy;
-    let tfz = (row(fz) - r.oz) * r.fidz;
+    let s = f32x8::splat;
+    let tnx = (row(nx) - s(r.o[0])) * s(r.id[0]);
+    let tny = (row(ny) - s(r.o[1])) * s(r.id[1]);
+    let tnz = (row(nz) - s(r.o[2])) * s(r.id[2]);
+    let tfx = (row(fx) - s(r.o[0])) * s(r.fid[0]);
+    let tfy = (row(fy) - s(r.o[1])) * s(r.fid[1]);
+    let tfz = (row(fz) - s(r.o[2])) * s(r.fid[2]);
     let tnear = tnx.fast_max(tny).fast_max(tnz.fast_max(f32x8::splat(r.tmin)));
     let tfar = tfx.fast_min(tfy).fast_min(tfz.fast_min(f32x8::splat(r.tmax * ROBUST)));
     (tnear.simd_le(tfar).to_bitmask(), tnear)
-}
-
-/// The first four lanes of `v`.
-#[inline(always)]
-fn low(v: f32x8) -> Vec4 {
-    #[cfg(target_arch = "x86_64")]
-    {
-        use std::arch::x86_64::__m128;
-        // The low half of the register (no instruction where the target has AVX).
-        Vec4::from(bytemuck::cast::<f32x8, [__m128; 2]>(v)[0])
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        let a = v.to_array();
-        Vec4::new(a[0], a[1], a[2], a[3])
-    }
 }
 
 /// Traverses `bvh` from child reference `start` (0 for the root). `leaf(first, count, ray)` is called
