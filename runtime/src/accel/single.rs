@@ -312,32 +312,39 @@ fn intersect_blocks(
     let blocks = &data.bvh.blocks;
     let order = &data.bvh.bvh.prim_order;
     let pf = |b: u32| prefetch(blocks.as_ptr().wrapping_add(b as usize), 3);
-    traverse::<true, _, _, _>(&data.bvh.wide.nodes, 0, ray, pf, |b, count, ray| {
-        let (mask, t, u, v) = block(b as usize, ray.time).intersect(ray.o, ray.d, ray.tmin, ray.tmax);
-        let mut bits = mask & ((1 << count) - 1);
-        while bits != 0 {
-            let j = bits.trailing_zeros() as usize;
-            bits &= bits - 1;
-            let (t, u, v) = (t[j], u[j], v[j]);
-            // Accepted at the leaf's `tmax` (so not NaN); a nearer lane of the leaf may have come first.
-            if t >= ray.tmax {
-                continue;
-            }
-            let primitive = order[BLOCK_WIDTH * b as usize + j];
-            if !obj.solid_at(primitive, u, v) {
-                continue;
-            }
-            if let Some(f) = filter {
-                let c = HitCandidate { t, u, v, instance: inst_id, object: object_id, primitive, lane };
-                if !f(&c) {
+    traverse::<true, _, _, _>(
+        &data.bvh.wide.nodes,
+        0,
+        ray,
+        pf,
+        #[inline(always)]
+        |b, count, ray| {
+            let (mask, t, u, v) = block(b as usize, ray.time).intersect(ray.o, ray.d, ray.tmin, ray.tmax);
+            let mut bits = mask & ((1 << count) - 1);
+            while bits != 0 {
+                let j = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                let (t, u, v) = (t[j], u[j], v[j]);
+                // Accepted at the leaf's `tmax` (so not NaN); a nearer lane of the leaf may have come first.
+                if t >= ray.tmax {
                     continue;
                 }
+                let primitive = order[BLOCK_WIDTH * b as usize + j];
+                if !obj.solid_at(primitive, u, v) {
+                    continue;
+                }
+                if let Some(f) = filter {
+                    let c = HitCandidate { t, u, v, instance: inst_id, object: object_id, primitive, lane };
+                    if !f(&c) {
+                        continue;
+                    }
+                }
+                ray.tmax = t;
+                *hit = HitState { u, v, instance: inst_id, primitive };
             }
-            ray.tmax = t;
-            *hit = HitState { u, v, instance: inst_id, primitive };
-        }
-        false
-    });
+            false
+        },
+    );
 }
 
 /// Whether `ray` (in object space) hits object `obj` within its interval.
@@ -373,36 +380,43 @@ fn occluded_blocks(
     let blocks = &data.bvh.blocks;
     let order = &data.bvh.bvh.prim_order;
     let pf = |b: u32| prefetch(blocks.as_ptr().wrapping_add(b as usize), 3);
-    traverse::<false, _, _, _>(&data.bvh.wide.nodes, 0, ray, pf, |b, count, ray| {
-        let (mask, t, u, v) = block(b as usize, ray.time).intersect(ray.o, ray.d, ray.tmin, ray.tmax);
-        let mut bits = mask & ((1 << count) - 1);
-        while bits != 0 {
-            let j = bits.trailing_zeros() as usize;
-            bits &= bits - 1;
-            let primitive = order[BLOCK_WIDTH * b as usize + j];
-            if !obj.solid_at(primitive, u[j], v[j]) {
-                continue;
-            }
-            match filter {
-                None => return true,
-                Some(f) => {
-                    let c = HitCandidate {
-                        t: t[j],
-                        u: u[j],
-                        v: v[j],
-                        instance: inst_id,
-                        object: object_id,
-                        primitive,
-                        lane,
-                    };
-                    if f(&c) {
-                        return true;
+    traverse::<false, _, _, _>(
+        &data.bvh.wide.nodes,
+        0,
+        ray,
+        pf,
+        #[inline(always)]
+        |b, count, ray| {
+            let (mask, t, u, v) = block(b as usize, ray.time).intersect(ray.o, ray.d, ray.tmin, ray.tmax);
+            let mut bits = mask & ((1 << count) - 1);
+            while bits != 0 {
+                let j = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                let primitive = order[BLOCK_WIDTH * b as usize + j];
+                if !obj.solid_at(primitive, u[j], v[j]) {
+                    continue;
+                }
+                match filter {
+                    None => return true,
+                    Some(f) => {
+                        let c = HitCandidate {
+                            t: t[j],
+                            u: u[j],
+                            v: v[j],
+                            instance: inst_id,
+                            object: object_id,
+                            primitive,
+                            lane,
+                        };
+                        if f(&c) {
+                            return true;
+                        }
                     }
                 }
             }
-        }
-        false
-    })
+            false
+        },
+    )
 }
 
 /// Closest hit of a world-space ray with the scene.
