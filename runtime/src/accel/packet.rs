@@ -35,7 +35,7 @@ use super::object::Object;
 use super::single::{self, HitState, RayPre, STACK};
 use super::stack::Stack;
 use super::top::{InstanceData, TopLevel};
-use super::ROBUST;
+use super::{prefetch, ROBUST};
 use crate::geometry::triangle::{intersect, intersect_shared, PreTriangle, SharedOrigin, BLOCK_WIDTH};
 use crate::ray::{HitCandidate, HitFilter, HitPacket, RayPacket, INVALID_ID, PACKET_SIZE};
 use glam::{Vec3A, Vec4};
@@ -361,12 +361,13 @@ struct Entry {
 ///
 /// `SHARED` must equal `g.shared_origin` (see [`BoxSplat`]).
 #[inline(always)]
-fn traverse<const SHARED: bool, F: FnMut(u32, u32, u8, &mut State) -> bool>(
+fn traverse<const SHARED: bool, F: FnMut(u32, u32, u8, &mut State) -> bool, P: Fn(u32)>(
     bvh: &Bvh4,
     g: &Geom,
     s: &mut State,
     lo: usize,
     hi: usize,
+    prefetch_leaf: P,
     mut leaf: F,
 ) -> bool {
     if bvh.nodes.is_empty() {
@@ -403,6 +404,7 @@ fn traverse<const SHARED: bool, F: FnMut(u32, u32, u8, &mut State) -> bool>(
             let child = node.child[k];
             let mut entry = Entry { r: child, lo: f as u8, hi: f as u8, mask: 1 << f };
             if child & LEAF_BIT != 0 {
+                prefetch_leaf(leaf_range(child).0);
                 for c in f + 1..=ehi {
                     if b.test(g, s, c).0 != 0 {
                         entry.mask |= 1 << c;
@@ -410,6 +412,7 @@ fn traverse<const SHARED: bool, F: FnMut(u32, u32, u8, &mut State) -> bool>(
                     }
                 }
             } else {
+                prefetch(bvh.nodes.as_ptr().wrapping_add(child as usize), 2);
                 let mut l = ehi;
                 while l > f && b.test(g, s, l).0 == 0 {
                     l -= 1;
@@ -500,7 +503,8 @@ fn intersect_object_with<const SHARED: bool>(
     let data = obj.data();
     let blocks = &data.bvh.blocks;
     let order = &data.bvh.bvh.prim_order;
-    traverse::<SHARED, _>(&data.bvh.bvh, g, s, lo, hi, |b, count, mask, s| {
+    let pf = |b: u32| prefetch(blocks.as_ptr().wrapping_add(b as usize), 3);
+    traverse::<SHARED, _, _>(&data.bvh.bvh, g, s, lo, hi, pf, |b, count, mask, s| {
         let mut any = false;
         let block = &blocks[b as usize];
         for j in 0..count as usize {
@@ -591,7 +595,8 @@ fn occluded_object_with<const SHARED: bool>(
     let data = obj.data();
     let blocks = &data.bvh.blocks;
     let order = &data.bvh.bvh.prim_order;
-    traverse::<SHARED, _>(&data.bvh.bvh, g, s, lo, hi, |b, count, mask, s| {
+    let pf = |b: u32| prefetch(blocks.as_ptr().wrapping_add(b as usize), 3);
+    traverse::<SHARED, _, _>(&data.bvh.bvh, g, s, lo, hi, pf, |b, count, mask, s| {
         let mut any = false;
         let block = &blocks[b as usize];
         for j in 0..count as usize {
@@ -803,12 +808,20 @@ fn intersect_lanes(
         // One instance: its object BVH's root test does the top level's culling.
         visit(inst_id, chunk_mask(lo, hi), &mut s);
     } else {
-        traverse::<false, _>(&top.bvh, &g, &mut s, lo, hi, |first, count, mask, s| {
-            for slot in first..first + count {
-                visit(top.bvh.prim_order[slot as usize], mask, s);
-            }
-            false
-        });
+        traverse::<false, _, _>(
+            &top.bvh,
+            &g,
+            &mut s,
+            lo,
+            hi,
+            |_| {},
+            |first, count, mask, s| {
+                for slot in first..first + count {
+                    visit(top.bvh.prim_order[slot as usize], mask, s);
+                }
+                false
+            },
+        );
     }
     let mut m = active;
     while m != 0 {
@@ -923,9 +936,17 @@ fn occluded_lanes(
     if let Some(inst_id) = top.sole_instance() {
         visit(inst_id, chunk_mask(lo, hi), &mut s);
     } else {
-        traverse::<false, _>(&top.bvh, &g, &mut s, lo, hi, |first, count, mask, s| {
-            (first..first + count).any(|slot| visit(top.bvh.prim_order[slot as usize], mask, s))
-        });
+        traverse::<false, _, _>(
+            &top.bvh,
+            &g,
+            &mut s,
+            lo,
+            hi,
+            |_| {},
+            |first, count, mask, s| {
+                (first..first + count).any(|slot| visit(top.bvh.prim_order[slot as usize], mask, s))
+            },
+        );
     }
     let mut hit = s.done & active;
     if s.bail {
