@@ -357,7 +357,8 @@ struct Entry {
 
 /// Traverses `bvh` with the chunks `lo..=hi` of the packet. `leaf(first, count, chunk_mask, state)`
 /// is called for each leaf entered, with the mask of chunks whose rays hit the leaf's box; it
-/// returns `true` to end the traversal.
+/// returns `true` to end the traversal. Every child the packet will enter starts loading when it
+/// is pushed: inner nodes here, leaves through `prefetch_leaf(first)` (their triangles).
 ///
 /// `SHARED` must equal `g.shared_origin` (see [`BoxSplat`]).
 #[inline(always)]
