@@ -137,27 +137,16 @@ pub(super) struct Gatherer {
 }
 
 /// The mean radiance arriving at each point from its set of `all` (irradiance over pi), each
-/// light behind a shadow ray; the rays of all the points go as packets of up to 64 (a point's
-/// lights from one origin, its neighbours' from nearby ones). A set stands for all of them: its
-/// share is scaled up by the number of sets.
+/// light behind a shadow ray. The rays go as packets of up to 64, one packet filling per direction
+/// octant: a point's lights lie all around it, and a packet of mixed octants would be split by
+/// the tracer into sparse packets, each paying a whole packet's set-up for a few lanes scattered
+/// over its chunks. Each ray's light is added to its point in the order the rays were made, so the
+/// sums do not depend on how the rays were packed. A set stands for all of them: its share is
+/// scaled up by the number of sets.
 pub(super) fn gather(all: &VirtualLights, frame: &Frame, points: &[Gatherer], out: &mut [Vec3A]) {
-    let mut packet = RayPacket::new();
-    // Each lane's point and the light it would get if nothing blocked it.
-    let mut pending: Vec<(usize, Vec3A)> = Vec::with_capacity(PACKET_SIZE);
-    let mut rays = 0;
-    let flush = |packet: &mut RayPacket, pending: &mut Vec<(usize, Vec3A)>, out: &mut [Vec3A]| {
-        if pending.is_empty() {
-            return;
-        }
-        let blocked = tracing(|| frame.world.occluded_packet(packet));
-        for (lane, (point, light)) in pending.iter().enumerate() {
-            if blocked >> lane & 1 == 0 {
-                out[*point] += *light;
-            }
-        }
-        pending.clear();
-        *packet = RayPacket::new();
-    };
+    // Each ray's point, the light it would get if nothing blocked it, and whether it is blocked.
+    let mut rays: Vec<(usize, Vec3A, bool)> = Vec::new();
+    let mut packets: Vec<OctantPacket> = (0..8).map(|_| OctantPacket::new()).collect();
     for (k, g) in points.iter().enumerate() {
         let Some(lights) = all.sets.get(g.set) else { continue };
         for vl in lights {
@@ -173,19 +162,67 @@ pub(super) fn gather(all: &VirtualLights, frame: &Frame, points: &[Gatherer], ou
                 continue;
             }
             let reach = r * (1.0 - 1e-3) - epsilon(vl.p);
-            packet.set(pending.len(), &Ray::segment(g.p, w, epsilon(g.p), reach.max(0.0)).at_time(g.time));
-            pending.push((k, vl.power * (cos_here * cos_there / r2.max(all.clamp_squared))));
-            rays += 1;
-            if pending.len() == PACKET_SIZE {
-                flush(&mut packet, &mut pending, out);
+            let ray = Ray::segment(g.p, w, epsilon(g.p), reach.max(0.0)).at_time(g.time);
+            let octant = usize::from(w.x.is_sign_negative())
+                | usize::from(w.y.is_sign_negative()) << 1
+                | usize::from(w.z.is_sign_negative()) << 2;
+            let packet = &mut packets[octant];
+            packet.add(&ray, rays.len());
+            rays.push((k, vl.power * (cos_here * cos_there / r2.max(all.clamp_squared)), false));
+            if packet.full() {
+                packet.flush(frame, &mut rays);
             }
         }
     }
-    flush(&mut packet, &mut pending, out);
-    Stats::add(&frame.stats.shadow_rays, rays);
+    for packet in &mut packets {
+        packet.flush(frame, &mut rays);
+    }
+    Stats::add(&frame.stats.shadow_rays, rays.len());
+    for &(point, light, blocked) in &rays {
+        if !blocked {
+            out[point] += light;
+        }
+    }
     let scale = all.sets.len() as f32 / std::f32::consts::PI;
     for o in out.iter_mut().take(points.len()) {
         *o *= scale;
+    }
+}
+
+/// A packet of shadow rays of one direction octant, filling: lane `l` is ray `rays[l]` of
+/// [`gather`]'s list.
+struct OctantPacket {
+    packet: RayPacket,
+    rays: Vec<usize>,
+}
+
+impl OctantPacket {
+    fn new() -> OctantPacket {
+        OctantPacket { packet: RayPacket::new(), rays: Vec::with_capacity(PACKET_SIZE) }
+    }
+
+    fn add(&mut self, ray: &Ray, index: usize) {
+        self.packet.set(self.rays.len(), ray);
+        self.rays.push(index);
+    }
+
+    fn full(&self) -> bool {
+        self.rays.len() == PACKET_SIZE
+    }
+
+    /// Traces the packet and marks its blocked rays in `rays`; the packet is empty after.
+    fn flush(&mut self, frame: &Frame, rays: &mut [(usize, Vec3A, bool)]) {
+        if self.rays.is_empty() {
+            return;
+        }
+        let blocked = tracing(|| frame.world.occluded_packet(&self.packet));
+        for (lane, &index) in self.rays.iter().enumerate() {
+            if let Some(ray) = rays.get_mut(index) {
+                ray.2 = blocked >> lane & 1 != 0;
+            }
+        }
+        self.rays.clear();
+        self.packet = RayPacket::new();
     }
 }
 
