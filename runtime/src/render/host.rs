@@ -886,7 +886,9 @@ fn hemisphere(
         let sum = seen.iter().fold(Vec3A::ZERO, |acc, s| acc + s.color);
         (blocked, sum / count as f32)
     } else {
-        let blocked = tracing(|| rays.iter().filter(|r| frame.world.occluded(r)).count()) as f32 / count as f32;
+        let mut blocked = Vec::new();
+        tracing(|| frame.world.occluded_rays(&rays, &mut blocked));
+        let blocked = blocked.iter().filter(|&&b| b).count() as f32 / count as f32;
         (blocked, Vec3A::ZERO)
     }
 }

@@ -30,7 +30,7 @@ use super::sampling::{mix, point_seed, radical_inverse, unit};
 use super::stats::{tracing, Stats};
 use super::work::{epsilon, Frame, VirtualLight, VirtualLights};
 use super::world::{LightSource, PhotonModel, MAX_BOUNCES, MAX_INTERLEAVE, MAX_VIRTUAL_LIGHT_PATHS};
-use crate::ray::{Ray, RayPacket, PACKET_SIZE};
+use crate::ray::Ray;
 use crate::shading::LightKind;
 use glam::Vec3A;
 use rtsl_compiler::abi::{LightLanes, MAX_LIGHTS};
@@ -137,16 +137,14 @@ pub(super) struct Gatherer {
 }
 
 /// The mean radiance arriving at each point from its set of `all` (irradiance over pi), each
-/// light behind a shadow ray. The rays go as packets of up to 64, one packet filling per direction
-/// octant: a point's lights lie all around it, and a packet of mixed octants would be split by
-/// the tracer into sparse packets, each paying a whole packet's set-up for a few lanes scattered
-/// over its chunks. Each ray's light is added to its point in the order the rays were made, so the
-/// sums do not depend on how the rays were packed. A set stands for all of them: its share is
+/// light behind a shadow ray; the rays go as packets of one direction octant each
+/// ([`super::World::occluded_rays`]: a point's lights lie all around it). Each ray's light is added
+/// to its point in the order the rays were made. A set stands for all of them: its share is
 /// scaled up by the number of sets.
 pub(super) fn gather(all: &VirtualLights, frame: &Frame, points: &[Gatherer], out: &mut [Vec3A]) {
-    // Each ray's point, the light it would get if nothing blocked it, and whether it is blocked.
-    let mut rays: Vec<(usize, Vec3A, bool)> = Vec::new();
-    let mut packets: Vec<OctantPacket> = (0..8).map(|_| OctantPacket::new()).collect();
+    let mut rays = Vec::new();
+    // Each ray's point and the light it would get if nothing blocked it.
+    let mut lights_in: Vec<(usize, Vec3A)> = Vec::new();
     for (k, g) in points.iter().enumerate() {
         let Some(lights) = all.sets.get(g.set) else { continue };
         for vl in lights {
@@ -162,23 +160,14 @@ pub(super) fn gather(all: &VirtualLights, frame: &Frame, points: &[Gatherer], ou
                 continue;
             }
             let reach = r * (1.0 - 1e-3) - epsilon(vl.p);
-            let ray = Ray::segment(g.p, w, epsilon(g.p), reach.max(0.0)).at_time(g.time);
-            let octant = usize::from(w.x.is_sign_negative())
-                | usize::from(w.y.is_sign_negative()) << 1
-                | usize::from(w.z.is_sign_negative()) << 2;
-            let packet = &mut packets[octant];
-            packet.add(&ray, rays.len());
-            rays.push((k, vl.power * (cos_here * cos_there / r2.max(all.clamp_squared)), false));
-            if packet.full() {
-                packet.flush(frame, &mut rays);
-            }
+            rays.push(Ray::segment(g.p, w, epsilon(g.p), reach.max(0.0)).at_time(g.time));
+            lights_in.push((k, vl.power * (cos_here * cos_there / r2.max(all.clamp_squared))));
         }
     }
-    for packet in &mut packets {
-        packet.flush(frame, &mut rays);
-    }
+    let mut blocked = Vec::new();
+    tracing(|| frame.world.occluded_rays(&rays, &mut blocked));
     Stats::add(&frame.stats.shadow_rays, rays.len());
-    for &(point, light, blocked) in &rays {
+    for (&(point, light), &blocked) in lights_in.iter().zip(&blocked) {
         if !blocked {
             out[point] += light;
         }
@@ -186,43 +175,6 @@ pub(super) fn gather(all: &VirtualLights, frame: &Frame, points: &[Gatherer], ou
     let scale = all.sets.len() as f32 / std::f32::consts::PI;
     for o in out.iter_mut().take(points.len()) {
         *o *= scale;
-    }
-}
-
-/// A packet of shadow rays of one direction octant, filling: lane `l` is ray `rays[l]` of
-/// [`gather`]'s list.
-struct OctantPacket {
-    packet: RayPacket,
-    rays: Vec<usize>,
-}
-
-impl OctantPacket {
-    fn new() -> OctantPacket {
-        OctantPacket { packet: RayPacket::new(), rays: Vec::with_capacity(PACKET_SIZE) }
-    }
-
-    fn add(&mut self, ray: &Ray, index: usize) {
-        self.packet.set(self.rays.len(), ray);
-        self.rays.push(index);
-    }
-
-    fn full(&self) -> bool {
-        self.rays.len() == PACKET_SIZE
-    }
-
-    /// Traces the packet and marks its blocked rays in `rays`; the packet is empty after.
-    fn flush(&mut self, frame: &Frame, rays: &mut [(usize, Vec3A, bool)]) {
-        if self.rays.is_empty() {
-            return;
-        }
-        let blocked = tracing(|| frame.world.occluded_packet(&self.packet));
-        for (lane, &index) in self.rays.iter().enumerate() {
-            if let Some(ray) = rays.get_mut(index) {
-                ray.2 = blocked >> lane & 1 != 0;
-            }
-        }
-        self.rays.clear();
-        self.packet = RayPacket::new();
     }
 }
 

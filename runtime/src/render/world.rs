@@ -792,6 +792,44 @@ impl World {
         self.scene.occluded_packet_filtered(packet, Some(&sees))
     }
 
+    /// Whether each of `rays` is blocked (`blocked[i]` for `rays[i]`), traced as packets of one
+    /// direction octant each: rays that leave points in all directions (a point's virtual
+    /// lights, a hemisphere's samples) would otherwise make packets of mixed octants, which the
+    /// tracer splits into sparse packets that each pay a whole packet's set-up for a few lanes.
+    pub fn occluded_rays(&self, rays: &[Ray], blocked: &mut Vec<bool>) {
+        blocked.clear();
+        blocked.resize(rays.len(), false);
+        // Per octant, a packet filling and the rays in its lanes.
+        let mut packets: Vec<(RayPacket, Vec<usize>)> =
+            (0..8).map(|_| (RayPacket::new(), Vec::with_capacity(PACKET_SIZE))).collect();
+        let flush = |(packet, lanes): &mut (RayPacket, Vec<usize>), blocked: &mut [bool]| {
+            if lanes.is_empty() {
+                return;
+            }
+            let hit = self.occluded_packet(packet);
+            for (lane, &i) in lanes.iter().enumerate() {
+                blocked[i] = hit >> lane & 1 != 0;
+            }
+            lanes.clear();
+            *packet = RayPacket::new();
+        };
+        for (i, ray) in rays.iter().enumerate() {
+            let d = ray.direction;
+            let octant = usize::from(d.x.is_sign_negative())
+                | usize::from(d.y.is_sign_negative()) << 1
+                | usize::from(d.z.is_sign_negative()) << 2;
+            let entry = &mut packets[octant];
+            entry.0.set(entry.1.len(), ray);
+            entry.1.push(i);
+            if entry.1.len() == PACKET_SIZE {
+                flush(entry, blocked);
+            }
+        }
+        for entry in &mut packets {
+            flush(entry, blocked);
+        }
+    }
+
     /// [`Scene::lanes_hitting_triangle`] for a world whose rays see every hit; none where some
     /// are not seen (a one-sided triangle from behind, a point clipped away), which depends on
     /// each ray.
@@ -981,5 +1019,58 @@ mod tests {
         use ShadowKind::*;
         assert_eq!(kinds(4), [Crossed, Blocked, Crossed, Blocked, Blocked, Blocked]);
         assert_eq!(kinds(2), [ByShader; 6]);
+    }
+
+    /// Rays in every direction octant, more than a packet's worth in some, traced in octant
+    /// packets: each answer is the one its ray gets alone.
+    #[test]
+    fn occluded_rays_answer_as_each_ray_alone() {
+        use crate::geometry::Mesh;
+        use glam::Vec3;
+        // A cube of small quads around the origin, with gaps between them, so that rays from the
+        // centre are blocked in some directions and not in others.
+        let (mut positions, mut triangles) = (Vec::new(), Vec::new());
+        for axis in 0..3 {
+            for side in [-1.0f32, 1.0] {
+                for (i, j) in (0..4).flat_map(|i| (0..4).map(move |j| (i, j))) {
+                    let corner = |a: f32, b: f32| {
+                        let mut p = [0.0; 3];
+                        p[axis] = side;
+                        p[(axis + 1) % 3] = -1.0 + 0.5 * (i as f32 + a);
+                        p[(axis + 2) % 3] = -1.0 + 0.5 * (j as f32 + b);
+                        Vec3::from_array(p)
+                    };
+                    let base = positions.len() as u32;
+                    positions.extend([corner(0.1, 0.1), corner(0.9, 0.1), corner(0.9, 0.9), corner(0.1, 0.9)]);
+                    triangles.extend([[base, base + 1, base + 2], [base, base + 2, base + 3]]);
+                }
+            }
+        }
+        let mut scene = Scene::new();
+        let mesh = Mesh::from_triangles(positions, triangles).expect("a valid mesh");
+        let object = scene.add_object(mesh);
+        scene.add_instance(object, Affine3A::IDENTITY).expect("an instance");
+        scene.commit();
+        let world = World::new(scene);
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0
+        };
+        let rays: Vec<Ray> = (0..700)
+            .map(|k| {
+                let origin = Vec3A::new(next(), next(), next()) * 0.3;
+                // Some rays stop short of the cube.
+                let reach = if k % 5 == 0 { 0.5 } else { f32::INFINITY };
+                Ray::segment(origin, Vec3A::new(next(), next(), next()).normalize_or(Vec3A::X), 1e-4, reach)
+            })
+            .collect();
+        let mut blocked = vec![true; 3];
+        world.occluded_rays(&rays, &mut blocked);
+        let alone: Vec<bool> = rays.iter().map(|r| world.occluded(r)).collect();
+        assert_eq!(blocked, alone);
+        assert!(alone.iter().any(|&b| b) && alone.iter().any(|&b| !b), "both answers are tested");
     }
 }
