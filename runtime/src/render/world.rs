@@ -1052,12 +1052,11 @@ mod tests {
         scene.add_instance(object, Affine3A::IDENTITY).expect("an instance");
         scene.commit();
         let world = World::new(scene);
-        let mut state = 0x2545_f491_4f6c_dd1du64;
+        use crate::render::sampling::{mix, unit};
+        let mut state = 7u64;
         let mut next = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0
+            state = mix(state);
+            unit(state) * 2.0 - 1.0
         };
         let rays: Vec<Ray> = (0..700)
             .map(|k| {
