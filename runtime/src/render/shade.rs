@@ -111,7 +111,8 @@ pub fn trace_rays(frame: &Frame, rays: &[Ray], depth: u32) -> Vec<Sample> {
 
 /// [`trace_rays`], ray `i`'s tree spending from `budgets[i]`.
 fn trace_budgeted(frame: &Frame, rays: &[Ray], budgets: &mut [RayBudget], depth: u32) -> Vec<Sample> {
-    let hits: Vec<Hit> = tracing(|| rays.iter().map(|r| frame.world.intersect(r)).collect());
+    let mut hits = Vec::new();
+    tracing(|| frame.world.intersect_rays(rays, &mut hits));
     let eye = frame.world.camera.eye();
     let diffs: Vec<RayDifferential> = rays
         .iter()
@@ -135,7 +136,8 @@ pub(super) fn gather_rays(
     budgets: &mut [RayBudget],
     depth: u32,
 ) -> Vec<Option<(f32, Shaded)>> {
-    let hits: Vec<Hit> = tracing(|| rays.iter().map(|r| frame.world.intersect(r)).collect());
+    let mut hits = Vec::new();
+    tracing(|| frame.world.intersect_rays(rays, &mut hits));
     let eye = frame.world.camera.eye();
     let mut out = vec![None; rays.len()];
     let mut pending = Vec::new();
@@ -252,7 +254,9 @@ fn shade_pending(
         super::volume::shade_segments(frame, &current, &mut results, depth);
         Stats::add(&frame.stats.shaded_points, current.len());
         layer += 1;
-        let mut next = Vec::new();
+        // The rays going on through what they met, traced together (they share their directions
+        // with the rays before them: whole packets).
+        let mut going_on = Vec::new();
         for (p, r) in current.iter().zip(&results) {
             if let Some(budget) = budgets.get_mut(p.index) {
                 budget.charge(r.spent, r.cut);
@@ -267,23 +271,27 @@ fn shade_pending(
                 }
                 let side = if r.ng.dot(p.ray.direction) > 0.0 { r.ng } else { -r.ng };
                 let ray = Ray::new(offset_ray_origin(r.p, side), p.ray.direction).at_time(p.ray.time);
-                Stats::add(&frame.stats.transparency_rays, 1);
-                let hit = tracing(|| world.intersect(&ray));
-                if hit.is_hit() {
-                    // The ray goes on unbent: its footprint starts where the surface's ended.
-                    let (dodx, dody) = if r.on_surface {
-                        p.diff.at_hit(p.ray.direction, p.hit.t, r.ng)
-                    } else {
-                        (Vec3A::ZERO, Vec3A::ZERO)
-                    };
-                    let diff = RayDifferential { dodx, dody, ..p.diff };
-                    next.push(Pending { index: p.index, ray, diff, hit, budget: RayBudget::NONE });
+                // The ray goes on unbent: its footprint starts where the surface's ended.
+                let (dodx, dody) = if r.on_surface {
+                    p.diff.at_hit(p.ray.direction, p.hit.t, r.ng)
                 } else {
-                    out[p.index].color += left * background;
-                }
+                    (Vec3A::ZERO, Vec3A::ZERO)
+                };
+                going_on.push((p.index, ray, RayDifferential { dodx, dody, ..p.diff }));
             }
         }
-        current = next;
+        Stats::add(&frame.stats.transparency_rays, going_on.len());
+        let rays: Vec<Ray> = going_on.iter().map(|&(_, ray, _)| ray).collect();
+        let mut hits = Vec::new();
+        tracing(|| world.intersect_rays(&rays, &mut hits));
+        current = Vec::with_capacity(going_on.len());
+        for ((index, ray, diff), hit) in going_on.into_iter().zip(hits) {
+            if hit.is_hit() {
+                current.push(Pending { index, ray, diff, hit, budget: RayBudget::NONE });
+            } else {
+                out[index].color += weight[index] * background;
+            }
+        }
     }
 }
 

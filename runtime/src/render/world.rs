@@ -793,41 +793,32 @@ impl World {
     }
 
     /// Whether each of `rays` is blocked (`blocked[i]` for `rays[i]`), traced as packets of one
-    /// direction octant each: rays that leave points in all directions (a point's virtual
-    /// lights, a hemisphere's samples) would otherwise make packets of mixed octants, which the
-    /// tracer splits into sparse packets that each pay a whole packet's set-up for a few lanes.
+    /// direction octant each (see [`in_octant_packets`]).
     pub fn occluded_rays(&self, rays: &[Ray], blocked: &mut Vec<bool>) {
         blocked.clear();
         blocked.resize(rays.len(), false);
-        // Per octant, a packet filling and the rays in its lanes.
-        let mut packets: Vec<(RayPacket, Vec<usize>)> =
-            (0..8).map(|_| (RayPacket::new(), Vec::with_capacity(PACKET_SIZE))).collect();
-        let flush = |(packet, lanes): &mut (RayPacket, Vec<usize>), blocked: &mut [bool]| {
-            if lanes.is_empty() {
-                return;
-            }
+        in_octant_packets(rays, |packet, lanes| {
             let hit = self.occluded_packet(packet);
             for (lane, &i) in lanes.iter().enumerate() {
                 blocked[i] = hit >> lane & 1 != 0;
             }
-            lanes.clear();
-            *packet = RayPacket::new();
-        };
-        for (i, ray) in rays.iter().enumerate() {
-            let d = ray.direction;
-            let octant = usize::from(d.x.is_sign_negative())
-                | usize::from(d.y.is_sign_negative()) << 1
-                | usize::from(d.z.is_sign_negative()) << 2;
-            let entry = &mut packets[octant];
-            entry.0.set(entry.1.len(), ray);
-            entry.1.push(i);
-            if entry.1.len() == PACKET_SIZE {
-                flush(entry, blocked);
+        });
+    }
+
+    /// The closest hit of each of `rays` (`hits[i]` for `rays[i]`), traced as packets of one
+    /// direction octant each (see [`in_octant_packets`]): the hits [`World::intersect`] finds
+    /// ray by ray (where two surfaces lie at one distance, either may be the one reported, as
+    /// between packets and single rays anywhere).
+    pub fn intersect_rays(&self, rays: &[Ray], hits: &mut Vec<Hit>) {
+        hits.clear();
+        hits.resize(rays.len(), Hit::MISS);
+        let mut out = HitPacket::default();
+        in_octant_packets(rays, |packet, lanes| {
+            self.intersect_packet(packet, &mut out);
+            for (lane, &i) in lanes.iter().enumerate() {
+                hits[i] = out.get(lane);
             }
-        }
-        for entry in &mut packets {
-            flush(entry, blocked);
-        }
+        });
     }
 
     /// [`Scene::lanes_hitting_triangle`] for a world whose rays see every hit; none where some
@@ -971,6 +962,41 @@ impl World {
     }
 }
 
+/// Hands `rays` to `trace` as packets, each of rays of one direction octant, with the index in
+/// `rays` of each of its lanes (in order, from lane 0). Rays that leave points in all directions
+/// (a point's virtual lights, a hemisphere's samples, reflections off a curved surface) would
+/// otherwise make packets of mixed octants, which the tracer splits into sparse packets that each
+/// pay a whole packet's set-up for a few lanes; rays of one direction (reflections off a flat
+/// mirror, rays going on through a transparent surface) fill whole packets.
+fn in_octant_packets(rays: &[Ray], mut trace: impl FnMut(&RayPacket, &[usize])) {
+    // Per octant, a packet filling and the rays in its lanes.
+    let mut packets: Vec<(RayPacket, Vec<usize>)> =
+        (0..8).map(|_| (RayPacket::new(), Vec::with_capacity(PACKET_SIZE))).collect();
+    let mut flush = |(packet, lanes): &mut (RayPacket, Vec<usize>)| {
+        if lanes.is_empty() {
+            return;
+        }
+        trace(packet, lanes);
+        lanes.clear();
+        *packet = RayPacket::new();
+    };
+    for (i, ray) in rays.iter().enumerate() {
+        let d = ray.direction;
+        let octant = usize::from(d.x.is_sign_negative())
+            | usize::from(d.y.is_sign_negative()) << 1
+            | usize::from(d.z.is_sign_negative()) << 2;
+        let entry = &mut packets[octant];
+        entry.0.set(entry.1.len(), ray);
+        entry.1.push(i);
+        if entry.1.len() == PACKET_SIZE {
+            flush(entry);
+        }
+    }
+    for entry in &mut packets {
+        flush(entry);
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1025,10 +1051,42 @@ mod tests {
     /// packets: each answer is the one its ray gets alone.
     #[test]
     fn occluded_rays_answer_as_each_ray_alone() {
+        let (world, rays) = gapped_cube_and_rays();
+        let mut blocked = vec![true; 3];
+        world.occluded_rays(&rays, &mut blocked);
+        let alone: Vec<bool> = rays.iter().map(|r| world.occluded(r)).collect();
+        assert_eq!(blocked, alone);
+        assert!(alone.iter().any(|&b| b) && alone.iter().any(|&b| !b), "both answers are tested");
+    }
+
+    /// The closest hits of rays in every octant (more than a packet's worth in some), traced in
+    /// octant packets, are each ray's own: the same triangle at the same distance and barycentrics,
+    /// or, where the ray meets a quad's diagonal, its other triangle at that distance.
+    #[test]
+    fn intersect_rays_answer_as_each_ray_alone() {
+        let (world, rays) = gapped_cube_and_rays();
+        let mut hits = vec![Hit::MISS; 5];
+        world.intersect_rays(&rays, &mut hits);
+        assert_eq!(hits.len(), rays.len());
+        for (i, (ray, hit)) in rays.iter().zip(&hits).enumerate() {
+            let alone = world.intersect(ray);
+            let same = if (alone.instance, alone.primitive) == (hit.instance, hit.primitive) {
+                (alone.t, alone.u, alone.v) == (hit.t, hit.u, hit.v) || !alone.is_hit()
+            } else {
+                alone.is_hit() && hit.is_hit() && (alone.t - hit.t).abs() <= 1e-5 * alone.t
+            };
+            assert!(same, "ray {i}: alone {alone:?}, in a packet {hit:?}");
+        }
+        let met = hits.iter().filter(|h| h.is_hit()).count();
+        assert!(met > 100 && met < rays.len() - 100, "{met} of {} rays meet the cube", rays.len());
+    }
+
+    /// A cube of small quads around the origin, with gaps between them, so that rays from the
+    /// centre meet it in some directions and not in others; and 700 rays from near its centre in
+    /// all directions, one in five stopping short of it.
+    fn gapped_cube_and_rays() -> (World, Vec<Ray>) {
         use crate::geometry::Mesh;
         use glam::Vec3;
-        // A cube of small quads around the origin, with gaps between them, so that rays from the
-        // centre are blocked in some directions and not in others.
         let (mut positions, mut triangles) = (Vec::new(), Vec::new());
         for axis in 0..3 {
             for side in [-1.0f32, 1.0] {
@@ -1058,18 +1116,13 @@ mod tests {
             state = mix(state);
             unit(state) * 2.0 - 1.0
         };
-        let rays: Vec<Ray> = (0..700)
+        let rays = (0..700)
             .map(|k| {
                 let origin = Vec3A::new(next(), next(), next()) * 0.3;
-                // Some rays stop short of the cube.
                 let reach = if k % 5 == 0 { 0.5 } else { f32::INFINITY };
                 Ray::segment(origin, Vec3A::new(next(), next(), next()).normalize_or(Vec3A::X), 1e-4, reach)
             })
             .collect();
-        let mut blocked = vec![true; 3];
-        world.occluded_rays(&rays, &mut blocked);
-        let alone: Vec<bool> = rays.iter().map(|r| world.occluded(r)).collect();
-        assert_eq!(blocked, alone);
-        assert!(alone.iter().any(|&b| b) && alone.iter().any(|&b| !b), "both answers are tested");
+        (world, rays)
     }
 }
