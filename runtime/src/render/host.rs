@@ -11,7 +11,7 @@ use super::sampling::{mix, point_seed, unit};
 use super::stats::{tracing, Stats};
 use super::trace_ahead::RayLog;
 use super::virtual_lights;
-use super::work::{epsilon, BatchLights, Frame, PixelImage, Sample};
+use super::work::{epsilon, BatchLights, Frame, PixelChannel, PixelImage, Sample};
 use crate::ray::Ray;
 use crate::shading::ShaderInstance;
 use crate::texture::{Grid, LookupLanes, LookupOptions, MipMap, TextureCache};
@@ -624,9 +624,9 @@ unsafe extern "C" fn host_texture(
             return;
         }
         4 => {
-            let Some(image) = c.pixels else { return };
+            let (Some(image), Some(channel)) = (c.pixels, PixelChannel::of(name)) else { return };
             for l in active() {
-                if let Some(v) = image.value(name, coords[l], coords[4 + l]) {
+                if let Some(v) = image.channel_value(channel, coords[l], coords[4 + l]) {
                     ok[l] = 1;
                     for (k, x) in v.iter().enumerate() {
                         out[4 * k + l] = *x;

@@ -334,6 +334,13 @@ impl PixelImage {
     /// or `N` (the normal), or `alpha`, `z`, `objectid`, `shaderid` (-1 for none) in the first
     /// component; `None` for an unknown channel or an empty image.
     pub fn value(&self, name: &str, x: f32, y: f32) -> Option<[f32; 3]> {
+        self.channel_value(PixelChannel::of(name)?, x, y)
+    }
+
+    /// [`PixelImage::value`] of a channel already looked up by name (a pixel shader's lookups
+    /// name one channel for all their lanes).
+    #[inline]
+    pub fn channel_value(&self, channel: PixelChannel, x: f32, y: f32) -> Option<[f32; 3]> {
         if self.width == 0 || self.height == 0 || !x.is_finite() || !y.is_finite() {
             return None;
         }
@@ -342,16 +349,41 @@ impl PixelImage {
         let i = (py * self.width + px) as usize;
         let id = |v: u32| if v == u32::MAX { -1.0 } else { v as f32 };
         let one = |v: f32| [v, 0.0, 0.0];
-        Some(match name {
-            "Ci" => {
+        Some(match channel {
+            PixelChannel::Ci => {
                 let c = self.rgba.get(i)?;
                 [c[0], c[1], c[2]]
             }
-            "alpha" => one(self.rgba.get(i)?[3]),
-            "z" => one(*self.depth.get(i)?),
-            "objectid" => one(id(*self.object_id.get(i)?)),
-            "shaderid" => one(id(*self.shader_id.get(i)?)),
-            "N" => *self.normal.get(i)?,
+            PixelChannel::Alpha => one(self.rgba.get(i)?[3]),
+            PixelChannel::Z => one(*self.depth.get(i)?),
+            PixelChannel::ObjectId => one(id(*self.object_id.get(i)?)),
+            PixelChannel::ShaderId => one(id(*self.shader_id.get(i)?)),
+            PixelChannel::N => *self.normal.get(i)?,
+        })
+    }
+}
+
+/// A channel of a [`PixelImage`] that `pixelvalue` reads.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PixelChannel {
+    Ci,
+    Alpha,
+    Z,
+    ObjectId,
+    ShaderId,
+    N,
+}
+
+impl PixelChannel {
+    /// The channel `pixelvalue` calls `name`; `None` for another name.
+    pub fn of(name: &str) -> Option<PixelChannel> {
+        Some(match name {
+            "Ci" => PixelChannel::Ci,
+            "alpha" => PixelChannel::Alpha,
+            "z" => PixelChannel::Z,
+            "objectid" => PixelChannel::ObjectId,
+            "shaderid" => PixelChannel::ShaderId,
+            "N" => PixelChannel::N,
             _ => return None,
         })
     }
