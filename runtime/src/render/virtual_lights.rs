@@ -48,9 +48,10 @@ pub(super) fn trace(frame: &Frame) -> VirtualLights {
     let diagonal = (hi - lo).length();
     let clamp = if gi.clamp > 0.0 { gi.clamp } else { 0.01 * diagonal };
     let bounces = gi.bounces.clamp(1, MAX_BOUNCES);
-    let lights = for_each_landing(frame, gi.virtual_lights, 0x5851_F42D_4C95_7F2D, |landing, seed, out| {
-        follow_to_virtual_lights(frame, landing, bounces, seed, out);
-    });
+    let lights =
+        for_each_landing(frame, gi.virtual_lights, 0x5851_F42D_4C95_7F2D, every_landing, |landing, seed, out| {
+            follow_to_virtual_lights(frame, landing, bounces, seed, out);
+        });
     // Dealt round-robin: each set a stratified share of the paths.
     let mut sets = vec![Vec::with_capacity(lights.len() / set_count + 1); set_count];
     for (i, l) in lights.into_iter().enumerate() {
@@ -63,12 +64,13 @@ pub(super) fn trace(frame: &Frame) -> VirtualLights {
 /// whose first surface is specular (chrome, glass), followed through specular surfaces to the
 /// first diffuse one, where each leaves a photon (Jensen's caustic map, light paths L S+ D).
 pub(super) fn trace_caustics(frame: &Frame) -> PhotonMap {
-    let photons =
-        for_each_landing(frame, frame.world.options.gi.caustic_photons, 0x2545_F491_4F6C_DD1D, |landing, seed, out| {
-            if reflectance_of(frame, &landing.hit).1 != PhotonModel::Matte {
-                follow_to_photon(frame, landing, seed, out);
-            }
-        });
+    // Only paths whose first surface is specular go on: the others are dropped as they land,
+    // before their surfaces are worked out and the light's shader is run there.
+    let specular = |hit: &crate::ray::Hit| reflectance_of(frame, hit).1 != PhotonModel::Matte;
+    let gi = &frame.world.options.gi;
+    let photons = for_each_landing(frame, gi.caustic_photons, 0x2545_F491_4F6C_DD1D, specular, |landing, seed, out| {
+        follow_to_photon(frame, landing, seed, out);
+    });
     PhotonMap::new(photons)
 }
 
@@ -78,10 +80,15 @@ pub(super) fn trace_caustics(frame: &Frame) -> PhotonMap {
 /// direct them): Jensen's global map, light paths L (S|D)* D.
 pub(super) fn trace_global(frame: &Frame) -> PhotonMap {
     let bounces = frame.world.options.gi.bounces.clamp(1, MAX_BOUNCES);
-    let photons =
-        for_each_landing(frame, frame.world.options.gi.global_photons, 0x9E37_79B9_7F4A_7C15, |landing, seed, out| {
+    let photons = for_each_landing(
+        frame,
+        frame.world.options.gi.global_photons,
+        0x9E37_79B9_7F4A_7C15,
+        every_landing,
+        |landing, seed, out| {
             follow_to_global_photons(frame, landing, bounces + 1, seed, out);
-        });
+        },
+    );
     PhotonMap::new(photons)
 }
 
@@ -240,14 +247,15 @@ struct Landing {
 }
 
 /// Traces `paths` paths from the frame's lights (shared out evenly) and hands `visit` each first
-/// landing with a seed of its own (the light's shader run where the path lands says how much power
-/// it carries), collecting what it leaves. The paths go in chunks over the threads of the current
+/// landing that `keep` keeps, with a seed of its own (the light's shader run where the path lands
+/// says how much power it carries), collecting what it leaves. The paths go in chunks over the threads of the current
 /// rayon pool; what they leave comes back in path order whoever traced them, so the result does not
 /// depend on the threads.
 fn for_each_landing<T: Send>(
     frame: &Frame,
     paths: u32,
     salt: u64,
+    keep: impl Fn(&crate::ray::Hit) -> bool + Sync,
     visit: impl Fn(Landing, u64, &mut Vec<T>) + Sync,
 ) -> Vec<T> {
     use rayon::prelude::*;
@@ -270,7 +278,7 @@ fn for_each_landing<T: Send>(
             .map(|&first| {
                 let mut left = Vec::new();
                 let last = (first + PATHS_PER_TASK).min(per_light);
-                for landing in landings(frame, light, emitter, first..last, per_light, seed) {
+                for landing in landings(frame, light, emitter, (first..last, per_light), seed, &keep) {
                     let path_seed = mix(seed ^ (u64::from(landing.index) + 1));
                     visit(landing, path_seed, &mut left);
                 }
@@ -282,17 +290,23 @@ fn for_each_landing<T: Send>(
     out
 }
 
+/// Keeps every landing (for [`for_each_landing`]).
+fn every_landing(_: &crate::ray::Hit) -> bool {
+    true
+}
+
 /// Light paths a thread takes at a time.
 const PATHS_PER_TASK: u32 = 256;
 
-/// The first landings of paths `range` of `count` from `light`.
+/// The first landings of paths `range` of `count` from `light` that `keep` keeps (asked of the hit
+/// alone, before the landing's surface is worked out and the light's shader run there).
 fn landings(
     frame: &Frame,
     light: &LightSource,
     emitter: &Emitter,
-    range: std::ops::Range<u32>,
-    count: u32,
+    (range, count): (std::ops::Range<u32>, u32),
     seed: u64,
+    keep: &(dyn Fn(&crate::ray::Hit) -> bool + Sync),
 ) -> Vec<Landing> {
     let world = frame.world;
     // A Cranley-Patterson rotation of the Hammersley points: another seed, another stratified set.
@@ -321,10 +335,16 @@ fn landings(
             (i, ray, share)
         })
         .collect();
+    // Traced together: a point light's paths share their origin, a distant light's their direction.
+    let rays: Vec<Ray> = starts.iter().map(|&(_, ray, _)| ray).collect();
+    let mut first_hits = Vec::new();
+    tracing(|| world.intersect_rays(&rays, &mut first_hits));
     let mut hits = Vec::with_capacity(starts.len());
-    for (index, ray, share) in &starts {
-        let hit = tracing(|| world.intersect(ray));
-        let Some(surface) = hit.is_hit().then(|| world.scene.surface(&hit)).flatten() else { continue };
+    for ((index, ray, share), hit) in starts.iter().zip(first_hits) {
+        if !hit.is_hit() || !keep(&hit) {
+            continue;
+        }
+        let Some(surface) = world.scene.surface(&hit) else { continue };
         hits.push((*index, *ray, *share, hit, surface));
     }
     Stats::add(&frame.stats.secondary_rays, starts.len());
