@@ -23,6 +23,9 @@ pub struct Photon {
 pub struct PhotonMap {
     photons: Vec<Photon>,
     axes: Vec<u8>,
+    /// The box of each subtree's photons, at its splitting photon's index: a search skips a
+    /// subtree whose box lies beyond its reach (most searches, away from a caustic, find none).
+    bounds: Vec<[Vec3A; 2]>,
 }
 
 /// The most photons one estimate gathers.
@@ -33,7 +36,14 @@ impl PhotonMap {
         photons.retain(|p| p.p.is_finite() && p.power.is_finite() && p.direction.is_finite());
         let mut axes = vec![0u8; photons.len()];
         build(&mut photons, &mut axes, 0);
-        PhotonMap { photons, axes }
+        PhotonMap::with_bounds(photons, axes)
+    }
+
+    /// The map of photons in tree order, with its subtrees' boxes worked out.
+    fn with_bounds(photons: Vec<Photon>, axes: Vec<u8>) -> PhotonMap {
+        let mut bounds = vec![[Vec3A::ZERO; 2]; photons.len()];
+        subtree_bounds(&photons, &mut bounds, 0, photons.len());
+        PhotonMap { photons, axes, bounds }
     }
 
     /// How many photons the map holds.
@@ -84,7 +94,7 @@ impl PhotonMap {
             photons.push(photon);
             axes.push(axis);
         }
-        Ok((PhotonMap { photons, axes }, rest))
+        Ok((PhotonMap::with_bounds(photons, axes), rest))
     }
 
     /// The irradiance at `p` on a surface facing `n` (unit; zero: any way) from the `k` nearest
@@ -119,6 +129,15 @@ impl PhotonMap {
             return;
         }
         let mid = (lo + hi) / 2;
+        // No photon of the subtree is nearer than its box: a photon is taken only nearer than
+        // `reach`. (`length_squared` of the gaps, each at most the photon's own distance along its
+        // axis, rounds no larger than the photon's distance does.)
+        if let Some(&[min, max]) = self.bounds.get(mid) {
+            let gap = (min - p).max(p - max).max(Vec3A::ZERO);
+            if gap.length_squared() >= *reach {
+                return;
+            }
+        }
         let photon = &self.photons[mid];
         let axis = self.axes[mid] as usize;
         let delta = p[axis] - photon.p[axis];
@@ -138,6 +157,23 @@ impl PhotonMap {
             self.gather(far_side.0, far_side.1, p, n, k, reach, nearest);
         }
     }
+}
+
+/// Writes the box of the photons of subtree `[lo, hi)` at its splitting photon's index in
+/// `bounds`, and those of its subtrees, and returns it (empty, min above max, for no photons).
+/// The tree is balanced by its index ranges, whatever order the photons are in: the recursion is
+/// as deep as the map's size has bits.
+fn subtree_bounds(photons: &[Photon], bounds: &mut [[Vec3A; 2]], lo: usize, hi: usize) -> [Vec3A; 2] {
+    if lo >= hi {
+        return [Vec3A::splat(f32::INFINITY), Vec3A::splat(f32::NEG_INFINITY)];
+    }
+    let mid = (lo + hi) / 2;
+    let [lmin, lmax] = subtree_bounds(photons, bounds, lo, mid);
+    let [rmin, rmax] = subtree_bounds(photons, bounds, mid + 1, hi);
+    let p = photons[mid].p;
+    let b = [p.min(lmin).min(rmin), p.max(lmax).max(rmax)];
+    bounds[mid] = b;
+    b
 }
 
 /// Orders `photons` into the implicit tree, splitting each subtree at its median along its widest
