@@ -592,8 +592,10 @@ unsafe extern "C" fn host_texture(
         }
         3 => {
             let Some(grid) = c.grid(name) else { return };
+            let row = |k: usize| Vec4::from_slice(&coords[4 * k..4 * k + 4]);
+            let values = grid.lookup_lanes([row(0), row(1), row(2)]);
             for l in active() {
-                out[l] = grid.lookup(lane3(coords, 0, l).to_array());
+                out[l] = values[l];
                 ok[l] = 1;
             }
             return;

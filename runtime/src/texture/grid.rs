@@ -11,6 +11,7 @@
 //! - **Errors** name the file and what is wrong; the header's counts never size an allocation
 //!   beyond what the file holds (the data's length is checked against them first).
 
+use glam::{BVec4A, Vec4};
 use std::path::{Path, PathBuf};
 
 /// The first line of every grid file.
@@ -113,6 +114,49 @@ impl Grid {
         let c0 = lerp(along_x(at), along_x(at + dy), frac[1]);
         let c1 = lerp(along_x(at + dz), along_x(at + dz + dy), frac[1]);
         lerp(c0, c1, frac[2])
+    }
+
+    /// [`Grid::lookup`] at four points (`p[a]`: the points' coordinates along axis `a`), the same
+    /// value in each lane: the lanes' cells and weights are worked out together, in vector
+    /// arithmetic (the same IEEE operations lane by lane), and only the samples are read lane by
+    /// lane. A volume's march asks for a chunk's four points at every step.
+    pub fn lookup_lanes(&self, p: [Vec4; 3]) -> [f32; 4] {
+        if self.dims.iter().any(|&d| d > 1 << 24) {
+            // Cells past what a float counts exactly (and the vector conversion holds): lane by lane.
+            return std::array::from_fn(|l| self.lookup([p[0][l], p[1][l], p[2][l]]));
+        }
+        let mut inside = BVec4A::splat(true);
+        let mut base = [[0usize; 4]; 3];
+        let mut frac = [Vec4::ZERO; 3];
+        for a in 0..3 {
+            let last = self.dims[a] - 1;
+            let x = (p[a] - Vec4::splat(self.min[a])) * Vec4::splat(self.scale[a]);
+            // Compared as `lookup` does: NaN is outside.
+            let ok = x.cmpge(Vec4::ZERO) & x.cmple(Vec4::splat(last.max(1) as f32));
+            inside &= ok;
+            // Outside lanes read cell 0 (their value is dropped): every index stays in the grid.
+            let x = Vec4::select(ok, x, Vec4::ZERO);
+            let cell = truncated(x).map(|i| i.min(last.saturating_sub(1)));
+            base[a] = cell;
+            frac[a] = if last == 0 {
+                Vec4::ZERO
+            } else {
+                (x - Vec4::from_array(cell.map(|i| i as f32))).clamp(Vec4::ZERO, Vec4::ONE)
+            };
+        }
+        let [nx, ny, _] = self.dims;
+        let dx = usize::from(nx > 1);
+        let dy = if ny > 1 { nx } else { 0 };
+        let dz = if self.dims[2] > 1 { nx * ny } else { 0 };
+        let at: [usize; 4] = std::array::from_fn(|l| base[0][l] + nx * (base[1][l] + ny * base[2][l]));
+        let v = |offset: usize| {
+            Vec4::from_array(std::array::from_fn(|l| self.values.get(at[l] + offset).copied().unwrap_or(0.0)))
+        };
+        let lerp = |a: Vec4, b: Vec4, t: Vec4| a + (b - a) * t;
+        let along_x = |offset: usize| lerp(v(offset), v(offset + dx), frac[0]);
+        let c0 = lerp(along_x(0), along_x(dy), frac[1]);
+        let c1 = lerp(along_x(dz), along_x(dz + dy), frac[1]);
+        Vec4::select(inside, lerp(c0, c1, frac[2]), Vec4::ZERO).to_array()
     }
 
     /// The file's bytes: the text header, then the samples (`u8`: `round(clamp(v, 0, 1) * 255)`).
@@ -250,8 +294,59 @@ impl Grid {
     }
 }
 
+/// Each lane of `x` (in `[0, 2^31)`) truncated to an integer.
+#[inline(always)]
+fn truncated(x: Vec4) -> [usize; 4] {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{__m128, _mm_cvttps_epi32};
+        // SAFETY: SSE2 is part of x86-64.
+        let v = unsafe { _mm_cvttps_epi32(__m128::from(x)) };
+        let lanes: [i32; 4] = bytemuck::cast(v);
+        lanes.map(|i| i.max(0) as usize)
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        x.to_array().map(|v| v as usize)
+    }
+}
+
 #[cfg(test)]
 mod tests {
+    /// Four lanes at once give each lane what `lookup` gives it, bit for bit: inside, on the
+    /// faces, outside, at NaN, and on grids with an axis of one sample.
+    #[test]
+    fn four_lanes_at_once_look_up_what_each_lane_looks_up() {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 40) as f32 / (1u64 << 24) as f32
+        };
+        for dims in [[5, 4, 3], [1, 6, 2], [7, 1, 1], [2, 2, 2]] {
+            let count = dims[0] * dims[1] * dims[2];
+            let values: Vec<f32> = (0..count).map(|i| (i as f32 * 0.37).sin()).collect();
+            let grid = Grid::new(dims, [-1.0, 0.5, 2.0], [1.5, 2.0, 4.0], values).expect("a valid grid");
+            for round in 0..500 {
+                let mut p: [Vec4; 3] = std::array::from_fn(|a| {
+                    let (lo, hi) = ([-1.0, 0.5, 2.0][a], [1.5, 2.0, 4.0][a]);
+                    Vec4::from_array(std::array::from_fn(|_| lo - 0.3 + (hi - lo + 0.6) * next()))
+                });
+                match round % 7 {
+                    0 => p[1] = Vec4::new(f32::NAN, 0.5, 2.0, f32::INFINITY),
+                    1 => p[0] = Vec4::new(-1.0, 1.5, 1.5000001, -1.0000001),
+                    _ => {}
+                }
+                let lanes = grid.lookup_lanes(p);
+                for (l, &got) in lanes.iter().enumerate() {
+                    let want = grid.lookup([p[0][l], p[1][l], p[2][l]]);
+                    assert_eq!(got.to_bits(), want.to_bits(), "{dims:?} lane {l}: {got} against {want}");
+                }
+            }
+        }
+    }
+
     use super::*;
 
     /// A 2x3x2 grid whose sample is `i + 10 j + 100 k`, over (0,0,0)..(1,2,4).
