@@ -30,7 +30,7 @@ use super::sampling::{mix, point_seed, radical_inverse, unit};
 use super::stats::{tracing, Stats};
 use super::work::{epsilon, Frame, VirtualLight, VirtualLights};
 use super::world::{LightSource, PhotonModel, MAX_BOUNCES, MAX_INTERLEAVE, MAX_VIRTUAL_LIGHT_PATHS};
-use crate::ray::Ray;
+use crate::ray::{Hit, Ray};
 use crate::shading::LightKind;
 use glam::Vec3A;
 use rtsl_compiler::abi::{LightLanes, MAX_LIGHTS};
@@ -66,7 +66,7 @@ pub(super) fn trace(frame: &Frame) -> VirtualLights {
 pub(super) fn trace_caustics(frame: &Frame) -> PhotonMap {
     // Only paths whose first surface is specular go on: the others are dropped as they land,
     // before their surfaces are worked out and the light's shader is run there.
-    let specular = |hit: &crate::ray::Hit| reflectance_of(frame, hit).1 != PhotonModel::Matte;
+    let specular = |hit: &Hit| reflectance_of(frame, hit).1 != PhotonModel::Matte;
     let gi = &frame.world.options.gi;
     let photons = for_each_landing(frame, gi.caustic_photons, 0x2545_F491_4F6C_DD1D, specular, |landing, seed, out| {
         follow_to_photon(frame, landing, seed, out);
@@ -241,21 +241,21 @@ struct Landing {
     /// The path's index among its light's.
     index: u32,
     ray: Ray,
-    hit: crate::ray::Hit,
+    hit: Hit,
     surface: crate::scene::SurfaceHit,
     carried: Vec3A,
 }
 
 /// Traces `paths` paths from the frame's lights (shared out evenly) and hands `visit` each first
 /// landing that `keep` keeps, with a seed of its own (the light's shader run where the path lands
-/// says how much power it carries), collecting what it leaves. The paths go in chunks over the threads of the current
-/// rayon pool; what they leave comes back in path order whoever traced them, so the result does not
-/// depend on the threads.
+/// says how much power it carries), collecting what it leaves. The paths go in chunks over the
+/// threads of the current rayon pool; what they leave comes back in path order whoever traced
+/// them, so the result does not depend on the threads.
 fn for_each_landing<T: Send>(
     frame: &Frame,
     paths: u32,
     salt: u64,
-    keep: impl Fn(&crate::ray::Hit) -> bool + Sync,
+    keep: impl Fn(&Hit) -> bool + Sync,
     visit: impl Fn(Landing, u64, &mut Vec<T>) + Sync,
 ) -> Vec<T> {
     use rayon::prelude::*;
@@ -291,7 +291,7 @@ fn for_each_landing<T: Send>(
 }
 
 /// Keeps every landing (for [`for_each_landing`]).
-fn every_landing(_: &crate::ray::Hit) -> bool {
+fn every_landing(_: &Hit) -> bool {
     true
 }
 
@@ -306,7 +306,7 @@ fn landings(
     emitter: &Emitter,
     (range, count): (std::ops::Range<u32>, u32),
     seed: u64,
-    keep: &(dyn Fn(&crate::ray::Hit) -> bool + Sync),
+    keep: &(dyn Fn(&Hit) -> bool + Sync),
 ) -> Vec<Landing> {
     let world = frame.world;
     // A Cranley-Patterson rotation of the Hammersley points: another seed, another stratified set.
@@ -474,7 +474,7 @@ fn follow_to_photon(frame: &Frame, landing: Landing, seed: u64, out: &mut Vec<Ph
 
 /// The path on from `from` along `dir`: its ray, and the hit and surface it lands on (`None` when
 /// it leaves the scene).
-fn bounce(frame: &Frame, from: Vec3A, dir: Vec3A) -> Option<(Ray, crate::ray::Hit, crate::scene::SurfaceHit)> {
+fn bounce(frame: &Frame, from: Vec3A, dir: Vec3A) -> Option<(Ray, Hit, crate::scene::SurfaceHit)> {
     let world = frame.world;
     let ray = Ray::segment(from, dir, epsilon(from), f32::INFINITY);
     Stats::add(&frame.stats.secondary_rays, 1);
@@ -527,7 +527,7 @@ fn scatter_specular(model: PhotonModel, color: Vec3A, dir: Vec3A, ng: Vec3A, h: 
 
 /// What light paths see at a hit: its material's colour (each channel clamped below 1, so that
 /// paths lose power at every bounce) and its photon shading model.
-fn reflectance_of(frame: &Frame, hit: &crate::ray::Hit) -> (Vec3A, PhotonModel) {
+fn reflectance_of(frame: &Frame, hit: &Hit) -> (Vec3A, PhotonModel) {
     let world = frame.world;
     let material = world.instances.get(hit.instance as usize).map(|i| i.material_at(hit.primitive));
     let material = material.and_then(|m| world.materials.get(m as usize));
