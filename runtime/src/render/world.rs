@@ -796,6 +796,10 @@ impl World {
     /// direction octant each (see [`in_octant_packets`]).
     pub fn occluded_rays(&self, rays: &[Ray], blocked: &mut Vec<bool>) {
         blocked.clear();
+        if rays.len() < FEWEST_PACKED_RAYS {
+            blocked.extend(rays.iter().map(|r| self.occluded(r)));
+            return;
+        }
         blocked.resize(rays.len(), false);
         in_octant_packets(rays, |packet, lanes| {
             let hit = self.occluded_packet(packet);
@@ -811,6 +815,10 @@ impl World {
     /// between packets and single rays anywhere).
     pub fn intersect_rays(&self, rays: &[Ray], hits: &mut Vec<Hit>) {
         hits.clear();
+        if rays.len() < FEWEST_PACKED_RAYS {
+            hits.extend(rays.iter().map(|r| self.intersect(r)));
+            return;
+        }
         hits.resize(rays.len(), Hit::MISS);
         let mut out = HitPacket::default();
         in_octant_packets(rays, |packet, lanes| {
@@ -962,6 +970,12 @@ impl World {
     }
 }
 
+/// Fewer rays than this are traced one by one by [`World::intersect_rays`] and
+/// [`World::occluded_rays`] (a chunk's `trace` rays, a few samples): spread over octants, they
+/// would make packets of a few lanes each, which the tracer traces one by one anyway, after the
+/// packing's set-up.
+const FEWEST_PACKED_RAYS: usize = 8;
+
 /// Hands `rays` to `trace` as packets, each of rays of one direction octant, with the index in
 /// `rays` of each of its lanes (in order, from lane 0). Rays that leave points in all directions
 /// (a point's virtual lights, a hemisphere's samples, reflections off a curved surface) would
@@ -1052,10 +1066,14 @@ mod tests {
     #[test]
     fn occluded_rays_answer_as_each_ray_alone() {
         let (world, rays) = gapped_cube_and_rays();
-        let mut blocked = vec![true; 3];
-        world.occluded_rays(&rays, &mut blocked);
+        // Few rays (traced one by one) and many (packed).
+        for rays in [&rays[..0], &rays[..5], &rays[..]] {
+            let mut blocked = vec![true; 3];
+            world.occluded_rays(rays, &mut blocked);
+            let alone: Vec<bool> = rays.iter().map(|r| world.occluded(r)).collect();
+            assert_eq!(blocked, alone);
+        }
         let alone: Vec<bool> = rays.iter().map(|r| world.occluded(r)).collect();
-        assert_eq!(blocked, alone);
         assert!(alone.iter().any(|&b| b) && alone.iter().any(|&b| !b), "both answers are tested");
     }
 
@@ -1064,21 +1082,24 @@ mod tests {
     /// or, where the ray meets a quad's diagonal, its other triangle at that distance.
     #[test]
     fn intersect_rays_answer_as_each_ray_alone() {
-        let (world, rays) = gapped_cube_and_rays();
+        let (world, all) = gapped_cube_and_rays();
         let mut hits = vec![Hit::MISS; 5];
-        world.intersect_rays(&rays, &mut hits);
-        assert_eq!(hits.len(), rays.len());
-        for (i, (ray, hit)) in rays.iter().zip(&hits).enumerate() {
-            let alone = world.intersect(ray);
-            let same = if (alone.instance, alone.primitive) == (hit.instance, hit.primitive) {
-                (alone.t, alone.u, alone.v) == (hit.t, hit.u, hit.v) || !alone.is_hit()
-            } else {
-                alone.is_hit() && hit.is_hit() && (alone.t - hit.t).abs() <= 1e-5 * alone.t
-            };
-            assert!(same, "ray {i}: alone {alone:?}, in a packet {hit:?}");
+        // Few rays (traced one by one) and many (packed); the many are left in `hits`.
+        for rays in [&all[..0], &all[..5], &all[..]] {
+            world.intersect_rays(rays, &mut hits);
+            assert_eq!(hits.len(), rays.len());
+            for (i, (ray, hit)) in rays.iter().zip(&hits).enumerate() {
+                let alone = world.intersect(ray);
+                let same = if (alone.instance, alone.primitive) == (hit.instance, hit.primitive) {
+                    (alone.t, alone.u, alone.v) == (hit.t, hit.u, hit.v) || !alone.is_hit()
+                } else {
+                    alone.is_hit() && hit.is_hit() && (alone.t - hit.t).abs() <= 1e-5 * alone.t
+                };
+                assert!(same, "ray {i} of {}: alone {alone:?}, with the others {hit:?}", rays.len());
+            }
         }
         let met = hits.iter().filter(|h| h.is_hit()).count();
-        assert!(met > 100 && met < rays.len() - 100, "{met} of {} rays meet the cube", rays.len());
+        assert!(met > 100 && met < all.len() - 100, "{met} of {} rays meet the cube", all.len());
     }
 
     /// A cube of small quads around the origin, with gaps between them, so that rays from the
