@@ -4,9 +4,10 @@
 //! preparation).
 
 use obvhs::{aabb::Aabb, bvh2::reinsertion::ReinsertionOptimizer, ploc::PlocBuilder};
+use rtsl_runtime::accel::binned::{build_binned_with_leaves, merged_leaf_size};
 use rtsl_runtime::accel::bvh4::{BuildQuality, Bvh4};
 use rtsl_runtime::accel::bvh8::Bvh8;
-use rtsl_runtime::accel::object::{ObjectBvh, OBJECT_LEAF_SIZE};
+use rtsl_runtime::accel::object::{leaves_in_blocks, ObjectBvh, OBJECT_LEAF_SIZE};
 use rtsl_runtime::load_mesh;
 use std::time::Instant;
 
@@ -56,7 +57,13 @@ fn main() {
                 let p = q.params(OBJECT_LEAF_SIZE);
                 let t = Instant::now();
                 let mut bvh2 = if q.is_binned() {
-                    rtsl_runtime::accel::binned::build_binned(&boxes)
+                    // As `Bvh4::build`: single-primitive leaves only where reinsertion follows.
+                    let leaf = if p.reinsertion_batch_ratio > 0.0 {
+                        1
+                    } else {
+                        merged_leaf_size(p.max_prims_per_leaf, p.collapse_traversal_cost)
+                    };
+                    build_binned_with_leaves(&boxes, leaf)
                 } else {
                     PlocBuilder::with_capacity(boxes.len()).build(
                         p.ploc_search_distance,
@@ -84,10 +91,17 @@ fn main() {
                 let b8 = Bvh8::from_bvh4(&b4);
                 let t_wide = ms(t);
                 let t = Instant::now();
+                let blocked = leaves_in_blocks(b4.clone());
+                let t_blocks = ms(t);
+                let t = Instant::now();
+                let object = ObjectBvh::from_bvh4(&mesh, blocked);
+                let t_triangles = ms(t) - t_wide;
+                drop(object);
+                let t = Instant::now();
                 let full = ObjectBvh::build(&mesh, q);
                 let t_full = ms(t);
                 println!(
-                    "{q:?}: binary ({}) {t_ploc:.1} reinsert {t_re1:.1} collapse+to4 {t_conv:.1} to8 {t_wide:.1} | full ObjectBvh::build {t_full:.1} ms ({} 4-wide nodes, {} 8-wide, sah {:.2})",
+                    "{q:?}: binary ({}) {t_ploc:.1} reinsert {t_re1:.1} collapse+to4 {t_conv:.1} to8 {t_wide:.1} leaves in blocks {t_blocks:.1} triangles {t_triangles:.1} | full ObjectBvh::build {t_full:.1} ms ({} 4-wide nodes, {} 8-wide, sah {:.2})",
                     if q.is_binned() { "binned SAH" } else { "PLOC" },
                     b4.nodes.len(),
                     b8.nodes.len(),

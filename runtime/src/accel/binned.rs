@@ -5,14 +5,18 @@
 //! Nodes of at most [`SMALL`] primitives try every split of their sorted centroids instead, and
 //! nodes of at most [`TINY`] are halved along their widest axis.
 //!
-//! The tree has leaves of one primitive, as PLOC's has: the leaf collapse is left to
-//! [`super::bvh4::Bvh4::from_bvh2`], which decides it with the same cost model for every builder.
+//! The tree has leaves of one primitive, as PLOC's has, or of up to three where the caller knows
+//! that the leaf collapse would merge every subtree that small ([`build_binned_with_leaves`]): the
+//! collapse is left to [`super::bvh4::Bvh4::from_bvh2`], which decides it with the same cost model
+//! for every builder.
 //!
 //! Invariants:
-//! - A tree over `n` primitives has exactly `2n - 1` nodes, so each subtree's place in the node
-//!   array is known before it is built: a node's children are the pair at the start of its
-//!   descendants' range, followed by the left child's descendants and then the right's. The
-//!   layout is a function of the input alone, whatever the threads did first.
+//! - The node array of a tree over `n` primitives has exactly `2n - 1` slots, so each subtree's
+//!   place in it is known before it is built: a node's children are the pair at the start of its
+//!   descendants' range, followed by the left child's descendants and then the right's. A leaf of
+//!   `m > 1` primitives leaves its `2m - 2` descendant slots as [`UNREACHED`] nodes, which no
+//!   path from the root leads to. The layout is a function of the input alone, whatever the
+//!   threads did first.
 //! - Depth is bounded whatever the input: below [`SAH_DEPTH`] levels a node is split at its
 //!   median, which halves it, so no tree is deeper than `SAH_DEPTH + 28` (at most 2^27
 //!   primitives, [`super::bvh4::MAX_PRIMITIVES`]).
@@ -245,8 +249,21 @@ impl<const N: usize> Bins<N> {
     }
 }
 
+/// The slots of a leaf's unused descendant range (see the module's invariants): an inner node with
+/// an empty box, never reached from the root.
+const UNREACHED: Bvh2Node = Bvh2Node { aabb: Aabb::INVALID, prim_count: 0, first_index: 0, meta1: 0, meta2: 0 };
+
 /// The binary BVH of `boxes` (one per primitive), leaves of one primitive each, built by binned SAH.
 pub fn build_binned(boxes: &[Aabb]) -> Bvh2 {
+    build_binned_with_leaves(boxes, 1)
+}
+
+/// [`build_binned`] with every subtree of at most `leaf_size` primitives (at most 3) made one leaf,
+/// its primitives in the order the binary subtree's leaves would have had. For callers whose leaf
+/// collapse merges every such subtree anyway ([`merged_leaf_size`]): the tree after the collapse is
+/// the same, without building, writing and collapsing the small subtrees' nodes.
+pub fn build_binned_with_leaves(boxes: &[Aabb], leaf_size: usize) -> Bvh2 {
+    let leaf_size = leaf_size.clamp(1, TINY_LEAF);
     let n = boxes.len();
     if n == 0 {
         return Bvh2 { nodes: Vec::new(), primitive_indices: Vec::new(), max_depth: 1, ..Bvh2::default() };
@@ -264,10 +281,11 @@ pub fn build_binned(boxes: &[Aabb]) -> Bvh2 {
     let mut spare = refs.clone();
     let mut primitive_indices = vec![0u32; n];
     let at = Place { first: 0, base: 1 };
-    let depth = build([&mut refs, &mut spare], &mut primitive_indices, at, &mut root[0], descendants, bounds, 0);
+    let depth =
+        build([&mut refs, &mut spare], &mut primitive_indices, at, &mut root[0], descendants, bounds, 0, leaf_size);
     // SAFETY: `build` wrote its node and every node of its descendants' range, which with the
     // root are all `2n - 1` (the module's first invariant: each call writes `me`, and its range
-    // is exactly its children's pair and their own ranges).
+    // is exactly its children's pair and their own ranges, or [`UNREACHED`] slots).
     let nodes = unsafe {
         let mut nodes = std::mem::ManuallyDrop::new(nodes);
         Vec::from_raw_parts(nodes.as_mut_ptr() as *mut Bvh2Node, nodes.len(), nodes.capacity())
@@ -290,7 +308,9 @@ struct Place {
 /// Builds the subtree of `refs[0]` with its root in `me` and the rest in `descendants`
 /// (`2 * m - 2` nodes, the first at index `at.base`), writing its primitives' input indices to
 /// `ids` (its slots, from `at.first`); returns its depth. `refs[1]` is as long, scratch space that
-/// partitions move the primitives into (the children then swap the two).
+/// partitions move the primitives into (the children then swap the two). Subtrees of at most
+/// `leaf_size` primitives are one leaf.
+#[allow(clippy::too_many_arguments)]
 fn build(
     [refs, spare]: [&mut [PrimRef]; 2],
     ids: &mut [u32],
@@ -299,11 +319,22 @@ fn build(
     descendants: &mut [MaybeUninit<Bvh2Node>],
     bounds: Bounds,
     depth: u32,
+    leaf_size: usize,
 ) -> u32 {
     let m = refs.len();
-    if m == 1 {
-        ids[0] = refs[0].id();
-        me.write(Bvh2Node::new(bounds.geometry, 1, at.first));
+    if m <= leaf_size {
+        // The order the binary subtree's leaves would have: `split` halves three primitives
+        // sorted along the widest axis, and leaves two as they are.
+        if m == 3 {
+            sort_along_widest_axis(refs, &bounds);
+        }
+        for (id, p) in ids.iter_mut().zip(refs.iter()) {
+            *id = p.id();
+        }
+        me.write(Bvh2Node::new(bounds.geometry, m as u32, at.first));
+        for slot in descendants {
+            slot.write(UNREACHED);
+        }
         return 1;
     }
     let (left_count, left, right, moved) = split(refs, spare, &bounds, depth);
@@ -319,16 +350,50 @@ fn build(
     let rat = Place { first: at.first + left_count as u32, base: lat.base + ldesc.len() as u32 };
     let (dl, dr) = if m > PARALLEL_SPLIT {
         rayon::join(
-            || build([lrefs, lspare], lids, lat, &mut lnode[0], ldesc, left, depth + 1),
-            || build([rrefs, rspare], rids, rat, &mut rnode[0], rdesc, right, depth + 1),
+            || build([lrefs, lspare], lids, lat, &mut lnode[0], ldesc, left, depth + 1, leaf_size),
+            || build([rrefs, rspare], rids, rat, &mut rnode[0], rdesc, right, depth + 1, leaf_size),
         )
     } else {
         (
-            build([lrefs, lspare], lids, lat, &mut lnode[0], ldesc, left, depth + 1),
-            build([rrefs, rspare], rids, rat, &mut rnode[0], rdesc, right, depth + 1),
+            build([lrefs, lspare], lids, lat, &mut lnode[0], ldesc, left, depth + 1, leaf_size),
+            build([rrefs, rspare], rids, rat, &mut rnode[0], rdesc, right, depth + 1, leaf_size),
         )
     };
     1 + dl.max(dr)
+}
+
+/// Sorts a few primitives by centroid along the widest axis of their centroids' box (insertion
+/// sort: stable, ties keep their order).
+fn sort_along_widest_axis(refs: &mut [PrimRef], bounds: &Bounds) {
+    let extent = bounds.centroids.max - bounds.centroids.min;
+    let axis = if extent.x >= extent.y && extent.x >= extent.z {
+        0
+    } else if extent.y >= extent.z {
+        1
+    } else {
+        2
+    };
+    for i in 1..refs.len() {
+        let mut j = i;
+        while j > 0 && refs[j - 1].centroid2()[axis] > refs[j].centroid2()[axis] {
+            refs.swap(j - 1, j);
+            j -= 1;
+        }
+    }
+}
+
+/// The largest leaf [`build_binned_with_leaves`] may make (a subtree of three is still one of
+/// [`TINY`]'s, split by [`sort_along_widest_axis`]).
+const TINY_LEAF: usize = 3;
+
+/// The largest `m` such that `Bvh4::from_bvh2` with leaves of at most `max_leaf` primitives and
+/// traversal cost `cost` merges every binary subtree of at most `m` primitives into one leaf: two
+/// sibling leaves of `total` primitives merge when `area(parent) * (total - cost)` is at most the
+/// children's `area * count`, which holds whatever the boxes when `total <= cost` (the left side
+/// is then at most 0). A NaN box may refuse the merge where this says it happens; such a leaf is
+/// no less correct, only merged where the cost model could not decide.
+pub fn merged_leaf_size(max_leaf: u32, cost: f32) -> usize {
+    (1..=TINY_LEAF).rev().find(|&m| m as u32 <= max_leaf && m as f32 <= cost).unwrap_or(1)
 }
 
 /// A split of a node's primitives: the left part's size, both parts' bounds, and whether the parts
@@ -346,21 +411,7 @@ fn split(refs: &mut [PrimRef], spare: &mut [PrimRef], bounds: &Bounds, depth: u3
     if m <= TINY {
         // The leaf collapse merges any subtree of three and most of four (`Bvh4::from_bvh2`):
         // their shape hardly matters, and sorting along the widest axis does.
-        let extent = bounds.centroids.max - bounds.centroids.min;
-        let axis = if extent.x >= extent.y && extent.x >= extent.z {
-            0
-        } else if extent.y >= extent.z {
-            1
-        } else {
-            2
-        };
-        for i in 1..m {
-            let mut j = i;
-            while j > 0 && refs[j - 1].centroid2()[axis] > refs[j].centroid2()[axis] {
-                refs.swap(j - 1, j);
-                j -= 1;
-            }
-        }
+        sort_along_widest_axis(refs, bounds);
         let left = m / 2;
         return (left, Bounds::of(&refs[..left]), Bounds::of(&refs[left..]), false);
     }
@@ -666,6 +717,62 @@ mod tests {
             })
             .collect();
         check(&build_binned(&extreme), &extreme);
+    }
+
+    /// Leaves of up to three primitives collapse into the same 4-wide tree as leaves of one: the
+    /// same nodes and the same primitive order, on random and coincident inputs of
+    /// sizes around the small-split thresholds and past the parallel ones.
+    #[test]
+    fn small_leaves_collapse_to_the_same_tree() {
+        use crate::accel::bvh4::{BuildQuality, Bvh4};
+        use crate::accel::object::OBJECT_LEAF_SIZE;
+        let p = BuildQuality::High.params(OBJECT_LEAF_SIZE);
+        let leaf = merged_leaf_size(p.max_prims_per_leaf, p.collapse_traversal_cost);
+        assert_eq!(leaf, 3);
+        let mut inputs: Vec<Vec<Aabb>> = [2, 3, 4, 5, 7, 9, 17, 33, 100, 5000, PARALLEL_BINNING + 3000]
+            .map(|n| random_boxes(n, 3 * n as u64))
+            .into();
+        inputs.push(vec![Aabb::new(Vec3A::ONE, Vec3A::splat(2.0)); 1000]);
+        for boxes in inputs {
+            let mut ones = build_binned(&boxes);
+            let mut threes = build_binned_with_leaves(&boxes, leaf);
+            check_small_leaves(&threes, &boxes);
+            let a = Bvh4::from_bvh2(&mut ones, p.max_prims_per_leaf, p.collapse_traversal_cost);
+            let b = Bvh4::from_bvh2(&mut threes, p.max_prims_per_leaf, p.collapse_traversal_cost);
+            assert_eq!(a.prim_order, b.prim_order, "{} primitives", boxes.len());
+            assert_eq!(a.depth, b.depth);
+            assert!(a.nodes == b.nodes, "{} primitives", boxes.len());
+        }
+        // A leaf size the collapse would not merge is refused down to one that it would.
+        assert_eq!(merged_leaf_size(OBJECT_LEAF_SIZE, 1.5), 1);
+        assert_eq!(merged_leaf_size(2, 3.0), 2);
+        assert_eq!(merged_leaf_size(1, 3.0), 1);
+    }
+
+    /// [`check`] for trees with leaves of up to three: every primitive in one leaf reached from the
+    /// root, inside its ancestors, and no leaf larger than three.
+    fn check_small_leaves(bvh: &Bvh2, boxes: &[Aabb]) {
+        assert_eq!(bvh.nodes.len(), 2 * boxes.len() - 1);
+        let mut seen = vec![0u32; boxes.len()];
+        let mut stack = vec![0usize];
+        while let Some(i) = stack.pop() {
+            let node = &bvh.nodes[i];
+            if node.is_leaf() {
+                assert!(node.prim_count <= 3);
+                for k in 0..node.prim_count as usize {
+                    let p = bvh.primitive_indices[node.first_index as usize + k] as usize;
+                    seen[p] += 1;
+                    assert!(node.aabb.min.cmple(boxes[p].min).all() && node.aabb.max.cmpge(boxes[p].max).all());
+                }
+                continue;
+            }
+            for c in [node.first_index as usize, node.first_index as usize + 1] {
+                let child = &bvh.nodes[c];
+                assert!(node.aabb.min.cmple(child.aabb.min).all() && node.aabb.max.cmpge(child.aabb.max).all());
+                stack.push(c);
+            }
+        }
+        assert!(seen.iter().all(|&s| s == 1));
     }
 
     #[test]

@@ -363,11 +363,15 @@ impl Bvh4 {
         assert!(n <= MAX_PRIMITIVES, "too many primitives in one BVH ({n})");
         let p = quality.params(max_leaf);
         let mut bvh2 = if quality.is_binned() {
-            let mut bvh2 = super::binned::build_binned(boxes);
             if p.reinsertion_batch_ratio > 0.0 {
+                // Reinsertion moves single primitives, and reads every node slot.
+                let mut bvh2 = super::binned::build_binned(boxes);
                 ReinsertionOptimizer::default().run(&mut bvh2, p.reinsertion_batch_ratio, None);
+                bvh2
+            } else {
+                let leaf = super::binned::merged_leaf_size(p.max_prims_per_leaf, p.collapse_traversal_cost);
+                super::binned::build_binned_with_leaves(boxes, leaf)
             }
-            bvh2
         } else {
             build_binary(boxes, &p)
         };
