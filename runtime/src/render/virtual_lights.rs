@@ -35,6 +35,7 @@ use crate::shading::LightKind;
 use glam::Vec3A;
 use rtsl_compiler::abi::{LightLanes, MAX_LIGHTS};
 use std::sync::Arc;
+use wide::f32x8;
 
 /// Traces the frame's light paths and leaves its virtual lights.
 pub(super) fn trace(frame: &Frame) -> VirtualLights {
@@ -43,7 +44,7 @@ pub(super) fn trace(frame: &Frame) -> VirtualLights {
     let interleave = gi.interleave.clamp(1, MAX_INTERLEAVE);
     let set_count = (interleave * interleave) as usize;
     let Some((lo, hi)) = world.scene.bounds() else {
-        return VirtualLights { sets: vec![Vec::new(); set_count], interleave, clamp_squared: 0.0 };
+        return VirtualLights::new(vec![Vec::new(); set_count], interleave, 0.0);
     };
     let diagonal = (hi - lo).length();
     let clamp = if gi.clamp > 0.0 { gi.clamp } else { 0.01 * diagonal };
@@ -57,7 +58,7 @@ pub(super) fn trace(frame: &Frame) -> VirtualLights {
     for (i, l) in lights.into_iter().enumerate() {
         sets[i % set_count].push(l);
     }
-    VirtualLights { sets, interleave, clamp_squared: clamp * clamp }
+    VirtualLights::new(sets, interleave, clamp * clamp)
 }
 
 /// Traces the frame's caustic photons (`Option "gi" "causticphotons"`): paths from the lights
@@ -149,29 +150,18 @@ pub(super) struct Gatherer {
 /// to its point in the order the rays were made. A set stands for all of them: its share is
 /// scaled up by the number of sets.
 pub(super) fn gather(all: &VirtualLights, frame: &Frame, points: &[Gatherer], out: &mut [Vec3A]) {
-    let mut rays = Vec::new();
+    // Kept per thread: a chunk's few points make a few hundred rays, whose buffers grown afresh
+    // for every chunk cost a good share of the gathering.
+    let GatherBuffers { mut rays, mut lights_in, mut blocked } = super::scratch::take(&GATHER_BUFFERS);
+    rays.clear();
     // Each ray's point and the light it would get if nothing blocked it.
-    let mut lights_in: Vec<(usize, Vec3A)> = Vec::new();
+    lights_in.clear();
     for (k, g) in points.iter().enumerate() {
-        let Some(lights) = all.sets.get(g.set) else { continue };
-        for vl in lights {
-            let to = vl.p - g.p;
-            let r2 = to.length_squared();
-            if r2 <= 0.0 {
-                continue;
-            }
-            let r = r2.sqrt();
-            let w = to / r;
-            let (cos_here, cos_there) = (g.n.dot(w), -vl.n.dot(w));
-            if cos_here <= 0.0 || cos_there <= 0.0 {
-                continue;
-            }
-            let reach = r * (1.0 - 1e-3) - epsilon(vl.p);
-            rays.push(Ray::segment(g.p, w, epsilon(g.p), reach.max(0.0)).at_time(g.time));
-            lights_in.push((k, vl.power * (cos_here * cos_there / r2.max(all.clamp_squared))));
-        }
+        toward_lights(all, g, |ray, light| {
+            rays.push(ray);
+            lights_in.push((k, light));
+        });
     }
-    let mut blocked = Vec::new();
     tracing(|| frame.world.occluded_rays(&rays, &mut blocked));
     Stats::add(&frame.stats.shadow_rays, rays.len());
     for (&(point, light), &blocked) in lights_in.iter().zip(&blocked) {
@@ -183,6 +173,59 @@ pub(super) fn gather(all: &VirtualLights, frame: &Frame, points: &[Gatherer], ou
     for o in out.iter_mut().take(points.len()) {
         *o *= scale;
     }
+    super::scratch::give(&GATHER_BUFFERS, GatherBuffers { rays, lights_in, blocked });
+}
+
+/// The shadow rays from `g` toward the lights of its set that it faces and that face it, in the
+/// set's order, each handed to `each` with the light it brings if nothing blocks it. Eight lights
+/// at a time, each lane by the operations (and in the order) of one light alone: `to`, its length
+/// and direction, both cosines, the reach and the weight.
+#[inline(always)]
+fn toward_lights(all: &VirtualLights, g: &Gatherer, mut each: impl FnMut(Ray, Vec3A)) {
+    let Some(blocks) = all.blocks.get(g.set) else { return };
+    let zero = f32x8::ZERO;
+    let clamp_squared = f32x8::splat(all.clamp_squared);
+    let from = g.p.to_array().map(f32x8::splat);
+    let normal = g.n.to_array().map(f32x8::splat);
+    let near = epsilon(g.p);
+    for block in blocks {
+        let to: [f32x8; 3] = std::array::from_fn(|a| block.p[a] - from[a]);
+        let r2 = (to[0] * to[0] + to[1] * to[1]) + to[2] * to[2];
+        let r = r2.sqrt();
+        let w = to.map(|c| c / r);
+        let cos_here = (normal[0] * w[0] + normal[1] * w[1]) + normal[2] * w[2];
+        let cos_there = -((block.n[0] * w[0] + block.n[1] * w[1]) + block.n[2] * w[2]);
+        let refused = r2.simd_le(zero) | cos_here.simd_le(zero) | cos_there.simd_le(zero);
+        let mut kept = !(refused.to_bitmask() as u32) & block.lanes;
+        if kept == 0 {
+            continue;
+        }
+        // `maxps(x, 0)` is 0 for a NaN `x`, as `f32::max(x, 0.0)` is.
+        let reach = (r * f32x8::splat(1.0 - 1e-3) - block.epsilon).fast_max(zero).to_array();
+        let weight = ((cos_here * cos_there) / r2.fast_max(clamp_squared)).to_array();
+        let w = w.map(f32x8::to_array);
+        while kept != 0 {
+            let l = kept.trailing_zeros() as usize;
+            kept &= kept - 1;
+            let direction = Vec3A::new(w[0][l], w[1][l], w[2][l]);
+            let power = Vec3A::new(block.power[0][l], block.power[1][l], block.power[2][l]);
+            each(Ray::segment(g.p, direction, near, reach[l]).at_time(g.time), power * weight[l]);
+        }
+    }
+}
+
+/// [`gather`]'s buffers: the shadow rays, each one's point and unblocked light, and whether each
+/// is blocked.
+#[derive(Default)]
+struct GatherBuffers {
+    rays: Vec<Ray>,
+    lights_in: Vec<(usize, Vec3A)>,
+    blocked: Vec<bool>,
+}
+
+thread_local! {
+    /// [`gather`]'s buffers, one set per level of recursion (a shadow ray may run shaders).
+    static GATHER_BUFFERS: std::cell::RefCell<Vec<GatherBuffers>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
 /// Where a light's paths start.
@@ -560,4 +603,79 @@ fn raster_of(frame: &Frame, p: Vec3A) -> Option<(i64, i64)> {
     let x = ((sx - cx) / ax * 0.5 + 0.5) * w;
     let y = (0.5 - (sy - cy) / ay * 0.5) * h;
     (x.is_finite() && y.is_finite()).then(|| (x.floor() as i64, y.floor() as i64))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The rays and lights of [`toward_lights`] as one light at a time makes them.
+    fn one_by_one(all: &VirtualLights, g: &Gatherer) -> Vec<(Ray, Vec3A)> {
+        let mut out = Vec::new();
+        for vl in all.sets.get(g.set).into_iter().flatten() {
+            let to = vl.p - g.p;
+            let r2 = to.length_squared();
+            if r2 <= 0.0 {
+                continue;
+            }
+            let r = r2.sqrt();
+            let w = to / r;
+            let (cos_here, cos_there) = (g.n.dot(w), -vl.n.dot(w));
+            if cos_here <= 0.0 || cos_there <= 0.0 {
+                continue;
+            }
+            let reach = r * (1.0 - 1e-3) - epsilon(vl.p);
+            let ray = Ray::segment(g.p, w, epsilon(g.p), reach.max(0.0)).at_time(g.time);
+            out.push((ray, vl.power * (cos_here * cos_there / r2.max(all.clamp_squared))));
+        }
+        out
+    }
+
+    fn bits(v: Vec3A) -> [u32; 3] {
+        v.to_array().map(f32::to_bits)
+    }
+
+    /// Eight lights at a time make the rays and lights one light at a time makes, bit for bit and
+    /// in order: lights all around, behind, at the point itself, nearer than the clamp, and sets
+    /// of every size around the blocks' width.
+    #[test]
+    fn lights_by_eights_are_the_lights_one_by_one() {
+        let mut state = 0x9E37_79B9_7F4A_7C15u64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0
+        };
+        let mut v = || Vec3A::new(next(), next(), next());
+        for size in [0usize, 1, 7, 8, 9, 16, 17, 40] {
+            let mut set: Vec<VirtualLight> = (0..size)
+                .map(|_| VirtualLight { p: v() * 10.0, n: v().normalize_or_zero(), power: v().abs() })
+                .collect();
+            let g = Gatherer { p: v() * 10.0, n: v().normalize_or_zero(), time: 0.25, set: 0 };
+            if size > 2 {
+                set[1].p = g.p;
+                set[2].p = g.p + g.n * 1e-3;
+            }
+            let all = VirtualLights::new(vec![set], 1, 0.5);
+            let mut made = Vec::new();
+            toward_lights(&all, &g, |ray, light| made.push((ray, light)));
+            let want = one_by_one(&all, &g);
+            assert_eq!(made.len(), want.len(), "{size} lights");
+            for ((a, la), (b, lb)) in made.iter().zip(&want) {
+                assert_eq!(bits(a.origin), bits(b.origin));
+                assert_eq!(bits(a.direction), bits(b.direction));
+                assert_eq!([a.tmin, a.tmax, a.time].map(f32::to_bits), [b.tmin, b.tmax, b.time].map(f32::to_bits));
+                assert_eq!(bits(*la), bits(*lb));
+            }
+        }
+        // A point whose set is not there gathers nothing.
+        let all = VirtualLights::new(vec![vec![VirtualLight { p: Vec3A::X, n: -Vec3A::X, power: Vec3A::ONE }]], 1, 0.0);
+        let g = Gatherer { p: Vec3A::ZERO, n: Vec3A::X, time: 0.0, set: 3 };
+        toward_lights(&all, &g, |_, _| panic!("no set, no rays"));
+        let g = Gatherer { set: 0, ..g };
+        let mut n = 0;
+        toward_lights(&all, &g, |_, _| n += 1);
+        assert_eq!(n, 1);
+    }
 }

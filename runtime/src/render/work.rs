@@ -13,6 +13,7 @@ use crate::ray::{Hit, Ray};
 use glam::{Affine3A, Vec3A};
 use rtsl_compiler::abi::LightLanes;
 use std::sync::{Arc, Mutex, PoisonError};
+use wide::f32x8;
 
 /// The frame being rendered: the world and the counters.
 pub struct Frame<'w> {
@@ -234,7 +235,7 @@ impl LightPaths {
                 }
                 sets.push(set);
             }
-            paths.virtual_lights = Some(Arc::new(VirtualLights { sets, interleave, clamp_squared }));
+            paths.virtual_lights = Some(Arc::new(VirtualLights::new(sets, interleave, clamp_squared)));
         }
         if flags & 2 != 0 {
             let (map, tail) = PhotonMap::decode(rest)?;
@@ -312,6 +313,49 @@ pub struct VirtualLights {
     pub interleave: u32,
     /// The least squared distance a light counts at.
     pub clamp_squared: f32,
+    /// `sets` in blocks of eight lights, as gathering reads them.
+    pub(super) blocks: Vec<Vec<LightBlock>>,
+}
+
+impl VirtualLights {
+    pub fn new(sets: Vec<Vec<VirtualLight>>, interleave: u32, clamp_squared: f32) -> VirtualLights {
+        let blocks = sets.iter().map(|set| LightBlock::of(set)).collect();
+        VirtualLights { sets, interleave, clamp_squared, blocks }
+    }
+}
+
+/// Up to eight virtual lights of a set, a row per coordinate, as gathering tests them together (`virtual_lights::gather`).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct LightBlock {
+    pub(super) p: [f32x8; 3],
+    pub(super) n: [f32x8; 3],
+    /// Read lane by lane, for the lights a point keeps.
+    pub(super) power: [[f32; 8]; 3],
+    /// Each light's [`epsilon`]: how far short of it its shadow rays stop.
+    pub(super) epsilon: f32x8,
+    /// Bit `l` set: lane `l` holds a light.
+    pub(super) lanes: u32,
+}
+
+impl LightBlock {
+    /// `set` in blocks, in order.
+    pub(super) fn of(set: &[VirtualLight]) -> Vec<LightBlock> {
+        set.chunks(8)
+            .map(|lights| {
+                let lane = |f: &dyn Fn(&VirtualLight) -> f32| -> [f32; 8] {
+                    std::array::from_fn(|l| lights.get(l).map_or(0.0, f))
+                };
+                let row = |f: &dyn Fn(&VirtualLight) -> f32| f32x8::new(lane(f));
+                LightBlock {
+                    p: [row(&|v| v.p.x), row(&|v| v.p.y), row(&|v| v.p.z)],
+                    n: [row(&|v| v.n.x), row(&|v| v.n.y), row(&|v| v.n.z)],
+                    power: [lane(&|v| v.power.x), lane(&|v| v.power.y), lane(&|v| v.power.z)],
+                    epsilon: row(&|v| epsilon(v.p)),
+                    lanes: (1u32 << lights.len()) - 1,
+                }
+            })
+            .collect()
+    }
 }
 
 /// The whole image a pixel shader finishes, as it was before the shader ran: what `pixelvalue`

@@ -8,6 +8,7 @@ use crate::scene::Scene;
 use crate::shading::{LightKind, ShaderInstance};
 use crate::texture::TextureCache;
 use glam::{Affine3A, Vec3A};
+use std::cell::RefCell;
 use std::collections::HashMap;
 use std::sync::Arc;
 
@@ -804,7 +805,7 @@ impl World {
         in_octant_packets(rays, |packet, lanes| {
             let hit = self.occluded_packet(packet);
             for (lane, &i) in lanes.iter().enumerate() {
-                blocked[i] = hit >> lane & 1 != 0;
+                blocked[i as usize] = hit >> lane & 1 != 0;
             }
         });
     }
@@ -824,7 +825,7 @@ impl World {
         in_octant_packets(rays, |packet, lanes| {
             self.intersect_packet(packet, &mut out);
             for (lane, &i) in lanes.iter().enumerate() {
-                hits[i] = out.get(lane);
+                hits[i as usize] = out.get(lane);
             }
         });
     }
@@ -982,33 +983,78 @@ const FEWEST_PACKED_RAYS: usize = 8;
 /// otherwise make packets of mixed octants, which the tracer splits into sparse packets that each
 /// pay a whole packet's set-up for a few lanes; rays of one direction (reflections off a flat
 /// mirror, rays going on through a transparent surface) fill whole packets.
-fn in_octant_packets(rays: &[Ray], mut trace: impl FnMut(&RayPacket, &[usize])) {
-    // Per octant, a packet filling and the rays in its lanes.
-    let mut packets: Vec<(RayPacket, Vec<usize>)> =
-        (0..8).map(|_| (RayPacket::new(), Vec::with_capacity(PACKET_SIZE))).collect();
-    let mut flush = |(packet, lanes): &mut (RayPacket, Vec<usize>)| {
-        if lanes.is_empty() {
-            return;
-        }
-        trace(packet, lanes);
-        lanes.clear();
-        *packet = RayPacket::new();
-    };
+fn in_octant_packets(rays: &[Ray], mut trace: impl FnMut(&RayPacket, &[u32])) {
+    let mut packer = OctantPacker::take();
     for (i, ray) in rays.iter().enumerate() {
+        packer.push(i as u32, ray, &mut trace);
+    }
+    packer.finish(&mut trace);
+}
+
+/// Rays packed by direction octant as they come: each octant's packet is handed on when it is
+/// full, and what is left when the rays end. Its packets are the same whatever order the octants'
+/// rays are interleaved in: an octant's rays in the order they came, cut into whole packets.
+struct OctantPacker {
+    packets: Box<[RayPacket; 8]>,
+    /// Each packet's lanes' ray indices.
+    indices: [[u32; PACKET_SIZE]; 8],
+    filled: [usize; 8],
+}
+
+impl OctantPacker {
+    /// A packer with no rays (its buffers kept per thread: a shading point's virtual lights or
+    /// samples come a few hundred rays at a time, and fresh packets cost more to clear than those
+    /// rays take to pack). Hand it back with [`OctantPacker::finish`].
+    fn take() -> Box<OctantPacker> {
+        super::scratch::take(&OCTANT_PACKERS).unwrap_or_else(|| {
+            Box::new(OctantPacker {
+                packets: Box::new(std::array::from_fn(|_| RayPacket::new())),
+                indices: [[0; PACKET_SIZE]; 8],
+                filled: [0; 8],
+            })
+        })
+    }
+
+    /// Adds `ray`, the ray of index `index`, handing its octant's packet to `trace` when that fills.
+    #[inline(always)]
+    fn push(&mut self, index: u32, ray: &Ray, trace: &mut impl FnMut(&RayPacket, &[u32])) {
         let d = ray.direction;
         let octant = usize::from(d.x.is_sign_negative())
             | usize::from(d.y.is_sign_negative()) << 1
             | usize::from(d.z.is_sign_negative()) << 2;
-        let entry = &mut packets[octant];
-        entry.0.set(entry.1.len(), ray);
-        entry.1.push(i);
-        if entry.1.len() == PACKET_SIZE {
-            flush(entry);
+        let n = self.filled[octant];
+        let packet = &mut self.packets[octant];
+        packet.set(n, ray);
+        self.indices[octant][n] = index;
+        if n + 1 < PACKET_SIZE {
+            self.filled[octant] = n + 1;
+            return;
         }
+        trace(packet, &self.indices[octant]);
+        // A packet's lanes outside `active` are never read (the tracer gives them an active
+        // lane's ray): emptying it is clearing `active`.
+        packet.active = 0;
+        self.filled[octant] = 0;
     }
-    for entry in &mut packets {
-        flush(entry);
+
+    /// Hands the packets not yet traced to `trace`, and the packer back to its thread.
+    fn finish(mut self: Box<Self>, trace: &mut impl FnMut(&RayPacket, &[u32])) {
+        for octant in 0..8 {
+            let n = self.filled[octant];
+            if n > 0 {
+                trace(&self.packets[octant], &self.indices[octant][..n]);
+                self.packets[octant].active = 0;
+                self.filled[octant] = 0;
+            }
+        }
+        super::scratch::give(&OCTANT_PACKERS, Some(self));
     }
+}
+
+thread_local! {
+    /// Packers not in use, one per level of recursion (tracing a packet may shade surfaces whose
+    /// shaders trace rays of their own).
+    static OCTANT_PACKERS: RefCell<Vec<Option<Box<OctantPacker>>>> = const { RefCell::new(Vec::new()) };
 }
 
 #[cfg(test)]
