@@ -152,28 +152,33 @@ pub(super) struct Gatherer {
 pub(super) fn gather(all: &VirtualLights, frame: &Frame, points: &[Gatherer], out: &mut [Vec3A]) {
     // Kept per thread: a chunk's few points make a few hundred rays, whose buffers grown afresh
     // for every chunk cost a good share of the gathering.
-    let GatherBuffers { mut rays, mut lights_in, mut blocked } = super::scratch::take(&GATHER_BUFFERS);
+    let GatherBuffers { mut rays, mut lights_in, mut blocked, mut ends } = super::scratch::take(&GATHER_BUFFERS);
     rays.clear();
-    // Each ray's point and the light it would get if nothing blocked it.
+    // The light each ray would bring if nothing blocked it; a point's rays are those before the
+    // point's end and after the last point's.
     lights_in.clear();
-    for (k, g) in points.iter().enumerate() {
+    ends.clear();
+    for g in points {
         toward_lights(all, g, |ray, light| {
             rays.push(ray);
-            lights_in.push((k, light));
+            lights_in.push(light);
         });
+        ends.push(rays.len());
     }
     tracing(|| frame.world.occluded_rays(&rays, &mut blocked));
     Stats::add(&frame.stats.shadow_rays, rays.len());
-    for (&(point, light), &blocked) in lights_in.iter().zip(&blocked) {
-        if !blocked {
-            out[point] += light;
-        }
-    }
     let scale = all.sets.len() as f32 / std::f32::consts::PI;
-    for o in out.iter_mut().take(points.len()) {
-        *o *= scale;
+    let mut start = 0;
+    for (o, &end) in out.iter_mut().zip(&ends) {
+        // Summed in a register: the same additions, in the same order, as into `o` one by one.
+        let mut sum = *o;
+        for (&light, &blocked) in lights_in[start..end].iter().zip(&blocked[start..end]) {
+            sum = Vec3A::select(glam::BVec3A::splat(blocked), sum, sum + light);
+        }
+        *o = sum * scale;
+        start = end;
     }
-    super::scratch::give(&GATHER_BUFFERS, GatherBuffers { rays, lights_in, blocked });
+    super::scratch::give(&GATHER_BUFFERS, GatherBuffers { rays, lights_in, blocked, ends });
 }
 
 /// The shadow rays from `g` toward the lights of its set that it faces and that face it, in the
@@ -214,13 +219,14 @@ fn toward_lights(all: &VirtualLights, g: &Gatherer, mut each: impl FnMut(Ray, Ve
     }
 }
 
-/// [`gather`]'s buffers: the shadow rays, each one's point and unblocked light, and whether each
-/// is blocked.
+/// [`gather`]'s buffers: the shadow rays, each one's unblocked light, whether each is blocked, and
+/// where each point's rays end.
 #[derive(Default)]
 struct GatherBuffers {
     rays: Vec<Ray>,
-    lights_in: Vec<(usize, Vec3A)>,
+    lights_in: Vec<Vec3A>,
     blocked: Vec<bool>,
+    ends: Vec<usize>,
 }
 
 thread_local! {
