@@ -650,6 +650,11 @@ mod tests {
     /// Checks the tree's structure: every node written, children inside their parent, every
     /// primitive in exactly one leaf whose box holds it; returns the depth.
     fn check(bvh: &Bvh2, boxes: &[Aabb]) -> usize {
+        check_with_leaves(bvh, boxes, 1)
+    }
+
+    /// [`check`] for trees with leaves of up to `largest` primitives.
+    fn check_with_leaves(bvh: &Bvh2, boxes: &[Aabb], largest: u32) -> usize {
         assert_eq!(bvh.nodes.len(), 2 * boxes.len() - 1);
         let mut seen = vec![0u32; boxes.len()];
         let mut stack = vec![(0usize, 1usize)];
@@ -658,10 +663,12 @@ mod tests {
             deepest = deepest.max(d);
             let node = &bvh.nodes[i];
             if node.is_leaf() {
-                assert_eq!(node.prim_count, 1);
-                let p = bvh.primitive_indices[node.first_index as usize] as usize;
-                seen[p] += 1;
-                assert!(node.aabb.min.cmple(boxes[p].min).all() && node.aabb.max.cmpge(boxes[p].max).all());
+                assert!(node.prim_count <= largest);
+                for k in 0..node.prim_count as usize {
+                    let p = bvh.primitive_indices[node.first_index as usize + k] as usize;
+                    seen[p] += 1;
+                    assert!(node.aabb.min.cmple(boxes[p].min).all() && node.aabb.max.cmpge(boxes[p].max).all());
+                }
                 continue;
             }
             for c in [node.first_index as usize, node.first_index as usize + 1] {
@@ -736,7 +743,7 @@ mod tests {
         for boxes in inputs {
             let mut ones = build_binned(&boxes);
             let mut threes = build_binned_with_leaves(&boxes, leaf);
-            check_small_leaves(&threes, &boxes);
+            check_with_leaves(&threes, &boxes, 3);
             let a = Bvh4::from_bvh2(&mut ones, p.max_prims_per_leaf, p.collapse_traversal_cost);
             let b = Bvh4::from_bvh2(&mut threes, p.max_prims_per_leaf, p.collapse_traversal_cost);
             assert_eq!(a.prim_order, b.prim_order, "{} primitives", boxes.len());
@@ -747,32 +754,6 @@ mod tests {
         assert_eq!(merged_leaf_size(OBJECT_LEAF_SIZE, 1.5), 1);
         assert_eq!(merged_leaf_size(2, 3.0), 2);
         assert_eq!(merged_leaf_size(1, 3.0), 1);
-    }
-
-    /// [`check`] for trees with leaves of up to three: every primitive in one leaf reached from the
-    /// root, inside its ancestors, and no leaf larger than three.
-    fn check_small_leaves(bvh: &Bvh2, boxes: &[Aabb]) {
-        assert_eq!(bvh.nodes.len(), 2 * boxes.len() - 1);
-        let mut seen = vec![0u32; boxes.len()];
-        let mut stack = vec![0usize];
-        while let Some(i) = stack.pop() {
-            let node = &bvh.nodes[i];
-            if node.is_leaf() {
-                assert!(node.prim_count <= 3);
-                for k in 0..node.prim_count as usize {
-                    let p = bvh.primitive_indices[node.first_index as usize + k] as usize;
-                    seen[p] += 1;
-                    assert!(node.aabb.min.cmple(boxes[p].min).all() && node.aabb.max.cmpge(boxes[p].max).all());
-                }
-                continue;
-            }
-            for c in [node.first_index as usize, node.first_index as usize + 1] {
-                let child = &bvh.nodes[c];
-                assert!(node.aabb.min.cmple(child.aabb.min).all() && node.aabb.max.cmpge(child.aabb.max).all());
-                stack.push(c);
-            }
-        }
-        assert!(seen.iter().all(|&s| s == 1));
     }
 
     #[test]
