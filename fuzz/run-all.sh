@@ -31,6 +31,7 @@ if [ -z "$(ls -A corpus/artifact)" ]; then
 fi
 seed replica
 seed protocol
+seed vrml $(ls ../../shared/scenes/castle_with_trees_vrml97/*.wrl 2>/dev/null)
 status=0
 for target in $(cargo +nightly fuzz list); do
     echo "== $target ($seconds s)"
