@@ -54,7 +54,14 @@ const MAX_ENCODED_REQUEST_NAME: usize = 64;
 
 /// Splits RIB text into tokens.
 pub fn tokenize(text: &[u8]) -> Vec<Token> {
-    let mut lexer = Lexer {
+    tokens(text).collect()
+}
+
+/// The tokens of RIB text, read as they are asked for: a stream's tokens take several times its
+/// bytes (40 bytes a token, a number often 5 to 10 bytes of text), so a reader that holds one
+/// request's tokens at a time reads any stream in memory proportional to its largest request.
+pub fn tokens(text: &[u8]) -> Tokens<'_> {
+    Tokens(Lexer {
         text,
         pos: 0,
         line: 1,
@@ -64,12 +71,18 @@ pub fn tokenize(text: &[u8]) -> Vec<Token> {
         expansion_left: MAX_ENCODED_EXPANSION,
         floats_left: 0,
         array_open: false,
-    };
-    let mut tokens = Vec::new();
-    while let Some(token) = lexer.next_token() {
-        tokens.push(token);
+    })
+}
+
+/// The tokens of RIB text, in order ([`tokens`]).
+pub struct Tokens<'a>(Lexer<'a>);
+
+impl Iterator for Tokens<'_> {
+    type Item = Token;
+
+    fn next(&mut self) -> Option<Token> {
+        self.0.next_token()
     }
-    tokens
 }
 
 struct Lexer<'a> {

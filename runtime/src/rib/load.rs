@@ -34,9 +34,9 @@
 use super::decl::{Class, Ty};
 use super::mesh::MeshOptions;
 use super::primitive::{mesh_from_request_with, request_segments, request_triangles};
-use super::request::{Handle, Orientation, Param, ParamValue as RibValue, Request, RequestKind};
+use super::request::{Handle, Location, Orientation, Param, ParamValue as RibValue, Request, RequestKind};
 use super::view::{Projection, View};
-use super::{parse_file, parse_str, RibDiagnostic, RibParse, Severity, MAX_RIB_TRIANGLES};
+use super::{parse_bytes_into, parse_file_into, RibDiagnostic, RibParse, Severity, MAX_BLOCK_DEPTH, MAX_RIB_TRIANGLES};
 use crate::api::{ApiError, AttributeParts, Context, InstanceId, LightId, ObjectId, SavedAttributes};
 use crate::csg::{Solid, SolidNode, SolidOp, SolidPart};
 use crate::geometry::{Deformation, Mesh};
@@ -134,15 +134,18 @@ pub fn load_file(rt: &mut Context, path: impl AsRef<Path>) -> Result<LoadedRib, 
 /// Loads the image at `index` (counting from 0, see [`frames`]) of a RIB file into `rt`.
 pub fn load_file_frame(rt: &mut Context, path: impl AsRef<Path>, index: usize) -> Result<LoadedRib, SceneFileError> {
     let path = path.as_ref();
-    let parse = parse_file(path).map_err(|e| SceneFileError::Rib { path: path.to_path_buf(), message: e.message })?;
-    load_parsed(rt, parse, path, index)
+    let unreadable = |e: super::RibError| SceneFileError::Rib { path: path.to_path_buf(), message: e.message };
+    load_stream(rt, path, index, |sink| parse_file_into(path, sink).map_err(unreadable))
 }
 
 /// The numbers of the images a RIB file asks for, in order (see [`Frames::number`]).
 pub fn frame_numbers(path: impl AsRef<Path>) -> Result<Vec<i32>, SceneFileError> {
     let path = path.as_ref();
-    let parse = parse_file(path).map_err(|e| SceneFileError::Rib { path: path.to_path_buf(), message: e.message })?;
-    let frames = Frames::of(&parse.requests);
+    let mut frames = Frames::default();
+    parse_file_into(path, &mut |r| {
+        frames.add(&r);
+    })
+    .map_err(|e| SceneFileError::Rib { path: path.to_path_buf(), message: e.message })?;
     Ok((0..frames.count()).map(|i| frames.number(i)).collect())
 }
 
@@ -150,45 +153,52 @@ pub fn frame_numbers(path: impl AsRef<Path>) -> Result<Vec<i32>, SceneFileError>
 /// relative paths.
 pub fn load_str(rt: &mut Context, text: &str, name: impl AsRef<Path>) -> Result<LoadedRib, SceneFileError> {
     let name = name.as_ref();
-    load_parsed(rt, parse_str(text, name), name, 0)
+    load_stream(rt, name, 0, |sink| Ok(parse_bytes_into(text.as_bytes(), name, sink)))
 }
 
 /// The images a RIB stream asks for, in order, by the frame each request belongs to: every
 /// `FrameBegin`/`FrameEnd` block is one, and so is every `WorldBegin`/`WorldEnd` block outside a
 /// frame (RISpec 3.2: `WorldEnd` renders the image). Requests outside both belong to no frame: they
-/// set options and the camera for every image after them.
+/// set options and the camera for every image after them. Worked out request by request, as the
+/// stream is read.
+#[derive(Default)]
 pub struct Frames {
-    /// Per request, the index of the image it belongs to.
-    owner: Vec<Option<usize>>,
     /// Per image, its `FrameBegin` number.
     numbers: Vec<Option<i32>>,
+    in_frame: bool,
+    in_world: bool,
 }
 
 impl Frames {
     /// Splits `requests` into images.
     pub fn of(requests: &[Request]) -> Frames {
-        let (mut owner, mut numbers) = (Vec::with_capacity(requests.len()), Vec::new());
-        let (mut in_frame, mut in_world) = (false, false);
+        let mut frames = Frames::default();
         for r in requests {
-            match &r.kind {
-                RequestKind::FrameBegin(number) if !in_frame => {
-                    in_frame = true;
-                    numbers.push(*number);
-                }
-                RequestKind::WorldBegin if !in_frame && !in_world => {
-                    in_world = true;
-                    numbers.push(None);
-                }
-                _ => {}
-            }
-            owner.push((in_frame || in_world).then(|| numbers.len() - 1));
-            match &r.kind {
-                RequestKind::FrameEnd => in_frame = false,
-                RequestKind::WorldEnd if !in_frame => in_world = false,
-                _ => {}
-            }
+            frames.add(r);
         }
-        Frames { owner, numbers }
+        frames
+    }
+
+    /// Takes the next request of the stream: the index of the image it belongs to, if any.
+    pub fn add(&mut self, r: &Request) -> Option<usize> {
+        match &r.kind {
+            RequestKind::FrameBegin(number) if !self.in_frame => {
+                self.in_frame = true;
+                self.numbers.push(*number);
+            }
+            RequestKind::WorldBegin if !self.in_frame && !self.in_world => {
+                self.in_world = true;
+                self.numbers.push(None);
+            }
+            _ => {}
+        }
+        let owner = (self.in_frame || self.in_world).then(|| self.numbers.len() - 1);
+        match &r.kind {
+            RequestKind::FrameEnd => self.in_frame = false,
+            RequestKind::WorldEnd if !self.in_frame => self.in_world = false,
+            _ => {}
+        }
+        owner
     }
 
     /// How many images: at least one (a stream with no world block is one empty image).
@@ -229,48 +239,71 @@ pub fn expand_display_name(name: &str, frame: i32) -> String {
 
 /// A stream with syntax errors loads what it could read, as RenderMan renders the rest of a file
 /// whose request could not be read: the errors are in [`LoadedRib::warnings`] (as
-/// [`Severity::Error`]) and counted by [`LoadedRib::omissions`].
-fn load_parsed(rt: &mut Context, parse: RibParse, path: &Path, index: usize) -> Result<LoadedRib, SceneFileError> {
+/// [`Severity::Error`]) and counted by [`LoadedRib::omissions`]. `read` reads the stream, handing
+/// each request to the sink it is given as it is read: requests are loaded as they come, and
+/// those of other images only counted, so that no stream is held whole.
+fn load_stream(
+    rt: &mut Context,
+    path: &Path,
+    index: usize,
+    read: impl FnOnce(&mut dyn FnMut(Request)) -> Result<RibParse, SceneFileError>,
+) -> Result<LoadedRib, SceneFileError> {
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let mut loader = Loader::new(rt, dir);
-    loader.out.files = parse.archives.clone();
-    loader.out.files.extend(parse.requests.iter().filter_map(|r| match &r.kind {
-        RequestKind::MeshArchive(path) => Some(path.clone()),
-        _ => None,
-    }));
-    loader.out.warnings.extend(parse.diagnostics.iter().cloned());
-    let frames = Frames::of(&parse.requests);
+    let mut frames = Frames::default();
+    let mut mesh_files = Vec::new();
+    // Whether this image's requests began, and ended.
+    let (mut began, mut ended) = (false, false);
+    let mut last: Option<Location> = None;
+    let mut fatal = None;
+    let mut sink = |r: Request| {
+        if let RequestKind::MeshArchive(path) = &r.kind {
+            mesh_files.push(path.clone());
+        }
+        let owner = frames.add(&r);
+        if ended || fatal.is_some() {
+            return;
+        }
+        // Requests between frames set up the frames that follow them: none after this frame's end
+        // applies to it (a later `Display`, `Format` or `MakeShadow` of its output is the next
+        // frame's).
+        match owner {
+            Some(frame) if frame > index => ended = true,
+            Some(frame) if frame < index => {}
+            None if began => ended = true,
+            _ => {
+                began |= owner.is_some();
+                last = Some(r.loc.clone());
+                match loader.request(&r) {
+                    Ok(()) => {}
+                    Err(e @ SceneFileError::TooLarge { .. }) => fatal = Some(e),
+                    Err(e) => loader.omit(&r, e),
+                }
+            }
+        }
+    };
+    let parse = read(&mut sink)?;
+    if let Some(e) = fatal {
+        return Err(e);
+    }
     if index >= frames.count() {
         return Err(SceneFileError::Rib {
             path: path.to_path_buf(),
             message: format!("there is no image {} (the file has {})", index + 1, frames.count()),
         });
     }
+    // What reading the stream found comes first, as it did when the stream was read before it
+    // was loaded.
+    let mut warnings = parse.diagnostics;
+    warnings.append(&mut loader.out.warnings);
+    loader.out.warnings = warnings;
+    loader.out.files = parse.archives;
+    loader.out.files.extend(mesh_files);
     loader.out.frames = frames.count();
     loader.out.frame_number = frames.number(index);
-    let mut last = None;
-    let mut began = false;
-    for (r, owner) in parse.requests.iter().zip(&frames.owner) {
-        // Requests between frames set up the frames that follow them: none after this frame's end
-        // applies to it (a later `Display`, `Format` or `MakeShadow` of its output is the next
-        // frame's).
-        match owner {
-            Some(frame) if *frame > index => break,
-            Some(frame) if *frame < index => continue,
-            Some(_) => began = true,
-            None if began => break,
-            None => {}
-        }
-        last = Some(r);
-        match loader.request(r) {
-            Ok(()) => {}
-            Err(e @ SceneFileError::TooLarge { .. }) => return Err(e),
-            Err(e) => loader.omit(r, e),
-        }
-    }
     loader.flush()?;
-    if let Some(r) = last {
-        loader.end_solids(r)?;
+    if let Some(loc) = last {
+        loader.end_solids(&Request { kind: RequestKind::WorldEnd, loc })?;
     }
     let number = loader.out.frame_number;
     for d in &mut loader.out.displays {
@@ -314,6 +347,11 @@ struct Loader<'a> {
     out: LoadedRib,
     state: State,
     stack: Vec<State>,
+    /// The `AttributeBegin` and `TransformBegin` blocks open, and those opened past
+    /// [`MAX_BLOCK_DEPTH`] (which restore nothing).
+    open_blocks: usize,
+    blocks_refused: usize,
+    reported_deep_blocks: bool,
     /// Geometry gathered for one object: the object and the transform it is placed with.
     pending: Option<(ObjectId, Affine3A, Affine3A)>,
     /// Inside `ObjectBegin`: its handle, and the space its geometry is in.
@@ -397,6 +435,9 @@ impl<'a> Loader<'a> {
             out: LoadedRib::default(),
             state: State::default(),
             stack: Vec::new(),
+            open_blocks: 0,
+            blocks_refused: 0,
+            reported_deep_blocks: false,
             pending: None,
             retained: None,
             objects: HashMap::new(),
@@ -825,12 +866,26 @@ impl<'a> Loader<'a> {
                 self.in_world = true;
             }
             K::WorldEnd => self.end_solids(r)?,
+            K::AttributeBegin | K::TransformBegin if self.open_blocks >= MAX_BLOCK_DEPTH => {
+                self.blocks_refused += 1;
+                if !self.reported_deep_blocks {
+                    self.reported_deep_blocks = true;
+                    let message = format!(
+                        "attribute and transform blocks nest deeper than {MAX_BLOCK_DEPTH}: the requests of \
+                         this block, and of any other past the limit (not reported), apply to the block around it"
+                    );
+                    self.omit(r, message);
+                }
+            }
+            K::AttributeEnd | K::TransformEnd if self.blocks_refused > 0 => self.blocks_refused -= 1,
             K::AttributeBegin => {
                 rt.push_attributes();
                 self.stack.push(self.state.clone());
+                self.open_blocks += 1;
             }
             K::AttributeEnd => {
                 rt.pop_attributes()?;
+                self.open_blocks = self.open_blocks.saturating_sub(1);
                 self.state = self.stack.pop().unwrap_or_default();
                 while let Some((depth, name, outer)) = self.scoped_spaces.pop() {
                     if depth <= self.stack.len() {
@@ -842,8 +897,14 @@ impl<'a> Loader<'a> {
                     }
                 }
             }
-            K::TransformBegin => rt.push_matrix(),
-            K::TransformEnd => rt.pop_matrix()?,
+            K::TransformBegin => {
+                rt.push_matrix();
+                self.open_blocks += 1;
+            }
+            K::TransformEnd => {
+                rt.pop_matrix()?;
+                self.open_blocks = self.open_blocks.saturating_sub(1);
+            }
             K::Identity => rt.load_identity(),
             K::Transform(m) => rt.load_matrix(affine(m)),
             K::ConcatTransform(m) => rt.mult_matrix(affine(m)),
@@ -1677,6 +1738,53 @@ mod tests {
         assert_eq!(names(&second), vec![PathBuf::from("beauty.tif")]);
     }
 
+    /// A stream read request by request hands its sink the requests that reading it whole keeps,
+    /// in the same order, and the same diagnostics: through inline archives read twice,
+    /// conditionals taken and not, a syntax error, a binary number and a comment.
+    #[test]
+    fn streamed_requests_are_those_read_whole() {
+        let rib =
+            b"##RenderMan RIB\nFormat 8 8 1\nArchiveBegin \"part\"\nColor [1 0 0]\nSphere 1 -1 1 360\nArchiveEnd\n\
+                    FrameBegin 3\nOption \"user\" \"int pass\" [2]\nIfBegin \"$Option:user:pass == 2\"\n\
+                    Translate 0 0 5\nElse\nTranslate 0 0 9\nIfEnd\nWorldBegin\nReadArchive \"part\"\n\
+                    Translate 1 [2 3\nReadArchive \"part\" # twice\nTranslate 0 \x80\x05 0\nWorldEnd\nFrameEnd\n";
+        let name = Path::new("stream.rib");
+        let whole = super::super::parse_bytes(rib, name);
+        let mut streamed = Vec::new();
+        let rest = parse_bytes_into(rib, name, &mut |r| streamed.push(r));
+        assert!(whole.requests.len() > 10, "{:?}", whole.requests);
+        assert_eq!(streamed, whole.requests);
+        assert!(rest.requests.is_empty());
+        assert_eq!(rest.diagnostics, whole.diagnostics);
+        assert!(!rest.diagnostics.is_empty(), "the stream has a syntax error");
+    }
+
+    /// Attribute and transform blocks nested past [`MAX_BLOCK_DEPTH`] are one omission, restore
+    /// nothing, and leave the blocks around them balanced: an extra `AttributeEnd` after they all
+    /// close is the only unbalanced end.
+    #[test]
+    fn blocks_nested_past_the_limit_restore_nothing() {
+        let extra = 5;
+        let depth = MAX_BLOCK_DEPTH + extra;
+        let mut rib = String::from("WorldBegin\n");
+        for k in 0..depth {
+            rib.push_str(if k % 2 == 0 { "AttributeBegin\n" } else { "TransformBegin\n" });
+        }
+        rib.push_str("Sphere 1 -1 1 360\n");
+        for k in (0..depth).rev() {
+            rib.push_str(if k % 2 == 0 { "AttributeEnd\n" } else { "TransformEnd\n" });
+        }
+        rib.push_str("AttributeEnd\nWorldEnd\n");
+        let loaded = load_str(&mut Context::new(), &rib, "deep.rib").expect("loads");
+        let deep: Vec<_> = loaded.warnings.iter().filter(|w| w.message.contains("nest deeper")).collect();
+        assert_eq!(deep.len(), 1, "{:?}", loaded.warnings);
+        assert_eq!(deep[0].loc.line as usize, 2 + MAX_BLOCK_DEPTH, "the first block past the limit");
+        // Every other diagnostic is the extra end, on the line before `WorldEnd`.
+        let others: Vec<_> = loaded.warnings.iter().filter(|w| !w.message.contains("nest deeper")).collect();
+        assert_eq!(others.len(), 1, "{others:?}");
+        assert_eq!(others[0].loc.line as usize, 2 + 2 * depth + 1, "{others:?}");
+    }
+
     /// Shaders kept beside a RIB file are found, as Aqsis's default search path begins with ".".
     #[test]
     fn shaders_beside_the_file_are_found() {
@@ -1750,16 +1858,16 @@ mod tests {
 
     #[test]
     fn frames_are_frame_blocks_and_world_blocks_outside_them() {
-        let parse = parse_str(
+        let parse = crate::rib::parse_str(
             "Format 8 8 1\nFrameBegin 4\nWorldBegin\nWorldEnd\nFrameEnd\nTranslate 0 0 1\n\
              WorldBegin\nWorldEnd\nFrameBegin\nWorldBegin\nWorldEnd\nFrameEnd\n",
             "f.rib",
         );
-        let frames = Frames::of(&parse.requests);
+        let mut frames = Frames::default();
+        let owners: Vec<Option<usize>> = parse.requests.iter().map(|r| frames.add(r)).collect();
         assert_eq!(frames.count(), 3);
         assert_eq!((frames.number(0), frames.number(1), frames.number(2)), (4, 2, 3));
         // Format and the Translate between frames belong to none: they hold for the frames after them.
-        let owners: Vec<Option<usize>> = frames.owner.clone();
         assert_eq!(
             owners,
             vec![None, Some(0), Some(0), Some(0), Some(0), None, Some(1), Some(1), Some(2), Some(2), Some(2), Some(2)]

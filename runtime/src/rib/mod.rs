@@ -62,6 +62,12 @@ pub use request::{
 /// How deeply `ReadArchive` may nest.
 pub const MAX_ARCHIVE_DEPTH: usize = 32;
 
+/// How deep `AttributeBegin` and `TransformBegin` blocks may nest (together): each open block
+/// holds a copy of the state it restores, so a stream of nothing but `AttributeBegin` would
+/// otherwise take memory in proportion to its length, many times over. A block opened past it is
+/// an omission: its requests apply to the block around it, and its end restores nothing.
+pub const MAX_BLOCK_DEPTH: usize = 1 << 16;
+
 /// The most triangles the geometry requests of one RIB load may make, quadrics, patches, NURBS
 /// patches, subdivision meshes, the teapot, points, curves and blobbies counted as tessellated: a line of
 /// text can ask for thousands, and memory runs out long before a file does (`docs/rendering.md`,
@@ -163,7 +169,18 @@ pub fn parse_str(text: &str, file_name: impl AsRef<Path>) -> RibParse {
 /// Parses RIB bytes (non-ASCII bytes outside strings are errors; strings are read as UTF-8,
 /// invalid sequences replaced).
 pub fn parse_bytes(bytes: &[u8], file_name: &Path) -> RibParse {
-    let mut parser = parse::Parser::new();
+    read_stream(parse::Parser::new(), bytes, file_name)
+}
+
+/// [`parse_bytes`] handing each request to `sink` as it is read, in stream order, rather than
+/// keeping them: a stream is then read in memory proportional to its largest request (and its
+/// inline archives), not to its length. The result holds the diagnostics and the archives read,
+/// no requests.
+pub fn parse_bytes_into(bytes: &[u8], file_name: &Path, sink: &mut dyn FnMut(Request)) -> RibParse {
+    read_stream(parse::Parser::with_sink(sink), bytes, file_name)
+}
+
+fn read_stream(mut parser: parse::Parser, bytes: &[u8], file_name: &Path) -> RibParse {
     let file: Arc<Path> = Arc::from(file_name);
     parser.include_stack.extend(std::fs::canonicalize(file_name).ok());
     parser.parse_file_text(bytes, file);
@@ -174,11 +191,20 @@ pub fn parse_bytes(bytes: &[u8], file_name: &Path) -> RibParse {
 /// archives that cannot be read included, is a diagnostic.
 pub fn parse_file(path: impl AsRef<Path>) -> Result<RibParse, RibError> {
     let path = path.as_ref();
-    let bytes = std::fs::read(path).map_err(|e| RibError {
+    Ok(parse_bytes(&read_file(path)?, path))
+}
+
+/// [`parse_file`] handing each request to `sink` as it is read ([`parse_bytes_into`]).
+pub fn parse_file_into(path: impl AsRef<Path>, sink: &mut dyn FnMut(Request)) -> Result<RibParse, RibError> {
+    let path = path.as_ref();
+    Ok(parse_bytes_into(&read_file(path)?, path, sink))
+}
+
+fn read_file(path: &Path) -> Result<Vec<u8>, RibError> {
+    std::fs::read(path).map_err(|e| RibError {
         loc: Location { file: Arc::from(path), line: 0, column: 0 },
         message: format!("cannot read RIB file: {e}"),
-    })?;
-    Ok(parse_bytes(&bytes, path))
+    })
 }
 
 /// The directory relative `ReadArchive` paths in `file` are resolved against.

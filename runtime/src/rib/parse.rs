@@ -6,12 +6,13 @@
 //! its first error); an error in one parameter drops only that parameter.
 
 use std::collections::HashMap;
+use std::iter::Peekable;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use super::cond::{self, CondError, Value, CONDITION_BUDGET, MAX_IF_DEPTH};
 use super::decl::{self, Class, Decl, DeclTable, Ty};
-use super::lex::{tokenize, Token, TokenKind};
+use super::lex::{tokens, Token, TokenKind, Tokens};
 use super::request::{
     Basis, CurveType, Handle, Location, NuDirection, Orientation, Param, ParamValue, PatchType, Request,
     RequestKind as K, Shader, TrimCurve, Wrap,
@@ -61,13 +62,18 @@ struct Arg {
 }
 
 /// The reading state of one RIB stream, shared by the files it includes.
-pub(super) struct Parser {
+pub(super) struct Parser<'s> {
     /// Canonical paths of the files being read, outermost first (for cycle detection).
     pub(super) include_stack: Vec<PathBuf>,
     /// Archive nesting depth of the file being read (the top file is 0).
     depth: usize,
     decls: DeclTable,
+    /// The requests read, unless `sink` takes them; and the requests of the inline archives
+    /// being defined.
     requests: Vec<Request>,
+    /// Where the requests go as they are read (outside inline archive definitions), so that a
+    /// stream need not be held whole.
+    sink: Option<&'s mut dyn FnMut(Request)>,
     diagnostics: Vec<RibDiagnostic>,
     /// Canonical paths of the archives read, in order.
     archives: Vec<PathBuf>,
@@ -241,13 +247,14 @@ fn is_name(token: &Token) -> bool {
     matches!(token.kind, TokenKind::Name(_))
 }
 
-impl Parser {
+impl<'s> Parser<'s> {
     pub(super) fn new() -> Self {
         Parser {
             include_stack: Vec::new(),
             depth: 0,
             decls: DeclTable::new(),
             requests: Vec::new(),
+            sink: None,
             diagnostics: Vec::new(),
             archives: Vec::new(),
             inline_archives: HashMap::new(),
@@ -263,6 +270,12 @@ impl Parser {
             colors: None,
             frame_colors: Vec::new(),
         }
+    }
+
+    /// A parser that hands each request to `sink` as it is read (its [`Parser::finish`] then holds
+    /// no requests).
+    pub(super) fn with_sink(sink: &'s mut dyn FnMut(Request)) -> Self {
+        Parser { sink: Some(sink), ..Parser::new() }
     }
 
     pub(super) fn finish(self) -> RibParse {
@@ -291,27 +304,24 @@ impl Parser {
         let archives_open_before = self.open_archives.len();
         let floor = std::mem::replace(&mut self.branches_floor, self.branches.len());
         let too_deep = std::mem::take(&mut self.branches_too_deep);
-        let tokens = tokenize(bytes);
-        let mut pos = 0;
-        while let Some(token) = tokens.get(pos) {
-            let loc = location(&file, token);
-            pos += 1;
-            let TokenKind::Name(name) = &token.kind else {
-                let message = match &token.kind {
-                    TokenKind::Error(message) => message.clone(),
+        // One request's tokens at a time (`lex::tokens`).
+        let mut tokens = tokens(bytes).peekable();
+        while let Some(token) = tokens.next() {
+            let loc = location(&file, &token);
+            let TokenKind::Name(name) = token.kind else {
+                let message = match token.kind {
+                    TokenKind::Error(message) => message,
                     TokenKind::Number(_) => "expected a request name, found a number".into(),
                     TokenKind::Str(_) => "expected a request name, found a string".into(),
                     TokenKind::OpenBracket => "expected a request name, found `[`".into(),
                     _ => "expected a request name, found `]`".into(),
                 };
                 self.diagnostics.push(error(&loc, message));
-                while tokens.get(pos).is_some_and(|t| !is_name(t)) {
-                    pos += 1;
-                }
+                while tokens.next_if(|t| !is_name(t)).is_some() {}
                 continue;
             };
-            match collect_args(&tokens, &mut pos, &file) {
-                Ok(args) => self.request(name, loc, &args),
+            match collect_args(&mut tokens, &file) {
+                Ok(args) => self.request(&name, loc, &args),
                 Err(diagnostic) => self.diagnostics.push(diagnostic),
             }
         }
@@ -737,7 +747,10 @@ impl Parser {
             _ if self.skipping() => {}
             kind => {
                 self.vars.track(kind);
-                self.requests.push(r);
+                match &mut self.sink {
+                    Some(sink) => sink(r),
+                    None => self.requests.push(r),
+                }
             }
         }
     }
@@ -1144,18 +1157,17 @@ fn args_weight(args: &[Arg]) -> usize {
 
 /// Collects the arguments after a request name, up to the next name. On error the rest of the
 /// request is skipped and the first error returned.
-fn collect_args(tokens: &[Token], pos: &mut usize, file: &Arc<Path>) -> Result<Vec<Arg>> {
+fn collect_args(tokens: &mut Peekable<Tokens>, file: &Arc<Path>) -> Result<Vec<Arg>> {
     let mut args = Vec::new();
     let mut first_error = None;
-    while let Some(token) = tokens.get(*pos).filter(|t| !is_name(t)) {
-        let loc = location(file, token);
-        *pos += 1;
-        let arg = match &token.kind {
-            TokenKind::Number(x) => Ok(ArgValue::Number(*x)),
-            TokenKind::Str(s) => Ok(ArgValue::Str(s.clone())),
-            TokenKind::OpenBracket => collect_array(tokens, pos, file, &loc),
+    while let Some(token) = tokens.next_if(|t| !is_name(t)) {
+        let loc = location(file, &token);
+        let arg = match token.kind {
+            TokenKind::Number(x) => Ok(ArgValue::Number(x)),
+            TokenKind::Str(s) => Ok(ArgValue::Str(s)),
+            TokenKind::OpenBracket => collect_array(tokens, file, &loc),
             TokenKind::CloseBracket => Err(error(&loc, "`]` without a matching `[`")),
-            TokenKind::Error(message) => Err(error(&loc, message.clone())),
+            TokenKind::Error(message) => Err(error(&loc, message)),
             TokenKind::Name(_) => unreachable!("the loop stops at names"),
         };
         match arg {
@@ -1172,24 +1184,26 @@ fn collect_args(tokens: &[Token], pos: &mut usize, file: &Arc<Path>) -> Result<V
 }
 
 /// The elements of an array whose `[` was just read: all numbers or all strings.
-fn collect_array(tokens: &[Token], pos: &mut usize, file: &Arc<Path>, open: &Location) -> Result<ArgValue> {
+fn collect_array(tokens: &mut Peekable<Tokens>, file: &Arc<Path>, open: &Location) -> Result<ArgValue> {
     let mut numbers = Vec::new();
     let mut strings = Vec::new();
     loop {
-        let Some(token) = tokens.get(*pos).filter(|t| !is_name(t)) else {
+        let Some(token) = tokens.next_if(|t| !is_name(t)) else {
             return Err(error(open, "`[` is never closed"));
         };
-        *pos += 1;
-        match &token.kind {
+        // The element's place, made into a location only for an error.
+        let (line, column) = (token.line, token.column);
+        let at = || Location { file: file.clone(), line, column };
+        match token.kind {
             TokenKind::CloseBracket => break,
-            TokenKind::Number(x) => numbers.push(*x),
-            TokenKind::Str(s) => strings.push(s.clone()),
-            TokenKind::OpenBracket => return Err(error(&location(file, token), "arrays do not nest in RIB")),
-            TokenKind::Error(message) => return Err(error(&location(file, token), message.clone())),
+            TokenKind::Number(x) => numbers.push(x),
+            TokenKind::Str(s) => strings.push(s),
+            TokenKind::OpenBracket => return Err(error(&at(), "arrays do not nest in RIB")),
+            TokenKind::Error(message) => return Err(error(&at(), message)),
             TokenKind::Name(_) => unreachable!("the loop stops at names"),
         }
         if !numbers.is_empty() && !strings.is_empty() {
-            return Err(error(&location(file, token), "an array mixes numbers and strings"));
+            return Err(error(&at(), "an array mixes numbers and strings"));
         }
     }
     Ok(if strings.is_empty() { ArgValue::Numbers(numbers) } else { ArgValue::Strings(strings) })
