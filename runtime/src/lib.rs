@@ -42,7 +42,7 @@ pub use geometry::{Attribute, Mesh, MeshError};
 pub use glam;
 pub use image_io::ByteTable;
 pub use image_io::{diff_image, read_image, write_image, ImageDiff, ImageError, RgbaImage, Transfer, WriteOptions};
-pub use load::{load_scene, load_scene_frame, load_scene_with, LoadOptions, LoadedScene};
+pub use load::{is_rib_path, load_rib_frames, load_scene, load_scene_frame, load_scene_with, LoadOptions, LoadedScene};
 pub use mesh_io::{load_mesh, MeshIoError};
 pub use ray::{offset_ray_origin, Hit, HitCandidate, HitFilter, HitPacket, Ray, RayPacket, INVALID_ID, PACKET_SIZE};
 pub use scene::{scene_from_mesh, InstanceId, ObjectId, Scene, SceneError, SurfaceHit};

@@ -92,24 +92,7 @@ pub fn load_scene_with(
         });
     }
     match ext.as_deref() {
-        Some("rib") => {
-            let loaded = crate::rib::load::load_file_frame(rt, path, index)?;
-            let dir = path.parent().unwrap_or(Path::new("."));
-            let displays = loaded
-                .displays
-                .into_iter()
-                .map(|d| crate::rib::load::RibDisplay { name: dir.join(&d.name), ..d })
-                .collect();
-            Ok(LoadedScene {
-                display: loaded.display.map(|d| dir.join(d)),
-                displays,
-                warnings: loaded.warnings,
-                files: std::iter::once(path.to_path_buf()).chain(loaded.files).collect(),
-                frames: loaded.frames,
-                frame_number: loaded.frame_number,
-                vrml: None,
-            })
-        }
+        Some("rib") => Ok(rib_scene(path, crate::rib::load::load_file_frame(rt, path, index)?)),
         Some("obj" | "ply" | "gltf" | "glb") if index == 0 => {
             let bounds = add_model_file(rt, path)?;
             frame_bounds(rt, bounds)?;
@@ -120,6 +103,45 @@ pub fn load_scene_with(
             message: format!("a model file is one image; there is no image {}", index + 1),
         }),
         _ => Err(SceneFileError::UnknownType { path: path.to_path_buf() }),
+    }
+}
+
+/// Whether `path` names a RIB file (by its extension, as [`load_scene`] chooses).
+pub fn is_rib_path(path: &Path) -> bool {
+    path.extension().is_some_and(|e| e.eq_ignore_ascii_case("rib"))
+}
+
+/// [`load_scene_frame`] of each image of a RIB file that `wanted` takes (by its index and
+/// number), in one reading of the file ([`crate::rib::load::load_file_frames`]): each is loaded
+/// into a context `new_context` makes and handed to `each` with its index as soon as its last
+/// request is read. Returns the numbers of the images read and what reading found after the last
+/// image loaded.
+pub fn load_rib_frames<E: From<SceneFileError>>(
+    path: impl AsRef<Path>,
+    new_context: impl FnMut() -> Context,
+    wanted: impl FnMut(usize, i32) -> bool,
+    mut each: impl FnMut(usize, Context, LoadedScene) -> Result<std::ops::ControlFlow<()>, E>,
+) -> Result<crate::rib::load::RibImages, E> {
+    let path = path.as_ref();
+    crate::rib::load::load_file_frames(path, new_context, wanted, |image| {
+        each(image.index, image.rt, rib_scene(path, image.loaded))
+    })
+}
+
+/// What loading an image of the RIB file `path` left, its names resolved against the file's
+/// directory.
+fn rib_scene(path: &Path, loaded: crate::rib::load::LoadedRib) -> LoadedScene {
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let displays =
+        loaded.displays.into_iter().map(|d| crate::rib::load::RibDisplay { name: dir.join(&d.name), ..d }).collect();
+    LoadedScene {
+        display: loaded.display.map(|d| dir.join(d)),
+        displays,
+        warnings: loaded.warnings,
+        files: std::iter::once(path.to_path_buf()).chain(loaded.files).collect(),
+        frames: loaded.frames,
+        frame_number: loaded.frame_number,
+        vrml: None,
     }
 }
 

@@ -13,6 +13,7 @@ use rtsl_runtime::shading::ParamValue;
 use rtsl_runtime::{LoadedScene, Transfer, WriteOptions};
 use std::collections::BTreeSet;
 use std::io::IsTerminal;
+use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Duration;
@@ -627,13 +628,7 @@ pub(crate) fn load_scene_frame(
     frame_index: usize,
     options: &rtsl_runtime::LoadOptions,
 ) -> anyhow::Result<(Context, LoadedScene)> {
-    let mut rt = Context::new();
-    let mut search: Vec<PathBuf> = shader_path.to_vec();
-    if let Ok(env) = std::env::var("RTSL_SHADER_PATH") {
-        search.extend(std::env::split_paths(&env));
-    }
-    rt.set_shader_search_path(search);
-    rt.set_include_paths(include.to_vec());
+    let mut rt = new_context(shader_path, include);
     let loaded = match scene {
         None => {
             let rib = rtsl::default_scene::load(&mut rt)?;
@@ -653,6 +648,18 @@ pub(crate) fn load_scene_frame(
     Ok((rt, loaded))
 }
 
+/// A context with the search paths of the flags and the environment.
+pub(crate) fn new_context(shader_path: &[PathBuf], include: &[PathBuf]) -> Context {
+    let mut rt = Context::new();
+    let mut search: Vec<PathBuf> = shader_path.to_vec();
+    if let Ok(env) = std::env::var("RTSL_SHADER_PATH") {
+        search.extend(std::env::split_paths(&env));
+    }
+    rt.set_shader_search_path(search);
+    rt.set_include_paths(include.to_vec());
+    rt
+}
+
 /// A scene loaded with the flags applied.
 struct Prepared {
     rt: Context,
@@ -667,13 +674,19 @@ struct Prepared {
     vrml: Option<Box<rtsl_runtime::vrml::VrmlScene>>,
 }
 
-/// The frames to render, as indices into the scene's frames: the one `--frame` names, or all.
-fn frame_indices(args: &RenderArgs) -> anyhow::Result<Vec<usize>> {
+/// Refuses the flags that animate VRML scenes for other scenes.
+fn check_animation_flags(args: &RenderArgs) -> anyhow::Result<()> {
     let vrml = args.scene.as_deref().is_some_and(rtsl_runtime::vrml::is_vrml_path);
     if !vrml && (args.frames.is_some() || args.time != 0.0) {
         anyhow::bail!("--time and --frames animate VRML scenes; a RIB file's frames are chosen with --frame");
     }
-    if vrml {
+    Ok(())
+}
+
+/// The frames to render, as indices into the scene's frames: the one `--frame` names, or all.
+fn frame_indices(args: &RenderArgs) -> anyhow::Result<Vec<usize>> {
+    check_animation_flags(args)?;
+    if args.scene.as_deref().is_some_and(rtsl_runtime::vrml::is_vrml_path) {
         // One load; the frames are times of its animation (`run_vrml`).
         return Ok(vec![0]);
     }
@@ -696,8 +709,13 @@ fn frame_indices(args: &RenderArgs) -> anyhow::Result<Vec<usize>> {
 /// Loads the image at `frame_index` of the scene and applies the flags to it.
 fn prepare(args: &RenderArgs, frame_index: usize) -> anyhow::Result<Prepared> {
     let options = rtsl_runtime::LoadOptions { vrml_surface: args.vrml_surface.clone() };
-    let (mut rt, mut loaded) =
+    let (rt, loaded) =
         load_scene_frame(args.scene.as_deref(), &args.shader_path, &args.include, frame_index, &options)?;
+    prepare_loaded(args, rt, loaded)
+}
+
+/// Applies the flags to a scene loaded (its warnings printed).
+fn prepare_loaded(args: &RenderArgs, mut rt: Context, mut loaded: LoadedScene) -> anyhow::Result<Prepared> {
     let mut vrml = loaded.vrml.take();
     if let Some(scene) = vrml.as_mut() {
         scene.advance_to(vrml_time(args, args.frame.or(args.frames.map(|(first, _)| first))), &mut rt)?;
@@ -828,21 +846,77 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
     } else {
         Renderer::local(threads, pool)
     };
-    let frames = frame_indices(args)?;
-    if args.watch && frames.len() > 1 {
-        anyhow::bail!("the scene has {} frames and --watch renders one: choose it with --frame", frames.len());
-    }
+    check_animation_flags(args)?;
     if args.watch && args.frames.is_some_and(|(a, b)| a != b) {
         anyhow::bail!("--watch renders one frame: choose it with --frame");
     }
     let vrml = args.scene.as_deref().is_some_and(rtsl_runtime::vrml::is_vrml_path);
     let status = if vrml && (args.frames.is_some() || args.frame.is_some()) && !args.watch {
         run_vrml(args, &mut renderer)?
+    } else if let Some(rib) = args.scene.as_deref().filter(|p| rtsl_runtime::is_rib_path(p) && !args.watch) {
+        run_rib_frames(args, rib, &mut renderer)?
     } else {
+        let frames = frame_indices(args)?;
+        if args.watch && frames.len() > 1 {
+            anyhow::bail!("the scene has {} frames and --watch renders one: choose it with --frame", frames.len());
+        }
         run_frames(args, &frames, &mut renderer)?
     };
     renderer.finish()?;
     Ok(status)
+}
+
+/// Renders a RIB file's frames (or the one `--frame` names) as the file is read, in one reading of
+/// it: each is loaded into a context of its own as soon as its last request is read, rendered and
+/// its images written before the file is read further.
+fn run_rib_frames(args: &RenderArgs, path: &Path, renderer: &mut Renderer) -> anyhow::Result<ExitCode> {
+    let mut missing = 0;
+    let mut rendered = false;
+    let mut written_paths = BTreeSet::new();
+    let images = rtsl_runtime::load_rib_frames(
+        path,
+        || new_context(&args.shader_path, &args.include),
+        |_, number| args.frame.is_none_or(|wanted| wanted == number),
+        |_, rt, loaded| -> anyhow::Result<ControlFlow<()>> {
+            rtsl_runtime::rib::report::write_diagnostics(&loaded.warnings, &mut super::color::stderr())?;
+            let number = loaded.frame_number;
+            let Prepared { mut rt, output, omissions, .. } = prepare_loaded(args, rt, loaded)?;
+            renderer.check_workers()?;
+            renderer.next_scene();
+            check_unwritten(&output, number, &mut written_paths)?;
+            let written = render_and_write(&mut rt, renderer, &output, args.quiet, true)?;
+            if !args.quiet {
+                renderer.summary(&rt, &output.path, &written.report);
+            }
+            missing += omissions + written.missing_textures;
+            rendered = true;
+            // `--frame` names one frame: the rest of the file is not read.
+            Ok(if args.frame.is_some() { ControlFlow::Break(()) } else { ControlFlow::Continue(()) })
+        },
+    )?;
+    rtsl_runtime::rib::report::write_diagnostics(&images.warnings, &mut super::color::stderr())?;
+    missing += images.warnings.iter().filter(|d| d.severity >= rtsl_runtime::rib::Severity::Omission).count();
+    if let (Some(wanted), false) = (args.frame, rendered) {
+        let known: Vec<String> = images.numbers.iter().map(i32::to_string).collect();
+        anyhow::bail!("there is no frame {wanted}; the scene's frames are {}", known.join(", "))
+    }
+    Ok(exit_status(missing, args.keep_going))
+}
+
+/// Refuses a frame whose images would overwrite an earlier frame's (a frame's displays may share
+/// a file, as EXR layers; another frame's may not), and notes them as written.
+fn check_unwritten(output: &Output, number: i32, written: &mut BTreeSet<PathBuf>) -> anyhow::Result<()> {
+    let this_frame: BTreeSet<PathBuf> = output.images().map(|(path, ..)| path.clone()).collect();
+    for path in &this_frame {
+        if !written.insert(path.clone()) {
+            anyhow::bail!(
+                "frame {number} would overwrite {} of an earlier frame: name the images with #f (as in \
+                 `-o frame.#4f.png`) or choose one frame with --frame",
+                path.display()
+            );
+        }
+    }
+    Ok(())
 }
 
 /// Renders the scene's frames at `frames` (indices into its frames) in turn, each loaded into a
@@ -855,18 +929,7 @@ fn run_frames(args: &RenderArgs, frames: &[usize], renderer: &mut Renderer) -> a
         let Prepared { mut rt, output, omissions, files, .. } = prepare(args, index)?;
         renderer.check_workers()?;
         renderer.next_scene();
-        // A frame's displays may share a file (EXR layers); another frame's may not.
-        let this_frame: BTreeSet<PathBuf> = output.images().map(|(path, ..)| path.clone()).collect();
-        for path in &this_frame {
-            if !written_paths.insert(path.clone()) {
-                anyhow::bail!(
-                    "frame {} would overwrite {} of an earlier frame: name the images with #f (as in \
-                     `-o frame.#4f.png`) or choose one frame with --frame",
-                    index + 1,
-                    path.display()
-                );
-            }
-        }
+        check_unwritten(&output, index as i32 + 1, &mut written_paths)?;
         let written = render_and_write(&mut rt, renderer, &output, args.quiet, true)?;
         if !args.quiet {
             renderer.summary(&rt, &output.path, &written.report);

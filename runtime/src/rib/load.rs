@@ -36,7 +36,9 @@ use super::mesh::MeshOptions;
 use super::primitive::{mesh_from_request_with, request_segments, request_triangles};
 use super::request::{Handle, Location, Orientation, Param, ParamValue as RibValue, Request, RequestKind};
 use super::view::{Projection, View};
-use super::{parse_bytes_into, parse_file_into, RibDiagnostic, RibParse, Severity, MAX_BLOCK_DEPTH, MAX_RIB_TRIANGLES};
+use super::{
+    parse_bytes_into, parse_file_into, RibDiagnostic, RibParse, RibSink, Severity, MAX_BLOCK_DEPTH, MAX_RIB_TRIANGLES,
+};
 use crate::api::{ApiError, AttributeParts, Context, InstanceId, LightId, ObjectId, SavedAttributes};
 use crate::csg::{Solid, SolidNode, SolidOp, SolidPart};
 use crate::geometry::{Deformation, Mesh};
@@ -46,6 +48,7 @@ use crate::shading::{ParamValue, ShaderProgram};
 use glam::{Affine3A, Mat4, Vec3};
 use rtsl_compiler::interface::BaseType;
 use std::collections::HashMap;
+use std::ops::{ControlFlow, Deref, DerefMut};
 use std::path::{Path, PathBuf};
 
 /// An image a `Display` request asks for.
@@ -201,6 +204,11 @@ impl Frames {
         owner
     }
 
+    /// Whether the last request taken was inside an image that has not ended.
+    pub fn open(&self) -> bool {
+        self.in_frame || self.in_world
+    }
+
     /// How many images: at least one (a stream with no world block is one empty image).
     pub fn count(&self) -> usize {
         self.numbers.len().max(1)
@@ -246,10 +254,10 @@ fn load_stream(
     rt: &mut Context,
     path: &Path,
     index: usize,
-    read: impl FnOnce(&mut dyn FnMut(Request)) -> Result<RibParse, SceneFileError>,
+    read: impl FnOnce(&mut dyn RibSink) -> Result<RibParse, SceneFileError>,
 ) -> Result<LoadedRib, SceneFileError> {
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-    let mut loader = Loader::new(rt, dir);
+    let mut loader = Loader::new(LoadInto::Borrowed(rt), dir);
     let mut frames = Frames::default();
     let mut mesh_files = Vec::new();
     // Whether this image's requests began, and ended.
@@ -274,10 +282,8 @@ fn load_stream(
             _ => {
                 began |= owner.is_some();
                 last = Some(r.loc.clone());
-                match loader.request(&r) {
-                    Ok(()) => {}
-                    Err(e @ SceneFileError::TooLarge { .. }) => fatal = Some(e),
-                    Err(e) => loader.omit(&r, e),
+                if let Err(e) = loader.load(&r) {
+                    fatal = Some(e);
                 }
             }
         }
@@ -292,35 +298,270 @@ fn load_stream(
             message: format!("there is no image {} (the file has {})", index + 1, frames.count()),
         });
     }
+    let mut files = parse.archives;
+    files.extend(mesh_files);
     // What reading the stream found comes first, as it did when the stream was read before it
     // was loaded.
-    let mut warnings = parse.diagnostics;
-    warnings.append(&mut loader.out.warnings);
-    loader.out.warnings = warnings;
-    loader.out.files = parse.archives;
-    loader.out.files.extend(mesh_files);
-    loader.out.frames = frames.count();
-    loader.out.frame_number = frames.number(index);
-    loader.flush()?;
-    if let Some(loc) = last {
-        loader.end_solids(&Request { kind: RequestKind::WorldEnd, loc })?;
+    let end = ImageEnd { read: parse.diagnostics, files, frames: frames.count(), number: frames.number(index), last };
+    loader.finish(end)?;
+    Ok(loader.out)
+}
+
+/// The most requests outside every image of a RIB stream that [`load_file_frames`] keeps to
+/// repeat for the images after them (options, the camera, displays: a few dozen in a real stream).
+/// Past it the rest are not repeated, an omission each image after them reports.
+pub const MAX_SHARED_REQUESTS: usize = 1 << 16;
+
+/// An image of a RIB file, loaded by [`load_file_frames`] into a context of its own.
+pub struct RibImage {
+    /// Its place among the file's images, counting from 0 (see [`Frames`]).
+    pub index: usize,
+    /// The context it was loaded into.
+    pub rt: Context,
+    /// What loading it found. Its `warnings` begin with what reading the stream found since the
+    /// image before it that was loaded (its own part, images skipped and the requests between);
+    /// its `frames` counts the images read so far, its `files` the files read so far.
+    pub loaded: LoadedRib,
+}
+
+/// What [`load_file_frames`] read besides the images it handed over.
+#[derive(Debug, Default)]
+pub struct RibImages {
+    /// The numbers of the images read, in order (every image of the file, unless the reading was
+    /// stopped): their `FrameBegin` numbers, or their places counting from 1.
+    pub numbers: Vec<i32>,
+    /// What reading found after the last image loaded.
+    pub warnings: Vec<RibDiagnostic>,
+}
+
+/// Reads a RIB file once, loading each image it asks for (see [`Frames`]) that `wanted` takes (by
+/// its index and number) into a context of its own (`new_context`'s), and handing it to `each` as
+/// soon as its last request is read: a file of many frames is read in one pass, in memory bounded
+/// by its largest image, rather than once for each. Each image is loaded from the requests that
+/// [`load_file_frame`] of it would load: the requests outside every image before it (at most
+/// [`MAX_SHARED_REQUESTS`] of them), then its own. `each` may stop the reading (`Break`); its
+/// error stops it and is returned, as is an image too large to load.
+pub fn load_file_frames<E: From<SceneFileError>>(
+    path: impl AsRef<Path>,
+    mut new_context: impl FnMut() -> Context,
+    mut wanted: impl FnMut(usize, i32) -> bool,
+    mut each: impl FnMut(RibImage) -> Result<ControlFlow<()>, E>,
+) -> Result<RibImages, E> {
+    let path = path.as_ref();
+    let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    // The first image's loader takes the requests before it as they come.
+    let first = Loader::new(LoadInto::Owned(Box::new(new_context())), dir.clone());
+    let mut reader = ImageReader {
+        dir,
+        frames: Frames::default(),
+        shared: Vec::new(),
+        shared_left_out: None,
+        loader: Some(first),
+        current: None,
+        read: Vec::new(),
+        files: Vec::new(),
+        last: None,
+        error: None,
+        new_context: &mut new_context,
+        wanted: &mut wanted,
+        each: &mut each,
+    };
+    let unreadable = |e: super::RibError| SceneFileError::Rib { path: path.to_path_buf(), message: e.message };
+    parse_file_into(path, &mut reader).map_err(unreadable)?;
+    if reader.error.is_none() {
+        reader.end_of_stream();
     }
-    let number = loader.out.frame_number;
-    for d in &mut loader.out.displays {
-        d.name = PathBuf::from(expand_display_name(&d.name.to_string_lossy(), number));
+    if let Some(e) = reader.error {
+        return Err(e);
     }
-    loader.out.display = loader.out.displays.iter().find(|d| !d.window).map(|d| d.name.clone());
-    // Area lights emit from the geometry that followed them (gathered in world space).
-    let area_meshes = std::mem::take(&mut loader.area_meshes);
-    loader.rt.push_matrix();
-    loader.rt.load_identity();
-    for (light, meshes) in area_meshes {
-        for m in &meshes {
-            loader.rt.area_light_geometry(LightId(light), m)?;
+    let numbers = (0..reader.frames.numbers.len()).map(|i| reader.frames.number(i)).collect();
+    Ok(RibImages { numbers, warnings: reader.read })
+}
+
+/// The sink of [`load_file_frames`]: loads the images it is asked for as their requests come.
+struct ImageReader<'f, E> {
+    dir: PathBuf,
+    frames: Frames,
+    /// The requests outside every image so far (at most [`MAX_SHARED_REQUESTS`]).
+    shared: Vec<Request>,
+    /// The first of them not kept, and how many were not.
+    shared_left_out: Option<(Location, usize)>,
+    /// The loader of the image being read, when it is wanted (or of the first image, before it).
+    loader: Option<Loader<'static>>,
+    /// The image being read.
+    current: Option<usize>,
+    /// What reading found since the last image handed over.
+    read: Vec<RibDiagnostic>,
+    /// The archives and mesh files read so far.
+    files: Vec<PathBuf>,
+    /// The last request the loader took.
+    last: Option<Location>,
+    error: Option<E>,
+    new_context: &'f mut dyn FnMut() -> Context,
+    wanted: &'f mut dyn FnMut(usize, i32) -> bool,
+    each: &'f mut dyn FnMut(RibImage) -> Result<ControlFlow<()>, E>,
+}
+
+impl<E: From<SceneFileError>> ImageReader<'_, E> {
+    /// Image `index` begins: its loader, with the requests before it, if it is wanted.
+    fn begin(&mut self, index: usize) -> Result<(), SceneFileError> {
+        self.current = Some(index);
+        if !(self.wanted)(index, self.frames.number(index)) {
+            self.loader = None;
+            return Ok(());
+        }
+        if self.loader.is_some() {
+            return Ok(());
+        }
+        let mut loader = Loader::new(LoadInto::Owned(Box::new((self.new_context)())), self.dir.clone());
+        for r in &self.shared {
+            loader.load(r)?;
+        }
+        if let Some((at, count)) = &self.shared_left_out {
+            let message = format!(
+                "{count} requests outside the frames, from here on, are not repeated for the frames after them (more \
+                 than {MAX_SHARED_REQUESTS})"
+            );
+            loader.out.warnings.push(RibDiagnostic::omission(at, message));
+        }
+        self.loader = Some(loader);
+        Ok(())
+    }
+
+    /// The image being read ended: hands it over if it was loaded.
+    fn end(&mut self) -> ControlFlow<()> {
+        let (Some(index), Some(mut loader)) = (self.current.take(), self.loader.take()) else {
+            return ControlFlow::Continue(());
+        };
+        let end = ImageEnd {
+            read: std::mem::take(&mut self.read),
+            files: self.files.clone(),
+            frames: self.frames.count(),
+            number: self.frames.number(index),
+            last: self.last.take(),
+        };
+        if let Err(e) = loader.finish(end) {
+            self.error = Some(e.into());
+            return ControlFlow::Break(());
+        }
+        let Loader { rt, out, .. } = loader;
+        let rt = match rt {
+            LoadInto::Owned(rt) => *rt,
+            LoadInto::Borrowed(_) => unreachable!("an image reader's loaders own their contexts"),
+        };
+        match (self.each)(RibImage { index, rt, loaded: out }) {
+            Ok(flow) => flow,
+            Err(e) => {
+                self.error = Some(e);
+                ControlFlow::Break(())
+            }
         }
     }
-    loader.rt.pop_matrix()?;
-    Ok(loader.out)
+
+    /// The stream ended: an image left open ends with it, and a stream with no image is one, made
+    /// of its requests.
+    fn end_of_stream(&mut self) {
+        if self.frames.numbers.is_empty() {
+            self.current = Some(0);
+            if !(self.wanted)(0, self.frames.number(0)) {
+                return;
+            }
+        }
+        let _ = self.end();
+    }
+}
+
+impl<E: From<SceneFileError>> RibSink for ImageReader<'_, E> {
+    fn request(&mut self, r: Request) -> ControlFlow<()> {
+        if let RequestKind::MeshArchive(path) = &r.kind {
+            self.files.push(path.clone());
+        }
+        let Some(index) = self.frames.add(&r) else {
+            // Before the first image, its loader takes the request now.
+            if let (Some(loader), None) = (&mut self.loader, self.current) {
+                if let Err(e) = loader.load(&r) {
+                    self.error = Some(e.into());
+                    return ControlFlow::Break(());
+                }
+            }
+            if self.shared.len() < MAX_SHARED_REQUESTS {
+                self.shared.push(r);
+            } else {
+                let left_out = self.shared_left_out.get_or_insert_with(|| (r.loc.clone(), 0));
+                left_out.1 += 1;
+            }
+            return ControlFlow::Continue(());
+        };
+        if self.current != Some(index) {
+            if let Err(e) = self.begin(index) {
+                self.error = Some(e.into());
+                return ControlFlow::Break(());
+            }
+        }
+        if let Some(loader) = &mut self.loader {
+            self.last = Some(r.loc.clone());
+            if let Err(e) = loader.load(&r) {
+                self.error = Some(e.into());
+                return ControlFlow::Break(());
+            }
+        }
+        if self.frames.open() {
+            return ControlFlow::Continue(());
+        }
+        self.end()
+    }
+
+    fn takes_diagnostics(&self) -> bool {
+        true
+    }
+
+    fn diagnostic(&mut self, diagnostic: RibDiagnostic) {
+        self.read.push(diagnostic);
+    }
+
+    fn archive(&mut self, path: &Path) {
+        self.files.push(path.to_path_buf());
+    }
+}
+
+/// What an image's loading is finished with (`Loader::finish`).
+struct ImageEnd {
+    /// What reading the stream found (it comes before what loading found).
+    read: Vec<RibDiagnostic>,
+    /// The archives and mesh files read.
+    files: Vec<PathBuf>,
+    /// How many images the stream has (so far).
+    frames: usize,
+    /// The image's number.
+    number: i32,
+    /// The last request loaded.
+    last: Option<Location>,
+}
+
+/// The context a [`Loader`] loads into: its caller's, or its own (an image of
+/// [`load_file_frames`]).
+enum LoadInto<'a> {
+    Borrowed(&'a mut Context),
+    Owned(Box<Context>),
+}
+
+impl Deref for LoadInto<'_> {
+    type Target = Context;
+    fn deref(&self) -> &Context {
+        match self {
+            LoadInto::Borrowed(rt) => rt,
+            LoadInto::Owned(rt) => rt,
+        }
+    }
+}
+
+impl DerefMut for LoadInto<'_> {
+    fn deref_mut(&mut self) -> &mut Context {
+        match self {
+            LoadInto::Borrowed(rt) => rt,
+            LoadInto::Owned(rt) => rt,
+        }
+    }
 }
 
 #[derive(Clone, Default)]
@@ -342,7 +583,7 @@ struct State {
 }
 
 struct Loader<'a> {
-    rt: &'a mut Context,
+    rt: LoadInto<'a>,
     dir: PathBuf,
     out: LoadedRib,
     state: State,
@@ -419,7 +660,7 @@ struct OpenSolid {
 }
 
 impl<'a> Loader<'a> {
-    fn new(rt: &'a mut Context, dir: PathBuf) -> Loader<'a> {
+    fn new(mut rt: LoadInto<'a>, dir: PathBuf) -> Loader<'a> {
         rt.add_texture_search_path(dir.clone());
         // Shaders beside the file are found, as Aqsis's default search path begins with "." (the
         // directory a scene is rendered from): after the directories the application gave, before
@@ -459,6 +700,50 @@ impl<'a> Loader<'a> {
             solids: Vec::new(),
             solid_nodes: Vec::new(),
         }
+    }
+
+    /// Loads one request of a stream: what cannot be loaded is an omission, and only an image too
+    /// large to load is an error.
+    fn load(&mut self, r: &Request) -> Result<(), SceneFileError> {
+        match self.request(r) {
+            Ok(()) => Ok(()),
+            Err(e @ SceneFileError::TooLarge { .. }) => Err(e),
+            Err(e) => {
+                self.omit(r, e);
+                Ok(())
+            }
+        }
+    }
+
+    /// Finishes loading an image: what is still gathered is added, displays are named for the
+    /// frame, and area lights get the geometry that followed them.
+    fn finish(&mut self, end: ImageEnd) -> Result<(), SceneFileError> {
+        let mut warnings = end.read;
+        warnings.append(&mut self.out.warnings);
+        self.out.warnings = warnings;
+        self.out.files = end.files;
+        self.out.frames = end.frames;
+        self.out.frame_number = end.number;
+        self.flush()?;
+        if let Some(loc) = end.last {
+            self.end_solids(&Request { kind: RequestKind::WorldEnd, loc })?;
+        }
+        let number = self.out.frame_number;
+        for d in &mut self.out.displays {
+            d.name = PathBuf::from(expand_display_name(&d.name.to_string_lossy(), number));
+        }
+        self.out.display = self.out.displays.iter().find(|d| !d.window).map(|d| d.name.clone());
+        // Area lights emit from the geometry that followed them (gathered in world space).
+        let area_meshes = std::mem::take(&mut self.area_meshes);
+        self.rt.push_matrix();
+        self.rt.load_identity();
+        for (light, meshes) in area_meshes {
+            for m in &meshes {
+                self.rt.area_light_geometry(LightId(light), m)?;
+            }
+        }
+        self.rt.pop_matrix()?;
+        Ok(())
     }
 
     fn warn(&mut self, r: &Request, message: impl std::fmt::Display) {
@@ -1136,14 +1421,15 @@ impl<'a> Loader<'a> {
             K::MeshArchive(path) => match self.retained.clone() {
                 None => {
                     self.flush()?;
-                    add_model_file(self.rt, path)?;
+                    add_model_file(&mut self.rt, path)?;
                 }
                 Some((handle, frame)) => {
                     // The file's objects join the retained one; the block's own geometry goes on
                     // into a fresh object, whatever became of the file.
                     self.rt.end_object()?;
                     let mut ids = Vec::new();
-                    let added = add_model_file_placed(self.rt, path, Placement::Retained { frame, objects: &mut ids });
+                    let added =
+                        add_model_file_placed(&mut self.rt, path, Placement::Retained { frame, objects: &mut ids });
                     ids.push(self.rt.begin_object_in(frame)?);
                     self.objects.entry(handle).or_default().extend(ids);
                     added?;
@@ -1736,6 +2022,106 @@ mod tests {
         assert!(first.warnings.iter().all(|w| !w.message.contains("MakeShadow")), "{:?}", first.warnings);
         let second = load_file_frame(&mut Context::new(), &path, 1).expect("frame 2");
         assert_eq!(names(&second), vec![PathBuf::from("beauty.tif")]);
+    }
+
+    /// A file's images read in one pass (`load_file_frames`) are those loaded one at a time
+    /// (`load_file_frame`): the same picture bit for bit, displays, numbers and loading warnings,
+    /// with requests between the frames (a format, a camera move, a display) applying to the
+    /// frames after them, and a world block outside any frame. A syntax error is reported with
+    /// its own image only.
+    #[test]
+    fn images_read_in_one_pass_are_those_loaded_one_at_a_time() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let rib = "Format 16 12 1\nProjection \"perspective\" \"fov\" 40\n\
+            FrameBegin 3\nDisplay \"a.#f.exr\" \"file\" \"rgba\"\nTranslate 0 0 4\nWorldBegin\n\
+            LightSource \"pointlight\" 1 \"from\" [1 1 -2] \"intensity\" [4]\nSurface \"plastic\"\n\
+            Sphere 1 -1 1 360\nSurface \"no_such_shader\"\nWorldEnd\nFrameEnd\n\
+            Format 20 10 1\nTranslate 0.3 0 0\n\
+            FrameBegin 7\nDisplay \"b.#f.exr\" \"file\" \"rgba\"\nTranslate 0 0 5\nWorldBegin\n\
+            Color [1 0 0]\nTranslate 0 [1\nPolygon \"P\" [-1 -1 0  1 -1 0  1 1 0  -1 1 0]\nWorldEnd\nFrameEnd\n\
+            Translate 0 0 3\nWorldBegin\nSphere 0.5 -0.5 0.5 360\nWorldEnd\n";
+        let path = dir.path().join("frames.rib");
+        std::fs::write(&path, rib).expect("write");
+        let picture = |rt: &mut Context| {
+            let world = rt.build_world().expect("a world");
+            crate::render::render_frame(&world, None).0.rgba.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+        };
+        let loading = |loaded: &LoadedRib| {
+            let warnings: Vec<String> = loaded
+                .warnings
+                .iter()
+                .filter(|w| w.severity != Severity::Error)
+                .map(|w| format!("{}:{} {}", w.loc.line, w.loc.column, w.message))
+                .collect();
+            (loaded.displays.clone(), loaded.frame_number, warnings)
+        };
+        let mut one_pass = Vec::new();
+        let images = load_file_frames(
+            &path,
+            Context::new,
+            |_, _| true,
+            |mut image: RibImage| -> Result<ControlFlow<()>, SceneFileError> {
+                let errors = image.loaded.errors();
+                one_pass.push((image.index, picture(&mut image.rt), loading(&image.loaded), errors));
+                Ok(ControlFlow::Continue(()))
+            },
+        )
+        .expect("the file reads");
+        assert_eq!(images.numbers, vec![3, 7, 3]);
+        assert!(images.warnings.is_empty(), "{:?}", images.warnings);
+        assert_eq!(one_pass.len(), 3);
+        for (index, picture_read_once, loaded_read_once, errors) in one_pass {
+            let mut rt = Context::new();
+            let alone = load_file_frame(&mut rt, &path, index).expect("the image loads");
+            assert_eq!(loading(&alone), loaded_read_once, "image {index}");
+            assert!(picture(&mut rt) == picture_read_once, "image {index}'s picture");
+            assert_eq!(errors, usize::from(index == 1), "image {index}'s syntax errors");
+        }
+
+        // One image asked for: the file is read up to its end, no further.
+        let mut loaded = Vec::new();
+        let images = load_file_frames(
+            &path,
+            Context::new,
+            |_, number| number == 7,
+            |image: RibImage| -> Result<ControlFlow<()>, SceneFileError> {
+                loaded.push((image.index, image.loaded.frame_number, image.loaded.errors()));
+                Ok(ControlFlow::Break(()))
+            },
+        )
+        .expect("the file reads");
+        assert_eq!(loaded, vec![(1, 7, 1)]);
+        assert_eq!(images.numbers, vec![3, 7]);
+    }
+
+    /// Requests outside the frames past `MAX_SHARED_REQUESTS` still reach the first image (its
+    /// loader takes them as they come), and are an omission for the images after it.
+    #[test]
+    fn shared_requests_past_the_limit_are_an_omission_for_later_images() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let mut rib = "Translate 0 0 1\n".repeat(MAX_SHARED_REQUESTS + 2);
+        rib.push_str("FrameBegin 1\nWorldBegin\nSphere 1 -1 1 360\nWorldEnd\nFrameEnd\n".repeat(2).as_str());
+        let path = dir.path().join("long.rib");
+        std::fs::write(&path, rib).expect("write");
+        let mut omissions = Vec::new();
+        load_file_frames(
+            &path,
+            Context::new,
+            |_, _| true,
+            |image: RibImage| -> Result<ControlFlow<()>, SceneFileError> {
+                let lines: Vec<u32> = image
+                    .loaded
+                    .warnings
+                    .iter()
+                    .filter(|w| w.severity == Severity::Omission)
+                    .map(|w| w.loc.line)
+                    .collect();
+                omissions.push(lines);
+                Ok(ControlFlow::Continue(()))
+            },
+        )
+        .expect("the file reads");
+        assert_eq!(omissions, vec![vec![], vec![MAX_SHARED_REQUESTS as u32 + 1]]);
     }
 
     /// A stream read request by request hands its sink the requests that reading it whole keeps,

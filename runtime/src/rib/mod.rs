@@ -172,11 +172,34 @@ pub fn parse_bytes(bytes: &[u8], file_name: &Path) -> RibParse {
     read_stream(parse::Parser::new(), bytes, file_name)
 }
 
+/// Where a streamed read ([`parse_bytes_into`], [`parse_file_into`]) puts what it reads, in
+/// stream order. Any `FnMut(Request)` is one that takes every request and no diagnostics.
+pub trait RibSink {
+    /// The next request; `Break` stops the reading (nothing more is read or reported).
+    fn request(&mut self, request: Request) -> std::ops::ControlFlow<()>;
+    /// Whether diagnostics go to [`RibSink::diagnostic`] as they arise rather than into the
+    /// result: a diagnostic then comes before the requests read after it.
+    fn takes_diagnostics(&self) -> bool {
+        false
+    }
+    /// A diagnostic, when the sink takes them.
+    fn diagnostic(&mut self, _diagnostic: RibDiagnostic) {}
+    /// A RIB archive file about to be read (its canonical path).
+    fn archive(&mut self, _path: &Path) {}
+}
+
+impl<F: FnMut(Request)> RibSink for F {
+    fn request(&mut self, request: Request) -> std::ops::ControlFlow<()> {
+        self(request);
+        std::ops::ControlFlow::Continue(())
+    }
+}
+
 /// [`parse_bytes`] handing each request to `sink` as it is read, in stream order, rather than
 /// keeping them: a stream is then read in memory proportional to its largest request (and its
-/// inline archives), not to its length. The result holds the diagnostics and the archives read,
-/// no requests.
-pub fn parse_bytes_into(bytes: &[u8], file_name: &Path, sink: &mut dyn FnMut(Request)) -> RibParse {
+/// inline archives), not to its length. The result holds the diagnostics (those the sink does
+/// not take) and the archives read, no requests.
+pub fn parse_bytes_into(bytes: &[u8], file_name: &Path, sink: &mut dyn RibSink) -> RibParse {
     read_stream(parse::Parser::with_sink(sink), bytes, file_name)
 }
 
@@ -195,7 +218,7 @@ pub fn parse_file(path: impl AsRef<Path>) -> Result<RibParse, RibError> {
 }
 
 /// [`parse_file`] handing each request to `sink` as it is read ([`parse_bytes_into`]).
-pub fn parse_file_into(path: impl AsRef<Path>, sink: &mut dyn FnMut(Request)) -> Result<RibParse, RibError> {
+pub fn parse_file_into(path: impl AsRef<Path>, sink: &mut dyn RibSink) -> Result<RibParse, RibError> {
     let path = path.as_ref();
     Ok(parse_bytes_into(&read_file(path)?, path, sink))
 }

@@ -17,7 +17,7 @@ use super::request::{
     Basis, CurveType, Handle, Location, NuDirection, Orientation, Param, ParamValue, PatchType, Request,
     RequestKind as K, Shader, TrimCurve, Wrap,
 };
-use super::{base_dir, RibDiagnostic, RibParse, MAX_ARCHIVE_DEPTH};
+use super::{base_dir, RibDiagnostic, RibParse, RibSink, MAX_ARCHIVE_DEPTH};
 use crate::geometry::quadric::Quadric;
 use glam::Vec3;
 
@@ -73,7 +73,9 @@ pub(super) struct Parser<'s> {
     requests: Vec<Request>,
     /// Where the requests go as they are read (outside inline archive definitions), so that a
     /// stream need not be held whole.
-    sink: Option<&'s mut dyn FnMut(Request)>,
+    sink: Option<&'s mut dyn RibSink>,
+    /// Whether the sink asked for no more requests.
+    stopped: bool,
     diagnostics: Vec<RibDiagnostic>,
     /// Canonical paths of the archives read, in order.
     archives: Vec<PathBuf>,
@@ -255,6 +257,7 @@ impl<'s> Parser<'s> {
             decls: DeclTable::new(),
             requests: Vec::new(),
             sink: None,
+            stopped: false,
             diagnostics: Vec::new(),
             archives: Vec::new(),
             inline_archives: HashMap::new(),
@@ -274,8 +277,16 @@ impl<'s> Parser<'s> {
 
     /// A parser that hands each request to `sink` as it is read (its [`Parser::finish`] then holds
     /// no requests).
-    pub(super) fn with_sink(sink: &'s mut dyn FnMut(Request)) -> Self {
+    pub(super) fn with_sink(sink: &'s mut dyn RibSink) -> Self {
         Parser { sink: Some(sink), ..Parser::new() }
+    }
+
+    /// Reports a diagnostic: to the sink, when it takes them, else into the result.
+    fn diagnose(&mut self, d: RibDiagnostic) {
+        match &mut self.sink {
+            Some(sink) if sink.takes_diagnostics() => sink.diagnostic(d),
+            _ => self.diagnostics.push(d),
+        }
     }
 
     pub(super) fn finish(self) -> RibParse {
@@ -294,7 +305,7 @@ impl<'s> Parser<'s> {
                 }
                 Err(message) => {
                     let loc = Location { file, line: 1, column: 1 };
-                    self.diagnostics.push(error(&loc, message));
+                    self.diagnose(error(&loc, message));
                     return;
                 }
             }
@@ -307,6 +318,9 @@ impl<'s> Parser<'s> {
         // One request's tokens at a time (`lex::tokens`).
         let mut tokens = tokens(bytes).peekable();
         while let Some(token) = tokens.next() {
+            if self.stopped {
+                return;
+            }
             let loc = location(&file, &token);
             let TokenKind::Name(name) = token.kind else {
                 let message = match token.kind {
@@ -316,20 +330,20 @@ impl<'s> Parser<'s> {
                     TokenKind::OpenBracket => "expected a request name, found `[`".into(),
                     _ => "expected a request name, found `]`".into(),
                 };
-                self.diagnostics.push(error(&loc, message));
+                self.diagnose(error(&loc, message));
                 while tokens.next_if(|t| !is_name(t)).is_some() {}
                 continue;
             };
             match collect_args(&mut tokens, &file) {
                 Ok(args) => self.request(&name, loc, &args),
-                Err(diagnostic) => self.diagnostics.push(diagnostic),
+                Err(diagnostic) => self.diagnose(diagnostic),
             }
         }
         // An inline archive still open at the end of its file ends there.
         while self.open_archives.len() > archives_open_before {
             if let Some((name, _, _, loc)) = self.open_archives.last() {
                 let message = format!("`ArchiveBegin \"{name}\"` has no `ArchiveEnd`; the archive ends with the file");
-                self.diagnostics.push(RibDiagnostic::warning(loc, message));
+                self.diagnose(RibDiagnostic::warning(loc, message));
             }
             self.end_archive();
         }
@@ -349,7 +363,7 @@ impl<'s> Parser<'s> {
             "System" => {
                 let message = "`System` runs a program the scene names, which rtsl does not do; what it would \
                                make is missing";
-                self.diagnostics.push(RibDiagnostic::omission(&loc, message));
+                self.diagnose(RibDiagnostic::omission(&loc, message));
                 Ok(())
             }
             "ArchiveBegin" => self.begin_archive(&loc, args),
@@ -365,7 +379,7 @@ impl<'s> Parser<'s> {
             }
         };
         if let Err(diagnostic) = result {
-            self.diagnostics.push(diagnostic);
+            self.diagnose(diagnostic);
         }
     }
 
@@ -397,7 +411,7 @@ impl<'s> Parser<'s> {
             }
             Ok(None) if IGNORED_REQUESTS.contains(&name) => {
                 let message = format!("`{name}` has no effect in rtsl and is ignored");
-                self.diagnostics.push(RibDiagnostic::warning(&loc, message));
+                self.diagnose(RibDiagnostic::warning(&loc, message));
             }
             Ok(None) => {
                 let message = if UNSUPPORTED_REQUESTS.contains(&name) {
@@ -405,9 +419,9 @@ impl<'s> Parser<'s> {
                 } else {
                     format!("unknown request `{name}` skipped")
                 };
-                self.diagnostics.push(RibDiagnostic::omission(&loc, message));
+                self.diagnose(RibDiagnostic::omission(&loc, message));
             }
-            Err(diagnostic) => self.diagnostics.push(diagnostic),
+            Err(diagnostic) => self.diagnose(diagnostic),
         }
     }
 
@@ -709,7 +723,7 @@ impl<'s> Parser<'s> {
                 };
                 let message = "`MakeBump` is obsolete (RISpec 3.2's shading language reads no bump map): the \
                                map is made as a texture, which a displacement shader reads with `texture()`";
-                self.diagnostics.push(RibDiagnostic::warning(a.loc, message));
+                self.diagnose(RibDiagnostic::warning(a.loc, message));
                 kind
             }
             "MakeTexture" => K::MakeTexture {
@@ -744,11 +758,11 @@ impl<'s> Parser<'s> {
             K::ElseIf(expr) => self.else_if(expr, &r.loc),
             K::Else => self.else_branch(&r.loc),
             K::IfEnd => self.if_end(&r.loc),
-            _ if self.skipping() => {}
+            _ if self.skipping() || self.stopped => {}
             kind => {
                 self.vars.track(kind);
                 match &mut self.sink {
-                    Some(sink) => sink(r),
+                    Some(sink) => self.stopped = sink.request(r).is_break(),
                     None => self.requests.push(r),
                 }
             }
@@ -766,11 +780,11 @@ impl<'s> Parser<'s> {
         match cond::evaluate(expr, &|name| vars.lookup(name), &mut self.condition_work) {
             Ok(value) => value,
             Err(e @ CondError::Undefined(_)) => {
-                self.diagnostics.push(RibDiagnostic::warning(loc, format!("condition \"{expr}\": {e}; it is false")));
+                self.diagnose(RibDiagnostic::warning(loc, format!("condition \"{expr}\": {e}; it is false")));
                 false
             }
             Err(e) => {
-                self.diagnostics.push(error(loc, format!("condition \"{expr}\": {e}; it is false")));
+                self.diagnose(error(loc, format!("condition \"{expr}\": {e}; it is false")));
                 false
             }
         }
@@ -787,7 +801,7 @@ impl<'s> Parser<'s> {
         }
         if self.branches.len() >= MAX_IF_DEPTH {
             let message = format!("`IfBegin` blocks nest deeper than {MAX_IF_DEPTH}; this block is skipped");
-            self.diagnostics.push(error(loc, message));
+            self.diagnose(error(loc, message));
             self.branches_too_deep = 1;
             return;
         }
@@ -800,7 +814,7 @@ impl<'s> Parser<'s> {
         if self.branches.len() > self.branches_floor {
             Some(self.branches.len() - 1)
         } else {
-            self.diagnostics.push(error(loc, format!("`{request}` without `IfBegin`")));
+            self.diagnose(error(loc, format!("`{request}` without `IfBegin`")));
             None
         }
     }
@@ -811,7 +825,7 @@ impl<'s> Parser<'s> {
         }
         let Some(i) = self.open_branch("ElseIf", loc) else { return };
         if self.branches[i].had_else {
-            self.diagnostics.push(error(loc, "`ElseIf` after `Else`; its branch is skipped"));
+            self.diagnose(error(loc, "`ElseIf` after `Else`; its branch is skipped"));
             self.branches[i].active = false;
         } else if self.branches[i].done {
             self.branches[i].active = false;
@@ -829,7 +843,7 @@ impl<'s> Parser<'s> {
         let Some(i) = self.open_branch("Else", loc) else { return };
         let branch = &mut self.branches[i];
         if branch.had_else {
-            self.diagnostics.push(error(loc, "a second `Else` in one `IfBegin` block; its branch is skipped"));
+            self.diagnose(error(loc, "a second `Else` in one `IfBegin` block; its branch is skipped"));
             self.branches[i].active = false;
             return;
         }
@@ -853,7 +867,7 @@ impl<'s> Parser<'s> {
         while self.branches.len() > self.branches_floor {
             if let Some(b) = self.branches.pop() {
                 let message = format!("`IfBegin` has no `IfEnd`; the block ends with {what}");
-                self.diagnostics.push(RibDiagnostic::warning(&b.loc, message));
+                self.diagnose(RibDiagnostic::warning(&b.loc, message));
             }
         }
     }
@@ -921,7 +935,7 @@ impl<'s> Parser<'s> {
         let mut params = Vec::new();
         while let Some(name_arg) = a.items.get(a.pos) {
             let ArgValue::Str(written) = &name_arg.value else {
-                self.diagnostics.push(error(
+                self.diagnose(error(
                     &name_arg.loc,
                     format!(
                         "expected a parameter name (a string) in `{}`'s parameter list, found {}",
@@ -933,7 +947,7 @@ impl<'s> Parser<'s> {
                 break;
             };
             let Some(value_arg) = a.items.get(a.pos + 1) else {
-                self.diagnostics.push(error(&name_arg.loc, format!("parameter \"{written}\" has no value")));
+                self.diagnose(error(&name_arg.loc, format!("parameter \"{written}\" has no value")));
                 a.pos = a.items.len();
                 break;
             };
@@ -950,7 +964,7 @@ impl<'s> Parser<'s> {
             match decl::parse_inline(written) {
                 Ok(found) => found,
                 Err(message) => {
-                    self.diagnostics.push(error(loc, message));
+                    self.diagnose(error(loc, message));
                     return None;
                 }
             }
@@ -971,7 +985,7 @@ impl<'s> Parser<'s> {
         match converted {
             Ok(value) => Some(Param { name, decl, value, loc: loc.clone() }),
             Err(message) => {
-                self.diagnostics.push(error(&value.loc, format!("parameter \"{name}\" ({decl}): {message}")));
+                self.diagnose(error(&value.loc, format!("parameter \"{name}\" ({decl}): {message}")));
                 None
             }
         }
@@ -1066,7 +1080,7 @@ impl<'s> Parser<'s> {
                     "`Procedural \"{kind}\"` runs code the scene names, which rtsl does not do; what it would make \
                      is missing"
                 );
-                self.diagnostics.push(RibDiagnostic::omission(loc, message));
+                self.diagnose(RibDiagnostic::omission(loc, message));
                 Ok(())
             }
             other => Err(error(
@@ -1090,6 +1104,9 @@ impl<'s> Parser<'s> {
             let floor = std::mem::replace(&mut self.branches_floor, self.branches.len());
             let too_deep = std::mem::take(&mut self.branches_too_deep);
             for r in requests.iter() {
+                if self.stopped {
+                    break;
+                }
                 self.push(r.clone());
             }
             self.close_branches(&format!("the inline archive \"{name}\""));
@@ -1114,6 +1131,9 @@ impl<'s> Parser<'s> {
             return Err(error(loc, format!("archive \"{}\" includes itself (a ReadArchive cycle)", path.display())));
         }
         let bytes = std::fs::read(&canonical).map_err(unreadable)?;
+        if let Some(sink) = &mut self.sink {
+            sink.archive(&canonical);
+        }
         self.archives.push(canonical.clone());
         self.include_stack.push(canonical);
         self.depth += 1;
