@@ -343,11 +343,40 @@ pub struct RibImages {
 /// error stops it and is returned, as is an image too large to load.
 pub fn load_file_frames<E: From<SceneFileError>>(
     path: impl AsRef<Path>,
+    new_context: impl FnMut() -> Context,
+    wanted: impl FnMut(usize, i32) -> bool,
+    each: impl FnMut(RibImage) -> Result<ControlFlow<()>, E>,
+) -> Result<RibImages, E> {
+    let path = path.as_ref();
+    let unreadable = |e: super::RibError| SceneFileError::Rib { path: path.to_path_buf(), message: e.message };
+    load_images(path, |sink| parse_file_into(path, sink).map(|_| ()).map_err(unreadable), new_context, wanted, each)
+}
+
+/// [`load_file_frames`] of RIB text; `name` names it in messages and its directory resolves
+/// relative paths.
+pub fn load_str_frames<E: From<SceneFileError>>(
+    text: &str,
+    name: impl AsRef<Path>,
+    new_context: impl FnMut() -> Context,
+    wanted: impl FnMut(usize, i32) -> bool,
+    each: impl FnMut(RibImage) -> Result<ControlFlow<()>, E>,
+) -> Result<RibImages, E> {
+    let name = name.as_ref();
+    let read = |sink: &mut dyn RibSink| {
+        parse_bytes_into(text.as_bytes(), name, sink);
+        Ok(())
+    };
+    load_images(name, read, new_context, wanted, each)
+}
+
+/// [`load_file_frames`] of the stream `read` reads (named `path`).
+fn load_images<E: From<SceneFileError>>(
+    path: &Path,
+    read: impl FnOnce(&mut dyn RibSink) -> Result<(), SceneFileError>,
     mut new_context: impl FnMut() -> Context,
     mut wanted: impl FnMut(usize, i32) -> bool,
     mut each: impl FnMut(RibImage) -> Result<ControlFlow<()>, E>,
 ) -> Result<RibImages, E> {
-    let path = path.as_ref();
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     // The first image's loader takes the requests before it as they come.
     let first = Loader::new(LoadInto::Owned(Box::new(new_context())), dir.clone());
@@ -366,8 +395,7 @@ pub fn load_file_frames<E: From<SceneFileError>>(
         wanted: &mut wanted,
         each: &mut each,
     };
-    let unreadable = |e: super::RibError| SceneFileError::Rib { path: path.to_path_buf(), message: e.message };
-    parse_file_into(path, &mut reader).map_err(unreadable)?;
+    read(&mut reader)?;
     if reader.error.is_none() {
         reader.end_of_stream();
     }
