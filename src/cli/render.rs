@@ -868,14 +868,20 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
 
 /// Renders a RIB file's frames (or the one `--frame` names) as the file is read, in one reading of
 /// it: each is loaded into a context of its own as soon as its last request is read, rendered and
-/// its images written before the file is read further.
+/// its images written before the file is read further. The contexts share their compiled shaders.
 fn run_rib_frames(args: &RenderArgs, path: &Path, renderer: &mut Renderer) -> anyhow::Result<ExitCode> {
     let mut missing = 0;
     let mut rendered = false;
     let mut written_paths = BTreeSet::new();
+    // The frames' contexts compile each shader once between them.
+    let shaders = std::sync::Arc::new(rtsl_runtime::api::ShaderCache::new());
     let images = rtsl_runtime::load_rib_frames(
         path,
-        || new_context(&args.shader_path, &args.include),
+        || {
+            let mut rt = new_context(&args.shader_path, &args.include);
+            rt.share_shader_cache(shaders.clone());
+            rt
+        },
         |_, number| args.frame.is_none_or(|wanted| wanted == number),
         |_, rt, loaded| -> anyhow::Result<ControlFlow<()>> {
             rtsl_runtime::rib::report::write_diagnostics(&loaded.warnings, &mut super::color::stderr())?;

@@ -67,10 +67,12 @@ mod frames;
 mod objects;
 mod ray_params;
 mod replica;
+mod shader_cache;
 mod shaders;
 mod state;
 pub use events::ShaderEvent;
 pub use replica::{decode_mesh, encode_mesh, ReplicaError, Replicator};
+pub use shader_cache::ShaderCache;
 pub use state::{AttributeParts, SavedAttributes};
 // The types `Context`'s calls take and return, so that one `use rtsl_runtime::api::{...}` serves an
 // application (vector types: `rtsl_runtime::glam`).
@@ -369,6 +371,8 @@ struct OpenPrimitive {
 /// The rendering context: scene state, shaders, and frames.
 pub struct Context {
     programs: Vec<Option<Program>>,
+    /// Programs compiled by other contexts too (`share_shader_cache`).
+    shader_cache: Option<Arc<ShaderCache>>,
     shader_search_path: Vec<PathBuf>,
     include_paths: Vec<PathBuf>,
     matrix: Affine3A,
@@ -492,6 +496,7 @@ impl Context {
     pub fn new() -> Context {
         Context {
             programs: Vec::new(),
+            shader_cache: None,
             shader_search_path: Vec::new(),
             include_paths: Vec::new(),
             matrix: Affine3A::IDENTITY,

@@ -132,13 +132,30 @@ impl Context {
         if let Some(i) = self.programs.iter().position(|p| p.as_ref().is_some_and(|p| p.name == name)) {
             return Ok(ShaderId(i as u32));
         }
-        match self.which_shader(name).ok_or_else(|| ShaderError::NotFound { name: name.to_string() })? {
-            ShaderLocation::File(path) => self.shader_file(path),
+        let location = self.which_shader(name).ok_or_else(|| ShaderError::NotFound { name: name.to_string() })?;
+        let cache = self.shader_cache.clone();
+        if let Some(program) = cache.as_ref().and_then(|c| c.get(&location, &self.include_paths)) {
+            self.programs.push(Some(program));
+            return Ok(ShaderId(self.programs.len() as u32 - 1));
+        }
+        let id = match &location {
+            ShaderLocation::File(path) => self.shader_file(path)?,
             ShaderLocation::Library(shader) => {
                 let program = ShaderProgram::from_source(&shader.label(), shader.source, &self.include_paths)?;
-                Ok(self.add_program(program))
+                self.add_program(program)
             }
+        };
+        if let (Some(cache), Ok(program)) = (cache, self.program(id)) {
+            cache.insert(&location, &self.include_paths, program);
         }
+        Ok(id)
+    }
+
+    /// Shares `cache` with other contexts: a shader [`Context::find_shader`] finds by name is
+    /// taken from it, compiled, while its files are unchanged (and put in it when compiled here).
+    /// The frames of a render, each loaded into a context of its own, compile their shaders once.
+    pub fn share_shader_cache(&mut self, cache: Arc<ShaderCache>) {
+        self.shader_cache = Some(cache);
     }
 
     /// Replaces the program behind `id` (hot reload): frames from now on use the new code. The
