@@ -868,18 +868,21 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
 
 /// Renders a RIB file's frames (or the one `--frame` names) as the file is read, in one reading of
 /// it: each is loaded into a context of its own as soon as its last request is read, rendered and
-/// its images written before the file is read further. The contexts share their compiled shaders.
+/// its images written before the file is read further. The contexts share their compiled shaders
+/// and decoded texture files.
 fn run_rib_frames(args: &RenderArgs, path: &Path, renderer: &mut Renderer) -> anyhow::Result<ExitCode> {
     let mut missing = 0;
     let mut rendered = false;
     let mut written_paths = BTreeSet::new();
-    // The frames' contexts compile each shader once between them.
+    // The frames' contexts compile each shader and decode each texture file once between them.
     let shaders = std::sync::Arc::new(rtsl_runtime::api::ShaderCache::new());
+    let textures = std::sync::Arc::new(rtsl_runtime::texture::SharedTextures::new());
     let images = rtsl_runtime::load_rib_frames(
         path,
         || {
             let mut rt = new_context(&args.shader_path, &args.include);
             rt.share_shader_cache(shaders.clone());
+            rt.share_textures(textures.clone());
             rt
         },
         |_, number| args.frame.is_none_or(|wanted| wanted == number),
@@ -896,6 +899,7 @@ fn run_rib_frames(args: &RenderArgs, path: &Path, renderer: &mut Renderer) -> an
             }
             missing += omissions + written.missing_textures;
             rendered = true;
+            textures.end_frame();
             // `--frame` names one frame: the rest of the file is not read.
             Ok(if args.frame.is_some() { ControlFlow::Break(()) } else { ControlFlow::Continue(()) })
         },

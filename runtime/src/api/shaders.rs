@@ -91,10 +91,27 @@ impl Context {
     /// Starts an empty texture cache over the search path (and source), holding the textures and
     /// grids given in memory.
     pub(super) fn renew_texture_cache(&mut self) {
-        let cache =
-            TextureCache::with_search_paths(self.texture_search_path.clone()).with_source(self.texture_source.clone());
+        let cache = TextureCache::with_search_paths(self.texture_search_path.clone())
+            .with_source(self.texture_source.clone())
+            .with_shared(self.shared_textures.clone());
         self.textures = Arc::new(cache);
         self.insert_memory_textures();
+    }
+
+    /// Shares the texture files this context's textures decode with other contexts (the frames
+    /// of a render): a file one decoded is taken as it is by the others while it is unchanged
+    /// ([`crate::texture::SharedTextures`]). Its cache starts afresh.
+    pub fn share_textures(&mut self, shared: Arc<crate::texture::SharedTextures>) {
+        self.shared_textures = Some(shared);
+        self.renew_texture_cache();
+    }
+
+    /// Says that the file at `path` is being written (`MakeShadow`, `MakeTexture`): what the
+    /// contexts sharing textures with this one decoded of it is forgotten.
+    pub fn texture_file_written(&self, path: &Path) {
+        if let Some(shared) = &self.shared_textures {
+            shared.forget(path);
+        }
     }
 
     /// The texture cache frames use (textures load once and stay loaded across frames).

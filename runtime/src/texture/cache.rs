@@ -25,6 +25,7 @@ use super::image::{decode_texture_file, load_texture_image, TexImage};
 use super::mip::MipMap;
 use super::remote::remote_map;
 use super::shadow::ShadowMap;
+use super::shared::SharedTextures;
 use super::source::{
     error_chain, image_from_delivered, Delivered, TextureAnswer, TextureKind, TexturePart, TextureSource,
 };
@@ -94,6 +95,8 @@ pub struct TextureCache {
     files: Mutex<BTreeSet<PathBuf>>,
     /// Where names are fetched from instead of files, if anywhere.
     source: Option<Arc<dyn TextureSource>>,
+    /// Files other caches decoded, and this one's for them.
+    shared: Option<Arc<SharedTextures>>,
 }
 
 impl Default for TextureCache {
@@ -107,6 +110,7 @@ impl Default for TextureCache {
             warnings: Default::default(),
             files: Default::default(),
             source: None,
+            shared: None,
         }
     }
 }
@@ -144,6 +148,12 @@ impl TextureCache {
         TextureCache { source, ..self }
     }
 
+    /// The same cache taking the files it reads from `shared` while they are unchanged, and
+    /// leaving what it decodes there (see [`SharedTextures`]).
+    pub fn with_shared(self, shared: Option<Arc<SharedTextures>>) -> TextureCache {
+        TextureCache { shared, ..self }
+    }
+
     pub fn search_paths(&self) -> &[PathBuf] {
         &self.search_paths
     }
@@ -163,7 +173,7 @@ impl TextureCache {
         let slot = slot(&self.textures[raw as usize], name);
         slot.get_or_init(|| match &self.source {
             Some(source) => self.fetch_texture(source, name, raw),
-            None => self.load(name, TextureKind::Texture, |input| {
+            None => self.load(name, (TextureKind::Texture, if raw { "raw texture" } else { "texture" }), |input| {
                 let loaded = match input {
                     Input::File(path) => load_texture_image(path, raw),
                     Input::Bytes(path, bytes) => decode_texture_file(path, bytes, raw),
@@ -216,7 +226,7 @@ impl TextureCache {
             Input::File(path) => ShadowMap::load(path).map_err(|e| error_chain(&e)),
             Input::Bytes(path, bytes) => ShadowMap::decode(path, bytes).map_err(|e| error_chain(&e)),
         };
-        slot(&self.shadows, name).get_or_init(|| self.load(name, TextureKind::Shadow, load)).clone()
+        slot(&self.shadows, name).get_or_init(|| self.load(name, (TextureKind::Shadow, "shadow map"), load)).clone()
     }
 
     /// The 3-D grid called `name`, loading it on first use; `None` when it cannot be loaded.
@@ -225,7 +235,7 @@ impl TextureCache {
             Input::File(path) => Grid::load(path).map_err(|e| error_chain(&e)),
             Input::Bytes(_, bytes) => Grid::parse(bytes),
         };
-        slot(&self.grids, name).get_or_init(|| self.load(name, TextureKind::Grid, load)).clone()
+        slot(&self.grids, name).get_or_init(|| self.load(name, (TextureKind::Grid, "grid"), load)).clone()
     }
 
     /// The file `name` stands for, or the reason a lookup of it warns that there is none.
@@ -388,10 +398,11 @@ impl TextureCache {
     /// Resolves and loads `name` with `load`, turning a failure into one warning and `None`.
     /// Loads what `name` stands for as a `kind` with `load`: from the file it resolves to, or from
     /// what the cache's source delivers. A failure is one warning, and `None`.
-    fn load<T, E: fmt::Display>(
+    /// `variant` names what a file is decoded as, where it is shared with other caches.
+    fn load<T: std::any::Any + Send + Sync, E: fmt::Display>(
         &self,
         name: &str,
-        kind: TextureKind,
+        (kind, variant): (TextureKind, &'static str),
         load: impl FnOnce(Input) -> Result<T, E>,
     ) -> Option<Arc<T>> {
         let warn = |path: Option<PathBuf>, reason: String| self.warn(name, path, reason);
@@ -399,14 +410,17 @@ impl TextureCache {
             None => match self.locate(name) {
                 Ok(path) => {
                     self.files.lock().unwrap_or_else(PoisonError::into_inner).insert(path.clone());
-                    let loaded = load(Input::File(&path));
+                    let loaded = match &self.shared {
+                        Some(shared) => shared.get_or_load(&path, variant, || load(Input::File(&path))),
+                        None => load(Input::File(&path)).map(Arc::new),
+                    };
                     (Some(path), loaded)
                 }
                 Err(reason) => return warn(None, reason),
             },
             Some(source) => match source.fetch(TexturePart::Whole(kind), name) {
                 TextureAnswer::Whole(Delivered::File { path, bytes }) => {
-                    let loaded = load(Input::Bytes(&path, &bytes));
+                    let loaded = load(Input::Bytes(&path, &bytes)).map(Arc::new);
                     (Some(path), loaded)
                 }
                 TextureAnswer::Whole(Delivered::Missing { path, reason }) => return warn(path, reason),
@@ -420,7 +434,7 @@ impl TextureCache {
             },
         };
         match loaded {
-            Ok(value) => Some(Arc::new(value)),
+            Ok(value) => Some(value),
             Err(e) => warn(path, e.to_string()),
         }
     }

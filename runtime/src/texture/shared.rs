@@ -1,0 +1,166 @@
+//! Decoded texture files shared by texture caches: the frames of a render each have a context,
+//! and so a cache, of their own, and a file one frame decoded (a texture's pyramid, a shadow map,
+//! a grid) is reused by the next instead of being read and decoded again.
+//!
+//! Invariants:
+//! - a file's decoded form is reused only while the file has the length, modification time (and on
+//!   Unix inode and change time) it had when it was read, and until the renderer writes the file
+//!   itself ([`SharedTextures::forget`]): a shadow map a later pass writes over is read again;
+//! - what the store keeps is bounded by what the frames use: [`SharedTextures::end_frame`] lets go
+//!   of everything the frame that ended did not ask for.
+
+use std::any::Any;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex, PoisonError};
+use std::time::SystemTime;
+
+/// Decoded texture files by path (see the module doc), for
+/// [`crate::api::Context::share_textures`].
+#[derive(Default)]
+pub struct SharedTextures {
+    state: Mutex<State>,
+}
+
+#[derive(Default)]
+struct State {
+    entries: HashMap<(PathBuf, &'static str), Entry>,
+    /// Frames ended so far.
+    frame: u64,
+}
+
+struct Entry {
+    stamp: Stamp,
+    value: Arc<dyn Any + Send + Sync>,
+    /// The frame that last asked for it.
+    used: u64,
+}
+
+/// What tells that a file changed: its length and modification time, and on Unix its inode and
+/// change time (a file written over keeps neither).
+type Stamp = (u64, Option<SystemTime>, [i64; 3]);
+
+fn stamp(path: &Path) -> Option<Stamp> {
+    let meta = std::fs::metadata(path).ok()?;
+    #[cfg(unix)]
+    let more = {
+        use std::os::unix::fs::MetadataExt;
+        [meta.ino() as i64, meta.ctime(), meta.ctime_nsec()]
+    };
+    #[cfg(not(unix))]
+    let more = [0; 3];
+    Some((meta.len(), meta.modified().ok(), more))
+}
+
+/// The path a file is known by: its canonical path, where it has one.
+fn canonical(path: &Path) -> PathBuf {
+    std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf())
+}
+
+impl SharedTextures {
+    pub fn new() -> SharedTextures {
+        SharedTextures::default()
+    }
+
+    fn state(&self) -> std::sync::MutexGuard<'_, State> {
+        self.state.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    /// File `path` decoded as `variant` (a texture, raw or not, a shadow map, a grid): from the
+    /// store while the file is unchanged, else by `load` (outside the store's lock, so that other
+    /// files load meanwhile), kept when it succeeds.
+    pub(super) fn get_or_load<T: Any + Send + Sync, E>(
+        &self,
+        path: &Path,
+        variant: &'static str,
+        load: impl FnOnce() -> Result<T, E>,
+    ) -> Result<Arc<T>, E> {
+        let Some(stamp) = stamp(path) else { return load().map(Arc::new) };
+        let key = (canonical(path), variant);
+        {
+            let mut state = self.state();
+            let frame = state.frame;
+            if let Some(entry) = state.entries.get_mut(&key).filter(|e| e.stamp == stamp) {
+                if let Ok(value) = entry.value.clone().downcast::<T>() {
+                    entry.used = frame;
+                    return Ok(value);
+                }
+            }
+        }
+        // Stamped before it is read: a file changed while it loads is read again next time.
+        let value = Arc::new(load()?);
+        let mut state = self.state();
+        let used = state.frame;
+        state.entries.insert(key, Entry { stamp, value: value.clone(), used });
+        Ok(value)
+    }
+
+    /// Forgets what file `path` was decoded as: the renderer is writing it (`MakeShadow`,
+    /// `MakeTexture`).
+    pub fn forget(&self, path: &Path) {
+        let path = canonical(path);
+        self.state().entries.retain(|(p, _), _| *p != path);
+    }
+
+    /// A frame ended: what it did not ask for is let go (it stays with the caches that hold it).
+    pub fn end_frame(&self) {
+        let mut state = self.state();
+        let ended = state.frame;
+        state.entries.retain(|_, e| e.used == ended);
+        state.frame += 1;
+    }
+
+    /// How many decoded files it holds.
+    pub fn len(&self) -> usize {
+        self.state().entries.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::image_io::{write_image, WriteOptions};
+    use crate::texture::TextureCache;
+
+    /// Caches sharing a store decode a file once between them, again once it changes or the
+    /// renderer writes it, and the store keeps only what the last frame asked for.
+    #[test]
+    fn caches_sharing_a_store_decode_a_file_once_until_it_changes() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("t.exr");
+        let write = |grey: f32, size: usize| {
+            let pixels = vec![grey; size * size * 4];
+            write_image(&path, size, size, &pixels, &WriteOptions::default()).expect("a texture");
+        };
+        write(0.25, 4);
+        let shared = Arc::new(SharedTextures::new());
+        let cache = || TextureCache::with_search_paths([dir.path().to_path_buf()]).with_shared(Some(shared.clone()));
+        let texture = |raw: bool| cache().get_texture("t.exr", raw).expect("the texture loads");
+        let first = texture(false);
+        assert!(Arc::ptr_eq(&first, &texture(false)), "decoded again by another cache");
+        assert!(!Arc::ptr_eq(&first, &texture(true)), "raw and not are decoded apart");
+        assert_eq!(shared.len(), 2);
+        write(0.75, 8);
+        let rewritten = texture(false);
+        assert!(!Arc::ptr_eq(&first, &rewritten));
+        assert_eq!(rewritten.width(), 8);
+        shared.forget(&path);
+        assert!(shared.is_empty());
+        let again = texture(false);
+        assert!(!Arc::ptr_eq(&rewritten, &again), "read again after the renderer wrote it");
+        // A frame that used it keeps it for the next; a frame that did not lets it go.
+        shared.end_frame();
+        assert!(Arc::ptr_eq(&again, &texture(false)));
+        shared.end_frame();
+        assert_eq!(shared.len(), 1);
+        shared.end_frame();
+        assert!(shared.is_empty());
+        // Missing files are not kept.
+        assert!(cache().get_texture("missing.exr", false).is_none());
+        assert!(shared.is_empty());
+    }
+}
