@@ -420,9 +420,21 @@ impl Context {
 
         self.programs.resize(u.program_count as usize, None);
         for (id, bytes) in u.programs {
-            let program = ShaderProgram::from_artifact_bytes(&format!("shader {id}"), &bytes)
-                .map_err(|error| ReplicaError::Shader { id, error })?;
-            self.programs[id as usize] = Some(Arc::new(program));
+            // The same artifact a context sharing this one's cache compiled (an earlier scene's).
+            let cache = self.shader_cache.clone();
+            let program = match cache.as_ref().and_then(|c| c.artifact(&bytes)) {
+                Some(program) => program,
+                None => {
+                    let program = ShaderProgram::from_artifact_bytes(&format!("shader {id}"), &bytes)
+                        .map_err(|error| ReplicaError::Shader { id, error })?;
+                    let program = Arc::new(program);
+                    if let Some(cache) = cache {
+                        cache.insert_artifact(&bytes, &program);
+                    }
+                    program
+                }
+            };
+            self.programs[id as usize] = Some(program);
         }
         self.objects.resize_with(u.object_count as usize, ObjectRecord::empty);
         for (id, o) in u.objects {

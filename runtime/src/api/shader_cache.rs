@@ -1,10 +1,15 @@
 //! Compiled shaders shared by contexts: the frames of one render are loaded each into a context of
-//! its own, and a shader they find by name is compiled once for all of them.
+//! its own, and a shader they find by name is compiled once for all of them; a distributed
+//! render's worker starts a context for each scene the master sends, and a program that comes as
+//! the same artifact is compiled once for all of them.
 //!
-//! Invariant: a program is taken from the cache only while every file its compilation read (the
-//! source and its includes, `ShaderProgram::files`) has the length and modification time it had
-//! when the program was compiled, and only for the same include paths; a library shader's source
-//! is part of the binary and never changes.
+//! Invariants:
+//! - a program found by name is taken from the cache only while every file its compilation read
+//!   (the source and its includes, `ShaderProgram::files`) has the length and modification time
+//!   it had when the program was compiled, and only for the same include paths; a library
+//!   shader's source is part of the binary and never changes;
+//! - a program made from an artifact is taken for the same artifact, byte for byte;
+//! - artifacts no context asked for between two [`ShaderCache::end_scene`]s are let go.
 
 use super::{Program, ShaderLocation};
 use std::collections::HashMap;
@@ -16,6 +21,14 @@ use std::time::SystemTime;
 #[derive(Default)]
 pub struct ShaderCache {
     programs: Mutex<HashMap<Key, Entry>>,
+    artifacts: Mutex<Artifacts>,
+}
+
+/// Programs by the artifact they were made from, with the scene that last asked for each.
+#[derive(Default)]
+struct Artifacts {
+    programs: HashMap<Vec<u8>, (Program, u64)>,
+    scene: u64,
 }
 
 /// Where a program was compiled from, and with which include paths.
@@ -80,9 +93,34 @@ impl ShaderCache {
         programs.insert(key(location, include_paths), entry);
     }
 
-    /// How many programs it holds.
+    /// The program made from artifact `bytes`, if one was.
+    pub(super) fn artifact(&self, bytes: &[u8]) -> Option<Program> {
+        let mut artifacts = self.artifacts.lock().unwrap_or_else(|e| e.into_inner());
+        let scene = artifacts.scene;
+        let (program, used) = artifacts.programs.get_mut(bytes)?;
+        *used = scene;
+        Some(program.clone())
+    }
+
+    /// Keeps `program`, made from artifact `bytes`.
+    pub(super) fn insert_artifact(&self, bytes: &[u8], program: &Program) {
+        let mut artifacts = self.artifacts.lock().unwrap_or_else(|e| e.into_inner());
+        let scene = artifacts.scene;
+        artifacts.programs.insert(bytes.to_vec(), (program.clone(), scene));
+    }
+
+    /// A scene ended: the programs made from artifacts that it did not ask for are let go.
+    pub fn end_scene(&self) {
+        let mut artifacts = self.artifacts.lock().unwrap_or_else(|e| e.into_inner());
+        let ended = artifacts.scene;
+        artifacts.programs.retain(|_, (_, used)| *used == ended);
+        artifacts.scene += 1;
+    }
+
+    /// How many programs it holds (found by name, and made from artifacts).
     pub fn len(&self) -> usize {
-        self.programs.lock().unwrap_or_else(|e| e.into_inner()).len()
+        let by_name = self.programs.lock().unwrap_or_else(|e| e.into_inner()).len();
+        by_name + self.artifacts.lock().unwrap_or_else(|e| e.into_inner()).programs.len()
     }
 
     pub fn is_empty(&self) -> bool {
@@ -134,5 +172,33 @@ mod tests {
         other.share_shader_cache(cache.clone());
         assert!(other.find_shader("tint").is_err(), "k.h is not on its include path");
         assert_eq!(cache.len(), 2);
+    }
+
+    /// Contexts that share a cache make a program from an artifact once (a worker's scenes, each
+    /// in a context of its own), and the cache lets go of artifacts a scene did not use.
+    #[test]
+    fn replicas_sharing_a_cache_make_a_program_from_an_artifact_once() {
+        let mut master = Context::new();
+        master.find_shader("plastic").expect("the library's plastic");
+        let update = crate::api::Replicator::new().update(&master, None).expect("an update");
+        let cache = Arc::new(ShaderCache::new());
+        let replica = || {
+            let mut rt = Context::new();
+            rt.share_shader_cache(cache.clone());
+            rt.apply_update(&update).expect("the update applies");
+            rt.programs_by_id().into_iter().map(|(_, p)| p).collect::<Vec<_>>()
+        };
+        let (first, second) = (replica(), replica());
+        assert_eq!(first.len(), 1);
+        assert!(Arc::ptr_eq(&first[0], &second[0]), "made twice from one artifact");
+        assert_eq!(cache.len(), 1);
+        // A scene that used it keeps it for the next; a scene that did not lets it go.
+        cache.end_scene();
+        assert!(Arc::ptr_eq(&first[0], &replica()[0]));
+        cache.end_scene();
+        assert_eq!(cache.len(), 1);
+        cache.end_scene();
+        assert!(cache.is_empty());
+        assert!(!Arc::ptr_eq(&first[0], &replica()[0]), "made again once let go");
     }
 }

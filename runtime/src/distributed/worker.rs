@@ -39,6 +39,8 @@ pub struct ReplicaScene {
     link: Arc<FetchLink>,
     /// The most bytes of fetched meshes and their BVHs held between frames.
     cache_limit: usize,
+    /// The programs the scenes' artifacts made, kept from one scene to the next.
+    programs: Arc<crate::api::ShaderCache>,
 }
 
 /// [`ReplicaScene`]'s cache limit unless told otherwise.
@@ -52,11 +54,18 @@ impl Default for ReplicaScene {
 
 impl ReplicaScene {
     pub fn new() -> ReplicaScene {
+        ReplicaScene::with_programs(Arc::new(crate::api::ShaderCache::new()))
+    }
+
+    /// A replica whose programs come from `programs` where they were made from the same
+    /// artifacts.
+    fn with_programs(programs: Arc<crate::api::ShaderCache>) -> ReplicaScene {
         let link = FetchLink::new();
         let mut context = crate::api::Context::new();
         context.set_mesh_source(link.clone());
         context.set_texture_source(link.clone());
-        ReplicaScene { context, world: None, link, cache_limit: DEFAULT_MESH_CACHE_BYTES }
+        context.share_shader_cache(programs.clone());
+        ReplicaScene { context, world: None, link, cache_limit: DEFAULT_MESH_CACHE_BYTES, programs }
     }
 
     /// A replica that holds at most `bytes` of fetched meshes and their BVHs between frames,
@@ -87,9 +96,12 @@ impl WorkerScene for ReplicaScene {
     }
 
     /// A fresh replica with the same cache limit: the world with its BVHs, the fetched meshes,
-    /// the texture cache, the programs and the fetch link's frame clock all go with the old one.
+    /// the texture cache and the fetch link's frame clock all go with the old one. Its compiled
+    /// programs stay, for the artifacts the next scene sends again (those the old scene did not
+    /// use go).
     fn start_again(&mut self) {
-        *self = ReplicaScene::with_cache_limit(self.cache_limit);
+        self.programs.end_scene();
+        *self = ReplicaScene { cache_limit: self.cache_limit, ..ReplicaScene::with_programs(self.programs.clone()) };
     }
 
     fn fetch_link(&self) -> Option<Arc<FetchLink>> {
