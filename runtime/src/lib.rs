@@ -19,6 +19,7 @@ pub mod cpu;
 pub mod csg;
 pub(crate) mod deflate;
 pub mod distributed;
+mod file_stamp;
 pub mod geometry;
 pub mod image_io;
 pub mod lightfield;

@@ -5,17 +5,17 @@
 //!
 //! Invariants:
 //! - a program found by name is taken from the cache only while every file its compilation read
-//!   (the source and its includes, `ShaderProgram::files`) has the length and modification time
-//!   it had when the program was compiled, and only for the same include paths; a library
+//!   (the source and its includes, `ShaderProgram::files`) has the stamp it had when the program
+//!   was compiled (`FileStamp`: length, modification time, and on Unix inode and change time), and only for the same include paths; a library
 //!   shader's source is part of the binary and never changes;
 //! - a program made from an artifact is taken for the same artifact, byte for byte;
 //! - artifacts no context asked for between two [`ShaderCache::end_scene`]s are let go.
 
 use super::{Program, ShaderLocation};
+use crate::file_stamp::FileStamp;
 use std::collections::HashMap;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::Mutex;
-use std::time::SystemTime;
 
 /// Compiled shaders by where they were found, for [`super::Context::share_shader_cache`].
 #[derive(Default)]
@@ -48,15 +48,7 @@ enum Source {
 struct Entry {
     program: Program,
     /// Every file the compilation read, as it was then.
-    files: Vec<(PathBuf, Option<Stamp>)>,
-}
-
-/// What tells that a file changed: its length and modification time.
-type Stamp = (u64, Option<SystemTime>);
-
-fn stamp(path: &Path) -> Option<Stamp> {
-    let meta = std::fs::metadata(path).ok()?;
-    Some((meta.len(), meta.modified().ok()))
+    files: Vec<(PathBuf, Option<FileStamp>)>,
 }
 
 fn key(location: &ShaderLocation, include_paths: &[PathBuf]) -> Key {
@@ -76,7 +68,7 @@ impl ShaderCache {
     pub(super) fn get(&self, location: &ShaderLocation, include_paths: &[PathBuf]) -> Option<Program> {
         let programs = self.programs.lock().unwrap_or_else(|e| e.into_inner());
         let entry = programs.get(&key(location, include_paths))?;
-        entry.files.iter().all(|(path, was)| stamp(path) == *was).then(|| entry.program.clone())
+        entry.files.iter().all(|(path, was)| FileStamp::of(path) == *was).then(|| entry.program.clone())
     }
 
     /// Keeps `program`, compiled from `location` with `include_paths`, with its files as they are
@@ -87,7 +79,7 @@ impl ShaderCache {
             ShaderLocation::File(path) if !program.files.contains(path) => Some(path),
             _ => None,
         };
-        let files = program.files.iter().chain(own).map(|path| (path.clone(), stamp(path))).collect();
+        let files = program.files.iter().chain(own).map(|path| (path.clone(), FileStamp::of(path))).collect();
         let entry = Entry { program: program.clone(), files };
         let mut programs = self.programs.lock().unwrap_or_else(|e| e.into_inner());
         programs.insert(key(location, include_paths), entry);

@@ -9,11 +9,11 @@
 //! - what the store keeps is bounded by what the frames use: [`SharedTextures::end_frame`] lets go
 //!   of everything the frame that ended did not ask for.
 
+use crate::file_stamp::FileStamp;
 use std::any::Any;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex, PoisonError};
-use std::time::SystemTime;
 
 /// Decoded texture files by path (see the module doc), for
 /// [`crate::api::Context::share_textures`].
@@ -30,26 +30,10 @@ struct State {
 }
 
 struct Entry {
-    stamp: Stamp,
+    stamp: FileStamp,
     value: Arc<dyn Any + Send + Sync>,
     /// The frame that last asked for it.
     used: u64,
-}
-
-/// What tells that a file changed: its length and modification time, and on Unix its inode and
-/// change time (a file written over keeps neither).
-type Stamp = (u64, Option<SystemTime>, [i64; 3]);
-
-fn stamp(path: &Path) -> Option<Stamp> {
-    let meta = std::fs::metadata(path).ok()?;
-    #[cfg(unix)]
-    let more = {
-        use std::os::unix::fs::MetadataExt;
-        [meta.ino() as i64, meta.ctime(), meta.ctime_nsec()]
-    };
-    #[cfg(not(unix))]
-    let more = [0; 3];
-    Some((meta.len(), meta.modified().ok(), more))
 }
 
 /// The path a file is known by: its canonical path, where it has one.
@@ -75,7 +59,7 @@ impl SharedTextures {
         variant: &'static str,
         load: impl FnOnce() -> Result<T, E>,
     ) -> Result<Arc<T>, E> {
-        let Some(stamp) = stamp(path) else { return load().map(Arc::new) };
+        let Some(stamp) = FileStamp::of(path) else { return load().map(Arc::new) };
         let key = (canonical(path), variant);
         {
             let mut state = self.state();
