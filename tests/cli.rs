@@ -1263,6 +1263,45 @@ fn every_frame_renders_its_own_image() {
     assert!(dir.path().join("w1.png").exists() && dir.path().join("w2.png").exists());
 }
 
+/// Several RIB files render in turn, as `prman a.rib b.rib` renders them (one file a frame, as
+/// renderers' exporters write them): each its own frames and images, written apart.
+#[test]
+fn several_rib_files_render_in_turn() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let frame = |n: i32, grey: f32| {
+        format!(
+            "Format 16 16 1\nFrameBegin {n}\nDisplay \"shot.#4f.png\" \"file\" \"rgb\"\nTranslate 0 0 5\nWorldBegin\n\
+             Color [{grey} {grey} {grey}]\nSurface \"constant\"\nSphere 1 -1 1 360\nWorldEnd\nFrameEnd\n"
+        )
+    };
+    write(dir.path(), "shot.0001.rib", &frame(1, 0.2));
+    write(dir.path(), "shot.0002.rib", &frame(2, 1.0));
+    let centre =
+        |name: &str| rtsl_runtime::read_image(dir.path().join(name)).expect("the frame's image").pixel(8, 8)[0];
+    let o = rtsl(&["render", "shot.0001.rib", "shot.0002.rib", "-q"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert_eq!((centre("shot.0001.png") * 255.0).round(), 124.0);
+    assert_eq!(centre("shot.0002.png"), 1.0);
+    // One output name for both is refused before the second overwrites the first.
+    let o = rtsl(&["render", "shot.0001.rib", "shot.0002.rib", "-o", "same.png", "-q"], dir.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("frame 2 would overwrite same.png of an earlier frame"), "{}", stderr(&o));
+    // Only RIB files render in turn; --watch and --frame take one.
+    write(dir.path(), "tri.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    let o = rtsl(&["render", "shot.0001.rib", "tri.obj"], dir.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("tri.obj: several scenes are RIB files"), "{}", stderr(&o));
+    for flag in [&["--watch"][..], &["--frame", "1"]] {
+        let o = rtsl(&[&["render", "shot.0001.rib", "shot.0002.rib"][..], flag].concat(), dir.path());
+        assert_eq!(o.status.code(), Some(2));
+        assert!(stderr(&o).contains("--watch and --frame take one scene file"), "{}", stderr(&o));
+    }
+    // A file that cannot be read stops the run with its name, after the files before it.
+    let o = rtsl(&["render", "shot.0001.rib", "missing.rib", "-q"], dir.path());
+    assert_ne!(o.status.code(), Some(0));
+    assert!(stderr(&o).contains("missing.rib"), "{}", stderr(&o));
+}
+
 #[test]
 fn without_a_projection_the_camera_is_orthographic() {
     let dir = tempfile::tempdir().expect("tempdir");

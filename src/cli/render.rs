@@ -23,6 +23,10 @@ use std::time::Duration;
 pub struct RenderArgs {
     /// The scene: a RIB file, or a model (OBJ, PLY, glTF). Without one, the embedded default scene.
     pub scene: Option<PathBuf>,
+    /// More RIB files, rendered after the first in turn (as `prman a.rib b.rib` does, e.g. one
+    /// file a frame): their frames share compiled shaders and decoded textures.
+    #[arg(value_name = "MORE_RIB")]
+    pub more_scenes: Vec<PathBuf>,
     /// The image to write (.png, .tif, .exr, .tga, .ppm), in place of the one a RIB's first
     /// `Display` names (its `+name` displays are written too). Of a file
     /// with several frames, `#f` in the name stands for the frame number (`#4f` padded to 4
@@ -850,11 +854,23 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
     if args.watch && args.frames.is_some_and(|(a, b)| a != b) {
         anyhow::bail!("--watch renders one frame: choose it with --frame");
     }
+    let ribs: Vec<&Path> = args.scene.iter().chain(&args.more_scenes).map(PathBuf::as_path).collect();
+    if !args.more_scenes.is_empty() {
+        if let Some(other) = ribs.iter().find(|p| !rtsl_runtime::is_rib_path(p)) {
+            anyhow::bail!(
+                "{}: several scenes are RIB files, rendered in turn; render other scenes one at a time",
+                other.display()
+            );
+        }
+        if args.watch || args.frame.is_some() {
+            anyhow::bail!("--watch and --frame take one scene file");
+        }
+    }
     let vrml = args.scene.as_deref().is_some_and(rtsl_runtime::vrml::is_vrml_path);
     let status = if vrml && (args.frames.is_some() || args.frame.is_some()) && !args.watch {
         run_vrml(args, &mut renderer)?
-    } else if let Some(rib) = args.scene.as_deref().filter(|p| rtsl_runtime::is_rib_path(p) && !args.watch) {
-        run_rib_frames(args, rib, &mut renderer)?
+    } else if !ribs.is_empty() && rtsl_runtime::is_rib_path(ribs[0]) && !args.watch {
+        run_rib_frames(args, &ribs, &mut renderer)?
     } else {
         let frames = frame_indices(args)?;
         if args.watch && frames.len() > 1 {
@@ -866,49 +882,51 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
     Ok(status)
 }
 
-/// Renders a RIB file's frames (or the one `--frame` names) as the file is read, in one reading of
-/// it: each is loaded into a context of its own as soon as its last request is read, rendered and
-/// its images written before the file is read further. The contexts share their compiled shaders
-/// and decoded texture files.
-fn run_rib_frames(args: &RenderArgs, path: &Path, renderer: &mut Renderer) -> anyhow::Result<ExitCode> {
+/// Renders the frames of RIB files in turn (or the one `--frame` names), each file as it is read,
+/// in one reading of it: each frame is loaded into a context of its own as soon as its last request
+/// is read, rendered and its images written before the file is read further. The contexts share
+/// their compiled shaders and decoded texture files, across the files too.
+fn run_rib_frames(args: &RenderArgs, paths: &[&Path], renderer: &mut Renderer) -> anyhow::Result<ExitCode> {
     let mut missing = 0;
-    let mut rendered = false;
     let mut written_paths = BTreeSet::new();
     // The frames' contexts compile each shader and decode each texture file once between them.
     let shaders = std::sync::Arc::new(rtsl_runtime::api::ShaderCache::new());
     let textures = std::sync::Arc::new(rtsl_runtime::texture::SharedTextures::new());
-    let images = rtsl_runtime::load_rib_frames(
-        path,
-        || {
-            let mut rt = new_context(&args.shader_path, &args.include);
-            rt.share_shader_cache(shaders.clone());
-            rt.share_textures(textures.clone());
-            rt
-        },
-        |_, number| args.frame.is_none_or(|wanted| wanted == number),
-        |_, rt, loaded| -> anyhow::Result<ControlFlow<()>> {
-            rtsl_runtime::rib::report::write_diagnostics(&loaded.warnings, &mut super::color::stderr())?;
-            let number = loaded.frame_number;
-            let Prepared { mut rt, output, omissions, .. } = prepare_loaded(args, rt, loaded)?;
-            renderer.check_workers()?;
-            renderer.next_scene();
-            check_unwritten(&output, number, &mut written_paths)?;
-            let written = render_and_write(&mut rt, renderer, &output, args.quiet, true)?;
-            if !args.quiet {
-                renderer.summary(&rt, &output.path, &written.report);
-            }
-            missing += omissions + written.missing_textures;
-            rendered = true;
-            textures.end_frame();
-            // `--frame` names one frame: the rest of the file is not read.
-            Ok(if args.frame.is_some() { ControlFlow::Break(()) } else { ControlFlow::Continue(()) })
-        },
-    )?;
-    rtsl_runtime::rib::report::write_diagnostics(&images.warnings, &mut super::color::stderr())?;
-    missing += images.warnings.iter().filter(|d| d.severity >= rtsl_runtime::rib::Severity::Omission).count();
-    if let (Some(wanted), false) = (args.frame, rendered) {
-        let known: Vec<String> = images.numbers.iter().map(i32::to_string).collect();
-        anyhow::bail!("there is no frame {wanted}; the scene's frames are {}", known.join(", "))
+    for path in paths {
+        let mut rendered = false;
+        let images = rtsl_runtime::load_rib_frames(
+            path,
+            || {
+                let mut rt = new_context(&args.shader_path, &args.include);
+                rt.share_shader_cache(shaders.clone());
+                rt.share_textures(textures.clone());
+                rt
+            },
+            |_, number| args.frame.is_none_or(|wanted| wanted == number),
+            |_, rt, loaded| -> anyhow::Result<ControlFlow<()>> {
+                rtsl_runtime::rib::report::write_diagnostics(&loaded.warnings, &mut super::color::stderr())?;
+                let number = loaded.frame_number;
+                let Prepared { mut rt, output, omissions, .. } = prepare_loaded(args, rt, loaded)?;
+                renderer.check_workers()?;
+                renderer.next_scene();
+                check_unwritten(&output, number, &mut written_paths)?;
+                let written = render_and_write(&mut rt, renderer, &output, args.quiet, true)?;
+                if !args.quiet {
+                    renderer.summary(&rt, &output.path, &written.report);
+                }
+                missing += omissions + written.missing_textures;
+                rendered = true;
+                textures.end_frame();
+                // `--frame` names one frame: the rest of the file is not read.
+                Ok(if args.frame.is_some() { ControlFlow::Break(()) } else { ControlFlow::Continue(()) })
+            },
+        )?;
+        rtsl_runtime::rib::report::write_diagnostics(&images.warnings, &mut super::color::stderr())?;
+        missing += images.warnings.iter().filter(|d| d.severity >= rtsl_runtime::rib::Severity::Omission).count();
+        if let (Some(wanted), false) = (args.frame, rendered) {
+            let known: Vec<String> = images.numbers.iter().map(i32::to_string).collect();
+            anyhow::bail!("there is no frame {wanted}; the scene's frames are {}", known.join(", "))
+        }
     }
     Ok(exit_status(missing, args.keep_going))
 }
