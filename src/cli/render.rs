@@ -530,11 +530,12 @@ const BURST: Duration = Duration::from_millis(100);
 /// changes, and textures are read again when theirs do. After each batch of changes the image is
 /// rendered and rewritten, and each prints one line: the shader and its compile time, or the
 /// scene, or the textures, and the frame time. A change that does not compile or load prints its
-/// diagnostics, and the last good shader or scene stays. Runs until interrupted.
+/// diagnostics, and the last good shader or scene stays. Runs until interrupted. A scene loaded
+/// again takes the shaders and texture files that did not change from `caches`.
 #[allow(clippy::too_many_arguments)]
 fn watch(
     args: &RenderArgs,
-    frame_index: usize,
+    (frame_index, caches): (usize, &SharedCaches),
     rt: &mut Context,
     renderer: &mut Renderer,
     output: &Output,
@@ -563,7 +564,7 @@ fn watch(
         let mut done = Vec::new();
         let scene_changed: Vec<&PathBuf> = changed.iter().filter(|f| scene.contains(*f)).collect();
         if !scene_changed.is_empty() {
-            match prepare(args, frame_index) {
+            match prepare(args, frame_index, caches) {
                 // A half-typed edit is not a scene to show.
                 Ok(prepared) if prepared.errors > 0 => {
                     eprintln!("error: the scene has syntax errors (above); the last good scene stays")
@@ -601,6 +602,8 @@ fn watch(
             continue;
         }
         let written = render_and_write(rt, renderer, output, true, false)?;
+        // The textures of the scenes and edits before this one are let go.
+        caches.textures.end_frame();
         let frame_ms = written.report.elapsed.as_secs_f64() * 1e3;
         for what in done {
             println!("reloaded {what}, frame {frame_ms:.1} ms -> {}", output.path.display());
@@ -632,7 +635,16 @@ pub(crate) fn load_scene_frame(
     frame_index: usize,
     options: &rtsl_runtime::LoadOptions,
 ) -> anyhow::Result<(Context, LoadedScene)> {
-    let mut rt = new_context(shader_path, include);
+    load_scene_into(new_context(shader_path, include), scene, frame_index, options)
+}
+
+/// [`load_scene_frame`] into `rt`.
+fn load_scene_into(
+    mut rt: Context,
+    scene: Option<&Path>,
+    frame_index: usize,
+    options: &rtsl_runtime::LoadOptions,
+) -> anyhow::Result<(Context, LoadedScene)> {
     let loaded = match scene {
         None => {
             let rib = rtsl::default_scene::load(&mut rt)?;
@@ -650,6 +662,27 @@ pub(crate) fn load_scene_frame(
     };
     rtsl_runtime::rib::report::write_diagnostics(&loaded.warnings, &mut super::color::stderr())?;
     Ok((rt, loaded))
+}
+
+/// What the contexts of one `rtsl render` share: compiled shaders and decoded texture files (each
+/// frame of a RIB file, each reload of a watched scene, is a context of its own).
+struct SharedCaches {
+    shaders: std::sync::Arc<rtsl_runtime::api::ShaderCache>,
+    textures: std::sync::Arc<rtsl_runtime::texture::SharedTextures>,
+}
+
+impl SharedCaches {
+    fn new() -> SharedCaches {
+        SharedCaches { shaders: Default::default(), textures: Default::default() }
+    }
+
+    /// A context with the search paths of the flags and the environment, sharing these caches.
+    fn context(&self, args: &RenderArgs) -> Context {
+        let mut rt = new_context(&args.shader_path, &args.include);
+        rt.share_shader_cache(self.shaders.clone());
+        rt.share_textures(self.textures.clone());
+        rt
+    }
 }
 
 /// A context with the search paths of the flags and the environment.
@@ -711,10 +744,9 @@ fn frame_indices(args: &RenderArgs) -> anyhow::Result<Vec<usize>> {
 }
 
 /// Loads the image at `frame_index` of the scene and applies the flags to it.
-fn prepare(args: &RenderArgs, frame_index: usize) -> anyhow::Result<Prepared> {
+fn prepare(args: &RenderArgs, frame_index: usize, caches: &SharedCaches) -> anyhow::Result<Prepared> {
     let options = rtsl_runtime::LoadOptions { vrml_surface: args.vrml_surface.clone() };
-    let (rt, loaded) =
-        load_scene_frame(args.scene.as_deref(), &args.shader_path, &args.include, frame_index, &options)?;
+    let (rt, loaded) = load_scene_into(caches.context(args), args.scene.as_deref(), frame_index, &options)?;
     prepare_loaded(args, rt, loaded)
 }
 
@@ -801,14 +833,14 @@ fn print_animation_warnings(scene: &mut rtsl_runtime::vrml::VrmlScene) -> anyhow
 /// `render` of a VRML scene's `--frames` (or `--frame`): loaded once, its animation advanced to
 /// each frame's time, each image named with the frame's number. Over MPI the workers follow the
 /// one context from frame to frame (they are sent what the animation changed).
-fn run_vrml(args: &RenderArgs, renderer: &mut Renderer) -> anyhow::Result<ExitCode> {
+fn run_vrml(args: &RenderArgs, renderer: &mut Renderer, caches: &SharedCaches) -> anyhow::Result<ExitCode> {
     let numbers: Vec<i32> = match (args.frames, args.frame) {
         (Some(_), Some(_)) => anyhow::bail!("--frame and --frames: choose one"),
         (Some((a, b)), None) => (a..=b).collect(),
         (None, Some(n)) => vec![n],
         (None, None) => unreachable!("run_vrml renders frames"),
     };
-    let Prepared { mut rt, mut output, omissions, vrml, .. } = prepare(args, 0)?;
+    let Prepared { mut rt, mut output, omissions, vrml, .. } = prepare(args, 0, caches)?;
     renderer.check_workers()?;
     let mut vrml = vrml.context("not a VRML scene")?;
     let pattern = args.output.clone().unwrap_or_else(|| PathBuf::from("render.png"));
@@ -867,16 +899,17 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
         }
     }
     let vrml = args.scene.as_deref().is_some_and(rtsl_runtime::vrml::is_vrml_path);
+    let caches = SharedCaches::new();
     let status = if vrml && (args.frames.is_some() || args.frame.is_some()) && !args.watch {
-        run_vrml(args, &mut renderer)?
+        run_vrml(args, &mut renderer, &caches)?
     } else if !ribs.is_empty() && rtsl_runtime::is_rib_path(ribs[0]) && !args.watch {
-        run_rib_frames(args, &ribs, &mut renderer)?
+        run_rib_frames(args, &ribs, &mut renderer, &caches)?
     } else {
         let frames = frame_indices(args)?;
         if args.watch && frames.len() > 1 {
             anyhow::bail!("the scene has {} frames and --watch renders one: choose it with --frame", frames.len());
         }
-        run_frames(args, &frames, &mut renderer)?
+        run_frames(args, &frames, &mut renderer, &caches)?
     };
     renderer.finish()?;
     Ok(status)
@@ -886,22 +919,19 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
 /// in one reading of it: each frame is loaded into a context of its own as soon as its last request
 /// is read, rendered and its images written before the file is read further. The contexts share
 /// their compiled shaders and decoded texture files, across the files too.
-fn run_rib_frames(args: &RenderArgs, paths: &[&Path], renderer: &mut Renderer) -> anyhow::Result<ExitCode> {
+fn run_rib_frames(
+    args: &RenderArgs,
+    paths: &[&Path],
+    renderer: &mut Renderer,
+    caches: &SharedCaches,
+) -> anyhow::Result<ExitCode> {
     let mut missing = 0;
     let mut written_paths = BTreeSet::new();
-    // The frames' contexts compile each shader and decode each texture file once between them.
-    let shaders = std::sync::Arc::new(rtsl_runtime::api::ShaderCache::new());
-    let textures = std::sync::Arc::new(rtsl_runtime::texture::SharedTextures::new());
     for path in paths {
         let mut rendered = false;
         let images = rtsl_runtime::load_rib_frames(
             path,
-            || {
-                let mut rt = new_context(&args.shader_path, &args.include);
-                rt.share_shader_cache(shaders.clone());
-                rt.share_textures(textures.clone());
-                rt
-            },
+            || caches.context(args),
             |_, number| args.frame.is_none_or(|wanted| wanted == number),
             |_, rt, loaded| -> anyhow::Result<ControlFlow<()>> {
                 rtsl_runtime::rib::report::write_diagnostics(&loaded.warnings, &mut super::color::stderr())?;
@@ -916,7 +946,7 @@ fn run_rib_frames(args: &RenderArgs, paths: &[&Path], renderer: &mut Renderer) -
                 }
                 missing += omissions + written.missing_textures;
                 rendered = true;
-                textures.end_frame();
+                caches.textures.end_frame();
                 // `--frame` names one frame: the rest of the file is not read.
                 Ok(if args.frame.is_some() { ControlFlow::Break(()) } else { ControlFlow::Continue(()) })
             },
@@ -950,11 +980,16 @@ fn check_unwritten(output: &Output, number: i32, written: &mut BTreeSet<PathBuf>
 /// Renders the scene's frames at `frames` (indices into its frames) in turn, each loaded into a
 /// context of its own just before it renders, and writes each frame's images; with `--watch`,
 /// then watches the one frame.
-fn run_frames(args: &RenderArgs, frames: &[usize], renderer: &mut Renderer) -> anyhow::Result<ExitCode> {
+fn run_frames(
+    args: &RenderArgs,
+    frames: &[usize],
+    renderer: &mut Renderer,
+    caches: &SharedCaches,
+) -> anyhow::Result<ExitCode> {
     let mut missing = 0;
     let mut written_paths = BTreeSet::new();
     for &index in frames {
-        let Prepared { mut rt, output, omissions, files, .. } = prepare(args, index)?;
+        let Prepared { mut rt, output, omissions, files, .. } = prepare(args, index, caches)?;
         renderer.check_workers()?;
         renderer.next_scene();
         check_unwritten(&output, index as i32 + 1, &mut written_paths)?;
@@ -966,7 +1001,7 @@ fn run_frames(args: &RenderArgs, frames: &[usize], renderer: &mut Renderer) -> a
         if args.watch {
             // Watching is interactive: what is missing may be fixed by the next edit.
             let status = exit_status(missing, true);
-            watch(args, index, &mut rt, renderer, &output, &files, &written.texture_files)?;
+            watch(args, (index, caches), &mut rt, renderer, &output, &files, &written.texture_files)?;
             return Ok(status);
         }
     }
