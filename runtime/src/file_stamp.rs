@@ -1,5 +1,5 @@
 //! What tells that a file changed since it was read, for the caches that keep what was made of
-//! it (`api::ShaderCache`, `texture::SharedTextures`).
+//! it (`api::ShaderCache`, `shared_files::SharedFiles`).
 
 use std::path::Path;
 use std::time::SystemTime;

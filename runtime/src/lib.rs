@@ -32,6 +32,7 @@ pub mod rib;
 pub mod scene;
 pub mod scene_file;
 pub mod shading;
+pub mod shared_files;
 pub mod texture;
 pub mod tiles;
 pub mod vrml;

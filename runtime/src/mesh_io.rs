@@ -205,16 +205,27 @@ fn ply_message(raw: &str) -> String {
 /// line of fewer than three numbers, so every library is checked ([`check_mtl`]) before tobj
 /// reads it from memory.
 pub(crate) fn read_obj(path: &Path, materials: bool) -> Result<(Vec<tobj::Model>, Vec<tobj::Material>), MeshIoError> {
+    read_obj_reading(path, materials).map(|(models, materials, _)| (models, materials))
+}
+
+/// An OBJ file's models and materials, and the material library files reading it tried (found
+/// or not).
+pub(crate) type ObjRead = (Vec<tobj::Model>, Vec<tobj::Material>, Vec<PathBuf>);
+
+/// [`read_obj`], with the material library files it tried to read (found or not).
+pub(crate) fn read_obj_reading(path: &Path, materials: bool) -> Result<ObjRead, MeshIoError> {
     // Read whole, so that a directory or an unreadable file is the system's error, not a line's.
     let bytes = std::fs::read(path).map_err(|source| MeshIoError::Io { path: path.to_path_buf(), source })?;
     let mut reader = LineCounter { inner: &bytes[..], line: 0 };
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let mtl_error = std::cell::RefCell::new(None);
+    let libraries = std::cell::RefCell::new(Vec::new());
     let load_mtl = |name: &Path| {
         if !materials {
             return Err(tobj::LoadError::OpenFileFailed);
         }
         let mtl = dir.join(name);
+        libraries.borrow_mut().push(mtl.clone());
         let bytes = std::fs::read(&mtl).map_err(|_| tobj::LoadError::OpenFileFailed)?;
         if let Err(e) = check_mtl(&mtl, &bytes) {
             mtl_error.borrow_mut().get_or_insert(e);
@@ -228,7 +239,7 @@ pub(crate) fn read_obj(path: &Path, materials: bool) -> Result<(Vec<tobj::Model>
         return Err(e);
     }
     match loaded {
-        Ok((models, mats)) => Ok((models, mats.unwrap_or_default())),
+        Ok((models, mats)) => Ok((models, mats.unwrap_or_default(), libraries.into_inner())),
         Err(e) => Err(MeshIoError::Obj { path: path.to_path_buf(), line: Some(reader.line), message: obj_message(e) }),
     }
 }

@@ -19,10 +19,11 @@
 
 use crate::api::{ApiError, Context, ObjectId};
 use crate::geometry::{Mesh, MeshError};
-use crate::mesh_io::{load_mesh, read_obj, MeshIoError};
+use crate::mesh_io::{load_mesh, read_obj_reading, MeshIoError};
 use crate::shading::ParamValue;
 use glam::{Affine3A, Vec2, Vec3, Vec3A};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// Why a scene file could not be loaded.
 #[derive(Debug, thiserror::Error)]
@@ -511,8 +512,11 @@ fn add_mesh_file_placed(
     };
     let bound = rt.bound_surface();
     if !is_obj {
-        let mesh = load_mesh(path)?;
-        check_model_triangles(path, mesh.triangles.len())?;
+        let mesh = shared_model(rt, path, "mesh file", || {
+            let mesh = load_mesh(path)?;
+            check_model_triangles(path, mesh.triangles.len())?;
+            Ok((mesh, Vec::new()))
+        })?;
         grow(rt, &mesh);
         let shader = match bound {
             Some(s) => s,
@@ -530,14 +534,19 @@ fn add_mesh_file_placed(
         return Ok(bounds);
     }
     // A missing .mtl file leaves the objects without materials (plastic); a malformed one is an error.
-    let (models, materials) = read_obj(path, true)?;
-    check_model_triangles(path, models.iter().map(|m| m.mesh.indices.len() / 3).fold(0, usize::saturating_add))?;
+    let model = shared_model(rt, path, "obj model", || {
+        let (models, materials, libraries) = read_obj_reading(path, true)?;
+        check_model_triangles(path, models.iter().map(|m| m.mesh.indices.len() / 3).fold(0, usize::saturating_add))?;
+        let meshes = obj_meshes_by_material(path, &models)?;
+        Ok(((meshes, materials), libraries))
+    })?;
+    let (meshes, materials) = &*model;
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let plastic = rt.find_shader("plastic")?;
     let material_shader = if materials.is_empty() || bound.is_some() { None } else { rt.find_shader("material").ok() };
     let plastic = bound.unwrap_or(plastic);
-    for (material_id, mesh) in obj_meshes_by_material(path, &models)? {
-        grow(rt, &mesh);
+    for (material_id, mesh) in meshes {
+        grow(rt, mesh);
         rt.push_attributes();
         let material = material_id.and_then(|i| materials.get(i));
         // Cut-outs (leaves on quads): the alpha of `map_d`, else of `map_Kd` where it has any.
@@ -567,12 +576,27 @@ fn add_mesh_file_placed(
             }
         }
         let o = placement.begin(rt)?;
-        rt.mesh(&mesh)?;
+        rt.mesh(mesh)?;
         rt.end_object()?;
         placement.place(rt, o)?;
         rt.pop_attributes()?;
     }
     Ok(bounds)
+}
+
+/// What `load` makes of model file `path` (and says it read besides): taken from what the context
+/// shares with others ([`Context::share_files`]) while those files are unchanged, so that the
+/// frames of a render read a model file once.
+fn shared_model<T: std::any::Any + Send + Sync>(
+    rt: &Context,
+    path: &Path,
+    variant: &'static str,
+    load: impl FnOnce() -> Result<(T, Vec<PathBuf>), SceneFileError>,
+) -> Result<Arc<T>, SceneFileError> {
+    match rt.shared_files() {
+        Some(shared) => shared.get_or_load_reading(path, variant, load),
+        None => load().map(|(value, _)| Arc::new(value)),
+    }
 }
 
 /// The meshes of an OBJ file's models, those of one material merged into one mesh (in the order

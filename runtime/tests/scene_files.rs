@@ -740,3 +740,38 @@ fn make_shadow_of_a_file_that_is_not_a_depth_map_is_a_part_missing() {
     assert!(loaded.warnings.iter().all(|w| w.message.starts_with("MakeShadow: ")), "{:?}", loaded.warnings);
     assert!(!dir.path().join("s.shd").exists() && !dir.path().join("t.shd").exists());
 }
+
+/// Contexts sharing what they make of files (`Context::share_files`, as the frames of a render
+/// do) read a model file once, and again when it or its material library changes.
+#[test]
+fn shared_model_files_are_read_once_until_they_or_their_materials_change() -> Result<(), SceneFileError> {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let obj = dir.path().join("quad.obj");
+    std::fs::write(&obj, "mtllib quad.mtl\nv -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nusemtl paint\nf 1 2 3 4\n")
+        .expect("write");
+    let paint =
+        |kd: &str| std::fs::write(dir.path().join("quad.mtl"), format!("newmtl paint\nKd {kd}\n")).expect("write");
+    paint("1 0 0");
+    let shared = std::sync::Arc::new(rtsl_runtime::shared_files::SharedFiles::new());
+    // The colour at the centre of the model, framed and lit by the model defaults.
+    let centre =
+        |shared: &std::sync::Arc<rtsl_runtime::shared_files::SharedFiles>| -> Result<[f32; 3], SceneFileError> {
+            let mut rt = Context::new();
+            rt.share_files(shared.clone());
+            rt.options.width = 9;
+            rt.options.height = 9;
+            rtsl_runtime::load_scene(&mut rt, &obj)?;
+            let (fb, _) = render_frame(&rt.build_world()?, None);
+            let px = &fb.rgba[(4 * 9 + 4) * 4..][..3];
+            Ok([px[0], px[1], px[2]])
+        };
+    let red = centre(&shared)?;
+    assert!(red[0] > 0.0 && red[1] == 0.0 && red[2] == 0.0, "{red:?}");
+    assert_eq!(shared.len(), 1, "the model is kept");
+    assert_eq!(centre(&shared)?, red);
+    paint("0 1 0.25");
+    let green = centre(&shared)?;
+    assert!(green[0] == 0.0 && green[1] > 0.0, "the changed material library is read again: {green:?}");
+    assert_eq!(shared.len(), 1);
+    Ok(())
+}

@@ -24,7 +24,7 @@ pub struct RenderArgs {
     /// The scene: a RIB file, or a model (OBJ, PLY, glTF). Without one, the embedded default scene.
     pub scene: Option<PathBuf>,
     /// More RIB files, rendered after the first in turn (as `prman a.rib b.rib` does, e.g. one
-    /// file a frame): their frames share compiled shaders and decoded textures.
+    /// file a frame): their frames share compiled shaders, decoded textures and model files.
     #[arg(value_name = "MORE_RIB")]
     pub more_scenes: Vec<PathBuf>,
     /// The image to write (.png, .tif, .exr, .tga, .ppm), in place of the one a RIB's first
@@ -602,8 +602,8 @@ fn watch(
             continue;
         }
         let written = render_and_write(rt, renderer, output, true, false)?;
-        // The textures of the scenes and edits before this one are let go.
-        caches.textures.end_frame();
+        // What the scenes and edits before this one read and this one did not is let go.
+        caches.files.end_frame();
         let frame_ms = written.report.elapsed.as_secs_f64() * 1e3;
         for what in done {
             println!("reloaded {what}, frame {frame_ms:.1} ms -> {}", output.path.display());
@@ -664,23 +664,24 @@ fn load_scene_into(
     Ok((rt, loaded))
 }
 
-/// What the contexts of one `rtsl render` share: compiled shaders and decoded texture files (each
-/// frame of a RIB file, each reload of a watched scene, is a context of its own).
+/// What the contexts of one `rtsl render` share: compiled shaders, and what they made of files
+/// (decoded textures, parsed model files): each frame of a RIB file, each reload of a watched
+/// scene, is a context of its own.
 struct SharedCaches {
     shaders: std::sync::Arc<rtsl_runtime::api::ShaderCache>,
-    textures: std::sync::Arc<rtsl_runtime::texture::SharedTextures>,
+    files: std::sync::Arc<rtsl_runtime::shared_files::SharedFiles>,
 }
 
 impl SharedCaches {
     fn new() -> SharedCaches {
-        SharedCaches { shaders: Default::default(), textures: Default::default() }
+        SharedCaches { shaders: Default::default(), files: Default::default() }
     }
 
     /// A context with the search paths of the flags and the environment, sharing these caches.
     fn context(&self, args: &RenderArgs) -> Context {
         let mut rt = new_context(&args.shader_path, &args.include);
         rt.share_shader_cache(self.shaders.clone());
-        rt.share_textures(self.textures.clone());
+        rt.share_files(self.files.clone());
         rt
     }
 }
@@ -918,7 +919,7 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
 /// Renders the frames of RIB files in turn (or the one `--frame` names), each file as it is read,
 /// in one reading of it: each frame is loaded into a context of its own as soon as its last request
 /// is read, rendered and its images written before the file is read further. The contexts share
-/// their compiled shaders and decoded texture files, across the files too.
+/// their compiled shaders, decoded textures and parsed model files, across the files too.
 fn run_rib_frames(
     args: &RenderArgs,
     paths: &[&Path],
@@ -946,7 +947,7 @@ fn run_rib_frames(
                 }
                 missing += omissions + written.missing_textures;
                 rendered = true;
-                caches.textures.end_frame();
+                caches.files.end_frame();
                 // `--frame` names one frame: the rest of the file is not read.
                 Ok(if args.frame.is_some() { ControlFlow::Break(()) } else { ControlFlow::Continue(()) })
             },

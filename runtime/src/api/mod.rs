@@ -417,8 +417,8 @@ pub struct Context {
     mesh_source: Option<Arc<dyn MeshSource>>,
     /// Where textures come from instead of files ([`Context::set_texture_source`]).
     texture_source: Option<Arc<dyn crate::texture::TextureSource>>,
-    /// Texture files other contexts decoded too ([`Context::share_textures`]).
-    shared_textures: Option<Arc<crate::texture::SharedTextures>>,
+    /// Texture files other contexts decoded too ([`Context::share_files`]).
+    shared_files: Option<Arc<crate::shared_files::SharedFiles>>,
     /// The ray parameter names shaders asked for and nothing set, shared with the worlds built,
     /// so that each is reported once across frames.
     ray_parameter_misses: Arc<crate::render::ray_params::RayParameterMisses>,
@@ -530,7 +530,7 @@ impl Context {
             memory_changes: 0,
             mesh_source: None,
             texture_source: None,
-            shared_textures: None,
+            shared_files: None,
             ray_parameter_misses: Default::default(),
             identity: next_context_identity(),
             warnings: crate::cpu::build_note_once().map(str::to_string).into_iter().collect(),

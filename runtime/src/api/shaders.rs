@@ -93,23 +93,28 @@ impl Context {
     pub(super) fn renew_texture_cache(&mut self) {
         let cache = TextureCache::with_search_paths(self.texture_search_path.clone())
             .with_source(self.texture_source.clone())
-            .with_shared(self.shared_textures.clone());
+            .with_shared(self.shared_files.clone());
         self.textures = Arc::new(cache);
         self.insert_memory_textures();
     }
 
     /// Shares the texture files this context's textures decode with other contexts (the frames
     /// of a render): a file one decoded is taken as it is by the others while it is unchanged
-    /// ([`crate::texture::SharedTextures`]). Its cache starts afresh.
-    pub fn share_textures(&mut self, shared: Arc<crate::texture::SharedTextures>) {
-        self.shared_textures = Some(shared);
+    /// ([`crate::shared_files::SharedFiles`]). Its cache starts afresh.
+    pub fn share_files(&mut self, shared: Arc<crate::shared_files::SharedFiles>) {
+        self.shared_files = Some(shared);
         self.renew_texture_cache();
+    }
+
+    /// What this context shares what it makes of files with ([`Context::share_files`]).
+    pub(crate) fn shared_files(&self) -> Option<&Arc<crate::shared_files::SharedFiles>> {
+        self.shared_files.as_ref()
     }
 
     /// Says that the file at `path` is being written (`MakeShadow`, `MakeTexture`): what the
     /// contexts sharing textures with this one decoded of it is forgotten.
-    pub fn texture_file_written(&self, path: &Path) {
-        if let Some(shared) = &self.shared_textures {
+    pub fn file_written(&self, path: &Path) {
+        if let Some(shared) = &self.shared_files {
             shared.forget(path);
         }
     }

@@ -1369,7 +1369,7 @@ impl<'a> Loader<'a> {
             },
             K::MakeShadow { picture, shadow } => {
                 let (from, to) = (self.dir.join(picture), self.dir.join(shadow));
-                rt.texture_file_written(&to);
+                rt.file_written(&to);
                 if let Err(e) = crate::texture::make_shadow(&from, &to) {
                     self.omit(r, format_args!("MakeShadow: {e}"));
                 }
@@ -1378,7 +1378,7 @@ impl<'a> Loader<'a> {
             K::MakeCubeFaceEnvironment { faces, texture, fov, .. } => {
                 let paths = faces.clone().map(|f| self.dir.join(f));
                 let faces = paths.each_ref().map(|p| p.as_path());
-                rt.texture_file_written(&self.dir.join(texture));
+                rt.file_written(&self.dir.join(texture));
                 if let Err(e) = crate::texture::make_cube_face_environment(faces, &self.dir.join(texture), *fov) {
                     self.omit(r, format_args!("MakeCubeFaceEnvironment: {e}"));
                 }
@@ -1390,7 +1390,7 @@ impl<'a> Loader<'a> {
                     _ => crate::texture::Wrap::Periodic,
                 };
                 let opts = crate::texture::MakeTextureOptions { swrap: wrap(swrap), twrap: wrap(twrap), raw: false };
-                rt.texture_file_written(&self.dir.join(texture));
+                rt.file_written(&self.dir.join(texture));
                 if let Err(e) = crate::texture::make_texture(self.dir.join(picture), self.dir.join(texture), &opts) {
                     self.omit(r, e);
                 }

@@ -25,11 +25,11 @@ use super::image::{decode_texture_file, load_texture_image, TexImage};
 use super::mip::MipMap;
 use super::remote::remote_map;
 use super::shadow::ShadowMap;
-use super::shared::SharedTextures;
 use super::source::{
     error_chain, image_from_delivered, Delivered, TextureAnswer, TextureKind, TexturePart, TextureSource,
 };
 use super::{Footprint, LookupOptions, Wrap};
+use crate::shared_files::SharedFiles;
 
 type Slot<T> = Arc<OnceLock<Option<Arc<T>>>>;
 type Slots<T> = RwLock<HashMap<String, Slot<T>>>;
@@ -96,7 +96,7 @@ pub struct TextureCache {
     /// Where names are fetched from instead of files, if anywhere.
     source: Option<Arc<dyn TextureSource>>,
     /// Files other caches decoded, and this one's for them.
-    shared: Option<Arc<SharedTextures>>,
+    shared: Option<Arc<SharedFiles>>,
 }
 
 impl Default for TextureCache {
@@ -149,8 +149,8 @@ impl TextureCache {
     }
 
     /// The same cache taking the files it reads from `shared` while they are unchanged, and
-    /// leaving what it decodes there (see [`SharedTextures`]).
-    pub fn with_shared(self, shared: Option<Arc<SharedTextures>>) -> TextureCache {
+    /// leaving what it decodes there (see [`SharedFiles`]).
+    pub fn with_shared(self, shared: Option<Arc<SharedFiles>>) -> TextureCache {
         TextureCache { shared, ..self }
     }
 

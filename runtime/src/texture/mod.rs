@@ -32,7 +32,6 @@ mod make;
 mod mip;
 mod remote;
 mod shadow;
-mod shared;
 mod source;
 
 pub use cache::{TextureCache, TextureInfo, TextureQuery, TextureWarning};
@@ -43,7 +42,6 @@ pub use make::{make_cube_face_environment, make_texture, MakeTextureOptions, MAX
 pub use mip::{level_sizes, LookupLanes, MipMap, MAX_ANISOTROPY};
 pub use remote::TextureServer;
 pub use shadow::{make_shadow, write_shadow_map, ShadowMap};
-pub use shared::SharedTextures;
 pub use source::{
     decode_answer, encode_answer, Delivered, LevelValues, PyramidHeader, TextureAnswer, TextureKind, TexturePart,
     TextureSource,

@@ -1,12 +1,14 @@
-//! Decoded texture files shared by texture caches: the frames of a render each have a context,
-//! and so a cache, of their own, and a file one frame decoded (a texture's pyramid, a shadow map,
-//! a grid) is reused by the next instead of being read and decoded again.
+//! What was made of files (a texture's pyramid, a shadow map, a grid, a model file's meshes),
+//! shared by the contexts of one run: the frames of a render each have a context, and so a texture
+//! cache, of their own, and a file one frame read and decoded is reused by the next instead of
+//! being read again.
 //!
 //! Invariants:
-//! - a file's decoded form is reused only while the file has the length, modification time (and on
-//!   Unix inode and change time) it had when it was read, and until the renderer writes the file
-//!   itself ([`SharedTextures::forget`]): a shadow map a later pass writes over is read again;
-//! - what the store keeps is bounded by what the frames use: [`SharedTextures::end_frame`] lets go
+//! - what was made of a file is reused only while the file, and every other file the making read
+//!   (an OBJ file's material library), has the `FileStamp` it had when it was read (length,
+//!   modification time, and on Unix inode and change time), and until the renderer writes the
+//!   file itself ([`SharedFiles::forget`]): a shadow map a later pass writes over is read again;
+//! - what the store keeps is bounded by what the frames use: [`SharedFiles::end_frame`] lets go
 //!   of everything the frame that ended did not ask for.
 
 use crate::file_stamp::FileStamp;
@@ -15,10 +17,10 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex, PoisonError};
 
-/// Decoded texture files by path (see the module doc), for
-/// [`crate::api::Context::share_textures`].
+/// What was made of files, by path and kind (see the module doc), for
+/// [`crate::api::Context::share_files`].
 #[derive(Default)]
-pub struct SharedTextures {
+pub struct SharedFiles {
     state: Mutex<State>,
 }
 
@@ -31,6 +33,8 @@ struct State {
 
 struct Entry {
     stamp: FileStamp,
+    /// The other files the making read, as they were then.
+    others: Vec<(PathBuf, Option<FileStamp>)>,
     value: Arc<dyn Any + Send + Sync>,
     /// The frame that last asked for it.
     used: u64,
@@ -41,9 +45,9 @@ fn canonical(path: &Path) -> PathBuf {
     std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf())
 }
 
-impl SharedTextures {
-    pub fn new() -> SharedTextures {
-        SharedTextures::default()
+impl SharedFiles {
+    pub fn new() -> SharedFiles {
+        SharedFiles::default()
     }
 
     fn state(&self) -> std::sync::MutexGuard<'_, State> {
@@ -53,33 +57,53 @@ impl SharedTextures {
     /// File `path` decoded as `variant` (a texture, raw or not, a shadow map, a grid): from the
     /// store while the file is unchanged, else by `load` (outside the store's lock, so that other
     /// files load meanwhile), kept when it succeeds.
-    pub(super) fn get_or_load<T: Any + Send + Sync, E>(
+    pub(crate) fn get_or_load<T: Any + Send + Sync, E>(
         &self,
         path: &Path,
         variant: &'static str,
         load: impl FnOnce() -> Result<T, E>,
     ) -> Result<Arc<T>, E> {
-        let Some(stamp) = FileStamp::of(path) else { return load().map(Arc::new) };
+        self.get_or_load_reading(path, variant, || load().map(|value| (value, Vec::new())))
+    }
+
+    /// [`SharedFiles::get_or_load`] of a making that reads other files besides `path` (an OBJ
+    /// file's material library): `load` also says which, and they are stamped too.
+    pub(crate) fn get_or_load_reading<T: Any + Send + Sync, E>(
+        &self,
+        path: &Path,
+        variant: &'static str,
+        load: impl FnOnce() -> Result<(T, Vec<PathBuf>), E>,
+    ) -> Result<Arc<T>, E> {
+        let Some(stamp) = FileStamp::of(path) else { return load().map(|(value, _)| Arc::new(value)) };
         let key = (canonical(path), variant);
         {
             let mut state = self.state();
             let frame = state.frame;
-            if let Some(entry) = state.entries.get_mut(&key).filter(|e| e.stamp == stamp) {
+            let unchanged =
+                |e: &Entry| e.stamp == stamp && e.others.iter().all(|(other, was)| FileStamp::of(other) == *was);
+            if let Some(entry) = state.entries.get_mut(&key).filter(|e| unchanged(e)) {
                 if let Ok(value) = entry.value.clone().downcast::<T>() {
                     entry.used = frame;
                     return Ok(value);
                 }
             }
         }
-        // Stamped before it is read: a file changed while it loads is read again next time.
-        let value = Arc::new(load()?);
+        // Stamped before it is read: a file changed while it loads is read again next time (the
+        // other files, known only once read, are stamped then).
+        let (value, others) = load()?;
+        let stamped = |other: PathBuf| {
+            let was = FileStamp::of(&other);
+            (other, was)
+        };
+        let others = others.into_iter().map(stamped).collect();
+        let value = Arc::new(value);
         let mut state = self.state();
         let used = state.frame;
-        state.entries.insert(key, Entry { stamp, value: value.clone(), used });
+        state.entries.insert(key, Entry { stamp, others, value: value.clone(), used });
         Ok(value)
     }
 
-    /// Forgets what file `path` was decoded as: the renderer is writing it (`MakeShadow`,
+    /// Forgets what was made of file `path`: the renderer is writing it (`MakeShadow`,
     /// `MakeTexture`).
     pub fn forget(&self, path: &Path) {
         let path = canonical(path);
@@ -94,7 +118,7 @@ impl SharedTextures {
         state.frame += 1;
     }
 
-    /// How many decoded files it holds.
+    /// How many things made of files it holds.
     pub fn len(&self) -> usize {
         self.state().entries.len()
     }
@@ -121,7 +145,7 @@ mod tests {
             write_image(&path, size, size, &pixels, &WriteOptions::default()).expect("a texture");
         };
         write(0.25, 4);
-        let shared = Arc::new(SharedTextures::new());
+        let shared = Arc::new(SharedFiles::new());
         let cache = || TextureCache::with_search_paths([dir.path().to_path_buf()]).with_shared(Some(shared.clone()));
         let texture = |raw: bool| cache().get_texture("t.exr", raw).expect("the texture loads");
         let first = texture(false);
