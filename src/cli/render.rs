@@ -938,16 +938,10 @@ fn run_rib_frames(
                 rtsl_runtime::rib::report::write_diagnostics(&loaded.warnings, &mut super::color::stderr())?;
                 let number = loaded.frame_number;
                 let Prepared { mut rt, output, omissions, .. } = prepare_loaded(args, rt, loaded)?;
-                renderer.check_workers()?;
-                renderer.next_scene();
-                check_unwritten(&output, number, &mut written_paths)?;
-                let written = render_and_write(&mut rt, renderer, &output, args.quiet, true)?;
-                if !args.quiet {
-                    renderer.summary(&rt, &output.path, &written.report);
-                }
+                let frame = (&mut rt, &output, number);
+                let written = render_frame_images(args, frame, renderer, caches, &mut written_paths)?;
                 missing += omissions + written.missing_textures;
                 rendered = true;
-                caches.files.end_frame();
                 // `--frame` names one frame: the rest of the file is not read.
                 Ok(if args.frame.is_some() { ControlFlow::Break(()) } else { ControlFlow::Continue(()) })
             },
@@ -960,6 +954,27 @@ fn run_rib_frames(
         }
     }
     Ok(exit_status(missing, args.keep_going))
+}
+
+/// Renders a frame (its context, its images and its number) as a scene of its own, refusing
+/// images that would overwrite an earlier frame's, writes its images and prints its summary; what
+/// the frames before it read of files and this one did not is let go from `caches`.
+fn render_frame_images(
+    args: &RenderArgs,
+    (rt, output, number): (&mut Context, &Output, i32),
+    renderer: &mut Renderer,
+    caches: &SharedCaches,
+    written_paths: &mut BTreeSet<PathBuf>,
+) -> anyhow::Result<Written> {
+    renderer.check_workers()?;
+    renderer.next_scene();
+    check_unwritten(output, number, written_paths)?;
+    let written = render_and_write(rt, renderer, output, args.quiet, true)?;
+    if !args.quiet {
+        renderer.summary(rt, &output.path, &written.report);
+    }
+    caches.files.end_frame();
+    Ok(written)
 }
 
 /// Refuses a frame whose images would overwrite an earlier frame's (a frame's displays may share
@@ -991,13 +1006,8 @@ fn run_frames(
     let mut written_paths = BTreeSet::new();
     for &index in frames {
         let Prepared { mut rt, output, omissions, files, .. } = prepare(args, index, caches)?;
-        renderer.check_workers()?;
-        renderer.next_scene();
-        check_unwritten(&output, index as i32 + 1, &mut written_paths)?;
-        let written = render_and_write(&mut rt, renderer, &output, args.quiet, true)?;
-        if !args.quiet {
-            renderer.summary(&rt, &output.path, &written.report);
-        }
+        let frame = (&mut rt, &output, index as i32 + 1);
+        let written = render_frame_images(args, frame, renderer, caches, &mut written_paths)?;
         missing += omissions + written.missing_textures;
         if args.watch {
             // Watching is interactive: what is missing may be fixed by the next edit.
