@@ -13,6 +13,7 @@
 
 use crate::accel::bvh4::BuildQuality;
 use crate::accel::object::{MeshSource, MeshSummary, Object};
+use crate::accel::store::BvhStore;
 use crate::accel::top::{InstanceData, TopLevel};
 use crate::accel::{packet, single};
 use crate::csg::{Csg, Solid};
@@ -65,6 +66,8 @@ pub struct Scene {
     instances: Vec<InstanceData>,
     top: TopLevel,
     quality: BuildQuality,
+    /// Where object BVHs come from when other scenes share them ([`Scene::share_bvhs`]).
+    bvh_store: Option<Arc<BvhStore>>,
     /// The solids over the instance list being edited, by instance index.
     solids: Vec<Solid<u32>>,
     /// The solids as committed.
@@ -90,24 +93,47 @@ impl Scene {
             instances: Vec::new(),
             top: TopLevel::default(),
             quality,
+            bvh_store: None,
             solids: Vec::new(),
             csg: Csg::default(),
+        }
+    }
+
+    /// Shares object BVHs with other scenes through `store` (`None`: builds its own): an object
+    /// added or changed from now on takes the BVH of a mesh of the same geometry from it, or
+    /// builds it and puts it there.
+    pub fn share_bvhs(&mut self, store: Option<Arc<BvhStore>>) {
+        self.bvh_store = store;
+    }
+
+    /// An object of `mesh` with its BVH, from the shared store where there is one.
+    fn object_of(&self, mesh: Arc<Mesh>) -> Object {
+        match &self.bvh_store {
+            Some(store) => {
+                let bvh = store.get_or_build(&mesh, self.quality);
+                Object::with_bvh(mesh, bvh)
+            }
+            None => Object::new(mesh, self.quality),
         }
     }
 
     /// Adds an object and builds its BVH.
     pub fn add_object(&mut self, mesh: impl Into<Arc<Mesh>>) -> ObjectId {
         let id = self.objects.len() as u32;
-        self.objects.push(Object::new(mesh.into(), self.quality));
+        let object = self.object_of(mesh.into());
+        self.objects.push(object);
         ObjectId(id)
     }
 
     /// Replaces an object's geometry and rebuilds its BVH (only this object's).
     pub fn set_object_mesh(&mut self, id: ObjectId, mesh: impl Into<Arc<Mesh>>) -> Result<(), SceneError> {
-        let quality = self.quality;
-        let obj = self.objects.get_mut(id.0 as usize).ok_or(SceneError::NoSuchObject(id.0))?;
+        if id.0 as usize >= self.objects.len() {
+            return Err(SceneError::NoSuchObject(id.0));
+        }
+        let object = self.object_of(mesh.into());
+        let obj = &mut self.objects[id.0 as usize];
         let alpha = obj.alpha.take();
-        *obj = Object::new(mesh.into(), quality);
+        *obj = object;
         obj.alpha = alpha;
         Ok(())
     }

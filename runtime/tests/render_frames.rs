@@ -310,3 +310,69 @@ fn frames_reuse_unchanged_materials_and_rebuild_them_for_a_new_program() -> Resu
     assert_eq!(rebuilt.params.len(), 1, "k stays bound");
     Ok(())
 }
+
+/// Contexts sharing a BVH store (`Context::share_bvhs`, as the frames of a RIB animation do) build
+/// the BVH of each geometry once: a frame that declares the same meshes again (moved or not) takes
+/// the earlier frame's BVHs, a mesh whose vertices changed builds its own, and every frame's
+/// image is bit for bit the one rendered without the store.
+#[test]
+fn contexts_sharing_a_bvh_store_build_each_geometry_once() -> Result<(), Box<dyn std::error::Error>> {
+    use rtsl_runtime::accel::store::BvhStore;
+    use std::sync::Arc;
+    let frame = |turn: f32, top: f32| {
+        format!(
+            r#"
+            Format 24 18 1
+            Projection "perspective" "fov" 45
+            Translate 0 0 5
+            Rotate {turn} 0 1 0
+            WorldBegin
+            LightSource "pointlight" 1 "intensity" [20] "from" [2 3 -4]
+            Attribute "light" "shadows" "on"
+            Surface "plastic"
+            PointsPolygons [3 3] [0 1 2 0 2 3] "P" [-2 -1 -2  2 -1 -2  2 -1 2  -2 -1 2]
+            AttributeBegin
+              Translate {turn} 0 0
+              Sphere 0.7 -0.7 0.7 360
+            AttributeEnd
+            PointsPolygons [3] [0 1 2] "P" [-1 0 1  1 0 1  0 {top} 1]
+            WorldEnd
+        "#
+        )
+    };
+    let frames = [frame(0.0, 1.5), frame(10.0, 1.5), frame(20.0, 1.75)];
+    let render = |rib: &str, store: Option<&Arc<BvhStore>>| -> Result<_, Box<dyn std::error::Error>> {
+        let mut rt = rtsl_runtime::api::Context::new();
+        if let Some(store) = store {
+            rt.share_bvhs(store.clone());
+        }
+        rtsl_runtime::rib::load::load_str(&mut rt, rib, std::path::Path::new("<test>"))?;
+        let world = rt.build_world()?;
+        let (fb, _) = rtsl_runtime::render::render_frame(&world, None);
+        let bvhs: Vec<_> =
+            world.scene.objects().iter().filter_map(|o| o.resident_data()).map(|d| d.bvh.clone()).collect();
+        if let Some(store) = store {
+            store.end_frame();
+        }
+        Ok((fb.rgba, bvhs))
+    };
+    let store = Arc::new(BvhStore::new());
+    let mut shared = Vec::new();
+    for rib in &frames {
+        let (alone, _) = render(rib, None)?;
+        let (image, bvhs) = render(rib, Some(&store))?;
+        assert_eq!(
+            alone.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+            image.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+        );
+        assert_eq!(bvhs.len(), 3, "the floor, the sphere and the triangle");
+        shared.push(bvhs);
+    }
+    let same = |a: usize, b: usize, object: usize| Arc::ptr_eq(&shared[a][object], &shared[b][object]);
+    assert!(same(0, 1, 0) && same(0, 1, 1) && same(0, 1, 2), "the second frame declares the same geometry");
+    assert!(same(1, 2, 0) && same(1, 2, 1), "the third frame keeps the floor and the sphere");
+    assert!(!same(1, 2, 2), "the triangle's apex moved");
+    assert_eq!(store.reused(), 5);
+    assert_eq!(store.len(), 3, "the first triangle's BVH was let go when a frame did not use it");
+    Ok(())
+}

@@ -603,7 +603,7 @@ fn watch(
         }
         let written = render_and_write(rt, renderer, output, true, false)?;
         // What the scenes and edits before this one read and this one did not is let go.
-        caches.files.end_frame();
+        caches.end_frame();
         let frame_ms = written.report.elapsed.as_secs_f64() * 1e3;
         for what in done {
             println!("reloaded {what}, frame {frame_ms:.1} ms -> {}", output.path.display());
@@ -664,17 +664,24 @@ fn load_scene_into(
     Ok((rt, loaded))
 }
 
-/// What the contexts of one `rtsl render` share: compiled shaders, and what they made of files
-/// (decoded textures, parsed model files): each frame of a RIB file, each reload of a watched
-/// scene, is a context of its own.
+/// What the contexts of one `rtsl render` share: compiled shaders, what they made of files
+/// (decoded textures, parsed model files) and object BVHs: each frame of a RIB file, each reload
+/// of a watched scene, is a context of its own.
 struct SharedCaches {
     shaders: std::sync::Arc<rtsl_runtime::api::ShaderCache>,
     files: std::sync::Arc<rtsl_runtime::shared_files::SharedFiles>,
+    bvhs: std::sync::Arc<rtsl_runtime::accel::store::BvhStore>,
 }
 
 impl SharedCaches {
     fn new() -> SharedCaches {
-        SharedCaches { shaders: Default::default(), files: Default::default() }
+        SharedCaches { shaders: Default::default(), files: Default::default(), bvhs: Default::default() }
+    }
+
+    /// A frame was rendered: what the frames before it made and it did not use is let go.
+    fn end_frame(&self) {
+        self.files.end_frame();
+        self.bvhs.end_frame();
     }
 
     /// A context with the search paths of the flags and the environment, sharing these caches.
@@ -682,6 +689,7 @@ impl SharedCaches {
         let mut rt = new_context(&args.shader_path, &args.include);
         rt.share_shader_cache(self.shaders.clone());
         rt.share_files(self.files.clone());
+        rt.share_bvhs(self.bvhs.clone());
         rt
     }
 }
@@ -973,7 +981,7 @@ fn render_frame_images(
     if !args.quiet {
         renderer.summary(rt, &output.path, &written.report);
     }
-    caches.files.end_frame();
+    caches.end_frame();
     Ok(written)
 }
 

@@ -5,6 +5,8 @@
 //!   SAH, or obvhs's PLOC for the fastest qualities).
 //! - [`bvh8`]: the 8-wide form of an object's BVH that single rays traverse (same leaves).
 //! - [`object`]: an object's own BVH over its triangles (built once per geometry change).
+//! - [`store`]: object BVHs shared by scenes, by the geometry they were built from (the frames
+//!   of an animation whose set does not move build its BVHs once).
 //! - [`top`]: the top-level BVH over instances (rebuilt every frame from the instance list).
 //! - [`wire`]: an object's BVH as it travels between processes, checked on arrival.
 //! - [`single`]: single-ray traversal (SSE node tests, 8-wide in objects), for incoherent rays.
@@ -23,6 +25,7 @@ pub mod object;
 pub mod packet;
 pub mod single;
 mod stack;
+pub mod store;
 pub mod top;
 pub mod wire;
 

@@ -167,7 +167,8 @@ pub fn leaves_in_blocks(mut bvh: Bvh4) -> Bvh4 {
 pub struct ObjectData {
     /// The geometry (shared, so that it can be handed out cheaply).
     pub mesh: Arc<Mesh>,
-    pub bvh: ObjectBvh,
+    /// Shared by the objects of other scenes with the same geometry ([`super::store::BvhStore`]).
+    pub bvh: Arc<ObjectBvh>,
 }
 
 /// Where the mesh of a demand-loaded object comes from (a distributed render's master).
@@ -262,7 +263,12 @@ pub struct Object {
 impl Object {
     /// Builds an object from a mesh.
     pub fn new(mesh: Arc<Mesh>, quality: BuildQuality) -> Self {
-        let bvh = ObjectBvh::build(&mesh, quality);
+        let bvh = Arc::new(ObjectBvh::build(&mesh, quality));
+        Object::with_bvh(mesh, bvh)
+    }
+
+    /// An object of a mesh and the BVH built from it (or from a mesh of the same geometry).
+    pub fn with_bvh(mesh: Arc<Mesh>, bvh: Arc<ObjectBvh>) -> Self {
         Object { data: OnceLock::from(ObjectData { mesh, bvh }), remote: None, alpha: None }
     }
 
@@ -303,7 +309,7 @@ impl Object {
                 };
                 let bvh = std::thread::scope(|s| s.spawn(build).join()).unwrap_or_default();
                 r.source.built(building.elapsed());
-                ObjectData { mesh, bvh }
+                ObjectData { mesh, bvh: Arc::new(bvh) }
             }
             None => ObjectData::default(),
         })

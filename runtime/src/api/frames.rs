@@ -39,6 +39,7 @@ impl Context {
         crate::render::check_image_size(u64::from(self.options.width), u64::from(self.options.height))
             .map_err(ApiError::ImageSize)?;
         let mut scene = self.scene.take().unwrap_or_default();
+        scene.share_bvhs(self.bvh_store.clone());
         // Objects: (re)build only the BVHs of changed geometry.
         let bvh_start = std::time::Instant::now();
         let mut objects_rebuilt = 0;

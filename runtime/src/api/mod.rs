@@ -419,6 +419,8 @@ pub struct Context {
     texture_source: Option<Arc<dyn crate::texture::TextureSource>>,
     /// Texture files other contexts decoded too ([`Context::share_files`]).
     shared_files: Option<Arc<crate::shared_files::SharedFiles>>,
+    /// Object BVHs other contexts built too ([`Context::share_bvhs`]).
+    bvh_store: Option<Arc<crate::accel::store::BvhStore>>,
     /// The ray parameter names shaders asked for and nothing set, shared with the worlds built,
     /// so that each is reported once across frames.
     ray_parameter_misses: Arc<crate::render::ray_params::RayParameterMisses>,
@@ -531,6 +533,7 @@ impl Context {
             mesh_source: None,
             texture_source: None,
             shared_files: None,
+            bvh_store: None,
             ray_parameter_misses: Default::default(),
             identity: next_context_identity(),
             warnings: crate::cpu::build_note_once().map(str::to_string).into_iter().collect(),

@@ -106,6 +106,16 @@ impl Context {
         self.renew_texture_cache();
     }
 
+    /// Shares object BVHs with other contexts (the frames of a render): an object whose geometry
+    /// is bit for bit that of an object another context built takes its BVH rather than building
+    /// one ([`crate::accel::store::BvhStore`]). Objects built already keep theirs.
+    pub fn share_bvhs(&mut self, store: Arc<crate::accel::store::BvhStore>) {
+        if let Some(scene) = self.scene.as_mut() {
+            scene.share_bvhs(Some(store.clone()));
+        }
+        self.bvh_store = Some(store);
+    }
+
     /// What this context shares what it makes of files with ([`Context::share_files`]).
     pub(crate) fn shared_files(&self) -> Option<&Arc<crate::shared_files::SharedFiles>> {
         self.shared_files.as_ref()
