@@ -1257,3 +1257,31 @@ fn workers_fetch_alpha_masks_while_they_build_the_world() -> Result<(), Distribu
     assert_same(&frames, "a scene with alpha masks");
     Ok(())
 }
+
+/// A new scene whose meshes the workers fetched for the scene just before (a RIB file's next
+/// frame declaring its set again) takes them rather than fetching them again: the second of two
+/// contexts of the same scene fetches no mesh and every object its rays reach is a hit; a scene
+/// of other meshes fetches its own, and so does the first scene once more after it (the workers
+/// keep the meshes of the scene before only). Every image is the single process's.
+#[test]
+fn a_new_scene_takes_the_meshes_the_scene_before_fetched() -> Result<(), DistributedError> {
+    let demands = with_two_workers(Duration::from_secs(120), |master| {
+        let mut frames = Vec::new();
+        let mut demands = Vec::new();
+        for scene in [little_scene(), little_scene(), sparse_scene(), little_scene()] {
+            let (frame, demand) = frame_both_ways(master, &mut scene.expect("a scene"))?;
+            frames.push(frame);
+            demands.push(demand);
+        }
+        assert_same(&frames, "scenes one after another, sharing meshes");
+        Ok(demands)
+    })?;
+    let [first, again, other, last] = &demands[..] else { panic!("four frames") };
+    assert!(first.fetched_objects >= 2 && first.kept_objects == 0, "{first:?}");
+    assert_eq!((again.fetched_objects, again.fetched_bytes), (0, 0), "{again:?}");
+    assert_eq!(again.kept_objects, first.resident_objects, "{again:?}");
+    assert!(again.reached_objects >= 2 && again.hit_rate() == Some(1.0), "{again:?}");
+    assert!(other.fetched_objects >= 1 && other.kept_objects == 0, "{other:?}");
+    assert_eq!((last.fetched_objects, last.kept_objects), (first.fetched_objects, 0), "{last:?}");
+    Ok(())
+}

@@ -202,6 +202,9 @@ pub struct MeshSummary {
     pub triangles: u32,
     /// Its per-vertex attributes' names and sizes.
     pub attributes: Vec<(String, u32)>,
+    /// [`Mesh::digest`] of the mesh: a worker that holds a mesh of this digest from an earlier
+    /// scene takes it rather than fetching it.
+    pub digest: [u8; 32],
 }
 
 impl MeshSummary {
@@ -211,6 +214,7 @@ impl MeshSummary {
             bounds,
             triangles: mesh.triangle_count() as u32,
             attributes: mesh.attributes.iter().map(|a| (a.name.clone(), a.components as u32)).collect(),
+            digest: mesh.digest(),
         }
     }
 }
@@ -319,6 +323,18 @@ impl Object {
     #[inline(always)]
     pub fn deforms(&self) -> bool {
         self.data().bvh.deformed.is_some()
+    }
+
+    /// The digest of a demand-loaded object's mesh ([`MeshSummary::digest`]).
+    pub fn digest(&self) -> Option<&[u8; 32]> {
+        self.remote.as_ref().map(|r| &r.summary.digest)
+    }
+
+    /// Gives a demand-loaded object that has not fetched its mesh yet the mesh and BVH of its
+    /// digest, kept from an earlier scene; `false` (and nothing changes) for any other object
+    /// or another digest.
+    pub fn preload(&self, digest: &[u8; 32], data: ObjectData) -> bool {
+        self.digest() == Some(digest) && self.data.set(data).is_ok()
     }
 
     /// The mesh and BVH, if they are here (never fetches).

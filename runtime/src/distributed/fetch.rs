@@ -55,6 +55,8 @@ pub struct FetchLink {
     building_ns: AtomicU64,
     /// Objects evicted before this frame.
     evicted: AtomicU64,
+    /// Objects of a new scene given the meshes the last scene fetched, before this frame.
+    kept: AtomicU64,
     /// Frames since the start: what objects stamp themselves with when a ray reaches them.
     clock: Arc<AtomicU32>,
     /// Wakes the communication thread when a request is queued (it may be waiting long).
@@ -78,6 +80,8 @@ pub(super) struct Fetched {
     pub texture_bytes: u64,
     /// Objects evicted before the frame.
     pub evicted: u64,
+    /// Objects of a new scene given the meshes the last scene fetched, before the frame.
+    pub kept: u64,
     /// Render threads' time waiting for answers, and making fetched meshes ready.
     pub waiting: Duration,
     pub building: Duration,
@@ -115,6 +119,7 @@ impl FetchLink {
             texture_levels: take(&self.fetched_texture_levels),
             texture_bytes: take(&self.fetched_texture_bytes),
             evicted: take(&self.evicted),
+            kept: take(&self.kept),
             waiting: Duration::from_nanos(take(&self.waiting_ns)),
             building: Duration::from_nanos(take(&self.building_ns)),
         }
@@ -150,6 +155,11 @@ impl FetchLink {
     /// ([`crate::accel::object::Object::last_used`]).
     pub(super) fn frame_number(&self) -> u32 {
         self.clock.load(Ordering::Relaxed)
+    }
+
+    /// Notes that `objects` of a new scene took the meshes the last scene fetched.
+    pub(super) fn kept(&self, objects: u64) {
+        self.kept.fetch_add(objects, Ordering::Relaxed);
     }
 
     /// Starts a frame: objects reached from now on are stamped with its number; `evicted`
@@ -412,7 +422,7 @@ mod tests {
     fn the_least_recently_reached_objects_go_first() {
         let source = Arc::new(Local::default());
         let mut scene = Scene::new();
-        let summary = MeshSummary { bounds: None, triangles: 1, attributes: Vec::new() };
+        let summary = MeshSummary { bounds: None, triangles: 1, attributes: Vec::new(), digest: [0; 32] };
         for key in 0..3 {
             scene.add_remote_object(summary.clone(), key, source.clone());
         }

@@ -213,6 +213,10 @@ pub struct Demand {
     /// it: those held before the frame are the cache's hits, those fetched ([`Demand::fetched_objects`])
     /// its misses.
     pub reached_objects: u64,
+    /// Objects of a new scene that took the meshes the workers had fetched for the scene before
+    /// (a RIB file's next frame declaring its set again), each counted by every worker: not
+    /// fetched again.
+    pub kept_objects: u64,
 }
 
 impl Demand {
@@ -681,6 +685,7 @@ impl<T: Transport> Master<T> {
             resident_objects: counts.iter().map(|c| c.resident_objects).sum(),
             most_resident_objects: counts.iter().map(|c| c.resident_objects).max().unwrap_or(0),
             reached_objects: counts.iter().map(|c| c.reached_objects).sum(),
+            kept_objects: counts.iter().map(|c| c.kept_objects).sum(),
         };
         // Textures load where they are sampled: the workers' failures are the frame's.
         world.textures.add_warnings(counts.iter().flat_map(|c| &c.texture_warnings).map(|(name, path, reason)| {

@@ -5,10 +5,11 @@ use super::fetch::{FetchLink, Pending};
 use super::message::{build_fingerprint, Job, LatticeUnit, Message, PROTOCOL_VERSION};
 use super::transport::Transport;
 use super::DistributedError;
+use crate::accel::object::ObjectData;
 use crate::render::progressive::LatticeTracer;
 use crate::render::{LightPaths, TileRenderer, World};
 use crate::tiles::Tile;
-use std::collections::VecDeque;
+use std::collections::{HashMap, VecDeque};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::Instant;
@@ -41,6 +42,9 @@ pub struct ReplicaScene {
     cache_limit: usize,
     /// The programs the scenes' artifacts made, kept from one scene to the next.
     programs: Arc<crate::api::ShaderCache>,
+    /// The meshes (with their BVHs) the last scene had fetched, by digest, for the first world
+    /// of the next scene to take instead of fetching them again.
+    kept: HashMap<[u8; 32], ObjectData>,
 }
 
 /// [`ReplicaScene`]'s cache limit unless told otherwise.
@@ -65,7 +69,14 @@ impl ReplicaScene {
         context.set_mesh_source(link.clone());
         context.set_texture_source(link.clone());
         context.share_shader_cache(programs.clone());
-        ReplicaScene { context, world: None, link, cache_limit: DEFAULT_MESH_CACHE_BYTES, programs }
+        ReplicaScene {
+            context,
+            world: None,
+            link,
+            cache_limit: DEFAULT_MESH_CACHE_BYTES,
+            programs,
+            kept: HashMap::new(),
+        }
     }
 
     /// A replica that holds at most `bytes` of fetched meshes and their BVHs between frames,
@@ -86,6 +97,19 @@ impl WorkerScene for ReplicaScene {
             }
             None => self.context.build_world().map_err(|e| e.to_string())?,
         };
+        // A new scene's objects that the last scene held (a RIB file's next frame declares its
+        // set again) are not fetched again; what this world does not take is let go.
+        let kept = std::mem::take(&mut self.kept);
+        if !kept.is_empty() {
+            let mut taken = 0;
+            for object in world.scene.objects() {
+                let Some(digest) = object.digest() else { continue };
+                if let Some(data) = kept.get(digest) {
+                    taken += u64::from(object.preload(digest, data.clone()));
+                }
+            }
+            self.link.kept(taken);
+        }
         let evicted = super::fetch::evict_least_recently_used(&mut world.scene, self.cache_limit);
         self.link.start_frame(evicted);
         Ok(world)
@@ -101,12 +125,35 @@ impl WorkerScene for ReplicaScene {
     /// use go).
     fn start_again(&mut self) {
         self.programs.end_scene();
-        *self = ReplicaScene { cache_limit: self.cache_limit, ..ReplicaScene::with_programs(self.programs.clone()) };
+        let kept = self.world.take().map(|w| kept_meshes(&w.scene, self.cache_limit)).unwrap_or_default();
+        *self =
+            ReplicaScene { cache_limit: self.cache_limit, kept, ..ReplicaScene::with_programs(self.programs.clone()) };
     }
 
     fn fetch_link(&self) -> Option<Arc<FetchLink>> {
         Some(self.link.clone())
     }
+}
+
+/// The fetched meshes `scene` holds, with their BVHs, by digest: the most recently used first,
+/// as many as fit in `limit` bytes.
+fn kept_meshes(scene: &crate::scene::Scene, limit: usize) -> HashMap<[u8; 32], ObjectData> {
+    let mut held: Vec<_> = scene
+        .objects()
+        .iter()
+        .filter_map(|o| Some((o.last_used()?, o.digest()?, o.resident_data()?, o.memory_bytes())))
+        .collect();
+    held.sort_by_key(|h| std::cmp::Reverse(h.0));
+    let mut kept = HashMap::new();
+    let mut total = 0usize;
+    for (_, digest, data, bytes) in held {
+        if total.saturating_add(bytes) > limit {
+            break;
+        }
+        total += bytes;
+        kept.insert(*digest, data.clone());
+    }
+    kept
 }
 
 /// Serves the master on rank 0 of `transport` until it says to stop: greets it (with `scene`'s
@@ -475,6 +522,7 @@ fn render_share<T: Transport + ?Sized>(
         (counts.fetched_textures, counts.fetched_texture_levels, counts.fetched_texture_bytes) =
             (fetched.textures, fetched.texture_levels, fetched.texture_bytes);
         counts.evicted_objects = fetched.evicted;
+        counts.kept_objects = fetched.kept;
         counts.fetch_wait_ns = fetched.waiting.as_nanos() as u64;
         counts.fetch_build_ns = fetched.building.as_nanos() as u64;
         let remote = || world.scene.objects().iter().filter(|o| o.is_remote());

@@ -298,6 +298,42 @@ impl Mesh {
             .collect()
     }
 
+    /// blake3 of everything the mesh holds (each part tagged, with its length, in a fixed order,
+    /// floats as their bits in the machine's byte order): two meshes with the same digest are
+    /// taken to be the same mesh, so that a process that holds one need not be sent the other (a
+    /// distributed worker keeps the meshes of one scene for the next; ranks of another byte order
+    /// are refused at start-up).
+    pub fn digest(&self) -> [u8; 32] {
+        let mut h = blake3::Hasher::new();
+        let mut part = |tag: &[u8], len: usize, bytes: &[u8]| {
+            h.update(tag);
+            h.update(&(len as u64).to_le_bytes());
+            h.update(bytes);
+        };
+        part(b"positions", self.positions.len(), bytemuck::cast_slice(&self.positions));
+        part(b"triangles", self.triangles.len(), bytemuck::cast_slice(&self.triangles));
+        if let Some(normals) = &self.normals {
+            part(b"normals", normals.len(), bytemuck::cast_slice(normals));
+        }
+        if let Some(uvs) = &self.uvs {
+            part(b"uvs", uvs.len(), bytemuck::cast_slice(uvs));
+        }
+        for a in &self.attributes {
+            part(b"attribute", a.name.len(), a.name.as_bytes());
+            part(b"components", a.components, &[]);
+            part(b"values", a.data.len(), bytemuck::cast_slice(&a.data));
+        }
+        if let Some(d) = &self.deformation {
+            let times = [d.open.to_bits(), d.close.to_bits()];
+            part(b"deformation", d.positions.len(), bytemuck::cast_slice(&d.positions));
+            part(b"times", 2, bytemuck::cast_slice(&times));
+            if let Some(normals) = &d.normals {
+                part(b"close normals", normals.len(), bytemuck::cast_slice(normals));
+            }
+        }
+        h.finalize().into()
+    }
+
     /// Bytes of heap memory held by the mesh data.
     pub fn memory_bytes(&self) -> usize {
         self.positions.len() * size_of::<Vec3>()
@@ -326,6 +362,53 @@ pub fn triangulate_into(face: usize, poly: &[u32], out: &mut Vec<[u32; 3]>) -> R
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Equal meshes have one digest; a change to any part a worker would render (one bit of a
+    /// position, a normal, a texture coordinate, an attribute's name or values, a deformation)
+    /// gives another.
+    #[test]
+    fn a_mesh_digest_covers_everything_the_mesh_holds() {
+        let p = vec![Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y];
+        let base = Mesh::from_polygons(p, &[[0u32, 1, 2, 3]]).unwrap();
+        assert_eq!(base.digest(), base.clone().digest());
+        let mut changes: Vec<Mesh> = Vec::new();
+        let mut m = base.clone();
+        m.positions[2].y = f32::from_bits(m.positions[2].y.to_bits() + 1);
+        changes.push(m);
+        let mut m = base.clone();
+        m.triangles.swap(0, 1);
+        changes.push(m);
+        let mut m = base.clone();
+        m.normals = Some(vec![Vec3::Z; 4]);
+        changes.push(m.clone());
+        m.normals = Some(vec![Vec3::Z, Vec3::Z, Vec3::Z, -Vec3::Z]);
+        changes.push(m);
+        let mut m = base.clone();
+        m.uvs = Some(vec![Vec2::ZERO; 4]);
+        changes.push(m);
+        let attribute = |name: &str, value: f32| Attribute { name: name.into(), components: 1, data: vec![value; 4] };
+        let mut m = base.clone();
+        m.attributes.push(attribute("Cs", 0.5));
+        changes.push(m.clone());
+        m.attributes[0] = attribute("Os", 0.5);
+        changes.push(m.clone());
+        m.attributes[0] = attribute("Os", 0.25);
+        changes.push(m);
+        let mut m = base.clone();
+        let close = m.positions.iter().map(|p| *p + Vec3::Z).collect();
+        m.deformation = Some(Deformation { positions: close, normals: None, open: 0.0, close: 1.0 });
+        changes.push(m.clone());
+        if let Some(d) = m.deformation.as_mut() {
+            d.close = 0.5;
+        }
+        changes.push(m);
+        let mut digests: Vec<[u8; 32]> = changes.iter().map(Mesh::digest).collect();
+        digests.push(base.digest());
+        let count = digests.len();
+        digests.sort_unstable();
+        digests.dedup();
+        assert_eq!(digests.len(), count, "every change has a digest of its own");
+    }
 
     #[test]
     fn quads_become_two_triangles() {
