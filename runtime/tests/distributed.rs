@@ -1285,3 +1285,47 @@ fn a_new_scene_takes_the_meshes_the_scene_before_fetched() -> Result<(), Distrib
     assert_eq!((last.fetched_objects, last.kept_objects), (first.fetched_objects, 0), "{last:?}");
     Ok(())
 }
+
+/// A new scene whose texture is the one the scene before showed under the same name (a RIB
+/// file's next frame) takes the map the workers made of it, with the levels they fetched: only
+/// its description travels again. A texture of the same name with other texels is fetched anew.
+/// Every image is the single process's.
+#[test]
+fn a_new_scene_takes_the_texture_levels_the_scene_before_fetched() -> Result<(), DistributedError> {
+    let e = |e: rtsl_runtime::api::ApiError| e.to_string();
+    let textured = |seed: usize| -> Result<Context, String> {
+        let mut rt = Context::new();
+        // Near enough that lookups read finer levels than travel with the description.
+        rt.options.width = 96;
+        rt.options.height = 80;
+        rt.camera_look_at(Vec3A::new(0.0, 0.0, 2.5), Vec3A::ZERO, Vec3A::Y, 45.0);
+        checks(&mut rt, 512, seed)?;
+        let shader = rt
+            .compile_shader("textured", "surface textured() { Ci = color texture(\"checks\", s, t); Oi = 1; }")
+            .map_err(e)?;
+        textured_quad(&mut rt, shader, [[-1.5, -1.5, 0.0], [1.5, -1.5, 0.0], [1.5, 1.5, 0.0], [-1.5, 1.5, 0.0]])?;
+        Ok(rt)
+    };
+    let demands = with_two_workers(Duration::from_secs(120), |master| {
+        let mut frames = Vec::new();
+        let mut demands = Vec::new();
+        for seed in [37, 37, 41] {
+            let (frame, demand) = frame_both_ways(master, &mut textured(seed).expect("a textured scene"))?;
+            frames.push(frame);
+            demands.push(demand);
+        }
+        assert_same(&frames, "scenes one after another, sharing a texture");
+        assert!(frames[1].1.rgba != frames[2].1.rgba, "other texels show");
+        Ok(demands)
+    })?;
+    let [first, again, other] = &demands[..] else { panic!("three frames") };
+    assert!(first.fetched_texture_levels >= 1 && first.kept_textures == 0, "{first:?}");
+    // Each worker that looked the texture up asked for its description once more, and took the
+    // map it had.
+    assert_eq!(again.fetched_texture_levels, 0, "{again:?}");
+    assert!(again.kept_textures >= 1 && again.kept_textures == again.fetched_textures, "{again:?}");
+    assert!(again.fetched_texture_bytes < first.fetched_texture_bytes / 4, "{first:?} {again:?}");
+    assert_eq!(other.kept_textures, 0, "{other:?}");
+    assert!(other.fetched_texture_levels >= 1, "{other:?}");
+    Ok(())
+}

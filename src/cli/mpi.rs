@@ -144,9 +144,11 @@ pub(crate) fn demand_line(
         Some(rate) => format!("{:.1}% of the {} objects rays reached were held", 100.0 * rate, fetched.reached),
     };
     // A new scene's objects whose meshes the workers held from the scene before.
-    let kept = match held.kept_objects {
-        0 => String::new(),
-        n => format!("; {n} object(s) of the last frame's new scene taken from the scene before, not fetched"),
+    let kept = match (held.kept_objects, held.kept_textures) {
+        (0, 0) => String::new(),
+        (objects, textures) => format!(
+            "; taken from the scene before in the last frame: {objects} object(s), not fetched, and {textures} texture(s) with the levels they held"
+        ),
     };
     format!(
         "demand loading, {what}: {} object(s), {:.2} MB fetched by {workers} worker(s) ({:.2} MB per worker) of the scene's {} object(s) and {:.2} MB of meshes; {} texture(s) and {} mip level(s), {:.2} MB; cache hits: {hit_rate}; held now: at most {} object(s) per worker ({} evicted before the last frame){kept}",

@@ -18,7 +18,7 @@ use crate::accel::object::{FetchedMesh, MeshSource};
 use crate::accel::wire::decode_bvh4;
 use crate::api::decode_mesh;
 use crate::scene::Scene;
-use crate::texture::{decode_answer, Delivered, TextureAnswer, TexturePart, TextureSource};
+use crate::texture::{decode_answer, Delivered, MipMap, TextureAnswer, TexturePart, TextureSource};
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
 use std::sync::mpsc::{channel, Sender};
@@ -57,6 +57,12 @@ pub struct FetchLink {
     evicted: AtomicU64,
     /// Objects of a new scene given the meshes the last scene fetched, before this frame.
     kept: AtomicU64,
+    /// Textures this frame took from the maps kept (not made again, their levels not fetched
+    /// again).
+    kept_textures: AtomicU64,
+    /// The texture maps made from the pyramids this link delivered, by name, for the scenes
+    /// after (a link serves a worker's scenes one after another).
+    maps: Mutex<KeptMaps>,
     /// Frames since the start: what objects stamp themselves with when a ray reaches them.
     clock: Arc<AtomicU32>,
     /// Wakes the communication thread when a request is queued (it may be waiting long).
@@ -82,6 +88,8 @@ pub(super) struct Fetched {
     pub evicted: u64,
     /// Objects of a new scene given the meshes the last scene fetched, before the frame.
     pub kept: u64,
+    /// Textures taken from the maps the scene before made.
+    pub kept_textures: u64,
     /// Render threads' time waiting for answers, and making fetched meshes ready.
     pub waiting: Duration,
     pub building: Duration,
@@ -120,6 +128,7 @@ impl FetchLink {
             texture_bytes: take(&self.fetched_texture_bytes),
             evicted: take(&self.evicted),
             kept: take(&self.kept),
+            kept_textures: take(&self.kept_textures),
             waiting: Duration::from_nanos(take(&self.waiting_ns)),
             building: Duration::from_nanos(take(&self.building_ns)),
         }
@@ -155,6 +164,15 @@ impl FetchLink {
     /// ([`crate::accel::object::Object::last_used`]).
     pub(super) fn frame_number(&self) -> u32 {
         self.clock.load(Ordering::Relaxed)
+    }
+
+    /// A new scene starts: of the texture maps kept, those the scene that ended did not use are
+    /// let go.
+    pub(super) fn start_scene(&self) {
+        let mut maps = self.maps.lock().unwrap_or_else(PoisonError::into_inner);
+        let ended = maps.scene;
+        maps.maps.retain(|_, m| m.used == ended);
+        maps.scene += 1;
     }
 
     /// Notes that `objects` of a new scene took the meshes the last scene fetched.
@@ -292,6 +310,36 @@ impl TextureSource for FetchLink {
     fn failed(&self, message: String) {
         self.fail(message);
     }
+
+    fn kept_map(&self, name: &str, raw: bool, digest: &[u8; 32]) -> Option<Arc<MipMap>> {
+        let mut maps = self.maps.lock().unwrap_or_else(PoisonError::into_inner);
+        let scene = maps.scene;
+        let kept = maps.maps.get_mut(&(name.to_string(), raw)).filter(|m| m.digest == *digest)?;
+        kept.used = scene;
+        self.kept_textures.fetch_add(1, Ordering::Relaxed);
+        Some(kept.map.clone())
+    }
+
+    fn keep_map(&self, name: &str, raw: bool, digest: [u8; 32], map: &Arc<MipMap>) {
+        let mut maps = self.maps.lock().unwrap_or_else(PoisonError::into_inner);
+        let used = maps.scene;
+        maps.maps.insert((name.to_string(), raw), KeptMap { digest, map: map.clone(), used });
+    }
+}
+
+/// The texture maps a link's scenes made from the pyramids it delivered, by name and `raw`.
+#[derive(Default)]
+struct KeptMaps {
+    maps: HashMap<(String, bool), KeptMap>,
+    /// Scenes started so far.
+    scene: u64,
+}
+
+struct KeptMap {
+    digest: [u8; 32],
+    map: Arc<MipMap>,
+    /// The scene that last made or took it.
+    used: u64,
 }
 
 /// The communication thread's side: requests sent and not yet answered.

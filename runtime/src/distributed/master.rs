@@ -217,6 +217,10 @@ pub struct Demand {
     /// (a RIB file's next frame declaring its set again), each counted by every worker: not
     /// fetched again.
     pub kept_objects: u64,
+    /// Textures of a new scene that took the maps the workers made for the scene before (the
+    /// same name and texture), each counted by every worker: the levels they held not fetched
+    /// again.
+    pub kept_textures: u64,
 }
 
 impl Demand {
@@ -686,6 +690,7 @@ impl<T: Transport> Master<T> {
             most_resident_objects: counts.iter().map(|c| c.resident_objects).max().unwrap_or(0),
             reached_objects: counts.iter().map(|c| c.reached_objects).sum(),
             kept_objects: counts.iter().map(|c| c.kept_objects).sum(),
+            kept_textures: counts.iter().map(|c| c.kept_textures).sum(),
         };
         // Textures load where they are sampled: the workers' failures are the frame's.
         world.textures.add_warnings(counts.iter().flat_map(|c| &c.texture_warnings).map(|(name, path, reason)| {

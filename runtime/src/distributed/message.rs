@@ -8,7 +8,7 @@ use crate::texture::{TextureKind, TexturePart};
 use rtsl_compiler::interface::ShaderKind;
 
 /// The protocol's version: ranks that speak different versions refuse each other at start-up.
-pub const PROTOCOL_VERSION: u32 = 22;
+pub const PROTOCOL_VERSION: u32 = 23;
 
 /// What the master's counters add up from a worker's share of a frame.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -38,7 +38,8 @@ pub struct FrameCounts {
     /// and the bytes of both, objects evicted from the cache before the
     /// frame, objects held after it, and objects rays reached in the frame (held before it or
     /// fetched by it: the fetched ones are the cache's misses); and the objects of a new scene
-    /// that took the meshes the last scene had fetched (not fetched again).
+    /// that took the meshes the last scene had fetched (not fetched again), and the textures that
+    /// took the maps the last scene made (their levels not fetched again).
     pub fetched_objects: u64,
     pub fetched_bytes: u64,
     pub fetched_textures: u64,
@@ -48,6 +49,7 @@ pub struct FrameCounts {
     pub resident_objects: u64,
     pub reached_objects: u64,
     pub kept_objects: u64,
+    pub kept_textures: u64,
     /// Where the worker's time went (nanoseconds): bringing its world to the frame's state
     /// (updates, BVHs), the time from then until it reported the frame done, and of that, its
     /// render threads' time spent rendering units (summed over threads).
@@ -251,6 +253,7 @@ impl Message {
                 w.u64(counts.resident_objects);
                 w.u64(counts.reached_objects);
                 w.u64(counts.kept_objects);
+                w.u64(counts.kept_textures);
                 w.u64(counts.world_ns);
                 w.u64(counts.share_ns);
                 w.u64(counts.rendering_ns);
@@ -341,7 +344,7 @@ impl Message {
                 let (fetched_objects, fetched_bytes) = (r.u64()?, r.u64()?);
                 let (fetched_textures, fetched_texture_levels, fetched_texture_bytes) = (r.u64()?, r.u64()?, r.u64()?);
                 let (evicted_objects, resident_objects, reached_objects) = (r.u64()?, r.u64()?, r.u64()?);
-                let kept_objects = r.u64()?;
+                let (kept_objects, kept_textures) = (r.u64()?, r.u64()?);
                 let (world_ns, share_ns, rendering_ns, rendering_cpu_ns) = (r.u64()?, r.u64()?, r.u64()?, r.u64()?);
                 let (fetch_wait_ns, fetch_build_ns) = (r.u64()?, r.u64()?);
                 let shading_ns = r.u64()?;
@@ -378,6 +381,7 @@ impl Message {
                     resident_objects,
                     reached_objects,
                     kept_objects,
+                    kept_textures,
                     world_ns,
                     share_ns,
                     rendering_ns,
@@ -671,6 +675,7 @@ mod tests {
                     resident_objects: 14,
                     reached_objects: 24,
                     kept_objects: 26,
+                    kept_textures: 27,
                     world_ns: 19,
                     share_ns: 20,
                     rendering_ns: 21,

@@ -58,13 +58,12 @@ impl Default for ReplicaScene {
 
 impl ReplicaScene {
     pub fn new() -> ReplicaScene {
-        ReplicaScene::with_programs(Arc::new(crate::api::ShaderCache::new()))
+        ReplicaScene::with_parts(Arc::new(crate::api::ShaderCache::new()), FetchLink::new())
     }
 
     /// A replica whose programs come from `programs` where they were made from the same
-    /// artifacts.
-    fn with_programs(programs: Arc<crate::api::ShaderCache>) -> ReplicaScene {
-        let link = FetchLink::new();
+    /// artifacts, fetching through `link`.
+    fn with_parts(programs: Arc<crate::api::ShaderCache>, link: Arc<FetchLink>) -> ReplicaScene {
         let mut context = crate::api::Context::new();
         context.set_mesh_source(link.clone());
         context.set_texture_source(link.clone());
@@ -119,15 +118,20 @@ impl WorkerScene for ReplicaScene {
         self.world = Some(world);
     }
 
-    /// A fresh replica with the same cache limit: the world with its BVHs, the fetched meshes,
-    /// the texture cache and the fetch link's frame clock all go with the old one. Its compiled
-    /// programs stay, for the artifacts the next scene sends again (those the old scene did not
-    /// use go).
+    /// A fresh replica with the same cache limit: the world and the texture cache go with the
+    /// old one. Its compiled programs stay, for the artifacts the next scene sends again (those
+    /// the old scene did not use go); so do the meshes it fetched, for the next scene's first
+    /// world to take where their digests match, and the fetch link with the texture maps made
+    /// from its pyramids, for the next scene's caches to take where theirs match.
     fn start_again(&mut self) {
         self.programs.end_scene();
+        self.link.start_scene();
         let kept = self.world.take().map(|w| kept_meshes(&w.scene, self.cache_limit)).unwrap_or_default();
-        *self =
-            ReplicaScene { cache_limit: self.cache_limit, kept, ..ReplicaScene::with_programs(self.programs.clone()) };
+        *self = ReplicaScene {
+            cache_limit: self.cache_limit,
+            kept,
+            ..ReplicaScene::with_parts(self.programs.clone(), self.link.clone())
+        };
     }
 
     fn fetch_link(&self) -> Option<Arc<FetchLink>> {
@@ -523,6 +527,7 @@ fn render_share<T: Transport + ?Sized>(
             (fetched.textures, fetched.texture_levels, fetched.texture_bytes);
         counts.evicted_objects = fetched.evicted;
         counts.kept_objects = fetched.kept;
+        counts.kept_textures = fetched.kept_textures;
         counts.fetch_wait_ns = fetched.waiting.as_nanos() as u64;
         counts.fetch_build_ns = fetched.building.as_nanos() as u64;
         let remote = || world.scene.objects().iter().filter(|o| o.is_remote());

@@ -199,13 +199,23 @@ impl TextureCache {
                 }
                 Err((path, reason)) => self.warn(name, path, reason),
             },
-            TextureAnswer::Pyramid(header) => match remote_map(header, source.clone(), name, raw) {
-                Some(map) => Some(Arc::new(map)),
-                None => {
-                    source.failed(format!("texture \"{name}\": the description of its pyramid does not hold"));
-                    None
+            TextureAnswer::Pyramid(header) => {
+                let digest = header.digest;
+                if let Some(map) = source.kept_map(name, raw, &digest) {
+                    return Some(map);
                 }
-            },
+                match remote_map(header, source.clone(), name, raw) {
+                    Some(map) => {
+                        let map = Arc::new(map);
+                        source.keep_map(name, raw, digest, &map);
+                        Some(map)
+                    }
+                    None => {
+                        source.failed(format!("texture \"{name}\": the description of its pyramid does not hold"));
+                        None
+                    }
+                }
+            }
             TextureAnswer::Level(_) => {
                 source.failed(format!("texture \"{name}\": a level came where its pyramid was asked for"));
                 None

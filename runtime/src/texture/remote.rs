@@ -261,7 +261,8 @@ impl Served {
                 .with_projection(loaded.projection)
         });
         let whole = Arc::new(encode_answer(&TextureAnswer::Whole(delivered)));
-        let pyramid = map.as_ref().map(describe).filter(|p| worth_sending(p, &whole)).map(Arc::new);
+        let digest: [u8; 32] = blake3::hash(&whole).into();
+        let pyramid = map.as_ref().map(|m| describe(m, digest)).filter(|p| worth_sending(p, &whole)).map(Arc::new);
         let map = map.filter(|_| pyramid.is_some());
         let levels = (0..map.as_ref().map_or(0, MipMap::level_count)).map(|_| OnceLock::new()).collect();
         Served { last_used: 0, whole, map, pyramid, levels }
@@ -293,8 +294,9 @@ fn worth_sending(part: &[u8], whole: &[u8]) -> bool {
     2 * part.len() < whole.len()
 }
 
-/// `map`'s description with as many of its coarsest levels as fit [`COARSEST_BYTES`], encoded.
-fn describe(map: &MipMap) -> Vec<u8> {
+/// `map`'s description with as many of its coarsest levels as fit [`COARSEST_BYTES`], and the
+/// digest of the texture as given, encoded.
+fn describe(map: &MipMap, digest: [u8; 32]) -> Vec<u8> {
     let mut coarsest = Vec::new();
     let mut bytes = 0;
     for level in (0..map.level_count()).rev() {
@@ -318,6 +320,7 @@ fn describe(map: &MipMap) -> Vec<u8> {
         projection: map.projection(),
         finite: map.is_finite(),
         coarsest,
+        digest,
     }))
 }
 
@@ -505,6 +508,7 @@ mod tests {
             projection: None,
             finite: true,
             coarsest: vec![LevelValues::Floats(vec![0.5; 3])],
+            digest: [0; 32],
         })))
         .unwrap()
         {
@@ -563,7 +567,7 @@ mod tests {
             z.finish().unwrap()
         };
         let map = MipMap::new(image.clone());
-        let pyramid = decode_answer(&describe(&map)).unwrap();
+        let pyramid = decode_answer(&describe(&map, [0; 32])).unwrap();
         let level = TextureAnswer::Level(LevelValues::of(map.level(0)));
         let (pyramid, level) = (plain(&pyramid), plain(&level));
         let mut state = 0x9e37_79b9_7f4a_7c15u64;

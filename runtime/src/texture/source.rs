@@ -55,6 +55,18 @@ pub trait TextureSource: Send + Sync + fmt::Debug {
     /// Records that something it delivered could not be used (a damaged answer): a distributed
     /// frame then fails. A source that does nothing leaves it to the texture's warning.
     fn failed(&self, _message: String) {}
+
+    /// The map a cache made before from a pyramid of `digest` that this source delivered for
+    /// `name` (decoded `raw` or not), where the source keeps such maps (a distributed worker
+    /// keeps those of the scene before): a cache takes it rather than making another, with the
+    /// levels it holds. The map's further levels come from the source it was made with, under
+    /// the same name.
+    fn kept_map(&self, _name: &str, _raw: bool, _digest: &[u8; 32]) -> Option<std::sync::Arc<super::MipMap>> {
+        None
+    }
+
+    /// Offers the map a cache made from a pyramid of `digest` delivered for `name`, to keep.
+    fn keep_map(&self, _name: &str, _raw: bool, _digest: [u8; 32], _map: &std::sync::Arc<super::MipMap>) {}
 }
 
 /// What `delivered` stands for as a texture decoded `raw` or not: its image, with the file's
@@ -116,6 +128,10 @@ pub struct PyramidHeader {
     pub finite: bool,
     /// The coarsest levels, finest of them first, down to 1x1.
     pub coarsest: Vec<LevelValues>,
+    /// blake3 of the texture as given (its whole answer): a worker that made a map from a
+    /// pyramid of this digest under the same name takes it again (a new scene's texture that did
+    /// not change keeps the levels the worker fetched).
+    pub digest: [u8; 32],
 }
 
 /// A level's values, row after row.
