@@ -13,8 +13,9 @@
 //! master assembles the image as a single process does ([`crate::render::TileRenderer::finish`]).
 //! A viewer's pieces of work travel the same way, their units pixel lattices instead of tiles
 //! ([`Job`], [`Master::trace_lattices`]). Another context is another scene (a RIB file's next
-//! frame): before its first frame the workers drop their copy and all they kept of it
-//! ([`Message::NewScene`]), and the frame's update carries the new scene whole.
+//! frame): before its first frame the workers drop their copy ([`Message::NewScene`]), and the
+//! frame's update carries the new scene whole; they keep the meshes and texture levels they
+//! fetched, which the new scene takes where their digests say they are the same.
 //!
 //! Invariants:
 //! - The image is bit for bit the single-process image of the same world: a tile's pixels depend
