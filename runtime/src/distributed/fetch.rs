@@ -18,7 +18,8 @@ use crate::accel::object::{FetchedMesh, MeshSource};
 use crate::accel::wire::decode_bvh4;
 use crate::api::decode_mesh;
 use crate::scene::Scene;
-use crate::texture::{decode_answer, Delivered, MipMap, TextureAnswer, TexturePart, TextureSource};
+use crate::texture::{decode_answer, Delivered, TextureAnswer, TexturePart, TextureSource};
+use std::any::Any;
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
 use std::sync::mpsc::{channel, Sender};
@@ -57,12 +58,12 @@ pub struct FetchLink {
     evicted: AtomicU64,
     /// Objects of a new scene given the meshes the last scene fetched, before this frame.
     kept: AtomicU64,
-    /// Textures this frame took from the maps kept (not made again, their levels not fetched
-    /// again).
+    /// Textures, shadow maps and grids this frame took from what the caches before made of them
+    /// (not fetched again; a texture's levels neither).
     kept_textures: AtomicU64,
-    /// The texture maps made from the pyramids this link delivered, by name, for the scenes
-    /// after (a link serves a worker's scenes one after another).
-    maps: Mutex<KeptMaps>,
+    /// What caches made of the textures this link delivered, for the scenes after (a link
+    /// serves a worker's scenes one after another).
+    kept_made: Mutex<KeptMade>,
     /// Frames since the start: what objects stamp themselves with when a ray reaches them.
     clock: Arc<AtomicU32>,
     /// Wakes the communication thread when a request is queued (it may be waiting long).
@@ -166,13 +167,25 @@ impl FetchLink {
         self.clock.load(Ordering::Relaxed)
     }
 
-    /// A new scene starts: of the texture maps kept, those the scene that ended did not use are
-    /// let go.
+    /// A new scene starts: of what caches made of the textures delivered, what the scene that
+    /// ended did not use is let go.
     pub(super) fn start_scene(&self) {
-        let mut maps = self.maps.lock().unwrap_or_else(PoisonError::into_inner);
-        let ended = maps.scene;
-        maps.maps.retain(|_, m| m.used == ended);
-        maps.scene += 1;
+        let mut kept = self.kept_made.lock().unwrap_or_else(PoisonError::into_inner);
+        let ended = kept.scene;
+        kept.made.retain(|_, m| m.used == ended);
+        kept.answered.clear();
+        kept.scene += 1;
+    }
+
+    /// The digest of the texture from which a cache made what the link keeps of `part` of
+    /// `name`, sent with a request for it: the master answers [`TextureAnswer::Unchanged`] when
+    /// it would send the same texture. Only whole textures and pyramids are kept, not levels.
+    pub(super) fn held_digest(&self, part: TexturePart, name: &str) -> Option<[u8; 32]> {
+        if matches!(part, TexturePart::Level { .. }) {
+            return None;
+        }
+        let kept = self.kept_made.lock().unwrap_or_else(PoisonError::into_inner);
+        kept.made.get(&(part, name.to_string())).map(|m| m.digest)
     }
 
     /// Notes that `objects` of a new scene took the meshes the last scene fetched.
@@ -304,43 +317,65 @@ impl TextureSource for FetchLink {
         };
         counter.fetch_add(1, Ordering::Relaxed);
         self.fetched_texture_bytes.fetch_add(bytes.len() as u64, Ordering::Relaxed);
-        decode_answer(&bytes).unwrap_or_else(failed)
+        let answer = decode_answer(&bytes).unwrap_or_else(failed);
+        // The texture an answer stands for: a pyramid says; a whole answer is the texture.
+        let digest = match (&answer, part) {
+            (_, TexturePart::Level { .. }) | (TextureAnswer::Whole(Delivered::Missing { .. }), _) => None,
+            (TextureAnswer::Pyramid(header), _) => Some(header.digest),
+            (TextureAnswer::Whole(_), _) => Some(blake3::hash(&bytes).into()),
+            _ => None,
+        };
+        if let Some(digest) = digest {
+            let mut kept = self.kept_made.lock().unwrap_or_else(PoisonError::into_inner);
+            kept.answered.insert((part, name.to_string()), digest);
+        }
+        answer
     }
 
     fn failed(&self, message: String) {
         self.fail(message);
     }
 
-    fn kept_map(&self, name: &str, raw: bool, digest: &[u8; 32]) -> Option<Arc<MipMap>> {
-        let mut maps = self.maps.lock().unwrap_or_else(PoisonError::into_inner);
-        let scene = maps.scene;
-        let kept = maps.maps.get_mut(&(name.to_string(), raw)).filter(|m| m.digest == *digest)?;
-        kept.used = scene;
+    fn kept(&self, part: TexturePart, name: &str) -> Option<Arc<dyn Any + Send + Sync>> {
+        let mut kept = self.kept_made.lock().unwrap_or_else(PoisonError::into_inner);
+        let scene = kept.scene;
+        let made = kept.made.get_mut(&(part, name.to_string()))?;
+        made.used = scene;
         self.kept_textures.fetch_add(1, Ordering::Relaxed);
-        Some(kept.map.clone())
+        Some(made.value.clone())
     }
 
-    fn keep_map(&self, name: &str, raw: bool, digest: [u8; 32], map: &Arc<MipMap>) {
-        let mut maps = self.maps.lock().unwrap_or_else(PoisonError::into_inner);
-        let used = maps.scene;
-        maps.maps.insert((name.to_string(), raw), KeptMap { digest, map: map.clone(), used });
+    fn keep(&self, part: TexturePart, name: &str, value: Arc<dyn Any + Send + Sync>) {
+        let mut kept = self.kept_made.lock().unwrap_or_else(PoisonError::into_inner);
+        let key = (part, name.to_string());
+        let Some(digest) = kept.answered.remove(&key) else { return };
+        let used = kept.scene;
+        kept.made.insert(key, Made { digest, value, used });
     }
 }
 
-/// The texture maps a link's scenes made from the pyramids it delivered, by name and `raw`.
+/// What the caches of a link's scenes made of the textures, shadow maps and grids it delivered
+/// (a texture's map with the levels it fetched since), by what was asked for, with the digest of
+/// the texture it was made from (see [`FetchLink::held_digest`]).
 #[derive(Default)]
-struct KeptMaps {
-    maps: HashMap<(String, bool), KeptMap>,
+struct KeptMade {
+    made: HashMap<(TexturePart, String), Made>,
+    /// The digests of the link's last answers, until a cache keeps what it made of them.
+    answered: HashMap<(TexturePart, String), [u8; 32]>,
     /// Scenes started so far.
     scene: u64,
 }
 
-struct KeptMap {
+struct Made {
     digest: [u8; 32],
-    map: Arc<MipMap>,
+    value: Arc<dyn Any + Send + Sync>,
     /// The scene that last made or took it.
     used: u64,
 }
+
+/// A texture request as it goes to the master: the part, the name, and the digest of what the
+/// worker holds of it ([`FetchLink::held_digest`]).
+pub(super) type TextureRequest = (TexturePart, String, Option<[u8; 32]>);
 
 /// The communication thread's side: requests sent and not yet answered.
 #[derive(Default)]
@@ -349,14 +384,17 @@ pub(super) struct Pending(HashMap<Want, Vec<Sender<Vec<u8>>>>);
 impl Pending {
     /// Takes `link`'s queued requests; returns what to ask the master for (what is not already
     /// asked for): objects, and textures by kind and name.
-    pub(super) fn take(&mut self, link: &FetchLink) -> (Vec<u32>, Vec<(TexturePart, String)>) {
+    pub(super) fn take(&mut self, link: &FetchLink) -> (Vec<u32>, Vec<TextureRequest>) {
         let (mut objects, mut textures) = (Vec::new(), Vec::new());
         for (want, tx) in link.take_requests() {
             let waiting = self.0.entry(want.clone()).or_default();
             if waiting.is_empty() {
                 match want {
                     Want::Mesh(object) => objects.push(object),
-                    Want::Texture(part, name) => textures.push((part, name)),
+                    Want::Texture(part, name) => {
+                        let held = link.held_digest(part, &name);
+                        textures.push((part, name, held))
+                    }
                 }
             }
             waiting.push(tx);

@@ -656,8 +656,11 @@ impl<T: Transport> Master<T> {
                             vec![encode_answer(&TextureAnswer::Whole(none)); textures.len()]
                         }
                     };
-                    let textures =
-                        textures.into_iter().zip(answers).map(|((part, name), answer)| (part, name, answer)).collect();
+                    let textures = textures
+                        .into_iter()
+                        .zip(answers)
+                        .map(|((part, name, _), answer)| (part, name, answer))
+                        .collect();
                     let m = Message::Data { frame, meshes, textures }.encode();
                     traffic.fetches += m.len() as u64;
                     self.transport.send(rank, m)?;

@@ -8,7 +8,7 @@ use crate::texture::{TextureKind, TexturePart};
 use rtsl_compiler::interface::ShaderKind;
 
 /// The protocol's version: ranks that speak different versions refuse each other at start-up.
-pub const PROTOCOL_VERSION: u32 = 23;
+pub const PROTOCOL_VERSION: u32 = 24;
 
 /// What the master's counters add up from a worker's share of a frame.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -126,8 +126,9 @@ pub enum Message {
     /// Master to worker: stop.
     Quit,
     /// Worker to master: send the meshes of these objects and what these texture names stand
-    /// for (demand loading), for frame `frame`.
-    Fetch { frame: u64, objects: Vec<u32>, textures: Vec<(TexturePart, String)> },
+    /// for (demand loading), for frame `frame`; with a texture, the digest of what the worker
+    /// holds of it from before, if anything (see `FetchLink::held_digest`).
+    Fetch { frame: u64, objects: Vec<u32>, textures: Vec<(TexturePart, String, Option<[u8; 32]>)> },
     /// Master to worker: what was asked for: each object's id and its mesh with the BVH the
     /// master built over it, as `fetch::encode_object` writes them (empty: the object has no mesh
     /// now), and each
@@ -292,9 +293,10 @@ impl Message {
                 w.u64(*frame);
                 w.u32s(objects);
                 w.u32(textures.len() as u32);
-                for (part, name) in textures {
+                for (part, name, held) in textures {
                     w.part(*part);
                     w.str(name);
+                    w.bytes(held.as_ref().map_or(&[][..], |d| &d[..]));
                 }
             }
             Message::Data { frame, meshes, textures } => {
@@ -395,8 +397,17 @@ impl Message {
             NEW_SCENE => Message::NewScene,
             FETCH => {
                 let (frame, objects) = (r.u64()?, r.u32s()?);
-                let n = r.count(9)?;
-                let textures = (0..n).map(|_| Ok((r.part()?, r.str()?))).collect::<Result<_, String>>()?;
+                let n = r.count(13)?;
+                let textures = (0..n)
+                    .map(|_| {
+                        let (part, name, held) = (r.part()?, r.str()?, r.bytes()?);
+                        let held = match held.len() {
+                            0 => None,
+                            _ => Some(<[u8; 32]>::try_from(held).map_err(|_| "a texture digest is not 32 bytes")?),
+                        };
+                        Ok((part, name, held))
+                    })
+                    .collect::<Result<_, String>>()?;
                 Message::Fetch { frame, objects, textures }
             }
             DATA => {
@@ -692,10 +703,10 @@ mod tests {
                 frame: 2,
                 objects: vec![],
                 textures: vec![
-                    (TexturePart::Whole(TextureKind::Shadow), "key.shad".into()),
-                    (TexturePart::Whole(TextureKind::Grid), String::new()),
-                    (TexturePart::Pyramid { raw: true }, "wood.ppm".into()),
-                    (TexturePart::Level { raw: false, level: 3 }, "wood.ppm".into()),
+                    (TexturePart::Whole(TextureKind::Shadow), "key.shad".into(), Some([7; 32])),
+                    (TexturePart::Whole(TextureKind::Grid), String::new(), None),
+                    (TexturePart::Pyramid { raw: true }, "wood.ppm".into(), Some([0; 32])),
+                    (TexturePart::Level { raw: false, level: 3 }, "wood.ppm".into(), None),
                 ],
             },
             Message::Data { frame: 2, meshes: vec![(4, vec![1, 2, 3]), (1, vec![])], textures: vec![] },

@@ -191,36 +191,30 @@ impl TextureCache {
     /// Texture `name` from the cache's source: its pyramid, whose finer levels come when lookups
     /// first read them (`texture/remote.rs`), or the whole texture.
     fn fetch_texture(&self, source: &Arc<dyn TextureSource>, name: &str, raw: bool) -> Option<Arc<MipMap>> {
-        match source.fetch(TexturePart::Pyramid { raw }, name) {
+        let part = TexturePart::Pyramid { raw };
+        let map = match source.fetch(part, name) {
             TextureAnswer::Whole(delivered) => match image_from_delivered(delivered, raw) {
                 Ok(l) => {
                     let map = MipMap::with_wrap(l.image, l.wrap.unwrap_or([Wrap::Periodic; 2]));
-                    Some(Arc::new(map.with_projection(l.projection)))
+                    Arc::new(map.with_projection(l.projection))
                 }
-                Err((path, reason)) => self.warn(name, path, reason),
+                Err((path, reason)) => return self.warn(name, path, reason),
             },
-            TextureAnswer::Pyramid(header) => {
-                let digest = header.digest;
-                if let Some(map) = source.kept_map(name, raw, &digest) {
-                    return Some(map);
+            TextureAnswer::Pyramid(header) => match remote_map(header, source.clone(), name, raw) {
+                Some(map) => Arc::new(map),
+                None => {
+                    source.failed(format!("texture \"{name}\": the description of its pyramid does not hold"));
+                    return None;
                 }
-                match remote_map(header, source.clone(), name, raw) {
-                    Some(map) => {
-                        let map = Arc::new(map);
-                        source.keep_map(name, raw, digest, &map);
-                        Some(map)
-                    }
-                    None => {
-                        source.failed(format!("texture \"{name}\": the description of its pyramid does not hold"));
-                        None
-                    }
-                }
-            }
+            },
+            TextureAnswer::Unchanged => return kept(source, part, name),
             TextureAnswer::Level(_) => {
                 source.failed(format!("texture \"{name}\": a level came where its pyramid was asked for"));
-                None
+                return None;
             }
-        }
+        };
+        source.keep(part, name, map.clone());
+        Some(map)
     }
 
     /// Records the warning that `name` cannot be loaded, and gives what its lookups get.
@@ -431,8 +425,12 @@ impl TextureCache {
             Some(source) => match source.fetch(TexturePart::Whole(kind), name) {
                 TextureAnswer::Whole(Delivered::File { path, bytes }) => {
                     let loaded = load(Input::Bytes(&path, &bytes)).map(Arc::new);
+                    if let Ok(value) = &loaded {
+                        source.keep(TexturePart::Whole(kind), name, value.clone());
+                    }
                     (Some(path), loaded)
                 }
+                TextureAnswer::Unchanged => return kept(source, TexturePart::Whole(kind), name),
                 TextureAnswer::Whole(Delivered::Missing { path, reason }) => return warn(path, reason),
                 TextureAnswer::Whole(Delivered::Image { .. } | Delivered::Image8 { .. }) => {
                     return warn(None, "an image built in memory is no shadow map or grid".into())
@@ -448,6 +446,20 @@ impl TextureCache {
             Err(e) => warn(path, e.to_string()),
         }
     }
+}
+
+/// What `source` kept of `part` of `name`, as it said it has ([`TextureAnswer::Unchanged`]); a
+/// failure of the source where it has not, or not of this type.
+fn kept<T: std::any::Any + Send + Sync>(
+    source: &Arc<dyn TextureSource>,
+    part: TexturePart,
+    name: &str,
+) -> Option<Arc<T>> {
+    let kept = source.kept(part, name).and_then(|made| made.downcast::<T>().ok());
+    if kept.is_none() {
+        source.failed(format!("\"{name}\": the source said it was unchanged, and holds none of it"));
+    }
+    kept
 }
 
 /// The slot for `name`, made empty if it is new. The read lock covers the common case.

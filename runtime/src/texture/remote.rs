@@ -114,6 +114,7 @@ impl LevelFetch for SourceLevels {
                 Err((_, reason)) => failed(reason),
             },
             TextureAnswer::Pyramid(_) => failed("the answer is a pyramid, not a level".into()),
+            TextureAnswer::Unchanged => failed("a level was answered as unchanged".into()),
         }
     }
 }
@@ -133,8 +134,9 @@ pub struct TextureServer {
 struct Served {
     /// The [`TextureServer`]'s count of batches answered when this texture was last asked for.
     last_used: u64,
-    /// The texture as given, encoded as a [`TextureAnswer::Whole`].
+    /// The texture as given, encoded as a [`TextureAnswer::Whole`], and its blake3 digest.
     whole: Arc<Vec<u8>>,
+    digest: [u8; 32],
     /// Its pyramid, kept while levels may be asked for (`None` when it is no texture, and the
     /// worker decodes the whole and warns as the master would, or when the whole goes instead of
     /// any level).
@@ -161,11 +163,13 @@ impl TextureServer {
     /// master's texture cache's and `deliver` gives what a name stands for as a kind
     /// (`Context::deliver_texture`). The textures not served yet are decoded and mip-mapped, and
     /// the answers encoded, on the caller's thread pool: a worker's first frame asks for many at
-    /// once, and waits for them.
+    /// once, and waits for them. A request that comes with the digest of what the asker holds of
+    /// the name is answered [`TextureAnswer::Unchanged`] when the texture (or the shadow map or
+    /// grid) is the one of that digest.
     pub fn answer_all(
         &mut self,
         generation: u64,
-        requests: &[(TexturePart, String)],
+        requests: &[(TexturePart, String, Option<[u8; 32]>)],
         deliver: impl Fn(TextureKind, &str) -> Delivered + Sync,
     ) -> Vec<Arc<Vec<u8>>> {
         if generation != self.generation {
@@ -174,7 +178,7 @@ impl TextureServer {
         }
         let mut new: Vec<(String, bool)> = requests
             .iter()
-            .filter_map(|(part, name)| match *part {
+            .filter_map(|(part, name, _)| match *part {
                 TexturePart::Pyramid { raw } | TexturePart::Level { raw, .. } => Some((name.clone(), raw)),
                 TexturePart::Whole(_) => None,
             })
@@ -191,7 +195,7 @@ impl TextureServer {
             .collect();
         self.served.extend(built);
         self.batches += 1;
-        for (part, name) in requests {
+        for (part, name, _) in requests {
             if let TexturePart::Pyramid { raw } | TexturePart::Level { raw, .. } = *part {
                 if let Some(served) = self.served.get_mut(&(name.clone(), raw)) {
                     served.last_used = self.batches;
@@ -201,10 +205,15 @@ impl TextureServer {
         let served = &self.served;
         let answers = requests
             .par_iter()
-            .map(|(part, name)| {
+            .map(|(part, name, held)| {
+                let unchanged = || Arc::new(encode_answer(&TextureAnswer::Unchanged));
                 let raw = match *part {
                     TexturePart::Whole(kind) => {
-                        return Arc::new(encode_answer(&TextureAnswer::Whole(deliver(kind, name))));
+                        let whole = encode_answer(&TextureAnswer::Whole(deliver(kind, name)));
+                        if held.is_some_and(|d| d == <[u8; 32]>::from(blake3::hash(&whole))) {
+                            return unchanged();
+                        }
+                        return Arc::new(whole);
                     }
                     TexturePart::Pyramid { raw } | TexturePart::Level { raw, .. } => raw,
                 };
@@ -214,6 +223,9 @@ impl TextureServer {
                 };
                 match *part {
                     TexturePart::Level { level, .. } => served.level(level as usize),
+                    // What the asker holds was made of the texture it is now (a whole answer or
+                    // a pyramid: both made of this, whose digest a pyramid carries).
+                    _ if *held == Some(served.digest) => unchanged(),
                     _ => served.pyramid.clone().unwrap_or_else(|| served.whole.clone()),
                 }
             })
@@ -249,7 +261,7 @@ impl TextureServer {
         name: &str,
         deliver: impl Fn(TextureKind, &str) -> Delivered + Sync,
     ) -> Arc<Vec<u8>> {
-        let mut answers = self.answer_all(generation, &[(part, name.to_string())], deliver);
+        let mut answers = self.answer_all(generation, &[(part, name.to_string(), None)], deliver);
         answers.pop().unwrap_or_default()
     }
 }
@@ -265,7 +277,7 @@ impl Served {
         let pyramid = map.as_ref().map(|m| describe(m, digest)).filter(|p| worth_sending(p, &whole)).map(Arc::new);
         let map = map.filter(|_| pyramid.is_some());
         let levels = (0..map.as_ref().map_or(0, MipMap::level_count)).map(|_| OnceLock::new()).collect();
-        Served { last_used: 0, whole, map, pyramid, levels }
+        Served { last_used: 0, whole, digest, map, pyramid, levels }
     }
 
     /// What it holds, in bytes.
@@ -625,15 +637,27 @@ mod tests {
         assert_eq!(reads.load(Ordering::Relaxed), 3, "a new generation, and the raw pyramid");
         // Several at once: each texture read once, the answers in the order asked.
         let parts = [
-            (TexturePart::Level { raw: false, level: 1 }, "u".to_string()),
-            (pyramid, "u".to_string()),
-            (TexturePart::Level { raw: false, level: 2 }, "t".to_string()),
+            (TexturePart::Level { raw: false, level: 1 }, "u".to_string(), None),
+            (pyramid, "u".to_string(), None),
+            (TexturePart::Level { raw: false, level: 2 }, "t".to_string(), None),
         ];
         let answers = server.answer_all(2, &parts, deliver);
         assert_eq!(reads.load(Ordering::Relaxed), 4);
-        for ((part, name), answer) in parts.iter().zip(&answers) {
+        for ((part, name, _), answer) in parts.iter().zip(&answers) {
             assert_eq!(answer, &server.answer(2, *part, name, deliver), "{part:?} {name}");
         }
+        // Asked with the digest of the texture the asker made its map of: unchanged; with another
+        // digest, the pyramid again. A level is never answered as unchanged.
+        let Ok(TextureAnswer::Pyramid(header)) = decode_answer(&answers[1]) else { panic!("a pyramid") };
+        let held = [
+            (pyramid, "u".to_string(), Some(header.digest)),
+            (pyramid, "u".to_string(), Some([0; 32])),
+            (TexturePart::Level { raw: false, level: 1 }, "u".to_string(), Some(header.digest)),
+        ];
+        let again = server.answer_all(2, &held, deliver);
+        assert_eq!(decode_answer(&again[0]), Ok(TextureAnswer::Unchanged));
+        assert_eq!(again[1], answers[1]);
+        assert_eq!(again[2], answers[0]);
         // A level past the last, or of a name that is no texture, is the whole.
         let whole = encode_answer(&TextureAnswer::Whole(Delivered::image(&image)));
         assert_eq!(*server.answer(2, TexturePart::Level { raw: false, level: 99 }, "t", deliver), whole);

@@ -2,8 +2,10 @@
 //! for, or, for a texture, the parts a distributed worker fetches a mip level at a time
 //! (`remote.rs`); and how those travel.
 
+use std::any::Any;
 use std::fmt;
 use std::path::PathBuf;
+use std::sync::Arc;
 
 use super::image::{decode_texture_file, LoadedImage, TexImage};
 
@@ -56,17 +58,17 @@ pub trait TextureSource: Send + Sync + fmt::Debug {
     /// frame then fails. A source that does nothing leaves it to the texture's warning.
     fn failed(&self, _message: String) {}
 
-    /// The map a cache made before from a pyramid of `digest` that this source delivered for
-    /// `name` (decoded `raw` or not), where the source keeps such maps (a distributed worker
-    /// keeps those of the scene before): a cache takes it rather than making another, with the
-    /// levels it holds. The map's further levels come from the source it was made with, under
-    /// the same name.
-    fn kept_map(&self, _name: &str, _raw: bool, _digest: &[u8; 32]) -> Option<std::sync::Arc<super::MipMap>> {
+    /// What a cache made before of `part` of `name` (a texture's map, a shadow map, a grid),
+    /// where the source keeps what caches make (a distributed worker keeps what its last scene
+    /// made) and has answered [`TextureAnswer::Unchanged`]: the cache takes it rather than
+    /// making another. A texture map's further levels come from the source it was made with,
+    /// under the same name.
+    fn kept(&self, _part: TexturePart, _name: &str) -> Option<Arc<dyn Any + Send + Sync>> {
         None
     }
 
-    /// Offers the map a cache made from a pyramid of `digest` delivered for `name`, to keep.
-    fn keep_map(&self, _name: &str, _raw: bool, _digest: [u8; 32], _map: &std::sync::Arc<super::MipMap>) {}
+    /// Offers what a cache made of the source's last answer to `part` of `name`, to keep.
+    fn keep(&self, _part: TexturePart, _name: &str, _made: Arc<dyn Any + Send + Sync>) {}
 }
 
 /// What `delivered` stands for as a texture decoded `raw` or not: its image, with the file's
@@ -113,6 +115,9 @@ pub enum TextureAnswer {
     Pyramid(PyramidHeader),
     /// One level's values.
     Level(LevelValues),
+    /// What the asker holds of the name, by the digest it sent, is what the name stands for
+    /// ([`TextureSource::kept`]).
+    Unchanged,
 }
 
 /// A texture's pyramid as a worker first gets it.
