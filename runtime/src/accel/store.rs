@@ -163,26 +163,9 @@ fn same_geometry(a: &Arc<Mesh>, b: &Arc<Mesh>) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::accel::wire::tests::grid;
     use crate::geometry::mesh::Deformation;
     use glam::Vec3;
-
-    fn grid(n: u32, z: f32) -> Mesh {
-        let mut positions = Vec::new();
-        let mut triangles = Vec::new();
-        for y in 0..=n {
-            for x in 0..=n {
-                positions.push(Vec3::new(x as f32, y as f32, z * (x as f32 * 0.37 + y as f32).sin()));
-            }
-        }
-        for y in 0..n {
-            for x in 0..n {
-                let i = y * (n + 1) + x;
-                triangles.push([i, i + 1, i + n + 1]);
-                triangles.push([i + 1, i + n + 2, i + n + 1]);
-            }
-        }
-        Mesh::from_triangles(positions, triangles).expect("a valid grid")
-    }
 
     /// Meshes of the same geometry (not the same mesh) get one BVH; a mesh that differs in one
     /// bit of one position, in a deformation or in the quality asked for gets its own; and the
@@ -190,24 +173,24 @@ mod tests {
     #[test]
     fn meshes_of_the_same_geometry_share_one_bvh() {
         let store = BvhStore::new();
-        let first = Arc::new(grid(12, 0.5));
+        let first = Arc::new(grid(12));
         let built = store.get_or_build(&first, BuildQuality::High);
         // Another mesh with the same geometry, and normals and uvs the first lacks.
-        let mut same = grid(12, 0.5);
+        let mut same = grid(12);
         same.normals = Some(vec![Vec3::Z; same.positions.len()]);
         let again = store.get_or_build(&Arc::new(same), BuildQuality::High);
         assert!(Arc::ptr_eq(&built, &again));
         assert_eq!(store.reused(), 1);
 
         // Zero and minus zero are equal floats but not the same bits.
-        let mut signed = grid(12, 0.5);
+        let mut signed = grid(12);
         assert_eq!(signed.positions[0].z.to_bits(), 0);
         signed.positions[0].z = -0.0;
         let other = store.get_or_build(&Arc::new(signed), BuildQuality::High);
         assert!(!Arc::ptr_eq(&built, &other));
         let faster = store.get_or_build(&first, BuildQuality::Fast);
         assert!(!Arc::ptr_eq(&built, &faster));
-        let mut deforming = grid(12, 0.5);
+        let mut deforming = grid(12);
         let close = deforming.positions.iter().map(|p| *p + Vec3::Z).collect();
         deforming.deformation = Some(Deformation { positions: close, normals: None, open: 0.0, close: 1.0 });
         let deformed = store.get_or_build(&Arc::new(deforming), BuildQuality::High);

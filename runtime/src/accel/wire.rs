@@ -198,13 +198,13 @@ fn check_tree(nodes: &[Node4], prim_order: &[u32], mesh: &Mesh) -> Result<usize,
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::accel::bvh4::BuildQuality;
     use crate::accel::object::ObjectBvh;
 
     /// A grid of `n x n` quads, two triangles each, rippled so that boxes differ.
-    fn grid(n: u32) -> Mesh {
+    pub(crate) fn grid(n: u32) -> Mesh {
         let mut positions = Vec::new();
         for y in 0..=n {
             for x in 0..=n {
