@@ -162,10 +162,16 @@ impl MipMap {
 
     /// A map of which only the coarsest levels are here: `pyramid` describes the whole, and
     /// `fetch` delivers the finer levels (or the image) when lookups first read them. `None`
-    /// when `pyramid` does not hold (a size of zero, a coarse level of another size or length).
+    /// when `pyramid` does not hold (a size of zero, no 1x1 level, a coarse level of another
+    /// size or length).
     pub(crate) fn remote(pyramid: RemotePyramid, fetch: Arc<dyn LevelFetch>) -> Option<MipMap> {
         let RemotePyramid { width, height, channels, wrap, projection, finite, coarsest } = pyramid;
         if width == 0 || height == 0 || channels == 0 || width.checked_mul(height)?.checked_mul(channels).is_none() {
+            return None;
+        }
+        // The 1x1 level holds `channels` values as it came: the channel count, which sizes what
+        // is made below, is then bounded by what was sent.
+        if coarsest.is_empty() {
             return None;
         }
         let sizes = level_sizes(width, height);

@@ -536,6 +536,10 @@ mod tests {
             PyramidHeader { wrap: [0, 3], ..good.clone() },
             PyramidHeader { coarsest: vec![LevelValues::Floats(vec![0.5; 4])], ..good.clone() },
             PyramidHeader { coarsest: vec![LevelValues::Bytes(vec![1; 3]); 8], ..good.clone() },
+            // No 1x1 level, which every description carries: its channel count, which nothing
+            // bounds then, would size the stand-in texel.
+            PyramidHeader { channels: u32::MAX, coarsest: vec![], ..good.clone() },
+            PyramidHeader { coarsest: vec![], ..good.clone() },
         ];
         for header in damaged {
             assert!(remote_map(header.clone(), source.clone(), "t", false).is_none(), "{header:?}");
