@@ -173,6 +173,7 @@ fn fixed_table() -> HostTable {
         volume_message: no_other_message,
         shader_name: no_name,
         print: no_print,
+        pixels: std::ptr::null(),
     }
 }
 

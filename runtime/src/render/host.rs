@@ -11,14 +11,14 @@ use super::sampling::{mix, point_seed, unit};
 use super::stats::{tracing, Stats};
 use super::trace_ahead::RayLog;
 use super::virtual_lights;
-use super::work::{epsilon, BatchLights, Frame, PixelChannel, PixelImage, Sample};
+use super::work::{epsilon, BatchLights, Frame, PixelImage, Sample};
 use crate::ray::Ray;
 use crate::shading::ShaderInstance;
 use crate::texture::{Grid, LookupLanes, LookupOptions, MipMap, TextureCache};
 use glam::{Affine3A, Mat4, Vec3A, Vec4};
 use rtsl_compiler::abi::{
-    same_category, shadow_query_of, Builtin, GatherHit, HostTable, LightLanes, MessageOut, StrRef, CONE_ROWS,
-    MAX_LIGHTS, SHADOW_ROWS,
+    same_category, shadow_query_of, Builtin, GatherHit, HostTable, LightLanes, MessageOut, PixelChannel, PixelView,
+    StrRef, CONE_ROWS, MAX_LIGHTS, SHADOW_ROWS,
 };
 use std::cell::RefCell;
 use std::collections::HashMap;
@@ -60,6 +60,8 @@ pub(crate) struct ShadeCall<'f, 'w> {
     pub(super) rays_log: RayLog,
     /// For a pixel shader: the image it finishes, as it was before the shader ran (`pixelvalue`).
     pub(super) pixels: Option<&'f PixelImage>,
+    /// The view of `pixels` the call table points generated code to, made by [`ShadeCall::table`].
+    pixel_view: Option<PixelView>,
     /// What each lane's ray tree may still spawn (`ray_budget.rs`); a lane past its end may
     /// spawn nothing.
     pub(super) budgets: &'f mut [RayBudget],
@@ -170,6 +172,7 @@ impl<'f, 'w> ShadeCall<'f, 'w> {
             material: None,
             rays_log: RayLog::Direct,
             pixels: None,
+            pixel_view: None,
         }
     }
 
@@ -238,6 +241,7 @@ impl<'f, 'w> ShadeCall<'f, 'w> {
 
     /// The call table; valid while `self` is neither moved nor dropped.
     pub(crate) fn table(&mut self) -> HostTable {
+        self.pixel_view = self.pixels.and_then(PixelImage::view);
         HostTable {
             ctx: self as *mut ShadeCall as *mut c_void,
             matrix: host_matrix,
@@ -252,6 +256,7 @@ impl<'f, 'w> ShadeCall<'f, 'w> {
             volume_message: host_volume_message,
             shader_name: host_shader_name,
             print: host_print,
+            pixels: self.pixel_view.as_ref().map_or(std::ptr::null(), |v| v as *const PixelView),
         }
     }
 

@@ -88,3 +88,133 @@ pub fn shade_pixels(frame: &Frame, tile: TilePixels<'_>, image: Option<&PixelIma
         });
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An 8 x 8 image whose pixels all differ, with a pixel that sees nothing (ids `u32::MAX`, a
+    /// zero normal) and ids that a float cannot hold exactly.
+    fn image() -> PixelImage {
+        let n = 64;
+        let f = |i: usize, k: usize| i as f32 * 0.25 + k as f32 * 0.0625 - 3.0;
+        let id = |i: usize| match i {
+            9 => u32::MAX,
+            10 => 16_777_217,
+            11 => u32::MAX - 1,
+            _ => 3 * i as u32 + 1,
+        };
+        PixelImage {
+            width: 8,
+            height: 8,
+            rgba: (0..n).map(|i| [f(i, 0), f(i, 1), f(i, 2), f(i, 3)]).collect(),
+            depth: (0..n).map(|i| f(i, 4)).collect(),
+            object_id: (0..n).map(id).collect(),
+            shader_id: (0..n).map(|i| id(i).wrapping_add(5)).collect(),
+            normal: (0..n).map(|i| if i == 9 { [0.0; 3] } else { [f(i, 5), f(i, 6), f(i, 7)] }).collect(),
+        }
+    }
+
+    /// The raster coordinates the probe reads at pixel `(i, j)`: inside, outside, on edges, huge,
+    /// negative zero, and (column and row 7) infinite and NaN.
+    fn probe_at(i: usize, j: usize) -> (f32, f32) {
+        let xs = [-1e30, -1.5, -0.0, 0.5, 2.99, 7.0, 3e9, f32::INFINITY];
+        let ys = [6.5, 1e30, -0.25, 7.999, 8.0, 3.0, -3e9, f32::NAN];
+        (xs[i], ys[j])
+    }
+
+    const PROBE: &str = r#"
+        pixel probe(string channel = "Ci"; float literal = 1; float scalar = 0)
+        {
+            float xs[8] = {-1e30, -1.5, -0.0, 0.5, 2.99, 7.0, 3e9, 0};
+            float ys[8] = {6.5, 1e30, -0.25, 7.999, 8.0, 3.0, -3e9, 0};
+            float i = floor(xcomp(P)), j = floor(ycomp(P));
+            float cx = xs[i], cy = ys[j];
+            float huge = 1e30 * 1e30;
+            if (i == 7) cx = huge;
+            if (j == 7) cy = huge - huge;
+            color v = 0;
+            if (literal == 0) {
+                v = color pixelvalue(channel, cx, cy);
+            } else if (scalar != 0) {
+                float f = 0;
+                if (channel == "alpha") f = pixelvalue("alpha", cx, cy);
+                if (channel == "z") f = pixelvalue("z", cx, cy);
+                if (channel == "objectid") f = pixelvalue("objectid", cx, cy);
+                if (channel == "shaderid") f = pixelvalue("shaderid", cx, cy);
+                if (channel == "Ci") f = pixelvalue("Ci", cx, cy);
+                if (channel == "N") f = pixelvalue("N", cx, cy);
+                v = f;
+            } else {
+                if (channel == "alpha") v = color pixelvalue("alpha", cx, cy);
+                if (channel == "z") v = color pixelvalue("z", cx, cy);
+                if (channel == "objectid") v = color pixelvalue("objectid", cx, cy);
+                if (channel == "shaderid") v = color pixelvalue("shaderid", cx, cy);
+                if (channel == "Ci") v = color pixelvalue("Ci", cx, cy);
+                if (channel == "N") v = color pixelvalue("N", cx, cy);
+            }
+            Ci = v;
+        }
+    "#;
+
+    /// What the probe leaves in each pixel of the image for `channel`, read by name at run time
+    /// (`literal` 0: through the renderer's `texture` callback) or named by a literal (read by
+    /// the generated code from the image), as a colour or (`scalar`) a float.
+    fn probe(channel: &str, literal: bool, scalar: bool) -> Vec<[u32; 3]> {
+        let rib = format!(
+            "Format 8 8 1\nImager \"probe\" \"string channel\" [\"{channel}\"] \"float literal\" [{}] \"float scalar\" [{}]\nWorldBegin\nWorldEnd\n",
+            u8::from(literal),
+            u8::from(scalar)
+        );
+        let mut rt = crate::api::Context::new();
+        rt.compile_shader("probe", PROBE).expect("the probe compiles");
+        crate::rib::load::load_str(&mut rt, &rib, std::path::Path::new("<test>")).expect("the test scene loads");
+        let world = rt.build_world().expect("the test scene builds");
+        assert!(reads_pixels(&world), "the probe reads other pixels");
+        let frame = Frame::new(&world);
+        let image = image();
+        let mut rgba = vec![[0.0f32; 4]; 64];
+        let tile = TilePixels {
+            x0: 0,
+            y0: 0,
+            width: 8,
+            rgba: &mut rgba,
+            depth: &image.depth,
+            object_id: &image.object_id,
+            shader_id: &image.shader_id,
+        };
+        shade_pixels(&frame, tile, Some(&image));
+        rgba.iter().map(|c| [c[0].to_bits(), c[1].to_bits(), c[2].to_bits()]).collect()
+    }
+
+    /// `pixelvalue` of a channel named by a literal, which generated code reads from the image
+    /// itself, gives what the image's own lookup (`PixelImage::value`, the interpreter's and the
+    /// renderer's callback's) gives, bit for bit: for every channel, as a colour and as a float,
+    /// at coordinates inside, outside, huge, infinite and NaN.
+    #[test]
+    fn pixelvalue_read_inline_is_the_images_own_lookup() {
+        let image = image();
+        for channel in ["Ci", "alpha", "z", "objectid", "shaderid", "N"] {
+            for scalar in [false, true] {
+                let expected: Vec<[u32; 3]> = (0..64)
+                    .map(|k| {
+                        let (x, y) = probe_at(k % 8, k / 8);
+                        let v = image.value(channel, x, y).unwrap_or([0.0; 3]);
+                        let v = if scalar { [v[0]; 3] } else { v };
+                        v.map(f32::to_bits)
+                    })
+                    .collect();
+                let by_callback = probe(channel, false, scalar);
+                let inline = probe(channel, true, scalar);
+                if !scalar {
+                    assert_eq!(by_callback, expected, "{channel} through the callback");
+                }
+                assert_eq!(inline, expected, "{channel} read inline, scalar {scalar}");
+            }
+        }
+        // The probe reaches the cases it is about.
+        let ids: Vec<f32> =
+            (0..64).filter_map(|k| image.value("objectid", (k % 8) as f32, (k / 8) as f32)).map(|v| v[0]).collect();
+        assert!(ids.contains(&-1.0) && ids.contains(&16_777_216.0));
+    }
+}

@@ -11,7 +11,7 @@ use super::world::LightSource;
 use super::world::{GiOptions, InstanceShadows, World, MAX_FRAME_OUTPUTS};
 use crate::ray::{Hit, Ray};
 use glam::{Affine3A, Vec3A};
-use rtsl_compiler::abi::LightLanes;
+use rtsl_compiler::abi::{LightLanes, PixelChannel, PixelView};
 use std::sync::{Arc, Mutex, PoisonError};
 use wide::f32x8;
 
@@ -374,6 +374,14 @@ pub struct PixelImage {
 }
 
 impl PixelImage {
+    /// The view generated code reads the image through (`None` when its arrays do not all hold
+    /// `width * height` pixels, or it has none): valid while the image is neither changed nor
+    /// dropped.
+    pub fn view(&self) -> Option<PixelView> {
+        let ids = (&self.object_id[..], &self.shader_id[..]);
+        PixelView::new((self.width, self.height), &self.rgba, &self.depth, ids, &self.normal)
+    }
+
     /// Channel `name` of the pixel at raster `(x, y)` (the nearest pixel inside the image): `Ci`
     /// or `N` (the normal), or `alpha`, `z`, `objectid`, `shaderid` (-1 for none) in the first
     /// component; `None` for an unknown channel or an empty image.
@@ -403,32 +411,6 @@ impl PixelImage {
             PixelChannel::ObjectId => one(id(*self.object_id.get(i)?)),
             PixelChannel::ShaderId => one(id(*self.shader_id.get(i)?)),
             PixelChannel::N => *self.normal.get(i)?,
-        })
-    }
-}
-
-/// A channel of a [`PixelImage`] that `pixelvalue` reads.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum PixelChannel {
-    Ci,
-    Alpha,
-    Z,
-    ObjectId,
-    ShaderId,
-    N,
-}
-
-impl PixelChannel {
-    /// The channel `pixelvalue` calls `name`; `None` for another name.
-    pub fn of(name: &str) -> Option<PixelChannel> {
-        Some(match name {
-            "Ci" => PixelChannel::Ci,
-            "alpha" => PixelChannel::Alpha,
-            "z" => PixelChannel::Z,
-            "objectid" => PixelChannel::ObjectId,
-            "shaderid" => PixelChannel::ShaderId,
-            "N" => PixelChannel::N,
-            _ => return None,
         })
     }
 }

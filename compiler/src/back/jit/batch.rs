@@ -41,6 +41,9 @@ pub struct Batch {
     /// first) by code that calls host helpers: they pass it on to the renderer, which keeps
     /// per-lane state for the batch. Code without host calls in its chunks does not write it.
     pub chunk: u32,
+    /// The image a pixel shader finishes ([`host::HostTable::pixels`]), which generated code
+    /// reads inline; null where there is none (then `pixelvalue` calls its helper).
+    pub pixels: *const host::PixelView,
 }
 
 /// The strings one batch can name, each once (so equal handles are equal strings and the reverse:
@@ -142,6 +145,7 @@ pub(super) const OFF_UNIFORM: i32 = 24;
 pub(super) const OFF_BOUND: i32 = 32;
 pub(super) const OFF_DERIVS: i32 = 48;
 pub(super) const OFF_CHUNK: i32 = 64;
+pub(super) const OFF_PIXELS: i32 = 72;
 
 // Generated code addresses the record's fields by these offsets.
 const _: () = {
@@ -153,6 +157,7 @@ const _: () = {
     assert!(offset_of!(Batch, bound) == OFF_BOUND as usize);
     assert!(offset_of!(Batch, derivs) == OFF_DERIVS as usize);
     assert!(offset_of!(Batch, chunk) == OFF_CHUNK as usize);
+    assert!(offset_of!(Batch, pixels) == OFF_PIXELS as usize);
 };
 
 /// The entry point of a compiled shader.
@@ -492,6 +497,7 @@ impl BatchData {
             bound: self.bound.as_ptr(),
             strings: &mut self.strings,
             derivs: if self.derivs.is_empty() { std::ptr::null() } else { self.derivs.as_ptr() },
+            pixels: ctx.pixels(),
             ctx,
             chunk: u32::MAX,
         }

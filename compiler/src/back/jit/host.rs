@@ -360,6 +360,82 @@ pub struct HostTable {
     pub shader_name: unsafe extern "C" fn(ctx: *mut c_void, has_kind: u32, kind: StrRef) -> StrRef,
     /// `printf` output.
     pub print: unsafe extern "C" fn(ctx: *mut c_void, text: StrRef),
+    /// For a pixel shader that reads other pixels: the image it finishes, which generated code
+    /// reads inline (`pixelvalue` of a channel named by a literal). Null where there is none or
+    /// the renderer answers through `texture` (kind 4): generated code then calls the helper.
+    pub pixels: *const PixelView,
+}
+
+/// The image a pixel shader finishes, as generated code reads it (`pixelvalue`): `width x height`
+/// pixels, row by row, each array holding one entry per pixel. [`PixelView::new`] checks what
+/// generated code relies on: at least one pixel, arrays of the image's size, and an index below
+/// `i32::MAX` (generated code computes `y * width + x` in 32-bit lanes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug)]
+pub struct PixelView {
+    pub width: u32,
+    pub height: u32,
+    /// `Ci` and alpha.
+    pub rgba: *const [f32; 4],
+    /// Camera-space depth.
+    pub depth: *const f32,
+    /// Object and shader ids (`u32::MAX` for none: -1 to a shader).
+    pub object_id: *const u32,
+    pub shader_id: *const u32,
+    /// The unit geometric normal facing the camera (zero for none).
+    pub normal: *const [f32; 3],
+}
+
+impl PixelView {
+    /// A view of the image's arrays, or `None` when they do not hold `width * height` pixels each
+    /// or the image is empty or too large to index in 32 bits. The view borrows the arrays: it is
+    /// valid while they are neither moved, resized nor dropped.
+    pub fn new(
+        (width, height): (u32, u32),
+        rgba: &[[f32; 4]],
+        depth: &[f32],
+        (object_id, shader_id): (&[u32], &[u32]),
+        normal: &[[f32; 3]],
+    ) -> Option<PixelView> {
+        let pixels = (width as usize).checked_mul(height as usize)?;
+        let fits = pixels > 0 && pixels <= i32::MAX as usize;
+        let sized = [rgba.len(), depth.len(), object_id.len(), shader_id.len(), normal.len()].iter().all(|&n| n == pixels);
+        (fits && sized).then_some(PixelView {
+            width,
+            height,
+            rgba: rgba.as_ptr(),
+            depth: depth.as_ptr(),
+            object_id: object_id.as_ptr(),
+            shader_id: shader_id.as_ptr(),
+            normal: normal.as_ptr(),
+        })
+    }
+}
+
+/// The channels of [`PixelView`] generated code reads, by the names `pixelvalue` gives them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PixelChannel {
+    Ci,
+    Alpha,
+    Z,
+    ObjectId,
+    ShaderId,
+    N,
+}
+
+impl PixelChannel {
+    /// The channel `pixelvalue` calls `name`; `None` for another name.
+    pub fn of(name: &str) -> Option<PixelChannel> {
+        Some(match name {
+            "Ci" => PixelChannel::Ci,
+            "alpha" => PixelChannel::Alpha,
+            "z" => PixelChannel::Z,
+            "objectid" => PixelChannel::ObjectId,
+            "shaderid" => PixelChannel::ShaderId,
+            "N" => PixelChannel::N,
+            _ => return None,
+        })
+    }
 }
 
 /// A [`HostTable`] backed by a [`Services`] implementation, asking it lane by lane.
@@ -389,6 +465,7 @@ impl<'a> ServicesHost<'a> {
             volume_message: sv_volume_message,
             shader_name: sv_shader_name,
             print: sv_print,
+            pixels: std::ptr::null(),
         }
     }
 }
@@ -767,6 +844,15 @@ impl HostCtx {
             matrices: Vec::new(),
             pooled: false,
         }
+    }
+
+    /// The image the table's renderer gives pixel shaders to read inline (null for none).
+    pub(super) fn pixels(&self) -> *const PixelView {
+        if self.table.is_null() {
+            return std::ptr::null();
+        }
+        // SAFETY: a non-null table is valid for the run (`CompiledShader::run`'s caller).
+        unsafe { (*self.table).pixels }
     }
 
     /// Takes this thread's spare buffers before the first use of any: only runs that use them
