@@ -73,7 +73,12 @@ fn compiled_shaders_tell_which_ray_built_ins_they_call() {
         calls("color seen(vector d) { return trace(P, d); } surface m() { Ci = seen(reflect(I, N)); Oi = 1; }");
     assert_eq!(mirror, jit::RayCalls { trace: true, ..jit::RayCalls::default() });
     let shadows = calls("surface o() { Ci = transmission(P, P + N) * (1 - occlusion(P, N, 4)); Oi = 1; }");
-    assert_eq!(shadows, jit::RayCalls { transmission: true, hemisphere: true, ..jit::RayCalls::default() });
+    assert_eq!(
+        shadows,
+        jit::RayCalls { transmission: true, hemisphere: true, occlusion: true, ..jit::RayCalls::default() }
+    );
+    let bounced = calls("surface b() { Ci = indirectdiffuse(P, N, 8); Oi = 1; }");
+    assert_eq!(bounced, jit::RayCalls { hemisphere: true, indirect: true, ..jit::RayCalls::default() });
 }
 
 #[test]

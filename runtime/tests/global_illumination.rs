@@ -54,6 +54,46 @@ fn box_scene_shaded(options: &str, shader: &str) -> (Context, Vec<String>) {
     (rt, loaded.warnings.iter().map(ToString::to_string).collect())
 }
 
+/// A batch whose shader gathers virtual lights (`indirectdiffuse` under instant radiosity) runs
+/// twice so that its chunks' points gather together (`RenderOptions::trace_ahead`): the image is
+/// the one of gathering chunk by chunk, bit for bit, also where a point's second gathering
+/// depends on its first one's answer (the first run's placeholder sends it elsewhere, so it is
+/// gathered again in the second); where nothing depends on an answer, each point gathers once
+/// either way.
+#[test]
+fn gathering_a_batchs_virtual_lights_ahead_changes_no_pixel() {
+    let options = r#"Option "gi" "integer virtuallights" [300] "integer interleave" [3]"#;
+    let plain = "surface onebounce() {
+        normal Nf = faceforward(normalize(N), I);
+        Ci = Cs * (diffuse(Nf) / PI + indirectdiffuse(P, Nf, 16));
+        Oi = 1;
+    }";
+    let dependent = "surface onebounce() {
+        normal Nf = faceforward(normalize(N), I);
+        color first = indirectdiffuse(P, Nf, 16);
+        normal bent = Nf;
+        if (comp(first, 0) > 0.02)
+            bent = normalize(Nf + normal(0.3, 0.1, 0.2));
+        Ci = Cs * (first + indirectdiffuse(P, bent, 16));
+        Oi = 1;
+    }";
+    for (shader, independent) in [(plain, true), (dependent, false)] {
+        let (mut rt, warnings) = box_scene_shaded(options, shader);
+        assert!(warnings.is_empty(), "{warnings:?}");
+        let (ahead, ahead_report) = rt.render_frame().expect("a frame");
+        rt.options.trace_ahead = false;
+        let (chunked, chunked_report) = rt.render_frame().expect("a frame");
+        assert!(ahead == chunked, "independent: {independent}");
+        let lit = (0..24).flat_map(|y| (0..32).map(move |x| (x, y))).filter(|&(x, y)| ahead.pixel(x, y)[0] > 0.01);
+        assert!(lit.count() > 32 * 24 / 2, "independent: {independent}");
+        if independent {
+            assert_eq!(ahead_report.shadow_rays, chunked_report.shadow_rays);
+        } else {
+            assert!(ahead_report.shadow_rays > chunked_report.shadow_rays, "{ahead_report}\n{chunked_report}");
+        }
+    }
+}
+
 fn render(options: &str) -> Framebuffer {
     let (mut rt, warnings) = box_scene(options);
     assert!(warnings.is_empty(), "{warnings:?}");

@@ -9,7 +9,7 @@ use super::ray_budget::{RayBudget, RayOrigin};
 use super::ray_params::{object_value, strip_user, RayValue, RELEVANCE};
 use super::sampling::{mix, point_seed, unit};
 use super::stats::{tracing, Stats};
-use super::trace_ahead::RayLog;
+use super::trace_ahead::{GatherAt, RayLog};
 use super::virtual_lights;
 use super::work::{epsilon, BatchLights, Frame, PixelImage, Sample};
 use crate::ray::Ray;
@@ -798,19 +798,48 @@ unsafe extern "C" fn host_rays(
         }
         3 if frame.world.options.gi.virtual_lights > 0 => {
             // Instant radiosity: the frame's virtual lights, this point's set of them.
-            let lights = frame
-                .virtual_lights
-                .get_or_init(|| Arc::new(virtual_lights::timed(frame, || virtual_lights::trace(frame))));
-            let start = frame.stats.timed.then(std::time::Instant::now);
-            let mut lanes = Vec::with_capacity(4);
-            let mut points = Vec::with_capacity(4);
+            let lights = virtual_lights::of_frame(frame);
+            let mut at: [Option<GatherAt>; 4] = [None; 4];
             for l in (0..4).filter(|&l| mask[l] != 0) {
                 let (p, n) = (lane3(a, 0, l), lane3(b, 0, l).normalize_or_zero());
                 if n != Vec3A::ZERO && p.is_finite() {
-                    let set = virtual_lights::set_of(lights, frame, p);
-                    points.push(virtual_lights::Gatherer { p, n, time: times[l], set });
-                    lanes.push(l);
+                    at[l] = Some(GatherAt { p, n, time: times[l] });
                 }
+            }
+            // A first run notes its points (answering black), and the second takes what they
+            // gathered together (`trace_ahead.rs`).
+            match &mut c.rays_log {
+                RayLog::Record(noted) => {
+                    noted.note_gathers(at);
+                    for l in (0..4).filter(|&l| at[l].is_some()) {
+                        for r in 0..3 {
+                            out[4 * r + l] = 0.0;
+                        }
+                    }
+                    return;
+                }
+                RayLog::Replay(replayed) => {
+                    for (l, light) in replayed.gathered(&at).into_iter().enumerate() {
+                        let Some(light) = light else { continue };
+                        for r in 0..3 {
+                            out[4 * r + l] = light[r];
+                        }
+                        at[l] = None;
+                    }
+                }
+                RayLog::Direct => {}
+            }
+            let start = frame.stats.timed.then(std::time::Instant::now);
+            let mut lanes = Vec::with_capacity(4);
+            let mut points = Vec::with_capacity(4);
+            for (l, g) in at.iter().enumerate() {
+                let Some(g) = g else { continue };
+                let set = virtual_lights::set_of(lights, frame, g.p);
+                points.push(virtual_lights::Gatherer { p: g.p, n: g.n, time: g.time, set });
+                lanes.push(l);
+            }
+            if points.is_empty() {
+                return;
             }
             let mut light = [Vec3A::ZERO; 4];
             virtual_lights::gather(lights, frame, &points, &mut light);

@@ -28,11 +28,21 @@
 //! Each lane's answer is the same either way: a ray's shading does not depend on the other rays
 //! shaded beside it. The cost is a second run of the shader itself, which for a reflecting or
 //! refracting surface is small beside the shading of what its rays meet.
+//!
+//! Under instant radiosity (`virtual_lights.rs`) `indirectdiffuse` is noted and answered the same
+//! way: the first run notes each lane's point, normal and time (and answers black), the points
+//! of all calls gather their virtual lights together, and the second run takes each lane's sum
+//! where its point, normal and time are the ones noted, bit for bit. A chunk's four points have
+//! a few dozen shadow rays each, spread over the eight direction octants: gathered chunk by
+//! chunk, they made packets of a dozen rays, each paying a whole packet's set-up; a batch's
+//! points fill them. A point's sum is its own rays' alone, whichever points gather beside it.
 
 use super::ray_budget::RayBudget;
 use super::stats::Stats;
+use super::virtual_lights::{self, Gatherer};
 use super::work::{Frame, Sample};
 use crate::ray::Ray;
+use glam::Vec3A;
 
 /// What a `trace` call does with its rays.
 #[derive(Default)]
@@ -55,8 +65,29 @@ pub(super) const MAX_NOTED_CALLS: usize = 4096;
 #[derive(Default)]
 pub(super) struct Recorded {
     calls: Vec<(u32, [Option<Ray>; 4])>,
+    /// The points of the run's `indirectdiffuse` calls that gather virtual lights, call by call.
+    gathers: Vec<[Option<GatherAt>; 4]>,
     /// Whether the run had output it did not write (`printf`).
     pub(super) silenced: bool,
+}
+
+/// Where a lane gathers virtual lights: its point, unit normal and ray time.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct GatherAt {
+    pub(super) p: Vec3A,
+    pub(super) n: Vec3A,
+    pub(super) time: f32,
+}
+
+impl GatherAt {
+    /// Whether two are the same bit for bit (a NaN is never the same).
+    fn same(&self, o: &GatherAt) -> bool {
+        let bits = |g: &GatherAt| {
+            let (p, n) = (g.p.to_array(), g.n.to_array());
+            [p[0], p[1], p[2], n[0], n[1], n[2], g.time].map(f32::to_bits)
+        };
+        self.p.is_finite() && self.n.is_finite() && bits(self) == bits(o)
+    }
 }
 
 /// The answers to a first run's rays.
@@ -68,6 +99,9 @@ pub(super) struct Replayed {
     lent: Vec<RayBudget>,
     budgets: Vec<RayBudget>,
     next: usize,
+    /// Each noted gathering point with the light it gathered, call by call.
+    gathers: Vec<[Option<(GatherAt, Vec3A)>; 4]>,
+    next_gather: usize,
 }
 
 impl Recorded {
@@ -79,15 +113,25 @@ impl Recorded {
         }
     }
 
-    /// Whether the run must be made again: it traced, or kept output back.
+    /// Notes one call's gathering points (by lane), unless [`MAX_NOTED_CALLS`] are noted already.
+    pub(super) fn note_gathers(&mut self, at: [Option<GatherAt>; 4]) {
+        if self.gathers.len() < MAX_NOTED_CALLS {
+            self.gathers.push(at);
+        }
+    }
+
+    /// Whether the run must be made again: it traced or gathered, or kept output back.
     pub(super) fn needs_replay(&self) -> bool {
-        self.silenced || self.calls.iter().any(|(_, c)| c.iter().any(Option::is_some))
+        self.silenced
+            || self.calls.iter().any(|(_, c)| c.iter().any(Option::is_some))
+            || self.gathers.iter().any(|g| g.iter().any(Option::is_some))
     }
 
     /// Traces and shades every noted ray together, `depth` deep: each costs its lane one, and a
     /// lane's rays share what it has left, as `budgets` (the batch's lanes') has it. A lane with
     /// fewer left than it noted rays has none traced here.
-    pub(super) fn trace(self, frame: &Frame, depth: u32, budgets: &[RayBudget]) -> Replayed {
+    pub(super) fn trace(mut self, frame: &Frame, depth: u32, budgets: &[RayBudget]) -> Replayed {
+        let gathers = gather_all(frame, std::mem::take(&mut self.gathers));
         let lane_of = |chunk: u32, l: usize| (chunk as usize).checked_mul(4).and_then(|c| c.checked_add(l));
         let mut noted = vec![0u32; budgets.len()];
         for (chunk, call) in &self.calls {
@@ -122,8 +166,32 @@ impl Recorded {
             Stats::add(&frame.stats.secondary_rays, rays.len());
             (frame.stages.trace_rays)(frame, &rays, &mut budgets, depth)
         };
-        Replayed { calls, seen, lent, budgets, next: 0 }
+        Replayed { calls, seen, lent, budgets, next: 0, gathers, next_gather: 0 }
     }
+}
+
+/// Gathers the frame's virtual lights at every noted point, all points together
+/// (`virtual_lights::gather`, which packs their shadow rays by octant), each point's sum beside it.
+fn gather_all(frame: &Frame, noted: Vec<[Option<GatherAt>; 4]>) -> Vec<[Option<(GatherAt, Vec3A)>; 4]> {
+    if noted.iter().all(|g| g.iter().all(Option::is_none)) {
+        return Vec::new();
+    }
+    let lights = virtual_lights::of_frame(frame);
+    let start = frame.stats.timed.then(std::time::Instant::now);
+    let points: Vec<Gatherer> = noted
+        .iter()
+        .flatten()
+        .flatten()
+        .map(|g| Gatherer { p: g.p, n: g.n, time: g.time, set: virtual_lights::set_of(lights, frame, g.p) })
+        .collect();
+    let mut light = vec![Vec3A::ZERO; points.len()];
+    virtual_lights::gather(lights, frame, &points, &mut light);
+    if let Some(start) = start {
+        let ns = start.elapsed().as_nanos() as u64;
+        frame.stats.gathering_ns.fetch_add(ns, std::sync::atomic::Ordering::Relaxed);
+    }
+    let mut sums = light.into_iter();
+    noted.into_iter().map(|call| call.map(|g| Some((g?, sums.next()?)))).collect()
 }
 
 impl Replayed {
@@ -144,6 +212,20 @@ impl Replayed {
                 (given.left <= lent[l].left)
                     .then(|| Some((*self.seen.get(k)?, given.left - after.left.min(given.left), after.cut)))?
             }
+            _ => None,
+        })
+    }
+}
+
+impl Replayed {
+    /// The light gathered for the next `indirectdiffuse` call's points, lane by lane: `None` for a
+    /// lane whose point, normal or time is not the one noted in its place (bit for bit), to be
+    /// gathered anew.
+    pub(super) fn gathered(&mut self, at: &[Option<GatherAt>; 4]) -> [Option<Vec3A>; 4] {
+        let noted = self.gathers.get(self.next_gather).copied().unwrap_or([None; 4]);
+        self.next_gather += 1;
+        std::array::from_fn(|l| match (at[l], noted[l]) {
+            (Some(g), Some((was, light))) if g.same(&was) => Some(light),
             _ => None,
         })
     }

@@ -109,6 +109,11 @@ pub(super) fn prepare(frame: &Frame) {
     }
 }
 
+/// The frame's virtual lights, traced first if no one has yet.
+pub(super) fn of_frame<'f>(frame: &'f Frame) -> &'f VirtualLights {
+    frame.virtual_lights.get_or_init(|| Arc::new(timed(frame, || trace(frame))))
+}
+
 /// Runs `f`, adding its wall time to the frame's light-path time when the frame is timed.
 pub(super) fn timed<R>(frame: &Frame, f: impl FnOnce() -> R) -> R {
     let start = frame.stats.timed.then(std::time::Instant::now);

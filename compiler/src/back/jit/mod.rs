@@ -164,6 +164,10 @@ pub struct RayCalls {
     pub transmission: bool,
     /// `occlusion` or `indirectdiffuse`.
     pub hemisphere: bool,
+    /// `occlusion`.
+    pub occlusion: bool,
+    /// `indirectdiffuse`.
+    pub indirect: bool,
     /// `gather`.
     pub gather: bool,
 }
@@ -176,6 +180,8 @@ impl RayCalls {
             trace: calls("rtsl_h_trace"),
             transmission: calls("rtsl_h_transmission"),
             hemisphere: calls("rtsl_h_occlusion") || calls("rtsl_h_indirectdiffuse"),
+            occlusion: calls("rtsl_h_occlusion"),
+            indirect: calls("rtsl_h_indirectdiffuse"),
             gather: calls("rtsl_h_gather"),
         }
     }
