@@ -280,10 +280,14 @@ impl Services for TestHost {
         (name == "caustic").then(|| [p[0] + estimator, p[1] * n[1], p[2] - n[0] + n[2]])
     }
 
-    /// An image of 8 x 6 pixels whose channels are functions of the pixel (the nearest inside);
-    /// no channel "missing".
+    /// An image of 8 x 6 pixels whose channels are functions of the pixel (the nearest inside, as
+    /// the renderer finds it; none at a coordinate that is not finite); no channel "missing".
     fn pixel_value(&mut self, name: &str, x: f32, y: f32) -> Option<V3> {
-        let (px, py) = (x.floor().clamp(0.0, 7.0), y.floor().clamp(0.0, 5.0));
+        if !x.is_finite() || !y.is_finite() {
+            return None;
+        }
+        let nearest = |v: f32, last: u32| (v.floor().max(0.0) as u32).min(last) as f32;
+        let (px, py) = (nearest(x, 7), nearest(y, 5));
         match name {
             "Ci" => Some([px / 8.0, py / 6.0, (px + py) / 14.0]),
             "missing" => None,

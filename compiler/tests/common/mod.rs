@@ -150,6 +150,46 @@ pub fn lit_host() -> TestHost {
     }
 }
 
+/// The test host's image (`TestHost::pixel_value`) as the arrays a renderer's `PixelView` holds.
+pub struct TestImage {
+    size: (u32, u32),
+    rgba: Vec<[f32; 4]>,
+    depth: Vec<f32>,
+    ids: (Vec<u32>, Vec<u32>),
+    normal: Vec<[f32; 3]>,
+}
+
+impl TestImage {
+    /// `host`'s channels at every pixel's centre.
+    pub fn of(host: &mut TestHost) -> TestImage {
+        use rtsl_compiler::interp::Services;
+        let (w, h) = (8u32, 6u32);
+        let mut image = TestImage {
+            size: (w, h),
+            rgba: Vec::new(),
+            depth: Vec::new(),
+            ids: (Vec::new(), Vec::new()),
+            normal: Vec::new(),
+        };
+        for y in 0..h {
+            for x in 0..w {
+                let mut at = |name: &str| host.pixel_value(name, x as f32 + 0.5, y as f32 + 0.5).expect("a channel");
+                let (ci, alpha) = (at("Ci"), at("alpha")[0]);
+                image.rgba.push([ci[0], ci[1], ci[2], alpha]);
+                image.depth.push(at("z")[0]);
+                image.ids.0.push(at("objectid")[0] as u32);
+                image.ids.1.push(at("shaderid")[0] as u32);
+                image.normal.push(at("N"));
+            }
+        }
+        image
+    }
+
+    pub fn view(&self) -> Option<jit::PixelView> {
+        jit::PixelView::new(self.size, &self.rgba, &self.depth, (&self.ids.0, &self.ids.1), &self.normal)
+    }
+}
+
 /// Shades `lanes` random lanes with both back ends and compares. Returns how many lanes ran.
 pub fn differential(m: &Module, shader: &CompiledShader, lanes: usize, seed: u64, bind_prob: f32) -> usize {
     differential_with(m, shader, lanes, seed, bind_prob, Limits::default())
@@ -235,7 +275,10 @@ pub fn differential_with(
         }
     }
     let mut jit_host = lit_host();
-    shader.shade_with(&mut batch, &mut jit_host);
+    // Half the runs read `pixelvalue` of literal channels from the test host's image itself, as
+    // a renderer's pixel shaders do; the others through the host's callback.
+    let image = TestImage::of(&mut lit_host());
+    shader.shade_with_pixels(&mut batch, &mut jit_host, image.view().filter(|_| seed % 2 == 0));
     let mut printed = Vec::new();
     let mut budget_met = shader.stopped_a_loop();
 

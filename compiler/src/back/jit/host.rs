@@ -442,11 +442,18 @@ impl PixelChannel {
 pub struct ServicesHost<'a> {
     host: &'a mut dyn Services,
     text: String,
+    pixels: Option<PixelView>,
 }
 
 impl<'a> ServicesHost<'a> {
     pub fn new(host: &'a mut dyn Services) -> ServicesHost<'a> {
-        ServicesHost { host, text: String::new() }
+        ServicesHost { host, text: String::new(), pixels: None }
+    }
+
+    /// A host whose table also points generated code to `pixels` (see [`HostTable::pixels`]),
+    /// which should hold the image `host` answers `pixel_value` from.
+    pub fn with_pixels(host: &'a mut dyn Services, pixels: Option<PixelView>) -> ServicesHost<'a> {
+        ServicesHost { pixels, ..ServicesHost::new(host) }
     }
 
     /// The table; valid while `self` is neither moved nor dropped.
@@ -465,7 +472,7 @@ impl<'a> ServicesHost<'a> {
             volume_message: sv_volume_message,
             shader_name: sv_shader_name,
             print: sv_print,
-            pixels: std::ptr::null(),
+            pixels: self.pixels.as_ref().map_or(std::ptr::null(), |v| v as *const PixelView),
         }
     }
 }

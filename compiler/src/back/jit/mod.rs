@@ -309,7 +309,21 @@ impl CompiledShader {
     /// # Panics
     /// As [`CompiledShader::shade`].
     pub fn shade_with(&self, batch: &mut BatchData, host: &mut dyn crate::interp::Services) {
-        let mut sh = ServicesHost::new(host);
+        self.shade_with_pixels(batch, host, None);
+    }
+
+    /// [`CompiledShader::shade_with`], the code reading `pixelvalue` of literal channels from
+    /// `pixels` (which should hold the image `host` answers from) where given.
+    ///
+    /// # Panics
+    /// As [`CompiledShader::shade`].
+    pub fn shade_with_pixels(
+        &self,
+        batch: &mut BatchData,
+        host: &mut dyn crate::interp::Services,
+        pixels: Option<PixelView>,
+    ) {
+        let mut sh = ServicesHost::with_pixels(host, pixels);
         let table = sh.table();
         self.shade_with_table(batch, &table);
     }
