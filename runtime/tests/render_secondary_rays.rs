@@ -275,3 +275,68 @@ fn a_tree_within_its_budget_is_traced_whole() -> Result<(), ApiError> {
     }
     Ok(())
 }
+
+/// A floor with a box standing on it, seen from above at an angle, every surface shaded by
+/// `shader` (named `ao`).
+fn floor_and_box(shader: &str) -> Context {
+    let rib = r#"
+        Format 48 36 1
+        Projection "perspective" "fov" 50
+        Translate 0 -0.5 5
+        Rotate -30 1 0 0
+        WorldBegin
+        Surface "ao"
+        Polygon "P" [-3 -1 -3  3 -1 -3  3 -1 3  -3 -1 3]
+        Polygon "P" [-0.5 -1 -0.5  -0.5 0 -0.5  0.5 0 -0.5  0.5 -1 -0.5]
+        Polygon "P" [-0.5 -1 0.5  0.5 -1 0.5  0.5 0 0.5  -0.5 0 0.5]
+        Polygon "P" [-0.5 -1 -0.5  -0.5 -1 0.5  -0.5 0 0.5  -0.5 0 -0.5]
+        Polygon "P" [0.5 -1 -0.5  0.5 0 -0.5  0.5 0 0.5  0.5 -1 0.5]
+        Polygon "P" [-0.5 0 -0.5  -0.5 0 0.5  0.5 0 0.5  0.5 0 -0.5]
+        WorldEnd
+    "#;
+    let mut rt = Context::new();
+    rt.compile_shader("ao", shader).expect("the test shader compiles");
+    rtsl_runtime::rib::load::load_str(&mut rt, rib, std::path::Path::new("<floor>")).expect("the floor loads");
+    rt
+}
+
+/// A batch whose shader calls `occlusion` runs twice so that its chunks' hemisphere rays are
+/// traced together (`RenderOptions::trace_ahead`): the image is the one of tracing each chunk's
+/// rays on its own, bit for bit, also where a point's second query depends on its first one's
+/// answer (the first run's placeholder sends it elsewhere, so it is traced again in the second);
+/// where nothing depends on an answer, each point's rays are traced once either way.
+#[test]
+fn tracing_a_batchs_occlusion_rays_ahead_changes_no_pixel() {
+    let plain = "surface ao() {
+        normal Nf = faceforward(normalize(N), I);
+        Ci = 1 - occlusion(P, Nf, 24);
+        Oi = 1;
+    }";
+    let dependent = "surface ao() {
+        normal Nf = faceforward(normalize(N), I);
+        float first = occlusion(P, Nf, 24);
+        normal bent = Nf;
+        if (first > 0.1)
+            bent = normalize(Nf + normal(0.3, 0.1, 0.2));
+        Ci = 1 - 0.5 * (first + occlusion(P, bent, 16));
+        Oi = 1;
+    }";
+    for (shader, independent) in [(plain, true), (dependent, false)] {
+        let mut rt = floor_and_box(shader);
+        let (ahead, ahead_report) = rt.render_frame().expect("a frame");
+        rt.options.trace_ahead = false;
+        let (chunked, chunked_report) = rt.render_frame().expect("a frame");
+        assert!(ahead == chunked, "independent: {independent}");
+        // The box darkens the floor around it, and the open sky leaves most of it lit.
+        let pixels: Vec<f32> =
+            (0..36).flat_map(|y| (0..48).map(move |x| (x, y))).map(|(x, y)| ahead.pixel(x, y)[0]).collect();
+        let shaded = pixels.iter().filter(|&&v| v > 0.05 && v < 0.95).count();
+        let open = pixels.iter().filter(|&&v| v >= 0.95).count();
+        assert!(shaded > 40 && open > 200, "independent: {independent}: {shaded} shaded, {open} open");
+        if independent {
+            assert_eq!(ahead_report.secondary_rays, chunked_report.secondary_rays);
+        } else {
+            assert!(ahead_report.secondary_rays > chunked_report.secondary_rays, "{ahead_report}\n{chunked_report}");
+        }
+    }
+}

@@ -7,9 +7,8 @@
 
 use super::ray_budget::{RayBudget, RayOrigin};
 use super::ray_params::{object_value, strip_user, RayValue, RELEVANCE};
-use super::sampling::{mix, point_seed, unit};
 use super::stats::{tracing, Stats};
-use super::trace_ahead::{GatherAt, RayLog};
+use super::trace_ahead::{GatherAt, OcclusionAt, RayLog};
 use super::virtual_lights;
 use super::work::{epsilon, BatchLights, Frame, PixelImage, Sample};
 use crate::ray::Ray;
@@ -853,6 +852,31 @@ unsafe extern "C" fn host_rays(
                 frame.stats.gathering_ns.fetch_add(ns, std::sync::atomic::Ordering::Relaxed);
             }
         }
+        2 if !matches!(c.rays_log, RayLog::Direct) => {
+            // A first run notes its points (answering unoccluded), and the second takes what
+            // their rays found, traced together (`trace_ahead.rs`); lanes noted otherwise are
+            // traced here.
+            let at: [Option<OcclusionAt>; 4] = std::array::from_fn(|l| {
+                let (p, n) = (lane3(a, 0, l), lane3(b, 0, l).normalize_or_zero());
+                let count = (samples[l].max(1.0) as u32).min(256);
+                (mask[l] != 0).then_some(OcclusionAt { p, n, count, time: times[l] })
+            });
+            let found = match &mut c.rays_log {
+                RayLog::Record(noted) => {
+                    noted.note_occlusions(at);
+                    [Some(0.0); 4]
+                }
+                RayLog::Replay(replayed) => replayed.occluded(&at),
+                RayLog::Direct => [None; 4],
+            };
+            for (l, g) in at.iter().enumerate() {
+                let Some(g) = g else { continue };
+                out[l] = match found[l] {
+                    Some(blocked) => blocked,
+                    None => hemisphere(frame, g.p, g.n, g.count, None, c.depth, g.time).0,
+                };
+            }
+        }
         _ => {
             for l in 0..4 {
                 if mask[l] == 0 {
@@ -890,17 +914,8 @@ fn hemisphere(
     if n == Vec3A::ZERO {
         return (0.0, Vec3A::ZERO);
     }
-    let (t1, t2) = orthonormal(n);
-    let seed = point_seed(p);
     let mut rays = Vec::with_capacity(count as usize);
-    for i in 0..count {
-        let h = mix(seed ^ u64::from(i).wrapping_mul(0x9E37_79B9));
-        let (r1, r2) = (unit(h), unit(mix(h)));
-        let phi = std::f32::consts::TAU * r1;
-        let (s, cz) = (r2.sqrt(), (1.0 - r2).sqrt());
-        let dir = t1 * (s * phi.cos()) + t2 * (s * phi.sin()) + n * cz;
-        rays.push(Ray::segment(p, dir, epsilon(p), f32::INFINITY).at_time(time));
-    }
+    super::hemisphere::hemisphere_rays(p, n, count, time, &mut rays);
     Stats::add(&frame.stats.secondary_rays, rays.len());
     let shade = shade.filter(|_| depth < frame.world.options.max_ray_depth);
     let paid = shade.and_then(|budget| {
@@ -927,12 +942,6 @@ fn hemisphere(
         let blocked = blocked.iter().filter(|&&b| b).count() as f32 / count as f32;
         (blocked, Vec3A::ZERO)
     }
-}
-
-fn orthonormal(n: Vec3A) -> (Vec3A, Vec3A) {
-    let a = if n.x.abs() > 0.9 { Vec3A::Y } else { Vec3A::X };
-    let t1 = n.cross(a).normalize();
-    (t1, n.cross(t1))
 }
 
 unsafe extern "C" fn host_gather(

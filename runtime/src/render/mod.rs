@@ -13,6 +13,7 @@ pub mod filter;
 pub mod frame;
 mod globals;
 mod group;
+mod hemisphere;
 mod hit_geometry;
 mod host;
 mod lanes;

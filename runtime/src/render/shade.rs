@@ -479,20 +479,20 @@ fn shade_group_lanes(
     })
 }
 
-/// Whether a surface batch of `lanes` lanes runs twice to trace its `trace` rays, or gather its
-/// virtual lights, together (`trace_ahead.rs`): when it has more than one chunk, and its shader
-/// calls `trace` (whose rays may go deeper) or `indirectdiffuse` (under instant radiosity,
-/// which gathers virtual lights), and none of the built-ins whose rays cost more than a second
-/// run of the shader saves (`gather`, `occlusion`, `indirectdiffuse` sampling the hemisphere:
-/// the first run would trace theirs too).
+/// Whether a surface batch of `lanes` lanes runs twice to trace its `trace` or `occlusion` rays,
+/// or gather its virtual lights, together (`trace_ahead.rs`): when it has more than one chunk, and
+/// its shader calls `trace` (whose rays may go deeper), `occlusion`, or `indirectdiffuse` under
+/// instant radiosity (which gathers virtual lights), and none of the built-ins whose rays cost
+/// more than a second run of the shader saves (`gather`, `indirectdiffuse` sampling the
+/// hemisphere with shaded rays: the first run would trace theirs too).
 fn traces_ahead(frame: &Frame, program: &crate::shading::ShaderProgram, lanes: usize, depth: u32) -> bool {
     let options = &frame.world.options;
     let calls = program.code.ray_calls();
     let traces = calls.trace && depth < options.max_ray_depth;
     let gathers_lights = options.gi.virtual_lights > 0;
     let gathers = calls.indirect && gathers_lights;
-    let hemisphere = calls.occlusion || (calls.indirect && !gathers_lights);
-    options.trace_ahead && lanes > 4 && (traces || gathers) && !calls.gather && !hemisphere
+    let hemisphere = calls.indirect && !gathers_lights;
+    options.trace_ahead && lanes > 4 && (traces || gathers || calls.occlusion) && !calls.gather && !hemisphere
 }
 
 /// Runs a surface batch's shader twice (`trace_ahead.rs`): a first run notes its `trace` rays,

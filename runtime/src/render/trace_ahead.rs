@@ -29,8 +29,11 @@
 //! shaded beside it. The cost is a second run of the shader itself, which for a reflecting or
 //! refracting surface is small beside the shading of what its rays meet.
 //!
-//! Under instant radiosity (`virtual_lights.rs`) `indirectdiffuse` is noted and answered the same
-//! way: the first run notes each lane's point, normal and time (and answers black), the points
+//! `occlusion` is noted and answered the same way: the first run notes each lane's point, normal,
+//! ray count and time (and answers unoccluded), the hemisphere rays of all calls are traced
+//! together, and the second run takes each lane's share of blocked rays where its inputs are the
+//! noted ones, bit for bit (a chunk's rays over four hemispheres made packets of a few rays each
+//! octant). Under instant radiosity (`virtual_lights.rs`) `indirectdiffuse` is noted alike: the first run notes each lane's point, normal and time (and answers black), the points
 //! of all calls gather their virtual lights together, and the second run takes each lane's sum
 //! where its point, normal and time are the ones noted, bit for bit. A chunk's four points have
 //! a few dozen shadow rays each, spread over the eight direction octants: gathered chunk by
@@ -67,8 +70,28 @@ pub(super) struct Recorded {
     calls: Vec<(u32, [Option<Ray>; 4])>,
     /// The points of the run's `indirectdiffuse` calls that gather virtual lights, call by call.
     gathers: Vec<[Option<GatherAt>; 4]>,
+    /// The points of the run's `occlusion` calls, call by call.
+    occlusions: Vec<[Option<OcclusionAt>; 4]>,
     /// Whether the run had output it did not write (`printf`).
     pub(super) silenced: bool,
+}
+
+/// Where a lane asks `occlusion`: its point, unit normal (zero: no rays), the number of rays and
+/// its ray time.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct OcclusionAt {
+    pub(super) p: Vec3A,
+    pub(super) n: Vec3A,
+    pub(super) count: u32,
+    pub(super) time: f32,
+}
+
+impl OcclusionAt {
+    /// Whether two are the same bit for bit (a NaN is never the same).
+    fn same(&self, o: &OcclusionAt) -> bool {
+        let g = |a: &OcclusionAt| GatherAt { p: a.p, n: a.n, time: a.time };
+        self.count == o.count && g(self).same(&g(o))
+    }
 }
 
 /// Where a lane gathers virtual lights: its point, unit normal and ray time.
@@ -102,6 +125,9 @@ pub(super) struct Replayed {
     /// Each noted gathering point with the light it gathered, call by call.
     gathers: Vec<[Option<(GatherAt, Vec3A)>; 4]>,
     next_gather: usize,
+    /// Each noted `occlusion` point with the share of its rays that were blocked, call by call.
+    occlusions: Vec<[Option<(OcclusionAt, f32)>; 4]>,
+    next_occlusion: usize,
 }
 
 impl Recorded {
@@ -120,11 +146,19 @@ impl Recorded {
         }
     }
 
+    /// Notes one call's `occlusion` points (by lane), unless [`MAX_NOTED_CALLS`] are noted already.
+    pub(super) fn note_occlusions(&mut self, at: [Option<OcclusionAt>; 4]) {
+        if self.occlusions.len() < MAX_NOTED_CALLS {
+            self.occlusions.push(at);
+        }
+    }
+
     /// Whether the run must be made again: it traced or gathered, or kept output back.
     pub(super) fn needs_replay(&self) -> bool {
         self.silenced
             || self.calls.iter().any(|(_, c)| c.iter().any(Option::is_some))
             || self.gathers.iter().any(|g| g.iter().any(Option::is_some))
+            || self.occlusions.iter().any(|g| g.iter().any(Option::is_some))
     }
 
     /// Traces and shades every noted ray together, `depth` deep: each costs its lane one, and a
@@ -132,6 +166,7 @@ impl Recorded {
     /// fewer left than it noted rays has none traced here.
     pub(super) fn trace(mut self, frame: &Frame, depth: u32, budgets: &[RayBudget]) -> Replayed {
         let gathers = gather_all(frame, std::mem::take(&mut self.gathers));
+        let occlusions = occlude_all(frame, std::mem::take(&mut self.occlusions));
         let lane_of = |chunk: u32, l: usize| (chunk as usize).checked_mul(4).and_then(|c| c.checked_add(l));
         let mut noted = vec![0u32; budgets.len()];
         for (chunk, call) in &self.calls {
@@ -166,7 +201,7 @@ impl Recorded {
             Stats::add(&frame.stats.secondary_rays, rays.len());
             (frame.stages.trace_rays)(frame, &rays, &mut budgets, depth)
         };
-        Replayed { calls, seen, lent, budgets, next: 0, gathers, next_gather: 0 }
+        Replayed { calls, seen, lent, budgets, next: 0, gathers, next_gather: 0, occlusions, next_occlusion: 0 }
     }
 }
 
@@ -217,7 +252,52 @@ impl Replayed {
     }
 }
 
+/// The share of each noted `occlusion` point's hemisphere rays that are blocked, all points' rays
+/// traced together (as packets of one direction octant, `World::occluded_rays`), each share beside
+/// its point.
+fn occlude_all(frame: &Frame, noted: Vec<[Option<OcclusionAt>; 4]>) -> Vec<[Option<(OcclusionAt, f32)>; 4]> {
+    if noted.iter().all(|g| g.iter().all(Option::is_none)) {
+        return Vec::new();
+    }
+    let mut rays = Vec::new();
+    // Each point's rays: those before its end and after the last point's.
+    let ends: Vec<usize> = noted
+        .iter()
+        .flatten()
+        .flatten()
+        .map(|o| {
+            if o.n != Vec3A::ZERO {
+                super::hemisphere::hemisphere_rays(o.p, o.n, o.count, o.time, &mut rays);
+            }
+            rays.len()
+        })
+        .collect();
+    Stats::add(&frame.stats.secondary_rays, rays.len());
+    let mut blocked = Vec::new();
+    super::stats::tracing(|| frame.world.occluded_rays(&rays, &mut blocked));
+    let mut start = 0;
+    let mut shares = ends.into_iter().map(|end| {
+        let hit = blocked[start..end].iter().filter(|&&b| b).count();
+        let share = if end > start { hit as f32 / (end - start) as f32 } else { 0.0 };
+        start = end;
+        share
+    });
+    noted.into_iter().map(|call| call.map(|o| Some((o?, shares.next()?)))).collect()
+}
+
 impl Replayed {
+    /// The share of its rays blocked for the next `occlusion` call's points, lane by lane: `None`
+    /// for a lane whose point, normal, ray count or time is not the one noted in its place (bit
+    /// for bit), to be traced anew.
+    pub(super) fn occluded(&mut self, at: &[Option<OcclusionAt>; 4]) -> [Option<f32>; 4] {
+        let noted = self.occlusions.get(self.next_occlusion).copied().unwrap_or([None; 4]);
+        self.next_occlusion += 1;
+        std::array::from_fn(|l| match (at[l], noted[l]) {
+            (Some(o), Some((was, share))) if o.same(&was) => Some(share),
+            _ => None,
+        })
+    }
+
     /// The light gathered for the next `indirectdiffuse` call's points, lane by lane: `None` for a
     /// lane whose point, normal or time is not the one noted in its place (bit for bit), to be
     /// gathered anew.

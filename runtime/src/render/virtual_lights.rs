@@ -24,6 +24,7 @@
 //! per pass of progressive refinement another: `Frame::gi_seed`), never on threads or timing, so
 //! every tile, lattice and worker of a frame gathers the same lights.
 
+use super::hemisphere::orthonormal;
 use super::photon_map::{Photon, PhotonMap};
 use super::ray_budget::RayBudget;
 use super::sampling::{mix, point_seed, radical_inverse, unit};
@@ -587,12 +588,6 @@ fn reflectance_of(frame: &Frame, hit: &Hit) -> (Vec3A, PhotonModel) {
     let material = material.and_then(|m| world.materials.get(m as usize));
     let (color, model) = material.map_or(([1.0; 3], PhotonModel::Matte), |m| (m.color, m.photon));
     (Vec3A::from(color).clamp(Vec3A::ZERO, Vec3A::splat(0.95)), model)
-}
-
-fn orthonormal(n: Vec3A) -> (Vec3A, Vec3A) {
-    let a = if n.x.abs() > 0.9 { Vec3A::Y } else { Vec3A::X };
-    let t1 = n.cross(a).normalize();
-    (t1, n.cross(t1))
 }
 
 /// The pixel (raster x and y) that `p` projects to through the frame's pinhole camera; `None`
