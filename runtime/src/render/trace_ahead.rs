@@ -290,25 +290,31 @@ impl Replayed {
     /// for a lane whose point, normal, ray count or time is not the one noted in its place (bit
     /// for bit), to be traced anew.
     pub(super) fn occluded(&mut self, at: &[Option<OcclusionAt>; 4]) -> [Option<f32>; 4] {
-        let noted = self.occlusions.get(self.next_occlusion).copied().unwrap_or([None; 4]);
-        self.next_occlusion += 1;
-        std::array::from_fn(|l| match (at[l], noted[l]) {
-            (Some(o), Some((was, share))) if o.same(&was) => Some(share),
-            _ => None,
-        })
+        next_answers(&self.occlusions, &mut self.next_occlusion, at, OcclusionAt::same)
     }
 
     /// The light gathered for the next `indirectdiffuse` call's points, lane by lane: `None` for a
     /// lane whose point, normal or time is not the one noted in its place (bit for bit), to be
     /// gathered anew.
     pub(super) fn gathered(&mut self, at: &[Option<GatherAt>; 4]) -> [Option<Vec3A>; 4] {
-        let noted = self.gathers.get(self.next_gather).copied().unwrap_or([None; 4]);
-        self.next_gather += 1;
-        std::array::from_fn(|l| match (at[l], noted[l]) {
-            (Some(g), Some((was, light))) if g.same(&was) => Some(light),
-            _ => None,
-        })
+        next_answers(&self.gathers, &mut self.next_gather, at, GatherAt::same)
     }
+}
+
+/// The answers noted for the next call (`noted[*next]`, then `next` moves on), lane by lane: a
+/// lane's answer where its query is `same` as the one noted in its place, else `None`.
+fn next_answers<Q: Copy, A: Copy>(
+    noted: &[[Option<(Q, A)>; 4]],
+    next: &mut usize,
+    at: &[Option<Q>; 4],
+    same: impl Fn(&Q, &Q) -> bool,
+) -> [Option<A>; 4] {
+    let call = noted.get(*next).copied().unwrap_or([None; 4]);
+    *next += 1;
+    std::array::from_fn(|l| match (at[l], call[l]) {
+        (Some(q), Some((was, answer))) if same(&q, &was) => Some(answer),
+        _ => None,
+    })
 }
 
 /// Whether two rays are the same bit for bit (`-0` is not `+0`; a NaN is never the same).
