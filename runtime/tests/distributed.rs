@@ -694,9 +694,11 @@ fn a_tile_decodes_to_itself_and_damaged_tiles_are_errors() {
         }
         let n = (tile.width * tile.height) as usize;
         if normals {
-            // Colours, depths and ids (28 bytes a pixel), the kind, the shader ids (4), then the
+            // Colours, depths and ids (28 bytes a pixel), the outputs the frame keeps (those the
+            // interleave filter reads: 12 floats a pixel), the kind, the shader ids (4), then the
             // normals: the first normal's x made 2 is no normal.
-            let normals = 32 * n + 1;
+            let outputs = 12 * rtsl_runtime::render::world::MAX_FRAME_OUTPUTS * n;
+            let normals = 32 * n + outputs + 1;
             let x = f32::from_ne_bytes(bytes[normals..normals + 4].try_into().expect("four bytes"));
             assert!(x.abs() <= 1.0, "a normal's x is {x}");
             let mut damaged = bytes.clone();

@@ -248,6 +248,116 @@ fn the_interleave_filter_removes_the_pattern_within_surfaces() {
     }
 }
 
+/// A surface like `gimatte` whose reflectance is a checkerboard (texture detail the filter must
+/// keep), saying which part of its colour is indirect light through `gimatte`'s outputs when
+/// `outputs`, or keeping them to itself.
+fn checkered_gimatte(outputs: bool) -> String {
+    let (params, locals) = match outputs {
+        true => ("output varying color indirect = 0; output varying color indirectweight = 0;", ""),
+        false => ("", "color indirect = 0, indirectweight = 0;"),
+    };
+    format!(
+        "surface onebounce({params}) {{
+            {locals}
+            normal Nf = faceforward(normalize(N), I);
+            float check = mod(floor(3 * xcomp(P) + 3) + floor(3 * ycomp(P) + 3) + floor(3 * zcomp(P) + 3), 2);
+            Oi = Os;
+            indirectweight = Os * Cs * mix(0.15, 1, check);
+            indirect = indirectdiffuse(P, Nf, 16);
+            Ci = indirectweight * (diffuse(Nf) / PI + indirect);
+        }}"
+    )
+}
+
+/// Renders the box shaded by `shader` (a surface named `onebounce`) under `options`, keeping the
+/// output variables `kept`.
+fn render_shaded(options: &str, shader: &str, kept: &[&str]) -> Framebuffer {
+    let (mut rt, warnings) = box_scene_shaded(options, shader);
+    assert!(warnings.is_empty(), "{warnings:?}");
+    rt.options.max_ray_depth = 4;
+    rt.options.outputs = kept.iter().map(ToString::to_string).collect();
+    let world = rt.build_world().expect("a world");
+    render_frame(&world, None).0
+}
+
+/// Where the surface gives its indirect light and its weight (`gimatte`'s outputs), the interleave
+/// filter smooths that light alone: each pixel keeps its own colour but for its indirect light,
+/// which becomes its weight times the mean indirect light of the neighbours the discontinuity
+/// buffer takes, so the checkerboard and the direct light stay as sharp as unfiltered; the same
+/// surface hiding its outputs has its whole colour smoothed, the checkerboard's edges with it.
+#[test]
+fn the_interleave_filter_smooths_the_indirect_light_alone_where_the_surface_gives_it() {
+    let gi = r#"Option "gi" "integer virtuallights" [270] "integer interleave" [3]"#;
+    let filtered = format!("{gi}\nImager \"interleavefilter\" \"size\" [3]");
+    let kept = ["indirect", "indirectweight"];
+    let (with_outputs, without) = (checkered_gimatte(true), checkered_gimatte(false));
+    let raw = render_shaded(gi, &with_outputs, &kept);
+    let split = render_shaded(&filtered, &with_outputs, &kept);
+    let whole = render_shaded(&filtered, &without, &[]);
+    let output = |fb: &Framebuffer, name: &str| -> Vec<[f32; 3]> {
+        let kept = fb.outputs.iter().find(|(n, _)| n == name);
+        kept.unwrap_or_else(|| panic!("the frame keeps {name}")).1.clone()
+    };
+    // The filter reading them is enough for the frame to keep them (`CompiledShader::pixel_outputs`).
+    let unasked = render_shaded(&filtered, &with_outputs, &[]);
+    assert!(unasked.outputs.is_empty() && unasked.rgba == split.rgba, "the filter gets its outputs unasked");
+    let (indirect, weight) = (output(&raw, "indirect"), output(&raw, "indirectweight"));
+    assert_eq!(indirect, output(&split, "indirect"), "the pixel shader changes no surface's outputs");
+    let seen = |i: usize| raw.object_id[i] != u32::MAX;
+    let lit = (0..weight.len()).filter(|&i| seen(i)).all(|i| weight[i].iter().all(|&c| c > 0.0));
+    assert!(lit, "every pixel that sees the box has a weight");
+    assert!((0..weight.len()).filter(|&i| seen(i)).count() > weight.len() / 2, "the box fills most of the image");
+    // Pixel by pixel: the colour unfiltered, plus the weight times the neighbours' mean indirect
+    // light less the pixel's own (the neighbours as the whole-colour filter takes them).
+    let (w, h) = (raw.width as i64, raw.height as i64);
+    for y in 0..h {
+        for x in 0..w {
+            let i = (y * w + x) as usize;
+            let (z, id) = (raw.depth[i], raw.object_id[i]);
+            if !seen(i) {
+                assert_eq!(&split.rgba[4 * i..4 * i + 4], &raw.rgba[4 * i..4 * i + 4], "nothing seen: left as it is");
+                continue;
+            }
+            let mut sum = [0.0f32; 3];
+            let mut n = 0.0;
+            for (dx, dy) in (-1..=1).flat_map(|dy| (-1..=1).map(move |dx| (dx, dy))) {
+                let (nx, ny) = (x + dx, y + dy);
+                if nx < 0 || ny < 0 || nx >= w || ny >= h {
+                    continue;
+                }
+                let j = (ny * w + nx) as usize;
+                if raw.object_id[j] == id && (raw.depth[j] - z).abs() <= 0.05 * z {
+                    for (s, v) in sum.iter_mut().zip(&indirect[j]) {
+                        *s += v;
+                    }
+                    n += 1.0;
+                }
+            }
+            for c in 0..3 {
+                let want = raw.rgba[4 * i + c] + weight[i][c] * (sum[c] / n - indirect[i][c]);
+                let got = split.rgba[4 * i + c];
+                assert!((want - got).abs() < 1e-4 * want.abs().max(1.0), "pixel {x}, {y}: {got}, the filter's {want}");
+            }
+        }
+    }
+    // The whole colour smoothed moves pixels much further from the unfiltered image (the
+    // checkerboard's edges and the direct light's gradients are averaged too).
+    let mean_difference =
+        |a: &Framebuffer| a.rgba.iter().zip(&raw.rgba).map(|(x, y)| (x - y).abs()).sum::<f32>() / a.rgba.len() as f32;
+    let (by_split, by_whole) = (mean_difference(&split), mean_difference(&whole));
+    eprintln!("mean difference from unfiltered: indirect light smoothed {by_split}, whole colour {by_whole}");
+    assert!(by_split < 0.5 * by_whole, "indirect light smoothed {by_split}, whole colour {by_whole}");
+    // And the interleaving's pattern is smoothed as before: the image comes nearer to the one of
+    // every light at every pixel.
+    let every =
+        render_shaded(r#"Option "gi" "integer virtuallights" [270] "integer interleave" [1]"#, &with_outputs, &[]);
+    let from_every =
+        |a: &Framebuffer| a.rgba.iter().zip(&every.rgba).map(|(x, y)| (x - y).abs()).sum::<f32>() / a.rgba.len() as f32;
+    let (before, after) = (from_every(&raw), from_every(&split));
+    eprintln!("mean difference from every light: interleaved {before}, indirect light smoothed {after}");
+    assert!(after < 0.8 * before, "mean difference from every light: interleaved {before}, smoothed {after}");
+}
+
 #[test]
 fn a_pixel_shader_reading_pixels_sees_the_same_image_tile_by_tile_and_accumulated() {
     use rtsl_runtime::render::progressive::render_progressive;

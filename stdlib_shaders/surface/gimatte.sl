@@ -15,8 +15,14 @@
  *              where the application lowers the ray parameter "relevance"
  *              below 1 (docs/ray_parameters.md), samples * relevance (at
  *              least 1).
+ *
+ * Outputs (for the "interleavefilter" pixel shader, which smooths the
+ * indirect light alone with them):
+ *   indirect       -- what indirectdiffuse() returned: the indirect light.
+ *   indirectweight -- what Ci weighs it by (Os * Cs * Kd).
  */
-surface gimatte(float Kd = 1; float samples = 16;)
+surface gimatte(float Kd = 1; float samples = 16;
+                output varying color indirect = 0; output varying color indirectweight = 0;)
 {
     normal Nf = faceforward(normalize(N), I);
     uniform float relevance = 1;
@@ -25,5 +31,7 @@ surface gimatte(float Kd = 1; float samples = 16;)
 
     Oi = Os;
     color caustic = photonmap("caustic", P, Nf);
-    Ci = Os * Cs * Kd * ((diffuse(Nf) + caustic) / PI + indirectdiffuse(P, Nf, max(1, ceil(samples * relevance))));
+    indirectweight = Os * Cs * Kd;
+    indirect = indirectdiffuse(P, Nf, max(1, ceil(samples * relevance)));
+    Ci = indirectweight * ((diffuse(Nf) + caustic) / PI + indirect);
 }

@@ -193,7 +193,7 @@ builtins! {
     Rendererinfo "rendererinfo" ["f(s,&?)"] MESSAGE | SIDE_EFFECTS, Host, "information about the renderer";
     Rayinfo "rayinfo" ["f(s,&?)"] MESSAGE | SIDE_EFFECTS, Host, "information about the ray being shaded: its depth, and the application's ray parameters (`docs/ray_parameters.md`)";
     // ---- rtsl: the image a pixel shader finishes ----
-    Pixelvalue "pixelvalue" ["f(s,f,f)", "c(s,f,f)"] VARYING, Host, "a channel of the pixel at raster x, y of the image a pixel shader finishes (\"Ci\", \"alpha\", \"z\", \"objectid\", \"shaderid\", \"N\": the unit geometric normal of the first surface seen, facing the camera, 0 where none): the nearest pixel inside the image; 0 outside pixel shaders";
+    Pixelvalue "pixelvalue" ["f(s,f,f)", "c(s,f,f)"] VARYING, Host, "a channel of the pixel at raster x, y of the image a pixel shader finishes (\"Ci\", \"alpha\", \"z\", \"objectid\", \"shaderid\", \"N\": the unit geometric normal of the first surface seen, facing the camera, 0 where none; any other name: the output variable of that name of the surface the pixel sees, its mean over the pixel's samples, which the renderer keeps for every pixel when the shader names it by a literal): the nearest pixel inside the image; 0 outside pixel shaders and for a channel the image does not have";
 }
 
 /// One argument position of a signature.

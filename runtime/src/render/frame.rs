@@ -549,7 +549,7 @@ fn pixels_to_refine(world: &World, tile: &Tile, threshold: f32, px: &TileSamples
     let (tw, th) = (tile.width as usize, tile.height as usize);
     let on = &world.options.refine_on;
     // The refined-on output's place among those kept, and each pixel's value of it.
-    let watched = on.output.as_ref().and_then(|name| captured_outputs(&world.options).iter().position(|n| n == name));
+    let watched = on.output.as_ref().and_then(|name| captured_outputs(world).iter().position(|n| n == name));
     let outputs: Vec<[f32; 3]> = match watched {
         Some(i) => px.outputs.iter().map(|o| o[i]).collect(),
         None => Vec::new(),
@@ -890,8 +890,9 @@ fn shade_tile_pixels(frame: &Frame, tile: &Tile, px: &mut TileSamples, image: Op
     );
 }
 
-/// The image of finished tiles before the pixel shader, for a pixel shader that reads it.
-fn pixel_image((w, h): (u32, u32), tiles: &[(Tile, TileSamples)]) -> PixelImage {
+/// The image of finished tiles before the pixel shader, for a pixel shader that reads it; the
+/// tiles' kept outputs are those `captured` names.
+fn pixel_image((w, h): (u32, u32), captured: &[String], tiles: &[(Tile, TileSamples)]) -> PixelImage {
     let n = w as usize * h as usize;
     let mut image = PixelImage {
         width: w,
@@ -901,6 +902,7 @@ fn pixel_image((w, h): (u32, u32), tiles: &[(Tile, TileSamples)]) -> PixelImage 
         object_id: vec![u32::MAX; n],
         shader_id: vec![u32::MAX; n],
         normal: vec![[0.0; 3]; n],
+        outputs: captured.iter().map(|name| (name.clone(), vec![[0.0; 3]; n])).collect(),
     };
     for (tile, px) in tiles {
         for row in 0..tile.height {
@@ -916,6 +918,13 @@ fn pixel_image((w, h): (u32, u32), tiles: &[(Tile, TileSamples)]) -> PixelImage 
             image.shader_id[to..to + k].copy_from_slice(&px.shader_ids[from..from + k]);
             if let Some(normals) = px.normals.get(from..from + k) {
                 image.normal[to..to + k].copy_from_slice(normals);
+            }
+            if let Some(kept) = px.outputs.get(from..from + k) {
+                for (o, (_, values)) in image.outputs.iter_mut().enumerate() {
+                    for (value, pixel) in values[to..to + k].iter_mut().zip(kept) {
+                        *value = pixel[o];
+                    }
+                }
             }
         }
     }
@@ -1086,7 +1095,7 @@ impl RenderedTile {
         bytemuck::cast_slice_mut::<[f32; 4], u8>(&mut px.color).copy_from_slice(values(4 * n)?);
         bytemuck::cast_slice_mut::<f32, u8>(&mut px.depth).copy_from_slice(values(n)?);
         bytemuck::cast_slice_mut::<u32, u8>(&mut px.ids).copy_from_slice(values(n)?);
-        if !captured_outputs(options).is_empty() {
+        if !captured_outputs(world).is_empty() {
             px.outputs = vec![[[0.0; 3]; MAX_FRAME_OUTPUTS]; n];
             bytemuck::cast_slice_mut::<Outputs, u8>(&mut px.outputs)
                 .copy_from_slice(values(3 * MAX_FRAME_OUTPUTS * n)?);
@@ -1231,7 +1240,7 @@ impl<'w> TileRenderer<'w> {
     /// together as they arrive.
     pub fn assembles_as_tiles_arrive(&self) -> bool {
         let options = &self.frame.world.options;
-        options.pixel_filter.is_unit_box() && !self.pixels_later && captured_outputs(options).is_empty()
+        options.pixel_filter.is_unit_box() && !self.pixels_later && captured_outputs(self.frame.world).is_empty()
     }
 
     /// An empty image to put this frame's tiles into as they arrive, where
@@ -1307,7 +1316,8 @@ impl<'w> TileRenderer<'w> {
         };
         let mut tiles = tiles;
         if self.pixels_later {
-            let image = pixel_image((world.options.width, world.options.height), &tiles);
+            let size = (world.options.width, world.options.height);
+            let image = pixel_image(size, &self.frame.captured, &tiles);
             tiles.par_iter_mut().for_each(|(tile, px)| shade_tile_pixels(&self.frame, tile, px, Some(&image)));
         }
         let fb = framebuffer(world, tiles);
@@ -1333,7 +1343,7 @@ fn framebuffer(world: &World, tiles: Vec<(Tile, TileSamples)>) -> Framebuffer {
     let (w, h) = (world.options.width, world.options.height);
     // The kept outputs the options name (not the one adaptive sampling alone refines on).
     let names: Vec<String> =
-        captured_outputs(&world.options).into_iter().filter(|n| world.options.outputs.contains(n)).collect();
+        captured_outputs(world).into_iter().filter(|n| world.options.outputs.contains(n)).collect();
     let mut outputs: Vec<(String, Vec<[f32; 3]>)> =
         names.into_iter().map(|n| (n, vec![[0.0; 3]; w as usize * h as usize])).collect();
     if !outputs.is_empty() {
@@ -1565,7 +1575,7 @@ mod tests {
     #[test]
     fn the_pixel_image_holds_every_channel_of_every_tile() {
         for (size, tile) in [((40, 37), (16, 16)), ((23, 50), (23, 3))] {
-            let image = pixel_image(size, &tiles_of(size, tile));
+            let image = pixel_image(size, &[], &tiles_of(size, tile));
             for y in 0..size.1 {
                 for x in 0..size.0 {
                     let (fx, fy) = (x as f32 + 0.5, y as f32 + 0.5);

@@ -16,8 +16,8 @@ use crate::shading::ShaderInstance;
 use crate::texture::{Grid, LookupLanes, LookupOptions, MipMap, TextureCache};
 use glam::{Affine3A, Mat4, Vec3A, Vec4};
 use rtsl_compiler::abi::{
-    same_category, shadow_query_of, Builtin, GatherHit, HostTable, LightLanes, MessageOut, PixelChannel, PixelView,
-    StrRef, CONE_ROWS, MAX_LIGHTS, SHADOW_ROWS,
+    same_category, shadow_query_of, Builtin, GatherHit, HostTable, LightLanes, MessageOut, PixelChannel, PixelOutputs,
+    PixelView, StrRef, CONE_ROWS, MAX_LIGHTS, SHADOW_ROWS,
 };
 use std::cell::RefCell;
 use std::collections::HashMap;
@@ -59,8 +59,10 @@ pub(crate) struct ShadeCall<'f, 'w> {
     pub(super) rays_log: RayLog,
     /// For a pixel shader: the image it finishes, as it was before the shader ran (`pixelvalue`).
     pub(super) pixels: Option<&'f PixelImage>,
-    /// The view of `pixels` the call table points generated code to, made by [`ShadeCall::table`].
+    /// The view of `pixels` the call table points generated code to, made by [`ShadeCall::table`],
+    /// and the arrays of the output variables the shader reads that it points to.
     pixel_view: Option<PixelView>,
+    pixel_outputs: Option<PixelOutputs>,
     /// What each lane's ray tree may still spawn (`ray_budget.rs`); a lane past its end may
     /// spawn nothing.
     pub(super) budgets: &'f mut [RayBudget],
@@ -172,6 +174,7 @@ impl<'f, 'w> ShadeCall<'f, 'w> {
             rays_log: RayLog::Direct,
             pixels: None,
             pixel_view: None,
+            pixel_outputs: None,
         }
     }
 
@@ -240,7 +243,18 @@ impl<'f, 'w> ShadeCall<'f, 'w> {
 
     /// The call table; valid while `self` is neither moved nor dropped.
     pub(crate) fn table(&mut self) -> HostTable {
-        self.pixel_view = self.pixels.and_then(PixelImage::view);
+        let (image, names) = (self.pixels, self.instance.program.code.pixel_outputs());
+        self.pixel_outputs = match image {
+            Some(image) if !names.is_empty() => {
+                let pixels = image.width as usize * image.height as usize;
+                PixelOutputs::new(pixels, names.iter().map(|name| image.output(name)))
+            }
+            _ => None,
+        };
+        self.pixel_view = image.and_then(PixelImage::view).map(|view| match &self.pixel_outputs {
+            Some(outputs) => view.with_outputs(outputs),
+            None => view,
+        });
         HostTable {
             ctx: self as *mut ShadeCall as *mut c_void,
             matrix: host_matrix,
@@ -630,9 +644,18 @@ unsafe extern "C" fn host_texture(
             return;
         }
         4 => {
-            let (Some(image), Some(channel)) = (c.pixels, PixelChannel::of(name)) else { return };
+            let Some(image) = c.pixels else { return };
+            // One of the image's own channels, else an output variable it keeps, by name.
+            let channel = PixelChannel::of(name);
+            let output = if channel.is_none() { image.output(name) } else { None };
             for l in active() {
-                if let Some(v) = image.channel_value(channel, coords[l], coords[4 + l]) {
+                let (x, y) = (coords[l], coords[4 + l]);
+                let value = match (channel, output) {
+                    (Some(channel), _) => image.channel_value(channel, x, y),
+                    (None, Some(values)) => image.index(x, y).and_then(|i| values.get(i).copied()),
+                    (None, None) => None,
+                };
+                if let Some(v) = value {
                     ok[l] = 1;
                     for (k, x) in v.iter().enumerate() {
                         out[4 * k + l] = *x;

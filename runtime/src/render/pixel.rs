@@ -112,6 +112,7 @@ mod tests {
             object_id: (0..n).map(id).collect(),
             shader_id: (0..n).map(|i| id(i).wrapping_add(5)).collect(),
             normal: (0..n).map(|i| if i == 9 { [0.0; 3] } else { [f(i, 5), f(i, 6), f(i, 7)] }).collect(),
+            outputs: vec![("glow".to_string(), (0..n).map(|i| [f(i, 8), f(i, 9), f(i, 10)]).collect())],
         }
     }
 
@@ -144,6 +145,7 @@ mod tests {
                 if (channel == "shaderid") f = pixelvalue("shaderid", cx, cy);
                 if (channel == "Ci") f = pixelvalue("Ci", cx, cy);
                 if (channel == "N") f = pixelvalue("N", cx, cy);
+                if (channel == "glow") f = pixelvalue("glow", cx, cy);
                 v = f;
             } else {
                 if (channel == "alpha") v = color pixelvalue("alpha", cx, cy);
@@ -152,6 +154,7 @@ mod tests {
                 if (channel == "shaderid") v = color pixelvalue("shaderid", cx, cy);
                 if (channel == "Ci") v = color pixelvalue("Ci", cx, cy);
                 if (channel == "N") v = color pixelvalue("N", cx, cy);
+                if (channel == "glow") v = color pixelvalue("glow", cx, cy);
             }
             Ci = v;
         }
@@ -190,11 +193,13 @@ mod tests {
     /// `pixelvalue` of a channel named by a literal, which generated code reads from the image
     /// itself, gives what the image's own lookup (`PixelImage::value`, the interpreter's and the
     /// renderer's callback's) gives, bit for bit: for every channel, as a colour and as a float,
-    /// at coordinates inside, outside, huge, infinite and NaN.
+    /// at coordinates inside, outside, huge, infinite and NaN. An output variable the image keeps
+    /// (`glow`) is read through the callback either way; a channel it does not have is zero.
     #[test]
     fn pixelvalue_read_inline_is_the_images_own_lookup() {
         let image = image();
-        for channel in ["Ci", "alpha", "z", "objectid", "shaderid", "N"] {
+        assert!(image.value("glow", 2.5, 3.5).is_some_and(|v| v != [0.0; 3]), "the image keeps an output");
+        for channel in ["Ci", "alpha", "z", "objectid", "shaderid", "N", "glow", "nosuch"] {
             for scalar in [false, true] {
                 let expected: Vec<[u32; 3]> = (0..64)
                     .map(|k| {

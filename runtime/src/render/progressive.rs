@@ -617,6 +617,7 @@ impl Accumulator {
                 object_id: self.object_id.clone(),
                 shader_id: self.shader_id.clone(),
                 normal: if self.normal.is_empty() { vec![[0.0; 3]; self.depth.len()] } else { self.normal.clone() },
+                outputs: Vec::new(),
             });
             let band = 16 * w as usize;
             colors.par_chunks_mut(band).enumerate().for_each(|(b, rgba)| {

@@ -82,16 +82,20 @@ impl<'w> Frame<'w> {
             caustics: std::sync::OnceLock::new(),
             global_photons: std::sync::OnceLock::new(),
             gi_seed: world.options.gi.seed,
-            captured: captured_outputs(&world.options),
+            captured: captured_outputs(world),
             stages,
         }
     }
 }
 
-/// The output variables a frame of `options` keeps per sample (see [`Frame::captured`]).
-pub(crate) fn captured_outputs(options: &super::RenderOptions) -> Vec<String> {
+/// The output variables a frame of `world` keeps per sample (see [`Frame::captured`]): the
+/// options' outputs, the one adaptive sampling refines on, then those its pixel shader reads
+/// (`CompiledShader::pixel_outputs`), at most [`MAX_FRAME_OUTPUTS`].
+pub(crate) fn captured_outputs(world: &World) -> Vec<String> {
+    let options = &world.options;
+    let read = world.pixel.iter().flat_map(|p| p.program.code.pixel_outputs());
     let mut names: Vec<String> = Vec::new();
-    for name in options.outputs.iter().chain(options.refine_on.output.iter()) {
+    for name in options.outputs.iter().chain(options.refine_on.output.iter()).chain(read) {
         if names.len() < MAX_FRAME_OUTPUTS && !names.contains(name) {
             names.push(name.clone());
         }
@@ -371,6 +375,10 @@ pub struct PixelImage {
     /// The unit geometric normal of the first surface each pixel sees, facing the camera (zero
     /// where it sees none): [`Sample::normal`] of the sample its depth and ids come from.
     pub normal: Vec<[f32; 3]>,
+    /// Output variables of the surfaces the pixels see, by name ([`Frame::captured`]): each
+    /// pixel's mean over its samples (zero where the surface has no such output). Empty where
+    /// the image keeps none.
+    pub outputs: Vec<(String, Vec<[f32; 3]>)>,
 }
 
 impl PixelImage {
@@ -384,21 +392,37 @@ impl PixelImage {
 
     /// Channel `name` of the pixel at raster `(x, y)` (the nearest pixel inside the image): `Ci`
     /// or `N` (the normal), or `alpha`, `z`, `objectid`, `shaderid` (-1 for none) in the first
-    /// component; `None` for an unknown channel or an empty image.
+    /// component, or an output variable the image keeps ([`PixelImage::outputs`]); `None` for an
+    /// unknown channel or an empty image.
     pub fn value(&self, name: &str, x: f32, y: f32) -> Option<[f32; 3]> {
-        self.channel_value(PixelChannel::of(name)?, x, y)
+        match PixelChannel::of(name) {
+            Some(channel) => self.channel_value(channel, x, y),
+            None => self.output(name)?.get(self.index(x, y)?).copied(),
+        }
+    }
+
+    /// The values of the output variable `name` the image keeps, a pixel at a time.
+    pub fn output(&self, name: &str) -> Option<&[[f32; 3]]> {
+        self.outputs.iter().find(|(n, _)| n == name).map(|(_, values)| &values[..])
+    }
+
+    /// The index of the pixel nearest raster `(x, y)` inside the image; `None` for an empty
+    /// image or a coordinate that is not finite.
+    #[inline]
+    pub fn index(&self, x: f32, y: f32) -> Option<usize> {
+        if self.width == 0 || self.height == 0 || !x.is_finite() || !y.is_finite() {
+            return None;
+        }
+        let px = (x.floor().max(0.0) as u32).min(self.width - 1);
+        let py = (y.floor().max(0.0) as u32).min(self.height - 1);
+        Some((py * self.width + px) as usize)
     }
 
     /// [`PixelImage::value`] of a channel already looked up by name (a pixel shader's lookups
     /// name one channel for all their lanes).
     #[inline]
     pub fn channel_value(&self, channel: PixelChannel, x: f32, y: f32) -> Option<[f32; 3]> {
-        if self.width == 0 || self.height == 0 || !x.is_finite() || !y.is_finite() {
-            return None;
-        }
-        let px = (x.floor().max(0.0) as u32).min(self.width - 1);
-        let py = (y.floor().max(0.0) as u32).min(self.height - 1);
-        let i = (py * self.width + px) as usize;
+        let i = self.index(x, y)?;
         let id = |v: u32| if v == u32::MAX { -1.0 } else { v as f32 };
         let one = |v: f32| [v, 0.0, 0.0];
         Some(match channel {

@@ -1,5 +1,6 @@
 //! What a shader's code does that a renderer plans around, worked out once at compile time: how a
-//! light emits, and whether every lane of a batch gets the same results.
+//! light emits, whether every lane of a batch gets the same results, and which output variables
+//! a pixel shader reads.
 
 use super::Layout;
 use crate::ir::{Block, ExprKind, Module, StmtKind};
@@ -69,3 +70,26 @@ pub(super) fn lane_invariant(m: &Module, layout: &Layout) -> bool {
     let reads_no_global = layout.globals.iter().all(|g| g.written && g.entry_unused);
     calls_nothing && reads_no_global && layout.seed.is_none()
 }
+
+/// See [`super::CompiledShader::pixel_outputs`]: the channels named by literals in `pixelvalue`
+/// calls that are none of the image's own (`PixelChannel::of`), each once, in order of appearance.
+pub(super) fn pixel_outputs(m: &Module) -> Vec<String> {
+    let mut names: Vec<String> = Vec::new();
+    for f in &m.functions {
+        for e in &f.exprs {
+            let ExprKind::CallBuiltin { builtin: crate::builtins::Builtin::Pixelvalue, args, .. } = &e.kind else {
+                continue;
+            };
+            let Some(crate::ir::Arg::Value(first)) = args.first() else { continue };
+            let Some(ExprKind::Const(crate::ir::Constant::String(name))) = f.exprs.get(first.0 as usize).map(|x| &x.kind)
+            else {
+                continue;
+            };
+            if super::host::PixelChannel::of(name).is_none() && !names.contains(name) {
+                names.push(name.clone());
+            }
+        }
+    }
+    names
+}
+

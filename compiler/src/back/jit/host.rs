@@ -384,6 +384,11 @@ pub struct PixelView {
     pub shader_id: *const u32,
     /// The unit geometric normal facing the camera (zero for none).
     pub normal: *const [f32; 3],
+    /// The output variables the shader reads ([`PixelView::with_outputs`]): `output_count`
+    /// pointers, the `k`-th to the array of `CompiledShader::pixel_outputs()[k]` (one entry per
+    /// pixel) or null where the image keeps no such output. Null and 0 for none.
+    pub outputs: *const *const [f32; 3],
+    pub output_count: u32,
 }
 
 impl PixelView {
@@ -408,7 +413,44 @@ impl PixelView {
             object_id: object_id.as_ptr(),
             shader_id: shader_id.as_ptr(),
             normal: normal.as_ptr(),
+            outputs: std::ptr::null(),
+            output_count: 0,
         })
+    }
+
+    /// The view with the output variables `outputs` (made for an image of as many pixels; for
+    /// another size the view is left without). The view borrows `outputs`'s pointers as it
+    /// borrows the arrays.
+    pub fn with_outputs(self, outputs: &PixelOutputs) -> PixelView {
+        let pixels = self.width as usize * self.height as usize;
+        if outputs.pixels != pixels || outputs.arrays.len() > u32::MAX as usize {
+            return self;
+        }
+        PixelView { outputs: outputs.arrays.as_ptr(), output_count: outputs.arrays.len() as u32, ..self }
+    }
+}
+
+/// The output-variable arrays of an image, in the order of the shader's
+/// `CompiledShader::pixel_outputs` ([`PixelView::with_outputs`]).
+#[derive(Clone, Debug, Default)]
+pub struct PixelOutputs {
+    pixels: usize,
+    arrays: Vec<*const [f32; 3]>,
+}
+
+impl PixelOutputs {
+    /// The arrays of an image of `pixels` pixels (`None` where the image has no such output);
+    /// `None` when an array holds another number of entries.
+    pub fn new<'a>(pixels: usize, arrays: impl IntoIterator<Item = Option<&'a [[f32; 3]]>>) -> Option<PixelOutputs> {
+        let mut pointers = Vec::new();
+        for array in arrays {
+            match array {
+                Some(a) if a.len() != pixels => return None,
+                Some(a) => pointers.push(a.as_ptr()),
+                None => pointers.push(std::ptr::null()),
+            }
+        }
+        Some(PixelOutputs { pixels, arrays: pointers })
     }
 }
 

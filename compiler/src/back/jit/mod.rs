@@ -35,7 +35,7 @@ mod profile;
 pub use batch::{Batch, BatchData, RawBatch, SavedValues, ShadeFn, StringTable};
 pub use facts::LightKind;
 pub use host::{
-    light_in_cone, same_category, shadow_query_of, HostLight, HostTable, LightLanes, MessageOut, PixelChannel, PixelView,
+    light_in_cone, same_category, shadow_query_of, HostLight, HostTable, LightLanes, MessageOut, PixelChannel, PixelOutputs, PixelView,
     ServicesHost, StrRef, CONE_ROWS, EVERY_LIGHT, MAX_LIGHTS, NO_LIGHT, SHADOW_ROWS,
 };
 pub use layout::{GlobalSlot, Layout, ParamSlot};
@@ -151,6 +151,8 @@ pub struct CompiledShader {
     ray_calls: RayCalls,
     /// Whether the code reads other pixels of the image (`pixelvalue`).
     reads_pixels: bool,
+    /// See [`CompiledShader::pixel_outputs`].
+    pixel_outputs: Vec<String>,
     light_kind: LightKind,
     lane_invariant: bool,
 }
@@ -224,6 +226,14 @@ impl CompiledShader {
     /// then runs it once the whole image is there, not tile by tile.
     pub fn reads_pixels(&self) -> bool {
         self.reads_pixels
+    }
+
+    /// The output variables of surface shaders a pixel shader reads per pixel: the channels its
+    /// `pixelvalue` calls name by literals that are none of the image's own (`Ci`, `N`, `z`...).
+    /// The renderer keeps them for every pixel (`docs/global_illumination.md`: the interleave
+    /// filter reads the indirect light that way).
+    pub fn pixel_outputs(&self) -> &[String] {
+        &self.pixel_outputs
     }
 
     /// For a light shader: how it emits, read from its code (`illuminate`: local, `solar`:
@@ -408,6 +418,7 @@ pub fn compile_with(
                 code_bytes,
                 ray_calls: RayCalls::of(&helpers),
                 reads_pixels: helpers.contains(&"rtsl_h_pixelvalue"),
+                pixel_outputs: facts::pixel_outputs(m),
                 light_kind,
                 lane_invariant,
                 sites,

@@ -7,7 +7,7 @@ use crate::back::jit::batch::OFF_PIXELS;
 use crate::back::jit::host::{PixelChannel, PixelView};
 use crate::back::jit::lower::{mem, readonly, Lower, Val, R};
 use crate::back::jit::mask::{choose, widen};
-use crate::back::jit::unsupported;
+use crate::back::jit::{facts, unsupported, JitError};
 use crate::builtins::Builtin;
 use crate::ir::{Arg, BaseType, Constant, ExprKind};
 use cranelift_codegen::ir::condcodes::{FloatCC, IntCC};
@@ -50,13 +50,19 @@ impl<'m> Lower<'m, '_> {
                 let float = e.ty.base == BaseType::Float;
                 let literal = match args.first() {
                     Some(Arg::Value(x)) => match &f.expr(*x).kind {
-                        ExprKind::Const(Constant::String(name)) => PixelChannel::of(name),
+                        ExprKind::Const(Constant::String(name)) => Some(name.as_str()),
                         _ => None,
                     },
                     _ => None,
                 };
-                let c = match literal {
-                    Some(channel) => self.pixel_value(channel, [v(0), v(1), v(2)], if float { 1 } else { 3 })?,
+                // One of the image's channels, else the output variable of that name, the k-th
+                // of those the shader names (`CompiledShader::pixel_outputs`).
+                let read = literal.and_then(|name| match PixelChannel::of(name) {
+                    Some(channel) => Some(PixelRead::Channel(channel)),
+                    None => facts::pixel_outputs(self.m).iter().position(|n| n == name).map(PixelRead::Output),
+                });
+                let c = match read {
+                    Some(read) => self.pixel_value(read, [v(0), v(1), v(2)], if float { 1 } else { 3 })?,
                     None => self.call_helper_on("rtsl_h_pixelvalue", &[v(0), v(1), v(2)], true)?,
                 };
                 if float {
@@ -106,17 +112,42 @@ impl<'m> Lower<'m, '_> {
 impl Lower<'_, '_> {
     /// `pixelvalue(name, x, y)` of a channel named by a literal: read from the image the batch
     /// record points to ([`PixelView`]), four lanes in the chunk's own code, or where the record
-    /// has no image, through the helper (a renderer without one, a test host). The values of
+    /// has no image (or, for an output variable, no array of it), through the helper (a renderer
+    /// without one, a test host). The values of
     /// the runtime's `PixelImage::value` and so of the interpreter: the nearest pixel inside the
     /// image, zero in every component for a coordinate that is not finite. `wanted` components
     /// are read (1 or 3); the others are zero.
-    fn pixel_value(&mut self, channel: PixelChannel, args: [Val; 3], wanted: usize) -> R<Val> {
+    fn pixel_value(&mut self, read: PixelRead, args: [Val; 3], wanted: usize) -> R<Val> {
         let batch = self.batch.expect("batch");
-        let view = self.b.ins().load(self.ptr, mem(), batch, OFF_PIXELS);
+        let ptr = self.ptr;
+        let view = self.b.ins().load(ptr, mem(), batch, OFF_PIXELS);
         let (inline_b, helper_b, join) = (self.b.create_block(), self.b.create_block(), self.b.create_block());
         let results: Vec<Value> = (0..3).map(|_| self.b.append_block_param(join, types::F32X4)).collect();
         let none = self.b.ins().icmp_imm_u(IntCC::Equal, view, 0);
-        self.b.ins().brif(none, helper_b, &[], inline_b, &[]);
+        let array = match read {
+            PixelRead::Channel(channel) => {
+                self.b.ins().brif(none, helper_b, &[], inline_b, &[]);
+                PixelArray::Channel(channel)
+            }
+            PixelRead::Output(k) => {
+                // The view's `k`-th output array, where it has one (else the helper answers).
+                let (count_b, table_b) = (self.b.create_block(), self.b.create_block());
+                self.b.ins().brif(none, helper_b, &[], count_b, &[]);
+                self.b.switch_to_block(count_b);
+                self.b.seal_block(count_b);
+                let count = self.b.ins().load(types::I32, readonly(), view, offset_of!(PixelView, output_count) as i32);
+                let held = self.b.ins().icmp_imm_u(IntCC::UnsignedGreaterThan, count, k as i64);
+                self.b.ins().brif(held, table_b, &[], helper_b, &[]);
+                self.b.switch_to_block(table_b);
+                self.b.seal_block(table_b);
+                let table = self.b.ins().load(ptr, readonly(), view, offset_of!(PixelView, outputs) as i32);
+                let at = i32::try_from(k * ptr.bytes() as usize).map_err(|_| JitError::Unsupported("pixel outputs".into()))?;
+                let base = self.b.ins().load(ptr, readonly(), table, at);
+                let missing = self.b.ins().icmp_imm_u(IntCC::Equal, base, 0);
+                self.b.ins().brif(missing, helper_b, &[], inline_b, &[]);
+                PixelArray::Output(base)
+            }
+        };
 
         self.b.switch_to_block(helper_b);
         self.b.seal_block(helper_b);
@@ -128,7 +159,7 @@ impl Lower<'_, '_> {
         self.b.seal_block(inline_b);
         let x = widen(&mut self.b, args[1].c[0], true);
         let y = widen(&mut self.b, args[2].c[0], true);
-        let read = self.pixel_lanes(view, channel, [x, y], wanted);
+        let read = self.pixel_lanes(view, array, [x, y], wanted);
         let read: Vec<_> = read.iter().map(|&c| c.into()).collect();
         self.b.ins().jump(join, &read);
 
@@ -141,7 +172,7 @@ impl Lower<'_, '_> {
     /// first `wanted` components, zero past them and in lanes whose coordinates are not finite.
     /// Every index is clamped into the image, which holds `width * height` pixels in every array
     /// (`PixelView::new`), so every load is inside it whatever the coordinates.
-    fn pixel_lanes(&mut self, view: Value, channel: PixelChannel, [x, y]: [Value; 2], wanted: usize) -> [Value; 3] {
+    fn pixel_lanes(&mut self, view: Value, array: PixelArray, [x, y]: [Value; 2], wanted: usize) -> [Value; 3] {
         let b = &mut self.b;
         let field = |b: &mut cranelift_frontend::FunctionBuilder<'_>, ty, offset: usize| {
             b.ins().load(ty, readonly(), view, offset as i32)
@@ -175,16 +206,21 @@ impl Lower<'_, '_> {
         let index = b.ins().iadd(index, px);
         let ptr = self.ptr;
         // The array, its entry size and the offsets of the components in an entry.
-        let (array, size, offsets): (usize, i64, &[i32]) = match channel {
-            PixelChannel::Ci => (offset_of!(PixelView, rgba), 16, &[0, 4, 8]),
-            PixelChannel::Alpha => (offset_of!(PixelView, rgba), 16, &[12]),
-            PixelChannel::Z => (offset_of!(PixelView, depth), 4, &[0]),
-            PixelChannel::ObjectId => (offset_of!(PixelView, object_id), 4, &[0]),
-            PixelChannel::ShaderId => (offset_of!(PixelView, shader_id), 4, &[0]),
-            PixelChannel::N => (offset_of!(PixelView, normal), 12, &[0, 4, 8]),
+        let (base, size, offsets): (Value, i64, &[i32]) = match array {
+            PixelArray::Output(base) => (base, 12, &[0, 4, 8]),
+            PixelArray::Channel(channel) => {
+                let (field_at, size, offsets): (usize, i64, &[i32]) = match channel {
+                    PixelChannel::Ci => (offset_of!(PixelView, rgba), 16, &[0, 4, 8]),
+                    PixelChannel::Alpha => (offset_of!(PixelView, rgba), 16, &[12]),
+                    PixelChannel::Z => (offset_of!(PixelView, depth), 4, &[0]),
+                    PixelChannel::ObjectId => (offset_of!(PixelView, object_id), 4, &[0]),
+                    PixelChannel::ShaderId => (offset_of!(PixelView, shader_id), 4, &[0]),
+                    PixelChannel::N => (offset_of!(PixelView, normal), 12, &[0, 4, 8]),
+                };
+                (field(b, ptr, field_at), size, offsets)
+            }
         };
-        let ids = matches!(channel, PixelChannel::ObjectId | PixelChannel::ShaderId);
-        let base = field(b, ptr, array);
+        let ids = matches!(array, PixelArray::Channel(PixelChannel::ObjectId | PixelChannel::ShaderId));
         let entries: Vec<Value> = (0..4)
             .map(|lane| {
                 let i = b.ins().extractlane(index, lane);
@@ -213,4 +249,20 @@ impl Lower<'_, '_> {
         }
         out
     }
+}
+
+/// What a `pixelvalue` of a literal name reads: one of the image's channels, or the `k`-th output
+/// variable of those the shader names (`CompiledShader::pixel_outputs`).
+#[derive(Clone, Copy, Debug)]
+enum PixelRead {
+    Channel(PixelChannel),
+    Output(usize),
+}
+
+/// Where [`Lower::pixel_lanes`] reads: a channel's array of the view, or an output's array
+/// (its address, checked non-null).
+#[derive(Clone, Copy, Debug)]
+enum PixelArray {
+    Channel(PixelChannel),
+    Output(Value),
 }
