@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """rtsl's global illumination (virtual point lights) against Mitsuba 3's path tracer on the Cornell
 box of ../shared/scenes, the same scene on both: every surface diffuse grey 0.7 (rtsl: `gimatte`,
-Mitsuba: `diffuse`), the point light of examples/scenes/cornell_box.rib, the same view, 640x480,
+Mitsuba: `diffuse`), the point light of examples/scenes/cornell_box.rib casting shadows (rtsl's lights
+cast none without `Attribute "light" "shadows" "on"`, as in RenderMan), the same view, 640x480,
 direct light and one bounce of indirect light (rtsl `Option "gi" "bounces" [1]`, Mitsuba
 `max_depth` 3).
 
@@ -83,6 +84,7 @@ Imager "interleavefilter"
 Scale -1 1 1
 Translate -278 -273 800
 WorldBegin
+  Attribute "light" "shadows" "on"
   LightSource "pointlight" 1 "intensity" [{INTENSITY * 3.14159265}] "from" [{LIGHT[0]} {LIGHT[1]} {LIGHT[2]}]
   Color [0.7 0.7 0.7]
   Surface "gimatte"
