@@ -189,6 +189,21 @@ fn progressive_passes_gather_fresh_virtual_lights_and_converge() {
     assert!(many < one / 2.5, "mean difference from the reference: 1 pass {one}, 24 passes {many}");
 }
 
+/// The pixels of `fb` (indices) the interleave filter of size 3 averages for pixel `(x, y)`: those
+/// of the 3x3 block around it, inside the image, that see its object at a depth within 5% of its
+/// own (the scenes' walls are flat: the normals' test takes them all).
+fn neighbours_taken(fb: &Framebuffer, x: i64, y: i64) -> Vec<usize> {
+    let (w, h) = (fb.width as i64, fb.height as i64);
+    let i = (y * w + x) as usize;
+    let (z, id) = (fb.depth[i], fb.object_id[i]);
+    let block = (-1..=1).flat_map(|dy| (-1..=1).map(move |dx| (x + dx, y + dy)));
+    block
+        .filter(|&(nx, ny)| nx >= 0 && ny >= 0 && nx < w && ny < h)
+        .map(|(nx, ny)| (ny * w + nx) as usize)
+        .filter(|&j| fb.object_id[j] == id && (fb.depth[j] - z).abs() <= 0.05 * z)
+        .collect()
+}
+
 #[test]
 fn the_interleave_filter_removes_the_pattern_within_surfaces() {
     // Few paths: each pixel's ninth of them is noisy, the noise the filter is for.
@@ -218,27 +233,19 @@ fn the_interleave_filter_removes_the_pattern_within_surfaces() {
     for y in 0..h {
         for x in 0..w {
             let i = (y * w + x) as usize;
-            let (z, id) = (raw.depth[i], raw.object_id[i]);
-            if id == u32::MAX {
+            if raw.object_id[i] == u32::MAX {
                 // Nothing seen: left as it is.
                 assert_eq!(&smooth.rgba[4 * i..4 * i + 4], &raw.rgba[4 * i..4 * i + 4]);
                 continue;
             }
             let mut sum = [0.0f32; 3];
-            let mut n = 0.0;
-            for (dx, dy) in (-1..=1).flat_map(|dy| (-1..=1).map(move |dx| (dx, dy))) {
-                let (nx, ny) = (x + dx, y + dy);
-                if nx < 0 || ny < 0 || nx >= w || ny >= h {
-                    continue;
-                }
-                let j = (ny * w + nx) as usize;
-                if raw.object_id[j] == id && (raw.depth[j] - z).abs() <= 0.05 * z {
-                    for (s, v) in sum.iter_mut().zip(&raw.rgba[4 * j..4 * j + 3]) {
-                        *s += v;
-                    }
-                    n += 1.0;
+            let taken = neighbours_taken(&raw, x, y);
+            for &j in &taken {
+                for (s, v) in sum.iter_mut().zip(&raw.rgba[4 * j..4 * j + 3]) {
+                    *s += v;
                 }
             }
+            let n = taken.len() as f32;
             for (c, total) in sum.iter().enumerate() {
                 let want = total / n;
                 let got = smooth.rgba[4 * i + c];
@@ -313,26 +320,18 @@ fn the_interleave_filter_smooths_the_indirect_light_alone_where_the_surface_give
     for y in 0..h {
         for x in 0..w {
             let i = (y * w + x) as usize;
-            let (z, id) = (raw.depth[i], raw.object_id[i]);
             if !seen(i) {
                 assert_eq!(&split.rgba[4 * i..4 * i + 4], &raw.rgba[4 * i..4 * i + 4], "nothing seen: left as it is");
                 continue;
             }
             let mut sum = [0.0f32; 3];
-            let mut n = 0.0;
-            for (dx, dy) in (-1..=1).flat_map(|dy| (-1..=1).map(move |dx| (dx, dy))) {
-                let (nx, ny) = (x + dx, y + dy);
-                if nx < 0 || ny < 0 || nx >= w || ny >= h {
-                    continue;
-                }
-                let j = (ny * w + nx) as usize;
-                if raw.object_id[j] == id && (raw.depth[j] - z).abs() <= 0.05 * z {
-                    for (s, v) in sum.iter_mut().zip(&indirect[j]) {
-                        *s += v;
-                    }
-                    n += 1.0;
+            let taken = neighbours_taken(&raw, x, y);
+            for &j in &taken {
+                for (s, v) in sum.iter_mut().zip(&indirect[j]) {
+                    *s += v;
                 }
             }
+            let n = taken.len() as f32;
             for c in 0..3 {
                 let want = raw.rgba[4 * i + c] + weight[i][c] * (sum[c] / n - indirect[i][c]);
                 let got = split.rgba[4 * i + c];
