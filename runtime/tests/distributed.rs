@@ -982,6 +982,7 @@ fn lattice_bits(results: &[rtsl_runtime::render::progressive::LatticeSamples]) -
                 bits.extend([s.color.x, s.color.y, s.color.z, s.alpha, s.depth, r.depth[lane]].map(f32::to_bits));
                 bits.extend([s.object_id, s.shader_id]);
                 bits.extend(s.normal.to_array().map(f32::to_bits));
+                bits.extend(s.outputs.iter().flatten().map(|v| v.to_bits()));
             }
             (r.lattice.x0, r.lattice.y0, r.active, bits)
         })
@@ -1038,7 +1039,8 @@ fn lattices_traced_by_workers_are_the_samples_traced_here() -> Result<(), Distri
 #[test]
 fn lattice_samples_decode_to_themselves_and_damaged_ones_are_errors() {
     use rtsl_runtime::render::progressive::{pass_lattices, trace_lattices, LatticeSamples};
-    // The office's samples carry no normals; the GI box's do (its pixel shader reads them).
+    // The office's samples carry no normals and no output variables; the GI box's carry both (its
+    // pixel shader reads the normals and `gimatte`'s indirect light).
     let office = office().expect("the office").build_world().expect("a world");
     let gi = gi_box().expect("the GI box").build_world().expect("a world");
     for (world, other_world, normals) in [(&office, &gi, false), (&gi, &office, true)] {
@@ -1047,6 +1049,8 @@ fn lattice_samples_decode_to_themselves_and_damaged_ones_are_errors() {
         let (traced, _) = trace_lattices(world, &lattices[..4], 0, false, &wanted);
         let seen = traced.iter().flat_map(|r| r.samples.iter()).filter(|s| s.normal.length() > 0.999).count();
         assert_eq!(seen > 0, normals, "samples with unit normals: {seen}");
+        let with_outputs = traced.iter().flat_map(|r| r.samples.iter()).filter(|s| s.outputs[0] != [0.0; 3]).count();
+        assert_eq!(with_outputs > 0, normals, "samples with an output variable: {with_outputs}");
         for r in &traced {
             let mut bytes = Vec::new();
             r.encode(&mut bytes);

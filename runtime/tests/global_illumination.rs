@@ -287,6 +287,32 @@ fn render_shaded(options: &str, shader: &str, kept: &[&str]) -> Framebuffer {
     render_frame(&world, None).0
 }
 
+/// A viewer's pass, accumulated and resolved, keeps the output variables the interleave filter
+/// reads, so the filter smooths the indirect light alone there as in a frame: one pass is the
+/// frame's image, not the whole-colour filter's.
+#[test]
+fn an_accumulated_pass_gives_the_interleave_filter_the_outputs_it_reads() {
+    use rtsl_runtime::render::progressive::render_progressive;
+    let options = r#"Option "gi" "integer virtuallights" [270] "integer interleave" [3]
+        Imager "interleavefilter" "size" [3]"#;
+    let frame_and_pass = |shader: &str| {
+        let (mut rt, warnings) = box_scene_shaded(options, shader);
+        assert!(warnings.is_empty(), "{warnings:?}");
+        rt.options.max_ray_depth = 4;
+        rt.options.antialiasing = rtsl_runtime::render::Antialiasing::Grid { jitter: false };
+        let world = rt.build_world().expect("a world");
+        (render_frame(&world, None).0, render_progressive(&world, 1).0.resolve(&world))
+    };
+    let (frame, accumulated) = frame_and_pass(&checkered_gimatte(true));
+    let (_, whole) = frame_and_pass(&checkered_gimatte(false));
+    let largest = |a: &Framebuffer, b: &Framebuffer| {
+        a.rgba.iter().zip(&b.rgba).map(|(x, y)| (x - y).abs()).fold(0.0f32, f32::max)
+    };
+    let (from_frame, from_whole) = (largest(&frame, &accumulated), largest(&whole, &accumulated));
+    assert!(from_frame < 1e-5, "largest difference from the frame {from_frame}");
+    assert!(from_whole > 0.01, "largest difference from the whole-colour filter {from_whole}");
+}
+
 /// Where the surface gives its indirect light and its weight (`gimatte`'s outputs), the interleave
 /// filter smooths that light alone: each pixel keeps its own colour but for its indirect light,
 /// which becomes its weight times the mean indirect light of the neighbours the discontinuity

@@ -192,6 +192,18 @@ fn adaptive_sampling_refines_on_what_the_application_names() -> Result<(), ApiEr
     let output = rays("output:mask")?;
     assert_eq!(output - one, 2 * u64::from(H) * 4, "{output}");
     assert_eq!(rays("object,output:mask")?, one + 4 * u64::from(H) * 4);
+    // A viewer's passes refine on the output's mean as the accumulator keeps it: the second pass
+    // samples the two columns beside the step again, and nothing for colour alone.
+    let mut second_pass_rays = |on: &str| -> Result<u64, ApiError> {
+        use rtsl_runtime::render::progressive::render_progressive;
+        rt.options.refine_on = RefineOn::parse(on).expect("a list");
+        let world = rt.build_world()?;
+        let rays = render_progressive(&world, 2).1.primary_rays - render_progressive(&world, 1).1.primary_rays;
+        rt.return_scene(world);
+        Ok(rays)
+    };
+    assert_eq!(second_pass_rays("color")?, 0);
+    assert_eq!(second_pass_rays("output:mask")?, 2 * u64::from(H));
     assert!(RefineOn::parse("").is_err() && RefineOn::parse("depth").is_err() && RefineOn::parse("output:").is_err());
     Ok(())
 }

@@ -14,7 +14,7 @@ use super::primary::{
 use super::ray_params::{samples_for_relevance, RayValue, RELEVANCE};
 use super::sampling::{mix, radical_inverse};
 use super::shade::{shade_packet, shade_packets};
-use super::work::captured_outputs;
+use super::work::{captured_outputs, refined_output};
 use super::work::{Frame, LightPaths, PixelImage, Sample};
 use super::world::{Antialiasing, World, MAX_FRAME_OUTPUTS};
 use crate::camera::{packet_lane_offset, PACKET_LANE_OFFSETS, PACKET_SIDE};
@@ -549,8 +549,7 @@ fn pixels_to_refine(world: &World, tile: &Tile, threshold: f32, px: &TileSamples
     let (tw, th) = (tile.width as usize, tile.height as usize);
     let on = &world.options.refine_on;
     // The refined-on output's place among those kept, and each pixel's value of it.
-    let watched = on.output.as_ref().and_then(|name| captured_outputs(world).iter().position(|n| n == name));
-    let outputs: Vec<[f32; 3]> = match watched {
+    let outputs: Vec<[f32; 3]> = match refined_output(world) {
         Some(i) => px.outputs.iter().map(|o| o[i]).collect(),
         None => Vec::new(),
     };

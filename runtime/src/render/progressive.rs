@@ -30,8 +30,8 @@ use super::pixel::{reads_pixels, shade_pixels, TilePixels};
 use super::primary::{primary_rays, CameraSample};
 use super::sampling::radical_inverse;
 use super::shade::shade_packet;
-use super::work::{Frame, LightPathCache, LightPaths, PixelImage, Sample};
-use super::world::{Antialiasing, World};
+use super::work::{captured_outputs, refined_output, Frame, LightPathCache, LightPaths, PixelImage, Sample};
+use super::world::{Antialiasing, RefineOn, World, MAX_FRAME_OUTPUTS};
 use crate::camera::packet_lane_offset;
 use crate::ray::{HitPacket, PACKET_SIZE};
 use rayon::prelude::*;
@@ -142,6 +142,9 @@ pub struct LatticeSamples {
     /// Whether the samples keep their normals ([`Sample::normal`]): only where the world's pixel
     /// shader reads other pixels, the one reader of them; every normal is zero otherwise.
     pub normals: bool,
+    /// How many output variables the samples keep ([`Sample::outputs`]: the frame's
+    /// `captured_outputs`, the first this many); the rest are zero.
+    pub outputs: usize,
 }
 
 /// The lanes of `lattice` inside a `width x height` image where `wanted(x, y)`, as a lane mask.
@@ -201,6 +204,7 @@ pub fn trace_lattice(
         samples: [EMPTY_SAMPLE; PACKET_SIZE],
         depth: [f32::INFINITY; PACKET_SIZE],
         normals: reads_pixels(world),
+        outputs: frame.captured.len(),
     };
     if packet.active == 0 {
         return out;
@@ -227,7 +231,7 @@ const EMPTY_SAMPLE: Sample = Sample {
     object_id: u32::MAX,
     shader_id: u32::MAX,
     normal: glam::Vec3A::ZERO,
-    outputs: [[0.0; 3]; super::world::MAX_FRAME_OUTPUTS],
+    outputs: [[0.0; 3]; MAX_FRAME_OUTPUTS],
 };
 
 /// What a batch of lattices cost.
@@ -357,10 +361,14 @@ const LANE_BYTES: usize = 32;
 /// Bytes a lane's normal adds where the samples keep their normals ([`LatticeSamples::normals`]).
 const NORMAL_BYTES: usize = 12;
 
+/// Bytes each kept output variable adds to a lane ([`LatticeSamples::outputs`]).
+const OUTPUT_BYTES: usize = 12;
+
 impl LatticeSamples {
     /// The samples as bytes, for another rank: the lattice, the lane mask, then the traced lanes'
-    /// samples (little-endian), each followed by its normal where the samples keep them (whoever
-    /// decodes knows: the world's pixel shader reads other pixels).
+    /// samples (little-endian), each followed by its normal where the samples keep them and by
+    /// the output variables they keep (whoever decodes knows both from the world: its pixel
+    /// shader reads other pixels, and the outputs its frames keep).
     pub fn encode(&self, out: &mut Vec<u8>) {
         for v in [self.lattice.x0, self.lattice.y0, self.lattice.stride] {
             out.extend_from_slice(&v.to_le_bytes());
@@ -379,15 +387,21 @@ impl LatticeSamples {
                     out.extend_from_slice(&v.to_le_bytes());
                 }
             }
+            for v in s.outputs.iter().take(self.outputs).flatten() {
+                out.extend_from_slice(&v.to_le_bytes());
+            }
         }
     }
 
     /// Reads what [`LatticeSamples::encode`] wrote for a pass of `world`, checking that it is the
     /// samples of `lattice` and no lane outside `lanes` (the lanes asked for), with normals (unit
-    /// or zero) exactly where the world's pixel shader reads other pixels.
+    /// or zero) exactly where the world's pixel shader reads other pixels, and the output
+    /// variables the world's frames keep.
     pub fn decode(world: &World, lattice: PixelLattice, lanes: u64, bytes: &[u8]) -> Result<LatticeSamples, String> {
         let normals = reads_pixels(world);
-        let lane_bytes = LANE_BYTES + if normals { NORMAL_BYTES } else { 0 };
+        let outputs = captured_outputs(world).len();
+        let normal_bytes = if normals { NORMAL_BYTES } else { 0 };
+        let lane_bytes = LANE_BYTES + normal_bytes + OUTPUT_BYTES * outputs;
         let word = |at: usize| -> [u8; 4] {
             let mut b = [0; 4];
             b.copy_from_slice(&bytes[at..at + 4]);
@@ -415,11 +429,17 @@ impl LatticeSamples {
             samples: [EMPTY_SAMPLE; PACKET_SIZE],
             depth: [f32::INFINITY; PACKET_SIZE],
             normals,
+            outputs,
         };
         let mut at = 20;
         for lane in (0..PACKET_SIZE).filter(|l| active >> l & 1 != 0) {
             let f = |k: usize| f32::from_le_bytes(word(at + 4 * k));
             let u = |k: usize| u32::from_le_bytes(word(at + 4 * k));
+            let mut kept = [[0.0; 3]; MAX_FRAME_OUTPUTS];
+            let first_output = (LANE_BYTES + normal_bytes) / 4;
+            for (o, value) in kept.iter_mut().take(outputs).enumerate() {
+                *value = [0, 1, 2].map(|c| f(first_output + 3 * o + c));
+            }
             out.samples[lane] = Sample {
                 color: glam::Vec3A::new(f(0), f(1), f(2)),
                 alpha: f(3),
@@ -427,8 +447,7 @@ impl LatticeSamples {
                 object_id: u(5),
                 shader_id: u(6),
                 normal: if normals { glam::Vec3A::new(f(8), f(9), f(10)) } else { glam::Vec3A::ZERO },
-                // The viewer refines on colour and ids; outputs stay where they were shaded.
-                outputs: [[0.0; 3]; super::world::MAX_FRAME_OUTPUTS],
+                outputs: kept,
             };
             out.depth[lane] = f(7);
             // Unit or zero: anything longer (or not a number) is damage.
@@ -442,8 +461,9 @@ impl LatticeSamples {
     }
 }
 
-/// A running mean per pixel, with what the pixel shader needs (depth, object and shader ids of
-/// the latest first sample). Samples carry the epoch they were taken in: [`Accumulator::restart`]
+/// A running mean per pixel, with what the pixel shader needs (depth, object and shader ids and
+/// the normal of the latest first sample, and the mean of the output variables the samples keep).
+/// Samples carry the epoch they were taken in: [`Accumulator::restart`]
 /// starts a new one, and a pixel's first sample of the new epoch replaces its old mean, so the
 /// buffer always holds a complete image (stale pixels until they are revisited).
 #[derive(Clone, Debug)]
@@ -460,6 +480,9 @@ pub struct Accumulator {
     /// The normals of the samples the depths come from; empty until a sample brings one (samples
     /// keep their normals only for a pixel shader that reads other pixels).
     normal: Vec<[f32; 3]>,
+    /// The sums of the samples' kept output variables ([`Sample::outputs`]), as `sum` holds their
+    /// colours; empty until a sample brings one that is not zero.
+    outputs: Vec<[[f32; 3]; MAX_FRAME_OUTPUTS]>,
     current: u32,
 }
 
@@ -477,6 +500,7 @@ impl Accumulator {
             object_id: vec![u32::MAX; n],
             shader_id: vec![u32::MAX; n],
             normal: Vec::new(),
+            outputs: Vec::new(),
             current: 1,
         }
     }
@@ -519,6 +543,29 @@ impl Accumulator {
         self.normal[i] = n.to_array();
     }
 
+    /// Pixel `i`'s output sums become `outputs` (room for them made when the first that is not
+    /// zero comes: until then every sum is zero).
+    fn set_outputs(&mut self, i: usize, outputs: &[[f32; 3]; MAX_FRAME_OUTPUTS]) {
+        if self.outputs.is_empty() {
+            if outputs.iter().flatten().all(|v| *v == 0.0) {
+                return;
+            }
+            self.outputs = vec![[[0.0; 3]; MAX_FRAME_OUTPUTS]; self.depth.len()];
+        }
+        self.outputs[i] = *outputs;
+    }
+
+    /// Adds `outputs` to pixel `i`'s output sums.
+    fn add_outputs(&mut self, i: usize, outputs: &[[f32; 3]; MAX_FRAME_OUTPUTS]) {
+        if self.outputs.is_empty() {
+            // Every sum so far is zero: the pixel's sum is its new sample's.
+            return self.set_outputs(i, outputs);
+        }
+        for (sum, value) in self.outputs[i].iter_mut().flatten().zip(outputs.iter().flatten()) {
+            *sum += value;
+        }
+    }
+
     /// Adds one sample to pixel `(x, y)`.
     pub fn add(&mut self, x: u32, y: u32, sample: &Sample, depth: f32) {
         let i = self.index(x, y);
@@ -531,11 +578,13 @@ impl Accumulator {
             self.object_id[i] = sample.object_id;
             self.shader_id[i] = sample.shader_id;
             self.set_normal(i, sample.normal);
+            self.set_outputs(i, &sample.outputs);
         } else {
             for (s, v) in self.sum[i].iter_mut().zip(v) {
                 *s += v;
             }
             self.count[i] += 1;
+            self.add_outputs(i, &sample.outputs);
         }
     }
 
@@ -553,6 +602,7 @@ impl Accumulator {
                 self.object_id[i] = sample.object_id;
                 self.shader_id[i] = sample.shader_id;
                 self.set_normal(i, sample.normal);
+                self.set_outputs(i, &sample.outputs);
             }
         }
     }
@@ -578,12 +628,24 @@ impl Accumulator {
         self.sum[i].map(|v| v / n)
     }
 
-    /// Adaptive sampling's test: the pixel differs from a neighbour by more than `threshold` in a
-    /// channel of its mean, or in the object or shader it sees, each as `on` chooses (an output
-    /// variable is not kept here: `on.output` alone refines nothing).
-    pub fn needs_refinement(&self, x: u32, y: u32, threshold: f32, on: &super::RefineOn) -> bool {
+    /// The mean of pixel `i`'s kept output variables (zero where no sample kept any).
+    fn output_mean(&self, i: usize) -> [[f32; 3]; MAX_FRAME_OUTPUTS] {
+        let n = self.count[i].max(1) as f32;
+        match self.outputs.get(i) {
+            Some(sums) => sums.map(|sum| sum.map(|v| v / n)),
+            None => [[0.0; 3]; MAX_FRAME_OUTPUTS],
+        }
+    }
+
+    /// Adaptive sampling's test: the pixel differs from a neighbour by more than the threshold in
+    /// a channel of its mean, in the object or shader it sees, or in a component of the mean of
+    /// the output variable refined on, each as `test` chooses.
+    pub fn needs_refinement(&self, x: u32, y: u32, test: &RefineTest) -> bool {
+        let (on, threshold) = (&test.on, test.threshold);
         let i = self.index(x, y);
         let m = self.mean(x, y);
+        let watched = |k: usize| test.watched.map(|o| self.output_mean(k)[o]);
+        let output = watched(i);
         let neighbours = [
             (x > 0).then(|| (x - 1, y)),
             (x + 1 < self.width).then(|| (x + 1, y)),
@@ -596,6 +658,7 @@ impl Accumulator {
             (on.object && self.object_id[i] != self.object_id[j])
                 || (on.shader && self.shader_id[i] != self.shader_id[j])
                 || (on.color && m.iter().zip(n).any(|(a, b)| (a - b).abs() > threshold))
+                || output.zip(watched(j)).is_some_and(|(a, b)| a.iter().zip(b).any(|(a, b)| (a - b).abs() > threshold))
         })
     }
 
@@ -617,7 +680,11 @@ impl Accumulator {
                 object_id: self.object_id.clone(),
                 shader_id: self.shader_id.clone(),
                 normal: if self.normal.is_empty() { vec![[0.0; 3]; self.depth.len()] } else { self.normal.clone() },
-                outputs: Vec::new(),
+                outputs: captured_outputs(world)
+                    .into_iter()
+                    .enumerate()
+                    .map(|(o, name)| (name, (0..self.depth.len()).map(|i| self.output_mean(i)[o]).collect()))
+                    .collect(),
             });
             let band = 16 * w as usize;
             colors.par_chunks_mut(band).enumerate().for_each(|(b, rgba)| {
@@ -651,6 +718,23 @@ impl Accumulator {
     }
 }
 
+/// What adaptive sampling refines an [`Accumulator`]'s pixels on ([`Accumulator::needs_refinement`]).
+#[derive(Clone, Debug)]
+pub struct RefineTest {
+    pub threshold: f32,
+    pub on: RefineOn,
+    /// The place of `on.output` among the output variables the samples keep (`None` where it
+    /// names none: then it refines nothing).
+    pub watched: Option<usize>,
+}
+
+impl RefineTest {
+    /// The test of `world`'s options at `threshold` (its [`Antialiasing::Adaptive`] threshold).
+    pub fn of(world: &World, threshold: f32) -> RefineTest {
+        RefineTest { threshold, on: world.options.refine_on.clone(), watched: refined_output(world) }
+    }
+}
+
 /// Renders `passes` full passes of progressive refinement into a fresh accumulator (adaptive mode
 /// refines only where [`Accumulator::needs_refinement`] after the first pass). For tests and
 /// batch use; a viewer drives the same pieces pass by pass.
@@ -662,10 +746,8 @@ pub fn render_progressive(world: &World, passes: u32) -> (Accumulator, BatchRepo
     for pass in 0..passes {
         let results = match world.options.antialiasing {
             Antialiasing::Adaptive { threshold } if pass > 0 => {
-                let (snapshot, on) = (acc.clone(), &world.options.refine_on);
-                trace_lattices(world, &lattices, pass, false, &move |x, y| {
-                    snapshot.needs_refinement(x, y, threshold, on)
-                })
+                let (snapshot, test) = (acc.clone(), RefineTest::of(world, threshold));
+                trace_lattices(world, &lattices, pass, false, &move |x, y| snapshot.needs_refinement(x, y, &test))
             }
             _ => trace_lattices(world, &lattices, pass, false, &|_, _| true),
         };
@@ -828,5 +910,32 @@ mod tests {
         acc.add(0, 0, &blue, 1.0);
         assert_eq!(acc.mean(0, 0), [0.0, 0.0, 1.0, 1.0]);
         assert_eq!(acc.mean(1, 0), [1.0, 0.0, 0.0, 1.0], "an unvisited pixel keeps its old value");
+    }
+
+    #[test]
+    fn kept_outputs_are_averaged_like_colours() {
+        let with_outputs = |first: [f32; 3], second: [f32; 3]| {
+            let mut outputs = [[0.0; 3]; MAX_FRAME_OUTPUTS];
+            (outputs[0], outputs[1]) = (first, second);
+            Sample { alpha: 1.0, outputs, ..Sample::default() }
+        };
+        let mut acc = Accumulator::new(3, 1);
+        let plain = Sample { alpha: 1.0, ..Sample::default() };
+        acc.add(0, 0, &plain, 1.0);
+        assert!(acc.outputs.is_empty(), "no room for outputs until one is not zero");
+        // A pixel's sums start from its first sample; one whose samples were all zero before the
+        // room was made has zero sums.
+        acc.add(0, 0, &with_outputs([2.0, 4.0, 6.0], [1.0, 0.0, 0.0]), 1.0);
+        acc.add(1, 0, &with_outputs([1.0, 1.0, 1.0], [0.0; 3]), 1.0);
+        acc.add(1, 0, &with_outputs([3.0, 1.0, 5.0], [0.0; 3]), 1.0);
+        assert_eq!(acc.output_mean(0)[..2], [[1.0, 2.0, 3.0], [0.5, 0.0, 0.0]]);
+        assert_eq!(acc.output_mean(1)[0], [2.0, 1.0, 3.0]);
+        assert_eq!(acc.output_mean(2), [[0.0; 3]; MAX_FRAME_OUTPUTS], "never sampled");
+        // A preview sets its block; a new epoch's first sample replaces the sums.
+        acc.preview(1, 0, 2, &with_outputs([7.0; 3], [0.0; 3]), 1.0);
+        assert_eq!((acc.output_mean(1)[0], acc.output_mean(2)[0]), ([7.0; 3], [7.0; 3]));
+        acc.restart();
+        acc.add(0, 0, &with_outputs([0.0; 3], [9.0; 3]), 1.0);
+        assert_eq!(acc.output_mean(0)[..2], [[0.0; 3], [9.0; 3]]);
     }
 }

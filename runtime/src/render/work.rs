@@ -103,6 +103,13 @@ pub(crate) fn captured_outputs(world: &World) -> Vec<String> {
     names
 }
 
+/// The place of the output variable adaptive sampling refines on among those a frame of `world`
+/// keeps ([`captured_outputs`]); `None` where it refines on none.
+pub(crate) fn refined_output(world: &World) -> Option<usize> {
+    let name = world.options.refine_on.output.as_ref()?;
+    captured_outputs(world).iter().position(|n| n == name)
+}
+
 /// A frame's light paths as traced: its virtual lights and its caustic photon map, each where the
 /// frame's options ask for them. A distributed master traces them once and sends them to its
 /// workers ([`LightPaths::encode`]), as the paper's master did.

@@ -18,6 +18,7 @@ use rtsl_runtime::distributed::{Master, Transport};
 use rtsl_runtime::reload::{ShaderEvent, ShaderReloader};
 use rtsl_runtime::render::progressive::{
     frameless_order, pass_lattices, trace_lattices_keeping, Accumulator, BatchReport, LatticeSamples, PixelLattice,
+    RefineTest,
 };
 use rtsl_runtime::render::ray_params::samples_for_relevance;
 use rtsl_runtime::render::{camera_ray, Antialiasing, LightPathCache, RayField, RayParameters, World, RELEVANCE};
@@ -753,12 +754,15 @@ impl Renderer {
         // A slice of the current full pass, sized to the budget.
         if self.pass_cursor == 0 {
             self.refine = match self.world().options.antialiasing {
-                Antialiasing::Adaptive { threshold } if self.pass > 0 => Some(
-                    (0..h)
-                        .flat_map(|y| (0..w).map(move |x| (x, y)))
-                        .map(|(x, y)| self.acc.needs_refinement(x, y, threshold, &self.world().options.refine_on))
-                        .collect(),
-                ),
+                Antialiasing::Adaptive { threshold } if self.pass > 0 => {
+                    let test = RefineTest::of(self.world(), threshold);
+                    Some(
+                        (0..h)
+                            .flat_map(|y| (0..w).map(move |x| (x, y)))
+                            .map(|(x, y)| self.acc.needs_refinement(x, y, &test))
+                            .collect(),
+                    )
+                }
                 _ => None,
             };
         }
