@@ -399,6 +399,13 @@ impl Scene {
         self.with_solids(filter, |_| Some(*ray), |f| single::occluded_brute_force(&self.top, &self.objects, ray, f))
     }
 
+    /// World bounds of committed instance `id` over its motion; `None` for an empty object or
+    /// an unknown instance.
+    pub fn instance_bounds(&self, id: u32) -> Option<(Vec3A, Vec3A)> {
+        let b = self.top.instances.get(id as usize)?.world_bounds(&self.objects)?;
+        Some((b.min, b.max))
+    }
+
     /// World bounds of the committed instances, if any.
     pub fn bounds(&self) -> Option<(Vec3A, Vec3A)> {
         self.top.bvh.bounds

@@ -833,3 +833,60 @@ fn the_office_in_gi_loads_whole_and_its_virtual_lights_light_the_walls() {
     let (a_sum, b_sum) = (a.iter().sum::<f32>(), b.iter().sum::<f32>());
     assert!(a_sum > 1.5 * b_sum, "with the bounce {a:?}, direct light alone {b:?}");
 }
+
+/// Caustic paths leave a light toward the instances with specular surfaces only
+/// (`render/caustic_aim.rs`): under a small mirror (0.5 x 0.5, 1 above a point light: 0.235 of the
+/// sphere's 4 pi steradians) most paths reach it and leave a photon, where paths over the whole
+/// sphere would leave one in 53; and the photons carry the power the mirror reflects, its
+/// reflectance times the light's intensity times the mirror's solid angle.
+#[test]
+fn caustic_paths_go_toward_specular_instances_and_carry_what_these_reflect() {
+    use rtsl_runtime::api::Primitive;
+    use rtsl_runtime::glam::Vec3A;
+    use rtsl_runtime::render::progressive::LatticeTracer;
+    use rtsl_runtime::render::world::PhotonModel;
+    use rtsl_runtime::shading::ParamValue;
+    let e = |e: rtsl_runtime::api::ApiError| e.to_string();
+    let mut rt = Context::new();
+    let paths = 100_000;
+    rt.options.gi.caustic_photons = paths;
+    let matte = rt.find_shader("matte").map_err(e).expect("matte");
+    let quad = |rt: &mut Context, half: f32, y: f32, model: PhotonModel| {
+        rt.photon_shading_model(model);
+        let object = rt.begin_object().map_err(e).expect("an object");
+        rt.bind_shader(matte).map_err(e).expect("bound");
+        rt.begin(Primitive::Quads).map_err(e).expect("quads");
+        for (x, z) in [(-half, -half), (half, -half), (half, half), (-half, half)] {
+            rt.vertex(x, y, z).map_err(e).expect("a vertex");
+        }
+        rt.end().map_err(e).expect("end");
+        rt.end_object().map_err(e).expect("end_object");
+        rt.instantiate_object(object).map_err(e).expect("an instance");
+    };
+    rt.color(0.8, 0.8, 0.8);
+    quad(&mut rt, 3.0, 0.0, PhotonModel::Matte);
+    quad(&mut rt, 0.25, 3.0, PhotonModel::Chrome);
+    let light = rt.find_shader("pointlight").map_err(e).expect("pointlight");
+    rt.light_source(light, &[("intensity", ParamValue::Float(4.0)), ("from", ParamValue::Point([0.0, 2.0, 0.0]))])
+        .map_err(e)
+        .expect("a light");
+    let world = rt.build_world().expect("a world");
+    let tracer = LatticeTracer::new(&world, 0, false);
+    tracer.prepare_light_paths();
+    let map = tracer.light_paths().caustics.expect("a caustic map");
+    // A square of half side a at distance h, centred: 4 asin(a^2 / (a^2 + h^2)) steradians.
+    let (a, h) = (0.25f32, 1.0f32);
+    let solid_angle = 4.0 * (a * a / (a * a + h * h)).asin();
+    let everywhere = solid_angle / (4.0 * std::f32::consts::PI);
+    let kept = map.len() as f32 / paths as f32;
+    eprintln!("photons per path: {kept} (over the whole sphere: {everywhere})");
+    assert!(kept > 0.5 && kept > 25.0 * everywhere, "{kept} photons a path");
+    let photons = map.photons();
+    // All on the floor, inside the light's mirror image's view of the mirror (4 below it: 4 x 0.25).
+    assert!(photons.iter().all(|p| p.p.y.abs() < 1e-4 && p.p.x.abs() <= 1.0 + 1e-3 && p.p.z.abs() <= 1.0 + 1e-3));
+    let power: f32 = photons.iter().map(|p| p.power.x).sum();
+    let reflected = 0.8 * 4.0 * solid_angle;
+    eprintln!("caustic power {power}, reflected {reflected}");
+    assert!((power / reflected - 1.0).abs() < 0.01, "caustic power {power}, reflected {reflected}");
+    assert!(photons.iter().all(|p| p.power == Vec3A::splat(p.power.x)), "grey light, grey mirror");
+}

@@ -44,6 +44,27 @@ pub struct Motion {
 }
 
 impl InstanceData {
+    /// The instance's world box, over its motion (from its object's root bounds, without
+    /// fetching a demand-loaded object), widened by a relative epsilon (the transformed corners
+    /// are rounded); `None` for an empty or unknown object.
+    pub fn world_bounds(&self, objects: &[Object]) -> Option<Aabb> {
+        let (lo, hi) = objects.get(self.object as usize).and_then(Object::bounds)?;
+        let mut b = Aabb::empty();
+        for k in 0..8 {
+            let c = Vec3A::new(
+                if k & 1 == 0 { lo.x } else { hi.x },
+                if k & 2 == 0 { lo.y } else { hi.y },
+                if k & 4 == 0 { lo.z } else { hi.z },
+            );
+            b.extend(self.world_from_object.transform_point3a(c));
+            if let Some(m) = &self.motion {
+                b.extend(m.close_transform.transform_point3a(c));
+            }
+        }
+        let pad = (b.max - b.min).abs().max((b.min.abs()).max(b.max.abs())) * 1e-6;
+        Some(Aabb::new(b.min - pad, b.max + pad))
+    }
+
     /// Instance data for `object` placed by `world_from_object`.
     pub fn new(object: u32, world_from_object: Affine3A) -> Self {
         InstanceData {
@@ -119,24 +140,8 @@ impl TopLevel {
         let mut boxes = Vec::with_capacity(instances.len());
         let mut ids = Vec::with_capacity(instances.len());
         for (i, inst) in instances.iter().enumerate() {
-            let Some((lo, hi)) = objects.get(inst.object as usize).and_then(Object::bounds) else {
-                continue;
-            };
-            let mut b = Aabb::empty();
-            for k in 0..8 {
-                let c = Vec3A::new(
-                    if k & 1 == 0 { lo.x } else { hi.x },
-                    if k & 2 == 0 { lo.y } else { hi.y },
-                    if k & 4 == 0 { lo.z } else { hi.z },
-                );
-                b.extend(inst.world_from_object.transform_point3a(c));
-                if let Some(m) = &inst.motion {
-                    b.extend(m.close_transform.transform_point3a(c));
-                }
-            }
-            // Widen by a relative epsilon: the transformed corners are rounded.
-            let pad = (b.max - b.min).abs().max((b.min.abs()).max(b.max.abs())) * 1e-6;
-            boxes.push(Aabb::new(b.min - pad, b.max + pad));
+            let Some(b) = inst.world_bounds(objects) else { continue };
+            boxes.push(b);
             ids.push(i as u32);
         }
         let quality = if boxes.len() <= TOP_HIGH_QUALITY_UP_TO { BuildQuality::High } else { BuildQuality::Fast };

@@ -7,6 +7,7 @@
 //! `primary.rs` makes primary rays (the built-in camera or the camera shader); `filter.rs` holds the
 //! pixel filters and `film.rs` splats samples through them.
 
+mod caustic_aim;
 pub mod differential;
 mod film;
 pub mod filter;

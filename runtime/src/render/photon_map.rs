@@ -55,6 +55,11 @@ impl PhotonMap {
         self.photons.is_empty()
     }
 
+    /// The photons, in the tree's order.
+    pub fn photons(&self) -> &[Photon] {
+        &self.photons
+    }
+
     /// Appends the map to `out` as it lies in memory, tree order kept: a count, then each photon's
     /// position, power and direction (nine floats) and its splitting axis.
     pub fn encode(&self, out: &mut Vec<u8>) {

@@ -24,13 +24,14 @@
 //! per pass of progressive refinement another: `Frame::gi_seed`), never on threads or timing, so
 //! every tile, lattice and worker of a frame gathers the same lights.
 
+use super::caustic_aim::{corners, Cones, Discs, Targets};
 use super::hemisphere::orthonormal;
 use super::photon_map::{Photon, PhotonMap};
 use super::ray_budget::RayBudget;
 use super::sampling::{mix, point_seed, radical_inverse, unit};
 use super::stats::{tracing, Stats};
 use super::work::{epsilon, Frame, VirtualLight, VirtualLights};
-use super::world::{LightSource, PhotonModel, MAX_BOUNCES, MAX_INTERLEAVE, MAX_VIRTUAL_LIGHT_PATHS};
+use super::world::{LightSource, PhotonModel, World, MAX_BOUNCES, MAX_INTERLEAVE, MAX_VIRTUAL_LIGHT_PATHS};
 use crate::ray::{Hit, Ray};
 use crate::shading::LightKind;
 use glam::Vec3A;
@@ -50,10 +51,15 @@ pub(super) fn trace(frame: &Frame) -> VirtualLights {
     let diagonal = (hi - lo).length();
     let clamp = if gi.clamp > 0.0 { gi.clamp } else { 0.01 * diagonal };
     let bounces = gi.bounces.clamp(1, MAX_BOUNCES);
-    let lights =
-        for_each_landing(frame, gi.virtual_lights, 0x5851_F42D_4C95_7F2D, every_landing, |landing, seed, out| {
+    let lights = for_each_landing(
+        frame,
+        gi.virtual_lights,
+        (0x5851_F42D_4C95_7F2D, None),
+        every_landing,
+        |landing, seed, out| {
             follow_to_virtual_lights(frame, landing, bounces, seed, out);
-        });
+        },
+    );
     // Dealt round-robin: each set a stratified share of the paths.
     let mut sets = vec![Vec::with_capacity(lights.len() / set_count + 1); set_count];
     for (i, l) in lights.into_iter().enumerate() {
@@ -63,17 +69,34 @@ pub(super) fn trace(frame: &Frame) -> VirtualLights {
 }
 
 /// Traces the frame's caustic photons (`Option "gi" "causticphotons"`): paths from the lights
-/// whose first surface is specular (chrome, glass), followed through specular surfaces to the
-/// first diffuse one, where each leaves a photon (Jensen's caustic map, light paths L S+ D).
+/// toward the instances with specular surfaces (chrome, glass; `caustic_aim.rs`), those whose
+/// first surface is specular followed through specular surfaces to the first diffuse one, where
+/// each leaves a photon (Jensen's caustic map, light paths L S+ D).
 pub(super) fn trace_caustics(frame: &Frame) -> PhotonMap {
+    let targets = specular_bounds(frame.world);
     // Only paths whose first surface is specular go on: the others are dropped as they land,
     // before their surfaces are worked out and the light's shader is run there.
     let specular = |hit: &Hit| reflectance_of(frame, hit).1 != PhotonModel::Matte;
     let gi = &frame.world.options.gi;
-    let photons = for_each_landing(frame, gi.caustic_photons, 0x2545_F491_4F6C_DD1D, specular, |landing, seed, out| {
+    let salt = (0x2545_F491_4F6C_DD1D, Some(&targets[..]));
+    let photons = for_each_landing(frame, gi.caustic_photons, salt, specular, |landing, seed, out| {
         follow_to_photon(frame, landing, seed, out);
     });
     PhotonMap::new(photons)
+}
+
+/// The world boxes of the instances some of whose surfaces are specular for light paths (their
+/// material's photon model is not matte).
+fn specular_bounds(world: &World) -> Vec<(Vec3A, Vec3A)> {
+    let specular = |m: u32| world.materials.get(m as usize).is_some_and(|m| m.photon != PhotonModel::Matte);
+    let instances = world.instances.iter().enumerate();
+    instances
+        .filter(|(_, inst)| match &inst.parts {
+            Some(parts) => parts.materials.iter().any(|&m| specular(m)),
+            None => specular(inst.material),
+        })
+        .filter_map(|(id, _)| world.scene.instance_bounds(id as u32))
+        .collect()
 }
 
 /// Traces the frame's global photons (`Option "gi" "globalphotons"`): paths from the lights that
@@ -85,7 +108,7 @@ pub(super) fn trace_global(frame: &Frame) -> PhotonMap {
     let photons = for_each_landing(
         frame,
         frame.world.options.gi.global_photons,
-        0x9E37_79B9_7F4A_7C15,
+        (0x9E37_79B9_7F4A_7C15, None),
         every_landing,
         |landing, seed, out| {
             follow_to_global_photons(frame, landing, bounces + 1, seed, out);
@@ -241,12 +264,33 @@ thread_local! {
 }
 
 /// Where a light's paths start.
+#[derive(Clone, Copy)]
 enum Emitter {
     /// A local light at a position: paths leave it over the whole sphere.
     Point(Vec3A),
     /// A distant light shining along a direction: paths start on a disc of `radius` about `centre`,
     /// across the direction, outside the scene.
     Distant { direction: Vec3A, centre: Vec3A, radius: f32 },
+}
+
+/// Where a light's paths go: everywhere it emits, or toward targets (`caustic_aim.rs`).
+enum Aim {
+    Everywhere,
+    Cones(Cones),
+    Discs(Discs),
+}
+
+impl Aim {
+    /// Toward `targets` from `emitter`, where that helps.
+    fn of(emitter: &Emitter, targets: &Targets) -> Aim {
+        let aimed = match *emitter {
+            Emitter::Point(from) => Cones::toward(from, targets).map(Aim::Cones),
+            Emitter::Distant { direction, centre, radius } => {
+                Discs::across(centre, orthonormal(direction), radius, targets).map(Aim::Discs)
+            }
+        };
+        aimed.unwrap_or(Aim::Everywhere)
+    }
 }
 
 /// How `light` emits, found by running it at a point of the scene (its centre, else a corner of
@@ -257,8 +301,8 @@ fn emitter(frame: &Frame, light: &LightSource, lo: Vec3A, hi: Vec3A) -> Option<E
         return None;
     }
     let centre = (lo + hi) * 0.5;
-    let corners = (0..8).map(|k| Vec3A::new([lo.x, hi.x][k & 1], [lo.y, hi.y][k >> 1 & 1], [lo.z, hi.z][k >> 2 & 1]));
-    let probes: Vec<Vec3A> = std::iter::once(centre).chain(corners.map(|c| centre + (c - centre) * 0.9)).collect();
+    let probes: Vec<Vec3A> =
+        std::iter::once(centre).chain(corners((lo, hi)).map(|c| centre + (c - centre) * 0.9)).collect();
     for four in probes.chunks(4) {
         let points: [Vec3A; 4] = std::array::from_fn(|l| four.get(l).copied().unwrap_or(centre));
         let mask: [i32; 4] = std::array::from_fn(|l| if l < four.len() { -1 } else { 0 });
@@ -301,15 +345,16 @@ struct Landing {
     carried: Vec3A,
 }
 
-/// Traces `paths` paths from the frame's lights (shared out evenly) and hands `visit` each first
-/// landing that `keep` keeps, with a seed of its own (the light's shader run where the path lands
+/// Traces `paths` paths from the frame's lights (shared out evenly; each light's toward the
+/// targets, where given and where aiming helps, else everywhere) and hands `visit` each first
+/// landing that `keep` keeps, with a seed of its own (from the salt) (the light's shader run where the path lands
 /// says how much power it carries), collecting what it leaves. The paths go in chunks over the
 /// threads of the current rayon pool; what they leave comes back in path order whoever traced
 /// them, so the result does not depend on the threads.
 fn for_each_landing<T: Send>(
     frame: &Frame,
     paths: u32,
-    salt: u64,
+    (salt, targets): (u64, Option<&Targets>),
     keep: impl Fn(&Hit) -> bool + Sync,
     visit: impl Fn(Landing, u64, &mut Vec<T>) + Sync,
 ) -> Vec<T> {
@@ -319,7 +364,7 @@ fn for_each_landing<T: Send>(
     let Some((lo, hi)) = world.scene.bounds() else { return Vec::new() };
     let emitters: Vec<(&LightSource, Emitter)> =
         world.lights.iter().filter_map(|l| Some((l, emitter(frame, l, lo, hi)?))).collect();
-    if emitters.is_empty() || paths == 0 {
+    if emitters.is_empty() || paths == 0 || targets.is_some_and(<[_]>::is_empty) {
         return Vec::new();
     }
     let per_light = paths.div_ceil(emitters.len() as u32);
@@ -327,13 +372,15 @@ fn for_each_landing<T: Send>(
     let mut out = Vec::new();
     for (k, (light, emitter)) in emitters.iter().enumerate() {
         let seed = mix(seed ^ k as u64);
+        let aim = targets.map_or(Aim::Everywhere, |targets| Aim::of(emitter, targets));
         let chunks: Vec<u32> = (0..per_light).step_by(PATHS_PER_TASK as usize).collect();
         let left: Vec<Vec<T>> = chunks
             .par_iter()
             .map(|&first| {
                 let mut left = Vec::new();
                 let last = (first + PATHS_PER_TASK).min(per_light);
-                for landing in landings(frame, light, emitter, (first..last, per_light), seed, &keep) {
+                let aimed = (emitter, &aim);
+                for landing in landings(frame, light, aimed, (first..last, per_light), seed, &keep) {
                     let path_seed = mix(seed ^ (u64::from(landing.index) + 1));
                     visit(landing, path_seed, &mut left);
                 }
@@ -358,7 +405,7 @@ const PATHS_PER_TASK: u32 = 256;
 fn landings(
     frame: &Frame,
     light: &LightSource,
-    emitter: &Emitter,
+    (emitter, aim): (&Emitter, &Aim),
     (range, count): (std::ops::Range<u32>, u32),
     seed: u64,
     keep: &(dyn Fn(&Hit) -> bool + Sync),
@@ -370,8 +417,18 @@ fn landings(
         .map(|i| {
             let (u1, u2) =
                 (((i as f32 + 0.5) / count as f32 + shift.0).fract(), (radical_inverse(i, 2) + shift.1).fract());
-            let (ray, share) = match *emitter {
-                Emitter::Point(from) => {
+            let (ray, share) = match (*emitter, aim) {
+                (Emitter::Point(from), Aim::Cones(cones)) => {
+                    let (dir, solid_angle) = cones.sample(u1, u2);
+                    (Ray::segment(from, dir, epsilon(from), f32::INFINITY), solid_angle / count as f32)
+                }
+                (Emitter::Distant { direction, centre, radius }, Aim::Discs(discs)) => {
+                    let (t1, t2) = orthonormal(direction);
+                    let ((x, y), area) = discs.sample(u1, u2);
+                    let origin = centre - direction * (2.0 * radius) + t1 * x + t2 * y;
+                    (Ray::segment(origin, direction, 0.0, f32::INFINITY), area / count as f32)
+                }
+                (Emitter::Point(from), _) => {
                     let z = 1.0 - 2.0 * u1;
                     let r = (1.0 - z * z).max(0.0).sqrt();
                     let phi = std::f32::consts::TAU * u2;
@@ -379,7 +436,7 @@ fn landings(
                     // Point light power over paths: 4 pi steradians each path's share.
                     (Ray::segment(from, dir, epsilon(from), f32::INFINITY), 4.0 * std::f32::consts::PI / count as f32)
                 }
-                Emitter::Distant { direction, centre, radius } => {
+                (Emitter::Distant { direction, centre, radius }, _) => {
                     let (t1, t2) = orthonormal(direction);
                     let (r, phi) = (radius * u1.sqrt(), std::f32::consts::TAU * u2);
                     let origin = centre - direction * (2.0 * radius) + t1 * (r * phi.cos()) + t2 * (r * phi.sin());
