@@ -9,6 +9,7 @@
 
 mod caustic_aim;
 pub mod differential;
+mod emission;
 mod film;
 pub mod filter;
 pub mod frame;

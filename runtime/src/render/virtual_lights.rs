@@ -11,7 +11,7 @@
 //!   "shadingmodel" "matte"`): a surface reflects `Cs / pi` of its irradiance as radiance.
 //! - A light's emission is found by running its shader where a path from it lands: a local light
 //!   (`illuminate`) at the position its `L` points back to, a distant one (`solar`) along its `L`.
-//!   Paths leave a local light uniformly over the sphere and a distant one uniformly over a disc
+//!   Paths leave a local light as it emits (`emission.rs`) and a distant one uniformly over a disc
 //!   as wide as the scene. Ambient lights emit nothing; area lights emit from their sample point.
 //! - `indirectdiffuse()` answers the mean radiance arriving over the hemisphere (irradiance over
 //!   pi), as its hemisphere-sampling form does, so `Cs * indirectdiffuse()` is the radiance a matte
@@ -25,6 +25,7 @@
 //! every tile, lattice and worker of a frame gathers the same lights.
 
 use super::caustic_aim::{corners, Cones, Discs, Targets};
+use super::emission::{probe_directions, Emission};
 use super::hemisphere::orthonormal;
 use super::photon_map::{Photon, PhotonMap};
 use super::ray_budget::RayBudget;
@@ -266,16 +267,18 @@ thread_local! {
 /// Where a light's paths start.
 #[derive(Clone, Copy)]
 enum Emitter {
-    /// A local light at a position: paths leave it over the whole sphere.
+    /// A local light at a position: paths leave it as it emits (`emission.rs`), or toward targets.
     Point(Vec3A),
     /// A distant light shining along a direction: paths start on a disc of `radius` about `centre`,
     /// across the direction, outside the scene.
     Distant { direction: Vec3A, centre: Vec3A, radius: f32 },
 }
 
-/// Where a light's paths go: everywhere it emits, or toward targets (`caustic_aim.rs`).
+/// Where a light's paths go: everywhere, as the light emits (`emission.rs`), or toward targets
+/// (`caustic_aim.rs`).
 enum Aim {
     Everywhere,
+    Emission(Emission),
     Cones(Cones),
     Discs(Discs),
 }
@@ -322,6 +325,22 @@ fn emitter(frame: &Frame, light: &LightSource, lo: Vec3A, hi: Vec3A) -> Option<E
         }
     }
     None
+}
+
+/// `light`'s emission table from `from` (`emission.rs`): its shader run at `reach` from `from`
+/// toward each probe direction, the intensity there its `Cl` times the squared distance (the
+/// largest channel).
+fn emission_of(frame: &Frame, light: &LightSource, from: Vec3A, reach: f32) -> Option<Emission> {
+    let directions = probe_directions();
+    let mut intensity = vec![0.0f32; directions.len()];
+    for (k, four) in directions.chunks(4).enumerate() {
+        let points: [Vec3A; 4] = std::array::from_fn(|l| from + four.get(l).copied().unwrap_or(Vec3A::Z) * reach);
+        let mask: [i32; 4] = std::array::from_fn(|l| if l < four.len() { -1 } else { 0 });
+        for (l, row) in eval(frame, light, &mask, &points) {
+            intensity[4 * k + l] = Vec3A::from(row.lane(l).cl).max_element() * reach * reach;
+        }
+    }
+    Emission::of_probes(&intensity)
 }
 
 /// The light of `light` at four points (no shadow rays matter here: the points are where paths
@@ -372,7 +391,16 @@ fn for_each_landing<T: Send>(
     let mut out = Vec::new();
     for (k, (light, emitter)) in emitters.iter().enumerate() {
         let seed = mix(seed ^ k as u64);
-        let aim = targets.map_or(Aim::Everywhere, |targets| Aim::of(emitter, targets));
+        let aim = match targets {
+            Some(targets) => Aim::of(emitter, targets),
+            None => Aim::Everywhere,
+        };
+        let aim = match (aim, emitter) {
+            (Aim::Everywhere, Emitter::Point(from)) => {
+                emission_of(frame, light, *from, 0.25 * (hi - lo).length()).map_or(Aim::Everywhere, Aim::Emission)
+            }
+            (aim, _) => aim,
+        };
         let chunks: Vec<u32> = (0..per_light).step_by(PATHS_PER_TASK as usize).collect();
         let left: Vec<Vec<T>> = chunks
             .par_iter()
@@ -420,6 +448,10 @@ fn landings(
             let (ray, share) = match (*emitter, aim) {
                 (Emitter::Point(from), Aim::Cones(cones)) => {
                     let (dir, solid_angle) = cones.sample(u1, u2);
+                    (Ray::segment(from, dir, epsilon(from), f32::INFINITY), solid_angle / count as f32)
+                }
+                (Emitter::Point(from), Aim::Emission(emission)) => {
+                    let (dir, solid_angle) = emission.sample(u1, u2);
                     (Ray::segment(from, dir, epsilon(from), f32::INFINITY), solid_angle / count as f32)
                 }
                 (Emitter::Distant { direction, centre, radius }, Aim::Discs(discs)) => {
