@@ -79,8 +79,8 @@ pub(super) fn trace_caustics(frame: &Frame) -> PhotonMap {
     // before their surfaces are worked out and the light's shader is run there.
     let specular = |hit: &Hit| reflectance_of(frame, hit).1 != PhotonModel::Matte;
     let gi = &frame.world.options.gi;
-    let salt = (0x2545_F491_4F6C_DD1D, Some(&targets[..]));
-    let photons = for_each_landing(frame, gi.caustic_photons, salt, specular, |landing, seed, out| {
+    let seeded_toward = (0x2545_F491_4F6C_DD1D, Some(&targets[..]));
+    let photons = for_each_landing(frame, gi.caustic_photons, seeded_toward, specular, |landing, seed, out| {
         follow_to_photon(frame, landing, seed, out);
     });
     PhotonMap::new(photons)
