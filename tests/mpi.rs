@@ -155,15 +155,16 @@ fn every_frame_of_a_file_renders_the_same_over_three_ranks() {
     }
 }
 
-/// Renders `frames` frames of a BART scene alone and over `ranks` ranks; checks they are the same.
-fn bart_alone_and_over_ranks(scene: &str, frames: usize, size: &str, ranks: usize) {
+/// Renders `frames` frames of a BART scene alone and over `ranks` ranks; checks they are the same
+/// and returns the distributed run's first-frame `demand loading` line (`None`: skipped).
+fn bart_alone_and_over_ranks(scene: &str, frames: usize, size: &str, ranks: usize) -> Option<String> {
     let path = repo(scene);
     if !path.exists() {
         eprintln!("skipped: {} is absent", path.display());
-        return;
+        return None;
     }
     if !mpirun_present() {
-        return;
+        return None;
     }
     let dir = tempfile::tempdir().expect("tempdir");
     let scene = path.to_string_lossy().into_owned();
@@ -182,18 +183,24 @@ fn bart_alone_and_over_ranks(scene: &str, frames: usize, size: &str, ranks: usiz
         let (a, b) = (dir.path().join("alone").join(&frame), dir.path().join("mpi").join(&frame));
         assert_eq!(std::fs::read(&a).expect("a frame"), std::fs::read(&b).expect("a frame"), "{frame}");
     }
+    Some(first.to_string())
 }
 
 #[test]
 fn bart_frames_render_the_same_over_three_ranks() {
-    bart_alone_and_over_ranks("../shared/scenes/bart/robot/aff/Robot.aff", 2, "64x48", 3);
+    let _ = bart_alone_and_over_ranks("../shared/scenes/bart/robot/aff/Robot.aff", 2, "64x48", 3);
 }
 
 /// The kitchen's meshes are large: the master sends them while the worker sends its pixels, and
-/// neither send may wait for the other's receive.
+/// neither send may wait for the other's receive. Its largest object travels in parts.
 #[test]
 fn bart_kitchen_frames_fetch_large_meshes_while_pixels_flow() {
-    bart_alone_and_over_ranks("../shared/scenes/bart/kitchen/aff/kitchen.aff", 3, "96x72", 2);
+    let Some(first) = bart_alone_and_over_ranks("../shared/scenes/bart/kitchen/aff/kitchen.aff", 3, "96x72", 2) else {
+        return;
+    };
+    let parts: u64 =
+        first.split(" BVH part(s)").next().and_then(|s| s.rsplit(' ').next()).and_then(|n| n.parse().ok()).unwrap_or(0);
+    assert!(parts > 0, "{first}");
 }
 
 #[test]

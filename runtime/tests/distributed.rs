@@ -1335,3 +1335,80 @@ fn a_new_scene_takes_the_texture_levels_the_scene_before_fetched() -> Result<(),
     assert!(other.fetched_texture_levels >= 1, "{other:?}");
     Ok(())
 }
+
+/// The little scene with ground far wider than the view under its floor (28,160 triangles,
+/// most of them outside the frustum); returns the ground's object.
+fn little_scene_on_wide_ground() -> (Context, rtsl_runtime::api::ObjectId) {
+    let e = |e: rtsl_runtime::api::ApiError| e.to_string();
+    let mut rt = little_scene().expect("the little scene");
+    let ground = rt.begin_object().map_err(e).expect("an object");
+    rt.begin(Primitive::Triangles).map_err(e).expect("triangles");
+    let (nx, nz) = (160, 88);
+    let at =
+        |i: u32, k: u32| [-40.0 + i as f32 * 0.5, -0.05 + 0.01 * ((i * 7 + k * 3) % 5) as f32, 3.9 - k as f32 * 0.5];
+    for k in 0..nz {
+        for i in 0..nx {
+            for [a, b] in [[(i, k), (i + 1, k)], [(i + 1, k), (i + 1, k + 1)]] {
+                for p in [at(i, k), at(a.0, a.1), at(b.0, b.1)] {
+                    rt.vertex(p[0], p[1], p[2]).map_err(e).expect("a vertex");
+                }
+            }
+        }
+    }
+    rt.end().map_err(e).expect("end");
+    rt.end_object().map_err(e).expect("end_object");
+    rt.instantiate_object(ground).map_err(e).expect("an instance");
+    (rt, ground)
+}
+
+/// A large object travels in parts: a worker fetches its mesh and small tree, then only the
+/// parts of its BVH that its rays reach, each once; frames are the single process's, bit for bit.
+#[test]
+fn workers_fetch_the_parts_of_a_large_object_that_rays_reach() -> Result<(), DistributedError> {
+    let (mut rt, ground) = little_scene_on_wide_ground();
+    let world = rt.build_world().expect("a world");
+    let bvh = rt.object_bvh(ground, &world).expect("the ground's BVH");
+    let parts = rtsl_runtime::accel::parts::cut(bvh, 256).parts.len() as u64;
+    rt.return_scene(world);
+    assert!(parts > 50, "{parts} parts");
+
+    let demands = with_two_workers(Duration::from_secs(60), |m| {
+        m.set_parts(1000, 256);
+        frames_moving_once(m, &mut rt, 2, "a frame with an object in parts")
+    })?;
+    let (first, _) = demands[0];
+    // Both workers reached the ground, and fetched fewer of its parts together than it has.
+    assert!(first.fetched_parts > 2 && first.fetched_parts < parts, "{first:?} of {parts} parts");
+    assert_eq!(first.resident_parts, first.fetched_parts, "{first:?}");
+    for (later, traffic) in &demands[1..] {
+        assert_eq!((later.fetched_objects, later.fetched_parts, traffic.fetches), (0, 0, 0), "{later:?}");
+        assert_eq!(later.resident_parts, first.resident_parts);
+    }
+    Ok(())
+}
+
+/// A cache too small for anything drops a large object's parts, then the object, before each
+/// frame; the frame fetches what it reaches again and is still the single process's.
+#[test]
+fn a_full_cache_evicts_parts_and_fetches_them_again() -> Result<(), DistributedError> {
+    let (mut rt, _) = little_scene_on_wide_ground();
+    let mut group = LocalTransport::group(2, Duration::from_secs(60)).into_iter();
+    let master_end = group.next().expect("rank 0");
+    let worker_end = group.next().expect("rank 1");
+    let worker = std::thread::spawn(move || serve(&worker_end, Ok(&mut ReplicaScene::with_cache_limit(1)), &pool(2)));
+    let mut master = Master::connect(master_end)?;
+    master.set_parts(1000, 256);
+    let demands: Vec<Demand> = frames_moving_once(&mut master, &mut rt, 1, "a frame of parts from an evicted cache")?
+        .into_iter()
+        .map(|(demand, _)| demand)
+        .collect();
+    master.shutdown()?;
+    worker.join().expect("the worker thread")?;
+    let first = demands[0];
+    assert!(first.fetched_parts > 2 && first.evicted_parts == 0, "{demands:?}");
+    for d in &demands[1..] {
+        assert_eq!((d.evicted_parts, d.fetched_parts), (first.fetched_parts, first.fetched_parts), "{demands:?}");
+        assert_eq!(d.evicted_objects, 3, "{demands:?}");
+    }
+    Ok(())
+}

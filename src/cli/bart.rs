@@ -102,6 +102,9 @@ pub fn run(args: &BartArgs) -> anyhow::Result<ExitCode> {
         return super::mpi::work(&**t, &pool, &args.workers);
     }
     let mut master = transport.map(Master::connect).transpose()?;
+    if let Some(m) = master.as_mut() {
+        args.workers.apply(m);
+    }
     let started = Instant::now();
     let (mut rt, mut scene) = load(args, &pool)?;
     let loaded = started.elapsed();

@@ -269,6 +269,7 @@ pub fn run_render(args: &BenchRenderArgs) -> anyhow::Result<()> {
             return Ok(());
         }
         let mut master = rtsl_runtime::distributed::Master::connect(transport)?;
+        args.workers.apply(&mut master);
         let mut rt = load()?;
         master.check_workers()?;
         anyhow::ensure!(master.workers() > 0, "--mpi needs worker ranks: run it with mpirun -n 2 or more");

@@ -3,8 +3,9 @@
 //! with an empty scene, is sent the master's, and serves it as a worker
 //! (`rtsl_runtime::distributed`).
 
+use rtsl_runtime::accel::parts::{PARTED_ABOVE, PART_TRIANGLES};
 use rtsl_runtime::distributed::{
-    serve, Demand, ReplicaScene, Traffic, Transport, WorkerTime, DEFAULT_MESH_CACHE_BYTES,
+    serve, Demand, Master, ReplicaScene, Traffic, Transport, WorkerTime, DEFAULT_MESH_CACHE_BYTES,
 };
 use rtsl_runtime::render::World;
 
@@ -22,13 +23,24 @@ pub(crate) fn transport() -> anyhow::Result<Box<dyn Transport>> {
     )
 }
 
-/// The worker ranks' settings of a subcommand run with `--mpi`.
+/// The settings of a subcommand run with `--mpi` for how the workers fetch and keep the scene.
 #[derive(clap::Args, Debug, Clone)]
 pub struct WorkerArgs {
     /// With --mpi: the most megabytes of fetched meshes and their BVHs a worker keeps between
     /// frames; the meshes rays reached least recently go first, fetched again when next needed.
     #[arg(long, value_name = "MB", default_value_t = DEFAULT_MESH_CACHE_BYTES >> 20)]
     pub mesh_cache_mb: usize,
+    /// With --mpi: objects of more triangles travel to the workers in parts, their BVHs fetched
+    /// subtree by subtree as rays reach them (parts of at most 16384 triangles).
+    #[arg(long, value_name = "TRIANGLES", default_value_t = PARTED_ABOVE)]
+    pub parts_above: usize,
+}
+
+impl WorkerArgs {
+    /// Gives `master` these settings.
+    pub(crate) fn apply<T: Transport>(&self, master: &mut Master<T>) {
+        master.set_parts(self.parts_above, PART_TRIANGLES);
+    }
 }
 
 /// Serves the master as a worker: a copy of the master's scene, sent to it frame by frame.
@@ -92,6 +104,9 @@ pub(crate) fn scene_meshes(world: &World) -> (usize, usize) {
 pub(crate) struct Fetched {
     objects: u64,
     object_bytes: u64,
+    /// Parts of large objects' BVHs, and their bytes.
+    parts: u64,
+    part_bytes: u64,
     textures: u64,
     texture_levels: u64,
     texture_bytes: u64,
@@ -104,6 +119,8 @@ impl From<&Demand> for Fetched {
         Fetched {
             objects: d.fetched_objects,
             object_bytes: d.fetched_bytes,
+            parts: d.fetched_parts,
+            part_bytes: d.fetched_part_bytes,
             textures: d.fetched_textures,
             texture_levels: d.fetched_texture_levels,
             texture_bytes: d.fetched_texture_bytes,
@@ -118,6 +135,8 @@ impl std::ops::Add for Fetched {
         Fetched {
             objects: self.objects + o.objects,
             object_bytes: self.object_bytes + o.object_bytes,
+            parts: self.parts + o.parts,
+            part_bytes: self.part_bytes + o.part_bytes,
             textures: self.textures + o.textures,
             texture_levels: self.texture_levels + o.texture_levels,
             texture_bytes: self.texture_bytes + o.texture_bytes,
@@ -136,6 +155,7 @@ pub(crate) fn demand_line(
     workers: usize,
 ) -> String {
     let mb = |b: f64| b / 1e6;
+    let geometry_bytes = (fetched.object_bytes + fetched.part_bytes) as f64;
     // Of the objects rays reached (per worker and frame), those a worker held already.
     let over_frames =
         Demand { fetched_objects: fetched.objects, reached_objects: fetched.reached, ..Demand::default() };
@@ -151,16 +171,18 @@ pub(crate) fn demand_line(
         ),
     };
     format!(
-        "demand loading, {what}: {} object(s), {:.2} MB fetched by {workers} worker(s) ({:.2} MB per worker) of the scene's {} object(s) and {:.2} MB of meshes; {} texture(s) and {} mip level(s), {:.2} MB; cache hits: {hit_rate}; held now: at most {} object(s) per worker ({} evicted before the last frame){kept}",
+        "demand loading, {what}: {} object(s) and {} BVH part(s), {:.2} MB fetched by {workers} worker(s) ({:.2} MB per worker) of the scene's {} object(s) and {:.2} MB of meshes; {} texture(s) and {} mip level(s), {:.2} MB; cache hits: {hit_rate}; held now: at most {} object(s) per worker ({} object(s) and {} BVH part(s) evicted before the last frame){kept}",
         fetched.objects,
-        mb(fetched.object_bytes as f64),
-        mb(fetched.object_bytes as f64 / workers.max(1) as f64),
+        fetched.parts,
+        mb(geometry_bytes),
+        mb(geometry_bytes / workers.max(1) as f64),
         scene.0,
         mb(scene.1 as f64),
         fetched.textures,
         fetched.texture_levels,
         mb(fetched.texture_bytes as f64),
         held.most_resident_objects,
-        held.evicted_objects
+        held.evicted_objects,
+        held.evicted_parts
     )
 }

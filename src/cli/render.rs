@@ -242,8 +242,14 @@ impl Renderer {
     }
 
     /// Rank 0's side of `--mpi`: greets the workers.
-    fn over_mpi(transport: Box<dyn Transport>, threads: usize, pool: rayon::ThreadPool) -> anyhow::Result<Renderer> {
-        let master = Master::connect(transport)?;
+    fn over_mpi(
+        transport: Box<dyn Transport>,
+        threads: usize,
+        pool: rayon::ThreadPool,
+        settings: &super::mpi::WorkerArgs,
+    ) -> anyhow::Result<Renderer> {
+        let mut master = Master::connect(transport)?;
+        settings.apply(&mut master);
         Ok(Renderer { threads, pool, master: Some(master), meshes: None, checked: false })
     }
 
@@ -887,7 +893,7 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<ExitCode> {
         if transport.rank() != 0 {
             return super::mpi::work(&*transport, &pool, &args.workers);
         }
-        Renderer::over_mpi(transport, threads, pool)?
+        Renderer::over_mpi(transport, threads, pool, &args.workers)?
     } else {
         Renderer::local(threads, pool)
     };

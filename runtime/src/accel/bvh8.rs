@@ -124,6 +124,19 @@ impl Bvh8 {
     pub fn memory_bytes(&self) -> usize {
         self.nodes.len() * size_of::<Node8>()
     }
+
+    /// Which inner nodes of `b4` head an 8-wide node of [`Bvh8::from_bvh4`]`(b4)` (the others
+    /// are opened into an ancestor's 8-wide node), by 4-wide index. A subtree of `b4` headed by
+    /// one of them has the same 8-wide nodes, alone or in the whole tree (pass 1 chooses a node's
+    /// children from its own subtree).
+    pub fn heads(b4: &Bvh4) -> Vec<bool> {
+        if b4.nodes.is_empty() {
+            return Vec::new();
+        }
+        let widen = Widen { b4, absorbed: (0..b4.nodes.len()).map(|_| AtomicBool::new(false)).collect() };
+        widen.mark(0, 0);
+        widen.absorbed.iter().map(|a| !a.load(Ordering::Relaxed)).collect()
+    }
 }
 
 /// 8-wide nodes less deep than this have their subtrees marked in parallel.

@@ -5,6 +5,8 @@
 //!   SAH, or obvhs's PLOC for the fastest qualities).
 //! - [`bvh8`]: the 8-wide form of an object's BVH that single rays traverse (same leaves).
 //! - [`object`]: an object's own BVH over its triangles (built once per geometry change).
+//! - [`parts`]: an object's BVH cut into a small tree and parts, as a distributed worker fetches
+//!   a large object.
 //! - [`store`]: object BVHs shared by scenes, by the geometry they were built from (the frames
 //!   of an animation whose set does not move build its BVHs once).
 //! - [`top`]: the top-level BVH over instances (rebuilt every frame from the instance list).
@@ -23,6 +25,7 @@ pub mod bvh4;
 pub mod bvh8;
 pub mod object;
 pub mod packet;
+pub mod parts;
 pub mod single;
 mod stack;
 pub mod store;

@@ -8,9 +8,13 @@
 //! Every block belongs to one leaf. For a deforming mesh, `deformed.close[b]` is the same block at
 //! the deformation's close, and the BVH's boxes bound both ends (so every time between, a prepared
 //! triangle being linear in its corners).
+//!
+//! An object BVH in parts ([`super::parts`], a distributed worker's large objects) holds a small
+//! tree whose leaves name parts, and no blocks; each part is an object BVH as above.
 
 use super::bvh4::{leaf_range, leaf_ref, BuildQuality, Bvh4, EMPTY_CHILD, LEAF_BIT};
 use super::bvh8::Bvh8;
+use super::parts::{cut, Bounds, Cut};
 use crate::geometry::triangle::{PreTriangle, TriangleBlock, BLOCK_WIDTH};
 use crate::geometry::{AlphaMask, Mesh};
 use glam::Vec3A;
@@ -35,8 +39,12 @@ pub struct ObjectBvh {
     pub wide: Bvh8,
     /// Prepared triangles, [`BLOCK_WIDTH`] to a block, one block a leaf.
     pub blocks: Vec<TriangleBlock>,
-    /// A deforming mesh's triangles at its close (`None`: the mesh stands still).
+    /// A deforming mesh's triangles at its close (`None`: the mesh stands still). In parts, the
+    /// deformation's times with no triangles (each part holds its own).
     pub deformed: Option<DeformedTriangles>,
+    /// A BVH in parts ([`super::parts`]): `bvh` and `wide` are its small tree, whose leaves name
+    /// parts, and `blocks` is empty. `None` for a whole tree.
+    pub parts: Option<Box<Parts>>,
 }
 
 /// The other end of a deforming object's triangles: a ray at time `t` meets the blend of
@@ -117,7 +125,7 @@ impl ObjectBvh {
             close_time: d.close,
         });
         let wide = Bvh8::from_bvh4(&bvh);
-        ObjectBvh { bvh, wide, blocks, deformed }
+        ObjectBvh { bvh, wide, blocks, deformed, parts: None }
     }
 
     /// Leaf slot `s`'s triangle (at the deformation's open).
@@ -129,7 +137,8 @@ impl ObjectBvh {
     /// Heap bytes of the BVH and the prepared triangles.
     pub fn memory_bytes(&self) -> usize {
         let blocks = self.blocks.len() + self.deformed.as_ref().map_or(0, |d| d.close.len());
-        self.bvh.memory_bytes() + self.wide.memory_bytes() + blocks * size_of::<TriangleBlock>()
+        let parts = self.parts.as_ref().map_or(0, |p| p.memory_bytes());
+        self.bvh.memory_bytes() + self.wide.memory_bytes() + blocks * size_of::<TriangleBlock>() + parts
     }
 }
 
@@ -177,6 +186,13 @@ pub trait MeshSource: Send + Sync + std::fmt::Debug {
     /// cannot deliver returns an empty mesh and reports why through its own channel (the frame
     /// then fails): a traversal has no way to return an error.
     fn fetch(&self, key: u32) -> FetchedMesh;
+    /// Part `part` of the object the source knows as `key`, delivered in parts
+    /// ([`FetchedMesh::parts`]): its 4-wide BVH over `mesh`'s triangles, checked to hold `triangles`
+    /// of them under `bounds`; blocks until it is here. `None` when it cannot be had (the source
+    /// reports why, as for [`MeshSource::fetch`]).
+    fn fetch_part(&self, _key: u32, _part: u32, _mesh: &Mesh, _triangles: u32, _bounds: Bounds) -> Option<Bvh4> {
+        None
+    }
     /// Told how long building the BVH of a mesh it delivered took (a worker reports it).
     fn built(&self, _took: std::time::Duration) {}
     /// The frame count the source's objects stamp themselves with when a ray reaches them (for
@@ -191,6 +207,9 @@ pub struct FetchedMesh {
     /// The 4-wide BVH over the mesh's triangles, where the source has it built (checked against
     /// the mesh); without it the object builds its own.
     pub bvh: Option<Bvh4>,
+    /// Instead of `bvh`, a BVH in parts: the small tree and each part's triangle count and box
+    /// (the parts come by [`MeshSource::fetch_part`] when rays reach them).
+    pub parts: Option<(Bvh4, Vec<(u32, Bounds)>)>,
 }
 
 /// What is known of a demand-loaded object before its mesh is here: enough to place its
@@ -303,19 +322,53 @@ impl Object {
         // One thread fetches; others that need the object meanwhile wait for it.
         self.data.get_or_init(|| match &self.remote {
             Some(r) => {
-                let FetchedMesh { mesh, bvh } = r.source.fetch(r.key);
+                let FetchedMesh { mesh, bvh, parts } = r.source.fetch(r.key);
                 // Built on a thread of its own: on this one (a rayon worker), the build's parallel
                 // loops could take a queued job that needs this very object, and wait for itself.
                 let building = std::time::Instant::now();
-                let build = || match bvh {
-                    Some(bvh) => ObjectBvh::from_bvh4(&mesh, bvh),
-                    None => ObjectBvh::build(&mesh, r.quality),
+                let build = || match (parts, bvh) {
+                    (Some((small, parts)), _) => ObjectBvh::parted(&mesh, small, parts),
+                    (None, Some(bvh)) => ObjectBvh::from_bvh4(&mesh, bvh),
+                    (None, None) => ObjectBvh::build(&mesh, r.quality),
                 };
                 let bvh = std::thread::scope(|s| s.spawn(build).join()).unwrap_or_default();
                 r.source.built(building.elapsed());
                 ObjectData { mesh, bvh: Arc::new(bvh) }
             }
             None => ObjectData::default(),
+        })
+    }
+
+    /// Part `p` of `parts`, the parts of this object's BVH, fetched and built first if it is not
+    /// here yet (a part that cannot be had is empty: its rays miss, and the source has reported
+    /// why).
+    #[inline(always)]
+    pub fn part<'a>(&'a self, parts: &'a Parts, p: u32) -> &'a ObjectBvh {
+        // Part names are checked against the parts when the small tree arrives.
+        let part = &parts.parts[p as usize];
+        if let Some(r) = &self.remote {
+            part.touch(r.clock.load(Ordering::Relaxed));
+        }
+        match part.bvh.get() {
+            Some(bvh) => bvh,
+            None => self.load_part(part, p),
+        }
+    }
+
+    #[cold]
+    #[inline(never)]
+    fn load_part<'a>(&'a self, part: &'a Part, p: u32) -> &'a ObjectBvh {
+        // As `load`: one thread fetches, others wait; built on a thread of its own.
+        part.bvh.get_or_init(|| {
+            let Some(r) = &self.remote else { return ObjectBvh::default() };
+            let mesh = &self.data().mesh;
+            let Some(bvh) = r.source.fetch_part(r.key, p, mesh, part.triangles, part.bounds) else {
+                return ObjectBvh::default();
+            };
+            let building = std::time::Instant::now();
+            let built = std::thread::scope(|s| s.spawn(|| ObjectBvh::from_bvh4(mesh, bvh)).join()).unwrap_or_default();
+            r.source.built(building.elapsed());
+            built
         })
     }
 
@@ -347,6 +400,17 @@ impl Object {
         self.data.get().is_some()
     }
 
+    /// How many parts of the object's BVH are here, when it is here in parts.
+    pub fn resident_parts(&self) -> usize {
+        self.data.get().and_then(|d| d.bvh.parts.as_ref()).map_or(0, |p| p.resident())
+    }
+
+    /// Whether the object's BVH is, or may come, in parts (it is demand-loaded, or was given a
+    /// BVH in parts).
+    pub fn may_be_in_parts(&self) -> bool {
+        self.remote.is_some() || self.data.get().is_some_and(|d| d.bvh.parts.is_some())
+    }
+
     /// Whether the object is demand-loaded.
     pub fn is_remote(&self) -> bool {
         self.remote.is_some()
@@ -364,6 +428,30 @@ impl Object {
             return 0;
         }
         self.data.take().map_or(0, |d| d.mesh.memory_bytes() + d.bvh.memory_bytes())
+    }
+
+    /// The parts of a demand-loaded object's BVH that are here: each part's number, the clock
+    /// when a ray last reached it ([`Object::last_used`]) and its heap bytes.
+    pub fn resident_parts_in_use(&self) -> Vec<(u32, u32, usize)> {
+        let Some(parts) = self.data.get().and_then(|d| d.bvh.parts.as_ref()).filter(|_| self.remote.is_some()) else {
+            return Vec::new();
+        };
+        let held = parts.parts.iter().enumerate();
+        held.filter_map(|(p, part)| {
+            Some((p as u32, part.last_used.load(Ordering::Relaxed), part.bvh.get()?.memory_bytes()))
+        })
+        .collect()
+    }
+
+    /// Drops part `p` of a demand-loaded object's BVH (fetched again when a ray next reaches
+    /// it); returns the bytes freed.
+    pub fn evict_part(&mut self, p: u32) -> usize {
+        if self.remote.is_none() {
+            return 0;
+        }
+        let Some(bvh) = self.data.get_mut().and_then(|d| Arc::get_mut(&mut d.bvh)) else { return 0 };
+        let Some(part) = bvh.parts.as_deref_mut().and_then(|parts| parts.parts.get_mut(p as usize)) else { return 0 };
+        part.bvh.take().map_or(0, |b| b.memory_bytes())
     }
 
     /// The root bounds of the object's BVH, without fetching it.
@@ -407,5 +495,88 @@ impl Object {
             None => true,
             Some(mask) => mask.covers(&self.data().mesh, primitive, u, v),
         }
+    }
+}
+
+/// The parts under an object's small tree (see the module documentation).
+#[derive(Clone, Debug, Default)]
+pub struct Parts {
+    pub parts: Vec<Part>,
+}
+
+/// One part: what is known of it before it is here, and its BVH once it is.
+#[derive(Debug, Default)]
+pub struct Part {
+    pub triangles: u32,
+    /// Its box in the small tree.
+    pub bounds: Bounds,
+    pub bvh: OnceLock<ObjectBvh>,
+    /// The demand-loading clock when a ray last reached it (for least-recently-used eviction).
+    pub last_used: AtomicU32,
+}
+
+impl Clone for Part {
+    fn clone(&self) -> Self {
+        Part {
+            triangles: self.triangles,
+            bounds: self.bounds,
+            bvh: self.bvh.clone(),
+            last_used: AtomicU32::new(self.last_used.load(Ordering::Relaxed)),
+        }
+    }
+}
+
+impl Part {
+    /// Stamps the part with the clock's `now`.
+    #[inline(always)]
+    pub fn touch(&self, now: u32) {
+        // Written once a frame at most: the line stays shared between the threads that read it.
+        if self.last_used.load(Ordering::Relaxed) != now {
+            self.last_used.store(now, Ordering::Relaxed);
+        }
+    }
+}
+
+impl Parts {
+    /// Heap bytes of the parts that are here.
+    pub fn memory_bytes(&self) -> usize {
+        let held: usize = self.parts.iter().filter_map(|p| p.bvh.get()).map(ObjectBvh::memory_bytes).sum();
+        held + self.parts.len() * size_of::<Part>()
+    }
+
+    /// How many parts are here.
+    pub fn resident(&self) -> usize {
+        self.parts.iter().filter(|p| p.bvh.get().is_some()).count()
+    }
+}
+
+impl ObjectBvh {
+    /// The object BVH of `mesh` in parts: the small tree `small` (leaf `p` naming part `p`), each
+    /// part's triangle count and box; the parts' BVHs are not here (see [`Object::part`]).
+    pub fn parted(mesh: &Mesh, small: Bvh4, parts: Vec<(u32, Bounds)>) -> ObjectBvh {
+        let wide = Bvh8::from_bvh4(&small);
+        // The deformation's times, with no triangles: each part holds its own.
+        let deformed = mesh.deformation.as_ref().map(|d| DeformedTriangles {
+            close: Vec::new(),
+            open_time: d.open,
+            close_time: d.close,
+        });
+        let parts =
+            parts.into_iter().map(|(triangles, bounds)| Part { triangles, bounds, ..Part::default() }).collect();
+        ObjectBvh { bvh: small, wide, blocks: Vec::new(), deformed, parts: Some(Box::new(Parts { parts })) }
+    }
+
+    /// This (whole) BVH of `mesh` in parts of at most `part_triangles` triangles, every part here.
+    pub fn in_parts(&self, mesh: &Mesh, part_triangles: u32) -> ObjectBvh {
+        let Cut { small, parts } = cut(&self.bvh, part_triangles);
+        let known = parts.iter().map(|p| (p.triangles, p.bounds())).collect();
+        let mut parted = ObjectBvh::parted(mesh, small, known);
+        let built: Vec<ObjectBvh> = parts.into_par_iter().map(|p| ObjectBvh::from_bvh4(mesh, p.bvh)).collect();
+        if let Some(held) = parted.parts.as_deref_mut() {
+            for (part, bvh) in held.parts.iter_mut().zip(built) {
+                part.bvh = OnceLock::from(bvh);
+            }
+        }
+        parted
     }
 }

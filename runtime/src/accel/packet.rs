@@ -31,7 +31,7 @@
 //! - A lane's `tmax` only decreases; occluded lanes get `tmax = -inf` and take no further part.
 
 use super::bvh4::{leaf_range, Bvh4, Node4, LEAF_BIT};
-use super::object::Object;
+use super::object::{Object, ObjectBvh, Parts};
 use super::single::{self, HitState, RayPre, STACK};
 use super::stack::Stack;
 use super::top::{InstanceData, TopLevel};
@@ -177,14 +177,11 @@ impl Geom {
         let mut g = Geom::zeroed();
         let rows = [&p.ox.0, &p.oy.0, &p.oz.0, &p.dx.0, &p.dy.0, &p.dz.0];
         for c in lo..=hi {
-            let lanes = (active >> (W * c)) as u8;
+            // A blend whatever the lanes: branches here made the compiler's code for this loop
+            // vary from build to build.
+            let lanes = lane_mask((active >> (W * c)) as u8 as u32);
             for (k, row) in rows.iter().enumerate() {
-                let chunk = &row_chunks(row)[c];
-                let v = if lanes == u8::MAX {
-                    Chunk::new(*chunk)
-                } else {
-                    Chunk::new(std::array::from_fn(|j| if lanes >> j & 1 != 0 { chunk[j] } else { row[fill] }))
-                };
+                let v = lanes.select(Chunk::new(row_chunks(row)[c]), Chunk::splat(row[fill]));
                 if k < 3 {
                     g.o[k][c] = v;
                 } else {
@@ -502,10 +499,61 @@ fn intersect_object_with<const SHARED: bool>(
     filter: HitFilter,
 ) {
     let data = obj.data();
-    let blocks = &data.bvh.blocks;
-    let order = &data.bvh.bvh.prim_order;
+    match &data.bvh.parts {
+        None => intersect_tree::<SHARED>(obj, &data.bvh, inst_id, object_id, g, s, lo, hi, filter),
+        Some(parts) => intersect_parts::<SHARED>(obj, &data.bvh, parts, inst_id, object_id, g, s, lo, hi, filter),
+    }
+}
+
+/// [`intersect_object_with`] with a BVH in parts: the small tree's leaves are the parts' trees,
+/// each traversed with the chunks that reached its box.
+#[allow(clippy::too_many_arguments)]
+#[inline(never)]
+fn intersect_parts<const SHARED: bool>(
+    obj: &Object,
+    small: &ObjectBvh,
+    parts: &Parts,
+    inst_id: u32,
+    object_id: u32,
+    g: &Geom,
+    s: &mut State,
+    lo: usize,
+    hi: usize,
+    filter: HitFilter,
+) {
+    traverse::<SHARED, _, _>(
+        &small.bvh,
+        g,
+        s,
+        lo,
+        hi,
+        |_| {},
+        |p, _, mask, s| {
+            let (lo, hi) = mask_range(mask);
+            intersect_tree::<SHARED>(obj, obj.part(parts, p), inst_id, object_id, g, s, lo, hi, filter);
+            false
+        },
+    );
+}
+
+/// [`intersect_object_with`] with a whole tree, or one part.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn intersect_tree<const SHARED: bool>(
+    obj: &Object,
+    tree: &ObjectBvh,
+    inst_id: u32,
+    object_id: u32,
+    g: &Geom,
+    s: &mut State,
+    lo: usize,
+    hi: usize,
+    filter: HitFilter,
+) {
+    let blocks = &tree.blocks;
+    let order = &tree.bvh.prim_order;
     let pf = |b: u32| prefetch(blocks.as_ptr().wrapping_add(b as usize), 3);
-    traverse::<SHARED, _, _>(&data.bvh.bvh, g, s, lo, hi, pf, |b, count, mask, s| {
+    traverse::<SHARED, _, _>(&tree.bvh, g, s, lo, hi, pf, |b, count, mask, s| {
         let mut any = false;
         let block = &blocks[b as usize];
         for j in 0..count as usize {
@@ -594,10 +642,59 @@ fn occluded_object_with<const SHARED: bool>(
     filter: HitFilter,
 ) -> bool {
     let data = obj.data();
-    let blocks = &data.bvh.blocks;
-    let order = &data.bvh.bvh.prim_order;
+    match &data.bvh.parts {
+        None => occluded_tree::<SHARED>(obj, &data.bvh, inst_id, object_id, g, s, lo, hi, filter),
+        Some(parts) => occluded_parts::<SHARED>(obj, &data.bvh, parts, inst_id, object_id, g, s, lo, hi, filter),
+    }
+}
+
+/// [`occluded_object_with`] with a BVH in parts.
+#[allow(clippy::too_many_arguments)]
+#[inline(never)]
+fn occluded_parts<const SHARED: bool>(
+    obj: &Object,
+    small: &ObjectBvh,
+    parts: &Parts,
+    inst_id: u32,
+    object_id: u32,
+    g: &Geom,
+    s: &mut State,
+    lo: usize,
+    hi: usize,
+    filter: HitFilter,
+) -> bool {
+    traverse::<SHARED, _, _>(
+        &small.bvh,
+        g,
+        s,
+        lo,
+        hi,
+        |_| {},
+        |p, _, mask, s| {
+            let (lo, hi) = mask_range(mask);
+            occluded_tree::<SHARED>(obj, obj.part(parts, p), inst_id, object_id, g, s, lo, hi, filter)
+        },
+    )
+}
+
+/// [`occluded_object_with`] with a whole tree, or one part.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn occluded_tree<const SHARED: bool>(
+    obj: &Object,
+    tree: &ObjectBvh,
+    inst_id: u32,
+    object_id: u32,
+    g: &Geom,
+    s: &mut State,
+    lo: usize,
+    hi: usize,
+    filter: HitFilter,
+) -> bool {
+    let blocks = &tree.blocks;
+    let order = &tree.bvh.prim_order;
     let pf = |b: u32| prefetch(blocks.as_ptr().wrapping_add(b as usize), 3);
-    traverse::<SHARED, _, _>(&data.bvh.bvh, g, s, lo, hi, pf, |b, count, mask, s| {
+    traverse::<SHARED, _, _>(&tree.bvh, g, s, lo, hi, pf, |b, count, mask, s| {
         let mut any = false;
         let block = &blocks[b as usize];
         for j in 0..count as usize {
@@ -796,7 +893,7 @@ fn intersect_lanes(
                 instance: s.instance[i],
                 primitive: s.primitive[i],
             };
-            single::intersect_object(obj, inst_id, inst.object, &mut r, &mut h, filter, i as u32);
+            single::intersect_object::<true>(obj, inst_id, inst.object, &mut r, &mut h, filter, i as u32);
             s.set_lane_tmax(i, r.tmax);
             s.u[c].as_mut_array()[j] = h.u;
             s.v[c].as_mut_array()[j] = h.v;
@@ -918,7 +1015,7 @@ fn occluded_lanes(
             let i = m.trailing_zeros() as usize;
             m &= m - 1;
             let mut r = lane_in_object(&g, og.as_ref(), inst, p, i, s.lane_tmin(i), s.lane_tmax(i));
-            if single::occluded_object(obj, inst_id, inst.object, &mut r, filter, i as u32) {
+            if single::occluded_object::<true>(obj, inst_id, inst.object, &mut r, filter, i as u32) {
                 s.set_lane_tmax(i, f32::NEG_INFINITY);
                 s.done |= 1 << i;
             }

@@ -13,7 +13,7 @@
 
 use super::bvh4::{leaf_range, Node4, EMPTY_CHILD, LEAF_BIT};
 use super::bvh8::Node8;
-use super::object::{Object, NO_TRIANGLE};
+use super::object::{Object, ObjectBvh, Parts, NO_TRIANGLE};
 use super::stack::Stack;
 use super::top::{InstanceData, TopLevel};
 use super::{prefetch, safe_inv, ROBUST};
@@ -274,9 +274,10 @@ impl HitState {
     pub const NONE: HitState = HitState { u: 0.0, v: 0.0, instance: INVALID_ID, primitive: INVALID_ID };
 }
 
-/// Closest hit of `ray` (in object space of `inst_id`) with object `obj`; updates `ray.tmax` and `hit`.
+/// Closest hit of `ray` (in object space of `inst_id`) with object `obj`; updates `ray.tmax` and
+/// `hit`. With `PARTS`, the object may be in parts ([`super::parts`]); without, it is whole.
 #[inline(always)]
-pub(crate) fn intersect_object(
+pub(crate) fn intersect_object<const PARTS: bool>(
     obj: &Object,
     inst_id: u32,
     object_id: u32,
@@ -286,11 +287,58 @@ pub(crate) fn intersect_object(
     lane: u32,
 ) {
     let data = obj.data();
-    let blocks = &data.bvh.blocks;
-    match &data.bvh.deformed {
-        None => intersect_blocks(obj, inst_id, object_id, ray, hit, filter, lane, |b, _| blocks[b]),
-        Some(d) => intersect_blocks(obj, inst_id, object_id, ray, hit, filter, lane, |b, t| d.block_at(blocks, b, t)),
+    if let Some(parts) = data.bvh.parts.as_deref().filter(|_| PARTS) {
+        return intersect_parts(obj, &data.bvh, parts, inst_id, object_id, ray, hit, filter, lane);
     }
+    intersect_tree(obj, &data.bvh, inst_id, object_id, ray, hit, filter, lane)
+}
+
+/// [`intersect_object`] with a whole tree, or one part.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn intersect_tree(
+    obj: &Object,
+    tree: &ObjectBvh,
+    inst_id: u32,
+    object_id: u32,
+    ray: &mut RayPre,
+    hit: &mut HitState,
+    filter: HitFilter,
+    lane: u32,
+) {
+    let blocks = &tree.blocks;
+    match &tree.deformed {
+        None => intersect_blocks(obj, tree, inst_id, object_id, ray, hit, filter, lane, |b, _| blocks[b]),
+        Some(d) => {
+            intersect_blocks(obj, tree, inst_id, object_id, ray, hit, filter, lane, |b, t| d.block_at(blocks, b, t))
+        }
+    }
+}
+
+/// [`intersect_object`] with a BVH in parts: the small tree's leaves are the parts' trees.
+#[inline(never)]
+#[allow(clippy::too_many_arguments)]
+fn intersect_parts(
+    obj: &Object,
+    small: &ObjectBvh,
+    parts: &Parts,
+    inst_id: u32,
+    object_id: u32,
+    ray: &mut RayPre,
+    hit: &mut HitState,
+    filter: HitFilter,
+    lane: u32,
+) {
+    traverse::<true, _, _, _>(
+        &small.wide.nodes,
+        0,
+        ray,
+        |_| {},
+        |p, _, ray| {
+            intersect_tree(obj, obj.part(parts, p), inst_id, object_id, ray, hit, filter, lane);
+            false
+        },
+    );
 }
 
 /// [`intersect_object`] with leaf block `b` at time `t` as `block(b, t)` makes it. A leaf's
@@ -300,6 +348,7 @@ pub(crate) fn intersect_object(
 #[allow(clippy::too_many_arguments)]
 fn intersect_blocks(
     obj: &Object,
+    tree: &ObjectBvh,
     inst_id: u32,
     object_id: u32,
     ray: &mut RayPre,
@@ -308,12 +357,11 @@ fn intersect_blocks(
     lane: u32,
     block: impl Fn(usize, f32) -> TriangleBlock,
 ) {
-    let data = obj.data();
-    let blocks = &data.bvh.blocks;
-    let order = &data.bvh.bvh.prim_order;
+    let blocks = &tree.blocks;
+    let order = &tree.bvh.prim_order;
     let pf = |b: u32| prefetch(blocks.as_ptr().wrapping_add(b as usize), 3);
     traverse::<true, _, _, _>(
-        &data.bvh.wide.nodes,
+        &tree.wide.nodes,
         0,
         ray,
         pf,
@@ -347,9 +395,10 @@ fn intersect_blocks(
     );
 }
 
-/// Whether `ray` (in object space) hits object `obj` within its interval.
+/// Whether `ray` (in object space) hits object `obj` within its interval (`PARTS` as for
+/// [`intersect_object`]).
 #[inline(always)]
-pub(crate) fn occluded_object(
+pub(crate) fn occluded_object<const PARTS: bool>(
     obj: &Object,
     inst_id: u32,
     object_id: u32,
@@ -358,17 +407,58 @@ pub(crate) fn occluded_object(
     lane: u32,
 ) -> bool {
     let data = obj.data();
-    let blocks = &data.bvh.blocks;
-    match &data.bvh.deformed {
-        None => occluded_blocks(obj, inst_id, object_id, ray, filter, lane, |b, _| blocks[b]),
-        Some(d) => occluded_blocks(obj, inst_id, object_id, ray, filter, lane, |b, t| d.block_at(blocks, b, t)),
+    if let Some(parts) = data.bvh.parts.as_deref().filter(|_| PARTS) {
+        return occluded_parts(obj, &data.bvh, parts, inst_id, object_id, ray, filter, lane);
     }
+    occluded_tree(obj, &data.bvh, inst_id, object_id, ray, filter, lane)
+}
+
+/// [`occluded_object`] with a whole tree, or one part.
+#[inline(always)]
+fn occluded_tree(
+    obj: &Object,
+    tree: &ObjectBvh,
+    inst_id: u32,
+    object_id: u32,
+    ray: &mut RayPre,
+    filter: HitFilter,
+    lane: u32,
+) -> bool {
+    let blocks = &tree.blocks;
+    match &tree.deformed {
+        None => occluded_blocks(obj, tree, inst_id, object_id, ray, filter, lane, |b, _| blocks[b]),
+        Some(d) => occluded_blocks(obj, tree, inst_id, object_id, ray, filter, lane, |b, t| d.block_at(blocks, b, t)),
+    }
+}
+
+/// [`occluded_object`] with a BVH in parts.
+#[inline(never)]
+#[allow(clippy::too_many_arguments)]
+fn occluded_parts(
+    obj: &Object,
+    small: &ObjectBvh,
+    parts: &Parts,
+    inst_id: u32,
+    object_id: u32,
+    ray: &mut RayPre,
+    filter: HitFilter,
+    lane: u32,
+) -> bool {
+    traverse::<false, _, _, _>(
+        &small.wide.nodes,
+        0,
+        ray,
+        |_| {},
+        |p, _, ray| occluded_tree(obj, obj.part(parts, p), inst_id, object_id, ray, filter, lane),
+    )
 }
 
 /// [`occluded_object`] with leaf block `b` at time `t` as `block(b, t)` makes it.
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 fn occluded_blocks(
     obj: &Object,
+    tree: &ObjectBvh,
     inst_id: u32,
     object_id: u32,
     ray: &mut RayPre,
@@ -376,12 +466,11 @@ fn occluded_blocks(
     lane: u32,
     block: impl Fn(usize, f32) -> TriangleBlock,
 ) -> bool {
-    let data = obj.data();
-    let blocks = &data.bvh.blocks;
-    let order = &data.bvh.bvh.prim_order;
+    let blocks = &tree.blocks;
+    let order = &tree.bvh.prim_order;
     let pf = |b: u32| prefetch(blocks.as_ptr().wrapping_add(b as usize), 3);
     traverse::<false, _, _, _>(
-        &data.bvh.wide.nodes,
+        &tree.wide.nodes,
         0,
         ray,
         pf,
@@ -420,14 +509,30 @@ fn occluded_blocks(
 }
 
 /// Closest hit of a world-space ray with the scene.
+#[inline]
 pub(crate) fn intersect_scene(top: &TopLevel, objects: &[Object], ray: &Ray, filter: HitFilter, lane: u32) -> Hit {
+    match top.may_have_parts {
+        true => intersect_scene_with::<true>(top, objects, ray, filter, lane),
+        false => intersect_scene_with::<false>(top, objects, ray, filter, lane),
+    }
+}
+
+/// [`intersect_scene`], whose objects may be in parts or not.
+#[inline(never)]
+fn intersect_scene_with<const PARTS: bool>(
+    top: &TopLevel,
+    objects: &[Object],
+    ray: &Ray,
+    filter: HitFilter,
+    lane: u32,
+) -> Hit {
     let mut r = RayPre::of(ray);
     let mut hit = HitState::NONE;
     if let Some(inst_id) = top.sole_instance() {
         // One instance: its object BVH's root test does the top level's culling.
         let inst = &top.instances[inst_id as usize];
         let mut o = r.in_object_space(inst);
-        intersect_object(&objects[inst.object as usize], inst_id, inst.object, &mut o, &mut hit, filter, lane);
+        intersect_object::<PARTS>(&objects[inst.object as usize], inst_id, inst.object, &mut o, &mut hit, filter, lane);
         r.tmax = o.tmax;
     } else {
         traverse::<true, _, _, _>(
@@ -440,7 +545,7 @@ pub(crate) fn intersect_scene(top: &TopLevel, objects: &[Object], ray: &Ray, fil
                     let inst_id = top.bvh.prim_order[s as usize];
                     let inst = &top.instances[inst_id as usize];
                     let mut o = r.in_object_space(inst);
-                    intersect_object(
+                    intersect_object::<PARTS>(
                         &objects[inst.object as usize],
                         inst_id,
                         inst.object,
@@ -463,12 +568,28 @@ pub(crate) fn intersect_scene(top: &TopLevel, objects: &[Object], ray: &Ray, fil
 }
 
 /// Whether a world-space ray hits anything within its interval.
+#[inline]
 pub(crate) fn occluded_scene(top: &TopLevel, objects: &[Object], ray: &Ray, filter: HitFilter, lane: u32) -> bool {
+    match top.may_have_parts {
+        true => occluded_scene_with::<true>(top, objects, ray, filter, lane),
+        false => occluded_scene_with::<false>(top, objects, ray, filter, lane),
+    }
+}
+
+/// [`occluded_scene`], whose objects may be in parts or not.
+#[inline(never)]
+fn occluded_scene_with<const PARTS: bool>(
+    top: &TopLevel,
+    objects: &[Object],
+    ray: &Ray,
+    filter: HitFilter,
+    lane: u32,
+) -> bool {
     let mut r = RayPre::of(ray);
     if let Some(inst_id) = top.sole_instance() {
         let inst = &top.instances[inst_id as usize];
         let mut o = r.in_object_space(inst);
-        return occluded_object(&objects[inst.object as usize], inst_id, inst.object, &mut o, filter, lane);
+        return occluded_object::<PARTS>(&objects[inst.object as usize], inst_id, inst.object, &mut o, filter, lane);
     }
     traverse::<false, _, _, _>(
         &top.bvh.nodes,
@@ -480,7 +601,8 @@ pub(crate) fn occluded_scene(top: &TopLevel, objects: &[Object], ray: &Ray, filt
                 let inst_id = top.bvh.prim_order[s as usize];
                 let inst = &top.instances[inst_id as usize];
                 let mut o = r.in_object_space(inst);
-                if occluded_object(&objects[inst.object as usize], inst_id, inst.object, &mut o, filter, lane) {
+                if occluded_object::<PARTS>(&objects[inst.object as usize], inst_id, inst.object, &mut o, filter, lane)
+                {
                     return true;
                 }
             }
@@ -498,10 +620,10 @@ pub(crate) fn intersect_brute_force(top: &TopLevel, objects: &[Object], ray: &Ra
             continue;
         };
         let r = RayPre::of(ray).in_object_space(inst);
-        for s in live_slots(obj) {
-            let (t, u, v) = intersect(r.o, r.d, &triangle_at(obj, s, ray.time));
+        for (tree, s) in live_slots(obj) {
+            let (t, u, v) = intersect(r.o, r.d, &triangle_at(tree, s, ray.time));
             if accept(t, u, v, ray.tmin, tmax) {
-                let primitive = obj.data().bvh.bvh.prim_order[s];
+                let primitive = tree.bvh.prim_order[s];
                 if !obj.solid_at(primitive, u, v) {
                     continue;
                 }
@@ -519,19 +641,26 @@ pub(crate) fn intersect_brute_force(top: &TopLevel, objects: &[Object], ray: &Ra
     best
 }
 
-/// Leaf slot `s`'s triangle of `obj` at `time`.
-fn triangle_at(obj: &Object, s: usize, time: f32) -> PreTriangle {
-    let data = obj.data();
-    match &data.bvh.deformed {
-        None => data.bvh.triangle(s),
-        Some(d) => d.at(&data.bvh.blocks, s, time),
+/// Leaf slot `s`'s triangle of `tree` at `time`.
+fn triangle_at(tree: &ObjectBvh, s: usize, time: f32) -> PreTriangle {
+    match &tree.deformed {
+        None => tree.triangle(s),
+        Some(d) => d.at(&tree.blocks, s, time),
     }
 }
 
-/// The leaf slots of `obj` that hold a triangle.
-fn live_slots(obj: &Object) -> impl Iterator<Item = usize> + '_ {
-    let order = &obj.data().bvh.bvh.prim_order;
-    (0..order.len()).filter(|&s| order[s] != NO_TRIANGLE)
+/// The leaf slots of `obj` that hold a triangle, each with the tree it is in (the whole tree, or
+/// its part).
+fn live_slots(obj: &Object) -> impl Iterator<Item = (&ObjectBvh, usize)> + '_ {
+    let data = obj.data();
+    let trees: Vec<&ObjectBvh> = match &data.bvh.parts {
+        None => vec![&data.bvh],
+        Some(parts) => (0..parts.parts.len() as u32).map(|p| obj.part(parts, p)).collect(),
+    };
+    trees.into_iter().flat_map(|tree| {
+        let order = &tree.bvh.prim_order;
+        (0..order.len()).filter(|&s| order[s] != NO_TRIANGLE).map(move |s| (tree, s))
+    })
 }
 
 /// The brute-force occlusion reference.
@@ -541,9 +670,9 @@ pub(crate) fn occluded_brute_force(top: &TopLevel, objects: &[Object], ray: &Ray
             continue;
         };
         let r = RayPre::of(ray).in_object_space(inst);
-        for s in live_slots(obj) {
-            let (t, u, v) = intersect(r.o, r.d, &triangle_at(obj, s, ray.time));
-            if accept(t, u, v, ray.tmin, ray.tmax) && obj.solid_at(obj.data().bvh.bvh.prim_order[s], u, v) {
+        for (tree, s) in live_slots(obj) {
+            let (t, u, v) = intersect(r.o, r.d, &triangle_at(tree, s, ray.time));
+            if accept(t, u, v, ray.tmin, ray.tmax) && obj.solid_at(tree.bvh.prim_order[s], u, v) {
                 let ok = filter.is_none_or(|f| {
                     f(&HitCandidate {
                         t,
@@ -551,7 +680,7 @@ pub(crate) fn occluded_brute_force(top: &TopLevel, objects: &[Object], ray: &Ray
                         v,
                         instance: i as u32,
                         object: inst.object,
-                        primitive: obj.data().bvh.bvh.prim_order[s],
+                        primitive: tree.bvh.prim_order[s],
                         lane: 0,
                     })
                 });

@@ -121,6 +121,10 @@ pub struct TopLevel {
     pub bvh: Bvh4,
     /// The instances.
     pub instances: Vec<InstanceData>,
+    /// Whether any object may be in parts ([`super::parts`]: a demand-loaded object, or one
+    /// given a BVH in parts): single rays then take the traversal that looks for parts, other
+    /// scenes a copy without that test.
+    pub may_have_parts: bool,
 }
 
 impl TopLevel {
@@ -149,6 +153,6 @@ impl TopLevel {
         for slot in &mut bvh.prim_order {
             *slot = ids[*slot as usize];
         }
-        TopLevel { bvh, instances }
+        TopLevel { bvh, instances, may_have_parts: objects.iter().any(Object::may_be_in_parts) }
     }
 }

@@ -7,6 +7,11 @@
 //! leaves are blocks, as in [`ObjectBvh`](super::object::ObjectBvh): a leaf reference names its
 //! block, and the leaf order has four slots a block, the unused ones [`NO_TRIANGLE`].
 //!
+//! A large object travels in parts ([`super::parts`]): its small tree ([`encode_small_tree`]:
+//! the tree as above, its leaf order the parts `0..n`, then each part's triangle count) with the
+//! mesh, then each part a ray reaches as a tree of its own whose leaf order names the mesh's
+//! triangles ([`decode_part`]).
+//!
 //! Decoding checks the tree against the mesh it is for, so that damaged bytes are an error and
 //! never a traversal out of bounds, a loop, or a triangle no ray can reach: every inner reference
 //! points past its parent (pre-order) and is reached once, every block lies in one leaf, which
@@ -15,8 +20,9 @@
 //! node's child boxes), and the tree is at most [`MAX_WIRE_DEPTH`] levels deep (the 8-wide
 //! conversion recurses over it).
 
-use super::bvh4::{leaf_range, Bvh4, Node4, LEAF_BIT};
+use super::bvh4::{leaf_range, Bvh4, Node4, EMPTY_CHILD, LEAF_BIT};
 use super::object::NO_TRIANGLE;
+use super::parts::Bounds;
 use crate::geometry::triangle::BLOCK_WIDTH;
 use crate::geometry::Mesh;
 use glam::{Vec3, Vec3A};
@@ -51,26 +57,31 @@ pub fn encode_bvh4(bvh: &Bvh4, out: &mut Vec<u8>) {
 /// The BVH that [`encode_bvh4`] wrote to `bytes`, for `mesh`: an error unless it is a whole tree
 /// over exactly the mesh's triangles whose boxes contain them (see the module documentation).
 pub fn decode_bvh4(bytes: &[u8], mesh: &Mesh) -> Result<Bvh4, String> {
+    decode_tree(bytes, mesh, None)
+}
+
+/// A part of an object's BVH ([`super::parts`]) that [`encode_bvh4`] wrote: as [`decode_bvh4`],
+/// but over `triangles` of the mesh's triangles (each once) rather than all of them, its boxes
+/// inside `bounds`, the part's box in the small tree.
+pub fn decode_part(bytes: &[u8], mesh: &Mesh, triangles: u32, bounds: Bounds) -> Result<Bvh4, String> {
+    decode_tree(bytes, mesh, Some((triangles, bounds)))
+}
+
+/// The nodes and leaf order at the start of `bytes`, and the bytes they took.
+fn read_nodes(bytes: &[u8]) -> Result<(Vec<Node4>, Vec<u32>, usize), String> {
     let word = |k: usize| -> Option<u32> { Some(u32::from_le_bytes(bytes.get(4 * k..4 * k + 4)?.try_into().ok()?)) };
     let (Some(node_count), Some(slot_count)) = (word(0), word(1)) else {
         return Err("a BVH shorter than its header".into());
     };
     let (node_count, slot_count) = (node_count as usize, slot_count as usize);
-    let expected = (node_count.checked_mul(NODE_VALUES))
+    let length = (node_count.checked_mul(NODE_VALUES))
         .and_then(|v| v.checked_add(slot_count))
         .and_then(|v| v.checked_add(2))
-        .and_then(|v| v.checked_mul(4));
-    if expected != Some(bytes.len()) {
+        .and_then(|v| v.checked_mul(4))
+        .filter(|&length| length <= bytes.len());
+    let Some(length) = length else {
         return Err(format!("a BVH of {} bytes for {node_count} nodes and {slot_count} leaf slots", bytes.len()));
-    }
-    let triangles = mesh.triangle_count();
-    // Every block holds a triangle at least.
-    if slot_count % BLOCK_WIDTH != 0 || slot_count / BLOCK_WIDTH > triangles || slot_count < triangles {
-        return Err(format!("a BVH of {slot_count} leaf slots for a mesh of {triangles} triangles"));
-    }
-    if (node_count == 0) != (triangles == 0) {
-        return Err(format!("a BVH of {node_count} nodes for a mesh of {triangles} triangles"));
-    }
+    };
     let nodes: Vec<Node4> = (0..node_count)
         .map(|i| {
             let v = |k: usize| word(2 + NODE_VALUES * i + k).unwrap_or(0);
@@ -87,33 +98,139 @@ pub fn decode_bvh4(bytes: &[u8], mesh: &Mesh) -> Result<Bvh4, String> {
         })
         .collect();
     let prim_order: Vec<u32> = (0..slot_count).map(|s| word(2 + NODE_VALUES * node_count + s).unwrap_or(0)).collect();
-    let mut placed = vec![false; triangles];
-    for &p in prim_order.iter().filter(|&&p| p != NO_TRIANGLE) {
-        match placed.get_mut(p as usize) {
-            Some(seen @ false) => *seen = true,
-            _ => return Err(format!("the BVH's leaf order names triangle {p} twice or out of range")),
-        }
+    Ok((nodes, prim_order, length))
+}
+
+/// [`decode_bvh4`] (`part`: `None`) or [`decode_part`] (the part's triangle count and box).
+fn decode_tree(bytes: &[u8], mesh: &Mesh, part: Option<(u32, Bounds)>) -> Result<Bvh4, String> {
+    let (nodes, prim_order, length) = read_nodes(bytes)?;
+    if length != bytes.len() {
+        return Err(format!("a BVH of {} bytes where its header says {length}", bytes.len()));
     }
-    if let Some(t) = placed.iter().position(|&p| !p) {
-        return Err(format!("the BVH's leaf order leaves out triangle {t}"));
+    let triangles = match part {
+        None => mesh.triangle_count(),
+        Some((triangles, _)) if triangles as usize <= mesh.triangle_count() => triangles as usize,
+        Some((triangles, _)) => return Err(format!("a part of {triangles} triangles of a mesh of fewer")),
+    };
+    let slot_count = prim_order.len();
+    // Every block holds a triangle at least.
+    if slot_count % BLOCK_WIDTH != 0 || slot_count / BLOCK_WIDTH > triangles || slot_count < triangles {
+        return Err(format!("a BVH of {slot_count} leaf slots for {triangles} triangles"));
+    }
+    if nodes.is_empty() != (triangles == 0) {
+        return Err(format!("a BVH of {} nodes for {triangles} triangles", nodes.len()));
+    }
+    let named: Vec<u32> = prim_order.iter().copied().filter(|&p| p != NO_TRIANGLE).collect();
+    match part {
+        None => {
+            let mut placed = vec![false; triangles];
+            for &p in &named {
+                match placed.get_mut(p as usize) {
+                    Some(seen @ false) => *seen = true,
+                    _ => return Err(format!("the BVH's leaf order names triangle {p} twice or out of range")),
+                }
+            }
+            if let Some(t) = placed.iter().position(|&p| !p) {
+                return Err(format!("the BVH's leaf order leaves out triangle {t}"));
+            }
+        }
+        Some(_) => {
+            let mut sorted = named;
+            sorted.sort_unstable();
+            if sorted.windows(2).any(|w| w[0] == w[1])
+                || sorted.last().is_some_and(|&p| p as usize >= mesh.triangle_count())
+            {
+                return Err("the part's leaf order names a triangle twice or out of range".into());
+            }
+            if sorted.len() != triangles {
+                return Err(format!("a part of {} triangles where {triangles} were announced", sorted.len()));
+            }
+        }
     }
     if nodes.is_empty() {
         return Ok(Bvh4::default());
     }
-    let depth = check_tree(&nodes, &prim_order, mesh)?;
+    let mut block_taken = vec![false; prim_order.len() / BLOCK_WIDTH];
+    let depth = check_nodes(&nodes, part.map(|p| p.1), |i, block, count, child| {
+        let (block, count) = (block as usize, count as usize);
+        if count > BLOCK_WIDTH || block >= block_taken.len() {
+            return Err(format!("BVH node {i} has a leaf of {count} in block {block} of {}", block_taken.len()));
+        }
+        if std::mem::replace(&mut block_taken[block], true) {
+            return Err(format!("block {block} lies in two leaves of the BVH"));
+        }
+        let lanes = &prim_order[BLOCK_WIDTH * block..BLOCK_WIDTH * (block + 1)];
+        if lanes.iter().enumerate().any(|(j, &p)| (j < count) == (p == NO_TRIANGLE)) {
+            return Err(format!("block {block} of the BVH holds other slots than its leaf's {count}"));
+        }
+        for &t in &lanes[..count] {
+            let t = t as usize;
+            let [a, b, c] = mesh.corners(t);
+            let close = mesh.deformation.as_ref().map(|d| mesh.triangles[t].map(|v| d.positions[v as usize]));
+            if ![a, b, c].into_iter().chain(close.into_iter().flatten()).all(|p| inside(child, p)) {
+                return Err(format!("triangle {t} lies outside its leaf's box in the BVH"));
+            }
+        }
+        Ok(())
+    })?;
+    if let Some(b) = block_taken.iter().position(|&t| !t) {
+        return Err(format!("block {b} of the BVH is in no leaf"));
+    }
+    Ok(Bvh4 { bounds: Some(root_bounds(&nodes[0])), nodes, prim_order, depth })
+}
+
+/// The box around a node's children.
+fn root_bounds(root: &Node4) -> Bounds {
     let mut lo = Vec3A::INFINITY;
     let mut hi = Vec3A::NEG_INFINITY;
     for k in 0..4 {
-        if nodes[0].child[k] != super::bvh4::EMPTY_CHILD {
-            let (a, b) = child_box(&nodes[0], k);
+        if root.child[k] != EMPTY_CHILD {
+            let (a, b) = child_box(root, k);
             (lo, hi) = (lo.min(a), hi.max(b));
         }
     }
-    Ok(Bvh4 { nodes, prim_order, bounds: Some((lo, hi)), depth })
+    (lo, hi)
 }
 
-/// A box's corners.
-type Bounds = (Vec3A, Vec3A);
+/// Appends an object's small tree ([`super::parts`]) to `out`: the tree as [`encode_bvh4`]
+/// writes it, then each part's triangle count.
+pub fn encode_small_tree(small: &Bvh4, triangles: &[u32], out: &mut Vec<u8>) {
+    encode_bvh4(small, out);
+    for &t in triangles {
+        out.extend_from_slice(&t.to_le_bytes());
+    }
+}
+
+/// The small tree that [`encode_small_tree`] wrote, for `mesh`, with each part's triangle count
+/// and box: an error unless it is a tree whose leaves name each part once (leaf slot `p` naming
+/// part `p`), with nested boxes, and parts that share out the mesh's triangles.
+pub fn decode_small_tree(bytes: &[u8], mesh: &Mesh) -> Result<(Bvh4, Vec<(u32, Bounds)>), String> {
+    let (nodes, prim_order, length) = read_nodes(bytes)?;
+    let parts = prim_order.len();
+    if bytes.len() - length != 4 * parts {
+        return Err(format!("a small tree of {parts} parts in {} bytes", bytes.len()));
+    }
+    if parts == 0 || nodes.is_empty() || prim_order.iter().enumerate().any(|(s, &p)| p as usize != s) {
+        return Err("a small tree whose leaf order is not its parts in order".into());
+    }
+    let triangles: Vec<u32> =
+        bytes[length..].chunks_exact(4).map(|w| u32::from_le_bytes(w.try_into().unwrap_or_default())).collect();
+    let total = triangles.iter().map(|&t| t as u64).sum::<u64>();
+    if triangles.contains(&0) || total != mesh.triangle_count() as u64 {
+        return Err(format!("parts of {total} triangles in all for a mesh of {}", mesh.triangle_count()));
+    }
+    let mut boxes: Vec<Option<Bounds>> = vec![None; parts];
+    let depth = check_nodes(&nodes, None, |i, part, count, child| {
+        match boxes.get_mut(part as usize) {
+            Some(slot @ None) if count == 1 => *slot = Some(child),
+            _ => return Err(format!("small tree node {i} names part {part} again, out of range, or {count} times")),
+        }
+        Ok(())
+    })?;
+    let known: Option<Vec<(u32, Bounds)>> = triangles.into_iter().zip(boxes).map(|(t, b)| Some((t, b?))).collect();
+    let known = known.ok_or("a part that no leaf of the small tree names")?;
+    Ok((Bvh4 { bounds: Some(root_bounds(&nodes[0])), nodes, prim_order, depth }, known))
+}
 
 /// Child `k`'s box in `node`.
 fn child_box(node: &Node4, k: usize) -> Bounds {
@@ -126,14 +243,18 @@ fn inside((lo, hi): Bounds, p: Vec3) -> bool {
     lo.cmple(p).all() && p.cmple(hi).all()
 }
 
-/// Checks the tree under node 0 (see the module documentation); returns its depth in inner-node
-/// levels, as [`Bvh4::depth`] counts them.
-fn check_tree(nodes: &[Node4], prim_order: &[u32], mesh: &Mesh) -> Result<usize, String> {
+/// Checks the tree under node 0 (see the module documentation), its root's child boxes inside
+/// `root_box` when given; `leaf(node, first, count, box)` checks each non-empty leaf. Returns the
+/// depth in inner-node levels, as [`Bvh4::depth`] counts them.
+fn check_nodes(
+    nodes: &[Node4],
+    root_box: Option<Bounds>,
+    mut leaf: impl FnMut(usize, u32, u32, Bounds) -> Result<(), String>,
+) -> Result<usize, String> {
     let mut reached = vec![false; nodes.len()];
-    let mut block_taken = vec![false; prim_order.len() / BLOCK_WIDTH];
     let mut deepest = 0;
     // Inner nodes to check: index, level (the root's is 1), and the box its parent gives it.
-    let mut stack: Vec<(usize, usize, Option<Bounds>)> = vec![(0, 1, None)];
+    let mut stack: Vec<(usize, usize, Option<Bounds>)> = vec![(0, 1, root_box)];
     while let Some((i, level, parent_box)) = stack.pop() {
         if level > MAX_WIRE_DEPTH {
             return Err(format!("the BVH is deeper than {MAX_WIRE_DEPTH} levels"));
@@ -153,36 +274,14 @@ fn check_tree(nodes: &[Node4], prim_order: &[u32], mesh: &Mesh) -> Result<usize,
                 reached[j] = true;
                 stack.push((j, level + 1, Some(child)));
             } else {
-                let (block, count) = leaf_range(r);
+                let (first, count) = leaf_range(r);
                 if count == 0 {
                     continue;
                 }
-                let (block, count) = (block as usize, count as usize);
-                if count > BLOCK_WIDTH || block >= block_taken.len() {
-                    return Err(format!(
-                        "BVH node {i} has a leaf of {count} in block {block} of {}",
-                        block_taken.len()
-                    ));
-                }
-                if std::mem::replace(&mut block_taken[block], true) {
-                    return Err(format!("block {block} lies in two leaves of the BVH"));
-                }
-                let lanes = &prim_order[BLOCK_WIDTH * block..BLOCK_WIDTH * (block + 1)];
-                if lanes.iter().enumerate().any(|(j, &p)| (j < count) == (p == NO_TRIANGLE)) {
-                    return Err(format!("block {block} of the BVH holds other slots than its leaf's {count}"));
-                }
-                for &t in &lanes[..count] {
-                    let t = t as usize;
-                    let [a, b, c] = mesh.corners(t);
-                    let close = mesh.deformation.as_ref().map(|d| mesh.triangles[t].map(|v| d.positions[v as usize]));
-                    if ![a, b, c].into_iter().chain(close.into_iter().flatten()).all(|p| inside(child, p)) {
-                        return Err(format!("triangle {t} lies outside its leaf's box in the BVH"));
-                    }
-                }
+                leaf(i, first, count, child)?;
             }
             if let Some(parent) = parent_box {
-                if r != super::bvh4::EMPTY_CHILD && !(inside(parent, child.0.into()) && inside(parent, child.1.into()))
-                {
+                if r != EMPTY_CHILD && !(inside(parent, child.0.into()) && inside(parent, child.1.into())) {
                     return Err(format!("a child box of BVH node {i} reaches outside its own box"));
                 }
             }
@@ -190,9 +289,6 @@ fn check_tree(nodes: &[Node4], prim_order: &[u32], mesh: &Mesh) -> Result<usize,
     }
     if let Some(i) = reached.iter().position(|&r| !r) {
         return Err(format!("BVH node {i} is in no tree"));
-    }
-    if let Some(b) = block_taken.iter().position(|&t| !t) {
-        return Err(format!("block {b} of the BVH is in no leaf"));
     }
     Ok(deepest)
 }
@@ -238,6 +334,61 @@ pub(crate) mod tests {
         let mut bytes = Vec::new();
         encode_bvh4(&Bvh4::default(), &mut bytes);
         assert!(decode_bvh4(&bytes, &empty).expect("an empty BVH").nodes.is_empty());
+    }
+
+    #[test]
+    fn an_object_travels_in_parts_and_damaged_parts_are_errors() {
+        let mesh = grid(60);
+        let whole = ObjectBvh::build(&mesh, BuildQuality::High);
+        let cut = crate::accel::parts::cut(&whole.bvh, 500);
+        assert!(cut.parts.len() > 8);
+        let counts: Vec<u32> = cut.parts.iter().map(|p| p.triangles).collect();
+        let mut bytes = Vec::new();
+        encode_small_tree(&cut.small, &counts, &mut bytes);
+        let (small, parts) = decode_small_tree(&bytes, &mesh).expect("a small tree");
+        assert_eq!((small.nodes, small.prim_order), (cut.small.nodes.clone(), cut.small.prim_order.clone()));
+        assert_eq!(parts.len(), cut.parts.len());
+        for ((triangles, bounds), part) in parts.iter().zip(&cut.parts) {
+            assert_eq!((*triangles, *bounds), (part.triangles, part.bounds()));
+            let mut encoded = Vec::new();
+            encode_bvh4(&part.bvh, &mut encoded);
+            let decoded = decode_part(&encoded, &mesh, *triangles, *bounds).expect("a part");
+            assert_eq!((decoded.nodes, decoded.prim_order), (part.bvh.nodes.clone(), part.bvh.prim_order.clone()));
+            // Another count, a box that does not hold it, or another mesh.
+            assert!(decode_part(&encoded, &mesh, triangles + 1, *bounds).is_err());
+            assert!(decode_part(&encoded, &mesh, *triangles, (bounds.0, bounds.0)).is_err());
+            assert!(decode_part(&encoded, &grid(3), *triangles, *bounds).is_err());
+        }
+        // A part that names a triangle twice.
+        let mut encoded = Vec::new();
+        encode_bvh4(&cut.parts[0].bvh, &mut encoded);
+        let order = 4 * (2 + NODE_VALUES * cut.parts[0].bvh.nodes.len());
+        encoded[order + 4..order + 8].copy_from_slice(&cut.parts[0].bvh.prim_order[0].to_le_bytes());
+        assert!(decode_part(&encoded, &mesh, cut.parts[0].triangles, cut.parts[0].bounds()).is_err());
+        // Small trees cut short, with counts that do not add up to the mesh, or a part named twice.
+        for cut_at in [0, 8, bytes.len() / 2, bytes.len() - 1] {
+            assert!(decode_small_tree(&bytes[..cut_at], &mesh).is_err(), "cut at {cut_at}");
+        }
+        assert!(decode_small_tree(&bytes, &grid(59)).is_err());
+        let mut other = counts.clone();
+        other[0] += 1;
+        other[1] -= 1;
+        let mut moved = Vec::new();
+        encode_small_tree(&cut.small, &other, &mut moved);
+        assert!(decode_small_tree(&moved, &mesh).is_ok(), "counts are checked in sum; each part on arrival");
+        other[1] += 1;
+        let mut wrong = Vec::new();
+        encode_small_tree(&cut.small, &other, &mut wrong);
+        assert!(decode_small_tree(&wrong, &mesh).is_err());
+        let mut twice = cut.small.clone();
+        let (i, k) = (0..twice.nodes.len())
+            .flat_map(|i| (0..4).map(move |k| (i, k)))
+            .find(|&(i, k)| twice.nodes[i].child[k] == crate::accel::bvh4::leaf_ref(1, 1))
+            .expect("part 1's leaf");
+        twice.nodes[i].child[k] = crate::accel::bvh4::leaf_ref(0, 1);
+        let mut named_twice = Vec::new();
+        encode_small_tree(&twice, &counts, &mut named_twice);
+        assert!(decode_small_tree(&named_twice, &mesh).is_err());
     }
 
     #[test]

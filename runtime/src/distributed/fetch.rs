@@ -14,9 +14,12 @@
 //! master, never a wrong image passed off as right. A texture the master has no file for is no
 //! failure: it is the warning a single process gives.
 
+use crate::accel::bvh4::Bvh4;
 use crate::accel::object::{FetchedMesh, MeshSource};
-use crate::accel::wire::decode_bvh4;
+use crate::accel::parts::Bounds;
+use crate::accel::wire::{decode_bvh4, decode_part, decode_small_tree};
 use crate::api::decode_mesh;
+use crate::geometry::Mesh;
 use crate::scene::Scene;
 use crate::texture::{decode_answer, Delivered, TextureAnswer, TexturePart, TextureSource};
 use std::any::Any;
@@ -34,6 +37,8 @@ const FETCH_TIMEOUT: Duration = Duration::from_secs(300);
 pub(super) enum Want {
     /// The mesh of an object, by its id.
     Mesh(u32),
+    /// A part of an object's BVH: the object's id, the part.
+    Part(u32, u32),
     /// Part of what a texture name stands for.
     Texture(TexturePart, String),
 }
@@ -47,6 +52,8 @@ pub struct FetchLink {
     failure: Mutex<Option<String>>,
     fetched_objects: AtomicU64,
     fetched_bytes: AtomicU64,
+    fetched_parts: AtomicU64,
+    fetched_part_bytes: AtomicU64,
     fetched_textures: AtomicU64,
     fetched_texture_levels: AtomicU64,
     fetched_texture_bytes: AtomicU64,
@@ -54,8 +61,9 @@ pub struct FetchLink {
     /// (decoding them, building their BVHs), this frame (nanoseconds).
     waiting_ns: AtomicU64,
     building_ns: AtomicU64,
-    /// Objects evicted before this frame.
+    /// Objects and parts of objects' BVHs evicted before this frame.
     evicted: AtomicU64,
+    evicted_parts: AtomicU64,
     /// Objects of a new scene given the meshes the last scene fetched, before this frame.
     kept: AtomicU64,
     /// Textures, shadow maps and grids this frame took from what the caches before made of them
@@ -80,13 +88,17 @@ pub(super) struct Fetched {
     pub failure: Option<String>,
     pub objects: u64,
     pub object_bytes: u64,
+    /// Parts of objects' BVHs, and their bytes.
+    pub parts: u64,
+    pub part_bytes: u64,
     /// Textures, shadow maps and grids (a texture's first answer), and the mip levels fetched
     /// after it, with the bytes of both.
     pub textures: u64,
     pub texture_levels: u64,
     pub texture_bytes: u64,
-    /// Objects evicted before the frame.
+    /// Objects and parts of objects' BVHs evicted before the frame.
     pub evicted: u64,
+    pub evicted_parts: u64,
     /// Objects of a new scene given the meshes the last scene fetched, before the frame.
     pub kept: u64,
     /// Textures taken from the maps the scene before made.
@@ -124,10 +136,13 @@ impl FetchLink {
             failure: self.failure.lock().unwrap_or_else(PoisonError::into_inner).take(),
             objects: take(&self.fetched_objects),
             object_bytes: take(&self.fetched_bytes),
+            parts: take(&self.fetched_parts),
+            part_bytes: take(&self.fetched_part_bytes),
             textures: take(&self.fetched_textures),
             texture_levels: take(&self.fetched_texture_levels),
             texture_bytes: take(&self.fetched_texture_bytes),
             evicted: take(&self.evicted),
+            evicted_parts: take(&self.evicted_parts),
             kept: take(&self.kept),
             kept_textures: take(&self.kept_textures),
             waiting: Duration::from_nanos(take(&self.waiting_ns)),
@@ -194,10 +209,11 @@ impl FetchLink {
     }
 
     /// Starts a frame: objects reached from now on are stamped with its number; `evicted`
-    /// objects were dropped before it.
-    pub(super) fn start_frame(&self, evicted: u64) {
+    /// objects and parts were dropped before it.
+    pub(super) fn start_frame(&self, (objects, parts): (u64, u64)) {
         self.clock.fetch_add(1, Ordering::Relaxed);
-        self.evicted.store(evicted, Ordering::Relaxed);
+        self.evicted.store(objects, Ordering::Relaxed);
+        self.evicted_parts.store(parts, Ordering::Relaxed);
     }
 }
 
@@ -205,11 +221,34 @@ impl FetchLink {
 /// message, which MPI counts in 32 bits even deflated.
 pub const MAX_INFLATED_OBJECT: u64 = 1 << 32;
 
-/// An object as the master sends it: its mesh ([`crate::api::encode_mesh`]) and the 4-wide BVH it
-/// built over it ([`crate::accel::wire::encode_bvh4`]; empty when it has none), the mesh's length
-/// first, deflated (the fastest level: the master encodes each object once).
-pub(super) fn encode_object(mesh: &[u8], bvh: &[u8]) -> Vec<u8> {
-    crate::deflate::deflate(&[&(mesh.len() as u64).to_le_bytes(), mesh, bvh])
+/// The BVH that comes with an object's mesh.
+#[derive(Clone, Copy, Debug)]
+pub(super) enum ObjectTree<'a> {
+    /// None: the worker builds it.
+    None,
+    /// The whole tree ([`crate::accel::wire::encode_bvh4`]).
+    Whole(&'a [u8]),
+    /// The small tree of a BVH in parts ([`crate::accel::wire::encode_small_tree`]); the parts
+    /// follow on request ([`encode_part`]).
+    Parts(&'a [u8]),
+}
+
+/// An object as the master sends it: its mesh ([`crate::api::encode_mesh`]) and its BVH, the
+/// mesh's length first, then a byte saying which tree follows (0: none, 1: whole, 2: parts),
+/// deflated (the fastest level: the master encodes each object once).
+pub(super) fn encode_object(mesh: &[u8], tree: ObjectTree) -> Vec<u8> {
+    let (kind, bytes) = match tree {
+        ObjectTree::None => (0u8, &[][..]),
+        ObjectTree::Whole(bytes) => (1, bytes),
+        ObjectTree::Parts(bytes) => (2, bytes),
+    };
+    crate::deflate::deflate(&[&(mesh.len() as u64).to_le_bytes(), mesh, &[kind], bytes])
+}
+
+/// A part of an object's BVH as the master sends it ([`crate::accel::wire::encode_bvh4`] of the
+/// part), deflated.
+pub(super) fn encode_part(bvh: &[u8]) -> Vec<u8> {
+    crate::deflate::deflate(&[bvh])
 }
 
 /// An object [`encode_object`] wrote, inflated: at most [`MAX_INFLATED_OBJECT`] bytes.
@@ -217,11 +256,20 @@ fn inflate_object(bytes: &[u8]) -> Result<Vec<u8>, String> {
     crate::deflate::inflate_at_most(bytes, MAX_INFLATED_OBJECT).map_err(|e| format!("the object {e}"))
 }
 
-/// The mesh's and the BVH's bytes of an inflated object.
-fn split_object(bytes: &[u8]) -> Result<(&[u8], &[u8]), String> {
+/// The mesh's and the tree's bytes of an inflated object.
+fn split_object(bytes: &[u8]) -> Result<(&[u8], ObjectTree<'_>), String> {
     let (length, rest) = bytes.split_first_chunk::<8>().ok_or("an object shorter than its header")?;
     let length = usize::try_from(u64::from_le_bytes(*length)).unwrap_or(usize::MAX);
-    rest.split_at_checked(length).ok_or_else(|| format!("an object of {} bytes with a mesh of {length}", bytes.len()))
+    let (mesh, rest) = rest
+        .split_at_checked(length)
+        .ok_or_else(|| format!("an object of {} bytes with a mesh of {length}", bytes.len()))?;
+    let tree = match rest.split_first() {
+        Some((0, [])) => ObjectTree::None,
+        Some((1, tree)) => ObjectTree::Whole(tree),
+        Some((2, tree)) => ObjectTree::Parts(tree),
+        _ => return Err("an object without a known kind of tree".into()),
+    };
+    Ok((mesh, tree))
 }
 
 /// Runs `f` when dropped: a time is counted however its scope is left.
@@ -237,33 +285,41 @@ fn defer<F: FnOnce()>(f: F) -> impl Drop {
     Defer(Some(f))
 }
 
-/// Drops the meshes of the demand-loaded objects of `scene` that rays reached least recently
-/// until those held take at most `limit` bytes; returns how many were dropped. Objects reached in
-/// the current frame go last, and go too if they alone exceed the limit (they are fetched again
-/// when next needed).
-pub fn evict_least_recently_used(scene: &mut Scene, limit: usize) -> u64 {
-    let mut held: Vec<(u32, usize, usize)> = scene
-        .objects()
-        .iter()
-        .enumerate()
-        .filter(|(_, o)| o.is_remote() && o.is_resident())
-        .map(|(i, o)| (o.last_used().unwrap_or(0), i, o.memory_bytes()))
-        .collect();
-    let mut total: usize = held.iter().map(|h| h.2).sum();
+/// Drops the meshes of the demand-loaded objects of `scene`, and the parts of their BVHs, that
+/// rays reached least recently until those held take at most `limit` bytes; returns how many
+/// objects and parts were dropped. An object's parts go before the object (which takes them
+/// all). What rays reached in the current frame goes last, and goes too if it alone exceeds the
+/// limit (it is fetched again when next needed).
+pub fn evict_least_recently_used(scene: &mut Scene, limit: usize) -> (u64, u64) {
+    // (last used, a part (0) or the object (1), object, part, bytes)
+    let mut held: Vec<(u32, u8, usize, u32, usize)> = Vec::new();
+    for (i, o) in scene.objects().iter().enumerate().filter(|(_, o)| o.is_remote() && o.is_resident()) {
+        let parts = o.resident_parts_in_use();
+        let in_parts: usize = parts.iter().map(|p| p.2).sum();
+        held.extend(parts.into_iter().map(|(p, used, bytes)| (used, 0, i, p, bytes)));
+        held.push((o.last_used().unwrap_or(0), 1, i, 0, o.memory_bytes().saturating_sub(in_parts)));
+    }
+    let mut total: usize = held.iter().map(|h| h.4).sum();
     if total <= limit {
-        return 0;
+        return (0, 0);
     }
     held.sort_unstable();
-    let mut evicted = 0;
-    let objects = scene.objects_mut();
-    for (_, i, _) in held {
+    let (mut objects, mut parts) = (0, 0);
+    let all = scene.objects_mut();
+    for (_, kind, i, p, _) in held {
         if total <= limit {
             break;
         }
-        total -= objects[i].evict().min(total);
-        evicted += 1;
+        let freed = match kind {
+            0 => all[i].evict_part(p),
+            _ => all[i].evict(),
+        };
+        if freed > 0 {
+            total -= freed.min(total);
+            *(if kind == 0 { &mut parts } else { &mut objects }) += 1;
+        }
     }
-    evicted
+    (objects, parts)
 }
 
 impl MeshSource for FetchLink {
@@ -289,16 +345,46 @@ impl MeshSource for FetchLink {
             return FetchedMesh::default();
         }
         let decoded = inflate_object(&bytes).and_then(|plain| {
-            let (mesh, bvh) = split_object(&plain)?;
+            let (mesh, tree) = split_object(&plain)?;
             let mesh = decode_mesh(mesh).map_err(|e| e.to_string())?;
-            // No BVH (the master had none built) is no failure: this side builds it.
-            let bvh = if bvh.is_empty() { None } else { Some(decode_bvh4(bvh, &mesh)?) };
-            Ok(FetchedMesh { mesh: Arc::new(mesh), bvh })
+            let (bvh, parts) = match tree {
+                // No BVH (the master had none built) is no failure: this side builds it.
+                ObjectTree::None => (None, None),
+                ObjectTree::Whole(bvh) => (Some(decode_bvh4(bvh, &mesh)?), None),
+                ObjectTree::Parts(small) => (None, Some(decode_small_tree(small, &mesh)?)),
+            };
+            Ok(FetchedMesh { mesh: Arc::new(mesh), bvh, parts })
         });
         decoded.unwrap_or_else(|e| {
             self.fail(format!("the mesh of object {key}: {e}"));
             FetchedMesh::default()
         })
+    }
+
+    fn fetch_part(&self, key: u32, part: u32, mesh: &Mesh, triangles: u32, bounds: Bounds) -> Option<Bvh4> {
+        self.part(key, part, mesh, triangles, bounds)
+    }
+}
+
+impl FetchLink {
+    /// [`MeshSource::fetch_part`]: part `part` of object `key`'s BVH, checked against `mesh`.
+    fn part(&self, key: u32, part: u32, mesh: &Mesh, triangles: u32, bounds: Bounds) -> Option<Bvh4> {
+        let Some(bytes) = self.request(Want::Part(key, part)) else {
+            self.fail(format!("part {part} of object {key} never came from the master"));
+            return None;
+        };
+        self.fetched_parts.fetch_add(1, Ordering::Relaxed);
+        self.fetched_part_bytes.fetch_add(bytes.len() as u64, Ordering::Relaxed);
+        let decoding = Instant::now();
+        let _decoded = defer(|| FetchLink::add_time(&self.building_ns, decoding));
+        if bytes.is_empty() {
+            self.fail(format!("the master has no part {part} of object {key}"));
+            return None;
+        }
+        let decoded = crate::deflate::inflate_at_most(&bytes, MAX_INFLATED_OBJECT)
+            .map_err(|e| format!("the part {e}"))
+            .and_then(|plain| decode_part(&plain, mesh, triangles, bounds));
+        decoded.inspect_err(|e| self.fail(format!("part {part} of object {key}: {e}"))).ok()
     }
 }
 
@@ -377,29 +463,51 @@ struct Made {
 /// worker holds of it ([`FetchLink::held_digest`]).
 pub(super) type TextureRequest = (TexturePart, String, Option<[u8; 32]>);
 
+/// What a worker asks the master for in one `Fetch`: objects' meshes, parts of objects' BVHs
+/// (object, part), and textures.
+#[derive(Debug, Default, PartialEq)]
+pub(super) struct Requests {
+    pub objects: Vec<u32>,
+    pub parts: Vec<(u32, u32)>,
+    pub textures: Vec<TextureRequest>,
+}
+
+impl Requests {
+    pub(super) fn is_empty(&self) -> bool {
+        self.objects.is_empty() && self.parts.is_empty() && self.textures.is_empty()
+    }
+
+    /// The `Fetch` message of these requests in frame `frame`.
+    pub(super) fn message(self, frame: u64) -> super::message::Message {
+        let Requests { objects, parts, textures } = self;
+        super::message::Message::Fetch { frame, objects, parts, textures }
+    }
+}
+
 /// The communication thread's side: requests sent and not yet answered.
 #[derive(Default)]
 pub(super) struct Pending(HashMap<Want, Vec<Sender<Vec<u8>>>>);
 
 impl Pending {
     /// Takes `link`'s queued requests; returns what to ask the master for (what is not already
-    /// asked for): objects, and textures by kind and name.
-    pub(super) fn take(&mut self, link: &FetchLink) -> (Vec<u32>, Vec<TextureRequest>) {
-        let (mut objects, mut textures) = (Vec::new(), Vec::new());
+    /// asked for).
+    pub(super) fn take(&mut self, link: &FetchLink) -> Requests {
+        let mut requests = Requests::default();
         for (want, tx) in link.take_requests() {
             let waiting = self.0.entry(want.clone()).or_default();
             if waiting.is_empty() {
                 match want {
-                    Want::Mesh(object) => objects.push(object),
+                    Want::Mesh(object) => requests.objects.push(object),
+                    Want::Part(object, part) => requests.parts.push((object, part)),
                     Want::Texture(part, name) => {
                         let held = link.held_digest(part, &name);
-                        textures.push((part, name, held))
+                        requests.textures.push((part, name, held))
                     }
                 }
             }
             waiting.push(tx);
         }
-        (objects, textures)
+        requests
     }
 
     /// Whether requests sent are still unanswered.
@@ -413,10 +521,16 @@ impl Pending {
     }
 
     /// Hands the master's answer to the threads waiting for it.
-    pub(super) fn answer(&mut self, meshes: Vec<(u32, Vec<u8>)>, textures: Vec<(TexturePart, String, Vec<u8>)>) {
+    pub(super) fn answer(
+        &mut self,
+        meshes: Vec<(u32, Vec<u8>)>,
+        parts: Vec<(u32, u32, Vec<u8>)>,
+        textures: Vec<(TexturePart, String, Vec<u8>)>,
+    ) {
         let answers = meshes
             .into_iter()
             .map(|(object, bytes)| (Want::Mesh(object), bytes))
+            .chain(parts.into_iter().map(|(object, part, bytes)| (Want::Part(object, part), bytes)))
             .chain(textures.into_iter().map(|(part, name, bytes)| (Want::Texture(part, name), bytes)));
         for (want, bytes) in answers {
             for tx in self.0.remove(&want).unwrap_or_default() {
@@ -445,7 +559,7 @@ mod tests {
             self.fetches.fetch_add(1, Ordering::Relaxed);
             let corners = vec![[0.0, 0.0, 0.0].into(), [1.0, 0.0, 0.0].into(), [0.0, 1.0, 0.0].into()];
             let mesh = Mesh::from_triangles(corners, vec![[0, 1, 2]]).expect("a triangle");
-            FetchedMesh { mesh: Arc::new(mesh), bvh: None }
+            FetchedMesh { mesh: Arc::new(mesh), bvh: None, parts: None }
         }
         fn clock(&self) -> Arc<AtomicU32> {
             self.clock.clone()
@@ -469,8 +583,8 @@ mod tests {
         while !link.has_requests() {
             std::thread::yield_now();
         }
-        assert_eq!(pending.take(&link), (vec![7], vec![]));
-        pending.answer(vec![(7, answer)], vec![]);
+        assert_eq!(pending.take(&link), Requests { objects: vec![7], ..Requests::default() });
+        pending.answer(vec![(7, answer)], vec![], vec![]);
         let fetched = fetching.join().expect("the render thread");
         (fetched, link.take_frame())
     }
@@ -482,13 +596,13 @@ mod tests {
         let mut bvh = Vec::new();
         crate::accel::wire::encode_bvh4(&built, &mut bvh);
         let encoded = crate::api::encode_mesh(&mesh);
-        let (fetched, frame) = fetched_with(encode_object(&encoded, &bvh));
+        let (fetched, frame) = fetched_with(encode_object(&encoded, ObjectTree::Whole(&bvh)));
         assert_eq!(frame.failure, None);
         assert_eq!(fetched.mesh.triangle_count(), 300);
         let arrived = fetched.bvh.expect("the master's BVH");
         assert_eq!((arrived.nodes, arrived.prim_order), (built.nodes.clone(), built.prim_order.clone()));
         // Without a BVH the mesh alone arrives (the object builds its own).
-        let (fetched, frame) = fetched_with(encode_object(&encoded, &[]));
+        let (fetched, frame) = fetched_with(encode_object(&encoded, ObjectTree::None));
         assert!(fetched.bvh.is_none() && frame.failure.is_none());
         assert_eq!(fetched.mesh.triangle_count(), 300);
         // A BVH for another mesh, or a cut object, fails the frame and leaves the object empty.
@@ -497,7 +611,10 @@ mod tests {
             &ObjectBvh::build(&ribbon(299), crate::accel::bvh4::BuildQuality::High).bvh,
             &mut other,
         );
-        for damaged in [encode_object(&encoded, &other), encode_object(&encoded, &bvh)[..100].to_vec()] {
+        for damaged in [
+            encode_object(&encoded, ObjectTree::Whole(&other)),
+            encode_object(&encoded, ObjectTree::Whole(&bvh))[..100].to_vec(),
+        ] {
             let (fetched, frame) = fetched_with(damaged);
             assert_eq!(fetched.mesh.triangle_count(), 0);
             assert!(frame.failure.is_some_and(|f| f.contains("object 7")));
@@ -519,11 +636,11 @@ mod tests {
         }
         assert_eq!(source.fetches.load(Ordering::Relaxed), 3);
         let each = scene.objects()[0].memory_bytes();
-        assert_eq!(evict_least_recently_used(&mut scene, 3 * each), 0);
-        assert_eq!(evict_least_recently_used(&mut scene, 2 * each), 1);
+        assert_eq!(evict_least_recently_used(&mut scene, 3 * each), (0, 0));
+        assert_eq!(evict_least_recently_used(&mut scene, 2 * each), (1, 0));
         let resident: Vec<bool> = scene.objects().iter().map(Object::is_resident).collect();
         assert_eq!(resident, [true, false, true]);
-        assert_eq!(evict_least_recently_used(&mut scene, each), 1);
+        assert_eq!(evict_least_recently_used(&mut scene, each), (1, 0));
         let resident: Vec<bool> = scene.objects().iter().map(Object::is_resident).collect();
         assert_eq!(resident, [false, false, true]);
         // An evicted object comes back when next reached.

@@ -1,14 +1,15 @@
 //! The master: the rank that owns the scene and the output. It greets its workers, hands each
 //! frame's tiles out on demand ([`Schedule`]), and assembles the image from the tiles they send.
 
-use super::fetch::encode_object;
+use super::fetch::{encode_object, encode_part, ObjectTree};
 use super::message::{
     build_fingerprint, greeting_version, FrameCounts, Job, LatticeUnit, Message, RenderedUnits, PROTOCOL_VERSION,
 };
 use super::schedule::Schedule;
 use super::transport::Transport;
 use super::DistributedError;
-use crate::accel::wire::encode_bvh4;
+use crate::accel::parts::{cut, PARTED_ABOVE, PART_TRIANGLES};
+use crate::accel::wire::{encode_bvh4, encode_small_tree};
 use crate::api::{encode_mesh, Context, Replicator};
 use crate::render::progressive::{lattice_lanes, BatchReport, LatticeSamples, LatticeTracer, PixelLattice};
 use crate::render::{FrameReport, Framebuffer, LightPathCache, LightPaths, RenderedTile, TileRenderer, World};
@@ -102,8 +103,11 @@ pub struct Master<T: Transport> {
     /// Objects as last encoded for a fetch, each with the mesh it was encoded from, and their
     /// bytes together: an object fetched again (by another worker, in a later frame) is not
     /// encoded again while its mesh stands.
-    encoded_objects: HashMap<u32, (Arc<crate::geometry::Mesh>, Arc<Vec<u8>>)>,
+    encoded_objects: HashMap<u32, Encoded>,
     encoded_bytes: usize,
+    /// Objects of more triangles than this travel in parts of at most `part_triangles`.
+    parted_above: usize,
+    part_triangles: u32,
     /// The textures the workers fetched, each decoded and mip-mapped once.
     texture_server: TextureServer,
     /// The light paths of the viewer's pass being traced ([`Master::trace_lattices`]), and the
@@ -193,12 +197,34 @@ impl WorkerTime {
     }
 }
 
+/// An object as the master encoded it for fetches: the mesh it was encoded from, the object's
+/// bytes ([`encode_object`]) and, in parts, each part's ([`encode_part`]).
+struct Encoded {
+    mesh: Arc<crate::geometry::Mesh>,
+    object: Arc<Vec<u8>>,
+    parts: Vec<Vec<u8>>,
+}
+
+impl Encoded {
+    fn bytes(&self) -> usize {
+        self.object.len() + self.parts.iter().map(Vec::len).sum::<usize>()
+    }
+}
+
 /// Demand loading over the workers in the last frame.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Demand {
-    /// Objects the workers fetched, and the bytes of their meshes.
+    /// Objects the workers fetched, and the bytes of their meshes (with their BVHs, or their
+    /// small trees).
     pub fetched_objects: u64,
     pub fetched_bytes: u64,
+    /// Parts of large objects' BVHs the workers fetched, and their bytes; parts held after the
+    /// frame by all workers together.
+    pub fetched_parts: u64,
+    pub fetched_part_bytes: u64,
+    pub resident_parts: u64,
+    /// Parts the workers evicted from their caches before the frame.
+    pub evicted_parts: u64,
     /// Textures, shadow maps and grids the workers fetched, the mip levels they fetched after a
     /// texture's first answer, and the bytes of both.
     pub fetched_textures: u64,
@@ -252,6 +278,8 @@ impl<T: Transport> Master<T> {
             worker_times: Vec::new(),
             encoded_objects: HashMap::new(),
             encoded_bytes: 0,
+            parted_above: PARTED_ABOVE,
+            part_triangles: PART_TRIANGLES,
             texture_server: TextureServer::new(),
             light_paths: LightPathCache::default(),
             sent_light_paths: LightPaths::default(),
@@ -291,6 +319,15 @@ impl<T: Transport> Master<T> {
         }
         master.workers = hellos.into_iter().flatten().collect();
         Ok(master)
+    }
+
+    /// Sends objects of more than `above` triangles in parts of at most `part_triangles`
+    /// ([`crate::accel::parts`]; by default [`PARTED_ABOVE`] and [`PART_TRIANGLES`]). Takes effect
+    /// for objects encoded from now on.
+    pub fn set_parts(&mut self, above: usize, part_triangles: u32) {
+        (self.parted_above, self.part_triangles) = (above, part_triangles.max(1));
+        self.encoded_objects.clear();
+        self.encoded_bytes = 0;
     }
 
     /// How many workers render.
@@ -640,9 +677,13 @@ impl<T: Transport> Master<T> {
                 continue;
             }
             match Message::decode(&bytes).map_err(protocol_error)? {
-                Message::Fetch { frame: f, objects, textures } if f == frame => {
+                Message::Fetch { frame: f, objects, parts, textures } if f == frame => {
                     traffic.fetches += bytes.len() as u64;
                     let meshes = objects.into_iter().map(|id| (id, self.encoded_object(id, source, world))).collect();
+                    let parts = parts
+                        .into_iter()
+                        .map(|(id, part)| (id, part, self.encoded_part(id, part, source, world)))
+                        .collect();
                     let answers: Vec<Vec<u8>> = match source {
                         Some(rt) => {
                             let generation = rt.textures().generation();
@@ -661,7 +702,7 @@ impl<T: Transport> Master<T> {
                         .zip(answers)
                         .map(|((part, name, _), answer)| (part, name, answer))
                         .collect();
-                    let m = Message::Data { frame, meshes, textures }.encode();
+                    let m = Message::Data { frame, meshes, parts, textures }.encode();
                     traffic.fetches += m.len() as u64;
                     self.transport.send(rank, m)?;
                 }
@@ -685,6 +726,10 @@ impl<T: Transport> Master<T> {
         self.demand = Demand {
             fetched_objects: counts.iter().map(|c| c.fetched_objects).sum(),
             fetched_bytes: counts.iter().map(|c| c.fetched_bytes).sum(),
+            fetched_parts: counts.iter().map(|c| c.fetched_parts).sum(),
+            fetched_part_bytes: counts.iter().map(|c| c.fetched_part_bytes).sum(),
+            resident_parts: counts.iter().map(|c| c.resident_parts).sum(),
+            evicted_parts: counts.iter().map(|c| c.evicted_parts).sum(),
             fetched_textures: counts.iter().map(|c| c.fetched_textures).sum(),
             fetched_texture_levels: counts.iter().map(|c| c.fetched_texture_levels).sum(),
             fetched_texture_bytes: counts.iter().map(|c| c.fetched_texture_bytes).sum(),
@@ -706,33 +751,67 @@ impl<T: Transport> Master<T> {
         Ok((given, counts))
     }
 
-    /// Object `id` of `source` as a worker fetches it: its mesh and the BVH `world` holds for it
-    /// ([`encode_object`]; empty when it has no mesh), encoded once for as long as its mesh stands.
+    /// Object `id` of `source` as a worker fetches it: its mesh and the BVH `world` holds for it,
+    /// whole or its small tree ([`encode_object`]; empty when it has no mesh).
     fn encoded_object(&mut self, id: u32, source: Option<&Context>, world: &World) -> Vec<u8> {
+        self.encoded(id, source, world).map(|e| e.object.as_ref().clone()).unwrap_or_default()
+    }
+
+    /// Part `part` of object `id`'s BVH as a worker fetches it ([`encode_part`]; empty when the
+    /// object has no such part now).
+    fn encoded_part(&mut self, id: u32, part: u32, source: Option<&Context>, world: &World) -> Vec<u8> {
+        let encoded = self.encoded(id, source, world);
+        encoded.and_then(|e| e.parts.get(part as usize)).cloned().unwrap_or_default()
+    }
+
+    /// Object `id` of `source` encoded for fetches, once for as long as its mesh stands: the BVH
+    /// built here goes with the mesh (the worker need not build it again), a large object's cut
+    /// into parts.
+    fn encoded(&mut self, id: u32, source: Option<&Context>, world: &World) -> Option<&Encoded> {
         let object = crate::api::ObjectId(id);
-        let Some(mesh) = source.and_then(|rt| rt.object_mesh(object)) else {
-            return Vec::new();
-        };
-        if let Some((encoded_from, bytes)) = self.encoded_objects.get(&id) {
-            if Arc::ptr_eq(encoded_from, mesh) {
-                return bytes.as_ref().clone();
+        let rt = source?;
+        let mesh = rt.object_mesh(object)?;
+        let fresh = self.encoded_objects.get(&id).is_some_and(|e| Arc::ptr_eq(&e.mesh, mesh));
+        if !fresh {
+            let encoded_mesh = encode_mesh(mesh);
+            let (object_bytes, parts) = match rt.object_bvh(object, world) {
+                Some(built) if mesh.triangle_count() > self.parted_above => {
+                    let cut = cut(built, self.part_triangles);
+                    let counts: Vec<u32> = cut.parts.iter().map(|p| p.triangles).collect();
+                    let mut small = Vec::new();
+                    encode_small_tree(&cut.small, &counts, &mut small);
+                    let parts: Vec<Vec<u8>> = {
+                        use rayon::prelude::*;
+                        cut.parts
+                            .par_iter()
+                            .map(|p| {
+                                let mut bytes = Vec::new();
+                                encode_bvh4(&p.bvh, &mut bytes);
+                                encode_part(&bytes)
+                            })
+                            .collect()
+                    };
+                    (encode_object(&encoded_mesh, ObjectTree::Parts(&small)), parts)
+                }
+                Some(built) => {
+                    let mut bvh = Vec::new();
+                    encode_bvh4(built, &mut bvh);
+                    (encode_object(&encoded_mesh, ObjectTree::Whole(&bvh)), Vec::new())
+                }
+                None => (encode_object(&encoded_mesh, ObjectTree::None), Vec::new()),
+            };
+            let encoded = Encoded { mesh: mesh.clone(), object: Arc::new(object_bytes), parts };
+            let size = encoded.bytes();
+            if self.encoded_bytes + size > ENCODED_OBJECTS_KEPT {
+                self.encoded_objects.clear();
+                self.encoded_bytes = 0;
+            }
+            self.encoded_bytes += size;
+            if let Some(old) = self.encoded_objects.insert(id, encoded) {
+                self.encoded_bytes -= old.bytes();
             }
         }
-        // The BVH built here goes with the mesh: the worker need not build it again.
-        let mut bvh = Vec::new();
-        if let Some(built) = source.and_then(|rt| rt.object_bvh(object, world)) {
-            encode_bvh4(built, &mut bvh);
-        }
-        let bytes = Arc::new(encode_object(&encode_mesh(mesh), &bvh));
-        if self.encoded_bytes + bytes.len() > ENCODED_OBJECTS_KEPT {
-            self.encoded_objects.clear();
-            self.encoded_bytes = 0;
-        }
-        self.encoded_bytes += bytes.len();
-        if let Some((_, old)) = self.encoded_objects.insert(id, (mesh.clone(), bytes.clone())) {
-            self.encoded_bytes -= old.len();
-        }
-        bytes.as_ref().clone()
+        self.encoded_objects.get(&id)
     }
 
     /// Tells the workers to stop (as dropping the master does).

@@ -8,7 +8,7 @@ use crate::texture::{TextureKind, TexturePart};
 use rtsl_compiler::interface::ShaderKind;
 
 /// The protocol's version: ranks that speak different versions refuse each other at start-up.
-pub const PROTOCOL_VERSION: u32 = 24;
+pub const PROTOCOL_VERSION: u32 = 25;
 
 /// What the master's counters add up from a worker's share of a frame.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -42,6 +42,13 @@ pub struct FrameCounts {
     /// took the maps the last scene made (their levels not fetched again).
     pub fetched_objects: u64,
     pub fetched_bytes: u64,
+    /// Parts of large objects' BVHs fetched when rays first reached them, and their bytes;
+    /// parts held after the frame.
+    pub fetched_parts: u64,
+    pub fetched_part_bytes: u64,
+    pub resident_parts: u64,
+    /// Parts evicted before the frame.
+    pub evicted_parts: u64,
     pub fetched_textures: u64,
     pub fetched_texture_levels: u64,
     pub fetched_texture_bytes: u64,
@@ -125,15 +132,27 @@ pub enum Message {
     FrameDone { frame: u64, counts: FrameCounts, failure: Option<String> },
     /// Master to worker: stop.
     Quit,
-    /// Worker to master: send the meshes of these objects and what these texture names stand
-    /// for (demand loading), for frame `frame`; with a texture, the digest of what the worker
-    /// holds of it from before, if anything (see `FetchLink::held_digest`).
-    Fetch { frame: u64, objects: Vec<u32>, textures: Vec<(TexturePart, String, Option<[u8; 32]>)> },
+    /// Worker to master: send the meshes of these objects, these parts of objects' BVHs (object,
+    /// part) and what these texture names stand for (demand loading), for frame `frame`; with a
+    /// texture, the digest of what the worker holds of it from before, if anything (see
+    /// `FetchLink::held_digest`).
+    Fetch {
+        frame: u64,
+        objects: Vec<u32>,
+        parts: Vec<(u32, u32)>,
+        textures: Vec<(TexturePart, String, Option<[u8; 32]>)>,
+    },
     /// Master to worker: what was asked for: each object's id and its mesh with the BVH the
     /// master built over it, as `fetch::encode_object` writes them (empty: the object has no mesh
-    /// now), and each
-    /// texture part asked for, its name and the [`crate::texture::TextureAnswer`] (postcard).
-    Data { frame: u64, meshes: Vec<(u32, Vec<u8>)>, textures: Vec<(TexturePart, String, Vec<u8>)> },
+    /// now), each part of an object's BVH asked for, as `fetch::encode_part` writes it (empty: the
+    /// master has no such part), and each texture part asked for, its name and the
+    /// [`crate::texture::TextureAnswer`] (postcard).
+    Data {
+        frame: u64,
+        meshes: Vec<(u32, Vec<u8>)>,
+        parts: Vec<(u32, u32, Vec<u8>)>,
+        textures: Vec<(TexturePart, String, Vec<u8>)>,
+    },
     /// Master to worker, between frames: another scene replaces the one being replicated. The
     /// worker drops its copy and everything it kept of it (the world and its BVHs, fetched meshes
     /// and textures, programs, light paths) and starts again from an empty scene, which the next
@@ -247,6 +266,10 @@ impl Message {
                 w.u64(counts.lights_dropped);
                 w.u64(counts.fetched_objects);
                 w.u64(counts.fetched_bytes);
+                w.u64(counts.fetched_parts);
+                w.u64(counts.fetched_part_bytes);
+                w.u64(counts.resident_parts);
+                w.u64(counts.evicted_parts);
                 w.u64(counts.fetched_textures);
                 w.u64(counts.fetched_texture_levels);
                 w.u64(counts.fetched_texture_bytes);
@@ -288,10 +311,15 @@ impl Message {
             }
             Message::Quit => w.u8(QUIT),
             Message::NewScene => w.u8(NEW_SCENE),
-            Message::Fetch { frame, objects, textures } => {
+            Message::Fetch { frame, objects, parts, textures } => {
                 w.u8(FETCH);
                 w.u64(*frame);
                 w.u32s(objects);
+                w.u32(parts.len() as u32);
+                for (object, part) in parts {
+                    w.u32(*object);
+                    w.u32(*part);
+                }
                 w.u32(textures.len() as u32);
                 for (part, name, held) in textures {
                     w.part(*part);
@@ -299,13 +327,19 @@ impl Message {
                     w.bytes(held.as_ref().map_or(&[][..], |d| &d[..]));
                 }
             }
-            Message::Data { frame, meshes, textures } => {
+            Message::Data { frame, meshes, parts, textures } => {
                 w.u8(DATA);
                 w.u64(*frame);
                 w.u32(meshes.len() as u32);
                 for (object, mesh) in meshes {
                     w.u32(*object);
                     w.bytes(mesh);
+                }
+                w.u32(parts.len() as u32);
+                for (object, part, bytes) in parts {
+                    w.u32(*object);
+                    w.u32(*part);
+                    w.bytes(bytes);
                 }
                 w.u32(textures.len() as u32);
                 for (part, name, bytes) in textures {
@@ -344,6 +378,8 @@ impl Message {
                 let (shaded_points, light_evaluations) = (r.u64()?, r.u64()?);
                 let (rays_cut, lights_dropped) = (r.u64()?, r.u64()?);
                 let (fetched_objects, fetched_bytes) = (r.u64()?, r.u64()?);
+                let (fetched_parts, fetched_part_bytes, resident_parts) = (r.u64()?, r.u64()?, r.u64()?);
+                let evicted_parts = r.u64()?;
                 let (fetched_textures, fetched_texture_levels, fetched_texture_bytes) = (r.u64()?, r.u64()?, r.u64()?);
                 let (evicted_objects, resident_objects, reached_objects) = (r.u64()?, r.u64()?, r.u64()?);
                 let (kept_objects, kept_textures) = (r.u64()?, r.u64()?);
@@ -376,6 +412,10 @@ impl Message {
                     texture_warnings,
                     fetched_objects,
                     fetched_bytes,
+                    fetched_parts,
+                    fetched_part_bytes,
+                    resident_parts,
+                    evicted_parts,
                     fetched_textures,
                     fetched_texture_levels,
                     fetched_texture_bytes,
@@ -397,6 +437,8 @@ impl Message {
             NEW_SCENE => Message::NewScene,
             FETCH => {
                 let (frame, objects) = (r.u64()?, r.u32s()?);
+                let n = r.count(8)?;
+                let parts = (0..n).map(|_| Ok((r.u32()?, r.u32()?))).collect::<Result<_, String>>()?;
                 let n = r.count(13)?;
                 let textures = (0..n)
                     .map(|_| {
@@ -408,15 +450,17 @@ impl Message {
                         Ok((part, name, held))
                     })
                     .collect::<Result<_, String>>()?;
-                Message::Fetch { frame, objects, textures }
+                Message::Fetch { frame, objects, parts, textures }
             }
             DATA => {
                 let frame = r.u64()?;
                 let n = r.count(12)?;
                 let meshes = (0..n).map(|_| Ok((r.u32()?, r.bytes()?))).collect::<Result<_, String>>()?;
+                let n = r.count(16)?;
+                let parts = (0..n).map(|_| Ok((r.u32()?, r.u32()?, r.bytes()?))).collect::<Result<_, String>>()?;
                 let n = r.count(17)?;
                 let textures = (0..n).map(|_| Ok((r.part()?, r.str()?, r.bytes()?))).collect::<Result<_, String>>()?;
-                Message::Data { frame, meshes, textures }
+                Message::Data { frame, meshes, parts, textures }
             }
             tag => return Err(format!("unknown message kind {tag}")),
         };
@@ -679,6 +723,10 @@ mod tests {
                     texture_warnings: vec![("grain".into(), String::new(), "not found".into())],
                     fetched_objects: 11,
                     fetched_bytes: 12,
+                    fetched_parts: 28,
+                    fetched_part_bytes: 29,
+                    resident_parts: 30,
+                    evicted_parts: 31,
                     fetched_textures: 15,
                     fetched_texture_levels: 25,
                     fetched_texture_bytes: 16,
@@ -698,10 +746,11 @@ mod tests {
             },
             Message::Quit,
             Message::NewScene,
-            Message::Fetch { frame: 2, objects: vec![4, 1], textures: vec![] },
+            Message::Fetch { frame: 2, objects: vec![4, 1], parts: vec![(4, 0), (9, 77)], textures: vec![] },
             Message::Fetch {
                 frame: 2,
                 objects: vec![],
+                parts: vec![],
                 textures: vec![
                     (TexturePart::Whole(TextureKind::Shadow), "key.shad".into(), Some([7; 32])),
                     (TexturePart::Whole(TextureKind::Grid), String::new(), None),
@@ -709,10 +758,16 @@ mod tests {
                     (TexturePart::Level { raw: false, level: 3 }, "wood.ppm".into(), None),
                 ],
             },
-            Message::Data { frame: 2, meshes: vec![(4, vec![1, 2, 3]), (1, vec![])], textures: vec![] },
+            Message::Data {
+                frame: 2,
+                meshes: vec![(4, vec![1, 2, 3]), (1, vec![])],
+                parts: vec![(4, 2, vec![5; 7]), (4, 3, vec![])],
+                textures: vec![],
+            },
             Message::Data {
                 frame: 3,
                 meshes: vec![],
+                parts: vec![],
                 textures: vec![
                     (TexturePart::Whole(TextureKind::Texture), "grain.png".into(), vec![7; 9]),
                     (TexturePart::Level { raw: true, level: u32::MAX }, "grain.png".into(), vec![]),

@@ -258,13 +258,15 @@ fn build_world<T: Transport + ?Sized>(
         let mut pending = Pending::default();
         let answered = (|| {
             while !building.is_finished() {
-                let (objects, textures) = pending.take(&link);
-                if !objects.is_empty() || !textures.is_empty() {
-                    transport.send(0, Message::Fetch { frame, objects, textures }.encode())?;
+                let asked = pending.take(&link);
+                if !asked.is_empty() {
+                    transport.send(0, asked.message(frame).encode())?;
                 }
                 while let Some((rank, bytes)) = transport.try_recv()? {
                     match decode_given_back(transport, rank, bytes)? {
-                        Message::Data { frame: f, meshes, textures } if f == frame => pending.answer(meshes, textures),
+                        Message::Data { frame: f, meshes, parts, textures } if f == frame => {
+                            pending.answer(meshes, parts, textures)
+                        }
                         _ => return Err(out_of_place(transport)),
                     }
                 }
@@ -474,15 +476,17 @@ fn render_share<T: Transport + ?Sized>(
                         give(units, lattices, &mut outstanding)?;
                         last |= l;
                     }
-                    Message::Data { frame: f, meshes, textures } if f == frame => pending.answer(meshes, textures),
+                    Message::Data { frame: f, meshes, parts, textures } if f == frame => {
+                        pending.answer(meshes, parts, textures)
+                    }
                     Message::Quit => return Ok(true),
                     _ => return Err(out_of_place(transport)),
                 }
             }
             if let Some(link) = link {
-                let (objects, textures) = pending.take(link);
-                if !objects.is_empty() || !textures.is_empty() {
-                    transport.send(0, Message::Fetch { frame, objects, textures }.encode())?;
+                let asked = pending.take(link);
+                if !asked.is_empty() {
+                    transport.send(0, asked.message(frame).encode())?;
                 }
             }
             if last && outstanding == 0 {
@@ -523,15 +527,17 @@ fn render_share<T: Transport + ?Sized>(
         let fetched = link.take_frame();
         failure = fetched.failure;
         (counts.fetched_objects, counts.fetched_bytes) = (fetched.objects, fetched.object_bytes);
+        (counts.fetched_parts, counts.fetched_part_bytes) = (fetched.parts, fetched.part_bytes);
         (counts.fetched_textures, counts.fetched_texture_levels, counts.fetched_texture_bytes) =
             (fetched.textures, fetched.texture_levels, fetched.texture_bytes);
-        counts.evicted_objects = fetched.evicted;
+        (counts.evicted_objects, counts.evicted_parts) = (fetched.evicted, fetched.evicted_parts);
         counts.kept_objects = fetched.kept;
         counts.kept_textures = fetched.kept_textures;
         counts.fetch_wait_ns = fetched.waiting.as_nanos() as u64;
         counts.fetch_build_ns = fetched.building.as_nanos() as u64;
         let remote = || world.scene.objects().iter().filter(|o| o.is_remote());
         counts.resident_objects = remote().filter(|o| o.is_resident()).count() as u64;
+        counts.resident_parts = remote().map(|o| o.resident_parts() as u64).sum();
         let this_frame = Some(link.frame_number());
         counts.reached_objects = remote().filter(|o| o.last_used() == this_frame).count() as u64;
     }
