@@ -221,8 +221,10 @@ pub struct MeshSummary {
     pub triangles: u32,
     /// Its per-vertex attributes' names and sizes.
     pub attributes: Vec<(String, u32)>,
-    /// [`Mesh::digest`] of the mesh: a worker that holds a mesh of this digest from an earlier
-    /// scene takes it rather than fetching it.
+    /// [`Mesh::digest`] of the mesh, with the shape of the master's tree over it where it has
+    /// one: a worker that holds a mesh of this digest from an earlier scene takes it (and its
+    /// tree, or small tree, whose parts it fetches from the master's tree of the new scene)
+    /// rather than fetching it.
     pub digest: [u8; 32],
 }
 
@@ -235,6 +237,20 @@ impl MeshSummary {
             attributes: mesh.attributes.iter().map(|a| (a.name.clone(), a.components as u32)).collect(),
             digest: mesh.digest(),
         }
+    }
+
+    /// The summary of `mesh` and `tree`, the master's BVH over it: its digest tells trees of
+    /// other shapes apart (another build quality), so that a kept small tree never meets the
+    /// parts of another cut.
+    pub fn of_tree(mesh: &Mesh, tree: &Bvh4) -> MeshSummary {
+        let mut summary = MeshSummary::of(mesh, tree.bounds);
+        let mut hasher = blake3::Hasher::new();
+        hasher.update(&summary.digest);
+        hasher.update(&(tree.nodes.len() as u64).to_le_bytes());
+        hasher.update(&(tree.depth as u64).to_le_bytes());
+        hasher.update(&tree.sah_cost().to_bits().to_le_bytes());
+        summary.digest = hasher.finalize().into();
+        summary
     }
 }
 

@@ -312,6 +312,18 @@ mod tests {
         }
     }
 
+    /// A worker keeps a small tree across scenes only for the same mesh under a tree of the same
+    /// shape: the summary's digest tells trees of other build qualities apart.
+    #[test]
+    fn a_summary_tells_trees_of_other_shapes_apart() {
+        use crate::accel::object::MeshSummary;
+        let mesh = scattered(3000);
+        let digest = |quality| MeshSummary::of_tree(&mesh, &ObjectBvh::build(&mesh, quality).bvh).digest;
+        assert_eq!(digest(BuildQuality::High), digest(BuildQuality::High));
+        assert_ne!(digest(BuildQuality::High), digest(BuildQuality::Fast));
+        assert_ne!(digest(BuildQuality::High), MeshSummary::of(&mesh, None).digest);
+    }
+
     #[test]
     fn parts_hold_every_triangle_once_under_their_boxes_and_the_8_wide_nodes_of_the_whole() {
         let mesh = scattered(3000);

@@ -270,11 +270,14 @@ impl Replicator {
             let summary = match (&rec.mesh, self.demand) {
                 (Some(mesh), true) => {
                     let built = rec.scene_object.and_then(|id| scene?.objects().get(id.0 as usize));
-                    let bounds = match built {
-                        Some(object) => object.bounds(),
-                        None => ObjectBvh::build(mesh, BuildQuality::High).bvh.bounds,
+                    let summary = match built {
+                        Some(object) => match object.resident_data() {
+                            Some(data) => MeshSummary::of_tree(mesh, &data.bvh.bvh),
+                            None => MeshSummary::of(mesh, object.bounds()),
+                        },
+                        None => MeshSummary::of(mesh, ObjectBvh::build(mesh, BuildQuality::High).bvh.bounds),
                     };
-                    Some(MeshSummary::of(mesh, bounds))
+                    Some(summary)
                 }
                 _ => None,
             };
