@@ -783,6 +783,10 @@ WorldEnd
     // The floor reflects: the frame traced secondary rays.
     let rays = out.lines().find(|l| l.starts_with("rays_per_frame: ")).expect("rays line");
     assert!(!rays.contains("secondary 0,"), "{rays}");
+    // The last frame's tiles (32x24 pixels: two rows of two), and how busy their hand-out keeps
+    // threads.
+    let tiles = out.lines().find(|l| l.starts_with("tiles: ")).expect("tiles line");
+    assert!(tiles.starts_with("tiles: 4, longest ") && tiles.contains("% over 16"), "{tiles}");
 }
 
 #[test]

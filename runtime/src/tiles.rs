@@ -70,9 +70,50 @@ where
     results.into_iter().map(|(_, t)| t).collect()
 }
 
+/// The share of `threads` threads' time spent on tiles when tiles of these render `times` (any
+/// unit), in tile order, are handed out as [`render_tiles`] hands them out: each to the first
+/// thread free, in order. 1 when every thread finishes together; the rest is the frame's tail,
+/// threads idle while the last tiles finish. A model of the hand-out alone, for times measured
+/// on another thread count: it leaves out what changes with the threads (clocks, caches, memory).
+pub fn hand_out_busy_share(times: &[f64], threads: usize) -> f64 {
+    let threads = threads.max(1);
+    let total: f64 = times.iter().sum();
+    if total <= 0.0 || !total.is_finite() {
+        return 1.0;
+    }
+    let mut free = vec![0.0f64; threads];
+    for &t in times {
+        // `threads` is a few hundred at most: a scan is as quick as a heap.
+        let (first, _) =
+            free.iter().enumerate().fold((0, f64::INFINITY), |a, (i, &f)| if f < a.1 { (i, f) } else { a });
+        free[first] += t.max(0.0);
+    }
+    let makespan = free.iter().copied().fold(0.0f64, f64::max);
+    total / (threads as f64 * makespan)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_hand_out_replay_counts_the_tail() {
+        // Even tiles, a whole number per thread: nobody waits.
+        assert_eq!(hand_out_busy_share(&[1.0; 64], 16), 1.0);
+        // 17 tiles of 1 on 16 threads: one thread takes two, the others idle for one.
+        assert!((hand_out_busy_share(&[1.0; 17], 16) - 17.0 / 32.0).abs() < 1e-12);
+        // A long tile handed out last holds the frame: 15 threads wait 8 while it renders.
+        let mut times = vec![1.0; 16];
+        times.push(8.0);
+        assert!((hand_out_busy_share(&times, 16) - 24.0 / (16.0 * 9.0)).abs() < 1e-12);
+        // First, the same tile is hidden behind the others.
+        times.rotate_right(1);
+        assert!((hand_out_busy_share(&times, 2) - 1.0).abs() < 1e-12);
+        // Fewer tiles than threads, and nothing to do.
+        assert!((hand_out_busy_share(&[2.0, 2.0], 4) - 0.5).abs() < 1e-12);
+        assert_eq!(hand_out_busy_share(&[], 8), 1.0);
+        assert_eq!(hand_out_busy_share(&[1.0, 1.0], 0), 1.0);
+    }
 
     #[test]
     fn tiles_cover_the_image() {

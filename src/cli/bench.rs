@@ -229,6 +229,28 @@ fn print_rate(args: &BenchRenderArgs, world: &rtsl_runtime::render::World, who: 
         report.transparency_rays
     );
     println!("mrays_per_second: {:.2}", report.total_rays() as f64 / ms.max(1e-9) / 1e3);
+    print_tile_balance(report);
+}
+
+/// The last frame's tiles: how long the longest took, and how busy the hand-out of tiles in
+/// their order keeps this run's threads and 16 and 64 (the frame's tiles replayed with their
+/// times as measured here): where a frame's tail loses scaling, and where it does not.
+fn print_tile_balance(report: &FrameReport) {
+    if report.tile_times.is_empty() {
+        return;
+    }
+    let ms: Vec<f64> = report.tile_times.iter().map(|d| d.as_secs_f64() * 1e3).collect();
+    let longest = ms.iter().copied().fold(0.0f64, f64::max);
+    let busy = |threads: usize| 100.0 * rtsl_runtime::tiles::hand_out_busy_share(&ms, threads);
+    println!(
+        "tiles: {}, longest {longest:.2} ms, of {:.1} ms in all; busy while tiles are handed out in order: {:.1}% over {} threads, {:.1}% over 16, {:.1}% over 64",
+        ms.len(),
+        ms.iter().sum::<f64>(),
+        busy(report.threads),
+        report.threads,
+        busy(16),
+        busy(64)
+    );
 }
 
 /// Applies `rtsl bench render`'s image flags (size, samples per pixel, anti-aliasing) to `rt`.

@@ -25,7 +25,7 @@ use glam::Vec3A;
 use rayon::prelude::*;
 use rtsl_compiler::interface::ShaderKind;
 use std::path::Path;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
 /// Tile side in pixels (a whole number of packets).
@@ -176,6 +176,10 @@ pub struct FrameReport {
     /// virtual lights (both within `shading`; zero without them or untimed).
     pub light_paths: Duration,
     pub gathering: Duration,
+    /// Each tile's render time, in tile order, where this process rendered the frame's tiles on
+    /// its threads ([`render_frame`]); empty otherwise. What the frame's tail is made of:
+    /// [`crate::tiles::hand_out_busy_share`].
+    pub tile_times: Vec<Duration>,
 }
 
 impl FrameReport {
@@ -937,8 +941,17 @@ pub fn render_frame(world: &World, progress: Option<&(dyn Fn(usize, usize) + Syn
     let renderer = TileRenderer::new(world);
     renderer.prepare_light_paths();
     let (w, h) = (world.options.width, world.options.height);
-    let progress =
-        Progress { report: progress, done: AtomicUsize::new(0), total: crate::tiles::tiles(w, h, TILE_SIZE).len() };
+    let total = crate::tiles::tiles(w, h, TILE_SIZE).len();
+    let progress = Progress { report: progress, done: AtomicUsize::new(0), total };
+    let tile_ns: Vec<AtomicU64> = (0..total).map(|_| AtomicU64::new(0)).collect();
+    let timed = |tile: &Tile, render: &mut dyn FnMut()| {
+        let began = Instant::now();
+        render();
+        if let Some(ns) = tile_ns.get(tile.index) {
+            ns.store(began.elapsed().as_nanos().try_into().unwrap_or(u64::MAX), Ordering::Relaxed);
+        }
+    };
+    let tile_times = || tile_ns.iter().map(|ns| Duration::from_nanos(ns.load(Ordering::Relaxed))).collect();
     if renderer.assembles_as_tiles_arrive() {
         // Each tile goes into the image on the thread that rendered it, while its pixels are in
         // that core's cache: no tile is kept, and no pass over the image follows the last one.
@@ -946,18 +959,23 @@ pub fn render_frame(world: &World, progress: Option<&(dyn Fn(usize, usize) + Syn
         let mut fb = blank_framebuffer((w, h));
         let bands = Bands::of(&mut fb);
         render_tiles(w, h, TILE_SIZE, |tile| {
-            let rendered = renderer.render_tile(tile);
-            bands.write(rendered.tile, &rendered.px, exposure);
+            timed(tile, &mut || {
+                let rendered = renderer.render_tile(tile);
+                bands.write(rendered.tile, &rendered.px, exposure);
+            });
             progress.tile_done();
         });
-        return (fb, frame_report(&renderer.frame, start));
+        let report = FrameReport { tile_times: tile_times(), ..frame_report(&renderer.frame, start) };
+        return (fb, report);
     }
     let tiles = render_tiles(w, h, TILE_SIZE, |tile| {
-        let rendered = renderer.render_tile(tile);
+        let mut rendered = None;
+        timed(tile, &mut || rendered = Some(renderer.render_tile(tile)));
         progress.tile_done();
         rendered
     });
-    renderer.finish(tiles, start)
+    let (fb, report) = renderer.finish(tiles.into_iter().flatten().collect(), start);
+    (fb, FrameReport { tile_times: tile_times(), ..report })
 }
 
 /// The frame's exposure (gain and gamma), where it has a valid one.
@@ -1482,6 +1500,7 @@ pub(crate) fn frame_report(frame: &Frame, start: Instant) -> FrameReport {
         accel: world.accel,
         light_paths: Duration::from_nanos(s.light_paths_ns.load(Ordering::Relaxed)),
         gathering: Duration::from_nanos(s.gathering_ns.load(Ordering::Relaxed)),
+        tile_times: Vec::new(),
     }
 }
 
@@ -1569,6 +1588,25 @@ mod tests {
         assert_eq!(bits(&fb.depth), bits(&assembled.depth));
         assert_eq!(fb.object_id, assembled.object_id);
         assert!(fb.rgba.chunks_exact(4).any(|p| p[0] > 0.0 && p[0] < 1.0), "the sphere was lit and exposed");
+    }
+
+    /// Both ways of rendering a frame's tiles (into the image as they finish, and kept for the
+    /// frame's filter) report each tile's time, in tile order; a frame assembled elsewhere none.
+    #[test]
+    fn a_frame_reports_the_time_of_each_of_its_tiles() {
+        for filter in ["", "PixelFilter \"gaussian\" 2 2\n"] {
+            let rib = format!("Format 70 40 1\n{filter}Projection \"perspective\" \"fov\" 50\nTranslate 0 0 4\nWorldBegin\nSurface \"matte\"\nSphere 1 -1 1 360\nWorldEnd\n");
+            let mut rt = crate::api::Context::new();
+            crate::rib::load::load_str(&mut rt, &rib, std::path::Path::new("<test>")).expect("the test scene loads");
+            let world = rt.build_world().expect("the test scene builds");
+            let renderer = TileRenderer::new(&world);
+            assert_eq!(renderer.assembles_as_tiles_arrive(), filter.is_empty());
+            let (_, report) = render_frame(&world, None);
+            assert_eq!(report.tile_times.len(), renderer.tiles().len(), "{filter}");
+            assert!(renderer.tiles().len() > 1);
+            let tiles: Vec<RenderedTile> = renderer.tiles().iter().map(|t| renderer.render_tile(t)).collect();
+            assert!(renderer.finish(tiles, Instant::now()).1.tile_times.is_empty());
+        }
     }
 
     #[test]
