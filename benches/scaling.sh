@@ -65,7 +65,7 @@ run() {
     echo "### $*"
     timeout 120 "$@" > /tmp/rtsl-scaling.log 2>&1
     local rc=$?
-    grep -E "^fps|frames: |MPI traffic|worker time|demand loading|worker ranks" /tmp/rtsl-scaling.log | sed -E 's/ update .*//' | cut -c1-420
+    grep -E "^fps|^tiles: |frames: |MPI traffic|worker time|demand loading|worker ranks" /tmp/rtsl-scaling.log | sed -E 's/ update .*//' | cut -c1-420
     [ $rc -ne 0 ] && { echo "exit status $rc"; tail -4 /tmp/rtsl-scaling.log; }
   }
   scenes() {  # $1: threads, then any prefix (mpirun) and flags
