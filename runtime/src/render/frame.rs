@@ -1486,10 +1486,10 @@ pub(crate) fn frame_report(frame: &Frame, start: Instant) -> FrameReport {
         light_evaluations: load(&s.light_evaluations),
         rays_cut: load(&s.rays_cut),
         lights_dropped: load(&s.lights_dropped),
-        shading: Duration::from_nanos(s.shading_ns.load(Ordering::Relaxed)),
-        by_kind: std::array::from_fn(|i| Duration::from_nanos(s.kind_ns[i].load(Ordering::Relaxed))),
+        shading: Duration::from_nanos(s.shading_ns()),
+        by_kind: s.kind_ns().map(Duration::from_nanos),
         by_shader: {
-            let programs = s.program_ns.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+            let programs = s.program_ns();
             let mut v: Vec<_> =
                 programs.iter().map(|(p, ns)| (p.name.clone(), p.kind, Duration::from_nanos(*ns))).collect();
             v.sort_by(|a, b| b.2.cmp(&a.2).then_with(|| a.0.cmp(&b.0)));
@@ -1498,8 +1498,8 @@ pub(crate) fn frame_report(frame: &Frame, start: Instant) -> FrameReport {
         threads: rayon::current_num_threads(),
         shader_messages: world.shader_messages(),
         accel: world.accel,
-        light_paths: Duration::from_nanos(s.light_paths_ns.load(Ordering::Relaxed)),
-        gathering: Duration::from_nanos(s.gathering_ns.load(Ordering::Relaxed)),
+        light_paths: Duration::from_nanos(s.light_paths_ns.load()),
+        gathering: Duration::from_nanos(s.gathering_ns.load()),
         tile_times: Vec::new(),
     }
 }

@@ -872,7 +872,7 @@ unsafe extern "C" fn host_rays(
             }
             if let Some(start) = start {
                 let ns = start.elapsed().as_nanos() as u64;
-                frame.stats.gathering_ns.fetch_add(ns, std::sync::atomic::Ordering::Relaxed);
+                frame.stats.gathering_ns.add(ns as usize);
             }
         }
         2 if !matches!(c.rays_log, RayLog::Direct) => {

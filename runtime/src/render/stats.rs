@@ -105,26 +105,74 @@ impl Drop for ShaderKindTimer {
 }
 
 /// A count of one frame, summed over threads. Each thread adds to a slot of its own, on a cache
-/// line of its own: with one shared count, both threads of a frame added to the same line at every
-/// packet and batch, and each addition would wait for the line to come back from the other core. A slot belongs to
-/// one thread for good ([`OWN_SLOT`]), so that thread adds with a plain load and store: a locked
-/// addition also waits for every store before it to drain (such as a light batch's row stores). Threads past the slots share
-/// one more, by locked additions.
-#[derive(Debug, Default)]
+/// line of its own: with one shared count, the threads of a frame added to the same line at every
+/// packet and batch, and each addition would wait for the line to come back from another core. A
+/// slot belongs to one thread while it lives ([`OWN_SLOT`]), so that thread adds with a plain load
+/// and store: a locked addition also waits for every store before it to drain (such as a light
+/// batch's row stores). Threads past the slots share one more, by locked additions.
+#[derive(Debug)]
 pub struct Counter {
-    slots: [CounterSlot; COUNTER_SLOTS],
-    shared: CounterSlot,
+    /// [`slot_count`] slots, then the shared one.
+    slots: Box<[CounterSlot]>,
 }
 
-/// Threads past this many (since the process started) share one more slot.
-const COUNTER_SLOTS: usize = 8;
+impl Default for Counter {
+    fn default() -> Counter {
+        Counter { slots: (0..=slot_count()).map(|_| CounterSlot::default()).collect() }
+    }
+}
 
-/// Which slot of every [`Counter`] this thread owns: the order in which threads first counted
-/// something. Never reused, so no two threads ever own the same slot.
+/// How many threads own slots of every [`Counter`] and of a frame's times at once: twice the
+/// processor's threads and a few more (pools of more threads than cores, a distributed worker's
+/// talking thread, the caller's own), so that every thread of a frame has one.
+fn slot_count() -> usize {
+    static COUNT: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
+    *COUNT.get_or_init(|| {
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        (2 * cores + 8).min(MOST_SLOTS)
+    })
+}
+
+/// The most slots a counter has, however many threads the processor runs (each slot a cache line
+/// pair in every counter of every frame).
+const MOST_SLOTS: usize = 1024;
+
+/// A thread's slot in every [`Counter`] and in a frame's times, which it gives back when it ends,
+/// so that the threads alive at once, not all the threads a long run ever started, need slots.
+struct SlotLease(usize);
+
+/// Slots given back by threads that ended.
+static FREE_SLOTS: Mutex<Vec<usize>> = Mutex::new(Vec::new());
+
+/// The next slot no thread has owned.
 static NEXT_SLOT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
 
+impl SlotLease {
+    fn take() -> SlotLease {
+        let freed = FREE_SLOTS.lock().unwrap_or_else(PoisonError::into_inner).pop();
+        SlotLease(freed.unwrap_or_else(|| NEXT_SLOT.fetch_add(1, Ordering::Relaxed)))
+    }
+}
+
+impl Drop for SlotLease {
+    /// The slot goes back through the lock, so the next thread to take it sees every addition this
+    /// one made before it starts adding to the same count with plain stores.
+    fn drop(&mut self) {
+        if self.0 < slot_count() {
+            FREE_SLOTS.lock().unwrap_or_else(PoisonError::into_inner).push(self.0);
+        }
+    }
+}
+
 thread_local! {
-    static OWN_SLOT: usize = NEXT_SLOT.fetch_add(1, Ordering::Relaxed);
+    /// Which slot of every [`Counter`] this thread owns: no two live threads own the same one.
+    static OWN_SLOT: SlotLease = SlotLease::take();
+}
+
+/// This thread's slot, or `usize::MAX` (past every slot) while it ends.
+#[inline]
+fn own_slot() -> usize {
+    OWN_SLOT.try_with(|s| s.0).unwrap_or(usize::MAX)
 }
 
 /// One thread's part of a [`Counter`], alone on its cache line (two lines: adjacent lines are
@@ -135,24 +183,41 @@ struct CounterSlot(AtomicU64);
 
 impl Counter {
     pub(super) fn add(&self, n: usize) {
-        let own = OWN_SLOT.try_with(|s| *s).unwrap_or(usize::MAX);
-        match self.slots.get(own) {
+        let own = own_slot();
+        match self.slots.get(own).filter(|_| own < self.slots.len() - 1) {
             // Only this thread writes it: readers see the count before or after, never a torn one.
             Some(slot) => slot.0.store(slot.0.load(Ordering::Relaxed).wrapping_add(n as u64), Ordering::Relaxed),
             None => {
-                self.shared.0.fetch_add(n as u64, Ordering::Relaxed);
+                if let Some(shared) = self.slots.last() {
+                    shared.0.fetch_add(n as u64, Ordering::Relaxed);
+                }
             }
         }
     }
 
     /// The sum over threads (of what they added before, for example, the frame's tiles joined).
     pub fn load(&self) -> u64 {
-        self.slots.iter().chain([&self.shared]).map(|s| s.0.load(Ordering::Relaxed)).sum()
+        self.slots.iter().map(|s| s.0.load(Ordering::Relaxed)).fold(0, u64::wrapping_add)
     }
 }
 
-/// Counters of one frame, summed over threads.
+/// One thread's shading times in a frame ([`Stats::shading_ns`] and the others), kept apart from
+/// other threads' for the same reason as a [`Counter`]'s slots: every outermost shading adds to
+/// them, and a lock or a line that all threads share would make them wait for each other.
 #[derive(Debug, Default)]
+struct Times {
+    shading_ns: u64,
+    kind_ns: [u64; ShaderKind::ALL.len()],
+    programs: Vec<(Program, u64)>,
+}
+
+/// A thread's [`Times`], on lines of its own; only its owner locks it while the frame renders.
+#[derive(Debug, Default)]
+#[repr(align(128))]
+struct TimeSlot(Mutex<Times>);
+
+/// Counters of one frame, summed over threads.
+#[derive(Debug)]
 pub struct Stats {
     pub primary_rays: Counter,
     pub shadow_rays: Counter,
@@ -166,23 +231,38 @@ pub struct Stats {
     /// Lights left out at shading points that more than `MAX_LIGHTS` reached (each area-light
     /// sample counts as a light).
     pub lights_dropped: Counter,
-    /// Time spent shading (surface and light shaders and the renderer's side of their calls),
-    /// tracing excluded, summed over threads.
-    pub shading_ns: AtomicU64,
-    /// Of that, the time inside each type of shader's batches (in [`ShaderKind::ALL`] order):
-    /// filling the batch, running it, reading it back and the host calls it makes, exclusive of
-    /// tracing and of other shaders it runs.
-    pub kind_ns: [AtomicU64; ShaderKind::ALL.len()],
-    /// The same time per shader program, in nanoseconds.
-    pub program_ns: Mutex<Vec<(Program, u64)>>,
+    /// Per thread slot, then the shared one: time spent shading (surface and light shaders and the
+    /// renderer's side of their calls), tracing excluded; of that, the time inside each type of
+    /// shader's batches (filling the batch, running it, reading it back and the host calls it
+    /// makes, exclusive of tracing and of other shaders it runs); and the same per shader program.
+    times: Box<[TimeSlot]>,
     /// Global illumination: the time spent tracing the frame's light paths (virtual lights and
     /// caustic photons, the photon map's tree included; threads that need them meanwhile wait),
-    /// and the threads' time gathering virtual lights (their shadow rays included).
-    pub light_paths_ns: AtomicU64,
-    pub gathering_ns: AtomicU64,
+    /// and the threads' time gathering virtual lights (their shadow rays included), nanoseconds.
+    pub light_paths_ns: Counter,
+    pub gathering_ns: Counter,
     /// Whether the shading times above are measured (`RenderOptions::time_shaders`; the frame
     /// sets it). Untimed, they stay zero and no clock is read.
     pub timed: bool,
+}
+
+impl Default for Stats {
+    fn default() -> Stats {
+        Stats {
+            primary_rays: Counter::default(),
+            shadow_rays: Counter::default(),
+            secondary_rays: Counter::default(),
+            transparency_rays: Counter::default(),
+            shaded_points: Counter::default(),
+            light_evaluations: Counter::default(),
+            rays_cut: Counter::default(),
+            lights_dropped: Counter::default(),
+            times: (0..=slot_count()).map(|_| TimeSlot::default()).collect(),
+            light_paths_ns: Counter::default(),
+            gathering_ns: Counter::default(),
+            timed: false,
+        }
+    }
 }
 
 thread_local! {
@@ -241,24 +321,64 @@ impl Drop for ShadingTimer<'_> {
         if let Some((start, traced_before)) = self.start {
             let traced = TRACE_NS.with(|t| t.get()) - traced_before;
             let ns = (start.elapsed().as_nanos() as u64).saturating_sub(traced);
-            self.stats.shading_ns.fetch_add(ns, Ordering::Relaxed);
             let entries = CLOCK.with(|c| std::mem::take(&mut c.borrow_mut().entries));
-            let mut programs = self.stats.program_ns.lock().unwrap_or_else(PoisonError::into_inner);
+            let slots = &self.stats.times;
+            let Some(slot) = slots.get(own_slot().min(slots.len() - 1)) else { return };
+            let mut times = slot.0.lock().unwrap_or_else(PoisonError::into_inner);
+            times.shading_ns += ns;
             for (program, ns) in entries {
                 let Some(program) = program.filter(|_| ns > 0) else { continue };
-                self.stats.kind_ns[kind_index(program.kind)].fetch_add(ns, Ordering::Relaxed);
-                match programs.iter_mut().find(|(p, _)| Arc::ptr_eq(p, &program)) {
-                    Some((_, total)) => *total += ns,
-                    None => programs.push((program, ns)),
-                }
+                times.kind_ns[kind_index(program.kind)] += ns;
+                add_program_time(&mut times.programs, program, ns);
             }
         }
     }
 }
 
+/// Adds `ns` to `program`'s entry in `programs`, or gives it one.
+fn add_program_time(programs: &mut Vec<(Program, u64)>, program: Program, ns: u64) {
+    match programs.iter_mut().find(|(p, _)| Arc::ptr_eq(p, &program)) {
+        Some((_, total)) => *total += ns,
+        None => programs.push((program, ns)),
+    }
+}
+
 impl Stats {
+    /// A frame's counters, all zero; its shaders timed where `timed` says.
+    pub(super) fn with_timing(timed: bool) -> Stats {
+        Stats { timed, ..Stats::default() }
+    }
+
     pub(super) fn add(counter: &Counter, n: usize) {
         counter.add(n);
+    }
+
+    /// Calls `f` with each thread's times (see [`Stats::times`]).
+    fn each_times(&self, mut f: impl FnMut(&Times)) {
+        for slot in self.times.iter() {
+            f(&slot.0.lock().unwrap_or_else(PoisonError::into_inner));
+        }
+    }
+
+    /// The time spent shading, tracing excluded, summed over threads (nanoseconds).
+    pub fn shading_ns(&self) -> u64 {
+        let mut sum = 0u64;
+        self.each_times(|t| sum = sum.wrapping_add(t.shading_ns));
+        sum
+    }
+
+    /// The time inside each type of shader's batches, in [`ShaderKind::ALL`] order (nanoseconds).
+    pub fn kind_ns(&self) -> [u64; ShaderKind::ALL.len()] {
+        let mut sums = [0u64; ShaderKind::ALL.len()];
+        self.each_times(|t| sums.iter_mut().zip(&t.kind_ns).for_each(|(s, n)| *s = s.wrapping_add(*n)));
+        sums
+    }
+
+    /// The time inside each shader program's batches (nanoseconds), each program once.
+    pub fn program_ns(&self) -> Vec<(Program, u64)> {
+        let mut all = Vec::new();
+        self.each_times(|t| t.programs.iter().for_each(|(p, ns)| add_program_time(&mut all, p.clone(), *ns)));
+        all
     }
 
     pub fn total_rays(&self) -> u64 {
@@ -271,13 +391,18 @@ mod tests {
     use super::*;
     use rayon::prelude::*;
 
+    /// Held by the tests that start more threads than there are slots, or that count which slots
+    /// threads get, so that one does not hold every slot while another counts.
+    static MANY_THREADS: Mutex<()> = Mutex::new(());
+
     /// What threads add, in and out of the pool (more threads than slots among them), is all
     /// counted, and the slots stay on lines of their own.
     #[test]
     fn counters_sum_what_every_thread_adds() {
+        let _alone = MANY_THREADS.lock().unwrap_or_else(PoisonError::into_inner);
         assert!(std::mem::align_of::<CounterSlot>() >= 128);
         let stats = Stats::default();
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(COUNTER_SLOTS + 3).build().unwrap();
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(slot_count() + 3).build().unwrap();
         pool.install(|| {
             (0..10_000usize).into_par_iter().for_each(|i| {
                 Stats::add(&stats.primary_rays, i % 7);
@@ -288,14 +413,63 @@ mod tests {
         // Threads of their own, more than there are slots, each adding many times: the slots they
         // own and the one they share lose nothing.
         std::thread::scope(|scope| {
-            for _ in 0..2 * COUNTER_SLOTS {
+            for _ in 0..2 * slot_count() {
                 scope.spawn(|| (0..100_000).for_each(|_| Stats::add(&stats.transparency_rays, 3)));
             }
         });
         let want: usize = (0..10_000).map(|i| i % 7).sum();
         assert_eq!(stats.primary_rays.load(), want as u64);
         assert_eq!(stats.shadow_rays.load(), 10_000);
-        assert_eq!(stats.transparency_rays.load(), 2 * COUNTER_SLOTS as u64 * 100_000 * 3);
-        assert_eq!(stats.total_rays(), want as u64 + 10_000 + 5 + 2 * COUNTER_SLOTS as u64 * 300_000);
+        assert_eq!(stats.transparency_rays.load(), 2 * slot_count() as u64 * 100_000 * 3);
+        assert_eq!(stats.total_rays(), want as u64 + 10_000 + 5 + 2 * slot_count() as u64 * 300_000);
+    }
+
+    /// A thread that ends gives its slot back: threads started one after another, many more than
+    /// there are slots, take the same few slots again rather than each a new one (which would
+    /// leave every thread after the first few sharing one line), and lose no count.
+    #[test]
+    fn threads_that_end_give_their_slots_back() {
+        let _alone = MANY_THREADS.lock().unwrap_or_else(PoisonError::into_inner);
+        let stats = Stats::default();
+        let threads = 4 * slot_count();
+        let mut owned = Vec::new();
+        for _ in 0..threads {
+            owned.push(std::thread::scope(|scope| {
+                scope
+                    .spawn(|| {
+                        Stats::add(&stats.shaded_points, 2);
+                        own_slot()
+                    })
+                    .join()
+                    .unwrap()
+            }));
+        }
+        assert_eq!(stats.shaded_points.load(), 2 * threads as u64);
+        owned.sort_unstable();
+        owned.dedup();
+        assert!(owned.len() < threads / 2, "{} distinct slots for {threads} threads in turn", owned.len());
+    }
+
+    /// Shading times are kept per thread and summed when read: what every thread's timers add is
+    /// in the frame's totals, by kind and by program.
+    #[test]
+    fn shading_times_sum_over_threads() {
+        let _alone = MANY_THREADS.lock().unwrap_or_else(PoisonError::into_inner);
+        let stats = Stats::default();
+        let threads = slot_count() + 3;
+        std::thread::scope(|scope| {
+            for _ in 0..threads {
+                scope.spawn(|| {
+                    let slot = own_slot().min(stats.times.len() - 1);
+                    let mut t = stats.times[slot].0.lock().unwrap();
+                    t.shading_ns += 5;
+                    t.kind_ns[1] += 3;
+                });
+            }
+        });
+        assert_eq!(stats.shading_ns(), 5 * threads as u64);
+        assert_eq!(stats.kind_ns()[1], 3 * threads as u64);
+        assert_eq!(stats.kind_ns().iter().sum::<u64>(), 3 * threads as u64);
+        assert!(stats.program_ns().is_empty());
     }
 }

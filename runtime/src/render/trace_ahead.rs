@@ -223,7 +223,7 @@ fn gather_all(frame: &Frame, noted: Vec<[Option<GatherAt>; 4]>) -> Vec<[Option<(
     virtual_lights::gather(lights, frame, &points, &mut light);
     if let Some(start) = start {
         let ns = start.elapsed().as_nanos() as u64;
-        frame.stats.gathering_ns.fetch_add(ns, std::sync::atomic::Ordering::Relaxed);
+        frame.stats.gathering_ns.add(ns as usize);
     }
     let mut sums = light.into_iter();
     noted.into_iter().map(|call| call.map(|g| Some((g?, sums.next()?)))).collect()

@@ -145,7 +145,7 @@ pub(super) fn timed<R>(frame: &Frame, f: impl FnOnce() -> R) -> R {
     let r = f();
     if let Some(start) = start {
         let ns = start.elapsed().as_nanos() as u64;
-        frame.stats.light_paths_ns.fetch_add(ns, std::sync::atomic::Ordering::Relaxed);
+        frame.stats.light_paths_ns.add(ns as usize);
     }
     r
 }

@@ -68,7 +68,7 @@ impl<'w> Frame<'w> {
         let instance_shadows = if transparent_shadows { world.instance_shadows() } else { Vec::new() };
         Frame {
             world,
-            stats: Stats { timed: world.options.time_shaders, ..Stats::default() },
+            stats: Stats::with_timing(world.options.time_shaders),
             transparent_shadows,
             instance_shadows,
             volumes: world.has_volumes(),
