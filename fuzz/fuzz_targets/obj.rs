@@ -1,6 +1,9 @@
 //! An OBJ file and its material library (the input split at its first NUL byte), read from a
-//! temporary folder as `rtsl render` reads them.
+//! temporary folder as `rtsl render` reads them. Its contexts share the run's shaders
+//! (`shared_shaders.rs`).
 #![no_main]
+
+mod shared_shaders;
 
 use libfuzzer_sys::fuzz_target;
 
@@ -16,6 +19,6 @@ fuzz_target!(|data: &[u8]| {
     if std::fs::write(&path, text).is_err() || std::fs::write(dir.path().join("fuzz.mtl"), mtl).is_err() {
         return;
     }
-    let mut rt = rtsl_runtime::api::Context::new();
+    let mut rt = shared_shaders::context();
     let _ = rtsl_runtime::scene_file::add_model_file(&mut rt, &path);
 });

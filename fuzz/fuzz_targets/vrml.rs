@@ -1,22 +1,18 @@
 //! VRML text, 97 or 1.0 by its header, through the reader and onto a `Context`, then its
 //! animation run at a few times and its sensors given a pointer: errors and warnings, never a
 //! panic, a hang or an allocation sized by a count in the file.
-//!
-//! The contexts of every input share one cache of compiled shaders (as in the `rib` target): the
-//! library shaders a VRML scene's materials use are compiled once for the run, not for each input.
+//! Its contexts share the run's shaders (`shared_shaders.rs`).
 #![no_main]
 
+mod shared_shaders;
+
 use libfuzzer_sys::fuzz_target;
-use rtsl_runtime::api::{Context, ShaderCache};
 use rtsl_runtime::vrml;
 use std::path::Path;
-use std::sync::{Arc, OnceLock};
 
 fuzz_target!(|data: &[u8]| {
-    static SHADERS: OnceLock<Arc<ShaderCache>> = OnceLock::new();
     let text = String::from_utf8_lossy(data);
-    let mut rt = Context::new();
-    rt.share_shader_cache(SHADERS.get_or_init(Default::default).clone());
+    let mut rt = shared_shaders::context();
     let path = Path::new("fuzz.wrl");
     let built = if vrml::is_vrml1(&text) {
         vrml::v1::build_str_with(&mut rt, &text, path, &vrml::VrmlOptions::default())
