@@ -322,9 +322,7 @@ impl Drop for ShadingTimer<'_> {
             let traced = TRACE_NS.with(|t| t.get()) - traced_before;
             let ns = (start.elapsed().as_nanos() as u64).saturating_sub(traced);
             let entries = CLOCK.with(|c| std::mem::take(&mut c.borrow_mut().entries));
-            let slots = &self.stats.times;
-            let Some(slot) = slots.get(own_slot().min(slots.len() - 1)) else { return };
-            let mut times = slot.0.lock().unwrap_or_else(PoisonError::into_inner);
+            let Some(mut times) = self.stats.own_times() else { return };
             times.shading_ns += ns;
             for (program, ns) in entries {
                 let Some(program) = program.filter(|_| ns > 0) else { continue };
@@ -351,6 +349,12 @@ impl Stats {
 
     pub(super) fn add(counter: &Counter, n: usize) {
         counter.add(n);
+    }
+
+    /// This thread's times: its slot's, or the shared slot past the last.
+    fn own_times(&self) -> Option<std::sync::MutexGuard<'_, Times>> {
+        let slot = self.times.get(own_slot().min(self.times.len().checked_sub(1)?))?;
+        Some(slot.0.lock().unwrap_or_else(PoisonError::into_inner))
     }
 
     /// Calls `f` with each thread's times (see [`Stats::times`]).
@@ -460,8 +464,7 @@ mod tests {
         std::thread::scope(|scope| {
             for _ in 0..threads {
                 scope.spawn(|| {
-                    let slot = own_slot().min(stats.times.len() - 1);
-                    let mut t = stats.times[slot].0.lock().unwrap();
+                    let mut t = stats.own_times().expect("a frame has time slots");
                     t.shading_ns += 5;
                     t.kind_ns[1] += 3;
                 });
