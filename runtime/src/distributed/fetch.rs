@@ -56,6 +56,7 @@ pub struct FetchLink {
     fetched_part_bytes: AtomicU64,
     fetched_textures: AtomicU64,
     fetched_texture_levels: AtomicU64,
+    fetched_texture_tiles: AtomicU64,
     fetched_texture_bytes: AtomicU64,
     /// Render threads' time waiting for the master's answers, and making fetched meshes ready
     /// (decoding them, building their BVHs), this frame (nanoseconds).
@@ -91,10 +92,11 @@ pub(super) struct Fetched {
     /// Parts of objects' BVHs, and their bytes.
     pub parts: u64,
     pub part_bytes: u64,
-    /// Textures, shadow maps and grids (a texture's first answer), and the mip levels fetched
-    /// after it, with the bytes of both.
+    /// Textures, shadow maps and grids (a texture's first answer), and the mip levels and tiles
+    /// of levels fetched after it, with the bytes of all.
     pub textures: u64,
     pub texture_levels: u64,
+    pub texture_tiles: u64,
     pub texture_bytes: u64,
     /// Objects and parts of objects' BVHs evicted before the frame.
     pub evicted: u64,
@@ -140,6 +142,7 @@ impl FetchLink {
             part_bytes: take(&self.fetched_part_bytes),
             textures: take(&self.fetched_textures),
             texture_levels: take(&self.fetched_texture_levels),
+            texture_tiles: take(&self.fetched_texture_tiles),
             texture_bytes: take(&self.fetched_texture_bytes),
             evicted: take(&self.evicted),
             evicted_parts: take(&self.evicted_parts),
@@ -194,9 +197,9 @@ impl FetchLink {
 
     /// The digest of the texture from which a cache made what the link keeps of `part` of
     /// `name`, sent with a request for it: the master answers [`TextureAnswer::Unchanged`] when
-    /// it would send the same texture. Only whole textures and pyramids are kept, not levels.
+    /// it would send the same texture. Only whole textures and pyramids are kept, not levels or tiles.
     pub(super) fn held_digest(&self, part: TexturePart, name: &str) -> Option<[u8; 32]> {
-        if matches!(part, TexturePart::Level { .. }) {
+        if matches!(part, TexturePart::Level { .. } | TexturePart::Tile { .. }) {
             return None;
         }
         let kept = self.kept_made.lock().unwrap_or_else(PoisonError::into_inner);
@@ -399,6 +402,7 @@ impl TextureSource for FetchLink {
         };
         let counter = match part {
             TexturePart::Level { .. } => &self.fetched_texture_levels,
+            TexturePart::Tile { .. } => &self.fetched_texture_tiles,
             TexturePart::Whole(_) | TexturePart::Pyramid { .. } => &self.fetched_textures,
         };
         counter.fetch_add(1, Ordering::Relaxed);
@@ -406,7 +410,8 @@ impl TextureSource for FetchLink {
         let answer = decode_answer(&bytes).unwrap_or_else(failed);
         // The texture an answer stands for: a pyramid says; a whole answer is the texture.
         let digest = match (&answer, part) {
-            (_, TexturePart::Level { .. }) | (TextureAnswer::Whole(Delivered::Missing { .. }), _) => None,
+            (_, TexturePart::Level { .. } | TexturePart::Tile { .. })
+            | (TextureAnswer::Whole(Delivered::Missing { .. }), _) => None,
             (TextureAnswer::Pyramid(header), _) => Some(header.digest),
             (TextureAnswer::Whole(_), _) => Some(blake3::hash(&bytes).into()),
             _ => None,

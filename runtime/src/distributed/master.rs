@@ -225,10 +225,11 @@ pub struct Demand {
     pub resident_parts: u64,
     /// Parts the workers evicted from their caches before the frame.
     pub evicted_parts: u64,
-    /// Textures, shadow maps and grids the workers fetched, the mip levels they fetched after a
-    /// texture's first answer, and the bytes of both.
+    /// Textures, shadow maps and grids the workers fetched, the mip levels and tiles of levels
+    /// they fetched after a texture's first answer, and the bytes of all.
     pub fetched_textures: u64,
     pub fetched_texture_levels: u64,
+    pub fetched_texture_tiles: u64,
     pub fetched_texture_bytes: u64,
     /// Objects the workers evicted from their caches before the frame.
     pub evicted_objects: u64,
@@ -324,6 +325,12 @@ impl<T: Transport> Master<T> {
     /// Sends objects of more than `above` triangles in parts of at most `part_triangles`
     /// ([`crate::accel::parts`]; by default [`PARTED_ABOVE`] and [`PART_TRIANGLES`]). Takes effect
     /// for objects encoded from now on.
+    /// Sends the large levels of textures whose whole takes at least `bytes` to the workers in
+    /// tiles (`texture/level_tiles.rs`; [`crate::texture::TILED_FROM_BYTES`] unless set).
+    pub fn set_texture_tiles_from(&mut self, bytes: usize) {
+        self.texture_server = TextureServer::new().with_tiles_from(bytes);
+    }
+
     pub fn set_parts(&mut self, above: usize, part_triangles: u32) {
         (self.parted_above, self.part_triangles) = (above, part_triangles.max(1));
         self.encoded_objects.clear();
@@ -732,6 +739,7 @@ impl<T: Transport> Master<T> {
             evicted_parts: counts.iter().map(|c| c.evicted_parts).sum(),
             fetched_textures: counts.iter().map(|c| c.fetched_textures).sum(),
             fetched_texture_levels: counts.iter().map(|c| c.fetched_texture_levels).sum(),
+            fetched_texture_tiles: counts.iter().map(|c| c.fetched_texture_tiles).sum(),
             fetched_texture_bytes: counts.iter().map(|c| c.fetched_texture_bytes).sum(),
             evicted_objects: counts.iter().map(|c| c.evicted_objects).sum(),
             resident_objects: counts.iter().map(|c| c.resident_objects).sum(),

@@ -8,7 +8,7 @@ use crate::texture::{TextureKind, TexturePart};
 use rtsl_compiler::interface::ShaderKind;
 
 /// The protocol's version: ranks that speak different versions refuse each other at start-up.
-pub const PROTOCOL_VERSION: u32 = 25;
+pub const PROTOCOL_VERSION: u32 = 26;
 
 /// What the master's counters add up from a worker's share of a frame.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -34,8 +34,8 @@ pub struct FrameCounts {
     /// Textures the worker could not load: name, file (empty when none was found) and why.
     pub texture_warnings: Vec<(String, String, String)>,
     /// Demand loading: objects fetched from the master this frame and their bytes, textures
-    /// (shadow maps and grids included), the mip levels fetched after a texture's first answer,
-    /// and the bytes of both, objects evicted from the cache before the
+    /// (shadow maps and grids included), the mip levels and tiles of levels fetched after a
+    /// texture's first answer, and the bytes of all, objects evicted from the cache before the
     /// frame, objects held after it, and objects rays reached in the frame (held before it or
     /// fetched by it: the fetched ones are the cache's misses); and the objects of a new scene
     /// that took the meshes the last scene had fetched (not fetched again), and the textures that
@@ -51,6 +51,7 @@ pub struct FrameCounts {
     pub evicted_parts: u64,
     pub fetched_textures: u64,
     pub fetched_texture_levels: u64,
+    pub fetched_texture_tiles: u64,
     pub fetched_texture_bytes: u64,
     pub evicted_objects: u64,
     pub resident_objects: u64,
@@ -272,6 +273,7 @@ impl Message {
                 w.u64(counts.evicted_parts);
                 w.u64(counts.fetched_textures);
                 w.u64(counts.fetched_texture_levels);
+                w.u64(counts.fetched_texture_tiles);
                 w.u64(counts.fetched_texture_bytes);
                 w.u64(counts.evicted_objects);
                 w.u64(counts.resident_objects);
@@ -380,7 +382,8 @@ impl Message {
                 let (fetched_objects, fetched_bytes) = (r.u64()?, r.u64()?);
                 let (fetched_parts, fetched_part_bytes, resident_parts) = (r.u64()?, r.u64()?, r.u64()?);
                 let evicted_parts = r.u64()?;
-                let (fetched_textures, fetched_texture_levels, fetched_texture_bytes) = (r.u64()?, r.u64()?, r.u64()?);
+                let (fetched_textures, fetched_texture_levels) = (r.u64()?, r.u64()?);
+                let (fetched_texture_tiles, fetched_texture_bytes) = (r.u64()?, r.u64()?);
                 let (evicted_objects, resident_objects, reached_objects) = (r.u64()?, r.u64()?, r.u64()?);
                 let (kept_objects, kept_textures) = (r.u64()?, r.u64()?);
                 let (world_ns, share_ns, rendering_ns, rendering_cpu_ns) = (r.u64()?, r.u64()?, r.u64()?, r.u64()?);
@@ -418,6 +421,7 @@ impl Message {
                     evicted_parts,
                     fetched_textures,
                     fetched_texture_levels,
+                    fetched_texture_tiles,
                     fetched_texture_bytes,
                     evicted_objects,
                     resident_objects,
@@ -511,6 +515,12 @@ impl Writer {
                 self.u8(4);
                 self.u8(u8::from(raw));
                 self.u32(level);
+            }
+            TexturePart::Tile { raw, level, tile } => {
+                self.u8(5);
+                self.u8(u8::from(raw));
+                self.u32(level);
+                self.u32(tile);
             }
         }
     }
@@ -638,7 +648,8 @@ impl<'a> Reader<'a> {
         (0..n).map(|_| self.u32()).collect()
     }
     /// A [`TexturePart`]: a byte (0 to 2 the whole as a texture, shadow map or grid, 3 a
-    /// pyramid, 4 a level), then for a pyramid or level whether raw (a byte), and a level's index.
+    /// pyramid, 4 a level, 5 a tile), then for a pyramid, level or tile whether raw (a byte), a
+    /// level's index, and a tile's.
     fn part(&mut self) -> Result<TexturePart, String> {
         let tag = self.u8()?;
         let mut raw = || match self.u8()? {
@@ -654,6 +665,10 @@ impl<'a> Reader<'a> {
             4 => {
                 let raw = raw()?;
                 TexturePart::Level { raw, level: self.u32()? }
+            }
+            5 => {
+                let raw = raw()?;
+                TexturePart::Tile { raw, level: self.u32()?, tile: self.u32()? }
             }
             v => Err(format!("{v} is no part of a texture"))?,
         })
@@ -729,6 +744,7 @@ mod tests {
                     evicted_parts: 31,
                     fetched_textures: 15,
                     fetched_texture_levels: 25,
+                    fetched_texture_tiles: 31,
                     fetched_texture_bytes: 16,
                     evicted_objects: 13,
                     resident_objects: 14,
@@ -756,6 +772,7 @@ mod tests {
                     (TexturePart::Whole(TextureKind::Grid), String::new(), None),
                     (TexturePart::Pyramid { raw: true }, "wood.ppm".into(), Some([0; 32])),
                     (TexturePart::Level { raw: false, level: 3 }, "wood.ppm".into(), None),
+                    (TexturePart::Tile { raw: true, level: 1, tile: 70_000 }, "wood.ppm".into(), None),
                 ],
             },
             Message::Data {

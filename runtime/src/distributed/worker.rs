@@ -530,6 +530,7 @@ fn render_share<T: Transport + ?Sized>(
         (counts.fetched_parts, counts.fetched_part_bytes) = (fetched.parts, fetched.part_bytes);
         (counts.fetched_textures, counts.fetched_texture_levels, counts.fetched_texture_bytes) =
             (fetched.textures, fetched.texture_levels, fetched.texture_bytes);
+        counts.fetched_texture_tiles = fetched.texture_tiles;
         (counts.evicted_objects, counts.evicted_parts) = (fetched.evicted, fetched.evicted_parts);
         counts.kept_objects = fetched.kept;
         counts.kept_textures = fetched.kept_textures;

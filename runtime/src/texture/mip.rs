@@ -20,6 +20,7 @@
 //! every lane at once); [`MipMap::filter`] is the same on one lane.
 
 use super::image::{TexImage, TEXEL_PADDING};
+use super::level_tiles::{tile_grid, TiledLevel, MAX_TILES_A_MAP};
 use super::{Footprint, LookupOptions, Wrap};
 use glam::{BVec4A, IVec4, Mat4, UVec4, Vec4};
 use std::fmt;
@@ -35,16 +36,23 @@ pub const MAX_ANISOTROPY: usize = 16;
 /// needed.
 const ANISOTROPY_SLACK: f32 = 0.25;
 
+/// The locks a remote map fetches its tiles under ([`RemoteLevels::tile_locks`]).
+const TILE_LOCKS: usize = 8;
+
 /// A texture with its pre-filtered levels, immutable once built (so it is shared freely).
 ///
 /// A map built here ([`MipMap::with_wrap`]) holds every level. A map a distributed worker
 /// fetches ([`MipMap::remote`]) starts with its coarsest levels and gets each finer one the
 /// first time a lookup reads it: computed from a finer level it holds, else fetched
-/// (`texture/remote.rs`). Either way a level, once here, is the one the whole image would
-/// have made, bit for bit, and stays.
+/// (`texture/remote.rs`); a large level comes a tile at a time instead, each tile the first time
+/// a lookup reads a texel of it (`texture/level_tiles.rs`). Either way a level or a tile, once
+/// here, is the one the whole image would have made, bit for bit, and stays.
 pub struct MipMap {
     /// Finest (the image itself) first; set once each.
     levels: Box<[OnceLock<TexImage>]>,
+    /// A remote map's levels that come in tiles, where it does not hold them whole (`None` for
+    /// the others); empty for a map built here.
+    tiled: Box<[Option<TiledLevel>]>,
     /// Where the levels not yet here come from (a map built here has none missing).
     remote: Option<RemoteLevels>,
     /// The wrap modes of the file (s, t); a lookup may override them.
@@ -75,6 +83,9 @@ pub(crate) struct RemotePyramid {
     pub projection: Option<[[f32; 16]; 2]>,
     pub finite: bool,
     pub coarsest: Vec<TexImage>,
+    /// The side of the tiles the finer levels come in where they are large (0: whole levels
+    /// only); see `level_tiles.rs`.
+    pub tile_side: usize,
 }
 
 /// Where a remote [`MipMap`] gets the levels it does not hold.
@@ -82,11 +93,18 @@ pub(crate) trait LevelFetch: Send + Sync {
     /// Level `level` of the map whose level 0 is `size` (width, height, channels), or the image
     /// itself; `None` when neither came (the source has recorded why).
     fn fetch_level(&self, level: usize, size: [usize; 3]) -> Option<FetchedLevel>;
+
+    /// Tile `tile` of level `level` (a tile `tile_size` texels wide and high), or the image
+    /// itself; `None` when neither came (the source has recorded why).
+    fn fetch_tile(&self, level: usize, tile: usize, tile_size: [usize; 2], size: [usize; 3]) -> Option<FetchedLevel>;
+
+    /// Records that something it delivered could not be used: the frame fails.
+    fn failed(&self, message: String);
 }
 
 /// What a [`LevelFetch`] delivers.
 pub(crate) enum FetchedLevel {
-    /// The level asked for.
+    /// The level (or the tile) asked for.
     Level(TexImage),
     /// Level 0, the image, from which the map computes the rest.
     Image(TexImage),
@@ -98,6 +116,9 @@ struct RemoteLevels {
     fetch: Arc<dyn LevelFetch>,
     /// Held while a level is filled in.
     busy: Arc<Mutex<()>>,
+    /// Tile `k` is fetched holding lock `k % TILE_LOCKS`: threads that want other tiles fetch
+    /// them meanwhile (a worker's requests go to the master together).
+    tile_locks: Arc<[Mutex<()>]>,
     /// What a level whose fetch failed reads as: one texel of zeros. Lookups read it safely in
     /// place of a larger level: every tap is checked against the image it reads, not against the
     /// level's shape.
@@ -109,6 +130,7 @@ impl Clone for MipMap {
     fn clone(&self) -> MipMap {
         MipMap {
             levels: self.levels.iter().map(|l| l.get().cloned().map(OnceLock::from).unwrap_or_default()).collect(),
+            tiled: self.tiled.clone(),
             remote: self.remote.clone(),
             shapes: self.shapes.clone(),
             ..*self
@@ -165,7 +187,7 @@ impl MipMap {
     /// when `pyramid` does not hold (a size of zero, no 1x1 level, a coarse level of another
     /// size or length).
     pub(crate) fn remote(pyramid: RemotePyramid, fetch: Arc<dyn LevelFetch>) -> Option<MipMap> {
-        let RemotePyramid { width, height, channels, wrap, projection, finite, coarsest } = pyramid;
+        let RemotePyramid { width, height, channels, wrap, projection, finite, coarsest, tile_side } = pyramid;
         if width == 0 || height == 0 || channels == 0 || width.checked_mul(height)?.checked_mul(channels).is_none() {
             return None;
         }
@@ -185,8 +207,20 @@ impl MipMap {
             levels[first + k] = OnceLock::from(level);
         }
         let stand_in = Arc::new(TexImage::new(1, 1, channels, vec![0.0; channels])?);
-        let remote = RemoteLevels { fetch, busy: Arc::new(Mutex::new(())), stand_in };
-        let map = MipMap::assemble([width, height, channels], levels.into(), Some(remote), wrap, finite);
+        // The levels not held in tiles, unless the map would have more than its share of them (a
+        // slot each): then a level at a time.
+        let tiles: usize = sizes[..first].iter().filter_map(|&s| tile_grid(s, tile_side)).map(|[a, d]| a * d).sum();
+        let tiled: Box<[Option<TiledLevel>]> = if tiles <= MAX_TILES_A_MAP && tile_side.is_power_of_two() {
+            sizes.iter().enumerate().map(|(i, &s)| TiledLevel::new(s, tile_side).filter(|_| i < first)).collect()
+        } else {
+            Box::default()
+        };
+        let tile_locks = (0..TILE_LOCKS).map(|_| Mutex::new(())).collect();
+        let remote = RemoteLevels { fetch, busy: Arc::new(Mutex::new(())), tile_locks, stand_in };
+        let mut map = MipMap::assemble([width, height, channels], levels.into(), Some(remote), wrap, finite);
+        if tiled.iter().any(Option::is_some) {
+            map.tiled = tiled;
+        }
         Some(map.with_projection(projection))
     }
 
@@ -206,7 +240,19 @@ impl MipMap {
         let power_of_two_levels =
             periodic_lanes && sizes.iter().all(|&[w, h]| periodic_masks([w, h], [Wrap::Periodic; 2]).is_some());
         let shapes = sizes.iter().map(|&[w, h]| LevelShape::of(w, h, size[2])).collect();
-        MipMap { levels, remote, wrap, projection: None, periodic_lanes, power_of_two_levels, shapes, finite, size }
+        let tiled = Box::default();
+        MipMap {
+            levels,
+            tiled,
+            remote,
+            wrap,
+            projection: None,
+            periodic_lanes,
+            power_of_two_levels,
+            shapes,
+            finite,
+            size,
+        }
     }
 
     /// How many levels the pyramid has (each halving the last, down to 1x1).
@@ -273,6 +319,153 @@ impl MipMap {
         match self.levels[i].get() {
             Some(level) => level,
             None => &remote.stand_in,
+        }
+    }
+
+    /// How many tiles of level `i` a remote map holds and how many it is cut into, where that
+    /// level comes in tiles.
+    #[cfg(test)]
+    pub(crate) fn tiles_held(&self, i: usize) -> Option<[usize; 2]> {
+        let tiled = self.tiled.get(i)?.as_ref()?;
+        Some([tiled.held(), tiled.count()])
+    }
+
+    /// Whether level `i` is to be read tile by tile: a remote map's level that comes in tiles,
+    /// which it holds neither whole nor computes from a finer level it holds.
+    #[inline(always)]
+    fn reads_tiles(&self, i: usize) -> bool {
+        self.tiled.get(i).is_some_and(Option::is_some) && !self.levels[..=i].iter().any(|l| l.get().is_some())
+    }
+
+    /// How a probe reads level `i`: tile by tile where [`MipMap::reads_tiles`], else whole
+    /// (fetched or computed first where a remote map lacks it).
+    fn level_read(&self, i: usize) -> LevelRead<'_> {
+        match self.tiled.get(i) {
+            Some(Some(tiled)) if self.reads_tiles(i) => LevelRead::Tiles(self, i, tiled),
+            _ => LevelRead::Whole(self.level_at(i)),
+        }
+    }
+
+    /// Adds `weight` times the bilinear interpolation at (s, t) of level `i`, which comes in
+    /// tiles, to `out`: the values [`accumulate_taps`] gives on the whole level, tile by tile.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn accumulate_tile_taps<const N: usize>(
+        &self,
+        i: usize,
+        tiled: &TiledLevel,
+        s: f32,
+        t: f32,
+        wrap: [Wrap; 2],
+        first: usize,
+        weight: f32,
+        out: &mut [f32],
+    ) {
+        let Some(out) = out.first_chunk_mut::<N>() else { return };
+        let [w, h] = tiled.size();
+        let (rows, columns, taps) = bilinear_places(w, h, s, t, wrap, weight);
+        let mut sum = *out;
+        for (k, tap) in taps.into_iter().enumerate() {
+            let (Some(y), Some(x)) = (rows[k / 2], columns[k % 2]) else { continue };
+            if tap == 0.0 {
+                continue;
+            }
+            let Some(texel) = self.tile_texel(i, tiled, x, y).and_then(|t| t.get(first..)?.first_chunk::<N>()) else {
+                continue;
+            };
+            for (o, v) in sum.iter_mut().zip(texel) {
+                *o = tap.mul_add(*v, *o);
+            }
+        }
+        *out = sum;
+    }
+
+    /// [`MipMap::accumulate_tile_taps`] for any number of channels, as [`accumulate_bilinear`].
+    #[allow(clippy::too_many_arguments)]
+    fn accumulate_tiles(
+        &self,
+        i: usize,
+        tiled: &TiledLevel,
+        s: f32,
+        t: f32,
+        wrap: [Wrap; 2],
+        first: usize,
+        weight: f32,
+        out: &mut [f32],
+    ) {
+        let n = out.len().min(self.channels().saturating_sub(first));
+        match n {
+            0 => {}
+            1 => self.accumulate_tile_taps::<1>(i, tiled, s, t, wrap, first, weight, out),
+            3 => self.accumulate_tile_taps::<3>(i, tiled, s, t, wrap, first, weight, out),
+            4 => self.accumulate_tile_taps::<4>(i, tiled, s, t, wrap, first, weight, out),
+            _ => {
+                let [w, h] = tiled.size();
+                let (rows, columns, taps) = bilinear_places(w, h, s, t, wrap, weight);
+                for (k, tap) in taps.into_iter().enumerate() {
+                    let (Some(y), Some(x)) = (rows[k / 2], columns[k % 2]) else { continue };
+                    if tap == 0.0 {
+                        continue;
+                    }
+                    let Some(texel) = self.tile_texel(i, tiled, x, y).and_then(|t| t.get(first..first + n)) else {
+                        continue;
+                    };
+                    for (o, v) in out.iter_mut().zip(texel) {
+                        *o = tap.mul_add(*v, *o);
+                    }
+                }
+            }
+        }
+    }
+
+    /// The values of texel (x, y) of level `i`, which comes in tiles: from its tile, fetched first
+    /// when not held; from the whole level where that came instead; `None` when neither came.
+    #[inline(always)]
+    fn tile_texel<'a>(&'a self, i: usize, tiled: &'a TiledLevel, x: usize, y: usize) -> Option<&'a [f32]> {
+        let (index, [tx, ty]) = tiled.tile_of(x, y);
+        let channels = self.channels();
+        match tiled.get(index).or_else(|| self.missing_tile(i, tiled, index)) {
+            Some(tile) => tile.data().get((ty * tile.width() + tx) * channels..)?.get(..channels),
+            None => {
+                let level = self.levels[i].get()?;
+                level.data().get((y * level.width() + x) * channels..)?.get(..channels)
+            }
+        }
+    }
+
+    /// Tile `index` of level `i`, not held yet: fetched, unless what was fetched of the map
+    /// already makes the image worth more; `None` when the level is held whole now (the image
+    /// came instead: the level is computed from it) or nothing came (the source has recorded
+    /// why; the tile reads as zeros, the frame fails, and the tile is fetched again when next
+    /// read).
+    #[cold]
+    #[inline(never)]
+    fn missing_tile<'a>(&'a self, i: usize, tiled: &'a TiledLevel, index: usize) -> Option<&'a TexImage> {
+        let remote = self.remote.as_ref()?;
+        let _busy = remote.tile_locks[index % remote.tile_locks.len()].lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some(tile) = tiled.get(index) {
+            return Some(tile);
+        }
+        if !self.reads_tiles(i) {
+            // The image came meanwhile.
+            self.level_at(i);
+            return None;
+        }
+        match remote.fetch.fetch_tile(i, index, tiled.tile_size(index)?, self.size)? {
+            FetchedLevel::Level(tile) => {
+                if tiled.set(index, tile, self.channels()) {
+                    tiled.get(index)
+                } else {
+                    let message = format!("tile {index} of mip level {i} is not the size it was cut to");
+                    remote.fetch.failed(message);
+                    None
+                }
+            }
+            FetchedLevel::Image(image) => {
+                let _ = self.levels[0].set(image);
+                self.level_at(i);
+                None
+            }
         }
     }
 
@@ -392,12 +585,22 @@ impl MipMap {
         let values = (out.len() / 4).min(MAX_LANE_VALUES);
         let (s, t) = (lanes.s.to_array(), lanes.t.to_array());
         let mut left = active;
-        if wrap == [Wrap::Periodic; 2] && self.periodic_lanes && self.finite && values <= 4 {
+        let whole_levels = self.tiled.is_empty() || self.lanes_read_whole_levels(&plans, active);
+        if wrap == [Wrap::Periodic; 2] && self.periodic_lanes && self.finite && values <= 4 && whole_levels {
             left = self.filter_lanes_periodic([s, t], active, first, &plans, out, values, opts.fill);
         }
         if left.contains(&true) {
             self.filter_lanes_one_by_one([s, t], left, first, &plans, out, values, opts.fill, wrap);
         }
+    }
+
+    /// Whether the `active` lanes of `plans` read no level tile by tile ([`MipMap::reads_tiles`]).
+    #[inline(never)]
+    fn lanes_read_whole_levels(&self, plans: &ProbePlans, active: [bool; 4]) -> bool {
+        (0..4).filter(|&l| active[l]).all(|l| {
+            let ([a, b], _, two) = self.blended_levels(plans.lod[l], 1.0);
+            !(self.reads_tiles(a) || two && self.reads_tiles(b))
+        })
     }
 
     /// [`MipMap::filter_lanes`] of the lanes `left`, one after the other. Out of line: the common
@@ -586,6 +789,11 @@ impl MipMap {
     /// between them), the same for every probe of a lookup.
     fn trilinear(&self, lod: f32, weight: f32, wrap: [Wrap; 2]) -> Trilinear<'_> {
         let ([a, b], weights, two) = self.blended_levels(lod, weight);
+        if !self.tiled.is_empty() && (self.reads_tiles(a) || two && self.reads_tiles(b)) {
+            let first = self.level_read(a);
+            let levels = [first, if two { self.level_read(b) } else { first }];
+            return Trilinear::Tiles { levels, weights, two };
+        }
         if two {
             Trilinear::Two(LevelPair::new([self.level_at(a), self.level_at(b)], weights, wrap))
         } else {
@@ -625,6 +833,21 @@ enum Probing {
 enum Trilinear<'a> {
     One(&'a TexImage, f32),
     Two(LevelPair<'a>),
+    /// A remote map's levels of which one at least is read tile by tile: the first level, and the
+    /// second where `two`, one after the other (the values [`Trilinear::Two`] gives).
+    Tiles {
+        levels: [LevelRead<'a>; 2],
+        weights: [f32; 2],
+        two: bool,
+    },
+}
+
+/// How a probe reads a level of a remote map ([`MipMap::level_read`]): whole, or level `.1` of
+/// map `.0` tile by tile.
+#[derive(Clone, Copy)]
+enum LevelRead<'a> {
+    Whole(&'a TexImage),
+    Tiles(&'a MipMap, usize, &'a TiledLevel),
 }
 
 impl Trilinear<'_> {
@@ -633,6 +856,16 @@ impl Trilinear<'_> {
         match self {
             Trilinear::One(img, weight) => accumulate_bilinear(img, s, t, wrap, first, *weight, out),
             Trilinear::Two(pair) => accumulate_bilinear_pair(pair.levels, s, t, wrap, first, pair.weights, out),
+            Trilinear::Tiles { levels, weights, two } => {
+                for (level, &weight) in levels.iter().zip(weights).take(1 + usize::from(*two)) {
+                    match *level {
+                        LevelRead::Whole(img) => accumulate_bilinear(img, s, t, wrap, first, weight, out),
+                        LevelRead::Tiles(map, i, tiled) => {
+                            map.accumulate_tiles(i, tiled, s, t, wrap, first, weight, out)
+                        }
+                    }
+                }
+            }
         }
     }
 
@@ -692,6 +925,20 @@ impl Trilinear<'_> {
                 for k in 0..probes {
                     let (s, t) = probe(k);
                     accumulate_pair_taps::<N>(pair, s, t, wrap, first, out);
+                }
+            }
+            Trilinear::Tiles { levels, weights, two } => {
+                let levels = &levels[..1 + usize::from(*two)];
+                for k in 0..probes {
+                    let (s, t) = probe(k);
+                    for (level, &weight) in levels.iter().zip(weights) {
+                        match *level {
+                            LevelRead::Whole(img) => accumulate_taps::<N>(img, s, t, wrap, first, weight, out),
+                            LevelRead::Tiles(map, i, tiled) => {
+                                map.accumulate_tile_taps::<N>(i, tiled, s, t, wrap, first, weight, out)
+                            }
+                        }
+                    }
                 }
             }
         }
@@ -908,6 +1155,7 @@ impl<'a> PeriodicProbes<'a> {
                 size: pair.size,
                 masks: pair.masks?,
             }),
+            Trilinear::Tiles { .. } => None,
         }
     }
 
@@ -1415,25 +1663,46 @@ fn accumulate_pair_taps<const N: usize>(
 #[inline(always)]
 fn bilinear_taps(img: &TexImage, s: f32, t: f32, wrap: [Wrap; 2], weight: f32) -> ([usize; 4], [f32; 4]) {
     let (w, ch) = (img.width(), img.channels());
+    let (rows, columns, weights) = bilinear_places(w, img.height(), s, t, wrap, weight);
+    let mut offsets = [0; 4];
+    let mut taps = [0.0; 4];
+    for (k, (offset, tap)) in offsets.iter_mut().zip(&mut taps).enumerate() {
+        if let (Some(iy), Some(ix)) = (rows[k / 2], columns[k % 2]) {
+            *offset = (iy * w + ix) * ch;
+            *tap = weights[k];
+        }
+    }
+    (offsets, taps)
+}
+
+/// The rows and columns of the four taps around (s, t) on a level of `w x h` texels (`None`
+/// outside a black border), and the taps' weights, rows then columns (0 for a tap outside).
+#[inline(always)]
+fn bilinear_places(
+    w: usize,
+    h: usize,
+    s: f32,
+    t: f32,
+    wrap: [Wrap; 2],
+    weight: f32,
+) -> ([Option<usize>; 2], [Option<usize>; 2], [f32; 4]) {
     let x = s * w as f32 - 0.5;
-    let y = t * img.height() as f32 - 0.5;
+    let y = t * h as f32 - 0.5;
     let (x0, y0) = (floor(x), floor(y));
     let (fx, fy) = (x - x0, y - y0);
     let (wx, wy) = ([1.0 - fx, fx], [1.0 - fy, fy]);
     // Saturating casts: NaN becomes 0, huge values the ends of i64; wrapping keeps them in range.
     let (x0, y0) = (x0 as i64, y0 as i64);
     let columns = wrap_pair(x0, w, wrap[0]);
-    let rows = wrap_pair(y0, img.height(), wrap[1]);
-    let mut offsets = [0; 4];
+    let rows = wrap_pair(y0, h, wrap[1]);
     let mut taps = [0.0; 4];
-    for (k, (offset, tap)) in offsets.iter_mut().zip(&mut taps).enumerate() {
+    for (k, tap) in taps.iter_mut().enumerate() {
         let (row, column) = (k / 2, k % 2);
-        if let (Some(iy), Some(ix)) = (rows[row], columns[column]) {
-            *offset = (iy * w + ix) * ch;
+        if rows[row].is_some() && columns[column].is_some() {
             *tap = weight * wx[column] * wy[row];
         }
     }
-    (offsets, taps)
+    (rows, columns, taps)
 }
 
 /// [`accumulate_bilinear`] for `N` channels, unrolled.

@@ -28,6 +28,7 @@ mod environment;
 pub mod grid;
 pub mod grid_data;
 pub(crate) mod image;
+mod level_tiles;
 mod make;
 mod mip;
 mod remote;
@@ -40,7 +41,7 @@ pub use grid::{Grid, GridError, GridType};
 pub use image::{load_texture_image, LoadedImage, TexImage};
 pub use make::{make_cube_face_environment, make_texture, MakeTextureOptions, MAX_CUBE_LATLONG_WIDTH};
 pub use mip::{level_sizes, LookupLanes, MipMap, MAX_ANISOTROPY};
-pub use remote::TextureServer;
+pub use remote::{TextureServer, TILED_FROM_BYTES};
 pub use shadow::{make_shadow, write_shadow_map, ShadowMap};
 pub use source::{
     decode_answer, encode_answer, Delivered, LevelValues, PyramidHeader, TextureAnswer, TextureKind, TexturePart,

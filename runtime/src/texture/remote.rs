@@ -17,11 +17,13 @@
 //! same code makes it from the same image.
 
 use std::collections::HashMap;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, OnceLock};
 
 use rayon::prelude::*;
 
 use super::image::TexImage;
+use super::level_tiles::{cut_tile, tile_grid, valid_side, MAX_TILES_A_MAP, TILE_SIDE};
 use super::mip::{level_sizes, FetchedLevel, LevelFetch, MipMap, RemotePyramid};
 use super::source::{
     encode_answer, image_from_delivered, Delivered, LevelValues, PyramidHeader, TextureAnswer, TextureKind,
@@ -32,6 +34,14 @@ use super::Wrap;
 /// At most this many bytes of a texture's coarsest levels travel with its description (the
 /// 1x1 level always does).
 const COARSEST_BYTES: usize = 16 << 10;
+
+/// Textures whose whole (the texture as given, encoded) is at least this many bytes send their
+/// large levels in tiles, unless the master is told otherwise. Tiles trade the bytes a worker
+/// fetches for the speed of its lookups: a level held in tiles is read tap by tap, not in the
+/// faster ways, so below this a worker fetches the whole once rather than render every frame
+/// slower. (A worker handed image tiles from all over the image also reads most of a texture it
+/// sees close: the tiles of a small texture cost it more than the whole.)
+pub const TILED_FROM_BYTES: usize = 64 << 20;
 
 /// The most bytes of decoded pyramids and encoded answers the master keeps for the workers; past
 /// it, the textures asked for least recently are dropped, and decoded again when asked for again.
@@ -63,6 +73,10 @@ pub(crate) fn remote_map(
     raw: bool,
 ) -> Option<MipMap> {
     let [width, height, channels] = [header.width, header.height, header.channels].map(|n| n as usize);
+    let tile_side = header.tile_side as usize;
+    if !valid_side(tile_side) {
+        return None;
+    }
     let sizes = level_sizes(width, height);
     let first = sizes.len().checked_sub(header.coarsest.len())?;
     let coarsest = header
@@ -79,8 +93,11 @@ pub(crate) fn remote_map(
         projection: header.projection,
         finite: header.finite,
         coarsest,
+        tile_side,
     };
-    MipMap::remote(pyramid, Arc::new(SourceLevels { source, name: name.to_string(), raw }))
+    let whole_bytes = usize::try_from(header.whole_bytes).unwrap_or(usize::MAX);
+    let levels = SourceLevels { source, name: name.to_string(), raw, whole_bytes, tile_bytes: AtomicUsize::new(0) };
+    MipMap::remote(pyramid, Arc::new(levels))
 }
 
 /// The levels of texture `name` from a cache's source.
@@ -88,26 +105,35 @@ struct SourceLevels {
     source: Arc<dyn TextureSource>,
     name: String,
     raw: bool,
+    /// What the image costs (the texture as given, encoded), and the bytes of the tiles' values
+    /// fetched so far: once those are half as many, the image comes rather than another tile.
+    whole_bytes: usize,
+    tile_bytes: AtomicUsize,
 }
 
-impl LevelFetch for SourceLevels {
-    fn fetch_level(&self, level: usize, [width, height, channels]: [usize; 3]) -> Option<FetchedLevel> {
+impl SourceLevels {
+    /// `part` of the texture, `w x h` texels: its values, or the image (of `size`) when that came.
+    fn fetch_part(&self, part: TexturePart, what: &str, [w, h]: [usize; 2], size: [usize; 3]) -> Option<FetchedLevel> {
         let failed = |why: String| {
-            self.source.failed(format!("texture \"{}\", mip level {level}: {why}", self.name));
+            self.source.failed(format!("texture \"{}\", {what}: {why}", self.name));
             None
         };
-        let [w, h] = *level_sizes(width, height).get(level)?;
-        let part = TexturePart::Level { raw: self.raw, level: u32::try_from(level).ok()? };
+        let channels = size[2];
         match self.source.fetch(part, &self.name) {
-            TextureAnswer::Level(values) => match values.into_image(w, h, channels) {
-                Some(image) => Some(FetchedLevel::Level(image)),
-                None => failed(format!("its values are not {w}x{h}x{channels}")),
-            },
+            TextureAnswer::Level(values) => {
+                let bytes = values.bytes();
+                match values.into_image(w, h, channels) {
+                    Some(image) => {
+                        if matches!(part, TexturePart::Tile { .. }) {
+                            self.tile_bytes.fetch_add(bytes, Ordering::Relaxed);
+                        }
+                        Some(FetchedLevel::Level(image))
+                    }
+                    None => failed(format!("its values are not {w}x{h}x{channels}")),
+                }
+            }
             TextureAnswer::Whole(delivered) => match image_from_delivered(delivered, self.raw) {
-                Ok(loaded)
-                    if [loaded.image.width(), loaded.image.height(), loaded.image.channels()]
-                        == [width, height, channels] =>
-                {
+                Ok(loaded) if [loaded.image.width(), loaded.image.height(), loaded.image.channels()] == size => {
                     Some(FetchedLevel::Image(loaded.image))
                 }
                 Ok(_) => failed("the image is not the size its pyramid was".into()),
@@ -119,9 +145,32 @@ impl LevelFetch for SourceLevels {
     }
 }
 
+impl LevelFetch for SourceLevels {
+    fn fetch_level(&self, level: usize, size: [usize; 3]) -> Option<FetchedLevel> {
+        let level_size = *level_sizes(size[0], size[1]).get(level)?;
+        let part = TexturePart::Level { raw: self.raw, level: u32::try_from(level).ok()? };
+        self.fetch_part(part, &format!("mip level {level}"), level_size, size)
+    }
+
+    fn fetch_tile(&self, level: usize, tile: usize, tile_size: [usize; 2], size: [usize; 3]) -> Option<FetchedLevel> {
+        if self.tile_bytes.load(Ordering::Relaxed) >= self.whole_bytes / 2 {
+            // Tiles of half the image's bytes: the image (or level 0, where it is smaller).
+            return match self.fetch_level(0, size)? {
+                FetchedLevel::Level(image) | FetchedLevel::Image(image) => Some(FetchedLevel::Image(image)),
+            };
+        }
+        let [level, tile] = [level, tile].map(|n| u32::try_from(n).ok());
+        let part = TexturePart::Tile { raw: self.raw, level: level?, tile: tile? };
+        self.fetch_part(part, &format!("tile {} of mip level {}", tile?, level?), tile_size, size)
+    }
+
+    fn failed(&self, message: String) {
+        self.source.failed(format!("texture \"{}\", {message}", self.name));
+    }
+}
+
 /// The master's side: each texture a worker asked for, decoded and mip-mapped once, and its
 /// answers encoded once.
-#[derive(Default)]
 pub struct TextureServer {
     /// The generation of the texture cache the textures below were read under: when the
     /// master's cache is renewed, so are the workers', and what names stand for is read again.
@@ -129,6 +178,8 @@ pub struct TextureServer {
     served: HashMap<(String, bool), Served>,
     /// Batches of requests answered: when each texture was last asked for.
     batches: u64,
+    /// Textures whose whole takes at least this many bytes send their large levels in tiles.
+    tiled_from: usize,
 }
 
 struct Served {
@@ -146,7 +197,12 @@ struct Served {
     /// Each level's answer, encoded when first asked for (`None`: the whole is less than twice as
     /// large).
     levels: Vec<OnceLock<Option<Arc<Vec<u8>>>>>,
+    /// Each level's tiles' answers, encoded when first asked for (none for a level not cut).
+    tiles: Vec<Box<[EncodedOnce]>>,
 }
+
+/// An answer, encoded the first time it is asked for.
+type EncodedOnce = OnceLock<Arc<Vec<u8>>>;
 
 impl std::fmt::Debug for TextureServer {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -154,9 +210,21 @@ impl std::fmt::Debug for TextureServer {
     }
 }
 
+impl Default for TextureServer {
+    fn default() -> TextureServer {
+        TextureServer { generation: 0, served: HashMap::new(), batches: 0, tiled_from: TILED_FROM_BYTES }
+    }
+}
+
 impl TextureServer {
     pub fn new() -> TextureServer {
         TextureServer::default()
+    }
+
+    /// The server, sending the large levels of textures whose whole takes at least `bytes` in
+    /// tiles ([`TILED_FROM_BYTES`] unless told otherwise).
+    pub fn with_tiles_from(self, bytes: usize) -> TextureServer {
+        TextureServer { tiled_from: bytes, ..self }
     }
 
     /// The encoded answers to `requests` (parts of names), in order, where `generation` is the
@@ -179,24 +247,28 @@ impl TextureServer {
         let mut new: Vec<(String, bool)> = requests
             .iter()
             .filter_map(|(part, name, _)| match *part {
-                TexturePart::Pyramid { raw } | TexturePart::Level { raw, .. } => Some((name.clone(), raw)),
+                TexturePart::Pyramid { raw } | TexturePart::Level { raw, .. } | TexturePart::Tile { raw, .. } => {
+                    Some((name.clone(), raw))
+                }
                 TexturePart::Whole(_) => None,
             })
             .filter(|key| !self.served.contains_key(key))
             .collect();
         new.sort_unstable();
         new.dedup();
+        let tiled_from = self.tiled_from;
         let built: Vec<((String, bool), Served)> = new
             .into_par_iter()
             .map(|(name, raw)| {
-                let served = Served::of(deliver(TextureKind::Texture, &name), raw);
+                let served = Served::of(deliver(TextureKind::Texture, &name), raw, tiled_from);
                 ((name, raw), served)
             })
             .collect();
         self.served.extend(built);
         self.batches += 1;
         for (part, name, _) in requests {
-            if let TexturePart::Pyramid { raw } | TexturePart::Level { raw, .. } = *part {
+            if let TexturePart::Pyramid { raw } | TexturePart::Level { raw, .. } | TexturePart::Tile { raw, .. } = *part
+            {
                 if let Some(served) = self.served.get_mut(&(name.clone(), raw)) {
                     served.last_used = self.batches;
                 }
@@ -215,7 +287,9 @@ impl TextureServer {
                         }
                         return Arc::new(whole);
                     }
-                    TexturePart::Pyramid { raw } | TexturePart::Level { raw, .. } => raw,
+                    TexturePart::Pyramid { raw } | TexturePart::Level { raw, .. } | TexturePart::Tile { raw, .. } => {
+                        raw
+                    }
                 };
                 // Every texture asked for was served above.
                 let Some(served) = served.get(&(name.clone(), raw)) else {
@@ -223,6 +297,7 @@ impl TextureServer {
                 };
                 match *part {
                     TexturePart::Level { level, .. } => served.level(level as usize),
+                    TexturePart::Tile { level, tile, .. } => served.tile(level as usize, tile as usize),
                     // What the asker holds was made of the texture it is now (a whole answer or
                     // a pyramid: both made of this, whose digest a pyramid carries).
                     _ if *held == Some(served.digest) => unchanged(),
@@ -267,24 +342,49 @@ impl TextureServer {
 }
 
 impl Served {
-    fn of(delivered: Delivered, raw: bool) -> Served {
+    fn of(delivered: Delivered, raw: bool, tiled_from: usize) -> Served {
         let map = image_from_delivered(delivered.clone(), raw).ok().map(|loaded| {
             MipMap::with_wrap(loaded.image, loaded.wrap.unwrap_or([Wrap::Periodic; 2]))
                 .with_projection(loaded.projection)
         });
         let whole = Arc::new(encode_answer(&TextureAnswer::Whole(delivered)));
         let digest: [u8; 32] = blake3::hash(&whole).into();
-        let pyramid = map.as_ref().map(|m| describe(m, digest)).filter(|p| worth_sending(p, &whole)).map(Arc::new);
+        let tile_side = map.as_ref().filter(|_| whole.len() >= tiled_from).map_or(0, tile_side);
+        let pyramid = map
+            .as_ref()
+            .map(|m| describe(m, digest, tile_side, whole.len()))
+            .filter(|p| worth_sending(p, &whole))
+            .map(Arc::new);
         let map = map.filter(|_| pyramid.is_some());
-        let levels = (0..map.as_ref().map_or(0, MipMap::level_count)).map(|_| OnceLock::new()).collect();
-        Served { last_used: 0, whole, digest, map, pyramid, levels }
+        let sizes = map.as_ref().map_or(Vec::new(), |m| level_sizes(m.width(), m.height()));
+        let levels = sizes.iter().map(|_| OnceLock::new()).collect();
+        let tiles = sizes
+            .iter()
+            .map(|&s| tile_grid(s, tile_side).map_or(0, |[a, d]| a * d))
+            .map(|count| (0..count).map(|_| OnceLock::new()).collect())
+            .collect();
+        Served { last_used: 0, whole, digest, map, pyramid, levels, tiles }
     }
 
     /// What it holds, in bytes.
     fn memory_bytes(&self) -> usize {
         let map = self.map.as_ref().map_or(0, |m| (0..m.level_count()).map(|i| 4 * m.level(i).data().len()).sum());
         let answers = self.levels.iter().filter_map(|l| l.get().cloned().flatten()).map(|a| a.len()).sum::<usize>();
-        map + answers + self.whole.len() + self.pyramid.as_ref().map_or(0, |p| p.len())
+        let tiles = self.tiles.iter().flat_map(|t| t.iter()).filter_map(|t| t.get()).map(|a| a.len()).sum::<usize>();
+        map + answers + tiles + self.whole.len() + self.pyramid.as_ref().map_or(0, |p| p.len())
+    }
+
+    /// The answer for tile `tile` of level `level`: its values, encoded once; the whole when
+    /// there is no such tile.
+    fn tile(&self, level: usize, tile: usize) -> Arc<Vec<u8>> {
+        let (Some(map), Some(slot)) = (&self.map, self.tiles.get(level).and_then(|t| t.get(tile))) else {
+            return self.whole.clone();
+        };
+        slot.get_or_init(|| match cut_tile(map.level(level), TILE_SIDE, tile) {
+            Some(values) => Arc::new(encode_answer(&TextureAnswer::Level(LevelValues::of(&values)))),
+            None => self.whole.clone(),
+        })
+        .clone()
     }
 
     fn level(&self, level: usize) -> Arc<Vec<u8>> {
@@ -306,9 +406,21 @@ fn worth_sending(part: &[u8], whole: &[u8]) -> bool {
     2 * part.len() < whole.len()
 }
 
-/// `map`'s description with as many of its coarsest levels as fit [`COARSEST_BYTES`], and the
-/// digest of the texture as given, encoded.
-fn describe(map: &MipMap, digest: [u8; 32]) -> Vec<u8> {
+/// The side of the tiles `map`'s large levels go in: [`TILE_SIDE`], unless a worker would set
+/// aside more than [`MAX_TILES_A_MAP`] slots for them (0: whole levels only).
+fn tile_side(map: &MipMap) -> usize {
+    let sizes = level_sizes(map.width(), map.height());
+    let tiles: usize = sizes.iter().filter_map(|&s| tile_grid(s, TILE_SIDE)).map(|[a, d]| a * d).sum();
+    if tiles <= MAX_TILES_A_MAP {
+        TILE_SIDE
+    } else {
+        0
+    }
+}
+
+/// `map`'s description with as many of its coarsest levels as fit [`COARSEST_BYTES`], the side
+/// of the tiles its large levels go in, and the digest and size of the texture as given, encoded.
+fn describe(map: &MipMap, digest: [u8; 32], tile_side: usize, whole_bytes: usize) -> Vec<u8> {
     let mut coarsest = Vec::new();
     let mut bytes = 0;
     for level in (0..map.level_count()).rev() {
@@ -332,6 +444,8 @@ fn describe(map: &MipMap, digest: [u8; 32]) -> Vec<u8> {
         projection: map.projection(),
         finite: map.is_finite(),
         coarsest,
+        tile_side: count(tile_side),
+        whole_bytes: whole_bytes as u64,
         digest,
     }))
 }
@@ -340,6 +454,7 @@ fn describe(map: &MipMap, digest: [u8; 32]) -> Vec<u8> {
 mod tests {
     use super::*;
     use crate::texture::{decode_answer, Footprint, LookupOptions, TextureCache};
+    use glam::Vec4;
     use std::sync::atomic::{AtomicBool, Ordering};
     use std::sync::Mutex;
 
@@ -360,7 +475,8 @@ mod tests {
     impl Loopback {
         fn new(delivered: Delivered) -> Arc<Loopback> {
             Arc::new(Loopback {
-                server: Mutex::new(TextureServer::new()),
+                // Every texture's large levels in tiles, however small the texture.
+                server: Mutex::new(TextureServer::new().with_tiles_from(0)),
                 delivered,
                 asked: Mutex::default(),
                 bytes: Mutex::default(),
@@ -428,7 +544,7 @@ mod tests {
     }
 
     #[test]
-    fn a_worker_fetches_only_the_levels_its_lookups_read_and_sees_what_the_whole_gives() {
+    fn a_worker_fetches_only_the_levels_and_tiles_its_lookups_read_and_sees_what_the_whole_gives() {
         let image = floats(256);
         let reference = MipMap::new(image.clone());
         let source = Loopback::new(Delivered::image(&image));
@@ -438,6 +554,8 @@ mod tests {
         assert_eq!(source.asked(), [TexturePart::Pyramid { raw: false }]);
         let held = |from: usize| (0..map.level_count()).map(|i| map.holds_level(i)).skip(from).collect::<Vec<_>>();
         assert_eq!(held(0), [false, false, false, true, true, true, true, true, true]);
+        // Level 0 comes in sixteen tiles of 64x64 texels; level 1, four tiles' worth, whole.
+        assert_eq!((map.tiles_held(0), map.tiles_held(1)), (Some([0, 16]), None));
         // Far away: read from what came, nothing more fetched.
         same_lookups(&cache, &reference, false, wide(20.0, 256));
         assert_eq!(source.asked().len(), 1);
@@ -445,11 +563,27 @@ mod tests {
         same_lookups(&cache, &reference, false, wide(5.0, 256));
         assert_eq!(source.asked()[1..], [TexturePart::Level { raw: false, level: 2 }]);
         assert_eq!(held(0)[..3], [false, false, true]);
-        // Close: level 0, fetched, and level 1 made from it here.
+        // Close, in one corner: the one tile of level 0 under it.
+        let opts = LookupOptions::default();
+        for k in 0..16 {
+            let (s, t) = (0.06 + (k % 4) as f32 * 0.04, 0.07 + (k / 4) as f32 * 0.04);
+            let (mut here, mut there) = ([0.0; 3], [0.0; 3]);
+            assert!(cache.texture("t", s, t, wide(0.7, 256), 0, &mut here, &opts));
+            reference.filter(s, t, wide(0.7, 256), 0, &mut there, &opts);
+            assert_eq!(here.map(f32::to_bits), there.map(f32::to_bits), "({s}, {t})");
+        }
+        assert_eq!(source.asked()[2..], [TexturePart::Tile { raw: false, level: 0, tile: 0 }]);
+        assert_eq!(map.tiles_held(0), Some([1, 16]));
+        // Close everywhere, and between levels 0 and 1: the tiles that lookups reach, and level
+        // 1 fetched whole; or, once the tiles cost as much as the image, the image, from which
+        // the rest is made here.
         same_lookups(&cache, &reference, false, wide(0.7, 256));
         same_lookups(&cache, &reference, false, wide(1.5, 256));
-        assert_eq!(source.asked()[2..], [TexturePart::Level { raw: false, level: 0 }]);
-        assert!(held(0).iter().all(|&h| h));
+        let later = source.asked()[3..].to_vec();
+        let tiles = later.iter().filter(|p| matches!(p, TexturePart::Tile { level: 0, .. })).count();
+        assert!(tiles > 4, "{later:?}");
+        let image_came = later.contains(&TexturePart::Level { raw: false, level: 0 });
+        assert!(image_came || later.contains(&TexturePart::Level { raw: false, level: 1 }), "{later:?}");
         // Four lanes at once, as shaders look up, give the same values.
         let lanes = crate::texture::LookupLanes::splat(0.4, 0.6, wide(3.0, 256), [0.0; 2]);
         let (mut here, mut there) = ([0.0; 12], [0.0; 12]);
@@ -457,9 +591,108 @@ mod tests {
         reference.filter_lanes(&lanes, [true; 4], [0; 4], &mut there, &LookupOptions::default());
         assert_eq!(here.map(f32::to_bits), there.map(f32::to_bits));
         assert!(source.failures.lock().unwrap().is_empty());
-        // Less than the whole texture travelled: its level 1 never did.
+        // At most about twice the whole texture travelled, whatever the order of the lookups.
         let whole = encode_answer(&TextureAnswer::Whole(Delivered::image(&image))).len();
-        assert!(*source.bytes.lock().unwrap() < whole + whole / 8, "{} of {whole}", source.bytes.lock().unwrap());
+        assert!(*source.bytes.lock().unwrap() < 2 * whole + whole / 4, "{} of {whole}", source.bytes.lock().unwrap());
+    }
+
+    /// Noise over a `w x h` image of `channels`, as floats.
+    fn noisy(w: usize, h: usize, channels: usize) -> TexImage {
+        let values = (0..w * h * channels).map(|i| (noise(i + 7) >> 40) as f32 / (1u64 << 24) as f32).collect();
+        TexImage::new(w, h, channels, values).unwrap()
+    }
+
+    /// Lookups of every kind on a map whose levels come in tiles, in lanes of different
+    /// footprints, over the edges of an image no power of two wide, in every wrap mode: the
+    /// values of the map built from the whole image, bit for bit.
+    #[test]
+    fn lookups_read_through_tiles_as_through_whole_levels() {
+        let image = noisy(300, 170, 3);
+        for wrap in [[Wrap::Periodic; 2], [Wrap::Clamp, Wrap::Black], [Wrap::Black, Wrap::Periodic]] {
+            let reference = MipMap::new(image.clone());
+            let source = Loopback::new(Delivered::image(&image));
+            let cache = TextureCache::new().with_source(Some(source.clone()));
+            let map = cache.get_texture("t", false).unwrap();
+            assert_eq!(map.tiles_held(0), Some([0, 15]));
+            let opts = LookupOptions { swrap: Some(wrap[0]), twrap: Some(wrap[1]), ..LookupOptions::default() };
+            let mut state = 0x2545_f491_4f6c_dd1du64;
+            let mut next = move || {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                (state >> 40) as f32 / (1u64 << 24) as f32
+            };
+            for round in 0..200 {
+                let texels = [0.2, 0.8, 1.3, 2.2, 4.0][round % 5];
+                let mut lanes = crate::texture::LookupLanes::splat(0.0, 0.0, wide(texels, 300), [0.0; 2]);
+                lanes.s = Vec4::from_array(std::array::from_fn(|_| next() * 1.4 - 0.2));
+                lanes.t = Vec4::from_array(std::array::from_fn(|_| next() * 1.4 - 0.2));
+                // Lanes of other footprints, eccentric ones among them.
+                lanes.dsdx *= Vec4::new(1.0, 0.5, 3.0, 1.0);
+                lanes.dtdx = Vec4::new(0.0, 0.002, 0.0, 0.01);
+                let active = [true, round % 3 != 0, true, round % 4 != 1];
+                let (mut here, mut there) = ([0.0; 12], [0.0; 12]);
+                map.filter_lanes(&lanes, active, [0, 1, 0, 2], &mut here, &opts);
+                reference.filter_lanes(&lanes, active, [0, 1, 0, 2], &mut there, &opts);
+                assert_eq!(here.map(f32::to_bits), there.map(f32::to_bits), "round {round}");
+                let (s, t) = (lanes.s.x, lanes.t.x);
+                let footprint = wide(texels, 300);
+                let (mut here, mut there) = ([0.0; 2], [0.0; 2]);
+                assert!(cache.texture("t", s, t, footprint, 1, &mut here, &opts));
+                reference.filter(s, t, footprint, 1, &mut there, &opts);
+                assert_eq!(here.map(f32::to_bits), there.map(f32::to_bits), "({s}, {t}) round {round}");
+            }
+            assert!(source.failures.lock().unwrap().is_empty());
+            assert!(source.asked().iter().any(|p| matches!(p, TexturePart::Tile { .. })));
+        }
+    }
+
+    /// Once a worker has fetched as many bytes of tiles as the texture costs whole, the next tile
+    /// it lacks brings the image, and every level is made from it.
+    #[test]
+    fn tiles_give_way_to_the_image_once_they_cost_as_much() {
+        // A smooth image, which deflates to a few kilobytes: less than one tile's values.
+        let values = (0..512 * 512 * 3).map(|i| ((i / 3 % 512) / 16) as f32 / 64.0 + 0.001).collect();
+        let image = TexImage::new(512, 512, 3, values).unwrap();
+        let reference = MipMap::new(image.clone());
+        let source = Loopback::new(Delivered::image(&image));
+        let cache = TextureCache::new().with_source(Some(source.clone()));
+        let map = cache.get_texture("t", false).unwrap();
+        assert_eq!(map.tiles_held(0), Some([0, 64]));
+        same_lookups(&cache, &reference, false, wide(0.5, 512));
+        let asked = source.asked();
+        assert!(matches!(asked[1], TexturePart::Tile { level: 0, .. }), "{asked:?}");
+        assert_eq!(asked[2..], [TexturePart::Level { raw: false, level: 0 }]);
+        assert!(map.holds_level(0));
+        same_lookups(&cache, &reference, false, wide(1.5, 512));
+        same_lookups(&cache, &reference, false, wide(3.0, 512));
+        assert_eq!(source.asked().len(), 3, "levels 1 and 2 made here");
+        assert!(source.failures.lock().unwrap().is_empty());
+    }
+
+    /// A tile that comes damaged fails the frame, reads as zeros, and is fetched again when next
+    /// read.
+    #[test]
+    fn a_damaged_tile_fails_the_frame_and_is_fetched_again_when_next_read() {
+        let image = floats(256);
+        let reference = MipMap::new(image.clone());
+        let source = Loopback::new(Delivered::image(&image));
+        let cache = TextureCache::new().with_source(Some(source.clone()));
+        source.damaged.store(true, Ordering::Relaxed);
+        let (mut here, mut there) = ([0.0; 3], [0.0; 3]);
+        let opts = LookupOptions::default();
+        assert!(cache.texture("t", 0.1, 0.1, wide(0.5, 256), 0, &mut here, &opts));
+        reference.filter(0.1, 0.1, wide(0.5, 256), 0, &mut there, &opts);
+        assert_eq!(here, [0.0; 3], "zeros stand in for the tile");
+        // Each tap that reads the tile asks for it again.
+        let failures = source.failures.lock().unwrap().clone();
+        assert!((1..=4).contains(&failures.len()), "{failures:?}");
+        assert!(failures.iter().all(|f| f.contains("tile 0 of mip level 0")), "{failures:?}");
+        source.damaged.store(false, Ordering::Relaxed);
+        assert!(cache.texture("t", 0.1, 0.1, wide(0.5, 256), 0, &mut here, &opts));
+        assert_eq!(here.map(f32::to_bits), there.map(f32::to_bits));
+        let tile = TexturePart::Tile { raw: false, level: 0, tile: 0 };
+        assert_eq!(source.asked()[1..], vec![tile; failures.len() + 1]);
     }
 
     /// An 8-bit file (a PPM) comes whole wherever a level would be more than half as large, and
@@ -520,6 +753,8 @@ mod tests {
             projection: None,
             finite: true,
             coarsest: vec![LevelValues::Floats(vec![0.5; 3])],
+            tile_side: 64,
+            whole_bytes: 1000,
             digest: [0; 32],
         })))
         .unwrap()
@@ -540,6 +775,8 @@ mod tests {
             // bounds then, would size the stand-in texel.
             PyramidHeader { channels: u32::MAX, coarsest: vec![], ..good.clone() },
             PyramidHeader { coarsest: vec![], ..good.clone() },
+            PyramidHeader { tile_side: 100, ..good.clone() },
+            PyramidHeader { tile_side: 8, ..good.clone() },
         ];
         for header in damaged {
             assert!(remote_map(header.clone(), source.clone(), "t", false).is_none(), "{header:?}");
@@ -561,21 +798,28 @@ mod tests {
     struct Scripted {
         pyramid: Vec<u8>,
         level: Vec<u8>,
+        tile: Vec<u8>,
     }
 
     impl TextureSource for Scripted {
         fn fetch(&self, part: TexturePart, _name: &str) -> TextureAnswer {
-            let bytes = if matches!(part, TexturePart::Level { .. }) { &self.level } else { &self.pyramid };
+            let bytes = match part {
+                TexturePart::Level { .. } => &self.level,
+                TexturePart::Tile { .. } => &self.tile,
+                _ => &self.pyramid,
+            };
             decode_answer(bytes)
                 .unwrap_or_else(|reason| TextureAnswer::Whole(Delivered::Missing { path: None, reason }))
         }
     }
 
-    /// Pyramids and levels damaged before they were deflated (so that they inflate, and most
-    /// decode) are refused, or give a map whose lookups answer without panicking, at every level.
+    /// Pyramids, levels and tiles damaged before they were deflated (so that they inflate, and
+    /// most decode) are refused, or give a map whose lookups answer without panicking, at every
+    /// level.
     #[test]
     fn damaged_pyramids_and_levels_never_panic_a_lookup() {
-        let image = floats(64);
+        // Level 0 comes in nine tiles, the last ones narrower.
+        let image = floats(160);
         let plain = |answer: &TextureAnswer| postcard::to_allocvec(answer).unwrap();
         let deflate = |bytes: &[u8]| {
             let mut z = flate2::write::DeflateEncoder::new(Vec::new(), flate2::Compression::fast());
@@ -583,9 +827,10 @@ mod tests {
             z.finish().unwrap()
         };
         let map = MipMap::new(image.clone());
-        let pyramid = decode_answer(&describe(&map, [0; 32])).unwrap();
-        let level = TextureAnswer::Level(LevelValues::of(map.level(0)));
-        let (pyramid, level) = (plain(&pyramid), plain(&level));
+        let pyramid = decode_answer(&describe(&map, [0; 32], TILE_SIDE, 1 << 20)).unwrap();
+        let level = TextureAnswer::Level(LevelValues::of(map.level(1)));
+        let tile = TextureAnswer::Level(LevelValues::of(&cut_tile(map.level(0), TILE_SIDE, 0).unwrap()));
+        let (pyramid, level, tile) = (plain(&pyramid), plain(&level), plain(&tile));
         let mut state = 0x9e37_79b9_7f4a_7c15u64;
         let mut next = move || {
             state ^= state << 13;
@@ -595,8 +840,8 @@ mod tests {
         };
         let mut maps = 0;
         for round in 0..300 {
-            let (mut p, mut l) = (pyramid.clone(), level.clone());
-            for bytes in [&mut p, &mut l] {
+            let (mut p, mut l, mut k) = (pyramid.clone(), level.clone(), tile.clone());
+            for bytes in [&mut p, &mut l, &mut k] {
                 for _ in 0..1 + next() % 3 {
                     let at = (next() % bytes.len() as u64) as usize;
                     bytes[at] ^= 1 << (next() % 8);
@@ -606,19 +851,40 @@ mod tests {
                     bytes.truncate(cut);
                 }
             }
-            let source = Arc::new(Scripted { pyramid: deflate(&p), level: deflate(&l) });
+            let source = Arc::new(Scripted { pyramid: deflate(&p), level: deflate(&l), tile: deflate(&k) });
             let cache = TextureCache::new().with_source(Some(source));
             let Some(map) = cache.get_texture("t", false) else { continue };
             maps += 1;
             let mut out = [0.0; 4];
             for texels in [0.3, 1.0, 3.0, 9.0, 40.0] {
-                cache.texture("t", 0.3, 0.7, wide(texels, 64), 0, &mut out, &LookupOptions::default());
-                let lanes = crate::texture::LookupLanes::splat(0.6, 0.2, wide(texels, 64), [0.0; 2]);
+                cache.texture("t", 0.3, 0.7, wide(texels, 160), 0, &mut out, &LookupOptions::default());
+                cache.texture("t", 0.1, 0.1, wide(texels, 160), 0, &mut out, &LookupOptions::default());
+                let lanes = crate::texture::LookupLanes::splat(0.6, 0.2, wide(texels, 160), [0.0; 2]);
                 let mut four = [0.0; 16];
                 map.filter_lanes(&lanes, [true, false, true, true], [0, 1, 2, 0], &mut four, &LookupOptions::default());
             }
         }
         assert!(maps > 10, "{maps} of 300 damaged pyramids made a map");
+    }
+
+    /// Only textures whose whole takes at least the server's threshold send levels in tiles;
+    /// every pyramid says what its whole costs.
+    #[test]
+    fn textures_below_the_threshold_send_whole_levels() {
+        let image = floats(256);
+        let whole = encode_answer(&TextureAnswer::Whole(Delivered::image(&image)));
+        assert!(whole.len() < TILED_FROM_BYTES);
+        for (server, side) in [(TextureServer::new(), 0), (TextureServer::new().with_tiles_from(whole.len()), 64)] {
+            let mut server = server;
+            let answer = server.answer(1, TexturePart::Pyramid { raw: false }, "t", |_, _| Delivered::image(&image));
+            let Ok(TextureAnswer::Pyramid(header)) = decode_answer(&answer) else { panic!("a pyramid") };
+            assert_eq!((header.tile_side, header.whole_bytes), (side, whole.len() as u64));
+            let tile = server
+                .answer(1, TexturePart::Tile { raw: false, level: 0, tile: 5 }, "t", |_, _| Delivered::image(&image));
+            let cut = cut_tile(&image, TILE_SIDE, 5).unwrap();
+            let expected = encode_answer(&TextureAnswer::Level(LevelValues::of(&cut)));
+            assert_eq!(*tile == expected, side != 0, "a tile where tiles are sent, else the whole");
+        }
     }
 
     /// What names stand for is read again when the master's cache is renewed, and only then.
@@ -662,9 +928,11 @@ mod tests {
         assert_eq!(decode_answer(&again[0]), Ok(TextureAnswer::Unchanged));
         assert_eq!(again[1], answers[1]);
         assert_eq!(again[2], answers[0]);
-        // A level past the last, or of a name that is no texture, is the whole.
+        // A level past the last, or of a name that is no texture, is the whole; so is a tile of
+        // a level not cut into tiles, or past the last.
         let whole = encode_answer(&TextureAnswer::Whole(Delivered::image(&image)));
         assert_eq!(*server.answer(2, TexturePart::Level { raw: false, level: 99 }, "t", deliver), whole);
+        assert_eq!(*server.answer(2, TexturePart::Tile { raw: false, level: 0, tile: 0 }, "t", deliver), whole);
         // Past the limit, the least recently asked for go first.
         server.evict(1);
         assert!(server.served.is_empty());

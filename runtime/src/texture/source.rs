@@ -104,6 +104,9 @@ pub enum TexturePart {
     Pyramid { raw: bool },
     /// One level of the pyramid (or the whole texture, when that is no larger).
     Level { raw: bool, level: u32 },
+    /// One tile of a level of the pyramid that comes in tiles (`level_tiles.rs`), numbered row
+    /// after row (or the whole texture, when the master has no such tile).
+    Tile { raw: bool, level: u32, tile: u32 },
 }
 
 /// The master's answer to a [`TexturePart`].
@@ -113,7 +116,7 @@ pub enum TextureAnswer {
     Whole(Delivered),
     /// A texture's pyramid, described.
     Pyramid(PyramidHeader),
-    /// One level's values.
+    /// One level's values (or one tile's).
     Level(LevelValues),
     /// What the asker holds of the name, by the digest it sent, is what the name stands for
     /// ([`TextureSource::kept`]).
@@ -133,6 +136,13 @@ pub struct PyramidHeader {
     pub finite: bool,
     /// The coarsest levels, finest of them first, down to 1x1.
     pub coarsest: Vec<LevelValues>,
+    /// The side of the tiles in which the master sends large levels (`level_tiles.rs`); 0 when
+    /// it sends whole levels only.
+    pub tile_side: u32,
+    /// The bytes of the texture as given, encoded (what a request for the image costs): a
+    /// worker that has fetched half as many bytes of tiles asks for the image rather than more
+    /// tiles.
+    pub whole_bytes: u64,
     /// blake3 of the texture as given (its whole answer): a worker that made a map from a
     /// pyramid of this digest under the same name takes it again (a new scene's texture that did
     /// not change keeps the levels the worker fetched).
@@ -148,6 +158,14 @@ pub enum LevelValues {
 }
 
 impl LevelValues {
+    /// The bytes the values take: one a value, or four.
+    pub fn bytes(&self) -> usize {
+        match self {
+            LevelValues::Floats(v) => 4 * v.len(),
+            LevelValues::Bytes(v) => v.len(),
+        }
+    }
+
     pub fn of(image: &TexImage) -> LevelValues {
         match eight_bit_values(image.data()) {
             Some(bytes) => LevelValues::Bytes(bytes),
