@@ -155,6 +155,47 @@ fn every_frame_of_a_file_renders_the_same_over_three_ranks() {
     }
 }
 
+/// A large texture (more than `--tile-textures-from-mb` as a file) seen close over a small part
+/// of it: the workers fetch the tiles of its levels that their rays read, far less than the file,
+/// and the image is the one process's, bit for bit.
+#[test]
+fn a_large_texture_seen_close_comes_in_tiles_and_renders_the_same() {
+    if !mpirun_present() {
+        return;
+    }
+    let dir = tempfile::tempdir().expect("tempdir");
+    // 1300 x 1300 texels of 8-bit noise: about 5 MB, which deflating hardly shrinks.
+    let side = 1300;
+    let mut ppm = format!("P6\n{side} {side}\n255\n").into_bytes();
+    let mut state = 0x9e37_79b9_7f4a_7c15u64;
+    ppm.extend((0..side * side * 3).map(|_| {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 24) as u8
+    }));
+    std::fs::write(dir.path().join("noise.ppm"), &ppm).expect("write");
+    let rib =
+        "Format 96 72 1\nProjection \"perspective\" \"fov\" 30\nRotate -35 1 0 0\nTranslate 0 -1.2 0\nWorldBegin\n\
+               LightSource \"distantlight\" 1 \"intensity\" 1.2 \"from\" [0 4 -1] \"to\" [0 0 0]\n\
+               Surface \"paintedplastic\" \"texturename\" \"noise.ppm\"\n\
+               Polygon \"P\" [-10 0 -4  10 0 -4  10 0 16  -10 0 16] \"st\" [0 0 1 0 1 1 0 1]\nWorldEnd\n";
+    std::fs::write(dir.path().join("close.rib"), rib).expect("write");
+    let alone = rtsl(&["render", "close.rib", "-o", "alone.exr", "-q"], dir.path());
+    assert!(alone.status.success(), "{}", text(&alone));
+    let ranks = mpirun(3, &["render", "close.rib", "-o", "mpi.exr", "--tile-textures-from-mb", "4"], dir.path());
+    let out = text(&ranks);
+    assert!(ranks.status.success(), "{out}");
+    assert_same_image(&dir.path().join("alone.exr"), &dir.path().join("mpi.exr"));
+    let line = out.lines().find(|l| l.starts_with("demand loading, the frame")).unwrap_or_default();
+    let number_before = |what: &str| -> f64 {
+        line.split(what).next().and_then(|s| s.rsplit(' ').next()).and_then(|n| n.parse().ok()).unwrap_or(-1.0)
+    };
+    assert!(number_before(" tile(s) of levels") > 0.0, "{line}");
+    let megabytes = number_before(" MB; cache hits");
+    assert!((0.0..ppm.len() as f64 / 4e6).contains(&megabytes), "{line}");
+}
+
 /// Renders `frames` frames of a BART scene alone and over `ranks` ranks; checks they are the same
 /// and returns the distributed run's first-frame `demand loading` line (`None`: skipped).
 fn bart_alone_and_over_ranks(scene: &str, frames: usize, size: &str, ranks: usize) -> Option<String> {

@@ -8,6 +8,7 @@ use rtsl_runtime::distributed::{
     serve, Demand, Master, ReplicaScene, Traffic, Transport, WorkerTime, DEFAULT_MESH_CACHE_BYTES,
 };
 use rtsl_runtime::render::World;
+use rtsl_runtime::texture::TILED_FROM_BYTES;
 
 /// This process's rank of the `mpirun` job.
 #[cfg(feature = "mpi")]
@@ -34,12 +35,18 @@ pub struct WorkerArgs {
     /// subtree by subtree as rays reach them (parts of at most 16384 triangles).
     #[arg(long, value_name = "TRIANGLES", default_value_t = PARTED_ABOVE)]
     pub parts_above: usize,
+    /// With --mpi: textures of at least this many megabytes (as given, deflated) travel to the
+    /// workers in tiles of their large mip levels, fetched as lookups reach them; a worker reads
+    /// such levels more slowly than whole ones.
+    #[arg(long, value_name = "MB", default_value_t = TILED_FROM_BYTES >> 20)]
+    pub tile_textures_from_mb: usize,
 }
 
 impl WorkerArgs {
     /// Gives `master` these settings.
     pub(crate) fn apply<T: Transport>(&self, master: &mut Master<T>) {
         master.set_parts(self.parts_above, PART_TRIANGLES);
+        master.set_texture_tiles_from(self.tile_textures_from_mb.saturating_mul(1 << 20));
     }
 }
 
@@ -109,6 +116,7 @@ pub(crate) struct Fetched {
     part_bytes: u64,
     textures: u64,
     texture_levels: u64,
+    texture_tiles: u64,
     texture_bytes: u64,
     /// Objects the workers' rays reached, each counted by every worker and frame that reached it.
     reached: u64,
@@ -123,6 +131,7 @@ impl From<&Demand> for Fetched {
             part_bytes: d.fetched_part_bytes,
             textures: d.fetched_textures,
             texture_levels: d.fetched_texture_levels,
+            texture_tiles: d.fetched_texture_tiles,
             texture_bytes: d.fetched_texture_bytes,
             reached: d.reached_objects,
         }
@@ -139,6 +148,7 @@ impl std::ops::Add for Fetched {
             part_bytes: self.part_bytes + o.part_bytes,
             textures: self.textures + o.textures,
             texture_levels: self.texture_levels + o.texture_levels,
+            texture_tiles: self.texture_tiles + o.texture_tiles,
             texture_bytes: self.texture_bytes + o.texture_bytes,
             reached: self.reached + o.reached,
         }
@@ -171,7 +181,7 @@ pub(crate) fn demand_line(
         ),
     };
     format!(
-        "demand loading, {what}: {} object(s) and {} BVH part(s), {:.2} MB fetched by {workers} worker(s) ({:.2} MB per worker) of the scene's {} object(s) and {:.2} MB of meshes; {} texture(s) and {} mip level(s), {:.2} MB; cache hits: {hit_rate}; held now: at most {} object(s) per worker ({} object(s) and {} BVH part(s) evicted before the last frame){kept}",
+        "demand loading, {what}: {} object(s) and {} BVH part(s), {:.2} MB fetched by {workers} worker(s) ({:.2} MB per worker) of the scene's {} object(s) and {:.2} MB of meshes; {} texture(s), {} mip level(s) and {} tile(s) of levels, {:.2} MB; cache hits: {hit_rate}; held now: at most {} object(s) per worker ({} object(s) and {} BVH part(s) evicted before the last frame){kept}",
         fetched.objects,
         fetched.parts,
         mb(geometry_bytes),
@@ -180,6 +190,7 @@ pub(crate) fn demand_line(
         mb(scene.1 as f64),
         fetched.textures,
         fetched.texture_levels,
+        fetched.texture_tiles,
         mb(fetched.texture_bytes as f64),
         held.most_resident_objects,
         held.evicted_objects,
