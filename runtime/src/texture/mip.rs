@@ -346,6 +346,31 @@ impl MipMap {
         }
     }
 
+    /// The four taps around (s, t) on level `i`, which comes in tiles, rows then columns, as
+    /// [`bilinear_taps`] places them: each tap's weight and its texel's values, for the taps of
+    /// weight other than 0 whose texels came.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn tile_taps<'a>(
+        &'a self,
+        i: usize,
+        tiled: &'a TiledLevel,
+        s: f32,
+        t: f32,
+        wrap: [Wrap; 2],
+        weight: f32,
+    ) -> impl Iterator<Item = (f32, &'a [f32])> + 'a {
+        let [w, h] = tiled.size();
+        let (rows, columns, taps) = bilinear_places(w, h, s, t, wrap, weight);
+        taps.into_iter().enumerate().filter_map(move |(k, tap)| {
+            let (Some(y), Some(x)) = (rows[k / 2], columns[k % 2]) else { return None };
+            if tap == 0.0 {
+                return None;
+            }
+            Some((tap, self.tile_texel(i, tiled, x, y)?))
+        })
+    }
+
     /// Adds `weight` times the bilinear interpolation at (s, t) of level `i`, which comes in
     /// tiles, to `out`: the values [`accumulate_taps`] gives on the whole level, tile by tile.
     #[allow(clippy::too_many_arguments)]
@@ -362,17 +387,9 @@ impl MipMap {
         out: &mut [f32],
     ) {
         let Some(out) = out.first_chunk_mut::<N>() else { return };
-        let [w, h] = tiled.size();
-        let (rows, columns, taps) = bilinear_places(w, h, s, t, wrap, weight);
         let mut sum = *out;
-        for (k, tap) in taps.into_iter().enumerate() {
-            let (Some(y), Some(x)) = (rows[k / 2], columns[k % 2]) else { continue };
-            if tap == 0.0 {
-                continue;
-            }
-            let Some(texel) = self.tile_texel(i, tiled, x, y).and_then(|t| t.get(first..)?.first_chunk::<N>()) else {
-                continue;
-            };
+        for (tap, texel) in self.tile_taps(i, tiled, s, t, wrap, weight) {
+            let Some(texel) = texel.get(first..).and_then(|t| t.first_chunk::<N>()) else { continue };
             for (o, v) in sum.iter_mut().zip(texel) {
                 *o = tap.mul_add(*v, *o);
             }
@@ -400,16 +417,8 @@ impl MipMap {
             3 => self.accumulate_tile_taps::<3>(i, tiled, s, t, wrap, first, weight, out),
             4 => self.accumulate_tile_taps::<4>(i, tiled, s, t, wrap, first, weight, out),
             _ => {
-                let [w, h] = tiled.size();
-                let (rows, columns, taps) = bilinear_places(w, h, s, t, wrap, weight);
-                for (k, tap) in taps.into_iter().enumerate() {
-                    let (Some(y), Some(x)) = (rows[k / 2], columns[k % 2]) else { continue };
-                    if tap == 0.0 {
-                        continue;
-                    }
-                    let Some(texel) = self.tile_texel(i, tiled, x, y).and_then(|t| t.get(first..first + n)) else {
-                        continue;
-                    };
+                for (tap, texel) in self.tile_taps(i, tiled, s, t, wrap, weight) {
+                    let Some(texel) = texel.get(first..first + n) else { continue };
                     for (o, v) in out.iter_mut().zip(texel) {
                         *o = tap.mul_add(*v, *o);
                     }

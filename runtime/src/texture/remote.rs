@@ -670,31 +670,6 @@ mod tests {
         assert!(source.failures.lock().unwrap().is_empty());
     }
 
-    /// A tile that comes damaged fails the frame, reads as zeros, and is fetched again when next
-    /// read.
-    #[test]
-    fn a_damaged_tile_fails_the_frame_and_is_fetched_again_when_next_read() {
-        let image = floats(256);
-        let reference = MipMap::new(image.clone());
-        let source = Loopback::new(Delivered::image(&image));
-        let cache = TextureCache::new().with_source(Some(source.clone()));
-        source.damaged.store(true, Ordering::Relaxed);
-        let (mut here, mut there) = ([0.0; 3], [0.0; 3]);
-        let opts = LookupOptions::default();
-        assert!(cache.texture("t", 0.1, 0.1, wide(0.5, 256), 0, &mut here, &opts));
-        reference.filter(0.1, 0.1, wide(0.5, 256), 0, &mut there, &opts);
-        assert_eq!(here, [0.0; 3], "zeros stand in for the tile");
-        // Each tap that reads the tile asks for it again.
-        let failures = source.failures.lock().unwrap().clone();
-        assert!((1..=4).contains(&failures.len()), "{failures:?}");
-        assert!(failures.iter().all(|f| f.contains("tile 0 of mip level 0")), "{failures:?}");
-        source.damaged.store(false, Ordering::Relaxed);
-        assert!(cache.texture("t", 0.1, 0.1, wide(0.5, 256), 0, &mut here, &opts));
-        assert_eq!(here.map(f32::to_bits), there.map(f32::to_bits));
-        let tile = TexturePart::Tile { raw: false, level: 0, tile: 0 };
-        assert_eq!(source.asked()[1..], vec![tile; failures.len() + 1]);
-    }
-
     /// An 8-bit file (a PPM) comes whole wherever a level would be more than half as large, and
     /// is decoded here as the master decoded it, raw or as sRGB.
     #[test]
@@ -721,24 +696,33 @@ mod tests {
         }
     }
 
+    /// A level or a tile that comes damaged fails the frame, reads as zeros, and is fetched
+    /// again when next read.
     #[test]
-    fn a_damaged_level_fails_the_frame_and_is_fetched_again_when_next_read() {
-        let image = floats(128);
-        let reference = MipMap::new(image.clone());
-        let source = Loopback::new(Delivered::image(&image));
-        let cache = TextureCache::new().with_source(Some(source.clone()));
-        source.damaged.store(true, Ordering::Relaxed);
-        let (mut here, mut there) = ([0.0; 3], [0.0; 3]);
-        let opts = LookupOptions::default();
-        assert!(cache.texture("t", 0.5, 0.5, wide(2.0, 128), 0, &mut here, &opts));
-        reference.filter(0.5, 0.5, wide(2.0, 128), 0, &mut there, &opts);
-        assert_ne!(here, there, "zeros stand in for the level");
-        let failures = source.failures.lock().unwrap().clone();
-        assert!(failures.len() == 1 && failures[0].contains("mip level 1"), "{failures:?}");
-        source.damaged.store(false, Ordering::Relaxed);
-        same_lookups(&cache, &reference, false, wide(2.0, 128));
-        let level_one = TexturePart::Level { raw: false, level: 1 };
-        assert_eq!(source.asked()[1..], [level_one, level_one]);
+    fn a_damaged_level_or_tile_fails_the_frame_and_is_fetched_again_when_next_read() {
+        let cases = [
+            (128, 0.5, 2.0, TexturePart::Level { raw: false, level: 1 }, "mip level 1"),
+            (256, 0.1, 0.5, TexturePart::Tile { raw: false, level: 0, tile: 0 }, "tile 0 of mip level 0"),
+        ];
+        for (side, at, texels, part, named) in cases {
+            let image = floats(side);
+            let reference = MipMap::new(image.clone());
+            let source = Loopback::new(Delivered::image(&image));
+            let cache = TextureCache::new().with_source(Some(source.clone()));
+            source.damaged.store(true, Ordering::Relaxed);
+            let (mut here, mut there) = ([0.0; 3], [0.0; 3]);
+            let opts = LookupOptions::default();
+            assert!(cache.texture("t", at, at, wide(texels, side), 0, &mut here, &opts));
+            reference.filter(at, at, wide(texels, side), 0, &mut there, &opts);
+            assert_ne!(here, there, "zeros stand in for the {named}");
+            // A level is asked for once a lookup; a tile by each tap that reads it.
+            let failures = source.failures.lock().unwrap().clone();
+            assert!((1..=4).contains(&failures.len()), "{failures:?}");
+            assert!(failures.iter().all(|f| f.contains(named)), "{failures:?}");
+            source.damaged.store(false, Ordering::Relaxed);
+            same_lookups(&cache, &reference, false, wide(texels, side));
+            assert_eq!(source.asked()[1..=failures.len() + 1], vec![part; failures.len() + 1]);
+        }
     }
 
     #[test]
