@@ -67,7 +67,8 @@ fn world() -> &'static World {
     })
 }
 
-/// A master that answers a texture's first request with `first` and every level with `level`.
+/// A master that answers a texture's first request with `first` and every level and tile of a
+/// level with `level`.
 #[derive(Debug)]
 struct Answers {
     first: Vec<u8>,
@@ -76,7 +77,8 @@ struct Answers {
 
 impl TextureSource for Answers {
     fn fetch(&self, part: TexturePart, _name: &str) -> TextureAnswer {
-        let bytes = if matches!(part, TexturePart::Level { .. }) { &self.level } else { &self.first };
+        let tiled = matches!(part, TexturePart::Level { .. } | TexturePart::Tile { .. });
+        let bytes = if tiled { &self.level } else { &self.first };
         decode_answer(bytes).unwrap_or_else(|reason| TextureAnswer::Whole(Delivered::Missing { path: None, reason }))
     }
 }
@@ -103,7 +105,7 @@ fuzz_target!(|data: &[u8]| {
         }
         3 => {
             // A texture answer, whatever it holds: the first answer of a texture's lookups, and
-            // the answer to every level they fetch.
+            // the answer to every level and tile they fetch.
             let cut = usize::from(rest.first().copied().unwrap_or(0)).min(rest.len());
             let (first, level) = rest.split_at(cut);
             let source = Arc::new(Answers { first: first.to_vec(), level: level.to_vec() });
