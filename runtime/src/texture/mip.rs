@@ -207,8 +207,8 @@ impl MipMap {
             levels[first + k] = OnceLock::from(level);
         }
         let stand_in = Arc::new(TexImage::new(1, 1, channels, vec![0.0; channels])?);
-        // The levels not held in tiles, unless the map would have more than its share of them (a
-        // slot each): then a level at a time.
+        // The large levels that did not come with the pyramid come in tiles, unless they would
+        // take more than `MAX_TILES_A_MAP` slots: then a level at a time.
         let tiles: usize = sizes[..first].iter().filter_map(|&s| tile_grid(s, tile_side)).map(|[a, d]| a * d).sum();
         let tiled: Box<[Option<TiledLevel>]> = if tiles <= MAX_TILES_A_MAP && tile_side.is_power_of_two() {
             sizes.iter().enumerate().map(|(i, &s)| TiledLevel::new(s, tile_side).filter(|_| i < first)).collect()
