@@ -388,6 +388,29 @@ impl MipMap {
     ) {
         let Some(out) = out.first_chunk_mut::<N>() else { return };
         let mut sum = *out;
+        // Most probes' four taps lie in one tile: that tile found once, the same sums as below.
+        let [w, h] = tiled.size();
+        if let ([Some(y0), Some(y1)], [Some(x0), Some(x1)], taps) = bilinear_places(w, h, s, t, wrap, weight) {
+            let (index, [dx, dy]) = tiled.tile_of(x0, y0);
+            let channels = self.channels();
+            let one_tile = tiled.tile_of(x1, y1).0 == index && first + N <= channels;
+            if let Some(tile) = tiled.get(index).filter(|_| one_tile) {
+                let (rows, columns) = ([y0, y1].map(|y| y - (y0 - dy)), [x0, x1].map(|x| x - (x0 - dx)));
+                let tw = tile.width();
+                for (k, tap) in taps.into_iter().enumerate() {
+                    if tap == 0.0 {
+                        continue;
+                    }
+                    let offset = (rows[k / 2] * tw + columns[k % 2]) * channels + first;
+                    let Some(texel) = tile.data().get(offset..).and_then(|t| t.first_chunk::<N>()) else { continue };
+                    for (o, v) in sum.iter_mut().zip(texel) {
+                        *o = tap.mul_add(*v, *o);
+                    }
+                }
+                *out = sum;
+                return;
+            }
+        }
         for (tap, texel) in self.tile_taps(i, tiled, s, t, wrap, weight) {
             let Some(texel) = texel.get(first..).and_then(|t| t.first_chunk::<N>()) else { continue };
             for (o, v) in sum.iter_mut().zip(texel) {
@@ -594,22 +617,17 @@ impl MipMap {
         let values = (out.len() / 4).min(MAX_LANE_VALUES);
         let (s, t) = (lanes.s.to_array(), lanes.t.to_array());
         let mut left = active;
-        let whole_levels = self.tiled.is_empty() || self.lanes_read_whole_levels(&plans, active);
-        if wrap == [Wrap::Periodic; 2] && self.periodic_lanes && self.finite && values <= 4 && whole_levels {
-            left = self.filter_lanes_periodic([s, t], active, first, &plans, out, values, opts.fill);
+        if wrap == [Wrap::Periodic; 2] && self.periodic_lanes && self.finite && values <= 4 {
+            // Compiled apart: what reading tiles adds would slow the common way down.
+            left = if self.tiled.is_empty() {
+                self.filter_lanes_periodic::<false>([s, t], active, first, &plans, out, values, opts.fill)
+            } else {
+                self.filter_lanes_periodic::<true>([s, t], active, first, &plans, out, values, opts.fill)
+            };
         }
         if left.contains(&true) {
             self.filter_lanes_one_by_one([s, t], left, first, &plans, out, values, opts.fill, wrap);
         }
-    }
-
-    /// Whether the `active` lanes of `plans` read no level tile by tile ([`MipMap::reads_tiles`]).
-    #[inline(never)]
-    fn lanes_read_whole_levels(&self, plans: &ProbePlans, active: [bool; 4]) -> bool {
-        (0..4).filter(|&l| active[l]).all(|l| {
-            let ([a, b], _, two) = self.blended_levels(plans.lod[l], 1.0);
-            !(self.reads_tiles(a) || two && self.reads_tiles(b))
-        })
     }
 
     /// [`MipMap::filter_lanes`] of the lanes `left`, one after the other. Out of line: the common
@@ -660,10 +678,15 @@ impl MipMap {
     /// Where the lanes differ, the work is padded: a lane past its last probe, or with one level,
     /// adds taps of zero weight. That changes no bit: a sum starts at +0 and never becomes -0, and
     /// zero times a finite texel is a zero, so adding it leaves the sum as it was (which is why
-    /// the texels must be finite: zero times infinity is NaN).
+    /// the texels must be finite: zero times infinity is NaN). A lane past its last probe steps
+    /// on its last probe again, so that its padding reads where its probes read.
+    ///
+    /// A remote map's level that comes in tiles is read this way through the one tile a lane's
+    /// probes read on it, where they read one that is here ([`MipMap::tile_views`]); the lanes
+    /// that read such a level otherwise are left to the caller too.
     #[allow(clippy::too_many_arguments)] // filter_lanes' own arguments, worked out once there
     #[inline(always)]
-    fn filter_lanes_periodic(
+    fn filter_lanes_periodic<const TILED: bool>(
         &self,
         [s, t]: [[f32; 4]; 2],
         active: [bool; 4],
@@ -690,25 +713,45 @@ impl MipMap {
         if !summing.any() {
             return [false; 4];
         }
-        let summed: [bool; 4] = std::array::from_fn(|l| summing.test(l));
-        let plan = LanePlan::of(self, plans, summed, first);
+        let mut summed: [bool; 4] = std::array::from_fn(|l| summing.test(l));
+        let mut lanes = LaneProbes::of(self, plans, summed);
+        // Lanes that read a level in tiles but not through one tile that is here.
+        let mut untiled = [false; 4];
+        let views = if !TILED {
+            None
+        } else {
+            let (views, through) = self.tile_views([s, t], &lanes, summed);
+            untiled = std::array::from_fn(|l| summed[l] && !through[l]);
+            if untiled.contains(&true) {
+                summed = through;
+                if !summed.contains(&true) {
+                    return untiled;
+                }
+                for l in (0..4).filter(|&l| untiled[l]) {
+                    lanes.leave_out(l, self.levels.len() - 1);
+                }
+            }
+            Some(views)
+        };
+        let plan = LanePlan::of(self, &lanes, summed, first, views.as_ref());
         let mut sums = [Vec4::ZERO; 4];
         let mut far = BVec4A::FALSE;
         let (s, t) = (Vec4::from_array(s), Vec4::from_array(t));
         let probes = plan.probes;
+        let last = (probes - Vec4::ONE).max(Vec4::ZERO);
         let steps = probes.max_element() as usize;
         let levels = if plan.two { 2 } else { 1 };
         for k in 0..steps {
             let k = Vec4::splat(k as f32);
             let live = k.cmplt(probes);
             // The probe's centre, as `filter_planned` places it.
-            let along = (k + Vec4::splat(0.5)) * plan.weight - Vec4::splat(0.5);
+            let along = (if TILED { k.min(last) } else { k } + Vec4::splat(0.5)) * plan.weight - Vec4::splat(0.5);
             let (s, t) = (s + plan.axis[0] * along, t + plan.axis[1] * along);
             for level in &plan.levels[..levels] {
                 match level.add_probe(s, t, live, &mut sums) {
                     Some(beyond) => far |= beyond,
                     // An offset past its level (which the masks rule out): every lane the long way.
-                    None => return summed,
+                    None => return std::array::from_fn(|l| summed[l] || untiled[l]),
                 }
             }
         }
@@ -722,7 +765,100 @@ impl MipMap {
             let value = Vec4::select(has, rows.col(c), Vec4::splat(fill));
             Vec4::select(written, value, Vec4::from_slice(chunk)).write_to_slice(chunk);
         }
-        std::array::from_fn(|l| summed[l] && far >> l & 1 != 0)
+        std::array::from_fn(|l| summed[l] && far >> l & 1 != 0 || untiled[l])
+    }
+
+    /// For each `summed` lane of `lanes` and each level it reads that comes in tiles
+    /// ([`MipMap::reads_tiles`]), the tile its probes read there, where they read one tile that is
+    /// here: the box of their taps, shifted by whole periods, lies in it. The
+    /// second answer is the summed lanes that have such a tile for each such level (or read none);
+    /// the others go tap by tap, which fetches what they read.
+    ///
+    /// The probes' texel coordinates are worked out here by the arithmetic that places them in
+    /// [`MipMap::filter_lanes_periodic`], operation for operation (so to the bit), and they are
+    /// monotonic in the probe's number (each operation is), so the first and the last probe
+    /// bound the taps.
+    #[inline(never)]
+    fn tile_views(&self, [s, t]: [[f32; 4]; 2], lanes: &LaneProbes, summed: [bool; 4]) -> (LaneTiles<'_>, [bool; 4]) {
+        let mut views: LaneTiles<'_> = [[None; 4]; 2];
+        let mut through = summed;
+        let (s, t) = (Vec4::from_array(s), Vec4::from_array(t));
+        // Each lane's first and last probe, as `filter_lanes_periodic` places them.
+        let last = (lanes.probes - Vec4::ONE).max(Vec4::ZERO);
+        let along = [Vec4::ZERO, last].map(|k| (k + Vec4::splat(0.5)) * lanes.weight - Vec4::splat(0.5));
+        let ends = along.map(|a| [s + lanes.axis[0] * a, t + lanes.axis[1] * a]);
+        for (slot, (views, levels)) in views.iter_mut().zip(lanes.levels).enumerate() {
+            let asked: [bool; 4] = std::array::from_fn(|l| summed[l] && (slot == 0 || lanes.two.test(l)));
+            let Some(lane) = asked.iter().position(|&a| a) else { continue };
+            // Mostly, the lanes read one level (and one tile of it, found once below).
+            let one_level = (0..4).all(|l| !asked[l] || levels[l] == levels[lane]).then_some(levels[lane]);
+            let reading: [bool; 4] = match one_level {
+                Some(level) if !self.reads_tiles(level) => continue,
+                Some(_) => asked,
+                None => std::array::from_fn(|l| asked[l] && self.reads_tiles(levels[l])),
+            };
+            if !reading.contains(&true) {
+                continue;
+            }
+            let shapes = levels.map(|l| &self.shapes[l.min(self.shapes.len() - 1)]);
+            // Each lane's probes' texel coordinates along each axis, the lesser end then the
+            // greater: its taps read from the floor of the one to one past the floor of the other.
+            let ends = [0, 1].map(|axis| {
+                let size = Vec4::from_array(shapes.map(|shape| shape.size[axis]));
+                let [a, b] = ends.map(|e| e[axis] * size - Vec4::splat(0.5));
+                (a.min(b), a.max(b))
+            });
+            let limit = 4_194_304.0;
+            if let Some(one_level) = one_level {
+                let lanes_read = BVec4A::from_array(reading);
+                let spans = ends.map(|(lesser, greater)| {
+                    let first = Vec4::select(lanes_read, lesser, Vec4::INFINITY).min_element();
+                    let last = Vec4::select(lanes_read, greater, Vec4::NEG_INFINITY).max_element();
+                    (first.abs() < limit && last.abs() < limit).then(|| (first.floor() as i32, last.floor() as i32 + 1))
+                });
+                if let Some(view) = self.tile_view(one_level, spans) {
+                    for l in (0..4).filter(|&l| reading[l]) {
+                        views[l] = Some(view);
+                    }
+                    #[cfg(test)]
+                    LANES_THROUGH_TILES.with(|c| c.set(c.get() + reading.iter().filter(|&&r| r).count()));
+                    continue;
+                }
+            }
+            let near =
+                ends.map(|(a, b)| (a.abs().cmplt(Vec4::splat(limit)) & b.abs().cmplt(Vec4::splat(limit))).bitmask());
+            let spans = ends.map(|(a, b)| (floor_small(a).1.to_array(), (floor_small(b).1 + IVec4::ONE).to_array()));
+            for l in (0..4).filter(|&l| reading[l]) {
+                let span = |axis: usize| (near[axis] >> l & 1 != 0).then(|| (spans[axis].0[l], spans[axis].1[l]));
+                match self.tile_view(levels[l], [span(0), span(1)]) {
+                    Some(found) => {
+                        #[cfg(test)]
+                        LANES_THROUGH_TILES.with(|c| c.set(c.get() + 1));
+                        views[l] = Some(found);
+                    }
+                    None => through[l] = false,
+                }
+            }
+        }
+        // A lane of one level reads it again as its second, weighted zero.
+        for l in (0..4).filter(|&l| !lanes.two.test(l)) {
+            views[1][l] = views[0][l];
+        }
+        (views, through)
+    }
+
+    /// The tile of level `level` (one that comes in tiles) that holds the texels `spans` (first
+    /// and last, columns then rows, before they are wrapped periodically), where one does and is
+    /// here.
+    #[inline(always)]
+    fn tile_view(&self, level: usize, [columns, rows]: [Option<(i32, i32)>; 2]) -> Option<TileView<'_>> {
+        let tiled = self.tiled.get(level)?.as_ref()?;
+        let [w, h] = tiled.size();
+        let [x0, x1] = columns.and_then(|(first, last)| texel_span(first, last, w))?;
+        let [y0, y1] = rows.and_then(|(first, last)| texel_span(first, last, h))?;
+        let (index, [dx, dy]) = tiled.tile_of(x0, y0);
+        let tile = tiled.get(index).filter(|_| tiled.tile_of(x1, y1).0 == index)?;
+        Some(TileView { tile, origin: [x0 - dx, y0 - dy] })
     }
 
     /// Where the probes of four lookups go (see the module doc).
@@ -969,8 +1105,47 @@ struct LanePlan<'a> {
 }
 
 impl<'a> LanePlan<'a> {
+    /// The plan of `lanes`, their levels read whole or, where `views` has one, through a tile.
     #[inline(always)]
-    fn of(map: &'a MipMap, plans: &ProbePlans, summed: [bool; 4], first: [usize; 4]) -> LanePlan<'a> {
+    fn of(
+        map: &'a MipMap,
+        lanes: &LaneProbes,
+        summed: [bool; 4],
+        first: [usize; 4],
+        views: Option<&LaneTiles<'a>>,
+    ) -> LanePlan<'a> {
+        let first = std::array::from_fn(|l| if summed[l] { first[l] } else { 0 });
+        let view = |slot: usize| views.map_or([None; 4], |v| v[slot]);
+        LanePlan {
+            probes: lanes.probes,
+            weight: lanes.weight,
+            axis: lanes.axis,
+            levels: [
+                LevelLanes::of(map, lanes.levels[0], lanes.weights[0], first, view(0)),
+                LevelLanes::of(map, lanes.levels[1], lanes.weights[1], first, view(1)),
+            ],
+            two: lanes.two.any(),
+        }
+    }
+}
+
+/// Where four lookups' probes go, lane by lane: each lane's number of probes (0 for a lane not
+/// summed), probe weight and axis, its two levels (the first again where it reads one) and their
+/// weights.
+struct LaneProbes {
+    probes: Vec4,
+    weight: Vec4,
+    /// The major axis in texture coordinates, s then t.
+    axis: [Vec4; 2],
+    levels: [[usize; 4]; 2],
+    weights: [Vec4; 2],
+    /// The lanes that read two levels.
+    two: BVec4A,
+}
+
+impl LaneProbes {
+    #[inline(always)]
+    fn of(map: &MipMap, plans: &ProbePlans, summed: [bool; 4]) -> LaneProbes {
         let (w, h) = (map.width() as f32, map.height() as f32);
         let summing = BVec4A::from_array(summed);
         let probes = Vec4::select(summing, plans.probes.min(Vec4::splat(MAX_ANISOTROPY as f32)), Vec4::ZERO);
@@ -992,18 +1167,62 @@ impl<'a> LanePlan<'a> {
         // Whole numbers from 0 to the top level: one truncation gives them.
         let first_level = floor_small(below).1.to_array().map(|b| b.max(0) as usize);
         let second_level = std::array::from_fn(|l| first_level[l] + usize::from(two.test(l)));
-        let first = std::array::from_fn(|l| if summed[l] { first[l] } else { 0 });
-        LanePlan {
-            probes,
-            weight,
-            axis,
-            levels: [
-                LevelLanes::of(map, first_level, weights[0], first),
-                LevelLanes::of(map, second_level, weights[1], first),
-            ],
-            two: two.any(),
-        }
+        LaneProbes { probes, weight, axis, levels: [first_level, second_level], weights, two }
     }
+
+    /// Lane `l` as [`LaneProbes::of`] makes a lane not summed: no probes, on the coarsest level
+    /// (`top`).
+    fn leave_out(&mut self, l: usize, top: usize) {
+        self.probes[l] = 0.0;
+        self.levels = self.levels.map(|mut levels| {
+            levels[l] = top;
+            levels
+        });
+        self.two.set(l, false);
+    }
+}
+
+#[cfg(test)]
+thread_local! {
+    /// How many lanes' levels [`MipMap::tile_views`] found a tile for on this thread: tests'
+    /// evidence that lookups read tiles the four-lane way.
+    pub(crate) static LANES_THROUGH_TILES: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
+}
+
+/// For each of a [`LanePlan`]'s two levels, the tile each lane reads it through (`None`: whole).
+type LaneTiles<'a> = [[Option<TileView<'a>>; 4]; 2];
+
+/// A tile of a level, and where it lies in the level (its top left texel).
+#[derive(Clone, Copy)]
+struct TileView<'a> {
+    tile: &'a TexImage,
+    origin: [usize; 2],
+}
+
+impl TileView<'_> {
+    /// Values in a row of the tile.
+    fn row(&self, channels: usize) -> u32 {
+        (self.tile.width() * channels) as u32
+    }
+
+    /// What a texel's offset in the level, counted in rows of the tile, exceeds its offset in the
+    /// tile by (modulo 2^32, as offsets are computed).
+    fn bias(&self, channels: usize) -> u32 {
+        let [x, y] = self.origin.map(|v| v as u32);
+        y.wrapping_mul(self.row(channels)).wrapping_add(x.wrapping_mul(channels as u32))
+    }
+}
+
+/// The texels `first..=last` along an axis of `n` texels shifted by a whole period into `0..n`;
+/// `None` where they do not fit there unwrapped.
+#[inline(always)]
+fn texel_span(first: i32, last: i32, n: usize) -> Option<[usize; 2]> {
+    let (first, last) = (i64::from(first), i64::from(last));
+    let n = i64::try_from(n).ok()?;
+    // Most coordinates are in the first period: no division.
+    let shift = if first >= 0 && last < n { 0 } else { first.div_euclid(n) * n };
+    let span = [first - shift, last - shift];
+    (span[1] < n).then(|| span.map(|v| v as usize))
 }
 
 /// A level for each of four lookups (their levels may differ), for their probes' taps.
@@ -1030,10 +1249,24 @@ struct LevelLanes<'a> {
 
 impl<'a> LevelLanes<'a> {
     #[inline(always)]
-    fn of(map: &'a MipMap, levels: [usize; 4], weight: Vec4, first: [usize; 4]) -> LevelLanes<'a> {
-        let first = UVec4::from_array(first.map(|f| f as u32));
-        let data = levels.map(|l| map.level_at(l).padded_data());
+    fn of(
+        map: &'a MipMap,
+        levels: [usize; 4],
+        weight: Vec4,
+        first: [usize; 4],
+        views: [Option<TileView<'a>>; 4],
+    ) -> LevelLanes<'a> {
+        let channels = map.channels();
+        // A lane read through a tile: its rows are the tile's, and its offsets, counted so,
+        // less where the tile starts are the tile's own.
+        let first: [u32; 4] =
+            std::array::from_fn(|l| (first[l] as u32).wrapping_sub(views[l].map_or(0, |v| v.bias(channels))));
+        let data: [&[f32]; 4] = std::array::from_fn(|l| match views[l] {
+            Some(view) => view.tile.padded_data(),
+            None => map.level_at(levels[l]).padded_data(),
+        });
         let shapes = levels.map(|l| &map.shapes[l.min(map.shapes.len() - 1)]);
+        let row: [u32; 4] = std::array::from_fn(|l| views[l].map_or(shapes[l].row, |v| v.row(channels)));
         // `periodic_lanes` keeps every count and offset of these under 2^32.
         let limit = data.map(|d| (d.len() - TEXEL_PADDING) as u32);
         LevelLanes {
@@ -1042,9 +1275,9 @@ impl<'a> LevelLanes<'a> {
             size: [0, 1].map(|k| Vec4::from_array(shapes.map(|s| s.size[k]))),
             mask: [0, 1].map(|k| IVec4::from_array(shapes.map(|s| s.mask[k]))),
             pow2: map.power_of_two_levels,
-            row: UVec4::from_array(shapes.map(|s| s.row)),
-            texel: UVec4::splat(map.channels() as u32),
-            first,
+            row: UVec4::from_array(row),
+            texel: UVec4::splat(channels as u32),
+            first: UVec4::from_array(first),
             weight,
         }
     }
@@ -2010,7 +2243,7 @@ mod tests {
         for n in [1usize, 2, 3, 7, 12, 1044, 65_537] {
             let map = MipMap::new(image(n, 1, 1, |x, _, _| x as f32));
             assert_eq!(map.power_of_two_levels, n.is_power_of_two());
-            let level = LevelLanes::of(&map, [0; 4], Vec4::ONE, [0; 4]);
+            let level = LevelLanes::of(&map, [0; 4], Vec4::ONE, [0; 4], [None; 4]);
             let mut corners: Vec<i64> = (-3 * n as i64 - 2..3 * n as i64 + 2).collect();
             for big in [4_194_303i64, 4_194_304 - n as i64, 3_000_017, 1 << 21] {
                 corners.extend([big, -big, big - 1, 1 - big]);

@@ -647,6 +647,60 @@ mod tests {
         }
     }
 
+    /// Four-lane lookups whose probes all read one tile that is here take the four-lane way
+    /// through it (in an image a power of two in size and in one that is not, lanes of different
+    /// numbers of probes, coordinates a period away): the values of the map built from the
+    /// whole image, bit for bit, as those that go tap by tap (over a tile's edge, or the first
+    /// time a tile is read).
+    #[test]
+    fn lookups_within_tiles_here_read_them_four_lanes_at_once() {
+        use crate::texture::mip::LANES_THROUGH_TILES;
+        for (w, h) in [(512, 256), (300, 170)] {
+            let image = noisy(w, h, 3);
+            let reference = MipMap::new(image.clone());
+            let source = Loopback::new(Delivered::image(&image));
+            let cache = TextureCache::new().with_source(Some(source.clone()));
+            let map = cache.get_texture("t", false).unwrap();
+            let opts = LookupOptions::default();
+            let mut state = 0x9e37_79b9_7f4a_7c15u64;
+            let mut next = move || {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                (state >> 40) as f32 / (1u64 << 24) as f32
+            };
+            // A few tiles' worth of places (so that the tiles never cost what the image does),
+            // some a period away.
+            let lookups: Vec<_> = (0..300)
+                .map(|round| {
+                    let texels = [0.3, 0.9, 1.6, 2.5][round % 4];
+                    let mut lanes = crate::texture::LookupLanes::splat(0.0, 0.0, wide(texels, w), [0.0; 2]);
+                    let period = Vec4::new(0.0, 1.0, -2.0, 0.0);
+                    lanes.s = Vec4::from_array(std::array::from_fn(|_| 0.3 + 0.1 * next())) + period;
+                    lanes.t = Vec4::from_array(std::array::from_fn(|_| 0.25 + 0.2 * next())) - period;
+                    lanes.dsdx *= Vec4::new(1.0, 4.0, 2.5, 1.0);
+                    lanes.dtdx = Vec4::new(0.0, 0.001, 0.0, 0.004);
+                    (lanes, [true, round % 3 != 0, true, round % 5 != 1])
+                })
+                .collect();
+            for pass in 0..std::env::var("PASSES").map_or(2, |p| p.parse().unwrap()) {
+                let before = LANES_THROUGH_TILES.with(|c| c.get());
+                for (round, (lanes, active)) in lookups.iter().enumerate() {
+                    let (mut here, mut there) = ([0.0; 12], [0.0; 12]);
+                    map.filter_lanes(lanes, *active, [0, 1, 0, 2], &mut here, &opts);
+                    reference.filter_lanes(lanes, *active, [0, 1, 0, 2], &mut there, &opts);
+                    assert_eq!(here.map(f32::to_bits), there.map(f32::to_bits), "{w}x{h}, pass {pass}, round {round}");
+                }
+                let through = LANES_THROUGH_TILES.with(|c| c.get()) - before;
+                if pass == 1 {
+                    assert!(through > lookups.len(), "{w}x{h}: {through} lanes read through tiles");
+                }
+            }
+            assert!(!map.holds_level(0), "{w}x{h}: tiles of level 0 only");
+            assert!(source.failures.lock().unwrap().is_empty());
+        }
+    }
+
     /// Once a worker has fetched as many bytes of tiles as the texture costs whole, the next tile
     /// it lacks brings the image, and every level is made from it.
     #[test]
