@@ -597,6 +597,17 @@ mod tests {
     }
 
     /// Noise over a `w x h` image of `channels`, as floats.
+    /// Numbers in [0, 1) from `seed`, a xorshift generator's.
+    fn uniform_numbers(seed: u64) -> impl FnMut() -> f32 {
+        let mut state = seed;
+        move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 40) as f32 / (1u64 << 24) as f32
+        }
+    }
+
     fn noisy(w: usize, h: usize, channels: usize) -> TexImage {
         let values = (0..w * h * channels).map(|i| (noise(i + 7) >> 40) as f32 / (1u64 << 24) as f32).collect();
         TexImage::new(w, h, channels, values).unwrap()
@@ -615,13 +626,7 @@ mod tests {
             let map = cache.get_texture("t", false).unwrap();
             assert_eq!(map.tiles_held(0), Some([0, 15]));
             let opts = LookupOptions { swrap: Some(wrap[0]), twrap: Some(wrap[1]), ..LookupOptions::default() };
-            let mut state = 0x2545_f491_4f6c_dd1du64;
-            let mut next = move || {
-                state ^= state << 13;
-                state ^= state >> 7;
-                state ^= state << 17;
-                (state >> 40) as f32 / (1u64 << 24) as f32
-            };
+            let mut next = uniform_numbers(0x2545_f491_4f6c_dd1du64);
             for round in 0..200 {
                 let texels = [0.2, 0.8, 1.3, 2.2, 4.0][round % 5];
                 let mut lanes = crate::texture::LookupLanes::splat(0.0, 0.0, wide(texels, 300), [0.0; 2]);
@@ -662,13 +667,7 @@ mod tests {
             let cache = TextureCache::new().with_source(Some(source.clone()));
             let map = cache.get_texture("t", false).unwrap();
             let opts = LookupOptions::default();
-            let mut state = 0x9e37_79b9_7f4a_7c15u64;
-            let mut next = move || {
-                state ^= state << 13;
-                state ^= state >> 7;
-                state ^= state << 17;
-                (state >> 40) as f32 / (1u64 << 24) as f32
-            };
+            let mut next = uniform_numbers(0x9e37_79b9_7f4a_7c15u64);
             // A few tiles' worth of places (so that the tiles never cost what the image does),
             // some a period away.
             let lookups: Vec<_> = (0..300)
