@@ -73,24 +73,35 @@ impl DeformedTriangles {
     }
 }
 
+/// How many blocks ahead [`ObjectBvh::from_bvh4`] starts loading the triangles of a block.
+const BLOCKS_AHEAD: usize = 4;
+
 impl ObjectBvh {
     /// Builds the BVH of `mesh`.
     pub fn build(mesh: &Mesh, quality: BuildQuality) -> Self {
-        let close_corners = |i: usize| {
-            let d = mesh.deformation.as_ref()?;
-            Some(mesh.triangles[i].map(|k| d.positions[k as usize]))
+        let box_of = |corners: [glam::Vec3; 3]| {
+            let [a, b, c] = corners.map(Vec3A::from);
+            (a.min(b).min(c), a.max(b).max(c))
         };
-        let boxes: Vec<Aabb> = (0..mesh.triangle_count())
-            .into_par_iter()
-            .with_min_len(4096)
-            .map(|i| {
-                let corners = mesh.corners(i).into_iter().chain(close_corners(i).into_iter().flatten());
-                let (lo, hi) = corners.fold((Vec3A::INFINITY, Vec3A::NEG_INFINITY), |(lo, hi), p| {
-                    (lo.min(Vec3A::from(p)), hi.max(Vec3A::from(p)))
-                });
-                Aabb::new(lo, hi)
-            })
-            .collect();
+        let boxes: Vec<Aabb> = match &mesh.deformation {
+            None => (0..mesh.triangle_count())
+                .into_par_iter()
+                .with_min_len(4096)
+                .map(|i| {
+                    let (lo, hi) = box_of(mesh.corners(i));
+                    Aabb::new(lo, hi)
+                })
+                .collect(),
+            Some(d) => (0..mesh.triangle_count())
+                .into_par_iter()
+                .with_min_len(4096)
+                .map(|i| {
+                    let (lo, hi) = box_of(mesh.corners(i));
+                    let (clo, chi) = box_of(mesh.triangles[i].map(|k| d.positions[k as usize]));
+                    Aabb::new(lo.min(clo), hi.max(chi))
+                })
+                .collect(),
+        };
         ObjectBvh::from_bvh4(mesh, leaves_in_blocks(Bvh4::build(&boxes, quality, OBJECT_LEAF_SIZE)))
     }
 
@@ -98,29 +109,35 @@ impl ObjectBvh {
     /// blocks (built here, or built elsewhere and checked: [`super::wire::decode_bvh4`]): its
     /// prepared triangles and its 8-wide form.
     pub fn from_bvh4(mesh: &Mesh, bvh: Bvh4) -> Self {
-        let block_of = |positions: &[glam::Vec3], lanes: &[u32]| {
-            let mut tris = [PreTriangle::default(); BLOCK_WIDTH];
-            let mut n = 0;
-            for &p in lanes.iter().take_while(|&&p| p != NO_TRIANGLE) {
-                let [a, b, c] = mesh.triangles[p as usize].map(|k| positions[k as usize]);
-                tris[n] = PreTriangle::new(a, b, c);
-                n += 1;
-            }
-            TriangleBlock::new(&tris[..n])
-        };
-        let mut blocks = Vec::with_capacity(bvh.prim_order.len() / BLOCK_WIDTH);
-        bvh.prim_order
-            .par_chunks(BLOCK_WIDTH)
-            .with_min_len(1024)
-            .map(|lanes| block_of(&mesh.positions, lanes))
-            .collect_into_vec(&mut blocks);
-        let deformed = mesh.deformation.as_ref().map(|d| DeformedTriangles {
-            close: bvh
-                .prim_order
+        let order = &bvh.prim_order;
+        let blocks_of = |positions: &[glam::Vec3]| -> Vec<TriangleBlock> {
+            let mut blocks = Vec::with_capacity(order.len() / BLOCK_WIDTH);
+            order
                 .par_chunks(BLOCK_WIDTH)
                 .with_min_len(1024)
-                .map(|lanes| block_of(&d.positions, lanes))
-                .collect(),
+                .enumerate()
+                .map(|(c, lanes)| {
+                    // The leaves' triangles are scattered over the mesh: those of a block a few
+                    // ahead start loading now, so that their misses overlap.
+                    let ahead = order.get((c + BLOCKS_AHEAD) * BLOCK_WIDTH..(c + BLOCKS_AHEAD + 1) * BLOCK_WIDTH);
+                    for t in ahead.unwrap_or(&[]).iter().filter_map(|&p| mesh.triangles.get(p as usize)) {
+                        super::prefetch(t, 1);
+                    }
+                    // Each triangle goes from registers into its lane: gathered as `PreTriangle`s
+                    // first, the block's rows were read back through stalled store forwarding.
+                    let mut block = TriangleBlock::default();
+                    for (j, &p) in lanes.iter().take_while(|&&p| p != NO_TRIANGLE).enumerate().take(BLOCK_WIDTH) {
+                        let [a, b, c] = mesh.triangles[p as usize].map(|k| positions[k as usize]);
+                        block.set(j, &PreTriangle::new(a, b, c));
+                    }
+                    block
+                })
+                .collect_into_vec(&mut blocks);
+            blocks
+        };
+        let blocks = blocks_of(&mesh.positions);
+        let deformed = mesh.deformation.as_ref().map(|d| DeformedTriangles {
+            close: blocks_of(&d.positions),
             open_time: d.open,
             close_time: d.close,
         });
@@ -594,5 +611,81 @@ impl ObjectBvh {
             }
         }
         parted
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::Deformation;
+    use glam::Vec3;
+
+    /// `n` small triangles scattered over a box (a fixed sequence), each its own three vertices;
+    /// with `moving`, each also somewhere else at the deformation's close.
+    fn scattered(n: usize, moving: bool) -> Mesh {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let mut positions = Vec::new();
+        for _ in 0..n {
+            let at = Vec3::new(next(), next(), next()) * 50.0;
+            for _ in 0..3 {
+                positions.push(at + Vec3::new(next(), next(), next()));
+            }
+        }
+        let triangles = (0..n as u32).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect();
+        let mut mesh = Mesh::from_triangles(positions, triangles).expect("a valid mesh");
+        if moving {
+            let close = mesh.positions.iter().map(|&p| p + Vec3::new(8.0, -3.0, 1.0) * next()).collect();
+            mesh.deformation = Some(Deformation { positions: close, normals: None, open: 0.0, close: 1.0 });
+        }
+        mesh
+    }
+
+    /// Every triangle lands in one block lane as the mesh gives it, at both ends of a deformation,
+    /// and its leaf's box holds both ends; unused lanes are empty.
+    #[test]
+    fn blocks_hold_the_leaves_triangles_inside_the_leaves_boxes() {
+        for moving in [false, true] {
+            for n in [1, 6, 1000, 20_000] {
+                let mesh = scattered(n, moving);
+                let built = ObjectBvh::build(&mesh, BuildQuality::High);
+                let close =
+                    |s: usize| built.deformed.as_ref().map(|d| d.close[s / BLOCK_WIDTH].triangle(s % BLOCK_WIDTH));
+                let mut seen = vec![0u32; n];
+                for (s, &p) in built.bvh.prim_order.iter().enumerate() {
+                    if p == NO_TRIANGLE {
+                        assert_eq!(built.triangle(s), PreTriangle::default());
+                        continue;
+                    }
+                    seen[p as usize] += 1;
+                    let [a, b, c] = mesh.corners(p as usize);
+                    assert_eq!(built.triangle(s), PreTriangle::new(a, b, c), "{n} triangles, slot {s}");
+                    let ends =
+                        mesh.deformation.as_ref().map(|d| mesh.triangles[p as usize].map(|k| d.positions[k as usize]));
+                    assert_eq!(close(s), ends.map(|[a, b, c]| PreTriangle::new(a, b, c)));
+                }
+                assert!(seen.iter().all(|&k| k == 1), "{n} triangles: each in one lane");
+                for node in &built.bvh.nodes {
+                    for k in (0..4).filter(|&k| node.child[k] & LEAF_BIT != 0 && node.child[k] != EMPTY_CHILD) {
+                        let lo = Vec3::new(node.min_x[k], node.min_y[k], node.min_z[k]);
+                        let hi = Vec3::new(node.max_x[k], node.max_y[k], node.max_z[k]);
+                        let (block, count) = leaf_range(node.child[k]);
+                        for s in BLOCK_WIDTH * block as usize..BLOCK_WIDTH * block as usize + count as usize {
+                            let p = built.bvh.prim_order[s] as usize;
+                            let close =
+                                mesh.deformation.as_ref().map(|d| mesh.triangles[p].map(|i| d.positions[i as usize]));
+                            for q in mesh.corners(p).into_iter().chain(close.into_iter().flatten()) {
+                                assert!(q.cmpge(lo).all() && q.cmple(hi).all(), "{n} triangles: {q} outside its leaf");
+                            }
+                        }
+                    }
+                }
+            }
+        }
     }
 }

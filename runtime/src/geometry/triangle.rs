@@ -187,13 +187,19 @@ impl TriangleBlock {
     pub fn new(tris: &[PreTriangle]) -> TriangleBlock {
         let mut b = TriangleBlock::default();
         for (j, t) in tris.iter().take(BLOCK_WIDTH).enumerate() {
-            for k in 0..3 {
-                b.v0[k][j] = t.v0[k];
-                b.e1[k][j] = t.e1[k];
-                b.e2[k][j] = t.e2[k];
-            }
+            b.set(j, t);
         }
         b
+    }
+
+    /// Puts `t` in lane `j` (below [`BLOCK_WIDTH`]).
+    #[inline(always)]
+    pub fn set(&mut self, j: usize, t: &PreTriangle) {
+        for k in 0..3 {
+            self.v0[k][j] = t.v0[k];
+            self.e1[k][j] = t.e1[k];
+            self.e2[k][j] = t.e2[k];
+        }
     }
 
     /// Lane `j`'s triangle.
