@@ -5,9 +5,9 @@
 
 use obvhs::{aabb::Aabb, bvh2::reinsertion::ReinsertionOptimizer, ploc::PlocBuilder};
 use rtsl_runtime::accel::binned::{build_binned_with_leaves, merged_leaf_size};
-use rtsl_runtime::accel::bvh4::{BuildQuality, Bvh4};
+use rtsl_runtime::accel::bvh4::{BuildQuality, Bvh4, LeafSlots};
 use rtsl_runtime::accel::bvh8::Bvh8;
-use rtsl_runtime::accel::object::{leaves_in_blocks, ObjectBvh, OBJECT_LEAF_SIZE};
+use rtsl_runtime::accel::object::{ObjectBvh, OBJECT_LEAF_SIZE};
 use rtsl_runtime::load_mesh;
 use std::time::Instant;
 
@@ -79,29 +79,28 @@ fn main() {
                     ReinsertionOptimizer::default().run(&mut bvh2, p.reinsertion_batch_ratio, None);
                 }
                 let t_re1 = ms(t);
+                // As `ObjectBvh::build`: leaves in blocks.
+                let slots = LeafSlots::Blocks(OBJECT_LEAF_SIZE);
                 let t = Instant::now();
-                let mut b4 = Bvh4::from_bvh2(&mut bvh2, p.max_prims_per_leaf, p.collapse_traversal_cost);
+                let mut b4 = Bvh4::from_bvh2_with(&mut bvh2, p.max_prims_per_leaf, p.collapse_traversal_cost, slots);
                 let t_conv = ms(t);
                 for _ in 1..convert_loops {
                     let t = Instant::now();
-                    b4 = Bvh4::from_bvh2(&mut bvh2, p.max_prims_per_leaf, p.collapse_traversal_cost);
+                    b4 = Bvh4::from_bvh2_with(&mut bvh2, p.max_prims_per_leaf, p.collapse_traversal_cost, slots);
                     println!("  convert again {:.1} ms", ms(t));
                 }
                 let t = Instant::now();
                 let b8 = Bvh8::from_bvh4(&b4);
                 let t_wide = ms(t);
                 let t = Instant::now();
-                let blocked = leaves_in_blocks(b4.clone());
-                let t_blocks = ms(t);
-                let t = Instant::now();
-                let object = ObjectBvh::from_bvh4(&mesh, blocked);
+                let object = ObjectBvh::from_bvh4(&mesh, b4.clone());
                 let t_triangles = ms(t) - t_wide;
                 drop(object);
                 let t = Instant::now();
                 let full = ObjectBvh::build(&mesh, q);
                 let t_full = ms(t);
                 println!(
-                    "{q:?}: binary ({}) {t_ploc:.1} reinsert {t_re1:.1} collapse+to4 {t_conv:.1} to8 {t_wide:.1} leaves in blocks {t_blocks:.1} triangles {t_triangles:.1} | full ObjectBvh::build {t_full:.1} ms ({} 4-wide nodes, {} 8-wide, sah {:.2})",
+                    "{q:?}: binary ({}) {t_ploc:.1} reinsert {t_re1:.1} collapse+to4 {t_conv:.1} to8 {t_wide:.1} triangles {t_triangles:.1} | full ObjectBvh::build {t_full:.1} ms ({} 4-wide nodes, {} 8-wide, sah {:.2})",
                     if q.is_binned() { "binned SAH" } else { "PLOC" },
                     b4.nodes.len(),
                     b8.nodes.len(),

@@ -33,6 +33,20 @@ pub const LEAF_BIT: u32 = 1 << 31;
 pub const EMPTY_CHILD: u32 = LEAF_BIT;
 /// Largest number of primitives in one leaf.
 pub const MAX_LEAF_SIZE: u32 = 15;
+/// A leaf slot that holds no primitive: the unused slots of a block ([`LeafSlots::Blocks`]).
+pub const NO_PRIMITIVE: u32 = u32::MAX;
+
+/// How the leaves of a 4-wide BVH take their slots.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LeafSlots {
+    /// As many as the leaf's primitives, leaf after leaf in depth-first order; a leaf reference
+    /// holds its first slot.
+    Packed,
+    /// A block of this many each (the unused ones [`NO_PRIMITIVE`]), leaves of at most as many
+    /// primitives: the `b`-th leaf in depth-first order holds slots `width * b ..`, and its
+    /// reference holds `b`.
+    Blocks(u32),
+}
 
 /// A 4-wide BVH node (see the module documentation for the layout).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -342,6 +356,11 @@ pub const MAX_PRIMITIVES: usize = (1 << 27) - 1;
 impl Bvh4 {
     /// Builds the BVH over `boxes` (one per primitive) with leaves of at most `max_leaf` primitives.
     pub fn build(boxes: &[Aabb], quality: BuildQuality, max_leaf: u32) -> Bvh4 {
+        Bvh4::build_with(boxes, quality, max_leaf, LeafSlots::Packed)
+    }
+
+    /// [`Bvh4::build`] with the leaves' slots laid out as `slots` says.
+    pub fn build_with(boxes: &[Aabb], quality: BuildQuality, max_leaf: u32, slots: LeafSlots) -> Bvh4 {
         let n = boxes.len();
         if n == 0 {
             return Bvh4::default();
@@ -356,7 +375,15 @@ impl Bvh4 {
             for (k, b) in boxes.iter().enumerate() {
                 node.set_child(k, b, leaf_ref(k as u32, 1));
             }
-            return Bvh4 { nodes: vec![node], prim_order: (0..n as u32).collect(), bounds, depth: 1 };
+            let prim_order = match slots {
+                LeafSlots::Packed => (0..n as u32).collect(),
+                LeafSlots::Blocks(width) => (0..n as u32)
+                    .flat_map(|k| {
+                        std::iter::once(k).chain(std::iter::repeat_n(NO_PRIMITIVE, width.max(1) as usize - 1))
+                    })
+                    .collect(),
+            };
+            return Bvh4 { nodes: vec![node], prim_order, bounds, depth: 1 };
         }
         // Meshes and top levels are refused past it before they get here (`Mesh::validate`,
         // `Context::instantiate_object`).
@@ -375,7 +402,7 @@ impl Bvh4 {
         } else {
             build_binary(boxes, &p)
         };
-        Bvh4::from_bvh2(&mut bvh2, p.max_prims_per_leaf, p.collapse_traversal_cost)
+        Bvh4::from_bvh2_with(&mut bvh2, p.max_prims_per_leaf, p.collapse_traversal_cost, slots)
     }
 
     /// Collapses obvhs's binary BVH (not yet leaf-collapsed: leaves of one primitive) into 4-wide
@@ -383,17 +410,25 @@ impl Bvh4 {
     /// passes run in parallel on the current rayon pool. The binary nodes' `meta1` and `meta2` fields
     /// are overwritten.
     pub fn from_bvh2(bvh2: &mut Bvh2, max_leaf: u32, collapse_traversal_cost: f32) -> Bvh4 {
+        Bvh4::from_bvh2_with(bvh2, max_leaf, collapse_traversal_cost, LeafSlots::Packed)
+    }
+
+    /// [`Bvh4::from_bvh2`] with the leaves' slots laid out as `slots` says.
+    pub fn from_bvh2_with(bvh2: &mut Bvh2, max_leaf: u32, collapse_traversal_cost: f32, slots: LeafSlots) -> Bvh4 {
         let Some(&root) = bvh2.nodes.first() else { return Bvh4::default() };
         let bounds = Some((root.aabb.min, root.aabb.max));
-        let conv = Converter::new(bvh2, max_leaf, collapse_traversal_cost);
+        let conv = Converter::new(bvh2, max_leaf, collapse_traversal_cost, slots);
         conv.analyse(0, 0);
-        let n = conv.prim_count(0) as usize;
+        let n = conv.slots(0) as usize;
         let mut prim_order = vec![0u32; n];
         if conv.is_leaf(0) {
             // Only for tiny inputs: the whole tree is one leaf.
-            conv.gather(0, &mut prim_order);
+            let prims = conv.prim_count(0);
+            let (held, unused) = prim_order.split_at_mut(prims as usize);
+            conv.gather(0, held);
+            unused.fill(NO_PRIMITIVE);
             let mut node = Node4::default();
-            node.set_child(0, &root.aabb, leaf_ref(0, n as u32));
+            node.set_child(0, &root.aabb, leaf_ref(0, prims));
             return Bvh4 { nodes: vec![node], prim_order, bounds, depth: 1 };
         }
         let count = conv.nodes4(0) as usize;
@@ -452,9 +487,10 @@ const AS_LEAF: u32 = 1 << 31;
 /// own disjoint range of the node and slot arrays, so subtrees are written in parallel and the
 /// layout is the same depth-first pre-order as a sequential conversion.
 ///
-/// Pass 1 keeps its results in the binary nodes' spare `meta1` (primitive count, with [`AS_LEAF`]
-/// set when the subtree becomes one leaf) and `meta2` (4-wide node count; 0 for leaves) fields, in
-/// the cache line the traversal reads anyway.
+/// Pass 1 keeps its results in the binary nodes' spare `meta1` and `meta2` fields, in the cache line
+/// the traversal reads anyway: `meta1` holds a subtree's primitive count with [`AS_LEAF`] set when
+/// the subtree becomes one leaf, else its slot count (its primitive count unless leaves take blocks,
+/// [`LeafSlots::Blocks`]: then the blocks' slots); `meta2` its 4-wide node count (0 for leaves).
 ///
 /// Safety invariant (the nodes are shared between threads through a raw pointer): node `i` is
 /// written only by the analysis of node `i`, after the analysis of its subtree has finished (same
@@ -466,6 +502,8 @@ struct Converter<'a> {
     primitive_indices: &'a [u32],
     max_leaf: u32,
     traversal_cost: f32,
+    /// The slots of a leaf: its primitives (`None`), or a block of this many.
+    block: Option<u32>,
 }
 
 // SAFETY: see the safety invariant of `Converter`: concurrent tasks touch disjoint nodes or only
@@ -476,13 +514,18 @@ unsafe impl Sync for Converter<'_> {}
 type Job<'s> = (usize, &'s mut [MaybeUninit<Node4>], u32, &'s mut [u32], u32);
 
 impl<'a> Converter<'a> {
-    fn new(bvh2: &'a mut Bvh2, max_leaf: u32, traversal_cost: f32) -> Self {
+    fn new(bvh2: &'a mut Bvh2, max_leaf: u32, traversal_cost: f32, slots: LeafSlots) -> Self {
+        let block = match slots {
+            LeafSlots::Packed => None,
+            LeafSlots::Blocks(width) => Some(width.clamp(1, MAX_LEAF_SIZE)),
+        };
         Converter {
             nodes: bvh2.nodes.as_mut_ptr(),
             len: bvh2.nodes.len(),
             primitive_indices: &bvh2.primitive_indices,
-            max_leaf: max_leaf.clamp(1, MAX_LEAF_SIZE),
+            max_leaf: max_leaf.clamp(1, block.unwrap_or(MAX_LEAF_SIZE)),
             traversal_cost,
+            block,
         }
     }
 
@@ -529,6 +572,15 @@ impl<'a> Converter<'a> {
     #[inline(always)]
     fn prim_count(&self, i: usize) -> u32 {
         self.node(i).meta1 & !AS_LEAF
+    }
+
+    /// The leaf slots the subtree of binary node `i` takes (after pass 1 has been over it).
+    #[inline(always)]
+    fn slots(&self, i: usize) -> u32 {
+        match self.block {
+            Some(width) if self.is_leaf(i) => width,
+            _ => self.prim_count(i),
+        }
     }
 
     #[inline(always)]
@@ -591,10 +643,11 @@ impl<'a> Converter<'a> {
             }
         }
         // `kids` reads the leaf flags of the children and grandchildren only.
-        self.set_info(i, total, 0);
+        let slots = self.slots(l) + self.slots(r);
+        self.set_info(i, slots, 0);
         let (kids, len) = self.kids(i);
         let below: u32 = kids[..len].iter().map(|&c| self.nodes4(c)).sum();
-        self.set_info(i, total, 1 + below);
+        self.set_info(i, slots, 1 + below);
     }
 
     /// Writes the primitives of the binary subtree `i` into `out`, left to right.
@@ -630,13 +683,17 @@ impl<'a> Converter<'a> {
         let (mut nb, mut pb) = (base + 1, pbase);
         let mut jobs: [Option<Job>; 4] = [None, None, None, None];
         for (k, &c) in kids[..len].iter().enumerate() {
-            let count = self.prim_count(c);
+            let count = self.slots(c);
             let (mine, after) = std::mem::take(&mut rest_prims).split_at_mut(count as usize);
             rest_prims = after;
             let aabb = &self.node(c).aabb;
             if self.is_leaf(c) {
-                self.gather(c, mine);
-                node.set_child(k, aabb, leaf_ref(pb, count));
+                let prims = self.prim_count(c);
+                let (held, unused) = mine.split_at_mut(prims as usize);
+                self.gather(c, held);
+                unused.fill(NO_PRIMITIVE);
+                // A block's index: `pb` is a multiple of its width (every leaf before took one).
+                node.set_child(k, aabb, leaf_ref(self.block.map_or(pb, |width| pb / width), prims));
             } else {
                 let nc = self.nodes4(c);
                 let (sub, after) = std::mem::take(&mut rest_nodes).split_at_mut(nc as usize);
@@ -648,7 +705,7 @@ impl<'a> Converter<'a> {
             pb += count;
         }
         head.write(node);
-        let parallel = self.prim_count(i) >= PARALLEL_PRIMS;
+        let parallel = self.slots(i) >= PARALLEL_PRIMS;
         1 + self.run(&mut jobs[..len], parallel)
     }
 

@@ -12,7 +12,7 @@
 //! An object BVH in parts ([`super::parts`], a distributed worker's large objects) holds a small
 //! tree whose leaves name parts, and no blocks; each part is an object BVH as above.
 
-use super::bvh4::{leaf_range, leaf_ref, BuildQuality, Bvh4, EMPTY_CHILD, LEAF_BIT};
+use super::bvh4::{BuildQuality, Bvh4, LeafSlots, NO_PRIMITIVE};
 use super::bvh8::Bvh8;
 use super::parts::{cut, Bounds, Cut};
 use crate::geometry::triangle::{PreTriangle, TriangleBlock, BLOCK_WIDTH};
@@ -28,7 +28,7 @@ use std::sync::{Arc, OnceLock};
 pub const OBJECT_LEAF_SIZE: u32 = BLOCK_WIDTH as u32;
 
 /// The leaf slots of a block's lanes that hold no triangle.
-pub const NO_TRIANGLE: u32 = u32::MAX;
+pub const NO_TRIANGLE: u32 = NO_PRIMITIVE;
 
 /// An object's BVH with its triangles in blocks, in leaf order (see the module documentation).
 #[derive(Clone, Debug, Default)]
@@ -102,7 +102,8 @@ impl ObjectBvh {
                 })
                 .collect(),
         };
-        ObjectBvh::from_bvh4(mesh, leaves_in_blocks(Bvh4::build(&boxes, quality, OBJECT_LEAF_SIZE)))
+        let slots = LeafSlots::Blocks(BLOCK_WIDTH as u32);
+        ObjectBvh::from_bvh4(mesh, Bvh4::build_with(&boxes, quality, OBJECT_LEAF_SIZE, slots))
     }
 
     /// The object BVH of `mesh` around `bvh`, a 4-wide BVH over its triangles whose leaves are
@@ -157,35 +158,6 @@ impl ObjectBvh {
         let parts = self.parts.as_ref().map_or(0, |p| p.memory_bytes());
         self.bvh.memory_bytes() + self.wide.memory_bytes() + blocks * size_of::<TriangleBlock>() + parts
     }
-}
-
-/// `bvh` (leaf references holding first slots, leaves of at most [`BLOCK_WIDTH`] primitives) with
-/// its leaves made blocks: leaf `i` in slot order becomes block `i`, its slots `4 i ..`, the
-/// block's unused slots [`NO_TRIANGLE`].
-pub fn leaves_in_blocks(mut bvh: Bvh4) -> Bvh4 {
-    // Each leaf's place in the node array, at its first slot: read in slot order, no sort.
-    const NONE: u32 = u32::MAX;
-    let mut leaf_at = vec![NONE; bvh.prim_order.len()];
-    let mut leaves = 0;
-    for (i, node) in bvh.nodes.iter().enumerate() {
-        for (k, &r) in node.child.iter().enumerate() {
-            if r & LEAF_BIT != 0 && r != EMPTY_CHILD {
-                leaf_at[leaf_range(r).0 as usize] = (4 * i + k) as u32;
-                leaves += 1;
-            }
-        }
-    }
-    let mut order = vec![NO_TRIANGLE; BLOCK_WIDTH * leaves];
-    for (b, at) in leaf_at.into_iter().filter(|&at| at != NONE).enumerate() {
-        let child = &mut bvh.nodes[at as usize / 4].child[at as usize % 4];
-        let (first, count) = leaf_range(*child);
-        assert!(count as usize <= BLOCK_WIDTH, "a leaf of {count} primitives does not fit a block");
-        let slots = first as usize..(first + count) as usize;
-        order[BLOCK_WIDTH * b..BLOCK_WIDTH * b + slots.len()].copy_from_slice(&bvh.prim_order[slots]);
-        *child = leaf_ref(b as u32, count);
-    }
-    bvh.prim_order = order;
-    bvh
 }
 
 /// What an object traces: its mesh and the BVH built from it.
@@ -617,8 +589,38 @@ impl ObjectBvh {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::accel::bvh4::{leaf_range, leaf_ref, EMPTY_CHILD, LEAF_BIT};
     use crate::geometry::Deformation;
     use glam::Vec3;
+
+    /// The reference for [`LeafSlots::Blocks`]: `bvh` (leaf references holding first slots, leaves
+    /// of at most [`BLOCK_WIDTH`] primitives) with its leaves made blocks afterwards: leaf `i` in
+    /// slot order becomes block `i`, its slots `4 i ..`, the block's unused slots [`NO_TRIANGLE`].
+    fn leaves_in_blocks(mut bvh: Bvh4) -> Bvh4 {
+        // Each leaf's place in the node array, at its first slot: read in slot order, no sort.
+        const NONE: u32 = u32::MAX;
+        let mut leaf_at = vec![NONE; bvh.prim_order.len()];
+        let mut leaves = 0;
+        for (i, node) in bvh.nodes.iter().enumerate() {
+            for (k, &r) in node.child.iter().enumerate() {
+                if r & LEAF_BIT != 0 && r != EMPTY_CHILD {
+                    leaf_at[leaf_range(r).0 as usize] = (4 * i + k) as u32;
+                    leaves += 1;
+                }
+            }
+        }
+        let mut order = vec![NO_TRIANGLE; BLOCK_WIDTH * leaves];
+        for (b, at) in leaf_at.into_iter().filter(|&at| at != NONE).enumerate() {
+            let child = &mut bvh.nodes[at as usize / 4].child[at as usize % 4];
+            let (first, count) = leaf_range(*child);
+            assert!(count as usize <= BLOCK_WIDTH, "a leaf of {count} primitives does not fit a block");
+            let slots = first as usize..(first + count) as usize;
+            order[BLOCK_WIDTH * b..BLOCK_WIDTH * b + slots.len()].copy_from_slice(&bvh.prim_order[slots]);
+            *child = leaf_ref(b as u32, count);
+        }
+        bvh.prim_order = order;
+        bvh
+    }
 
     /// `n` small triangles scattered over a box (a fixed sequence), each its own three vertices;
     /// with `moving`, each also somewhere else at the deformation's close.
@@ -685,6 +687,29 @@ mod tests {
                         }
                     }
                 }
+            }
+        }
+    }
+
+    /// Leaves laid out in blocks as the collapse writes them are the blocks made afterwards from
+    /// the packed layout (the same nodes and slots), for every quality, tiny inputs included.
+    #[test]
+    fn leaves_collapsed_into_blocks_are_the_packed_leaves_made_blocks() {
+        let qualities = [BuildQuality::Fast, BuildQuality::Medium, BuildQuality::High, BuildQuality::Best];
+        for n in [1, 3, 4, 5, 9, 700, 10_000] {
+            let mesh = scattered(n, false);
+            let boxes: Vec<Aabb> = (0..n)
+                .map(|i| {
+                    let [a, b, c] = mesh.corners(i).map(Vec3A::from);
+                    Aabb::new(a.min(b).min(c), a.max(b).max(c))
+                })
+                .collect();
+            for q in qualities {
+                let packed = leaves_in_blocks(Bvh4::build(&boxes, q, OBJECT_LEAF_SIZE));
+                let blocks = Bvh4::build_with(&boxes, q, OBJECT_LEAF_SIZE, LeafSlots::Blocks(BLOCK_WIDTH as u32));
+                assert_eq!(blocks.prim_order, packed.prim_order, "{n} boxes, {q:?}");
+                assert!(blocks.nodes == packed.nodes, "{n} boxes, {q:?}");
+                assert_eq!((blocks.depth, blocks.bounds), (packed.depth, packed.bounds));
             }
         }
     }
