@@ -559,18 +559,7 @@ fn small_split(refs: &mut [PrimRef]) -> usize {
     let mut orders = [[0u8; SMALL]; 3];
     for (axis, order) in orders.iter_mut().enumerate() {
         let keys: [f32; SMALL] = std::array::from_fn(|i| centroids[i][axis]);
-        *order = std::array::from_fn(|i| i as u8);
-        // Insertion sort (stable: ties keep input order).
-        for i in 1..m {
-            let k = order[i];
-            let key = keys[usize::from(k)];
-            let mut j = i;
-            while j > 0 && keys[usize::from(order[j - 1])] > key {
-                order[j] = order[j - 1];
-                j -= 1;
-            }
-            order[j] = k;
-        }
+        *order = stable_order(&keys, m);
         let mut right = [0.0f32; SMALL];
         let (mut lo, mut hi) = (Vec3A::splat(f32::MAX), Vec3A::splat(f32::MIN));
         for i in (1..m).rev() {
@@ -593,6 +582,31 @@ fn small_split(refs: &mut [PrimRef]) -> usize {
         *r = items[usize::from(k)];
     }
     left
+}
+
+/// The indices of `keys[..m]` (`m` at most [`SMALL`]) in ascending order of their keys, ties in
+/// index order: an insertion sort's order, where no key is NaN. Without branches on the keys (an
+/// insertion sort's comparisons are as good as random to the branch predictor): each key's place
+/// is the number of keys below it and of equal keys before it, counted eight at a time.
+fn stable_order(keys: &[f32; SMALL], m: usize) -> [u8; SMALL] {
+    const _: () = assert!(SMALL == 8, "one i32x8 of keys");
+    // Integers in the keys' order (`f32::total_cmp`'s), with -0 made +0 first: the two are equal to
+    // an insertion sort's comparisons.
+    let ordered = keys.map(|k| {
+        let b = (k + 0.0).to_bits() as i32;
+        b ^ (((b >> 31) as u32) >> 1) as i32
+    });
+    let all = wide::i32x8::new(ordered);
+    let live = (1u32 << m.min(SMALL)) - 1;
+    let mut order = [0u8; SMALL];
+    for (i, &k) in ordered.iter().enumerate().take(m) {
+        let k = wide::i32x8::splat(k);
+        let below = all.simd_lt(k).to_bitmask() & live;
+        let equal_before = all.simd_eq(k).to_bitmask() & ((1u32 << i) - 1);
+        // Ranks are distinct (ties are told apart by index), so each lands once.
+        order[(below.count_ones() + equal_before.count_ones()) as usize & (SMALL - 1)] = i as u8;
+    }
+    order
 }
 
 /// Half the surface area of a box of extent `d` (as [`Aabb::half_area`]).
@@ -754,6 +768,40 @@ mod tests {
         assert_eq!(merged_leaf_size(OBJECT_LEAF_SIZE, 1.5), 1);
         assert_eq!(merged_leaf_size(2, 3.0), 2);
         assert_eq!(merged_leaf_size(1, 3.0), 1);
+    }
+
+    #[test]
+    fn stable_order_sorts_as_an_insertion_sort_does() {
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut pick = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            [-1.5f32, -0.0, 0.0, 2.0, 7.25, 1e30, -1e-30, f32::INFINITY][(state % 8) as usize]
+        };
+        for round in 0..4000 {
+            let m = 1 + round % SMALL;
+            let keys: [f32; SMALL] = std::array::from_fn(|_| pick());
+            // The insertion sort `small_split` sorted with before.
+            let mut expected: [u8; SMALL] = std::array::from_fn(|i| i as u8);
+            for i in 1..m {
+                let k = expected[i];
+                let mut j = i;
+                while j > 0 && keys[usize::from(expected[j - 1])] > keys[usize::from(k)] {
+                    expected[j] = expected[j - 1];
+                    j -= 1;
+                }
+                expected[j] = k;
+            }
+            assert_eq!(stable_order(&keys, m)[..m], expected[..m], "{keys:?}, {m} keys");
+        }
+        // NaN keys have no place in an insertion sort's order, but every index still lands once.
+        let keys = [f32::NAN, 1.0, -f32::NAN, 0.0, f32::NAN, -2.0, 3.0, f32::NAN];
+        for m in 1..=SMALL {
+            let mut order = stable_order(&keys, m)[..m].to_vec();
+            order.sort_unstable();
+            assert_eq!(order, (0..m as u8).collect::<Vec<_>>());
+        }
     }
 
     #[test]
