@@ -184,7 +184,7 @@ impl Cutter<'_> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::accel::bvh4::BuildQuality;
     use crate::accel::object::{Object, ObjectBvh, NO_TRIANGLE};
