@@ -622,13 +622,27 @@ mod tests {
         bvh
     }
 
-    /// [`crate::accel::parts::tests::scattered`]'s `n` triangles; with `moving`, each vertex also
-    /// somewhere else at the deformation's close (by one of seven steps along one direction).
+    /// `n` small triangles scattered over a box (a fixed sequence), each its own three vertices;
+    /// with `moving`, each also somewhere else at the deformation's close.
     fn scattered(n: usize, moving: bool) -> Mesh {
-        let mut mesh = crate::accel::parts::tests::scattered(n as u32);
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let mut positions = Vec::new();
+        for _ in 0..n {
+            let at = Vec3::new(next(), next(), next()) * 50.0;
+            for _ in 0..3 {
+                positions.push(at + Vec3::new(next(), next(), next()));
+            }
+        }
+        let triangles = (0..n as u32).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect();
+        let mut mesh = Mesh::from_triangles(positions, triangles).expect("a valid mesh");
         if moving {
-            let step = |i: usize| Vec3::new(8.0, -3.0, 1.0) * (i % 7) as f32 / 7.0;
-            let close = mesh.positions.iter().enumerate().map(|(i, &p)| p + step(i)).collect();
+            let close = mesh.positions.iter().map(|&p| p + Vec3::new(8.0, -3.0, 1.0) * next()).collect();
             mesh.deformation = Some(Deformation { positions: close, normals: None, open: 0.0, close: 1.0 });
         }
         mesh

@@ -184,7 +184,7 @@ impl Cutter<'_> {
 }
 
 #[cfg(test)]
-pub(crate) mod tests {
+mod tests {
     use super::*;
     use crate::accel::bvh4::BuildQuality;
     use crate::accel::object::{Object, ObjectBvh, NO_TRIANGLE};
