@@ -1,11 +1,12 @@
 //! Times the phases of an object BVH build: `build_phases MESH [THREADS] [REPEATS]`.
-//! Prints the phases (binary build: PLOC or binned SAH; reinsertion; collapse), the 8-wide copy, for each build-quality preset, then the
+//! Prints the phases (binary build: PLOC or binned SAH, which also does the collapse's first pass
+//! where no reinsertion follows; reinsertion; collapse), the 8-wide copy, for each build-quality preset, then the
 //! whole `ObjectBvh::build` (which adds boxes, the 4-wide conversion, the 8-wide copy and triangle
 //! preparation).
 
 use obvhs::{aabb::Aabb, bvh2::reinsertion::ReinsertionOptimizer, ploc::PlocBuilder};
-use rtsl_runtime::accel::binned::{build_binned_with_leaves, merged_leaf_size};
-use rtsl_runtime::accel::bvh4::{BuildQuality, Bvh4, LeafSlots};
+use rtsl_runtime::accel::binned::{build_binned_summarised, build_binned_with_leaves, merged_leaf_size};
+use rtsl_runtime::accel::bvh4::{BuildQuality, Bvh4, CollapseRule, LeafSlots};
 use rtsl_runtime::accel::bvh8::Bvh8;
 use rtsl_runtime::accel::object::{ObjectBvh, OBJECT_LEAF_SIZE};
 use rtsl_runtime::load_mesh;
@@ -55,15 +56,18 @@ fn main() {
         for q in qualities {
             for _ in 0..repeats {
                 let p = q.params(OBJECT_LEAF_SIZE);
+                // As `ObjectBvh::build`: leaves in blocks.
+                let slots = LeafSlots::Blocks(OBJECT_LEAF_SIZE);
+                let rule = CollapseRule::new(p.max_prims_per_leaf, p.collapse_traversal_cost, slots);
+                // As `Bvh4::build`: without reinsertion, the binned build does the collapse's first pass.
+                let summarised = q.is_binned() && p.reinsertion_batch_ratio == 0.0;
                 let t = Instant::now();
-                let mut bvh2 = if q.is_binned() {
-                    // As `Bvh4::build`: single-primitive leaves only where reinsertion follows.
-                    let leaf = if p.reinsertion_batch_ratio > 0.0 {
-                        1
-                    } else {
-                        merged_leaf_size(p.max_prims_per_leaf, p.collapse_traversal_cost)
-                    };
-                    build_binned_with_leaves(&boxes, leaf)
+                let mut bvh2 = if summarised {
+                    let leaf = merged_leaf_size(p.max_prims_per_leaf, p.collapse_traversal_cost);
+                    build_binned_summarised(&boxes, leaf, &|node, below| rule.summary(node, |j| below.node(j)))
+                } else if q.is_binned() {
+                    // Single-primitive leaves where reinsertion follows.
+                    build_binned_with_leaves(&boxes, 1)
                 } else {
                     PlocBuilder::with_capacity(boxes.len()).build(
                         p.ploc_search_distance,
@@ -79,14 +83,16 @@ fn main() {
                     ReinsertionOptimizer::default().run(&mut bvh2, p.reinsertion_batch_ratio, None);
                 }
                 let t_re1 = ms(t);
-                // As `ObjectBvh::build`: leaves in blocks.
-                let slots = LeafSlots::Blocks(OBJECT_LEAF_SIZE);
+                let convert = |bvh2: &mut _| match summarised {
+                    true => Bvh4::from_summarised_bvh2(bvh2, rule),
+                    false => Bvh4::from_bvh2_with(bvh2, p.max_prims_per_leaf, p.collapse_traversal_cost, slots),
+                };
                 let t = Instant::now();
-                let mut b4 = Bvh4::from_bvh2_with(&mut bvh2, p.max_prims_per_leaf, p.collapse_traversal_cost, slots);
+                let mut b4 = convert(&mut bvh2);
                 let t_conv = ms(t);
                 for _ in 1..convert_loops {
                     let t = Instant::now();
-                    b4 = Bvh4::from_bvh2_with(&mut bvh2, p.max_prims_per_leaf, p.collapse_traversal_cost, slots);
+                    b4 = convert(&mut bvh2);
                     println!("  convert again {:.1} ms", ms(t));
                 }
                 let t = Instant::now();

@@ -263,6 +263,37 @@ pub fn build_binned(boxes: &[Aabb]) -> Bvh2 {
 /// collapse merges every such subtree anyway ([`merged_leaf_size`]): the tree after the collapse is
 /// the same, without building, writing and collapsing the small subtrees' nodes.
 pub fn build_binned_with_leaves(boxes: &[Aabb], leaf_size: usize) -> Bvh2 {
+    build_binned_summarised(boxes, leaf_size, &|_: &Bvh2Node, _: &Finished| (0, 0))
+}
+
+/// The finished part of the node array below a node the build is finishing: its descendants'
+/// range, every slot of it written.
+pub struct Finished<'a> {
+    nodes: &'a [MaybeUninit<Bvh2Node>],
+    /// The index of `nodes[0]` in the whole array.
+    base: usize,
+}
+
+impl Finished<'_> {
+    /// Node `j` of the whole array, a descendant of the node being finished.
+    #[inline(always)]
+    pub fn node(&self, j: usize) -> Bvh2Node {
+        let slot = j.checked_sub(self.base).and_then(|k| self.nodes.get(k));
+        let Some(slot) = slot else { panic!("node {j} is not below the node being finished") };
+        // SAFETY: every slot of a finished node's descendant range is written (`build`'s first
+        // invariant).
+        unsafe { slot.assume_init_read() }
+    }
+}
+
+/// [`build_binned_with_leaves`] that also works out, for each node as it is finished (after its
+/// subtree: bottom-up), `summary(node, descendants)` and keeps it in the node's `meta1` and
+/// `meta2`: a bottom-up pass over the finished tree done while each node's children are still in
+/// the cache.
+pub fn build_binned_summarised<S>(boxes: &[Aabb], leaf_size: usize, summary: &S) -> Bvh2
+where
+    S: Fn(&Bvh2Node, &Finished) -> (u32, u32) + Sync,
+{
     let leaf_size = leaf_size.clamp(1, TINY_LEAF);
     let n = boxes.len();
     if n == 0 {
@@ -281,8 +312,9 @@ pub fn build_binned_with_leaves(boxes: &[Aabb], leaf_size: usize) -> Bvh2 {
     let mut spare = refs.clone();
     let mut primitive_indices = vec![0u32; n];
     let at = Place { first: 0, base: 1 };
+    let shape = Shape { leaf_size, summary };
     let depth =
-        build([&mut refs, &mut spare], &mut primitive_indices, at, &mut root[0], descendants, bounds, 0, leaf_size);
+        build([&mut refs, &mut spare], &mut primitive_indices, at, &mut root[0], descendants, bounds, 0, &shape);
     // SAFETY: `build` wrote its node and every node of its descendants' range, which with the
     // root are all `2n - 1` (the module's first invariant: each call writes `me`, and its range
     // is exactly its children's pair and their own ranges, or [`UNREACHED`] slots).
@@ -298,6 +330,13 @@ pub fn build_binned_with_leaves(boxes: &[Aabb], leaf_size: usize) -> Bvh2 {
     }
 }
 
+/// What every node of a build shares: subtrees of at most `leaf_size` primitives are one leaf,
+/// and each finished node keeps its `summary`.
+struct Shape<'s, S> {
+    leaf_size: usize,
+    summary: &'s S,
+}
+
 /// Where a subtree goes: its first slot, and the index of the first node of its descendants.
 #[derive(Clone, Copy, Debug)]
 struct Place {
@@ -309,9 +348,9 @@ struct Place {
 /// (`2 * m - 2` nodes, the first at index `at.base`), writing its primitives' input indices to
 /// `ids` (its slots, from `at.first`); returns its depth. `refs[1]` is as long, scratch space that
 /// partitions move the primitives into (the children then swap the two). Subtrees of at most
-/// `leaf_size` primitives are one leaf.
+/// `shape.leaf_size` primitives are one leaf. `me` is written last, with its summary.
 #[allow(clippy::too_many_arguments)]
-fn build(
+fn build<S>(
     [refs, spare]: [&mut [PrimRef]; 2],
     ids: &mut [u32],
     at: Place,
@@ -319,10 +358,17 @@ fn build(
     descendants: &mut [MaybeUninit<Bvh2Node>],
     bounds: Bounds,
     depth: u32,
-    leaf_size: usize,
-) -> u32 {
+    shape: &Shape<S>,
+) -> u32
+where
+    S: Fn(&Bvh2Node, &Finished) -> (u32, u32) + Sync,
+{
     let m = refs.len();
-    if m <= leaf_size {
+    let finish = |me: &mut MaybeUninit<Bvh2Node>, mut node: Bvh2Node, descendants: &[MaybeUninit<Bvh2Node>]| {
+        (node.meta1, node.meta2) = (shape.summary)(&node, &Finished { nodes: descendants, base: at.base as usize });
+        me.write(node);
+    };
+    if m <= shape.leaf_size {
         // The order the binary subtree's leaves would have: `split` halves three primitives
         // sorted along the widest axis, and leaves two as they are.
         if m == 3 {
@@ -331,15 +377,14 @@ fn build(
         for (id, p) in ids.iter_mut().zip(refs.iter()) {
             *id = p.id();
         }
-        me.write(Bvh2Node::new(bounds.geometry, m as u32, at.first));
-        for slot in descendants {
+        for slot in descendants.iter_mut() {
             slot.write(UNREACHED);
         }
+        finish(me, Bvh2Node::new(bounds.geometry, m as u32, at.first), descendants);
         return 1;
     }
     let (left_count, left, right, moved) = split(refs, spare, &bounds, depth);
     let (refs, spare) = if moved { (spare, refs) } else { (refs, spare) };
-    me.write(Bvh2Node::new(bounds.geometry, 0, at.base));
     let (pair, rest) = descendants.split_at_mut(2);
     let (lnode, rnode) = pair.split_at_mut(1);
     let (ldesc, rdesc) = rest.split_at_mut(2 * left_count - 2);
@@ -350,15 +395,16 @@ fn build(
     let rat = Place { first: at.first + left_count as u32, base: lat.base + ldesc.len() as u32 };
     let (dl, dr) = if m > PARALLEL_SPLIT {
         rayon::join(
-            || build([lrefs, lspare], lids, lat, &mut lnode[0], ldesc, left, depth + 1, leaf_size),
-            || build([rrefs, rspare], rids, rat, &mut rnode[0], rdesc, right, depth + 1, leaf_size),
+            || build([lrefs, lspare], lids, lat, &mut lnode[0], ldesc, left, depth + 1, shape),
+            || build([rrefs, rspare], rids, rat, &mut rnode[0], rdesc, right, depth + 1, shape),
         )
     } else {
         (
-            build([lrefs, lspare], lids, lat, &mut lnode[0], ldesc, left, depth + 1, leaf_size),
-            build([rrefs, rspare], rids, rat, &mut rnode[0], rdesc, right, depth + 1, leaf_size),
+            build([lrefs, lspare], lids, lat, &mut lnode[0], ldesc, left, depth + 1, shape),
+            build([rrefs, rspare], rids, rat, &mut rnode[0], rdesc, right, depth + 1, shape),
         )
     };
+    finish(me, Bvh2Node::new(bounds.geometry, 0, at.base), descendants);
     1 + dl.max(dr)
 }
 

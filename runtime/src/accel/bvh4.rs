@@ -396,8 +396,12 @@ impl Bvh4 {
                 ReinsertionOptimizer::default().run(&mut bvh2, p.reinsertion_batch_ratio, None);
                 bvh2
             } else {
+                // The collapse's first pass done by the build, each node as it is finished.
                 let leaf = super::binned::merged_leaf_size(p.max_prims_per_leaf, p.collapse_traversal_cost);
-                super::binned::build_binned_with_leaves(boxes, leaf)
+                let rule = CollapseRule::new(p.max_prims_per_leaf, p.collapse_traversal_cost, slots);
+                let summary = |node: &Bvh2Node, below: &super::binned::Finished| rule.summary(node, |j| below.node(j));
+                let mut bvh2 = super::binned::build_binned_summarised(boxes, leaf, &summary);
+                return Bvh4::from_summarised_bvh2(&mut bvh2, rule);
             }
         } else {
             build_binary(boxes, &p)
@@ -415,10 +419,21 @@ impl Bvh4 {
 
     /// [`Bvh4::from_bvh2`] with the leaves' slots laid out as `slots` says.
     pub fn from_bvh2_with(bvh2: &mut Bvh2, max_leaf: u32, collapse_traversal_cost: f32, slots: LeafSlots) -> Bvh4 {
+        let rule = CollapseRule::new(max_leaf, collapse_traversal_cost, slots);
+        if bvh2.nodes.is_empty() {
+            return Bvh4::default();
+        }
+        Converter::new(bvh2, rule).analyse(0, 0);
+        Bvh4::from_summarised_bvh2(bvh2, rule)
+    }
+
+    /// [`Bvh4::from_bvh2_with`] of a binary BVH whose nodes already hold pass 1's results under
+    /// `rule` (each node's [`CollapseRule::summary`] in its `meta1` and `meta2`, as
+    /// `binned::build_binned_summarised` leaves them): pass 2 alone.
+    pub fn from_summarised_bvh2(bvh2: &mut Bvh2, rule: CollapseRule) -> Bvh4 {
         let Some(&root) = bvh2.nodes.first() else { return Bvh4::default() };
         let bounds = Some((root.aabb.min, root.aabb.max));
-        let conv = Converter::new(bvh2, max_leaf, collapse_traversal_cost, slots);
-        conv.analyse(0, 0);
+        let conv = Converter::new(bvh2, rule);
         let n = conv.slots(0) as usize;
         let mut prim_order = vec![0u32; n];
         if conv.is_leaf(0) {
@@ -480,6 +495,91 @@ const PARALLEL_DEPTH: u32 = 10;
 /// Marks a binary node whose subtree becomes one leaf (in `meta1`, see [`Converter`]).
 const AS_LEAF: u32 = 1 << 31;
 
+/// The leaf collapse's rule and the layout of its leaves: what pass 1 of the conversion
+/// ([`Converter`]) works out for each binary node from its subtree's results.
+#[derive(Clone, Copy, Debug)]
+pub struct CollapseRule {
+    max_leaf: u32,
+    traversal_cost: f32,
+    /// The slots of a leaf: its primitives (`None`), or a block of this many.
+    block: Option<u32>,
+}
+
+impl CollapseRule {
+    /// Leaves of at most `max_leaf` primitives (and at most a block's), merged by obvhs's rule with
+    /// traversal cost `traversal_cost`, taking their slots as `slots` says.
+    pub fn new(max_leaf: u32, traversal_cost: f32, slots: LeafSlots) -> CollapseRule {
+        let block = match slots {
+            LeafSlots::Packed => None,
+            LeafSlots::Blocks(width) => Some(width.clamp(1, MAX_LEAF_SIZE)),
+        };
+        CollapseRule { max_leaf: max_leaf.clamp(1, block.unwrap_or(MAX_LEAF_SIZE)), traversal_cost, block }
+    }
+
+    /// Pass 1's result for binary node `node` (`meta1`, `meta2`; see [`Converter`]), where `below(j)`
+    /// is node `j` of its subtree with that node's own result already in it.
+    #[inline(always)]
+    pub fn summary(&self, node: &Bvh2Node, below: impl Fn(usize) -> Bvh2Node) -> (u32, u32) {
+        if node.is_leaf() {
+            assert!(node.prim_count <= MAX_LEAF_SIZE, "binary leaf of {} primitives", node.prim_count);
+            return (node.prim_count | AS_LEAF, 0);
+        }
+        let (l, r) = (below(node.first_index as usize), below(node.first_index as usize + 1));
+        let (cl, cr) = (l.meta1 & !AS_LEAF, r.meta1 & !AS_LEAF);
+        let total = cl + cr;
+        if l.meta1 & r.meta1 & AS_LEAF != 0 && total <= self.max_leaf {
+            let collapse_cost = node.aabb.half_area() * (total as f32 - self.traversal_cost);
+            let base_cost = l.aabb.half_area() * cl as f32 + r.aabb.half_area() * cr as f32;
+            if collapse_cost <= base_cost {
+                return (total | AS_LEAF, 0);
+            }
+        }
+        // `kids_of` reads the leaf flags of the children and grandchildren only.
+        let (kids, len) = kids_of(node, &below);
+        let nodes4: u32 = kids[..len].iter().map(|&c| below(c).meta2).sum();
+        (self.slots(&l) + self.slots(&r), 1 + nodes4)
+    }
+
+    /// The leaf slots the subtree of a node with pass 1's result takes.
+    #[inline(always)]
+    fn slots(&self, node: &Bvh2Node) -> u32 {
+        match self.block {
+            Some(width) if node.meta1 & AS_LEAF != 0 => width,
+            _ => node.meta1 & !AS_LEAF,
+        }
+    }
+}
+
+/// The binary nodes that become the children of the 4-wide node headed by inner node `node`
+/// (`node(j)`: binary node `j`, with pass 1's result): its two children, then repeatedly the
+/// (not-leaf) one of largest surface area is opened.
+#[inline(always)]
+fn kids_of(node: &Bvh2Node, below: impl Fn(usize) -> Bvh2Node) -> ([usize; 4], usize) {
+    let first = node.first_index as usize;
+    let mut kids = [first, first + 1, 0, 0];
+    let mut len = 2;
+    while len < 4 {
+        let mut best = None;
+        let mut best_area = -1.0f32;
+        for (k, &c) in kids[..len].iter().enumerate() {
+            let n = below(c);
+            if n.meta1 & AS_LEAF == 0 {
+                let a = n.aabb.half_area();
+                if a > best_area {
+                    best_area = a;
+                    best = Some(k);
+                }
+            }
+        }
+        let Some(k) = best else { break };
+        let f = below(kids[k]).first_index as usize;
+        kids[k] = f;
+        kids[len] = f + 1;
+        len += 1;
+    }
+    (kids, len)
+}
+
 /// The binary-to-4-wide conversion. Pass 1 ([`Converter::analyse`], bottom-up) decides the leaf
 /// collapse (obvhs's SAH rule: two sibling leaves merge when `area(parent) * (count - cost)` is at
 /// most the children's `area * count`) and counts, for every binary inner node, the 4-wide nodes of
@@ -500,10 +600,7 @@ struct Converter<'a> {
     nodes: *mut Bvh2Node,
     len: usize,
     primitive_indices: &'a [u32],
-    max_leaf: u32,
-    traversal_cost: f32,
-    /// The slots of a leaf: its primitives (`None`), or a block of this many.
-    block: Option<u32>,
+    rule: CollapseRule,
 }
 
 // SAFETY: see the safety invariant of `Converter`: concurrent tasks touch disjoint nodes or only
@@ -514,18 +611,12 @@ unsafe impl Sync for Converter<'_> {}
 type Job<'s> = (usize, &'s mut [MaybeUninit<Node4>], u32, &'s mut [u32], u32);
 
 impl<'a> Converter<'a> {
-    fn new(bvh2: &'a mut Bvh2, max_leaf: u32, traversal_cost: f32, slots: LeafSlots) -> Self {
-        let block = match slots {
-            LeafSlots::Packed => None,
-            LeafSlots::Blocks(width) => Some(width.clamp(1, MAX_LEAF_SIZE)),
-        };
+    fn new(bvh2: &'a mut Bvh2, rule: CollapseRule) -> Self {
         Converter {
             nodes: bvh2.nodes.as_mut_ptr(),
             len: bvh2.nodes.len(),
             primitive_indices: &bvh2.primitive_indices,
-            max_leaf: max_leaf.clamp(1, block.unwrap_or(MAX_LEAF_SIZE)),
-            traversal_cost,
-            block,
+            rule,
         }
     }
 
@@ -577,10 +668,7 @@ impl<'a> Converter<'a> {
     /// The leaf slots the subtree of binary node `i` takes (after pass 1 has been over it).
     #[inline(always)]
     fn slots(&self, i: usize) -> u32 {
-        match self.block {
-            Some(width) if self.is_leaf(i) => width,
-            _ => self.prim_count(i),
-        }
+        self.rule.slots(&self.node(i))
     }
 
     #[inline(always)]
@@ -588,66 +676,27 @@ impl<'a> Converter<'a> {
         self.node(i).meta2
     }
 
-    /// The binary nodes that become the children of the 4-wide node headed by inner node `i`: its
-    /// two children, then repeatedly the (not-leaf) one of largest surface area is opened.
+    /// The binary nodes that become the children of the 4-wide node headed by inner node `i`
+    /// ([`kids_of`]).
     #[inline]
     fn kids(&self, i: usize) -> ([usize; 4], usize) {
-        let first = self.node(i).first_index as usize;
-        let mut kids = [first, first + 1, 0, 0];
-        let mut len = 2;
-        while len < 4 {
-            let mut best = None;
-            let mut best_area = -1.0f32;
-            for (k, &c) in kids[..len].iter().enumerate() {
-                if !self.is_leaf(c) {
-                    let a = self.node(c).aabb.half_area();
-                    if a > best_area {
-                        best_area = a;
-                        best = Some(k);
-                    }
-                }
-            }
-            let Some(k) = best else { break };
-            let f = self.node(kids[k]).first_index as usize;
-            kids[k] = f;
-            kids[len] = f + 1;
-            len += 1;
-        }
-        (kids, len)
+        kids_of(&self.node(i), |j| self.node(j))
     }
 
     /// Pass 1 over the subtree of binary node `i` at binary depth `depth`.
     fn analyse(&self, i: usize, depth: u32) {
         let node = self.node(i);
-        if node.is_leaf() {
-            assert!(node.prim_count <= MAX_LEAF_SIZE, "binary leaf of {} primitives", node.prim_count);
-            self.set_info(i, node.prim_count | AS_LEAF, 0);
-            return;
-        }
-        let (l, r) = (node.first_index as usize, node.first_index as usize + 1);
-        if depth < PARALLEL_DEPTH {
-            rayon::join(|| self.analyse(l, depth + 1), || self.analyse(r, depth + 1));
-        } else {
-            self.analyse(l, depth + 1);
-            self.analyse(r, depth + 1);
-        }
-        let (cl, cr) = (self.prim_count(l), self.prim_count(r));
-        let total = cl + cr;
-        if self.is_leaf(l) && self.is_leaf(r) && total <= self.max_leaf {
-            let (nl, nr) = (self.node(l), self.node(r));
-            let collapse_cost = node.aabb.half_area() * (total as f32 - self.traversal_cost);
-            let base_cost = nl.aabb.half_area() * cl as f32 + nr.aabb.half_area() * cr as f32;
-            if collapse_cost <= base_cost {
-                self.set_info(i, total | AS_LEAF, 0);
-                return;
+        if !node.is_leaf() {
+            let (l, r) = (node.first_index as usize, node.first_index as usize + 1);
+            if depth < PARALLEL_DEPTH {
+                rayon::join(|| self.analyse(l, depth + 1), || self.analyse(r, depth + 1));
+            } else {
+                self.analyse(l, depth + 1);
+                self.analyse(r, depth + 1);
             }
         }
-        // `kids` reads the leaf flags of the children and grandchildren only.
-        let slots = self.slots(l) + self.slots(r);
-        self.set_info(i, slots, 0);
-        let (kids, len) = self.kids(i);
-        let below: u32 = kids[..len].iter().map(|&c| self.nodes4(c)).sum();
-        self.set_info(i, slots, 1 + below);
+        let (meta1, meta2) = self.rule.summary(&node, |j| self.node(j));
+        self.set_info(i, meta1, meta2);
     }
 
     /// Writes the primitives of the binary subtree `i` into `out`, left to right.
@@ -693,7 +742,7 @@ impl<'a> Converter<'a> {
                 self.gather(c, held);
                 unused.fill(NO_PRIMITIVE);
                 // A block's index: `pb` is a multiple of its width (every leaf before took one).
-                node.set_child(k, aabb, leaf_ref(self.block.map_or(pb, |width| pb / width), prims));
+                node.set_child(k, aabb, leaf_ref(self.rule.block.map_or(pb, |width| pb / width), prims));
             } else {
                 let nc = self.nodes4(c);
                 let (sub, after) = std::mem::take(&mut rest_nodes).split_at_mut(nc as usize);
@@ -849,6 +898,37 @@ mod tests {
                 assert_eq!(ours.prim_order, reference.prim_order, "n = {n}, {q:?}");
                 assert_eq!(ours.depth, reference.depth, "n = {n}, {q:?}");
                 assert_eq!(ours.bounds, reference.bounds, "n = {n}, {q:?}");
+            }
+        }
+    }
+
+    /// The binned build's own first pass of the collapse (`build_binned_summarised`, each node
+    /// summarised as it is finished) leaves the same results as the conversion's pass over the
+    /// finished tree, so the 4-wide trees are the same.
+    #[test]
+    fn the_collapse_summarised_by_the_build_is_the_collapse_of_the_built_tree() {
+        use super::super::binned::{build_binned_summarised, build_binned_with_leaves, merged_leaf_size};
+        for n in [2usize, 3, 5, 6, 17, 1000, 20_000] {
+            let boxes = test_boxes(n);
+            for (max_leaf, cost, slots) in [
+                (4, 3.0, LeafSlots::Blocks(4)),
+                (4, 3.0, LeafSlots::Packed),
+                (2, 1.0, LeafSlots::Packed),
+                (4, 1.5, LeafSlots::Blocks(4)),
+            ] {
+                let leaf = merged_leaf_size(max_leaf, cost);
+                let mut built = build_binned_with_leaves(&boxes, leaf);
+                let reference = Bvh4::from_bvh2_with(&mut built, max_leaf, cost, slots);
+                let rule = CollapseRule::new(max_leaf, cost, slots);
+                let mut summarised =
+                    build_binned_summarised(&boxes, leaf, &|node, below| rule.summary(node, |j| below.node(j)));
+                let metas = |b: &Bvh2| b.nodes.iter().map(|n| (n.meta1, n.meta2)).collect::<Vec<_>>();
+                // The conversion's pass wrote its results into `built`'s nodes.
+                assert_eq!(metas(&summarised), metas(&built), "n = {n}, leaves of {max_leaf}, cost {cost}, {slots:?}");
+                let ours = Bvh4::from_summarised_bvh2(&mut summarised, rule);
+                assert!(ours.nodes == reference.nodes, "n = {n}, leaves of {max_leaf}, cost {cost}, {slots:?}");
+                assert_eq!(ours.prim_order, reference.prim_order);
+                assert_eq!((ours.depth, ours.bounds), (reference.depth, reference.bounds));
             }
         }
     }
