@@ -27,7 +27,23 @@ fn ms(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
 }
 
+/// Keeps freed memory in the process, as the `rtsl` binary's allocator does between builds
+/// (`keep_freed_memory_for_the_next_frames`): glibc's malloc, this example's, maps each large
+/// array afresh and unmaps it when freed (and the pool's threads allocate from arenas of their
+/// own, which it trims), so every repeat's phases would include the kernel faulting in and
+/// zeroing a few hundred megabytes on the largest meshes. The first repeat still does.
+fn keep_freed_memory() {
+    #[cfg(target_os = "linux")]
+    // SAFETY: `mallopt` only sets allocator parameters; called before any other thread exists.
+    unsafe {
+        libc::mallopt(libc::M_MMAP_MAX, 0);
+        libc::mallopt(libc::M_TRIM_THRESHOLD, i32::MAX);
+        libc::mallopt(libc::M_ARENA_MAX, 1);
+    }
+}
+
 fn main() {
+    keep_freed_memory();
     let args: Vec<String> = std::env::args().collect();
     let mesh = load_mesh(args.get(1).expect("usage: build_phases MESH [THREADS] [REPEATS]")).unwrap();
     let threads = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(2);
