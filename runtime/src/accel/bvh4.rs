@@ -551,8 +551,8 @@ impl CollapseRule {
 }
 
 /// The binary nodes that become the children of the 4-wide node headed by inner node `node`
-/// (`node(j)`: binary node `j`, with pass 1's result): its two children, then repeatedly the
-/// (not-leaf) one of largest surface area is opened.
+/// (`below(j)`: binary node `j` of its subtree, with pass 1's result): its two children, then
+/// repeatedly the (not-leaf) one of largest surface area is opened.
 #[inline(always)]
 fn kids_of(node: &Bvh2Node, below: impl Fn(usize) -> Bvh2Node) -> ([usize; 4], usize) {
     let first = node.first_index as usize;
