@@ -833,7 +833,8 @@ fn sample_tile(
                         if i == 0 && j == 0 {
                             // Camera-space depth: the distance along the ray times its cosine
                             // with the view axis.
-                            px.depth[k] = s.depth * packet.get(lane).direction.dot(sampling.forward);
+                            let direction = Vec3A::new(packet.dx.0[lane], packet.dy.0[lane], packet.dz.0[lane]);
+                            px.depth[k] = s.depth * direction.dot(sampling.forward);
                             px.ids[k] = s.object_id;
                             px.shader_ids[k] = s.shader_id;
                             if let Some(n) = px.normals.get_mut(k) {
@@ -845,13 +846,16 @@ fn sample_tile(
             }
         }
     });
-    for (k, c) in px.color.iter_mut().enumerate() {
-        let scale = 1.0 / takes.get(k).copied().unwrap_or(sx * sy) as f32;
-        for v in c.iter_mut() {
-            *v *= scale;
-        }
-        for v in px.outputs.get_mut(k).into_iter().flatten().flatten() {
-            *v *= scale;
+    // The sums into means (a pixel of one sample is its mean already).
+    if !takes.is_empty() || sx * sy != 1 {
+        for (k, c) in px.color.iter_mut().enumerate() {
+            let scale = 1.0 / takes.get(k).copied().unwrap_or(sx * sy) as f32;
+            for v in c.iter_mut() {
+                *v *= scale;
+            }
+            for v in px.outputs.get_mut(k).into_iter().flatten().flatten() {
+                *v *= scale;
+            }
         }
     }
     if let Some((threshold, extra)) = sampling.adaptive {

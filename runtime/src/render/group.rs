@@ -7,7 +7,8 @@
 //! depend on how the hits arrived beyond their order.
 
 use super::work::{Frame, Pending, Shaded};
-use crate::ray::PACKET_SIZE;
+use super::world::World;
+use crate::ray::{Hit, PACKET_SIZE};
 use std::cell::RefCell;
 
 /// Sorts `pending` by (material, instance) and shades it in groups of one material and instance,
@@ -18,29 +19,65 @@ pub(super) fn shade_in_groups(frame: &Frame, pending: &mut [Pending], depth: u32
     // miss, which comparisons would repeat.
     let mut keys = super::scratch::take(&GROUP_KEYS);
     keys.clear();
-    keys.extend(pending.iter().enumerate().map(|(i, p)| {
-        let inst = world.instances.get(p.hit.instance as usize);
-        ((inst.map_or(0, |i| i.material_at(p.hit.primitive)), p.hit.instance), i as u32)
-    }));
+    keys.extend(pending.iter().enumerate().map(|(i, p)| (group_key(world, &p.hit), i as u32)));
     // Coherent rays mostly arrive in order already; sorting moves whole jobs, so it sorts their
     // keys and then moves each job once.
     if !keys.is_sorted() {
-        // The index breaks ties: the order of a stable sort.
-        let mut spare = super::scratch::take(&GROUP_KEYS);
-        sort_group_keys(&mut keys, &mut spare);
-        super::scratch::give(&GROUP_KEYS, spare);
+        sort_stably(&mut keys);
         permute(pending, &mut keys);
     }
+    shade_sorted_groups(frame, pending, &keys, depth, out);
+    super::scratch::give(&GROUP_KEYS, keys);
+}
+
+/// The (material, instance) key a hit is grouped by.
+#[inline(always)]
+pub(super) fn group_key(world: &World, hit: &Hit) -> (u32, u32) {
+    let inst = world.instances.get(hit.instance as usize);
+    (inst.map_or(0, |i| i.material_at(hit.primitive)), hit.instance)
+}
+
+/// Puts `keys` (each index once) in the order of a stable sort by key (the index breaks ties).
+pub(super) fn sort_stably(keys: &mut Vec<GroupKey>) {
+    if keys.is_sorted() {
+        return;
+    }
+    let mut spare = super::scratch::take(&GROUP_KEYS);
+    sort_group_keys(keys, &mut spare);
+    super::scratch::give(&GROUP_KEYS, spare);
+}
+
+/// Shades `pending`, already in the order of `keys` (its jobs' keys, sorted), in groups of one
+/// key, a packet at most each: `out[i]` is what `pending[i]` produced.
+pub(super) fn shade_sorted_groups(
+    frame: &Frame,
+    pending: &[Pending],
+    keys: &[GroupKey],
+    depth: u32,
+    out: &mut [Shaded],
+) {
+    debug_assert_eq!(pending.len(), keys.len());
+    let len = pending.len().min(keys.len()).min(out.len());
     let mut start = 0;
-    while start < pending.len() {
+    while start < len {
         let k = keys[start].0;
         let mut end = start + 1;
-        while end < pending.len() && end - start < PACKET_SIZE && keys[end].0 == k {
+        while end < len && end - start < PACKET_SIZE && keys[end].0 == k {
             end += 1;
         }
         (frame.stages.shade_group)(frame, &pending[start..end], depth, &mut out[start..end]);
         start = end;
     }
+}
+
+/// A buffer of group keys from this thread's stack of them; hand it back with [`give_keys`].
+pub(super) fn take_keys() -> Vec<GroupKey> {
+    let mut keys = super::scratch::take(&GROUP_KEYS);
+    keys.clear();
+    keys
+}
+
+pub(super) fn give_keys(keys: Vec<GroupKey>) {
     super::scratch::give(&GROUP_KEYS, keys);
 }
 
@@ -59,7 +96,8 @@ fn permute<K, T>(items: &mut [T], order: &mut [(K, u32)]) {
     }
 }
 
-type GroupKey = ((u32, u32), u32);
+/// A job's (material, instance) and its index among the jobs.
+pub(super) type GroupKey = ((u32, u32), u32);
 
 /// The most distinct keys [`sort_group_keys`] buckets; with more it sorts.
 const MAX_BUCKETED_KEYS: usize = 8;

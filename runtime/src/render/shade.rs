@@ -16,6 +16,7 @@
 
 use super::differential::RayDifferential;
 use super::globals::{deriv_row, fill_hit_globals, hit_global_rows, needs_derivs};
+use super::group::GroupKey;
 use super::hit_geometry::{hit_geometries, GeometryNeeds, GroupHits, HitGeometry, HitRows, InstanceGeometry};
 use super::host::ShadeCall;
 use super::native::{faced_against, LightSeen, NativeSurface};
@@ -67,30 +68,39 @@ pub fn shade_packet(frame: &Frame, primary: &PrimaryRays, hits: &HitPacket, out:
 /// of the other hits in its batch.
 pub fn shade_packets(frame: &Frame, packets: &[(&PrimaryRays, &HitPacket)], out: &mut [[Sample; PACKET_SIZE]]) {
     let packets = &packets[..packets.len().min(out.len())];
-    // Each hit becomes a pending shading job at its sample's index (`PACKET_SIZE` a packet, no
-    // copies of the packets' rays in between); misses see the background at once.
-    let mut pending = Vec::with_capacity(PACKET_SIZE * packets.len());
+    let world = frame.world;
+    // Each hit's group key and its sample's index (`PACKET_SIZE` a packet), sorted before any job
+    // is made: each job (150 bytes) is then written once, where its group shades it, rather than
+    // in the packets' order and then moved by the sort. Misses see the background at once.
+    let mut keys = super::group::take_keys();
     for (k, ((primary, hits), out)) in packets.iter().zip(out.iter_mut()).enumerate() {
         let packet = &primary.packet;
         Stats::add(&frame.stats.primary_rays, packet.active.count_ones() as usize);
         for i in (0..PACKET_SIZE).filter(|i| packet.active >> i & 1 != 0) {
-            // `start_sample`, with the job built where it goes: returned and then pushed, each
-            // job (150 bytes) was copied twice, a third of this function's instructions.
             let hit = hits.get(i);
             if begin_sample(frame, hit, &mut out[i]) {
-                let index = k * PACKET_SIZE + i;
-                let (ray, diff) = (packet.get(i), primary.diffs.lane(i));
-                let budget = RayBudget::from_pixel(primary.pixels[i]);
-                pending.push(Pending { index, ray, diff, hit, budget });
+                keys.push((super::group::group_key(world, &hit), (k * PACKET_SIZE + i) as u32));
             }
         }
     }
+    super::group::sort_stably(&mut keys);
+    let mut pending = super::scratch::take(&PENDING_JOBS);
+    pending.clear();
+    pending.extend(keys.iter().map(|&(_, index)| {
+        let (index, lane) = (index as usize, index as usize % PACKET_SIZE);
+        let (primary, hits) = packets[index / PACKET_SIZE];
+        let (ray, diff, hit) = (primary.packet.get(lane), primary.diffs.lane(lane), hits.get(lane));
+        Pending { index, ray, diff, hit, budget: RayBudget::from_pixel(primary.pixels[lane]) }
+    }));
     let out = &mut out[..packets.len()];
-    let mut weight = vec![Vec3A::ONE; PACKET_SIZE * packets.len()];
+    let mut weight = super::scratch::take(&LANE_WEIGHTS);
+    weight.clear();
+    weight.resize(PACKET_SIZE * packets.len(), Vec3A::ONE);
     // Each camera sample's tree its own budget (what is left of it is not needed here).
-    let mut budgets: Vec<RayBudget> =
-        packets.iter().flat_map(|(primary, _)| primary.pixels.map(RayBudget::from_pixel)).collect();
-    shade_pending(frame, pending, 0, out.as_flattened_mut(), &mut weight, &mut budgets);
+    let mut budgets = super::scratch::take(&LANE_BUDGETS);
+    budgets.clear();
+    budgets.extend(packets.iter().flat_map(|(primary, _)| primary.pixels.map(RayBudget::from_pixel)));
+    shade_pending(frame, &mut pending, Some(&keys), 0, out.as_flattened_mut(), &mut weight, &mut budgets);
     for (k, ((primary, _), out)) in packets.iter().zip(out.iter_mut()).enumerate() {
         let packet = &primary.packet;
         for i in (0..PACKET_SIZE).filter(|i| packet.active >> i & 1 != 0) {
@@ -101,6 +111,10 @@ pub fn shade_packets(frame: &Frame, packets: &[(&PrimaryRays, &HitPacket)], out:
             s.alpha = alpha * (w.x + w.y + w.z) / 3.0;
         }
     }
+    super::group::give_keys(keys);
+    super::scratch::give(&PENDING_JOBS, pending);
+    super::scratch::give(&LANE_WEIGHTS, weight);
+    super::scratch::give(&LANE_BUDGETS, budgets);
 }
 
 /// Traces and shades single rays (secondary rays: incoherent, traced one by one), each the root of
@@ -184,7 +198,7 @@ fn shade_hits(
         }
     }
     let mut weight = vec![Vec3A::ONE; rays.len()];
-    shade_pending(frame, pending, depth, out, &mut weight, budgets);
+    shade_pending(frame, &mut pending, None, depth, out, &mut weight, budgets);
     for (s, w) in out.iter_mut().zip(&weight) {
         s.alpha = 1.0 - (w.x + w.y + w.z) / 3.0;
     }
@@ -228,9 +242,13 @@ fn begin_sample(frame: &Frame, hit: Hit, out: &mut Sample) -> bool {
 /// Shades the pending hits and composites them into `out[p.index]`, following rays through
 /// transparent surfaces; `weight[p.index]` is left with what the surfaces let through. The
 /// shading of each layer of ray `p.index`'s hits spends from `budgets[p.index]`.
+///
+/// `first` is the first layer of hits; where `sorted` gives their group keys, they are in its
+/// order (`group::shade_sorted_groups`), else they are sorted here.
 fn shade_pending(
     frame: &Frame,
-    mut current: Vec<Pending>,
+    first: &mut Vec<Pending>,
+    sorted: Option<&[GroupKey]>,
     depth: u32,
     out: &mut [Sample],
     weight: &mut [Vec3A],
@@ -239,19 +257,27 @@ fn shade_pending(
     let world = frame.world;
     let background = Vec3A::from(world.options.background);
     let mut layer = 0;
-    let mut results = Vec::new();
-    while !current.is_empty() {
-        for p in &mut current {
+    let mut results = super::scratch::take(&SHADED_RESULTS);
+    let mut later: Vec<Pending> = Vec::new();
+    loop {
+        let current = if layer == 0 { &mut *first } else { &mut later };
+        if current.is_empty() {
+            break;
+        }
+        for p in current.iter_mut() {
             p.budget = budgets.get(p.index).map_or(RayBudget::NONE, |b| b.lend());
         }
         results.clear();
         results.resize(current.len(), Shaded::default());
-        super::group::shade_in_groups(frame, &mut current, depth, &mut results);
+        match sorted {
+            Some(keys) if layer == 0 => super::group::shade_sorted_groups(frame, current, keys, depth, &mut results),
+            _ => super::group::shade_in_groups(frame, current, depth, &mut results),
+        }
         if layer == 0 {
-            first_hit_ids(world, &current, &results, out);
+            first_hit_ids(world, current, &results, out);
         }
         // The atmosphere or interior between each ray's origin and its hit (`volume.rs`).
-        super::volume::shade_segments(frame, &current, &mut results, depth);
+        super::volume::shade_segments(frame, current, &mut results, depth);
         Stats::add(&frame.stats.shaded_points, current.len());
         layer += 1;
         // The rays going on through what they met, traced together (they share their directions
@@ -284,15 +310,17 @@ fn shade_pending(
         let rays: Vec<Ray> = going_on.iter().map(|&(_, ray, _)| ray).collect();
         let mut hits = Vec::new();
         tracing(|| world.intersect_rays(&rays, &mut hits));
-        current = Vec::with_capacity(going_on.len());
+        let mut next = Vec::with_capacity(going_on.len());
         for ((index, ray, diff), hit) in going_on.into_iter().zip(hits) {
             if hit.is_hit() {
-                current.push(Pending { index, ray, diff, hit, budget: RayBudget::NONE });
+                next.push(Pending { index, ray, diff, hit, budget: RayBudget::NONE });
             } else {
                 out[index].color += weight[index] * background;
             }
         }
+        later = next;
     }
+    super::scratch::give(&SHADED_RESULTS, results);
 }
 
 /// The object and material ids of each first hit into its sample, and its geometric normal (from
@@ -522,7 +550,13 @@ fn run_tracing_ahead(
 }
 
 thread_local! {
-    /// Groups' lane budgets (`shade_group`).
+    /// Tiles' jobs (`shade_packets`).
+    static PENDING_JOBS: RefCell<Vec<Vec<Pending>>> = const { RefCell::new(Vec::new()) };
+    /// Tiles' weights left to their samples (`shade_packets`).
+    static LANE_WEIGHTS: RefCell<Vec<Vec<Vec3A>>> = const { RefCell::new(Vec::new()) };
+    /// What shading a layer of hits produced (`shade_pending`).
+    static SHADED_RESULTS: RefCell<Vec<Vec<Shaded>>> = const { RefCell::new(Vec::new()) };
+    /// Groups' lane budgets (`shade_group`), and tiles' samples' budgets (`shade_packets`).
     static LANE_BUDGETS: RefCell<Vec<Vec<RayBudget>>> = const { RefCell::new(Vec::new()) };
     /// Batches' values kept for their second runs (`run_tracing_ahead`).
     static SAVED_VALUES: RefCell<Vec<rtsl_compiler::abi::SavedValues>> = const { RefCell::new(Vec::new()) };
