@@ -17,17 +17,15 @@ pub(super) fn shade_in_groups(frame: &Frame, pending: &mut [Pending], depth: u32
     let world = frame.world;
     // Each key once: finding a hit's material reads its instance's per-primitive table, a cache
     // miss, which comparisons would repeat.
-    let mut keys = super::scratch::take(&GROUP_KEYS);
-    keys.clear();
+    let mut keys = take_keys();
     keys.extend(pending.iter().enumerate().map(|(i, p)| (group_key(world, &p.hit), i as u32)));
     // Coherent rays mostly arrive in order already; sorting moves whole jobs, so it sorts their
     // keys and then moves each job once.
-    if !keys.is_sorted() {
-        sort_stably(&mut keys);
+    if sort_stably(&mut keys) {
         permute(pending, &mut keys);
     }
     shade_sorted_groups(frame, pending, &keys, depth, out);
-    super::scratch::give(&GROUP_KEYS, keys);
+    give_keys(keys);
 }
 
 /// The (material, instance) key a hit is grouped by.
@@ -37,14 +35,16 @@ pub(super) fn group_key(world: &World, hit: &Hit) -> (u32, u32) {
     (inst.map_or(0, |i| i.material_at(hit.primitive)), hit.instance)
 }
 
-/// Puts `keys` (each index once) in the order of a stable sort by key (the index breaks ties).
-pub(super) fn sort_stably(keys: &mut Vec<GroupKey>) {
+/// Puts `keys` (each index once) in the order of a stable sort by key (the index breaks ties);
+/// `false` when they were in that order already.
+pub(super) fn sort_stably(keys: &mut Vec<GroupKey>) -> bool {
     if keys.is_sorted() {
-        return;
+        return false;
     }
-    let mut spare = super::scratch::take(&GROUP_KEYS);
+    let mut spare = take_keys();
     sort_group_keys(keys, &mut spare);
-    super::scratch::give(&GROUP_KEYS, spare);
+    give_keys(spare);
+    true
 }
 
 /// Shades `pending`, already in the order of `keys` (its jobs' keys, sorted), in groups of one
