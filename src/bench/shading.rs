@@ -174,6 +174,7 @@ fn fixed_table() -> HostTable {
         shader_name: no_name,
         print: no_print,
         pixels: std::ptr::null(),
+        batch_lights: std::ptr::null(),
     }
 }
 

@@ -16,8 +16,8 @@ use crate::shading::ShaderInstance;
 use crate::texture::{Grid, LookupLanes, LookupOptions, MipMap, TextureCache};
 use glam::{Affine3A, Mat4, Vec3A, Vec4};
 use rtsl_compiler::abi::{
-    same_category, shadow_query_of, Builtin, GatherHit, HostTable, LightLanes, MessageOut, PixelChannel, PixelOutputs,
-    PixelView, StrRef, CONE_ROWS, MAX_LIGHTS, SHADOW_ROWS,
+    same_category, shadow_query_of, BatchLightsView, Builtin, GatherHit, HostTable, LightLanes, MessageOut,
+    PixelChannel, PixelOutputs, PixelView, StrRef, CONE_ROWS, MAX_LIGHTS, SHADOW_ROWS,
 };
 use std::cell::RefCell;
 use std::collections::HashMap;
@@ -43,6 +43,11 @@ pub(crate) struct ShadeCall<'f, 'w> {
     /// their shadows traced with the batch's, the others when a query asks for them.
     pub(super) batch_front: Vec<Vec3A>,
     batch_lights: Option<BatchLights>,
+    /// `batch_lights` as generated code reads it in place ([`HostTable::batch_lights`]), once
+    /// computed, with the batch's points and lanes by chunk (`chunk_points`, `chunk_lanes`).
+    light_view: BatchLightsView,
+    chunk_points: Vec<[f32; 12]>,
+    chunk_lanes: Vec<[i32; 4]>,
     chunk_cursor: usize,
     /// Where the next chunk search starts.
     chunk_next: usize,
@@ -76,6 +81,8 @@ struct CallBuffers {
     mask: Vec<i32>,
     times: Vec<f32>,
     front: Vec<Vec3A>,
+    chunk_points: Vec<[f32; 12]>,
+    chunk_lanes: Vec<[i32; 4]>,
     textures: TextureHandles,
 }
 
@@ -131,6 +138,8 @@ impl Drop for ShadeCall<'_, '_> {
             mask: std::mem::take(&mut self.batch_mask),
             times: std::mem::take(&mut self.batch_times),
             front: std::mem::take(&mut self.batch_front),
+            chunk_points: std::mem::take(&mut self.chunk_points),
+            chunk_lanes: std::mem::take(&mut self.chunk_lanes),
             textures: std::mem::take(&mut self.textures),
         };
         super::scratch::give(&CALL_BUFFERS, buffers);
@@ -166,6 +175,9 @@ impl<'f, 'w> ShadeCall<'f, 'w> {
             batch_times: Vec::new(),
             batch_front: Vec::new(),
             batch_lights: None,
+            light_view: BatchLightsView::default(),
+            chunk_points: Vec::new(),
+            chunk_lanes: Vec::new(),
             chunk_cursor: 0,
             chunk_next: 0,
             last_grid: None,
@@ -182,12 +194,14 @@ impl<'f, 'w> ShadeCall<'f, 'w> {
     /// calls that use them take them: most calls (light shaders, small batches) need none, and
     /// a call that takes nothing gives nothing back.
     pub(super) fn take_buffers(&mut self) {
-        let CallBuffers { mut points, mut mask, mut times, mut front, textures } = super::scratch::take(&CALL_BUFFERS);
+        let CallBuffers { mut points, mut mask, mut times, mut front, chunk_points, chunk_lanes, textures } =
+            super::scratch::take(&CALL_BUFFERS);
         points.clear();
         mask.clear();
         times.clear();
         front.clear();
         (self.batch_points, self.batch_mask, self.batch_times, self.batch_front) = (points, mask, times, front);
+        (self.chunk_points, self.chunk_lanes) = (chunk_points, chunk_lanes);
         self.textures = textures;
     }
 
@@ -255,8 +269,9 @@ impl<'f, 'w> ShadeCall<'f, 'w> {
             Some(outputs) => view.with_outputs(outputs),
             None => view,
         });
+        let ctx = self as *mut ShadeCall;
         HostTable {
-            ctx: self as *mut ShadeCall as *mut c_void,
+            ctx: ctx as *mut c_void,
             matrix: host_matrix,
             lights: host_lights,
             texture: host_texture,
@@ -270,7 +285,41 @@ impl<'f, 'w> ShadeCall<'f, 'w> {
             shader_name: host_shader_name,
             print: host_print,
             pixels: self.pixel_view.as_ref().map_or(std::ptr::null(), |v| v as *const PixelView),
+            // From `ctx` itself: the host calls write the view through `ctx` between the reads
+            // generated code makes through this pointer.
+            // SAFETY: `ctx` points to `self`, alive and unmoved while the table is used.
+            batch_lights: unsafe { std::ptr::addr_of!((*ctx).light_view) },
         }
+    }
+
+    /// Points generated code to the batch's lights (`light_view`), once computed: the batch's
+    /// points and lanes by chunk, and the table's arrays, which stay where they are until the
+    /// call ends (`resolve` changes rows and pending masks in place).
+    fn publish_batch_lights(&mut self) {
+        let Some(table) = &self.batch_lights else { return };
+        let chunks = table.counts.len().min(table.pending.len()).min(self.batch_points.len().div_ceil(4));
+        if chunks.checked_mul(table.slots).is_none_or(|rows| rows > table.lights.len()) || chunks > u32::MAX as usize {
+            return;
+        }
+        let (points, mask) = (&self.batch_points, &self.batch_mask);
+        self.chunk_points.clear();
+        self.chunk_lanes.clear();
+        for c in 0..chunks {
+            let lane = |l: usize| {
+                (4 * c + l < points.len() && mask.get(4 * c + l).is_some_and(|&m| m != 0)).then(|| points[4 * c + l])
+            };
+            self.chunk_points.push(std::array::from_fn(|i| lane(i % 4).map_or(0.0, |p| p[i / 4])));
+            self.chunk_lanes.push(std::array::from_fn(|l| if lane(l).is_some() { -1 } else { 0 }));
+        }
+        self.light_view = BatchLightsView {
+            chunks: chunks as u32,
+            slots: table.slots as u32,
+            points: self.chunk_points.as_ptr(),
+            lanes: self.chunk_lanes.as_ptr(),
+            counts: table.counts.as_ptr(),
+            pending: table.pending.as_ptr(),
+            lights: table.lights.as_ptr(),
+        };
     }
 
     /// World from a named space, `None` for an unknown name.
@@ -500,6 +549,7 @@ fn serve_from_batch(
             c.depth,
             c.budgets,
         ));
+        c.publish_batch_lights();
     }
     let Some(table) = &mut c.batch_lights else { return false };
     if (0..4).any(|l| mask[l] != 0 && table.pending_of(4 * chunk + l) != 0) {

@@ -808,6 +808,57 @@ mod tests {
         assert_eq!(bits(&rows), bits(&each));
     }
 
+    /// Light queries that a surface batch's chunks answer from the batch's lights in place
+    /// (`HostTable::batch_lights`: every light, at the batch's points) get what the renderer's
+    /// answers chunk by chunk give (a category every light belongs to, which the view does not
+    /// serve): the same image, bit for bit. Lights in front of the surface and behind it (whose
+    /// shadows are traced only once a loop's cone takes them in), each partly shadowed.
+    #[test]
+    fn lights_read_in_place_are_those_asked_chunk_by_chunk() {
+        let light = r#"light keyed(float intensity = 1; point from = point "shader" (0, 0, 0);
+            string __category = "key";) { illuminate(from) Cl = intensity * color(1, 0.8, 0.6) / (L . L); }"#;
+        let render = |category: &str| {
+            let surface = format!(
+                r#"surface lit() {{
+                    normal Nf = faceforward(normalize(N), I);
+                    color front = 0, back = 0;
+                    illuminance("{category}", P, Nf, PI / 2) {{ front += Cl * (Nf . normalize(L)); }}
+                    illuminance("{category}", P, -Nf, PI / 2) {{ back += Cl; }}
+                    Ci = front + 0.5 * back + 0.01 * diffuse(Nf);
+                    Oi = 1;
+                }}"#
+            );
+            let rib = r#"
+                Format 24 24 1
+                Projection "perspective" "fov" 45
+                Translate 0 0 4
+                WorldBegin
+                Attribute "light" "shadows" "on"
+                LightSource "keyed" 1 "intensity" [4] "from" [0.5 1.5 -1.5]
+                LightSource "keyed" 2 "intensity" [3] "from" [-0.4 -0.3 1.5]
+                Surface "lit"
+                Polygon "P" [-1.5 -1.5 0  1.5 -1.5 0  1.5 1.5 0  -1.5 1.5 0]
+                Polygon "P" [-0.2 0.2 -0.6  0.6 0.2 -0.6  0.6 0.9 -0.6  -0.2 0.9 -0.6]
+                Polygon "P" [-0.9 -0.8 0.7  0.1 -0.8 0.7  0.1 0.1 0.7  -0.9 0.1 0.7]
+                WorldEnd
+            "#;
+            let mut rt = crate::api::Context::new();
+            rt.compile_shader("keyed", light).expect("the light compiles");
+            rt.compile_shader("lit", &surface).expect("the surface compiles");
+            crate::rib::load::load_str(&mut rt, rib, std::path::Path::new("<test>")).expect("the test scene loads");
+            let world = rt.build_world().expect("the test scene builds");
+            super::super::render_frame(&world, None).0.rgba
+        };
+        let (in_place, asked) = (render(""), render("key"));
+        // The scene is what the test is about: light from both sides, and a shadow.
+        let lit = in_place.chunks(4).filter(|px| px[..3].iter().any(|v| *v > 0.0)).count();
+        assert!(lit > 200, "{lit} pixels lit");
+        let levels: std::collections::HashSet<u32> = in_place.iter().map(|v| v.to_bits()).collect();
+        assert!(levels.len() > 100, "{} distinct values", levels.len());
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&in_place), bits(&asked));
+    }
+
     /// Shading a tile's packets together (`shade_packets`, whose batches mix the packets' hits)
     /// gives every sample what shading each packet alone gives it, bit for bit: in a scene of
     /// several materials over the packets' seams, shadows (an opaque and a transparent blocker),

@@ -364,6 +364,50 @@ pub struct HostTable {
     /// reads inline (`pixelvalue` of a channel named by a literal). Null where there is none or
     /// the renderer answers through `texture` (kind 4): generated code then calls the helper.
     pub pixels: *const PixelView,
+    /// For a surface batch: the lights the renderer computed for the batch's own points, which a
+    /// query of every light (category `""`) at those points reads in place rather than through
+    /// `lights`. Null where there are none; see [`BatchLightsView`] for what may change and when.
+    pub batch_lights: *const BatchLightsView,
+}
+
+/// A surface batch's lights as the renderer computed them for the batch's points
+/// ([`HostTable::batch_lights`]), by chunk as generated code asks: chunk `c`'s points are `points[c]`
+/// (x, y and z rows of four lanes, the bits the renderer filled `P` with), its lanes that have one
+/// are those of `lanes[c]` (-1), lane `l` has `counts[c][l]` lights (at most `slots`), in lane `l`
+/// of rows `lights[c * slots ..]`, and those of them whose shadows are still untraced are the bits
+/// of `pending[c][l]` (their `cl` unshadowed).
+///
+/// `chunks` is 0 until the renderer has computed the lights (at the batch's first query, through
+/// `lights`). From then on, for the rest of the run, the arrays stay where they are with `chunks`
+/// entries (`chunks * slots` rows), and change only inside calls to `lights` (which traces pending
+/// shadows a query needs): generated code reads them between calls and holds no reference across
+/// one. A query at other points (a shader that moved `P`), of other lanes, or whose cone takes in
+/// a pending light goes to `lights`, which answers it as it answers any query.
+#[repr(C)]
+#[derive(Clone, Copy, Debug)]
+pub struct BatchLightsView {
+    pub chunks: u32,
+    pub slots: u32,
+    pub points: *const [f32; 12],
+    pub lanes: *const [i32; 4],
+    pub counts: *const [u32; 4],
+    pub pending: *const [u32; 4],
+    pub lights: *const LightLanes,
+}
+
+impl Default for BatchLightsView {
+    /// No lights computed yet.
+    fn default() -> BatchLightsView {
+        BatchLightsView {
+            chunks: 0,
+            slots: 0,
+            points: std::ptr::null(),
+            lanes: std::ptr::null(),
+            counts: std::ptr::null(),
+            pending: std::ptr::null(),
+            lights: std::ptr::null(),
+        }
+    }
 }
 
 /// The image a pixel shader finishes, as generated code reads it (`pixelvalue`): `width x height`
@@ -515,6 +559,7 @@ impl<'a> ServicesHost<'a> {
             shader_name: sv_shader_name,
             print: sv_print,
             pixels: self.pixels.as_ref().map_or(std::ptr::null(), |v| v as *const PixelView),
+            batch_lights: std::ptr::null(),
         }
     }
 }
@@ -860,6 +905,23 @@ type LightQueryKey = (String, [u32; 12], [bool; 4]);
 /// The answer kept for the last light query: counts, and the lights left unshadowed per lane.
 type LightAnswer = ([u32; 4], [u32; 4]);
 
+/// A chunk's lights ([`Cx::lights`]): each lane's count, and where the rows are: in the batch's
+/// view (a pointer to its first row and how many rows), or (`None`) in the context's buffer.
+#[derive(Clone, Copy)]
+struct LightsAnswer {
+    counts: [u32; 4],
+    batch_rows: Option<(*const LightLanes, usize)>,
+}
+
+/// The bits of the first `count` lights (all 32 from 32 on).
+fn kept_lights(count: u32) -> u32 {
+    if count >= 32 {
+        u32::MAX
+    } else {
+        (1u32 << count) - 1
+    }
+}
+
 struct LightSet {
     lights: Vec<HostLight>,
     /// Per lane, the indices of its non-ambient lights in order.
@@ -1031,11 +1093,66 @@ impl Cx<'_> {
         self.ctx.matrices.push(((from, to), m));
         m
     }
-    /// The lights reaching the chunk's active lanes at `p` (argument `k`).
-    /// Asks the renderer for the lights of the chunk's points (input `k`): lane `l`'s `i`-th light
-    /// is then `self.light(i, l)` for `i < counts[l]`.
-    /// `cone` as `HostTable::lights` takes it.
-    fn lights(&mut self, category: &str, k: usize, cone: &[f32; 4 * CONE_ROWS]) -> [u32; 4] {
+    /// The lights reaching the chunk's active lanes at `p` (argument `k`): lane `l`'s `i`-th light
+    /// is lane `l` of `self.light_rows(&answer)[i]`, for `i < answer.counts[l]`. `cone` as
+    /// `HostTable::lights` takes it.
+    fn lights(&mut self, category: &str, k: usize, cone: &[f32; 4 * CONE_ROWS]) -> LightsAnswer {
+        if category.is_empty() {
+            if let Some(answer) = self.batch_lights(k, cone) {
+                return answer;
+            }
+        }
+        LightsAnswer { counts: self.asked_lights(category, k, cone), batch_rows: None }
+    }
+
+    /// The rows of a [`Cx::lights`] answer.
+    fn light_rows(&self, answer: &LightsAnswer) -> &[LightLanes] {
+        match answer.batch_rows {
+            // SAFETY: rows of the batch's view, valid while the run lasts and unchanged until the
+            // next call into the renderer (`BatchLightsView`), which this borrow of `self` (the
+            // helper's) outlasts no helper call.
+            Some((rows, n)) => unsafe { std::slice::from_raw_parts(rows, n) },
+            None => &self.ctx.light_buffer,
+        }
+    }
+
+    /// A query of every light at argument `k`, answered from the batch's own lights in place
+    /// ([`HostTable::batch_lights`]) when the chunk's asking lanes are at the batch's points and
+    /// the query's cone takes in none of their pending lights; `None` for the renderer to answer.
+    fn batch_lights(&self, k: usize, cone: &[f32; 4 * CONE_ROWS]) -> Option<LightsAnswer> {
+        // SAFETY: the table's pointer is null or valid for the run.
+        let view = unsafe { self.table?.batch_lights.as_ref() }?;
+        let c = self.chunk as usize;
+        if c >= view.chunks as usize {
+            return None;
+        }
+        let rows: &[f32; 12] = self.input.get(4 * k..4 * k + 12)?.try_into().ok()?;
+        // SAFETY: `c` is below `chunks`, each array's length (`BatchLightsView`).
+        let (points, lanes, counts, pending) =
+            unsafe { (&*view.points.add(c), *view.lanes.add(c), *view.counts.add(c), *view.pending.add(c)) };
+        // Bit for bit, each asking lane a lane of the batch's: the sum of differences is 0.
+        let differ = (0..4).fold(0u32, |acc, l| {
+            let lane = (0..3).fold(u32::from(lanes[l] == 0), |d, r| d | (points[4 * r + l].to_bits() ^ rows[4 * r + l].to_bits()));
+            acc | if self.mask[l] { lane } else { 0 }
+        });
+        if differ != 0 {
+            return None;
+        }
+        let slots = (view.slots as usize).min(MAX_LIGHTS) as u32;
+        let counts: [u32; 4] = std::array::from_fn(|l| if self.mask[l] { counts[l].min(slots) } else { 0 });
+        let pending: [u32; 4] = std::array::from_fn(|l| pending[l] & kept_lights(counts[l]));
+        let most = counts.iter().copied().max().unwrap_or(0) as usize;
+        // SAFETY: chunk `c`'s rows start at `c * slots` of `chunks * slots`, and `most <= slots`.
+        let first = unsafe { view.lights.add(c * view.slots as usize) };
+        let rows = unsafe { std::slice::from_raw_parts(first, most) };
+        if pending.iter().any(|&p| p != 0) && light_sums::pending_in_cone(rows, pending, cone) {
+            return None;
+        }
+        Some(LightsAnswer { counts, batch_rows: Some((first, most)) })
+    }
+
+    /// [`Cx::lights`] asked of the renderer (`HostTable::lights`), its rows in `light_buffer`.
+    fn asked_lights(&mut self, category: &str, k: usize, cone: &[f32; 4 * CONE_ROWS]) -> [u32; 4] {
         let mut counts = [0u32; 4];
         let Some(t) = self.table else { return counts };
         // `ambient()`, `diffuse()` and `specular()` of one chunk ask for the same lights: the
@@ -1076,14 +1193,8 @@ impl Cx<'_> {
             )
         };
         let counts = counts.map(|c| c.min(MAX_LIGHTS as u32));
-        let pending: [u32; 4] = std::array::from_fn(|l| {
-            let kept = if counts[l] >= 32 { u32::MAX } else { (1u32 << counts[l]) - 1 };
-            if self.mask[l] {
-                pending[l] & kept
-            } else {
-                0
-            }
-        });
+        let pending: [u32; 4] =
+            std::array::from_fn(|l| if self.mask[l] { pending[l] & kept_lights(counts[l]) } else { 0 });
         // The key's string is kept from query to query: a chunk's first query must not allocate.
         match &mut self.ctx.last_lights {
             Some(((cat, p, m), answer)) => {
@@ -1108,9 +1219,10 @@ impl Cx<'_> {
         cone
     }
 
-    /// Lane `l`'s lights after [`Cx::lights`] counted `n` of them.
-    fn lane_lights(&self, l: usize, n: u32) -> impl Iterator<Item = HostLight> + '_ {
-        self.ctx.light_buffer.iter().take(n as usize).map(move |x| x.lane(l))
+    /// Lane `l`'s lights of a [`Cx::lights`] answer (its count of them).
+    fn lane_lights<'s>(&'s self, answer: &LightsAnswer, l: usize) -> impl Iterator<Item = HostLight> + 's {
+        let n = answer.counts.get(l).copied().unwrap_or(0);
+        self.light_rows(answer).iter().take(n as usize).map(move |x| x.lane(l))
     }
 }
 
@@ -1314,15 +1426,14 @@ host_helpers! {
             _ if cx.f(8, i - 12) != 0.0 => cx.f(7, i - 12).cos(),
             _ => EVERY_LIGHT,
         });
-        let counts = cx.lights(&category, 1, &cone);
-        let active: [bool; 4] = cx.mask;
-        let n = |l: usize| if active[l] { counts[l] } else { 0 };
+        let mut answer = cx.lights(&category, 1, &cone);
+        answer.counts = std::array::from_fn(|l| if cx.mask[l] { answer.counts[l] } else { 0 });
         let order: [Vec<usize>; 4] = std::array::from_fn(|l| {
-            cx.lane_lights(l, n(l)).enumerate().filter(|(_, x)| x.ambient == 0).map(|(i, _)| i).collect()
+            cx.lane_lights(&answer, l).enumerate().filter(|(_, x)| x.ambient == 0).map(|(i, _)| i).collect()
         });
         let count = order.iter().map(Vec::len).max().unwrap_or(0);
         let flat: Vec<HostLight> = (0..4).flat_map(|l| {
-            let mut v: Vec<HostLight> = cx.lane_lights(l, n(l)).collect();
+            let mut v: Vec<HostLight> = cx.lane_lights(&answer, l).collect();
             v.resize(MAX_LIGHTS, HostLight::default());
             v
         }).collect();
@@ -1361,33 +1472,33 @@ host_helpers! {
     h_ambient "rtsl_h_ambient" 3 => 3 |cx| {
         let mut cone = [0.0; 4 * CONE_ROWS];
         cone[12..].fill(NO_LIGHT);
-        let counts = cx.lights("", 0, &cone);
-        let sum = light_sums::ambient(&cx.ctx.light_buffer, counts, cx.mask);
+        let answer = cx.lights("", 0, &cone);
+        let sum = light_sums::ambient(cx.light_rows(&answer), answer.counts, cx.mask);
         cx.set3_lanes(0, &sum);
     }
     // [P, N] -> diffuse
     h_diffuse "rtsl_h_diffuse" 6 => 3 |cx| {
-        let counts = cx.lights("", 0, &cx.hemisphere(3));
+        let answer = cx.lights("", 0, &cx.hemisphere(3));
         let n = Lanes3::of_rows(cx.input, 3).normalized();
-        let sum = light_sums::diffuse(&cx.ctx.light_buffer, counts, cx.mask, &n);
+        let sum = light_sums::diffuse(cx.light_rows(&answer), answer.counts, cx.mask, &n);
         cx.set3_lanes(0, &sum);
     }
     // [P, N, V, roughness] -> specular
     h_specular "rtsl_h_specular" 10 => 3 |cx| {
-        let counts = cx.lights("", 0, &cx.hemisphere(3));
+        let answer = cx.lights("", 0, &cx.hemisphere(3));
         let n = Lanes3::of_rows(cx.input, 3).normalized();
         let view = Lanes3::of_rows(cx.input, 6).normalized();
         let roughness = glam::Vec4::from_array(std::array::from_fn(|l| cx.f(9, l)));
-        let sum = light_sums::specular(&cx.ctx.light_buffer, counts, cx.mask, &n, &view, roughness);
+        let sum = light_sums::specular(cx.light_rows(&answer), answer.counts, cx.mask, &n, &view, roughness);
         cx.set3_lanes(0, &sum);
     }
     // [P, N, V, size] -> phong
     h_phong "rtsl_h_phong" 10 => 3 |cx| {
-        let counts = cx.lights("", 0, &cx.hemisphere(3));
+        let answer = cx.lights("", 0, &cx.hemisphere(3));
         let n = Lanes3::of_rows(cx.input, 3).normalized();
         let view = Lanes3::of_rows(cx.input, 6).normalized();
         let size = glam::Vec4::from_array(std::array::from_fn(|l| cx.f(9, l)));
-        let sum = light_sums::phong(&cx.ctx.light_buffer, counts, cx.mask, &n, &view, size);
+        let sum = light_sums::phong(cx.light_rows(&answer), answer.counts, cx.mask, &n, &view, size);
         cx.set3_lanes(0, &sum);
     }
     // [name, s, t, first channel, fill, channels, dsdx, dtdx, dsdy, dtdy, blur] -> 3
