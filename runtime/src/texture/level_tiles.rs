@@ -6,6 +6,11 @@
 //! left. Whether a level is cut at all, and into how many tiles, follows from its size and the
 //! side alone ([`tile_grid`]), so the master and a worker agree on every tile's place from the
 //! side the master names.
+//!
+//! A tile also holds an apron of [`APRON`] texels: the column right of it and the row below it,
+//! where the level goes on. A bilinear lookup's four texels are two neighbouring columns of two
+//! neighbouring rows, so whichever tile holds the first of them holds all four, and the lookup
+//! reads that one tile (`MipMap::tile_views`) rather than texel by texel across two or four.
 
 use std::sync::OnceLock;
 
@@ -14,6 +19,9 @@ use super::image::TexImage;
 /// The side of the tiles a master cuts large levels into, in texels: 64 x 64 texels are 12 KiB
 /// of an 8-bit RGB level, 48 KiB of floats.
 pub(crate) const TILE_SIDE: usize = 64;
+
+/// The texels a tile holds past its right and bottom edges, where the level goes on.
+pub(crate) const APRON: usize = 1;
 
 /// The most tiles the levels of one map are cut into, together. A worker sets aside a slot for
 /// every tile of a map it is told of; a map that would have more (a level 0 of more than 2^32
@@ -48,9 +56,16 @@ pub(crate) fn tile_rect(size: [usize; 2], side: usize, index: usize) -> Option<(
     Some((corner, [side.min(size[0] - corner[0]), side.min(size[1] - corner[1])]))
 }
 
-/// Tile `index` of `level` cut into tiles of `side`, as an image of its own.
+/// The texels tile `index` holds: its first texel (its place in the level, as [`tile_rect`]'s),
+/// and its width and height with its apron.
+pub(crate) fn held_rect(size: [usize; 2], side: usize, index: usize) -> Option<([usize; 2], [usize; 2])> {
+    let (corner, tile) = tile_rect(size, side, index)?;
+    Some((corner, [0, 1].map(|k| (tile[k] + APRON).min(size[k] - corner[k]))))
+}
+
+/// Tile `index` of `level` cut into tiles of `side`, with its apron, as an image of its own.
 pub(crate) fn cut_tile(level: &TexImage, side: usize, index: usize) -> Option<TexImage> {
-    let ([x, y], [w, h]) = tile_rect([level.width(), level.height()], side, index)?;
+    let ([x, y], [w, h]) = held_rect([level.width(), level.height()], side, index)?;
     let channels = level.channels();
     let row = level.width() * channels;
     let mut values = Vec::with_capacity(w * h * channels);
@@ -109,9 +124,9 @@ impl TiledLevel {
         self.tiles.get(index)?.get()
     }
 
-    /// The width and height tile `index` has.
+    /// The width and height tile `index` has, its apron included.
     pub(crate) fn tile_size(&self, index: usize) -> Option<[usize; 2]> {
-        tile_rect(self.size, 1 << self.shift, index).map(|(_, size)| size)
+        held_rect(self.size, 1 << self.shift, index).map(|(_, size)| size)
     }
 
     /// Holds `tile` as tile `index`, when it is that tile's size with `channels` channels and the
@@ -157,11 +172,17 @@ mod tests {
         for index in 0..tiled.count() {
             let ([x0, y0], [tw, th]) = tile_rect([w, h], 64, index).unwrap();
             let tile = cut_tile(&level, 64, index).unwrap();
-            assert_eq!([tile.width(), tile.height()], [tw, th]);
-            for (y, x) in (0..th).flat_map(|y| (0..tw).map(move |x| (y, x))) {
-                covered[(y0 + y) * w + x0 + x] += 1;
+            // The apron: a column and a row more, except along the level's right and bottom edges.
+            let held = [(tw + 1).min(w - x0), (th + 1).min(h - y0)];
+            assert_eq!([tile.width(), tile.height()], held);
+            assert_eq!(held_rect([w, h], 64, index), Some(([x0, y0], held)));
+            assert_eq!(tiled.tile_size(index), Some(held));
+            for (y, x) in (0..held[1]).flat_map(|y| (0..held[0]).map(move |x| (y, x))) {
                 assert_eq!(tile.texel(x, y), level.texel(x0 + x, y0 + y));
-                assert_eq!(tiled.tile_of(x0 + x, y0 + y), (index, [x, y]));
+                if x < tw && y < th {
+                    covered[(y0 + y) * w + x0 + x] += 1;
+                    assert_eq!(tiled.tile_of(x0 + x, y0 + y), (index, [x, y]));
+                }
             }
             assert!(tiled.set(index, tile, ch));
         }
@@ -174,10 +195,11 @@ mod tests {
     fn a_tile_of_another_size_is_not_held() {
         let tiled = TiledLevel::new([200, 100], 64).unwrap();
         let tile = |w, h, ch| TexImage::new(w, h, ch, vec![0.5; w * h * ch]).unwrap();
-        assert!(!tiled.set(3, tile(64, 64, 3), 3), "the last tile of the first row is 8 texels wide");
-        assert!(!tiled.set(0, tile(64, 64, 4), 3));
-        assert!(!tiled.set(99, tile(64, 64, 3), 3));
-        assert!(tiled.set(3, tile(8, 64, 3), 3));
+        assert!(!tiled.set(3, tile(65, 65, 3), 3), "the last tile of the first row is 8 texels wide");
+        assert!(!tiled.set(0, tile(64, 64, 3), 3), "a tile holds its apron");
+        assert!(!tiled.set(0, tile(65, 65, 4), 3));
+        assert!(!tiled.set(99, tile(65, 65, 3), 3));
+        assert!(tiled.set(3, tile(8, 65, 3), 3));
         assert!(tiled.set(7, tile(8, 36, 3), 3));
         assert_eq!(tiled.held(), 2);
         assert!(!valid_side(100) && !valid_side(8) && valid_side(64) && valid_side(0));

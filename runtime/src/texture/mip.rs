@@ -393,8 +393,9 @@ impl MipMap {
         if let ([Some(y0), Some(y1)], [Some(x0), Some(x1)], taps) = bilinear_places(w, h, s, t, wrap, weight) {
             let (index, [dx, dy]) = tiled.tile_of(x0, y0);
             let channels = self.channels();
-            let one_tile = tiled.tile_of(x1, y1).0 == index && first + N <= channels;
-            if let Some(tile) = tiled.get(index).filter(|_| one_tile) {
+            let corner = [x0 - dx, y0 - dy];
+            let one_tile = |tile: &&TexImage| holds(tile, corner, [x1, y1]) && first + N <= channels;
+            if let Some(tile) = tiled.get(index).filter(one_tile) {
                 let (rows, columns) = ([y0, y1].map(|y| y - (y0 - dy)), [x0, x1].map(|x| x - (x0 - dx)));
                 let tw = tile.width();
                 for (k, tap) in taps.into_iter().enumerate() {
@@ -857,8 +858,9 @@ impl MipMap {
         let [x0, x1] = columns.and_then(|(first, last)| texel_span(first, last, w))?;
         let [y0, y1] = rows.and_then(|(first, last)| texel_span(first, last, h))?;
         let (index, [dx, dy]) = tiled.tile_of(x0, y0);
-        let tile = tiled.get(index).filter(|_| tiled.tile_of(x1, y1).0 == index)?;
-        Some(TileView { tile, origin: [x0 - dx, y0 - dy] })
+        let origin = [x0 - dx, y0 - dy];
+        let tile = tiled.get(index).filter(|tile| holds(tile, origin, [x1, y1]))?;
+        Some(TileView { tile, origin })
     }
 
     /// Where the probes of four lookups go (see the module doc).
@@ -1211,6 +1213,14 @@ impl TileView<'_> {
         let [x, y] = self.origin.map(|v| v as u32);
         y.wrapping_mul(self.row(channels)).wrapping_add(x.wrapping_mul(channels as u32))
     }
+}
+
+/// Whether a tile whose first texel is `corner` of its level holds texel `at` of the level (in
+/// its apron, perhaps).
+#[inline(always)]
+fn holds(tile: &TexImage, corner: [usize; 2], at: [usize; 2]) -> bool {
+    let inside = |k: usize, n: usize| at[k].checked_sub(corner[k]).is_some_and(|d| d < n);
+    inside(0, tile.width()) && inside(1, tile.height())
 }
 
 /// The texels `first..=last` along an axis of `n` texels shifted by a whole period into `0..n`;

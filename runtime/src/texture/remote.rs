@@ -700,6 +700,42 @@ mod tests {
         }
     }
 
+    /// Bilinear lookups whose texels straddle the edges between tiles (two columns, two rows, or
+    /// both) read the one tile that holds their first texel, through its apron, four lanes at
+    /// once: the values of the map built from the whole image, bit for bit.
+    #[test]
+    fn lookups_across_tiles_edges_read_one_tile_through_its_apron() {
+        use crate::texture::mip::LANES_THROUGH_TILES;
+        let (w, h) = (512, 256);
+        let image = noisy(w, h, 3);
+        let reference = MipMap::new(image.clone());
+        let source = Loopback::new(Delivered::image(&image));
+        let cache = TextureCache::new().with_source(Some(source.clone()));
+        let map = cache.get_texture("t", false).unwrap();
+        let opts = LookupOptions::default();
+        // Texel `i`'s centre is at `i + 0.5`: about `64 k`, a lookup's taps are texels `64 k - 1`
+        // and `64 k`, in two tiles. A footprint of a third of a texel reads level 0.
+        let places = [(64.0, 100.3), (70.4, 128.0), (128.1, 192.2), (447.9, 63.8)];
+        for pass in 0..2 {
+            let before = LANES_THROUGH_TILES.with(|c| c.get());
+            for (k, &(x, y)) in places.iter().enumerate() {
+                let mut lanes = crate::texture::LookupLanes::splat(0.0, 0.0, wide(0.3, w), [0.0; 2]);
+                lanes.s = Vec4::from_array(std::array::from_fn(|l| (x + 0.05 * l as f32) / w as f32));
+                lanes.t = Vec4::from_array(std::array::from_fn(|l| (y - 0.05 * l as f32) / h as f32));
+                let (mut here, mut there) = ([0.0; 12], [0.0; 12]);
+                map.filter_lanes(&lanes, [true; 4], [0; 4], &mut here, &opts);
+                reference.filter_lanes(&lanes, [true; 4], [0; 4], &mut there, &opts);
+                assert_eq!(here.map(f32::to_bits), there.map(f32::to_bits), "pass {pass}, place {k}");
+            }
+            let through = LANES_THROUGH_TILES.with(|c| c.get()) - before;
+            if pass == 1 {
+                assert_eq!(through, 4 * places.len(), "lanes read through tiles once the tiles are here");
+            }
+        }
+        assert!(!map.holds_level(0), "tiles of level 0 only");
+        assert!(source.failures.lock().unwrap().is_empty());
+    }
+
     /// Once a worker has fetched as many bytes of tiles as the texture costs whole, the next tile
     /// it lacks brings the image, and every level is made from it.
     #[test]
