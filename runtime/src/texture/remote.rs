@@ -613,6 +613,15 @@ mod tests {
         TexImage::new(w, h, channels, values).unwrap()
     }
 
+    /// A worker's map of `image`, its large levels served in tiles through a loopback source (kept
+    /// to ask what was fetched), and the map built from the whole image.
+    fn served_in_tiles(image: &TexImage) -> (Arc<MipMap>, MipMap, Arc<Loopback>) {
+        let source = Loopback::new(Delivered::image(image));
+        let cache = TextureCache::new().with_source(Some(source.clone()));
+        let map = cache.get_texture("t", false).expect("the loopback serves the texture");
+        (map, MipMap::new(image.clone()), source)
+    }
+
     /// Lookups of every kind on a map whose levels come in tiles, in lanes of different
     /// footprints, over the edges of an image no power of two wide, in every wrap mode: the
     /// values of the map built from the whole image, bit for bit.
@@ -661,11 +670,7 @@ mod tests {
     fn lookups_within_tiles_here_read_them_four_lanes_at_once() {
         use crate::texture::mip::LANES_THROUGH_TILES;
         for (w, h) in [(512, 256), (300, 170)] {
-            let image = noisy(w, h, 3);
-            let reference = MipMap::new(image.clone());
-            let source = Loopback::new(Delivered::image(&image));
-            let cache = TextureCache::new().with_source(Some(source.clone()));
-            let map = cache.get_texture("t", false).unwrap();
+            let (map, reference, source) = served_in_tiles(&noisy(w, h, 3));
             let opts = LookupOptions::default();
             let mut next = uniform_numbers(0x9e37_79b9_7f4a_7c15u64);
             // A few tiles' worth of places (so that the tiles never cost what the image does),
@@ -707,11 +712,7 @@ mod tests {
     fn lookups_across_tiles_edges_read_one_tile_through_its_apron() {
         use crate::texture::mip::LANES_THROUGH_TILES;
         let (w, h) = (512, 256);
-        let image = noisy(w, h, 3);
-        let reference = MipMap::new(image.clone());
-        let source = Loopback::new(Delivered::image(&image));
-        let cache = TextureCache::new().with_source(Some(source.clone()));
-        let map = cache.get_texture("t", false).unwrap();
+        let (map, reference, source) = served_in_tiles(&noisy(w, h, 3));
         let opts = LookupOptions::default();
         // Texel `i`'s centre is at `i + 0.5`: about `64 k`, a lookup's taps are texels `64 k - 1`
         // and `64 k`, in two tiles. A footprint of a third of a texel reads level 0.
