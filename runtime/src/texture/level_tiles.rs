@@ -7,10 +7,12 @@
 //! side alone ([`tile_grid`]), so the master and a worker agree on every tile's place from the
 //! side the master names.
 //!
-//! A tile also holds an apron of [`APRON`] texels: the column right of it and the row below it,
-//! where the level goes on. A bilinear lookup's four texels are two neighbouring columns of two
-//! neighbouring rows, so whichever tile holds the first of them holds all four, and the lookup
-//! reads that one tile (`MipMap::tile_views`) rather than texel by texel across two or four.
+//! A tile also holds an apron of [`APRON`] texels: the columns right of it and the rows below it,
+//! where the level goes on. A lookup reads a box of texels from its probes' first tap to their
+//! last; whichever tile holds the box's first texel holds all of a box up to `APRON + 1` texels
+//! on a side, and the lookup reads that one tile (`MipMap::tile_views`) rather than texel by
+//! texel across two or four: every bilinear probe (two columns by two rows), and the short runs
+//! of probes of a slanted footprint.
 
 use std::sync::OnceLock;
 
@@ -20,8 +22,9 @@ use super::image::TexImage;
 /// of an 8-bit RGB level, 48 KiB of floats.
 pub(crate) const TILE_SIDE: usize = 64;
 
-/// The texels a tile holds past its right and bottom edges, where the level goes on.
-pub(crate) const APRON: usize = 1;
+/// The texels a tile holds past its right and bottom edges, where the level goes on: 4 makes a
+/// tile 68 x 68 texels, 13% more than its own 64 x 64.
+pub(crate) const APRON: usize = 4;
 
 /// The most tiles the levels of one map are cut into, together. A worker sets aside a slot for
 /// every tile of a map it is told of; a map that would have more (a level 0 of more than 2^32
@@ -172,8 +175,8 @@ mod tests {
         for index in 0..tiled.count() {
             let ([x0, y0], [tw, th]) = tile_rect([w, h], 64, index).unwrap();
             let tile = cut_tile(&level, 64, index).unwrap();
-            // The apron: a column and a row more, except along the level's right and bottom edges.
-            let held = [(tw + 1).min(w - x0), (th + 1).min(h - y0)];
+            // The apron: columns and rows more, except along the level's right and bottom edges.
+            let held = [(tw + APRON).min(w - x0), (th + APRON).min(h - y0)];
             assert_eq!([tile.width(), tile.height()], held);
             assert_eq!(held_rect([w, h], 64, index), Some(([x0, y0], held)));
             assert_eq!(tiled.tile_size(index), Some(held));
@@ -195,11 +198,12 @@ mod tests {
     fn a_tile_of_another_size_is_not_held() {
         let tiled = TiledLevel::new([200, 100], 64).unwrap();
         let tile = |w, h, ch| TexImage::new(w, h, ch, vec![0.5; w * h * ch]).unwrap();
-        assert!(!tiled.set(3, tile(65, 65, 3), 3), "the last tile of the first row is 8 texels wide");
+        let side = 64 + APRON;
+        assert!(!tiled.set(3, tile(side, side, 3), 3), "the last tile of the first row is 8 texels wide");
         assert!(!tiled.set(0, tile(64, 64, 3), 3), "a tile holds its apron");
-        assert!(!tiled.set(0, tile(65, 65, 4), 3));
-        assert!(!tiled.set(99, tile(65, 65, 3), 3));
-        assert!(tiled.set(3, tile(8, 65, 3), 3));
+        assert!(!tiled.set(0, tile(side, side, 4), 3));
+        assert!(!tiled.set(99, tile(side, side, 3), 3));
+        assert!(tiled.set(3, tile(8, side, 3), 3));
         assert!(tiled.set(7, tile(8, 36, 3), 3));
         assert_eq!(tiled.held(), 2);
         assert!(!valid_side(100) && !valid_side(8) && valid_side(64) && valid_side(0));

@@ -705,9 +705,10 @@ mod tests {
         }
     }
 
-    /// Bilinear lookups whose texels straddle the edges between tiles (two columns, two rows, or
-    /// both) read the one tile that holds their first texel, through its apron, four lanes at
-    /// once: the values of the map built from the whole image, bit for bit.
+    /// Lookups whose texels straddle the edges between tiles (two columns, two rows, or both)
+    /// read the one tile that holds their first texel, through its apron, four lanes at once:
+    /// bilinear probes, and slanted footprints whose probes run a few texels across an edge. The
+    /// values of the map built from the whole image, bit for bit.
     #[test]
     fn lookups_across_tiles_edges_read_one_tile_through_its_apron() {
         use crate::texture::mip::LANES_THROUGH_TILES;
@@ -716,11 +717,15 @@ mod tests {
         let opts = LookupOptions::default();
         // Texel `i`'s centre is at `i + 0.5`: about `64 k`, a lookup's taps are texels `64 k - 1`
         // and `64 k`, in two tiles. A footprint of a third of a texel reads level 0.
+        // A footprint three texels long along s and a third of one along t is slanted: its
+        // probes run along s, from about a texel and a half before its centre to as far after.
+        let slanted = Footprint { dsdx: 3.0 / w as f32, dtdx: 0.0, dsdy: 0.0, dtdy: 0.3 / h as f32 };
         let places = [(64.0, 100.3), (70.4, 128.0), (128.1, 192.2), (447.9, 63.8)];
+        let lookups = [wide(0.3, w), slanted].into_iter().flat_map(|f| places.map(|p| (f, p)));
         for pass in 0..2 {
             let before = LANES_THROUGH_TILES.with(|c| c.get());
-            for (k, &(x, y)) in places.iter().enumerate() {
-                let mut lanes = crate::texture::LookupLanes::splat(0.0, 0.0, wide(0.3, w), [0.0; 2]);
+            for (k, (footprint, (x, y))) in lookups.clone().enumerate() {
+                let mut lanes = crate::texture::LookupLanes::splat(0.0, 0.0, footprint, [0.0; 2]);
                 lanes.s = Vec4::from_array(std::array::from_fn(|l| (x + 0.05 * l as f32) / w as f32));
                 lanes.t = Vec4::from_array(std::array::from_fn(|l| (y - 0.05 * l as f32) / h as f32));
                 let (mut here, mut there) = ([0.0; 12], [0.0; 12]);
@@ -730,7 +735,7 @@ mod tests {
             }
             let through = LANES_THROUGH_TILES.with(|c| c.get()) - before;
             if pass == 1 {
-                assert_eq!(through, 4 * places.len(), "lanes read through tiles once the tiles are here");
+                assert_eq!(through, 4 * 2 * places.len(), "lanes read through tiles once the tiles are here");
             }
         }
         assert!(!map.holds_level(0), "tiles of level 0 only");
