@@ -1130,7 +1130,7 @@ impl Cx<'_> {
         // SAFETY: `c` is below `chunks`, each array's length (`BatchLightsView`).
         let (points, lanes, counts, pending) =
             unsafe { (&*view.points.add(c), *view.lanes.add(c), *view.counts.add(c), *view.pending.add(c)) };
-        // Bit for bit, each asking lane a lane of the batch's: the sum of differences is 0.
+        // Bit for bit, each asking lane a lane of the batch's: no bit of any difference is set.
         let differ = (0..4).fold(0u32, |acc, l| {
             let lane = (0..3).fold(u32::from(lanes[l] == 0), |d, r| d | (points[4 * r + l].to_bits() ^ rows[4 * r + l].to_bits()));
             acc | if self.mask[l] { lane } else { 0 }
