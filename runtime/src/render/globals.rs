@@ -3,9 +3,9 @@
 //! time where the hits' rows allow.
 
 use super::hit_geometry::{derivs_four, GroupHits, HitRows, HitSurface};
+use super::jobs::GroupRows;
 use super::lanes::Lanes3;
 use super::sampling::point_seed;
-use super::work::Pending;
 use crate::ray::PACKET_SIZE;
 use crate::shading::{put1, varying_rows, Slot};
 use glam::{BVec4A, Vec3A, Vec4};
@@ -17,7 +17,7 @@ use rtsl_compiler::abi::RawBatch;
 pub(super) fn fill_hit_globals(
     raw: &mut RawBatch<'_>,
     program: &crate::shading::ShaderProgram,
-    group: &[Pending],
+    group: &GroupRows,
     hits: GroupHits,
     (color, opacity): (Vec3A, Vec3A),
 ) {
@@ -33,13 +33,13 @@ pub(super) fn fill_hit_globals(
                     *m = 0;
                 }
             }
-            put3_rows(raw, slots.i, hits, |g, lane| g.p - group[lane].ray.origin);
-            put3_rows(raw, slots.e, hits, |_, lane| group[lane].ray.origin);
+            put3_rows(raw, slots.i, hits, |g, lane| g.p - group.origin(lane));
+            put3_rows(raw, slots.e, hits, |_, lane| group.origin(lane));
             put3_rows(raw, slots.cs, hits, |g, _| g.cs.unwrap_or(color));
             put3_rows(raw, slots.os, hits, |g, _| g.os.unwrap_or(opacity));
             put3_rows(raw, slots.oi, hits, |g, _| g.os.unwrap_or(opacity));
             put1_rows(raw, slots.ncomps, hits, |_, _| 3.0);
-            put1_rows(raw, slots.time, hits, |_, lane| group[lane].ray.time);
+            put1_rows(raw, slots.time, hits, |_, lane| group.time(lane));
         }
     }
     let rows = hits.rows();
@@ -76,7 +76,7 @@ pub(super) fn fill_hit_globals(
 pub(super) fn fill_lane_globals_by_chunks(
     raw: &mut RawBatch<'_>,
     program: &crate::shading::ShaderProgram,
-    group: &[Pending],
+    group: &GroupRows,
     (hits, rows, len): (GroupHits, &HitRows, usize),
     (color, opacity): (Vec3A, Vec3A),
 ) {
@@ -86,9 +86,9 @@ pub(super) fn fill_lane_globals_by_chunks(
     let (i, e, ncomps, time) = (first_row(slots.i), first_row(slots.e), first_row(slots.ncomps), first_row(slots.time));
     let constants = [(first_row(slots.cs), color), (first_row(slots.os), opacity), (first_row(slots.oi), opacity)];
     let st = raw.stride;
-    for (chunk, pending) in group[..len].chunks(4).enumerate() {
-        let (at, lanes) = (4 * chunk, pending.len());
-        let pending: [&Pending; 4] = std::array::from_fn(|j| &pending[j.min(lanes - 1)]);
+    let rays = &group.rays;
+    for chunk in 0..len.div_ceil(4) {
+        let (at, lanes) = (4 * chunk, (len - 4 * chunk).min(4));
         let bits = (rows.valid >> at) as u32 & ((1 << lanes) - 1);
         let valid = BVec4A::from_array(std::array::from_fn(|j| bits >> j & 1 != 0));
         for (j, m) in raw.mask.iter_mut().skip(at).take(lanes).enumerate() {
@@ -103,8 +103,7 @@ pub(super) fn fill_lane_globals_by_chunks(
             }
         };
         if i.is_some() || e.is_some() {
-            let origin = Lanes3::of(pending, |p| p.ray.origin);
-            let origin = [origin.x, origin.y, origin.z];
+            let origin = [&rays.ox.0, &rays.oy.0, &rays.oz.0].map(|row| Vec4::from_slice(&row[at..at + 4]));
             for (k, origin) in origin.into_iter().enumerate() {
                 if let Some(i) = i {
                     // `g.p - origin` of each lane, as `Vec3A` subtracts.
@@ -125,18 +124,18 @@ pub(super) fn fill_lane_globals_by_chunks(
             put(ncomps, Vec4::splat(3.0));
         }
         if let Some(time) = time {
-            put(time, Vec4::from_array(pending.map(|p| p.ray.time)));
+            put(time, Vec4::from_slice(&rays.time.0[at..at + 4]));
         }
     }
     // Uniform globals (a shader's own choice, rare) take the last lane's value, as lane by lane.
     let uniform = |slot: Option<Slot>| slot.filter(|s| !s.varying);
-    put3_rows(raw, uniform(slots.i), hits, |g, lane| g.p - group[lane].ray.origin);
-    put3_rows(raw, uniform(slots.e), hits, |_, lane| group[lane].ray.origin);
+    put3_rows(raw, uniform(slots.i), hits, |g, lane| g.p - group.origin(lane));
+    put3_rows(raw, uniform(slots.e), hits, |_, lane| group.origin(lane));
     put3_rows(raw, uniform(slots.cs), hits, |_, _| color);
     put3_rows(raw, uniform(slots.os), hits, |_, _| opacity);
     put3_rows(raw, uniform(slots.oi), hits, |_, _| opacity);
     put1_rows(raw, uniform(slots.ncomps), hits, |_, _| 3.0);
-    put1_rows(raw, uniform(slots.time), hits, |_, lane| group[lane].ray.time);
+    put1_rows(raw, uniform(slots.time), hits, |_, lane| group.time(lane));
 }
 
 /// Writes the screen-space derivatives of the globals `program` reads them of, and `du`, `dv`,
@@ -145,7 +144,7 @@ pub(super) fn fill_lane_globals_by_chunks(
 pub(super) fn fill_hit_derivs(
     raw: &mut RawBatch<'_>,
     program: &crate::shading::ShaderProgram,
-    group: &[Pending],
+    group: &GroupRows,
     hits: GroupHits,
 ) {
     let slots = &program.slots;
@@ -155,15 +154,15 @@ pub(super) fn fill_hit_derivs(
     let (dp, di, dn) = (d3(slots.p), d3(slots.i), d3(slots.n));
     let (du, dv, ds, dt) = (d1(slots.u), d1(slots.v), d1(slots.s), d1(slots.t));
     let st = raw.stride;
-    for (chunk, pending) in group[..hits.len().min(group.len())].chunks(4).enumerate() {
-        let lanes = pending.len();
-        let pending: [&Pending; 4] = std::array::from_fn(|j| &pending[j.min(lanes - 1)]);
+    let len = hits.len().min(group.len());
+    for chunk in 0..len.div_ceil(4) {
+        let lanes = (len - 4 * chunk).min(4);
         let has = BVec4A::from_array(std::array::from_fn(|j| j < lanes && hits.get(4 * chunk + j).is_some()));
         let d = match hits {
             GroupHits::Each(_, Some(rows)) | GroupHits::Rows(rows, _) => rows.derivs(chunk),
             GroupHits::Each(geoms, None) => {
                 let at = |j: usize| if j < lanes { geoms.get(4 * chunk + j).and_then(Option::as_ref) } else { None };
-                derivs_four(pending, std::array::from_fn(at))
+                derivs_four(group, 4 * chunk, std::array::from_fn(at))
             }
         };
         let derivs = &mut *raw.derivs;

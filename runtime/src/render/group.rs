@@ -6,9 +6,10 @@
 //! Invariant: the order is that of a stable sort by key, so that groups, and the images, do not
 //! depend on how the hits arrived beyond their order.
 
+use super::jobs::JobRows;
 use super::work::{Frame, Pending, Shaded};
 use super::world::World;
-use crate::ray::{Hit, PACKET_SIZE};
+use crate::ray::Hit;
 use std::cell::RefCell;
 
 /// Sorts `pending` by (material, instance) and shades it in groups of one material and instance,
@@ -58,16 +59,25 @@ pub(super) fn shade_sorted_groups(
 ) {
     debug_assert_eq!(pending.len(), keys.len());
     let len = pending.len().min(keys.len()).min(out.len());
+    let mut jobs = super::scratch::take(&GROUP_JOBS);
     let mut start = 0;
     while start < len {
         let k = keys[start].0;
-        let mut end = start + 1;
-        while end < len && end - start < PACKET_SIZE && keys[end].0 == k {
+        jobs.clear();
+        let mut end = start;
+        while end < len && keys[end].0 == k && jobs.push(&pending[end], pending[end].budget) {
             end += 1;
         }
-        (frame.stages.shade_group)(frame, &pending[start..end], depth, &mut out[start..end]);
+        jobs.finish();
+        (frame.stages.shade_group)(frame, &jobs.rows(), depth, &mut out[start..end]);
         start = end;
     }
+    super::scratch::give(&GROUP_JOBS, jobs);
+}
+
+thread_local! {
+    /// Groups' hits by rows (`shade_sorted_groups`).
+    static GROUP_JOBS: RefCell<Vec<Box<JobRows>>> = const { RefCell::new(Vec::new()) };
 }
 
 /// A buffer of group keys from this thread's stack of them; hand it back with [`give_keys`].

@@ -2,8 +2,8 @@
 //! shading needs of it (normals, surface coordinates and their derivatives along the triangle's
 //! edges), and the screen-space derivatives that a ray differential gives at it.
 
+use super::jobs::GroupRows;
 use super::lanes::{Lanes, Lanes3};
-use super::work::Pending;
 use super::world::{InstanceShading, World};
 use crate::ray::{Hit, PACKET_SIZE};
 use glam::{Affine3A, BVec4A, Vec3, Vec3A, Vec4};
@@ -44,10 +44,11 @@ pub(super) struct HitDerivs {
 
 #[cfg(test)]
 impl HitGeometry {
-    /// One hit's derivatives: the arithmetic [`derivs_four`] does four hits at a time.
-    pub(super) fn derivs(&self, p: &Pending) -> HitDerivs {
+    /// The derivatives of the hit of lane `l` of `jobs`: the arithmetic [`derivs_four`] does
+    /// four hits at a time.
+    pub(super) fn derivs(&self, jobs: &GroupRows, l: usize) -> HitDerivs {
         use super::differential::barycentric_change;
-        let (dpx, dpy) = p.diff.at_hit(p.ray.direction, p.hit.t, self.ng);
+        let (dpx, dpy) = jobs.diff(l).at_hit(jobs.direction(l), jobs.hit(l).t, self.ng);
         let bx = barycentric_change(self.edges[0], self.edges[1], dpx);
         let by = barycentric_change(self.edges[0], self.edges[1], dpy);
         let lin = |d: &[[f32; 2]; 2], k: usize, b: (f32, f32)| d[0][k] * b.0 + d[1][k] * b.1;
@@ -181,45 +182,44 @@ impl HitRows {
     }
 }
 
-/// Writes the geometry of each pending hit into its slot of `geoms` (`None` where its triangle is
-/// not in the mesh), the same as [`hit_geometry_into`] would, bit for bit. Instances that stand
-/// still, with meshes without further attributes (all of a BART scene), are done four hits at a
-/// time in vector arithmetic ([`hit_geometry_four`]): one hit at a time, each hit's square roots
-/// and divisions would stand in a chain of their own. Those groups, of a packet at most, are also written into `rows`, and then it returns
-/// `true`.
+/// Writes the geometry of each of a group's hits into its slot of `geoms` (`None` where its
+/// triangle is not in the mesh), the same as [`hit_geometry_into`] would, bit for bit. Instances
+/// that stand still, with meshes without further attributes (all of a BART scene), are done four
+/// hits at a time in vector arithmetic ([`hit_geometry_four`]): one hit at a time, each hit's
+/// square roots and divisions would stand in a chain of their own. Those groups are also written
+/// into `rows`, and then it returns `true`.
 ///
 /// With `each` false the caller reads only the rows where there are rows ([`GroupHits::Rows`]),
 /// and then the slots of `geoms` are left as they were: writing every hit's fields a lane at a
 /// time, and holding all of them until then, would cost more than the rows. The rows alone are
-/// worked out eight hits at a time ([`hit_rows_eight`]; the loads of corners and rays stay a lane
-/// at a time).
+/// worked out eight hits at a time ([`hit_rows_eight`]; the loads of corners stay a lane at a
+/// time).
 pub(super) fn hit_geometries(
     ig: &InstanceGeometry,
-    group: &[Pending],
+    group: &GroupRows,
     geoms: &mut [Option<HitGeometry>],
     rows: &mut HitRows,
     each: bool,
 ) -> bool {
+    let len = group.len().min(geoms.len());
+    let geoms = &mut geoms[..len];
     if ig.moving.is_some() || ig.mesh.deformation.is_some() || !ig.mesh.attributes.is_empty() {
-        for (slot, p) in geoms.iter_mut().zip(group) {
-            hit_geometry_into(ig, &p.hit, p.ray.time, slot);
+        for (l, slot) in geoms.iter_mut().enumerate() {
+            hit_geometry_into(ig, &group.hit(l), group.time(l), slot);
         }
         return false;
     }
-    let by_rows = group.len() <= PACKET_SIZE && geoms.len() <= PACKET_SIZE;
-    let each = each || !by_rows;
     rows.valid = 0;
     if !each {
-        for k in 0..group.len().div_ceil(8) {
+        for k in 0..len.div_ceil(8) {
             hit_rows_eight(ig, group, rows, k);
         }
-        return by_rows;
+        return true;
     }
-    for (chunk, (slots, pending)) in geoms.chunks_mut(4).zip(group.chunks(4)).enumerate() {
-        let pending: [&Pending; 4] = std::array::from_fn(|j| &pending[j.min(pending.len() - 1)]);
-        hit_geometry_four(ig, pending, (slots, each), by_rows.then_some((&mut *rows, chunk)));
+    for (chunk, slots) in geoms.chunks_mut(4).enumerate() {
+        hit_geometry_four(ig, group, (slots, each), (&mut *rows, chunk));
     }
-    by_rows
+    true
 }
 
 /// A group's hits as the batch around a surface shader reads them: each hit's [`HitGeometry`]
@@ -316,12 +316,12 @@ pub(super) struct Derivs<V = Vec4> {
 /// The derivatives of four hits.
 pub(super) type DerivsFour = Derivs<Vec4>;
 
-/// The derivatives along x and y of four hits (`geoms`, of the rays `pending`; where a lane has
-/// no geometry its values are not to be used), lane by lane the arithmetic of one hit at a time
-/// (`RayDifferential::at_hit`, `barycentric_change`), so each lane's bits are the same. One hit at
-/// a time, the six divisions of each would stand in a chain, and writing the results a lane at a
-/// time would look up their rows again.
-pub(super) fn derivs_four(pending: [&Pending; 4], geoms: [Option<&HitGeometry>; 4]) -> DerivsFour {
+/// The derivatives along x and y of four hits (`geoms`, of the rays of lanes `first..first + 4` of
+/// `jobs`; where a lane has no geometry its values are not to be used), lane by lane the
+/// arithmetic of one hit at a time (`RayDifferential::at_hit`, `barycentric_change`), so each
+/// lane's bits are the same. One hit at a time, the six divisions of each would stand in a chain,
+/// and writing the results a lane at a time would look up their rows again.
+pub(super) fn derivs_four(jobs: &GroupRows, first: usize, geoms: [Option<&HitGeometry>; 4]) -> DerivsFour {
     let zero = HitGeometry::default();
     let geoms = geoms.map(|g| g.unwrap_or(&zero));
     let from_geometry = |f: fn(&HitGeometry) -> Vec3A| Lanes3::of(geoms, f);
@@ -337,7 +337,7 @@ pub(super) fn derivs_four(pending: [&Pending; 4], geoms: [Option<&HitGeometry>; 
         duv: changes(|g| g.duv),
         dst: changes(|g| g.dst),
     };
-    surface.derivs(&|j: usize| pending[j])
+    surface.derivs(jobs, first)
 }
 
 /// What the derivatives of four hits need of their surfaces, a lane each: world-space geometric
@@ -352,13 +352,15 @@ struct SurfaceChange<V: Lanes = Vec4> {
 }
 
 impl<V: Lanes> SurfaceChange<V> {
-    /// The derivatives of the hits of the rays `pending(j)` on these surfaces.
+    /// The derivatives of the hits of the rays of lanes `first..first + V::LANES` of `jobs` on
+    /// these surfaces.
     #[inline(always)]
-    fn derivs<'p>(&self, pending: &impl Fn(usize) -> &'p Pending) -> Derivs<V> {
-        let from_pending = |f: fn(&Pending) -> Vec3A| V::of3(|j| f(pending(j)));
+    fn derivs(&self, jobs: &GroupRows, first: usize) -> Derivs<V> {
+        let rows3 = |r: &[[f32; PACKET_SIZE]; 3]| Lanes3::<V>::load([&r[0], &r[1], &r[2]], first);
         let SurfaceChange { ng, edges: [e1, e2], dn: [dn1, dn2], duv, dst } = *self;
-        let dir = from_pending(|p| p.ray.direction);
-        let t = V::from_fn(|j| pending(j).hit.t);
+        let rays = &jobs.rays;
+        let dir = Lanes3::<V>::load([&rays.dx.0, &rays.dy.0, &rays.dz.0], first);
+        let t = V::load(&jobs.hits.t.0, first);
         // `at_hit`: the offsets at the hit, moved along the ray onto the tangent plane.
         let facing = dir.dot(ng);
         let along_plane = facing.abs().cmplt(V::splat(1e-6));
@@ -366,8 +368,9 @@ impl<V: Lanes> SurfaceChange<V> {
             let p = dodx.add(dddx.scale(t));
             Lanes3::select(along_plane, p, p.sub(dir.scale(p.dot(ng) / facing)))
         };
-        let dpx = at_hit(from_pending(|p| p.diff.dodx), from_pending(|p| p.diff.dddx));
-        let dpy = at_hit(from_pending(|p| p.diff.dody), from_pending(|p| p.diff.dddy));
+        let d = &jobs.diffs;
+        let dpx = at_hit(rows3(&d.dodx), rows3(&d.dddx));
+        let dpy = at_hit(rows3(&d.dody), rows3(&d.dddy));
         // `barycentric_change` of each.
         let (a, b, c) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
         let det = a * c - b * b;
@@ -392,7 +395,7 @@ impl<V: Lanes> SurfaceChange<V> {
     }
 }
 
-/// The geometry of `V::LANES` hits (lane `j` the hit of `pending(j)`) on an instance that stands
+/// The geometry of `V::LANES` hits (lane `j` that of lane `first + j` of a group's jobs) on an instance that stands
 /// still, with a mesh without further attributes, in world space: what [`hit_geometry_into`]
 /// works out for one hit, bit for bit.
 struct SurfaceLanes<V: Lanes> {
@@ -412,13 +415,14 @@ struct SurfaceLanes<V: Lanes> {
 
 impl<V: Lanes> SurfaceLanes<V> {
     #[inline(always)]
-    fn of<'p>(ig: &InstanceGeometry, pending: &impl Fn(usize) -> &'p Pending) -> SurfaceLanes<V> {
+    fn of(ig: &InstanceGeometry, jobs: &GroupRows, first: usize) -> SurfaceLanes<V> {
         let mesh = ig.mesh;
         // Each hit's corners, where its triangle is in the mesh. A plain loop: as `hits.map` of a
         // closure returning `Option`s it was an out-of-line call writing them through memory.
         let mut tris: [Option<[usize; 3]>; 8] = [None; 8];
         for (j, tri) in tris.iter_mut().enumerate().take(V::LANES) {
-            if let Some(corners) = mesh.triangles.get(pending(j).hit.primitive as usize) {
+            let primitive = jobs.hits.primitive.0.get(first + j).map_or(usize::MAX, |&p| p as usize);
+            if let Some(corners) = mesh.triangles.get(primitive) {
                 let corners = [corners[0] as usize, corners[1] as usize, corners[2] as usize];
                 if corners.iter().all(|&i| i < mesh.positions.len()) {
                     *tri = Some(corners);
@@ -430,7 +434,7 @@ impl<V: Lanes> SurfaceLanes<V> {
         let (xf, normal_xf) = (&ig.world_from_object, &ig.normal_xf);
         let (pa, pb, pc) = (vertex(&mesh.positions, 0), vertex(&mesh.positions, 1), vertex(&mesh.positions, 2));
         let (e1, e2) = (pb.sub(pa), pc.sub(pa));
-        let (u, v) = (V::from_fn(|j| pending(j).hit.u), V::from_fn(|j| pending(j).hit.v));
+        let (u, v) = (V::load(&jobs.hits.u.0, first), V::load(&jobs.hits.v.0, first));
         let (w0, w1, w2) = (V::splat(1.0) - u - v, u, v);
         let p_obj = pa.scale(w0).add(pb.scale(w1)).add(pc.scale(w2));
         let ng = e1.cross(e2).transformed(normal_xf).normalize_or(Lanes3::zero());
@@ -482,16 +486,11 @@ impl<V: Lanes> SurfaceLanes<V> {
         SurfaceLanes { tris, p, n, ng, uv, duv, dpdu, dpdv, dn, edges }
     }
 
-    /// Writes these hits into `rows`, lanes `at..at + V::LANES` (zero in lanes not `valid`), with
-    /// their screen-space derivatives (of the rays `pending`) when the shaders want them.
+    /// Writes these hits, those of lanes `at..at + V::LANES` of `jobs`, into the same lanes of
+    /// `rows` (zero in lanes not `valid`), with their screen-space derivatives when the shaders
+    /// want them.
     #[inline(always)]
-    fn put_rows<'p>(
-        &self,
-        ig: &InstanceGeometry,
-        pending: &impl Fn(usize) -> &'p Pending,
-        rows: &mut HitRows,
-        (at, valid): (usize, V::Mask),
-    ) {
+    fn put_rows(&self, ig: &InstanceGeometry, jobs: &GroupRows, rows: &mut HitRows, (at, valid): (usize, V::Mask)) {
         rows.valid |= u64::from(V::bitmask(valid)) << at;
         let zero = V::splat(0.0);
         let put =
@@ -511,7 +510,7 @@ impl<V: Lanes> SurfaceLanes<V> {
         if ig.derivs {
             // Without an `st` of the mesh's own, (s, t) changes as (u, v).
             let surface = SurfaceChange { ng: self.ng, edges: self.edges, dn: self.dn, duv: self.duv, dst: self.duv };
-            let d = surface.derivs(pending);
+            let d = surface.derivs(jobs, at);
             for axis in 0..2 {
                 put3(&mut rows.dp[axis], d.dp[axis]);
                 // Unread without: then left as they were, and not worked out (from zeros).
@@ -525,22 +524,20 @@ impl<V: Lanes> SurfaceLanes<V> {
     }
 }
 
-/// [`hit_geometry_into`] for four hits of an instance that stands still, with a mesh that does not
-/// deform and has no further attributes, into `slots` (up to four: lanes past them are computed
-/// and dropped) where `each`, and into chunk `k` of `rows` (lanes past `slots`, and those without
-/// geometry, zero), with the hits' screen-space derivatives when the shaders want them.
+/// [`hit_geometry_into`] for the four hits of chunk `k` of `jobs` (lanes `4k..4k + 4`), of an
+/// instance that stands still, with a mesh that does not deform and has no further attributes,
+/// into `slots` (up to four: lanes past them are computed and dropped) where `each`, and into
+/// chunk `k` of `rows` (lanes past `slots`, and those without geometry, zero), with the hits'
+/// screen-space derivatives when the shaders want them.
 fn hit_geometry_four(
     ig: &InstanceGeometry,
-    pending: [&Pending; 4],
+    jobs: &GroupRows,
     (slots, each): (&mut [Option<HitGeometry>], bool),
-    rows: Option<(&mut HitRows, usize)>,
+    (rows, k): (&mut HitRows, usize),
 ) {
-    let lane = |j: usize| pending[j];
-    let s = SurfaceLanes::<Vec4>::of(ig, &lane);
-    if let Some((rows, k)) = rows {
-        let valid = BVec4A::from_array(std::array::from_fn(|j| j < slots.len() && s.tris[j].is_some()));
-        s.put_rows(ig, &lane, rows, (4 * k, valid));
-    }
+    let s = SurfaceLanes::<Vec4>::of(ig, jobs, 4 * k);
+    let valid = BVec4A::from_array(std::array::from_fn(|j| j < slots.len() && s.tris[j].is_some()));
+    s.put_rows(ig, jobs, rows, (4 * k, valid));
     // A loop of four with constant lanes, unrolled: each value is taken out of its register, where
     // a variable lane would go through memory (and loads across the stores there stall). `st` and
     // `dst` are written from the values, not read back from `g`, for the same reason: a load of
@@ -574,18 +571,17 @@ fn hit_geometry_four(
     }
 }
 
-/// [`hit_geometry_four`]'s rows, without the slots, for the eight hits from `pending[8 * k]` (of
-/// `pending`, at most a packet): eight lanes at a time, in one AVX register a component, half
-/// the instructions of four at a time.
-fn hit_rows_eight(ig: &InstanceGeometry, pending: &[Pending], rows: &mut HitRows, k: usize) {
-    let (first, lanes) = (8 * k, pending.len().saturating_sub(8 * k).min(8));
+/// [`hit_geometry_four`]'s rows, without the slots, for the eight hits of `jobs` from lane `8k`:
+/// eight lanes at a time, in one AVX register a component, half the instructions of four at a
+/// time.
+fn hit_rows_eight(ig: &InstanceGeometry, jobs: &GroupRows, rows: &mut HitRows, k: usize) {
+    let (first, lanes) = (8 * k, jobs.len().saturating_sub(8 * k).min(8));
     if lanes == 0 {
         return;
     }
-    let lane = |j: usize| &pending[first + j.min(lanes - 1)];
-    let s = SurfaceLanes::<f32x8>::of(ig, &lane);
+    let s = SurfaceLanes::<f32x8>::of(ig, jobs, first);
     let valid = <f32x8 as Lanes>::mask_from_fn(|j| j < lanes && s.tris[j].is_some());
-    s.put_rows(ig, &lane, rows, (first, valid));
+    s.put_rows(ig, jobs, rows, (first, valid));
 }
 
 /// Writes the geometry of `hit` (at the ray's `time`) into `slot`, or `None` when its triangle is not
@@ -691,6 +687,7 @@ mod tests {
     use crate::geometry::Mesh;
     use crate::ray::Ray;
     use crate::render::differential::RayDifferential;
+    use crate::render::jobs::{JobRows, Pending};
     use glam::Mat3A;
 
     /// A xorshift stream of floats in [-1, 1).
@@ -831,26 +828,29 @@ mod tests {
                     Pending { index: k, ray: Ray::new(Vec3A::ZERO, direction), diff, hit, budget }
                 })
                 .collect();
+            let mut jobs = JobRows::default();
+            for p in &group {
+                jobs.push(p, p.budget);
+            }
+            jobs.finish();
+            let jobs = jobs.rows();
             let mut four: Vec<Option<HitGeometry>> = (0..lanes).map(|_| None).collect();
             let mut rows = HitRows::default();
-            let by_rows = hit_geometries(&ig, &group, &mut four, &mut rows, true);
+            let by_rows = hit_geometries(&ig, &jobs, &mut four, &mut rows, true);
             assert_eq!(by_rows, mesh.attributes.is_empty(), "round {round}");
-            let derivs: Vec<HitDerivs> = group
+            let derivs: Vec<HitDerivs> = four
                 .chunks(4)
-                .zip(four.chunks(4))
-                .flat_map(|(p, g)| {
-                    let d = derivs_four(
-                        std::array::from_fn(|j| &p[j.min(p.len() - 1)]),
-                        std::array::from_fn(|j| g.get(j).and_then(Option::as_ref)),
-                    );
-                    (0..p.len()).map(move |j| d.lane(j))
+                .enumerate()
+                .flat_map(|(c, g)| {
+                    let d = derivs_four(&jobs, 4 * c, std::array::from_fn(|j| g.get(j).and_then(Option::as_ref)));
+                    (0..g.len()).map(move |j| d.lane(j))
                 })
                 .collect();
             // Without `each` the slots are left as they were, the rows are the same, and what
             // `GroupHits::Rows` gives of each hit is what `GroupHits::Each` gives of its slot.
             let mut untouched: Vec<Option<HitGeometry>> = (0..lanes).map(|_| None).collect();
             let mut only = HitRows { valid: u64::MAX, ..HitRows::default() };
-            assert_eq!(hit_geometries(&ig, &group, &mut untouched, &mut only, false), by_rows, "round {round}");
+            assert_eq!(hit_geometries(&ig, &jobs, &mut untouched, &mut only, false), by_rows, "round {round}");
             assert_eq!(untouched.iter().all(Option::is_none), by_rows, "round {round}");
             if by_rows {
                 assert_eq!(row_bits(&only), row_bits(&rows), "round {round}");
@@ -891,9 +891,9 @@ mod tests {
                 }
                 if let (Some(a), Some(b)) = (&one, &four[k]) {
                     assert_eq!(bits(a), bits(b), "{case}");
-                    assert_eq!(deriv_bits(&a.derivs(p)), deriv_bits(&derivs[k]), "{case}");
+                    assert_eq!(deriv_bits(&a.derivs(&jobs, k)), deriv_bits(&derivs[k]), "{case}");
                     if by_rows && ig.derivs {
-                        let (want, from_rows) = (a.derivs(p), rows.derivs(k / 4).lane(k % 4));
+                        let (want, from_rows) = (a.derivs(&jobs, k), rows.derivs(k / 4).lane(k % 4));
                         // The normal's rows only where they are wanted (else left zero here).
                         let dn = if ig.normal_derivs { want.dn } else { [Vec3A::ZERO; 2] };
                         assert_eq!(deriv_bits(&HitDerivs { dn, ..want }), deriv_bits(&from_rows), "{case}");

@@ -38,8 +38,8 @@ pub(super) trait Lanes:
     fn gather3(data: &[Vec3], index: impl Fn(usize) -> usize) -> Lanes3<Self>;
     /// Element `index(j)` of `data` in lane `j`, its `x` and its `y` (zeros where there is none).
     fn gather2(data: &[Vec2], index: impl Fn(usize) -> usize) -> [Self; 2];
-    /// The vectors `f(j)`, one a lane.
-    fn of3(f: impl Fn(usize) -> Vec3A) -> Lanes3<Self>;
+    /// Elements `at..at + LANES` of `row` (zeros where `row` is shorter).
+    fn load(row: &[f32], at: usize) -> Self;
 }
 
 impl Lanes for Vec4 {
@@ -54,6 +54,11 @@ impl Lanes for Vec4 {
     #[inline(always)]
     fn from_fn(f: impl Fn(usize) -> f32) -> Self {
         Vec4::new(f(0), f(1), f(2), f(3))
+    }
+
+    #[inline(always)]
+    fn load(row: &[f32], at: usize) -> Self {
+        row.get(at..at.saturating_add(4)).map_or(Vec4::ZERO, Vec4::from_slice)
     }
 
     #[inline(always)]
@@ -141,11 +146,6 @@ impl Lanes for Vec4 {
         let (a, b, c, d) = (at(0), at(1), at(2), at(3));
         [Vec4::new(a.x, b.x, c.x, d.x), Vec4::new(a.y, b.y, c.y, d.y)]
     }
-
-    #[inline(always)]
-    fn of3(f: impl Fn(usize) -> Vec3A) -> Lanes3<Self> {
-        Lanes3::of([&0, &1, &2, &3], |&j| f(j))
-    }
 }
 
 /// Lanes `0..4` from `lo`, `4..8` from `hi`.
@@ -176,6 +176,12 @@ impl Lanes for f32x8 {
     #[inline(always)]
     fn from_fn(f: impl Fn(usize) -> f32) -> Self {
         halves(Vec4::from_fn(&f), Vec4::from_fn(|j| f(j + 4)))
+    }
+
+    #[inline(always)]
+    fn load(row: &[f32], at: usize) -> Self {
+        let eight: Option<[f32; 8]> = row.get(at..at.saturating_add(8)).and_then(|r| r.try_into().ok());
+        eight.map_or(f32x8::splat(0.0), f32x8::from)
     }
 
     #[inline(always)]
@@ -242,12 +248,6 @@ impl Lanes for f32x8 {
         let (lo, hi) = (Vec4::gather2(data, &index), Vec4::gather2(data, |j| index(j + 4)));
         [halves(lo[0], hi[0]), halves(lo[1], hi[1])]
     }
-
-    #[inline(always)]
-    fn of3(f: impl Fn(usize) -> Vec3A) -> Lanes3<Self> {
-        let (lo, hi) = (Vec4::of3(&f), Vec4::of3(|j| f(j + 4)));
-        Lanes3 { x: halves(lo.x, hi.x), y: halves(lo.y, hi.y), z: halves(lo.z, hi.z) }
-    }
 }
 
 #[cfg(test)]
@@ -306,6 +306,17 @@ mod tests {
             assert_eq!(<f32x8 as Lanes>::bitmask(mask), want);
         }
     }
+
+    /// A load reads the row's elements from its start, at either width, and zeros past the row.
+    #[test]
+    fn loads_read_a_rows_elements_or_zeros_past_it() {
+        let row: Vec<f32> = (0..12).map(|k| k as f32 * 1.5).collect();
+        assert_eq!(<Vec4 as Lanes>::load(&row, 3).to_array(), [4.5, 6.0, 7.5, 9.0]);
+        assert_eq!(<f32x8 as Lanes>::load(&row, 4).to_array(), std::array::from_fn(|j| (4 + j) as f32 * 1.5));
+        assert_eq!(<Vec4 as Lanes>::load(&row, 10), Vec4::ZERO);
+        assert_eq!(<f32x8 as Lanes>::load(&row, 5).to_array(), [0.0; 8]);
+    }
+
     /// Gathering texture coordinates four or eight lanes at a time gives each lane its element's
     /// bits, and zeros for an index past the data (every lane then goes the slow way).
     #[test]
@@ -412,6 +423,12 @@ impl Lanes3 {
 }
 
 impl<V: Lanes> Lanes3<V> {
+    /// Elements `at..at + V::LANES` of three rows, a row a component.
+    #[inline(always)]
+    pub(super) fn load(rows: [&[f32]; 3], at: usize) -> Self {
+        Lanes3 { x: V::load(rows[0], at), y: V::load(rows[1], at), z: V::load(rows[2], at) }
+    }
+
     pub(super) fn zero() -> Self {
         Lanes3 { x: V::splat(0.0), y: V::splat(0.0), z: V::splat(0.0) }
     }

@@ -1,6 +1,6 @@
 //! The rendering engine: a [`World`] (scene, materials, lights, camera, options) rendered frame by
 //! frame. `frame.rs` generates primary packets over tiles; `shade.rs` shades hits through the JIT
-//! code, from their geometry (`hit_geometry.rs`); `host.rs` answers the shaders' calls into the renderer (spaces, `trace`, textures,
+//! code, a group of hits by rows at a time (`jobs.rs`), from their geometry (`hit_geometry.rs`); `host.rs` answers the shaders' calls into the renderer (spaces, `trace`, textures,
 //! messages); `lights.rs` runs light shaders over a batch and traces their shadows; `stats.rs`
 //! counts; `volume.rs` runs atmosphere and interior shaders on ray segments; `differential.rs` carries ray differentials; `native.rs` lets Rust code shade a surface;
 //! `progressive.rs` renders chosen pixels pass by pass into an accumulator (interactive viewers);
@@ -18,6 +18,7 @@ mod group;
 mod hemisphere;
 mod hit_geometry;
 mod host;
+mod jobs;
 mod lanes;
 mod lights;
 pub mod native;

@@ -19,6 +19,7 @@ use super::globals::{deriv_row, fill_hit_globals, hit_global_rows, needs_derivs}
 use super::group::GroupKey;
 use super::hit_geometry::{hit_geometries, GeometryNeeds, GroupHits, HitGeometry, HitRows, InstanceGeometry};
 use super::host::ShadeCall;
+use super::jobs::{GroupRows, JobRows};
 use super::native::{faced_against, LightSeen, NativeSurface};
 use super::primary::PrimaryRays;
 use super::ray_budget::RayBudget;
@@ -72,26 +73,29 @@ pub fn shade_packets(frame: &Frame, packets: &[(&PrimaryRays, &HitPacket)], out:
     // Each hit's group key and its sample's index (`PACKET_SIZE` a packet), sorted before any job
     // is made: each job (150 bytes) is then written once, where its group shades it, rather than
     // in the packets' order and then moved by the sort. Misses see the background at once.
+    // A packet whose every lane hit one material and instance is a group of its own, shaded
+    // where its rows are (without volume shaders, whose segments take each hit's job): its keys
+    // are not kept.
     let mut keys = super::group::take_keys();
+    let mut whole = super::scratch::take(&WHOLE_PACKETS);
+    whole.clear();
     for (k, ((primary, hits), out)) in packets.iter().zip(out.iter_mut()).enumerate() {
         let packet = &primary.packet;
         Stats::add(&frame.stats.primary_rays, packet.active.count_ones() as usize);
+        let first = keys.len();
         for i in (0..PACKET_SIZE).filter(|i| packet.active >> i & 1 != 0) {
             let hit = hits.get(i);
             if begin_sample(frame, hit, &mut out[i]) {
                 keys.push((super::group::group_key(world, &hit), (k * PACKET_SIZE + i) as u32));
             }
         }
+        let own = &keys[first..];
+        if !frame.volumes && own.len() == PACKET_SIZE && own.iter().all(|&(key, _)| key == own[0].0) {
+            whole.push((k, own[0].0));
+            keys.truncate(first);
+        }
     }
     super::group::sort_stably(&mut keys);
-    let mut pending = super::scratch::take(&PENDING_JOBS);
-    pending.clear();
-    pending.extend(keys.iter().map(|&(_, index)| {
-        let (index, lane) = (index as usize, index as usize % PACKET_SIZE);
-        let (primary, hits) = packets[index / PACKET_SIZE];
-        let (ray, diff, hit) = (primary.packet.get(lane), primary.diffs.lane(lane), hits.get(lane));
-        Pending { index, ray, diff, hit, budget: RayBudget::from_pixel(primary.pixels[lane]) }
-    }));
     let out = &mut out[..packets.len()];
     let mut weight = super::scratch::take(&LANE_WEIGHTS);
     weight.clear();
@@ -100,7 +104,24 @@ pub fn shade_packets(frame: &Frame, packets: &[(&PrimaryRays, &HitPacket)], out:
     let mut budgets = super::scratch::take(&LANE_BUDGETS);
     budgets.clear();
     budgets.extend(packets.iter().flat_map(|(primary, _)| primary.pixels.map(RayBudget::from_pixel)));
-    shade_pending(frame, &mut pending, Some(&keys), 0, out.as_flattened_mut(), &mut weight, &mut budgets);
+    let samples = out.as_flattened_mut();
+    if frame.volumes {
+        // Volume shaders take the segments of each hit's job.
+        let mut pending = super::scratch::take(&PENDING_JOBS);
+        pending.clear();
+        pending.extend(keys.iter().map(|&(_, index)| {
+            let (index, lane) = (index as usize, index as usize % PACKET_SIZE);
+            let (primary, hits) = packets[index / PACKET_SIZE];
+            let (ray, diff, hit) = (primary.packet.get(lane), primary.diffs.lane(lane), hits.get(lane));
+            Pending { index, ray, diff, hit, budget: RayBudget::NONE }
+        }));
+        shade_pending(frame, (&mut pending, 0), Some(&keys), 0, samples, &mut weight, &mut budgets);
+        super::scratch::give(&PENDING_JOBS, pending);
+    } else {
+        let going_on = shade_primary_layer(frame, packets, (&whole, &keys), samples, &mut weight, &mut budgets);
+        let mut later = trace_going_on(frame, going_on, samples, &weight);
+        shade_pending(frame, (&mut later, 1), None, 0, samples, &mut weight, &mut budgets);
+    }
     for (k, ((primary, _), out)) in packets.iter().zip(out.iter_mut()).enumerate() {
         let packet = &primary.packet;
         for i in (0..PACKET_SIZE).filter(|i| packet.active >> i & 1 != 0) {
@@ -112,7 +133,7 @@ pub fn shade_packets(frame: &Frame, packets: &[(&PrimaryRays, &HitPacket)], out:
         }
     }
     super::group::give_keys(keys);
-    super::scratch::give(&PENDING_JOBS, pending);
+    super::scratch::give(&WHOLE_PACKETS, whole);
     super::scratch::give(&LANE_WEIGHTS, weight);
     super::scratch::give(&LANE_BUDGETS, budgets);
 }
@@ -198,7 +219,7 @@ fn shade_hits(
         }
     }
     let mut weight = vec![Vec3A::ONE; rays.len()];
-    shade_pending(frame, &mut pending, None, depth, out, &mut weight, budgets);
+    shade_pending(frame, (&mut pending, 0), None, depth, out, &mut weight, budgets);
     for (s, w) in out.iter_mut().zip(&weight) {
         s.alpha = 1.0 - (w.x + w.y + w.z) / 3.0;
     }
@@ -243,11 +264,12 @@ fn begin_sample(frame: &Frame, hit: Hit, out: &mut Sample) -> bool {
 /// transparent surfaces; `weight[p.index]` is left with what the surfaces let through. The
 /// shading of each layer of ray `p.index`'s hits spends from `budgets[p.index]`.
 ///
-/// `first` is the first layer of hits; where `sorted` gives their group keys, they are in its
-/// order (`group::shade_sorted_groups`), else they are sorted here.
+/// `first` is a layer of hits and the number of layers its rays crossed before (0: these are
+/// the rays' first hits); where `sorted` gives their group keys, they are in its order
+/// (`group::shade_sorted_groups`), else they are sorted here.
 fn shade_pending(
     frame: &Frame,
-    first: &mut Vec<Pending>,
+    (first, crossed): (&mut Vec<Pending>, u32),
     sorted: Option<&[GroupKey]>,
     depth: u32,
     out: &mut [Sample],
@@ -255,12 +277,11 @@ fn shade_pending(
     budgets: &mut [RayBudget],
 ) {
     let world = frame.world;
-    let background = Vec3A::from(world.options.background);
-    let mut layer = 0;
+    let mut layer = crossed;
     let mut results = super::scratch::take(&SHADED_RESULTS);
     let mut later: Vec<Pending> = Vec::new();
     loop {
-        let current = if layer == 0 { &mut *first } else { &mut later };
+        let current = if layer == crossed { &mut *first } else { &mut later };
         if current.is_empty() {
             break;
         }
@@ -270,7 +291,9 @@ fn shade_pending(
         results.clear();
         results.resize(current.len(), Shaded::default());
         match sorted {
-            Some(keys) if layer == 0 => super::group::shade_sorted_groups(frame, current, keys, depth, &mut results),
+            Some(keys) if layer == crossed => {
+                super::group::shade_sorted_groups(frame, current, keys, depth, &mut results)
+            }
             _ => super::group::shade_in_groups(frame, current, depth, &mut results),
         }
         if layer == 0 {
@@ -284,43 +307,176 @@ fn shade_pending(
         // with the rays before them: whole packets).
         let mut going_on = Vec::new();
         for (p, r) in current.iter().zip(&results) {
-            if let Some(budget) = budgets.get_mut(p.index) {
-                budget.charge(r.spent, r.cut);
-            }
-            let w = weight[p.index];
-            out[p.index].color += w * r.ci;
-            let left = w * (Vec3A::ONE - r.oi.clamp(Vec3A::ZERO, Vec3A::ONE));
-            weight[p.index] = left;
-            if left.max_element() > 1.0 / 256.0 {
-                if layer >= world.options.max_transparent_layers {
-                    continue;
-                }
-                let side = if r.ng.dot(p.ray.direction) > 0.0 { r.ng } else { -r.ng };
-                let ray = Ray::new(offset_ray_origin(r.p, side), p.ray.direction).at_time(p.ray.time);
-                // The ray goes on unbent: its footprint starts where the surface's ended.
-                let (dodx, dody) = if r.on_surface {
-                    p.diff.at_hit(p.ray.direction, p.hit.t, r.ng)
-                } else {
-                    (Vec3A::ZERO, Vec3A::ZERO)
-                };
-                going_on.push((p.index, ray, RayDifferential { dodx, dody, ..p.diff }));
+            if composite(world, (p.index, layer), r, out, weight, budgets) {
+                going_on.push(ray_going_on(p.index, r, p.ray, p.diff, p.hit.t));
             }
         }
-        Stats::add(&frame.stats.transparency_rays, going_on.len());
-        let rays: Vec<Ray> = going_on.iter().map(|&(_, ray, _)| ray).collect();
-        let mut hits = Vec::new();
-        tracing(|| world.intersect_rays(&rays, &mut hits));
-        let mut next = Vec::with_capacity(going_on.len());
-        for ((index, ray, diff), hit) in going_on.into_iter().zip(hits) {
-            if hit.is_hit() {
-                next.push(Pending { index, ray, diff, hit, budget: RayBudget::NONE });
-            } else {
-                out[index].color += weight[index] * background;
-            }
-        }
-        later = next;
+        later = trace_going_on(frame, going_on, out, weight);
     }
     super::scratch::give(&SHADED_RESULTS, results);
+}
+
+/// Composites what shading ray `index`'s hit gave (`r`, the `layer`th surface the ray met) into
+/// its sample `out[index]`, the budget its tree spent into `budgets[index]`, and leaves
+/// `weight[index]` with what the surface lets through: `true` when the ray goes on through it
+/// (enough gets through, and it is not the last layer the options allow).
+#[inline(always)]
+fn composite(
+    world: &World,
+    (index, layer): (usize, u32),
+    r: &Shaded,
+    out: &mut [Sample],
+    weight: &mut [Vec3A],
+    budgets: &mut [RayBudget],
+) -> bool {
+    if let Some(budget) = budgets.get_mut(index) {
+        budget.charge(r.spent, r.cut);
+    }
+    let (Some(w), Some(sample)) = (weight.get_mut(index), out.get_mut(index)) else { return false };
+    sample.color += *w * r.ci;
+    let left = *w * (Vec3A::ONE - r.oi.clamp(Vec3A::ZERO, Vec3A::ONE));
+    *w = left;
+    left.max_element() > 1.0 / 256.0 && layer < world.options.max_transparent_layers
+}
+
+/// The ray `index` (`ray`, its differential `diff`, its hit at `t`) going on through the surface
+/// whose shading gave `r`: unbent, from just behind the surface, its footprint starting where the
+/// surface's ended.
+fn ray_going_on(index: usize, r: &Shaded, ray: Ray, diff: RayDifferential, t: f32) -> (usize, Ray, RayDifferential) {
+    let side = if r.ng.dot(ray.direction) > 0.0 { r.ng } else { -r.ng };
+    let on = Ray::new(offset_ray_origin(r.p, side), ray.direction).at_time(ray.time);
+    let (dodx, dody) = if r.on_surface { diff.at_hit(ray.direction, t, r.ng) } else { (Vec3A::ZERO, Vec3A::ZERO) };
+    (index, on, RayDifferential { dodx, dody, ..diff })
+}
+
+/// Traces the rays going on through transparent surfaces together (they share their directions
+/// with the rays before them: whole packets): the hits to shade next, and the background added
+/// to the samples of those that meet nothing.
+fn trace_going_on(
+    frame: &Frame,
+    going_on: Vec<(usize, Ray, RayDifferential)>,
+    out: &mut [Sample],
+    weight: &[Vec3A],
+) -> Vec<Pending> {
+    if going_on.is_empty() {
+        return Vec::new();
+    }
+    let world = frame.world;
+    let background = Vec3A::from(world.options.background);
+    Stats::add(&frame.stats.transparency_rays, going_on.len());
+    let rays: Vec<Ray> = going_on.iter().map(|&(_, ray, _)| ray).collect();
+    let mut hits = Vec::new();
+    tracing(|| world.intersect_rays(&rays, &mut hits));
+    let mut next = Vec::with_capacity(going_on.len());
+    for ((index, ray, diff), hit) in going_on.into_iter().zip(hits) {
+        if hit.is_hit() {
+            next.push(Pending { index, ray, diff, hit, budget: RayBudget::NONE });
+        } else if let (Some(s), Some(w)) = (out.get_mut(index), weight.get(index)) {
+            s.color += *w * background;
+        }
+    }
+    next
+}
+
+/// Shades the first hits of a tile's primary rays (`packets`) a group at a time by rows, and
+/// composites them into `out` as [`shade_pending`] does its first layer: the rays going on
+/// through what they met. `whole` are the packets whose every lane hit one material and
+/// instance (the packet, its key), shaded where their rows are; `keys` are the other hits' group
+/// keys, sorted, each with its sample's index (`PACKET_SIZE` a packet), whose groups' rays,
+/// differentials and hits are gathered into rows straight from the packets' rows (no job per
+/// hit). Not for scenes with volume shaders (their segments take each hit's job).
+fn shade_primary_layer(
+    frame: &Frame,
+    packets: &[(&PrimaryRays, &HitPacket)],
+    (whole, keys): (&[WholePacket], &[GroupKey]),
+    out: &mut [Sample],
+    weight: &mut [Vec3A],
+    budgets: &mut [RayBudget],
+) -> Vec<(usize, Ray, RayDifferential)> {
+    let mut jobs = super::scratch::take(&PRIMARY_JOBS);
+    let mut results = super::scratch::take(&SHADED_RESULTS);
+    let mut going_on = Vec::new();
+    let mut lanes = PrimaryLanes { out, weight, budgets, going_on: &mut going_on };
+    for &(k, key) in whole {
+        let Some((primary, hits)) = packets.get(k) else { continue };
+        let first = k * PACKET_SIZE;
+        let lent: [RayBudget; PACKET_SIZE] =
+            std::array::from_fn(|l| lanes.budgets.get(first + l).map_or(RayBudget::NONE, |b| b.lend()));
+        let rows = GroupRows::whole_packet((&primary.packet, &primary.diffs, *hits), &lent);
+        shade_primary_group(frame, rows, key, first..first + PACKET_SIZE, &mut results, &mut lanes);
+    }
+    let mut start = 0;
+    while start < keys.len() {
+        let key = keys[start].0;
+        jobs.clear();
+        let mut end = start;
+        while let Some(&(k, index)) = keys.get(end) {
+            let index = index as usize;
+            let Some((primary, hits)) = packets.get(index / PACKET_SIZE) else { break };
+            let budget = lanes.budgets.get(index).map_or(RayBudget::NONE, |b| b.lend());
+            let rows = (&primary.packet, &primary.diffs, *hits);
+            if k != key || !jobs.push_lane(rows, index % PACKET_SIZE, budget) {
+                break;
+            }
+            end += 1;
+        }
+        if end == start {
+            // A key whose sample is not in the packets (the caller makes none).
+            start += 1;
+            continue;
+        }
+        jobs.finish();
+        let indices = keys[start..end].iter().map(|&(_, index)| index as usize);
+        shade_primary_group(frame, jobs.rows(), key, indices, &mut results, &mut lanes);
+        start = end;
+    }
+    Stats::add(&frame.stats.shaded_points, keys.len() + whole.len() * PACKET_SIZE);
+    super::scratch::give(&PRIMARY_JOBS, jobs);
+    super::scratch::give(&SHADED_RESULTS, results);
+    going_on
+}
+
+/// A tile's packet whose every lane hit one material and instance: its index among the tile's
+/// packets, and the (material, instance) of its hits.
+type WholePacket = (usize, (u32, u32));
+
+/// What [`shade_primary_layer`] composites its groups into, by sample index.
+struct PrimaryLanes<'a> {
+    out: &'a mut [Sample],
+    weight: &'a mut [Vec3A],
+    budgets: &'a mut [RayBudget],
+    going_on: &'a mut Vec<(usize, Ray, RayDifferential)>,
+}
+
+/// Shades one group of first hits (`rows`, of group key `key`; lane `l` the sample
+/// `indices[l]`'s) and composites them (see [`shade_primary_layer`]), `results` a buffer.
+fn shade_primary_group(
+    frame: &Frame,
+    rows: GroupRows,
+    key: (u32, u32),
+    indices: impl Iterator<Item = usize>,
+    results: &mut Vec<Shaded>,
+    to: &mut PrimaryLanes,
+) {
+    let world = frame.world;
+    results.clear();
+    results.resize(rows.len(), Shaded::default());
+    (frame.stages.shade_group)(frame, &rows, 0, results);
+    // The first hits' ids (see `first_hit_ids`): the group's material's.
+    let ids = world.instances.get(rows.instance() as usize).map(|_| {
+        let material = key.0;
+        (world.materials.get(material as usize).map_or(0, |m| m.object_id), material)
+    });
+    for (lane, (r, index)) in results.iter().zip(indices).enumerate() {
+        if let (Some(s), Some((object_id, shader_id))) = (to.out.get_mut(index), ids) {
+            (s.object_id, s.shader_id) = (object_id, shader_id);
+            s.normal = if r.ng.dot(rows.direction(lane)) > 0.0 { -r.ng } else { r.ng };
+            s.outputs = r.outputs;
+        }
+        if composite(world, (index, 1), r, to.out, to.weight, to.budgets) {
+            to.going_on.push(ray_going_on(index, r, rows.ray(lane), rows.diff(lane), rows.hit(lane).t));
+        }
+    }
 }
 
 /// The object and material ids of each first hit into its sample, and its geometric normal (from
@@ -346,12 +502,15 @@ fn first_hit_ids(world: &World, pending: &[Pending], shaded: &[Shaded], out: &mu
 }
 
 /// Shades hits that share material and instance.
-pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mut [Shaded]) {
+pub(super) fn shade_group(frame: &Frame, group: &GroupRows, depth: u32, out: &mut [Shaded]) {
+    if group.is_empty() {
+        return;
+    }
     let _timer = ShadingTimer::start(&frame.stats);
     let world = frame.world;
-    let Some(inst) = world.instances.get(group[0].hit.instance as usize) else { return };
+    let Some(inst) = world.instances.get(group.instance() as usize) else { return };
     // The group's hits share their material (`shade_in_groups`).
-    let material_id = inst.material_at(group[0].hit.primitive);
+    let material_id = inst.material_at(group.hit(0).primitive);
     let material = world.materials.get(material_id as usize).unwrap_or(&DEFAULT_MATERIAL);
     let shaders = || [&material.surface, &material.displacement].into_iter().flatten();
     let needs = GeometryNeeds {
@@ -363,15 +522,16 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
         dpduv: shaders().any(|s| s.program.slots.dpdu.is_some() || s.program.slots.dpdv.is_some()),
         normal_derivs: shaders().any(|s| deriv_row(s.program.slots.n, 3, s.program.layout().deriv_slots).is_some()),
     };
-    let Some(ig) = InstanceGeometry::new(world, inst, group[0].hit.instance, needs) else { return };
+    let Some(ig) = InstanceGeometry::new(world, inst, group.instance(), needs) else { return };
     // Each lane's budget, spent by its displacement, light and surface shaders in turn.
     let mut budgets = super::scratch::take(&LANE_BUDGETS);
     budgets.clear();
     let sets_parameters = !material.ray_values.is_empty();
-    budgets.extend(group.iter().map(|p| p.budget.through(material_id, sets_parameters)));
+    let given = &group.budgets[..group.len()];
+    budgets.extend(given.iter().map(|b| b.through(material_id, sets_parameters)));
     shade_group_lanes(frame, group, depth, out, (inst, material_id, material), &ig, &mut budgets);
-    for ((o, p), b) in out.iter_mut().zip(group).zip(budgets.iter()) {
-        (o.spent, o.cut) = (p.budget.left.saturating_sub(b.left), b.cut);
+    for ((o, given), b) in out.iter_mut().zip(given).zip(budgets.iter()) {
+        (o.spent, o.cut) = (given.left.saturating_sub(b.left), b.cut);
     }
     super::scratch::give(&LANE_BUDGETS, budgets);
 }
@@ -380,7 +540,7 @@ pub(super) fn shade_group(frame: &Frame, group: &[Pending], depth: u32, out: &mu
 /// `budgets`.
 fn shade_group_lanes(
     frame: &Frame,
-    group: &[Pending],
+    group: &GroupRows,
     depth: u32,
     out: &mut [Shaded],
     (inst, material_id, material): (&InstanceShading, u32, &Material),
@@ -396,7 +556,7 @@ fn shade_group_lanes(
             geoms.resize_with(group.len(), || None);
         }
         let geoms = &mut geoms[..group.len()];
-        let vertex_params = world.vertex_params.get(&(group[0].hit.instance, material_id));
+        let vertex_params = world.vertex_params.get(&(group.instance(), material_id));
         // Whether anything here reads more of the hits than a surface batch does.
         let each = material.displacement.is_some()
             || material.native.is_some()
@@ -418,11 +578,11 @@ fn shade_group_lanes(
         }
         let Some(surface) = &material.surface else {
             // RenderMan's default surface: a matte that faces the viewer.
-            for ((p, g), o) in group.iter().zip(geoms.iter()).zip(out.iter_mut()) {
+            for (lane, (g, o)) in geoms.iter().zip(out.iter_mut()).enumerate() {
                 let Some(g) = g else { continue };
                 let cs = g.cs.unwrap_or(color);
                 let os = g.os.unwrap_or(opacity);
-                let facing = g.n.dot(-p.ray.direction.normalize_or_zero()).abs();
+                let facing = g.n.dot(-group.direction(lane).normalize_or_zero()).abs();
                 *o = Shaded { ci: os * cs * (0.2 + 0.8 * facing), oi: os, p: g.p, ng: g.ng, on_surface: true, ..*o };
             }
             return;
@@ -550,8 +710,13 @@ fn run_tracing_ahead(
 }
 
 thread_local! {
-    /// Tiles' jobs (`shade_packets`).
+    /// Tiles' jobs (`shade_packets`, in scenes with volume shaders).
     static PENDING_JOBS: RefCell<Vec<Vec<Pending>>> = const { RefCell::new(Vec::new()) };
+    /// A tile's packets whose every lane hit one material and instance, with its key
+    /// (`shade_packets`).
+    static WHOLE_PACKETS: RefCell<Vec<Vec<WholePacket>>> = const { RefCell::new(Vec::new()) };
+    /// Groups of a tile's first hits by rows (`shade_primary_layer`).
+    static PRIMARY_JOBS: RefCell<Vec<Box<JobRows>>> = const { RefCell::new(Vec::new()) };
     /// Tiles' weights left to their samples (`shade_packets`).
     static LANE_WEIGHTS: RefCell<Vec<Vec<Vec3A>>> = const { RefCell::new(Vec::new()) };
     /// What shading a layer of hits produced (`shade_pending`).
@@ -587,7 +752,7 @@ fn with_hit_geometry<R>(f: impl FnOnce(&mut HitBuffers) -> R) -> R {
 /// Appends each lane's point, shading mask and ray time to `points`, `mask` and `times`: what the
 /// lights of a batch of hits are computed for.
 fn extend_batch_lanes(
-    group: &[Pending],
+    group: &GroupRows,
     hits: GroupHits,
     (points, mask, times): (&mut Vec<Vec3A>, &mut Vec<i32>, &mut Vec<f32>),
 ) {
@@ -610,7 +775,7 @@ fn extend_batch_lanes(
             mask.extend(hits.iter().map(|g| if g.is_some() { -1 } else { 0 }));
         }
     }
-    times.extend(group.iter().map(|p| p.ray.time));
+    times.extend_from_slice(&group.rays.time.0[..group.len()]);
 }
 
 /// The renderer's side of a shader run over a batch of hits on `material` (placed by
@@ -619,7 +784,7 @@ fn batch_call<'f, 'w>(
     frame: &'f Frame<'w>,
     shader: &'f ShaderInstance,
     (material, world_from_object): (u32, Affine3A),
-    group: &[Pending],
+    group: &GroupRows,
     hits: GroupHits,
     depth: u32,
     budgets: &'f mut [RayBudget],
@@ -635,14 +800,14 @@ fn batch_call<'f, 'w>(
 
 /// Each lane's shading normal turned toward the ray's origin (by the geometric normal, as
 /// `faceforward(N, I)`): the side whose lights a typical surface shader sums.
-fn front_normals<'a>(group: &'a [Pending], hits: GroupHits<'a>) -> impl Iterator<Item = Vec3A> + 'a {
+fn front_normals<'a>(group: &'a GroupRows<'a>, hits: GroupHits<'a>) -> impl Iterator<Item = Vec3A> + 'a {
     // The normals straight from the rows where there are rows (see `extend_batch_lanes`).
     let rows = match hits {
         GroupHits::Rows(rows, len) => Some((rows, len)),
         GroupHits::Each(..) => None,
     };
     let v3 = |r: &[[f32; PACKET_SIZE]; 3], l: usize| Vec3A::new(r[0][l], r[1][l], r[2][l]);
-    group.iter().zip(0..hits.len()).map(move |(p, lane)| {
+    (0..hits.len().min(group.len())).map(move |lane| {
         let (n, ng) = match rows {
             Some((rows, len)) => {
                 if lane >= len.min(PACKET_SIZE) || rows.valid >> lane & 1 == 0 {
@@ -655,7 +820,7 @@ fn front_normals<'a>(group: &'a [Pending], hits: GroupHits<'a>) -> impl Iterator
                 None => return Vec3A::ZERO,
             },
         };
-        if p.ray.direction.dot(ng) > 0.0 {
+        if group.direction(lane).dot(ng) > 0.0 {
             -n
         } else {
             n
@@ -671,7 +836,7 @@ fn displace(
     frame: &Frame,
     displacement: &ShaderInstance,
     (material, world_from_object): (u32, Affine3A),
-    group: &[Pending],
+    group: &GroupRows,
     geoms: &mut [Option<HitGeometry>],
     appearance: (Vec3A, Vec3A),
     depth: u32,
@@ -706,7 +871,7 @@ fn displace(
 fn shade_native(
     frame: &Frame,
     native: &dyn NativeSurface,
-    group: &[Pending],
+    group: &GroupRows,
     geoms: &[Option<HitGeometry>],
     (color, opacity): (Vec3A, Vec3A),
     depth: u32,
@@ -721,7 +886,7 @@ fn shade_native(
     // The hand-written plastic sums the lights in front of its normal faced forward by itself.
     let faced = |(k, g): (usize, &Option<HitGeometry>)| {
         let g = g.as_ref()?;
-        Some((k, faced_against(g.n, g.p - group[k].ray.origin).to_array(), 0.0))
+        Some((k, faced_against(g.n, g.p - group.origin(k)).to_array(), 0.0))
     };
     table.resolve(frame, &points, &times, geoms.iter().enumerate().filter_map(faced));
     let mut seen = Vec::new();
@@ -732,7 +897,7 @@ fn shade_native(
             let h = table.light(k, j);
             LightSeen { l: Vec3A::from(h.l), cl: Vec3A::from(h.cl), ambient: h.ambient != 0 }
         }));
-        let i = g.p - group[k].ray.origin;
+        let i = g.p - group.origin(k);
         let (ci, oi) = native.shade(g.n, i, g.cs.unwrap_or(color), g.os.unwrap_or(opacity), &seen);
         out[k] = Shaded { ci, oi, p: g.p, ng: g.ng, on_surface: true, ..out[k] };
     }
@@ -857,6 +1022,97 @@ mod tests {
         assert!(levels.len() > 100, "{} distinct values", levels.len());
         let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
         assert_eq!(bits(&in_place), bits(&asked));
+    }
+
+    /// A tile's first hits shaded by rows (`shade_primary_layer`: packets whose every lane hit one
+    /// material read in place, the others' hits gathered from the packets' rows) get what their
+    /// jobs shaded one by one get (`shade_pending`, the path of scenes with volume shaders, here
+    /// taken without any): colour, alpha, depth, ids, normal and outputs, bit for bit. A backdrop
+    /// fills whole packets; in front of it a mirror (rays traced ahead), plastic, a transparent
+    /// matte (a second layer of hits) and a surface whose output variable the frame keeps.
+    #[test]
+    fn primary_hits_by_rows_get_what_their_jobs_get() {
+        let rib = r#"
+            Format 32 32 1
+            Projection "perspective" "fov" 50
+            Display "+glow.exr" "file" "float glow"
+            Translate 0 0 4
+            WorldBegin
+            LightSource "ambientlight" 1 "intensity" [0.1]
+            LightSource "pointlight" 2 "intensity" [6] "from" [1 2 -3]
+            Attribute "light" "shadows" "on"
+            AttributeBegin
+              Surface "glowing"
+              Polygon "P" [-9 -9 3  9 -9 3  9 9 3  -9 9 3]
+            AttributeEnd
+            AttributeBegin
+              Surface "mirror" "Kr" [0.7]
+              Polygon "P" [-3 -1 -3  3 -1 -3  3 -1 3  -3 -1 3]
+            AttributeEnd
+            AttributeBegin
+              Surface "plastic" "Ks" [0.5] "roughness" [0.1]
+              Color [0.8 0.3 0.2]
+              Polygon "P" [-1.5 -1 0.5  0.1 -1 0.5  0.1 0.6 0.5  -1.5 0.6 0.5]
+            AttributeEnd
+            AttributeBegin
+              Surface "matte"
+              Opacity [0.5 0.5 0.5]
+              Color [0.2 0.7 0.3]
+              Polygon "P" [-0.6 -0.3 -1  0.7 -0.3 -1  0.7 0.4 -1  -0.6 0.4 -1]
+            AttributeEnd
+            WorldEnd
+        "#;
+        let glowing = "surface glowing(output varying float glow = 0;) {
+            glow = s + 2 * t;
+            Ci = color(s, t, 0.5) * diffuse(faceforward(normalize(N), I));
+            Oi = 1;
+        }";
+        let mut rt = crate::api::Context::new();
+        rt.compile_shader("glowing", glowing).expect("the backdrop's shader compiles");
+        crate::rib::load::load_str(&mut rt, rib, std::path::Path::new("<test>")).expect("the test scene loads");
+        let world = rt.build_world().expect("the test scene builds");
+        assert!(!world.has_volumes());
+        let by_rows = Frame::new(&world);
+        let mut by_jobs = Frame::new(&world);
+        by_jobs.volumes = true;
+        let corners: Vec<(u32, u32)> = (0..4).flat_map(|y| (0..4).map(move |x| (8 * x, 8 * y))).collect();
+        let rays: Vec<PrimaryRays> =
+            corners.iter().map(|&(x, y)| super::super::frame::primary_packet(&by_rows, x, y, (0, 0))).collect();
+        let hits: Vec<HitPacket> = rays
+            .iter()
+            .map(|r| {
+                let mut hits = HitPacket::default();
+                world.scene.intersect_packet(&r.packet, &mut hits);
+                hits
+            })
+            .collect();
+        let packets: Vec<(&PrimaryRays, &HitPacket)> = rays.iter().zip(&hits).collect();
+        let shade = |frame: &Frame| {
+            let mut out = vec![[Sample::default(); PACKET_SIZE]; packets.len()];
+            shade_packets(frame, &packets, &mut out);
+            out
+        };
+        let (rows, jobs) = (shade(&by_rows), shade(&by_jobs));
+        let bits = |samples: &[[Sample; PACKET_SIZE]]| {
+            samples
+                .iter()
+                .flatten()
+                .map(|s| {
+                    let floats = [s.color.to_array(), s.normal.to_array()].into_iter().chain(s.outputs).flatten();
+                    let mut v: Vec<u32> = floats.chain([s.alpha, s.depth]).map(f32::to_bits).collect();
+                    v.extend([s.object_id, s.shader_id]);
+                    v
+                })
+                .collect::<Vec<_>>()
+        };
+        // The scene is what the test is about: packets wholly on the backdrop and packets of
+        // several materials, a transparent surface, the output kept.
+        let whole = rows.iter().filter(|p| p.iter().all(|s| s.shader_id == p[0].shader_id)).count();
+        assert!(whole >= 4 && whole < rows.len(), "{whole} of {} packets on one material", rows.len());
+        let materials: std::collections::HashSet<u32> = rows.iter().flatten().map(|s| s.shader_id).collect();
+        assert!(materials.len() >= 4, "materials seen: {materials:?}");
+        assert!(rows.iter().flatten().any(|s| s.outputs[0][0] > 0.5), "the output variable is kept");
+        assert_eq!(bits(&rows), bits(&jobs));
     }
 
     /// Shading a tile's packets together (`shade_packets`, whose batches mix the packets' hits)

@@ -3,13 +3,14 @@
 //! The stages (`primary.rs`, `shade.rs`, `lights.rs`, `volume.rs`, `host.rs`, `trace_ahead.rs`)
 //! pass these between them.
 
-use super::differential::RayDifferential;
+use super::jobs::GroupRows;
+pub(crate) use super::jobs::Pending;
 use super::photon_map::PhotonMap;
 use super::ray_budget::RayBudget;
 use super::stats::Stats;
 use super::world::LightSource;
 use super::world::{GiOptions, InstanceShadows, World, MAX_FRAME_OUTPUTS};
-use crate::ray::{Hit, Ray};
+use crate::ray::Ray;
 use glam::{Affine3A, Vec3A};
 use rtsl_compiler::abi::{LightLanes, PixelChannel, PixelView};
 use std::sync::{Arc, Mutex, PoisonError};
@@ -467,15 +468,6 @@ pub struct Sample {
     pub outputs: [[f32; 3]; MAX_FRAME_OUTPUTS],
 }
 
-pub(crate) struct Pending {
-    pub(crate) index: usize,
-    pub(crate) ray: Ray,
-    pub(crate) diff: RayDifferential,
-    pub(crate) hit: Hit,
-    /// What the ray's tree may still spawn (`ray_budget.rs`).
-    pub(crate) budget: RayBudget,
-}
-
 /// What shading one hit produced.
 #[derive(Clone, Copy, Debug, Default)]
 pub(crate) struct Shaded {
@@ -522,7 +514,7 @@ pub(crate) struct Stages {
     /// Shades hits grouped by material and instance (`group::shade_in_groups`).
     pub(crate) shade_in_groups: fn(&Frame, &mut [Pending], u32, &mut [Shaded]),
     /// Shades hits that share material and instance (`shade::shade_group`).
-    pub(crate) shade_group: fn(&Frame, &[Pending], u32, &mut [Shaded]),
+    pub(crate) shade_group: fn(&Frame, &GroupRows, u32, &mut [Shaded]),
     /// One light at four points (`lights::eval_light`), the rays its shader spawns charged to the
     /// points' budgets.
     pub(crate) eval_light: fn(
