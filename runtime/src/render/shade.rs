@@ -1076,16 +1076,7 @@ mod tests {
         let mut by_jobs = Frame::new(&world);
         by_jobs.volumes = true;
         let corners: Vec<(u32, u32)> = (0..4).flat_map(|y| (0..4).map(move |x| (8 * x, 8 * y))).collect();
-        let rays: Vec<PrimaryRays> =
-            corners.iter().map(|&(x, y)| super::super::frame::primary_packet(&by_rows, x, y, (0, 0))).collect();
-        let hits: Vec<HitPacket> = rays
-            .iter()
-            .map(|r| {
-                let mut hits = HitPacket::default();
-                world.scene.intersect_packet(&r.packet, &mut hits);
-                hits
-            })
-            .collect();
+        let (rays, hits) = traced_packets(&by_rows, &corners);
         let packets: Vec<(&PrimaryRays, &HitPacket)> = rays.iter().zip(&hits).collect();
         let shade = |frame: &Frame| {
             let mut out = vec![[Sample::default(); PACKET_SIZE]; packets.len()];
@@ -1093,18 +1084,6 @@ mod tests {
             out
         };
         let (rows, jobs) = (shade(&by_rows), shade(&by_jobs));
-        let bits = |samples: &[[Sample; PACKET_SIZE]]| {
-            samples
-                .iter()
-                .flatten()
-                .map(|s| {
-                    let floats = [s.color.to_array(), s.normal.to_array()].into_iter().chain(s.outputs).flatten();
-                    let mut v: Vec<u32> = floats.chain([s.alpha, s.depth]).map(f32::to_bits).collect();
-                    v.extend([s.object_id, s.shader_id]);
-                    v
-                })
-                .collect::<Vec<_>>()
-        };
         // The scene is what the test is about: packets wholly on the backdrop and packets of
         // several materials, a transparent surface, the output kept.
         let whole = rows.iter().filter(|p| p.iter().all(|s| s.shader_id == p[0].shader_id)).count();
@@ -1112,7 +1091,33 @@ mod tests {
         let materials: std::collections::HashSet<u32> = rows.iter().flatten().map(|s| s.shader_id).collect();
         assert!(materials.len() >= 4, "materials seen: {materials:?}");
         assert!(rows.iter().flatten().any(|s| s.outputs[0][0] > 0.5), "the output variable is kept");
-        assert_eq!(bits(&rows), bits(&jobs));
+        assert_eq!(sample_bits(&rows), sample_bits(&jobs));
+    }
+
+    /// The primary packets of sample (0, 0) at each 8x8 corner, and their hits.
+    fn traced_packets(frame: &Frame, corners: &[(u32, u32)]) -> (Vec<PrimaryRays>, Vec<HitPacket>) {
+        let rays: Vec<PrimaryRays> =
+            corners.iter().map(|&(x, y)| super::super::frame::primary_packet(frame, x, y, (0, 0))).collect();
+        let hits = rays
+            .iter()
+            .map(|r| {
+                let mut hits = HitPacket::default();
+                frame.world.scene.intersect_packet(&r.packet, &mut hits);
+                hits
+            })
+            .collect();
+        (rays, hits)
+    }
+
+    /// Every field of each sample, as bits.
+    fn sample_bits(samples: &[[Sample; PACKET_SIZE]]) -> Vec<Vec<u32>> {
+        let bits = |s: &Sample| {
+            let floats = [s.color.to_array(), s.normal.to_array()].into_iter().chain(s.outputs).flatten();
+            let mut v: Vec<u32> = floats.chain([s.alpha, s.depth]).map(f32::to_bits).collect();
+            v.extend([s.object_id, s.shader_id]);
+            v
+        };
+        samples.iter().flatten().map(bits).collect()
     }
 
     /// Shading a tile's packets together (`shade_packets`, whose batches mix the packets' hits)
@@ -1155,16 +1160,7 @@ mod tests {
         let world = rt.build_world().expect("the test scene builds");
         let frame = Frame::new(&world);
         let corners = [(0, 0), (8, 0), (0, 8), (8, 8)];
-        let rays: Vec<PrimaryRays> =
-            corners.iter().map(|&(x, y)| super::super::frame::primary_packet(&frame, x, y, (0, 0))).collect();
-        let hits: Vec<HitPacket> = rays
-            .iter()
-            .map(|r| {
-                let mut hits = HitPacket::default();
-                world.scene.intersect_packet(&r.packet, &mut hits);
-                hits
-            })
-            .collect();
+        let (rays, hits) = traced_packets(&frame, &corners);
         let mut alone = vec![[Sample::default(); PACKET_SIZE]; corners.len()];
         for ((r, h), out) in rays.iter().zip(&hits).zip(&mut alone) {
             shade_packet(&frame, r, h, out);
@@ -1172,19 +1168,9 @@ mod tests {
         let packets: Vec<(&PrimaryRays, &HitPacket)> = rays.iter().zip(&hits).collect();
         let mut together = vec![[Sample::default(); PACKET_SIZE]; corners.len()];
         shade_packets(&frame, &packets, &mut together);
-        let bits = |samples: &[[Sample; PACKET_SIZE]]| {
-            samples
-                .iter()
-                .flatten()
-                .map(|s| {
-                    let c = s.color.to_array().map(f32::to_bits);
-                    (c, s.alpha.to_bits(), s.depth.to_bits(), s.object_id, s.shader_id)
-                })
-                .collect::<Vec<_>>()
-        };
         // The scene is what the test is about: several materials, some lanes in shadow.
         let materials: std::collections::HashSet<u32> = alone.iter().flatten().map(|s| s.shader_id).collect();
         assert!(materials.len() >= 4, "materials seen: {materials:?}");
-        assert_eq!(bits(&alone), bits(&together));
+        assert_eq!(sample_bits(&alone), sample_bits(&together));
     }
 }
