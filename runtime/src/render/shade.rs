@@ -907,6 +907,31 @@ fn shade_native(
 mod tests {
     use super::*;
 
+    /// A mirror (its rays traced ahead), plastic, a checker and a transparent matte (a second
+    /// layer of hits), over the middle of a view from (0, 0, -4).
+    const FOREGROUND: &str = r#"
+            AttributeBegin
+              Surface "mirror" "Kr" [0.7]
+              Color [0.3 0.3 0.4]
+              Polygon "P" [-3 -1 -3  3 -1 -3  3 -1 3  -3 -1 3]
+            AttributeEnd
+            AttributeBegin
+              Surface "plastic" "Ks" [0.5] "roughness" [0.1]
+              Color [0.8 0.3 0.2]
+              Polygon "P" [-1.5 -1 0.5  0.1 -1 0.5  0.1 0.6 0.5  -1.5 0.6 0.5]
+            AttributeEnd
+            AttributeBegin
+              Surface "checker"
+              Polygon "P" [-0.2 -0.8 -0.5  1.4 -0.8 -0.5  1.4 0.9 -0.5  -0.2 0.9 -0.5]
+            AttributeEnd
+            AttributeBegin
+              Surface "matte"
+              Opacity [0.5 0.5 0.5]
+              Color [0.2 0.7 0.3]
+              Polygon "P" [-0.6 -0.3 -1  0.7 -0.3 -1  0.7 0.4 -1  -0.6 0.4 -1]
+            AttributeEnd
+    "#;
+
     /// Bucketing a packet's group keys orders them exactly as a comparison sort: with one to eight
     /// distinct keys (bucketed) and with more (sorted), in any order.
     #[test]
@@ -1028,11 +1053,12 @@ mod tests {
     /// material read in place, the others' hits gathered from the packets' rows) get what their
     /// jobs shaded one by one get (`shade_pending`, the path of scenes with volume shaders, here
     /// taken without any): colour, alpha, depth, ids, normal and outputs, bit for bit. A backdrop
-    /// fills whole packets; in front of it a mirror (rays traced ahead), plastic, a transparent
-    /// matte (a second layer of hits) and a surface whose output variable the frame keeps.
+    /// whose shader sets an output variable the frame keeps fills whole packets; in front of it
+    /// stand the mirror, plastic, checker and transparent matte of [`FOREGROUND`].
     #[test]
     fn primary_hits_by_rows_get_what_their_jobs_get() {
-        let rib = r#"
+        let rib = format!(
+            r#"
             Format 32 32 1
             Projection "perspective" "fov" 50
             Display "+glow.exr" "file" "float glow"
@@ -1045,23 +1071,10 @@ mod tests {
               Surface "glowing"
               Polygon "P" [-9 -9 3  9 -9 3  9 9 3  -9 9 3]
             AttributeEnd
-            AttributeBegin
-              Surface "mirror" "Kr" [0.7]
-              Polygon "P" [-3 -1 -3  3 -1 -3  3 -1 3  -3 -1 3]
-            AttributeEnd
-            AttributeBegin
-              Surface "plastic" "Ks" [0.5] "roughness" [0.1]
-              Color [0.8 0.3 0.2]
-              Polygon "P" [-1.5 -1 0.5  0.1 -1 0.5  0.1 0.6 0.5  -1.5 0.6 0.5]
-            AttributeEnd
-            AttributeBegin
-              Surface "matte"
-              Opacity [0.5 0.5 0.5]
-              Color [0.2 0.7 0.3]
-              Polygon "P" [-0.6 -0.3 -1  0.7 -0.3 -1  0.7 0.4 -1  -0.6 0.4 -1]
-            AttributeEnd
+            {FOREGROUND}
             WorldEnd
-        "#;
+        "#
+        );
         let glowing = "surface glowing(output varying float glow = 0;) {
             glow = s + 2 * t;
             Ci = color(s, t, 0.5) * diffuse(faceforward(normalize(N), I));
@@ -1069,7 +1082,7 @@ mod tests {
         }";
         let mut rt = crate::api::Context::new();
         rt.compile_shader("glowing", glowing).expect("the backdrop's shader compiles");
-        crate::rib::load::load_str(&mut rt, rib, std::path::Path::new("<test>")).expect("the test scene loads");
+        crate::rib::load::load_str(&mut rt, &rib, std::path::Path::new("<test>")).expect("the test scene loads");
         let world = rt.build_world().expect("the test scene builds");
         assert!(!world.has_volumes());
         let by_rows = Frame::new(&world);
@@ -1126,37 +1139,20 @@ mod tests {
     /// a mirror (rays traced ahead) and a transparent surface (a second layer of hits).
     #[test]
     fn packets_shaded_together_get_what_each_gets_alone() {
-        let rib = r#"
+        let rib = format!(
+            r#"
             Format 16 16 1
             Projection "perspective" "fov" 50
             Translate 0 0 4
             WorldBegin
             LightSource "ambientlight" 1 "intensity" [0.1]
             LightSource "pointlight" 2 "intensity" [6] "from" [1 2 -3]
-            AttributeBegin
-              Surface "mirror" "Kr" [0.7]
-              Color [0.3 0.3 0.4]
-              Polygon "P" [-3 -1 -3  3 -1 -3  3 -1 3  -3 -1 3]
-            AttributeEnd
-            AttributeBegin
-              Surface "plastic" "Ks" [0.5] "roughness" [0.1]
-              Color [0.8 0.3 0.2]
-              Polygon "P" [-1.5 -1 0.5  0.1 -1 0.5  0.1 0.6 0.5  -1.5 0.6 0.5]
-            AttributeEnd
-            AttributeBegin
-              Surface "checker"
-              Polygon "P" [-0.2 -0.8 -0.5  1.4 -0.8 -0.5  1.4 0.9 -0.5  -0.2 0.9 -0.5]
-            AttributeEnd
-            AttributeBegin
-              Surface "matte"
-              Opacity [0.5 0.5 0.5]
-              Color [0.2 0.7 0.3]
-              Polygon "P" [-0.6 -0.3 -1  0.7 -0.3 -1  0.7 0.4 -1  -0.6 0.4 -1]
-            AttributeEnd
+            {FOREGROUND}
             WorldEnd
-        "#;
+        "#
+        );
         let mut rt = crate::api::Context::new();
-        crate::rib::load::load_str(&mut rt, rib, std::path::Path::new("<test>")).expect("the test scene loads");
+        crate::rib::load::load_str(&mut rt, &rib, std::path::Path::new("<test>")).expect("the test scene loads");
         let world = rt.build_world().expect("the test scene builds");
         let frame = Frame::new(&world);
         let corners = [(0, 0), (8, 0), (0, 8), (8, 8)];
