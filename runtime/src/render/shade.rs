@@ -70,9 +70,9 @@ pub fn shade_packet(frame: &Frame, primary: &PrimaryRays, hits: &HitPacket, out:
 pub fn shade_packets(frame: &Frame, packets: &[(&PrimaryRays, &HitPacket)], out: &mut [[Sample; PACKET_SIZE]]) {
     let packets = &packets[..packets.len().min(out.len())];
     let world = frame.world;
-    // Each hit's group key and its sample's index (`PACKET_SIZE` a packet), sorted before any job
-    // is made: each job (150 bytes) is then written once, where its group shades it, rather than
-    // in the packets' order and then moved by the sort. Misses see the background at once.
+    // Each hit's group key and its sample's index (`PACKET_SIZE` a packet), sorted before any hit
+    // is gathered: each is then copied once, into the rows of the group that shades it, rather
+    // than in the packets' order and then moved by the sort. Misses see the background at once.
     // A packet whose every lane hit one material and instance is a group of its own, shaded
     // where its rows are (without volume shaders, whose segments take each hit's job): its keys
     // are not kept.
