@@ -971,6 +971,36 @@ fn inline_archives_are_kept_by_name_and_read_where_asked() {
 }
 
 #[test]
+fn a_refused_archive_begin_is_closed_by_its_own_archive_end() {
+    // 33 nested definitions: the innermost is one too deep, refused, and its requests (a disk)
+    // stay in the archive around it; its `ArchiveEnd` closes nothing, so each outer one closes
+    // its own archive and the outermost, "a0", holds the nest.
+    let depth = rib::MAX_ARCHIVE_DEPTH + 1;
+    let mut text = String::new();
+    for k in 0..depth {
+        text += &format!("ArchiveBegin \"a{k}\"\n");
+    }
+    text += "Disk 0 1 360\n";
+    text += &"ArchiveEnd\n".repeat(depth);
+    text += "WorldBegin\nReadArchive \"a31\"\nWorldEnd\n";
+    let parsed = parse(&text);
+    assert_eq!(messages(&parsed).len(), 1, "{:?}", messages(&parsed));
+    assert!(messages(&parsed)[0].contains("inline archives nest deeper than 32"), "{:?}", messages(&parsed));
+    let kinds: Vec<&K> = parsed.requests.iter().map(|r| &r.kind).collect();
+    assert!(matches!(kinds[..], [K::WorldBegin, K::Quadric { .. }, K::WorldEnd]), "{kinds:?}");
+
+    // A malformed `ArchiveBegin` (no name) outside a good one: the good one's end closes it, the
+    // next closes the refused block, whose sphere was read where it stands.
+    let parsed = parse(
+        "ArchiveBegin 5\nSphere 1 -1 1 360\nArchiveBegin \"inner\"\nDisk 0 1 360\nArchiveEnd\nArchiveEnd\n\
+         WorldBegin\nReadArchive \"inner\"\nWorldEnd\n",
+    );
+    assert_eq!(messages(&parsed).len(), 1, "{:?}", messages(&parsed));
+    let kinds: Vec<&K> = parsed.requests.iter().map(|r| &r.kind).collect();
+    assert!(matches!(kinds[..], [K::Quadric { .. }, K::WorldBegin, K::Quadric { .. }, K::WorldEnd]), "{kinds:?}");
+}
+
+#[test]
 fn inline_archives_cannot_expand_exponentially() {
     let mut text = String::from("ArchiveBegin \"a0\"\nPolygon \"P\" [0 0 0 1 0 0 1 1 0]\nArchiveEnd\n");
     for k in 1..48 {

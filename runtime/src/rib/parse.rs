@@ -83,6 +83,9 @@ pub(super) struct Parser<'s> {
     inline_archives: HashMap<String, (Arc<[Request]>, usize)>,
     /// Inline archives being defined: name, index of their first request, weight so far, where.
     open_archives: Vec<(String, usize, usize, Location)>,
+    /// `ArchiveBegin`s refused (too deep, or malformed) whose `ArchiveEnd` has not come yet, each
+    /// as the number of archives open when it came: their `ArchiveEnd`s close nothing.
+    refused_archives: Vec<usize>,
     /// The weight (arguments and array elements) of the requests read so far, expansions included.
     weight: usize,
     /// What inline-archive expansions may still add to `weight`.
@@ -262,6 +265,7 @@ impl<'s> Parser<'s> {
             archives: Vec::new(),
             inline_archives: HashMap::new(),
             open_archives: Vec::new(),
+            refused_archives: Vec::new(),
             weight: 0,
             expansion_left: INLINE_ARCHIVE_BUDGET,
             archive_path: Vec::new(),
@@ -313,6 +317,7 @@ impl<'s> Parser<'s> {
             bytes
         };
         let archives_open_before = self.open_archives.len();
+        let refused_before = self.refused_archives.len();
         let floor = std::mem::replace(&mut self.branches_floor, self.branches.len());
         let too_deep = std::mem::take(&mut self.branches_too_deep);
         // One request's tokens at a time (`lex::tokens`).
@@ -347,6 +352,7 @@ impl<'s> Parser<'s> {
             }
             self.end_archive();
         }
+        self.refused_archives.truncate(refused_before);
         self.close_branches("the file");
         self.branches_floor = floor;
         self.branches_too_deep = too_deep;
@@ -366,8 +372,19 @@ impl<'s> Parser<'s> {
                 self.diagnose(RibDiagnostic::omission(&loc, message));
                 Ok(())
             }
-            "ArchiveBegin" => self.begin_archive(&loc, args),
+            "ArchiveBegin" => {
+                let begun = self.begin_archive(&loc, args);
+                if begun.is_err() {
+                    self.refused_archives.push(self.open_archives.len());
+                }
+                begun
+            }
             "ColorSamples" => self.color_samples(&loc, args),
+            // The end of a refused block, whose requests were read where they stand.
+            "ArchiveEnd" if self.refused_archives.last() == Some(&self.open_archives.len()) => {
+                self.refused_archives.pop();
+                Ok(())
+            }
             "ArchiveEnd" if self.open_archives.is_empty() => Err(error(&loc, "`ArchiveEnd` without `ArchiveBegin`")),
             "ArchiveEnd" => {
                 self.end_archive();
