@@ -281,6 +281,10 @@ const MAX_INCLUDE_DEPTH: usize = 32;
 /// BART's; a garbage count is an error rather than an allocation).
 const MAX_COUNT: usize = 50_000_000;
 
+/// The viewpoint's resolution is clamped to this many pixels a side as it is read (so that it fits
+/// the options' `u32`s); the renderer's image-size limit then refuses what is still too large.
+const MAX_RESOLUTION: usize = 1 << 16;
+
 #[derive(Clone, Copy, Debug)]
 struct Tok<'a> {
     text: &'a [u8],
@@ -709,7 +713,7 @@ impl Parser {
                 lx.bump();
                 let w = lx.count("the viewpoint's resolution width")?;
                 let h = lx.count("the viewpoint's resolution height")?;
-                v.resolution = Some((w.min(1 << 16) as u32, h.min(1 << 16) as u32));
+                v.resolution = Some((w.min(MAX_RESOLUTION) as u32, h.min(MAX_RESOLUTION) as u32));
             } else {
                 break;
             }
