@@ -157,7 +157,7 @@ builtins! {
     Concat "concat" ["s(s,s,s*)"] 0, Host, "concatenation";
     Format "format" ["s(s,?*)"] 0, Host, "printf-style formatting into a string";
     Printf "printf" ["x(s,?*)"] SIDE_EFFECTS, Host, "print to the renderer's log";
-    Match "match" ["f(s,s)"] 0, Host, "1 if the regular expression matches the subject";
+    Match "match" ["f(s,s)"] 0, Host, "1 if the regular expression (extended syntax) matches anywhere in the subject";
     Shadername "shadername" ["s()", "s(s)"] 0, Host, "the name of this shader, or of the one bound as the given type";
     // ---- Shading and lighting (15.6) ----
     Ambient "ambient" ["c()"] VARYING | LIGHTS, Host, "the ambient light reaching the point";

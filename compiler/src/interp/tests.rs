@@ -120,17 +120,6 @@ fn the_loop_budget_holds_for_the_whole_run_not_per_loop() {
     assert_eq!(ci, 1000.0);
 }
 
-#[test]
-fn the_small_regex_matcher() {
-    use crate::shadeops::format::regex_match;
-    assert!(regex_match("^foo", "foobar"));
-    assert!(!regex_match("^bar", "foobar"));
-    assert!(regex_match("o*b", "foobar"));
-    assert!(regex_match("ar$", "foobar"));
-    assert!(regex_match("f.o", "xfoo"));
-    assert!(!regex_match("z", "foobar"));
-}
-
 /// A point with screen derivatives of `u` and `v`: `u_x, u_y, v_x, v_y` = 0.3, 0.1, -0.05, 0.2.
 fn uv_point(u: f32, v: f32) -> ShadingPoint {
     let mut p = ShadingPoint::new(ShaderKind::Surface);

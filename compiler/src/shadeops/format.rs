@@ -350,41 +350,95 @@ fn fmt_g(a: f64, precision: usize, alt: bool, upper: bool) -> String {
     s
 }
 
-/// RSL `match(pattern, subject)`: a small regular-expression matcher (`.`, `*`, `^`, `$`, literals),
-/// enough for the patterns shaders pass. The interpreter and the JIT both call this one.
+/// Patterns compiled by one thread and kept for its next calls: a shader's pattern is most often
+/// the same string at every shading point.
+const KEPT_PATTERNS: usize = 8;
+
+/// The most memory a compiled pattern may take (the regex crate's `size_limit`); a larger one is
+/// refused and matches nothing.
+const MAX_PATTERN_BYTES: usize = 1 << 20;
+
+/// RSL `match(pattern, subject)`: whether the regular expression `pattern` matches anywhere in
+/// `subject` (PRMan: "any regular expression, as described in the Unix manual page on regex(5)";
+/// the regex crate's syntax is the extended one: classes, `+`, `?`, `|`, groups, counts, anchors,
+/// escapes). Matching takes time linear in the subject whatever the pattern; a malformed pattern,
+/// or one larger than [`MAX_PATTERN_BYTES`] compiled, matches nothing. The interpreter and the JIT
+/// both call this one.
 pub fn regex_match(pattern: &str, subject: &str) -> bool {
-    fn here(p: &[char], s: &[char]) -> bool {
-        match p {
-            [] => true,
-            ['$'] => s.is_empty(),
-            [c, '*', rest @ ..] => {
-                let mut i = 0;
-                loop {
-                    if here(rest, &s[i..]) {
-                        return true;
-                    }
-                    if i < s.len() && (*c == '.' || s[i] == *c) {
-                        i += 1;
-                    } else {
-                        return false;
-                    }
+    use std::cell::RefCell;
+    thread_local! {
+        static KEPT: RefCell<Vec<(String, Option<regex::Regex>)>> = const { RefCell::new(Vec::new()) };
+    }
+    KEPT.with(|kept| {
+        let mut kept = kept.borrow_mut();
+        let at = match kept.iter().position(|(p, _)| p == pattern) {
+            Some(at) => at,
+            None => {
+                let compiled = regex::RegexBuilder::new(pattern).size_limit(MAX_PATTERN_BYTES).build().ok();
+                if kept.len() == KEPT_PATTERNS {
+                    kept.pop();
                 }
+                kept.push((pattern.to_string(), compiled));
+                kept.len() - 1
             }
-            [c, rest @ ..] => !s.is_empty() && (*c == '.' || *c == s[0]) && here(rest, &s[1..]),
-        }
-    }
-    let p: Vec<char> = pattern.chars().collect();
-    let s: Vec<char> = subject.chars().collect();
-    if let Some(rest) = p.strip_prefix(&['^']) {
-        return here(rest, &s);
-    }
-    (0..=s.len()).any(|i| here(&p, &s[i..]))
+        };
+        // The pattern used last goes first, so that a shader's one pattern is found at once.
+        let entry = kept.remove(at);
+        let found = entry.1.as_ref().is_some_and(|r| r.is_match(subject));
+        kept.insert(0, entry);
+        found
+    })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use FormatArg::*;
+
+    #[test]
+    fn match_takes_regular_expressions() {
+        assert!(regex_match("^foo", "foobar"));
+        assert!(!regex_match("^bar", "foobar"));
+        assert!(regex_match("o*b", "foobar"));
+        assert!(regex_match("ar$", "foobar"));
+        assert!(regex_match("f.o", "xfoo"));
+        assert!(!regex_match("z", "foobar"));
+        // The extended syntax that regex(5) describes.
+        assert!(regex_match("[0-9]+", "ab12"));
+        assert!(!regex_match("^[0-9]+$", "ab12"));
+        assert!(regex_match("a|b", "b"));
+        assert!(regex_match("colou?r", "color"));
+        assert!(regex_match("\\.tif$", "x.tif"));
+        assert!(!regex_match("\\.tif$", "xtif"));
+        assert!(regex_match("a{2}", "caab"));
+        assert!(!regex_match("a{3}", "caab"));
+        assert!(regex_match("^(red|green)_[a-z]+$", "green_leaf"));
+        // Malformed patterns match nothing.
+        assert!(!regex_match("[", "x["));
+        assert!(!regex_match("(a", "a"));
+    }
+
+    #[test]
+    fn match_takes_linear_time_on_patterns_that_backtrack() {
+        // Fourteen `a*` before a `b` that never comes: a backtracking matcher tries about 36^14
+        // ways before it gives up.
+        let pattern = format!("{}b", "a*".repeat(14));
+        let subject = "a".repeat(36);
+        assert!(!regex_match(&pattern, &subject));
+        assert!(regex_match(&pattern, &(subject.clone() + "b")));
+    }
+
+    #[test]
+    fn match_keeps_each_threads_patterns_apart() {
+        // More patterns than are kept, used in turn: each answer is its own pattern's.
+        for round in 0..3 {
+            for k in 0..2 * KEPT_PATTERNS {
+                let pattern = format!("^x{k}$");
+                assert!(regex_match(&pattern, &format!("x{k}")), "round {round}, pattern {k}");
+                assert!(!regex_match(&pattern, &format!("x{}", k + 1)), "round {round}, pattern {k}");
+            }
+        }
+    }
 
     fn f(fmt: &str, x: f32) -> String {
         format(fmt, &[Float(x)])
