@@ -154,7 +154,8 @@ fn filterstep_with_explicit_widths() {
             o = filterstep(0.5, s, "width", w) + filterstep(0.5, t, "width", u * 0.5);
             o += filterstep(0.3, s, s + v * 0.2) + filterstep(0.5, t, t - 0.1, "filter", "box");
             o += filterstep(0.5, s, "width", 0) + filterstep(0.5, s, "width", -1);
-            uo = filterstep(0.2, 0.25, "width", w) + filterstep(0.2, 0.25, 0.4);
+            o += filterstep(0.5, s, "swidth", w * 3) + filterstep(0.4, s, t, "width", w * 20);
+            uo = filterstep(0.2, 0.25, "width", w) + filterstep(0.2, 0.25, 0.4) + filterstep(0.3, 0.25, 0.4, "swidth", 3);
             Ci = color(o);
         }
         "#,

@@ -40,6 +40,12 @@ fn map3(a: &Value, b: &Value, c: &Value, g: impl Fn(f32, f32, f32) -> f32) -> Va
 }
 
 /// The `"name", value` pairs after `fixed` arguments.
+/// `filterstep`'s `"width"` parameter (RISpec: also called `"swidth"`), which multiplies the width
+/// of the interval filtered; 1 without one.
+pub(super) fn filter_scale(vals: &[Value], fixed: usize) -> f32 {
+    param(vals, fixed, "width").or_else(|| param(vals, fixed, "swidth")).map_or(1.0, Value::f)
+}
+
 fn param<'v>(vals: &'v [Value], fixed: usize, name: &str) -> Option<&'v Value> {
     vals.get(fixed..)?.chunks(2).find(|p| p.len() == 2 && p[0].s() == name).map(|p| &p[1])
 }
@@ -193,16 +199,10 @@ impl Machine<'_> {
             Builtin::Mix => map3(&v(0), &v(1), &v(2), |x, y, a| x * (1.0 - a) + y * a),
             Builtin::Step => map2(&v(0), &v(1), geom::step),
             Builtin::Smoothstep => map3(&v(0), &v(1), &v(2), geom::smoothstep),
-            Builtin::Filterstep => {
-                let edge = v(0).f();
-                let x = v(1).f();
-                let width =
-                    if fixed == 3 { Some((v(2).f() - x).abs()) } else { param(vals, fixed, "width").map(Value::f) };
-                match width {
-                    Some(w) => Value::Float(geom::filterstep(edge, x, w)),
-                    None => self.deriv_builtin(b, vals, tx, ty_),
-                }
-            }
+            Builtin::Filterstep => match fixed {
+                3 => Value::Float(geom::filterstep_interval(v(0).f(), v(1).f(), v(2).f(), filter_scale(vals, fixed))),
+                _ => self.deriv_builtin(b, vals, tx, ty_),
+            },
             Builtin::Spline => {
                 let (basis, rest) = match &vals[0] {
                     Value::String(s) => (s.to_string(), 1),

@@ -263,12 +263,13 @@ impl Machine<'_> {
                 }
             }
             _ => {
-                // filterstep(edge, x, ...) without an explicit width: RISpec's
-                // |Du(x) du| + |Dv(x) dv|.
+                // filterstep(edge, x, ...): RISpec's width |Du(x) du| + |Dv(x) dv|, times the
+                // "width" parameter.
                 let (xu, xv) = self.du_dv(&tx[1], &ty[1]);
                 let du = self.global("du").f();
                 let dv = self.global("dv").f();
                 let w = (xu.f() * du).abs() + (xv.f() * dv).abs();
+                let w = w * super::builtins::filter_scale(vals, 2);
                 Value::Float(geom::filterstep(vals[0].f(), vals[1].f(), w))
             }
         }

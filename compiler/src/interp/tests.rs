@@ -297,3 +297,39 @@ fn the_standard_pattern_headers_filter_by_the_box() {
     assert!((get("absolute") - 0.25).abs() < 1e-5, "{}", get("absolute"));
     assert!((get("stepped") - 0.5).abs() < 1e-5);
 }
+
+#[test]
+fn filterstep_filters_the_interval_and_scales_the_width_rispec_gives() {
+    // RISpec: the two-value form filters "in the range between the two values"; "width" (aka
+    // "swidth") multiplies the width filtered. At u = 0.4 the one-value width of `u` is
+    // |Du(u) du| + |Dv(u) dv| = |1 * 0.01| + |0 * 0.02| = 0.01.
+    let src = r#"
+        surface t(output varying float between = 0, reversed = 0, widened = 0, narrow = 0, wide = 0,
+                  aliased = 0;)
+        {
+            between = filterstep(0.5, 0.4, 0.8);
+            reversed = filterstep(0.5, 0.8, 0.4);
+            widened = filterstep(0.5, 0.4, 0.8, "width", 2);
+            narrow = filterstep(0.4025, u);
+            wide = filterstep(0.41, u, "width", 4);
+            aliased = filterstep(0.41, u, "swidth", 4);
+        }
+    "#;
+    let mut p = ShadingPoint::new(ShaderKind::Surface);
+    p.set("u", Value::Float(0.4));
+    p.set("v", Value::Float(0.5));
+    p.set_derivs("u", Value::Float(1.0), Value::Float(0.0));
+    p.set_derivs("v", Value::Float(0.0), Value::Float(1.0));
+    p.set("du", Value::Float(0.01));
+    p.set("dv", Value::Float(0.02));
+    let r = run_point(src, &mut p);
+    let get = |name: &str| out(&r, name).f();
+    // [0.4, 0.8]: three quarters at or above 0.5; widened about 0.6 to [0.2, 1.0]: five eighths.
+    assert!((get("between") - 0.75).abs() < 1e-6, "{}", get("between"));
+    assert!((get("reversed") - 0.75).abs() < 1e-6, "{}", get("reversed"));
+    assert!((get("widened") - 0.625).abs() < 1e-6, "{}", get("widened"));
+    // [0.395, 0.405] from 0.4025: a quarter; [0.38, 0.42] from 0.41: a quarter.
+    assert!((get("narrow") - 0.25).abs() < 1e-4, "{}", get("narrow"));
+    assert!((get("wide") - 0.25).abs() < 1e-4, "{}", get("wide"));
+    assert_eq!(get("aliased"), get("wide"));
+}

@@ -181,8 +181,8 @@ pub fn smoothstep(a: f32, b: f32, x: f32) -> f32 {
 /// over `[value - width/2, value + width/2]`, i.e. the fraction of that interval at or above `edge`:
 /// `clamp((value - edge) / width + 0.5, 0, 1)` (written so that `value == edge` gives exactly 0.5). A width that is not positive (or is NaN) gives the
 /// plain [`step`]; an infinite width gives 0.5. RSL's one-value form takes the width from the
-/// derivatives of `value` (the caller computes it); its parameter list (`"width"`, `"filter"`) is
-/// the caller's business too: only the box filter is implemented.
+/// derivatives of `value`, times its `"width"` parameter (the caller computes it); only the box
+/// filter is implemented (RISpec's `"filter"` names others, which implementations may ignore).
 pub fn filterstep(edge: f32, x: f32, width: f32) -> f32 {
     if width.is_nan() || width <= 0.0 {
         return step(edge, x);
@@ -194,11 +194,16 @@ pub fn filterstep(edge: f32, x: f32, width: f32) -> f32 {
 }
 
 /// RSL's two-value `filterstep(edge, s1, s2)`: `step(edge, s)` box-filtered over the interval between
-/// `s1` and `s2` (in either order), i.e. the fraction of it at or above `edge`. An empty interval
-/// (`s1 == s2`, or NaN) gives `step(edge, s1)`; an infinite one is treated like [`filterstep`] with an
-/// infinite width (0.5).
-pub fn filterstep_interval(edge: f32, s1: f32, s2: f32) -> f32 {
-    let (lo, hi) = if s1 <= s2 { (s1, s2) } else { (s2, s1) };
+/// `s1` and `s2` (in either order), i.e. the fraction of it at or above `edge`, the interval first
+/// widened about its middle by `scale` (the `"width"` parameter; RISpec: the amount to overfilter).
+/// An empty interval (`s1 == s2`, or NaN) gives `step(edge, s1)`; an infinite one is treated like
+/// [`filterstep`] with an infinite width (0.5).
+pub fn filterstep_interval(edge: f32, s1: f32, s2: f32, scale: f32) -> f32 {
+    let (mut lo, mut hi) = if s1 <= s2 { (s1, s2) } else { (s2, s1) };
+    if scale != 1.0 {
+        let (middle, half) = ((lo + hi) * 0.5, (hi - lo) * 0.5 * scale);
+        (lo, hi) = (middle - half, middle + half);
+    }
     let width = hi - lo;
     if width.is_nan() || width <= 0.0 {
         return step(edge, s1);
@@ -478,12 +483,15 @@ mod tests {
             }
             assert_eq!(v, step(0.5, x), "{x}");
         }
-        assert!((filterstep_interval(0.5, 0.4, 0.6) - 0.5).abs() < 1e-6);
-        assert!((filterstep_interval(0.5, 0.6, 0.4) - 0.5).abs() < 1e-6);
-        assert_eq!(filterstep_interval(0.5, 0.0, 1.0), 0.5);
-        assert_eq!(filterstep_interval(0.25, 0.0, 1.0), 0.75);
-        assert_eq!(filterstep_interval(0.5, 0.45, 0.45), 0.0);
-        assert_eq!(filterstep_interval(0.5, f32::NEG_INFINITY, f32::INFINITY), 0.5);
+        assert!((filterstep_interval(0.5, 0.4, 0.6, 1.0) - 0.5).abs() < 1e-6);
+        assert!((filterstep_interval(0.5, 0.6, 0.4, 1.0) - 0.5).abs() < 1e-6);
+        assert!((filterstep_interval(0.5, 0.4, 0.8, 1.0) - 0.75).abs() < 1e-6);
+        assert_eq!(filterstep_interval(0.5, 0.0, 1.0, 1.0), 0.5);
+        assert_eq!(filterstep_interval(0.25, 0.0, 1.0, 1.0), 0.75);
+        assert_eq!(filterstep_interval(0.5, 0.45, 0.45, 1.0), 0.0);
+        assert_eq!(filterstep_interval(0.5, f32::NEG_INFINITY, f32::INFINITY, 1.0), 0.5);
+        // Widened twice about its middle: [0.2, 1.0], of which 0.5 to 1.0 is past the edge.
+        assert!((filterstep_interval(0.5, 0.4, 0.8, 2.0) - 0.625).abs() < 1e-6);
     }
 
     #[test]

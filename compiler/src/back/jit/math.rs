@@ -290,6 +290,7 @@ helpers! {
     h_vpnoise3 "rtsl_vpnoise3" 6 -> 3 |x| noise::vpnoise3([x[0], x[1], x[2]], [x[3], x[4], x[5]]);
     h_vpnoise4 "rtsl_vpnoise4" 8 -> 3 |x| noise::vpnoise4([x[0], x[1], x[2]], x[3], [x[4], x[5], x[6]], x[7]);
     h_filterstep "rtsl_filterstep" 3 -> 1 |[edge, x, w]| [geom::filterstep(edge, x, w)];
+    h_filterstep2 "rtsl_filterstep_interval" 4 -> 1 |[edge, s1, s2, k]| [geom::filterstep_interval(edge, s1, s2, k)];
     h_random "rtsl_random" 3 -> 1 |[lo, hi, k]| [noise::random(random_seed(lo, hi, k))];
     h_vrandom "rtsl_vrandom" 3 -> 3 |[lo, hi, k]| noise::vrandom(random_seed(lo, hi, k));
     h_mmul "rtsl_mmul" 32 -> 16 |x| matrix::mul(&m4(&x, 0), &m4(&x, 16));

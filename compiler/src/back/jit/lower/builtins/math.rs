@@ -61,20 +61,27 @@ impl<'m> Lower<'m, '_> {
             Bi::Step => self.mapn(&[&v(0), &v(1)], |b, a| math::step(b, a[0], a[1])),
             Bi::Smoothstep => self.mapn(&[&v(0), &v(1), &v(2)], |b, a| math::smoothstep(b, a[0], a[1], a[2])),
             Bi::Filterstep => {
-                let (edge, x) = (v(0), v(1));
-                let width = if fixed == 3 {
-                    let d = self.binary(BinaryOp::Sub, Type::FLOAT, &v(2), &x)?;
-                    self.map1(&d, |b, w| b.ins().fabs(w))
-                } else {
-                    match param_arg(f, args, fixed, "width")? {
-                        Some(a) => {
-                            let i = args.iter().position(|x| std::ptr::eq(x, a)).unwrap_or(0);
-                            vals[i].clone()
-                        }
-                        None => self.filter_width(1)?,
+                // The "width" parameter (RISpec: also "swidth") multiplies the width filtered.
+                let mut scale = None;
+                for name in ["width", "swidth"] {
+                    if let (None, Some(a)) = (&scale, param_arg(f, args, fixed, name)?) {
+                        let i = args.iter().position(|x| std::ptr::eq(x, a)).unwrap_or(0);
+                        scale = Some(vals[i].clone());
                     }
-                };
-                self.call_helper_on("rtsl_filterstep", &[edge, x, width], false)?
+                }
+                if fixed == 3 {
+                    let scale = match scale {
+                        Some(scale) => scale,
+                        None => Val { vary: false, c: vec![self.fconst(1.0, false)] },
+                    };
+                    self.call_helper_on("rtsl_filterstep_interval", &[v(0), v(1), v(2), scale], false)?
+                } else {
+                    let mut width = self.filter_width(1)?;
+                    if let Some(scale) = scale {
+                        width = self.binary(BinaryOp::Mul, Type::FLOAT, &width, &scale)?;
+                    }
+                    self.call_helper_on("rtsl_filterstep", &[v(0), v(1), width], false)?
+                }
             }
             _ => return unsupported(format!("the built-in {}", bi.name())),
         };
