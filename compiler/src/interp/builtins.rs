@@ -392,8 +392,10 @@ impl Machine<'_> {
                 let m = match (&v(0), vals.len()) {
                     (Value::Matrix(m), 2) => Some(*m),
                     (Value::String(from), 3) => match &v(1) {
+                        // From `from` into "current", then through `m` (PRMan: "from the FROM
+                        // coordinate system and then through matrix M"; row vectors).
                         Value::Matrix(m) => {
-                            self.host.matrix(from, "current").map(|to_current| matrix::mul(m, &to_current))
+                            self.host.matrix(from, "current").map(|to_current| matrix::mul(&to_current, m))
                         }
                         to => self.host.matrix(from, to.s()),
                     },

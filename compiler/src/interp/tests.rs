@@ -333,3 +333,24 @@ fn filterstep_filters_the_interval_and_scales_the_width_rispec_gives() {
     assert!((get("wide") - 0.25).abs() < 1e-4, "{}", get("wide"));
     assert_eq!(get("aliased"), get("wide"));
 }
+
+#[test]
+fn transform_from_a_space_through_a_matrix_goes_into_current_space_first() {
+    // The test host's "shader" space is translated by (1, 2, 3) from "current"; m scales by 2 and
+    // then translates by (1, 0, 0). PRMan: the point goes "from the FROM coordinate system and then
+    // through matrix M": (1, 1, 1) -> (2, 3, 4) -> (5, 6, 8). A scale does not commute with the
+    // translation, so the other order, (3, 2, 2) -> (4, 4, 5), would show.
+    let src = r#"
+        surface t(output point moved = 0; output vector turned = 0;)
+        {
+            matrix m = matrix(2, 0, 0, 0,  0, 2, 0, 0,  0, 0, 2, 0,  1, 0, 0, 1);
+            moved = transform("shader", m, point(1, 1, 1));
+            turned = vtransform("shader", m, vector(1, 1, 1));
+        }
+    "#;
+    let (_, r, _) = run_src(src, &[]);
+    let get = |name: &str| r.params.iter().find(|(n, _)| n == name).map(|(_, v)| v.v3()).expect(name);
+    assert!(close(get("moved"), [5.0, 6.0, 8.0]), "{:?}", get("moved"));
+    // Vectors take no translation: (1, 1, 1) -> (1, 1, 1) -> (2, 2, 2).
+    assert!(close(get("turned"), [2.0, 2.0, 2.0]), "{:?}", get("turned"));
+}

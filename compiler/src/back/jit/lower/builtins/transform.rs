@@ -58,7 +58,8 @@ impl<'m> Lower<'m, '_> {
                     _ if call.is_matrix_arg(1) => {
                         let cur = self.const_string("current");
                         let (to_current, ok) = self.space_matrix(&v(0), &cur)?;
-                        let m = self.call_helper_on("rtsl_mmul", &[v(1), to_current], false)?;
+                        // Into "current", then through the matrix (as the interpreter).
+                        let m = self.call_helper_on("rtsl_mmul", &[to_current, v(1)], false)?;
                         (m, ok)
                     }
                     _ => self.space_matrix(&v(0), &v(1))?,
