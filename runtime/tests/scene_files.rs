@@ -52,6 +52,85 @@ fn attribute_blocks_scope_colour_and_shaders() {
 }
 
 #[test]
+fn values_for_the_whole_primitive_reach_its_shaders_and_colour() {
+    // RISpec: a primitive's constant variables (and uniform ones, one a facet, on a primitive of
+    // one face) are passed to its shaders; Cs and Os are its colour and opacity. Here the left
+    // square's "constant color Cs" makes it green, the right one's "uniform float Ka" halves what
+    // `matte` reflects, and the sphere's "uniform color Cs" (one face) makes it red; a square
+    // after them is as the attribute state says.
+    let (mut rt, warnings) = load(&format!(
+        r#"{CAMERA}
+        LightSource "ambientlight" 1 "intensity" [1]
+        Surface "matte"
+        AttributeBegin
+          Translate -1.2 0.5 0
+          Scale 0.5 0.5 1
+          Polygon "P" [-1 -1 0  1 -1 0  1 1 0  -1 1 0] "constant color Cs" [0 1 0]
+        AttributeEnd
+        AttributeBegin
+          Translate 1.2 0.5 0
+          Scale 0.5 0.5 1
+          Polygon "P" [-1 -1 0  1 -1 0  1 1 0  -1 1 0] "uniform float Ka" [0.5]
+        AttributeEnd
+        AttributeBegin
+          Translate -1.2 -0.7 0
+          Sphere 0.4 -0.4 0.4 360 "uniform color Cs" [1 0 0]
+        AttributeEnd
+        AttributeBegin
+          Translate 1.2 -0.7 0
+          Scale 0.4 0.4 1
+          Polygon "P" [-1 -1 0  1 -1 0  1 1 0  -1 1 0] "constant color Cs" [1 0 0 0 1 0]
+        AttributeEnd
+        WorldEnd"#
+    ));
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    assert!(warnings[0].contains("\"Cs\" (constant color) has 2 values"), "{warnings:?}");
+    let fb = render(&mut rt);
+    let at = |x: u32, y: u32| fb.pixel(x, y)[..3].to_vec();
+    // RenderMan's camera is left-handed: world -x is on the image's left, +y up.
+    assert_eq!(at(17, 17), [0.0, 1.0, 0.0], "constant Cs");
+    assert_eq!(at(46, 17), [0.5, 0.5, 0.5], "uniform Ka on a polygon");
+    assert_eq!(at(17, 31), [1.0, 0.0, 0.0], "uniform Cs on a sphere");
+    assert_eq!(at(46, 31), [1.0, 1.0, 1.0], "a value of the wrong count is dropped");
+}
+
+#[test]
+fn constant_points_are_in_the_primitive_s_space_and_retained_objects_cannot_take_them() {
+    // A shader that shows how far its point parameter is from world (0, 0, 0): given as the
+    // square's own centre in its space, moved 1 along x, the point is 1 from the world origin.
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    std::fs::write(
+        dir.path().join("away.sl"),
+        "surface away(point centre = 0;) { Ci = distance(centre, point \"world\" (0, 0, 0)); Oi = 1; }",
+    )
+    .expect("write the shader");
+    let scene = format!(
+        r#"{CAMERA}
+        Surface "away"
+        Translate 1 0 0
+        Rotate 90 0 0 1
+        Polygon "P" [-1 -1 0  1 -1 0  1 1 0  -1 1 0] "constant point centre" [0 0 0]
+        WorldEnd"#
+    );
+    let mut rt = Context::new();
+    let loaded = load_str(&mut rt, &scene, dir.path().join("scene.rib")).unwrap_or_else(|e| panic!("{e}"));
+    assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+    let fb = render(&mut rt);
+    assert!((fb.pixel(40, 24)[0] - 1.0).abs() < 1e-4, "{:?}", fb.pixel(40, 24));
+    // Inside ObjectBegin a primitive cannot have parameters of its own: a warning says so.
+    let (_, warnings) = load(&format!(
+        r#"{CAMERA}
+        Surface "matte"
+        ObjectBegin 1
+          Polygon "P" [-1 -1 0  1 -1 0  1 1 0  -1 1 0] "constant float Kd" [0.5]
+        ObjectEnd
+        ObjectInstance 1
+        WorldEnd"#
+    ));
+    assert!(warnings.iter().any(|w| w.contains("inside ObjectBegin")), "{warnings:?}");
+}
+
+#[test]
 fn shader_parameters_need_no_declaration_and_bad_ones_warn_with_their_location() {
     let (mut rt, warnings) = load(&format!(
         "{CAMERA}\nSurface \"constant\"\nSurface \"plastic\" \"Kd\" [0.2] \"nosuch\" [1] \"Ks\" [1 2 3]\n\
@@ -441,24 +520,26 @@ fn a_displacement_shader_bumps_the_normal_the_surface_shader_sees() {
         image::Luma([(127.5 + 127.5 * (std::f32::consts::TAU * x as f32 / 16.0).sin()) as u8])
     });
     ridges.save(dir.path().join("ridges.png")).expect("write the height map");
-    let scene = |displacement: &str| {
+    let scene_with = |displacement: &str, primitive: &str| {
         format!(
             r#"{CAMERA}
             LightSource "distantlight" 1 "from" [-1 0.3 -1] "to" [0 0 0]
             Surface "matte"
             {displacement}
-            Polygon "P" [-1.5 -1 0  1.5 -1 0  1.5 1 0  -1.5 1 0] "st" [0 0  1 0  1 1  0 1]
+            Polygon "P" [-1.5 -1 0  1.5 -1 0  1.5 1 0  -1.5 1 0] "st" [0 0  1 0  1 1  0 1] {primitive}
             WorldEnd"#
         )
     };
-    let row = |displacement: &str| {
+    let scene = |displacement: &str| scene_with(displacement, "");
+    let row_with = |displacement: &str, primitive: &str| {
         let mut rt = Context::new();
-        let loaded =
-            load_str(&mut rt, &scene(displacement), dir.path().join("scene.rib")).unwrap_or_else(|e| panic!("{e}"));
+        let loaded = load_str(&mut rt, &scene_with(displacement, primitive), dir.path().join("scene.rib"))
+            .unwrap_or_else(|e| panic!("{e}"));
         assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
         let fb = render(&mut rt);
         (14..50).map(|x| fb.pixel(x, 24)[0]).collect::<Vec<f32>>()
     };
+    let row = |displacement: &str| row_with(displacement, "");
     let spread = |r: &[f32]| {
         r.iter().copied().fold(f32::NEG_INFINITY, f32::max) - r.iter().copied().fold(f32::INFINITY, f32::min)
     };
@@ -467,6 +548,12 @@ fn a_displacement_shader_bumps_the_normal_the_surface_shader_sees() {
     let bumped = row(r#"Displacement "bumpy" "amplitude" [0.05] "texturename" ["ridges.png"]"#);
     assert!(spread(&bumped) > 0.2, "the ridges turn the normal: {bumped:?}");
     assert_eq!(row(r#"Displacement "bumpy" "amplitude" [0]"#), flat, "no height, no change");
+    // A primitive's constant value reaches the displacement shader as its parameter.
+    let given = row_with(
+        r#"Displacement "bumpy" "amplitude" [0] "texturename" ["ridges.png"]"#,
+        r#""constant float amplitude" [0.05]"#,
+    );
+    assert_eq!(given, bumped, "the primitive's amplitude");
     // The geometry does not move: the same pixels are covered.
     let mut rt = Context::new();
     load_str(

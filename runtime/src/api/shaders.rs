@@ -350,6 +350,32 @@ impl Context {
         Ok(())
     }
 
+    /// The displacement shader bound now, if any.
+    pub fn bound_displacement(&self) -> Option<ShaderId> {
+        self.appearance.displacement.as_ref().map(|b| b.shader)
+    }
+
+    /// Sets parameters of the bound displacement shader (object scope), as
+    /// [`Context::parameters`] sets the surface shader's: its "shader" space stays where it was
+    /// bound, and point-like values are in the current space. All are checked before any is set.
+    pub fn displacement_parameters(&mut self, params: &[(&str, ParamValue)]) -> Result<(), ApiError> {
+        let Some((first, _)) = params.first() else { return Ok(()) };
+        let binding =
+            self.appearance.displacement.as_ref().ok_or_else(|| ApiError::NoShaderBound(first.to_string()))?;
+        let program = self.program(binding.shader)?.clone();
+        for (name, value) in params {
+            crate::shading::bind_param(&program, name, value, &self.matrix)?;
+        }
+        let m = self.matrix;
+        if let Some(b) = self.appearance.displacement.as_mut() {
+            for (name, value) in params {
+                b.params.retain(|(n, _, _)| n != name);
+                b.params.push((name.to_string(), value.clone(), m));
+            }
+        }
+        Ok(())
+    }
+
     fn varying_param_floats(&self, name: &str, value: &ParamValue) -> Result<Vec<f32>, ApiError> {
         let binding = self.appearance.surface.as_ref().ok_or_else(|| ApiError::NoShaderBound(name.to_string()))?;
         let program = self.program(binding.shader)?.clone();

@@ -975,6 +975,91 @@ impl<'a> Loader<'a> {
         }
     }
 
+    /// [`Self::geometry`] of a request whose parameter list may hold values for the whole
+    /// primitive ([`primitive_constants`]): RISpec passes them to the primitive's shaders, so the
+    /// primitive becomes an object of its own whose surface and displacement shaders have them as
+    /// parameter values (point-like ones in the current space), and `Cs` and `Os` as its colour
+    /// and opacity, as `Color` and `Opacity` would give it. Names no shader has are left unused,
+    /// as RenderMan leaves them.
+    fn geometry_with_constants(&mut self, r: &Request, mesh: Mesh) -> Result<(), SceneFileError> {
+        // Only values some shader (or the colour) takes split the primitive off: exporters attach
+        // names and ids to every primitive.
+        let shaders: Vec<_> = [self.rt.bound_surface(), self.rt.bound_displacement()]
+            .into_iter()
+            .flatten()
+            .filter_map(|id| self.rt.program(id).ok().cloned())
+            .collect();
+        let constants: Vec<&Param> = primitive_constants(&r.kind)
+            .into_iter()
+            .filter(|p| {
+                matches!(p.name.as_str(), "Cs" | "Os")
+                    || shaders.iter().any(|s| s.interface.parameters.iter().any(|i| i.name == p.name))
+            })
+            .collect();
+        if constants.is_empty() {
+            return self.geometry(r, mesh);
+        }
+        if self.retained.is_some() {
+            self.warn(
+                r,
+                "values for the whole primitive (constant, or uniform on one face) are not passed to shaders \
+                 inside ObjectBegin: a retained object has one set of shader parameters",
+            );
+            return self.geometry(r, mesh);
+        }
+        self.flush()?;
+        self.rt.push_attributes();
+        self.apply_constants(&constants);
+        let built = self.geometry(r, mesh);
+        let flushed = self.flush();
+        self.rt.pop_attributes()?;
+        built?;
+        Ok(flushed?)
+    }
+
+    /// Gives the attribute state the values of [`primitive_constants`]: a parameter of the bound
+    /// surface or displacement shader of that name takes its value; one of the wrong type or count
+    /// is a warning at its name.
+    fn apply_constants(&mut self, constants: &[&Param]) {
+        for p in constants {
+            let expected = p.decl.array_len.unwrap_or(1);
+            if p.value_count() != expected {
+                let message = format!(
+                    "\"{}\" ({}) has {} values where a value for the whole primitive needs {expected}: it is dropped",
+                    p.name,
+                    p.decl,
+                    p.value_count()
+                );
+                self.out.warnings.push(RibDiagnostic::warning(&p.loc, message));
+                continue;
+            }
+            match (p.name.as_str(), p.floats(), p.decl.ty) {
+                ("Cs", Some(c), Ty::Color) => self.rt.color(c[0], c[1], c[2]),
+                ("Os", Some(c), Ty::Color) => self.rt.opacity(c[0], c[1], c[2]),
+                _ => {}
+            }
+            let shaders = [(false, self.rt.bound_surface()), (true, self.rt.bound_displacement())];
+            for (displacement, id) in shaders {
+                let Some(program) = id.and_then(|id| self.rt.program(id).ok()).cloned() else { continue };
+                if !program.interface.parameters.iter().any(|i| i.name == p.name) {
+                    continue;
+                }
+                let set = match shader_value(p, &program) {
+                    Some(v) if displacement => self.rt.displacement_parameters(&[(p.name.as_str(), v)]),
+                    Some(v) => self.rt.parameter(&p.name, v),
+                    None => {
+                        let message = format!("cannot pass {} to a shader", p.name);
+                        self.out.warnings.push(RibDiagnostic::warning(&p.loc, message));
+                        continue;
+                    }
+                };
+                if let Err(e) = set {
+                    self.out.warnings.push(RibDiagnostic::warning(&p.loc, e.to_string()));
+                }
+            }
+        }
+    }
+
     fn request(&mut self, r: &Request) -> Result<(), SceneFileError> {
         use RequestKind as K;
         let placed = is_geometry(&r.kind) || matches!(r.kind, K::ObjectInstance(_) | K::MeshArchive(_));
@@ -1338,7 +1423,7 @@ impl<'a> Loader<'a> {
             | K::Curves { .. }
             | K::Blobby { .. } => {
                 if let Some(mesh) = self.tessellate(r)? {
-                    self.geometry(r, mesh)?;
+                    self.geometry_with_constants(r, mesh)?;
                 }
             }
             // Attribute state: it trims the NuPatches that follow in the block.
@@ -1870,6 +1955,20 @@ fn geometry_params(kind: &RequestKind) -> &[Param] {
         | K::Blobby { params, .. } => params,
         _ => &[],
     }
+}
+
+/// The parameters of a geometry request that hold one value for the whole primitive: its
+/// `constant` ones, and its `uniform` ones where it has one face (RISpec: one value per facet),
+/// a polygon, a patch or a quadric. Positions, normals and texture coordinates are the
+/// geometry's own.
+fn primitive_constants(kind: &RequestKind) -> Vec<&Param> {
+    use RequestKind as K;
+    let one_face = matches!(kind, K::Polygon(_) | K::GeneralPolygon { .. } | K::Patch { .. } | K::Quadric { .. });
+    geometry_params(kind)
+        .iter()
+        .filter(|p| p.decl.class == Class::Constant || (one_face && p.decl.class == Class::Uniform))
+        .filter(|p| !matches!(p.name.as_str(), "P" | "Pw" | "Pz" | "N" | "Np" | "st" | "s" | "t"))
+        .collect()
 }
 
 fn is_geometry(kind: &RequestKind) -> bool {

@@ -8,8 +8,9 @@
 //!   their analytic normals; polygons get no normals and no uvs;
 //! - every other float-typed `vertex`, `varying`, `facevarying` or `uniform` parameter becomes a
 //!   named per-vertex [`Attribute`] (uniform values repeat at each vertex of their face);
-//! - `constant` parameters, integers and strings are not per-vertex data: the engine reads them
-//!   from the request's parameter list.
+//! - `constant` parameters, integers and strings are not per-vertex data: the loader passes
+//!   `constant` ones (and `uniform` ones of one-face primitives) to the shaders as parameter values
+//!   (`docs/rib.md`, "Primitive variables").
 //!
 //! Invariants: every mesh returned passes [`Mesh::validate`]. Polygons share vertices between
 //! faces unless a facevarying or uniform parameter needs per-corner values, in which case every
