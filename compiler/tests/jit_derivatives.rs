@@ -170,20 +170,27 @@ fn texture_footprints_from_derivatives() {
     // on the footprint both back ends pass: every form, with the width and blur options.
     check(
         r#"
-        surface t(output varying color a = 0, b = 0, c = 0, d = 0; output varying float e = 0;)
+        surface t(output varying color a = 0, b = 0, c = 0, d = 0, f = 0, g = 0; output varying float e = 0;)
         {
             a = texture("grid.tx");
             b = texture("grid.tx", s * 3, t * u * 4);
             c = texture("grid.tx", s, t, "width", 2 + 4 * u, "blur", v * 0.1);
             d = texture("grid.tx", s, t, s + 0.1 * u, t, s, t + 0.2 * v, s, t, "swidth", 1, "twidth", 3);
             e = float texture("grid.tx"[1], s * 2, t, "fill", 0.5);
+            f = texture("grid.tx", s, t, "tblur", v * 0.3, "blur", 0.01);
+            g = texture("grid.tx", s, t, "sblur", u * 0.3) + texture("grid.tx", s, t, "blur", 0.2, "sblur", 0);
         }
         "#,
     );
     let mut host = TestHost::default();
     use rtsl_compiler::interp::Services;
-    let fp = interp::TextureFootprint { dsdx: 0.1, dtdx: 0.0, dsdy: 0.1, dtdy: 0.0, blur: 0.0 };
+    let fp = interp::TextureFootprint { dsdx: 0.1, dtdx: 0.0, dsdy: 0.1, dtdy: 0.0, sblur: 0.0, tblur: 0.0 };
     assert_eq!(host.texture_filtered("grid.tx", 0.01, 0.01, &fp, 0, 1), Some(vec![0.5]));
+    // Blur in t alone widens the lookup as much as blur in both (the test host's rule).
+    let still = interp::TextureFootprint::default();
+    let blurred = interp::TextureFootprint { tblur: 0.2, ..still };
+    assert_ne!(host.texture_filtered("grid.tx", 0.01, 0.01, &still, 0, 1), Some(vec![0.5]));
+    assert_eq!(host.texture_filtered("grid.tx", 0.01, 0.01, &blurred, 0, 1), Some(vec![0.5]));
 }
 
 #[test]

@@ -650,7 +650,7 @@ impl Machine<'_> {
     /// A `texture` call's footprint: the derivatives of its coordinates (of the globals s and t
     /// without coordinates; the corners' differences `(s2 - s1, t2 - t1)` along x and
     /// `(s3 - s1, t3 - t1)` along y for the four-corner form), scaled by `"swidth"`/`"twidth"`
-    /// (default `"width"`, default 1), and `"blur"` (default 0).
+    /// (default `"width"`, default 1), and `"sblur"`/`"tblur"` (default `"blur"`, default 0).
     fn footprint(&self, vals: &[Value], tx: &[Value], ty: &[Value], fixed: usize) -> TextureFootprint {
         let [dsdx, dtdx, dsdy, dtdy] = match fixed {
             1 => {
@@ -667,12 +667,14 @@ impl Machine<'_> {
         let width = param(vals, fixed, "width").map(Value::f).unwrap_or(1.0);
         let sw = param(vals, fixed, "swidth").map(Value::f).unwrap_or(width);
         let tw = param(vals, fixed, "twidth").map(Value::f).unwrap_or(width);
+        let blur = param(vals, fixed, "blur").map(Value::f).unwrap_or(0.0);
         TextureFootprint {
             dsdx: dsdx * sw,
             dtdx: dtdx * tw,
             dsdy: dsdy * sw,
             dtdy: dtdy * tw,
-            blur: param(vals, fixed, "blur").map(Value::f).unwrap_or(0.0),
+            sblur: param(vals, fixed, "sblur").map(Value::f).unwrap_or(blur),
+            tblur: param(vals, fixed, "tblur").map(Value::f).unwrap_or(blur),
         }
     }
 

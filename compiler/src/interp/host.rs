@@ -28,15 +28,17 @@ pub struct LightSample {
 }
 
 /// The filter footprint of a `texture` lookup: the screen-space derivatives of its coordinates,
-/// already scaled by the lookup's `"swidth"`/`"twidth"` (or `"width"`) options, and its `"blur"`
-/// (`docs/packet-abi.md`, "Derivatives"). All zero: a point sample.
+/// already scaled by the lookup's `"swidth"`/`"twidth"` (or `"width"`) options, and its blur in s
+/// and t, `"sblur"`/`"tblur"` (or `"blur"`) (`docs/packet-abi.md`, "Derivatives"). All zero: a
+/// point sample.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct TextureFootprint {
     pub dsdx: f32,
     pub dtdx: f32,
     pub dsdy: f32,
     pub dtdy: f32,
-    pub blur: f32,
+    pub sblur: f32,
+    pub tblur: f32,
 }
 
 /// A `shadow()` lookup: the point, the region its filter covers and the options RSL gives it
@@ -264,7 +266,7 @@ impl Services for TestHost {
         first_channel: usize,
         channels: usize,
     ) -> Option<Vec<f32>> {
-        let width = ((fp.dsdx.abs() + fp.dsdy.abs()).max(fp.dtdx.abs() + fp.dtdy.abs())) + fp.blur;
+        let width = (fp.dsdx.abs() + fp.dsdy.abs() + fp.sblur).max(fp.dtdx.abs() + fp.dtdy.abs() + fp.tblur);
         if name != "missing" && width > 0.125 {
             return Some(vec![0.5; channels]);
         }

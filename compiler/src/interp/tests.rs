@@ -354,3 +354,25 @@ fn transform_from_a_space_through_a_matrix_goes_into_current_space_first() {
     // Vectors take no translation: (1, 1, 1) -> (1, 1, 1) -> (2, 2, 2).
     assert!(close(get("turned"), [2.0, 2.0, 2.0]), "{:?}", get("turned"));
 }
+
+#[test]
+fn texture_blurs_in_s_and_t_apart() {
+    // RISpec: "sblur" and "tblur" blur in one direction each. The test host averages its checker
+    // (0.5) once a lookup's footprint and blur pass a cell, and point-samples it otherwise (1 at
+    // (0.01, 0.01)).
+    let src = r#"
+        surface t(output varying float none = 0, in_s = 0, in_t = 0, both = 0;)
+        {
+            none = float texture("foo", 0.01, 0.01);
+            in_s = float texture("foo", 0.01, 0.01, "sblur", 0.6);
+            in_t = float texture("foo", 0.01, 0.01, "tblur", 0.6);
+            both = float texture("foo", 0.01, 0.01, "blur", 0.6, "sblur", 0, "tblur", 0);
+        }
+    "#;
+    let (_, r, _) = run_src(src, &[]);
+    let get = |name: &str| r.params.iter().find(|(n, _)| n == name).map(|(_, v)| v.f()).expect(name);
+    assert_eq!(get("none"), 1.0);
+    assert_eq!(get("in_s"), 0.5);
+    assert_eq!(get("in_t"), 0.5);
+    assert_eq!(get("both"), 1.0, "sblur and tblur take the place of blur");
+}

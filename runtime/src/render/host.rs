@@ -615,7 +615,8 @@ unsafe extern "C" fn host_texture(
         _ => 1,
     };
     let rows = match kind {
-        0 | 5 => 7,
+        0 => 8,
+        5 => 7,
         2 => SHADOW_ROWS,
         _ => 3,
     };
@@ -637,10 +638,9 @@ unsafe extern "C" fn host_texture(
     match kind {
         0 => {
             let Some(mip) = c.texture(name) else { return };
-            // Rows 0..1 the coordinates; 2..6 the footprint from their derivatives (widths
-            // applied), and blur.
+            // Rows 0..1 the coordinates; 2..5 the footprint from their derivatives (widths
+            // applied); 6 and 7 the blur in s and t.
             let row = |k: usize| Vec4::from_slice(&coords[4 * k..4 * k + 4]);
-            let blur = row(6).max(Vec4::ZERO);
             let lanes = LookupLanes {
                 s: row(0),
                 t: row(1),
@@ -648,8 +648,8 @@ unsafe extern "C" fn host_texture(
                 dtdx: row(3),
                 dsdy: row(4),
                 dtdy: row(5),
-                sblur: blur,
-                tblur: blur,
+                sblur: row(6).max(Vec4::ZERO),
+                tblur: row(7).max(Vec4::ZERO),
             };
             let active = mask.map(|m| m != 0);
             mip.filter_lanes(&lanes, active, first_channels(first), out, &LookupOptions::default());

@@ -290,8 +290,8 @@ pub struct HostTable {
         counts: *mut u32,
         pending: *mut u32,
     ),
-    /// Texture lookups: `kind` 0 `texture` (`coords` seven rows of 4 lanes: s, t, then the filter
-    /// footprint ds/dx, dt/dx, ds/dy, dt/dy (scaled by the lookup's width options) and blur, as
+    /// Texture lookups: `kind` 0 `texture` (`coords` eight rows of 4 lanes: s, t, then the filter
+    /// footprint ds/dx, dt/dx, ds/dy, dt/dy (scaled by the lookup's width options), sblur and tblur, as
     /// `interp::TextureFootprint`; `first[l]` the first channel; `channels` values), 1 `environment`
     /// (`coords` a direction; 3 values), 2 `shadow` (`coords` [`SHADOW_ROWS`] rows: the point, the
     /// four corners of the region its kernel covers, then samples, sblur, tblur, swidth, twidth
@@ -662,7 +662,14 @@ unsafe extern "C" fn sv_texture(
                 0 => {
                     let f = *first.add(l);
                     let row = |k: usize| *coords.add(4 * k + l);
-                    let fp = TextureFootprint { dsdx: row(2), dtdx: row(3), dsdy: row(4), dtdy: row(5), blur: row(6) };
+                    let fp = TextureFootprint {
+                        dsdx: row(2),
+                        dtdx: row(3),
+                        dsdy: row(4),
+                        dtdy: row(5),
+                        sblur: row(6),
+                        tblur: row(7),
+                    };
                     h.host.texture_filtered(name, c[0], c[1], &fp, f.max(0.0) as usize, channels as usize)
                 }
                 1 => h.host.environment(name, c).map(|v| v.to_vec()),
@@ -1501,8 +1508,8 @@ host_helpers! {
         let sum = light_sums::phong(cx.light_rows(&answer), answer.counts, cx.mask, &n, &view, size);
         cx.set3_lanes(0, &sum);
     }
-    // [name, s, t, first channel, fill, channels, dsdx, dtdx, dsdy, dtdy, blur] -> 3
-    h_texture "rtsl_h_texture" 11 => 3 |cx| {
+    // [name, s, t, first channel, fill, channels, dsdx, dtdx, dsdy, dtdy, sblur, tblur] -> 3
+    h_texture "rtsl_h_texture" 12 => 3 |cx| {
         let n = (cx.f(5, 0) as u32).min(MAX_TEXTURE_CHANNELS);
         let (vals, ok) = texture_call(cx, 0, n);
         for l in cx.active() {
@@ -1788,9 +1795,9 @@ fn texture_call(cx: &Cx<'_>, kind: u32, channels: u32) -> ([f32; 4 * MAX_TEXTURE
     let mut ok = [0u32; 4];
     let Some(t) = cx.table else { return (vals, ok) };
     let mask: [i32; 4] = cx.mask.map(|m| if m { -1 } else { 0 });
-    // Texture: coords s, t (args 1, 2), then the footprint dsdx, dtdx, dsdy, dtdy, blur (args
-    // 6..11), and the first channel (arg 3); shadows: every argument after the name; otherwise a
-    // triple at arg 1.
+    // Texture: coords s, t (args 1, 2), then the footprint dsdx, dtdx, dsdy, dtdy, sblur, tblur
+    // (args 6..12), and the first channel (arg 3); shadows: every argument after the name;
+    // otherwise a triple at arg 1.
     let mut coords = [0.0f32; 4 * SHADOW_ROWS];
     let mut first = [0.0f32; 4];
     // Arguments `k..k + n` (rows of four lanes) into `to`.
@@ -1802,7 +1809,7 @@ fn texture_call(cx: &Cx<'_>, kind: u32, channels: u32) -> ([f32; 4 * MAX_TEXTURE
     match kind {
         0 => {
             rows(&mut coords[..8], 1, 2);
-            rows(&mut coords[8..28], 6, 5);
+            rows(&mut coords[8..32], 6, 6);
             rows(&mut first, 3, 1);
         }
         2 => rows(&mut coords, 1, SHADOW_ROWS),

@@ -69,7 +69,18 @@ impl<'m> Lower<'m, '_> {
                         } else {
                             width
                         };
+                        // "sblur" and "tblur" (RISpec), each "blur" where not given.
                         let blur = opt(self, "blur", 0.0)?;
+                        let sblur = if param_arg(f, args, fixed, "sblur")?.is_some() {
+                            opt(self, "sblur", 0.0)?
+                        } else {
+                            blur.clone()
+                        };
+                        let tblur = if param_arg(f, args, fixed, "tblur")?.is_some() {
+                            opt(self, "tblur", 0.0)?
+                        } else {
+                            blur
+                        };
                         let d = self.texture_derivs(fixed, vals)?;
                         let fp: Vec<Val> = d
                             .iter()
@@ -83,7 +94,8 @@ impl<'m> Lower<'m, '_> {
                             .collect();
                         let mut parts = vec![v(0), s_, t_, first, fill, nv];
                         parts.extend(fp);
-                        parts.push(blur);
+                        parts.push(sblur);
+                        parts.push(tblur);
                         let r = self.call_helper_on("rtsl_h_texture", &parts, true)?;
                         Val { vary: true, c: r.c[..n].to_vec() }
                     }
