@@ -95,7 +95,7 @@ fn values_for_the_whole_primitive_reach_its_shaders_and_colour() {
 }
 
 #[test]
-fn constant_points_are_in_the_primitive_s_space_and_retained_objects_cannot_take_them() {
+fn constant_points_are_in_the_primitive_s_space_and_undeclared_or_retained_values_warn() {
     // A shader that shows how far its point parameter is from world (0, 0, 0): given as the
     // square's own centre in its space, moved 1 along x, the point is 1 from the world origin.
     let dir = tempfile::tempdir().expect("a temporary directory");
@@ -128,6 +128,15 @@ fn constant_points_are_in_the_primitive_s_space_and_retained_objects_cannot_take
         WorldEnd"#
     ));
     assert!(warnings.iter().any(|w| w.contains("inside ObjectBegin")), "{warnings:?}");
+    // A variable without a declaration has no class or size: a warning at its name.
+    let (_, warnings) = load(&format!(
+        r#"{CAMERA}
+        Surface "matte"
+        Polygon "P" [-1 -1 0  1 -1 0  1 1 0  -1 1 0] "foo" [0.2 0.4 0.6 0.8]
+        WorldEnd"#
+    ));
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    assert!(warnings[0].contains("\"foo\" is not declared"), "{warnings:?}");
 }
 
 #[test]

@@ -982,6 +982,15 @@ impl<'a> Loader<'a> {
     /// and opacity, as `Color` and `Opacity` would give it. Names no shader has are left unused,
     /// as RenderMan leaves them.
     fn geometry_with_constants(&mut self, r: &Request, mesh: Mesh) -> Result<(), SceneFileError> {
+        // RISpec: a primitive variable needs a declaration (`Declare`, or inline) to have a class
+        // and a size; without one it could be data of any kind, and none is made of it.
+        for p in geometry_params(&r.kind).iter().filter(|p| p.decl.class == Class::Implicit && p.name != "type") {
+            let message = format!(
+                "\"{}\" is not declared (Declare it, or write its class and type, e.g. \"varying float {}\"): it is ignored",
+                p.name, p.name
+            );
+            self.out.warnings.push(RibDiagnostic::warning(&p.loc, message));
+        }
         // Only values some shader (or the colour) takes split the primitive off: exporters attach
         // names and ids to every primitive.
         let shaders: Vec<_> = [self.rt.bound_surface(), self.rt.bound_displacement()]
