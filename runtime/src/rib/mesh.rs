@@ -3,7 +3,8 @@
 //!
 //! What goes where in the mesh:
 //! - `P` (or `Pw`, divided by `w`; `Pz` for patches) gives the positions;
-//! - `N` gives the per-vertex normals (normalised), `st` (or `s` and `t`) the uvs. Without them
+//! - `N` gives the per-vertex normals (normalised), `st` (or `s` and `t`) the uvs, and `s` or `t`
+//!   alone that coordinate of the default uvs where the primitive has them. Without them
 //!   patches and quadrics get their `(u, v)` parameters as uvs (over the whole patch mesh) and
 //!   their analytic normals; polygons get no normals and no uvs;
 //! - every other float-typed `vertex`, `varying`, `facevarying` or `uniform` parameter becomes a
@@ -356,11 +357,16 @@ pub(super) fn route_attributes(mesh: &mut Mesh, attributes: Vec<Attribute>) {
             _ => mesh.attributes.push(attribute),
         }
     }
-    match (s, t) {
-        (Some(s), Some(t)) => mesh.uvs = Some(s.into_iter().zip(t).map(|(s, t)| Vec2::new(s, t)).collect()),
-        (Some(s), None) => mesh.attributes.push(Attribute { name: "s".into(), components: 1, data: s }),
-        (None, Some(t)) => mesh.attributes.push(Attribute { name: "t".into(), components: 1, data: t }),
-        (None, None) => {}
+    // One of `s` and `t` alone replaces that coordinate of the surface's own (its default
+    // `TextureCoordinates` mapping); a mesh without them (polygons) keeps it as data.
+    let uvs = mesh.uvs.as_mut().filter(|uvs| s.as_ref().or(t.as_ref()).is_some_and(|c| c.len() == uvs.len()));
+    match (s, t, uvs) {
+        (Some(s), Some(t), _) => mesh.uvs = Some(s.into_iter().zip(t).map(|(s, t)| Vec2::new(s, t)).collect()),
+        (Some(s), None, Some(uvs)) => uvs.iter_mut().zip(s).for_each(|(uv, s)| uv.x = s),
+        (None, Some(t), Some(uvs)) => uvs.iter_mut().zip(t).for_each(|(uv, t)| uv.y = t),
+        (Some(s), None, None) => mesh.attributes.push(Attribute { name: "s".into(), components: 1, data: s }),
+        (None, Some(t), None) => mesh.attributes.push(Attribute { name: "t".into(), components: 1, data: t }),
+        (None, None, _) => {}
     }
 }
 
