@@ -17,7 +17,7 @@ use crate::texture::{Grid, LookupLanes, LookupOptions, MipMap, TextureCache};
 use glam::{Affine3A, Mat4, Vec3A, Vec4};
 use rtsl_compiler::abi::{
     same_category, shadow_query_of, BatchLightsView, Builtin, GatherHit, HostTable, LightLanes, MessageOut,
-    PixelChannel, PixelOutputs, PixelView, StrRef, CONE_ROWS, MAX_LIGHTS, SHADOW_ROWS,
+    PixelChannel, PixelOutputs, PixelView, StrRef, CONE_ROWS, MAX_LIGHTS, SHADOW_ROWS, TEXTURE_ROWS,
 };
 use std::cell::RefCell;
 use std::collections::HashMap;
@@ -615,7 +615,7 @@ unsafe extern "C" fn host_texture(
         _ => 1,
     };
     let rows = match kind {
-        0 => 8,
+        0 => TEXTURE_ROWS,
         5 => 7,
         2 => SHADOW_ROWS,
         _ => 3,

@@ -1785,6 +1785,10 @@ const MAX_TEXTURE_CHANNELS: u32 = 4;
 /// region's four corners (12) and six options.
 pub const SHADOW_ROWS: usize = 21;
 
+/// Rows of four lanes a `texture` lookup passes the table's texture entry (kind 0): s, t, the four
+/// footprint derivatives, sblur and tblur.
+pub const TEXTURE_ROWS: usize = 8;
+
 /// A texture query of one chunk through the renderer's table, the name at argument 0: the values
 /// (`vals[4 * channel + lane]`, at most [`MAX_TEXTURE_CHANNELS`]) and which lanes found them.
 /// Allocates nothing: volume shaders call it at every step of their march.
@@ -1840,12 +1844,13 @@ fn point_heights(cx: &Cx<'_>, s: [f32; 4], t: [f32; 4]) -> [f32; 4] {
     let mut out = [0.0f32; 4];
     let Some(table) = cx.table else { return out };
     let mask: [i32; 4] = cx.mask.map(|m| if m { -1 } else { 0 });
-    let mut coords = [0.0f32; 28];
+    // A point sample: the footprint and blur rows stay zero.
+    let mut coords = [0.0f32; 4 * TEXTURE_ROWS];
     coords[..4].copy_from_slice(&s);
     coords[4..8].copy_from_slice(&t);
     let (first, mut vals, mut ok) = ([0.0f32; 4], [0.0f32; 4 * MAX_TEXTURE_CHANNELS as usize], [0u32; 4]);
     let name = cx.strings.get(cx.input[0].to_bits());
-    // SAFETY: the table's documented sizes (seven rows of coordinates, one channel).
+    // SAFETY: the table's documented sizes (`TEXTURE_ROWS` rows of coordinates, one channel).
     unsafe {
         (table.texture)(
             table.ctx,
