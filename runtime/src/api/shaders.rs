@@ -334,14 +334,24 @@ impl Context {
     /// [`Context::parameter`] does one: the list form that lights and the other shaders take
     /// (written most easily with [`crate::params!`]). All are checked before any is set.
     pub fn parameters(&mut self, params: &[(&str, ParamValue)]) -> Result<(), ApiError> {
+        self.set_binding_parameters(|a| &mut a.surface, params)
+    }
+
+    /// Sets parameters of the binding `which` picks out of the appearance, checked against its
+    /// shader first, each value with the current matrix; its shader space stays.
+    fn set_binding_parameters(
+        &mut self,
+        which: fn(&mut Appearance) -> &mut Option<Binding>,
+        params: &[(&str, ParamValue)],
+    ) -> Result<(), ApiError> {
         let Some((first, _)) = params.first() else { return Ok(()) };
-        let binding = self.appearance.surface.as_ref().ok_or_else(|| ApiError::NoShaderBound(first.to_string()))?;
-        let program = self.program(binding.shader)?.clone();
+        let shader = which(&mut self.appearance).as_ref().map(|b| b.shader);
+        let program = self.program(shader.ok_or_else(|| ApiError::NoShaderBound(first.to_string()))?)?.clone();
         for (name, value) in params {
             crate::shading::bind_param(&program, name, value, &self.matrix)?;
         }
         let m = self.matrix;
-        if let Some(b) = self.appearance.surface.as_mut() {
+        if let Some(b) = which(&mut self.appearance).as_mut() {
             for (name, value) in params {
                 b.params.retain(|(n, _, _)| n != name);
                 b.params.push((name.to_string(), value.clone(), m));
@@ -359,21 +369,7 @@ impl Context {
     /// [`Context::parameters`] sets the surface shader's: its "shader" space stays where it was
     /// bound, and point-like values are in the current space. All are checked before any is set.
     pub fn displacement_parameters(&mut self, params: &[(&str, ParamValue)]) -> Result<(), ApiError> {
-        let Some((first, _)) = params.first() else { return Ok(()) };
-        let binding =
-            self.appearance.displacement.as_ref().ok_or_else(|| ApiError::NoShaderBound(first.to_string()))?;
-        let program = self.program(binding.shader)?.clone();
-        for (name, value) in params {
-            crate::shading::bind_param(&program, name, value, &self.matrix)?;
-        }
-        let m = self.matrix;
-        if let Some(b) = self.appearance.displacement.as_mut() {
-            for (name, value) in params {
-                b.params.retain(|(n, _, _)| n != name);
-                b.params.push((name.to_string(), value.clone(), m));
-            }
-        }
-        Ok(())
+        self.set_binding_parameters(|a| &mut a.displacement, params)
     }
 
     fn varying_param_floats(&self, name: &str, value: &ParamValue) -> Result<Vec<f32>, ApiError> {

@@ -35,6 +35,13 @@ impl<'m> Lower<'m, '_> {
                         None => Ok(Val { vary: false, c: vec![s.fconst(default, false)] }),
                     }
                 };
+                // The option `name` where the call gives it, else `fallback` (another option's value).
+                let opt_or = |name: &str, fallback: Val| -> R<Val> {
+                    Ok(match param_arg(f, args, fixed, name)? {
+                        Some(a) => vals[args.iter().position(|x| std::ptr::eq(x, a)).unwrap_or(0)].clone(),
+                        None => fallback,
+                    })
+                };
                 let n = if e.ty.base == BaseType::Float { 1 } else { 3 };
                 match bi {
                     Bi::Texture => {
@@ -59,28 +66,12 @@ impl<'m> Lower<'m, '_> {
                         let nv = Val { vary: false, c: vec![self.fconst(n as f32, false)] };
                         // The footprint (the interpreter's `footprint`).
                         let width = opt(self, "width", 1.0)?;
-                        let sw = if param_arg(f, args, fixed, "swidth")?.is_some() {
-                            opt(self, "swidth", 1.0)?
-                        } else {
-                            width.clone()
-                        };
-                        let tw = if param_arg(f, args, fixed, "twidth")?.is_some() {
-                            opt(self, "twidth", 1.0)?
-                        } else {
-                            width
-                        };
+                        let sw = opt_or("swidth", width.clone())?;
+                        let tw = opt_or("twidth", width)?;
                         // "sblur" and "tblur" (RISpec), each "blur" where not given.
                         let blur = opt(self, "blur", 0.0)?;
-                        let sblur = if param_arg(f, args, fixed, "sblur")?.is_some() {
-                            opt(self, "sblur", 0.0)?
-                        } else {
-                            blur.clone()
-                        };
-                        let tblur = if param_arg(f, args, fixed, "tblur")?.is_some() {
-                            opt(self, "tblur", 0.0)?
-                        } else {
-                            blur
-                        };
+                        let sblur = opt_or("sblur", blur.clone())?;
+                        let tblur = opt_or("tblur", blur)?;
                         let d = self.texture_derivs(fixed, vals)?;
                         let fp: Vec<Val> = d
                             .iter()
