@@ -8,9 +8,9 @@
 //! ([`crate::jit`]).
 
 pub use crate::back::jit::{
-    light_in_cone, same_category, shadow_query_of, BatchData, BatchLightsView, HostLight, HostTable, LightLanes,
-    MessageOut, PixelChannel, PixelOutputs, PixelView, RawBatch, SavedValues, StrRef, CONE_ROWS, EVERY_LIGHT,
-    MAX_LIGHTS, NO_LIGHT, SHADOW_ROWS, TEXTURE_ROWS,
+    environment_query_of, light_in_cone, same_category, shadow_query_of, BatchData, BatchLightsView, HostLight,
+    HostTable, LightLanes, MessageOut, PixelChannel, PixelOutputs, PixelView, RawBatch, SavedValues, StrRef, CONE_ROWS,
+    ENVIRONMENT_ROWS, EVERY_LIGHT, MAX_LIGHTS, NO_LIGHT, SHADOW_ROWS, TEXTURE_ROWS,
 };
 /// The built-ins, numbered as the host's query callbacks name the one asking (`option`,
 /// `rendererinfo` and the like: `Builtin::ALL[which]`).

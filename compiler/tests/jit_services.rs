@@ -76,6 +76,29 @@ fn shadow_lookups_pass_their_region_and_options() {
 }
 
 #[test]
+fn environment_lookups_pass_their_footprint_channel_and_options() {
+    // The test host's environment() is moved by every field of the query (the direction's change
+    // over a pixel, each option) and answers the fill past its three channels, so the JIT and the
+    // interpreter agree only when both pass the same.
+    check(
+        r#"
+        surface t(string sky = "sky.tx"; output varying float o = 0; output varying float o2 = 0;)
+        {
+            vector R = reflect(I, normalize(N));
+            color c = color environment(sky, R) + color environment(sky, R * (1 + s), "blur", 0.1 * t);
+            c += color environment(sky, R, "width", 2, "swidth", 0.5, "tblur", 0.3, "fill", 0.7);
+            o = float environment(sky[1], R) + float environment(sky, R, "channel", 2 + s);
+            o += float environment(sky[3], R, "fill", 0.4) + environment("missing", R, "fill", 0.25 + t);
+            o2 = float environment(sky, R, R + dPdu, R + dPdv, R + dPdu + dPdv, "sblur", 0.2);
+            if (u > 0.3)
+                c += color environment(sky, vector(u, v, 1), "twidth", 3, "width", 0);
+            Ci = c;
+        }
+        "#,
+    );
+}
+
+#[test]
 fn incident_and_opposite_ask_the_volume_on_each_side() {
     // The test host answers "side" 1 inside and 2 outside, and "ior" inside only; the globals I and
     // Ng are random per lane, so lanes see both sides.

@@ -318,6 +318,74 @@ fn textures_from_memory_are_looked_up_by_name() -> Result<(), ApiError> {
     Ok(())
 }
 
+/// A frame of a screen-filling quad (s and t run 0 to 1 across it) shaded by `surface`, with the
+/// lat-long map "stripes" in memory: 64 x 32 texels, red in stripes 4 texels wide (red at
+/// s = 0.5 + 2/64, the middle of one), green 0.25 and blue the row's t.
+fn environment_frame(surface: &str) -> Result<rtsl_runtime::render::Framebuffer, ApiError> {
+    let mut rt = Context::new();
+    rt.options.width = 32;
+    rt.options.height = 24;
+    let texels: Vec<f32> = (0..32)
+        .flat_map(|row| (0..64).map(move |i| (row, i)))
+        .flat_map(|(row, i)| [if (i / 4) % 2 == 0 { 1.0 } else { 0.0 }, 0.25, (row as f32 + 0.5) / 32.0])
+        .collect();
+    rt.tex_image_2d("stripes", 64, 32, 3, &texels)?;
+    let shader = rt.compile_shader("env.sl", surface)?;
+    rt.camera_look_at(glam::Vec3A::new(0.0, 0.0, 3.0), glam::Vec3A::ZERO, glam::Vec3A::Y, 60.0);
+    let o = rt.begin_object()?;
+    rt.bind_shader(shader)?;
+    rt.begin(rtsl_runtime::api::Primitive::Quads)?;
+    for (x, y, s, t) in [(-5.0, -5.0, 0.0, 1.0), (5.0, -5.0, 1.0, 1.0), (5.0, 5.0, 1.0, 0.0), (-5.0, 5.0, 0.0, 0.0)] {
+        rt.tex_coord(s, t);
+        rt.vertex(x, y, 0.0)?;
+    }
+    rt.end()?;
+    rt.end_object()?;
+    rt.instantiate_object(o)?;
+    Ok(render(&mut rt))
+}
+
+#[test]
+fn environment_lookups_filter_over_their_footprint_and_read_the_channel_asked_for() -> Result<(), ApiError> {
+    // The middle of a red stripe on the horizon: s = 0.5 + atan2(x, z) / (2 pi) = 0.5 + 2/64.
+    let red = "vector(tan(PI / 16), 0, 1)";
+    let at_centre = |body: &str| -> Result<[f32; 4], ApiError> {
+        let fb = environment_frame(&format!("surface env() {{ Oi = 1; {body} }}"))?;
+        Ok(fb.pixel(16, 12))
+    };
+    let point = at_centre(&format!("Ci = color environment(\"stripes\", {red});"))?;
+    assert!((point[0] - 1.0).abs() < 1e-3 && (point[1] - 0.25).abs() < 1e-3, "a point sample: {point:?}");
+    assert!((point[2] - 0.5).abs() < 0.05, "the horizon is the middle row: {point:?}");
+    // "blur" 0.25 covers four stripes in s: half red.
+    let blurred = at_centre(&format!("Ci = color environment(\"stripes\", {red}, \"blur\", 0.25);"))?;
+    assert!((blurred[0] - 0.5).abs() < 0.1, "blurred: {blurred:?}");
+    assert!((blurred[1] - 0.25).abs() < 1e-3, "a constant channel stays: {blurred:?}");
+    // The channel from the name's index or the "channel" option; channels the map lacks are "fill".
+    let green = at_centre(&format!("Ci = float environment(\"stripes\"[1], {red});"))?;
+    assert!(green[..3].iter().all(|c| (c - 0.25).abs() < 1e-3), "channel 1: {green:?}");
+    let shifted = at_centre(&format!("Ci = color environment(\"stripes\", {red}, \"channel\", 1, \"fill\", 0.75);"))?;
+    assert!((shifted[0] - 0.25).abs() < 1e-3 && (shifted[2] - 0.75).abs() < 1e-3, "channels 1..3: {shifted:?}");
+    // The four-direction form filters over the region its directions span: a quarter of the map.
+    let four = at_centre(&format!(
+        "vector d = {red}; Ci = color environment(\"stripes\", d, rotate(d, PI / 2, point(0, 0, 0), point(0, 1, 0)), \
+         d + vector(0, 0.3, 0), rotate(d, PI / 2, point(0, 0, 0), point(0, 1, 0)) + vector(0, 0.3, 0));"
+    ))?;
+    assert!((four[0] - 0.5).abs() < 0.15, "over a region: {four:?}");
+    // A direction that turns 1.5 radians per pixel across the image: the footprint from its
+    // derivatives averages the stripes, where a point sample ("width" 0) sees each one's colour.
+    let sweep = |options: &str| -> Result<f32, ApiError> {
+        let fb = environment_frame(&format!(
+            "surface env() {{ Oi = 1; float a = 48 * s; Ci = environment(\"stripes\", vector(sin(a), 0, cos(a)){options}); }}"
+        ))?;
+        let row: Vec<f32> = (4..28).map(|x| fb.pixel(x, 12)[0]).collect();
+        Ok(row.iter().map(|r| (r - 0.5).abs()).sum::<f32>() / row.len() as f32)
+    };
+    let (filtered, sampled) = (sweep("")?, sweep(", \"width\", 0")?);
+    assert!(filtered < 0.2, "filtered: mean distance from grey {filtered}");
+    assert!(sampled > 0.3, "point samples: mean distance from grey {sampled}");
+    Ok(())
+}
+
 #[test]
 fn models_load_from_obj_ply_and_gltf() -> Result<(), SceneFileError> {
     for (file, triangles) in [

@@ -5,7 +5,7 @@ use super::deriv::{zero_like, Dual};
 use super::value::Value;
 use super::{dot, normalize, Frame, Machine, R};
 use crate::builtins::{self, Builtin};
-use crate::interp::host::{LightSample, ShadowQuery, TextureFootprint};
+use crate::interp::host::{EnvironmentQuery, LightSample, ShadowQuery, TextureFootprint};
 use crate::ir::{Arg, BaseType, Function, Type};
 use crate::shadeops::{color, format, geom, matrix, noise, spline, transcendental as tm, V3};
 use std::rc::Rc;
@@ -78,6 +78,33 @@ fn shadow_query(vals: &[Value], tx: &[Value], ty: &[Value], fixed: usize) -> Sha
         swidth: option("swidth", width),
         twidth: option("twidth", width),
         bias: option("bias", 0.0),
+    }
+}
+
+/// An `environment()` call's query (the JIT computes the same values in `lower::deriv`): the
+/// direction and its screen derivatives, or the four-direction form's mean and the differences
+/// `D2 - D1` (along x) and `D3 - D1` (along y), and its options.
+fn environment_query(vals: &[Value], tx: &[Value], ty: &[Value], fixed: usize) -> EnvironmentQuery {
+    let arg = |k: usize| vals.get(k).map(Value::v3).unwrap_or([0.0; 3]);
+    let (dir, ddx, ddy) = if fixed == 5 {
+        let d = [arg(1), arg(2), arg(3), arg(4)];
+        let mean = std::array::from_fn(|i| (((d[0][i] + d[1][i]) + d[2][i]) + d[3][i]) * 0.25);
+        (mean, std::array::from_fn(|i| d[1][i] - d[0][i]), std::array::from_fn(|i| d[2][i] - d[0][i]))
+    } else {
+        let tangent = |t: &[Value]| t.get(1).map(Value::v3).unwrap_or([0.0; 3]);
+        (arg(1), tangent(tx), tangent(ty))
+    };
+    let option = |name: &str, default: f32| param(vals, fixed, name).map(Value::f).unwrap_or(default);
+    let (blur, width) = (option("blur", 0.0), option("width", 1.0));
+    EnvironmentQuery {
+        dir,
+        ddx,
+        ddy,
+        sblur: option("sblur", blur),
+        tblur: option("tblur", blur),
+        swidth: option("swidth", width),
+        twidth: option("twidth", width),
+        fill: option("fill", 0.0),
     }
 }
 
@@ -555,12 +582,16 @@ impl Machine<'_> {
                 }
             }
             Builtin::Environment => {
-                let dir = v(1).v3();
-                let c = self
-                    .host
-                    .environment(v(0).s(), dir)
-                    .unwrap_or([param(vals, fixed, "fill").map(Value::f).unwrap_or(0.0); 3]);
-                shaped(ty, c)
+                let query = environment_query(vals, tx, ty_, fixed);
+                let first = param(vals, fixed, "channel").map(|c| c.f().max(0.0) as usize).unwrap_or(0);
+                let n = if ty.base == BaseType::Float { 1 } else { 3 };
+                let got = self.host.environment(v(0).s(), &query, first, n).unwrap_or_else(|| vec![query.fill; n]);
+                let at = |k: usize| got.get(k).copied().unwrap_or(query.fill);
+                if n == 1 {
+                    Value::Float(at(0))
+                } else {
+                    shaped(ty, [at(0), at(1), at(2)])
+                }
             }
             Builtin::Shadow => {
                 let query = shadow_query(vals, tx, ty_, fixed);

@@ -62,6 +62,41 @@ pub struct ShadowQuery {
     pub bias: f32,
 }
 
+/// An `environment()` lookup: the direction, how it changes over one pixel step in x and y (its
+/// screen derivatives; the four-direction form's differences `D2 - D1` and `D3 - D1`), and the
+/// options RSL gives it (`docs/textures.md`, "Environment maps").
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EnvironmentQuery {
+    /// The direction looked up; the four-direction form's mean.
+    pub dir: V3,
+    pub ddx: V3,
+    pub ddy: V3,
+    /// `"sblur"`/`"tblur"` (or `"blur"` for both): added filter width, in map coordinates.
+    pub sblur: f32,
+    pub tblur: f32,
+    /// `"swidth"`/`"twidth"` (or `"width"` for both): scales the footprint on the map.
+    pub swidth: f32,
+    pub twidth: f32,
+    /// `"fill"`: the value of channels the map does not have.
+    pub fill: f32,
+}
+
+impl EnvironmentQuery {
+    /// A point sample along `dir` with the default options.
+    pub fn along(dir: V3) -> EnvironmentQuery {
+        EnvironmentQuery {
+            dir,
+            ddx: [0.0; 3],
+            ddy: [0.0; 3],
+            sblur: 0.0,
+            tblur: 0.0,
+            swidth: 1.0,
+            twidth: 1.0,
+            fill: 0.0,
+        }
+    }
+}
+
 impl ShadowQuery {
     /// A lookup at `p` alone with the default options.
     pub fn at(p: V3) -> ShadowQuery {
@@ -115,8 +150,16 @@ pub trait Services {
         let _ = (name, p, n, estimator);
         None
     }
-    /// An environment lookup by direction.
-    fn environment(&mut self, name: &str, dir: V3) -> Option<V3>;
+    /// An environment-map lookup filtered over the query's footprint: `channels` values from
+    /// `first_channel` on (channels the map lacks are `query.fill`); `None` when the map cannot be
+    /// read (the caller uses the fill value).
+    fn environment(
+        &mut self,
+        name: &str,
+        query: &EnvironmentQuery,
+        first_channel: usize,
+        channels: usize,
+    ) -> Option<Vec<f32>>;
     /// The fraction of the query's region in shadow according to the shadow map `name`.
     fn shadow(&mut self, name: &str, query: &ShadowQuery) -> f32;
     /// The colour seen along a ray, and the hit distance (infinite on a miss).
@@ -197,6 +240,15 @@ fn space(name: &str) -> Option<M4> {
         "object" | "shader" => Some(t(1.0, 2.0, 3.0)),
         _ => None,
     }
+}
+
+/// The test host's sky: the direction's components mapped from [-1, 1] to [0, 1] (grey for none).
+fn sky(dir: V3) -> V3 {
+    let len = (dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]).sqrt();
+    if len == 0.0 {
+        return [0.5; 3];
+    }
+    dir.map(|d| 0.5 + 0.5 * d / len)
 }
 
 impl Services for TestHost {
@@ -297,12 +349,27 @@ impl Services for TestHost {
         }
     }
 
-    fn environment(&mut self, _name: &str, dir: V3) -> Option<V3> {
-        let len = (dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]).sqrt();
-        if len == 0.0 {
-            return Some([0.5; 3]);
+    /// The sky's colour along the direction, moved by every other field of the query so that the
+    /// JIT's and the interpreter's queries can be compared through it; channels past the third
+    /// are the fill. No map "missing".
+    fn environment(
+        &mut self,
+        name: &str,
+        q: &EnvironmentQuery,
+        first_channel: usize,
+        channels: usize,
+    ) -> Option<Vec<f32>> {
+        if name == "missing" {
+            return None;
         }
-        Some(dir.map(|d| 0.5 + 0.5 * d / len))
+        let sky = sky(q.dir);
+        let spread: f32 = q.ddx.iter().chain(&q.ddy).map(|x| x.abs()).sum();
+        let options = 0.7 * spread + 0.1 * q.sblur - 0.2 * q.tblur + 0.3 * (q.swidth - 1.0) + 0.05 * (q.twidth - 1.0);
+        Some(
+            (first_channel..first_channel + channels)
+                .map(|c| sky.get(c).map_or(q.fill, |x| x + options + 0.01 * c as f32))
+                .collect(),
+        )
     }
 
     /// Not a shadow map: a value in [0, 1) that every field of the query changes, so the
@@ -317,7 +384,7 @@ impl Services for TestHost {
     }
 
     fn trace(&mut self, _from: V3, dir: V3) -> (V3, f32) {
-        (self.environment("", dir).unwrap_or([0.0; 3]), 10.0)
+        (sky(dir), 10.0)
     }
 
     fn gather_ray(&mut self, _category: &str, from: V3, dir: V3, maxdist: f32) -> Option<GatherHit> {
@@ -327,7 +394,7 @@ impl Services for TestHost {
         let length = 10.0 / dir[2];
         (length <= maxdist).then(|| GatherHit {
             length,
-            ci: self.environment("", dir).unwrap_or([0.0; 3]),
+            ci: sky(dir),
             oi: [1.0; 3],
             p: [from[0] + dir[0] * length, from[1] + dir[1] * length, from[2] + dir[2] * length],
             n: [0.0, 0.0, -1.0],

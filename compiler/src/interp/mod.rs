@@ -37,7 +37,7 @@ mod deriv;
 pub mod host;
 pub mod value;
 
-pub use host::{LightSample, Services, ShadowQuery, TestHost, TextureFootprint};
+pub use host::{EnvironmentQuery, LightSample, Services, ShadowQuery, TestHost, TextureFootprint};
 pub use value::Value;
 
 use crate::globals::{Global, GLOBALS};

@@ -80,11 +80,14 @@ pub fn is_root_arg(b: Builtin, k: usize, n: usize) -> bool {
         // `shadow(name, P, ...)`: the kernel covers P's pixel footprint (the four-point form takes
         // its region from the points, so this over-marks it harmlessly, as for `texture`).
         Builtin::Shadow => k == 1,
+        // `environment(name, D, ...)`: the footprint of the direction (over-marking the
+        // four-direction form likewise).
+        Builtin::Environment => k == 1,
         _ => false,
     }
 }
 
-/// Whether a `texture` call's parameter list sets its filter width to a literal 0 in both
+/// Whether a `texture` or `environment` call's parameter list sets its filter width to a literal 0 in both
 /// directions (`"width", 0`, or `"swidth", 0` and `"twidth", 0`): its footprint is then zero
 /// whatever the coordinates' derivatives, so they need not be computed.
 fn zero_width(func: &Function, args: &[Arg]) -> bool {
@@ -215,7 +218,8 @@ impl Pass<'_> {
                             Arg::Ref(_) => false,
                         });
                         // A lookup whose filter width is a literal 0 needs no footprint.
-                        let pointwise = *builtin == Builtin::Texture && zero_width(func, args);
+                        let pointwise =
+                            matches!(builtin, Builtin::Texture | Builtin::Environment) && zero_width(func, args);
                         if *builtin == Builtin::Texture && !coords && !pointwise {
                             for name in ["s", "t"] {
                                 if let Some(g) = crate::globals::Global::lookup(name) {
@@ -326,7 +330,7 @@ pub fn analyse(m: &Module) -> DerivInfo {
             if let ExprKind::CallBuiltin { builtin, .. } = &e.kind {
                 info.any |= is_deriv_builtin(*builtin);
                 info.normals |= *builtin == Builtin::Calculatenormal;
-                info.textures |= matches!(builtin, Builtin::Texture | Builtin::Shadow);
+                info.textures |= matches!(builtin, Builtin::Texture | Builtin::Shadow | Builtin::Environment);
             }
         }
     }

@@ -16,8 +16,9 @@ use crate::shading::ShaderInstance;
 use crate::texture::{Grid, LookupLanes, LookupOptions, MipMap, TextureCache};
 use glam::{Affine3A, Mat4, Vec3A, Vec4};
 use rtsl_compiler::abi::{
-    same_category, shadow_query_of, BatchLightsView, Builtin, GatherHit, HostTable, LightLanes, MessageOut,
-    PixelChannel, PixelOutputs, PixelView, StrRef, CONE_ROWS, MAX_LIGHTS, SHADOW_ROWS, TEXTURE_ROWS,
+    environment_query_of, same_category, shadow_query_of, BatchLightsView, Builtin, GatherHit, HostTable, LightLanes,
+    MessageOut, PixelChannel, PixelOutputs, PixelView, StrRef, CONE_ROWS, ENVIRONMENT_ROWS, MAX_LIGHTS, SHADOW_ROWS,
+    TEXTURE_ROWS,
 };
 use std::cell::RefCell;
 use std::collections::HashMap;
@@ -610,12 +611,14 @@ unsafe extern "C" fn host_texture(
 ) {
     let values = match kind {
         0 => channels.min(64) as usize,
-        1 | 4 | 5 => 3,
+        1 => channels.clamp(1, 3) as usize,
+        4 | 5 => 3,
         // 2 shadow, 3 a texture3d grid: one value.
         _ => 1,
     };
     let rows = match kind {
         0 => TEXTURE_ROWS,
+        1 => ENVIRONMENT_ROWS,
         5 => 7,
         2 => SHADOW_ROWS,
         _ => 3,
@@ -717,12 +720,22 @@ unsafe extern "C" fn host_texture(
         _ => {}
     }
     let textures = &c.frame.world.textures;
+    let channel_lanes = first_channels(first);
     let mut lane_out = [0.0f32; 64];
     for l in active() {
         let found = match kind {
             1 => {
-                let dir = lane3(coords, 0, l).to_array();
-                textures.environment(name, dir, [0.0; 3], [0.0; 3], 0, &mut lane_out[..3], &LookupOptions::default())
+                let query = environment_query_of(coords, l);
+                let opts = LookupOptions {
+                    sblur: query.sblur.max(0.0),
+                    tblur: query.tblur.max(0.0),
+                    swidth: query.swidth,
+                    twidth: query.twidth,
+                    fill: query.fill,
+                    ..LookupOptions::default()
+                };
+                let (dir, ddx, ddy) = (query.dir, query.ddx, query.ddy);
+                textures.environment(name, dir, ddx, ddy, channel_lanes[l], &mut lane_out[..values], &opts)
             }
             _ => {
                 let query = shadow_query_of(coords, l);

@@ -22,7 +22,7 @@
 
 use super::{Batch, StringTable};
 use crate::builtins::Builtin;
-use crate::interp::{Services, ShadowQuery, TextureFootprint, Value};
+use crate::interp::{EnvironmentQuery, Services, ShadowQuery, TextureFootprint, Value};
 use crate::shadeops::format::{self, FormatArg};
 use crate::shadeops::gather::{self, GatherHit};
 #[cfg(test)]
@@ -293,7 +293,9 @@ pub struct HostTable {
     /// Texture lookups: `kind` 0 `texture` (`coords` eight rows of 4 lanes: s, t, then the filter
     /// footprint ds/dx, dt/dx, ds/dy, dt/dy (scaled by the lookup's width options), sblur and tblur, as
     /// `interp::TextureFootprint`; `first[l]` the first channel; `channels` values), 1 `environment`
-    /// (`coords` a direction; 3 values), 2 `shadow` (`coords` [`SHADOW_ROWS`] rows: the point, the
+    /// (`coords` [`ENVIRONMENT_ROWS`] rows: the direction, its change over a pixel step in x and in
+    /// y, then sblur, tblur, swidth, twidth and fill, as `interp::EnvironmentQuery`; `first[l]`
+    /// the first channel; `channels` values, at most 3), 2 `shadow` (`coords` [`SHADOW_ROWS`] rows: the point, the
     /// four corners of the region its kernel covers, then samples, sblur, tblur, swidth, twidth
     /// and bias, as `interp::ShadowQuery`; 1 value), 3 `texture3d`'s
     /// grid lookup (`coords` a point in the grid's coordinates; 1 value), 4 `pixelvalue` (`name`
@@ -672,7 +674,11 @@ unsafe extern "C" fn sv_texture(
                     };
                     h.host.texture_filtered(name, c[0], c[1], &fp, f.max(0.0) as usize, channels as usize)
                 }
-                1 => h.host.environment(name, c).map(|v| v.to_vec()),
+                1 => {
+                    let rows = std::slice::from_raw_parts(coords, 4 * ENVIRONMENT_ROWS);
+                    let first = (*first.add(l)).max(0.0) as usize;
+                    h.host.environment(name, &environment_query_of(rows, l), first, channels as usize)
+                }
                 3 => h.host.texture3d(name, c).map(|v| vec![v]),
                 4 => h.host.pixel_value(name, c[0], c[1]).map(|v| v.to_vec()),
                 5 => {
@@ -706,6 +712,23 @@ pub fn shadow_query_of(coords: &[f32], l: usize) -> ShadowQuery {
         swidth: row(18),
         twidth: row(19),
         bias: row(20),
+    }
+}
+
+/// Lane `l`'s environment query from a table call's coordinate rows (see [`HostTable::texture`]:
+/// [`ENVIRONMENT_ROWS`] rows of 4 lanes; missing rows read 0).
+pub fn environment_query_of(coords: &[f32], l: usize) -> EnvironmentQuery {
+    let row = |k: usize| coords.get(4 * k + l).copied().unwrap_or(0.0);
+    let triple = |k: usize| [row(k), row(k + 1), row(k + 2)];
+    EnvironmentQuery {
+        dir: triple(0),
+        ddx: triple(3),
+        ddy: triple(6),
+        sblur: row(9),
+        tblur: row(10),
+        swidth: row(11),
+        twidth: row(12),
+        fill: row(13),
     }
 }
 
@@ -1519,12 +1542,13 @@ host_helpers! {
             }
         }
     }
-    // [name, dir, fill] -> 3
-    h_environment "rtsl_h_environment" 5 => 3 |cx| {
-        let (vals, ok) = texture_call(cx, 1, 3);
+    // [name, dir, ddx, ddy, sblur, tblur, swidth, twidth, fill, first channel, channels] -> 3
+    h_environment "rtsl_h_environment" 17 => 3 |cx| {
+        let n = (cx.f(16, 0) as u32).clamp(1, 3);
+        let (vals, ok) = texture_call(cx, 1, n);
         for l in cx.active() {
-            let fill = cx.f(4, l);
-            for j in 0..3 {
+            let fill = cx.f(14, l);
+            for j in 0..n as usize {
                 cx.set(j, l, if ok[l] != 0 { vals[4 * j + l] } else { fill });
             }
         }
@@ -1789,6 +1813,13 @@ pub const SHADOW_ROWS: usize = 21;
 /// footprint derivatives, sblur and tblur.
 pub const TEXTURE_ROWS: usize = 8;
 
+/// Rows of four lanes an `environment` lookup passes the table's texture entry (kind 1): the
+/// direction (3), its changes over a pixel step in x (3) and y (3), sblur, tblur, swidth, twidth
+/// and fill.
+pub const ENVIRONMENT_ROWS: usize = 14;
+// `texture_call` gathers any kind's rows into a buffer of the shadow's size.
+const _: () = assert!(ENVIRONMENT_ROWS <= SHADOW_ROWS);
+
 /// A texture query of one chunk through the renderer's table, the name at argument 0: the values
 /// (`vals[4 * channel + lane]`, at most [`MAX_TEXTURE_CHANNELS`]) and which lanes found them.
 /// Allocates nothing: volume shaders call it at every step of their march.
@@ -1800,8 +1831,9 @@ fn texture_call(cx: &Cx<'_>, kind: u32, channels: u32) -> ([f32; 4 * MAX_TEXTURE
     let Some(t) = cx.table else { return (vals, ok) };
     let mask: [i32; 4] = cx.mask.map(|m| if m { -1 } else { 0 });
     // Texture: coords s, t (args 1, 2), then the footprint dsdx, dtdx, dsdy, dtdy, sblur, tblur
-    // (args 6..12), and the first channel (arg 3); shadows: every argument after the name;
-    // otherwise a triple at arg 1.
+    // (args 6..12), and the first channel (arg 3); environment: the query's rows (args 1..15) and
+    // the first channel (arg 15); shadows: every argument after the name; otherwise a triple at
+    // arg 1.
     let mut coords = [0.0f32; 4 * SHADOW_ROWS];
     let mut first = [0.0f32; 4];
     // Arguments `k..k + n` (rows of four lanes) into `to`.
@@ -1815,6 +1847,10 @@ fn texture_call(cx: &Cx<'_>, kind: u32, channels: u32) -> ([f32; 4 * MAX_TEXTURE
             rows(&mut coords[..8], 1, 2);
             rows(&mut coords[8..32], 6, 6);
             rows(&mut first, 3, 1);
+        }
+        1 => {
+            rows(&mut coords[..4 * ENVIRONMENT_ROWS], 1, ENVIRONMENT_ROWS);
+            rows(&mut first, 1 + ENVIRONMENT_ROWS, 1);
         }
         2 => rows(&mut coords, 1, SHADOW_ROWS),
         4 => rows(&mut coords[..8], 1, 2),

@@ -35,8 +35,8 @@ mod profile;
 pub use batch::{Batch, BatchData, RawBatch, SavedValues, ShadeFn, StringTable};
 pub use facts::LightKind;
 pub use host::{
-    light_in_cone, same_category, shadow_query_of, BatchLightsView, HostLight, HostTable, LightLanes, MessageOut, PixelChannel, PixelOutputs, PixelView,
-    ServicesHost, StrRef, CONE_ROWS, EVERY_LIGHT, MAX_LIGHTS, NO_LIGHT, SHADOW_ROWS, TEXTURE_ROWS,
+    environment_query_of, light_in_cone, same_category, shadow_query_of, BatchLightsView, HostLight, HostTable, LightLanes, MessageOut, PixelChannel, PixelOutputs, PixelView,
+    ServicesHost, StrRef, CONE_ROWS, EVERY_LIGHT, MAX_LIGHTS, NO_LIGHT, ENVIRONMENT_ROWS, SHADOW_ROWS, TEXTURE_ROWS,
 };
 pub use layout::{GlobalSlot, Layout, ParamSlot};
 

@@ -698,6 +698,33 @@ impl<'m> Lower<'m, '_> {
         }
     }
 
+    /// The direction of an `environment()` call and its changes over a pixel step in x and y
+    /// (the interpreter's `environment_query`): the four-direction form's mean and the
+    /// differences `D2 - D1` and `D3 - D1`, else the direction and its tangents.
+    pub(super) fn environment_directions(&mut self, vals: &[Val], fixed: usize) -> R<[Val; 3]> {
+        let varying = |c: Vec<Value>| Val { vary: true, c };
+        let component = |v: &Val, i: usize| {
+            v.c.get(i).or(v.c.first()).copied().ok_or_else(|| JitError::Codegen("an environment direction".into()))
+        };
+        if fixed == 5 {
+            let quarter = self.k(0.25);
+            let (mut mean, mut dx, mut dy) = (Vec::with_capacity(3), Vec::with_capacity(3), Vec::with_capacity(3));
+            for i in 0..3 {
+                let d: Vec<Value> = vals[1..5].iter().map(|v| component(v, i)).collect::<R<_>>()?;
+                let sum = self.add(d[0], d[1]);
+                let sum = self.add(sum, d[2]);
+                let sum = self.add(sum, d[3]);
+                mean.push(self.mul(sum, quarter));
+                dx.push(self.sub(d[1], d[0]));
+                dy.push(self.sub(d[2], d[0]));
+            }
+            return Ok([varying(mean), varying(dx), varying(dy)]);
+        }
+        let d = self.arg_dual(1)?;
+        let [dx, dy] = self.tangents(&d);
+        Ok([d.v.clone(), varying(dx), varying(dy)])
+    }
+
     /// The point and region of a `shadow()` call (the interpreter's `shadow_query`): the centre
     /// and the four points of the four-point form, else the point and its pixel footprint
     /// `P ± dPdx/2 ± dPdy/2`, computed with the interpreter's operations in its order.

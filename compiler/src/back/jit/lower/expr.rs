@@ -37,7 +37,7 @@ impl<'m> Lower<'m, '_> {
         match &e.kind {
             ExprKind::Assign { .. } | ExprKind::Call { .. } if marked => return Ok(self.dual(id)?.v),
             ExprKind::CallBuiltin { builtin, overload, args }
-                if ir::deriv::is_deriv_builtin(*builtin) || matches!(builtin, Builtin::Texture | Builtin::Shadow) =>
+                if ir::deriv::is_deriv_builtin(*builtin) || matches!(builtin, Builtin::Texture | Builtin::Shadow | Builtin::Environment) =>
             {
                 return Ok(self.builtin_dual(*builtin, *overload, args, e, false)?.v)
             }

@@ -91,8 +91,22 @@ impl<'m> Lower<'m, '_> {
                         Val { vary: true, c: r.c[..n].to_vec() }
                     }
                     Bi::Environment => {
-                        let fill = opt(self, "fill", 0.0)?;
-                        let r = self.call_helper_on("rtsl_h_environment", &[v(0), v(1), fill], true)?;
+                        // The interpreter's `environment_query`: the direction and its changes
+                        // over a pixel step, then the options, each one float.
+                        let first = |x: Val| Val { vary: x.vary, c: x.c[..1].to_vec() };
+                        let [dir, ddx, ddy] = self.environment_directions(vals, fixed)?;
+                        let blur = first(opt(self, "blur", 0.0)?);
+                        let width = first(opt(self, "width", 1.0)?);
+                        let mut inputs = vec![v(0), dir, ddx, ddy];
+                        for (name, fallback) in
+                            [("sblur", &blur), ("tblur", &blur), ("swidth", &width), ("twidth", &width)]
+                        {
+                            inputs.push(first(opt_or(name, fallback.clone())?));
+                        }
+                        inputs.push(first(opt(self, "fill", 0.0)?));
+                        inputs.push(first(opt(self, "channel", 0.0)?));
+                        inputs.push(Val { vary: false, c: vec![self.fconst(n as f32, false)] });
+                        let r = self.call_helper_on("rtsl_h_environment", &inputs, true)?;
                         Val { vary: true, c: r.c[..n].to_vec() }
                     }
                     _ => {
