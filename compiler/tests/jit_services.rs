@@ -34,6 +34,24 @@ fn textures_rays_and_messages() {
 }
 
 #[test]
+fn texture_channels_the_map_lacks_read_the_fill_value() {
+    // The test host's textures have three channels: alpha and beyond read "fill" (varying here, so
+    // each lane's own), also when filtered over a footprint and when the lookup starts past them.
+    check(
+        r#"
+        surface t(string tex = "grid.tx"; output varying float o = 0; output varying float o2 = 0;)
+        {
+            color c = color texture(tex[1], s, t, "fill", 0.75) + color texture(tex[2], s, t, "fill", u);
+            c += color texture(tex, s, t, "channel", 2 * u, "fill", v, "blur", 0.2 * t);
+            o = float texture(tex[3], s, t, "fill", 0.5 + u) + float texture(tex[7], s, t);
+            o2 = float texture(tex, s, t, "channel", 3, "fill", 0.25, "width", 4);
+            Ci = c;
+        }
+        "#,
+    );
+}
+
+#[test]
 fn rayinfo_reads_the_ray_parameters() {
     // Into varying and uniform variables, through the `user:` namespace, of each type; an unknown
     // name leaves its variable alone, and "relevance" reads 1 unless set.

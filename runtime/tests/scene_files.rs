@@ -321,7 +321,7 @@ fn textures_from_memory_are_looked_up_by_name() -> Result<(), ApiError> {
 /// A frame of a screen-filling quad (s and t run 0 to 1 across it) shaded by `surface`, with the
 /// lat-long map "stripes" in memory: 64 x 32 texels, red in stripes 4 texels wide (red at
 /// s = 0.5 + 2/64, the middle of one), green 0.25 and blue the row's t.
-fn environment_frame(surface: &str) -> Result<rtsl_runtime::render::Framebuffer, ApiError> {
+fn stripes_frame(surface: &str) -> Result<rtsl_runtime::render::Framebuffer, ApiError> {
     let mut rt = Context::new();
     rt.options.width = 32;
     rt.options.height = 24;
@@ -350,7 +350,7 @@ fn environment_lookups_filter_over_their_footprint_and_read_the_channel_asked_fo
     // The middle of a red stripe on the horizon: s = 0.5 + atan2(x, z) / (2 pi) = 0.5 + 2/64.
     let red = "vector(tan(PI / 16), 0, 1)";
     let at_centre = |body: &str| -> Result<[f32; 4], ApiError> {
-        let fb = environment_frame(&format!("surface env() {{ Oi = 1; {body} }}"))?;
+        let fb = stripes_frame(&format!("surface env() {{ Oi = 1; {body} }}"))?;
         Ok(fb.pixel(16, 12))
     };
     let point = at_centre(&format!("Ci = color environment(\"stripes\", {red});"))?;
@@ -374,7 +374,7 @@ fn environment_lookups_filter_over_their_footprint_and_read_the_channel_asked_fo
     // A direction that turns 1.5 radians per pixel across the image: the footprint from its
     // derivatives averages the stripes, where a point sample ("width" 0) sees each one's colour.
     let sweep = |options: &str| -> Result<f32, ApiError> {
-        let fb = environment_frame(&format!(
+        let fb = stripes_frame(&format!(
             "surface env() {{ Oi = 1; float a = 48 * s; Ci = environment(\"stripes\", vector(sin(a), 0, cos(a)){options}); }}"
         ))?;
         let row: Vec<f32> = (4..28).map(|x| fb.pixel(x, 12)[0]).collect();
@@ -383,6 +383,24 @@ fn environment_lookups_filter_over_their_footprint_and_read_the_channel_asked_fo
     let (filtered, sampled) = (sweep("")?, sweep(", \"width\", 0")?);
     assert!(filtered < 0.2, "filtered: mean distance from grey {filtered}");
     assert!(sampled > 0.3, "point samples: mean distance from grey {sampled}");
+    Ok(())
+}
+
+#[test]
+fn texture_channels_the_map_lacks_read_the_fill_value() -> Result<(), ApiError> {
+    // "stripes" has three channels: its alpha reads "fill", each shading point's own where it varies.
+    let fb = stripes_frame(
+        "surface t() { Oi = 1; Ci = color(float texture(\"stripes\"[1], s, t, \"fill\", 0.6), \
+         float texture(\"stripes\"[3], s, t, \"fill\", 0.6), float texture(\"stripes\", s, t, \"channel\", 3, \"fill\", s)); }",
+    )?;
+    for (x, y) in [(4, 4), (16, 12), (27, 20)] {
+        let [green, alpha, varying, _] = fb.pixel(x, y);
+        assert!((green - 0.25).abs() < 1e-3, "channel 1 is the map's at ({x}, {y}): {green}");
+        assert!((alpha - 0.6).abs() < 1e-6, "channel 3 is the fill at ({x}, {y}): {alpha}");
+        // The quad fills the image, s running left to right across it.
+        assert!(varying > 0.0 && varying < 1.0, "a varying fill at ({x}, {y}): {varying}");
+    }
+    assert!(fb.pixel(27, 12)[2] > fb.pixel(4, 12)[2] + 0.2, "the fill follows s");
     Ok(())
 }
 

@@ -574,11 +574,12 @@ impl Machine<'_> {
                 let fill = param(vals, fixed, "fill").map(Value::f).unwrap_or(0.0);
                 let n = if ty.base == BaseType::Float { 1 } else { 3 };
                 let fp = self.footprint(vals, tx, ty_, fixed);
-                let got = self.host.texture_filtered(v(0).s(), s, t, &fp, first, n).unwrap_or_else(|| vec![fill; n]);
+                let got = self.host.texture_filtered(v(0).s(), s, t, &fp, first, n).unwrap_or_default();
+                let at = |k: usize| got.get(k).copied().unwrap_or(fill);
                 if n == 1 {
-                    Value::Float(got.first().copied().unwrap_or(fill))
+                    Value::Float(at(0))
                 } else {
-                    Value::Triple([got[0], got[1], got[2]])
+                    Value::Triple([at(0), at(1), at(2)])
                 }
             }
             Builtin::Environment => {

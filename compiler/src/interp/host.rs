@@ -111,8 +111,9 @@ pub trait Services {
     fn matrix(&mut self, from: &str, to: &str) -> Option<M4>;
     /// The lights of `category` ("" for all) reaching `p` (the interpreter applies cones itself).
     fn lights(&mut self, category: &str, p: V3) -> Vec<LightSample>;
-    /// A filtered texture lookup at (s, t), `channels` values from `first_channel` on; `None` when
-    /// the texture cannot be read (the caller uses the fill value).
+    /// A filtered texture lookup at (s, t), `channels` values from `first_channel` on: those the
+    /// texture has (fewer when it lacks some; the caller gives the rest the fill value), or `None`
+    /// when the texture cannot be read (the caller uses the fill value).
     fn texture(&mut self, name: &str, s: f32, t: f32, first_channel: usize, channels: usize) -> Option<Vec<f32>>;
     /// A texture lookup filtered over `footprint` (for mip-mapping); the default ignores the
     /// footprint and asks [`Services::texture`].
@@ -297,13 +298,14 @@ impl Services for TestHost {
             .collect()
     }
 
+    /// An RGB checkerboard of 8 x 8 squares whose channels differ; no texture "missing".
     fn texture(&mut self, name: &str, s: f32, t: f32, first_channel: usize, channels: usize) -> Option<Vec<f32>> {
         if name == "missing" {
             return None;
         }
         let white = ((s * 8.0).floor() as i64 + (t * 8.0).floor() as i64).rem_euclid(2) == 0;
         Some(
-            (first_channel..first_channel + channels)
+            (first_channel..(first_channel + channels).min(3))
                 .map(|c| if white { 1.0 - 0.1 * c as f32 } else { 0.1 * c as f32 })
                 .collect(),
         )
@@ -320,7 +322,7 @@ impl Services for TestHost {
     ) -> Option<Vec<f32>> {
         let width = (fp.dsdx.abs() + fp.dsdy.abs() + fp.sblur).max(fp.dtdx.abs() + fp.dtdy.abs() + fp.tblur);
         if name != "missing" && width > 0.125 {
-            return Some(vec![0.5; channels]);
+            return Some(vec![0.5; (first_channel + channels).min(3).saturating_sub(first_channel)]);
         }
         self.texture(name, s, t, first_channel, channels)
     }

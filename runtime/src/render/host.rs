@@ -642,7 +642,7 @@ unsafe extern "C" fn host_texture(
         0 => {
             let Some(mip) = c.texture(name) else { return };
             // Rows 0..1 the coordinates; 2..5 the footprint from their derivatives (widths
-            // applied); 6 and 7 the blur in s and t.
+            // applied); 6 and 7 the blur in s and t; 8 the fill.
             let row = |k: usize| Vec4::from_slice(&coords[4 * k..4 * k + 4]);
             let lanes = LookupLanes {
                 s: row(0),
@@ -655,8 +655,21 @@ unsafe extern "C" fn host_texture(
                 tblur: row(7).max(Vec4::ZERO),
             };
             let active = mask.map(|m| m != 0);
-            mip.filter_lanes(&lanes, active, first_channels(first), out, &LookupOptions::default());
+            let (first, fill) = (first_channels(first), row(8).to_array());
+            // One fill for the lookup (what a lane with no texel reads), then each lane's own for
+            // the channels the texture lacks.
+            let shared_fill = active.iter().position(|&a| a).map_or(0.0, |l| fill[l]);
+            mip.filter_lanes(
+                &lanes,
+                active,
+                first,
+                out,
+                &LookupOptions { fill: shared_fill, ..LookupOptions::default() },
+            );
             for l in (0..4).filter(|&l| active[l]) {
+                for c in (0..values).filter(|&c| first[l] + c >= mip.channels()) {
+                    out[4 * c + l] = fill[l];
+                }
                 ok[l] = 1;
             }
             return;

@@ -290,9 +290,10 @@ pub struct HostTable {
         counts: *mut u32,
         pending: *mut u32,
     ),
-    /// Texture lookups: `kind` 0 `texture` (`coords` eight rows of 4 lanes: s, t, then the filter
-    /// footprint ds/dx, dt/dx, ds/dy, dt/dy (scaled by the lookup's width options), sblur and tblur, as
-    /// `interp::TextureFootprint`; `first[l]` the first channel; `channels` values), 1 `environment`
+    /// Texture lookups: `kind` 0 `texture` (`coords` [`TEXTURE_ROWS`] rows of 4 lanes: s, t, then
+    /// the filter footprint ds/dx, dt/dx, ds/dy, dt/dy (scaled by the lookup's width options),
+    /// sblur and tblur, as `interp::TextureFootprint`, then the fill value that channels the
+    /// texture lacks read; `first[l]` the first channel; `channels` values), 1 `environment`
     /// (`coords` [`ENVIRONMENT_ROWS`] rows: the direction, its change over a pixel step in x and in
     /// y, then sblur, tblur, swidth, twidth and fill, as `interp::EnvironmentQuery`; `first[l]`
     /// the first channel; `channels` values, at most 3), 2 `shadow` (`coords` [`SHADOW_ROWS`] rows: the point, the
@@ -672,7 +673,12 @@ unsafe extern "C" fn sv_texture(
                         sblur: row(6),
                         tblur: row(7),
                     };
-                    h.host.texture_filtered(name, c[0], c[1], &fp, f.max(0.0) as usize, channels as usize)
+                    let got = h.host.texture_filtered(name, c[0], c[1], &fp, f.max(0.0) as usize, channels as usize);
+                    // Channels the texture lacks read the fill value (row 8).
+                    got.map(|mut got| {
+                        got.resize(channels as usize, row(8));
+                        got
+                    })
                 }
                 1 => {
                     let rows = std::slice::from_raw_parts(coords, 4 * ENVIRONMENT_ROWS);
@@ -1810,8 +1816,8 @@ const MAX_TEXTURE_CHANNELS: u32 = 4;
 pub const SHADOW_ROWS: usize = 21;
 
 /// Rows of four lanes a `texture` lookup passes the table's texture entry (kind 0): s, t, the four
-/// footprint derivatives, sblur and tblur.
-pub const TEXTURE_ROWS: usize = 8;
+/// footprint derivatives, sblur, tblur and fill (the value of channels the texture lacks).
+pub const TEXTURE_ROWS: usize = 9;
 
 /// Rows of four lanes an `environment` lookup passes the table's texture entry (kind 1): the
 /// direction (3), its changes over a pixel step in x (3) and y (3), sblur, tblur, swidth, twidth
@@ -1831,7 +1837,7 @@ fn texture_call(cx: &Cx<'_>, kind: u32, channels: u32) -> ([f32; 4 * MAX_TEXTURE
     let Some(t) = cx.table else { return (vals, ok) };
     let mask: [i32; 4] = cx.mask.map(|m| if m { -1 } else { 0 });
     // Texture: coords s, t (args 1, 2), then the footprint dsdx, dtdx, dsdy, dtdy, sblur, tblur
-    // (args 6..12), and the first channel (arg 3); environment: the query's rows (args 1..15) and
+    // (args 6..12) and the fill (arg 4), and the first channel (arg 3); environment: the query's rows (args 1..15) and
     // the first channel (arg 15); shadows: every argument after the name; otherwise a triple at
     // arg 1.
     let mut coords = [0.0f32; 4 * SHADOW_ROWS];
@@ -1846,6 +1852,7 @@ fn texture_call(cx: &Cx<'_>, kind: u32, channels: u32) -> ([f32; 4 * MAX_TEXTURE
         0 => {
             rows(&mut coords[..8], 1, 2);
             rows(&mut coords[8..32], 6, 6);
+            rows(&mut coords[32..36], 4, 1);
             rows(&mut first, 3, 1);
         }
         1 => {
