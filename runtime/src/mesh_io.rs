@@ -107,7 +107,7 @@ pub fn load_obj(path: &Path) -> Result<Mesh, MeshIoError> {
         mesh.uvs = Some(uvs);
     }
     if has_c {
-        mesh.attributes.push(Attribute { name: "Cs".to_string(), components: 3, data: colors });
+        mesh.attributes.push(Attribute::data("Cs", 3, colors));
     }
     mesh.validate().map_err(|source| MeshIoError::Invalid { path: path.to_path_buf(), source })?;
     Ok(mesh)
@@ -142,10 +142,8 @@ pub fn load_ply(path: &Path) -> Result<Mesh, MeshIoError> {
     let mut mesh = Mesh { positions: Vec::with_capacity(vertices.len()), ..Default::default() };
     let mut normals = Vec::new();
     let mut uvs = Vec::new();
-    let mut attrs: Vec<Attribute> = extra
-        .iter()
-        .map(|name| Attribute { name: name.clone(), components: 1, data: Vec::with_capacity(vertices.len()) })
-        .collect();
+    let mut attrs: Vec<Attribute> =
+        extra.iter().map(|name| Attribute::data(name.clone(), 1, Vec::with_capacity(vertices.len()))).collect();
     for (i, e) in vertices.iter().enumerate() {
         let get = |k: &str| scalar(e, k).ok_or_else(|| err(format!("vertex {i} has no scalar `{k}`")));
         mesh.positions.push(Vec3::new(get("x")?, get("y")?, get("z")?));

@@ -140,6 +140,43 @@ fn constant_points_are_in_the_primitive_s_space_and_undeclared_or_retained_value
 }
 
 #[test]
+fn per_vertex_points_vectors_and_normals_reach_shaders_in_the_current_space() {
+    // RISpec: point, vector and normal primitive variables are given in object space. The square
+    // is stretched, turned and moved; a copy of its "P" (and of it as hpoints with w = 2) must
+    // arrive where P is, the vector (1, 0, 0) as (0, 2, 0) and the normal (1, 0, 0) as (0, 0.5, 0).
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    std::fs::write(
+        dir.path().join("spaces.sl"),
+        "surface spaces(varying point Pref = 0; varying point Ph = 0; varying vector d = 0; varying normal nn = 0;) \
+         { Ci = color(distance(Pref, P) + distance(Ph, P), ycomp(d) / 4, ycomp(nn)); Oi = 1; }",
+    )
+    .expect("write the shader");
+    let scene = format!(
+        r#"{CAMERA}
+        Surface "spaces"
+        Translate 1 0 0
+        Rotate 90 0 0 1
+        Scale 2 1 1
+        Polygon "P" [-1 -1 0  1 -1 0  1 1 0  -1 1 0]
+          "vertex point Pref" [-1 -1 0  1 -1 0  1 1 0  -1 1 0]
+          "vertex hpoint Ph" [-2 -2 0 2  2 -2 0 2  2 2 0 2  -2 2 0 2]
+          "varying vector d" [1 0 0  1 0 0  1 0 0  1 0 0]
+          "varying normal nn" [1 0 0  1 0 0  1 0 0  1 0 0]
+        WorldEnd"#
+    );
+    let mut rt = Context::new();
+    let loaded = load_str(&mut rt, &scene, dir.path().join("scene.rib")).unwrap_or_else(|e| panic!("{e}"));
+    assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+    let fb = render(&mut rt);
+    for (x, y) in [(36, 10), (40, 24), (44, 38)] {
+        let [distance, vector, normal, _] = fb.pixel(x, y);
+        assert!(distance.abs() < 1e-4, "the points are where P is at ({x}, {y}): {distance}");
+        assert!((vector - 0.5).abs() < 1e-5, "the vector at ({x}, {y}): {vector}");
+        assert!((normal - 0.5).abs() < 1e-5, "the normal at ({x}, {y}): {normal}");
+    }
+}
+
+#[test]
 fn shader_parameters_need_no_declaration_and_bad_ones_warn_with_their_location() {
     let (mut rt, warnings) = load(&format!(
         "{CAMERA}\nSurface \"constant\"\nSurface \"plastic\" \"Kd\" [0.2] \"nosuch\" [1] \"Ks\" [1 2 3]\n\

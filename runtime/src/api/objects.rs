@@ -278,11 +278,7 @@ impl Context {
             let pos = match b.attributes.iter().position(|a| &a.name == name) {
                 Some(i) => i,
                 None => {
-                    b.attributes.push(Attribute {
-                        name: name.clone(),
-                        components: v.len(),
-                        data: vec![0.0; index * v.len()],
-                    });
+                    b.attributes.push(Attribute::data(name.clone(), v.len(), vec![0.0; index * v.len()]));
                     b.attributes.len() - 1
                 }
             };
@@ -390,18 +386,18 @@ impl Context {
             None => b.uvs.extend(std::iter::repeat_n(Vec2::ZERO, count)),
         }
         for a in &mesh.attributes {
-            let pos = match b.attributes.iter().position(|x| x.name == a.name && x.components == a.components) {
+            let same = |x: &Attribute| x.name == a.name && x.components == a.components && x.kind == a.kind;
+            let pos = match b.attributes.iter().position(same) {
                 Some(i) => i,
                 None => {
-                    b.attributes.push(Attribute {
-                        name: a.name.clone(),
-                        components: a.components,
-                        data: vec![0.0; base as usize * a.components],
-                    });
+                    let data = vec![0.0; base as usize * a.components];
+                    b.attributes.push(Attribute { name: a.name.clone(), components: a.components, data, kind: a.kind });
                     b.attributes.len() - 1
                 }
             };
+            let at = b.attributes[pos].data.len();
             b.attributes[pos].data.extend_from_slice(&a.data);
+            a.kind.transform(&mut b.attributes[pos].data[at..], &xf, &normal_xf);
         }
         let total = b.positions.len();
         for x in &mut b.attributes {

@@ -85,6 +85,52 @@ pub struct Attribute {
     pub components: usize,
     /// `components * vertex_count` values, vertex-major.
     pub data: Vec<f32>,
+    /// How the values move with the object.
+    pub kind: AttributeKind,
+}
+
+impl Attribute {
+    /// Values that stay as they are wherever the object is placed (floats, colours, texture
+    /// coordinates).
+    pub fn data(name: impl Into<String>, components: usize, data: Vec<f32>) -> Attribute {
+        Attribute { name: name.into(), components, data, kind: AttributeKind::Data }
+    }
+}
+
+/// What an attribute's values are, for where the object is placed: RISpec gives point, vector
+/// and normal primitive variables in object space, and shaders see them in the current space
+/// (world space here), moved by the object's transform as `P` and `N` are. An attribute of one
+/// of those kinds holds whole triples (arrays of them too).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub enum AttributeKind {
+    #[default]
+    Data,
+    /// Moved as positions are.
+    Point,
+    /// Moved as directions are (the transform without its translation).
+    Vector,
+    /// Moved as normals are (by the inverse transpose), not normalised.
+    Normal,
+}
+
+impl AttributeKind {
+    /// Moves every whole triple of `values` (one vertex's, or an interpolated value) by the
+    /// transform `xf` whose normals move by `normal_xf` (its inverse transpose); data stays.
+    pub fn transform(self, values: &mut [f32], xf: &glam::Affine3A, normal_xf: &glam::Mat3A) {
+        if self == AttributeKind::Data {
+            return;
+        }
+        for v in values.chunks_exact_mut(3) {
+            let x = glam::Vec3A::new(v[0], v[1], v[2]);
+            let moved = match self {
+                AttributeKind::Point => xf.transform_point3a(x),
+                AttributeKind::Vector => xf.transform_vector3a(x),
+                AttributeKind::Normal => *normal_xf * x,
+                AttributeKind::Data => x,
+            };
+            v.copy_from_slice(&moved.to_array());
+        }
+    }
 }
 
 /// A triangle mesh.
@@ -321,6 +367,7 @@ impl Mesh {
         for a in &self.attributes {
             part(b"attribute", a.name.len(), a.name.as_bytes());
             part(b"components", a.components, &[]);
+            part(b"kind", a.kind as usize, &[]);
             part(b"values", a.data.len(), bytemuck::cast_slice(&a.data));
         }
         if let Some(d) = &self.deformation {
@@ -386,7 +433,7 @@ mod tests {
         let mut m = base.clone();
         m.uvs = Some(vec![Vec2::ZERO; 4]);
         changes.push(m);
-        let attribute = |name: &str, value: f32| Attribute { name: name.into(), components: 1, data: vec![value; 4] };
+        let attribute = |name: &str, value: f32| Attribute::data(name, 1, vec![value; 4]);
         let mut m = base.clone();
         m.attributes.push(attribute("Cs", 0.5));
         changes.push(m.clone());

@@ -11,5 +11,5 @@ pub mod quadric;
 pub mod triangle;
 
 pub use alpha::AlphaMask;
-pub use mesh::{Attribute, Deformation, Mesh, MeshError};
+pub use mesh::{Attribute, AttributeKind, Deformation, Mesh, MeshError};
 pub use quadric::{Quadric, Tessellation};

@@ -618,7 +618,10 @@ pub(super) fn hit_geometry(ig: &InstanceGeometry, hit: &Hit, time: f32, g: &mut 
         Some(ni) => (normal_xf * Vec3A::from(ni)).normalize_or(ng),
         None => ng,
     };
-    let attributes = mesh.interpolate_attributes([a, b, c], [w0, w1, w2]);
+    let mut attributes = mesh.interpolate_attributes([a, b, c], [w0, w1, w2]);
+    for (values, at) in attributes.iter_mut().zip(&mesh.attributes) {
+        at.kind.transform(values, &xf, &normal_xf);
+    }
     let surf_p = xf.transform_point3a(p_obj);
     let mut duv = [[1.0, 0.0], [0.0, 1.0]];
     let (uv, dpdu, dpdv) = match &mesh.uvs {
@@ -775,11 +778,11 @@ mod tests {
             triangles.extend((0..9).map(|k| [k, (k + 1) % vertices, (k + 5) % vertices]));
             // Every fifth round's mesh has its own `st` (and goes one hit at a time).
             let attributes = match round % 5 {
-                4 => vec![crate::geometry::mesh::Attribute {
-                    name: "st".into(),
-                    components: 2,
-                    data: (0..2 * vertices).map(|_| r() * 3.0).collect(),
-                }],
+                4 => vec![crate::geometry::mesh::Attribute::data(
+                    "st",
+                    2,
+                    (0..2 * vertices).map(|_| r() * 3.0).collect(),
+                )],
                 _ => Vec::new(),
             };
             let st = (!attributes.is_empty()).then_some(0);

@@ -47,6 +47,8 @@
 //! the wrong count is dropped with a warning, as for every primitive. Allocations are bounded by
 //! the control points times [`MAX_CURVE_SPAN_SEGMENTS`]; nothing recurses.
 
+use std::borrow::Cow;
+
 use glam::{Vec2, Vec3};
 
 use super::decl::Class;
@@ -57,7 +59,7 @@ use super::patch::PatchCurve;
 use super::request::{find_param, CurveType, Param, Wrap};
 use super::spline::{segments_for_turn, turning};
 use super::view::View;
-use crate::geometry::Mesh;
+use crate::geometry::{AttributeKind, Mesh};
 
 /// The most pieces a segment (span) of a cubic curve is cut into.
 pub const MAX_CURVE_SPAN_SEGMENTS: u32 = 64;
@@ -212,19 +214,28 @@ impl<'a> CurvesPlan<'a> {
                     p.value_count()
                 ));
             }
-            Ok(PerVertex { name: p.name.clone(), class: p.decl.class, components, values })
+            let kind = super::mesh::attribute_kind(p.decl.ty);
+            Ok(PerVertex { name: p.name.clone(), class: p.decl.class, components, values: Cow::Borrowed(values), kind })
         };
         let width = match (find_param(params, "width"), find_param(params, "constantwidth")) {
             (Some(width), _) => checked(width, 1, "a float")?,
             (None, Some(constant)) => match constant.floats() {
-                Some(values @ &[_]) => {
-                    PerVertex { name: "constantwidth".into(), class: Class::Constant, components: 1, values }
-                }
+                Some(values @ &[_]) => PerVertex {
+                    name: "constantwidth".into(),
+                    class: Class::Constant,
+                    components: 1,
+                    values: Cow::Borrowed(values),
+                    kind: AttributeKind::Data,
+                },
                 _ => return Err(format!("\"constantwidth\" ({}) must be one float", constant.decl)),
             },
-            (None, None) => {
-                PerVertex { name: "width".into(), class: Class::Constant, components: 1, values: &DEFAULT_WIDTH }
-            }
+            (None, None) => PerVertex {
+                name: "width".into(),
+                class: Class::Constant,
+                components: 1,
+                values: Cow::Borrowed(&DEFAULT_WIDTH),
+                kind: AttributeKind::Data,
+            },
         };
         let normal = find_param(params, "N").map(|n| checked(n, 3, "a normal (three floats a value)")).transpose()?;
         let mut plan =
@@ -256,7 +267,7 @@ impl<'a> CurvesPlan<'a> {
 
     /// Whether some width of curve `index` is positive.
     fn has_width(&self, index: usize, curve: &Curve) -> bool {
-        let values = self.width.values;
+        let values = &self.width.values[..];
         let own = match self.width.class {
             Class::Constant | Class::Implicit => values.get(..1),
             Class::Uniform => values.get(index..index + 1),

@@ -8,7 +8,9 @@
 //!   patches and quadrics get their `(u, v)` parameters as uvs (over the whole patch mesh) and
 //!   their analytic normals; polygons get no normals and no uvs;
 //! - every other float-typed `vertex`, `varying`, `facevarying` or `uniform` parameter becomes a
-//!   named per-vertex [`Attribute`] (uniform values repeat at each vertex of their face);
+//!   named per-vertex [`Attribute`] (uniform values repeat at each vertex of their face) of the
+//!   kind its type says (points, vectors and normals move with the object; an `hpoint` is divided
+//!   by its `w` into a point);
 //! - `constant` parameters, integers and strings are not per-vertex data: the loader passes
 //!   `constant` ones (and `uniform` ones of one-face primitives) to the shaders as parameter values
 //!   (`docs/rib.md`, "Primitive variables").
@@ -19,6 +21,7 @@
 //! (holes run either way). Malformed data (counts, indices) is an `Err` with a message, never a
 //! panic.
 
+use std::borrow::Cow;
 use std::sync::Arc;
 
 use glam::{Vec2, Vec3};
@@ -28,7 +31,7 @@ use super::request::{find_param, Basis, Param};
 use super::trim::{Trim, TrimSense};
 use super::view::View;
 use crate::geometry::quadric::{Quadric, Tessellation};
-use crate::geometry::{Attribute, Mesh};
+use crate::geometry::{Attribute, AttributeKind, Mesh};
 
 /// Polygons with more vertices than this are fanned instead of ear-clipped (ear clipping is
 /// quadratic; RIB polygons this large are in practice convex).
@@ -182,12 +185,12 @@ pub fn points_general_polygons_mesh(
                 };
                 values.extend_from_slice(&d.values[index * d.components..(index + 1) * d.components]);
             }
-            attributes.push(Attribute { name: d.name.clone(), components: d.components, data: values });
+            attributes.push(d.attribute(values));
         }
         vertices.iter().map(|&v| points[v as usize]).collect()
     } else {
         for d in &data {
-            attributes.push(Attribute { name: d.name.clone(), components: d.components, data: d.values.to_vec() });
+            attributes.push(d.attribute(d.values.to_vec()));
         }
         points
     };
@@ -249,7 +252,7 @@ pub fn quadric_mesh(
         }
         let mut data = Vec::with_capacity(d.components * uvs.len());
         interpolate_corners(&d, [0, 1, 2, 3], 0, &uvs, &mut data);
-        attributes.push(Attribute { name: d.name.clone(), components: d.components, data });
+        attributes.push(d.attribute(data));
     }
     mesh.uvs = Some(uvs.iter().map(|&uv| options.default_st(uv)).collect());
     route_attributes(&mut mesh, attributes);
@@ -272,7 +275,27 @@ pub(super) struct PerVertex<'a> {
     pub(super) name: String,
     pub(super) class: Class,
     pub(super) components: usize,
-    pub(super) values: &'a [f32],
+    /// The parameter's own values, or an `hpoint`'s divided by their `w`.
+    pub(super) values: Cow<'a, [f32]>,
+    pub(super) kind: AttributeKind,
+}
+
+impl PerVertex<'_> {
+    /// The mesh attribute of these values: `data` (one value per mesh vertex), named and moved
+    /// with the object as the parameter's type says.
+    pub(super) fn attribute(&self, data: Vec<f32>) -> Attribute {
+        Attribute { name: self.name.clone(), components: self.components, data, kind: self.kind }
+    }
+}
+
+/// How a parameter of type `ty` moves with the object.
+pub(super) fn attribute_kind(ty: Ty) -> AttributeKind {
+    match ty {
+        Ty::Point | Ty::HPoint => AttributeKind::Point,
+        Ty::Vector => AttributeKind::Vector,
+        Ty::Normal => AttributeKind::Normal,
+        _ => AttributeKind::Data,
+    }
 }
 
 /// An empty mesh with room for `vertices` vertices (positions, normals, uvs) and `triangles`
@@ -286,14 +309,7 @@ pub(super) fn reserve_mesh(vertices: usize, triangles: usize, data: &[PerVertex<
         triangles: Vec::with_capacity(triangles),
         ..Default::default()
     };
-    let attributes = data
-        .iter()
-        .map(|d| Attribute {
-            name: d.name.clone(),
-            components: d.components,
-            data: Vec::with_capacity(vertices * d.components),
-        })
-        .collect();
+    let attributes = data.iter().map(|d| d.attribute(Vec::with_capacity(vertices * d.components))).collect();
     (mesh, attributes)
 }
 
@@ -335,7 +351,16 @@ pub(super) fn per_vertex_params<'a>(
             ));
             continue;
         }
-        out.push(PerVertex { name: p.name.clone(), class: p.decl.class, components: p.decl.components(), values });
+        // Shaders have no homogeneous type: an `hpoint` reaches them as the point it stands for.
+        let (components, values) = match p.decl.ty {
+            Ty::HPoint => (
+                3 * p.decl.array_len.unwrap_or(1),
+                Cow::Owned(values.chunks_exact(4).flat_map(|h| [h[0] / h[3], h[1] / h[3], h[2] / h[3]]).collect()),
+            ),
+            _ => (p.decl.components(), Cow::Borrowed(values)),
+        };
+        let kind = attribute_kind(p.decl.ty);
+        out.push(PerVertex { name: p.name.clone(), class: p.decl.class, components, values, kind });
     }
     out
 }
@@ -364,8 +389,8 @@ pub(super) fn route_attributes(mesh: &mut Mesh, attributes: Vec<Attribute>) {
         (Some(s), Some(t), _) => mesh.uvs = Some(s.into_iter().zip(t).map(|(s, t)| Vec2::new(s, t)).collect()),
         (Some(s), None, Some(uvs)) => uvs.iter_mut().zip(s).for_each(|(uv, s)| uv.x = s),
         (None, Some(t), Some(uvs)) => uvs.iter_mut().zip(t).for_each(|(uv, t)| uv.y = t),
-        (Some(s), None, None) => mesh.attributes.push(Attribute { name: "s".into(), components: 1, data: s }),
-        (None, Some(t), None) => mesh.attributes.push(Attribute { name: "t".into(), components: 1, data: t }),
+        (Some(s), None, None) => mesh.attributes.push(Attribute::data("s", 1, s)),
+        (None, Some(t), None) => mesh.attributes.push(Attribute::data("t", 1, t)),
         (None, None, _) => {}
     }
 }
@@ -386,7 +411,7 @@ pub(super) fn route_attributes_keeping_uv(mesh: &mut Mesh, attributes: Vec<Attri
     match (s, t) {
         (Some(s), Some(t)) => {
             let data = s.data.iter().zip(&t.data).flat_map(|(&s, &t)| [s, t]).collect();
-            mesh.attributes.push(Attribute { name: "st".into(), components: 2, data });
+            mesh.attributes.push(Attribute::data("st", 2, data));
         }
         (s, t) => mesh.attributes.extend(s.into_iter().chain(t)),
     }

@@ -519,8 +519,7 @@ pub fn nupatch_mesh(
     let mut mesh = Mesh::default();
     let mut normals = Vec::new();
     let mut uvs_out = Vec::new();
-    let mut attributes: Vec<Attribute> =
-        data.iter().map(|d| Attribute { name: d.name.clone(), components: d.components, data: Vec::new() }).collect();
+    let mut attributes: Vec<Attribute> = data.iter().map(|d| d.attribute(Vec::new())).collect();
     let (du, dv) = (s.urange.1 - s.urange.0, s.vrange.1 - s.vrange.0);
     let segments = tessellation.trim.as_ref().map(|t| t.segments.as_slice()).unwrap_or_default();
     tessellation.blocks(true, |block| {

@@ -226,8 +226,7 @@ pub fn patch_mesh(
     let data = per_vertex_params(params, &counts, warnings);
 
     let mut mesh = Mesh { normals: Some(Vec::new()), uvs: Some(Vec::new()), ..Default::default() };
-    let mut attributes: Vec<Attribute> =
-        data.iter().map(|d| Attribute { name: d.name.clone(), components: d.components, data: Vec::new() }).collect();
+    let mut attributes: Vec<Attribute> = data.iter().map(|d| d.attribute(Vec::new())).collect();
     for pj in 0..nv_patches {
         for pi in 0..nu_patches {
             let control = |a: usize, b: usize| grid.control((pi, pj), a, b);

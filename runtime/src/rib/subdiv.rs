@@ -1076,8 +1076,7 @@ fn assemble(
     let per_corner = params.iter().any(|d| matches!(d.class, Class::Uniform | Class::FaceVarying));
     let mut index = vec![NONE; corners];
     let mut mesh = Mesh { normals: Some(Vec::new()), ..Default::default() };
-    let mut attributes: Vec<Attribute> =
-        params.iter().map(|d| Attribute { name: d.name.clone(), components: d.components, data: Vec::new() }).collect();
+    let mut attributes: Vec<Attribute> = params.iter().map(|d| d.attribute(Vec::new())).collect();
     for f in 0..level.faces() {
         if !drawn[level.face_origin[f] as usize] {
             continue;

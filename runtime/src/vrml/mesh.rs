@@ -286,7 +286,7 @@ pub fn face_set(input: &FaceSet, budget: &mut usize) -> Made {
         mesh.uvs = Some(mesh_uvs);
     }
     if mesh_colors.len() == 3 * count && colors.is_some() && count > 0 {
-        mesh.attributes.push(Attribute { name: "Cs".into(), components: 3, data: mesh_colors });
+        mesh.attributes.push(Attribute::data("Cs", 3, mesh_colors));
     }
     Made { mesh, problems }
 }
