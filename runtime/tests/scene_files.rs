@@ -177,6 +177,47 @@ fn per_vertex_points_vectors_and_normals_reach_shaders_in_the_current_space() {
 }
 
 #[test]
+fn polygons_are_parameterised_by_their_x_and_y() {
+    // RISpec: "The surface parameters of a polygon are its (x,y) coordinates ... Texture
+    // coordinates are set equal to the surface parameters unless texture coordinates are given
+    // explicitly". The shader shows how far (s, t) and (u, v) are from the point's object (x, y),
+    // on a polygon turned and moved (left), and "s" given alone replaces s only (right).
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    std::fs::write(
+        dir.path().join("xy.sl"),
+        "surface xy() { point o = transform(\"object\", P); \
+         Ci = color(abs(s - xcomp(o)) + abs(u - xcomp(o)), abs(t - ycomp(o)) + abs(v - ycomp(o)), s); Oi = 1; }",
+    )
+    .expect("write the shader");
+    let scene = format!(
+        r#"{CAMERA}
+        Surface "xy"
+        AttributeBegin
+          Translate -1 0 0
+          Rotate 30 0 0 1
+          Polygon "P" [-0.5 -0.5 0  0.5 -0.5 0  0.5 0.5 0  -0.5 0.5 0  -0.7 0 0]
+        AttributeEnd
+        AttributeBegin
+          Translate 1 0 0
+          Polygon "P" [-0.5 -0.5 0  0.5 -0.5 0  0.5 0.5 0  -0.5 0.5 0] "varying float s" [2 2 2 2]
+        AttributeEnd
+        WorldEnd"#
+    );
+    let mut rt = Context::new();
+    let loaded = load_str(&mut rt, &scene, dir.path().join("scene.rib")).unwrap_or_else(|e| panic!("{e}"));
+    assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+    let fb = render(&mut rt);
+    for (x, y) in [(19, 21), (21, 26), (16, 24)] {
+        let [ds, dt, _, alpha] = fb.pixel(x, y);
+        assert_eq!(alpha, 1.0, "the left polygon is at ({x}, {y})");
+        assert!(ds < 1e-4 && dt < 1e-4, "(s, t) and (u, v) are the object's (x, y) at ({x}, {y}): {ds} {dt}");
+    }
+    let [_, dt, s, alpha] = fb.pixel(44, 24);
+    assert_eq!(alpha, 1.0, "the right polygon");
+    assert!(dt < 1e-4 && (s - 2.0).abs() < 1e-6, "s given, t the object's y: {dt} {s}");
+}
+
+#[test]
 fn shader_parameters_need_no_declaration_and_bad_ones_warn_with_their_location() {
     let (mut rt, warnings) = load(&format!(
         "{CAMERA}\nSurface \"constant\"\nSurface \"plastic\" \"Kd\" [0.2] \"nosuch\" [1] \"Ks\" [1 2 3]\n\

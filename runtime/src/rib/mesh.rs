@@ -4,9 +4,9 @@
 //! What goes where in the mesh:
 //! - `P` (or `Pw`, divided by `w`; `Pz` for patches) gives the positions;
 //! - `N` gives the per-vertex normals (normalised), `st` (or `s` and `t`) the uvs, and `s` or `t`
-//!   alone that coordinate of the default uvs where the primitive has them. Without them
-//!   patches and quadrics get their `(u, v)` parameters as uvs (over the whole patch mesh) and
-//!   their analytic normals; polygons get no normals and no uvs;
+//!   alone that coordinate of the default uvs. Without them patches and quadrics get their
+//!   `(u, v)` parameters as uvs (over the whole patch mesh) and their analytic normals; polygons
+//!   get no normals, and their `(x, y)` as uvs (RISpec: a polygon's surface parameters);
 //! - every other float-typed `vertex`, `varying`, `facevarying` or `uniform` parameter becomes a
 //!   named per-vertex [`Attribute`] (uniform values repeat at each vertex of their face) of the
 //!   kind its type says (points, vectors and normals move with the object; an `hpoint` is divided
@@ -224,7 +224,10 @@ pub fn points_general_polygons_mesh(
             if holes_lost > 0 { format!(", and the holes of {holes_lost} are not cut out") } else { String::new() }
         ));
     }
-    let mut mesh = Mesh { positions: mesh_positions, triangles, ..Default::default() };
+    // RISpec: a polygon's surface parameters are its (x, y) in its own space, and its texture
+    // coordinates are those unless given.
+    let uvs = mesh_positions.iter().map(|p| Vec2::new(p.x, p.y)).collect();
+    let mut mesh = Mesh { positions: mesh_positions, triangles, uvs: Some(uvs), ..Default::default() };
     route_attributes(&mut mesh, attributes);
     mesh.validate().map_err(|e| e.to_string())?;
     Ok(mesh)
@@ -383,7 +386,7 @@ pub(super) fn route_attributes(mesh: &mut Mesh, attributes: Vec<Attribute>) {
         }
     }
     // One of `s` and `t` alone replaces that coordinate of the surface's own (its default
-    // `TextureCoordinates` mapping); a mesh without them (polygons) keeps it as data.
+    // `TextureCoordinates` mapping, or a polygon's `(x, y)`); a mesh without them keeps it as data.
     let uvs = mesh.uvs.as_mut().filter(|uvs| s.as_ref().or(t.as_ref()).is_some_and(|c| c.len() == uvs.len()));
     match (s, t, uvs) {
         (Some(s), Some(t), _) => mesh.uvs = Some(s.into_iter().zip(t).map(|(s, t)| Vec2::new(s, t)).collect()),
