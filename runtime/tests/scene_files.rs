@@ -218,6 +218,32 @@ fn polygons_are_parameterised_by_their_x_and_y() {
 }
 
 #[test]
+fn an_imager_that_sets_oi_gives_the_pixels_that_opacity() {
+    // RISpec: an imager's `Oi` out is the output pixel's opacity. An empty world has coverage 0:
+    // the pixel's alpha is the shader's `alpha` where its code sets that, the mean of its `Oi`
+    // where it sets only that, and the coverage where it sets neither.
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let shaders =
+        [("lens", "Oi = xcomp(P) < 32 ? color(0, 0.25, 0.5) : 1;"), ("both", "Oi = 1; alpha = 0.75;"), ("colour", "")];
+    for (name, body) in shaders {
+        let source = format!("imager {name}() {{ Ci = color(1, 0.5, 0.25); {body} }}");
+        std::fs::write(dir.path().join(format!("{name}.sl")), source).expect("write the shader");
+    }
+    let alpha_at = |name: &str| -> [f32; 2] {
+        let scene = format!("{CAMERA}WorldEnd").replace("WorldBegin", &format!("Imager \"{name}\"\nWorldBegin"));
+        let mut rt = Context::new();
+        let loaded = load_str(&mut rt, &scene, dir.path().join("scene.rib")).unwrap_or_else(|e| panic!("{e}"));
+        assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+        let fb = render(&mut rt);
+        assert_eq!(&fb.pixel(10, 10)[..3], [1.0, 0.5, 0.25], "the imager's colour");
+        [fb.pixel(10, 10)[3], fb.pixel(50, 10)[3]]
+    };
+    assert_eq!(alpha_at("lens"), [0.25, 1.0], "Oi alone: its mean");
+    assert_eq!(alpha_at("both"), [0.75, 0.75], "alpha set");
+    assert_eq!(alpha_at("colour"), [0.0, 0.0], "neither: the coverage");
+}
+
+#[test]
 fn shader_parameters_need_no_declaration_and_bad_ones_warn_with_their_location() {
     let (mut rt, warnings) = load(&format!(
         "{CAMERA}\nSurface \"constant\"\nSurface \"plastic\" \"Kd\" [0.2] \"nosuch\" [1] \"Ks\" [1 2 3]\n\

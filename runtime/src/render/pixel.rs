@@ -29,7 +29,8 @@ pub fn reads_pixels(world: &super::World) -> bool {
 
 /// Runs the world's pixel shader (RenderMan's imager) over a finished tile, 64 pixels a batch: `Ci`,
 /// `Oi` and `alpha` in, `P` the raster position of the pixel's centre, `zdepth`, `objectid` and
-/// `shaderid` (-1 for none); `Ci` and `alpha` out. `image`, the whole image as it was, is what
+/// `shaderid` (-1 for none); `Ci` and `alpha` out (or where the shader sets `Oi` and not `alpha`,
+/// the mean of `Oi`). `image`, the whole image as it was, is what
 /// `pixelvalue` reads (without it, `pixelvalue` answers 0).
 pub fn shade_pixels(frame: &Frame, tile: TilePixels<'_>, image: Option<&PixelImage>) {
     let Some(imager) = &frame.world.pixel else { return };
@@ -79,8 +80,15 @@ pub fn shade_pixels(frame: &Frame, tile: TilePixels<'_>, image: Option<&PixelIma
                 let k = start + lane;
                 let c = tile.rgba[k];
                 let ci = get3(&raw, slots.ci, lane, Vec3A::new(c[0], c[1], c[2]));
-                let alpha = match slots.alpha {
-                    Some(s) if s.varying => raw.varying[s.offset * raw.stride + lane],
+                let alpha = match (slots.alpha, slots.oi) {
+                    (Some(s), _) if s.written && s.varying => raw.varying[s.offset * raw.stride + lane],
+                    (Some(s), _) if s.written => raw.uniform[s.offset],
+                    // RISpec's `Oi` out is the output pixel's opacity: a shader that sets it and
+                    // not `alpha` gives the pixel that coverage (the mean of its channels).
+                    (_, Some(s)) if s.written => {
+                        let oi = get3(&raw, Some(s), lane, Vec3A::splat(c[3]));
+                        (oi.x + oi.y + oi.z) / 3.0
+                    }
                     _ => c[3],
                 };
                 tile.rgba[k] = [ci.x, ci.y, ci.z, alpha];
