@@ -8,10 +8,12 @@
  *
  * Parameters:
  *   background -- the colour behind the scene (1, white).
+ *   bgcolor    -- multiplies it: the name BMRT's and Aqsis's background
+ *                 imagers give the colour, so their scenes set it (1).
  */
-imager background(color background = 1;)
+imager background(color background = 1; color bgcolor = 1;)
 {
-    Ci += (1 - alpha) * background;
+    Ci += (1 - alpha) * bgcolor * background;
     Oi = 1;
     alpha = 1;
 }
