@@ -404,6 +404,17 @@ fn textures_from_memory_are_looked_up_by_name() -> Result<(), ApiError> {
     rt.tex_image_2d("halves", 8, 1, 3, &texels)?;
     assert!(matches!(rt.tex_image_2d("bad", 2, 2, 3, &[0.0; 5]), Err(ApiError::BadTexture { .. })));
     let shader = rt.compile_shader("tex.sl", "surface tex() { Oi = 1; Ci = color texture(\"halves\", s, t); }")?;
+    screen_filling_quad(&mut rt, shader)?;
+    let fb = render(&mut rt);
+    let (left, right) = (fb.pixel(4, 12), fb.pixel(27, 12));
+    assert!(left[0] > 0.9 && left[2] < 0.1, "{left:?}");
+    assert!(right[2] > 0.9 && right[0] < 0.1, "{right:?}");
+    Ok(())
+}
+
+/// A quad shaded by `shader` that fills the camera's view, which this places: s runs 0 to 1 from
+/// left to right and t from top to bottom.
+fn screen_filling_quad(rt: &mut Context, shader: rtsl_runtime::api::ShaderId) -> Result<(), ApiError> {
     rt.camera_look_at(glam::Vec3A::new(0.0, 0.0, 3.0), glam::Vec3A::ZERO, glam::Vec3A::Y, 60.0);
     let o = rt.begin_object()?;
     rt.bind_shader(shader)?;
@@ -415,10 +426,6 @@ fn textures_from_memory_are_looked_up_by_name() -> Result<(), ApiError> {
     rt.end()?;
     rt.end_object()?;
     rt.instantiate_object(o)?;
-    let fb = render(&mut rt);
-    let (left, right) = (fb.pixel(4, 12), fb.pixel(27, 12));
-    assert!(left[0] > 0.9 && left[2] < 0.1, "{left:?}");
-    assert!(right[2] > 0.9 && right[0] < 0.1, "{right:?}");
     Ok(())
 }
 
@@ -435,17 +442,7 @@ fn stripes_frame(surface: &str) -> Result<rtsl_runtime::render::Framebuffer, Api
         .collect();
     rt.tex_image_2d("stripes", 64, 32, 3, &texels)?;
     let shader = rt.compile_shader("env.sl", surface)?;
-    rt.camera_look_at(glam::Vec3A::new(0.0, 0.0, 3.0), glam::Vec3A::ZERO, glam::Vec3A::Y, 60.0);
-    let o = rt.begin_object()?;
-    rt.bind_shader(shader)?;
-    rt.begin(rtsl_runtime::api::Primitive::Quads)?;
-    for (x, y, s, t) in [(-5.0, -5.0, 0.0, 1.0), (5.0, -5.0, 1.0, 1.0), (5.0, 5.0, 1.0, 0.0), (-5.0, 5.0, 0.0, 0.0)] {
-        rt.tex_coord(s, t);
-        rt.vertex(x, y, 0.0)?;
-    }
-    rt.end()?;
-    rt.end_object()?;
-    rt.instantiate_object(o)?;
+    screen_filling_quad(&mut rt, shader)?;
     Ok(render(&mut rt))
 }
 
