@@ -93,7 +93,7 @@ builtins! {
     Ceil "ceil" ["T(T)"] 0, Inline, "smallest integer not below x";
     Round "round" ["T(T)"] 0, Inline, "nearest integer";
     Sqrt "sqrt" ["T(T)"] 0, Inline, "square root (0 for negative x)";
-    InverseSqrt "inversesqrt" ["T(T)"] 0, Inline, "1/sqrt(x)";
+    InverseSqrt "inversesqrt" ["T(T)"] 0, Inline, "1/sqrt(x) (0 for x ≤ 0, as `sqrt` gives 0 for negative x: no infinities)";
     Exp "exp" ["T(T)"] 0, Lane, "e to the x";
     Log "log" ["T(T)", "T(T,T)"] 0, Lane, "natural logarithm, or logarithm to a base";
     Pow "pow" ["T(T,T)"] 0, Lane, "x to the y";
@@ -147,8 +147,8 @@ builtins! {
     Vtransform "vtransform" ["v(s,v)", "v(s,s,v)", "v(m,v)", "v(s,m,v)"] 0, Host, "transform a vector between coordinate systems";
     Ntransform "ntransform" ["n(s,n)", "n(s,s,n)", "n(m,n)", "n(s,m,n)"] 0, Host, "transform a normal between coordinate systems";
     // ---- Colour (15.3) ----
-    Comp "comp" ["f(G,f)", "f(m,f,f)"] 0, Inline, "a component of a triple, or an element of a matrix";
-    SetComp "setcomp" ["x(&G,f,f)", "x(&m,f,f,f)"] SIDE_EFFECTS, Inline, "set a component of a triple or an element of a matrix";
+    Comp "comp" ["f(G,f)", "f(m,f,f)"] 0, Inline, "a component of a triple, or an element of a matrix (an index past the ends reads the nearest one, a NaN index the first)";
+    SetComp "setcomp" ["x(&G,f,f)", "x(&m,f,f,f)"] SIDE_EFFECTS, Inline, "set a component of a triple or an element of a matrix (indices as `comp` reads them)";
     Ctransform "ctransform" ["c(s,c)", "c(s,s,c)"] 0, Lane, "convert a colour between colour spaces";
     // ---- Matrix (15.4) ----
     Determinant "determinant" ["f(m)"] 0, Lane, "determinant";
