@@ -506,6 +506,31 @@ fn texture_channels_the_map_lacks_read_the_fill_value() -> Result<(), ApiError> 
 }
 
 #[test]
+fn absurd_lookup_options_and_hpoints_at_infinity_render_without_failing() -> Result<(), ApiError> {
+    // Widths past f32's range, negative blur, an infinite fill and a NaN direction: a frame, whatever
+    // the values in it.
+    let fb = stripes_frame(
+        "surface t() { Oi = 1; Ci = color environment(\"stripes\", vector(0/0, 1, 0), \"width\", 1e38, \"blur\", -5) \
+         + color texture(\"stripes\"[2], s, t, \"fill\", 1/0, \"width\", 1e38, \"tblur\", 1e30); }",
+    )?;
+    assert_eq!(fb.pixel(16, 12)[3], 1.0, "the quad is drawn");
+    // An hpoint with w = 0 (a point at infinity) divides to infinities, not to a failure.
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    std::fs::write(dir.path().join("h.sl"), "surface h(varying point Ph = 0;) { Ci = color(Ph); Oi = 1; }")
+        .expect("write the shader");
+    let scene = format!(
+        r#"{CAMERA}
+        Surface "h"
+        Polygon "P" [-1 -1 0  1 -1 0  1 1 0  -1 1 0] "vertex hpoint Ph" [0 0 0 0  1 1 1 0  1e30 1e30 1e30 1e-30  -1 0 0 0]
+        WorldEnd"#
+    );
+    let mut rt = Context::new();
+    load_str(&mut rt, &scene, dir.path().join("scene.rib")).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(render(&mut rt).pixel(32, 24)[3], 1.0, "the polygon is drawn");
+    Ok(())
+}
+
+#[test]
 fn models_load_from_obj_ply_and_gltf() -> Result<(), SceneFileError> {
     for (file, triangles) in [
         ("cornell_box/cornell_box.obj", 36),
