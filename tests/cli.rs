@@ -1388,6 +1388,48 @@ fn displays_write_their_modes_depths_and_additional_images() {
     assert!(n[2] < -0.9, "N in current (camera) space: the sphere's front faces the camera, -z: {n:?}");
 }
 
+/// Display drivers name the format (RenderMan's `file` is TIFF where the name's extension names
+/// none), renderers' viewers are windows, and a driver rtsl does not have is left out with a
+/// warning while the frame renders.
+#[test]
+fn display_drivers_choose_the_format_and_viewers_are_windows() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = |displays: &str| SPHERE_RIB.replace("Format 32 32 1", &format!("Format 32 32 1\n{displays}"));
+    let drivers = "Display \"ri.pic\" \"file\" \"rgba\"\nDisplay \"+tiled\" \"tiff\" \"rgb\"\n\
+                   Display \"+layers\" \"openexr\" \"rgba\"\nDisplay \"+shot.img\" \"png\" \"rgba\"\n\
+                   Display \"+render\" \"piqsl\" \"rgb\"\nDisplay \"+view\" \"idisplay\" \"rgb\"";
+    write(dir.path(), "d.rib", &scene(drivers));
+    let o = rtsl(&["render", "d.rib", "-q"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert_eq!(stderr(&o).matches("is a window").count(), 1, "{}", stderr(&o));
+    let magic = |name: &str| std::fs::read(dir.path().join(name)).map(|b| b[..4].to_vec()).expect(name);
+    let tiff = |m: &[u8]| m == b"II*\0" || m == b"MM\0*";
+    assert!(tiff(&magic("ri.pic")) && tiff(&magic("tiled")), "RenderMan's file and tiff drivers write TIFF");
+    assert_eq!(magic("layers"), vec![0x76, 0x2f, 0x31, 0x01], "openexr writes EXR");
+    assert_eq!(magic("shot.img"), b"\x89PNG".to_vec());
+    assert!(!dir.path().join("render").exists() && !dir.path().join("view").exists());
+
+    write(dir.path(), "u.rib", &scene("Display \"u.png\" \"file\" \"rgba\"\nDisplay \"+odd\" \"sgi\" \"rgba\""));
+    let o = rtsl(&["render", "u.rib", "-q"], dir.path());
+    assert_eq!(o.status.code(), Some(1), "the display is missing from the output: {}", stderr(&o));
+    assert!(stderr(&o).contains("display driver \"sgi\" is not one rtsl has"), "{}", stderr(&o));
+    assert!(dir.path().join("u.png").exists());
+}
+
+/// PRMan's built-in `background` imager takes its colour as `"color"`, a name no shader
+/// parameter can have: it is the `background` parameter of ours.
+#[test]
+fn the_background_imager_takes_prmans_color_parameter() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let imager = "Display \"bg.exr\" \"file\" \"rgba\"\nImager \"background\" \"color\" [0.25 0.5 1]";
+    write(dir.path(), "bg.rib", &SPHERE_RIB.replace("Format 32 32 1", &format!("Format 32 32 1\n{imager}")));
+    let o = rtsl(&["render", "bg.rib", "-q"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("no parameter"), "{}", stderr(&o));
+    let image = rtsl_runtime::read_image(dir.path().join("bg.exr")).expect("bg.exr");
+    assert_eq!(image.pixel(0, 0), [0.25, 0.5, 1.0, 1.0]);
+}
+
 #[test]
 fn a_shadow_map_pass_feeds_the_frame_after_it() {
     let dir = tempfile::tempdir().expect("tempdir");

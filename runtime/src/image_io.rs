@@ -228,11 +228,26 @@ pub fn write_channels(
     values: &[f32],
     opts: &WriteOptions,
 ) -> Result<(), ImageError> {
+    let path = path.as_ref();
+    let format = ImageFormat::from_path(path).ok_or_else(|| ImageError::UnsupportedFormat { path: path.into() })?;
+    write_channels_as(path, format, width, height, names, values, opts)
+}
+
+/// [`write_channels`] in `format`, whatever the path's extension (a RenderMan display driver
+/// names the format, as `Display "ri.pic" "tiff" "rgb"` does).
+pub fn write_channels_as(
+    path: impl AsRef<Path>,
+    format: ImageFormat,
+    width: usize,
+    height: usize,
+    names: &[&str],
+    values: &[f32],
+    opts: &WriteOptions,
+) -> Result<(), ImageError> {
     use ::image::ExtendedColorType as C;
     let path = path.as_ref();
     let channels = names.len();
     check_buffer(path, width, height, channels, values.len())?;
-    let format = ImageFormat::from_path(path).ok_or_else(|| ImageError::UnsupportedFormat { path: path.into() })?;
     let unsupported = |what: &str| ImageError::UnsupportedSamples { path: path.into(), what: what.into() };
     if format == ImageFormat::Exr {
         let channel = |c: usize| -> Vec<f32> { values.iter().skip(c).step_by(channels).copied().collect() };
@@ -277,13 +292,13 @@ pub fn write_channels(
             // The encoder has no one-channel float layout: grey is stored as RGB.
             let rgb: std::borrow::Cow<[f32]> =
                 if channels == 1 { values.iter().flat_map(|&v| [v, v, v]).collect::<Vec<_>>().into() } else { values };
-            save_encoded(path, bytemuck::cast_slice(&rgb[..]), width, height, color(4))
+            save_encoded(path, format, bytemuck::cast_slice(&rgb[..]), width, height, color(4))
         }
         (SampleType::U16, ImageFormat::Png | ImageFormat::Tiff) => {
             let q = opts.quantize.unwrap_or(Quantize::EIGHT_BIT);
             let words: Vec<u16> =
                 encode_integers(width, &names, &values, opts, |v, x, y| q.apply(v, x, y)).map(|v| v as u16).collect();
-            save_encoded(path, bytemuck::cast_slice(&words), width, height, color(2))
+            save_encoded(path, format, bytemuck::cast_slice(&words), width, height, color(2))
         }
         (SampleType::U8, _) => {
             let bytes: Vec<u8> = match opts.quantize {
@@ -292,7 +307,7 @@ pub fn write_channels(
                 }
                 None => quantize(width, &values, &names, opts),
             };
-            save_encoded(path, &bytes, width, height, color(1))
+            save_encoded(path, format, &bytes, width, height, color(1))
         }
         (SampleType::F32, _) => Err(unsupported("floats (use .tif or .exr)")),
         (SampleType::U16, _) => Err(unsupported("16-bit samples (use .png or .tif)")),
@@ -416,13 +431,19 @@ fn quantize(width: usize, values: &[f32], names: &[&str], opts: &WriteOptions) -
 
 fn save_encoded(
     path: &Path,
+    format: ImageFormat,
     bytes: &[u8],
     width: usize,
     height: usize,
     color: ::image::ExtendedColorType,
 ) -> Result<(), ImageError> {
-    let format =
-        ::image::ImageFormat::from_path(path).map_err(|_| ImageError::UnsupportedFormat { path: path.into() })?;
+    let format = match format {
+        ImageFormat::Png => ::image::ImageFormat::Png,
+        ImageFormat::Tga => ::image::ImageFormat::Tga,
+        ImageFormat::Ppm => ::image::ImageFormat::Pnm,
+        ImageFormat::Tiff => ::image::ImageFormat::Tiff,
+        ImageFormat::Exr => ::image::ImageFormat::OpenExr,
+    };
     let mut encoded = std::io::Cursor::new(Vec::new());
     ::image::write_buffer_with_format(&mut encoded, bytes, width as u32, height as u32, color, format)
         .map_err(|e| ImageError::Encode { path: path.into(), message: e.to_string() })?;

@@ -4,7 +4,7 @@
 use anyhow::Context as _;
 use rtsl_runtime::api::Context;
 use rtsl_runtime::distributed::{Master, Transport};
-use rtsl_runtime::image_io::{write_channels, Quantize};
+use rtsl_runtime::image_io::{write_channels_as, ImageFormat, Quantize};
 use rtsl_runtime::reload::{ShaderEvent, ShaderReloader, ShaderWatcher};
 use rtsl_runtime::render::{
     render_frame, Antialiasing, DisplayMode, FrameReport, Framebuffer, World, MAX_PIXEL_SAMPLES,
@@ -314,46 +314,51 @@ impl Renderer {
     }
 }
 
-/// The image a render writes, and how (a `--transfer` given, or the scene's).
+/// The images a render writes, and how (a `--transfer` given, or the scene's).
 struct Output {
-    path: PathBuf,
-    /// The channels it holds.
-    mode: DisplayMode,
-    /// An output variable it holds instead of colour (a RIB arbitrary output variable).
-    output: Option<String>,
+    /// The first image (the scene's first display, or `-o`).
+    first: Image,
     transfer: Option<Transfer>,
     /// More images of the frame (RIB `+name` displays).
     extra: Vec<Image>,
-    /// Whether the first image is a shadow map (RIB `zfile` and `shadow` displays).
-    depth_map: bool,
 }
 
 /// One image of a frame.
 struct Image {
     path: PathBuf,
+    /// The channels it holds.
     mode: DisplayMode,
+    /// An output variable it holds instead of colour (a RIB arbitrary output variable).
     output: Option<String>,
-    /// A shadow map: depth and the camera's projection, as EXR whatever the name.
+    /// A shadow map (RIB `zfile` and `shadow` displays): depth and the camera's projection, as EXR
+    /// whatever the name.
     depth_map: bool,
+    /// The format its display driver asks for; `None`: the one its extension names.
+    format: Option<ImageFormat>,
+}
+
+impl Image {
+    fn file(path: PathBuf) -> Image {
+        Image { path, mode: DisplayMode::Rgba, output: None, depth_map: false, format: None }
+    }
+
+    /// The format it is written in.
+    fn format(&self) -> Option<ImageFormat> {
+        self.format.or_else(|| ImageFormat::from_path(&self.path))
+    }
 }
 
 impl Output {
-    fn images(&self) -> impl Iterator<Item = (&PathBuf, DisplayMode, bool)> {
-        self.images_with_outputs().map(|(p, m, d, _)| (p, m, d))
-    }
-
-    /// [`Output::images`] with the output variable each holds instead of colour.
-    fn images_with_outputs(&self) -> impl Iterator<Item = (&PathBuf, DisplayMode, bool, Option<&str>)> {
-        std::iter::once((&self.path, self.mode, self.depth_map, self.output.as_deref()))
-            .chain(self.extra.iter().map(|i| (&i.path, i.mode, i.depth_map, i.output.as_deref())))
+    fn images(&self) -> impl Iterator<Item = &Image> {
+        std::iter::once(&self.first).chain(&self.extra)
     }
 }
 
 /// Refuses, before rendering, an image that cannot be written: an unknown format, depth in a
 /// format that stores no floats, a shadow map from a camera no matrix describes.
-fn check_image(rt: &Context, path: &Path, mode: DisplayMode, depth_map: bool) -> anyhow::Result<()> {
-    use rtsl_runtime::image_io::ImageFormat;
-    if depth_map {
+fn check_image(rt: &Context, image: &Image) -> anyhow::Result<()> {
+    let path = &image.path;
+    if image.depth_map {
         if rt.depth_map_projection().is_none() {
             anyhow::bail!(
                 "{}: a shadow map needs the built-in perspective camera or Projection \"orthographic\", not a \
@@ -363,11 +368,11 @@ fn check_image(rt: &Context, path: &Path, mode: DisplayMode, depth_map: bool) ->
         }
         return Ok(());
     }
-    match ImageFormat::from_path(path) {
+    match image.format() {
         None => anyhow::bail!("{}: unsupported image format (known: .png .tga .ppm .tif .exr)", path.display()),
         Some(ImageFormat::Exr) => Ok(()),
-        Some(ImageFormat::Tiff) if mode == DisplayMode::Z => Ok(()),
-        Some(_) if mode.has_depth() => {
+        Some(ImageFormat::Tiff) if image.mode == DisplayMode::Z => Ok(()),
+        Some(_) if image.mode.has_depth() => {
             anyhow::bail!("{}: depth needs a float image (.exr, or .tif for depth alone)", path.display())
         }
         Some(_) => Ok(()),
@@ -431,14 +436,15 @@ fn render_and_write(
     let texture_files = world.textures.files();
     rt.return_scene(world);
     let transfer = output.transfer.unwrap_or_else(|| rt.options.transfer());
-    let images: Vec<_> = output.images_with_outputs().collect();
+    let images: Vec<&Image> = output.images().collect();
     // Displays that name one EXR file are layers of it, written once with the first.
     let mut layered: Vec<&PathBuf> = Vec::new();
-    for (i, &(path, mode, depth_map, variable)) in images.iter().enumerate() {
+    for (i, image) in images.iter().enumerate() {
+        let path = &image.path;
         if layered.contains(&path) {
             continue;
         }
-        if depth_map {
+        if image.depth_map {
             let (world_to_camera, world_to_ndc) =
                 rt.depth_map_projection().context("a shadow map needs a camera a matrix describes")?;
             let (w, h) = (fb.width as usize, fb.height as usize);
@@ -446,24 +452,25 @@ fn render_and_write(
                 .with_context(|| format!("writing {}", path.display()))?;
             continue;
         }
+        let format = image.format().with_context(|| format!("{}: unsupported image format", path.display()))?;
         let float = Quantize { one: 0.0, min: 0.0, max: 0.0, dither: 0.0 };
-        let quantize = if mode.has_depth() { Some(float) } else { rt.options.quantize };
+        let quantize = if image.mode.has_depth() { Some(float) } else { rt.options.quantize };
         let opts = WriteOptions { transfer, quantize, ..WriteOptions::default() };
-        let (mut names, mut values) = display_channels(&fb, mode, variable);
-        if rtsl_runtime::image_io::ImageFormat::from_path(path) == Some(rtsl_runtime::image_io::ImageFormat::Exr) {
-            for &(other, mode, depth_map, variable) in &images[i + 1..] {
-                if other != path || depth_map {
+        let (mut names, mut values) = display_channels(&fb, image.mode, image.output.as_deref());
+        if format == ImageFormat::Exr {
+            for other in &images[i + 1..] {
+                if other.path != *path || other.depth_map {
                     continue;
                 }
-                let (more, more_values) = display_channels(&fb, mode, variable);
-                let layer = variable.unwrap_or(mode.name());
+                let (more, more_values) = display_channels(&fb, other.mode, other.output.as_deref());
+                let layer = other.output.as_deref().unwrap_or(other.mode.name());
                 values = interleave(&values, names.len(), &more_values, more.len());
                 names.extend(more.iter().map(|c| format!("{layer}.{c}")));
             }
             layered.push(path);
         }
         let names: Vec<&str> = names.iter().map(String::as_str).collect();
-        write_channels(path, fb.width as usize, fb.height as usize, &names, &values, &opts)
+        write_channels_as(path, format, fb.width as usize, fb.height as usize, &names, &values, &opts)
             .with_context(|| format!("writing {}", path.display()))?;
     }
     Ok(Written { report, missing_textures: missing_textures.len(), texture_files })
@@ -612,7 +619,7 @@ fn watch(
         caches.end_frame();
         let frame_ms = written.report.elapsed.as_secs_f64() * 1e3;
         for what in done {
-            println!("reloaded {what}, frame {frame_ms:.1} ms -> {}", output.path.display());
+            println!("reloaded {what}, frame {frame_ms:.1} ms -> {}", output.first.path.display());
         }
         let (_, now) = scene_inputs(&[], &written.texture_files);
         if !now.is_subset(&textures) {
@@ -780,6 +787,7 @@ fn prepare_loaded(args: &RenderArgs, mut rt: Context, mut loaded: LoadedScene) -
         mode: d.mode,
         depth_map: d.depth_map,
         output: d.output.clone(),
+        format: d.format,
     });
     let mut to_default = false;
     let first = match args.output.as_ref().map(expanded) {
@@ -789,11 +797,11 @@ fn prepare_loaded(args: &RenderArgs, mut rt: Context, mut loaded: LoadedScene) -
             if loaded.displays.first().is_some_and(|d| !d.window) {
                 files.next();
             }
-            Image { path, mode: DisplayMode::Rgba, depth_map: false, output: None }
+            Image::file(path)
         }
         None => files.next().unwrap_or_else(|| {
             to_default = true;
-            Image { path: PathBuf::from("render.png"), mode: DisplayMode::Rgba, depth_map: false, output: None }
+            Image::file(PathBuf::from("render.png"))
         }),
     };
     // A batch render never opens a window (it would wait for the window to close, in a script or
@@ -823,17 +831,10 @@ fn prepare_loaded(args: &RenderArgs, mut rt: Context, mut loaded: LoadedScene) -
         camera.bind(&mut rt)?;
     }
     args.rays.apply(&mut rt)?;
-    let output = Output {
-        path: first.path,
-        mode: first.mode,
-        output: first.output,
-        transfer: args.transfer,
-        extra,
-        depth_map: first.depth_map,
-    };
+    let output = Output { first, transfer: args.transfer, extra };
     // Refused before rendering, not after.
-    for (path, mode, depth_map) in output.images() {
-        check_image(&rt, path, mode, depth_map)?;
+    for image in output.images() {
+        check_image(&rt, image)?;
     }
     Ok(Prepared { rt, output, omissions: loaded.omissions(), errors: loaded.errors(), files: loaded.files, vrml })
 }
@@ -862,18 +863,18 @@ fn run_vrml(args: &RenderArgs, renderer: &mut Renderer, caches: &SharedCaches) -
     let mut missing = omissions;
     let mut written_paths = BTreeSet::new();
     for n in numbers {
-        output.path = PathBuf::from(rtsl_runtime::rib::load::expand_display_name(&pattern.to_string_lossy(), n));
-        if !written_paths.insert(output.path.clone()) {
+        output.first.path = PathBuf::from(rtsl_runtime::rib::load::expand_display_name(&pattern.to_string_lossy(), n));
+        if !written_paths.insert(output.first.path.clone()) {
             anyhow::bail!(
                 "frame {n} would overwrite {} of an earlier frame: name the images with #f (as in `-o frame.#4f.png`)",
-                output.path.display()
+                output.first.path.display()
             );
         }
         vrml.advance_to(vrml_time(args, Some(n)), &mut rt)?;
         print_animation_warnings(&mut vrml)?;
         let written = render_and_write(&mut rt, renderer, &output, args.quiet, true)?;
         if !args.quiet {
-            renderer.summary(&rt, &output.path, &written.report);
+            renderer.summary(&rt, &output.first.path, &written.report);
         }
         missing += written.missing_textures;
     }
@@ -985,7 +986,7 @@ fn render_frame_images(
     check_unwritten(output, number, written_paths)?;
     let written = render_and_write(rt, renderer, output, args.quiet, true)?;
     if !args.quiet {
-        renderer.summary(rt, &output.path, &written.report);
+        renderer.summary(rt, &output.first.path, &written.report);
     }
     caches.end_frame();
     Ok(written)
@@ -994,7 +995,7 @@ fn render_frame_images(
 /// Refuses a frame whose images would overwrite an earlier frame's (a frame's displays may share
 /// a file, as EXR layers; another frame's may not), and notes them as written.
 fn check_unwritten(output: &Output, number: i32, written: &mut BTreeSet<PathBuf>) -> anyhow::Result<()> {
-    let this_frame: BTreeSet<PathBuf> = output.images().map(|(path, ..)| path.clone()).collect();
+    let this_frame: BTreeSet<PathBuf> = output.images().map(|image| image.path.clone()).collect();
     for path in &this_frame {
         if !written.insert(path.clone()) {
             anyhow::bail!(

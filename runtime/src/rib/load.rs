@@ -58,9 +58,13 @@ pub struct RibDisplay {
     pub name: PathBuf,
     /// The channels it holds.
     pub mode: DisplayMode,
-    /// A window rather than a file (driver `framebuffer` or `it`): `rtsl view` is the window;
-    /// `rtsl render` writes no file for it.
+    /// A window rather than a file (driver `framebuffer`, or a renderer's viewer: `it`, `piqsl`,
+    /// `idisplay`...): `rtsl view` is the window; `rtsl render` writes no file for it.
     pub window: bool,
+    /// The file format the display driver names (`tiff`, `openexr`, `png`, `targa`; `file` where
+    /// the name's extension names none, as RenderMan's `file` writes TIFF); `None`: the one the
+    /// name's extension names.
+    pub format: Option<crate::image_io::ImageFormat>,
     /// A depth map for shadows (driver `zfile` or `shadow`): depth written as a shadow map, an EXR
     /// file with the camera's projection ([`crate::texture::write_shadow_map`]) whatever its name.
     pub depth_map: bool,
@@ -68,6 +72,68 @@ pub struct RibDisplay {
     /// variable), kept by the frame ([`crate::render::RenderOptions::outputs`]) and written as
     /// RGB (a float in red); `mode` is then [`DisplayMode::Rgb`].
     pub output: Option<String>,
+}
+
+/// The parameters of an `Imager` call, with PRMan's name for the colour of its built-in
+/// `background` imager (`Imager "background" "color" [r g b]`, a name no shader parameter can have)
+/// given as the `background` parameter of a `background` shader that has one.
+fn background_color_alias(program: &crate::shading::Program, params: &[Param]) -> Vec<Param> {
+    let layout = program.layout();
+    let aliased =
+        program.name == "background" && layout.param("color").is_none() && layout.param("background").is_some();
+    params
+        .iter()
+        .map(|p| match aliased && p.name == "color" {
+            true => Param { name: "background".to_string(), ..p.clone() },
+            false => p.clone(),
+        })
+        .collect()
+}
+
+/// What a `Display` driver does with the image.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum DisplayDriver {
+    /// Shows it in a window: the generic `framebuffer`, and the viewers renderers ship (PRMan's
+    /// `it`, Aqsis's `piqsl` and `zframebuffer`, 3Delight's `idisplay`, Houdini's `mplay`, `x11`,
+    /// `windows`).
+    Window,
+    /// Writes a file in the format given, or (`None`) the one the name's extension names.
+    File(Option<crate::image_io::ImageFormat>),
+}
+
+impl DisplayDriver {
+    const NAMES: &'static str = "file, tiff, openexr, png, targa, zfile, shadow, framebuffer, it, piqsl, idisplay, x11";
+
+    /// The driver `driver` is for an image named `name`; `None` for a driver rtsl does not have,
+    /// unless the name's extension names a format it writes (then that).
+    fn parse(driver: &str, name: &Path) -> Option<DisplayDriver> {
+        use crate::image_io::ImageFormat;
+        let by_name = ImageFormat::from_path(name);
+        let file = |format| Some(DisplayDriver::File(Some(format)));
+        match driver.to_ascii_lowercase().as_str() {
+            "framebuffer" | "it" | "piqsl" | "zframebuffer" | "idisplay" | "x11" | "windows" | "mplay" => {
+                Some(DisplayDriver::Window)
+            }
+            // Depth maps are written as shadow maps whatever the name.
+            "zfile" | "shadow" => Some(DisplayDriver::File(None)),
+            // RenderMan's `file` is the renderer's default format, TIFF for PRMan and Aqsis, where
+            // the name does not say (`ri.pic`); a name of a format rtsl does not write is refused.
+            "file" => {
+                let other_image = name.extension().and_then(|e| e.to_str()).is_some_and(|e| {
+                    matches!(
+                        e.to_ascii_lowercase().as_str(),
+                        "bmp" | "gif" | "jpg" | "jpeg" | "webp" | "hdr" | "pgm" | "psd"
+                    )
+                });
+                Some(DisplayDriver::File(by_name.or((!other_image).then_some(ImageFormat::Tiff))))
+            }
+            "tiff" => file(ImageFormat::Tiff),
+            "openexr" | "exr" => file(ImageFormat::Exr),
+            "png" => file(ImageFormat::Png),
+            "targa" | "tga" => file(ImageFormat::Tga),
+            _ => by_name.map(|f| DisplayDriver::File(Some(f))),
+        }
+    }
 }
 
 /// The output variable a `Display` mode names: `name`, `type name` or `varying type name`
@@ -1493,7 +1559,8 @@ impl<'a> Loader<'a> {
             K::Imager(s) | K::Pixel(s) => {
                 let id = rt.find_shader(&s.name)?;
                 let program = rt.program(id)?.clone();
-                let params = typed_params(&program, &s.params, |p| &p.loc, &mut self.out.warnings);
+                let given = background_color_alias(&program, &s.params);
+                let params = typed_params(&program, &given, |p| &p.loc, &mut self.out.warnings);
                 rt.pixel_shader(Some(id), &params)?;
             }
             K::Camera(s) => {
@@ -1829,8 +1896,22 @@ impl<'a> Loader<'a> {
         if !additional {
             self.out.displays.clear();
         }
-        let window = matches!(driver, "framebuffer" | "it");
-        self.out.displays.push(RibDisplay { name: PathBuf::from(name), mode, window, depth_map, output });
+        let Some(kind) = DisplayDriver::parse(driver, Path::new(name)) else {
+            self.omit(
+                r,
+                format_args!(
+                    "Display \"{name}\": display driver \"{driver}\" is not one rtsl has, and the name's extension \
+                     names no format it writes (drivers: {})",
+                    DisplayDriver::NAMES
+                ),
+            );
+            return;
+        };
+        let (window, format) = match kind {
+            DisplayDriver::Window => (true, None),
+            DisplayDriver::File(format) => (false, format),
+        };
+        self.out.displays.push(RibDisplay { name: PathBuf::from(name), mode, window, depth_map, output, format });
     }
 
     fn pixel_filter(&mut self, r: &Request, name: &str, xwidth: f32, ywidth: f32) {
