@@ -282,6 +282,24 @@ fn every_kind_of_change_reaches_the_workers_before_their_frame() -> Result<(), D
         rt.end_object().map_err(e)?;
         rt.delete_object(rtsl_runtime::api::ObjectId(0)).map_err(e)
     }
+    fn holdout_and_hidden(rt: &mut Context) -> Result<(), String> {
+        let e = |e: rtsl_runtime::api::ApiError| e.to_string();
+        // A holdout, and a triangle the camera does not see but shadows meet.
+        rt.push_attributes();
+        for (x, visible_to_camera, matte) in [(-1.2, true, true), (1.0, false, false)] {
+            rt.matte(matte);
+            rt.ray_visibility(rtsl_runtime::render::RayKind::Camera, visible_to_camera);
+            let object = rt.begin_object().map_err(e)?;
+            rt.begin(Primitive::Triangles).map_err(e)?;
+            for p in [[x - 0.4, 0.6, 0.8], [x + 0.4, 0.6, 0.8], [x, 1.3, 0.8]] {
+                rt.vertex(p[0], p[1], p[2]).map_err(e)?;
+            }
+            rt.end().map_err(e)?;
+            rt.end_object().map_err(e)?;
+            rt.instantiate_object(object).map_err(e)?;
+        }
+        rt.pop_attributes().map_err(e)
+    }
     fn settings(rt: &mut Context) -> Result<(), String> {
         let e = |e: rtsl_runtime::api::ApiError| e.to_string();
         // Lights, camera, options and a pixel shader: the frame's settings.
@@ -314,12 +332,16 @@ fn every_kind_of_change_reaches_the_workers_before_their_frame() -> Result<(), D
             new_object_and_texture,
             move_first,
             rebuild_and_delete,
+            holdout_and_hidden,
             settings,
             nothing,
         ],
     )?;
     assert_same(&frames, "frames of changes");
     assert!(frames[0].1.rgba != frames[1].1.rgba, "the moved light lights the frame differently");
+    let holes =
+        |fb: &Framebuffer| fb.rgba.chunks_exact(4).zip(&fb.depth).filter(|(p, d)| d.is_finite() && p[3] == 0.0).count();
+    assert!(holes(&frames[6].1) > 0 && holes(&frames[5].1) == 0, "the holdout leaves transparent pixels");
     Ok(())
 }
 

@@ -1,6 +1,6 @@
 //! The engine through its API: secondary rays. `trace` sees what a mirror reflects up to the depth
 //! limit, tracing a batch's rays ahead changes no pixel (also past the calls a first run notes),
-//! and `gather` samples a cone of shaded rays.
+//! `gather` samples a cone of shaded rays, and a mirror reflects only what traced rays see.
 
 mod common;
 
@@ -339,4 +339,39 @@ fn tracing_a_batchs_occlusion_rays_ahead_changes_no_pixel() {
             assert!(ahead_report.secondary_rays > chunked_report.secondary_rays, "{ahead_report}\n{chunked_report}");
         }
     }
+}
+
+/// A surface hidden from traced rays (RIB `Attribute "visibility" "trace" 0`) is not what a
+/// mirror reflects; hidden from the camera or from shadow rays, it still is.
+#[test]
+fn a_mirror_reflects_only_surfaces_traced_rays_see() -> Result<(), ApiError> {
+    use rtsl_runtime::render::RayKind;
+    for (hidden, green) in
+        [(None, 0.5), (Some(RayKind::Trace), 0.0), (Some(RayKind::Camera), 0.5), (Some(RayKind::Shadow), 0.5)]
+    {
+        let mut rt = context();
+        let mirror = rt.compile_shader("mirrored.sl", MIRROR)?;
+        let flat = rt.compile_shader("flat.sl", FLAT)?;
+        rt.camera_look_at(Vec3A::new(0.0, 0.0, 5.0), Vec3A::ZERO, Vec3A::Y, 30.0);
+        let m = rt.begin_object()?;
+        rt.bind_shader(mirror)?;
+        quad(&mut rt, [[-10.0, -10.0, 0.0], [10.0, -10.0, 0.0], [10.0, 10.0, 0.0], [-10.0, 10.0, 0.0]])?;
+        rt.end_object()?;
+        rt.push_attributes();
+        if let Some(kind) = hidden {
+            rt.ray_visibility(kind, false);
+        }
+        let wall = rt.begin_object()?;
+        rt.bind_shader(flat)?;
+        rt.parameter("c", ParamValue::Color([0.0, 1.0, 0.0]))?;
+        quad(&mut rt, [[-10.0, 10.0, 8.0], [10.0, 10.0, 8.0], [10.0, -10.0, 8.0], [-10.0, -10.0, 8.0]])?;
+        rt.end_object()?;
+        rt.pop_attributes()?;
+        rt.instantiate_object(m)?;
+        rt.instantiate_object(wall)?;
+        let (fb, _) = rt.render_frame()?;
+        let p = fb.pixel(W / 2, H / 2);
+        assert!((p[1] - green).abs() < 1e-5 && p[0] == 0.0, "{hidden:?}: {p:?}");
+    }
+    Ok(())
 }

@@ -299,7 +299,15 @@ fn shadows_pass_through_the_transparent_part_of_an_object_only() -> Result<(), A
 /// shadow falls on the other side: the floor's brightness there (x = -2.6, beside the square), over
 /// what it is with no square.
 fn shadow_beside_a_square(square: &str) -> f32 {
-    let floor = |square: &str| {
+    let floor = |square: &str| common::luminance(&floor_lit_past_a_square(square), 4, 16);
+    let open = floor("");
+    assert!(open > 0.0, "the floor is lit");
+    floor(square) / open
+}
+
+/// The frame [`shadow_beside_a_square`] looks at.
+fn floor_lit_past_a_square(square: &str) -> rtsl_runtime::render::Framebuffer {
+    {
         let rib = format!(
             "Format 32 32 1 Projection \"perspective\" \"fov\" 60
          Rotate -90 1 0 0 Translate 0 -6 0
@@ -313,12 +321,8 @@ fn shadow_beside_a_square(square: &str) -> f32 {
         );
         let (mut rt, warnings) = common::load(&rib);
         assert!(warnings.is_empty(), "{warnings:?}");
-        let fb = common::render(&mut rt);
-        common::luminance(&fb, 4, 16)
-    };
-    let open = floor("");
-    assert!(open > 0.0, "the floor is lit");
-    floor(square) / open
+        common::render(&mut rt)
+    }
 }
 
 #[test]
@@ -331,4 +335,62 @@ fn one_sided_surfaces_and_clipped_parts_cast_no_shadow_from_behind() {
     assert!(two_sided < 0.1, "a two-sided square shadows the floor: {two_sided}");
     assert!(one_sided > 0.5, "a one-sided square seen from behind casts no shadow: {one_sided}");
     assert!(clipped > 0.5, "a clipped square casts no shadow: {clipped}");
+}
+
+#[test]
+fn surfaces_hidden_from_some_rays_are_met_by_the_others_only() {
+    let square = "Polygon \"P\" [-1.5 1 -1.5  -1.5 1 1.5  1.5 1 1.5  1.5 1 -1.5]";
+    let hidden = |attribute: &str| format!("AttributeBegin Attribute {attribute} {square} AttributeEnd");
+    let from_camera = hidden("\"visibility\" \"int camera\" [0]");
+    // Hidden from the camera, the square still shadows the floor; the camera sees the floor through it.
+    assert!(shadow_beside_a_square(&from_camera) < 0.1, "{}", shadow_beside_a_square(&from_camera));
+    let depth_at_centre = |square: &str| {
+        let fb = floor_lit_past_a_square(square);
+        fb.depth[(16 * fb.width + 16) as usize]
+    };
+    assert!((depth_at_centre(square) - 5.0).abs() < 0.01, "{}", depth_at_centre(square));
+    assert!((depth_at_centre(&from_camera) - 6.0).abs() < 0.01, "{}", depth_at_centre(&from_camera));
+    // Hidden from shadow rays, it casts no shadow, and the camera still sees it.
+    for shadowless in [
+        "\"visibility\" \"int transmission\" [0]",
+        "\"visibility\" \"string transmission\" [\"transparent\"]",
+        "\"render\" \"string casts_shadows\" [\"none\"]",
+        // BMRT's bits: 1 camera, 2 reflection, 4 shadow rays.
+        "\"render\" \"integer visibility\" [3]",
+    ] {
+        let square = hidden(shadowless);
+        let lit = shadow_beside_a_square(&square);
+        assert!(lit > 0.99, "{shadowless}: {lit}");
+        assert!((depth_at_centre(&square) - 5.0).abs() < 0.01, "{shadowless}");
+    }
+    let opaque = hidden("\"visibility\" \"string transmission\" [\"opaque\"]");
+    assert!(shadow_beside_a_square(&opaque) < 0.1);
+}
+
+/// `Matte 1` makes a holdout: camera rays that meet it leave the pixel transparent black and see
+/// nothing behind it, while it still shadows what other rays light.
+#[test]
+fn a_matte_surface_is_a_transparent_black_hole_that_still_casts_shadows() {
+    let square = "Polygon \"P\" [-1.5 1 -1.5  -1.5 1 1.5  1.5 1 1.5  1.5 1 -1.5]";
+    let matte = format!("AttributeBegin Matte 1 {square} AttributeEnd");
+    assert!(shadow_beside_a_square(&matte) < 0.1, "{}", shadow_beside_a_square(&matte));
+    let fb = floor_lit_past_a_square(&matte);
+    let centre = (16 * fb.width + 16) as usize;
+    assert_eq!(fb.pixel(16, 16), [0.0; 4]);
+    assert!((fb.depth[centre] - 5.0).abs() < 0.01, "{}", fb.depth[centre]);
+    assert!(
+        fb.pixel(28, 16)[3] == 1.0 && common::luminance(&fb, 28, 16) > 0.0,
+        "the floor beside it is lit and opaque"
+    );
+    // Seen through a half-transparent sheet, the sheet's own share is all the pixel holds.
+    let sheet = "AttributeBegin Surface \"constant\" Color [1 0 0] Opacity [0.5 0.5 0.5] \
+                 Polygon \"P\" [-5 3 -5  -5 3 5  5 3 5  5 3 -5] AttributeEnd";
+    let through = floor_lit_past_a_square(&format!("{sheet} {matte}"));
+    let p = through.pixel(16, 16);
+    assert!((p[0] - 0.5).abs() < 1e-4 && p[1] == 0.0 && (p[3] - 0.5).abs() < 1e-4, "{p:?}");
+    let beside = through.pixel(28, 16);
+    assert!(beside[1] > 0.0 && beside[3] == 1.0, "the floor shows through the sheet beside it: {beside:?}");
+    // `Matte 0` is an ordinary surface again.
+    let ordinary = floor_lit_past_a_square(&format!("AttributeBegin Matte 1 Matte 0 {square} AttributeEnd"));
+    assert_eq!(ordinary.pixel(16, 16)[3], 1.0);
 }

@@ -230,6 +230,8 @@ impl Context {
             photon: a.photon,
             shadow_by_shader: a.shadow_by_shader,
             one_sided: a.one_sided,
+            visibility: a.visibility,
+            matte: a.matte,
             object_id,
             native: None,
             ray_values: a.ray_values.clone(),

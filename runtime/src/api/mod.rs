@@ -212,6 +212,12 @@ struct Appearance {
     /// of their triangles.
     #[serde(default)]
     one_sided: bool,
+    /// The kinds of rays that see objects built from now on (RIB `Attribute "visibility"`).
+    #[serde(default)]
+    visibility: crate::render::Visibility,
+    /// Whether objects built from now on are holdouts (RIB `Matte 1`).
+    #[serde(default)]
+    matte: bool,
 }
 
 impl Default for Appearance {
@@ -227,6 +233,8 @@ impl Default for Appearance {
             alpha_mask: None,
             ray_values: Vec::new(),
             one_sided: false,
+            visibility: crate::render::Visibility::ALL,
+            matte: false,
         }
     }
 }

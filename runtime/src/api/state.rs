@@ -47,6 +47,21 @@ impl Context {
         self.appearance.one_sided = one_sided;
     }
 
+    /// Makes objects built from now on seen, or not, by rays of `kind` (RenderMan's `Attribute
+    /// "visibility"`): a surface the camera does not see still casts shadows and shows in
+    /// reflections, one shadow rays do not see casts no shadow. Every kind sees them at first.
+    pub fn ray_visibility(&mut self, kind: crate::render::RayKind, visible: bool) {
+        self.appearance.visibility = self.appearance.visibility.with(kind, visible);
+    }
+
+    /// Makes objects built from now on holdouts (RenderMan's `Matte 1`) or not: where camera rays
+    /// meet one, the image is transparent black (alpha 0) and nothing behind it shows, so that it
+    /// can be composited with a picture of the real object; it is not shaded for those rays, and
+    /// other rays (shadows, reflections) meet it as any surface.
+    pub fn matte(&mut self, on: bool) {
+        self.appearance.matte = on;
+    }
+
     /// A copy of the attribute state and the matrix, to restore later in part or whole
     /// ([`Context::restore_attributes`]; PRMan's `Resource "name" "attributes"`).
     pub fn saved_attributes(&self) -> SavedAttributes {
@@ -55,7 +70,7 @@ impl Context {
 
     /// Restores the parts of a saved state that `parts` names: the shading (colour, opacity,
     /// surface, displacement and interior shaders, how shadows and light paths meet the surface,
-    /// the alpha mask), the geometry's sidedness, the matrix.
+    /// the alpha mask, ray visibility, holdouts), the geometry's sidedness, the matrix.
     pub fn restore_attributes(&mut self, saved: &SavedAttributes, parts: AttributeParts) {
         let (a, s) = (&mut self.appearance, &saved.appearance);
         if parts.shading {
@@ -67,6 +82,8 @@ impl Context {
             a.shadow_by_shader = s.shadow_by_shader;
             a.photon = s.photon;
             a.alpha_mask = s.alpha_mask.clone();
+            a.visibility = s.visibility;
+            a.matte = s.matte;
         }
         if parts.sides {
             a.one_sided = s.one_sided;

@@ -516,7 +516,7 @@ fn refine_tile(
         }
         let active = if chunk.len() == PACKET_SIZE { u64::MAX } else { (1u64 << chunk.len()) - 1 };
         let primary = primary_rays(frame, &cams, active);
-        world.intersect_packet(&primary.packet, &mut hits);
+        world.intersect_packet(super::RayKind::Camera, &primary.packet, &mut hits);
         shade_packet(frame, &primary, &hits, &mut samples);
         for (lane, ((k, cam), s)) in chunk.iter().zip(&samples).enumerate() {
             if primary.packet.active >> lane & 1 == 0 {
@@ -642,7 +642,7 @@ fn primary_rays_of_frame(world: &World, trace: bool) -> (u64, u64) {
                 if !trace {
                     continue;
                 }
-                world.intersect_packet(&rays_of_packet.packet, &mut hits);
+                world.intersect_packet(super::RayKind::Camera, &rays_of_packet.packet, &mut hits);
                 hit +=
                     (0..PACKET_SIZE).filter(|&i| active >> i & 1 != 0 && hits.instance.0[i] != u32::MAX).count() as u64;
             }
@@ -802,7 +802,7 @@ fn sample_tile(
                 hits.resize_with(n, HitPacket::default);
                 shaded.resize(n, [Sample::default(); PACKET_SIZE]);
                 for (rays, hits) in rays.iter().zip(hits.iter_mut()) {
-                    world.intersect_packet(&rays.packet, hits);
+                    world.intersect_packet(super::RayKind::Camera, &rays.packet, hits);
                 }
                 let packets: Vec<(&PrimaryRays, &HitPacket)> = rays.iter().zip(hits.iter()).collect();
                 shade_packets(frame, &packets, shaded);

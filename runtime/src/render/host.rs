@@ -1037,7 +1037,7 @@ fn hemisphere(
         (blocked, sum / count as f32)
     } else {
         let mut blocked = Vec::new();
-        tracing(|| frame.world.occluded_rays(&rays, &mut blocked));
+        tracing(|| frame.world.occluded_rays(super::RayKind::Trace, &rays, &mut blocked));
         let blocked = blocked.iter().filter(|&&b| b).count() as f32 / count as f32;
         (blocked, Vec3A::ZERO)
     }

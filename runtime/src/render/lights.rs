@@ -10,7 +10,7 @@ use super::ray_params::samples_for_relevance;
 use super::sampling::{mix, point_seed, unit};
 use super::stats::{tracing, Stats};
 use super::work::{epsilon, BatchLights, Frame, Pending, Shaded};
-use super::world::{InstanceShadows, LightSource, Material, ShadowKind, World, DEFAULT_MATERIAL};
+use super::world::{InstanceShadows, LightSource, Material, RayKind, ShadowKind, World, DEFAULT_MATERIAL};
 use crate::ray::{HitCandidate, HitPacket, Ray, RayPacket, PACKET_SIZE};
 use crate::shading::{fill1, fill3, get_row, put3, put_row, varying_rows, with_filled_batch, LightKind};
 use glam::{IVec4, Vec3A, Vec4};
@@ -789,7 +789,7 @@ fn transmission_packet(frame: &Frame, packet: &mut RayPacket, through: &mut [Vec
     let world = frame.world;
     packet.active = active;
     if !frame.transparent_shadows {
-        let blocked = tracing(|| world.occluded_packet(packet));
+        let blocked = tracing(|| world.occluded_packet(RayKind::Shadow, packet));
         clear_lanes(through, blocked);
         return;
     }
@@ -843,7 +843,11 @@ fn transmission_packet(frame: &Frame, packet: &mut RayPacket, through: &mut [Vec
         .filter(|&(instance, primitive)| kind_of(instance, primitive) == ShadowKind::Blocked)
         .map_or(0, |(instance, primitive)| world.lanes_hitting_triangle(packet, active, instance, primitive));
     packet.active = active & !known;
-    let traced = if packet.active != 0 { tracing(|| world.occluded_packet_filtered(packet, Some(&opaque))) } else { 0 };
+    let traced = if packet.active != 0 {
+        tracing(|| world.occluded_packet_filtered(RayKind::Shadow, packet, Some(&opaque)))
+    } else {
+        0
+    };
     packet.active = active;
     let blocked = traced | known;
     clear_lanes(through, blocked);
@@ -943,7 +947,7 @@ fn walk_transparent_layers(frame: &Frame, packet: &mut RayPacket, mut walking: u
             return;
         }
         packet.active = walking;
-        tracing(|| world.intersect_packet(packet, &mut hits));
+        tracing(|| world.intersect_packet(RayKind::Shadow, packet, &mut hits));
         let mut shaded_by_shader = Vec::new();
         for l in lanes(walking) {
             let hit = hits.get(l);

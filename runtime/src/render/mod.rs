@@ -51,5 +51,6 @@ pub use stats::Stats;
 pub use work::{Frame, LightPathCache, LightPaths, Sample};
 pub use world::{
     check_image_size, AccelUpdate, Antialiasing, AreaLight, CameraSetup, InstanceParts, InstanceShading, LightSource,
-    Material, RefineOn, RenderOptions, World, MAX_AREA_SAMPLES, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_PIXEL_SAMPLES,
+    Material, RayKind, RefineOn, RenderOptions, Visibility, World, MAX_AREA_SAMPLES, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE,
+    MAX_PIXEL_SAMPLES,
 };

@@ -210,7 +210,7 @@ pub fn trace_lattice(
         return out;
     }
     let mut hits = HitPacket::default();
-    world.intersect_packet(packet, &mut hits);
+    world.intersect_packet(super::RayKind::Camera, packet, &mut hits);
     shade_packet(frame, &primary, &hits, &mut out.samples);
     let forward = world.camera.world_from_camera.matrix3.z_axis.normalize_or_zero();
     for lane in (0..PACKET_SIZE).filter(|l| packet.active >> l & 1 != 0) {

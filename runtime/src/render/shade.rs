@@ -26,7 +26,7 @@ use super::ray_budget::RayBudget;
 use super::stats::{tracing, ShadingTimer, Stats};
 use super::trace_ahead::RayLog;
 use super::work::{finite_or_zero, BatchLights, Pending, Shaded, Stages};
-use super::world::{InstanceShading, Material, World, DEFAULT_MATERIAL, MAX_FRAME_OUTPUTS};
+use super::world::{InstanceShading, Material, RayKind, World, DEFAULT_MATERIAL, MAX_FRAME_OUTPUTS};
 use crate::ray::{offset_ray_origin, Hit, HitPacket, Ray, PACKET_SIZE};
 use crate::shading::{get3, get_row, with_filled_batch, ShaderInstance};
 use glam::{Affine3A, Vec3A};
@@ -85,7 +85,8 @@ pub fn shade_packets(frame: &Frame, packets: &[(&PrimaryRays, &HitPacket)], out:
         let first = keys.len();
         for i in (0..PACKET_SIZE).filter(|i| packet.active >> i & 1 != 0) {
             let hit = hits.get(i);
-            if begin_sample(frame, hit, &mut out[i]) {
+            // A holdout leaves its sample transparent black: not shaded, nothing behind it shows.
+            if begin_sample(frame, hit, &mut out[i]) && !world.is_holdout(&hit) {
                 keys.push((super::group::group_key(world, &hit), (k * PACKET_SIZE + i) as u32));
             }
         }
@@ -119,7 +120,7 @@ pub fn shade_packets(frame: &Frame, packets: &[(&PrimaryRays, &HitPacket)], out:
         super::scratch::give(&PENDING_JOBS, pending);
     } else {
         let going_on = shade_primary_layer(frame, packets, (&whole, &keys), samples, &mut weight, &mut budgets);
-        let mut later = trace_going_on(frame, going_on, samples, &weight);
+        let mut later = trace_going_on(frame, going_on, 0, samples, &weight);
         shade_pending(frame, (&mut later, 1), None, 0, samples, &mut weight, &mut budgets);
     }
     for (k, ((primary, _), out)) in packets.iter().zip(out.iter_mut()).enumerate() {
@@ -147,7 +148,7 @@ pub fn trace_rays(frame: &Frame, rays: &[Ray], depth: u32) -> Vec<Sample> {
 /// [`trace_rays`], ray `i`'s tree spending from `budgets[i]`.
 fn trace_budgeted(frame: &Frame, rays: &[Ray], budgets: &mut [RayBudget], depth: u32) -> Vec<Sample> {
     let mut hits = Vec::new();
-    tracing(|| frame.world.intersect_rays(rays, &mut hits));
+    tracing(|| frame.world.intersect_rays(RayKind::Trace, rays, &mut hits));
     let eye = frame.world.camera.eye();
     let diffs: Vec<RayDifferential> = rays
         .iter()
@@ -172,7 +173,7 @@ pub(super) fn gather_rays(
     depth: u32,
 ) -> Vec<Option<(f32, Shaded)>> {
     let mut hits = Vec::new();
-    tracing(|| frame.world.intersect_rays(rays, &mut hits));
+    tracing(|| frame.world.intersect_rays(RayKind::Trace, rays, &mut hits));
     let eye = frame.world.camera.eye();
     let mut out = vec![None; rays.len()];
     let mut pending = Vec::new();
@@ -311,7 +312,7 @@ fn shade_pending(
                 going_on.push(ray_going_on(p.index, r, p.ray, p.diff, p.hit.t));
             }
         }
-        later = trace_going_on(frame, going_on, out, weight);
+        later = trace_going_on(frame, going_on, depth, out, weight);
     }
     super::scratch::give(&SHADED_RESULTS, results);
 }
@@ -351,10 +352,12 @@ fn ray_going_on(index: usize, r: &Shaded, ray: Ray, diff: RayDifferential, t: f3
 
 /// Traces the rays going on through transparent surfaces together (they share their directions
 /// with the rays before them: whole packets): the hits to shade next, and the background added
-/// to the samples of those that meet nothing.
+/// to the samples of those that meet nothing. At `depth` 0 they go on from camera rays, and see
+/// what those see.
 fn trace_going_on(
     frame: &Frame,
     going_on: Vec<(usize, Ray, RayDifferential)>,
+    depth: u32,
     out: &mut [Sample],
     weight: &[Vec3A],
 ) -> Vec<Pending> {
@@ -366,9 +369,14 @@ fn trace_going_on(
     Stats::add(&frame.stats.transparency_rays, going_on.len());
     let rays: Vec<Ray> = going_on.iter().map(|&(_, ray, _)| ray).collect();
     let mut hits = Vec::new();
-    tracing(|| world.intersect_rays(&rays, &mut hits));
+    let kind = if depth == 0 { RayKind::Camera } else { RayKind::Trace };
+    tracing(|| world.intersect_rays(kind, &rays, &mut hits));
     let mut next = Vec::with_capacity(going_on.len());
     for ((index, ray, diff), hit) in going_on.into_iter().zip(hits) {
+        if depth == 0 && world.is_holdout(&hit) {
+            // What lies behind a holdout does not show, and it adds nothing itself.
+            continue;
+        }
         if hit.is_hit() {
             next.push(Pending { index, ray, diff, hit, budget: RayBudget::NONE });
         } else if let (Some(s), Some(w)) = (out.get_mut(index), weight.get(index)) {

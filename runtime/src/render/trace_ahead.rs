@@ -274,7 +274,7 @@ fn occlude_all(frame: &Frame, noted: Vec<[Option<OcclusionAt>; 4]>) -> Vec<[Opti
         .collect();
     Stats::add(&frame.stats.secondary_rays, rays.len());
     let mut blocked = Vec::new();
-    super::stats::tracing(|| frame.world.occluded_rays(&rays, &mut blocked));
+    super::stats::tracing(|| frame.world.occluded_rays(super::RayKind::Trace, &rays, &mut blocked));
     let mut start = 0;
     let mut shares = ends.into_iter().map(|end| {
         let hit = blocked[start..end].iter().filter(|&&b| b).count();

@@ -195,7 +195,7 @@ pub(super) fn gather(all: &VirtualLights, frame: &Frame, points: &[Gatherer], ou
         });
         ends.push(rays.len());
     }
-    tracing(|| frame.world.occluded_rays(&rays, &mut blocked));
+    tracing(|| frame.world.occluded_rays(super::RayKind::Shadow, &rays, &mut blocked));
     Stats::add(&frame.stats.shadow_rays, rays.len());
     let scale = all.sets.len() as f32 / std::f32::consts::PI;
     let mut start = 0;
@@ -482,7 +482,7 @@ fn landings(
     // Traced together: a point light's paths share their origin, a distant light's their direction.
     let rays: Vec<Ray> = starts.iter().map(|&(_, ray, _)| ray).collect();
     let mut first_hits = Vec::new();
-    tracing(|| world.intersect_rays(&rays, &mut first_hits));
+    tracing(|| world.intersect_rays(super::RayKind::Photon, &rays, &mut first_hits));
     let mut hits = Vec::with_capacity(starts.len());
     for ((index, ray, share), hit) in starts.iter().zip(first_hits) {
         if !hit.is_hit() || !keep(&hit) {
@@ -622,7 +622,7 @@ fn bounce(frame: &Frame, from: Vec3A, dir: Vec3A) -> Option<(Ray, Hit, crate::sc
     let world = frame.world;
     let ray = Ray::segment(from, dir, epsilon(from), f32::INFINITY);
     Stats::add(&frame.stats.secondary_rays, 1);
-    let hit = tracing(|| world.intersect(&ray));
+    let hit = tracing(|| world.intersect(super::RayKind::Photon, &ray));
     let surface = hit.is_hit().then(|| world.scene.surface(&hit)).flatten()?;
     Some((ray, hit, surface))
 }

@@ -34,6 +34,12 @@ pub struct Material {
     /// Rays do not see the back of its triangles (RIB `Sides 1`): the side their winding's normal
     /// `(b - a) x (c - a)` points away from ([`World::intersect_packet`]).
     pub one_sided: bool,
+    /// The kinds of rays that see the surface (RenderMan's `Attribute "visibility"`).
+    pub visibility: Visibility,
+    /// A holdout (RenderMan's `Matte 1`): where camera rays meet it, the image is transparent
+    /// black and nothing behind it shows; it is not shaded for them. Other rays meet it as any
+    /// surface.
+    pub matte: bool,
     /// An id the pixel shader and adaptive sampling may read (`objectid`).
     pub object_id: u32,
     /// Shade with Rust code instead of `surface` (`render/native.rs`).
@@ -94,6 +100,8 @@ impl Material {
         interior: None,
         displacement: None,
         one_sided: false,
+        visibility: Visibility::ALL,
+        matte: false,
         object_id: 0,
         native: None,
         ray_values: Vec::new(),
@@ -114,6 +122,57 @@ pub enum ShadowKind {
     Crossed,
     /// The material's shader says how much passes (`Material::shadow_by_shader`).
     ByShader,
+}
+
+/// What a ray is traced for, which decides the surfaces it sees ([`Visibility`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RayKind {
+    /// Camera rays, and the rays going on from them through transparent surfaces.
+    Camera,
+    /// Rays shaders trace (`trace`, `gather`, `occlusion`, `indirectdiffuse`, reflections and
+    /// refractions), and those going on from them.
+    Trace,
+    /// Shadow rays toward lights (and from virtual lights), and `transmission`.
+    Shadow,
+    /// Light paths: virtual lights' and photons' paths from the lights.
+    Photon,
+}
+
+/// The kinds of rays that see a surface: RenderMan's `Attribute "visibility"` ("camera",
+/// "trace" or "specular" and "diffuse", "transmission", "photon" or "indirect"). Every kind sees
+/// every surface unless told otherwise (unlike PRMan, whose ray tracing is opt-in).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct Visibility(u8);
+
+impl Visibility {
+    pub const ALL: Visibility = Visibility(0b1111);
+
+    fn bit(kind: RayKind) -> u8 {
+        match kind {
+            RayKind::Camera => 1,
+            RayKind::Trace => 2,
+            RayKind::Shadow => 4,
+            RayKind::Photon => 8,
+        }
+    }
+
+    /// Whether rays of `kind` see the surface.
+    #[inline]
+    pub fn sees(self, kind: RayKind) -> bool {
+        self.0 & Visibility::bit(kind) != 0
+    }
+
+    /// This visibility with rays of `kind` seeing the surface or not.
+    pub fn with(self, kind: RayKind, visible: bool) -> Visibility {
+        let bit = Visibility::bit(kind);
+        Visibility(if visible { self.0 | bit } else { self.0 & !bit })
+    }
+}
+
+impl Default for Visibility {
+    fn default() -> Self {
+        Visibility::ALL
+    }
 }
 
 /// What shadow rays do at the triangles of one instance, worked out once a frame: a shadow ray's
@@ -663,8 +722,10 @@ pub struct World {
     /// reports each once; a context shares its own with the worlds it builds).
     pub ray_parameter_misses: Arc<super::ray_params::RayParameterMisses>,
     /// Whether rays filter their hits ([`World::intersect_packet`]): some material is one-sided
-    /// or a clipping plane is set. Worked out by [`World::prepare`].
+    /// or hidden from some rays, or a clipping plane is set. Worked out by [`World::prepare`].
     filters: bool,
+    /// Some material is a holdout ([`Material::matte`]).
+    mattes: bool,
 }
 
 /// The next [`World::version`].
@@ -693,6 +754,7 @@ impl World {
             version: next_world_version(),
             ray_parameter_misses: Default::default(),
             filters: false,
+            mattes: false,
         }
     }
 
@@ -740,90 +802,94 @@ impl World {
             }
         }
         self.vertex_params = vertex_params;
-        self.filters = self.materials.iter().any(|m| m.one_sided) || !self.options.clipping_planes.is_empty();
+        self.filters = self.materials.iter().any(|m| m.one_sided || m.visibility != Visibility::ALL)
+            || !self.options.clipping_planes.is_empty();
+        self.mattes = self.materials.iter().any(|m| m.matte);
     }
 
-    /// Closest hits of a packet of rays, camera, secondary or shadow alike:
-    /// [`Scene::intersect_packet`], except that the back of a one-sided material's triangles is
-    /// not seen, nor what a clipping plane ([`RenderOptions::clipping_planes`]) cuts away. RISpec
-    /// clips geometry from the scene, and PRMan's ray tracing honours `Sides` for every ray, so no
-    /// ray meets what the camera cannot see. The tests run only for scenes that have such a
-    /// material or plane (a hit filter), so other scenes trace exactly as before.
-    pub fn intersect_packet(&self, packet: &RayPacket, out: &mut HitPacket) {
+    /// Closest hits of a packet of rays of one kind: [`Scene::intersect_packet`], except that
+    /// the back of a one-sided material's triangles is not seen, nor what a clipping plane
+    /// ([`RenderOptions::clipping_planes`]) cuts away, nor a surface rays of `kind` do not see
+    /// ([`Material::visibility`]). RISpec clips geometry from the scene, and PRMan's ray tracing
+    /// honours `Sides` for every ray, so no ray meets what the camera cannot see. The tests run
+    /// only for scenes that have such a material or plane (a hit filter), so other scenes trace
+    /// exactly as before.
+    pub fn intersect_packet(&self, kind: RayKind, packet: &RayPacket, out: &mut HitPacket) {
         if !self.filters {
             return self.scene.intersect_packet(packet, out);
         }
-        let sees = |c: &HitCandidate| c.lane as usize >= PACKET_SIZE || self.sees(&packet.get(c.lane as usize), c);
+        let sees =
+            |c: &HitCandidate| c.lane as usize >= PACKET_SIZE || self.sees(kind, &packet.get(c.lane as usize), c);
         self.scene.intersect_packet_filtered(packet, out, Some(&sees));
     }
 
     /// The closest hit of one ray, as [`World::intersect_packet`] finds those of a packet.
-    pub fn intersect(&self, ray: &Ray) -> Hit {
+    pub fn intersect(&self, kind: RayKind, ray: &Ray) -> Hit {
         if !self.filters {
             return self.scene.intersect(ray);
         }
-        let sees = |c: &HitCandidate| self.sees(ray, c);
+        let sees = |c: &HitCandidate| self.sees(kind, ray, c);
         self.scene.intersect_filtered(ray, Some(&sees))
     }
 
-    /// Whether anything the world's rays see ([`World::intersect_packet`]) lies on `ray`.
-    pub fn occluded(&self, ray: &Ray) -> bool {
+    /// Whether anything rays of `kind` see ([`World::intersect_packet`]) lies on `ray`.
+    pub fn occluded(&self, kind: RayKind, ray: &Ray) -> bool {
         if !self.filters {
             return self.scene.occluded(ray);
         }
-        let sees = |c: &HitCandidate| self.sees(ray, c);
+        let sees = |c: &HitCandidate| self.sees(kind, ray, c);
         self.scene.occluded_filtered(ray, Some(&sees))
     }
 
-    /// The lanes of a packet blocked by what the world's rays see ([`World::intersect_packet`]).
-    pub fn occluded_packet(&self, packet: &RayPacket) -> u64 {
-        self.occluded_packet_filtered(packet, None)
+    /// The lanes of a packet blocked by what rays of `kind` see ([`World::intersect_packet`]).
+    pub fn occluded_packet(&self, kind: RayKind, packet: &RayPacket) -> u64 {
+        self.occluded_packet_filtered(kind, packet, None)
     }
 
-    /// [`World::occluded_packet`] by the hits `filter` accepts too (asked only of hits the world's
-    /// rays see).
-    pub fn occluded_packet_filtered(&self, packet: &RayPacket, filter: crate::ray::HitFilter) -> u64 {
+    /// [`World::occluded_packet`] by the hits `filter` accepts too (asked only of hits the rays
+    /// see).
+    pub fn occluded_packet_filtered(&self, kind: RayKind, packet: &RayPacket, filter: crate::ray::HitFilter) -> u64 {
         if !self.filters {
             return self.scene.occluded_packet_filtered(packet, filter);
         }
         let sees = |c: &HitCandidate| {
-            (c.lane as usize >= PACKET_SIZE || self.sees(&packet.get(c.lane as usize), c))
+            (c.lane as usize >= PACKET_SIZE || self.sees(kind, &packet.get(c.lane as usize), c))
                 && filter.is_none_or(|f| f(c))
         };
         self.scene.occluded_packet_filtered(packet, Some(&sees))
     }
 
-    /// Whether each of `rays` is blocked (`blocked[i]` for `rays[i]`), traced as packets of one
-    /// direction octant each (see [`in_octant_packets`]).
-    pub fn occluded_rays(&self, rays: &[Ray], blocked: &mut Vec<bool>) {
+    /// Whether each of `rays` (of `kind`) is blocked (`blocked[i]` for `rays[i]`), traced as
+    /// packets of one direction octant each (see [`in_octant_packets`]).
+    pub fn occluded_rays(&self, kind: RayKind, rays: &[Ray], blocked: &mut Vec<bool>) {
         blocked.clear();
         if rays.len() < FEWEST_PACKED_RAYS {
-            blocked.extend(rays.iter().map(|r| self.occluded(r)));
+            blocked.extend(rays.iter().map(|r| self.occluded(kind, r)));
             return;
         }
         blocked.resize(rays.len(), false);
         in_octant_packets(rays, |packet, lanes| {
-            let hit = self.occluded_packet(packet);
+            let hit = self.occluded_packet(kind, packet);
             for (lane, &i) in lanes.iter().enumerate() {
                 blocked[i as usize] = hit >> lane & 1 != 0;
             }
         });
     }
 
-    /// The closest hit of each of `rays` (`hits[i]` for `rays[i]`), traced as packets of one
-    /// direction octant each (see [`in_octant_packets`]): the hits [`World::intersect`] finds
-    /// ray by ray (where two surfaces lie at one distance, either may be the one reported, as
-    /// between packets and single rays anywhere).
-    pub fn intersect_rays(&self, rays: &[Ray], hits: &mut Vec<Hit>) {
+    /// The closest hit of each of `rays` (of `kind`; `hits[i]` for `rays[i]`), traced as packets
+    /// of one direction octant each (see [`in_octant_packets`]): the hits [`World::intersect`]
+    /// finds ray by ray (where two surfaces lie at one distance, either may be the one reported,
+    /// as between packets and single rays anywhere).
+    pub fn intersect_rays(&self, kind: RayKind, rays: &[Ray], hits: &mut Vec<Hit>) {
         hits.clear();
         if rays.len() < FEWEST_PACKED_RAYS {
-            hits.extend(rays.iter().map(|r| self.intersect(r)));
+            hits.extend(rays.iter().map(|r| self.intersect(kind, r)));
             return;
         }
         hits.resize(rays.len(), Hit::MISS);
         let mut out = HitPacket::default();
         in_octant_packets(rays, |packet, lanes| {
-            self.intersect_packet(packet, &mut out);
+            self.intersect_packet(kind, packet, &mut out);
             for (lane, &i) in lanes.iter().enumerate() {
                 hits[i as usize] = out.get(lane);
             }
@@ -831,8 +897,8 @@ impl World {
     }
 
     /// [`Scene::lanes_hitting_triangle`] for a world whose rays see every hit; none where some
-    /// are not seen (a one-sided triangle from behind, a point clipped away), which depends on
-    /// each ray.
+    /// are not seen (a one-sided triangle from behind, a point clipped away, a surface hidden from
+    /// some rays), which depends on each ray.
     pub fn lanes_hitting_triangle(&self, packet: &RayPacket, lanes: u64, instance: u32, primitive: u32) -> u64 {
         if self.filters {
             return 0;
@@ -840,11 +906,30 @@ impl World {
         self.scene.lanes_hitting_triangle(packet, lanes, instance, primitive)
     }
 
-    /// Whether ray `ray` sees candidate hit `c`: not the back of a one-sided triangle, nor a point
-    /// a clipping plane cuts away. The side is tested in object space, where it means what it
-    /// means in world space (a direction and a normal moved by a matrix and its inverse transpose
-    /// keep their dot product), so that a mirroring instance keeps its outside.
-    fn sees(&self, ray: &Ray, c: &HitCandidate) -> bool {
+    /// Whether camera rays meeting `hit` meet a holdout ([`Material::matte`]).
+    #[inline]
+    pub fn is_holdout(&self, hit: &Hit) -> bool {
+        self.mattes
+            && self
+                .instances
+                .get(hit.instance as usize)
+                .and_then(|inst| self.materials.get(inst.material_at(hit.primitive) as usize))
+                .is_some_and(|m| m.matte)
+    }
+
+    /// Whether ray `ray` of `kind` sees candidate hit `c`: a surface visible to its kind, not the
+    /// back of a one-sided triangle, nor a point a clipping plane cuts away. The side is tested in
+    /// object space, where it means what it means in world space (a direction and a normal moved
+    /// by a matrix and its inverse transpose keep their dot product), so that a mirroring
+    /// instance keeps its outside.
+    fn sees(&self, kind: RayKind, ray: &Ray, c: &HitCandidate) -> bool {
+        let material = self
+            .instances
+            .get(c.instance as usize)
+            .and_then(|inst| self.materials.get(inst.material_at(c.primitive) as usize));
+        if material.is_some_and(|m| !m.visibility.sees(kind)) {
+            return false;
+        }
         let at = ray.at(c.t);
         let clipped = self
             .options
@@ -854,9 +939,7 @@ impl World {
         if clipped {
             return false;
         }
-        let Some(inst) = self.instances.get(c.instance as usize) else { return true };
-        let one_sided = self.materials.get(inst.material_at(c.primitive) as usize).is_some_and(|m| m.one_sided);
-        if !one_sided {
+        if !material.is_some_and(|m| m.one_sided) {
             return true;
         }
         let Some(data) = self.scene.instance_data(c.instance) else { return true };
@@ -1115,11 +1198,11 @@ mod tests {
         // Few rays (traced one by one) and many (packed).
         for rays in [&rays[..0], &rays[..5], &rays[..]] {
             let mut blocked = vec![true; 3];
-            world.occluded_rays(rays, &mut blocked);
-            let alone: Vec<bool> = rays.iter().map(|r| world.occluded(r)).collect();
+            world.occluded_rays(RayKind::Shadow, rays, &mut blocked);
+            let alone: Vec<bool> = rays.iter().map(|r| world.occluded(RayKind::Shadow, r)).collect();
             assert_eq!(blocked, alone);
         }
-        let alone: Vec<bool> = rays.iter().map(|r| world.occluded(r)).collect();
+        let alone: Vec<bool> = rays.iter().map(|r| world.occluded(RayKind::Shadow, r)).collect();
         assert!(alone.iter().any(|&b| b) && alone.iter().any(|&b| !b), "both answers are tested");
     }
 
@@ -1132,10 +1215,10 @@ mod tests {
         let mut hits = vec![Hit::MISS; 5];
         // Few rays (traced one by one) and many (packed); the many are left in `hits`.
         for rays in [&all[..0], &all[..5], &all[..]] {
-            world.intersect_rays(rays, &mut hits);
+            world.intersect_rays(RayKind::Trace, rays, &mut hits);
             assert_eq!(hits.len(), rays.len());
             for (i, (ray, hit)) in rays.iter().zip(&hits).enumerate() {
-                let alone = world.intersect(ray);
+                let alone = world.intersect(RayKind::Trace, ray);
                 let same = if (alone.instance, alone.primitive) == (hit.instance, hit.primitive) {
                     (alone.t, alone.u, alone.v) == (hit.t, hit.u, hit.v) || !alone.is_hit()
                 } else {

@@ -42,7 +42,7 @@ use super::{
 use crate::api::{ApiError, AttributeParts, Context, InstanceId, LightId, ObjectId, SavedAttributes};
 use crate::csg::{Solid, SolidNode, SolidOp, SolidPart};
 use crate::geometry::{Deformation, Mesh};
-use crate::render::{DisplayMode, MAX_PIXEL_SAMPLES};
+use crate::render::{DisplayMode, RayKind, MAX_PIXEL_SAMPLES};
 use crate::scene_file::{add_model_file, add_model_file_placed, Placement, SceneFileError};
 use crate::shading::{ParamValue, ShaderProgram};
 use glam::{Affine3A, Mat4, Vec3};
@@ -1230,7 +1230,8 @@ impl<'a> Loader<'a> {
         }
         let rt = &mut *self.rt;
         match &r.kind {
-            K::Version(_) | K::ShadingRate(_) | K::Declare { .. } | K::Matte(_) => {}
+            K::Version(_) | K::ShadingRate(_) | K::Declare { .. } => {}
+            K::Matte(on) => rt.matte(*on),
             K::Sides(1) => rt.one_sided(true),
             K::Sides(2) => rt.one_sided(false),
             K::Sides(n) => self.warn(r, format_args!("Sides {n}: a surface has 1 or 2 sides; ignored")),
@@ -1952,7 +1953,42 @@ impl<'a> Loader<'a> {
                     Some("outside") => self.state.mesh_options.trim_sense = super::trim::TrimSense::Outside,
                     _ => self.warn(r, "attribute \"trimcurve\" \"sense\" takes \"inside\" or \"outside\""),
                 },
-                ("identifier", _) | ("visibility", _) | ("displacementbound", _) => {}
+                ("identifier", _) | ("displacementbound", _) => {}
+                ("visibility", "camera") => self.rt.ray_visibility(RayKind::Camera, f.unwrap_or(1.0) != 0.0),
+                // rtsl has one kind of ray for what shaders trace: it sees a surface that any of the
+                // request's secondary kinds sees.
+                ("visibility", "trace" | "specular" | "diffuse" | "reflection") => {
+                    let secondary = params.iter().filter(|q| matches!(q.name.as_str(), "trace" | "specular" | "diffuse" | "reflection"));
+                    let visible = secondary.filter_map(|q| q.ints().map(|i| i.first().copied().unwrap_or(1) != 0).or_else(|| q.floats().map(|v| v.first().copied().unwrap_or(1.0) != 0.0))).any(|on| on);
+                    self.rt.ray_visibility(RayKind::Trace, visible);
+                }
+                ("visibility", "photon" | "indirect") => self.rt.ray_visibility(RayKind::Photon, f.unwrap_or(1.0) != 0.0),
+                ("visibility", "transmission") | ("render", "casts_shadows") => match (s, f) {
+                    (Some("transparent" | "none"), _) => self.rt.ray_visibility(RayKind::Shadow, false),
+                    (Some("opaque" | "Os"), _) => {
+                        self.rt.ray_visibility(RayKind::Shadow, true);
+                        self.rt.shadows_from_shader(false);
+                    }
+                    (Some("shader" | "shade"), _) => {
+                        self.rt.ray_visibility(RayKind::Shadow, true);
+                        self.rt.shadows_from_shader(true);
+                    }
+                    (None, Some(on)) => self.rt.ray_visibility(RayKind::Shadow, on != 0.0),
+                    _ => self.warn(
+                        r,
+                        format_args!(
+                            "attribute \"{name}\" \"{}\" takes 0 or 1, or \"transparent\", \"opaque\", \"Os\" or \"shader\"",
+                            p.name
+                        ),
+                    ),
+                },
+                // BMRT's: the sum of 1 (camera rays), 2 (reflection rays) and 4 (shadow rays).
+                ("render", "visibility") => {
+                    let bits = f.unwrap_or(7.0) as u32;
+                    self.rt.ray_visibility(RayKind::Camera, bits & 1 != 0);
+                    self.rt.ray_visibility(RayKind::Trace, bits & 2 != 0);
+                    self.rt.ray_visibility(RayKind::Shadow, bits & 4 != 0);
+                }
                 ("trace", "maxdiffusedepth" | "maxspeculardepth") => {}
                 ("light", "nsamples") | ("light", "samples") => {
                     if let (Some(light), Some(n)) = (self.state.area_light, f) {
@@ -2500,7 +2536,7 @@ mod tests {
             packet.set(i, &Ray::new(glam::Vec3A::from_array(*o), glam::Vec3A::new(0.0, 0.0, *dz)));
         }
         let mut hits = HitPacket::default();
-        world.intersect_packet(&packet, &mut hits);
+        world.intersect_packet(RayKind::Camera, &packet, &mut hits);
         (0..rays.len()).map(|i| if hits.instance.0[i] == INVALID_ID { f32::INFINITY } else { hits.t.0[i] }).collect()
     }
 
@@ -2746,20 +2782,66 @@ mod tests {
         let behind = Ray::segment(glam::Vec3A::new(0.2, 0.2, -3.0), glam::Vec3A::Z, 0.0, 10.0);
         let front = Ray::segment(glam::Vec3A::new(0.2, 0.2, 3.0), -glam::Vec3A::Z, 0.0, 10.0);
         let world = world_of(&format!("Sides 1 {TRIANGLE}"));
-        assert!(!world.intersect(&behind).is_hit() && !world.occluded(&behind));
-        assert!(world.intersect(&front).is_hit() && world.occluded(&front));
+        assert!(!world.intersect(RayKind::Camera, &behind).is_hit() && !world.occluded(RayKind::Shadow, &behind));
+        assert!(world.intersect(RayKind::Camera, &front).is_hit() && world.occluded(RayKind::Shadow, &front));
         let mut packet = RayPacket::new();
         packet.set(0, &behind);
         packet.set(1, &front);
-        assert_eq!(world.occluded_packet(&packet), 0b10);
+        assert_eq!(world.occluded_packet(RayKind::Shadow, &packet), 0b10);
         assert_eq!(world.lanes_hitting_triangle(&packet, 0b11, 0, 0), 0, "no shortcut past the filter");
         // Two-sided, both are blocked.
         let world = world_of(TRIANGLE);
-        assert!(world.occluded(&behind) && world.occluded(&front));
+        assert!(world.occluded(RayKind::Shadow, &behind) && world.occluded(RayKind::Shadow, &front));
         // What a clipping plane cuts away blocks nothing: x > 0 here.
         let world = world_of(&format!("ClippingPlane 0 0 0 1 0 0 {TRIANGLE}"));
-        assert!(!world.occluded(&front) && !world.intersect(&behind).is_hit());
-        assert_eq!(world.occluded_packet(&packet), 0);
+        assert!(!world.occluded(RayKind::Shadow, &front) && !world.intersect(RayKind::Camera, &behind).is_hit());
+        assert_eq!(world.occluded_packet(RayKind::Shadow, &packet), 0);
+    }
+
+    /// `Attribute "visibility"` (and BMRT's `"render" "visibility"`) hides a surface from the
+    /// kinds of rays it names, and from those only.
+    #[test]
+    fn rib_visibility_hides_surfaces_from_the_rays_it_names() {
+        use crate::ray::Ray;
+        let seen_by = |attributes: &str| {
+            let mut rt = Context::new();
+            let rib = format!("Projection \"perspective\" WorldBegin Attribute {attributes} {TRIANGLE} WorldEnd");
+            let loaded = load_str(&mut rt, &rib, "t.rib").expect("loads");
+            assert!(loaded.warnings.is_empty(), "{attributes}: {:?}", loaded.warnings);
+            let world = rt.build_world().expect("a world");
+            let ray = Ray::segment(glam::Vec3A::new(0.2, 0.2, 3.0), -glam::Vec3A::Z, 0.0, 10.0);
+            let kinds = [RayKind::Camera, RayKind::Trace, RayKind::Shadow, RayKind::Photon];
+            let hits = kinds.map(|k| world.intersect(k, &ray).is_hit());
+            let occludes = kinds.map(|k| world.occluded(k, &ray));
+            assert_eq!(hits, occludes, "{attributes}");
+            hits
+        };
+        assert_eq!(seen_by("\"identifier\" \"name\" \"t\""), [true; 4]);
+        assert_eq!(seen_by("\"visibility\" \"int camera\" [0]"), [false, true, true, true]);
+        assert_eq!(seen_by("\"visibility\" \"int trace\" [0]"), [true, false, true, true]);
+        assert_eq!(seen_by("\"visibility\" \"int transmission\" [0]"), [true, true, false, true]);
+        assert_eq!(seen_by("\"visibility\" \"string transmission\" \"transparent\""), [true, true, false, true]);
+        assert_eq!(seen_by("\"visibility\" \"integer indirect\" [0]"), [true, true, true, false]);
+        assert_eq!(seen_by("\"visibility\" \"int photon\" [0] \"int camera\" [1]"), [true, true, true, false]);
+        // One kind of secondary ray: seen where either of PRMan's is.
+        assert_eq!(seen_by("\"visibility\" \"int diffuse\" [0] \"int specular\" [1]"), [true; 4]);
+        assert_eq!(seen_by("\"visibility\" \"int specular\" [1] \"int diffuse\" [0]"), [true; 4]);
+        assert_eq!(seen_by("\"visibility\" \"int specular\" [0] \"int diffuse\" [0]"), [true, false, true, true]);
+        assert_eq!(seen_by("\"render\" \"integer visibility\" [4]"), [false, false, true, true]);
+        assert_eq!(seen_by("\"render\" \"string casts_shadows\" \"none\""), [true, true, false, true]);
+
+        // Attribute blocks scope it, and a value that means nothing is reported.
+        let mut rt = Context::new();
+        let rib = format!(
+            "Projection \"perspective\" WorldBegin AttributeBegin Attribute \"visibility\" \"int camera\" [0] \
+             AttributeEnd Attribute \"visibility\" \"string transmission\" \"sometimes\" {TRIANGLE} WorldEnd"
+        );
+        let loaded = load_str(&mut rt, &rib, "t.rib").expect("loads");
+        assert_eq!(loaded.warnings.len(), 1, "{:?}", loaded.warnings);
+        assert!(loaded.warnings[0].message.contains("takes 0 or 1, or \"transparent\""), "{:?}", loaded.warnings);
+        let world = rt.build_world().expect("a world");
+        let ray = Ray::segment(glam::Vec3A::new(0.2, 0.2, 3.0), -glam::Vec3A::Z, 0.0, 10.0);
+        assert!(world.intersect(RayKind::Camera, &ray).is_hit() && world.occluded(RayKind::Shadow, &ray));
     }
 
     #[test]
@@ -2775,7 +2857,7 @@ mod tests {
         load_str(&mut rt, &rib, "t.rib").expect("loads");
         let world = rt.build_world().expect("a world");
         let from_camera = Ray::new(glam::Vec3A::new(0.2, 0.2, 2.0), glam::Vec3A::Z);
-        assert!(!world.intersect(&from_camera).is_hit());
+        assert!(!world.intersect(RayKind::Camera, &from_camera).is_hit());
         assert!(world.scene.intersect(&from_camera).is_hit());
     }
 }

@@ -446,7 +446,7 @@ impl Renderer {
         }
         let (px, py) = (x as u32, y as u32);
         let ray = camera_ray(world, px, py, 0.5, 0.5);
-        let hit = world.intersect(&ray);
+        let hit = world.intersect(rtsl_runtime::render::RayKind::Camera, &ray);
         if !hit.is_hit() {
             return None;
         }
