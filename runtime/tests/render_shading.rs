@@ -253,3 +253,40 @@ fn an_object_built_in_parts_shades_each_part_with_its_own_appearance() -> Result
     assert!(rt.end_part().is_err());
     Ok(())
 }
+
+/// RenderMan's user data: `Option "user"` and `Attribute "user"` values reach shaders through
+/// `option("user:name")` and `attribute("user:name")` (the shaded object's own), with the
+/// standard `attribute("Sides")`; a name nothing sets answers 0 and leaves the variable.
+#[test]
+fn shaders_read_user_options_and_attributes() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let source = "surface userdata() {
+        string pass = \"none\"; color tint = color(0, 0, 1); float sides = 0, missing = 7;
+        float found = option(\"user:pass\", pass) + attribute(\"user:tint\", tint);
+        found += attribute(\"Sides\", sides) + attribute(\"user:nothing\", missing) + option(\"user:nothing\", missing);
+        Oi = 1;
+        Ci = pass == \"beauty\" ? tint * sides / 2 * found / 3 * missing / 7 : color(0, 1, 0);
+    }";
+    common::write(dir.path(), "userdata.sl", source);
+    let rib = "Option \"searchpath\" \"shader\" [\".:&\"]
+        Option \"user\" \"string pass\" [\"beauty\"]
+        Format 8 8 1 Projection \"perspective\" \"fov\" 60
+        WorldBegin Translate 0 0 3 Surface \"userdata\"
+        AttributeBegin Attribute \"user\" \"color tint\" [1 0.5 0.25] Polygon \"P\" [-5 -5 0 0 -5 0 0 5 0 -5 5 0] AttributeEnd
+        Polygon \"P\" [0 -5 0 5 -5 0 5 5 0 0 5 0]
+        WorldEnd";
+    let mut rt = Context::new();
+    let loaded = rtsl_runtime::rib::load::load_str(&mut rt, rib, dir.path().join("u.rib")).expect("loads");
+    assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+    let fb = common::render(&mut rt);
+    // Left: the attribute's tint; right: no tint attribute, so its default, and one less found.
+    let (left, right) = (fb.pixel(1, 4), fb.pixel(6, 4));
+    assert_eq!(&left[..3], &[1.0, 0.5, 0.25], "{left:?}");
+    assert!((right[2] - 2.0 / 3.0).abs() < 1e-6 && right[0] == 0.0, "{right:?}");
+
+    // Without the option the pass reads "none".
+    let mut rt = Context::new();
+    let rib = rib.replace("Option \"user\" \"string pass\" [\"beauty\"]", "");
+    rtsl_runtime::rib::load::load_str(&mut rt, &rib, dir.path().join("u.rib")).expect("loads");
+    assert_eq!(common::render(&mut rt).pixel(1, 4), [0.0, 1.0, 0.0, 1.0]);
+}

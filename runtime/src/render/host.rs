@@ -1166,6 +1166,27 @@ unsafe extern "C" fn host_message(
             Some(dof) => floats(out, &dof),
             None => 0,
         },
+        // RenderMan's user data: `Option "user"` (the frame's value of the ray parameter of that
+        // name) and `Attribute "user"` (the shaded object's own value).
+        (Builtin::Option, _) if name.starts_with("user:") => {
+            match options.ray_parameters.get(name).map(|p| p.value.clone()) {
+                Some(value) => value_message(value, out, &mut c.text),
+                None => 0,
+            }
+        }
+        (Builtin::Attribute, _) => {
+            let material = c.material.and_then(|m| c.frame.world.materials.get(m as usize));
+            let Some(material) = material else { return 0 };
+            match name {
+                "Sides" => floats(out, &[if material.one_sided { 1.0 } else { 2.0 }]),
+                "Matte" => floats(out, &[if material.matte { 1.0 } else { 0.0 }]),
+                _ if name.starts_with("user:") => match object_value(&material.ray_values, name) {
+                    Some(value) => value_message(value.clone(), out, &mut c.text),
+                    None => 0,
+                },
+                _ => 0,
+            }
+        }
         (Builtin::Rendererinfo, "renderer") => {
             c.text = "rtsl".to_string();
             out.kind = 4;
@@ -1207,28 +1228,8 @@ unsafe extern "C" fn host_message(
 fn ray_parameter(c: &mut ShadeCall, chunk: u32, lane: u32, name: &str, out: &mut MessageOut) -> u32 {
     let world = c.frame.world;
     let origin = c.budget(chunk, lane as usize).map_or(RayOrigin::NONE, |b| b.origin);
-    let value = ray_value(c.frame, origin, name);
-    let triple = |out: &mut MessageOut, v: [f32; 3]| {
-        out.kind = 2;
-        out.len = 0;
-        out.floats[..3].copy_from_slice(&v);
-        1
-    };
-    match value {
-        Some(RayValue::Float(x)) => {
-            out.kind = 1;
-            out.len = 0;
-            out.floats[0] = x;
-            1
-        }
-        Some(RayValue::Color(v) | RayValue::Point(v)) => triple(out, v),
-        Some(RayValue::String(s)) => {
-            c.text = s;
-            out.kind = 4;
-            out.len = 0;
-            out.string = StrRef::new(&c.text);
-            1
-        }
+    match ray_value(c.frame, origin, name) {
+        Some(value) => value_message(value, out, &mut c.text),
         None if strip_user(name) == RELEVANCE => {
             out.kind = 1;
             out.len = 0;
@@ -1240,6 +1241,27 @@ fn ray_parameter(c: &mut ShadeCall, chunk: u32, lane: u32, name: &str, out: &mut
             0
         }
     }
+}
+
+/// `value` as a message answer (1).
+fn value_message(value: RayValue, out: &mut MessageOut, text: &mut String) -> u32 {
+    out.len = 0;
+    match value {
+        RayValue::Float(x) => {
+            out.kind = 1;
+            out.floats[0] = x;
+        }
+        RayValue::Color(v) | RayValue::Point(v) => {
+            out.kind = 2;
+            out.floats[..3].copy_from_slice(&v);
+        }
+        RayValue::String(s) => {
+            *text = s;
+            out.kind = 4;
+            out.string = StrRef::new(text);
+        }
+    }
+    1
 }
 
 /// Ray parameter `name` of a ray from `origin` (`ray_params.rs` gives the order of lookup), `None`

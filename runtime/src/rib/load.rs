@@ -74,6 +74,28 @@ pub struct RibDisplay {
     pub output: Option<String>,
 }
 
+/// The value of a `"user"` option or attribute (read by `option("user:name")`,
+/// `attribute("user:name")` and `rayinfo`): one float or integer, one colour, point, vector or
+/// normal (a point as written, in no particular space), or one string.
+fn user_value(p: &Param) -> Option<crate::render::RayValue> {
+    use super::decl::Ty;
+    use crate::render::RayValue;
+    let triple = |v: &[f32]| <[f32; 3]>::try_from(v).ok();
+    match (&p.value, p.decl.ty) {
+        (super::request::ParamValue::Strings(v), _) if v.len() == 1 => Some(RayValue::String(v[0].clone())),
+        (super::request::ParamValue::Ints(v), _) if v.len() == 1 => Some(RayValue::Float(v[0] as f32)),
+        (super::request::ParamValue::Floats(v), Ty::Float) if v.len() == 1 => Some(RayValue::Float(v[0])),
+        (super::request::ParamValue::Floats(v), Ty::Color) => triple(v).map(RayValue::Color),
+        (super::request::ParamValue::Floats(v), Ty::Point | Ty::Vector | Ty::Normal) => triple(v).map(RayValue::Point),
+        _ => None,
+    }
+}
+
+/// The warning for a `"user"` value [`user_value`] does not keep.
+fn user_value_skipped(name: &str) -> String {
+    format!("user data \"{name}\" skipped: rtsl keeps one float, integer, colour, point, vector, normal or string")
+}
+
 /// The parameters of an `Imager` call, with PRMan's name for the colour of its built-in
 /// `background` imager (`Imager "background" "color" [r g b]`, a name no shader parameter can have)
 /// given as the `background` parameter of a `background` shader that has one.
@@ -1995,6 +2017,14 @@ impl<'a> Loader<'a> {
                         self.rt.set_area_light_samples(light, n.max(1.0) as u32);
                     }
                 }
+                ("user", _) => match user_value(p) {
+                    Some(value) => {
+                        if let Err(e) = self.rt.ray_attribute(&p.name, Some(value)) {
+                            self.warn(r, e);
+                        }
+                    }
+                    None => self.warn(r, user_value_skipped(&p.name)),
+                },
                 _ => self.warn(r, format_args!("attribute \"{name}\" \"{}\" is not supported", p.name)),
             }
         }
@@ -2056,6 +2086,16 @@ impl<'a> Loader<'a> {
                         _ => gi.seed = v.min(u32::MAX as f32) as u32,
                     }
                 }
+                ("user", _) => match user_value(p) {
+                    Some(value) => {
+                        // A later `Option "user"` of the name wins, whatever its type.
+                        self.rt.remove_ray_parameter(&p.name);
+                        if let Err(e) = self.rt.set_ray_parameter(&p.name, value) {
+                            self.warn(r, e);
+                        }
+                    }
+                    None => self.warn(r, user_value_skipped(&p.name)),
+                },
                 _ => self.warn(r, format_args!("option \"{name}\" \"{}\" is not supported", p.name)),
             }
         }
