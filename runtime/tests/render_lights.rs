@@ -52,6 +52,27 @@ fn diffuse_and_specular_skip_lights_flagged_nondiffuse_and_nonspecular() -> Resu
     assert_eq!((no_diff[0], no_diff[1]), (0.0, both[1]), "{no_diff:?}");
     let computed = render(&[("computed", ParamValue::Float(1.0))])?;
     assert_eq!((computed[0], computed[1]), (0.0, both[1]), "the value the light computed counts: {computed:?}");
+
+    // The library's lights take the flags too (RIB files exported for PRMan pass them).
+    let library = |flag: Option<&str>| -> Result<[f32; 4], ApiError> {
+        let mut rt = context();
+        let surface = rt.compile_shader("lightparts.sl", LIGHT_PARTS)?;
+        let light = rt.find_shader("distantlight")?;
+        rt.camera_look_at(Vec3A::new(0.0, 0.0, 5.0), Vec3A::ZERO, Vec3A::Y, 60.0);
+        let mut params = vec![("from", ParamValue::Point([0.0, 0.0, 1.0])), ("to", ParamValue::Point([0.0; 3]))];
+        params.extend(flag.map(|f| (f, ParamValue::Float(1.0))));
+        rt.light_source(light, &params)?;
+        let o = rt.begin_object()?;
+        rt.bind_shader(surface)?;
+        quad(&mut rt, [[-3.0, -3.0, 0.0], [3.0, -3.0, 0.0], [3.0, 3.0, 0.0], [-3.0, 3.0, 0.0]])?;
+        rt.end_object()?;
+        rt.instantiate_object(o)?;
+        Ok(rt.render_frame()?.0.pixel(W / 2, H / 2))
+    };
+    let both = library(None)?;
+    assert!(both[0] > 0.9 && both[1] > 0.1, "{both:?}");
+    assert_eq!(library(Some("__nondiffuse"))?[..2], [0.0, both[1]]);
+    assert_eq!(library(Some("__nonspecular"))?[..2], [both[0], 0.0]);
     Ok(())
 }
 

@@ -15,8 +15,12 @@
  * Parameters:
  *   intensity  -- brightness of the light (1).
  *   lightcolor -- colour of the light (1, white).
+ *   __nondiffuse, __nonspecular -- 1 leaves the light out of diffuse(),
+ *                 and of specular() and phong() (RenderMan's convention; 0).
  */
-light arealight(float intensity = 1; color lightcolor = 1;)
+light arealight(float intensity = 1; color lightcolor = 1;
+                output float __nondiffuse = 0;
+                output float __nonspecular = 0;)
 {
     float d2;
 

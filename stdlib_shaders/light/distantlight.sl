@@ -12,11 +12,15 @@
  *   from       -- a point the light direction starts from (shader origin).
  *   to         -- a point the light shines towards (shader (0,0,1)).
  *   __category -- the categories it belongs to, comma separated ("").
+ *   __nondiffuse, __nonspecular -- 1 leaves the light out of diffuse(),
+ *                 and of specular() and phong() (RenderMan's convention; 0).
  */
 light distantlight(float intensity = 1; color lightcolor = 1;
                    point from = point "shader" (0, 0, 0);
                    point to = point "shader" (0, 0, 1);
-                   string __category = "";)
+                   string __category = "";
+                   output float __nondiffuse = 0;
+                   output float __nonspecular = 0;)
 {
     solar(to - from, 0.0)
         Cl = intensity * lightcolor;

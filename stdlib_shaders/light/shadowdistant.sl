@@ -16,6 +16,8 @@
  *   width      -- widens the filter kernel (1).
  *   blur       -- blurs it by this fraction of the map (0).
  *   bias       -- depth offset against self-shadowing (0.01).
+ *   __nondiffuse, __nonspecular -- 1 leaves the light out of diffuse(),
+ *                 and of specular() and phong() (RenderMan's convention; 0).
  */
 light shadowdistant(float intensity = 1; color lightcolor = 1;
                     point from = point "shader" (0, 0, 0);
@@ -24,7 +26,9 @@ light shadowdistant(float intensity = 1; color lightcolor = 1;
                     float samples = 16;
                     float width = 1;
                     float blur = 0;
-                    float bias = 0.01;)
+                    float bias = 0.01;
+                    output float __nondiffuse = 0;
+                    output float __nonspecular = 0;)
 {
     uniform float relevance = 1;
 

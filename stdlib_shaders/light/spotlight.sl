@@ -16,13 +16,17 @@
  *   coneangle        -- half-angle of the cone in radians (radians(30)).
  *   conedeltaangle   -- width of the soft edge in radians (radians(5)).
  *   beamdistribution -- exponent of the cosine falloff in the beam (2).
+ *   __nondiffuse, __nonspecular -- 1 leaves the light out of diffuse(),
+ *                 and of specular() and phong() (RenderMan's convention; 0).
  */
 light spotlight(float intensity = 1; color lightcolor = 1;
                 point from = point "shader" (0, 0, 0);
                 point to = point "shader" (0, 0, 1);
                 float coneangle = radians(30);
                 float conedeltaangle = radians(5);
-                float beamdistribution = 2;)
+                float beamdistribution = 2;
+                output float __nondiffuse = 0;
+                output float __nonspecular = 0;)
 {
     uniform vector A = (to - from) / length(to - from);
     uniform float cosoutside = cos(coneangle);
