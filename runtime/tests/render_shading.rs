@@ -290,3 +290,28 @@ fn shaders_read_user_options_and_attributes() {
     rtsl_runtime::rib::load::load_str(&mut rt, &rib, dir.path().join("u.rib")).expect("loads");
     assert_eq!(common::render(&mut rt).pixel(1, 4), [0.0, 1.0, 0.0, 1.0]);
 }
+
+/// `Attribute "identifier" "name"` names the objects of its block: `attribute("identifier:name")`
+/// reads the shaded object's name, and answers 0 for an object without one.
+#[test]
+fn shaders_read_the_name_of_the_object_they_shade() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let source = "surface named() {
+        string id = \"none\";
+        float found = attribute(\"identifier:name\", id);
+        Ci = id == \"left\" ? color(found, 0, 0) : id == \"none\" ? color(0, 1 - found, 0) : color(0, 0, 1);
+        Oi = 1;
+    }";
+    common::write(dir.path(), "named.sl", source);
+    let rib = "Option \"searchpath\" \"shader\" [\".:&\"]
+        Format 8 8 1 Projection \"perspective\" \"fov\" 60
+        WorldBegin Translate 0 0 3 Surface \"named\"
+        AttributeBegin Attribute \"identifier\" \"name\" [\"left\"] Polygon \"P\" [-5 -5 0 0 -5 0 0 5 0 -5 5 0] AttributeEnd
+        Polygon \"P\" [0 -5 0 5 -5 0 5 5 0 0 5 0]
+        WorldEnd";
+    let mut rt = Context::new();
+    let loaded = rtsl_runtime::rib::load::load_str(&mut rt, rib, dir.path().join("n.rib")).expect("loads");
+    assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+    let fb = common::render(&mut rt);
+    assert_eq!((fb.pixel(1, 4), fb.pixel(6, 4)), ([1.0, 0.0, 0.0, 1.0], [0.0, 1.0, 0.0, 1.0]));
+}

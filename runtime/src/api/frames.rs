@@ -232,6 +232,7 @@ impl Context {
             one_sided: a.one_sided,
             visibility: a.visibility,
             matte: a.matte,
+            identifier: a.identifier.as_deref().map(Arc::from),
             object_id,
             native: None,
             ray_values: a.ray_values.clone(),

@@ -218,6 +218,9 @@ struct Appearance {
     /// Whether objects built from now on are holdouts (RIB `Matte 1`).
     #[serde(default)]
     matte: bool,
+    /// The name of objects built from now on (RIB `Attribute "identifier" "name"`).
+    #[serde(default)]
+    identifier: Option<String>,
 }
 
 impl Default for Appearance {
@@ -235,6 +238,7 @@ impl Default for Appearance {
             one_sided: false,
             visibility: crate::render::Visibility::ALL,
             matte: false,
+            identifier: None,
         }
     }
 }

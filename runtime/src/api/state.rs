@@ -62,6 +62,12 @@ impl Context {
         self.appearance.matte = on;
     }
 
+    /// Names objects built from now on (RenderMan's `Attribute "identifier" "name"`; `None`: no
+    /// name), which their shaders read with `attribute("identifier:name", s)`.
+    pub fn identifier(&mut self, name: Option<&str>) {
+        self.appearance.identifier = name.map(str::to_string);
+    }
+
     /// A copy of the attribute state and the matrix, to restore later in part or whole
     /// ([`Context::restore_attributes`]; PRMan's `Resource "name" "attributes"`).
     pub fn saved_attributes(&self) -> SavedAttributes {
@@ -70,7 +76,7 @@ impl Context {
 
     /// Restores the parts of a saved state that `parts` names: the shading (colour, opacity,
     /// surface, displacement and interior shaders, how shadows and light paths meet the surface,
-    /// the alpha mask, ray visibility, holdouts), the geometry's sidedness, the matrix.
+    /// the alpha mask, ray visibility, holdouts, the name), the geometry's sidedness, the matrix.
     pub fn restore_attributes(&mut self, saved: &SavedAttributes, parts: AttributeParts) {
         let (a, s) = (&mut self.appearance, &saved.appearance);
         if parts.shading {
@@ -84,6 +90,7 @@ impl Context {
             a.alpha_mask = s.alpha_mask.clone();
             a.visibility = s.visibility;
             a.matte = s.matte;
+            a.identifier = s.identifier.clone();
         }
         if parts.sides {
             a.one_sided = s.one_sided;

@@ -1180,6 +1180,10 @@ unsafe extern "C" fn host_message(
             match name {
                 "Sides" => floats(out, &[if material.one_sided { 1.0 } else { 2.0 }]),
                 "Matte" => floats(out, &[if material.matte { 1.0 } else { 0.0 }]),
+                "identifier:name" => match &material.identifier {
+                    Some(name) => value_message(RayValue::String(name.to_string()), out, &mut c.text),
+                    None => 0,
+                },
                 _ if name.starts_with("user:") => match object_value(&material.ray_values, name) {
                     Some(value) => value_message(value.clone(), out, &mut c.text),
                     None => 0,

@@ -40,6 +40,9 @@ pub struct Material {
     /// black and nothing behind it shows; it is not shaded for them. Other rays meet it as any
     /// surface.
     pub matte: bool,
+    /// The object's name (RIB `Attribute "identifier" "name"`), which `attribute("identifier:name")`
+    /// answers.
+    pub identifier: Option<Arc<str>>,
     /// An id the pixel shader and adaptive sampling may read (`objectid`).
     pub object_id: u32,
     /// Shade with Rust code instead of `surface` (`render/native.rs`).
@@ -102,6 +105,7 @@ impl Material {
         one_sided: false,
         visibility: Visibility::ALL,
         matte: false,
+        identifier: None,
         object_id: 0,
         native: None,
         ray_values: Vec::new(),

@@ -1975,6 +1975,7 @@ impl<'a> Loader<'a> {
                     Some("outside") => self.state.mesh_options.trim_sense = super::trim::TrimSense::Outside,
                     _ => self.warn(r, "attribute \"trimcurve\" \"sense\" takes \"inside\" or \"outside\""),
                 },
+                ("identifier", "name") => self.rt.identifier(s),
                 ("identifier", _) | ("displacementbound", _) => {}
                 ("visibility", "camera") => self.rt.ray_visibility(RayKind::Camera, f.unwrap_or(1.0) != 0.0),
                 // rtsl has one kind of ray for what shaders trace: it sees a surface that any of the
