@@ -91,6 +91,16 @@ fn user_value(p: &Param) -> Option<crate::render::RayValue> {
     }
 }
 
+/// The names PRMan, 3Delight and BMRT give the rays shaders trace in `Attribute "visibility"`:
+/// rtsl's one `RayKind::Trace`.
+const SECONDARY_RAY_KINDS: [&str; 4] = ["trace", "specular", "diffuse", "reflection"];
+
+/// Whether a number parameter says on (nonzero), `None` for one without a number.
+fn switched_on(p: &Param) -> Option<bool> {
+    let int = p.ints().and_then(|i| i.first()).map(|&i| i != 0);
+    int.or_else(|| p.floats().and_then(|v| v.first()).map(|&v| v != 0.0))
+}
+
 /// The warning for a `"user"` value [`user_value`] does not keep.
 fn user_value_skipped(name: &str) -> String {
     format!("user data \"{name}\" skipped: rtsl keeps one float, integer, colour, point, vector, normal or string")
@@ -1980,9 +1990,9 @@ impl<'a> Loader<'a> {
                 ("visibility", "camera") => self.rt.ray_visibility(RayKind::Camera, f.unwrap_or(1.0) != 0.0),
                 // rtsl has one kind of ray for what shaders trace: it sees a surface that any of the
                 // request's secondary kinds sees.
-                ("visibility", "trace" | "specular" | "diffuse" | "reflection") => {
-                    let secondary = params.iter().filter(|q| matches!(q.name.as_str(), "trace" | "specular" | "diffuse" | "reflection"));
-                    let visible = secondary.filter_map(|q| q.ints().map(|i| i.first().copied().unwrap_or(1) != 0).or_else(|| q.floats().map(|v| v.first().copied().unwrap_or(1.0) != 0.0))).any(|on| on);
+                ("visibility", kind) if SECONDARY_RAY_KINDS.contains(&kind) => {
+                    let secondary = params.iter().filter(|q| SECONDARY_RAY_KINDS.contains(&q.name.as_str()));
+                    let visible = secondary.filter_map(switched_on).any(|on| on);
                     self.rt.ray_visibility(RayKind::Trace, visible);
                 }
                 ("visibility", "photon" | "indirect") => self.rt.ray_visibility(RayKind::Photon, f.unwrap_or(1.0) != 0.0),
