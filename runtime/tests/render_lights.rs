@@ -7,7 +7,7 @@ mod common;
 use common::{context, quad, H, W};
 use glam::Vec3A;
 use rtsl_compiler::abi::MAX_LIGHTS;
-use rtsl_runtime::api::{ApiError, Primitive};
+use rtsl_runtime::api::{ApiError, Context, Primitive, ShaderId};
 use rtsl_runtime::render::Framebuffer;
 use rtsl_runtime::shading::{ParamValue, ShaderProgram};
 
@@ -29,50 +29,47 @@ light flagged(output float __nondiffuse = 0; output float __nonspecular = 0; flo
     }
 }"#;
 
+/// The centre pixel of a quad facing the camera, shaded by [`LIGHT_PARTS`] and lit head-on by the
+/// light `light` gives (its shader, and the parameters that point it at the quad) with `params`.
+fn light_parts(
+    light: impl Fn(&mut Context) -> Result<(ShaderId, Vec<(&'static str, ParamValue)>), ApiError>,
+    params: &[(&str, ParamValue)],
+) -> Result<[f32; 4], ApiError> {
+    let mut rt = context();
+    let surface = rt.compile_shader("lightparts.sl", LIGHT_PARTS)?;
+    let (light, mut all) = light(&mut rt)?;
+    all.extend(params.iter().cloned());
+    rt.camera_look_at(Vec3A::new(0.0, 0.0, 5.0), Vec3A::ZERO, Vec3A::Y, 60.0);
+    rt.light_source(light, &all)?;
+    let o = rt.begin_object()?;
+    rt.bind_shader(surface)?;
+    quad(&mut rt, [[-3.0, -3.0, 0.0], [3.0, -3.0, 0.0], [3.0, 3.0, 0.0], [-3.0, 3.0, 0.0]])?;
+    rt.end_object()?;
+    rt.instantiate_object(o)?;
+    Ok(rt.render_frame()?.0.pixel(W / 2, H / 2))
+}
+
 #[test]
 fn diffuse_and_specular_skip_lights_flagged_nondiffuse_and_nonspecular() -> Result<(), ApiError> {
-    let render = |params: &[(&str, ParamValue)]| -> Result<[f32; 4], ApiError> {
-        let mut rt = context();
-        let surface = rt.compile_shader("lightparts.sl", LIGHT_PARTS)?;
-        let light = rt.compile_shader("flagged.sl", FLAGGED)?;
-        rt.camera_look_at(Vec3A::new(0.0, 0.0, 5.0), Vec3A::ZERO, Vec3A::Y, 60.0);
-        rt.light_source(light, params)?;
-        let o = rt.begin_object()?;
-        rt.bind_shader(surface)?;
-        quad(&mut rt, [[-3.0, -3.0, 0.0], [3.0, -3.0, 0.0], [3.0, 3.0, 0.0], [-3.0, 3.0, 0.0]])?;
-        rt.end_object()?;
-        rt.instantiate_object(o)?;
-        Ok(rt.render_frame()?.0.pixel(W / 2, H / 2))
-    };
-    let both = render(&[])?;
+    let flagged = |rt: &mut Context| Ok((rt.compile_shader("flagged.sl", FLAGGED)?, Vec::new()));
+    let both = light_parts(flagged, &[])?;
     assert!(both[0] > 0.9 && both[1] > 0.1, "a plain light gives diffuse and specular: {both:?}");
-    let no_spec = render(&[("__nonspecular", ParamValue::Float(1.0))])?;
+    let no_spec = light_parts(flagged, &[("__nonspecular", ParamValue::Float(1.0))])?;
     assert_eq!((no_spec[0], no_spec[1]), (both[0], 0.0), "{no_spec:?}");
-    let no_diff = render(&[("__nondiffuse", ParamValue::Float(1.0))])?;
+    let no_diff = light_parts(flagged, &[("__nondiffuse", ParamValue::Float(1.0))])?;
     assert_eq!((no_diff[0], no_diff[1]), (0.0, both[1]), "{no_diff:?}");
-    let computed = render(&[("computed", ParamValue::Float(1.0))])?;
+    let computed = light_parts(flagged, &[("computed", ParamValue::Float(1.0))])?;
     assert_eq!((computed[0], computed[1]), (0.0, both[1]), "the value the light computed counts: {computed:?}");
 
     // The library's lights take the flags too (RIB files exported for PRMan pass them).
-    let library = |flag: Option<&str>| -> Result<[f32; 4], ApiError> {
-        let mut rt = context();
-        let surface = rt.compile_shader("lightparts.sl", LIGHT_PARTS)?;
-        let light = rt.find_shader("distantlight")?;
-        rt.camera_look_at(Vec3A::new(0.0, 0.0, 5.0), Vec3A::ZERO, Vec3A::Y, 60.0);
-        let mut params = vec![("from", ParamValue::Point([0.0, 0.0, 1.0])), ("to", ParamValue::Point([0.0; 3]))];
-        params.extend(flag.map(|f| (f, ParamValue::Float(1.0))));
-        rt.light_source(light, &params)?;
-        let o = rt.begin_object()?;
-        rt.bind_shader(surface)?;
-        quad(&mut rt, [[-3.0, -3.0, 0.0], [3.0, -3.0, 0.0], [3.0, 3.0, 0.0], [-3.0, 3.0, 0.0]])?;
-        rt.end_object()?;
-        rt.instantiate_object(o)?;
-        Ok(rt.render_frame()?.0.pixel(W / 2, H / 2))
+    let distant = |rt: &mut Context| {
+        let aimed = vec![("from", ParamValue::Point([0.0, 0.0, 1.0])), ("to", ParamValue::Point([0.0; 3]))];
+        Ok((rt.find_shader("distantlight")?, aimed))
     };
-    let both = library(None)?;
+    let both = light_parts(distant, &[])?;
     assert!(both[0] > 0.9 && both[1] > 0.1, "{both:?}");
-    assert_eq!(library(Some("__nondiffuse"))?[..2], [0.0, both[1]]);
-    assert_eq!(library(Some("__nonspecular"))?[..2], [both[0], 0.0]);
+    assert_eq!(light_parts(distant, &[("__nondiffuse", ParamValue::Float(1.0))])?[..2], [0.0, both[1]]);
+    assert_eq!(light_parts(distant, &[("__nonspecular", ParamValue::Float(1.0))])?[..2], [both[0], 0.0]);
     Ok(())
 }
 

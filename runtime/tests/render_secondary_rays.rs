@@ -7,22 +7,33 @@ mod common;
 use common::{context, cube, quad, FLAT, H, W};
 use glam::Vec3A;
 use rtsl_runtime::api::{ApiError, Context, ShaderId};
-use rtsl_runtime::render::RAY_TREE_BUDGET;
+use rtsl_runtime::render::{RayKind, RAY_TREE_BUDGET};
 use rtsl_runtime::shading::ParamValue;
 
 /// A quad at z = 0 facing the camera, shaded by `surface`, and a green wall `2 * half` wide at
-/// z = 8, behind the camera, that the quad's reflected rays meet.
-fn before_a_green_wall(rt: &mut Context, surface: ShaderId, half: f32) -> Result<(), ApiError> {
+/// z = 8, behind the camera, that the quad's reflected rays meet, hidden from the rays of
+/// `wall_hidden_from` (RIB `Attribute "visibility"`).
+fn before_a_green_wall(
+    rt: &mut Context,
+    surface: ShaderId,
+    half: f32,
+    wall_hidden_from: Option<RayKind>,
+) -> Result<(), ApiError> {
     let flat = rt.compile_shader("flat.sl", FLAT)?;
     let m = rt.begin_object()?;
     rt.bind_shader(surface)?;
     quad(rt, [[-10.0, -10.0, 0.0], [10.0, -10.0, 0.0], [10.0, 10.0, 0.0], [-10.0, 10.0, 0.0]])?;
     rt.end_object()?;
+    rt.push_attributes();
+    if let Some(kind) = wall_hidden_from {
+        rt.ray_visibility(kind, false);
+    }
     let wall = rt.begin_object()?;
     rt.bind_shader(flat)?;
     rt.parameter("c", ParamValue::Color([0.0, 1.0, 0.0]))?;
     quad(rt, [[-half, half, 8.0], [half, half, 8.0], [half, -half, 8.0], [-half, -half, 8.0]])?;
     rt.end_object()?;
+    rt.pop_attributes()?;
     rt.instantiate_object(m)?;
     rt.instantiate_object(wall)?;
     Ok(())
@@ -36,7 +47,7 @@ fn trace_sees_what_a_mirror_reflects_up_to_the_depth_limit() -> Result<(), ApiEr
     let mirror = rt.compile_shader("mirrored.sl", MIRROR)?;
     rt.camera_look_at(Vec3A::new(0.0, 0.0, 5.0), Vec3A::ZERO, Vec3A::Y, 30.0);
     // A mirror facing the camera, and a green wall behind the camera that it reflects.
-    before_a_green_wall(&mut rt, mirror, 10.0)?;
+    before_a_green_wall(&mut rt, mirror, 10.0, None)?;
     let (fb, report) = rt.render_frame()?;
     assert!(report.secondary_rays >= u64::from(W * H));
     let p = fb.pixel(W / 2, H / 2);
@@ -156,7 +167,7 @@ fn trace_in_a_long_loop_traces_each_ray_once_and_changes_no_pixel() -> Result<()
     let looped = rt.compile_shader("looped.sl", LOOPED)?;
     rt.camera_look_at(Vec3A::new(0.0, 0.0, 5.0), Vec3A::ZERO, Vec3A::Y, 30.0);
     // A quad filling the view that reflects a green wall behind the camera.
-    before_a_green_wall(&mut rt, looped, 10.0)?;
+    before_a_green_wall(&mut rt, looped, 10.0, None)?;
     let (ahead, ahead_report) = rt.render_frame()?;
     rt.options.trace_ahead = false;
     let (chunked, chunked_report) = rt.render_frame()?;
@@ -196,7 +207,7 @@ fn gather_samples_a_cone_of_shaded_rays() -> Result<(), ApiError> {
     rt.camera_look_at(Vec3A::new(0.0, 0.0, 5.0), Vec3A::ZERO, Vec3A::Y, 30.0);
     // A glossy quad facing the camera; a green wall behind the camera that its cone of reflected
     // rays meets at a distance of 8 to 8 / cos(0.2); nothing behind the quad.
-    before_a_green_wall(&mut rt, glossy, 40.0)?;
+    before_a_green_wall(&mut rt, glossy, 40.0, None)?;
     let (fb, report) = rt.render_frame()?;
     // Two gathers of 8 rays for every pixel.
     assert!(report.secondary_rays >= 16 * u64::from(W * H), "{}", report.secondary_rays);
@@ -345,30 +356,13 @@ fn tracing_a_batchs_occlusion_rays_ahead_changes_no_pixel() {
 /// mirror reflects; hidden from the camera or from shadow rays, it still is.
 #[test]
 fn a_mirror_reflects_only_surfaces_traced_rays_see() -> Result<(), ApiError> {
-    use rtsl_runtime::render::RayKind;
     for (hidden, green) in
         [(None, 0.5), (Some(RayKind::Trace), 0.0), (Some(RayKind::Camera), 0.5), (Some(RayKind::Shadow), 0.5)]
     {
         let mut rt = context();
         let mirror = rt.compile_shader("mirrored.sl", MIRROR)?;
-        let flat = rt.compile_shader("flat.sl", FLAT)?;
         rt.camera_look_at(Vec3A::new(0.0, 0.0, 5.0), Vec3A::ZERO, Vec3A::Y, 30.0);
-        let m = rt.begin_object()?;
-        rt.bind_shader(mirror)?;
-        quad(&mut rt, [[-10.0, -10.0, 0.0], [10.0, -10.0, 0.0], [10.0, 10.0, 0.0], [-10.0, 10.0, 0.0]])?;
-        rt.end_object()?;
-        rt.push_attributes();
-        if let Some(kind) = hidden {
-            rt.ray_visibility(kind, false);
-        }
-        let wall = rt.begin_object()?;
-        rt.bind_shader(flat)?;
-        rt.parameter("c", ParamValue::Color([0.0, 1.0, 0.0]))?;
-        quad(&mut rt, [[-10.0, 10.0, 8.0], [10.0, 10.0, 8.0], [10.0, -10.0, 8.0], [-10.0, -10.0, 8.0]])?;
-        rt.end_object()?;
-        rt.pop_attributes()?;
-        rt.instantiate_object(m)?;
-        rt.instantiate_object(wall)?;
+        before_a_green_wall(&mut rt, mirror, 10.0, hidden)?;
         let (fb, _) = rt.render_frame()?;
         let p = fb.pixel(W / 2, H / 2);
         assert!((p[1] - green).abs() < 1e-5 && p[0] == 0.0, "{hidden:?}: {p:?}");

@@ -7,6 +7,7 @@ mod common;
 use common::{context, quad, H, W};
 use glam::Vec3A;
 use rtsl_runtime::api::{ApiError, Context, Primitive};
+use rtsl_runtime::render::Framebuffer;
 use rtsl_runtime::shading::ParamValue;
 
 const VERTEX_TINT: &str = "surface tint(varying color tint = 0;) { Oi = 1; Ci = tint; }";
@@ -254,12 +255,31 @@ fn an_object_built_in_parts_shades_each_part_with_its_own_appearance() -> Result
     Ok(())
 }
 
+/// Renders an 8x8 frame of two halves shaded by surface shader `name` (`source`): the left half
+/// with the attributes `left` (inside its own attribute block), the right without; `options`
+/// come before the frame. Loading must not warn.
+fn two_halves(name: &str, source: &str, options: &str, left: &str) -> Framebuffer {
+    let dir = tempfile::tempdir().expect("tempdir");
+    common::write(dir.path(), &format!("{name}.sl"), source);
+    let rib = format!(
+        "Option \"searchpath\" \"shader\" [\".:&\"] {options}
+        Format 8 8 1 Projection \"perspective\" \"fov\" 60
+        WorldBegin Translate 0 0 3 Surface \"{name}\"
+        AttributeBegin {left} Polygon \"P\" [-5 -5 0 0 -5 0 0 5 0 -5 5 0] AttributeEnd
+        Polygon \"P\" [0 -5 0 5 -5 0 5 5 0 0 5 0]
+        WorldEnd"
+    );
+    let mut rt = Context::new();
+    let loaded = rtsl_runtime::rib::load::load_str(&mut rt, &rib, dir.path().join("halves.rib")).expect("loads");
+    assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+    common::render(&mut rt)
+}
+
 /// RenderMan's user data: `Option "user"` and `Attribute "user"` values reach shaders through
 /// `option("user:name")` and `attribute("user:name")` (the shaded object's own), with the
 /// standard `attribute("Sides")`; a name nothing sets answers 0 and leaves the variable.
 #[test]
 fn shaders_read_user_options_and_attributes() {
-    let dir = tempfile::tempdir().expect("tempdir");
     let source = "surface userdata() {
         string pass = \"none\"; color tint = color(0, 0, 1); float sides = 0, missing = 7;
         float found = option(\"user:pass\", pass) + attribute(\"user:tint\", tint);
@@ -267,51 +287,27 @@ fn shaders_read_user_options_and_attributes() {
         Oi = 1;
         Ci = pass == \"beauty\" ? tint * sides / 2 * found / 3 * missing / 7 : color(0, 1, 0);
     }";
-    common::write(dir.path(), "userdata.sl", source);
-    let rib = "Option \"searchpath\" \"shader\" [\".:&\"]
-        Option \"user\" \"string pass\" [\"beauty\"]
-        Format 8 8 1 Projection \"perspective\" \"fov\" 60
-        WorldBegin Translate 0 0 3 Surface \"userdata\"
-        AttributeBegin Attribute \"user\" \"color tint\" [1 0.5 0.25] Polygon \"P\" [-5 -5 0 0 -5 0 0 5 0 -5 5 0] AttributeEnd
-        Polygon \"P\" [0 -5 0 5 -5 0 5 5 0 0 5 0]
-        WorldEnd";
-    let mut rt = Context::new();
-    let loaded = rtsl_runtime::rib::load::load_str(&mut rt, rib, dir.path().join("u.rib")).expect("loads");
-    assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
-    let fb = common::render(&mut rt);
+    let pass = "Option \"user\" \"string pass\" [\"beauty\"]";
+    let tint = "Attribute \"user\" \"color tint\" [1 0.5 0.25]";
+    let fb = two_halves("userdata", source, pass, tint);
     // Left: the attribute's tint; right: no tint attribute, so its default, and one less found.
     let (left, right) = (fb.pixel(1, 4), fb.pixel(6, 4));
     assert_eq!(&left[..3], &[1.0, 0.5, 0.25], "{left:?}");
     assert!((right[2] - 2.0 / 3.0).abs() < 1e-6 && right[0] == 0.0, "{right:?}");
-
     // Without the option the pass reads "none".
-    let mut rt = Context::new();
-    let rib = rib.replace("Option \"user\" \"string pass\" [\"beauty\"]", "");
-    rtsl_runtime::rib::load::load_str(&mut rt, &rib, dir.path().join("u.rib")).expect("loads");
-    assert_eq!(common::render(&mut rt).pixel(1, 4), [0.0, 1.0, 0.0, 1.0]);
+    assert_eq!(two_halves("userdata", source, "", tint).pixel(1, 4), [0.0, 1.0, 0.0, 1.0]);
 }
 
 /// `Attribute "identifier" "name"` names the objects of its block: `attribute("identifier:name")`
 /// reads the shaded object's name, and answers 0 for an object without one.
 #[test]
 fn shaders_read_the_name_of_the_object_they_shade() {
-    let dir = tempfile::tempdir().expect("tempdir");
     let source = "surface named() {
         string id = \"none\";
         float found = attribute(\"identifier:name\", id);
         Ci = id == \"left\" ? color(found, 0, 0) : id == \"none\" ? color(0, 1 - found, 0) : color(0, 0, 1);
         Oi = 1;
     }";
-    common::write(dir.path(), "named.sl", source);
-    let rib = "Option \"searchpath\" \"shader\" [\".:&\"]
-        Format 8 8 1 Projection \"perspective\" \"fov\" 60
-        WorldBegin Translate 0 0 3 Surface \"named\"
-        AttributeBegin Attribute \"identifier\" \"name\" [\"left\"] Polygon \"P\" [-5 -5 0 0 -5 0 0 5 0 -5 5 0] AttributeEnd
-        Polygon \"P\" [0 -5 0 5 -5 0 5 5 0 0 5 0]
-        WorldEnd";
-    let mut rt = Context::new();
-    let loaded = rtsl_runtime::rib::load::load_str(&mut rt, rib, dir.path().join("n.rib")).expect("loads");
-    assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
-    let fb = common::render(&mut rt);
+    let fb = two_halves("named", source, "", "Attribute \"identifier\" \"name\" [\"left\"]");
     assert_eq!((fb.pixel(1, 4), fb.pixel(6, 4)), ([1.0, 0.0, 0.0, 1.0], [0.0, 1.0, 0.0, 1.0]));
 }
