@@ -1464,6 +1464,12 @@ fn a_shadow_map_pass_feeds_the_frame_after_it() {
     assert_eq!(map.shadow([0.0, 0.0, 0.0], &opts), 1.0);
     assert_eq!(map.shadow([1.5, 0.0, 0.3], &opts), 0.0);
     assert_eq!(map.shadow([0.0, 2.5, 0.0], &opts), 0.0, "above the occluder");
+    // Without a bias, the nearest surface's depth shadows the floor in places by itself.
+    let unbiased = rtsl_runtime::texture::LookupOptions { bias: 0.0, ..Default::default() };
+    let self_shadow = |map: &rtsl_runtime::texture::ShadowMap| -> f32 {
+        (0..40).map(|i| map.shadow([-3.0 + 0.15 * i as f32, 0.0, 1.7], &unbiased)).sum()
+    };
+    assert!(self_shadow(&map) > 0.0);
 
     // The floor's shadow darkens a good part of the frame, against one lit without the map.
     let mean = |name: &str| {
@@ -1476,6 +1482,19 @@ fn a_shadow_map_pass_feeds_the_frame_after_it() {
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     let without = mean("beauty.exr");
     assert!(with_map < 0.9 * without, "the map darkens the frame: {with_map} against {without}");
+
+    // A midpoint map stores depth halfway to the next surface: with no bias at all, the floor
+    // does not shadow itself, and under the occluder it is still in shadow.
+    let midpoint = depth_pass.replace("FrameBegin 1", "Hider \"hidden\" \"depthfilter\" \"midpoint\"\nFrameBegin 1");
+    write(dir.path(), "midpoint.rib", &format!("{midpoint}{}", beauty("light.shd")));
+    let o = rtsl(&["render", "midpoint.rib", "-q"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let map = rtsl_runtime::texture::ShadowMap::load(&dir.path().join("light.shd")).expect("a shadow map");
+    assert_eq!(self_shadow(&map), 0.0);
+    assert_eq!(map.shadow([0.0, 0.0, 0.0], &unbiased), 1.0);
+    assert_eq!(map.shadow([1.5, 0.0, 0.3], &unbiased), 0.0);
+    assert_eq!(map.shadow([-2.0, 0.0, 1.0], &unbiased), 0.0);
+    assert_eq!(map.shadow([0.0, 2.0, 0.0], &unbiased), 0.0, "the occluder itself");
 
     // A shadow map through a camera shader has no matrix: refused before rendering.
     write(

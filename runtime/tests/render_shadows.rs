@@ -394,3 +394,36 @@ fn a_matte_surface_is_a_transparent_black_hole_that_still_casts_shadows() {
     let ordinary = floor_lit_past_a_square(&format!("AttributeBegin Matte 1 Matte 0 {square} AttributeEnd"));
     assert_eq!(ordinary.pixel(16, 16)[3], 1.0);
 }
+
+/// `Hider "hidden" "depthfilter" "midpoint"` gives each pixel the depth halfway between the
+/// surface its camera ray meets and the next one behind it (infinite where none is): what
+/// midpoint shadow maps store.
+#[test]
+fn the_midpoint_depth_filter_takes_depth_halfway_to_the_next_surface() {
+    let depths = |hider: &str| {
+        let rib = format!(
+            "Format 32 32 1 {hider} Projection \"perspective\" \"fov\" 30 Translate 0 0 5
+             WorldBegin Sphere 1 -1 1 360
+             AttributeBegin Translate 0 0 5 Polygon \"P\" [-2.5 -2.5 0  2.5 -2.5 0  2.5 2.5 0  -2.5 2.5 0] AttributeEnd
+             WorldEnd"
+        );
+        let (mut rt, warnings) = common::load(&rib);
+        let fb = common::render(&mut rt);
+        // The sphere's centre, the square behind it beside the sphere, and nothing.
+        let at = |x: u32, y: u32| fb.depth[(y * fb.width + x) as usize];
+        (at(16, 16), at(16, 2), at(0, 0), warnings)
+    };
+    let (sphere, square, nothing, warnings) = depths("");
+    assert!(warnings.is_empty(), "{warnings:?}");
+    assert!(
+        (sphere - 4.0).abs() < 0.01 && (square - 10.0).abs() < 0.05 && nothing == f32::INFINITY,
+        "{sphere} {square} {nothing}"
+    );
+    // The sphere's front at 4 and back at 6, then the square at 10 behind it.
+    let (sphere, square, nothing, warnings) = depths("Hider \"hidden\" \"depthfilter\" \"midpoint\"");
+    assert!(warnings.is_empty(), "{warnings:?}");
+    assert!((sphere - 5.0).abs() < 0.01, "{sphere}");
+    assert!(square == f32::INFINITY && nothing == f32::INFINITY, "{square} {nothing}");
+    let (sphere, .., warnings) = depths("Hider \"hidden\" \"depthfilter\" \"average\"");
+    assert!((sphere - 4.0).abs() < 0.01 && warnings.len() == 1 && warnings[0].contains("\"average\""), "{warnings:?}");
+}

@@ -19,7 +19,7 @@ use super::work::{Frame, LightPaths, PixelImage, Sample};
 use super::world::{Antialiasing, World, MAX_FRAME_OUTPUTS};
 use crate::camera::{packet_lane_offset, PACKET_LANE_OFFSETS, PACKET_SIDE};
 use crate::image_io::{ImageError, WriteOptions};
-use crate::ray::{HitPacket, PACKET_SIZE};
+use crate::ray::{HitPacket, Ray, RayPacket, PACKET_SIZE};
 use crate::tiles::{render_tiles, Tile};
 use glam::Vec3A;
 use rayon::prelude::*;
@@ -810,6 +810,9 @@ fn sample_tile(
                     corners.iter().zip(rays.iter()).zip(cameras.iter()).zip(shaded.iter())
                 {
                     let packet = &rays.packet;
+                    let first = i == 0 && j == 0;
+                    let midpoints = (first && world.options.depth_filter == super::DepthFilter::Midpoint)
+                        .then(|| midpoint_distances(world, packet, samples));
                     for (lane, s) in samples.iter().enumerate() {
                         if packet.active >> lane & 1 == 0 {
                             continue;
@@ -830,11 +833,12 @@ fn sample_tile(
                             add_outputs(o, &s.outputs);
                         }
                         // The first sample a pixel takes (rank 0: cell (0, 0)).
-                        if i == 0 && j == 0 {
+                        if first {
                             // Camera-space depth: the distance along the ray times its cosine
                             // with the view axis.
                             let direction = Vec3A::new(packet.dx.0[lane], packet.dy.0[lane], packet.dz.0[lane]);
-                            px.depth[k] = s.depth * direction.dot(sampling.forward);
+                            let distance = midpoints.as_ref().map_or(s.depth, |m| m[lane]);
+                            px.depth[k] = distance * direction.dot(sampling.forward);
                             px.ids[k] = s.object_id;
                             px.shader_ids[k] = s.shader_id;
                             if let Some(n) = px.normals.get_mut(k) {
@@ -1506,6 +1510,35 @@ pub(crate) fn frame_report(frame: &Frame, start: Instant) -> FrameReport {
         gathering: Duration::from_nanos(s.gathering_ns.load()),
         tile_times: Vec::new(),
     }
+}
+
+/// The midpoint depth filter's distance along each active lane's ray of `packet`
+/// ([`super::DepthFilter::Midpoint`]): halfway between the surface its sample met (at
+/// `samples[lane].depth`, facing `samples[lane].normal`) and the next one behind it, found by a
+/// ray that goes on from just behind the first; infinite where the ray met nothing or nothing
+/// lies behind.
+fn midpoint_distances(world: &World, packet: &RayPacket, samples: &[Sample; PACKET_SIZE]) -> [f32; PACKET_SIZE] {
+    let mut distances = [f32::INFINITY; PACKET_SIZE];
+    let mut lanes = Vec::new();
+    let mut rays = Vec::new();
+    for (lane, s) in samples.iter().enumerate() {
+        if packet.active >> lane & 1 == 0 || !s.depth.is_finite() || s.normal == Vec3A::ZERO {
+            continue;
+        }
+        let ray = packet.get(lane);
+        let behind = crate::ray::offset_ray_origin(ray.at(s.depth), -s.normal);
+        lanes.push(lane);
+        rays.push(Ray::new(behind, ray.direction).at_time(ray.time));
+    }
+    let mut hits = Vec::new();
+    world.intersect_rays(super::RayKind::Camera, &rays, &mut hits);
+    for (&lane, hit) in lanes.iter().zip(&hits) {
+        if hit.is_hit() {
+            let first = samples[lane].depth;
+            distances[lane] = first + 0.5 * hit.t;
+        }
+    }
+    distances
 }
 
 #[cfg(test)]

@@ -50,7 +50,7 @@ pub(crate) use stats::ShaderKindTimer;
 pub use stats::Stats;
 pub use work::{Frame, LightPathCache, LightPaths, Sample};
 pub use world::{
-    check_image_size, AccelUpdate, Antialiasing, AreaLight, CameraSetup, InstanceParts, InstanceShading, LightSource,
-    Material, RayKind, RefineOn, RenderOptions, Visibility, World, MAX_AREA_SAMPLES, MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE,
-    MAX_PIXEL_SAMPLES,
+    check_image_size, AccelUpdate, Antialiasing, AreaLight, CameraSetup, DepthFilter, InstanceParts, InstanceShading,
+    LightSource, Material, RayKind, RefineOn, RenderOptions, Visibility, World, MAX_AREA_SAMPLES, MAX_IMAGE_PIXELS,
+    MAX_IMAGE_SIDE, MAX_PIXEL_SAMPLES,
 };

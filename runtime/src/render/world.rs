@@ -128,6 +128,19 @@ pub enum ShadowKind {
     ByShader,
 }
 
+/// How a pixel's depth (the `z` channel, shadow maps) is taken from the surfaces its first camera
+/// ray meets: RenderMan's `Hider "hidden" "depthfilter"`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub enum DepthFilter {
+    /// The nearest surface's.
+    #[default]
+    Min,
+    /// Halfway between the nearest surface and the next one behind it, infinitely far where there
+    /// is none (Woo's midpoint shadow maps, as Aqsis computes them): a surface is then never behind
+    /// its own depth in a shadow map, so it does not shadow itself, with no bias.
+    Midpoint,
+}
+
 /// What a ray is traced for, which decides the surfaces it sees ([`Visibility`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum RayKind {
@@ -482,6 +495,9 @@ pub struct RenderOptions {
     pub background: [f32; 3],
     /// Most transparent surfaces a ray continues through.
     pub max_transparent_layers: u32,
+    /// The depth a pixel's first camera sample gives it (RIB `Hider "hidden" "depthfilter"`).
+    #[serde(default)]
+    pub depth_filter: DepthFilter,
     /// RIB's `Exposure gain gamma`, applied to the finished colours: `(gain * c) ^ (1 / gamma)`.
     pub exposure: Option<(f32, f32)>,
     /// RIB's `Quantize "rgba"`: how colour and alpha are stored in the images written (`None`:
@@ -606,6 +622,7 @@ impl Default for RenderOptions {
             max_ray_depth: 6,
             background: [0.0; 3],
             max_transparent_layers: 16,
+            depth_filter: DepthFilter::Min,
             exposure: None,
             quantize: None,
             antialiasing: Antialiasing::Grid { jitter: true },

@@ -1267,7 +1267,26 @@ impl<'a> Loader<'a> {
             K::Sides(1) => rt.one_sided(true),
             K::Sides(2) => rt.one_sided(false),
             K::Sides(n) => self.warn(r, format_args!("Sides {n}: a surface has 1 or 2 sides; ignored")),
-            K::ShadingInterpolation(_) | K::Hider(_) | K::Bound(_) => {}
+            K::Hider(h) => {
+                for p in &h.params {
+                    match (p.name.as_str(), p.strings().and_then(|s| s.first()).map(String::as_str)) {
+                        ("depthfilter", Some("min")) => self.rt.options.depth_filter = crate::render::DepthFilter::Min,
+                        ("depthfilter", Some("midpoint")) => {
+                            self.rt.options.depth_filter = crate::render::DepthFilter::Midpoint
+                        }
+                        ("depthfilter", other) => self.warn(
+                            r,
+                            format_args!(
+                                "Hider \"depthfilter\" {}: rtsl has \"min\" and \"midpoint\"; the depth stays the nearest \
+                                 surface's",
+                                other.map_or("without a string".to_string(), |s| format!("\"{s}\""))
+                            ),
+                        ),
+                        _ => {}
+                    }
+                }
+            }
+            K::ShadingInterpolation(_) | K::Bound(_) => {}
             // The reader evaluates conditionals; a list built by hand may still hold them.
             K::IfBegin(_) | K::ElseIf(_) | K::Else | K::IfEnd => {}
             K::TextureCoordinates(st) => self.state.mesh_options.texture_coordinates = *st,
