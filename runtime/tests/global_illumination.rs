@@ -931,3 +931,35 @@ fn a_spotlights_paths_go_into_its_cone() {
     eprintln!("image means: virtual lights {a:?}, hemisphere {b:?}, relative error {e}");
     assert!(b.iter().all(|&v| v > 0.002) && e < 0.05, "virtual lights {a:?}, hemisphere {b:?} ({e})");
 }
+
+/// A frame whose light paths' shadow rays run a surface shader that reads the photon map
+/// (`transmissionhitmode "shader"` on `gimatte` surfaces) renders, the same on one thread as on
+/// two.
+#[test]
+fn shaders_that_light_paths_run_do_not_wait_on_the_paths() {
+    let rib = "Format 24 18 1 Projection \"perspective\" \"fov\" 50 Translate 0 -1 5
+        Option \"gi\" \"integer virtuallights\" [32] \"integer causticphotons\" [500]
+        WorldBegin
+        Attribute \"light\" \"shadows\" \"on\"
+        LightSource \"pointlight\" 1 \"intensity\" [20] \"from\" [0 4 0]
+        Attribute \"shade\" \"transmissionhitmode\" \"shader\"
+        Surface \"gimatte\"
+        Polygon \"P\" [-3 0 -3  3 0 -3  3 0 3  -3 0 3]
+        Polygon \"P\" [-3 0 3  3 0 3  3 3 3  -3 3 3]
+        AttributeBegin Attribute \"photon\" \"shadingmodel\" \"glass\" Surface \"glass\" Translate 0 1 0
+        Sphere 0.7 -0.7 0.7 360 AttributeEnd
+        WorldEnd";
+    let frame = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("a pool");
+        pool.install(|| {
+            let mut rt = Context::new();
+            let loaded = rtsl_runtime::rib::load::load_str(&mut rt, rib, Path::new("paths.rib")).expect("loads");
+            assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+            let world = rt.build_world().expect("a world");
+            render_frame(&world, None).0
+        })
+    };
+    let one = frame(1);
+    assert!(one.rgba.chunks_exact(4).any(|p| p[0] > 0.0), "the floor is lit");
+    assert_eq!(one.rgba, frame(2).rgba);
+}

@@ -685,8 +685,11 @@ unsafe extern "C" fn host_texture(
             return;
         }
         5 => {
-            // The frame's own maps by name: "caustic" and "global".
+            // The frame's own maps by name: "caustic" and "global"; none while they are traced.
             let (frame, gi) = (c.frame, c.frame.world.options.gi);
+            if frame.tracing_light_paths.load(std::sync::atomic::Ordering::Acquire) {
+                return;
+            }
             let map = match name {
                 "caustic" if gi.caustic_photons > 0 => frame
                     .caustics

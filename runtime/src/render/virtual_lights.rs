@@ -122,7 +122,12 @@ pub(super) fn trace_global(frame: &Frame) -> PhotonMap {
 /// ask for them: a render calls this before shading, so that no shading thread waits while the
 /// first one to need them traces them alone.
 pub(super) fn prepare(frame: &Frame) {
+    use std::sync::atomic::Ordering;
     let gi = frame.world.options.gi;
+    // Shaders the paths run (a shadow ray's, through a surface that shades its opacity) may ask
+    // for the maps being traced: they get none (`Frame::tracing_light_paths`), the same whatever
+    // the threads, rather than waiting on their own tracing, which would never end.
+    frame.tracing_light_paths.store(true, Ordering::Release);
     if gi.virtual_lights > 0 {
         frame.virtual_lights.get_or_init(|| Arc::new(timed(frame, || trace(frame))));
     }
@@ -132,10 +137,15 @@ pub(super) fn prepare(frame: &Frame) {
     if gi.global_photons > 0 {
         frame.global_photons.get_or_init(|| Arc::new(timed(frame, || trace_global(frame))));
     }
+    frame.tracing_light_paths.store(false, Ordering::Release);
 }
 
 /// The frame's virtual lights, traced first if no one has yet.
 pub(super) fn of_frame<'f>(frame: &'f Frame) -> &'f VirtualLights {
+    static NONE: std::sync::OnceLock<VirtualLights> = std::sync::OnceLock::new();
+    if frame.tracing_light_paths.load(std::sync::atomic::Ordering::Acquire) {
+        return NONE.get_or_init(|| VirtualLights::new(vec![Vec::new()], 1, 0.0));
+    }
     frame.virtual_lights.get_or_init(|| Arc::new(timed(frame, || trace(frame))))
 }
 

@@ -45,6 +45,10 @@ pub struct Frame<'w> {
     pub(crate) caustics: std::sync::OnceLock<Arc<PhotonMap>>,
     /// The frame's global photon map (`virtual_lights::trace_global`).
     pub(crate) global_photons: std::sync::OnceLock<Arc<PhotonMap>>,
+    /// Set while `virtual_lights::prepare` traces the light paths: shaders run for them (a light's
+    /// shadow rays through surfaces whose shader sets their opacity) then find no photon map and
+    /// no virtual lights, rather than waiting on the tracing they are part of.
+    pub(crate) tracing_light_paths: std::sync::atomic::AtomicBool,
     /// The seed of the frame's light paths: the options' own, or per pass of progressive
     /// refinement another, so that passes accumulate fresh virtual lights.
     pub(crate) gi_seed: u32,
@@ -82,6 +86,7 @@ impl<'w> Frame<'w> {
             virtual_lights: std::sync::OnceLock::new(),
             caustics: std::sync::OnceLock::new(),
             global_photons: std::sync::OnceLock::new(),
+            tracing_light_paths: std::sync::atomic::AtomicBool::new(false),
             gi_seed: world.options.gi.seed,
             captured: captured_outputs(world),
             stages,
