@@ -1516,9 +1516,9 @@ pub(crate) fn frame_report(frame: &Frame, start: Instant) -> FrameReport {
 /// ([`super::DepthFilter::Midpoint`]): halfway between the surface its sample met (at
 /// `samples[lane].depth`, facing `samples[lane].normal`) and the next one behind it, found by a
 /// ray that goes on from just behind the first; infinite where the ray met nothing or nothing
-/// lies behind.
+/// lies behind. A sample with no normal (a holdout's) keeps its own depth.
 fn midpoint_distances(world: &World, packet: &RayPacket, samples: &[Sample; PACKET_SIZE]) -> [f32; PACKET_SIZE] {
-    let mut distances = [f32::INFINITY; PACKET_SIZE];
+    let mut distances = samples.map(|s| s.depth);
     let mut lanes = Vec::new();
     let mut rays = Vec::new();
     for (lane, s) in samples.iter().enumerate() {
@@ -1533,10 +1533,7 @@ fn midpoint_distances(world: &World, packet: &RayPacket, samples: &[Sample; PACK
     let mut hits = Vec::new();
     world.intersect_rays(super::RayKind::Camera, &rays, &mut hits);
     for (&lane, hit) in lanes.iter().zip(&hits) {
-        if hit.is_hit() {
-            let first = samples[lane].depth;
-            distances[lane] = first + 0.5 * hit.t;
-        }
+        distances[lane] = if hit.is_hit() { samples[lane].depth + 0.5 * hit.t } else { f32::INFINITY };
     }
     distances
 }
