@@ -300,6 +300,25 @@ fn every_kind_of_change_reaches_the_workers_before_their_frame() -> Result<(), D
         }
         rt.pop_attributes().map_err(e)
     }
+    fn mirror_without_bounces(rt: &mut Context) -> Result<(), String> {
+        let e = |e: rtsl_runtime::api::ApiError| e.to_string();
+        // A mirror whose rays may take no specular bounce: black where it would reflect.
+        let mirror = rt
+            .compile_shader("mirror", "surface mirror() { Oi = 1; Ci = 0.5 * trace(P, reflect(I, normalize(N))); }")
+            .map_err(e)?;
+        rt.push_attributes();
+        rt.max_specular_depth(0);
+        let object = rt.begin_object().map_err(e)?;
+        rt.bind_shader(mirror).map_err(e)?;
+        rt.begin(Primitive::Quads).map_err(e)?;
+        for p in [[-1.0, 0.0, -1.8], [1.0, 0.0, -1.8], [1.0, 1.5, -1.8], [-1.0, 1.5, -1.8]] {
+            rt.vertex(p[0], p[1], p[2]).map_err(e)?;
+        }
+        rt.end().map_err(e)?;
+        rt.end_object().map_err(e)?;
+        rt.instantiate_object(object).map_err(e)?;
+        rt.pop_attributes().map_err(e)
+    }
     fn settings(rt: &mut Context) -> Result<(), String> {
         let e = |e: rtsl_runtime::api::ApiError| e.to_string();
         // Lights, camera, options and a pixel shader: the frame's settings.
@@ -333,6 +352,7 @@ fn every_kind_of_change_reaches_the_workers_before_their_frame() -> Result<(), D
             move_first,
             rebuild_and_delete,
             holdout_and_hidden,
+            mirror_without_bounces,
             settings,
             nothing,
         ],

@@ -233,6 +233,7 @@ impl Context {
             visibility: a.visibility,
             matte: a.matte,
             identifier: a.identifier.as_deref().map(Arc::from),
+            trace_depths: a.trace_depths,
             object_id,
             native: None,
             ray_values: a.ray_values.clone(),

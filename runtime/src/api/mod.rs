@@ -221,6 +221,10 @@ struct Appearance {
     /// The name of objects built from now on (RIB `Attribute "identifier" "name"`).
     #[serde(default)]
     identifier: Option<String>,
+    /// The bounces rays may take beyond objects built from now on (RIB `Attribute "trace"
+    /// "maxdiffusedepth"` and `"maxspeculardepth"`).
+    #[serde(default)]
+    trace_depths: crate::render::TraceDepths,
 }
 
 impl Default for Appearance {
@@ -239,6 +243,7 @@ impl Default for Appearance {
             visibility: crate::render::Visibility::ALL,
             matte: false,
             identifier: None,
+            trace_depths: crate::render::TraceDepths::UNBOUNDED,
         }
     }
 }

@@ -62,6 +62,20 @@ impl Context {
         self.appearance.matte = on;
     }
 
+    /// Bounds the diffuse bounces (`indirectdiffuse()` rays) rays may take beyond objects built
+    /// from now on (RenderMan's `Attribute "trace" "maxdiffusedepth"`; see
+    /// [`TraceDepths`](crate::render::TraceDepths)). Unbounded at first, but for the ray depth.
+    pub fn max_diffuse_depth(&mut self, bounces: u32) {
+        self.appearance.trace_depths.diffuse = bounces;
+    }
+
+    /// Bounds the specular bounces (`trace()` rays: reflections, refractions) rays may take beyond
+    /// objects built from now on (RenderMan's `Attribute "trace" "maxspeculardepth"`).
+    /// Unbounded at first, but for the ray depth.
+    pub fn max_specular_depth(&mut self, bounces: u32) {
+        self.appearance.trace_depths.specular = bounces;
+    }
+
     /// Names objects built from now on (RenderMan's `Attribute "identifier" "name"`; `None`: no
     /// name), which their shaders read with `attribute("identifier:name", s)`.
     pub fn identifier(&mut self, name: Option<&str>) {

@@ -5,7 +5,7 @@
 //! Invariant: callbacks never unwind into JIT code; they index only buffers whose sizes the packet
 //! ABI fixes, and nothing in them panics on user data.
 
-use super::ray_budget::{RayBudget, RayOrigin};
+use super::ray_budget::{Bounce, RayBudget, RayOrigin};
 use super::ray_params::{object_value, strip_user, RayValue, RELEVANCE};
 use super::stats::{tracing, Stats};
 use super::trace_ahead::{GatherAt, OcclusionAt, RayLog};
@@ -212,17 +212,25 @@ impl<'f, 'w> ShadeCall<'f, 'w> {
         self.budgets.get_mut(lane)
     }
 
-    /// Takes a ray from the budget of lane `l` of chunk `chunk`: what the ray is lent, or `None`
-    /// (a ray cut, counted) when the lane has nothing left.
-    fn spawn(&mut self, chunk: u32, l: usize) -> Option<RayBudget> {
+    /// Takes a ray from the budget of lane `l` of chunk `chunk`: what the ray is lent, with its
+    /// bounce of `kind` if it takes one, or `None` (a ray cut, counted) when the lane has nothing
+    /// left.
+    fn spawn(&mut self, chunk: u32, l: usize, kind: Option<Bounce>) -> Option<RayBudget> {
         let frame = self.frame;
         if let Some(budget) = self.budget(chunk, l) {
             if budget.take(1) {
-                return Some(budget.lend());
+                let lent = budget.lend();
+                return Some(kind.map_or(lent, |kind| lent.bounced(kind)));
             }
         }
         Stats::add(&frame.stats.rays_cut, 1);
         None
+    }
+
+    /// Whether lane `l` of chunk `chunk` may spawn a ray that takes a bounce of `kind` (not past
+    /// the batch's lanes).
+    fn may_bounce(&mut self, chunk: u32, l: usize, kind: Bounce) -> bool {
+        self.budget(chunk, l).is_some_and(|b| b.bounces.allow(kind))
     }
 
     /// The budgets of chunk `chunk`'s lanes (nothing to spend past the batch's).
@@ -829,7 +837,13 @@ unsafe extern "C" fn host_rays(
                 }
                 out[12 + l] = f32::INFINITY;
                 let (from, dir) = (lane3(a, 0, l), lane3(b, 0, l).normalize_or_zero());
-                if c.depth + 1 > max_depth || dir == Vec3A::ZERO || !from.is_finite() {
+                // Past the ray depth, or past the specular bounces the lane's path may take, the ray
+                // sees nothing.
+                if c.depth + 1 > max_depth
+                    || dir == Vec3A::ZERO
+                    || !from.is_finite()
+                    || !c.may_bounce(chunk, l, Bounce::Specular)
+                {
                     continue;
                 }
                 requested[l] = Some(Ray::segment(from, dir, epsilon(from), f32::INFINITY).at_time(times[l]));
@@ -846,7 +860,7 @@ unsafe extern "C" fn host_rays(
                 if requested[l].is_none() {
                     continue;
                 }
-                match c.spawn(chunk, l) {
+                match c.spawn(chunk, l, Some(Bounce::Specular)) {
                     Some(budget) => lent[l] = budget,
                     None => requested[l] = None,
                 }
@@ -902,6 +916,13 @@ unsafe extern "C" fn host_rays(
             let lights = virtual_lights::of_frame(frame);
             let mut at: [Option<GatherAt>; 4] = [None; 4];
             for l in (0..4).filter(|&l| mask[l] != 0) {
+                // Past the diffuse bounces the lane's path may take, no light comes back.
+                if !c.may_bounce(chunk, l, Bounce::Diffuse) {
+                    for r in 0..3 {
+                        out[4 * r + l] = 0.0;
+                    }
+                    continue;
+                }
                 let (p, n) = (lane3(a, 0, l), lane3(b, 0, l).normalize_or_zero());
                 if n != Vec3A::ZERO && p.is_finite() {
                     at[l] = Some(GatherAt { p, n, time: times[l] });
@@ -984,6 +1005,13 @@ unsafe extern "C" fn host_rays(
                 if mask[l] == 0 {
                     continue;
                 }
+                if kind == 3 && !c.may_bounce(chunk, l, Bounce::Diffuse) {
+                    // Past the diffuse bounces the lane's path may take, no light comes back.
+                    for r in 0..3 {
+                        out[4 * r + l] = 0.0;
+                    }
+                    continue;
+                }
                 let (p, n) = (lane3(a, 0, l), lane3(b, 0, l).normalize_or_zero());
                 let count = (samples[l].max(1.0) as u32).min(256);
                 let depth = c.depth;
@@ -1029,7 +1057,7 @@ fn hemisphere(
         }
     });
     if let Some(budget) = paid {
-        let share = budget.share(count);
+        let share = budget.share(count).bounced(Bounce::Diffuse);
         let mut budgets = vec![share; rays.len()];
         let seen = (frame.stages.trace_rays)(frame, &rays, &mut budgets, depth + 1);
         for after in budgets {
@@ -1087,7 +1115,7 @@ unsafe extern "C" fn host_gather(
         }
         let budget = if shaded {
             // Past the budget the ray misses.
-            match c.spawn(chunk, l) {
+            match c.spawn(chunk, l, None) {
                 Some(budget) => budget,
                 None => continue,
             }
@@ -1183,6 +1211,12 @@ unsafe extern "C" fn host_message(
             match name {
                 "Sides" => floats(out, &[if material.one_sided { 1.0 } else { 2.0 }]),
                 "Matte" => floats(out, &[if material.matte { 1.0 } else { 0.0 }]),
+                "trace:maxdiffusedepth" | "trace:maxspeculardepth" => {
+                    let d = material.trace_depths;
+                    let bounces = if name == "trace:maxdiffusedepth" { d.diffuse } else { d.specular };
+                    // Unbounded reads as the largest integer a float holds exactly.
+                    floats(out, &[bounces.min(1 << 24) as f32])
+                }
                 "identifier:name" => match &material.identifier {
                     Some(name) => value_message(RayValue::String(name.to_string()), out, &mut c.text),
                     None => 0,
@@ -1203,6 +1237,11 @@ unsafe extern "C" fn host_message(
         }
         (Builtin::Rendererinfo, "version") => floats(out, &[0.0, 1.0, 0.0, 0.0]),
         (Builtin::Rayinfo, "depth") => floats(out, &[c.depth as f32]),
+        (Builtin::Rayinfo, "diffusedepth" | "speculardepth") => {
+            let bounces = c.budget(chunk, lane as usize).map(|b| b.bounces);
+            let taken = bounces.map_or(0, |b| if name == "diffusedepth" { b.diffuse } else { b.specular });
+            floats(out, &[taken as f32])
+        }
         (Builtin::Rayinfo, _) => ray_parameter(c, chunk, lane, name, out),
         // Message passing: the parameters of the shaders bound with the one running, as bound
         // (or their constant defaults). Outputs a shader computes are not seen.

@@ -51,6 +51,6 @@ pub use stats::Stats;
 pub use work::{Frame, LightPathCache, LightPaths, Sample};
 pub use world::{
     check_image_size, AccelUpdate, Antialiasing, AreaLight, CameraSetup, DepthFilter, InstanceParts, InstanceShading,
-    LightSource, Material, RayKind, RefineOn, RenderOptions, Visibility, World, MAX_AREA_SAMPLES, MAX_IMAGE_PIXELS,
-    MAX_IMAGE_SIDE, MAX_PIXEL_SAMPLES,
+    LightSource, Material, RayKind, RefineOn, RenderOptions, TraceDepths, Visibility, World, MAX_AREA_SAMPLES,
+    MAX_IMAGE_PIXELS, MAX_IMAGE_SIDE, MAX_PIXEL_SAMPLES,
 };

@@ -26,6 +26,11 @@
 //! Only rays that are shaded count (and `gather` rays that could be): shadow, `transmission` and
 //! `occlusion` rays end where they hit, and are bounded by the loop budget of the shader that
 //! sends them.
+//!
+//! The budget carries the bounces its ray's path took, diffuse and specular, and the most it may
+//! take ([`Bounces`], RenderMan's `maxdiffusedepth` and `maxspeculardepth`: see
+//! [`super::TraceDepths`]), as it carries its origin: the rays of a tree inherit them, and each
+//! `indirectdiffuse()` or `trace()` ray adds its own bounce.
 
 /// The rays one camera sample's shaders may spawn (`trace`, `gather`, `indirectdiffuse`), at
 /// every depth together: a tree of reflection and refraction 16 levels deep, or a `gather` at its
@@ -49,19 +54,74 @@ impl RayOrigin {
     pub(crate) const NONE: RayOrigin = RayOrigin { pixel: Self::NO_PIXEL, material: Self::NO_MATERIAL };
 }
 
-/// What a ray's tree may still spawn, whether a ray of it was refused, and where it comes from.
+/// A kind of bounce a spawned ray takes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Bounce {
+    /// `indirectdiffuse()`.
+    Diffuse,
+    /// `trace()`: reflections and refractions.
+    Specular,
+}
+
+/// The bounces a ray's path took, and the most it may take (see [`super::TraceDepths`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Bounces {
+    pub(crate) diffuse: u32,
+    pub(crate) specular: u32,
+    diffuse_limit: u32,
+    specular_limit: u32,
+}
+
+impl Bounces {
+    /// A camera ray's: none taken, none bounded.
+    pub(crate) const NONE: Bounces =
+        Bounces { diffuse: 0, specular: 0, diffuse_limit: u32::MAX, specular_limit: u32::MAX };
+
+    /// These bounces where the ray reaches a surface whose rays may take `depths` more: each limit
+    /// becomes the smaller of the one carried and the bounces so far plus the surface's (PRMan's
+    /// rule).
+    pub(crate) fn at(self, depths: super::TraceDepths) -> Bounces {
+        Bounces {
+            diffuse_limit: self.diffuse_limit.min(self.diffuse.saturating_add(depths.diffuse)),
+            specular_limit: self.specular_limit.min(self.specular.saturating_add(depths.specular)),
+            ..self
+        }
+    }
+
+    /// Whether a ray spawned here may take a bounce of `kind`.
+    pub(crate) fn allow(self, kind: Bounce) -> bool {
+        match kind {
+            Bounce::Diffuse => self.diffuse < self.diffuse_limit,
+            Bounce::Specular => self.specular < self.specular_limit,
+        }
+    }
+
+    /// A spawned ray's: these with a bounce of `kind` more.
+    fn after(self, kind: Bounce) -> Bounces {
+        match kind {
+            Bounce::Diffuse => Bounces { diffuse: self.diffuse.saturating_add(1), ..self },
+            Bounce::Specular => Bounces { specular: self.specular.saturating_add(1), ..self },
+        }
+    }
+}
+
+/// What a ray's tree may still spawn, whether a ray of it was refused, where it comes from, and
+/// the bounces its path took.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) struct RayBudget {
     pub(crate) left: u32,
     pub(crate) cut: bool,
     pub(crate) origin: RayOrigin,
+    pub(crate) bounces: Bounces,
 }
 
 impl RayBudget {
     /// A camera sample's (of no pixel: [`RayBudget::from_pixel`] gives it one).
-    pub(crate) const FULL: RayBudget = RayBudget { left: RAY_TREE_BUDGET, cut: false, origin: RayOrigin::NONE };
+    pub(crate) const FULL: RayBudget =
+        RayBudget { left: RAY_TREE_BUDGET, cut: false, origin: RayOrigin::NONE, bounces: Bounces::NONE };
     /// Nothing to spend: for rays that cannot spawn any (at the ray depth).
-    pub(crate) const NONE: RayBudget = RayBudget { left: 0, cut: false, origin: RayOrigin::NONE };
+    pub(crate) const NONE: RayBudget =
+        RayBudget { left: 0, cut: false, origin: RayOrigin::NONE, bounces: Bounces::NONE };
 
     /// The full budget of the camera sample of pixel `pixel` (`y * width + x`).
     pub(crate) const fn from_pixel(pixel: u32) -> RayBudget {
@@ -69,13 +129,20 @@ impl RayBudget {
     }
 
     /// This budget where a ray reaches a surface of material `material`: its rays inherit the
-    /// material's ray parameters if it sets any (`sets_parameters`).
-    pub(crate) fn through(self, material: u32, sets_parameters: bool) -> RayBudget {
+    /// material's ray parameters if it sets any (`sets_parameters`), and take at most the bounces
+    /// `depths` allows beyond it ([`Bounces::at`]).
+    pub(crate) fn through(self, material: u32, sets_parameters: bool, depths: super::TraceDepths) -> RayBudget {
+        let bounces = self.bounces.at(depths);
         if sets_parameters {
-            RayBudget { origin: RayOrigin { material, ..self.origin }, ..self }
+            RayBudget { origin: RayOrigin { material, ..self.origin }, bounces, ..self }
         } else {
-            self
+            RayBudget { bounces, ..self }
         }
+    }
+
+    /// This budget for a ray that takes a bounce of `kind`.
+    pub(crate) fn bounced(self, kind: Bounce) -> RayBudget {
+        RayBudget { bounces: self.bounces.after(kind), ..self }
     }
 
     /// Takes `rays` from what is left; false, with nothing taken and the tree marked cut, when
@@ -91,12 +158,12 @@ impl RayBudget {
 
     /// What a spawned ray is lent: all that is left.
     pub(crate) fn lend(self) -> RayBudget {
-        RayBudget { left: self.left, cut: false, origin: self.origin }
+        RayBudget { left: self.left, cut: false, ..self }
     }
 
     /// A share of what is left, for one of `n` rays spawned together.
     pub(crate) fn share(self, n: u32) -> RayBudget {
-        RayBudget { left: self.left / n.max(1), cut: false, origin: self.origin }
+        RayBudget { left: self.left / n.max(1), cut: false, ..self }
     }
 
     /// Takes back what a spawned ray's tree spent of `lent`, ending with `after`.
@@ -117,7 +184,8 @@ mod tests {
 
     #[test]
     fn a_tree_spends_what_it_was_lent_and_no_more() {
-        let mut lane = RayBudget { left: 10, cut: false, origin: RayOrigin { pixel: 7, material: 2 } };
+        let origin = RayOrigin { pixel: 7, material: 2 };
+        let mut lane = RayBudget { left: 10, cut: false, origin, bounces: Bounces::NONE };
         assert!(lane.take(1));
         let lent = lane.lend();
         assert_eq!(lent.left, 9);
@@ -126,12 +194,43 @@ mod tests {
         assert!(!child.take(6), "5 left");
         assert!(child.cut);
         lane.settle(lent, child);
-        assert_eq!(lane, RayBudget { left: 5, cut: true, origin: RayOrigin { pixel: 7, material: 2 } });
+        assert_eq!(lane, RayBudget { left: 5, cut: true, origin, bounces: Bounces::NONE });
         assert_eq!(lane.share(2).left, 2);
         assert_eq!(lane.share(2).origin, lane.origin, "the rays of a tree keep its origin");
         assert_eq!(lent.origin, lane.origin);
-        assert_eq!(lane.through(5, false).origin.material, 2);
-        assert_eq!(lane.through(5, true).origin, RayOrigin { pixel: 7, material: 5 });
+        let depths = crate::render::TraceDepths::UNBOUNDED;
+        assert_eq!(lane.through(5, false, depths).origin.material, 2);
+        assert_eq!(lane.through(5, true, depths).origin, RayOrigin { pixel: 7, material: 5 });
         assert_eq!(lane.share(0).left, 5);
+    }
+
+    /// PRMan's rule, with its defaults (one diffuse bounce, two specular ones): a diffuse ray's
+    /// hit spawns no diffuse ray; a glass ball refracts in and out, but a reflection of it in a
+    /// mirror does not get out again; and a surface lowers, never raises, what an earlier one
+    /// allowed.
+    #[test]
+    fn bounces_follow_the_smallest_bound_on_the_path() {
+        use crate::render::TraceDepths;
+        let prman = TraceDepths::RENDERMAN;
+        let camera = RayBudget::FULL.through(0, false, prman);
+        assert!(camera.bounces.allow(Bounce::Diffuse) && camera.bounces.allow(Bounce::Specular));
+        let diffuse = camera.lend().bounced(Bounce::Diffuse).through(0, false, prman);
+        assert!(!diffuse.bounces.allow(Bounce::Diffuse), "one diffuse bounce");
+        assert!(diffuse.bounces.allow(Bounce::Specular), "the specular bounces are apart");
+        let inside = camera.bounced(Bounce::Specular).through(0, false, prman);
+        assert!(inside.bounces.allow(Bounce::Specular), "out of the ball again");
+        let mirrored = camera.bounced(Bounce::Specular).through(0, false, prman);
+        let in_ball = mirrored.bounced(Bounce::Specular).through(0, false, prman);
+        assert!(!in_ball.bounces.allow(Bounce::Specular), "the mirror took one of the two");
+        // A surface allowing more does not lift the bound an earlier one set.
+        let generous = TraceDepths { diffuse: 5, specular: 5 };
+        let later = diffuse.bounced(Bounce::Specular).through(0, false, generous);
+        assert!(!later.bounces.allow(Bounce::Diffuse));
+        // Unbounded surfaces leave every bounce to the ray depth.
+        let free = RayBudget::FULL.through(0, false, TraceDepths::UNBOUNDED).bounced(Bounce::Diffuse);
+        assert!(free.through(0, false, TraceDepths::UNBOUNDED).bounces.allow(Bounce::Diffuse));
+        // A surface with no bounces stops its own rays at once.
+        let none = RayBudget::FULL.through(0, false, TraceDepths { diffuse: 0, specular: 0 });
+        assert!(!none.bounces.allow(Bounce::Diffuse) && !none.bounces.allow(Bounce::Specular));
     }
 }

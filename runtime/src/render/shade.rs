@@ -536,7 +536,7 @@ pub(super) fn shade_group(frame: &Frame, group: &GroupRows, depth: u32, out: &mu
     budgets.clear();
     let sets_parameters = !material.ray_values.is_empty();
     let given = &group.budgets[..group.len()];
-    budgets.extend(given.iter().map(|b| b.through(material_id, sets_parameters)));
+    budgets.extend(given.iter().map(|b| b.through(material_id, sets_parameters, material.trace_depths)));
     shade_group_lanes(frame, group, depth, out, (inst, material_id, material), &ig, &mut budgets);
     for ((o, given), b) in out.iter_mut().zip(given).zip(budgets.iter()) {
         (o.spent, o.cut) = (given.left.saturating_sub(b.left), b.cut);

@@ -40,7 +40,7 @@
 //! chunk, they made packets of a dozen rays, each paying a whole packet's set-up; a batch's
 //! points fill them. A point's sum is its own rays' alone, whichever points gather beside it.
 
-use super::ray_budget::RayBudget;
+use super::ray_budget::{Bounce, RayBudget};
 use super::stats::Stats;
 use super::virtual_lights::{self, Gatherer};
 use super::work::{Frame, Sample};
@@ -178,7 +178,7 @@ impl Recorded {
         }
         let share = |lane: usize| {
             let (budget, n) = (budgets.get(lane)?, *noted.get(lane)?);
-            let mut share = budget.share(n);
+            let mut share = budget.share(n).bounced(Bounce::Specular);
             share.take(1).then_some(share)
         };
         let (mut rays, mut lent) = (Vec::new(), Vec::new());

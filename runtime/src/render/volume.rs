@@ -109,7 +109,7 @@ fn shade_batch(
             .iter()
             .map(|&k| {
                 let (p, r) = (&current[k], &results[k]);
-                RayBudget { left: p.budget.left.saturating_sub(r.spent), cut: false, origin: p.budget.origin }
+                RayBudget { left: p.budget.left.saturating_sub(r.spent), cut: false, ..p.budget }
             })
             .collect();
         let before = budgets.clone();

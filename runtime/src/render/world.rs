@@ -43,6 +43,8 @@ pub struct Material {
     /// The object's name (RIB `Attribute "identifier" "name"`), which `attribute("identifier:name")`
     /// answers.
     pub identifier: Option<Arc<str>>,
+    /// The bounces rays may take beyond the surface ([`TraceDepths`]).
+    pub trace_depths: TraceDepths,
     /// An id the pixel shader and adaptive sampling may read (`objectid`).
     pub object_id: u32,
     /// Shade with Rust code instead of `surface` (`render/native.rs`).
@@ -106,6 +108,7 @@ impl Material {
         visibility: Visibility::ALL,
         matte: false,
         identifier: None,
+        trace_depths: TraceDepths::UNBOUNDED,
         object_id: 0,
         native: None,
         ray_values: Vec::new(),
@@ -189,6 +192,33 @@ impl Visibility {
 impl Default for Visibility {
     fn default() -> Self {
         Visibility::ALL
+    }
+}
+
+/// How many diffuse and how many specular bounces rays may take beyond a surface (RenderMan's
+/// `Attribute "trace" "maxdiffusedepth"` and `"maxspeculardepth"`). A diffuse bounce is a ray of
+/// `indirectdiffuse()`; a specular one a ray of `trace()` (reflections, refractions). A ray
+/// carries the bounces its path took and the most it may take; where it reaches a surface, that
+/// most becomes the smaller of what it carried and its bounces so far plus the surface's own
+/// (PRMan's rule), so a surface can lower what rays beyond it do but not raise what an earlier
+/// surface allowed. A call whose ray would take a bounce past that answers as past the ray
+/// depth. `Option "trace" "maxdepth"` bounds all rays together beside them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct TraceDepths {
+    pub diffuse: u32,
+    pub specular: u32,
+}
+
+impl TraceDepths {
+    /// No bound but the ray depth: the API's default.
+    pub const UNBOUNDED: TraceDepths = TraceDepths { diffuse: u32::MAX, specular: u32::MAX };
+    /// PRMan's defaults, which RIB files get: one diffuse bounce and two specular ones.
+    pub const RENDERMAN: TraceDepths = TraceDepths { diffuse: 1, specular: 2 };
+}
+
+impl Default for TraceDepths {
+    fn default() -> Self {
+        TraceDepths::UNBOUNDED
     }
 }
 

@@ -788,6 +788,11 @@ struct OpenSolid {
 impl<'a> Loader<'a> {
     fn new(mut rt: LoadInto<'a>, dir: PathBuf) -> Loader<'a> {
         rt.add_texture_search_path(dir.clone());
+        // PRMan's bounces (`Attribute "trace" "maxdiffusedepth"` 1, `"maxspeculardepth"` 2) for
+        // what the file builds, where the API bounds only the ray depth.
+        let prman = crate::render::TraceDepths::RENDERMAN;
+        rt.max_diffuse_depth(prman.diffuse);
+        rt.max_specular_depth(prman.specular);
         // Shaders beside the file are found, as Aqsis's default search path begins with "." (the
         // directory a scene is rendered from): after the directories the application gave, before
         // the library. A RIB `Option "searchpath" "shader"` without `&` replaces it.
@@ -2041,7 +2046,25 @@ impl<'a> Loader<'a> {
                     self.rt.ray_visibility(RayKind::Trace, bits & 2 != 0);
                     self.rt.ray_visibility(RayKind::Shadow, bits & 4 != 0);
                 }
-                ("trace", "maxdiffusedepth" | "maxspeculardepth") => {}
+                ("trace", "maxdiffusedepth" | "maxspeculardepth") => match f {
+                    Some(n) if n >= 0.0 && n.is_finite() => {
+                        // A float is read as the integer below it; past the largest a `u32` holds,
+                        // the ray depth is the only bound anyway.
+                        let bounces = n.min(u32::MAX as f32) as u32;
+                        if p.name == "maxdiffusedepth" {
+                            self.rt.max_diffuse_depth(bounces);
+                        } else {
+                            self.rt.max_specular_depth(bounces);
+                        }
+                    }
+                    _ => self.warn(
+                        r,
+                        format_args!(
+                            "attribute \"trace\" \"{}\" takes a number of bounces, 0 or more; it stays as it was",
+                            p.name
+                        ),
+                    ),
+                },
                 ("light", "nsamples") | ("light", "samples") => {
                     if let (Some(light), Some(n)) = (self.state.area_light, f) {
                         self.rt.set_area_light_samples(light, n.max(1.0) as u32);
