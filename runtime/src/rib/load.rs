@@ -134,7 +134,9 @@ enum DisplayDriver {
 }
 
 impl DisplayDriver {
-    const NAMES: &'static str = "file, tiff, openexr, png, targa, zfile, shadow, framebuffer, it, piqsl, idisplay, x11";
+    const NAMES: &'static str =
+        "file, tiff, openexr (exr), png, targa (tga), zfile, shadow; windows: framebuffer, it, \
+                                 piqsl, zframebuffer, idisplay, mplay, x11, windows";
 
     /// The driver `driver` is for an image named `name`; `None` for a driver rtsl does not have,
     /// unless the name's extension names a format it writes (then that).
@@ -2354,6 +2356,17 @@ fn typed_value(value: &RibValue, ty: Ty, many: bool) -> Option<ParamValue> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The warning for an unknown driver lists only drivers rtsl has (every word of it, whatever
+    /// the image's name).
+    #[test]
+    fn every_display_driver_the_warning_names_is_one_rtsl_has() {
+        let words = DisplayDriver::NAMES.split(|c: char| !c.is_ascii_alphanumeric()).filter(|w| !w.is_empty());
+        for driver in words {
+            assert!(DisplayDriver::parse(driver, Path::new("image")).is_some(), "{driver}");
+        }
+        assert!(DisplayDriver::parse("mystery", Path::new("image")).is_none());
+    }
 
     /// Requests between frames set up the frames after them: a `Display` and a `MakeShadow` of
     /// the depth pass's output that follow its `FrameEnd` belong to the beauty frame.
