@@ -298,6 +298,26 @@ fn shaders_read_user_options_and_attributes() {
     assert_eq!(two_halves("userdata", source, "", tint).pixel(1, 4), [0.0, 1.0, 0.0, 1.0]);
 }
 
+/// PRMan's `Ri:` names of standard attributes: `attribute("Ri:Color")` and `"Ri:Opacity"` read the
+/// object's `Color` and `Opacity`, `"Ri:Sides"` and `"Ri:Matte"` the same as `"Sides"` and
+/// `"Matte"`.
+#[test]
+fn shaders_read_standard_attributes_by_their_ri_names() {
+    let source = "surface standard() {
+        color c = 0, o = 0; float sides = 0, matte = 7, plain = 0;
+        float found = attribute(\"Ri:Color\", c) + attribute(\"Ri:Opacity\", o);
+        found += attribute(\"Ri:Sides\", sides) + attribute(\"Ri:Matte\", matte) + attribute(\"Sides\", plain);
+        Oi = 1;
+        Ci = found == 5 && sides == plain && matte == 0 ? c * comp(o, 1) * sides / 2 : color(1, 0, 1);
+    }";
+    let left = "Color [0.2 0.4 0.8] Opacity [1 0.5 1]";
+    let fb = two_halves("standard", source, "", left);
+    // Left: its colour, halved by its opacity's green; right: the defaults. Both have two sides.
+    let (l, r) = (fb.pixel(1, 4), fb.pixel(6, 4));
+    assert!(l[..3].iter().zip([0.1, 0.2, 0.4]).all(|(a, b)| (a - b).abs() < 1e-6), "{l:?}");
+    assert_eq!(&r[..3], &[1.0, 1.0, 1.0], "{r:?}");
+}
+
 /// `Attribute "identifier" "name"` names the objects of its block: `attribute("identifier:name")`
 /// reads the shaded object's name, and answers 0 for an object without one.
 #[test]

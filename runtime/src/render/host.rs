@@ -1209,8 +1209,11 @@ unsafe extern "C" fn host_message(
             let material = c.material.and_then(|m| c.frame.world.materials.get(m as usize));
             let Some(material) = material else { return 0 };
             match name {
-                "Sides" => floats(out, &[if material.one_sided { 1.0 } else { 2.0 }]),
-                "Matte" => floats(out, &[if material.matte { 1.0 } else { 0.0 }]),
+                // PRMan prefers the `Ri:` names.
+                "Sides" | "Ri:Sides" => floats(out, &[if material.one_sided { 1.0 } else { 2.0 }]),
+                "Matte" | "Ri:Matte" => floats(out, &[if material.matte { 1.0 } else { 0.0 }]),
+                "Ri:Color" => value_message(RayValue::Color(material.color), out, &mut c.text),
+                "Ri:Opacity" => value_message(RayValue::Color(material.opacity), out, &mut c.text),
                 "trace:maxdiffusedepth" | "trace:maxspeculardepth" => {
                     let d = material.trace_depths;
                     let bounces = if name == "trace:maxdiffusedepth" { d.diffuse } else { d.specular };
