@@ -18,22 +18,36 @@ const MIRROR: &str = "surface mirrored() { Oi = 1; Ci = 0.5 * trace(P, reflect(I
 const BOUNCE: &str =
     "surface bounce() { Oi = 1; Ci = 0.1 + 0.5 * indirectdiffuse(P, faceforward(normalize(N), I), 4); }";
 
-/// The camera between two facing quads, wide enough that every ray between them meets one,
-/// shaded by `shader`; `depths` sets the bounces before they are built.
-fn between_facing_quads(shader: &str, depths: impl FnOnce(&mut Context)) -> Result<Context, ApiError> {
+/// One object shaded by `shader` and made by `geometry`, seen from `eye` toward `look`, rays 6
+/// deep at most; `depths` sets the bounces before it is built.
+fn one_object(
+    shader: &str,
+    (eye, look): (Vec3A, Vec3A),
+    geometry: impl FnOnce(&mut Context) -> Result<(), ApiError>,
+    depths: impl FnOnce(&mut Context),
+) -> Result<Context, ApiError> {
     let mut rt = context();
-    let id = rt.compile_shader("facing.sl", shader)?;
+    let id = rt.compile_shader("object.sl", shader)?;
     rt.options.max_ray_depth = 6;
-    rt.camera_look_at(Vec3A::new(0.0, 0.0, 5.0), Vec3A::ZERO, Vec3A::Y, 30.0);
+    rt.camera_look_at(eye, look, Vec3A::Y, 30.0);
     depths(&mut rt);
     let m = rt.begin_object()?;
     rt.bind_shader(id)?;
-    let far = 1000.0;
-    quad(&mut rt, [[-far, -far, 0.0], [far, -far, 0.0], [far, far, 0.0], [-far, far, 0.0]])?;
-    quad(&mut rt, [[-far, far, 8.0], [far, far, 8.0], [far, -far, 8.0], [-far, -far, 8.0]])?;
+    geometry(&mut rt)?;
     rt.end_object()?;
     rt.instantiate_object(m)?;
     Ok(rt)
+}
+
+/// The camera between two facing quads, wide enough that every ray between them meets one,
+/// shaded by `shader`.
+fn between_facing_quads(shader: &str, depths: impl FnOnce(&mut Context)) -> Result<Context, ApiError> {
+    let quads = |rt: &mut Context| {
+        let far = 1000.0;
+        quad(rt, [[-far, -far, 0.0], [far, -far, 0.0], [far, far, 0.0], [-far, far, 0.0]])?;
+        quad(rt, [[-far, far, 8.0], [far, far, 8.0], [far, -far, 8.0], [-far, -far, 8.0]])
+    };
+    one_object(shader, (Vec3A::new(0.0, 0.0, 5.0), Vec3A::ZERO), quads, depths)
 }
 
 #[test]
@@ -65,20 +79,9 @@ fn trace_rays_stop_at_the_specular_bounces_whatever_the_batching() -> Result<(),
     Ok(())
 }
 
-/// The camera inside a closed box shaded with `BOUNCE`, so that every ray meets a wall;
-/// `depths` sets the bounces before it is built.
+/// The camera inside a closed box shaded with `BOUNCE`, so that every ray meets a wall.
 fn inside_a_box(depths: impl FnOnce(&mut Context)) -> Result<Context, ApiError> {
-    let mut rt = context();
-    let id = rt.compile_shader("bounce.sl", BOUNCE)?;
-    rt.options.max_ray_depth = 6;
-    rt.camera_look_at(Vec3A::new(0.0, 0.0, 0.5), Vec3A::new(0.0, 0.0, -1.0), Vec3A::Y, 30.0);
-    depths(&mut rt);
-    let m = rt.begin_object()?;
-    rt.bind_shader(id)?;
-    cube(&mut rt)?;
-    rt.end_object()?;
-    rt.instantiate_object(m)?;
-    Ok(rt)
+    one_object(BOUNCE, (Vec3A::new(0.0, 0.0, 0.5), Vec3A::new(0.0, 0.0, -1.0)), cube, depths)
 }
 
 #[test]
