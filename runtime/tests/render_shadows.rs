@@ -427,3 +427,33 @@ fn the_midpoint_depth_filter_takes_depth_halfway_to_the_next_surface() {
     let (sphere, .., warnings) = depths("Hider \"hidden\" \"depthfilter\" \"average\"");
     assert!((sphere - 4.0).abs() < 0.01 && warnings.len() == 1 && warnings[0].contains("\"average\""), "{warnings:?}");
 }
+
+/// Surfaces whose shader gives their shadow's opacity (`transmissionhitmode "shader"`) are shaded
+/// for the shadow rays that cross them, and their shaders' light queries trace shadows in turn:
+/// those take the surfaces' opacity rather than running the shaders again, so a wooden cylinder
+/// between two shadowed lights renders instead of recursing until the stack overflows (as it did,
+/// found by fuzzing).
+#[test]
+fn shadows_cast_while_shading_for_a_shadow_run_no_shader_again() {
+    let rib = r#"
+        Format 12 12 1
+        Option "trace" "maxdepth" [2]
+        WorldBegin
+        Attribute "light" "shadows" "on"
+        LightSource "pointlight" 1 "intensity" [0.3] "from" [0.3 0.5 0.35]
+        Attribute "shade" "transmissionhitmode" "shader"
+        LightSource "pointlight" 2 "intensity" [40] "from" [-3 7 -4]
+        Rotate -90 1 0 0
+        Surface "wood" "ringscale" [14]
+        Cylinder 0.45 0 1.4 360
+        Disk 1.4 0.45 360
+        WorldEnd
+    "#;
+    let (mut rt, warnings) = common::load(rib);
+    assert!(warnings.is_empty(), "{warnings:?}");
+    // (The camera, RenderMan's default at the origin, looks from inside the cylinder.)
+    let fb = common::render(&mut rt);
+    let covered = fb.rgba.chunks_exact(4).filter(|p| p[3] > 0.0).count();
+    assert!(covered > 0, "the wood shows");
+    assert!(fb.rgba.iter().all(|v| v.is_finite()));
+}

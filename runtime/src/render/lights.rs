@@ -810,6 +810,10 @@ fn transmission_packet(frame: &Frame, packet: &mut RayPacket, through: &mut [Vec
         }
     };
     let by_shader = AtomicU64::new(0);
+    // Inside the shading of a shadow's own surfaces, their shaders are not run again for the
+    // shadows their lights cast (see `SHADING_FOR_SHADOWS`): such surfaces pass light by their
+    // opacity.
+    let nested = SHADING_FOR_SHADOWS.with(Cell::get);
     let kind_of = |instance: u32, primitive: u32| {
         let i = instance as usize;
         // An instance out of range is shaded with the default material, which blocks.
@@ -825,10 +829,10 @@ fn transmission_packet(frame: &Frame, packet: &mut RayPacket, through: &mut [Vec
                 LAST_BLOCKER.with(|b| b.set(Some((c.instance, c.primitive))));
                 return true;
             }
-            ShadowKind::ByShader => {
+            ShadowKind::ByShader if !nested => {
                 by_shader.fetch_or(1u64 << (c.lane & 63), Ordering::Relaxed);
             }
-            ShadowKind::Crossed => {
+            ShadowKind::ByShader | ShadowKind::Crossed => {
                 note(Crossing { lane: c.lane & 63, t: c.t, instance: c.instance, primitive: c.primitive });
             }
         }
@@ -887,6 +891,28 @@ thread_local! {
     static NOTED_HERE: RefCell<Vec<Crossing>> = const { RefCell::new(Vec::new()) };
     /// The triangle (instance, primitive) that last blocked a shadow ray this thread traced.
     static LAST_BLOCKER: Cell<Option<(u32, u32)>> = const { Cell::new(None) };
+    /// Set while this thread runs the shaders of surfaces a shadow ray crosses, to find their
+    /// opacity (`walk_transparent_layers`). Those shaders' own light queries trace shadows too,
+    /// and if those ran the shaders of the surfaces they cross in turn, the shading would recurse
+    /// without end (each level at the ray depth, which bounds only the rays shaders spawn): a
+    /// wooden cylinder under `transmissionhitmode "shader"` and two shadowed lights overflowed the
+    /// stack. Their shadows take those surfaces' opacity instead.
+    static SHADING_FOR_SHADOWS: Cell<bool> = const { Cell::new(false) };
+}
+
+/// Marks this thread as shading for shadows until dropped, then restores what it was.
+struct ShadingForShadows(bool);
+
+impl ShadingForShadows {
+    fn begin() -> ShadingForShadows {
+        ShadingForShadows(SHADING_FOR_SHADOWS.with(|s| s.replace(true)))
+    }
+}
+
+impl Drop for ShadingForShadows {
+    fn drop(&mut self) {
+        SHADING_FOR_SHADOWS.with(|s| s.set(self.0));
+    }
 }
 
 /// The material of triangle `primitive` of instance `instance` (the default for ids out of range).
@@ -969,6 +995,7 @@ fn walk_transparent_layers(frame: &Frame, packet: &mut RayPacket, mut walking: u
         }
         if !shaded_by_shader.is_empty() {
             let mut shaded = vec![Shaded::default(); shaded_by_shader.len()];
+            let _marked = ShadingForShadows::begin();
             (frame.stages.shade_in_groups)(frame, &mut shaded_by_shader, world.options.max_ray_depth, &mut shaded);
             for (p, s) in shaded_by_shader.iter().zip(&shaded) {
                 through[p.index] *= Vec3A::ONE - s.oi.clamp(Vec3A::ZERO, Vec3A::ONE);
