@@ -1086,11 +1086,11 @@ fn a_render_missing_part_of_its_scene_fails_unless_told_to_keep_going() {
         assert!(err.contains(named) && err.contains("warning: 1 part of the scene missing"), "{what}: {err}");
     }
     // What is only ignored or approximated warns and succeeds.
-    let approximated = SPHERE_RIB.replace("WorldBegin", "Option \"limits\" \"bucketsize\" [16 16]\nWorldBegin");
+    let approximated = SPHERE_RIB.replace("WorldBegin", "Option \"ribparse\" \"string varsubst\" [\"$\"]\nWorldBegin");
     write(dir.path(), "s.rib", &approximated);
     let o = rtsl(&["render", "s.rib", "-o", "out.png", "--quiet"], dir.path());
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-    assert!(stderr(&o).contains("\"limits\""), "{}", stderr(&o));
+    assert!(stderr(&o).contains("\"ribparse\""), "{}", stderr(&o));
 }
 
 #[test]

@@ -124,6 +124,47 @@ fn shadow_maps_honour_blur_bias_and_the_pixel_footprint() -> Result<(), ApiError
     Ok(())
 }
 
+const SHADOWED_BY_DEFAULT: &str = r#"
+surface shadowed_by_default(string map = ""; float bias = -1;)
+{
+    Oi = 1;
+    Ci = bias < 0 ? shadow(map, P) : shadow(map, P, "bias", bias);
+}
+"#;
+
+#[test]
+fn shadow_lookups_without_a_bias_take_the_frame_s() -> Result<(), ApiError> {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let map = dir.path().join("half.shad");
+    write_half_occluded_map(&map);
+    // The plane z = 0, one unit behind the occluder as the light sees it; the left column.
+    let shadowed = |frame_bias: [f32; 2], call_bias: f32| -> Result<f32, ApiError> {
+        let mut rt = context();
+        rt.options.shadow_bias = frame_bias;
+        let shader = rt.compile_shader("shadowed_by_default.sl", SHADOWED_BY_DEFAULT)?;
+        rt.camera_look_at(Vec3A::new(0.0, 0.0, 3.0), Vec3A::ZERO, Vec3A::Y, 90.0);
+        let o = rt.begin_object()?;
+        rt.bind_shader(shader)?;
+        rt.parameter("map", ParamValue::String(map.display().to_string()))?;
+        rt.parameter("bias", ParamValue::Float(call_bias))?;
+        quad(&mut rt, [[-10.0, -10.0, 0.0], [10.0, -10.0, 0.0], [10.0, 10.0, 0.0], [-10.0, 10.0, 0.0]])?;
+        rt.end_object()?;
+        rt.instantiate_object(o)?;
+        let (fb, _) = rt.render_frame()?;
+        Ok(fb.pixel(0, H / 2)[0])
+    };
+    let close = |a: f32, b: f32| (a - b).abs() < 1e-5;
+    assert_eq!(shadowed([0.0; 2], -1.0)?, 1.0, "no bias by default");
+    assert_eq!(shadowed([2.0; 2], -1.0)?, 0.0, "the frame's bias reaches past the occluder");
+    // Aqsis's bias0 and bias1: the point is half-way up the ramp from 0.5 to 1.5.
+    let ramp = shadowed([0.5, 1.5], -1.0)?;
+    assert!(close(ramp, 0.5), "{ramp}");
+    // A call's own bias wins, a zero one too.
+    assert_eq!(shadowed([2.0; 2], 0.0)?, 1.0);
+    assert_eq!(shadowed([0.0; 2], 2.0)?, 0.0);
+    Ok(())
+}
+
 #[test]
 fn transparent_surfaces_composite_front_to_back() -> Result<(), ApiError> {
     let mut rt = context();

@@ -289,11 +289,11 @@ fn unknown_shaders_are_reported_not_fatal() {
 
 #[test]
 fn omissions_count_what_is_missing_from_the_picture_and_not_what_is_approximated() {
-    let rib = r#"Option "limits" "bucketsize" [16 16]
+    let rib = r#"Option "ribparse" "string varsubst" ["$"]
         PixelVariance 0.01
         Projection "stereographic"
         WorldBegin
-          Attribute "dice" "binary" [1]
+          Attribute "trace" "int displacements" [1]
           Surface "plastic" "nosuchparam" [1]
           Blobby 0 [] [] []
           ReadArchive "missing-model.obj"
@@ -304,7 +304,7 @@ fn omissions_count_what_is_missing_from_the_picture_and_not_what_is_approximated
     "#;
     let loaded = load_str(&mut Context::new(), rib, Path::new("s.rib")).expect("loads with warnings");
     let text = loaded.warnings.iter().map(ToString::to_string).collect::<Vec<_>>().join("\n");
-    for approximated in ["\"limits\"", "PixelVariance", "stereographic", "\"dice\"", "nosuchparam"] {
+    for approximated in ["\"ribparse\"", "PixelVariance", "stereographic", "\"displacements\"", "nosuchparam"] {
         assert!(text.contains(approximated), "{approximated} is warned about: {text}");
     }
     // The Blobby without code (an error at the request), the archive, the object instance and the

@@ -266,6 +266,23 @@ impl Renderer {
         Ok(())
     }
 
+    /// Renders on the threads a frame's scene asks for (RIB `Option "limits" "threads"`), one a
+    /// core where it asks for none; over MPI each rank keeps its own. For `rtsl render` without
+    /// `--threads`, as `prman` lets its `-t` override the RIB.
+    fn use_scene_threads(&mut self, wanted: Option<u32>) -> anyhow::Result<()> {
+        use anyhow::Context as _;
+        if self.master.is_some() {
+            return Ok(());
+        }
+        let threads = super::thread_count(wanted.map_or(0, |n| (n as usize).min(super::MAX_THREADS)))?;
+        if threads != self.threads {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build();
+            self.pool = pool.context("starting the worker threads")?;
+            self.threads = threads;
+        }
+        Ok(())
+    }
+
     /// Another scene comes (a RIB file's next frame): its meshes are measured with its first frame.
     fn next_scene(&mut self) {
         self.meshes = None;
@@ -983,6 +1000,9 @@ fn render_frame_images(
 ) -> anyhow::Result<Written> {
     renderer.check_workers()?;
     renderer.next_scene();
+    if args.threads == 0 {
+        renderer.use_scene_threads(rt.options.threads)?;
+    }
     check_unwritten(output, number, written_paths)?;
     let written = render_and_write(rt, renderer, output, args.quiet, true)?;
     if !args.quiet {

@@ -77,7 +77,7 @@ fn shadow_query(vals: &[Value], tx: &[Value], ty: &[Value], fixed: usize) -> Sha
         tblur: option("tblur", blur),
         swidth: option("swidth", width),
         twidth: option("twidth", width),
-        bias: option("bias", 0.0),
+        bias: option("bias", f32::NAN),
     }
 }
 

@@ -58,7 +58,8 @@ pub struct ShadowQuery {
     /// `"swidth"`/`"twidth"` (or `"width"` for both): scales the region's extent on the map.
     pub swidth: f32,
     pub twidth: f32,
-    /// `"bias"`: subtracted from the point's depth before comparing.
+    /// `"bias"`: subtracted from the point's depth before comparing; NaN where the call gives
+    /// none, for the renderer's default (RIB's `Option "shadow" "bias"`).
     pub bias: f32,
 }
 
@@ -381,7 +382,7 @@ impl Services for TestHost {
         let x = q.p[0] + 0.5 * q.p[1] + 0.25 * q.p[2] + 0.7 * spread + 0.01 * q.samples + 0.1 * q.sblur - 0.2 * q.tblur
             + 0.3 * q.swidth
             + 0.05 * q.twidth
-            + 0.9 * q.bias;
+            + 0.9 * if q.bias.is_nan() { 0.375 } else { q.bias };
         x - x.floor()
     }
 

@@ -771,12 +771,18 @@ unsafe extern "C" fn host_texture(
                     (c.frame.stages.transmission_between)(c.frame, &[Some((p, to, c.lane_time(l)))], &mut t);
                     Some(1.0 - (t[0].x + t[0].y + t[0].z) / 3.0)
                 } else {
+                    // A query without a bias of its own (NaN) takes the frame's.
+                    let [low, high] = match query.bias {
+                        b if b.is_nan() => c.frame.world.options.shadow_bias,
+                        b => [b; 2],
+                    };
                     let opts = LookupOptions {
                         sblur: query.sblur,
                         tblur: query.tblur,
                         swidth: query.swidth,
                         twidth: query.twidth,
-                        bias: query.bias,
+                        bias: low.min(high),
+                        bias_ramp: (high - low).abs(),
                         // Saturating: NaN and negative counts are 0, then at least one sample.
                         samples: query.samples as u32,
                         ..LookupOptions::default()

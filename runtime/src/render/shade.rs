@@ -5,8 +5,9 @@
 //!
 //! Invariants:
 //! - A ray's colour is composited front to back: `C += w * Ci`, `w *= 1 - Oi` (RenderMan's `Ci` is
-//!   premultiplied by `Oi`), continuing through surfaces while `w` is above 1/256 and fewer than
-//!   `max_transparent_layers` were crossed; what is left of `w` sees the background.
+//!   premultiplied by `Oi`), continuing through surfaces while `1 - w` is below
+//!   `RenderOptions::opacity_threshold` in some channel and fewer than `max_transparent_layers`
+//!   were crossed; what is left of `w` sees the background.
 //! - `trace` recursion stops at `RenderOptions::max_ray_depth`: deeper rays return black (RISpec).
 //! - A camera sample's tree of rays spawns at most `RAY_TREE_BUDGET` (`ray_budget.rs`): each hit
 //!   carries what its tree may still spend, and gives back what it did not.
@@ -337,7 +338,9 @@ fn composite(
     sample.color += *w * r.ci;
     let left = *w * (Vec3A::ONE - r.oi.clamp(Vec3A::ZERO, Vec3A::ONE));
     *w = left;
-    left.max_element() > 1.0 / 256.0 && layer < world.options.max_transparent_layers
+    // Exactly when the opacity so far, `1 - left`, is below the threshold in some channel.
+    let hidden_below = Vec3A::ONE - Vec3A::from(world.options.opacity_threshold);
+    left.cmpgt(hidden_below).any() && layer < world.options.max_transparent_layers
 }
 
 /// The ray `index` (`ray`, its differential `diff`, its hit at `t`) going on through the surface

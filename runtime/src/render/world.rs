@@ -525,6 +525,23 @@ pub struct RenderOptions {
     pub background: [f32; 3],
     /// Most transparent surfaces a ray continues through.
     pub max_transparent_layers: u32,
+    /// RenderMan's opacity threshold (RIB `Option "limits" "othreshold"`): a camera ray goes on
+    /// through the surfaces it meets until the opacity they add up to reaches this in every
+    /// channel; what lies behind is then hidden. The default is 255/256: PRMan's 0.996, to the
+    /// nearest 1/256.
+    #[serde(default = "default_opacity_threshold")]
+    pub opacity_threshold: [f32; 3],
+    /// The threads a frame renders on, as the scene asks (RIB `Option "limits" "threads"`,
+    /// 3Delight's `"render" "nthreads"`) where whoever renders lets it decide (`rtsl render`
+    /// without `--threads`); `None`: one a core.
+    #[serde(default)]
+    pub threads: Option<u32>,
+    /// The bias of shadow-map lookups that give none (`shadow()` without `"bias"`): RIB's
+    /// `Option "shadow" "bias"` (both), `"bias0"` and `"bias1"` (Aqsis's ramp: a point is
+    /// lit up to the lower bias behind the stored depth and in shadow from the higher one,
+    /// gradually in between). `[0, 0]` by default, as Aqsis.
+    #[serde(default)]
+    pub shadow_bias: [f32; 2],
     /// The depth a pixel's first camera sample gives it (RIB `Hider "hidden" "depthfilter"`).
     #[serde(default)]
     pub depth_filter: DepthFilter,
@@ -586,6 +603,11 @@ pub struct RenderOptions {
     /// (`render/ray_params.rs`); the float parameter [`super::RELEVANCE`] also sets how many
     /// samples each pixel takes.
     pub ray_parameters: super::RayParameters,
+}
+
+/// [`RenderOptions::opacity_threshold`]'s default.
+fn default_opacity_threshold() -> [f32; 3] {
+    [1.0 - 1.0 / 256.0; 3]
 }
 
 /// The screen window as centre and half extents, the form the cameras use: screen `x` of raster
@@ -652,6 +674,9 @@ impl Default for RenderOptions {
             max_ray_depth: 6,
             background: [0.0; 3],
             max_transparent_layers: 16,
+            opacity_threshold: default_opacity_threshold(),
+            threads: None,
+            shadow_bias: [0.0; 2],
             depth_filter: DepthFilter::Min,
             exposure: None,
             quantize: None,

@@ -294,6 +294,8 @@ const PREDECLARED: &[(&str, Class, Ty, Option<usize>)] = &[
     ("bucketsize", Class::Uniform, Ty::Integer, Some(2)),
     ("gridsize", Class::Uniform, Ty::Integer, None),
     ("texturememory", Class::Uniform, Ty::Integer, None),
+    ("othreshold", Class::Uniform, Ty::Color, None),
+    ("zthreshold", Class::Uniform, Ty::Color, None),
 ];
 
 /// The declarations in force: `Declare`d names over the predeclared ones. RenderMan's `Declare`

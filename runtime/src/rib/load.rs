@@ -101,6 +101,22 @@ fn switched_on(p: &Param) -> Option<bool> {
     int.or_else(|| p.floats().and_then(|v| v.first()).map(|&v| v != 0.0))
 }
 
+/// A colour option's value (`Option "limits" "othreshold"`): three numbers, or one for all three;
+/// each clamped to [0, 1]. `None` for another count or a value that is not a number.
+fn color_option(p: &Param) -> Option<[f32; 3]> {
+    let values: Vec<f32> = match (p.floats(), p.ints()) {
+        (Some(v), _) => v.to_vec(),
+        (None, Some(v)) => v.iter().map(|&i| i as f32).collect(),
+        (None, None) => return None,
+    };
+    let rgb = match *values.as_slice() {
+        [x] => [x; 3],
+        [r, g, b] => [r, g, b],
+        _ => return None,
+    };
+    rgb.iter().all(|v| !v.is_nan()).then(|| rgb.map(|v| v.clamp(0.0, 1.0)))
+}
+
 /// The warning for a `"user"` value [`user_value`] does not keep.
 fn user_value_skipped(name: &str) -> String {
     format!("user data \"{name}\" skipped: rtsl keeps one float, integer, colour, point, vector, normal or string")
@@ -2080,6 +2096,14 @@ impl<'a> Loader<'a> {
                     }
                     None => self.warn(r, user_value_skipped(&p.name)),
                 },
+                // REYES's controls of dicing, culling, grid derivatives and shading rates, and of
+                // the irradiance cache's interpolation: a ray tracer that shades every hit where
+                // it is has no use for them (docs/rib.md).
+                ("dice" | "cull" | "stochastic" | "derivatives", _)
+                | ("shade", "relativeshadingrate" | "strategy" | "volumeintersectionstrategy")
+                | ("sides", "doubleshaded" | "backfacetolerance")
+                | ("trace", "decimationrate")
+                | ("irradiance", "maxerror" | "maxpixeldist") => {}
                 _ => self.warn(r, format_args!("attribute \"{name}\" \"{}\" is not supported", p.name)),
             }
         }
@@ -2115,6 +2139,50 @@ impl<'a> Loader<'a> {
                         self.rt.options.antialiasing = crate::render::Antialiasing::Adaptive { threshold: t.max(0.0) };
                     }
                 }
+                // Read by the parser as the stream is (`parse.rs`).
+                ("searchpath", "archive") => {}
+                // Where plug-ins are found: rtsl loads none (its display drivers are its own, and
+                // `RunProgram` and `DynamicLoad` are refused).
+                ("searchpath", "procedural" | "display" | "resource") => {}
+                // REYES's buckets, grids and memory limits; rtsl hands tiles out on demand and
+                // keeps no grids (docs/rib.md).
+                (
+                    "limits",
+                    "bucketsize"
+                    | "gridsize"
+                    | "texturememory"
+                    | "eyesplits"
+                    | "geocachememory"
+                    | "brickmemory"
+                    | "octreememory"
+                    | "proceduralmemory"
+                    | "deepshadowtiles"
+                    | "deepshadowmemory"
+                    | "radiositycachememory",
+                )
+                | ("bucket", "order") => {}
+                // rtsl prints each frame's statistics whatever the level.
+                ("statistics", "endofframe" | "level") => {}
+                ("limits", "othreshold") => match color_option(p) {
+                    Some(threshold) => self.rt.options.opacity_threshold = threshold,
+                    None => self.warn(r, "option \"limits\" \"othreshold\" takes a colour (three numbers)"),
+                },
+                ("limits", "threads") | ("render", "nthreads") => match f {
+                    Some(n) if n >= 1.0 && n.is_finite() => self.rt.options.threads = Some(n.min(4096.0) as u32),
+                    _ => self
+                        .warn(r, format_args!("option \"{name}\" \"{}\" takes a number of threads, 1 or more", p.name)),
+                },
+                ("shadow", which @ ("bias" | "bias0" | "bias1")) => match f.filter(|b| b.is_finite()) {
+                    Some(b) => {
+                        let biases = &mut self.rt.options.shadow_bias;
+                        match which {
+                            "bias" => *biases = [b; 2],
+                            "bias0" => biases[0] = b,
+                            _ => biases[1] = b,
+                        }
+                    }
+                    None => self.warn(r, format_args!("option \"shadow\" \"{which}\" takes a number")),
+                },
                 ("trace", "maxdepth") => {
                     if let Some(n) = f {
                         self.rt.options.max_ray_depth = n.clamp(0.0, 64.0) as u32;

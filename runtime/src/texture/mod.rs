@@ -137,6 +137,11 @@ pub struct LookupOptions {
     pub raw: bool,
     /// Shadow maps: subtracted from a point's depth before comparing, against self-shadowing.
     pub bias: f32,
+    /// Shadow maps: the width of a ramp above `bias` (Aqsis's `bias0` to `bias1`): a point
+    /// `bias + bias_ramp` or more behind the stored depth is in shadow, one `bias` or less behind
+    /// it lit, and in between in shadow by the fraction of the way; 0 (or less) is a step at
+    /// `bias`.
+    pub bias_ramp: f32,
     /// Shadow maps: the number of percentage-closer samples (rounded up to a square).
     pub samples: u32,
 }
@@ -153,6 +158,7 @@ impl Default for LookupOptions {
             fill: 0.0,
             raw: false,
             bias: 0.0,
+            bias_ramp: 0.0,
             samples: 16,
         }
     }

@@ -111,14 +111,14 @@ impl ShadowMap {
         };
         let kernel = [extent(reach_s, opts.swidth, opts.sblur, w), extent(reach_t, opts.twidth, opts.tblur, h)];
         let n = (opts.samples.clamp(1, MAX_SAMPLES) as f32).sqrt().ceil() as usize;
-        let reference = depth - opts.bias;
+        let compare = DepthCompare::new(depth, opts.bias, opts.bias_ramp);
         let mut shadowed = 0.0;
         for j in 0..n {
             for i in 0..n {
                 let offset = |k: usize, width: f32| ((k as f32 + 0.5) / n as f32 - 0.5) * width;
                 let tx = x * w + offset(i, kernel[0]) - 0.5;
                 let ty = y * h + offset(j, kernel[1]) - 0.5;
-                shadowed += self.compare_bilinear(tx, ty, reference);
+                shadowed += self.compare_bilinear(tx, ty, &compare);
             }
         }
         shadowed / (n * n) as f32
@@ -126,7 +126,7 @@ impl ShadowMap {
 
     /// The bilinear blend of the four depth comparisons around continuous texel position
     /// (x, y) (texel centres at integers); edges clamp.
-    fn compare_bilinear(&self, x: f32, y: f32, reference: f32) -> f32 {
+    fn compare_bilinear(&self, x: f32, y: f32, compare: &DepthCompare) -> f32 {
         let (x0, y0) = (x.floor(), y.floor());
         let (fx, fy) = (x - x0, y - y0);
         let clamp = |i: f32, n: usize| (i.max(0.0) as usize).min(n - 1);
@@ -134,12 +134,37 @@ impl ShadowMap {
         for (dy, wy) in [(0.0, 1.0 - fy), (1.0, fy)] {
             for (dx, wx) in [(0.0, 1.0 - fx), (1.0, fx)] {
                 let stored = self.depth.texel(clamp(x0 + dx, self.width()), clamp(y0 + dy, self.height()))[0];
-                if stored < reference {
-                    sum += wx * wy;
-                }
+                sum += wx * wy * compare.shadowed(stored);
             }
         }
         sum
+    }
+}
+
+/// How much a point at camera depth `depth` is in shadow of a stored depth: a step where there is
+/// no ramp (behind it by more than the bias), else the fraction of the ramp it is behind it by
+/// (Aqsis's `bias0` and `bias1`).
+struct DepthCompare {
+    /// The depth a stored depth must be under for any shadow: `depth - bias`.
+    reference: f32,
+    /// One over the ramp's width; `None` for a step.
+    inverse_ramp: Option<f32>,
+}
+
+impl DepthCompare {
+    fn new(depth: f32, bias: f32, ramp: f32) -> DepthCompare {
+        let inverse_ramp = (ramp > 0.0 && ramp.is_finite()).then(|| 1.0 / ramp);
+        DepthCompare { reference: depth - bias, inverse_ramp }
+    }
+
+    #[inline]
+    fn shadowed(&self, stored: f32) -> f32 {
+        match self.inverse_ramp {
+            // Past the ramp's top the ratio is above 1; a NaN stored depth stays lit.
+            Some(inverse) if stored < self.reference => ((self.reference - stored) * inverse).min(1.0),
+            None if stored < self.reference => 1.0,
+            _ => 0.0,
+        }
     }
 }
 
@@ -234,6 +259,20 @@ pub(crate) mod tests {
         assert_eq!(m.shadow([-5.0, 0.0, 5.0], &LookupOptions::default()), 0.0, "outside the map");
         assert_eq!(m.shadow([-0.5, 0.0, -5.0], &LookupOptions::default()), 0.0, "behind the light");
         assert_eq!(m.shadow([f32::NAN, 0.0, 5.0], &LookupOptions::default()), 0.0);
+    }
+
+    #[test]
+    fn a_bias_ramp_shadows_by_how_far_past_its_start_a_point_is() {
+        let m = map();
+        // 4 behind the occluder (depth 1).
+        let p = [-0.5, 0.2, 5.0];
+        let with =
+            |bias: f32, bias_ramp: f32| m.shadow(p, &LookupOptions { bias, bias_ramp, ..LookupOptions::default() });
+        assert_eq!(with(3.0, 2.0), 0.5, "half-way up the ramp");
+        assert_eq!(with(1.0, 2.0), 1.0, "past its top");
+        assert_eq!(with(5.0, 2.0), 0.0, "short of its start");
+        assert_eq!(with(3.0, 0.0), 1.0, "no ramp: a step");
+        assert_eq!(with(3.0, f32::NAN), 1.0, "no ramp: a step");
     }
 
     #[test]

@@ -125,7 +125,8 @@ impl<'m> Lower<'m, '_> {
                             let x = if given(name)? { first(opt(self, name, 0.0)?) } else { fallback.clone() };
                             inputs.push(x);
                         }
-                        inputs.push(first(opt(self, "bias", 0.0)?));
+                        // Not given: NaN, for the renderer's default (`ShadowQuery::bias`).
+                        inputs.push(first(opt(self, "bias", f32::NAN)?));
                         let r = self.call_helper_on("rtsl_h_shadow", &inputs, true)?;
                         Val { vary: true, c: vec![r.c[0]; n] }
                     }

@@ -1,0 +1,111 @@
+//! The options and attributes of PRMan and 3Delight that RIB files carry: those rtsl honours
+//! (`Option "limits" "othreshold"`, `"threads"`), those it accepts without a word because a ray
+//! tracer has no use for them (REYES's buckets, grids and dicing), and those it still warns about.
+
+mod common;
+
+use common::{load, render};
+
+/// Three full-screen squares in front of the camera: green at half opacity at z = 2 and z = 3,
+/// opaque red behind them at z = 4; `before` goes before `WorldBegin`.
+fn layers(before: &str) -> String {
+    let square = |z: f32| format!("Polygon \"P\" [-9 -9 {z}  9 -9 {z}  9 9 {z}  -9 9 {z}]");
+    format!(
+        "Format 4 4 1\nProjection \"perspective\" \"fov\" [30]\n{before}\nWorldBegin\nSurface \"constant\"\n\
+         AttributeBegin Color [0 1 0] Opacity [.5 .5 .5] {} {} AttributeEnd\n\
+         Color [1 0 0] {}\nWorldEnd\n",
+        square(2.0),
+        square(3.0),
+        square(4.0)
+    )
+}
+
+/// The centre pixel's colour.
+fn centre(before: &str) -> [f32; 4] {
+    let (mut rt, warnings) = load(&layers(before));
+    assert_eq!(warnings, Vec::<String>::new());
+    render(&mut rt).pixel(2, 2)
+}
+
+#[test]
+fn camera_rays_stop_where_the_opacity_reaches_the_threshold() {
+    let close = |a: f32, b: f32| (a - b).abs() < 1e-5;
+    // By default (255/256) a ray goes on through both green layers and sees a quarter of the red.
+    let [r, g, _, _] = centre("");
+    assert!(close(r, 0.25) && close(g, 0.75), "{r} {g}");
+    // Opacity 0.75 after two layers reaches 0.7: the red is hidden.
+    let [r, g, _, _] = centre("Option \"limits\" \"othreshold\" [0.7 0.7 0.7]");
+    assert!(close(r, 0.0) && close(g, 0.75), "{r} {g}");
+    // A float stands for the three; 0.5 after the first layer reaches 0.4.
+    let [r, g, _, _] = centre("Option \"limits\" \"float othreshold\" [0.4]");
+    assert!(close(r, 0.0) && close(g, 0.5), "{r} {g}");
+    // The ray goes on while any channel is below its threshold.
+    let [r, g, _, _] = centre("Option \"limits\" \"othreshold\" [0.7 0.7 0.9]");
+    assert!(close(r, 0.25) && close(g, 0.75), "{r} {g}");
+}
+
+#[test]
+fn a_malformed_opacity_threshold_warns_and_changes_nothing() {
+    let (rt, warnings) = load("Option \"limits\" \"float[2] othreshold\" [0.5 0.5]\n");
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    assert!(warnings[0].contains("othreshold"), "{warnings:?}");
+    assert_eq!(rt.options.opacity_threshold, rtsl_runtime::render::RenderOptions::default().opacity_threshold);
+}
+
+#[test]
+fn the_scene_names_its_thread_count() {
+    for (rib, threads) in [
+        ("Option \"limits\" \"int threads\" [3]\n", Some(3)),
+        ("Option \"render\" \"integer nthreads\" [5]\n", Some(5)),
+        ("", None),
+    ] {
+        let (rt, warnings) = load(rib);
+        assert_eq!((rt.options.threads, warnings.len()), (threads, 0), "{rib}");
+    }
+    let (rt, warnings) = load("Option \"limits\" \"int threads\" [0]\n");
+    assert_eq!((rt.options.threads, warnings.len()), (None, 1), "{warnings:?}");
+}
+
+#[test]
+fn the_shadow_bias_option_sets_both_ends_and_bias0_and_bias1_each_one() {
+    for (rib, biases) in [
+        ("", [0.0, 0.0]),
+        ("Option \"shadow\" \"float bias\" [0.3]\n", [0.3, 0.3]),
+        ("Option \"shadow\" \"float bias0\" [0.1] \"float bias1\" [0.4]\n", [0.1, 0.4]),
+        ("Option \"shadow\" \"float bias\" [0.3] \"float bias1\" [0.5]\n", [0.3, 0.5]),
+    ] {
+        let (rt, warnings) = load(rib);
+        assert_eq!((rt.options.shadow_bias, warnings.len()), (biases, 0), "{rib}");
+    }
+    let (rt, warnings) = load("Option \"shadow\" \"string bias\" [\"x\"]\n");
+    assert_eq!((rt.options.shadow_bias, warnings.len()), ([0.0; 2], 1), "{warnings:?}");
+}
+
+#[test]
+fn reyes_controls_are_accepted_quietly_and_unknown_names_still_warn() {
+    let quiet = "Option \"searchpath\" \"string archive\" [\".\"] \"string procedural\" [\".\"] \
+                 \"string display\" [\".\"] \"string resource\" [\".\"]\n\
+                 Option \"limits\" \"bucketsize\" [16 16] \"gridsize\" [256] \"texturememory\" [65536] \
+                 \"int eyesplits\" [10]\n\
+                 Option \"bucket\" \"string order\" [\"horizontal\"]\n\
+                 Option \"statistics\" \"int endofframe\" [1] \"int level\" [1]\n\
+                 WorldBegin\n\
+                 Attribute \"cull\" \"int backfacing\" [0] \"int hidden\" [0]\n\
+                 Attribute \"dice\" \"int rasterorient\" [0] \"int binary\" [1]\n\
+                 Attribute \"displacementbound\" \"float sphere\" [0.1]\n\
+                 Attribute \"shade\" \"float relativeshadingrate\" [1]\n\
+                 Attribute \"sides\" \"int doubleshaded\" [0]\n\
+                 Attribute \"stochastic\" \"int sigma\" [0]\n\
+                 Attribute \"derivatives\" \"int centered\" [1]\n\
+                 Attribute \"trace\" \"int decimationrate\" [1]\n\
+                 Attribute \"irradiance\" \"float maxerror\" [0.5] \"float maxpixeldist\" [30]\n\
+                 WorldEnd\n";
+    let (_, warnings) = load(quiet);
+    assert_eq!(warnings, Vec::<String>::new());
+    let (_, warnings) = load(
+        "Option \"limits\" \"int nonsense\" [1]\nWorldBegin\nAttribute \"trace\" \"int displacements\" [1]\nWorldEnd\n",
+    );
+    assert_eq!(warnings.len(), 2, "{warnings:?}");
+    assert!(warnings[0].contains("\"limits\" \"nonsense\" is not supported"), "{warnings:?}");
+    assert!(warnings[1].contains("\"trace\" \"displacements\" is not supported"), "{warnings:?}");
+}
