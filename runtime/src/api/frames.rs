@@ -234,6 +234,7 @@ impl Context {
             matte: a.matte,
             identifier: a.identifier.as_deref().map(Arc::from),
             trace_depths: a.trace_depths,
+            trace_bias: a.trace_bias,
             object_id,
             native: None,
             ray_values: a.ray_values.clone(),

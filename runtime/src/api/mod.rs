@@ -225,6 +225,10 @@ struct Appearance {
     /// "maxdiffusedepth"` and `"maxspeculardepth"`).
     #[serde(default)]
     trace_depths: crate::render::TraceDepths,
+    /// How far along rays spawned by objects built from now on start (RIB `Attribute "trace"
+    /// "bias"`).
+    #[serde(default)]
+    trace_bias: f32,
 }
 
 impl Default for Appearance {
@@ -244,6 +248,7 @@ impl Default for Appearance {
             matte: false,
             identifier: None,
             trace_depths: crate::render::TraceDepths::UNBOUNDED,
+            trace_bias: 0.0,
         }
     }
 }

@@ -76,6 +76,16 @@ impl Context {
         self.appearance.trace_depths.specular = bounces;
     }
 
+    /// Starts the rays that the shading of objects built from now on spawns (`trace()`,
+    /// `gather()`, `occlusion()`, `indirectdiffuse()`, `transmission()`, their lights' shadow
+    /// rays) `bias` along their direction, in world units (RenderMan's `Attribute "trace"
+    /// "bias"`), where rtsl's own offset is shorter: against hits on the surface itself where its
+    /// shading and its triangles disagree (bumped, displaced or coarsely tessellated surfaces).
+    /// 0 at first; a negative or non-finite bias is taken as 0.
+    pub fn trace_bias(&mut self, bias: f32) {
+        self.appearance.trace_bias = if bias.is_finite() { bias.max(0.0) } else { 0.0 };
+    }
+
     /// Names objects built from now on (RenderMan's `Attribute "identifier" "name"`; `None`: no
     /// name), which their shaders read with `attribute("identifier:name", s)`.
     pub fn identifier(&mut self, name: Option<&str>) {

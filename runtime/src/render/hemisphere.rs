@@ -3,7 +3,7 @@
 //! (`trace_ahead.rs`).
 
 use super::sampling::{mix, point_seed, unit};
-use super::work::epsilon;
+use super::work::launch_epsilon;
 use crate::ray::Ray;
 use glam::Vec3A;
 
@@ -18,7 +18,7 @@ pub(super) fn hemisphere_rays(p: Vec3A, n: Vec3A, count: u32, time: f32, rays: &
         let phi = std::f32::consts::TAU * r1;
         let (s, cz) = (r2.sqrt(), (1.0 - r2).sqrt());
         let dir = t1 * (s * phi.cos()) + t2 * (s * phi.sin()) + n * cz;
-        rays.push(Ray::segment(p, dir, epsilon(p), f32::INFINITY).at_time(time));
+        rays.push(Ray::segment(p, dir, launch_epsilon(p), f32::INFINITY).at_time(time));
     }
 }
 

@@ -10,7 +10,7 @@ use super::ray_params::{object_value, strip_user, RayValue, RELEVANCE};
 use super::stats::{tracing, Stats};
 use super::trace_ahead::{GatherAt, OcclusionAt, RayLog};
 use super::virtual_lights;
-use super::work::{epsilon, BatchLights, Frame, PixelImage, Sample};
+use super::work::{launch_epsilon, BatchLights, Frame, PixelImage, Sample};
 use crate::ray::Ray;
 use crate::shading::ShaderInstance;
 use crate::texture::{Grid, LookupLanes, LookupOptions, MipMap, TextureCache};
@@ -852,7 +852,7 @@ unsafe extern "C" fn host_rays(
                 {
                     continue;
                 }
-                requested[l] = Some(Ray::segment(from, dir, epsilon(from), f32::INFINITY).at_time(times[l]));
+                requested[l] = Some(Ray::segment(from, dir, launch_epsilon(from), f32::INFINITY).at_time(times[l]));
             }
             if let RayLog::Record(noted) = &mut c.rays_log {
                 // Answered as if nothing were hit, until the second run; nothing is spent yet.
@@ -1129,7 +1129,7 @@ unsafe extern "C" fn host_gather(
             RayBudget::NONE
         };
         let far = if maxdist[l] > 0.0 { maxdist[l] } else { f32::INFINITY };
-        rays.push(Ray::segment(o, d, epsilon(o), far).at_time(times[l]));
+        rays.push(Ray::segment(o, d, launch_epsilon(o), far).at_time(times[l]));
         lanes.push(l);
         lent.push(budget);
     }
@@ -1220,6 +1220,7 @@ unsafe extern "C" fn host_message(
                 "Matte" | "Ri:Matte" => floats(out, &[if material.matte { 1.0 } else { 0.0 }]),
                 "Ri:Color" => value_message(RayValue::Color(material.color), out, &mut c.text),
                 "Ri:Opacity" => value_message(RayValue::Color(material.opacity), out, &mut c.text),
+                "trace:bias" => floats(out, &[material.trace_bias]),
                 "trace:maxdiffusedepth" | "trace:maxspeculardepth" => {
                     let d = material.trace_depths;
                     let bounces = if name == "trace:maxdiffusedepth" { d.diffuse } else { d.specular };

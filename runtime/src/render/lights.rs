@@ -9,7 +9,7 @@ use super::ray_budget::RayBudget;
 use super::ray_params::samples_for_relevance;
 use super::sampling::{mix, point_seed, unit};
 use super::stats::{tracing, Stats};
-use super::work::{epsilon, BatchLights, Frame, Pending, Shaded};
+use super::work::{epsilon, launch_epsilon, BatchLights, Frame, Pending, Shaded};
 use super::world::{InstanceShadows, LightSource, Material, RayKind, ShadowKind, World, DEFAULT_MATERIAL};
 use crate::ray::{HitCandidate, HitPacket, Ray, RayPacket, PACKET_SIZE};
 use crate::shading::{fill1, fill3, get_row, put3, put_row, varying_rows, with_filled_batch, LightKind};
@@ -521,11 +521,13 @@ fn shadow_packet_rows(
             Vec4::select(normalisable, tz * recip, zero),
         );
         let no_direction = all_zero(dx, dy, dz);
-        let eps = Vec4::from_array(std::array::from_fn(|j| points.get(4 * c + j).map_or(0.0, |&p| epsilon(p))));
+        let point = |j: usize| points.get(4 * c + j);
+        let eps = Vec4::from_array(std::array::from_fn(|j| point(j).map_or(0.0, |&p| epsilon(p))));
+        let near = Vec4::from_array(std::array::from_fn(|j| point(j).map_or(0.0, |&p| launch_epsilon(p))));
         let tmax = if distant { Vec4::INFINITY } else { length - Vec4::splat(2.0) * eps };
         // (`light_shadow_ray` leaves the segment open for a non-finite length; here an infinite
         // length gives an infinite `tmax` anyway, and a NaN one no direction.)
-        let long_enough = tmax.cmpgt(eps);
+        let long_enough = tmax.cmpgt(near);
         let ok = !l_zero & !cl_zero & cl_finite & !no_direction & long_enough;
         for (dst, v) in [
             (&mut packet.ox, row(&ps[0])),
@@ -534,7 +536,7 @@ fn shadow_packet_rows(
             (&mut packet.dx, dx),
             (&mut packet.dy, dy),
             (&mut packet.dz, dz),
-            (&mut packet.tmin, eps),
+            (&mut packet.tmin, near),
             (&mut packet.tmax, tmax),
             (&mut packet.time, row(times)),
         ] {
@@ -609,9 +611,9 @@ fn shadow_ray(from: Vec3A, dir: Vec3A, distance: f32) -> Option<Ray> {
     if dir == Vec3A::ZERO {
         return None;
     }
-    let eps = epsilon(from);
+    let (eps, near) = (epsilon(from), launch_epsilon(from));
     let tmax = if distance.is_finite() { distance - 2.0 * eps } else { f32::INFINITY };
-    (tmax > eps).then(|| Ray::segment(from, dir, eps, tmax))
+    (tmax > near).then(|| Ray::segment(from, dir, near, tmax))
 }
 
 /// The buffers of a [`BatchLights`]: counts, lights, pending.

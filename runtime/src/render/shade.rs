@@ -534,6 +534,8 @@ pub(super) fn shade_group(frame: &Frame, group: &GroupRows, depth: u32, out: &mu
         normal_derivs: shaders().any(|s| deriv_row(s.program.slots.n, 3, s.program.layout().deriv_slots).is_some()),
     };
     let Some(ig) = InstanceGeometry::new(world, inst, group.instance(), needs) else { return };
+    // The rays the group's shading spawns start past the material's trace bias.
+    let _bias = super::work::LaunchBias::begin(material.trace_bias);
     // Each lane's budget, spent by its displacement, light and surface shaders in turn.
     let mut budgets = super::scratch::take(&LANE_BUDGETS);
     budgets.clear();

@@ -31,7 +31,7 @@ use super::photon_map::{Photon, PhotonMap};
 use super::ray_budget::RayBudget;
 use super::sampling::{mix, point_seed, radical_inverse, unit};
 use super::stats::{tracing, Stats};
-use super::work::{epsilon, Frame, VirtualLight, VirtualLights};
+use super::work::{epsilon, launch_epsilon, Frame, VirtualLight, VirtualLights};
 use super::world::{LightSource, PhotonModel, World, MAX_BOUNCES, MAX_INTERLEAVE, MAX_VIRTUAL_LIGHT_PATHS};
 use crate::ray::{Hit, Ray};
 use crate::shading::LightKind;
@@ -232,7 +232,7 @@ fn toward_lights(all: &VirtualLights, g: &Gatherer, mut each: impl FnMut(Ray, Ve
     let clamp_squared = f32x8::splat(all.clamp_squared);
     let from = g.p.to_array().map(f32x8::splat);
     let normal = g.n.to_array().map(f32x8::splat);
-    let near = epsilon(g.p);
+    let near = launch_epsilon(g.p);
     for block in blocks {
         let to: [f32x8; 3] = std::array::from_fn(|a| block.p[a] - from[a]);
         let r2 = (to[0] * to[0] + to[1] * to[1]) + to[2] * to[2];

@@ -566,3 +566,34 @@ pub(crate) struct BatchLights {
 pub(crate) fn epsilon(p: Vec3A) -> f32 {
     1e-4 * p.abs().max_element().max(1.0)
 }
+
+thread_local! {
+    /// The trace bias of the surface this thread is shading ([`Material::trace_bias`], RIB
+    /// `Attribute "trace" "bias"`), set for the time of its shading by [`LaunchBias`]: the rays
+    /// its shaders and its lights spawn start that far along. 0 outside surface shading.
+    ///
+    /// [`Material::trace_bias`]: super::Material::trace_bias
+    static LAUNCH_BIAS: std::cell::Cell<f32> = const { std::cell::Cell::new(0.0) };
+}
+
+/// The start offset of a ray spawned at `p` by the shading under way: [`epsilon`], or the
+/// surface's trace bias where that is longer.
+pub(crate) fn launch_epsilon(p: Vec3A) -> f32 {
+    epsilon(p).max(LAUNCH_BIAS.with(std::cell::Cell::get))
+}
+
+/// Sets this thread's trace bias (see `LAUNCH_BIAS`) until dropped, then restores the one it
+/// replaced: a surface shaded for a ray of another's shading has its own for that time.
+pub(crate) struct LaunchBias(f32);
+
+impl LaunchBias {
+    pub(crate) fn begin(bias: f32) -> LaunchBias {
+        LaunchBias(LAUNCH_BIAS.with(|b| b.replace(bias)))
+    }
+}
+
+impl Drop for LaunchBias {
+    fn drop(&mut self) {
+        LAUNCH_BIAS.with(|b| b.set(self.0));
+    }
+}

@@ -45,6 +45,10 @@ pub struct Material {
     pub identifier: Option<Arc<str>>,
     /// The bounces rays may take beyond the surface ([`TraceDepths`]).
     pub trace_depths: TraceDepths,
+    /// How far along the rays its shading spawns start (RenderMan's `Attribute "trace" "bias"`,
+    /// in world units): their first hit is at least this far, or rtsl's own offset
+    /// ([`super::work::launch_epsilon`]) where that is longer. 0 by default.
+    pub trace_bias: f32,
     /// An id the pixel shader and adaptive sampling may read (`objectid`).
     pub object_id: u32,
     /// Shade with Rust code instead of `surface` (`render/native.rs`).
@@ -109,6 +113,7 @@ impl Material {
         matte: false,
         identifier: None,
         trace_depths: TraceDepths::UNBOUNDED,
+        trace_bias: 0.0,
         object_id: 0,
         native: None,
         ray_values: Vec::new(),

@@ -2083,6 +2083,10 @@ impl<'a> Loader<'a> {
                         ),
                     ),
                 },
+                ("trace", "bias") => match f {
+                    Some(b) if b >= 0.0 && b.is_finite() => self.rt.trace_bias(b),
+                    _ => self.warn(r, "attribute \"trace\" \"bias\" takes a distance, 0 or more; it stays as it was"),
+                },
                 ("light", "nsamples") | ("light", "samples") => {
                     if let (Some(light), Some(n)) = (self.state.area_light, f) {
                         self.rt.set_area_light_samples(light, n.max(1.0) as u32);
