@@ -86,7 +86,7 @@ pub const GLOBALS: &[GlobalDef] = &[
     GlobalDef { name: "Ci", ty: Color, varying: true, access: [W, N, N, W, W, W, W], doc: "output colour; in camera shaders the ray weight (0 marks the ray invalid)" },
     GlobalDef { name: "Oi", ty: Color, varying: true, access: [W, N, N, W, W, N, W], doc: "output opacity" },
     GlobalDef { name: "alpha", ty: Float, varying: true, access: [N, N, N, N, W, N, N], doc: "pixel coverage (imager/pixel shaders)" },
-    GlobalDef { name: "zdepth", ty: Float, varying: true, access: [N, N, N, N, R, N, N], doc: "camera-space depth of the first hit, infinite where nothing was hit (pixel shaders)" },
+    GlobalDef { name: "zdepth", ty: Float, varying: true, access: [N, N, N, N, R, N, N], doc: "camera-space depth of the pixel's first surface opaque enough (`RenderOptions::depth_threshold`), infinite where none is (pixel shaders)" },
     GlobalDef { name: "objectid", ty: Float, varying: true, access: [N, N, N, N, R, N, N], doc: "id of the object first hit, -1 for none (pixel shaders)" },
     GlobalDef { name: "shaderid", ty: Float, varying: true, access: [N, N, N, N, R, N, N], doc: "id of the surface shader first hit, -1 for none (pixel shaders)" },
     GlobalDef { name: "ncomps", ty: Float, varying: false, access: [R, R, R, R, R, R, R], doc: "number of colour components (3)" },

@@ -44,6 +44,35 @@ fn camera_rays_stop_where_the_opacity_reaches_the_threshold() {
     assert!(close(r, 0.25) && close(g, 0.75), "{r} {g}");
 }
 
+/// The centre pixel's camera-space depth.
+fn centre_depth(before: &str) -> f32 {
+    let (mut rt, warnings) = load(&layers(before));
+    assert_eq!(warnings, Vec::<String>::new());
+    let fb = render(&mut rt);
+    fb.depth[(2 * fb.width + 2) as usize]
+}
+
+#[test]
+fn a_pixel_s_depth_is_the_first_surface_opaque_enough() {
+    let close = |a: f32, b: f32| (a - b).abs() < 1e-3;
+    // PRMan's 0.996 by default: the half-transparent squares are left out.
+    let d = centre_depth("");
+    assert!(close(d, 4.0), "{d}");
+    for (threshold, expected) in [("[0.5 0.5 0.5]", 2.0), ("[0 0 0]", 2.0), ("[0.5 0.5 0.6]", 4.0)] {
+        let d = centre_depth(&format!("Option \"limits\" \"zthreshold\" {threshold}"));
+        assert!(close(d, expected), "{threshold}: {d}");
+    }
+    // Where the ray stops before any surface opaque enough, the pixel is infinitely far.
+    let d = centre_depth("Option \"limits\" \"othreshold\" [0.7 0.7 0.7]");
+    assert!(d.is_infinite(), "{d}");
+    // The API's default takes the first surface whatever its opacity.
+    let (mut rt, _) = load(&layers(""));
+    rt.options.depth_threshold = rtsl_runtime::render::RenderOptions::default().depth_threshold;
+    let fb = render(&mut rt);
+    let d = fb.depth[(2 * fb.width + 2) as usize];
+    assert!(close(d, 2.0), "{d}");
+}
+
 #[test]
 fn a_malformed_opacity_threshold_warns_and_changes_nothing() {
     let (rt, warnings) = load("Option \"limits\" \"float[2] othreshold\" [0.5 0.5]\n");

@@ -828,7 +828,7 @@ mod tests {
                     let hit = Hit { t: 1.0 + 4.0 * (r() + 1.0), ..hit };
                     let diff = RayDifferential { dodx, dody, dddx, dddy };
                     let budget = crate::render::ray_budget::RayBudget::NONE;
-                    Pending { index: k, ray: Ray::new(Vec3A::ZERO, direction), diff, hit, budget }
+                    Pending { index: k, start: 0.0, ray: Ray::new(Vec3A::ZERO, direction), diff, hit, budget }
                 })
                 .collect();
             let mut jobs = JobRows::default();

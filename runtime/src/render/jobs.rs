@@ -21,6 +21,9 @@ use glam::Vec3A;
 /// (`ray_budget.rs`).
 pub(crate) struct Pending {
     pub(crate) index: usize,
+    /// How far along the ray that began its sample `ray` starts: 0 for a first hit, the
+    /// distance of the surfaces crossed before for a ray going on through transparent ones.
+    pub(crate) start: f32,
     pub(crate) ray: Ray,
     pub(crate) diff: RayDifferential,
     pub(crate) hit: Hit,
@@ -269,7 +272,7 @@ mod tests {
         let v = |s: f32| Vec3A::new(s * f, -s, s + f);
         let diff = RayDifferential { dodx: v(1.0), dody: v(2.0), dddx: v(3.0), dddy: v(4.0) };
         let hit = Hit { t: 2.0 + f, u: 0.125 * f, v: 0.5, instance: 3, primitive: 7 * k as u32 };
-        Pending { index: k, ray, diff, hit, budget: RayBudget::NONE }
+        Pending { index: k, start: 0.0, ray, diff, hit, budget: RayBudget::NONE }
     }
 
     /// A hit goes in from a job or from a packet's rows and comes out the same, and the lanes

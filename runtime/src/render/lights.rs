@@ -990,7 +990,7 @@ fn walk_transparent_layers(frame: &Frame, packet: &mut RayPacket, mut walking: u
                 let ray = packet.get(l);
                 let diff = RayDifferential::cone(ray.direction, 0.0, frame.pixel_spread);
                 // Shaded at the ray depth, where shaders spawn no rays.
-                shaded_by_shader.push(Pending { index: l, ray, diff, hit, budget: RayBudget::NONE });
+                shaded_by_shader.push(Pending { index: l, start: 0.0, ray, diff, hit, budget: RayBudget::NONE });
             } else {
                 through[l] *= Vec3A::ONE - Vec3A::from(material.opacity).clamp(Vec3A::ZERO, Vec3A::ONE);
             }

@@ -115,7 +115,7 @@ pub fn shade_packets(frame: &Frame, packets: &[(&PrimaryRays, &HitPacket)], out:
             let (index, lane) = (index as usize, index as usize % PACKET_SIZE);
             let (primary, hits) = packets[index / PACKET_SIZE];
             let (ray, diff, hit) = (primary.packet.get(lane), primary.diffs.lane(lane), hits.get(lane));
-            Pending { index, ray, diff, hit, budget: RayBudget::NONE }
+            Pending { index, start: 0.0, ray, diff, hit, budget: RayBudget::NONE }
         }));
         shade_pending(frame, (&mut pending, 0), Some(&keys), 0, samples, &mut weight, &mut budgets);
         super::scratch::give(&PENDING_JOBS, pending);
@@ -188,7 +188,7 @@ pub(super) fn gather_rays(
             let width = frame.pixel_spread * (ray.origin - eye).length();
             let diff = RayDifferential::cone(ray.direction, width, frame.pixel_spread);
             let budget = budgets.get(i).copied().unwrap_or(RayBudget::NONE);
-            pending.push(Pending { index: i, ray: *ray, diff, hit: *hit, budget });
+            pending.push(Pending { index: i, start: 0.0, ray: *ray, diff, hit: *hit, budget });
         }
     }
     if !pending.is_empty() {
@@ -239,7 +239,7 @@ fn start_sample(
 ) -> Option<Pending> {
     // The hit's ids are written by `shade_pending`, once its hits are sorted by material; its
     // budget by `shade_pending` too, from the ray's.
-    begin_sample(frame, hit, out).then_some(Pending { index, ray, diff, hit, budget: RayBudget::NONE })
+    begin_sample(frame, hit, out).then_some(Pending { index, start: 0.0, ray, diff, hit, budget: RayBudget::NONE })
 }
 
 /// Starts the sample of a ray with `hit` in `out`: the background on a miss (`false`), else
@@ -279,6 +279,7 @@ fn shade_pending(
     budgets: &mut [RayBudget],
 ) {
     let world = frame.world;
+    let depth_threshold = depth_threshold(frame, depth);
     let mut layer = crossed;
     let mut results = super::scratch::take(&SHADED_RESULTS);
     let mut later: Vec<Pending> = Vec::new();
@@ -309,8 +310,9 @@ fn shade_pending(
         // with the rays before them: whole packets).
         let mut going_on = Vec::new();
         for (p, r) in current.iter().zip(&results) {
-            if composite(world, (p.index, layer), r, out, weight, budgets) {
-                going_on.push(ray_going_on(p.index, r, p.ray, p.diff, p.hit.t));
+            let at = (p.index, layer, p.start + p.hit.t);
+            if composite(world, at, depth_threshold, r, out, weight, budgets) {
+                going_on.push(ray_going_on(p.index, p.start, r, p.ray, p.diff, p.hit.t));
             }
         }
         later = trace_going_on(frame, going_on, depth, out, weight);
@@ -318,14 +320,25 @@ fn shade_pending(
     super::scratch::give(&SHADED_RESULTS, results);
 }
 
-/// Composites what shading ray `index`'s hit gave (`r`, the `layer`th surface the ray met) into
-/// its sample `out[index]`, the budget its tree spent into `budgets[index]`, and leaves
-/// `weight[index]` with what the surface lets through: `true` when the ray goes on through it
-/// (enough gets through, and it is not the last layer the options allow).
+/// The depth threshold of rays at `depth` (see [`composite`]): the frame's for camera rays, where
+/// it is not zero; `None` (a sample's depth is its first hit's) otherwise.
+fn depth_threshold(frame: &Frame, depth: u32) -> Option<Vec3A> {
+    let threshold = Vec3A::from(frame.world.options.depth_threshold);
+    (depth == 0 && threshold.cmpgt(Vec3A::ZERO).any()).then_some(threshold)
+}
+
+/// Composites what shading ray `index`'s hit gave (`r`, the `layer`th surface the ray met, at
+/// `distance` along the ray that began the sample) into its sample `out[index]`, the budget its
+/// tree spent into `budgets[index]`, and leaves `weight[index]` with what the surface lets
+/// through: `true` when the ray goes on through it (enough gets through, and it is not the last
+/// layer the options allow). With a depth threshold (camera rays: `RenderOptions::depth_threshold`),
+/// the sample's depth becomes that of the first layer whose own opacity reaches it in every
+/// channel (infinite until one does); without, it stays its first hit's.
 #[inline(always)]
 fn composite(
     world: &World,
-    (index, layer): (usize, u32),
+    (index, layer, distance): (usize, u32, f32),
+    depth_threshold: Option<Vec3A>,
     r: &Shaded,
     out: &mut [Sample],
     weight: &mut [Vec3A],
@@ -335,6 +348,14 @@ fn composite(
         budget.charge(r.spent, r.cut);
     }
     let (Some(w), Some(sample)) = (weight.get_mut(index), out.get_mut(index)) else { return false };
+    if let Some(threshold) = depth_threshold {
+        let counts = r.oi.cmpge(threshold).all();
+        if layer == 1 && !counts {
+            sample.depth = f32::INFINITY;
+        } else if layer > 1 && counts && !sample.depth.is_finite() {
+            sample.depth = distance;
+        }
+    }
     sample.color += *w * r.ci;
     let left = *w * (Vec3A::ONE - r.oi.clamp(Vec3A::ZERO, Vec3A::ONE));
     *w = left;
@@ -343,14 +364,23 @@ fn composite(
     left.cmpgt(hidden_below).any() && layer < world.options.max_transparent_layers
 }
 
-/// The ray `index` (`ray`, its differential `diff`, its hit at `t`) going on through the surface
-/// whose shading gave `r`: unbent, from just behind the surface, its footprint starting where the
-/// surface's ended.
-fn ray_going_on(index: usize, r: &Shaded, ray: Ray, diff: RayDifferential, t: f32) -> (usize, Ray, RayDifferential) {
+/// A ray going on through a transparent surface: its sample's index, how far along the ray that
+/// began the sample it starts, the ray and its differential.
+struct GoingOn {
+    index: usize,
+    start: f32,
+    ray: Ray,
+    diff: RayDifferential,
+}
+
+/// The ray `index` (`ray`, starting `start` along its sample's first ray, its differential
+/// `diff`, its hit at `t`) going on through the surface whose shading gave `r`: unbent, from just
+/// behind the surface, its footprint starting where the surface's ended.
+fn ray_going_on(index: usize, start: f32, r: &Shaded, ray: Ray, diff: RayDifferential, t: f32) -> GoingOn {
     let side = if r.ng.dot(ray.direction) > 0.0 { r.ng } else { -r.ng };
     let on = Ray::new(offset_ray_origin(r.p, side), ray.direction).at_time(ray.time);
     let (dodx, dody) = if r.on_surface { diff.at_hit(ray.direction, t, r.ng) } else { (Vec3A::ZERO, Vec3A::ZERO) };
-    (index, on, RayDifferential { dodx, dody, ..diff })
+    GoingOn { index, start: start + t, ray: on, diff: RayDifferential { dodx, dody, ..diff } }
 }
 
 /// Traces the rays going on through transparent surfaces together (they share their directions
@@ -359,7 +389,7 @@ fn ray_going_on(index: usize, r: &Shaded, ray: Ray, diff: RayDifferential, t: f3
 /// what those see.
 fn trace_going_on(
     frame: &Frame,
-    going_on: Vec<(usize, Ray, RayDifferential)>,
+    going_on: Vec<GoingOn>,
     depth: u32,
     out: &mut [Sample],
     weight: &[Vec3A],
@@ -370,18 +400,18 @@ fn trace_going_on(
     let world = frame.world;
     let background = Vec3A::from(world.options.background);
     Stats::add(&frame.stats.transparency_rays, going_on.len());
-    let rays: Vec<Ray> = going_on.iter().map(|&(_, ray, _)| ray).collect();
+    let rays: Vec<Ray> = going_on.iter().map(|g| g.ray).collect();
     let mut hits = Vec::new();
     let kind = if depth == 0 { RayKind::Camera } else { RayKind::Trace };
     tracing(|| world.intersect_rays(kind, &rays, &mut hits));
     let mut next = Vec::with_capacity(going_on.len());
-    for ((index, ray, diff), hit) in going_on.into_iter().zip(hits) {
+    for (GoingOn { index, start, ray, diff }, hit) in going_on.into_iter().zip(hits) {
         if depth == 0 && world.is_holdout(&hit) {
             // What lies behind a holdout does not show, and it adds nothing itself.
             continue;
         }
         if hit.is_hit() {
-            next.push(Pending { index, ray, diff, hit, budget: RayBudget::NONE });
+            next.push(Pending { index, start, ray, diff, hit, budget: RayBudget::NONE });
         } else if let (Some(s), Some(w)) = (out.get_mut(index), weight.get(index)) {
             s.color += *w * background;
         }
@@ -403,7 +433,7 @@ fn shade_primary_layer(
     out: &mut [Sample],
     weight: &mut [Vec3A],
     budgets: &mut [RayBudget],
-) -> Vec<(usize, Ray, RayDifferential)> {
+) -> Vec<GoingOn> {
     let mut jobs = super::scratch::take(&PRIMARY_JOBS);
     let mut results = super::scratch::take(&SHADED_RESULTS);
     let mut going_on = Vec::new();
@@ -456,7 +486,7 @@ struct PrimaryLanes<'a> {
     out: &'a mut [Sample],
     weight: &'a mut [Vec3A],
     budgets: &'a mut [RayBudget],
-    going_on: &'a mut Vec<(usize, Ray, RayDifferential)>,
+    going_on: &'a mut Vec<GoingOn>,
 }
 
 /// Shades one group of first hits (`rows`, of group key `key`; lane `l` the sample
@@ -484,8 +514,9 @@ fn shade_primary_group(
             s.normal = if r.ng.dot(rows.direction(lane)) > 0.0 { -r.ng } else { r.ng };
             s.outputs = r.outputs;
         }
-        if composite(world, (index, 1), r, to.out, to.weight, to.budgets) {
-            to.going_on.push(ray_going_on(index, r, rows.ray(lane), rows.diff(lane), rows.hit(lane).t));
+        let t = rows.hit(lane).t;
+        if composite(world, (index, 1, t), depth_threshold(frame, 0), r, to.out, to.weight, to.budgets) {
+            to.going_on.push(ray_going_on(index, 0.0, r, rows.ray(lane), rows.diff(lane), t));
         }
     }
 }

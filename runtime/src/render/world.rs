@@ -536,6 +536,13 @@ pub struct RenderOptions {
     /// nearest 1/256.
     #[serde(default = "default_opacity_threshold")]
     pub opacity_threshold: [f32; 3],
+    /// RenderMan's depth threshold (RIB `Option "limits" "zthreshold"`): a pixel's depth (`z`
+    /// displays, `zfile` and `shadow` maps) is that of the first surface its camera ray meets
+    /// whose own opacity reaches this in every channel, infinitely far where none does. `[0, 0,
+    /// 0]` (the API's default) takes the first surface whatever its opacity; a RIB file gets
+    /// PRMan's and 3Delight's 0.996, which leaves semi-transparent surfaces out.
+    #[serde(default)]
+    pub depth_threshold: [f32; 3],
     /// The threads a frame renders on, as the scene asks (RIB `Option "limits" "threads"`,
     /// 3Delight's `"render" "nthreads"`) where whoever renders lets it decide (`rtsl render`
     /// without `--threads`); `None`: one a core.
@@ -680,6 +687,7 @@ impl Default for RenderOptions {
             background: [0.0; 3],
             max_transparent_layers: 16,
             opacity_threshold: default_opacity_threshold(),
+            depth_threshold: [0.0; 3],
             threads: None,
             shadow_bias: [0.0; 2],
             depth_filter: DepthFilter::Min,

@@ -101,6 +101,9 @@ fn switched_on(p: &Param) -> Option<bool> {
     int.or_else(|| p.floats().and_then(|v| v.first()).map(|&v| v != 0.0))
 }
 
+/// PRMan's and 3Delight's default `Option "limits" "zthreshold"` (each channel).
+pub const RENDERMAN_DEPTH_THRESHOLD: f32 = 0.996;
+
 /// A colour option's value (`Option "limits" "othreshold"`): three numbers, or one for all three;
 /// each clamped to [0, 1]. `None` for another count or a value that is not a number.
 fn color_option(p: &Param) -> Option<[f32; 3]> {
@@ -811,6 +814,9 @@ impl<'a> Loader<'a> {
         let prman = crate::render::TraceDepths::RENDERMAN;
         rt.max_diffuse_depth(prman.diffuse);
         rt.max_specular_depth(prman.specular);
+        // PRMan's and 3Delight's `Option "limits" "zthreshold"`: semi-transparent surfaces stay
+        // out of depth maps.
+        rt.options.depth_threshold = [RENDERMAN_DEPTH_THRESHOLD; 3];
         // Shaders beside the file are found, as Aqsis's default search path begins with "." (the
         // directory a scene is rendered from): after the directories the application gave, before
         // the library. A RIB `Option "searchpath" "shader"` without `&` replaces it.
@@ -2170,6 +2176,10 @@ impl<'a> Loader<'a> {
                 ("limits", "othreshold") => match color_option(p) {
                     Some(threshold) => self.rt.options.opacity_threshold = threshold,
                     None => self.warn(r, "option \"limits\" \"othreshold\" takes a colour (three numbers)"),
+                },
+                ("limits", "zthreshold") => match color_option(p) {
+                    Some(threshold) => self.rt.options.depth_threshold = threshold,
+                    None => self.warn(r, "option \"limits\" \"zthreshold\" takes a colour (three numbers)"),
                 },
                 ("limits", "threads") | ("render", "nthreads") => match f {
                     Some(n) if n >= 1.0 && n.is_finite() => self.rt.options.threads = Some(n.min(4096.0) as u32),
