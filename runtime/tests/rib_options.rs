@@ -74,6 +74,24 @@ fn a_pixel_s_depth_is_the_first_surface_opaque_enough() {
 }
 
 #[test]
+fn the_max_depth_filter_keeps_the_farthest_surface_opaque_enough() {
+    let close = |a: f32, b: f32| (a - b).abs() < 1e-3;
+    for (before, expected) in [
+        // Every layer counts: the last the ray reaches, the red square.
+        ("Option \"limits\" \"zthreshold\" [0 0 0]", 4.0),
+        // Only the red square counts.
+        ("", 4.0),
+        // The ray stops after the second green square (opacity 0.75), the last that counts.
+        ("Option \"limits\" \"zthreshold\" [0.5 0.5 0.5] \"othreshold\" [0.7 0.7 0.7]", 3.0),
+        // It stops there before any surface counts.
+        ("Option \"limits\" \"othreshold\" [0.7 0.7 0.7]", f32::INFINITY),
+    ] {
+        let d = centre_depth(&format!("Hider \"hidden\" \"depthfilter\" \"max\"\n{before}"));
+        assert!(close(d, expected) || d == expected, "{before}: {d}");
+    }
+}
+
+#[test]
 fn a_malformed_opacity_threshold_warns_and_changes_nothing() {
     let (rt, warnings) = load("Option \"limits\" \"float[2] othreshold\" [0.5 0.5]\n");
     assert_eq!(warnings.len(), 1, "{warnings:?}");

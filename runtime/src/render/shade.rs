@@ -320,25 +320,37 @@ fn shade_pending(
     super::scratch::give(&SHADED_RESULTS, results);
 }
 
-/// The depth threshold of rays at `depth` (see [`composite`]): the frame's for camera rays, where
-/// it is not zero; `None` (a sample's depth is its first hit's) otherwise.
-fn depth_threshold(frame: &Frame, depth: u32) -> Option<Vec3A> {
-    let threshold = Vec3A::from(frame.world.options.depth_threshold);
-    (depth == 0 && threshold.cmpgt(Vec3A::ZERO).any()).then_some(threshold)
+/// Which surface's distance a camera ray's sample keeps as its depth (see [`composite`]).
+#[derive(Clone, Copy)]
+struct DepthRule {
+    /// The opacity a surface's own `Oi` must reach in every channel to count.
+    threshold: Vec3A,
+    /// The farthest that counts (`DepthFilter::Max`), else the nearest.
+    farthest: bool,
+}
+
+/// The depth rule of rays at `depth`: the frame's for camera rays, where its threshold is not
+/// zero or it keeps the farthest surface; `None` (a sample's depth is its first hit's) otherwise.
+fn depth_threshold(frame: &Frame, depth: u32) -> Option<DepthRule> {
+    let options = &frame.world.options;
+    let threshold = Vec3A::from(options.depth_threshold);
+    let farthest = options.depth_filter == super::DepthFilter::Max;
+    (depth == 0 && (farthest || threshold.cmpgt(Vec3A::ZERO).any())).then_some(DepthRule { threshold, farthest })
 }
 
 /// Composites what shading ray `index`'s hit gave (`r`, the `layer`th surface the ray met, at
 /// `distance` along the ray that began the sample) into its sample `out[index]`, the budget its
 /// tree spent into `budgets[index]`, and leaves `weight[index]` with what the surface lets
 /// through: `true` when the ray goes on through it (enough gets through, and it is not the last
-/// layer the options allow). With a depth threshold (camera rays: `RenderOptions::depth_threshold`),
-/// the sample's depth becomes that of the first layer whose own opacity reaches it in every
-/// channel (infinite until one does); without, it stays its first hit's.
+/// layer the options allow). With a depth rule (camera rays: `RenderOptions::depth_threshold`
+/// and `depth_filter`), the sample's depth becomes that of the first layer whose own opacity
+/// reaches the threshold in every channel (infinite until one does), or of the last such layer
+/// for `DepthFilter::Max`; without, it stays its first hit's.
 #[inline(always)]
 fn composite(
     world: &World,
     (index, layer, distance): (usize, u32, f32),
-    depth_threshold: Option<Vec3A>,
+    depth_rule: Option<DepthRule>,
     r: &Shaded,
     out: &mut [Sample],
     weight: &mut [Vec3A],
@@ -348,11 +360,11 @@ fn composite(
         budget.charge(r.spent, r.cut);
     }
     let (Some(w), Some(sample)) = (weight.get_mut(index), out.get_mut(index)) else { return false };
-    if let Some(threshold) = depth_threshold {
-        let counts = r.oi.cmpge(threshold).all();
+    if let Some(rule) = depth_rule {
+        let counts = r.oi.cmpge(rule.threshold).all();
         if layer == 1 && !counts {
             sample.depth = f32::INFINITY;
-        } else if layer > 1 && counts && !sample.depth.is_finite() {
+        } else if layer > 1 && counts && (rule.farthest || !sample.depth.is_finite()) {
             sample.depth = distance;
         }
     }

@@ -140,9 +140,12 @@ pub enum ShadowKind {
 /// ray meets: RenderMan's `Hider "hidden" "depthfilter"`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum DepthFilter {
-    /// The nearest surface's.
+    /// The nearest surface's (of those opaque enough: [`RenderOptions::depth_threshold`]).
     #[default]
     Min,
+    /// The farthest surface's of those opaque enough that the camera ray meets before it stops
+    /// (at the opacity threshold, or an opaque surface): Aqsis's `"max"`.
+    Max,
     /// Halfway between the nearest surface and the next one behind it, infinitely far where there
     /// is none (Woo's midpoint shadow maps, as Aqsis computes them): a surface is then never behind
     /// its own depth in a shadow map, so it does not shadow itself, with no bias.

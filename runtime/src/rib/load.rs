@@ -1303,10 +1303,11 @@ impl<'a> Loader<'a> {
                         ("depthfilter", Some("midpoint")) => {
                             self.rt.options.depth_filter = crate::render::DepthFilter::Midpoint
                         }
+                        ("depthfilter", Some("max")) => self.rt.options.depth_filter = crate::render::DepthFilter::Max,
                         ("depthfilter", other) => self.warn(
                             r,
                             format_args!(
-                                "Hider \"depthfilter\" {}: rtsl has \"min\" and \"midpoint\"; the depth stays the nearest \
+                                "Hider \"depthfilter\" {}: rtsl has \"min\", \"midpoint\" and \"max\"; the depth stays the nearest \
                                  surface's",
                                 other.map_or("without a string".to_string(), |s| format!("\"{s}\""))
                             ),
