@@ -3,11 +3,9 @@
 
 mod common;
 
-use common::{context, cube, luminance, quad, render, H, W};
-use glam::Vec3A;
+use common::{context, luminance, render, shadow_scene_with, H, W};
 use rtsl_runtime::api::{ApiError, Context};
 use rtsl_runtime::rib::load::load_str;
-use rtsl_runtime::shading::ParamValue;
 
 /// A surface that shows what a ray traced from it along +z sees.
 const PROBE: &str = "surface probe() { Oi = 1; Ci = trace(P, vector \"world\" (0, 0, 1)); }";
@@ -55,37 +53,12 @@ fn a_bad_trace_bias_warns_and_changes_nothing() {
     }
 }
 
-/// The shadow scene of `common::shadow_scene` (a floor, a cube floating 0.9 to 2.1 above it, a
-/// point light at (1, 5, 1)) with the floor's and the cube's trace biases given.
-fn shadow_scene_with_biases(floor_bias: f32, cube_bias: f32) -> Result<Context, ApiError> {
-    let mut rt = context();
-    let plastic = rt.find_shader("plastic")?;
-    let light = rt.find_shader("pointlight")?;
-    rt.camera_look_at(Vec3A::new(0.0, 4.0, 7.0), Vec3A::new(0.0, 0.5, 0.0), Vec3A::Y, 45.0);
-    rt.trace_bias(floor_bias);
-    let floor = rt.begin_object()?;
-    rt.bind_shader(plastic)?;
-    quad(&mut rt, [[-5.0, 0.0, 5.0], [5.0, 0.0, 5.0], [5.0, 0.0, -5.0], [-5.0, 0.0, -5.0]])?;
-    rt.end_object()?;
-    rt.instantiate_object(floor)?;
-    rt.trace_bias(cube_bias);
-    let boxy = rt.begin_object()?;
-    rt.bind_shader(plastic)?;
-    cube(&mut rt)?;
-    rt.end_object()?;
-    rt.push_matrix();
-    rt.translate(0.0, 1.5, 0.0);
-    rt.scale(0.6, 0.6, 0.6);
-    rt.instantiate_object(boxy)?;
-    rt.pop_matrix()?;
-    rt.light_source(light, &[("intensity", ParamValue::Float(30.0)), ("from", ParamValue::Point([1.0, 5.0, 1.0]))])?;
-    Ok(rt)
-}
-
 #[test]
 fn light_shadow_rays_start_past_the_bias_of_the_surface_they_light() -> Result<(), ApiError> {
     let image = |floor: f32, cube: f32| -> Result<Vec<f32>, ApiError> {
-        let fb = render(&mut shadow_scene_with_biases(floor, cube)?);
+        let mut rt = context();
+        shadow_scene_with(&mut rt, 1.0, (floor, cube))?;
+        let fb = render(&mut rt);
         Ok((0..H).flat_map(|y| (0..W).map(move |x| (x, y))).map(|(x, y)| luminance(&fb, x, y)).collect())
     };
     let plain = image(0.0, 0.0)?;

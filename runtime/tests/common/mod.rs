@@ -54,14 +54,27 @@ pub fn shadow_scene(rt: &mut Context) -> Result<rtsl_runtime::api::LightId, ApiE
 
 /// [`shadow_scene`] with a cube of the given opacity.
 pub fn shadow_scene_with_cube_opacity(rt: &mut Context, opacity: f32) -> Result<rtsl_runtime::api::LightId, ApiError> {
+    shadow_scene_with(rt, opacity, (0.0, 0.0))
+}
+
+/// [`shadow_scene`] with a cube of the given opacity, and the floor's and the cube's trace biases
+/// (`Context::trace_bias`). The cube floats from 0.9 to 2.1 above the floor, the light is at
+/// (1, 5, 1).
+pub fn shadow_scene_with(
+    rt: &mut Context,
+    opacity: f32,
+    (floor_bias, cube_bias): (f32, f32),
+) -> Result<rtsl_runtime::api::LightId, ApiError> {
     let plastic = rt.find_shader("plastic")?;
     let light = rt.find_shader("pointlight")?;
     rt.camera_look_at(Vec3A::new(0.0, 4.0, 7.0), Vec3A::new(0.0, 0.5, 0.0), Vec3A::Y, 45.0);
+    rt.trace_bias(floor_bias);
     let floor = rt.begin_object()?;
     rt.bind_shader(plastic)?;
     quad(rt, [[-5.0, 0.0, 5.0], [5.0, 0.0, 5.0], [5.0, 0.0, -5.0], [-5.0, 0.0, -5.0]])?;
     rt.end_object()?;
     rt.instantiate_object(floor)?;
+    rt.trace_bias(cube_bias);
     let boxy = rt.begin_object()?;
     rt.color(0.9, 0.3, 0.2);
     rt.opacity(opacity, opacity, opacity);
