@@ -279,7 +279,7 @@ fn shade_pending(
     budgets: &mut [RayBudget],
 ) {
     let world = frame.world;
-    let depth_threshold = depth_threshold(frame, depth);
+    let depth_rule = depth_rule(frame, depth);
     let mut layer = crossed;
     let mut results = super::scratch::take(&SHADED_RESULTS);
     let mut later: Vec<Pending> = Vec::new();
@@ -311,7 +311,7 @@ fn shade_pending(
         let mut going_on = Vec::new();
         for (p, r) in current.iter().zip(&results) {
             let at = (p.index, layer, p.start + p.hit.t);
-            if composite(world, at, depth_threshold, r, out, weight, budgets) {
+            if composite(world, at, depth_rule, r, out, weight, budgets) {
                 going_on.push(ray_going_on(p.index, p.start, r, p.ray, p.diff, p.hit.t));
             }
         }
@@ -331,7 +331,7 @@ struct DepthRule {
 
 /// The depth rule of rays at `depth`: the frame's for camera rays, where its threshold is not
 /// zero or it keeps the farthest surface; `None` (a sample's depth is its first hit's) otherwise.
-fn depth_threshold(frame: &Frame, depth: u32) -> Option<DepthRule> {
+fn depth_rule(frame: &Frame, depth: u32) -> Option<DepthRule> {
     let options = &frame.world.options;
     let threshold = Vec3A::from(options.depth_threshold);
     let farthest = options.depth_filter == super::DepthFilter::Max;
@@ -527,7 +527,7 @@ fn shade_primary_group(
             s.outputs = r.outputs;
         }
         let t = rows.hit(lane).t;
-        if composite(world, (index, 1, t), depth_threshold(frame, 0), r, to.out, to.weight, to.budgets) {
+        if composite(world, (index, 1, t), depth_rule(frame, 0), r, to.out, to.weight, to.budgets) {
             to.going_on.push(ray_going_on(index, 0.0, r, rows.ray(lane), rows.diff(lane), t));
         }
     }
