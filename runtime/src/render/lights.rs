@@ -9,7 +9,7 @@ use super::ray_budget::RayBudget;
 use super::ray_params::samples_for_relevance;
 use super::sampling::{mix, point_seed, unit};
 use super::stats::{tracing, Stats};
-use super::work::{epsilon, launch_epsilon, BatchLights, Frame, Pending, Shaded};
+use super::work::{epsilon, launch_bias, launch_epsilon, BatchLights, Frame, Pending, Shaded};
 use super::world::{InstanceShadows, LightSource, Material, RayKind, ShadowKind, World, DEFAULT_MATERIAL};
 use crate::ray::{HitCandidate, HitPacket, Ray, RayPacket, PACKET_SIZE};
 use crate::shading::{fill1, fill3, get_row, put3, put_row, varying_rows, with_filled_batch, LightKind};
@@ -499,6 +499,8 @@ fn shadow_packet_rows(
 ) -> u64 {
     let n = points.len().min(mask.len()).min(PACKET_SIZE);
     let mut lanes = 0u64;
+    // The rays start past the lit surface's trace bias (`launch_epsilon`).
+    let bias = Vec4::splat(launch_bias());
     for c in 0..n.div_ceil(4) {
         let at = 4 * c..4 * c + 4;
         let row = |r: &[f32; PACKET_SIZE]| Vec4::from_slice(&r[at.clone()]);
@@ -521,9 +523,8 @@ fn shadow_packet_rows(
             Vec4::select(normalisable, tz * recip, zero),
         );
         let no_direction = all_zero(dx, dy, dz);
-        let point = |j: usize| points.get(4 * c + j);
-        let eps = Vec4::from_array(std::array::from_fn(|j| point(j).map_or(0.0, |&p| epsilon(p))));
-        let near = Vec4::from_array(std::array::from_fn(|j| point(j).map_or(0.0, |&p| launch_epsilon(p))));
+        let eps = Vec4::from_array(std::array::from_fn(|j| points.get(4 * c + j).map_or(0.0, |&p| epsilon(p))));
+        let near = eps.max(bias);
         let tmax = if distant { Vec4::INFINITY } else { length - Vec4::splat(2.0) * eps };
         // (`light_shadow_ray` leaves the segment open for a non-finite length; here an infinite
         // length gives an infinite `tmax` anyway, and a NaN one no direction.)

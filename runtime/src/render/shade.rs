@@ -520,6 +520,7 @@ fn shade_primary_group(
         let material = key.0;
         (world.materials.get(material as usize).map_or(0, |m| m.object_id), material)
     });
+    let rule = depth_rule(frame, 0);
     for (lane, (r, index)) in results.iter().zip(indices).enumerate() {
         if let (Some(s), Some((object_id, shader_id))) = (to.out.get_mut(index), ids) {
             (s.object_id, s.shader_id) = (object_id, shader_id);
@@ -527,7 +528,7 @@ fn shade_primary_group(
             s.outputs = r.outputs;
         }
         let t = rows.hit(lane).t;
-        if composite(world, (index, 1, t), depth_rule(frame, 0), r, to.out, to.weight, to.budgets) {
+        if composite(world, (index, 1, t), rule, r, to.out, to.weight, to.budgets) {
             to.going_on.push(ray_going_on(index, 0.0, r, rows.ray(lane), rows.diff(lane), t));
         }
     }

@@ -579,7 +579,12 @@ thread_local! {
 /// The start offset of a ray spawned at `p` by the shading under way: [`epsilon`], or the
 /// surface's trace bias where that is longer.
 pub(crate) fn launch_epsilon(p: Vec3A) -> f32 {
-    epsilon(p).max(LAUNCH_BIAS.with(std::cell::Cell::get))
+    epsilon(p).max(launch_bias())
+}
+
+/// The trace bias of the surface this thread is shading (0 outside surface shading).
+pub(crate) fn launch_bias() -> f32 {
+    LAUNCH_BIAS.with(std::cell::Cell::get)
 }
 
 /// Sets this thread's trace bias (see `LAUNCH_BIAS`) until dropped, then restores the one it
