@@ -14,7 +14,10 @@
 # "1 2 4 8 16"); `latency` runs the BART animations over a worker rank per core but the master's,
 # each with one and then two render threads (the second renders while the first waits for a
 # fetch); `embree` runs ../shared/bench/embree/side-by-side.sh on 1 thread and every core
-# (EMBREE_SCENES: its scenes). DEADLINE: seconds after which no new command starts (default 500).
+# (EMBREE_SCENES: its scenes; EMBREE_THREADS: its thread counts). DEADLINE: seconds after which no
+# new command starts (default 500); COMMAND_LIMIT: seconds one command may take (default 120);
+# EMBREE_LIMIT: seconds for the embree part (its raw log stays in /tmp/rtsl-scaling/embree/log.txt);
+# FULL_LOG: a file that gets every command's whole output.
 set -u
 HERE=$(cd "$(dirname "$0")/.." && pwd)
 PACK=$HERE/.scaling
@@ -63,8 +66,9 @@ run() {
   one() {
     if [ $(($(date +%s) - t0)) -gt "${DEADLINE:-500}" ]; then echo "skipped (deadline): $*"; return; fi
     echo "### $*"
-    timeout 120 "$@" > /tmp/rtsl-scaling.log 2>&1
+    timeout "${COMMAND_LIMIT:-120}" "$@" > /tmp/rtsl-scaling.log 2>&1
     local rc=$?
+    [ -n "${FULL_LOG:-}" ] && { echo "### $*"; cat /tmp/rtsl-scaling.log; } >> "$FULL_LOG"
     grep -E "^fps|^tiles: |frames: |MPI traffic|worker time|demand loading|worker ranks" /tmp/rtsl-scaling.log | sed -E 's/ update .*//' | cut -c1-420
     [ $rc -ne 0 ] && { echo "exit status $rc"; tail -4 /tmp/rtsl-scaling.log; }
   }
@@ -100,7 +104,7 @@ run() {
       embree)
         if [ -f "$b/embree/side.sh" ]; then
           (cd "$b/embree" && LD_LIBRARY_PATH=$b/embree/lib WORK=$b/embree PAIRS=1 REPS=3 \
-            THREADS="1,$(nproc)" bash ./side.sh "$r" ${EMBREE_SCENES:+"$EMBREE_SCENES"})
+            THREADS="${EMBREE_THREADS:-1,$(nproc)}" timeout "${EMBREE_LIMIT:-400}" bash ./side.sh "$r" ${EMBREE_SCENES:+"$EMBREE_SCENES"})
         else
           echo "not packed"
         fi ;;

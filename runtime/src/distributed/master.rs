@@ -18,11 +18,22 @@ use std::collections::HashMap;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-/// Tiles each worker has in flight per thread at first: while it renders one, the next ones are
-/// on their way. A worker that runs out of tiles while waiting for more (its tiles take less time
-/// than a round trip through the master) has its window doubled, up to the most.
+/// Units each worker has in flight per thread in its first frame, before the master knows how
+/// long its units take: while it renders one, the next ones are on their way.
 const TILES_IN_FLIGHT_PER_THREAD: usize = 16;
+/// The fewest and the most units a worker has in flight per thread.
+const FEWEST_TILES_IN_FLIGHT_PER_THREAD: usize = 2;
 const MOST_TILES_IN_FLIGHT_PER_THREAD: usize = 256;
+/// A worker's **lead**: the rendering time each of its threads has waiting behind the unit it
+/// renders, which must outlast a round trip through the master. After its first frame a
+/// worker's window is its lead over its threads' time per unit in the frame before, so that it
+/// holds few expensive units and many cheap ones: a window counted in units, grown whenever tiles
+/// went faster than a round trip, once held hundreds of a frame's most expensive tiles on one
+/// worker while the others idled. The lead doubles when the worker runs dry and eases back in
+/// each frame in which it does not.
+const FIRST_LEAD: Duration = Duration::from_millis(4);
+const SHORTEST_LEAD: Duration = Duration::from_millis(2);
+const LONGEST_LEAD: Duration = Duration::from_millis(32);
 
 /// The most bytes of encoded objects the master keeps for fetches to come; past it, it starts
 /// again from none (each object is encoded again when next fetched).
@@ -48,13 +59,51 @@ struct Work<'a> {
 /// protocol error.
 type Accept<'a> = dyn FnMut(usize, &[u8]) -> Result<(), String> + 'a;
 
-/// A worker as it introduced itself.
+/// A worker as it introduced itself, and how its units went.
 struct WorkerInfo {
     threads: u32,
-    /// Tiles it has in flight: grown whenever it runs dry, kept from frame to frame.
-    window: usize,
+    /// A thread's time in a unit over the worker's last frame (none before its first).
+    unit_time: Option<Duration>,
+    /// The rendering time its threads keep waiting ([`FIRST_LEAD`]).
+    lead: Duration,
     /// Why it cannot render, if it cannot.
     failure: Option<String>,
+}
+
+impl WorkerInfo {
+    fn new(threads: u32, failure: Option<String>) -> WorkerInfo {
+        WorkerInfo { threads, unit_time: None, lead: FIRST_LEAD, failure }
+    }
+
+    /// How many units it should have in flight to outlast a round trip: the unit each thread
+    /// renders and its lead's worth behind it.
+    fn window(&self) -> usize {
+        let per_thread = match self.unit_time {
+            None => TILES_IN_FLIGHT_PER_THREAD,
+            Some(unit) => {
+                let behind = self.lead.as_nanos().div_ceil(unit.as_nanos().max(1));
+                usize::try_from(behind).unwrap_or(usize::MAX).saturating_add(1)
+            }
+        };
+        per_thread.clamp(FEWEST_TILES_IN_FLIGHT_PER_THREAD, MOST_TILES_IN_FLIGHT_PER_THREAD)
+            * (self.threads as usize).max(1)
+    }
+
+    /// Ran dry while waiting for units: a round trip took longer than its lead.
+    fn ran_dry(&mut self) {
+        self.lead = (2 * self.lead).min(LONGEST_LEAD);
+    }
+
+    /// Its frame is over: `units` units took its threads `rendering` together, and it ran dry in
+    /// it or not.
+    fn frame_done(&mut self, units: usize, rendering: Duration, ran_dry: bool) {
+        if units > 0 && !rendering.is_zero() {
+            self.unit_time = Some(rendering / u32::try_from(units).unwrap_or(u32::MAX));
+        }
+        if !ran_dry {
+            self.lead = (self.lead * 3 / 4).max(SHORTEST_LEAD);
+        }
+    }
 }
 
 /// The bytes a frame moved between the master and its workers, by kind (whole messages).
@@ -312,8 +361,7 @@ impl<T: Transport> Master<T> {
                             what: "another build of the program (every rank must run the same executable)".into(),
                         });
                     }
-                    let window = TILES_IN_FLIGHT_PER_THREAD * (threads as usize).max(1);
-                    *slot = Some(WorkerInfo { threads, window, failure });
+                    *slot = Some(WorkerInfo::new(threads, failure));
                 }
                 _ => return Err(protocol_error("its first message is no greeting".into())),
             }
@@ -597,6 +645,7 @@ impl<T: Transport> Master<T> {
         let mut given: Vec<Option<usize>> = vec![None; units];
         let mut received_unit = vec![false; units];
         let mut told_last = vec![false; self.workers.len()];
+        let mut ran_dry = vec![false; self.workers.len()];
         let mut in_flight = vec![0usize; self.workers.len()];
         let mut traffic = Traffic::default();
         let all_threads = self.worker_threads();
@@ -642,9 +691,8 @@ impl<T: Transport> Master<T> {
                 }
                 traffic.pixels += bytes.len() as u64;
                 if starved {
-                    let info = &mut self.workers[w];
-                    let most = MOST_TILES_IN_FLIGHT_PER_THREAD * (info.threads as usize).max(1);
-                    info.window = (2 * info.window).min(most);
+                    self.workers[w].ran_dry();
+                    ran_dry[w] = true;
                 }
                 in_flight[w] = in_flight[w].saturating_sub(batch.len());
                 for (unit, pixels) in batch {
@@ -716,6 +764,8 @@ impl<T: Transport> Master<T> {
                 Message::FrameDone { frame: f, counts: c, failure: worker_failure } if f == frame && !done[w] => {
                     traffic.counters += bytes.len() as u64;
                     done[w] = true;
+                    let units = given.iter().filter(|&&g| g == Some(w)).count();
+                    self.workers[w].frame_done(units, Duration::from_nanos(c.rendering_ns), ran_dry[w]);
                     self.worker_times.push(WorkerShare::of(&c, self.workers[w].threads));
                     counts.push(c);
                     if let Some(message) = worker_failure {
@@ -857,7 +907,7 @@ impl<T: Transport> Drop for Master<T> {
 fn in_flight_target(worker: &WorkerInfo, left: usize, all_threads: usize) -> usize {
     let threads = (worker.threads as usize).max(1);
     let share = (left * threads).div_ceil(all_threads.max(threads));
-    worker.window.min(share.max(2 * threads))
+    worker.window().min(share.max(FEWEST_TILES_IN_FLIGHT_PER_THREAD * threads))
 }
 
 /// What a worker reports of its share of a frame.
@@ -884,8 +934,14 @@ pub(super) fn counts_of(report: &FrameReport) -> FrameCounts {
 mod tests {
     use super::*;
 
-    fn worker(threads: u32, window: usize) -> WorkerInfo {
-        WorkerInfo { threads, window, failure: None }
+    /// A worker in its first frame.
+    fn fresh(threads: u32) -> WorkerInfo {
+        WorkerInfo::new(threads, None)
+    }
+
+    /// A worker whose units took a microsecond each: its window is the most.
+    fn cheap(threads: u32) -> WorkerInfo {
+        WorkerInfo { unit_time: Some(Duration::from_micros(1)), ..fresh(threads) }
     }
 
     #[test]
@@ -924,15 +980,49 @@ mod tests {
     #[test]
     fn a_worker_holds_at_most_its_share_of_what_is_left() {
         // Early in a frame the window bounds it.
-        assert_eq!(in_flight_target(&worker(1, 16), 1200, 15), 16);
+        assert_eq!(in_flight_target(&fresh(1), 1200, 15), 16);
         // A grown window does not take more than the worker's share: 1200 over 15 threads.
-        assert_eq!(in_flight_target(&worker(1, 256), 1200, 15), 80);
+        assert_eq!(in_flight_target(&cheap(1), 1200, 15), 80);
         // A worker of 4 threads among 16 takes a quarter of what is left.
-        assert_eq!(in_flight_target(&worker(4, 1024), 100, 16), 25);
+        assert_eq!(in_flight_target(&cheap(4), 100, 16), 25);
         // Near the end, two units a thread, so that a round trip does not leave it idle.
-        assert_eq!(in_flight_target(&worker(1, 256), 10, 15), 2);
-        assert_eq!(in_flight_target(&worker(3, 256), 0, 15), 6);
-        // Never more than the window, and no division by zero for a lone worker.
-        assert_eq!(in_flight_target(&worker(1, 1), 1200, 0), 1);
+        assert_eq!(in_flight_target(&cheap(1), 10, 15), 2);
+        assert_eq!(in_flight_target(&cheap(3), 0, 15), 6);
+        // No division by zero for a lone worker.
+        assert_eq!(in_flight_target(&fresh(1), 1200, 0), 16);
+    }
+
+    #[test]
+    fn a_window_holds_the_lead_in_rendering_time() {
+        let ms = Duration::from_millis;
+        // Units of a millisecond a thread: a frame of 100 of them over 2 threads took 100 ms of
+        // the threads' time. The first lead, 4 ms, eases to 3 in a frame that never ran dry:
+        // each thread holds the unit it renders and 3 behind it.
+        let mut w = fresh(2);
+        assert_eq!(w.window(), 32);
+        w.frame_done(100, ms(100), false);
+        assert_eq!((w.unit_time, w.lead), (Some(ms(1)), ms(3)));
+        assert_eq!(w.window(), 8);
+        // Running dry doubles the lead, up to the longest.
+        w.ran_dry();
+        assert_eq!(w.window(), 2 * (1 + 6));
+        for _ in 0..10 {
+            w.ran_dry();
+        }
+        assert_eq!(w.lead, LONGEST_LEAD);
+        // Frames that do not run dry ease it back to the shortest.
+        for _ in 0..20 {
+            w.frame_done(100, ms(100), false);
+        }
+        assert_eq!(w.lead, SHORTEST_LEAD);
+        assert_eq!(w.window(), 2 * (1 + 2));
+        // Expensive units: never fewer than two a thread. Cheap ones: never more than the most.
+        w.frame_done(10, ms(500), false);
+        assert_eq!(w.window(), 2 * FEWEST_TILES_IN_FLIGHT_PER_THREAD);
+        w.frame_done(100_000, ms(10), false);
+        assert_eq!(w.window(), 2 * MOST_TILES_IN_FLIGHT_PER_THREAD);
+        // A frame in which it rendered nothing keeps what it knew.
+        w.frame_done(0, ms(0), true);
+        assert_eq!(w.unit_time, Some(Duration::from_nanos(100)));
     }
 }
