@@ -4,17 +4,18 @@
 #
 #   benches/scaling.sh pack          # here: a stripped release build with MPI, the scenes and
 #                                    # Embree's benchmark, into .scaling/ (keep it out of git)
-#   benches/scaling.sh run [PARTS]   # there: PARTS of "mpi threads bandwidth latency gi embree"
-#                                    # (default: all but threads, which mpi's runs include)
+#   benches/scaling.sh run [PARTS]   # there: PARTS of "mpi threads bandwidth forest latency gi
+#                                    # embree" (default: all but threads, which mpi's runs include)
 #
 # `run` needs only what `pack` made and an `mpirun` on the machine (Open MPI 4.x: the binary links
 # libmpi.so.40); it prints what each command reports and keeps going past failures. `mpi` runs
 # master + N workers of one thread, then one process of N threads, for each N of WORKERS (default
 # "1 2 4 8 15"), then one process on every core; `threads` runs one process over THREADS (default
-# "1 2 4 8 16"); `latency` runs the BART animations over a worker rank per core but the master's,
-# each with one and then two render threads (the second renders while the first waits for a
-# fetch); `embree` runs ../shared/bench/embree/side-by-side.sh on 1 thread and every core
-# (EMBREE_SCENES: its scenes; EMBREE_THREADS: its thread counts). DEADLINE: seconds after which no
+# "1 2 4 8 16"); `forest` runs examples/forest over 2 workers and over a worker a core but the
+# master's (what each fetches); `latency` runs the BART animations over a worker rank a core but
+# the master's, each with one and then two render threads (the second renders while the first
+# waits for a fetch); `embree` runs ../shared/bench/embree/side-by-side.sh on 1 thread and every
+# core (EMBREE_SCENES: its scenes; EMBREE_THREADS: its thread counts). DEADLINE: seconds after which no
 # new command starts (default 500); COMMAND_LIMIT: seconds one command may take (default 120);
 # EMBREE_LIMIT: seconds for the embree part (its raw log stays in /tmp/rtsl-scaling/embree/log.txt);
 # FULL_LOG: a file that gets every command's whole output.
@@ -30,6 +31,8 @@ pack() {
   strip -o "$PACK/rtsl" target/release/rtsl
   tar -C "$HERE/.." -cJf "$PACK/scenes.tar.xz" shared/scenes/bart/robot shared/scenes/bart/kitchen \
     shared/scenes/sponza_dabrovic shared/scenes/cornell_box
+  tar -C "$HERE/.." -cJf "$PACK/forest.tar.xz" shared/scenes/oak_tree \
+    shared/scenes/stanford_dragon/dragon_vrip.ply shared/scenes/mountain_terrain
   if [ -f /usr/include/embree3/rtcore.h ]; then
     local e; e=$(mktemp -d)
     mkdir -p "$e/embree/lib"
@@ -50,10 +53,11 @@ pack() {
 }
 
 run() {
-  local parts=${*:-mpi bandwidth latency gi embree}
+  local parts=${*:-mpi bandwidth forest latency gi embree}
   local r=$PACK/rtsl b=/tmp/rtsl-scaling
   mkdir -p "$b"
   tar -C "$b" -xJf "$PACK/scenes.tar.xz"
+  [ -f "$PACK/forest.tar.xz" ] && tar -C "$b" -xJf "$PACK/forest.tar.xz"
   [ -f "$PACK/embree.tar.xz" ] && tar -C "$b" -xJf "$PACK/embree.tar.xz"
   [ -e "$HERE/../shared" ] || ln -s "$b/shared" "$HERE/../shared"
   cd "$HERE"
@@ -90,6 +94,12 @@ run() {
         printf 'Format 640 480 1\nProjection "perspective" "fov" 40\nTranslate 0 0 5\nWorldBegin\nSurface "constant"\nPolygon "P" [-1 -1 0  1 -1 0  1 1 0  -1 1 0]\nWorldEnd\n' > /tmp/trivial.rib
         one $r bench render /tmp/trivial.rib --threads "$(nproc)" --frames 20
         one $m -n "$(nproc)" $r bench render /tmp/trivial.rib --threads 1 --frames 20 --mpi ;;
+      forest)
+        # Demand loading of a scene of instanced trees: what each worker fetches of it.
+        one $r bench render examples/forest/forest.rib --threads "$(nproc)" --frames 3
+        for n in 2 "$(($(nproc) - 1))"; do
+          one $m -n $((n + 1)) $r bench render examples/forest/forest.rib --threads 1 --frames 3 --mpi
+        done ;;
       latency)
         for t in 1 2; do
           one $m -n "$(nproc)" $r bart $robot --frames 20 --size 640x480 --threads "$t" -q --mpi

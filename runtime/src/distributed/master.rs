@@ -51,8 +51,20 @@ struct Work<'a> {
     units: usize,
     lattices: &'a [LatticeUnit],
     owners: &'a [Option<usize>],
+    /// `costs[u]`, where known for every unit: what unit `u`'s part of the image took last time.
+    costs: &'a [u32],
     /// The frame's light paths, encoded (empty: none to send).
     light_paths: &'a [u8],
+}
+
+/// How a frame's units went on the workers.
+struct FrameRun {
+    /// Who rendered each unit.
+    given: Vec<Option<usize>>,
+    /// Each worker's counts.
+    counts: Vec<FrameCounts>,
+    /// What each unit took its thread, in microseconds.
+    costs: Vec<u32>,
 }
 
 /// Takes a unit's encoded pixels as they arrive, with the unit's index: an error is the sender's
@@ -137,6 +149,9 @@ pub struct Master<T: Transport> {
     frame: u64,
     /// Who rendered each tile of the last frame, so that each worker gets its own tiles again.
     last_owner: Vec<Option<usize>>,
+    /// What each tile of the last frame took its thread, in microseconds, so that the most
+    /// expensive go first ([`Schedule`]).
+    last_cost: Vec<u32>,
     /// Who last traced lattices in each [`REGION_SIDE`] square of the image, row by row.
     region_owner: Vec<Option<usize>>,
     /// Whether the workers still wait for work (not yet told to quit).
@@ -319,6 +334,7 @@ impl<T: Transport> Master<T> {
             workers: Vec::new(),
             frame: 0,
             last_owner: Vec::new(),
+            last_cost: Vec::new(),
             region_owner: Vec::new(),
             open: true,
             traffic: Traffic::default(),
@@ -464,6 +480,7 @@ impl<T: Transport> Master<T> {
         self.encoded_objects.clear();
         self.encoded_bytes = 0;
         self.last_owner.clear();
+        self.last_cost.clear();
         self.region_owner.clear();
         self.light_paths = LightPathCache::default();
         self.sent_light_paths = LightPaths::default();
@@ -535,12 +552,19 @@ impl<T: Transport> Master<T> {
             self.sent_light_paths = paths;
         }
         let job = Job::Lattices { pass, preview };
-        let work = Work { job, units: lattices.len(), lattices: &units, owners: &owners, light_paths: &light_paths };
+        let work = Work {
+            job,
+            units: lattices.len(),
+            lattices: &units,
+            owners: &owners,
+            costs: &[],
+            light_paths: &light_paths,
+        };
         let mut accept = |u: usize, bytes: &[u8]| -> Result<(), String> {
             samples[u] = Some(LatticeSamples::decode(world, units[u].lattice, units[u].lanes, bytes)?);
             Ok(())
         };
-        let (given, counts) = self.run(world, &update, work, None, Some(rt), &mut accept)?;
+        let FrameRun { given, counts, .. } = self.run(world, &update, work, None, Some(rt), &mut accept)?;
         for (l, owner) in lattices.iter().zip(&given) {
             if let (Some(slot), Some(w)) = (self.region_owner.get_mut(region(l)), owner) {
                 *slot = Some(*w);
@@ -588,8 +612,15 @@ impl<T: Transport> Master<T> {
         }
         let mut arrived = 0;
         let owners = std::mem::take(&mut self.last_owner);
-        let work =
-            Work { job: Job::Tiles, units: tiles.len(), lattices: &[], owners: &owners, light_paths: &light_paths };
+        let costs = std::mem::take(&mut self.last_cost);
+        let work = Work {
+            job: Job::Tiles,
+            units: tiles.len(),
+            lattices: &[],
+            owners: &owners,
+            costs: &costs,
+            light_paths: &light_paths,
+        };
         let mut accept = |t: usize, bytes: &[u8]| -> Result<(), String> {
             match &mut assembly {
                 Some(assembly) => assembly.add(tiles[t], bytes)?,
@@ -598,7 +629,7 @@ impl<T: Transport> Master<T> {
             arrived += 1;
             Ok(())
         };
-        let (given, counts) = self.run(world, update, work, progress, source, &mut accept)?;
+        let FrameRun { given, counts, costs } = self.run(world, update, work, progress, source, &mut accept)?;
         if arrived != tiles.len() {
             return Err(DistributedError::Protocol {
                 rank: 0,
@@ -606,6 +637,7 @@ impl<T: Transport> Master<T> {
             });
         }
         self.last_owner = given;
+        self.last_cost = costs;
         let (fb, mut report) = match assembly {
             Some(assembly) => assembly.finish(renderer, start),
             None => renderer.finish(rendered.into_iter().flatten().collect(), start),
@@ -621,8 +653,7 @@ impl<T: Transport> Master<T> {
 
     /// Runs a frame of `work` on the workers: sends each the frame's `update` and its first units,
     /// hands out the rest as units come back (each to `accept`, with its index), answers requests
-    /// for meshes and textures from `source`, and gathers the workers' counts. Returns who rendered each unit,
-    /// and the counts.
+    /// for meshes and textures from `source`, and gathers the workers' counts.
     fn run(
         &mut self,
         world: &World,
@@ -631,7 +662,7 @@ impl<T: Transport> Master<T> {
         progress: Option<&dyn Fn(usize, usize)>,
         source: Option<&Context>,
         accept: &mut Accept,
-    ) -> Result<(Vec<Option<usize>>, Vec<FrameCounts>), DistributedError> {
+    ) -> Result<FrameRun, DistributedError> {
         self.frame += 1;
         let frame = self.frame;
         let units = work.units;
@@ -641,7 +672,8 @@ impl<T: Transport> Master<T> {
                 Job::Lattices { .. } => list.iter().map(|&u| work.lattices[u as usize]).collect(),
             }
         };
-        let mut schedule = Schedule::new(units, self.workers.len(), work.owners);
+        let mut schedule = Schedule::new(units, self.workers.len(), work.owners, work.costs);
+        let mut costs = vec![0u32; units];
         let mut given: Vec<Option<usize>> = vec![None; units];
         let mut received_unit = vec![false; units];
         let mut told_last = vec![false; self.workers.len()];
@@ -695,13 +727,14 @@ impl<T: Transport> Master<T> {
                     ran_dry[w] = true;
                 }
                 in_flight[w] = in_flight[w].saturating_sub(batch.len());
-                for (unit, pixels) in batch {
+                for (unit, micros, pixels) in batch {
                     let u = unit as usize;
                     if given.get(u) != Some(&Some(w)) || received_unit[u] {
                         return Err(protocol_error(format!("sent unit {unit}, which it was not given")));
                     }
                     accept(u, pixels).map_err(protocol_error)?;
                     received_unit[u] = true;
+                    costs[u] = micros;
                     received += 1;
                     if let Some(p) = progress {
                         p(received, units);
@@ -806,7 +839,7 @@ impl<T: Transport> Master<T> {
                 reason: reason.clone(),
             }
         }));
-        Ok((given, counts))
+        Ok(FrameRun { given, counts, costs })
     }
 
     /// Object `id` of `source` as a worker fetches it: its mesh and the BVH `world` holds for it,

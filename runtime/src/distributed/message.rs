@@ -8,7 +8,7 @@ use crate::texture::{TextureKind, TexturePart};
 use rtsl_compiler::interface::ShaderKind;
 
 /// The protocol's version: ranks that speak different versions refuse each other at start-up.
-pub const PROTOCOL_VERSION: u32 = 36;
+pub const PROTOCOL_VERSION: u32 = 37;
 
 /// What the master's counters add up from a worker's share of a frame.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -124,10 +124,11 @@ pub enum Message {
     },
     /// Master to worker: more units of the frame, as in `Frame`; `last`: no more will come.
     Assign { frame: u64, units: Vec<u32>, lattices: Vec<LatticeUnit>, last: bool },
-    /// Worker to master: finished units, each its index and its pixels (see [`Job`]): all that were
-    /// ready when the worker sent, so that a master slow to answer gets fewer, larger messages.
-    /// `starved`: the worker ran out of units while waiting for more since its last message.
-    Rendered { frame: u64, units: Vec<(u32, Vec<u8>)>, starved: bool },
+    /// Worker to master: finished units, each its index, the microseconds its thread took over it,
+    /// and its pixels (see [`Job`]): all that were ready when the worker sent, so that a master
+    /// slow to answer gets fewer, larger messages. `starved`: the worker ran out of units while
+    /// waiting for more since its last message.
+    Rendered { frame: u64, units: Vec<(u32, u32, Vec<u8>)>, starved: bool },
     /// Worker to master: the worker has sent every unit it was given, or could not render the
     /// frame (`failure`).
     FrameDone { frame: u64, counts: FrameCounts, failure: Option<String> },
@@ -250,8 +251,9 @@ impl Message {
                 w.u64(*frame);
                 w.u8(u8::from(*starved));
                 w.u32(units.len() as u32);
-                for (tile, pixels) in units {
+                for (tile, micros, pixels) in units {
                     w.u32(*tile);
+                    w.u32(*micros);
                     w.bytes(pixels);
                 }
             }
@@ -371,7 +373,7 @@ impl Message {
             ASSIGN => Message::Assign { frame: r.u64()?, units: r.u32s()?, lattices: r.lattices()?, last: r.bool()? },
             RENDERED => {
                 let RenderedUnits { frame, units, starved } = RenderedUnits::read(&mut r)?;
-                let units = units.into_iter().map(|(unit, pixels)| (unit, pixels.to_vec())).collect();
+                let units = units.into_iter().map(|(unit, micros, pixels)| (unit, micros, pixels.to_vec())).collect();
                 Message::Rendered { frame, units, starved }
             }
             FRAME_DONE => {
@@ -556,7 +558,8 @@ impl Writer {
 #[derive(Clone, Debug, PartialEq)]
 pub struct RenderedUnits<'a> {
     pub frame: u64,
-    pub units: Vec<(u32, &'a [u8])>,
+    /// Each unit's index, its thread's microseconds over it, and its pixels.
+    pub units: Vec<(u32, u32, &'a [u8])>,
     pub starved: bool,
 }
 
@@ -577,8 +580,8 @@ impl<'a> RenderedUnits<'a> {
     /// The message after its kind.
     fn read(r: &mut Reader<'a>) -> Result<RenderedUnits<'a>, String> {
         let (frame, starved) = (r.u64()?, r.bool()?);
-        let n = r.count(12)?;
-        let units = (0..n).map(|_| Ok((r.u32()?, r.slice()?))).collect::<Result<_, String>>()?;
+        let n = r.count(16)?;
+        let units = (0..n).map(|_| Ok((r.u32()?, r.u32()?, r.slice()?))).collect::<Result<_, String>>()?;
         Ok(RenderedUnits { frame, units, starved })
     }
 }
@@ -720,7 +723,11 @@ mod tests {
                 ],
                 last: false,
             },
-            Message::Rendered { frame: u64::MAX, units: vec![(12, vec![0xAB; 100]), (3, vec![])], starved: true },
+            Message::Rendered {
+                frame: u64::MAX,
+                units: vec![(12, 900, vec![0xAB; 100]), (3, 0, vec![])],
+                starved: true,
+            },
             Message::FrameDone {
                 frame: 1,
                 counts: FrameCounts {
@@ -829,7 +836,8 @@ mod tests {
             match (&m, RenderedUnits::decode(&bytes)) {
                 (Message::Rendered { frame, units, starved }, Some(Ok(view))) => {
                     assert_eq!((view.frame, view.starved), (*frame, *starved));
-                    let copied: Vec<(u32, Vec<u8>)> = view.units.iter().map(|(u, p)| (*u, p.to_vec())).collect();
+                    let copied: Vec<(u32, u32, Vec<u8>)> =
+                        view.units.iter().map(|(u, t, p)| (*u, *t, p.to_vec())).collect();
                     assert_eq!(&copied, units);
                     for end in 0..bytes.len() {
                         assert!(!matches!(RenderedUnits::decode(&bytes[..end]), Some(Ok(_))), "cut at {end}");

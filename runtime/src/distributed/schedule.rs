@@ -3,6 +3,11 @@
 //! on a first frame a contiguous block of the image. A worker asking for work gets its next
 //! preferred tile; once its own are gone it takes from the end of the longest list left, so
 //! workers that run fast help the slow ones without breaking their runs of neighbouring tiles.
+//!
+//! Where the tiles' costs in the last frame are known, each list runs from the most expensive
+//! tile to the cheapest (longest processing time first): what a worker still holds, or another
+//! takes from the end of its list, near the end of a frame is cheap, so no worker finishes long
+//! after the others on a few expensive tiles handed out last.
 
 use std::collections::VecDeque;
 
@@ -15,8 +20,9 @@ pub struct Schedule {
 
 impl Schedule {
     /// The schedule of `tiles` tiles over `workers` workers; `last_owner[t]` is the worker that
-    /// rendered tile `t` last frame, if it is known and the tiles are the same.
-    pub fn new(tiles: usize, workers: usize, last_owner: &[Option<usize>]) -> Schedule {
+    /// rendered tile `t` last frame, if it is known and the tiles are the same, and `last_cost[t]`
+    /// what it took then (in any unit; ignored unless there is one for every tile).
+    pub fn new(tiles: usize, workers: usize, last_owner: &[Option<usize>], last_cost: &[u32]) -> Schedule {
         let workers = workers.max(1);
         let mut preferred = vec![VecDeque::new(); workers];
         for t in 0..tiles {
@@ -25,6 +31,11 @@ impl Schedule {
                 _ => t * workers / tiles.max(1),
             };
             preferred[owner].push_back(t as u32);
+        }
+        if last_cost.len() == tiles {
+            for list in &mut preferred {
+                list.make_contiguous().sort_by_key(|&t| std::cmp::Reverse(last_cost[t as usize]));
+            }
         }
         Schedule { preferred, taken: vec![false; tiles], left: tiles }
     }
@@ -69,7 +80,7 @@ mod tests {
     #[test]
     fn every_tile_is_handed_out_once() {
         for (tiles, workers) in [(0, 3), (1, 3), (10, 3), (300, 7), (5, 1)] {
-            let mut s = Schedule::new(tiles, workers, &[]);
+            let mut s = Schedule::new(tiles, workers, &[], &[]);
             let mut seen = vec![0; tiles];
             // Workers ask in an uneven order: worker 0 three times as often.
             let order = [0, 0, 0, 1, 2, 3, 4, 5, 6];
@@ -85,10 +96,10 @@ mod tests {
 
     #[test]
     fn workers_keep_last_frames_tiles_and_start_on_blocks() {
-        let mut s = Schedule::new(8, 2, &[]);
+        let mut s = Schedule::new(8, 2, &[], &[]);
         assert_eq!((s.next(0), s.next(1), s.next(0), s.next(1)), (Some(0), Some(4), Some(1), Some(5)));
         let last = [1, 1, 0, 0, 1, 0, 0, 1].map(Some);
-        let mut s = Schedule::new(8, 2, &last);
+        let mut s = Schedule::new(8, 2, &last, &[]);
         let mine: Vec<_> = (0..4).filter_map(|_| s.next(1)).collect();
         assert_eq!(mine, [0, 1, 4, 7]);
         // Worker 1's own tiles are gone: it takes from the end of worker 0's.
@@ -97,10 +108,26 @@ mod tests {
     }
 
     #[test]
+    fn the_most_expensive_tiles_go_first_and_the_cheapest_are_taken_from_others() {
+        let last = [0, 0, 0, 0, 1, 1, 1, 1].map(Some);
+        let cost = [5, 90, 20, 90, 1, 2, 3, 4];
+        let mut s = Schedule::new(8, 2, &last, &cost);
+        // Ties keep image order.
+        assert_eq!((s.next(0), s.next(0), s.next(0)), (Some(1), Some(3), Some(2)));
+        // Worker 1 runs through its own, then takes worker 0's cheapest.
+        let mine: Vec<_> = (0..5).filter_map(|_| s.next(1)).collect();
+        assert_eq!(mine, [7, 6, 5, 4, 0]);
+        assert_eq!(s.next(0), None);
+        // Costs for other tiles than these are ignored.
+        let s = Schedule::new(8, 2, &last, &cost[..7]);
+        assert_eq!(s.preferred[0], [0, 1, 2, 3]);
+    }
+
+    #[test]
     fn a_stale_owner_list_is_ignored() {
-        let s = Schedule::new(4, 2, &[Some(1), Some(1)]);
+        let s = Schedule::new(4, 2, &[Some(1), Some(1)], &[]);
         assert_eq!(s.preferred[0], [0, 1]);
-        let s = Schedule::new(4, 2, &[Some(5), Some(5), Some(5), Some(5)]);
+        let s = Schedule::new(4, 2, &[Some(5), Some(5), Some(5), Some(5)], &[]);
         assert_eq!(s.preferred[1], [2, 3]);
     }
 }

@@ -449,11 +449,13 @@ fn render_share<T: Transport + ?Sized>(
                     let mut pixels = Vec::new();
                     let (started, cpu_started) = (Instant::now(), thread_cpu_time());
                     renderer.render(unit, &mut pixels);
-                    rendering_ns.fetch_add(started.elapsed().as_nanos() as u64, Ordering::Relaxed);
+                    let took = started.elapsed();
+                    rendering_ns.fetch_add(took.as_nanos() as u64, Ordering::Relaxed);
                     if let (Some(from), Some(to)) = (cpu_started, thread_cpu_time()) {
                         rendering_cpu_ns.fetch_add(to.saturating_sub(from).as_nanos() as u64, Ordering::Relaxed);
                     }
-                    if queue.finish(unit.index, pixels) && wake_tx.send(()).is_err() {
+                    let micros = u32::try_from(took.as_micros()).unwrap_or(u32::MAX);
+                    if queue.finish(unit.index, micros, pixels) && wake_tx.send(()).is_err() {
                         break;
                     }
                 }
@@ -606,8 +608,9 @@ struct UnitQueue {
 struct QueueState {
     waiting: VecDeque<QueuedUnit>,
     closed: bool,
-    /// Finished units, with their encoded pixels, not yet taken to be sent.
-    finished: Vec<(u32, Vec<u8>)>,
+    /// Finished units, with their render times in microseconds and their encoded pixels, not yet
+    /// taken to be sent.
+    finished: Vec<(u32, u32, Vec<u8>)>,
 }
 
 impl UnitQueue {
@@ -645,14 +648,14 @@ impl UnitQueue {
 
     /// Hands in a finished unit; returns whether the talking thread should wake for it now
     /// (the renderers are running low).
-    fn finish(&self, unit: u32, pixels: Vec<u8>) -> bool {
+    fn finish(&self, unit: u32, micros: u32, pixels: Vec<u8>) -> bool {
         let mut state = self.lock();
-        state.finished.push((unit, pixels));
+        state.finished.push((unit, micros, pixels));
         state.waiting.len() < self.threads
     }
 
     /// The finished units not yet taken.
-    fn take_finished(&self) -> Vec<(u32, Vec<u8>)> {
+    fn take_finished(&self) -> Vec<(u32, u32, Vec<u8>)> {
         std::mem::take(&mut self.lock().finished)
     }
 
