@@ -915,15 +915,18 @@ fn workers_fetch_only_the_objects_rays_reach_and_keep_them() -> Result<(), Distr
     assert_eq!(first.reached_objects, first.fetched_objects, "{first:?}");
     assert_eq!(first.hit_rate(), Some(0.0));
     assert!(traffic.fetches > 0 && first.fetched_bytes < 3000 * 36, "{first:?} {traffic:?}");
-    // Kept: later frames fetch nothing, even when an instance moves.
+    // Kept: later frames, even when an instance moves, fetch only what a worker had not reached
+    // (a tile of the other worker's, handed to it to balance the frame), each object once.
+    let mut resident = first.resident_objects;
+    let mut fetched = first.fetched_objects;
     for (later, traffic) in &demands[1..] {
-        assert_eq!(later.fetched_objects, 0, "{later:?}");
-        assert_eq!(traffic.fetches, 0);
-        assert_eq!(later.resident_objects, first.resident_objects);
-        // Every object reached was a hit.
+        assert_eq!(traffic.fetches > 0, later.fetched_objects > 0, "{later:?} {traffic:?}");
+        assert_eq!(later.resident_objects, resident + later.fetched_objects, "{later:?}");
+        (resident, fetched) = (later.resident_objects, fetched + later.fetched_objects);
+        // The floor and the triangle, at least, reached again.
         assert!(later.reached_objects >= 2, "{later:?}");
-        assert_eq!(later.hit_rate(), Some(1.0));
     }
+    assert!(fetched <= 4, "each worker fetches the floor and the triangle once at most: {demands:?}");
     Ok(())
 }
 
@@ -1188,10 +1191,15 @@ fn workers_fetch_the_textures_shaders_look_up_and_only_those() -> Result<(), Dis
     // large one.
     assert!((2..=4).contains(&first.fetched_textures), "{first:?}");
     assert!(first.fetched_texture_bytes > 0 && first.fetched_texture_bytes < unseen_bytes, "{first:?}");
+    // Later frames fetch only what a worker had not looked up (a tile of the other worker's,
+    // handed to it to balance the frame), each texture once, and never the large one.
+    let mut fetched = first.fetched_textures;
     for (later, traffic) in &frames[1..] {
-        assert_eq!(later.fetched_textures, 0, "{later:?}");
-        assert_eq!(traffic.fetches, 0, "{traffic:?}");
+        assert_eq!(traffic.fetches > 0, later.fetched_textures > 0, "{later:?} {traffic:?}");
+        assert!(later.fetched_texture_bytes < unseen_bytes, "{later:?}");
+        fetched += later.fetched_textures;
     }
+    assert!(fetched <= 4, "each worker fetches the two textures once at most: {frames:?}");
     Ok(())
 }
 
@@ -1335,11 +1343,14 @@ fn a_new_scene_takes_the_meshes_the_scene_before_fetched() -> Result<(), Distrib
     })?;
     let [first, again, other, last] = &demands[..] else { panic!("four frames") };
     assert!(first.fetched_objects >= 2 && first.kept_objects == 0, "{first:?}");
-    assert_eq!((again.fetched_objects, again.fetched_bytes), (0, 0), "{again:?}");
+    // The same meshes again: taken from the scene before, fetched only where a worker reached
+    // one it had not (a tile of the other worker's, handed to it to balance the frame).
     assert_eq!(again.kept_objects, first.resident_objects, "{again:?}");
-    assert!(again.reached_objects >= 2 && again.hit_rate() == Some(1.0), "{again:?}");
+    assert!(first.fetched_objects + again.fetched_objects <= 4, "{first:?} {again:?}");
+    assert!(again.reached_objects >= 2, "{again:?}");
     assert!(other.fetched_objects >= 1 && other.kept_objects == 0, "{other:?}");
-    assert_eq!((last.fetched_objects, last.kept_objects), (first.fetched_objects, 0), "{last:?}");
+    // After a scene of other meshes, none of the first scene's is held: fetched again.
+    assert!(last.fetched_objects >= 2 && last.kept_objects == 0, "{last:?}");
     Ok(())
 }
 

@@ -83,7 +83,7 @@ pub(crate) fn worker_time_line(frames: &str, times: &[WorkerTime]) -> String {
     let ms =
         |f: fn(&WorkerTime) -> std::time::Duration| times.iter().map(|t| f(t).as_secs_f64()).sum::<f64>() * 1e3 / n;
     format!(
-        "worker time per frame of {frames} (mean over workers): world {:.2} ms, rendering {:.1} ms (of which off the core {:.1}, waiting for fetches {:.1}, decoding fetched meshes and building their BVHs {:.1}), waiting {:.1} ms (for tiles, a core), outside their share {:.1} ms (the master preparing the frame and assembling the image), of a {:.1} ms frame",
+        "worker time per frame of {frames} (mean over workers): world {:.2} ms, rendering {:.1} ms (of which off the core {:.1}, waiting for fetches {:.1}, decoding fetched meshes and building their BVHs {:.1}), waiting {:.1} ms (for tiles, a core), outside their share {:.1} ms (waiting for the last worker {:.1}; the master preparing the frame and assembling the image), of a {:.1} ms frame",
         ms(|t| t.world),
         ms(|t| t.rendering),
         ms(|t| t.off_core),
@@ -91,6 +91,7 @@ pub(crate) fn worker_time_line(frames: &str, times: &[WorkerTime]) -> String {
         ms(|t| t.loading),
         ms(|t| t.waiting),
         ms(|t| t.outside),
+        ms(|t| t.after_done),
         ms(|t| t.frame),
     )
 }

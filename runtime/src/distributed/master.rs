@@ -204,9 +204,13 @@ pub struct WorkerTime {
     /// the talking thread's turns on its core.
     pub waiting: Duration,
     /// Outside the worker's part of the frame: the master preparing it (tracing light paths,
-    /// encoding the update), the frame's first message on its way, and the master assembling
-    /// the image after the last tile.
+    /// encoding the update), the frame's first message on its way, the other workers still
+    /// rendering after this one reported, and the master assembling the image after the last
+    /// tile.
     pub outside: Duration,
+    /// Of `outside`, the time from the worker's report to the last worker's, as the master saw
+    /// them arrive: the frame's imbalance.
+    pub after_done: Duration,
 }
 
 /// One worker's times in a frame, its render threads' as their mean.
@@ -214,6 +218,8 @@ pub struct WorkerTime {
 struct WorkerShare {
     world: Duration,
     share: Duration,
+    /// From the frame's start on the master to the worker's report arriving there.
+    done: Duration,
     rendering: Duration,
     fetching: Duration,
     loading: Duration,
@@ -233,6 +239,7 @@ impl WorkerShare {
         WorkerShare {
             world: Duration::from_nanos(counts.world_ns),
             share: Duration::from_nanos(counts.share_ns),
+            done: Duration::ZERO,
             rendering,
             fetching,
             loading: per_thread(counts.fetch_build_ns).min(rendering),
@@ -257,6 +264,11 @@ impl WorkerTime {
             off_core: mean(|w| w.off_core),
             waiting: share.saturating_sub(rendering),
             outside: frame.saturating_sub(world + share),
+            after_done: workers
+                .iter()
+                .map(|w| w.done)
+                .max()
+                .map_or(Duration::ZERO, |last| workers.iter().map(|w| last - w.done).sum::<Duration>() / n),
         }
     }
 }
@@ -665,6 +677,7 @@ impl<T: Transport> Master<T> {
     ) -> Result<FrameRun, DistributedError> {
         self.frame += 1;
         let frame = self.frame;
+        let started = Instant::now();
         let units = work.units;
         let described = |list: &[u32]| -> Vec<LatticeUnit> {
             match work.job {
@@ -799,7 +812,8 @@ impl<T: Transport> Master<T> {
                     done[w] = true;
                     let units = given.iter().filter(|&&g| g == Some(w)).count();
                     self.workers[w].frame_done(units, Duration::from_nanos(c.rendering_ns), ran_dry[w]);
-                    self.worker_times.push(WorkerShare::of(&c, self.workers[w].threads));
+                    let share = WorkerShare { done: started.elapsed(), ..WorkerShare::of(&c, self.workers[w].threads) };
+                    self.worker_times.push(share);
                     counts.push(c);
                     if let Some(message) = worker_failure {
                         failure.get_or_insert(DistributedError::Worker { rank, message });
@@ -996,6 +1010,11 @@ mod tests {
         assert_eq!((time.fetching, time.loading), (ms(35), ms(3)));
         assert_eq!((time.waiting, time.outside), (ms(20), ms(12)));
         assert_eq!(time.world + time.rendering + time.waiting + time.outside, time.frame);
+        // Reports that arrived together: no worker waited for the other.
+        assert_eq!(time.after_done, ms(0));
+        // The first reported 30 ms before the second: a mean of 15 ms waiting for the last.
+        let (first, second) = (WorkerShare { done: ms(60), ..shares[0] }, WorkerShare { done: ms(90), ..shares[1] });
+        assert_eq!(WorkerTime::of(ms(100), &[first, second]).after_done, ms(15));
         // No CPU time reported: nothing off the core.
         assert_eq!(time.off_core, ms(0));
         // One thread: 70 ms in units, 10 of them waiting for fetches, 45 on its core: 15 off it.
