@@ -27,10 +27,10 @@ const MOST_TILES_IN_FLIGHT_PER_THREAD: usize = 256;
 /// A worker's **lead**: the rendering time each of its threads has waiting behind the unit it
 /// renders, which must outlast a round trip through the master. After its first frame a
 /// worker's window is its lead over its threads' time per unit in the frame before, so that it
-/// holds few expensive units and many cheap ones: a window counted in units, grown whenever tiles
-/// went faster than a round trip, once held hundreds of a frame's most expensive tiles on one
-/// worker while the others idled. The lead doubles when the worker runs dry and eases back in
-/// each frame in which it does not.
+/// holds few expensive units and many cheap ones: a window counted in units must be large for
+/// cheap units, and the same count of a frame's most expensive tiles keeps one worker busy while
+/// the others idle. The lead doubles when the worker runs dry and eases back in each frame in
+/// which it does not.
 const FIRST_LEAD: Duration = Duration::from_millis(4);
 const SHORTEST_LEAD: Duration = Duration::from_millis(2);
 const LONGEST_LEAD: Duration = Duration::from_millis(32);
