@@ -233,9 +233,9 @@ impl Drop for MpiTransport {
 }
 
 /// Makes this thread's naps last about as long as asked. Linux lets a sleep run late by the
-/// thread's timer slack (50 us unless set), which doubled each of the transport's 50 us naps and
-/// so each poll's delay: a worker's fetch waited several of them for the master's answer, an
-/// answer the master had ready in a fraction of that time.
+/// thread's timer slack (50 us unless set), which would double each of the transport's 50 us
+/// naps; a worker's fetch waits through several of them for an answer the master makes in a
+/// fraction of that time.
 fn precise_naps() {
     #[cfg(target_os = "linux")]
     // SAFETY: PR_SET_TIMERSLACK takes the slack in nanoseconds and changes only this thread.
