@@ -7,17 +7,18 @@
 #   benches/scaling.sh run [PARTS]   # there: PARTS of "mpi threads bandwidth forest latency gi
 #                                    # embree" (default: all but threads, which mpi's runs include)
 #
-# `run` needs only what `pack` made and an `mpirun` on the machine (Open MPI 4.x: the binary links
-# libmpi.so.40); it prints what each command reports and keeps going past failures. `mpi` runs
-# master + N workers of one thread, then one process of N threads, for each N of WORKERS (default
-# "1 2 4 8 15"), then one process on every core; `threads` runs one process over THREADS (default
-# "1 2 4 8 16"); `forest` runs examples/forest over 2 workers and over a worker a core but the
-# master's (what each fetches); `latency` runs the BART animations over a worker rank a core but
-# the master's, each with one and then two render threads (the second renders while the first
-# waits for a fetch); `embree` runs ../shared/bench/embree/side-by-side.sh on 1 thread and every
-# core (EMBREE_SCENES: its scenes; EMBREE_THREADS: its thread counts). DEADLINE: seconds after which no
-# new command starts (default 500); COMMAND_LIMIT: seconds one command may take (default 120);
-# EMBREE_LIMIT: seconds for the embree part (its raw log stays in /tmp/rtsl-scaling/embree/log.txt);
+# `run` needs only what `pack` made: the machine's `mpirun` (Open MPI 4.x: the binary links
+# libmpi.so.40), else the Open MPI that `pack` took from this machine. It prints what each
+# command reports and keeps going past failures. `mpi` runs master + N workers of one thread,
+# then one process of N threads, for each N of WORKERS (default "1 2 4 8 15"), then one process
+# on every core; `threads` runs one process over THREADS (default "1 2 4 8 16"); `forest` runs
+# examples/forest over 2 workers and over a worker a core but the master's (what each fetches);
+# `latency` runs the BART animations over a worker rank a core but the master's, each with one
+# and then two render threads (the second renders while the first waits for a fetch); `embree`
+# runs ../shared/bench/embree/side-by-side.sh on 1 thread and every core (EMBREE_SCENES: its
+# scenes; EMBREE_THREADS: its thread counts). DEADLINE: seconds after which no new command starts
+# (default 500); COMMAND_LIMIT: seconds one command may take (default 120); EMBREE_LIMIT: seconds
+# for the embree part (its raw log stays in /tmp/rtsl-scaling/embree/log.txt);
 # FULL_LOG: a file that gets every command's whole output.
 set -u
 HERE=$(cd "$(dirname "$0")/.." && pwd)
@@ -49,7 +50,36 @@ pack() {
   else
     echo "no Embree headers (apt-get install libembree-dev): the embree part will be skipped"
   fi
+  pack_open_mpi
   du -sh "$PACK"
+}
+
+# Debian's Open MPI with the libraries it and its plugins load, for a machine without MPI: `run`
+# unpacks it and runs it relocated (OPAL_PREFIX) when the machine's own mpirun is missing or fails.
+pack_open_mpi() {
+  local d; d=$(mktemp -d)/ompi
+  mkdir -p "$d/usr/bin" "$d/usr/lib/x86_64-linux-gnu" "$d/usr/share" "$d/deps"
+  cp -a /usr/lib/x86_64-linux-gnu/openmpi /usr/lib/x86_64-linux-gnu/pmix2 "$d/usr/lib/x86_64-linux-gnu/"
+  rm -rf "$d/usr/lib/x86_64-linux-gnu/openmpi/include" "$d/usr/lib/x86_64-linux-gnu/pmix2/include"
+  cp -a /usr/share/openmpi "$d/usr/share/"
+  for b in orterun orted ompi_info; do cp -L "/usr/bin/$b" "$d/usr/bin/"; done
+  ln -s orterun "$d/usr/bin/mpirun"
+  find "$d/usr" "$PACK/rtsl" -type f \( -name '*.so*' -o -perm -u+x \) -exec ldd {} \; 2>/dev/null |
+    awk '/=> \//{print $3}' | sort -u |
+    grep -vE '/(libc|libm|libpthread|libdl|librt|ld-linux-x86-64|libstdc\+\+|libgcc_s|libutil)\.so|/openmpi/' |
+    xargs -r cp -L -t "$d/deps/"
+  tar -C "$(dirname "$d")" -cJf "$PACK/ompi.tar.xz" ompi
+  rm -rf "$(dirname "$d")"
+}
+
+# Uses the packed Open MPI, with the settings Debian keeps in /etc/openmpi.
+use_packed_open_mpi() {
+  mkdir -p /tmp/rtsl-ompi && tar -C /tmp/rtsl-ompi -xJf "$PACK/ompi.tar.xz"
+  local d=/tmp/rtsl-ompi/ompi
+  export PATH=$d/usr/bin:$PATH OPAL_PREFIX=$d/usr PMIX_INSTALL_PREFIX=$d/usr/lib/x86_64-linux-gnu/pmix2
+  export LD_LIBRARY_PATH=$d/deps:$d/usr/lib/x86_64-linux-gnu/openmpi/lib:$d/usr/lib/x86_64-linux-gnu/pmix2/lib${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}
+  export OMPI_MCA_btl_base_warn_component_unused=0 OMPI_MCA_mtl=^ofi OMPI_MCA_btl=^uct,openib,ofi \
+    OMPI_MCA_pml=^ucx OMPI_MCA_osc=^ucx,pt2pt
 }
 
 run() {
@@ -62,6 +92,12 @@ run() {
   [ -e "$HERE/../shared" ] || ln -s "$b/shared" "$HERE/../shared"
   cd "$HERE"
   export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+  local check="timeout 60 mpirun -n 3 --oversubscribe --bind-to none $r bench render --size 160x120 --frames 3 --threads 1 --mpi"
+  if ! $check > /dev/null 2>&1 && [ -f "$PACK/ompi.tar.xz" ]; then
+    echo "the machine's MPI fails or is missing: using the packed Open MPI"
+    use_packed_open_mpi
+    $check > /dev/null 2>&1 || echo "the packed Open MPI fails too"
+  fi
   local m="mpirun --bind-to none --oversubscribe"
   local workers=${WORKERS:-1 2 4 8 15} threads=${THREADS:-1 2 4 8 16}
   local robot=../shared/scenes/bart/robot/aff/Robot.aff kitchen=../shared/scenes/bart/kitchen/aff/kitchen.aff
