@@ -1485,3 +1485,69 @@ fn a_full_cache_evicts_parts_and_fetches_them_again() -> Result<(), DistributedE
     }
     Ok(())
 }
+
+/// A replica that takes a while to build its first world, as a worker does that must fetch much
+/// before it renders, or that the system does not run for a while.
+struct SlowToStart {
+    scene: ReplicaScene,
+    delay: Option<Duration>,
+}
+
+impl rtsl_runtime::distributed::WorkerScene for SlowToStart {
+    fn world(&mut self, update: &[u8]) -> Result<rtsl_runtime::render::World, String> {
+        if let Some(delay) = self.delay.take() {
+            std::thread::sleep(delay);
+        }
+        self.scene.world(update)
+    }
+    fn finished(&mut self, world: rtsl_runtime::render::World) {
+        self.scene.finished(world)
+    }
+    fn start_again(&mut self) {
+        self.scene.start_again()
+    }
+    fn fetch_link(&self) -> Option<std::sync::Arc<rtsl_runtime::distributed::fetch::FetchLink>> {
+        self.scene.fetch_link()
+    }
+}
+
+/// Once every tile is handed out, a worker with nothing to do renders copies of the tiles a slow
+/// worker holds and has not started; the slow one leaves out those delivered first, even when
+/// it hears of them while it still builds its world. The frames are the single process's, bit
+/// for bit, the first and the one after.
+#[test]
+fn idle_workers_render_copies_of_the_tiles_a_slow_worker_has_not_started() -> Result<(), DistributedError> {
+    let mut rt = little_scene().map_err(|m| DistributedError::Worker { rank: 0, message: m })?;
+    (rt.options.width, rt.options.height) = (160, 128);
+    let mut group = LocalTransport::group(3, Duration::from_secs(120)).into_iter();
+    let master_end = group.next().expect("rank 0");
+    let fast = group.next().expect("rank 1");
+    let slow = group.next().expect("rank 2");
+    let handles = [
+        std::thread::spawn(move || serve(&fast, Ok(&mut ReplicaScene::new()), &pool(1))),
+        std::thread::spawn(move || {
+            let mut scene = SlowToStart { scene: ReplicaScene::new(), delay: Some(Duration::from_secs(3)) };
+            serve(&slow, Ok(&mut scene), &pool(1))
+        }),
+    ];
+    let mut master = Master::connect(master_end)?;
+    let mut frames = Vec::new();
+    let mut helping = Vec::new();
+    for change in [nothing as Change, move_first] {
+        change(&mut rt).expect("the change applies");
+        let (frame, _) = frame_both_ways(&mut master, &mut rt)?;
+        frames.push(frame);
+        helping.push(master.worker_time().helping);
+    }
+    master.shutdown()?;
+    for h in handles {
+        h.join().expect("a worker thread")?;
+    }
+    assert_same(&frames, "frames with a slow worker");
+    // The slow worker was handed several tiles first: the fast one rendered all but the one it
+    // renders first, and delivered them before it.
+    let first = helping[0];
+    assert!(first.helped > 0 && first.helped <= first.copies, "{first:?}");
+    assert!(first.copies + first.twice <= 80, "{first:?}");
+    Ok(())
+}

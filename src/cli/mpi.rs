@@ -40,6 +40,11 @@ pub struct WorkerArgs {
     /// such levels more slowly than whole ones.
     #[arg(long, value_name = "MB", default_value_t = TILED_FROM_BYTES >> 20)]
     pub tile_textures_from_mb: usize,
+    /// With --mpi: give no worker copies of the tiles others hold once every tile is handed out
+    /// (to compare; by default a worker with nothing left to do renders them too, and the first
+    /// copy delivered is taken).
+    #[arg(long)]
+    pub no_tile_copies: bool,
 }
 
 impl WorkerArgs {
@@ -47,6 +52,7 @@ impl WorkerArgs {
     pub(crate) fn apply<T: Transport>(&self, master: &mut Master<T>) {
         master.set_parts(self.parts_above, PART_TRIANGLES);
         master.set_texture_tiles_from(self.tile_textures_from_mb.saturating_mul(1 << 20));
+        master.set_tile_copies(!self.no_tile_copies);
     }
 }
 
@@ -82,8 +88,9 @@ pub(crate) fn worker_time_line(frames: &str, times: &[WorkerTime]) -> String {
     let n = times.len().max(1) as f64;
     let ms =
         |f: fn(&WorkerTime) -> std::time::Duration| times.iter().map(|t| f(t).as_secs_f64()).sum::<f64>() * 1e3 / n;
+    let mean = |f: fn(&WorkerTime) -> u64| times.iter().map(|t| f(t) as f64).sum::<f64>() / n;
     format!(
-        "worker time per frame of {frames} (mean over workers): world {:.2} ms, rendering {:.1} ms (of which off the core {:.1}, waiting for fetches {:.1}, decoding fetched meshes and building their BVHs {:.1}), waiting {:.1} ms (for tiles, a core), outside their share {:.1} ms (waiting for the last worker {:.1}; the master preparing the frame and assembling the image), of a {:.1} ms frame",
+        "worker time per frame of {frames} (mean over workers): world {:.2} ms, rendering {:.1} ms (of which off the core {:.1}, waiting for fetches {:.1}, decoding fetched meshes and building their BVHs {:.1}), waiting {:.1} ms (for tiles, a core), outside their share {:.1} ms (waiting for the last worker {:.1}; the master preparing the frame and assembling the image), of a {:.1} ms frame; tiles copied to idle workers at the frame's end {:.1} a frame ({:.1} delivered first by the copy, {:.1} rendered twice)",
         ms(|t| t.world),
         ms(|t| t.rendering),
         ms(|t| t.off_core),
@@ -93,6 +100,9 @@ pub(crate) fn worker_time_line(frames: &str, times: &[WorkerTime]) -> String {
         ms(|t| t.outside),
         ms(|t| t.after_done),
         ms(|t| t.frame),
+        mean(|t| t.helping.copies),
+        mean(|t| t.helping.helped),
+        mean(|t| t.helping.twice),
     )
 }
 

@@ -5,7 +5,7 @@ use super::fetch::{encode_object, encode_part, ObjectTree};
 use super::message::{
     build_fingerprint, greeting_version, FrameCounts, Job, LatticeUnit, Message, RenderedUnits, PROTOCOL_VERSION,
 };
-use super::schedule::Schedule;
+use super::schedule::{Delivery, Helping, Holdings, Schedule};
 use super::transport::Transport;
 use super::DistributedError;
 use crate::accel::parts::{cut, PARTED_ABOVE, PART_TRIANGLES};
@@ -59,12 +59,14 @@ struct Work<'a> {
 
 /// How a frame's units went on the workers.
 struct FrameRun {
-    /// Who rendered each unit.
+    /// Who rendered each unit (who delivered it first).
     given: Vec<Option<usize>>,
     /// Each worker's counts.
     counts: Vec<FrameCounts>,
     /// What each unit took its thread, in microseconds.
     costs: Vec<u32>,
+    /// How the copies for helpers went.
+    helping: Helping,
 }
 
 /// Takes a unit's encoded pixels as they arrive, with the unit's index: an error is the sender's
@@ -156,6 +158,9 @@ pub struct Master<T: Transport> {
     region_owner: Vec<Option<usize>>,
     /// Whether the workers still wait for work (not yet told to quit).
     open: bool,
+    /// Whether workers with nothing left to do at a frame's end get copies of the tiles others
+    /// hold ([`Holdings`]).
+    tile_copies: bool,
     traffic: Traffic,
     /// What the workers' contexts were last sent ([`Master::render_context`]).
     replicator: Replicator,
@@ -211,6 +216,8 @@ pub struct WorkerTime {
     /// Of `outside`, the time from the worker's report to the last worker's, as the master saw
     /// them arrive: the frame's imbalance.
     pub after_done: Duration,
+    /// The copies of units handed to workers with nothing left to do at the frame's end.
+    pub helping: Helping,
 }
 
 /// One worker's times in a frame, its render threads' as their mean.
@@ -269,6 +276,7 @@ impl WorkerTime {
                 .map(|w| w.done)
                 .max()
                 .map_or(Duration::ZERO, |last| workers.iter().map(|w| last - w.done).sum::<Duration>() / n),
+            helping: Helping::default(),
         }
     }
 }
@@ -349,6 +357,7 @@ impl<T: Transport> Master<T> {
             last_cost: Vec::new(),
             region_owner: Vec::new(),
             open: true,
+            tile_copies: true,
             traffic: Traffic::default(),
             replicator: Replicator::demand_loading(),
             demand: Demand::default(),
@@ -398,15 +407,22 @@ impl<T: Transport> Master<T> {
         Ok(master)
     }
 
-    /// Sends objects of more than `above` triangles in parts of at most `part_triangles`
-    /// ([`crate::accel::parts`]; by default [`PARTED_ABOVE`] and [`PART_TRIANGLES`]). Takes effect
-    /// for objects encoded from now on.
     /// Sends the large levels of textures whose whole takes at least `bytes` to the workers in
     /// tiles (`texture/level_tiles.rs`; [`crate::texture::TILED_FROM_BYTES`] unless set).
     pub fn set_texture_tiles_from(&mut self, bytes: usize) {
         self.texture_server = TextureServer::new().with_tiles_from(bytes);
     }
 
+    /// Whether a worker with nothing left to do once a frame's tiles are all handed out gets
+    /// copies of tiles other workers hold and have not started (by default it does; see
+    /// [`Holdings`]).
+    pub fn set_tile_copies(&mut self, on: bool) {
+        self.tile_copies = on;
+    }
+
+    /// Sends objects of more than `above` triangles in parts of at most `part_triangles`
+    /// ([`crate::accel::parts`]; by default [`PARTED_ABOVE`] and [`PART_TRIANGLES`]). Takes effect
+    /// for objects encoded from now on.
     pub fn set_parts(&mut self, above: usize, part_triangles: u32) {
         (self.parted_above, self.part_triangles) = (above, part_triangles.max(1));
         self.encoded_objects.clear();
@@ -641,7 +657,8 @@ impl<T: Transport> Master<T> {
             arrived += 1;
             Ok(())
         };
-        let FrameRun { given, counts, costs } = self.run(world, update, work, progress, source, &mut accept)?;
+        let FrameRun { given, counts, costs, helping } =
+            self.run(world, update, work, progress, source, &mut accept)?;
         if arrived != tiles.len() {
             return Err(DistributedError::Protocol {
                 rank: 0,
@@ -659,7 +676,7 @@ impl<T: Transport> Master<T> {
         }
         report.threads = self.worker_threads();
         report.elapsed = start.elapsed();
-        self.worker_time = WorkerTime::of(report.elapsed, &self.worker_times);
+        self.worker_time = WorkerTime { helping, ..WorkerTime::of(report.elapsed, &self.worker_times) };
         Ok((fb, report))
     }
 
@@ -686,22 +703,25 @@ impl<T: Transport> Master<T> {
             }
         };
         let mut schedule = Schedule::new(units, self.workers.len(), work.owners, work.costs);
+        let mut holdings = Holdings::new(units, self.workers.len());
+        // Tiles only: a helper's copy renders again what another worker may render too, and a
+        // viewer's lattices report their rays, which would count twice.
+        let helping = self.tile_copies && matches!(work.job, Job::Tiles);
         let mut costs = vec![0u32; units];
-        let mut given: Vec<Option<usize>> = vec![None; units];
-        let mut received_unit = vec![false; units];
         let mut told_last = vec![false; self.workers.len()];
         let mut ran_dry = vec![false; self.workers.len()];
-        let mut in_flight = vec![0usize; self.workers.len()];
+        // Units each worker sent, copies delivered second among them.
+        let mut sent = vec![0usize; self.workers.len()];
         let mut traffic = Traffic::default();
         let all_threads = self.worker_threads();
+        let threads: Vec<usize> = self.workers.iter().map(|w| (w.threads as usize).max(1)).collect();
         for (w, info) in self.workers.iter().enumerate() {
             let target = in_flight_target(info, schedule.left(), all_threads);
             let first: Vec<u32> = (0..target).map_while(|_| schedule.next(w)).collect();
-            in_flight[w] = first.len();
             for &t in &first {
-                given[t as usize] = Some(w);
+                holdings.hand(w, t);
             }
-            told_last[w] = schedule.left() == 0;
+            told_last[w] = first.is_empty() || (!helping && schedule.left() == 0);
             let lattices = described(&first);
             let m = Message::Frame {
                 frame,
@@ -739,40 +759,64 @@ impl<T: Transport> Master<T> {
                     self.workers[w].ran_dry();
                     ran_dry[w] = true;
                 }
-                in_flight[w] = in_flight[w].saturating_sub(batch.len());
+                sent[w] += batch.len();
+                // Per worker, the units another delivered first, for it to leave out.
+                let mut dropped: Vec<(usize, Vec<u32>)> = Vec::new();
                 for (unit, micros, pixels) in batch {
                     let u = unit as usize;
-                    if given.get(u) != Some(&Some(w)) || received_unit[u] {
-                        return Err(protocol_error(format!("sent unit {unit}, which it was not given")));
+                    match holdings.deliver(w, unit) {
+                        Delivery::NotGiven => {
+                            return Err(protocol_error(format!("sent unit {unit}, which it was not given")))
+                        }
+                        Delivery::Again => continue,
+                        Delivery::First { other } => {
+                            if let Some(other) = other.filter(|&o| !done[o]) {
+                                match dropped.iter_mut().find(|(o, _)| *o == other) {
+                                    Some((_, units)) => units.push(unit),
+                                    None => dropped.push((other, vec![unit])),
+                                }
+                            }
+                        }
                     }
                     accept(u, pixels).map_err(protocol_error)?;
-                    received_unit[u] = true;
                     costs[u] = micros;
                     received += 1;
                     if let Some(p) = progress {
                         p(received, units);
                     }
                 }
-                let wanted =
-                    in_flight_target(&self.workers[w], schedule.left(), all_threads).saturating_sub(in_flight[w]);
-                if !told_last[w] && (wanted > 0 || in_flight[w] == 0 || failure.is_some()) {
-                    // Enough new units to bring the worker's units in flight back to its
-                    // target. After a failure nothing more is handed out: the frame ends as
-                    // soon as every worker has sent what it holds.
-                    let next: Vec<u32> = if failure.is_none() {
-                        (0..wanted).map_while(|_| schedule.next(w)).collect()
-                    } else {
-                        Vec::new()
-                    };
-                    for &t in &next {
-                        given[t as usize] = Some(w);
+                // The worker that sent, and each that may leave units out, get more: a worker
+                // whose last units another delivered has nothing to send that would ask for more.
+                dropped.push((w, Vec::new()));
+                for (x, gone) in dropped {
+                    let held = holdings.held(x);
+                    let wanted = in_flight_target(&self.workers[x], schedule.left(), all_threads).saturating_sub(held);
+                    let top_up = !told_last[x] && (wanted > 0 || held == 0 || failure.is_some());
+                    if !top_up && gone.is_empty() {
+                        continue;
                     }
-                    in_flight[w] += next.len();
-                    told_last[w] = schedule.left() == 0 || next.len() < wanted;
+                    // Enough new units to bring the worker's units in flight back to its
+                    // target; once every unit is handed out, copies of units others hold. After
+                    // a failure nothing more is handed out: the frame ends as soon as every
+                    // worker has sent what it holds.
+                    let mut next: Vec<u32> = Vec::new();
+                    if top_up {
+                        if failure.is_none() {
+                            next.extend((0..wanted).map_while(|_| schedule.next(x)));
+                            for &t in &next {
+                                holdings.hand(x, t);
+                            }
+                            if helping && next.len() < wanted {
+                                next.extend(holdings.copies_for(x, wanted - next.len(), |o| threads[o]));
+                            }
+                        }
+                        told_last[x] = next.is_empty() || (!helping && (schedule.left() == 0 || next.len() < wanted));
+                    }
                     let lattices = described(&next);
-                    let m = Message::Assign { frame, units: next, lattices, last: told_last[w] }.encode();
+                    let m = Message::Assign { frame, units: next, lattices, last: told_last[x], dropped: gone };
+                    let m = m.encode();
                     traffic.control += m.len() as u64;
-                    self.transport.send(rank, m)?;
+                    self.transport.send(x + 1, m)?;
                 }
                 self.transport.recycle(bytes);
                 continue;
@@ -810,8 +854,7 @@ impl<T: Transport> Master<T> {
                 Message::FrameDone { frame: f, counts: c, failure: worker_failure } if f == frame && !done[w] => {
                     traffic.counters += bytes.len() as u64;
                     done[w] = true;
-                    let units = given.iter().filter(|&&g| g == Some(w)).count();
-                    self.workers[w].frame_done(units, Duration::from_nanos(c.rendering_ns), ran_dry[w]);
+                    self.workers[w].frame_done(sent[w], Duration::from_nanos(c.rendering_ns), ran_dry[w]);
                     let share = WorkerShare { done: started.elapsed(), ..WorkerShare::of(&c, self.workers[w].threads) };
                     self.worker_times.push(share);
                     counts.push(c);
@@ -853,7 +896,8 @@ impl<T: Transport> Master<T> {
                 reason: reason.clone(),
             }
         }));
-        Ok(FrameRun { given, counts, costs })
+        let (given, helping) = holdings.delivered();
+        Ok(FrameRun { given, counts, costs, helping })
     }
 
     /// Object `id` of `source` as a worker fetches it: its mesh and the BVH `world` holds for it,

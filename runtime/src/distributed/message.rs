@@ -8,7 +8,7 @@ use crate::texture::{TextureKind, TexturePart};
 use rtsl_compiler::interface::ShaderKind;
 
 /// The protocol's version: ranks that speak different versions refuse each other at start-up.
-pub const PROTOCOL_VERSION: u32 = 37;
+pub const PROTOCOL_VERSION: u32 = 38;
 
 /// What the master's counters add up from a worker's share of a frame.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -123,7 +123,10 @@ pub enum Message {
         last: bool,
     },
     /// Master to worker: more units of the frame, as in `Frame`; `last`: no more will come.
-    Assign { frame: u64, units: Vec<u32>, lattices: Vec<LatticeUnit>, last: bool },
+    /// `dropped`: units it was given that another worker has delivered, to leave out if it has not
+    /// started them (the master hands a worker with nothing left to do copies of units others
+    /// hold, and takes whichever copy comes first).
+    Assign { frame: u64, units: Vec<u32>, lattices: Vec<LatticeUnit>, last: bool, dropped: Vec<u32> },
     /// Worker to master: finished units, each its index, the microseconds its thread took over it,
     /// and its pixels (see [`Job`]): all that were ready when the worker sent, so that a master
     /// slow to answer gets fewer, larger messages. `starved`: the worker ran out of units while
@@ -239,12 +242,13 @@ impl Message {
                 w.lattices(lattices);
                 w.u8(u8::from(*last));
             }
-            Message::Assign { frame, units, lattices, last } => {
+            Message::Assign { frame, units, lattices, last, dropped } => {
                 w.u8(ASSIGN);
                 w.u64(*frame);
                 w.u32s(units);
                 w.lattices(lattices);
                 w.u8(u8::from(*last));
+                w.u32s(dropped);
             }
             Message::Rendered { frame, units, starved } => {
                 w.u8(RENDERED);
@@ -370,7 +374,13 @@ impl Message {
                 let (units, lattices, last) = (r.u32s()?, r.lattices()?, r.bool()?);
                 Message::Frame { frame, update, light_paths, job, units, lattices, last }
             }
-            ASSIGN => Message::Assign { frame: r.u64()?, units: r.u32s()?, lattices: r.lattices()?, last: r.bool()? },
+            ASSIGN => Message::Assign {
+                frame: r.u64()?,
+                units: r.u32s()?,
+                lattices: r.lattices()?,
+                last: r.bool()?,
+                dropped: r.u32s()?,
+            },
             RENDERED => {
                 let RenderedUnits { frame, units, starved } = RenderedUnits::read(&mut r)?;
                 let units = units.into_iter().map(|(unit, micros, pixels)| (unit, micros, pixels.to_vec())).collect();
@@ -713,7 +723,8 @@ mod tests {
                 lattices: vec![LatticeUnit { lattice: PixelLattice { x0: 8, y0: 16, stride: 2 }, lanes: u64::MAX }],
                 last: true,
             },
-            Message::Assign { frame: 3, units: vec![], lattices: vec![], last: true },
+            Message::Assign { frame: 3, units: vec![], lattices: vec![], last: true, dropped: vec![] },
+            Message::Assign { frame: 5, units: vec![], lattices: vec![], last: false, dropped: vec![4, 0, 9] },
             Message::Assign {
                 frame: 4,
                 units: vec![2, 3],
@@ -722,6 +733,7 @@ mod tests {
                     LatticeUnit { lattice: PixelLattice { x0: 3, y0: 1, stride: 4 }, lanes: 1 << 63 },
                 ],
                 last: false,
+                dropped: vec![],
             },
             Message::Rendered {
                 frame: u64::MAX,

@@ -73,6 +73,129 @@ impl Schedule {
     }
 }
 
+/// Who holds which of a frame's units until one of them delivers it. Once every unit is handed
+/// out, a worker with nothing left to do is given **copies** of units that others hold and have
+/// not started (the last handed out, from the worker with the most waiting): the master cannot
+/// take a unit back without a round trip, so it lets two workers race for it, takes whichever
+/// delivers first and tells the other to leave it out. Near the end of a frame that turns a
+/// worker's backlog into work for the idle, which last frame's costs and the shares of what is
+/// left only estimate.
+pub struct Holdings {
+    /// Per unit: the worker it was handed to, the helper that holds a copy, and who delivered it.
+    owner: Vec<Option<usize>>,
+    helper: Vec<Option<usize>>,
+    delivered: Vec<Option<usize>>,
+    /// Per worker: the units it holds that no one has delivered, in the order they were handed
+    /// out (the order it renders them in).
+    held: Vec<VecDeque<u32>>,
+    helping: Helping,
+}
+
+/// How a frame's copies for helpers went ([`Holdings`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Helping {
+    /// Units copied to a helper.
+    pub copies: u64,
+    /// Of those, the units the helper delivered first.
+    pub helped: u64,
+    /// Units delivered a second time: rendered by both (the second started before the first
+    /// copy arrived, or before the word to leave it out did).
+    pub twice: u64,
+}
+
+/// A unit arriving from a worker.
+#[derive(Debug, PartialEq, Eq)]
+pub enum Delivery {
+    /// The first copy: `other`, the other worker that holds it, if any, can leave it out.
+    First { other: Option<usize> },
+    /// Another worker delivered it first.
+    Again,
+    /// The worker never held it.
+    NotGiven,
+}
+
+impl Holdings {
+    pub fn new(units: usize, workers: usize) -> Holdings {
+        Holdings {
+            owner: vec![None; units],
+            helper: vec![None; units],
+            delivered: vec![None; units],
+            held: vec![VecDeque::new(); workers],
+            helping: Helping::default(),
+        }
+    }
+
+    /// Unit `unit` is handed to `worker` (from the [`Schedule`]).
+    pub fn hand(&mut self, worker: usize, unit: u32) {
+        if let (Some(owner), Some(held)) = (self.owner.get_mut(unit as usize), self.held.get_mut(worker)) {
+            *owner = Some(worker);
+            held.push_back(unit);
+        }
+    }
+
+    /// How many units `worker` holds that no one has delivered.
+    pub fn held(&self, worker: usize) -> usize {
+        self.held.get(worker).map_or(0, VecDeque::len)
+    }
+
+    /// Who delivered each unit first, and how the copies went.
+    pub fn delivered(self) -> (Vec<Option<usize>>, Helping) {
+        (self.delivered, self.helping)
+    }
+
+    /// `worker` sends `unit`.
+    pub fn deliver(&mut self, worker: usize, unit: u32) -> Delivery {
+        let u = unit as usize;
+        let (Some(&owner), Some(&helper)) = (self.owner.get(u), self.helper.get(u)) else {
+            return Delivery::NotGiven;
+        };
+        if owner != Some(worker) && helper != Some(worker) {
+            return Delivery::NotGiven;
+        }
+        if self.delivered[u].is_some() {
+            self.helping.twice += 1;
+            return Delivery::Again;
+        }
+        self.delivered[u] = Some(worker);
+        self.helping.helped += u64::from(helper == Some(worker));
+        for holder in [owner, helper].into_iter().flatten() {
+            if let Some(at) = self.held[holder].iter().position(|&h| h == unit) {
+                self.held[holder].remove(at);
+            }
+        }
+        let other = if owner == Some(worker) { helper } else { owner };
+        Delivery::First { other }
+    }
+
+    /// Copies for `helper` of up to `count` units that other workers hold and have not started:
+    /// each the last handed out of the worker with the most such units waiting behind the ones
+    /// its `threads(worker)` threads render. A unit is copied once.
+    pub fn copies_for(&mut self, helper: usize, count: usize, threads: impl Fn(usize) -> usize) -> Vec<u32> {
+        let mut copies = Vec::new();
+        while copies.len() < count {
+            let most = (0..self.held.len())
+                .filter(|&w| w != helper)
+                .map(|w| (self.copyable(w, threads(w)).count(), w))
+                .filter(|&(n, _)| n > 0)
+                .max_by_key(|&(n, w)| (n, std::cmp::Reverse(w)));
+            let Some(unit) = most.and_then(|(_, from)| self.copyable(from, threads(from)).next()) else { break };
+            self.helper[unit as usize] = Some(helper);
+            self.held[helper].push_back(unit);
+            self.helping.copies += 1;
+            copies.push(unit);
+        }
+        copies
+    }
+
+    /// The units `worker` holds behind the `threads` it renders that no helper has a copy of,
+    /// the last handed out first.
+    fn copyable(&self, worker: usize, threads: usize) -> impl Iterator<Item = u32> + '_ {
+        let held = &self.held[worker];
+        let waiting = held.range(threads.min(held.len())..).rev().copied();
+        waiting.filter(move |&u| self.helper[u as usize].is_none() && self.owner[u as usize] == Some(worker))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -121,6 +244,50 @@ mod tests {
         // Costs for other tiles than these are ignored.
         let s = Schedule::new(8, 2, &last, &cost[..7]);
         assert_eq!(s.preferred[0], [0, 1, 2, 3]);
+    }
+
+    #[test]
+    fn idle_workers_get_copies_of_the_units_others_have_not_started() {
+        let one_thread = |_| 1;
+        let mut h = Holdings::new(10, 3);
+        // Worker 0 holds 0..6 (renders 0, the rest wait), worker 1 holds 6 and 7, worker 2 none.
+        for u in 0..6 {
+            h.hand(0, u);
+        }
+        h.hand(1, 6);
+        h.hand(1, 7);
+        // Worker 2 gets the last handed out of the worker with most waiting, never a unit being
+        // rendered: worker 0's 5, 4, 3, 2, 1 (on a tie, the first worker), then worker 1's 7.
+        assert_eq!(h.copies_for(2, 3, one_thread), [5, 4, 3]);
+        assert_eq!(h.copies_for(2, 3, one_thread), [2, 1, 7]);
+        assert_eq!(h.copies_for(2, 3, one_thread), Vec::<u32>::new());
+        assert_eq!((h.held(0), h.held(1), h.held(2)), (6, 2, 6));
+        // A unit is copied once: worker 1 finds nothing left to copy.
+        assert_eq!(h.copies_for(1, 5, one_thread), Vec::<u32>::new());
+        // The helper delivers 5 first: worker 0 may leave it out; its copy, if it comes, is late.
+        assert_eq!(h.deliver(2, 5), Delivery::First { other: Some(0) });
+        assert_eq!(h.deliver(0, 5), Delivery::Again);
+        assert_eq!((h.held(0), h.held(2)), (5, 5));
+        // Worker 0 delivers its own 0 (no copy) and 4 before the helper.
+        assert_eq!(h.deliver(0, 0), Delivery::First { other: None });
+        assert_eq!(h.deliver(0, 4), Delivery::First { other: Some(2) });
+        // Nobody else may deliver a unit: not the one that neither holds nor copied it.
+        assert_eq!(h.deliver(1, 4), Delivery::NotGiven);
+        assert_eq!(h.deliver(1, 3), Delivery::NotGiven);
+        assert_eq!(h.deliver(0, 99), Delivery::NotGiven);
+        let (delivered, helping) = h.delivered();
+        assert_eq!(&delivered[..6], [Some(0), None, None, None, Some(0), Some(2)]);
+        assert_eq!(helping, Helping { copies: 6, helped: 1, twice: 1 });
+    }
+
+    #[test]
+    fn a_worker_of_several_threads_keeps_as_many_units_as_it_renders() {
+        let mut h = Holdings::new(6, 2);
+        for u in 0..6 {
+            h.hand(0, u);
+        }
+        // Four threads render 0..4; only 4 and 5 wait.
+        assert_eq!(h.copies_for(1, 10, |w| if w == 0 { 4 } else { 1 }), [5, 4]);
     }
 
     #[test]

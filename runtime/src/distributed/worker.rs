@@ -203,15 +203,16 @@ pub fn serve<T: Transport + ?Sized>(
                     _ => kept_paths.clone(),
                 };
                 let building = Instant::now();
+                let mut early = Vec::new();
                 let world = match (scene.as_deref_mut(), &failure) {
-                    (Some(s), None) => build_world(transport, frame, pool, s, &update)?,
+                    (Some(s), None) => build_world(transport, frame, pool, s, &update, &mut early)?,
                     (_, failure) => Err(failure.clone().unwrap_or_default()),
                 };
                 let result = match world {
                     Ok(world) => {
                         let link = scene.as_deref().and_then(|s| s.fetch_link());
                         let first = (units, lattices);
-                        let share = Share { frame, job, first, last, built_in: building.elapsed() };
+                        let share = Share { frame, job, first, last, early, built_in: building.elapsed() };
                         let rendered = render_share(transport, &world, share, pool, link.as_deref(), &paths);
                         if let Some(s) = scene.as_deref_mut() {
                             s.finished(world);
@@ -236,6 +237,8 @@ pub fn serve<T: Transport + ?Sized>(
             }
             // More tiles of the frame this rank gave up, or answers to what it fetched for it.
             Message::Assign { .. } | Message::Data { .. } if failure.is_some() => {}
+            // Units of a frame this rank has finished, which another delivered first.
+            Message::Assign { units, .. } if units.is_empty() => {}
             _ => return Err(out_of_place(transport)),
         }
     }
@@ -244,13 +247,15 @@ pub fn serve<T: Transport + ?Sized>(
 /// Builds the frame's world from `update` on the pool (building BVHs uses the worker's threads,
 /// not every core) while this thread answers what building it fetches: an object's alpha mask
 /// reads its texture, which a worker fetches from the master, and the master serves the frame's
-/// fetches from the moment it sends the frame.
+/// fetches from the moment it sends the frame. The frame's assignments that come meanwhile (units
+/// another worker delivered first) go to `early`, for the frame's share to take.
 fn build_world<T: Transport + ?Sized>(
     transport: &T,
     frame: u64,
     pool: &rayon::ThreadPool,
     scene: &mut dyn WorkerScene,
     update: &[u8],
+    early: &mut Vec<Message>,
 ) -> Result<Result<World, String>, DistributedError> {
     let Some(link) = scene.fetch_link() else { return Ok(pool.install(|| scene.world(update))) };
     std::thread::scope(|s| {
@@ -267,6 +272,8 @@ fn build_world<T: Transport + ?Sized>(
                         Message::Data { frame: f, meshes, parts, textures } if f == frame => {
                             pending.answer(meshes, parts, textures)
                         }
+                        m @ Message::Assign { frame: f, .. } if f == frame => early.push(m),
+                        Message::Assign { frame: f, units, .. } if f < frame && units.is_empty() => {}
                         _ => return Err(out_of_place(transport)),
                     }
                 }
@@ -408,7 +415,7 @@ fn render_share<T: Transport + ?Sized>(
     link: Option<&FetchLink>,
     paths: &LightPaths,
 ) -> Result<bool, DistributedError> {
-    let Share { frame, job, first, mut last, built_in } = share;
+    let Share { frame, job, first, mut last, early, built_in } = share;
     let mut pending = Pending::default();
     let start = Instant::now();
     let renderer = Units::new(world, job);
@@ -462,6 +469,16 @@ fn render_share<T: Transport + ?Sized>(
             });
         }
         give(first.0, first.1, &mut outstanding)?;
+        // More units, or units to leave out; returns whether they are the last.
+        let assigned = |m: Message, outstanding: &mut usize| -> Result<bool, DistributedError> {
+            let Message::Assign { units, lattices, last, dropped, .. } = m else { return Ok(false) };
+            give(units, lattices, outstanding)?;
+            *outstanding -= queue.leave_out(&dropped);
+            Ok(last)
+        };
+        for m in early {
+            last |= assigned(m, &mut outstanding)?;
+        }
         let mut starved = false;
         let mut last_send = Instant::now();
         loop {
@@ -474,10 +491,9 @@ fn render_share<T: Transport + ?Sized>(
             }
             while let Some((rank, bytes)) = transport.try_recv()? {
                 match decode_given_back(transport, rank, bytes)? {
-                    Message::Assign { frame: f, units, lattices, last: l } if f == frame => {
-                        give(units, lattices, &mut outstanding)?;
-                        last |= l;
-                    }
+                    m @ Message::Assign { frame: f, .. } if f == frame => last |= assigned(m, &mut outstanding)?,
+                    // Units of a frame before, which another worker delivered first.
+                    Message::Assign { frame: f, units, .. } if f < frame && units.is_empty() => {}
                     Message::Data { frame: f, meshes, parts, textures } if f == frame => {
                         pending.answer(meshes, parts, textures)
                     }
@@ -574,6 +590,8 @@ struct Share {
     job: Job,
     first: (Vec<u32>, Vec<LatticeUnit>),
     last: bool,
+    /// The frame's assignments that came while the world was built.
+    early: Vec<Message>,
     built_in: std::time::Duration,
 }
 
@@ -630,6 +648,17 @@ impl UnitQueue {
     fn push(&self, units: Vec<QueuedUnit>) {
         self.lock().waiting.extend(units);
         self.ready.notify_all();
+    }
+
+    /// Takes out the units of `dropped` that wait (none has started them); returns how many.
+    fn leave_out(&self, dropped: &[u32]) -> usize {
+        if dropped.is_empty() {
+            return 0;
+        }
+        let mut state = self.lock();
+        let before = state.waiting.len();
+        state.waiting.retain(|u| !dropped.contains(&u.index));
+        before - state.waiting.len()
     }
 
     /// The next unit, waiting for one; `None` once the queue is closed.
