@@ -42,7 +42,7 @@ use crate::csg::Solid;
 use crate::geometry::Mesh;
 use crate::render::{CameraSetup, RenderOptions};
 use crate::scene::Scene;
-use crate::shading::{Program, ShaderError, ShaderProgram};
+use crate::shading::{ParamValue, Program, ShaderError, ShaderProgram};
 use crate::texture::{Delivered, TexImage, TextureKind, Wrap};
 use glam::Affine3A;
 use serde::{Deserialize, Serialize};
@@ -543,6 +543,46 @@ pub fn decode_mesh(bytes: &[u8]) -> Result<Mesh, ReplicaError> {
 }
 
 impl Context {
+    /// The strings that may name textures: every string parameter of the scene's shader
+    /// bindings (objects' surfaces, interiors and displacements, lights, the pixel, camera and
+    /// atmosphere shaders) and the alpha masks' textures, each once. A master decodes those that
+    /// name textures ([`Context::delivers_texture`]) for its workers before they ask.
+    pub fn texture_name_candidates(&self) -> Vec<&str> {
+        fn strings(params: &[(String, ParamValue, Affine3A)]) -> impl Iterator<Item = &str> {
+            params.iter().filter_map(|(_, value, _)| match value {
+                ParamValue::String(name) => Some(name.as_str()),
+                _ => None,
+            })
+        }
+        let appearances = self.objects.iter().filter(|o| !o.deleted).flat_map(|object| {
+            let parts = object.parts.as_ref().map_or(&[][..], |p| &p.appearances[..]);
+            std::iter::once(&object.appearance).chain(parts)
+        });
+        let mut names: Vec<&str> = Vec::new();
+        for appearance in appearances {
+            for binding in [&appearance.surface, &appearance.interior, &appearance.displacement].into_iter().flatten() {
+                names.extend(strings(&binding.params));
+            }
+            names.extend(appearance.alpha_mask.as_ref().map(|(name, _)| name.as_str()));
+        }
+        for binding in [&self.pixel, &self.camera_shader, &self.atmosphere].into_iter().flatten() {
+            names.extend(strings(&binding.params));
+        }
+        for light in &self.lights {
+            names.extend(strings(&light.params));
+        }
+        names.retain(|n| !n.is_empty());
+        names.sort_unstable();
+        names.dedup();
+        names
+    }
+
+    /// Whether `name` stands for a texture here: one given in memory, or a file on the texture
+    /// search path.
+    pub fn delivers_texture(&self, name: &str) -> bool {
+        self.memory_textures.iter().any(|(n, _)| n == name) || self.textures.locate(name).is_ok()
+    }
+
     /// What `name` stands for as a `kind`, for a replica's [`crate::texture::TextureSource`] to
     /// deliver: a texture or grid given in memory, else the bytes of the file the name resolves
     /// to on this context's search path, else why there is none (the warning a lookup here would
@@ -581,3 +621,39 @@ impl Context {
 /// The largest file [`Context::deliver_texture`] sends: one message to one worker, and MPI counts
 /// a message's bytes in 32 bits.
 const MAX_DELIVERED_FILE_BYTES: u64 = 1 << 30;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_texture_names_a_scene_gives_are_its_shaders_string_parameters_and_alpha_masks() {
+        let dir = tempfile::tempdir().expect("a temporary directory");
+        std::fs::write(dir.path().join("wood.tex"), b"not read here").expect("written");
+        let mut rt = Context::new();
+        rt.add_texture_search_path(dir.path());
+        rt.tex_image_2d("in-memory", 1, 1, 3, &[0.5; 3]).expect("a texture");
+        let paper = "surface paper(string texname = \"\"; string space = \"\"; float Kd = 1) { Ci = Kd; }";
+        let paper = rt.compile_shader("paper", paper).expect("a shader");
+        let object = |rt: &mut Context, params: &[(&str, ParamValue)]| {
+            rt.begin_object().expect("an object");
+            rt.bind_shader(paper).expect("bound");
+            rt.parameters(params).expect("parameters");
+            rt.begin(crate::api::Primitive::Triangles).expect("triangles");
+            for p in [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]] {
+                rt.vertex(p[0], p[1], p[2]).expect("a vertex");
+            }
+            rt.end().expect("end");
+            rt.end_object().expect("end_object");
+        };
+        object(&mut rt, &[("texname", "wood.tex".into()), ("space", "world".into()), ("Kd", 0.5.into())]);
+        rt.alpha_mask(Some("leaf.png"));
+        object(&mut rt, &[("texname", "in-memory".into()), ("space", "".into())]);
+        let light = rt.compile_shader("slide", "light slide(string slidename = \"\") { }").expect("a shader");
+        rt.light_source(light, &[("slidename", "wood.tex".into())]).expect("a light");
+        // Every string given, each once; whether it names a texture is for the master to ask.
+        assert_eq!(rt.texture_name_candidates(), ["in-memory", "leaf.png", "wood.tex", "world"]);
+        assert!(rt.delivers_texture("wood.tex") && rt.delivers_texture("in-memory"));
+        assert!(!rt.delivers_texture("world") && !rt.delivers_texture("leaf.png"));
+    }
+}

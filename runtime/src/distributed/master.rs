@@ -13,8 +13,11 @@ use crate::accel::wire::{encode_bvh4, encode_small_tree};
 use crate::api::{encode_mesh, Context, Replicator};
 use crate::render::progressive::{lattice_lanes, BatchReport, LatticeSamples, LatticeTracer, PixelLattice};
 use crate::render::{FrameReport, Framebuffer, LightPathCache, LightPaths, RenderedTile, TileRenderer, World};
-use crate::texture::{encode_answer, Delivered, TextureAnswer, TextureServer};
-use std::collections::HashMap;
+use crate::texture::{
+    encode_answer, DecodedTexture, Delivered, TextureAnswer, TextureKind, TexturePart, TextureServer,
+};
+use std::collections::{HashMap, HashSet};
+use std::sync::mpsc::{channel, Receiver, Sender};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -38,6 +41,9 @@ const LONGEST_LEAD: Duration = Duration::from_millis(32);
 /// The most bytes of encoded objects the master keeps for fetches to come; past it, it starts
 /// again from none (each object is encoded again when next fetched).
 const ENCODED_OBJECTS_KEPT: usize = 1 << 30;
+
+/// How long the frame's loop naps between polls while textures are decoded.
+const DECODING_POLL: Duration = Duration::from_micros(50);
 
 /// The side of the square regions of the image whose lattices a worker keeps from one piece of
 /// a viewer's work to the next (see [`Master::trace_lattices`]).
@@ -67,6 +73,15 @@ struct FrameRun {
     costs: Vec<u32>,
     /// How the copies for helpers went.
     helping: Helping,
+}
+
+/// Texture requests of a worker (its rank) in the frame, as a `Fetch` carries them.
+type TextureRequests = Vec<(TexturePart, String, Option<[u8; 32]>)>;
+
+/// What the master's frame loop waits for: a worker's message, or a texture decoded away from it.
+enum Event {
+    Message(usize, Vec<u8>),
+    Decoded(Box<DecodedTexture>),
 }
 
 /// Takes a unit's encoded pixels as they arrive, with the unit's index: an error is the sender's
@@ -177,8 +192,18 @@ pub struct Master<T: Transport> {
     /// Objects of more triangles than this travel in parts of at most `part_triangles`.
     parted_above: usize,
     part_triangles: u32,
-    /// The textures the workers fetched, each decoded and mip-mapped once.
+    /// The textures the workers fetched, each decoded and mip-mapped once: on the thread pool,
+    /// while the frame's loop answers other requests and takes tiles ([`Master::start_decoding`]).
     texture_server: TextureServer,
+    /// Textures being decoded, and where they come back.
+    decoding: HashSet<(String, bool)>,
+    /// Textures the scene's shader parameters name, to decode before a worker asks for them, one
+    /// at a time ([`Master::speculate`]); the names already considered; the one being decoded.
+    to_decode: std::collections::VecDeque<String>,
+    considered: HashSet<String>,
+    speculating: Option<(String, bool)>,
+    decoded_tx: Sender<DecodedTexture>,
+    decoded_rx: Receiver<DecodedTexture>,
     /// The light paths of the viewer's pass being traced ([`Master::trace_lattices`]), and the
     /// paths the workers were last sent (they keep them for the pass's next pieces).
     light_paths: LightPathCache,
@@ -349,6 +374,7 @@ impl<T: Transport> Master<T> {
     /// [`Master::check_workers`].
     pub fn connect(transport: T) -> Result<Master<T>, DistributedError> {
         let n = transport.size();
+        let (decoded_tx, decoded_rx) = channel();
         let mut master = Master {
             transport,
             workers: Vec::new(),
@@ -368,6 +394,12 @@ impl<T: Transport> Master<T> {
             parted_above: PARTED_ABOVE,
             part_triangles: PART_TRIANGLES,
             texture_server: TextureServer::new(),
+            decoding: HashSet::new(),
+            to_decode: Default::default(),
+            considered: HashSet::new(),
+            speculating: None,
+            decoded_tx,
+            decoded_rx,
             light_paths: LightPathCache::default(),
             sent_light_paths: LightPaths::default(),
         };
@@ -512,6 +544,8 @@ impl<T: Transport> Master<T> {
         self.region_owner.clear();
         self.light_paths = LightPathCache::default();
         self.sent_light_paths = LightPaths::default();
+        self.to_decode.clear();
+        self.considered.clear();
         let message = Message::NewScene.encode();
         for rank in 1..=self.workers.len() {
             self.transport.send(rank, message.clone())?;
@@ -738,12 +772,39 @@ impl<T: Transport> Master<T> {
             traffic.control += (m.len() - update.len() - work.light_paths.len()) as u64;
             self.transport.send(w + 1, m)?;
         }
+        self.speculate(source);
         let (mut received, mut done) = (0, vec![false; self.workers.len()]);
+        // Texture requests waiting for their textures' decoding, by rank.
+        let mut parked: Vec<(usize, TextureRequests)> = Vec::new();
         let mut counts = Vec::new();
         self.worker_times.clear();
         let mut failure = None;
         while done.contains(&false) {
-            let (rank, bytes) = self.transport.recv()?;
+            let (rank, bytes) = match self.next_event()? {
+                Event::Message(rank, bytes) => (rank, bytes),
+                Event::Decoded(texture) => {
+                    self.decoding.remove(texture.key());
+                    if self.speculating.as_ref() == Some(texture.key()) {
+                        self.speculating = None;
+                    }
+                    self.texture_server.add(*texture);
+                    // The requests that waited for it, and for nothing else now, are answered.
+                    for (rank, textures) in std::mem::take(&mut parked) {
+                        let (ready, waiting) = self.start_decoding(textures, source);
+                        if !ready.is_empty() {
+                            let textures = self.texture_answers(ready, source);
+                            let m = Message::Data { frame, meshes: vec![], parts: vec![], textures }.encode();
+                            traffic.fetches += m.len() as u64;
+                            self.transport.send(rank, m)?;
+                        }
+                        if !waiting.is_empty() {
+                            parked.push((rank, waiting));
+                        }
+                    }
+                    self.speculate(source);
+                    continue;
+                }
+            };
             let protocol_error = |message: String| DistributedError::Protocol { rank, message };
             let Some(w) = rank.checked_sub(1).filter(|&w| w < self.workers.len()) else {
                 return Err(protocol_error("a message from no worker".into()));
@@ -824,32 +885,23 @@ impl<T: Transport> Master<T> {
             match Message::decode(&bytes).map_err(protocol_error)? {
                 Message::Fetch { frame: f, objects, parts, textures } if f == frame => {
                     traffic.fetches += bytes.len() as u64;
-                    let meshes = objects.into_iter().map(|id| (id, self.encoded_object(id, source, world))).collect();
-                    let parts = parts
+                    let meshes: Vec<_> =
+                        objects.into_iter().map(|id| (id, self.encoded_object(id, source, world))).collect();
+                    let parts: Vec<_> = parts
                         .into_iter()
                         .map(|(id, part)| (id, part, self.encoded_part(id, part, source, world)))
                         .collect();
-                    let answers: Vec<Vec<u8>> = match source {
-                        Some(rt) => {
-                            let generation = rt.textures().generation();
-                            let deliver = |kind, name: &str| rt.deliver_texture(kind, name);
-                            let answers = self.texture_server.answer_all(generation, &textures, deliver);
-                            answers.iter().map(|a| a.to_vec()).collect()
-                        }
-                        None => {
-                            let none =
-                                Delivered::Missing { path: None, reason: "the master serves no textures".into() };
-                            vec![encode_answer(&TextureAnswer::Whole(none)); textures.len()]
-                        }
-                    };
-                    let textures = textures
-                        .into_iter()
-                        .zip(answers)
-                        .map(|((part, name, _), answer)| (part, name, answer))
-                        .collect();
-                    let m = Message::Data { frame, meshes, parts, textures }.encode();
-                    traffic.fetches += m.len() as u64;
-                    self.transport.send(rank, m)?;
+                    // Textures not decoded yet are answered once they are, in another message.
+                    let (ready, waiting) = self.start_decoding(textures, source);
+                    let textures = self.texture_answers(ready, source);
+                    if !waiting.is_empty() {
+                        parked.push((rank, waiting));
+                    }
+                    if !(meshes.is_empty() && parts.is_empty() && textures.is_empty()) {
+                        let m = Message::Data { frame, meshes, parts, textures }.encode();
+                        traffic.fetches += m.len() as u64;
+                        self.transport.send(rank, m)?;
+                    }
                 }
                 Message::FrameDone { frame: f, counts: c, failure: worker_failure } if f == frame && !done[w] => {
                     traffic.counters += bytes.len() as u64;
@@ -898,6 +950,132 @@ impl<T: Transport> Master<T> {
         }));
         let (given, helping) = holdings.delivered();
         Ok(FrameRun { given, counts, costs, helping })
+    }
+
+    /// The next worker message, or a texture decoded meanwhile.
+    fn next_event(&self) -> Result<Event, DistributedError> {
+        if self.decoding.is_empty() {
+            let (rank, bytes) = self.transport.recv()?;
+            return Ok(Event::Message(rank, bytes));
+        }
+        loop {
+            if let Ok(texture) = self.decoded_rx.try_recv() {
+                return Ok(Event::Decoded(Box::new(texture)));
+            }
+            if let Some((rank, bytes)) = self.transport.try_recv()? {
+                return Ok(Event::Message(rank, bytes));
+            }
+            if self.transport.sending() {
+                std::thread::yield_now();
+            } else {
+                std::thread::sleep(DECODING_POLL);
+            }
+        }
+    }
+
+    /// Splits `requests` into those that can be answered at once and those that wait for their
+    /// textures' decoding, and starts decoding those on the thread pool, each texture once: a
+    /// texture can take tens of milliseconds to decode and mip-map, which would hold up every
+    /// other worker's tiles and fetches.
+    fn start_decoding(
+        &mut self,
+        requests: TextureRequests,
+        source: Option<&Context>,
+    ) -> (TextureRequests, TextureRequests) {
+        let Some(rt) = source else { return (requests, Vec::new()) };
+        let generation = rt.textures().generation();
+        let undecoded = self.texture_server.undecoded(generation, &requests);
+        if undecoded.is_empty() {
+            return (requests, Vec::new());
+        }
+        for key in &undecoded {
+            self.decode(rt, key.clone());
+        }
+        requests.into_iter().partition(|(part, name, _)| match *part {
+            TexturePart::Whole(_) => true,
+            TexturePart::Pyramid { raw } | TexturePart::Level { raw, .. } | TexturePart::Tile { raw, .. } => {
+                !undecoded.iter().any(|(n, r)| n == name && *r == raw)
+            }
+        })
+    }
+
+    /// Starts decoding texture `key` (name, raw) of `rt` on the thread pool, unless it is being
+    /// decoded; returns whether it started.
+    fn decode(&mut self, rt: &Context, key: (String, bool)) -> bool {
+        if !self.decoding.insert(key.clone()) {
+            return false;
+        }
+        let (name, raw) = key;
+        let delivered = rt.deliver_texture(TextureKind::Texture, &name);
+        let decoder = self.texture_server.decoder(rt.textures().generation());
+        let tx = self.decoded_tx.clone();
+        rayon::spawn(move || {
+            let decode = std::panic::AssertUnwindSafe(|| decoder.decode(name.clone(), raw, delivered));
+            let texture = std::panic::catch_unwind(decode).unwrap_or_else(|_| {
+                let failed = Delivered::Missing { path: None, reason: "decoding it failed".into() };
+                decoder.decode(name, raw, failed)
+            });
+            // The master is gone: nothing waits for it.
+            let _ = tx.send(texture);
+        });
+        true
+    }
+
+    /// Decodes, one at a time, the textures the scene's shader parameters name that no worker
+    /// has asked for yet: when one asks, its answer is ready and its fetch waits only for the
+    /// round trip. Workers ask for a texture the first time a lookup reads it, often in the
+    /// middle of a frame and all at once; decoding and mip-mapping one takes tens of
+    /// milliseconds. Not past half the bytes the server keeps (what a worker asks for is served
+    /// first).
+    fn speculate(&mut self, source: Option<&Context>) {
+        let Some(rt) = source else { return };
+        if self.speculating.is_some() || self.texture_server.held_bytes() > crate::texture::MAX_SERVED_BYTES / 2 {
+            return;
+        }
+        for name in rt.texture_name_candidates() {
+            if !self.considered.contains(name) {
+                self.considered.insert(name.to_string());
+                if rt.delivers_texture(name) {
+                    self.to_decode.push_back(name.to_string());
+                }
+            }
+        }
+        let generation = rt.textures().generation();
+        while let Some(name) = self.to_decode.pop_front() {
+            let request = (TexturePart::Pyramid { raw: false }, name, None);
+            if self.texture_server.undecoded(generation, std::slice::from_ref(&request)).is_empty() {
+                continue;
+            }
+            let key = (request.1, false);
+            if self.decode(rt, key.clone()) {
+                self.speculating = Some(key);
+                return;
+            }
+        }
+    }
+
+    /// The answers to texture requests, from `source` (none: every texture is missing).
+    fn texture_answers(
+        &mut self,
+        requests: TextureRequests,
+        source: Option<&Context>,
+    ) -> Vec<(TexturePart, String, Vec<u8>)> {
+        if requests.is_empty() {
+            return Vec::new();
+        }
+        let answers: Vec<Vec<u8>> = match source {
+            Some(rt) => {
+                let generation = rt.textures().generation();
+                let deliver = |kind, name: &str| rt.deliver_texture(kind, name);
+                let answers = self.texture_server.answer_all(generation, &requests, deliver);
+                answers.iter().map(|a| a.to_vec()).collect()
+            }
+            None => {
+                let none = Delivered::Missing { path: None, reason: "the master serves no textures".into() };
+                vec![encode_answer(&TextureAnswer::Whole(none)); requests.len()]
+            }
+        };
+        requests.into_iter().zip(answers).map(|((part, name, _), answer)| (part, name, answer)).collect()
     }
 
     /// Object `id` of `source` as a worker fetches it: its mesh and the BVH `world` holds for it,

@@ -41,7 +41,7 @@ pub use grid::{Grid, GridError, GridType};
 pub use image::{load_texture_image, LoadedImage, TexImage};
 pub use make::{make_cube_face_environment, make_texture, MakeTextureOptions, MAX_CUBE_LATLONG_WIDTH};
 pub use mip::{level_sizes, LookupLanes, MipMap, MAX_ANISOTROPY};
-pub use remote::{TextureServer, TILED_FROM_BYTES};
+pub use remote::{DecodedTexture, TextureDecoder, TextureServer, MAX_SERVED_BYTES, TILED_FROM_BYTES};
 pub use shadow::{make_shadow, write_shadow_map, ShadowMap};
 pub use source::{
     decode_answer, encode_answer, Delivered, LevelValues, PyramidHeader, TextureAnswer, TextureKind, TexturePart,

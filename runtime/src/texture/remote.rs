@@ -240,22 +240,7 @@ impl TextureServer {
         requests: &[(TexturePart, String, Option<[u8; 32]>)],
         deliver: impl Fn(TextureKind, &str) -> Delivered + Sync,
     ) -> Vec<Arc<Vec<u8>>> {
-        if generation != self.generation {
-            self.served.clear();
-            self.generation = generation;
-        }
-        let mut new: Vec<(String, bool)> = requests
-            .iter()
-            .filter_map(|(part, name, _)| match *part {
-                TexturePart::Pyramid { raw } | TexturePart::Level { raw, .. } | TexturePart::Tile { raw, .. } => {
-                    Some((name.clone(), raw))
-                }
-                TexturePart::Whole(_) => None,
-            })
-            .filter(|key| !self.served.contains_key(key))
-            .collect();
-        new.sort_unstable();
-        new.dedup();
+        let new = self.undecoded(generation, requests);
         let tiled_from = self.tiled_from;
         let built: Vec<((String, bool), Served)> = new
             .into_par_iter()
@@ -328,6 +313,53 @@ impl TextureServer {
         }
     }
 
+    /// The textures that `requests` would have decoded before they are answered (name, and
+    /// whether raw), each once, where `generation` is the master's texture cache's: those
+    /// [`TextureServer::answer_all`] would decode on the caller's thread. A server that must
+    /// keep answering other requests meanwhile decodes them elsewhere ([`TextureServer::decoder`])
+    /// and adds them ([`TextureServer::add`]) before it answers.
+    pub fn undecoded(
+        &mut self,
+        generation: u64,
+        requests: &[(TexturePart, String, Option<[u8; 32]>)],
+    ) -> Vec<(String, bool)> {
+        if generation != self.generation {
+            self.served.clear();
+            self.generation = generation;
+        }
+        let mut keys: Vec<(String, bool)> = requests
+            .iter()
+            .filter_map(|(part, name, _)| match *part {
+                TexturePart::Pyramid { raw } | TexturePart::Level { raw, .. } | TexturePart::Tile { raw, .. } => {
+                    Some((name.clone(), raw))
+                }
+                TexturePart::Whole(_) => None,
+            })
+            .filter(|key| !self.served.contains_key(key))
+            .collect();
+        keys.sort_unstable();
+        keys.dedup();
+        keys
+    }
+
+    /// What decodes textures for this server, on any thread, under the texture cache's
+    /// `generation`.
+    pub fn decoder(&self, generation: u64) -> TextureDecoder {
+        TextureDecoder { generation, tiled_from: self.tiled_from }
+    }
+
+    /// What the textures served take, in bytes.
+    pub fn held_bytes(&self) -> usize {
+        self.served.values().map(Served::memory_bytes).sum()
+    }
+
+    /// Takes a texture decoded elsewhere, unless the texture cache has been renewed since.
+    pub fn add(&mut self, decoded: DecodedTexture) {
+        if decoded.generation == self.generation {
+            self.served.entry(decoded.key).or_insert(decoded.served);
+        }
+    }
+
     /// The encoded answer to one request ([`TextureServer::answer_all`]).
     pub fn answer(
         &mut self,
@@ -338,6 +370,36 @@ impl TextureServer {
     ) -> Arc<Vec<u8>> {
         let mut answers = self.answer_all(generation, &[(part, name.to_string(), None)], deliver);
         answers.pop().unwrap_or_default()
+    }
+}
+
+/// Decodes and mip-maps textures for a [`TextureServer`] away from it.
+#[derive(Clone, Copy, Debug)]
+pub struct TextureDecoder {
+    generation: u64,
+    tiled_from: usize,
+}
+
+/// A texture as a [`TextureDecoder`] made it ready to serve.
+pub struct DecodedTexture {
+    generation: u64,
+    key: (String, bool),
+    served: Served,
+}
+
+impl DecodedTexture {
+    /// The texture's name, and whether it was read raw.
+    pub fn key(&self) -> &(String, bool) {
+        &self.key
+    }
+}
+
+impl TextureDecoder {
+    /// Texture `name` (raw: read without conversion) ready to serve, from what the name stands
+    /// for (`Context::deliver_texture`).
+    pub fn decode(&self, name: String, raw: bool, delivered: Delivered) -> DecodedTexture {
+        let served = Served::of(delivered, raw, self.tiled_from);
+        DecodedTexture { generation: self.generation, key: (name, raw), served }
     }
 }
 
@@ -625,6 +687,38 @@ mod tests {
     /// Lookups of every kind on a map whose levels come in tiles, in lanes of different
     /// footprints, over the edges of an image no power of two wide, in every wrap mode: the
     /// values of the map built from the whole image, bit for bit.
+    #[test]
+    fn textures_decoded_elsewhere_are_served_without_decoding_again() {
+        let image = floats(64);
+        let delivered = Delivered::image(&image);
+        let mut server = TextureServer::new();
+        let pyramid = |name: &str| (TexturePart::Pyramid { raw: false }, name.to_string(), None);
+        let whole = (TexturePart::Whole(TextureKind::Texture), "w".to_string(), None);
+        let requests = [pyramid("t"), pyramid("t"), whole.clone(), pyramid("u")];
+        // A whole texture needs no decoding; each other texture is named once.
+        assert_eq!(server.undecoded(7, &requests), [("t".into(), false), ("u".into(), false)]);
+        // Decoded under another generation of the texture cache: not taken.
+        server.add(server.decoder(6).decode("t".into(), false, delivered.clone()));
+        assert_eq!(server.undecoded(7, &requests[..1]).len(), 1);
+        let decoded = server.decoder(7).decode("t".into(), false, delivered.clone());
+        assert_eq!(decoded.key(), &("t".to_string(), false));
+        server.add(decoded);
+        assert_eq!(server.undecoded(7, &[pyramid("t"), whole.clone()]), []);
+        // Answered without asking what the name stands for again, as it would have been answered
+        // had the server decoded it itself.
+        let asked = AtomicUsize::new(0);
+        let deliver = |_, _: &str| {
+            asked.fetch_add(1, Ordering::Relaxed);
+            delivered.clone()
+        };
+        let answers = server.answer_all(7, &[pyramid("t")], deliver);
+        assert_eq!(asked.load(Ordering::Relaxed), 0);
+        let mut fresh = TextureServer::new();
+        assert_eq!(answers, fresh.answer_all(7, &[pyramid("t")], |_, _| delivered.clone()));
+        // A new generation starts from nothing.
+        assert_eq!(server.undecoded(8, &[pyramid("t")]).len(), 1);
+    }
+
     #[test]
     fn lookups_read_through_tiles_as_through_whole_levels() {
         let image = noisy(300, 170, 3);
