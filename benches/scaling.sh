@@ -4,8 +4,9 @@
 #
 #   benches/scaling.sh pack          # here: a stripped release build with MPI, the scenes and
 #                                    # Embree's benchmark, into .scaling/ (keep it out of git)
-#   benches/scaling.sh run [PARTS]   # there: PARTS of "mpi threads bandwidth forest latency gi
-#                                    # embree" (default: all but threads, which mpi's runs include)
+#   benches/scaling.sh run [PARTS]   # there: PARTS of "mpi threads bandwidth forest latency
+#                                    # copies gi embree" (default: all but threads, which mpi's
+#                                    # runs include, and copies)
 #
 # `run` needs only what `pack` made: the machine's `mpirun` (Open MPI 4.x: the binary links
 # libmpi.so.40), else the Open MPI that `pack` took from this machine. It prints what each
@@ -14,7 +15,9 @@
 # on every core; `threads` runs one process over THREADS (default "1 2 4 8 16"); `forest` runs
 # examples/forest over 2 workers and over a worker a core but the master's (what each fetches);
 # `latency` runs the BART animations over a worker rank a core but the master's, each with one
-# and then two render threads (the second renders while the first waits for a fetch); `embree`
+# and then two render threads (the second renders while the first waits for a fetch); `copies`
+# runs the BART kitchen and robots and the office over a worker rank a core but the master's,
+# with tile copies at a frame's end and with `--no-tile-copies`, twice, interleaved; `embree`
 # runs ../shared/bench/embree/side-by-side.sh on 1 thread and every core (EMBREE_SCENES: its
 # scenes; EMBREE_THREADS: its thread counts). DEADLINE: seconds after which no new command starts
 # (default 500); COMMAND_LIMIT: seconds one command may take (default 120); EMBREE_LIMIT: seconds
@@ -109,7 +112,7 @@ run() {
     timeout "${COMMAND_LIMIT:-120}" "$@" > /tmp/rtsl-scaling.log 2>&1
     local rc=$?
     [ -n "${FULL_LOG:-}" ] && { echo "### $*"; cat /tmp/rtsl-scaling.log; } >> "$FULL_LOG"
-    grep -E "^fps|^tiles: |frames: |MPI traffic|worker time|demand loading|worker ranks" /tmp/rtsl-scaling.log | sed -E 's/ update .*//' | cut -c1-420
+    grep -E "^fps|^tiles: |frames: |MPI traffic|worker time|demand loading|worker ranks" /tmp/rtsl-scaling.log | sed -E 's/ update .*//' | cut -c1-800
     [ $rc -ne 0 ] && { echo "exit status $rc"; tail -4 /tmp/rtsl-scaling.log; }
   }
   scenes() {  # $1: threads, then any prefix (mpirun) and flags
@@ -140,6 +143,16 @@ run() {
         for t in 1 2; do
           one $m -n "$(nproc)" $r bart $robot --frames 20 --size 640x480 --threads "$t" -q --mpi
           one $m -n "$(nproc)" $r bart $kitchen --frames 10 --size 640x480 --threads "$t" -q --mpi
+        done ;;
+      copies)
+        # Tile copies for idle workers at a frame's end, on and off, interleaved (A B A B), over a
+        # worker rank a core but the master's.
+        for pass in 1 2; do
+          for flag in "" --no-tile-copies; do
+            one $m -n "$(nproc)" $r bart $kitchen --frames 10 --size 640x480 --threads 1 -q --mpi $flag
+            one $m -n "$(nproc)" $r bart $robot --frames 20 --size 640x480 --threads 1 -q --mpi $flag
+            one $m -n "$(nproc)" $r bench render --threads 1 --size 640x480 --frames 10 --mpi $flag
+          done
         done ;;
       gi)
         for n in 2 "$(nproc)"; do
