@@ -1551,3 +1551,58 @@ fn idle_workers_render_copies_of_the_tiles_a_slow_worker_has_not_started() -> Re
     assert!(first.copies + first.twice <= 80, "{first:?}");
     Ok(())
 }
+
+/// The master decodes the textures the scene's shader parameters name before any worker asks,
+/// and a worker still fetches only what its lookups read: a texture named by an object no ray
+/// reaches is decoded on the master and never sent.
+#[test]
+fn the_master_decodes_named_textures_ahead_and_workers_fetch_only_what_they_read() -> Result<(), DistributedError> {
+    let e = |e: rtsl_runtime::api::ApiError| e.to_string();
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let checks = |size: u32| {
+        image::RgbImage::from_fn(size, size, |x, y| {
+            image::Rgb(if (x / 2 + y) % 2 == 0 { [200, 60, 30] } else { [30, 60, 200] })
+        })
+    };
+    checks(8).save(dir.path().join("seen.png")).expect("a PNG");
+    checks(256).save(dir.path().join("unseen.png")).expect("a PNG");
+    let unseen_bytes = std::fs::metadata(dir.path().join("unseen.png")).expect("written").len();
+    let mut rt = little_scene().expect("the little scene");
+    rt.add_texture_search_path(dir.path());
+    let paper = "surface paper(string texname = \"\") { Ci = color texture(texname, s, t); Oi = 1; }";
+    let paper = rt.compile_shader("paper", paper).map_err(e).expect("a shader");
+    let quad = |rt: &mut Context, corners: [[f32; 3]; 4], texture: &str| {
+        let object = rt.begin_object().map_err(e).expect("an object");
+        rt.bind_shader(paper).map_err(e).expect("bound");
+        rt.parameter("texname", texture).map_err(e).expect("a parameter");
+        rt.begin(Primitive::Quads).map_err(e).expect("quads");
+        for (k, p) in corners.iter().enumerate() {
+            rt.tex_coord([0.0, 1.0, 1.0, 0.0][k], [0.0, 0.0, 1.0, 1.0][k]);
+            rt.vertex(p[0], p[1], p[2]).map_err(e).expect("a vertex");
+        }
+        rt.end().map_err(e).expect("end");
+        rt.end_object().map_err(e).expect("end_object");
+        rt.instantiate_object(object).map_err(e).expect("an instance");
+    };
+    quad(&mut rt, [[-1.0, 0.5, 0.5], [1.0, 0.5, 0.5], [1.0, 1.5, 0.5], [-1.0, 1.5, 0.5]], "seen.png");
+    // Behind the camera.
+    quad(&mut rt, [[0.0, 0.0, 9.0], [1.0, 0.0, 9.0], [1.0, 1.0, 9.0], [0.0, 1.0, 9.0]], "unseen.png");
+    let (decoded, fetched_bytes) = with_two_workers(Duration::from_secs(60), |m| {
+        let mut fetched_bytes = 0;
+        // The master decodes one named texture at a time while a frame runs: a few frames
+        // give it the time.
+        for _ in 0..40 {
+            let ((distributed, alone, _), demand) = frame_both_ways(m, &mut rt)?;
+            assert_same(&[(distributed, alone, 0)], "a frame of a textured quad");
+            fetched_bytes += demand.fetched_texture_bytes;
+            if m.decoded_textures() == 2 {
+                break;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        Ok((m.decoded_textures(), fetched_bytes))
+    })?;
+    assert_eq!(decoded, 2, "both named textures decoded on the master");
+    assert!(fetched_bytes > 0 && fetched_bytes < unseen_bytes, "the workers fetched {fetched_bytes} bytes");
+    Ok(())
+}

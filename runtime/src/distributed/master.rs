@@ -476,6 +476,12 @@ impl<T: Transport> Master<T> {
         self.traffic
     }
 
+    /// How many textures the master holds decoded for its workers: those they asked for, and
+    /// those the scene names that it decoded before any asked.
+    pub fn decoded_textures(&self) -> usize {
+        self.texture_server.len()
+    }
+
     /// What demand loading fetched and held in the last distributed frame.
     pub fn demand(&self) -> Demand {
         self.demand

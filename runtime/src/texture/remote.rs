@@ -348,6 +348,16 @@ impl TextureServer {
         TextureDecoder { generation, tiled_from: self.tiled_from }
     }
 
+    /// How many textures it serves, decoded.
+    pub fn len(&self) -> usize {
+        self.served.len()
+    }
+
+    /// Whether it serves none.
+    pub fn is_empty(&self) -> bool {
+        self.served.is_empty()
+    }
+
     /// What the textures served take, in bytes.
     pub fn held_bytes(&self) -> usize {
         self.served.values().map(Served::memory_bytes).sum()
