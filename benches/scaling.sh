@@ -5,8 +5,8 @@
 #   benches/scaling.sh pack          # here: a stripped release build with MPI, the scenes and
 #                                    # Embree's benchmark, into .scaling/ (keep it out of git)
 #   benches/scaling.sh run [PARTS]   # there: PARTS of "mpi threads bandwidth forest latency
-#                                    # copies gi embree" (default: all but threads, which mpi's
-#                                    # runs include, and copies)
+#                                    # copies spin gi embree" (default: all but threads, which
+#                                    # mpi's runs include, copies and spin)
 #
 # `run` needs only what `pack` made: the machine's `mpirun` (Open MPI 4.x: the binary links
 # libmpi.so.40), else the Open MPI that `pack` took from this machine. It prints what each
@@ -17,7 +17,8 @@
 # `latency` runs the BART animations over a worker rank a core but the master's, each with one
 # and then two render threads (the second renders while the first waits for a fetch); `copies`
 # runs the BART kitchen and robots and the office over a worker rank a core but the master's,
-# with tile copies at a frame's end and with `--no-tile-copies`, twice, interleaved; `embree`
+# with tile copies at a frame's end and with `--no-tile-copies`, twice, interleaved; `spin` the
+# BART animations the same way with and without `--master-spins`; `embree`
 # runs ../shared/bench/embree/side-by-side.sh on 1 thread and every core (EMBREE_SCENES: its
 # scenes; EMBREE_THREADS: its thread counts). DEADLINE: seconds after which no new command starts
 # (default 500); COMMAND_LIMIT: seconds one command may take (default 120); EMBREE_LIMIT: seconds
@@ -152,6 +153,15 @@ run() {
             one $m -n "$(nproc)" $r bart $kitchen --frames 10 --size 640x480 --threads 1 -q --mpi $flag
             one $m -n "$(nproc)" $r bart $robot --frames 20 --size 640x480 --threads 1 -q --mpi $flag
             one $m -n "$(nproc)" $r bench render --threads 1 --size 640x480 --frames 10 --mpi $flag
+          done
+        done ;;
+      spin)
+        # The master polling without napping (it has a core of its own here), on and off,
+        # interleaved (A B A B), over a worker rank a core but the master's.
+        for pass in 1 2; do
+          for flag in --master-spins ""; do
+            one $m -n "$(nproc)" $r bart $robot --frames 20 --size 640x480 --threads 1 -q --mpi $flag
+            one $m -n "$(nproc)" $r bart $kitchen --frames 10 --size 640x480 --threads 1 -q --mpi $flag
           done
         done ;;
       gi)

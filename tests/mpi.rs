@@ -285,6 +285,12 @@ fn bench_render_times_frames_over_the_workers() {
     assert!(out.contains("worker ranks: 1, threads: 2"), "{out}");
     assert!(out.lines().any(|l| l.starts_with("fps: ")), "{out}");
     assert!(out.contains("MPI traffic per frame"), "{out}");
+    // A spinning master, and no copies of tiles: the worker-time line counts none.
+    let args = ["bench", "render", "--frames", "2", "--size", "48x32", "--master-spins", "--no-tile-copies"];
+    let o = mpirun(2, &args, dir.path());
+    let out = text(&o);
+    assert!(o.status.success(), "{out}");
+    assert!(out.contains("tiles copied to idle workers at the frame's end 0.0 a frame"), "{out}");
     let refused = mpirun(2, &["bench", "render", "--frames", "1", "--native-plastic"], dir.path());
     assert!(!refused.status.success());
     assert!(text(&refused).contains("without --mpi"), "{}", text(&refused));

@@ -45,6 +45,10 @@ pub struct WorkerArgs {
     /// copy delivered is taken).
     #[arg(long)]
     pub no_tile_copies: bool,
+    /// With --mpi: the master polls for its workers' messages without napping between polls,
+    /// for a master with a core of its own (by default it naps, leaving the core to workers).
+    #[arg(long)]
+    pub master_spins: bool,
 }
 
 impl WorkerArgs {
@@ -53,6 +57,7 @@ impl WorkerArgs {
         master.set_parts(self.parts_above, PART_TRIANGLES);
         master.set_texture_tiles_from(self.tile_textures_from_mb.saturating_mul(1 << 20));
         master.set_tile_copies(!self.no_tile_copies);
+        master.set_spinning(self.master_spins);
     }
 }
 

@@ -445,6 +445,13 @@ impl<T: Transport> Master<T> {
         self.texture_server = TextureServer::new().with_tiles_from(bytes);
     }
 
+    /// Whether the master waits for its workers' messages polling without napping: for a master
+    /// with a core of its own, each fetch's and tile's round trip then waits for no nap (by
+    /// default it naps between polls, leaving the core to workers that share it).
+    pub fn set_spinning(&mut self, spinning: bool) {
+        self.transport.set_spinning(spinning);
+    }
+
     /// Whether a worker with nothing left to do once a frame's tiles are all handed out gets
     /// copies of tiles other workers hold and have not started (by default it does; see
     /// [`Holdings`]).

@@ -37,6 +37,8 @@ pub struct MpiTransport {
     /// arrive in: a fresh buffer for each message was zeroed first, and a master zeroed as many
     /// bytes a frame as the frame has pixel bytes.
     spare: RefCell<Vec<Vec<u8>>>,
+    /// Receives poll without napping ([`Transport::set_spinning`]).
+    spinning: std::cell::Cell<bool>,
     // Declared last: MPI is finalised after everything above is gone.
     _universe: mpi::environment::Universe,
 }
@@ -80,6 +82,7 @@ impl MpiTransport {
             sending: RefCell::new(Vec::new()),
             receiving: RefCell::new(Vec::new()),
             spare: RefCell::new(Vec::new()),
+            spinning: std::cell::Cell::new(false),
             _universe: universe,
         })
     }
@@ -272,7 +275,7 @@ impl Transport for MpiTransport {
             if let Some(m) = self.try_recv()? {
                 return Ok(m);
             }
-            if start.elapsed() < SPIN {
+            if self.spinning.get() || start.elapsed() < SPIN {
                 std::hint::spin_loop();
             } else if self.moving() && start.elapsed() < SPIN_WHILE_SENDING {
                 // A peer may be waiting for this side to move a send along, or a message on its
@@ -287,6 +290,10 @@ impl Transport for MpiTransport {
     fn sending(&self) -> bool {
         self.progress();
         self.moving()
+    }
+
+    fn set_spinning(&self, spinning: bool) {
+        self.spinning.set(spinning);
     }
 
     fn try_recv(&self) -> Result<Option<(usize, Vec<u8>)>, TransportError> {

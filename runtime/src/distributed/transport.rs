@@ -42,6 +42,12 @@ pub trait Transport {
     fn recycle(&self, bytes: Vec<u8>) {
         drop(bytes);
     }
+    /// Whether [`Transport::recv`] polls without napping between polls: for a rank with a core
+    /// of its own, where a nap only adds to each answer's latency (a transport that never naps
+    /// ignores it).
+    fn set_spinning(&self, spinning: bool) {
+        let _ = spinning;
+    }
 }
 
 impl<T: Transport + ?Sized> Transport for Box<T> {
@@ -65,6 +71,9 @@ impl<T: Transport + ?Sized> Transport for Box<T> {
     }
     fn recycle(&self, bytes: Vec<u8>) {
         (**self).recycle(bytes)
+    }
+    fn set_spinning(&self, spinning: bool) {
+        (**self).set_spinning(spinning)
     }
 }
 
