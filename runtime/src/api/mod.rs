@@ -71,7 +71,7 @@ mod shader_cache;
 mod shaders;
 mod state;
 pub use events::ShaderEvent;
-pub use replica::{decode_mesh, encode_mesh, ReplicaError, Replicator};
+pub use replica::{decode_mesh, encode_mesh, ReplicaError, Replicator, TextureDelivery};
 pub use shader_cache::ShaderCache;
 pub use state::{AttributeParts, SavedAttributes};
 // The types `Context`'s calls take and return, so that one `use rtsl_runtime::api::{...}` serves an

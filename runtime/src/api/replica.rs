@@ -588,23 +588,46 @@ impl Context {
     /// to on this context's search path, else why there is none (the warning a lookup here would
     /// give).
     pub fn deliver_texture(&self, kind: TextureKind, name: &str) -> Delivered {
+        self.texture_delivery(kind, name).deliver()
+    }
+
+    /// [`Context::deliver_texture`] with the file, if it is one, still to read: a master reads
+    /// it on another thread than the one that answers its workers.
+    pub fn texture_delivery(&self, kind: TextureKind, name: &str) -> TextureDelivery {
         match kind {
             TextureKind::Texture => {
                 if let Some((_, image)) = self.memory_textures.iter().find(|(n, _)| n == name) {
-                    return Delivered::image(image);
+                    return TextureDelivery::Ready(Delivered::image(image));
                 }
             }
             TextureKind::Grid => {
                 if let Some((_, grid)) = self.memory_grids.iter().find(|(n, _)| n == name) {
                     let bytes = grid.to_bytes(crate::texture::grid::GridType::F32);
-                    return Delivered::File { path: PathBuf::from(name), bytes };
+                    return TextureDelivery::Ready(Delivered::File { path: PathBuf::from(name), bytes });
                 }
             }
             TextureKind::Shadow => {}
         }
-        let path = match self.textures.locate(name) {
-            Ok(path) => path,
-            Err(reason) => return Delivered::Missing { path: None, reason },
+        match self.textures.locate(name) {
+            Ok(path) => TextureDelivery::File(path),
+            Err(reason) => TextureDelivery::Ready(Delivered::Missing { path: None, reason }),
+        }
+    }
+}
+
+/// What a texture name stands for, the file (if it is one) not yet read
+/// ([`Context::texture_delivery`]).
+pub enum TextureDelivery {
+    Ready(Delivered),
+    File(PathBuf),
+}
+
+impl TextureDelivery {
+    /// What the name stands for: the file's bytes read now, or why they cannot be.
+    pub fn deliver(self) -> Delivered {
+        let path = match self {
+            TextureDelivery::Ready(delivered) => return delivered,
+            TextureDelivery::File(path) => path,
         };
         let too_large = std::fs::metadata(&path).is_ok_and(|m| m.len() > MAX_DELIVERED_FILE_BYTES);
         if too_large {
@@ -614,6 +637,14 @@ impl Context {
         match std::fs::read(&path) {
             Ok(bytes) => Delivered::File { path, bytes },
             Err(e) => Delivered::Missing { reason: e.to_string(), path: Some(path) },
+        }
+    }
+
+    /// The bytes of the file to read, if it is a file that can be looked at.
+    pub fn file_bytes(&self) -> Option<u64> {
+        match self {
+            TextureDelivery::Ready(_) => None,
+            TextureDelivery::File(path) => std::fs::metadata(path).ok().map(|m| m.len()),
         }
     }
 }

@@ -10,7 +10,7 @@ use super::transport::Transport;
 use super::DistributedError;
 use crate::accel::parts::{cut, PARTED_ABOVE, PART_TRIANGLES};
 use crate::accel::wire::{encode_bvh4, encode_small_tree};
-use crate::api::{encode_mesh, Context, Replicator};
+use crate::api::{encode_mesh, Context, Replicator, TextureDelivery};
 use crate::render::progressive::{lattice_lanes, BatchReport, LatticeSamples, LatticeTracer, PixelLattice};
 use crate::render::{FrameReport, Framebuffer, LightPathCache, LightPaths, RenderedTile, TileRenderer, World};
 use crate::texture::{
@@ -41,6 +41,9 @@ const LONGEST_LEAD: Duration = Duration::from_millis(32);
 /// The most bytes of encoded objects the master keeps for fetches to come; past it, it starts
 /// again from none (each object is encoded again when next fetched).
 const ENCODED_OBJECTS_KEPT: usize = 1 << 30;
+
+/// The largest texture file the master decodes before a worker asks for it.
+const LARGEST_TEXTURE_DECODED_AHEAD: u64 = 256 << 20;
 
 /// How long the frame's loop naps between polls while textures are decoded.
 const DECODING_POLL: Duration = Duration::from_micros(50);
@@ -1002,7 +1005,10 @@ impl<T: Transport> Master<T> {
             return (requests, Vec::new());
         }
         for key in &undecoded {
-            self.decode(rt, key.clone());
+            if !self.decoding.contains(key) {
+                let delivery = rt.texture_delivery(TextureKind::Texture, &key.0);
+                self.decode(rt, key.clone(), delivery);
+            }
         }
         requests.into_iter().partition(|(part, name, _)| match *part {
             TexturePart::Whole(_) => true,
@@ -1012,18 +1018,17 @@ impl<T: Transport> Master<T> {
         })
     }
 
-    /// Starts decoding texture `key` (name, raw) of `rt` on the thread pool, unless it is being
-    /// decoded; returns whether it started.
-    fn decode(&mut self, rt: &Context, key: (String, bool)) -> bool {
+    /// Starts reading and decoding texture `key` (name, raw) of `rt` on the thread pool, from
+    /// `delivery`, unless it is being decoded; returns whether it started.
+    fn decode(&mut self, rt: &Context, key: (String, bool), delivery: TextureDelivery) -> bool {
         if !self.decoding.insert(key.clone()) {
             return false;
         }
         let (name, raw) = key;
-        let delivered = rt.deliver_texture(TextureKind::Texture, &name);
         let decoder = self.texture_server.decoder(rt.textures().generation());
         let tx = self.decoded_tx.clone();
         rayon::spawn(move || {
-            let decode = std::panic::AssertUnwindSafe(|| decoder.decode(name.clone(), raw, delivered));
+            let decode = std::panic::AssertUnwindSafe(|| decoder.decode(name.clone(), raw, delivery.deliver()));
             let texture = std::panic::catch_unwind(decode).unwrap_or_else(|_| {
                 let failed = Delivered::Missing { path: None, reason: "decoding it failed".into() };
                 decoder.decode(name, raw, failed)
@@ -1059,8 +1064,13 @@ impl<T: Transport> Master<T> {
             if self.texture_server.undecoded(generation, std::slice::from_ref(&request)).is_empty() {
                 continue;
             }
+            // A file that large may be no texture at all (a string parameter names any file).
+            let delivery = rt.texture_delivery(TextureKind::Texture, &request.1);
+            if delivery.file_bytes().is_some_and(|bytes| bytes > LARGEST_TEXTURE_DECODED_AHEAD) {
+                continue;
+            }
             let key = (request.1, false);
-            if self.decode(rt, key.clone()) {
+            if self.decode(rt, key.clone(), delivery) {
                 self.speculating = Some(key);
                 return;
             }
