@@ -368,9 +368,20 @@ fn every_kind_of_change_reaches_the_workers_before_their_frame() -> Result<(), D
 /// A quad from `corners` (counter-clockwise, seen from the camera) with texture coordinates over
 /// it, bound to `shader`, instanced once.
 fn textured_quad(rt: &mut Context, shader: rtsl_runtime::api::ShaderId, corners: [[f32; 3]; 4]) -> Result<(), String> {
+    textured_quad_with(rt, shader, &[], corners)
+}
+
+/// [`textured_quad`], the shader given `params`.
+fn textured_quad_with(
+    rt: &mut Context,
+    shader: rtsl_runtime::api::ShaderId,
+    params: &[(&str, ParamValue)],
+    corners: [[f32; 3]; 4],
+) -> Result<(), String> {
     let e = |e: rtsl_runtime::api::ApiError| e.to_string();
     let quad = rt.begin_object().map_err(e)?;
     rt.bind_shader(shader).map_err(e)?;
+    rt.parameters(params).map_err(e)?;
     rt.begin(Primitive::Quads).map_err(e)?;
     for (k, p) in corners.iter().enumerate() {
         rt.tex_coord([0.0, 1.0, 1.0, 0.0][k], [0.0, 0.0, 1.0, 1.0][k]);
@@ -1571,22 +1582,11 @@ fn the_master_decodes_named_textures_ahead_and_workers_fetch_only_what_they_read
     rt.add_texture_search_path(dir.path());
     let paper = "surface paper(string texname = \"\") { Ci = color texture(texname, s, t); Oi = 1; }";
     let paper = rt.compile_shader("paper", paper).map_err(e).expect("a shader");
-    let quad = |rt: &mut Context, corners: [[f32; 3]; 4], texture: &str| {
-        let object = rt.begin_object().map_err(e).expect("an object");
-        rt.bind_shader(paper).map_err(e).expect("bound");
-        rt.parameter("texname", texture).map_err(e).expect("a parameter");
-        rt.begin(Primitive::Quads).map_err(e).expect("quads");
-        for (k, p) in corners.iter().enumerate() {
-            rt.tex_coord([0.0, 1.0, 1.0, 0.0][k], [0.0, 0.0, 1.0, 1.0][k]);
-            rt.vertex(p[0], p[1], p[2]).map_err(e).expect("a vertex");
-        }
-        rt.end().map_err(e).expect("end");
-        rt.end_object().map_err(e).expect("end_object");
-        rt.instantiate_object(object).map_err(e).expect("an instance");
-    };
-    quad(&mut rt, [[-1.0, 0.5, 0.5], [1.0, 0.5, 0.5], [1.0, 1.5, 0.5], [-1.0, 1.5, 0.5]], "seen.png");
-    // Behind the camera.
-    quad(&mut rt, [[0.0, 0.0, 9.0], [1.0, 0.0, 9.0], [1.0, 1.0, 9.0], [0.0, 1.0, 9.0]], "unseen.png");
+    let named = |texture: &str| [("texname", ParamValue::from(texture))];
+    let front = [[-1.0, 0.5, 0.5], [1.0, 0.5, 0.5], [1.0, 1.5, 0.5], [-1.0, 1.5, 0.5]];
+    textured_quad_with(&mut rt, paper, &named("seen.png"), front).expect("a quad");
+    let behind_the_camera = [[0.0, 0.0, 9.0], [1.0, 0.0, 9.0], [1.0, 1.0, 9.0], [0.0, 1.0, 9.0]];
+    textured_quad_with(&mut rt, paper, &named("unseen.png"), behind_the_camera).expect("a quad");
     let (decoded, fetched_bytes) = with_two_workers(Duration::from_secs(60), |m| {
         let mut fetched_bytes = 0;
         // The master decodes one named texture at a time while a frame runs: a few frames
