@@ -788,6 +788,9 @@ impl<T: Transport> Master<T> {
             traffic.control += (m.len() - update.len() - work.light_paths.len()) as u64;
             self.transport.send(w + 1, m)?;
         }
+        if let Some(rt) = source.filter(|_| !update.is_empty()) {
+            self.consider_texture_names(rt);
+        }
         self.speculate(source);
         let (mut received, mut done) = (0, vec![false; self.workers.len()]);
         // Texture requests waiting for their textures' decoding, by rank.
@@ -1039,6 +1042,20 @@ impl<T: Transport> Master<T> {
         true
     }
 
+    /// Queues for [`Master::speculate`] the textures `rt`'s shader parameters name that were not
+    /// considered before: at a frame whose update is not empty (a frame with none changed no
+    /// name).
+    fn consider_texture_names(&mut self, rt: &Context) {
+        for name in rt.texture_name_candidates() {
+            if !self.considered.contains(name) {
+                self.considered.insert(name.to_string());
+                if rt.delivers_texture(name) {
+                    self.to_decode.push_back(name.to_string());
+                }
+            }
+        }
+    }
+
     /// Decodes, one at a time, the textures the scene's shader parameters name that no worker
     /// has asked for yet: when one asks, its answer is ready and its fetch waits only for the
     /// round trip. Workers ask for a texture the first time a lookup reads it, often in the
@@ -1049,14 +1066,6 @@ impl<T: Transport> Master<T> {
         let Some(rt) = source else { return };
         if self.speculating.is_some() || self.texture_server.held_bytes() > crate::texture::MAX_SERVED_BYTES / 2 {
             return;
-        }
-        for name in rt.texture_name_candidates() {
-            if !self.considered.contains(name) {
-                self.considered.insert(name.to_string());
-                if rt.delivers_texture(name) {
-                    self.to_decode.push_back(name.to_string());
-                }
-            }
         }
         let generation = rt.textures().generation();
         while let Some(name) = self.to_decode.pop_front() {
