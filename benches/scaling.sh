@@ -5,8 +5,8 @@
 #   benches/scaling.sh pack          # here: a stripped release build with MPI, the scenes and
 #                                    # Embree's benchmark, into .scaling/ (keep it out of git)
 #   benches/scaling.sh run [PARTS]   # there: PARTS of "mpi threads bandwidth forest latency
-#                                    # copies spin gi embree" (default: all but threads, which
-#                                    # mpi's runs include, copies and spin)
+#                                    # copies spin ahead gi embree" (default: all but threads,
+#                                    # which mpi's runs include, copies, spin and ahead)
 #
 # `run` needs only what `pack` made: the machine's `mpirun` (Open MPI 4.x: the binary links
 # libmpi.so.40), else the Open MPI that `pack` took from this machine. It prints what each
@@ -18,7 +18,8 @@
 # and then two render threads (the second renders while the first waits for a fetch); `copies`
 # runs the BART kitchen and robots and the office over a worker rank a core but the master's,
 # with tile copies at a frame's end and with `--no-tile-copies`, twice, interleaved; `spin` the
-# BART animations the same way with and without `--master-spins`; `embree`
+# BART animations the same way with and without `--master-spins`, and `ahead` with and without
+# `--no-asking-ahead`; `embree`
 # runs ../shared/bench/embree/side-by-side.sh on 1 thread and every core (EMBREE_SCENES: its
 # scenes; EMBREE_THREADS: its thread counts). DEADLINE: seconds after which no new command starts
 # (default 500); COMMAND_LIMIT: seconds one command may take (default 120); EMBREE_LIMIT: seconds
@@ -153,6 +154,15 @@ run() {
             one $m -n "$(nproc)" $r bart $kitchen --frames 10 --size 640x480 --threads 1 -q --mpi $flag
             one $m -n "$(nproc)" $r bart $robot --frames 20 --size 640x480 --threads 1 -q --mpi $flag
             one $m -n "$(nproc)" $r bench render --threads 1 --size 640x480 --frames 10 --mpi $flag
+          done
+        done ;;
+      ahead)
+        # Workers' tiles asking ahead for what they reach and set aside meanwhile, on and off,
+        # interleaved (A B A B), over a worker rank a core but the master's.
+        for pass in 1 2; do
+          for flag in "" --no-asking-ahead; do
+            one $m -n "$(nproc)" $r bart $robot --frames 20 --size 640x480 --threads 1 -q --mpi $flag
+            one $m -n "$(nproc)" $r bart $kitchen --frames 10 --size 640x480 --threads 1 -q --mpi $flag
           done
         done ;;
       spin)

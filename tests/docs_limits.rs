@@ -20,6 +20,10 @@ const INTERNAL: &[(&str, &str)] = &[
     ),
     ("rtsl_compiler::back::jit::lower::RUNTIME_LOOP_BUDGET", "the code of the loop-budget runtime error, not a count"),
     ("rtsl::cli::view::renderer::MOVING_BUDGET", "the viewer's frame time while the view moves: a preview target"),
+    (
+        "rtsl_runtime::distributed::worker::MAX_SET_ASIDE",
+        "times a worker renders a tile again for what it asked ahead for before it waits instead",
+    ),
 ];
 
 /// The source trees scanned, with the crate each is.

@@ -1606,3 +1606,72 @@ fn the_master_decodes_named_textures_ahead_and_workers_fetch_only_what_they_read
     assert!(fetched_bytes > 0 && fetched_bytes < unseen_bytes, "the workers fetched {fetched_bytes} bytes");
     Ok(())
 }
+
+/// A wall of `side` x `side` objects, a quad each, filling a view of 96x80 pixels, under a light
+/// whose shadow rays reach the wall.
+fn wall_of_objects(side: usize) -> Result<Context, String> {
+    let e = |e: rtsl_runtime::api::ApiError| e.to_string();
+    let mut rt = Context::new();
+    rt.options.width = 96;
+    rt.options.height = 80;
+    rt.camera_look_at(Vec3A::new(0.0, 0.0, 3.0), Vec3A::ZERO, Vec3A::Y, 60.0);
+    let plastic = rt.find_shader("plastic").map_err(e)?;
+    let step = 4.0 / side as f32;
+    for k in 0..side * side {
+        let (x, y) = (-2.0 + (k % side) as f32 * step, -2.0 + (k / side) as f32 * step);
+        let quad = rt.begin_object().map_err(e)?;
+        rt.color(0.3 + 0.6 * (k % 3) as f32 / 2.0, 0.5, 0.2 + 0.1 * (k % 5) as f32);
+        rt.bind_shader(plastic).map_err(e)?;
+        rt.begin(Primitive::Quads).map_err(e)?;
+        for (dx, dy) in [(0.0, 0.0), (step, 0.0), (step, step), (0.0, step)] {
+            rt.vertex(x + dx, y + dy, -0.1 * (k % 4) as f32).map_err(e)?;
+        }
+        rt.end().map_err(e)?;
+        rt.end_object().map_err(e)?;
+        rt.instantiate_object(quad).map_err(e)?;
+    }
+    let light = rt.find_shader("pointlight").map_err(e)?;
+    rt.translate(0.5, 1.0, 2.0);
+    rt.light_source(light, &[("intensity", ParamValue::Float(6.0))]).map_err(e)?;
+    rt.load_identity();
+    Ok(rt)
+}
+
+/// A worker's render thread with other tiles waiting asks ahead for the objects a tile reaches
+/// and does not hold, sets the tile aside and renders it again once they are here: frames are the
+/// single process's bit for bit, each object is fetched once, and a worker told not to ask ahead
+/// waits instead and sets nothing aside.
+#[test]
+fn tiles_that_reach_objects_not_here_are_set_aside_and_rendered_again() -> Result<(), DistributedError> {
+    for ahead in [true, false] {
+        let mut rt = wall_of_objects(6).expect("the wall");
+        let mut group = LocalTransport::group(2, Duration::from_secs(60)).into_iter();
+        let master_end = group.next().expect("rank 0");
+        let worker_end = group.next().expect("rank 1");
+        let worker =
+            std::thread::spawn(move || serve(&worker_end, Ok(&mut ReplicaScene::new().asking_ahead(ahead)), &pool(1)));
+        let mut master = Master::connect(master_end)?;
+        let mut set_aside = Vec::new();
+        let mut demands = Vec::new();
+        for change in [nothing as Change, move_first] {
+            change(&mut rt).expect("the change applies");
+            let (frame, demand) = frame_both_ways(&mut master, &mut rt)?;
+            assert_same(&[frame], &format!("a frame asking ahead: {ahead}"));
+            set_aside.push(master.worker_time().set_aside);
+            demands.push(demand);
+        }
+        master.shutdown()?;
+        worker.join().expect("the worker thread")?;
+        // Every quad is reached, and fetched once: set-aside tiles take what they asked for.
+        assert_eq!((demands[0].reached_objects, demands[0].fetched_objects), (36, 36), "{demands:?}");
+        assert_eq!(demands[1].fetched_objects, 0, "{demands:?}");
+        if ahead {
+            assert!(set_aside[0] > 0, "tiles of the first frame reach objects not here: {set_aside:?}");
+        } else {
+            assert_eq!(set_aside[0], 0);
+        }
+        // Everything is here in the second frame: nothing to ask for.
+        assert_eq!(set_aside[1], 0, "{set_aside:?}");
+    }
+    Ok(())
+}

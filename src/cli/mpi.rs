@@ -49,6 +49,11 @@ pub struct WorkerArgs {
     /// for a master with a core of its own (by default it naps, leaving the core to workers).
     #[arg(long)]
     pub master_spins: bool,
+    /// With --mpi: a worker's render threads wait for each mesh a tile reaches that the worker
+    /// does not hold (to compare; by default a tile asks for all it reaches and is set aside,
+    /// rendered again once they are here, while the thread renders other tiles).
+    #[arg(long)]
+    pub no_asking_ahead: bool,
 }
 
 impl WorkerArgs {
@@ -68,7 +73,7 @@ pub(crate) fn work(
     args: &WorkerArgs,
 ) -> anyhow::Result<std::process::ExitCode> {
     let limit = args.mesh_cache_mb.saturating_mul(1 << 20);
-    serve(transport, Ok(&mut ReplicaScene::with_cache_limit(limit)), pool)?;
+    serve(transport, Ok(&mut ReplicaScene::with_cache_limit(limit).asking_ahead(!args.no_asking_ahead)), pool)?;
     Ok(std::process::ExitCode::SUCCESS)
 }
 
@@ -95,7 +100,8 @@ pub(crate) fn worker_time_line(frames: &str, times: &[WorkerTime]) -> String {
         |f: fn(&WorkerTime) -> std::time::Duration| times.iter().map(|t| f(t).as_secs_f64()).sum::<f64>() * 1e3 / n;
     let mean = |f: fn(&WorkerTime) -> u64| times.iter().map(|t| f(t) as f64).sum::<f64>() / n;
     format!(
-        "worker time per frame of {frames} (mean over workers): world {:.2} ms, rendering {:.1} ms (of which off the core {:.1}, waiting for fetches {:.1}, decoding fetched meshes and building their BVHs {:.1}), waiting {:.1} ms (for tiles, a core), outside their share {:.1} ms (waiting for the last worker {:.1}; the master preparing the frame and assembling the image), of a {:.1} ms frame; tiles copied to idle workers at the frame's end {:.1} a frame ({:.1} delivered first by the copy, {:.1} rendered twice)",
+        "worker time per frame of {frames} (mean over workers): world {:.2} ms, rendering {:.1} ms (of which off the core {:.1}, waiting for fetches {:.1}, decoding fetched meshes and building their BVHs {:.1}), waiting {:.1} ms (for tiles, a core), outside their share {:.1} ms (waiting for the last worker {:.1}; the master preparing the frame and assembling the image), of a {:.1} ms frame; tiles copied to idle workers at the frame's end {:.1} a frame ({:.1} delivered first by the copy, {:.1} rendered twice); tiles set aside while what they reached was fetched {:.1} a frame",
+
         ms(|t| t.world),
         ms(|t| t.rendering),
         ms(|t| t.off_core),
@@ -108,6 +114,7 @@ pub(crate) fn worker_time_line(frames: &str, times: &[WorkerTime]) -> String {
         mean(|t| t.helping.copies),
         mean(|t| t.helping.helped),
         mean(|t| t.helping.twice),
+        mean(|t| t.set_aside),
     )
 }
 

@@ -1,5 +1,7 @@
 //! Acceleration structures and their traversal: a two-level BVH.
 //!
+//! - [`ask_ahead`]: rendering that asks for demand-loaded objects it does not hold and goes on
+//!   without them, instead of waiting (a distributed worker renders such a unit again later).
 //! - [`binned`]: the default builder of binary BVHs, top-down binned SAH.
 //! - [`bvh4`]: the 4-wide node layout shared by both levels, collapsed from a binary BVH (binned
 //!   SAH, or obvhs's PLOC for the fastest qualities).
@@ -20,6 +22,7 @@
 //! (Ize's robust slab test, with the far distance scaled by `1 + 2 gamma(3)`), so they find the same
 //! closest primitive (up to ties at equal `t`) and the same occlusion answers.
 
+pub mod ask_ahead;
 pub mod binned;
 pub mod bvh4;
 pub mod bvh8;

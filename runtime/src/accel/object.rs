@@ -169,6 +169,11 @@ pub struct ObjectData {
     pub bvh: Arc<ObjectBvh>,
 }
 
+/// What a render thread that asks ahead traces in place of an object, or of a part of an
+/// object's BVH, that is not here yet: nothing (its rays miss).
+static MISSED: std::sync::LazyLock<ObjectData> = std::sync::LazyLock::new(ObjectData::default);
+static MISSED_PART: std::sync::LazyLock<ObjectBvh> = std::sync::LazyLock::new(ObjectBvh::default);
+
 /// Where the mesh of a demand-loaded object comes from (a distributed render's master).
 pub trait MeshSource: Send + Sync + std::fmt::Debug {
     /// The mesh of the object the source knows as `key`; blocks until it is here. A source that
@@ -181,6 +186,17 @@ pub trait MeshSource: Send + Sync + std::fmt::Debug {
     /// reports why, as for [`MeshSource::fetch`]).
     fn fetch_part(&self, _key: u32, _part: u32, _mesh: &Mesh, _triangles: u32, _bounds: Bounds) -> Option<Bvh4> {
         None
+    }
+    /// Asks for the mesh of `key` without waiting for it, for a render thread that renders
+    /// [`super::ask_ahead::without_waiting`]: a later [`MeshSource::fetch`] of it takes the answer.
+    /// Returns whether it asked (a source that cannot ask ahead returns `false`, and the thread
+    /// waits for [`MeshSource::fetch`] as usual).
+    fn ask_ahead(&self, _key: u32) -> bool {
+        false
+    }
+    /// [`MeshSource::ask_ahead`] for part `part` of the object's BVH.
+    fn ask_ahead_part(&self, _key: u32, _part: u32) -> bool {
+        false
     }
     /// Told how long building the BVH of a mesh it delivered took (a worker reports it).
     fn built(&self, _took: std::time::Duration) {}
@@ -324,6 +340,12 @@ impl Object {
     #[cold]
     #[inline(never)]
     fn load(&self) -> &ObjectData {
+        if let Some(r) = &self.remote {
+            if super::ask_ahead::asks_ahead() && r.source.ask_ahead(r.key) {
+                super::ask_ahead::missed();
+                return &MISSED;
+            }
+        }
         // One thread fetches; others that need the object meanwhile wait for it.
         self.data.get_or_init(|| match &self.remote {
             Some(r) => {
@@ -364,6 +386,12 @@ impl Object {
     #[inline(never)]
     fn load_part<'a>(&'a self, part: &'a Part, p: u32) -> &'a ObjectBvh {
         // As `load`: one thread fetches, others wait; built on a thread of its own.
+        if let Some(r) = &self.remote {
+            if super::ask_ahead::asks_ahead() && r.source.ask_ahead_part(r.key, p) {
+                super::ask_ahead::missed();
+                return &MISSED_PART;
+            }
+        }
         part.bvh.get_or_init(|| {
             let Some(r) = &self.remote else { return ObjectBvh::default() };
             let mesh = &self.data().mesh;
@@ -419,6 +447,11 @@ impl Object {
     /// Whether the object is demand-loaded.
     pub fn is_remote(&self) -> bool {
         self.remote.is_some()
+    }
+
+    /// What a demand-loaded object's source knows it as.
+    pub fn remote_key(&self) -> Option<u32> {
+        self.remote.as_ref().map(|r| r.key)
     }
 
     /// A demand-loaded object's [`MeshSource::clock`] when a ray last reached it.

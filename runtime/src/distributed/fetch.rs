@@ -24,13 +24,20 @@ use crate::scene::Scene;
 use crate::texture::{decode_answer, Delivered, TextureAnswer, TexturePart, TextureSource};
 use std::any::Any;
 use std::collections::HashMap;
-use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
-use std::sync::mpsc::{channel, Sender};
+use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
+use std::sync::mpsc::{channel, Receiver, Sender};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
 /// How long a render thread waits for an answer before it gives up on the master.
 const FETCH_TIMEOUT: Duration = Duration::from_secs(300);
+
+/// An answer to what a render thread asked for ahead: on its way, or here.
+#[derive(Debug)]
+enum Early {
+    Coming(Receiver<Vec<u8>>),
+    Here(Vec<u8>),
+}
 
 /// What a render thread asks the master for.
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
@@ -77,6 +84,16 @@ pub struct FetchLink {
     clock: Arc<AtomicU32>,
     /// Wakes the communication thread when a request is queued (it may be waiting long).
     waker: Mutex<Option<Waker>>,
+    /// Requests render threads made without waiting for them
+    /// ([`crate::accel::ask_ahead::without_waiting`]) whose answers no thread has taken yet; a
+    /// frame's go when the next starts (the master answers a frame's requests in that frame).
+    asked_ahead: Mutex<HashMap<Want, Early>>,
+    /// Units that render threads set aside this frame because they asked ahead.
+    set_aside: AtomicU64,
+    /// Render threads waiting for an answer now.
+    threads_waiting: AtomicU32,
+    /// Whether render threads wait for what a unit reaches instead of asking ahead (to compare).
+    never_ahead: AtomicBool,
 }
 
 /// What a request queued on a [`FetchLink`] calls to wake the thread that sends it.
@@ -108,6 +125,8 @@ pub(super) struct Fetched {
     /// Render threads' time waiting for answers, and making fetched meshes ready.
     pub waiting: Duration,
     pub building: Duration,
+    /// Units set aside to be rendered again, having asked ahead for what they reached.
+    pub set_aside: u64,
 }
 
 impl std::fmt::Debug for FetchLink {
@@ -150,6 +169,7 @@ impl FetchLink {
             kept_textures: take(&self.kept_textures),
             waiting: Duration::from_nanos(take(&self.waiting_ns)),
             building: Duration::from_nanos(take(&self.building_ns)),
+            set_aside: take(&self.set_aside),
         }
     }
 
@@ -161,16 +181,103 @@ impl FetchLink {
         self.failure.lock().unwrap_or_else(PoisonError::into_inner).get_or_insert(message);
     }
 
-    /// Asks the master for `want` and waits for the answer's bytes (`None`: it never came).
+    /// Asks the master for `want` and waits for the answer's bytes (`None`: it never came). What
+    /// was asked for ahead is not asked for again: its answer is awaited.
     fn request(&self, want: Want) -> Option<Vec<u8>> {
         let asked = Instant::now();
-        let _waited = defer(|| FetchLink::add_time(&self.waiting_ns, asked));
+        self.threads_waiting.fetch_add(1, Ordering::Relaxed);
+        let _waited = defer(|| {
+            FetchLink::add_time(&self.waiting_ns, asked);
+            self.threads_waiting.fetch_sub(1, Ordering::Relaxed);
+        });
+        let early = self.asked_ahead.lock().unwrap_or_else(PoisonError::into_inner).remove(&want);
+        let early = match early {
+            Some(Early::Here(bytes)) => Some(bytes),
+            Some(Early::Coming(rx)) => rx.recv_timeout(FETCH_TIMEOUT).ok(),
+            None => None,
+        };
+        if let Some(bytes) = early {
+            return Some(bytes);
+        }
+        self.ask(want).recv_timeout(FETCH_TIMEOUT).ok()
+    }
+
+    /// Queues a request for `want` and wakes the communication thread; returns where the answer
+    /// comes.
+    fn ask(&self, want: Want) -> Receiver<Vec<u8>> {
         let (tx, rx) = channel();
         self.queued.lock().unwrap_or_else(PoisonError::into_inner).push((want, tx));
         if let Some(wake) = &*self.waker.lock().unwrap_or_else(PoisonError::into_inner) {
             wake();
         }
-        rx.recv_timeout(FETCH_TIMEOUT).ok()
+        rx
+    }
+
+    /// Asks for `want` without waiting, unless it is asked for already; returns whether the
+    /// answer is still to come (`false`: it is here, or the request is gone, and a fetch takes
+    /// it or asks again).
+    fn ask_ahead_for(&self, want: Want) -> bool {
+        let mut early = self.asked_ahead.lock().unwrap_or_else(PoisonError::into_inner);
+        match early.get_mut(&want) {
+            None => {
+                let rx = self.ask(want.clone());
+                early.insert(want, Early::Coming(rx));
+                true
+            }
+            Some(Early::Here(_)) => false,
+            Some(e @ Early::Coming(_)) => {
+                let Early::Coming(rx) = &*e else { return false };
+                match rx.try_recv() {
+                    Ok(bytes) => {
+                        *e = Early::Here(bytes);
+                        false
+                    }
+                    Err(std::sync::mpsc::TryRecvError::Empty) => true,
+                    Err(std::sync::mpsc::TryRecvError::Disconnected) => {
+                        early.remove(&want);
+                        false
+                    }
+                }
+            }
+        }
+    }
+
+    /// Whether render threads may render units asking ahead for what they reach
+    /// ([`crate::accel::ahead`]); they do unless turned off.
+    pub(super) fn may_ask_ahead(&self) -> bool {
+        !self.never_ahead.load(Ordering::Relaxed)
+    }
+
+    /// Turns asking ahead on or off.
+    pub fn set_asking_ahead(&self, on: bool) {
+        self.never_ahead.store(!on, Ordering::Relaxed);
+    }
+
+    /// The objects and parts of objects (object, part) asked for ahead whose answers no render
+    /// thread took: the unit that asked went to another worker before it was rendered again.
+    pub(super) fn unclaimed(&self) -> Vec<(u32, Option<u32>)> {
+        let early = self.asked_ahead.lock().unwrap_or_else(PoisonError::into_inner);
+        let mut keys: Vec<_> = early
+            .keys()
+            .filter_map(|w| match *w {
+                Want::Mesh(object) => Some((object, None)),
+                Want::Part(object, part) => Some((object, Some(part))),
+                Want::Texture(..) => None,
+            })
+            .collect();
+        keys.sort_unstable();
+        keys
+    }
+
+    /// How many render threads wait for an answer now.
+    pub(super) fn threads_waiting(&self) -> usize {
+        self.threads_waiting.load(Ordering::Relaxed) as usize
+    }
+
+    /// Notes that a render thread set a unit aside, to render it again when what it asked for
+    /// ahead has come.
+    pub(super) fn note_set_aside(&self) {
+        self.set_aside.fetch_add(1, Ordering::Relaxed);
     }
 
     /// Sets what wakes the communication thread when a request is queued (`None`: nothing; it
@@ -215,6 +322,7 @@ impl FetchLink {
     /// objects and parts were dropped before it.
     pub(super) fn start_frame(&self, (objects, parts): (u64, u64)) {
         self.clock.fetch_add(1, Ordering::Relaxed);
+        self.asked_ahead.lock().unwrap_or_else(PoisonError::into_inner).clear();
         self.evicted.store(objects, Ordering::Relaxed);
         self.evicted_parts.store(parts, Ordering::Relaxed);
     }
@@ -367,6 +475,14 @@ impl MeshSource for FetchLink {
     fn fetch_part(&self, key: u32, part: u32, mesh: &Mesh, triangles: u32, bounds: Bounds) -> Option<Bvh4> {
         self.part(key, part, mesh, triangles, bounds)
     }
+
+    fn ask_ahead(&self, key: u32) -> bool {
+        self.ask_ahead_for(Want::Mesh(key))
+    }
+
+    fn ask_ahead_part(&self, key: u32, part: u32) -> bool {
+        self.ask_ahead_for(Want::Part(key, part))
+    }
 }
 
 impl FetchLink {
@@ -518,11 +634,6 @@ impl Pending {
     /// Whether requests sent are still unanswered.
     pub(super) fn is_empty(&self) -> bool {
         self.0.is_empty()
-    }
-
-    /// How many render threads wait for an answer (each waits for one).
-    pub(super) fn waiting(&self) -> usize {
-        self.0.values().map(Vec::len).sum()
     }
 
     /// Hands the master's answer to the threads waiting for it.

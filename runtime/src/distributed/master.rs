@@ -246,6 +246,9 @@ pub struct WorkerTime {
     pub after_done: Duration,
     /// The copies of units handed to workers with nothing left to do at the frame's end.
     pub helping: Helping,
+    /// Units the workers set aside to render again once what they asked ahead for came (summed
+    /// over the workers).
+    pub set_aside: u64,
 }
 
 /// One worker's times in a frame, its render threads' as their mean.
@@ -259,6 +262,7 @@ struct WorkerShare {
     fetching: Duration,
     loading: Duration,
     off_core: Duration,
+    set_aside: u64,
 }
 
 impl WorkerShare {
@@ -279,6 +283,7 @@ impl WorkerShare {
             fetching,
             loading: per_thread(counts.fetch_build_ns).min(rendering),
             off_core,
+            set_aside: counts.set_aside,
         }
     }
 }
@@ -305,6 +310,7 @@ impl WorkerTime {
                 .max()
                 .map_or(Duration::ZERO, |last| workers.iter().map(|w| last - w.done).sum::<Duration>() / n),
             helping: Helping::default(),
+            set_aside: workers.iter().map(|w| w.set_aside).sum(),
         }
     }
 }

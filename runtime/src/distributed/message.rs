@@ -8,7 +8,7 @@ use crate::texture::{TextureKind, TexturePart};
 use rtsl_compiler::interface::ShaderKind;
 
 /// The protocol's version: ranks that speak different versions refuse each other at start-up.
-pub const PROTOCOL_VERSION: u32 = 38;
+pub const PROTOCOL_VERSION: u32 = 39;
 
 /// What the master's counters add up from a worker's share of a frame.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -71,6 +71,9 @@ pub struct FrameCounts {
     /// decoding fetched meshes and building their BVHs.
     pub fetch_wait_ns: u64,
     pub fetch_build_ns: u64,
+    /// Units its render threads set aside to render again, having asked ahead for what they
+    /// reached ([`crate::accel::ahead`]).
+    pub set_aside: u64,
 }
 
 /// What a frame's units of work are.
@@ -292,6 +295,7 @@ impl Message {
                 w.u64(counts.rendering_cpu_ns);
                 w.u64(counts.fetch_wait_ns);
                 w.u64(counts.fetch_build_ns);
+                w.u64(counts.set_aside);
                 w.u64(counts.shading_ns);
                 w.u64(counts.light_paths_ns);
                 w.u64(counts.gathering_ns);
@@ -399,7 +403,7 @@ impl Message {
                 let (evicted_objects, resident_objects, reached_objects) = (r.u64()?, r.u64()?, r.u64()?);
                 let (kept_objects, kept_textures) = (r.u64()?, r.u64()?);
                 let (world_ns, share_ns, rendering_ns, rendering_cpu_ns) = (r.u64()?, r.u64()?, r.u64()?, r.u64()?);
-                let (fetch_wait_ns, fetch_build_ns) = (r.u64()?, r.u64()?);
+                let (fetch_wait_ns, fetch_build_ns, set_aside) = (r.u64()?, r.u64()?, r.u64()?);
                 let shading_ns = r.u64()?;
                 let (light_paths_ns, gathering_ns) = (r.u64()?, r.u64()?);
                 let kinds = r.count(8)?;
@@ -446,6 +450,7 @@ impl Message {
                     rendering_cpu_ns,
                     fetch_wait_ns,
                     fetch_build_ns,
+                    set_aside,
                 };
                 Message::FrameDone { frame, counts, failure: r.opt_str()? }
             }
@@ -776,6 +781,7 @@ mod tests {
                     rendering_cpu_ns: 26,
                     fetch_wait_ns: 22,
                     fetch_build_ns: 23,
+                    set_aside: 32,
                 },
                 failure: Some("cannot build".into()),
             },

@@ -5,6 +5,7 @@ use super::fetch::{FetchLink, Pending};
 use super::message::{build_fingerprint, Job, LatticeUnit, Message, PROTOCOL_VERSION};
 use super::transport::Transport;
 use super::DistributedError;
+use crate::accel::ask_ahead;
 use crate::accel::object::ObjectData;
 use crate::render::progressive::LatticeTracer;
 use crate::render::{LightPaths, TileRenderer, World};
@@ -82,6 +83,13 @@ impl ReplicaScene {
     /// dropping those that rays reached least recently first.
     pub fn with_cache_limit(bytes: usize) -> ReplicaScene {
         ReplicaScene { cache_limit: bytes, ..ReplicaScene::new() }
+    }
+
+    /// This replica with its render threads asking ahead for what a tile reaches and setting the
+    /// tile aside (`on`, the default), or waiting for each object as they reach it.
+    pub fn asking_ahead(self, on: bool) -> ReplicaScene {
+        self.link.set_asking_ahead(on);
+        self
     }
 }
 
@@ -328,6 +336,8 @@ fn out_of_place<T: Transport + ?Sized>(transport: &T) -> DistributedError {
 struct QueuedUnit {
     index: u32,
     lattice: Option<LatticeUnit>,
+    /// How many times a render thread set it aside for what it asked ahead for.
+    set_aside: u8,
 }
 
 /// What renders a frame's units on this worker.
@@ -361,7 +371,7 @@ impl<'w> Units<'w> {
                 if !lattices.is_empty() {
                     return Err("the master handed out lattices in a frame of tiles".into());
                 }
-                Ok(units.into_iter().map(|index| QueuedUnit { index, lattice: None }).collect())
+                Ok(units.into_iter().map(|index| QueuedUnit { index, lattice: None, set_aside: 0 }).collect())
             }
             Units::Lattices(_) => {
                 if lattices.len() != units.len() {
@@ -371,7 +381,11 @@ impl<'w> Units<'w> {
                 if let Some(bad) = lattices.iter().find(|l| !l.lattice.fits(w, h)) {
                     return Err(format!("the master handed out lattice {:?}, outside the {w}x{h} image", bad.lattice));
                 }
-                Ok(units.into_iter().zip(lattices).map(|(index, l)| QueuedUnit { index, lattice: Some(l) }).collect())
+                Ok(units
+                    .into_iter()
+                    .zip(lattices)
+                    .map(|(index, l)| QueuedUnit { index, lattice: Some(l), set_aside: 0 })
+                    .collect())
             }
         }
     }
@@ -452,14 +466,34 @@ fn render_share<T: Transport + ?Sized>(
             let (queue, renderer, wake_tx) = (&queue, &renderer, wake_tx.clone());
             let (rendering_ns, rendering_cpu_ns) = (&rendering_ns, &rendering_cpu_ns);
             scope.spawn(move |_| {
-                while let Some(unit) = queue.pop() {
+                while let Some((unit, others_wait)) = queue.pop() {
                     let mut pixels = Vec::new();
                     let (started, cpu_started) = (Instant::now(), thread_cpu_time());
-                    renderer.render(unit, &mut pixels);
+                    // With other units to render meanwhile, a tile asks ahead for what it reaches
+                    // and goes on; if it missed something, it is set aside and rendered again
+                    // once the answers are here. Lattices never are: their reports count every
+                    // ray they trace.
+                    let ahead = others_wait
+                        && unit.lattice.is_none()
+                        && unit.set_aside < MAX_SET_ASIDE
+                        && link.is_some_and(FetchLink::may_ask_ahead);
+                    let set_aside = if ahead {
+                        ask_ahead::without_waiting(|| renderer.render(unit, &mut pixels)).1
+                    } else {
+                        renderer.render(unit, &mut pixels);
+                        false
+                    };
                     let took = started.elapsed();
                     rendering_ns.fetch_add(took.as_nanos() as u64, Ordering::Relaxed);
                     if let (Some(from), Some(to)) = (cpu_started, thread_cpu_time()) {
                         rendering_cpu_ns.fetch_add(to.saturating_sub(from).as_nanos() as u64, Ordering::Relaxed);
+                    }
+                    if set_aside {
+                        if let Some(link) = link {
+                            link.note_set_aside();
+                        }
+                        queue.put_back(QueuedUnit { set_aside: unit.set_aside + 1, ..unit });
+                        continue;
                     }
                     let micros = u32::try_from(took.as_micros()).unwrap_or(u32::MAX);
                     if queue.finish(unit.index, micros, pixels) && wake_tx.send(()).is_err() {
@@ -507,13 +541,15 @@ fn render_share<T: Transport + ?Sized>(
                     transport.send(0, asked.message(frame).encode())?;
                 }
             }
-            if last && outstanding == 0 {
+            // Answers to what was asked ahead for come in the frame, even where another worker
+            // delivered the unit that asked first.
+            if last && outstanding == 0 && pending.is_empty() {
                 return Ok(false);
             }
             // Every unit given is finished and sent back, and the master has not yet answered.
             starved |= !last && outstanding == 0;
             let busy = pending.is_empty() && !queue.running_low();
-            let all_fetching = pending.waiting() >= threads;
+            let all_fetching = link.is_some_and(|l| l.threads_waiting() >= threads);
             if all_fetching || (!busy && last_send.elapsed() < SPIN_AFTER_SEND && transport.sending()) {
                 // Every render thread waits for a fetch: a nap would add to their wait, and the
                 // cores they leave idle have nothing else to do. Just after a send the master may
@@ -532,6 +568,9 @@ fn render_share<T: Transport + ?Sized>(
     })?;
     if quit {
         return Ok(true);
+    }
+    if let Some(link) = link {
+        take_unclaimed(world, link);
     }
     let mut counts = super::master::counts_of(&renderer.report(start));
     counts.texture_warnings = world
@@ -554,6 +593,7 @@ fn render_share<T: Transport + ?Sized>(
         counts.kept_textures = fetched.kept_textures;
         counts.fetch_wait_ns = fetched.waiting.as_nanos() as u64;
         counts.fetch_build_ns = fetched.building.as_nanos() as u64;
+        counts.set_aside = fetched.set_aside;
         let remote = || world.scene.objects().iter().filter(|o| o.is_remote());
         counts.resident_objects = remote().filter(|o| o.is_resident()).count() as u64;
         counts.resident_parts = remote().map(|o| o.resident_parts() as u64).sum();
@@ -595,6 +635,32 @@ struct Share {
     built_in: std::time::Duration,
 }
 
+/// Makes ready the objects and parts of objects whose answers came for units that asked ahead
+/// and then went to other workers: they came, so they count as fetched, and rays of frames to
+/// come are likely to reach them.
+fn take_unclaimed(world: &World, link: &FetchLink) {
+    let unclaimed = link.unclaimed();
+    if unclaimed.is_empty() {
+        return;
+    }
+    let objects = world.scene.objects();
+    let by_key: HashMap<u32, &crate::accel::object::Object> =
+        objects.iter().filter_map(|o| Some((o.remote_key()?, o))).collect();
+    for (key, part) in unclaimed {
+        let Some(object) = by_key.get(&key) else { continue };
+        let data = object.data();
+        if let (Some(p), Some(parts)) = (part, data.bvh.parts.as_deref()) {
+            if (p as usize) < parts.parts.len() {
+                object.part(parts, p);
+            }
+        }
+    }
+}
+
+/// How many times a unit may be set aside for what it asked ahead for; after that it waits.
+/// Each time it renders again with what it missed, and may reach more it does not hold (what
+/// lay behind what it missed).
+const MAX_SET_ASIDE: u8 = 2;
 /// How long the worker's talking thread naps between polls when something is urgent (a renderer
 /// runs low on units or waits for a fetch).
 const POLL: std::time::Duration = std::time::Duration::from_micros(100);
@@ -661,18 +727,25 @@ impl UnitQueue {
         before - state.waiting.len()
     }
 
-    /// The next unit, waiting for one; `None` once the queue is closed.
-    fn pop(&self) -> Option<QueuedUnit> {
+    /// The next unit and whether others wait behind it, waiting for one; `None` once the queue
+    /// is closed.
+    fn pop(&self) -> Option<(QueuedUnit, bool)> {
         let mut state = self.lock();
         loop {
             if state.closed {
                 return None;
             }
             if let Some(t) = state.waiting.pop_front() {
-                return Some(t);
+                return Some((t, !state.waiting.is_empty()));
             }
             state = self.ready.wait(state).unwrap_or_else(std::sync::PoisonError::into_inner);
         }
+    }
+
+    /// Puts a unit set aside behind those waiting.
+    fn put_back(&self, unit: QueuedUnit) {
+        self.lock().waiting.push_back(unit);
+        self.ready.notify_one();
     }
 
     /// Hands in a finished unit; returns whether the talking thread should wake for it now

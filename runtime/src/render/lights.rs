@@ -304,7 +304,10 @@ fn eval_invariant_light_lanes(
 ) {
     let n = points.len().min(PACKET_SIZE);
     Stats::add(&frame.stats.light_evaluations, 1);
-    let row = || invariant_light_row(frame, (id, light), material, points, times, depth);
+    // Kept for the frame: run with what it reaches, never without what a unit rendering ahead
+    // has not fetched yet.
+    let row =
+        || crate::accel::ask_ahead::waiting(|| invariant_light_row(frame, (id, light), material, points, times, depth));
     let template = match frame.invariant_light_rows.get(id as usize) {
         Some(cached) => *cached.get_or_init(row),
         None => row(),

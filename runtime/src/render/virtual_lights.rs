@@ -152,7 +152,9 @@ pub(super) fn of_frame<'f>(frame: &'f Frame) -> &'f VirtualLights {
 /// Runs `f`, adding its wall time to the frame's light-path time when the frame is timed.
 pub(super) fn timed<R>(frame: &Frame, f: impl FnOnce() -> R) -> R {
     let start = frame.stats.timed.then(std::time::Instant::now);
-    let r = f();
+    // Shared by every unit of the frame: traced with every object it reaches, never without
+    // what a unit rendering ahead has not fetched yet.
+    let r = crate::accel::ask_ahead::waiting(f);
     if let Some(start) = start {
         let ns = start.elapsed().as_nanos() as u64;
         frame.stats.light_paths_ns.add(ns as usize);
