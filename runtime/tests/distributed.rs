@@ -1610,20 +1610,44 @@ fn the_master_decodes_named_textures_ahead_and_workers_fetch_only_what_they_read
 /// A wall of `side` x `side` objects, a quad each, filling a view of 96x80 pixels, under a light
 /// whose shadow rays reach the wall.
 fn wall_of_objects(side: usize) -> Result<Context, String> {
+    wall(side, None)
+}
+
+/// [`wall_of_objects`], each quad showing one of `textures` memory textures of 16x16 texels
+/// ("wall0" and on), when given.
+fn wall(side: usize, textures: Option<usize>) -> Result<Context, String> {
     let e = |e: rtsl_runtime::api::ApiError| e.to_string();
     let mut rt = Context::new();
     rt.options.width = 96;
     rt.options.height = 80;
     rt.camera_look_at(Vec3A::new(0.0, 0.0, 3.0), Vec3A::ZERO, Vec3A::Y, 60.0);
     let plastic = rt.find_shader("plastic").map_err(e)?;
+    let textured = match textures {
+        Some(n) => {
+            for t in 0..n {
+                let texels: Vec<f32> = (0..16 * 16 * 3).map(|i| ((i * (t + 3)) % 13) as f32 / 12.0).collect();
+                rt.tex_image_2d(&format!("wall{t}"), 16, 16, 3, &texels).map_err(e)?;
+            }
+            let source = "surface wallpaper(string name = \"\") { Ci = color texture(name, s, t); Oi = 1; }";
+            Some((rt.compile_shader("wallpaper", source).map_err(e)?, n))
+        }
+        None => None,
+    };
     let step = 4.0 / side as f32;
     for k in 0..side * side {
         let (x, y) = (-2.0 + (k % side) as f32 * step, -2.0 + (k / side) as f32 * step);
         let quad = rt.begin_object().map_err(e)?;
         rt.color(0.3 + 0.6 * (k % 3) as f32 / 2.0, 0.5, 0.2 + 0.1 * (k % 5) as f32);
-        rt.bind_shader(plastic).map_err(e)?;
+        match textured {
+            Some((shader, n)) => {
+                rt.bind_shader(shader).map_err(e)?;
+                rt.parameter("name", ParamValue::String(format!("wall{}", k % n))).map_err(e)?;
+            }
+            None => rt.bind_shader(plastic).map_err(e)?,
+        }
         rt.begin(Primitive::Quads).map_err(e)?;
-        for (dx, dy) in [(0.0, 0.0), (step, 0.0), (step, step), (0.0, step)] {
+        for (c, (dx, dy)) in [(0.0, 0.0), (step, 0.0), (step, step), (0.0, step)].into_iter().enumerate() {
+            rt.tex_coord([0.0, 1.0, 1.0, 0.0][c], [0.0, 0.0, 1.0, 1.0][c]);
             rt.vertex(x + dx, y + dy, -0.1 * (k % 4) as f32).map_err(e)?;
         }
         rt.end().map_err(e)?;
@@ -1673,5 +1697,33 @@ fn tiles_that_reach_objects_not_here_are_set_aside_and_rendered_again() -> Resul
         // Everything is here in the second frame: nothing to ask for.
         assert_eq!(set_aside[1], 0, "{set_aside:?}");
     }
+    Ok(())
+}
+
+/// As [`tiles_that_reach_objects_not_here_are_set_aside_and_rendered_again`], for textures: a
+/// tile asks ahead for the textures its lookups name and the worker does not hold, and each
+/// texture is fetched once.
+#[test]
+fn tiles_ask_ahead_for_the_textures_their_lookups_name() -> Result<(), DistributedError> {
+    let mut rt = wall(4, Some(5)).expect("the textured wall");
+    let mut group = LocalTransport::group(2, Duration::from_secs(60)).into_iter();
+    let master_end = group.next().expect("rank 0");
+    let worker_end = group.next().expect("rank 1");
+    let worker = std::thread::spawn(move || serve(&worker_end, Ok(&mut ReplicaScene::new()), &pool(1)));
+    let mut master = Master::connect(master_end)?;
+    let mut set_aside = Vec::new();
+    let mut demands = Vec::new();
+    for change in [nothing as Change, move_first] {
+        change(&mut rt).expect("the change applies");
+        let (frame, demand) = frame_both_ways(&mut master, &mut rt)?;
+        assert_same(&[frame], "a textured frame asking ahead");
+        set_aside.push(master.worker_time().set_aside);
+        demands.push(demand);
+    }
+    master.shutdown()?;
+    worker.join().expect("the worker thread")?;
+    assert!(set_aside[0] > 0, "{set_aside:?}");
+    assert_eq!(demands[0].fetched_textures, 5, "{demands:?}");
+    assert_eq!((demands[1].fetched_textures, demands[1].fetched_objects), (0, 0), "{demands:?}");
     Ok(())
 }

@@ -253,6 +253,21 @@ impl FetchLink {
         self.never_ahead.store(!on, Ordering::Relaxed);
     }
 
+    /// Counts the texture answers that came from the master, as they come (whether or not a
+    /// render thread takes them: one asked for ahead may go unread, its unit delivered by another
+    /// worker).
+    pub(super) fn count_texture_answers(&self, textures: &[(TexturePart, String, Vec<u8>)]) {
+        for (part, _, bytes) in textures {
+            let counter = match part {
+                TexturePart::Level { .. } => &self.fetched_texture_levels,
+                TexturePart::Tile { .. } => &self.fetched_texture_tiles,
+                TexturePart::Whole(_) | TexturePart::Pyramid { .. } => &self.fetched_textures,
+            };
+            counter.fetch_add(1, Ordering::Relaxed);
+            self.fetched_texture_bytes.fetch_add(bytes.len() as u64, Ordering::Relaxed);
+        }
+    }
+
     /// The objects and parts of objects (object, part) asked for ahead whose answers no render
     /// thread took: the unit that asked went to another worker before it was rendered again.
     pub(super) fn unclaimed(&self) -> Vec<(u32, Option<u32>)> {
@@ -516,13 +531,6 @@ impl TextureSource for FetchLink {
         let Some(bytes) = self.request(Want::Texture(part, name.to_string())) else {
             return failed("it never came from the master".into());
         };
-        let counter = match part {
-            TexturePart::Level { .. } => &self.fetched_texture_levels,
-            TexturePart::Tile { .. } => &self.fetched_texture_tiles,
-            TexturePart::Whole(_) | TexturePart::Pyramid { .. } => &self.fetched_textures,
-        };
-        counter.fetch_add(1, Ordering::Relaxed);
-        self.fetched_texture_bytes.fetch_add(bytes.len() as u64, Ordering::Relaxed);
         let answer = decode_answer(&bytes).unwrap_or_else(failed);
         // The texture an answer stands for: a pyramid says; a whole answer is the texture.
         let digest = match (&answer, part) {
@@ -541,6 +549,10 @@ impl TextureSource for FetchLink {
 
     fn failed(&self, message: String) {
         self.fail(message);
+    }
+
+    fn ask_ahead(&self, part: TexturePart, name: &str) -> bool {
+        self.ask_ahead_for(Want::Texture(part, name.to_string()))
     }
 
     fn kept(&self, part: TexturePart, name: &str) -> Option<Arc<dyn Any + Send + Sync>> {

@@ -278,6 +278,7 @@ fn build_world<T: Transport + ?Sized>(
                 while let Some((rank, bytes)) = transport.try_recv()? {
                     match decode_given_back(transport, rank, bytes)? {
                         Message::Data { frame: f, meshes, parts, textures } if f == frame => {
+                            link.count_texture_answers(&textures);
                             pending.answer(meshes, parts, textures)
                         }
                         m @ Message::Assign { frame: f, .. } if f == frame => early.push(m),
@@ -529,6 +530,9 @@ fn render_share<T: Transport + ?Sized>(
                     // Units of a frame before, which another worker delivered first.
                     Message::Assign { frame: f, units, .. } if f < frame && units.is_empty() => {}
                     Message::Data { frame: f, meshes, parts, textures } if f == frame => {
+                        if let Some(link) = link {
+                            link.count_texture_answers(&textures);
+                        }
                         pending.answer(meshes, parts, textures)
                     }
                     Message::Quit => return Ok(true),

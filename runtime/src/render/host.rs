@@ -116,7 +116,14 @@ impl TextureHandles {
             }
             let texture = match self.by_name.remove_entry(name) {
                 Some(found) => found,
-                None => (name.to_string(), cache.get_texture(name, false)),
+                None => {
+                    let texture = cache.get_texture(name, false);
+                    if texture.is_none() && crate::accel::ask_ahead::asks_ahead() {
+                        // Perhaps asked for ahead and not here yet: not kept, asked again.
+                        return None;
+                    }
+                    (name.to_string(), texture)
+                }
             };
             self.last = Some(texture);
         }

@@ -171,6 +171,16 @@ impl TextureCache {
     /// The texture called `name`, loading it on first use; `None` when it cannot be loaded.
     pub fn get_texture(&self, name: &str, raw: bool) -> Option<Arc<MipMap>> {
         let slot = slot(&self.textures[raw as usize], name);
+        if let Some(source) = &self.source {
+            // A render thread asking ahead goes on without the texture; nothing is kept of it.
+            if slot.get().is_none()
+                && crate::accel::ask_ahead::asks_ahead()
+                && source.ask_ahead(TexturePart::Pyramid { raw }, name)
+            {
+                crate::accel::ask_ahead::missed();
+                return None;
+            }
+        }
         slot.get_or_init(|| match &self.source {
             Some(source) => self.fetch_texture(source, name, raw),
             None => self.load(name, (TextureKind::Texture, if raw { "raw texture" } else { "texture" }), |input| {

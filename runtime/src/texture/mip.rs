@@ -100,6 +100,12 @@ pub(crate) trait LevelFetch: Send + Sync {
 
     /// Records that something it delivered could not be used: the frame fails.
     fn failed(&self, message: String);
+
+    /// Asks for level `level` without waiting ([`crate::accel::ask_ahead`]); returns whether
+    /// it is still to come (`false`: fetch it now).
+    fn ask_ahead_level(&self, _level: usize) -> bool {
+        false
+    }
 }
 
 /// What a [`LevelFetch`] delivers.
@@ -298,6 +304,11 @@ impl MipMap {
             return level;
         }
         let finer = (0..i).rev().find(|&j| self.levels[j].get().is_some());
+        if finer.is_none() && crate::accel::ask_ahead::asks_ahead() && remote.fetch.ask_ahead_level(i) {
+            // A render thread asking ahead goes on without the level; nothing is kept of it.
+            crate::accel::ask_ahead::missed();
+            return &remote.stand_in;
+        }
         let from = match finer {
             Some(j) => j,
             None => match remote.fetch.fetch_level(i, self.size) {

@@ -167,6 +167,11 @@ impl LevelFetch for SourceLevels {
     fn failed(&self, message: String) {
         self.source.failed(format!("texture \"{}\", {message}", self.name));
     }
+
+    fn ask_ahead_level(&self, level: usize) -> bool {
+        let Ok(level) = u32::try_from(level) else { return false };
+        self.source.ask_ahead(TexturePart::Level { raw: self.raw, level }, &self.name)
+    }
 }
 
 /// The master's side: each texture a worker asked for, decoded and mip-mapped once, and its

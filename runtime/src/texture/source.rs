@@ -69,6 +69,14 @@ pub trait TextureSource: Send + Sync + fmt::Debug {
 
     /// Offers what a cache made of the source's last answer to `part` of `name`, to keep.
     fn keep(&self, _part: TexturePart, _name: &str, _made: Arc<dyn Any + Send + Sync>) {}
+
+    /// Asks for `part` of `name` without waiting, for a render thread that renders
+    /// [`crate::accel::ask_ahead::without_waiting`]: a later [`TextureSource::fetch`] of it takes
+    /// the answer. Returns whether the answer is still to come (`false`: fetch it now; a source
+    /// that cannot ask ahead always says so).
+    fn ask_ahead(&self, _part: TexturePart, _name: &str) -> bool {
+        false
+    }
 }
 
 /// What `delivered` stands for as a texture decoded `raw` or not: its image, with the file's
