@@ -1440,6 +1440,10 @@ unsafe extern "C" fn host_print(ctx: *mut c_void, text: StrRef) {
         noted.silenced = true;
         return;
     }
+    // A unit rendered asking ahead prints only if it is kept (`accel/ask_ahead.rs`).
+    if crate::accel::ask_ahead::hold_output(text) {
+        return;
+    }
     let _ = std::io::stdout().lock().write_all(text.as_bytes());
 }
 
