@@ -1661,6 +1661,29 @@ fn wall(side: usize, textures: Option<usize>) -> Result<Context, String> {
     Ok(rt)
 }
 
+/// Two frames of `rt` (the second after [`move_first`]) over a master and one worker of one
+/// thread asking ahead or not, each checked bit for bit against this process's; the tiles set
+/// aside in each, and what each fetched.
+fn two_frames_over_one_worker(mut rt: Context, ahead: bool) -> Result<(Vec<u64>, Vec<Demand>), DistributedError> {
+    let mut group = LocalTransport::group(2, Duration::from_secs(60)).into_iter();
+    let master_end = group.next().expect("rank 0");
+    let worker_end = group.next().expect("rank 1");
+    let worker =
+        std::thread::spawn(move || serve(&worker_end, Ok(&mut ReplicaScene::new().asking_ahead(ahead)), &pool(1)));
+    let mut master = Master::connect(master_end)?;
+    let (mut set_aside, mut demands) = (Vec::new(), Vec::new());
+    for change in [nothing as Change, move_first] {
+        change(&mut rt).expect("the change applies");
+        let (frame, demand) = frame_both_ways(&mut master, &mut rt)?;
+        assert_same(&[frame], &format!("a frame asking ahead: {ahead}"));
+        set_aside.push(master.worker_time().set_aside);
+        demands.push(demand);
+    }
+    master.shutdown()?;
+    worker.join().expect("the worker thread")?;
+    Ok((set_aside, demands))
+}
+
 /// A worker's render thread with other tiles waiting asks ahead for the objects a tile reaches
 /// and does not hold, sets the tile aside and renders it again once they are here: frames are the
 /// single process's bit for bit, each object is fetched once, and a worker told not to ask ahead
@@ -1668,24 +1691,7 @@ fn wall(side: usize, textures: Option<usize>) -> Result<Context, String> {
 #[test]
 fn tiles_that_reach_objects_not_here_are_set_aside_and_rendered_again() -> Result<(), DistributedError> {
     for ahead in [true, false] {
-        let mut rt = wall_of_objects(6).expect("the wall");
-        let mut group = LocalTransport::group(2, Duration::from_secs(60)).into_iter();
-        let master_end = group.next().expect("rank 0");
-        let worker_end = group.next().expect("rank 1");
-        let worker =
-            std::thread::spawn(move || serve(&worker_end, Ok(&mut ReplicaScene::new().asking_ahead(ahead)), &pool(1)));
-        let mut master = Master::connect(master_end)?;
-        let mut set_aside = Vec::new();
-        let mut demands = Vec::new();
-        for change in [nothing as Change, move_first] {
-            change(&mut rt).expect("the change applies");
-            let (frame, demand) = frame_both_ways(&mut master, &mut rt)?;
-            assert_same(&[frame], &format!("a frame asking ahead: {ahead}"));
-            set_aside.push(master.worker_time().set_aside);
-            demands.push(demand);
-        }
-        master.shutdown()?;
-        worker.join().expect("the worker thread")?;
+        let (set_aside, demands) = two_frames_over_one_worker(wall_of_objects(6).expect("the wall"), ahead)?;
         // Every quad is reached, and fetched once: set-aside tiles take what they asked for.
         assert_eq!((demands[0].reached_objects, demands[0].fetched_objects), (36, 36), "{demands:?}");
         assert_eq!(demands[1].fetched_objects, 0, "{demands:?}");
@@ -1705,23 +1711,7 @@ fn tiles_that_reach_objects_not_here_are_set_aside_and_rendered_again() -> Resul
 /// texture is fetched once.
 #[test]
 fn tiles_ask_ahead_for_the_textures_their_lookups_name() -> Result<(), DistributedError> {
-    let mut rt = wall(4, Some(5)).expect("the textured wall");
-    let mut group = LocalTransport::group(2, Duration::from_secs(60)).into_iter();
-    let master_end = group.next().expect("rank 0");
-    let worker_end = group.next().expect("rank 1");
-    let worker = std::thread::spawn(move || serve(&worker_end, Ok(&mut ReplicaScene::new()), &pool(1)));
-    let mut master = Master::connect(master_end)?;
-    let mut set_aside = Vec::new();
-    let mut demands = Vec::new();
-    for change in [nothing as Change, move_first] {
-        change(&mut rt).expect("the change applies");
-        let (frame, demand) = frame_both_ways(&mut master, &mut rt)?;
-        assert_same(&[frame], "a textured frame asking ahead");
-        set_aside.push(master.worker_time().set_aside);
-        demands.push(demand);
-    }
-    master.shutdown()?;
-    worker.join().expect("the worker thread")?;
+    let (set_aside, demands) = two_frames_over_one_worker(wall(4, Some(5)).expect("the textured wall"), true)?;
     assert!(set_aside[0] > 0, "{set_aside:?}");
     assert_eq!(demands[0].fetched_textures, 5, "{demands:?}");
     assert_eq!((demands[1].fetched_textures, demands[1].fetched_objects), (0, 0), "{demands:?}");
