@@ -124,6 +124,22 @@ run() {
     one $pre $r bench render examples/scenes/sponza.rib --threads "$n" --frames 10 "$@"
     one $pre $r bart $kitchen --frames 10 --size 640x480 --threads "$n" -q "$@"
   }
+  # The scenes named after $1 and $2 over a worker rank a core but the master's, with flag $1
+  # and then flag $2 ("" for none), twice, interleaved (A B A B).
+  interleaved() {
+    local a=$1 b=$2; shift 2
+    for pass in 1 2; do
+      for flag in "$a" "$b"; do
+        for scene in "$@"; do
+          case $scene in
+            kitchen) one $m -n "$(nproc)" $r bart $kitchen --frames 10 --size 640x480 --threads 1 -q --mpi $flag ;;
+            robots) one $m -n "$(nproc)" $r bart $robot --frames 20 --size 640x480 --threads 1 -q --mpi $flag ;;
+            office) one $m -n "$(nproc)" $r bench render --threads 1 --size 640x480 --frames 10 --mpi $flag ;;
+          esac
+        done
+      done
+    done
+  }
   for part in $parts; do
     echo "==== $part"
     case $part in
@@ -147,33 +163,14 @@ run() {
           one $m -n "$(nproc)" $r bart $kitchen --frames 10 --size 640x480 --threads "$t" -q --mpi
         done ;;
       copies)
-        # Tile copies for idle workers at a frame's end, on and off, interleaved (A B A B), over a
-        # worker rank a core but the master's.
-        for pass in 1 2; do
-          for flag in "" --no-tile-copies; do
-            one $m -n "$(nproc)" $r bart $kitchen --frames 10 --size 640x480 --threads 1 -q --mpi $flag
-            one $m -n "$(nproc)" $r bart $robot --frames 20 --size 640x480 --threads 1 -q --mpi $flag
-            one $m -n "$(nproc)" $r bench render --threads 1 --size 640x480 --frames 10 --mpi $flag
-          done
-        done ;;
+        # Tile copies for idle workers at a frame's end.
+        interleaved "" --no-tile-copies kitchen robots office ;;
       ahead)
-        # Workers' tiles asking ahead for what they reach and set aside meanwhile, on and off,
-        # interleaved (A B A B), over a worker rank a core but the master's.
-        for pass in 1 2; do
-          for flag in "" --no-asking-ahead; do
-            one $m -n "$(nproc)" $r bart $robot --frames 20 --size 640x480 --threads 1 -q --mpi $flag
-            one $m -n "$(nproc)" $r bart $kitchen --frames 10 --size 640x480 --threads 1 -q --mpi $flag
-          done
-        done ;;
+        # Workers' tiles asking ahead for what they reach, set aside meanwhile.
+        interleaved "" --no-asking-ahead robots kitchen ;;
       spin)
-        # The master polling without napping (it has a core of its own here), on and off,
-        # interleaved (A B A B), over a worker rank a core but the master's.
-        for pass in 1 2; do
-          for flag in --master-spins ""; do
-            one $m -n "$(nproc)" $r bart $robot --frames 20 --size 640x480 --threads 1 -q --mpi $flag
-            one $m -n "$(nproc)" $r bart $kitchen --frames 10 --size 640x480 --threads 1 -q --mpi $flag
-          done
-        done ;;
+        # The master polling without napping (it has a core of its own here).
+        interleaved --master-spins "" robots kitchen ;;
       gi)
         for n in 2 "$(nproc)"; do
           one $r bench render examples/office/office_gi.rib --threads "$n" --frames 10
