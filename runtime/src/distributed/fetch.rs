@@ -225,25 +225,22 @@ impl FetchLink {
                 true
             }
             Some(Early::Here(_)) => false,
-            Some(e @ Early::Coming(_)) => {
-                let Early::Coming(rx) = &*e else { return false };
-                match rx.try_recv() {
-                    Ok(bytes) => {
-                        *e = Early::Here(bytes);
-                        false
-                    }
-                    Err(std::sync::mpsc::TryRecvError::Empty) => true,
-                    Err(std::sync::mpsc::TryRecvError::Disconnected) => {
-                        early.remove(&want);
-                        false
-                    }
+            Some(Early::Coming(rx)) => match rx.try_recv() {
+                Ok(bytes) => {
+                    early.insert(want, Early::Here(bytes));
+                    false
                 }
-            }
+                Err(std::sync::mpsc::TryRecvError::Empty) => true,
+                Err(std::sync::mpsc::TryRecvError::Disconnected) => {
+                    early.remove(&want);
+                    false
+                }
+            },
         }
     }
 
     /// Whether render threads may render units asking ahead for what they reach
-    /// ([`crate::accel::ahead`]); they do unless turned off.
+    /// ([`crate::accel::ask_ahead`]); they do unless turned off.
     pub(super) fn may_ask_ahead(&self) -> bool {
         !self.never_ahead.load(Ordering::Relaxed)
     }

@@ -72,7 +72,7 @@ pub struct FrameCounts {
     pub fetch_wait_ns: u64,
     pub fetch_build_ns: u64,
     /// Units its render threads set aside to render again, having asked ahead for what they
-    /// reached ([`crate::accel::ahead`]).
+    /// reached ([`crate::accel::ask_ahead`]).
     pub set_aside: u64,
 }
 
