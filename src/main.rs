@@ -87,8 +87,12 @@ fn check_instruction_set() -> Result<(), &'static str> {
 /// libmimalloc-sys does not name without its `extended` feature.
 const MI_OPTION_ARENA_PURGE_MULT: std::ffi::c_int = 24;
 
+/// `mi_option_allow_thp` in mimalloc 3's `mi_option_e`.
+const MI_OPTION_ALLOW_THP: std::ffi::c_int = 43;
+
 unsafe extern "C" {
     fn mi_option_set_default(option: std::ffi::c_int, value: std::ffi::c_long);
+    fn mi_option_set(option: std::ffi::c_int, value: std::ffi::c_long);
     #[cfg(test)]
     fn mi_option_get(option: std::ffi::c_int) -> std::ffi::c_long;
 }
@@ -107,6 +111,28 @@ fn keep_freed_memory_for_the_next_frames() {
     unsafe { mi_option_set_default(MI_OPTION_ARENA_PURGE_MULT, 10) }
 }
 
+/// Turns transparent huge pages off for this process, unless `MIMALLOC_ALLOW_THP` says
+/// otherwise (mimalloc's own switch, which it reads before `main`).
+///
+/// mimalloc asks for huge pages on its arenas, so the first touch of any fresh part of one
+/// faults in and zeroes two megabytes. A renderer's memory grows all the time: a new object's
+/// BVH, a texture's level decoded as a frame first looks it up, a worker's fetched meshes and the
+/// messages that bring them. Each such growth paid for the zeroing, on the render thread (most
+/// of a distributed worker's system time, and the spikes of the frames that fetch), for a TLB
+/// gain steady frames do not show.
+fn no_transparent_huge_pages() {
+    if std::env::var_os("MIMALLOC_ALLOW_THP").is_some() {
+        return;
+    }
+    // SAFETY: mimalloc's option setter takes any option number and value, and is thread safe;
+    // PR_SET_THP_DISABLE takes a flag and changes only this process's future page faults.
+    unsafe {
+        mi_option_set(MI_OPTION_ALLOW_THP, 0);
+        #[cfg(target_os = "linux")]
+        libc::prctl(libc::PR_SET_THP_DISABLE, 1, 0, 0, 0);
+    }
+}
+
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
@@ -118,6 +144,7 @@ fn main() -> ExitCode {
         return ExitCode::from(2);
     }
     keep_freed_memory_for_the_next_frames();
+    no_transparent_huge_pages();
     match cli::run() {
         Ok(code) => code,
         Err(e) => {
@@ -150,6 +177,27 @@ mod tests {
             // The default applies only if no purge has read the option yet (other tests may
             // have freed memory first).
             assert!([1, 10].contains(&mi_option_get(MI_OPTION_ARENA_PURGE_MULT)));
+        }
+    }
+
+    /// The option number is mimalloc's huge page switch: its neighbours in `mi_option_e` read
+    /// their own defaults (cross-thread page reclaims, 32, and two after it the largest object
+    /// an arena holds, 2 GiB in KiB), and once turned off it reads 0, and the process has huge
+    /// pages off.
+    #[test]
+    fn transparent_huge_pages_are_turned_off() {
+        if std::env::var_os("MIMALLOC_ALLOW_THP").is_some() {
+            return;
+        }
+        // SAFETY: reading options is thread safe and takes any option number; PR_GET_THP_DISABLE
+        // only reads.
+        unsafe {
+            assert_eq!(mi_option_get(MI_OPTION_ALLOW_THP - 1), 32, "mi_option_page_cross_thread_max_reclaim");
+            assert_eq!(mi_option_get(MI_OPTION_ALLOW_THP + 2), 2 << 20, "mi_option_arena_max_object_size");
+            no_transparent_huge_pages();
+            assert_eq!(mi_option_get(MI_OPTION_ALLOW_THP), 0);
+            #[cfg(target_os = "linux")]
+            assert_eq!(libc::prctl(libc::PR_GET_THP_DISABLE, 0, 0, 0, 0), 1);
         }
     }
 }

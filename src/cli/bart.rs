@@ -193,6 +193,9 @@ pub fn run(args: &BartArgs) -> anyhow::Result<ExitCode> {
                 ms(f.render),
                 f.rays() as f64 / f.render.as_secs_f64().max(1e-9) / 1e6,
             );
+            if let (Some(w), Some((d, workers))) = (&f.worker_time, &f.demand) {
+                println!("           {}", super::mpi::frame_workers_line(w, d, *workers));
+            }
         }
         times.push(f);
     }

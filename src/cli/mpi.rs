@@ -118,6 +118,29 @@ pub(crate) fn worker_time_line(frames: &str, times: &[WorkerTime]) -> String {
     )
 }
 
+/// A frame's line on its workers, for the per-frame lines: what they fetched, and what waiting
+/// for it and decoding it cost them, against the time they rendered.
+pub(crate) fn frame_workers_line(w: &WorkerTime, d: &Demand, workers: usize) -> String {
+    let ms = |t: std::time::Duration| t.as_secs_f64() * 1e3;
+    let kb = |b: u64| b as f64 / 1e3 / workers.max(1) as f64;
+    format!(
+        "workers: rendering {:.1} ms (fetch waits {:.1}, decoding {:.1}, off the core {:.1}), waiting for the last {:.1} ms; fetched a worker: {:.1} objects {:.1} kB, {:.1} parts, {:.1} textures {:.1} levels {:.1} tiles {:.1} kB; {} tiles set aside",
+        ms(w.rendering),
+        ms(w.fetching),
+        ms(w.loading),
+        ms(w.off_core),
+        ms(w.after_done),
+        d.fetched_objects as f64 / workers.max(1) as f64,
+        kb(d.fetched_bytes),
+        d.fetched_parts as f64 / workers.max(1) as f64,
+        d.fetched_textures as f64 / workers.max(1) as f64,
+        d.fetched_texture_levels as f64 / workers.max(1) as f64,
+        d.fetched_texture_tiles as f64 / workers.max(1) as f64,
+        kb(d.fetched_texture_bytes),
+        w.set_aside,
+    )
+}
+
 /// The objects of `world`'s scene and the bytes of their meshes as they travel (the master holds
 /// them all).
 pub(crate) fn scene_meshes(world: &World) -> (usize, usize) {
