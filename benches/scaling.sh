@@ -5,8 +5,8 @@
 #   benches/scaling.sh pack          # here: a stripped release build with MPI, the scenes and
 #                                    # Embree's benchmark, into .scaling/ (keep it out of git)
 #   benches/scaling.sh run [PARTS]   # there: PARTS of "mpi threads bandwidth forest latency
-#                                    # copies spin ahead gi embree" (default: all but threads,
-#                                    # which mpi's runs include, copies, spin and ahead)
+#                                    # copies spin ahead thp gi embree" (default: all but threads,
+#                                    # which mpi's runs include, copies, spin, ahead and thp)
 #
 # `run` needs only what `pack` made: the machine's `mpirun` (Open MPI 4.x: the binary links
 # libmpi.so.40), else the Open MPI that `pack` took from this machine. It prints what each
@@ -18,8 +18,9 @@
 # and then two render threads (the second renders while the first waits for a fetch); `copies`
 # runs the BART kitchen and robots and the office over a worker rank a core but the master's,
 # with tile copies at a frame's end and with `--no-tile-copies`, twice, interleaved; `spin` the
-# BART animations the same way with and without `--master-spins`, and `ahead` with and without
-# `--no-asking-ahead`; `embree`
+# BART animations the same way with and without `--master-spins`, `ahead` with and without
+# `--no-asking-ahead`, and `thp` (with Sponza) with transparent huge pages off, the default, and
+# on (`MIMALLOC_ALLOW_THP=1` in every rank); `embree`
 # runs ../shared/bench/embree/side-by-side.sh on 1 thread and every core (EMBREE_SCENES: its
 # scenes; EMBREE_THREADS: its thread counts). DEADLINE: seconds after which no new command starts
 # (default 500); COMMAND_LIMIT: seconds one command may take (default 120); EMBREE_LIMIT: seconds
@@ -125,16 +126,20 @@ run() {
     one $pre $r bart $kitchen --frames 10 --size 640x480 --threads "$n" -q "$@"
   }
   # The scenes named after $1 and $2 over a worker rank a core but the master's, with flag $1
-  # and then flag $2 ("" for none), twice, interleaved (A B A B).
+  # and then flag $2 ("" for none), twice, interleaved (A B A B). A flag NAME=VALUE is set in
+  # every rank's environment instead.
   interleaved() {
     local a=$1 b=$2; shift 2
     for pass in 1 2; do
       for flag in "$a" "$b"; do
+        local pre=(env) opt=$flag mn=(-n "$(nproc)")
+        if [[ $flag == *=* ]]; then pre=(env "$flag"); opt=""; mn=(-x "${flag%%=*}" -n "$(nproc)"); fi
         for scene in "$@"; do
           case $scene in
-            kitchen) one $m -n "$(nproc)" $r bart $kitchen --frames 10 --size 640x480 --threads 1 -q --mpi $flag ;;
-            robots) one $m -n "$(nproc)" $r bart $robot --frames 20 --size 640x480 --threads 1 -q --mpi $flag ;;
-            office) one $m -n "$(nproc)" $r bench render --threads 1 --size 640x480 --frames 10 --mpi $flag ;;
+            kitchen) one "${pre[@]}" $m "${mn[@]}" $r bart $kitchen --frames 10 --size 640x480 --threads 1 -q --mpi $opt ;;
+            robots) one "${pre[@]}" $m "${mn[@]}" $r bart $robot --frames 20 --size 640x480 --threads 1 -q --mpi $opt ;;
+            office) one "${pre[@]}" $m "${mn[@]}" $r bench render --threads 1 --size 640x480 --frames 10 --mpi $opt ;;
+            sponza) one "${pre[@]}" $m "${mn[@]}" $r bench render examples/scenes/sponza.rib --threads 1 --frames 10 --mpi $opt ;;
           esac
         done
       done
@@ -168,6 +173,9 @@ run() {
       ahead)
         # Workers' tiles asking ahead for what they reach, set aside meanwhile.
         interleaved "" --no-asking-ahead robots kitchen ;;
+      thp)
+        # Transparent huge pages off (the default) and on, as mimalloc would have them.
+        interleaved "" MIMALLOC_ALLOW_THP=1 robots kitchen sponza ;;
       spin)
         # The master polling without napping (it has a core of its own here).
         interleaved --master-spins "" robots kitchen ;;
