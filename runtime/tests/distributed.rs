@@ -173,6 +173,42 @@ fn distributed_frames_are_bit_identical_to_single_process_frames() -> Result<(),
 }
 
 #[test]
+fn frames_that_keep_no_depth_or_ids_send_colour_alone() -> Result<(), DistributedError> {
+    let blank =
+        |fb: &Framebuffer| fb.depth.iter().all(|d| *d == f32::INFINITY) && fb.object_id.iter().all(|&i| i == u32::MAX);
+    // Tiles that go straight into the image (the office) and tiles kept for a filter and a pixel
+    // shader (the library): the same colours as one process, and neither keeps depth or ids.
+    let mut colour_only = office().expect("the office");
+    colour_only.options.depth_and_ids = false;
+    let frames = both_ways(colour_only, 2, 1, &[nothing, move_first])?;
+    assert_same(&frames, "the office without depth and ids");
+    let mut library = library_with_camera_and_pixel_shader().expect("the library scene");
+    library.options.depth_and_ids = false;
+    let frames = [frames, both_ways(library, 2, 1, &[nothing])?].concat();
+    assert_same(&frames, "the library without depth and ids");
+    assert!(frames.iter().all(|(distributed, alone, _)| blank(distributed) && blank(alone)));
+    // The office's tiles carry two thirds of the bytes they carry with depth and ids (each tile
+    // once: no copies at the frame's end, which may arrive twice).
+    let pixels = |keep: bool| {
+        with_two_workers(Duration::from_secs(120), |master| {
+            master.set_tile_copies(false);
+            let mut rt = office().expect("the office");
+            rt.options.depth_and_ids = keep;
+            let world = rt.build_world().expect("a world");
+            let (fb, _) = master.render_context(&rt, &world, None)?;
+            assert_eq!(blank(&fb), !keep);
+            Ok(master.traffic().pixels)
+        })
+    };
+    let (with, without) = (pixels(true)?, pixels(false)?);
+    // Eight bytes a pixel, a depth and an id, and a few more or fewer where the tiles went out
+    // in more or fewer messages.
+    let fewer = with.abs_diff(without);
+    assert!(fewer.abs_diff(96 * 72 * 8) < 2048 && without < with, "{with} against {without} bytes");
+    Ok(())
+}
+
+#[test]
 fn bart_frames_are_bit_identical() -> Result<(), DistributedError> {
     let robots = repo("../shared/scenes/bart/robot/aff/Robot.aff");
     if !robots.exists() {

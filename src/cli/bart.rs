@@ -61,6 +61,8 @@ fn load(args: &BartArgs, pool: &rayon::ThreadPool) -> anyhow::Result<(Context, B
     }
     // Playback reports frame times and ray counts, not where shading time goes.
     rt.options.time_shaders = false;
+    // The frames are written as colour alone.
+    rt.options.depth_and_ids = false;
     // The camera depends on the image's shape: place everything again for the final size.
     let start = scene.animation.start;
     scene.set_time(&mut rt, start)?;

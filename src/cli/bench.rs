@@ -276,6 +276,8 @@ pub fn run_render(args: &BenchRenderArgs) -> anyhow::Result<()> {
         let (mut rt, _) = super::render::load_scene_frame(args.scene.as_deref(), &args.shader_path, &[], 0, &options)?;
         apply_image_flags(args, &mut rt);
         args.rays.apply(&mut rt)?;
+        // Frames as `rtsl render` makes them for an image of colour: no depth or object ids.
+        rt.options.depth_and_ids = false;
         Ok(rt)
     };
     let (threads, pool) = super::worker_pool(args.threads)?;

@@ -415,6 +415,9 @@ fn render_and_write(
     quiet: bool,
     frame_warnings: bool,
 ) -> anyhow::Result<Written> {
+    // Depth and object ids only where an image holds depth: the frame's tiles then travel
+    // without them when the render is distributed.
+    rt.options.depth_and_ids = output.images().any(|image| image.depth_map || image.mode.has_depth());
     let world = rt.build_world()?;
     for w in rt.take_warnings() {
         if frame_warnings {

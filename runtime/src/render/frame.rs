@@ -965,7 +965,7 @@ pub fn render_frame(world: &World, progress: Option<&(dyn Fn(usize, usize) + Syn
         // that core's cache: no tile is kept, and no pass over the image follows the last one.
         let exposure = frame_exposure(world);
         let mut fb = blank_framebuffer((w, h));
-        let bands = Bands::of(&mut fb);
+        let bands = Bands::of(&mut fb, world.options.depth_and_ids);
         render_tiles(w, h, TILE_SIZE, |tile| {
             timed(tile, &mut || {
                 let rendered = renderer.render_tile(tile);
@@ -1008,7 +1008,7 @@ struct Bands<'a> {
 }
 
 impl<'a> Bands<'a> {
-    fn of(fb: &'a mut Framebuffer) -> Bands<'a> {
+    fn of(fb: &'a mut Framebuffer, depth_and_ids: bool) -> Bands<'a> {
         let (width, band) = (fb.width as usize, TILE_SIZE as usize);
         let chunk = (width * band).max(1);
         let rgba = fb.rgba.chunks_mut(4 * chunk);
@@ -1018,7 +1018,9 @@ impl<'a> Bands<'a> {
             .zip(depth)
             .zip(ids)
             .enumerate()
-            .map(|(b, ((rgba, depth), ids))| std::sync::Mutex::new(BandOut { rgba, depth, ids, width, y0: b * band }))
+            .map(|(b, ((rgba, depth), ids))| {
+                std::sync::Mutex::new(BandOut { rgba, depth, ids, width, y0: b * band, depth_and_ids })
+            })
             .collect();
         Bands { bands }
     }
@@ -1064,10 +1066,14 @@ pub struct RenderedTile {
     film: Option<TileFilm>,
     /// The pixel shader has yet to run (over the whole image: it reads other pixels).
     pixels_later: bool,
+    /// Its encoding carries depths and object ids: always, but for a tile that goes straight
+    /// into an image that keeps neither ([`super::RenderOptions::depth_and_ids`]).
+    sends_depth_and_ids: bool,
 }
 
 impl RenderedTile {
-    /// Appends the tile's pixels (and film) to `out`: colours, depths, object ids, then a byte
+    /// Appends the tile's pixels (and film) to `out`: colours, depths and object ids (left out
+    /// where the image that assembles the tile keeps neither), then a byte
     /// that says whether the tile is unfinished (filtered on the master, or its pixel shader run
     /// there over the whole image), and if it is, its shader ids (for the pixel shader), its
     /// normals where the pixel shader reads other pixels (three floats a pixel), and its film's
@@ -1080,8 +1086,10 @@ impl RenderedTile {
         let film: &[[f32; 5]] = self.film.as_ref().map_or(&[], |f| f.sums());
         out.reserve(4 * (7 * px.depth.len() + 3 * px.normals.len() + 5 * film.len()) + 1);
         out.extend_from_slice(bytemuck::cast_slice(&px.color));
-        out.extend_from_slice(bytemuck::cast_slice(&px.depth));
-        out.extend_from_slice(bytemuck::cast_slice(&px.ids));
+        if self.sends_depth_and_ids {
+            out.extend_from_slice(bytemuck::cast_slice(&px.depth));
+            out.extend_from_slice(bytemuck::cast_slice(&px.ids));
+        }
         // The kept outputs, where the frame keeps any (both sides know from the world).
         out.extend_from_slice(bytemuck::cast_slice(&px.outputs));
         // 0: finished; 1: a film follows, and the shader ids the pixel shader reads after
@@ -1164,7 +1172,7 @@ impl RenderedTile {
             }
             _ => return Err(format!("tile {}: its pixels do not match the frame's pixel filter", tile.index)),
         };
-        Ok(RenderedTile { tile, px, film, pixels_later })
+        Ok(RenderedTile { tile, px, film, pixels_later, sends_depth_and_ids: true })
     }
 }
 
@@ -1178,6 +1186,8 @@ pub struct TileAssembly {
     fb: Option<Framebuffer>,
     size: (u32, u32),
     exposure: Option<(f32, f32)>,
+    /// The image keeps depths and object ids, and the tiles carry them.
+    depth_and_ids: bool,
 }
 
 impl TileAssembly {
@@ -1185,7 +1195,7 @@ impl TileAssembly {
     /// exactly a finished tile of that size.
     pub fn add(&mut self, tile: Tile, bytes: &[u8]) -> Result<(), String> {
         let n = tile.width as usize * tile.height as usize;
-        let expected = 4 * 6 * n + 1;
+        let expected = if self.depth_and_ids { 4 * 6 * n + 1 } else { 4 * 4 * n + 1 };
         if bytes.len() != expected || bytes.last() != Some(&0) {
             return Err(format!(
                 "tile {}: {} bytes where a finished tile of {n} pixels takes {expected}",
@@ -1203,7 +1213,8 @@ impl TileAssembly {
         // Rows go in as the bytes lie: they need not be aligned for `f32`s where they sit in a
         // message, and a plain copy of a row is what the framebuffer takes.
         let (colors, rest) = bytes.split_at(16 * n);
-        let (depths, ids) = rest.split_at(4 * n);
+        // Depths and ids, when the tiles carry them (the length checked above says they do).
+        let (depths, ids) = rest.split_at(if self.depth_and_ids { 4 * n } else { 0 });
         for y in 0..tile.height as usize {
             let (from, to) = (y * tw, (tile.y0 as usize + y) * w + x0);
             let rgba = &mut fb.rgba[4 * to..4 * (to + tw)];
@@ -1218,10 +1229,12 @@ impl TileAssembly {
                     }
                 }
             }
-            let depth = bytemuck::cast_slice_mut::<f32, u8>(&mut fb.depth[to..to + tw]);
-            depth.copy_from_slice(&depths[4 * from..4 * (from + tw)]);
-            let id = bytemuck::cast_slice_mut::<u32, u8>(&mut fb.object_id[to..to + tw]);
-            id.copy_from_slice(&ids[4 * from..4 * (from + tw)]);
+            if self.depth_and_ids {
+                let depth = bytemuck::cast_slice_mut::<f32, u8>(&mut fb.depth[to..to + tw]);
+                depth.copy_from_slice(&depths[4 * from..4 * (from + tw)]);
+                let id = bytemuck::cast_slice_mut::<u32, u8>(&mut fb.object_id[to..to + tw]);
+                id.copy_from_slice(&ids[4 * from..4 * (from + tw)]);
+            }
         }
         Ok(())
     }
@@ -1276,7 +1289,8 @@ impl<'w> TileRenderer<'w> {
         }
         let world = self.frame.world;
         let exposure = world.options.exposure.filter(|&(gain, gamma)| gain.is_finite() && gamma > 0.0);
-        Some(TileAssembly { fb: None, size: (world.options.width, world.options.height), exposure })
+        let size = (world.options.width, world.options.height);
+        Some(TileAssembly { fb: None, size, exposure, depth_and_ids: world.options.depth_and_ids })
     }
 
     /// The frame being rendered (its world and its counters).
@@ -1305,11 +1319,18 @@ impl<'w> TileRenderer<'w> {
             if !self.pixels_later {
                 shade_tile_pixels(&self.frame, tile, &mut px, None);
             }
-            RenderedTile { tile: *tile, px, film: None, pixels_later: self.pixels_later }
+            let sends_depth_and_ids = options.depth_and_ids || !self.assembles_as_tiles_arrive();
+            RenderedTile { tile: *tile, px, film: None, pixels_later: self.pixels_later, sends_depth_and_ids }
         } else {
             let mut film = TileFilm::new(options.pixel_filter, tile, options.pixel_range());
             let px = sample_tile(&self.frame, tile, &self.sampling, |raster, rgba| film.splat(raster, rgba));
-            RenderedTile { tile: *tile, px, film: Some(film), pixels_later: self.pixels_later }
+            RenderedTile {
+                tile: *tile,
+                px,
+                film: Some(film),
+                pixels_later: self.pixels_later,
+                sends_depth_and_ids: true,
+            }
         }
     }
 
@@ -1384,7 +1405,7 @@ fn framebuffer(world: &World, tiles: Vec<(Tile, TileSamples)>) -> Framebuffer {
             }
         }
     }
-    let mut fb = assemble_framebuffer((w, h), tiles, exposure);
+    let mut fb = assemble_framebuffer((w, h), tiles, exposure, world.options.depth_and_ids);
     fb.outputs = outputs;
     fb
 }
@@ -1394,6 +1415,7 @@ fn assemble_framebuffer(
     (w, h): (u32, u32),
     tiles: Vec<(Tile, TileSamples)>,
     exposure: Option<(f32, f32)>,
+    depth_and_ids: bool,
 ) -> Framebuffer {
     // `par_chunks_mut` panics on chunks of 0 elements (an image 0 pixels wide).
     let (width, band) = (w as usize, TILE_SIZE as usize);
@@ -1413,11 +1435,11 @@ fn assemble_framebuffer(
     let depth = fb.depth.par_chunks_mut(chunk);
     let ids = fb.object_id.par_chunks_mut(chunk);
     rgba.zip(depth).zip(ids).zip(by_band).enumerate().for_each(|(b, (((rgba, depth), ids), tiles))| {
-        write_tiles(BandOut { rgba, depth, ids, width, y0: b * band }, tiles, exposure);
+        write_tiles(BandOut { rgba, depth, ids, width, y0: b * band, depth_and_ids }, tiles, exposure);
     });
     // Tiles that straddle bands (none from the renderer's own tiling) go in one by one.
     let (rgba, depth, ids) = (&mut fb.rgba[..], &mut fb.depth[..], &mut fb.object_id[..]);
-    write_tiles(BandOut { rgba, depth, ids, width, y0: 0 }, others, exposure);
+    write_tiles(BandOut { rgba, depth, ids, width, y0: 0, depth_and_ids }, others, exposure);
     fb
 }
 
@@ -1442,6 +1464,8 @@ struct BandOut<'a> {
     ids: &'a mut [u32],
     width: usize,
     y0: usize,
+    /// Whether depth and object ids are written ([`super::RenderOptions::depth_and_ids`]).
+    depth_and_ids: bool,
 }
 
 /// Writes finished tiles into `out`, which holds their rows.
@@ -1469,6 +1493,9 @@ fn write_tile(out: &mut BandOut<'_>, tile: &Tile, px: &TileSamples, exposure: Op
                 expose(&mut c, exposure);
             }
             rgba.copy_from_slice(&c);
+        }
+        if !out.depth_and_ids {
+            continue;
         }
         if let (Some(d), Some(v)) = (out.depth.get_mut(to..to + tw), px.depth.get(from..from + tw)) {
             d.copy_from_slice(v);
@@ -1571,7 +1598,7 @@ mod tests {
         // The renderer's 16-row tiles, then tiles that straddle the 16-row bands, and a few more
         // shapes; images whose height is not a multiple of 16.
         for (size, tile) in [((40, 37), (16, 16)), ((40, 37), (7, 10)), ((23, 50), (23, 3)), ((5, 16), (16, 16))] {
-            let fb = assemble_framebuffer(size, tiles_of(size, tile), None);
+            let fb = assemble_framebuffer(size, tiles_of(size, tile), None, true);
             for y in 0..size.1 {
                 for x in 0..size.0 {
                     let i = (y * size.0 + x) as usize;
@@ -1581,7 +1608,7 @@ mod tests {
                 }
             }
         }
-        let empty = assemble_framebuffer((0, 0), Vec::new(), None);
+        let empty = assemble_framebuffer((0, 0), Vec::new(), None, true);
         assert!(empty.rgba.is_empty() && empty.depth.is_empty());
     }
 
@@ -1594,10 +1621,10 @@ mod tests {
             for exposure in [None, Some((2.0, 0.5))] {
                 let mut fb = blank_framebuffer(size);
                 {
-                    let bands = Bands::of(&mut fb);
+                    let bands = Bands::of(&mut fb, true);
                     tiles_of(size, tile).par_iter().rev().for_each(|(t, px)| bands.write(*t, px, exposure));
                 }
-                let assembled = assemble_framebuffer(size, tiles_of(size, tile), exposure);
+                let assembled = assemble_framebuffer(size, tiles_of(size, tile), exposure, true);
                 assert_eq!(fb, assembled, "{size:?} {tile:?} {exposure:?}");
             }
         }
@@ -1680,7 +1707,7 @@ mod tests {
 
     #[test]
     fn exposure_applies_to_colour_not_alpha() {
-        let fb = assemble_framebuffer((16, 16), tiles_of((16, 16), (16, 16)), Some((2.0, 0.5)));
+        let fb = assemble_framebuffer((16, 16), tiles_of((16, 16), (16, 16)), Some((2.0, 0.5)), true);
         // (2 * 3)^(1 / 0.5) = 36, (2 * 1)^2 = 4; alpha untouched.
         assert_eq!(fb.pixel(3, 1), [36.0, 4.0, 4.0, 0.5]);
     }

@@ -712,8 +712,10 @@ impl Accumulator {
             }
             fb.rgba[4 * i..4 * i + 4].copy_from_slice(&c);
         }
-        fb.depth.copy_from_slice(&self.depth);
-        fb.object_id.copy_from_slice(&self.object_id);
+        if world.options.depth_and_ids {
+            fb.depth.copy_from_slice(&self.depth);
+            fb.object_id.copy_from_slice(&self.object_id);
+        }
         fb
     }
 }

@@ -597,6 +597,11 @@ pub struct RenderOptions {
     /// that only wants frames and ray counts (BART playback) turns it off, and the report's
     /// shading times are then zero.
     pub time_shaders: bool,
+    /// Whether the frame's framebuffer gets each pixel's depth and object id
+    /// ([`super::Framebuffer::depth`], [`super::Framebuffer::object_id`]); off, they keep their
+    /// blank values (infinity, `u32::MAX`). An application that reads only colour turns it off:
+    /// a distributed frame's tiles then travel without them, two thirds of the bytes.
+    pub depth_and_ids: bool,
     /// Whether a batch of hits whose surface shader calls `trace` runs the shader twice, so that
     /// the rays of all its chunks are traced and shaded together (`render/trace_ahead.rs`). The
     /// images are the same either way; off, each chunk's rays are traced and shaded on their own
@@ -705,6 +710,7 @@ impl Default for RenderOptions {
             clipping_planes: Vec::new(),
             pixel_filter: PixelFilter::default(),
             time_shaders: true,
+            depth_and_ids: true,
             trace_ahead: true,
             gi: GiOptions::default(),
             refine_on: RefineOn::default(),
