@@ -232,6 +232,35 @@ fn bart_frames_render_the_same_over_three_ranks() {
     let _ = bart_alone_and_over_ranks("../shared/scenes/bart/robot/aff/Robot.aff", 2, "64x48", 3);
 }
 
+/// Without `-q`, each frame's line is followed by its workers' line: what they rendered and
+/// fetched for that frame (the first frame fetches what its rays reach; the same view again,
+/// nothing).
+#[test]
+fn bart_over_ranks_prints_what_each_frame_fetched() {
+    let path = repo("../shared/scenes/bart/robot/aff/Robot.aff");
+    if !path.exists() || !mpirun_present() {
+        return;
+    }
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = path.to_string_lossy().into_owned();
+    let out = mpirun(2, &["bart", scene.as_str(), "--frames", "2", "--size", "64x48"], dir.path());
+    assert!(out.status.success(), "{}", text(&out));
+    let report = text(&out);
+    let lines: Vec<&str> = report.lines().collect();
+    let frames: Vec<usize> = (0..lines.len()).filter(|&i| lines[i].starts_with("frame ")).collect();
+    assert_eq!(frames.len(), 2, "{report}");
+    let objects = |line: &str| -> f64 {
+        let after = line.split("fetched a worker: ").nth(1).unwrap_or_default();
+        after.split(" objects").next().and_then(|n| n.parse().ok()).unwrap_or(-1.0)
+    };
+    for &i in &frames {
+        let next = lines.get(i + 1).copied().unwrap_or_default();
+        assert!(next.trim_start().starts_with("workers: rendering "), "{next}");
+        assert!(objects(next) >= 0.0, "{next}");
+    }
+    assert!(objects(lines[frames[0] + 1]) > 0.0, "{report}");
+}
+
 /// The kitchen's meshes are large: the master sends them while the worker sends its pixels, and
 /// neither send may wait for the other's receive. Its largest object travels in parts.
 #[test]
