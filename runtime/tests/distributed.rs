@@ -843,6 +843,25 @@ fn tiles_assembled_as_they_arrive_make_the_finished_image() {
         assert_eq!(assembled.object_id, finished.object_id);
         assert!(finished.rgba.iter().any(|&v| v > 0.0 && v < 1.0), "something was rendered");
     }
+    // A tile of colour alone goes into an image that keeps no depth or ids, and a tile of either
+    // kind is refused, not misread, by an image that expects the other.
+    let encoded = |keep: bool| {
+        let mut rt = office().expect("the office loads");
+        rt.options.depth_and_ids = keep;
+        let world = rt.build_world().expect("a world");
+        let renderer = TileRenderer::new(&world);
+        let tile = renderer.tiles()[0];
+        let mut bytes = Vec::new();
+        renderer.render_tile(&tile).encode(&mut bytes);
+        (tile, bytes, world)
+    };
+    let (tile, full, full_world) = encoded(true);
+    let (_, colour, colour_world) = encoded(false);
+    assert_eq!(full.len() - colour.len(), 8 * (tile.width * tile.height) as usize);
+    let mut keeps = TileRenderer::new(&full_world).start_assembly().expect("an assembly");
+    let mut keeps_none = TileRenderer::new(&colour_world).start_assembly().expect("an assembly");
+    assert!(keeps.add(tile, &colour).is_err() && keeps_none.add(tile, &full).is_err());
+    keeps_none.add(tile, &colour).expect("a tile of colour alone");
     // Tiles that are not final where rendered are kept for the frame's filter.
     let gaussian = gi_box_gaussian().expect("the scene loads").build_world().expect("a world");
     assert!(TileRenderer::new(&gaussian).start_assembly().is_none());

@@ -195,6 +195,11 @@ pub struct BenchRenderArgs {
     /// falloff against the uniform frame.
     #[arg(long, requires = "gaze")]
     pub compare_uniform: bool,
+    /// Keep each pixel's depth and object id, as an application that reads them would (by
+    /// default frames keep colour alone, as `rtsl render` does for an image of colour; over
+    /// `--mpi` the tiles then carry 24 bytes a pixel instead of 16).
+    #[arg(long)]
+    pub depth_and_ids: bool,
     /// Directories searched for shaders by name.
     #[arg(short = 'S', long = "shader-path")]
     pub shader_path: Vec<PathBuf>,
@@ -277,7 +282,7 @@ pub fn run_render(args: &BenchRenderArgs) -> anyhow::Result<()> {
         apply_image_flags(args, &mut rt);
         args.rays.apply(&mut rt)?;
         // Frames as `rtsl render` makes them for an image of colour: no depth or object ids.
-        rt.options.depth_and_ids = false;
+        rt.options.depth_and_ids = args.depth_and_ids;
         Ok(rt)
     };
     let (threads, pool) = super::worker_pool(args.threads)?;
