@@ -122,7 +122,7 @@ pub(crate) fn worker_time_line(frames: &str, times: &[WorkerTime]) -> String {
 /// for it and decoding it cost them, against the time they rendered.
 pub(crate) fn frame_workers_line(w: &WorkerTime, d: &Demand, workers: usize) -> String {
     let ms = |t: std::time::Duration| t.as_secs_f64() * 1e3;
-    let kb = |b: u64| b as f64 / 1e3 / workers.max(1) as f64;
+    let each = |n: u64| n as f64 / workers.max(1) as f64;
     format!(
         "workers: rendering {:.1} ms (fetch waits {:.1}, decoding {:.1}, off the core {:.1}), waiting for the last {:.1} ms; fetched a worker: {:.1} objects {:.1} kB, {:.1} parts, {:.1} textures {:.1} levels {:.1} tiles {:.1} kB; {} tiles set aside",
         ms(w.rendering),
@@ -130,13 +130,13 @@ pub(crate) fn frame_workers_line(w: &WorkerTime, d: &Demand, workers: usize) -> 
         ms(w.loading),
         ms(w.off_core),
         ms(w.after_done),
-        d.fetched_objects as f64 / workers.max(1) as f64,
-        kb(d.fetched_bytes),
-        d.fetched_parts as f64 / workers.max(1) as f64,
-        d.fetched_textures as f64 / workers.max(1) as f64,
-        d.fetched_texture_levels as f64 / workers.max(1) as f64,
-        d.fetched_texture_tiles as f64 / workers.max(1) as f64,
-        kb(d.fetched_texture_bytes),
+        each(d.fetched_objects),
+        each(d.fetched_bytes) / 1e3,
+        each(d.fetched_parts),
+        each(d.fetched_textures),
+        each(d.fetched_texture_levels),
+        each(d.fetched_texture_tiles),
+        each(d.fetched_texture_bytes) / 1e3,
         w.set_aside,
     )
 }
