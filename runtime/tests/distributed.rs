@@ -1526,6 +1526,50 @@ fn workers_fetch_the_parts_of_a_large_object_that_rays_reach() -> Result<(), Dis
     Ok(())
 }
 
+/// An object in parts that a worker's rays reach whole (a wall in full view) has every part
+/// fetched in the first frame; from the next frame the worker traverses it as the one tree the
+/// master cut it from (`Object::join_parts`): it holds no parts any more, fetches nothing, and
+/// its frames, the instance moved included, are still the single process's, bit for bit.
+#[test]
+fn an_object_reached_whole_is_joined_from_its_parts() -> Result<(), DistributedError> {
+    let e = |e: rtsl_runtime::api::ApiError| e.to_string();
+    let mut rt = little_scene().expect("the little scene");
+    let wall = rt.begin_object().map_err(e).expect("an object");
+    rt.begin(Primitive::Triangles).map_err(e).expect("triangles");
+    let (nx, ny) = (60, 20);
+    let at = |i: u32, k: u32| [-1.5 + i as f32 * 0.05, 1.0 + k as f32 * 0.05, -1.0 - 0.01 * ((i * 3 + k) % 4) as f32];
+    for k in 0..ny {
+        for i in 0..nx {
+            for [a, b] in [[(i, k), (i + 1, k)], [(i + 1, k), (i + 1, k + 1)]] {
+                for p in [at(i, k), at(a.0, a.1), at(b.0, b.1)] {
+                    rt.vertex(p[0], p[1], p[2]).map_err(e).expect("a vertex");
+                }
+            }
+        }
+    }
+    rt.end().map_err(e).expect("end");
+    rt.end_object().map_err(e).expect("end_object");
+    rt.instantiate_object(wall).map_err(e).expect("an instance");
+    let world = rt.build_world().expect("a world");
+    let bvh = rt.object_bvh(wall, &world).expect("the wall's BVH");
+    let parts = rtsl_runtime::accel::parts::cut(bvh, 256).parts.len() as u64;
+    rt.return_scene(world);
+    assert!(parts > 8, "{parts} parts");
+
+    let demands = with_workers(1, Duration::from_secs(60), |m| {
+        m.set_parts(1000, 256);
+        frames_moving_once(m, &mut rt, 2, "frames of an object joined from its parts")
+    })?;
+    let (first, _) = demands[0];
+    assert_eq!((first.fetched_parts, first.resident_parts), (parts, parts), "{first:?}");
+    for (later, traffic) in &demands[1..] {
+        assert_eq!((later.fetched_objects, later.fetched_parts, traffic.fetches), (0, 0, 0), "{later:?}");
+        assert_eq!((later.resident_parts, later.resident_objects), (0, first.resident_objects), "{later:?}");
+        assert_eq!((later.evicted_objects, later.evicted_parts), (0, 0), "{later:?}");
+    }
+    Ok(())
+}
+
 /// A cache too small for anything drops a large object's parts, then the object, before each
 /// frame; the frame fetches what it reaches again and is still the single process's.
 #[test]

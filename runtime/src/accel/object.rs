@@ -492,6 +492,19 @@ impl Object {
         part.bvh.take().map_or(0, |b| b.memory_bytes())
     }
 
+    /// Makes a demand-loaded object's BVH in parts whole once every part is here
+    /// ([`ObjectBvh::joined`]), so that rays no longer traverse it part by part; returns whether
+    /// it did. Its parts then go together, with the object ([`Object::evict`]).
+    pub fn join_parts(&mut self) -> bool {
+        if self.remote.is_none() {
+            return false;
+        }
+        let Some(data) = self.data.get_mut() else { return false };
+        let Some(joined) = data.bvh.joined() else { return false };
+        data.bvh = Arc::new(joined);
+        true
+    }
+
     /// The root bounds of the object's BVH, without fetching it.
     pub fn bounds(&self) -> Option<(Vec3A, Vec3A)> {
         match (&self.remote, self.data.get()) {
@@ -602,6 +615,36 @@ impl ObjectBvh {
         let parts =
             parts.into_iter().map(|(triangles, bounds)| Part { triangles, bounds, ..Part::default() }).collect();
         ObjectBvh { bvh: small, wide, blocks: Vec::new(), deformed, parts: Some(Box::new(Parts { parts })) }
+    }
+
+    /// This BVH in parts made whole again, once every part is here: the tree it was cut from
+    /// ([`super::parts::join`]), with the parts' prepared triangles in its leaf order and its
+    /// 8-wide form. Rays then find the same hits (the parts' traversal is the whole tree's, see
+    /// [`super::parts`]) without a traversal per part. `None` for a whole tree, or while a part is
+    /// missing.
+    pub fn joined(&self) -> Option<ObjectBvh> {
+        let parts = self.parts.as_deref()?;
+        let held: Vec<&ObjectBvh> = parts.parts.iter().map(|p| p.bvh.get()).collect::<Option<_>>()?;
+        let trees: Vec<&Bvh4> = held.iter().map(|p| &p.bvh).collect();
+        let (bvh, order) = super::parts::join(&self.bvh, &trees)?;
+        let in_order = |blocks_of: &dyn Fn(&ObjectBvh) -> Option<&[TriangleBlock]>| -> Option<Vec<TriangleBlock>> {
+            let mut blocks = Vec::with_capacity(bvh.prim_order.len() / BLOCK_WIDTH);
+            for &p in &order {
+                blocks.extend_from_slice(blocks_of(held[p as usize])?);
+            }
+            (blocks.len() * BLOCK_WIDTH == bvh.prim_order.len()).then_some(blocks)
+        };
+        let blocks = in_order(&|p| Some(&p.blocks))?;
+        let deformed = match &self.deformed {
+            None => None,
+            Some(d) => Some(DeformedTriangles {
+                close: in_order(&|p| p.deformed.as_ref().map(|d| d.close.as_slice()))?,
+                open_time: d.open_time,
+                close_time: d.close_time,
+            }),
+        };
+        let wide = Bvh8::from_bvh4(&bvh);
+        Some(ObjectBvh { bvh, wide, blocks, deformed, parts: None })
     }
 
     /// This (whole) BVH of `mesh` in parts of at most `part_triangles` triangles, every part here.

@@ -183,6 +183,88 @@ impl Cutter<'_> {
     }
 }
 
+/// The whole tree that [`cut`] cut into `small` and `parts` (part `p` the tree of `parts[p]`),
+/// with the parts in the order their blocks take in it (each part's blocks follow the last's):
+/// the inverse of [`cut`], node for node and slot for slot. `None` if the small tree names a part
+/// not given.
+pub fn join(small: &Bvh4, parts: &[&Bvh4]) -> Option<(Bvh4, Vec<u32>)> {
+    if small.nodes.is_empty() {
+        return Some((Bvh4::default(), Vec::new()));
+    }
+    let mut joiner = Joiner { small, parts, out: Bvh4 { bounds: small.bounds, ..Bvh4::default() }, order: Vec::new() };
+    joiner.out.depth = joiner.visit(0, 1)?;
+    Some((joiner.out, joiner.order))
+}
+
+struct Joiner<'a> {
+    small: &'a Bvh4,
+    parts: &'a [&'a Bvh4],
+    out: Bvh4,
+    /// The parts in the order met.
+    order: Vec<u32>,
+}
+
+impl Joiner<'_> {
+    /// Copies small node `i` (at level `level`) into the whole tree, its parts put back under it
+    /// (as [`Cutter::visit`] took them out); returns the depth of its subtree.
+    fn visit(&mut self, i: usize, level: usize) -> Option<usize> {
+        let at = self.out.nodes.len();
+        let node = *self.small.nodes.get(i)?;
+        self.out.nodes.push(node);
+        let mut depth = level;
+        for k in 0..4 {
+            let r = node.child[k];
+            if r == EMPTY_CHILD {
+                continue;
+            }
+            let reference = if r & LEAF_BIT != 0 {
+                let p = leaf_range(r).0;
+                let part = *self.parts.get(p as usize)?;
+                self.order.push(p);
+                let (reference, part_depth) = self.put_back(part)?;
+                depth = depth.max(level + part_depth);
+                reference
+            } else {
+                let child = self.out.nodes.len() as u32;
+                depth = depth.max(self.visit(r as usize, level + 1)?);
+                child
+            };
+            self.out.nodes[at].child[k] = reference;
+        }
+        Some(depth)
+    }
+
+    /// Appends `part` (its nodes in pre-order, its blocks in the order met, as [`Cutter::copy`]
+    /// made them) to the whole tree: returns the reference its parent takes and the levels it
+    /// adds below the parent.
+    fn put_back(&mut self, part: &Bvh4) -> Option<(u32, usize)> {
+        let block_base = (self.out.prim_order.len() / BLOCK_WIDTH) as u32;
+        let root = part.nodes.first()?;
+        if part.nodes.len() == 1 && root.child[0] & LEAF_BIT != 0 && root.child[1..].iter().all(|&c| c == EMPTY_CHILD) {
+            // A leaf alone ([`Cutter::part`]): the parent takes the leaf, not the root around it.
+            let (block, count) = leaf_range(root.child[0]);
+            let slots = part.prim_order.get(BLOCK_WIDTH * block as usize..BLOCK_WIDTH * (block as usize + 1))?;
+            self.out.prim_order.extend_from_slice(slots);
+            return Some((leaf_ref(block_base, count), 0));
+        }
+        let node_base = self.out.nodes.len() as u32;
+        for node in &part.nodes {
+            let mut node = *node;
+            for r in node.child.iter_mut().filter(|r| **r != EMPTY_CHILD) {
+                *r = if *r & LEAF_BIT != 0 {
+                    let (block, count) = leaf_range(*r);
+                    leaf_ref(block_base + block, count)
+                } else {
+                    node_base + *r
+                };
+            }
+            self.out.nodes.push(node);
+        }
+        self.out.prim_order.extend_from_slice(&part.prim_order);
+        Some((node_base, part.depth))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -322,6 +404,41 @@ mod tests {
         assert_eq!(digest(BuildQuality::High), digest(BuildQuality::High));
         assert_ne!(digest(BuildQuality::High), digest(BuildQuality::Fast));
         assert_ne!(digest(BuildQuality::High), MeshSummary::of(&mesh, None).digest);
+    }
+
+    /// Joined, the parts give back the tree they were cut from, node for node and slot for slot,
+    /// with its prepared triangles (at both ends of a deformation) and its 8-wide nodes; a BVH in
+    /// parts with a part missing stays in parts.
+    #[test]
+    fn joined_parts_are_the_whole_tree_they_were_cut_from() {
+        let standing = scattered(3000);
+        let mut deforming = standing.clone();
+        let close = deforming.positions.iter().map(|p| *p + glam::Vec3::new(0.3, -0.2, 0.1)).collect();
+        deforming.deformation = Some(Deformation { positions: close, normals: None, open: 0.0, close: 1.0 });
+        for mesh in [standing, deforming] {
+            let whole = ObjectBvh::build(&mesh, BuildQuality::High);
+            for limit in [1, 16, 64, 500, 5000] {
+                let parted = whole.in_parts(&mesh, limit);
+                let held = parted.parts.as_ref().expect("parts").parts.len();
+                assert!(held > 1, "limit {limit}: {held} parts");
+                let joined = parted.joined().expect("every part is here");
+                assert!(joined.parts.is_none());
+                assert_eq!(joined.bvh.nodes, whole.bvh.nodes, "limit {limit}");
+                assert_eq!(joined.bvh.prim_order, whole.bvh.prim_order, "limit {limit}");
+                assert_eq!(joined.bvh.depth, whole.bvh.depth, "limit {limit}");
+                assert_eq!(joined.bvh.bounds, whole.bvh.bounds, "limit {limit}");
+                assert_eq!(joined.blocks, whole.blocks, "limit {limit}");
+                assert_eq!(joined.wide.nodes, whole.wide.nodes, "limit {limit}");
+                let close = |b: &ObjectBvh| b.deformed.as_ref().map(|d| (d.close.clone(), d.open_time, d.close_time));
+                assert_eq!(close(&joined), close(&whole), "limit {limit}");
+
+                let mut missing = parted.clone();
+                if let Some(parts) = missing.parts.as_deref_mut() {
+                    parts.parts[held / 2].bvh = std::sync::OnceLock::new();
+                }
+                assert!(missing.joined().is_none(), "limit {limit}: a part is missing");
+            }
+        }
     }
 
     #[test]
