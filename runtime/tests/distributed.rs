@@ -1529,7 +1529,8 @@ fn workers_fetch_the_parts_of_a_large_object_that_rays_reach() -> Result<(), Dis
 /// An object in parts that a worker's rays reach whole (a wall in full view) has every part
 /// fetched in the first frame; from the next frame the worker traverses it as the one tree the
 /// master cut it from (`Object::join_parts`): it holds no parts any more, fetches nothing, and
-/// its frames, the instance moved included, are still the single process's, bit for bit.
+/// its frames, the instance moved included, are still the single process's, bit for bit, whether
+/// the parts travelled plain or deflated.
 #[test]
 fn an_object_reached_whole_is_joined_from_its_parts() -> Result<(), DistributedError> {
     let e = |e: rtsl_runtime::api::ApiError| e.to_string();
@@ -1556,17 +1557,24 @@ fn an_object_reached_whole_is_joined_from_its_parts() -> Result<(), DistributedE
     rt.return_scene(world);
     assert!(parts > 8, "{parts} parts");
 
-    let demands = with_workers(1, Duration::from_secs(60), |m| {
-        m.set_parts(1000, 256);
-        frames_moving_once(m, &mut rt, 2, "frames of an object joined from its parts")
-    })?;
-    let (first, _) = demands[0];
-    assert_eq!((first.fetched_parts, first.resident_parts), (parts, parts), "{first:?}");
-    for (later, traffic) in &demands[1..] {
-        assert_eq!((later.fetched_objects, later.fetched_parts, traffic.fetches), (0, 0, 0), "{later:?}");
-        assert_eq!((later.resident_parts, later.resident_objects), (0, first.resident_objects), "{later:?}");
-        assert_eq!((later.evicted_objects, later.evicted_parts), (0, 0), "{later:?}");
+    // Plain (ranks that share memory) and deflated (between machines): the same frames.
+    let mut part_bytes = Vec::new();
+    for deflated in [false, true] {
+        let demands = with_workers(1, Duration::from_secs(60), |m| {
+            m.set_parts(1000, 256);
+            m.set_deflate(deflated);
+            frames_moving_once(m, &mut rt, 2, "frames of an object joined from its parts")
+        })?;
+        let (first, _) = demands[0];
+        assert_eq!((first.fetched_parts, first.resident_parts), (parts, parts), "{first:?}");
+        for (later, traffic) in &demands[1..] {
+            assert_eq!((later.fetched_objects, later.fetched_parts, traffic.fetches), (0, 0, 0), "{later:?}");
+            assert_eq!((later.resident_parts, later.resident_objects), (0, first.resident_objects), "{later:?}");
+            assert_eq!((later.evicted_objects, later.evicted_parts), (0, 0), "{later:?}");
+        }
+        part_bytes.push(first.fetched_part_bytes);
     }
+    assert!(part_bytes[1] < part_bytes[0], "deflated against plain: {part_bytes:?}");
     Ok(())
 }
 

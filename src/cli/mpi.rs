@@ -54,6 +54,20 @@ pub struct WorkerArgs {
     /// rendered again once they are here, while the thread renders other tiles).
     #[arg(long)]
     pub no_asking_ahead: bool,
+    /// With --mpi: whether meshes and their BVHs travel to the workers deflated: `auto` when
+    /// some rank runs on another machine (ranks of one machine copy them through shared memory,
+    /// faster than deflating and inflating them), or `always`, or `never`.
+    #[arg(long, value_enum, default_value_t = Deflate::Auto)]
+    pub deflate: Deflate,
+}
+
+/// When meshes and their BVHs travel deflated (`--deflate`).
+#[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Deflate {
+    /// When some rank runs on another machine than the master.
+    Auto,
+    Always,
+    Never,
 }
 
 impl WorkerArgs {
@@ -63,6 +77,11 @@ impl WorkerArgs {
         master.set_texture_tiles_from(self.tile_textures_from_mb.saturating_mul(1 << 20));
         master.set_tile_copies(!self.no_tile_copies);
         master.set_spinning(self.master_spins);
+        match self.deflate {
+            Deflate::Auto => {}
+            Deflate::Always => master.set_deflate(true),
+            Deflate::Never => master.set_deflate(false),
+        }
     }
 }
 

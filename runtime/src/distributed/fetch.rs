@@ -357,26 +357,26 @@ pub(super) enum ObjectTree<'a> {
 }
 
 /// An object as the master sends it: its mesh ([`crate::api::encode_mesh`]) and its BVH, the
-/// mesh's length first, then a byte saying which tree follows (0: none, 1: whole, 2: parts),
-/// deflated (the fastest level: the master encodes each object once).
-pub(super) fn encode_object(mesh: &[u8], tree: ObjectTree) -> Vec<u8> {
+/// mesh's length first, then a byte saying which tree follows (0: none, 1: whole, 2: parts), a
+/// payload deflated or not ([`crate::deflate::pack`]; the master encodes each object once).
+pub(super) fn encode_object(mesh: &[u8], tree: ObjectTree, deflated: bool) -> Vec<u8> {
     let (kind, bytes) = match tree {
         ObjectTree::None => (0u8, &[][..]),
         ObjectTree::Whole(bytes) => (1, bytes),
         ObjectTree::Parts(bytes) => (2, bytes),
     };
-    crate::deflate::deflate(&[&(mesh.len() as u64).to_le_bytes(), mesh, &[kind], bytes])
+    crate::deflate::pack(&[&(mesh.len() as u64).to_le_bytes(), mesh, &[kind], bytes], deflated)
 }
 
 /// A part of an object's BVH as the master sends it ([`crate::accel::wire::encode_bvh4`] of the
-/// part), deflated.
-pub(super) fn encode_part(bvh: &[u8]) -> Vec<u8> {
-    crate::deflate::deflate(&[bvh])
+/// part), a payload deflated or not.
+pub(super) fn encode_part(bvh: &[u8], deflated: bool) -> Vec<u8> {
+    crate::deflate::pack(&[bvh], deflated)
 }
 
-/// An object [`encode_object`] wrote, inflated: at most [`MAX_INFLATED_OBJECT`] bytes.
-fn inflate_object(bytes: &[u8]) -> Result<Vec<u8>, String> {
-    crate::deflate::inflate_at_most(bytes, MAX_INFLATED_OBJECT).map_err(|e| format!("the object {e}"))
+/// The bytes of an object [`encode_object`] wrote: at most [`MAX_INFLATED_OBJECT`].
+fn unpack_object(bytes: &[u8]) -> Result<std::borrow::Cow<'_, [u8]>, String> {
+    crate::deflate::unpack_at_most(bytes, MAX_INFLATED_OBJECT).map_err(|e| format!("the object {e}"))
 }
 
 /// The mesh's and the tree's bytes of an inflated object.
@@ -467,7 +467,7 @@ impl MeshSource for FetchLink {
             self.fail(format!("the master has no mesh for object {key}"));
             return FetchedMesh::default();
         }
-        let decoded = inflate_object(&bytes).and_then(|plain| {
+        let decoded = unpack_object(&bytes).and_then(|plain| {
             let (mesh, tree) = split_object(&plain)?;
             let mesh = decode_mesh(mesh).map_err(|e| e.to_string())?;
             let (bvh, parts) = match tree {
@@ -512,7 +512,7 @@ impl FetchLink {
             self.fail(format!("the master has no part {part} of object {key}"));
             return None;
         }
-        let decoded = crate::deflate::inflate_at_most(&bytes, MAX_INFLATED_OBJECT)
+        let decoded = crate::deflate::unpack_at_most(&bytes, MAX_INFLATED_OBJECT)
             .map_err(|e| format!("the part {e}"))
             .and_then(|plain| decode_part(&plain, mesh, triangles, bounds));
         decoded.inspect_err(|e| self.fail(format!("part {part} of object {key}: {e}"))).ok()
@@ -721,29 +721,36 @@ mod tests {
         let mut bvh = Vec::new();
         crate::accel::wire::encode_bvh4(&built, &mut bvh);
         let encoded = crate::api::encode_mesh(&mesh);
-        let (fetched, frame) = fetched_with(encode_object(&encoded, ObjectTree::Whole(&bvh)));
-        assert_eq!(frame.failure, None);
-        assert_eq!(fetched.mesh.triangle_count(), 300);
-        let arrived = fetched.bvh.expect("the master's BVH");
-        assert_eq!((arrived.nodes, arrived.prim_order), (built.nodes.clone(), built.prim_order.clone()));
-        // Without a BVH the mesh alone arrives (the object builds its own).
-        let (fetched, frame) = fetched_with(encode_object(&encoded, ObjectTree::None));
-        assert!(fetched.bvh.is_none() && frame.failure.is_none());
-        assert_eq!(fetched.mesh.triangle_count(), 300);
-        // A BVH for another mesh, or a cut object, fails the frame and leaves the object empty.
-        let mut other = Vec::new();
-        crate::accel::wire::encode_bvh4(
-            &ObjectBvh::build(&ribbon(299), crate::accel::bvh4::BuildQuality::High).bvh,
-            &mut other,
-        );
-        for damaged in [
-            encode_object(&encoded, ObjectTree::Whole(&other)),
-            encode_object(&encoded, ObjectTree::Whole(&bvh))[..100].to_vec(),
-        ] {
-            let (fetched, frame) = fetched_with(damaged);
-            assert_eq!(fetched.mesh.triangle_count(), 0);
-            assert!(frame.failure.is_some_and(|f| f.contains("object 7")));
+        // Plain, and deflated (between machines): the same object arrives.
+        for deflated in [false, true] {
+            let (fetched, frame) = fetched_with(encode_object(&encoded, ObjectTree::Whole(&bvh), deflated));
+            assert_eq!(frame.failure, None);
+            assert_eq!(fetched.mesh.triangle_count(), 300);
+            let arrived = fetched.bvh.expect("the master's BVH");
+            assert_eq!((arrived.nodes, arrived.prim_order), (built.nodes.clone(), built.prim_order.clone()));
+            assert_eq!(frame.object_bytes, encode_object(&encoded, ObjectTree::Whole(&bvh), deflated).len() as u64);
+            // Without a BVH the mesh alone arrives (the object builds its own).
+            let (fetched, frame) = fetched_with(encode_object(&encoded, ObjectTree::None, deflated));
+            assert!(fetched.bvh.is_none() && frame.failure.is_none());
+            assert_eq!(fetched.mesh.triangle_count(), 300);
+            // A BVH for another mesh, or a cut object, fails the frame and leaves the object empty.
+            let mut other = Vec::new();
+            crate::accel::wire::encode_bvh4(
+                &ObjectBvh::build(&ribbon(299), crate::accel::bvh4::BuildQuality::High).bvh,
+                &mut other,
+            );
+            for damaged in [
+                encode_object(&encoded, ObjectTree::Whole(&other), deflated),
+                encode_object(&encoded, ObjectTree::Whole(&bvh), deflated)[..100].to_vec(),
+            ] {
+                let (fetched, frame) = fetched_with(damaged);
+                assert_eq!(fetched.mesh.triangle_count(), 0);
+                assert!(frame.failure.is_some_and(|f| f.contains("object 7")));
+            }
         }
+        let plain = encode_object(&encoded, ObjectTree::Whole(&bvh), false).len();
+        let deflated = encode_object(&encoded, ObjectTree::Whole(&bvh), true).len();
+        assert!(deflated < plain, "{deflated} deflated against {plain} plain");
     }
 
     #[test]

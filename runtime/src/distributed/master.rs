@@ -192,6 +192,8 @@ pub struct Master<T: Transport> {
     /// encoded again while its mesh stands.
     encoded_objects: HashMap<u32, Encoded>,
     encoded_bytes: usize,
+    /// Whether objects and their parts travel deflated ([`Master::set_deflate`]).
+    deflate: bool,
     /// Objects of more triangles than this travel in parts of at most `part_triangles`.
     parted_above: usize,
     part_triangles: u32,
@@ -383,6 +385,7 @@ impl<T: Transport> Master<T> {
     /// [`Master::check_workers`].
     pub fn connect(transport: T) -> Result<Master<T>, DistributedError> {
         let n = transport.size();
+        let deflate = !transport.shares_memory();
         let (decoded_tx, decoded_rx) = channel();
         let mut master = Master {
             transport,
@@ -400,6 +403,7 @@ impl<T: Transport> Master<T> {
             worker_times: Vec::new(),
             encoded_objects: HashMap::new(),
             encoded_bytes: 0,
+            deflate,
             parted_above: PARTED_ABOVE,
             part_triangles: PART_TRIANGLES,
             texture_server: TextureServer::new(),
@@ -473,6 +477,16 @@ impl<T: Transport> Master<T> {
     /// for objects encoded from now on.
     pub fn set_parts(&mut self, above: usize, part_triangles: u32) {
         (self.parted_above, self.part_triangles) = (above, part_triangles.max(1));
+        self.encoded_objects.clear();
+        self.encoded_bytes = 0;
+    }
+
+    /// Sends objects and their BVHs' parts deflated (`true`) or plain. By default they go plain
+    /// when every rank shares the master's memory ([`Transport::shares_memory`]: MPI moves the
+    /// bytes through it, faster than deflating and inflating them), deflated otherwise. Takes
+    /// effect for objects encoded from now on.
+    pub fn set_deflate(&mut self, on: bool) {
+        self.deflate = on;
         self.encoded_objects.clear();
         self.encoded_bytes = 0;
     }
@@ -1145,6 +1159,7 @@ impl<T: Transport> Master<T> {
                     let counts: Vec<u32> = cut.parts.iter().map(|p| p.triangles).collect();
                     let mut small = Vec::new();
                     encode_small_tree(&cut.small, &counts, &mut small);
+                    let deflate = self.deflate;
                     let parts: Vec<Vec<u8>> = {
                         use rayon::prelude::*;
                         cut.parts
@@ -1152,18 +1167,18 @@ impl<T: Transport> Master<T> {
                             .map(|p| {
                                 let mut bytes = Vec::new();
                                 encode_bvh4(&p.bvh, &mut bytes);
-                                encode_part(&bytes)
+                                encode_part(&bytes, deflate)
                             })
                             .collect()
                     };
-                    (encode_object(&encoded_mesh, ObjectTree::Parts(&small)), parts)
+                    (encode_object(&encoded_mesh, ObjectTree::Parts(&small), self.deflate), parts)
                 }
                 Some(built) => {
                     let mut bvh = Vec::new();
                     encode_bvh4(built, &mut bvh);
-                    (encode_object(&encoded_mesh, ObjectTree::Whole(&bvh)), Vec::new())
+                    (encode_object(&encoded_mesh, ObjectTree::Whole(&bvh), self.deflate), Vec::new())
                 }
-                None => (encode_object(&encoded_mesh, ObjectTree::None), Vec::new()),
+                None => (encode_object(&encoded_mesh, ObjectTree::None, self.deflate), Vec::new()),
             };
             let encoded = Encoded { mesh: mesh.clone(), object: Arc::new(object_bytes), parts };
             let size = encoded.bytes();

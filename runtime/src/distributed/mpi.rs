@@ -39,6 +39,8 @@ pub struct MpiTransport {
     spare: RefCell<Vec<Vec<u8>>>,
     /// Receives poll without napping ([`Transport::set_spinning`]).
     spinning: std::cell::Cell<bool>,
+    /// Every rank runs on this rank's machine ([`Transport::shares_memory`]).
+    one_machine: bool,
     // Declared last: MPI is finalised after everything above is gone.
     _universe: mpi::environment::Universe,
 }
@@ -69,6 +71,9 @@ impl MpiTransport {
         precise_naps();
         let world = universe.world();
         let (rank, size) = (world.rank() as usize, world.size() as usize);
+        // Every rank calls this at start-up (a collective): the ranks that share this one's
+        // memory, all of them when the job runs on one machine.
+        let one_machine = world.split_shared(world.rank()).size() == world.size();
         let previous = std::panic::take_hook();
         std::panic::set_hook(Box::new(move |info| {
             previous(info);
@@ -83,6 +88,7 @@ impl MpiTransport {
             receiving: RefCell::new(Vec::new()),
             spare: RefCell::new(Vec::new()),
             spinning: std::cell::Cell::new(false),
+            one_machine,
             _universe: universe,
         })
     }
@@ -294,6 +300,10 @@ impl Transport for MpiTransport {
 
     fn set_spinning(&self, spinning: bool) {
         self.spinning.set(spinning);
+    }
+
+    fn shares_memory(&self) -> bool {
+        self.one_machine
     }
 
     fn try_recv(&self) -> Result<Option<(usize, Vec<u8>)>, TransportError> {

@@ -48,6 +48,12 @@ pub trait Transport {
     fn set_spinning(&self, spinning: bool) {
         let _ = spinning;
     }
+    /// Whether every rank of the group shares this rank's memory (threads of one process, or
+    /// processes of one machine, between which a message is a copy in memory): what travels
+    /// then goes plain, not deflated ([`super::Master::set_deflate`]).
+    fn shares_memory(&self) -> bool {
+        true
+    }
 }
 
 impl<T: Transport + ?Sized> Transport for Box<T> {
@@ -74,6 +80,9 @@ impl<T: Transport + ?Sized> Transport for Box<T> {
     }
     fn set_spinning(&self, spinning: bool) {
         (**self).set_spinning(spinning)
+    }
+    fn shares_memory(&self) -> bool {
+        (**self).shares_memory()
     }
 }
 

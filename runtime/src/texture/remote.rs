@@ -1009,11 +1009,7 @@ mod tests {
         // Level 0 comes in nine tiles, the last ones narrower.
         let image = floats(160);
         let plain = |answer: &TextureAnswer| postcard::to_allocvec(answer).unwrap();
-        let deflate = |bytes: &[u8]| {
-            let mut z = flate2::write::DeflateEncoder::new(Vec::new(), flate2::Compression::fast());
-            std::io::Write::write_all(&mut z, bytes).unwrap();
-            z.finish().unwrap()
-        };
+        let deflate = |bytes: &[u8]| crate::deflate::pack(&[bytes], true);
         let map = MipMap::new(image.clone());
         let pyramid = decode_answer(&describe(&map, [0; 32], TILE_SIDE, 1 << 20)).unwrap();
         let level = TextureAnswer::Level(LevelValues::of(map.level(1)));

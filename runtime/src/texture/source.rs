@@ -212,14 +212,14 @@ pub const MAX_INFLATED_ANSWER: u64 = (1 << 30) + (1 << 20);
 /// compresses each texture once, but while a worker waits.
 pub fn encode_answer(answer: &TextureAnswer) -> Vec<u8> {
     // Plain data of vectors and strings: encoding it cannot fail.
-    crate::deflate::deflate(&[&postcard::to_allocvec(answer).unwrap_or_default()])
+    crate::deflate::pack(&[&postcard::to_allocvec(answer).unwrap_or_default()], true)
 }
 
 /// An answer [`encode_answer`] wrote; an error for anything else, or one that would inflate past
 /// [`MAX_INFLATED_ANSWER`].
 pub fn decode_answer(bytes: &[u8]) -> Result<TextureAnswer, String> {
     let plain =
-        crate::deflate::inflate_at_most(bytes, MAX_INFLATED_ANSWER).map_err(|e| format!("the master's answer {e}"))?;
+        crate::deflate::unpack_at_most(bytes, MAX_INFLATED_ANSWER).map_err(|e| format!("the master's answer {e}"))?;
     postcard::from_bytes(&plain).map_err(|e| format!("the master's answer cannot be decoded: {e}"))
 }
 
