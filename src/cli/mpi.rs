@@ -35,7 +35,7 @@ pub struct WorkerArgs {
     /// subtree by subtree as rays reach them (parts of at most 16384 triangles).
     #[arg(long, value_name = "TRIANGLES", default_value_t = PARTED_ABOVE)]
     pub parts_above: usize,
-    /// With --mpi: textures of at least this many megabytes (as given, deflated) travel to the
+    /// With --mpi: textures of at least this many megabytes (as given, as they travel) travel to the
     /// workers in tiles of their large mip levels, fetched as lookups reach them; a worker reads
     /// such levels more slowly than whole ones.
     #[arg(long, value_name = "MB", default_value_t = TILED_FROM_BYTES >> 20)]
@@ -54,14 +54,14 @@ pub struct WorkerArgs {
     /// rendered again once they are here, while the thread renders other tiles).
     #[arg(long)]
     pub no_asking_ahead: bool,
-    /// With --mpi: whether meshes and their BVHs travel to the workers deflated: `auto` when
-    /// some rank runs on another machine (ranks of one machine copy them through shared memory,
-    /// faster than deflating and inflating them), or `always`, or `never`.
+    /// With --mpi: whether meshes, their BVHs and textures travel to the workers deflated:
+    /// `auto` when some rank runs on another machine (ranks of one machine copy them through
+    /// shared memory, faster than deflating and inflating them), or `always`, or `never`.
     #[arg(long, value_enum, default_value_t = Deflate::Auto)]
     pub deflate: Deflate,
 }
 
-/// When meshes and their BVHs travel deflated (`--deflate`).
+/// When meshes, their BVHs and textures travel deflated (`--deflate`).
 #[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Deflate {
     /// When some rank runs on another machine than the master.

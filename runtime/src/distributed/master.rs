@@ -14,7 +14,7 @@ use crate::api::{encode_mesh, Context, Replicator, TextureDelivery};
 use crate::render::progressive::{lattice_lanes, BatchReport, LatticeSamples, LatticeTracer, PixelLattice};
 use crate::render::{FrameReport, Framebuffer, LightPathCache, LightPaths, RenderedTile, TileRenderer, World};
 use crate::texture::{
-    encode_answer, DecodedTexture, Delivered, TextureAnswer, TextureKind, TexturePart, TextureServer,
+    encode_answer, DecodedTexture, Delivered, TextureAnswer, TextureKind, TexturePart, TextureServer, TILED_FROM_BYTES,
 };
 use std::collections::{HashMap, HashSet};
 use std::sync::mpsc::{channel, Receiver, Sender};
@@ -192,8 +192,10 @@ pub struct Master<T: Transport> {
     /// encoded again while its mesh stands.
     encoded_objects: HashMap<u32, Encoded>,
     encoded_bytes: usize,
-    /// Whether objects and their parts travel deflated ([`Master::set_deflate`]).
+    /// Whether objects, their parts and textures travel deflated ([`Master::set_deflate`]).
     deflate: bool,
+    /// Textures whose whole takes at least this many bytes travel in tiles of their large levels.
+    texture_tiles_from: usize,
     /// Objects of more triangles than this travel in parts of at most `part_triangles`.
     parted_above: usize,
     part_triangles: u32,
@@ -404,9 +406,10 @@ impl<T: Transport> Master<T> {
             encoded_objects: HashMap::new(),
             encoded_bytes: 0,
             deflate,
+            texture_tiles_from: TILED_FROM_BYTES,
             parted_above: PARTED_ABOVE,
             part_triangles: PART_TRIANGLES,
-            texture_server: TextureServer::new(),
+            texture_server: TextureServer::new().with_deflate(deflate),
             decoding: HashSet::new(),
             to_decode: Default::default(),
             considered: HashSet::new(),
@@ -455,7 +458,8 @@ impl<T: Transport> Master<T> {
     /// Sends the large levels of textures whose whole takes at least `bytes` to the workers in
     /// tiles (`texture/level_tiles.rs`; [`crate::texture::TILED_FROM_BYTES`] unless set).
     pub fn set_texture_tiles_from(&mut self, bytes: usize) {
-        self.texture_server = TextureServer::new().with_tiles_from(bytes);
+        self.texture_tiles_from = bytes;
+        self.texture_server = TextureServer::new().with_tiles_from(bytes).with_deflate(self.deflate);
     }
 
     /// Whether the master waits for its workers' messages polling without napping: for a master
@@ -481,14 +485,15 @@ impl<T: Transport> Master<T> {
         self.encoded_bytes = 0;
     }
 
-    /// Sends objects and their BVHs' parts deflated (`true`) or plain. By default they go plain
-    /// when every rank shares the master's memory ([`Transport::shares_memory`]: MPI moves the
-    /// bytes through it, faster than deflating and inflating them), deflated otherwise. Takes
-    /// effect for objects encoded from now on.
+    /// Sends objects, their BVHs' parts and textures deflated (`true`) or plain. By default they
+    /// go plain when every rank shares the master's memory ([`Transport::shares_memory`]: MPI
+    /// moves the bytes through it, faster than deflating and inflating them), deflated otherwise.
+    /// Takes effect for objects encoded and textures served from now on.
     pub fn set_deflate(&mut self, on: bool) {
         self.deflate = on;
         self.encoded_objects.clear();
         self.encoded_bytes = 0;
+        self.texture_server = TextureServer::new().with_tiles_from(self.texture_tiles_from).with_deflate(on);
     }
 
     /// How many workers render.
@@ -1124,7 +1129,7 @@ impl<T: Transport> Master<T> {
             }
             None => {
                 let none = Delivered::Missing { path: None, reason: "the master serves no textures".into() };
-                vec![encode_answer(&TextureAnswer::Whole(none)); requests.len()]
+                vec![encode_answer(&TextureAnswer::Whole(none), self.deflate); requests.len()]
             }
         };
         requests.into_iter().zip(answers).map(|((part, name, _), answer)| (part, name, answer)).collect()

@@ -185,6 +185,8 @@ pub struct TextureServer {
     batches: u64,
     /// Textures whose whole takes at least this many bytes send their large levels in tiles.
     tiled_from: usize,
+    /// Whether answers travel deflated ([`encode_answer`]).
+    deflated: bool,
 }
 
 struct Served {
@@ -204,6 +206,8 @@ struct Served {
     levels: Vec<OnceLock<Option<Arc<Vec<u8>>>>>,
     /// Each level's tiles' answers, encoded when first asked for (none for a level not cut).
     tiles: Vec<Box<[EncodedOnce]>>,
+    /// Whether its answers travel deflated.
+    deflated: bool,
 }
 
 /// An answer, encoded the first time it is asked for.
@@ -217,7 +221,13 @@ impl std::fmt::Debug for TextureServer {
 
 impl Default for TextureServer {
     fn default() -> TextureServer {
-        TextureServer { generation: 0, served: HashMap::new(), batches: 0, tiled_from: TILED_FROM_BYTES }
+        TextureServer {
+            generation: 0,
+            served: HashMap::new(),
+            batches: 0,
+            tiled_from: TILED_FROM_BYTES,
+            deflated: true,
+        }
     }
 }
 
@@ -230,6 +240,11 @@ impl TextureServer {
     /// tiles ([`TILED_FROM_BYTES`] unless told otherwise).
     pub fn with_tiles_from(self, bytes: usize) -> TextureServer {
         TextureServer { tiled_from: bytes, ..self }
+    }
+
+    /// The server, its answers deflated (the default) or plain ([`encode_answer`]).
+    pub fn with_deflate(self, deflated: bool) -> TextureServer {
+        TextureServer { deflated, ..self }
     }
 
     /// The encoded answers to `requests` (parts of names), in order, where `generation` is the
@@ -246,11 +261,11 @@ impl TextureServer {
         deliver: impl Fn(TextureKind, &str) -> Delivered + Sync,
     ) -> Vec<Arc<Vec<u8>>> {
         let new = self.undecoded(generation, requests);
-        let tiled_from = self.tiled_from;
+        let (tiled_from, deflated) = (self.tiled_from, self.deflated);
         let built: Vec<((String, bool), Served)> = new
             .into_par_iter()
             .map(|(name, raw)| {
-                let served = Served::of(deliver(TextureKind::Texture, &name), raw, tiled_from);
+                let served = Served::of(deliver(TextureKind::Texture, &name), raw, tiled_from, deflated);
                 ((name, raw), served)
             })
             .collect();
@@ -268,10 +283,10 @@ impl TextureServer {
         let answers = requests
             .par_iter()
             .map(|(part, name, held)| {
-                let unchanged = || Arc::new(encode_answer(&TextureAnswer::Unchanged));
+                let unchanged = || Arc::new(encode_answer(&TextureAnswer::Unchanged, deflated));
                 let raw = match *part {
                     TexturePart::Whole(kind) => {
-                        let whole = encode_answer(&TextureAnswer::Whole(deliver(kind, name)));
+                        let whole = encode_answer(&TextureAnswer::Whole(deliver(kind, name)), deflated);
                         if held.is_some_and(|d| d == <[u8; 32]>::from(blake3::hash(&whole))) {
                             return unchanged();
                         }
@@ -283,7 +298,10 @@ impl TextureServer {
                 };
                 // Every texture asked for was served above.
                 let Some(served) = served.get(&(name.clone(), raw)) else {
-                    return Arc::new(encode_answer(&TextureAnswer::Whole(deliver(TextureKind::Texture, name))));
+                    return Arc::new(encode_answer(
+                        &TextureAnswer::Whole(deliver(TextureKind::Texture, name)),
+                        deflated,
+                    ));
                 };
                 match *part {
                     TexturePart::Level { level, .. } => served.level(level as usize),
@@ -350,7 +368,7 @@ impl TextureServer {
     /// What decodes textures for this server, on any thread, under the texture cache's
     /// `generation`.
     pub fn decoder(&self, generation: u64) -> TextureDecoder {
-        TextureDecoder { generation, tiled_from: self.tiled_from }
+        TextureDecoder { generation, tiled_from: self.tiled_from, deflated: self.deflated }
     }
 
     /// How many textures it serves, decoded.
@@ -393,6 +411,7 @@ impl TextureServer {
 pub struct TextureDecoder {
     generation: u64,
     tiled_from: usize,
+    deflated: bool,
 }
 
 /// A texture as a [`TextureDecoder`] made it ready to serve.
@@ -413,23 +432,23 @@ impl TextureDecoder {
     /// Texture `name` (raw: read without conversion) ready to serve, from what the name stands
     /// for (`Context::deliver_texture`).
     pub fn decode(&self, name: String, raw: bool, delivered: Delivered) -> DecodedTexture {
-        let served = Served::of(delivered, raw, self.tiled_from);
+        let served = Served::of(delivered, raw, self.tiled_from, self.deflated);
         DecodedTexture { generation: self.generation, key: (name, raw), served }
     }
 }
 
 impl Served {
-    fn of(delivered: Delivered, raw: bool, tiled_from: usize) -> Served {
+    fn of(delivered: Delivered, raw: bool, tiled_from: usize, deflated: bool) -> Served {
         let map = image_from_delivered(delivered.clone(), raw).ok().map(|loaded| {
             MipMap::with_wrap(loaded.image, loaded.wrap.unwrap_or([Wrap::Periodic; 2]))
                 .with_projection(loaded.projection)
         });
-        let whole = Arc::new(encode_answer(&TextureAnswer::Whole(delivered)));
+        let whole = Arc::new(encode_answer(&TextureAnswer::Whole(delivered), deflated));
         let digest: [u8; 32] = blake3::hash(&whole).into();
         let tile_side = map.as_ref().filter(|_| whole.len() >= tiled_from).map_or(0, tile_side);
         let pyramid = map
             .as_ref()
-            .map(|m| describe(m, digest, tile_side, whole.len()))
+            .map(|m| describe(m, digest, tile_side, whole.len(), deflated))
             .filter(|p| worth_sending(p, &whole))
             .map(Arc::new);
         let map = map.filter(|_| pyramid.is_some());
@@ -440,7 +459,7 @@ impl Served {
             .map(|&s| tile_grid(s, tile_side).map_or(0, |[a, d]| a * d))
             .map(|count| (0..count).map(|_| OnceLock::new()).collect())
             .collect();
-        Served { last_used: 0, whole, digest, map, pyramid, levels, tiles }
+        Served { last_used: 0, whole, digest, map, pyramid, levels, tiles, deflated }
     }
 
     /// What it holds, in bytes.
@@ -458,7 +477,7 @@ impl Served {
             return self.whole.clone();
         };
         slot.get_or_init(|| match cut_tile(map.level(level), TILE_SIDE, tile) {
-            Some(values) => Arc::new(encode_answer(&TextureAnswer::Level(LevelValues::of(&values)))),
+            Some(values) => Arc::new(encode_answer(&TextureAnswer::Level(LevelValues::of(&values)), self.deflated)),
             None => self.whole.clone(),
         })
         .clone()
@@ -471,7 +490,7 @@ impl Served {
             if image.data().len() > MAX_LEVEL_VALUES {
                 return None;
             }
-            let encoded = encode_answer(&TextureAnswer::Level(LevelValues::of(image)));
+            let encoded = encode_answer(&TextureAnswer::Level(LevelValues::of(image)), self.deflated);
             worth_sending(&encoded, &self.whole).then(|| Arc::new(encoded))
         });
         encoded.clone().unwrap_or_else(|| self.whole.clone())
@@ -497,7 +516,7 @@ fn tile_side(map: &MipMap) -> usize {
 
 /// `map`'s description with as many of its coarsest levels as fit [`COARSEST_BYTES`], the side
 /// of the tiles its large levels go in, and the digest and size of the texture as given, encoded.
-fn describe(map: &MipMap, digest: [u8; 32], tile_side: usize, whole_bytes: usize) -> Vec<u8> {
+fn describe(map: &MipMap, digest: [u8; 32], tile_side: usize, whole_bytes: usize, deflated: bool) -> Vec<u8> {
     let mut coarsest = Vec::new();
     let mut bytes = 0;
     for level in (0..map.level_count()).rev() {
@@ -513,18 +532,21 @@ fn describe(map: &MipMap, digest: [u8; 32], tile_side: usize, whole_bytes: usize
     }
     coarsest.reverse();
     let count = |n: usize| u32::try_from(n).unwrap_or(u32::MAX);
-    encode_answer(&TextureAnswer::Pyramid(PyramidHeader {
-        width: count(map.width()),
-        height: count(map.height()),
-        channels: count(map.channels()),
-        wrap: map.wrap().map(wrap_code),
-        projection: map.projection(),
-        finite: map.is_finite(),
-        coarsest,
-        tile_side: count(tile_side),
-        whole_bytes: whole_bytes as u64,
-        digest,
-    }))
+    encode_answer(
+        &TextureAnswer::Pyramid(PyramidHeader {
+            width: count(map.width()),
+            height: count(map.height()),
+            channels: count(map.channels()),
+            wrap: map.wrap().map(wrap_code),
+            projection: map.projection(),
+            finite: map.is_finite(),
+            coarsest,
+            tile_side: count(tile_side),
+            whole_bytes: whole_bytes as u64,
+            digest,
+        }),
+        deflated,
+    )
 }
 
 #[cfg(test)]
@@ -669,7 +691,7 @@ mod tests {
         assert_eq!(here.map(f32::to_bits), there.map(f32::to_bits));
         assert!(source.failures.lock().unwrap().is_empty());
         // At most about twice the whole texture travelled, whatever the order of the lookups.
-        let whole = encode_answer(&TextureAnswer::Whole(Delivered::image(&image))).len();
+        let whole = encode_answer(&TextureAnswer::Whole(Delivered::image(&image)), true).len();
         assert!(*source.bytes.lock().unwrap() < 2 * whole + whole / 4, "{} of {whole}", source.bytes.lock().unwrap());
     }
 
@@ -933,18 +955,21 @@ mod tests {
     fn a_pyramid_that_does_not_hold_is_refused() {
         let image = floats(64);
         let source = Loopback::new(Delivered::image(&image));
-        let good = match decode_answer(&encode_answer(&TextureAnswer::Pyramid(PyramidHeader {
-            width: 64,
-            height: 64,
-            channels: 3,
-            wrap: [0, 1],
-            projection: None,
-            finite: true,
-            coarsest: vec![LevelValues::Floats(vec![0.5; 3])],
-            tile_side: 64,
-            whole_bytes: 1000,
-            digest: [0; 32],
-        })))
+        let good = match decode_answer(&encode_answer(
+            &TextureAnswer::Pyramid(PyramidHeader {
+                width: 64,
+                height: 64,
+                channels: 3,
+                wrap: [0, 1],
+                projection: None,
+                finite: true,
+                coarsest: vec![LevelValues::Floats(vec![0.5; 3])],
+                tile_side: 64,
+                whole_bytes: 1000,
+                digest: [0; 32],
+            }),
+            true,
+        ))
         .unwrap()
         {
             TextureAnswer::Pyramid(p) => p,
@@ -973,7 +998,7 @@ mod tests {
 
     #[test]
     fn damaged_answers_are_errors() {
-        let answer = encode_answer(&TextureAnswer::Level(LevelValues::of(&floats(16))));
+        let answer = encode_answer(&TextureAnswer::Level(LevelValues::of(&floats(16))), true);
         assert!(decode_answer(&answer).is_ok());
         for damaged in [&b"not deflated"[..], &answer[..answer.len() / 2], &[]] {
             assert!(decode_answer(damaged).is_err());
@@ -1011,7 +1036,7 @@ mod tests {
         let plain = |answer: &TextureAnswer| postcard::to_allocvec(answer).unwrap();
         let deflate = |bytes: &[u8]| crate::deflate::pack(&[bytes], true);
         let map = MipMap::new(image.clone());
-        let pyramid = decode_answer(&describe(&map, [0; 32], TILE_SIDE, 1 << 20)).unwrap();
+        let pyramid = decode_answer(&describe(&map, [0; 32], TILE_SIDE, 1 << 20, true)).unwrap();
         let level = TextureAnswer::Level(LevelValues::of(map.level(1)));
         let tile = TextureAnswer::Level(LevelValues::of(&cut_tile(map.level(0), TILE_SIDE, 0).unwrap()));
         let (pyramid, level, tile) = (plain(&pyramid), plain(&level), plain(&tile));
@@ -1056,7 +1081,7 @@ mod tests {
     #[test]
     fn textures_below_the_threshold_send_whole_levels() {
         let image = floats(256);
-        let whole = encode_answer(&TextureAnswer::Whole(Delivered::image(&image)));
+        let whole = encode_answer(&TextureAnswer::Whole(Delivered::image(&image)), true);
         assert!(whole.len() < TILED_FROM_BYTES);
         for (server, side) in [(TextureServer::new(), 0), (TextureServer::new().with_tiles_from(whole.len()), 64)] {
             let mut server = server;
@@ -1066,7 +1091,7 @@ mod tests {
             let tile = server
                 .answer(1, TexturePart::Tile { raw: false, level: 0, tile: 5 }, "t", |_, _| Delivered::image(&image));
             let cut = cut_tile(&image, TILE_SIDE, 5).unwrap();
-            let expected = encode_answer(&TextureAnswer::Level(LevelValues::of(&cut)));
+            let expected = encode_answer(&TextureAnswer::Level(LevelValues::of(&cut)), true);
             assert_eq!(*tile == expected, side != 0, "a tile where tiles are sent, else the whole");
         }
     }
@@ -1114,7 +1139,7 @@ mod tests {
         assert_eq!(again[2], answers[0]);
         // A level past the last, or of a name that is no texture, is the whole; so is a tile of
         // a level not cut into tiles, or past the last.
-        let whole = encode_answer(&TextureAnswer::Whole(Delivered::image(&image)));
+        let whole = encode_answer(&TextureAnswer::Whole(Delivered::image(&image)), true);
         assert_eq!(*server.answer(2, TexturePart::Level { raw: false, level: 99 }, "t", deliver), whole);
         assert_eq!(*server.answer(2, TexturePart::Tile { raw: false, level: 0, tile: 0 }, "t", deliver), whole);
         // Past the limit, the least recently asked for go first.

@@ -206,13 +206,14 @@ pub(crate) fn eight_bit_values(values: &[f32]) -> Option<Vec<u8>> {
 /// (`MAX_DELIVERED_FILE_BYTES`, 1 GiB) with room for its path and the encoding's own bytes.
 pub const MAX_INFLATED_ANSWER: u64 = (1 << 30) + (1 << 20);
 
-/// How answers travel: postcard, deflated. Texture files that are not compressed themselves
-/// (PPM, TGA, EXR without compression) and the floats of mip levels shrink by a third to
-/// nineteen twentieths: bytes the master's link does not carry. The fastest level: the master
-/// compresses each texture once, but while a worker waits.
-pub fn encode_answer(answer: &TextureAnswer) -> Vec<u8> {
+/// How answers travel: postcard, in a payload deflated or plain ([`crate::deflate::pack`]).
+/// Deflated, texture files that are not compressed themselves (PPM, TGA, EXR without
+/// compression) and the floats of mip levels shrink by a third to nineteen twentieths: bytes a
+/// slow link does not carry. The fastest level: the master compresses each answer once, but
+/// while a worker waits.
+pub fn encode_answer(answer: &TextureAnswer, deflated: bool) -> Vec<u8> {
     // Plain data of vectors and strings: encoding it cannot fail.
-    crate::deflate::pack(&[&postcard::to_allocvec(answer).unwrap_or_default()], true)
+    crate::deflate::pack(&[&postcard::to_allocvec(answer).unwrap_or_default()], deflated)
 }
 
 /// An answer [`encode_answer`] wrote; an error for anything else, or one that would inflate past
