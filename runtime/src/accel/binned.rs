@@ -34,8 +34,16 @@ const BINS: usize = 32;
 /// Nodes of more primitives than this build their two halves in parallel.
 const PARALLEL_SPLIT: usize = 4096;
 
-/// Nodes of more primitives than this sort them into bins on several threads.
-const PARALLEL_BINNING: usize = 1 << 16;
+/// Nodes of more primitives than this sort them into bins and move them on several threads, in
+/// chunks of [`BINNING_CHUNK`].
+const PARALLEL_BINNING: usize = 2 * BINNING_CHUNK;
+
+/// The primitives of one task of a node binned on several threads. Small enough that the top
+/// levels, where there are fewer nodes than threads, still have a task for every thread of a
+/// many-core machine (a root of 100,000 primitives is 13 of them), large enough that a task's
+/// work outweighs handing it out. A constant, not a share of the pool: the chunks decide the
+/// order the primitives are moved in, so the tree is the same on any number of threads.
+const BINNING_CHUNK: usize = 1 << 13;
 
 /// Below this many levels, nodes are split at their median rather than by cost (see the module's
 /// invariants).
@@ -43,7 +51,8 @@ const SAH_DEPTH: u32 = 64;
 
 /// A primitive as the build moves it about: its box, with its input index in the fourth lane of
 /// the lower corner (32 bytes: two to a cache line, where the partitions move them).
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+#[repr(C)]
 struct PrimRef {
     lo: Vec4,
     hi: Vec4,
@@ -301,7 +310,7 @@ where
     }
     let mut refs: Vec<PrimRef> = boxes.par_iter().enumerate().map(|(i, b)| PrimRef::new(b, i as u32)).collect();
     let bounds = if n > PARALLEL_BINNING {
-        refs.par_chunks(PARALLEL_BINNING).map(Bounds::of).reduce(|| Bounds::EMPTY, |a, b| a.union(&b))
+        refs.par_chunks(BINNING_CHUNK).map(Bounds::of).reduce(|| Bounds::EMPTY, |a, b| a.union(&b))
     } else {
         Bounds::of(&refs)
     };
@@ -309,7 +318,10 @@ where
     // SAFETY: `MaybeUninit` needs no initialisation.
     unsafe { nodes.set_len(2 * n - 1) };
     let (root, descendants) = nodes.split_at_mut(1);
-    let mut spare = refs.clone();
+    // Scratch that every partition writes before it is read: zeroed, not a copy of `refs`, so
+    // that no thread spends a pass over all the primitives before the first split starts (fresh
+    // zeroed pages cost nothing until the partitions, on all threads, first touch them).
+    let mut spare: Vec<PrimRef> = bytemuck::zeroed_vec(n);
     let mut primitive_indices = vec![0u32; n];
     let at = Place { first: 0, base: 1 };
     let shape = Shape { leaf_size, summary };
@@ -515,7 +527,7 @@ fn binned_split<const N: usize>(refs: &mut [PrimRef], spare: &mut [PrimRef], bin
     Some((left_count, lb, rb, true))
 }
 
-/// [`binned_split`] of many primitives, in chunks of [`PARALLEL_BINNING`] on the pool's threads:
+/// [`binned_split`] of many primitives, in chunks of [`BINNING_CHUNK`] on the pool's threads:
 /// each chunk is binned, and then moved to its places on both sides (the chunks' own bins say how
 /// many of each go left, so each has its ranges of `spare` before any moves). The chunks are the
 /// same whatever the number of threads, so the result is too.
@@ -525,7 +537,7 @@ fn parallel_binned_split<const N: usize>(
     binning: &Binning,
 ) -> Option<Parts> {
     let m = refs.len();
-    let chunk_bins: Vec<Bins<N>> = refs.par_chunks(PARALLEL_BINNING).map(|c| Bins::<N>::fill(binning, c)).collect();
+    let chunk_bins: Vec<Bins<N>> = refs.par_chunks(BINNING_CHUNK).map(|c| Bins::<N>::fill(binning, c)).collect();
     let bins = chunk_bins.iter().fold(Bins::<N>::new(), |a, b| a.merge_bins(b, binning.count));
     let (axis, k) = bins.best_split(binning.count)?;
     let lefts: Vec<usize> = chunk_bins.iter().map(|b| b.counts[axis][..k].iter().map(|&c| c as usize).sum()).collect();
@@ -536,7 +548,7 @@ fn parallel_binned_split<const N: usize>(
     // Each chunk's ranges on the left and on the right, in chunk order.
     let (mut left_rest, mut right_rest) = spare.split_at_mut(left_count);
     let mut places = Vec::with_capacity(lefts.len());
-    for (chunk, &l) in refs.chunks(PARALLEL_BINNING).zip(&lefts) {
+    for (chunk, &l) in refs.chunks(BINNING_CHUNK).zip(&lefts) {
         let r = chunk.len().checked_sub(l)?;
         if l > left_rest.len() || r > right_rest.len() {
             return None;
@@ -752,7 +764,7 @@ mod tests {
 
     #[test]
     fn the_layout_depends_on_the_input_alone() {
-        // More than one chunk of `PARALLEL_BINNING`: the root is split chunk by chunk.
+        // More than `PARALLEL_BINNING` primitives: the top nodes are split chunk by chunk.
         let boxes = random_boxes(2 * PARALLEL_BINNING + 5000, 7);
         let a = build_binned(&boxes);
         let pool = rayon::ThreadPoolBuilder::new().num_threads(3).build().unwrap();
