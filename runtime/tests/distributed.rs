@@ -1467,14 +1467,24 @@ fn a_new_scene_takes_the_texture_levels_the_scene_before_fetched() -> Result<(),
 /// The little scene with ground far wider than the view under its floor (28,160 triangles,
 /// most of them outside the frustum); returns the ground's object.
 fn little_scene_on_wide_ground() -> (Context, rtsl_runtime::api::ObjectId) {
-    let e = |e: rtsl_runtime::api::ApiError| e.to_string();
     let mut rt = little_scene().expect("the little scene");
-    let ground = rt.begin_object().map_err(e).expect("an object");
-    rt.begin(Primitive::Triangles).map_err(e).expect("triangles");
-    let (nx, nz) = (160, 88);
     let at =
         |i: u32, k: u32| [-40.0 + i as f32 * 0.5, -0.05 + 0.01 * ((i * 7 + k * 3) % 5) as f32, 3.9 - k as f32 * 0.5];
-    for k in 0..nz {
+    let ground = grid_object(&mut rt, (160, 88), at);
+    (rt, ground)
+}
+
+/// An object of `nx` by `nk` quads (two triangles each) whose corner `(i, k)` is `at(i, k)`, and
+/// an instance of it.
+fn grid_object(
+    rt: &mut Context,
+    (nx, nk): (u32, u32),
+    at: impl Fn(u32, u32) -> [f32; 3],
+) -> rtsl_runtime::api::ObjectId {
+    let e = |e: rtsl_runtime::api::ApiError| e.to_string();
+    let object = rt.begin_object().map_err(e).expect("an object");
+    rt.begin(Primitive::Triangles).map_err(e).expect("triangles");
+    for k in 0..nk {
         for i in 0..nx {
             for [a, b] in [[(i, k), (i + 1, k)], [(i + 1, k), (i + 1, k + 1)]] {
                 for p in [at(i, k), at(a.0, a.1), at(b.0, b.1)] {
@@ -1485,8 +1495,8 @@ fn little_scene_on_wide_ground() -> (Context, rtsl_runtime::api::ObjectId) {
     }
     rt.end().map_err(e).expect("end");
     rt.end_object().map_err(e).expect("end_object");
-    rt.instantiate_object(ground).map_err(e).expect("an instance");
-    (rt, ground)
+    rt.instantiate_object(object).map_err(e).expect("an instance");
+    object
 }
 
 /// A large object travels in parts: a worker fetches its mesh and small tree, then only the
@@ -1533,24 +1543,9 @@ fn workers_fetch_the_parts_of_a_large_object_that_rays_reach() -> Result<(), Dis
 /// the parts travelled plain or deflated.
 #[test]
 fn an_object_reached_whole_is_joined_from_its_parts() -> Result<(), DistributedError> {
-    let e = |e: rtsl_runtime::api::ApiError| e.to_string();
     let mut rt = little_scene().expect("the little scene");
-    let wall = rt.begin_object().map_err(e).expect("an object");
-    rt.begin(Primitive::Triangles).map_err(e).expect("triangles");
-    let (nx, ny) = (60, 20);
     let at = |i: u32, k: u32| [-1.5 + i as f32 * 0.05, 1.0 + k as f32 * 0.05, -1.0 - 0.01 * ((i * 3 + k) % 4) as f32];
-    for k in 0..ny {
-        for i in 0..nx {
-            for [a, b] in [[(i, k), (i + 1, k)], [(i + 1, k), (i + 1, k + 1)]] {
-                for p in [at(i, k), at(a.0, a.1), at(b.0, b.1)] {
-                    rt.vertex(p[0], p[1], p[2]).map_err(e).expect("a vertex");
-                }
-            }
-        }
-    }
-    rt.end().map_err(e).expect("end");
-    rt.end_object().map_err(e).expect("end_object");
-    rt.instantiate_object(wall).map_err(e).expect("an instance");
+    let wall = grid_object(&mut rt, (60, 20), at);
     let world = rt.build_world().expect("a world");
     let bvh = rt.object_bvh(wall, &world).expect("the wall's BVH");
     let parts = rtsl_runtime::accel::parts::cut(bvh, 256).parts.len() as u64;
