@@ -896,6 +896,41 @@ fn bad_camera_and_lightfield_flags_are_clear_errors() {
     }
 }
 
+/// The settings of `--mpi` runs are checked as flags, whether or not the run is distributed: a
+/// value out of their kind is refused naming the flag (and, for `--deflate`, what it takes), with
+/// no image written and no panic.
+#[test]
+fn bad_worker_flags_are_clear_errors() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    for (command, flag, value) in [
+        (&["render", "-o", "x.png", "--size", "8x8"][..], "--deflate", "sometimes"),
+        (&["bench", "render", "--frames", "1", "--size", "8x8"], "--parts-above", "-3"),
+        (&["render", "-o", "x.png", "--size", "8x8"], "--mesh-cache-mb", "lots"),
+        (&["bench", "render", "--frames", "1", "--size", "8x8"], "--tile-textures-from-mb", "1.5"),
+    ] {
+        let mut args = command.to_vec();
+        let given = format!("{flag}={value}");
+        args.push(&given);
+        let o = rtsl(&args, dir.path());
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        assert!(stderr(&o).contains(flag) && stderr(&o).contains(value), "{args:?}: {}", stderr(&o));
+        assert!(!stderr(&o).contains("panicked"), "{}", stderr(&o));
+    }
+    let o = rtsl(&["render", "-o", "x.png", "--deflate", "sometimes"], dir.path());
+    assert!(
+        stderr(&o).contains("auto") && stderr(&o).contains("always") && stderr(&o).contains("never"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!dir.path().join("x.png").exists());
+    // Values past any machine's memory are valid settings (a cache or a threshold nothing
+    // reaches, saturated into bytes where they are used): a frame without --mpi renders.
+    let huge = usize::MAX.to_string();
+    let args = ["render", "-o", "x.png", "--size", "8x8", "--mesh-cache-mb", &huge, "--tile-textures-from-mb", &huge];
+    let o = rtsl(&args, dir.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
 /// A small RIB scene: a plastic sphere in front of the camera.
 const SPHERE_RIB: &str =
     "Format 32 32 1\nTranslate 0 0 5\nWorldBegin\nLightSource \"distantlight\" 1\nSurface \"plastic\"\nSphere 1 -1 1 360\nWorldEnd\n";
