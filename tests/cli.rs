@@ -769,7 +769,7 @@ WorldBegin
 WorldEnd
 "#;
     std::fs::write(dir.path().join("mirror.rib"), scene).expect("scene written");
-    let args = ["bench", "render", "mirror.rib", "--frames", "1", "--threads", "1", "--compare-trace-ahead"];
+    let args = ["bench", "render", "mirror.rib", "--frames", "3", "--threads", "1", "--compare-trace-ahead"];
     let o = rtsl(&args, dir.path());
     assert!(o.status.success(), "{}", stderr(&o));
     let out = stdout(&o);
@@ -778,6 +778,12 @@ WorldEnd
         line.split(' ').nth(1).and_then(|v| v.parse().ok()).expect("a number")
     };
     assert!(value("chunk_by_chunk_trace_frame_ms: ") > 0.0, "{out}");
+    // The median of the timed frames lies within their spread.
+    let spread = out.lines().find(|l| l.starts_with("frame_ms_spread: ")).expect("spread line");
+    let words: Vec<&str> = spread.split(' ').collect();
+    let (fastest, slowest): (f64, f64) = (words[1].parse().expect("fastest"), words[3].parse().expect("slowest"));
+    let median = value("frame_ms: ");
+    assert!(fastest <= median && median <= slowest && spread.ends_with("over 3 frames"), "{spread} {median}");
     let ratio = value("trace_ahead_over_chunk_by_chunk: ");
     assert!(ratio.is_finite() && ratio > 0.0, "{out}");
     // The floor reflects: the frame traced secondary rays.

@@ -219,11 +219,23 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 /// The lines every `rtsl bench render` prints: the scene and its size, who rendered it, the
-/// median frame time `ms` and the rays of the last frame.
-fn print_rate(args: &BenchRenderArgs, world: &rtsl_runtime::render::World, who: &str, ms: f64, report: &FrameReport) {
+/// median of the timed frames' times `frames_ms` and their spread, and the rays of the last frame.
+fn print_rate(
+    args: &BenchRenderArgs,
+    world: &rtsl_runtime::render::World,
+    who: &str,
+    frames_ms: &[f64],
+    report: &FrameReport,
+) {
+    let ms = median(frames_ms.to_vec());
     println!("scene: {}", args.scene.as_ref().map_or("<default scene>".into(), |p| p.display().to_string()));
     println!("size: {}x{}, samples per pixel: {}, {who}", world.options.width, world.options.height, args.samples);
     println!("frame_ms: {ms:.2}");
+    // The spread tells a difference between two runs from the host's noise.
+    let (fastest, slowest) = frames_ms.iter().fold((f64::INFINITY, 0.0f64), |(a, b), &t| (a.min(t), b.max(t)));
+    if !frames_ms.is_empty() {
+        println!("frame_ms_spread: {fastest:.2} to {slowest:.2} over {} frames", frames_ms.len());
+    }
     println!("fps: {:.2}", 1e3 / ms.max(1e-9));
     println!(
         "rays_per_frame: {} (primary {}, shadow {}, secondary {}, transparency {})",
@@ -321,7 +333,7 @@ pub fn run_render(args: &BenchRenderArgs) -> anyhow::Result<()> {
             }
         }
         let threads = format!("worker ranks: {}, threads: {}", master.workers(), master.worker_threads());
-        print_rate(args, &world, &threads, median(ms), &last.unwrap_or_default());
+        print_rate(args, &world, &threads, &ms, &last.unwrap_or_default());
         println!("{}", super::mpi::traffic_line(&master.traffic()));
         println!("{}", super::mpi::worker_time_line("the timed frames", &worker_times));
         let (first, d) = (first_demand.unwrap_or_default(), master.demand());
@@ -385,8 +397,8 @@ pub fn run_render(args: &BenchRenderArgs) -> anyhow::Result<()> {
         }
     }
     let report = last.unwrap_or_default();
+    print_rate(args, &world, &format!("threads: {threads}"), &jit_ms, &report);
     let ms = median(jit_ms);
-    print_rate(args, &world, &format!("threads: {threads}"), ms, &report);
     world.materials = jit_world;
     world.options.trace_ahead = true;
     world.options.ray_parameters = relevance;
@@ -480,7 +492,7 @@ fn run_render_animated(args: &BenchRenderArgs, fps: f64) -> anyhow::Result<()> {
         }
     }
     rtsl_runtime::rib::report::write_diagnostics(&scene.take_warnings(), &mut super::color::stderr())?;
-    print_rate(args, &world, &format!("threads: {threads}"), median(frame_ms), &last.unwrap_or_default());
+    print_rate(args, &world, &format!("threads: {threads}"), &frame_ms, &last.unwrap_or_default());
     println!("update_ms: {:.2}", median(update_ms));
     Ok(())
 }
