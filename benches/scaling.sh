@@ -5,8 +5,9 @@
 #   benches/scaling.sh pack          # here: a stripped release build with MPI, the scenes and
 #                                    # Embree's benchmark, into .scaling/ (keep it out of git)
 #   benches/scaling.sh run [PARTS]   # there: PARTS of "mpi threads bandwidth forest latency
-#                                    # copies spin ahead thp gi embree" (default: all but threads,
-#                                    # which mpi's runs include, copies, spin, ahead and thp)
+#                                    # copies quarters spin ahead thp gi embree" (default: all but
+#                                    # threads, which mpi's runs include, copies, quarters, spin,
+#                                    # ahead and thp)
 #
 # `run` needs only what `pack` made: the machine's `mpirun` (Open MPI 4.x: the binary links
 # libmpi.so.40), else the Open MPI that `pack` took from this machine. It prints what each
@@ -17,7 +18,8 @@
 # `latency` runs the BART animations over a worker rank a core but the master's, each with one
 # and then two render threads (the second renders while the first waits for a fetch); `copies`
 # runs the BART kitchen and robots and the office over a worker rank a core but the master's,
-# with tile copies at a frame's end and with `--no-tile-copies`, twice, interleaved; `spin` the
+# with tile copies at a frame's end and with `--no-tile-copies`, twice, interleaved; `quarters`
+# the same with the last tiles of a frame in quarters and with `--no-tile-quarters`; `spin` the
 # BART animations the same way with and without `--master-spins`, `ahead` with and without
 # `--no-asking-ahead`, and `thp` (with Sponza) with transparent huge pages off, the default, and
 # on (`MIMALLOC_ALLOW_THP=1` in every rank); `embree`
@@ -170,6 +172,9 @@ run() {
       copies)
         # Tile copies for idle workers at a frame's end.
         interleaved "" --no-tile-copies kitchen robots office ;;
+      quarters)
+        # The last tiles of a frame handed out in quarters.
+        interleaved "" --no-tile-quarters kitchen robots office ;;
       ahead)
         # Workers' tiles asking ahead for what they reach, set aside meanwhile.
         interleaved "" --no-asking-ahead robots kitchen ;;

@@ -308,18 +308,31 @@ fn bench_render_times_frames_over_the_workers() {
         return;
     }
     let dir = tempfile::tempdir().expect("tempdir");
-    let o = mpirun(2, &["bench", "render", "--frames", "2", "--size", "48x32"], dir.path());
+    let o = mpirun(2, &["bench", "render", "--frames", "2", "--size", "128x96"], dir.path());
     let out = text(&o);
     assert!(o.status.success(), "{out}");
     assert!(out.contains("worker ranks: 1, threads: 2"), "{out}");
     assert!(out.lines().any(|l| l.starts_with("fps: ")), "{out}");
     assert!(out.contains("MPI traffic per frame"), "{out}");
-    // A spinning master, and no copies of tiles: the worker-time line counts none.
-    let args = ["bench", "render", "--frames", "2", "--size", "48x32", "--master-spins", "--no-tile-copies"];
+    // The last eighth of the 48 tiles go out in quarters, to the worker's two threads.
+    assert!(out.contains("tiles handed out in quarters 6.0 a frame"), "{out}");
+    // A spinning master, no copies and no quarters of tiles: the worker-time line counts none.
+    let args = [
+        "bench",
+        "render",
+        "--frames",
+        "2",
+        "--size",
+        "128x96",
+        "--master-spins",
+        "--no-tile-copies",
+        "--no-tile-quarters",
+    ];
     let o = mpirun(2, &args, dir.path());
     let out = text(&o);
     assert!(o.status.success(), "{out}");
     assert!(out.contains("tiles copied to idle workers at the frame's end 0.0 a frame"), "{out}");
+    assert!(out.contains("tiles handed out in quarters 0.0 a frame"), "{out}");
     let refused = mpirun(2, &["bench", "render", "--frames", "1", "--native-plastic"], dir.path());
     assert!(!refused.status.success());
     assert!(text(&refused).contains("without --mpi"), "{}", text(&refused));

@@ -25,6 +25,25 @@ pub struct Tile {
     pub height: u32,
 }
 
+impl Tile {
+    /// The four quarters of this tile, rows from the top, each with this tile's index; `None`
+    /// unless its width and height are even.
+    pub fn quarters(&self) -> Option<[Tile; 4]> {
+        if self.width % 2 != 0 || self.height % 2 != 0 || self.width == 0 || self.height == 0 {
+            return None;
+        }
+        let (w, h) = (self.width / 2, self.height / 2);
+        let at = |qx: u32, qy: u32| Tile {
+            index: self.index,
+            x0: self.x0 + qx * w,
+            y0: self.y0 + qy * h,
+            width: w,
+            height: h,
+        };
+        Some([at(0, 0), at(1, 0), at(0, 1), at(1, 1)])
+    }
+}
+
 /// The tiles of a `width` x `height` image, `size` x `size` pixels each (smaller at the right and
 /// bottom edges), in row-major order.
 pub fn tiles(width: u32, height: u32, size: u32) -> Vec<Tile> {
@@ -120,6 +139,26 @@ mod tests {
         let t = tiles(100, 37, 16);
         let area: u32 = t.iter().map(|t| t.width * t.height).sum();
         assert_eq!(area, 100 * 37);
+    }
+
+    #[test]
+    fn quarters_cover_their_tile_once() {
+        let tile = Tile { index: 7, x0: 32, y0: 16, width: 16, height: 10 };
+        let quarters = tile.quarters().expect("even sides");
+        let mut covered = vec![0; 16 * 10];
+        for q in quarters {
+            assert_eq!((q.index, q.width, q.height), (7, 8, 5));
+            for y in q.y0..q.y0 + q.height {
+                for x in q.x0..q.x0 + q.width {
+                    covered[((y - 16) * 16 + x - 32) as usize] += 1;
+                }
+            }
+        }
+        assert!(covered.iter().all(|&n| n == 1), "{covered:?}");
+        assert_eq!((quarters[1].x0, quarters[2].y0), (40, 21));
+        for odd in [Tile { width: 15, ..tile }, Tile { height: 9, ..tile }, Tile { width: 0, ..tile }] {
+            assert_eq!(odd.quarters(), None);
+        }
     }
 
     #[test]

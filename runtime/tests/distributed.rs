@@ -5,7 +5,7 @@
 
 use rtsl_runtime::api::{Context, Primitive, Replicator};
 use rtsl_runtime::distributed::{
-    serve, Demand, DistributedError, LocalTransport, Master, Message, ReplicaScene, Traffic, Transport,
+    serve, Demand, DistributedError, LocalTransport, Master, Message, ReplicaScene, TileQuarters, Traffic, Transport,
 };
 use rtsl_runtime::glam::{Affine3A, Vec3, Vec3A};
 use rtsl_runtime::render::{render_frame, FilterKind, Framebuffer, PixelFilter, RayField};
@@ -23,6 +23,9 @@ type Change = fn(&mut Context) -> Result<(), String>;
 /// A scene a test starts from.
 type Scene = fn() -> Result<Context, String>;
 
+/// Each frame's image rendered distributed and alone, and the bytes of its update.
+type Frames = Vec<(Framebuffer, Framebuffer, u64)>;
+
 fn pool(threads: usize) -> rayon::ThreadPool {
     rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("a thread pool")
 }
@@ -31,18 +34,32 @@ fn pool(threads: usize) -> rayon::ThreadPool {
 /// with `workers` worker threads of `threads` threads each, and in this process alone; returns
 /// both images of each frame and the bytes of each frame's update.
 fn both_ways(
+    rt: Context,
+    workers: usize,
+    threads: usize,
+    changes: &[Change],
+) -> Result<Frames, DistributedError> {
+    Ok(both_ways_quartered(rt, workers, threads, changes, TileQuarters::AtTheEnd)?.0)
+}
+
+/// [`both_ways`] with the master handing out `quarters` of tiles in quarters; also returns how
+/// many tiles went out in quarters each frame.
+fn both_ways_quartered(
     mut rt: Context,
     workers: usize,
     threads: usize,
     changes: &[Change],
-) -> Result<Vec<(Framebuffer, Framebuffer, u64)>, DistributedError> {
+    quarters: TileQuarters,
+) -> Result<(Frames, Vec<u64>), DistributedError> {
     let mut group = LocalTransport::group(workers + 1, Duration::from_secs(120)).into_iter();
     let master_end = group.next().expect("rank 0");
     let handles: Vec<_> =
         group.map(|t| std::thread::spawn(move || serve(&t, Ok(&mut ReplicaScene::new()), &pool(threads)))).collect();
     let mut master = Master::connect(master_end)?;
     master.check_workers()?;
+    master.set_tile_quarters(quarters);
     let mut out = Vec::new();
+    let mut quartered = Vec::new();
     for change in changes {
         change(&mut rt).expect("the change applies");
         let world = rt.build_world().expect("a world");
@@ -51,6 +68,7 @@ fn both_ways(
         assert!(report.primary_rays >= u64::from(world.options.width * world.options.height));
         // The workers' time is accounted within the master's frame, and they did render.
         let time = master.worker_time();
+        quartered.push(time.helping.quartered);
         assert_eq!(time.frame, report.elapsed);
         assert!(time.rendering > Duration::ZERO && time.rendering <= time.share, "{time:?}");
         assert!(time.world + time.share <= time.frame, "{time:?}");
@@ -62,7 +80,7 @@ fn both_ways(
     for h in handles {
         h.join().expect("a worker thread")?;
     }
-    Ok(out)
+    Ok((out, quartered))
 }
 
 /// Runs `f` with a master of two workers of one thread each, serving replicas that start empty
@@ -235,6 +253,63 @@ fn bart_frames_are_bit_identical() -> Result<(), DistributedError> {
         })
     }
     assert_same(&both_ways(rt, 2, 1, &[nothing, next_frame])?, "BART robots frames");
+    Ok(())
+}
+
+#[test]
+fn tiles_handed_out_in_quarters_make_the_same_image() -> Result<(), DistributedError> {
+    fn cornell(file: &str) -> Result<Context, String> {
+        let mut rt = Context::new();
+        rtsl_runtime::rib::load::load_file(&mut rt, repo(file)).map_err(|e| e.to_string())?;
+        (rt.options.width, rt.options.height) = (64, 48);
+        Ok(rt)
+    }
+    // Without the imager that filters the interleaved samples (which reads other pixels).
+    let unfiltered = |file: &str| -> Result<Context, String> {
+        let mut rt = cornell(file)?;
+        rt.pixel_shader(None, &[]).map_err(|e| e.to_string())?;
+        Ok(rt)
+    };
+    let gi_box = || unfiltered("examples/scenes/gi_box.rib");
+    let caustics = || unfiltered("examples/scenes/cornell_caustics.rib");
+    // Every tile in quarters, each rendered apart by whichever worker took it: the office over
+    // moving frames (a mirror's reflections), light paths and virtual lights of instant
+    // radiosity, a photon map's caustics. The office's 96x72 have 24 whole tiles of 16x16.
+    let (frames, quartered) =
+        both_ways_quartered(office().expect("the office"), 3, 1, &[nothing, move_first], TileQuarters::Always)?;
+    assert_same(&frames, "the office in quarters");
+    assert_eq!(quartered, [24, 24]);
+    for (name, rt) in [("the GI box", gi_box()), ("the Cornell box with caustics", caustics())] {
+        let (frames, quartered) = both_ways_quartered(rt.expect(name), 2, 2, &[nothing], TileQuarters::Always)?;
+        assert_same(&frames, name);
+        assert!(quartered[0] > 0, "{name}: {quartered:?}");
+    }
+    // Tiles whose pixels depend on other tiles' or on their neighbours in the tile go whole: a
+    // Gaussian filter's splats, an imager that reads other pixels, adaptive samples.
+    let library = library_with_camera_and_pixel_shader().expect("the library");
+    let (frames, quartered) = both_ways_quartered(library, 2, 1, &[nothing], TileQuarters::Always)?;
+    assert_same(&frames, "the library");
+    assert_eq!(quartered, [0]);
+    let filtered = cornell("examples/scenes/gi_box.rib").expect("the GI box");
+    let (frames, quartered) = both_ways_quartered(filtered, 2, 1, &[nothing], TileQuarters::Always)?;
+    assert_same(&frames, "the GI box filtered");
+    assert_eq!(quartered, [0]);
+    let mut adaptive = office().expect("the office");
+    adaptive.options.antialiasing = rtsl_runtime::render::Antialiasing::Adaptive { threshold: 0.05 };
+    let (frames, quartered) = both_ways_quartered(adaptive, 2, 1, &[nothing], TileQuarters::Always)?;
+    assert_same(&frames, "the office under adaptive sampling");
+    assert_eq!(quartered, [0]);
+    // By default, the last eighth of a frame's tiles (3 of 24, all whole at 96x64); none over
+    // one worker of one thread, where no other could take a quarter.
+    let mut whole_tiles = office().expect("the office");
+    whole_tiles.options.height = 64;
+    let (frames, quartered) = both_ways_quartered(whole_tiles, 2, 1, &[nothing], TileQuarters::AtTheEnd)?;
+    assert_same(&frames, "the office at 96x64");
+    assert_eq!(quartered, [3]);
+    let (frames, quartered) =
+        both_ways_quartered(office().expect("the office"), 1, 1, &[nothing], TileQuarters::AtTheEnd)?;
+    assert_same(&frames, "the office over one worker");
+    assert_eq!(quartered, [0]);
     Ok(())
 }
 
@@ -687,6 +762,42 @@ fn a_worker_whose_scene_failed_is_named_by_the_master() {
     for w in workers {
         // Dropping the master told every worker to stop.
         w.join().expect("a worker thread").expect("a clean stop");
+    }
+}
+
+#[test]
+fn a_worker_refuses_units_that_are_no_tile_or_quarter_of_its_frame() {
+    // A quarter of a tile of the library, whose Gaussian filter keeps its 70 tiles (at 80x56)
+    // whole, and a unit past the last quarter of the office's 30 tiles: the frame fails on the
+    // worker, which reports it and waits for what comes next.
+    let library = library_with_camera_and_pixel_shader().expect("the library");
+    let office = office().expect("the office");
+    for (rt, unit) in [(&library, 70 + 4 * 3), (&office, 5 * 30)] {
+        let mut group = LocalTransport::group(2, Duration::from_secs(60)).into_iter();
+        let (master_end, worker_end) = (group.next().expect("rank 0"), group.next().expect("rank 1"));
+        let worker = std::thread::spawn(move || serve(&worker_end, Ok(&mut ReplicaScene::new()), &pool(1)));
+        let (rank, hello) = master_end.recv().expect("a greeting");
+        assert!(rank == 1 && matches!(Message::decode(&hello), Ok(Message::Hello { .. })));
+        let update = Replicator::new().update(rt, None).expect("an update");
+        let frame = Message::Frame {
+            frame: 1,
+            update,
+            light_paths: vec![],
+            job: rtsl_runtime::distributed::Job::Tiles,
+            units: vec![unit],
+            lattices: vec![],
+            last: true,
+        };
+        master_end.send(1, frame.encode()).expect("sent");
+        let (_, done) = master_end.recv().expect("the frame's end");
+        match Message::decode(&done) {
+            Ok(Message::FrameDone { frame: 1, failure: Some(failure), .. }) => {
+                assert!(failure.contains(&format!("unit {unit}, no tile or quarter of one")), "{failure}")
+            }
+            other => panic!("unit {unit}: {other:?}"),
+        }
+        master_end.send(1, Message::Quit.encode()).expect("sent");
+        worker.join().expect("a worker thread").expect("a clean stop");
     }
 }
 

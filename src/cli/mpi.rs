@@ -5,7 +5,7 @@
 
 use rtsl_runtime::accel::parts::{PARTED_ABOVE, PART_TRIANGLES};
 use rtsl_runtime::distributed::{
-    serve, Demand, Master, ReplicaScene, Traffic, Transport, WorkerTime, DEFAULT_MESH_CACHE_BYTES,
+    serve, Demand, Master, ReplicaScene, TileQuarters, Traffic, Transport, WorkerTime, DEFAULT_MESH_CACHE_BYTES,
 };
 use rtsl_runtime::render::World;
 use rtsl_runtime::texture::TILED_FROM_BYTES;
@@ -45,6 +45,11 @@ pub struct WorkerArgs {
     /// copy delivered is taken).
     #[arg(long)]
     pub no_tile_copies: bool,
+    /// With --mpi: hand out every tile whole (to compare; by default the last eighth of a frame's
+    /// tiles go out in quarters, so that no worker finishes long after the others on one
+    /// expensive tile).
+    #[arg(long)]
+    pub no_tile_quarters: bool,
     /// With --mpi: the master polls for its workers' messages without napping between polls,
     /// for a master with a core of its own (by default it naps, leaving the core to workers).
     #[arg(long)]
@@ -76,6 +81,7 @@ impl WorkerArgs {
         master.set_parts(self.parts_above, PART_TRIANGLES);
         master.set_texture_tiles_from(self.tile_textures_from_mb.saturating_mul(1 << 20));
         master.set_tile_copies(!self.no_tile_copies);
+        master.set_tile_quarters(if self.no_tile_quarters { TileQuarters::Never } else { TileQuarters::AtTheEnd });
         master.set_spinning(self.master_spins);
         match self.deflate {
             Deflate::Auto => {}
@@ -119,7 +125,7 @@ pub(crate) fn worker_time_line(frames: &str, times: &[WorkerTime]) -> String {
         |f: fn(&WorkerTime) -> std::time::Duration| times.iter().map(|t| f(t).as_secs_f64()).sum::<f64>() * 1e3 / n;
     let mean = |f: fn(&WorkerTime) -> u64| times.iter().map(|t| f(t) as f64).sum::<f64>() / n;
     format!(
-        "worker time per frame of {frames} (mean over workers): world {:.2} ms, rendering {:.1} ms (of which off the core {:.1}, waiting for fetches {:.1}, decoding fetched meshes and building their BVHs {:.1}), waiting {:.1} ms (for tiles, a core), outside their share {:.1} ms (waiting for the last worker {:.1}; the master preparing the frame and assembling the image), of a {:.1} ms frame; tiles copied to idle workers at the frame's end {:.1} a frame ({:.1} delivered first by the copy, {:.1} rendered twice); tiles set aside while what they reached was fetched {:.1} a frame",
+        "worker time per frame of {frames} (mean over workers): world {:.2} ms, rendering {:.1} ms (of which off the core {:.1}, waiting for fetches {:.1}, decoding fetched meshes and building their BVHs {:.1}), waiting {:.1} ms (for tiles, a core), outside their share {:.1} ms (waiting for the last worker {:.1}; the master preparing the frame and assembling the image), of a {:.1} ms frame; tiles handed out in quarters {:.1} a frame; tiles copied to idle workers at the frame's end {:.1} a frame ({:.1} delivered first by the copy, {:.1} rendered twice); tiles set aside while what they reached was fetched {:.1} a frame",
 
         ms(|t| t.world),
         ms(|t| t.rendering),
@@ -130,6 +136,7 @@ pub(crate) fn worker_time_line(frames: &str, times: &[WorkerTime]) -> String {
         ms(|t| t.outside),
         ms(|t| t.after_done),
         ms(|t| t.frame),
+        mean(|t| t.helping.quartered),
         mean(|t| t.helping.copies),
         mean(|t| t.helping.helped),
         mean(|t| t.helping.twice),

@@ -5,7 +5,7 @@ use super::fetch::{encode_object, encode_part, ObjectTree};
 use super::message::{
     build_fingerprint, greeting_version, FrameCounts, Job, LatticeUnit, Message, RenderedUnits, PROTOCOL_VERSION,
 };
-use super::schedule::{Delivery, Helping, Holdings, Schedule};
+use super::schedule::{unit_tile, Delivery, Helping, Holdings, Schedule, TileUnit};
 use super::transport::Transport;
 use super::DistributedError;
 use crate::accel::parts::{cut, PARTED_ABOVE, PART_TRIANGLES};
@@ -45,6 +45,10 @@ const ENCODED_OBJECTS_KEPT: usize = 1 << 30;
 /// The largest texture file the master decodes before a worker asks for it.
 const LARGEST_TEXTURE_DECODED_AHEAD: u64 = 256 << 20;
 
+/// Once fewer than this share of a frame's tiles are left to hand out, the rest go out in
+/// quarters ([`TileQuarters::AtTheEnd`]).
+const QUARTERED_SHARE: usize = 8;
+
 /// How long the frame's loop naps between polls while textures are decoded.
 const DECODING_POLL: Duration = Duration::from_micros(50);
 
@@ -64,6 +68,23 @@ struct Work<'a> {
     costs: &'a [u32],
     /// The frame's light paths, encoded (empty: none to send).
     light_paths: &'a [u8],
+    /// Tiles taken while fewer than this many are left go out in quarters where `splittable`
+    /// ([`Schedule::splitting`]; none for lattices).
+    split_below: usize,
+    splittable: &'a [bool],
+}
+
+/// Which of a frame's tiles the master hands out in quarters ([`Schedule::splitting`]), where a
+/// tile's quarters render as the whole tile does ([`crate::render::TileRenderer::quarters`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TileQuarters {
+    /// None.
+    Never,
+    /// The last eighth of a frame's tiles, when the workers have more than one render thread
+    /// together (the default).
+    AtTheEnd,
+    /// Every tile (for tests).
+    Always,
 }
 
 /// How a frame's units went on the workers.
@@ -179,6 +200,7 @@ pub struct Master<T: Transport> {
     /// Whether workers with nothing left to do at a frame's end get copies of the tiles others
     /// hold ([`Holdings`]).
     tile_copies: bool,
+    tile_quarters: TileQuarters,
     traffic: Traffic,
     /// What the workers' contexts were last sent ([`Master::render_context`]).
     replicator: Replicator,
@@ -398,6 +420,7 @@ impl<T: Transport> Master<T> {
             region_owner: Vec::new(),
             open: true,
             tile_copies: true,
+            tile_quarters: TileQuarters::AtTheEnd,
             traffic: Traffic::default(),
             replicator: Replicator::demand_loading(),
             demand: Demand::default(),
@@ -474,6 +497,11 @@ impl<T: Transport> Master<T> {
     /// [`Holdings`]).
     pub fn set_tile_copies(&mut self, on: bool) {
         self.tile_copies = on;
+    }
+
+    /// Which tiles go out in quarters (by default [`TileQuarters::AtTheEnd`]).
+    pub fn set_tile_quarters(&mut self, quarters: TileQuarters) {
+        self.tile_quarters = quarters;
     }
 
     /// Sends objects of more than `above` triangles in parts of at most `part_triangles`
@@ -662,6 +690,8 @@ impl<T: Transport> Master<T> {
             owners: &owners,
             costs: &[],
             light_paths: &light_paths,
+            split_below: 0,
+            splittable: &[],
         };
         let mut accept = |u: usize, bytes: &[u8]| -> Result<(), String> {
             samples[u] = Some(LatticeSamples::decode(world, units[u].lattice, units[u].lanes, bytes)?);
@@ -713,9 +743,17 @@ impl<T: Transport> Master<T> {
         if assembly.is_none() {
             rendered = tiles.iter().map(|_| None).collect();
         }
+        // Quarters of tiles, counted as they arrive.
         let mut arrived = 0;
         let owners = std::mem::take(&mut self.last_owner);
         let costs = std::mem::take(&mut self.last_cost);
+        let splittable: Vec<bool> = tiles.iter().map(|t| renderer.quarters(t).is_some()).collect();
+        let split_below = match self.tile_quarters {
+            TileQuarters::Never => 0,
+            TileQuarters::AtTheEnd if self.worker_threads() > 1 => tiles.len() / QUARTERED_SHARE,
+            TileQuarters::AtTheEnd => 0,
+            TileQuarters::Always => tiles.len(),
+        };
         let work = Work {
             job: Job::Tiles,
             units: tiles.len(),
@@ -723,25 +761,38 @@ impl<T: Transport> Master<T> {
             owners: &owners,
             costs: &costs,
             light_paths: &light_paths,
+            split_below,
+            splittable: &splittable,
         };
-        let mut accept = |t: usize, bytes: &[u8]| -> Result<(), String> {
-            match &mut assembly {
-                Some(assembly) => assembly.add(tiles[t], bytes)?,
-                None => rendered[t] = Some(RenderedTile::decode(world, tiles[t], bytes)?),
+        let mut accept = |u: usize, bytes: &[u8]| -> Result<(), String> {
+            let unit = u32::try_from(u).ok().and_then(|u| TileUnit::of(u, tiles.len()));
+            let tile = u32::try_from(u).ok().and_then(|u| unit_tile(&renderer, &tiles, u));
+            let (Some(unit), Some(tile)) = (unit, tile) else {
+                return Err(format!("unit {u} is no tile or quarter of this frame"));
+            };
+            match (&mut assembly, unit) {
+                (Some(assembly), _) => assembly.add(tile, bytes)?,
+                (None, TileUnit::Whole(t)) => rendered[t as usize] = Some(RenderedTile::decode(world, tile, bytes)?),
+                // `unit_tile` gives quarters only of frames assembled as they arrive.
+                (None, TileUnit::Quarter(..)) => return Err(format!("unit {u}: a quarter of a tile kept whole")),
             }
-            arrived += 1;
+            arrived += unit.quarters();
             Ok(())
         };
         let FrameRun { given, counts, costs, helping } =
             self.run(world, update, work, progress, source, &mut accept)?;
-        if arrived != tiles.len() {
+        if arrived != 4 * tiles.len() {
             return Err(DistributedError::Protocol {
                 rank: 0,
-                message: format!("the workers finished frame {} with {arrived} of {} tiles", self.frame, tiles.len()),
+                message: format!(
+                    "the workers finished frame {} with {:.2} of {} tiles",
+                    self.frame,
+                    arrived as f64 / 4.0,
+                    tiles.len()
+                ),
             });
         }
-        self.last_owner = given;
-        self.last_cost = costs;
+        (self.last_owner, self.last_cost) = per_tile(tiles.len(), &given, &costs);
         let (fb, mut report) = match assembly {
             Some(assembly) => assembly.finish(renderer, start),
             None => renderer.finish(rendered.into_iter().flatten().collect(), start),
@@ -777,22 +828,37 @@ impl<T: Transport> Master<T> {
                 Job::Lattices { .. } => list.iter().map(|&u| work.lattices[u as usize]).collect(),
             }
         };
-        let mut schedule = Schedule::new(units, self.workers.len(), work.owners, work.costs);
-        let mut holdings = Holdings::new(units, self.workers.len());
+        let mut schedule = Schedule::new(units, self.workers.len(), work.owners, work.costs)
+            .splitting(work.split_below, |t| work.splittable.get(t as usize).copied().unwrap_or(false));
+        // The units handed out are numbered past the tiles' where tiles may go out in quarters.
+        let numbered = if work.split_below > 0 { TileUnit::count(units) } else { units };
+        // Work handed out and held is counted in quarters of a tile.
+        let quarters = |u: u32| TileUnit::of(u, units).map_or(4, TileUnit::quarters);
+        // Units from the schedule for `worker`, up to `wanted` quarters; and the quarters they make.
+        let take = |schedule: &mut Schedule, worker: usize, wanted: usize| {
+            let (mut next, mut given) = (Vec::new(), 0);
+            while given < wanted {
+                let Some(u) = schedule.next(worker) else { break };
+                given += quarters(u);
+                next.push(u);
+            }
+            (next, given)
+        };
+        let mut holdings = Holdings::new(numbered, self.workers.len());
         // Tiles only: a helper's copy renders again what another worker may render too, and a
         // viewer's lattices report their rays, which would count twice.
         let helping = self.tile_copies && matches!(work.job, Job::Tiles);
-        let mut costs = vec![0u32; units];
+        let mut costs = vec![0u32; numbered];
         let mut told_last = vec![false; self.workers.len()];
         let mut ran_dry = vec![false; self.workers.len()];
-        // Units each worker sent, copies delivered second among them.
+        // Units each worker sent, copies delivered second among them, in quarters of a tile.
         let mut sent = vec![0usize; self.workers.len()];
         let mut traffic = Traffic::default();
         let all_threads = self.worker_threads();
         let threads: Vec<usize> = self.workers.iter().map(|w| (w.threads as usize).max(1)).collect();
         for (w, info) in self.workers.iter().enumerate() {
             let target = in_flight_target(info, schedule.left(), all_threads);
-            let first: Vec<u32> = (0..target).map_while(|_| schedule.next(w)).collect();
+            let (first, _) = take(&mut schedule, w, 4 * target);
             for &t in &first {
                 holdings.hand(w, t);
             }
@@ -864,7 +930,7 @@ impl<T: Transport> Master<T> {
                     self.workers[w].ran_dry();
                     ran_dry[w] = true;
                 }
-                sent[w] += batch.len();
+                sent[w] += batch.iter().map(|&(unit, ..)| quarters(unit)).sum::<usize>();
                 // Per worker, the units another delivered first, for it to leave out.
                 let mut dropped: Vec<(usize, Vec<u32>)> = Vec::new();
                 for (unit, micros, pixels) in batch {
@@ -885,17 +951,18 @@ impl<T: Transport> Master<T> {
                     }
                     accept(u, pixels).map_err(protocol_error)?;
                     costs[u] = micros;
-                    received += 1;
+                    received += quarters(unit);
                     if let Some(p) = progress {
-                        p(received, units);
+                        p(received / 4, units);
                     }
                 }
                 // The worker that sent, and each that may leave units out, get more: a worker
                 // whose last units another delivered has nothing to send that would ask for more.
                 dropped.push((w, Vec::new()));
                 for (x, gone) in dropped {
-                    let held = holdings.held(x);
-                    let wanted = in_flight_target(&self.workers[x], schedule.left(), all_threads).saturating_sub(held);
+                    let held = holdings.held_weight(x, quarters);
+                    let target = in_flight_target(&self.workers[x], schedule.left(), all_threads);
+                    let wanted = (4 * target).saturating_sub(held);
                     let top_up = !told_last[x] && (wanted > 0 || held == 0 || failure.is_some());
                     if !top_up && gone.is_empty() {
                         continue;
@@ -906,16 +973,17 @@ impl<T: Transport> Master<T> {
                     // worker has sent what it holds.
                     let mut next: Vec<u32> = Vec::new();
                     if top_up {
+                        let mut given = 0;
                         if failure.is_none() {
-                            next.extend((0..wanted).map_while(|_| schedule.next(x)));
+                            (next, given) = take(&mut schedule, x, wanted);
                             for &t in &next {
                                 holdings.hand(x, t);
                             }
-                            if helping && next.len() < wanted {
-                                next.extend(holdings.copies_for(x, wanted - next.len(), |o| threads[o]));
+                            if helping && given < wanted {
+                                next.extend(holdings.copies_for(x, wanted - given, quarters, |o| threads[o]));
                             }
                         }
-                        told_last[x] = next.is_empty() || (!helping && (schedule.left() == 0 || next.len() < wanted));
+                        told_last[x] = next.is_empty() || (!helping && (schedule.left() == 0 || given < wanted));
                     }
                     let lattices = described(&next);
                     let m = Message::Assign { frame, units: next, lattices, last: told_last[x], dropped: gone };
@@ -950,7 +1018,7 @@ impl<T: Transport> Master<T> {
                 Message::FrameDone { frame: f, counts: c, failure: worker_failure } if f == frame && !done[w] => {
                     traffic.counters += bytes.len() as u64;
                     done[w] = true;
-                    self.workers[w].frame_done(sent[w], Duration::from_nanos(c.rendering_ns), ran_dry[w]);
+                    self.workers[w].frame_done(sent[w].div_ceil(4), Duration::from_nanos(c.rendering_ns), ran_dry[w]);
                     let share = WorkerShare { done: started.elapsed(), ..WorkerShare::of(&c, self.workers[w].threads) };
                     self.worker_times.push(share);
                     counts.push(c);
@@ -993,6 +1061,7 @@ impl<T: Transport> Master<T> {
             }
         }));
         let (given, helping) = holdings.delivered();
+        let helping = Helping { quartered: schedule.split(), ..helping };
         Ok(FrameRun { given, counts, costs, helping })
     }
 
@@ -1227,6 +1296,24 @@ impl<T: Transport> Drop for Master<T> {
     }
 }
 
+/// Who rendered each of a frame's `tiles` tiles and what it took, from the same by unit (`given`
+/// and `costs`, numbered as [`TileUnit`]s are): a tile that went out in quarters was rendered by
+/// the worker of its first quarter and took what its quarters took together.
+fn per_tile(tiles: usize, given: &[Option<usize>], costs: &[u32]) -> (Vec<Option<usize>>, Vec<u32>) {
+    (0..tiles)
+        .map(|t| {
+            let whole = (given.get(t).copied().flatten(), costs.get(t).copied().unwrap_or(0));
+            let quarters = tiles + 4 * t..tiles + 4 * t + 4;
+            match (whole.0, given.get(quarters.clone()), costs.get(quarters)) {
+                (None, Some(owners), Some(costs)) => {
+                    (owners.iter().flatten().next().copied(), costs.iter().fold(0u32, |a, &c| a.saturating_add(c)))
+                }
+                _ => whole,
+            }
+        })
+        .unzip()
+}
+
 /// How many units a worker should have in flight: its window (enough to hide a round trip
 /// through the master), but no more than its threads' share of the units not yet handed out, and
 /// at least two a thread. Handing out shares of what is left (guided self-scheduling) keeps the
@@ -1269,6 +1356,20 @@ mod tests {
     /// A worker whose units took a microsecond each: its window is the most.
     fn cheap(threads: u32) -> WorkerInfo {
         WorkerInfo { unit_time: Some(Duration::from_micros(1)), ..fresh(threads) }
+    }
+
+    #[test]
+    fn quartered_tiles_are_owned_by_their_first_quarter_and_cost_their_sum() {
+        // Two tiles: 0 went whole to worker 1; 1 in quarters to workers 0, 2, 2, 1.
+        let mut given = vec![Some(1), None, None, None, None, None, Some(0), Some(2), Some(2), Some(1)];
+        let mut costs = vec![50, 0, 0, 0, 0, 0, 7, 8, 9, u32::MAX];
+        assert_eq!(per_tile(2, &given, &costs), (vec![Some(1), Some(0)], vec![50, u32::MAX]));
+        // A quarter nobody delivered (a failed frame) leaves the others'.
+        given[6] = None;
+        costs[9] = 1;
+        assert_eq!(per_tile(2, &given, &costs), (vec![Some(1), Some(2)], vec![50, 25]));
+        // Units numbered without quarters.
+        assert_eq!(per_tile(2, &given[..2], &costs[..2]), (vec![Some(1), None], vec![50, 0]));
     }
 
     #[test]

@@ -39,7 +39,7 @@ pub mod schedule;
 pub mod transport;
 mod worker;
 
-pub use master::{Demand, Master, Traffic, WorkerTime};
+pub use master::{Demand, Master, TileQuarters, Traffic, WorkerTime};
 pub use message::{FrameCounts, Job, LatticeUnit, Message, PROTOCOL_VERSION};
 pub use transport::{LocalTransport, Transport, TransportError};
 pub use worker::{serve, ReplicaScene, WorkerScene, DEFAULT_MESH_CACHE_BYTES};

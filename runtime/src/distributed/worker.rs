@@ -3,6 +3,7 @@
 
 use super::fetch::{FetchLink, Pending};
 use super::message::{build_fingerprint, Job, LatticeUnit, Message, PROTOCOL_VERSION};
+use super::schedule::unit_tile;
 use super::transport::Transport;
 use super::DistributedError;
 use crate::accel::ask_ahead;
@@ -370,9 +371,12 @@ impl<'w> Units<'w> {
     /// its image.
     fn check(&self, world: &World, units: Vec<u32>, lattices: Vec<LatticeUnit>) -> Result<Vec<QueuedUnit>, String> {
         match self {
-            Units::Tiles { tiles, .. } => {
-                if let Some(&bad) = units.iter().find(|&&t| t as usize >= tiles.len()) {
-                    return Err(format!("the master handed out tile {bad} of a frame of {} tiles", tiles.len()));
+            Units::Tiles { renderer, tiles } => {
+                if let Some(&bad) = units.iter().find(|&&u| unit_tile(renderer, tiles, u).is_none()) {
+                    return Err(format!(
+                        "the master handed out unit {bad}, no tile or quarter of one of a frame of {} tiles",
+                        tiles.len()
+                    ));
                 }
                 if !lattices.is_empty() {
                     return Err("the master handed out lattices in a frame of tiles".into());
@@ -398,7 +402,12 @@ impl<'w> Units<'w> {
 
     fn render(&self, unit: QueuedUnit, out: &mut Vec<u8>) {
         match (self, unit.lattice) {
-            (Units::Tiles { renderer, tiles }, _) => renderer.render_tile(&tiles[unit.index as usize]).encode(out),
+            (Units::Tiles { renderer, tiles }, _) => {
+                // `check` lets in only units that are tiles or quarters of this frame.
+                if let Some(tile) = unit_tile(renderer, tiles, unit.index) {
+                    renderer.render_tile(&tile).encode(out)
+                }
+            }
             (Units::Lattices(tracer), Some(l)) => tracer.trace(l.lattice, l.lanes).encode(out),
             // `check` gives every unit of a lattice job its lattice.
             (Units::Lattices(_), None) => {}

@@ -1281,6 +1281,18 @@ impl<'w> TileRenderer<'w> {
         options.pixel_filter.is_unit_box() && !self.pixels_later && captured_outputs(self.frame.world).is_empty()
     }
 
+    /// The quarters of `tile` that, each rendered by [`TileRenderer::render_tile`] apart, give
+    /// exactly the pixels the whole tile gives: those of a whole tile (each quarter a whole number
+    /// of packets of rays) of a frame whose tiles are final where they are rendered and take no
+    /// adaptive samples (which compare each pixel with its neighbours in the tile). `None` for
+    /// other tiles and frames.
+    pub fn quarters(&self, tile: &Tile) -> Option<[Tile; 4]> {
+        let whole = tile.width == TILE_SIZE && tile.height == TILE_SIZE;
+        let packets = (TILE_SIZE / 2) % PACKET_SIDE == 0;
+        let alike = self.sampling.adaptive.is_none() && self.assembles_as_tiles_arrive();
+        (whole && packets && alike).then(|| tile.quarters()).flatten()
+    }
+
     /// An empty image to put this frame's tiles into as they arrive, where
     /// [`TileRenderer::assembles_as_tiles_arrive`].
     pub fn start_assembly(&self) -> Option<TileAssembly> {
