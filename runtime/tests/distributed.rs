@@ -33,12 +33,7 @@ fn pool(threads: usize) -> rayon::ThreadPool {
 /// Renders a frame after each change of `changes` (applied to the master's context `rt` only)
 /// with `workers` worker threads of `threads` threads each, and in this process alone; returns
 /// both images of each frame and the bytes of each frame's update.
-fn both_ways(
-    rt: Context,
-    workers: usize,
-    threads: usize,
-    changes: &[Change],
-) -> Result<Frames, DistributedError> {
+fn both_ways(rt: Context, workers: usize, threads: usize, changes: &[Change]) -> Result<Frames, DistributedError> {
     Ok(both_ways_quartered(rt, workers, threads, changes, TileQuarters::AtTheEnd)?.0)
 }
 
