@@ -269,9 +269,9 @@ type GltfImport = (gltf::Document, Vec<gltf::buffer::Data>, Vec<gltf::image::Dat
 fn import_gltf(path: &Path) -> Result<GltfImport, SceneFileError> {
     let gltf_err = |source| SceneFileError::Gltf { path: path.to_path_buf(), source };
     let invalid = |message: String| SceneFileError::InvalidGltf { path: path.to_path_buf(), message };
-    let file = std::fs::File::open(path).map_err(|e| gltf_err(gltf::Error::Io(e)))?;
-    let gltf::Gltf { document, blob } =
-        gltf::Gltf::from_reader_without_validation(std::io::BufReader::new(file)).map_err(gltf_err)?;
+    let data = std::fs::read(path).map_err(|e| gltf_err(gltf::Error::Io(e)))?;
+    check_glb_length(&data).map_err(invalid)?;
+    let gltf::Gltf { document, blob } = gltf::Gltf::from_slice_without_validation(&data).map_err(gltf_err)?;
     // gltf-json's validation reads a primitive's POSITION accessor before it checks that the
     // accessor exists, and panics on an index past the list: checked here first.
     check_gltf_position_accessors(document.as_json()).map_err(invalid)?;
@@ -296,6 +296,26 @@ fn import_gltf(path: &Path) -> Result<GltfImport, SceneFileError> {
     check_gltf_accessors(&document, &buffers).map_err(invalid)?;
     let images = gltf::import_images(&document, Some(&base), &buffers).map_err(gltf_err)?;
     Ok((document, buffers, images))
+}
+
+/// The size of a binary glTF (GLB) file's header: magic, version, total length.
+const GLB_HEADER_BYTES: usize = 12;
+
+/// Checks the total length a GLB file's header gives (files that do not start with the GLB magic
+/// are JSON, and pass): the glTF library subtracts the header's size from it unchecked, and sizes
+/// a buffer by it when it reads from a stream.
+fn check_glb_length(data: &[u8]) -> Result<(), String> {
+    if !data.starts_with(b"glTF") {
+        return Ok(());
+    }
+    let Some(length) = data.get(8..GLB_HEADER_BYTES) else {
+        return Err(format!("the GLB header is cut short: {} bytes of {GLB_HEADER_BYTES}", data.len()));
+    };
+    let length = u32::from_le_bytes([length[0], length[1], length[2], length[3]]) as usize;
+    if length < GLB_HEADER_BYTES || length > data.len() {
+        return Err(format!("the GLB header gives a length of {length} bytes, but the file has {}", data.len()));
+    }
+    Ok(())
 }
 
 /// An error naming the first mesh primitive whose POSITION names an accessor the file lacks.

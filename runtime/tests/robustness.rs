@@ -160,6 +160,42 @@ fn gltf_accessors_claiming_more_than_their_buffer_are_refused() {
     }
 }
 
+/// A binary glTF (GLB) holding `json` as its one chunk, with `length` in its header (`None`: the
+/// file's true length).
+fn glb(json: &str, length: Option<u32>) -> Vec<u8> {
+    let mut chunk = json.as_bytes().to_vec();
+    chunk.resize(chunk.len().next_multiple_of(4), b' ');
+    let total = 12 + 8 + chunk.len() as u32;
+    let mut out = b"glTF".to_vec();
+    for word in [2, length.unwrap_or(total), chunk.len() as u32, 0x4E4F_534A] {
+        out.extend_from_slice(&u32::to_le_bytes(word));
+    }
+    out.extend_from_slice(&chunk);
+    out
+}
+
+/// A GLB header's length is checked against the file before the glTF library reads by it (it
+/// subtracted the header's size from a smaller one and overflowed, and sized a buffer by it).
+#[test]
+fn glb_lengths_beyond_the_file_or_below_its_header_are_refused() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let json = std::fs::read_to_string(write_gltf(dir.path(), r#"[{"mesh":0}]"#, "tri.bin", 3)).expect("read");
+    let good = dir.path().join("model.glb");
+    std::fs::write(&good, glb(&json, None)).expect("write");
+    add_model_file(&mut Context::new(), &good).expect("a well-formed GLB");
+    let size = glb(&json, None).len();
+    for length in [0, 11, size as u32 + 1, u32::MAX] {
+        let path = dir.path().join("bad.glb");
+        std::fs::write(&path, glb(&json, Some(length))).expect("write");
+        let err = gltf_error(&path);
+        let want = format!("the GLB header gives a length of {length} bytes, but the file has {size}");
+        assert!(err.contains(&want), "{err}");
+    }
+    let cut = dir.path().join("cut.glb");
+    std::fs::write(&cut, b"glTF\x02\0\0\0").expect("write");
+    assert!(gltf_error(&cut).contains("the GLB header is cut short: 8 bytes of 12"), "{}", gltf_error(&cut));
+}
+
 /// A primitive whose POSITION names an accessor the file lacks is an error naming it (the glTF
 /// library's own validation panicked on it).
 #[test]
