@@ -1676,3 +1676,41 @@ Inline { url \"office.wrl\" }
     let lit = image.pixels.chunks_exact(4).filter(|p| p[0] + p[1] + p[2] > 0.3).count();
     assert!(lit > 48 * 27 / 4, "{lit} lit pixels");
 }
+
+/// `rtsl bench trace` reports its figures as `name: value` lines, the page faults of each timed
+/// build among them, and its packet and single-ray passes agree.
+#[test]
+fn bench_trace_reports_each_builds_page_faults() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    // A grid of quads facing the default camera, which looks down at the origin from above.
+    let mut obj = String::new();
+    let n = 24;
+    for j in 0..=n {
+        for i in 0..=n {
+            obj += &format!("v {} 0 {}\n", i as f32 * 10.0 - 120.0, j as f32 * 10.0 - 170.0);
+        }
+    }
+    for j in 0..n {
+        for i in 0..n {
+            let v = j * (n + 1) + i + 1;
+            obj += &format!("f {} {} {} {}\n", v, v + 1, v + n + 2, v + n + 1);
+        }
+    }
+    write(dir.path(), "grid.obj", &obj);
+    let args = ["bench", "trace", "--mesh", "grid.obj", "--size", "64x48", "--threads", "1", "--repeats", "2"];
+    let o = rtsl(&args, dir.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    let field = |name: &str| {
+        let prefix = format!("{name}: ");
+        out.lines().find_map(|l| l.strip_prefix(&prefix)).unwrap_or_else(|| panic!("no {name} in {out}")).to_string()
+    };
+    assert_eq!(field("triangles"), (2 * n * n).to_string());
+    assert_ne!(field("hits"), "0", "{out}");
+    assert_eq!(field("packet_single_mismatches"), "0", "{out}");
+    if cfg!(unix) {
+        let faults: Vec<u64> =
+            field("build_page_faults").split(", ").map(|f| f.parse().expect("a count of faults")).collect();
+        assert_eq!(faults.len(), 2, "one count for each timed build: {out}");
+    }
+}

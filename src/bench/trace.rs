@@ -81,6 +81,9 @@ pub struct BenchReport {
     pub load_ms: f64,
     /// BVH build time, ms (median of up to 3 builds).
     pub build_ms: f64,
+    /// Pages the kernel faulted in during each timed build (fresh memory: a build that reuses
+    /// freed memory faults none), where the system counts them.
+    pub build_page_faults: Option<Vec<u64>>,
     /// Mesh plus BVH memory, bytes.
     pub memory_bytes: usize,
     /// Primary rays traced (pixels).
@@ -151,15 +154,41 @@ pub fn run_bench(opts: &BenchOptions) -> Result<BenchReport, BenchError> {
         // scene is dropped.
         let mut scene = scene_from_mesh(mesh.clone(), opts.quality);
         let mut builds = Vec::new();
+        let mut faults = Some(Vec::new());
         for _ in 0..opts.repeats.clamp(1, 3) {
             let m = mesh.clone();
             drop(scene);
+            let before = minor_page_faults();
             let t = Instant::now();
             scene = scene_from_mesh(m, opts.quality);
             builds.push(t.elapsed().as_secs_f64() * 1e3);
+            let during = before.zip(minor_page_faults()).map(|(b, a)| a.saturating_sub(b));
+            faults = faults.zip(during).map(|(mut f, n)| {
+                f.push(n);
+                f
+            });
         }
-        Ok(trace_all(opts, &scene, triangles, load_ms, median(builds)))
+        let mut report = trace_all(opts, &scene, triangles, load_ms, median(builds));
+        report.build_page_faults = faults;
+        Ok(report)
     })
+}
+
+/// The page faults this process has taken that needed no disk (the kernel handing out and
+/// zeroing fresh pages), where the system counts them.
+fn minor_page_faults() -> Option<u64> {
+    #[cfg(unix)]
+    {
+        let mut usage = std::mem::MaybeUninit::<libc::rusage>::zeroed();
+        // SAFETY: `getrusage` writes the struct it is given, which is large enough.
+        let ok = unsafe { libc::getrusage(libc::RUSAGE_SELF, usage.as_mut_ptr()) } == 0;
+        // SAFETY: zeroed is a valid `rusage`, and a successful call filled it in.
+        ok.then(|| unsafe { usage.assume_init() }.ru_minflt as u64)
+    }
+    #[cfg(not(unix))]
+    {
+        None
+    }
 }
 
 /// The per-pixel results of one tile, row-major within the tile.
@@ -365,6 +394,7 @@ fn trace_all(opts: &BenchOptions, scene: &Scene, triangles: usize, load_ms: f64,
         triangles,
         load_ms,
         build_ms,
+        build_page_faults: None,
         memory_bytes: scene.memory_bytes(),
         primary_rays: (w * h) as usize,
         hits,

@@ -120,6 +120,10 @@ pub fn run_trace(args: &BenchTraceArgs) -> anyhow::Result<()> {
     println!("threads: {}", r.threads);
     println!("load_ms: {:.1}", r.load_ms);
     println!("build_ms: {:.1}", r.build_ms);
+    if let Some(faults) = &r.build_page_faults {
+        let faults: Vec<String> = faults.iter().map(u64::to_string).collect();
+        println!("build_page_faults: {}", faults.join(", "));
+    }
     println!("memory_bytes: {}", r.memory_bytes);
     println!("memory_bytes_per_triangle: {per_tri:.1}");
     println!("primary_rays: {}", r.primary_rays);
