@@ -265,8 +265,18 @@ pub const MAX_GLTF_NODE_DEPTH: usize = 1024;
 type GltfImport = (gltf::Document, Vec<gltf::buffer::Data>, Vec<gltf::image::Data>);
 
 /// Reads a glTF file and the buffers and images it refers to, refusing external files outside the
-/// model's folder and accessors that claim more data than their buffers hold.
+/// model's folder and accessors that claim more data than their buffers hold. A panic in the glTF
+/// library (it has had two on malformed files, both checked for before it reads now) is an error
+/// about the file, as a panicking image decoder's is (`image_io`).
 fn import_gltf(path: &Path) -> Result<GltfImport, SceneFileError> {
+    std::panic::catch_unwind(|| import_gltf_checked(path)).unwrap_or_else(|_| {
+        let message = "the glTF library panicked reading it".to_string();
+        Err(SceneFileError::InvalidGltf { path: path.to_path_buf(), message })
+    })
+}
+
+/// [`import_gltf`] without the guard against the library's panics.
+fn import_gltf_checked(path: &Path) -> Result<GltfImport, SceneFileError> {
     let gltf_err = |source| SceneFileError::Gltf { path: path.to_path_buf(), source };
     let invalid = |message: String| SceneFileError::InvalidGltf { path: path.to_path_buf(), message };
     let data = std::fs::read(path).map_err(|e| gltf_err(gltf::Error::Io(e)))?;
