@@ -154,7 +154,7 @@ pub fn run_bench(opts: &BenchOptions) -> Result<BenchReport, BenchError> {
         // scene is dropped.
         let mut scene = scene_from_mesh(mesh.clone(), opts.quality);
         let mut builds = Vec::new();
-        let mut faults = Some(Vec::new());
+        let mut faults = Vec::new();
         for _ in 0..opts.repeats.clamp(1, 3) {
             let m = mesh.clone();
             drop(scene);
@@ -162,14 +162,10 @@ pub fn run_bench(opts: &BenchOptions) -> Result<BenchReport, BenchError> {
             let t = Instant::now();
             scene = scene_from_mesh(m, opts.quality);
             builds.push(t.elapsed().as_secs_f64() * 1e3);
-            let during = before.zip(minor_page_faults()).map(|(b, a)| a.saturating_sub(b));
-            faults = faults.zip(during).map(|(mut f, n)| {
-                f.push(n);
-                f
-            });
+            faults.push(before.zip(minor_page_faults()).map(|(b, a)| a.saturating_sub(b)));
         }
         let mut report = trace_all(opts, &scene, triangles, load_ms, median(builds));
-        report.build_page_faults = faults;
+        report.build_page_faults = faults.into_iter().collect();
         Ok(report)
     })
 }
