@@ -1190,8 +1190,10 @@ fn workers_fetch_the_mip_levels_their_lookups_read() -> Result<(), DistributedEr
     assert!((1..=2).contains(&far.fetched_textures), "{far:?}");
     assert_eq!(far.fetched_texture_levels, 0, "{far:?}");
     assert!(far.fetched_texture_bytes < texture_bytes / 50, "{far:?}");
-    // Near: finer levels, and still less than the texture to each worker.
-    assert_eq!(near.fetched_textures, 0, "{near:?}");
+    // Near: finer levels, and still less than the texture to each worker. The texture itself
+    // reaches each worker once: now only where the far quad's few tiles all went to the other
+    // (as a busy host may hand them out).
+    assert!(far.fetched_textures + near.fetched_textures <= 2, "{far:?} {near:?}");
     assert!(near.fetched_texture_levels >= 1, "{near:?}");
     assert!(near.fetched_texture_bytes < texture_bytes, "{near:?}");
     Ok(())
@@ -1367,7 +1369,14 @@ fn workers_fetch_the_textures_shaders_look_up_and_only_those() -> Result<(), Dis
     // handed to it to balance the frame), each texture once, and never the large one.
     let mut fetched = first.fetched_textures;
     for (later, traffic) in &frames[1..] {
-        assert_eq!(traffic.fetches > 0, later.fetched_textures > 0, "{later:?} {traffic:?}");
+        // Fetches of anything: a worker may also meet an object for the first time in a tile it
+        // never had before.
+        let fetched_any = later.fetched_textures
+            + later.fetched_texture_levels
+            + later.fetched_texture_tiles
+            + later.fetched_objects
+            + later.fetched_parts;
+        assert_eq!(traffic.fetches > 0, fetched_any > 0, "{later:?} {traffic:?}");
         assert!(later.fetched_texture_bytes < unseen_bytes, "{later:?}");
         fetched += later.fetched_textures;
     }
