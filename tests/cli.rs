@@ -1713,4 +1713,24 @@ fn bench_trace_reports_each_builds_page_faults() {
             field("build_page_faults").split(", ").map(|f| f.parse().expect("a count of faults")).collect();
         assert_eq!(faults.len(), 2, "one count for each timed build: {out}");
     }
+    // The packet kernels it ran with: AVX-512 where the processor has it, unless `RTSL_ISA` says
+    // `avx2`; a value it does not know is reported and ignored.
+    let kernels = field("packet_kernels");
+    assert!(["avx512", "avx2"].contains(&kernels.as_str()), "{out}");
+    let with_isa = |isa: &str| {
+        let o = Command::new(env!("CARGO_BIN_EXE_rtsl"))
+            .args(args)
+            .env("RTSL_ISA", isa)
+            .current_dir(dir.path())
+            .output()
+            .expect("the binary runs");
+        assert!(o.status.success(), "{}", stderr(&o));
+        let kernels = stdout(&o).lines().find_map(|l| l.strip_prefix("packet_kernels: ").map(str::to_string));
+        (kernels.unwrap_or_default(), stderr(&o))
+    };
+    assert_eq!(with_isa("avx2").0, "avx2");
+    assert_eq!(with_isa("avx512").0, kernels);
+    let (bogus, said) = with_isa("avx1024");
+    assert_eq!(bogus, kernels);
+    assert!(said.contains("RTSL_ISA=\"avx1024\"") && said.contains("ignored"), "{said}");
 }

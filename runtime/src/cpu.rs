@@ -7,8 +7,12 @@
 //! unaffected (it picks the host's instructions when it compiles). [`build_note`] says when that
 //! happened on a CPU that could do better, and [`crate::api::Context`] reports it once per process
 //! as a warning.
+//!
+//! The packet-traversal kernels are also compiled a second time for AVX-512 (x86-64-v4) and that
+//! form runs where the processor has it ([`kernel_isa`]), so one binary serves both.
 
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
+use std::sync::Once;
 
 /// A note for an application whose build of this crate lacks AVX2 and FMA on a CPU that has them,
 /// saying how to build it for them; `None` when the build fits the CPU (or is not for x86-64).
@@ -33,4 +37,102 @@ pub fn build_note() -> Option<&'static str> {
 pub(crate) fn build_note_once() -> Option<&'static str> {
     static TOLD: AtomicBool = AtomicBool::new(false);
     build_note().filter(|_| !TOLD.swap(true, Ordering::Relaxed))
+}
+
+/// The instruction set the packet-traversal kernels run with.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum KernelIsa {
+    /// The instruction set this crate was compiled for (x86-64-v3 in rtsl's own builds).
+    Built,
+    /// AVX-512 (the x86-64-v4 set: F, BW, CD, DQ, VL, with x86-64-v3's): 32 vector registers,
+    /// mask registers and three-operand logic for the same eight-lane code.
+    Avx512,
+}
+
+impl KernelIsa {
+    /// The name `RTSL_ISA` takes and `rtsl bench` prints.
+    pub fn name(self) -> &'static str {
+        match self {
+            KernelIsa::Avx512 => "avx512",
+            KernelIsa::Built if cfg!(all(target_feature = "avx2", target_feature = "fma")) => "avx2",
+            KernelIsa::Built if cfg!(target_arch = "x86_64") => "sse2",
+            KernelIsa::Built => "baseline",
+        }
+    }
+}
+
+/// Whether this processor has every feature the AVX-512 kernels are compiled with (the
+/// `target_feature` list of `accel::packet`'s `Avx512` kernels).
+pub(crate) fn has_avx512() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::is_x86_feature_detected as has;
+        has!("avx512f")
+            && has!("avx512bw")
+            && has!("avx512cd")
+            && has!("avx512dq")
+            && has!("avx512vl")
+            && has!("avx2")
+            && has!("fma")
+            && has!("bmi1")
+            && has!("bmi2")
+            && has!("lzcnt")
+            && has!("popcnt")
+            && has!("f16c")
+            && has!("movbe")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    false
+}
+
+/// The kernels' instruction set in this process: AVX-512 where the processor has it, unless the
+/// environment variable `RTSL_ISA` is `avx2` (to compare the two in one binary); decided once.
+/// Any other value of `RTSL_ISA` than `avx2` and `avx512` is reported on standard error, once,
+/// and ignored.
+pub fn kernel_isa() -> KernelIsa {
+    // 0: not decided yet; 1: built; 2: AVX-512.
+    static DECIDED: AtomicU8 = AtomicU8::new(0);
+    match DECIDED.load(Ordering::Relaxed) {
+        1 => return KernelIsa::Built,
+        2 => return KernelIsa::Avx512,
+        _ => {}
+    }
+    let requested = std::env::var("RTSL_ISA").ok();
+    let isa = choose_isa(requested.as_deref(), has_avx512());
+    if let Err(value) = &isa {
+        static TOLD: Once = Once::new();
+        TOLD.call_once(|| eprintln!("rtsl: RTSL_ISA={value:?} is neither `avx2` nor `avx512`; ignored"));
+    }
+    let isa = isa.unwrap_or_else(|_| choose_isa(None, has_avx512()).unwrap_or(KernelIsa::Built));
+    DECIDED.store(if isa == KernelIsa::Avx512 { 2 } else { 1 }, Ordering::Relaxed);
+    isa
+}
+
+/// The kernels for the value of `RTSL_ISA` (`None` when unset or empty) on a processor with
+/// AVX-512 or without: never AVX-512 without it. `Err` gives back a value it does not know.
+fn choose_isa(requested: Option<&str>, avx512: bool) -> Result<KernelIsa, String> {
+    let best = if avx512 { KernelIsa::Avx512 } else { KernelIsa::Built };
+    match requested.map(str::trim) {
+        None | Some("") | Some("avx512") => Ok(best),
+        Some("avx2") => Ok(KernelIsa::Built),
+        Some(other) => Err(other.to_string()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn avx512_kernels_run_only_where_the_processor_has_them() {
+        assert_eq!(choose_isa(None, true), Ok(KernelIsa::Avx512));
+        assert_eq!(choose_isa(Some("avx512"), true), Ok(KernelIsa::Avx512));
+        assert_eq!(choose_isa(Some("avx512"), false), Ok(KernelIsa::Built));
+        assert_eq!(choose_isa(None, false), Ok(KernelIsa::Built));
+        assert_eq!(choose_isa(Some("avx2"), true), Ok(KernelIsa::Built));
+        assert_eq!(choose_isa(Some(""), true), Ok(KernelIsa::Avx512));
+        assert_eq!(choose_isa(Some("avx1024"), true), Err("avx1024".to_string()));
+        // The decision this process made is one the processor can run.
+        assert!(kernel_isa() == KernelIsa::Built || has_avx512());
+    }
 }

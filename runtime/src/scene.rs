@@ -16,6 +16,7 @@ use crate::accel::object::{MeshSource, MeshSummary, Object};
 use crate::accel::store::BvhStore;
 use crate::accel::top::{InstanceData, TopLevel};
 use crate::accel::{packet, single};
+use crate::cpu::KernelIsa;
 use crate::csg::{Csg, Solid};
 use crate::geometry::{AlphaMask, Mesh};
 use crate::ray::{Hit, HitCandidate, HitFilter, HitPacket, Ray, RayPacket, PACKET_SIZE};
@@ -327,8 +328,14 @@ impl Scene {
 
     /// Closest hits accepted by `filter`, packet traversal.
     pub fn intersect_packet_filtered(&self, packet: &RayPacket, out: &mut HitPacket, filter: HitFilter) {
+        self.intersect_packet_on(crate::cpu::kernel_isa(), packet, out, filter)
+    }
+
+    /// [`Scene::intersect_packet_filtered`] with the packet kernels of `isa` (the built ones on a
+    /// processor without it): the same hits bit for bit, at the speed of those kernels.
+    pub fn intersect_packet_on(&self, isa: KernelIsa, packet: &RayPacket, out: &mut HitPacket, filter: HitFilter) {
         let lane = |i: u32| ((i as usize) < PACKET_SIZE).then(|| packet.get(i as usize));
-        self.with_solids(filter, lane, |f| packet::intersect_packet(&self.top, &self.objects, packet, out, f))
+        self.with_solids(filter, lane, |f| packet::intersect_packet_with(isa, &self.top, &self.objects, packet, out, f))
     }
 
     /// Occlusion of the active lanes of `packet`: the mask of lanes that hit something.
@@ -338,8 +345,14 @@ impl Scene {
 
     /// Occlusion by hits accepted by `filter`, packet traversal.
     pub fn occluded_packet_filtered(&self, packet: &RayPacket, filter: HitFilter) -> u64 {
+        self.occluded_packet_on(crate::cpu::kernel_isa(), packet, filter)
+    }
+
+    /// [`Scene::occluded_packet_filtered`] with the packet kernels of `isa` (the built ones on a
+    /// processor without it): the same answers, at the speed of those kernels.
+    pub fn occluded_packet_on(&self, isa: KernelIsa, packet: &RayPacket, filter: HitFilter) -> u64 {
         let lane = |i: u32| ((i as usize) < PACKET_SIZE).then(|| packet.get(i as usize));
-        self.with_solids(filter, lane, |f| packet::occluded_packet(&self.top, &self.objects, packet, f))
+        self.with_solids(filter, lane, |f| packet::occluded_packet_with(isa, &self.top, &self.objects, packet, f))
     }
 
     /// Whether the surface of instance `instance` moves over the shutter interval: the instance

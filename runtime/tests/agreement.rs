@@ -5,6 +5,7 @@
 
 use glam::{Affine3A, Quat, Vec3, Vec3A};
 use proptest::prelude::*;
+use rtsl_runtime::cpu::KernelIsa;
 use rtsl_runtime::geometry::{AlphaMask, Deformation};
 use rtsl_runtime::texture::TexImage;
 use rtsl_runtime::{Hit, HitCandidate, HitPacket, Mesh, Ray, RayPacket, Scene, PACKET_SIZE};
@@ -137,6 +138,18 @@ fn check(scene: &Scene, p: &RayPacket, filter: rtsl_runtime::HitFilter) -> Resul
         // Different ids are accepted only as ties: `same_hit` has checked that the distances agree.
     }
     let occ = scene.occluded_packet_filtered(p, filter);
+    // Each set of packet kernels (the built ones, and AVX-512 where the processor has it) finds
+    // the same hits, bit for bit.
+    for isa in [KernelIsa::Built, KernelIsa::Avx512] {
+        let mut other = HitPacket::default();
+        scene.intersect_packet_on(isa, p, &mut other, filter);
+        for i in (0..PACKET_SIZE).filter(|i| p.active >> i & 1 != 0) {
+            let (a, b) = (hp.get(i), other.get(i));
+            let bits = |h: &Hit| (h.t.to_bits(), h.u.to_bits(), h.v.to_bits(), h.instance, h.primitive);
+            prop_assert_eq!(bits(&a), bits(&b), "lane {} with the {} kernels", i, isa.name());
+        }
+        prop_assert_eq!(scene.occluded_packet_on(isa, p, filter), occ, "{} kernels", isa.name());
+    }
     if filter.is_none() {
         // A lane's closest triangle, tested alone as shadow rays test a known blocker: the lane
         // hits it; and every lane that test finds is one the traversals find occluded.

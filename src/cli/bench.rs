@@ -118,6 +118,7 @@ pub fn run_trace(args: &BenchTraceArgs) -> anyhow::Result<()> {
     println!("mesh: {}", args.mesh.display());
     println!("triangles: {}", r.triangles);
     println!("threads: {}", r.threads);
+    println!("packet_kernels: {}", rtsl_runtime::cpu::kernel_isa().name());
     println!("load_ms: {:.1}", r.load_ms);
     println!("build_ms: {:.1}", r.build_ms);
     if let Some(faults) = &r.build_page_faults {

@@ -36,6 +36,7 @@ use super::single::{self, HitState, RayPre, STACK};
 use super::stack::Stack;
 use super::top::{InstanceData, TopLevel};
 use super::{prefetch, ROBUST};
+use crate::cpu::KernelIsa;
 use crate::geometry::triangle::{intersect, intersect_shared, PreTriangle, SharedOrigin, BLOCK_WIDTH};
 use crate::ray::{HitCandidate, HitFilter, HitPacket, RayPacket, INVALID_ID, PACKET_SIZE};
 use glam::{Vec3A, Vec4};
@@ -84,6 +85,221 @@ fn lane_mask(bits: u32) -> Chunk {
     let lane_bits = i32x8::new([1, 2, 4, 8, 16, 32, 64, 128]);
     bytemuck::cast((i32x8::splat(bits as i32) & lane_bits).simd_eq(lane_bits))
 }
+
+/// The traversal's functions that are not inlined into their callers, compiled for one
+/// instruction set: [`Built`] for the crate's target, [`Avx512`] once more with AVX-512 enabled
+/// (the same code: 32 vector registers, mask registers and three-operand logic for its eight-lane
+/// chunks, and the same IEEE results lane by lane). Each calls the others through its own set, so
+/// that a packet traced by one set stays in it; what they inline (traversal, box and triangle
+/// tests) is compiled with their instruction set.
+///
+/// # Safety
+///
+/// A method may run only on a processor with its set's instruction set: a value of a set exists
+/// only there ([`Built`] everywhere this crate runs, [`Avx512`] where [`Avx512::on`] made it).
+#[allow(clippy::too_many_arguments)]
+trait Kernels: Copy {
+    unsafe fn intersect_lanes(
+        self,
+        top: &TopLevel,
+        objects: &[Object],
+        p: &RayPacket,
+        active: u64,
+        out: &mut HitPacket,
+        filter: HitFilter,
+        split: bool,
+    );
+    unsafe fn occluded_lanes(
+        self,
+        top: &TopLevel,
+        objects: &[Object],
+        p: &RayPacket,
+        active: u64,
+        filter: HitFilter,
+        split: bool,
+    ) -> u64;
+    unsafe fn intersect_object_with<const SHARED: bool>(
+        self,
+        obj: &Object,
+        inst_id: u32,
+        object_id: u32,
+        g: &Geom,
+        s: &mut State,
+        lo: usize,
+        hi: usize,
+        filter: HitFilter,
+    );
+    unsafe fn intersect_parts<const SHARED: bool>(
+        self,
+        obj: &Object,
+        small: &ObjectBvh,
+        parts: &Parts,
+        inst_id: u32,
+        object_id: u32,
+        g: &Geom,
+        s: &mut State,
+        lo: usize,
+        hi: usize,
+        filter: HitFilter,
+    );
+    unsafe fn occluded_object_with<const SHARED: bool>(
+        self,
+        obj: &Object,
+        inst_id: u32,
+        object_id: u32,
+        g: &Geom,
+        s: &mut State,
+        lo: usize,
+        hi: usize,
+        filter: HitFilter,
+    ) -> bool;
+    unsafe fn occluded_parts<const SHARED: bool>(
+        self,
+        obj: &Object,
+        small: &ObjectBvh,
+        parts: &Parts,
+        inst_id: u32,
+        object_id: u32,
+        g: &Geom,
+        s: &mut State,
+        lo: usize,
+        hi: usize,
+        filter: HitFilter,
+    ) -> bool;
+}
+
+/// The kernels compiled for the crate's target.
+#[derive(Clone, Copy)]
+struct Built;
+
+/// The kernels compiled with AVX-512: only made where the processor has it.
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy)]
+struct Avx512(());
+
+#[cfg(target_arch = "x86_64")]
+impl Avx512 {
+    /// The AVX-512 kernels, where `isa` asks for them and the processor has them.
+    fn on(isa: KernelIsa) -> Option<Avx512> {
+        (isa == KernelIsa::Avx512 && crate::cpu::has_avx512()).then_some(Avx512(()))
+    }
+}
+
+/// `Kernels` for `$set`, each method its own function (`#[inline(never)]`: one copy of each
+/// traversal per set, as the two copies of the box tests are kept apart) compiled with `$attr`.
+macro_rules! kernels {
+    ($set:ty $(, #[$attr:meta])*) => {
+        #[allow(clippy::too_many_arguments)]
+        impl Kernels for $set {
+            #[inline(never)]
+            $(#[$attr])*
+            unsafe fn intersect_lanes(
+                self,
+                top: &TopLevel,
+                objects: &[Object],
+                p: &RayPacket,
+                active: u64,
+                out: &mut HitPacket,
+                filter: HitFilter,
+                split: bool,
+            ) {
+                intersect_lanes_in(self, top, objects, p, active, out, filter, split)
+            }
+
+            #[inline(never)]
+            $(#[$attr])*
+            unsafe fn occluded_lanes(
+                self,
+                top: &TopLevel,
+                objects: &[Object],
+                p: &RayPacket,
+                active: u64,
+                filter: HitFilter,
+                split: bool,
+            ) -> u64 {
+                occluded_lanes_in(self, top, objects, p, active, filter, split)
+            }
+
+            #[inline(never)]
+            $(#[$attr])*
+            unsafe fn intersect_object_with<const SHARED: bool>(
+                self,
+                obj: &Object,
+                inst_id: u32,
+                object_id: u32,
+                g: &Geom,
+                s: &mut State,
+                lo: usize,
+                hi: usize,
+                filter: HitFilter,
+            ) {
+                intersect_object_with_in::<Self, SHARED>(self, obj, inst_id, object_id, g, s, lo, hi, filter)
+            }
+
+            #[inline(never)]
+            $(#[$attr])*
+            unsafe fn intersect_parts<const SHARED: bool>(
+                self,
+                obj: &Object,
+                small: &ObjectBvh,
+                parts: &Parts,
+                inst_id: u32,
+                object_id: u32,
+                g: &Geom,
+                s: &mut State,
+                lo: usize,
+                hi: usize,
+                filter: HitFilter,
+            ) {
+                intersect_parts_in::<SHARED>(obj, small, parts, inst_id, object_id, g, s, lo, hi, filter)
+            }
+
+            #[inline(never)]
+            $(#[$attr])*
+            unsafe fn occluded_object_with<const SHARED: bool>(
+                self,
+                obj: &Object,
+                inst_id: u32,
+                object_id: u32,
+                g: &Geom,
+                s: &mut State,
+                lo: usize,
+                hi: usize,
+                filter: HitFilter,
+            ) -> bool {
+                occluded_object_with_in::<Self, SHARED>(self, obj, inst_id, object_id, g, s, lo, hi, filter)
+            }
+
+            #[inline(never)]
+            $(#[$attr])*
+            unsafe fn occluded_parts<const SHARED: bool>(
+                self,
+                obj: &Object,
+                small: &ObjectBvh,
+                parts: &Parts,
+                inst_id: u32,
+                object_id: u32,
+                g: &Geom,
+                s: &mut State,
+                lo: usize,
+                hi: usize,
+                filter: HitFilter,
+            ) -> bool {
+                occluded_parts_in::<SHARED>(obj, small, parts, inst_id, object_id, g, s, lo, hi, filter)
+            }
+        }
+    };
+}
+
+kernels!(Built);
+// The features `crate::cpu::has_avx512` checks.
+#[cfg(target_arch = "x86_64")]
+kernels!(
+    Avx512,
+    #[target_feature(
+        enable = "avx512f,avx512bw,avx512cd,avx512dq,avx512vl,avx2,fma,bmi1,bmi2,lzcnt,popcnt,f16c,movbe"
+    )]
+);
 
 /// The packet's rays in one space (world, or an object's space), with interval bounds.
 struct Geom {
@@ -466,7 +682,9 @@ fn leaf_triangle<H: FnMut(usize, u32, Chunk, Chunk, Chunk, &mut State)>(
 
 /// Closest hit of the packet's chunks `lo..=hi` with one object.
 #[allow(clippy::too_many_arguments)]
-fn intersect_object(
+#[inline(always)]
+fn intersect_object<K: Kernels>(
+    k: K,
     obj: &Object,
     inst_id: u32,
     object_id: u32,
@@ -478,17 +696,21 @@ fn intersect_object(
 ) {
     // Two copies of the traversal, each its own function: one inlined into the other's body slowed
     // both (as `rtsl bench trace` measures primary packets).
-    if g.shared_origin {
-        intersect_object_with::<true>(obj, inst_id, object_id, g, s, lo, hi, filter)
-    } else {
-        intersect_object_with::<false>(obj, inst_id, object_id, g, s, lo, hi, filter)
+    // SAFETY: a value of `K` exists only where the processor has its instruction set.
+    unsafe {
+        if g.shared_origin {
+            k.intersect_object_with::<true>(obj, inst_id, object_id, g, s, lo, hi, filter)
+        } else {
+            k.intersect_object_with::<false>(obj, inst_id, object_id, g, s, lo, hi, filter)
+        }
     }
 }
 
 /// [`intersect_object`] with the box tests of a shared origin or not.
 #[allow(clippy::too_many_arguments)]
-#[inline(never)]
-fn intersect_object_with<const SHARED: bool>(
+#[inline(always)]
+fn intersect_object_with_in<K: Kernels, const SHARED: bool>(
+    k: K,
     obj: &Object,
     inst_id: u32,
     object_id: u32,
@@ -501,15 +723,18 @@ fn intersect_object_with<const SHARED: bool>(
     let data = obj.data();
     match &data.bvh.parts {
         None => intersect_tree::<SHARED>(obj, &data.bvh, inst_id, object_id, g, s, lo, hi, filter),
-        Some(parts) => intersect_parts::<SHARED>(obj, &data.bvh, parts, inst_id, object_id, g, s, lo, hi, filter),
+        // SAFETY: as `intersect_object`'s.
+        Some(parts) => unsafe {
+            k.intersect_parts::<SHARED>(obj, &data.bvh, parts, inst_id, object_id, g, s, lo, hi, filter)
+        },
     }
 }
 
-/// [`intersect_object_with`] with a BVH in parts: the small tree's leaves are the parts' trees,
+/// [`intersect_object_with_in`] with a BVH in parts: the small tree's leaves are the parts' trees,
 /// each traversed with the chunks that reached its box.
 #[allow(clippy::too_many_arguments)]
-#[inline(never)]
-fn intersect_parts<const SHARED: bool>(
+#[inline(always)]
+fn intersect_parts_in<const SHARED: bool>(
     obj: &Object,
     small: &ObjectBvh,
     parts: &Parts,
@@ -536,7 +761,7 @@ fn intersect_parts<const SHARED: bool>(
     );
 }
 
-/// [`intersect_object_with`] with a whole tree, or one part.
+/// [`intersect_object_with_in`] with a whole tree, or one part.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn intersect_tree<const SHARED: bool>(
@@ -553,64 +778,77 @@ fn intersect_tree<const SHARED: bool>(
     let blocks = &tree.blocks;
     let order = &tree.bvh.prim_order;
     let pf = |b: u32| prefetch(blocks.as_ptr().wrapping_add(b as usize), 3);
-    traverse::<SHARED, _, _>(&tree.bvh, g, s, lo, hi, pf, |b, count, mask, s| {
-        let mut any = false;
-        let block = &blocks[b as usize];
-        for j in 0..count as usize {
-            let primitive = order[BLOCK_WIDTH * b as usize + j];
-            leaf_triangle(g, s, &block.triangle(j), mask, |c, mut bits, t, u, v, s| {
-                if filter.is_some() || obj.alpha.is_some() {
+    traverse::<SHARED, _, _>(
+        &tree.bvh,
+        g,
+        s,
+        lo,
+        hi,
+        pf,
+        // A closure is compiled with the instruction set of the function that defines it, not of
+        // the kernel that calls it: inlined, it takes the kernel's.
+        #[inline(always)]
+        |b, count, mask, s| {
+            let mut any = false;
+            let block = &blocks[b as usize];
+            for j in 0..count as usize {
+                let primitive = order[BLOCK_WIDTH * b as usize + j];
+                leaf_triangle(g, s, &block.triangle(j), mask, |c, mut bits, t, u, v, s| {
+                    if filter.is_some() || obj.alpha.is_some() {
+                        let mut b = bits;
+                        while b != 0 {
+                            let j = b.trailing_zeros() as usize;
+                            b &= b - 1;
+                            if !obj.solid_at(primitive, lane(&u, j), lane(&v, j)) {
+                                bits &= !(1 << j);
+                                continue;
+                            }
+                            let Some(f) = filter else { continue };
+                            let cand = HitCandidate {
+                                t: lane(&t, j),
+                                u: lane(&u, j),
+                                v: lane(&v, j),
+                                instance: inst_id,
+                                object: object_id,
+                                primitive,
+                                lane: (W * c + j) as u32,
+                            };
+                            if !f(&cand) {
+                                bits &= !(1 << j);
+                            }
+                        }
+                        if bits == 0 {
+                            return;
+                        }
+                    }
+                    let hm = lane_mask(bits);
+                    s.tmax[c] = hm.select(t, s.tmax[c]);
+                    s.u[c] = hm.select(u, s.u[c]);
+                    s.v[c] = hm.select(v, s.v[c]);
                     let mut b = bits;
                     while b != 0 {
                         let j = b.trailing_zeros() as usize;
                         b &= b - 1;
-                        if !obj.solid_at(primitive, lane(&u, j), lane(&v, j)) {
-                            bits &= !(1 << j);
-                            continue;
-                        }
-                        let Some(f) = filter else { continue };
-                        let cand = HitCandidate {
-                            t: lane(&t, j),
-                            u: lane(&u, j),
-                            v: lane(&v, j),
-                            instance: inst_id,
-                            object: object_id,
-                            primitive,
-                            lane: (W * c + j) as u32,
-                        };
-                        if !f(&cand) {
-                            bits &= !(1 << j);
-                        }
+                        s.instance[W * c + j] = inst_id;
+                        s.primitive[W * c + j] = primitive;
                     }
-                    if bits == 0 {
-                        return;
-                    }
-                }
-                let hm = lane_mask(bits);
-                s.tmax[c] = hm.select(t, s.tmax[c]);
-                s.u[c] = hm.select(u, s.u[c]);
-                s.v[c] = hm.select(v, s.v[c]);
-                let mut b = bits;
-                while b != 0 {
-                    let j = b.trailing_zeros() as usize;
-                    b &= b - 1;
-                    s.instance[W * c + j] = inst_id;
-                    s.primitive[W * c + j] = primitive;
-                }
-                any = true;
-            });
-        }
-        if any {
-            s.update_tmax_hi();
-        }
-        false
-    });
+                    any = true;
+                });
+            }
+            if any {
+                s.update_tmax_hi();
+            }
+            false
+        },
+    );
 }
 
 /// Occlusion of the packet's chunks with one object; returns `true` when traversal should stop
 /// (every lane is done, or few remain and `s.bail` is set).
 #[allow(clippy::too_many_arguments)]
-fn occluded_object(
+#[inline(always)]
+fn occluded_object<K: Kernels>(
+    k: K,
     obj: &Object,
     inst_id: u32,
     object_id: u32,
@@ -621,17 +859,21 @@ fn occluded_object(
     filter: HitFilter,
 ) -> bool {
     // As `intersect_object`: one function per copy of the traversal.
-    if g.shared_origin {
-        occluded_object_with::<true>(obj, inst_id, object_id, g, s, lo, hi, filter)
-    } else {
-        occluded_object_with::<false>(obj, inst_id, object_id, g, s, lo, hi, filter)
+    // SAFETY: a value of `K` exists only where the processor has its instruction set.
+    unsafe {
+        if g.shared_origin {
+            k.occluded_object_with::<true>(obj, inst_id, object_id, g, s, lo, hi, filter)
+        } else {
+            k.occluded_object_with::<false>(obj, inst_id, object_id, g, s, lo, hi, filter)
+        }
     }
 }
 
 /// [`occluded_object`] with the box tests of a shared origin or not.
 #[allow(clippy::too_many_arguments)]
-#[inline(never)]
-fn occluded_object_with<const SHARED: bool>(
+#[inline(always)]
+fn occluded_object_with_in<K: Kernels, const SHARED: bool>(
+    k: K,
     obj: &Object,
     inst_id: u32,
     object_id: u32,
@@ -644,14 +886,17 @@ fn occluded_object_with<const SHARED: bool>(
     let data = obj.data();
     match &data.bvh.parts {
         None => occluded_tree::<SHARED>(obj, &data.bvh, inst_id, object_id, g, s, lo, hi, filter),
-        Some(parts) => occluded_parts::<SHARED>(obj, &data.bvh, parts, inst_id, object_id, g, s, lo, hi, filter),
+        // SAFETY: as `occluded_object`'s.
+        Some(parts) => unsafe {
+            k.occluded_parts::<SHARED>(obj, &data.bvh, parts, inst_id, object_id, g, s, lo, hi, filter)
+        },
     }
 }
 
-/// [`occluded_object_with`] with a BVH in parts.
+/// [`occluded_object_with_in`] with a BVH in parts.
 #[allow(clippy::too_many_arguments)]
-#[inline(never)]
-fn occluded_parts<const SHARED: bool>(
+#[inline(always)]
+fn occluded_parts_in<const SHARED: bool>(
     obj: &Object,
     small: &ObjectBvh,
     parts: &Parts,
@@ -677,7 +922,7 @@ fn occluded_parts<const SHARED: bool>(
     )
 }
 
-/// [`occluded_object_with`] with a whole tree, or one part.
+/// [`occluded_object_with_in`] with a whole tree, or one part.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn occluded_tree<const SHARED: bool>(
@@ -694,57 +939,67 @@ fn occluded_tree<const SHARED: bool>(
     let blocks = &tree.blocks;
     let order = &tree.bvh.prim_order;
     let pf = |b: u32| prefetch(blocks.as_ptr().wrapping_add(b as usize), 3);
-    traverse::<SHARED, _, _>(&tree.bvh, g, s, lo, hi, pf, |b, count, mask, s| {
-        let mut any = false;
-        let block = &blocks[b as usize];
-        for j in 0..count as usize {
-            let primitive = order[BLOCK_WIDTH * b as usize + j];
-            leaf_triangle(g, s, &block.triangle(j), mask, |c, mut bits, t, u, v, s| {
-                if filter.is_some() || obj.alpha.is_some() {
-                    let mut b = bits;
-                    while b != 0 {
-                        let j = b.trailing_zeros() as usize;
-                        b &= b - 1;
-                        if !obj.solid_at(primitive, lane(&u, j), lane(&v, j)) {
-                            bits &= !(1 << j);
-                            continue;
+    traverse::<SHARED, _, _>(
+        &tree.bvh,
+        g,
+        s,
+        lo,
+        hi,
+        pf,
+        // As `intersect_tree`'s, inlined to take the kernel's instruction set.
+        #[inline(always)]
+        |b, count, mask, s| {
+            let mut any = false;
+            let block = &blocks[b as usize];
+            for j in 0..count as usize {
+                let primitive = order[BLOCK_WIDTH * b as usize + j];
+                leaf_triangle(g, s, &block.triangle(j), mask, |c, mut bits, t, u, v, s| {
+                    if filter.is_some() || obj.alpha.is_some() {
+                        let mut b = bits;
+                        while b != 0 {
+                            let j = b.trailing_zeros() as usize;
+                            b &= b - 1;
+                            if !obj.solid_at(primitive, lane(&u, j), lane(&v, j)) {
+                                bits &= !(1 << j);
+                                continue;
+                            }
+                            let Some(f) = filter else { continue };
+                            let cand = HitCandidate {
+                                t: lane(&t, j),
+                                u: lane(&u, j),
+                                v: lane(&v, j),
+                                instance: inst_id,
+                                object: object_id,
+                                primitive,
+                                lane: (W * c + j) as u32,
+                            };
+                            if !f(&cand) {
+                                bits &= !(1 << j);
+                            }
                         }
-                        let Some(f) = filter else { continue };
-                        let cand = HitCandidate {
-                            t: lane(&t, j),
-                            u: lane(&u, j),
-                            v: lane(&v, j),
-                            instance: inst_id,
-                            object: object_id,
-                            primitive,
-                            lane: (W * c + j) as u32,
-                        };
-                        if !f(&cand) {
-                            bits &= !(1 << j);
+                        if bits == 0 {
+                            return;
                         }
                     }
-                    if bits == 0 {
-                        return;
-                    }
+                    s.tmax[c] = lane_mask(bits).select(Chunk::splat(f32::NEG_INFINITY), s.tmax[c]);
+                    s.done |= (bits as u64) << (W * c);
+                    any = true;
+                });
+            }
+            if any {
+                let left = s.active & !s.done;
+                if left == 0 {
+                    return true;
                 }
-                s.tmax[c] = lane_mask(bits).select(Chunk::splat(f32::NEG_INFINITY), s.tmax[c]);
-                s.done |= (bits as u64) << (W * c);
-                any = true;
-            });
-        }
-        if any {
-            let left = s.active & !s.done;
-            if left == 0 {
-                return true;
+                if left.count_ones() <= SINGLE_RAY_THRESHOLD {
+                    s.bail = true;
+                    return true;
+                }
+                s.update_tmax_hi();
             }
-            if left.count_ones() <= SINGLE_RAY_THRESHOLD {
-                s.bail = true;
-                return true;
-            }
-            s.update_tmax_hi();
-        }
-        false
-    })
+            false
+        },
+    )
 }
 
 fn chunk_range(mask: u64) -> (usize, usize) {
@@ -808,20 +1063,32 @@ fn lane_in_object(
     }
 }
 
-/// Closest hits of a packet (see the module documentation).
-pub(crate) fn intersect_packet(
+/// Closest hits of a packet (see the module documentation), with the kernels of `isa` (the built
+/// ones where the processor lacks it).
+pub(crate) fn intersect_packet_with(
+    isa: KernelIsa,
     top: &TopLevel,
     objects: &[Object],
     p: &RayPacket,
     out: &mut HitPacket,
     filter: HitFilter,
 ) {
-    intersect_lanes(top, objects, p, p.active, out, filter, true);
+    #[cfg(target_arch = "x86_64")]
+    if let Some(k) = Avx512::on(isa) {
+        // SAFETY: `k` exists, so the processor has AVX-512.
+        return unsafe { k.intersect_lanes(top, objects, p, p.active, out, filter, true) };
+    }
+    let _ = isa;
+    // SAFETY: the built kernels run wherever this crate does.
+    unsafe { Built.intersect_lanes(top, objects, p, p.active, out, filter, true) }
 }
 
 /// Closest hits of the packet's lanes `active`; an incoherent packet is split by octant when
 /// `split` is set.
-fn intersect_lanes(
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn intersect_lanes_in<K: Kernels>(
+    k: K,
     top: &TopLevel,
     objects: &[Object],
     p: &RayPacket,
@@ -853,7 +1120,8 @@ fn intersect_lanes(
             return single_all(out);
         }
         for lanes in octants(p, active) {
-            intersect_lanes(top, objects, p, lanes, out, filter, false);
+            // SAFETY: as `intersect_object`'s.
+            unsafe { k.intersect_lanes(top, objects, p, lanes, out, filter, false) };
         }
         return;
     }
@@ -865,14 +1133,14 @@ fn intersect_lanes(
         let (clo, chi) = mask_range(mask);
         let deforms = obj.deforms();
         if inst.identity && !deforms {
-            intersect_object(obj, inst_id, inst.object, &g, s, clo, chi, filter);
+            intersect_object(k, obj, inst_id, inst.object, &g, s, clo, chi, filter);
             return;
         }
         let og = match inst.motion {
             None if !deforms => {
                 let mut og = g.transformed(&inst.object_from_world, clo, chi);
                 if og.finish(clo, chi) {
-                    intersect_object(obj, inst_id, inst.object, &og, s, clo, chi, filter);
+                    intersect_object(k, obj, inst_id, inst.object, &og, s, clo, chi, filter);
                     return;
                 }
                 Some(og)
@@ -944,14 +1212,30 @@ fn write_lane(out: &mut HitPacket, i: usize, t: f32, u: f32, v: f32, inst: u32, 
     out.primitive.0[i] = prim;
 }
 
-/// Occlusion of a packet: returns the mask of active lanes that hit something.
-pub(crate) fn occluded_packet(top: &TopLevel, objects: &[Object], p: &RayPacket, filter: HitFilter) -> u64 {
-    occluded_lanes(top, objects, p, p.active, filter, true)
+/// Occlusion of a packet: the mask of active lanes that hit something, with the kernels of `isa`
+/// (the built ones where the processor lacks it).
+pub(crate) fn occluded_packet_with(
+    isa: KernelIsa,
+    top: &TopLevel,
+    objects: &[Object],
+    p: &RayPacket,
+    filter: HitFilter,
+) -> u64 {
+    #[cfg(target_arch = "x86_64")]
+    if let Some(k) = Avx512::on(isa) {
+        // SAFETY: `k` exists, so the processor has AVX-512.
+        return unsafe { k.occluded_lanes(top, objects, p, p.active, filter, true) };
+    }
+    let _ = isa;
+    // SAFETY: the built kernels run wherever this crate does.
+    unsafe { Built.occluded_lanes(top, objects, p, p.active, filter, true) }
 }
 
 /// Occlusion of the packet's lanes `active`; an incoherent packet is split by octant when `split`
 /// is set.
-fn occluded_lanes(
+#[inline(always)]
+fn occluded_lanes_in<K: Kernels>(
+    k: K,
     top: &TopLevel,
     objects: &[Object],
     p: &RayPacket,
@@ -986,7 +1270,8 @@ fn occluded_lanes(
         }
         return octants(p, active)
             .into_iter()
-            .map(|lanes| occluded_lanes(top, objects, p, lanes, filter, false))
+            // SAFETY: as `intersect_object`'s.
+            .map(|lanes| unsafe { k.occluded_lanes(top, objects, p, lanes, filter, false) })
             .fold(0, |a, b| a | b);
     }
     let mut s = State::new(p, active, (lo, hi));
@@ -998,13 +1283,13 @@ fn occluded_lanes(
         let (clo, chi) = mask_range(mask);
         let deforms = obj.deforms();
         if inst.identity && !deforms {
-            return occluded_object(obj, inst_id, inst.object, &g, s, clo, chi, filter);
+            return occluded_object(k, obj, inst_id, inst.object, &g, s, clo, chi, filter);
         }
         let og = match inst.motion {
             None if !deforms => {
                 let mut og = g.transformed(&inst.object_from_world, clo, chi);
                 if og.finish(clo, chi) {
-                    return occluded_object(obj, inst_id, inst.object, &og, s, clo, chi, filter);
+                    return occluded_object(k, obj, inst_id, inst.object, &og, s, clo, chi, filter);
                 }
                 Some(og)
             }
