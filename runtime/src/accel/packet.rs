@@ -118,54 +118,10 @@ trait Kernels: Copy {
         filter: HitFilter,
         split: bool,
     ) -> u64;
-    unsafe fn intersect_object_with<const SHARED: bool>(
-        self,
-        obj: &Object,
-        inst_id: u32,
-        object_id: u32,
-        g: &Geom,
-        s: &mut State,
-        lo: usize,
-        hi: usize,
-        filter: HitFilter,
-    );
-    unsafe fn intersect_parts<const SHARED: bool>(
-        self,
-        obj: &Object,
-        small: &ObjectBvh,
-        parts: &Parts,
-        inst_id: u32,
-        object_id: u32,
-        g: &Geom,
-        s: &mut State,
-        lo: usize,
-        hi: usize,
-        filter: HitFilter,
-    );
-    unsafe fn occluded_object_with<const SHARED: bool>(
-        self,
-        obj: &Object,
-        inst_id: u32,
-        object_id: u32,
-        g: &Geom,
-        s: &mut State,
-        lo: usize,
-        hi: usize,
-        filter: HitFilter,
-    ) -> bool;
-    unsafe fn occluded_parts<const SHARED: bool>(
-        self,
-        obj: &Object,
-        small: &ObjectBvh,
-        parts: &Parts,
-        inst_id: u32,
-        object_id: u32,
-        g: &Geom,
-        s: &mut State,
-        lo: usize,
-        hi: usize,
-        filter: HitFilter,
-    ) -> bool;
+    unsafe fn intersect_object_with<const SHARED: bool>(self, v: &ObjectVisit, s: &mut State);
+    unsafe fn intersect_parts<const SHARED: bool>(self, v: &ObjectVisit, parts: &Parts, s: &mut State);
+    unsafe fn occluded_object_with<const SHARED: bool>(self, v: &ObjectVisit, s: &mut State) -> bool;
+    unsafe fn occluded_parts<const SHARED: bool>(self, v: &ObjectVisit, parts: &Parts, s: &mut State) -> bool;
 }
 
 /// The kernels compiled for the crate's target.
@@ -222,70 +178,31 @@ macro_rules! kernels {
 
             #[inline(never)]
             $(#[$attr])*
-            unsafe fn intersect_object_with<const SHARED: bool>(
-                self,
-                obj: &Object,
-                inst_id: u32,
-                object_id: u32,
-                g: &Geom,
-                s: &mut State,
-                lo: usize,
-                hi: usize,
-                filter: HitFilter,
-            ) {
-                intersect_object_with_in::<Self, SHARED>(self, obj, inst_id, object_id, g, s, lo, hi, filter)
+            unsafe fn intersect_object_with<const SHARED: bool>(self, v: &ObjectVisit, s: &mut State) {
+                intersect_object_with_in::<Self, SHARED>(self, v, s)
             }
 
             #[inline(never)]
             $(#[$attr])*
-            unsafe fn intersect_parts<const SHARED: bool>(
-                self,
-                obj: &Object,
-                small: &ObjectBvh,
-                parts: &Parts,
-                inst_id: u32,
-                object_id: u32,
-                g: &Geom,
-                s: &mut State,
-                lo: usize,
-                hi: usize,
-                filter: HitFilter,
-            ) {
-                intersect_parts_in::<SHARED>(obj, small, parts, inst_id, object_id, g, s, lo, hi, filter)
+            unsafe fn intersect_parts<const SHARED: bool>(self, v: &ObjectVisit, parts: &Parts, s: &mut State) {
+                intersect_parts_in::<SHARED>(v, parts, s)
             }
 
             #[inline(never)]
             $(#[$attr])*
-            unsafe fn occluded_object_with<const SHARED: bool>(
-                self,
-                obj: &Object,
-                inst_id: u32,
-                object_id: u32,
-                g: &Geom,
-                s: &mut State,
-                lo: usize,
-                hi: usize,
-                filter: HitFilter,
-            ) -> bool {
-                occluded_object_with_in::<Self, SHARED>(self, obj, inst_id, object_id, g, s, lo, hi, filter)
+            unsafe fn occluded_object_with<const SHARED: bool>(self, v: &ObjectVisit, s: &mut State) -> bool {
+                occluded_object_with_in::<Self, SHARED>(self, v, s)
             }
 
             #[inline(never)]
             $(#[$attr])*
             unsafe fn occluded_parts<const SHARED: bool>(
                 self,
-                obj: &Object,
-                small: &ObjectBvh,
+                v: &ObjectVisit,
                 parts: &Parts,
-                inst_id: u32,
-                object_id: u32,
-                g: &Geom,
                 s: &mut State,
-                lo: usize,
-                hi: usize,
-                filter: HitFilter,
             ) -> bool {
-                occluded_parts_in::<SHARED>(obj, small, parts, inst_id, object_id, g, s, lo, hi, filter)
+                occluded_parts_in::<SHARED>(v, parts, s)
             }
         }
     };
@@ -680,161 +597,171 @@ fn leaf_triangle<H: FnMut(usize, u32, Chunk, Chunk, Chunk, &mut State)>(
     }
 }
 
-/// Closest hit of the packet's chunks `lo..=hi` with one object.
-#[allow(clippy::too_many_arguments)]
-#[inline(always)]
-fn intersect_object<K: Kernels>(
-    k: K,
-    obj: &Object,
+/// One object as a packet meets it: the object and its instance's and object's ids, the packet's
+/// chunks `lo..=hi` with their rays in the object's space, and the hit filter.
+#[derive(Clone, Copy)]
+struct ObjectVisit<'a> {
+    obj: &'a Object,
     inst_id: u32,
     object_id: u32,
-    g: &Geom,
-    s: &mut State,
+    g: &'a Geom,
     lo: usize,
     hi: usize,
-    filter: HitFilter,
-) {
+    filter: HitFilter<'a>,
+}
+
+impl ObjectVisit<'_> {
+    /// The same visit with the chunks of `mask` (a part of the object that some reached).
+    #[inline(always)]
+    fn with_chunks(&self, mask: u8) -> Self {
+        let (lo, hi) = mask_range(mask);
+        ObjectVisit { lo, hi, ..*self }
+    }
+}
+
+/// Tests the chunks `mask` against the triangles of leaf block `b` of `tree` (`count` of them):
+/// `on_hit(c, bits, [t, u, v], primitive, s)` for each triangle's hits in chunk `c` that the
+/// object's alpha mask and the filter accept (lanes `bits`). Returns whether there were any.
+#[inline(always)]
+fn leaf_hits(
+    v: &ObjectVisit,
+    tree: &ObjectBvh,
+    s: &mut State,
+    (b, count, mask): (u32, u32, u8),
+    mut on_hit: impl FnMut(usize, u32, [Chunk; 3], u32, &mut State),
+) -> bool {
+    let mut any = false;
+    let block = &tree.blocks[b as usize];
+    for j in 0..count as usize {
+        let primitive = tree.bvh.prim_order[BLOCK_WIDTH * b as usize + j];
+        // Inlined, as the kernels' closures are (see `intersect_tree`).
+        leaf_triangle(
+            v.g,
+            s,
+            &block.triangle(j),
+            mask,
+            #[inline(always)]
+            |c, bits, t, hu, hv, s| {
+                let bits = accepted_lanes(v, primitive, c, bits, [t, hu, hv]);
+                if bits != 0 {
+                    on_hit(c, bits, [t, hu, hv], primitive, s);
+                    any = true;
+                }
+            },
+        );
+    }
+    any
+}
+
+/// The lanes of `bits` (chunk `c`'s hits `[t, u, v]` of triangle `primitive`) that the object's
+/// alpha mask and the filter accept.
+#[inline(always)]
+fn accepted_lanes(visit: &ObjectVisit, primitive: u32, c: usize, mut bits: u32, [t, u, v]: [Chunk; 3]) -> u32 {
+    let (obj, filter) = (visit.obj, visit.filter);
+    if filter.is_none() && obj.alpha.is_none() {
+        return bits;
+    }
+    let mut b = bits;
+    while b != 0 {
+        let j = b.trailing_zeros() as usize;
+        b &= b - 1;
+        if !obj.solid_at(primitive, lane(&u, j), lane(&v, j)) {
+            bits &= !(1 << j);
+            continue;
+        }
+        let Some(f) = filter else { continue };
+        let cand = HitCandidate {
+            t: lane(&t, j),
+            u: lane(&u, j),
+            v: lane(&v, j),
+            instance: visit.inst_id,
+            object: visit.object_id,
+            primitive,
+            lane: (W * c + j) as u32,
+        };
+        if !f(&cand) {
+            bits &= !(1 << j);
+        }
+    }
+    bits
+}
+
+/// Closest hit of the packet's chunks with one object.
+#[inline(always)]
+fn intersect_object<K: Kernels>(k: K, v: &ObjectVisit, s: &mut State) {
     // Two copies of the traversal, each its own function: one inlined into the other's body slowed
     // both (as `rtsl bench trace` measures primary packets).
     // SAFETY: a value of `K` exists only where the processor has its instruction set.
     unsafe {
-        if g.shared_origin {
-            k.intersect_object_with::<true>(obj, inst_id, object_id, g, s, lo, hi, filter)
+        if v.g.shared_origin {
+            k.intersect_object_with::<true>(v, s)
         } else {
-            k.intersect_object_with::<false>(obj, inst_id, object_id, g, s, lo, hi, filter)
+            k.intersect_object_with::<false>(v, s)
         }
     }
 }
 
 /// [`intersect_object`] with the box tests of a shared origin or not.
-#[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn intersect_object_with_in<K: Kernels, const SHARED: bool>(
-    k: K,
-    obj: &Object,
-    inst_id: u32,
-    object_id: u32,
-    g: &Geom,
-    s: &mut State,
-    lo: usize,
-    hi: usize,
-    filter: HitFilter,
-) {
-    let data = obj.data();
+fn intersect_object_with_in<K: Kernels, const SHARED: bool>(k: K, v: &ObjectVisit, s: &mut State) {
+    let data = v.obj.data();
     match &data.bvh.parts {
-        None => intersect_tree::<SHARED>(obj, &data.bvh, inst_id, object_id, g, s, lo, hi, filter),
+        None => intersect_tree::<SHARED>(v, &data.bvh, s),
         // SAFETY: as `intersect_object`'s.
-        Some(parts) => unsafe {
-            k.intersect_parts::<SHARED>(obj, &data.bvh, parts, inst_id, object_id, g, s, lo, hi, filter)
-        },
+        Some(parts) => unsafe { k.intersect_parts::<SHARED>(v, parts, s) },
     }
 }
 
 /// [`intersect_object_with_in`] with a BVH in parts: the small tree's leaves are the parts' trees,
 /// each traversed with the chunks that reached its box.
-#[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn intersect_parts_in<const SHARED: bool>(
-    obj: &Object,
-    small: &ObjectBvh,
-    parts: &Parts,
-    inst_id: u32,
-    object_id: u32,
-    g: &Geom,
-    s: &mut State,
-    lo: usize,
-    hi: usize,
-    filter: HitFilter,
-) {
+fn intersect_parts_in<const SHARED: bool>(v: &ObjectVisit, parts: &Parts, s: &mut State) {
+    let small = &v.obj.data().bvh;
     traverse::<SHARED, _, _>(
         &small.bvh,
-        g,
+        v.g,
         s,
-        lo,
-        hi,
+        v.lo,
+        v.hi,
         |_| {},
+        // Inlined, as the kernels' closures are (see `intersect_tree`).
+        #[inline(always)]
         |p, _, mask, s| {
-            let (lo, hi) = mask_range(mask);
-            intersect_tree::<SHARED>(obj, obj.part(parts, p), inst_id, object_id, g, s, lo, hi, filter);
+            intersect_tree::<SHARED>(&v.with_chunks(mask), v.obj.part(parts, p), s);
             false
         },
     );
 }
 
 /// [`intersect_object_with_in`] with a whole tree, or one part.
-#[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn intersect_tree<const SHARED: bool>(
-    obj: &Object,
-    tree: &ObjectBvh,
-    inst_id: u32,
-    object_id: u32,
-    g: &Geom,
-    s: &mut State,
-    lo: usize,
-    hi: usize,
-    filter: HitFilter,
-) {
+fn intersect_tree<const SHARED: bool>(v: &ObjectVisit, tree: &ObjectBvh, s: &mut State) {
     let blocks = &tree.blocks;
-    let order = &tree.bvh.prim_order;
     let pf = |b: u32| prefetch(blocks.as_ptr().wrapping_add(b as usize), 3);
     traverse::<SHARED, _, _>(
         &tree.bvh,
-        g,
+        v.g,
         s,
-        lo,
-        hi,
+        v.lo,
+        v.hi,
         pf,
         // A closure is compiled with the instruction set of the function that defines it, not of
         // the kernel that calls it: inlined, it takes the kernel's.
         #[inline(always)]
         |b, count, mask, s| {
-            let mut any = false;
-            let block = &blocks[b as usize];
-            for j in 0..count as usize {
-                let primitive = order[BLOCK_WIDTH * b as usize + j];
-                leaf_triangle(g, s, &block.triangle(j), mask, |c, mut bits, t, u, v, s| {
-                    if filter.is_some() || obj.alpha.is_some() {
-                        let mut b = bits;
-                        while b != 0 {
-                            let j = b.trailing_zeros() as usize;
-                            b &= b - 1;
-                            if !obj.solid_at(primitive, lane(&u, j), lane(&v, j)) {
-                                bits &= !(1 << j);
-                                continue;
-                            }
-                            let Some(f) = filter else { continue };
-                            let cand = HitCandidate {
-                                t: lane(&t, j),
-                                u: lane(&u, j),
-                                v: lane(&v, j),
-                                instance: inst_id,
-                                object: object_id,
-                                primitive,
-                                lane: (W * c + j) as u32,
-                            };
-                            if !f(&cand) {
-                                bits &= !(1 << j);
-                            }
-                        }
-                        if bits == 0 {
-                            return;
-                        }
-                    }
-                    let hm = lane_mask(bits);
-                    s.tmax[c] = hm.select(t, s.tmax[c]);
-                    s.u[c] = hm.select(u, s.u[c]);
-                    s.v[c] = hm.select(v, s.v[c]);
-                    let mut b = bits;
-                    while b != 0 {
-                        let j = b.trailing_zeros() as usize;
-                        b &= b - 1;
-                        s.instance[W * c + j] = inst_id;
-                        s.primitive[W * c + j] = primitive;
-                    }
-                    any = true;
-                });
-            }
+            let any = leaf_hits(v, tree, s, (b, count, mask), |c, bits, [t, hu, hv], primitive, s| {
+                let hm = lane_mask(bits);
+                s.tmax[c] = hm.select(t, s.tmax[c]);
+                s.u[c] = hm.select(hu, s.u[c]);
+                s.v[c] = hm.select(hv, s.v[c]);
+                let mut b = bits;
+                while b != 0 {
+                    let j = b.trailing_zeros() as usize;
+                    b &= b - 1;
+                    s.instance[W * c + j] = v.inst_id;
+                    s.primitive[W * c + j] = primitive;
+                }
+            });
             if any {
                 s.update_tmax_hi();
             }
@@ -845,147 +772,66 @@ fn intersect_tree<const SHARED: bool>(
 
 /// Occlusion of the packet's chunks with one object; returns `true` when traversal should stop
 /// (every lane is done, or few remain and `s.bail` is set).
-#[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn occluded_object<K: Kernels>(
-    k: K,
-    obj: &Object,
-    inst_id: u32,
-    object_id: u32,
-    g: &Geom,
-    s: &mut State,
-    lo: usize,
-    hi: usize,
-    filter: HitFilter,
-) -> bool {
+fn occluded_object<K: Kernels>(k: K, v: &ObjectVisit, s: &mut State) -> bool {
     // As `intersect_object`: one function per copy of the traversal.
     // SAFETY: a value of `K` exists only where the processor has its instruction set.
     unsafe {
-        if g.shared_origin {
-            k.occluded_object_with::<true>(obj, inst_id, object_id, g, s, lo, hi, filter)
+        if v.g.shared_origin {
+            k.occluded_object_with::<true>(v, s)
         } else {
-            k.occluded_object_with::<false>(obj, inst_id, object_id, g, s, lo, hi, filter)
+            k.occluded_object_with::<false>(v, s)
         }
     }
 }
 
 /// [`occluded_object`] with the box tests of a shared origin or not.
-#[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn occluded_object_with_in<K: Kernels, const SHARED: bool>(
-    k: K,
-    obj: &Object,
-    inst_id: u32,
-    object_id: u32,
-    g: &Geom,
-    s: &mut State,
-    lo: usize,
-    hi: usize,
-    filter: HitFilter,
-) -> bool {
-    let data = obj.data();
+fn occluded_object_with_in<K: Kernels, const SHARED: bool>(k: K, v: &ObjectVisit, s: &mut State) -> bool {
+    let data = v.obj.data();
     match &data.bvh.parts {
-        None => occluded_tree::<SHARED>(obj, &data.bvh, inst_id, object_id, g, s, lo, hi, filter),
+        None => occluded_tree::<SHARED>(v, &data.bvh, s),
         // SAFETY: as `occluded_object`'s.
-        Some(parts) => unsafe {
-            k.occluded_parts::<SHARED>(obj, &data.bvh, parts, inst_id, object_id, g, s, lo, hi, filter)
-        },
+        Some(parts) => unsafe { k.occluded_parts::<SHARED>(v, parts, s) },
     }
 }
 
 /// [`occluded_object_with_in`] with a BVH in parts.
-#[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn occluded_parts_in<const SHARED: bool>(
-    obj: &Object,
-    small: &ObjectBvh,
-    parts: &Parts,
-    inst_id: u32,
-    object_id: u32,
-    g: &Geom,
-    s: &mut State,
-    lo: usize,
-    hi: usize,
-    filter: HitFilter,
-) -> bool {
+fn occluded_parts_in<const SHARED: bool>(v: &ObjectVisit, parts: &Parts, s: &mut State) -> bool {
+    let small = &v.obj.data().bvh;
     traverse::<SHARED, _, _>(
         &small.bvh,
-        g,
+        v.g,
         s,
-        lo,
-        hi,
+        v.lo,
+        v.hi,
         |_| {},
-        |p, _, mask, s| {
-            let (lo, hi) = mask_range(mask);
-            occluded_tree::<SHARED>(obj, obj.part(parts, p), inst_id, object_id, g, s, lo, hi, filter)
-        },
+        // Inlined, as the kernels' closures are (see `intersect_tree`).
+        #[inline(always)]
+        |p, _, mask, s| occluded_tree::<SHARED>(&v.with_chunks(mask), v.obj.part(parts, p), s),
     )
 }
 
 /// [`occluded_object_with_in`] with a whole tree, or one part.
-#[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn occluded_tree<const SHARED: bool>(
-    obj: &Object,
-    tree: &ObjectBvh,
-    inst_id: u32,
-    object_id: u32,
-    g: &Geom,
-    s: &mut State,
-    lo: usize,
-    hi: usize,
-    filter: HitFilter,
-) -> bool {
+fn occluded_tree<const SHARED: bool>(v: &ObjectVisit, tree: &ObjectBvh, s: &mut State) -> bool {
     let blocks = &tree.blocks;
-    let order = &tree.bvh.prim_order;
     let pf = |b: u32| prefetch(blocks.as_ptr().wrapping_add(b as usize), 3);
     traverse::<SHARED, _, _>(
         &tree.bvh,
-        g,
+        v.g,
         s,
-        lo,
-        hi,
+        v.lo,
+        v.hi,
         pf,
         // As `intersect_tree`'s, inlined to take the kernel's instruction set.
         #[inline(always)]
         |b, count, mask, s| {
-            let mut any = false;
-            let block = &blocks[b as usize];
-            for j in 0..count as usize {
-                let primitive = order[BLOCK_WIDTH * b as usize + j];
-                leaf_triangle(g, s, &block.triangle(j), mask, |c, mut bits, t, u, v, s| {
-                    if filter.is_some() || obj.alpha.is_some() {
-                        let mut b = bits;
-                        while b != 0 {
-                            let j = b.trailing_zeros() as usize;
-                            b &= b - 1;
-                            if !obj.solid_at(primitive, lane(&u, j), lane(&v, j)) {
-                                bits &= !(1 << j);
-                                continue;
-                            }
-                            let Some(f) = filter else { continue };
-                            let cand = HitCandidate {
-                                t: lane(&t, j),
-                                u: lane(&u, j),
-                                v: lane(&v, j),
-                                instance: inst_id,
-                                object: object_id,
-                                primitive,
-                                lane: (W * c + j) as u32,
-                            };
-                            if !f(&cand) {
-                                bits &= !(1 << j);
-                            }
-                        }
-                        if bits == 0 {
-                            return;
-                        }
-                    }
-                    s.tmax[c] = lane_mask(bits).select(Chunk::splat(f32::NEG_INFINITY), s.tmax[c]);
-                    s.done |= (bits as u64) << (W * c);
-                    any = true;
-                });
-            }
+            let any = leaf_hits(v, tree, s, (b, count, mask), |c, bits, _, _, s| {
+                s.tmax[c] = lane_mask(bits).select(Chunk::splat(f32::NEG_INFINITY), s.tmax[c]);
+                s.done |= (bits as u64) << (W * c);
+            });
             if any {
                 let left = s.active & !s.done;
                 if left == 0 {
@@ -1133,14 +979,22 @@ fn intersect_lanes_in<K: Kernels>(
         let (clo, chi) = mask_range(mask);
         let deforms = obj.deforms();
         if inst.identity && !deforms {
-            intersect_object(k, obj, inst_id, inst.object, &g, s, clo, chi, filter);
+            intersect_object(
+                k,
+                &ObjectVisit { obj, inst_id, object_id: inst.object, g: &g, lo: clo, hi: chi, filter },
+                s,
+            );
             return;
         }
         let og = match inst.motion {
             None if !deforms => {
                 let mut og = g.transformed(&inst.object_from_world, clo, chi);
                 if og.finish(clo, chi) {
-                    intersect_object(k, obj, inst_id, inst.object, &og, s, clo, chi, filter);
+                    intersect_object(
+                        k,
+                        &ObjectVisit { obj, inst_id, object_id: inst.object, g: &og, lo: clo, hi: chi, filter },
+                        s,
+                    );
                     return;
                 }
                 Some(og)
@@ -1283,13 +1137,21 @@ fn occluded_lanes_in<K: Kernels>(
         let (clo, chi) = mask_range(mask);
         let deforms = obj.deforms();
         if inst.identity && !deforms {
-            return occluded_object(k, obj, inst_id, inst.object, &g, s, clo, chi, filter);
+            return occluded_object(
+                k,
+                &ObjectVisit { obj, inst_id, object_id: inst.object, g: &g, lo: clo, hi: chi, filter },
+                s,
+            );
         }
         let og = match inst.motion {
             None if !deforms => {
                 let mut og = g.transformed(&inst.object_from_world, clo, chi);
                 if og.finish(clo, chi) {
-                    return occluded_object(k, obj, inst_id, inst.object, &og, s, clo, chi, filter);
+                    return occluded_object(
+                        k,
+                        &ObjectVisit { obj, inst_id, object_id: inst.object, g: &og, lo: clo, hi: chi, filter },
+                        s,
+                    );
                 }
                 Some(og)
             }
