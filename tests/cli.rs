@@ -786,6 +786,8 @@ WorldEnd
     assert!(fastest <= median && median <= slowest && spread.ends_with("over 3 frames"), "{spread} {median}");
     let ratio = value("trace_ahead_over_chunk_by_chunk: ");
     assert!(ratio.is_finite() && ratio > 0.0, "{out}");
+    // Which packet kernels traced the frames.
+    assert!(out.lines().any(|l| l == "packet_kernels: avx512" || l == "packet_kernels: avx2"), "{out}");
     // The floor reflects: the frame traced secondary rays.
     let rays = out.lines().find(|l| l.starts_with("rays_per_frame: ")).expect("rays line");
     assert!(!rays.contains("secondary 0,"), "{rays}");

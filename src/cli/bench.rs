@@ -235,6 +235,7 @@ fn print_rate(
     let ms = median(frames_ms.to_vec());
     println!("scene: {}", args.scene.as_ref().map_or("<default scene>".into(), |p| p.display().to_string()));
     println!("size: {}x{}, samples per pixel: {}, {who}", world.options.width, world.options.height, args.samples);
+    println!("packet_kernels: {}", rtsl_runtime::cpu::kernel_isa().name());
     println!("frame_ms: {ms:.2}");
     // The spread tells a difference between two runs from the host's noise.
     let (fastest, slowest) = frames_ms.iter().fold((f64::INFINITY, 0.0f64), |(a, b), &t| (a.min(t), b.max(t)));
