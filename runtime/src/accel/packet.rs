@@ -2,7 +2,8 @@
 //!
 //! The algorithm is ranged packet traversal (Wald et al. 2007; Overbeck et al. 2008) over 4-wide
 //! nodes, in chunks of eight lanes (one AVX register per quantity on `x86-64-v3`, two SSE
-//! registers without AVX):
+//! registers without AVX). The kernels are compiled for the crate's target and once more for
+//! AVX-512, which runs where the processor has it (`Kernels`, [`crate::cpu::kernel_isa`]):
 //! 1. **Interval culling.** When every lane's direction has the same sign on each axis, the packet
 //!    is bounded by intervals of origins and inverse directions; one interval-arithmetic slab test
 //!    per node rejects the children that no lane can enter (4 children at once).
