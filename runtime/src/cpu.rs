@@ -12,7 +12,7 @@
 //! form runs where the processor has it ([`kernel_isa`]), so one binary serves both.
 
 use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
-use std::sync::Once;
+use std::sync::{Once, OnceLock};
 
 /// A note for an application whose build of this crate lacks AVX2 and FMA on a CPU that has them,
 /// saying how to build it for them; `None` when the build fits the CPU (or is not for x86-64).
@@ -62,8 +62,14 @@ impl KernelIsa {
 }
 
 /// Whether this processor has every feature the AVX-512 kernels are compiled with (the
-/// `target_feature` list of `accel::packet`'s `Avx512` kernels).
+/// `target_feature` list of `accel::packet`'s `Avx512` kernels). Asked for every packet: looked up
+/// once.
 pub(crate) fn has_avx512() -> bool {
+    static HAS: OnceLock<bool> = OnceLock::new();
+    *HAS.get_or_init(detect_avx512)
+}
+
+fn detect_avx512() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
         use std::arch::is_x86_feature_detected as has;
