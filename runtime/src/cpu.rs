@@ -11,8 +11,8 @@
 //! The packet-traversal kernels are also compiled a second time for AVX-512 (x86-64-v4) and that
 //! form runs where the processor has it ([`kernel_isa`]), so one binary serves both.
 
-use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
-use std::sync::{Once, OnceLock};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::OnceLock;
 
 /// A note for an application whose build of this crate lacks AVX2 and FMA on a CPU that has them,
 /// saying how to build it for them; `None` when the build fits the CPU (or is not for x86-64).
@@ -96,22 +96,15 @@ fn detect_avx512() -> bool {
 /// Any other value of `RTSL_ISA` than `avx2` and `avx512` is reported on standard error, once,
 /// and ignored.
 pub fn kernel_isa() -> KernelIsa {
-    // 0: not decided yet; 1: built; 2: AVX-512.
-    static DECIDED: AtomicU8 = AtomicU8::new(0);
-    match DECIDED.load(Ordering::Relaxed) {
-        1 => return KernelIsa::Built,
-        2 => return KernelIsa::Avx512,
-        _ => {}
-    }
-    let requested = std::env::var("RTSL_ISA").ok();
-    let isa = choose_isa(requested.as_deref(), has_avx512());
-    if let Err(value) = &isa {
-        static TOLD: Once = Once::new();
-        TOLD.call_once(|| eprintln!("rtsl: RTSL_ISA={value:?} is neither `avx2` nor `avx512`; ignored"));
-    }
-    let isa = isa.unwrap_or_else(|_| choose_isa(None, has_avx512()).unwrap_or(KernelIsa::Built));
-    DECIDED.store(if isa == KernelIsa::Avx512 { 2 } else { 1 }, Ordering::Relaxed);
-    isa
+    static DECIDED: OnceLock<KernelIsa> = OnceLock::new();
+    *DECIDED.get_or_init(|| {
+        let requested = std::env::var("RTSL_ISA").ok();
+        choose_isa(requested.as_deref(), has_avx512()).unwrap_or_else(|value| {
+            // Decided once, so said once.
+            eprintln!("rtsl: RTSL_ISA={value:?} is neither `avx2` nor `avx512`; ignored");
+            choose_isa(None, has_avx512()).unwrap_or(KernelIsa::Built)
+        })
+    })
 }
 
 /// The kernels for the value of `RTSL_ISA` (`None` when unset or empty) on a processor with
