@@ -15,7 +15,7 @@ use super::ray_params::{samples_for_relevance, RayValue, RELEVANCE};
 use super::sampling::{mix, radical_inverse};
 use super::shade::{shade_packet, shade_packets};
 use super::work::{captured_outputs, refined_output};
-use super::work::{Frame, LightPaths, PixelImage, Sample};
+use super::work::{Frame, LightPaths, PixelImage, Sample, SampleRows};
 use super::world::{Antialiasing, World, MAX_FRAME_OUTPUTS};
 use crate::camera::{packet_lane_offset, PACKET_LANE_OFFSETS, PACKET_SIDE};
 use crate::image_io::{ImageError, WriteOptions};
@@ -449,7 +449,7 @@ pub struct TilePrimary {
     pub rays: Vec<PrimaryRays>,
     /// Their hits, and their samples once shaded ([`sample_tile`]).
     hits: Vec<HitPacket>,
-    shaded: Vec<[Sample; PACKET_SIZE]>,
+    shaded: Vec<SampleRows>,
 }
 
 thread_local! {
@@ -800,7 +800,7 @@ fn sample_tile(
                 }
                 let n = corners.len();
                 hits.resize_with(n, HitPacket::default);
-                shaded.resize(n, [Sample::default(); PACKET_SIZE]);
+                shaded.resize_with(n, SampleRows::default);
                 for (rays, hits) in rays.iter().zip(hits.iter_mut()) {
                     world.intersect_packet(super::RayKind::Camera, &rays.packet, hits);
                 }
@@ -813,36 +813,33 @@ fn sample_tile(
                     let first = i == 0 && j == 0;
                     let midpoints = (first && world.options.depth_filter == super::DepthFilter::Midpoint)
                         .then(|| midpoint_distances(world, packet, samples));
-                    for (lane, s) in samples.iter().enumerate() {
-                        if packet.active >> lane & 1 == 0 {
-                            continue;
-                        }
+                    let s = samples;
+                    for lane in (0..PACKET_SIZE).filter(|l| packet.active >> l & 1 != 0) {
                         let (dx, dy) = packet_lane_offset(lane);
                         let (x, y) = (x0 + dx - tile.x0, y0 + dy - tile.y0);
                         if x >= tile.width || y >= tile.height {
                             continue;
                         }
                         let k = (y * tile.width + x) as usize;
-                        let sum = &mut px.color[k];
-                        for (c, v) in sum.iter_mut().zip(s.color.to_array()) {
+                        let rgba = [s.color[0][lane], s.color[1][lane], s.color[2][lane], s.alpha[lane]];
+                        for (c, v) in px.color[k].iter_mut().zip(rgba) {
                             *c += v;
                         }
-                        sum[3] += s.alpha;
-                        splat(cams.samples[lane].raster, rgba(s));
+                        splat(cams.samples[lane].raster, rgba);
                         if let Some(o) = px.outputs.get_mut(k) {
-                            add_outputs(o, &s.outputs);
+                            add_outputs(o, &s.outputs(lane));
                         }
                         // The first sample a pixel takes (rank 0: cell (0, 0)).
                         if first {
                             // Camera-space depth: the distance along the ray times its cosine
                             // with the view axis.
                             let direction = Vec3A::new(packet.dx.0[lane], packet.dy.0[lane], packet.dz.0[lane]);
-                            let distance = midpoints.as_ref().map_or(s.depth, |m| m[lane]);
+                            let distance = midpoints.as_ref().map_or(s.depth[lane], |m| m[lane]);
                             px.depth[k] = distance * direction.dot(sampling.forward);
-                            px.ids[k] = s.object_id;
-                            px.shader_ids[k] = s.shader_id;
+                            px.ids[k] = s.object_id[lane];
+                            px.shader_ids[k] = s.shader_id[lane];
                             if let Some(n) = px.normals.get_mut(k) {
-                                *n = s.normal.to_array();
+                                *n = [s.normal[0][lane], s.normal[1][lane], s.normal[2][lane]];
                             }
                         }
                     }
@@ -1556,23 +1553,24 @@ pub(crate) fn frame_report(frame: &Frame, start: Instant) -> FrameReport {
 /// `samples[lane].depth`, facing `samples[lane].normal`) and the next one behind it, found by a
 /// ray that goes on from just behind the first; infinite where the ray met nothing or nothing
 /// lies behind. A sample with no normal (a holdout's) keeps its own depth.
-fn midpoint_distances(world: &World, packet: &RayPacket, samples: &[Sample; PACKET_SIZE]) -> [f32; PACKET_SIZE] {
-    let mut distances = samples.map(|s| s.depth);
+fn midpoint_distances(world: &World, packet: &RayPacket, samples: &SampleRows) -> [f32; PACKET_SIZE] {
+    let mut distances = samples.depth;
     let mut lanes = Vec::new();
     let mut rays = Vec::new();
-    for (lane, s) in samples.iter().enumerate() {
-        if packet.active >> lane & 1 == 0 || !s.depth.is_finite() || s.normal == Vec3A::ZERO {
+    for (lane, &depth) in samples.depth.iter().enumerate() {
+        let normal = samples.normal(lane);
+        if packet.active >> lane & 1 == 0 || !depth.is_finite() || normal == Vec3A::ZERO {
             continue;
         }
         let ray = packet.get(lane);
-        let behind = crate::ray::offset_ray_origin(ray.at(s.depth), -s.normal);
+        let behind = crate::ray::offset_ray_origin(ray.at(depth), -normal);
         lanes.push(lane);
         rays.push(Ray::new(behind, ray.direction).at_time(ray.time));
     }
     let mut hits = Vec::new();
     world.intersect_rays(super::RayKind::Camera, &rays, &mut hits);
     for (&lane, hit) in lanes.iter().zip(&hits) {
-        distances[lane] = if hit.is_hit() { samples[lane].depth + 0.5 * hit.t } else { f32::INFINITY };
+        distances[lane] = if hit.is_hit() { samples.depth[lane] + 0.5 * hit.t } else { f32::INFINITY };
     }
     distances
 }

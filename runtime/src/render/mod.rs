@@ -48,7 +48,7 @@ pub use ray_budget::RAY_TREE_BUDGET;
 pub use ray_params::{RayField, RayParameterError, RayParameters, RayValue, RELEVANCE};
 pub(crate) use stats::ShaderKindTimer;
 pub use stats::Stats;
-pub use work::{Frame, LightPathCache, LightPaths, Sample};
+pub use work::{Frame, LightPathCache, LightPaths, Sample, SampleRows};
 pub use world::{
     check_image_size, AccelUpdate, Antialiasing, AreaLight, CameraSetup, DepthFilter, InstanceParts, InstanceShading,
     LightSource, Material, RayKind, RefineOn, RenderOptions, TraceDepths, Visibility, World, MAX_AREA_SAMPLES,

@@ -21,22 +21,24 @@ use super::group::GroupKey;
 use super::hit_geometry::{hit_geometries, GeometryNeeds, GroupHits, HitGeometry, HitRows, InstanceGeometry};
 use super::host::ShadeCall;
 use super::jobs::{GroupRows, JobRows};
+use super::lanes::Lanes;
 use super::native::{faced_against, LightSeen, NativeSurface};
 use super::primary::PrimaryRays;
 use super::ray_budget::RayBudget;
 use super::stats::{tracing, ShadingTimer, Stats};
 use super::trace_ahead::RayLog;
-use super::work::{finite_or_zero, BatchLights, Pending, Shaded, Stages};
+use super::work::{BatchLights, Pending, Shaded, ShadedRows, Stages};
 use super::world::{InstanceShading, Material, RayKind, World, DEFAULT_MATERIAL, MAX_FRAME_OUTPUTS};
-use crate::ray::{offset_ray_origin, Hit, HitPacket, Ray, PACKET_SIZE};
+use crate::ray::{offset_ray_origin, Hit, HitPacket, Ray, INVALID_ID, PACKET_SIZE};
 use crate::shading::{get3, get_row, with_filled_batch, ShaderInstance};
 use glam::{Affine3A, Vec3A};
 use std::cell::RefCell;
+use wide::f32x8;
 
 /// The pixel shader's pass (defined in `pixel.rs`).
 pub use super::pixel::{shade_pixels, TilePixels};
 /// The work items shading takes and gives (defined in `work.rs`).
-pub use super::work::{Frame, Sample};
+pub use super::work::{Frame, Sample, SampleRows};
 
 /// The stages as this module and `lights.rs` provide them.
 const STAGES: Stages = Stages {
@@ -57,9 +59,18 @@ impl<'w> Frame<'w> {
 }
 
 /// Shades the rays of a primary packet (already intersected): lane `i`'s sample is its radiance
-/// times its camera weight.
+/// times its camera weight (the packet's active lanes are written).
 pub fn shade_packet(frame: &Frame, primary: &PrimaryRays, hits: &HitPacket, out: &mut [Sample; PACKET_SIZE]) {
-    shade_packets(frame, &[(primary, hits)], std::slice::from_mut(out));
+    let mut rows = super::scratch::take(&SAMPLE_ROWS);
+    shade_packets(frame, &[(primary, hits)], std::slice::from_mut(&mut *rows));
+    let with_outputs = !frame.captured.is_empty();
+    for (l, o) in out.iter_mut().enumerate().filter(|(l, _)| primary.packet.active >> l & 1 != 0) {
+        *o = rows.lane(l);
+        if !with_outputs {
+            o.outputs = [[0.0; 3]; MAX_FRAME_OUTPUTS];
+        }
+    }
+    super::scratch::give(&SAMPLE_ROWS, rows);
 }
 
 /// [`shade_packet`] of several packets together (a tile's): their hits are grouped by material
@@ -67,8 +78,9 @@ pub fn shade_packet(frame: &Frame, primary: &PrimaryRays, hits: &HitPacket, out:
 /// its fixed costs (filling, its lights, its shadow packet), and a small batch's shadow packet
 /// shares fewer node tests: shaded packet by packet, BART's robots averaged 43 hits a batch.
 /// Lane for lane the same values as [`shade_packet`] of each packet: shading a hit reads nothing
-/// of the other hits in its batch.
-pub fn shade_packets(frame: &Frame, packets: &[(&PrimaryRays, &HitPacket)], out: &mut [[Sample; PACKET_SIZE]]) {
+/// of the other hits in its batch. Every lane of `out`'s rows is written, but only the active
+/// lanes' are samples (and the outputs only where the frame keeps some).
+pub fn shade_packets(frame: &Frame, packets: &[(&PrimaryRays, &HitPacket)], out: &mut [SampleRows]) {
     let packets = &packets[..packets.len().min(out.len())];
     let world = frame.world;
     // Each hit's group key and its sample's index (`PACKET_SIZE` a packet), sorted before any hit
@@ -83,11 +95,12 @@ pub fn shade_packets(frame: &Frame, packets: &[(&PrimaryRays, &HitPacket)], out:
     for (k, ((primary, hits), out)) in packets.iter().zip(out.iter_mut()).enumerate() {
         let packet = &primary.packet;
         Stats::add(&frame.stats.primary_rays, packet.active.count_ones() as usize);
+        begin_samples(frame, hits, out);
         let first = keys.len();
         for i in (0..PACKET_SIZE).filter(|i| packet.active >> i & 1 != 0) {
             let hit = hits.get(i);
             // A holdout leaves its sample transparent black: not shaded, nothing behind it shows.
-            if begin_sample(frame, hit, &mut out[i]) && !world.is_holdout(&hit) {
+            if hit.is_hit() && !world.is_holdout(&hit) {
                 keys.push((super::group::group_key(world, &hit), (k * PACKET_SIZE + i) as u32));
             }
         }
@@ -106,7 +119,7 @@ pub fn shade_packets(frame: &Frame, packets: &[(&PrimaryRays, &HitPacket)], out:
     let mut budgets = super::scratch::take(&LANE_BUDGETS);
     budgets.clear();
     budgets.extend(packets.iter().flat_map(|(primary, _)| primary.pixels.map(RayBudget::from_pixel)));
-    let samples = out.as_flattened_mut();
+    let samples = &mut *out;
     if frame.volumes {
         // Volume shaders take the segments of each hit's job.
         let mut pending = super::scratch::take(&PENDING_JOBS);
@@ -124,14 +137,14 @@ pub fn shade_packets(frame: &Frame, packets: &[(&PrimaryRays, &HitPacket)], out:
         let mut later = trace_going_on(frame, going_on, 0, samples, &weight);
         shade_pending(frame, (&mut later, 1), None, 0, samples, &mut weight, &mut budgets);
     }
-    for (k, ((primary, _), out)) in packets.iter().zip(out.iter_mut()).enumerate() {
-        let packet = &primary.packet;
-        for i in (0..PACKET_SIZE).filter(|i| packet.active >> i & 1 != 0) {
-            let (s, left) = (&mut out[i], weight[k * PACKET_SIZE + i]);
-            let w = primary.weight(i);
+    for ((primary, _), (out, left)) in packets.iter().zip(out.iter_mut().zip(weight.chunks_exact(PACKET_SIZE))) {
+        let w = &primary.weights;
+        for (l, left) in left.iter().enumerate() {
             let alpha = 1.0 - (left.x + left.y + left.z) / 3.0;
-            s.color *= w;
-            s.alpha = alpha * (w.x + w.y + w.z) / 3.0;
+            for (c, row) in out.color.iter_mut().enumerate() {
+                row[l] *= w[c][l];
+            }
+            out.alpha[l] = alpha * (w[0][l] + w[1][l] + w[2][l]) / 3.0;
         }
     }
     super::group::give_keys(keys);
@@ -262,6 +275,113 @@ fn begin_sample(frame: &Frame, hit: Hit, out: &mut Sample) -> bool {
     true
 }
 
+/// Starts a packet's samples in `out` (every lane) from its `hits`: the background where a lane
+/// missed, else nothing yet (the hit is to be shaded), as [`begin_sample`] does one.
+fn begin_samples(frame: &Frame, hits: &HitPacket, out: &mut SampleRows) {
+    let background = frame.world.options.background;
+    for (c, row) in out.color.iter_mut().enumerate() {
+        for (v, id) in row.iter_mut().zip(&hits.instance.0) {
+            *v = if *id == INVALID_ID { background[c] } else { 0.0 };
+        }
+    }
+    out.depth = hits.t.0;
+    out.alpha = [0.0; PACKET_SIZE];
+    out.object_id = [u32::MAX; PACKET_SIZE];
+    out.shader_id = [u32::MAX; PACKET_SIZE];
+    out.normal = [[0.0; PACKET_SIZE]; 3];
+    if !frame.captured.is_empty() {
+        out.outputs = [[[0.0; PACKET_SIZE]; 3]; MAX_FRAME_OUTPUTS];
+    }
+}
+
+/// Samples by index, as compositing writes them: a slice of [`Sample`]s (rays shaded one by one),
+/// or a tile's packets by rows (index `PACKET_SIZE * packet + lane`). Indices past the end are
+/// read as `None` and written nowhere.
+trait Samples {
+    fn depth(&self, i: usize) -> Option<f32>;
+    fn set_depth(&mut self, i: usize, depth: f32);
+    /// Adds `c` to sample `i`'s colour.
+    fn add_color(&mut self, i: usize, c: Vec3A);
+    /// Sample `i`'s first hit: its object and material ids, its normal (faced toward the ray's
+    /// origin), and its outputs where the frame keeps some.
+    fn set_first_hit(&mut self, i: usize, ids: (u32, u32), normal: Vec3A, outputs: Option<&Outputs>);
+}
+
+/// A sample's kept output variables ([`Sample::outputs`]).
+type Outputs = [[f32; 3]; MAX_FRAME_OUTPUTS];
+
+impl Samples for [Sample] {
+    #[inline(always)]
+    fn depth(&self, i: usize) -> Option<f32> {
+        self.get(i).map(|s| s.depth)
+    }
+
+    #[inline(always)]
+    fn set_depth(&mut self, i: usize, depth: f32) {
+        if let Some(s) = self.get_mut(i) {
+            s.depth = depth;
+        }
+    }
+
+    #[inline(always)]
+    fn add_color(&mut self, i: usize, c: Vec3A) {
+        if let Some(s) = self.get_mut(i) {
+            s.color += c;
+        }
+    }
+
+    #[inline(always)]
+    fn set_first_hit(&mut self, i: usize, ids: (u32, u32), normal: Vec3A, outputs: Option<&Outputs>) {
+        if let Some(s) = self.get_mut(i) {
+            (s.object_id, s.shader_id) = ids;
+            s.normal = normal;
+            if let Some(o) = outputs {
+                s.outputs = *o;
+            }
+        }
+    }
+}
+
+impl Samples for [SampleRows] {
+    #[inline(always)]
+    fn depth(&self, i: usize) -> Option<f32> {
+        self.get(i / PACKET_SIZE).map(|s| s.depth[i % PACKET_SIZE])
+    }
+
+    #[inline(always)]
+    fn set_depth(&mut self, i: usize, depth: f32) {
+        if let Some(s) = self.get_mut(i / PACKET_SIZE) {
+            s.depth[i % PACKET_SIZE] = depth;
+        }
+    }
+
+    #[inline(always)]
+    fn add_color(&mut self, i: usize, c: Vec3A) {
+        if let Some(s) = self.get_mut(i / PACKET_SIZE) {
+            let l = i % PACKET_SIZE;
+            for (row, v) in s.color.iter_mut().zip(c.to_array()) {
+                row[l] += v;
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn set_first_hit(&mut self, i: usize, ids: (u32, u32), normal: Vec3A, outputs: Option<&Outputs>) {
+        if let Some(s) = self.get_mut(i / PACKET_SIZE) {
+            let l = i % PACKET_SIZE;
+            (s.object_id[l], s.shader_id[l]) = ids;
+            for (row, v) in s.normal.iter_mut().zip(normal.to_array()) {
+                row[l] = v;
+            }
+            for (rows, o) in s.outputs.iter_mut().zip(outputs.into_iter().flatten()) {
+                for (row, v) in rows.iter_mut().zip(o) {
+                    row[l] = *v;
+                }
+            }
+        }
+    }
+}
+
 /// Shades the pending hits and composites them into `out[p.index]`, following rays through
 /// transparent surfaces; `weight[p.index]` is left with what the surfaces let through. The
 /// shading of each layer of ray `p.index`'s hits spends from `budgets[p.index]`.
@@ -269,12 +389,12 @@ fn begin_sample(frame: &Frame, hit: Hit, out: &mut Sample) -> bool {
 /// `first` is a layer of hits and the number of layers its rays crossed before (0: these are
 /// the rays' first hits); where `sorted` gives their group keys, they are in its order
 /// (`group::shade_sorted_groups`), else they are sorted here.
-fn shade_pending(
+fn shade_pending<S: Samples + ?Sized>(
     frame: &Frame,
     (first, crossed): (&mut Vec<Pending>, u32),
     sorted: Option<&[GroupKey]>,
     depth: u32,
-    out: &mut [Sample],
+    out: &mut S,
     weight: &mut [Vec3A],
     budgets: &mut [RayBudget],
 ) {
@@ -311,8 +431,9 @@ fn shade_pending(
         let mut going_on = Vec::new();
         for (p, r) in current.iter().zip(&results) {
             let at = (p.index, layer, p.start + p.hit.t);
-            if composite(world, at, depth_rule, r, out, weight, budgets) {
-                going_on.push(ray_going_on(p.index, p.start, r, p.ray, p.diff, p.hit.t));
+            if composite(world, at, depth_rule, ((r.ci, r.oi), (r.spent, r.cut)), out, weight, budgets) {
+                let surface = (r.p, r.ng, r.on_surface);
+                going_on.push(ray_going_on(p.index, p.start, surface, p.ray, p.diff, p.hit.t));
             }
         }
         later = trace_going_on(frame, going_on, depth, out, weight);
@@ -338,7 +459,8 @@ fn depth_rule(frame: &Frame, depth: u32) -> Option<DepthRule> {
     (depth == 0 && (farthest || threshold.cmpgt(Vec3A::ZERO).any())).then_some(DepthRule { threshold, farthest })
 }
 
-/// Composites what shading ray `index`'s hit gave (`r`, the `layer`th surface the ray met, at
+/// Composites what shading ray `index`'s hit gave (its `Ci` and `Oi`, and the rays it spent and
+/// whether it refused one; the `layer`th surface the ray met, at
 /// `distance` along the ray that began the sample) into its sample `out[index]`, the budget its
 /// tree spent into `budgets[index]`, and leaves `weight[index]` with what the surface lets
 /// through: `true` when the ray goes on through it (enough gets through, and it is not the last
@@ -347,29 +469,29 @@ fn depth_rule(frame: &Frame, depth: u32) -> Option<DepthRule> {
 /// reaches the threshold in every channel (infinite until one does), or of the last such layer
 /// for `DepthFilter::Max`; without, it stays its first hit's.
 #[inline(always)]
-fn composite(
+fn composite<S: Samples + ?Sized>(
     world: &World,
     (index, layer, distance): (usize, u32, f32),
     depth_rule: Option<DepthRule>,
-    r: &Shaded,
-    out: &mut [Sample],
+    ((ci, oi), (spent, cut)): ((Vec3A, Vec3A), (u32, bool)),
+    out: &mut S,
     weight: &mut [Vec3A],
     budgets: &mut [RayBudget],
 ) -> bool {
     if let Some(budget) = budgets.get_mut(index) {
-        budget.charge(r.spent, r.cut);
+        budget.charge(spent, cut);
     }
-    let (Some(w), Some(sample)) = (weight.get_mut(index), out.get_mut(index)) else { return false };
+    let (Some(w), Some(depth)) = (weight.get_mut(index), out.depth(index)) else { return false };
     if let Some(rule) = depth_rule {
-        let counts = r.oi.cmpge(rule.threshold).all();
+        let counts = oi.cmpge(rule.threshold).all();
         if layer == 1 && !counts {
-            sample.depth = f32::INFINITY;
-        } else if layer > 1 && counts && (rule.farthest || !sample.depth.is_finite()) {
-            sample.depth = distance;
+            out.set_depth(index, f32::INFINITY);
+        } else if layer > 1 && counts && (rule.farthest || !depth.is_finite()) {
+            out.set_depth(index, distance);
         }
     }
-    sample.color += *w * r.ci;
-    let left = *w * (Vec3A::ONE - r.oi.clamp(Vec3A::ZERO, Vec3A::ONE));
+    out.add_color(index, *w * ci);
+    let left = *w * (Vec3A::ONE - oi.clamp(Vec3A::ZERO, Vec3A::ONE));
     *w = left;
     // Exactly when the opacity so far, `1 - left`, is below the threshold in some channel.
     let hidden_below = Vec3A::ONE - Vec3A::from(world.options.opacity_threshold);
@@ -386,12 +508,20 @@ struct GoingOn {
 }
 
 /// The ray `index` (`ray`, starting `start` along its sample's first ray, its differential
-/// `diff`, its hit at `t`) going on through the surface whose shading gave `r`: unbent, from just
-/// behind the surface, its footprint starting where the surface's ended.
-fn ray_going_on(index: usize, start: f32, r: &Shaded, ray: Ray, diff: RayDifferential, t: f32) -> GoingOn {
-    let side = if r.ng.dot(ray.direction) > 0.0 { r.ng } else { -r.ng };
-    let on = Ray::new(offset_ray_origin(r.p, side), ray.direction).at_time(ray.time);
-    let (dodx, dody) = if r.on_surface { diff.at_hit(ray.direction, t, r.ng) } else { (Vec3A::ZERO, Vec3A::ZERO) };
+/// `diff`, its hit at `t`) going on through the surface its shading found at point `p`, of
+/// geometric normal `ng` (`on_surface`: whether one was found): unbent, from just behind the
+/// surface, its footprint starting where the surface's ended.
+fn ray_going_on(
+    index: usize,
+    start: f32,
+    (p, ng, on_surface): (Vec3A, Vec3A, bool),
+    ray: Ray,
+    diff: RayDifferential,
+    t: f32,
+) -> GoingOn {
+    let side = if ng.dot(ray.direction) > 0.0 { ng } else { -ng };
+    let on = Ray::new(offset_ray_origin(p, side), ray.direction).at_time(ray.time);
+    let (dodx, dody) = if on_surface { diff.at_hit(ray.direction, t, ng) } else { (Vec3A::ZERO, Vec3A::ZERO) };
     GoingOn { index, start: start + t, ray: on, diff: RayDifferential { dodx, dody, ..diff } }
 }
 
@@ -399,11 +529,11 @@ fn ray_going_on(index: usize, start: f32, r: &Shaded, ray: Ray, diff: RayDiffere
 /// with the rays before them: whole packets): the hits to shade next, and the background added
 /// to the samples of those that meet nothing. At `depth` 0 they go on from camera rays, and see
 /// what those see.
-fn trace_going_on(
+fn trace_going_on<S: Samples + ?Sized>(
     frame: &Frame,
     going_on: Vec<GoingOn>,
     depth: u32,
-    out: &mut [Sample],
+    out: &mut S,
     weight: &[Vec3A],
 ) -> Vec<Pending> {
     if going_on.is_empty() {
@@ -424,8 +554,8 @@ fn trace_going_on(
         }
         if hit.is_hit() {
             next.push(Pending { index, start, ray, diff, hit, budget: RayBudget::NONE });
-        } else if let (Some(s), Some(w)) = (out.get_mut(index), weight.get(index)) {
-            s.color += *w * background;
+        } else if let Some(w) = weight.get(index) {
+            out.add_color(index, *w * background);
         }
     }
     next
@@ -442,12 +572,12 @@ fn shade_primary_layer(
     frame: &Frame,
     packets: &[(&PrimaryRays, &HitPacket)],
     (whole, keys): (&[WholePacket], &[GroupKey]),
-    out: &mut [Sample],
+    out: &mut [SampleRows],
     weight: &mut [Vec3A],
     budgets: &mut [RayBudget],
 ) -> Vec<GoingOn> {
     let mut jobs = super::scratch::take(&PRIMARY_JOBS);
-    let mut results = super::scratch::take(&SHADED_RESULTS);
+    let mut results = super::scratch::take(&SHADED_ROWS);
     let mut going_on = Vec::new();
     let mut lanes = PrimaryLanes { out, weight, budgets, going_on: &mut going_on };
     for &(k, key) in whole {
@@ -485,7 +615,7 @@ fn shade_primary_layer(
     }
     Stats::add(&frame.stats.shaded_points, keys.len() + whole.len() * PACKET_SIZE);
     super::scratch::give(&PRIMARY_JOBS, jobs);
-    super::scratch::give(&SHADED_RESULTS, results);
+    super::scratch::give(&SHADED_ROWS, results);
     going_on
 }
 
@@ -495,7 +625,7 @@ type WholePacket = (usize, (u32, u32));
 
 /// What [`shade_primary_layer`] composites its groups into, by sample index.
 struct PrimaryLanes<'a> {
-    out: &'a mut [Sample],
+    out: &'a mut [SampleRows],
     weight: &'a mut [Vec3A],
     budgets: &'a mut [RayBudget],
     going_on: &'a mut Vec<GoingOn>,
@@ -508,28 +638,31 @@ fn shade_primary_group(
     rows: GroupRows,
     key: (u32, u32),
     indices: impl Iterator<Item = usize>,
-    results: &mut Vec<Shaded>,
+    results: &mut ShadedRows,
     to: &mut PrimaryLanes,
 ) {
     let world = frame.world;
-    results.clear();
-    results.resize(rows.len(), Shaded::default());
-    (frame.stages.shade_group)(frame, &rows, 0, results);
+    shade_group_rows(frame, &rows, 0, results);
     // The first hits' ids (see `first_hit_ids`): the group's material's.
     let ids = world.instances.get(rows.instance() as usize).map(|_| {
         let material = key.0;
         (world.materials.get(material as usize).map_or(0, |m| m.object_id), material)
     });
     let rule = depth_rule(frame, 0);
-    for (lane, (r, index)) in results.iter().zip(indices).enumerate() {
-        if let (Some(s), Some((object_id, shader_id))) = (to.out.get_mut(index), ids) {
-            (s.object_id, s.shader_id) = (object_id, shader_id);
-            s.normal = if r.ng.dot(rows.direction(lane)) > 0.0 { -r.ng } else { r.ng };
-            s.outputs = r.outputs;
+    let r = &*results;
+    for (lane, index) in indices.enumerate().take(r.len) {
+        let [ci, oi, p, ng] = r.vectors(lane);
+        if let Some(ids) = ids {
+            let normal = if ng.dot(rows.direction(lane)) > 0.0 { -ng } else { ng };
+            // (Zeros otherwise, as the sample began.)
+            let outputs = r.captured.then(|| r.outputs(lane));
+            to.out.set_first_hit(index, ids, normal, outputs.as_ref());
         }
         let t = rows.hit(lane).t;
-        if composite(world, (index, 1, t), rule, r, to.out, to.weight, to.budgets) {
-            to.going_on.push(ray_going_on(index, 0.0, r, rows.ray(lane), rows.diff(lane), t));
+        let used = (r.spent[lane], r.cut >> lane & 1 != 0);
+        if composite(world, (index, 1, t), rule, ((ci, oi), used), to.out, to.weight, to.budgets) {
+            let surface = (p, ng, r.on_surface >> lane & 1 != 0);
+            to.going_on.push(ray_going_on(index, 0.0, surface, rows.ray(lane), rows.diff(lane), t));
         }
     }
 }
@@ -538,7 +671,7 @@ fn shade_primary_group(
 /// its shading, `shaded`) turned toward the ray's origin. `pending` comes sorted by material
 /// (`shade_in_groups`), so each run of one material reads the material once, and each hit's
 /// material is found again in the caches `shade_in_groups` just filled.
-fn first_hit_ids(world: &World, pending: &[Pending], shaded: &[Shaded], out: &mut [Sample]) {
+fn first_hit_ids<S: Samples + ?Sized>(world: &World, pending: &[Pending], shaded: &[Shaded], out: &mut S) {
     let mut last: Option<(u32, u32)> = None;
     for (p, r) in pending.iter().zip(shaded) {
         let Some(inst) = world.instances.get(p.hit.instance as usize) else { continue };
@@ -548,16 +681,24 @@ fn first_hit_ids(world: &World, pending: &[Pending], shaded: &[Shaded], out: &mu
             _ => world.materials.get(material as usize).map_or(0, |m| m.object_id),
         };
         last = Some((material, object_id));
-        if let Some(s) = out.get_mut(p.index) {
-            (s.object_id, s.shader_id) = (object_id, material);
-            s.normal = if r.ng.dot(p.ray.direction) > 0.0 { -r.ng } else { r.ng };
-            s.outputs = r.outputs;
-        }
+        let normal = if r.ng.dot(p.ray.direction) > 0.0 { -r.ng } else { r.ng };
+        out.set_first_hit(p.index, (object_id, material), normal, Some(&r.outputs));
     }
 }
 
 /// Shades hits that share material and instance.
 pub(super) fn shade_group(frame: &Frame, group: &GroupRows, depth: u32, out: &mut [Shaded]) {
+    let mut rows = super::scratch::take(&SHADED_ROWS);
+    shade_group_rows(frame, group, depth, &mut rows);
+    for (l, o) in out.iter_mut().enumerate().take(rows.len) {
+        *o = rows.lane(l);
+    }
+    super::scratch::give(&SHADED_ROWS, rows);
+}
+
+/// [`shade_group`], its results by rows.
+fn shade_group_rows(frame: &Frame, group: &GroupRows, depth: u32, out: &mut ShadedRows) {
+    out.reset(group.len());
     if group.is_empty() {
         return;
     }
@@ -587,8 +728,9 @@ pub(super) fn shade_group(frame: &Frame, group: &GroupRows, depth: u32, out: &mu
     let given = &group.budgets[..group.len()];
     budgets.extend(given.iter().map(|b| b.through(material_id, sets_parameters, material.trace_depths)));
     shade_group_lanes(frame, group, depth, out, (inst, material_id, material), &ig, &mut budgets);
-    for ((o, given), b) in out.iter_mut().zip(given).zip(budgets.iter()) {
-        (o.spent, o.cut) = (given.left.saturating_sub(b.left), b.cut);
+    for (l, (given, b)) in given.iter().zip(budgets.iter()).enumerate().take(out.len) {
+        out.spent[l] = given.left.saturating_sub(b.left);
+        out.cut |= u64::from(b.cut) << l;
     }
     super::scratch::give(&LANE_BUDGETS, budgets);
 }
@@ -599,7 +741,7 @@ fn shade_group_lanes(
     frame: &Frame,
     group: &GroupRows,
     depth: u32,
-    out: &mut [Shaded],
+    out: &mut ShadedRows,
     (inst, material_id, material): (&InstanceShading, u32, &Material),
     ig: &InstanceGeometry,
     budgets: &mut [RayBudget],
@@ -635,12 +777,12 @@ fn shade_group_lanes(
         }
         let Some(surface) = &material.surface else {
             // RenderMan's default surface: a matte that faces the viewer.
-            for (lane, (g, o)) in geoms.iter().zip(out.iter_mut()).enumerate() {
+            for (lane, g) in geoms.iter().enumerate() {
                 let Some(g) = g else { continue };
                 let cs = g.cs.unwrap_or(color);
                 let os = g.os.unwrap_or(opacity);
                 let facing = g.n.dot(-group.direction(lane).normalize_or_zero()).abs();
-                *o = Shaded { ci: os * cs * (0.2 + 0.8 * facing), oi: os, p: g.p, ng: g.ng, on_surface: true, ..*o };
+                out.set(lane, [os * cs * (0.2 + 0.8 * facing), os, g.p, g.ng]);
             }
             return;
         };
@@ -680,25 +822,17 @@ fn shade_group_lanes(
                 program.code.shade_with_table(batch, &table);
             }
             let raw = batch.raw_mut();
-            // Ci and Oi read a row at a time (no Oi: the surface's opacity).
-            let lanes = group.len().min(PACKET_SIZE);
-            let mut rows = [[0.0f32; PACKET_SIZE]; 6];
-            for (k, row) in rows.iter_mut().enumerate() {
-                get_row(&raw, [slots.ci, slots.oi][k / 3], k % 3, 0.0, &mut row[..lanes]);
-            }
-            for (lane, (g, o)) in hits.iter().zip(out.iter_mut()).enumerate().take(lanes) {
-                let Some(g) = g else { continue };
-                let ci = Vec3A::new(rows[0][lane], rows[1][lane], rows[2][lane]);
-                let oi = match slots.oi {
-                    Some(_) => Vec3A::new(rows[3][lane], rows[4][lane], rows[5][lane]),
-                    None => g.os.unwrap_or(opacity),
-                };
-                *o =
-                    Shaded { ci: finite_or_zero(ci), oi: finite_or_zero(oi), p: g.p, ng: g.ng, on_surface: true, ..*o };
-            }
+            surface_results(&raw, slots, hits, opacity, out);
             // The output variables the frame keeps, of primary hits.
             let captured = if depth == 0 { &frame.captured[..] } else { &[] };
-            for (i, name) in captured.iter().enumerate() {
+            let lanes = out.len;
+            if !captured.is_empty() {
+                out.captured = true;
+                for row in out.outputs.iter_mut().flatten() {
+                    row[..lanes].fill(0.0);
+                }
+            }
+            for (name, to) in captured.iter().zip(out.outputs.iter_mut()) {
                 // An output parameter, else a global the shader uses (`N`, `Ci`, `s`...).
                 let layout = program.layout();
                 let (varying, offset, components) = match layout.param(name) {
@@ -709,19 +843,109 @@ fn shade_group_lanes(
                         _ => continue,
                     },
                 };
-                for (lane, o) in out.iter_mut().enumerate().take(lanes) {
-                    for k in 0..components.min(3) {
+                for (k, row) in to.iter_mut().enumerate().take(components.min(3)) {
+                    for (lane, o) in row.iter_mut().enumerate().take(lanes) {
                         let v = if varying {
                             raw.varying.get((offset + k) * raw.stride + lane)
                         } else {
                             raw.uniform.get(offset + k)
                         };
-                        o.outputs[i][k] = v.copied().filter(|v| v.is_finite()).unwrap_or(0.0);
+                        *o = v.copied().filter(|v| v.is_finite()).unwrap_or(0.0);
                     }
                 }
             }
         });
     })
+}
+
+/// A surface batch's results into `out` (its rows reset for the group): `Ci` and `Oi` as the
+/// shader left them (no `Oi`: the surface's opacity), each zero unless all three components are
+/// finite, and each hit's point and geometric normal, in the lanes whose hit has a surface.
+fn surface_results(
+    raw: &rtsl_compiler::abi::RawBatch<'_>,
+    slots: &crate::shading::GlobalSlots,
+    hits: GroupHits,
+    opacity: Vec3A,
+    out: &mut ShadedRows,
+) {
+    let lanes = out.len;
+    let valid = match hits {
+        GroupHits::Rows(rows, _) => rows.valid,
+        GroupHits::Each(geoms, _) => {
+            geoms.iter().take(lanes).enumerate().fold(0u64, |m, (l, g)| m | u64::from(g.is_some()) << l)
+        }
+    } & lane_mask(lanes);
+    for (k, row) in out.ci.iter_mut().enumerate() {
+        get_row(raw, slots.ci, k, 0.0, &mut row[..lanes]);
+    }
+    match slots.oi {
+        Some(_) => {
+            for (k, row) in out.oi.iter_mut().enumerate() {
+                get_row(raw, slots.oi, k, 0.0, &mut row[..lanes]);
+            }
+        }
+        None => {
+            for lane in 0..lanes {
+                let os = match hits {
+                    GroupHits::Each(geoms, _) => geoms.get(lane).and_then(|g| g.as_ref()?.os),
+                    GroupHits::Rows(..) => None,
+                };
+                let v = os.unwrap_or(opacity);
+                (out.oi[0][lane], out.oi[1][lane], out.oi[2][lane]) = (v.x, v.y, v.z);
+            }
+        }
+    }
+    for rows in [&mut out.ci, &mut out.oi] {
+        keep_finite(rows, valid, lanes);
+    }
+    match hits {
+        GroupHits::Rows(r, _) => {
+            for c in 0..lanes.div_ceil(8) {
+                let kept = kept_lanes(valid, c);
+                for (to, from) in out.p.iter_mut().zip(&r.p).chain(out.ng.iter_mut().zip(&r.ng)) {
+                    let v = <f32x8 as Lanes>::load(from, 8 * c);
+                    kept.select(v, f32x8::ZERO).write_to(&mut to[8 * c..]);
+                }
+            }
+        }
+        GroupHits::Each(geoms, _) => {
+            for (l, g) in geoms.iter().enumerate().take(lanes) {
+                let Some(g) = g else { continue };
+                for (rows, v) in [(&mut out.p, g.p), (&mut out.ng, g.ng)] {
+                    (rows[0][l], rows[1][l], rows[2][l]) = (v.x, v.y, v.z);
+                }
+            }
+        }
+    }
+    out.on_surface = valid;
+}
+
+/// The first `lanes` lanes of a packet.
+fn lane_mask(lanes: usize) -> u64 {
+    if lanes >= PACKET_SIZE {
+        u64::MAX
+    } else {
+        (1u64 << lanes) - 1
+    }
+}
+
+/// `finite_or_zero` of each lane's triple in `rows`, and zero in the lanes not in `keep` (eight
+/// lanes at a time, up to `lanes` rounded up to eight).
+fn keep_finite(rows: &mut [[f32; PACKET_SIZE]; 3], keep: u64, lanes: usize) {
+    for c in 0..lanes.div_ceil(8) {
+        let v: [f32x8; 3] = std::array::from_fn(|k| <f32x8 as Lanes>::load(&rows[k], 8 * c));
+        let finite = v[0].is_finite() & v[1].is_finite() & v[2].is_finite() & kept_lanes(keep, c);
+        for (row, v) in rows.iter_mut().zip(v) {
+            finite.select(v, f32x8::ZERO).write_to(&mut row[8 * c..]);
+        }
+    }
+}
+
+/// The mask of lanes `8 * c..8 * c + 8` set in `bits`.
+#[inline(always)]
+fn kept_lanes(bits: u64, c: usize) -> f32x8 {
+    let eight = bits.checked_shr(8 * c as u32).unwrap_or(0);
+    <f32x8 as Lanes>::mask_from_fn(|j| eight >> j & 1 != 0)
 }
 
 /// Whether a surface batch of `lanes` lanes runs twice to trace its `trace` or `occlusion` rays,
@@ -780,6 +1004,10 @@ thread_local! {
     static SHADED_RESULTS: RefCell<Vec<Vec<Shaded>>> = const { RefCell::new(Vec::new()) };
     /// Groups' lane budgets (`shade_group`), and tiles' samples' budgets (`shade_packets`).
     static LANE_BUDGETS: RefCell<Vec<Vec<RayBudget>>> = const { RefCell::new(Vec::new()) };
+    /// A packet's samples (`shade_packet`).
+    static SAMPLE_ROWS: RefCell<Vec<Box<SampleRows>>> = const { RefCell::new(Vec::new()) };
+    /// Groups' results by rows (`shade_group`, `shade_primary_layer`).
+    static SHADED_ROWS: RefCell<Vec<Box<ShadedRows>>> = const { RefCell::new(Vec::new()) };
     /// Batches' values kept for their second runs (`run_tracing_ahead`).
     static SAVED_VALUES: RefCell<Vec<rtsl_compiler::abi::SavedValues>> = const { RefCell::new(Vec::new()) };
 }
@@ -932,7 +1160,7 @@ fn shade_native(
     geoms: &[Option<HitGeometry>],
     (color, opacity): (Vec3A, Vec3A),
     depth: u32,
-    out: &mut [Shaded],
+    out: &mut ShadedRows,
     budgets: &mut [RayBudget],
 ) {
     let (mut points, mut mask, mut times) = (Vec::new(), Vec::new(), Vec::new());
@@ -956,7 +1184,7 @@ fn shade_native(
         }));
         let i = g.p - group.origin(k);
         let (ci, oi) = native.shade(g.n, i, g.cs.unwrap_or(color), g.os.unwrap_or(opacity), &seen);
-        out[k] = Shaded { ci, oi, p: g.p, ng: g.ng, on_surface: true, ..out[k] };
+        out.set(k, [ci, oi, g.p, g.ng]);
     }
 }
 
@@ -1149,9 +1377,9 @@ mod tests {
         let (rays, hits) = traced_packets(&by_rows, &corners);
         let packets: Vec<(&PrimaryRays, &HitPacket)> = rays.iter().zip(&hits).collect();
         let shade = |frame: &Frame| {
-            let mut out = vec![[Sample::default(); PACKET_SIZE]; packets.len()];
+            let mut out = vec![SampleRows::default(); packets.len()];
             shade_packets(frame, &packets, &mut out);
-            out
+            lanes_of(&out)
         };
         let (rows, jobs) = (shade(&by_rows), shade(&by_jobs));
         // The scene is what the test is about: packets wholly on the backdrop and packets of
@@ -1162,6 +1390,11 @@ mod tests {
         assert!(materials.len() >= 4, "materials seen: {materials:?}");
         assert!(rows.iter().flatten().any(|s| s.outputs[0][0] > 0.5), "the output variable is kept");
         assert_eq!(sample_bits(&rows), sample_bits(&jobs));
+    }
+
+    /// Packets' samples lane by lane.
+    fn lanes_of(rows: &[SampleRows]) -> Vec<[Sample; PACKET_SIZE]> {
+        rows.iter().map(|r| std::array::from_fn(|l| r.lane(l))).collect()
     }
 
     /// The primary packets of sample (0, 0) at each 8x8 corner, and their hits.
@@ -1219,8 +1452,9 @@ mod tests {
             shade_packet(&frame, r, h, out);
         }
         let packets: Vec<(&PrimaryRays, &HitPacket)> = rays.iter().zip(&hits).collect();
-        let mut together = vec![[Sample::default(); PACKET_SIZE]; corners.len()];
+        let mut together = vec![SampleRows::default(); corners.len()];
         shade_packets(&frame, &packets, &mut together);
+        let together = lanes_of(&together);
         // The scene is what the test is about: several materials, some lanes in shadow.
         let materials: std::collections::HashSet<u32> = alone.iter().flatten().map(|s| s.shader_id).collect();
         assert!(materials.len() >= 4, "materials seen: {materials:?}");

@@ -10,7 +10,7 @@ use super::ray_budget::RayBudget;
 use super::stats::Stats;
 use super::world::LightSource;
 use super::world::{GiOptions, InstanceShadows, World, MAX_FRAME_OUTPUTS};
-use crate::ray::Ray;
+use crate::ray::{Ray, PACKET_SIZE};
 use glam::{Affine3A, Vec3A};
 use rtsl_compiler::abi::{LightLanes, PixelChannel, PixelView};
 use std::sync::{Arc, Mutex, PoisonError};
@@ -473,6 +473,70 @@ pub struct Sample {
     pub outputs: [[f32; 3]; MAX_FRAME_OUTPUTS],
 }
 
+/// A packet's samples by rows, lane `l` the sample of the packet's ray `l`: the fields of
+/// [`Sample`] a row per component, as a tile's shading writes them and its pixels read them.
+#[derive(Clone, Debug)]
+pub struct SampleRows {
+    pub color: [[f32; PACKET_SIZE]; 3],
+    pub alpha: [f32; PACKET_SIZE],
+    pub depth: [f32; PACKET_SIZE],
+    pub object_id: [u32; PACKET_SIZE],
+    pub shader_id: [u32; PACKET_SIZE],
+    pub normal: [[f32; PACKET_SIZE]; 3],
+    /// Output `i`'s component `k` of each lane ([`Sample::outputs`]), written only where the frame
+    /// keeps outputs ([`Frame::captured`]); read them only then.
+    pub outputs: [[[f32; PACKET_SIZE]; 3]; MAX_FRAME_OUTPUTS],
+}
+
+impl Default for SampleRows {
+    fn default() -> Self {
+        let rows = [[0.0; PACKET_SIZE]; 3];
+        SampleRows {
+            color: rows,
+            alpha: [0.0; PACKET_SIZE],
+            depth: [f32::INFINITY; PACKET_SIZE],
+            object_id: [u32::MAX; PACKET_SIZE],
+            shader_id: [u32::MAX; PACKET_SIZE],
+            normal: rows,
+            outputs: [rows; MAX_FRAME_OUTPUTS],
+        }
+    }
+}
+
+impl SampleRows {
+    /// Lane `l`'s colour.
+    #[inline(always)]
+    pub fn color(&self, l: usize) -> Vec3A {
+        Vec3A::new(self.color[0][l], self.color[1][l], self.color[2][l])
+    }
+
+    /// Lane `l`'s normal.
+    #[inline(always)]
+    pub fn normal(&self, l: usize) -> Vec3A {
+        Vec3A::new(self.normal[0][l], self.normal[1][l], self.normal[2][l])
+    }
+
+    /// Lane `l`'s outputs.
+    #[inline(always)]
+    pub fn outputs(&self, l: usize) -> [[f32; 3]; MAX_FRAME_OUTPUTS] {
+        self.outputs.map(|o| o.map(|row| row[l]))
+    }
+
+    /// Lane `l` as one [`Sample`] (its outputs as the rows hold them).
+    pub fn lane(&self, l: usize) -> Sample {
+        let l = l.min(PACKET_SIZE - 1);
+        Sample {
+            color: self.color(l),
+            alpha: self.alpha[l],
+            depth: self.depth[l],
+            object_id: self.object_id[l],
+            shader_id: self.shader_id[l],
+            normal: self.normal(l),
+            outputs: self.outputs(l),
+        }
+    }
+}
+
 /// What shading one hit produced.
 #[derive(Clone, Copy, Debug, Default)]
 pub(crate) struct Shaded {
@@ -491,6 +555,106 @@ pub(crate) struct Shaded {
     /// and whether it refused one.
     pub(crate) spent: u32,
     pub(crate) cut: bool,
+}
+
+/// What shading a group of hits (a packet at most) produced, a row per component and a lane per
+/// hit: each lane's [`Shaded`], for the stages that read a group's results by rows.
+pub(crate) struct ShadedRows {
+    /// The group's hits (at most `PACKET_SIZE`).
+    pub(crate) len: usize,
+    /// The lanes whose hit had a surface ([`Shaded::on_surface`]); the others' `ci`, `oi`, `p`
+    /// and `ng` are zero.
+    pub(crate) on_surface: u64,
+    pub(crate) ci: [[f32; PACKET_SIZE]; 3],
+    pub(crate) oi: [[f32; PACKET_SIZE]; 3],
+    pub(crate) p: [[f32; PACKET_SIZE]; 3],
+    pub(crate) ng: [[f32; PACKET_SIZE]; 3],
+    pub(crate) spent: [u32; PACKET_SIZE],
+    /// The lanes that refused a ray ([`Shaded::cut`]).
+    pub(crate) cut: u64,
+    /// Whether `outputs` were written (primary hits of a frame that keeps some); they read as
+    /// zeros otherwise.
+    pub(crate) captured: bool,
+    /// Output `i`'s component `k` of each lane (see [`Shaded::outputs`]).
+    pub(crate) outputs: [[[f32; PACKET_SIZE]; 3]; MAX_FRAME_OUTPUTS],
+}
+
+impl Default for ShadedRows {
+    fn default() -> Self {
+        let rows = [[0.0; PACKET_SIZE]; 3];
+        ShadedRows {
+            len: 0,
+            on_surface: 0,
+            ci: rows,
+            oi: rows,
+            p: rows,
+            ng: rows,
+            spent: [0; PACKET_SIZE],
+            cut: 0,
+            captured: false,
+            outputs: [rows; MAX_FRAME_OUTPUTS],
+        }
+    }
+}
+
+impl ShadedRows {
+    /// Rows for `len` hits (at most `PACKET_SIZE`), each as [`Shaded::default`] leaves it.
+    pub(crate) fn reset(&mut self, len: usize) {
+        let len = len.min(PACKET_SIZE);
+        self.len = len;
+        self.on_surface = 0;
+        self.cut = 0;
+        self.captured = false;
+        for row in [&mut self.ci, &mut self.oi, &mut self.p, &mut self.ng].into_iter().flatten() {
+            row[..len].fill(0.0);
+        }
+        self.spent[..len].fill(0);
+    }
+
+    /// Lane `l`'s result, on a surface: its colour, opacity, point and geometric normal.
+    #[inline(always)]
+    pub(crate) fn set(&mut self, l: usize, [ci, oi, p, ng]: [Vec3A; 4]) {
+        if l >= self.len {
+            return;
+        }
+        for (rows, v) in [(&mut self.ci, ci), (&mut self.oi, oi), (&mut self.p, p), (&mut self.ng, ng)] {
+            (rows[0][l], rows[1][l], rows[2][l]) = (v.x, v.y, v.z);
+        }
+        self.on_surface |= 1 << l;
+    }
+
+    /// Lane `l`'s colour, opacity, point and geometric normal.
+    #[inline(always)]
+    pub(crate) fn vectors(&self, l: usize) -> [Vec3A; 4] {
+        let l = l.min(PACKET_SIZE - 1);
+        [&self.ci, &self.oi, &self.p, &self.ng].map(|r| Vec3A::new(r[0][l], r[1][l], r[2][l]))
+    }
+
+    /// Lane `l`'s outputs (zeros unless [`ShadedRows::captured`]).
+    #[inline(always)]
+    pub(crate) fn outputs(&self, l: usize) -> [[f32; 3]; MAX_FRAME_OUTPUTS] {
+        let l = l.min(PACKET_SIZE - 1);
+        match self.captured {
+            true => self.outputs.map(|o| o.map(|row| row[l])),
+            false => [[0.0; 3]; MAX_FRAME_OUTPUTS],
+        }
+    }
+
+    /// Lane `l` as one [`Shaded`].
+    pub(crate) fn lane(&self, l: usize) -> Shaded {
+        let [ci, oi, p, ng] = self.vectors(l);
+        let l = l.min(PACKET_SIZE - 1);
+        Shaded {
+            ci,
+            oi,
+            p,
+            ng,
+            on_surface: self.on_surface >> l & 1 != 0,
+            outputs: self.outputs(l),
+            spent: self.spent[l],
+            cut: self.cut >> l & 1 != 0,
+        }
+    }
 }
 
 pub(crate) fn finite_or_zero(v: Vec3A) -> Vec3A {
