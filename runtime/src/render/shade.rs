@@ -112,9 +112,6 @@ pub fn shade_packets(frame: &Frame, packets: &[(&PrimaryRays, &HitPacket)], out:
     }
     super::group::sort_stably(&mut keys);
     let out = &mut out[..packets.len()];
-    let mut weight = super::scratch::take(&LANE_WEIGHTS);
-    weight.clear();
-    weight.resize(PACKET_SIZE * packets.len(), Vec3A::ONE);
     // Each camera sample's tree its own budget (what is left of it is not needed here).
     let mut budgets = super::scratch::take(&LANE_BUDGETS);
     budgets.clear();
@@ -130,17 +127,18 @@ pub fn shade_packets(frame: &Frame, packets: &[(&PrimaryRays, &HitPacket)], out:
             let (ray, diff, hit) = (primary.packet.get(lane), primary.diffs.lane(lane), hits.get(lane));
             Pending { index, start: 0.0, ray, diff, hit, budget: RayBudget::NONE }
         }));
-        shade_pending(frame, (&mut pending, 0), Some(&keys), 0, samples, &mut weight, &mut budgets);
+        shade_pending(frame, (&mut pending, 0), Some(&keys), 0, samples, &mut budgets);
         super::scratch::give(&PENDING_JOBS, pending);
     } else {
-        let going_on = shade_primary_layer(frame, packets, (&whole, &keys), samples, &mut weight, &mut budgets);
-        let mut later = trace_going_on(frame, going_on, 0, samples, &weight);
-        shade_pending(frame, (&mut later, 1), None, 0, samples, &mut weight, &mut budgets);
+        let going_on = shade_primary_layer(frame, packets, (&whole, &keys), samples, &mut budgets);
+        let mut later = trace_going_on(frame, going_on, 0, samples);
+        shade_pending(frame, (&mut later, 1), None, 0, samples, &mut budgets);
     }
-    for ((primary, _), (out, left)) in packets.iter().zip(out.iter_mut().zip(weight.chunks_exact(PACKET_SIZE))) {
+    for ((primary, _), out) in packets.iter().zip(out.iter_mut()) {
         let w = &primary.weights;
-        for (l, left) in left.iter().enumerate() {
-            let alpha = 1.0 - (left.x + left.y + left.z) / 3.0;
+        for l in 0..PACKET_SIZE {
+            let left = &out.left;
+            let alpha = 1.0 - (left[0][l] + left[1][l] + left[2][l]) / 3.0;
             for (c, row) in out.color.iter_mut().enumerate() {
                 row[l] *= w[c][l];
             }
@@ -149,7 +147,6 @@ pub fn shade_packets(frame: &Frame, packets: &[(&PrimaryRays, &HitPacket)], out:
     }
     super::group::give_keys(keys);
     super::scratch::give(&WHOLE_PACKETS, whole);
-    super::scratch::give(&LANE_WEIGHTS, weight);
     super::scratch::give(&LANE_BUDGETS, budgets);
 }
 
@@ -234,7 +231,8 @@ fn shade_hits(
         }
     }
     let mut weight = vec![Vec3A::ONE; rays.len()];
-    shade_pending(frame, (&mut pending, 0), None, depth, out, &mut weight, budgets);
+    let mut samples = RaySamples { samples: &mut *out, weight: &mut weight };
+    shade_pending(frame, (&mut pending, 0), None, depth, &mut samples, budgets);
     for (s, w) in out.iter_mut().zip(&weight) {
         s.alpha = 1.0 - (w.x + w.y + w.z) / 3.0;
     }
@@ -289,6 +287,7 @@ fn begin_samples(frame: &Frame, hits: &HitPacket, out: &mut SampleRows) {
     out.object_id = [u32::MAX; PACKET_SIZE];
     out.shader_id = [u32::MAX; PACKET_SIZE];
     out.normal = [[0.0; PACKET_SIZE]; 3];
+    out.left = [[1.0; PACKET_SIZE]; 3];
     if !frame.captured.is_empty() {
         out.outputs = [[[0.0; PACKET_SIZE]; 3]; MAX_FRAME_OUTPUTS];
     }
@@ -302,6 +301,9 @@ trait Samples {
     fn set_depth(&mut self, i: usize, depth: f32);
     /// Adds `c` to sample `i`'s colour.
     fn add_color(&mut self, i: usize, c: Vec3A);
+    /// What is left of sample `i`'s weight: what the surfaces its ray crossed let through.
+    fn weight(&self, i: usize) -> Option<Vec3A>;
+    fn set_weight(&mut self, i: usize, w: Vec3A);
     /// Sample `i`'s first hit: its object and material ids, its normal (faced toward the ray's
     /// origin), and its outputs where the frame keeps some.
     fn set_first_hit(&mut self, i: usize, ids: (u32, u32), normal: Vec3A, outputs: Option<&Outputs>);
@@ -310,29 +312,47 @@ trait Samples {
 /// A sample's kept output variables ([`Sample::outputs`]).
 type Outputs = [[f32; 3]; MAX_FRAME_OUTPUTS];
 
-impl Samples for [Sample] {
+/// Rays' samples one by one, and the weight left to each.
+struct RaySamples<'a> {
+    samples: &'a mut [Sample],
+    weight: &'a mut [Vec3A],
+}
+
+impl Samples for RaySamples<'_> {
     #[inline(always)]
     fn depth(&self, i: usize) -> Option<f32> {
-        self.get(i).map(|s| s.depth)
+        self.samples.get(i).map(|s| s.depth)
     }
 
     #[inline(always)]
     fn set_depth(&mut self, i: usize, depth: f32) {
-        if let Some(s) = self.get_mut(i) {
+        if let Some(s) = self.samples.get_mut(i) {
             s.depth = depth;
         }
     }
 
     #[inline(always)]
     fn add_color(&mut self, i: usize, c: Vec3A) {
-        if let Some(s) = self.get_mut(i) {
+        if let Some(s) = self.samples.get_mut(i) {
             s.color += c;
         }
     }
 
     #[inline(always)]
+    fn weight(&self, i: usize) -> Option<Vec3A> {
+        self.weight.get(i).copied()
+    }
+
+    #[inline(always)]
+    fn set_weight(&mut self, i: usize, w: Vec3A) {
+        if let Some(to) = self.weight.get_mut(i) {
+            *to = w;
+        }
+    }
+
+    #[inline(always)]
     fn set_first_hit(&mut self, i: usize, ids: (u32, u32), normal: Vec3A, outputs: Option<&Outputs>) {
-        if let Some(s) = self.get_mut(i) {
+        if let Some(s) = self.samples.get_mut(i) {
             (s.object_id, s.shader_id) = ids;
             s.normal = normal;
             if let Some(o) = outputs {
@@ -366,6 +386,22 @@ impl Samples for [SampleRows] {
     }
 
     #[inline(always)]
+    fn weight(&self, i: usize) -> Option<Vec3A> {
+        let l = i % PACKET_SIZE;
+        self.get(i / PACKET_SIZE).map(|s| Vec3A::new(s.left[0][l], s.left[1][l], s.left[2][l]))
+    }
+
+    #[inline(always)]
+    fn set_weight(&mut self, i: usize, w: Vec3A) {
+        if let Some(s) = self.get_mut(i / PACKET_SIZE) {
+            let l = i % PACKET_SIZE;
+            for (row, v) in s.left.iter_mut().zip(w.to_array()) {
+                row[l] = v;
+            }
+        }
+    }
+
+    #[inline(always)]
     fn set_first_hit(&mut self, i: usize, ids: (u32, u32), normal: Vec3A, outputs: Option<&Outputs>) {
         if let Some(s) = self.get_mut(i / PACKET_SIZE) {
             let l = i % PACKET_SIZE;
@@ -383,7 +419,7 @@ impl Samples for [SampleRows] {
 }
 
 /// Shades the pending hits and composites them into `out[p.index]`, following rays through
-/// transparent surfaces; `weight[p.index]` is left with what the surfaces let through. The
+/// transparent surfaces; the sample's weight is left with what the surfaces let through. The
 /// shading of each layer of ray `p.index`'s hits spends from `budgets[p.index]`.
 ///
 /// `first` is a layer of hits and the number of layers its rays crossed before (0: these are
@@ -395,7 +431,6 @@ fn shade_pending<S: Samples + ?Sized>(
     sorted: Option<&[GroupKey]>,
     depth: u32,
     out: &mut S,
-    weight: &mut [Vec3A],
     budgets: &mut [RayBudget],
 ) {
     let world = frame.world;
@@ -431,12 +466,12 @@ fn shade_pending<S: Samples + ?Sized>(
         let mut going_on = Vec::new();
         for (p, r) in current.iter().zip(&results) {
             let at = (p.index, layer, p.start + p.hit.t);
-            if composite(world, at, depth_rule, ((r.ci, r.oi), (r.spent, r.cut)), out, weight, budgets) {
+            if composite(world, at, depth_rule, ((r.ci, r.oi), (r.spent, r.cut)), out, budgets) {
                 let surface = (r.p, r.ng, r.on_surface);
                 going_on.push(ray_going_on(p.index, p.start, surface, p.ray, p.diff, p.hit.t));
             }
         }
-        later = trace_going_on(frame, going_on, depth, out, weight);
+        later = trace_going_on(frame, going_on, depth, out);
     }
     super::scratch::give(&SHADED_RESULTS, results);
 }
@@ -460,9 +495,9 @@ fn depth_rule(frame: &Frame, depth: u32) -> Option<DepthRule> {
 }
 
 /// Composites what shading ray `index`'s hit gave (its `Ci` and `Oi`, and the rays it spent and
-/// whether it refused one; the `layer`th surface the ray met, at
-/// `distance` along the ray that began the sample) into its sample `out[index]`, the budget its
-/// tree spent into `budgets[index]`, and leaves `weight[index]` with what the surface lets
+/// whether it refused one; the `layer`th surface the ray met, at `distance` along the ray that
+/// began the sample) into its sample `out[index]`, the budget its tree spent into
+/// `budgets[index]`, and leaves the sample's weight with what the surface lets
 /// through: `true` when the ray goes on through it (enough gets through, and it is not the last
 /// layer the options allow). With a depth rule (camera rays: `RenderOptions::depth_threshold`
 /// and `depth_filter`), the sample's depth becomes that of the first layer whose own opacity
@@ -475,13 +510,12 @@ fn composite<S: Samples + ?Sized>(
     depth_rule: Option<DepthRule>,
     ((ci, oi), (spent, cut)): ((Vec3A, Vec3A), (u32, bool)),
     out: &mut S,
-    weight: &mut [Vec3A],
     budgets: &mut [RayBudget],
 ) -> bool {
     if let Some(budget) = budgets.get_mut(index) {
         budget.charge(spent, cut);
     }
-    let (Some(w), Some(depth)) = (weight.get_mut(index), out.depth(index)) else { return false };
+    let (Some(w), Some(depth)) = (out.weight(index), out.depth(index)) else { return false };
     if let Some(rule) = depth_rule {
         let counts = oi.cmpge(rule.threshold).all();
         if layer == 1 && !counts {
@@ -490,9 +524,9 @@ fn composite<S: Samples + ?Sized>(
             out.set_depth(index, distance);
         }
     }
-    out.add_color(index, *w * ci);
-    let left = *w * (Vec3A::ONE - oi.clamp(Vec3A::ZERO, Vec3A::ONE));
-    *w = left;
+    out.add_color(index, w * ci);
+    let left = w * (Vec3A::ONE - oi.clamp(Vec3A::ZERO, Vec3A::ONE));
+    out.set_weight(index, left);
     // Exactly when the opacity so far, `1 - left`, is below the threshold in some channel.
     let hidden_below = Vec3A::ONE - Vec3A::from(world.options.opacity_threshold);
     left.cmpgt(hidden_below).any() && layer < world.options.max_transparent_layers
@@ -529,13 +563,7 @@ fn ray_going_on(
 /// with the rays before them: whole packets): the hits to shade next, and the background added
 /// to the samples of those that meet nothing. At `depth` 0 they go on from camera rays, and see
 /// what those see.
-fn trace_going_on<S: Samples + ?Sized>(
-    frame: &Frame,
-    going_on: Vec<GoingOn>,
-    depth: u32,
-    out: &mut S,
-    weight: &[Vec3A],
-) -> Vec<Pending> {
+fn trace_going_on<S: Samples + ?Sized>(frame: &Frame, going_on: Vec<GoingOn>, depth: u32, out: &mut S) -> Vec<Pending> {
     if going_on.is_empty() {
         return Vec::new();
     }
@@ -554,8 +582,8 @@ fn trace_going_on<S: Samples + ?Sized>(
         }
         if hit.is_hit() {
             next.push(Pending { index, start, ray, diff, hit, budget: RayBudget::NONE });
-        } else if let Some(w) = weight.get(index) {
-            out.add_color(index, *w * background);
+        } else if let Some(w) = out.weight(index) {
+            out.add_color(index, w * background);
         }
     }
     next
@@ -573,20 +601,20 @@ fn shade_primary_layer(
     packets: &[(&PrimaryRays, &HitPacket)],
     (whole, keys): (&[WholePacket], &[GroupKey]),
     out: &mut [SampleRows],
-    weight: &mut [Vec3A],
     budgets: &mut [RayBudget],
 ) -> Vec<GoingOn> {
     let mut jobs = super::scratch::take(&PRIMARY_JOBS);
     let mut results = super::scratch::take(&SHADED_ROWS);
     let mut going_on = Vec::new();
-    let mut lanes = PrimaryLanes { out, weight, budgets, going_on: &mut going_on };
+    let mut lanes = PrimaryLanes { out, budgets, going_on: &mut going_on };
     for &(k, key) in whole {
         let Some((primary, hits)) = packets.get(k) else { continue };
         let first = k * PACKET_SIZE;
         let lent: [RayBudget; PACKET_SIZE] =
             std::array::from_fn(|l| lanes.budgets.get(first + l).map_or(RayBudget::NONE, |b| b.lend()));
         let rows = GroupRows::whole_packet((&primary.packet, &primary.diffs, *hits), &lent);
-        shade_primary_group(frame, rows, key, first..first + PACKET_SIZE, &mut results, &mut lanes);
+        let samples = GroupSamples::<std::ops::Range<usize>>::WholePacket(k);
+        shade_primary_group(frame, (rows, key), samples, &mut results, &mut lanes);
     }
     let mut start = 0;
     while start < keys.len() {
@@ -610,7 +638,7 @@ fn shade_primary_layer(
         }
         jobs.finish();
         let indices = keys[start..end].iter().map(|&(_, index)| index as usize);
-        shade_primary_group(frame, jobs.rows(), key, indices, &mut results, &mut lanes);
+        shade_primary_group(frame, (jobs.rows(), key), GroupSamples::Each(indices), &mut results, &mut lanes);
         start = end;
     }
     Stats::add(&frame.stats.shaded_points, keys.len() + whole.len() * PACKET_SIZE);
@@ -626,18 +654,16 @@ type WholePacket = (usize, (u32, u32));
 /// What [`shade_primary_layer`] composites its groups into, by sample index.
 struct PrimaryLanes<'a> {
     out: &'a mut [SampleRows],
-    weight: &'a mut [Vec3A],
     budgets: &'a mut [RayBudget],
     going_on: &'a mut Vec<GoingOn>,
 }
 
-/// Shades one group of first hits (`rows`, of group key `key`; lane `l` the sample
-/// `indices[l]`'s) and composites them (see [`shade_primary_layer`]), `results` a buffer.
-fn shade_primary_group(
+/// Shades one group of first hits (`rows`, of group key `key`; lane `l` the sample `samples`
+/// gives it) and composites them (see [`shade_primary_layer`]), `results` a buffer.
+fn shade_primary_group<I: Iterator<Item = usize>>(
     frame: &Frame,
-    rows: GroupRows,
-    key: (u32, u32),
-    indices: impl Iterator<Item = usize>,
+    (rows, key): (GroupRows, (u32, u32)),
+    samples: GroupSamples<I>,
     results: &mut ShadedRows,
     to: &mut PrimaryLanes,
 ) {
@@ -650,6 +676,26 @@ fn shade_primary_group(
     });
     let rule = depth_rule(frame, 0);
     let r = &*results;
+    match samples {
+        GroupSamples::WholePacket(k) => {
+            if composite_whole_packet(world, (&rows, ids, rule), k, r, to) {
+                return;
+            }
+            composite_lanes(world, (&rows, ids, rule), k * PACKET_SIZE..(k + 1) * PACKET_SIZE, r, to);
+        }
+        GroupSamples::Each(indices) => composite_lanes(world, (&rows, ids, rule), indices, r, to),
+    }
+}
+
+/// [`shade_primary_group`]'s compositing lane by lane: lane `l` of `rows` and `r` into sample
+/// `indices[l]`, with the group's `ids`.
+fn composite_lanes(
+    world: &World,
+    (rows, ids, rule): (&GroupRows, Option<(u32, u32)>, Option<DepthRule>),
+    indices: impl Iterator<Item = usize>,
+    r: &ShadedRows,
+    to: &mut PrimaryLanes,
+) {
     for (lane, index) in indices.enumerate().take(r.len) {
         let [ci, oi, p, ng] = r.vectors(lane);
         if let Some(ids) = ids {
@@ -660,11 +706,88 @@ fn shade_primary_group(
         }
         let t = rows.hit(lane).t;
         let used = (r.spent[lane], r.cut >> lane & 1 != 0);
-        if composite(world, (index, 1, t), rule, ((ci, oi), used), to.out, to.weight, to.budgets) {
+        if composite(world, (index, 1, t), rule, ((ci, oi), used), to.out, to.budgets) {
             let surface = (p, ng, r.on_surface >> lane & 1 != 0);
             to.going_on.push(ray_going_on(index, 0.0, surface, rows.ray(lane), rows.diff(lane), t));
         }
     }
+}
+
+/// Whose samples a group of first hits is: lane `l`'s is `indices[l]`, or a whole packet's lane
+/// `l`'s (`PACKET_SIZE * k + l`).
+enum GroupSamples<I> {
+    Each(I),
+    WholePacket(usize),
+}
+
+/// [`shade_primary_group`]'s compositing of whole packet `k`'s first hits (lane `l` of `rows` and
+/// `r` its lane `l`; `ids` the group's), a row at a time: lane by lane the arithmetic of
+/// [`composite`] (a first layer's) and the ids and normals of the lane-by-lane path. `false`
+/// (nothing done) when the rows are not a whole packet's.
+fn composite_whole_packet(
+    world: &World,
+    (rows, ids, rule): (&GroupRows, Option<(u32, u32)>, Option<DepthRule>),
+    k: usize,
+    r: &ShadedRows,
+    to: &mut PrimaryLanes,
+) -> bool {
+    let first = k * PACKET_SIZE;
+    let (Some(out), Some(budgets)) = (to.out.get_mut(k), to.budgets.get_mut(first..first + PACKET_SIZE)) else {
+        return false;
+    };
+    if r.len != PACKET_SIZE || rows.len() != PACKET_SIZE {
+        return false;
+    }
+    for (l, b) in budgets.iter_mut().enumerate() {
+        b.charge(r.spent[l], r.cut >> l & 1 != 0);
+    }
+    let threshold = world.options.opacity_threshold;
+    let hidden_below = threshold.map(|t| 1.0 - t);
+    let layers_left = 1 < world.options.max_transparent_layers;
+    let mut going_on = 0u64;
+    if let Some(rule) = rule {
+        // A first layer whose own opacity falls short of the threshold leaves no depth.
+        let th = rule.threshold;
+        for l in 0..PACKET_SIZE {
+            if !(r.oi[0][l] >= th.x && r.oi[1][l] >= th.y && r.oi[2][l] >= th.z) {
+                out.depth[l] = f32::INFINITY;
+            }
+        }
+    }
+    for l in 0..PACKET_SIZE {
+        let mut on = false;
+        for (c, hidden_below) in hidden_below.iter().enumerate() {
+            let w = out.left[c][l];
+            out.color[c][l] += w * r.ci[c][l];
+            // `Vec3A::clamp(ZERO, ONE)`: SSE's max and then min, which give the bound for NaN.
+            let o = r.oi[c][l];
+            let o = if o > 0.0 { o } else { 0.0 };
+            let o = if o < 1.0 { o } else { 1.0 };
+            let left = w * (1.0 - o);
+            out.left[c][l] = left;
+            on |= left > *hidden_below;
+        }
+        going_on |= u64::from(on && layers_left) << l;
+    }
+    if let Some((object_id, shader_id)) = ids {
+        out.object_id = [object_id; PACKET_SIZE];
+        out.shader_id = [shader_id; PACKET_SIZE];
+        for l in 0..PACKET_SIZE {
+            let ng = Vec3A::new(r.ng[0][l], r.ng[1][l], r.ng[2][l]);
+            let normal = if ng.dot(rows.direction(l)) > 0.0 { -ng } else { ng };
+            (out.normal[0][l], out.normal[1][l], out.normal[2][l]) = (normal.x, normal.y, normal.z);
+        }
+        if r.captured {
+            out.outputs = r.outputs;
+        }
+    }
+    for l in (0..PACKET_SIZE).filter(|l| going_on >> l & 1 != 0) {
+        let [_, _, p, ng] = r.vectors(l);
+        let surface = (p, ng, r.on_surface >> l & 1 != 0);
+        let t = rows.hit(l).t;
+        to.going_on.push(ray_going_on(first + l, 0.0, surface, rows.ray(l), rows.diff(l), t));
+    }
+    true
 }
 
 /// The object and material ids of each first hit into its sample, and its geometric normal (from
@@ -998,8 +1121,6 @@ thread_local! {
     static WHOLE_PACKETS: RefCell<Vec<Vec<WholePacket>>> = const { RefCell::new(Vec::new()) };
     /// Groups of a tile's first hits by rows (`shade_primary_layer`).
     static PRIMARY_JOBS: RefCell<Vec<Box<JobRows>>> = const { RefCell::new(Vec::new()) };
-    /// Tiles' weights left to their samples (`shade_packets`).
-    static LANE_WEIGHTS: RefCell<Vec<Vec<Vec3A>>> = const { RefCell::new(Vec::new()) };
     /// What shading a layer of hits produced (`shade_pending`).
     static SHADED_RESULTS: RefCell<Vec<Vec<Shaded>>> = const { RefCell::new(Vec::new()) };
     /// Groups' lane budgets (`shade_group`), and tiles' samples' budgets (`shade_packets`).
@@ -1390,6 +1511,63 @@ mod tests {
         assert!(materials.len() >= 4, "materials seen: {materials:?}");
         assert!(rows.iter().flatten().any(|s| s.outputs[0][0] > 0.5), "the output variable is kept");
         assert_eq!(sample_bits(&rows), sample_bits(&jobs));
+    }
+
+    /// Whole packets whose first hits are on a semi-transparent veil over the view, composited a
+    /// row at a time, get what their jobs shaded one by one get, bit for bit: the rays going on
+    /// through it, their depths with RenderMan's depth threshold (the veil's opacity falls short
+    /// of it) and without one, and with the farthest surface kept.
+    #[test]
+    fn whole_packets_through_a_veil_get_what_their_jobs_get() {
+        let rib = format!(
+            r#"
+            Format 16 16 1
+            Projection "perspective" "fov" 50
+            Translate 0 0 4
+            WorldBegin
+            LightSource "ambientlight" 1 "intensity" [0.1]
+            LightSource "pointlight" 2 "intensity" [6] "from" [1 2 -3]
+            AttributeBegin
+              Surface "matte"
+              Opacity [0.6 0.5 0.4]
+              Polygon "P" [-3 -3 -3.3  3 -3 -3.3  3 3 -3.3  -3 3 -3.3]
+            AttributeEnd
+            {FOREGROUND}
+            WorldEnd
+        "#
+        );
+        let thresholds = [None, Some([0.0; 3]), Some([0.3; 3])];
+        for (case, (threshold, farthest)) in thresholds.into_iter().flat_map(|t| [(t, false), (t, true)]).enumerate() {
+            let mut rt = crate::api::Context::new();
+            crate::rib::load::load_str(&mut rt, &rib, std::path::Path::new("<test>")).expect("the test scene loads");
+            if let Some(t) = threshold {
+                rt.options.depth_threshold = t;
+            }
+            if farthest {
+                rt.options.depth_filter = super::super::DepthFilter::Max;
+            }
+            let world = rt.build_world().expect("the test scene builds");
+            let by_rows = Frame::new(&world);
+            let mut by_jobs = Frame::new(&world);
+            by_jobs.volumes = true;
+            let corners = [(0, 0), (8, 0), (0, 8), (8, 8)];
+            let (rays, hits) = traced_packets(&by_rows, &corners);
+            let packets: Vec<(&PrimaryRays, &HitPacket)> = rays.iter().zip(&hits).collect();
+            let shade = |frame: &Frame| {
+                let mut out = vec![SampleRows::default(); packets.len()];
+                shade_packets(frame, &packets, &mut out);
+                lanes_of(&out)
+            };
+            let (rows, jobs) = (shade(&by_rows), shade(&by_jobs));
+            // Every packet lies wholly on the veil, and sees what is behind it.
+            let veil = rows[0][0].shader_id;
+            assert!(rows.iter().flatten().all(|s| s.shader_id == veil), "case {case}");
+            assert!(rows.iter().flatten().any(|s| s.alpha > 0.9), "case {case}: surfaces behind the veil");
+            if threshold == Some([0.3; 3]) && !farthest {
+                assert!(rows.iter().flatten().all(|s| s.depth < 1.0), "case {case}: the veil's depth");
+            }
+            assert_eq!(sample_bits(&rows), sample_bits(&jobs), "case {case}");
+        }
     }
 
     /// Packets' samples lane by lane.

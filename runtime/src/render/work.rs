@@ -486,6 +486,9 @@ pub struct SampleRows {
     /// Output `i`'s component `k` of each lane ([`Sample::outputs`]), written only where the frame
     /// keeps outputs ([`Frame::captured`]); read them only then.
     pub outputs: [[[f32; PACKET_SIZE]; 3]; MAX_FRAME_OUTPUTS],
+    /// What is left of each lane's weight while it is composited: what the surfaces its ray
+    /// crossed let through (the background's share).
+    pub(crate) left: [[f32; PACKET_SIZE]; 3],
 }
 
 impl Default for SampleRows {
@@ -499,6 +502,7 @@ impl Default for SampleRows {
             shader_id: [u32::MAX; PACKET_SIZE],
             normal: rows,
             outputs: [rows; MAX_FRAME_OUTPUTS],
+            left: [[1.0; PACKET_SIZE]; 3],
         }
     }
 }
