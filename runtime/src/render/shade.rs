@@ -1491,18 +1491,8 @@ mod tests {
         crate::rib::load::load_str(&mut rt, &rib, std::path::Path::new("<test>")).expect("the test scene loads");
         let world = rt.build_world().expect("the test scene builds");
         assert!(!world.has_volumes());
-        let by_rows = Frame::new(&world);
-        let mut by_jobs = Frame::new(&world);
-        by_jobs.volumes = true;
         let corners: Vec<(u32, u32)> = (0..4).flat_map(|y| (0..4).map(move |x| (8 * x, 8 * y))).collect();
-        let (rays, hits) = traced_packets(&by_rows, &corners);
-        let packets: Vec<(&PrimaryRays, &HitPacket)> = rays.iter().zip(&hits).collect();
-        let shade = |frame: &Frame| {
-            let mut out = vec![SampleRows::default(); packets.len()];
-            shade_packets(frame, &packets, &mut out);
-            lanes_of(&out)
-        };
-        let (rows, jobs) = (shade(&by_rows), shade(&by_jobs));
+        let [rows, jobs] = by_rows_and_by_jobs(&world, &corners);
         // The scene is what the test is about: packets wholly on the backdrop and packets of
         // several materials, a transparent surface, the output kept.
         let whole = rows.iter().filter(|p| p.iter().all(|s| s.shader_id == p[0].shader_id)).count();
@@ -1547,18 +1537,7 @@ mod tests {
                 rt.options.depth_filter = super::super::DepthFilter::Max;
             }
             let world = rt.build_world().expect("the test scene builds");
-            let by_rows = Frame::new(&world);
-            let mut by_jobs = Frame::new(&world);
-            by_jobs.volumes = true;
-            let corners = [(0, 0), (8, 0), (0, 8), (8, 8)];
-            let (rays, hits) = traced_packets(&by_rows, &corners);
-            let packets: Vec<(&PrimaryRays, &HitPacket)> = rays.iter().zip(&hits).collect();
-            let shade = |frame: &Frame| {
-                let mut out = vec![SampleRows::default(); packets.len()];
-                shade_packets(frame, &packets, &mut out);
-                lanes_of(&out)
-            };
-            let (rows, jobs) = (shade(&by_rows), shade(&by_jobs));
+            let [rows, jobs] = by_rows_and_by_jobs(&world, &[(0, 0), (8, 0), (0, 8), (8, 8)]);
             // Every packet lies wholly on the veil, and sees what is behind it.
             let veil = rows[0][0].shader_id;
             assert!(rows.iter().flatten().all(|s| s.shader_id == veil), "case {case}");
@@ -1568,6 +1547,21 @@ mod tests {
             }
             assert_eq!(sample_bits(&rows), sample_bits(&jobs), "case {case}");
         }
+    }
+
+    /// The packets at `corners` shaded by rows (`shade_primary_layer`) and by jobs
+    /// (`shade_pending`, the path of scenes with volume shaders), lane by lane.
+    fn by_rows_and_by_jobs(world: &World, corners: &[(u32, u32)]) -> [Vec<[Sample; PACKET_SIZE]>; 2] {
+        let by_rows = Frame::new(world);
+        let mut by_jobs = Frame::new(world);
+        by_jobs.volumes = true;
+        let (rays, hits) = traced_packets(&by_rows, corners);
+        let packets: Vec<(&PrimaryRays, &HitPacket)> = rays.iter().zip(&hits).collect();
+        [by_rows, by_jobs].map(|frame| {
+            let mut out = vec![SampleRows::default(); packets.len()];
+            shade_packets(&frame, &packets, &mut out);
+            lanes_of(&out)
+        })
     }
 
     /// Packets' samples lane by lane.
