@@ -1,7 +1,9 @@
 //! Gradient noise (`noise` in 1-4 D, float and triple forms) four lanes at a time, equal bit for bit
 //! to the scalar functions lane by lane: the same operations in the order the parent module
-//! documents, written as loops over `[_; 4]` so that the compiler keeps the lanes together in SIMD
-//! registers (the hashing is most of the cost). The JIT's helpers call these once per chunk.
+//! documents. The JIT's helpers call these once per chunk. Builds for a target with AVX2 (the
+//! default `x86-64-v3`) run them in vector registers (`avx2`); others run [`portable`], loops
+//! over `[_; 4]` that the compiler vectorises in part (the lattice coordinates' saturating
+//! conversions and the gradient tables' loads stay lane by lane there).
 //!
 //! Where a lane's coordinate is below 2^23 in magnitude, `floor(x)` is the truncation `x as i32`
 //! corrected by one and the lattice coordinate fits an `i32`: that is the fast path. Lanes with a
@@ -9,6 +11,9 @@
 //! anything).
 
 use super::{fade, gradient, mix32, noise_n, seed, vnoise_n, KIND_GRADIENT, SCALE, V3};
+
+#[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+mod avx2;
 
 /// Four lanes of a float: lane `l` at `[l]`.
 pub type X4 = [f32; 4];
@@ -95,32 +100,74 @@ fn lane<const N: usize>(p: &[X4; N], l: usize) -> [f32; N] {
 }
 
 /// `noise_n` of each lane of `p` (`p[k][l]`: coordinate `k` of lane `l`).
-#[allow(clippy::needless_range_loop)]
 pub fn noise<const N: usize>(p: [X4; N]) -> X4 {
-    let c = cells(&p);
-    let mut r = gradient_noise(&c, seed(KIND_GRADIENT, N, 0));
-    for l in 0..4 {
-        if !c.fits[l] {
-            r[l] = noise_n(lane(&p, l));
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+    {
+        // SAFETY: compiled only where the target has AVX2.
+        let (mut r, fits) = unsafe { avx2::noise(&p, seed(KIND_GRADIENT, N, 0)) };
+        for (l, r) in r.iter_mut().enumerate() {
+            if fits >> l & 1 == 0 {
+                *r = noise_n(lane(&p, l));
+            }
         }
+        r
     }
-    r
+    #[cfg(not(all(target_arch = "x86_64", target_feature = "avx2")))]
+    portable::noise(p)
 }
 
 /// `vnoise_n` of each lane of `p`: component `j` of lane `l` at `[j][l]`.
-#[allow(clippy::needless_range_loop)]
 pub fn vnoise<const N: usize>(p: [X4; N]) -> [X4; 3] {
-    let c = cells(&p);
-    let mut r = [1, 2, 3].map(|k| gradient_noise(&c, seed(KIND_GRADIENT, N, k)));
-    for l in 0..4 {
-        if !c.fits[l] {
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+    {
+        let seeds = [1, 2, 3].map(|k| seed(KIND_GRADIENT, N, k));
+        // SAFETY: compiled only where the target has AVX2.
+        let (mut r, fits) = unsafe { avx2::vnoise(&p, seeds) };
+        for l in (0..4).filter(|l| fits >> l & 1 == 0) {
             let v: V3 = vnoise_n(lane(&p, l));
             for j in 0..3 {
                 r[j][l] = v[j];
             }
         }
+        r
     }
-    r
+    #[cfg(not(all(target_arch = "x86_64", target_feature = "avx2")))]
+    portable::vnoise(p)
+}
+
+/// The four-lane noise written as loops over lanes: what targets without AVX2 run, and the
+/// baseline `benches/noise.rs` compares the vector form with.
+pub mod portable {
+    use super::*;
+
+    /// `noise_n` of each lane of `p` (`p[k][l]`: coordinate `k` of lane `l`).
+    #[allow(clippy::needless_range_loop)]
+    pub fn noise<const N: usize>(p: [X4; N]) -> X4 {
+        let c = cells(&p);
+        let mut r = gradient_noise(&c, seed(KIND_GRADIENT, N, 0));
+        for l in 0..4 {
+            if !c.fits[l] {
+                r[l] = noise_n(lane(&p, l));
+            }
+        }
+        r
+    }
+
+    /// `vnoise_n` of each lane of `p`: component `j` of lane `l` at `[j][l]`.
+    #[allow(clippy::needless_range_loop)]
+    pub fn vnoise<const N: usize>(p: [X4; N]) -> [X4; 3] {
+        let c = cells(&p);
+        let mut r = [1, 2, 3].map(|k| gradient_noise(&c, seed(KIND_GRADIENT, N, k)));
+        for l in 0..4 {
+            if !c.fits[l] {
+                let v: V3 = vnoise_n(lane(&p, l));
+                for j in 0..3 {
+                    r[j][l] = v[j];
+                }
+            }
+        }
+        r
+    }
 }
 
 /// [`super::lucille_turb`] of four points, with the same operations lane by lane.
@@ -181,17 +228,51 @@ mod tests {
         std::array::from_fn(|k| std::array::from_fn(|l| s[(at + 7 * k + 3 * l) % s.len()]))
     }
 
+    type Noise<const N: usize> = fn([X4; N]) -> X4;
+    type VNoise<const N: usize> = fn([X4; N]) -> [X4; 3];
+
+    /// Both forms this build has (the vector one where the target has AVX2, and the portable one).
     fn agree<const N: usize>() {
+        let forms: [(&str, Noise<N>, VNoise<N>); 2] =
+            [("built", noise::<N>, vnoise::<N>), ("portable", portable::noise::<N>, portable::vnoise::<N>)];
         let s = samples();
-        for at in 0..s.len() {
-            let p = chunk::<N>(&s, at);
-            let (f, v) = (noise(p), vnoise(p));
+        for (form, noise, vnoise) in forms {
+            for at in 0..s.len() {
+                let p = chunk::<N>(&s, at);
+                let (f, v) = (noise(p), vnoise(p));
+                for l in 0..4 {
+                    let q = lane(&p, l);
+                    assert_eq!(f[l].to_bits(), noise_n(q).to_bits(), "{form} noise {q:?}");
+                    let w = vnoise_n(q);
+                    for j in 0..3 {
+                        assert_eq!(v[j][l].to_bits(), w[j].to_bits(), "{form} vnoise {q:?} component {j}");
+                    }
+                }
+            }
+        }
+    }
+
+    /// Points near lattice planes from both sides, in every octant and at every scale the fast path
+    /// takes: where a floor or a fractional part could round differently.
+    #[test]
+    fn four_lanes_equal_the_scalar_noise_near_lattice_planes() {
+        let mut h = 0x9e37_79b9u32;
+        let mut value = || {
+            h = mix32(h);
+            let int = ((h >> 8) % 2001) as f32 - 1000.0;
+            let scale = [1.0, 64.0, 4096.0, 4_194_304.0][(h & 3) as usize];
+            let nudge = [0.0, f32::EPSILON, -f32::EPSILON, 1e-7, -1e-7, 0.5][((h >> 2) % 6) as usize];
+            int * scale + nudge * scale.max(1.0)
+        };
+        for _ in 0..2000 {
+            let p: [X4; 4] = std::array::from_fn(|_| std::array::from_fn(|_| value()));
+            let (f3, v4) = (noise::<3>([p[0], p[1], p[2]]), vnoise::<4>(p));
             for l in 0..4 {
                 let q = lane(&p, l);
-                assert_eq!(f[l].to_bits(), noise_n(q).to_bits(), "noise {q:?}");
+                assert_eq!(f3[l].to_bits(), noise_n([q[0], q[1], q[2]]).to_bits(), "noise {q:?}");
                 let w = vnoise_n(q);
                 for j in 0..3 {
-                    assert_eq!(v[j][l].to_bits(), w[j].to_bits(), "vnoise {q:?} component {j}");
+                    assert_eq!(v4[j][l].to_bits(), w[j].to_bits(), "vnoise {q:?} component {j}");
                 }
             }
         }
