@@ -1,8 +1,9 @@
 //! The transcendental kernels (`shadeops::transcendental`), four lanes a call as the JIT's helpers
 //! run them (SSE2 on x86-64), against the same kernels written lane by lane (`portable`) and Rust's
 //! `f32` functions (libm) lane by lane, the baselines, over the same inputs.
-//! (`exp`, `log` and `pow` are not here: glibc's ran faster than Cephes-style kernels, so rtsl uses
-//! them.)
+//! (`exp` and `log` are not here: glibc's ran faster than Cephes-style kernels, so rtsl uses them.
+//! `pow` is glibc's algorithm, four lanes at once: `pow4` against `powf` lane by lane, over the
+//! cosines and exponents of specular highlights.)
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use rtsl_compiler::shadeops::transcendental as tm;
@@ -35,6 +36,24 @@ fn transcendental(c: &mut Criterion) {
             .bench_function("libm_per_lane", |b| b.iter(|| xs.iter().map(|x| black_box(*x).map(libm)[3]).sum::<f32>()));
         group.finish();
     }
+    let (bases, exponents) = (inputs(0.5, 1.0), inputs(1.0, 100.0));
+    let mut group = c.benchmark_group("pow");
+    group.throughput(Throughput::Elements(N as u64));
+    // Every lane summed: a lane left unread is a `powf` the compiler may drop.
+    let lanes = |p: [f32; 4]| p[0] + p[1] + p[2] + p[3];
+    group.bench_function("kernel_x4", |b| {
+        b.iter(|| bases.iter().zip(&exponents).map(|(x, y)| lanes(tm::pow4(black_box(*x), *y))).sum::<f32>())
+    });
+    group.bench_function("libm_per_lane", |b| {
+        b.iter(|| {
+            bases
+                .iter()
+                .zip(&exponents)
+                .map(|(x, y)| lanes(std::array::from_fn(|l| black_box(x[l]).powf(y[l]))))
+                .sum::<f32>()
+        })
+    });
+    group.finish();
 }
 
 criterion_group!(benches, transcendental);

@@ -25,7 +25,8 @@
 //! order, so the bit-for-bit equality holds for them too (tested); elsewhere they run the scalar
 //! kernel lane by lane ([`portable`]).
 //!
-//! `exp`, `ln` and `pow` are Rust's (glibc's), which were faster here than such kernels.
+//! `exp`, `ln` and `pow` are glibc's (`pow`'s common case computed as glibc computes it, four lanes
+//! at once in AVX2: `powf.rs`), which were faster here than such kernels.
 
 // The constants are Cephes' as published, digits and all.
 #![allow(clippy::excessive_precision)]
@@ -340,9 +341,15 @@ pub mod portable {
 #[cfg(target_arch = "x86_64")]
 mod sse2;
 
-// `exp`, `ln` and `pow` are glibc's: its `expf`, `logf` and `powf` (table-driven, correctly rounded
-// or nearly) ran faster per lane than Cephes-style kernels here (`benches/transcendental.rs`), so
-// these only give both shapes one definition.
+// Fused multiply-adds where glibc's `powf` for FMA processors has them: without FMA, `mul_add` is a
+// library call, and `powf` itself is the faster way.
+#[cfg(target_feature = "fma")]
+mod powf;
+
+// `exp` and `ln` are glibc's: its `expf` and `logf` (table-driven, correctly rounded or nearly)
+// ran faster per lane than Cephes-style kernels here (`benches/transcendental.rs`), so these only
+// give both shapes one definition. `pow` is glibc's `powf` too, its common case computed here
+// (`powf.rs`: the same algorithm and bits, four lanes at once where the target has AVX2 and FMA).
 
 pub fn exp(x: f32) -> f32 {
     x.exp()
@@ -362,6 +369,10 @@ pub fn ln4(x: F4) -> F4 {
 }
 
 pub fn pow(x: f32, y: f32) -> f32 {
+    #[cfg(target_feature = "fma")]
+    if let Some(p) = powf::pow(x, y) {
+        return p;
+    }
     if underflows_to_zero(x, y) {
         return 0.0;
     }
@@ -369,6 +380,17 @@ pub fn pow(x: f32, y: f32) -> f32 {
 }
 
 pub fn pow4(x: F4, y: F4) -> F4 {
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx2", target_feature = "fma"))]
+    {
+        let (mut p, taken) = powf::pow4(x, y);
+        if taken != 0b1111 {
+            for l in (0..4).filter(|l| taken >> l & 1 == 0) {
+                p[l] = pow(x[l], y[l]);
+            }
+        }
+        p
+    }
+    #[cfg(not(all(target_arch = "x86_64", target_feature = "avx2", target_feature = "fma")))]
     std::array::from_fn(|l| pow(x[l], y[l]))
 }
 

@@ -220,17 +220,20 @@ pub(super) fn specular(
     })
 }
 
-/// `pow(base, exponent) * (1 - nonspecular)` in the lanes `counted`, 0 in the others: `pow` is a
-/// library call, made only for the lanes that use it.
+/// `pow(base, exponent) * (1 - nonspecular)` in the lanes `counted`, 0 in the others.
 #[inline(always)]
 fn highlight(base: Vec4, exponent: Vec4, counted: BVec4A, nonspecular: Vec4) -> Vec4 {
     // `base` is a `max(_, 0)`: positive, or +0 (never -0 or NaN), and `pow(+0, y)` is +0 for
-    // every positive `y`, so those lanes (a light behind the highlight's lobe) need no call.
+    // every positive `y`, so those lanes (a light behind the highlight's lobe) need no power. The
+    // lanes that need none ask for `1^1`, which `pow4` answers on its fast path.
     let zero = base.cmpeq(Vec4::ZERO) & exponent.cmpgt(Vec4::ZERO);
-    let (base, exponent, counted) = (base.to_array(), exponent.to_array(), (counted & !zero).bitmask());
-    let powers: [f32; 4] =
-        std::array::from_fn(|l| if counted >> l & 1 != 0 { transcendental::pow(base[l], exponent[l]) } else { 0.0 });
-    Vec4::from_array(powers) * (Vec4::ONE - nonspecular)
+    let wanted = counted & !zero;
+    if !wanted.any() {
+        return Vec4::ZERO * (Vec4::ONE - nonspecular);
+    }
+    let (base, exponent) = (Vec4::select(wanted, base, Vec4::ONE), Vec4::select(wanted, exponent, Vec4::ONE));
+    let powers = Vec4::from_array(transcendental::pow4(base.to_array(), exponent.to_array()));
+    Vec4::select(wanted, powers, Vec4::ZERO) * (Vec4::ONE - nonspecular)
 }
 
 /// `phong(N, V, size)` of four lanes: `n` and `view` normalised; each light weighs
