@@ -312,8 +312,9 @@ fn dot(a: V3, b: V3) -> f32 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
+/// The angle of a cone test, by RSL's `acos` (the JIT's cone tests compute the same bits).
 fn angle_between(a: V3, b: V3) -> f32 {
-    dot(normalize(a), normalize(b)).clamp(-1.0, 1.0).acos()
+    crate::shadeops::transcendental::acos(dot(normalize(a), normalize(b)).clamp(-1.0, 1.0))
 }
 
 impl Machine<'_> {

@@ -25,7 +25,6 @@ use crate::builtins::Builtin;
 use crate::interp::{EnvironmentQuery, Services, ShadowQuery, TextureFootprint, Value};
 use crate::shadeops::format::{self, FormatArg};
 use crate::shadeops::gather::{self, GatherHit};
-#[cfg(test)]
 use crate::shadeops::transcendental;
 use crate::shadeops::{color, geom, matrix, spline, M4, V3};
 use std::ffi::c_void;
@@ -1315,9 +1314,15 @@ fn add(a: V3, b: V3) -> V3 {
     [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
 }
 
-/// The interpreter's cone test: the angle between `a` and `b`.
+/// The cosine of the angle between `a` and `b`, in `[-1, 1]` (NaN where one is not finite).
+pub(super) fn cosine_between(a: V3, b: V3) -> f32 {
+    dot(geom::normalize(a), geom::normalize(b)).clamp(-1.0, 1.0)
+}
+
+/// The interpreter's cone test: the angle between `a` and `b`, by RSL's `acos` (whose four-lane
+/// form gives the same bits).
 pub(super) fn angle_between(a: V3, b: V3) -> f32 {
-    dot(geom::normalize(a), geom::normalize(b)).clamp(-1.0, 1.0).acos()
+    transcendental::acos(cosine_between(a, b))
 }
 
 /// The scalar reference of [`light_sums::specular`]'s weight (the interpreter's `specular_brdf`

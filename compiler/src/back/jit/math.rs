@@ -304,7 +304,6 @@ helpers! {
     h_rotate "rtsl_rotate" 20 -> 16 |x| matrix::rotate(&m4(&x, 0), x[16], [x[17], x[18], x[19]]);
     h_mcomp "rtsl_mcomp" 18 -> 1 |x| [matrix::comp(&m4(&x, 0), x[16], x[17])];
     h_msetcomp "rtsl_msetcomp" 19 -> 16 |x| { let mut m = m4(&x, 0); matrix::set_comp(&mut m, x[16], x[17], x[18]); m };
-    h_cone "rtsl_cone" 7 -> 1 |x| [if super::host::angle_between([x[0], x[1], x[2]], [x[3], x[4], x[5]]) > x[6] { 0.0 } else { 1.0 }];
     h_rotpt "rtsl_rotate_point" 10 -> 3 |x| geom::rotate_point([x[0], x[1], x[2]], x[3], [x[4], x[5], x[6]], [x[7], x[8], x[9]]);
     h_refract "rtsl_refract" 7 -> 3 |x| geom::refract([x[0], x[1], x[2]], [x[3], x[4], x[5]], x[6]);
     h_fresnel "rtsl_fresnel" 7 -> 8 |x| { let (kr, kt, r, t) = geom::fresnel([x[0], x[1], x[2]], [x[3], x[4], x[5]], x[6]); [kr, kt, r[0], r[1], r[2], t[0], t[1], t[2]] };
@@ -386,6 +385,14 @@ chunk_helpers! {
     h_vnoise2 "rtsl_vnoise2" 2 -> 3 noise::x4::vnoise::<2>;
     h_vnoise3 "rtsl_vnoise3" 3 -> 3 noise::x4::vnoise::<3>;
     h_vnoise4 "rtsl_vnoise4" 4 -> 3 noise::x4::vnoise::<4>;
+    // `illuminate`'s cone: 1 where the angle between the two vectors is within the third argument.
+    h_cone "rtsl_cone" 7 -> 1 |x| {
+        let cosines = std::array::from_fn(|l| {
+            super::host::cosine_between([x[0][l], x[1][l], x[2][l]], [x[3][l], x[4][l], x[5][l]])
+        });
+        let angles = tm::acos4(cosines);
+        [std::array::from_fn(|l| if angles[l] > x[6][l] { 0.0 } else { 1.0 })]
+    };
 }
 
 /// Every per-chunk helper.
