@@ -387,12 +387,26 @@ chunk_helpers! {
     h_vnoise4 "rtsl_vnoise4" 4 -> 3 noise::x4::vnoise::<4>;
     // `illuminate`'s cone: 1 where the angle between the two vectors is within the third argument.
     h_cone "rtsl_cone" 7 -> 1 |x| {
-        let cosines = std::array::from_fn(|l| {
-            super::host::cosine_between([x[0][l], x[1][l], x[2][l]], [x[3][l], x[4][l], x[5][l]])
-        });
-        let angles = tm::acos4(cosines);
+        let angles = tm::acos4(cosines_between(&x).to_array());
         [std::array::from_fn(|l| if angles[l] > x[6][l] { 0.0 } else { 1.0 })]
     };
+}
+
+/// [`super::host::cosine_between`] of four lanes' vectors (rows 0-2 and 3-5 of `x`), by the same
+/// operations in each lane: `geom::normalize` (left alone at length 0, else times one over the
+/// length), the dot product in component order, and the clamp to `[-1, 1]` (NaN stays NaN).
+fn cosines_between(x: &[[f32; 4]; 7]) -> glam::Vec4 {
+    use glam::Vec4;
+    let row = |k: usize| Vec4::from_array(x[k]);
+    let normalized = |v: [Vec4; 3]| {
+        let length = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        let (zero, inverse) = (length.cmpeq(Vec4::ZERO), Vec4::ONE / length);
+        v.map(|c| Vec4::select(zero, c, c * inverse))
+    };
+    let (a, b) = (normalized([row(0), row(1), row(2)]), normalized([row(3), row(4), row(5)]));
+    let c = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let c = Vec4::select(c.cmplt(Vec4::splat(-1.0)), Vec4::splat(-1.0), c);
+    Vec4::select(c.cmpgt(Vec4::ONE), Vec4::ONE, c)
 }
 
 /// Every per-chunk helper.
@@ -402,4 +416,36 @@ pub(super) fn helpers() -> impl Iterator<Item = &'static Helper> {
 
 pub(super) fn helper(name: &str) -> Option<&'static Helper> {
     helpers().find(|h| h.name == name)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The cone helper's four-lane cosines are the interpreter's, lane by lane, bit for bit: zero,
+    /// tiny, huge, infinite and NaN components included.
+    #[test]
+    fn four_lane_cone_cosines_are_the_one_lane_ones() {
+        let specials = [0.0, -0.0, 1.0, -1.0, 1e-30, -1e-25, 3e19, -2e38, f32::INFINITY, f32::NAN, 0.5, -7.25];
+        let mut h = 0x853c_49e6_748f_ea9bu64;
+        for n in 0..100_000u32 {
+            let x: [[f32; 4]; 7] = std::array::from_fn(|_| {
+                std::array::from_fn(|_| {
+                    h ^= h << 13;
+                    h ^= h >> 7;
+                    h ^= h << 17;
+                    if n % 3 == 0 {
+                        specials[(h >> 40) as usize % specials.len()]
+                    } else {
+                        ((h >> 40) as f32 - 8_388_608.0) / 1_048_576.0
+                    }
+                })
+            });
+            let c = cosines_between(&x);
+            for l in 0..4 {
+                let (a, b) = ([x[0][l], x[1][l], x[2][l]], [x[3][l], x[4][l], x[5][l]]);
+                assert_eq!(c[l].to_bits(), super::super::host::cosine_between(a, b).to_bits(), "{a:?} {b:?}");
+            }
+        }
+    }
 }
