@@ -117,6 +117,40 @@ impl Basis {
     }
 }
 
+impl Basis {
+    /// [`Basis::weights`] of four lanes' `x` (`None` for fewer than 4 knots): each lane's first knot
+    /// and its four weights as rows (`w[k][l]`: knot `k` of lane `l`), by the same operations in
+    /// each lane.
+    pub fn weights4(self, x: [f32; 4], n: usize) -> Option<([usize; 4], [[f32; 4]; 4])> {
+        use glam::Vec4;
+        if n < 4 {
+            return None;
+        }
+        let nsegs = (n - 4) / self.step() + 1;
+        // Lanes with a segment count past what a float counts exactly: lane by lane.
+        if nsegs > 1 << 24 {
+            let each: [(usize, [f32; 4]); 4] = std::array::from_fn(|l| self.weights(x[l], n).unwrap_or_default());
+            return Some((each.map(|e| e.0), std::array::from_fn(|k| std::array::from_fn(|l| each[l].1[k]))));
+        }
+        let x = Vec4::from_array(x);
+        // `if x > 0 { x.min(1) } else { 0 }`: NaN reads as 0.
+        let x = Vec4::select(x.cmpgt(Vec4::ZERO), x.min(Vec4::ONE), Vec4::ZERO);
+        let xs = x * Vec4::splat(nsegs as f32);
+        // `xs` lies in [0, nsegs]: its truncation is `xs as usize`.
+        let seg = xs.as_ivec4().to_array().map(|s| (s as usize).min(nsegs - 1));
+        if self == Basis::Constant {
+            return Some((seg, [[0.0; 4], [1.0; 4], [0.0; 4], [0.0; 4]]));
+        }
+        let t = xs - Vec4::from_array(seg.map(|s| s as f32));
+        let m = self.matrix();
+        let w = std::array::from_fn(|k| {
+            let c = |r: usize| Vec4::splat(m[r][k]);
+            (((c(0) * t + c(1)) * t + c(2)) * t + c(3)).to_array()
+        });
+        Some((seg.map(|s| s * self.step()), w))
+    }
+}
+
 /// RSL's `spline(basis, x, knots...)` for floats (the `spline(x, ...)` form passes `""`). See the
 /// module documentation for the segment rules. Fewer than 4 knots: the first knot, or 0 for none.
 /// Unknown basis names mean catmull-rom. NaN `x` reads as 0; NaN knots propagate.
@@ -141,6 +175,43 @@ pub fn spline3(basis: &str, x: f32, knots: &[V3]) -> V3 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Four lanes at once give each lane's one-lane weights and segment, bit for bit.
+    #[test]
+    fn four_lane_weights_are_the_one_lane_ones() {
+        let xs = [0.0, -0.0, 1.0, 0.999_999_94, 1e-8, -3.0, 7.0, 0.5, 0.25, 1.0 / 3.0, f32::NAN, f32::INFINITY];
+        let mut h = 0x1234_5678u32;
+        for basis in BASES.map(Basis::parse) {
+            for n in [0, 3, 4, 5, 7, 8, 10, 13, 50, 1001] {
+                for i in 0..400 {
+                    let x: [f32; 4] = std::array::from_fn(|l| {
+                        h ^= h << 13;
+                        h ^= h >> 17;
+                        h ^= h << 5;
+                        if (i + l) % 2 == 0 {
+                            xs[h as usize % xs.len()]
+                        } else {
+                            (h >> 8) as f32 / 16_777_216.0
+                        }
+                    });
+                    let four = basis.weights4(x, n);
+                    for l in 0..4 {
+                        let one = basis.weights(x[l], n);
+                        match (one, four) {
+                            (None, None) => {}
+                            (Some((s, w)), Some((segs, rows))) => {
+                                assert_eq!(s, segs[l], "{basis:?} n {n} x {}", x[l]);
+                                for k in 0..4 {
+                                    assert_eq!(w[k].to_bits(), rows[k][l].to_bits(), "{basis:?} n {n} x {}", x[l]);
+                                }
+                            }
+                            _ => panic!("{basis:?} n {n}: one lane {one:?}, four lanes {four:?}"),
+                        }
+                    }
+                }
+            }
+        }
+    }
 
     const BASES: [&str; 6] = ["catmull-rom", "bspline", "bezier", "hermite", "linear", "constant"];
 

@@ -1708,11 +1708,12 @@ host_helpers! {
     h_spline "rtsl_h_spline" 3 => 5 |cx| {
         let basis = spline::Basis::parse(cx.str(0));
         let n = cx.f(2, 0) as usize;
+        let x = std::array::from_fn(|l| cx.f(1, l));
+        let (first, w) = basis.weights4(x, n).unwrap_or(([0; 4], [[1.0; 4], [0.0; 4], [0.0; 4], [0.0; 4]]));
         for l in cx.active() {
-            let (first, w) = basis.weights(cx.f(1, l), n).unwrap_or((0, [1.0, 0.0, 0.0, 0.0]));
-            cx.set(0, l, first as f32);
-            for (k, x) in w.iter().enumerate() {
-                cx.set(1 + k, l, *x);
+            cx.set(0, l, first[l] as f32);
+            for (k, row) in w.iter().enumerate() {
+                cx.set(1 + k, l, row[l]);
             }
         }
     }
