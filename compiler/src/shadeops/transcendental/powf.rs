@@ -37,27 +37,21 @@ const LOG2_TABLE: [(f64, f64); 16] = [
     (f64::from_bits(0x3fe767dcf5534862), f64::from_bits(0x3fdce0a44eb17bcc)),
 ];
 
-/// The table's `1/c` and `log2(c)` as separate rows, for the four-lane gathers.
-#[cfg(all(target_arch = "x86_64", target_feature = "avx2", target_feature = "fma"))]
-static INV_C: [f64; 16] = {
+/// Column `k` of the table (0: `1/c`, 1: `log2(c)`) as a row, for the four-lane gathers.
+#[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+const fn log2_column(k: usize) -> [f64; 16] {
     let mut r = [0.0; 16];
     let mut i = 0;
     while i < 16 {
-        r[i] = LOG2_TABLE[i].0;
+        r[i] = if k == 0 { LOG2_TABLE[i].0 } else { LOG2_TABLE[i].1 };
         i += 1;
     }
     r
-};
-#[cfg(all(target_arch = "x86_64", target_feature = "avx2", target_feature = "fma"))]
-static LOG2_C: [f64; 16] = {
-    let mut r = [0.0; 16];
-    let mut i = 0;
-    while i < 16 {
-        r[i] = LOG2_TABLE[i].1;
-        i += 1;
-    }
-    r
-};
+}
+#[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+static INV_C: [f64; 16] = log2_column(0);
+#[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+static LOG2_C: [f64; 16] = log2_column(1);
 
 /// `log2(1 + r)`'s polynomial, highest degree first.
 const LOG2_POLY: [f64; 5] = [
