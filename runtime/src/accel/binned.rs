@@ -27,6 +27,7 @@ use obvhs::bvh2::node::Bvh2Node;
 use obvhs::bvh2::Bvh2;
 use rayon::prelude::*;
 use std::mem::MaybeUninit;
+use wide::{f32x8, i32x8};
 
 /// Bins per axis.
 const BINS: usize = 32;
@@ -49,18 +50,20 @@ const BINNING_CHUNK: usize = 1 << 13;
 /// invariants).
 const SAH_DEPTH: u32 = 64;
 
-/// A primitive as the build moves it about: its box, with its input index in the fourth lane of
-/// the lower corner (32 bytes: two to a cache line, where the partitions move them).
+/// A primitive as the build moves it about: its box as the lower corner, with the input index in
+/// the fourth lane, and the negated upper corner, with infinity in the fourth lane (32 bytes: two
+/// to a cache line, where the partitions move them). As eight floats it is what [`Bin::add`] takes
+/// the minimum with: one operation for both corners.
 #[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
 #[repr(C)]
 struct PrimRef {
     lo: Vec4,
-    hi: Vec4,
+    neg_hi: Vec4,
 }
 
 impl PrimRef {
     fn new(b: &Aabb, id: u32) -> PrimRef {
-        PrimRef { lo: b.min.extend(f32::from_bits(id)), hi: b.max.extend(0.0) }
+        PrimRef { lo: b.min.extend(f32::from_bits(id)), neg_hi: (-b.max).extend(f32::INFINITY) }
     }
 
     #[inline(always)]
@@ -70,7 +73,7 @@ impl PrimRef {
 
     #[inline(always)]
     fn hi(&self) -> Vec3A {
-        Vec3A::from_vec4(self.hi)
+        -Vec3A::from_vec4(self.neg_hi)
     }
 
     #[inline(always)]
@@ -78,10 +81,17 @@ impl PrimRef {
         self.lo.w.to_bits()
     }
 
-    /// Twice the centroid (the bins are laid over doubled centroids: one addition a primitive).
+    /// Twice the centroid (the bins are laid over doubled centroids: one operation a primitive).
+    /// `lo - (-hi)` is `lo + hi` bit for bit: IEEE subtraction is addition of the negation.
     #[inline(always)]
     fn centroid2(&self) -> Vec3A {
-        Vec3A::from_vec4(self.lo + self.hi)
+        Vec3A::from_vec4(self.lo - self.neg_hi)
+    }
+
+    /// The eight floats `[lo, id, -hi, inf]`.
+    #[inline(always)]
+    fn wide(&self) -> f32x8 {
+        bytemuck::cast(*self)
     }
 }
 
@@ -173,17 +183,97 @@ impl Binning {
     }
 }
 
-/// Per axis and bin, the box of the primitives and their number; `N` bins at most (fewer
-/// primitives use fewer bins, [`Binning::count`], and a smaller set is cheaper to clear and copy).
+/// One bin of one axis: the box of its primitives and their number, as eight floats
+/// `[min, -, -max, count]` with the count's bits as an integer in the last lane. A primitive is
+/// added with one minimum (the negated upper corners' minimum is the upper corners' maximum, and a
+/// primitive's last lane, infinity, leaves the count's lane as it is: a count's bits are a positive
+/// float below infinity) and one integer addition of one to the last lane (the other lanes' zeros
+/// leave the floats' bits as they are): a load, two operations and a store for both corners and the
+/// count.
+#[derive(Clone, Copy, Debug)]
+struct Bin(f32x8);
+
+impl Bin {
+    const EMPTY: Bin = Bin(f32x8::new([
+        f32::INFINITY,
+        f32::INFINITY,
+        f32::INFINITY,
+        f32::INFINITY,
+        f32::INFINITY,
+        f32::INFINITY,
+        f32::INFINITY,
+        0.0,
+    ]));
+
+    /// Adds the primitive whose [`PrimRef::wide`] is `p`.
+    #[inline(always)]
+    fn add(&mut self, p: f32x8) {
+        let one = i32x8::new([0, 0, 0, 0, 0, 0, 0, 1]);
+        let m: i32x8 = bytemuck::cast(self.0.fast_min(p));
+        self.0 = bytemuck::cast(m + one);
+    }
+
+    #[inline(always)]
+    fn count(&self) -> u32 {
+        self.0.as_array()[7].to_bits()
+    }
+
+    /// The box of the primitives (empty, as [`Aabb::empty`], for none).
+    #[inline(always)]
+    fn aabb(&self) -> Aabb {
+        let v = self.0.as_array();
+        Aabb { min: Vec3A::new(v[0], v[1], v[2]), max: -Vec3A::new(v[4], v[5], v[6]) }
+    }
+
+    /// The bin of both bins' primitives.
+    #[inline(always)]
+    fn merge(&self, o: &Bin) -> Bin {
+        let mut v = self.0.fast_min(o.0).to_array();
+        v[7] = f32::from_bits(self.count() + o.count());
+        Bin(f32x8::new(v))
+    }
+}
+
+/// The boxes of the doubled centroids on the two sides of a partition as it moves primitives, each
+/// as eight floats `[min, -, -max, -]` (as [`Bin`]'s): a centroid is added to its side with one
+/// minimum and one blend a side, without branches on the side.
+struct SideBounds {
+    left: f32x8,
+    right: f32x8,
+}
+
+impl SideBounds {
+    const EMPTY: SideBounds = SideBounds { left: f32x8::splat(f32::INFINITY), right: f32x8::splat(f32::INFINITY) };
+
+    /// Adds centroid `c` to the left side if `left`, else to the right.
+    #[inline(always)]
+    fn add(&mut self, c: Vec3A, left: bool) {
+        let [x, y, z] = c.to_array();
+        let both = f32x8::new([x, y, z, 0.0, -x, -y, -z, 0.0]);
+        let mask = f32x8::splat(f32::from_bits(0u32.wrapping_sub(u32::from(left))));
+        self.left = mask.select(self.left.fast_min(both), self.left);
+        self.right = mask.select(self.right, self.right.fast_min(both));
+    }
+
+    /// The two boxes, `[left, right]`.
+    fn boxes(&self) -> [Aabb; 2] {
+        [self.left, self.right].map(|v| {
+            let v = v.as_array();
+            Aabb { min: Vec3A::new(v[0], v[1], v[2]), max: -Vec3A::new(v[4], v[5], v[6]) }
+        })
+    }
+}
+
+/// Per axis, its bins; `N` bins at most (fewer primitives use fewer bins, [`Binning::count`], and a
+/// smaller set is cheaper to clear and copy).
 #[derive(Clone, Copy)]
 struct Bins<const N: usize> {
-    boxes: [[Aabb; N]; 3],
-    counts: [[u32; N]; 3],
+    bins: [[Bin; N]; 3],
 }
 
 impl<const N: usize> Bins<N> {
     fn new() -> Bins<N> {
-        Bins { boxes: [[Aabb::empty(); N]; 3], counts: [[0; N]; 3] }
+        Bins { bins: [[Bin::EMPTY; N]; 3] }
     }
 
     fn fill(binning: &Binning, refs: &[PrimRef]) -> Bins<N> {
@@ -208,19 +298,16 @@ impl<const N: usize> Bins<N> {
     #[inline(always)]
     fn add(&mut self, binning: &Binning, p: &PrimRef) {
         let k = binning.bins(p.centroid2());
+        let w = p.wide();
         for (a, k) in k.into_iter().enumerate() {
-            let (b, n) = (&mut self.boxes[a][k as usize], &mut self.counts[a][k as usize]);
-            b.min = b.min.min(p.lo());
-            b.max = b.max.max(p.hi());
-            *n += 1;
+            self.bins[a][k as usize].add(w);
         }
     }
 
     fn merge_bins(mut self, o: &Bins<N>, count: usize) -> Bins<N> {
         for a in 0..3 {
             for k in 0..count {
-                self.boxes[a][k] = self.boxes[a][k].union(&o.boxes[a][k]);
-                self.counts[a][k] += o.counts[a][k];
+                self.bins[a][k] = self.bins[a][k].merge(&o.bins[a][k]);
             }
         }
         self
@@ -236,15 +323,15 @@ impl<const N: usize> Bins<N> {
             let mut acc = Aabb::empty();
             let mut n = 0u32;
             for k in (1..bins).rev() {
-                acc = acc.union(&self.boxes[a][k]);
-                n += self.counts[a][k];
+                acc = acc.union(&self.bins[a][k].aabb());
+                n += self.bins[a][k].count();
                 right[k] = if n == 0 { f32::INFINITY } else { acc.half_area() * n as f32 };
             }
             let mut acc = Aabb::empty();
             let mut n = 0u32;
             for (k, &right) in right.iter().enumerate().take(bins).skip(1) {
-                acc = acc.union(&self.boxes[a][k - 1]);
-                n += self.counts[a][k - 1];
+                acc = acc.union(&self.bins[a][k - 1].aabb());
+                n += self.bins[a][k - 1].count();
                 if n == 0 || right.is_infinite() {
                     continue;
                 }
@@ -540,7 +627,8 @@ fn parallel_binned_split<const N: usize>(
     let chunk_bins: Vec<Bins<N>> = refs.par_chunks(BINNING_CHUNK).map(|c| Bins::<N>::fill(binning, c)).collect();
     let bins = chunk_bins.iter().fold(Bins::<N>::new(), |a, b| a.merge_bins(b, binning.count));
     let (axis, k) = bins.best_split(binning.count)?;
-    let lefts: Vec<usize> = chunk_bins.iter().map(|b| b.counts[axis][..k].iter().map(|&c| c as usize).sum()).collect();
+    let lefts: Vec<usize> =
+        chunk_bins.iter().map(|b| b.bins[axis][..k].iter().map(|c| c.count() as usize).sum()).collect();
     let left_count: usize = lefts.iter().sum();
     if left_count == 0 || left_count == m {
         return None;
@@ -562,20 +650,20 @@ fn parallel_binned_split<const N: usize>(
         .into_par_iter()
         .map(|(chunk, lp, rp)| {
             let (mut li, mut ri) = (0, 0);
-            let (mut lc, mut rc) = (Aabb::empty(), Aabb::empty());
+            let mut sides = SideBounds::EMPTY;
+            // Without branches on the side (as `partition`): the side picks the destination.
             for p in chunk {
                 let c = p.centroid2();
-                let (out, i, bounds) = if binning.left_of(c, axis, k) {
-                    (&mut *lp, &mut li, &mut lc)
-                } else {
-                    (&mut *rp, &mut ri, &mut rc)
-                };
+                let go = binning.left_of(c, axis, k);
+                let (out, i) = if go { (&mut *lp, li) } else { (&mut *rp, ri) };
                 // The chunk's bins counted its sides with the same test, so the ranges fit; a
                 // mismatch would leave the parts unfinished, and the caller falls back.
-                *out.get_mut(*i)? = *p;
-                *i += 1;
-                (bounds.min, bounds.max) = (bounds.min.min(c), bounds.max.max(c));
+                *out.get_mut(i)? = *p;
+                li += usize::from(go);
+                ri += usize::from(!go);
+                sides.add(c, go);
             }
+            let [lc, rc] = sides.boxes();
             (li == lp.len() && ri == rp.len()).then_some((lc, rc))
         })
         .collect();
@@ -592,8 +680,8 @@ impl<const N: usize> Bins<N> {
     /// The bounds of both sides of a split before bin `k` on `axis` (of `count` bins): their boxes
     /// are those of their bins, their centroids' boxes `[left, right]` are given.
     fn sides(&self, count: usize, axis: usize, k: usize, [lc, rc]: [Aabb; 2]) -> (Bounds, Bounds) {
-        let side = |bins_of: &[Aabb]| bins_of.iter().fold(Aabb::empty(), |a, b| a.union(b));
-        let (lg, rg) = (side(&self.boxes[axis][..k]), side(&self.boxes[axis][k..count]));
+        let side = |bins_of: &[Bin]| bins_of.iter().fold(Aabb::empty(), |a, b| a.union(&b.aabb()));
+        let (lg, rg) = (side(&self.bins[axis][..k]), side(&self.bins[axis][k..count]));
         (Bounds { geometry: lg, centroids: lc }, Bounds { geometry: rg, centroids: rc })
     }
 }
@@ -681,8 +769,7 @@ fn half_area(d: Vec3A) -> f32 {
 fn partition(refs: &[PrimRef], out: &mut [PrimRef], left: impl Fn(Vec3A) -> bool) -> (usize, Aabb, Aabb) {
     debug_assert_eq!(refs.len(), out.len());
     let (mut front, mut back) = (0usize, out.len());
-    let (mut lmin, mut lmax) = (Vec3A::splat(f32::MAX), Vec3A::splat(f32::MIN));
-    let (mut rmin, mut rmax) = (lmin, lmax);
+    let mut sides = SideBounds::EMPTY;
     for p in refs {
         let c = p.centroid2();
         let go = left(c);
@@ -691,13 +778,10 @@ fn partition(refs: &[PrimRef], out: &mut [PrimRef], left: impl Fn(Vec3A) -> bool
         out[back - 1] = *p;
         front += usize::from(go);
         back -= usize::from(!go);
-        let mask = glam::BVec3A::splat(go);
-        lmin = Vec3A::select(mask, lmin.min(c), lmin);
-        lmax = Vec3A::select(mask, lmax.max(c), lmax);
-        rmin = Vec3A::select(mask, rmin, rmin.min(c));
-        rmax = Vec3A::select(mask, rmax, rmax.max(c));
+        sides.add(c, go);
     }
-    (front, Aabb { min: lmin, max: lmax }, Aabb { min: rmin, max: rmax })
+    let [left, right] = sides.boxes();
+    (front, left, right)
 }
 
 #[cfg(test)]
@@ -871,5 +955,87 @@ mod tests {
         let root = &bvh.nodes[0];
         let sizes: Vec<f32> = (0..2).map(|k| bvh.nodes[root.first_index as usize + k].aabb.diagonal().x).collect();
         assert!(sizes.iter().all(|&s| s < 110.0), "children {sizes:?}");
+    }
+
+    /// Coordinates that exercise the packed forms: signed zeros (`maxps` and the negated `minps`
+    /// must pick the same one), equal values, and large and tiny magnitudes.
+    fn awkward_boxes(n: usize, seed: u64) -> Vec<Aabb> {
+        let values = [0.0, -0.0, 1.0, -1.0, 1e-30, -1e-30, 3e38, -3e38, 0.5, 7.25];
+        let mut s = seed;
+        let mut pick = move || {
+            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            values[(s >> 33) as usize % values.len()]
+        };
+        (0..n)
+            .map(|_| {
+                let (a, b) = (Vec3A::new(pick(), pick(), pick()), Vec3A::new(pick(), pick(), pick()));
+                Aabb::new(a.min(b), a.max(b))
+            })
+            .collect()
+    }
+
+    fn same_bits(a: Vec3A, b: Vec3A) -> bool {
+        a.to_array().map(f32::to_bits) == b.to_array().map(f32::to_bits)
+    }
+
+    #[test]
+    fn a_bin_holds_the_box_and_count_of_its_primitives_bit_for_bit() {
+        for seed in 0..20 {
+            let boxes: Vec<Aabb> = if seed % 2 == 0 { awkward_boxes(200, seed) } else { random_boxes(200, seed) };
+            let mut bins = [Bin::EMPTY; 2];
+            // As an `Aabb` grows: `minps(acc, x)` and `maxps(acc, x)`.
+            let mut expected = [Aabb::empty(); 2];
+            for (i, b) in boxes.iter().enumerate() {
+                let p = PrimRef::new(b, i as u32 * 7919);
+                assert!(same_bits(p.hi(), b.max));
+                assert!(same_bits(p.centroid2(), b.min + b.max));
+                let k = usize::from(i % 3 == 0);
+                bins[k].add(p.wide());
+                expected[k] = Aabb { min: expected[k].min.min(b.min), max: expected[k].max.max(b.max) };
+            }
+            assert_eq!((bins[0].count(), bins[1].count()), (133, 67));
+            let merged = bins[0].merge(&bins[1]);
+            assert_eq!(merged.count(), 200);
+            let pairs = [
+                (bins[0].aabb(), expected[0]),
+                (bins[1].aabb(), expected[1]),
+                (merged.aabb(), expected[0].union(&expected[1])),
+            ];
+            for (got, want) in pairs {
+                assert!(
+                    same_bits(got.min, want.min) && same_bits(got.max, want.max),
+                    "seed {seed}: {got:?} against {want:?}"
+                );
+            }
+        }
+        assert_eq!(Bin::EMPTY.count(), 0);
+        let empty = Bin::EMPTY.aabb();
+        assert!(empty.min.cmpgt(empty.max).all());
+    }
+
+    #[test]
+    fn side_bounds_match_the_boxes_of_each_side_bit_for_bit() {
+        for seed in 0..20 {
+            let boxes = if seed % 2 == 0 { awkward_boxes(300, seed) } else { random_boxes(300, seed) };
+            let refs: Vec<PrimRef> = boxes.iter().enumerate().map(|(i, b)| PrimRef::new(b, i as u32)).collect();
+            let left = |c: Vec3A| c.x + c.y < c.z;
+            let mut out = vec![PrimRef::new(&Aabb::empty(), 0); refs.len()];
+            let (count, lc, rc) = partition(&refs, &mut out, left);
+            let mut expected = [Aabb::empty(), Aabb::empty()];
+            for p in &refs {
+                let c = p.centroid2();
+                let side = &mut expected[usize::from(!left(c))];
+                (side.min, side.max) = (side.min.min(c), side.max.max(c));
+            }
+            assert_eq!(count, refs.iter().filter(|p| left(p.centroid2())).count());
+            for (got, want) in [lc, rc].iter().zip(&expected) {
+                assert!(same_bits(got.min, want.min) && same_bits(got.max, want.max), "seed {seed}");
+            }
+            // The left side keeps its order at the front, the right side its order reversed at the back.
+            let ids: Vec<u32> = out.iter().map(PrimRef::id).collect();
+            let mut want: Vec<u32> = refs.iter().filter(|p| left(p.centroid2())).map(PrimRef::id).collect();
+            want.extend(refs.iter().rev().filter(|p| !left(p.centroid2())).map(PrimRef::id));
+            assert_eq!(ids, want);
+        }
     }
 }
