@@ -764,8 +764,8 @@ fn half_area(d: Vec3A) -> f32 {
 /// Moves `refs` into `out`, those whose doubled centroid `left` accepts to the front, keeping
 /// their order, the others to the back, in reverse order: returns how many went to the front and
 /// the bounds of both sides' doubled centroids. Without branches on `left` (its answers are as
-/// good as random to the branch predictor): each primitive is written both at the front cursor
-/// and at the back one, and only the cursor of its side moves.
+/// good as random to the branch predictor): the side selects the cursor a primitive is written at
+/// (a conditional move), and only that cursor moves.
 fn partition(refs: &[PrimRef], out: &mut [PrimRef], left: impl Fn(Vec3A) -> bool) -> (usize, Aabb, Aabb) {
     debug_assert_eq!(refs.len(), out.len());
     let (mut front, mut back) = (0usize, out.len());
@@ -774,8 +774,7 @@ fn partition(refs: &[PrimRef], out: &mut [PrimRef], left: impl Fn(Vec3A) -> bool
         let c = p.centroid2();
         let go = left(c);
         // `front <= back - 1` while primitives remain: each one moves exactly one cursor.
-        out[front] = *p;
-        out[back - 1] = *p;
+        out[if go { front } else { back - 1 }] = *p;
         front += usize::from(go);
         back -= usize::from(!go);
         sides.add(c, go);
