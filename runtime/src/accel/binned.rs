@@ -184,14 +184,19 @@ impl Binning {
 }
 
 /// One bin of one axis: the box of its primitives and their number, as eight floats
-/// `[min, -, -max, count]` with the count's bits as an integer in the last lane. A primitive is
-/// added with one minimum (the negated upper corners' minimum is the upper corners' maximum, and a
-/// primitive's last lane, infinity, leaves the count's lane as it is: a count's bits are a positive
-/// float below infinity) and one integer addition of one to the last lane (the other lanes' zeros
-/// leave the floats' bits as they are): a load, two operations and a store for both corners and the
-/// count.
+/// `[min, -, -max, count]` with the count in the last lane's bits, an integer offset by
+/// [`COUNT_BIAS`]. A primitive is added with one minimum (the negated upper corners' minimum is the
+/// upper corners' maximum, and a primitive's last lane, infinity, leaves the count's lane as it
+/// is: the offset count's bits are a positive normal float below infinity) and one integer
+/// addition of one to the last lane (the other lanes' zeros leave the floats' bits as they are): a
+/// load, two operations and a store for both corners and the count.
 #[derive(Clone, Copy, Debug)]
 struct Bin(f32x8);
+
+/// The bits of an empty bin's count lane: the smallest normal float, so that a count's lane is
+/// never a denormal, which a thread that treats denormal inputs as zero (an application may set
+/// its threads so) would make the minimum return as zero.
+const COUNT_BIAS: u32 = f32::MIN_POSITIVE.to_bits();
 
 impl Bin {
     const EMPTY: Bin = Bin(f32x8::new([
@@ -202,7 +207,7 @@ impl Bin {
         f32::INFINITY,
         f32::INFINITY,
         f32::INFINITY,
-        0.0,
+        f32::MIN_POSITIVE,
     ]));
 
     /// Adds the primitive whose [`PrimRef::wide`] is `p`.
@@ -215,7 +220,7 @@ impl Bin {
 
     #[inline(always)]
     fn count(&self) -> u32 {
-        self.0.as_array()[7].to_bits()
+        self.0.as_array()[7].to_bits() - COUNT_BIAS
     }
 
     /// The box of the primitives (empty, as [`Aabb::empty`], for none).
@@ -225,11 +230,12 @@ impl Bin {
         Aabb { min: Vec3A::new(v[0], v[1], v[2]), max: -Vec3A::new(v[4], v[5], v[6]) }
     }
 
-    /// The bin of both bins' primitives.
+    /// The bin of both bins' primitives (at most [`super::bvh4::MAX_PRIMITIVES`], far below the
+    /// offset counts' limit, infinity's bits).
     #[inline(always)]
     fn merge(&self, o: &Bin) -> Bin {
         let mut v = self.0.fast_min(o.0).to_array();
-        v[7] = f32::from_bits(self.count() + o.count());
+        v[7] = f32::from_bits(COUNT_BIAS + self.count() + o.count());
         Bin(f32x8::new(v))
     }
 }
@@ -1010,6 +1016,46 @@ mod tests {
         assert_eq!(Bin::EMPTY.count(), 0);
         let empty = Bin::EMPTY.aabb();
         assert!(empty.min.cmpgt(empty.max).all());
+    }
+
+    /// A thread that treats denormals as zero (an application's choice for its threads) still
+    /// counts: the count lanes are normal floats. Run on a thread of its own with a pool of its own
+    /// (new threads inherit the flags), so that no other test's threads get them.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    #[allow(deprecated)] // `_mm_getcsr` and `_mm_setcsr`: there is no other way to set the flags
+    fn bins_count_with_denormals_flushed_to_zero() {
+        use std::arch::x86_64::{_mm_getcsr, _mm_setcsr};
+        const FTZ_DAZ: u32 = 0x8040;
+        let boxes = random_boxes(PARALLEL_BINNING + 3000, 7);
+        let flushed = std::thread::spawn({
+            let boxes = boxes.clone();
+            move || {
+                // SAFETY: changes only this thread's flush-to-zero and denormals-are-zero flags
+                // (and those of the pool it starts below); the thread ends with the test.
+                unsafe { _mm_setcsr(_mm_getcsr() | FTZ_DAZ) };
+                let mut bin = Bin::EMPTY;
+                for (i, b) in boxes.iter().take(300).enumerate() {
+                    bin.add(PrimRef::new(b, i as u32).wide());
+                }
+                assert_eq!((bin.count(), bin.merge(&bin).count()), (300, 600));
+                let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
+                pool.install(|| build_binned(&boxes))
+            }
+        })
+        .join()
+        .unwrap();
+        let plain = build_binned(&boxes);
+        check(&flushed, &boxes);
+        // The same tree: the flags change only the unused fourth lanes of the nodes' boxes.
+        assert_eq!(flushed.primitive_indices, plain.primitive_indices);
+        let boxes_of = |bvh: &Bvh2| -> Vec<([f32; 3], [f32; 3], u32, u32)> {
+            bvh.nodes
+                .iter()
+                .map(|n| (n.aabb.min.to_array(), n.aabb.max.to_array(), n.prim_count, n.first_index))
+                .collect()
+        };
+        assert_eq!(boxes_of(&flushed), boxes_of(&plain));
     }
 
     #[test]
