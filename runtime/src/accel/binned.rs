@@ -226,8 +226,7 @@ impl Bin {
     /// The box of the primitives (empty, as [`Aabb::empty`], for none).
     #[inline(always)]
     fn aabb(&self) -> Aabb {
-        let v = self.0.as_array();
-        Aabb { min: Vec3A::new(v[0], v[1], v[2]), max: -Vec3A::new(v[4], v[5], v[6]) }
+        unpack_box(self.0)
     }
 
     /// The bin of both bins' primitives (at most [`super::bvh4::MAX_PRIMITIVES`], far below the
@@ -263,11 +262,15 @@ impl SideBounds {
 
     /// The two boxes, `[left, right]`.
     fn boxes(&self) -> [Aabb; 2] {
-        [self.left, self.right].map(|v| {
-            let v = v.as_array();
-            Aabb { min: Vec3A::new(v[0], v[1], v[2]), max: -Vec3A::new(v[4], v[5], v[6]) }
-        })
+        [self.left, self.right].map(unpack_box)
     }
+}
+
+/// The box that eight floats `[min, -, -max, -]` hold (a [`Bin`]'s or a [`SideBounds`] side's).
+#[inline(always)]
+fn unpack_box(v: f32x8) -> Aabb {
+    let v = v.as_array();
+    Aabb { min: Vec3A::new(v[0], v[1], v[2]), max: -Vec3A::new(v[4], v[5], v[6]) }
 }
 
 /// Per axis, its bins; `N` bins at most (fewer primitives use fewer bins, [`Binning::count`], and a
