@@ -3,7 +3,10 @@
 //! each axis (up to [`BINS`], fewer for fewer primitives), the split between two bins of least
 //! surface-area cost is taken, and the two halves are built in parallel while they are large.
 //! Nodes of at most [`SMALL`] primitives try every split of their sorted centroids instead, and
-//! nodes of at most [`TINY`] are halved along their widest axis.
+//! nodes of at most [`TINY`] are halved along their widest axis. Where the leaves are blocks that a
+//! ray tests at once (an object BVH's triangles, four to a block), a side's cost counts its
+//! primitives in whole blocks, as Embree's builders do: one to four triangles cost one block test,
+//! so the splits fill blocks rather than leave them three-quarters full.
 //!
 //! The tree has leaves of one primitive, as PLOC's has, or of up to three where the caller knows
 //! that the leaf collapse would merge every subtree that small ([`build_binned_with_leaves`]): the
@@ -322,9 +325,10 @@ impl<const N: usize> Bins<N> {
         self
     }
 
-    /// The split of least cost `area(left) * count(left) + area(right) * count(right)`: its axis
-    /// and its first bin on the right. `None` when every axis has all primitives in one bin.
-    fn best_split(&self, bins: usize) -> Option<(usize, usize)> {
+    /// The split of least cost `area(left) * blocks(left) + area(right) * blocks(right)` (blocks of
+    /// `1 << block_shift` primitives, see [`blocks`]): its axis and its first bin on the right.
+    /// `None` when every axis has all primitives in one bin.
+    fn best_split(&self, bins: usize, block_shift: u32) -> Option<(usize, usize)> {
         let mut best: Option<(f32, usize, usize)> = None;
         for a in 0..3 {
             // Right-hand costs: `right[k]` for bins `k..`.
@@ -334,7 +338,7 @@ impl<const N: usize> Bins<N> {
             for k in (1..bins).rev() {
                 acc = acc.union(&self.bins[a][k].aabb());
                 n += self.bins[a][k].count();
-                right[k] = if n == 0 { f32::INFINITY } else { acc.half_area() * n as f32 };
+                right[k] = if n == 0 { f32::INFINITY } else { acc.half_area() * blocks(n, block_shift) };
             }
             let mut acc = Aabb::empty();
             let mut n = 0u32;
@@ -344,7 +348,7 @@ impl<const N: usize> Bins<N> {
                 if n == 0 || right.is_infinite() {
                     continue;
                 }
-                let cost = acc.half_area() * n as f32 + right;
+                let cost = acc.half_area() * blocks(n, block_shift) + right;
                 if best.is_none_or(|(c, _, _)| cost < c) {
                     best = Some((cost, a, k));
                 }
@@ -352,6 +356,13 @@ impl<const N: usize> Bins<N> {
         }
         best.map(|(_, a, k)| (a, k))
     }
+}
+
+/// How many leaf blocks of `1 << block_shift` primitives `n` primitives take: the cost of testing
+/// them, where a block's primitives are tested at once.
+#[inline(always)]
+fn blocks(n: u32, block_shift: u32) -> f32 {
+    (n.saturating_add((1 << block_shift) - 1) >> block_shift) as f32
 }
 
 /// The slots of a leaf's unused descendant range (see the module's invariants): an inner node with
@@ -368,7 +379,7 @@ pub fn build_binned(boxes: &[Aabb]) -> Bvh2 {
 /// collapse merges every such subtree anyway ([`merged_leaf_size`]): the tree after the collapse is
 /// the same, without building, writing and collapsing the small subtrees' nodes.
 pub fn build_binned_with_leaves(boxes: &[Aabb], leaf_size: usize) -> Bvh2 {
-    build_binned_summarised(boxes, leaf_size, &|_: &Bvh2Node, _: &Finished| (0, 0))
+    build_binned_summarised(boxes, leaf_size, 1, &|_: &Bvh2Node, _: &Finished| (0, 0))
 }
 
 /// The finished part of the node array below a node the build is finishing: its descendants'
@@ -394,12 +405,14 @@ impl Finished<'_> {
 /// [`build_binned_with_leaves`] that also works out, for each node as it is finished (after its
 /// subtree: bottom-up), `summary(node, descendants)` and keeps it in the node's `meta1` and
 /// `meta2`: a bottom-up pass over the finished tree done while each node's children are still in
-/// the cache.
-pub fn build_binned_summarised<S>(boxes: &[Aabb], leaf_size: usize, summary: &S) -> Bvh2
+/// the cache. `block` is how many primitives the final tree's leaves test at once (a power of two;
+/// 1 where each is tested on its own): the splits' costs count primitives in such blocks.
+pub fn build_binned_summarised<S>(boxes: &[Aabb], leaf_size: usize, block: u32, summary: &S) -> Bvh2
 where
     S: Fn(&Bvh2Node, &Finished) -> (u32, u32) + Sync,
 {
     let leaf_size = leaf_size.clamp(1, TINY_LEAF);
+    let block_shift = block.clamp(1, 1 << 16).ilog2();
     let n = boxes.len();
     if n == 0 {
         return Bvh2 { nodes: Vec::new(), primitive_indices: Vec::new(), max_depth: 1, ..Bvh2::default() };
@@ -420,7 +433,7 @@ where
     let mut spare: Vec<PrimRef> = bytemuck::zeroed_vec(n);
     let mut primitive_indices = vec![0u32; n];
     let at = Place { first: 0, base: 1 };
-    let shape = Shape { leaf_size, summary };
+    let shape = Shape { leaf_size, block_shift, summary };
     let depth =
         build([&mut refs, &mut spare], &mut primitive_indices, at, &mut root[0], descendants, bounds, 0, &shape);
     // SAFETY: `build` wrote its node and every node of its descendants' range, which with the
@@ -439,9 +452,11 @@ where
 }
 
 /// What every node of a build shares: subtrees of at most `leaf_size` primitives are one leaf,
-/// and each finished node keeps its `summary`.
+/// splits count primitives in blocks of `1 << block_shift` ([`blocks`]), and each finished node
+/// keeps its `summary`.
 struct Shape<'s, S> {
     leaf_size: usize,
+    block_shift: u32,
     summary: &'s S,
 }
 
@@ -491,7 +506,7 @@ where
         finish(me, Bvh2Node::new(bounds.geometry, m as u32, at.first), descendants);
         return 1;
     }
-    let (left_count, left, right, moved) = split(refs, spare, &bounds, depth);
+    let (left_count, left, right, moved) = split(refs, spare, &bounds, depth, shape.block_shift);
     let (refs, spare) = if moved { (spare, refs) } else { (refs, spare) };
     let (pair, rest) = descendants.split_at_mut(2);
     let (lnode, rnode) = pair.split_at_mut(1);
@@ -557,7 +572,7 @@ type Parts = (usize, Bounds, Bounds, bool);
 /// Splits `refs` (2 or more) into a left and a right part, both non-empty: returns the left one's
 /// size, both parts' bounds, and whether the parts are in `spare` (else in `refs`).
 #[inline(never)]
-fn split(refs: &mut [PrimRef], spare: &mut [PrimRef], bounds: &Bounds, depth: u32) -> Parts {
+fn split(refs: &mut [PrimRef], spare: &mut [PrimRef], bounds: &Bounds, depth: u32, block_shift: u32) -> Parts {
     let m = refs.len();
     if m == 2 {
         return (1, Bounds::of(&refs[..1]), Bounds::of(&refs[1..]), false);
@@ -570,15 +585,15 @@ fn split(refs: &mut [PrimRef], spare: &mut [PrimRef], bounds: &Bounds, depth: u3
         return (left, Bounds::of(&refs[..left]), Bounds::of(&refs[left..]), false);
     }
     if m <= SMALL {
-        let left = small_split(refs);
+        let left = small_split(refs, block_shift);
         return (left, Bounds::of(&refs[..left]), Bounds::of(&refs[left..]), false);
     }
     if depth < SAH_DEPTH {
         let binning = Binning::of(&bounds.centroids, m);
         let found = if binning.count <= SMALL_BINS {
-            binned_split::<SMALL_BINS>(refs, spare, &binning)
+            binned_split::<SMALL_BINS>(refs, spare, &binning, block_shift)
         } else {
-            binned_split::<BINS>(refs, spare, &binning)
+            binned_split::<BINS>(refs, spare, &binning, block_shift)
         };
         if let Some(found) = found {
             return found;
@@ -606,13 +621,18 @@ const SMALL_BINS: usize = 8;
 
 /// [`split`] by binning into sets of `N` bins: the parts are in `spare`. `None` when every axis has
 /// all primitives in one bin.
-fn binned_split<const N: usize>(refs: &mut [PrimRef], spare: &mut [PrimRef], binning: &Binning) -> Option<Parts> {
+fn binned_split<const N: usize>(
+    refs: &mut [PrimRef],
+    spare: &mut [PrimRef],
+    binning: &Binning,
+    block_shift: u32,
+) -> Option<Parts> {
     let m = refs.len();
     if m > PARALLEL_BINNING {
-        return parallel_binned_split::<N>(refs, spare, binning);
+        return parallel_binned_split::<N>(refs, spare, binning, block_shift);
     }
     let bins = Bins::<N>::fill(binning, refs);
-    let (axis, k) = bins.best_split(binning.count)?;
+    let (axis, k) = bins.best_split(binning.count, block_shift)?;
     let (left_count, lc, rc) = partition(refs, spare, |c| binning.left_of(c, axis, k));
     // `best_split` only splits between two non-empty sides, counted by the same test.
     debug_assert!(left_count > 0 && left_count < m);
@@ -631,11 +651,12 @@ fn parallel_binned_split<const N: usize>(
     refs: &mut [PrimRef],
     spare: &mut [PrimRef],
     binning: &Binning,
+    block_shift: u32,
 ) -> Option<Parts> {
     let m = refs.len();
     let chunk_bins: Vec<Bins<N>> = refs.par_chunks(BINNING_CHUNK).map(|c| Bins::<N>::fill(binning, c)).collect();
     let bins = chunk_bins.iter().fold(Bins::<N>::new(), |a, b| a.merge_bins(b, binning.count));
-    let (axis, k) = bins.best_split(binning.count)?;
+    let (axis, k) = bins.best_split(binning.count, block_shift)?;
     let lefts: Vec<usize> =
         chunk_bins.iter().map(|b| b.bins[axis][..k].iter().map(|c| c.count() as usize).sum()).collect();
     let left_count: usize = lefts.iter().sum();
@@ -703,9 +724,10 @@ const SMALL: usize = 8;
 /// centroids.
 const TINY: usize = 4;
 
-/// Splits `refs` (3 to [`SMALL`]) by sorted centroids: the split of least cost over the three axes'
-/// orders. Reorders `refs` into the chosen order; returns the left side's size.
-fn small_split(refs: &mut [PrimRef]) -> usize {
+/// Splits `refs` (3 to [`SMALL`]) by sorted centroids: the split of least cost (sides counted in
+/// blocks, [`blocks`]) over the three axes' orders. Reorders `refs` into the chosen order; returns
+/// the left side's size.
+fn small_split(refs: &mut [PrimRef], block_shift: u32) -> usize {
     let m = refs.len().min(SMALL);
     let mut items = [refs[0]; SMALL];
     items[..m].copy_from_slice(&refs[..m]);
@@ -720,13 +742,13 @@ fn small_split(refs: &mut [PrimRef]) -> usize {
         for i in (1..m).rev() {
             let p = &items[usize::from(order[i])];
             (lo, hi) = (lo.min(p.lo()), hi.max(p.hi()));
-            right[i] = half_area(hi - lo) * (m - i) as f32;
+            right[i] = half_area(hi - lo) * blocks((m - i) as u32, block_shift);
         }
         let (mut lo, mut hi) = (Vec3A::splat(f32::MAX), Vec3A::splat(f32::MIN));
         for i in 1..m {
             let p = &items[usize::from(order[i - 1])];
             (lo, hi) = (lo.min(p.lo()), hi.max(p.hi()));
-            let cost = half_area(hi - lo) * i as f32 + right[i];
+            let cost = half_area(hi - lo) * blocks(i as u32, block_shift) + right[i];
             if cost < best.0 {
                 best = (cost, axis, i);
             }
@@ -851,6 +873,19 @@ mod tests {
             let boxes = random_boxes(n, n as u64);
             let bvh = build_binned(&boxes);
             check(&bvh, &boxes);
+        }
+    }
+
+    /// Sides counted in blocks of four: eight unit cubes, five side by side and three apart, are
+    /// split four and four (two full blocks), where counting each primitive splits off the three.
+    #[test]
+    fn block_costs_fill_blocks() {
+        let cube = |x: f32| Aabb::new(Vec3A::new(x, 0.0, 0.0), Vec3A::new(x + 1.0, 1.0, 1.0));
+        let boxes: Vec<Aabb> = [0.0, 1.0, 2.0, 3.0, 4.0, 10.0, 11.0, 12.0].map(cube).to_vec();
+        let refs = |order: &[usize]| order.iter().map(|&i| PrimRef::new(&boxes[i], i as u32)).collect::<Vec<_>>();
+        for order in [[0, 1, 2, 3, 4, 5, 6, 7], [7, 3, 5, 0, 6, 1, 4, 2]] {
+            assert_eq!(small_split(&mut refs(&order), 0), 5);
+            assert_eq!(small_split(&mut refs(&order), 2), 4);
         }
     }
 

@@ -359,8 +359,22 @@ impl Bvh4 {
         Bvh4::build_with(boxes, quality, max_leaf, LeafSlots::Packed)
     }
 
-    /// [`Bvh4::build`] with the leaves' slots laid out as `slots` says.
+    /// [`Bvh4::build`] with the leaves' slots laid out as `slots` says. Where they are blocks, the
+    /// binned builder counts a side's primitives in blocks ([`super::binned`]).
     pub fn build_with(boxes: &[Aabb], quality: BuildQuality, max_leaf: u32, slots: LeafSlots) -> Bvh4 {
+        let block = CollapseRule::new(max_leaf, 0.0, slots).block_width();
+        Bvh4::build_costed(boxes, quality, max_leaf, slots, block)
+    }
+
+    /// [`Bvh4::build_with`] whose binned builder counts primitives in blocks of `block` whatever the
+    /// slots' layout.
+    pub(crate) fn build_costed(
+        boxes: &[Aabb],
+        quality: BuildQuality,
+        max_leaf: u32,
+        slots: LeafSlots,
+        block: u32,
+    ) -> Bvh4 {
         let n = boxes.len();
         if n == 0 {
             return Bvh4::default();
@@ -400,7 +414,7 @@ impl Bvh4 {
                 let leaf = super::binned::merged_leaf_size(p.max_prims_per_leaf, p.collapse_traversal_cost);
                 let rule = CollapseRule::new(p.max_prims_per_leaf, p.collapse_traversal_cost, slots);
                 let summary = |node: &Bvh2Node, below: &super::binned::Finished| rule.summary(node, |j| below.node(j));
-                let mut bvh2 = super::binned::build_binned_summarised(boxes, leaf, &summary);
+                let mut bvh2 = super::binned::build_binned_summarised(boxes, leaf, block, &summary);
                 return Bvh4::from_summarised_bvh2(&mut bvh2, rule);
             }
         } else {
@@ -514,6 +528,11 @@ impl CollapseRule {
             LeafSlots::Blocks(width) => Some(width.clamp(1, MAX_LEAF_SIZE)),
         };
         CollapseRule { max_leaf: max_leaf.clamp(1, block.unwrap_or(MAX_LEAF_SIZE)), traversal_cost, block }
+    }
+
+    /// How many primitives a leaf tests at once: its block's width, or 1 where leaves are packed.
+    pub fn block_width(&self) -> u32 {
+        self.block.unwrap_or(1)
     }
 
     /// Pass 1's result for binary node `node` (`meta1`, `meta2`; see [`Converter`]), where `below(j)`
@@ -908,7 +927,7 @@ mod tests {
     /// corners, extents that overflow).
     #[test]
     fn the_collapse_summarised_by_the_build_is_the_collapse_of_the_built_tree() {
-        use super::super::binned::{build_binned_summarised, build_binned_with_leaves, merged_leaf_size};
+        use super::super::binned::{build_binned_summarised, merged_leaf_size};
         let coincident = vec![Aabb::new(Vec3A::ONE, Vec3A::splat(2.0)); 3000];
         // Extreme magnitudes (centroid boxes whose extents overflow) and NaN corners, whose areas
         // and costs are NaN.
@@ -928,11 +947,12 @@ mod tests {
                 (4, 1.5, LeafSlots::Blocks(4)),
             ] {
                 let leaf = merged_leaf_size(max_leaf, cost);
-                let mut built = build_binned_with_leaves(&boxes, leaf);
-                let reference = Bvh4::from_bvh2_with(&mut built, max_leaf, cost, slots);
                 let rule = CollapseRule::new(max_leaf, cost, slots);
+                let block = rule.block_width();
+                let mut built = build_binned_summarised(&boxes, leaf, block, &|_, _| (0, 0));
+                let reference = Bvh4::from_bvh2_with(&mut built, max_leaf, cost, slots);
                 let mut summarised =
-                    build_binned_summarised(&boxes, leaf, &|node, below| rule.summary(node, |j| below.node(j)));
+                    build_binned_summarised(&boxes, leaf, block, &|node, below| rule.summary(node, |j| below.node(j)));
                 let metas = |b: &Bvh2| b.nodes.iter().map(|n| (n.meta1, n.meta2)).collect::<Vec<_>>();
                 // The conversion's pass wrote its results into `built`'s nodes.
                 assert_eq!(metas(&summarised), metas(&built), "n = {n}, leaves of {max_leaf}, cost {cost}, {slots:?}");
