@@ -80,7 +80,7 @@ fn main() {
                 let t = Instant::now();
                 let mut bvh2 = if summarised {
                     let leaf = merged_leaf_size(p.max_prims_per_leaf, p.collapse_traversal_cost);
-                    build_binned_summarised(&boxes, leaf, rule.block_width(), &|node, below| {
+                    build_binned_summarised(&boxes, leaf, slots.block_width(), &|node, below| {
                         rule.summary(node, |j| below.node(j))
                     })
                 } else if q.is_binned() {

@@ -48,6 +48,16 @@ pub enum LeafSlots {
     Blocks(u32),
 }
 
+impl LeafSlots {
+    /// How many primitives a leaf tests at once: its block's width, or 1 where leaves are packed.
+    pub fn block_width(self) -> u32 {
+        match self {
+            LeafSlots::Packed => 1,
+            LeafSlots::Blocks(width) => width.clamp(1, MAX_LEAF_SIZE),
+        }
+    }
+}
+
 /// A 4-wide BVH node (see the module documentation for the layout).
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C, align(64))]
@@ -362,8 +372,7 @@ impl Bvh4 {
     /// [`Bvh4::build`] with the leaves' slots laid out as `slots` says. Where they are blocks, the
     /// binned builder counts a side's primitives in blocks ([`super::binned`]).
     pub fn build_with(boxes: &[Aabb], quality: BuildQuality, max_leaf: u32, slots: LeafSlots) -> Bvh4 {
-        let block = CollapseRule::new(max_leaf, 0.0, slots).block_width();
-        Bvh4::build_costed(boxes, quality, max_leaf, slots, block)
+        Bvh4::build_costed(boxes, quality, max_leaf, slots, slots.block_width())
     }
 
     /// [`Bvh4::build_with`] whose binned builder counts primitives in blocks of `block` whatever the
@@ -525,14 +534,9 @@ impl CollapseRule {
     pub fn new(max_leaf: u32, traversal_cost: f32, slots: LeafSlots) -> CollapseRule {
         let block = match slots {
             LeafSlots::Packed => None,
-            LeafSlots::Blocks(width) => Some(width.clamp(1, MAX_LEAF_SIZE)),
+            LeafSlots::Blocks(_) => Some(slots.block_width()),
         };
         CollapseRule { max_leaf: max_leaf.clamp(1, block.unwrap_or(MAX_LEAF_SIZE)), traversal_cost, block }
-    }
-
-    /// How many primitives a leaf tests at once: its block's width, or 1 where leaves are packed.
-    pub fn block_width(&self) -> u32 {
-        self.block.unwrap_or(1)
     }
 
     /// Pass 1's result for binary node `node` (`meta1`, `meta2`; see [`Converter`]), where `below(j)`
@@ -948,7 +952,7 @@ mod tests {
             ] {
                 let leaf = merged_leaf_size(max_leaf, cost);
                 let rule = CollapseRule::new(max_leaf, cost, slots);
-                let block = rule.block_width();
+                let block = slots.block_width();
                 let mut built = build_binned_summarised(&boxes, leaf, block, &|_, _| (0, 0));
                 let reference = Bvh4::from_bvh2_with(&mut built, max_leaf, cost, slots);
                 let mut summarised =
