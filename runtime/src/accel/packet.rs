@@ -63,6 +63,23 @@ fn row_chunks(row: &[f32; PACKET_SIZE]) -> &RowChunks {
     bytemuck::cast_ref(row)
 }
 
+/// [`row_chunks`], to write.
+#[inline(always)]
+fn row_chunks_mut(row: &mut [f32; PACKET_SIZE]) -> &mut RowChunks {
+    bytemuck::cast_mut(row)
+}
+
+/// A row of ids seen chunk by chunk.
+#[inline(always)]
+fn id_chunks(row: &[u32; PACKET_SIZE]) -> &[[u32; W]; CHUNKS] {
+    bytemuck::cast_ref(row)
+}
+
+#[inline(always)]
+fn id_chunks_mut(row: &mut [u32; PACKET_SIZE]) -> &mut [[u32; W]; CHUNKS] {
+    bytemuck::cast_mut(row)
+}
+
 /// Lane `j` of `v`.
 #[inline(always)]
 fn lane(v: &Chunk, j: usize) -> f32 {
@@ -362,23 +379,15 @@ impl State {
     /// The state of the packet's lanes `active`, all in chunks `lo..=hi`; the others get an empty
     /// interval.
     fn new(p: &RayPacket, active: u64, (lo, hi): (usize, usize)) -> Self {
-        let mut tmin = [Chunk::splat(f32::INFINITY); CHUNKS];
-        let mut tmax = [Chunk::splat(f32::NEG_INFINITY); CHUNKS];
+        let (empty_min, empty_max) = (Chunk::splat(f32::INFINITY), Chunk::splat(f32::NEG_INFINITY));
+        let mut tmin = [empty_min; CHUNKS];
+        let mut tmax = [empty_max; CHUNKS];
         for c in lo..=hi {
-            let mut lo = [0.0f32; W];
-            let mut hi = [0.0f32; W];
-            for j in 0..W {
-                let i = W * c + j;
-                if active >> i & 1 != 0 {
-                    lo[j] = p.tmin.0[i];
-                    hi[j] = p.tmax.0[i];
-                } else {
-                    lo[j] = f32::INFINITY;
-                    hi[j] = f32::NEG_INFINITY;
-                }
-            }
-            tmin[c] = Chunk::new(lo);
-            tmax[c] = Chunk::new(hi);
+            // A blend, as `Geom::world`'s: a branch a lane cost more than the traversal of a
+            // packet that meets a few large triangles.
+            let lanes = lane_mask((active >> (W * c)) as u8 as u32);
+            tmin[c] = lanes.select(Chunk::new(row_chunks(&p.tmin.0)[c]), empty_min);
+            tmax[c] = lanes.select(Chunk::new(row_chunks(&p.tmax.0)[c]), empty_max);
         }
         let mut s = State {
             tmin,
@@ -1044,16 +1053,36 @@ fn intersect_lanes_in<K: Kernels>(
             },
         );
     }
-    let mut m = active;
-    while m != 0 {
-        let i = m.trailing_zeros() as usize;
-        m &= m - 1;
-        let (c, j) = (i / W, i % W);
-        if s.instance[i] == INVALID_ID {
-            write_lane(out, i, f32::INFINITY, 0.0, 0.0, INVALID_ID, INVALID_ID);
-        } else {
-            let (t, u, v) = (lane(&s.tmax[c], j), lane(&s.u[c], j), lane(&s.v[c], j));
-            write_lane(out, i, t, u, v, s.instance[i], s.primitive[i]);
+    write_hits(out, &s, active, (lo, hi));
+}
+
+/// The closest hits of lanes `active` (in chunks `lo..=hi`) from `s` into `out`, a chunk at a
+/// time: a lane without a hit gets `write_lane`'s miss; the other lanes keep what `out` held.
+#[inline(always)]
+fn write_hits(out: &mut HitPacket, s: &State, active: u64, (lo, hi): (usize, usize)) {
+    // Ids travel through the float blends as bits (`select` is a bitwise blend).
+    let ids = |row: &[u32; PACKET_SIZE], c: usize| -> Chunk { bytemuck::cast(id_chunks(row)[c]) };
+    let invalid = i32x8::splat(INVALID_ID as i32);
+    for c in lo..=hi {
+        let bits = (active >> (W * c)) as u8 as u32;
+        if bits == 0 {
+            continue;
+        }
+        let lanes = lane_mask(bits);
+        let instance: Chunk = ids(&s.instance, c);
+        let miss: Chunk = bytemuck::cast(bytemuck::cast::<Chunk, i32x8>(instance).simd_eq(invalid));
+        let none = Chunk::ZERO;
+        let t = miss.select(Chunk::splat(f32::INFINITY), s.tmax[c]);
+        let u = miss.select(none, s.u[c]);
+        let v = miss.select(none, s.v[c]);
+        let primitive = miss.select(bytemuck::cast(invalid), ids(&s.primitive, c));
+        for (row, value) in [(&mut out.t.0, t), (&mut out.u.0, u), (&mut out.v.0, v)] {
+            let chunk = &mut row_chunks_mut(row)[c];
+            *chunk = lanes.select(value, Chunk::new(*chunk)).to_array();
+        }
+        for (row, value) in [(&mut out.instance.0, instance), (&mut out.primitive.0, primitive)] {
+            let chunk = &mut id_chunks_mut(row)[c];
+            *chunk = bytemuck::cast(lanes.select(value, bytemuck::cast(*chunk)));
         }
     }
 }
