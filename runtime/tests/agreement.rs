@@ -124,9 +124,14 @@ fn same_hit(a: &Hit, b: &Hit) -> bool {
 
 fn check(scene: &Scene, p: &RayPacket, filter: rtsl_runtime::HitFilter) -> Result<(), TestCaseError> {
     let mut hp = HitPacket::default();
+    // What a hit packet holds in the lanes a query leaves out stays as it was.
+    let (t_before, id_before) = (-7.0f32, 12_345u32);
+    hp.t.0 = [t_before; PACKET_SIZE];
+    hp.primitive.0 = [id_before; PACKET_SIZE];
     scene.intersect_packet_filtered(p, &mut hp, filter);
     for i in 0..PACKET_SIZE {
         if p.active >> i & 1 == 0 {
+            prop_assert!(hp.t.0[i] == t_before && hp.primitive.0[i] == id_before, "inactive lane {i} written");
             continue;
         }
         let r = p.get(i);
