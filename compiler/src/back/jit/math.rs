@@ -423,7 +423,9 @@ mod tests {
     use super::*;
 
     /// The cone helper's four-lane cosines are the interpreter's, lane by lane, bit for bit: zero,
-    /// tiny, huge, infinite and NaN components included.
+    /// tiny, huge, infinite and NaN components included. (Any NaN for a NaN: which of two NaN
+    /// operands a product or sum returns depends on their order, which the optimiser may swap, and
+    /// does in a build for plain x86-64.)
     #[test]
     fn four_lane_cone_cosines_are_the_one_lane_ones() {
         let specials = [0.0, -0.0, 1.0, -1.0, 1e-30, -1e-25, 3e19, -2e38, f32::INFINITY, f32::NAN, 0.5, -7.25];
@@ -444,7 +446,10 @@ mod tests {
             let c = cosines_between(&x);
             for l in 0..4 {
                 let (a, b) = ([x[0][l], x[1][l], x[2][l]], [x[3][l], x[4][l], x[5][l]]);
-                assert_eq!(c[l].to_bits(), super::super::host::cosine_between(a, b).to_bits(), "{a:?} {b:?}");
+                let want = super::super::host::cosine_between(a, b);
+                if !(c[l].is_nan() && want.is_nan()) {
+                    assert_eq!(c[l].to_bits(), want.to_bits(), "{a:?} {b:?}");
+                }
             }
         }
     }
