@@ -640,6 +640,11 @@ impl<E: From<SceneFileError>> RibSink for ImageReader<'_, E> {
             return ControlFlow::Continue(());
         };
         if self.current != Some(index) {
+            // An image that begins before the one being read ended (a `FrameBegin` inside a world
+            // block) ends that one, as it does when each image is loaded alone (`load_stream`).
+            if self.current.is_some() && self.end().is_break() {
+                return ControlFlow::Break(());
+            }
             if let Err(e) = self.begin(index) {
                 self.error = Some(e.into());
                 return ControlFlow::Break(());
@@ -2449,6 +2454,42 @@ mod tests {
             assert!(DisplayDriver::parse(driver, Path::new("image")).is_some(), "{driver}");
         }
         assert!(DisplayDriver::parse("mystery", Path::new("image")).is_none());
+    }
+
+    /// Read in one pass, each image is loaded as loading it alone loads it, also where an image
+    /// begins before the last one ended (a `FrameBegin` inside a world block begins the next
+    /// image; the world block's image ends there).
+    #[test]
+    fn images_read_in_one_pass_are_the_images_loaded_alone() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let streams = [
+            "WorldBegin\nFormat 64 48 1\nFrameBegin 7\nFormat 63 48 1\nWorldBegin\nWorldEnd\nFrameEnd\n",
+            "Format 32 24 1\nFrameBegin 1\nWorldBegin\nFrameBegin 2\nFormat 31 24 1\nWorldEnd\nFrameEnd\n\
+             Format 30 24 1\nWorldBegin\nWorldEnd\n",
+            "FrameBegin 1\nFormat 16 12 1\nWorldBegin\nWorldEnd\nFrameEnd\nFormat 15 12 1\nWorldBegin\n\
+             FrameBegin 3\nFormat 14 12 1\nFrameEnd\nWorldEnd\n",
+        ];
+        for (k, rib) in streams.iter().enumerate() {
+            let path = dir.path().join(format!("stream{k}.rib"));
+            std::fs::write(&path, rib).expect("write");
+            let mut in_one_pass = Vec::new();
+            load_file_frames(
+                &path,
+                Context::new,
+                |_, _| true,
+                |image| -> Result<_, SceneFileError> {
+                    in_one_pass.push((image.index, format!("{:?}", image.rt.options)));
+                    Ok(ControlFlow::Continue(()))
+                },
+            )
+            .expect("the stream reads");
+            assert!(in_one_pass.len() >= 2, "stream {k}: {} images", in_one_pass.len());
+            for (index, options) in &in_one_pass {
+                let mut alone = Context::new();
+                load_file_frame(&mut alone, &path, *index).expect("the image loads");
+                assert_eq!(*options, format!("{:?}", alone.options), "stream {k}, image {index}");
+            }
+        }
     }
 
     /// Requests between frames set up the frames after them: a `Display` and a `MakeShadow` of
