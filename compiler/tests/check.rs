@@ -165,3 +165,59 @@ fn vendor_names_are_read_as_rtsl_s_built_ins_unless_defined() {
     let c = rtsl_compiler::compile_source("own.sl", own, &Options::default());
     assert!(c.ok() && c.diagnostics.is_empty(), "{}", c.render());
 }
+
+/// The shader-type words begin a shader only at the top level; elsewhere RenderMan shaders use them
+/// as ordinary names (`color light = color (1,.3,.2);` ... `base = mix(dark,light,nz);`), and
+/// message passing still calls `surface("Kd", x)`. Type names and statement keywords stay reserved.
+#[test]
+fn shader_type_words_are_ordinary_names_below_the_top_level() {
+    let src = r#"
+        float imager(float light; float surface[2]) { return light + surface[1]; }
+        surface tissue(float volume = 1; color displacement = 0;)
+        {
+            color dark = color(.5, .1, .1), light = color (1,.3,.2);
+            color glow, light2[2];
+            float camera = 0, pixel;
+            float nz = noise(P * light[0]);
+            light2[1] = mix(dark, light, nz);
+            glow = light2[1] + displacement;
+            float two[2] = {1, 2};
+            nz = imager(nz, two);
+            camera += volume * nz;
+            pixel = surface("Kd", camera);
+            float x = 0;
+            float lightfield(float light) { return light * 2; }
+            x = lightfield(pixel);
+            Ci = glow * camera * x;
+            Oi = Os;
+        }
+    "#;
+    let c = rtsl_compiler::compile_source("tissue.sl", src, &Options::default());
+    assert!(c.ok() && c.diagnostics.is_empty(), "{}", c.render());
+    let iface = c.interface.expect("a shader");
+    let names: Vec<&str> = iface.parameters.iter().map(|p| p.name.as_str()).collect();
+    assert_eq!(names, ["volume", "displacement"]);
+
+    // Every shader type still begins a definition, with any of the words as a name inside it.
+    let words = ["surface", "light", "displacement", "volume", "imager", "pixel", "camera", "lightfield"];
+    for kind in words {
+        for word in words {
+            let src = format!(
+                "{kind} t(float {word} = 1;) {{\n\
+                   float a[2] = {{{word}, 0}}; {word} = a[0] * 2; printf(\"%f\", {word});\n\
+                   {{ float {word}[2] = {{1, 2}}; {word}[1] += 1; printf(\"%f\", {word}[1]); }}\n\
+                 }}\n"
+            );
+            let c = rtsl_compiler::compile_source("t.sl", &src, &Options::default());
+            assert!(c.ok(), "{src}{}", c.render());
+            let want = if kind == "pixel" { "imager" } else { kind };
+            assert_eq!(c.interface.as_ref().map(|i| i.kind.name()), Some(want), "{src}");
+        }
+    }
+
+    // Other keywords are not names.
+    for src in ["surface t() { float float = 1; }", "surface t() { float if = 1; }", "surface t(float color = 1) { }"] {
+        let c = rtsl_compiler::compile_source("t.sl", src, &Options::default());
+        assert!(c.diagnostics.iter().any(|d| d.code == Code::Syntax), "{src}: {}", c.render());
+    }
+}

@@ -67,3 +67,43 @@ fn the_library_and_corpus_run_in_the_interpreter() {
         files.len()
     );
 }
+
+/// Shader-type words name variables, parameters and functions below the top level, as in
+/// RenderMan shaders (`color light = ...; base = mix(dark, light, nz);`): each holds its own value
+/// in the interpreter and the JIT, and `surface("Kd", x)` is still the message-passing call.
+#[test]
+fn shader_type_words_name_variables_that_hold_their_values() {
+    let src = r#"
+        float imager(float light) { return light * 2; }
+        surface names(float volume = 0.25; float Kd = 0.5;)
+        {
+            color dark = color(0.1, 0.2, 0.3), light = color(1, 0.3, 0.2);
+            float displacement[2] = {0.5, imager(volume)};
+            float x = 7;
+            float found = surface("Kd", x);
+            Ci = light;
+            light += (found + x) * 0;
+            Oi = mix(dark, light, displacement[1]) * Kd * 2;
+        }
+    "#;
+    let c = rtsl_compiler::compile_source("names.sl", src, &Default::default());
+    assert!(c.ok() && c.diagnostics.is_empty(), "{}", c.render());
+    let module = c.module.expect("module");
+    let mut point = ShadingPoint::new(module.shader.as_ref().expect("a shader").kind);
+    interp::run(&module, &[], &mut point, &mut TestHost::default(), Limits::default()).expect("runs");
+    // mix(dark, light, 0.5): halfway between the two colours.
+    let (ci, oi) = ([1.0, 0.3, 0.2], [0.55, 0.25, 0.25]);
+    let close = |a: &[f32], b: &[f32]| a.iter().zip(b).all(|(a, b)| (a - b).abs() < 1e-6);
+    assert_eq!(point.get("Ci"), Some(&Value::Triple(ci)));
+    let Some(Value::Triple(got)) = point.get("Oi") else { panic!("Oi") };
+    assert!(close(got, &oi), "Oi = {got:?}");
+
+    let shader = rtsl_compiler::back::jit::compile(&module).expect("JIT");
+    let mut batch = shader.batch(3);
+    shader.shade(&mut batch);
+    for lane in 0..3 {
+        assert_eq!(batch.global("Ci", lane), Some(ci.to_vec()), "lane {lane}");
+        let got = batch.global("Oi", lane).expect("Oi");
+        assert!(close(&got, &oi), "lane {lane}: Oi = {got:?}");
+    }
+}

@@ -409,8 +409,18 @@ fn punct_spelling(t: &Tok) -> &'static str {
     }
 }
 
+/// The shader-type words, which the grammar also takes wherever it takes an identifier.
+const SHADER_WORDS: [&str; 8] =
+    ["\"surface\"", "\"light\"", "\"displacement\"", "\"volume\"", "\"imager\"", "\"pixel\"", "\"camera\"", "\"lightfield\""];
+
 fn expected_list(expected: &[String]) -> String {
-    let mut names: Vec<String> = expected.iter().map(|e| describe_terminal(e)).collect();
+    // Where a name is expected, "an identifier" says it: the shader-type words are names there too.
+    let any_name = expected.iter().any(|e| e == "\"ident\"");
+    let mut names: Vec<String> = expected
+        .iter()
+        .filter(|e| !(any_name && SHADER_WORDS.contains(&e.as_str())))
+        .map(|e| describe_terminal(e))
+        .collect();
     names.sort();
     names.dedup();
     const MAX: usize = 6;
@@ -444,7 +454,6 @@ pub fn parse<'a>(
     let mut spans: Vec<Span> = Vec::with_capacity(tokens.len());
     let mut i = 0;
     let mut eof_span = Span::default();
-    let mut depth = 0usize;
     while i < tokens.len() {
         let t = &tokens[i];
         if t.kind == TokenKind::Eof {
@@ -465,25 +474,7 @@ pub fn parse<'a>(
             i = j;
             continue;
         }
-        let mut tok = convert(t, interner);
-        match tok {
-            Tok::LBrace => depth += 1,
-            Tok::RBrace => depth = depth.saturating_sub(1),
-            // rtsl's own shader types are keywords only where a shader is defined (at the top level,
-            // before a name and `(`): RenderMan shaders may use them as ordinary names.
-            Tok::Camera | Tok::Pixel | Tok::Lightfield => {
-                let defines_shader = depth == 0
-                    && tokens
-                        .get(i + 1)
-                        .is_some_and(|n| n.kind == TokenKind::Ident && Interner::keyword(n.sym).is_none())
-                    && tokens.get(i + 2).is_some_and(|n| n.kind == TokenKind::LParen);
-                if !defines_shader {
-                    tok = Tok::Ident(t.sym);
-                }
-            }
-            _ => {}
-        }
-        toks.push(tok);
+        toks.push(convert(t, interner));
         spans.push(t.span);
         i += 1;
     }
@@ -642,5 +633,40 @@ mod tests {
         assert_eq!(grouped("a - b - c"), "((a - b) - c)");
         assert_eq!(grouped("a + b * c - d / e"), "((a + (b * c)) - (d / e))");
         assert_eq!(grouped("a * b + c . d ^ e"), "((a * b) + ((c . d) ^ e))");
+    }
+
+    #[test]
+    fn shader_type_words_are_names_below_the_top_level() {
+        let text = "float imager(float light) { return light; }\n\
+                    light l(float volume = 1; output float surface[2] = {0, 0};) {\n\
+                      color dark = 0, light = color(1, .3, .2), camera[2];\n\
+                      light += mix(dark, light, volume);\n\
+                      surface(\"Kd\", dark);\n\
+                    }\n";
+        let mut interner = Interner::new();
+        let mut diags = Diagnostics::default();
+        let tokens = crate::front::lex::lex(FileId(0), text, &mut interner);
+        let arena = bumpalo::Bump::new();
+        let unit = super::parse(&arena, &tokens, &mut interner, &mut diags);
+        assert!(diags.list.is_empty(), "{:?}", diags.list);
+        let name = |i: &super::ast::Ident| interner.resolve(i.sym).to_string();
+        let [Item::Function(f), Item::Shader(shader)] = unit.items else { panic!("{:?}", unit.items) };
+        assert_eq!((name(&f.name), name(&f.params[0].name)), ("imager".into(), "light".into()));
+        assert_eq!(shader.kind, crate::ir::ShaderKind::Light);
+        let params: Vec<String> = shader.params.iter().map(|p| name(&p.name)).collect();
+        assert_eq!(params, ["volume", "surface"]);
+        let stmts = shader.body.stmts;
+        let StmtKind::Decl(d) = &stmts[0].kind else { panic!("{:?}", stmts[0]) };
+        let vars: Vec<String> = d.vars.iter().map(|v| name(&v.name)).collect();
+        assert_eq!(vars, ["dark", "light", "camera"]);
+        // The variable is an ordinary name: an identifier expression with the keyword's symbol.
+        let StmtKind::Expr(e) = &stmts[1].kind else { panic!("{:?}", stmts[1]) };
+        let ExprKind::Assign(_, target, value) = &e.kind else { panic!("{e:?}") };
+        assert!(matches!(target.kind, ExprKind::Ident(s) if s == super::keyword_symbol("light")));
+        let ExprKind::Call { args, .. } = &value.kind else { panic!("{value:?}") };
+        assert!(matches!(args[1].kind, ExprKind::Ident(s) if interner.resolve(s) == "light"));
+        // Followed by `(` the same word is still a call (message passing).
+        let StmtKind::Expr(e) = &stmts[2].kind else { panic!("{:?}", stmts[2]) };
+        assert!(matches!(&e.kind, ExprKind::Call { name: n, .. } if name(n) == "surface"), "{e:?}");
     }
 }
