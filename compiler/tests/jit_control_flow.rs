@@ -30,6 +30,39 @@ fn divergent_if_else_and_ternary() {
 }
 
 #[test]
+fn uniform_variables_kept_per_lane_flow_into_uniform_variables() {
+    // A `uniform` variable assigned in a light loop (or under a varying `if`) is kept per lane, and
+    // so are the `uniform` variables computed from it, here through a function that reads it as
+    // an `extern` (the pattern of shaders that draw numbers from a uniform counter).
+    check(
+        r#"
+        surface t(float seed = 7; output varying float o = 0;)
+        {
+            uniform float counter = 0;
+            uniform float next() {
+                extern uniform float counter, seed;
+                counter += 1;
+                return cellnoise(counter, seed);
+            }
+            if (s > 0.5) counter = 10;
+            uniform float i;
+            for (i = 0; i < 3; i += 1) {
+                uniform float r = next();
+                uniform float scaled = r * 4;
+                if (scaled < 2) o += scaled; else o -= r;
+            }
+            illuminance (P) {
+                counter = 20;
+                uniform float inside = next() + counter;
+                o += inside;
+            }
+            Ci = color(o, counter, 0);
+        }
+        "#,
+    );
+}
+
+#[test]
 fn loops_with_varying_bounds_break_continue() {
     check(
         r#"

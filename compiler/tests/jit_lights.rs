@@ -136,3 +136,28 @@ fn illuminance_with_a_category_per_lane() {
         "#,
     );
 }
+
+#[test]
+fn light_parameters_into_uniform_variables_declared_outside_the_loop() {
+    // The idiom of RenderMan's shading models: `__nondiffuse` and friends read into a uniform
+    // declared before the loop (kept per lane: each lane's light answers for it), and values
+    // computed from it assigned to other uniform variables.
+    check(
+        r#"
+        surface t(output varying float o = 0;)
+        {
+            uniform float nondiffuse = 0, nonspecular = 0;
+            color c = 0;
+            illuminance (P, N, PI / 2) {
+                if (lightsource("__nondiffuse", nondiffuse) == 0)
+                    nondiffuse = 0;
+                lightsource("__nonspecular", nonspecular);
+                uniform float weight = 1 - nondiffuse;
+                c += weight * Cl * max(0, normalize(L) . normalize(N));
+                o += nonspecular + weight;
+            }
+            Ci = c;
+        }
+        "#,
+    );
+}

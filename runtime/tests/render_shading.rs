@@ -62,12 +62,40 @@ surface messages(float Kd = 0.5;) {
 
 const HEIGHT: &str = "displacement lift(float height = 0.75; color tint = color(0, 0.5, 0);) { }";
 
+/// [`KD_LIGHT`] and [`MESSAGES`] with uniform destinations, as RenderMan light shaders declare
+/// them: each takes the bound value as well (a batch's shaders are bound the same in every lane).
+const KD_LIGHT_UNIFORM: &str = r#"
+light kdlight() {
+    uniform float kd = -1;
+    if (surface("Kd", kd) == 0) kd = 0.25;
+    solar(vector(0, 0, -1), 0) Cl = kd;
+}"#;
+
+const MESSAGES_UNIFORM: &str = r#"
+surface messages(float Kd = 0.5;) {
+    uniform float h = -1;
+    uniform color tint = 0;
+    displacement("height", h);
+    displacement("tint", tint);
+    color lit = 0;
+    illuminance(P) { lit += Cl; }
+    Ci = color(h, comp(tint, 1), comp(lit, 0));
+    Oi = 1;
+}"#;
+
 #[test]
 fn shaders_read_the_parameters_of_the_shaders_bound_with_them() -> Result<(), ApiError> {
+    for (surface, light) in [(MESSAGES, KD_LIGHT), (MESSAGES_UNIFORM, KD_LIGHT_UNIFORM)] {
+        read_bound_parameters(surface, light)?;
+    }
+    Ok(())
+}
+
+fn read_bound_parameters(surface: &str, light: &str) -> Result<(), ApiError> {
     let mut rt = context();
-    let surface = rt.compile_shader("messages.sl", MESSAGES)?;
+    let surface = rt.compile_shader("messages.sl", surface)?;
     let lift = rt.compile_shader("lift.sl", HEIGHT)?;
-    let light = rt.compile_shader("kdlight.sl", KD_LIGHT)?;
+    let light = rt.compile_shader("kdlight.sl", light)?;
     rt.camera_look_at(Vec3A::new(0.0, 0.0, 5.0), Vec3A::ZERO, Vec3A::Y, 60.0);
     rt.light_source(light, &[])?;
     // Left: Kd bound to 0.9 and a displacement shader with its defaults but `tint`; right: Kd

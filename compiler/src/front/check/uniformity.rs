@@ -6,6 +6,11 @@
 //! of a light loop). Variables without a declared storage class become varying when any varying
 //! value reaches them; the analysis iterates to a fixed point.
 //!
+//! A variable declared `uniform` that is assigned under varying control flow is kept per lane
+//! ([`Level::PerLane`]): its storage is varying, but its values are still uniform ones in the
+//! language's terms, so they may flow on into other `uniform` variables (which are then kept per
+//! lane too). Only varying data ([`Level::Varying`]) reaching a `uniform` variable is an error.
+//!
 //! Functions are analysed twice. First with their (undeclared) parameters uniform, which tells
 //! whether the function reads varying state by itself ([`ir::Function::reads_varying`]) and is where
 //! errors are reported; then with those parameters varying, which gives the annotations back ends use
@@ -27,7 +32,7 @@ pub fn infer(functions: &mut [Function], shader: Option<&Shader>, needed: &[bool
     let writes = written_params(functions);
     // Pass A, callees before callers (there is no recursion), so each function is analysed once with
     // the final `reads_varying` of everything it calls.
-    let mut reads: Vec<bool> = vec![false; functions.len()];
+    let mut reads: Vec<Level> = vec![Level::Uniform; functions.len()];
     let mut violations: Vec<Vec<Violation>> = vec![Vec::new(); functions.len()];
     for i in callees_first(functions) {
         if Some(FuncId(i as u32)) == body {
@@ -40,7 +45,7 @@ pub fn infer(functions: &mut [Function], shader: Option<&Shader>, needed: &[bool
         reads[i] = r;
     }
     for (i, f) in functions.iter_mut().enumerate() {
-        f.reads_varying = reads[i];
+        f.reads_varying = reads[i] != Level::Uniform;
     }
     // The shader body: one pass, with errors.
     if let (Some(shader), Some(body)) = (shader, body) {
@@ -68,9 +73,9 @@ pub fn infer(functions: &mut [Function], shader: Option<&Shader>, needed: &[bool
     }
 }
 
-fn apply(f: &mut Function, exprs: &[bool], vars: &[bool]) {
+fn apply(f: &mut Function, exprs: &[Level], vars: &[bool]) {
     for (e, v) in f.exprs.iter_mut().zip(exprs) {
-        e.varying = *v;
+        e.varying = *v != Level::Uniform;
     }
     for (var, v) in f.vars.iter_mut().zip(vars) {
         var.varying = *v;
@@ -131,12 +136,29 @@ fn report(f: &Function, list: &[Violation], diags: &mut Diagnostics) {
     }
 }
 
+/// How much a value may differ from lane to lane, in increasing order.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord)]
+enum Level {
+    /// One value for the whole batch.
+    #[default]
+    Uniform,
+    /// Uniform in the language's terms but kept per lane: read from a variable declared `uniform`
+    /// that was assigned under varying control flow, so lanes that did not run the assignment
+    /// still hold the old value.
+    PerLane,
+    /// Depends on varying data.
+    Varying,
+}
+
 struct Analysis<'a> {
-    reads: &'a [bool],
+    reads: &'a [Level],
     /// For each function, which of its parameters (by position) it may write.
     writes: &'a [Vec<bool>],
-    expr_varying: Vec<bool>,
+    expr_varying: Vec<Level>,
+    /// Variables kept per lane (their storage).
     var_varying: Vec<bool>,
+    /// Variables that hold varying data (never one declared `uniform`: that is an error instead).
+    var_data: Vec<bool>,
     /// Variables whose storage is fixed: declared `uniform` (violations are errors) or `varying`.
     fixed: Vec<bool>,
     violations: Vec<Violation>,
@@ -145,8 +167,8 @@ struct Analysis<'a> {
     /// pass in which every variable turned varying before its first read is already the fixpoint.
     read: Vec<bool>,
     changed: bool,
-    /// Some `return` gives a varying value, or returns under varying control.
-    ret_varying: bool,
+    /// The level of the values `return` gives (returning under varying control counts).
+    ret_varying: Level,
     /// Shader parameters: variable, default value, declared varying.
     defaults: Vec<(VarId, ExprId, bool)>,
     /// The module's shader type, which decides whether some globals are varying.
@@ -168,7 +190,7 @@ impl<'a> Analysis<'a> {
     /// parameters stay uniform and record violations (otherwise they are promoted silently).
     fn new(
         f: &Function,
-        reads: &'a [bool],
+        reads: &'a [Level],
         writes: &'a [Vec<bool>],
         kind: Option<ShaderKind>,
         params_varying: bool,
@@ -191,13 +213,14 @@ impl<'a> Analysis<'a> {
         Analysis {
             reads,
             writes,
-            expr_varying: vec![false; f.exprs.len()],
+            expr_varying: vec![Level::Uniform; f.exprs.len()],
+            var_data: var_varying.clone(),
             var_varying,
             fixed,
             violations: Vec::new(),
             read: vec![false; f.vars.len()],
             changed: false,
-            ret_varying: false,
+            ret_varying: Level::Uniform,
             defaults: Vec::new(),
             kind,
             random_uniform: false,
@@ -209,59 +232,77 @@ impl<'a> Analysis<'a> {
             self.changed = false;
             self.read.fill(false);
             self.violations.clear();
-            self.ret_varying = false;
+            self.ret_varying = Level::Uniform;
             for (var, default, varying) in self.defaults.clone() {
-                if self.expr(f, default) && !varying {
+                if self.expr(f, default) != Level::Uniform && !varying {
                     self.violations.push(Violation { var, span: f.expr(default).span, default: true });
                 }
             }
-            self.block(f, &f.body, false);
+            self.block(f, &f.body, Level::Uniform);
             if !self.changed {
                 break;
             }
         }
     }
 
-    /// Whether the function's results depend on varying state (with uniform parameters).
-    fn reads_varying(&self, f: &Function) -> bool {
-        self.ret_varying
-            || f.vars.iter().enumerate().any(|(i, v)| {
-                matches!(v.kind, VarKind::Param { output: true } | VarKind::Capture)
-                    && self.var_varying[i]
-                    && v.declared != Some(true)
-            })
+    /// Whether the function's results depend on varying state (with uniform parameters), and how.
+    fn reads_varying(&self, f: &Function) -> Level {
+        let outputs = f.vars.iter().enumerate().filter(|(_, v)| {
+            matches!(v.kind, VarKind::Param { output: true } | VarKind::Capture) && v.declared != Some(true)
+        });
+        outputs.fold(self.ret_varying, |level, (i, _)| level.max(self.var_level(i)))
     }
 
-    /// Records that a variable receives a varying value (`varying`), or a uniform value under
-    /// varying control flow (`under_ctl`). A variable declared `uniform` may not receive a varying
-    /// value (E0110), but a uniform value assigned under varying control is accepted: the variable is
-    /// then kept per lane, as RenderMan shaders with `uniform` loop counters and divergent `break`s
-    /// (filtered fBm) expect.
-    fn mark(&mut self, var: VarId, varying: bool, under_ctl: bool, span: Span) {
-        if !varying && !under_ctl {
-            return;
-        }
+    /// Whether a variable is declared `uniform` (in the strict pass; kept per lane or not).
+    fn declared_uniform(&self, var: VarId) -> bool {
         let i = var.0 as usize;
-        if self.var_varying[i] {
-            return;
+        self.fixed[i] && !self.var_data[i]
+    }
+
+    fn var_level(&self, i: usize) -> Level {
+        if self.var_data[i] {
+            Level::Varying
+        } else if self.var_varying[i] {
+            Level::PerLane
+        } else {
+            Level::Uniform
         }
-        if self.fixed[i] && varying {
+    }
+
+    /// Records that a variable receives a value of level `value` under control flow of level `ctl`.
+    /// A variable declared `uniform` may not receive varying data (E0110), but a uniform value
+    /// assigned under varying control is accepted: the variable is then kept per lane, as RenderMan
+    /// shaders with `uniform` loop counters and divergent `break`s (filtered fBm) expect, and so is
+    /// a value read from such a variable. Any other variable takes the higher of the two levels.
+    fn mark(&mut self, var: VarId, value: Level, ctl: Level, span: Span) {
+        let i = var.0 as usize;
+        let declared_uniform = self.declared_uniform(var);
+        if declared_uniform && value == Level::Varying {
             self.violations.push(Violation { var, span, default: false });
             return;
         }
+        let level = value.max(ctl);
+        if level == Level::Uniform {
+            return;
+        }
+        let data = level == Level::Varying && !declared_uniform;
+        if self.var_varying[i] && (self.var_data[i] || !data) {
+            return;
+        }
         self.var_varying[i] = true;
+        self.var_data[i] |= data;
         self.changed |= self.read[i];
     }
 
-    fn block(&mut self, f: &Function, block: &ir::Block, ctl: bool) -> Exits {
+    fn block(&mut self, f: &Function, block: &ir::Block, ctl: Level) -> Exits {
         let mut ctl = ctl;
         let mut exits = Exits::default();
         for s in &block.stmts {
             let e = self.stmt(f, s, ctl);
-            if (e.loop_exit > 0 || e.func_exit) && !ctl {
+            if e.loop_exit > 0 || e.func_exit {
                 // Later statements run only in lanes that did not leave: divergent from here on if
                 // the exit was taken under varying control (`stmt` reports only divergent exits).
-                ctl = true;
+                ctl = Level::Varying;
             }
             exits.loop_exit = exits.loop_exit.max(e.loop_exit);
             exits.func_exit |= e.func_exit;
@@ -270,7 +311,7 @@ impl<'a> Analysis<'a> {
     }
 
     /// Returns the divergent exits the statement may take.
-    fn stmt(&mut self, f: &Function, s: &ir::Stmt, ctl: bool) -> Exits {
+    fn stmt(&mut self, f: &Function, s: &ir::Stmt, ctl: Level) -> Exits {
         match &s.kind {
             StmtKind::Expr(e) => {
                 self.expr_ctl(f, *e, ctl);
@@ -278,19 +319,19 @@ impl<'a> Analysis<'a> {
             }
             StmtKind::If { cond, then, otherwise } => {
                 let c = self.expr_ctl(f, *cond, ctl);
-                let a = self.block(f, then, ctl || c);
-                let b = self.block(f, otherwise, ctl || c);
+                let a = self.block(f, then, ctl.max(c));
+                let b = self.block(f, otherwise, ctl.max(c));
                 Exits { loop_exit: a.loop_exit.max(b.loop_exit), func_exit: a.func_exit || b.func_exit }
             }
             StmtKind::Loop { cond, body, step } => {
-                let c = cond.is_some_and(|c| self.expr_ctl(f, c, ctl));
-                let inner = ctl || c;
+                let c = cond.map_or(Level::Uniform, |c| self.expr_ctl(f, c, ctl));
+                let inner = ctl.max(c);
                 let e = self.block(f, body, inner);
                 // Values of one iteration reach the next through variables read before they turn
                 // varying, which the fixpoint catches (`read`). Lanes that left in one iteration
                 // make the whole next iteration divergent: only that needs a second walk here.
-                let diverged = !inner && (e.loop_exit > 0 || e.func_exit);
-                let inner = inner || diverged;
+                let diverged = inner == Level::Uniform && (e.loop_exit > 0 || e.func_exit);
+                let inner = if diverged { Level::Varying } else { inner };
                 let e2 = if diverged { self.block(f, body, inner) } else { Exits::default() };
                 self.block(f, step, inner);
                 if let Some(c) = cond {
@@ -302,12 +343,13 @@ impl<'a> Analysis<'a> {
                 Exits { loop_exit: outer, func_exit: e.func_exit || e2.func_exit }
             }
             StmtKind::Break(n) | StmtKind::Continue(n) => {
-                Exits { loop_exit: if ctl { (*n).max(1) } else { 0 }, func_exit: false }
+                let divergent = ctl != Level::Uniform;
+                Exits { loop_exit: if divergent { (*n).max(1) } else { 0 }, func_exit: false }
             }
             StmtKind::Return(value) => {
-                let v = value.is_some_and(|v| self.expr_ctl(f, v, ctl));
-                self.ret_varying |= v || ctl;
-                Exits { loop_exit: 0, func_exit: ctl }
+                let v = value.map_or(Level::Uniform, |v| self.expr_ctl(f, v, ctl));
+                self.ret_varying = self.ret_varying.max(v).max(ctl);
+                Exits { loop_exit: 0, func_exit: ctl != Level::Uniform }
             }
             StmtKind::Illuminance { category, position, cone, body } => {
                 if let Some(c) = category {
@@ -318,7 +360,7 @@ impl<'a> Analysis<'a> {
                     self.expr_ctl(f, *a, ctl);
                     self.expr_ctl(f, *b, ctl);
                 }
-                let e = self.block(f, body, true);
+                let e = self.block(f, body, Level::Varying);
                 Exits { loop_exit: e.loop_exit.saturating_sub(1), func_exit: e.func_exit }
             }
             StmtKind::Illuminate { position, cone, body } => {
@@ -327,14 +369,14 @@ impl<'a> Analysis<'a> {
                     self.expr_ctl(f, *a, ctl);
                     self.expr_ctl(f, *b, ctl);
                 }
-                self.block(f, body, true)
+                self.block(f, body, Level::Varying)
             }
             StmtKind::Solar { cone, body } => {
                 if let Some((a, b)) = cone {
                     self.expr_ctl(f, *a, ctl);
                     self.expr_ctl(f, *b, ctl);
                 }
-                self.block(f, body, true)
+                self.block(f, body, Level::Varying)
             }
             StmtKind::Gather { category, position, direction, angle, samples, params, body, otherwise } => {
                 for e in [category, position, direction, angle, samples] {
@@ -348,13 +390,13 @@ impl<'a> Analysis<'a> {
                         }
                         Arg::Ref(p) => {
                             if let PlaceBase::Var(v) = p.base {
-                                self.mark(v, true, false, s.span);
+                                self.mark(v, Level::Varying, Level::Uniform, s.span);
                             }
                         }
                     }
                 }
-                let a = self.block(f, body, true);
-                let b = self.block(f, otherwise, true);
+                let a = self.block(f, body, Level::Varying);
+                let b = self.block(f, otherwise, Level::Varying);
                 Exits {
                     loop_exit: a.loop_exit.max(b.loop_exit).saturating_sub(1),
                     func_exit: a.func_exit || b.func_exit,
@@ -364,88 +406,88 @@ impl<'a> Analysis<'a> {
     }
 
     /// Evaluates an expression under the given control flow and returns whether it is varying.
-    fn expr_ctl(&mut self, f: &Function, id: ExprId, ctl: bool) -> bool {
+    fn expr_ctl(&mut self, f: &Function, id: ExprId, ctl: Level) -> Level {
         self.walk(f, id, ctl)
     }
 
-    fn expr(&mut self, f: &Function, id: ExprId) -> bool {
-        self.walk(f, id, false)
+    fn expr(&mut self, f: &Function, id: ExprId) -> Level {
+        self.walk(f, id, Level::Uniform)
     }
 
-    fn place_written(&mut self, f: &Function, place: &ir::Place, value_varying: bool, ctl: bool, span: Span) {
-        let mut index_varying = false;
+    fn place_written(&mut self, f: &Function, place: &ir::Place, value: Level, ctl: Level, span: Span) {
+        let mut index = Level::Uniform;
         for i in [place.index, place.component].into_iter().flatten() {
-            index_varying |= self.walk(f, i, ctl);
+            index = index.max(self.walk(f, i, ctl));
         }
         if let PlaceBase::Var(v) = place.base {
-            self.mark(v, value_varying || index_varying, ctl, span);
+            self.mark(v, value.max(index), ctl, span);
         }
     }
 
-    fn read_var(&mut self, var: VarId) -> bool {
+    fn read_var(&mut self, var: VarId) -> Level {
         let i = var.0 as usize;
         self.read[i] = true;
-        self.var_varying[i]
+        self.var_level(i)
     }
 
-    fn walk(&mut self, f: &Function, id: ExprId, ctl: bool) -> bool {
+    fn walk(&mut self, f: &Function, id: ExprId, ctl: Level) -> Level {
         let e = f.expr(id);
-        let varying = match &e.kind {
-            ExprKind::Const(_) => false,
+        let level = match &e.kind {
+            ExprKind::Const(_) => Level::Uniform,
             ExprKind::Var(v) => self.read_var(*v),
-            ExprKind::Global(g) => g.def().varying_in(self.kind),
+            ExprKind::Global(g) => varying_if(g.def().varying_in(self.kind)),
             ExprKind::Index { base, index } => {
                 let a = self.walk(f, *base, ctl);
-                let b = self.walk(f, *index, ctl);
-                a || b
+                a.max(self.walk(f, *index, ctl))
             }
             ExprKind::Unary { arg, .. } | ExprKind::Convert { arg } => self.walk(f, *arg, ctl),
             ExprKind::Binary { lhs, rhs, .. } => {
                 let a = self.walk(f, *lhs, ctl);
-                let b = self.walk(f, *rhs, ctl);
-                a || b
+                a.max(self.walk(f, *rhs, ctl))
             }
             ExprKind::Construct { args } | ExprKind::ArrayLiteral { elements: args } => {
-                let mut v = false;
-                for a in args {
-                    v |= self.walk(f, *a, ctl);
-                }
-                v
+                args.iter().fold(Level::Uniform, |v, a| v.max(self.walk(f, *a, ctl)))
             }
             ExprKind::SpaceCast { space, arg } => {
                 let a = self.walk(f, *space, ctl);
-                let b = self.walk(f, *arg, ctl);
-                a || b
+                a.max(self.walk(f, *arg, ctl))
             }
             ExprKind::Select { cond, a, b } => {
                 let c = self.walk(f, *cond, ctl);
-                let x = self.walk(f, *a, ctl || c);
-                let y = self.walk(f, *b, ctl || c);
-                c || x || y
+                let x = self.walk(f, *a, ctl.max(c));
+                let y = self.walk(f, *b, ctl.max(c));
+                c.max(x).max(y)
             }
             ExprKind::CallBuiltin { builtin, args, .. } => {
                 let fl = builtin.flags();
                 // `incident()`/`opposite()` answer from the volume on each lane's side of its
                 // surface, so even whether they find the name varies.
-                let mut v = (fl & flags::VARYING != 0 && !(*builtin == Builtin::Random && self.random_uniform))
-                    || matches!(builtin, Builtin::Incident | Builtin::Opposite);
+                let mut v = varying_if(
+                    (fl & flags::VARYING != 0 && !(*builtin == Builtin::Random && self.random_uniform))
+                        || matches!(builtin, Builtin::Incident | Builtin::Opposite),
+                );
                 // `rayinfo()` answers from each lane's ray (the ray parameters of its pixel and of
                 // the objects on its path), unless its destination is declared uniform: that takes
                 // one lane's answer, as a uniform `random()` does.
                 if *builtin == Builtin::Rayinfo {
-                    v |= args.iter().any(|a| match a {
-                        Arg::Ref(p) => !matches!(p.base, PlaceBase::Var(var)
-                            if self.fixed[var.0 as usize] && !self.var_varying[var.0 as usize]),
+                    let per_lane = args.iter().any(|a| match a {
+                        Arg::Ref(p) => !matches!(p.base, PlaceBase::Var(var) if self.declared_uniform(var)),
                         Arg::Value(_) => false,
                     });
+                    v = v.max(varying_if(per_lane));
                 }
                 for a in args {
                     if let Arg::Value(x) = a {
-                        v |= self.walk(f, *x, ctl);
+                        v = v.max(self.walk(f, *x, ctl));
                     }
                 }
-                // Parameters of other shaders may vary; options, attributes and renderer facts do not.
-                let from_shader = matches!(
+                // Parameters of other shaders may vary; options, attributes and renderer facts do
+                // not. A destination declared uniform takes one lane's answer, as for `rayinfo()`.
+                let to_uniform = args
+                    .iter()
+                    .any(|a| matches!(a, Arg::Ref(p) if matches!(p.base, PlaceBase::Var(var) if self.declared_uniform(var))));
+                let from_shader = !to_uniform
+                    && matches!(
                     builtin,
                     Builtin::Surface
                         | Builtin::Displacement
@@ -454,23 +496,23 @@ impl<'a> Analysis<'a> {
                         | Builtin::Incident
                         | Builtin::Opposite
                 );
-                let out_varying = v || (fl & flags::MESSAGE != 0 && from_shader);
+                let out = v.max(varying_if(fl & flags::MESSAGE != 0 && from_shader));
                 for a in args {
                     if let Arg::Ref(p) = a {
-                        self.place_written(f, p, out_varying, ctl, e.span);
+                        self.place_written(f, p, out, ctl, e.span);
                     }
                 }
                 v
             }
             ExprKind::Call { func, args } => {
-                let mut v = self.reads.get(func.0 as usize).copied().unwrap_or(true);
+                let mut v = self.reads.get(func.0 as usize).copied().unwrap_or(Level::Varying);
                 for a in args {
                     match a {
-                        Arg::Value(x) => v |= self.walk(f, *x, ctl),
+                        Arg::Value(x) => v = v.max(self.walk(f, *x, ctl)),
                         Arg::Ref(p) => {
                             if let PlaceBase::Var(var) = p.base {
                                 // Captured variables and in-out arguments carry values in.
-                                v |= self.read_var(var);
+                                v = v.max(self.read_var(var));
                             }
                         }
                     }
@@ -488,24 +530,31 @@ impl<'a> Analysis<'a> {
             ExprKind::Assign { place, op, value } => {
                 // `random()` assigned to a variable declared uniform is one number for the batch,
                 // as in RenderMan (a uniform `random()`), not a varying value.
-                let to_uniform = matches!(place.base, PlaceBase::Var(var)
-                    if self.fixed[var.0 as usize] && !self.var_varying[var.0 as usize]);
+                let to_uniform = matches!(place.base, PlaceBase::Var(var) if self.declared_uniform(var));
                 let outer = std::mem::replace(&mut self.random_uniform, to_uniform);
                 let mut v = self.walk(f, *value, ctl);
                 self.random_uniform = outer;
                 if op.is_some() {
                     if let PlaceBase::Var(var) = place.base {
-                        v |= self.read_var(var);
+                        v = v.max(self.read_var(var));
                     } else {
-                        v = true;
+                        v = Level::Varying;
                     }
                 }
                 self.place_written(f, place, v, ctl, e.span);
-                v || ctl
+                v.max(ctl)
             }
         };
-        self.expr_varying[id.0 as usize] = varying;
-        varying
+        self.expr_varying[id.0 as usize] = level;
+        level
+    }
+}
+
+fn varying_if(varying: bool) -> Level {
+    if varying {
+        Level::Varying
+    } else {
+        Level::Uniform
     }
 }
 

@@ -3,7 +3,7 @@
 //! interpreter's copy-in/copy-out semantics (in uniform mode where the call allows it).
 
 use super::deriv::Dual;
-use super::stmt::divergent_return;
+use super::stmt::{divergent_return, may_write};
 use super::{Idx, Lower, Val, R};
 use crate::back::jit::layout::components;
 use crate::back::jit::mask::{and, choose, fconst, is_vec, konst, not, or, to_mask, widen};
@@ -428,6 +428,11 @@ impl<'m> Lower<'m, '_> {
         for (k, t) in places.iter().enumerate() {
             let Some(t) = t else { continue };
             let pv = callee.params[k];
+            // A parameter the callee never writes holds what was copied in: nothing to copy back
+            // (and a uniform capture read under varying control flow could not take it).
+            if !may_write(callee, pv.0 as usize) {
+                continue;
+            }
             let s = frame.vars[pv.0 as usize].clone().ok_or_else(|| JitError::Codegen("parameter".into()))?;
             let v = self.read_store(&s);
             let d = frame.dvars[pv.0 as usize].clone().map(|[x, y]| [self.read_store(&x).c, self.read_store(&y).c]);

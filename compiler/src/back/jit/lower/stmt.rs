@@ -252,6 +252,27 @@ pub(super) fn assigned(f: &Function, var: usize) -> bool {
     })
 }
 
+/// Whether `f` may write its variable `var`: by assignment, as an output argument, or as a
+/// `gather` output.
+pub(super) fn may_write(f: &Function, var: usize) -> bool {
+    fn gathers_into(blk: &ir::Block, var: usize) -> bool {
+        blk.stmts.iter().any(|s| match &s.kind {
+            StmtKind::Gather { params, body, otherwise, .. } => {
+                params.iter().any(|(_, a)| matches!(a, Arg::Ref(p) if p.base == PlaceBase::Var(ir::VarId(var as u32))))
+                    || gathers_into(body, var)
+                    || gathers_into(otherwise, var)
+            }
+            StmtKind::If { then, otherwise, .. } => gathers_into(then, var) || gathers_into(otherwise, var),
+            StmtKind::Loop { body, step, .. } => gathers_into(body, var) || gathers_into(step, var),
+            StmtKind::Illuminance { body, .. } | StmtKind::Illuminate { body, .. } | StmtKind::Solar { body, .. } => {
+                gathers_into(body, var)
+            }
+            _ => false,
+        })
+    }
+    assigned(f, var) || gathers_into(&f.body, var)
+}
+
 /// Whether a `return` in `blk` can run under a varying condition (`vdepth > 0`).
 pub(super) fn divergent_return(f: &Function, blk: &ir::Block, vdepth: u32) -> bool {
     blk.stmts.iter().any(|s| match &s.kind {
