@@ -73,6 +73,36 @@ fn the_loop_budget_holds_per_invocation_in_both_back_ends() {
     }
 }
 
+/// A ray march that steps by `clamp(step, smallest, end - d)`, as Advanced RenderMan's `smoke`
+/// volume shader does, ends: at its last step `lo > hi`, and RISpec's `clamp` then gives `lo` for
+/// a step below `lo` (moving past the end) where `min(max(x, lo), hi)` would give 0 for ever.
+#[test]
+fn a_ray_march_clamped_to_its_end_ends_in_both_back_ends() {
+    let src = "surface t() {\n  float d = 0, end = 1 + s, ss = 0.3, steps = 0;\n  while (d <= end) {\n    ss = clamp(ss, 0.005, end - d);\n    d += ss;\n    steps += 1;\n  }\n  Ci = color(d - end, steps, clamp(s, 0.75, 0.25));\n}\n";
+    let shader = compiled_with_sources(src, 1000);
+    let mut batch = shader.batch(6);
+    let s_of = |lane: usize| 0.05 + 0.17 * lane as f32;
+    for lane in 0..6 {
+        batch.set_global("s", lane, &[s_of(lane)]);
+    }
+    shader.shade(&mut batch);
+    assert!(shader.runtime_errors().is_empty(), "{:?}", shader.runtime_errors());
+    let m = module(src);
+    for lane in 0..6 {
+        let jit = batch.global("Ci", lane).expect("Ci");
+        let mut point = ShadingPoint::new(m.shader.as_ref().expect("shader").kind);
+        point.set("s", Value::Float(s_of(lane)));
+        let r = interp::run(&m, &[], &mut point, &mut TestHost::default(), Limits::default()).expect("runs");
+        assert!(r.stopped_loops.is_empty(), "lane {lane}");
+        assert_eq!(floats_of(point.get("Ci").expect("Ci")), jit, "lane {lane}");
+        // Past the end by at most the smallest step, in a handful of steps.
+        assert!(jit[0] > 0.0 && jit[0] <= 0.005, "lane {lane}: {jit:?}");
+        assert!(jit[1] < 12.0, "lane {lane}: {jit:?}");
+        // Below `lo` where `lo > hi`: `lo`; otherwise `hi`.
+        assert_eq!(jit[2], if s_of(lane) < 0.75 { 0.75 } else { 0.25 }, "lane {lane}");
+    }
+}
+
 #[test]
 fn an_index_out_of_range_is_clamped_and_reported() {
     let shader = compiled_with_sources(

@@ -108,7 +108,7 @@ builtins! {
     Mod "mod" ["T(T,T)"] 0, Inline, "a - b*floor(a/b)";
     Min "min" ["T(T,T,T*)"] 0, Inline, "smallest argument, per component";
     Max "max" ["T(T,T,T*)"] 0, Inline, "largest argument, per component";
-    Clamp "clamp" ["T(T,T,T)"] 0, Inline, "min(max(a, lo), hi)";
+    Clamp "clamp" ["T(T,T,T)"] 0, Inline, "lo below lo, hi above hi, else a";
     Mix "mix" ["T(T,T,f)", "G(G,G,G)"] 0, Inline, "x*(1-a) + y*a";
     Step "step" ["T(T,T)"] 0, Inline, "0 if value < min, else 1";
     Smoothstep "smoothstep" ["T(T,T,T)"] 0, Inline, "Hermite step from min to max";

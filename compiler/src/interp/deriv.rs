@@ -157,21 +157,12 @@ fn builtin_tangent(b: Builtin, vals: &[Value], t: &[Value], r: &Value) -> Value 
             dacc
         }
         Builtin::Clamp => {
-            // `geom::clamp`: y = x > lo ? x : lo; y < hi ? y : hi.
+            // `geom::clamp`: y = x > lo ? x : lo; y < hi ? y : (x >= lo ? hi : lo).
+            let pick = |c: f32, p: f32, q: f32| if c != 0.0 { p } else { q };
             let y = map2(&v(0), &v(1), |x, lo| if x > lo { x } else { lo });
-            let dy = map3(&map2(&v(0), &v(1), |x, lo| f32::from(u8::from(x > lo))), &d(0), &d(1), |c, p, q| {
-                if c != 0.0 {
-                    p
-                } else {
-                    q
-                }
-            });
-            map3(
-                &map2(&y, &v(2), |y, hi| f32::from(u8::from(y < hi))),
-                &dy,
-                &d(2),
-                |c, p, q| if c != 0.0 { p } else { q },
-            )
+            let dy = map3(&map2(&v(0), &v(1), |x, lo| f32::from(u8::from(x > lo))), &d(0), &d(1), pick);
+            let dbound = map3(&map2(&v(0), &v(1), |x, lo| f32::from(u8::from(x >= lo))), &d(2), &d(1), pick);
+            map3(&map2(&y, &v(2), |y, hi| f32::from(u8::from(y < hi))), &dy, &dbound, pick)
         }
         Builtin::Mix => {
             // x * (1 - a) + y * a

@@ -220,15 +220,20 @@ pub fn mix(x: f32, y: f32, a: f32) -> f32 {
     x * (1.0 - a) + y * a
 }
 
-/// RSL's `clamp(x, lo, hi)`: `min(max(x, lo), hi)`, with `max(x, lo) = if x > lo { x } else { lo }`
-/// and `min(y, hi) = if y < hi { y } else { hi }`. So `lo > hi` gives `hi`, and a NaN `x` gives `lo`
-/// (clamp scrubs NaN).
+/// RSL's `clamp(x, lo, hi)`: `lo` where `x` is below `lo`, `hi` where it is above `hi`, else `x`
+/// (RISpec's words), and `lo` for a NaN `x` (clamp scrubs NaN). Where `lo > hi`, a value below `lo`
+/// gives `lo` and any other `hi`: a ray march that steps by `clamp(step, smallest, end - d)` then
+/// moves on past its end instead of stepping by 0 for ever. Evaluated as `y = x > lo ? x : lo;
+/// y < hi ? y : (x >= lo ? hi : lo)`, which the JIT and the derivatives follow comparison for
+/// comparison.
 pub fn clamp(x: f32, lo: f32, hi: f32) -> f32 {
     let y = if x > lo { x } else { lo };
     if y < hi {
         y
-    } else {
+    } else if x >= lo {
         hi
+    } else {
+        lo
     }
 }
 
@@ -504,7 +509,12 @@ mod tests {
         assert_eq!(clamp(-5.0, 0.0, 1.0), 0.0);
         assert_eq!(clamp(0.5, 0.0, 1.0), 0.5);
         assert_eq!(clamp(f32::NAN, 0.0, 1.0), 0.0);
-        assert_eq!(clamp(0.5, 1.0, 0.0), 0.0);
+        assert_eq!(clamp(0.5, 1.0, 0.0), 1.0, "below lo (lo > hi): lo");
+        assert_eq!(clamp(1.5, 1.0, 0.0), 0.0, "not below lo (lo > hi): hi");
+        assert_eq!(clamp(1.0, 1.0, 0.0), 0.0, "at lo (lo > hi): hi");
+        assert_eq!(clamp(f32::NAN, 1.0, 0.0), 1.0, "NaN: lo");
+        assert_eq!(clamp(-1.0, 0.5, 0.5), 0.5);
+        assert_eq!(clamp(2.0, 0.5, 0.5), 0.5);
         assert_eq!(mod_(5.5, 2.0), 1.5);
         assert_eq!(mod_(-0.5, 2.0), 1.5);
         assert_eq!(mod_(0.5, -2.0), -1.5);

@@ -36,12 +36,14 @@ pub(super) fn max(b: B<'_, '_>, x: Value, y: Value) -> Value {
     choose(b, c, x, y)
 }
 
-/// `geom::clamp`: `y = x > lo ? x : lo; y < hi ? y : hi`.
+/// `geom::clamp`: `y = x > lo ? x : lo; y < hi ? y : (x >= lo ? hi : lo)`.
 pub(super) fn clamp(b: B<'_, '_>, x: Value, lo: Value, hi: Value) -> Value {
     let c = b.ins().fcmp(FloatCC::GreaterThan, x, lo);
     let y = choose(b, c, x, lo);
+    let inside = b.ins().fcmp(FloatCC::GreaterThanOrEqual, x, lo);
+    let bound = choose(b, inside, hi, lo);
     let c = b.ins().fcmp(FloatCC::LessThan, y, hi);
-    choose(b, c, y, hi)
+    choose(b, c, y, bound)
 }
 
 /// `geom::sign`.

@@ -855,7 +855,9 @@ impl<'m> Lower<'m, '_> {
                             let dy = choose(&mut self.b, c1, td(0)[i], td(1)[i]);
                             let y = choose(&mut self.b, c1, xi, li);
                             let c2 = self.b.ins().fcmp(FloatCC::LessThan, y, hv);
-                            choose(&mut self.b, c2, dy, td(2)[i])
+                            let inside = self.b.ins().fcmp(FloatCC::GreaterThanOrEqual, xi, li);
+                            let dbound = choose(&mut self.b, inside, td(2)[i], td(1)[i]);
+                            choose(&mut self.b, c2, dy, dbound)
                         })
                         .collect()
                 }
