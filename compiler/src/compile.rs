@@ -190,6 +190,7 @@ fn compile_loaded(mut sources: SourceMap, file: FileId, options: &Options, sessi
         }
     }
     drop_syntax_cascades(&mut diags, &sources);
+    drop_quieted_warnings(&mut diags, &sources, file, &pre.nolint);
     diags.finish();
     let suppressed = diags.cap();
     // After the cap: only the diagnostics shown are looked up among the expansions.
@@ -206,6 +207,23 @@ fn compile_loaded(mut sources: SourceMap, file: FileId, options: &Options, sessi
         sources,
         suppressed,
     }
+}
+
+/// Warnings nobody asked for: those on the line after a `#pragma nolint`, and unused variables and
+/// parameters in included headers (library code the shader's author does not edit, which every
+/// shader including it would repeat; the compiled file's own are still reported).
+fn drop_quieted_warnings(diags: &mut Diagnostics, sources: &SourceMap, main: FileId, nolint: &[(FileId, usize)]) {
+    use crate::diagnostic::{Code, Severity};
+    diags.list.retain(|d| {
+        if d.severity != Severity::Warning {
+            return true;
+        }
+        if matches!(d.code, Code::UnusedVariable | Code::UnusedParameter) && d.span.file != main {
+            return false;
+        }
+        let line = sources.get(d.span.file).line_index(d.span.start);
+        !line.checked_sub(1).is_some_and(|above| nolint.contains(&(d.span.file, above)))
+    });
 }
 
 /// A bad character or unterminated string is dropped by the preprocessor, so the parser usually

@@ -69,6 +69,18 @@ fn broken_shaders_report_the_expected_diagnostics() {
     assert!(error_kinds.len() >= 30, "only {} distinct error kinds are tested: {error_kinds:?}", error_kinds.len());
 }
 
+/// Warnings the shader's author did not ask for are not shown: unused variables and parameters in
+/// an included header (library code), and any warning on the line after `#pragma nolint`, which
+/// is itself taken without a word. The compiled file's own unused variable is still reported.
+#[test]
+fn headers_unused_names_and_nolint_lines_are_quiet() {
+    let path = Path::new("tests").join("check").join("quiet").join("quiet.sl");
+    let c = compile_file(&path, &Options::default()).expect("readable");
+    assert!(c.ok(), "{}", c.render());
+    let shown: Vec<(&str, &str)> = c.diagnostics.iter().map(|d| (d.code.as_str(), d.message.as_str())).collect();
+    assert_eq!(shown, [("W0001", "unused variable `noisy`")], "{}", c.render());
+}
+
 /// `docs/diagnostics.md` is generated from the code table; `RTSL_BLESS=1` regenerates it.
 #[test]
 fn every_diagnostic_code_is_documented() {

@@ -139,6 +139,9 @@ pub struct Output {
     pub aborted: bool,
     /// Every macro call written in a file, in order: diagnostics inside one say which macro.
     pub expansions: Vec<Expansion>,
+    /// The lines (file, 0-based line) of each `#pragma nolint`: warnings on the line after one are
+    /// dropped.
+    pub nolint: Vec<(FileId, usize)>,
 }
 
 /// A macro call written in a source file.
@@ -177,6 +180,7 @@ pub fn preprocess(
         produced: 0,
         aborted: false,
         expansions: Vec::new(),
+        nolint: Vec::new(),
         end_span: Span::default(),
         isolated_depth: 0,
         read_files: Vec::new(),
@@ -222,7 +226,7 @@ pub fn preprocess(
             _ => out.push(t),
         }
     }
-    Output { tokens: out, files: pp.read_files, aborted: pp.aborted, expansions: pp.expansions }
+    Output { tokens: out, files: pp.read_files, aborted: pp.aborted, expansions: pp.expansions, nolint: pp.nolint }
 }
 
 struct Preprocessor<'a> {
@@ -242,6 +246,7 @@ struct Preprocessor<'a> {
     produced: usize,
     aborted: bool,
     expansions: Vec<Expansion>,
+    nolint: Vec<(FileId, usize)>,
     /// The end of the main file, where a premature end of input is reported.
     end_span: Span,
     isolated_depth: usize,
@@ -584,6 +589,11 @@ impl Preprocessor<'_> {
                     if let Some(f) = self.files.last() {
                         self.pragma_once.insert(f.file);
                     }
+                } else if pragma == "nolint" {
+                    // The lint pragma of RenderMan shader compilers (Advanced RenderMan's shaders
+                    // put it before a line a lint would question): quiet the next line.
+                    let line = self.sources.get(span.file).line_index(span.start);
+                    self.nolint.push((span.file, line));
                 } else {
                     self.diags.push(
                         Diagnostic::new(Code::UnknownDirective, span, format!("unknown pragma `{pragma}` is ignored"))
