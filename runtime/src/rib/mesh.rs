@@ -749,6 +749,11 @@ mod tests {
         );
         assert_eq!(ring.triangle_count(), 6);
         assert_eq!(ring.attributes[0].data.len(), 3 * ring.positions.len());
+        // `nowrap`, the older name of `nonperiodic`, makes the same mesh.
+        let (old_name, _) = only_mesh(
+            r#"PatchMesh "bilinear" 3 "periodic" 2 "nowrap" "P" [1 0 0 -1 1 0 -1 -1 0 1 0 1 -1 1 1 -1 -1 1] "Cs" [1 0 0 0 1 0 0 0 1 1 0 0 0 1 0 0 0 1]"#,
+        );
+        assert_eq!((old_name.positions, old_name.triangles), (ring.positions.clone(), ring.triangles.clone()));
         let max_u = ring.uvs.as_ref().unwrap().iter().fold(0.0f32, |m, uv| m.max(uv.x));
         assert_eq!(max_u, 1.0);
     }

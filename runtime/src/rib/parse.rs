@@ -1502,7 +1502,9 @@ impl<'a> Args<'a> {
         let (text, loc) = self.string_at("wrap mode")?;
         match text.as_str() {
             "periodic" => Ok(Wrap::Periodic),
-            "nonperiodic" => Ok(Wrap::NonPeriodic),
+            // `nowrap` is the older name (`RI_NOWRAP` in ri.h), which the RenderMan Companion's
+            // RIB files use.
+            "nonperiodic" | "nowrap" => Ok(Wrap::NonPeriodic),
             other => {
                 Err(error(&loc, format!("unknown wrap mode \"{other}\" (expected \"periodic\" or \"nonperiodic\")")))
             }
