@@ -1743,3 +1743,24 @@ fn bench_trace_reports_each_builds_page_faults() {
     assert_eq!(bogus, kernels);
     assert!(said.contains("RTSL_ISA=\"avx1024\"") && said.contains("ignored"), "{said}");
 }
+
+/// `-S` takes a list of directories separated by `:`, as `RTSL_SHADER_PATH` does, and says which
+/// of them does not exist.
+#[test]
+fn shader_path_lists_are_split_and_missing_directories_named() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    write(dir.path(), "shaders/flat.sl", "surface flat() { Ci = color(0.25, 0.5, 1); Oi = 1; }\n");
+    write(
+        dir.path(),
+        "scenes/scene.rib",
+        "Format 16 12 1\nDisplay \"out.exr\" \"file\" \"rgba\"\nTranslate 0 0 5\nWorldBegin\nSurface \"flat\"\n\
+         Polygon \"P\" [-9 -9 0 9 -9 0 9 9 0 -9 9 0]\nWorldEnd\n",
+    );
+    let scenes = dir.path().join("scenes");
+    let o = rtsl(&["render", "scene.rib", "-S", "../nowhere:../shaders", "-q"], &scenes);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(stderr(&o).contains("shader search directory ../nowhere does not exist"), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("no shader named"), "{}", stderr(&o));
+    let image = rtsl_runtime::read_image(scenes.join("out.exr")).expect("the image");
+    assert_eq!(&pixel(&image, 8, 6)[..3], &[0.25, 0.5, 1.0]);
+}

@@ -205,8 +205,9 @@ pub struct BenchRenderArgs {
     /// `--mpi` the tiles then carry 24 bytes a pixel instead of 16).
     #[arg(long)]
     pub depth_and_ids: bool,
-    /// Directories searched for shaders by name.
-    #[arg(short = 'S', long = "shader-path")]
+    /// Directories searched for shaders by name (repeatable, or a list
+    /// separated by `:` as in `RTSL_SHADER_PATH`).
+    #[arg(short = 'S', long = "shader-path", value_delimiter = crate::cli::PATH_LIST_SEPARATOR)]
     pub shader_path: Vec<PathBuf>,
     /// Render over the ranks of an `mpirun` job: rank 0 times the frames, the others render tiles
     /// (`--threads` each; docs/distributed.md).

@@ -17,8 +17,9 @@ pub struct InfoArgs {
     /// `RTSL_SHADER_PATH`, then the library).
     #[arg(value_name = "FILE|DIR|NAME", required = true)]
     pub files: Vec<PathBuf>,
-    /// Directories searched for shaders by name, before the standard library.
-    #[arg(short = 'S', long = "shader-path")]
+    /// Directories searched for shaders by name, before the standard library (repeatable, or a list
+    /// separated by `:` as in `RTSL_SHADER_PATH`).
+    #[arg(short = 'S', long = "shader-path", value_delimiter = crate::cli::PATH_LIST_SEPARATOR)]
     pub shader_path: Vec<PathBuf>,
     /// Print only the file each name resolves to.
     #[arg(long)]

@@ -43,8 +43,9 @@ pub struct CaptureArgs {
     /// Worker threads (0: one per core).
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
-    /// Directories searched for shaders by name.
-    #[arg(short = 'S', long = "shader-path")]
+    /// Directories searched for shaders by name (repeatable, or a list
+    /// separated by `:` as in `RTSL_SHADER_PATH`).
+    #[arg(short = 'S', long = "shader-path", value_delimiter = crate::cli::PATH_LIST_SEPARATOR)]
     pub shader_path: Vec<PathBuf>,
 }
 

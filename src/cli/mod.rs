@@ -120,6 +120,10 @@ pub fn run() -> anyhow::Result<ExitCode> {
     }
 }
 
+/// What separates the directories of one `-S` value, as in `RTSL_SHADER_PATH` and RenderMan's
+/// search paths (`std::env::split_paths`'s separator).
+pub(crate) const PATH_LIST_SEPARATOR: char = if cfg!(windows) { ';' } else { ':' };
+
 /// The most worker threads `--threads` may ask for. Every worker keeps state of its own (statistics
 /// slots, scratch buffers, a pool of batches), and rayon's idle workers spin before they sleep, so
 /// thousands of them on a few cores make a frame take minutes; a count this high is a mistake.

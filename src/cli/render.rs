@@ -82,8 +82,9 @@ pub struct RenderArgs {
     /// Directories searched for `#include`d shader headers.
     #[arg(short = 'I', long = "include")]
     pub include: Vec<PathBuf>,
-    /// Directories searched for shaders by name, before the standard library.
-    #[arg(short = 'S', long = "shader-path")]
+    /// Directories searched for shaders by name, before the standard library (repeatable, or a list
+    /// separated by `:` as in `RTSL_SHADER_PATH`).
+    #[arg(short = 'S', long = "shader-path", value_delimiter = crate::cli::PATH_LIST_SEPARATOR)]
     pub shader_path: Vec<PathBuf>,
     /// How 8-bit images (PNG, TGA, PPM) encode colour: `srgb` for display, or `linear` (the values
     /// as rendered). Without it, sRGB unless the scene's `Exposure` applies a gamma of its own. EXR
@@ -730,6 +731,9 @@ impl SharedCaches {
 /// A context with the search paths of the flags and the environment.
 pub(crate) fn new_context(shader_path: &[PathBuf], include: &[PathBuf]) -> Context {
     let mut rt = Context::new();
+    for dir in shader_path.iter().filter(|d| !d.as_os_str().is_empty() && !d.is_dir()) {
+        eprintln!("warning: shader search directory {} does not exist", dir.display());
+    }
     let mut search: Vec<PathBuf> = shader_path.to_vec();
     if let Ok(env) = std::env::var("RTSL_SHADER_PATH") {
         search.extend(std::env::split_paths(&env));

@@ -78,8 +78,9 @@ pub struct ViewArgs {
     /// Directories searched for `#include`d shader headers.
     #[arg(short = 'I', long = "include")]
     pub include: Vec<PathBuf>,
-    /// Directories searched for shaders by name, before the standard library.
-    #[arg(short = 'S', long = "shader-path")]
+    /// Directories searched for shaders by name, before the standard library (repeatable, or a list
+    /// separated by `:` as in `RTSL_SHADER_PATH`).
+    #[arg(short = 'S', long = "shader-path", value_delimiter = crate::cli::PATH_LIST_SEPARATOR)]
     pub shader_path: Vec<PathBuf>,
     /// Render over the ranks of an `mpirun` job: rank 0 opens the window and runs the viewer, the
     /// others trace its pixels (docs/distributed.md; needs a build with `--features mpi`).
