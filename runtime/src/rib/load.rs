@@ -1321,7 +1321,7 @@ impl<'a> Loader<'a> {
                     }
                 }
             }
-            K::ShadingInterpolation(_) | K::Bound(_) => {}
+            K::ShadingInterpolation(_) | K::GeometricRepresentation(_) | K::Bound(_) => {}
             // The reader evaluates conditionals; a list built by hand may still hold them.
             K::IfBegin(_) | K::ElseIf(_) | K::Else | K::IfEnd => {}
             K::TextureCoordinates(st) => self.state.mesh_options.texture_coordinates = *st,

@@ -558,6 +558,16 @@ impl<'s> Parser<'s> {
             "ReverseOrientation" => K::ReverseOrientation,
             "Matte" => K::Matte(a.int("on/off flag")? != 0),
             "ShadingInterpolation" => K::ShadingInterpolation(a.string("interpolation type")?),
+            "GeometricRepresentation" => {
+                let (representation, loc) = a.string_at("representation")?;
+                if representation != "primitive" {
+                    let message = format!(
+                        "GeometricRepresentation \"{representation}\" is not supported: surfaces are drawn whole"
+                    );
+                    self.diagnose(RibDiagnostic::warning(&loc, message));
+                }
+                K::GeometricRepresentation(representation)
+            }
             "Hider" => K::Hider(self.shader(a)?),
             "TextureCoordinates" => K::TextureCoordinates(a.floats("s1 t1 s2 t2 s3 t3 s4 t4")?),
             "Bound" => K::Bound(a.floats("xmin xmax ymin ymax zmin zmax")?),

@@ -447,6 +447,9 @@ pub enum RequestKind {
     Matte(bool),
     /// `ShadingInterpolation "constant"|"smooth"` (accepted; a ray tracer shades per hit).
     ShadingInterpolation(String),
+    /// `GeometricRepresentation "primitive"|"points"|"lines"` (accepted; surfaces are drawn whole,
+    /// and the reader warns about any other representation).
+    GeometricRepresentation(String),
     /// `Hider "type" params`
     Hider(Shader),
     /// `TextureCoordinates s1 t1 s2 t2 s3 t3 s4 t4`: the default `(s, t)` at the `(u, v)` corners
