@@ -669,4 +669,34 @@ mod tests {
         let StmtKind::Expr(e) = &stmts[2].kind else { panic!("{:?}", stmts[2]) };
         assert!(matches!(&e.kind, ExprKind::Call { name: n, .. } if name(n) == "surface"), "{e:?}");
     }
+
+    #[test]
+    fn parameter_groups_may_end_in_several_semicolons() {
+        // A macro of parameter declarations that ends in `;`, used as `AOVS;` (Aqsis's grammar takes
+        // `formals ';'` after any group). An empty list and a lone `;` between groups still parse
+        // as before; a list may not start with `;`.
+        let text = "surface s(float a = 1;; color b = 0; output varying color o1 = 0;;) { Ci = a; }\n\
+                    surface t() { }\n\
+                    surface u(float k = 1) { }\n";
+        let mut interner = Interner::new();
+        let mut diags = Diagnostics::default();
+        let tokens = crate::front::lex::lex(FileId(0), text, &mut interner);
+        let arena = bumpalo::Bump::new();
+        let unit = super::parse(&arena, &tokens, &mut interner, &mut diags);
+        assert!(diags.list.is_empty(), "{:?}", diags.list);
+        let counts: Vec<usize> = unit
+            .items
+            .iter()
+            .map(|item| match item {
+                Item::Shader(s) => s.params.len(),
+                other => panic!("{other:?}"),
+            })
+            .collect();
+        assert_eq!(counts, [3, 0, 1]);
+
+        let tokens = crate::front::lex::lex(FileId(0), "surface v(; float a = 1) { }", &mut interner);
+        let mut diags = Diagnostics::default();
+        super::parse(&arena, &tokens, &mut interner, &mut diags);
+        assert_eq!(diags.list.len(), 1, "{:?}", diags.list);
+    }
 }
