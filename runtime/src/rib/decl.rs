@@ -219,7 +219,10 @@ fn class_keyword(word: &str) -> Option<Class> {
         "uniform" => Class::Uniform,
         "varying" => Class::Varying,
         "vertex" => Class::Vertex,
-        "facevarying" => Class::FaceVarying,
+        // PRMan's `facevertex` is a value per face corner, as `facevarying`, interpolated with the
+        // surface's own basis where the two differ: on polygons they are the same; subdivision
+        // meshes refine both linearly here.
+        "facevarying" | "facevertex" => Class::FaceVarying,
         _ => return None,
     })
 }
@@ -343,6 +346,7 @@ mod tests {
         assert_eq!(parse_declaration("float").unwrap(), Decl::new(Class::Uniform, Ty::Float));
         let d = parse_declaration("facevarying float[2]").unwrap();
         assert_eq!((d.class, d.ty, d.array_len, d.components()), (Class::FaceVarying, Ty::Float, Some(2), 2));
+        assert_eq!(parse_declaration("facevertex float").unwrap().class, Class::FaceVarying);
         assert_eq!(parse_declaration("uniform float [ 3 ]").unwrap().array_len, Some(3));
         assert!(parse_declaration("uniform flaot").unwrap_err().contains("unknown type `flaot`"));
         assert!(parse_declaration("float[0]").is_err());

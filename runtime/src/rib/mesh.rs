@@ -692,6 +692,12 @@ mod tests {
         assert_eq!(mesh.attributes[0].data, vec![7.0, 7.0, 7.0, 9.0, 9.0, 9.0]);
         assert_eq!(mesh.uvs.as_ref().unwrap()[5], Vec2::new(0.0, 1.0));
         mesh.validate().unwrap();
+        // PRMan's `facevertex` class: a value per corner, as facevarying (lucille's `st1.rib`).
+        let (corners, _) = only_mesh(&format!(
+            r#"{text} "uniform float id" [7 9] "facevertex float[2] st" [0 0 1 0 1 1 0 0 1 1 0 1]"#
+        ));
+        assert_eq!(corners.uvs, mesh.uvs);
+        assert_eq!(corners.positions, mesh.positions);
     }
 
     #[test]
