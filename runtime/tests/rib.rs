@@ -550,7 +550,7 @@ proptest! {
         Just("\"bilinear\"".to_string()), Just("\"periodic\"".to_string()), Just("[".to_string()), Just("]".to_string()),
         Just("Torus".to_string()), Just("Basis".to_string()), Just("\"bicubic\"".to_string()),
         Just("\"b-spline\"".to_string()), Just("PointsPolygons".to_string()), Just("LightSource".to_string()),
-        Just("SubdivisionMesh".to_string()), Just("\"catmull-clark\"".to_string()), Just("\"crease\"".to_string()),
+        Just("SubdivisionMesh".to_string()), Just("HierarchicalSubdivisionMesh".to_string()), Just("\"catmull-clark\"".to_string()), Just("\"crease\"".to_string()),
         Just("\"hole\"".to_string()), Just("\"interpolateboundary\"".to_string()), Just("[]".to_string()),
         Just("ReadArchive".to_string()), Just("\"scene.rib\"".to_string()), Just("Declare".to_string()),
         (-3i32..8).prop_map(|n| n.to_string()), (-1_000_000i32..1_000_000).prop_map(|k| (k as f32 / 1e3).to_string()),

@@ -614,6 +614,51 @@ impl<'s> Parser<'s> {
                     params: self.params(a),
                 }
             }
+            "HierarchicalSubdivisionMesh" => {
+                // PRMan's form: three argument counts a tag (integers, floats, strings) and the
+                // string arguments after the floats. The tags read are the same as
+                // `SubdivisionMesh`'s, which take no strings; a tag's strings (`"creasemethod"`
+                // `["chaikin"]`) are counted and left, and the tag is warned of as unsupported.
+                let scheme = a.string("subdivision scheme")?;
+                let nvertices = a.ints("vertices per face")?;
+                let vertices = a.ints("vertex indices")?;
+                let tags = a.strings("tags")?;
+                let (counts, loc) = (a.ints("tag argument counts")?, a.loc.clone());
+                let intargs = a.ints("tag integer arguments")?;
+                let floatargs = a.numbers("tag float arguments")?;
+                let stringargs = a.strings("tag string arguments")?;
+                if counts.len() != 3 * tags.len() {
+                    return Err(error(
+                        &loc,
+                        format!(
+                            "`HierarchicalSubdivisionMesh` has {} tags, which take {} argument counts (three a tag), but {} are given",
+                            tags.len(),
+                            3 * tags.len(),
+                            counts.len()
+                        ),
+                    ));
+                }
+                let strings: i64 = counts.chunks(3).map(|c| i64::from(c[2])).sum();
+                if counts.chunks(3).any(|c| c[2] < 0) || strings != stringargs.len() as i64 {
+                    return Err(error(
+                        &loc,
+                        format!(
+                            "the tags' argument counts take {strings} string arguments, but {} are given",
+                            stringargs.len()
+                        ),
+                    ));
+                }
+                K::SubdivisionMesh {
+                    scheme,
+                    nvertices,
+                    vertices,
+                    tags,
+                    nargs: counts.chunks(3).flat_map(|c| [c[0], c[1]]).collect(),
+                    intargs,
+                    floatargs,
+                    params: self.params(a),
+                }
+            }
             "Patch" => K::Patch { ty: a.patch_type()?, params: self.params(a) },
             "PatchMesh" => K::PatchMesh {
                 ty: a.patch_type()?,

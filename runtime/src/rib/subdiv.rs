@@ -1605,6 +1605,37 @@ mod tests {
     }
 
     #[test]
+    fn hierarchical_meshes_are_subdivision_meshes_with_string_arguments() {
+        // PRMan's request as RenderMan for Maya writes it: three counts a tag, then strings.
+        let creased = creased_cube(2.0);
+        let (plain, _, _) = build(&creased);
+        let hierarchical = creased
+            .replace("SubdivisionMesh", "HierarchicalSubdivisionMesh")
+            .replace("[5 1 5 1 2 1 2 1 2 1 2 1]", "[5 1 0 5 1 0 2 1 0 2 1 0 2 1 0 2 1 0]")
+            .replace("2 2 2 2 2]", "2 2 2 2 2] []");
+        let (same, _, _) = build(&hierarchical);
+        assert_eq!((same.positions, same.triangles), (plain.positions, plain.triangles));
+        // A tag of strings alone is read past and warned of, as any tag this loader does not use.
+        let (_, diagnostics, _) = build(
+            &cube(r#"["creasemethod" "interpolateboundary"] [0 0 1 1 0 0] [1] [] ["chaikin"]"#, "")
+                .replace("SubdivisionMesh", "HierarchicalSubdivisionMesh"),
+        );
+        let messages: Vec<&str> = diagnostics.iter().map(|d| d.message.as_str()).collect();
+        assert_eq!(messages, ["subdivision mesh tag \"creasemethod\" is not supported and is ignored"]);
+
+        for (tags, message) in [
+            (r#"["corner"] [1 1] [0] [2.5] []"#, "which take 3 argument counts (three a tag), but 2 are given"),
+            (r#"["creasemethod"] [0 0 1] [] [] []"#, "take 1 string arguments, but 0 are given"),
+            (r#"["creasemethod"] [0 0 -1] [] [] ["a"]"#, "take -1 string arguments, but 1 are given"),
+        ] {
+            let parse = parse_str(&cube(tags, "").replace("SubdivisionMesh", "HierarchicalSubdivisionMesh"), "t.rib");
+            let errors: Vec<String> = parse.errors().map(ToString::to_string).collect();
+            assert!(errors.len() == 1 && errors[0].contains(message), "{tags}: {errors:?}");
+            assert!(parse.requests.is_empty());
+        }
+    }
+
+    #[test]
     fn tag_arrays_are_optional_in_the_request() {
         use crate::rib::RequestKind as K;
         let parse = parse_str(
