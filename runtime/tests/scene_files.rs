@@ -31,6 +31,44 @@ fn the_camera_is_the_transform_at_world_begin() {
 }
 
 #[test]
+fn coord_sys_transform_places_geometry_in_the_standard_spaces() {
+    // A backplane in camera space, as Slim writes one (RenderMan Repository's TLShaders): in front
+    // of the camera whichever way it looks. "world" undoes the camera's transform; "object" keeps
+    // the current one; the projective spaces are not supported and leave the transform alone.
+    let quad = r#"Polygon "P" [-1 -1 4  1 -1 4  1 1 4  -1 1 4]"#;
+    let (mut rt, warnings) = load(&format!(
+        r#"Format 64 48 1
+        Projection "perspective" "fov" [40]
+        Rotate 150 0 1 0
+        Translate 3 1 -2
+        WorldBegin
+        Surface "constant"
+        AttributeBegin
+          Color [1 0 0]
+          Rotate 30 1 0 0
+          CoordSysTransform "camera"
+          {quad}
+        AttributeEnd
+        AttributeBegin
+          Translate 0 50 0
+          CoordSysTransform "world"
+          CoordSysTransform "object"
+          Color [0 1 0]
+          # A small square three units straight ahead of the eye at (-3 -1 2), in world coordinates.
+          Polygon "P" [-4.76 -1.3 -0.448  -4.24 -1.3 -0.748  -4.24 -0.7 -0.748  -4.76 -0.7 -0.448]
+        AttributeEnd
+        CoordSysTransform "raster"
+        WorldEnd"#
+    ));
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    assert!(warnings[0].contains("projective space \"raster\" is not supported"), "{warnings:?}");
+    let fb = render(&mut rt);
+    assert_eq!(fb.pixel(32, 24)[..3], [0.0, 1.0, 0.0], "the square in world space, ahead of the eye");
+    assert_eq!(fb.pixel(44, 24)[..3], [1.0, 0.0, 0.0], "the backplane around it");
+    assert_eq!(fb.pixel(1, 1), [0.0; 4], "and not in the view's corners");
+}
+
+#[test]
 fn attribute_blocks_scope_colour_and_shaders() {
     let (mut rt, warnings) = load(&format!(
         r#"{CAMERA}

@@ -232,16 +232,22 @@ impl Context {
         self.spaces.insert(name.to_string(), self.matrix);
     }
 
-    /// Makes a named space current (RenderMan's `CoordSysTransform`); false for an unknown name.
+    /// Makes a named space current (RenderMan's `CoordSysTransform`): a space named with
+    /// [`Context::coordinate_system`], or one of RISpec's affine standard spaces, `"world"` and
+    /// `"camera"` (the camera set now), and `"object"` or `"current"`, the current space itself.
+    /// False for any other name (the projective spaces `"screen"`, `"NDC"` and `"raster"` among
+    /// them), which leaves the current space as it was.
     pub fn load_coordinate_system(&mut self, name: &str) -> bool {
-        match self.spaces.get(name) {
-            Some(m) => {
-                self.matrix = *m;
-                self.close_matrix = None;
-                true
-            }
-            None => false,
-        }
+        let m = match (self.spaces.get(name), name) {
+            (Some(m), _) => *m,
+            (None, "world") => Affine3A::IDENTITY,
+            (None, "camera") => self.camera.world_from_camera,
+            (None, "object" | "current") => return true,
+            (None, _) => return false,
+        };
+        self.matrix = m;
+        self.close_matrix = None;
+        true
     }
 
     /// A pinhole camera at `eye` looking at `target`; `fov_degrees` spans the image's shorter side.

@@ -1519,7 +1519,16 @@ impl<'a> Loader<'a> {
             K::Resource { name, ty, params } => self.resource(r, name, ty, params),
             K::CoordSysTransform(name) => {
                 if !rt.load_coordinate_system(name) {
-                    self.warn(r, format_args!("no coordinate system named \"{name}\""));
+                    if matches!(name.as_str(), "screen" | "NDC" | "raster") {
+                        self.warn(
+                            r,
+                            format_args!(
+                                "CoordSysTransform to the projective space \"{name}\" is not supported: the transform is left as it was"
+                            ),
+                        );
+                    } else {
+                        self.warn(r, format_args!("no coordinate system named \"{name}\""));
+                    }
                 }
             }
             K::Surface(s) => {
