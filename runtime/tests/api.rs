@@ -282,6 +282,20 @@ fn paths_are_taken_as_any_as_ref_path() {
     assert!(rtsl_runtime::api::find_shader_file("flat", &[dir_str]).is_some());
 }
 
+#[test]
+fn shader_files_with_latin1_comments_load() {
+    // Collections from the 1990s are Latin-1 (the RenderMan Repository's GNember.sl): the
+    // compiler reads them, and so does the engine where it loads a shader by file.
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let text = b"/* \xa9 1999 Ga\xebl */\nsurface latin(color tint = 1;) { Oi = 1; Ci = tint; }\n".to_vec();
+    assert!(String::from_utf8(text.clone()).is_err());
+    let file = dir.path().join("latin.sl");
+    std::fs::write(&file, &text).expect("written");
+    let mut rt = context();
+    let id = rt.shader_file(&file).expect("loads");
+    assert_eq!(rt.program(id).expect("loaded").name, "latin");
+}
+
 /// The mean brightness of the left and right halves of a frame.
 fn halves(rt: &mut Context) -> (f32, f32) {
     let (fb, _) = rt.render_frame().expect("renders");

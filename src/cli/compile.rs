@@ -320,7 +320,12 @@ pub fn bench_frontend(args: &BenchFrontendArgs) -> anyhow::Result<ExitCode> {
     // Read once, so that the timing covers the compiler, not the disk.
     let sources: Vec<(PathBuf, String)> = files
         .iter()
-        .map(|p| Ok((p.clone(), std::fs::read_to_string(p).with_context(|| format!("cannot read `{}`", p.display()))?)))
+        .map(|p| {
+            Ok((
+                p.clone(),
+                rtsl_compiler::source::read_source_text(p).with_context(|| format!("cannot read `{}`", p.display()))?,
+            ))
+        })
         .collect::<anyhow::Result<_>>()?;
     let mut lines = 0usize;
     let mut ok = 0usize;

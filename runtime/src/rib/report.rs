@@ -20,7 +20,8 @@ pub fn write_diagnostics(diagnostics: &[RibDiagnostic], out: &mut dyn WriteColor
     let config = term::Config::default();
     for d in diagnostics {
         let id = *ids.entry(&d.loc.file).or_insert_with(|| {
-            let text = std::fs::read_to_string(&d.loc.file).ok()?;
+            // A RIB file's comments may be in any 8-bit encoding; its requests read the same.
+            let text = String::from_utf8_lossy(&std::fs::read(&d.loc.file).ok()?).into_owned();
             Some(files.add(d.loc.file.display().to_string(), text))
         });
         let span = id.and_then(|id| Some((id, span_at(files.get(id).ok()?.source(), d.loc.line, d.loc.column)?)));

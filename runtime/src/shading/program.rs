@@ -185,8 +185,9 @@ impl ShaderProgram {
         if path.extension().is_some_and(|e| e == artifact::EXTENSION) {
             return Self::from_artifact(path, include_paths);
         }
-        let text =
-            std::fs::read_to_string(path).map_err(|cause| ShaderError::Io { path: path.to_path_buf(), cause })?;
+        // As the compiler reads files: Latin-1 in an old shader's comments is not a reason to refuse it.
+        let text = rtsl_compiler::source::read_source_text(path)
+            .map_err(|cause| ShaderError::Io { path: path.to_path_buf(), cause })?;
         let mut session = Session::new();
         let options = options(include_paths);
         let c = session.compile_source_at(path, &text, &options);
