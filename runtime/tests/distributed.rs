@@ -335,6 +335,11 @@ fn little_scene() -> Result<Context, String> {
     rt.end().map_err(e)?;
     rt.end_object().map_err(e)?;
     rt.instantiate_object(block).map_err(e)?;
+    // A second instance with an appearance of its own, which the workers must shade as it is.
+    rt.color(0.2, 0.4, 0.9);
+    rt.translate(1.1, 0.0, 0.0);
+    rt.instantiate_object_shaded(block).map_err(e)?;
+    rt.load_identity();
     let light = rt.find_shader("pointlight").map_err(e)?;
     rt.translate(1.0, 3.0, 2.0);
     rt.light_source(light, &[("intensity", ParamValue::Float(12.0))]).map_err(e)?;

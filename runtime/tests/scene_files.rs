@@ -439,6 +439,47 @@ fn retained_objects_are_instanced() {
 }
 
 #[test]
+fn instances_take_the_attributes_where_they_stand_unless_their_object_has_its_own() {
+    // RISpec 3.2: "All of an object's attributes are inherited at the time it is instanced". An
+    // object defined before the world (as RenderMan for Maya writes them), instanced under three
+    // colours and two shaders; and one whose block sets its colour, which keeps it.
+    let square = r#"Polygon "P" [-0.4 -0.4 0  0.4 -0.4 0  0.4 0.4 0  -0.4 0.4 0]"#;
+    let (mut rt, warnings) = load(&format!(
+        r#"Format 64 48 1
+        Projection "perspective" "fov" [40]
+        ObjectBegin 1 {square} ObjectEnd
+        ObjectBegin 2 Color [0 0 1] {square} ObjectEnd
+        Translate 0 0 5
+        WorldBegin
+        Surface "constant"
+        AttributeBegin Translate -1 0.5 0 Color [1 0 0] ObjectInstance 1 AttributeEnd
+        AttributeBegin Translate 0 0.5 0 Color [0 1 0] ObjectInstance 1 AttributeEnd
+        AttributeBegin Translate 1 0.5 0 Color [1 0 0] ObjectInstance 1 AttributeEnd
+        AttributeBegin Translate -1 -0.5 0 Color [0.5 0.5 0.5] Surface "matte" ObjectInstance 1 AttributeEnd
+        AttributeBegin Translate 1 -0.5 0 Color [1 0 0] ObjectInstance 2 AttributeEnd
+        WorldEnd"#
+    ));
+    assert!(warnings.is_empty(), "{warnings:?}");
+    let fb = render(&mut rt);
+    let rgb = |x: u32, y: u32| fb.pixel(x, y)[..3].to_vec();
+    let (left, middle, right, top, bottom) = (17, 32, 47, 17, 31);
+    assert_eq!(rgb(left, top), [1.0, 0.0, 0.0]);
+    assert_eq!(rgb(middle, top), [0.0, 1.0, 0.0]);
+    assert_eq!(rgb(right, top), [1.0, 0.0, 0.0]);
+    // `matte` with no light: black, not the constant grey.
+    assert_eq!(fb.pixel(left, bottom), [0.0, 0.0, 0.0, 1.0]);
+    // Its own colour, and its own (default) surface shader too: rtsl keeps all of an object's
+    // attributes when its block sets any.
+    let own = rgb(right, bottom);
+    assert!(own[0] == 0.0 && own[1] == 0.0 && own[2] > 0.5, "the block's own colour: {own:?}");
+    // The two red instances share one material: one group of hits, as one object's would be.
+    let world = rt.build_world().expect("a world");
+    let materials: Vec<u32> = world.instances.iter().map(|i| i.material).collect();
+    assert_eq!(materials[0], materials[2], "{materials:?}");
+    assert_ne!(materials[0], materials[1], "{materials:?}");
+}
+
+#[test]
 fn textures_from_memory_are_looked_up_by_name() -> Result<(), ApiError> {
     let mut rt = Context::new();
     rt.options.width = 32;

@@ -150,6 +150,13 @@ impl Context {
         let mut instances = Vec::new();
         // Each context instance's index in the world's list, for the solids.
         let mut in_world = vec![None; self.instances.len()];
+        // Instances shaded with appearances of their own: one material for each object and
+        // appearance (a material carries its object's id), found by the appearance's encoding
+        // (appearances hold floats, so they cannot be hashed as they are).
+        let mut own_materials: HashMap<(ObjectId, Vec<u8>), u32> = HashMap::new();
+        // Instances placed one after another under one set of attributes are common: the last
+        // appearance is compared before any is encoded.
+        let mut last_own: Option<(ObjectId, &Appearance, u32)> = None;
         for (index, inst) in self.instances.iter().enumerate() {
             let rec = &self.objects[inst.object.0 as usize];
             let (Some(obj), false) = (rec.scene_object, inst.deleted || rec.deleted || !rec.has_geometry()) else {
@@ -161,12 +168,28 @@ impl Context {
                 _ => scene.add_instance(obj, inst.transform)?,
             };
             in_world[index] = Some(instances.len() as u32);
-            instances.push(InstanceShading {
-                material: object_material[inst.object.0 as usize],
-                object: obj.0,
-                world_from_object: inst.transform,
-                parts: object_parts[inst.object.0 as usize].clone(),
-            });
+            let parts = object_parts[inst.object.0 as usize].clone();
+            let material = match (&inst.appearance, &parts) {
+                (Some(own), None) => match last_own.filter(|&(object, last, _)| object == inst.object && last == own) {
+                    Some((_, _, m)) => m,
+                    None => {
+                        let key = (inst.object, postcard::to_stdvec(own).unwrap_or_default());
+                        let m = match own_materials.get(&key) {
+                            Some(&m) => m,
+                            None => {
+                                materials.push(self.material_of(own, inst.object.0 + 1, &mut warnings)?);
+                                let m = materials.len() as u32 - 1;
+                                own_materials.insert(key, m);
+                                m
+                            }
+                        };
+                        last_own = Some((inst.object, own, m));
+                        m
+                    }
+                },
+                _ => object_material[inst.object.0 as usize],
+            };
+            instances.push(InstanceShading { material, object: obj.0, world_from_object: inst.transform, parts });
         }
         scene.set_solids(
             self.solids.iter().map(|s| s.filter_map(|id| in_world.get(id.0 as usize).copied().flatten())).collect(),

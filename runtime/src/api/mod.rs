@@ -306,6 +306,10 @@ struct InstanceRecord {
     /// Where the instance is when the shutter closes, if it moves.
     close_transform: Option<Affine3A>,
     deleted: bool,
+    /// The instance's own appearance, which shades it in place of its object's
+    /// ([`Context::instantiate_object_shaded`]); `None`: the object's.
+    #[serde(default)]
+    appearance: Option<Appearance>,
 }
 
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]

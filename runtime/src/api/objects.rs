@@ -148,6 +148,19 @@ impl Context {
 
     /// Places an instance of `id` with the current matrix.
     pub fn instantiate_object(&mut self, id: ObjectId) -> Result<InstanceId, ApiError> {
+        self.add_instance(id, None)
+    }
+
+    /// An instance of `id` shaded with the current appearance (colour, opacity, shaders and the
+    /// other attributes [`Context::end_object`] gives an object) instead of the object's own:
+    /// RenderMan's `ObjectInstance`, whose instances take the attributes current where they
+    /// stand. An object built in parts keeps its parts' appearances, and every instance its
+    /// object's alpha mask, which cuts the object's geometry.
+    pub fn instantiate_object_shaded(&mut self, id: ObjectId) -> Result<InstanceId, ApiError> {
+        self.add_instance(id, Some(self.appearance.clone()))
+    }
+
+    fn add_instance(&mut self, id: ObjectId, appearance: Option<Appearance>) -> Result<InstanceId, ApiError> {
         if self.building.is_some() {
             return Err(ApiError::Nested("instantiate_object", "an object"));
         }
@@ -164,6 +177,7 @@ impl Context {
             transform: self.matrix,
             close_transform: self.close_matrix,
             deleted: false,
+            appearance,
         });
         Ok(InstanceId(self.instances.len() as u32 - 1))
     }

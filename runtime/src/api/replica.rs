@@ -554,10 +554,15 @@ impl Context {
                 _ => None,
             })
         }
-        let appearances = self.objects.iter().filter(|o| !o.deleted).flat_map(|object| {
-            let parts = object.parts.as_ref().map_or(&[][..], |p| &p.appearances[..]);
-            std::iter::once(&object.appearance).chain(parts)
-        });
+        let appearances = self
+            .objects
+            .iter()
+            .filter(|o| !o.deleted)
+            .flat_map(|object| {
+                let parts = object.parts.as_ref().map_or(&[][..], |p| &p.appearances[..]);
+                std::iter::once(&object.appearance).chain(parts)
+            })
+            .chain(self.instances.iter().filter(|i| !i.deleted).filter_map(|i| i.appearance.as_ref()));
         let mut names: Vec<&str> = Vec::new();
         for appearance in appearances {
             for binding in [&appearance.surface, &appearance.interior, &appearance.displacement].into_iter().flatten() {

@@ -228,6 +228,7 @@ impl Context {
                 .chain(self.objects.iter().filter(|o| !o.deleted).flat_map(|o| {
                     std::iter::once(&o.appearance).chain(o.parts.iter().flat_map(|p| p.appearances.iter()))
                 }))
+                .chain(self.instances.iter().filter(|i| !i.deleted).filter_map(|i| i.appearance.as_ref()))
                 .flat_map(|a| a.surface.iter().chain(a.interior.iter()))
                 .chain(self.pixel.as_ref())
                 .chain(self.atmosphere.as_ref())

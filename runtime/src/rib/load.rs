@@ -15,10 +15,11 @@
 //!   from the transform current at the request (`MeshOptions::view`): a retained object's face
 //!   the camera from where `ObjectBegin` defines them, wherever `ObjectInstance` places them.
 //! - Consecutive geometry under one set of attributes becomes one object (one BVH), instanced once;
-//!   `ObjectBegin/End` make a retained object placed by each `ObjectInstance`. The shader of a
-//!   retained object is the one current at `ObjectEnd`; a mesh file read inside the block
-//!   (`ReadArchive "tree.obj"`) adds its objects, one per material with its own shader, to the
-//!   ones each `ObjectInstance` places.
+//!   `ObjectBegin/End` make a retained object placed by each `ObjectInstance`, which shades it
+//!   with the attributes current there (RISpec 3.2: an object's attributes are inherited when it
+//!   is instanced), unless the block set attributes of its own: the object then keeps those
+//!   current at `ObjectEnd`. A mesh file read inside the block (`ReadArchive "tree.obj"`) adds
+//!   its objects, one per material with its own shader, to the ones each `ObjectInstance` places.
 //! - `AreaLightSource`: the geometry that follows in the same attribute block both renders and emits
 //!   (sampled for soft shadows).
 //! - `ReadArchive` of an `.obj`, `.ply`, `.gltf` or `.glb` file adds those meshes under the current
@@ -749,8 +750,11 @@ struct Loader<'a> {
     pending: Option<(ObjectId, Affine3A, Affine3A)>,
     /// Inside `ObjectBegin`: its handle, and the space its geometry is in.
     retained: Option<(Handle, Affine3A)>,
-    /// The API objects of each retained object (more than one when it read a mesh file).
-    objects: HashMap<Handle, Vec<ObjectId>>,
+    /// The API objects of each retained object (more than one when it read a mesh file), each
+    /// with whether its instances take the attributes current at `ObjectInstance`.
+    objects: HashMap<Handle, Vec<(ObjectId, bool)>>,
+    /// Whether the open `ObjectBegin` block has set attributes of its own.
+    retained_sets_attributes: bool,
     /// Lights by handle, with whether they trace shadows.
     lights: HashMap<Handle, (LightId, bool)>,
     /// World-space emitting triangles per area light.
@@ -842,6 +846,7 @@ impl<'a> Loader<'a> {
             pending: None,
             retained: None,
             objects: HashMap::new(),
+            retained_sets_attributes: false,
             lights: HashMap::new(),
             area_meshes: HashMap::new(),
             in_world: false,
@@ -1203,6 +1208,9 @@ impl<'a> Loader<'a> {
 
     fn request(&mut self, r: &Request) -> Result<(), SceneFileError> {
         use RequestKind as K;
+        if self.retained.is_some() && sets_shading_attributes(&r.kind) {
+            self.retained_sets_attributes = true;
+        }
         let placed = is_geometry(&r.kind) || matches!(r.kind, K::ObjectInstance(_) | K::MeshArchive(_));
         if placed && !self.detail_chosen() {
             return Ok(());
@@ -1605,20 +1613,33 @@ impl<'a> Loader<'a> {
             K::ObjectBegin(h) => {
                 let frame = rt.current_matrix();
                 let id = rt.begin_object()?;
-                self.objects.insert(h.clone(), vec![id]);
+                self.objects.insert(h.clone(), vec![(id, true)]);
                 self.retained = Some((h.clone(), frame));
+                self.retained_sets_attributes = false;
             }
             K::ObjectEnd => {
-                if self.retained.take().is_some() {
+                if let Some((h, _)) = self.retained.take() {
                     rt.end_object()?;
+                    // RenderMan's instances take the attributes current at `ObjectInstance`; an
+                    // object whose block set its own keeps them (all of them, where PRMan would
+                    // still take the others from the instance).
+                    if self.retained_sets_attributes {
+                        for (_, inherits) in self.objects.entry(h).or_default() {
+                            *inherits = false;
+                        }
+                    }
                 } else {
                     self.warn(r, "ObjectEnd without ObjectBegin");
                 }
             }
             K::ObjectInstance(h) => match self.objects.get(h) {
                 Some(ids) => {
-                    for id in ids {
-                        rt.instantiate_object(*id)?;
+                    for &(id, inherits) in ids {
+                        if inherits {
+                            rt.instantiate_object_shaded(id)?;
+                        } else {
+                            rt.instantiate_object(id)?;
+                        }
                     }
                 }
                 None => self.omit(r, "ObjectInstance names no object"),
@@ -1718,8 +1739,11 @@ impl<'a> Loader<'a> {
                     let mut ids = Vec::new();
                     let added =
                         add_model_file_placed(&mut self.rt, path, Placement::Retained { frame, objects: &mut ids });
-                    ids.push(self.rt.begin_object_in(frame)?);
-                    self.objects.entry(handle).or_default().extend(ids);
+                    // The file's objects are shaded with its materials; the block's own geometry
+                    // with the attributes where it is instanced.
+                    let own = self.rt.begin_object_in(frame)?;
+                    let entries = ids.into_iter().map(|id| (id, false)).chain([(own, true)]);
+                    self.objects.entry(handle).or_default().extend(entries);
                     added?;
                 }
             },
@@ -2287,6 +2311,24 @@ fn primitive_constants(kind: &RequestKind) -> Vec<&Param> {
         .filter(|p| p.decl.class == Class::Constant || (one_face && p.decl.class == Class::Uniform))
         .filter(|p| !matches!(p.name.as_str(), "P" | "Pw" | "Pz" | "N" | "Np" | "st" | "s" | "t"))
         .collect()
+}
+
+/// Requests that set attributes which shade geometry (what `Context::end_object` keeps with an
+/// object): inside `ObjectBegin`, they make the object keep its own.
+fn sets_shading_attributes(kind: &RequestKind) -> bool {
+    use RequestKind as K;
+    matches!(
+        kind,
+        K::Surface(_)
+            | K::Displacement(_)
+            | K::Interior(_)
+            | K::Color(_)
+            | K::Opacity(_)
+            | K::Attribute { .. }
+            | K::Sides(_)
+            | K::Matte(_)
+            | K::Resource { .. }
+    )
 }
 
 fn is_geometry(kind: &RequestKind) -> bool {
