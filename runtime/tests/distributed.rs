@@ -3,7 +3,7 @@
 //! single-process ones, frame after frame of changes; failures are reported by the master, named
 //! by rank, never a hang; damaged updates are errors.
 
-use rtsl_runtime::api::{Context, Primitive, Replicator};
+use rtsl_runtime::api::{Context, InheritedAppearance, Primitive, Replicator};
 use rtsl_runtime::distributed::{
     serve, Demand, DistributedError, LocalTransport, Master, Message, ReplicaScene, TileQuarters, Traffic, Transport,
 };
@@ -338,7 +338,7 @@ fn little_scene() -> Result<Context, String> {
     // A second instance with an appearance of its own, which the workers must shade as it is.
     rt.color(0.2, 0.4, 0.9);
     rt.translate(1.1, 0.0, 0.0);
-    rt.instantiate_object_shaded(block).map_err(e)?;
+    rt.instantiate_object_inheriting(block, InheritedAppearance::ALL).map_err(e)?;
     rt.load_identity();
     let light = rt.find_shader("pointlight").map_err(e)?;
     rt.translate(1.0, 3.0, 2.0);

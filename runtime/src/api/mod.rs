@@ -73,7 +73,7 @@ mod state;
 pub use events::ShaderEvent;
 pub use replica::{decode_mesh, encode_mesh, ReplicaError, Replicator, TextureDelivery};
 pub use shader_cache::ShaderCache;
-pub use state::{AttributeParts, SavedAttributes};
+pub use state::{AttributeParts, InheritedAppearance, SavedAttributes};
 // The types `Context`'s calls take and return, so that one `use rtsl_runtime::api::{...}` serves an
 // application (vector types: `rtsl_runtime::glam`).
 pub use crate::geometry::{Deformation, Mesh, Quadric, Tessellation};
@@ -307,7 +307,7 @@ struct InstanceRecord {
     close_transform: Option<Affine3A>,
     deleted: bool,
     /// The instance's own appearance, which shades it in place of its object's
-    /// ([`Context::instantiate_object_shaded`]); `None`: the object's.
+    /// ([`Context::instantiate_object_inheriting`]); `None`: the object's.
     #[serde(default)]
     appearance: Option<Appearance>,
 }

@@ -151,13 +151,57 @@ impl Context {
         self.add_instance(id, None)
     }
 
-    /// An instance of `id` shaded with the current appearance (colour, opacity, shaders and the
-    /// other attributes [`Context::end_object`] gives an object) instead of the object's own:
-    /// RenderMan's `ObjectInstance`, whose instances take the attributes current where they
-    /// stand. An object built in parts keeps its parts' appearances, and every instance its
-    /// object's alpha mask, which cuts the object's geometry.
-    pub fn instantiate_object_shaded(&mut self, id: ObjectId) -> Result<InstanceId, ApiError> {
-        self.add_instance(id, Some(self.appearance.clone()))
+    /// An instance of `id` whose appearance takes the parts `inherited` names from the current
+    /// state and the others from the object, as they are now: RenderMan's `ObjectInstance`, whose
+    /// instances take the attributes current where they stand except those set in the object's
+    /// own block ([`InheritedAppearance::ALL`]: all of them). An object built in parts keeps its
+    /// parts' appearances, and every instance its object's alpha mask, which cuts the geometry
+    /// the instances share.
+    pub fn instantiate_object_inheriting(
+        &mut self,
+        id: ObjectId,
+        inherited: InheritedAppearance,
+    ) -> Result<InstanceId, ApiError> {
+        let Some(object) = self.objects.get(id.0 as usize).filter(|o| !o.deleted) else {
+            return Err(ApiError::UnknownObject(id.0));
+        };
+        if inherited == InheritedAppearance::NONE {
+            return self.add_instance(id, None);
+        }
+        let (mut a, now) = (object.appearance.clone(), &self.appearance);
+        let InheritedAppearance { color, opacity, surface, displacement, interior, sides, matte, attributes } =
+            inherited;
+        if color {
+            a.color = now.color;
+        }
+        if opacity {
+            a.opacity = now.opacity;
+        }
+        if surface {
+            a.surface = now.surface.clone();
+        }
+        if displacement {
+            a.displacement = now.displacement.clone();
+        }
+        if interior {
+            a.interior = now.interior.clone();
+        }
+        if sides {
+            a.one_sided = now.one_sided;
+        }
+        if matte {
+            a.matte = now.matte;
+        }
+        if attributes {
+            a.shadow_by_shader = now.shadow_by_shader;
+            a.photon = now.photon;
+            a.ray_values = now.ray_values.clone();
+            a.visibility = now.visibility;
+            a.identifier = now.identifier.clone();
+            a.trace_depths = now.trace_depths;
+            a.trace_bias = now.trace_bias;
+        }
+        self.add_instance(id, Some(a))
     }
 
     fn add_instance(&mut self, id: ObjectId, appearance: Option<Appearance>) -> Result<InstanceId, ApiError> {

@@ -320,6 +320,50 @@ pub struct SavedAttributes {
     close_matrix: Option<Affine3A>,
 }
 
+/// Which parts of its appearance an instance takes from the state where it is placed
+/// ([`Context::instantiate_object_inheriting`]); the others are its object's.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct InheritedAppearance {
+    pub color: bool,
+    pub opacity: bool,
+    pub surface: bool,
+    pub displacement: bool,
+    pub interior: bool,
+    /// One- or two-sidedness.
+    pub sides: bool,
+    /// Whether it is a holdout.
+    pub matte: bool,
+    /// The rest, what RIB `Attribute`s set: how shadows and light paths meet the surface, ray
+    /// visibility and ray parameters, trace depths and bias, the name. (The alpha mask cuts the
+    /// object's geometry, which its instances share: it is always the object's.)
+    pub attributes: bool,
+}
+
+impl InheritedAppearance {
+    /// Every part: the instance is shaded as the state where it stands says.
+    pub const ALL: InheritedAppearance = InheritedAppearance {
+        color: true,
+        opacity: true,
+        surface: true,
+        displacement: true,
+        interior: true,
+        sides: true,
+        matte: true,
+        attributes: true,
+    };
+    /// No part: the instance is shaded as its object.
+    pub const NONE: InheritedAppearance = InheritedAppearance {
+        color: false,
+        opacity: false,
+        surface: false,
+        displacement: false,
+        interior: false,
+        sides: false,
+        matte: false,
+        attributes: false,
+    };
+}
+
 /// Which parts of a [`SavedAttributes`] [`Context::restore_attributes`] restores.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct AttributeParts {

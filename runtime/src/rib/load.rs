@@ -17,9 +17,9 @@
 //! - Consecutive geometry under one set of attributes becomes one object (one BVH), instanced once;
 //!   `ObjectBegin/End` make a retained object placed by each `ObjectInstance`, which shades it
 //!   with the attributes current there (RISpec 3.2: an object's attributes are inherited when it
-//!   is instanced), unless the block set attributes of its own: the object then keeps those
-//!   current at `ObjectEnd`. A mesh file read inside the block (`ReadArchive "tree.obj"`) adds
-//!   its objects, one per material with its own shader, to the ones each `ObjectInstance` places.
+//!   is instanced) except those the block set itself, which are the block's (PRMan's rule). A
+//!   mesh file read inside the block (`ReadArchive "tree.obj"`) adds its objects, one per
+//!   material with its own shader, to the ones each `ObjectInstance` places.
 //! - `AreaLightSource`: the geometry that follows in the same attribute block both renders and emits
 //!   (sampled for soft shadows).
 //! - `ReadArchive` of an `.obj`, `.ply`, `.gltf` or `.glb` file adds those meshes under the current
@@ -40,7 +40,9 @@ use super::view::{Projection, View};
 use super::{
     parse_bytes_into, parse_file_into, RibDiagnostic, RibParse, RibSink, Severity, MAX_BLOCK_DEPTH, MAX_RIB_TRIANGLES,
 };
-use crate::api::{ApiError, AttributeParts, Context, InstanceId, LightId, ObjectId, SavedAttributes};
+use crate::api::{
+    ApiError, AttributeParts, Context, InheritedAppearance, InstanceId, LightId, ObjectId, SavedAttributes,
+};
 use crate::csg::{Solid, SolidNode, SolidOp, SolidPart};
 use crate::geometry::{Deformation, Mesh};
 use crate::render::{DisplayMode, RayKind, MAX_PIXEL_SAMPLES};
@@ -751,10 +753,11 @@ struct Loader<'a> {
     /// Inside `ObjectBegin`: its handle, and the space its geometry is in.
     retained: Option<(Handle, Affine3A)>,
     /// The API objects of each retained object (more than one when it read a mesh file), each
-    /// with whether its instances take the attributes current at `ObjectInstance`.
-    objects: HashMap<Handle, Vec<(ObjectId, bool)>>,
-    /// Whether the open `ObjectBegin` block has set attributes of its own.
-    retained_sets_attributes: bool,
+    /// with what its instances take from the attributes current at `ObjectInstance`.
+    objects: HashMap<Handle, Vec<(ObjectId, InheritedAppearance)>>,
+    /// What instances of the open `ObjectBegin` block's object take from where they stand: the
+    /// attributes the block does not set itself.
+    retained_inherits: InheritedAppearance,
     /// Lights by handle, with whether they trace shadows.
     lights: HashMap<Handle, (LightId, bool)>,
     /// World-space emitting triangles per area light.
@@ -846,7 +849,7 @@ impl<'a> Loader<'a> {
             pending: None,
             retained: None,
             objects: HashMap::new(),
-            retained_sets_attributes: false,
+            retained_inherits: InheritedAppearance::ALL,
             lights: HashMap::new(),
             area_meshes: HashMap::new(),
             in_world: false,
@@ -1208,8 +1211,8 @@ impl<'a> Loader<'a> {
 
     fn request(&mut self, r: &Request) -> Result<(), SceneFileError> {
         use RequestKind as K;
-        if self.retained.is_some() && sets_shading_attributes(&r.kind) {
-            self.retained_sets_attributes = true;
+        if self.retained.is_some() {
+            keep_what_the_block_sets(&r.kind, &mut self.retained_inherits);
         }
         let placed = is_geometry(&r.kind) || matches!(r.kind, K::ObjectInstance(_) | K::MeshArchive(_));
         if placed && !self.detail_chosen() {
@@ -1613,19 +1616,19 @@ impl<'a> Loader<'a> {
             K::ObjectBegin(h) => {
                 let frame = rt.current_matrix();
                 let id = rt.begin_object()?;
-                self.objects.insert(h.clone(), vec![(id, true)]);
+                self.objects.insert(h.clone(), vec![(id, InheritedAppearance::ALL)]);
                 self.retained = Some((h.clone(), frame));
-                self.retained_sets_attributes = false;
+                self.retained_inherits = InheritedAppearance::ALL;
             }
             K::ObjectEnd => {
                 if let Some((h, _)) = self.retained.take() {
                     rt.end_object()?;
-                    // RenderMan's instances take the attributes current at `ObjectInstance`; an
-                    // object whose block set its own keeps them (all of them, where PRMan would
-                    // still take the others from the instance).
-                    if self.retained_sets_attributes {
-                        for (_, inherits) in self.objects.entry(h).or_default() {
-                            *inherits = false;
+                    // RenderMan's instances take the attributes current at `ObjectInstance`,
+                    // except those the object's block set (PRMan's ObjectBegin starts from none).
+                    let inherits = self.retained_inherits;
+                    for (_, own) in self.objects.entry(h).or_default().iter_mut() {
+                        if *own != InheritedAppearance::NONE {
+                            *own = inherits;
                         }
                     }
                 } else {
@@ -1634,12 +1637,8 @@ impl<'a> Loader<'a> {
             }
             K::ObjectInstance(h) => match self.objects.get(h) {
                 Some(ids) => {
-                    for &(id, inherits) in ids {
-                        if inherits {
-                            rt.instantiate_object_shaded(id)?;
-                        } else {
-                            rt.instantiate_object(id)?;
-                        }
+                    for &(id, inherited) in ids {
+                        rt.instantiate_object_inheriting(id, inherited)?;
                     }
                 }
                 None => self.omit(r, "ObjectInstance names no object"),
@@ -1742,7 +1741,10 @@ impl<'a> Loader<'a> {
                     // The file's objects are shaded with its materials; the block's own geometry
                     // with the attributes where it is instanced.
                     let own = self.rt.begin_object_in(frame)?;
-                    let entries = ids.into_iter().map(|id| (id, false)).chain([(own, true)]);
+                    let entries = ids
+                        .into_iter()
+                        .map(|id| (id, InheritedAppearance::NONE))
+                        .chain([(own, InheritedAppearance::ALL)]);
                     self.objects.entry(handle).or_default().extend(entries);
                     added?;
                 }
@@ -2313,22 +2315,23 @@ fn primitive_constants(kind: &RequestKind) -> Vec<&Param> {
         .collect()
 }
 
-/// Requests that set attributes which shade geometry (what `Context::end_object` keeps with an
-/// object): inside `ObjectBegin`, they make the object keep its own.
-fn sets_shading_attributes(kind: &RequestKind) -> bool {
+/// Inside `ObjectBegin`: the parts of the appearance `kind` sets, which the object then keeps
+/// for its instances instead of taking them from where each stands.
+fn keep_what_the_block_sets(kind: &RequestKind, inherits: &mut InheritedAppearance) {
     use RequestKind as K;
-    matches!(
-        kind,
-        K::Surface(_)
-            | K::Displacement(_)
-            | K::Interior(_)
-            | K::Color(_)
-            | K::Opacity(_)
-            | K::Attribute { .. }
-            | K::Sides(_)
-            | K::Matte(_)
-            | K::Resource { .. }
-    )
+    match kind {
+        K::Color(_) => inherits.color = false,
+        K::Opacity(_) => inherits.opacity = false,
+        K::Surface(_) => inherits.surface = false,
+        K::Displacement(_) => inherits.displacement = false,
+        K::Interior(_) => inherits.interior = false,
+        K::Sides(_) => inherits.sides = false,
+        K::Matte(_) => inherits.matte = false,
+        K::Attribute { .. } => inherits.attributes = false,
+        // A restored resource may set any of them.
+        K::Resource { .. } => *inherits = InheritedAppearance::NONE,
+        _ => {}
+    }
 }
 
 fn is_geometry(kind: &RequestKind) -> bool {
