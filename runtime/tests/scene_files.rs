@@ -1072,6 +1072,25 @@ fn the_null_shader_stands_for_no_shader_and_defaultsurface_shades_by_facing() {
     for (got, want) in p.iter().zip([0.5, 1.0, 0.25, 1.0]) {
         assert!((got - want).abs() < 1e-3, "{p:?}");
     }
+    // With no surface shader the renderer's own matte faces the viewer the same way, displaced
+    // or not: a displacement that scales N (as `calculatenormal` of a moved P does) changes
+    // nothing (BMRT's dented.rib rendered white).
+    for displacement in ["", "Displacement \"scaled\""] {
+        let dir = tempfile::tempdir().expect("a temporary directory");
+        std::fs::write(dir.path().join("scaled.sl"), "displacement scaled() { N = 40 * normalize(N); }")
+            .expect("written");
+        let mut rt = Context::new();
+        rt.set_shader_search_path([dir.path()]);
+        let rib = format!(
+            "{CAMERA} Color [0.5 1 0.25] {displacement} Polygon \"P\" [-1 -1 0  1 -1 0  1 1 0  -1 1 0] WorldEnd"
+        );
+        let loaded = load_str(&mut rt, &rib, Path::new("s.rib")).expect("loads");
+        assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+        let p = render(&mut rt).pixel(32, 24);
+        for (got, want) in p.iter().zip([0.5, 1.0, 0.25, 1.0]) {
+            assert!((got - want).abs() < 1e-3, "{displacement}: {p:?}");
+        }
+    }
 }
 
 #[test]

@@ -904,7 +904,8 @@ fn shade_group_lanes(
                 let Some(g) = g else { continue };
                 let cs = g.cs.unwrap_or(color);
                 let os = g.os.unwrap_or(opacity);
-                let facing = g.n.dot(-group.direction(lane).normalize_or_zero()).abs();
+                // A displacement shader leaves `N` as `calculatenormal` made it, not of unit length.
+                let facing = g.n.normalize_or_zero().dot(-group.direction(lane).normalize_or_zero()).abs();
                 out.set(lane, [os * cs * (0.2 + 0.8 * facing), os, g.p, g.ng]);
             }
             return;
