@@ -589,10 +589,22 @@ mod tests {
         assert_eq!(super::plain_decimal("0.1"), Some(0.1));
     }
 
-    use super::ast::{ExprKind, Item, StmtKind};
+    use super::ast::{ExprKind, Item, StmtKind, TranslationUnit};
     use crate::diagnostic::Diagnostics;
     use crate::source::FileId;
     use crate::symbol::Interner;
+
+    /// `text` lexed and parsed as one file, with the parser's diagnostics.
+    fn parse_text<'a>(
+        arena: &'a bumpalo::Bump,
+        text: &str,
+        interner: &mut Interner,
+    ) -> (TranslationUnit<'a>, Diagnostics) {
+        let mut diags = Diagnostics::default();
+        let tokens = crate::front::lex::lex(FileId(0), text, interner);
+        let unit = super::parse(arena, &tokens, interner, &mut diags);
+        (unit, diags)
+    }
 
     /// The expression of `surface s() { x = EXPR; }`, fully parenthesised.
     fn grouped(expr: &str) -> String {
@@ -644,10 +656,8 @@ mod tests {
                       surface(\"Kd\", dark);\n\
                     }\n";
         let mut interner = Interner::new();
-        let mut diags = Diagnostics::default();
-        let tokens = crate::front::lex::lex(FileId(0), text, &mut interner);
         let arena = bumpalo::Bump::new();
-        let unit = super::parse(&arena, &tokens, &mut interner, &mut diags);
+        let (unit, diags) = parse_text(&arena, text, &mut interner);
         assert!(diags.list.is_empty(), "{:?}", diags.list);
         let name = |i: &super::ast::Ident| interner.resolve(i.sym).to_string();
         let [Item::Function(f), Item::Shader(shader)] = unit.items else { panic!("{:?}", unit.items) };
@@ -679,10 +689,8 @@ mod tests {
                     surface t() { }\n\
                     surface u(float k = 1) { }\n";
         let mut interner = Interner::new();
-        let mut diags = Diagnostics::default();
-        let tokens = crate::front::lex::lex(FileId(0), text, &mut interner);
         let arena = bumpalo::Bump::new();
-        let unit = super::parse(&arena, &tokens, &mut interner, &mut diags);
+        let (unit, diags) = parse_text(&arena, text, &mut interner);
         assert!(diags.list.is_empty(), "{:?}", diags.list);
         let counts: Vec<usize> = unit
             .items
@@ -694,9 +702,7 @@ mod tests {
             .collect();
         assert_eq!(counts, [3, 0, 1]);
 
-        let tokens = crate::front::lex::lex(FileId(0), "surface v(; float a = 1) { }", &mut interner);
-        let mut diags = Diagnostics::default();
-        super::parse(&arena, &tokens, &mut interner, &mut diags);
+        let (_, diags) = parse_text(&arena, "surface v(; float a = 1) { }", &mut interner);
         assert_eq!(diags.list.len(), 1, "{:?}", diags.list);
     }
 }
