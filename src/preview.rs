@@ -1,6 +1,6 @@
 //! The shader preview scene of `rtsl preview`: a unit ball on a grey floor before a grey wall (for
 //! reflections and refractions to show), seen a little from above, lit by a shadowed point light
-//! from the upper right and a dim ambient light. The golden
+//! from the upper right and a dim ambient light; its images are sRGB-encoded. The golden
 //! images of the library's surface shaders are rendered in it too.
 
 use rtsl_compiler::testshade::ParamArg;
@@ -11,6 +11,7 @@ use rtsl_compiler::testshade::ParamArg;
 pub fn scene(ball: &str, width: u32, height: u32, samples: u32) -> String {
     format!(
         r#"
+Option "image" "string transfer" ["srgb"]
 Format {width} {height} 1
 PixelSamples {samples} {samples}
 Projection "perspective" "fov" [30]

@@ -1090,19 +1090,39 @@ fn an_unsupported_output_format_is_refused_before_rendering() {
 #[test]
 fn transfer_chooses_how_8_bit_images_encode_colour() {
     let dir = tempfile::tempdir().expect("tempdir");
-    write(dir.path(), "s.rib", &SPHERE_RIB.replace("Surface \"plastic\"", "Color [0.2 0.2 0.2] Surface \"constant\""));
-    let centre = |args: &[&str]| {
-        let o = rtsl(&[&["render", "s.rib", "-o", "out.png", "-q"], args].concat(), dir.path());
+    let grey = SPHERE_RIB.replace("Surface \"plastic\"", "Color [0.2 0.2 0.2] Surface \"constant\"");
+    write(dir.path(), "s.rib", &grey);
+    let srgb = "Option \"image\" \"string transfer\" [\"srgb\"]\n";
+    write(dir.path(), "srgb.rib", &format!("{srgb}{grey}"));
+    let centre = |scene: &str, args: &[&str]| {
+        let o = rtsl(&[&["render", scene, "-o", "out.png", "-q"], args].concat(), dir.path());
         assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-        rtsl_runtime::read_image(dir.path().join("out.png")).expect("the image").pixel(16, 16)[0]
+        let v = rtsl_runtime::read_image(dir.path().join("out.png")).expect("the image").pixel(16, 16)[0];
+        (v * 255.0).round()
     };
-    // Linear 0.2 is stored as 51/255; sRGB-encoded, 124/255.
-    assert_eq!((centre(&[]) * 255.0).round(), 124.0);
-    assert_eq!((centre(&["--transfer", "srgb"]) * 255.0).round(), 124.0);
-    assert_eq!((centre(&["--transfer", "linear"]) * 255.0).round(), 51.0);
+    // Linear 0.2 is stored as 51/255; sRGB-encoded, 124/255. A RIB file is written as RenderMan
+    // writes it, linear, unless it asks for sRGB; --transfer overrides both.
+    assert_eq!(centre("s.rib", &[]), 51.0);
+    assert_eq!(centre("srgb.rib", &[]), 124.0);
+    assert_eq!(centre("s.rib", &["--transfer", "srgb"]), 124.0);
+    assert_eq!(centre("srgb.rib", &["--transfer", "linear"]), 51.0);
     let o = rtsl(&["render", "s.rib", "--transfer", "gamma"], dir.path());
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("is not a transfer: srgb or linear"), "{}", stderr(&o));
+
+    // An 8-bit texture of 128/255: a RIB file's shaders read it as stored (0.502), unless the
+    // file asks for sRGB, which decodes it (0.216, 55/255 written linear).
+    let texel = vec![128.0 / 255.0; 4 * 4 * 4];
+    let opts = rtsl_runtime::WriteOptions { transfer: rtsl_runtime::Transfer::Linear, ..Default::default() };
+    rtsl_runtime::write_image(dir.path().join("t.png"), 4, 4, &texel, &opts).expect("the texture");
+    write(dir.path(), "tex.sl", "surface tex(string name = \"\") { Ci = color texture(name, s, t); Oi = 1; }\n");
+    let textured = SPHERE_RIB.replace("Surface \"plastic\"", "Surface \"tex\" \"string name\" \"t.png\"");
+    write(dir.path(), "t.rib", &textured);
+    write(dir.path(), "tsrgb.rib", &format!("{srgb}{textured}"));
+    assert_eq!(centre("t.rib", &[]), 128.0);
+    assert_eq!(centre("t.rib", &["--transfer", "srgb"]), 188.0);
+    assert_eq!(centre("tsrgb.rib", &["--transfer", "linear"]), 55.0);
+    assert_eq!(centre("tsrgb.rib", &[]), 128.0);
 }
 
 #[test]
@@ -1281,7 +1301,7 @@ fn every_frame_renders_its_own_image() {
         |name: &str| rtsl_runtime::read_image(dir.path().join(name)).expect("the frame's image").pixel(8, 8)[0];
     let o = rtsl(&["render", "anim.rib", "-q"], dir.path());
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-    assert_eq!((centre("frame.007.png") * 255.0).round(), 124.0);
+    assert_eq!((centre("frame.007.png") * 255.0).round(), 51.0);
     assert_eq!(centre("frame.009.png"), 1.0);
 
     // One frame by its number, named by -o with the same patterns.
@@ -1331,7 +1351,7 @@ fn several_rib_files_render_in_turn() {
         |name: &str| rtsl_runtime::read_image(dir.path().join(name)).expect("the frame's image").pixel(8, 8)[0];
     let o = rtsl(&["render", "shot.0001.rib", "shot.0002.rib", "-q"], dir.path());
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-    assert_eq!((centre("shot.0001.png") * 255.0).round(), 124.0);
+    assert_eq!((centre("shot.0001.png") * 255.0).round(), 51.0);
     assert_eq!(centre("shot.0002.png"), 1.0);
     // One output name for both is refused before the second overwrites the first.
     let o = rtsl(&["render", "shot.0001.rib", "shot.0002.rib", "-o", "same.png", "-q"], dir.path());
@@ -1579,7 +1599,7 @@ fn rib_conditionals_choose_each_frames_branch_in_a_shared_archive() {
         |name: &str| rtsl_runtime::read_image(dir.path().join(name)).expect("the frame's image").pixel(8, 8)[0];
     let o = rtsl(&["render", "anim.rib", "-q"], dir.path());
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-    assert_eq!((centre("cond.7.png") * 255.0).round(), 124.0);
+    assert_eq!((centre("cond.7.png") * 255.0).round(), 51.0);
     assert_eq!(centre("cond.9.png"), 1.0);
     // One frame on its own takes the same branch.
     let o = rtsl(&["render", "anim.rib", "--frame", "9", "-o", "only.png", "-q"], dir.path());

@@ -129,15 +129,15 @@ impl Quantize {
 }
 
 /// How the linear values of a frame become the values an 8-bit file stores.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 pub enum Transfer {
     /// The sRGB curve (IEC 61966-2-1), what displays and image viewers expect of an 8-bit file.
     /// 8-bit textures are decoded with its inverse (`crate::texture`), so a written image read back
     /// as a texture gives the values rendered.
     #[default]
     Srgb,
-    /// None: the values as rendered (for data, or when the scene applied its own gamma with RIB
-    /// `Exposure`).
+    /// None: the values as rendered (RenderMan's convention, for RIB scenes and data, or when the
+    /// scene applied its own gamma with RIB `Exposure`).
     Linear,
 }
 

@@ -100,6 +100,30 @@ fn a_malformed_opacity_threshold_warns_and_changes_nothing() {
 }
 
 #[test]
+fn a_rib_scene_s_images_are_linear_unless_it_asks_for_srgb() {
+    use rtsl_runtime::Transfer;
+    for (rib, transfer, stored) in [
+        ("", Transfer::Linear, true),
+        ("Option \"image\" \"string transfer\" [\"srgb\"]\n", Transfer::Srgb, false),
+        ("Option \"image\" \"string transfer\" \"sRGB\"\n", Transfer::Srgb, false),
+        ("Option \"image\" \"string transfer\" [\"srgb\"] \"string transfer\" [\"linear\"]\n", Transfer::Linear, true),
+        // A gamma of the scene's own makes the files linear, the textures as the option says.
+        ("Option \"image\" \"string transfer\" [\"srgb\"]\nExposure 1 2.2\n", Transfer::Linear, false),
+    ] {
+        let (rt, warnings) = load(rib);
+        assert_eq!(warnings, Vec::<String>::new(), "{rib}");
+        assert_eq!((rt.options.transfer(), rt.options.textures_as_stored()), (transfer, stored), "{rib}");
+    }
+    // The API's default stays sRGB.
+    let api = rtsl_runtime::render::RenderOptions::default();
+    assert_eq!((api.transfer(), api.textures_as_stored()), (Transfer::Srgb, false));
+    let (rt, warnings) = load("Option \"image\" \"string transfer\" [\"gamma\"]\n");
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    assert!(warnings[0].contains("not a transfer: srgb or linear"), "{warnings:?}");
+    assert_eq!(rt.options.transfer(), Transfer::Linear);
+}
+
+#[test]
 fn the_scene_names_its_thread_count() {
     for (rib, threads) in [
         ("Option \"limits\" \"int threads\" [3]\n", Some(3)),

@@ -6,8 +6,8 @@
 #
 # DIR: folders searched for `.rib` files (e.g. a checkout of the RenderMan Repository). A file
 # counts when its first `Display` names an image that exists beside it (`.tif`, `.tiff`): the
-# reference. It is rendered in its own folder with `--transfer linear` (RenderMan writes the
-# values as rendered: RISpec's default `Exposure` has a gamma of 1), every folder of the sweep
+# reference. It is rendered in its own folder (as RenderMan does, rtsl writes a RIB file's
+# values as rendered and reads its 8-bit textures as stored), every folder of the sweep
 # that holds shaders on `-S`, every folder that holds headers on `-I`, `--keep-going`, at the
 # file's own `Format`. Prints, per file, the mean and 90th percentile of the absolute difference
 # per channel in 8-bit codes, and the warnings rtsl gave. Needs python3 with Pillow and NumPy.
@@ -31,7 +31,7 @@ while IFS= read -r rib; do
     ref=$(grep -m1 -aE '^[[:space:]]*Display' "$rib" | awk '{print $2}' | tr -d '"')
     [ -n "$ref" ] && [ -f "$dir/$ref" ] || continue
     name=$(basename "$rib" .rib)
-    log=$(cd "$dir" && timeout 300 "$RTSL" --color never render --keep-going --transfer linear -S ".:$shaders" \
+    log=$(cd "$dir" && timeout 300 "$RTSL" --color never render --keep-going -S ".:$shaders" \
         "${includes[@]}" -o "$OUT/$name.png" "$(basename "$rib")" 2>&1)
     warnings=$(grep -E '^(warning|error)' <<<"$log" | grep -v 'parts\? of the scene missing' | sort | uniq -c |
         awk '{$1=$1; print}' | paste -sd';')

@@ -97,18 +97,21 @@ struct CallBuffers {
 #[derive(Default)]
 struct TextureHandles {
     generation: u64,
+    /// Whether the handles are of textures read as stored (`TextureCache::get_texture`'s `raw`).
+    raw: bool,
     by_name: HashMap<String, Option<Arc<MipMap>>>,
     /// The name looked up last, and what it stands for (most lookups repeat it).
     last: Option<(String, Option<Arc<MipMap>>)>,
 }
 
 impl TextureHandles {
-    fn get(&mut self, cache: &TextureCache, name: &str) -> Option<&MipMap> {
+    fn get(&mut self, cache: &TextureCache, name: &str, raw: bool) -> Option<&MipMap> {
         let generation = cache.generation();
-        if generation != self.generation {
+        if generation != self.generation || raw != self.raw {
             self.by_name.clear();
             self.last = None;
             self.generation = generation;
+            self.raw = raw;
         }
         if self.last.as_ref().is_none_or(|(last, _)| last != name) {
             if let Some((last, texture)) = self.last.take() {
@@ -117,7 +120,7 @@ impl TextureHandles {
             let texture = match self.by_name.remove_entry(name) {
                 Some(found) => found,
                 None => {
-                    let texture = cache.get_texture(name, false);
+                    let texture = cache.get_texture(name, raw);
                     if texture.is_none() && crate::accel::ask_ahead::asks_ahead() {
                         // Perhaps asked for ahead and not here yet: not kept, asked again.
                         return None;
@@ -261,7 +264,8 @@ impl<'f, 'w> ShadeCall<'f, 'w> {
     }
 
     fn texture(&mut self, name: &str) -> Option<&MipMap> {
-        self.textures.get(&self.frame.world.textures, name)
+        let raw = self.frame.world.options.textures_as_stored();
+        self.textures.get(&self.frame.world.textures, name, raw)
     }
 
     /// The ray time of lane `l` of the current chunk (the batch's first lane's when out of range;
@@ -763,6 +767,7 @@ unsafe extern "C" fn host_texture(
                     swidth: query.swidth,
                     twidth: query.twidth,
                     fill: query.fill,
+                    raw: c.frame.world.options.textures_as_stored(),
                     ..LookupOptions::default()
                 };
                 let (dir, ddx, ddy) = (query.dir, query.ddx, query.ddy);
@@ -1474,7 +1479,7 @@ mod tests {
     }
 
     fn value(handles: &mut TextureHandles, cache: &TextureCache, name: &str) -> Option<f32> {
-        handles.get(cache, name).map(|m| m.level(0).data()[0])
+        handles.get(cache, name, false).map(|m| m.level(0).data()[0])
     }
 
     /// Handles kept from call to call give what the cache gives, and follow it when a name comes

@@ -562,6 +562,12 @@ pub struct RenderOptions {
     pub depth_filter: DepthFilter,
     /// RIB's `Exposure gain gamma`, applied to the finished colours: `(gain * c) ^ (1 / gamma)`.
     pub exposure: Option<(f32, f32)>,
+    /// The transfer curve of the scene's 8- and 16-bit images, the files a render writes and the
+    /// textures it reads: sRGB by default (what displays expect of such files); linear for RIB
+    /// scenes, which RenderMan writes as computed (RISpec's default `Exposure 1 1`) and whose
+    /// textures it reads as stored.
+    #[serde(default)]
+    pub image_transfer: crate::image_io::Transfer,
     /// RIB's `Quantize "rgba"`: how colour and alpha are stored in the images written (`None`:
     /// 8 bits, rounded; see [`crate::image_io::Quantize`]).
     pub quantize: Option<crate::image_io::Quantize>,
@@ -663,13 +669,19 @@ impl RenderOptions {
         }
     }
 
-    /// The transfer of this frame's 8-bit images: sRGB, unless the scene applies a gamma of its own
-    /// (RIB `Exposure` with a gamma other than 1), which then takes its place.
+    /// The transfer of this frame's 8-bit images: [`RenderOptions::image_transfer`], unless the
+    /// scene applies a gamma of its own (RIB `Exposure` with a gamma other than 1), which then takes
+    /// its place.
     pub fn transfer(&self) -> crate::image_io::Transfer {
         match self.exposure {
             Some((_, gamma)) if gamma != 1.0 => crate::image_io::Transfer::Linear,
-            _ => crate::image_io::Transfer::Srgb,
+            _ => self.image_transfer,
         }
+    }
+
+    /// Whether 8- and 16-bit textures are read as stored rather than decoded from sRGB.
+    pub fn textures_as_stored(&self) -> bool {
+        self.image_transfer == crate::image_io::Transfer::Linear
     }
 
     /// The pixels rendered, `x0..x1` by `y0..y1`: the whole image, or the crop window's.
@@ -700,6 +712,7 @@ impl Default for RenderOptions {
             shadow_bias: [0.0; 2],
             depth_filter: DepthFilter::Min,
             exposure: None,
+            image_transfer: crate::image_io::Transfer::Srgb,
             quantize: None,
             antialiasing: Antialiasing::Grid { jitter: true },
             shutter: (0.0, 0.0),

@@ -829,6 +829,10 @@ impl<'a> Loader<'a> {
         // PRMan's and 3Delight's `Option "limits" "zthreshold"`: semi-transparent surfaces stay
         // out of depth maps.
         rt.options.depth_threshold = [RENDERMAN_DEPTH_THRESHOLD; 3];
+        // RenderMan's 8-bit images hold the values as computed (RISpec's default `Exposure 1 1`)
+        // and its textures give the values they store: the lights and colours of a RIB file are
+        // set for that, not for sRGB.
+        rt.options.image_transfer = crate::image_io::Transfer::Linear;
         // Shaders beside the file are found, as Aqsis's default search path begins with "." (the
         // directory a scene is rendered from): after the directories the application gave, before
         // the library. A RIB `Option "searchpath" "shader"` without `&` replaces it.
@@ -1654,8 +1658,9 @@ impl<'a> Loader<'a> {
             K::MakeCubeFaceEnvironment { faces, texture, fov, .. } => {
                 let paths = faces.clone().map(|f| self.dir.join(f));
                 let faces = paths.each_ref().map(|p| p.as_path());
+                let raw = rt.options.textures_as_stored();
                 rt.file_written(&self.dir.join(texture));
-                if let Err(e) = crate::texture::make_cube_face_environment(faces, &self.dir.join(texture), *fov) {
+                if let Err(e) = crate::texture::make_cube_face_environment(faces, &self.dir.join(texture), *fov, raw) {
                     self.omit(r, format_args!("MakeCubeFaceEnvironment: {e}"));
                 }
             }
@@ -1665,7 +1670,8 @@ impl<'a> Loader<'a> {
                     "clamp" => crate::texture::Wrap::Clamp,
                     _ => crate::texture::Wrap::Periodic,
                 };
-                let opts = crate::texture::MakeTextureOptions { swrap: wrap(swrap), twrap: wrap(twrap), raw: false };
+                let raw = rt.options.textures_as_stored();
+                let opts = crate::texture::MakeTextureOptions { swrap: wrap(swrap), twrap: wrap(twrap), raw };
                 rt.file_written(&self.dir.join(texture));
                 if let Err(e) = crate::texture::make_texture(self.dir.join(picture), self.dir.join(texture), &opts) {
                     self.omit(r, e);
@@ -2185,6 +2191,12 @@ impl<'a> Loader<'a> {
                         Err(e) => self.warn(r, e),
                     }
                 }
+                // rtsl's: how the scene's 8-bit images encode colour, written and read
+                // (`RenderOptions::image_transfer`; linear, RenderMan's way, unless this says).
+                ("image", "transfer") => match crate::image_io::Transfer::parse(s.as_deref().unwrap_or("")) {
+                    Ok(transfer) => self.rt.options.image_transfer = transfer,
+                    Err(e) => self.warn(r, format_args!("option \"image\" \"transfer\": {e}")),
+                },
                 ("antialiasing", "threshold") => {
                     if let (Some(t), crate::render::Antialiasing::Adaptive { .. }) = (f, self.rt.options.antialiasing) {
                         self.rt.options.antialiasing = crate::render::Antialiasing::Adaptive { threshold: t.max(0.0) };

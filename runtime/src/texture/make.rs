@@ -51,8 +51,14 @@ pub const MAX_CUBE_LATLONG_WIDTH: usize = 4096;
 /// for +y and +z for -y (right +x for both)). Each texel of the map, `4 n` by `2 n` for a +x face
 /// of `n` texels across (at most [`MAX_CUBE_LATLONG_WIDTH`] wide), takes the bilinear value of
 /// its direction on the face it points to. Faces may differ in size; their channels are made
-/// RGBA. The faces are read one at a time.
-pub fn make_cube_face_environment(faces: [&Path; 6], dst: &Path, fov_degrees: f32) -> Result<(), ImageError> {
+/// RGBA. The faces are read one at a time. With `raw`, 8-bit values are kept as stored, as
+/// [`MakeTextureOptions::raw`].
+pub fn make_cube_face_environment(
+    faces: [&Path; 6],
+    dst: &Path,
+    fov_degrees: f32,
+    raw: bool,
+) -> Result<(), ImageError> {
     if !(fov_degrees > 0.0 && fov_degrees < 180.0) {
         let message = format!("a cube face's field of view is between 0 and 180 degrees, not {fov_degrees}");
         return Err(ImageError::Encode { path: dst.to_path_buf(), message });
@@ -61,7 +67,7 @@ pub fn make_cube_face_environment(faces: [&Path; 6], dst: &Path, fov_degrees: f3
     let cot = 1.0 / (0.5 * fov_degrees.to_radians()).tan();
     let (mut rgba, mut width, mut height) = (Vec::new(), 0, 0);
     for (k, face) in faces.into_iter().enumerate() {
-        let image = load_texture_image(face, false)?.image;
+        let image = load_texture_image(face, raw)?.image;
         if k == 0 {
             width = (4 * image.width()).clamp(4, MAX_CUBE_LATLONG_WIDTH);
             height = width / 2;
@@ -79,7 +85,7 @@ pub fn make_cube_face_environment(faces: [&Path; 6], dst: &Path, fov_degrees: f3
     }
     let image = TexImage::new(width, height, 4, rgba)
         .ok_or_else(|| ImageError::Encode { path: dst.to_path_buf(), message: "an empty map".into() })?;
-    write_texture(&image, dst, &MakeTextureOptions { swrap: Wrap::Periodic, twrap: Wrap::Clamp, raw: false })
+    write_texture(&image, dst, &MakeTextureOptions { swrap: Wrap::Periodic, twrap: Wrap::Clamp, raw })
 }
 
 /// The face (0 to 5: +x, -x, +y, -y, +z, -z) direction `d` points to and where on it, `(u, v)`
@@ -260,7 +266,7 @@ mod tests {
         let faces = write_faces(dir.path(), 2);
         let dst = dir.path().join("env.tex");
         let f: Vec<&Path> = faces.iter().map(|p| p.as_path()).collect();
-        make_cube_face_environment([f[0], f[1], f[2], f[3], f[4], f[5]], &dst, 90.0).unwrap();
+        make_cube_face_environment([f[0], f[1], f[2], f[3], f[4], f[5]], &dst, 90.0, false).unwrap();
         let loaded = load_texture_image(&dst, false).unwrap();
         let image = &loaded.image;
         assert_eq!((image.width(), image.height(), image.channels()), (8, 4, 4));
@@ -278,7 +284,7 @@ mod tests {
         // A finer map, so the texel a direction lands in is near it.
         let faces = write_faces(dir.path(), 16);
         let f: Vec<&Path> = faces.iter().map(|p| p.as_path()).collect();
-        make_cube_face_environment([f[0], f[1], f[2], f[3], f[4], f[5]], &dst, 90.0).unwrap();
+        make_cube_face_environment([f[0], f[1], f[2], f[3], f[4], f[5]], &dst, 90.0, false).unwrap();
         let image = load_texture_image(&dst, false).unwrap().image;
         for (d, face, [column, row]) in cases {
             let (s, t) = crate::texture::environment::direction_to_latlong(d).unwrap();
@@ -298,10 +304,10 @@ mod tests {
         let f: Vec<&Path> = faces.iter().map(|p| p.as_path()).collect();
         let dst = dir.path().join("env.tex");
         for fov in [0.0, 180.0, f32::NAN, -5.0] {
-            assert!(make_cube_face_environment([f[0], f[1], f[2], f[3], f[4], f[5]], &dst, fov).is_err());
+            assert!(make_cube_face_environment([f[0], f[1], f[2], f[3], f[4], f[5]], &dst, fov, false).is_err());
         }
         let absent = dir.path().join("absent.png");
-        let err = make_cube_face_environment([f[0], f[1], f[2], f[3], f[4], &absent], &dst, 95.0).unwrap_err();
+        let err = make_cube_face_environment([f[0], f[1], f[2], f[3], f[4], &absent], &dst, 95.0, false).unwrap_err();
         assert!(err.to_string().contains("absent.png"), "{err}");
         assert!(!dst.exists());
     }
