@@ -380,7 +380,7 @@ pub(crate) fn decode_with_image_crate(path: &Path) -> Result<::image::DynamicIma
     let decode = || -> Result<::image::DynamicImage, ImageError> {
         let reader = ::image::ImageReader::open(path).map_err(|source| ImageError::Io { path: path.into(), source })?;
         let reader = reader.with_guessed_format().map_err(|source| ImageError::Io { path: path.into(), source })?;
-        reader.decode().map_err(|e| ImageError::Decode { path: path.into(), message: e.to_string() })
+        reader.decode().map_err(|e| ImageError::Decode { path: path.into(), message: decode_failure(path, &e) })
     };
     std::panic::catch_unwind(decode)
         .unwrap_or_else(|_| Err(ImageError::Decode { path: path.into(), message: "the decoder panicked".into() }))
@@ -390,10 +390,33 @@ pub(crate) fn decode_with_image_crate(path: &Path) -> Result<::image::DynamicIma
 /// `name` is what errors call it. Never panics on corrupt bytes.
 pub(crate) fn decode_memory_with_image_crate(name: &Path, bytes: &[u8]) -> Result<::image::DynamicImage, ImageError> {
     let decode = || {
-        ::image::load_from_memory(bytes).map_err(|e| ImageError::Decode { path: name.into(), message: e.to_string() })
+        ::image::load_from_memory(bytes)
+            .map_err(|e| ImageError::Decode { path: name.into(), message: unreadable_format(bytes, &e) })
     };
     std::panic::catch_unwind(decode)
         .unwrap_or_else(|_| Err(ImageError::Decode { path: name.into(), message: "the decoder panicked".into() }))
+}
+
+/// What a decoder's error says, with the format named when the file is in none that rtsl reads.
+fn decode_failure(path: &Path, error: &::image::ImageError) -> String {
+    use std::io::Read;
+    let mut head = [0u8; 4];
+    let read = std::fs::File::open(path).and_then(|mut f| f.read(&mut head)).unwrap_or(0);
+    unreadable_format(&head[..read], error)
+}
+
+/// [`decode_failure`] of a file beginning with `head`.
+fn unreadable_format(head: &[u8], error: &::image::ImageError) -> String {
+    if !matches!(error, ::image::ImageError::Unsupported(_)) {
+        return error.to_string();
+    }
+    // PRMan's own texture files before it wrote TIFF (`txmake`'s `.tx`), in either byte order.
+    if head.starts_with(&[0xce, 0xfa]) || head.starts_with(&[0xfa, 0xce]) {
+        return "PRMan's own texture format, which is not documented and which rtsl cannot read: make the \
+                texture again from its source image (RIB `MakeTexture`, or any TIFF, PNG or EXR file)"
+            .into();
+    }
+    "not an image format rtsl reads (OpenEXR, TIFF, PNG, JPEG, TGA, PPM/PGM)".into()
 }
 
 fn check_buffer(path: &Path, width: usize, height: usize, channels: usize, got: usize) -> Result<(), ImageError> {

@@ -294,4 +294,32 @@ mod tests {
             assert!(load_texture_image(&path, false).is_err(), "{ext}");
         }
     }
+
+    /// A file in no format rtsl reads says so, and PRMan's own texture files (before `txmake`
+    /// wrote TIFF) are named, in either byte order; a TIFF file named `.tx` reads.
+    #[test]
+    fn files_in_formats_rtsl_cannot_read_say_which() {
+        let dir = tempfile::tempdir().unwrap();
+        let message = |name: &str, bytes: &[u8]| {
+            let path = dir.path().join(name);
+            std::fs::write(&path, bytes).unwrap();
+            let from_file = load_texture_image(&path, false).unwrap_err().to_string();
+            let from_memory = decode_texture_file(&path, bytes, false).unwrap_err().to_string();
+            assert!(from_file.ends_with(from_memory.rsplit(": ").next().unwrap()), "{from_file} / {from_memory}");
+            from_file
+        };
+        for magic in [[0xce, 0xfa, 0x03, 0x00], [0xfa, 0xce, 0x00, 0x03], [0xce, 0xfa, 0x02, 0x00]] {
+            let bytes: Vec<u8> = magic.iter().copied().chain([0x10, 0x04, 0x01, 0x08].repeat(40)).collect();
+            let m = message("old.tx", &bytes);
+            assert!(m.contains("PRMan's own texture format"), "{m}");
+        }
+        let m = message("text.tx", b"hello, not an image at all");
+        assert!(m.contains("not an image format rtsl reads"), "{m}");
+
+        let tiff = dir.path().join("grey.tif");
+        ::image::GrayImage::from_raw(2, 2, vec![10, 20, 30, 40]).unwrap().save(&tiff).unwrap();
+        let tx = dir.path().join("grey.tx");
+        std::fs::copy(&tiff, &tx).unwrap();
+        assert_eq!(load_texture_image(&tx, true).unwrap().image.texel(1, 1), &[40.0 / 255.0]);
+    }
 }
