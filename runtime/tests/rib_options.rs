@@ -174,9 +174,27 @@ fn reyes_controls_are_accepted_quietly_and_unknown_names_still_warn() {
     let (_, warnings) = load(quiet);
     assert_eq!(warnings, Vec::<String>::new());
     let (_, warnings) = load(
-        "Option \"limits\" \"int nonsense\" [1]\nWorldBegin\nAttribute \"trace\" \"int displacements\" [1]\nWorldEnd\n",
+        "Option \"limits\" \"int nonsense\" [1]\nWorldBegin\nAttribute \"trace\" \"int nonsense\" [1]\nWorldEnd\n",
     );
     assert_eq!(warnings.len(), 2, "{warnings:?}");
     assert!(warnings[0].contains("\"limits\" \"nonsense\" is not supported"), "{warnings:?}");
-    assert!(warnings[1].contains("\"trace\" \"displacements\" is not supported"), "{warnings:?}");
+    assert!(warnings[1].contains("\"trace\" \"nonsense\" is not supported"), "{warnings:?}");
+}
+
+/// Asking for true displacement (PRMan's ray-traced displacements, BMRT's `truedisplacement`) says
+/// what the image lacks; turning it off, and displacement bounds (PRMan's, BMRT's), say nothing.
+#[test]
+fn true_displacement_asked_for_says_it_is_bump_mapping() {
+    let world = |attributes: &str| format!("WorldBegin\n{attributes}\nWorldEnd\n");
+    for on in ["Attribute \"trace\" \"int displacements\" [1]", "Attribute \"render\" \"int truedisplacement\" [1]"] {
+        let (_, warnings) = load(&world(on));
+        assert_eq!(warnings.len(), 1, "{warnings:?}");
+        assert!(warnings[0].contains("true displacement is not supported"), "{warnings:?}");
+        assert!(warnings[0].contains("silhouettes and shadows keep the undisplaced shape"), "{warnings:?}");
+    }
+    let quiet = world(
+        "Attribute \"trace\" \"int displacements\" [0]\nAttribute \"render\" \"int truedisplacement\" [0]\n\
+         Attribute \"bound\" \"float displacement\" [0.2]\nAttribute \"displacementbound\" \"float sphere\" [0.2]",
+    );
+    assert_eq!(load(&quiet).1, Vec::<String>::new());
 }

@@ -2081,7 +2081,22 @@ impl<'a> Loader<'a> {
                     _ => self.warn(r, "attribute \"trimcurve\" \"sense\" takes \"inside\" or \"outside\""),
                 },
                 ("identifier", "name") => self.rt.identifier(s),
-                ("identifier", _) | ("displacementbound", _) => {}
+                ("identifier", _) | ("displacementbound", _) | ("bound", "displacement") => {}
+                // PRMan's ray-traced displacement and BMRT's true displacement: displacement shaders
+                // here are bump mapping (docs/rendering.md), which an image should say it lacks.
+                ("trace", "displacements") | ("render", "truedisplacement") => {
+                    if f.unwrap_or(1.0) != 0.0 {
+                        self.warn(
+                            r,
+                            format_args!(
+                                "attribute \"{name}\" \"{}\": true displacement is not supported; displacement \
+                                 shaders bend the shading normal only, so silhouettes and shadows keep the \
+                                 undisplaced shape",
+                                p.name
+                            ),
+                        );
+                    }
+                }
                 ("visibility", "camera") => self.rt.ray_visibility(RayKind::Camera, f.unwrap_or(1.0) != 0.0),
                 // rtsl has one kind of ray for what shaders trace: it sees a surface that any of the
                 // request's secondary kinds sees.
