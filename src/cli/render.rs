@@ -87,8 +87,9 @@ pub struct RenderArgs {
     #[arg(short = 'S', long = "shader-path", value_delimiter = crate::cli::PATH_LIST_SEPARATOR)]
     pub shader_path: Vec<PathBuf>,
     /// How 8-bit images (PNG, TGA, PPM) encode colour: `srgb` for display, or `linear` (the values
-    /// as rendered). Without it, sRGB unless the scene's `Exposure` applies a gamma of its own. EXR
-    /// is always linear.
+    /// as rendered). Without it, sRGB, except for RIB files (linear, as RenderMan writes, unless
+    /// the file says `Option "image" "string transfer" "srgb"`) and scenes whose `Exposure`
+    /// applies a gamma of their own. EXR is always linear.
     #[arg(long, value_parser = rtsl_runtime::Transfer::parse)]
     pub transfer: Option<Transfer>,
     /// Print nothing but errors.
