@@ -181,20 +181,49 @@ fn reyes_controls_are_accepted_quietly_and_unknown_names_still_warn() {
     assert!(warnings[1].contains("\"trace\" \"nonsense\" is not supported"), "{warnings:?}");
 }
 
-/// Asking for true displacement (PRMan's ray-traced displacements, BMRT's `truedisplacement`) says
-/// what the image lacks; turning it off, and displacement bounds (PRMan's, BMRT's), say nothing.
+/// Asking for true displacement (PRMan's ray-traced displacements, BMRT's `truedisplacement`) of
+/// a displaced surface says, once, what the image lacks; asking with no displacement shader bound
+/// (RenderMan for Maya asks in every file), turning it off, and displacement bounds (PRMan's,
+/// BMRT's) say nothing.
 #[test]
 fn true_displacement_asked_for_says_it_is_bump_mapping() {
     let world = |attributes: &str| format!("WorldBegin\n{attributes}\nWorldEnd\n");
+    let displaced = "Displacement \"bumpy\"";
     for on in ["Attribute \"trace\" \"int displacements\" [1]", "Attribute \"render\" \"int truedisplacement\" [1]"] {
-        let (_, warnings) = load(&world(on));
-        assert_eq!(warnings.len(), 1, "{warnings:?}");
-        assert!(warnings[0].contains("true displacement is not supported"), "{warnings:?}");
-        assert!(warnings[0].contains("silhouettes and shadows keep the undisplaced shape"), "{warnings:?}");
+        for rib in [format!("{on}\n{displaced}\n{displaced}"), format!("{displaced}\n{on}\n{on}")] {
+            let (_, warnings) = load(&world(&rib));
+            assert_eq!(warnings.len(), 1, "{warnings:?}");
+            assert!(warnings[0].contains("true displacement is not supported"), "{warnings:?}");
+            assert!(warnings[0].contains("silhouettes and shadows keep the undisplaced shape"), "{warnings:?}");
+        }
+        let quiet = [
+            on.to_string(),
+            format!("{on}\nDisplacement \"null\""),
+            format!("AttributeBegin {on} AttributeEnd\n{displaced}"),
+            format!("{displaced}\n{}", on.replace("[1]", "[0]")),
+        ];
+        for rib in quiet {
+            assert_eq!(load(&world(&rib)).1, Vec::<String>::new(), "{rib}");
+        }
     }
-    let quiet = world(
-        "Attribute \"trace\" \"int displacements\" [0]\nAttribute \"render\" \"int truedisplacement\" [0]\n\
-         Attribute \"bound\" \"float displacement\" [0.2]\nAttribute \"displacementbound\" \"float sphere\" [0.2]",
-    );
-    assert_eq!(load(&quiet).1, Vec::<String>::new());
+    let bounds = "Attribute \"bound\" \"float displacement\" [0.2]\n\
+                  Attribute \"displacementbound\" \"float sphere\" [0.2]";
+    assert_eq!(load(&world(bounds)).1, Vec::<String>::new());
+}
+
+/// PRMan's `RiCamera`, which names the camera description (RenderMan for Maya writes
+/// `Camera "world" "float[2] shutteropening" [0 1]` in every file), binds no camera shader and says
+/// nothing; a `Camera` request without its parameters still names a camera shader, which must exist.
+#[test]
+fn prman_s_named_camera_is_told_from_a_camera_shader_by_its_parameters() {
+    let (rt, warnings) =
+        load("Projection \"perspective\"\nCamera \"world\" \"float[2] shutteropening\" [0 1]\nWorldBegin\nWorldEnd\n");
+    assert_eq!(warnings, Vec::<String>::new());
+    assert!(rt.camera_shader_id().is_none());
+    let (rt, warnings) = load("Projection \"perspective\"\nCamera \"fisheye\"\nWorldBegin\nWorldEnd\n");
+    assert_eq!(warnings, Vec::<String>::new());
+    assert!(rt.camera_shader_id().is_some());
+    let (_, warnings) = load("Camera \"nosuchcamera\"\nWorldBegin\nWorldEnd\n");
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    assert!(warnings[0].contains("nosuchcamera"), "{warnings:?}");
 }

@@ -332,6 +332,7 @@ fn omissions_count_what_is_missing_from_the_picture_and_not_what_is_approximated
         Projection "stereographic"
         WorldBegin
           Attribute "trace" "int displacements" [1]
+          Displacement "bumpy"
           Surface "plastic" "nosuchparam" [1]
           Blobby 0 [] [] []
           ReadArchive "missing-model.obj"
@@ -345,7 +346,7 @@ fn omissions_count_what_is_missing_from_the_picture_and_not_what_is_approximated
     let loaded = load_str(&mut Context::new(), rib, Path::new("s.rib")).expect("loads with warnings");
     let text = loaded.warnings.iter().map(ToString::to_string).collect::<Vec<_>>().join("\n");
     for approximated in
-        ["\"ribparse\"", "PixelVariance", "stereographic", "\"displacements\"", "nosuchparam", "\"lines\""]
+        ["\"ribparse\"", "PixelVariance", "stereographic", "true displacement", "nosuchparam", "\"lines\""]
     {
         assert!(text.contains(approximated), "{approximated} is warned about: {text}");
     }

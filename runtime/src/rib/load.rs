@@ -104,6 +104,19 @@ fn switched_on(p: &Param) -> Option<bool> {
     int.or_else(|| p.floats().and_then(|v| v.first()).map(|&v| v != 0.0))
 }
 
+/// The parameters of PRMan's `RiCamera` (`Camera "name" ...`), by which it is told from a camera
+/// shader's `Camera` request.
+const PRMAN_CAMERA_PARAMETERS: &[&str] = &[
+    "shutteropening",
+    "dofmult",
+    "extremeoffset",
+    "apertureNSides",
+    "apertureAngle",
+    "apertureRoundness",
+    "apertureDensity",
+    "focusregion",
+];
+
 /// PRMan's and 3Delight's default `Option "limits" "zthreshold"` (each channel).
 pub const RENDERMAN_DEPTH_THRESHOLD: f32 = 0.996;
 
@@ -735,6 +748,11 @@ struct State {
     /// outside of the geometry that follows is the side `dPdu x dPdv` (a polygon's `(P1 - P0) x
     /// (P2 - P0)`) points away from in its own space, not the side it points to.
     inside: bool,
+    /// True displacement asked for (PRMan's `Attribute "trace" "displacements"`, BMRT's `"render"
+    /// "truedisplacement"`), and a displacement shader bound: both, and the file is told once
+    /// that displacement is bump mapping here (RenderMan for Maya asks in every file).
+    true_displacement: bool,
+    displaced: bool,
 }
 
 struct Loader<'a> {
@@ -748,6 +766,8 @@ struct Loader<'a> {
     open_blocks: usize,
     blocks_refused: usize,
     reported_deep_blocks: bool,
+    /// Whether the file was told that true displacement is bump mapping here.
+    told_of_bump_mapping: bool,
     /// Geometry gathered for one object: the object and the transform it is placed with.
     pending: Option<(ObjectId, Affine3A, Affine3A)>,
     /// Inside `ObjectBegin`: its handle, and the space its geometry is in.
@@ -850,6 +870,7 @@ impl<'a> Loader<'a> {
             open_blocks: 0,
             blocks_refused: 0,
             reported_deep_blocks: false,
+            told_of_bump_mapping: false,
             pending: None,
             retained: None,
             objects: HashMap::new(),
@@ -916,6 +937,18 @@ impl<'a> Loader<'a> {
         }
         self.rt.pop_matrix()?;
         Ok(())
+    }
+
+    /// Warns, once a file, when displacement shaders are asked to move geometry.
+    fn tell_of_bump_mapping(&mut self, r: &Request) {
+        if self.state.true_displacement && self.state.displaced && !self.told_of_bump_mapping {
+            self.told_of_bump_mapping = true;
+            self.warn(
+                r,
+                "true displacement is not supported: displacement shaders bend the shading normal only, so \
+                 silhouettes and shadows keep the undisplaced shape",
+            );
+        }
     }
 
     fn warn(&mut self, r: &Request, message: impl std::fmt::Display) {
@@ -1686,8 +1719,16 @@ impl<'a> Loader<'a> {
                 rt.pixel_shader(Some(id), &params)?;
             }
             K::Camera(s) => {
+                // PRMan's `RiCamera` (`Camera "world" "float[2] shutteropening" [0 1]`, in every
+                // RenderMan for Maya file) names the camera description for later use, where rtsl's
+                // `Camera` binds a camera shader: known by its parameters, with no shader of its
+                // name, it changes nothing.
+                let names_a_description = s.params.iter().any(|p| PRMAN_CAMERA_PARAMETERS.contains(&p.name.as_str()));
+                let id = match rt.find_shader(&s.name) {
+                    Err(_) if names_a_description => return Ok(()),
+                    found => found?,
+                };
                 self.orthographic = s.name == "orthographic";
-                let id = rt.find_shader(&s.name)?;
                 let program = rt.program(id)?.clone();
                 let params = typed_params(&program, &s.params, |p| &p.loc, &mut self.out.warnings);
                 rt.camera_shader(Some(id), &params)?;
@@ -1713,7 +1754,11 @@ impl<'a> Loader<'a> {
                 match r.kind {
                     K::Atmosphere(_) => rt.atmosphere(id, &params)?,
                     K::Interior(_) => rt.interior(id, &params)?,
-                    _ => rt.displacement(id, &params)?,
+                    _ => {
+                        rt.displacement(id, &params)?;
+                        self.state.displaced = id.is_some();
+                        self.tell_of_bump_mapping(r);
+                    }
                 }
             }
             K::Exterior(s) if is_null(&s.name) => {}
@@ -2085,17 +2130,8 @@ impl<'a> Loader<'a> {
                 // PRMan's ray-traced displacement and BMRT's true displacement: displacement shaders
                 // here are bump mapping (docs/rendering.md), which an image should say it lacks.
                 ("trace", "displacements") | ("render", "truedisplacement") => {
-                    if f.unwrap_or(1.0) != 0.0 {
-                        self.warn(
-                            r,
-                            format_args!(
-                                "attribute \"{name}\" \"{}\": true displacement is not supported; displacement \
-                                 shaders bend the shading normal only, so silhouettes and shadows keep the \
-                                 undisplaced shape",
-                                p.name
-                            ),
-                        );
-                    }
+                    self.state.true_displacement = f.unwrap_or(1.0) != 0.0;
+                    self.tell_of_bump_mapping(r);
                 }
                 ("visibility", "camera") => self.rt.ray_visibility(RayKind::Camera, f.unwrap_or(1.0) != 0.0),
                 // rtsl has one kind of ray for what shaders trace: it sees a surface that any of the
