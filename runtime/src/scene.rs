@@ -238,6 +238,17 @@ impl Scene {
         Ok(())
     }
 
+    /// Makes instance `id` an instance of `object`, where it is (seen by queries after the next
+    /// [`Scene::commit`]).
+    pub fn set_instance_object(&mut self, id: u32, object: ObjectId) -> Result<(), SceneError> {
+        if object.0 as usize >= self.objects.len() {
+            return Err(SceneError::NoSuchObject(object.0));
+        }
+        let inst = self.instances.get_mut(id as usize).ok_or(SceneError::NoSuchInstance(id))?;
+        inst.object = object.0;
+        Ok(())
+    }
+
     /// The tracer's data of committed instance `id`.
     pub fn instance_data(&self, id: u32) -> Option<&InstanceData> {
         self.top.instances.get(id as usize)

@@ -189,7 +189,8 @@ impl Context {
                 },
                 _ => object_material[inst.object.0 as usize],
             };
-            instances.push(InstanceShading { material, object: obj.0, world_from_object: inst.transform, parts });
+            let world_from_object = inst.transform;
+            instances.push(InstanceShading { material, object: obj.0, world_from_object, parts, displaced: false });
         }
         scene.set_solids(
             self.solids.iter().map(|s| s.filter_map(|id| in_world.get(id.0 as usize).copied().flatten())).collect(),
@@ -231,6 +232,7 @@ impl Context {
         world.spaces = self.spaces.clone();
         world.textures = self.textures.clone();
         world.prepare();
+        warnings.extend(crate::render::true_displacement::displace_world(&mut world, &mut self.displaced));
         for w in warnings {
             if !self.warnings.contains(&w) {
                 self.warnings.push(w);
@@ -248,6 +250,8 @@ impl Context {
             surface: shader(&a.surface)?,
             interior: shader(&a.interior)?,
             displacement: shader(&a.displacement)?,
+            true_displacement: a.true_displacement.unwrap_or(a.displacement_bound > 0.0),
+            shading_rate: a.shading_rate,
             color: a.color,
             opacity: a.opacity,
             photon: a.photon,

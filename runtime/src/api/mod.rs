@@ -229,6 +229,23 @@ struct Appearance {
     /// "bias"`).
     #[serde(default)]
     trace_bias: f32,
+    /// Whether displacement shaders move objects built from now on, where said (RIB `Attribute
+    /// "trace" "displacements"`, BMRT's `"render" "truedisplacement"`); unsaid, they do where
+    /// `displacement_bound` is above 0.
+    #[serde(default)]
+    true_displacement: Option<bool>,
+    /// How far displacement may move objects built from now on (RIB `Attribute
+    /// "displacementbound" "sphere"`).
+    #[serde(default)]
+    displacement_bound: f32,
+    /// The micropolygon area in pixels that displaced objects built from now on are diced to
+    /// (RIB `ShadingRate`).
+    #[serde(default = "unit_shading_rate")]
+    shading_rate: f32,
+}
+
+fn unit_shading_rate() -> f32 {
+    1.0
 }
 
 impl Default for Appearance {
@@ -249,6 +266,9 @@ impl Default for Appearance {
             identifier: None,
             trace_depths: crate::render::TraceDepths::UNBOUNDED,
             trace_bias: 0.0,
+            true_displacement: None,
+            displacement_bound: 0.0,
+            shading_rate: 1.0,
         }
     }
 }
@@ -437,6 +457,9 @@ pub struct Context {
     events: Vec<ShaderEvent>,
     /// Each object's materials as the last frame built them (by object index).
     built_materials: Vec<Option<BuiltMaterials>>,
+    /// The meshes true displacement made for the last frame, with the scene objects holding
+    /// them (`render/true_displacement.rs`).
+    displaced: crate::render::true_displacement::DisplacedMeshes,
     /// The last [`ObjectRecord::version`] given.
     object_versions: u64,
     /// Where demand-loaded objects' meshes come from ([`Context::set_mesh_source`]).
@@ -565,6 +588,7 @@ impl Context {
             warnings: crate::cpu::build_note_once().map(str::to_string).into_iter().collect(),
             events: Vec::new(),
             built_materials: Vec::new(),
+            displaced: Default::default(),
             object_versions: 0,
         }
     }

@@ -86,6 +86,29 @@ impl Context {
         self.appearance.trace_bias = if bias.is_finite() { bias.max(0.0) } else { 0.0 };
     }
 
+    /// Whether displacement shaders move the geometry of objects built from now on (true
+    /// displacement: RenderMan's `Attribute "trace" "displacements"`, BMRT's `"render"
+    /// "truedisplacement"`), or bend their shading normals only (bump mapping). `None` leaves it
+    /// to [`Context::displacement_bound`]: they move objects displaced by a bound above 0.
+    pub fn true_displacement(&mut self, on: Option<bool>) {
+        self.appearance.true_displacement = on;
+    }
+
+    /// How far displacement shaders may move objects built from now on, in world units
+    /// (RenderMan's `Attribute "displacementbound" "sphere"`). A bound above 0 says the shaders
+    /// move the geometry (see [`Context::true_displacement`]); a negative or non-finite bound
+    /// is taken as 0.
+    pub fn displacement_bound(&mut self, bound: f32) {
+        self.appearance.displacement_bound = if bound.is_finite() { bound.max(0.0) } else { 0.0 };
+    }
+
+    /// The area in pixels of the micropolygons that truly displaced objects built from now on
+    /// are diced into (RenderMan's `ShadingRate`, 1 at first): their edges are about its square
+    /// root in pixels long. A rate that is not a positive number is taken as 1.
+    pub fn shading_rate(&mut self, area: f32) {
+        self.appearance.shading_rate = if area.is_finite() && area > 0.0 { area } else { 1.0 };
+    }
+
     /// Names objects built from now on (RenderMan's `Attribute "identifier" "name"`; `None`: no
     /// name), which their shaders read with `attribute("identifier:name", s)`.
     pub fn identifier(&mut self, name: Option<&str>) {

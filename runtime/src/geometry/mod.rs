@@ -6,10 +6,12 @@
 //! and triangle.
 
 pub mod alpha;
+pub mod dice;
 pub mod mesh;
 pub mod quadric;
 pub mod triangle;
 
 pub use alpha::AlphaMask;
+pub use dice::{dice, Diced, DicedVertex};
 pub use mesh::{Attribute, AttributeKind, Deformation, Mesh, MeshError};
 pub use quadric::{Quadric, Tessellation};

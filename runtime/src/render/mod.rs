@@ -5,7 +5,8 @@
 //! counts; `volume.rs` runs atmosphere and interior shaders on ray segments; `differential.rs` carries ray differentials; `native.rs` lets Rust code shade a surface;
 //! `progressive.rs` renders chosen pixels pass by pass into an accumulator (interactive viewers);
 //! `primary.rs` makes primary rays (the built-in camera or the camera shader); `filter.rs` holds the
-//! pixel filters and `film.rs` splats samples through them.
+//! pixel filters and `film.rs` splats samples through them; `true_displacement.rs` moves the
+//! geometry of objects whose displacement shaders ask to, before a frame.
 
 mod caustic_aim;
 pub mod differential;
@@ -33,6 +34,7 @@ mod scratch;
 pub mod shade;
 mod stats;
 mod trace_ahead;
+pub mod true_displacement;
 mod virtual_lights;
 mod volume;
 mod work;

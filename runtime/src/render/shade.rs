@@ -888,9 +888,11 @@ fn shade_group_lanes(
         let mut rows = by_rows.then_some(&**rows);
         let color = Vec3A::from(material.color);
         let opacity = Vec3A::from(material.opacity);
-        if let Some(displacement) = &material.displacement {
+        // A truly displaced instance's mesh is where its displacement shader moved it already.
+        if let Some(displacement) = material.displacement.as_ref().filter(|_| !inst.displaced) {
             let at = (material_id, inst.world_from_object);
-            displace(frame, displacement, at, group, geoms, (color, opacity), depth, budgets);
+            let moves = Moves::NormalOnly;
+            displace(frame, displacement, at, group, geoms, (color, opacity), depth, budgets, moves);
             // The hits' normals (and points) are the displaced ones now, not the rows'.
             rows = None;
         }
@@ -1235,9 +1237,19 @@ fn front_normals<'a>(group: &'a GroupRows<'a>, hits: GroupHits<'a>) -> impl Iter
     })
 }
 
-/// Runs a displacement shader over a group of hits as bump mapping: the `N` it leaves (when
-/// finite and not zero) replaces each hit's shading normal; `P` and the geometry stay where the
-/// ray met them. Vertex-scope parameters are bound for the surface shader only.
+/// What a displacement shader's run changes of each hit ([`displace`]).
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Moves {
+    /// The shading normal: bump mapping.
+    NormalOnly,
+    /// The point too: true displacement, of the points of a diced mesh.
+    PointAndNormal,
+}
+
+/// Runs a displacement shader over a group of hits: the `N` it leaves (when finite and not
+/// zero) replaces each hit's shading normal. As bump mapping (`Moves::NormalOnly`) `P` and the
+/// geometry stay where the ray met them; for true displacement the `P` it leaves (when finite)
+/// replaces the hit's point too. Vertex-scope parameters are bound for the surface shader only.
 #[allow(clippy::too_many_arguments)]
 fn displace(
     frame: &Frame,
@@ -1248,6 +1260,7 @@ fn displace(
     appearance: (Vec3A, Vec3A),
     depth: u32,
     budgets: &mut [RayBudget],
+    moves: Moves,
 ) {
     let program = &displacement.program;
     with_filled_batch(program, group.len(), &hit_global_rows(program), |batch| {
@@ -1268,6 +1281,52 @@ fn displace(
             if n.is_finite() && n != Vec3A::ZERO {
                 g.n = n;
             }
+            if moves == Moves::PointAndNormal {
+                let p = get3(&raw, program.slots.p, lane, g.p);
+                if p.is_finite() {
+                    g.p = p;
+                }
+            }
+        }
+    });
+}
+
+/// Runs the displacement shader of a group's material at the group's hits, as true
+/// displacement does at the points of a diced mesh (`true_displacement.rs`): `out[l]` is lane
+/// `l`'s point and normal as the shader leaves them, world space, or `None` where the lane has
+/// no surface or its material no displacement shader.
+pub(super) fn displaced_points(frame: &Frame, group: &GroupRows, out: &mut [Option<(Vec3A, Vec3A)>]) {
+    out.iter_mut().for_each(|o| *o = None);
+    if group.is_empty() {
+        return;
+    }
+    let world = frame.world;
+    let Some(inst) = world.instances.get(group.instance() as usize) else { return };
+    let material_id = inst.material_at(group.hit(0).primitive);
+    let material = world.materials.get(material_id as usize).unwrap_or(&DEFAULT_MATERIAL);
+    let Some(displacement) = &material.displacement else { return };
+    let program = &displacement.program;
+    let g = &program.slots;
+    let needs = GeometryNeeds {
+        derivs: needs_derivs(program),
+        coords: [g.u, g.v, g.s, g.t, g.dpdu, g.dpdv].iter().any(Option::is_some),
+        dpduv: g.dpdu.is_some() || g.dpdv.is_some(),
+        normal_derivs: deriv_row(g.n, 3, program.layout().deriv_slots).is_some(),
+    };
+    let Some(ig) = InstanceGeometry::new(world, inst, group.instance(), needs) else { return };
+    let mut budgets = vec![RayBudget::FULL; group.len()];
+    with_hit_geometry(|HitBuffers { geoms, rows }| {
+        if geoms.len() < group.len() {
+            geoms.resize_with(group.len(), || None);
+        }
+        let geoms = &mut geoms[..group.len()];
+        hit_geometries(&ig, group, geoms, rows, true);
+        let appearance = (Vec3A::from(material.color), Vec3A::from(material.opacity));
+        let at = (material_id, inst.world_from_object);
+        let moves = Moves::PointAndNormal;
+        displace(frame, displacement, at, group, geoms, appearance, 0, &mut budgets, moves);
+        for (o, g) in out.iter_mut().zip(geoms.iter()) {
+            *o = g.as_ref().map(|g| (g.p, g.n));
         }
     });
 }

@@ -29,8 +29,15 @@ pub struct Material {
     /// reach this material's surface from behind (`render/volume.rs`).
     pub interior: Option<Arc<ShaderInstance>>,
     /// The displacement shader, run before the surface shader as bump mapping (its `N` becomes
-    /// the surface shader's; the geometry does not move).
+    /// the surface shader's; the geometry does not move), or, with `true_displacement`, over the
+    /// points of the diced mesh before the frame (`render/true_displacement.rs`).
     pub displacement: Option<Arc<ShaderInstance>>,
+    /// Whether the displacement shader moves the geometry: the object is diced and the shader's
+    /// `P` moves its points (RIB `Attribute "displacementbound"`, `"trace" "displacements"`).
+    pub true_displacement: bool,
+    /// The area in pixels of the micropolygons a truly displaced object is diced into
+    /// (RenderMan's `ShadingRate`): their edges are about its square root in pixels long.
+    pub shading_rate: f32,
     /// Rays do not see the back of its triangles (RIB `Sides 1`): the side their winding's normal
     /// `(b - a) x (c - a)` points away from ([`World::intersect_packet`]).
     pub one_sided: bool,
@@ -108,6 +115,8 @@ impl Material {
         shadow_by_shader: false,
         interior: None,
         displacement: None,
+        true_displacement: false,
+        shading_rate: 1.0,
         one_sided: false,
         visibility: Visibility::ALL,
         matte: false,
@@ -267,6 +276,9 @@ pub struct InstanceShading {
     pub world_from_object: Affine3A,
     /// The materials of an object built in parts (`Context::end_part`), `None` for one material.
     pub parts: Option<InstanceParts>,
+    /// Whether `object` is a mesh its displacement shaders moved already (true displacement,
+    /// `render/true_displacement.rs`): its hits are not displaced again.
+    pub displaced: bool,
 }
 
 /// Which material shades each triangle of an object built in parts.
@@ -1269,6 +1281,7 @@ mod tests {
             object: 0,
             world_from_object: Affine3A::IDENTITY,
             parts: parts.map(|m| InstanceParts { of_triangle: vec![0; m.len()].into(), materials: m.into() }),
+            displaced: false,
         };
         world.instances = vec![
             instance(1, None),

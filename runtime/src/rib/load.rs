@@ -748,11 +748,6 @@ struct State {
     /// outside of the geometry that follows is the side `dPdu x dPdv` (a polygon's `(P1 - P0) x
     /// (P2 - P0)`) points away from in its own space, not the side it points to.
     inside: bool,
-    /// True displacement asked for (PRMan's `Attribute "trace" "displacements"`, BMRT's `"render"
-    /// "truedisplacement"`), and a displacement shader bound: both, and the file is told once
-    /// that displacement is bump mapping here (RenderMan for Maya asks in every file).
-    true_displacement: bool,
-    displaced: bool,
 }
 
 struct Loader<'a> {
@@ -766,8 +761,6 @@ struct Loader<'a> {
     open_blocks: usize,
     blocks_refused: usize,
     reported_deep_blocks: bool,
-    /// Whether the file was told that true displacement is bump mapping here.
-    told_of_bump_mapping: bool,
     /// Geometry gathered for one object: the object and the transform it is placed with.
     pending: Option<(ObjectId, Affine3A, Affine3A)>,
     /// Inside `ObjectBegin`: its handle, and the space its geometry is in.
@@ -870,7 +863,6 @@ impl<'a> Loader<'a> {
             open_blocks: 0,
             blocks_refused: 0,
             reported_deep_blocks: false,
-            told_of_bump_mapping: false,
             pending: None,
             retained: None,
             objects: HashMap::new(),
@@ -937,18 +929,6 @@ impl<'a> Loader<'a> {
         }
         self.rt.pop_matrix()?;
         Ok(())
-    }
-
-    /// Warns, once a file, when displacement shaders are asked to move geometry.
-    fn tell_of_bump_mapping(&mut self, r: &Request) {
-        if self.state.true_displacement && self.state.displaced && !self.told_of_bump_mapping {
-            self.told_of_bump_mapping = true;
-            self.warn(
-                r,
-                "true displacement is not supported: displacement shaders bend the shading normal only, so \
-                 silhouettes and shadows keep the undisplaced shape",
-            );
-        }
     }
 
     fn warn(&mut self, r: &Request, message: impl std::fmt::Display) {
@@ -1344,7 +1324,8 @@ impl<'a> Loader<'a> {
         }
         let rt = &mut *self.rt;
         match &r.kind {
-            K::Version(_) | K::ShadingRate(_) | K::Declare { .. } => {}
+            K::Version(_) | K::Declare { .. } => {}
+            K::ShadingRate(area) => rt.shading_rate(*area),
             K::Matte(on) => rt.matte(*on),
             K::Sides(1) => rt.one_sided(true),
             K::Sides(2) => rt.one_sided(false),
@@ -1756,8 +1737,6 @@ impl<'a> Loader<'a> {
                     K::Interior(_) => rt.interior(id, &params)?,
                     _ => {
                         rt.displacement(id, &params)?;
-                        self.state.displaced = id.is_some();
-                        self.tell_of_bump_mapping(r);
                     }
                 }
             }
@@ -2126,12 +2105,17 @@ impl<'a> Loader<'a> {
                     _ => self.warn(r, "attribute \"trimcurve\" \"sense\" takes \"inside\" or \"outside\""),
                 },
                 ("identifier", "name") => self.rt.identifier(s),
-                ("identifier", _) | ("displacementbound", _) | ("bound", "displacement") => {}
-                // PRMan's ray-traced displacement and BMRT's true displacement: displacement shaders
-                // here are bump mapping (docs/rendering.md), which an image should say it lacks.
+                ("identifier", _) | ("displacementbound", "coordinatesystem") => {}
+                // How far displacement moves the geometry (in the current space: no bound is
+                // used to cull here, so the space does not matter); above 0 it asks for true
+                // displacement, unless the attributes below say otherwise.
+                ("displacementbound", "sphere") | ("bound", "displacement") => match f {
+                    Some(b) if b.is_finite() && b >= 0.0 => self.rt.displacement_bound(b),
+                    _ => self.warn(r, format_args!("attribute \"{name}\" \"{}\" takes a distance", p.name)),
+                },
+                // PRMan's ray-traced displacement and BMRT's true displacement.
                 ("trace", "displacements") | ("render", "truedisplacement") => {
-                    self.state.true_displacement = f.unwrap_or(1.0) != 0.0;
-                    self.tell_of_bump_mapping(r);
+                    self.rt.true_displacement(Some(f.unwrap_or(1.0) != 0.0))
                 }
                 ("visibility", "camera") => self.rt.ray_visibility(RayKind::Camera, f.unwrap_or(1.0) != 0.0),
                 // rtsl has one kind of ray for what shaders trace: it sees a surface that any of the

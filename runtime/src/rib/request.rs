@@ -317,7 +317,8 @@ pub enum RequestKind {
         /// Gamma.
         gamma: f32,
     },
-    /// `ShadingRate size` (accepted; a ray tracer shades per hit).
+    /// `ShadingRate size`: the micropolygon area truly displaced objects are diced to (surfaces
+    /// are otherwise shaded per hit).
     ShadingRate(f32),
     /// `Option "name" params`
     Option(Shader),

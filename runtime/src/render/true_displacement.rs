@@ -1,0 +1,420 @@
+//! True displacement: displacement shaders that move their objects' geometry, as a REYES
+//! renderer's do, rather than bending the shading normal (bump mapping, `shade::displace`).
+//!
+//! Before a frame, each instance whose material asks for it ([`Material::true_displacement`]) has
+//! its mesh diced (`geometry::dice`): every triangle cut into `n * n`, `n` chosen so that where
+//! the camera sees the mesh nearest a micropolygon's edges are about the square root of its
+//! `ShadingRate` in pixels, within a triangle budget. The displacement shader then runs once at
+//! every diced point, as at a hit there (the same globals and parameters; derivatives over the
+//! dicing's own spacing), and the points and normals it leaves make a new mesh, which the
+//! instance is traced and shaded as: silhouettes, shadows and reflections see the displaced
+//! shape, and its hits are not displaced again ([`InstanceShading::displaced`]). Where the shader
+//! moves no point (it only sets `N`), the instance keeps its mesh and bump mapping.
+//!
+//! Invariant: shared edges are diced once (`geometry::dice`) and each diced point displaced
+//! once, so a closed mesh stays closed however its shader moves it.
+//!
+//! The displaced meshes are kept from frame to frame ([`DisplacedMeshes`]) while the source mesh,
+//! the shaders, the placement and the dicing rate stay the same.
+
+use super::differential::RayDifferential;
+use super::jobs::JobRows;
+use super::ray_budget::RayBudget;
+use super::work::{Frame, Pending};
+use super::world::{InstanceParts, InstanceShading, Material, World};
+use crate::geometry::dice::{dice, diced_triangle_count, Diced};
+use crate::geometry::Mesh;
+use crate::ray::{Hit, Ray, PACKET_SIZE};
+use crate::scene::ObjectId;
+use crate::shading::ShaderInstance;
+use glam::{Vec3, Vec3A};
+use rayon::prelude::*;
+use std::sync::Arc;
+
+/// The most triangles one displaced object is diced into: a finer rate is lowered to fit.
+pub const MAX_DICED_TRIANGLES: usize = 1 << 20;
+
+/// The most diced triangles one world holds: objects beyond keep bump mapping, with a warning.
+pub const MAX_WORLD_DICED_TRIANGLES: usize = 1 << 22;
+
+/// The dicing rates used: a needed rate is rounded up to the next. Steps of about 1.4 keep a
+/// moving camera from dicing again each frame, at less than twice the triangles needed; the
+/// last is the finest (each triangle cut into at most its square).
+const DICING_RATES: [u32; 12] = [1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64];
+
+/// The displaced meshes of the last frame, and the scene objects that hold them, for the next.
+#[derive(Default)]
+pub struct DisplacedMeshes {
+    kept: Vec<Kept>,
+    /// Scene objects of displaced meshes no longer used, emptied, to be used again.
+    free: Vec<ObjectId>,
+}
+
+impl DisplacedMeshes {
+    /// How many displaced meshes are kept.
+    pub fn len(&self) -> usize {
+        self.kept.iter().filter(|k| k.displaced.is_some()).count()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// One instance's displacement, as worked out for a frame.
+struct Kept {
+    key: Key,
+    /// The scene object holding the displaced mesh and which source triangle each of its
+    /// triangles comes from; `None` where the shaders moved no point.
+    displaced: Option<(ObjectId, Arc<[u32]>)>,
+    triangles: usize,
+}
+
+/// What a displaced mesh depends on.
+struct Key {
+    mesh: Arc<Mesh>,
+    /// Per material of the instance: its displacement shader where it truly displaces, and the
+    /// colour and opacity its shader sees as `Cs` and `Os`.
+    shaders: Vec<(Option<Arc<ShaderInstance>>, [u32; 6])>,
+    world_from_object: [u32; 12],
+    rate: u32,
+}
+
+impl PartialEq for Key {
+    fn eq(&self, other: &Key) -> bool {
+        let same_shader = |a: &(Option<Arc<ShaderInstance>>, [u32; 6]), b: &(Option<Arc<ShaderInstance>>, [u32; 6])| {
+            a.1 == b.1
+                && match (&a.0, &b.0) {
+                    (Some(x), Some(y)) => Arc::ptr_eq(x, y),
+                    (None, None) => true,
+                    _ => false,
+                }
+        };
+        Arc::ptr_eq(&self.mesh, &other.mesh)
+            && self.world_from_object == other.world_from_object
+            && self.rate == other.rate
+            && self.shaders.len() == other.shaders.len()
+            && self.shaders.iter().zip(&other.shaders).all(|(a, b)| same_shader(a, b))
+    }
+}
+
+/// Whether `material` has its displacement shader move the geometry.
+fn truly_displaces(material: Option<&Material>) -> bool {
+    material.is_some_and(|m| m.true_displacement && m.displacement.is_some())
+}
+
+/// What an instance's displacement is this frame.
+enum Planned {
+    /// The one kept from the last frame, at this index.
+    Kept(usize),
+    /// Made now.
+    New(Kept, Option<Arc<Mesh>>),
+}
+
+/// Displaces the geometry of every instance of `world` whose material asks for it (see the
+/// module's notes), after [`World::prepare`]; prepares the world again where any instance
+/// changed. `kept` carries the displaced meshes from frame to frame and must go with the same
+/// scene. Returns warnings (budgets exceeded, meshes that could not be diced).
+pub fn displace_world(world: &mut World, kept: &mut DisplacedMeshes) -> Vec<String> {
+    let mut warnings = Vec::new();
+    let wanted: Vec<usize> = (0..world.instances.len())
+        .filter(|&i| world.instances[i].materials().any(|m| truly_displaces(world.materials.get(m as usize))))
+        .collect();
+    if wanted.is_empty() && kept.kept.is_empty() {
+        return warnings;
+    }
+    let start = std::time::Instant::now();
+    let mut plans: Vec<(usize, Planned)> = Vec::new();
+    let mut total = 0usize;
+    let mut built = 0;
+    {
+        let world = &*world;
+        let frame = Frame::new(world);
+        for &i in &wanted {
+            let inst = &world.instances[i];
+            let id = ObjectId(inst.object);
+            // A demand-loaded mesh is not fetched for this: such an object keeps bump mapping.
+            if world.scene.objects().get(id.0 as usize).is_none_or(|o| o.digest().is_some()) {
+                continue;
+            }
+            let Some(mesh) = world.scene.mesh(id).cloned() else { continue };
+            if mesh.triangles.is_empty() {
+                continue;
+            }
+            let rate = dicing_rate(&frame, inst, &mesh);
+            let key = key_of(world, inst, mesh.clone(), rate);
+            if let Some(k) = kept.kept.iter().position(|e| e.key == key) {
+                total += kept.kept[k].triangles;
+                plans.push((i, Planned::Kept(k)));
+                continue;
+            }
+            let count = diced_triangle_count(&mesh, rate).unwrap_or(usize::MAX);
+            if total.saturating_add(count) > MAX_WORLD_DICED_TRIANGLES {
+                warnings.push(format!(
+                    "true displacement: the scene's displaced objects would make more than {MAX_WORLD_DICED_TRIANGLES} \
+                     triangles; object {} keeps bump mapping",
+                    describe(world, inst)
+                ));
+                continue;
+            }
+            let diced = match dice(&mesh, rate) {
+                Ok(d) => d,
+                Err(e) => {
+                    warnings.push(format!("true displacement: object {} cannot be diced: {e}", describe(world, inst)));
+                    continue;
+                }
+            };
+            total += count;
+            let moved = displaced_mesh(&frame, (i as u32, inst), (&mesh, diced, rate));
+            let displaced_mesh = moved.as_ref().map(|(m, _)| m.clone());
+            built += usize::from(moved.is_some());
+            let entry = Kept {
+                key,
+                displaced: moved.map(|(_, of_triangle)| (ObjectId(u32::MAX), of_triangle)),
+                triangles: count,
+            };
+            plans.push((i, Planned::New(entry, displaced_mesh)));
+        }
+    }
+    // The kept entries no plan takes give their objects back.
+    let mut taken = vec![false; kept.kept.len()];
+    for (_, p) in &plans {
+        if let Planned::Kept(k) = p {
+            taken[*k] = true;
+        }
+    }
+    let old = std::mem::take(&mut kept.kept);
+    let mut reused: Vec<Option<Kept>> = Vec::with_capacity(old.len());
+    for (entry, taken) in old.into_iter().zip(taken) {
+        if taken {
+            reused.push(Some(entry));
+        } else {
+            if let Some((id, _)) = entry.displaced {
+                if let Ok(empty) = Mesh::from_triangles(Vec::new(), Vec::new()) {
+                    if world.scene.set_object_mesh(id, empty).is_ok() {
+                        kept.free.push(id);
+                    }
+                }
+            }
+            reused.push(None);
+        }
+    }
+    let mut changed = false;
+    for (i, plan) in plans {
+        let entry = match plan {
+            Planned::Kept(k) => match reused.get_mut(k).and_then(Option::take) {
+                Some(e) => e,
+                None => continue,
+            },
+            Planned::New(mut entry, mesh) => {
+                if let (Some((id, _)), Some(mesh)) = (&mut entry.displaced, mesh) {
+                    *id = match kept.free.pop() {
+                        Some(free) if world.scene.set_object_mesh(free, mesh.clone()).is_ok() => free,
+                        _ => world.scene.add_object(mesh),
+                    };
+                }
+                entry
+            }
+        };
+        if let Some((id, of_triangle)) = &entry.displaced {
+            if world.scene.set_instance_object(i as u32, *id).is_ok() {
+                let inst = &mut world.instances[i];
+                inst.object = id.0;
+                inst.displaced = true;
+                inst.parts = inst.parts.take().map(|parts| diced_parts(&parts, of_triangle));
+                changed = true;
+            }
+        }
+        kept.kept.push(entry);
+    }
+    if changed {
+        world.prepare();
+    }
+    // Dicing, displacing and building the displaced objects' BVHs is the frame's geometry update.
+    world.accel.objects_rebuilt += built;
+    world.accel.object_bvhs += start.elapsed();
+    warnings
+}
+
+/// The instance's material or object, as a warning names it.
+fn describe(world: &World, inst: &InstanceShading) -> String {
+    let name = world.materials.get(inst.material as usize).and_then(|m| m.identifier.clone());
+    match name {
+        Some(name) => format!("\"{name}\""),
+        None => format!("#{}", inst.object),
+    }
+}
+
+fn key_of(world: &World, inst: &InstanceShading, mesh: Arc<Mesh>, rate: u32) -> Key {
+    let shaders = inst
+        .materials()
+        .map(|m| {
+            let material = world.materials.get(m as usize);
+            let shader = material.filter(|m| m.true_displacement).and_then(|m| m.displacement.clone());
+            let [r, g, b] = material.map_or([1.0; 3], |m| m.color);
+            let [x, y, z] = material.map_or([1.0; 3], |m| m.opacity);
+            (shader, [r, g, b, x, y, z].map(f32::to_bits))
+        })
+        .collect();
+    let world_from_object = inst.world_from_object.to_cols_array().map(f32::to_bits);
+    Key { mesh, shaders, world_from_object, rate }
+}
+
+/// The parts of a diced mesh: each diced triangle in its source triangle's part.
+fn diced_parts(parts: &InstanceParts, of_triangle: &[u32]) -> InstanceParts {
+    let source = &parts.of_triangle;
+    let of = of_triangle.iter().map(|&t| source.get(t as usize).copied().unwrap_or(u32::MAX)).collect();
+    InstanceParts { of_triangle: of, materials: parts.materials.clone() }
+}
+
+/// The rate `mesh` (placed by `inst`) is diced at: where the camera sees a triangle nearest, its
+/// longest edge cut into pieces about `sqrt(ShadingRate)` pixels long (the finest any
+/// truly displacing material of the instance asks for), within [`MAX_DICED_TRIANGLES`].
+fn dicing_rate(frame: &Frame, inst: &InstanceShading, mesh: &Mesh) -> u32 {
+    let world = frame.world;
+    let shading_rate = inst
+        .materials()
+        .filter_map(|m| world.materials.get(m as usize))
+        .filter(|m| truly_displaces(Some(m)))
+        .map(|m| m.shading_rate)
+        .fold(f32::INFINITY, f32::min);
+    let piece = if shading_rate.is_finite() && shading_rate > 0.0 { shading_rate.sqrt() } else { 1.0 };
+    let eye = world.camera.eye();
+    let spread = frame.pixel_spread.max(1e-9);
+    let xf = inst.world_from_object;
+    let finest = mesh
+        .triangles
+        .par_iter()
+        .map(|t| {
+            let c = t.map(|k| {
+                xf.transform_point3a(Vec3A::from(mesh.positions.get(k as usize).copied().unwrap_or(Vec3::ZERO)))
+            });
+            let longest = [(c[0] - c[1]), (c[1] - c[2]), (c[2] - c[0])].iter().map(|e| e.length()).fold(0.0, f32::max);
+            let nearest = c.iter().map(|p| (*p - eye).length()).fold(f32::INFINITY, f32::min);
+            let pixels = longest / (nearest.max(1e-6) * spread);
+            if pixels.is_finite() {
+                pixels / piece
+            } else {
+                f32::MAX
+            }
+        })
+        .reduce(|| 1.0, f32::max);
+    let fits = |&&rate: &&u32| diced_triangle_count(mesh, rate).is_some_and(|n| n <= MAX_DICED_TRIANGLES);
+    let needed = DICING_RATES.iter().position(|&r| r as f32 >= finest).unwrap_or(DICING_RATES.len() - 1);
+    DICING_RATES[..=needed].iter().rev().find(fits).copied().unwrap_or(1)
+}
+
+/// Where a displacement shader left a point and its normal (world space), if it ran there.
+type DisplacedPoint = Option<(Vec3A, Vec3A)>;
+
+/// Runs instance `index`'s displacement shaders at every point of its diced mesh: the mesh with
+/// the points where they moved them and the normals they left (object space), and which source
+/// triangle each triangle comes from; `None` when no point moved.
+fn displaced_mesh(
+    frame: &Frame,
+    (index, inst): (u32, &InstanceShading),
+    (source, diced, rate): (&Mesh, Diced, u32),
+) -> Option<(Arc<Mesh>, Arc<[u32]>)> {
+    let world = frame.world;
+    let Diced { mut mesh, origins, of_triangle } = diced;
+    let xf = inst.world_from_object;
+    let object_from_world = xf.inverse();
+    // Normals move by the inverse transpose; back into object space by the transpose.
+    let normal_to_object = xf.matrix3.transpose();
+    let eye = world.camera.eye();
+    // Points in groups of one material, a packet at most each.
+    let material_of = |v: usize| inst.material_at(origins[v].triangle);
+    let mut order: Vec<u32> = (0..origins.len() as u32).collect();
+    if inst.parts.is_some() {
+        order.sort_by_key(|&v| material_of(v as usize));
+    }
+    let mut groups: Vec<&[u32]> = Vec::new();
+    let mut start = 0;
+    while start < order.len() {
+        let m = material_of(order[start] as usize);
+        let mut end = start + 1;
+        while end < order.len() && end - start < PACKET_SIZE && material_of(order[end] as usize) == m {
+            end += 1;
+        }
+        groups.push(&order[start..end]);
+        start = end;
+    }
+    // The spacing of the dicing at each source triangle, in world units: the derivatives' step.
+    let spacing = |t: u32| {
+        let c = source.triangles.get(t as usize).map_or([Vec3A::ZERO; 3], |tri| {
+            tri.map(|k| {
+                xf.transform_point3a(Vec3A::from(source.positions.get(k as usize).copied().unwrap_or(Vec3::ZERO)))
+            })
+        });
+        let longest = [(c[0] - c[1]), (c[1] - c[2]), (c[2] - c[0])].iter().map(|e| e.length()).fold(0.0, f32::max);
+        longest / rate.max(1) as f32
+    };
+    let results: Vec<Vec<(u32, DisplacedPoint)>> = groups
+        .par_iter()
+        .map(|group| {
+            let mut jobs: Box<JobRows> = Box::default();
+            jobs.clear();
+            for &v in group.iter() {
+                let o = origins[v as usize];
+                let at = xf.transform_point3a(Vec3A::from(mesh.positions[v as usize]));
+                let to = at - eye;
+                let t = to.length();
+                let direction = if t > 0.0 && t.is_finite() { to / t } else { Vec3A::Z };
+                let width = spacing(o.triangle);
+                let ray = Ray { origin: eye, direction, tmin: 0.0, tmax: f32::INFINITY, time: 0.0 };
+                let diff = RayDifferential::cone(direction, width, 0.0);
+                let hit = Hit { t, u: o.u, v: o.v, instance: index, primitive: o.triangle };
+                let pending = Pending { index: v as usize, start: 0.0, ray, diff, hit, budget: RayBudget::FULL };
+                jobs.push(&pending, RayBudget::FULL);
+            }
+            jobs.finish();
+            let mut out = [None; PACKET_SIZE];
+            super::shade::displaced_points(frame, &jobs.rows(), &mut out[..group.len()]);
+            group.iter().copied().zip(out).collect()
+        })
+        .collect();
+    let mut moved = false;
+    let mut normals = mesh.normals.take().unwrap_or_else(|| vec![Vec3::ZERO; mesh.positions.len()]);
+    for (v, shaded) in results.into_iter().flatten() {
+        let Some((p, n)) = shaded else { continue };
+        let (v, p, n) = (v as usize, object_from_world.transform_point3a(p), normal_to_object * n);
+        if Vec3::from(p) != mesh.positions[v] {
+            moved = true;
+        }
+        mesh.positions[v] = p.into();
+        if n.is_finite() {
+            normals[v] = n.normalize_or_zero().into();
+        }
+    }
+    if !moved {
+        return None;
+    }
+    fill_missing_normals(&mesh, &mut normals);
+    mesh.normals = Some(normals);
+    // The moved points are where the mesh is now at every time.
+    mesh.deformation = None;
+    Some((Arc::new(mesh), of_triangle.into()))
+}
+
+/// Gives each vertex whose normal is zero (no shader ran there, or it left no normal) the
+/// area-weighted normal of the triangles around it.
+fn fill_missing_normals(mesh: &Mesh, normals: &mut [Vec3]) {
+    if normals.iter().all(|n| *n != Vec3::ZERO) {
+        return;
+    }
+    let mut summed = vec![Vec3::ZERO; normals.len()];
+    for t in &mesh.triangles {
+        let [a, b, c] = t.map(|k| mesh.positions.get(k as usize).copied().unwrap_or(Vec3::ZERO));
+        let n = (b - a).cross(c - a);
+        for &k in t {
+            if let Some(s) = summed.get_mut(k as usize) {
+                *s += n;
+            }
+        }
+    }
+    for (n, s) in normals.iter_mut().zip(summed) {
+        if *n == Vec3::ZERO {
+            *n = s.normalize_or_zero();
+        }
+    }
+}

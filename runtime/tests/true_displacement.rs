@@ -1,0 +1,134 @@
+//! True displacement (`render/true_displacement.rs`): a displacement shader that moves `P` moves
+//! the geometry of objects that ask for it (RIB `Attribute "displacementbound"` above 0, PRMan's
+//! `"trace" "displacements"`, BMRT's `"render" "truedisplacement"`): silhouettes and shadows
+//! follow; without, or where the shader sets `N` only, displacement is bump mapping.
+
+mod common;
+
+use common::render;
+use rtsl_runtime::api::Context;
+use rtsl_runtime::render::Framebuffer;
+use rtsl_runtime::rib::load::load_str;
+
+/// Moves every point `amount` along its normal (RISpec's usual form).
+const INFLATE: &str = "displacement inflate(float amount = 0.25) {
+    P += amount * normalize(N);
+    N = calculatenormal(P);
+}";
+
+/// Bends the normal as `inflate` would, without moving the point (bump mapping by hand).
+const BUMP_ONLY: &str = "displacement bumponly(float amount = 0.25) {
+    N = calculatenormal(P + amount * normalize(N));
+}";
+
+/// Ridges around the sphere's z axis: points move by different amounts, so a crack between
+/// triangles would open.
+const RIDGES: &str = "displacement ridges(float amount = 0.2) {
+    point Po = transform(\"object\", P);
+    P += amount * (0.5 + 0.5 * sin(20 * zcomp(Po))) * normalize(N);
+    N = calculatenormal(P);
+}";
+
+const SIZE: u32 = 64;
+
+/// A frame of a unit sphere 4 units in front of the camera, shaded `constant`, with
+/// `attributes` and `displacement` in its block, and the warnings loading it gave.
+fn sphere(attributes: &str, displacement: &str) -> (Framebuffer, Vec<String>) {
+    let rib = format!(
+        "Format {SIZE} {SIZE} 1\nProjection \"perspective\" \"fov\" [40]\nTranslate 0 0 4\nWorldBegin\n\
+         AttributeBegin {attributes} {displacement} Surface \"constant\" Sphere 1 -1 1 360 AttributeEnd\nWorldEnd\n"
+    );
+    let mut rt = Context::new();
+    for (name, source) in [("inflate.sl", INFLATE), ("bumponly.sl", BUMP_ONLY), ("ridges.sl", RIDGES)] {
+        rt.compile_shader(name, source).expect("the displacement compiles");
+    }
+    let loaded = load_str(&mut rt, &rib, "sphere.rib").expect("loads");
+    let warnings = loaded.warnings.iter().map(|w| w.message.clone()).collect();
+    (render(&mut rt), warnings)
+}
+
+/// Pixels the sphere covers.
+fn covered(fb: &Framebuffer) -> usize {
+    (0..SIZE).flat_map(|y| (0..SIZE).map(move |x| (x, y))).filter(|&(x, y)| fb.pixel(x, y)[3] > 0.5).count()
+}
+
+#[test]
+fn a_displacement_bound_lets_the_shader_move_the_silhouette() {
+    let (plain, warnings) = sphere("", "");
+    assert!(warnings.is_empty(), "{warnings:?}");
+    let (bumped, _) = sphere("", "Displacement \"inflate\"");
+    let (moved, warnings) = sphere("Attribute \"displacementbound\" \"sphere\" [0.25]", "Displacement \"inflate\"");
+    assert!(warnings.is_empty(), "{warnings:?}");
+    let (plain, bumped, moved) = (covered(&plain), covered(&bumped), covered(&moved));
+    // Without a bound the shader bends normals only: the outline stays.
+    assert_eq!(bumped, plain);
+    // A sphere of radius 1.25 covers about 1.25^2 as many pixels (a little more in perspective).
+    let ratio = moved as f32 / plain as f32;
+    assert!((1.45..1.75).contains(&ratio), "covered {moved} against {plain}: {ratio}");
+}
+
+#[test]
+fn the_trace_displacements_attributes_ask_for_it_and_can_refuse_it() {
+    let plain = covered(&sphere("", "").0);
+    for asked in ["Attribute \"trace\" \"int displacements\" [1]", "Attribute \"render\" \"truedisplacement\" [1]"] {
+        let (moved, warnings) = sphere(asked, "Displacement \"inflate\"");
+        assert!(warnings.is_empty(), "{asked}: {warnings:?}");
+        assert!(covered(&moved) as f32 > 1.4 * plain as f32, "{asked}");
+    }
+    // Said off, a bound does not turn it on.
+    let refused = "Attribute \"displacementbound\" \"sphere\" [0.25] Attribute \"trace\" \"displacements\" [0]";
+    assert_eq!(covered(&sphere(refused, "Displacement \"inflate\"").0), plain);
+}
+
+#[test]
+fn a_shader_that_sets_only_the_normal_leaves_the_geometry_and_the_image_as_bump_mapping() {
+    let bound = "Attribute \"displacementbound\" \"sphere\" [0.25]";
+    let (bumped, _) = sphere("", "Displacement \"bumponly\"");
+    let (asked, _) = sphere(bound, "Displacement \"bumponly\"");
+    assert_eq!(bumped.rgba, asked.rgba);
+}
+
+#[test]
+fn displaced_surfaces_stay_closed() {
+    // A closed displaced sphere covers every pixel inside the undisplaced sphere's outline (a
+    // unit sphere 4 units away in a 40 degree view: about 23 pixels in radius).
+    let (fb, warnings) = sphere("Attribute \"displacementbound\" \"sphere\" [0.2]", "Displacement \"ridges\"");
+    assert!(warnings.is_empty(), "{warnings:?}");
+    let centre = SIZE as f32 / 2.0;
+    let outline = 0.5 * SIZE as f32 * 0.25f32.asin().tan() / 20f32.to_radians().tan();
+    let radius = 0.9 * outline;
+    let mut inside = 0;
+    for y in 0..SIZE {
+        for x in 0..SIZE {
+            let (dx, dy) = (x as f32 + 0.5 - centre, y as f32 + 0.5 - centre);
+            if (dx * dx + dy * dy).sqrt() < radius {
+                inside += 1;
+                assert!(fb.pixel(x, y)[3] > 0.999, "a hole at ({x}, {y})");
+            }
+        }
+    }
+    assert!(inside > 200, "{inside} pixels tested");
+}
+
+#[test]
+fn a_bad_displacement_bound_warns() {
+    let (_, warnings) = sphere("Attribute \"displacementbound\" \"sphere\" [-1]", "");
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    assert!(warnings[0].contains("displacementbound"), "{warnings:?}");
+}
+
+#[test]
+fn displaced_meshes_are_kept_from_frame_to_frame() {
+    let rib = "Format 32 32 1\nProjection \"perspective\" \"fov\" [40]\nTranslate 0 0 4\nWorldBegin\n\
+               Attribute \"displacementbound\" \"sphere\" [0.25] Displacement \"inflate\" Surface \"constant\"\n\
+               Sphere 1 -1 1 360\nWorldEnd\n";
+    let mut rt = Context::new();
+    rt.compile_shader("inflate.sl", INFLATE).expect("the displacement compiles");
+    load_str(&mut rt, rib, "kept.rib").expect("loads");
+    let (first, report) = rt.render_frame().expect("renders");
+    // The sphere's own object and its displaced mesh.
+    assert_eq!(report.accel.objects_rebuilt, 2);
+    let (second, report) = rt.render_frame().expect("renders");
+    assert_eq!(report.accel.objects_rebuilt, 0, "nothing changed, nothing is diced again");
+    assert_eq!(first.rgba, second.rgba);
+}
