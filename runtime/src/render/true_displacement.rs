@@ -64,10 +64,28 @@ impl DisplacedMeshes {
 /// One instance's displacement, as worked out for a frame.
 struct Kept {
     key: Key,
-    /// The scene object holding the displaced mesh and which source triangle each of its
-    /// triangles comes from; `None` where the shaders moved no point.
-    displaced: Option<(ObjectId, Arc<[u32]>)>,
+    /// The displaced mesh; `None` where the shaders moved no point.
+    displaced: Option<Moved>,
     triangles: usize,
+}
+
+/// A displaced mesh, the scene object that holds it, and which source triangle each of its
+/// triangles comes from.
+struct Moved {
+    object: ObjectId,
+    mesh: Arc<Mesh>,
+    of_triangle: Arc<[u32]>,
+}
+
+impl Kept {
+    /// Whether `scene` holds this displacement's mesh where it was put (a context's scene comes
+    /// back frame after frame; another scene has other objects there).
+    fn is_in(&self, scene: &crate::scene::Scene) -> bool {
+        match &self.displaced {
+            Some(m) => scene.mesh(m.object).is_some_and(|mesh| Arc::ptr_eq(mesh, &m.mesh)),
+            None => true,
+        }
+    }
 }
 
 /// What a displaced mesh depends on.
@@ -108,7 +126,7 @@ enum Planned {
     /// The one kept from the last frame, at this index.
     Kept(usize),
     /// Made now.
-    New(Kept, Option<Arc<Mesh>>),
+    New(Kept),
 }
 
 /// Displaces the geometry of every instance of `world` whose material asks for it (see the
@@ -143,7 +161,7 @@ pub fn displace_world(world: &mut World, kept: &mut DisplacedMeshes) -> Vec<Stri
             }
             let rate = dicing_rate(&frame, inst, &mesh);
             let key = key_of(world, inst, mesh.clone(), rate);
-            if let Some(k) = kept.kept.iter().position(|e| e.key == key) {
+            if let Some(k) = kept.kept.iter().position(|e| e.key == key && e.is_in(&world.scene)) {
                 total += kept.kept[k].triangles;
                 plans.push((i, Planned::Kept(k)));
                 continue;
@@ -166,14 +184,10 @@ pub fn displace_world(world: &mut World, kept: &mut DisplacedMeshes) -> Vec<Stri
             };
             total += count;
             let moved = displaced_mesh(&frame, (i as u32, inst), (&mesh, diced, rate));
-            let displaced_mesh = moved.as_ref().map(|(m, _)| m.clone());
             built += usize::from(moved.is_some());
-            let entry = Kept {
-                key,
-                displaced: moved.map(|(_, of_triangle)| (ObjectId(u32::MAX), of_triangle)),
-                triangles: count,
-            };
-            plans.push((i, Planned::New(entry, displaced_mesh)));
+            // The object is found when the scene can be changed, below.
+            let displaced = moved.map(|(mesh, of_triangle)| Moved { object: ObjectId(u32::MAX), mesh, of_triangle });
+            plans.push((i, Planned::New(Kept { key, displaced, triangles: count })));
         }
     }
     // The kept entries no plan takes give their objects back.
@@ -189,10 +203,11 @@ pub fn displace_world(world: &mut World, kept: &mut DisplacedMeshes) -> Vec<Stri
         if taken {
             reused.push(Some(entry));
         } else {
-            if let Some((id, _)) = entry.displaced {
+            let in_scene = entry.is_in(&world.scene);
+            if let Some(m) = entry.displaced.filter(|_| in_scene) {
                 if let Ok(empty) = Mesh::from_triangles(Vec::new(), Vec::new()) {
-                    if world.scene.set_object_mesh(id, empty).is_ok() {
-                        kept.free.push(id);
+                    if world.scene.set_object_mesh(m.object, empty).is_ok() {
+                        kept.free.push(m.object);
                     }
                 }
             }
@@ -206,22 +221,22 @@ pub fn displace_world(world: &mut World, kept: &mut DisplacedMeshes) -> Vec<Stri
                 Some(e) => e,
                 None => continue,
             },
-            Planned::New(mut entry, mesh) => {
-                if let (Some((id, _)), Some(mesh)) = (&mut entry.displaced, mesh) {
-                    *id = match kept.free.pop() {
-                        Some(free) if world.scene.set_object_mesh(free, mesh.clone()).is_ok() => free,
-                        _ => world.scene.add_object(mesh),
+            Planned::New(mut entry) => {
+                if let Some(m) = &mut entry.displaced {
+                    m.object = match kept.free.pop() {
+                        Some(free) if world.scene.set_object_mesh(free, m.mesh.clone()).is_ok() => free,
+                        _ => world.scene.add_object(m.mesh.clone()),
                     };
                 }
                 entry
             }
         };
-        if let Some((id, of_triangle)) = &entry.displaced {
-            if world.scene.set_instance_object(i as u32, *id).is_ok() {
+        if let Some(m) = &entry.displaced {
+            if world.scene.set_instance_object(i as u32, m.object).is_ok() {
                 let inst = &mut world.instances[i];
-                inst.object = id.0;
+                inst.object = m.object.0;
                 inst.displaced = true;
-                inst.parts = inst.parts.take().map(|parts| diced_parts(&parts, of_triangle));
+                inst.parts = inst.parts.take().map(|parts| diced_parts(&parts, &m.of_triangle));
                 changed = true;
             }
         }
