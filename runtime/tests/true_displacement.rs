@@ -16,9 +16,18 @@ const INFLATE: &str = "displacement inflate(float amount = 0.25) {
     N = calculatenormal(P);
 }";
 
-/// Bends the normal as `inflate` would, without moving the point (bump mapping by hand).
+/// Bends the normal by ridges around the object's z axis, without moving the point (bump
+/// mapping by hand).
 const BUMP_ONLY: &str = "displacement bumponly(float amount = 0.25) {
-    N = calculatenormal(P + amount * normalize(N));
+    point Po = transform(\"object\", P);
+    N = calculatenormal(P + amount * sin(10 * zcomp(Po)) * normalize(N));
+}";
+
+/// Shows the shading normal as a colour.
+const NORMALS: &str = "surface normals() {
+    normal n = normalize(N);
+    Oi = 1;
+    Ci = 0.5 + 0.5 * color(xcomp(n), ycomp(n), zcomp(n));
 }";
 
 /// Ridges around the sphere's z axis: points move by different amounts, so a crack between
@@ -131,4 +140,51 @@ fn displaced_meshes_are_kept_from_frame_to_frame() {
     let (second, report) = rt.render_frame().expect("renders");
     assert_eq!(report.accel.objects_rebuilt, 0, "nothing changed, nothing is diced again");
     assert_eq!(first.rgba, second.rgba);
+}
+
+/// An object built in parts: the part whose material asks for true displacement moves, the
+/// other keeps its shape and its own displacement shader's bump mapping.
+#[test]
+fn only_the_parts_that_ask_move() {
+    use rtsl_runtime::api::Quadric;
+    let image = |first_moves: bool| -> Framebuffer {
+        let mut rt = Context::new();
+        rt.options.width = SIZE;
+        rt.options.height = SIZE;
+        let inflate = rt.compile_shader("inflate.sl", INFLATE).expect("compiles");
+        let bump = rt.compile_shader("bumponly.sl", BUMP_ONLY).expect("compiles");
+        let normals = rt.compile_shader("normals.sl", NORMALS).expect("compiles");
+        rt.bind_shader(normals).expect("binds");
+        rt.translate(0.0, 0.0, 4.0);
+        rt.begin_object().expect("begins");
+        rt.push_matrix();
+        let sphere = Quadric::Sphere { radius: 1.0, zmin: -1.0, zmax: 1.0, thetamax: 360.0 };
+        rt.translate(-1.7, 0.0, 0.0);
+        rt.quadric(&sphere).expect("adds");
+        rt.displacement(Some(inflate), &[]).expect("binds");
+        rt.true_displacement(Some(first_moves));
+        rt.end_part().expect("ends the part");
+        rt.translate(3.4, 0.0, 0.0);
+        rt.quadric(&sphere).expect("adds");
+        rt.displacement(Some(bump), &[]).expect("binds");
+        rt.true_displacement(None);
+        rt.pop_matrix().expect("pops");
+        let object = rt.end_object().expect("ends");
+        rt.instantiate_object(object).expect("places");
+        render(&mut rt)
+    };
+    let (moved, bumped) = (image(true), image(false));
+    let half = |fb: &Framebuffer, left: bool| -> Vec<[f32; 4]> {
+        let xs: Vec<u32> = if left { (0..SIZE / 2).collect() } else { (SIZE / 2..SIZE).collect() };
+        (0..SIZE).flat_map(|y| xs.iter().map(move |&x| fb.pixel(x, y))).collect()
+    };
+    let covered = |px: &[[f32; 4]]| px.iter().filter(|p| p[3] > 0.5).count();
+    let (grown, kept) = (covered(&half(&moved, true)), covered(&half(&bumped, true)));
+    assert!(kept > 100 && grown as f32 > 1.3 * kept as f32, "{grown} pixels against {kept}");
+    // The right sphere is bump-mapped the same in both (its normals show it).
+    assert!(covered(&half(&bumped, false)) > 100);
+    // (The same surface diced: its points and normals agree to rounding.)
+    let (a, b) = (half(&moved, false), half(&bumped, false));
+    let differ = a.iter().zip(&b).filter(|(p, q)| p.iter().zip(q.iter()).any(|(x, y)| (x - y).abs() > 1e-3)).count();
+    assert!(differ == 0, "the right sphere differs at {differ} pixels");
 }

@@ -472,9 +472,10 @@ impl Context {
 
     /// The displacement shader (RenderMan's `Displacement`) of objects built from now on, an
     /// attribute like the surface shader. It runs on every hit before the surface shader, and the
-    /// normal it leaves is the surface shader's `N`: displacement as bump mapping. The traced
-    /// geometry does not move (silhouettes and shadows keep the undisplaced shape) and `P` stays on
-    /// it (`docs/rendering.md`). `None` removes it.
+    /// normal it leaves is the surface shader's `N`: displacement as bump mapping, where the
+    /// traced geometry does not move and `P` stays on it. Objects that ask for true displacement
+    /// ([`Context::true_displacement`], [`Context::displacement_bound`]) are diced instead and
+    /// moved by the `P` it leaves (`docs/rendering.md`). `None` removes it.
     pub fn displacement(&mut self, shader: Option<ShaderId>, params: &[(&str, ParamValue)]) -> Result<(), ApiError> {
         self.appearance.displacement = self.kind_binding(ShaderKind::Displacement, shader, params)?;
         Ok(())

@@ -888,8 +888,10 @@ fn shade_group_lanes(
         let mut rows = by_rows.then_some(&**rows);
         let color = Vec3A::from(material.color);
         let opacity = Vec3A::from(material.opacity);
-        // A truly displaced instance's mesh is where its displacement shader moved it already.
-        if let Some(displacement) = material.displacement.as_ref().filter(|_| !inst.displaced) {
+        // A truly displaced instance's mesh is where its truly displacing materials' shaders
+        // moved it already; its other parts' shaders still bump-map.
+        let moved_already = inst.displaced && material.true_displacement;
+        if let Some(displacement) = material.displacement.as_ref().filter(|_| !moved_already) {
             let at = (material_id, inst.world_from_object);
             let moves = Moves::NormalOnly;
             displace(frame, displacement, at, group, geoms, (color, opacity), depth, budgets, moves);
@@ -1294,7 +1296,7 @@ fn displace(
 /// Runs the displacement shader of a group's material at the group's hits, as true
 /// displacement does at the points of a diced mesh (`true_displacement.rs`): `out[l]` is lane
 /// `l`'s point and normal as the shader leaves them, world space, or `None` where the lane has
-/// no surface or its material no displacement shader.
+/// no surface or its material does not truly displace.
 pub(super) fn displaced_points(frame: &Frame, group: &GroupRows, out: &mut [Option<(Vec3A, Vec3A)>]) {
     out.iter_mut().for_each(|o| *o = None);
     if group.is_empty() {
@@ -1304,7 +1306,7 @@ pub(super) fn displaced_points(frame: &Frame, group: &GroupRows, out: &mut [Opti
     let Some(inst) = world.instances.get(group.instance() as usize) else { return };
     let material_id = inst.material_at(group.hit(0).primitive);
     let material = world.materials.get(material_id as usize).unwrap_or(&DEFAULT_MATERIAL);
-    let Some(displacement) = &material.displacement else { return };
+    let Some(displacement) = material.displacement.as_ref().filter(|_| material.true_displacement) else { return };
     let program = &displacement.program;
     let g = &program.slots;
     let needs = GeometryNeeds {

@@ -277,7 +277,8 @@ pub struct InstanceShading {
     /// The materials of an object built in parts (`Context::end_part`), `None` for one material.
     pub parts: Option<InstanceParts>,
     /// Whether `object` is a mesh its displacement shaders moved already (true displacement,
-    /// `render/true_displacement.rs`): its hits are not displaced again.
+    /// `render/true_displacement.rs`): hits on its truly displacing materials are not displaced
+    /// again (other parts' displacement shaders bump-map as ever).
     pub displaced: bool,
 }
 
