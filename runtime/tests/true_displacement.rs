@@ -188,3 +188,31 @@ fn only_the_parts_that_ask_move() {
     let differ = a.iter().zip(&b).filter(|(p, q)| p.iter().zip(q.iter()).any(|(x, y)| (x - y).abs() > 1e-3)).count();
     assert!(differ == 0, "the right sphere differs at {differ} pixels");
 }
+
+/// The displaced shape casts the shadow: a sphere inflated by a quarter of its radius shades
+/// about 1.25^2 as much of the floor behind it as the bump-mapped sphere does.
+#[test]
+fn shadows_have_the_displaced_shape() {
+    let shadow = |attributes: &str| -> usize {
+        let rib = format!(
+            "Format {SIZE} {SIZE} 1\nProjection \"perspective\" \"fov\" [60]\nWorldBegin\n\
+             Attribute \"light\" \"shadows\" \"on\"\n\
+             LightSource \"distantlight\" 1 \"from\" [0 0 0] \"to\" [1.2 0 1] \"intensity\" [1]\n\
+             AttributeBegin Surface \"matte\" Polygon \"P\" [-20 -20 9  20 -20 9  20 20 9  -20 20 9] AttributeEnd\n\
+             AttributeBegin {attributes} Displacement \"inflate\" Surface \"constant\" Translate -1 0 5\n\
+             Sphere 1 -1 1 360 AttributeEnd\nWorldEnd\n"
+        );
+        let mut rt = Context::new();
+        rt.compile_shader("inflate.sl", INFLATE).expect("the displacement compiles");
+        let loaded = load_str(&mut rt, &rib, "shadow.rib").expect("loads");
+        assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+        let fb = render(&mut rt);
+        let dark = |x: u32, y: u32| fb.pixel(x, y)[..3].iter().all(|c| *c < 0.05);
+        (0..SIZE).flat_map(|y| (0..SIZE).map(move |x| (x, y))).filter(|&(x, y)| dark(x, y)).count()
+    };
+    let bumped = shadow("");
+    let moved = shadow("Attribute \"displacementbound\" \"sphere\" [0.25]");
+    assert!(bumped > 50, "a shadow of {bumped} pixels");
+    let ratio = moved as f32 / bumped as f32;
+    assert!((1.3..1.9).contains(&ratio), "{moved} shadowed pixels against {bumped}: {ratio}");
+}
