@@ -216,3 +216,20 @@ fn shadows_have_the_displaced_shape() {
     let ratio = moved as f32 / bumped as f32;
     assert!((1.3..1.9).contains(&ratio), "{moved} shadowed pixels against {bumped}: {ratio}");
 }
+
+/// Points moved out of float range, or to NaN, or very far, neither crash nor hang the frame: a
+/// point whose displaced position is not a number stays where it was.
+#[test]
+fn absurd_displacements_render() {
+    for moved in ["P * 1e30 * 1e30", "P + (0 / 0) * N", "P + 1e30 * normalize(N)", "point(0, 0, 0)"] {
+        let source = format!("displacement absurd() {{ P = {moved}; N = calculatenormal(P); }}");
+        let rib = "Format 16 16 1\nProjection \"perspective\" \"fov\" [40]\nTranslate 0 0 4\nWorldBegin\n\
+                   Attribute \"displacementbound\" \"sphere\" [1] Displacement \"absurd\" Surface \"matte\"\n\
+                   LightSource \"pointlight\" 1 \"from\" [0 0 0] \"intensity\" [4]\nSphere 1 -1 1 360\nWorldEnd\n";
+        let mut rt = Context::new();
+        rt.compile_shader("absurd.sl", &source).expect("compiles");
+        load_str(&mut rt, rib, "absurd.rib").expect("loads");
+        let fb = render(&mut rt);
+        assert!(fb.rgba.iter().all(|c| c.is_finite()), "{moved}");
+    }
+}

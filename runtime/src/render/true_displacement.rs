@@ -393,6 +393,10 @@ fn displaced_mesh(
     for (v, shaded) in results.into_iter().flatten() {
         let Some((p, n)) = shaded else { continue };
         let (v, p, n) = (v as usize, object_from_world.transform_point3a(p), normal_to_object * n);
+        // A point moved out of float range (back in object space) stays where it was.
+        if !p.is_finite() {
+            continue;
+        }
         if Vec3::from(p) != mesh.positions[v] {
             moved = true;
         }
@@ -408,6 +412,8 @@ fn displaced_mesh(
     mesh.normals = Some(normals);
     // The moved points are where the mesh is now at every time.
     mesh.deformation = None;
+    // What the tracer builds from must hold, as for any mesh given it.
+    mesh.validate().ok()?;
     Some((Arc::new(mesh), of_triangle.into()))
 }
 
