@@ -120,10 +120,15 @@ fn displaced_surfaces_stay_closed() {
 }
 
 #[test]
-fn a_bad_displacement_bound_warns() {
+fn a_bad_displacement_bound_or_shading_rate_warns() {
     let (_, warnings) = sphere("Attribute \"displacementbound\" \"sphere\" [-1]", "");
     assert_eq!(warnings.len(), 1, "{warnings:?}");
     assert!(warnings[0].contains("displacementbound"), "{warnings:?}");
+    for rate in ["0", "-4"] {
+        let (_, warnings) = sphere(&format!("ShadingRate {rate}"), "");
+        assert_eq!(warnings.len(), 1, "{warnings:?}");
+        assert!(warnings[0].contains("ShadingRate"), "{warnings:?}");
+    }
 }
 
 #[test]

@@ -1325,7 +1325,10 @@ impl<'a> Loader<'a> {
         let rt = &mut *self.rt;
         match &r.kind {
             K::Version(_) | K::Declare { .. } => {}
-            K::ShadingRate(area) => rt.shading_rate(*area),
+            K::ShadingRate(area) if area.is_finite() && *area > 0.0 => rt.shading_rate(*area),
+            K::ShadingRate(area) => {
+                self.warn(r, format_args!("ShadingRate {area}: a shading rate is an area above 0; it stays as it was"))
+            }
             K::Matte(on) => rt.matte(*on),
             K::Sides(1) => rt.one_sided(true),
             K::Sides(2) => rt.one_sided(false),
