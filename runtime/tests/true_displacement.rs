@@ -238,3 +238,38 @@ fn absurd_displacements_render() {
         assert!(fb.rgba.iter().all(|c| c.is_finite()), "{moved}");
     }
 }
+
+/// Instances of one object placed alike (each with the attributes of its `ObjectInstance`, so
+/// materials of their own, made again each frame) share one displaced mesh from the second frame
+/// on, which is not diced again, and each is displaced in every frame.
+#[test]
+fn instances_placed_alike_are_all_displaced() {
+    let rib = "Format 32 32 1\nProjection \"perspective\" \"fov\" [40]\nTranslate 0 0 4\nWorldBegin\n\
+               Attribute \"displacementbound\" \"sphere\" [0.25] Displacement \"inflate\" Surface \"constant\"\n\
+               ObjectBegin 1 Sphere 1 -1 1 360 ObjectEnd\nObjectInstance 1\nObjectInstance 1\nWorldEnd\n";
+    let mut rt = Context::new();
+    rt.compile_shader("inflate.sl", INFLATE).expect("the displacement compiles");
+    load_str(&mut rt, rib, "alike.rib").expect("loads");
+    let single = {
+        let mut one = Context::new();
+        one.compile_shader("inflate.sl", INFLATE).expect("the displacement compiles");
+        let rib = rib.replace("ObjectInstance 1\nObjectInstance 1", "ObjectInstance 1");
+        load_str(&mut one, &rib, "one.rib").expect("loads");
+        one.render_frame().expect("renders").0
+    };
+    // Each instance counts its object's triangles: the displaced mesh's, in every frame.
+    let mut triangles = None;
+    for frame in 0..3 {
+        let (fb, report) = rt.render_frame().expect("renders");
+        assert_eq!(covered_in(&fb, 32), covered_in(&single, 32), "frame {frame}");
+        let counted = *triangles.get_or_insert(report.accel.instanced_triangles);
+        assert_eq!(report.accel.instanced_triangles, counted, "frame {frame}");
+        if frame > 0 {
+            assert_eq!(report.accel.objects_rebuilt, 0, "frame {frame}");
+        }
+    }
+}
+
+fn covered_in(fb: &Framebuffer, size: u32) -> usize {
+    (0..size).flat_map(|y| (0..size).map(move |x| (x, y))).filter(|&(x, y)| fb.pixel(x, y)[3] > 0.5).count()
+}

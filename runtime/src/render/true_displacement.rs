@@ -103,7 +103,7 @@ impl PartialEq for Key {
         let same_shader = |a: &(Option<Arc<ShaderInstance>>, [u32; 6]), b: &(Option<Arc<ShaderInstance>>, [u32; 6])| {
             a.1 == b.1
                 && match (&a.0, &b.0) {
-                    (Some(x), Some(y)) => Arc::ptr_eq(x, y),
+                    (Some(x), Some(y)) => Arc::ptr_eq(x, y) || same_instance(x, y),
                     (None, None) => true,
                     _ => false,
                 }
@@ -114,6 +114,22 @@ impl PartialEq for Key {
             && self.shaders.len() == other.shaders.len()
             && self.shaders.iter().zip(&other.shaders).all(|(a, b)| same_shader(a, b))
     }
+}
+
+/// Whether two shader instances are the same program with the same values in the same space:
+/// a material is made again each frame for an instance with attributes of its own (RIB
+/// `ObjectInstance`), with the same shaders.
+fn same_instance(a: &ShaderInstance, b: &ShaderInstance) -> bool {
+    let bits = |m: &glam::Affine3A| m.to_cols_array().map(f32::to_bits);
+    let same_floats =
+        |x: &[f32], y: &[f32]| x.len() == y.len() && x.iter().zip(y).all(|(p, q)| p.to_bits() == q.to_bits());
+    Arc::ptr_eq(&a.program, &b.program)
+        && bits(&a.world_from_shader) == bits(&b.world_from_shader)
+        && a.params.len() == b.params.len()
+        && a.params
+            .iter()
+            .zip(&b.params)
+            .all(|(p, q)| p.index == q.index && p.string == q.string && same_floats(&p.floats, &q.floats))
 }
 
 /// Whether `material` has its displacement shader move the geometry.
@@ -214,13 +230,12 @@ pub fn displace_world(world: &mut World, kept: &mut DisplacedMeshes) -> Vec<Stri
             reused.push(None);
         }
     }
+    // Kept entries stay where they were in `reused` (instances placed alike share one); new
+    // ones go after them.
     let mut changed = false;
     for (i, plan) in plans {
-        let entry = match plan {
-            Planned::Kept(k) => match reused.get_mut(k).and_then(Option::take) {
-                Some(e) => e,
-                None => continue,
-            },
+        let k = match plan {
+            Planned::Kept(k) => k,
             Planned::New(mut entry) => {
                 if let Some(m) = &mut entry.displaced {
                     m.object = match kept.free.pop() {
@@ -228,20 +243,20 @@ pub fn displace_world(world: &mut World, kept: &mut DisplacedMeshes) -> Vec<Stri
                         _ => world.scene.add_object(m.mesh.clone()),
                     };
                 }
-                entry
+                reused.push(Some(entry));
+                reused.len() - 1
             }
         };
-        if let Some(m) = &entry.displaced {
-            if world.scene.set_instance_object(i as u32, m.object).is_ok() {
-                let inst = &mut world.instances[i];
-                inst.object = m.object.0;
-                inst.displaced = true;
-                inst.parts = inst.parts.take().map(|parts| diced_parts(&parts, &m.of_triangle));
-                changed = true;
-            }
+        let Some(Some(Kept { displaced: Some(m), .. })) = reused.get(k) else { continue };
+        if world.scene.set_instance_object(i as u32, m.object).is_ok() {
+            let inst = &mut world.instances[i];
+            inst.object = m.object.0;
+            inst.displaced = true;
+            inst.parts = inst.parts.take().map(|parts| diced_parts(&parts, &m.of_triangle));
+            changed = true;
         }
-        kept.kept.push(entry);
     }
+    kept.kept.extend(reused.into_iter().flatten());
     if changed {
         world.prepare();
     }
