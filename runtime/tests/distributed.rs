@@ -1939,3 +1939,109 @@ fn tiles_ask_ahead_for_the_textures_their_lookups_name() -> Result<(), Distribut
     assert_eq!((demands[1].fetched_textures, demands[1].fetched_objects), (0, 0), "{demands:?}");
     Ok(())
 }
+
+/// A sphere truly displaced into ridges (its `displacementbound` asks for it) over a floor, lit
+/// so that its shadow falls on the floor; and an object of two spheres in parts, of which only
+/// the first moves its points (the second is bump-mapped), placed twice.
+fn displaced_scene() -> Result<Context, String> {
+    const RIDGES: &str = "displacement ridges(float amount = 0.3) {
+        point Po = transform(\"object\", P);
+        P += amount * (0.5 + 0.5 * sin(12 * zcomp(Po))) * normalize(N);
+        N = calculatenormal(P);
+    }";
+    const BUMP_ONLY: &str = "displacement bumponly(float amount = 0.25) {
+        point Po = transform(\"object\", P);
+        N = calculatenormal(P + amount * sin(10 * zcomp(Po)) * normalize(N));
+    }";
+    let rib = r#"
+        Format 80 60 1
+        Projection "perspective" "fov" 50
+        Translate 0 0 7
+        WorldBegin
+          LightSource "spotlight" 1 "from" [2 4 -2] "to" [0 0 0] "intensity" 40 "coneangle" 0.9
+          AttributeBegin
+            Attribute "displacementbound" "sphere" [0.3]
+            Displacement "ridges"
+            Surface "plastic"
+            Sphere 1 -1 1 360
+          AttributeEnd
+          Surface "matte"
+          Polygon "P" [-5 -1.3 -5  5 -1.3 -5  5 -1.3 5  -5 -1.3 5]
+        WorldEnd
+    "#;
+    let e = |e: rtsl_runtime::api::ApiError| e.to_string();
+    let mut rt = Context::new();
+    rt.compile_shader("ridges.sl", RIDGES).map_err(e)?;
+    let bump = rt.compile_shader("bumponly.sl", BUMP_ONLY).map_err(e)?;
+    rtsl_runtime::rib::load::load_str(&mut rt, rib, Path::new(".")).map_err(|e| e.to_string())?;
+    let ridges = rt.find_shader("ridges").map_err(e)?;
+    let plastic = rt.find_shader("plastic").map_err(e)?;
+    rt.bind_shader(plastic).map_err(e)?;
+    let sphere = rtsl_runtime::api::Quadric::Sphere { radius: 0.4, zmin: -0.4, zmax: 0.4, thetamax: 360.0 };
+    let pair = rt.begin_object().map_err(e)?;
+    rt.push_matrix();
+    rt.translate(-0.5, 0.0, 0.0);
+    rt.quadric(&sphere).map_err(e)?;
+    rt.displacement(Some(ridges), &[("amount", ParamValue::Float(0.15))]).map_err(e)?;
+    rt.true_displacement(Some(true));
+    rt.end_part().map_err(e)?;
+    rt.translate(1.0, 0.0, 0.0);
+    rt.quadric(&sphere).map_err(e)?;
+    rt.displacement(Some(bump), &[]).map_err(e)?;
+    rt.true_displacement(None);
+    rt.pop_matrix().map_err(e)?;
+    rt.end_object().map_err(e)?;
+    for (x, y) in [(-2.3, 1.2), (2.3, 1.2)] {
+        rt.push_matrix();
+        rt.translate(x, y, 1.0);
+        rt.instantiate_object(pair).map_err(e)?;
+        rt.pop_matrix().map_err(e)?;
+    }
+    Ok(rt)
+}
+
+/// Removes the first instance.
+fn delete_first(rt: &mut Context) -> Result<(), String> {
+    let id = *rt.world_instance_ids().first().ok_or("no instance")?;
+    rt.delete_instance(id).map_err(|e| e.to_string())
+}
+
+/// True displacement on workers: the master dices and displaces, and the workers fetch the
+/// displaced meshes as they fetch any other, so silhouettes and shadows are the displaced ones,
+/// bit for bit the single process's, frame after frame: moved (displaced again), unchanged (the
+/// update is empty), and with the first displaced instance gone.
+#[test]
+fn truly_displaced_objects_render_the_same_on_workers() -> Result<(), DistributedError> {
+    let changes: [Change; 5] = [nothing, move_first, nothing, delete_first, nothing];
+    let frames = both_ways(displaced_scene().expect("the scene"), 2, 2, &changes)?;
+    assert_same(&frames, "truly displaced spheres");
+    let updates: Vec<u64> = frames.iter().map(|f| f.2).collect();
+    assert!(updates[0] > 0 && updates[1] > 0 && updates[3] > 0, "{updates:?}");
+    assert_eq!((updates[2], updates[4]), (0, 0), "{updates:?}");
+    Ok(())
+}
+
+/// A RIB file's next frame is a new scene whose displaced meshes come out the same: the workers
+/// take the displaced meshes they fetched for the frame before (by digest), fetching none.
+#[test]
+fn a_new_scene_takes_the_displaced_meshes_the_scene_before_fetched() -> Result<(), DistributedError> {
+    let demands = with_two_workers(Duration::from_secs(120), |master| {
+        let mut frames = Vec::new();
+        let mut demands = Vec::new();
+        for _ in 0..2 {
+            let (frame, demand) = frame_both_ways(master, &mut displaced_scene().expect("the scene"))?;
+            frames.push(frame);
+            demands.push(demand);
+        }
+        assert_same(&frames, "truly displaced scenes one after another");
+        Ok(demands)
+    })?;
+    let [first, again] = &demands[..] else { panic!("two frames") };
+    // The displaced sphere and the displaced part of the pair, twice, at least.
+    assert!(first.fetched_objects >= 4 && first.fetched_bytes > 100_000, "{first:?}");
+    // No displaced mesh (each is tens of kilobytes at least) travels again; a worker may fetch
+    // a small undisplaced object that its tiles in the frame before did not reach.
+    assert!(again.fetched_bytes < 1024 && again.fetched_parts == 0, "{again:?}");
+    assert!(again.kept_objects >= 4, "{again:?}");
+    Ok(())
+}

@@ -233,6 +233,10 @@ impl Context {
         world.textures = self.textures.clone();
         world.prepare();
         warnings.extend(crate::render::true_displacement::displace_world(&mut world, &mut self.displaced));
+        if let (false, Some(source)) = (self.remote_displaced.is_empty(), &self.mesh_source) {
+            crate::render::remote_displacement::place_remote(&mut world, &mut self.remote_displaced, source)
+                .map_err(ApiError::RemoteDisplacement)?;
+        }
         for w in warnings {
             if !self.warnings.contains(&w) {
                 self.warnings.push(w);

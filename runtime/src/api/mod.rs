@@ -157,6 +157,8 @@ pub enum ApiError {
     BadTextureFile { name: String, message: String },
     #[error("object {0} is demand-loaded and the context has no mesh source")]
     NoMeshSource(u32),
+    #[error("the master's displaced meshes: {0}")]
+    RemoteDisplacement(String),
     #[error("more than {} instances: the scene's top-level BVH holds no more", crate::accel::bvh4::MAX_PRIMITIVES)]
     TooManyInstances,
     #[error(
@@ -460,6 +462,8 @@ pub struct Context {
     /// The meshes true displacement made for the last frame, with the scene objects holding
     /// them (`render/true_displacement.rs`).
     displaced: crate::render::true_displacement::DisplacedMeshes,
+    /// A demand-loading replica's displaced meshes, as its master displaced them.
+    remote_displaced: crate::render::remote_displacement::RemoteDisplacements,
     /// The last [`ObjectRecord::version`] given.
     object_versions: u64,
     /// Where demand-loaded objects' meshes come from ([`Context::set_mesh_source`]).
@@ -589,6 +593,7 @@ impl Context {
             events: Vec::new(),
             built_materials: Vec::new(),
             displaced: Default::default(),
+            remote_displaced: Default::default(),
             object_versions: 0,
         }
     }

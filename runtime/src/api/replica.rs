@@ -16,6 +16,10 @@
 //! - instances when they appear, move or go; the solids made of them with the frame's settings;
 //! - the frame's settings (lights, pixel, camera and atmosphere shaders, camera, options,
 //!   coordinate systems, texture search path) whenever any of them changes;
+//! - with [`Replicator::demand_loading`], the instances the world truly displaces
+//!   (`render/true_displacement.rs`) and the summaries of their displaced meshes, which the
+//!   receiver fetches as it fetches objects (`render/remote_displacement.rs`): it cannot dice
+//!   meshes it does not hold;
 //! - textures and grids given in memory, whole; with [`Replicator::demand_loading`], only the news
 //!   that they changed. Textures named by file are read by a receiver from its own file system, at
 //!   the same paths, unless it has a [`crate::texture::TextureSource`]: a demand-loading receiver
@@ -40,12 +44,13 @@ use crate::accel::bvh4::BuildQuality;
 use crate::accel::object::{MeshSummary, ObjectBvh};
 use crate::csg::Solid;
 use crate::geometry::Mesh;
-use crate::render::{CameraSetup, RenderOptions};
-use crate::scene::Scene;
+use crate::render::remote_displacement::AnnouncedMesh;
+use crate::render::{CameraSetup, RenderOptions, World};
 use crate::shading::{ParamValue, Program, ShaderError, ShaderProgram};
 use crate::texture::{Delivered, TexImage, TextureKind, Wrap};
 use glam::Affine3A;
 use serde::{Deserialize, Serialize};
+use std::collections::HashMap;
 use std::path::PathBuf;
 use std::sync::Arc;
 
@@ -77,6 +82,9 @@ pub struct Replicator {
     instances: Vec<InstanceRecord>,
     settings: Option<Vec<u8>>,
     memory_changes: Option<u64>,
+    /// The displaced instances last sent, and the displaced meshes by the master's scene object.
+    displaced_instances: Vec<(u32, u32)>,
+    displaced_meshes: HashMap<u32, Arc<Mesh>>,
 }
 
 #[derive(Clone, PartialEq)]
@@ -134,6 +142,7 @@ struct UpdateOut<'a> {
     instance_count: u32,
     settings: Option<&'a [u8]>,
     memory: Option<Memory>,
+    displaced: Option<Displaced>,
 }
 
 #[derive(Deserialize)]
@@ -146,6 +155,15 @@ struct UpdateIn {
     instance_count: u32,
     settings: Option<Vec<u8>>,
     memory: Option<Memory>,
+    displaced: Option<Displaced>,
+}
+
+/// The world's truly displaced instances (all of them), each with the master's scene object
+/// holding its displaced mesh, and the displaced meshes the receiver was not sent yet.
+#[derive(Serialize, Deserialize)]
+struct Displaced {
+    instances: Vec<(u32, u32)>,
+    meshes: Vec<AnnouncedMesh>,
 }
 
 #[derive(Serialize)]
@@ -232,18 +250,24 @@ impl Replicator {
     }
 
     /// What changed in `rt` since the last update (everything, the first time), as bytes for
-    /// [`Context::apply_update`]; empty when nothing did. `scene`, the scene of the world `rt`
-    /// built last, gives demand-loaded objects the bounds of the BVHs built there, so that the
-    /// receiver's top-level BVH is the same.
+    /// [`Context::apply_update`]; empty when nothing did. `world`, the world `rt` built last,
+    /// gives demand-loaded objects the bounds of the BVHs built there, so that the receiver's
+    /// top-level BVH is the same, and says which instances it truly displaced into which meshes.
     ///
     /// The updates of one replicator are of one context: an update of another is an error until
     /// [`Replicator::restart`] (see [`Replicator::follows`]).
-    pub fn update(&mut self, rt: &Context, scene: Option<&Scene>) -> Result<Vec<u8>, ReplicaError> {
+    pub fn update(&mut self, rt: &Context, world: Option<&World>) -> Result<Vec<u8>, ReplicaError> {
+        let scene = world.map(|w| &w.scene);
         if !self.follows(rt) {
             return Err(ReplicaError::Inconsistent(
                 "an update of another context than the replicas follow (restart them first)".into(),
             ));
         }
+        // First, so that a world that does not fit the context changes nothing.
+        let displaced = match (self.demand, world) {
+            (true, Some(world)) => self.displaced(rt, world)?,
+            _ => None,
+        };
         self.source = Some(rt.identity);
         let mut programs = Vec::new();
         self.programs.resize(rt.programs.len(), None);
@@ -343,7 +367,13 @@ impl Replicator {
                 .collect(),
         });
         self.memory_changes = Some(rt.memory_changes);
-        if programs.is_empty() && objects.is_empty() && instances.is_empty() && !settings_changed && memory.is_none() {
+        if programs.is_empty()
+            && objects.is_empty()
+            && instances.is_empty()
+            && !settings_changed
+            && memory.is_none()
+            && displaced.is_none()
+        {
             return Ok(Vec::new());
         }
         let bytes = encode(&UpdateOut {
@@ -355,9 +385,55 @@ impl Replicator {
             instance_count: count(rt.instances.len()),
             settings: settings_changed.then_some(settings.as_slice()),
             memory,
+            displaced,
         })?;
         self.settings = Some(settings);
         Ok(bytes)
+    }
+}
+
+impl Replicator {
+    /// The instances `world` (which `rt` built) truly displaces and the displaced meshes not sent
+    /// yet, where they changed since the last update.
+    fn displaced(&mut self, rt: &Context, world: &World) -> Result<Option<Displaced>, ReplicaError> {
+        let rates: HashMap<u32, (&Arc<Mesh>, u32)> =
+            rt.displaced.placed().map(|(object, mesh, rate)| (object.0, (mesh, rate))).collect();
+        let instances: Vec<(u32, u32)> = world
+            .instances
+            .iter()
+            .enumerate()
+            .filter(|(_, inst)| inst.displaced)
+            .map(|(i, inst)| (count(i), inst.object))
+            .collect();
+        let mut meshes = Vec::new();
+        let mut sent = HashMap::new();
+        for &(_, slot) in &instances {
+            if sent.contains_key(&slot) {
+                continue;
+            }
+            let object = crate::scene::ObjectId(slot);
+            let mesh = world.scene.mesh(object);
+            let Some((mesh, rate)) = rates.get(&slot).filter(|(m, _)| mesh.is_some_and(|w| Arc::ptr_eq(w, m))) else {
+                return Err(ReplicaError::Inconsistent(format!(
+                    "displaced object {slot} is not the one the context displaced (a world of another context?)"
+                )));
+            };
+            if !self.displaced_meshes.get(&slot).is_some_and(|was| Arc::ptr_eq(was, mesh)) {
+                let built = world.scene.objects().get(slot as usize).and_then(|o| o.resident_data());
+                let summary = match built.filter(|data| Arc::ptr_eq(&data.mesh, mesh)) {
+                    Some(data) => MeshSummary::of_tree(mesh, &data.bvh.bvh),
+                    None => MeshSummary::of(mesh, ObjectBvh::build(mesh, BuildQuality::High).bvh.bounds),
+                };
+                meshes.push((slot, summary, *rate));
+            }
+            sent.insert(slot, Arc::clone(mesh));
+        }
+        self.displaced_meshes = sent;
+        if meshes.is_empty() && instances == self.displaced_instances {
+            return Ok(None);
+        }
+        self.displaced_instances = instances.clone();
+        Ok(Some(Displaced { instances, meshes }))
     }
 }
 
@@ -408,6 +484,9 @@ impl Context {
             .map_err(|e| ReplicaError::Undecodable(e.to_string()))?;
         for (id, object) in &u.objects {
             check_object(*id, object)?;
+        }
+        if u.object_count >= crate::render::remote_displacement::DISPLACED_MESH_KEY {
+            return Err(ReplicaError::Inconsistent(format!("{} objects", u.object_count)));
         }
         for solid in settings.iter().flat_map(|s| &s.solids) {
             solid.check().map_err(|e| ReplicaError::Inconsistent(e.to_string()))?;
@@ -493,6 +572,9 @@ impl Context {
             }
             // Names fetched from a source may stand for something else now.
             self.renew_texture_cache();
+        }
+        if let Some(d) = u.displaced {
+            self.remote_displaced.update(d.instances, d.meshes).map_err(ReplicaError::Inconsistent)?;
         }
         Ok(true)
     }

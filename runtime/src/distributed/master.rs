@@ -12,6 +12,7 @@ use crate::accel::parts::{cut, PARTED_ABOVE, PART_TRIANGLES};
 use crate::accel::wire::{encode_bvh4, encode_small_tree};
 use crate::api::{encode_mesh, Context, Replicator, TextureDelivery};
 use crate::render::progressive::{lattice_lanes, BatchReport, LatticeSamples, LatticeTracer, PixelLattice};
+use crate::render::remote_displacement::DISPLACED_MESH_KEY;
 use crate::render::{FrameReport, Framebuffer, LightPathCache, LightPaths, RenderedTile, TileRenderer, World};
 use crate::texture::{
     encode_answer, DecodedTexture, Delivered, TextureAnswer, TextureKind, TexturePart, TextureServer, TILED_FROM_BYTES,
@@ -598,7 +599,7 @@ impl<T: Transport> Master<T> {
         if !self.replicator.follows(rt) {
             self.new_scene()?;
         }
-        Ok(self.replicator.update(rt, Some(&world.scene))?)
+        Ok(self.replicator.update(rt, Some(world))?)
     }
 
     /// Tells the workers to drop their copies of the scene and everything kept of it, and forgets
@@ -1221,13 +1222,21 @@ impl<T: Transport> Master<T> {
     /// built here goes with the mesh (the worker need not build it again), a large object's cut
     /// into parts.
     fn encoded(&mut self, id: u32, source: Option<&Context>, world: &World) -> Option<&Encoded> {
-        let object = crate::api::ObjectId(id);
         let rt = source?;
-        let mesh = rt.object_mesh(object)?;
+        let (mesh, bvh) = if id & DISPLACED_MESH_KEY != 0 {
+            // A displaced mesh lives in the world's scene alone (`render/remote_displacement.rs`).
+            let object = crate::scene::ObjectId(id & !DISPLACED_MESH_KEY);
+            let mesh = world.scene.mesh(object)?;
+            let built = world.scene.objects().get(object.0 as usize).and_then(|o| o.resident_data());
+            (mesh, built.filter(|data| Arc::ptr_eq(&data.mesh, mesh)).map(|data| &data.bvh.bvh))
+        } else {
+            let object = crate::api::ObjectId(id);
+            (rt.object_mesh(object)?, rt.object_bvh(object, world))
+        };
         let fresh = self.encoded_objects.get(&id).is_some_and(|e| Arc::ptr_eq(&e.mesh, mesh));
         if !fresh {
             let encoded_mesh = encode_mesh(mesh);
-            let (object_bytes, parts) = match rt.object_bvh(object, world) {
+            let (object_bytes, parts) = match bvh {
                 Some(built) if mesh.triangle_count() > self.parted_above => {
                     let cut = cut(built, self.part_triangles);
                     let counts: Vec<u32> = cut.parts.iter().map(|p| p.triangles).collect();

@@ -8,7 +8,7 @@ use crate::texture::{TextureKind, TexturePart};
 use rtsl_compiler::interface::ShaderKind;
 
 /// The protocol's version: ranks that speak different versions refuse each other at start-up.
-pub const PROTOCOL_VERSION: u32 = 42;
+pub const PROTOCOL_VERSION: u32 = 43;
 
 /// What the master's counters add up from a worker's share of a frame.
 #[derive(Clone, Debug, Default, PartialEq)]

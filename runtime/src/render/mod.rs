@@ -29,6 +29,7 @@ pub mod primary;
 pub mod progressive;
 mod ray_budget;
 pub mod ray_params;
+pub mod remote_displacement;
 mod sampling;
 mod scratch;
 pub mod shade;

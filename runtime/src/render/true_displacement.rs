@@ -59,6 +59,12 @@ impl DisplacedMeshes {
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
+
+    /// The displaced meshes of the last world: each one's scene object, its mesh and the rate its
+    /// source was diced at (each source triangle made `rate * rate`).
+    pub fn placed(&self) -> impl Iterator<Item = (ObjectId, &Arc<Mesh>, u32)> {
+        self.kept.iter().filter_map(|k| k.displaced.as_ref().map(|m| (m.object, &m.mesh, k.key.rate)))
+    }
 }
 
 /// One instance's displacement, as worked out for a frame.
