@@ -273,3 +273,33 @@ fn instances_placed_alike_are_all_displaced() {
 fn covered_in(fb: &Framebuffer, size: u32) -> usize {
     (0..size).flat_map(|y| (0..size).map(move |x| (x, y))).filter(|&(x, y)| fb.pixel(x, y)[3] > 0.5).count()
 }
+
+/// A deforming mesh is displaced at both ends of its deformation: a sphere growing from radius
+/// 0.5 to 1 over the shutter, inflated by 0.25, blurs from radius 0.75 to 1.25 (bump-mapped, from
+/// 0.5 to 1). Displaced at the opening alone it would stand at 0.75 throughout.
+#[test]
+fn deforming_meshes_are_displaced_at_both_ends() {
+    let frame = |attributes: &str| -> Framebuffer {
+        let rib = format!(
+            "Format {SIZE} {SIZE} 1\nPixelSamples 4 4\nShutter 0 1\nProjection \"perspective\" \"fov\" [40]\n\
+             Translate 0 0 4\nWorldBegin\nAttributeBegin {attributes} Displacement \"inflate\" Surface \"constant\"\n\
+             MotionBegin [0 1] Sphere 0.5 -0.5 0.5 360 Sphere 1 -1 1 360 MotionEnd\nAttributeEnd\nWorldEnd\n"
+        );
+        let mut rt = Context::new();
+        rt.compile_shader("inflate.sl", INFLATE).expect("the displacement compiles");
+        load_str(&mut rt, &rib, "growing.rib").expect("loads");
+        render(&mut rt)
+    };
+    let (bumped, moved) = (frame(""), frame("Attribute \"displacementbound\" \"sphere\" [0.25]"));
+    let pixels = |fb: &Framebuffer, alpha: &dyn Fn(f32) -> bool| {
+        (0..SIZE).flat_map(|y| (0..SIZE).map(move |x| (x, y))).filter(|&(x, y)| alpha(fb.pixel(x, y)[3])).count()
+    };
+    // Covered at some time: the closing shape's disc.
+    let (ever_bumped, ever_moved) = (pixels(&bumped, &|a| a > 0.02), pixels(&moved, &|a| a > 0.02));
+    let ratio = ever_moved as f32 / ever_bumped as f32;
+    assert!((1.3..1.8).contains(&ratio), "covered at some time: {ever_moved} against {ever_bumped}");
+    // Covered throughout: the opening shape's disc.
+    let (always_bumped, always_moved) = (pixels(&bumped, &|a| a > 0.98), pixels(&moved, &|a| a > 0.98));
+    let ratio = always_moved as f32 / always_bumped as f32;
+    assert!((1.8..2.8).contains(&ratio), "covered throughout: {always_moved} against {always_bumped}");
+}

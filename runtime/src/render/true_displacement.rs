@@ -22,8 +22,8 @@ use super::jobs::JobRows;
 use super::ray_budget::RayBudget;
 use super::work::{Frame, Pending};
 use super::world::{InstanceParts, InstanceShading, Material, World};
-use crate::geometry::dice::{dice, diced_triangle_count, Diced};
-use crate::geometry::Mesh;
+use crate::geometry::dice::{dice, diced_triangle_count, Diced, DicedVertex};
+use crate::geometry::{Deformation, Mesh};
 use crate::ray::{Hit, Ray, PACKET_SIZE};
 use crate::scene::ObjectId;
 use crate::shading::ShaderInstance;
@@ -345,7 +345,9 @@ type DisplacedPoint = Option<(Vec3A, Vec3A)>;
 
 /// Runs instance `index`'s displacement shaders at every point of its diced mesh: the mesh with
 /// the points where they moved them and the normals they left (object space), and which source
-/// triangle each triangle comes from; `None` when no point moved.
+/// triangle each triangle comes from; `None` when no point moved. A deforming mesh is displaced
+/// at both ends of its deformation (the shader runs at each end's time, where the mesh stands
+/// then), so that it deforms from one displaced shape to the other.
 fn displaced_mesh(
     frame: &Frame,
     (index, inst): (u32, &InstanceShading),
@@ -353,11 +355,6 @@ fn displaced_mesh(
 ) -> Option<(Arc<Mesh>, Arc<[u32]>)> {
     let world = frame.world;
     let Diced { mut mesh, origins, of_triangle } = diced;
-    let xf = inst.world_from_object;
-    let object_from_world = xf.inverse();
-    // Normals move by the inverse transpose; back into object space by the transpose.
-    let normal_to_object = xf.matrix3.transpose();
-    let eye = world.camera.eye();
     // Points in groups of one material, a packet at most each.
     let material_of = |v: usize| inst.material_at(origins[v].triangle);
     let mut order: Vec<u32> = (0..origins.len() as u32).collect();
@@ -375,78 +372,118 @@ fn displaced_mesh(
         groups.push(&order[start..end]);
         start = end;
     }
-    // The spacing of the dicing at each source triangle, in world units: the derivatives' step.
-    let spacing = |t: u32| {
-        let c = source.triangles.get(t as usize).map_or([Vec3A::ZERO; 3], |tri| {
-            tri.map(|k| {
-                xf.transform_point3a(Vec3A::from(source.positions.get(k as usize).copied().unwrap_or(Vec3::ZERO)))
-            })
-        });
-        let longest = [(c[0] - c[1]), (c[1] - c[2]), (c[2] - c[0])].iter().map(|e| e.length()).fold(0.0, f32::max);
-        longest / rate.max(1) as f32
-    };
-    let results: Vec<Vec<(u32, DisplacedPoint)>> = groups
-        .par_iter()
-        .map(|group| {
-            let mut jobs: Box<JobRows> = Box::default();
-            jobs.clear();
-            for &v in group.iter() {
-                let o = origins[v as usize];
-                let at = xf.transform_point3a(Vec3A::from(mesh.positions[v as usize]));
-                let to = at - eye;
-                let t = to.length();
-                let direction = if t > 0.0 && t.is_finite() { to / t } else { Vec3A::Z };
-                let width = spacing(o.triangle);
-                let ray = Ray { origin: eye, direction, tmin: 0.0, tmax: f32::INFINITY, time: 0.0 };
-                let diff = RayDifferential::cone(direction, width, 0.0);
-                let hit = Hit { t, u: o.u, v: o.v, instance: index, primitive: o.triangle };
-                let pending = Pending { index: v as usize, start: 0.0, ray, diff, hit, budget: RayBudget::FULL };
-                jobs.push(&pending, RayBudget::FULL);
-            }
-            jobs.finish();
-            let mut out = [None; PACKET_SIZE];
-            super::shade::displaced_points(frame, &jobs.rows(), &mut out[..group.len()]);
-            group.iter().copied().zip(out).collect()
-        })
-        .collect();
-    let mut moved = false;
-    let mut normals = mesh.normals.take().unwrap_or_else(|| vec![Vec3::ZERO; mesh.positions.len()]);
-    for (v, shaded) in results.into_iter().flatten() {
-        let Some((p, n)) = shaded else { continue };
-        let (v, p, n) = (v as usize, object_from_world.transform_point3a(p), normal_to_object * n);
-        // A point moved out of float range (back in object space) stays where it was.
-        if !p.is_finite() {
-            continue;
-        }
-        if Vec3::from(p) != mesh.positions[v] {
-            moved = true;
-        }
-        mesh.positions[v] = p.into();
-        if n.is_finite() {
-            normals[v] = n.normalize_or_zero().into();
-        }
+    let placed = world.scene.instance_data(index);
+    let at = |time: f32| placed.map_or(inst.world_from_object, |d| d.world_from_object_at(time));
+    let points = DicedPoints { frame, index, source, origins: &origins, groups: &groups, rate };
+    let deformation = mesh.deformation.take();
+    let count = mesh.positions.len();
+    let own =
+        |normals: Option<Vec<Vec3>>| normals.filter(|n| n.len() == count).unwrap_or_else(|| vec![Vec3::ZERO; count]);
+    let mut normals = own(mesh.normals.take());
+    // Where the mesh does not deform, at time 0 (a moving instance: where it stands then).
+    let opening = deformation.as_ref().map_or(0.0, |d| d.open);
+    let mut moved = points.displace(opening, at(opening), &mut mesh.positions, &mut normals);
+    fill_missing_normals(&mesh.positions, &mesh.triangles, &mut normals);
+    mesh.normals = Some(normals);
+    if let Some(d) = deformation {
+        let mut positions = d.positions;
+        let mut normals = own(d.normals);
+        moved |= points.displace(d.close, at(d.close), &mut positions, &mut normals);
+        fill_missing_normals(&positions, &mesh.triangles, &mut normals);
+        mesh.deformation = Some(Deformation { positions, normals: Some(normals), open: d.open, close: d.close });
     }
     if !moved {
         return None;
     }
-    fill_missing_normals(&mesh, &mut normals);
-    mesh.normals = Some(normals);
-    // The moved points are where the mesh is now at every time.
-    mesh.deformation = None;
     // What the tracer builds from must hold, as for any mesh given it.
     mesh.validate().ok()?;
     Some((Arc::new(mesh), of_triangle.into()))
 }
 
+/// The points of an instance's diced mesh, in groups for the displacement shaders.
+struct DicedPoints<'a> {
+    frame: &'a Frame<'a>,
+    index: u32,
+    source: &'a Mesh,
+    origins: &'a [DicedVertex],
+    groups: &'a [&'a [u32]],
+    rate: u32,
+}
+
+impl DicedPoints<'_> {
+    /// Runs the displacement shaders at every diced point as the mesh stands at `time`
+    /// (`positions`, object space; `xf` its instance's transform then): moves `positions` and sets
+    /// `normals` where they ran. Returns whether any point moved.
+    fn displace(&self, time: f32, xf: glam::Affine3A, positions: &mut [Vec3], normals: &mut [Vec3]) -> bool {
+        let (frame, source, origins, rate) = (self.frame, self.source, self.origins, self.rate);
+        let object_from_world = xf.inverse();
+        // Normals move by the inverse transpose; back into object space by the transpose.
+        let normal_to_object = xf.matrix3.transpose();
+        let eye = frame.world.camera.eye();
+        // The spacing of the dicing at each source triangle, in world units: the derivatives' step.
+        let spacing = |t: u32| {
+            let c = source.triangles.get(t as usize).map_or([Vec3A::ZERO; 3], |tri| {
+                tri.map(|k| {
+                    xf.transform_point3a(Vec3A::from(source.positions.get(k as usize).copied().unwrap_or(Vec3::ZERO)))
+                })
+            });
+            let longest = [(c[0] - c[1]), (c[1] - c[2]), (c[2] - c[0])].iter().map(|e| e.length()).fold(0.0, f32::max);
+            longest / rate.max(1) as f32
+        };
+        let positions_now: &[Vec3] = positions;
+        let results: Vec<Vec<(u32, DisplacedPoint)>> = self
+            .groups
+            .par_iter()
+            .map(|group| {
+                let mut jobs: Box<JobRows> = Box::default();
+                jobs.clear();
+                for &v in group.iter() {
+                    let o = origins[v as usize];
+                    let at = xf.transform_point3a(Vec3A::from(positions_now[v as usize]));
+                    let to = at - eye;
+                    let t = to.length();
+                    let direction = if t > 0.0 && t.is_finite() { to / t } else { Vec3A::Z };
+                    let width = spacing(o.triangle);
+                    let ray = Ray { origin: eye, direction, tmin: 0.0, tmax: f32::INFINITY, time };
+                    let diff = RayDifferential::cone(direction, width, 0.0);
+                    let hit = Hit { t, u: o.u, v: o.v, instance: self.index, primitive: o.triangle };
+                    let pending = Pending { index: v as usize, start: 0.0, ray, diff, hit, budget: RayBudget::FULL };
+                    jobs.push(&pending, RayBudget::FULL);
+                }
+                jobs.finish();
+                let mut out = [None; PACKET_SIZE];
+                super::shade::displaced_points(frame, &jobs.rows(), &mut out[..group.len()]);
+                group.iter().copied().zip(out).collect()
+            })
+            .collect();
+        let mut moved = false;
+        for (v, shaded) in results.into_iter().flatten() {
+            let Some((p, n)) = shaded else { continue };
+            let (v, p, n) = (v as usize, object_from_world.transform_point3a(p), normal_to_object * n);
+            // A point moved out of float range (back in object space) stays where it was.
+            if !p.is_finite() {
+                continue;
+            }
+            let (Some(at), Some(normal)) = (positions.get_mut(v), normals.get_mut(v)) else { continue };
+            moved |= Vec3::from(p) != *at;
+            *at = p.into();
+            if n.is_finite() {
+                *normal = n.normalize_or_zero().into();
+            }
+        }
+        moved
+    }
+}
+
 /// Gives each vertex whose normal is zero (no shader ran there, or it left no normal) the
-/// area-weighted normal of the triangles around it.
-fn fill_missing_normals(mesh: &Mesh, normals: &mut [Vec3]) {
+/// area-weighted normal of the triangles around it, the mesh standing at `positions`.
+fn fill_missing_normals(positions: &[Vec3], triangles: &[[u32; 3]], normals: &mut [Vec3]) {
     if normals.iter().all(|n| *n != Vec3::ZERO) {
         return;
     }
     let mut summed = vec![Vec3::ZERO; normals.len()];
-    for t in &mesh.triangles {
-        let [a, b, c] = t.map(|k| mesh.positions.get(k as usize).copied().unwrap_or(Vec3::ZERO));
+    for t in triangles {
+        let [a, b, c] = t.map(|k| positions.get(k as usize).copied().unwrap_or(Vec3::ZERO));
         let n = (b - a).cross(c - a);
         for &k in t {
             if let Some(s) = summed.get_mut(k as usize) {
