@@ -303,3 +303,29 @@ fn deforming_meshes_are_displaced_at_both_ends() {
     let ratio = always_moved as f32 / always_bumped as f32;
     assert!((1.8..2.8).contains(&ratio), "covered throughout: {always_moved} against {always_bumped}");
 }
+
+/// A large polygon (a floor of two triangles filling a 128-pixel frame) is diced to about a pixel
+/// a micropolygon edge, finer than 64 pieces an edge, and coarser at a larger shading rate.
+#[test]
+fn large_polygons_are_diced_to_the_shading_rate() {
+    let diced = |shading_rate: f32| -> usize {
+        let rib = format!(
+            "Format 128 128 1\nShadingRate {shading_rate}\nProjection \"perspective\" \"fov\" [60]\nTranslate 0 0 2\n\
+             WorldBegin\nAttribute \"displacementbound\" \"sphere\" [0.25] Displacement \"ridges\" Surface \"constant\"\n\
+             Polygon \"P\" [-1.2 -1.2 0  1.2 -1.2 0  1.2 1.2 0  -1.2 1.2 0]\nWorldEnd\n"
+        );
+        let mut rt = Context::new();
+        rt.compile_shader("ridges.sl", RIDGES).expect("the displacement compiles");
+        load_str(&mut rt, &rib, "floor.rib").expect("loads");
+        let world = rt.build_world().expect("a world");
+        let inst = world.instances.first().expect("the floor");
+        assert!(inst.displaced);
+        let object = world.scene.objects().get(inst.object as usize).expect("its object");
+        object.triangle_count()
+    };
+    // The floor's triangles have edges of about 140 pixels: cut into at least 96 pieces an edge at
+    // ShadingRate 1, about half as many at ShadingRate 4.
+    let (fine, coarse) = (diced(1.0), diced(4.0));
+    assert!(fine >= 2 * 96 * 96, "{fine} triangles");
+    assert!((fine / 8..=fine / 2).contains(&coarse), "{coarse} triangles against {fine}");
+}

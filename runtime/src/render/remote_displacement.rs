@@ -23,7 +23,7 @@ use std::sync::Arc;
 pub const DISPLACED_MESH_KEY: u32 = 1 << 31;
 
 /// The finest dicing rate a master uses: a rate above it is a damaged update.
-const FINEST_RATE: u32 = 64;
+const FINEST_RATE: u32 = super::true_displacement::DICING_RATES[super::true_displacement::DICING_RATES.len() - 1];
 
 /// What a demand-loading replica knows of its master's displaced meshes, kept from update to
 /// update: which instances are displaced and into what, and the scene objects standing for the

@@ -38,9 +38,10 @@ pub const MAX_DICED_TRIANGLES: usize = 1 << 20;
 pub const MAX_WORLD_DICED_TRIANGLES: usize = 1 << 22;
 
 /// The dicing rates used: a needed rate is rounded up to the next. Steps of about 1.4 keep a
-/// moving camera from dicing again each frame, at less than twice the triangles needed; the
-/// last is the finest (each triangle cut into at most its square).
-const DICING_RATES: [u32; 12] = [1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64];
+/// moving camera from dicing again each frame, at less than twice the triangles needed. The
+/// finest cuts one triangle into [`MAX_DICED_TRIANGLES`]: a large polygon (a displaced floor of
+/// two triangles) is diced as finely as the budget allows.
+pub const DICING_RATES: [u32; 20] = [1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256, 384, 512, 768, 1024];
 
 /// The displaced meshes of the last frame, and the scene objects that hold them, for the next.
 #[derive(Default)]
@@ -170,6 +171,8 @@ pub fn displace_world(world: &mut World, kept: &mut DisplacedMeshes) -> Vec<Stri
     {
         let world = &*world;
         let frame = Frame::new(world);
+        // Each instance's mesh and the rate it asks for.
+        let mut rated: Vec<(usize, Arc<Mesh>, u32)> = Vec::with_capacity(wanted.len());
         for &i in &wanted {
             let inst = &world.instances[i];
             let id = ObjectId(inst.object);
@@ -182,6 +185,16 @@ pub fn displace_world(world: &mut World, kept: &mut DisplacedMeshes) -> Vec<Stri
                 continue;
             }
             let rate = dicing_rate(&frame, inst, &mesh);
+            rated.push((i, mesh, rate));
+        }
+        if let Some(asked) = fit_world_budget(&mut rated) {
+            warnings.push(format!(
+                "true displacement: the scene's displaced objects would make {asked} triangles, more than \
+                 {MAX_WORLD_DICED_TRIANGLES}; they are diced coarser than their shading rates ask"
+            ));
+        }
+        for (i, mesh, rate) in rated {
+            let inst = &world.instances[i];
             let key = key_of(world, inst, mesh.clone(), rate);
             if let Some(k) = kept.kept.iter().position(|e| e.key == key && e.is_in(&world.scene)) {
                 total += kept.kept[k].triangles;
@@ -270,6 +283,26 @@ pub fn displace_world(world: &mut World, kept: &mut DisplacedMeshes) -> Vec<Stri
     world.accel.objects_rebuilt += built;
     world.accel.object_bvhs += start.elapsed();
     warnings
+}
+
+/// Over the world's budget, lowers every instance's rate alike (each to the finest rate of the
+/// ladder at most its rate times the same factor) so that their diced triangles fit, rather than
+/// leaving the last ones bump-mapped; returns the triangles they asked for where it did.
+fn fit_world_budget(rated: &mut [(usize, Arc<Mesh>, u32)]) -> Option<usize> {
+    let asked = rated
+        .iter()
+        .map(|(_, mesh, rate)| diced_triangle_count(mesh, *rate).unwrap_or(usize::MAX))
+        .fold(0usize, usize::saturating_add);
+    if asked <= MAX_WORLD_DICED_TRIANGLES {
+        return None;
+    }
+    // Triangles go with the square of the rate.
+    let scale = (MAX_WORLD_DICED_TRIANGLES as f64 / asked as f64).sqrt();
+    for (_, _, rate) in rated.iter_mut() {
+        let fits = f64::from(*rate) * scale;
+        *rate = DICING_RATES.iter().rev().copied().find(|&r| f64::from(r) <= fits).unwrap_or(1);
+    }
+    Some(asked)
 }
 
 /// The instance's material or object, as a warning names it.
@@ -495,5 +528,33 @@ fn fill_missing_normals(positions: &[Vec3], triangles: &[[u32; 3]], normals: &mu
         if *n == Vec3::ZERO {
             *n = s.normalize_or_zero();
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A strip of `n` triangles.
+    fn strip(n: u32) -> Arc<Mesh> {
+        let positions = (0..n + 2).map(|k| Vec3::new(k as f32, (k % 2) as f32, 0.0)).collect();
+        Arc::new(Mesh::from_triangles(positions, (0..n).map(|k| [k, k + 1, k + 2]).collect()).expect("a strip"))
+    }
+
+    #[test]
+    fn over_the_world_budget_every_rate_is_lowered_alike() {
+        let mesh = strip(1000);
+        let mut rated = vec![(0, mesh.clone(), 96), (1, mesh.clone(), 48), (2, mesh.clone(), 1)];
+        let asked = fit_world_budget(&mut rated).expect("over the budget");
+        assert_eq!(asked, 1000 * (96 * 96 + 48 * 48 + 1));
+        // Scaled by sqrt(2^22 / asked), about 0.6, down to the ladder; never below 1.
+        let rates: Vec<u32> = rated.iter().map(|r| r.2).collect();
+        assert_eq!(rates, [48, 24, 1]);
+        let total: usize = rated.iter().map(|(_, m, r)| diced_triangle_count(m, *r).expect("a count")).sum();
+        assert!(total <= MAX_WORLD_DICED_TRIANGLES, "{total}");
+        // Within the budget, nothing changes.
+        let mut within = vec![(0, mesh.clone(), 48), (1, mesh, 32)];
+        assert_eq!(fit_world_budget(&mut within), None);
+        assert_eq!(within.iter().map(|r| r.2).collect::<Vec<_>>(), [48, 32]);
     }
 }
