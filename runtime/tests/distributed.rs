@@ -2021,11 +2021,13 @@ fn truly_displaced_objects_render_the_same_on_workers() -> Result<(), Distribute
     Ok(())
 }
 
-/// A RIB file's next frame is a new scene whose displaced meshes come out the same: the workers
-/// take the displaced meshes they fetched for the frame before (by digest), fetching none.
+/// A RIB file's next frame is a new scene whose displaced meshes come out the same: the worker
+/// takes the displaced meshes it fetched for the frame before (by digest), fetching none. (One
+/// worker, which renders every tile of both frames: two would each reach what their tiles reach,
+/// which differs from frame to frame.)
 #[test]
 fn a_new_scene_takes_the_displaced_meshes_the_scene_before_fetched() -> Result<(), DistributedError> {
-    let demands = with_two_workers(Duration::from_secs(120), |master| {
+    let demands = with_workers(1, Duration::from_secs(120), |master| {
         let mut frames = Vec::new();
         let mut demands = Vec::new();
         for _ in 0..2 {
@@ -2037,12 +2039,10 @@ fn a_new_scene_takes_the_displaced_meshes_the_scene_before_fetched() -> Result<(
         Ok(demands)
     })?;
     let [first, again] = &demands[..] else { panic!("two frames") };
-    // The displaced sphere and the displaced part of the pair, twice, at least.
+    // The displaced sphere and the displaced part of the pair, twice, with the floor.
     assert!(first.fetched_objects >= 4 && first.fetched_bytes > 100_000, "{first:?}");
-    // No displaced mesh (each is tens of kilobytes at least) travels again; a worker may fetch
-    // a small undisplaced object that its tiles in the frame before did not reach.
-    assert!(again.fetched_bytes < 1024 && again.fetched_parts == 0, "{again:?}");
-    assert!(again.kept_objects >= 4, "{again:?}");
+    assert_eq!((again.fetched_objects, again.fetched_parts), (0, 0), "{again:?}");
+    assert!(again.kept_objects >= first.fetched_objects, "{again:?}");
     Ok(())
 }
 
