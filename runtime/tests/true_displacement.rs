@@ -329,3 +329,60 @@ fn large_polygons_are_diced_to_the_shading_rate() {
     assert!(fine >= 2 * 96 * 96, "{fine} triangles");
     assert!((fine / 8..=fine / 2).contains(&coarse), "{coarse} triangles against {fine}");
 }
+
+/// A floor of many quads receding from the camera: each triangle and edge is diced at the rate
+/// its own distance asks (many more points near than far, where one rate for the whole mesh
+/// would put as many in each half), and the floor stays closed where rates change (no pixel of
+/// background shows below the floor's far edge).
+#[test]
+fn receding_meshes_are_diced_finer_near_and_stay_closed() {
+    let (columns, rows) = (8usize, 32usize);
+    let (width, near, far) = (12.0f32, 1.0f32, 40.0f32);
+    let mut points = Vec::new();
+    for r in 0..=rows {
+        for c in 0..=columns {
+            let x = -width + 2.0 * width * c as f32 / columns as f32;
+            let z = near + (far - near) * r as f32 / rows as f32;
+            points.push(format!("{x} 0 {z}"));
+        }
+    }
+    let mut indices = Vec::new();
+    for r in 0..rows {
+        for c in 0..columns {
+            let at = |r: usize, c: usize| r * (columns + 1) + c;
+            indices.push(format!("{} {} {} {}", at(r, c), at(r + 1, c), at(r + 1, c + 1), at(r, c + 1)));
+        }
+    }
+    let rib = format!(
+        "Format 96 64 1\nShadingRate 4\nProjection \"perspective\" \"fov\" [40]\n\
+         Rotate -6 1 0 0 Translate 0 -1 0\nWorldBegin\n\
+         Attribute \"displacementbound\" \"sphere\" [0.2] Displacement \"ridges\" Surface \"constant\"\n\
+         PointsPolygons [{}] [{}] \"P\" [{}]\nWorldEnd\n",
+        vec!["4"; rows * columns].join(" "),
+        indices.join(" "),
+        points.join(" ")
+    );
+    let mut rt = Context::new();
+    rt.compile_shader("ridges.sl", RIDGES).expect("the displacement compiles");
+    load_str(&mut rt, &rib, "floor.rib").expect("loads");
+    let world = rt.build_world().expect("a world");
+    let inst = world.instances.first().expect("the floor");
+    assert!(inst.displaced);
+    let mesh = world.scene.mesh(rtsl_runtime::scene::ObjectId(inst.object)).expect("the displaced mesh");
+    let middle = (near + far) / 2.0;
+    let near_points = mesh.positions.iter().filter(|p| p.z < middle).count();
+    let far_points = mesh.positions.len() - near_points;
+    assert!(near_points > 4 * far_points, "{near_points} points near, {far_points} far");
+    let (fb, _) = rtsl_runtime::render::render_frame(&world, None);
+    rt.return_scene(world);
+    let (w, h) = (fb.width, fb.height);
+    let mut covered = 0;
+    for x in 0..w {
+        // From the bottom row up: covered, then (past the far edge) background, never covered again.
+        let column: Vec<bool> = (0..h).rev().map(|y| fb.pixel(x, y)[3] > 0.5).collect();
+        let edge = column.iter().position(|&c| !c).unwrap_or(column.len());
+        assert!(column[edge..].iter().all(|&c| !c), "column {x}: background below the floor's far edge");
+        covered += edge;
+    }
+    assert!(covered > (w * h / 3) as usize, "the floor covers {covered} pixels");
+}

@@ -1,24 +1,32 @@
-//! Dicing: each triangle of a mesh split uniformly into `n * n` smaller ones, so that a
-//! displacement shader, run once per vertex, has vertices to move between the source's corners.
+//! Dicing: each triangle of a mesh split into `n * n` smaller ones, so that a displacement
+//! shader, run once per vertex, has vertices to move between the source's corners. [`dice`] cuts
+//! every triangle and edge at one rate; [`dice_at`] gives each triangle a rate of its own and each
+//! edge one (a mesh seen near and far is diced finely near and coarsely far).
 //!
 //! A source triangle `[a, b, c]` diced at rate `n` has the points `(i, j)` with `i + j <= n`, the
 //! point at hit coordinates `(i / n, j / n)` (weights `[1 - u - v, u, v]` on `[a, b, c]`, as a hit
-//! is interpolated in [`crate::scene::Scene::surface_at`]).
+//! is interpolated in [`crate::scene::Scene::surface_at`]). An edge diced at rate `e` (never above
+//! the rates of the triangles that use it) has `e - 1` points inside; a triangle's grid points on
+//! that edge are moved to the edge's nearest point (`round(s * e / n)` of `e`, counted from the
+//! edge's lower vertex), so that where an edge is coarser than its triangle, the triangle's
+//! outermost cells fold into triangles of no area along it.
 //!
-//! Invariants of [`dice`]'s result:
-//! - watertight: each source vertex that a triangle uses becomes one diced vertex; the `n - 1`
+//! Invariants of [`dice_at`]'s result (and so of [`dice`]'s):
+//! - watertight: each source vertex that a triangle uses becomes one diced vertex; the `e - 1`
 //!   points inside a source edge (an unordered pair of vertex indices, whichever triangles use it)
-//!   are made once and shared by all of them; the points inside a triangle are its own. So a closed
-//!   mesh dices to a closed mesh. An edge's points are computed from its two ends alone, measured
+//!   are made once and shared by all of them, and every triangle's boundary along the edge passes
+//!   through all of them in order; the points inside a triangle are its own. So a closed mesh
+//!   dices to a closed mesh. An edge's points are computed from its two ends alone, measured
 //!   from the lower-indexed one, so that they do not depend on which triangle made them;
 //! - source vertices that no triangle uses are dropped, so that every diced vertex lies on a
 //!   source triangle ([`Diced::origins`]); with V used vertices, E distinct edges and T triangles
-//!   there are `V + E (n - 1) + T (n - 1) (n - 2) / 2` vertices: the used source vertices first,
+//!   there are `V + E (n - 1) + T (n - 1) (n - 2) / 2` vertices at one rate `n` (the sum of each
+//!   edge's `e - 1` and each triangle's `(n - 1) (n - 2) / 2` at several): the used source vertices first,
 //!   in source order (so rate 1 gives the source mesh back), then the new points in the order the
 //!   triangles first need them;
 //! - every diced triangle winds as its source triangle does, and a source triangle's diced
-//!   triangles cover it exactly; source triangle `t` gives diced triangles `t * n * n` up to
-//!   `(t + 1) * n * n`;
+//!   triangles cover it exactly; source triangle `t` gives `n * n` diced triangles (those of area
+//!   0 along coarser edges included), after those of the triangles before it;
 //! - per-vertex data (positions, normals, uvs, every attribute's components, a deformation's
 //!   positions and normals) is interpolated linearly, by the same expressions as positions, and
 //!   normals are left as interpolated, not renormalised, as a hit's interpolated normal is before
@@ -66,32 +74,55 @@ pub fn diced_triangle_count(mesh: &Mesh, n: u32) -> Option<usize> {
 /// `usize::MAX` where it overflows), or per-vertex arrays past what memory can address;
 /// [`MeshError::NonFinite`] when interpolating between huge positions overflows.
 pub fn dice(mesh: &Mesh, n: u32) -> Result<Diced, MeshError> {
+    let count = mesh.triangles.len();
+    dice_at(mesh, &vec![n; count], &vec![[n; 3]; count])
+}
+
+/// The number of triangles dicing triangles at `rates` makes (the sum of their squares), None on
+/// overflow.
+pub fn diced_triangle_count_at(rates: &[u32]) -> Option<usize> {
+    rates.iter().try_fold(0usize, |sum, &n| {
+        let n = usize::try_from(n.max(1)).ok()?;
+        sum.checked_add(n.checked_mul(n)?)
+    })
+}
+
+/// Splits triangle `t` of `mesh` into `rates[t] * rates[t]`, and its edge from corner `k` to the
+/// next (`[a-b, b-c, c-a]`) into `edge_rates[t][k]` pieces, at most; an edge shared by several
+/// triangles is cut at the fewest any of them asks and allows (its rate never above theirs), so
+/// that they share its points. Rates of 0, and those of triangles past the end of `rates` or
+/// `edge_rates`, are 1. Errors as [`dice`].
+pub fn dice_at(mesh: &Mesh, rates: &[u32], edge_rates: &[[u32; 3]]) -> Result<Diced, MeshError> {
     mesh.validate()?;
-    // A mesh without triangles has nothing to dice, whatever the rate.
-    let n = if mesh.triangles.is_empty() { 1 } else { n.max(1) };
-    let triangle_count = diced_triangle_count(mesh, n).unwrap_or(usize::MAX);
+    let rate_of = |t: usize| rates.get(t).copied().unwrap_or(1).max(1);
+    let triangle_rates: Vec<u32> = (0..mesh.triangles.len()).map(rate_of).collect();
+    let triangle_count = diced_triangle_count_at(&triangle_rates).unwrap_or(usize::MAX);
     check_triangle_count(triangle_count)?;
     let too_large = || MeshError::TooManyTriangles { count: triangle_count };
-    // Past the check, `n * n` and every source triangle index fit in a u32.
-    let rate = n as usize;
+    // Past the check, every `n * n` and every source triangle index fit in a u32.
+    let finest = triangle_rates.iter().copied().max().unwrap_or(1) as usize;
 
     let corners = Corners::of(mesh);
-    let mut edges = if rate > 1 { Edges::of(mesh) } else { Edges::default() };
-    let inner = rate - 1;
-    let vertex_count = edges
-        .distinct
-        .checked_mul(inner)
-        .and_then(|e| e.checked_add(corners.used))
-        .and_then(|v| v.checked_add(mesh.triangles.len().checked_mul(inner * inner.saturating_sub(1) / 2)?))
+    let mut edges = if finest > 1 { Edges::of(mesh) } else { Edges::default() };
+    if finest > 1 {
+        edges.rate_edges(mesh, &triangle_rates, edge_rates);
+    }
+    let inside = triangle_rates.iter().try_fold(0usize, |sum, &n| {
+        let inner = n as usize - 1;
+        sum.checked_add(inner * inner.saturating_sub(1) / 2)
+    });
+    let vertex_count = inside
+        .and_then(|v| v.checked_add(edges.inner_points))
+        .and_then(|v| v.checked_add(corners.used))
         .ok_or_else(too_large)?;
     u32::try_from(vertex_count).map_err(|_| too_large())?;
 
     let mut dicer = Dicer {
-        rate,
+        rate: 1,
         blends: Vec::with_capacity(vertex_count),
         origins: Vec::with_capacity(vertex_count),
         triangles: Vec::with_capacity(triangle_count),
-        grid: vec![0; (rate + 1) * (rate + 2) / 2],
+        grid: vec![0; (finest + 1) * (finest + 2) / 2],
     };
     let mut new_index = vec![NONE; mesh.positions.len()];
     for (v, &first) in corners.first_use.iter().enumerate() {
@@ -103,10 +134,12 @@ pub fn dice(mesh: &Mesh, n: u32) -> Result<Diced, MeshError> {
         }
     }
     for (t, tri) in mesh.triangles.iter().enumerate() {
+        dicer.rate = triangle_rates[t] as usize;
         dicer.triangle(t as u32, *tri, &new_index, &mut edges);
     }
     let Dicer { blends, origins, triangles, .. } = dicer;
-    let of_triangle = (0..mesh.triangles.len() as u32).flat_map(|t| std::iter::repeat_n(t, rate * rate)).collect();
+    let of_triangle =
+        triangle_rates.iter().enumerate().flat_map(|(t, &n)| std::iter::repeat_n(t as u32, (n * n) as usize)).collect();
 
     let attributes = mesh
         .attributes
@@ -230,10 +263,12 @@ struct Edges {
     /// The higher vertex of each triangle's each edge; equal entries in a group are one edge.
     upper: Vec<u32>,
     /// At the first entry of each edge: the index of its first inside point once made, else
-    /// [`NONE`]; its `n - 1` points are consecutive, from its lower vertex on.
+    /// [`NONE`]; its `e - 1` points are consecutive, from its lower vertex on.
     first_point: Vec<u32>,
-    /// The number of distinct edges.
-    distinct: usize,
+    /// At the first entry of each edge: its rate `e`.
+    rate: Vec<u32>,
+    /// The points inside all edges together.
+    inner_points: usize,
 }
 
 impl Edges {
@@ -257,14 +292,25 @@ impl Edges {
                 next[lo] += 1;
             }
         }
-        let mut distinct = 0;
         for group in starts.windows(2) {
-            let group = &mut upper[group[0]..group[1]];
-            group.sort_unstable();
-            distinct += group.iter().enumerate().filter(|&(k, &hi)| k == 0 || group[k - 1] != hi).count();
+            upper[group[0]..group[1]].sort_unstable();
         }
         let first_point = vec![NONE; upper.len()];
-        Edges { starts, upper, first_point, distinct }
+        Edges { starts, upper, first_point, rate: Vec::new(), inner_points: 0 }
+    }
+
+    /// Gives each edge the fewest pieces any triangle using it asks for or allows (its own rate).
+    fn rate_edges(&mut self, mesh: &Mesh, triangle_rates: &[u32], edge_rates: &[[u32; 3]]) {
+        self.rate = vec![u32::MAX; self.upper.len()];
+        for (t, tri) in mesh.triangles.iter().enumerate() {
+            let asked = edge_rates.get(t).copied().unwrap_or([1; 3]);
+            for (k, [p, q]) in EDGES.into_iter().enumerate() {
+                let entry = self.entry(tri[p].min(tri[q]), tri[p].max(tri[q]));
+                let e = asked[k].clamp(1, triangle_rates[t]);
+                self.rate[entry] = self.rate[entry].min(e);
+            }
+        }
+        self.inner_points = self.rate.iter().filter(|&&e| e != u32::MAX).map(|&e| e as usize - 1).sum();
     }
 
     /// The entry that stands for edge `lo`-`hi` (`lo <= hi`), one of the mesh's edges.
@@ -316,23 +362,36 @@ impl Dicer {
         for &[p, q] in edges_with_points {
             let (from, to) = (tri[p], tri[q]);
             let (lo, hi) = (from.min(to), from.max(to));
-            // The grid point `s` steps from corner p towards corner q; and steps from corner p
-            // counted from the edge's lower vertex instead, or back (the count is the same when p
-            // is the lower, else the rest of the edge's `n`).
-            let point = |s: usize| [0, 1].map(|axis| CORNER_STEP[p][axis] * (n - s) + CORNER_STEP[q][axis] * s);
-            let swap_end = |s: usize| if from == lo { s } else { n - s };
             let entry = edges.entry(lo, hi);
-            if edges.first_point[entry] == NONE {
+            let e = edges.rate[entry] as usize;
+            // Point `s` of `m` from corner p towards corner q, in grid units of `m`; and steps
+            // counted from the edge's lower vertex instead (the same when p is the lower, else
+            // the rest of `m`).
+            let point =
+                |s: usize, m: usize| [0, 1].map(|axis| CORNER_STEP[p][axis] * (m - s) + CORNER_STEP[q][axis] * s);
+            let from_lo = |s: usize, m: usize| if from == lo { s } else { m - s };
+            if edges.first_point[entry] == NONE && e > 1 {
                 edges.first_point[entry] = self.blends.len() as u32;
-                for k in 1..n {
-                    let fraction = k as f32 / scale;
-                    self.push(Blend::Edge { lo, hi, t: fraction }, origin(point(swap_end(k))));
+                let edge_scale = e as f32;
+                for k in 1..e {
+                    let fraction = k as f32 / edge_scale;
+                    let [i, j] = point(from_lo(k, e), e);
+                    let origin = DicedVertex { triangle: t, u: i as f32 / edge_scale, v: j as f32 / edge_scale };
+                    self.push(Blend::Edge { lo, hi, t: fraction }, origin);
                 }
             }
             let first = edges.first_point[entry];
             for s in 1..n {
-                let slot = self.at(point(s)[0], point(s)[1]);
-                self.grid[slot] = first + (swap_end(s) - 1) as u32;
+                // The edge's point nearest the grid's (halves rounded away from the lower vertex).
+                let k = (2 * from_lo(s, n) * e + n) / (2 * n);
+                let index = match k {
+                    0 => new_index[lo as usize],
+                    k if k >= e => new_index[hi as usize],
+                    k => first + (k - 1) as u32,
+                };
+                let [i, j] = point(s, n);
+                let slot = self.at(i, j);
+                self.grid[slot] = index;
             }
         }
         for j in 1..n {
@@ -677,6 +736,93 @@ mod tests {
 
     /// A fan around one vertex shared by many triangles dices as quickly as any other mesh and
     /// stays closed around its centre.
+    /// Rates that differ from triangle to triangle and edge to edge (from a hash of the edge's
+    /// ends, as a caller's from its own geometry would be).
+    fn mixed_rates(mesh: &Mesh, finest: u32) -> (Vec<u32>, Vec<[u32; 3]>) {
+        let edge = |a: u32, b: u32| (a.min(b) * 7 + a.max(b) * 13) % finest + 1;
+        let edges: Vec<[u32; 3]> = mesh.triangles.iter().map(|t| EDGES.map(|[p, q]| edge(t[p], t[q]))).collect();
+        let rates =
+            edges.iter().enumerate().map(|(k, e)| (e[0].max(e[1]).max(e[2]) + k as u32 % 3).min(finest)).collect();
+        (rates, edges)
+    }
+
+    /// Without the triangles of no area that coarser edges fold away, a closed mesh diced at mixed
+    /// rates is closed: every edge used once each way.
+    #[test]
+    fn mixed_rates_keep_closed_meshes_closed() {
+        for source in [welded(&Mesh::cuboid(Vec3::ZERO, Vec3::new(1.0, 2.0, 3.0))), irregular()] {
+            for finest in [2, 3, 5, 8] {
+                let (rates, edges) = mixed_rates(&source, finest);
+                let diced = dice_at(&source, &rates, &edges).unwrap();
+                let folded = |t: &[u32; 3]| t[0] == t[1] || t[1] == t[2] || t[2] == t[0];
+                let mut open = diced.mesh.clone();
+                open.triangles.retain(|t| !folded(t));
+                let uses = directed_edges(&open);
+                for (&(a, b), &count) in &uses {
+                    assert_eq!(count, 1, "edge {a}-{b} used twice the same way at rates up to {finest}");
+                    assert_eq!(uses.get(&(b, a)), Some(&1), "edge {a}-{b} is open at rates up to {finest}");
+                }
+                // Each triangle makes the square of its rate.
+                let expected: usize = rates.iter().map(|&n| (n * n) as usize).sum();
+                assert_eq!(diced.mesh.triangles.len(), expected);
+                assert_eq!(diced.of_triangle.len(), expected);
+                assert_eq!(diced_triangle_count_at(&rates), Some(expected));
+            }
+        }
+    }
+
+    /// At mixed rates every diced triangle keeps its source's winding (or has no area) and a
+    /// source triangle's diced triangles cover exactly its area.
+    #[test]
+    fn mixed_rates_keep_winding_and_cover_their_source() {
+        let source = irregular();
+        let (rates, edges) = mixed_rates(&source, 6);
+        let diced = dice_at(&source, &rates, &edges).unwrap();
+        let normal = |m: &Mesh, t: &[u32; 3]| {
+            let [a, b, c] = t.map(|v| m.positions[v as usize]);
+            (b - a).cross(c - a)
+        };
+        let mut area = vec![0.0f32; source.triangles.len()];
+        for (t, &from) in diced.mesh.triangles.iter().zip(&diced.of_triangle) {
+            let (n, whole) = (normal(&diced.mesh, t), normal(&source, &source.triangles[from as usize]));
+            assert!(n.dot(whole) >= -1e-6 * whole.length_squared(), "a diced triangle turned over");
+            area[from as usize] += n.length() / 2.0;
+        }
+        for (t, tri) in source.triangles.iter().enumerate() {
+            let whole = normal(&source, tri).length() / 2.0;
+            assert!(close(area[t], whole, whole), "triangle {t}: {} against {whole}", area[t]);
+        }
+    }
+
+    /// An edge is cut at the fewest pieces its triangles ask for, never more than either
+    /// triangle's own rate: its points are the vertices of both sides, and vertex counts follow.
+    #[test]
+    fn an_edge_takes_the_coarsest_rate_asked() {
+        // Two triangles sharing the edge 1-2: rates 4 and 2; the first asks 3 of the shared edge.
+        let positions = vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::new(1.0, 1.0, 0.0)];
+        let mesh = Mesh::from_triangles(positions, vec![[0, 1, 2], [2, 1, 3]]).unwrap();
+        let diced = dice_at(&mesh, &[4, 2], &[[4, 3, 4], [2, 2, 2]]).unwrap();
+        // Corners 4; edge 1-2 at 2 (the second triangle's rate): 1 point; the first's other
+        // edges at 4: 3 points each; the second's other edges at 2: 1 each; inside: 3 and 0.
+        assert_eq!(diced.mesh.positions.len(), 4 + 1 + 2 * 3 + 2 + 3);
+        assert_eq!(diced.mesh.triangles.len(), 16 + 4);
+        // The shared edge's one point is its middle, used by both sides.
+        let middle = Vec3::new(0.5, 0.5, 0.0);
+        let at: Vec<usize> = (0..diced.mesh.positions.len()).filter(|&v| diced.mesh.positions[v] == middle).collect();
+        assert_eq!(at.len(), 1);
+        let users: Vec<u32> = diced
+            .mesh
+            .triangles
+            .iter()
+            .zip(&diced.of_triangle)
+            .filter(|(t, _)| t.contains(&(at[0] as u32)))
+            .map(|(_, &from)| from)
+            .collect();
+        assert!(users.contains(&0) && users.contains(&1), "{users:?}");
+        // Rates of 0 or missing are 1.
+        assert_eq!(dice_at(&mesh, &[0], &[]).unwrap().mesh.triangles.len(), 2);
+    }
+
     #[test]
     fn a_wide_fan_dices() {
         let spokes = 20_000u32;

@@ -43,15 +43,15 @@ pub struct RemoteDisplacements {
 
 struct RemoteMesh {
     summary: MeshSummary,
-    /// The rate its source mesh was diced at: each source triangle made `rate * rate`.
-    rate: u32,
+    /// The rates its source mesh's triangles were diced at: each made `rate * rate`.
+    rates: Vec<u16>,
     /// The object standing for it here, once placed.
     object: Option<ObjectId>,
 }
 
 /// A displaced mesh as an update announces it: the master's scene object, the mesh's summary and
-/// its dicing rate.
-pub type AnnouncedMesh = (u32, MeshSummary, u32);
+/// the rate each source triangle was diced at.
+pub type AnnouncedMesh = (u32, MeshSummary, Vec<u16>);
 
 impl RemoteDisplacements {
     /// Whether no instance is displaced and nothing is left to let go.
@@ -63,15 +63,22 @@ impl RemoteDisplacements {
     /// last update. A mesh no instance uses any more is let go. Errors name what does not hold
     /// together (an instance of a mesh never announced, an impossible rate).
     pub fn update(&mut self, instances: Vec<(u32, u32)>, meshes: Vec<AnnouncedMesh>) -> Result<(), String> {
-        for (slot, summary, rate) in meshes {
-            if !(1..=FINEST_RATE).contains(&rate) {
+        for (slot, summary, rates) in meshes {
+            if let Some(rate) = rates.iter().find(|&&r| !(1..=FINEST_RATE).contains(&u32::from(r))) {
                 return Err(format!("displaced mesh {slot}: a dicing rate of {rate}"));
+            }
+            let diced: u64 = rates.iter().map(|&r| u64::from(r) * u64::from(r)).sum();
+            if diced != u64::from(summary.triangles) {
+                return Err(format!(
+                    "displaced mesh {slot}: {} triangles, where its rates make {diced}",
+                    summary.triangles
+                ));
             }
             if slot & DISPLACED_MESH_KEY != 0 {
                 return Err(format!("displaced mesh {slot}: no such scene object"));
             }
             let object = self.meshes.remove(&slot).and_then(|m| m.object);
-            self.meshes.insert(slot, RemoteMesh { summary, rate, object });
+            self.meshes.insert(slot, RemoteMesh { summary, rates, object });
         }
         if let Some(&(instance, slot)) = instances.iter().find(|(_, slot)| !self.meshes.contains_key(slot)) {
             return Err(format!("instance {instance}: displaced mesh {slot} was never sent"));
@@ -139,21 +146,19 @@ pub fn place_remote(
             .get_mut(index as usize)
             .ok_or_else(|| format!("displaced instance {index} of a world of fewer"))?;
         let source_triangles = world.scene.objects().get(inst.object as usize).map_or(0, |o| o.triangle_count());
-        let diced = (source_triangles as u64) * u64::from(mesh.rate * mesh.rate);
         if inst.displaced {
             return Err(format!("instance {index}: displaced here and by the master"));
         }
-        if diced != u64::from(mesh.summary.triangles) {
+        if source_triangles != mesh.rates.len() {
             return Err(format!(
-                "instance {index}: a displaced mesh of {} triangles for {source_triangles} diced at {}",
-                mesh.summary.triangles, mesh.rate
+                "instance {index}: a displaced mesh diced from {} triangles for {source_triangles}",
+                mesh.rates.len()
             ));
         }
         world.scene.set_instance_object(index, object).map_err(|e| e.to_string())?;
         inst.object = object.0;
         inst.displaced = true;
-        let per = mesh.rate * mesh.rate;
-        inst.parts = inst.parts.take().map(|parts| diced_parts(&parts, per));
+        inst.parts = inst.parts.take().map(|parts| diced_parts(&parts, &mesh.rates));
         changed = true;
     }
     if changed {
@@ -162,10 +167,11 @@ pub fn place_remote(
     Ok(())
 }
 
-/// The parts of a mesh diced `per` triangles to a source triangle: each diced triangle in its
-/// source triangle's part.
-fn diced_parts(parts: &InstanceParts, per: u32) -> InstanceParts {
-    let of = parts.of_triangle.iter().flat_map(|&p| std::iter::repeat_n(p, per as usize)).collect();
+/// The parts of a mesh diced at `rates` (each source triangle made `rate * rate`): each diced
+/// triangle in its source triangle's part.
+fn diced_parts(parts: &InstanceParts, rates: &[u16]) -> InstanceParts {
+    let per = |r: u16| usize::from(r) * usize::from(r);
+    let of = parts.of_triangle.iter().zip(rates).flat_map(|(&p, &r)| std::iter::repeat_n(p, per(r))).collect();
     InstanceParts { of_triangle: of, materials: parts.materials.clone() }
 }
 
@@ -184,7 +190,7 @@ mod tests {
         let mut remote = RemoteDisplacements::default();
         let err = remote.update(vec![(0, 7)], vec![]).expect_err("never announced");
         assert!(err.contains("displaced mesh 7 was never sent"), "{err}");
-        remote.update(vec![(0, 7), (3, 7)], vec![(7, summary(4), 2)]).expect("announced");
+        remote.update(vec![(0, 7), (3, 7)], vec![(7, summary(4), vec![2])]).expect("announced");
         // Announced before: the next update need not send it again.
         remote.update(vec![(1, 7)], vec![]).expect("sent before");
         assert!(!remote.is_empty());
@@ -193,18 +199,20 @@ mod tests {
     #[test]
     fn impossible_rates_and_keys_are_errors() {
         let mut remote = RemoteDisplacements::default();
-        for rate in [0, FINEST_RATE + 1, u32::MAX] {
-            let err = remote.update(vec![], vec![(1, summary(1), rate)]).expect_err("a bad rate");
+        for rate in [0, FINEST_RATE as u16 + 1, u16::MAX] {
+            let err = remote.update(vec![], vec![(1, summary(1), vec![rate])]).expect_err("a bad rate");
             assert!(err.contains("dicing rate"), "{err}");
         }
-        let err = remote.update(vec![], vec![(DISPLACED_MESH_KEY | 1, summary(1), 1)]).expect_err("a bad object");
+        let err = remote.update(vec![], vec![(1, summary(5), vec![2])]).expect_err("rates of another size");
+        assert!(err.contains("5 triangles, where its rates make 4"), "{err}");
+        let err = remote.update(vec![], vec![(DISPLACED_MESH_KEY | 1, summary(1), vec![1])]).expect_err("a bad object");
         assert!(err.contains("no such scene object"), "{err}");
     }
 
     #[test]
     fn meshes_no_instance_uses_are_let_go() {
         let mut remote = RemoteDisplacements::default();
-        remote.update(vec![(0, 1), (1, 2)], vec![(1, summary(1), 1), (2, summary(4), 2)]).expect("two");
+        remote.update(vec![(0, 1), (1, 2)], vec![(1, summary(1), vec![1]), (2, summary(4), vec![2])]).expect("two");
         // Placed here as objects 5 and 6.
         remote.meshes.get_mut(&1).expect("mesh 1").object = Some(ObjectId(5));
         remote.meshes.get_mut(&2).expect("mesh 2").object = Some(ObjectId(6));

@@ -2,9 +2,10 @@
 //! renderer's do, rather than bending the shading normal (bump mapping, `shade::displace`).
 //!
 //! Before a frame, each instance whose material asks for it ([`Material::true_displacement`]) has
-//! its mesh diced (`geometry::dice`): every triangle cut into `n * n`, `n` chosen so that where
-//! the camera sees the mesh nearest a micropolygon's edges are about the square root of its
-//! `ShadingRate` in pixels, within a triangle budget. The displacement shader then runs once at
+//! its mesh diced (`geometry::dice`): every triangle cut into `n * n` and every edge into `e`
+//! pieces, each rate chosen so that where the camera sees the triangle (or edge) nearest, a
+//! micropolygon's edges are about the square root of its `ShadingRate` in pixels, within a
+//! triangle budget: near triangles finely, far ones coarsely, edges shared at one rate. The displacement shader then runs once at
 //! every diced point, as at a hit there (the same globals and parameters; derivatives over the
 //! dicing's own spacing), and the points and normals it leaves make a new mesh, which the
 //! instance is traced and shaded as: silhouettes, shadows and reflections see the displaced
@@ -22,7 +23,7 @@ use super::jobs::JobRows;
 use super::ray_budget::RayBudget;
 use super::work::{Frame, Pending};
 use super::world::{InstanceParts, InstanceShading, Material, World};
-use crate::geometry::dice::{dice, diced_triangle_count, Diced, DicedVertex};
+use crate::geometry::dice::{dice_at, diced_triangle_count_at, Diced, DicedVertex};
 use crate::geometry::{Deformation, Mesh};
 use crate::ray::{Hit, Ray, PACKET_SIZE};
 use crate::scene::ObjectId;
@@ -61,10 +62,10 @@ impl DisplacedMeshes {
         self.len() == 0
     }
 
-    /// The displaced meshes of the last world: each one's scene object, its mesh and the rate its
-    /// source was diced at (each source triangle made `rate * rate`).
-    pub fn placed(&self) -> impl Iterator<Item = (ObjectId, &Arc<Mesh>, u32)> {
-        self.kept.iter().filter_map(|k| k.displaced.as_ref().map(|m| (m.object, &m.mesh, k.key.rate)))
+    /// The displaced meshes of the last world: each one's scene object, its mesh and the rates its
+    /// source's triangles were diced at (each source triangle made `rate * rate`).
+    pub fn placed(&self) -> impl Iterator<Item = (ObjectId, &Arc<Mesh>, &[u32])> {
+        self.kept.iter().filter_map(|k| k.displaced.as_ref().map(|m| (m.object, &m.mesh, &k.key.rates.triangles[..])))
     }
 }
 
@@ -102,7 +103,34 @@ struct Key {
     /// colour and opacity its shader sees as `Cs` and `Os`.
     shaders: Vec<(Option<Arc<ShaderInstance>>, [u32; 6])>,
     world_from_object: [u32; 12],
-    rate: u32,
+    rates: Rates,
+}
+
+/// The rates one instance's mesh is diced at (see [`dice_at`]).
+#[derive(Clone, Debug, PartialEq)]
+struct Rates {
+    /// Per source triangle.
+    triangles: Vec<u32>,
+    /// Per source triangle's edge, in [`dice_at`]'s order (`[a-b, b-c, c-a]`).
+    edges: Vec<[u32; 3]>,
+}
+
+impl Rates {
+    /// The triangles dicing at these rates makes (saturated).
+    fn count(&self) -> usize {
+        diced_triangle_count_at(&self.triangles).unwrap_or(usize::MAX)
+    }
+
+    /// Every rate times `scale` (below 1), down to the ladder, never below 1: about `scale^2` as
+    /// many triangles.
+    fn scale(&mut self, scale: f64) {
+        let down = |r: &mut u32| {
+            let fits = f64::from(*r) * scale;
+            *r = DICING_RATES.iter().rev().copied().find(|&r| f64::from(r) <= fits).unwrap_or(1);
+        };
+        self.triangles.iter_mut().for_each(down);
+        self.edges.iter_mut().flatten().for_each(down);
+    }
 }
 
 impl PartialEq for Key {
@@ -117,7 +145,7 @@ impl PartialEq for Key {
         };
         Arc::ptr_eq(&self.mesh, &other.mesh)
             && self.world_from_object == other.world_from_object
-            && self.rate == other.rate
+            && self.rates == other.rates
             && self.shaders.len() == other.shaders.len()
             && self.shaders.iter().zip(&other.shaders).all(|(a, b)| same_shader(a, b))
     }
@@ -172,7 +200,7 @@ pub fn displace_world(world: &mut World, kept: &mut DisplacedMeshes) -> Vec<Stri
         let world = &*world;
         let frame = Frame::new(world);
         // Each instance's mesh and the rate it asks for.
-        let mut rated: Vec<(usize, Arc<Mesh>, u32)> = Vec::with_capacity(wanted.len());
+        let mut rated: Vec<(usize, Arc<Mesh>, Rates)> = Vec::with_capacity(wanted.len());
         for &i in &wanted {
             let inst = &world.instances[i];
             let id = ObjectId(inst.object);
@@ -184,8 +212,8 @@ pub fn displace_world(world: &mut World, kept: &mut DisplacedMeshes) -> Vec<Stri
             if mesh.triangles.is_empty() {
                 continue;
             }
-            let rate = dicing_rate(&frame, inst, &mesh);
-            rated.push((i, mesh, rate));
+            let rates = dicing_rates(&frame, inst, &mesh);
+            rated.push((i, mesh, rates));
         }
         if let Some(asked) = fit_world_budget(&mut rated) {
             warnings.push(format!(
@@ -193,15 +221,15 @@ pub fn displace_world(world: &mut World, kept: &mut DisplacedMeshes) -> Vec<Stri
                  {MAX_WORLD_DICED_TRIANGLES}; they are diced coarser than their shading rates ask"
             ));
         }
-        for (i, mesh, rate) in rated {
+        for (i, mesh, rates) in rated {
             let inst = &world.instances[i];
-            let key = key_of(world, inst, mesh.clone(), rate);
+            let count = rates.count();
+            let key = key_of(world, inst, mesh.clone(), rates);
             if let Some(k) = kept.kept.iter().position(|e| e.key == key && e.is_in(&world.scene)) {
                 total += kept.kept[k].triangles;
                 plans.push((i, Planned::Kept(k)));
                 continue;
             }
-            let count = diced_triangle_count(&mesh, rate).unwrap_or(usize::MAX);
             if total.saturating_add(count) > MAX_WORLD_DICED_TRIANGLES {
                 warnings.push(format!(
                     "true displacement: the scene's displaced objects would make more than {MAX_WORLD_DICED_TRIANGLES} \
@@ -210,7 +238,7 @@ pub fn displace_world(world: &mut World, kept: &mut DisplacedMeshes) -> Vec<Stri
                 ));
                 continue;
             }
-            let diced = match dice(&mesh, rate) {
+            let diced = match dice_at(&mesh, &key.rates.triangles, &key.rates.edges) {
                 Ok(d) => d,
                 Err(e) => {
                     warnings.push(format!("true displacement: object {} cannot be diced: {e}", describe(world, inst)));
@@ -218,7 +246,7 @@ pub fn displace_world(world: &mut World, kept: &mut DisplacedMeshes) -> Vec<Stri
                 }
             };
             total += count;
-            let moved = displaced_mesh(&frame, (i as u32, inst), (&mesh, diced, rate));
+            let moved = displaced_mesh(&frame, (i as u32, inst), (&mesh, diced, &key.rates.triangles));
             built += usize::from(moved.is_some());
             // The object is found when the scene can be changed, below.
             let displaced = moved.map(|(mesh, of_triangle)| Moved { object: ObjectId(u32::MAX), mesh, of_triangle });
@@ -288,19 +316,15 @@ pub fn displace_world(world: &mut World, kept: &mut DisplacedMeshes) -> Vec<Stri
 /// Over the world's budget, lowers every instance's rate alike (each to the finest rate of the
 /// ladder at most its rate times the same factor) so that their diced triangles fit, rather than
 /// leaving the last ones bump-mapped; returns the triangles they asked for where it did.
-fn fit_world_budget(rated: &mut [(usize, Arc<Mesh>, u32)]) -> Option<usize> {
-    let asked = rated
-        .iter()
-        .map(|(_, mesh, rate)| diced_triangle_count(mesh, *rate).unwrap_or(usize::MAX))
-        .fold(0usize, usize::saturating_add);
+fn fit_world_budget(rated: &mut [(usize, Arc<Mesh>, Rates)]) -> Option<usize> {
+    let asked = rated.iter().map(|(_, _, rates)| rates.count()).fold(0usize, usize::saturating_add);
     if asked <= MAX_WORLD_DICED_TRIANGLES {
         return None;
     }
     // Triangles go with the square of the rate.
     let scale = (MAX_WORLD_DICED_TRIANGLES as f64 / asked as f64).sqrt();
-    for (_, _, rate) in rated.iter_mut() {
-        let fits = f64::from(*rate) * scale;
-        *rate = DICING_RATES.iter().rev().copied().find(|&r| f64::from(r) <= fits).unwrap_or(1);
+    for (_, _, rates) in rated.iter_mut() {
+        rates.scale(scale);
     }
     Some(asked)
 }
@@ -314,7 +338,7 @@ fn describe(world: &World, inst: &InstanceShading) -> String {
     }
 }
 
-fn key_of(world: &World, inst: &InstanceShading, mesh: Arc<Mesh>, rate: u32) -> Key {
+fn key_of(world: &World, inst: &InstanceShading, mesh: Arc<Mesh>, rates: Rates) -> Key {
     let shaders = inst
         .materials()
         .map(|m| {
@@ -326,7 +350,7 @@ fn key_of(world: &World, inst: &InstanceShading, mesh: Arc<Mesh>, rate: u32) -> 
         })
         .collect();
     let world_from_object = inst.world_from_object.to_cols_array().map(f32::to_bits);
-    Key { mesh, shaders, world_from_object, rate }
+    Key { mesh, shaders, world_from_object, rates }
 }
 
 /// The parts of a diced mesh: each diced triangle in its source triangle's part.
@@ -336,10 +360,14 @@ fn diced_parts(parts: &InstanceParts, of_triangle: &[u32]) -> InstanceParts {
     InstanceParts { of_triangle: of, materials: parts.materials.clone() }
 }
 
-/// The rate `mesh` (placed by `inst`) is diced at: where the camera sees a triangle nearest, its
-/// longest edge cut into pieces about `sqrt(ShadingRate)` pixels long (the finest any
-/// truly displacing material of the instance asks for), within [`MAX_DICED_TRIANGLES`].
-fn dicing_rate(frame: &Frame, inst: &InstanceShading, mesh: &Mesh) -> u32 {
+/// The rates `mesh` (placed by `inst`) is diced at: each triangle's longest edge, where the
+/// camera sees the triangle nearest, cut into pieces about `sqrt(ShadingRate)` pixels long (the
+/// finest any truly displacing material of the instance asks for), and each edge likewise where
+/// the camera sees it nearest (so never finer than its triangles); all lowered alike to keep the
+/// object within [`MAX_DICED_TRIANGLES`].
+fn dicing_rates(frame: &Frame, inst: &InstanceShading, mesh: &Mesh) -> Rates {
+    /// A triangle's edges as pairs of its corners, in [`dice_at`]'s order.
+    const EDGES: [[usize; 2]; 3] = [[0, 1], [1, 2], [2, 0]];
     let world = frame.world;
     let shading_rate = inst
         .materials()
@@ -351,26 +379,38 @@ fn dicing_rate(frame: &Frame, inst: &InstanceShading, mesh: &Mesh) -> u32 {
     let eye = world.camera.eye();
     let spread = frame.pixel_spread.max(1e-9);
     let xf = inst.world_from_object;
-    let finest = mesh
+    let finest = DICING_RATES[DICING_RATES.len() - 1];
+    // The first rate of the ladder that cuts `length`, seen from `distance`, into pieces.
+    let rate = |length: f32, distance: f32| {
+        let pieces = length / (distance.max(1e-6) * spread) / piece;
+        match pieces.is_finite() {
+            true => DICING_RATES.iter().copied().find(|&r| r as f32 >= pieces).unwrap_or(finest),
+            false => finest,
+        }
+    };
+    let per_triangle: Vec<(u32, [u32; 3])> = mesh
         .triangles
         .par_iter()
         .map(|t| {
             let c = t.map(|k| {
                 xf.transform_point3a(Vec3A::from(mesh.positions.get(k as usize).copied().unwrap_or(Vec3::ZERO)))
             });
-            let longest = [(c[0] - c[1]), (c[1] - c[2]), (c[2] - c[0])].iter().map(|e| e.length()).fold(0.0, f32::max);
-            let nearest = c.iter().map(|p| (*p - eye).length()).fold(f32::INFINITY, f32::min);
-            let pixels = longest / (nearest.max(1e-6) * spread);
-            if pixels.is_finite() {
-                pixels / piece
-            } else {
-                f32::MAX
-            }
+            let distance = c.map(|p| (p - eye).length());
+            let lengths = EDGES.map(|[p, q]| (c[p] - c[q]).length());
+            let edges = [0, 1, 2].map(|k| rate(lengths[k], distance[EDGES[k][0]].min(distance[EDGES[k][1]])));
+            let longest = lengths.into_iter().fold(0.0, f32::max);
+            let nearest = distance.into_iter().fold(f32::INFINITY, f32::min);
+            let inside = rate(longest, nearest).max(edges[0]).max(edges[1]).max(edges[2]);
+            (inside, edges)
         })
-        .reduce(|| 1.0, f32::max);
-    let fits = |&&rate: &&u32| diced_triangle_count(mesh, rate).is_some_and(|n| n <= MAX_DICED_TRIANGLES);
-    let needed = DICING_RATES.iter().position(|&r| r as f32 >= finest).unwrap_or(DICING_RATES.len() - 1);
-    DICING_RATES[..=needed].iter().rev().find(fits).copied().unwrap_or(1)
+        .collect();
+    let (triangles, edges) = per_triangle.into_iter().unzip();
+    let mut rates = Rates { triangles, edges };
+    let asked = rates.count();
+    if asked > MAX_DICED_TRIANGLES {
+        rates.scale((MAX_DICED_TRIANGLES as f64 / asked as f64).sqrt());
+    }
+    rates
 }
 
 /// Where a displacement shader left a point and its normal (world space), if it ran there.
@@ -384,7 +424,7 @@ type DisplacedPoint = Option<(Vec3A, Vec3A)>;
 fn displaced_mesh(
     frame: &Frame,
     (index, inst): (u32, &InstanceShading),
-    (source, diced, rate): (&Mesh, Diced, u32),
+    (source, diced, rates): (&Mesh, Diced, &[u32]),
 ) -> Option<(Arc<Mesh>, Arc<[u32]>)> {
     let world = frame.world;
     let Diced { mut mesh, origins, of_triangle } = diced;
@@ -407,7 +447,7 @@ fn displaced_mesh(
     }
     let placed = world.scene.instance_data(index);
     let at = |time: f32| placed.map_or(inst.world_from_object, |d| d.world_from_object_at(time));
-    let points = DicedPoints { frame, index, source, origins: &origins, groups: &groups, rate };
+    let points = DicedPoints { frame, index, source, origins: &origins, groups: &groups, rates };
     let deformation = mesh.deformation.take();
     let count = mesh.positions.len();
     let own =
@@ -440,7 +480,8 @@ struct DicedPoints<'a> {
     source: &'a Mesh,
     origins: &'a [DicedVertex],
     groups: &'a [&'a [u32]],
-    rate: u32,
+    /// The rate each source triangle was diced at.
+    rates: &'a [u32],
 }
 
 impl DicedPoints<'_> {
@@ -448,7 +489,7 @@ impl DicedPoints<'_> {
     /// (`positions`, object space; `xf` its instance's transform then): moves `positions` and sets
     /// `normals` where they ran. Returns whether any point moved.
     fn displace(&self, time: f32, xf: glam::Affine3A, positions: &mut [Vec3], normals: &mut [Vec3]) -> bool {
-        let (frame, source, origins, rate) = (self.frame, self.source, self.origins, self.rate);
+        let (frame, source, origins, rates) = (self.frame, self.source, self.origins, self.rates);
         let object_from_world = xf.inverse();
         // Normals move by the inverse transpose; back into object space by the transpose.
         let normal_to_object = xf.matrix3.transpose();
@@ -461,7 +502,7 @@ impl DicedPoints<'_> {
                 })
             });
             let longest = [(c[0] - c[1]), (c[1] - c[2]), (c[2] - c[0])].iter().map(|e| e.length()).fold(0.0, f32::max);
-            longest / rate.max(1) as f32
+            longest / rates.get(t as usize).copied().unwrap_or(1).max(1) as f32
         };
         let positions_now: &[Vec3] = positions;
         let results: Vec<Vec<(u32, DisplacedPoint)>> = self
@@ -544,17 +585,19 @@ mod tests {
     #[test]
     fn over_the_world_budget_every_rate_is_lowered_alike() {
         let mesh = strip(1000);
-        let mut rated = vec![(0, mesh.clone(), 96), (1, mesh.clone(), 48), (2, mesh.clone(), 1)];
+        let uniform = |n: u32| Rates { triangles: vec![n; 1000], edges: vec![[n; 3]; 1000] };
+        let mut rated =
+            vec![(0, mesh.clone(), uniform(96)), (1, mesh.clone(), uniform(48)), (2, mesh.clone(), uniform(1))];
         let asked = fit_world_budget(&mut rated).expect("over the budget");
         assert_eq!(asked, 1000 * (96 * 96 + 48 * 48 + 1));
         // Scaled by sqrt(2^22 / asked), about 0.6, down to the ladder; never below 1.
-        let rates: Vec<u32> = rated.iter().map(|r| r.2).collect();
-        assert_eq!(rates, [48, 24, 1]);
-        let total: usize = rated.iter().map(|(_, m, r)| diced_triangle_count(m, *r).expect("a count")).sum();
+        let rates: Vec<Rates> = rated.iter().map(|r| r.2.clone()).collect();
+        assert_eq!(rates, [uniform(48), uniform(24), uniform(1)]);
+        let total: usize = rated.iter().map(|(_, _, r)| r.count()).sum();
         assert!(total <= MAX_WORLD_DICED_TRIANGLES, "{total}");
         // Within the budget, nothing changes.
-        let mut within = vec![(0, mesh.clone(), 48), (1, mesh, 32)];
+        let mut within = vec![(0, mesh.clone(), uniform(48)), (1, mesh, uniform(32))];
         assert_eq!(fit_world_budget(&mut within), None);
-        assert_eq!(within.iter().map(|r| r.2).collect::<Vec<_>>(), [48, 32]);
+        assert_eq!(within.iter().map(|r| r.2.clone()).collect::<Vec<_>>(), [uniform(48), uniform(32)]);
     }
 }
