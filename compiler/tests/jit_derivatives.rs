@@ -54,7 +54,8 @@ fn difference_rule_derivatives_agree_with_the_interpreter() {
             o = Du(smoothstep(0.2, 0.8, u)) + Dv(distance(P, point(1, 2, 3)))
                 + Du(spline(u, 0, 0.3, 0.9, 1)) + Dv(radians(degrees(v)))
                 + Du(pow(u + 1, 2.5)) + Dv(log(v + 2)) + Du(tan(u)) + Dv(asin(v * 0.5))
-                + Du(acos(u * 0.5)) + Dv(atan(v, u + 1)) + Du(inversesqrt(u + 1));
+                + Du(acos(u * 0.5)) + Dv(atan(v, u + 1)) + Du(inversesqrt(u + 1))
+                + Du(mod(u * 4, 1)) + Dv(mod(v * 3, 0.5));
             ov = Du(vtransform("object", n3)) + Dv(reflect(normalize(I), normalize(N)))
                 + Du(rotate(P, u, point(0, 0, 0), point(0, 1, 0)));
             Ci = color(o, 0, 1);
@@ -238,4 +239,39 @@ fn bump_agrees_lane_by_lane_across_height_steps() {
         bumped += usize::from(want != rtsl_compiler::shadeops::geom::normalize([0.2, 0.1, 1.0]));
     }
     assert_eq!(bumped, 2, "the two lanes less than a step short of an edge are bumped");
+}
+
+/// `mod` is linear between its wraps: the width rmannotes' `repeat(x, f)` (`mod(x * f, 1)`) gives
+/// `filterwidth` is `f` times the width of `x`, as on a RenderMan grid, not 0 (which left filtered
+/// pulse trains dividing by a zero width); across a wrap the footprint's difference crosses it.
+#[test]
+fn mod_is_differentiated_between_its_wraps() {
+    let m = module(
+        r#"
+        surface t(output varying float o = 0; output varying float w = 0;)
+        {
+            o = Du(mod(u * 4, 1));
+            // filterwidth.h's `filterwidth`.
+            w = abs(Du(mod(u * 4, 1)) * du) + abs(Dv(mod(u * 4, 1)) * dv);
+        }
+        "#,
+    );
+    let run = |u: f32| -> (f32, f32) {
+        let mut point = ShadingPoint::new(m.shader.as_ref().expect("shader").kind);
+        point.set("u", value_of(&[u], 1));
+        point.set("v", value_of(&[0.5], 1));
+        point.set("du", value_of(&[0.01], 1));
+        point.set("dv", value_of(&[0.01], 1));
+        point.set_derivs("u", value_of(&[0.01], 1), value_of(&[0.0], 1));
+        point.set_derivs("v", value_of(&[0.0], 1), value_of(&[0.01], 1));
+        let r = interp::run(&m, &[], &mut point, &mut TestHost::default(), Limits::default()).expect("runs");
+        (r.params[0].1.f(), r.params[1].1.f())
+    };
+    // Between wraps (4u = 1.2): the derivative of 4u.
+    let (du, width) = run(0.3);
+    assert!((du - 4.0).abs() < 1e-3, "Du {du}");
+    assert!((width - 0.04).abs() < 1e-4, "filterwidth {width}");
+    // A footprint across the wrap at 4u = 1 differences across it.
+    let (du, _) = run(0.25);
+    assert!(du < -50.0, "Du across the wrap {du}");
 }

@@ -132,6 +132,9 @@ pub fn has_difference_rule(b: Builtin) -> bool {
             | Builtin::Acos
             | Builtin::Atan
             | Builtin::InverseSqrt
+            // Linear between its wraps: `filterwidth(mod(x, p))` (rmannotes' `repeat`) is the
+            // width of `x`, as on a RenderMan grid; a footprint across a wrap differences it.
+            | Builtin::Mod
             // Bump and displacement maps (RISpec's `bumpy`): the height read at the moved
             // coordinates, each lookup filtered by the coordinates' own footprint.
             | Builtin::Texture
