@@ -1001,11 +1001,8 @@ fn frames_moving_once(
     Ok(out)
 }
 
-/// Deformation blur on workers: a deforming mesh travels (fetched on demand) with its second
-/// set of positions and normals, and the frame is the one rendered here, bit for bit.
-#[test]
-fn deforming_meshes_render_the_same_on_workers() -> Result<(), DistributedError> {
-    let rib = r#"
+/// A sphere and two quads deforming over the shutter.
+const DEFORMING: &str = r#"
         Format 64 48 1
         PixelSamples 2 2
         Shutter 0 1
@@ -1025,8 +1022,13 @@ fn deforming_meshes_render_the_same_on_workers() -> Result<(), DistributedError>
           MotionEnd
         WorldEnd
     "#;
+
+/// Deformation blur on workers: a deforming mesh travels (fetched on demand) with its second
+/// set of positions and normals, and the frame is the one rendered here, bit for bit.
+#[test]
+fn deforming_meshes_render_the_same_on_workers() -> Result<(), DistributedError> {
     let mut rt = Context::new();
-    rtsl_runtime::rib::load::load_str(&mut rt, rib, std::path::Path::new(".")).expect("the scene loads");
+    rtsl_runtime::rib::load::load_str(&mut rt, DEFORMING, std::path::Path::new(".")).expect("the scene loads");
     let frames = both_ways(rt, 2, 1, &[nothing, move_first])?;
     assert_same(&frames, "a deforming scene");
     Ok(())
@@ -2046,35 +2048,24 @@ fn a_new_scene_takes_the_displaced_meshes_the_scene_before_fetched() -> Result<(
     Ok(())
 }
 
-/// A deforming mesh truly displaced (at both ends of its deformation) travels to the workers
-/// with its displaced deformation: the motion-blurred frame is the one rendered here.
+/// Deforming meshes truly displaced (at both ends of their deformation) travel to the workers
+/// with their displaced deformations: the motion-blurred frame is the one rendered here.
 #[test]
 fn deforming_displaced_meshes_render_the_same_on_workers() -> Result<(), DistributedError> {
     const INFLATE: &str = "displacement inflate(float amount = 0.25) {
         P += amount * normalize(N);
         N = calculatenormal(P);
     }";
-    let rib = r#"
-        Format 64 48 1
-        PixelSamples 2 2
-        Shutter 0 1
-        Projection "perspective" "fov" 50
-        Translate 0 0 6
-        WorldBegin
-          LightSource "distantlight" 1 "from" [0 0 -1] "to" [0 0 0]
-          Attribute "displacementbound" "sphere" [0.25]
-          Displacement "inflate"
-          Surface "plastic"
-          MotionBegin [0 1]
-            Sphere 0.6 -0.6 0.6 360
-            Sphere 1.4 -1.4 1.4 360
-          MotionEnd
-        WorldEnd
-    "#;
+    // Every object of the scene inflated, truly.
+    let rib = DEFORMING.replacen(
+        "Surface \"plastic\"",
+        "Attribute \"displacementbound\" \"sphere\" [0.25] Displacement \"inflate\" Surface \"plastic\"",
+        1,
+    );
     let mut rt = Context::new();
     rt.compile_shader("inflate.sl", INFLATE).expect("compiles");
-    rtsl_runtime::rib::load::load_str(&mut rt, rib, Path::new(".")).expect("the scene loads");
+    rtsl_runtime::rib::load::load_str(&mut rt, &rib, Path::new(".")).expect("the scene loads");
     let frames = both_ways(rt, 2, 1, &[nothing, move_first])?;
-    assert_same(&frames, "a deforming, truly displaced sphere");
+    assert_same(&frames, "a deforming, truly displaced scene");
     Ok(())
 }

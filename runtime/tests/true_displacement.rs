@@ -9,6 +9,7 @@ use common::render;
 use rtsl_runtime::api::Context;
 use rtsl_runtime::render::Framebuffer;
 use rtsl_runtime::rib::load::load_str;
+use rtsl_runtime::scene::ObjectId;
 
 /// Moves every point `amount` along its normal (RISpec's usual form).
 const INFLATE: &str = "displacement inflate(float amount = 0.25) {
@@ -304,6 +305,16 @@ fn deforming_meshes_are_displaced_at_both_ends() {
     assert!((1.8..2.8).contains(&ratio), "covered throughout: {always_moved} against {always_bumped}");
 }
 
+/// The world of `rib`, a floor displaced by `ridges`, whose first instance is truly displaced.
+fn displaced_floor(rib: &str) -> (Context, rtsl_runtime::render::World) {
+    let mut rt = Context::new();
+    rt.compile_shader("ridges.sl", RIDGES).expect("the displacement compiles");
+    load_str(&mut rt, rib, "floor.rib").expect("loads");
+    let world = rt.build_world().expect("a world");
+    assert!(world.instances.first().expect("the floor").displaced);
+    (rt, world)
+}
+
 /// A large polygon (a floor of two triangles filling a 128-pixel frame) is diced to about a pixel
 /// a micropolygon edge, finer than 64 pieces an edge, and coarser at a larger shading rate.
 #[test]
@@ -314,14 +325,9 @@ fn large_polygons_are_diced_to_the_shading_rate() {
              WorldBegin\nAttribute \"displacementbound\" \"sphere\" [0.25] Displacement \"ridges\" Surface \"constant\"\n\
              Polygon \"P\" [-1.2 -1.2 0  1.2 -1.2 0  1.2 1.2 0  -1.2 1.2 0]\nWorldEnd\n"
         );
-        let mut rt = Context::new();
-        rt.compile_shader("ridges.sl", RIDGES).expect("the displacement compiles");
-        load_str(&mut rt, &rib, "floor.rib").expect("loads");
-        let world = rt.build_world().expect("a world");
-        let inst = world.instances.first().expect("the floor");
-        assert!(inst.displaced);
-        let object = world.scene.objects().get(inst.object as usize).expect("its object");
-        object.triangle_count()
+        let (_, world) = displaced_floor(&rib);
+        let mesh = world.scene.mesh(ObjectId(world.instances[0].object)).expect("the displaced mesh");
+        mesh.triangle_count()
     };
     // The floor's triangles have edges of about 140 pixels: cut into at least 96 pieces an edge at
     // ShadingRate 1, about half as many at ShadingRate 4.
@@ -362,13 +368,8 @@ fn receding_meshes_are_diced_finer_near_and_stay_closed() {
         indices.join(" "),
         points.join(" ")
     );
-    let mut rt = Context::new();
-    rt.compile_shader("ridges.sl", RIDGES).expect("the displacement compiles");
-    load_str(&mut rt, &rib, "floor.rib").expect("loads");
-    let world = rt.build_world().expect("a world");
-    let inst = world.instances.first().expect("the floor");
-    assert!(inst.displaced);
-    let mesh = world.scene.mesh(rtsl_runtime::scene::ObjectId(inst.object)).expect("the displaced mesh");
+    let (mut rt, world) = displaced_floor(&rib);
+    let mesh = world.scene.mesh(ObjectId(world.instances[0].object)).expect("the displaced mesh");
     let middle = (near + far) / 2.0;
     let near_points = mesh.positions.iter().filter(|p| p.z < middle).count();
     let far_points = mesh.positions.len() - near_points;
