@@ -169,8 +169,17 @@ impl Context {
             return self.add_instance(id, None);
         }
         let (mut a, now) = (object.appearance.clone(), &self.appearance);
-        let InheritedAppearance { color, opacity, surface, displacement, interior, sides, matte, attributes } =
-            inherited;
+        let InheritedAppearance {
+            color,
+            opacity,
+            surface,
+            displacement,
+            interior,
+            sides,
+            matte,
+            shading_rate,
+            attributes,
+        } = inherited;
         if color {
             a.color = now.color;
         }
@@ -192,7 +201,12 @@ impl Context {
         if matte {
             a.matte = now.matte;
         }
+        if shading_rate {
+            a.shading_rate = now.shading_rate;
+        }
         if attributes {
+            a.true_displacement = now.true_displacement;
+            a.displacement_bound = now.displacement_bound;
             a.shadow_by_shader = now.shadow_by_shader;
             a.photon = now.photon;
             a.ray_values = now.ray_values.clone();

@@ -356,9 +356,12 @@ pub struct InheritedAppearance {
     pub sides: bool,
     /// Whether it is a holdout.
     pub matte: bool,
+    /// The area micropolygons are diced to (RIB `ShadingRate`).
+    pub shading_rate: bool,
     /// The rest, what RIB `Attribute`s set: how shadows and light paths meet the surface, ray
-    /// visibility and ray parameters, trace depths and bias, the name. (The alpha mask cuts the
-    /// object's geometry, which its instances share: it is always the object's.)
+    /// visibility and ray parameters, trace depths and bias, the name, the displacement bound
+    /// and whether displacement moves the geometry. (The alpha mask cuts the object's geometry,
+    /// which its instances share: it is always the object's.)
     pub attributes: bool,
 }
 
@@ -372,6 +375,7 @@ impl InheritedAppearance {
         interior: true,
         sides: true,
         matte: true,
+        shading_rate: true,
         attributes: true,
     };
     /// No part: the instance is shaded as its object.
@@ -383,6 +387,7 @@ impl InheritedAppearance {
         interior: false,
         sides: false,
         matte: false,
+        shading_rate: false,
         attributes: false,
     };
 }

@@ -2377,6 +2377,7 @@ fn keep_what_the_block_sets(kind: &RequestKind, inherits: &mut InheritedAppearan
         K::Interior(_) => inherits.interior = false,
         K::Sides(_) => inherits.sides = false,
         K::Matte(_) => inherits.matte = false,
+        K::ShadingRate(_) => inherits.shading_rate = false,
         K::Attribute { .. } => inherits.attributes = false,
         // A restored resource may set any of them.
         K::Resource { .. } => *inherits = InheritedAppearance::NONE,
