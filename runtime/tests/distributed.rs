@@ -2023,6 +2023,41 @@ fn truly_displaced_objects_render_the_same_on_workers() -> Result<(), Distribute
     Ok(())
 }
 
+/// A surface shader that moves `P` truly displaces too; its hits are shaded where its points
+/// were before it moved them, which its displaced mesh carries to the workers with the points.
+#[test]
+fn surface_displaced_objects_render_the_same_on_workers() -> Result<(), DistributedError> {
+    const RIDGED: &str = "surface ridged(float amount = 0.3) {
+        point Po = transform(\"object\", P);
+        P += amount * (0.5 + 0.5 * sin(12 * zcomp(Po))) * normalize(N);
+        N = calculatenormal(P);
+        normal Nf = faceforward(normalize(N), I);
+        Oi = 1;
+        Ci = Cs * (0.1 + diffuse(Nf)) + length(Po) * color(0, 0.2, 0);
+    }";
+    let rib = r#"
+        Format 80 60 1
+        Projection "perspective" "fov" 50
+        Translate 0 0 7
+        WorldBegin
+          LightSource "spotlight" 1 "from" [2 4 -2] "to" [0 0 0] "intensity" 40 "coneangle" 0.9
+          AttributeBegin
+            Attribute "displacementbound" "sphere" [0.3]
+            Surface "ridged"
+            Sphere 1 -1 1 360
+          AttributeEnd
+          Surface "matte"
+          Polygon "P" [-5 -1.3 -5  5 -1.3 -5  5 -1.3 5  -5 -1.3 5]
+        WorldEnd
+    "#;
+    let mut rt = Context::new();
+    rt.compile_shader("ridged.sl", RIDGED).expect("compiles");
+    rtsl_runtime::rib::load::load_str(&mut rt, rib, Path::new(".")).expect("the scene loads");
+    let frames = both_ways(rt, 2, 1, &[nothing, move_first])?;
+    assert_same(&frames, "a scene displaced by its surface shader");
+    Ok(())
+}
+
 /// A RIB file's next frame is a new scene whose displaced meshes come out the same: the worker
 /// takes the displaced meshes it fetched for the frame before (by digest), fetching none. (One
 /// worker, which renders every tile of both frames: two would each reach what their tiles reach,

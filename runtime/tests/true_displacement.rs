@@ -387,3 +387,126 @@ fn receding_meshes_are_diced_finer_near_and_stay_closed() {
     }
     assert!(covered > (w * h / 3) as usize, "the floor covers {covered} pixels");
 }
+
+/// Moves every point `amount` along its normal from a surface shader, and shades with the normal
+/// turned around (which must not become the displaced mesh's).
+const GROW: &str = "surface grow(float amount = 0.25) {
+    P += amount * normalize(N);
+    N = -N;
+    Oi = 1;
+    Ci = 1;
+}";
+
+/// The world of `rib` (with `inflate` and `grow` compiled) and its first frame's covered pixels.
+fn world_and_coverage(rib: &str) -> (rtsl_runtime::render::World, usize) {
+    let mut rt = Context::new();
+    rt.compile_shader("inflate.sl", INFLATE).expect("the displacement compiles");
+    rt.compile_shader("grow.sl", GROW).expect("the surface compiles");
+    let loaded = load_str(&mut rt, rib, "scene.rib").expect("loads");
+    assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+    let covered = covered(&render(&mut rt));
+    (rt.build_world().expect("a world"), covered)
+}
+
+/// A REYES renderer moves the micropolygons wherever the surface shader leaves them: within a
+/// displacement bound a surface shader that moves `P` moves the geometry (the inverted hull of a
+/// toon outline), its normals left as they were. A displacement shader, where there is one, is
+/// what moves the geometry.
+#[test]
+fn a_surface_shader_that_moves_p_moves_the_geometry_within_a_bound() {
+    let sphere_with = |attributes: &str| {
+        world_and_coverage(&format!(
+            "Format {SIZE} {SIZE} 1\nProjection \"perspective\" \"fov\" [40]\nTranslate 0 0 4\nWorldBegin\n\
+             AttributeBegin {attributes} Surface \"grow\" Sphere 1 -1 1 360 AttributeEnd\nWorldEnd\n"
+        ))
+    };
+    let plain = covered(&sphere("", "").0);
+    let (world, unbound) = sphere_with("");
+    assert!(!world.instances[0].displaced);
+    assert_eq!(unbound, plain);
+    let (world, moved) = sphere_with("Attribute \"displacementbound\" \"sphere\" [0.25]");
+    let ratio = moved as f32 / plain as f32;
+    assert!((1.45..1.75).contains(&ratio), "covered {moved} against {plain}: {ratio}");
+    let inst = &world.instances[0];
+    assert!(inst.displaced);
+    let mesh = world.scene.mesh(ObjectId(inst.object)).expect("the displaced mesh");
+    let normals = mesh.normals.as_ref().expect("normals");
+    // Every point moved out to radius 1.25, every normal still outward.
+    for (p, n) in mesh.positions.iter().zip(normals) {
+        assert!((p.length() - 1.25).abs() < 0.01, "a point at {p}");
+        assert!(n.dot(*p) > 0.9 * p.length(), "normal {n} at {p}");
+    }
+    // With a displacement shader, only its `P` moves the geometry: radius 1.25, not 1.5.
+    let (_, both) = sphere_with("Attribute \"displacementbound\" \"sphere\" [0.5] Displacement \"inflate\"");
+    let ratio = both as f32 / plain as f32;
+    assert!((1.45..1.75).contains(&ratio), "covered {both} against {plain}: {ratio}");
+}
+
+/// An `ObjectInstance` takes the displacement bound, the attribute that turns true displacement
+/// on, and the shading rate where it stands, unless the object's own block set them (RISpec 3.2
+/// and PRMan's rule for instanced attributes), as its shaders already were.
+#[test]
+fn object_instances_take_the_displacement_attributes_where_they_stand() {
+    let instance = |inside: &str, at: &str| {
+        world_and_coverage(&format!(
+            "Format {SIZE} {SIZE} 1\nProjection \"perspective\" \"fov\" [40]\nTranslate 0 0 4\nWorldBegin\n\
+             ObjectBegin 1 {inside} Sphere 1 -1 1 360 ObjectEnd\n\
+             AttributeBegin {at} Displacement \"inflate\" Surface \"constant\" ObjectInstance 1 AttributeEnd\nWorldEnd\n"
+        ))
+    };
+    let plain = covered(&sphere("", "").0);
+    let bound = "Attribute \"displacementbound\" \"sphere\" [0.25]";
+    let displaced = |(world, covered): (rtsl_runtime::render::World, usize)| {
+        let ratio = covered as f32 / plain as f32;
+        let moved = world.instances[0].displaced;
+        assert_eq!(moved, (1.45..1.75).contains(&ratio), "covered {covered} against {plain}");
+        assert!(moved || covered == plain, "covered {covered} against {plain}");
+        moved
+    };
+    assert!(!displaced(instance("", "")));
+    assert!(displaced(instance("", bound)));
+    assert!(displaced(instance(bound, "")));
+    // The block set an attribute of its own: the object's attributes are the block's.
+    assert!(!displaced(instance("Attribute \"identifier\" \"name\" \"ball\"", bound)));
+    // The shading rate where the instance stands sets the dicing, unless the block set one.
+    let triangles = |inside: &str, at: &str| {
+        let (world, _) = instance(inside, &format!("{bound} {at}"));
+        world.scene.mesh(ObjectId(world.instances[0].object)).expect("the displaced mesh").triangle_count()
+    };
+    let (fine, coarse) = (triangles("", "ShadingRate 1"), triangles("", "ShadingRate 64"));
+    assert!(coarse < fine / 4, "{coarse} triangles at ShadingRate 64 against {fine} at 1");
+    assert_eq!(triangles("ShadingRate 64", "ShadingRate 1"), coarse);
+}
+
+/// A surface shader that displaces shades the surface as it was and moves it once, as a REYES
+/// grid's points are moved (a shader that bumps what it displaces bumps once, not twice), while
+/// rays going on through it start where the ray met the displaced surface.
+#[test]
+fn a_displacing_surface_shader_moves_its_point_once_and_rays_go_on_from_the_displaced_surface() {
+    const RADIUS: &str = "surface radius(float amount = 0.25; float opacity = 1) {
+        P += amount * normalize(N);
+        Ci = opacity * length(transform(\"object\", P)) / 2;
+        Oi = opacity;
+    }";
+    let centre = |shader: &str, more: &str| -> [f32; 4] {
+        let rib = format!(
+            "Format {SIZE} {SIZE} 1\nProjection \"perspective\" \"fov\" [40]\nTranslate 0 0 4\nWorldBegin\n\
+             AttributeBegin Attribute \"displacementbound\" \"sphere\" [0.25] {shader} Sphere 1 -1 1 360 AttributeEnd\n\
+             {more}\nWorldEnd\n"
+        );
+        let mut rt = Context::new();
+        rt.compile_shader("radius.sl", RADIUS).expect("the surface compiles");
+        let loaded = load_str(&mut rt, &rib, "once.rib").expect("loads");
+        assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+        render(&mut rt).pixel(SIZE / 2, SIZE / 2)
+    };
+    // Moved from radius 1 to 1.25 once (twice would be 1.5).
+    let once = centre("Surface \"radius\"", "")[0];
+    assert!((once - 0.625).abs() < 0.01, "{once}");
+    // A red square between the sphere as it was (z = -1) and as displaced (z = -1.25) shows
+    // through the half-transparent displaced front.
+    let square = "AttributeBegin Color [1 0 0] Surface \"constant\" \
+                  Polygon \"P\" [-0.2 -0.2 -1.1  0.2 -0.2 -1.1  0.2 0.2 -1.1  -0.2 0.2 -1.1] AttributeEnd";
+    let [red, green, ..] = centre("Surface \"radius\" \"opacity\" [0.5]", square);
+    assert!(red > green + 0.4, "red {red}, green {green}");
+}

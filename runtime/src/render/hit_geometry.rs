@@ -29,7 +29,18 @@ pub(super) struct HitGeometry {
     pub(super) duv: [[f32; 2]; 2],
     pub(super) dst: [[f32; 2]; 2],
     pub(super) dn: [Vec3A; 2],
+    /// Where the ray met the traced surface and that triangle's normal, when shading sees the
+    /// surface as it was before a surface shader displaced it (`p` and `ng` are then the
+    /// undisplaced ones; see [`UNDISPLACED_POSITIONS`]): what rays going on start from.
+    pub(super) traced: Option<(Vec3A, Vec3A)>,
 }
+
+/// The vertex attribute of a mesh a surface shader displaced (`true_displacement.rs`): where
+/// each point was before (object space, three floats), which its hits are shaded at. The surface
+/// shader then moves them once, as the points of a REYES grid are, rather than a second time
+/// from where it moved them already (a shader that bumps what it displaced would double the
+/// bump).
+pub const UNDISPLACED_POSITIONS: &str = "__undisplaced_P";
 
 /// The screen-space derivatives of one hit's globals.
 #[cfg(test)]
@@ -95,6 +106,8 @@ pub(super) struct InstanceGeometry<'a> {
     pub(super) st: Option<usize>,
     pub(super) cs: Option<usize>,
     pub(super) os: Option<usize>,
+    /// The mesh's [`UNDISPLACED_POSITIONS`], where it has them for every point and stands still.
+    pub(super) undisplaced: Option<&'a [f32]>,
 }
 
 impl<'a> InstanceGeometry<'a> {
@@ -123,6 +136,9 @@ impl<'a> InstanceGeometry<'a> {
             st: find("st", 2),
             cs: find("Cs", 3),
             os: find("Os", 3),
+            undisplaced: find(UNDISPLACED_POSITIONS, 3)
+                .map(|k| &mesh.attributes[k].data[..])
+                .filter(|d| d.len() == 3 * mesh.positions.len() && mesh.deformation.is_none()),
         })
     }
 }
@@ -568,6 +584,7 @@ fn hit_geometry_four(
         g.duv = duv;
         g.dst = duv;
         g.dn = [dn[0].lane(j), dn[1].lane(j)];
+        g.traced = None;
     }
 }
 
@@ -602,7 +619,7 @@ pub(super) fn hit_geometry(ig: &InstanceGeometry, hit: &Hit, time: f32, g: &mut 
     if [a, b, c].iter().any(|&k| k >= mesh.positions.len()) {
         return None;
     }
-    let (pa, pb, pc) = (mesh.position_at(a, time), mesh.position_at(b, time), mesh.position_at(c, time));
+    let (mut pa, mut pb, mut pc) = (mesh.position_at(a, time), mesh.position_at(b, time), mesh.position_at(c, time));
     let (xf, normal_xf) = match ig.moving {
         None => (ig.world_from_object, ig.normal_xf),
         Some(d) => {
@@ -610,6 +627,15 @@ pub(super) fn hit_geometry(ig: &InstanceGeometry, hit: &Hit, time: f32, g: &mut 
             (xf, xf.matrix3.inverse().transpose())
         }
     };
+    let mut traced = None;
+    if let Some(before) = ig.undisplaced {
+        let at = |k: usize| Vec3::new(before[3 * k], before[3 * k + 1], before[3 * k + 2]);
+        let (w0, w1, w2) = (1.0 - hit.u - hit.v, hit.u, hit.v);
+        let p = Vec3A::from(pa) * w0 + Vec3A::from(pb) * w1 + Vec3A::from(pc) * w2;
+        let ng = (normal_xf * Vec3A::from(pb - pa).cross(Vec3A::from(pc - pa))).normalize_or_zero();
+        traced = Some((xf.transform_point3a(p), ng));
+        (pa, pb, pc) = (at(a), at(b), at(c));
+    }
     let (e1, e2) = (Vec3A::from(pb - pa), Vec3A::from(pc - pa));
     let (w0, w1, w2) = (1.0 - hit.u - hit.v, hit.u, hit.v);
     let p_obj = Vec3A::from(pa) * w0 + Vec3A::from(pb) * w1 + Vec3A::from(pc) * w2;
@@ -680,6 +706,7 @@ pub(super) fn hit_geometry(ig: &InstanceGeometry, hit: &Hit, time: f32, g: &mut 
         duv,
         dst,
         dn,
+        traced,
     };
     Some(())
 }
@@ -807,6 +834,7 @@ mod tests {
                 st,
                 cs: None,
                 os: None,
+                undisplaced: None,
             };
             let lanes = 1 + round % 11;
             let group: Vec<Pending> = (0..lanes)

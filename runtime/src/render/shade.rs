@@ -1039,7 +1039,8 @@ fn surface_results(
         GroupHits::Each(geoms, _) => {
             for (l, g) in geoms.iter().enumerate().take(lanes) {
                 let Some(g) = g else { continue };
-                for (rows, v) in [(&mut out.p, g.p), (&mut out.ng, g.ng)] {
+                let (p, ng) = g.traced.unwrap_or((g.p, g.ng));
+                for (rows, v) in [(&mut out.p, p), (&mut out.ng, ng)] {
                     (rows[0][l], rows[1][l], rows[2][l]) = (v.x, v.y, v.z);
                 }
             }
@@ -1246,6 +1247,9 @@ enum Moves {
     NormalOnly,
     /// The point too: true displacement, of the points of a diced mesh.
     PointAndNormal,
+    /// The point alone: a surface shader's `P` moving a diced mesh's points (its `N` is for its
+    /// own shading).
+    PointOnly,
 }
 
 /// Runs a displacement shader over a group of hits: the `N` it leaves (when finite and not
@@ -1280,10 +1284,10 @@ fn displace(
         for (lane, g) in geoms.iter_mut().enumerate() {
             let Some(g) = g else { continue };
             let n = get3(&raw, program.slots.n, lane, g.n);
-            if n.is_finite() && n != Vec3A::ZERO {
+            if moves != Moves::PointOnly && n.is_finite() && n != Vec3A::ZERO {
                 g.n = n;
             }
-            if moves == Moves::PointAndNormal {
+            if moves != Moves::NormalOnly {
                 let p = get3(&raw, program.slots.p, lane, g.p);
                 if p.is_finite() {
                     g.p = p;
@@ -1293,20 +1297,21 @@ fn displace(
     });
 }
 
-/// Runs the displacement shader of a group's material at the group's hits, as true
-/// displacement does at the points of a diced mesh (`true_displacement.rs`): `out[l]` is lane
-/// `l`'s point and normal as the shader leaves them, world space, or `None` where the lane has
-/// no surface or its material does not truly displace.
-pub(super) fn displaced_points(frame: &Frame, group: &GroupRows, out: &mut [Option<(Vec3A, Vec3A)>]) {
+/// Runs the shader that moves a group's material's geometry ([`Material::displacing_shader`]) at
+/// the group's hits, as true displacement does at the points of a diced mesh
+/// (`true_displacement.rs`): `out[l]` is lane `l`'s point and normal as the shader leaves them
+/// (a surface shader's: the normal as it was), world space, or `None` where the lane has no
+/// surface or its material does not truly displace. Returns whether a surface shader ran.
+pub(super) fn displaced_points(frame: &Frame, group: &GroupRows, out: &mut [Option<(Vec3A, Vec3A)>]) -> bool {
     out.iter_mut().for_each(|o| *o = None);
     if group.is_empty() {
-        return;
+        return false;
     }
     let world = frame.world;
-    let Some(inst) = world.instances.get(group.instance() as usize) else { return };
+    let Some(inst) = world.instances.get(group.instance() as usize) else { return false };
     let material_id = inst.material_at(group.hit(0).primitive);
     let material = world.materials.get(material_id as usize).unwrap_or(&DEFAULT_MATERIAL);
-    let Some(displacement) = material.displacement.as_ref().filter(|_| material.true_displacement) else { return };
+    let Some((displacement, with_normals)) = material.displacing_shader() else { return false };
     let program = &displacement.program;
     let g = &program.slots;
     let needs = GeometryNeeds {
@@ -1315,7 +1320,7 @@ pub(super) fn displaced_points(frame: &Frame, group: &GroupRows, out: &mut [Opti
         dpduv: g.dpdu.is_some() || g.dpdv.is_some(),
         normal_derivs: deriv_row(g.n, 3, program.layout().deriv_slots).is_some(),
     };
-    let Some(ig) = InstanceGeometry::new(world, inst, group.instance(), needs) else { return };
+    let Some(ig) = InstanceGeometry::new(world, inst, group.instance(), needs) else { return false };
     let mut budgets = vec![RayBudget::FULL; group.len()];
     with_hit_geometry(|HitBuffers { geoms, rows }| {
         if geoms.len() < group.len() {
@@ -1325,12 +1330,13 @@ pub(super) fn displaced_points(frame: &Frame, group: &GroupRows, out: &mut [Opti
         hit_geometries(&ig, group, geoms, rows, true);
         let appearance = (Vec3A::from(material.color), Vec3A::from(material.opacity));
         let at = (material_id, inst.world_from_object);
-        let moves = Moves::PointAndNormal;
+        let moves = if with_normals { Moves::PointAndNormal } else { Moves::PointOnly };
         displace(frame, displacement, at, group, geoms, appearance, 0, &mut budgets, moves);
         for (o, g) in out.iter_mut().zip(geoms.iter()) {
             *o = g.as_ref().map(|g| (g.p, g.n));
         }
     });
+    !with_normals
 }
 
 /// A surface shaded by Rust code: the same lights (shaders and shadows over the batch, as the JIT

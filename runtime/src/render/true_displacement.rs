@@ -10,7 +10,10 @@
 //! dicing's own spacing), and the points and normals it leaves make a new mesh, which the
 //! instance is traced and shaded as: silhouettes, shadows and reflections see the displaced
 //! shape, and its hits are not displaced again ([`InstanceShading::displaced`]). Where the shader
-//! moves no point (it only sets `N`), the instance keeps its mesh and bump mapping.
+//! moves no point (it only sets `N`), the instance keeps its mesh and bump mapping. Without a
+//! displacement shader, a surface shader that assigns `P` moves the points the same way, its
+//! normals left as they were ([`Material::displacing_shader`]), as a REYES renderer moves the
+//! micropolygons a surface shader moves.
 //!
 //! Invariant: shared edges are diced once (`geometry::dice`) and each diced point displaced
 //! once, so a closed mesh stays closed however its shader moves it.
@@ -19,12 +22,13 @@
 //! the shaders, the placement and the dicing rate stay the same.
 
 use super::differential::RayDifferential;
+use super::hit_geometry::UNDISPLACED_POSITIONS;
 use super::jobs::JobRows;
 use super::ray_budget::RayBudget;
 use super::work::{Frame, Pending};
 use super::world::{InstanceParts, InstanceShading, Material, World};
 use crate::geometry::dice::{dice_at, diced_triangle_count_at, Diced, DicedVertex};
-use crate::geometry::{Deformation, Mesh};
+use crate::geometry::{Attribute, Deformation, Mesh};
 use crate::ray::{Hit, Ray, PACKET_SIZE};
 use crate::scene::ObjectId;
 use crate::shading::ShaderInstance;
@@ -167,9 +171,9 @@ fn same_instance(a: &ShaderInstance, b: &ShaderInstance) -> bool {
             .all(|(p, q)| p.index == q.index && p.string == q.string && same_floats(&p.floats, &q.floats))
 }
 
-/// Whether `material` has its displacement shader move the geometry.
+/// Whether `material` has a shader move the geometry ([`Material::displacing_shader`]).
 fn truly_displaces(material: Option<&Material>) -> bool {
-    material.is_some_and(|m| m.true_displacement && m.displacement.is_some())
+    material.is_some_and(|m| m.displacing_shader().is_some())
 }
 
 /// What an instance's displacement is this frame.
@@ -343,7 +347,7 @@ fn key_of(world: &World, inst: &InstanceShading, mesh: Arc<Mesh>, rates: Rates) 
         .materials()
         .map(|m| {
             let material = world.materials.get(m as usize);
-            let shader = material.filter(|m| m.true_displacement).and_then(|m| m.displacement.clone());
+            let shader = material.and_then(|m| m.displacing_shader()).map(|(s, _)| s.clone());
             let [r, g, b] = material.map_or([1.0; 3], |m| m.color);
             let [x, y, z] = material.map_or([1.0; 3], |m| m.opacity);
             (shader, [r, g, b, x, y, z].map(f32::to_bits))
@@ -455,13 +459,26 @@ fn displaced_mesh(
     let mut normals = own(mesh.normals.take());
     // Where the mesh does not deform, at time 0 (a moving instance: where it stands then).
     let opening = deformation.as_ref().map_or(0.0, |d| d.open);
-    let mut moved = points.displace(opening, at(opening), &mut mesh.positions, &mut normals);
+    // Where a surface shader moved points of a mesh that stands still, where they were: its hits
+    // are shaded there (`UNDISPLACED_POSITIONS`).
+    let mut undisplaced = Vec::new();
+    let before = deformation.is_none().then_some(&mut undisplaced);
+    let mut moved = points.displace(opening, at(opening), (&mut mesh.positions, &mut normals), before);
     fill_missing_normals(&mesh.positions, &mesh.triangles, &mut normals);
     mesh.normals = Some(normals);
+    if !undisplaced.is_empty() {
+        let mut data: Vec<f32> = mesh.positions.iter().flat_map(|p| p.to_array()).collect();
+        for (v, p) in undisplaced {
+            if let Some(slot) = data.get_mut(3 * v as usize..3 * v as usize + 3) {
+                slot.copy_from_slice(&p.to_array());
+            }
+        }
+        mesh.attributes.push(Attribute::data(UNDISPLACED_POSITIONS, 3, data));
+    }
     if let Some(d) = deformation {
         let mut positions = d.positions;
         let mut normals = own(d.normals);
-        moved |= points.displace(d.close, at(d.close), &mut positions, &mut normals);
+        moved |= points.displace(d.close, at(d.close), (&mut positions, &mut normals), None);
         fill_missing_normals(&positions, &mesh.triangles, &mut normals);
         mesh.deformation = Some(Deformation { positions, normals: Some(normals), open: d.open, close: d.close });
     }
@@ -488,7 +505,14 @@ impl DicedPoints<'_> {
     /// Runs the displacement shaders at every diced point as the mesh stands at `time`
     /// (`positions`, object space; `xf` its instance's transform then): moves `positions` and sets
     /// `normals` where they ran. Returns whether any point moved.
-    fn displace(&self, time: f32, xf: glam::Affine3A, positions: &mut [Vec3], normals: &mut [Vec3]) -> bool {
+    /// With `undisplaced`, the points a surface shader moved are added to it with where they were.
+    fn displace(
+        &self,
+        time: f32,
+        xf: glam::Affine3A,
+        (positions, normals): (&mut [Vec3], &mut [Vec3]),
+        mut undisplaced: Option<&mut Vec<(u32, Vec3)>>,
+    ) -> bool {
         let (frame, source, origins, rates) = (self.frame, self.source, self.origins, self.rates);
         let object_from_world = xf.inverse();
         // Normals move by the inverse transpose; back into object space by the transpose.
@@ -505,7 +529,7 @@ impl DicedPoints<'_> {
             longest / rates.get(t as usize).copied().unwrap_or(1).max(1) as f32
         };
         let positions_now: &[Vec3] = positions;
-        let results: Vec<Vec<(u32, DisplacedPoint)>> = self
+        let results: Vec<Vec<((u32, bool), DisplacedPoint)>> = self
             .groups
             .par_iter()
             .map(|group| {
@@ -526,12 +550,12 @@ impl DicedPoints<'_> {
                 }
                 jobs.finish();
                 let mut out = [None; PACKET_SIZE];
-                super::shade::displaced_points(frame, &jobs.rows(), &mut out[..group.len()]);
-                group.iter().copied().zip(out).collect()
+                let by_surface = super::shade::displaced_points(frame, &jobs.rows(), &mut out[..group.len()]);
+                group.iter().map(|&v| (v, by_surface)).zip(out).collect()
             })
             .collect();
         let mut moved = false;
-        for (v, shaded) in results.into_iter().flatten() {
+        for ((v, by_surface), shaded) in results.into_iter().flatten() {
             let Some((p, n)) = shaded else { continue };
             let (v, p, n) = (v as usize, object_from_world.transform_point3a(p), normal_to_object * n);
             // A point moved out of float range (back in object space) stays where it was.
@@ -540,6 +564,11 @@ impl DicedPoints<'_> {
             }
             let (Some(at), Some(normal)) = (positions.get_mut(v), normals.get_mut(v)) else { continue };
             moved |= Vec3::from(p) != *at;
+            if by_surface && Vec3::from(p) != *at {
+                if let Some(undisplaced) = undisplaced.as_deref_mut() {
+                    undisplaced.push((v as u32, *at));
+                }
+            }
             *at = p.into();
             if n.is_finite() {
                 *normal = n.normalize_or_zero().into();

@@ -33,7 +33,8 @@ pub struct Material {
     /// points of the diced mesh before the frame (`render/true_displacement.rs`).
     pub displacement: Option<Arc<ShaderInstance>>,
     /// Whether the displacement shader moves the geometry: the object is diced and the shader's
-    /// `P` moves its points (RIB `Attribute "displacementbound"`, `"trace" "displacements"`).
+    /// `P` moves its points (RIB `Attribute "displacementbound"`, `"trace" "displacements"`); see
+    /// [`Material::displacing_shader`].
     pub true_displacement: bool,
     /// The area in pixels of the micropolygons a truly displaced object is diced into
     /// (RenderMan's `ShadingRate`): their edges are about its square root in pixels long.
@@ -127,6 +128,24 @@ impl Material {
         native: None,
         ray_values: Vec::new(),
     };
+
+    /// The shader whose `P` moves the object's points under true displacement (`None` where the
+    /// material does not truly displace), and whether the `N` it leaves becomes the points'
+    /// normals. The displacement shader, with its normals; without one, a surface shader that
+    /// assigns `P`, as a REYES renderer moves the micropolygons wherever the surface shader leaves
+    /// them (the inverted hull of a toon outline), with the normals kept: a surface shader's `N`
+    /// serves its own shading, not the geometry's. Where there is a displacement shader, only its
+    /// `P` moves the geometry.
+    pub fn displacing_shader(&self) -> Option<(&Arc<ShaderInstance>, bool)> {
+        if !self.true_displacement {
+            return None;
+        }
+        if let Some(displacement) = &self.displacement {
+            return Some((displacement, true));
+        }
+        let surface = self.surface.as_ref()?;
+        surface.program.slots.p.is_some_and(|p| p.written).then_some((surface, false))
+    }
 
     /// Whether light passes through this material without running its shader.
     pub fn is_opaque_for_shadows(&self) -> bool {
