@@ -160,6 +160,7 @@ fn reyes_controls_are_accepted_quietly_and_unknown_names_still_warn() {
                  \"int eyesplits\" [10]\n\
                  Option \"bucket\" \"string order\" [\"horizontal\"]\n\
                  Option \"statistics\" \"int endofframe\" [1] \"int level\" [1]\n\
+                 Option \"render\" \"int prmanspecular\" [1]\n\
                  WorldBegin\n\
                  Attribute \"cull\" \"int backfacing\" [0] \"int hidden\" [0]\n\
                  Attribute \"dice\" \"int rasterorient\" [0] \"int binary\" [1]\n\
@@ -179,6 +180,10 @@ fn reyes_controls_are_accepted_quietly_and_unknown_names_still_warn() {
     assert_eq!(warnings.len(), 2, "{warnings:?}");
     assert!(warnings[0].contains("\"limits\" \"nonsense\" is not supported"), "{warnings:?}");
     assert!(warnings[1].contains("\"trace\" \"nonsense\" is not supported"), "{warnings:?}");
+    // BMRT's own highlight, which rtsl does not have, is said.
+    let (_, warnings) = load("Option \"render\" \"int prmanspecular\" [0]\n");
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    assert!(warnings[0].contains("prmanspecular"), "{warnings:?}");
 }
 
 /// The requests that ask for true displacement, or bound it, are read quietly: displacement

@@ -2264,6 +2264,12 @@ impl<'a> Loader<'a> {
                 | ("bucket", "order") => {}
                 // rtsl prints each frame's statistics whatever the level.
                 ("statistics", "endofframe" | "level") => {}
+                // BMRT's choice of PRMan's highlight, which is rtsl's `specular`.
+                ("render", "prmanspecular") if f.is_some_and(|v| v != 0.0) => {}
+                ("render", "prmanspecular") => self.warn(
+                    r,
+                    "option \"render\" \"prmanspecular\" [0] asks for BMRT's own highlight; rtsl's `specular` is PRMan's",
+                ),
                 ("limits", "othreshold") => match color_option(p) {
                     Some(threshold) => self.rt.options.opacity_threshold = threshold,
                     None => self.warn(r, "option \"limits\" \"othreshold\" takes a colour (three numbers)"),
