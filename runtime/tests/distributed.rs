@@ -1942,6 +1942,27 @@ fn tiles_ask_ahead_for_the_textures_their_lookups_name() -> Result<(), Distribut
     Ok(())
 }
 
+/// A sphere truly displaced by the shaders `shading` binds, on a floor, lit by a spotlight.
+fn displaced_sphere_on_a_floor(shading: &str) -> String {
+    format!(
+        r#"
+        Format 80 60 1
+        Projection "perspective" "fov" 50
+        Translate 0 0 7
+        WorldBegin
+          LightSource "spotlight" 1 "from" [2 4 -2] "to" [0 0 0] "intensity" 40 "coneangle" 0.9
+          AttributeBegin
+            Attribute "displacementbound" "sphere" [0.3]
+            {shading}
+            Sphere 1 -1 1 360
+          AttributeEnd
+          Surface "matte"
+          Polygon "P" [-5 -1.3 -5  5 -1.3 -5  5 -1.3 5  -5 -1.3 5]
+        WorldEnd
+    "#
+    )
+}
+
 /// A sphere truly displaced into ridges (its `displacementbound` asks for it) over a floor, lit
 /// so that its shadow falls on the floor; and an object of two spheres in parts, of which only
 /// the first moves its points (the second is bump-mapped), placed twice.
@@ -1955,27 +1976,12 @@ fn displaced_scene() -> Result<Context, String> {
         point Po = transform(\"object\", P);
         N = calculatenormal(P + amount * sin(10 * zcomp(Po)) * normalize(N));
     }";
-    let rib = r#"
-        Format 80 60 1
-        Projection "perspective" "fov" 50
-        Translate 0 0 7
-        WorldBegin
-          LightSource "spotlight" 1 "from" [2 4 -2] "to" [0 0 0] "intensity" 40 "coneangle" 0.9
-          AttributeBegin
-            Attribute "displacementbound" "sphere" [0.3]
-            Displacement "ridges"
-            Surface "plastic"
-            Sphere 1 -1 1 360
-          AttributeEnd
-          Surface "matte"
-          Polygon "P" [-5 -1.3 -5  5 -1.3 -5  5 -1.3 5  -5 -1.3 5]
-        WorldEnd
-    "#;
+    let rib = displaced_sphere_on_a_floor("Displacement \"ridges\" Surface \"plastic\"");
     let e = |e: rtsl_runtime::api::ApiError| e.to_string();
     let mut rt = Context::new();
     rt.compile_shader("ridges.sl", RIDGES).map_err(e)?;
     let bump = rt.compile_shader("bumponly.sl", BUMP_ONLY).map_err(e)?;
-    rtsl_runtime::rib::load::load_str(&mut rt, rib, Path::new(".")).map_err(|e| e.to_string())?;
+    rtsl_runtime::rib::load::load_str(&mut rt, &rib, Path::new(".")).map_err(|e| e.to_string())?;
     let ridges = rt.find_shader("ridges").map_err(e)?;
     let plastic = rt.find_shader("plastic").map_err(e)?;
     rt.bind_shader(plastic).map_err(e)?;
@@ -2035,24 +2041,10 @@ fn surface_displaced_objects_render_the_same_on_workers() -> Result<(), Distribu
         Oi = 1;
         Ci = Cs * (0.1 + diffuse(Nf)) + length(Po) * color(0, 0.2, 0);
     }";
-    let rib = r#"
-        Format 80 60 1
-        Projection "perspective" "fov" 50
-        Translate 0 0 7
-        WorldBegin
-          LightSource "spotlight" 1 "from" [2 4 -2] "to" [0 0 0] "intensity" 40 "coneangle" 0.9
-          AttributeBegin
-            Attribute "displacementbound" "sphere" [0.3]
-            Surface "ridged"
-            Sphere 1 -1 1 360
-          AttributeEnd
-          Surface "matte"
-          Polygon "P" [-5 -1.3 -5  5 -1.3 -5  5 -1.3 5  -5 -1.3 5]
-        WorldEnd
-    "#;
     let mut rt = Context::new();
     rt.compile_shader("ridged.sl", RIDGED).expect("compiles");
-    rtsl_runtime::rib::load::load_str(&mut rt, rib, Path::new(".")).expect("the scene loads");
+    let rib = displaced_sphere_on_a_floor("Surface \"ridged\"");
+    rtsl_runtime::rib::load::load_str(&mut rt, &rib, Path::new(".")).expect("the scene loads");
     let frames = both_ways(rt, 2, 1, &[nothing, move_first])?;
     assert_same(&frames, "a scene displaced by its surface shader");
     Ok(())
