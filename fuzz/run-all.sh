@@ -15,7 +15,7 @@ seed() { # TARGET then files to copy into its corpus the first time
 seed compile ../stdlib_shaders/*/*.sl
 seed differential ../stdlib_shaders/*/*.sl $(find ../tests/corpus -name '*.sl' | head -300)
 seed rib ../examples/scenes/*.rib ../examples/office/*.rib
-seed rib_render ../examples/scenes/*.rib
+seed rib_render ../examples/scenes/*.rib seeds/rib_render/*.rib
 seed aff $(ls ../../shared/scenes/bart/robot/aff/*.aff 2>/dev/null | head -5)
 seed texture
 seed grid ../examples/office/data/*.grid
