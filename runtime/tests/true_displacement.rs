@@ -227,16 +227,29 @@ fn shadows_have_the_displaced_shape() {
 /// point whose displaced position is not a number stays where it was.
 #[test]
 fn absurd_displacements_render() {
+    // Each move from a displacement shader, and from a surface shader (which truly displaces too).
+    let shaders = |moved: &str| {
+        [
+            (
+                format!("displacement absurd() {{ P = {moved}; N = calculatenormal(P); }}"),
+                "Displacement \"absurd\" Surface \"matte\"",
+            ),
+            (format!("surface absurd() {{ P = {moved}; Oi = 1; Ci = diffuse(normalize(N)); }}"), "Surface \"absurd\""),
+        ]
+    };
     for moved in ["P * 1e30 * 1e30", "P + (0 / 0) * N", "P + 1e30 * normalize(N)", "point(0, 0, 0)"] {
-        let source = format!("displacement absurd() {{ P = {moved}; N = calculatenormal(P); }}");
-        let rib = "Format 16 16 1\nProjection \"perspective\" \"fov\" [40]\nTranslate 0 0 4\nWorldBegin\n\
-                   Attribute \"displacementbound\" \"sphere\" [1] Displacement \"absurd\" Surface \"matte\"\n\
-                   LightSource \"pointlight\" 1 \"from\" [0 0 0] \"intensity\" [4]\nSphere 1 -1 1 360\nWorldEnd\n";
-        let mut rt = Context::new();
-        rt.compile_shader("absurd.sl", &source).expect("compiles");
-        load_str(&mut rt, rib, "absurd.rib").expect("loads");
-        let fb = render(&mut rt);
-        assert!(fb.rgba.iter().all(|c| c.is_finite()), "{moved}");
+        for (source, shading) in shaders(moved) {
+            let rib = format!(
+                "Format 16 16 1\nProjection \"perspective\" \"fov\" [40]\nTranslate 0 0 4\nWorldBegin\n\
+                 Attribute \"displacementbound\" \"sphere\" [1] {shading}\n\
+                 LightSource \"pointlight\" 1 \"from\" [0 0 0] \"intensity\" [4]\nSphere 1 -1 1 360\nWorldEnd\n"
+            );
+            let mut rt = Context::new();
+            rt.compile_shader("absurd.sl", &source).expect("compiles");
+            load_str(&mut rt, &rib, "absurd.rib").expect("loads");
+            let fb = render(&mut rt);
+            assert!(fb.rgba.iter().all(|c| c.is_finite()), "{source}");
+        }
     }
 }
 
