@@ -627,17 +627,16 @@ pub(super) fn hit_geometry(ig: &InstanceGeometry, hit: &Hit, time: f32, g: &mut 
             (xf, xf.matrix3.inverse().transpose())
         }
     };
+    let (w0, w1, w2) = (1.0 - hit.u - hit.v, hit.u, hit.v);
     let mut traced = None;
     if let Some(before) = ig.undisplaced {
         let at = |k: usize| Vec3::new(before[3 * k], before[3 * k + 1], before[3 * k + 2]);
-        let (w0, w1, w2) = (1.0 - hit.u - hit.v, hit.u, hit.v);
         let p = Vec3A::from(pa) * w0 + Vec3A::from(pb) * w1 + Vec3A::from(pc) * w2;
         let ng = (normal_xf * Vec3A::from(pb - pa).cross(Vec3A::from(pc - pa))).normalize_or_zero();
         traced = Some((xf.transform_point3a(p), ng));
         (pa, pb, pc) = (at(a), at(b), at(c));
     }
     let (e1, e2) = (Vec3A::from(pb - pa), Vec3A::from(pc - pa));
-    let (w0, w1, w2) = (1.0 - hit.u - hit.v, hit.u, hit.v);
     let p_obj = Vec3A::from(pa) * w0 + Vec3A::from(pb) * w1 + Vec3A::from(pc) * w2;
     let ng = (normal_xf * e1.cross(e2)).normalize_or_zero();
     let n = match mesh.interpolate_normal_at([a, b, c], [w0, w1, w2], time) {
