@@ -3,6 +3,9 @@
 //! single-process ones, frame after frame of changes; failures are reported by the master, named
 //! by rank, never a hang; damaged updates are errors.
 
+mod common;
+
+use common::BUMP_ONLY;
 use rtsl_runtime::api::{Context, InheritedAppearance, Primitive, Replicator};
 use rtsl_runtime::distributed::{
     serve, Demand, DistributedError, LocalTransport, Master, Message, ReplicaScene, TileQuarters, Traffic, Transport,
@@ -1971,10 +1974,6 @@ fn displaced_scene() -> Result<Context, String> {
         point Po = transform(\"object\", P);
         P += amount * (0.5 + 0.5 * sin(12 * zcomp(Po))) * normalize(N);
         N = calculatenormal(P);
-    }";
-    const BUMP_ONLY: &str = "displacement bumponly(float amount = 0.25) {
-        point Po = transform(\"object\", P);
-        N = calculatenormal(P + amount * sin(10 * zcomp(Po)) * normalize(N));
     }";
     let rib = displaced_sphere_on_a_floor("Displacement \"ridges\" Surface \"plastic\"");
     let e = |e: rtsl_runtime::api::ApiError| e.to_string();

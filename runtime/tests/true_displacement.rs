@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::render;
+use common::{render, BUMP_ONLY};
 use rtsl_runtime::api::Context;
 use rtsl_runtime::render::Framebuffer;
 use rtsl_runtime::rib::load::load_str;
@@ -15,13 +15,6 @@ use rtsl_runtime::scene::ObjectId;
 const INFLATE: &str = "displacement inflate(float amount = 0.25) {
     P += amount * normalize(N);
     N = calculatenormal(P);
-}";
-
-/// Bends the normal by ridges around the object's z axis, without moving the point (bump
-/// mapping by hand).
-const BUMP_ONLY: &str = "displacement bumponly(float amount = 0.25) {
-    point Po = transform(\"object\", P);
-    N = calculatenormal(P + amount * sin(10 * zcomp(Po)) * normalize(N));
 }";
 
 /// Shows the shading normal as a colour.

@@ -10,6 +10,13 @@ use rtsl_runtime::rib::load::load_str;
 use rtsl_runtime::shading::ParamValue;
 use std::path::{Path, PathBuf};
 
+/// A displacement shader that bends the normal by ridges around the object's z axis without
+/// moving the point (bump mapping by hand): true displacement leaves such an object as it was.
+pub const BUMP_ONLY: &str = "displacement bumponly(float amount = 0.25) {
+    point Po = transform(\"object\", P);
+    N = calculatenormal(P + amount * sin(10 * zcomp(Po)) * normalize(N));
+}";
+
 /// The image size of `context()`.
 pub const W: u32 = 64;
 pub const H: u32 = 48;
