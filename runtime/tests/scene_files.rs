@@ -1186,3 +1186,36 @@ fn shared_model_files_are_read_once_until_they_or_their_materials_change() -> Re
     assert_eq!(shared.len(), 1);
     Ok(())
 }
+
+/// RISpec gives a polygon its `(x, y)` as surface parameters and texture coordinates. A polygon
+/// that stands edge-on to that plane in its own space (a floor in x and z) is not spanned by
+/// them: its derivatives along u and v come from its triangles' own parameters instead (as
+/// Aqsis's do), so that `Du`, `Dv` and `calculatenormal` work there, and bump and displacement
+/// shaders with them; `s` and `t` stay its `x` and `y`.
+#[test]
+fn a_polygon_edge_on_to_its_own_xy_plane_has_surface_derivatives() {
+    let probe = "surface probe() {
+        point o = transform(\"object\", P);
+        normal c = calculatenormal(P);
+        float spans = length(Du(P)) > 0 && length(Dv(P)) > 0 ? 1 : 0;
+        float along = length(c) > 0 && abs(normalize(c) . normalize(N)) > 0.999 ? 1 : 0;
+        float st = abs(s - xcomp(o)) < 1e-3 && abs(t - ycomp(o)) < 1e-3 ? 1 : 0;
+        Oi = 1; Ci = color(spans, along, st);
+    }";
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    std::fs::write(dir.path().join("probe.sl"), probe).expect("written");
+    for floor in [
+        "Polygon \"P\" [-1 0 -1  1 0 -1  1 0 1  -1 0 1]",
+        "PointsPolygons [3 3] [0 1 2  0 2 3] \"P\" [-1 0 -1  1 0 -1  1 0 1  -1 0 1]",
+    ] {
+        let mut rt = Context::new();
+        rt.set_shader_search_path([dir.path()]);
+        let rib = format!("{CAMERA} Surface \"probe\" Rotate -90 1 0 0 {floor} WorldEnd");
+        let loaded = load_str(&mut rt, &rib, Path::new("s.rib")).expect("loads");
+        assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+        let fb = render(&mut rt);
+        for (x, y) in [(32, 24), (28, 20), (36, 27)] {
+            assert_eq!(fb.pixel(x, y), [1.0; 4], "{floor}: pixel ({x}, {y})");
+        }
+    }
+}

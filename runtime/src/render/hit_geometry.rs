@@ -481,7 +481,10 @@ impl<V: Lanes> SurfaceLanes<V> {
                 let dpdu = e1.scale(d2.1).sub(e2.scale(d1.1)).scale(inv);
                 let dpdv = e2.scale(d1.0).sub(e1.scale(d2.0)).scale(inv);
                 let uv = [ta.0 * w0 + tb.0 * w1 + tc.0 * w2, ta.1 * w0 + tb.1 * w1 + tc.1 * w2];
-                (uv, [d1.0, d1.1, d2.0, d2.1], Lanes3::select(solvable, dpdu, e1), Lanes3::select(solvable, dpdv, e2))
+                // Where the uvs do not span the triangle, it is parameterised by its barycentrics.
+                let changes = [d1.0, d1.1, d2.0, d2.1];
+                let duv = std::array::from_fn(|k| V::select(solvable, changes[k], identity[k]));
+                (uv, duv, Lanes3::select(solvable, dpdu, e1), Lanes3::select(solvable, dpdv, e2))
             }
             None => ([u, v], identity, e1, e2),
         };
@@ -653,10 +656,14 @@ pub(super) fn hit_geometry(ig: &InstanceGeometry, hit: &Hit, time: f32, g: &mut 
         _ if !ig.coords => ([hit.u, hit.v], Vec3A::ZERO, Vec3A::ZERO),
         Some(uvs) => {
             let (ta, tb, tc) = (uvs[a], uvs[b], uvs[c]);
-            duv = [(tb - ta).to_array(), (tc - ta).to_array()];
             let (d1, d2) = (tb - ta, tc - ta);
             let det = d1.x * d2.y - d1.y * d2.x;
+            // Where the uvs do not span the triangle (a RIB polygon's default (x, y) seen edge
+            // on, an OBJ face whose texture coordinates coincide), derivatives along u and v would
+            // be zero, and `calculatenormal` with them: the triangle is parameterised by its
+            // barycentrics instead, as one without uvs.
             let (dpdu, dpdv) = if det.abs() > 1e-12 {
+                duv = [d1.to_array(), d2.to_array()];
                 let inv = 1.0 / det;
                 ((e1 * d2.y - e2 * d1.y) * inv, (e2 * d1.x - e1 * d2.x) * inv)
             } else {
