@@ -1172,24 +1172,33 @@ fn malformed_color_samples_are_errors_and_change_nothing() {
 fn s_or_t_alone_replaces_that_coordinate_of_a_surface_s_own() {
     // RISpec lists "s" and "t" as variables of their own: given alone, one replaces that
     // texture coordinate of the surface's (its parameters through TextureCoordinates), and the
-    // other stays.
-    let uvs = |text: &str| {
+    // other stays. The surface's parameters (u, v) stay as they were; texture coordinates that
+    // differ from them are an `st` attribute.
+    let mesh = |text: &str| {
         let parsed = parse(text);
         assert!(!parsed.has_errors(), "{:?}", messages(&parsed));
         let mut diagnostics = Vec::new();
         let mesh = mesh_from_request(&parsed.requests[0], &mut diagnostics).expect("a mesh");
         assert!(diagnostics.is_empty(), "{diagnostics:?}");
-        mesh.uvs.expect("texture coordinates")
+        let parameters = mesh.uvs.clone().expect("surface parameters");
+        let st = mesh
+            .attributes
+            .iter()
+            .find(|a| a.name == "st")
+            .map_or_else(|| parameters.clone(), |st| st.data.chunks_exact(2).map(glam::Vec2::from_slice).collect());
+        (parameters, st)
     };
     let square = "Patch \"bilinear\" \"P\" [-1 -1 0  1 -1 0  -1 1 0  1 1 0]";
-    let own = uvs(square);
-    let with_s = uvs(&format!("{square} \"s\" [0.2 0.2 0.2 0.2]\n"));
-    let with_t = uvs(&format!("{square} \"t\" [0.7 0.7 0.7 0.7]\n"));
+    let (parameters, own) = mesh(square);
+    let (with_s_parameters, with_s) = mesh(&format!("{square} \"s\" [0.2 0.2 0.2 0.2]\n"));
+    let (with_t_parameters, with_t) = mesh(&format!("{square} \"t\" [0.7 0.7 0.7 0.7]\n"));
+    assert_eq!((&with_s_parameters, &with_t_parameters), (&parameters, &parameters));
     assert!(own.iter().any(|uv| uv.x != 0.2) && own.iter().any(|uv| uv.y != 0.7), "{own:?}");
     for ((own, s), t) in own.iter().zip(&with_s).zip(&with_t) {
         assert_eq!((s.x, s.y), (0.2, own.y));
         assert_eq!((t.x, t.y), (own.x, 0.7));
     }
-    let sphere = uvs("Sphere 1 -1 1 360 \"t\" [0.1 0.2 0.3 0.4]\n");
+    let (parameters, sphere) = mesh("Sphere 1 -1 1 360 \"t\" [0.1 0.2 0.3 0.4]\n");
     assert!(sphere.iter().all(|uv| (0.1..=0.4).contains(&uv.y)), "{sphere:?}");
+    assert!(parameters.iter().any(|uv| uv.y == 0.0) && parameters.iter().any(|uv| uv.y == 1.0), "{parameters:?}");
 }

@@ -1219,3 +1219,35 @@ fn a_polygon_edge_on_to_its_own_xy_plane_has_surface_derivatives() {
         }
     }
 }
+
+/// RISpec: `u` and `v` are a surface's parameters, from 0 to 1 over a patch or quadric, and
+/// `TextureCoordinates` (or `st` given with the surface) maps its texture coordinates `s` and
+/// `t` only: a shader sees both, and its derivatives along `u` and `v` go by the parameters.
+#[test]
+fn texture_coordinates_map_s_and_t_and_leave_u_and_v_the_surface_s_parameters() {
+    let probe = "surface probe(float scale = 2) {
+        float inside = u >= 0 && u <= 1 && v >= 0 && v <= 1 ? 1 : 0;
+        float mapped = abs(s - scale * u) < 1e-3 && abs(t - scale * v) < 1e-3 ? 1 : 0;
+        float step = abs(Du(u) - 1) < 1e-3 && abs(Dv(v) - 1) < 1e-3 ? 1 : 0;
+        Oi = 1; Ci = color(inside, mapped, step);
+    }";
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    std::fs::write(dir.path().join("probe.sl"), probe).expect("written");
+    for surface in [
+        "TextureCoordinates 0 0 2 0 0 2 2 2 Surface \"probe\" Patch \"bilinear\" \"P\" [-1 -1 0  1 -1 0  -1 1 0  1 1 0]",
+        "TextureCoordinates 0 0 2 0 0 2 2 2 Surface \"probe\" Sphere 1 -1 1 360",
+        "Surface \"probe\" \"scale\" 3 Patch \"bilinear\" \"P\" [-1 -1 0  1 -1 0  -1 1 0  1 1 0] \
+         \"st\" [0 0  3 0  0 3  3 3]",
+        "Surface \"probe\" \"scale\" 1 Sphere 1 -1 1 360",
+    ] {
+        let mut rt = Context::new();
+        rt.set_shader_search_path([dir.path()]);
+        let rib = format!("{CAMERA} Rotate -30 1 0 0 {surface} WorldEnd");
+        let loaded = load_str(&mut rt, &rib, Path::new("s.rib")).expect("loads");
+        assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+        let fb = render(&mut rt);
+        for (x, y) in [(32, 24), (28, 20), (35, 27)] {
+            assert_eq!(fb.pixel(x, y), [1.0; 4], "{surface}: pixel ({x}, {y})");
+        }
+    }
+}

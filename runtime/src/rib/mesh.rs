@@ -3,10 +3,13 @@
 //!
 //! What goes where in the mesh:
 //! - `P` (or `Pw`, divided by `w`; `Pz` for patches) gives the positions;
-//! - `N` gives the per-vertex normals (normalised), `st` (or `s` and `t`) the uvs, and `s` or `t`
-//!   alone that coordinate of the default uvs. Without them patches and quadrics get their
-//!   `(u, v)` parameters as uvs (over the whole patch mesh) and their analytic normals; polygons
-//!   get no normals, and their `(x, y)` as uvs (RISpec: a polygon's surface parameters);
+//! - `N` gives the per-vertex normals (normalised). Patches, patch meshes and quadrics get their
+//!   `(u, v)` parameters as uvs (over the whole patch mesh) and their analytic normals; their
+//!   texture coordinates, where they are not those parameters (`st`, or `s` or `t` alone, given;
+//!   or a `TextureCoordinates` other than RISpec's default), are a two-float `st` attribute, so
+//!   that shaders see `u v` as the surface's parameters and `s t` as its texture coordinates.
+//!   Polygons get no normals, and `st` (or `s` and `t`) as uvs, else their `(x, y)` (RISpec: a
+//!   polygon's surface parameters), `s` or `t` alone replacing that coordinate;
 //! - every other float-typed `vertex`, `varying`, `facevarying` or `uniform` parameter becomes a
 //!   named per-vertex [`Attribute`] (uniform values repeat at each vertex of their face) of the
 //!   kind its type says (points, vectors and normals move with the object; an `hpoint` is divided
@@ -257,8 +260,7 @@ pub fn quadric_mesh(
         interpolate_corners(&d, [0, 1, 2, 3], 0, &uvs, &mut data);
         attributes.push(d.attribute(data));
     }
-    mesh.uvs = Some(uvs.iter().map(|&uv| options.default_st(uv)).collect());
-    route_attributes(&mut mesh, attributes);
+    route_attributes_parametric(&mut mesh, attributes, options);
     mesh.validate().map_err(|e| e.to_string())?;
     Ok(mesh)
 }
@@ -396,6 +398,43 @@ pub(super) fn route_attributes(mesh: &mut Mesh, attributes: Vec<Attribute>) {
         (None, Some(t), None) => mesh.attributes.push(Attribute::data("t", 1, t)),
         (None, None, _) => {}
     }
+}
+
+/// [`route_attributes`] for surfaces whose uvs are their own `(u, v)` parameters (patches, patch
+/// meshes, quadrics): the uvs stay those (RISpec: `u` and `v` are the surface's parameters, which
+/// `Du`, `Dv` and `du`, `dv` go by, whatever its texture coordinates). Where the texture
+/// coordinates differ from them (`st` given; `s` or `t` given, replacing that coordinate; or
+/// `options`' `TextureCoordinates` not RISpec's default) they are a two-float `st` attribute,
+/// which shaders read as `s t`. The rest as [`route_attributes`].
+pub(super) fn route_attributes_parametric(mesh: &mut Mesh, attributes: Vec<Attribute>, options: &MeshOptions) {
+    let mut given = None;
+    let mut s = None;
+    let mut t = None;
+    let mut rest = Vec::with_capacity(attributes.len());
+    for attribute in attributes {
+        match (attribute.name.as_str(), attribute.components) {
+            ("st", 2) => given = Some(attribute.data),
+            ("s", 1) => s = Some(attribute.data),
+            ("t", 1) => t = Some(attribute.data),
+            _ => rest.push(attribute),
+        }
+    }
+    route_attributes(mesh, rest);
+    let uvs = mesh.uvs.as_deref().unwrap_or_default();
+    let default_mapping = options.texture_coordinates == MeshOptions::default().texture_coordinates;
+    if given.is_none() && s.is_none() && t.is_none() && default_mapping {
+        return;
+    }
+    let mut st: Vec<f32> = match given {
+        Some(st) if st.len() == 2 * uvs.len() => st,
+        _ => uvs.iter().flat_map(|&uv| options.default_st(uv).to_array()).collect(),
+    };
+    for (k, coordinate) in [s, t].into_iter().enumerate() {
+        if let Some(values) = coordinate.filter(|c| c.len() == uvs.len()) {
+            st.iter_mut().skip(k).step_by(2).zip(values).for_each(|(to, from)| *to = from);
+        }
+    }
+    mesh.attributes.push(Attribute::data("st", 2, st));
 }
 
 /// [`route_attributes`] for primitives whose uvs are their own `(u, v)` parameters (points and
@@ -870,10 +909,14 @@ mod tests {
             MeshOptions { tessellation: Some(Tessellation { u_segments: 4, v_segments: 2 }), ..Default::default() };
         let mesh = mesh_from_request_with(&parse.requests[0], &options, &mut Vec::new()).unwrap();
         assert_eq!(mesh.positions.len(), 15);
-        // TextureCoordinates remap the default uvs.
+        assert!(mesh.attributes.is_empty(), "RISpec's default texture coordinates are the parameters");
+        // TextureCoordinates remap the texture coordinates, not the parameters.
         let options = MeshOptions { texture_coordinates: [1.0, 1.0, 0.0, 1.0, 1.0, 0.0, 0.0, 0.0], ..options };
-        let mesh = mesh_from_request_with(&parse.requests[0], &options, &mut Vec::new()).unwrap();
+        let mapped = mesh_from_request_with(&parse.requests[0], &options, &mut Vec::new()).unwrap();
+        assert_eq!(mapped.uvs, mesh.uvs);
         let uvs = mesh.uvs.as_ref().unwrap();
-        assert_eq!((uvs[0], uvs[14]), (Vec2::new(1.0, 1.0), Vec2::new(0.0, 0.0)));
+        assert_eq!((uvs[0], uvs[14]), (Vec2::new(0.0, 0.0), Vec2::new(1.0, 1.0)));
+        let st = mapped.attributes.iter().find(|a| a.name == "st").expect("an st attribute");
+        assert_eq!((&st.data[..2], &st.data[28..30]), (&[1.0, 1.0][..], &[0.0, 0.0][..]));
     }
 }

@@ -27,8 +27,9 @@
 //! - vertex data follows the spline (the rational basis, weights included), varying data is
 //!   bilinear over each span between the values at its knots (`(2 + nu - uorder) x (2 + nv -
 //!   vorder)` of them), uniform data is one value per span (`(1 + nu - uorder) x (1 + nv -
-//!   vorder)`); without `st`, the uvs are `(u, v)` mapped from `[min, max]` to `[0, 1]` and through
-//!   `TextureCoordinates`;
+//!   vorder)`); the uvs are `(u, v)` mapped from `[min, max]` to `[0, 1]`, and texture
+//!   coordinates that differ from those (`st`, or `TextureCoordinates`) an `st` attribute
+//!   (`mesh.rs`);
 //! - trimming is done on the tessellation, with the trim loops sampled to polygons (`trim.rs`): a
 //!   grid vertex is inside when it is inside an odd number of loops, and the side [`TrimSense`]
 //!   names is removed. A triangle with vertices on both sides is cut where its edges cross the
@@ -43,7 +44,7 @@ use std::collections::HashMap;
 use glam::{DVec2, DVec3, DVec4, Vec2, Vec3};
 
 use super::decl::{Class, Ty};
-use super::mesh::{per_vertex_params, route_attributes, ClassCounts, MeshOptions};
+use super::mesh::{per_vertex_params, route_attributes_parametric, ClassCounts, MeshOptions};
 use super::request::{find_param, NuDirection, Param};
 use super::spline::{ratio, segments_for_turn, turning, Basis, Knots};
 use super::trim::TrimSense;
@@ -572,7 +573,7 @@ pub fn nupatch_mesh(
             positions.push(p);
             normals.push(s.normal(uv, dpdu, dpdv));
             let st = Vec2::new(((uv.x - s.urange.0) / du) as f32, ((uv.y - s.vrange.0) / dv) as f32);
-            uvs_out.push(options.default_st(st));
+            uvs_out.push(st);
             let weights = if vertex_data { s.rational_weights(&local, w) } else { Vec::new() };
             let fu = ratio(uv.x - uk.knots[su], uk.knots[su + 1] - uk.knots[su]);
             let fv = ratio(uv.y - vk.knots[sv], vk.knots[sv + 1] - vk.knots[sv]);
@@ -604,7 +605,7 @@ pub fn nupatch_mesh(
     })?;
     mesh.normals = Some(normals);
     mesh.uvs = Some(uvs_out);
-    route_attributes(&mut mesh, attributes);
+    route_attributes_parametric(&mut mesh, attributes, options);
     mesh.validate().map_err(|e| e.to_string())?;
     Ok(mesh)
 }

@@ -7,13 +7,14 @@
 //!
 //! Invariants: each patch is tessellated on its own grid, evaluated exactly on the surface, with
 //! normals `dP/du x dP/dv` (normalised) and uvs `(u, v)` running from 0 to 1 over the whole mesh
-//! (mapped through `TextureCoordinates` when they are set); vertex data follows the basis, varying
-//! data is bilinear between the patch's corners, uniform data is constant per patch.
+//! (texture coordinates other than those, `TextureCoordinates` or `st`, are an `st` attribute:
+//! `mesh.rs`); vertex data follows the basis, varying data is bilinear between the patch's
+//! corners, uniform data is constant per patch.
 
 use glam::{Vec2, Vec3};
 
 use super::decl::Class;
-use super::mesh::{per_vertex_params, positions, route_attributes, ClassCounts, MeshOptions};
+use super::mesh::{per_vertex_params, positions, route_attributes_parametric, ClassCounts, MeshOptions};
 use super::request::{find_param, Basis, Param, PatchType, Wrap};
 use crate::geometry::quadric::{tessellate_grid, Tessellation};
 use crate::geometry::{Attribute, Mesh};
@@ -278,12 +279,11 @@ pub fn patch_mesh(
             }
             let global_uvs = local_uvs
                 .iter()
-                .map(|uv| Vec2::new((pi as f32 + uv.x) / nu_patches as f32, (pj as f32 + uv.y) / nv_patches as f32))
-                .map(|uv| options.default_st(uv));
+                .map(|uv| Vec2::new((pi as f32 + uv.x) / nu_patches as f32, (pj as f32 + uv.y) / nv_patches as f32));
             append(&mut mesh, patch, global_uvs);
         }
     }
-    route_attributes(&mut mesh, attributes);
+    route_attributes_parametric(&mut mesh, attributes, options);
     mesh.validate().map_err(|e| e.to_string())?;
     Ok(mesh)
 }

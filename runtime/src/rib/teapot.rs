@@ -10,7 +10,8 @@
 //!
 //! Each patch is a `Patch "bicubic"` through the patch builder (`patch.rs`), under the Bezier basis
 //! whatever the current `Basis`: cut like any bicubic patch (8 segments a side by default), with
-//! its own `(u, v)` from 0 to 1 (mapped through `TextureCoordinates`), and normals `dP/du x dP/dv`,
+//! its own `(u, v)` from 0 to 1 (its texture coordinates mapped through `TextureCoordinates`, as a
+//! patch's), and normals `dP/du x dP/dv`,
 //! which point out of the pot. The body is open under the lid and the lid is a separate surface,
 //! as in Newell's data; the spout and handle pass through the body without being cut.
 
@@ -50,7 +51,9 @@ pub fn teapot_mesh(params: &[Param], options: &MeshOptions, warnings: &mut Vec<S
     for p in params.iter().filter(|p| !matches!(p.decl.class, Class::Constant | Class::Implicit)) {
         warnings.push(format!("\"{}\" ({}) is dropped: the teapot takes no data over its surface", p.name, p.decl));
     }
-    let options = bezier(options);
+    // The patches' own texture coordinates are their parameters: the teapot's mapped ones are
+    // made once, over the whole pot.
+    let patches = MeshOptions { texture_coordinates: MeshOptions::default().texture_coordinates, ..bezier(options) };
     let mut mesh = Mesh { normals: Some(Vec::new()), uvs: Some(Vec::new()), ..Default::default() };
     for k in 0..PATCHES.len() {
         let part = patch_mesh(
@@ -60,7 +63,7 @@ pub fn teapot_mesh(params: &[Param], options: &MeshOptions, warnings: &mut Vec<S
             4,
             Wrap::NonPeriodic,
             &[patch_points(k)],
-            &options,
+            &patches,
             warnings,
         )?;
         let offset = mesh.positions.len() as u32;
@@ -73,6 +76,7 @@ pub fn teapot_mesh(params: &[Param], options: &MeshOptions, warnings: &mut Vec<S
         }
         mesh.triangles.extend(part.triangles.into_iter().map(|t| t.map(|i| i + offset)));
     }
+    super::mesh::route_attributes_parametric(&mut mesh, Vec::new(), options);
     mesh.validate().map_err(|e| e.to_string())?;
     Ok(mesh)
 }
