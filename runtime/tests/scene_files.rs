@@ -1202,20 +1202,31 @@ fn a_polygon_edge_on_to_its_own_xy_plane_has_surface_derivatives() {
         float st = abs(s - xcomp(o)) < 1e-3 && abs(t - ycomp(o)) < 1e-3 ? 1 : 0;
         Oi = 1; Ci = color(spans, along, st);
     }";
-    let dir = tempfile::tempdir().expect("a temporary directory");
-    std::fs::write(dir.path().join("probe.sl"), probe).expect("written");
-    for floor in [
+    let floors = [
         "Polygon \"P\" [-1 0 -1  1 0 -1  1 0 1  -1 0 1]",
         "PointsPolygons [3 3] [0 1 2  0 2 3] \"P\" [-1 0 -1  1 0 -1  1 0 1  -1 0 1]",
-    ] {
+    ];
+    assert_probe_is_white_at_the_centre(
+        probe,
+        floors.map(|floor| format!("Surface \"probe\" Rotate -90 1 0 0 {floor}")),
+    );
+}
+
+/// Renders each of `scenes` (the world block's contents, under [`CAMERA`]) with the surface shader
+/// `probe` on the search path, and asserts that pixels about the image's centre are white: the
+/// probe's every check held there.
+fn assert_probe_is_white_at_the_centre(probe: &str, scenes: impl IntoIterator<Item = String>) {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    std::fs::write(dir.path().join("probe.sl"), probe).expect("written");
+    for scene in scenes {
         let mut rt = Context::new();
         rt.set_shader_search_path([dir.path()]);
-        let rib = format!("{CAMERA} Surface \"probe\" Rotate -90 1 0 0 {floor} WorldEnd");
+        let rib = format!("{CAMERA} {scene} WorldEnd");
         let loaded = load_str(&mut rt, &rib, Path::new("s.rib")).expect("loads");
         assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
         let fb = render(&mut rt);
-        for (x, y) in [(32, 24), (28, 20), (36, 27)] {
-            assert_eq!(fb.pixel(x, y), [1.0; 4], "{floor}: pixel ({x}, {y})");
+        for (x, y) in [(32, 24), (28, 20), (35, 27)] {
+            assert_eq!(fb.pixel(x, y), [1.0; 4], "{scene}: pixel ({x}, {y})");
         }
     }
 }
@@ -1231,23 +1242,12 @@ fn texture_coordinates_map_s_and_t_and_leave_u_and_v_the_surface_s_parameters() 
         float step = abs(Du(u) - 1) < 1e-3 && abs(Dv(v) - 1) < 1e-3 ? 1 : 0;
         Oi = 1; Ci = color(inside, mapped, step);
     }";
-    let dir = tempfile::tempdir().expect("a temporary directory");
-    std::fs::write(dir.path().join("probe.sl"), probe).expect("written");
-    for surface in [
+    let surfaces = [
         "TextureCoordinates 0 0 2 0 0 2 2 2 Surface \"probe\" Patch \"bilinear\" \"P\" [-1 -1 0  1 -1 0  -1 1 0  1 1 0]",
         "TextureCoordinates 0 0 2 0 0 2 2 2 Surface \"probe\" Sphere 1 -1 1 360",
         "Surface \"probe\" \"scale\" 3 Patch \"bilinear\" \"P\" [-1 -1 0  1 -1 0  -1 1 0  1 1 0] \
          \"st\" [0 0  3 0  0 3  3 3]",
         "Surface \"probe\" \"scale\" 1 Sphere 1 -1 1 360",
-    ] {
-        let mut rt = Context::new();
-        rt.set_shader_search_path([dir.path()]);
-        let rib = format!("{CAMERA} Rotate -30 1 0 0 {surface} WorldEnd");
-        let loaded = load_str(&mut rt, &rib, Path::new("s.rib")).expect("loads");
-        assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
-        let fb = render(&mut rt);
-        for (x, y) in [(32, 24), (28, 20), (35, 27)] {
-            assert_eq!(fb.pixel(x, y), [1.0; 4], "{surface}: pixel ({x}, {y})");
-        }
-    }
+    ];
+    assert_probe_is_white_at_the_centre(probe, surfaces.map(|surface| format!("Rotate -30 1 0 0 {surface}")));
 }
