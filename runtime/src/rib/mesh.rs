@@ -4,12 +4,14 @@
 //! What goes where in the mesh:
 //! - `P` (or `Pw`, divided by `w`; `Pz` for patches) gives the positions;
 //! - `N` gives the per-vertex normals (normalised). Patches, patch meshes and quadrics get their
-//!   `(u, v)` parameters as uvs (over the whole patch mesh) and their analytic normals; their
+//!   `(u, v)` parameters as uvs (over the whole patch mesh) and, without `N`, their analytic
+//!   normals; their
 //!   texture coordinates, where they are not those parameters (`st`, or `s` or `t` alone, given;
 //!   or a `TextureCoordinates` other than RISpec's default), are a two-float `st` attribute, so
 //!   that shaders see `u v` as the surface's parameters and `s t` as its texture coordinates.
-//!   Polygons get no normals, and `st` (or `s` and `t`) as uvs, else their `(x, y)` (RISpec: a
-//!   polygon's surface parameters), `s` or `t` alone replacing that coordinate;
+//!   Polygons without `N` get no normals; their uvs are `st` (or `s` and `t`) when given, else
+//!   their `(x, y)` (RISpec: a polygon's surface parameters), `s` or `t` alone replacing that
+//!   coordinate;
 //! - every other float-typed `vertex`, `varying`, `facevarying` or `uniform` parameter becomes a
 //!   named per-vertex [`Attribute`] (uniform values repeat at each vertex of their face) of the
 //!   kind its type says (points, vectors and normals move with the object; an `hpoint` is divided
