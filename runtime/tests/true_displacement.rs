@@ -374,12 +374,45 @@ fn receding_meshes_are_diced_finer_near_and_stay_closed() {
         indices.join(" "),
         points.join(" ")
     );
-    let (mut rt, world) = displaced_floor(&rib);
+    let (rt, world) = displaced_floor(&rib);
     let mesh = world.scene.mesh(ObjectId(world.instances[0].object)).expect("the displaced mesh");
     let middle = (near + far) / 2.0;
     let near_points = mesh.positions.iter().filter(|p| p.z < middle).count();
     let far_points = mesh.positions.len() - near_points;
     assert!(near_points > 4 * far_points, "{near_points} points near, {far_points} far");
+    assert_the_floor_is_closed(rt, world);
+}
+
+/// One polygon of two triangles receding from the camera: each triangle is split into pieces
+/// before it is diced, each piece at the rate its own distance asks, so that near the camera it is
+/// diced much finer than far (one rate for each whole triangle would dice the near half as its
+/// far half), and the floor stays closed.
+#[test]
+fn one_large_receding_polygon_is_diced_finer_near_and_stays_closed() {
+    let (near, far) = (1.0f32, 60.0f32);
+    let rib = format!(
+        "Format 96 64 1\nShadingRate 4\nProjection \"perspective\" \"fov\" [40]\n\
+         Rotate -6 1 0 0 Translate 0 -1 0\nWorldBegin\n\
+         Attribute \"displacementbound\" \"sphere\" [0.2] Displacement \"ridges\" Surface \"constant\"\n\
+         Polygon \"P\" [-20 0 {near}  -20 0 {far}  20 0 {far}  20 0 {near}]\nWorldEnd\n"
+    );
+    let (rt, world) = displaced_floor(&rib);
+    let mesh = world.scene.mesh(ObjectId(world.instances[0].object)).expect("the displaced mesh");
+    let nearest_tenth = near + (far - near) / 10.0;
+    let near_points = mesh.positions.iter().filter(|p| p.z < nearest_tenth).count();
+    let far_points = mesh.positions.iter().filter(|p| p.z >= far - (far - near) / 2.0).count();
+    assert!(near_points > 4 * far_points, "{near_points} points in the nearest tenth, {far_points} in the far half");
+    // Near the camera, micropolygons of 2 pixels: the 40 units across are seen 64 pixels wide
+    // from 2 units away, and cut into at least a hundred pieces.
+    let nearest: Vec<f32> =
+        mesh.positions.iter().filter(|p| p.z < near + 0.5 && p.x.abs() < 1.0).map(|p| p.x).collect();
+    assert!(nearest.len() > 50, "{} points by the camera", nearest.len());
+    assert_the_floor_is_closed(rt, world);
+}
+
+/// From the bottom row up each column of a frame of `world` is covered, then (past the floor's
+/// far edge) background, never covered again; and the floor covers a third of the frame.
+fn assert_the_floor_is_closed(mut rt: Context, world: rtsl_runtime::render::World) {
     let (fb, _) = rtsl_runtime::render::render_frame(&world, None);
     rt.return_scene(world);
     let (w, h) = (fb.width, fb.height);

@@ -396,8 +396,8 @@ impl Replicator {
     /// The instances `world` (which `rt` built) truly displaces and the displaced meshes not sent
     /// yet, where they changed since the last update.
     fn displaced(&mut self, rt: &Context, world: &World) -> Result<Option<Displaced>, ReplicaError> {
-        let rates: HashMap<u32, (&Arc<Mesh>, &[u32])> =
-            rt.displaced.placed().map(|(object, mesh, rates)| (object.0, (mesh, rates))).collect();
+        let placed: HashMap<u32, (&Arc<Mesh>, &[u32])> =
+            rt.displaced.placed().map(|(object, mesh, per_source)| (object.0, (mesh, per_source))).collect();
         let instances: Vec<(u32, u32)> = world
             .instances
             .iter()
@@ -413,7 +413,7 @@ impl Replicator {
             }
             let object = crate::scene::ObjectId(slot);
             let mesh = world.scene.mesh(object);
-            let Some((mesh, diced_at)) = rates.get(&slot).filter(|(m, _)| mesh.is_some_and(|w| Arc::ptr_eq(w, m)))
+            let Some((mesh, diced_at)) = placed.get(&slot).filter(|(m, _)| mesh.is_some_and(|w| Arc::ptr_eq(w, m)))
             else {
                 return Err(ReplicaError::Inconsistent(format!(
                     "displaced object {slot} is not the one the context displaced (a world of another context?)"
@@ -425,9 +425,7 @@ impl Replicator {
                     Some(data) => MeshSummary::of_tree(mesh, &data.bvh.bvh),
                     None => MeshSummary::of(mesh, ObjectBvh::build(mesh, BuildQuality::High).bvh.bounds),
                 };
-                // Rates stay within the ladder's finest, 1024.
-                let diced_at = diced_at.iter().map(|&r| u16::try_from(r).unwrap_or(u16::MAX)).collect();
-                meshes.push((slot, summary, diced_at));
+                meshes.push((slot, summary, diced_at.to_vec()));
             }
             sent.insert(slot, Arc::clone(mesh));
         }

@@ -93,6 +93,85 @@ pub fn diced_triangle_count_at(rates: &[u32]) -> Option<usize> {
 /// that they share its points. Rates of 0, and those of triangles past the end of `rates` or
 /// `edge_rates`, are 1. Errors as [`dice`].
 pub fn dice_at(mesh: &Mesh, rates: &[u32], edge_rates: &[[u32; 3]]) -> Result<Diced, MeshError> {
+    dice_blended(mesh, rates, edge_rates).map(|(diced, _)| diced)
+}
+
+/// A mesh cut into pieces to be diced again ([`split_at`]), so that one large source triangle
+/// can be diced finely where it is seen near and coarsely where far: a first dicing whose
+/// triangles are the pieces, with where each piece's corners lie on its source triangle.
+#[derive(Clone, Debug)]
+pub struct Pieces {
+    /// The pieces as a mesh ([`dice_at`]'s result): `of_triangle` names each one's source
+    /// triangle.
+    pub diced: Diced,
+    /// Per piece: hit coordinates of its three corners on its source triangle.
+    corners: Vec<[[f32; 2]; 3]>,
+}
+
+/// Cuts `mesh` into pieces as [`dice_at`] dices it, keeping where each piece lies on its source
+/// triangle, for [`Pieces::compose`]. Errors as [`dice`].
+pub fn split_at(mesh: &Mesh, rates: &[u32], edge_rates: &[[u32; 3]]) -> Result<Pieces, MeshError> {
+    let (mut diced, blends) = dice_blended(mesh, rates, edge_rates)?;
+    // Pieces folded to no area along coarser edges (two corners one vertex) go: diced again,
+    // their folded edge's points would be distinct vertices at one place, and the dicing's edges
+    // shared three ways. The rest still cover the source, closed where it is.
+    let folded = |t: &[u32; 3]| t[0] == t[1] || t[1] == t[2] || t[2] == t[0];
+    if diced.mesh.triangles.iter().any(folded) {
+        let kept: Vec<bool> = diced.mesh.triangles.iter().map(|t| !folded(t)).collect();
+        let mut keep = kept.iter();
+        diced.of_triangle.retain(|_| keep.next().copied().unwrap_or(false));
+        diced.mesh.triangles.retain(|t| !folded(t));
+    }
+    let corners = diced
+        .mesh
+        .triangles
+        .iter()
+        .zip(&diced.of_triangle)
+        .map(|(piece, &t)| {
+            let tri = mesh.triangles.get(t as usize).copied().unwrap_or([u32::MAX; 3]);
+            let corner_uv = |v: u32| tri.iter().position(|&c| c == v).map(|k| CORNER_UV[k]);
+            piece.map(|w| {
+                let own = diced.origins.get(w as usize).map_or([0.0; 2], |o| [o.u, o.v]);
+                // A vertex inside the source triangle is its own; one on a corner or an edge may
+                // have been made by a neighbour, and its coordinates here are worked out again.
+                let on_this = match blends.get(w as usize) {
+                    Some(Blend::Corner(v)) => corner_uv(*v),
+                    Some(Blend::Edge { lo, hi, t }) => corner_uv(*lo)
+                        .zip(corner_uv(*hi))
+                        .map(|(a, b)| [a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t]),
+                    Some(Blend::Inside { .. }) | None => None,
+                };
+                on_this.unwrap_or(own)
+            })
+        })
+        .collect();
+    Ok(Pieces { diced, corners })
+}
+
+impl Pieces {
+    /// A dicing of the pieces' mesh (`diced`, made by [`dice_at`] from `self.diced.mesh`) as a
+    /// dicing of the source mesh: each vertex's origin and each triangle's source triangle taken
+    /// back through the pieces.
+    pub fn compose(&self, diced: Diced) -> Diced {
+        let Diced { mesh, origins, of_triangle } = diced;
+        let pieces = &self.diced.of_triangle;
+        let origins = origins
+            .into_iter()
+            .map(|o| {
+                let p = o.triangle as usize;
+                let (Some(&triangle), Some(c)) = (pieces.get(p), self.corners.get(p)) else { return o };
+                let w = [1.0 - o.u - o.v, o.u, o.v];
+                let at = |axis: usize| w[0] * c[0][axis] + w[1] * c[1][axis] + w[2] * c[2][axis];
+                DicedVertex { triangle, u: at(0), v: at(1) }
+            })
+            .collect();
+        let of_triangle = of_triangle.into_iter().map(|p| pieces.get(p as usize).copied().unwrap_or(p)).collect();
+        Diced { mesh, origins, of_triangle }
+    }
+}
+
+/// [`dice_at`], with how each diced vertex was made from the source's.
+fn dice_blended(mesh: &Mesh, rates: &[u32], edge_rates: &[[u32; 3]]) -> Result<(Diced, Vec<Blend>), MeshError> {
     mesh.validate()?;
     let rate_of = |t: usize| rates.get(t).copied().unwrap_or(1).max(1);
     let triangle_rates: Vec<u32> = (0..mesh.triangles.len()).map(rate_of).collect();
@@ -172,7 +251,7 @@ pub fn dice_at(mesh: &Mesh, rates: &[u32], edge_rates: &[[u32; 3]]) -> Result<Di
         deformation,
     };
     diced.validate()?;
-    Ok(Diced { mesh: diced, origins, of_triangle })
+    Ok((Diced { mesh: diced, origins, of_triangle }, blends))
 }
 
 /// An index not yet given (an unused vertex, an edge whose points are not yet made).
@@ -838,5 +917,59 @@ mod tests {
         let inside = uses.iter().filter(|(&(a, b), _)| uses.contains_key(&(b, a))).count();
         // Only the rim, 3 diced edges per spoke, is open.
         assert_eq!(uses.len() - inside, 3 * spokes as usize);
+    }
+
+    /// Pieces diced again, taken back through the pieces, are a dicing of the source: closed
+    /// where it is closed, each vertex its origin on the source interpolated, each triangle inside
+    /// its source triangle, with the pieces' and their dicing's rates differing from triangle to
+    /// triangle.
+    #[test]
+    fn pieces_diced_again_are_a_dicing_of_the_source() {
+        for source in [welded(&Mesh::cuboid(Vec3::ZERO, Vec3::new(1.0, 2.0, 3.0))), irregular()] {
+            let count = source.triangles.len();
+            let split: Vec<u32> = (0..count).map(|t| [1, 2, 3][t % 3]).collect();
+            let split_edges: Vec<[u32; 3]> = split.iter().map(|&k| [k; 3]).collect();
+            let pieces = split_at(&source, &split, &split_edges).unwrap();
+            let pieces_count = pieces.diced.mesh.triangles.len();
+            let rates: Vec<u32> = (0..pieces_count).map(|p| [2, 1, 4, 3][p % 4]).collect();
+            let edge_rates: Vec<[u32; 3]> = rates.iter().map(|&r| [r, r.div_ceil(2), r]).collect();
+            let again = dice_at(&pieces.diced.mesh, &rates, &edge_rates).unwrap();
+            let composed = pieces.compose(again.clone());
+            assert_eq!(composed.mesh, again.mesh);
+            let closed = directed_edges(&source).keys().all(|&(a, b)| directed_edges(&source).contains_key(&(b, a)));
+            if closed {
+                // Triangles folded to no area along coarser edges (two corners one vertex) aside.
+                let mut proper = composed.mesh.clone();
+                proper.triangles.retain(|t| t[0] != t[1] && t[1] != t[2] && t[2] != t[0]);
+                let uses = directed_edges(&proper);
+                assert!(uses.iter().all(|(&(a, b), &n)| n == 1 && uses.get(&(b, a)) == Some(&1)), "open");
+            }
+            for (k, o) in composed.origins.iter().enumerate() {
+                let tri = source.triangles[o.triangle as usize].map(|v| source.positions[v as usize]);
+                let w = [1.0 - o.u - o.v, o.u, o.v];
+                assert!(w.iter().all(|&w| (-1e-5..=1.0 + 1e-5).contains(&w)), "vertex {k}: {o:?}");
+                let at = tri[0] * w[0] + tri[1] * w[1] + tri[2] * w[2];
+                let there = composed.mesh.positions[k];
+                assert!((at - there).length() <= 1e-5 * at.length().max(1.0), "vertex {k}: {at} for {there}");
+            }
+            for (k, t) in composed.mesh.triangles.iter().enumerate() {
+                let from = composed.of_triangle[k];
+                assert_eq!(from, pieces.diced.of_triangle[again.of_triangle[k] as usize]);
+                // Every corner lies on the source triangle it came from.
+                let [a, b, c] = source.triangles[from as usize].map(|v| source.positions[v as usize]);
+                let normal = (b - a).cross(c - a).normalize();
+                for &v in t {
+                    let off = (composed.mesh.positions[v as usize] - a).dot(normal);
+                    assert!(off.abs() <= 1e-5, "triangle {k} leaves its source {from} by {off}");
+                }
+            }
+            // Source triangle t makes the sum of its pieces' rates squared.
+            for t in 0..count as u32 {
+                let made = composed.of_triangle.iter().filter(|&&f| f == t).count();
+                let asked: u32 =
+                    (0..pieces_count).filter(|&p| pieces.diced.of_triangle[p] == t).map(|p| rates[p].pow(2)).sum();
+                assert_eq!(made, asked as usize, "source triangle {t}");
+            }
+        }
     }
 }

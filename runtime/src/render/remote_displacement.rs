@@ -22,8 +22,9 @@ use std::sync::Arc;
 /// Context objects are fetched by their index, which stays below it.
 pub const DISPLACED_MESH_KEY: u32 = 1 << 31;
 
-/// The finest dicing rate a master uses: a rate above it is a damaged update.
-const FINEST_RATE: u32 = super::true_displacement::DICING_RATES[super::true_displacement::DICING_RATES.len() - 1];
+/// The most triangles a master dices one source triangle into: a count above it is a damaged
+/// update.
+const MOST_PER_SOURCE: u32 = super::true_displacement::MAX_DICED_TRIANGLES as u32;
 
 /// What a demand-loading replica knows of its master's displaced meshes, kept from update to
 /// update: which instances are displaced and into what, and the scene objects standing for the
@@ -43,15 +44,15 @@ pub struct RemoteDisplacements {
 
 struct RemoteMesh {
     summary: MeshSummary,
-    /// The rates its source mesh's triangles were diced at: each made `rate * rate`.
-    rates: Vec<u16>,
+    /// How many of its triangles each of its source mesh's triangles was diced into.
+    per_source: Vec<u32>,
     /// The object standing for it here, once placed.
     object: Option<ObjectId>,
 }
 
 /// A displaced mesh as an update announces it: the master's scene object, the mesh's summary and
-/// the rate each source triangle was diced at.
-pub type AnnouncedMesh = (u32, MeshSummary, Vec<u16>);
+/// how many of its triangles each source triangle was diced into (they come in source order).
+pub type AnnouncedMesh = (u32, MeshSummary, Vec<u32>);
 
 impl RemoteDisplacements {
     /// Whether no instance is displaced and nothing is left to let go.
@@ -61,16 +62,16 @@ impl RemoteDisplacements {
 
     /// Takes an update's displaced instances (all of them) and the displaced meshes new since the
     /// last update. A mesh no instance uses any more is let go. Errors name what does not hold
-    /// together (an instance of a mesh never announced, an impossible rate).
+    /// together (an instance of a mesh never announced, an impossible count).
     pub fn update(&mut self, instances: Vec<(u32, u32)>, meshes: Vec<AnnouncedMesh>) -> Result<(), String> {
-        for (slot, summary, rates) in meshes {
-            if let Some(rate) = rates.iter().find(|&&r| !(1..=FINEST_RATE).contains(&u32::from(r))) {
-                return Err(format!("displaced mesh {slot}: a dicing rate of {rate}"));
+        for (slot, summary, per_source) in meshes {
+            if let Some(count) = per_source.iter().find(|&&n| n > MOST_PER_SOURCE) {
+                return Err(format!("displaced mesh {slot}: {count} triangles diced from one"));
             }
-            let diced: u64 = rates.iter().map(|&r| u64::from(r) * u64::from(r)).sum();
+            let diced: u64 = per_source.iter().map(|&n| u64::from(n)).sum();
             if diced != u64::from(summary.triangles) {
                 return Err(format!(
-                    "displaced mesh {slot}: {} triangles, where its rates make {diced}",
+                    "displaced mesh {slot}: {} triangles, where its source triangles make {diced}",
                     summary.triangles
                 ));
             }
@@ -78,7 +79,7 @@ impl RemoteDisplacements {
                 return Err(format!("displaced mesh {slot}: no such scene object"));
             }
             let object = self.meshes.remove(&slot).and_then(|m| m.object);
-            self.meshes.insert(slot, RemoteMesh { summary, rates, object });
+            self.meshes.insert(slot, RemoteMesh { summary, per_source, object });
         }
         if let Some(&(instance, slot)) = instances.iter().find(|(_, slot)| !self.meshes.contains_key(slot)) {
             return Err(format!("instance {instance}: displaced mesh {slot} was never sent"));
@@ -149,16 +150,16 @@ pub fn place_remote(
         if inst.displaced {
             return Err(format!("instance {index}: displaced here and by the master"));
         }
-        if source_triangles != mesh.rates.len() {
+        if source_triangles != mesh.per_source.len() {
             return Err(format!(
                 "instance {index}: a displaced mesh diced from {} triangles for {source_triangles}",
-                mesh.rates.len()
+                mesh.per_source.len()
             ));
         }
         world.scene.set_instance_object(index, object).map_err(|e| e.to_string())?;
         inst.object = object.0;
         inst.displaced = true;
-        inst.parts = inst.parts.take().map(|parts| diced_parts(&parts, &mesh.rates));
+        inst.parts = inst.parts.take().map(|parts| diced_parts(&parts, &mesh.per_source));
         changed = true;
     }
     if changed {
@@ -167,11 +168,10 @@ pub fn place_remote(
     Ok(())
 }
 
-/// The parts of a mesh diced at `rates` (each source triangle made `rate * rate`): each diced
-/// triangle in its source triangle's part.
-fn diced_parts(parts: &InstanceParts, rates: &[u16]) -> InstanceParts {
-    let per = |r: u16| usize::from(r) * usize::from(r);
-    let of = parts.of_triangle.iter().zip(rates).flat_map(|(&p, &r)| std::iter::repeat_n(p, per(r))).collect();
+/// The parts of a mesh whose source triangles were diced into `per_source` triangles each, in
+/// source order: each diced triangle in its source triangle's part.
+fn diced_parts(parts: &InstanceParts, per_source: &[u32]) -> InstanceParts {
+    let of = parts.of_triangle.iter().zip(per_source).flat_map(|(&p, &n)| std::iter::repeat_n(p, n as usize)).collect();
     InstanceParts { of_triangle: of, materials: parts.materials.clone() }
 }
 
@@ -190,21 +190,23 @@ mod tests {
         let mut remote = RemoteDisplacements::default();
         let err = remote.update(vec![(0, 7)], vec![]).expect_err("never announced");
         assert!(err.contains("displaced mesh 7 was never sent"), "{err}");
-        remote.update(vec![(0, 7), (3, 7)], vec![(7, summary(4), vec![2])]).expect("announced");
+        remote.update(vec![(0, 7), (3, 7)], vec![(7, summary(4), vec![4])]).expect("announced");
         // Announced before: the next update need not send it again.
         remote.update(vec![(1, 7)], vec![]).expect("sent before");
         assert!(!remote.is_empty());
     }
 
     #[test]
-    fn impossible_rates_and_keys_are_errors() {
+    fn impossible_counts_and_keys_are_errors() {
         let mut remote = RemoteDisplacements::default();
-        for rate in [0, FINEST_RATE as u16 + 1, u16::MAX] {
-            let err = remote.update(vec![], vec![(1, summary(1), vec![rate])]).expect_err("a bad rate");
-            assert!(err.contains("dicing rate"), "{err}");
+        for count in [MOST_PER_SOURCE + 1, u32::MAX] {
+            let err = remote.update(vec![], vec![(1, summary(1), vec![count])]).expect_err("a bad count");
+            assert!(err.contains("triangles diced from one"), "{err}");
         }
-        let err = remote.update(vec![], vec![(1, summary(5), vec![2])]).expect_err("rates of another size");
-        assert!(err.contains("5 triangles, where its rates make 4"), "{err}");
+        let err = remote.update(vec![], vec![(1, summary(5), vec![4])]).expect_err("counts of another sum");
+        assert!(err.contains("5 triangles, where its source triangles make 4"), "{err}");
+        let err = remote.update(vec![], vec![(1, summary(5), vec![u32::MAX, u32::MAX])]).expect_err("overflowing");
+        assert!(err.contains("triangles diced from one"), "{err}");
         let err = remote.update(vec![], vec![(DISPLACED_MESH_KEY | 1, summary(1), vec![1])]).expect_err("a bad object");
         assert!(err.contains("no such scene object"), "{err}");
     }
@@ -212,7 +214,7 @@ mod tests {
     #[test]
     fn meshes_no_instance_uses_are_let_go() {
         let mut remote = RemoteDisplacements::default();
-        remote.update(vec![(0, 1), (1, 2)], vec![(1, summary(1), vec![1]), (2, summary(4), vec![2])]).expect("two");
+        remote.update(vec![(0, 1), (1, 2)], vec![(1, summary(1), vec![1]), (2, summary(4), vec![3, 1])]).expect("two");
         // Placed here as objects 5 and 6.
         remote.meshes.get_mut(&1).expect("mesh 1").object = Some(ObjectId(5));
         remote.meshes.get_mut(&2).expect("mesh 2").object = Some(ObjectId(6));

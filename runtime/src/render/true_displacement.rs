@@ -5,7 +5,9 @@
 //! its mesh diced (`geometry::dice`): every triangle cut into `n * n` and every edge into `e`
 //! pieces, each rate chosen so that where the camera sees the triangle (or edge) nearest, a
 //! micropolygon's edges are about the square root of its `ShadingRate` in pixels, within a
-//! triangle budget: near triangles finely, far ones coarsely, edges shared at one rate. The displacement shader then runs once at
+//! triangle budget: near triangles finely, far ones coarsely, edges shared at one rate. A triangle
+//! much nearer the camera at one end than at the other (a floor running to the horizon) is first
+//! split into pieces (`dice::split_at`), each then diced at the rate its own distance asks. The displacement shader then runs once at
 //! every diced point, as at a hit there (the same globals and parameters; derivatives over the
 //! dicing's own spacing), and the points and normals it leaves make a new mesh, which the
 //! instance is traced and shaded as: silhouettes, shadows and reflections see the displaced
@@ -27,7 +29,7 @@ use super::jobs::JobRows;
 use super::ray_budget::RayBudget;
 use super::work::{Frame, Pending};
 use super::world::{InstanceParts, InstanceShading, Material, World};
-use crate::geometry::dice::{dice_at, diced_triangle_count_at, Diced, DicedVertex};
+use crate::geometry::dice::{dice_at, diced_triangle_count_at, split_at, Diced, DicedVertex, Pieces};
 use crate::geometry::{Attribute, Deformation, Mesh};
 use crate::ray::{Hit, Ray, PACKET_SIZE};
 use crate::scene::ObjectId;
@@ -66,10 +68,10 @@ impl DisplacedMeshes {
         self.len() == 0
     }
 
-    /// The displaced meshes of the last world: each one's scene object, its mesh and the rates its
-    /// source's triangles were diced at (each source triangle made `rate * rate`).
+    /// The displaced meshes of the last world: each one's scene object, its mesh and how many of
+    /// its triangles each source triangle was diced into (they come in source order).
     pub fn placed(&self) -> impl Iterator<Item = (ObjectId, &Arc<Mesh>, &[u32])> {
-        self.kept.iter().filter_map(|k| k.displaced.as_ref().map(|m| (m.object, &m.mesh, &k.key.rates.triangles[..])))
+        self.kept.iter().filter_map(|k| k.displaced.as_ref().map(|m| (m.object, &m.mesh, &m.per_source[..])))
     }
 }
 
@@ -87,6 +89,8 @@ struct Moved {
     object: ObjectId,
     mesh: Arc<Mesh>,
     of_triangle: Arc<[u32]>,
+    /// Per source triangle: how many triangles of `mesh` it was diced into.
+    per_source: Vec<u32>,
 }
 
 impl Kept {
@@ -113,9 +117,12 @@ struct Key {
 /// The rates one instance's mesh is diced at (see [`dice_at`]).
 #[derive(Clone, Debug, PartialEq)]
 struct Rates {
-    /// Per source triangle.
+    /// Per source triangle: the rate it is first split at ([`split_at`]), into pieces each diced
+    /// at a rate of its own; empty where no triangle is split (each is diced whole).
+    split: Vec<u32>,
+    /// Per triangle diced: per piece where triangles are split, else per source triangle.
     triangles: Vec<u32>,
-    /// Per source triangle's edge, in [`dice_at`]'s order (`[a-b, b-c, c-a]`).
+    /// Per edge of each triangle diced, in [`dice_at`]'s order (`[a-b, b-c, c-a]`).
     edges: Vec<[u32; 3]>,
 }
 
@@ -125,15 +132,11 @@ impl Rates {
         diced_triangle_count_at(&self.triangles).unwrap_or(usize::MAX)
     }
 
-    /// Every rate times `scale` (below 1), down to the ladder, never below 1: about `scale^2` as
-    /// many triangles.
+    /// Every dicing rate (the split kept) times `scale` (below 1), down to the ladder, never
+    /// below 1: about `scale^2` as many triangles.
     fn scale(&mut self, scale: f64) {
-        let down = |r: &mut u32| {
-            let fits = f64::from(*r) * scale;
-            *r = DICING_RATES.iter().rev().copied().find(|&r| f64::from(r) <= fits).unwrap_or(1);
-        };
-        self.triangles.iter_mut().for_each(down);
-        self.edges.iter_mut().flatten().for_each(down);
+        scale_rates(self.triangles.iter_mut(), scale);
+        scale_rates(self.edges.iter_mut().flatten(), scale);
     }
 }
 
@@ -181,7 +184,7 @@ enum Planned {
     /// The one kept from the last frame, at this index.
     Kept(usize),
     /// Made now.
-    New(Kept),
+    New(Box<Kept>),
 }
 
 /// Displaces the geometry of every instance of `world` whose material asks for it (see the
@@ -203,8 +206,8 @@ pub fn displace_world(world: &mut World, kept: &mut DisplacedMeshes) -> Vec<Stri
     {
         let world = &*world;
         let frame = Frame::new(world);
-        // Each instance's mesh and the rate it asks for.
-        let mut rated: Vec<(usize, Arc<Mesh>, Rates)> = Vec::with_capacity(wanted.len());
+        // Each instance's mesh, the rate it asks for and the pieces it is split into first.
+        let mut rated: Vec<(usize, Arc<Mesh>, Rates, Option<Pieces>)> = Vec::with_capacity(wanted.len());
         for &i in &wanted {
             let inst = &world.instances[i];
             let id = ObjectId(inst.object);
@@ -216,16 +219,16 @@ pub fn displace_world(world: &mut World, kept: &mut DisplacedMeshes) -> Vec<Stri
             if mesh.triangles.is_empty() {
                 continue;
             }
-            let rates = dicing_rates(&frame, inst, &mesh);
-            rated.push((i, mesh, rates));
+            let (rates, pieces) = dicing_rates(&frame, inst, &mesh);
+            rated.push((i, mesh, rates, pieces));
         }
-        if let Some(asked) = fit_world_budget(&mut rated) {
+        if let Some(asked) = fit_world_budget(&mut rated.iter_mut().map(|r| &mut r.2).collect::<Vec<_>>()) {
             warnings.push(format!(
                 "true displacement: the scene's displaced objects would make {asked} triangles, more than \
                  {MAX_WORLD_DICED_TRIANGLES}; they are diced coarser than their shading rates ask"
             ));
         }
-        for (i, mesh, rates) in rated {
+        for (i, mesh, rates, pieces) in rated {
             let inst = &world.instances[i];
             let count = rates.count();
             let key = key_of(world, inst, mesh.clone(), rates);
@@ -242,19 +245,33 @@ pub fn displace_world(world: &mut World, kept: &mut DisplacedMeshes) -> Vec<Stri
                 ));
                 continue;
             }
-            let diced = match dice_at(&mesh, &key.rates.triangles, &key.rates.edges) {
+            let diced_from = pieces.as_ref().map_or(&*mesh, |p| &p.diced.mesh);
+            let diced = match dice_at(diced_from, &key.rates.triangles, &key.rates.edges) {
                 Ok(d) => d,
                 Err(e) => {
                     warnings.push(format!("true displacement: object {} cannot be diced: {e}", describe(world, inst)));
                     continue;
                 }
             };
+            let spacing = dicing_spacing(inst, diced_from, &key.rates.triangles, &diced.origins);
+            let diced = match &pieces {
+                Some(p) => p.compose(diced),
+                None => diced,
+            };
             total += count;
-            let moved = displaced_mesh(&frame, (i as u32, inst), (&mesh, diced, &key.rates.triangles));
+            let moved = displaced_mesh(&frame, (i as u32, inst), (diced, &spacing));
             built += usize::from(moved.is_some());
             // The object is found when the scene can be changed, below.
-            let displaced = moved.map(|(mesh, of_triangle)| Moved { object: ObjectId(u32::MAX), mesh, of_triangle });
-            plans.push((i, Planned::New(Kept { key, displaced, triangles: count })));
+            let displaced = moved.map(|(displaced, of_triangle)| {
+                let mut per_source = vec![0u32; mesh.triangles.len()];
+                for &t in of_triangle.iter() {
+                    if let Some(n) = per_source.get_mut(t as usize) {
+                        *n += 1;
+                    }
+                }
+                Moved { object: ObjectId(u32::MAX), mesh: displaced, of_triangle, per_source }
+            });
+            plans.push((i, Planned::New(Box::new(Kept { key, displaced, triangles: count }))));
         }
     }
     // The kept entries no plan takes give their objects back.
@@ -294,7 +311,7 @@ pub fn displace_world(world: &mut World, kept: &mut DisplacedMeshes) -> Vec<Stri
                         _ => world.scene.add_object(m.mesh.clone()),
                     };
                 }
-                reused.push(Some(entry));
+                reused.push(Some(*entry));
                 reused.len() - 1
             }
         };
@@ -320,14 +337,14 @@ pub fn displace_world(world: &mut World, kept: &mut DisplacedMeshes) -> Vec<Stri
 /// Over the world's budget, lowers every instance's rate alike (each to the finest rate of the
 /// ladder at most its rate times the same factor) so that their diced triangles fit, rather than
 /// leaving the last ones bump-mapped; returns the triangles they asked for where it did.
-fn fit_world_budget(rated: &mut [(usize, Arc<Mesh>, Rates)]) -> Option<usize> {
-    let asked = rated.iter().map(|(_, _, rates)| rates.count()).fold(0usize, usize::saturating_add);
+fn fit_world_budget(rated: &mut [&mut Rates]) -> Option<usize> {
+    let asked = rated.iter().map(|rates| rates.count()).fold(0usize, usize::saturating_add);
     if asked <= MAX_WORLD_DICED_TRIANGLES {
         return None;
     }
     // Triangles go with the square of the rate.
     let scale = (MAX_WORLD_DICED_TRIANGLES as f64 / asked as f64).sqrt();
-    for (_, _, rates) in rated.iter_mut() {
+    for rates in rated.iter_mut() {
         rates.scale(scale);
     }
     Some(asked)
@@ -364,57 +381,209 @@ fn diced_parts(parts: &InstanceParts, of_triangle: &[u32]) -> InstanceParts {
     InstanceParts { of_triangle: of, materials: parts.materials.clone() }
 }
 
-/// The rates `mesh` (placed by `inst`) is diced at: each triangle's longest edge, where the
-/// camera sees the triangle nearest, cut into pieces about `sqrt(ShadingRate)` pixels long (the
-/// finest any truly displacing material of the instance asks for), and each edge likewise where
-/// the camera sees it nearest (so never finer than its triangles); all lowered alike to keep the
-/// object within [`MAX_DICED_TRIANGLES`].
-fn dicing_rates(frame: &Frame, inst: &InstanceShading, mesh: &Mesh) -> Rates {
-    /// A triangle's edges as pairs of its corners, in [`dice_at`]'s order.
-    const EDGES: [[usize; 2]; 3] = [[0, 1], [1, 2], [2, 0]];
-    let world = frame.world;
-    let shading_rate = inst
-        .materials()
-        .filter_map(|m| world.materials.get(m as usize))
-        .filter(|m| truly_displaces(Some(m)))
-        .map(|m| m.shading_rate)
-        .fold(f32::INFINITY, f32::min);
-    let piece = if shading_rate.is_finite() && shading_rate > 0.0 { shading_rate.sqrt() } else { 1.0 };
-    let eye = world.camera.eye();
-    let spread = frame.pixel_spread.max(1e-9);
-    let xf = inst.world_from_object;
+/// The most pieces one object's triangles are split into before they are diced ([`split_at`]):
+/// split rates are lowered alike to fit.
+pub const MAX_SPLIT_PIECES: usize = 1 << 16;
+
+/// The finest rate a triangle is split at before it is diced.
+pub const FINEST_SPLIT: u32 = 128;
+
+/// The first rate of the dicing ladder at least `pieces` (the finest where none is).
+fn ladder(pieces: f32) -> u32 {
     let finest = DICING_RATES[DICING_RATES.len() - 1];
-    // The first rate of the ladder that cuts `length`, seen from `distance`, into pieces.
-    let rate = |length: f32, distance: f32| {
-        let pieces = length / (distance.max(1e-6) * spread) / piece;
-        match pieces.is_finite() {
-            true => DICING_RATES.iter().copied().find(|&r| r as f32 >= pieces).unwrap_or(finest),
-            false => finest,
-        }
-    };
-    let per_triangle: Vec<(u32, [u32; 3])> = mesh
-        .triangles
-        .par_iter()
-        .map(|t| {
-            let c = t.map(|k| {
-                xf.transform_point3a(Vec3A::from(mesh.positions.get(k as usize).copied().unwrap_or(Vec3::ZERO)))
-            });
-            let distance = c.map(|p| (p - eye).length());
-            let lengths = EDGES.map(|[p, q]| (c[p] - c[q]).length());
-            let edges = [0, 1, 2].map(|k| rate(lengths[k], distance[EDGES[k][0]].min(distance[EDGES[k][1]])));
-            let longest = lengths.into_iter().fold(0.0, f32::max);
-            let nearest = distance.into_iter().fold(f32::INFINITY, f32::min);
-            let inside = rate(longest, nearest).max(edges[0]).max(edges[1]).max(edges[2]);
-            (inside, edges)
+    match pieces.is_finite() {
+        true => DICING_RATES.iter().copied().find(|&r| r as f32 >= pieces).unwrap_or(finest),
+        false => finest,
+    }
+}
+
+/// Every rate of `rates` times `scale` (below 1), down to the ladder, never below 1: about
+/// `scale^2` as many triangles.
+fn scale_rates<'r>(rates: impl Iterator<Item = &'r mut u32>, scale: f64) {
+    for r in rates {
+        let fits = f64::from(*r) * scale;
+        *r = DICING_RATES.iter().rev().copied().find(|&r| f64::from(r) <= fits).unwrap_or(1);
+    }
+}
+
+/// How the camera sees one instance's triangles, for their dicing rates.
+struct Ruler {
+    eye: Vec3A,
+    /// The angle one pixel spans (radians, at least a tiny one).
+    spread: f32,
+    /// A micropolygon's edge in pixels: `sqrt(ShadingRate)`, the finest any truly displacing
+    /// material of the instance asks for.
+    piece: f32,
+    xf: glam::Affine3A,
+}
+
+impl Ruler {
+    fn of(frame: &Frame, inst: &InstanceShading) -> Ruler {
+        let world = frame.world;
+        let shading_rate = inst
+            .materials()
+            .filter_map(|m| world.materials.get(m as usize))
+            .filter(|m| truly_displaces(Some(m)))
+            .map(|m| m.shading_rate)
+            .fold(f32::INFINITY, f32::min);
+        let piece = if shading_rate.is_finite() && shading_rate > 0.0 { shading_rate.sqrt() } else { 1.0 };
+        Ruler { eye: world.camera.eye(), spread: frame.pixel_spread.max(1e-9), piece, xf: inst.world_from_object }
+    }
+
+    /// How many micropolygon edges `length` makes, seen from `distance` (infinite where the eye
+    /// is on it).
+    fn pieces(&self, length: f32, distance: f32) -> f32 {
+        length / (distance.max(1e-6) * self.spread) / self.piece
+    }
+
+    /// Triangle `tri` of `mesh` in world space.
+    fn corners(&self, mesh: &Mesh, tri: &[u32; 3]) -> [Vec3A; 3] {
+        tri.map(|k| {
+            self.xf.transform_point3a(Vec3A::from(mesh.positions.get(k as usize).copied().unwrap_or(Vec3::ZERO)))
         })
-        .collect();
-    let (triangles, edges) = per_triangle.into_iter().unzip();
-    let mut rates = Rates { triangles, edges };
+    }
+
+    /// Per triangle of `mesh`: the rate its pieces are diced at.
+    fn rates(&self, mesh: &Mesh) -> (Vec<u32>, Vec<[u32; 3]>) {
+        /// A triangle's edges as pairs of its corners, in [`dice_at`]'s order.
+        const EDGES: [[usize; 2]; 3] = [[0, 1], [1, 2], [2, 0]];
+        mesh.triangles
+            .par_iter()
+            .map(|t| {
+                let c = self.corners(mesh, t);
+                let lengths = EDGES.map(|[p, q]| (c[p] - c[q]).length());
+                let edges = EDGES.map(|[p, q]| distance_to_segment(self.eye, c[p], c[q]));
+                let edges = [0, 1, 2].map(|k| ladder(self.pieces(lengths[k], edges[k])));
+                let longest = lengths.into_iter().fold(0.0, f32::max);
+                let inside = ladder(self.pieces(longest, distance_to_triangle(self.eye, c)));
+                (inside.max(edges[0]).max(edges[1]).max(edges[2]), edges)
+            })
+            .unzip()
+    }
+
+    /// Per triangle of `mesh`: the rate it is split at before dicing, so that over each piece the
+    /// distance to the eye changes by about its nearest or less, and each piece can be diced at
+    /// one rate. A triangle whose far end is not much farther than its near one, or that is diced
+    /// coarsely anyway, stays whole (rate 1).
+    fn splits(&self, mesh: &Mesh) -> Vec<u32> {
+        let mut splits: Vec<u32> = mesh
+            .triangles
+            .par_iter()
+            .map(|t| {
+                let c = self.corners(mesh, t);
+                let longest =
+                    [(c[0] - c[1]), (c[1] - c[2]), (c[2] - c[0])].iter().map(|e| e.length()).fold(0.0, f32::max);
+                let nearest = distance_to_triangle(self.eye, c);
+                let deep = longest / nearest.max(1e-6);
+                let split = deep.min(self.pieces(longest, nearest) / 4.0);
+                if split >= 2.0 {
+                    ladder(split).min(FINEST_SPLIT)
+                } else {
+                    1
+                }
+            })
+            .collect();
+        let count = diced_triangle_count_at(&splits).unwrap_or(usize::MAX);
+        if count > MAX_SPLIT_PIECES {
+            scale_rates(splits.iter_mut(), (MAX_SPLIT_PIECES as f64 / count as f64).sqrt());
+        }
+        splits
+    }
+}
+
+/// The rates `mesh` (placed by `inst`) is diced at, and the pieces it is split into first where
+/// some of its triangles are much nearer the camera at one end than at the other: each triangle
+/// diced (each piece, where split) cut so that its longest edge, where the camera sees the
+/// triangle nearest, makes pieces about `sqrt(ShadingRate)` pixels long (the finest any truly
+/// displacing material of the instance asks for), and each edge likewise where the camera sees it
+/// nearest (so never finer than its triangles); all lowered alike to keep the object within
+/// [`MAX_DICED_TRIANGLES`].
+fn dicing_rates(frame: &Frame, inst: &InstanceShading, mesh: &Mesh) -> (Rates, Option<Pieces>) {
+    let ruler = Ruler::of(frame, inst);
+    let splits = ruler.splits(mesh);
+    let pieces = match splits.iter().any(|&k| k > 1) {
+        true => {
+            let edges: Vec<[u32; 3]> = splits.iter().map(|&k| [k; 3]).collect();
+            split_at(mesh, &splits, &edges).ok()
+        }
+        false => None,
+    };
+    let (triangles, edges) = ruler.rates(pieces.as_ref().map_or(mesh, |p| &p.diced.mesh));
+    let split = if pieces.is_some() { splits } else { Vec::new() };
+    let mut rates = Rates { split, triangles, edges };
     let asked = rates.count();
     if asked > MAX_DICED_TRIANGLES {
         rates.scale((MAX_DICED_TRIANGLES as f64 / asked as f64).sqrt());
     }
-    rates
+    (rates, pieces)
+}
+
+/// The distance from `p` to the nearest point of segment `a`-`b`.
+fn distance_to_segment(p: Vec3A, a: Vec3A, b: Vec3A) -> f32 {
+    let ab = b - a;
+    let along = ab.dot(p - a) / ab.length_squared();
+    let t = if along.is_finite() { along.clamp(0.0, 1.0) } else { 0.0 };
+    (p - (a + ab * t)).length()
+}
+
+/// The distance from `p` to the nearest point of triangle `[a, b, c]`: by the region of the
+/// triangle's plane `p` projects into (a corner's, an edge's or the inside), as in Ericson's
+/// *Real-Time Collision Detection*, 5.1.5; a triangle of no area by its edges.
+fn distance_to_triangle(p: Vec3A, [a, b, c]: [Vec3A; 3]) -> f32 {
+    let (ab, ac, ap) = (b - a, c - a, p - a);
+    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return ap.length();
+    }
+    let bp = p - b;
+    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return bp.length();
+    }
+    let cp = p - c;
+    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return cp.length();
+    }
+    let (va, vb, vc) = (d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2);
+    let on_edge = if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        Some(distance_to_segment(p, a, b))
+    } else if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        Some(distance_to_segment(p, a, c))
+    } else if va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0 {
+        Some(distance_to_segment(p, b, c))
+    } else {
+        None
+    };
+    let inside = || {
+        let sum = va + vb + vc;
+        let (v, w) = (vb / sum, vc / sum);
+        (p - (a + ab * v + ac * w)).length()
+    };
+    match on_edge.unwrap_or_else(inside) {
+        d if d.is_finite() => d,
+        _ => distance_to_segment(p, a, b).min(distance_to_segment(p, b, c)).min(distance_to_segment(p, c, a)),
+    }
+}
+
+/// Per vertex of a dicing (`origins`, on the triangles of `diced_from` diced at `rates`): the
+/// spacing of the dicing there in world units, the step of the displacement shader's derivatives:
+/// the longest edge of the triangle it was diced from over that triangle's rate.
+fn dicing_spacing(inst: &InstanceShading, diced_from: &Mesh, rates: &[u32], origins: &[DicedVertex]) -> Vec<f32> {
+    let xf = inst.world_from_object;
+    let per_triangle: Vec<f32> = diced_from
+        .triangles
+        .iter()
+        .enumerate()
+        .map(|(t, tri)| {
+            let c = tri.map(|k| {
+                xf.transform_point3a(Vec3A::from(diced_from.positions.get(k as usize).copied().unwrap_or(Vec3::ZERO)))
+            });
+            let longest = [(c[0] - c[1]), (c[1] - c[2]), (c[2] - c[0])].iter().map(|e| e.length()).fold(0.0, f32::max);
+            longest / rates.get(t).copied().unwrap_or(1).max(1) as f32
+        })
+        .collect();
+    origins.iter().map(|o| per_triangle.get(o.triangle as usize).copied().unwrap_or(0.0)).collect()
 }
 
 /// Where a displacement shader left a point and its normal (world space), if it ran there.
@@ -428,7 +597,7 @@ type DisplacedPoint = Option<(Vec3A, Vec3A)>;
 fn displaced_mesh(
     frame: &Frame,
     (index, inst): (u32, &InstanceShading),
-    (source, diced, rates): (&Mesh, Diced, &[u32]),
+    (diced, spacing): (Diced, &[f32]),
 ) -> Option<(Arc<Mesh>, Arc<[u32]>)> {
     let world = frame.world;
     let Diced { mut mesh, origins, of_triangle } = diced;
@@ -451,7 +620,7 @@ fn displaced_mesh(
     }
     let placed = world.scene.instance_data(index);
     let at = |time: f32| placed.map_or(inst.world_from_object, |d| d.world_from_object_at(time));
-    let points = DicedPoints { frame, index, source, origins: &origins, groups: &groups, rates };
+    let points = DicedPoints { frame, index, origins: &origins, groups: &groups, spacing };
     let deformation = mesh.deformation.take();
     let count = mesh.positions.len();
     let own =
@@ -494,11 +663,10 @@ fn displaced_mesh(
 struct DicedPoints<'a> {
     frame: &'a Frame<'a>,
     index: u32,
-    source: &'a Mesh,
     origins: &'a [DicedVertex],
     groups: &'a [&'a [u32]],
-    /// The rate each source triangle was diced at.
-    rates: &'a [u32],
+    /// Per diced point: the spacing of the dicing there ([`dicing_spacing`]).
+    spacing: &'a [f32],
 }
 
 impl DicedPoints<'_> {
@@ -513,21 +681,11 @@ impl DicedPoints<'_> {
         (positions, normals): (&mut [Vec3], &mut [Vec3]),
         mut undisplaced: Option<&mut Vec<(u32, Vec3)>>,
     ) -> bool {
-        let (frame, source, origins, rates) = (self.frame, self.source, self.origins, self.rates);
+        let (frame, origins) = (self.frame, self.origins);
         let object_from_world = xf.inverse();
         // Normals move by the inverse transpose; back into object space by the transpose.
         let normal_to_object = xf.matrix3.transpose();
         let eye = frame.world.camera.eye();
-        // The spacing of the dicing at each source triangle, in world units: the derivatives' step.
-        let spacing = |t: u32| {
-            let c = source.triangles.get(t as usize).map_or([Vec3A::ZERO; 3], |tri| {
-                tri.map(|k| {
-                    xf.transform_point3a(Vec3A::from(source.positions.get(k as usize).copied().unwrap_or(Vec3::ZERO)))
-                })
-            });
-            let longest = [(c[0] - c[1]), (c[1] - c[2]), (c[2] - c[0])].iter().map(|e| e.length()).fold(0.0, f32::max);
-            longest / rates.get(t as usize).copied().unwrap_or(1).max(1) as f32
-        };
         let positions_now: &[Vec3] = positions;
         let results: Vec<Vec<((u32, bool), DisplacedPoint)>> = self
             .groups
@@ -541,7 +699,7 @@ impl DicedPoints<'_> {
                     let to = at - eye;
                     let t = to.length();
                     let direction = if t > 0.0 && t.is_finite() { to / t } else { Vec3A::Z };
-                    let width = spacing(o.triangle);
+                    let width = self.spacing.get(v as usize).copied().unwrap_or(0.0);
                     let ray = Ray { origin: eye, direction, tmin: 0.0, tmax: f32::INFINITY, time };
                     let diff = RayDifferential::cone(direction, width, 0.0);
                     let hit = Hit { t, u: o.u, v: o.v, instance: self.index, primitive: o.triangle };
@@ -605,28 +763,94 @@ fn fill_missing_normals(positions: &[Vec3], triangles: &[[u32; 3]], normals: &mu
 mod tests {
     use super::*;
 
-    /// A strip of `n` triangles.
-    fn strip(n: u32) -> Arc<Mesh> {
-        let positions = (0..n + 2).map(|k| Vec3::new(k as f32, (k % 2) as f32, 0.0)).collect();
-        Arc::new(Mesh::from_triangles(positions, (0..n).map(|k| [k, k + 1, k + 2]).collect()).expect("a strip"))
+    /// The distance to a triangle is the least over points spread across it, whichever region of
+    /// its plane the point projects into, and a triangle of no area is measured by its edges.
+    #[test]
+    fn the_distance_to_a_triangle_is_to_its_nearest_point() {
+        let triangles = [
+            [Vec3A::ZERO, Vec3A::X, Vec3A::Y],
+            [Vec3A::new(1.0, 2.0, -1.0), Vec3A::new(-3.0, 0.5, 2.0), Vec3A::new(0.5, -1.0, 4.0)],
+            // No area: a segment with a corner in its middle, and a point.
+            [Vec3A::ZERO, Vec3A::new(2.0, 2.0, 0.0), Vec3A::ONE],
+            [Vec3A::ONE; 3],
+        ];
+        let points = (0..64).map(|k| {
+            let k = k as f32;
+            Vec3A::new((k * 1.7).sin() * 4.0, (k * 0.9).cos() * 3.0, (k * 2.3).sin() * 5.0)
+        });
+        for p in points {
+            for [a, b, c] in triangles {
+                let steps = 200;
+                let sampled = (0..=steps)
+                    .flat_map(|i| (0..=steps - i).map(move |j| (i as f32 / steps as f32, j as f32 / steps as f32)))
+                    .map(|(u, v)| (p - (a + (b - a) * u + (c - a) * v)).length())
+                    .fold(f32::INFINITY, f32::min);
+                let exact = distance_to_triangle(p, [a, b, c]);
+                assert!(exact <= sampled + 1e-4, "{p} to {a} {b} {c}: {exact} beyond {sampled}");
+                assert!(sampled - exact <= 0.05, "{p} to {a} {b} {c}: {exact} well short of {sampled}");
+            }
+        }
+    }
+
+    /// A floor of two triangles with the eye just above it is split before dicing, its pieces
+    /// near the eye then diced finer than those far off; seen from far away, or made of triangles
+    /// small for their distance, it is diced whole.
+    #[test]
+    fn triangles_much_nearer_at_one_end_are_split() {
+        let floor = Mesh::from_triangles(
+            vec![
+                Vec3::new(-100.0, 0.0, -1.0),
+                Vec3::new(100.0, 0.0, -1.0),
+                Vec3::new(100.0, 0.0, 200.0),
+                Vec3::new(-100.0, 0.0, 200.0),
+            ],
+            vec![[0, 1, 2], [0, 2, 3]],
+        )
+        .expect("a floor");
+        let ruler = |eye: Vec3A| Ruler { eye, spread: 0.002, piece: 1.0, xf: glam::Affine3A::IDENTITY };
+        let near = ruler(Vec3A::new(0.0, 2.0, 0.0));
+        let splits = near.splits(&floor);
+        // The eye is above the first triangle, and 70 units from the second.
+        assert!(splits[0] >= 16 && splits[0] <= FINEST_SPLIT && splits[1] > 1, "{splits:?}");
+        let pieces = split_at(&floor, &splits, &splits.iter().map(|&k| [k; 3]).collect::<Vec<_>>()).expect("pieces");
+        let (rates, _) = near.rates(&pieces.diced.mesh);
+        // Micropolygon edges, in pixels where each piece is seen nearest: about one (the
+        // `ShadingRate` of 1) near the eye and far from it, as the ladder's steps allow.
+        let pixels: Vec<(f32, f32)> = (0..rates.len())
+            .map(|p| {
+                let c = near.corners(&pieces.diced.mesh, &pieces.diced.mesh.triangles[p]);
+                let longest = [c[0] - c[1], c[1] - c[2], c[2] - c[0]].iter().map(|e| e.length()).fold(0.0, f32::max);
+                let distance = distance_to_triangle(near.eye, c);
+                (distance, longest / rates[p] as f32 / (distance * near.spread))
+            })
+            .collect();
+        for (within, beyond) in [(0.0, 4.0), (150.0, f32::INFINITY)] {
+            let there: Vec<f32> = pixels.iter().filter(|(d, _)| (within..beyond).contains(d)).map(|x| x.1).collect();
+            assert!(!there.is_empty(), "pieces from {within} to {beyond}");
+            assert!(there.iter().all(|&px| (0.5..=1.0).contains(&px)), "from {within} to {beyond}: {there:?}");
+        }
+        assert_eq!(ruler(Vec3A::new(0.0, 10_000.0, 0.0)).splits(&floor), [1, 1]);
+        let small = Mesh::from_triangles(
+            vec![Vec3::new(0.0, 0.0, 10.0), Vec3::new(0.1, 0.0, 10.0), Vec3::new(0.0, 0.1, 10.0)],
+            vec![[0, 1, 2]],
+        )
+        .expect("a small triangle");
+        assert_eq!(near.splits(&small), [1]);
     }
 
     #[test]
     fn over_the_world_budget_every_rate_is_lowered_alike() {
-        let mesh = strip(1000);
-        let uniform = |n: u32| Rates { triangles: vec![n; 1000], edges: vec![[n; 3]; 1000] };
-        let mut rated =
-            vec![(0, mesh.clone(), uniform(96)), (1, mesh.clone(), uniform(48)), (2, mesh.clone(), uniform(1))];
-        let asked = fit_world_budget(&mut rated).expect("over the budget");
+        let uniform = |n: u32| Rates { split: Vec::new(), triangles: vec![n; 1000], edges: vec![[n; 3]; 1000] };
+        let mut rated = [uniform(96), uniform(48), uniform(1)];
+        let asked = fit_world_budget(&mut rated.iter_mut().collect::<Vec<_>>()).expect("over the budget");
         assert_eq!(asked, 1000 * (96 * 96 + 48 * 48 + 1));
         // Scaled by sqrt(2^22 / asked), about 0.6, down to the ladder; never below 1.
-        let rates: Vec<Rates> = rated.iter().map(|r| r.2.clone()).collect();
-        assert_eq!(rates, [uniform(48), uniform(24), uniform(1)]);
-        let total: usize = rated.iter().map(|(_, _, r)| r.count()).sum();
+        assert_eq!(rated, [uniform(48), uniform(24), uniform(1)]);
+        let total: usize = rated.iter().map(Rates::count).sum();
         assert!(total <= MAX_WORLD_DICED_TRIANGLES, "{total}");
         // Within the budget, nothing changes.
-        let mut within = vec![(0, mesh.clone(), uniform(48)), (1, mesh, uniform(32))];
-        assert_eq!(fit_world_budget(&mut within), None);
-        assert_eq!(within.iter().map(|r| r.2.clone()).collect::<Vec<_>>(), [uniform(48), uniform(32)]);
+        let mut within = [uniform(48), uniform(32)];
+        assert_eq!(fit_world_budget(&mut within.iter_mut().collect::<Vec<_>>()), None);
+        assert_eq!(within, [uniform(48), uniform(32)]);
     }
 }
