@@ -46,8 +46,8 @@ pub const MAX_WORLD_DICED_TRIANGLES: usize = 1 << 22;
 
 /// The dicing rates used: a needed rate is rounded up to the next. Steps of about 1.4 keep a
 /// moving camera from dicing again each frame, at less than twice the triangles needed. The
-/// finest cuts one triangle into [`MAX_DICED_TRIANGLES`]: a large polygon (a displaced floor of
-/// two triangles) is diced as finely as the budget allows.
+/// finest cuts one triangle into [`MAX_DICED_TRIANGLES`], so that a large polygon seen whole
+/// (a wall facing the camera) is diced as finely as the budget allows.
 pub const DICING_RATES: [u32; 20] = [1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256, 384, 512, 768, 1024];
 
 /// The displaced meshes of the last frame, and the scene objects that hold them, for the next.
@@ -208,6 +208,7 @@ pub fn displace_world(world: &mut World, kept: &mut DisplacedMeshes) -> Vec<Stri
         let frame = Frame::new(world);
         // Each instance's mesh, the rate it asks for and the pieces it is split into first.
         let mut rated: Vec<(usize, Arc<Mesh>, Rates, Option<Pieces>)> = Vec::with_capacity(wanted.len());
+        let mut pieces_left = MAX_WORLD_SPLIT_PIECES;
         for &i in &wanted {
             let inst = &world.instances[i];
             let id = ObjectId(inst.object);
@@ -219,7 +220,7 @@ pub fn displace_world(world: &mut World, kept: &mut DisplacedMeshes) -> Vec<Stri
             if mesh.triangles.is_empty() {
                 continue;
             }
-            let (rates, pieces) = dicing_rates(&frame, inst, &mesh);
+            let (rates, pieces) = dicing_rates(&frame, inst, &mesh, &mut pieces_left);
             rated.push((i, mesh, rates, pieces));
         }
         if let Some(asked) = fit_world_budget(&mut rated.iter_mut().map(|r| &mut r.2).collect::<Vec<_>>()) {
@@ -385,6 +386,10 @@ fn diced_parts(parts: &InstanceParts, of_triangle: &[u32]) -> InstanceParts {
 /// split rates are lowered alike to fit.
 pub const MAX_SPLIT_PIECES: usize = 1 << 16;
 
+/// The most pieces all truly displaced objects of a frame are split into: the objects past it
+/// are diced whole.
+pub const MAX_WORLD_SPLIT_PIECES: usize = 1 << 20;
+
 /// The finest rate a triangle is split at before it is diced.
 pub const FINEST_SPLIT: u32 = 128;
 
@@ -498,10 +503,21 @@ impl Ruler {
 /// displacing material of the instance asks for), and each edge likewise where the camera sees it
 /// nearest (so never finer than its triangles); all lowered alike to keep the object within
 /// [`MAX_DICED_TRIANGLES`].
-fn dicing_rates(frame: &Frame, inst: &InstanceShading, mesh: &Mesh) -> (Rates, Option<Pieces>) {
+fn dicing_rates(
+    frame: &Frame,
+    inst: &InstanceShading,
+    mesh: &Mesh,
+    pieces_left: &mut usize,
+) -> (Rates, Option<Pieces>) {
     let ruler = Ruler::of(frame, inst);
     let splits = ruler.splits(mesh);
-    let pieces = match splits.iter().any(|&k| k > 1) {
+    // Past the world's pieces, an object's triangles are diced whole.
+    let split_pieces = diced_triangle_count_at(&splits).unwrap_or(usize::MAX);
+    let fits = split_pieces <= *pieces_left;
+    if fits {
+        *pieces_left -= split_pieces;
+    }
+    let pieces = match fits && splits.iter().any(|&k| k > 1) {
         true => {
             let edges: Vec<[u32; 3]> = splits.iter().map(|&k| [k; 3]).collect();
             split_at(mesh, &splits, &edges).ok()
