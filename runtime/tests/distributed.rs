@@ -2049,6 +2049,29 @@ fn surface_displaced_objects_render_the_same_on_workers() -> Result<(), Distribu
     Ok(())
 }
 
+/// A displaced floor much nearer the camera at its front than at its back is split into pieces
+/// before it is diced; the workers are told how many triangles each source triangle made, and
+/// render the master's mesh.
+#[test]
+fn a_displaced_floor_split_before_dicing_renders_the_same_on_workers() -> Result<(), DistributedError> {
+    const WAVES: &str = "displacement waves(float amount = 0.2) {
+        point Pw = transform(\"world\", P);
+        P += amount * sin(6 * xcomp(Pw)) * sin(6 * zcomp(Pw)) * normalize(N);
+        N = calculatenormal(P);
+    }";
+    let mut rt = Context::new();
+    rt.compile_shader("waves.sl", WAVES).expect("compiles");
+    let rib = displaced_sphere_on_a_floor("Surface \"matte\"").replace(
+        "Surface \"matte\"\n          Polygon",
+        "Attribute \"displacementbound\" \"sphere\" [0.2] Displacement \"waves\" Surface \"matte\"\n          Polygon",
+    );
+    assert!(rib.contains("\"waves\" Surface \"matte\"\n          Polygon"), "{rib}");
+    rtsl_runtime::rib::load::load_str(&mut rt, &rib, Path::new(".")).expect("the scene loads");
+    let frames = both_ways(rt, 2, 1, &[nothing])?;
+    assert_same(&frames, "a displaced floor split before dicing");
+    Ok(())
+}
+
 /// A RIB file's next frame is a new scene whose displaced meshes come out the same: the worker
 /// takes the displaced meshes it fetched for the frame before (by digest), fetching none. (One
 /// worker, which renders every tile of both frames: two would each reach what their tiles reach,
