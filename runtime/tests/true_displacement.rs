@@ -141,6 +141,33 @@ fn displaced_meshes_are_kept_from_frame_to_frame() {
     assert_eq!(first.rgba, second.rgba);
 }
 
+/// A camera moving a little from frame to frame over a floor split before dicing keeps its
+/// displaced mesh (some of its many pieces' distances cross a step of the dicing ladder at any
+/// move; a mesh within a step of what the frame asks serves), and dices again once it has moved
+/// far.
+#[test]
+fn a_camera_moving_a_little_keeps_a_split_floor_s_displaced_mesh() {
+    let rib = "Format 48 32 1\nShadingRate 4\nProjection \"perspective\" \"fov\" [40]\n\
+               Rotate -6 1 0 0 Translate 0 -1 0\nWorldBegin\n\
+               Attribute \"displacementbound\" \"sphere\" [0.2] Displacement \"ridges\" Surface \"constant\"\n\
+               Polygon \"P\" [-20 0 1  -20 0 60  20 0 60  20 0 1]\nWorldEnd\n";
+    let mut rt = Context::new();
+    rt.compile_shader("ridges.sl", RIDGES).expect("the displacement compiles");
+    load_str(&mut rt, rib, "floor.rib").expect("loads");
+    let (_, report) = rt.render_frame().expect("renders");
+    assert_eq!(report.accel.objects_rebuilt, 2, "the floor and its displaced mesh");
+    let start = *rt.camera();
+    let moved = |rt: &mut Context, by: f32| {
+        let mut camera = start;
+        camera.world_from_camera.translation += glam::Vec3A::new(0.0, 0.0, by);
+        rt.set_camera(camera);
+        rt.render_frame().expect("renders").1.accel.objects_rebuilt
+    };
+    let rebuilt: Vec<usize> = [0.01, 0.02, 0.03, 0.04].iter().map(|&by| moved(&mut rt, by)).collect();
+    assert_eq!(rebuilt, [0; 4], "moving 1 cm at a time, 1 unit above the floor");
+    assert_eq!(moved(&mut rt, 4.0), 1, "moved 4 units, the floor is diced again");
+}
+
 /// An object built in parts: the part whose material asks for true displacement moves, the
 /// other keeps its shape and its own displacement shader's bump mapping.
 #[test]

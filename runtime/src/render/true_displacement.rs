@@ -21,7 +21,8 @@
 //! once, so a closed mesh stays closed however its shader moves it.
 //!
 //! The displaced meshes are kept from frame to frame ([`DisplacedMeshes`]) while the source mesh,
-//! the shaders, the placement and the dicing rate stay the same.
+//! the shaders, the placement and the split stay the same and each dicing rate is within a step
+//! of the ladder of the one asked ([`Key::serves`]).
 
 use super::differential::RayDifferential;
 use super::hit_geometry::UNDISPLACED_POSITIONS;
@@ -127,6 +128,18 @@ struct Rates {
 }
 
 impl Rates {
+    /// Whether a dicing at these rates serves one asked at `asked`: the same split, and each
+    /// rate at most one step of the ladder from the one asked.
+    fn serves(&self, asked: &Rates) -> bool {
+        let step = |r: u32| DICING_RATES.iter().position(|&l| l >= r).unwrap_or(DICING_RATES.len());
+        let near = |(&a, &b): (&u32, &u32)| step(a).abs_diff(step(b)) <= 1;
+        self.split == asked.split
+            && self.triangles.len() == asked.triangles.len()
+            && self.edges.len() == asked.edges.len()
+            && self.triangles.iter().zip(&asked.triangles).all(near)
+            && self.edges.iter().flatten().zip(asked.edges.iter().flatten()).all(near)
+    }
+
     /// The triangles dicing at these rates makes (saturated).
     fn count(&self) -> usize {
         diced_triangle_count_at(&self.triangles).unwrap_or(usize::MAX)
@@ -140,8 +153,12 @@ impl Rates {
     }
 }
 
-impl PartialEq for Key {
-    fn eq(&self, other: &Key) -> bool {
+impl Key {
+    /// Whether the mesh displaced for this key serves a frame that asks for `other`: the same
+    /// mesh, placement, shaders and split, each rate within one step of the ladder of the rate
+    /// asked. The step either way keeps a moving camera from dicing again each frame: the
+    /// distances of an object's many pieces cross some step of the ladder at almost any move.
+    fn serves(&self, other: &Key) -> bool {
         let same_shader = |a: &(Option<Arc<ShaderInstance>>, [u32; 6]), b: &(Option<Arc<ShaderInstance>>, [u32; 6])| {
             a.1 == b.1
                 && match (&a.0, &b.0) {
@@ -152,7 +169,7 @@ impl PartialEq for Key {
         };
         Arc::ptr_eq(&self.mesh, &other.mesh)
             && self.world_from_object == other.world_from_object
-            && self.rates == other.rates
+            && self.rates.serves(&other.rates)
             && self.shaders.len() == other.shaders.len()
             && self.shaders.iter().zip(&other.shaders).all(|(a, b)| same_shader(a, b))
     }
@@ -233,7 +250,9 @@ pub fn displace_world(world: &mut World, kept: &mut DisplacedMeshes) -> Vec<Stri
             let inst = &world.instances[i];
             let count = rates.count();
             let key = key_of(world, inst, mesh.clone(), rates);
-            if let Some(k) = kept.kept.iter().position(|e| e.key == key && e.is_in(&world.scene)) {
+            // A kept mesh may be a step finer than asked: within the world's budget still.
+            let fits = |e: &Kept| total.saturating_add(e.triangles) <= MAX_WORLD_DICED_TRIANGLES;
+            if let Some(k) = kept.kept.iter().position(|e| e.key.serves(&key) && fits(e) && e.is_in(&world.scene)) {
                 total += kept.kept[k].triangles;
                 plans.push((i, Planned::Kept(k)));
                 continue;
