@@ -96,6 +96,12 @@ pub fn shade_packets(frame: &Frame, packets: &[(&PrimaryRays, &HitPacket)], out:
         let packet = &primary.packet;
         Stats::add(&frame.stats.primary_rays, packet.active.count_ones() as usize);
         begin_samples(frame, hits, out);
+        if !frame.volumes {
+            if let Some(key) = whole_packet_key(world, packet.active, hits) {
+                whole.push((k, key));
+                continue;
+            }
+        }
         let first = keys.len();
         for i in (0..PACKET_SIZE).filter(|i| packet.active >> i & 1 != 0) {
             let hit = hits.get(i);
@@ -148,6 +154,20 @@ pub fn shade_packets(frame: &Frame, packets: &[(&PrimaryRays, &HitPacket)], out:
     super::group::give_keys(keys);
     super::scratch::give(&WHOLE_PACKETS, whole);
     super::scratch::give(&LANE_BUDGETS, budgets);
+}
+
+/// The group key of a packet whose every lane is active and hit one instance of one material (no
+/// parts) that is no holdout: what each lane's [`super::group::group_key`] would be, told from
+/// the instance ids alone. `None` for every other packet (its lanes are keyed one by one).
+fn whole_packet_key(world: &World, active: u64, hits: &HitPacket) -> Option<(u32, u32)> {
+    let ids = &hits.instance.0;
+    let id = ids[0];
+    // Folded with `|` rather than `all`: no early exit, so the compare vectorises.
+    if active != u64::MAX || id == INVALID_ID || ids.iter().fold(0, |acc, &i| acc | (i ^ id)) != 0 {
+        return None;
+    }
+    let inst = world.instances.get(id as usize).filter(|inst| inst.parts.is_none())?;
+    (!world.is_holdout(&hits.get(0))).then_some((inst.material, id))
 }
 
 /// Traces and shades single rays (secondary rays: incoherent, traced one by one), each the root of
