@@ -1131,13 +1131,14 @@ impl Cx<'_> {
     /// The lights reaching the chunk's active lanes at `p` (argument `k`): lane `l`'s `i`-th light
     /// is lane `l` of `self.light_rows(&answer)[i]`, for `i < answer.counts[l]`. `cone` as
     /// `HostTable::lights` takes it.
-    fn lights(&mut self, category: &str, k: usize, cone: &[f32; 4 * CONE_ROWS]) -> LightsAnswer {
+    fn lights(&mut self, category: &str, k: usize, cone: Cone) -> LightsAnswer {
         if category.is_empty() {
             if let Some(answer) = self.batch_lights(k, cone) {
                 return answer;
             }
         }
-        LightsAnswer { counts: self.asked_lights(category, k, cone), batch_rows: None }
+        let rows = cone.rows(self.input);
+        LightsAnswer { counts: self.asked_lights(category, k, &rows), batch_rows: None }
     }
 
     /// The rows of a [`Cx::lights`] answer.
@@ -1154,7 +1155,7 @@ impl Cx<'_> {
     /// A query of every light at argument `k`, answered from the batch's own lights in place
     /// ([`HostTable::batch_lights`]) when the chunk's asking lanes are at the batch's points and
     /// the query's cone takes in none of their pending lights; `None` for the renderer to answer.
-    fn batch_lights(&self, k: usize, cone: &[f32; 4 * CONE_ROWS]) -> Option<LightsAnswer> {
+    fn batch_lights(&self, k: usize, cone: Cone) -> Option<LightsAnswer> {
         // SAFETY: the table's pointer is null or valid for the run.
         let view = unsafe { self.table?.batch_lights.as_ref() }?;
         let c = self.chunk as usize;
@@ -1180,7 +1181,7 @@ impl Cx<'_> {
         // SAFETY: chunk `c`'s rows start at `c * slots` of `chunks * slots`, and `most <= slots`.
         let first = unsafe { view.lights.add(c * view.slots as usize) };
         let rows = unsafe { std::slice::from_raw_parts(first, most) };
-        if pending.iter().any(|&p| p != 0) && light_sums::pending_in_cone(rows, pending, cone) {
+        if pending.iter().any(|&p| p != 0) && light_sums::pending_in_cone(rows, pending, &cone.rows(self.input)) {
             return None;
         }
         Some(LightsAnswer { counts, batch_rows: Some((first, most)) })
@@ -1244,20 +1245,45 @@ impl Cx<'_> {
         counts
     }
 
-    /// The cone of a query about the lights around each lane's normal (input `k`): what
-    /// `diffuse()`, `specular()` and `phong()` sum over.
-    fn hemisphere(&self, k: usize) -> [f32; 4 * CONE_ROWS] {
-        let mut cone = [0.0; 4 * CONE_ROWS];
-        if let Some(rows) = self.input.get(4 * k..4 * k + 12) {
-            cone[..12].copy_from_slice(rows);
-        }
-        cone
-    }
 
     /// Lane `l`'s lights of a [`Cx::lights`] answer (its count of them).
     fn lane_lights<'s>(&'s self, answer: &LightsAnswer, l: usize) -> impl Iterator<Item = HostLight> + 's {
         let n = answer.counts.get(l).copied().unwrap_or(0);
         self.light_rows(answer).iter().take(n as usize).map(move |x| x.lane(l))
+    }
+}
+
+/// The cone of a light query ([`Cx::lights`]), as `HostTable::lights` takes it (axis rows, then
+/// each lane's cosine), made only where it is read: most queries are answered from the batch's
+/// lights, which read it only for lights left unshadowed.
+#[derive(Clone, Copy)]
+enum Cone<'a> {
+    /// These rows.
+    Rows(&'a [f32; 4 * CONE_ROWS]),
+    /// The hemisphere around each lane's normal, input `k` of the helper: what `diffuse()`,
+    /// `specular()` and `phong()` sum over.
+    Hemisphere(usize),
+    /// No light but the ambient ones (`ambient()`).
+    Nothing,
+}
+
+impl Cone<'_> {
+    fn rows(self, input: &[f32]) -> [f32; 4 * CONE_ROWS] {
+        match self {
+            Cone::Rows(rows) => *rows,
+            Cone::Hemisphere(k) => {
+                let mut cone = [0.0; 4 * CONE_ROWS];
+                if let Some(rows) = input.get(4 * k..4 * k + 12) {
+                    cone[..12].copy_from_slice(rows);
+                }
+                cone
+            }
+            Cone::Nothing => {
+                let mut cone = [0.0; 4 * CONE_ROWS];
+                cone[12..].fill(NO_LIGHT);
+                cone
+            }
+        }
     }
 }
 
@@ -1467,7 +1493,7 @@ host_helpers! {
             _ if cx.f(8, i - 12) != 0.0 => cx.f(7, i - 12).cos(),
             _ => EVERY_LIGHT,
         });
-        let mut answer = cx.lights(&category, 1, &cone);
+        let mut answer = cx.lights(&category, 1, Cone::Rows(&cone));
         answer.counts = std::array::from_fn(|l| if cx.mask[l] { answer.counts[l] } else { 0 });
         let order: [Vec<usize>; 4] = std::array::from_fn(|l| {
             cx.lane_lights(&answer, l).enumerate().filter(|(_, x)| x.ambient == 0).map(|(i, _)| i).collect()
@@ -1511,22 +1537,20 @@ host_helpers! {
     }
     // [P] -> the ambient lights' sum
     h_ambient "rtsl_h_ambient" 3 => 3 |cx| {
-        let mut cone = [0.0; 4 * CONE_ROWS];
-        cone[12..].fill(NO_LIGHT);
-        let answer = cx.lights("", 0, &cone);
+        let answer = cx.lights("", 0, Cone::Nothing);
         let sum = light_sums::ambient(cx.light_rows(&answer), answer.counts, cx.mask);
         cx.set3_lanes(0, &sum);
     }
     // [P, N] -> diffuse
     h_diffuse "rtsl_h_diffuse" 6 => 3 |cx| {
-        let answer = cx.lights("", 0, &cx.hemisphere(3));
+        let answer = cx.lights("", 0, Cone::Hemisphere(3));
         let n = Lanes3::of_rows(cx.input, 3).normalized();
         let sum = light_sums::diffuse(cx.light_rows(&answer), answer.counts, cx.mask, &n);
         cx.set3_lanes(0, &sum);
     }
     // [P, N, V, roughness] -> specular
     h_specular "rtsl_h_specular" 10 => 3 |cx| {
-        let answer = cx.lights("", 0, &cx.hemisphere(3));
+        let answer = cx.lights("", 0, Cone::Hemisphere(3));
         let n = Lanes3::of_rows(cx.input, 3).normalized();
         let view = Lanes3::of_rows(cx.input, 6).normalized();
         let roughness = glam::Vec4::from_array(std::array::from_fn(|l| cx.f(9, l)));
@@ -1535,7 +1559,7 @@ host_helpers! {
     }
     // [P, N, V, size] -> phong
     h_phong "rtsl_h_phong" 10 => 3 |cx| {
-        let answer = cx.lights("", 0, &cx.hemisphere(3));
+        let answer = cx.lights("", 0, Cone::Hemisphere(3));
         let n = Lanes3::of_rows(cx.input, 3).normalized();
         let view = Lanes3::of_rows(cx.input, 6).normalized();
         let size = glam::Vec4::from_array(std::array::from_fn(|l| cx.f(9, l)));
