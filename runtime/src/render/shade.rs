@@ -1426,6 +1426,45 @@ mod tests {
             AttributeEnd
     "#;
 
+    /// A packet is told whole from its instance ids only where keying it lane by lane would find
+    /// every lane active, hit, no holdout and of one key, and then with that key.
+    #[test]
+    fn a_whole_packet_is_told_from_its_instance_ids_as_its_lanes_keys_would_tell_it() {
+        let rib = r#"
+            Format 16 16 1
+            WorldBegin
+            Surface "matte"
+            Polygon "P" [-1 -1 0  1 -1 0  1 1 0  -1 1 0]
+            AttributeBegin
+              Matte 1
+              Polygon "P" [-1 -1 1  1 -1 1  1 1 1  -1 1 1]
+            AttributeEnd
+            WorldEnd
+        "#;
+        let mut rt = crate::api::Context::new();
+        crate::rib::load::load_str(&mut rt, rib, std::path::Path::new("<test>")).expect("the test scene loads");
+        let world = rt.build_world().expect("the test scene builds");
+        let on = |instance: u32| {
+            let mut hits = HitPacket::default();
+            hits.instance.0 = [instance; PACKET_SIZE];
+            hits.primitive.0 = std::array::from_fn(|l| (l % 2) as u32);
+            hits.t.0 = [1.0; PACKET_SIZE];
+            hits
+        };
+        let (front, holdout) = (on(0), on(1));
+        assert!(!world.is_holdout(&front.get(0)) && world.is_holdout(&holdout.get(0)));
+        let key = super::super::group::group_key(&world, &front.get(0));
+        assert!((0..PACKET_SIZE).all(|l| super::super::group::group_key(&world, &front.get(l)) == key));
+        assert_eq!(whole_packet_key(&world, u64::MAX, &front), Some(key));
+        // An inactive lane, a holdout, a miss, a lane on another instance: keyed lane by lane.
+        assert_eq!(whole_packet_key(&world, u64::MAX >> 1, &front), None);
+        assert_eq!(whole_packet_key(&world, u64::MAX, &holdout), None);
+        assert_eq!(whole_packet_key(&world, u64::MAX, &on(INVALID_ID)), None);
+        let mut mixed = on(0);
+        mixed.instance.0[37] = 1;
+        assert_eq!(whole_packet_key(&world, u64::MAX, &mixed), None);
+    }
+
     /// Bucketing a packet's group keys orders them exactly as a comparison sort: with one to eight
     /// distinct keys (bucketed) and with more (sorted), in any order.
     #[test]
