@@ -39,6 +39,17 @@ pub mod wire;
 /// (`1 + 2 gamma(3)`, Ize 2013, "Robust BVH Ray Traversal").
 pub(crate) const ROBUST: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
 
+/// The fused slab test's margin, relative to `o * id`: a plane's distance is taken as
+/// `plane * id + c` in one fused multiply-add (one rounding, and one operation fewer on the
+/// node-to-node dependency chain than `(plane - o) * id`), where `c` is `-(o * id)` made smaller
+/// for near planes and larger for far planes by this share of itself. The two roundings of `c`
+/// (`o * id` and the scaling) move it by less than `2^-23` of `o * id`, so a near distance is
+/// never above, and a far one never below, the same plane's `(plane - o) * id` before its final
+/// rounding: the fused test culls no box that the two-step one would keep ([`ROBUST`]'s bound
+/// holds as it is). Without a fused multiply-add instruction the sum's extra rounding is within
+/// the same margin and factor.
+pub(crate) const FUSED_MARGIN: f32 = 4.0 * f32::EPSILON;
+
 /// The inverse of a direction component, never infinite: components closer to zero than `1e-30`
 /// are replaced by `+-1e-30` (keeping the sign), so slab tests never compute `0 * inf`.
 #[inline(always)]
