@@ -204,6 +204,66 @@ proptest! {
     }
 }
 
+/// The world moved `offset` from the coordinates' origin on every axis and grown by `scale` (so
+/// that its triangles stay larger than the coordinates' spacing there), its instances in place.
+fn far_scene(w: &World, offset: f32, scale: f32) -> Scene {
+    let mut s = Scene::new();
+    let ids: Vec<_> = w
+        .meshes
+        .iter()
+        .map(|m| {
+            let moved: Vec<Vec3> = m.positions.iter().map(|p| Vec3::splat(offset) + *p * scale).collect();
+            s.add_object(Mesh::from_triangles(moved, m.triangles.clone()).expect("the same triangles, grown"))
+        })
+        .collect();
+    for (o, _) in &w.instances {
+        s.add_instance(ids[*o], Affine3A::IDENTITY).expect("the identity");
+    }
+    s.commit();
+    s
+}
+
+/// A packet of parallel rays along one axis (`axis` 0 to 2, backwards where `back`): their other
+/// direction components are exactly zero, the origins a grid `spread` apart around `o`.
+fn axis_packet(o: Vec3, axis: usize, back: bool, spread: f32, active: u64, tmax: Option<f32>) -> RayPacket {
+    let mut p = RayPacket::new();
+    let mut d = Vec3::ZERO;
+    d[axis] = if back { -1.0 } else { 1.0 };
+    let (side, up) = (Vec3::new(d.y.abs(), d.z.abs(), d.x.abs()), Vec3::new(d.z.abs(), d.x.abs(), d.y.abs()));
+    for i in (0..PACKET_SIZE).filter(|i| active >> i & 1 != 0) {
+        let (x, y) = rtsl_runtime::camera::packet_lane_offset(i);
+        let origin = Vec3A::from(o + (side * (x as f32 - 3.5) + up * (y as f32 - 3.5)) * spread);
+        let r = match tmax {
+            Some(t) => Ray::segment(origin, Vec3A::from(d), 0.0, t),
+            None => Ray::new(origin, Vec3A::from(d)),
+        };
+        p.set(i, &r);
+    }
+    p
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 96, .. ProptestConfig::default() })]
+
+    /// Far from the coordinates' origin, with rays exactly along an axis: where the single-ray
+    /// slab test's fused offsets overflow (beyond about 3e8) and where they do not.
+    #[test]
+    fn traversals_agree_far_from_the_origin_along_the_axes(
+        w in world(),
+        far in 0usize..3,
+        rays in prop::collection::vec((v3(), 0usize..3, any::<bool>(), uniform(0.001, 0.3), any::<u64>(), any::<bool>()), 1..4),
+    ) {
+        let (offset, scale) = [(1e4f32, 1.0f32), (1e7, 1e3), (1e9, 1e6)][far];
+        let scene = far_scene(&w, offset, scale);
+        for (o, axis, back, spread, active, seg) in rays {
+            let mut from = Vec3::splat(offset) + o * scale;
+            from[axis] = offset + if back { 4.0 } else { -4.0 } * scale;
+            let p = axis_packet(from, axis, back, spread * scale, active | 1 << 27, seg.then_some(8.0 * scale));
+            check(&scene, &p, None)?;
+        }
+    }
+}
+
 /// A random cut-out: an 8x8 grey-alpha image with random holes, and texture coordinates for every
 /// vertex of the world's meshes (some beyond [0, 1], so that the mask wraps).
 fn masks() -> impl Strategy<Value = (Vec<bool>, u64)> {
