@@ -167,12 +167,12 @@ fn slab4(b: [&[f32; 4]; 6], r: &RayPre) -> (u32, Vec4) {
     let v = Vec4::from_array;
     let [tnx, tny, tnz, tfx, tfy, tfz] = if r.fused {
         [
-            v(*nx).mul_add(s(r.id[0]), s(r.near_c[0])),
-            v(*ny).mul_add(s(r.id[1]), s(r.near_c[1])),
-            v(*nz).mul_add(s(r.id[2]), s(r.near_c[2])),
-            v(*fx).mul_add(s(r.fid[0]), s(r.far_c[0])),
-            v(*fy).mul_add(s(r.fid[1]), s(r.far_c[1])),
-            v(*fz).mul_add(s(r.fid[2]), s(r.far_c[2])),
+            mul_add4(v(*nx), s(r.id[0]), s(r.near_c[0])),
+            mul_add4(v(*ny), s(r.id[1]), s(r.near_c[1])),
+            mul_add4(v(*nz), s(r.id[2]), s(r.near_c[2])),
+            mul_add4(v(*fx), s(r.fid[0]), s(r.far_c[0])),
+            mul_add4(v(*fy), s(r.fid[1]), s(r.far_c[1])),
+            mul_add4(v(*fz), s(r.fid[2]), s(r.far_c[2])),
         ]
     } else {
         [
@@ -187,6 +187,17 @@ fn slab4(b: [&[f32; 4]; 6], r: &RayPre) -> (u32, Vec4) {
     let tnear = tnx.max(tny).max(tnz.max(Vec4::splat(r.tmin)));
     let tfar = tfx.min(tfy).min(tfz.min(Vec4::splat(r.tmax * ROBUST)));
     (tnear.cmple(tfar).bitmask(), tnear)
+}
+
+/// `a * b + c` as `f32x8::mul_add` computes it, lane by lane: fused where the build has fused
+/// multiply-adds (`x86-64-v3`), else a product and a sum, each rounded (glam's `mul_add` would
+/// then call the C library's exact `fmaf` for each lane, slowly, and differ from the 8-wide test).
+#[inline(always)]
+fn mul_add4(a: Vec4, b: Vec4, c: Vec4) -> Vec4 {
+    #[cfg(target_feature = "fma")]
+    return a.mul_add(b, c);
+    #[cfg(not(target_feature = "fma"))]
+    return a * b + c;
 }
 
 /// [`slab4`] of eight boxes at once (each coordinate eight floats, children 0-7), with the same
