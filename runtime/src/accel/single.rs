@@ -20,7 +20,7 @@ use super::{prefetch, safe_inv, FUSED_MARGIN, ROBUST};
 use crate::geometry::triangle::{accept, intersect, PreTriangle, TriangleBlock, BLOCK_WIDTH};
 use crate::ray::{Hit, HitCandidate, HitFilter, Ray, INVALID_ID};
 use glam::{Vec3A, Vec4};
-use wide::f32x8;
+use wide::{f32x8, i32x8};
 
 /// Traversal stack depth that fits on the machine stack; deeper BVHs use a heap stack.
 pub(crate) const STACK: usize = 96;
@@ -39,7 +39,9 @@ pub(crate) struct RayPre {
     /// [`FUSED_MARGIN`] of itself, and `-(o * fid)` moved up by as much.
     near_c: [f32; 3],
     far_c: [f32; 3],
-    /// Whether every offset is finite, so that the slab tests may take the fused form.
+    /// Whether the slab tests may take the fused form and order distances as integers: every
+    /// offset is finite and every inverse direction nonzero (so no distance is NaN), `tmin` is
+    /// `+0.0` or above and `tmax` is not NaN (see [`slab8`]).
     fused: bool,
     pub tmin: f32,
     pub tmax: f32,
@@ -53,9 +55,10 @@ impl RayPre {
         let id = [safe_inv(d.x), safe_inv(d.y), safe_inv(d.z)];
         let fid = id.map(|i| i * ROBUST);
         let o = o.to_array();
-        // `-a` scaled away from zero (down) or towards it (up) by the margin: no `inf - inf`.
-        let down = |a: f32| -a * if a > 0.0 { 1.0 + FUSED_MARGIN } else { 1.0 - FUSED_MARGIN };
-        let up = |a: f32| -a * if a > 0.0 { 1.0 - FUSED_MARGIN } else { 1.0 + FUSED_MARGIN };
+        // `-a` scaled away from zero (down) or towards it (up) by the margin: no `inf - inf`. A
+        // zero offset is `+0.0`, so that no fused distance is `-0.0` ([`slab8`]).
+        let down = |a: f32| -a * if a > 0.0 { 1.0 + FUSED_MARGIN } else { 1.0 - FUSED_MARGIN } + 0.0;
+        let up = |a: f32| -a * if a > 0.0 { 1.0 - FUSED_MARGIN } else { 1.0 + FUSED_MARGIN } + 0.0;
         let near_c: [f32; 3] = std::array::from_fn(|k| down(o[k] * id[k]));
         let far_c: [f32; 3] = std::array::from_fn(|k| up(o[k] * fid[k]));
         RayPre {
@@ -65,7 +68,11 @@ impl RayPre {
             fid,
             near_c,
             far_c,
-            fused: near_c.iter().chain(&far_c).all(|c| c.is_finite()),
+            fused: near_c.iter().chain(&far_c).all(|c| c.is_finite())
+                && id.iter().all(|&i| i != 0.0)
+                && tmin >= 0.0
+                && tmin.is_sign_positive()
+                && !tmax.is_nan(),
             neg: [id[0] < 0.0, id[1] < 0.0, id[2] < 0.0],
             tmin,
             tmax,
@@ -203,6 +210,15 @@ fn mul_add4(a: Vec4, b: Vec4, c: Vec4) -> Vec4 {
 /// [`slab4`] of eight boxes at once (each coordinate eight floats, children 0-7), with the same
 /// operations lane by lane: `f32x8`'s `fast_min` and `fast_max` are the `minps` and `maxps` that
 /// glam's `min` and `max` are.
+///
+/// In the fused form the entry and exit distances are the maxima and minima of the floats' bits
+/// as signed integers (`vpmaxsd`, `vpminsd`: a cycle each where `maxps` and `minps` take four on
+/// Intel cores, and single-ray traversal is bound by the chain of each node's test). There no
+/// distance is NaN or `-0.0` (a fused multiply-add gives `-0.0` only from a `-0.0` offset) and
+/// `tmin` is `+0.0` or above ([`RayPre::fused`]), so the entry distance is the number `maxps`
+/// gives, and the exit distance too where it is not negative; where it is negative the box is
+/// missed either way. (A `tmax` of `-0.0`, after a hit at that distance, can let in boxes behind
+/// the ray, which hold nothing nearer.)
 #[inline(always)]
 fn slab8(b: [&[[f32; 4]; 2]; 6], r: &RayPre) -> (u32, f32x8) {
     let row = |v: &[[f32; 4]; 2]| f32x8::new(bytemuck::cast(*v));
@@ -229,8 +245,17 @@ fn slab8(b: [&[[f32; 4]; 2]; 6], r: &RayPre) -> (u32, f32x8) {
             (row(fz) - s(r.o[2])) * s(r.fid[2]),
         ]
     };
-    let tnear = tnx.fast_max(tny).fast_max(tnz.fast_max(f32x8::splat(r.tmin)));
-    let tfar = tfx.fast_min(tfy).fast_min(tfz.fast_min(f32x8::splat(r.tmax * ROBUST)));
+    let (tmin, tmax) = (f32x8::splat(r.tmin), f32x8::splat(r.tmax * ROBUST));
+    let (tnear, tfar) = if r.fused {
+        let bits = |v: f32x8| -> i32x8 { bytemuck::cast(v) };
+        let float = |v: i32x8| -> f32x8 { bytemuck::cast(v) };
+        (
+            float(bits(tnx).max(bits(tny)).max(bits(tnz).max(bits(tmin)))),
+            float(bits(tfx).min(bits(tfy)).min(bits(tfz).min(bits(tmax)))),
+        )
+    } else {
+        (tnx.fast_max(tny).fast_max(tnz.fast_max(tmin)), tfx.fast_min(tfy).fast_min(tfz.fast_min(tmax)))
+    };
     (tnear.simd_le(tfar).to_bitmask(), tnear)
 }
 
@@ -862,5 +887,68 @@ mod tests {
             }
         }
         assert!(checked > 20_000 && culled > 20_000 && two_step > 1_000, "{checked} {culled} {two_step}");
+    }
+
+    /// The fused 8-wide test, which orders distances as integers, answers what `maxps` and
+    /// `minps` answer over the same distances: the same boxes with the same entry distances.
+    /// Coordinates include both zeros and values at the ray's origin, where products are `-0.0`;
+    /// rays whose `tmin` is negative or `-0.0`, or whose `tmax` is NaN, take the other form.
+    #[test]
+    fn integer_ordering_answers_as_floats_do() {
+        let mut x = 0x2545_f491_4f6c_dd1du64;
+        let mut next = move || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            (x >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let (mut entered, mut zeros) = (0u32, 0u32);
+        for i in 0..100_000 {
+            let mut pick = |k: u32| match (i as u32 + k) % 5 {
+                0 => 0.0,
+                1 => -0.0,
+                _ => (next() * 4.0 - 2.0).round() * 0.5,
+            };
+            let o: [f32; 3] = std::array::from_fn(|k| pick(k as u32));
+            let d: [f32; 3] = std::array::from_fn(|k| pick(k as u32 + 1));
+            let mut n = Node8::default();
+            for k in 0..8 {
+                let (h, j) = (k / 4, k % 4);
+                for (lo, hi) in
+                    [(&mut n.min_x, &mut n.max_x), (&mut n.min_y, &mut n.max_y), (&mut n.min_z, &mut n.max_z)]
+                {
+                    let (a, b) = (pick(k as u32 + 2), pick(k as u32 + 3));
+                    (lo[h][j], hi[h][j]) = (a.min(b), a.max(b));
+                }
+            }
+            let tmax = [f32::INFINITY, 1.0, 0.5][i % 3];
+            let r = RayPre::new(Vec3A::from(o), Vec3A::from(d), 0.0, tmax);
+            assert!(r.fused, "case {i}");
+            let (mask, t) = n.hits(&r);
+            // The same distances, ordered as floats.
+            let row = |v: &[[f32; 4]; 2]| f32x8::new(bytemuck::cast(*v));
+            let (nx, fx) = if r.neg[0] { (&n.max_x, &n.min_x) } else { (&n.min_x, &n.max_x) };
+            let (ny, fy) = if r.neg[1] { (&n.max_y, &n.min_y) } else { (&n.min_y, &n.max_y) };
+            let (nz, fz) = if r.neg[2] { (&n.max_z, &n.min_z) } else { (&n.min_z, &n.max_z) };
+            let s = f32x8::splat;
+            let tn = [(nx, 0), (ny, 1), (nz, 2)].map(|(b, a)| row(b).mul_add(s(r.id[a]), s(r.near_c[a])));
+            let tf = [(fx, 0), (fy, 1), (fz, 2)].map(|(b, a)| row(b).mul_add(s(r.fid[a]), s(r.far_c[a])));
+            let near = tn[0].fast_max(tn[1]).fast_max(tn[2].fast_max(s(r.tmin)));
+            let far = tf[0].fast_min(tf[1]).fast_min(tf[2].fast_min(s(r.tmax * ROBUST)));
+            let float_mask = near.simd_le(far).to_bitmask();
+            let (near, far) = (near.to_array(), far.to_array());
+            assert_eq!(mask, float_mask, "case {i}: exits {far:?}");
+            for k in (0..8).filter(|k| mask >> k & 1 != 0) {
+                assert_eq!(t[k], near[k], "case {i}, box {k}");
+                entered += 1;
+            }
+            zeros += far.iter().chain(&near).filter(|v| **v == 0.0).count() as u32;
+        }
+        assert!(entered > 100_000 && zeros > 100_000, "{entered} {zeros}");
+        for (tmin, tmax) in [(-1.0, 1.0), (-0.0, 1.0), (f32::NAN, 1.0), (0.0, f32::NAN)] {
+            let r = RayPre::new(Vec3A::ZERO, Vec3A::ONE, tmin, tmax);
+            assert!(!r.fused, "tmin {tmin}, tmax {tmax}");
+        }
+        assert!(RayPre::new(Vec3A::ZERO, Vec3A::ONE, 0.0, f32::INFINITY).fused);
     }
 }
