@@ -192,26 +192,32 @@ type TileHits = Vec<Hit>;
 
 /// One output buffer per tile, reused by every repeat of a pass: the timed passes then measure
 /// tracing, not the kernel handing out and zeroing fresh pages for each repeat's results (an
-/// image's worth of hits is about 4,000 pages).
-struct TileBuffers<T>(Vec<Mutex<Vec<T>>>);
+/// image's worth of hits is about 4,000 pages). Each buffer's lock and header have cache lines
+/// of their own: neighbouring tiles go to different threads, and a push writes its buffer's
+/// length once per ray, which would otherwise move the line between their cores every time.
+struct TileBuffers<T>(Vec<OwnLines<Mutex<Vec<T>>>>);
+
+/// A value alone on its cache lines (two, as Intel's adjacent-line prefetcher pairs them).
+#[repr(align(128))]
+struct OwnLines<T>(T);
 
 impl<T: Clone + Send> TileBuffers<T> {
     fn new(tiles: usize) -> Self {
-        TileBuffers((0..tiles).map(|_| Mutex::new(Vec::new())).collect())
+        TileBuffers((0..tiles).map(|_| OwnLines(Mutex::new(Vec::new()))).collect())
     }
 
     /// Runs `f` on every tile with that tile's buffer (emptied first).
     fn fill(&self, w: u32, h: u32, f: impl Fn(&Tile, &mut Vec<T>) + Sync) {
         render_tiles(w, h, TILE, |t| {
             // Each tile's lock is taken by one worker only; a poisoned one still holds a buffer.
-            let mut out = self.0[t.index].lock().unwrap_or_else(|e| e.into_inner());
+            let mut out = self.0[t.index].0.lock().unwrap_or_else(|e| e.into_inner());
             out.clear();
             f(t, &mut out);
         });
     }
 
     fn into_vecs(self) -> Vec<Vec<T>> {
-        self.0.into_iter().map(|m| m.into_inner().unwrap_or_else(|e| e.into_inner())).collect()
+        self.0.into_iter().map(|m| m.0.into_inner().unwrap_or_else(|e| e.into_inner())).collect()
     }
 }
 

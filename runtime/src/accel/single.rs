@@ -208,8 +208,9 @@ fn mul_add4(a: Vec4, b: Vec4, c: Vec4) -> Vec4 {
 }
 
 /// [`slab4`] of eight boxes at once (each coordinate eight floats, children 0-7), with the same
-/// operations lane by lane: `f32x8`'s `fast_min` and `fast_max` are the `minps` and `maxps` that
-/// glam's `min` and `max` are.
+/// answers lane by lane: the same distances, and in the two-step form the same operations
+/// (`f32x8`'s `fast_min` and `fast_max` are the `minps` and `maxps` that glam's `min` and `max`
+/// are).
 ///
 /// In the fused form the entry and exit distances are the maxima and minima of the floats' bits
 /// as signed integers (`vpmaxsd`, `vpminsd`: a cycle each where `maxps` and `minps` take four on
