@@ -778,19 +778,23 @@ pub(crate) fn occluded_brute_force(top: &TopLevel, objects: &[Object], ray: &Ray
 mod tests {
     use super::*;
 
+    /// Floats in [0, 1) from a xorshift generator seeded with `x`.
+    fn unit_floats(mut x: u64) -> impl FnMut() -> f32 {
+        move || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            (x >> 40) as f32 / (1u64 << 24) as f32
+        }
+    }
+
     /// The slab test never culls a box that the ray touches (evaluated in `f64` from the same `f32`
     /// inputs), also for rays aimed exactly at box faces, edges and corners, and for boxes behind
     /// or beyond the interval. Checks the robustness argument of [`slab4`], and that an 8-wide
     /// node's test gives each half's 4-wide answer.
     #[test]
     fn node_test_is_conservative() {
-        let mut x = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = move || {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            (x >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut next = unit_floats(0x9e37_79b9_7f4a_7c15);
         let (mut checked, mut culled, mut two_step) = (0u32, 0u32, 0u32);
         for i in 0..300_000 {
             let scale = [1e-3f32, 1.0, 1e3][i % 3];
@@ -896,13 +900,7 @@ mod tests {
     /// rays whose `tmin` is negative or `-0.0`, or whose `tmax` is NaN, take the other form.
     #[test]
     fn integer_ordering_answers_as_floats_do() {
-        let mut x = 0x2545_f491_4f6c_dd1du64;
-        let mut next = move || {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            (x >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut next = unit_floats(0x2545_f491_4f6c_dd1d);
         let (mut entered, mut zeros) = (0u32, 0u32);
         for i in 0..100_000 {
             let mut pick = |k: u32| match (i as u32 + k) % 5 {
