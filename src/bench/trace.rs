@@ -3,15 +3,16 @@
 //! traversal, and report timings. Prints nothing; the CLI formats the [`BenchReport`].
 //!
 //! Invariants: every figure except the timings is independent of the thread count (tiles are
-//! summed in tile order). Shadow rays are generated before timing starts, from the packet pass's
-//! hits: origin offset off the surface towards the light ([`offset_ray_origin`]), direction
-//! `light - origin`, interval `(0, 1)`.
+//! summed in tile order). The passes keep what Embree's side of the comparison keeps
+//! (`shared/bench/embree/embree_bench.cpp`): each pixel's hit distance, and shadow rays made from
+//! it as they are traced, by the same operations ([`ShadowView::ray`]), so that both tracers
+//! trace the same rays and their harnesses move as much memory.
 
 use glam::Vec3A;
 use rtsl_runtime::accel::bvh4::BuildQuality;
 use rtsl_runtime::camera::{packet_lane_offset, Camera, PACKET_SIDE};
 use rtsl_runtime::mesh_io::{load_mesh, MeshIoError};
-use rtsl_runtime::ray::{offset_ray_origin, Hit, HitPacket, Ray, RayPacket, PACKET_SIZE};
+use rtsl_runtime::ray::{Hit, HitPacket, Ray, RayPacket, PACKET_SIZE};
 use rtsl_runtime::scene::{scene_from_mesh, Scene};
 use rtsl_runtime::tiles::{render_tiles, Tile};
 use std::path::PathBuf;
@@ -36,6 +37,9 @@ pub struct BenchOptions {
     pub fov_deg: f32,
     /// Point light position.
     pub light: Vec3A,
+    /// The scene's scale: shadow rays start and stop this times `1e-5` from their ends, as
+    /// Embree's harness does with the scale its scene files give (300 for the benchmark scenes).
+    pub scene_scale: f32,
     /// Image width.
     pub width: u32,
     /// Image height.
@@ -62,6 +66,7 @@ impl BenchOptions {
             up: Vec3A::Y,
             fov_deg: 45.0,
             light: Vec3A::new(60.0, 220.0, 40.0),
+            scene_scale: 300.0,
             width: 1024,
             height: 768,
             threads: 1,
@@ -187,8 +192,19 @@ fn minor_page_faults() -> Option<u64> {
     }
 }
 
-/// The per-pixel results of one tile, row-major within the tile.
-type TileHits = Vec<Hit>;
+/// The hit distance of each pixel of one tile, row-major within the tile (infinity where the
+/// primary ray missed): what Embree's harness keeps of a hit.
+type TileHits = Vec<f32>;
+
+/// A hit's distance, infinity for a miss.
+#[inline(always)]
+fn distance(h: &Hit) -> f32 {
+    if h.is_hit() {
+        h.t
+    } else {
+        f32::INFINITY
+    }
+}
 
 /// One output buffer per tile, reused by every repeat of a pass: the timed passes then measure
 /// tracing, not the kernel handing out and zeroing fresh pages for each repeat's results (an
@@ -233,7 +249,7 @@ static LANES_BY_ROW: std::sync::LazyLock<[[u8; PACKET_SIDE as usize]; PACKET_SID
     });
 
 fn primary_packets(scene: &Scene, cam: &Camera, tile: &Tile, out: &mut TileHits) {
-    out.resize((tile.width * tile.height) as usize, Hit::MISS);
+    out.resize((tile.width * tile.height) as usize, f32::INFINITY);
     let mut hp = HitPacket::default();
     for by in (0..tile.height).step_by(PACKET_SIDE as usize) {
         for bx in (0..tile.width).step_by(PACKET_SIDE as usize) {
@@ -244,7 +260,7 @@ fn primary_packets(scene: &Scene, cam: &Camera, tile: &Tile, out: &mut TileHits)
                 for (r, lanes) in LANES_BY_ROW.iter().enumerate() {
                     let at = ((by + r as u32) * tile.width + bx) as usize;
                     for (dst, &i) in out[at..at + lanes.len()].iter_mut().zip(lanes) {
-                        *dst = hp.get(i as usize);
+                        *dst = distance(&hp.get(i as usize));
                     }
                 }
                 continue;
@@ -253,7 +269,7 @@ fn primary_packets(scene: &Scene, cam: &Camera, tile: &Tile, out: &mut TileHits)
                 let (dx, dy) = packet_lane_offset(i);
                 let (x, y) = (bx + dx, by + dy);
                 if p.active >> i & 1 != 0 && x < tile.width && y < tile.height {
-                    out[(y * tile.width + x) as usize] = hp.get(i);
+                    out[(y * tile.width + x) as usize] = distance(&hp.get(i));
                 }
             }
         }
@@ -263,55 +279,59 @@ fn primary_packets(scene: &Scene, cam: &Camera, tile: &Tile, out: &mut TileHits)
 fn primary_single(scene: &Scene, cam: &Camera, tile: &Tile, out: &mut TileHits) {
     for y in 0..tile.height {
         for x in 0..tile.width {
-            out.push(scene.intersect(&cam.ray(tile.x0 + x, tile.y0 + y)));
+            out.push(distance(&scene.intersect(&cam.ray(tile.x0 + x, tile.y0 + y))));
         }
     }
 }
 
-/// Shadow rays of one tile, row-major, `None` where the primary ray missed.
-type TileShadows = Vec<Option<Ray>>;
-
-fn shadow_rays(scene: &Scene, light: Vec3A, hits: &TileHits) -> TileShadows {
-    hits.iter()
-        .map(|h| {
-            let s = scene.surface(h)?;
-            let to_light = light - s.p;
-            let n = if s.ng.dot(to_light) < 0.0 { -s.ng } else { s.ng };
-            let o = offset_ray_origin(s.p, n);
-            Some(Ray::segment(o, light - o, 0.0, 1.0))
-        })
-        .collect()
+/// How the shadow passes make their rays: as Embree's harness does (`shadow_ray`), from the
+/// primary hit at distance `t` along pixel `(x, y)`'s ray, towards the light, unit length, over
+/// `(eps, distance - eps)`.
+struct ShadowView<'a> {
+    cam: &'a Camera,
+    light: Vec3A,
+    eps: f32,
 }
 
-fn shadow_packets(scene: &Scene, tile: &Tile, rays: &TileShadows, out: &mut Vec<bool>) {
-    out.resize(rays.len(), false);
+impl ShadowView<'_> {
+    #[inline(always)]
+    fn ray(&self, x: u32, y: u32, t: f32) -> Ray {
+        let o = self.cam.eye() + self.cam.ray(x, y).direction * t;
+        let l = self.light - o;
+        let dist = ((l.x * l.x + l.y * l.y) + l.z * l.z).sqrt();
+        Ray::segment(o, l * (1.0 / dist), self.eps, dist - self.eps)
+    }
+}
+
+fn shadow_packets(scene: &Scene, view: &ShadowView, tile: &Tile, dists: &TileHits, out: &mut Vec<bool>) {
+    out.resize(dists.len(), false);
     for by in (0..tile.height).step_by(PACKET_SIDE as usize) {
         for bx in (0..tile.width).step_by(PACKET_SIDE as usize) {
             let mut p = RayPacket::new();
-            let mut idx = [usize::MAX; PACKET_SIZE];
-            for (i, slot) in idx.iter_mut().enumerate() {
+            for i in 0..PACKET_SIZE {
                 let (dx, dy) = packet_lane_offset(i);
                 let (x, y) = (bx + dx, by + dy);
                 if x < tile.width && y < tile.height {
-                    let k = (y * tile.width + x) as usize;
-                    if let Some(r) = &rays[k] {
-                        p.set(i, r);
-                        *slot = k;
+                    let t = dists[(y * tile.width + x) as usize];
+                    if t.is_finite() {
+                        p.set(i, &view.ray(tile.x0 + x, tile.y0 + y, t));
                     }
                 }
             }
             let occ = scene.occluded_packet(&p);
-            for (i, &k) in idx.iter().enumerate() {
-                if k != usize::MAX {
-                    out[k] = occ >> i & 1 != 0;
-                }
+            for i in (0..PACKET_SIZE).filter(|i| p.active >> i & 1 != 0) {
+                let (dx, dy) = packet_lane_offset(i);
+                out[((by + dy) * tile.width + bx + dx) as usize] = occ >> i & 1 != 0;
             }
         }
     }
 }
 
-fn shadow_single(scene: &Scene, rays: &TileShadows, out: &mut Vec<bool>) {
-    out.extend(rays.iter().map(|r| r.as_ref().is_some_and(|r| scene.occluded(r))));
+fn shadow_single(scene: &Scene, view: &ShadowView, tile: &Tile, dists: &TileHits, out: &mut Vec<bool>) {
+    out.extend(dists.iter().enumerate().map(|(k, &t)| {
+        let (x, y) = (k as u32 % tile.width, k as u32 / tile.width);
+        t.is_finite() && scene.occluded(&view.ray(tile.x0 + x, tile.y0 + y, t))
+    }));
 }
 
 /// The median time of `repeats` runs of `f`.
@@ -342,7 +362,7 @@ fn trace_all(opts: &BenchOptions, scene: &Scene, triangles: usize, load_ms: f64,
     } else {
         (packet_hits.clone(), f64::INFINITY)
     };
-    let shadows: Vec<TileShadows> = render_tiles(w, h, TILE, |t| shadow_rays(scene, opts.light, &packet_hits[t.index]));
+    let view = ShadowView { cam: &cam, light: opts.light, eps: opts.scene_scale * 1e-5 };
     let shadow_pass = |on: bool, packets: bool| {
         if !on {
             return (None, f64::INFINITY);
@@ -351,9 +371,9 @@ fn trace_all(opts: &BenchOptions, scene: &Scene, triangles: usize, load_ms: f64,
         let t = timed(opts.repeats, || {
             buffers.fill(w, h, |t, out| {
                 if packets {
-                    shadow_packets(scene, t, &shadows[t.index], out)
+                    shadow_packets(scene, &view, t, &packet_hits[t.index], out)
                 } else {
-                    shadow_single(scene, &shadows[t.index], out)
+                    shadow_single(scene, &view, t, &packet_hits[t.index], out)
                 }
             })
         });
@@ -367,14 +387,12 @@ fn trace_all(opts: &BenchOptions, scene: &Scene, triangles: usize, load_ms: f64,
     let mut sum = 0.0f64;
     let mut mismatches = 0;
     for (a, b) in packet_hits.iter().zip(&single_hits) {
-        for (ha, hb) in a.iter().zip(b) {
-            if ha.is_hit() {
+        for (ta, tb) in a.iter().zip(b) {
+            if ta.is_finite() {
                 hits += 1;
-                sum += ha.t as f64;
+                sum += *ta as f64;
             }
-            if ha.is_hit() != hb.is_hit() || (ha.is_hit() && ha.t.to_bits() != hb.t.to_bits()) {
-                mismatches += 1;
-            }
+            mismatches += usize::from(ta.to_bits() != tb.to_bits());
         }
     }
     let mut occluded = 0;
