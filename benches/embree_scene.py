@@ -7,7 +7,7 @@ so that a whole frame's own rays can be traced by Embree and by `rtsl bench trac
         --eye 278,273,-800 --look 278,273,0 --fov 39.3 --light 278,540,279.5 --scale 800
     /tmp/embree_bench /tmp/cornell.bin 5 640 480          # built by side-by-side.sh (NO_DYNAMIC=1, THREADS=2)
     rtsl bench trace --mesh ../shared/scenes/cornell_box/cornell_box.obj --eye 278,273,-800 \
-        --look 278,273,0 --up 0,1,0 --fov 39.3 --light 278,540,279.5 --size 640x480 --threads 2
+        --look 278,273,0 --up 0,1,0 --fov 39.3 --light 278,540,279.5 --scene-scale 800 --size 640x480 --threads 2
 
 Polygons are fanned into triangles as rtsl's OBJ reader fans them; negative indices count back.
 """
