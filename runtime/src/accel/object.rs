@@ -27,6 +27,15 @@ use std::sync::{Arc, OnceLock};
 /// `docs/tracer.md`).
 pub const OBJECT_LEAF_SIZE: u32 = BLOCK_WIDTH as u32;
 
+/// Objects of at most this many triangles are built twice at the default quality
+/// ([`BuildQuality::High`]): also by PLOC ([`BuildQuality::Medium`]), keeping the tree of lower
+/// SAH cost ([`Bvh4::sah_cost`], each triangle counted). The binned builder counts a side's
+/// triangles in whole blocks, which suits single rays (a block is one test) and large meshes; but
+/// packets test a leaf's triangles one at a time, and in a small object of large triangles (the
+/// Cornell box's walls) filling blocks puts triangles far apart under one box that many packets
+/// enter. Both builds of so few triangles take microseconds.
+pub const SMALL_OBJECT_TRIANGLES: usize = 1024;
+
 /// The leaf slots of a block's lanes that hold no triangle.
 pub const NO_TRIANGLE: u32 = NO_PRIMITIVE;
 
@@ -103,7 +112,19 @@ impl ObjectBvh {
                 .collect(),
         };
         let slots = LeafSlots::Blocks(BLOCK_WIDTH as u32);
-        ObjectBvh::from_bvh4(mesh, Bvh4::build_with(&boxes, quality, OBJECT_LEAF_SIZE, slots))
+        let bvh = Bvh4::build_with(&boxes, quality, OBJECT_LEAF_SIZE, slots);
+        let bvh = match quality == BuildQuality::High && boxes.len() <= SMALL_OBJECT_TRIANGLES {
+            true => {
+                let ploc = Bvh4::build_with(&boxes, BuildQuality::Medium, OBJECT_LEAF_SIZE, slots);
+                if ploc.sah_cost() < bvh.sah_cost() {
+                    ploc
+                } else {
+                    bvh
+                }
+            }
+            false => bvh,
+        };
+        ObjectBvh::from_bvh4(mesh, bvh)
     }
 
     /// The object BVH of `mesh` around `bvh`, a 4-wide BVH over its triangles whose leaves are
@@ -722,6 +743,61 @@ mod tests {
             mesh.deformation = Some(Deformation { positions: close, normals: None, open: 0.0, close: 1.0 });
         }
         mesh
+    }
+
+    /// A room of large quads (floor, ceiling, three walls) around two boxes: the Cornell box's
+    /// kind of object, few triangles and most of them large.
+    fn room() -> Mesh {
+        let mut positions = Vec::new();
+        let mut triangles = Vec::new();
+        let mut quad = |corners: [Vec3; 4]| {
+            let first = positions.len() as u32;
+            positions.extend(corners);
+            triangles.push([first, first + 1, first + 2]);
+            triangles.push([first, first + 2, first + 3]);
+        };
+        let (w, h, d) = (556.0, 548.0, 559.0);
+        quad([Vec3::ZERO, Vec3::new(w, 0.0, 0.0), Vec3::new(w, 0.0, d), Vec3::new(0.0, 0.0, d)]);
+        quad([Vec3::new(0.0, h, 0.0), Vec3::new(0.0, h, d), Vec3::new(w, h, d), Vec3::new(w, h, 0.0)]);
+        quad([Vec3::new(0.0, 0.0, d), Vec3::new(w, 0.0, d), Vec3::new(w, h, d), Vec3::new(0.0, h, d)]);
+        quad([Vec3::ZERO, Vec3::new(0.0, 0.0, d), Vec3::new(0.0, h, d), Vec3::new(0.0, h, 0.0)]);
+        quad([Vec3::new(w, 0.0, 0.0), Vec3::new(w, h, 0.0), Vec3::new(w, h, d), Vec3::new(w, 0.0, d)]);
+        for (lo, hi) in [
+            (Vec3::new(80.0, 0.0, 60.0), Vec3::new(240.0, 165.0, 220.0)),
+            (Vec3::new(290.0, 0.0, 250.0), Vec3::new(450.0, 330.0, 410.0)),
+        ] {
+            let c = |x: bool, y: bool, z: bool| {
+                Vec3::new(if x { hi.x } else { lo.x }, if y { hi.y } else { lo.y }, if z { hi.z } else { lo.z })
+            };
+            quad([c(false, true, false), c(true, true, false), c(true, true, true), c(false, true, true)]);
+            quad([c(false, false, false), c(true, false, false), c(true, true, false), c(false, true, false)]);
+            quad([c(false, false, true), c(false, true, true), c(true, true, true), c(true, false, true)]);
+            quad([c(false, false, false), c(false, true, false), c(false, true, true), c(false, false, true)]);
+            quad([c(true, false, false), c(true, false, true), c(true, true, true), c(true, true, false)]);
+        }
+        Mesh::from_triangles(positions, triangles).expect("a valid mesh")
+    }
+
+    /// At the default quality an object of at most `SMALL_OBJECT_TRIANGLES` triangles keeps the
+    /// tree of lower SAH cost of its binned and its PLOC builds; a larger one keeps the binned
+    /// build's.
+    #[test]
+    fn small_objects_keep_the_tree_of_lower_cost() {
+        for mesh in [room(), scattered(300, false), scattered(SMALL_OBJECT_TRIANGLES + 1, false)] {
+            let boxes: Vec<Aabb> = (0..mesh.triangle_count())
+                .map(|i| {
+                    let [a, b, c] = mesh.corners(i).map(Vec3A::from);
+                    Aabb::new(a.min(b).min(c), a.max(b).max(c))
+                })
+                .collect();
+            let slots = LeafSlots::Blocks(BLOCK_WIDTH as u32);
+            let cost = |q| Bvh4::build_with(&boxes, q, OBJECT_LEAF_SIZE, slots).sah_cost();
+            let (binned, ploc) = (cost(BuildQuality::High), cost(BuildQuality::Medium));
+            let built = ObjectBvh::build(&mesh, BuildQuality::High).bvh.sah_cost();
+            let n = mesh.triangle_count();
+            let expected = if n <= SMALL_OBJECT_TRIANGLES { binned.min(ploc) } else { binned };
+            assert_eq!(built, expected, "{n} triangles: binned {binned}, PLOC {ploc}");
+        }
     }
 
     /// Every triangle lands in one block lane as the mesh gives it, at both ends of a deformation,
