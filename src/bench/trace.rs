@@ -194,7 +194,7 @@ fn minor_page_faults() -> Option<u64> {
 
 /// The hit distance of each pixel of one tile, row-major within the tile (infinity where the
 /// primary ray missed): what Embree's harness keeps of a hit.
-type TileHits = Vec<f32>;
+type TileDistances = Vec<f32>;
 
 /// A hit's distance, infinity for a miss.
 #[inline(always)]
@@ -248,7 +248,7 @@ static LANES_BY_ROW: std::sync::LazyLock<[[u8; PACKET_SIDE as usize]; PACKET_SID
         t
     });
 
-fn primary_packets(scene: &Scene, cam: &Camera, tile: &Tile, out: &mut TileHits) {
+fn primary_packets(scene: &Scene, cam: &Camera, tile: &Tile, out: &mut TileDistances) {
     out.resize((tile.width * tile.height) as usize, f32::INFINITY);
     let mut hp = HitPacket::default();
     for by in (0..tile.height).step_by(PACKET_SIDE as usize) {
@@ -276,7 +276,7 @@ fn primary_packets(scene: &Scene, cam: &Camera, tile: &Tile, out: &mut TileHits)
     }
 }
 
-fn primary_single(scene: &Scene, cam: &Camera, tile: &Tile, out: &mut TileHits) {
+fn primary_single(scene: &Scene, cam: &Camera, tile: &Tile, out: &mut TileDistances) {
     for y in 0..tile.height {
         for x in 0..tile.width {
             out.push(distance(&scene.intersect(&cam.ray(tile.x0 + x, tile.y0 + y))));
@@ -303,7 +303,7 @@ impl ShadowView<'_> {
     }
 }
 
-fn shadow_packets(scene: &Scene, view: &ShadowView, tile: &Tile, dists: &TileHits, out: &mut Vec<bool>) {
+fn shadow_packets(scene: &Scene, view: &ShadowView, tile: &Tile, dists: &TileDistances, out: &mut Vec<bool>) {
     out.resize(dists.len(), false);
     for by in (0..tile.height).step_by(PACKET_SIDE as usize) {
         for bx in (0..tile.width).step_by(PACKET_SIDE as usize) {
@@ -327,7 +327,7 @@ fn shadow_packets(scene: &Scene, view: &ShadowView, tile: &Tile, dists: &TileHit
     }
 }
 
-fn shadow_single(scene: &Scene, view: &ShadowView, tile: &Tile, dists: &TileHits, out: &mut Vec<bool>) {
+fn shadow_single(scene: &Scene, view: &ShadowView, tile: &Tile, dists: &TileDistances, out: &mut Vec<bool>) {
     out.extend(dists.iter().enumerate().map(|(k, &t)| {
         let (x, y) = (k as u32 % tile.width, k as u32 / tile.width);
         t.is_finite() && scene.occluded(&view.ray(tile.x0 + x, tile.y0 + y, t))
@@ -354,13 +354,13 @@ fn trace_all(opts: &BenchOptions, scene: &Scene, triangles: usize, load_ms: f64,
     let reps = |on: bool| if on { opts.repeats } else { 1 };
     let buffers = TileBuffers::new(list.len());
     let t_pp = timed(reps(pp), || buffers.fill(w, h, |t, out| primary_packets(scene, &cam, t, out)));
-    let packet_hits = buffers.into_vecs();
-    let (single_hits, t_ps) = if ps {
+    let packet_distances = buffers.into_vecs();
+    let (single_distances, t_ps) = if ps {
         let buffers = TileBuffers::new(list.len());
         let t = timed(opts.repeats, || buffers.fill(w, h, |t, out| primary_single(scene, &cam, t, out)));
         (buffers.into_vecs(), t)
     } else {
-        (packet_hits.clone(), f64::INFINITY)
+        (packet_distances.clone(), f64::INFINITY)
     };
     let view = ShadowView { cam: &cam, light: opts.light, eps: opts.scene_scale * 1e-5 };
     let shadow_pass = |on: bool, packets: bool| {
@@ -371,9 +371,9 @@ fn trace_all(opts: &BenchOptions, scene: &Scene, triangles: usize, load_ms: f64,
         let t = timed(opts.repeats, || {
             buffers.fill(w, h, |t, out| {
                 if packets {
-                    shadow_packets(scene, &view, t, &packet_hits[t.index], out)
+                    shadow_packets(scene, &view, t, &packet_distances[t.index], out)
                 } else {
-                    shadow_single(scene, &view, t, &packet_hits[t.index], out)
+                    shadow_single(scene, &view, t, &packet_distances[t.index], out)
                 }
             })
         });
@@ -386,7 +386,7 @@ fn trace_all(opts: &BenchOptions, scene: &Scene, triangles: usize, load_ms: f64,
     let mut hits = 0;
     let mut sum = 0.0f64;
     let mut mismatches = 0;
-    for (a, b) in packet_hits.iter().zip(&single_hits) {
+    for (a, b) in packet_distances.iter().zip(&single_distances) {
         for (ta, tb) in a.iter().zip(b) {
             if ta.is_finite() {
                 hits += 1;
