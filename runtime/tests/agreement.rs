@@ -264,6 +264,74 @@ proptest! {
     }
 }
 
+/// Triangles whose corners lie on a grid a quarter apart in `[-2, 2]`: rays along the axes from
+/// the same grid run exactly through corners, along edges and in the planes of box faces.
+fn grid_world() -> impl Strategy<Value = World> {
+    let corner = (-8i32..=8, -8i32..=8, -8i32..=8).prop_map(|(x, y, z)| Vec3::new(x as f32, y as f32, z as f32) * 0.25);
+    prop::collection::vec((corner.clone(), corner.clone(), corner), 1..24).prop_map(|tris| {
+        let positions: Vec<Vec3> = tris.iter().flat_map(|&(a, b, c)| [a, b, c]).collect();
+        let triangles = (0..tris.len() as u32).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect();
+        let mesh = Mesh::from_triangles(positions, triangles).expect("valid by construction");
+        World { meshes: vec![mesh], instances: vec![(0, Affine3A::IDENTITY)] }
+    })
+}
+
+/// A ray with no direction along an axis that lies exactly in the plane of a box face across it
+/// enters the box (a hit on the face's edge or corner is found), at the coordinates' origin, where
+/// faces lie at 0, and far from it.
+#[test]
+fn rays_in_the_plane_of_a_face_find_what_lies_in_it() {
+    // One triangle standing in the plane x = 1; its top edge lies in y = 0, the top of its box.
+    let tri = Mesh::from_triangles(
+        vec![Vec3::new(1.0, -1.0, -1.0), Vec3::new(1.0, 0.0, -1.0), Vec3::new(1.0, 0.0, 1.0)],
+        vec![[0, 1, 2]],
+    )
+    .expect("one triangle");
+    let w = World { meshes: vec![tri], instances: vec![(0, Affine3A::IDENTITY)] };
+    for (offset, scale) in [(0.0f32, 1.0f32), (1e4, 1.0), (1e7, 1e3)] {
+        let scene = far_scene(&w, offset, scale);
+        for dy in [0.0f32, -0.0] {
+            let o = Vec3A::new(offset, offset, offset + 0.25 * scale);
+            let r = Ray::new(o, Vec3A::new(1.0, dy, 0.0));
+            let hit = scene.intersect_brute_force(&r, None);
+            assert!(hit.is_hit() && hit.t == scale, "the edge is hit at {scale}: {hit:?}");
+            let mut p = RayPacket::new();
+            for i in 0..PACKET_SIZE {
+                let mut lane = r;
+                lane.origin.z = offset + (i as f32 / 64.0 - 0.5) * scale;
+                p.set(i, &lane);
+            }
+            check(&scene, &p, None).expect("the traversals agree");
+            assert!(scene.intersect(&r).is_hit() && scene.occluded(&r), "dy {dy:?} at {offset}");
+            assert_eq!(scene.occluded_packet(&p), u64::MAX, "dy {dy:?} at {offset}");
+        }
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 96, .. ProptestConfig::default() })]
+
+    /// Triangles on a grid and rays along the axes from the same grid, near the coordinates'
+    /// origin and far from it: many rays run through corners and along edges, in the planes of
+    /// box faces.
+    #[test]
+    fn traversals_agree_on_a_grid_along_the_axes(
+        w in grid_world(),
+        far in 0usize..3,
+        rays in prop::collection::vec(((-8i32..=8, -8i32..=8, -8i32..=8), 0usize..3, any::<bool>(), any::<u64>(), any::<bool>()), 1..6),
+    ) {
+        let (offset, scale) = [(0.0f32, 1.0f32), (1e4, 1.0), (1e7, 1e3)][far];
+        let scene = far_scene(&w, offset, scale);
+        for ((x, y, z), axis, back, active, seg) in rays {
+            let mut from = Vec3::splat(offset) + Vec3::new(x as f32, y as f32, z as f32) * 0.25 * scale;
+            from[axis] = offset + if back { 4.0 } else { -4.0 } * scale;
+            // Lanes half a unit apart: every origin is on the grid.
+            let p = axis_packet(from, axis, back, 0.5 * scale, active | 1, seg.then_some(8.0 * scale));
+            check(&scene, &p, None)?;
+        }
+    }
+}
+
 /// A random cut-out: an 8x8 grey-alpha image with random holes, and texture coordinates for every
 /// vertex of the world's meshes (some beyond [0, 1], so that the mask wraps).
 fn masks() -> impl Strategy<Value = (Vec<bool>, u64)> {

@@ -94,15 +94,58 @@ impl Default for Node4 {
 }
 
 impl Node4 {
+    /// The box around the children's stored boxes.
+    pub(crate) fn children_bounds(&self) -> (Vec3A, Vec3A) {
+        let (mut lo, mut hi) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
+        for k in (0..4).filter(|&k| self.child[k] != EMPTY_CHILD) {
+            lo = lo.min(Vec3A::new(self.min_x[k], self.min_y[k], self.min_z[k]));
+            hi = hi.max(Vec3A::new(self.max_x[k], self.max_y[k], self.max_z[k]));
+        }
+        (lo, hi)
+    }
+
+    /// Stores child `k`: box `b` grown outward by [`below`] and [`above`], so that a ray with no
+    /// direction along an axis that lies exactly in the plane of a face across it still enters.
     fn set_child(&mut self, k: usize, b: &Aabb, child: u32) {
-        self.min_x[k] = b.min.x;
-        self.min_y[k] = b.min.y;
-        self.min_z[k] = b.min.z;
-        self.max_x[k] = b.max.x;
-        self.max_y[k] = b.max.y;
-        self.max_z[k] = b.max.z;
+        self.min_x[k] = below(b.min.x);
+        self.min_y[k] = below(b.min.y);
+        self.min_z[k] = below(b.min.z);
+        self.max_x[k] = above(b.max.x);
+        self.max_y[k] = above(b.max.y);
+        self.max_z[k] = above(b.max.z);
         self.child[k] = child;
     }
+}
+
+/// How far a stored box face lies outward of the geometry's bound: a share of the coordinate's
+/// magnitude (at least two units in its last place), and at least [`FACE_MARGIN_MIN`].
+///
+/// Why: a direction component below `1e-30` is clamped to that (`safe_inv`), so a ray with none
+/// along an axis moves across it by `1e-30` per unit of distance. Lying exactly in a face's plane,
+/// it would leave the slab at distance 0 and miss the box, while the triangle test, which has no
+/// such clamp, can hit an edge or corner in that face. With the face moved out by `m`, the ray
+/// leaves at `m * 1e30` or later: beyond any distance a hit can have while `m` is at least
+/// [`FACE_MARGIN_MIN`] (`5e10`) or the coordinate's share (`2.4e23` times the coordinate).
+const FACE_MARGIN: f32 = 1.0 / (1u32 << 22) as f32;
+
+/// The least margin of a face (`2^-64`), for faces at or near 0 (see [`FACE_MARGIN`]).
+const FACE_MARGIN_MIN: f32 = 1.0 / (1u64 << 63) as f32 / 2.0;
+
+/// A box minimum moved outward (see [`FACE_MARGIN`]); monotonic, so that a child's stored box
+/// stays inside its parent's.
+#[inline]
+fn below(x: f32) -> f32 {
+    if x > 0.0 {
+        x * (1.0 - FACE_MARGIN) - FACE_MARGIN_MIN
+    } else {
+        x * (1.0 + FACE_MARGIN) - FACE_MARGIN_MIN
+    }
+}
+
+/// A box maximum moved outward (see [`below`]).
+#[inline]
+fn above(x: f32) -> f32 {
+    -below(-x)
 }
 
 /// Encodes a leaf reference.
@@ -353,7 +396,8 @@ pub struct Bvh4 {
     pub nodes: Vec<Node4>,
     /// Leaf slot to input primitive.
     pub prim_order: Vec<u32>,
-    /// Bounds of everything.
+    /// Bounds of everything, as stored: the box around the root's child boxes, which lie a little
+    /// outside the primitives' bound (see [`FACE_MARGIN`]).
     pub bounds: Option<(Vec3A, Vec3A)>,
     /// Number of inner-node levels (a traversal stack needs at most `3 * depth + 1` entries).
     pub depth: usize,
@@ -389,15 +433,11 @@ impl Bvh4 {
             return Bvh4::default();
         }
         if n <= 4 {
-            let mut total = Aabb::empty();
-            for b in boxes {
-                total = total.union(b);
-            }
-            let bounds = Some((total.min, total.max));
             let mut node = Node4::default();
             for (k, b) in boxes.iter().enumerate() {
                 node.set_child(k, b, leaf_ref(k as u32, 1));
             }
+            let bounds = Some(node.children_bounds());
             let prim_order = match slots {
                 LeafSlots::Packed => (0..n as u32).collect(),
                 LeafSlots::Blocks(width) => (0..n as u32)
@@ -455,7 +495,6 @@ impl Bvh4 {
     /// `binned::build_binned_summarised` leaves them): pass 2 alone.
     pub fn from_summarised_bvh2(bvh2: &mut Bvh2, rule: CollapseRule) -> Bvh4 {
         let Some(&root) = bvh2.nodes.first() else { return Bvh4::default() };
-        let bounds = Some((root.aabb.min, root.aabb.max));
         let conv = Converter::new(bvh2, rule);
         let n = conv.slots(0) as usize;
         let mut prim_order = vec![0u32; n];
@@ -467,7 +506,7 @@ impl Bvh4 {
             unused.fill(NO_PRIMITIVE);
             let mut node = Node4::default();
             node.set_child(0, &root.aabb, leaf_ref(0, prims));
-            return Bvh4 { nodes: vec![node], prim_order, bounds, depth: 1 };
+            return Bvh4 { bounds: Some(node.children_bounds()), nodes: vec![node], prim_order, depth: 1 };
         }
         let count = conv.nodes4(0) as usize;
         let mut nodes: Vec<Node4> = Vec::with_capacity(count);
@@ -476,7 +515,7 @@ impl Bvh4 {
         // ranges of `nodes4(kid)` entries that together with the head fill the range exactly
         // (`nodes4(i) = 1 + sum of nodes4(kids)`, pass 1).
         unsafe { nodes.set_len(count) };
-        Bvh4 { nodes, prim_order, bounds, depth }
+        Bvh4 { bounds: Some(nodes[0].children_bounds()), nodes, prim_order, depth }
     }
 
     /// The SAH cost of the tree relative to its root box (inner-node test cost 1, primitive test
@@ -805,6 +844,27 @@ mod tests {
     use obvhs::bvh2::builder::build_bvh2;
     use std::time::Duration;
 
+    /// Stored faces lie strictly outside the geometry's bound, far enough that a ray with a
+    /// clamped zero direction component (inverse `1e30`) lying in the bound's plane leaves them
+    /// only beyond `5e10`; and growing keeps order, so a child's box stays inside its parent's.
+    #[test]
+    fn faces_grow_outward_and_keep_their_order() {
+        let mut xs = vec![0.0f32, -0.0, f32::MIN_POSITIVE, 1e-30, 1e-20, 0.25, 1.0, 3.0, 1e4, 1e7 + 250.0, 1e9, 3e38];
+        xs.extend(xs.clone().iter().map(|x| -x));
+        xs.extend((0..2000).map(|i| ((i as f32 * 0.618_034).fract() - 0.5) * 10f32.powi(i % 24 - 12)));
+        for &x in &xs {
+            let (lo, hi) = (below(x), above(x));
+            assert!(lo < x && hi > x, "{x}: {lo} {hi}");
+            if x.abs() < 1e38 {
+                assert!((x - lo) * 1e30 >= 5e10 && (hi - x) * 1e30 >= 5e10, "{x}: {lo} {hi}");
+            }
+        }
+        xs.sort_by(f32::total_cmp);
+        for w in xs.windows(2) {
+            assert!(below(w[0]) <= below(w[1]) && above(w[0]) <= above(w[1]), "{} {}", w[0], w[1]);
+        }
+    }
+
     fn check_subtree(bvh: &Bvh4, node: u32, lo: Vec3A, hi: Vec3A, boxes: &[Aabb], seen: &mut [u32]) {
         let n = &bvh.nodes[node as usize];
         for k in 0..4 {
@@ -848,6 +908,7 @@ mod tests {
                 r.emit_inner(bvh2, 0);
             }
             r.out.depth = r.compute_depth(0);
+            r.out.bounds = r.out.nodes.first().map(Node4::children_bounds);
             r.out
         }
 

@@ -176,20 +176,7 @@ fn decode_tree(bytes: &[u8], mesh: &Mesh, part: Option<(u32, Bounds)>) -> Result
     if let Some(b) = block_taken.iter().position(|&t| !t) {
         return Err(format!("block {b} of the BVH is in no leaf"));
     }
-    Ok(Bvh4 { bounds: Some(root_bounds(&nodes[0])), nodes, prim_order, depth })
-}
-
-/// The box around a node's children.
-fn root_bounds(root: &Node4) -> Bounds {
-    let mut lo = Vec3A::INFINITY;
-    let mut hi = Vec3A::NEG_INFINITY;
-    for k in 0..4 {
-        if root.child[k] != EMPTY_CHILD {
-            let (a, b) = child_box(root, k);
-            (lo, hi) = (lo.min(a), hi.max(b));
-        }
-    }
-    (lo, hi)
+    Ok(Bvh4 { bounds: Some(nodes[0].children_bounds()), nodes, prim_order, depth })
 }
 
 /// Appends an object's small tree ([`super::parts`]) to `out`: the tree as [`encode_bvh4`]
@@ -229,7 +216,7 @@ pub fn decode_small_tree(bytes: &[u8], mesh: &Mesh) -> Result<(Bvh4, Vec<(u32, B
     })?;
     let known: Option<Vec<(u32, Bounds)>> = triangles.into_iter().zip(boxes).map(|(t, b)| Some((t, b?))).collect();
     let known = known.ok_or("a part that no leaf of the small tree names")?;
-    Ok((Bvh4 { bounds: Some(root_bounds(&nodes[0])), nodes, prim_order, depth }, known))
+    Ok((Bvh4 { bounds: Some(nodes[0].children_bounds()), nodes, prim_order, depth }, known))
 }
 
 /// Child `k`'s box in `node`.
