@@ -308,12 +308,33 @@ fn rays_in_the_plane_of_a_face_find_what_lies_in_it() {
     }
 }
 
+/// A packet of rays from one origin (`o`), mostly along one axis (`axis`, backwards where
+/// `back`), their other direction components multiples of a quarter from -1 to 0.75: exactly
+/// zero in a row and a column of lanes, and exactly representable, so that rays from a grid point
+/// run through grid points.
+fn fan_packet(o: Vec3, axis: usize, back: bool, active: u64, tmax: Option<f32>) -> RayPacket {
+    let mut p = RayPacket::new();
+    for i in (0..PACKET_SIZE).filter(|i| active >> i & 1 != 0) {
+        let (x, y) = rtsl_runtime::camera::packet_lane_offset(i);
+        let mut d = Vec3::ZERO;
+        d[axis] = if back { -1.0 } else { 1.0 };
+        d[(axis + 1) % 3] = (x as f32 - 4.0) * 0.25;
+        d[(axis + 2) % 3] = (y as f32 - 4.0) * 0.25;
+        let r = match tmax {
+            Some(t) => Ray::segment(Vec3A::from(o), Vec3A::from(d), 0.0, t),
+            None => Ray::new(Vec3A::from(o), Vec3A::from(d)),
+        };
+        p.set(i, &r);
+    }
+    p
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 96, .. ProptestConfig::default() })]
 
-    /// Triangles on a grid and rays along the axes from the same grid, near the coordinates'
-    /// origin and far from it: many rays run through corners and along edges, in the planes of
-    /// box faces.
+    /// Triangles on a grid and rays along the axes from the same grid (and fans of rays from one
+    /// grid point), near the coordinates' origin and far from it: many rays run through corners and
+    /// along edges, in the planes of box faces.
     #[test]
     fn traversals_agree_on_a_grid_along_the_axes(
         w in grid_world(),
@@ -328,6 +349,7 @@ proptest! {
             // Lanes half a unit apart: every origin is on the grid.
             let p = axis_packet(from, axis, back, 0.5 * scale, active | 1, seg.then_some(8.0 * scale));
             check(&scene, &p, None)?;
+            check(&scene, &fan_packet(from, axis, back, active | 1, seg.then_some(8.0 * scale)), None)?;
         }
     }
 }
