@@ -51,17 +51,27 @@ fn xvfb() -> Option<Xvfb> {
     Some(Xvfb { display: format!(":{number}"), child })
 }
 
-/// Runs `rtsl view ARGS` on `display`, killed after two minutes. A refused X connection is the
-/// test machine's trouble, not the viewer's, so it is tried again a few times.
+/// Runs `rtsl view ARGS` on `display`, killed after two minutes (see [`run_retrying`]).
 fn view(display: &str, dir: &Path, args: &[&str]) -> Output {
-    let mut attempt = 0;
-    loop {
+    run_retrying(display, dir, || {
         let mut command = Command::new(env!("CARGO_BIN_EXE_rtsl"));
         command.arg("view").args(args);
-        let o = run_on(display, dir, command);
-        let refused = String::from_utf8_lossy(&o.stderr).contains("connecting to the display");
+        command
+    })
+}
+
+/// Runs the command `make` gives on `display`, killed after two minutes. An X connection refused,
+/// or broken by the server (Xlib's "X connection to :N broken"), is the test machine's trouble, not
+/// the viewer's, so the command is tried again a few times.
+fn run_retrying(display: &str, dir: &Path, make: impl Fn() -> Command) -> Output {
+    let mut attempt = 0;
+    loop {
+        let o = run_on(display, dir, make());
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        let x_trouble = stderr.contains("connecting to the display")
+            || (stderr.contains("X connection to") && stderr.contains("broken"));
         attempt += 1;
-        if !refused || attempt == 3 {
+        if o.status.success() || !x_trouble || attempt == 3 {
             return o;
         }
         std::thread::sleep(Duration::from_millis(500));
@@ -277,13 +287,15 @@ fn the_viewer_over_three_mpi_ranks_shows_what_one_process_shows() {
     for extra in [&["--events", "shiftdrag:33,45,60,45"][..], &["--aa", "adaptive"], &["--frameless"], &[gi]] {
         let alone = view(&x.display, dir.path(), &[&common[..], extra, &["--screenshot", "alone.png"]].concat());
         assert!(alone.status.success(), "{}", String::from_utf8_lossy(&alone.stderr));
-        let mut mpirun = Command::new("mpirun");
-        mpirun
-            .args(["-n", "3", "--oversubscribe", "--bind-to", "none", env!("CARGO_BIN_EXE_rtsl"), "view", "--mpi"])
-            .args([&common[..], extra, &["--screenshot", "ranks.png"]].concat())
-            .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
-            .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1");
-        let ranks = run_on(&x.display, dir.path(), mpirun);
+        let ranks = run_retrying(&x.display, dir.path(), || {
+            let mut mpirun = Command::new("mpirun");
+            mpirun
+                .args(["-n", "3", "--oversubscribe", "--bind-to", "none", env!("CARGO_BIN_EXE_rtsl"), "view", "--mpi"])
+                .args([&common[..], extra, &["--screenshot", "ranks.png"]].concat())
+                .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+                .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1");
+            mpirun
+        });
         let out = String::from_utf8_lossy(&ranks.stdout);
         assert!(ranks.status.success(), "{extra:?}: {out}{}", String::from_utf8_lossy(&ranks.stderr));
         // Two workers of one thread each rendered.
