@@ -112,18 +112,13 @@ impl ObjectBvh {
                 .collect(),
         };
         let slots = LeafSlots::Blocks(BLOCK_WIDTH as u32);
-        let bvh = Bvh4::build_with(&boxes, quality, OBJECT_LEAF_SIZE, slots);
-        let bvh = match quality == BuildQuality::High && boxes.len() <= SMALL_OBJECT_TRIANGLES {
-            true => {
-                let ploc = Bvh4::build_with(&boxes, BuildQuality::Medium, OBJECT_LEAF_SIZE, slots);
-                if ploc.sah_cost() < bvh.sah_cost() {
-                    ploc
-                } else {
-                    bvh
-                }
+        let mut bvh = Bvh4::build_with(&boxes, quality, OBJECT_LEAF_SIZE, slots);
+        if quality == BuildQuality::High && boxes.len() <= SMALL_OBJECT_TRIANGLES {
+            let ploc = Bvh4::build_with(&boxes, BuildQuality::Medium, OBJECT_LEAF_SIZE, slots);
+            if ploc.sah_cost() < bvh.sah_cost() {
+                bvh = ploc;
             }
-            false => bvh,
-        };
+        }
         ObjectBvh::from_bvh4(mesh, bvh)
     }
 
