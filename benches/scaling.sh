@@ -21,7 +21,7 @@
 # with tile copies at a frame's end and with `--no-tile-copies`, twice, interleaved; `quarters`
 # the same with the last tiles of a frame in quarters and with `--no-tile-quarters`; `spin` the
 # BART animations the same way with and without `--master-spins`, `ahead` with and without
-# `--no-asking-ahead`, and `thp` (with Sponza) with transparent huge pages off, the default, and
+# `--no-asking-ahead`, and `thp` (with Sponza) with transparent huge pages off, the default of ranks, and
 # on (`MIMALLOC_ALLOW_THP=1` in every rank); `embree`
 # runs ../shared/bench/embree/side-by-side.sh on 1 thread and every core (EMBREE_SCENES: its
 # scenes; EMBREE_THREADS: its thread counts). DEADLINE: seconds after which no new command starts
@@ -179,7 +179,7 @@ run() {
         # Workers' tiles asking ahead for what they reach, set aside meanwhile.
         interleaved "" --no-asking-ahead robots kitchen ;;
       thp)
-        # Transparent huge pages off (the default) and on, as mimalloc would have them.
+        # Transparent huge pages off (the default of ranks) and on, as mimalloc would have them.
         interleaved "" MIMALLOC_ALLOW_THP=1 robots kitchen sponza ;;
       spin)
         # The master polling without napping (it has a core of its own here).

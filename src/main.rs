@@ -88,10 +88,12 @@ fn check_instruction_set() -> Result<(), &'static str> {
 const MI_OPTION_ARENA_PURGE_MULT: std::ffi::c_int = 24;
 
 /// `mi_option_allow_thp` in mimalloc 3's `mi_option_e`.
+#[cfg(any(feature = "mpi", test))]
 const MI_OPTION_ALLOW_THP: std::ffi::c_int = 43;
 
 unsafe extern "C" {
     fn mi_option_set_default(option: std::ffi::c_int, value: std::ffi::c_long);
+    #[cfg(any(feature = "mpi", test))]
     fn mi_option_set(option: std::ffi::c_int, value: std::ffi::c_long);
     #[cfg(test)]
     fn mi_option_get(option: std::ffi::c_int) -> std::ffi::c_long;
@@ -112,15 +114,19 @@ fn keep_freed_memory_for_the_next_frames() {
 }
 
 /// Turns transparent huge pages off for this process, unless `MIMALLOC_ALLOW_THP` says
-/// otherwise (mimalloc's own switch, which it reads before `main`).
+/// otherwise (mimalloc's own switch, which it reads before `main`). Called where a process joins
+/// a distributed render (`cli::mpi::transport`); other runs keep them.
 ///
 /// mimalloc asks for huge pages on its arenas, so the first touch of any fresh part of one
-/// faults in and zeroes two megabytes. A renderer's memory grows all the time: a new object's
-/// BVH, a texture's level decoded as a frame first looks it up, a worker's fetched meshes and the
-/// messages that bring them. Each such growth paid for the zeroing, on the render thread (most
-/// of a distributed worker's system time, and the spikes of the frames that fetch), for a TLB
-/// gain steady frames do not show.
-fn no_transparent_huge_pages() {
+/// faults in and zeroes two megabytes. A distributed worker's memory grows all through its first
+/// frames, with the meshes it fetches and the messages that bring them, and each growth paid for
+/// the zeroing on the render thread: most of its system time, and the first frame several times
+/// as long as with small pages (`docs/bart.md`). A renderer in one process grows mostly as it
+/// loads the scene and builds its BVHs; for it huge pages mean fewer TLB misses when rays reach
+/// the large arrays at random and a 512th of the faults when a build first touches them
+/// (`docs/tracer.md`).
+#[cfg(any(feature = "mpi", test))]
+pub(crate) fn no_transparent_huge_pages() {
     if std::env::var_os("MIMALLOC_ALLOW_THP").is_some() {
         return;
     }
@@ -144,7 +150,6 @@ fn main() -> ExitCode {
         return ExitCode::from(2);
     }
     keep_freed_memory_for_the_next_frames();
-    no_transparent_huge_pages();
     match cli::run() {
         Ok(code) => code,
         Err(e) => {

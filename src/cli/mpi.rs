@@ -13,6 +13,7 @@ use rtsl_runtime::texture::TILED_FROM_BYTES;
 /// This process's rank of the `mpirun` job.
 #[cfg(feature = "mpi")]
 pub(crate) fn transport() -> anyhow::Result<Box<dyn Transport>> {
+    crate::no_transparent_huge_pages();
     Ok(Box::new(rtsl_runtime::distributed::mpi::MpiTransport::init()?))
 }
 
