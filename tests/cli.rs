@@ -1738,6 +1738,14 @@ fn bench_trace_reports_each_builds_page_faults() {
         let faults: Vec<u64> =
             field("build_page_faults").split(", ").map(|f| f.parse().expect("a count of faults")).collect();
         assert_eq!(faults.len(), 2, "one count for each timed build: {out}");
+        // Untimed builds after the first are listed only while they faulted in fresh pages.
+        if let Some(warmup) = out.lines().find_map(|l| l.strip_prefix("warmup_builds: ")) {
+            let counts: Vec<u64> = warmup
+                .split(", ")
+                .map(|b| b.rsplit_once("ms/").and_then(|(_, f)| f.parse().ok()).expect("`MS ms/FAULTS`"))
+                .collect();
+            assert!((1..=4).contains(&counts.len()) && counts.iter().all(|&f| f > 0), "{out}");
+        }
     }
     // The packet kernels it ran with: AVX-512 where the processor has it, unless `RTSL_ISA` says
     // `avx2`, which keeps the build's own set (SSE2 in a build for plain x86-64, such as an

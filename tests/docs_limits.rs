@@ -11,6 +11,7 @@ use std::path::{Path, PathBuf};
 /// Constants that bound rtsl's own work rather than its input, each with why.
 const INTERNAL: &[(&str, &str)] = &[
     ("rtsl_runtime::accel::bvh4::MAX_LEAF_SIZE", "primitives per BVH leaf: a build parameter"),
+    ("rtsl::bench::trace::MAX_WARMUP_BUILDS", "untimed builds before a benchmark times its own"),
     ("rtsl_runtime::render::group::MAX_BUCKETED_KEYS", "when grouping by shader sorts instead of bucketing"),
     ("rtsl_runtime::render::primary::MAX_PACKETS_PER_CALL", "packets per camera-shader batch: a batching size"),
     ("rtsl_runtime::texture::mip::MAX_LANE_VALUES", "values a lookup returns per lane: the shading ABI's width"),

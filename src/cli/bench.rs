@@ -137,6 +137,10 @@ pub fn run_trace(args: &BenchTraceArgs) -> anyhow::Result<()> {
         let faults: Vec<String> = faults.iter().map(u64::to_string).collect();
         println!("build_page_faults: {}", faults.join(", "));
     }
+    if !r.warmup_builds.is_empty() {
+        let warmup: Vec<String> = r.warmup_builds.iter().map(|(ms, f)| format!("{ms:.1} ms/{f}")).collect();
+        println!("warmup_builds: {}", warmup.join(", "));
+    }
     println!("memory_bytes: {}", r.memory_bytes);
     println!("memory_bytes_per_triangle: {per_tri:.1}");
     println!("primary_rays: {}", r.primary_rays);
