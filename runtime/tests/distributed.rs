@@ -1626,9 +1626,9 @@ fn grid_object(
 
 /// A large object travels in parts: a worker fetches its mesh and small tree, then only the
 /// parts of its BVH that its rays reach, each once; frames are the single process's, bit for bit.
-/// One worker renders every tile of every frame, so nothing is fetched after the first frame. Of
-/// two, one that runs ahead takes tiles the other had (`schedule.rs`), as timing has it, and then
-/// fetches what those reach: still only what it does not hold.
+/// One worker renders every tile of every frame, so nothing is fetched for a frame that changes
+/// nothing. Of two, one that runs ahead takes tiles the other had (`schedule.rs`), as timing has
+/// it, and then fetches what those reach: still only what it does not hold.
 #[test]
 fn workers_fetch_the_parts_of_a_large_object_that_rays_reach() -> Result<(), DistributedError> {
     let (mut rt, ground) = little_scene_on_wide_ground();
@@ -1648,8 +1648,10 @@ fn workers_fetch_the_parts_of_a_large_object_that_rays_reach() -> Result<(), Dis
         assert!(first.fetched_parts > 2 && first.fetched_parts < parts, "{first:?} of {parts} parts");
         assert_eq!(first.resident_parts, first.fetched_parts, "{first:?}");
         let (mut objects, mut resident) = (first.resident_objects, first.resident_parts);
-        for (later, traffic) in &demands[1..] {
-            if workers == 1 {
+        for (frame, (later, traffic)) in demands.iter().enumerate().skip(1) {
+            // The frame before the move sees what the first saw; after it, rays may reach parts
+            // that none reached before (the moved object's shadow falls elsewhere).
+            if workers == 1 && frame == 1 {
                 assert_eq!((later.fetched_objects, later.fetched_parts, traffic.fetches), (0, 0, 0), "{later:?}");
             }
             // Nothing held is fetched again, and nothing is evicted.

@@ -76,6 +76,10 @@ pub struct Node4 {
     pub max_z: [f32; 4],
     /// Child references.
     pub child: [u32; 4],
+    /// How the children came from the binary BVH the node was collapsed from ([`shape_code`]),
+    /// which the 8-wide form follows; 0 where that is not known (the children are then taken as
+    /// they are). In the node's padding: it does not make the node larger.
+    pub shape: u32,
 }
 
 impl Default for Node4 {
@@ -89,8 +93,17 @@ impl Default for Node4 {
             min_z: [inf; 4],
             max_z: [-inf; 4],
             child: [EMPTY_CHILD; 4],
+            shape: 0,
         }
     }
+}
+
+/// The shape code of a 4-wide node whose `len` children (2 to 4) came from a binary node by
+/// [`kids_of`]: its two children in positions 0 and 1, then `opened[0]` opened (its left child
+/// stays in its position, its right child goes to position 2), then `opened[1]` likewise (right
+/// child to position 3). Bits 0-1: `len - 1`; bit 2: `opened[0]`; bits 3-4: `opened[1]`.
+pub(crate) fn shape_code(len: usize, opened: [usize; 2]) -> u32 {
+    (len as u32 - 1) | (opened[0] as u32) << 2 | (opened[1] as u32) << 3
 }
 
 impl Node4 {
@@ -597,7 +610,7 @@ impl CollapseRule {
             }
         }
         // `kids_of` reads the leaf flags of the children and grandchildren only.
-        let (kids, len) = kids_of(node, &below);
+        let (kids, len, _) = kids_of(node, &below);
         let nodes4: u32 = kids[..len].iter().map(|&c| below(c).meta2).sum();
         (self.slots(&l) + self.slots(&r), 1 + nodes4)
     }
@@ -616,10 +629,11 @@ impl CollapseRule {
 /// (`below(j)`: binary node `j` of its subtree, with pass 1's result): its two children, then
 /// repeatedly the (not-leaf) one of largest surface area is opened.
 #[inline(always)]
-fn kids_of(node: &Bvh2Node, below: impl Fn(usize) -> Bvh2Node) -> ([usize; 4], usize) {
+fn kids_of(node: &Bvh2Node, below: impl Fn(usize) -> Bvh2Node) -> ([usize; 4], usize, u32) {
     let first = node.first_index as usize;
     let mut kids = [first, first + 1, 0, 0];
     let mut len = 2;
+    let mut opened = [0; 2];
     while len < 4 {
         let mut best = None;
         let mut best_area = -1.0f32;
@@ -637,9 +651,10 @@ fn kids_of(node: &Bvh2Node, below: impl Fn(usize) -> Bvh2Node) -> ([usize; 4], u
         let f = below(kids[k]).first_index as usize;
         kids[k] = f;
         kids[len] = f + 1;
+        opened[len - 2] = k;
         len += 1;
     }
-    (kids, len)
+    (kids, len, shape_code(len, opened))
 }
 
 /// The binary-to-4-wide conversion. Pass 1 ([`Converter::analyse`], bottom-up) decides the leaf
@@ -741,7 +756,7 @@ impl<'a> Converter<'a> {
     /// The binary nodes that become the children of the 4-wide node headed by inner node `i`
     /// ([`kids_of`]).
     #[inline]
-    fn kids(&self, i: usize) -> ([usize; 4], usize) {
+    fn kids(&self, i: usize) -> ([usize; 4], usize, u32) {
         kids_of(&self.node(i), |j| self.node(j))
     }
 
@@ -779,7 +794,7 @@ impl<'a> Converter<'a> {
     /// `base`) and its subtree after it, and the subtree's leaf slots to `prims` (first global slot
     /// `pbase`). Returns the number of inner-node levels.
     fn emit(&self, i: usize, nodes: &mut [MaybeUninit<Node4>], base: u32, prims: &mut [u32], pbase: u32) -> usize {
-        let (kids, len) = self.kids(i);
+        let (kids, len, shape) = self.kids(i);
         // The kids' `kids` (or `gather` for collapsed leaves) will read the children of these kids:
         // start loading them (pass 2 is bound by cache misses on the binary nodes).
         for &c in &kids[..len] {
@@ -790,7 +805,7 @@ impl<'a> Converter<'a> {
         }
         let Some((head, mut rest_nodes)) = nodes.split_first_mut() else { unreachable!("nodes4 >= 1") };
         let mut rest_prims = prims;
-        let mut node = Node4::default();
+        let mut node = Node4 { shape, ..Node4::default() };
         let (mut nb, mut pb) = (base + 1, pbase);
         let mut jobs: [Option<Job>; 4] = [None, None, None, None];
         for (k, &c) in kids[..len].iter().enumerate() {
@@ -935,6 +950,7 @@ mod tests {
             let first = bvh2.nodes[n2].first_index as usize;
             let mut kids = [first, first + 1, 0, 0];
             let mut len = 2;
+            let mut opened = [0; 2];
             while len < 4 {
                 let mut best = None;
                 let mut best_area = -1.0f32;
@@ -952,11 +968,12 @@ mod tests {
                 let f = bvh2.nodes[kids[k]].first_index as usize;
                 kids[k] = f;
                 kids[len] = f + 1;
+                opened[len - 2] = k;
                 len += 1;
             }
             let index = self.out.nodes.len();
             self.out.nodes.push(Node4::default());
-            let mut node = Node4::default();
+            let mut node = Node4 { shape: shape_code(len, opened), ..Node4::default() };
             for (k, &c) in kids[..len].iter().enumerate() {
                 let child = &bvh2.nodes[c];
                 let r = if child.is_leaf() { self.emit_leaf(bvh2, c) } else { self.emit_inner(bvh2, c) };

@@ -2,8 +2,10 @@
 //! built with each mesh a worker fetches, so that the worker does not build it again (it still
 //! prepares the triangles and the 8-wide form, which take a fraction of the build).
 //!
-//! Layout: the node count and the leaf-slot count (`u32` each), then each node's six box rows and
-//! four child references (28 little-endian 32-bit values), then the leaf order (`u32` each). The
+//! Layout: the node count and the leaf-slot count (`u32` each), then each node's six box rows,
+//! four child references and shape code (29 little-endian 32-bit values), then the leaf order
+//! (`u32` each). A shape code that does not fit its node is not an error: the 8-wide conversion
+//! then takes the node's children as they are. The
 //! leaves are blocks, as in [`ObjectBvh`](super::object::ObjectBvh): a leaf reference names its
 //! block, and the leaf order has four slots a block, the unused ones [`NO_TRIANGLE`].
 //!
@@ -32,7 +34,7 @@ use glam::{Vec3, Vec3A};
 pub const MAX_WIRE_DEPTH: usize = 256;
 
 /// The values of one node as it travels.
-const NODE_VALUES: usize = 28;
+const NODE_VALUES: usize = 29;
 
 /// Appends `bvh` to `out`.
 pub fn encode_bvh4(bvh: &Bvh4, out: &mut Vec<u8>) {
@@ -48,6 +50,7 @@ pub fn encode_bvh4(bvh: &Bvh4, out: &mut Vec<u8>) {
         for c in n.child {
             out.extend_from_slice(&c.to_le_bytes());
         }
+        out.extend_from_slice(&n.shape.to_le_bytes());
     }
     for &p in &bvh.prim_order {
         out.extend_from_slice(&p.to_le_bytes());
@@ -94,6 +97,7 @@ fn read_nodes(bytes: &[u8]) -> Result<(Vec<Node4>, Vec<u32>, usize), String> {
                 min_z: row(4),
                 max_z: row(5),
                 child: [0, 1, 2, 3].map(|k| v(24 + k)),
+                shape: v(28),
             }
         })
         .collect();
