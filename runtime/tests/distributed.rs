@@ -1719,8 +1719,14 @@ fn a_full_cache_evicts_parts_and_fetches_them_again() -> Result<(), DistributedE
     worker.join().expect("the worker thread")?;
     let first = demands[0];
     assert!(first.fetched_parts > 2 && first.evicted_parts == 0, "{demands:?}");
-    for d in &demands[1..] {
-        assert_eq!((d.evicted_parts, d.fetched_parts), (first.fetched_parts, first.fetched_parts), "{demands:?}");
+    // Each frame drops all the frame before held and fetches again all it holds. How many parts
+    // that is may differ from frame to frame: a render that asks ahead treats a part not yet
+    // come as missed and goes on past it, to parts the finished frame's rays need not reach, and
+    // what has come by then is a matter of timing.
+    for (before, d) in demands.iter().zip(&demands[1..]) {
+        assert_eq!(d.evicted_parts, before.resident_parts, "{demands:?}");
+        assert_eq!(d.fetched_parts, d.resident_parts, "{demands:?}");
+        assert!(d.fetched_parts > 2, "{demands:?}");
         assert_eq!(d.evicted_objects, 3, "{demands:?}");
     }
     Ok(())
