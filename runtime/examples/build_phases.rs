@@ -2,7 +2,9 @@
 //! Prints the phases (binary build: PLOC or binned SAH, which also does the collapse's first pass
 //! where no reinsertion follows; reinsertion; collapse), the 8-wide copy, for each build-quality preset, then the
 //! whole `ObjectBvh::build` (which adds boxes, the 4-wide conversion, the 8-wide copy and triangle
-//! preparation).
+//! preparation). `QUALITY=fast|medium|high|best` picks one preset; `CONVERT_LOOPS=N` and
+//! `WIDEN_LOOPS=N` repeat the 4-wide and 8-wide conversions of each build N times (the repeats
+//! reuse freed memory, as repeated builds in a running renderer do).
 
 use obvhs::{aabb::Aabb, bvh2::reinsertion::ReinsertionOptimizer, ploc::PlocBuilder};
 use rtsl_runtime::accel::binned::{build_binned_summarised, build_binned_with_leaves, merged_leaf_size};
@@ -116,6 +118,13 @@ fn main() {
                 let t = Instant::now();
                 let b8 = Bvh8::from_bvh4(&b4);
                 let t_wide = ms(t);
+                let widen_loops: usize = std::env::var("WIDEN_LOOPS").ok().and_then(|s| s.parse().ok()).unwrap_or(1);
+                for _ in 1..widen_loops {
+                    let t = Instant::now();
+                    let again = Bvh8::from_bvh4(&b4);
+                    assert_eq!(again.nodes.len(), b8.nodes.len());
+                    println!("  widen again {:.1} ms", ms(t));
+                }
                 let t = Instant::now();
                 let object = ObjectBvh::from_bvh4(&mesh, b4.clone());
                 let t_triangles = ms(t) - t_wide;

@@ -16,13 +16,14 @@
 //! - A child reference with [`LEAF_BIT`] clear is the index of an inner `Node8`; with it set, it
 //!   is the 4-wide tree's leaf reference unchanged, so leaf slots, `prim_order` and the prepared
 //!   triangles are shared with the [`Bvh4`]. Empty children have inverted boxes, as there.
-//! - The root is node 0 and every node's children come after it (nodes are numbered by the
-//!   4-wide node and local binary node that head them); child boxes contain their subtree.
+//! - The root is node 0 and nodes are in depth-first pre-order, so every node's children come
+//!   after it; child boxes contain their subtree.
 //! - The leaves of the `Bvh8` are exactly the leaves of the `Bvh4` it was made from.
 
 use super::bvh4::{Bvh4, Node4, EMPTY_CHILD, LEAF_BIT};
 use rayon::prelude::*;
-use std::sync::atomic::{AtomicU8, Ordering};
+use std::mem::MaybeUninit;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// An 8-wide BVH node (see the module documentation for the layout).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -102,50 +103,89 @@ const fn decode_shape(code: u32) -> ([[Side; 2]; 3], usize) {
     (sides, len)
 }
 
-/// [`decode_shape`] of every code of five bits.
-const SHAPES: [([[Side; 2]; 3], usize); 32] = {
-    let mut table = [([[Side::Position(0), Side::Position(0)]; 3], 0); 32];
+/// A 4-wide node's local binary tree, decoded from its shape code: each local node's two
+/// children, and the positions under each local node (bit `k` for position `k`).
+#[derive(Clone, Copy, Debug)]
+struct Shape {
+    sides: [[Side; 2]; 3],
+    under: [u8; 3],
+    len: usize,
+}
+
+/// [`decode_shape`] of every code of five bits, with the positions under each local node.
+const SHAPES: [Shape; 32] = {
+    let mut table = [Shape { sides: [[Side::Position(0), Side::Position(0)]; 3], under: [0; 3], len: 0 }; 32];
     let mut code = 0;
     while code < 32 {
-        table[code] = decode_shape(code as u32);
+        let (sides, len) = decode_shape(code as u32);
+        let mut under = [0u8; 3];
+        // Local node `l`'s children are positions or later local nodes: fill from the last.
+        let mut l = 3;
+        while l > 0 {
+            l -= 1;
+            let mut side = 0;
+            while side < 2 {
+                under[l] |= match sides[l][side] {
+                    Side::Position(k) => 1 << k,
+                    Side::Local(c) => under[c as usize],
+                };
+                side += 1;
+            }
+        }
+        table[code] = Shape { sides, under, len };
         code += 1;
     }
     table
 };
 
-/// The binary structure of a 4-wide node's children that its shape code describes: each local
-/// node's two children (local node 0 is the node itself). `None` where the code does not fit
-/// the node's children (unknown, or damaged): the children are then one flat set under local
-/// node 0.
+/// The binary structure of a 4-wide node's children that its shape code describes. `None` where
+/// the code does not fit the node's children (unknown, or damaged): the children are then one
+/// flat set under local node 0.
 #[inline(always)]
-fn local_tree(node: &Node4) -> Option<&'static [[Side; 2]; 3]> {
-    let (sides, len) = SHAPES.get(node.shape as usize)?;
-    let fits = *len >= 2
-        && node.child[..*len].iter().all(|&c| c != EMPTY_CHILD)
-        && node.child[*len..].iter().all(|&c| c == EMPTY_CHILD);
-    fits.then_some(sides)
+fn local_tree(node: &Node4) -> Option<&'static Shape> {
+    let shape = SHAPES.get(node.shape as usize)?;
+    let filled = node.child.map(|c| c != EMPTY_CHILD);
+    let fits = shape.len >= 2 && (0..4).all(|k| filled[k] == (k < shape.len));
+    fits.then_some(shape)
 }
 
-/// A child of an 8-wide node under construction: the binary node, its box, and its box's half
-/// surface area.
+/// A child of an 8-wide node under construction: the binary node, its box, and its claim to be
+/// opened: its box's half surface area if it is an inner node (not yet found too wide to open),
+/// else below 0.
 #[derive(Clone, Copy, Debug)]
 struct Kid {
     binary: Binary,
     min: [f32; 3],
     max: [f32; 3],
-    half_area: f32,
+    claim: f32,
 }
 
 impl Kid {
-    const EMPTY: Kid = Kid { binary: Binary::Leaf(EMPTY_CHILD), min: [0.0; 3], max: [0.0; 3], half_area: 0.0 };
+    const EMPTY: Kid = Kid { binary: Binary::Leaf(EMPTY_CHILD), min: [0.0; 3], max: [0.0; 3], claim: -1.0 };
 
     fn new(binary: Binary, min: [f32; 3], max: [f32; 3]) -> Kid {
         let d = [max[0] - min[0], max[1] - min[1], max[2] - min[2]];
-        Kid { binary, min, max, half_area: d[0] * d[1] + d[1] * d[2] + d[2] * d[0] }
+        let half_area = d[0] * d[1] + d[1] * d[2] + d[2] * d[0];
+        let claim = match binary {
+            Binary::Inner { .. } if half_area >= 0.0 => half_area,
+            _ => -1.0,
+        };
+        Kid { binary, min, max, claim }
     }
 }
 
 impl Node8 {
+    /// Sets the children of an empty node to `kids`; inner children's references are left at 0.
+    fn set_children(&mut self, kids: &[Kid]) {
+        for (k, kid) in kids.iter().enumerate() {
+            let reference = match kid.binary {
+                Binary::Leaf(r) => r,
+                Binary::Inner { .. } => 0,
+            };
+            self.set_child(k, kid, reference);
+        }
+    }
+
     fn set_child(&mut self, k: usize, kid: &Kid, reference: u32) {
         let (h, j) = (k / 4, k % 4);
         self.min_x[h][j] = kid.min[0];
@@ -171,29 +211,27 @@ impl Bvh8 {
     /// binary node's two children, then repeatedly opens the inner child of largest surface area
     /// (as Embree collapses its binary trees), until it has eight or only leaves.
     ///
-    /// Three passes. 1: from the root down (subtrees in parallel), each 8-wide node's choice marks
-    /// the binary nodes left unopened among its children: they head 8-wide nodes of their own. 2:
-    /// one scan numbers the heads by 4-wide node and local node (a parent before its children). 3:
-    /// each 8-wide node is made on its own, in parallel, by the same choice.
+    /// Nodes come in depth-first pre-order, children in the order they were chosen. The top levels'
+    /// subtrees are made in parallel, each into a [`Piece`] of its own, and the pieces are then
+    /// copied into place, also in parallel; the order is the same with any number of threads.
     pub fn from_bvh4(b4: &Bvh4) -> Bvh8 {
         if b4.nodes.is_empty() {
             return Bvh8::default();
         }
-        let widen = Widen::new(b4);
-        // The 8-wide index of each head: the heads before it, by 4-wide node and local node.
-        let mut index8 = vec![[u32::MAX; 3]; b4.nodes.len()];
-        let mut heads = Vec::new();
-        for (i, slot) in index8.iter_mut().enumerate() {
-            let marks = widen.heads[i].load(Ordering::Relaxed);
-            for (local, entry) in slot.iter_mut().enumerate() {
-                if marks >> local & 1 != 0 {
-                    *entry = heads.len() as u32;
-                    heads.push(Binary::Inner { node: i as u32, local: local as u8 });
-                }
-            }
+        let widen = Widen { b4 };
+        let root = Binary::Inner { node: 0, local: 0 };
+        // One thread makes the same tree in one piece, which needs no copying.
+        let depth = if rayon::current_num_threads() > 1 { parallel_depth(b4.nodes.len()) } else { 0 };
+        let piece = widen.piece(root, depth, b4.nodes.len());
+        if piece.subs.is_empty() {
+            return Bvh8 { nodes: piece.nodes };
         }
-        let mut nodes = Vec::with_capacity(heads.len());
-        heads.par_iter().with_min_len(1024).map(|&h| widen.node(h, &index8)).collect_into_vec(&mut nodes);
+        let mut nodes = Vec::with_capacity(piece.size);
+        place(&piece, &mut nodes.spare_capacity_mut()[..piece.size], 0);
+        // SAFETY: `place` wrote all of the first `piece.size` elements (each piece writes its own
+        // nodes and splits the rest of its slice among its sub-pieces by their sizes, which add up
+        // to the piece's size).
+        unsafe { nodes.set_len(piece.size) };
         Bvh8 { nodes }
     }
 
@@ -204,124 +242,160 @@ impl Bvh8 {
 
     /// Which inner nodes of `b4` head an 8-wide node of [`Bvh8::from_bvh4`]`(b4)` (the others
     /// are opened into an ancestor's 8-wide node), by 4-wide index. A subtree of `b4` headed by
-    /// one of them has the same 8-wide nodes, alone or in the whole tree (pass 1 chooses a node's
-    /// children from its own subtree, and a child it leaves unopened would not have been chosen
-    /// had it been a leaf).
+    /// one of them has the same 8-wide nodes, alone or in the whole tree (a node's children are
+    /// chosen from its own subtree, and a child left unopened would not have been chosen had it
+    /// been a leaf).
     pub fn heads(b4: &Bvh4) -> Vec<bool> {
         if b4.nodes.is_empty() {
             return Vec::new();
         }
-        let widen = Widen::new(b4);
-        widen.heads.iter().map(|h| h.load(Ordering::Relaxed) & 1 != 0).collect()
+        let heads: Vec<AtomicBool> = (0..b4.nodes.len()).map(|_| AtomicBool::new(false)).collect();
+        heads[0].store(true, Ordering::Relaxed);
+        Widen { b4 }.mark(Binary::Inner { node: 0, local: 0 }, &heads, parallel_depth(b4.nodes.len()));
+        heads.into_iter().map(AtomicBool::into_inner).collect()
     }
 }
 
-/// 8-wide nodes less deep than this have their subtrees marked in parallel.
-const PARALLEL_DEPTH: u32 = 5;
+/// About how many 4-wide nodes a parallel task of the conversion covers, at least.
+const PIECE_NODES4: usize = 256;
+
+/// How many levels of 8-wide nodes have their subtrees made in parallel, for a tree of `nodes4`
+/// 4-wide nodes: enough for about one task for every [`PIECE_NODES4`] nodes (8-wide nodes near
+/// the root have up to eight inner children).
+fn parallel_depth(nodes4: usize) -> u32 {
+    let mut depth = 0;
+    while depth < 6 && PIECE_NODES4 << (3 * (depth + 1)) <= nodes4 {
+        depth += 1;
+    }
+    depth
+}
+
+/// A subtree of the 8-wide tree made by one task: its first nodes in pre-order, with inner child
+/// references counted from the piece's first node, followed by the pieces other tasks made, each
+/// with the node and child slot that refers to it (whose reference `place` sets), in pre-order.
+struct Piece {
+    nodes: Vec<Node8>,
+    subs: Vec<(usize, usize, Piece)>,
+    /// Nodes in the piece and its sub-pieces.
+    size: usize,
+}
+
+/// Copies `piece` into `out` (exactly its size), whose first element will be node `base` of the
+/// whole tree; sub-pieces in parallel.
+fn place(piece: &Piece, out: &mut [MaybeUninit<Node8>], base: u32) {
+    let (mine, mut rest) = out.split_at_mut(piece.nodes.len());
+    for (dst, node) in mine.iter_mut().zip(&piece.nodes) {
+        let mut node = *node;
+        for c in &mut node.child {
+            if *c & LEAF_BIT == 0 {
+                *c += base;
+            }
+        }
+        dst.write(node);
+    }
+    let mut offset = base + piece.nodes.len() as u32;
+    let mut jobs = Vec::with_capacity(piece.subs.len());
+    for (at, slot, sub) in &piece.subs {
+        // SAFETY: `mine` was written in full by the loop above.
+        unsafe { mine[*at].assume_init_mut() }.child[*slot] = offset;
+        let (theirs, after) = std::mem::take(&mut rest).split_at_mut(sub.size);
+        rest = after;
+        jobs.push((sub, theirs, offset));
+        offset += sub.size as u32;
+    }
+    jobs.into_par_iter().for_each(|(sub, out, base)| place(sub, out, base));
+}
 
 /// The 4-to-8-wide conversion (see [`Bvh8::from_bvh4`]).
 struct Widen<'a> {
     b4: &'a Bvh4,
-    /// Which of each 4-wide node's local binary nodes head an 8-wide node (bit `local`). Atomic
-    /// only so that pass 1's parallel tasks can write it: each head is marked by the one task that
-    /// makes its parent's choice, and read after all tasks have been joined.
-    heads: Vec<AtomicU8>,
 }
 
-impl<'a> Widen<'a> {
-    /// The conversion of `b4` (not empty) after pass 1.
-    fn new(b4: &'a Bvh4) -> Widen<'a> {
-        let widen = Widen { b4, heads: (0..b4.nodes.len()).map(|_| AtomicU8::new(0)).collect() };
-        widen.heads[0].store(1, Ordering::Relaxed);
-        widen.mark(Binary::Inner { node: 0, local: 0 }, 0);
-        widen
-    }
-
-    /// Pass 1 for the 8-wide subtree headed by binary node `head`, at 8-wide depth `depth`.
-    fn mark(&self, head: Binary, depth: u32) {
+impl Widen<'_> {
+    /// The 8-wide subtree headed by binary node `head`, with the subtrees of its children made
+    /// in parallel while `parallel_depth` is above 0. `nodes4` is about how many 4-wide nodes
+    /// it covers.
+    fn piece(&self, head: Binary, parallel_depth: u32, nodes4: usize) -> Piece {
+        if parallel_depth == 0 {
+            // 8-wide nodes are about two thirds as many as 4-wide ones.
+            let mut nodes = Vec::with_capacity(nodes4 / 4 * 3 + 1);
+            self.grow(head, &mut nodes);
+            return Piece { size: nodes.len(), nodes, subs: Vec::new() };
+        }
+        let mut nodes = vec![Node8::default()];
         let (kids, n) = self.kids(head);
-        let mut heads = [Binary::Leaf(EMPTY_CHILD); 8];
-        let mut count = 0;
-        for kid in &kids[..n] {
-            if let Binary::Inner { node, local } = kid.binary {
-                self.heads[node as usize].fetch_or(1 << local, Ordering::Relaxed);
-                heads[count] = kid.binary;
-                count += 1;
-            }
-        }
-        if depth < PARALLEL_DEPTH {
-            heads[..count].par_iter().for_each(|&h| self.mark(h, depth + 1));
-        } else {
-            for &h in &heads[..count] {
-                self.mark(h, depth + 1);
+        nodes[0].set_children(&kids[..n]);
+        let inner: Vec<(usize, Binary)> = kids[..n]
+            .iter()
+            .enumerate()
+            .filter(|(_, kid)| matches!(kid.binary, Binary::Inner { .. }))
+            .map(|(k, kid)| (k, kid.binary))
+            .collect();
+        let share = nodes4 / inner.len().max(1);
+        let subs: Vec<(usize, usize, Piece)> =
+            inner.into_par_iter().map(|(k, b)| (0, k, self.piece(b, parallel_depth - 1, share))).collect();
+        let size = 1 + subs.iter().map(|(_, _, p)| p.size).sum::<usize>();
+        Piece { nodes, subs, size }
+    }
+
+    /// Appends the 8-wide subtree headed by binary node `head` to `out`, in pre-order, with inner
+    /// references counted from `out`'s first node.
+    fn grow(&self, head: Binary, out: &mut Vec<Node8>) {
+        let me = out.len();
+        let (kids, n) = self.kids(head);
+        out.push(Node8::default());
+        out[me].set_children(&kids[..n]);
+        for (k, kid) in kids[..n].iter().enumerate() {
+            if let Binary::Inner { .. } = kid.binary {
+                out[me].child[k] = out.len() as u32;
+                self.grow(kid.binary, out);
             }
         }
     }
 
-    /// The 8-wide node headed by binary node `head`, given every head's 8-wide index (after pass
-    /// 1).
-    fn node(&self, head: Binary, index8: &[[u32; 3]]) -> Node8 {
-        // Pass 1's choice again, without its search: every inner binary node below `head` that
-        // heads no 8-wide node was opened into it. Each opening replaces a kid by one or more,
-        // so the count only grows on its way to pass 1's, which is at most eight.
-        let mut kids = [Kid::EMPTY; 8];
-        let mut n = self.children(head, &mut kids, 0);
-        let mut k = 0;
-        while k < n {
-            match kids[k].binary {
-                Binary::Inner { node, local }
-                    if self.heads[node as usize].load(Ordering::Relaxed) >> local & 1 == 0 =>
-                {
-                    let opened = kids[k].binary;
-                    kids[k] = kids[n - 1];
-                    n = self.children(opened, &mut kids, n - 1);
-                }
-                _ => k += 1,
+    /// Marks in `heads` the 4-wide nodes that head an 8-wide node in the subtree headed by binary
+    /// node `head` (see [`Bvh8::heads`]).
+    fn mark(&self, head: Binary, heads: &[AtomicBool], parallel_depth: u32) {
+        let (kids, n) = self.kids(head);
+        let inner = kids[..n].iter().filter_map(|kid| match kid.binary {
+            Binary::Inner { node, local } => Some((node, local)),
+            Binary::Leaf(_) => None,
+        });
+        let inner: Vec<(u32, u8)> = inner.collect();
+        let visit = |&(node, local): &(u32, u8)| {
+            if local == 0 {
+                heads[node as usize].store(true, Ordering::Relaxed);
             }
+            self.mark(Binary::Inner { node, local }, heads, parallel_depth.saturating_sub(1));
+        };
+        if parallel_depth > 0 {
+            inner.par_iter().for_each(visit);
+        } else {
+            inner.iter().for_each(visit);
         }
-        let mut node = Node8::default();
-        for (k, kid) in kids[..n].iter().enumerate() {
-            let reference = match kid.binary {
-                Binary::Leaf(r) => r,
-                Binary::Inner { node, local } => index8[node as usize][local as usize],
-            };
-            node.set_child(k, kid, reference);
-        }
-        node
     }
 
     /// The children of the 8-wide node headed by binary node `head`: its children, then
-    /// repeatedly the inner one of largest surface area whose children still fit replaced by them.
+    /// repeatedly the inner one of largest surface area (the first of them on a tie) whose
+    /// children still fit replaced by them, the last child moving into its place.
     fn kids(&self, head: Binary) -> ([Kid; 8], usize) {
         let mut kids = [Kid::EMPTY; 8];
-        let mut n = self.children(head, &mut kids, 0);
-        // Kids found too wide to open here (only flat nodes have more than two children).
-        let mut wide = 0u8;
+        let mut n = self.append_children(head, &mut kids, 0);
         loop {
-            let mut best = None;
-            let mut best_area = -1.0f32;
-            for (k, kid) in kids[..n].iter().enumerate() {
-                if let Binary::Inner { .. } = kid.binary {
-                    if wide >> k & 1 == 0 && kid.half_area > best_area {
-                        best_area = kid.half_area;
-                        best = Some(k);
-                    }
-                }
+            let (k, best) = first_largest(&kids);
+            if best < 0.0 {
+                break;
             }
-            let Some(k) = best else { break };
-            let opened = kids[k].binary;
-            // A node without children (only in a damaged tree) stays: opening it would remove a
-            // kid, and pass 3, which opens in another order, relies on never passing eight.
-            let count = self.child_count(opened);
+            // A node without children (only in a damaged tree) stays rather than vanish.
+            let count = self.child_count(kids[k].binary);
             if count == 0 || n - 1 + count > 8 {
-                wide |= 1 << k;
+                kids[k].claim = -1.0;
                 continue;
             }
-            // The last kid moves into `k`'s place, and its flag with it.
-            wide = (wide & !(1 << k)) | ((wide >> (n - 1) & 1) << k);
-            wide &= !(1 << (n - 1));
+            let opened = kids[k].binary;
             kids[k] = kids[n - 1];
-            n = self.children(opened, &mut kids, n - 1);
+            kids[n - 1] = Kid::EMPTY;
+            n = self.append_children(opened, &mut kids, n - 1);
         }
         (kids, n)
     }
@@ -342,9 +416,16 @@ impl<'a> Widen<'a> {
     }
 
     /// Appends the children of binary node `b` to `out[..n]`; returns the new length.
-    fn children(&self, b: Binary, out: &mut [Kid; 8], mut n: usize) -> usize {
+    #[inline(always)]
+    fn append_children(&self, b: Binary, out: &mut [Kid; 8], mut n: usize) -> usize {
         let Binary::Inner { node, local } = b else { return n };
         let n4 = &self.b4.nodes[node as usize];
+        let mut push = |kid: Kid| {
+            if n < 8 {
+                out[n] = kid;
+                n += 1;
+            }
+        };
         let position = |k: usize| -> Kid {
             let (min, max) = ([n4.min_x[k], n4.min_y[k], n4.min_z[k]], [n4.max_x[k], n4.max_y[k], n4.max_z[k]]);
             let r = n4.child[k];
@@ -358,60 +439,47 @@ impl<'a> Widen<'a> {
             Kid::new(binary, min, max)
         };
         match local_tree(n4) {
-            Some(sides) => {
-                for side in sides[local as usize] {
-                    if n < 8 {
-                        out[n] = match side {
-                            Side::Position(k) => position(k as usize),
-                            Side::Local(l) => {
-                                let (min, max) = local_box(n4, sides, l);
-                                Kid::new(Binary::Inner { node, local: l }, min, max)
-                            }
-                        };
-                        n += 1;
-                    }
+            Some(shape) => {
+                for side in shape.sides[local as usize] {
+                    push(match side {
+                        Side::Position(k) => position(k as usize),
+                        Side::Local(l) => {
+                            let (min, max) = union_of_positions(n4, shape.under[l as usize]);
+                            Kid::new(Binary::Inner { node, local: l }, min, max)
+                        }
+                    });
                 }
             }
-            None => {
+            None if local == 0 => {
                 for k in (0..4).filter(|&k| n4.child[k] != EMPTY_CHILD) {
-                    if n < 8 {
-                        out[n] = position(k);
-                        n += 1;
-                    }
+                    push(position(k));
                 }
             }
+            None => {}
         }
         n
     }
 }
 
-/// The box of local binary node `l` of `n4` (whose local nodes are `sides`): the union of its
-/// positions' stored boxes.
-fn local_box(n4: &Node4, sides: &[[Side; 2]; 3], l: u8) -> ([f32; 3], [f32; 3]) {
+/// The index and claim of the first of the kids with the largest claim, found by comparing pairs,
+/// then pairs of winners (a chain three comparisons long rather than seven).
+#[inline(always)]
+fn first_largest(kids: &[Kid; 8]) -> (usize, f32) {
+    let pick = |a: (usize, f32), b: (usize, f32)| if b.1 > a.1 { b } else { a };
+    let c = |k: usize| (k, kids[k].claim);
+    let (a, b) = (pick(c(0), c(1)), pick(c(2), c(3)));
+    let (d, e) = (pick(c(4), c(5)), pick(c(6), c(7)));
+    pick(pick(a, b), pick(d, e))
+}
+
+/// The union of the stored boxes of `n4`'s positions in `mask` (bit `k` for position `k`).
+fn union_of_positions(n4: &Node4, mask: u8) -> ([f32; 3], [f32; 3]) {
     let (mut min, mut max) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
-    let mut stack = [l; 3];
-    let mut len = 1;
-    while len > 0 {
-        len -= 1;
-        for side in sides[stack[len] as usize] {
-            match side {
-                Side::Local(c) if len < 3 => {
-                    stack[len] = c;
-                    len += 1;
-                }
-                Side::Local(_) => {}
-                Side::Position(k) => {
-                    let k = k as usize;
-                    for (a, (lo, hi)) in
-                        [(n4.min_x[k], n4.max_x[k]), (n4.min_y[k], n4.max_y[k]), (n4.min_z[k], n4.max_z[k])]
-                            .into_iter()
-                            .enumerate()
-                    {
-                        min[a] = min[a].min(lo);
-                        max[a] = max[a].max(hi);
-                    }
-                }
-            }
+    for k in (0..4).filter(|&k| mask >> k & 1 != 0) {
+        let (lo, hi) = ([n4.min_x[k], n4.min_y[k], n4.min_z[k]], [n4.max_x[k], n4.max_y[k], n4.max_z[k]]);
+        for a in 0..3 {
+            min[a] = min[a].min(lo[a]);
+            max[a] = max[a].max(hi[a]);
         }
     }
     (min, max)
@@ -506,6 +574,31 @@ mod tests {
                     assert!(b8.nodes.len() * 5 < b4.nodes.len() * 4, "{} vs {}", b8.nodes.len(), b4.nodes.len());
                 }
             }
+        }
+    }
+
+    /// The nodes are in depth-first pre-order (children in slot order), and the same tree comes
+    /// out with any number of threads: every process that receives a 4-wide tree must traverse
+    /// the same 8-wide one.
+    #[test]
+    fn nodes_are_in_pre_order_whatever_the_threads() {
+        let b4 = Bvh4::build(&boxes(60_000), BuildQuality::High, 1);
+        assert!(parallel_depth(b4.nodes.len()) >= 2, "large enough to be made in pieces");
+        let with = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("a pool");
+            pool.install(|| Bvh8::from_bvh4(&b4))
+        };
+        let one = with(1);
+        let mut order = Vec::new();
+        let mut stack = vec![0u32];
+        while let Some(node) = stack.pop() {
+            order.push(node);
+            let inner = one.nodes[node as usize].child.iter().filter(|&&c| c & LEAF_BIT == 0);
+            stack.extend(inner.rev());
+        }
+        assert!(order.iter().copied().eq(0..one.nodes.len() as u32), "pre-order");
+        for threads in [2, 3, 8] {
+            assert!(with(threads).nodes == one.nodes, "{threads} threads");
         }
     }
 
