@@ -323,7 +323,8 @@ impl Widen<'_> {
             return Piece { size: nodes.len(), nodes, subs: Vec::new() };
         }
         let mut nodes = vec![Node8::default()];
-        let (kids, n) = self.kids(head);
+        let mut kids = [Kid::EMPTY; 8];
+        let n = self.kids(head, &mut kids);
         nodes[0].set_children(&kids[..n]);
         let inner: Vec<(usize, Binary)> = kids[..n]
             .iter()
@@ -342,7 +343,8 @@ impl Widen<'_> {
     /// references counted from `out`'s first node.
     fn grow(&self, head: Binary, out: &mut Vec<Node8>) {
         let me = out.len();
-        let (kids, n) = self.kids(head);
+        let mut kids = [Kid::EMPTY; 8];
+        let n = self.kids(head, &mut kids);
         out.push(Node8::default());
         out[me].set_children(&kids[..n]);
         for (k, kid) in kids[..n].iter().enumerate() {
@@ -356,7 +358,8 @@ impl Widen<'_> {
     /// Marks in `heads` the 4-wide nodes that head an 8-wide node in the subtree headed by binary
     /// node `head` (see [`Bvh8::heads`]).
     fn mark(&self, head: Binary, heads: &[AtomicBool], parallel_depth: u32) {
-        let (kids, n) = self.kids(head);
+        let mut kids = [Kid::EMPTY; 8];
+        let n = self.kids(head, &mut kids);
         let inner = kids[..n].iter().filter_map(|kid| match kid.binary {
             Binary::Inner { node, local } => Some((node, local)),
             Binary::Leaf(_) => None,
@@ -378,11 +381,11 @@ impl Widen<'_> {
     /// The children of the 8-wide node headed by binary node `head`: its children, then
     /// repeatedly the inner one of largest surface area (the first of them on a tie) whose
     /// children still fit replaced by them, the last child moving into its place.
-    fn kids(&self, head: Binary) -> ([Kid; 8], usize) {
-        let mut kids = [Kid::EMPTY; 8];
-        let mut n = self.append_children(head, &mut kids, 0);
+    /// They are written to `kids` (all of whose entries are [`Kid::EMPTY`]); returns how many.
+    fn kids(&self, head: Binary, kids: &mut [Kid; 8]) -> usize {
+        let mut n = self.append_children(head, kids, 0);
         loop {
-            let (k, best) = first_largest(&kids);
+            let (k, best) = first_largest(kids);
             if best < 0.0 {
                 break;
             }
@@ -395,9 +398,9 @@ impl Widen<'_> {
             let opened = kids[k].binary;
             kids[k] = kids[n - 1];
             kids[n - 1] = Kid::EMPTY;
-            n = self.append_children(opened, &mut kids, n - 1);
+            n = self.append_children(opened, kids, n - 1);
         }
-        (kids, n)
+        n
     }
 
     /// How many children binary node `b` has (2, or a flat node's children).
