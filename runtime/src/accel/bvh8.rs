@@ -672,6 +672,47 @@ mod tests {
         assert_eq!(leaves, leaves4(&b4));
     }
 
+    /// A tree as deep as a worker accepts ([`super::super::wire::MAX_WIRE_DEPTH`]), of flat nodes
+    /// (four children, one of them inner: the 8-wide nodes can open few of them) and of nodes whose
+    /// local binary trees nest three deep, converts on a pool's threads (whose stacks are smaller
+    /// than the main thread's), every leaf once, in pre-order.
+    #[test]
+    fn the_deepest_accepted_tree_converts_on_pool_threads() {
+        use crate::accel::bvh4::{leaf_ref, shape_code};
+        use crate::accel::wire::MAX_WIRE_DEPTH;
+        for shape in [0, shape_code(4, [0, 0])] {
+            let levels = MAX_WIRE_DEPTH;
+            let mut nodes = Vec::with_capacity(levels);
+            let mut slot = 0;
+            for i in 0..levels {
+                let mut node = Node4 { shape, ..Node4::default() };
+                for k in 0..4 {
+                    let f = i as f32;
+                    let (lo, hi) = (f + k as f32 * 0.1, levels as f32 + 1.0 - f);
+                    (node.min_x[k], node.min_y[k], node.min_z[k]) = (lo, lo, lo);
+                    (node.max_x[k], node.max_y[k], node.max_z[k]) = (hi, hi, hi);
+                    node.child[k] = if k == 0 && i + 1 < levels {
+                        i as u32 + 1
+                    } else {
+                        slot += 1;
+                        leaf_ref(slot - 1, 1)
+                    };
+                }
+                nodes.push(node);
+            }
+            let b4 = Bvh4 { nodes, prim_order: (0..slot).collect(), bounds: None, depth: levels };
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().expect("a pool");
+            let b8 = pool.install(|| Bvh8::from_bvh4(&b4));
+            let mut leaves: Vec<u32> =
+                b8.nodes.iter().flat_map(|n| n.child).filter(|&c| c & LEAF_BIT != 0 && c != EMPTY_CHILD).collect();
+            leaves.sort_unstable();
+            assert_eq!(leaves, leaves4(&b4), "shape {shape}");
+            for (i, node) in b8.nodes.iter().enumerate() {
+                assert!(node.child.iter().all(|&c| c & LEAF_BIT != 0 || c as usize > i), "children after parents");
+            }
+        }
+    }
+
     #[test]
     fn an_empty_tree_stays_empty() {
         let b8 = Bvh8::from_bvh4(&Bvh4::default());
