@@ -271,11 +271,12 @@ fn parallel_depth(nodes4: usize) -> u32 {
 }
 
 /// A subtree of the 8-wide tree made by one task: its first nodes in pre-order, with inner child
-/// references counted from the piece's first node, followed by the pieces other tasks made, each
-/// with the node and child slot that refers to it (whose reference `place` sets), in pre-order.
+/// references counted from the piece's first node, followed by the pieces other tasks made (only
+/// where the first node is the piece's only node), each with the slot of the first node's child
+/// that refers to it (whose reference `place` sets), in pre-order.
 struct Piece {
     nodes: Vec<Node8>,
-    subs: Vec<(usize, usize, Piece)>,
+    subs: Vec<(usize, Piece)>,
     /// Nodes in the piece and its sub-pieces.
     size: usize,
 }
@@ -295,9 +296,9 @@ fn place(piece: &Piece, out: &mut [MaybeUninit<Node8>], base: u32) {
     }
     let mut offset = base + piece.nodes.len() as u32;
     let mut jobs = Vec::with_capacity(piece.subs.len());
-    for (at, slot, sub) in &piece.subs {
+    for (slot, sub) in &piece.subs {
         // SAFETY: `mine` was written in full by the loop above.
-        unsafe { mine[*at].assume_init_mut() }.child[*slot] = offset;
+        unsafe { mine[0].assume_init_mut() }.child[*slot] = offset;
         let (theirs, after) = std::mem::take(&mut rest).split_at_mut(sub.size);
         rest = after;
         jobs.push((sub, theirs, offset));
@@ -333,9 +334,9 @@ impl Widen<'_> {
             .map(|(k, kid)| (k, kid.binary))
             .collect();
         let share = nodes4 / inner.len().max(1);
-        let subs: Vec<(usize, usize, Piece)> =
-            inner.into_par_iter().map(|(k, b)| (0, k, self.piece(b, parallel_depth - 1, share))).collect();
-        let size = 1 + subs.iter().map(|(_, _, p)| p.size).sum::<usize>();
+        let subs: Vec<(usize, Piece)> =
+            inner.into_par_iter().map(|(k, b)| (k, self.piece(b, parallel_depth - 1, share))).collect();
+        let size = 1 + subs.iter().map(|(_, p)| p.size).sum::<usize>();
         Piece { nodes, subs, size }
     }
 
