@@ -11,8 +11,11 @@
 //! `pow` is one function whether a shader runs in the JIT (four lanes here) or the interpreter.
 //!
 //! Lanes outside the fast path (zero, negative, subnormal, infinite or NaN bases; zero, infinite or
-//! NaN exponents; `|y log2 x| >= 126`, where the result may overflow or underflow) are the
-//! caller's: glibc's own `powf` answers them.
+//! NaN exponents; `y log2 x >= 126`, where the result may overflow; `y log2 x` in `(-150, -149)`,
+//! where glibc's answer depends on how it was built) are the caller's: glibc's own `powf` answers
+//! them. Below that, results that underflow are glibc's too: `+0` from `y log2 x <= -150`, and the
+//! same `2^(y log2 x)`, rounded once to a subnormal, from `-149` to `-126` (a specular highlight's
+//! small cosines to large exponents, most of a lobe's lanes).
 
 // The coefficients as the reference implementation prints them, every digit.
 #![allow(clippy::excessive_precision, clippy::unreadable_literal)]
@@ -112,6 +115,13 @@ const SHIFT: f64 = 0x0018_0000_0000_0000_u64 as f64 / 32.0;
 /// 126`, up to the bits the test looks at).
 const LIMIT: u64 = 126.0f64.to_bits() >> 47;
 
+/// At or below this `y log2 x`, glibc's `powf` of a positive base is `+0` (`__math_uflowf`).
+const ZERO_BELOW: f64 = -150.0;
+
+/// From this `y log2 x` up to [`LIMIT`]'s, glibc's `powf` computes the (subnormal) result as in the
+/// fast path; between [`ZERO_BELOW`] and here, a build that reports underflow answers otherwise.
+const SUBNORMAL_FROM: f64 = -149.0;
+
 /// Whether `x` is a positive normal finite float and `y` a nonzero finite one (as bits).
 #[inline(always)]
 fn in_domain(ix: u32, iy: u32) -> bool {
@@ -159,7 +169,12 @@ pub fn pow(x: f32, y: f32) -> Option<f32> {
     }
     let ylogx = f64::from(y) * log2(ix);
     if (ylogx.to_bits() >> 47 & 0xffff) >= LIMIT {
-        return None;
+        if ylogx <= ZERO_BELOW {
+            return Some(0.0);
+        }
+        if !(SUBNORMAL_FROM..0.0).contains(&ylogx) {
+            return None;
+        }
     }
     Some(exp2(ylogx))
 }
@@ -208,10 +223,18 @@ pub fn pow4(x: [f32; 4], y: [f32; 4]) -> ([f32; 4], i32) {
         let ylogx = _mm256_mul_pd(_mm256_cvtps_pd(ys), logx);
         let high = _mm256_and_si256(_mm256_srli_epi64::<47>(_mm256_castpd_si256(ylogx)), _mm256_set1_epi64x(0xffff));
         let inside = _mm256_cmpgt_epi64(_mm256_set1_epi64x(LIMIT as i64), high);
+        let subnormal = _mm256_castpd_si256(_mm256_and_pd(
+            _mm256_cmp_pd::<_CMP_GE_OQ>(ylogx, _mm256_set1_pd(SUBNORMAL_FROM)),
+            _mm256_cmp_pd::<_CMP_LT_OQ>(ylogx, _mm256_setzero_pd()),
+        ));
+        let zero = _mm256_castpd_si256(_mm256_cmp_pd::<_CMP_LE_OQ>(ylogx, _mm256_set1_pd(ZERO_BELOW)));
         // The 64-bit lanes' verdicts as four 32-bit ones.
-        let inside =
-            _mm256_castsi256_si128(_mm256_permutevar8x32_epi32(inside, _mm256_setr_epi32(0, 2, 4, 6, 0, 2, 4, 6)));
-        let taken = _mm_movemask_ps(_mm_castsi128_ps(_mm_and_si128(domain, inside)));
+        let halves = |v: __m256i| {
+            _mm256_castsi256_si128(_mm256_permutevar8x32_epi32(v, _mm256_setr_epi32(0, 2, 4, 6, 0, 2, 4, 6)))
+        };
+        let zero = halves(zero);
+        let computed = halves(_mm256_or_si256(inside, subnormal));
+        let taken = _mm_movemask_ps(_mm_castsi128_ps(_mm_and_si128(domain, _mm_or_si128(computed, zero))));
 
         // 2^(y log2 x)
         let shift = _mm256_set1_pd(SHIFT);
@@ -226,6 +249,7 @@ pub fn pow4(x: [f32; 4], y: [f32; 4]) -> ([f32; 4], i32) {
         let r2 = _mm256_mul_pd(r, r);
         let yc = _mm256_fmadd_pd(c[2], r, one);
         let power = _mm256_cvtpd_ps(_mm256_mul_pd(_mm256_fmadd_pd(zc, r2, yc), s));
+        let power = _mm_andnot_ps(_mm_castsi128_ps(zero), power);
         let mut out = [0.0f32; 4];
         _mm_storeu_ps(out.as_mut_ptr(), power);
         (out, taken)
@@ -248,12 +272,15 @@ mod tests {
             h ^= h << 17;
             h
         };
-        let mut taken = 0;
+        let (mut taken, mut zeros, mut subnormals) = (0, 0, 0);
         for n in 0..2_000_000u32 {
             let bits = next();
-            let (x, y) = match n % 3 {
+            let (x, y) = match n % 4 {
                 // A cosine to a Phong or Blinn exponent.
                 0 => ((bits >> 40) as f32 / 16_777_216.0, (1 + (bits & 0x7f)) as f32 * 0.37),
+                // A cosine to an exponent as large as a sharp highlight's: most results underflow,
+                // to subnormals or to zero.
+                3 => ((bits >> 40) as f32 / 16_777_216.0, (1 + (bits & 0x3fff)) as f32 * 0.61),
                 // Positive bases over 2^-31 .. 2^27 to exponents in (-4, 4).
                 1 => (
                     f32::from_bits(0x3000_0000 + (bits >> 33) as u32 % 0x1d00_0000),
@@ -268,9 +295,12 @@ mod tests {
             if let Some(p) = pow(x, y) {
                 assert_eq!(p.to_bits(), x.powf(y).to_bits(), "{x:e}^{y:e}");
                 taken += 1;
+                zeros += u32::from(p == 0.0);
+                subnormals += u32::from(p.is_subnormal());
             }
         }
-        assert!(taken > 1_200_000, "only {taken} arguments took the fast path");
+        assert!(taken > 1_400_000, "only {taken} arguments took the fast path");
+        assert!(zeros > 100_000 && subnormals > 5_000, "underflows taken: {zeros} zeros, {subnormals} subnormals");
     }
 
     /// The four-lane form gives the one-lane form's answers, and takes the same lanes, whatever
