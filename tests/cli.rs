@@ -795,6 +795,12 @@ WorldEnd
     // The floor reflects: the frame traced secondary rays.
     let rays = out.lines().find(|l| l.starts_with("rays_per_frame: ")).expect("rays line");
     assert!(!rays.contains("secondary 0,"), "{rays}");
+    // The points shaded and the light batches that lit them: both shaders here ask for lights,
+    // and a light batch lights at most a packet's lanes.
+    let batches = out.lines().find(|l| l.starts_with("shaded_points: ")).expect("batches line");
+    let words: Vec<&str> = batches.split([' ', ',', '(']).filter(|w| !w.is_empty()).collect();
+    let (points, lights): (u64, u64) = (words[1].parse().expect("points"), words[3].parse().expect("batches"));
+    assert!(points > 0 && lights > 0 && points <= 64 * lights, "{batches}");
     // The last frame's tiles (32x24 pixels: two rows of two), and how busy their hand-out keeps
     // threads.
     let tiles = out.lines().find(|l| l.starts_with("tiles: ")).expect("tiles line");

@@ -272,6 +272,13 @@ fn print_rate(
         report.transparency_rays
     );
     println!("mrays_per_second: {:.2}", report.total_rays() as f64 / ms.max(1e-9) / 1e3);
+    // How full the shading batches run: their fixed costs are shared by the lanes of each.
+    println!(
+        "shaded_points: {}, light_batches: {} ({:.1} points a light batch)",
+        report.shaded_points,
+        report.light_evaluations,
+        report.shaded_points as f64 / report.light_evaluations.max(1) as f64
+    );
     print_tile_balance(report);
 }
 
