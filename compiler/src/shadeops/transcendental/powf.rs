@@ -14,8 +14,8 @@
 //! NaN exponents; `y log2 x >= 126`, where the result may overflow; `y log2 x` in `(-150, -149)`,
 //! where glibc's answer depends on how it was built) are the caller's: glibc's own `powf` answers
 //! them. Below that, results that underflow are glibc's too: `+0` from `y log2 x <= -150`, and the
-//! same `2^(y log2 x)`, rounded once to a subnormal, from `-149` to `-126` (a specular highlight's
-//! small cosines to large exponents, most of a lobe's lanes).
+//! same `2^(y log2 x)`, rounded once to a subnormal, from `-149` to `-126` (small cosines to a
+//! sharp highlight's large exponents).
 
 // The coefficients as the reference implementation prints them, every digit.
 #![allow(clippy::excessive_precision, clippy::unreadable_literal)]
